@@ -1,0 +1,63 @@
+// RDF syntax in and out, through serd: N-Triples and Turtle in; N-Triples, Turtle and JSON out.
+// Parsing never stores anything: it yields triples that the caller stores as an item, so a
+// syntax error anywhere leaves the store untouched.
+#pragma once
+
+#include <ostream>
+#include <string>
+#include <string_view>
+#include <vector>
+
+#include "tahvel/node/error.h"
+#include "tahvel/node/node.h"
+#include "tahvel/node/term.h"
+#include "tahvel/uri/iri.h"
+
+namespace tahvel::node {
+
+enum class Format { ntriples, turtle, json };
+
+// "nt"/"ntriples", "ttl"/"turtle", "json". Error invalid_argument naming the value.
+Result<Format> parse_format(std::string_view name);
+
+struct ParseOptions {
+  Format format = Format::turtle;  // ntriples or turtle
+  std::string base_iri;            // for relative IRIs in Turtle; empty: relative IRIs are errors
+  std::string source_name = "<input>";  // used in error messages: "<source>:3:14: ..."
+  uri::PrefixMap prefixes;         // prefixes known before the document's own @prefix lines
+};
+
+// Parses a whole document. Errors: syntax, with message "<source>:LINE:COL: <serd's reason>".
+// Blank-node labels are kept as written (the store renames them on write).
+Result<std::vector<Triple>> parse_rdf(std::string_view text, const ParseOptions& options);
+
+// Writes records one at a time.
+//   ntriples: one line per triple.
+//   turtle:   @prefix lines for `prefixes`, then triples abbreviated by serd.
+//   json:     one JSON object per line per record, with its metadata:
+//     {"id":7,"item":7,"s":{"type":"uri","value":"http://x/a"},
+//      "p":{"type":"uri","value":"..."},
+//      "o":{"type":"literal","value":"72","datatype":"http://www.w3.org/2001/XMLSchema#integer"},
+//      "stored_at":1763719200000000000,"asserted_at":...,"source":"http://x/node/cli",
+//      "context":"","persistent":false}
+//     Term objects follow SPARQL 1.1 JSON results: type uri|bnode|literal, "xml:lang" for tags.
+class RecordWriter {
+ public:
+  RecordWriter(std::ostream& out, Format format, const uri::PrefixMap& prefixes = {});
+  ~RecordWriter();  // calls finish()
+  RecordWriter(const RecordWriter&) = delete;
+  RecordWriter& operator=(const RecordWriter&) = delete;
+
+  void write(const Record& record);
+  void write(const Triple& triple);  // json: metadata keys omitted
+  void finish();                     // flushes serd's pending abbreviations (Turtle)
+
+ private:
+  struct Impl;
+  std::unique_ptr<Impl> impl_;
+};
+
+// Escapes `text` as the body of a JSON string (no quotes added).
+std::string json_escape(std::string_view text);
+
+}  // namespace tahvel::node

@@ -1,0 +1,280 @@
+// The whiteboard node: a semantic triple store in one LMDB environment (a directory), shared by
+// every local agent process, at once their database and their only channel (DESIGN §3).
+//
+//   auto node = Node::open("state/home1");            // every process opens the same directory
+//   auto hrv = node->agent("hrv");                    // IRI = node IRI + "/hrv"; fixes `source`
+//   hrv->subscribe({.p = Term::iri(tv + "rr")});      // a subscription is triples on the board
+//   while (auto d = hrv->take(1000ms)) { ... }        // deliver-once input buffer, woken by futex
+//   hrv->store(item);                                 // atomic item, routed to subscribers
+//
+// Workload: many small items (measurements, 1-10 triples) from a few local writers, a few
+// readers, occasional large literals (1 s ECG chunks). Writers are serialised by LMDB; readers
+// never block and see a consistent snapshot.
+//
+// Threads: a Node, Agent or Snapshot object may be used from one thread at a time. Different
+// objects (also of the same directory) may be used from different threads and processes.
+// Lifetimes: Agent and Snapshot keep the node's environment open; they may outlive the Node
+// object they came from. All results are copies owned by the caller.
+#pragma once
+
+#include <chrono>
+#include <cstdint>
+#include <filesystem>
+#include <functional>
+#include <memory>
+#include <optional>
+#include <string>
+#include <string_view>
+#include <vector>
+
+#include "tahvel/node/error.h"
+#include "tahvel/node/term.h"
+#include "tahvel/uri/iri.h"
+
+namespace tahvel::node {
+
+// ---------------------------------------------------------------------------------------------
+// Records
+
+struct RecordMeta {
+  std::uint64_t id = 0;           // monotonic per node, never reused
+  std::uint64_t item = 0;         // the item it was written in (= the id of its first record)
+  std::int64_t stored_at = 0;     // ns since the Unix epoch, set by the store
+  std::int64_t asserted_at = 0;   // ns since the epoch when the fact held (default: stored_at)
+  std::string source;             // IRI of the writing agent, set by the store, not forgeable
+  std::string context;            // addressee or data group IRI, empty for none
+  bool persistent = false;        // never expires by ring or time-to-live
+};
+
+struct Record {
+  Triple triple;
+  RecordMeta meta;
+};
+
+// A triple pattern with optional metadata filters. An unset position matches anything.
+// A pattern with a bound subject, predicate or object is answered through an index; a pattern
+// with none bound scans the records in id order.
+struct Pattern {
+  std::optional<Term> s, p, o;
+  std::optional<std::string> context;    // exact context IRI ("" matches records without one)
+  std::optional<std::string> source;     // source IRI, or any IRI under it (uri::is_under)
+  std::optional<std::int64_t> since;     // asserted_at >= since (ns)
+  std::optional<std::int64_t> until;     // asserted_at <  until (ns)
+  std::optional<std::uint64_t> after_id; // record id > after_id
+};
+
+struct ListOptions {
+  // Cascade depth: 0 returns the matches only; N also returns, for each match whose object is an
+  // IRI or blank node, the records with that object as subject, recursively to depth N (the
+  // thesis' cascade read). Each record appears once, matches first in id order, each followed by
+  // its sub-tree in depth-first order.
+  unsigned cascade = 0;
+  std::size_t limit = 0;  // at most this many records in all (0: no limit)
+};
+
+// One entry of the change stream that Node::watch returns. Insertions carry the record's id as
+// their sequence; removals get a new sequence number from the same counter, so the stream is
+// totally ordered and a bookmark (the last seq seen) resumes it exactly.
+struct Change {
+  std::uint64_t seq = 0;
+  bool removed = false;
+  Record record;
+};
+
+// ---------------------------------------------------------------------------------------------
+// Snapshot: a consistent, read-only view of the whole whiteboard (an LMDB read transaction).
+// Holding one does not block writers, but keeps the pages it sees from reuse: release it soon.
+
+class Snapshot {
+ public:
+  Snapshot(Snapshot&&) noexcept;
+  Snapshot& operator=(Snapshot&&) noexcept;
+  ~Snapshot();
+
+  // Records matching `pattern` (see ListOptions for cascade and limit).
+  Result<std::vector<Record>> list(const Pattern& pattern, const ListOptions& options = {}) const;
+
+  // Calls `visit` for each match (no cascade) until it returns false. The Record is valid only
+  // during the call. No allocation per record beyond the strings of its terms.
+  Result<void> for_each(const Pattern& pattern,
+                        const std::function<bool(const Record&)>& visit) const;
+
+  // Number of records matching `pattern`.
+  Result<std::uint64_t> count(const Pattern& pattern) const;
+
+  // All current records of one item, in id order. Error not_found when none remain.
+  Result<std::vector<Record>> item(std::uint64_t item_id) const;
+
+  // The highest sequence number (record id or removal) visible in this snapshot.
+  std::uint64_t last_seq() const;
+
+ private:
+  friend class Node;
+  friend class Agent;
+  struct Impl;
+  explicit Snapshot(std::unique_ptr<Impl>);
+  std::unique_ptr<Impl> impl_;
+};
+
+// ---------------------------------------------------------------------------------------------
+// Agent: a handle that fixes an agent's IRI (= node IRI + "/" + id) and so the `source` of what
+// it writes. Owns the agent's output buffer (what it wrote, for audit) and input buffer
+// (deliver-once queue of items routed to it by its subscriptions).
+
+struct Delivery {
+  std::uint64_t item = 0;
+  std::vector<Record> records;  // the whole item as it is now
+};
+
+enum class Ack {
+  automatic,  // take() removes the item from the input buffer in the same transaction
+  manual,     // take() leaves it there; the agent calls ack(item) once it has processed it, so a
+              // crash in between delivers it again after restart
+};
+
+class Agent {
+ public:
+  Agent(Agent&&) noexcept;
+  Agent& operator=(Agent&&) noexcept;
+  ~Agent();
+
+  const std::string& iri() const;
+  const std::string& id() const;
+
+  // Writes `item` atomically: terms are checked (IRIs absolute, literal size within the node's
+  // limit), blank nodes renamed, the item recorded in this agent's output buffer, routed into the
+  // input buffers of matching subscriptions, and subscribers woken. Returns the item id.
+  // Errors: invalid_argument (empty item), invalid_iri, literal_too_large, store_full, io.
+  // On error nothing of the item is stored.
+  Result<std::uint64_t> store(const Item& item) noexcept;
+
+  // Stores many items in one transaction (bulk load). Returns their ids in order.
+  Result<std::vector<std::uint64_t>> store_all(const std::vector<Item>& items) noexcept;
+
+  // The oldest item in this agent's input buffer, waiting up to `timeout` for one to arrive
+  // (woken by the writer's commit, no polling). Returns nullopt on timeout. An item removed from
+  // the store before it was taken is skipped.
+  Result<std::optional<Delivery>> take(std::chrono::milliseconds timeout,
+                                       Ack ack = Ack::automatic) noexcept;
+
+  // Removes `item` from this agent's input buffer. Acknowledging an item that is not there is
+  // not an error (it was acknowledged before).
+  Result<void> ack(std::uint64_t item) noexcept;
+
+  // Number of items waiting in this agent's input buffer.
+  Result<std::uint64_t> pending() const noexcept;
+
+  // Writes a subscription as a persistent item of triples (vocabulary: docs/record-model.md):
+  // from now on every stored item with at least one triple matching the pattern's s, p and o
+  // lands in this agent's input buffer. Other Pattern fields must be unset. Returns the
+  // subscription's item id.
+  Result<std::uint64_t> subscribe(const Pattern& pattern);
+
+  // Removes one of this agent's subscriptions (by the id subscribe returned).
+  Result<void> unsubscribe(std::uint64_t subscription);
+
+  // Item ids in this agent's output buffer after `after`, oldest first (audit of its writes).
+  Result<std::vector<std::uint64_t>> written(std::uint64_t after = 0, std::size_t limit = 0) const;
+
+ private:
+  friend class Node;
+  struct Impl;
+  explicit Agent(std::unique_ptr<Impl>);
+  std::unique_ptr<Impl> impl_;
+};
+
+// ---------------------------------------------------------------------------------------------
+// Node
+
+enum class Durability {
+  fast,     // no fsync on commit: survives a crashed process, not a crashed machine (default)
+  durable,  // each commit synced to disk before store() returns
+};
+
+struct InitOptions {
+  std::string iri;                           // the node's IRI (required, absolute)
+  Durability durability = Durability::fast;
+  std::uint64_t ring = 0;                    // keep at most this many non-persistent records;
+                                             // 0: no ring (explicit removal and TTL only)
+  std::uint64_t max_literal_bytes = 1 << 20; // larger literals are refused
+  std::uint64_t max_map_bytes = 1ull << 36;  // the store may grow to this size (64 GiB), then
+                                             // refuses writes with store_full
+};
+
+struct Stats {
+  std::string iri;
+  Durability durability = Durability::fast;
+  std::uint64_t ring = 0;
+  std::uint64_t max_literal_bytes = 0;
+  std::uint64_t records = 0;             // current records (triples)
+  std::uint64_t persistent_records = 0;
+  std::uint64_t items = 0;
+  std::uint64_t terms = 0;               // entries in the term dictionary
+  std::uint64_t subscriptions = 0;
+  std::uint64_t pending_deliveries = 0;  // items waiting in input buffers, over all agents
+  std::uint64_t last_seq = 0;
+  std::uint64_t reclaimed_records = 0;   // removed by ring or TTL since init
+  std::uint64_t used_bytes = 0;          // pages in use * page size
+  std::uint64_t map_bytes = 0;           // current LMDB map size
+  std::uint64_t max_map_bytes = 0;
+};
+
+class Node {
+ public:
+  // Creates a new store in `dir` (created if missing; must not already hold a store).
+  // Errors: exists, invalid_iri, io.
+  static Result<Node> init(const std::filesystem::path& dir, const InitOptions& options);
+
+  // Opens an existing store. Clears reader slots left by dead processes. Errors: not_found, io,
+  // corrupt, version.
+  static Result<Node> open(const std::filesystem::path& dir);
+
+  Node(Node&&) noexcept;
+  Node& operator=(Node&&) noexcept;
+  ~Node();
+
+  const std::string& iri() const;
+  const std::filesystem::path& dir() const;
+
+  // A handle for agent `id` (IRI = iri() + "/" + id). Errors: invalid_iri for a bad id.
+  Result<Agent> agent(std::string_view id) const;
+
+  Result<Snapshot> snapshot() const;
+
+  // Removes the records matching `pattern` and, with cascade N, their sub-trees (as in
+  // ListOptions). A pattern with nothing bound is refused (invalid_argument). Items waiting in
+  // input buffers are removed from them too. Returns the number of records removed.
+  Result<std::uint64_t> remove(const Pattern& pattern, unsigned cascade = 0);
+
+  // Removes every record of an item, and with cascade N their sub-trees. Error not_found.
+  Result<std::uint64_t> remove_item(std::uint64_t item_id, unsigned cascade = 0);
+
+  // Changes after `bookmark` (a seq), oldest first, at most `limit` (0: no limit). Waits up to
+  // `timeout` for the first one when there is none yet; an empty vector means timeout.
+  Result<std::vector<Change>> watch(std::uint64_t bookmark, std::chrono::milliseconds timeout,
+                                    std::size_t limit = 0) const;
+
+  // Time-to-live for non-persistent records of one predicate (0 removes the rule). Records
+  // older than this (by stored_at) are reclaimed at the next write or reclaim().
+  Result<void> set_ttl(std::string_view predicate_iri, std::chrono::nanoseconds ttl);
+  Result<std::vector<std::pair<std::string, std::chrono::nanoseconds>>> ttls() const;
+
+  // Runs retention now (ring and TTL); returns the number of records reclaimed. Retention also
+  // runs after each write. It never reclaims persistent records nor items waiting in an input
+  // buffer.
+  Result<std::uint64_t> reclaim();
+
+  // Prefixes kept in the store, used to read and write CURIEs; init stores the standard set.
+  Result<void> set_prefix(std::string_view prefix, std::string_view namespace_iri);
+  uri::PrefixMap prefixes() const;
+
+  Result<Stats> stats() const;
+
+ private:
+  friend class Agent;
+  struct Impl;
+  explicit Node(std::shared_ptr<Impl>);
+  std::shared_ptr<Impl> impl_;
+};
+
+}  // namespace tahvel::node

@@ -1,0 +1,87 @@
+// IRIs for Tahvel: parsing and normalisation (RFC 3986 §6, through uriparser), resolution of
+// references, derivation of agent and child-node IRIs, the "is X under Y" test used by routing
+// and authorisation, and CURIE (prefix) expansion.
+//
+// Every function is pure and thread-safe. Errors are values: an invalid IRI gives an IriError
+// whose `position` is the 0-based byte offset in the input where parsing stopped.
+#pragma once
+
+#include <cstddef>
+#include <map>
+#include <string>
+#include <string_view>
+
+#include "tahvel/uri/expected.h"
+
+namespace tahvel::uri {
+
+struct IriError {
+  std::string message;   // one line, names the cause and the position, e.g.
+                         // "invalid IRI 'http://a b' at position 8: unexpected character ' '"
+  std::size_t position;  // 0-based byte offset into the input where the error was found
+};
+
+template <class T>
+using IriResult = Expected<T, IriError>;
+
+// Parses `text` as an absolute IRI (scheme required) and returns its RFC 3986 §6 syntax-based
+// normal form: lower-case scheme and host, upper-case percent-encoding hex digits, decoded
+// unreserved characters, removed dot segments. Non-ASCII characters (RFC 3987) are kept as is.
+IriResult<std::string> normalize(std::string_view text);
+
+// True when `text` parses as an absolute IRI.
+bool is_valid(std::string_view text);
+
+// Resolves `reference` (relative or absolute) against the absolute IRI `base` (RFC 3986 §5.2)
+// and normalises the result.
+IriResult<std::string> resolve(std::string_view base, std::string_view reference);
+
+// Checks an agent or child-node id: non-empty, no '/', '?', '#', whitespace or control
+// characters, and not "." or "..". Returns the id unchanged, or an error naming the position.
+IriResult<std::string> check_id(std::string_view id);
+
+// Agent IRI = node IRI + "/" + id (DESIGN §2). A trailing '/' on the node IRI is not doubled.
+// Errors: invalid node IRI, invalid id.
+IriResult<std::string> agent_iri(std::string_view node_iri, std::string_view id);
+
+// A child node's IRI is derived exactly as an agent's: a child node is an agent of its parent.
+IriResult<std::string> child_node_iri(std::string_view parent_iri, std::string_view child_id);
+
+// True when `iri` equals `ancestor` or lies below it: `ancestor` followed by '/', '#' or '?'
+// (or `ancestor` itself ends in '/' or '#'). Both are compared in normal form; an invalid IRI
+// is under nothing. Examples: under("http://h/home1/ecg", "http://h/home1") is true;
+// under("http://h/home10", "http://h/home1") is false.
+bool is_under(std::string_view iri, std::string_view ancestor);
+
+// The id of `iri` relative to its direct parent `parent` ("ecg" for http://h/home1/ecg under
+// http://h/home1), or an error when `iri` is not exactly one segment below `parent`.
+IriResult<std::string> child_id(std::string_view iri, std::string_view parent);
+
+// Prefix table for CURIEs ("sosa:Observation"). Prefix names follow Turtle's PN_PREFIX
+// (may be empty: ":x").
+class PrefixMap {
+ public:
+  // Adds or replaces a prefix. Errors: invalid prefix name, namespace not an absolute IRI.
+  Expected<void, IriError> add(std::string_view prefix, std::string_view namespace_iri);
+
+  // Expands "p:local" to namespace + local. Input in angle brackets ("<http://x>") is returned
+  // without them; an input that is already an absolute IRI whose scheme is not a known prefix is
+  // returned normalised. Errors: unknown prefix (message names it), invalid result IRI.
+  IriResult<std::string> expand(std::string_view curie_or_iri) const;
+
+  // The shortest CURIE for `iri` whose local part is a valid Turtle PN_LOCAL, or `iri` itself.
+  std::string compact(std::string_view iri) const;
+
+  const std::map<std::string, std::string>& entries() const { return entries_; }
+
+  // rdf, rdfs, xsd, owl, sosa, ssn, prov, geo, tv (Tahvel's own vocabulary).
+  static PrefixMap standard();
+
+ private:
+  std::map<std::string, std::string> entries_;
+};
+
+// Tahvel's vocabulary namespace.
+inline constexpr std::string_view kTahvelNs = "https://w3id.org/tahvel#";
+
+}  // namespace tahvel::uri
