@@ -1,0 +1,144 @@
+// example_agent_cpp.cpp - a worked Tahvel agent in C++, over the C++ API (tahvel/node/node.h).
+// The same agent as example_agent.c; docs/api.md walks through this file.
+//
+//   usage: example_agent_cpp DIR [--count N] [--idle SECONDS]
+//
+// Opens the node store in DIR as agent "example-cpp", subscribes to heart-rate observations
+//     <obs> tv:heartRate "72"^^xsd:integer .          (any numeric literal; <obs> an IRI)
+// and writes one derived item per observation:
+//     _:c a tv:HeartRateClassification ;
+//         tv:heartRateClass "normal" ;                 "low" < 50 <= "normal" <= 100 < "high"
+//         prov:wasDerivedFrom <obs> .                  (left out when <obs> is a blank node:
+//                                                       blank nodes are local to their item)
+// Each item is acknowledged only after its derived item is stored (Ack::manual), so a crash in
+// between delivers it again on restart. Stops after N items, after SECONDS without input
+// (default 10), or on SIGINT/SIGTERM. Exit status: 0 done, 1 Tahvel error, 2 usage.
+#include <csignal>
+#include <cstdlib>
+#include <iostream>
+#include <optional>
+#include <string>
+#include <string_view>
+
+#include "tahvel/node/node.h"
+#include "tahvel/uri/iri.h"
+
+namespace {
+
+namespace tn = tahvel::node;
+using namespace std::chrono_literals;
+
+const std::string kTv(tahvel::uri::kTahvelNs);
+const std::string kProv = "http://www.w3.org/ns/prov#";
+volatile std::sig_atomic_t g_stop = 0;
+
+struct Options {
+  std::string dir;
+  long count = 0;  // 0: no limit
+  long idle_seconds = 10;
+};
+
+std::optional<Options> parse_options(int argc, char** argv) {
+  Options options;
+  for (int i = 1; i < argc; ++i) {
+    const std::string_view arg = argv[i];
+    if ((arg == "--count" || arg == "--idle") && i + 1 < argc) {
+      char* end = nullptr;
+      const long value = std::strtol(argv[++i], &end, 10);
+      if (*argv[i] == '\0' || *end != '\0' || value < 0) return std::nullopt;
+      (arg == "--count" ? options.count : options.idle_seconds) = value;
+    } else if (!arg.starts_with("-") && options.dir.empty()) {
+      options.dir = arg;
+    } else {
+      return std::nullopt;
+    }
+  }
+  if (options.dir.empty()) return std::nullopt;
+  return options;
+}
+
+int report(std::string_view call, const tn::Error& error) {
+  std::cerr << "example_agent_cpp: " << call << " failed: " << tn::errc_name(error.code) << " ("
+            << error.message << ")\n";
+  return 1;
+}
+
+const char* classify(double bpm) {
+  if (bpm < 50) return "low";
+  if (bpm > 100) return "high";
+  return "normal";
+}
+
+// The derived item for one heart-rate record.
+tn::Item derive(const tn::Record& observation) {
+  const double bpm = std::strtod(observation.triple.o.value.c_str(), nullptr);
+  const auto c = tn::Term::blank("c");
+  tn::Item item;
+  item.add(c, tn::Term::iri(std::string(tn::kRdfType)), tn::Term::iri(kTv + "HeartRateClassification"))
+      .add(c, tn::Term::iri(kTv + "heartRateClass"), tn::Term::literal(classify(bpm)));
+  if (observation.triple.s.is_iri())
+    item.add(c, tn::Term::iri(kProv + "wasDerivedFrom"), observation.triple.s);
+  std::cout << "example_agent_cpp: " << observation.triple.s.to_ntriples() << ' '
+            << observation.triple.o.value << " bpm -> " << classify(bpm) << '\n';
+  return item;
+}
+
+// Derives from every heart-rate record of one delivered item.
+tn::Result<void> process(tn::Agent& agent, const tn::Delivery& delivery) {
+  for (const tn::Record& record : delivery.records) {
+    if (record.triple.p.value != kTv + "heartRate" || !record.triple.o.is_literal()) continue;
+    auto stored = agent.store(derive(record));
+    if (!stored) return tahvel::unexpected(stored.error());
+  }
+  return {};
+}
+
+int run(tn::Agent& agent, const Options& options) {
+  long done = 0;
+  long idle_ms = 0;
+  while (!g_stop && (options.count == 0 || done < options.count)) {
+    auto taken = agent.take(1000ms, tn::Ack::manual);
+    if (!taken) return report("take", taken.error());
+    if (!*taken) {  // timeout
+      idle_ms += 1000;
+      if (idle_ms >= options.idle_seconds * 1000) {
+        std::cerr << "example_agent_cpp: no input for " << options.idle_seconds << " s, stopping\n";
+        break;
+      }
+      continue;
+    }
+    idle_ms = 0;
+    const tn::Delivery& delivery = **taken;
+    if (auto processed = process(agent, delivery); !processed)
+      return report("store", processed.error());  // not acknowledged: delivered again
+    if (auto acked = agent.ack(delivery.item); !acked)  // only now
+      return report("ack", acked.error());
+    ++done;
+  }
+  std::cerr << "example_agent_cpp: processed " << done << " item(s)\n";
+  return 0;
+}
+
+}  // namespace
+
+int main(int argc, char** argv) {
+  const auto options = parse_options(argc, argv);
+  if (!options) {
+    std::cerr << "usage: example_agent_cpp DIR [--count N] [--idle SECONDS]\n";
+    return 2;
+  }
+  std::signal(SIGINT, [](int) { g_stop = 1; });
+  std::signal(SIGTERM, [](int) { g_stop = 1; });
+
+  auto node = tn::Node::open(options->dir);
+  if (!node) return report("open " + options->dir, node.error());
+  auto agent = node->agent("example-cpp");
+  if (!agent) return report("agent", agent.error());
+  std::cerr << "example_agent_cpp: running as " << agent->iri() << '\n';
+
+  tn::Pattern pattern;
+  pattern.p = tn::Term::iri(kTv + "heartRate");
+  if (auto subscribed = agent->subscribe(pattern); !subscribed)
+    return report("subscribe", subscribed.error());
+  return run(*agent, *options);
+}

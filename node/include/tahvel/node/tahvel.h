@@ -1,0 +1,244 @@
+/* tahvel.h - the C API of a Tahvel whiteboard node, for small agents in any language.
+ *
+ * This header is the whole contract of the C API. It is a thin layer over the C++ library
+ * (tahvel/node/node.h): same store, same error set, same deliver-once semantics. It compiles
+ * alone as C99 or C++ and needs only <stddef.h> and <stdint.h>.
+ *
+ * A worked agent (error handling shortened; see agents/examples/example_agent.c):
+ *
+ *     tahvel_node* node;  tahvel_agent* agent;  uint64_t sub, item;
+ *     char* text;  size_t len;
+ *     tahvel_node_open("state/home1", &node);
+ *     tahvel_agent_open(node, "classifier", &agent);          IRI = node IRI + "/classifier"
+ *     tahvel_subscribe(agent, NULL, "<https://w3id.org/tahvel#heartRate>", NULL, &sub);
+ *     while (tahvel_take(agent, 1000, &item, &text, &len) == TAHVEL_OK) {
+ *         ... read `text` (N-Triples), tahvel_store(agent, ...) what you derive ...
+ *         tahvel_free(text);
+ *         tahvel_ack(agent, item);                             only now is it gone for good
+ *     }
+ *     tahvel_agent_close(agent);  tahvel_node_close(node);
+ *
+ * Handles. tahvel_node and tahvel_agent are opaque. Every function checks its handle: NULL, or
+ * a handle that was already closed, gives TAHVEL_INVALID_ARGUMENT, never a crash (a closed
+ * handle is recognised until the library hands out a new handle at the same address, so do not
+ * rely on this for more than catching mistakes). An agent handle keeps the node's store open by
+ * itself: it stays valid after tahvel_node_close() of the node it came from.
+ *
+ * Threads. A handle may be used by one thread at a time; different handles (also of the same
+ * directory, and in different processes) may be used concurrently. Do not close a handle while
+ * another thread is inside a call on it. tahvel_strerror() and tahvel_last_error() may be called
+ * from any thread.
+ *
+ * Errors. Every function that can fail returns a tahvel_status: TAHVEL_OK (0) or a positive
+ * code. On failure:
+ *   - the store is unchanged: a failed write leaves nothing of its item behind;
+ *   - every out-parameter has been set to NULL or 0 (so freeing it is always safe);
+ *   - tahvel_last_error() returns a one-line message naming the function, the cause and the
+ *     place (line and column for syntax errors, the IRI for bad IRIs, the path for I/O).
+ * No C++ exception ever leaves this API.
+ *
+ * Memory. Strings the caller must free are returned through `char**` out-parameters, are
+ * NUL-terminated (the length out-parameter excludes the NUL), and are freed with tahvel_free().
+ * Strings returned as `const char*` are owned by the library; each function says how long they
+ * stay valid.
+ *
+ * Terms. Patterns take RDF terms in N-Triples syntax, one term per argument:
+ *     "<http://example.org/x>"                                 an IRI
+ *     "\"72\"^^<http://www.w3.org/2001/XMLSchema#integer>"     a typed literal
+ *     "\"hello\""  "\"tere\"@et"                               plain and language-tagged literals
+ *     "_:b12"                                                  a blank node, as the store
+ *                                                              returned it
+ * NULL (or "") matches any term. Surrounding spaces are ignored. Blank-node labels are renamed
+ * when an item is stored (they are local to their item), so a blank node only matches the
+ * label the store gave it, as seen in the output of tahvel_take() or tahvel_list().
+ *
+ * Output text. tahvel_take() and tahvel_list() return N-Triples: one triple per line, each line
+ * ending in " .\n", IRIs in angle brackets, xsd:string literals without a datatype.
+ */
+#ifndef TAHVEL_NODE_TAHVEL_H
+#define TAHVEL_NODE_TAHVEL_H
+
+#include <stddef.h>
+#include <stdint.h>
+
+#ifdef __cplusplus
+extern "C" {
+#endif
+
+/* ------------------------------------------------------------------------------------------ */
+/* Status codes. 1 to 11 have the values of tahvel::node::Errc in tahvel/node/error.h.         */
+
+typedef enum tahvel_status {
+  TAHVEL_OK = 0,                 /* success */
+  TAHVEL_INVALID_ARGUMENT = 1,   /* a bad parameter: NULL or closed handle, NULL required
+                                    out-parameter, bad format code, a term in the wrong
+                                    position (a literal as subject), empty item, ... */
+  TAHVEL_INVALID_IRI = 2,        /* an IRI that does not parse; message names the position */
+  TAHVEL_SYNTAX = 3,             /* N-Triples/Turtle input error; message names line and column */
+  TAHVEL_LITERAL_TOO_LARGE = 4,  /* a literal over the node's limit; message names the sizes */
+  TAHVEL_STORE_FULL = 5,         /* the store reached its configured maximum size */
+  TAHVEL_NOT_FOUND = 6,          /* no such node directory, item or record */
+  TAHVEL_EXISTS = 7,             /* tahvel_node_init() of a directory that holds a store */
+  TAHVEL_IO = 8,                 /* an operating-system error; message has the cause and path */
+  TAHVEL_CORRUPT = 9,            /* the store's contents are not what this version wrote */
+  TAHVEL_TIMEOUT = 10,           /* a wait ended without the awaited event (tahvel_take()) */
+  TAHVEL_VERSION = 11,           /* the store was written by an incompatible format version */
+  TAHVEL_NO_MEMORY = 100,        /* an allocation failed; nothing was changed */
+  TAHVEL_INTERNAL = 101          /* an unexpected failure inside the library (a bug: please
+                                    report the message of tahvel_last_error()) */
+} tahvel_status;
+
+/* Input formats for tahvel_store(). */
+#define TAHVEL_FORMAT_NTRIPLES 1
+#define TAHVEL_FORMAT_TURTLE 2
+
+/* Opaque handles. */
+typedef struct tahvel_node tahvel_node;
+typedef struct tahvel_agent tahvel_agent;
+
+/* ------------------------------------------------------------------------------------------ */
+/* Errors and memory                                                                          */
+
+/* A short, static, English description of `status` ("no such node, item or record"), or
+ * "unknown status" for a value outside the list above. Never NULL; never to be freed. */
+const char* tahvel_strerror(tahvel_status status);
+
+/* The message of the last failed call in the calling thread, e.g.
+ *     "tahvel_store: <input>:3:14: expected '.'"
+ * or "" when no call has failed in this thread yet. Successful calls do not clear it. The
+ * string is owned by the library and stays valid until the next failing call in this thread.
+ * TAHVEL_TIMEOUT from tahvel_take() counts as a failure here and sets a message too. */
+const char* tahvel_last_error(void);
+
+/* Frees a string returned by tahvel_take() or tahvel_list(). NULL is ignored. */
+void tahvel_free(void* ptr);
+
+/* ------------------------------------------------------------------------------------------ */
+/* Nodes                                                                                      */
+
+/* Opens the existing store in directory `dir` (every process of a node opens the same
+ * directory) and sets *out to a new node handle, to be closed with tahvel_node_close().
+ * Clears reader slots left by dead processes.
+ * Errors: TAHVEL_INVALID_ARGUMENT (dir or out NULL), TAHVEL_NOT_FOUND (no store in `dir`),
+ * TAHVEL_IO, TAHVEL_CORRUPT, TAHVEL_VERSION, TAHVEL_NO_MEMORY. */
+tahvel_status tahvel_node_open(const char* dir, tahvel_node** out);
+
+/* Creates a new store in directory `dir` (created if missing) for the node whose IRI is `iri`
+ * (absolute, e.g. "http://example.org/home1"), with the library's defaults: fast durability
+ * (no fsync), no ring, literals up to 1 MiB, map up to 64 GiB. For other settings create the
+ * store with the C++ API (Node::init) or the `tahvel` command. Sets *out to an open handle.
+ * Errors: TAHVEL_INVALID_ARGUMENT, TAHVEL_EXISTS (`dir` already holds a store),
+ * TAHVEL_INVALID_IRI, TAHVEL_IO, TAHVEL_NO_MEMORY. */
+tahvel_status tahvel_node_init(const char* dir, const char* iri, tahvel_node** out);
+
+/* Closes a node handle. Agent handles opened from it stay valid. NULL is ignored, as is a
+ * handle that is already closed. */
+void tahvel_node_close(tahvel_node* node);
+
+/* The node's IRI. Owned by the handle, valid until tahvel_node_close(node). NULL for a NULL or
+ * closed handle. */
+const char* tahvel_node_iri(const tahvel_node* node);
+
+/* Records matching the pattern (s, p, o: N-Triples terms or NULL for any; see "Terms" above),
+ * read from one consistent snapshot of the whiteboard, as N-Triples text in *ntriples_out
+ * (length in *len_out, may be NULL) that the caller frees with tahvel_free(). No match gives
+ * TAHVEL_OK and an empty string.
+ *   cascade: 0 returns the matches only; N also returns, for each match whose object is an IRI
+ *            or blank node, the records with that object as subject, recursively to depth N.
+ *            Each record appears once: the matches in the order they were stored, each followed
+ *            by its sub-tree.
+ *   limit:   at most this many triples in all; 0 for no limit.
+ * A pattern with a bound s, p or o is answered through an index; all NULL scans every record.
+ * Errors: TAHVEL_INVALID_ARGUMENT (handle or ntriples_out NULL, a literal as s, a non-IRI as p),
+ * TAHVEL_SYNTAX (a term that does not parse), TAHVEL_INVALID_IRI, TAHVEL_IO, TAHVEL_CORRUPT,
+ * TAHVEL_NO_MEMORY. */
+tahvel_status tahvel_list(tahvel_node* node, const char* s, const char* p, const char* o,
+                          unsigned cascade, size_t limit, char** ntriples_out, size_t* len_out);
+
+/* Removes every record of item `item` and, with cascade N, their sub-trees (as in tahvel_list).
+ * The item is also removed from every input buffer it waits in. Sets *removed_out (may be NULL)
+ * to the number of records removed.
+ * Errors: TAHVEL_INVALID_ARGUMENT, TAHVEL_NOT_FOUND (no record of that item remains), TAHVEL_IO,
+ * TAHVEL_STORE_FULL, TAHVEL_NO_MEMORY. */
+tahvel_status tahvel_remove_item(tahvel_node* node, uint64_t item, unsigned cascade,
+                                 uint64_t* removed_out);
+
+/* ------------------------------------------------------------------------------------------ */
+/* Agents                                                                                     */
+
+/* Sets *out to a handle for agent `id` of the node: its IRI is the node IRI + "/" + id, and it
+ * is the `source` of everything the handle stores (the store sets it; an agent cannot forge
+ * it). The id must be non-empty and contain no '/', '?', '#', whitespace or control characters.
+ * Opening a handle with the same id again (for example after a restart) gives the same input
+ * buffer: items taken but not acknowledged by the previous handle are delivered again.
+ * Close the handle with tahvel_agent_close(); it may outlive `node`.
+ * Errors: TAHVEL_INVALID_ARGUMENT, TAHVEL_INVALID_IRI (bad id), TAHVEL_NO_MEMORY. */
+tahvel_status tahvel_agent_open(tahvel_node* node, const char* id, tahvel_agent** out);
+
+/* Closes an agent handle. Items taken and not acknowledged stay in the input buffer and are
+ * delivered again to the next handle of the same id. NULL or a closed handle is ignored. */
+void tahvel_agent_close(tahvel_agent* agent);
+
+/* The agent's IRI. Owned by the handle, valid until tahvel_agent_close(agent). NULL for a NULL
+ * or closed handle. */
+const char* tahvel_agent_iri(const tahvel_agent* agent);
+
+/* Stores one item: the triples of `rdf` (`len` bytes, need not be NUL-terminated), written
+ * together and atomically, with this agent as their source. The item lands in the agent's
+ * output buffer, then in the shared store and in the input buffers of the agents whose
+ * subscriptions match any of its triples, and those agents are woken.
+ *   format:     TAHVEL_FORMAT_NTRIPLES or TAHVEL_FORMAT_TURTLE. Turtle input may use the
+ *               node's prefixes (rdf, rdfs, xsd, owl, sosa, ssn, prov, geo, tv, and those added
+ *               to the node) without declaring them; relative IRIs are errors (no base).
+ *   context:    the IRI of the addressee or data group ("http://x/y" or "<http://x/y>"), or
+ *               NULL or "" for none.
+ *   persistent: nonzero: the item never expires by ring or time-to-live.
+ * Blank nodes are local to the item and renamed. Sets *item_out (may be NULL) to the new item
+ * id (monotonic per node). On any error nothing of the item is stored.
+ * Errors: TAHVEL_INVALID_ARGUMENT (NULL handle, rdf NULL with len > 0, bad format, no triples),
+ * TAHVEL_SYNTAX (message "<input>:LINE:COL: reason"), TAHVEL_INVALID_IRI,
+ * TAHVEL_LITERAL_TOO_LARGE, TAHVEL_STORE_FULL, TAHVEL_IO, TAHVEL_NO_MEMORY. */
+tahvel_status tahvel_store(tahvel_agent* agent, const char* rdf, size_t len, int format,
+                           const char* context, int persistent, uint64_t* item_out);
+
+/* Subscribes the agent to the pattern (s, p, o: N-Triples terms or NULL for any; see "Terms"):
+ * from now on every item stored on the node (by any agent, this one included) with at least
+ * one triple matching the pattern lands in this agent's input buffer, once. The subscription
+ * is itself written on the whiteboard as a persistent item, so it survives restarts of the
+ * agent; calling tahvel_subscribe again with the same pattern writes a second subscription.
+ * Sets *subscription_out (may be NULL) to the subscription's item id.
+ * Errors: TAHVEL_INVALID_ARGUMENT (NULL handle, a literal as s, a non-IRI as p), TAHVEL_SYNTAX,
+ * TAHVEL_INVALID_IRI, TAHVEL_STORE_FULL, TAHVEL_IO, TAHVEL_NO_MEMORY. */
+tahvel_status tahvel_subscribe(tahvel_agent* agent, const char* s, const char* p, const char* o,
+                               uint64_t* subscription_out);
+
+/* Takes the oldest item from the agent's input buffer, waiting up to `timeout_ms` milliseconds
+ * for one to arrive (woken by the writer's commit, no polling). timeout_ms 0 does not wait;
+ * a negative timeout_ms waits without limit.
+ * On success sets *item_out (may be NULL) to the item id and *ntriples_out (may be NULL) to the
+ * whole item as it is now, as N-Triples text with *len_out (may be NULL) bytes, which the
+ * caller frees with tahvel_free().
+ *
+ * TAKE DOES NOT ACKNOWLEDGE. The item stays in the input buffer until tahvel_ack(agent, item).
+ * Process the item first (store what you derive from it), then acknowledge it: if the agent
+ * crashes or closes its handle in between, the item is delivered again to the next handle of
+ * the same agent id. So delivery is at least once; an agent that must not repeat an effect
+ * checks for it (e.g. by the prov:wasDerivedFrom link it wrote) before acting again.
+ * An item removed from the store before it was taken is skipped.
+ *
+ * Returns TAHVEL_TIMEOUT when no item arrived in time (out-parameters set to NULL/0).
+ * Errors: TAHVEL_INVALID_ARGUMENT, TAHVEL_IO, TAHVEL_CORRUPT, TAHVEL_NO_MEMORY. */
+tahvel_status tahvel_take(tahvel_agent* agent, int timeout_ms, uint64_t* item_out,
+                          char** ntriples_out, size_t* len_out);
+
+/* Acknowledges `item`: removes it from the agent's input buffer, so it is not delivered again.
+ * The item itself stays in the store, readable by everyone. Acknowledging an item that is not
+ * in the buffer (acknowledged before, or never delivered) is not an error.
+ * Errors: TAHVEL_INVALID_ARGUMENT, TAHVEL_IO, TAHVEL_NO_MEMORY. */
+tahvel_status tahvel_ack(tahvel_agent* agent, uint64_t item);
+
+#ifdef __cplusplus
+} /* extern "C" */
+#endif
+
+#endif /* TAHVEL_NODE_TAHVEL_H */

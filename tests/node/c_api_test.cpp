@@ -1,0 +1,375 @@
+// Tests of the C API (tahvel.h): roundtrips through a real store in a temporary directory,
+// handle checks, error codes and messages, timeouts, and deliver-once with manual ack across
+// agent restarts. Each case waits on conditions with deadlines (take's timeout), never sleeps.
+#include "tahvel/node/tahvel.h"
+
+#include <gtest/gtest.h>
+#include <stdlib.h>
+
+#include <algorithm>
+#include <cstring>
+#include <filesystem>
+#include <string>
+#include <thread>
+
+#include "tahvel/node/node.h"
+
+namespace {
+
+namespace fs = std::filesystem;
+
+constexpr const char* kNodeIri = "http://example.org/home1";
+constexpr const char* kHeartRate = "<https://w3id.org/tahvel#heartRate>";
+constexpr int kWaitMs = 5000;  // a deadline for events that should happen at once
+
+// One heart-rate observation as N-Triples.
+std::string observation(int n, int bpm) {
+  return "<http://example.org/home1/obs/" + std::to_string(n) + "> " + kHeartRate + " \"" +
+         std::to_string(bpm) + "\"^^<http://www.w3.org/2001/XMLSchema#integer> .\n";
+}
+
+// A string returned by the C API, freed with tahvel_free.
+struct Text {
+  char* data = nullptr;
+  size_t len = 0;
+  ~Text() { tahvel_free(data); }
+  std::string str() const { return data == nullptr ? std::string() : std::string(data, len); }
+};
+
+class CApiTest : public ::testing::Test {
+ protected:
+  void SetUp() override {
+    std::string templ = (fs::temp_directory_path() / "tahvel-capi-XXXXXX").string();
+    ASSERT_NE(mkdtemp(templ.data()), nullptr);
+    root_ = templ;
+    dir_ = (root_ / "store").string();
+    ASSERT_EQ(tahvel_node_init(dir_.c_str(), kNodeIri, &node_), TAHVEL_OK) << tahvel_last_error();
+  }
+
+  void TearDown() override {
+    tahvel_node_close(node_);
+    std::error_code ignored;
+    fs::remove_all(root_, ignored);
+  }
+
+  tahvel_agent* open_agent(const char* id) {
+    tahvel_agent* agent = nullptr;
+    EXPECT_EQ(tahvel_agent_open(node_, id, &agent), TAHVEL_OK) << tahvel_last_error();
+    return agent;
+  }
+
+  uint64_t store_nt(tahvel_agent* agent, const std::string& text) {
+    uint64_t item = 0;
+    EXPECT_EQ(tahvel_store(agent, text.data(), text.size(), TAHVEL_FORMAT_NTRIPLES, nullptr, 0,
+                           &item),
+              TAHVEL_OK)
+        << tahvel_last_error();
+    return item;
+  }
+
+  fs::path root_;
+  std::string dir_;
+  tahvel_node* node_ = nullptr;
+};
+
+TEST_F(CApiTest, IrisFollowTheNodeIri) {
+  EXPECT_STREQ(tahvel_node_iri(node_), kNodeIri);
+  tahvel_agent* agent = open_agent("example-c");
+  EXPECT_STREQ(tahvel_agent_iri(agent), "http://example.org/home1/example-c");
+  tahvel_agent_close(agent);
+}
+
+TEST_F(CApiTest, StoreTakeAckRoundtrip) {
+  tahvel_agent* reader = open_agent("reader");
+  tahvel_agent* writer = open_agent("writer");
+  uint64_t subscription = 0;
+  ASSERT_EQ(tahvel_subscribe(reader, nullptr, kHeartRate, nullptr, &subscription), TAHVEL_OK)
+      << tahvel_last_error();
+  EXPECT_NE(subscription, 0u);
+
+  const uint64_t stored = store_nt(writer, observation(1, 72));
+  ASSERT_NE(stored, 0u);
+
+  uint64_t item = 0;
+  Text text;
+  ASSERT_EQ(tahvel_take(reader, kWaitMs, &item, &text.data, &text.len), TAHVEL_OK)
+      << tahvel_last_error();
+  EXPECT_EQ(item, stored);
+  EXPECT_EQ(text.str(), observation(1, 72));
+  EXPECT_EQ(std::strlen(text.data), text.len);  // NUL-terminated
+  EXPECT_EQ(tahvel_ack(reader, item), TAHVEL_OK) << tahvel_last_error();
+  EXPECT_EQ(tahvel_ack(reader, item), TAHVEL_OK) << "a second ack is not an error";
+
+  EXPECT_EQ(tahvel_take(reader, 0, &item, nullptr, nullptr), TAHVEL_TIMEOUT);
+  tahvel_agent_close(writer);
+  tahvel_agent_close(reader);
+}
+
+TEST_F(CApiTest, TurtleUsesTheNodePrefixesAndListCascades) {
+  tahvel_agent* writer = open_agent("writer");
+  store_nt(writer, observation(7, 120));
+  const std::string turtle =
+      "_:c tv:heartRateClass \"high\" ; prov:wasDerivedFrom <http://example.org/home1/obs/7> .";
+  uint64_t item = 0;
+  ASSERT_EQ(tahvel_store(writer, turtle.data(), turtle.size(), TAHVEL_FORMAT_TURTLE, nullptr, 0,
+                         &item),
+            TAHVEL_OK)
+      << tahvel_last_error();
+
+  Text text;
+  ASSERT_EQ(tahvel_list(node_, nullptr, "<http://www.w3.org/ns/prov#wasDerivedFrom>", nullptr, 1,
+                        0, &text.data, &text.len),
+            TAHVEL_OK)
+      << tahvel_last_error();
+  EXPECT_NE(text.str().find("<http://www.w3.org/ns/prov#wasDerivedFrom> "
+                            "<http://example.org/home1/obs/7> ."),
+            std::string::npos)
+      << text.str();
+  EXPECT_NE(text.str().find(observation(7, 120)), std::string::npos)
+      << "cascade 1 follows the object into the observation:\n"
+      << text.str();
+
+  Text limited;
+  ASSERT_EQ(tahvel_list(node_, nullptr, "<http://www.w3.org/ns/prov#wasDerivedFrom>", nullptr, 1,
+                        1, &limited.data, &limited.len),
+            TAHVEL_OK);
+  const std::string first = limited.str();
+  EXPECT_EQ(std::count(first.begin(), first.end(), '\n'), 1) << first;
+  tahvel_agent_close(writer);
+}
+
+TEST_F(CApiTest, ListMatchesTypedLiteralObjects) {
+  tahvel_agent* writer = open_agent("writer");
+  store_nt(writer, observation(1, 72));
+  store_nt(writer, observation(2, 80));
+  Text text;
+  ASSERT_EQ(tahvel_list(node_, nullptr, kHeartRate,
+                        " \"80\"^^<http://www.w3.org/2001/XMLSchema#integer> ", 0, 0, &text.data,
+                        &text.len),
+            TAHVEL_OK)
+      << tahvel_last_error();
+  EXPECT_EQ(text.str(), observation(2, 80));
+
+  Text none;
+  ASSERT_EQ(tahvel_list(node_, "<http://example.org/nothing>", nullptr, nullptr, 0, 0, &none.data,
+                        &none.len),
+            TAHVEL_OK);
+  ASSERT_NE(none.data, nullptr);
+  EXPECT_EQ(none.len, 0u);
+  tahvel_agent_close(writer);
+}
+
+TEST_F(CApiTest, ContextAndPersistenceReachTheStore) {
+  tahvel_agent* writer = open_agent("writer");
+  const std::string text = observation(3, 60);
+  uint64_t item = 0;
+  ASSERT_EQ(tahvel_store(writer, text.data(), text.size(), TAHVEL_FORMAT_NTRIPLES,
+                         "<http://example.org/group/a>", 1, &item),
+            TAHVEL_OK)
+      << tahvel_last_error();
+  auto node = tahvel::node::Node::open(dir_);
+  ASSERT_TRUE(node) << node.error().message;
+  auto snapshot = node->snapshot();
+  ASSERT_TRUE(snapshot);
+  auto records = snapshot->item(item);
+  ASSERT_TRUE(records) << records.error().message;
+  ASSERT_EQ(records->size(), 1u);
+  EXPECT_EQ(records->front().meta.context, "http://example.org/group/a");
+  EXPECT_TRUE(records->front().meta.persistent);
+  EXPECT_EQ(records->front().meta.source, "http://example.org/home1/writer");
+  tahvel_agent_close(writer);
+}
+
+TEST_F(CApiTest, RemoveItem) {
+  tahvel_agent* writer = open_agent("writer");
+  const uint64_t item = store_nt(writer, observation(1, 72) + observation(2, 73));
+  uint64_t removed = 0;
+  ASSERT_EQ(tahvel_remove_item(node_, item, 0, &removed), TAHVEL_OK) << tahvel_last_error();
+  EXPECT_EQ(removed, 2u);
+  Text text;
+  ASSERT_EQ(tahvel_list(node_, nullptr, kHeartRate, nullptr, 0, 0, &text.data, &text.len),
+            TAHVEL_OK);
+  EXPECT_EQ(text.str(), "");
+  EXPECT_EQ(tahvel_remove_item(node_, item, 0, &removed), TAHVEL_NOT_FOUND);
+  EXPECT_EQ(removed, 0u);
+  tahvel_agent_close(writer);
+}
+
+TEST_F(CApiTest, NullHandlesAreInvalidArguments) {
+  uint64_t id = 1;
+  Text text;
+  const char nt[] = "<http://a/s> <http://a/p> <http://a/o> .";
+  tahvel_node* node = reinterpret_cast<tahvel_node*>(&id);
+  EXPECT_EQ(tahvel_node_open(nullptr, &node), TAHVEL_INVALID_ARGUMENT);
+  EXPECT_EQ(node, nullptr) << "out-parameters are cleared on failure";
+  EXPECT_EQ(tahvel_node_open(dir_.c_str(), nullptr), TAHVEL_INVALID_ARGUMENT);
+  EXPECT_EQ(tahvel_node_init(nullptr, kNodeIri, nullptr), TAHVEL_INVALID_ARGUMENT);
+  tahvel_agent* agent = reinterpret_cast<tahvel_agent*>(&id);
+  EXPECT_EQ(tahvel_agent_open(nullptr, "a", &agent), TAHVEL_INVALID_ARGUMENT);
+  EXPECT_EQ(agent, nullptr);
+  EXPECT_NE(std::string(tahvel_last_error()).find("tahvel_agent_open"), std::string::npos);
+  EXPECT_EQ(tahvel_store(nullptr, nt, sizeof nt - 1, TAHVEL_FORMAT_NTRIPLES, nullptr, 0, &id),
+            TAHVEL_INVALID_ARGUMENT);
+  EXPECT_EQ(id, 0u);
+  EXPECT_EQ(tahvel_subscribe(nullptr, nullptr, nullptr, nullptr, &id), TAHVEL_INVALID_ARGUMENT);
+  EXPECT_EQ(tahvel_take(nullptr, 0, &id, &text.data, &text.len), TAHVEL_INVALID_ARGUMENT);
+  EXPECT_EQ(text.data, nullptr);
+  EXPECT_EQ(tahvel_ack(nullptr, 1), TAHVEL_INVALID_ARGUMENT);
+  EXPECT_EQ(tahvel_list(nullptr, nullptr, nullptr, nullptr, 0, 0, &text.data, &text.len),
+            TAHVEL_INVALID_ARGUMENT);
+  EXPECT_EQ(tahvel_remove_item(nullptr, 1, 0, &id), TAHVEL_INVALID_ARGUMENT);
+  EXPECT_EQ(tahvel_node_iri(nullptr), nullptr);
+  EXPECT_EQ(tahvel_agent_iri(nullptr), nullptr);
+  tahvel_node_close(nullptr);
+  tahvel_agent_close(nullptr);
+  tahvel_free(nullptr);
+}
+
+TEST_F(CApiTest, ClosedHandlesAreInvalidArguments) {
+  tahvel_node* other = nullptr;
+  ASSERT_EQ(tahvel_node_open(dir_.c_str(), &other), TAHVEL_OK) << tahvel_last_error();
+  tahvel_agent* agent = open_agent("a");
+  tahvel_node_close(other);
+  tahvel_agent_close(agent);
+  EXPECT_EQ(tahvel_ack(agent, 1), TAHVEL_INVALID_ARGUMENT);
+  EXPECT_EQ(tahvel_agent_iri(agent), nullptr);
+  EXPECT_EQ(tahvel_remove_item(other, 1, 0, nullptr), TAHVEL_INVALID_ARGUMENT);
+  tahvel_agent_close(agent);  // a second close is ignored
+  tahvel_node_close(other);
+}
+
+TEST_F(CApiTest, AgentOutlivesItsNodeHandle) {
+  tahvel_node* other = nullptr;
+  ASSERT_EQ(tahvel_node_open(dir_.c_str(), &other), TAHVEL_OK) << tahvel_last_error();
+  tahvel_agent* agent = nullptr;
+  ASSERT_EQ(tahvel_agent_open(other, "late", &agent), TAHVEL_OK);
+  tahvel_node_close(other);
+  store_nt(agent, observation(1, 70));
+  tahvel_agent_close(agent);
+}
+
+TEST_F(CApiTest, SyntaxErrorNamesLineAndColumnAndStoresNothing) {
+  tahvel_agent* writer = open_agent("writer");
+  const std::string text = observation(1, 72) + "<http://a/s> <http://a/p> \"unterminated .\n";
+  uint64_t item = 99;
+  EXPECT_EQ(tahvel_store(writer, text.data(), text.size(), TAHVEL_FORMAT_NTRIPLES, nullptr, 0,
+                         &item),
+            TAHVEL_SYNTAX);
+  EXPECT_EQ(item, 0u);
+  const std::string message = tahvel_last_error();
+  EXPECT_NE(message.find("tahvel_store: "), std::string::npos) << message;
+  EXPECT_NE(message.find(":2:"), std::string::npos) << "line 2 and a column: " << message;
+
+  Text listed;
+  ASSERT_EQ(tahvel_list(node_, nullptr, kHeartRate, nullptr, 0, 0, &listed.data, &listed.len),
+            TAHVEL_OK);
+  EXPECT_EQ(listed.str(), "") << "a failed store leaves nothing behind";
+  tahvel_agent_close(writer);
+}
+
+TEST_F(CApiTest, BadTermsAndArguments) {
+  tahvel_agent* agent = open_agent("a");
+  EXPECT_EQ(tahvel_subscribe(agent, "<http://unterminated", nullptr, nullptr, nullptr),
+            TAHVEL_SYNTAX);
+  EXPECT_NE(std::string(tahvel_last_error()).find("subject term"), std::string::npos)
+      << tahvel_last_error();
+  EXPECT_EQ(tahvel_subscribe(agent, "\"literal\"", nullptr, nullptr, nullptr),
+            TAHVEL_INVALID_ARGUMENT);
+  EXPECT_EQ(tahvel_subscribe(agent, nullptr, "_:b1", nullptr, nullptr), TAHVEL_INVALID_ARGUMENT);
+  EXPECT_EQ(tahvel_subscribe(agent, nullptr, nullptr, "<http://a/o> . <http://a/s> <http://a/p> <http://a/o2>",
+                             nullptr),
+            TAHVEL_INVALID_ARGUMENT)
+      << "one term only";
+  const char nt[] = "<http://a/s> <http://a/p> <http://a/o> .";
+  EXPECT_EQ(tahvel_store(agent, nt, sizeof nt - 1, 42, nullptr, 0, nullptr),
+            TAHVEL_INVALID_ARGUMENT);
+  EXPECT_EQ(tahvel_store(agent, "", 0, TAHVEL_FORMAT_NTRIPLES, nullptr, 0, nullptr),
+            TAHVEL_INVALID_ARGUMENT)
+      << "an empty item";
+  EXPECT_EQ(tahvel_store(agent, nt, sizeof nt - 1, TAHVEL_FORMAT_NTRIPLES, "not an iri", 0,
+                         nullptr),
+            TAHVEL_INVALID_IRI);
+  tahvel_node* missing = nullptr;
+  EXPECT_EQ(tahvel_node_open((root_ / "missing").c_str(), &missing), TAHVEL_NOT_FOUND);
+  tahvel_node* again = nullptr;
+  EXPECT_EQ(tahvel_node_init(dir_.c_str(), kNodeIri, &again), TAHVEL_EXISTS);
+  EXPECT_EQ(again, nullptr);
+  tahvel_agent* bad = nullptr;
+  EXPECT_EQ(tahvel_agent_open(node_, "a/b", &bad), TAHVEL_INVALID_IRI);
+  tahvel_agent_close(agent);
+}
+
+TEST_F(CApiTest, TakeTimesOut) {
+  tahvel_agent* agent = open_agent("idle");
+  ASSERT_EQ(tahvel_subscribe(agent, nullptr, kHeartRate, nullptr, nullptr), TAHVEL_OK);
+  uint64_t item = 5;
+  Text text;
+  text.len = 7;
+  EXPECT_EQ(tahvel_take(agent, 50, &item, &text.data, &text.len), TAHVEL_TIMEOUT);
+  EXPECT_EQ(item, 0u);
+  EXPECT_EQ(text.data, nullptr);
+  EXPECT_EQ(text.len, 0u);
+  EXPECT_NE(std::string(tahvel_last_error()).find("tahvel_take"), std::string::npos);
+  tahvel_agent_close(agent);
+}
+
+TEST_F(CApiTest, TakeWakesOnAStoreFromAnotherThread) {
+  tahvel_agent* reader = open_agent("reader");
+  ASSERT_EQ(tahvel_subscribe(reader, nullptr, kHeartRate, nullptr, nullptr), TAHVEL_OK);
+  tahvel_agent* writer = open_agent("writer");
+  std::thread thread([&] { store_nt(writer, observation(9, 99)); });
+  uint64_t item = 0;
+  EXPECT_EQ(tahvel_take(reader, -1, &item, nullptr, nullptr), TAHVEL_OK) << tahvel_last_error();
+  thread.join();
+  EXPECT_NE(item, 0u);
+  tahvel_agent_close(writer);
+  tahvel_agent_close(reader);
+}
+
+TEST_F(CApiTest, UnackedItemIsDeliveredAgainAfterRestartAckedIsNot) {
+  tahvel_agent* reader = open_agent("reader");
+  ASSERT_EQ(tahvel_subscribe(reader, nullptr, kHeartRate, nullptr, nullptr), TAHVEL_OK);
+  tahvel_agent* writer = open_agent("writer");
+  const uint64_t stored = store_nt(writer, observation(1, 72));
+
+  uint64_t item = 0;
+  ASSERT_EQ(tahvel_take(reader, kWaitMs, &item, nullptr, nullptr), TAHVEL_OK);
+  EXPECT_EQ(item, stored);
+  tahvel_agent_close(reader);  // "crash" before the ack
+
+  reader = open_agent("reader");  // restart
+  Text text;
+  ASSERT_EQ(tahvel_take(reader, kWaitMs, &item, &text.data, &text.len), TAHVEL_OK)
+      << "an un-acked item is delivered again: " << tahvel_last_error();
+  EXPECT_EQ(item, stored);
+  EXPECT_EQ(text.str(), observation(1, 72));
+  ASSERT_EQ(tahvel_ack(reader, item), TAHVEL_OK);
+  tahvel_agent_close(reader);
+
+  reader = open_agent("reader");  // restart after the ack
+  EXPECT_EQ(tahvel_take(reader, 100, &item, nullptr, nullptr), TAHVEL_TIMEOUT)
+      << "an acked item is not delivered again";
+  tahvel_agent_close(reader);
+  tahvel_agent_close(writer);
+}
+
+TEST(CApiStatus, StrerrorCoversEveryStatus) {
+  for (int s : {0, 1, 2, 3, 4, 5, 6, 7, 8, 9, 10, 11, 100, 101}) {
+    const char* text = tahvel_strerror(static_cast<tahvel_status>(s));
+    ASSERT_NE(text, nullptr);
+    EXPECT_STRNE(text, "unknown status") << s;
+  }
+  EXPECT_STREQ(tahvel_strerror(static_cast<tahvel_status>(12345)), "unknown status");
+}
+
+TEST(CApiStatus, LastErrorIsPerThread) {
+  EXPECT_EQ(tahvel_ack(nullptr, 1), TAHVEL_INVALID_ARGUMENT);
+  const std::string mine = tahvel_last_error();
+  std::thread([] {
+    EXPECT_STREQ(tahvel_last_error(), "");
+    EXPECT_EQ(tahvel_take(nullptr, 0, nullptr, nullptr, nullptr), TAHVEL_INVALID_ARGUMENT);
+  }).join();
+  EXPECT_EQ(mine, tahvel_last_error());
+}
+
+}  // namespace
