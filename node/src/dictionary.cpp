@@ -1,0 +1,224 @@
+// Term dictionary; see dictionary.h.
+#include "dictionary.h"
+
+#include <charconv>
+
+#include "codec.h"
+
+namespace tahvel::node::detail {
+namespace {
+
+constexpr std::uint8_t kPinned = 1;
+constexpr std::int64_t kInlineIntMin = -(1ll << 59);
+constexpr std::int64_t kInlineIntMax = (1ll << 59) - 1;
+
+bool is_canonical_integer(std::string_view s) {
+  if (s.empty()) return false;
+  std::size_t i = s[0] == '-' ? 1 : 0;
+  if (i == s.size()) return false;
+  if (s[i] == '0') return s.size() == 1;  // "0" only; "-0" and "01" are not canonical
+  for (; i < s.size(); ++i)
+    if (s[i] < '0' || s[i] > '9') return false;
+  return true;
+}
+
+std::string payload(const Term& term, std::uint64_t datatype_id) {
+  std::string out;
+  out.reserve(term.value.size() + term.language.size() + 4);
+  out.push_back(static_cast<char>(term.kind));
+  if (term.kind == TermKind::literal) {
+    codec::put_varint(out, datatype_id);
+    out.push_back(static_cast<char>(term.language.size()));
+    out += term.language;
+  }
+  out += term.value;
+  return out;
+}
+
+bool has_explicit_datatype(const Term& term) {
+  return term.kind == TermKind::literal && term.language.empty() && !term.datatype.empty() &&
+         term.datatype != xsd::kString;
+}
+
+// Looks `bytes` up in term_hash; returns the id or 0.
+Result<std::uint64_t> lookup_payload(MDB_txn* txn, const Env& env, std::string_view bytes,
+                                     std::uint64_t hash) {
+  MDB_cursor* cursor = nullptr;
+  int rc = mdb_cursor_open(txn, env.term_hash, &cursor);
+  if (rc != 0) return lmdb_fail(rc, "opening the term index");
+  MDB_val k = val(hash), v;
+  std::uint64_t found = 0;
+  for (rc = mdb_cursor_get(cursor, &k, &v, MDB_SET_KEY); rc == 0;
+       rc = mdb_cursor_get(cursor, &k, &v, MDB_NEXT_DUP)) {
+    std::uint64_t id = u64(v);
+    MDB_val tk = val(id), tv;
+    if (mdb_get(txn, env.terms, &tk, &tv) == 0 && tv.mv_size >= 1 && view(tv).substr(1) == bytes) {
+      found = id;
+      break;
+    }
+  }
+  mdb_cursor_close(cursor);
+  if (rc != 0 && rc != MDB_NOTFOUND) return lmdb_fail(rc, "reading the term index");
+  return found;
+}
+
+Result<void> pin(Txn& txn, std::uint64_t id) {
+  MDB_val k = val(id), v;
+  int rc = mdb_get(txn.raw(), txn.env().terms, &k, &v);
+  if (rc != 0) return lmdb_fail(rc, "reading term " + std::to_string(id));
+  if (static_cast<const std::uint8_t*>(v.mv_data)[0] & kPinned) return {};
+  std::string value(view(v));
+  value[0] = static_cast<char>(value[0] | kPinned);
+  MDB_val nv = val(value);
+  rc = mdb_put(txn.raw(), txn.env().terms, &k, &nv, 0);
+  if (rc != 0) return lmdb_fail(rc, "pinning term " + std::to_string(id));
+  return {};
+}
+
+Result<bool> index_has(MDB_txn* txn, MDB_dbi dbi, std::uint64_t id) {
+  MDB_val k = val(id), v;
+  int rc = mdb_get(txn, dbi, &k, &v);
+  if (rc == MDB_NOTFOUND) return false;
+  if (rc != 0) return lmdb_fail(rc, "reading an index");
+  return true;
+}
+
+}  // namespace
+
+std::optional<std::uint64_t> inline_id(const Term& term) {
+  if (term.kind == TermKind::blank) {
+    std::string_view label = term.value;
+    if (label.size() < 2 || label[0] != 'b' || label[1] == '0') return std::nullopt;
+    std::uint64_t n = 0;
+    auto [end, ec] = std::from_chars(label.data() + 1, label.data() + label.size(), n);
+    if (ec != std::errc() || end != label.data() + label.size() || n > kInlinePayloadMask) return std::nullopt;
+    return inline_blank(n);
+  }
+  if (term.kind == TermKind::literal && term.language.empty() && term.datatype == xsd::kInteger &&
+      is_canonical_integer(term.value)) {
+    std::int64_t v = 0;
+    auto [end, ec] = std::from_chars(term.value.data(), term.value.data() + term.value.size(), v);
+    if (ec != std::errc() || v < kInlineIntMin || v > kInlineIntMax) return std::nullopt;
+    return kInlineBit | (kInlineInteger << kInlineKindShift) |
+           (static_cast<std::uint64_t>(v) & kInlinePayloadMask);
+  }
+  return std::nullopt;
+}
+
+Result<std::uint64_t> find_term(MDB_txn* txn, const Env& env, const Term& term) {
+  if (auto id = inline_id(term)) return *id;
+  if (term.kind == TermKind::blank) return std::uint64_t{0};
+  std::uint64_t datatype_id = 0;
+  if (has_explicit_datatype(term)) {
+    auto dt = find_term(txn, env, Term::iri(term.datatype));
+    if (!dt) return dt;
+    if (*dt == 0) return std::uint64_t{0};
+    datatype_id = *dt;
+  }
+  std::string bytes = payload(term, datatype_id);
+  return lookup_payload(txn, env, bytes, codec::hash64(bytes));
+}
+
+Result<std::uint64_t> intern_term(Txn& txn, const Term& term, bool pinned) {
+  if (auto id = inline_id(term)) return *id;
+  std::uint64_t datatype_id = 0;
+  if (has_explicit_datatype(term)) {
+    auto dt = intern_term(txn, Term::iri(term.datatype), true);
+    if (!dt) return dt;
+    datatype_id = *dt;
+  }
+  std::string bytes = payload(term, datatype_id);
+  std::uint64_t hash = codec::hash64(bytes);
+  auto existing = lookup_payload(txn.raw(), txn.env(), bytes, hash);
+  if (!existing) return existing;
+  if (*existing != 0) {
+    if (pinned) {
+      if (auto p = pin(txn, *existing); !p) return unexpected(p.error());
+    }
+    return *existing;
+  }
+  std::uint64_t id = txn.counters.next_term++;
+  std::string value;
+  value.reserve(bytes.size() + 1);
+  value.push_back(static_cast<char>(pinned ? kPinned : 0));
+  value += bytes;
+  MDB_val k = val(id), v = val(value);
+  int rc = mdb_put(txn.raw(), txn.env().terms, &k, &v, MDB_APPEND);
+  if (rc != 0) return lmdb_fail(rc, "adding a term");
+  MDB_val hk = val(hash), hv = val(id);
+  rc = mdb_put(txn.raw(), txn.env().term_hash, &hk, &hv, 0);
+  if (rc != 0) return lmdb_fail(rc, "indexing a term");
+  ++txn.counters.terms;
+  return id;
+}
+
+Result<void> collect_term_if_unused(Txn& txn, std::uint64_t id) {
+  if (id == 0 || is_inline(id)) return {};
+  MDB_txn* raw = txn.raw();
+  Env& env = txn.env();
+  MDB_val k = val(id), v;
+  int rc = mdb_get(raw, env.terms, &k, &v);
+  if (rc == MDB_NOTFOUND) return {};
+  if (rc != 0) return lmdb_fail(rc, "reading term " + std::to_string(id));
+  if (static_cast<const std::uint8_t*>(v.mv_data)[0] & kPinned) return {};
+  for (MDB_dbi idx : {env.idx_s, env.idx_p, env.idx_o}) {
+    auto used = index_has(raw, idx, id);
+    if (!used) return unexpected(used.error());
+    if (*used) return {};
+  }
+  std::string bytes(view(v).substr(1));
+  std::uint64_t hash = codec::hash64(bytes);
+  MDB_val hk = val(hash), hv = val(id);
+  rc = mdb_del(raw, env.term_hash, &hk, &hv);
+  if (rc != 0 && rc != MDB_NOTFOUND) return lmdb_fail(rc, "unindexing a term");
+  rc = mdb_del(raw, env.terms, &k, nullptr);
+  if (rc != 0) return lmdb_fail(rc, "removing a term");
+  --txn.counters.terms;
+  return {};
+}
+
+Result<Term> TermReader::get(std::uint64_t id) {
+  if (is_inline(id)) {
+    std::uint64_t kind = (id >> kInlineKindShift) & 7;
+    std::uint64_t bits = id & kInlinePayloadMask;
+    if (kind == kInlineBlank) return Term::blank("b" + std::to_string(bits));
+    // Sign-extend the 60-bit payload.
+    auto v = static_cast<std::int64_t>(bits << 4) >> 4;
+    return Term::integer(v);
+  }
+  if (auto it = memo_.find(id); it != memo_.end()) return it->second;
+  MDB_val k = val(id), v;
+  int rc = mdb_get(txn_, env_.terms, &k, &v);
+  if (rc != 0) return lmdb_fail(rc, "reading term " + std::to_string(id));
+  std::string_view bytes = view(v);
+  if (bytes.size() < 2) return fail(Errc::corrupt, "term " + std::to_string(id) + " is truncated");
+  auto kind = static_cast<TermKind>(bytes[1]);
+  std::size_t pos = 2;
+  if (kind != TermKind::literal) {
+    Term term{kind, std::string(bytes.substr(pos)), {}, {}};
+    memo_.emplace(id, term);
+    return term;
+  }
+  std::uint64_t datatype_id = 0;
+  if (!codec::get_varint(bytes, pos, datatype_id) || pos >= bytes.size())
+    return fail(Errc::corrupt, "literal term " + std::to_string(id) + " is truncated");
+  std::size_t lang_len = static_cast<std::uint8_t>(bytes[pos++]);
+  if (pos + lang_len > bytes.size()) return fail(Errc::corrupt, "literal term " + std::to_string(id) + " is truncated");
+  Term term = Term::literal(std::string(bytes.substr(pos + lang_len)));
+  term.language = std::string(bytes.substr(pos, lang_len));
+  if (datatype_id != 0) {
+    auto dt = iri(datatype_id);
+    if (!dt) return unexpected(dt.error());
+    term.datatype = *dt;
+  }
+  return term;
+}
+
+Result<std::string> TermReader::iri(std::uint64_t id) {
+  if (id == 0) return std::string();
+  auto term = get(id);
+  if (!term) return unexpected(term.error());
+  return term->value;
+}
+
+}  // namespace tahvel::node::detail

@@ -1,0 +1,66 @@
+// The term dictionary: each distinct term is stored once and named by a 64-bit id (DESIGN §3).
+//
+// Ids with the top bit set are inline and have no dictionary entry: renamed blank nodes
+// (a per-node counter) and xsd:integer literals in canonical form that fit in 60 bits. They are
+// the bulk of new terms in sensor data, so inlining them keeps the dictionary and the bytes per
+// triple small. Other terms live in table `terms` (id -> flags + payload) and are found by
+// `term_hash` (FNV-1a of the payload -> ids, collisions resolved by comparing payloads).
+//
+// Payload: kind byte, then for IRIs the IRI; for literals varint(datatype id, 0 for xsd:string
+// and language-tagged), language length byte, language, lexical form.
+#pragma once
+
+#include <cstdint>
+#include <optional>
+#include <string>
+#include <unordered_map>
+
+#include "env.h"
+#include "tahvel/node/term.h"
+
+namespace tahvel::node::detail {
+
+inline constexpr std::uint64_t kInlineBit = 1ull << 63;
+inline constexpr std::uint64_t kInlineKindShift = 60;
+inline constexpr std::uint64_t kInlineBlank = 0;
+inline constexpr std::uint64_t kInlineInteger = 1;
+inline constexpr std::uint64_t kInlinePayloadMask = (1ull << 60) - 1;
+
+inline bool is_inline(std::uint64_t id) { return id & kInlineBit; }
+inline std::uint64_t inline_blank(std::uint64_t n) {
+  return kInlineBit | (kInlineBlank << kInlineKindShift) | (n & kInlinePayloadMask);
+}
+inline bool is_blank_id(std::uint64_t id) {
+  return is_inline(id) && ((id >> kInlineKindShift) & 7) == kInlineBlank;
+}
+
+// The inline id of `term` when it has one (canonical xsd:integer in range, or a blank node
+// labelled "b<digits>" as the store writes them).
+std::optional<std::uint64_t> inline_id(const Term& term);
+
+// Finds the id of `term` without creating it; 0 when the store has never seen it.
+Result<std::uint64_t> find_term(MDB_txn* txn, const Env& env, const Term& term);
+
+// Finds or creates the id of `term` (not a blank node: those are renamed by the caller).
+// `pin` marks the term as used outside the indexes (source, context, datatype, buffers), which
+// keeps it from collection.
+Result<std::uint64_t> intern_term(Txn& txn, const Term& term, bool pin);
+
+// Removes dictionary term `id` when no record refers to it any more and it is not pinned.
+Result<void> collect_term_if_unused(Txn& txn, std::uint64_t id);
+
+// Decodes ids to terms, remembering IRIs (predicates, sources and datatypes repeat endlessly).
+// Valid for the life of one transaction.
+class TermReader {
+ public:
+  TermReader(MDB_txn* txn, const Env& env) : txn_(txn), env_(env) {}
+  Result<Term> get(std::uint64_t id);
+  Result<std::string> iri(std::uint64_t id);  // "" for id 0
+
+ private:
+  MDB_txn* txn_;
+  const Env& env_;
+  std::unordered_map<std::uint64_t, Term> memo_;
+};
+
+}  // namespace tahvel::node::detail

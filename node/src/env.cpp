@@ -1,0 +1,272 @@
+// LMDB environment lifecycle, table layout and the growing write transaction. See env.h and
+// docs/record-model.md for what each table holds.
+#include "env.h"
+
+#include <unistd.h>
+
+#include <map>
+#include <utility>
+
+#include "codec.h"
+
+namespace tahvel::node::detail {
+namespace {
+
+constexpr std::uint64_t kInitialMapBytes = 64ull << 20;
+constexpr unsigned kMaxReaders = 510;
+constexpr unsigned kMaxTables = 16;
+
+std::mutex registry_mutex;
+std::map<std::pair<pid_t, std::string>, std::weak_ptr<Env>> registry;
+
+std::string_view key(std::string_view k) { return k; }
+
+Result<std::string> get_meta(MDB_txn* txn, MDB_dbi meta, std::string_view k) {
+  MDB_val kv = val(key(k)), v;
+  int rc = mdb_get(txn, meta, &kv, &v);
+  if (rc != 0) return lmdb_fail(rc, "reading setting '" + std::string(k) + "'");
+  return std::string(view(v));
+}
+
+Result<void> put_meta(MDB_txn* txn, MDB_dbi meta, std::string_view k, std::string_view value) {
+  MDB_val kv = val(k), v = val(value);
+  int rc = mdb_put(txn, meta, &kv, &v, 0);
+  if (rc != 0) return lmdb_fail(rc, "writing setting '" + std::string(k) + "'");
+  return {};
+}
+
+std::string u64_bytes(std::uint64_t x) { return std::string(reinterpret_cast<const char*>(&x), sizeof x); }
+std::uint64_t bytes_u64(std::string_view s) {
+  std::uint64_t x = 0;
+  std::memcpy(&x, s.data(), std::min(s.size(), sizeof x));
+  return x;
+}
+
+}  // namespace
+
+Error lmdb_error(int rc, std::string_view what) {
+  Errc code = Errc::io;
+  if (rc == MDB_MAP_FULL) code = Errc::store_full;
+  else if (rc == MDB_NOTFOUND || rc == ENOENT) code = Errc::not_found;
+  else if (rc == MDB_VERSION_MISMATCH) code = Errc::version;
+  else if (rc == MDB_INVALID || rc == MDB_CORRUPTED || rc == MDB_PAGE_NOTFOUND) code = Errc::corrupt;
+  return Error{code, std::string(what) + ": " + mdb_strerror(rc)};
+}
+
+Result<Counters> load_counters(MDB_txn* txn, MDB_dbi meta) {
+  MDB_val k = val(std::string_view("counters")), v;
+  int rc = mdb_get(txn, meta, &k, &v);
+  if (rc != 0) return lmdb_fail(rc, "reading counters");
+  Counters c;
+  if (v.mv_size != sizeof c) return fail(Errc::corrupt, "counters record has the wrong size");
+  std::memcpy(&c, v.mv_data, sizeof c);
+  return c;
+}
+
+Result<void> save_counters(MDB_txn* txn, MDB_dbi meta, const Counters& c) {
+  MDB_val k = val(std::string_view("counters")), v = val(&c, sizeof c);
+  int rc = mdb_put(txn, meta, &k, &v, 0);
+  if (rc != 0) return lmdb_fail(rc, "writing counters");
+  return {};
+}
+
+Env::~Env() {
+  if (env_) mdb_env_close(env_);
+}
+
+Result<void> Env::open_tables(MDB_txn* txn, bool create) {
+  struct Table { const char* name; MDB_dbi* dbi; unsigned flags; };
+  const unsigned dupfixed = MDB_DUPSORT | MDB_DUPFIXED | MDB_INTEGERDUP;
+  const Table tables[] = {
+      {"meta", &meta, 0},
+      {"terms", &terms, MDB_INTEGERKEY},
+      {"term_hash", &term_hash, MDB_INTEGERKEY | dupfixed},
+      {"records", &records, MDB_INTEGERKEY},
+      {"items", &items, MDB_INTEGERKEY},
+      {"idx_s", &idx_s, MDB_INTEGERKEY | dupfixed},
+      {"idx_p", &idx_p, MDB_INTEGERKEY | dupfixed},
+      {"idx_o", &idx_o, MDB_INTEGERKEY | dupfixed},
+      {"inbox", &inbox, MDB_INTEGERKEY | dupfixed},
+      {"outbox", &outbox, MDB_INTEGERKEY | dupfixed},
+      {"ring", &ring, MDB_INTEGERKEY},
+      {"removals", &removals, MDB_INTEGERKEY},
+  };
+  for (const auto& t : tables) {
+    int rc = mdb_dbi_open(txn, t.name, t.flags | (create ? MDB_CREATE : 0), t.dbi);
+    if (rc != 0) return lmdb_fail(rc, std::string("opening table ") + t.name + " in " + dir_.string());
+  }
+  return {};
+}
+
+Result<std::shared_ptr<Env>> Env::open(const std::filesystem::path& dir_in, const InitOptions* init) {
+  std::error_code ec;
+  if (init) std::filesystem::create_directories(dir_in, ec);
+  auto dir = std::filesystem::weakly_canonical(dir_in, ec);
+  if (ec) dir = dir_in;
+  bool exists = std::filesystem::exists(dir / "data.mdb");
+  if (init && exists) return fail(Errc::exists, dir.string() + " already holds a store");
+  if (!init && !exists) return fail(Errc::not_found, "no store in " + dir.string() + " (run tahvel init)");
+
+  std::lock_guard lock(registry_mutex);
+  auto reg_key = std::make_pair(getpid(), dir.string());
+  if (auto it = registry.find(reg_key); it != registry.end()) {
+    if (auto shared = it->second.lock()) return shared;
+  }
+
+  std::shared_ptr<Env> env(new Env());
+  env->dir_ = dir;
+  int rc = mdb_env_create(&env->env_);
+  if (rc != 0) return lmdb_fail(rc, "creating LMDB environment");
+  mdb_env_set_maxdbs(env->env_, kMaxTables);
+  mdb_env_set_maxreaders(env->env_, kMaxReaders);
+  std::uint64_t initial = kInitialMapBytes;
+  if (init && init->max_map_bytes < initial) initial = init->max_map_bytes;
+  mdb_env_set_mapsize(env->env_, initial);
+  // NOTLS: snapshots are not tied to threads. WRITEMAP: writes go straight to the shared map
+  // (fewer copies); LMDB stays copy-on-write, so a killed writer leaves no trace.
+  unsigned flags = MDB_NOTLS | MDB_WRITEMAP | MDB_NOSYNC | MDB_NOMETASYNC;
+  rc = mdb_env_open(env->env_, dir.c_str(), flags, 0644);
+  if (rc != 0) return lmdb_fail(rc, "opening store " + dir.string());
+  int dead = 0;
+  mdb_reader_check(env->env_, &dead);  // reader slots of dead processes
+
+  if (auto w = env->wake_.open(dir / "wake"); !w) return unexpected(w.error());
+
+  MDB_txn* txn = nullptr;
+  rc = mdb_txn_begin(env->env_, nullptr, 0, &txn);
+  if (rc == MDB_MAP_RESIZED) {
+    mdb_env_set_mapsize(env->env_, 0);
+    rc = mdb_txn_begin(env->env_, nullptr, 0, &txn);
+  }
+  if (rc != 0) return lmdb_fail(rc, "starting the first transaction in " + dir.string());
+  auto body = [&]() -> Result<void> {
+    if (auto t = env->open_tables(txn, init != nullptr); !t) return t;
+    if (init) {
+      Settings s{init->iri, init->durability, init->ring, init->max_literal_bytes, init->max_map_bytes};
+      std::uint32_t version = kFormatVersion;
+      const std::pair<std::string_view, std::string> values[] = {
+          {"version", std::string(reinterpret_cast<const char*>(&version), sizeof version)},
+          {"iri", s.iri},
+          {"durability", s.durability == Durability::durable ? "durable" : "fast"},
+          {"ring", u64_bytes(s.ring)},
+          {"max_literal", u64_bytes(s.max_literal_bytes)},
+          {"max_map", u64_bytes(s.max_map_bytes)},
+      };
+      for (const auto& [k, v] : values)
+        if (auto r = put_meta(txn, env->meta, k, v); !r) return r;
+      for (const auto& [prefix, ns] : uri::PrefixMap::standard().entries())
+        if (auto r = put_meta(txn, env->meta, "prefix:" + prefix, ns); !r) return r;
+      if (auto r = save_counters(txn, env->meta, Counters{}); !r) return r;
+    }
+    auto version = get_meta(txn, env->meta, "version");
+    if (!version) return fail(Errc::corrupt, dir.string() + " holds no Tahvel store settings");
+    std::uint32_t v = 0;
+    std::memcpy(&v, version->data(), std::min<std::size_t>(version->size(), sizeof v));
+    if (v != kFormatVersion)
+      return fail(Errc::version, dir.string() + " has store format " + std::to_string(v) +
+                                     ", this build reads " + std::to_string(kFormatVersion));
+    auto iri = get_meta(txn, env->meta, "iri");
+    auto durability = get_meta(txn, env->meta, "durability");
+    auto ring = get_meta(txn, env->meta, "ring");
+    auto max_literal = get_meta(txn, env->meta, "max_literal");
+    auto max_map = get_meta(txn, env->meta, "max_map");
+    if (!iri || !durability || !ring || !max_literal || !max_map)
+      return fail(Errc::corrupt, dir.string() + ": store settings incomplete");
+    env->settings_ = Settings{*iri, *durability == "durable" ? Durability::durable : Durability::fast,
+                              bytes_u64(*ring), bytes_u64(*max_literal), bytes_u64(*max_map)};
+    return {};
+  };
+  if (auto r = body(); !r) {
+    mdb_txn_abort(txn);
+    return unexpected(r.error());
+  }
+  rc = mdb_txn_commit(txn);
+  if (rc != 0) return lmdb_fail(rc, "committing the first transaction in " + dir.string());
+  if (env->settings_.durability == Durability::durable) {
+    mdb_env_set_flags(env->env_, MDB_NOSYNC | MDB_NOMETASYNC, 0);
+    if (init) mdb_env_sync(env->env_, 1);
+  }
+  registry[reg_key] = env;
+  return env;
+}
+
+Result<void> Env::begin(MDB_txn** txn, unsigned flags) {
+  for (int attempt = 0; attempt < 2; ++attempt) {
+    int rc = mdb_txn_begin(env_, nullptr, flags, txn);
+    if (rc == 0) {
+      active_txns_.fetch_add(1);
+      return {};
+    }
+    // Another process grew the map: adopt its size and try again.
+    if (rc == MDB_MAP_RESIZED && active_txns_.load() == 0) {
+      std::lock_guard lock(growth_mutex_);
+      mdb_env_set_mapsize(env_, 0);
+      continue;
+    }
+    return lmdb_fail(rc, flags & MDB_RDONLY ? "starting a snapshot" : "starting a write");
+  }
+  return fail(Errc::io, "starting a transaction: map resized repeatedly");
+}
+
+Result<MDB_txn*> Env::begin_read() {
+  MDB_txn* txn = nullptr;
+  if (auto r = begin(&txn, MDB_RDONLY); !r) return unexpected(r.error());
+  return txn;
+}
+
+void Env::end_read(MDB_txn* txn) {
+  mdb_txn_abort(txn);
+  active_txns_.fetch_sub(1);
+}
+
+Result<void> Env::grow() {
+  std::lock_guard lock(growth_mutex_);
+  MDB_envinfo info;
+  mdb_env_info(env_, &info);
+  std::uint64_t current = info.me_mapsize;
+  if (current >= settings_.max_map_bytes)
+    return fail(Errc::store_full, "store full: " + dir_.string() + " reached its maximum of " +
+                                      std::to_string(settings_.max_map_bytes) + " bytes");
+  if (active_txns_.load() != 0)
+    return fail(Errc::store_full, "store full: " + dir_.string() +
+                                      " cannot grow while this process holds a snapshot");
+  std::uint64_t next = std::min(settings_.max_map_bytes, std::max(current * 2, current + kInitialMapBytes));
+  int rc = mdb_env_set_mapsize(env_, next);
+  if (rc != 0) return lmdb_fail(rc, "growing the store map of " + dir_.string());
+  return {};
+}
+
+Result<void> Env::write(const std::function<Result<void>(Txn&)>& body) {
+  for (;;) {
+    MDB_txn* raw = nullptr;
+    if (auto r = begin(&raw, 0); !r) return r;
+    Txn txn(*this, raw);
+    auto run = [&]() -> Result<void> {
+      auto counters = load_counters(raw, meta);
+      if (!counters) return unexpected(counters.error());
+      txn.counters = *counters;
+      if (auto r = body(txn); !r) return r;
+      return save_counters(raw, meta, txn.counters);
+    };
+    auto result = run();
+    int rc = 0;
+    if (result) {
+      rc = mdb_txn_commit(raw);
+    } else {
+      mdb_txn_abort(raw);
+    }
+    active_txns_.fetch_sub(1);
+    bool map_full = (!result && result.error().code == Errc::store_full) || rc == MDB_MAP_FULL;
+    if (map_full) {
+      if (auto g = grow(); !g) return g;
+      continue;
+    }
+    if (!result) return result;
+    if (rc != 0) return lmdb_fail(rc, "committing a write to " + dir_.string());
+    for (auto slot : txn.wake_slots) wake_.bump(slot);
+    wake_.bump(WakeBoard::kAnyCommit);
+    return {};
+  }
+}
+
+}  // namespace tahvel::node::detail

@@ -1,0 +1,149 @@
+// One LMDB environment per node directory, shared by every Node/Agent/Snapshot object of this
+// process (LMDB forbids opening the same environment twice in one process). Owns the named
+// tables, the waking board, the transaction helpers that grow the map when it fills, and the
+// per-process caches of slowly changing data (subscriptions, TTL rules).
+#pragma once
+
+#include <lmdb.h>
+
+#include <atomic>
+#include <cstdint>
+#include <cstring>
+#include <filesystem>
+#include <functional>
+#include <memory>
+#include <mutex>
+#include <string>
+#include <string_view>
+#include <vector>
+
+#include "tahvel/node/error.h"
+#include "tahvel/node/node.h"
+#include "wake.h"
+
+namespace tahvel::node::detail {
+
+inline constexpr std::uint32_t kFormatVersion = 1;
+
+// Counters kept in one meta value so that a write touches one key for all of them.
+struct Counters {
+  std::uint64_t next_seq = 1;      // next record id / removal sequence number
+  std::uint64_t next_term = 1;     // next dictionary id
+  std::uint64_t next_blank = 1;    // next inline blank-node number
+  std::uint64_t sub_gen = 0;       // bumped when subscriptions change
+  std::uint64_t ttl_gen = 0;       // bumped when TTL rules change
+  std::uint64_t records = 0;
+  std::uint64_t persistent_records = 0;
+  std::uint64_t items = 0;
+  std::uint64_t ring_records = 0;  // non-persistent records (what the ring bounds)
+  std::uint64_t reclaimed = 0;
+  std::uint64_t pending = 0;       // entries in all input buffers
+  std::uint64_t removals = 0;      // entries in the removal log
+  std::uint64_t terms = 0;
+  std::uint64_t subscriptions = 0;
+};
+
+// Settings fixed at init.
+struct Settings {
+  std::string iri;
+  Durability durability = Durability::fast;
+  std::uint64_t ring = 0;
+  std::uint64_t max_literal_bytes = 0;
+  std::uint64_t max_map_bytes = 0;
+};
+
+struct Subscription {
+  std::uint64_t item;    // the subscription's own item id
+  std::uint64_t agent;   // term id of the subscriber's IRI
+  std::uint64_t s, p, o; // term ids, 0 = any
+  std::uint32_t slot = 0; // wake slot of the subscriber
+};
+
+struct TtlRule {
+  std::uint64_t predicate;  // term id
+  std::int64_t ttl_ns;
+};
+
+class Txn;
+
+class Env {
+ public:
+  // Opens (or with `init` creates) the environment of `dir`; shared per process.
+  static Result<std::shared_ptr<Env>> open(const std::filesystem::path& dir, const InitOptions* init);
+  ~Env();
+
+  MDB_env* raw() const { return env_; }
+  const Settings& settings() const { return settings_; }
+  const std::filesystem::path& dir() const { return dir_; }
+  WakeBoard& wake() { return wake_; }
+
+  // Table handles.
+  MDB_dbi meta = 0, terms = 0, term_hash = 0, records = 0, items = 0;
+  MDB_dbi idx_s = 0, idx_p = 0, idx_o = 0, inbox = 0, outbox = 0, ring = 0, removals = 0;
+
+  // Runs `body` in a write transaction and commits it. When the map fills, aborts, grows the
+  // map (up to max_map_bytes) and runs `body` again from the start; past the maximum returns
+  // store_full. Any error from `body` aborts: nothing is written.
+  Result<void> write(const std::function<Result<void>(Txn&)>& body);
+
+  // Begins a read-only transaction (a snapshot). The caller ends it with end_read().
+  Result<MDB_txn*> begin_read();
+  void end_read(MDB_txn* txn);
+
+  // Per-process caches, refreshed when the stored generation differs from the cached one.
+  std::mutex cache_mutex;
+  std::uint64_t subs_gen = ~0ull;
+  std::vector<Subscription> subs;
+  std::uint64_t ttl_gen = ~0ull;
+  std::vector<TtlRule> ttl_rules;
+  // Dictionary ids of the subscription vocabulary: interned and pinned at init, so fixed.
+  struct Vocabulary {
+    std::uint64_t subscriber = 0, subject = 0, predicate = 0, object = 0;
+  } vocab;
+
+ private:
+  Env() = default;
+  Result<void> open_tables(MDB_txn* txn, bool create);
+  Result<void> grow();
+  Result<void> begin(MDB_txn** txn, unsigned flags);
+
+  MDB_env* env_ = nullptr;
+  std::filesystem::path dir_;
+  Settings settings_;
+  WakeBoard wake_;
+  std::mutex growth_mutex_;
+  std::atomic<int> active_txns_{0};
+};
+
+// A write transaction with the helpers the write path needs.
+class Txn {
+ public:
+  Txn(Env& env, MDB_txn* txn) : env_(env), txn_(txn) {}
+  Env& env() { return env_; }
+  MDB_txn* raw() { return txn_; }
+  Counters counters;             // loaded before `body`, saved after it
+  std::vector<std::uint32_t> wake_slots;  // woken after commit
+ private:
+  Env& env_;
+  MDB_txn* txn_;
+};
+
+// Error for an LMDB return code, naming the operation.
+Error lmdb_error(int rc, std::string_view what);
+inline Unexpected<Error> lmdb_fail(int rc, std::string_view what) { return {lmdb_error(rc, what)}; }
+
+// Helpers over MDB_val.
+inline MDB_val val(const void* data, std::size_t size) { return MDB_val{size, const_cast<void*>(data)}; }
+inline MDB_val val(std::string_view s) { return val(s.data(), s.size()); }
+inline MDB_val val(const std::uint64_t& v) { return val(&v, sizeof v); }
+inline std::string_view view(const MDB_val& v) { return {static_cast<const char*>(v.mv_data), v.mv_size}; }
+inline std::uint64_t u64(const MDB_val& v) {
+  std::uint64_t x = 0;
+  std::memcpy(&x, v.mv_data, v.mv_size < sizeof x ? v.mv_size : sizeof x);
+  return x;
+}
+
+Result<Counters> load_counters(MDB_txn* txn, MDB_dbi meta);
+Result<void> save_counters(MDB_txn* txn, MDB_dbi meta, const Counters& c);
+
+}  // namespace tahvel::node::detail

@@ -1,0 +1,637 @@
+// Node, Agent and Snapshot: the public C++ API over the environment, the query engine and the
+// write path.
+#include "tahvel/node/node.h"
+
+#include <algorithm>
+
+#include "dictionary.h"
+#include "env.h"
+#include "query.h"
+#include "rows.h"
+#include "write.h"
+
+namespace tahvel::node {
+
+using namespace detail;
+
+namespace {
+
+constexpr std::string_view kSubscriber = "https://w3id.org/tahvel#subscriber";
+constexpr std::string_view kSubject = "https://w3id.org/tahvel#subject";
+constexpr std::string_view kPredicate = "https://w3id.org/tahvel#predicate";
+constexpr std::string_view kObject = "https://w3id.org/tahvel#object";
+
+// A read transaction that ends when it goes out of scope.
+struct ReadTxn {
+  Env& env;
+  MDB_txn* txn = nullptr;
+  explicit ReadTxn(Env& e) : env(e) {}
+  ~ReadTxn() { if (txn) env.end_read(txn); }
+  Result<void> begin() {
+    auto t = env.begin_read();
+    if (!t) return unexpected(t.error());
+    txn = *t;
+    return {};
+  }
+};
+
+Result<void> load_vocabulary(Env& env) {
+  ReadTxn read(env);
+  if (auto r = read.begin(); !r) return r;
+  std::uint64_t* slots[] = {&env.vocab.subscriber, &env.vocab.subject, &env.vocab.predicate, &env.vocab.object};
+  std::string_view iris[] = {kSubscriber, kSubject, kPredicate, kObject};
+  for (int i = 0; i < 4; ++i) {
+    auto id = find_term(read.txn, env, Term::iri(std::string(iris[i])));
+    if (!id) return unexpected(id.error());
+    if (*id == 0) return fail(Errc::corrupt, env.dir().string() + ": vocabulary term missing: " + std::string(iris[i]));
+    *slots[i] = *id;
+  }
+  return {};
+}
+
+Result<std::vector<Record>> materialize_all(Query& query, const std::vector<std::uint64_t>& ids) {
+  std::vector<Record> out;
+  out.reserve(ids.size());
+  for (std::uint64_t id : ids) {
+    auto rec = query.record(id);
+    if (!rec) return unexpected(rec.error());
+    if (*rec) out.push_back(std::move(**rec));
+  }
+  return out;
+}
+
+Result<std::vector<Record>> item_records(MDB_txn* txn, const Env& env, std::uint64_t item_id) {
+  auto item = get_item(txn, env, item_id);
+  if (!item) return unexpected(item.error());
+  if (!*item) return fail(Errc::not_found, "no item " + std::to_string(item_id) + " in " + env.dir().string());
+  Query query(txn, env);
+  std::vector<std::uint64_t> ids;
+  for (std::uint64_t id = item_id; id < item_id + (*item)->count; ++id) ids.push_back(id);
+  return materialize_all(query, ids);
+}
+
+Error with_context(const Error& e, std::string_view what) { return Error{e.code, std::string(what) + ": " + e.message}; }
+
+}  // namespace
+
+// ---------------------------------------------------------------------------------------------
+// Snapshot
+
+struct Snapshot::Impl {
+  std::shared_ptr<Env> env;
+  MDB_txn* txn = nullptr;
+  std::uint64_t last_seq = 0;
+  ~Impl() { if (txn) env->end_read(txn); }
+};
+
+Snapshot::Snapshot(std::unique_ptr<Impl> impl) : impl_(std::move(impl)) {}
+Snapshot::Snapshot(Snapshot&&) noexcept = default;
+Snapshot& Snapshot::operator=(Snapshot&&) noexcept = default;
+Snapshot::~Snapshot() = default;
+
+Result<std::vector<Record>> Snapshot::list(const Pattern& pattern, const ListOptions& options) const {
+  Query query(impl_->txn, *impl_->env);
+  auto ids = query.collect(pattern, options);
+  if (!ids) return unexpected(ids.error());
+  return materialize_all(query, *ids);
+}
+
+Result<void> Snapshot::for_each(const Pattern& pattern, const std::function<bool(const Record&)>& visit) const {
+  Query query(impl_->txn, *impl_->env);
+  std::optional<Error> failure;
+  auto walked = query.for_each(pattern, [&](std::uint64_t id, const RecordRow& row) {
+    auto rec = query.materialize(id, row);
+    if (!rec) {
+      failure = rec.error();
+      return false;
+    }
+    return visit(*rec);
+  });
+  if (!walked) return walked;
+  if (failure) return unexpected(*failure);
+  return {};
+}
+
+Result<std::uint64_t> Snapshot::count(const Pattern& pattern) const {
+  Query query(impl_->txn, *impl_->env);
+  std::uint64_t n = 0;
+  auto walked = query.for_each(pattern, [&](std::uint64_t, const RecordRow&) { ++n; return true; });
+  if (!walked) return unexpected(walked.error());
+  return n;
+}
+
+Result<std::vector<Record>> Snapshot::item(std::uint64_t item_id) const {
+  return item_records(impl_->txn, *impl_->env, item_id);
+}
+
+std::uint64_t Snapshot::last_seq() const { return impl_->last_seq; }
+
+// ---------------------------------------------------------------------------------------------
+// Agent
+
+struct Agent::Impl {
+  std::shared_ptr<Env> env;
+  std::string id, iri;
+  std::uint32_t slot = 0;
+
+  // The subscriber's term id, 0 when the store has never seen the agent (then nothing waits).
+  Result<std::uint64_t> self_id(MDB_txn* txn) const { return find_term(txn, *env, Term::iri(iri)); }
+
+  // Reads (and with `remove`, takes) the head of the input buffer. Skips items removed since.
+  Result<std::optional<Delivery>> head(bool remove);
+};
+
+Result<std::optional<Delivery>> Agent::Impl::head(bool remove) {
+  std::optional<Delivery> delivery;
+  auto body = [&](MDB_txn* txn, Txn* writer) -> Result<void> {
+    auto self = self_id(txn);
+    if (!self) return unexpected(self.error());
+    if (*self == 0) return {};
+    for (;;) {
+      MDB_cursor* cursor = nullptr;
+      int rc = mdb_cursor_open(txn, env->inbox, &cursor);
+      if (rc != 0) return lmdb_fail(rc, "opening the input buffer of " + iri);
+      MDB_val k = val(*self), v;
+      rc = mdb_cursor_get(cursor, &k, &v, MDB_SET);
+      if (rc == 0) rc = mdb_cursor_get(cursor, &k, &v, MDB_FIRST_DUP);
+      std::uint64_t item_id = rc == 0 ? u64(v) : 0;
+      mdb_cursor_close(cursor);
+      if (rc == MDB_NOTFOUND) return {};
+      if (rc != 0) return lmdb_fail(rc, "reading the input buffer of " + iri);
+      auto records = item_records(txn, *env, item_id);
+      bool gone = !records && records.error().code == Errc::not_found;
+      if (!records && !gone) return unexpected(records.error());
+      if (writer) {
+        MDB_val dk = val(*self), dv = val(item_id);
+        if ((rc = mdb_del(txn, env->inbox, &dk, &dv)) != 0) return lmdb_fail(rc, "taking from the input buffer of " + iri);
+        if (writer->counters.pending > 0) --writer->counters.pending;
+        if (!gone) {
+          auto item = get_item(txn, *env, item_id);
+          if (!item) return unexpected(item.error());
+          ItemRow row = **item;
+          if (row.pending > 0) --row.pending;
+          if (auto p = put_item(*writer, item_id, row); !p) return p;
+        }
+      }
+      if (gone) {
+        if (!writer) return {};  // a reader cannot drop it; the next automatic take will
+        continue;
+      }
+      delivery = Delivery{item_id, std::move(*records)};
+      return {};
+    }
+  };
+  if (remove) {
+    auto written = env->write([&](Txn& txn) { return body(txn.raw(), &txn); });
+    if (!written) return unexpected(written.error());
+  } else {
+    ReadTxn read(*env);
+    if (auto r = read.begin(); !r) return unexpected(r.error());
+    if (auto r = body(read.txn, nullptr); !r) return unexpected(r.error());
+  }
+  return delivery;
+}
+
+Agent::Agent(std::unique_ptr<Impl> impl) : impl_(std::move(impl)) {}
+Agent::Agent(Agent&&) noexcept = default;
+Agent& Agent::operator=(Agent&&) noexcept = default;
+Agent::~Agent() = default;
+
+const std::string& Agent::iri() const { return impl_->iri; }
+const std::string& Agent::id() const { return impl_->id; }
+
+Result<std::uint64_t> Agent::store(const Item& item) noexcept {
+  auto ids = store_all(std::vector<Item>{item});
+  if (!ids) return unexpected(ids.error());
+  return ids->front();
+}
+
+Result<std::vector<std::uint64_t>> Agent::store_all(const std::vector<Item>& items) noexcept {
+  try {
+    if (items.empty()) return std::vector<std::uint64_t>{};
+    for (std::size_t i = 0; i < items.size(); ++i) {
+      if (auto v = validate_item(items[i], impl_->env->settings()); !v)
+        return unexpected(items.size() == 1 ? v.error() : with_context(v.error(), "item " + std::to_string(i + 1)));
+    }
+    std::vector<std::uint64_t> ids;
+    auto written = impl_->env->write([&](Txn& txn) -> Result<void> {
+      ids.clear();
+      for (std::size_t i = 0; i < items.size(); ++i) {
+        auto id = insert_item(txn, items[i], impl_->iri);
+        if (!id) return unexpected(items.size() == 1 ? id.error() : with_context(id.error(), "item " + std::to_string(i + 1)));
+        ids.push_back(*id);
+      }
+      auto reclaimed = apply_retention(txn);
+      if (!reclaimed) return unexpected(reclaimed.error());
+      return {};
+    });
+    if (!written) return unexpected(written.error());
+    return ids;
+  } catch (const std::bad_alloc&) {
+    return fail(Errc::io, "out of memory while storing");
+  }
+}
+
+Result<std::optional<Delivery>> Agent::take(std::chrono::milliseconds timeout, Ack ack) noexcept {
+  try {
+    const auto deadline = std::chrono::steady_clock::now() + timeout;
+    WakeBoard& board = impl_->env->wake();
+    for (;;) {
+      std::uint32_t token = board.prepare(impl_->slot);
+      auto got = impl_->head(ack == Ack::automatic);
+      if (!got || *got) {
+        board.finish(impl_->slot);
+        return got;
+      }
+      auto left = deadline - std::chrono::steady_clock::now();
+      if (left <= std::chrono::nanoseconds::zero()) {
+        board.finish(impl_->slot);
+        return std::optional<Delivery>();
+      }
+      board.wait(impl_->slot, token, std::chrono::duration_cast<std::chrono::nanoseconds>(left));
+      board.finish(impl_->slot);
+    }
+  } catch (const std::bad_alloc&) {
+    return fail(Errc::io, "out of memory while taking");
+  }
+}
+
+Result<void> Agent::ack(std::uint64_t item_id) noexcept {
+  try {
+    return impl_->env->write([&](Txn& txn) -> Result<void> {
+      auto self = impl_->self_id(txn.raw());
+      if (!self) return unexpected(self.error());
+      if (*self == 0) return {};
+      MDB_val k = val(*self), v = val(item_id);
+      int rc = mdb_del(txn.raw(), txn.env().inbox, &k, &v);
+      if (rc == MDB_NOTFOUND) return {};
+      if (rc != 0) return lmdb_fail(rc, "acknowledging item " + std::to_string(item_id));
+      if (txn.counters.pending > 0) --txn.counters.pending;
+      auto item = get_item(txn.raw(), txn.env(), item_id);
+      if (!item) return unexpected(item.error());
+      if (*item) {
+        ItemRow row = **item;
+        if (row.pending > 0) --row.pending;
+        return put_item(txn, item_id, row);
+      }
+      return {};
+    });
+  } catch (const std::bad_alloc&) {
+    return fail(Errc::io, "out of memory while acknowledging");
+  }
+}
+
+Result<std::uint64_t> Agent::pending() const noexcept {
+  ReadTxn read(*impl_->env);
+  if (auto r = read.begin(); !r) return unexpected(r.error());
+  auto self = impl_->self_id(read.txn);
+  if (!self) return unexpected(self.error());
+  if (*self == 0) return std::uint64_t{0};
+  MDB_cursor* cursor = nullptr;
+  int rc = mdb_cursor_open(read.txn, impl_->env->inbox, &cursor);
+  if (rc != 0) return lmdb_fail(rc, "opening an input buffer");
+  MDB_val k = val(*self), v;
+  std::size_t n = 0;
+  if (mdb_cursor_get(cursor, &k, &v, MDB_SET) == 0) mdb_cursor_count(cursor, &n);
+  mdb_cursor_close(cursor);
+  return std::uint64_t{n};
+}
+
+Result<std::uint64_t> Agent::subscribe(const Pattern& pattern) {
+  if (pattern.context || pattern.source || pattern.since || pattern.until || pattern.after_id)
+    return fail(Errc::invalid_argument, "a subscription pattern takes subject, predicate and object only");
+  for (const auto* t : {&pattern.s, &pattern.p, &pattern.o})
+    if (*t && (*t)->is_blank()) return fail(Errc::invalid_argument, "a subscription pattern cannot name a blank node");
+  Item item;
+  item.persistent = true;
+  const Term node = Term::blank("subscription");
+  item.add(node, Term::iri(std::string(kSubscriber)), Term::iri(impl_->iri));
+  if (pattern.s) item.add(node, Term::iri(std::string(kSubject)), *pattern.s);
+  if (pattern.p) item.add(node, Term::iri(std::string(kPredicate)), *pattern.p);
+  if (pattern.o) item.add(node, Term::iri(std::string(kObject)), *pattern.o);
+  return store(item);
+}
+
+Result<void> Agent::unsubscribe(std::uint64_t subscription) {
+  std::string subscriber(kSubscriber);
+  return impl_->env->write([&](Txn& txn) -> Result<void> {
+    Query query(txn.raw(), txn.env());
+    auto first = query.record(subscription);
+    if (!first) return unexpected(first.error());
+    if (!*first || (*first)->triple.p.value != subscriber || (*first)->triple.o.value != impl_->iri)
+      return fail(Errc::not_found, "no subscription " + std::to_string(subscription) + " of " + impl_->iri);
+    auto removed = delete_item(txn, subscription, Removal::explicit_removal);
+    if (!removed) return unexpected(removed.error());
+    return {};
+  });
+}
+
+Result<std::vector<std::uint64_t>> Agent::written(std::uint64_t after, std::size_t limit) const {
+  ReadTxn read(*impl_->env);
+  if (auto r = read.begin(); !r) return unexpected(r.error());
+  auto self = impl_->self_id(read.txn);
+  if (!self) return unexpected(self.error());
+  std::vector<std::uint64_t> out;
+  if (*self == 0) return out;
+  MDB_cursor* cursor = nullptr;
+  int rc = mdb_cursor_open(read.txn, impl_->env->outbox, &cursor);
+  if (rc != 0) return lmdb_fail(rc, "opening an output buffer");
+  std::uint64_t from = after + 1;
+  MDB_val k = val(*self), v = val(from);
+  for (rc = mdb_cursor_get(cursor, &k, &v, MDB_GET_BOTH_RANGE); rc == 0 && (!limit || out.size() < limit);
+       rc = mdb_cursor_get(cursor, &k, &v, MDB_NEXT_DUP))
+    out.push_back(u64(v));
+  mdb_cursor_close(cursor);
+  return out;
+}
+
+// ---------------------------------------------------------------------------------------------
+// Node
+
+struct Node::Impl {
+  std::shared_ptr<Env> env;
+};
+
+Node::Node(std::shared_ptr<Impl> impl) : impl_(std::move(impl)) {}
+Node::Node(Node&&) noexcept = default;
+Node& Node::operator=(Node&&) noexcept = default;
+Node::~Node() = default;
+
+Result<Node> Node::init(const std::filesystem::path& dir, const InitOptions& options) {
+  auto iri = uri::normalize(options.iri);
+  if (!iri) return fail(Errc::invalid_iri, "node IRI: " + iri.error().message);
+  if (options.max_map_bytes < (1u << 20)) return fail(Errc::invalid_argument, "max_map_bytes must be at least 1 MiB");
+  InitOptions normalized = options;
+  normalized.iri = *iri;
+  auto env = Env::open(dir, &normalized);
+  if (!env) return unexpected(env.error());
+  auto vocab = (*env)->write([](Txn& txn) -> Result<void> {
+    for (auto iri : {kSubscriber, kSubject, kPredicate, kObject}) {
+      auto id = intern_term(txn, Term::iri(std::string(iri)), true);
+      if (!id) return unexpected(id.error());
+    }
+    return {};
+  });
+  if (!vocab) return unexpected(vocab.error());
+  if (auto v = load_vocabulary(**env); !v) return unexpected(v.error());
+  return Node(std::make_shared<Impl>(Impl{std::move(*env)}));
+}
+
+Result<Node> Node::open(const std::filesystem::path& dir) {
+  auto env = Env::open(dir, nullptr);
+  if (!env) return unexpected(env.error());
+  if (auto v = load_vocabulary(**env); !v) return unexpected(v.error());
+  return Node(std::make_shared<Impl>(Impl{std::move(*env)}));
+}
+
+const std::string& Node::iri() const { return impl_->env->settings().iri; }
+const std::filesystem::path& Node::dir() const { return impl_->env->dir(); }
+
+Result<Agent> Node::agent(std::string_view id) const {
+  auto agent_iri = uri::agent_iri(iri(), id);
+  if (!agent_iri) return fail(Errc::invalid_iri, "agent id: " + agent_iri.error().message);
+  auto impl = std::make_unique<Agent::Impl>();
+  impl->env = impl_->env;
+  impl->id = std::string(id);
+  impl->iri = *agent_iri;
+  impl->slot = WakeBoard::slot_for(*agent_iri);
+  return Agent(std::move(impl));
+}
+
+Result<Snapshot> Node::snapshot() const {
+  auto impl = std::make_unique<Snapshot::Impl>();
+  impl->env = impl_->env;
+  auto txn = impl_->env->begin_read();
+  if (!txn) return unexpected(txn.error());
+  impl->txn = *txn;
+  auto counters = load_counters(impl->txn, impl_->env->meta);
+  if (!counters) return unexpected(counters.error());
+  impl->last_seq = counters->next_seq - 1;
+  return Snapshot(std::move(impl));
+}
+
+Result<std::uint64_t> Node::remove(const Pattern& pattern, unsigned cascade) {
+  if (!pattern.s && !pattern.p && !pattern.o && !pattern.context && !pattern.source)
+    return fail(Errc::invalid_argument, "refusing to remove with an empty pattern; name a subject, predicate, object, context or source");
+  std::uint64_t removed = 0;
+  auto written = impl_->env->write([&](Txn& txn) -> Result<void> {
+    removed = 0;
+    Query query(txn.raw(), txn.env());
+    auto ids = query.collect(pattern, ListOptions{cascade, 0});
+    if (!ids) return unexpected(ids.error());
+    for (std::uint64_t id : *ids) {
+      if (auto d = delete_record(txn, id, Removal::explicit_removal); !d) return d;
+      ++removed;
+    }
+    return {};
+  });
+  if (!written) return unexpected(written.error());
+  return removed;
+}
+
+Result<std::uint64_t> Node::remove_item(std::uint64_t item_id, unsigned cascade) {
+  std::uint64_t removed = 0;
+  auto written = impl_->env->write([&](Txn& txn) -> Result<void> {
+    removed = 0;
+    auto item = get_item(txn.raw(), txn.env(), item_id);
+    if (!item) return unexpected(item.error());
+    if (!*item) return fail(Errc::not_found, "no item " + std::to_string(item_id) + " in " + txn.env().dir().string());
+    // The item's records and, with cascade, the sub-trees of their objects.
+    Query query(txn.raw(), txn.env());
+    std::vector<std::uint64_t> ids;
+    for (std::uint64_t id = item_id; id < item_id + (*item)->count; ++id) {
+      auto row = get_record(txn.raw(), txn.env(), id);
+      if (!row) return unexpected(row.error());
+      if (!*row) continue;
+      ids.push_back(id);
+    }
+    if (cascade > 0) {
+      std::vector<std::uint64_t> roots = ids;
+      for (std::uint64_t id : roots) {
+        auto row = get_record(txn.raw(), txn.env(), id);
+        if (!row || !*row) continue;
+        Pattern below;
+        auto object = query.terms().get((*row)->o);
+        if (!object) return unexpected(object.error());
+        if (object->is_literal()) continue;
+        below.s = *object;
+        auto sub = query.collect(below, ListOptions{cascade - 1, 0});
+        if (!sub) return unexpected(sub.error());
+        ids.insert(ids.end(), sub->begin(), sub->end());
+      }
+    }
+    for (std::uint64_t id : ids) {
+      auto exists = get_record(txn.raw(), txn.env(), id);
+      if (!exists) return unexpected(exists.error());
+      if (!*exists) continue;
+      if (auto d = delete_record(txn, id, Removal::explicit_removal); !d) return d;
+      ++removed;
+    }
+    return {};
+  });
+  if (!written) return unexpected(written.error());
+  return removed;
+}
+
+Result<std::vector<Change>> Node::watch(std::uint64_t bookmark, std::chrono::milliseconds timeout, std::size_t limit) const {
+  const auto deadline = std::chrono::steady_clock::now() + timeout;
+  WakeBoard& board = impl_->env->wake();
+  for (;;) {
+    std::uint32_t token = board.prepare(WakeBoard::kAnyCommit);
+    std::vector<Change> changes;
+    {
+      ReadTxn read(*impl_->env);
+      if (auto r = read.begin(); !r) { board.finish(WakeBoard::kAnyCommit); return unexpected(r.error()); }
+      Query query(read.txn, *impl_->env);
+      // Insertions: records after the bookmark. Removals: the log after the bookmark.
+      Pattern after;
+      after.after_id = bookmark;
+      auto walked = query.for_each(after, [&](std::uint64_t id, const RecordRow& row) {
+        auto rec = query.materialize(id, row);
+        if (rec) changes.push_back(Change{id, false, std::move(*rec)});
+        return !(limit && changes.size() >= limit);
+      });
+      if (!walked) { board.finish(WakeBoard::kAnyCommit); return unexpected(walked.error()); }
+      MDB_cursor* cursor = nullptr;
+      if (mdb_cursor_open(read.txn, impl_->env->removals, &cursor) == 0) {
+        std::uint64_t from = bookmark + 1;
+        MDB_val k = val(from), v;
+        for (int rc = mdb_cursor_get(cursor, &k, &v, MDB_SET_RANGE); rc == 0; rc = mdb_cursor_get(cursor, &k, &v, MDB_NEXT)) {
+          Change change{u64(k), true, {}};
+          if (decode_removed(view(v), change.record)) changes.push_back(std::move(change));
+        }
+        mdb_cursor_close(cursor);
+      }
+    }
+    if (!changes.empty()) {
+      board.finish(WakeBoard::kAnyCommit);
+      std::sort(changes.begin(), changes.end(), [](const Change& a, const Change& b) { return a.seq < b.seq; });
+      if (limit && changes.size() > limit) changes.resize(limit);
+      return changes;
+    }
+    auto left = deadline - std::chrono::steady_clock::now();
+    if (left <= std::chrono::nanoseconds::zero()) {
+      board.finish(WakeBoard::kAnyCommit);
+      return changes;
+    }
+    board.wait(WakeBoard::kAnyCommit, token, std::chrono::duration_cast<std::chrono::nanoseconds>(left));
+    board.finish(WakeBoard::kAnyCommit);
+  }
+}
+
+Result<void> Node::set_ttl(std::string_view predicate_iri, std::chrono::nanoseconds ttl) {
+  auto iri = uri::normalize(predicate_iri);
+  if (!iri) return fail(Errc::invalid_iri, "TTL predicate: " + iri.error().message);
+  if (ttl.count() < 0) return fail(Errc::invalid_argument, "a time-to-live cannot be negative");
+  return impl_->env->write([&](Txn& txn) -> Result<void> {
+    // Pinned so that the cached rule's id stays valid while no record uses the predicate.
+    auto id = intern_term(txn, Term::iri(std::string(predicate_iri)), true);
+    if (!id) return unexpected(id.error());
+    std::string key = "ttl:" + std::string(predicate_iri);
+    MDB_val k = val(key);
+    std::int64_t ns = ttl.count();
+    MDB_val v = val(&ns, sizeof ns);
+    int rc = ns == 0 ? mdb_del(txn.raw(), txn.env().meta, &k, nullptr) : mdb_put(txn.raw(), txn.env().meta, &k, &v, 0);
+    if (rc != 0 && rc != MDB_NOTFOUND) return lmdb_fail(rc, "writing a time-to-live rule");
+    ++txn.counters.ttl_gen;
+    return {};
+  });
+}
+
+Result<std::vector<std::pair<std::string, std::chrono::nanoseconds>>> Node::ttls() const {
+  ReadTxn read(*impl_->env);
+  if (auto r = read.begin(); !r) return unexpected(r.error());
+  std::vector<std::pair<std::string, std::chrono::nanoseconds>> out;
+  MDB_cursor* cursor = nullptr;
+  int rc = mdb_cursor_open(read.txn, impl_->env->meta, &cursor);
+  if (rc != 0) return lmdb_fail(rc, "opening settings");
+  const std::string_view prefix = "ttl:";
+  MDB_val k = val(prefix), v;
+  for (rc = mdb_cursor_get(cursor, &k, &v, MDB_SET_RANGE); rc == 0; rc = mdb_cursor_get(cursor, &k, &v, MDB_NEXT)) {
+    std::string_view key = view(k);
+    if (key.substr(0, prefix.size()) != prefix) break;
+    std::int64_t ns = 0;
+    std::memcpy(&ns, v.mv_data, std::min(v.mv_size, sizeof ns));
+    out.emplace_back(std::string(key.substr(prefix.size())), std::chrono::nanoseconds(ns));
+  }
+  mdb_cursor_close(cursor);
+  return out;
+}
+
+Result<std::uint64_t> Node::reclaim() {
+  std::uint64_t reclaimed = 0;
+  auto written = impl_->env->write([&](Txn& txn) -> Result<void> {
+    auto n = apply_retention(txn);
+    if (!n) return unexpected(n.error());
+    reclaimed = *n;
+    return {};
+  });
+  if (!written) return unexpected(written.error());
+  return reclaimed;
+}
+
+Result<void> Node::set_prefix(std::string_view prefix, std::string_view namespace_iri) {
+  uri::PrefixMap check;
+  if (auto a = check.add(prefix, namespace_iri); !a) return fail(Errc::invalid_iri, a.error().message);
+  return impl_->env->write([&](Txn& txn) -> Result<void> {
+    std::string key = "prefix:" + std::string(prefix);
+    MDB_val k = val(key), v = val(namespace_iri);
+    int rc = mdb_put(txn.raw(), txn.env().meta, &k, &v, 0);
+    if (rc != 0) return lmdb_fail(rc, "writing prefix " + std::string(prefix));
+    return {};
+  });
+}
+
+uri::PrefixMap Node::prefixes() const {
+  uri::PrefixMap map;
+  ReadTxn read(*impl_->env);
+  if (!read.begin()) return map;
+  MDB_cursor* cursor = nullptr;
+  if (mdb_cursor_open(read.txn, impl_->env->meta, &cursor) != 0) return map;
+  const std::string_view prefix = "prefix:";
+  MDB_val k = val(prefix), v;
+  for (int rc = mdb_cursor_get(cursor, &k, &v, MDB_SET_RANGE); rc == 0; rc = mdb_cursor_get(cursor, &k, &v, MDB_NEXT)) {
+    std::string_view key = view(k);
+    if (key.substr(0, prefix.size()) != prefix) break;
+    (void)map.add(key.substr(prefix.size()), view(v));
+  }
+  mdb_cursor_close(cursor);
+  return map;
+}
+
+Result<Stats> Node::stats() const {
+  ReadTxn read(*impl_->env);
+  if (auto r = read.begin(); !r) return unexpected(r.error());
+  auto c = load_counters(read.txn, impl_->env->meta);
+  if (!c) return unexpected(c.error());
+  const Settings& s = impl_->env->settings();
+  Stats st;
+  st.iri = s.iri;
+  st.durability = s.durability;
+  st.ring = s.ring;
+  st.max_literal_bytes = s.max_literal_bytes;
+  st.records = c->records;
+  st.persistent_records = c->persistent_records;
+  st.items = c->items;
+  st.terms = c->terms;
+  st.subscriptions = c->subscriptions;
+  st.pending_deliveries = c->pending;
+  st.last_seq = c->next_seq - 1;
+  st.reclaimed_records = c->reclaimed;
+  const Env& env = *impl_->env;
+  MDB_stat ms;
+  std::uint64_t pages = 0;
+  if (mdb_stat(read.txn, 1, &ms) == 0) pages += ms.ms_branch_pages + ms.ms_leaf_pages + ms.ms_overflow_pages;  // main DB
+  for (MDB_dbi dbi : {env.meta, env.terms, env.term_hash, env.records, env.items, env.idx_s, env.idx_p, env.idx_o,
+                      env.inbox, env.outbox, env.ring, env.removals}) {
+    if (mdb_stat(read.txn, dbi, &ms) == 0) pages += ms.ms_branch_pages + ms.ms_leaf_pages + ms.ms_overflow_pages;
+  }
+  st.used_bytes = pages * ms.ms_psize;
+  MDB_envinfo info;
+  mdb_env_info(env.raw(), &info);
+  st.map_bytes = info.me_mapsize;
+  st.max_map_bytes = s.max_map_bytes;
+  return st;
+}
+
+}  // namespace tahvel::node

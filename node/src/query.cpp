@@ -1,0 +1,227 @@
+// Pattern matching; see query.h.
+#include "query.h"
+
+#include "tahvel/uri/iri.h"
+
+namespace tahvel::node::detail {
+namespace {
+
+struct Cursor {
+  MDB_cursor* c = nullptr;
+  ~Cursor() { if (c) mdb_cursor_close(c); }
+};
+
+bool has_metadata_filter(const Pattern& p) {
+  return p.context || p.source || p.since || p.until;
+}
+
+}  // namespace
+
+Result<Query::Bound> Query::resolve(const Pattern& pattern) {
+  Bound b;
+  auto one = [&](const std::optional<Term>& term, std::uint64_t& id) -> Result<void> {
+    if (!term) return {};
+    auto found = find_term(txn_, env_, *term);
+    if (!found) return unexpected(found.error());
+    id = *found;
+    if (id == 0) b.empty = true;
+    return {};
+  };
+  if (auto r = one(pattern.s, b.s); !r) return unexpected(r.error());
+  if (auto r = one(pattern.p, b.p); !r) return unexpected(r.error());
+  if (auto r = one(pattern.o, b.o); !r) return unexpected(r.error());
+  if (pattern.context && !pattern.context->empty()) {
+    auto found = find_term(txn_, env_, Term::iri(*pattern.context));
+    if (!found) return unexpected(found.error());
+    if (*found == 0) b.empty = true;
+    b.context = *found;
+  }
+  b.has_context = pattern.context.has_value();
+  return b;
+}
+
+Result<const ItemRow*> Query::item(std::uint64_t id) {
+  if (cached_item_id_ != id) {
+    auto row = get_item(txn_, env_, id);
+    if (!row) return unexpected(row.error());
+    if (!*row) return fail(Errc::corrupt, "item " + std::to_string(id) + " is missing");
+    cached_item_ = **row;
+    cached_item_id_ = id;
+  }
+  return &cached_item_;
+}
+
+Result<bool> Query::metadata_matches(const Pattern& pattern, const Bound& bound, const RecordRow& row) {
+  if (!has_metadata_filter(pattern)) return true;
+  auto it = item(row.item);
+  if (!it) return unexpected(it.error());
+  const ItemRow& meta = **it;
+  if (bound.has_context && meta.context != bound.context) return false;
+  if (pattern.since && meta.asserted_at < *pattern.since) return false;
+  if (pattern.until && meta.asserted_at >= *pattern.until) return false;
+  if (pattern.source) {
+    auto cached = source_under_.find(meta.source);
+    if (cached == source_under_.end()) {
+      auto source = terms_.iri(meta.source);
+      if (!source) return unexpected(source.error());
+      cached = source_under_.emplace(meta.source, uri::is_under(*source, *pattern.source)).first;
+    }
+    if (!cached->second) return false;
+  }
+  return true;
+}
+
+Result<void> Query::for_each(const Pattern& pattern,
+                             const std::function<bool(std::uint64_t, const RecordRow&)>& visit) {
+  auto bound = resolve(pattern);
+  if (!bound) return unexpected(bound.error());
+  if (bound->empty) return {};
+  const Bound& b = *bound;
+  std::uint64_t first = pattern.after_id ? *pattern.after_id + 1 : 0;
+
+  // Pick the bound position with the fewest records.
+  MDB_dbi index = 0;
+  std::uint64_t key = 0;
+  std::size_t best = SIZE_MAX;
+  Cursor cur;
+  const std::pair<MDB_dbi, std::uint64_t> candidates[] = {{env_.idx_s, b.s}, {env_.idx_p, b.p}, {env_.idx_o, b.o}};
+  for (const auto& [dbi, id] : candidates) {
+    if (id == 0) continue;
+    Cursor probe;
+    int rc = mdb_cursor_open(txn_, dbi, &probe.c);
+    if (rc != 0) return lmdb_fail(rc, "opening an index");
+    MDB_val k = val(id), v;
+    rc = mdb_cursor_get(probe.c, &k, &v, MDB_SET);
+    if (rc == MDB_NOTFOUND) return {};  // a bound term with no records
+    if (rc != 0) return lmdb_fail(rc, "reading an index");
+    std::size_t n = 0;
+    mdb_cursor_count(probe.c, &n);
+    if (n < best) {
+      best = n;
+      index = dbi;
+      key = id;
+    }
+  }
+
+  auto check = [&](std::uint64_t id, const RecordRow& row) -> Result<bool> {
+    if ((b.s && row.s != b.s) || (b.p && row.p != b.p) || (b.o && row.o != b.o)) return true;
+    auto meta_ok = metadata_matches(pattern, b, row);
+    if (!meta_ok) return unexpected(meta_ok.error());
+    if (!*meta_ok) return true;
+    return visit(id, row);
+  };
+
+  if (key == 0) {  // nothing bound: scan records in id order
+    int rc = mdb_cursor_open(txn_, env_.records, &cur.c);
+    if (rc != 0) return lmdb_fail(rc, "opening records");
+    MDB_val k = val(first), v;
+    for (rc = mdb_cursor_get(cur.c, &k, &v, MDB_SET_RANGE); rc == 0;
+         rc = mdb_cursor_get(cur.c, &k, &v, MDB_NEXT)) {
+      std::uint64_t id = u64(k);
+      RecordRow row;
+      if (!decode_record(id, view(v), row)) return fail(Errc::corrupt, "record " + std::to_string(id) + " is truncated");
+      auto go_on = check(id, row);
+      if (!go_on) return unexpected(go_on.error());
+      if (!*go_on) return {};
+    }
+    if (rc != MDB_NOTFOUND) return lmdb_fail(rc, "scanning records");
+    return {};
+  }
+
+  int rc = mdb_cursor_open(txn_, index, &cur.c);
+  if (rc != 0) return lmdb_fail(rc, "opening an index");
+  MDB_val k = val(key), v = val(first);
+  rc = mdb_cursor_get(cur.c, &k, &v, MDB_GET_BOTH_RANGE);
+  for (; rc == 0; rc = mdb_cursor_get(cur.c, &k, &v, MDB_NEXT_DUP)) {
+    std::uint64_t id = u64(v);
+    auto row = get_record(txn_, env_, id);
+    if (!row) return unexpected(row.error());
+    if (!*row) return fail(Errc::corrupt, "index refers to missing record " + std::to_string(id));
+    auto go_on = check(id, **row);
+    if (!go_on) return unexpected(go_on.error());
+    if (!*go_on) return {};
+  }
+  if (rc != MDB_NOTFOUND) return lmdb_fail(rc, "walking an index");
+  return {};
+}
+
+Result<void> Query::cascade_from(std::uint64_t object, unsigned depth, std::vector<std::uint64_t>& out,
+                                 std::unordered_map<std::uint64_t, bool>& seen, std::size_t limit) {
+  if (depth == 0 || (limit && out.size() >= limit)) return {};
+  std::vector<std::pair<std::uint64_t, std::uint64_t>> children;  // (record id, its object)
+  Cursor cur;
+  int rc = mdb_cursor_open(txn_, env_.idx_s, &cur.c);
+  if (rc != 0) return lmdb_fail(rc, "opening the subject index");
+  MDB_val k = val(object), v;
+  for (rc = mdb_cursor_get(cur.c, &k, &v, MDB_SET); rc == 0; rc = mdb_cursor_get(cur.c, &k, &v, MDB_NEXT_DUP)) {
+    std::uint64_t id = u64(v);
+    if (seen.count(id)) continue;
+    auto row = get_record(txn_, env_, id);
+    if (!row) return unexpected(row.error());
+    if (!*row) continue;
+    children.emplace_back(id, (*row)->o);
+  }
+  if (rc != MDB_NOTFOUND) return lmdb_fail(rc, "walking the subject index");
+  for (const auto& [id, child_object] : children) {
+    if (limit && out.size() >= limit) return {};
+    if (seen.count(id)) continue;
+    seen[id] = true;
+    out.push_back(id);
+    if (auto r = cascade_from(child_object, depth - 1, out, seen, limit); !r) return r;
+  }
+  return {};
+}
+
+Result<std::vector<std::uint64_t>> Query::collect(const Pattern& pattern, const ListOptions& options) {
+  std::vector<std::pair<std::uint64_t, std::uint64_t>> matches;  // (id, object)
+  auto walked = for_each(pattern, [&](std::uint64_t id, const RecordRow& row) {
+    matches.emplace_back(id, row.o);
+    return !(options.limit && matches.size() >= options.limit);
+  });
+  if (!walked) return unexpected(walked.error());
+  std::vector<std::uint64_t> out;
+  if (options.cascade == 0) {
+    for (const auto& m : matches) out.push_back(m.first);
+    return out;
+  }
+  std::unordered_map<std::uint64_t, bool> seen;
+  for (const auto& m : matches) seen[m.first] = true;
+  for (const auto& [id, object] : matches) {
+    if (options.limit && out.size() >= options.limit) break;
+    out.push_back(id);
+    // Literals have no sub-tree; IRIs and blank nodes may.
+    if (auto r = cascade_from(object, options.cascade, out, seen, options.limit); !r) return unexpected(r.error());
+  }
+  return out;
+}
+
+Result<Record> Query::materialize(std::uint64_t id, const RecordRow& row) {
+  auto it = item(row.item);
+  if (!it) return unexpected(it.error());
+  const ItemRow meta = **it;
+  auto s = terms_.get(row.s);
+  if (!s) return unexpected(s.error());
+  auto p = terms_.get(row.p);
+  if (!p) return unexpected(p.error());
+  auto o = terms_.get(row.o);
+  if (!o) return unexpected(o.error());
+  auto source = terms_.iri(meta.source);
+  if (!source) return unexpected(source.error());
+  auto context = terms_.iri(meta.context);
+  if (!context) return unexpected(context.error());
+  Record record;
+  record.triple = {std::move(*s), std::move(*p), std::move(*o)};
+  record.meta = {id, row.item, meta.stored_at, meta.asserted_at, std::move(*source), std::move(*context), meta.persistent};
+  return record;
+}
+
+Result<std::optional<Record>> Query::record(std::uint64_t id) {
+  auto row = get_record(txn_, env_, id);
+  if (!row) return unexpected(row.error());
+  if (!*row) return std::optional<Record>();
+  auto rec = materialize(id, **row);
+  if (!rec) return unexpected(rec.error());
+  return std::optional<Record>(std::move(*rec));
+}
+
+}  // namespace tahvel::node::detail

@@ -1,0 +1,57 @@
+// Pattern matching over one transaction (read-only snapshot or the write path's own).
+// A pattern with a bound position walks the index of the bound term with the fewest records
+// (idx_s, idx_p or idx_o, each term id -> record ids ascending); a pattern with none bound
+// scans the records table. Other positions and metadata filters are checked per record.
+#pragma once
+
+#include <cstdint>
+#include <functional>
+#include <optional>
+#include <unordered_map>
+#include <vector>
+
+#include "dictionary.h"
+#include "rows.h"
+#include "tahvel/node/node.h"
+
+namespace tahvel::node::detail {
+
+class Query {
+ public:
+  Query(MDB_txn* txn, const Env& env) : txn_(txn), env_(env), terms_(txn, env) {}
+
+  // Calls `visit(id, row)` for each matching record in ascending id order, until it returns
+  // false.
+  Result<void> for_each(const Pattern& pattern,
+                        const std::function<bool(std::uint64_t, const RecordRow&)>& visit);
+
+  // Ids of the matches and, with cascade, their sub-trees (ListOptions semantics).
+  Result<std::vector<std::uint64_t>> collect(const Pattern& pattern, const ListOptions& options);
+
+  // A record with its terms and metadata decoded.
+  Result<Record> materialize(std::uint64_t id, const RecordRow& row);
+  Result<std::optional<Record>> record(std::uint64_t id);
+
+  TermReader& terms() { return terms_; }
+
+ private:
+  struct Bound {
+    bool empty = false;  // a bound term the store has never seen: nothing can match
+    std::uint64_t s = 0, p = 0, o = 0, context = 0;
+    bool has_context = false;
+  };
+  Result<Bound> resolve(const Pattern& pattern);
+  Result<bool> metadata_matches(const Pattern& pattern, const Bound& bound, const RecordRow& row);
+  Result<const ItemRow*> item(std::uint64_t id);
+  Result<void> cascade_from(std::uint64_t object, unsigned depth, std::vector<std::uint64_t>& out,
+                            std::unordered_map<std::uint64_t, bool>& seen, std::size_t limit);
+
+  MDB_txn* txn_;
+  const Env& env_;
+  TermReader terms_;
+  std::uint64_t cached_item_id_ = 0;
+  ItemRow cached_item_;
+  std::unordered_map<std::uint64_t, bool> source_under_;
+};
+
+}  // namespace tahvel::node::detail

@@ -1,0 +1,281 @@
+// Record and item rows; deletion. See rows.h.
+#include "rows.h"
+
+#include <ctime>
+#include <vector>
+
+#include "codec.h"
+#include "dictionary.h"
+
+namespace tahvel::node::detail {
+namespace {
+
+constexpr std::uint64_t kRemovalLogLimit = 65536;  // watchers further behind miss removals
+constexpr std::uint8_t kItemPersistent = 1;
+
+void put_string(std::string& out, std::string_view s) {
+  codec::put_varint(out, s.size());
+  out += s;
+}
+
+bool get_string(std::string_view in, std::size_t& pos, std::string& s) {
+  std::uint64_t n = 0;
+  if (!codec::get_varint(in, pos, n) || pos + n > in.size()) return false;
+  s.assign(in.substr(pos, n));
+  pos += n;
+  return true;
+}
+
+void put_term(std::string& out, const Term& t) {
+  out.push_back(static_cast<char>(t.kind));
+  put_string(out, t.value);
+  put_string(out, t.datatype);
+  put_string(out, t.language);
+}
+
+bool get_term(std::string_view in, std::size_t& pos, Term& t) {
+  if (pos >= in.size()) return false;
+  t.kind = static_cast<TermKind>(in[pos++]);
+  return get_string(in, pos, t.value) && get_string(in, pos, t.datatype) &&
+         get_string(in, pos, t.language);
+}
+
+Result<void> del_dup(MDB_txn* txn, MDB_dbi dbi, std::uint64_t key, std::uint64_t value, const char* what) {
+  MDB_val k = val(key), v = val(value);
+  int rc = mdb_del(txn, dbi, &k, &v);
+  if (rc != 0 && rc != MDB_NOTFOUND) return lmdb_fail(rc, what);
+  return {};
+}
+
+// Removes `item` from every input buffer that holds it (rare: only removal of unread items).
+Result<std::uint64_t> drop_from_inboxes(Txn& txn, std::uint64_t item) {
+  MDB_cursor* cursor = nullptr;
+  int rc = mdb_cursor_open(txn.raw(), txn.env().inbox, &cursor);
+  if (rc != 0) return lmdb_fail(rc, "opening input buffers");
+  std::vector<std::uint64_t> agents;
+  MDB_val k, v;
+  for (rc = mdb_cursor_get(cursor, &k, &v, MDB_FIRST); rc == 0;
+       rc = mdb_cursor_get(cursor, &k, &v, MDB_NEXT_NODUP))
+    agents.push_back(u64(k));
+  mdb_cursor_close(cursor);
+  if (rc != MDB_NOTFOUND) return lmdb_fail(rc, "reading input buffers");
+  std::uint64_t dropped = 0;
+  for (std::uint64_t agent : agents) {
+    MDB_val ak = val(agent), iv = val(item);
+    rc = mdb_del(txn.raw(), txn.env().inbox, &ak, &iv);
+    if (rc == 0) ++dropped;
+    else if (rc != MDB_NOTFOUND) return lmdb_fail(rc, "removing an item from an input buffer");
+  }
+  return dropped;
+}
+
+Result<void> log_removal(Txn& txn, std::uint64_t id, const RecordRow& row, const ItemRow& item) {
+  TermReader reader(txn.raw(), txn.env());
+  Record record;
+  auto s = reader.get(row.s), p = reader.get(row.p), o = reader.get(row.o);
+  auto source = reader.iri(item.source), context = reader.iri(item.context);
+  if (!s || !p || !o || !source || !context) return fail(Errc::corrupt, "record " + std::to_string(id) + " refers to a missing term");
+  record.triple = {std::move(*s), std::move(*p), std::move(*o)};
+  record.meta = {id, row.item, item.stored_at, item.asserted_at, *source, *context, item.persistent};
+  std::string bytes = encode_removed(record);
+  std::uint64_t seq = txn.counters.next_seq++;
+  MDB_val k = val(seq), v = val(bytes);
+  int rc = mdb_put(txn.raw(), txn.env().removals, &k, &v, MDB_APPEND);
+  if (rc != 0) return lmdb_fail(rc, "logging a removal");
+  if (++txn.counters.removals > kRemovalLogLimit) {
+    MDB_cursor* cursor = nullptr;
+    if ((rc = mdb_cursor_open(txn.raw(), txn.env().removals, &cursor)) != 0) return lmdb_fail(rc, "trimming the removal log");
+    MDB_val fk, fv;
+    if (mdb_cursor_get(cursor, &fk, &fv, MDB_FIRST) == 0 && mdb_cursor_del(cursor, 0) == 0) --txn.counters.removals;
+    mdb_cursor_close(cursor);
+  }
+  return {};
+}
+
+Result<void> retire_item(Txn& txn, std::uint64_t item_id, const ItemRow& item) {
+  MDB_txn* raw = txn.raw();
+  Env& env = txn.env();
+  MDB_val k = val(item_id);
+  int rc = mdb_del(raw, env.items, &k, nullptr);
+  if (rc != 0) return lmdb_fail(rc, "removing item " + std::to_string(item_id));
+  if (!item.persistent) {
+    rc = mdb_del(raw, env.ring, &k, nullptr);
+    if (rc != 0 && rc != MDB_NOTFOUND) return lmdb_fail(rc, "removing an item from the ring");
+  }
+  if (auto r = del_dup(raw, env.outbox, item.source, item_id, "removing an item from an output buffer"); !r) return r;
+  if (item.pending > 0) {
+    auto dropped = drop_from_inboxes(txn, item_id);
+    if (!dropped) return unexpected(dropped.error());
+    txn.counters.pending -= std::min(txn.counters.pending, *dropped);
+  }
+  --txn.counters.items;
+  return {};
+}
+
+}  // namespace
+
+std::int64_t now_ns() {
+  timespec ts;
+  clock_gettime(CLOCK_REALTIME, &ts);
+  return std::int64_t(ts.tv_sec) * 1'000'000'000 + ts.tv_nsec;
+}
+
+std::string encode_record(std::uint64_t id, const RecordRow& row) {
+  std::string out;
+  out.reserve(24);
+  codec::put_varint(out, row.s);
+  codec::put_varint(out, row.p);
+  codec::put_varint(out, row.o);
+  codec::put_varint(out, id - row.item);
+  return out;
+}
+
+bool decode_record(std::uint64_t id, std::string_view bytes, RecordRow& row) {
+  std::size_t pos = 0;
+  std::uint64_t delta = 0;
+  if (!codec::get_varint(bytes, pos, row.s) || !codec::get_varint(bytes, pos, row.p) ||
+      !codec::get_varint(bytes, pos, row.o) || !codec::get_varint(bytes, pos, delta))
+    return false;
+  row.item = id - delta;
+  return true;
+}
+
+std::string encode_item(const ItemRow& row) {
+  std::string out;
+  out.reserve(32);
+  codec::put_varint(out, row.count);
+  codec::put_varint(out, row.live);
+  codec::put_varint(out, row.pending);
+  codec::put_varint(out, codec::zigzag(row.stored_at));
+  codec::put_varint(out, codec::zigzag(row.asserted_at - row.stored_at));
+  codec::put_varint(out, row.source);
+  codec::put_varint(out, row.context);
+  out.push_back(static_cast<char>(row.persistent ? kItemPersistent : 0));
+  return out;
+}
+
+bool decode_item(std::string_view bytes, ItemRow& row) {
+  std::size_t pos = 0;
+  std::uint64_t stored = 0, asserted_delta = 0;
+  if (!codec::get_varint(bytes, pos, row.count) || !codec::get_varint(bytes, pos, row.live) ||
+      !codec::get_varint(bytes, pos, row.pending) || !codec::get_varint(bytes, pos, stored) ||
+      !codec::get_varint(bytes, pos, asserted_delta) || !codec::get_varint(bytes, pos, row.source) ||
+      !codec::get_varint(bytes, pos, row.context) || pos >= bytes.size())
+    return false;
+  row.stored_at = codec::unzigzag(stored);
+  row.asserted_at = row.stored_at + codec::unzigzag(asserted_delta);
+  row.persistent = bytes[pos] & kItemPersistent;
+  return true;
+}
+
+Result<std::optional<RecordRow>> get_record(MDB_txn* txn, const Env& env, std::uint64_t id) {
+  MDB_val k = val(id), v;
+  int rc = mdb_get(txn, env.records, &k, &v);
+  if (rc == MDB_NOTFOUND) return std::optional<RecordRow>();
+  if (rc != 0) return lmdb_fail(rc, "reading record " + std::to_string(id));
+  RecordRow row;
+  if (!decode_record(id, view(v), row)) return fail(Errc::corrupt, "record " + std::to_string(id) + " is truncated");
+  return std::optional<RecordRow>(row);
+}
+
+Result<std::optional<ItemRow>> get_item(MDB_txn* txn, const Env& env, std::uint64_t id) {
+  MDB_val k = val(id), v;
+  int rc = mdb_get(txn, env.items, &k, &v);
+  if (rc == MDB_NOTFOUND) return std::optional<ItemRow>();
+  if (rc != 0) return lmdb_fail(rc, "reading item " + std::to_string(id));
+  ItemRow row;
+  if (!decode_item(view(v), row)) return fail(Errc::corrupt, "item " + std::to_string(id) + " is truncated");
+  return std::optional<ItemRow>(row);
+}
+
+Result<void> put_item(Txn& txn, std::uint64_t id, const ItemRow& row, unsigned flags) {
+  std::string bytes = encode_item(row);
+  MDB_val k = val(id), v = val(bytes);
+  int rc = mdb_put(txn.raw(), txn.env().items, &k, &v, flags);
+  if (rc != 0) return lmdb_fail(rc, "writing item " + std::to_string(id));
+  return {};
+}
+
+Result<void> delete_record(Txn& txn, std::uint64_t id, Removal why) {
+  MDB_txn* raw = txn.raw();
+  Env& env = txn.env();
+  auto row = get_record(raw, env, id);
+  if (!row) return unexpected(row.error());
+  if (!*row) return {};  // already gone
+  const RecordRow r = **row;
+  auto item = get_item(raw, env, r.item);
+  if (!item) return unexpected(item.error());
+  if (!*item) return fail(Errc::corrupt, "record " + std::to_string(id) + " has no item");
+  ItemRow it = **item;
+  if (why == Removal::explicit_removal) {
+    if (auto l = log_removal(txn, id, r, it); !l) return l;
+  }
+  if (auto d = del_dup(raw, env.idx_s, r.s, id, "unindexing a subject"); !d) return d;
+  if (auto d = del_dup(raw, env.idx_p, r.p, id, "unindexing a predicate"); !d) return d;
+  if (auto d = del_dup(raw, env.idx_o, r.o, id, "unindexing an object"); !d) return d;
+  MDB_val k = val(id);
+  int rc = mdb_del(raw, env.records, &k, nullptr);
+  if (rc != 0) return lmdb_fail(rc, "removing record " + std::to_string(id));
+  --txn.counters.records;
+  if (it.persistent) --txn.counters.persistent_records;
+  else --txn.counters.ring_records;
+  if (why == Removal::retention) ++txn.counters.reclaimed;
+  if (r.p == env.vocab.subscriber) {
+    ++txn.counters.sub_gen;
+    if (txn.counters.subscriptions > 0) --txn.counters.subscriptions;
+  }
+  if (--it.live == 0) {
+    if (auto x = retire_item(txn, r.item, it); !x) return x;
+  } else if (auto x = put_item(txn, r.item, it); !x) {
+    return x;
+  }
+  for (std::uint64_t term : {r.s, r.p, r.o})
+    if (auto c = collect_term_if_unused(txn, term); !c) return c;
+  return {};
+}
+
+Result<std::uint64_t> delete_item(Txn& txn, std::uint64_t id, Removal why) {
+  auto item = get_item(txn.raw(), txn.env(), id);
+  if (!item) return unexpected(item.error());
+  if (!*item) return std::uint64_t{0};
+  std::uint64_t count = (*item)->count, removed = 0;
+  for (std::uint64_t rid = id; rid < id + count; ++rid) {
+    auto exists = get_record(txn.raw(), txn.env(), rid);
+    if (!exists) return unexpected(exists.error());
+    if (!*exists) continue;
+    if (auto d = delete_record(txn, rid, why); !d) return unexpected(d.error());
+    ++removed;
+  }
+  return removed;
+}
+
+std::string encode_removed(const Record& record) {
+  std::string out;
+  codec::put_varint(out, record.meta.id);
+  codec::put_varint(out, record.meta.item);
+  codec::put_varint(out, codec::zigzag(record.meta.stored_at));
+  codec::put_varint(out, codec::zigzag(record.meta.asserted_at));
+  put_string(out, record.meta.source);
+  put_string(out, record.meta.context);
+  out.push_back(record.meta.persistent ? 1 : 0);
+  put_term(out, record.triple.s);
+  put_term(out, record.triple.p);
+  put_term(out, record.triple.o);
+  return out;
+}
+
+bool decode_removed(std::string_view in, Record& record) {
+  std::size_t pos = 0;
+  std::uint64_t stored = 0, asserted = 0;
+  if (!codec::get_varint(in, pos, record.meta.id) || !codec::get_varint(in, pos, record.meta.item) ||
+      !codec::get_varint(in, pos, stored) || !codec::get_varint(in, pos, asserted) ||
+      !get_string(in, pos, record.meta.source) || !get_string(in, pos, record.meta.context) || pos >= in.size())
+    return false;
+  record.meta.stored_at = codec::unzigzag(stored);
+  record.meta.asserted_at = codec::unzigzag(asserted);
+  record.meta.persistent = in[pos++] != 0;
+  return get_term(in, pos, record.triple.s) && get_term(in, pos, record.triple.p) &&
+         get_term(in, pos, record.triple.o);
+}
+
+}  // namespace tahvel::node::detail

@@ -1,0 +1,318 @@
+// The write path; see write.h.
+#include "write.h"
+
+#include <unordered_map>
+
+#include "dictionary.h"
+#include "rows.h"
+#include "tahvel/uri/iri.h"
+
+namespace tahvel::node::detail {
+namespace {
+
+constexpr std::size_t kTtlScanBudget = 64;  // records examined per rule per write
+
+const char* position_name(int i) { return i == 0 ? "subject" : i == 1 ? "predicate" : "object"; }
+
+Result<void> put_dup(MDB_txn* txn, MDB_dbi dbi, std::uint64_t key, std::uint64_t value, unsigned flags, const char* what) {
+  MDB_val k = val(key), v = val(value);
+  int rc = mdb_put(txn, dbi, &k, &v, flags);
+  if (rc != 0 && rc != MDB_KEYEXIST) return lmdb_fail(rc, what);
+  return {};
+}
+
+// Interns a term at a position; new IRIs are validated here, once, when they enter the
+// dictionary (terms already there were valid when they came).
+Result<std::uint64_t> term_id(Txn& txn, const Term& term, std::unordered_map<std::string, std::uint64_t>& blanks) {
+  if (term.kind == TermKind::blank) {
+    auto [it, fresh] = blanks.try_emplace(term.value, 0);
+    if (fresh) it->second = inline_blank(txn.counters.next_blank++);
+    return it->second;
+  }
+  if (term.kind == TermKind::iri) {
+    auto existing = find_term(txn.raw(), txn.env(), term);
+    if (!existing) return existing;
+    if (*existing) return *existing;
+    if (auto n = uri::normalize(term.value); !n)
+      return fail(Errc::invalid_iri, n.error().message);
+  }
+  return intern_term(txn, term, false);
+}
+
+Result<std::vector<Subscription>> load_subscriptions(Txn& txn) {
+  std::vector<Subscription> subs;
+  const auto& vocab = txn.env().vocab;
+  MDB_txn* raw = txn.raw();
+  Env& env = txn.env();
+  MDB_cursor* cursor = nullptr;
+  int rc = mdb_cursor_open(raw, env.idx_p, &cursor);
+  if (rc != 0) return lmdb_fail(rc, "opening the predicate index");
+  std::vector<std::uint64_t> ids;
+  MDB_val k = val(vocab.subscriber), v;
+  for (rc = mdb_cursor_get(cursor, &k, &v, MDB_SET); rc == 0; rc = mdb_cursor_get(cursor, &k, &v, MDB_NEXT_DUP))
+    ids.push_back(u64(v));
+  mdb_cursor_close(cursor);
+  if (rc != MDB_NOTFOUND) return lmdb_fail(rc, "reading subscriptions");
+  for (std::uint64_t id : ids) {
+    auto head = get_record(raw, env, id);
+    if (!head) return unexpected(head.error());
+    if (!*head) continue;
+    Subscription sub{(*head)->item, (*head)->o, 0, 0, 0};
+    // The pattern's positions are the other triples about the same subscription node.
+    if ((rc = mdb_cursor_open(raw, env.idx_s, &cursor)) != 0) return lmdb_fail(rc, "opening the subject index");
+    MDB_val sk = val((*head)->s), sv;
+    for (rc = mdb_cursor_get(cursor, &sk, &sv, MDB_SET); rc == 0; rc = mdb_cursor_get(cursor, &sk, &sv, MDB_NEXT_DUP)) {
+      auto part = get_record(raw, env, u64(sv));
+      if (!part || !*part) continue;
+      const RecordRow& r = **part;
+      if (r.p == vocab.subject) sub.s = r.o;
+      else if (r.p == vocab.predicate) sub.p = r.o;
+      else if (r.p == vocab.object) sub.o = r.o;
+    }
+    mdb_cursor_close(cursor);
+    subs.push_back(sub);
+  }
+  return subs;
+}
+
+Result<std::vector<TtlRule>> load_ttl_rules(Txn& txn) {
+  std::vector<TtlRule> rules;
+  MDB_cursor* cursor = nullptr;
+  int rc = mdb_cursor_open(txn.raw(), txn.env().meta, &cursor);
+  if (rc != 0) return lmdb_fail(rc, "opening settings");
+  const std::string_view prefix = "ttl:";
+  MDB_val k = val(prefix), v;
+  std::vector<std::pair<std::string, std::int64_t>> found;
+  for (rc = mdb_cursor_get(cursor, &k, &v, MDB_SET_RANGE); rc == 0; rc = mdb_cursor_get(cursor, &k, &v, MDB_NEXT)) {
+    std::string_view key = view(k);
+    if (key.substr(0, prefix.size()) != prefix) break;
+    std::int64_t ttl = 0;
+    std::memcpy(&ttl, v.mv_data, std::min(v.mv_size, sizeof ttl));
+    found.emplace_back(std::string(key.substr(prefix.size())), ttl);
+  }
+  mdb_cursor_close(cursor);
+  for (const auto& [iri, ttl] : found) {
+    auto id = find_term(txn.raw(), txn.env(), Term::iri(iri));
+    if (!id) return unexpected(id.error());
+    if (*id) rules.push_back({*id, ttl});
+  }
+  return rules;
+}
+
+bool triple_matches(const Subscription& sub, std::uint64_t s, std::uint64_t p, std::uint64_t o) {
+  return (!sub.s || sub.s == s) && (!sub.p || sub.p == p) && (!sub.o || sub.o == o);
+}
+
+Result<void> route(Txn& txn, std::uint64_t item_id, ItemRow& item,
+                   const std::vector<std::array<std::uint64_t, 3>>& triples) {
+  std::lock_guard lock(txn.env().cache_mutex);
+  for (const auto& sub : txn.env().subs) {
+    if (sub.item == item_id) continue;  // a subscription does not receive itself
+    bool hit = false;
+    for (const auto& t : triples) {
+      if (triple_matches(sub, t[0], t[1], t[2])) { hit = true; break; }
+    }
+    if (!hit) continue;
+    MDB_val k = val(sub.agent), v = val(item_id);
+    int rc = mdb_put(txn.raw(), txn.env().inbox, &k, &v, MDB_NODUPDATA);
+    if (rc == MDB_KEYEXIST) continue;  // two subscriptions of one agent: delivered once
+    if (rc != 0) return lmdb_fail(rc, "routing an item into an input buffer");
+    ++item.pending;
+    ++txn.counters.pending;
+    txn.wake_slots.push_back(sub.slot);
+  }
+  return {};
+}
+
+// Evicts the oldest non-persistent items not waiting in an input buffer until the ring fits.
+Result<std::uint64_t> apply_ring(Txn& txn) {
+  const std::uint64_t bound = txn.env().settings().ring;
+  if (bound == 0 || txn.counters.ring_records <= bound) return std::uint64_t{0};
+  std::vector<std::uint64_t> victims;
+  std::uint64_t excess = txn.counters.ring_records - bound, freed = 0;
+  MDB_cursor* cursor = nullptr;
+  int rc = mdb_cursor_open(txn.raw(), txn.env().ring, &cursor);
+  if (rc != 0) return lmdb_fail(rc, "opening the ring");
+  MDB_val k, v;
+  for (rc = mdb_cursor_get(cursor, &k, &v, MDB_FIRST); rc == 0 && freed < excess;
+       rc = mdb_cursor_get(cursor, &k, &v, MDB_NEXT)) {
+    auto item = get_item(txn.raw(), txn.env(), u64(k));
+    if (!item) { mdb_cursor_close(cursor); return unexpected(item.error()); }
+    if (!*item || (*item)->pending > 0) continue;  // unread: kept until taken
+    victims.push_back(u64(k));
+    freed += (*item)->live;
+  }
+  mdb_cursor_close(cursor);
+  std::uint64_t removed = 0;
+  for (std::uint64_t id : victims) {
+    auto n = delete_item(txn, id, Removal::retention);
+    if (!n) return n;
+    removed += *n;
+  }
+  return removed;
+}
+
+Result<std::uint64_t> apply_ttl(Txn& txn, const std::vector<TtlRule>& rules) {
+  std::uint64_t removed = 0;
+  const std::int64_t now = now_ns();
+  for (const auto& rule : rules) {
+    std::vector<std::uint64_t> expired;
+    MDB_cursor* cursor = nullptr;
+    int rc = mdb_cursor_open(txn.raw(), txn.env().idx_p, &cursor);
+    if (rc != 0) return lmdb_fail(rc, "opening the predicate index");
+    MDB_val k = val(rule.predicate), v;
+    std::size_t examined = 0;
+    for (rc = mdb_cursor_get(cursor, &k, &v, MDB_SET); rc == 0 && examined < kTtlScanBudget;
+         rc = mdb_cursor_get(cursor, &k, &v, MDB_NEXT_DUP), ++examined) {
+      std::uint64_t id = u64(v);
+      auto row = get_record(txn.raw(), txn.env(), id);
+      if (!row || !*row) continue;
+      auto item = get_item(txn.raw(), txn.env(), (*row)->item);
+      if (!item || !*item) continue;
+      const ItemRow& it = **item;
+      if (it.stored_at + rule.ttl_ns > now) break;  // ids ascend with time: the rest is younger
+      if (it.persistent || it.pending > 0) continue;
+      expired.push_back(id);
+    }
+    mdb_cursor_close(cursor);
+    for (std::uint64_t id : expired) {
+      if (auto d = delete_record(txn, id, Removal::retention); !d) return unexpected(d.error());
+      ++removed;
+    }
+  }
+  return removed;
+}
+
+}  // namespace
+
+Result<void> validate_item(const Item& item, const Settings& settings) {
+  if (item.triples.empty()) return fail(Errc::invalid_argument, "an item needs at least one triple");
+  for (std::size_t i = 0; i < item.triples.size(); ++i) {
+    const Triple& t = item.triples[i];
+    const Term* terms[] = {&t.s, &t.p, &t.o};
+    auto where = [&](int pos) { return "triple " + std::to_string(i + 1) + ", " + position_name(pos); };
+    if (t.s.kind == TermKind::literal) return fail(Errc::invalid_argument, where(0) + ": a literal cannot be a subject");
+    if (t.p.kind != TermKind::iri) return fail(Errc::invalid_argument, where(1) + ": the predicate must be an IRI");
+    for (int pos = 0; pos < 3; ++pos) {
+      const Term& term = *terms[pos];
+      if (term.kind == TermKind::iri && term.value.empty())
+        return fail(Errc::invalid_iri, where(pos) + ": empty IRI");
+      if (term.kind == TermKind::blank && term.value.empty())
+        return fail(Errc::invalid_argument, where(pos) + ": empty blank-node label");
+      if (term.kind != TermKind::literal) continue;
+      if (term.value.size() > settings.max_literal_bytes)
+        return fail(Errc::literal_too_large, where(pos) + ": literal of " + std::to_string(term.value.size()) +
+                                                 " bytes exceeds the node's limit of " +
+                                                 std::to_string(settings.max_literal_bytes));
+      if (term.language.size() > 255) return fail(Errc::invalid_argument, where(pos) + ": language tag too long");
+      if (!term.language.empty() && !term.datatype.empty() && term.datatype != kRdfLangString)
+        return fail(Errc::invalid_argument, where(pos) + ": a literal has a language tag or a datatype, not both");
+    }
+  }
+  return {};
+}
+
+Result<void> refresh_caches(Txn& txn) {
+  Env& env = txn.env();
+  std::lock_guard lock(env.cache_mutex);
+  if (env.subs_gen != txn.counters.sub_gen) {
+    auto subs = load_subscriptions(txn);
+    if (!subs) return unexpected(subs.error());
+    TermReader reader(txn.raw(), env);
+    for (auto& sub : *subs) {
+      auto iri = reader.iri(sub.agent);
+      if (!iri) return unexpected(iri.error());
+      sub.slot = WakeBoard::slot_for(*iri);
+    }
+    env.subs = std::move(*subs);
+    env.subs_gen = txn.counters.sub_gen;
+  }
+  if (env.ttl_gen != txn.counters.ttl_gen) {
+    auto rules = load_ttl_rules(txn);
+    if (!rules) return unexpected(rules.error());
+    env.ttl_rules = std::move(*rules);
+    env.ttl_gen = txn.counters.ttl_gen;
+  }
+  return {};
+}
+
+Result<std::uint64_t> insert_item(Txn& txn, const Item& item, const std::string& agent_iri) {
+  MDB_txn* raw = txn.raw();
+  Env& env = txn.env();
+  auto source = intern_term(txn, Term::iri(agent_iri), true);
+  if (!source) return source;
+  std::uint64_t context = 0;
+  if (!item.context.empty()) {
+    auto found = find_term(raw, env, Term::iri(item.context));
+    if (!found) return found;
+    if (*found == 0) {
+      if (auto n = uri::normalize(item.context); !n) return fail(Errc::invalid_iri, "context: " + n.error().message);
+    }
+    auto ctx = intern_term(txn, Term::iri(item.context), true);
+    if (!ctx) return ctx;
+    context = *ctx;
+  }
+  const std::uint64_t item_id = txn.counters.next_seq;
+  std::unordered_map<std::string, std::uint64_t> blanks;
+  std::vector<std::array<std::uint64_t, 3>> ids;
+  ids.reserve(item.triples.size());
+  bool declares_subscription = false;
+  for (std::size_t i = 0; i < item.triples.size(); ++i) {
+    const Triple& t = item.triples[i];
+    std::array<std::uint64_t, 3> row{};
+    const Term* terms[] = {&t.s, &t.p, &t.o};
+    for (int pos = 0; pos < 3; ++pos) {
+      auto id = term_id(txn, *terms[pos], blanks);
+      if (!id) return fail(id.error().code, "triple " + std::to_string(i + 1) + ", " + position_name(pos) + ": " + id.error().message);
+      row[pos] = *id;
+    }
+    std::uint64_t record_id = txn.counters.next_seq++;
+    std::string bytes = encode_record(record_id, RecordRow{row[0], row[1], row[2], item_id});
+    MDB_val k = val(record_id), v = val(bytes);
+    int rc = mdb_put(raw, env.records, &k, &v, MDB_APPEND);
+    if (rc != 0) return lmdb_fail(rc, "writing a record");
+    if (auto r = put_dup(raw, env.idx_s, row[0], record_id, 0, "indexing a subject"); !r) return unexpected(r.error());
+    if (auto r = put_dup(raw, env.idx_p, row[1], record_id, 0, "indexing a predicate"); !r) return unexpected(r.error());
+    if (auto r = put_dup(raw, env.idx_o, row[2], record_id, 0, "indexing an object"); !r) return unexpected(r.error());
+    if (row[1] == env.vocab.subscriber) declares_subscription = true;
+    ids.push_back(row);
+  }
+  const std::int64_t now = now_ns();
+  ItemRow meta{ids.size(), ids.size(), 0, now, item.asserted_at.value_or(now), *source, context, item.persistent};
+  if (auto r = refresh_caches(txn); !r) return unexpected(r.error());
+  if (auto r = route(txn, item_id, meta, ids); !r) return unexpected(r.error());
+  if (auto r = put_item(txn, item_id, meta, MDB_APPEND); !r) return unexpected(r.error());
+  if (auto r = put_dup(raw, env.outbox, *source, item_id, 0, "writing the output buffer"); !r) return unexpected(r.error());
+  if (!item.persistent) {
+    MDB_val k = val(item_id), v = val(std::string_view());
+    int rc = mdb_put(raw, env.ring, &k, &v, MDB_APPEND);
+    if (rc != 0) return lmdb_fail(rc, "writing the ring");
+    txn.counters.ring_records += ids.size();
+  } else {
+    txn.counters.persistent_records += ids.size();
+  }
+  txn.counters.records += ids.size();
+  ++txn.counters.items;
+  if (declares_subscription) {
+    ++txn.counters.sub_gen;
+    ++txn.counters.subscriptions;
+  }
+  return item_id;
+}
+
+Result<std::uint64_t> apply_retention(Txn& txn) {
+  if (auto r = refresh_caches(txn); !r) return unexpected(r.error());
+  auto ring = apply_ring(txn);
+  if (!ring) return ring;
+  std::vector<TtlRule> rules;
+  {
+    std::lock_guard lock(txn.env().cache_mutex);
+    rules = txn.env().ttl_rules;
+  }
+  if (rules.empty()) return *ring;
+  auto ttl = apply_ttl(txn, rules);
+  if (!ttl) return ttl;
+  return *ring + *ttl;
+}
+
+}  // namespace tahvel::node::detail

@@ -1,0 +1,27 @@
+// The write path: validation, item insertion with blank-node renaming, routing into input
+// buffers, and retention (ring and TTL). Runs inside Env::write.
+#pragma once
+
+#include <cstdint>
+#include <string>
+#include <vector>
+
+#include "env.h"
+#include "tahvel/node/node.h"
+
+namespace tahvel::node::detail {
+
+// Checks what can be checked without the store: item not empty, term kinds per position,
+// literal sizes and language tags. Error names the triple (1-based) and position.
+Result<void> validate_item(const Item& item, const Settings& settings);
+
+// Inserts one validated item written by `agent_iri`, routes it, and returns its id.
+Result<std::uint64_t> insert_item(Txn& txn, const Item& item, const std::string& agent_iri);
+
+// Applies ring and TTL retention; returns the number of records reclaimed.
+Result<std::uint64_t> apply_retention(Txn& txn);
+
+// Reloads the per-process subscription and TTL caches when their generation changed.
+Result<void> refresh_caches(Txn& txn);
+
+}  // namespace tahvel::node::detail
