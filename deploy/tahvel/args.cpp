@@ -1,0 +1,184 @@
+// The option parser behind every `tahvel` subcommand (see args.h for the grammar).
+#include "args.h"
+
+#include <algorithm>
+#include <charconv>
+#include <ostream>
+
+namespace tahvel::cli {
+namespace {
+
+// Flags every subcommand accepts, appended to its own.
+const std::vector<Flag>& common_flags() {
+  static const std::vector<Flag> flags = {
+      {"--prefix", "", "P=IRI",
+       "also expand CURIEs 'P:x' to IRI+x (repeatable; the node's own prefixes are always known)",
+       true},
+      {"--help", "-h", "", "show this help and exit"},
+  };
+  return flags;
+}
+
+const Flag* find_in(const std::vector<Flag>& flags, std::string_view name) {
+  for (const Flag& f : flags) {
+    if (f.name == name || (!f.alias.empty() && f.alias == name)) return &f;
+  }
+  return nullptr;
+}
+
+const Flag* find_flag(const Command& command, std::string_view name) {
+  if (const Flag* f = find_in(command.flags, name)) return f;
+  return find_in(common_flags(), name);
+}
+
+bool looks_like_flag(std::string_view arg) { return arg.size() > 1 && arg[0] == '-'; }
+
+std::string prefix_of(const Command& command) { return std::string(command.name) + ": "; }
+
+// Handles one flag at argv[i]; returns the index of the last argument it consumed.
+std::size_t take_flag(const Command& command, std::span<const std::string> argv, std::size_t i,
+                      Args& args) {
+  std::string_view arg = argv[i];
+  std::optional<std::string> inline_value;
+  if (auto eq = arg.find('='); arg.starts_with("--") && eq != std::string_view::npos) {
+    inline_value = std::string(arg.substr(eq + 1));
+    arg = arg.substr(0, eq);
+  }
+  const Flag* flag = find_flag(command, arg);
+  if (!flag) {
+    usage_error(prefix_of(command) + "unknown flag '" + std::string(arg) + "' (see 'tahvel " +
+                std::string(command.name) + " --help')");
+  }
+  if (!flag->repeatable && args.has(flag->name)) {
+    usage_error(prefix_of(command) + "flag '" + std::string(flag->name) + "' given twice");
+  }
+  if (flag->value.empty()) {
+    if (inline_value) {
+      usage_error(prefix_of(command) + "flag '" + std::string(flag->name) + "' takes no value");
+    }
+    args.add(flag->name, "");
+    return i;
+  }
+  if (inline_value) {
+    args.add(flag->name, std::move(*inline_value));
+    return i;
+  }
+  if (i + 1 >= argv.size()) {
+    usage_error(prefix_of(command) + "flag '" + std::string(flag->name) + "' needs a value (" +
+                std::string(flag->value) + ")");
+  }
+  args.add(flag->name, argv[i + 1]);
+  return i + 1;
+}
+
+void check_positional_count(const Command& command, const Args& args) {
+  std::size_t n = args.positional().size();
+  if (n < command.min_positional) {
+    usage_error(prefix_of(command) + "missing argument (usage: tahvel " +
+                std::string(command.name) + " " + std::string(command.usage) + ")");
+  }
+  if (n > command.max_positional) {
+    usage_error(prefix_of(command) + "unexpected argument '" +
+                args.positional()[command.max_positional] + "'");
+  }
+}
+
+void print_flags(std::ostream& out, const std::vector<Flag>& flags) {
+  for (const Flag& f : flags) {
+    std::string left = std::string(f.name);
+    if (!f.alias.empty()) left = std::string(f.alias) + ", " + left;
+    if (!f.value.empty()) left += " " + std::string(f.value);
+    out << "  " << left;
+    if (left.size() < 22) {
+      out << std::string(22 - left.size(), ' ');
+    } else {
+      out << "\n" << std::string(24, ' ');
+    }
+    out << f.help << "\n";
+  }
+}
+
+}  // namespace
+
+void usage_error(std::string message) { throw Failure{kExitUsage, std::move(message)}; }
+void fail(std::string message) { throw Failure{kExitFailure, std::move(message)}; }
+
+bool Args::has(std::string_view flag) const {
+  return std::any_of(values_.begin(), values_.end(),
+                     [&](const auto& kv) { return kv.first == flag; });
+}
+
+std::optional<std::string> Args::get(std::string_view flag) const {
+  for (auto it = values_.rbegin(); it != values_.rend(); ++it) {
+    if (it->first == flag) return it->second;
+  }
+  return std::nullopt;
+}
+
+std::vector<std::string> Args::all(std::string_view flag) const {
+  std::vector<std::string> out;
+  for (const auto& [name, value] : values_) {
+    if (name == flag) out.push_back(value);
+  }
+  return out;
+}
+
+std::string Args::required(std::string_view flag) const {
+  if (auto v = get(flag)) return *v;
+  usage_error(prefix_of(*command_) + "flag '" + std::string(flag) + "' is required");
+}
+
+std::uint64_t Args::get_u64(std::string_view flag, std::uint64_t fallback) const {
+  auto text = get(flag);
+  if (!text) return fallback;
+  if (auto v = parse_u64(*text)) return *v;
+  usage_error(prefix_of(*command_) + std::string(flag) + ": '" + *text +
+              "' is not a non-negative integer");
+}
+
+void Args::add(std::string_view flag, std::string value) {
+  values_.emplace_back(std::string(flag), std::move(value));
+}
+
+std::optional<std::uint64_t> parse_u64(std::string_view text) {
+  std::uint64_t v = 0;
+  if (text.empty() || text[0] == '+' || text[0] == '-') return std::nullopt;
+  auto [end, ec] = std::from_chars(text.data(), text.data() + text.size(), v);
+  if (ec != std::errc() || end != text.data() + text.size()) return std::nullopt;
+  return v;
+}
+
+bool wants_help(std::span<const std::string> argv) {
+  for (const std::string& a : argv) {
+    if (a == "--") return false;
+    if (a == "-h" || a == "--help") return true;
+  }
+  return false;
+}
+
+Args parse_args(const Command& command, std::span<const std::string> argv) {
+  Args args(command);
+  bool flags_done = false;
+  for (std::size_t i = 0; i < argv.size(); ++i) {
+    if (!flags_done && argv[i] == "--") {
+      flags_done = true;
+    } else if (!flags_done && looks_like_flag(argv[i])) {
+      i = take_flag(command, argv, i, args);
+    } else {
+      args.add_positional(argv[i]);
+    }
+  }
+  check_positional_count(command, args);
+  return args;
+}
+
+void print_help(std::ostream& out, const Command& command) {
+  out << "usage: tahvel " << command.name << " " << command.usage << "\n\n"
+      << command.summary << "\n";
+  if (!command.description.empty()) out << "\n" << command.description << "\n";
+  out << "\noptions:\n";
+  print_flags(out, command.flags);
+  print_flags(out, common_flags());
+}
+
+}  // namespace tahvel::cli

@@ -1,0 +1,121 @@
+// The `tahvel` subcommands and the helpers they share: opening a node, the prefix table, terms
+// and patterns from the command line, reading input and writing records.
+//
+// Each subcommand is a Command (its flags and help, see args.h) and a function from the parsed
+// Args to an exit status. Helpers report errors by throwing Failure (caught in main()).
+#pragma once
+
+#include <cstdint>
+#include <iosfwd>
+#include <optional>
+#include <span>
+#include <string>
+#include <string_view>
+#include <vector>
+
+#include "args.h"
+#include "tahvel/node/format.h"
+#include "tahvel/node/node.h"
+#include "tahvel/uri/iri.h"
+
+namespace tahvel::cli {
+
+struct Subcommand {
+  const Command* spec;
+  int (*run)(const Args&);
+};
+
+// Every subcommand in the order `tahvel --help` lists them (bench is handled in main.cpp).
+std::span<const Subcommand> subcommands();
+
+// Flags shared by several subcommands.
+inline const Flag kFlagS{"-s", "--subject", "TERM", "match this subject: <iri>, IRI, CURIE or _:label"};
+inline const Flag kFlagP{"-p", "--predicate", "TERM", "match this predicate: <iri>, IRI, CURIE or 'a'"};
+inline const Flag kFlagO{"-o", "--object", "TERM",
+                         "match this object: an IRI, _:label, \"lit\", \"lit\"@en, \"lit\"^^type, 72, 7.5"};
+inline const Flag kFlagCascade{"--cascade", "", "N",
+                               "also follow each match's IRI/blank object to its own triples, N levels deep"};
+inline const Flag kFlagFormat{"--format", "", "nt|ttl|json",
+                              "output syntax: N-Triples (default), Turtle, or JSON lines with metadata"};
+inline const Flag kFlagAgentWriter{"--agent", "", "ID",
+                                   "write as agent ID (IRI = node IRI + \"/\" + ID); default \"cli\""};
+
+// --- errors ---------------------------------------------------------------------------------
+
+// The value of `result`, or Failure(kExitFailure) with the library's message.
+template <class T>
+T check(node::Result<T>&& result) {
+  if (!result) fail(std::move(result).error().message);
+  return std::move(result).value();
+}
+void check(node::Result<void>&& result);
+
+// --- node and prefixes ----------------------------------------------------------------------
+
+node::Node open_node(const std::string& dir);
+// `base` plus every --prefix P=IRI of `args` (usage error naming --prefix when malformed).
+uri::PrefixMap prefixes_with_flags(uri::PrefixMap base, const Args& args);
+// The agent id of --agent (default `fallback`), checked (usage error naming --agent).
+std::string agent_id(const Args& args, std::string_view fallback);
+
+// --- terms and patterns ---------------------------------------------------------------------
+
+enum class Position { subject, predicate, object, any };
+
+// A term written on the command line: <iri>, absolute IRI with "//" (or urn:, mailto:, ...),
+// CURIE, _:label, "lexical", "lexical"@lang, "lexical"^^dt, a bare number or true/false, and
+// "a" for rdf:type. Usage error naming `flag` when malformed or not allowed at `position`.
+node::Term parse_term(std::string_view text, const uri::PrefixMap& prefixes,
+                      std::string_view flag, Position position = Position::any);
+// An IRI (absolute, <iri> or CURIE) given to `flag`.
+std::string parse_iri(std::string_view text, const uri::PrefixMap& prefixes,
+                      std::string_view flag);
+// The pattern of -s, -p, -o (and --context, --source when the command has them).
+node::Pattern pattern_from_args(const Args& args, const uri::PrefixMap& prefixes);
+bool pattern_has_triple(const node::Pattern& pattern);
+// True when `record` matches every bound field of `pattern` (s, p, o, context, source).
+bool matches(const node::Pattern& pattern, const node::Record& record);
+
+// --- input and output -----------------------------------------------------------------------
+
+// The format of --format (or `fallback`); usage error when the value is unknown or json is not
+// allowed (input).
+node::Format format_flag(const Args& args, node::Format fallback, bool allow_json = true);
+// The whole of FILE, or of standard input for "-". Failure naming the file.
+std::string read_input(const std::string& path);
+// Flushes `out` and fails (naming standard output) when anything could not be written.
+void finish_output(std::ostream& out);
+// Writes `records` as one document.
+void write_records(std::ostream& out, node::Format format, const uri::PrefixMap& prefixes,
+                   const std::vector<node::Record>& records);
+// The base IRI for relative references in input: the node IRI followed by "/".
+std::string base_iri_of(const node::Node& node);
+
+// --- subcommands ----------------------------------------------------------------------------
+
+extern const Command kInitCommand;
+extern const Command kPutCommand;
+extern const Command kLoadCommand;
+extern const Command kRemoveCommand;
+extern const Command kSubscribeCommand;
+extern const Command kListCommand;
+extern const Command kDumpCommand;
+extern const Command kTakeCommand;
+extern const Command kTailCommand;
+extern const Command kStatsCommand;
+
+int run_init(const Args& args);
+int run_put(const Args& args);
+int run_load(const Args& args);
+int run_remove(const Args& args);
+int run_subscribe(const Args& args);
+int run_list(const Args& args);
+int run_dump(const Args& args);
+int run_take(const Args& args);
+int run_tail(const Args& args);
+int run_stats(const Args& args);
+
+// Groups triples into items for `load`: one item per subject group (see docs/cli.md).
+std::vector<std::vector<node::Triple>> group_by_subject(std::vector<node::Triple> triples);
+
+}  // namespace tahvel::cli

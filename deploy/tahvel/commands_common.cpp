@@ -1,0 +1,358 @@
+// Helpers shared by the `tahvel` subcommands: terms and patterns from the command line, the
+// prefix table, input and output. Everything here runs once per invocation (not hot).
+#include <cerrno>
+#include <cstring>
+#include <fstream>
+#include <iostream>
+#include <iterator>
+#include <sstream>
+
+#include "commands.h"
+
+namespace tahvel::cli {
+namespace {
+
+using node::Term;
+
+[[noreturn]] void bad_value(std::string_view flag, std::string_view why) {
+  usage_error(std::string(flag) + ": " + std::string(why));
+}
+
+bool all_digits(std::string_view s) {
+  return !s.empty() && s.find_first_not_of("0123456789") == std::string_view::npos;
+}
+
+std::string_view strip_sign(std::string_view s) {
+  return (!s.empty() && (s[0] == '+' || s[0] == '-')) ? s.substr(1) : s;
+}
+
+bool is_integer(std::string_view s) { return all_digits(strip_sign(s)); }
+
+bool is_decimal(std::string_view s) {
+  s = strip_sign(s);
+  auto dot = s.find('.');
+  if (dot == std::string_view::npos) return false;
+  std::string_view whole = s.substr(0, dot), frac = s.substr(dot + 1);
+  return all_digits(frac) && (whole.empty() || all_digits(whole));
+}
+
+bool is_double(std::string_view s) {
+  auto e = s.find_first_of("eE");
+  if (e == std::string_view::npos) return false;
+  std::string_view mantissa = s.substr(0, e), exponent = s.substr(e + 1);
+  bool mantissa_ok = is_integer(mantissa) || is_decimal(mantissa) ||
+                     (mantissa.ends_with('.') && is_integer(mantissa.substr(0, mantissa.size() - 1)));
+  return mantissa_ok && is_integer(exponent);
+}
+
+// A bare number or boolean, as Turtle abbreviates them.
+std::optional<Term> bare_literal(std::string_view s) {
+  if (is_integer(s)) return Term::literal(std::string(s), std::string(node::xsd::kInteger));
+  if (is_decimal(s)) return Term::literal(std::string(s), std::string(node::xsd::kDecimal));
+  if (is_double(s)) return Term::literal(std::string(s), std::string(node::xsd::kDouble));
+  if (s == "true" || s == "false") {
+    return Term::literal(std::string(s), std::string(node::xsd::kBoolean));
+  }
+  return std::nullopt;
+}
+
+void append_utf8(std::string& out, std::uint32_t cp) {
+  if (cp < 0x80) {
+    out += static_cast<char>(cp);
+  } else if (cp < 0x800) {
+    out += static_cast<char>(0xC0 | (cp >> 6));
+    out += static_cast<char>(0x80 | (cp & 0x3F));
+  } else if (cp < 0x10000) {
+    out += static_cast<char>(0xE0 | (cp >> 12));
+    out += static_cast<char>(0x80 | ((cp >> 6) & 0x3F));
+    out += static_cast<char>(0x80 | (cp & 0x3F));
+  } else {
+    out += static_cast<char>(0xF0 | (cp >> 18));
+    out += static_cast<char>(0x80 | ((cp >> 12) & 0x3F));
+    out += static_cast<char>(0x80 | ((cp >> 6) & 0x3F));
+    out += static_cast<char>(0x80 | (cp & 0x3F));
+  }
+}
+
+// Decodes \uXXXX or \UXXXXXXXX at text[i] (the 'u' or 'U'); returns the characters consumed.
+std::size_t unicode_escape(std::string_view text, std::size_t i, std::string& out,
+                           std::string_view flag) {
+  std::size_t n = text[i] == 'u' ? 4 : 8;
+  if (i + n >= text.size()) bad_value(flag, "truncated \\u escape");
+  std::uint32_t cp = 0;
+  for (std::size_t k = 1; k <= n; ++k) {
+    char c = text[i + k];
+    int d = (c >= '0' && c <= '9') ? c - '0'
+            : (c >= 'a' && c <= 'f') ? c - 'a' + 10
+            : (c >= 'A' && c <= 'F') ? c - 'A' + 10 : -1;
+    if (d < 0) bad_value(flag, "bad hex digit in \\u escape");
+    cp = cp * 16 + static_cast<std::uint32_t>(d);
+  }
+  if (cp > 0x10FFFF || (cp >= 0xD800 && cp <= 0xDFFF)) bad_value(flag, "invalid code point");
+  append_utf8(out, cp);
+  return n;
+}
+
+char simple_escape(char c) {
+  switch (c) {
+    case 't': return '\t';
+    case 'b': return '\b';
+    case 'n': return '\n';
+    case 'r': return '\r';
+    case 'f': return '\f';
+    case '"': return '"';
+    case '\'': return '\'';
+    case '\\': return '\\';
+    default: return 0;
+  }
+}
+
+// Reads the quoted part of "lexical"...; returns the lexical form and sets `end` after the
+// closing quote.
+std::string quoted_lexical(std::string_view text, std::size_t& end, std::string_view flag) {
+  std::string lexical;
+  for (std::size_t i = 1; i < text.size(); ++i) {
+    char c = text[i];
+    if (c == '"') {
+      end = i + 1;
+      return lexical;
+    }
+    if (c != '\\') {
+      lexical += c;
+      continue;
+    }
+    if (++i >= text.size()) break;
+    if (text[i] == 'u' || text[i] == 'U') {
+      i += unicode_escape(text, i, lexical, flag);
+    } else if (char e = simple_escape(text[i])) {
+      lexical += e;
+    } else {
+      bad_value(flag, std::string("unknown escape '\\") + text[i] + "' in literal");
+    }
+  }
+  bad_value(flag, "literal " + std::string(text) + " has no closing quote");
+}
+
+bool valid_language(std::string_view tag) {
+  std::size_t part = 0;
+  for (std::size_t i = 0; i <= tag.size(); ++i) {
+    if (i == tag.size() || tag[i] == '-') {
+      if (part == 0 || part > 8) return false;
+      part = 0;
+      continue;
+    }
+    char c = tag[i];
+    bool alpha = (c >= 'a' && c <= 'z') || (c >= 'A' && c <= 'Z');
+    bool digit = c >= '0' && c <= '9';
+    if (!alpha && !(digit && i > tag.find('-'))) return false;
+    ++part;
+  }
+  return !tag.empty();
+}
+
+std::string lower(std::string_view s) {
+  std::string out(s);
+  for (char& c : out) {
+    if (c >= 'A' && c <= 'Z') c = static_cast<char>(c - 'A' + 'a');
+  }
+  return out;
+}
+
+Term quoted_literal(std::string_view text, const uri::PrefixMap& prefixes,
+                    std::string_view flag) {
+  std::size_t end = 0;
+  std::string lexical = quoted_lexical(text, end, flag);
+  std::string_view rest = text.substr(end);
+  if (rest.empty()) return Term::literal(std::move(lexical));
+  if (rest.starts_with("@")) {
+    if (!valid_language(rest.substr(1))) {
+      bad_value(flag, "invalid language tag '" + std::string(rest.substr(1)) + "'");
+    }
+    return Term::lang_literal(std::move(lexical), lower(rest.substr(1)));
+  }
+  if (rest.starts_with("^^")) {
+    return Term::literal(std::move(lexical), parse_iri(rest.substr(2), prefixes, flag));
+  }
+  bad_value(flag, "unexpected '" + std::string(rest) + "' after literal (expected @lang or ^^type)");
+}
+
+// Schemes that are written without "//" and so cannot be told from a CURIE by shape alone.
+bool opaque_scheme(std::string_view scheme) {
+  for (std::string_view s : {"urn", "mailto", "tag", "did", "data", "uuid", "geo"}) {
+    if (scheme == s) return true;
+  }
+  return false;
+}
+
+void check_no_space(std::string_view text, std::string_view flag) {
+  if (text.find_first_of(" \t\n") != std::string_view::npos) {
+    bad_value(flag, "'" + std::string(text) + "' contains white space");
+  }
+}
+
+bool has_flag_spec(const Args& args, std::string_view name) {
+  for (const Flag& f : args.command().flags) {
+    if (f.name == name) return true;
+  }
+  return false;
+}
+
+}  // namespace
+
+void check(node::Result<void>&& result) {
+  if (!result) fail(result.error().message);
+}
+
+node::Node open_node(const std::string& dir) { return check(node::Node::open(dir)); }
+
+uri::PrefixMap prefixes_with_flags(uri::PrefixMap base, const Args& args) {
+  for (const std::string& entry : args.all("--prefix")) {
+    auto eq = entry.find('=');
+    if (eq == std::string::npos) bad_value("--prefix", "'" + entry + "' is not P=IRI");
+    auto added = base.add(std::string_view(entry).substr(0, eq),
+                          std::string_view(entry).substr(eq + 1));
+    if (!added) bad_value("--prefix", added.error().message);
+  }
+  return base;
+}
+
+std::string agent_id(const Args& args, std::string_view fallback) {
+  std::string id = args.get("--agent").value_or(std::string(fallback));
+  auto checked = uri::check_id(id);
+  if (!checked) bad_value("--agent", checked.error().message);
+  return id;
+}
+
+std::string parse_iri(std::string_view text, const uri::PrefixMap& prefixes,
+                      std::string_view flag) {
+  check_no_space(text, flag);
+  if (text.starts_with("<")) {
+    if (!text.ends_with(">") || text.size() < 2) bad_value(flag, "'" + std::string(text) + "' lacks '>'");
+    std::string_view inner = text.substr(1, text.size() - 2);
+    auto normal = uri::normalize(inner);
+    if (!normal) bad_value(flag, normal.error().message);
+    return std::string(inner);  // as written: stored terms are compared as written
+  }
+  auto colon = text.find(':');
+  if (colon == std::string_view::npos) {
+    bad_value(flag, "'" + std::string(text) + "' is not an IRI or CURIE");
+  }
+  std::string prefix(text.substr(0, colon));
+  if (prefixes.entries().contains(prefix)) {
+    auto expanded = prefixes.expand(text);
+    if (!expanded) bad_value(flag, expanded.error().message);
+    return *expanded;
+  }
+  if (text.substr(colon + 1).starts_with("//") || opaque_scheme(prefix)) {
+    auto normal = uri::normalize(text);
+    if (!normal) bad_value(flag, normal.error().message);
+    return std::string(text);
+  }
+  bad_value(flag, "unknown prefix '" + prefix + "' in '" + std::string(text) + "' (add --prefix " +
+                      prefix + "=IRI, or write <" + std::string(text) + "> for an absolute IRI)");
+}
+
+node::Term parse_term(std::string_view text, const uri::PrefixMap& prefixes,
+                      std::string_view flag, Position position) {
+  if (text.empty()) bad_value(flag, "empty term");
+  Term term;
+  if (text.starts_with("\"")) {
+    term = quoted_literal(text, prefixes, flag);
+  } else if (text.starts_with("_:")) {
+    if (text.size() == 2) bad_value(flag, "blank node without a label");
+    check_no_space(text, flag);
+    term = Term::blank(std::string(text.substr(2)));
+  } else if (text == "a") {
+    term = Term::iri(std::string(node::kRdfType));
+  } else if (auto literal = bare_literal(text)) {
+    term = *literal;
+  } else {
+    term = Term::iri(parse_iri(text, prefixes, flag));
+  }
+  if (term.is_literal() && (position == Position::subject || position == Position::predicate)) {
+    bad_value(flag, "a literal cannot be a subject or predicate");
+  }
+  if (!term.is_iri() && position == Position::predicate) {
+    bad_value(flag, "a predicate must be an IRI");
+  }
+  return term;
+}
+
+node::Pattern pattern_from_args(const Args& args, const uri::PrefixMap& prefixes) {
+  node::Pattern pattern;
+  if (auto s = args.get("-s")) pattern.s = parse_term(*s, prefixes, "-s", Position::subject);
+  if (auto p = args.get("-p")) pattern.p = parse_term(*p, prefixes, "-p", Position::predicate);
+  if (auto o = args.get("-o")) pattern.o = parse_term(*o, prefixes, "-o", Position::object);
+  if (has_flag_spec(args, "--context")) {
+    if (auto c = args.get("--context")) {
+      pattern.context = c->empty() ? std::string() : parse_iri(*c, prefixes, "--context");
+    }
+  }
+  if (has_flag_spec(args, "--source")) {
+    if (auto src = args.get("--source")) pattern.source = parse_iri(*src, prefixes, "--source");
+  }
+  return pattern;
+}
+
+bool pattern_has_triple(const node::Pattern& pattern) {
+  return pattern.s || pattern.p || pattern.o;
+}
+
+bool matches(const node::Pattern& pattern, const node::Record& record) {
+  const node::Triple& t = record.triple;
+  if (pattern.s && *pattern.s != t.s) return false;
+  if (pattern.p && *pattern.p != t.p) return false;
+  if (pattern.o && *pattern.o != t.o) return false;
+  if (pattern.context && *pattern.context != record.meta.context) return false;
+  if (pattern.source && !uri::is_under(record.meta.source, *pattern.source)) return false;
+  return true;
+}
+
+node::Format format_flag(const Args& args, node::Format fallback, bool allow_json) {
+  auto name = args.get("--format");
+  if (!name) return fallback;
+  auto format = node::parse_format(*name);
+  if (!format || (!allow_json && *format == node::Format::json)) {
+    bad_value("--format", "unknown format '" + *name + "' (use " +
+                              (allow_json ? "nt, ttl or json)" : "nt or ttl)"));
+  }
+  return *format;
+}
+
+std::string read_input(const std::string& path) {
+  if (path == "-") {
+    std::string text{std::istreambuf_iterator<char>(std::cin), std::istreambuf_iterator<char>()};
+    if (std::cin.bad()) fail(std::string("cannot read standard input: ") + std::strerror(errno));
+    return text;
+  }
+  std::ifstream in(path, std::ios::binary);
+  if (!in) fail("cannot open '" + path + "': " + std::strerror(errno));
+  std::ostringstream text;
+  text << in.rdbuf();
+  if (in.bad()) fail("cannot read '" + path + "': " + std::strerror(errno));
+  return std::move(text).str();
+}
+
+void finish_output(std::ostream& out) {
+  errno = 0;
+  out.flush();
+  if (out) return;
+  // A reader that went away (`tahvel tail | head`) is not worth a message; exit 1 quietly.
+  if (errno == EPIPE) throw Failure{kExitFailure, ""};
+  fail(std::string("cannot write to standard output: ") +
+       (errno ? std::strerror(errno) : "stream error"));
+}
+
+void write_records(std::ostream& out, node::Format format, const uri::PrefixMap& prefixes,
+                   const std::vector<node::Record>& records) {
+  node::RecordWriter writer(out, format, prefixes);
+  for (const node::Record& r : records) writer.write(r);
+  writer.finish();
+}
+
+std::string base_iri_of(const node::Node& node) {
+  const std::string& iri = node.iri();
+  return iri.ends_with('/') ? iri : iri + "/";
+}
+
+}  // namespace tahvel::cli

@@ -1,0 +1,238 @@
+// `tahvel` subcommands that read a whiteboard: list, dump, take, tail, stats.
+// `tail` is the only long-running one: it blocks in Node::watch (woken by commits, no polling)
+// and writes each batch as soon as it arrives.
+#include <algorithm>
+#include <chrono>
+#include <iostream>
+#include <sstream>
+
+#include "commands.h"
+
+namespace tahvel::cli {
+namespace {
+
+using std::chrono::milliseconds;
+
+const Flag kFlagListContext{"--context", "", "IRI", "only records with this context ('' for none)"};
+const Flag kFlagSource{"--source", "", "IRI", "only records written by this agent or node (or below it)"};
+
+unsigned cascade_flag(const Args& args) {
+  return static_cast<unsigned>(std::min<std::uint64_t>(args.get_u64("--cascade", 0), 1u << 20));
+}
+
+// One year: longer waits are refused rather than overflowing a deadline in the library.
+milliseconds timeout_flag(const Args& args) {
+  constexpr std::uint64_t kMax = 365ull * 24 * 3600 * 1000;
+  std::uint64_t ms = args.get_u64("--timeout", 0);
+  if (ms > kMax) usage_error("--timeout: at most " + std::to_string(kMax) + " ms");
+  return milliseconds(static_cast<milliseconds::rep>(ms));
+}
+
+// A removal in the tail stream: "# removed ID" in N-Triples and Turtle; in JSON the record's
+// object with "removed":true and the change's "seq" first.
+void print_removal(std::ostream& out, node::Format format, const node::Change& change,
+                   const uri::PrefixMap& prefixes) {
+  if (format != node::Format::json) {
+    out << "# removed " << change.record.meta.id << "\n";
+    return;
+  }
+  std::string head = "{\"removed\":true,\"seq\":" + std::to_string(change.seq);
+  if (change.record.triple.s.value.empty()) {
+    out << head << ",\"id\":" << change.record.meta.id << "}\n";
+    return;
+  }
+  std::ostringstream json;
+  {
+    node::RecordWriter writer(json, format, prefixes);
+    writer.write(change.record);
+  }
+  std::string line = std::move(json).str();
+  out << head << "," << (line.starts_with("{") ? line.substr(1) : line);
+}
+
+// Writes the changes of one watch() batch that match `pattern`; counts inserted records in
+// `printed` and stops at `count` (0: no limit).
+void print_changes(std::ostream& out, const std::vector<node::Change>& changes,
+                   const node::Pattern& pattern, node::Format format,
+                   const uri::PrefixMap& prefixes, std::uint64_t count, std::uint64_t& printed) {
+  std::optional<node::RecordWriter> writer;
+  for (const node::Change& change : changes) {
+    if (count != 0 && printed >= count) break;
+    if (!matches(pattern, change.record)) continue;
+    if (change.removed) {
+      writer.reset();  // finishes pending Turtle before the comment
+      print_removal(out, format, change, prefixes);
+      continue;
+    }
+    if (!writer) writer.emplace(out, format, prefixes);
+    writer->write(change.record);
+    ++printed;
+  }
+  writer.reset();
+  finish_output(out);
+}
+
+void print_stats_text(const node::Stats& s) {
+  auto line = [](std::string_view key, const auto& value) {
+    std::cout << key << ": " << value << "\n";
+  };
+  line("iri", s.iri);
+  line("durability", s.durability == node::Durability::durable ? "durable" : "fast");
+  line("ring", s.ring);
+  line("max_literal_bytes", s.max_literal_bytes);
+  line("records", s.records);
+  line("persistent_records", s.persistent_records);
+  line("items", s.items);
+  line("terms", s.terms);
+  line("subscriptions", s.subscriptions);
+  line("pending_deliveries", s.pending_deliveries);
+  line("last_seq", s.last_seq);
+  line("reclaimed_records", s.reclaimed_records);
+  line("used_bytes", s.used_bytes);
+  line("map_bytes", s.map_bytes);
+  line("max_map_bytes", s.max_map_bytes);
+}
+
+void print_stats_json(const node::Stats& s) {
+  std::cout << "{\"iri\":\"" << node::json_escape(s.iri) << "\",\"durability\":\""
+            << (s.durability == node::Durability::durable ? "durable" : "fast") << "\""
+            << ",\"ring\":" << s.ring << ",\"max_literal_bytes\":" << s.max_literal_bytes
+            << ",\"records\":" << s.records << ",\"persistent_records\":" << s.persistent_records
+            << ",\"items\":" << s.items << ",\"terms\":" << s.terms
+            << ",\"subscriptions\":" << s.subscriptions
+            << ",\"pending_deliveries\":" << s.pending_deliveries << ",\"last_seq\":" << s.last_seq
+            << ",\"reclaimed_records\":" << s.reclaimed_records << ",\"used_bytes\":" << s.used_bytes
+            << ",\"map_bytes\":" << s.map_bytes << ",\"max_map_bytes\":" << s.max_map_bytes
+            << "}\n";
+}
+
+}  // namespace
+
+const Command kListCommand{
+    "list",
+    "DIR [-s S] [-p P] [-o O] [--cascade N] [--limit N] [--format nt|ttl|json]",
+    "Print the records matching a pattern (every record when none is given).",
+    "Matches come in id order; with --cascade N each is followed by its sub-tree: the records\n"
+    "whose subject is the match's object (an IRI or blank node), N levels deep. JSON output has\n"
+    "one object per line with the record's metadata (id, item, stored_at, asserted_at, source,\n"
+    "context, persistent).",
+    {kFlagS, kFlagP, kFlagO, kFlagListContext, kFlagSource, kFlagCascade,
+     {"--limit", "", "N", "print at most N records in all (0: no limit)"}, kFlagFormat},
+    1, 1};
+
+int run_list(const Args& args) {
+  node::Node node = open_node(args.positional(0));
+  uri::PrefixMap prefixes = prefixes_with_flags(node.prefixes(), args);
+  node::Pattern pattern = pattern_from_args(args, prefixes);
+  node::ListOptions options;
+  options.cascade = cascade_flag(args);
+  options.limit = args.get_u64("--limit", 0);
+  node::Format format = format_flag(args, node::Format::ntriples);
+  node::Snapshot snapshot = check(node.snapshot());
+  write_records(std::cout, format, prefixes, check(snapshot.list(pattern, options)));
+  finish_output(std::cout);
+  return kExitOk;
+}
+
+const Command kDumpCommand{
+    "dump",
+    "DIR [--format nt|ttl|json]",
+    "Print every record of the whiteboard, in id order, from one consistent snapshot.",
+    "N-Triples output can be loaded into another node with 'tahvel load'.",
+    {kFlagFormat},
+    1, 1};
+
+int run_dump(const Args& args) {
+  node::Node node = open_node(args.positional(0));
+  uri::PrefixMap prefixes = prefixes_with_flags(node.prefixes(), args);
+  node::Format format = format_flag(args, node::Format::ntriples);
+  node::Snapshot snapshot = check(node.snapshot());
+  node::RecordWriter writer(std::cout, format, prefixes);
+  check(snapshot.for_each({}, [&](const node::Record& r) {
+    writer.write(r);
+    return static_cast<bool>(std::cout);  // stop early when the reader went away
+  }));
+  writer.finish();
+  finish_output(std::cout);
+  return kExitOk;
+}
+
+const Command kTakeCommand{
+    "take",
+    "DIR --agent ID [--timeout MS] [--format nt|ttl|json]",
+    "Take the oldest item from agent ID's input buffer and print it.",
+    "Waits up to MS milliseconds (default 0: do not wait) for an item to arrive. Each item is\n"
+    "delivered once: it is acknowledged only after it was written to standard output, so a\n"
+    "failed write leaves it in the buffer for the next take. Exit status 3, with nothing\n"
+    "printed, when the timeout passes without an item.",
+    {{"--agent", "", "ID", "the agent whose input buffer to read (required)"},
+     {"--timeout", "", "MS", "wait up to MS milliseconds for an item (default 0)"}, kFlagFormat},
+    1, 1};
+
+int run_take(const Args& args) {
+  args.required("--agent");
+  std::string id = agent_id(args, "");
+  milliseconds timeout = timeout_flag(args);
+  node::Format format = format_flag(args, node::Format::ntriples);
+  node::Node node = open_node(args.positional(0));
+  uri::PrefixMap prefixes = prefixes_with_flags(node.prefixes(), args);
+  node::Agent agent = check(node.agent(id));
+  std::optional<node::Delivery> delivery = check(agent.take(timeout, node::Ack::manual));
+  if (!delivery) return kExitTimeout;
+  write_records(std::cout, format, prefixes, delivery->records);
+  finish_output(std::cout);
+  check(agent.ack(delivery->item));
+  return kExitOk;
+}
+
+const Command kTailCommand{
+    "tail",
+    "DIR [-s S] [-p P] [-o O] [--format nt|ttl|json] [--count N]",
+    "Print records as they are stored from now on (matching the pattern), until interrupted.",
+    "Starts after the last record present when it starts and follows the node's change stream.\n"
+    "Removals are printed as '# removed ID' (N-Triples, Turtle) or as the record's JSON object\n"
+    "with \"removed\":true and the change's \"seq\". With --count N it exits 0 after N records\n"
+    "(removals are not counted).",
+    {kFlagS, kFlagP, kFlagO, kFlagListContext, kFlagSource, kFlagFormat,
+     {"--count", "", "N", "exit after printing N records (default 0: run until interrupted)"}},
+    1, 1};
+
+int run_tail(const Args& args) {
+  node::Node node = open_node(args.positional(0));
+  uri::PrefixMap prefixes = prefixes_with_flags(node.prefixes(), args);
+  node::Pattern pattern = pattern_from_args(args, prefixes);
+  node::Format format = format_flag(args, node::Format::ntriples);
+  std::uint64_t count = args.get_u64("--count", 0);
+  std::uint64_t bookmark = check(node.snapshot()).last_seq();
+  std::uint64_t printed = 0;
+  while (count == 0 || printed < count) {
+    std::vector<node::Change> changes = check(node.watch(bookmark, milliseconds(60'000)));
+    if (changes.empty()) continue;
+    bookmark = changes.back().seq;
+    print_changes(std::cout, changes, pattern, format, prefixes, count, printed);
+  }
+  return kExitOk;
+}
+
+const Command kStatsCommand{
+    "stats",
+    "DIR [--json]",
+    "Print the node's settings and counters (records, items, terms, buffers, sizes).",
+    "Text output has one 'key: value' line per counter; --json prints one JSON object with the\n"
+    "same keys.",
+    {{"--json", "", "", "print one JSON object instead of key: value lines"}},
+    1, 1};
+
+int run_stats(const Args& args) {
+  node::Node node = open_node(args.positional(0));
+  node::Stats stats = check(node.stats());
+  if (args.has("--json")) {
+    print_stats_json(stats);
+  } else {
+    print_stats_text(stats);
+  }
+  finish_output(std::cout);
+  return kExitOk;
+}
+
+}  // namespace tahvel::cli

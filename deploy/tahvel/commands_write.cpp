@@ -1,0 +1,234 @@
+// `tahvel` subcommands that change a whiteboard: init, put, load, remove, subscribe.
+#include <iostream>
+#include <unordered_map>
+
+#include "commands.h"
+
+namespace tahvel::cli {
+namespace {
+
+const Flag kFlagContext{"--context", "", "IRI", "addressee or data group of the item (IRI or CURIE)"};
+const Flag kFlagPersistent{"--persistent", "", "", "never expire the item by ring or time-to-live"};
+const Flag kFlagInputFormat{"--format", "", "nt|ttl",
+                            "input syntax; default Turtle, N-Triples for a FILE ending in .nt"};
+
+node::Format input_format(const Args& args, const std::string& path) {
+  node::Format guess = path.ends_with(".nt") ? node::Format::ntriples : node::Format::turtle;
+  return format_flag(args, guess, /*allow_json=*/false);
+}
+
+// Reads and parses FILE (or standard input): nothing is stored if this fails.
+std::vector<node::Triple> parse_input(const node::Node& node, const std::string& path,
+                                      node::Format format, const uri::PrefixMap& prefixes) {
+  node::ParseOptions options;
+  options.format = format;
+  options.base_iri = base_iri_of(node);
+  options.source_name = path == "-" ? "<stdin>" : path;
+  options.prefixes = prefixes;
+  std::string text = read_input(path);
+  return check(node::parse_rdf(text, options));
+}
+
+// The item fields --context and --persistent set.
+node::Item item_frame(const Args& args, const uri::PrefixMap& prefixes) {
+  node::Item item;
+  if (auto c = args.get("--context")) item.context = parse_iri(*c, prefixes, "--context");
+  item.persistent = args.has("--persistent");
+  return item;
+}
+
+void print_number(std::uint64_t n) {
+  std::cout << n << "\n";
+  finish_output(std::cout);
+}
+
+// Union-find over subjects and blank nodes, for group_by_subject.
+class Groups {
+ public:
+  std::size_t of(const node::Term& term) {
+    std::string key = (term.is_blank() ? "_:" : "<") + term.value;
+    auto [it, added] = index_.try_emplace(std::move(key), parent_.size());
+    if (added) parent_.push_back(parent_.size());
+    return it->second;
+  }
+  std::size_t root(std::size_t x) {
+    while (parent_[x] != x) x = parent_[x] = parent_[parent_[x]];
+    return x;
+  }
+  void unite(std::size_t a, std::size_t b) { parent_[root(a)] = root(b); }
+
+ private:
+  std::unordered_map<std::string, std::size_t> index_;
+  std::vector<std::size_t> parent_;
+};
+
+// Stores `items` through store_all, in transactions of about `batch` triples. Returns the
+// number of triples stored; on failure names how many were stored by earlier transactions.
+std::uint64_t store_in_batches(node::Agent& agent, std::vector<node::Item> items,
+                               std::uint64_t batch) {
+  std::uint64_t loaded = 0, pending_triples = 0;
+  std::vector<node::Item> pending;
+  auto flush = [&] {
+    auto stored = agent.store_all(pending);
+    if (!stored) {
+      fail(stored.error().message + " (" + std::to_string(loaded) +
+           " triples were loaded by earlier batches)");
+    }
+    loaded += pending_triples;
+    pending.clear();
+    pending_triples = 0;
+  };
+  for (node::Item& item : items) {
+    pending_triples += item.triples.size();
+    pending.push_back(std::move(item));
+    if (pending_triples >= batch) flush();
+  }
+  if (!pending.empty()) flush();
+  return loaded;
+}
+
+}  // namespace
+
+const Command kInitCommand{
+    "init",
+    "DIR --iri IRI [--durable] [--ring N] [--max-literal BYTES]",
+    "Create a new whiteboard (node store) in DIR.",
+    "DIR is created if missing and must not already hold a store. The node's IRI is its name in\n"
+    "the network; agents get IRI/ID. Prefixes given with --prefix are stored in the node and\n"
+    "known to every later command. Prints nothing on success.",
+    {{"--iri", "", "IRI", "the node's IRI (required, absolute), e.g. http://example.org/home1"},
+     {"--durable", "", "", "sync every commit to disk (default: fast, no fsync)"},
+     {"--ring", "", "N", "keep at most N non-persistent records, dropping the oldest (0: no ring)"},
+     {"--max-literal", "", "BYTES", "refuse literals larger than BYTES (default 1048576)"},
+     {"--max-map", "", "BYTES", "let the store grow to BYTES, then refuse writes (default 64 GiB)"}},
+    1, 1};
+
+int run_init(const Args& args) {
+  node::InitOptions options;
+  options.iri = args.required("--iri");
+  if (auto iri = uri::normalize(options.iri); !iri) usage_error("--iri: " + iri.error().message);
+  options.durability = args.has("--durable") ? node::Durability::durable : node::Durability::fast;
+  options.ring = args.get_u64("--ring", options.ring);
+  options.max_literal_bytes = args.get_u64("--max-literal", options.max_literal_bytes);
+  options.max_map_bytes = args.get_u64("--max-map", options.max_map_bytes);
+  uri::PrefixMap extra = prefixes_with_flags({}, args);  // checked before anything is created
+  node::Node node = check(node::Node::init(args.positional(0), options));
+  for (const auto& [prefix, ns] : extra.entries()) check(node.set_prefix(prefix, ns));
+  return kExitOk;
+}
+
+const Command kPutCommand{
+    "put",
+    "DIR [--agent ID] [--context IRI] [--persistent] [--format nt|ttl] [FILE|-]",
+    "Store the RDF in FILE (or standard input) as one item; print the item id.",
+    "The whole input is one item: written atomically, or not at all when any of it is wrong (a\n"
+    "syntax error names FILE:LINE:COL). Blank nodes are local to the item. Relative IRIs resolve\n"
+    "against the node IRI + \"/\"; the node's prefixes (and --prefix) may be used in Turtle\n"
+    "without @prefix lines.",
+    {kFlagAgentWriter, kFlagContext, kFlagPersistent, kFlagInputFormat},
+    1, 2};
+
+int run_put(const Args& args) {
+  node::Node node = open_node(args.positional(0));
+  uri::PrefixMap prefixes = prefixes_with_flags(node.prefixes(), args);
+  std::string path = args.positional().size() > 1 ? args.positional(1) : "-";
+  node::Item item = item_frame(args, prefixes);
+  node::Agent agent = check(node.agent(agent_id(args, "cli")));
+  item.triples = parse_input(node, path, input_format(args, path), prefixes);
+  print_number(check(agent.store(item)));
+  return kExitOk;
+}
+
+std::vector<std::vector<node::Triple>> group_by_subject(std::vector<node::Triple> triples) {
+  Groups groups;
+  std::vector<std::size_t> member(triples.size());
+  for (std::size_t i = 0; i < triples.size(); ++i) {
+    member[i] = groups.of(triples[i].s);
+    if (triples[i].o.is_blank()) groups.unite(member[i], groups.of(triples[i].o));
+  }
+  std::unordered_map<std::size_t, std::size_t> slot_of_root;
+  std::vector<std::vector<node::Triple>> out;
+  for (std::size_t i = 0; i < triples.size(); ++i) {
+    auto [it, added] = slot_of_root.try_emplace(groups.root(member[i]), out.size());
+    if (added) out.emplace_back();
+    out[it->second].push_back(std::move(triples[i]));
+  }
+  return out;
+}
+
+const Command kLoadCommand{
+    "load",
+    "DIR FILE [--agent ID] [--format nt|ttl] [--context IRI] [--persistent] [--batch N]",
+    "Bulk-load N-Triples or Turtle from FILE (or -); print the number of triples loaded.",
+    "The file is parsed whole first (a syntax error stores nothing). Its triples are then split\n"
+    "into items, one per subject group: a subject with the blank nodes it points to, merged with\n"
+    "any other subject sharing one of those blank nodes (blank nodes are local to an item, so a\n"
+    "group is never split). Items are stored through store_all in transactions of about N\n"
+    "triples (--batch, default 10000); if a later transaction fails, earlier ones stay stored.",
+    {kFlagAgentWriter, kFlagInputFormat, kFlagContext, kFlagPersistent,
+     {"--batch", "", "N", "triples per transaction (default 10000)"}},
+    2, 2};
+
+int run_load(const Args& args) {
+  node::Node node = open_node(args.positional(0));
+  uri::PrefixMap prefixes = prefixes_with_flags(node.prefixes(), args);
+  const std::string& path = args.positional(1);
+  node::Item frame = item_frame(args, prefixes);
+  std::uint64_t batch = std::max<std::uint64_t>(1, args.get_u64("--batch", 10000));
+  node::Agent agent = check(node.agent(agent_id(args, "cli")));
+  std::vector<node::Item> items;
+  for (auto& group : group_by_subject(parse_input(node, path, input_format(args, path), prefixes))) {
+    items.push_back(frame);
+    items.back().triples = std::move(group);
+  }
+  print_number(store_in_batches(agent, std::move(items), batch));
+  return kExitOk;
+}
+
+const Command kRemoveCommand{
+    "remove",
+    "DIR (--item ID | [-s S] [-p P] [-o O]) [--cascade N]",
+    "Remove one item, or every record matching a pattern; print the number of records removed.",
+    "With --cascade N the sub-trees of the removed records go too (objects that are IRIs or blank\n"
+    "nodes, followed N levels). Removed items also leave the input buffers that held them.",
+    {{"--item", "", "ID", "remove every record of item ID (as printed by put)"},
+     kFlagS, kFlagP, kFlagO, kFlagCascade},
+    1, 1};
+
+int run_remove(const Args& args) {
+  node::Node node = open_node(args.positional(0));
+  uri::PrefixMap prefixes = prefixes_with_flags(node.prefixes(), args);
+  node::Pattern pattern = pattern_from_args(args, prefixes);
+  auto cascade = static_cast<unsigned>(std::min<std::uint64_t>(args.get_u64("--cascade", 0), 1u << 20));
+  if (args.has("--item") == pattern_has_triple(pattern)) {
+    usage_error("remove: give either --item ID or a pattern (-s, -p, -o)");
+  }
+  if (args.has("--item")) {
+    print_number(check(node.remove_item(args.get_u64("--item", 0), cascade)));
+  } else {
+    print_number(check(node.remove(pattern, cascade)));
+  }
+  return kExitOk;
+}
+
+const Command kSubscribeCommand{
+    "subscribe",
+    "DIR --agent ID [-s S] [-p P] [-o O]",
+    "Subscribe agent ID to a triple pattern; print the subscription id.",
+    "From now on every item with at least one triple matching the pattern lands once in the\n"
+    "agent's input buffer (see 'tahvel take'). The subscription is itself stored as persistent\n"
+    "triples on the whiteboard.",
+    {{"--agent", "", "ID", "the subscribing agent (required)"}, kFlagS, kFlagP, kFlagO},
+    1, 1};
+
+int run_subscribe(const Args& args) {
+  node::Node node = open_node(args.positional(0));
+  uri::PrefixMap prefixes = prefixes_with_flags(node.prefixes(), args);
+  args.required("--agent");
+  node::Pattern pattern = pattern_from_args(args, prefixes);
+  node::Agent agent = check(node.agent(agent_id(args, "")));
+  print_number(check(agent.subscribe(pattern)));
+  return kExitOk;
+}
+
+}  // namespace tahvel::cli

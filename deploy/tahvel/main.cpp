@@ -1,0 +1,127 @@
+// `tahvel`: the command-line tool over a node's whiteboard (docs/cli.md). A thin layer: each
+// subcommand parses its flags (args.h), calls the node library once or twice and prints the
+// result. This file dispatches and turns failures into "tahvel: <cause>" and an exit status.
+#include <csignal>
+#include <exception>
+#include <iostream>
+#include <string>
+#include <vector>
+
+#include "args.h"
+#include "bench.h"
+#include "commands.h"
+
+namespace tahvel::cli {
+
+// Weak reference: the tool links and runs its other subcommands even in a tree where
+// bench_store.cpp is absent; `tahvel bench store` then says so.
+[[gnu::weak]] int bench_store_main(const std::vector<std::string>& args);
+
+namespace {
+
+const Command kBenchCommand{
+    "bench",
+    "store [--json]",
+    "Run a benchmark: 'store' measures the node store against peers measured in the same run.",
+    "Prints ratios against SQLite and sord (see docs/bench.md), in text or with --json as JSON.\n"
+    "Arguments after 'store' are passed to the store benchmark.",
+    {{"--json", "", "", "print the results as JSON"}},
+    1, 64};
+
+void print_global_help(std::ostream& out) {
+  out << "usage: tahvel SUBCOMMAND DIR [options]\n\n"
+         "Tahvel's command line: create a node's whiteboard and put, list, take and follow its\n"
+         "records. DIR is the node's store directory.\n\nsubcommands:\n";
+  auto row = [&](const Command& c) {
+    std::string name(c.name);
+    out << "  " << name << std::string(name.size() < 12 ? 12 - name.size() : 1, ' ') << c.summary
+        << "\n";
+  };
+  for (const Subcommand& s : subcommands()) row(*s.spec);
+  row(kBenchCommand);
+  out << "  help        'tahvel help SUBCOMMAND' shows a subcommand's flags\n\n"
+         "terms (-s, -p, -o, --context): <http://x/a>, http://x/a, a CURIE such as\n"
+         "sosa:Observation (the node's prefixes and --prefix P=IRI), _:label, \"text\",\n"
+         "\"text\"@en, \"72\"^^xsd:integer, 72 (xsd:integer), 72.5 (xsd:decimal), 7e2 (xsd:double),\n"
+         "true/false (xsd:boolean), and 'a' for rdf:type.\n\n"
+         "exit status: 0 success, 1 failure, 2 bad command line, 3 take timed out.\n";
+}
+
+const Command* find_command(std::string_view name) {
+  for (const Subcommand& s : subcommands()) {
+    if (s.spec->name == name) return s.spec;
+  }
+  return name == "bench" ? &kBenchCommand : nullptr;
+}
+
+int run_help(const std::vector<std::string>& rest) {
+  if (rest.empty()) {
+    print_global_help(std::cout);
+  } else if (const Command* c = find_command(rest[0])) {
+    print_help(std::cout, *c);
+  } else {
+    usage_error("help: unknown subcommand '" + rest[0] + "'");
+  }
+  return kExitOk;
+}
+
+int run_bench(const std::vector<std::string>& rest) {
+  if (rest.empty()) usage_error("bench: which benchmark? (usage: tahvel bench store [--json])");
+  if (rest[0] != "store") usage_error("bench: unknown benchmark '" + rest[0] + "' (try 'store')");
+  if (!bench_store_main) fail("bench store is not built into this binary");
+  return bench_store_main(std::vector<std::string>(rest.begin() + 1, rest.end()));
+}
+
+int dispatch(const std::vector<std::string>& argv) {
+  if (argv.empty()) {
+    print_global_help(std::cerr);
+    return kExitUsage;
+  }
+  const std::string& name = argv[0];
+  std::vector<std::string> rest(argv.begin() + 1, argv.end());
+  if (name == "help" || name == "--help" || name == "-h") return run_help(rest);
+  const Command* command = find_command(name);
+  if (!command) usage_error("unknown subcommand '" + name + "' (see 'tahvel --help')");
+  if (wants_help(rest)) {
+    print_help(std::cout, *command);
+    return kExitOk;
+  }
+  if (command == &kBenchCommand) return run_bench(rest);
+  for (const Subcommand& s : subcommands()) {
+    if (s.spec == command) return s.run(parse_args(*command, rest));
+  }
+  return kExitUsage;
+}
+
+}  // namespace
+
+std::span<const Subcommand> subcommands() {
+  static const Subcommand table[] = {
+      {&kInitCommand, run_init},   {&kPutCommand, run_put},
+      {&kListCommand, run_list},   {&kRemoveCommand, run_remove},
+      {&kSubscribeCommand, run_subscribe}, {&kTakeCommand, run_take},
+      {&kTailCommand, run_tail},   {&kDumpCommand, run_dump},
+      {&kLoadCommand, run_load},   {&kStatsCommand, run_stats},
+  };
+  return table;
+}
+
+}  // namespace tahvel::cli
+
+int main(int argc, char** argv) {
+  using namespace tahvel::cli;
+  // A closed pipe becomes a write error that each command checks (take must not ack then).
+  std::signal(SIGPIPE, SIG_IGN);
+  std::vector<std::string> args(argv + 1, argv + argc);
+  try {
+    int status = dispatch(args);
+    std::cout.flush();
+    return status;
+  } catch (const Failure& failure) {
+    if (!failure.message.empty()) std::cerr << "tahvel: " << failure.message << "\n";
+    return failure.status;
+  } catch (const std::exception& e) {
+    std::cerr << "tahvel: internal error: " << e.what() << "\n";
+    return kExitFailure;
+  }
+}

@@ -1,0 +1,342 @@
+// End-to-end tests of the `tahvel` command line: each test runs the built binary
+// (TAHVEL_BIN_DIR/tahvel) in a fresh temporary directory, through fork/exec with standard
+// input, output and error redirected to files, and checks exit status and output.
+#include <fcntl.h>
+#include <gtest/gtest.h>
+#include <sys/wait.h>
+#include <unistd.h>
+
+#include <chrono>
+#include <cstdlib>
+#include <filesystem>
+#include <fstream>
+#include <regex>
+#include <set>
+#include <sstream>
+#include <string>
+#include <thread>
+#include <vector>
+
+namespace {
+
+namespace fs = std::filesystem;
+
+const std::string kBin = TAHVEL_BIN_DIR "/tahvel";
+const std::string kNodeIri = "http://example.org/home1";
+const std::string kEx = "http://example.org/";
+
+struct Outcome {
+  int status = -1;
+  std::string out, err;
+};
+
+std::string slurp(const fs::path& path) {
+  std::ifstream in(path, std::ios::binary);
+  std::ostringstream text;
+  text << in.rdbuf();
+  return text.str();
+}
+
+void spit(const fs::path& path, const std::string& text) {
+  std::ofstream(path, std::ios::binary) << text;
+}
+
+std::vector<std::string> lines_of(const std::string& text) {
+  std::vector<std::string> lines;
+  std::istringstream in(text);
+  for (std::string line; std::getline(in, line);) lines.push_back(line);
+  return lines;
+}
+
+class Cli : public ::testing::Test {
+ protected:
+  void SetUp() override {
+    std::string pattern = (fs::temp_directory_path() / "tahvel-cli-XXXXXX").string();
+    ASSERT_NE(mkdtemp(pattern.data()), nullptr);
+    tmp_ = pattern;
+    node_ = (tmp_ / "node").string();
+  }
+  void TearDown() override { fs::remove_all(tmp_); }
+
+  // Starts `tahvel ARGS` with `input` on standard input; returns its pid.
+  pid_t spawn(const std::vector<std::string>& args, const std::string& input, int n) {
+    spit(tmp_ / ("in" + std::to_string(n)), input);
+    pid_t pid = fork();
+    if (pid == 0) {
+      redirect(tmp_ / ("in" + std::to_string(n)), 0, O_RDONLY);
+      redirect(tmp_ / ("out" + std::to_string(n)), 1, O_WRONLY | O_CREAT | O_TRUNC);
+      redirect(tmp_ / ("err" + std::to_string(n)), 2, O_WRONLY | O_CREAT | O_TRUNC);
+      std::vector<char*> argv{const_cast<char*>(kBin.c_str())};
+      for (const std::string& a : args) argv.push_back(const_cast<char*>(a.c_str()));
+      argv.push_back(nullptr);
+      execv(kBin.c_str(), argv.data());
+      _exit(127);
+    }
+    return pid;
+  }
+
+  Outcome finish(pid_t pid, int n) {
+    int status = 0;
+    waitpid(pid, &status, 0);
+    Outcome r;
+    r.status = WIFEXITED(status) ? WEXITSTATUS(status) : 128 + WTERMSIG(status);
+    r.out = slurp(tmp_ / ("out" + std::to_string(n)));
+    r.err = slurp(tmp_ / ("err" + std::to_string(n)));
+    return r;
+  }
+
+  Outcome run(const std::vector<std::string>& args, const std::string& input = "") {
+    int n = ++runs_;
+    return finish(spawn(args, input, n), n);
+  }
+
+  void init() {
+    Outcome r = run({"init", node_, "--iri", kNodeIri});
+    ASSERT_EQ(r.status, 0) << r.err;
+  }
+
+  // Puts `turtle`; returns the printed item id.
+  std::string put(const std::string& turtle, std::vector<std::string> extra = {}) {
+    std::vector<std::string> args{"put", node_};
+    args.insert(args.end(), extra.begin(), extra.end());
+    Outcome r = run(args, turtle);
+    EXPECT_EQ(r.status, 0) << r.err;
+    return r.out;
+  }
+
+  fs::path tmp_;
+  std::string node_;
+
+ private:
+  static void redirect(const fs::path& path, int fd, int flags) {
+    int f = open(path.c_str(), flags, 0600);
+    if (f < 0 || dup2(f, fd) < 0) _exit(126);
+    close(f);
+  }
+  int runs_ = 0;
+};
+
+const char* kObservation =
+    "@prefix sosa: <http://www.w3.org/ns/sosa/> .\n"
+    "@prefix ex: <http://example.org/> .\n"
+    "_:o a sosa:Observation ;\n"
+    "   sosa:observedProperty ex:heartRate ;\n"
+    "   sosa:hasSimpleResult 72 .\n";
+
+TEST_F(Cli, InitPutListRoundTripReturnsTheStoredTriple) {
+  init();
+  put("<http://example.org/a> <http://example.org/p> \"hello\"@en .\n");
+  Outcome r = run({"list", node_});
+  ASSERT_EQ(r.status, 0) << r.err;
+  EXPECT_EQ(r.out, "<http://example.org/a> <http://example.org/p> \"hello\"@en .\n");
+}
+
+TEST_F(Cli, PutPrintsTheItemIdThatListJsonReports) {
+  init();
+  std::string id = put(kObservation);
+  ASSERT_TRUE(std::regex_match(id, std::regex("[0-9]+\n"))) << id;
+  id.pop_back();
+  Outcome r = run({"list", node_, "--format", "json"});
+  ASSERT_EQ(r.status, 0) << r.err;
+  auto lines = lines_of(r.out);
+  ASSERT_EQ(lines.size(), 3u) << r.out;
+  for (const std::string& line : lines) {
+    EXPECT_NE(line.find("\"item\":" + id + ","), std::string::npos) << line;
+  }
+}
+
+TEST_F(Cli, TurtleSyntaxErrorExits1NamingLineAndColumnAndStoresNothing) {
+  init();
+  fs::path bad = tmp_ / "bad.ttl";
+  spit(bad, "<http://example.org/a> <http://example.org/p> 1 .\n<http://example.org/b> ?? .\n");
+  Outcome r = run({"put", node_, bad.string()});
+  EXPECT_EQ(r.status, 1);
+  EXPECT_TRUE(r.out.empty()) << r.out;
+  EXPECT_TRUE(std::regex_search(r.err, std::regex("^tahvel: .*bad\\.ttl:2:[0-9]+:"))) << r.err;
+  EXPECT_EQ(std::count(r.err.begin(), r.err.end(), '\n'), 1) << r.err;
+  Outcome list = run({"list", node_});
+  EXPECT_EQ(list.status, 0) << list.err;
+  EXPECT_EQ(list.out, "");
+}
+
+TEST_F(Cli, InvalidIriOnTheCommandLineIsAUsageErrorNamingTheFlag) {
+  init();
+  Outcome r = run({"list", node_, "-s", "<http://example.org/a b>"});
+  EXPECT_EQ(r.status, 2);
+  EXPECT_EQ(r.err.rfind("tahvel: -s: ", 0), 0u) << r.err;
+  Outcome i = run({"init", (tmp_ / "other").string(), "--iri", "not an iri"});
+  EXPECT_EQ(i.status, 2);
+  EXPECT_NE(i.err.find("--iri"), std::string::npos) << i.err;
+  EXPECT_FALSE(fs::exists(tmp_ / "other"));
+}
+
+TEST_F(Cli, UnknownSubcommandExits2) {
+  Outcome r = run({"frobnicate"});
+  EXPECT_EQ(r.status, 2);
+  EXPECT_NE(r.err.find("frobnicate"), std::string::npos) << r.err;
+}
+
+TEST_F(Cli, UnknownFlagExits2NamingTheFlag) {
+  init();
+  Outcome r = run({"list", node_, "--colour"});
+  EXPECT_EQ(r.status, 2);
+  EXPECT_NE(r.err.find("'--colour'"), std::string::npos) << r.err;
+  Outcome m = run({"list", node_, "--limit"});
+  EXPECT_EQ(m.status, 2);
+  EXPECT_NE(m.err.find("--limit"), std::string::npos) << m.err;
+}
+
+TEST_F(Cli, EverySubcommandHelpExits0WithItsUsageLine) {
+  for (std::string name : {"init", "put", "list", "remove", "subscribe", "take", "tail", "dump",
+                           "load", "stats", "bench"}) {
+    Outcome r = run({name, "--help"});
+    EXPECT_EQ(r.status, 0) << name << ": " << r.err;
+    EXPECT_EQ(r.out.rfind("usage: tahvel " + name + " ", 0), 0u) << r.out;
+    EXPECT_NE(r.out.find("--help"), std::string::npos) << r.out;
+  }
+  for (std::vector<std::string> args : {std::vector<std::string>{"--help"}, {"help"}, {"help", "put"}}) {
+    Outcome r = run(args);
+    EXPECT_EQ(r.status, 0) << r.err;
+    EXPECT_NE(r.out.find("usage: tahvel"), std::string::npos) << r.out;
+  }
+}
+
+TEST_F(Cli, TakePrintsASubscribedItemOnceThenTimesOutWithExit3) {
+  init();
+  Outcome s = run({"subscribe", node_, "--agent", "reader", "-p", "sosa:observedProperty",
+               "-o", "ex:heartRate", "--prefix", "ex=" + kEx});
+  ASSERT_EQ(s.status, 0) << s.err;
+  ASSERT_TRUE(std::regex_match(s.out, std::regex("[0-9]+\n"))) << s.out;
+  put(kObservation);
+  Outcome first = run({"take", node_, "--agent", "reader", "--timeout", "5000"});
+  ASSERT_EQ(first.status, 0) << first.err;
+  EXPECT_EQ(lines_of(first.out).size(), 3u) << first.out;
+  EXPECT_NE(first.out.find("<http://example.org/heartRate>"), std::string::npos) << first.out;
+  Outcome second = run({"take", node_, "--agent", "reader", "--timeout", "100"});
+  EXPECT_EQ(second.status, 3) << second.err;
+  EXPECT_EQ(second.out, "");
+  EXPECT_EQ(second.err, "");
+}
+
+TEST_F(Cli, CurieOnTheCommandLineExpandsWithPrefixFlagAndNodePrefixes) {
+  init();
+  put("ex:a ex:p 72 ; sosa:hasSimpleResult \"x\" .\n", {"--prefix", "ex=" + kEx});
+  Outcome r = run({"list", node_, "-s", "ex:a", "-p", "ex:p", "--prefix", "ex=" + kEx});
+  ASSERT_EQ(r.status, 0) << r.err;
+  EXPECT_EQ(r.out,
+            "<http://example.org/a> <http://example.org/p> "
+            "\"72\"^^<http://www.w3.org/2001/XMLSchema#integer> .\n");
+  Outcome n = run({"list", node_, "-p", "sosa:hasSimpleResult"});
+  ASSERT_EQ(n.status, 0) << n.err;
+  EXPECT_EQ(lines_of(n.out).size(), 1u) << n.out;
+  Outcome unknown = run({"list", node_, "-s", "nope:a"});
+  EXPECT_EQ(unknown.status, 2);
+  EXPECT_NE(unknown.err.find("unknown prefix 'nope'"), std::string::npos) << unknown.err;
+}
+
+TEST_F(Cli, BareNumberAndTypedLiteralMatchTheSameIntegerObject) {
+  init();
+  put(kObservation);
+  Outcome bare = run({"list", node_, "-o", "72"});
+  Outcome typed = run({"list", node_, "-o", "\"72\"^^xsd:integer"});
+  ASSERT_EQ(bare.status, 0) << bare.err;
+  EXPECT_EQ(lines_of(bare.out).size(), 1u) << bare.out;
+  EXPECT_EQ(bare.out, typed.out);
+}
+
+TEST_F(Cli, ListJsonCarriesRecordMetadataKeys) {
+  init();
+  put(kObservation, {"--agent", "writer", "--persistent"});
+  Outcome r = run({"list", node_, "--format", "json", "-p", "sosa:hasSimpleResult"});
+  ASSERT_EQ(r.status, 0) << r.err;
+  ASSERT_EQ(lines_of(r.out).size(), 1u) << r.out;
+  for (const char* key : {"\"id\":", "\"item\":", "\"s\":", "\"p\":", "\"o\":", "\"stored_at\":",
+                          "\"asserted_at\":", "\"source\":", "\"context\":", "\"persistent\":true"}) {
+    EXPECT_NE(r.out.find(key), std::string::npos) << key << " in " << r.out;
+  }
+  EXPECT_NE(r.out.find("\"source\":\"" + kNodeIri + "/writer\""), std::string::npos) << r.out;
+}
+
+TEST_F(Cli, ListCascadeFollowsBlankNodeObjects) {
+  init();
+  put("<http://example.org/p1> <http://example.org/made> [ <http://example.org/hr> 72 ] .\n");
+  Outcome flat = run({"list", node_, "-s", "http://example.org/p1"});
+  Outcome deep = run({"list", node_, "-s", "http://example.org/p1", "--cascade", "1"});
+  ASSERT_EQ(deep.status, 0) << deep.err;
+  EXPECT_EQ(lines_of(flat.out).size(), 1u) << flat.out;
+  EXPECT_EQ(lines_of(deep.out).size(), 2u) << deep.out;
+}
+
+TEST_F(Cli, RemoveItemPrintsTheRecordCountAndTheRecordsAreGone) {
+  init();
+  std::string id = put(kObservation);
+  id.pop_back();
+  Outcome r = run({"remove", node_, "--item", id});
+  ASSERT_EQ(r.status, 0) << r.err;
+  EXPECT_EQ(r.out, "3\n");
+  EXPECT_EQ(run({"list", node_}).out, "");
+  Outcome neither = run({"remove", node_});
+  EXPECT_EQ(neither.status, 2);
+}
+
+TEST_F(Cli, LoadStoresOneItemPerSubjectGroupAndPrintsTheTripleCount) {
+  init();
+  fs::path file = tmp_ / "data.nt";
+  spit(file,
+       "<http://example.org/a> <http://example.org/p> \"1\" .\n"
+       "<http://example.org/b> <http://example.org/p> _:x .\n"
+       "_:x <http://example.org/q> \"2\" .\n"
+       "<http://example.org/a> <http://example.org/p> \"3\" .\n"
+       "<http://example.org/c> <http://example.org/p> _:x .\n");
+  Outcome r = run({"load", node_, file.string()});
+  ASSERT_EQ(r.status, 0) << r.err;
+  EXPECT_EQ(r.out, "5\n");
+  Outcome json = run({"list", node_, "--format", "json"});
+  std::set<std::string> items;
+  std::regex item_re("\"item\":([0-9]+)");
+  for (const std::string& line : lines_of(json.out)) {
+    std::smatch m;
+    ASSERT_TRUE(std::regex_search(line, m, item_re)) << line;
+    items.insert(m[1]);
+  }
+  EXPECT_EQ(items.size(), 2u) << json.out;  // {a}, {b, _:x, c}
+}
+
+TEST_F(Cli, TailWithCountPrintsRecordsStoredAfterItStarted) {
+  init();
+  put("<http://example.org/old> <http://example.org/p> 1 .\n");
+  pid_t tail = spawn({"tail", node_, "-p", "http://example.org/new", "--count", "1"}, "", 999);
+  // Tail starts at the last record present when it starts: keep putting until it has seen one.
+  auto deadline = std::chrono::steady_clock::now() + std::chrono::seconds(30);
+  int status = 0;
+  while (waitpid(tail, &status, WNOHANG) == 0) {
+    ASSERT_LT(std::chrono::steady_clock::now(), deadline) << "tail did not finish";
+    put("<http://example.org/s> <http://example.org/new> 2 .\n");
+    std::this_thread::sleep_for(std::chrono::milliseconds(50));
+  }
+  ASSERT_TRUE(WIFEXITED(status));
+  EXPECT_EQ(WEXITSTATUS(status), 0);
+  EXPECT_EQ(slurp(tmp_ / "out999"),
+            "<http://example.org/s> <http://example.org/new> "
+            "\"2\"^^<http://www.w3.org/2001/XMLSchema#integer> .\n");
+}
+
+TEST_F(Cli, MissingNodeDirectoryExits1WithOneLine) {
+  Outcome r = run({"list", (tmp_ / "absent").string()});
+  EXPECT_EQ(r.status, 1);
+  EXPECT_EQ(r.err.rfind("tahvel: ", 0), 0u) << r.err;
+  EXPECT_EQ(lines_of(r.err).size(), 1u) << r.err;
+}
+
+TEST_F(Cli, StatsJsonCountsRecordsAndItems) {
+  init();
+  put(kObservation);
+  Outcome r = run({"stats", node_, "--json"});
+  ASSERT_EQ(r.status, 0) << r.err;
+  EXPECT_NE(r.out.find("\"iri\":\"" + kNodeIri + "\""), std::string::npos) << r.out;
+  std::smatch m;
+  ASSERT_TRUE(std::regex_search(r.out, m, std::regex("\"records\":([0-9]+)"))) << r.out;
+  EXPECT_EQ(std::stoul(m[1]), lines_of(run({"dump", node_}).out).size()) << r.out;
+}
+
+}  // namespace
