@@ -1,0 +1,180 @@
+// IRI normalisation, resolution, and the node/agent hierarchy built on IRIs: deriving a child's
+// IRI from its parent's, and deciding whether one IRI lies under another. Routing and
+// authorisation call is_under and child_id on every message, so both compare normal forms:
+// "http://H/home1/./ecg" must not escape a rule written for "http://h/home1", and a sibling
+// sharing a string prefix ("home10" next to "home1") must never count as a child.
+#include "tahvel/uri/iri.h"
+
+#include "parsed_uri.h"
+#include "text.h"
+
+namespace tahvel::uri {
+namespace {
+
+using detail::Failure;
+using detail::make_error;
+using detail::normal_form;
+
+constexpr std::string_view kInvalidIri = "invalid IRI";
+
+// Unicode White_Space characters outside ASCII; ASCII whitespace is caught as control or ' '.
+bool is_unicode_space(char32_t c) {
+  return c == 0x85 || c == 0xA0 || c == 0x1680 || (c >= 0x2000 && c <= 0x200A) || c == 0x2028 ||
+         c == 0x2029 || c == 0x202F || c == 0x205F || c == 0x3000;
+}
+
+bool forbidden_in_id(char32_t c) {
+  bool control = c < 0x20 || (c >= 0x7F && c <= 0x9F);
+  bool separator = c == '/' || c == '?' || c == '#';
+  return control || separator || c == ' ' || is_unicode_space(c);
+}
+
+// Why `id` cannot name one path segment below a node, or nothing when it can.
+std::optional<Failure> id_failure(std::string_view id) {
+  if (id.empty()) return Failure{0, "an id cannot be empty"};
+  if (id == "." || id == "..") return Failure{0, "'.' and '..' are path steps, not ids"};
+  for (std::size_t pos = 0; pos < id.size();) {
+    detail::CodePoint cp = detail::decode_utf8(id, pos);
+    if (cp.length == 0 || forbidden_in_id(cp.value)) {
+      return Failure{pos, detail::unexpected_at(id, pos) + " in an id"};
+    }
+    pos += cp.length;
+  }
+  return std::nullopt;
+}
+
+// is_under for texts already in normal form.
+bool normal_is_under(std::string_view iri, std::string_view ancestor) {
+  if (!iri.starts_with(ancestor)) return false;
+  if (iri.size() == ancestor.size()) return true;
+  char last = ancestor.back();
+  if (last == '/' || last == '#') return true;
+  char next = iri[ancestor.size()];
+  return next == '/' || next == '#' || next == '?';
+}
+
+std::size_t common_prefix(std::string_view a, std::string_view b) {
+  std::size_t n = 0;
+  while (n < a.size() && n < b.size() && a[n] == b[n]) ++n;
+  return n;
+}
+
+// child_id for texts already in normal form. Positions refer to `iri`'s normal form, which is
+// the caller's text whenever it was already normal (the usual case for stored IRIs).
+Expected<std::string, Failure> normal_child_id(std::string_view iri, std::string_view parent) {
+  std::string below = "not one path segment below '" + std::string(parent) + "'";
+  if (!normal_is_under(iri, parent)) {
+    return unexpected(
+        Failure{common_prefix(iri, parent), "not under '" + std::string(parent) + "'"});
+  }
+  std::size_t start = parent.size();
+  if (parent.back() != '/') {
+    if (start == iri.size() || iri[start] != '/') return unexpected(Failure{start, below});
+    ++start;
+  }
+  std::string_view rest = iri.substr(start);
+  if (rest.empty()) return unexpected(Failure{start, below + ": nothing follows it"});
+  if (auto failure = id_failure(rest)) {
+    return unexpected(Failure{start + failure->position, below + ": " + failure->cause});
+  }
+  return std::string(rest);
+}
+
+// The error for an id that made the IRI it was appended to (at `id_start`) invalid.
+IriError id_error(std::string_view id, std::size_t id_start, Failure failure) {
+  failure.position = failure.position >= id_start ? failure.position - id_start : 0;
+  return make_error("invalid id", id, failure);
+}
+
+// Shared by agent_iri and child_node_iri: `parent` + "/" + `id`, in normal form.
+IriResult<std::string> derive_child(std::string_view parent_iri, std::string_view id,
+                                    std::string_view parent_kind) {
+  std::string kind = "invalid " + std::string(parent_kind) + " IRI";
+  auto parent = normal_form(parent_iri);
+  if (!parent) return unexpected(make_error(kind, parent_iri, parent.error()));
+  // A child under a query or fragment would not be a path below its parent.
+  if (auto cut = parent_iri.find_first_of("?#"); cut != std::string_view::npos) {
+    return unexpected(
+        make_error(kind, parent_iri, {cut, "a query or fragment cannot have children"}));
+  }
+  if (auto failure = id_failure(id)) return unexpected(make_error("invalid id", id, *failure));
+
+  std::string joined = *parent;
+  if (joined.back() != '/') joined += '/';
+  std::size_t id_start = joined.size();
+  joined += id;
+  auto child = normal_form(joined);
+  if (!child) return unexpected(id_error(id, id_start, child.error()));
+  // Percent-encoded dots ("%2E%2E") pass id_failure but normalise into a path step.
+  if (auto below = normal_child_id(*child, *parent); !below) {
+    return unexpected(
+        make_error("invalid id", id, {0, "it normalises to '" + *child + "', not a child"}));
+  }
+  return std::move(*child);
+}
+
+}  // namespace
+
+IriResult<std::string> normalize(std::string_view text) {
+  auto normal = normal_form(text);
+  if (!normal) return unexpected(make_error(kInvalidIri, text, normal.error()));
+  return std::move(*normal);
+}
+
+bool is_valid(std::string_view text) {
+  detail::ParsedUri uri;
+  return !uri.parse(text, detail::has_non_ascii(text)) && uri.has_scheme();
+}
+
+IriResult<std::string> resolve(std::string_view base, std::string_view reference) {
+  // Both sides must use the same form (see parsed_uri.cpp), whichever one needs encoding.
+  bool encode = detail::has_non_ascii(base) || detail::has_non_ascii(reference);
+  detail::ParsedUri base_uri;
+  if (auto failure = base_uri.parse(base, encode)) {
+    return unexpected(make_error("invalid base IRI", base, *failure));
+  }
+  if (!base_uri.has_scheme()) {
+    return unexpected(make_error("invalid base IRI", base, {0, "no scheme: not an absolute IRI"}));
+  }
+  detail::ParsedUri reference_uri;
+  if (auto failure = reference_uri.parse(reference, encode)) {
+    return unexpected(make_error("invalid IRI reference", reference, *failure));
+  }
+  detail::ParsedUri resolved;  // points into base_uri and reference_uri: declared after them
+  if (!resolved.resolve(base_uri, reference_uri) || !resolved.normalize()) {
+    return unexpected(make_error("invalid IRI reference", reference, {0, "out of memory"}));
+  }
+  return resolved.to_string();
+}
+
+IriResult<std::string> check_id(std::string_view id) {
+  if (auto failure = id_failure(id)) return unexpected(make_error("invalid id", id, *failure));
+  return std::string(id);
+}
+
+IriResult<std::string> agent_iri(std::string_view node_iri, std::string_view id) {
+  return derive_child(node_iri, id, "node");
+}
+
+IriResult<std::string> child_node_iri(std::string_view parent_iri, std::string_view id) {
+  return derive_child(parent_iri, id, "parent");
+}
+
+bool is_under(std::string_view iri, std::string_view ancestor) {
+  auto normal_iri = normal_form(iri);
+  auto normal_ancestor = normal_form(ancestor);
+  return normal_iri && normal_ancestor && normal_is_under(*normal_iri, *normal_ancestor);
+}
+
+IriResult<std::string> child_id(std::string_view iri, std::string_view parent) {
+  auto normal_iri = normal_form(iri);
+  if (!normal_iri) return unexpected(make_error(kInvalidIri, iri, normal_iri.error()));
+  auto normal_parent = normal_form(parent);
+  if (!normal_parent)
+    return unexpected(make_error("invalid parent IRI", parent, normal_parent.error()));
+  auto id = normal_child_id(*normal_iri, *normal_parent);
+  if (!id) return unexpected(make_error("IRI", iri, id.error()));
+  return std::move(*id);
+}
+
+}  // namespace tahvel::uri
