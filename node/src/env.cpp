@@ -154,7 +154,8 @@ Result<std::shared_ptr<Env>> Env::open(const std::filesystem::path& dir_in, cons
       };
       for (const auto& [k, v] : values)
         if (auto r = put_meta(txn, env->meta, k, v); !r) return r;
-      for (const auto& [prefix, ns] : uri::PrefixMap::standard().entries())
+      const uri::PrefixMap standard = uri::PrefixMap::standard();
+      for (const auto& [prefix, ns] : standard.entries())
         if (auto r = put_meta(txn, env->meta, "prefix:" + prefix, ns); !r) return r;
       if (auto r = save_counters(txn, env->meta, Counters{}); !r) return r;
     }
@@ -219,24 +220,28 @@ void Env::end_read(MDB_txn* txn) {
   active_txns_.fetch_sub(1);
 }
 
-Result<void> Env::grow() {
+Result<void> Env::grow(WriteKind kind) {
   std::lock_guard lock(growth_mutex_);
   MDB_envinfo info;
   mdb_env_info(env_, &info);
   std::uint64_t current = info.me_mapsize;
-  if (current >= settings_.max_map_bytes)
+  // Removal needs pages too (LMDB copies on write): a reserve beyond the maximum is kept for
+  // it, so that a full store can always be emptied.
+  std::uint64_t limit = settings_.max_map_bytes;
+  if (kind == WriteKind::removal) limit += limit / 16 + (1u << 20);
+  if (current >= limit)
     return fail(Errc::store_full, "store full: " + dir_.string() + " reached its maximum of " +
                                       std::to_string(settings_.max_map_bytes) + " bytes");
   if (active_txns_.load() != 0)
     return fail(Errc::store_full, "store full: " + dir_.string() +
                                       " cannot grow while this process holds a snapshot");
-  std::uint64_t next = std::min(settings_.max_map_bytes, std::max(current * 2, current + kInitialMapBytes));
+  std::uint64_t next = std::min(limit, std::max(current * 2, current + kInitialMapBytes));
   int rc = mdb_env_set_mapsize(env_, next);
   if (rc != 0) return lmdb_fail(rc, "growing the store map of " + dir_.string());
   return {};
 }
 
-Result<void> Env::write(const std::function<Result<void>(Txn&)>& body) {
+Result<void> Env::write(const std::function<Result<void>(Txn&)>& body, WriteKind kind) {
   for (;;) {
     MDB_txn* raw = nullptr;
     if (auto r = begin(&raw, 0); !r) return r;
@@ -258,7 +263,7 @@ Result<void> Env::write(const std::function<Result<void>(Txn&)>& body) {
     active_txns_.fetch_sub(1);
     bool map_full = (!result && result.error().code == Errc::store_full) || rc == MDB_MAP_FULL;
     if (map_full) {
-      if (auto g = grow(); !g) return g;
+      if (auto g = grow(kind); !g) return g;
       continue;
     }
     if (!result) return result;

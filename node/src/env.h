@@ -66,6 +66,8 @@ struct TtlRule {
 
 class Txn;
 
+enum class WriteKind { data, removal };
+
 class Env {
  public:
   // Opens (or with `init` creates) the environment of `dir`; shared per process.
@@ -83,8 +85,9 @@ class Env {
 
   // Runs `body` in a write transaction and commits it. When the map fills, aborts, grows the
   // map (up to max_map_bytes) and runs `body` again from the start; past the maximum returns
-  // store_full. Any error from `body` aborts: nothing is written.
-  Result<void> write(const std::function<Result<void>(Txn&)>& body);
+  // store_full. Any error from `body` aborts: nothing is written. Removals may grow into a
+  // reserve beyond the maximum, so that a full store can always be emptied.
+  Result<void> write(const std::function<Result<void>(Txn&)>& body, WriteKind kind = WriteKind::data);
 
   // Begins a read-only transaction (a snapshot). The caller ends it with end_read().
   Result<MDB_txn*> begin_read();
@@ -104,7 +107,7 @@ class Env {
  private:
   Env() = default;
   Result<void> open_tables(MDB_txn* txn, bool create);
-  Result<void> grow();
+  Result<void> grow(WriteKind kind);
   Result<void> begin(MDB_txn** txn, unsigned flags);
 
   MDB_env* env_ = nullptr;

@@ -424,7 +424,7 @@ Result<std::uint64_t> Node::remove(const Pattern& pattern, unsigned cascade) {
       ++removed;
     }
     return {};
-  });
+  }, WriteKind::removal);
   if (!written) return unexpected(written.error());
   return removed;
 }
@@ -468,7 +468,7 @@ Result<std::uint64_t> Node::remove_item(std::uint64_t item_id, unsigned cascade)
       ++removed;
     }
     return {};
-  });
+  }, WriteKind::removal);
   if (!written) return unexpected(written.error());
   return removed;
 }
@@ -565,7 +565,7 @@ Result<std::uint64_t> Node::reclaim() {
     if (!n) return unexpected(n.error());
     reclaimed = *n;
     return {};
-  });
+  }, WriteKind::removal);
   if (!written) return unexpected(written.error());
   return reclaimed;
 }

@@ -1,0 +1,454 @@
+// Store behaviour in one process: items, blank-node renaming, cascade read and removal,
+// subscriptions and input buffers, errors that leave nothing behind, retention.
+#include <gtest/gtest.h>
+
+#include <set>
+
+#include "tahvel/node/format.h"
+#include "tahvel/node/node.h"
+#include "test_support.h"
+
+namespace tahvel::node {
+namespace {
+
+using namespace std::chrono_literals;
+using testing::ex;
+using testing::make_node;
+using testing::TempDir;
+
+std::vector<Triple> turtle(const std::string& text) {
+  ParseOptions options;
+  options.format = Format::turtle;
+  auto triples = parse_rdf(text, options);
+  EXPECT_TRUE(triples) << (triples ? "" : triples.error().message);
+  return triples ? *triples : std::vector<Triple>{};
+}
+
+Item item_of(std::vector<Triple> triples) {
+  Item item;
+  item.triples = std::move(triples);
+  return item;
+}
+
+std::set<std::uint64_t> ids_of(const std::vector<Record>& records) {
+  std::set<std::uint64_t> ids;
+  for (const auto& r : records) ids.insert(r.meta.id);
+  return ids;
+}
+
+const char* kObservation = R"(
+  @prefix ex: <http://example.org/ns#> .
+  ex:root ex:has _:obs .
+  _:obs ex:value 72 ; ex:sensor _:sensor .
+  _:sensor ex:model "ECG-1" .
+)";
+
+TEST(Store, SameTurtleWithBlankNodesTwiceGivesItemsWhoseBlankNodesNeverCollide) {
+  TempDir dir;
+  Node node = make_node(dir.path());
+  auto agent = node.agent("writer");
+  ASSERT_TRUE(agent);
+  auto first = agent->store(item_of(turtle(kObservation)));
+  auto second = agent->store(item_of(turtle(kObservation)));
+  ASSERT_TRUE(first && second);
+  EXPECT_NE(*first, *second);
+  auto snap = node.snapshot();
+  ASSERT_TRUE(snap);
+  std::set<std::string> blanks_first, blanks_second;
+  for (const auto& r : *snap->item(*first))
+    for (const Term* t : {&r.triple.s, &r.triple.o}) if (t->is_blank()) blanks_first.insert(t->value);
+  for (const auto& r : *snap->item(*second))
+    for (const Term* t : {&r.triple.s, &r.triple.o}) if (t->is_blank()) blanks_second.insert(t->value);
+  EXPECT_EQ(blanks_first.size(), 2u);
+  EXPECT_EQ(blanks_second.size(), 2u);
+  for (const auto& b : blanks_first) EXPECT_EQ(blanks_second.count(b), 0u) << b;
+}
+
+TEST(Store, CascadeListFromItemRootReturnsExactlyItsSubtree) {
+  TempDir dir;
+  Node node = make_node(dir.path());
+  auto agent = node.agent("writer");
+  auto first = agent->store(item_of(turtle(kObservation)));
+  auto second = agent->store(item_of(turtle(kObservation)));
+  ASSERT_TRUE(first && second);
+  auto snap = node.snapshot();
+  auto item = snap->item(*first);
+  ASSERT_TRUE(item);
+  // Roots: the first item's ex:has triple; its sub-tree is that item's records only.
+  Pattern root;
+  root.s = ex("root");
+  root.p = ex("has");
+  root.o = item->front().triple.o;
+  auto listed = snap->list(root, ListOptions{5, 0});
+  ASSERT_TRUE(listed);
+  EXPECT_EQ(ids_of(*listed), ids_of(*item));
+  EXPECT_EQ(listed->size(), 4u);
+  EXPECT_EQ(listed->front().meta.id, *first);
+  // Depth 1 stops below the observation: root triple + the observation's two triples.
+  auto shallow = snap->list(root, ListOptions{1, 0});
+  ASSERT_TRUE(shallow);
+  EXPECT_EQ(shallow->size(), 3u);
+}
+
+TEST(Store, CascadeRemoveRemovesExactlyTheSubtree) {
+  TempDir dir;
+  Node node = make_node(dir.path());
+  auto agent = node.agent("writer");
+  auto first = agent->store(item_of(turtle(kObservation)));
+  auto second = agent->store(item_of(turtle(kObservation)));
+  ASSERT_TRUE(first && second);
+  std::vector<Record> first_records, second_records;
+  {
+    auto snap = node.snapshot();
+    first_records = *snap->item(*first);
+    second_records = *snap->item(*second);
+  }
+  Pattern root;
+  root.s = ex("root");
+  root.o = first_records.front().triple.o;
+  auto removed = node.remove(root, 5);
+  ASSERT_TRUE(removed) << removed.error().message;
+  EXPECT_EQ(*removed, 4u);
+  auto snap = node.snapshot();
+  auto left = snap->item(*first);
+  ASSERT_FALSE(left);
+  EXPECT_EQ(left.error().code, Errc::not_found);
+  auto kept = snap->item(*second);
+  ASSERT_TRUE(kept);
+  EXPECT_EQ(ids_of(*kept), ids_of(second_records));
+  auto stats = node.stats();
+  EXPECT_EQ(stats->records, 4u);
+}
+
+TEST(Store, RecordMetadataCarriesSourceContextAndTimes) {
+  TempDir dir;
+  Node node = make_node(dir.path());
+  auto agent = node.agent("hrv");
+  Item item = item_of(turtle(kObservation));
+  item.context = "http://example.org/hospital";
+  item.asserted_at = 1'000'000'000;
+  auto id = agent->store(item);
+  ASSERT_TRUE(id);
+  auto records = node.snapshot()->item(*id);
+  ASSERT_TRUE(records);
+  for (const auto& r : *records) {
+    EXPECT_EQ(r.meta.source, testing::kNodeIri + "/hrv");
+    EXPECT_EQ(r.meta.context, "http://example.org/hospital");
+    EXPECT_EQ(r.meta.asserted_at, 1'000'000'000);
+    EXPECT_GT(r.meta.stored_at, 1'600'000'000'000'000'000);
+    EXPECT_EQ(r.meta.item, *id);
+  }
+}
+
+TEST(Store, LiteralsKeepDatatypeAndLanguage) {
+  TempDir dir;
+  Node node = make_node(dir.path());
+  auto agent = node.agent("w");
+  Item item;
+  item.add(ex("a"), ex("int"), Term::integer(-42))
+      .add(ex("a"), ex("big"), Term::literal("123456789012345678901234567890", std::string(xsd::kInteger)))
+      .add(ex("a"), ex("padded"), Term::literal("007", std::string(xsd::kInteger)))
+      .add(ex("a"), ex("label"), Term::lang_literal("süda", "et"))
+      .add(ex("a"), ex("plain"), Term::literal("x"))
+      .add(ex("a"), ex("dec"), Term::literal("72.5", std::string(xsd::kDecimal)));
+  auto id = agent->store(item);
+  ASSERT_TRUE(id);
+  auto records = node.snapshot()->item(*id);
+  ASSERT_TRUE(records);
+  ASSERT_EQ(records->size(), item.triples.size());
+  for (std::size_t i = 0; i < item.triples.size(); ++i) EXPECT_EQ((*records)[i].triple, item.triples[i]);
+}
+
+TEST(Store, PatternWithBoundObjectFindsLiteral) {
+  TempDir dir;
+  Node node = make_node(dir.path());
+  auto agent = node.agent("w");
+  for (int i = 0; i < 10; ++i) ASSERT_TRUE(agent->store(Item{}.add(ex("s" + std::to_string(i)), ex("hr"), Term::integer(60 + i % 3))));
+  Pattern p;
+  p.o = Term::integer(61);
+  auto listed = node.snapshot()->list(p);
+  ASSERT_TRUE(listed);
+  EXPECT_EQ(listed->size(), 3u);
+  p.o = Term::integer(99);
+  EXPECT_TRUE(node.snapshot()->list(p)->empty());
+}
+
+TEST(Store, InvalidIriIsRefusedAndNothingIsStored) {
+  TempDir dir;
+  Node node = make_node(dir.path());
+  auto agent = node.agent("w");
+  Item item;
+  item.add(ex("a"), ex("b"), Term::integer(1)).add(Term::iri("http://exa mple.org/x"), ex("b"), Term::integer(2));
+  auto id = agent->store(item);
+  ASSERT_FALSE(id);
+  EXPECT_EQ(id.error().code, Errc::invalid_iri);
+  EXPECT_NE(id.error().message.find("triple 2, subject"), std::string::npos) << id.error().message;
+  EXPECT_NE(id.error().message.find("position"), std::string::npos) << id.error().message;
+  EXPECT_EQ(node.stats()->records, 0u);
+  EXPECT_EQ(node.stats()->terms, 4u);  // only the subscription vocabulary
+}
+
+TEST(Store, LiteralOverLimitIsRefusedAndNothingIsStored) {
+  TempDir dir;
+  InitOptions options;
+  options.max_literal_bytes = 100;
+  Node node = make_node(dir.path(), options);
+  auto agent = node.agent("w");
+  Item item;
+  item.add(ex("a"), ex("b"), Term::literal("short")).add(ex("a"), ex("c"), Term::literal(std::string(101, 'x')));
+  auto id = agent->store(item);
+  ASSERT_FALSE(id);
+  EXPECT_EQ(id.error().code, Errc::literal_too_large);
+  EXPECT_NE(id.error().message.find("triple 2, object"), std::string::npos) << id.error().message;
+  EXPECT_NE(id.error().message.find("101"), std::string::npos);
+  EXPECT_EQ(node.stats()->records, 0u);
+}
+
+TEST(Store, FullStoreIsRefusedWithClearErrorAndNothingHalfWritten) {
+  TempDir dir;
+  InitOptions options;
+  options.max_map_bytes = 2 << 20;
+  Node node = make_node(dir.path(), options);
+  auto agent = node.agent("w");
+  std::uint64_t stored = 0;
+  Result<std::uint64_t> last = std::uint64_t{0};
+  for (int i = 0; i < 100000; ++i) {
+    Item item;
+    for (int j = 0; j < 10; ++j) item.add(ex("s" + std::to_string(i)), ex("p" + std::to_string(j)), Term::literal(std::string(200, 'a' + j) + std::to_string(i)));
+    last = agent->store(item);
+    if (!last) break;
+    ++stored;
+  }
+  ASSERT_FALSE(last);
+  EXPECT_EQ(last.error().code, Errc::store_full);
+  EXPECT_NE(last.error().message.find("store full"), std::string::npos) << last.error().message;
+  auto stats = node.stats();
+  EXPECT_EQ(stats->records, stored * 10);  // whole items only
+  EXPECT_EQ(stats->items, stored);
+  // Removing data makes room again.
+  auto removed = node.remove_item(1);
+  ASSERT_TRUE(removed);
+  Item small;
+  small.add(ex("x"), ex("y"), Term::integer(1));
+  EXPECT_TRUE(agent->store(small));
+}
+
+TEST(Store, MapGrowsWhenItFills) {
+  TempDir dir;
+  Node node = make_node(dir.path());
+  auto agent = node.agent("w");
+  // ~100 MiB of literals through a 64 MiB initial map.
+  for (int i = 0; i < 200; ++i) {
+    Item item;
+    item.add(ex("chunk" + std::to_string(i)), ex("data"), Term::literal(std::string(1 << 19, 'a' + i % 26) + std::to_string(i), std::string(xsd::kBase64Binary)));
+    auto id = agent->store(item);
+    ASSERT_TRUE(id) << id.error().message;
+  }
+  EXPECT_GT(node.stats()->map_bytes, 64u << 20);
+}
+
+TEST(Store, SubscriberGetsMatchingItemsOnceInOrder) {
+  TempDir dir;
+  Node node = make_node(dir.path());
+  auto reader = node.agent("reader");
+  auto writer = node.agent("writer");
+  Pattern hr;
+  hr.p = ex("hr");
+  ASSERT_TRUE(reader->subscribe(hr));
+  std::vector<std::uint64_t> sent;
+  for (int i = 0; i < 5; ++i) {
+    sent.push_back(*writer->store(Item{}.add(ex("obs" + std::to_string(i)), ex("hr"), Term::integer(70 + i))));
+    ASSERT_TRUE(writer->store(Item{}.add(ex("obs" + std::to_string(i)), ex("other"), Term::integer(1))));
+  }
+  EXPECT_EQ(*reader->pending(), 5u);
+  std::vector<std::uint64_t> got;
+  while (auto d = reader->take(0ms)) {
+    if (!*d) break;
+    got.push_back((*d)->item);
+    EXPECT_EQ((*d)->records.front().triple.p, ex("hr"));
+  }
+  EXPECT_EQ(got, sent);
+  EXPECT_EQ(*reader->pending(), 0u);
+}
+
+TEST(Store, ManualAckRedeliversUntilAcknowledged) {
+  TempDir dir;
+  Node node = make_node(dir.path());
+  {
+    auto reader = node.agent("reader");
+    ASSERT_TRUE(reader->subscribe(Pattern{.p = ex("hr")}));
+  }
+  auto writer = node.agent("writer");
+  auto id = writer->store(Item{}.add(ex("o"), ex("hr"), Term::integer(70)));
+  {
+    auto reader = node.agent("reader");
+    auto d = reader->take(0ms, Ack::manual);
+    ASSERT_TRUE(d && *d);
+    EXPECT_EQ((*d)->item, *id);
+  }  // "crash" before ack
+  auto reader = node.agent("reader");
+  auto again = reader->take(0ms, Ack::manual);
+  ASSERT_TRUE(again && *again);
+  EXPECT_EQ((*again)->item, *id);
+  ASSERT_TRUE(reader->ack(*id));
+  auto none = reader->take(0ms, Ack::manual);
+  ASSERT_TRUE(none);
+  EXPECT_FALSE(*none);
+}
+
+TEST(Store, UnsubscribeStopsDelivery) {
+  TempDir dir;
+  Node node = make_node(dir.path());
+  auto reader = node.agent("reader");
+  auto writer = node.agent("writer");
+  auto sub = reader->subscribe(Pattern{.p = ex("hr")});
+  ASSERT_TRUE(sub);
+  ASSERT_TRUE(writer->store(Item{}.add(ex("o"), ex("hr"), Term::integer(70))));
+  ASSERT_TRUE(reader->unsubscribe(*sub));
+  ASSERT_TRUE(writer->store(Item{}.add(ex("o"), ex("hr"), Term::integer(71))));
+  EXPECT_EQ(*reader->pending(), 1u);
+  auto other = node.agent("other");
+  EXPECT_FALSE(other->unsubscribe(*sub));
+}
+
+TEST(Store, RemovedUnreadItemLeavesInputBuffer) {
+  TempDir dir;
+  Node node = make_node(dir.path());
+  auto reader = node.agent("reader");
+  auto writer = node.agent("writer");
+  ASSERT_TRUE(reader->subscribe(Pattern{.p = ex("hr")}));
+  auto id = writer->store(Item{}.add(ex("o"), ex("hr"), Term::integer(70)));
+  ASSERT_TRUE(node.remove_item(*id));
+  EXPECT_EQ(*reader->pending(), 0u);
+  EXPECT_EQ(node.stats()->pending_deliveries, 0u);
+}
+
+TEST(Store, OutputBufferListsWhatTheAgentWrote) {
+  TempDir dir;
+  Node node = make_node(dir.path());
+  auto a = node.agent("a");
+  auto b = node.agent("b");
+  auto a1 = a->store(Item{}.add(ex("x"), ex("p"), Term::integer(1)));
+  ASSERT_TRUE(b->store(Item{}.add(ex("x"), ex("p"), Term::integer(2))));
+  auto a2 = a->store(Item{}.add(ex("x"), ex("p"), Term::integer(3)));
+  EXPECT_EQ(*a->written(), (std::vector<std::uint64_t>{*a1, *a2}));
+  EXPECT_EQ(*a->written(*a1), (std::vector<std::uint64_t>{*a2}));
+}
+
+TEST(Store, RingKeepsStoreWithinBoundAndKeepsPersistentAndUnreadItems) {
+  TempDir dir;
+  InitOptions options;
+  options.ring = 100;
+  Node node = make_node(dir.path(), options);
+  auto writer = node.agent("writer");
+  auto reader = node.agent("reader");
+  ASSERT_TRUE(reader->subscribe(Pattern{.p = ex("alarm")}));
+  Item keep;
+  keep.persistent = true;
+  keep.add(ex("config"), ex("window"), Term::integer(300));
+  auto persistent = writer->store(keep);
+  auto unread = writer->store(Item{}.add(ex("a1"), ex("alarm"), Term::literal("high")));
+  ASSERT_TRUE(persistent && unread);
+  for (int i = 0; i < 5000; ++i) {
+    Item item;
+    item.add(ex("obs" + std::to_string(i)), ex("hr"), Term::integer(60 + i % 40)).add(ex("obs" + std::to_string(i)), ex("t"), Term::literal(std::to_string(i)));
+    ASSERT_TRUE(writer->store(item));
+    auto stats = node.stats();
+    ASSERT_LE(stats->records - stats->persistent_records, 100u + 1u) << "after " << i;  // + the unread item
+  }
+  auto snap = node.snapshot();
+  EXPECT_TRUE(snap->item(*persistent));
+  EXPECT_TRUE(snap->item(*unread));
+  auto stats = node.stats();
+  EXPECT_GE(stats->reclaimed_records, 9800u);
+  // Once taken, the unread item may go.
+  auto d = reader->take(0ms);
+  ASSERT_TRUE(d && *d);
+  for (int i = 0; i < 200; ++i) ASSERT_TRUE(writer->store(Item{}.add(ex("more"), ex("hr"), Term::integer(i))));
+  EXPECT_FALSE(node.snapshot()->item(*unread));
+  // Terms of reclaimed records are collected too: the dictionary stays small.
+  EXPECT_LT(node.stats()->terms, 400u);
+}
+
+TEST(Store, TimeToLiveReclaimsOldRecordsOfThatPredicateOnly) {
+  TempDir dir;
+  Node node = make_node(dir.path());
+  auto writer = node.agent("writer");
+  ASSERT_TRUE(node.set_ttl(testing::kEx + std::string("ecg"), std::chrono::hours(1)));
+  ASSERT_TRUE(writer->store(Item{}.add(ex("c1"), ex("ecg"), Term::literal("AAAA"))));
+  EXPECT_EQ(*node.reclaim(), 0u);
+  ASSERT_TRUE(node.set_ttl(testing::kEx + std::string("ecg"), std::chrono::nanoseconds(1)));
+  ASSERT_TRUE(writer->store(Item{}.add(ex("h1"), ex("hrv"), Term::integer(42))));
+  Item kept;
+  kept.persistent = true;
+  kept.add(ex("c0"), ex("ecg"), Term::literal("BBBB"));
+  ASSERT_TRUE(writer->store(kept));
+  ASSERT_TRUE(node.reclaim());  // retention also runs after each write
+  EXPECT_EQ(node.stats()->reclaimed_records, 1u);
+  auto snap = node.snapshot();
+  EXPECT_EQ(*snap->count(Pattern{.p = ex("ecg")}), 1u);
+  EXPECT_EQ(*snap->count(Pattern{.p = ex("hrv")}), 1u);
+  auto ttls = node.ttls();
+  ASSERT_EQ(ttls->size(), 1u);
+}
+
+TEST(Store, WatchReturnsInsertionsAndRemovalsAfterBookmark) {
+  TempDir dir;
+  Node node = make_node(dir.path());
+  auto writer = node.agent("writer");
+  std::uint64_t bookmark = node.snapshot()->last_seq();
+  auto id = writer->store(Item{}.add(ex("a"), ex("p"), Term::integer(1)));
+  auto inserted = node.watch(bookmark, 0ms);
+  ASSERT_TRUE(inserted);
+  ASSERT_EQ(inserted->size(), 1u);
+  EXPECT_FALSE((*inserted)[0].removed);
+  EXPECT_EQ((*inserted)[0].seq, *id);
+  ASSERT_TRUE(node.remove_item(*id));
+  auto changes = node.watch((*inserted)[0].seq, 0ms);
+  ASSERT_TRUE(changes);
+  ASSERT_EQ(changes->size(), 1u);
+  EXPECT_TRUE((*changes)[0].removed);
+  EXPECT_EQ((*changes)[0].record.meta.id, *id);
+  EXPECT_EQ((*changes)[0].record.triple.o, Term::integer(1));
+  auto none = node.watch((*changes)[0].seq, 10ms);
+  ASSERT_TRUE(none);
+  EXPECT_TRUE(none->empty());
+}
+
+TEST(Store, ReopenKeepsEverything) {
+  TempDir dir;
+  std::uint64_t id = 0;
+  {
+    Node node = make_node(dir.path());
+    id = *node.agent("w")->store(Item{}.add(ex("a"), ex("p"), Term::literal("x")));
+  }
+  auto node = Node::open(dir.path());
+  ASSERT_TRUE(node);
+  EXPECT_EQ(node->iri(), testing::kNodeIri);
+  EXPECT_EQ(node->snapshot()->item(id)->size(), 1u);
+}
+
+TEST(Store, InitRefusesExistingStoreAndOpenRefusesMissingOne) {
+  TempDir dir;
+  make_node(dir.path());
+  auto again = Node::init(dir.path(), InitOptions{.iri = testing::kNodeIri});
+  ASSERT_FALSE(again);
+  EXPECT_EQ(again.error().code, Errc::exists);
+  auto missing = Node::open(dir / "nothing");
+  ASSERT_FALSE(missing);
+  EXPECT_EQ(missing.error().code, Errc::not_found);
+  auto bad = Node::init(dir / "bad", InitOptions{.iri = "not an iri"});
+  ASSERT_FALSE(bad);
+  EXPECT_EQ(bad.error().code, Errc::invalid_iri);
+}
+
+TEST(Store, AgentIriIsNodeIriSlashId) {
+  TempDir dir;
+  Node node = make_node(dir.path());
+  EXPECT_EQ(node.agent("ecg")->iri(), testing::kNodeIri + "/ecg");
+  EXPECT_FALSE(node.agent("a/b"));
+  EXPECT_FALSE(node.agent(""));
+}
+
+}  // namespace
+}  // namespace tahvel::node
