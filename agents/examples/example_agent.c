@@ -15,8 +15,9 @@
  *         tv:heartRateClass "normal" ;                      "low" < 50 <= "normal" <= 100 < "high"
  *         prov:wasDerivedFrom <http://example.org/home1/obs/17> .
  *
- * Each item is acknowledged only after its derived item is stored, so a crash in between
- * delivers it again on restart (at least once). Stops after N items (--count), after SECONDS
+ * The subscription is persistent (triples on the whiteboard): a restart finds the one an
+ * earlier run wrote instead of adding another. Each item is acknowledged only after its derived
+ * item is stored, so a crash in between delivers it again on restart (at least once). Stops after N items (--count), after SECONDS
  * without input (--idle, default 10), or on SIGINT/SIGTERM. Exit status: 0 when it stopped as
  * asked, 1 on a Tahvel error (printed on stderr), 2 on a usage error.
  */
@@ -29,6 +30,8 @@
 
 #define AGENT_ID "example-c"
 #define HEART_RATE "<https://w3id.org/tahvel#heartRate>"
+#define TV_SUBSCRIBER "<https://w3id.org/tahvel#subscriber>"
+#define TV_PREDICATE "<https://w3id.org/tahvel#predicate>"
 #define TAKE_TIMEOUT_MS 1000
 
 static volatile sig_atomic_t g_stop = 0;
@@ -99,7 +102,7 @@ static tahvel_status derive(tahvel_agent* agent, const char* subject, const char
                  classify(bpm));
   }
   if (n < 0 || (size_t)n >= sizeof turtle) return TAHVEL_OK; /* absurdly long IRI: skip */
-  printf("example_agent: %s %s bpm -> %s\n", subject, object, classify(bpm));
+  printf("example_agent: %s %g bpm -> %s\n", subject, bpm, classify(bpm));
   return tahvel_store(agent, turtle, (size_t)n, TAHVEL_FORMAT_TURTLE, NULL, 0, NULL);
 }
 
@@ -124,6 +127,40 @@ static tahvel_status process(tahvel_agent* agent, char* ntriples) {
     line = next;
   }
   return TAHVEL_OK;
+}
+
+/* Sets *found to 1 when the agent already has a subscription to exactly {p = tv:heartRate}
+ * (written by an earlier run), so that restarts do not pile up subscription items. A
+ * subscription is the triples  _:x tv:subscriber <agent> ; tv:predicate P  (see tahvel.h). */
+static tahvel_status find_subscription(tahvel_node* node, const char* agent_iri, int* found) {
+  char me[2048];
+  char* heads = NULL;
+  char* line;
+  tahvel_status status;
+  *found = 0;
+  if (snprintf(me, sizeof me, "<%s>", agent_iri) >= (int)sizeof me) return TAHVEL_OK;
+  status = tahvel_list(node, NULL, TV_SUBSCRIBER, me, 0, 0, &heads, NULL);
+  for (line = heads; status == TAHVEL_OK && line != NULL && *line != '\0' && !*found;) {
+    char* next = strchr(line, '\n');
+    char* space = strchr(line, ' ');
+    char* triples = NULL;
+    if (next != NULL) *next++ = '\0';
+    if (space != NULL) {
+      *space = '\0'; /* line is now the subscription's subject, e.g. "_:b7" */
+      status = tahvel_list(node, line, NULL, NULL, 0, 0, &triples, NULL);
+      if (status == TAHVEL_OK) {
+        const char* mine = strstr(triples, " " TV_PREDICATE " " HEART_RATE " .\n");
+        const char* end = strchr(triples, '\n');
+        int lines = 0;
+        for (; end != NULL; end = strchr(end + 1, '\n')) ++lines;
+        *found = mine != NULL && lines == 2; /* subscriber + predicate, nothing else */
+      }
+      tahvel_free(triples);
+    }
+    line = next;
+  }
+  tahvel_free(heads);
+  return status;
 }
 
 /* Takes, derives and acknowledges until asked to stop. Returns the exit status. */
@@ -160,6 +197,7 @@ int main(int argc, char** argv) {
   tahvel_node* node = NULL;
   tahvel_agent* agent = NULL;
   tahvel_status status;
+  int subscribed = 0;
   int exit_status;
 
   if (!parse_options(argc, argv, &options)) {
@@ -172,12 +210,22 @@ int main(int argc, char** argv) {
   status = tahvel_node_open(options.dir, &node);
   if (status != TAHVEL_OK) return report("tahvel_node_open", status);
   status = tahvel_agent_open(node, AGENT_ID, &agent);
-  tahvel_node_close(node); /* the agent handle keeps the store open by itself */
-  if (status != TAHVEL_OK) return report("tahvel_agent_open", status);
+  if (status != TAHVEL_OK) {
+    exit_status = report("tahvel_agent_open", status);
+    tahvel_node_close(node);
+    return exit_status;
+  }
   fprintf(stderr, "example_agent: running as %s\n", tahvel_agent_iri(agent));
 
-  status = tahvel_subscribe(agent, NULL, HEART_RATE, NULL, NULL);
-  exit_status = status == TAHVEL_OK ? run(agent, &options) : report("tahvel_subscribe", status);
+  status = find_subscription(node, tahvel_agent_iri(agent), &subscribed);
+  tahvel_node_close(node); /* the agent handle keeps the store open by itself */
+  if (status != TAHVEL_OK) {
+    exit_status = report("tahvel_list", status);
+  } else if (!subscribed && (status = tahvel_subscribe(agent, NULL, HEART_RATE, NULL, NULL)) != TAHVEL_OK) {
+    exit_status = report("tahvel_subscribe", status);
+  } else {
+    exit_status = run(agent, &options);
+  }
   tahvel_agent_close(agent);
   return exit_status;
 }

@@ -138,6 +138,32 @@ TEST_F(CApiTest, TurtleUsesTheNodePrefixesAndListCascades) {
   tahvel_agent_close(writer);
 }
 
+TEST_F(CApiTest, SubscriptionsAreTriplesFoundByBlankNodeLabel) {
+  tahvel_agent* agent = open_agent("reader");
+  ASSERT_EQ(tahvel_subscribe(agent, nullptr, kHeartRate, nullptr, nullptr), TAHVEL_OK)
+      << tahvel_last_error();
+  const std::string me = std::string("<") + tahvel_agent_iri(agent) + ">";
+  Text heads;
+  ASSERT_EQ(tahvel_list(node_, nullptr, "<https://w3id.org/tahvel#subscriber>", me.c_str(), 0, 0,
+                        &heads.data, &heads.len),
+            TAHVEL_OK)
+      << tahvel_last_error();
+  const std::string head = heads.str();
+  ASSERT_EQ(head.rfind("_:", 0), 0u) << head;
+  const std::string label = head.substr(0, head.find(' '));
+  Text triples;
+  ASSERT_EQ(tahvel_list(node_, label.c_str(), nullptr, nullptr, 0, 0, &triples.data, &triples.len),
+            TAHVEL_OK)
+      << tahvel_last_error();
+  EXPECT_NE(triples.str().find(label + " <https://w3id.org/tahvel#predicate> " + kHeartRate + " ."),
+            std::string::npos)
+      << triples.str();
+  EXPECT_EQ(tahvel_subscribe(agent, label.c_str(), nullptr, nullptr, nullptr),
+            TAHVEL_INVALID_ARGUMENT)
+      << "subscriptions refuse blank nodes";
+  tahvel_agent_close(agent);
+}
+
 TEST_F(CApiTest, ListMatchesTypedLiteralObjects) {
   tahvel_agent* writer = open_agent("writer");
   store_nt(writer, observation(1, 72));

@@ -49,8 +49,9 @@
  *     "_:b12"                                                  a blank node, as the store
  *                                                              returned it
  * NULL (or "") matches any term. Surrounding spaces are ignored. Blank-node labels are renamed
- * when an item is stored (they are local to their item), so a blank node only matches the
- * label the store gave it, as seen in the output of tahvel_take() or tahvel_list().
+ * when an item is stored (they are local to their item), so in tahvel_list() a blank node only
+ * matches the label the store gave it, as seen in the output of tahvel_take() or tahvel_list();
+ * subscriptions refuse blank nodes.
  *
  * Output text. tahvel_take() and tahvel_list() return N-Triples: one triple per line, each line
  * ending in " .\n", IRIs in angle brackets, xsd:string literals without a datatype.
@@ -203,12 +204,17 @@ tahvel_status tahvel_store(tahvel_agent* agent, const char* rdf, size_t len, int
 
 /* Subscribes the agent to the pattern (s, p, o: N-Triples terms or NULL for any; see "Terms"):
  * from now on every item stored on the node (by any agent, this one included) with at least
- * one triple matching the pattern lands in this agent's input buffer, once. The subscription
- * is itself written on the whiteboard as a persistent item, so it survives restarts of the
- * agent; calling tahvel_subscribe again with the same pattern writes a second subscription.
+ * one triple matching the pattern lands in this agent's input buffer. An item lands there once
+ * even when several of the agent's subscriptions match it.
+ * The subscription is itself written on the whiteboard as a persistent item of triples
+ *     _:x tv:subscriber <agent IRI> ; tv:subject S ; tv:predicate P ; tv:object O .
+ * (only the bound positions), so it survives restarts of the agent. Calling tahvel_subscribe
+ * again with the same pattern writes a second subscription item: an agent that restarts should
+ * look for its subscription first (tahvel_list with p = <https://w3id.org/tahvel#subscriber>
+ * and o = its IRI; see agents/examples/example_agent.c). Remove one with tahvel_remove_item().
  * Sets *subscription_out (may be NULL) to the subscription's item id.
- * Errors: TAHVEL_INVALID_ARGUMENT (NULL handle, a literal as s, a non-IRI as p), TAHVEL_SYNTAX,
- * TAHVEL_INVALID_IRI, TAHVEL_STORE_FULL, TAHVEL_IO, TAHVEL_NO_MEMORY. */
+ * Errors: TAHVEL_INVALID_ARGUMENT (NULL handle, a literal as s, a non-IRI as p, a blank node
+ * anywhere), TAHVEL_SYNTAX, TAHVEL_INVALID_IRI, TAHVEL_STORE_FULL, TAHVEL_IO, TAHVEL_NO_MEMORY. */
 tahvel_status tahvel_subscribe(tahvel_agent* agent, const char* s, const char* p, const char* o,
                                uint64_t* subscription_out);
 
@@ -219,11 +225,12 @@ tahvel_status tahvel_subscribe(tahvel_agent* agent, const char* s, const char* p
  * whole item as it is now, as N-Triples text with *len_out (may be NULL) bytes, which the
  * caller frees with tahvel_free().
  *
- * TAKE DOES NOT ACKNOWLEDGE. The item stays in the input buffer until tahvel_ack(agent, item).
- * Process the item first (store what you derive from it), then acknowledge it: if the agent
- * crashes or closes its handle in between, the item is delivered again to the next handle of
- * the same agent id. So delivery is at least once; an agent that must not repeat an effect
- * checks for it (e.g. by the prov:wasDerivedFrom link it wrote) before acting again.
+ * TAKE DOES NOT ACKNOWLEDGE. The item stays at the head of the input buffer until
+ * tahvel_ack(agent, item): until then every tahvel_take of this agent id (this handle, or a new
+ * one after a restart) returns the same item again. Process the item first (store what you
+ * derive from it), then acknowledge it: if the agent crashes in between, the item is delivered
+ * again when it restarts. So delivery is at least once; an agent that must not repeat an
+ * effect checks for it (e.g. by the prov:wasDerivedFrom link it wrote) before acting again.
  * An item removed from the store before it was taken is skipped.
  *
  * Returns TAHVEL_TIMEOUT when no item arrived in time (out-parameters set to NULL/0).
