@@ -12,7 +12,7 @@ namespace {
 const std::vector<Flag>& common_flags() {
   static const std::vector<Flag> flags = {
       {"--prefix", "", "P=IRI",
-       "also expand CURIEs 'P:x' to IRI+x (repeatable; the node's own prefixes are always known)",
+       "expand CURIEs P:x to IRI+x (repeatable; adds to the node's prefixes)",
        true},
       {"--help", "-h", "", "show this help and exit"},
   };
@@ -86,7 +86,10 @@ void check_positional_count(const Command& command, const Args& args) {
 void print_flags(std::ostream& out, const std::vector<Flag>& flags) {
   for (const Flag& f : flags) {
     std::string left = std::string(f.name);
-    if (!f.alias.empty()) left = std::string(f.alias) + ", " + left;
+    if (!f.alias.empty()) {  // the short spelling first: "-s, --subject"
+      bool alias_short = !f.alias.starts_with("--");
+      left = alias_short ? std::string(f.alias) + ", " + left : left + ", " + std::string(f.alias);
+    }
     if (!f.value.empty()) left += " " + std::string(f.value);
     out << "  " << left;
     if (left.size() < 22) {

@@ -32,13 +32,13 @@ std::span<const Subcommand> subcommands();
 inline const Flag kFlagS{"-s", "--subject", "TERM", "match this subject: <iri>, IRI, CURIE or _:label"};
 inline const Flag kFlagP{"-p", "--predicate", "TERM", "match this predicate: <iri>, IRI, CURIE or 'a'"};
 inline const Flag kFlagO{"-o", "--object", "TERM",
-                         "match this object: an IRI, _:label, \"lit\", \"lit\"@en, \"lit\"^^type, 72, 7.5"};
+                         "match this object: IRI, CURIE, _:b, \"x\", \"x\"@en, \"x\"^^type, 72"};
 inline const Flag kFlagCascade{"--cascade", "", "N",
-                               "also follow each match's IRI/blank object to its own triples, N levels deep"};
+                               "follow each match's object to its triples, N levels deep"};
 inline const Flag kFlagFormat{"--format", "", "nt|ttl|json",
-                              "output syntax: N-Triples (default), Turtle, or JSON lines with metadata"};
+                              "output: N-Triples (default), Turtle, JSON lines + metadata"};
 inline const Flag kFlagAgentWriter{"--agent", "", "ID",
-                                   "write as agent ID (IRI = node IRI + \"/\" + ID); default \"cli\""};
+                                   "write as agent ID (IRI: node IRI/ID); default \"cli\""};
 
 // --- errors ---------------------------------------------------------------------------------
 
@@ -85,7 +85,10 @@ node::Format format_flag(const Args& args, node::Format fallback, bool allow_jso
 std::string read_input(const std::string& path);
 // Flushes `out` and fails (naming standard output) when anything could not be written.
 void finish_output(std::ostream& out);
-// Writes `records` as one document.
+// The entries of `prefixes` that some IRI or datatype of `records` uses (for Turtle output).
+uri::PrefixMap used_prefixes(const uri::PrefixMap& prefixes,
+                             const std::vector<node::Record>& records);
+// Writes `records` as one document (Turtle: with the @prefix lines it uses).
 void write_records(std::ostream& out, node::Format format, const uri::PrefixMap& prefixes,
                    const std::vector<node::Record>& records);
 // The base IRI for relative references in input: the node IRI followed by "/".

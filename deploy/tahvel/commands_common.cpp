@@ -1,7 +1,10 @@
 // Helpers shared by the `tahvel` subcommands: terms and patterns from the command line, the
 // prefix table, input and output. Everything here runs once per invocation (not hot).
+#include <algorithm>
 #include <cerrno>
 #include <cstring>
+#include <poll.h>
+#include <unistd.h>
 #include <fstream>
 #include <iostream>
 #include <iterator>
@@ -333,19 +336,40 @@ std::string read_input(const std::string& path) {
   return std::move(text).str();
 }
 
+// True when standard output is a pipe whose reader has gone (Linux reports POLLERR).
+bool stdout_reader_gone() {
+  pollfd p{STDOUT_FILENO, 0, 0};
+  return ::poll(&p, 1, 0) == 1 && (p.revents & POLLERR) != 0;
+}
+
 void finish_output(std::ostream& out) {
-  errno = 0;
   out.flush();
   if (out) return;
+  int error = errno;  // may be stale: the stream could have failed on an earlier write
   // A reader that went away (`tahvel tail | head`) is not worth a message; exit 1 quietly.
-  if (errno == EPIPE) throw Failure{kExitFailure, ""};
+  if (error == EPIPE || stdout_reader_gone()) throw Failure{kExitFailure, ""};
   fail(std::string("cannot write to standard output: ") +
-       (errno ? std::strerror(errno) : "stream error"));
+       (error ? std::strerror(error) : "write failed"));
+}
+
+uri::PrefixMap used_prefixes(const uri::PrefixMap& prefixes,
+                             const std::vector<node::Record>& records) {
+  auto uses = [](const node::Term& t, const std::string& ns) {
+    return (t.is_iri() && t.value.starts_with(ns)) || (t.is_literal() && t.datatype.starts_with(ns));
+  };
+  uri::PrefixMap used;
+  for (const auto& [prefix, ns] : prefixes.entries()) {
+    bool any = std::any_of(records.begin(), records.end(), [&](const node::Record& r) {
+      return uses(r.triple.s, ns) || uses(r.triple.p, ns) || uses(r.triple.o, ns);
+    });
+    if (any) (void)used.add(prefix, ns);  // copied from a valid map: cannot fail
+  }
+  return used;
 }
 
 void write_records(std::ostream& out, node::Format format, const uri::PrefixMap& prefixes,
                    const std::vector<node::Record>& records) {
-  node::RecordWriter writer(out, format, prefixes);
+  node::RecordWriter writer(out, format, used_prefixes(prefixes, records));
   for (const node::Record& r : records) writer.write(r);
   writer.finish();
 }

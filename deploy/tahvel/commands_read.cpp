@@ -51,10 +51,19 @@ void print_removal(std::ostream& out, node::Format format, const node::Change& c
 }
 
 // Writes the changes of one watch() batch that match `pattern`; counts inserted records in
-// `printed` and stops at `count` (0: no limit).
+// `printed` and stops at `count` (0: no limit). Turtle declares the prefixes of each batch.
 void print_changes(std::ostream& out, const std::vector<node::Change>& changes,
                    const node::Pattern& pattern, node::Format format,
-                   const uri::PrefixMap& prefixes, std::uint64_t count, std::uint64_t& printed) {
+                   const uri::PrefixMap& all_prefixes, std::uint64_t count,
+                   std::uint64_t& printed) {
+  uri::PrefixMap prefixes;
+  if (format == node::Format::turtle) {
+    std::vector<node::Record> inserted;
+    for (const node::Change& change : changes) {
+      if (!change.removed) inserted.push_back(change.record);
+    }
+    prefixes = used_prefixes(all_prefixes, inserted);
+  }
   std::optional<node::RecordWriter> writer;
   for (const node::Change& change : changes) {
     if (count != 0 && printed >= count) break;
@@ -111,7 +120,7 @@ void print_stats_json(const node::Stats& s) {
 const Command kListCommand{
     "list",
     "DIR [-s S] [-p P] [-o O] [--cascade N] [--limit N] [--format nt|ttl|json]",
-    "Print the records matching a pattern (every record when none is given).",
+    "Print the records matching a pattern (all when none is given).",
     "Matches come in id order; with --cascade N each is followed by its sub-tree: the records\n"
     "whose subject is the match's object (an IRI or blank node), N levels deep. JSON output has\n"
     "one object per line with the record's metadata (id, item, stored_at, asserted_at, source,\n"
@@ -137,7 +146,7 @@ int run_list(const Args& args) {
 const Command kDumpCommand{
     "dump",
     "DIR [--format nt|ttl|json]",
-    "Print every record of the whiteboard, in id order, from one consistent snapshot.",
+    "Print every record, in id order, from one consistent snapshot.",
     "N-Triples output can be loaded into another node with 'tahvel load'.",
     {kFlagFormat},
     1, 1};
@@ -160,7 +169,7 @@ int run_dump(const Args& args) {
 const Command kTakeCommand{
     "take",
     "DIR --agent ID [--timeout MS] [--format nt|ttl|json]",
-    "Take the oldest item from agent ID's input buffer and print it.",
+    "Take the oldest item from an agent's input buffer and print it.",
     "Waits up to MS milliseconds (default 0: do not wait) for an item to arrive. Each item is\n"
     "delivered once: it is acknowledged only after it was written to standard output, so a\n"
     "failed write leaves it in the buffer for the next take. Exit status 3, with nothing\n"
@@ -188,7 +197,7 @@ int run_take(const Args& args) {
 const Command kTailCommand{
     "tail",
     "DIR [-s S] [-p P] [-o O] [--format nt|ttl|json] [--count N]",
-    "Print records as they are stored from now on (matching the pattern), until interrupted.",
+    "Print records as they are stored from now on, until interrupted.",
     "Starts after the last record present when it starts and follows the node's change stream.\n"
     "Removals are printed as '# removed ID' (N-Triples, Turtle) or as the record's JSON object\n"
     "with \"removed\":true and the change's \"seq\". With --count N it exits 0 after N records\n"
@@ -217,7 +226,7 @@ int run_tail(const Args& args) {
 const Command kStatsCommand{
     "stats",
     "DIR [--json]",
-    "Print the node's settings and counters (records, items, terms, buffers, sizes).",
+    "Print the node's settings and counters.",
     "Text output has one 'key: value' line per counter; --json prints one JSON object with the\n"
     "same keys.",
     {{"--json", "", "", "print one JSON object instead of key: value lines"}},

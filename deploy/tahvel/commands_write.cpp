@@ -120,7 +120,7 @@ int run_init(const Args& args) {
 const Command kPutCommand{
     "put",
     "DIR [--agent ID] [--context IRI] [--persistent] [--format nt|ttl] [FILE|-]",
-    "Store the RDF in FILE (or standard input) as one item; print the item id.",
+    "Store RDF from FILE or standard input as one item; print its id.",
     "The whole input is one item: written atomically, or not at all when any of it is wrong (a\n"
     "syntax error names FILE:LINE:COL). Blank nodes are local to the item. Relative IRIs resolve\n"
     "against the node IRI + \"/\"; the node's prefixes (and --prefix) may be used in Turtle\n"
@@ -159,7 +159,7 @@ std::vector<std::vector<node::Triple>> group_by_subject(std::vector<node::Triple
 const Command kLoadCommand{
     "load",
     "DIR FILE [--agent ID] [--format nt|ttl] [--context IRI] [--persistent] [--batch N]",
-    "Bulk-load N-Triples or Turtle from FILE (or -); print the number of triples loaded.",
+    "Bulk-load N-Triples or Turtle; print the number of triples loaded.",
     "The file is parsed whole first (a syntax error stores nothing). Its triples are then split\n"
     "into items, one per subject group: a subject with the blank nodes it points to, merged with\n"
     "any other subject sharing one of those blank nodes (blank nodes are local to an item, so a\n"
@@ -188,7 +188,7 @@ int run_load(const Args& args) {
 const Command kRemoveCommand{
     "remove",
     "DIR (--item ID | [-s S] [-p P] [-o O]) [--cascade N]",
-    "Remove one item, or every record matching a pattern; print the number of records removed.",
+    "Remove an item or the records matching a pattern; print the count.",
     "With --cascade N the sub-trees of the removed records go too (objects that are IRIs or blank\n"
     "nodes, followed N levels). Removed items also leave the input buffers that held them.",
     {{"--item", "", "ID", "remove every record of item ID (as printed by put)"},
@@ -214,7 +214,7 @@ int run_remove(const Args& args) {
 const Command kSubscribeCommand{
     "subscribe",
     "DIR --agent ID [-s S] [-p P] [-o O]",
-    "Subscribe agent ID to a triple pattern; print the subscription id.",
+    "Subscribe an agent to a triple pattern; print the subscription id.",
     "From now on every item with at least one triple matching the pattern lands once in the\n"
     "agent's input buffer (see 'tahvel take'). The subscription is itself stored as persistent\n"
     "triples on the whiteboard.",
