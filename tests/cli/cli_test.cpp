@@ -58,13 +58,16 @@ class Cli : public ::testing::Test {
   }
   void TearDown() override { fs::remove_all(tmp_); }
 
-  // Starts `tahvel ARGS` with `input` on standard input; returns its pid.
-  pid_t spawn(const std::vector<std::string>& args, const std::string& input, int n) {
+  // Starts `tahvel ARGS` with `input` on standard input; returns its pid. Standard output goes
+  // to tmp/outN, or to `stdout_path` when given.
+  pid_t spawn(const std::vector<std::string>& args, const std::string& input, int n,
+              const fs::path& stdout_path = {}) {
     spit(tmp_ / ("in" + std::to_string(n)), input);
+    fs::path out = stdout_path.empty() ? tmp_ / ("out" + std::to_string(n)) : stdout_path;
     pid_t pid = fork();
     if (pid == 0) {
       redirect(tmp_ / ("in" + std::to_string(n)), 0, O_RDONLY);
-      redirect(tmp_ / ("out" + std::to_string(n)), 1, O_WRONLY | O_CREAT | O_TRUNC);
+      redirect(out, 1, O_WRONLY | O_CREAT | O_TRUNC);
       redirect(tmp_ / ("err" + std::to_string(n)), 2, O_WRONLY | O_CREAT | O_TRUNC);
       std::vector<char*> argv{const_cast<char*>(kBin.c_str())};
       for (const std::string& a : args) argv.push_back(const_cast<char*>(a.c_str()));
@@ -216,6 +219,37 @@ TEST_F(Cli, TakePrintsASubscribedItemOnceThenTimesOutWithExit3) {
   EXPECT_EQ(second.status, 3) << second.err;
   EXPECT_EQ(second.out, "");
   EXPECT_EQ(second.err, "");
+}
+
+TEST_F(Cli, TakeThatCannotWriteItsOutputLeavesTheItemForTheNextTake) {
+  if (!fs::exists("/dev/full")) GTEST_SKIP() << "no /dev/full";
+  init();
+  ASSERT_EQ(run({"subscribe", node_, "--agent", "reader", "-p", "sosa:hasSimpleResult"}).status, 0);
+  put(kObservation);
+  pid_t pid = spawn({"take", node_, "--agent", "reader"}, "", 998, "/dev/full");
+  Outcome failed = finish(pid, 998);  // no out998: its output went to /dev/full
+  EXPECT_EQ(failed.status, 1);
+  EXPECT_NE(failed.err.find("standard output"), std::string::npos) << failed.err;
+  Outcome again = run({"take", node_, "--agent", "reader"});
+  EXPECT_EQ(again.status, 0) << again.err;
+  EXPECT_EQ(lines_of(again.out).size(), 3u) << again.out;
+}
+
+TEST_F(Cli, DumpOfOneNodeLoadsIntoAnotherWithTheSameTriples) {
+  init();
+  put(kObservation);
+  put("<http://example.org/a> <http://example.org/p> \"x\"@en .\n");
+  Outcome dump = run({"dump", node_});
+  ASSERT_EQ(dump.status, 0) << dump.err;
+  fs::path file = tmp_ / "dump.nt";
+  spit(file, dump.out);
+  std::string other = (tmp_ / "other").string();
+  ASSERT_EQ(run({"init", other, "--iri", "http://example.org/home2"}).status, 0);
+  Outcome load = run({"load", other, file.string()});
+  ASSERT_EQ(load.status, 0) << load.err;
+  EXPECT_EQ(load.out, std::to_string(lines_of(dump.out).size()) + "\n");
+  Outcome literal = run({"list", other, "-o", "\"x\"@en"});
+  EXPECT_EQ(lines_of(literal.out).size(), 1u) << literal.out;
 }
 
 TEST_F(Cli, CurieOnTheCommandLineExpandsWithPrefixFlagAndNodePrefixes) {
