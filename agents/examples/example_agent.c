@@ -17,9 +17,11 @@
  *
  * The subscription is persistent (triples on the whiteboard): a restart finds the one an
  * earlier run wrote instead of adding another. Each item is acknowledged only after its derived
- * item is stored, so a crash in between delivers it again on restart (at least once). Stops after N items (--count), after SECONDS
- * without input (--idle, default 10), or on SIGINT/SIGTERM. Exit status: 0 when it stopped as
- * asked, 1 on a Tahvel error (printed on stderr), 2 on a usage error.
+ * item is stored, so a crash in between delivers it again on restart (at least once).
+ *
+ * Stops after N items (--count), after SECONDS without input (--idle, default 10), or on
+ * SIGINT/SIGTERM. Exit status: 0 when it stopped as asked, 1 on a Tahvel error (printed on
+ * stderr), 2 on a usage error.
  */
 #include <signal.h>
 #include <stdio.h>
@@ -221,7 +223,8 @@ int main(int argc, char** argv) {
   tahvel_node_close(node); /* the agent handle keeps the store open by itself */
   if (status != TAHVEL_OK) {
     exit_status = report("tahvel_list", status);
-  } else if (!subscribed && (status = tahvel_subscribe(agent, NULL, HEART_RATE, NULL, NULL)) != TAHVEL_OK) {
+  } else if (!subscribed &&
+             (status = tahvel_subscribe(agent, NULL, HEART_RATE, NULL, NULL)) != TAHVEL_OK) {
     exit_status = report("tahvel_subscribe", status);
   } else {
     exit_status = run(agent, &options);

@@ -11,9 +11,11 @@
 //         prov:wasDerivedFrom <obs> .                  (left out when <obs> is a blank node:
 //                                                       blank nodes are local to their item)
 // The subscription is persistent (triples on the whiteboard): a restart finds the one an earlier
-// run wrote instead of adding another. Each item is acknowledged only after its derived item is stored (Ack::manual), so a crash in
-// between delivers it again on restart. Stops after N items, after SECONDS without input
-// (default 10), or on SIGINT/SIGTERM. Exit status: 0 done, 1 Tahvel error, 2 usage.
+// run wrote instead of adding another. Each item is acknowledged only after its derived item is
+// stored (Ack::manual), so a crash in between delivers it again on restart.
+//
+// Stops after N items, after SECONDS without input (default 10), or on SIGINT/SIGTERM.
+// Exit status: 0 done, 1 Tahvel error, 2 usage.
 #include <algorithm>
 #include <csignal>
 #include <cstdlib>
@@ -76,7 +78,8 @@ tn::Item derive(const tn::Record& observation) {
   const double bpm = std::strtod(observation.triple.o.value.c_str(), nullptr);
   const auto c = tn::Term::blank("c");
   tn::Item item;
-  item.add(c, tn::Term::iri(std::string(tn::kRdfType)), tn::Term::iri(kTv + "HeartRateClassification"))
+  item.add(c, tn::Term::iri(std::string(tn::kRdfType)),
+           tn::Term::iri(kTv + "HeartRateClassification"))
       .add(c, tn::Term::iri(kTv + "heartRateClass"), tn::Term::literal(classify(bpm)));
   if (observation.triple.s.is_iri())
     item.add(c, tn::Term::iri(kProv + "wasDerivedFrom"), observation.triple.s);

@@ -157,20 +157,45 @@ std::string_view trim(std::string_view text) {
   return text;
 }
 
+// The term goes after this prefix, in the object position, so that one parser handles IRIs,
+// blank nodes and every form of literal; the position checks come after.
+constexpr std::string_view kTermPrefix = "<urn:tahvel:c-api:s> <urn:tahvel:c-api:p> ";
+
+// Rewrites parse_rdf's "term:1:COL: reason" into "at column N: reason", N counted in the
+// caller's term rather than in the snippet it was wrapped in.
+std::string term_error(std::string_view message) {
+  constexpr std::string_view head = "term:1:";
+  std::size_t digits_end = head.size();
+  while (digits_end < message.size() && message[digits_end] >= '0' && message[digits_end] <= '9')
+    ++digits_end;
+  if (message.substr(0, head.size()) != head || digits_end == head.size() ||
+      message.substr(digits_end, 2) != ": ")
+    return std::string(message);
+  const long column = std::stol(std::string(message.substr(head.size(), digits_end - head.size())));
+  const long in_term = column - static_cast<long>(kTermPrefix.size());
+  return "at column " + std::to_string(in_term < 1 ? 1 : in_term) + ": " +
+         std::string(message.substr(digits_end + 2));
+}
+
 // Parses one N-Triples term for `position`; NULL or blank text means "any" (nullopt).
 tahvel::node::Result<std::optional<Term>> parse_term(const char* text, Position position) {
   using tahvel::node::fail;
   if (text == nullptr || trim(text).empty()) return std::optional<Term>{};
   const std::string_view term = trim(text);
-  std::string document = "<urn:tahvel:c-api:s> <urn:tahvel:c-api:p> ";
+  std::string document(kTermPrefix);
   document.append(term).append(" .\n");
   tahvel::node::ParseOptions options;
   options.format = tahvel::node::Format::ntriples;
-  options.source_name = std::string(position_name(position)) + " term";
+  options.source_name = "term";
   auto triples = tahvel::node::parse_rdf(document, options);
-  const std::string quoted = std::string(position_name(position)) + " term '" + std::string(term) + "'";
-  if (!triples) return fail(triples.error().code, "invalid " + quoted + ": " + triples.error().message);
-  if (triples->size() != 1) return fail(Errc::invalid_argument, quoted + " is not exactly one term");
+  const std::string quoted =
+      std::string(position_name(position)) + " term '" + std::string(term) + "'";
+  if (!triples) {
+    const Error& error = triples.error();
+    return fail(error.code, "invalid " + quoted + " " + term_error(error.message));
+  }
+  if (triples->size() != 1)
+    return fail(Errc::invalid_argument, quoted + " is not exactly one term");
   Term parsed = std::move(triples->front().o);
   if (position == Position::subject && parsed.is_literal())
     return fail(Errc::invalid_argument, quoted + ": a subject cannot be a literal");
@@ -210,7 +235,8 @@ std::string to_ntriples(const std::vector<Record>& records) {
 tahvel_status copy_out(const char* fn, const std::string& text, char** out, size_t* len_out) {
   if (out != nullptr) {
     char* copy = static_cast<char*>(std::malloc(text.size() + 1));
-    if (copy == nullptr) return set_error(TAHVEL_NO_MEMORY, fn, "out of memory for the result text");
+    if (copy == nullptr)
+      return set_error(TAHVEL_NO_MEMORY, fn, "out of memory for the result text");
     std::memcpy(copy, text.data(), text.size());
     copy[text.size()] = '\0';
     *out = copy;
@@ -415,9 +441,11 @@ extern "C" tahvel_status tahvel_store(tahvel_agent* agent, const char* rdf, size
     }
     auto ctx = parse_context(context);
     if (!ctx) return set_error(fn, ctx.error());
-    auto triples = tahvel::node::parse_rdf(std::string_view(rdf == nullptr ? "" : rdf, len), options);
+    const std::string_view text(rdf == nullptr ? "" : rdf, len);
+    auto triples = tahvel::node::parse_rdf(text, options);
     if (!triples) return set_error(fn, triples.error());
-    if (triples->empty()) return set_error(TAHVEL_INVALID_ARGUMENT, fn, "the input holds no triples");
+    if (triples->empty())
+      return set_error(TAHVEL_INVALID_ARGUMENT, fn, "the input holds no triples");
     tahvel::node::Item item;
     item.triples = std::move(*triples);
     item.context = std::move(*ctx);

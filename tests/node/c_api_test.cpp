@@ -302,8 +302,8 @@ TEST_F(CApiTest, BadTermsAndArguments) {
   EXPECT_EQ(tahvel_subscribe(agent, "\"literal\"", nullptr, nullptr, nullptr),
             TAHVEL_INVALID_ARGUMENT);
   EXPECT_EQ(tahvel_subscribe(agent, nullptr, "_:b1", nullptr, nullptr), TAHVEL_INVALID_ARGUMENT);
-  EXPECT_EQ(tahvel_subscribe(agent, nullptr, nullptr, "<http://a/o> . <http://a/s> <http://a/p> <http://a/o2>",
-                             nullptr),
+  const char* two = "<http://a/o> . <http://a/s> <http://a/p> <http://a/o2>";
+  EXPECT_EQ(tahvel_subscribe(agent, nullptr, nullptr, two, nullptr),
             TAHVEL_INVALID_ARGUMENT)
       << "one term only";
   const char nt[] = "<http://a/s> <http://a/p> <http://a/o> .";

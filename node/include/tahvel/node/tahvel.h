@@ -105,7 +105,7 @@ typedef struct tahvel_agent tahvel_agent;
 const char* tahvel_strerror(tahvel_status status);
 
 /* The message of the last failed call in the calling thread, e.g.
- *     "tahvel_store: <input>:3:14: expected '.'"
+ *     "tahvel_store: <input>:2:42: line end in short string"
  * or "" when no call has failed in this thread yet. Successful calls do not clear it. The
  * string is owned by the library and stays valid until the next failing call in this thread.
  * TAHVEL_TIMEOUT from tahvel_take() counts as a failure here and sets a message too. */
