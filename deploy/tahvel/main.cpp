@@ -13,10 +13,6 @@
 
 namespace tahvel::cli {
 
-// Weak reference: the tool links and runs its other subcommands even in a tree where
-// bench_store.cpp is absent; `tahvel bench store` then says so.
-[[gnu::weak]] int bench_store_main(const std::vector<std::string>& args);
-
 namespace {
 
 const Command kBenchCommand{
@@ -70,7 +66,6 @@ int run_help(const std::vector<std::string>& rest) {
 int run_bench(const std::vector<std::string>& rest) {
   if (rest.empty()) usage_error("bench: which benchmark? (usage: tahvel bench store [--json])");
   if (rest[0] != "store") usage_error("bench: unknown benchmark '" + rest[0] + "' (try 'store')");
-  if (!bench_store_main) fail("bench store is not built into this binary");
   return bench_store_main(std::vector<std::string>(rest.begin() + 1, rest.end()));
 }
 
