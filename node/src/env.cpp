@@ -198,8 +198,13 @@ Result<void> Env::begin(MDB_txn** txn, unsigned flags) {
       active_txns_.fetch_add(1);
       return {};
     }
-    // Another process grew the map: adopt its size and try again.
-    if (rc == MDB_MAP_RESIZED && active_txns_.load() == 0) {
+    // Another process grew the map: adopt its size and try again. LMDB allows that only while
+    // this process has no transaction open.
+    if (rc == MDB_MAP_RESIZED) {
+      if (active_txns_.load() != 0)
+        return fail(Errc::io, "the store in " + dir_.string() +
+                                  " grew in another process while this process holds a snapshot;"
+                                  " release the snapshot and retry");
       std::lock_guard lock(growth_mutex_);
       mdb_env_set_mapsize(env_, 0);
       continue;

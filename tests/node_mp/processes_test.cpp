@@ -185,10 +185,12 @@ TEST(Processes, WritersKilledMidWriteNeverLeaveHalfItems) {
       if (!node) return 2;
       auto deadline = std::chrono::steady_clock::now() + 4s;
       while (std::chrono::steady_clock::now() < deadline) {
-        auto snap = node->snapshot();
-        if (!snap) return 3;
-        auto parts = snap->count(Pattern{.p = ex("part")});
-        if (!parts || *parts % kParts != 0) return 4;  // a half item is visible
+        {
+          auto snap = node->snapshot();
+          if (!snap) return 3;
+          auto parts = snap->count(Pattern{.p = ex("part")});
+          if (!parts || *parts % kParts != 0) return 4;  // a half item is visible
+        }
         auto stats = node->stats();
         if (!stats) return 5;
       }

@@ -84,6 +84,8 @@ struct Change {
 // ---------------------------------------------------------------------------------------------
 // Snapshot: a consistent, read-only view of the whole whiteboard (an LMDB read transaction).
 // Holding one does not block writers, but keeps the pages it sees from reuse: release it soon.
+// While a process holds a snapshot it cannot adopt a map that another process grew: a new
+// snapshot or write in that process then fails (Errc::io, "release the snapshot and retry").
 
 class Snapshot {
  public:
