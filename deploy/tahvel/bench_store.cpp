@@ -59,7 +59,8 @@ const char* kUsage =
     "  --quick         a small run (seconds), for smoke tests\n"
     "  --records N     triples bulk-loaded and queried (default 1000000)\n"
     "  --bulk-items N  observations (10 triples each) per bulk transaction (default 100)\n"
-    "  --dir PATH      where the scratch stores go (default: the temporary directory)\n";
+    "  --dir PATH      where the scratch stores go (default: the temporary directory)\n"
+    "  --wake-pause-us N  pause before each wake probe and paused socket ping (default 500)\n";
 
 void make_quick(Config& c) {
   c.records = 20'000;
@@ -101,6 +102,8 @@ std::optional<Config> parse(const std::vector<std::string>& args) {
       bulk_items = parse_count(a, value());
     else if (a == "--dir")
       c.dir = value();
+    else if (a == "--wake-pause-us")
+      c.wake_pause = std::chrono::microseconds(parse_count(a, value()));
     else if (a == "--help" || a == "-h")
       return std::nullopt;
     else if (i == 0 && a == "store")
