@@ -145,7 +145,9 @@ void print_json(std::ostream& out, const Figures& f) {
   const char* sep = "\n  ";
   for (const auto& [key, value] : f.all()) {
     char buf[64];
-    std::snprintf(buf, sizeof buf, "%.6g", std::isfinite(value) ? value : 0.0);
+    const double v = std::isfinite(value) ? value : 0.0;
+    const bool whole = v == std::floor(v) && std::fabs(v) < 1e15;  // counts print exactly
+    std::snprintf(buf, sizeof buf, whole ? "%.0f" : "%.6g", v);
     out << sep << '"' << key << "\": " << buf;
     sep = ",\n  ";
   }
