@@ -55,9 +55,12 @@ TEST(Store, SameTurtleWithBlankNodesTwiceGivesItemsWhoseBlankNodesNeverCollide) 
   auto snap = node.snapshot();
   ASSERT_TRUE(snap);
   std::set<std::string> blanks_first, blanks_second;
-  for (const auto& r : *snap->item(*first))
+  auto records_first = snap->item(*first);
+  auto records_second = snap->item(*second);
+  ASSERT_TRUE(records_first && records_second);
+  for (const auto& r : *records_first)
     for (const Term* t : {&r.triple.s, &r.triple.o}) if (t->is_blank()) blanks_first.insert(t->value);
-  for (const auto& r : *snap->item(*second))
+  for (const auto& r : *records_second)
     for (const Term* t : {&r.triple.s, &r.triple.o}) if (t->is_blank()) blanks_second.insert(t->value);
   EXPECT_EQ(blanks_first.size(), 2u);
   EXPECT_EQ(blanks_second.size(), 2u);
