@@ -81,38 +81,35 @@ void print_changes(std::ostream& out, const std::vector<node::Change>& changes,
   finish_output(out);
 }
 
+// The figures of `tahvel stats`, in print order; text and JSON show the same list.
+std::vector<std::pair<const char*, std::uint64_t>> stats_figures(const node::Stats& s) {
+  return {{"ring", s.ring},
+          {"max_literal_bytes", s.max_literal_bytes},
+          {"records", s.records},
+          {"persistent_records", s.persistent_records},
+          {"items", s.items},
+          {"terms", s.terms},
+          {"subscriptions", s.subscriptions},
+          {"pending_deliveries", s.pending_deliveries},
+          {"last_seq", s.last_seq},
+          {"reclaimed_records", s.reclaimed_records},
+          {"used_bytes", s.used_bytes},
+          {"map_bytes", s.map_bytes},
+          {"max_map_bytes", s.max_map_bytes}};
+}
+
+const char* durability_name(node::Durability d) { return d == node::Durability::durable ? "durable" : "fast"; }
+
 void print_stats_text(const node::Stats& s) {
-  auto line = [](std::string_view key, const auto& value) {
-    std::cout << key << ": " << value << "\n";
-  };
-  line("iri", s.iri);
-  line("durability", s.durability == node::Durability::durable ? "durable" : "fast");
-  line("ring", s.ring);
-  line("max_literal_bytes", s.max_literal_bytes);
-  line("records", s.records);
-  line("persistent_records", s.persistent_records);
-  line("items", s.items);
-  line("terms", s.terms);
-  line("subscriptions", s.subscriptions);
-  line("pending_deliveries", s.pending_deliveries);
-  line("last_seq", s.last_seq);
-  line("reclaimed_records", s.reclaimed_records);
-  line("used_bytes", s.used_bytes);
-  line("map_bytes", s.map_bytes);
-  line("max_map_bytes", s.max_map_bytes);
+  std::cout << "iri: " << s.iri << "\ndurability: " << durability_name(s.durability) << "\n";
+  for (const auto& [key, value] : stats_figures(s)) std::cout << key << ": " << value << "\n";
 }
 
 void print_stats_json(const node::Stats& s) {
   std::cout << "{\"iri\":\"" << node::json_escape(s.iri) << "\",\"durability\":\""
-            << (s.durability == node::Durability::durable ? "durable" : "fast") << "\""
-            << ",\"ring\":" << s.ring << ",\"max_literal_bytes\":" << s.max_literal_bytes
-            << ",\"records\":" << s.records << ",\"persistent_records\":" << s.persistent_records
-            << ",\"items\":" << s.items << ",\"terms\":" << s.terms
-            << ",\"subscriptions\":" << s.subscriptions
-            << ",\"pending_deliveries\":" << s.pending_deliveries << ",\"last_seq\":" << s.last_seq
-            << ",\"reclaimed_records\":" << s.reclaimed_records << ",\"used_bytes\":" << s.used_bytes
-            << ",\"map_bytes\":" << s.map_bytes << ",\"max_map_bytes\":" << s.max_map_bytes
-            << "}\n";
+            << durability_name(s.durability) << "\"";
+  for (const auto& [key, value] : stats_figures(s)) std::cout << ",\"" << key << "\":" << value;
+  std::cout << "}\n";
 }
 
 }  // namespace

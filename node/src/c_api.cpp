@@ -19,6 +19,7 @@
 #include <cstdlib>
 #include <cstring>
 #include <exception>
+#include <memory>
 #include <mutex>
 #include <new>
 #include <optional>
@@ -131,6 +132,15 @@ class Registry {
 Registry& registry() {
   static Registry* instance = new Registry;
   return *instance;
+}
+
+// Registers a new handle and hands it to the caller; if registering throws, the handle is
+// freed and the exception goes on to the boundary's catch.
+template <class Handle>
+tahvel_status publish(std::unique_ptr<Handle> handle, Handle** out) {
+  registry().add(handle.get());
+  *out = handle.release();
+  return TAHVEL_OK;
 }
 
 tahvel_status bad_handle(const char* fn, const char* what) noexcept {
@@ -307,15 +317,7 @@ namespace {
 tahvel_status adopt_node(const char* fn, tahvel::node::Result<tahvel::node::Node> opened,
                          tahvel_node** out) {
   if (!opened) return set_error(fn, opened.error());
-  auto* handle = new tahvel_node{std::move(opened).value()};
-  try {
-    registry().add(handle);
-  } catch (...) {
-    delete handle;
-    throw;
-  }
-  *out = handle;
-  return TAHVEL_OK;
+  return publish(std::unique_ptr<tahvel_node>(new tahvel_node{std::move(opened).value()}), out);
 }
 
 }  // namespace
@@ -398,15 +400,7 @@ extern "C" tahvel_status tahvel_agent_open(tahvel_node* node, const char* id, ta
       return set_error(TAHVEL_INVALID_ARGUMENT, fn, "id and out must not be NULL");
     auto agent = node->node.agent(id);
     if (!agent) return set_error(fn, agent.error());
-    auto* handle = new tahvel_agent{std::move(agent).value(), node->node.prefixes()};
-    try {
-      registry().add(handle);
-    } catch (...) {
-      delete handle;
-      throw;
-    }
-    *out = handle;
-    return TAHVEL_OK;
+    return publish(std::unique_ptr<tahvel_agent>(new tahvel_agent{std::move(agent).value(), node->node.prefixes()}), out);
   });
 }
 

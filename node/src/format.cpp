@@ -27,6 +27,8 @@
 //    datatype as a CURIE, which serd writes verbatim (binding an xsd prefix if none is bound).
 #include "tahvel/node/format.h"
 
+#include "escape.h"
+
 #include <serd/serd.h>
 
 #include <algorithm>
@@ -43,10 +45,6 @@
 #include <vector>
 
 namespace tahvel::node {
-namespace detail {
-// Defined in term.cpp: length of the well-formed UTF-8 sequence at text[i], 0 if ill-formed.
-std::size_t utf8_sequence_length(std::string_view text, std::size_t i) noexcept;
-}  // namespace detail
 
 namespace {
 
@@ -456,46 +454,9 @@ Result<std::vector<Triple>> parse_rdf(std::string_view text, const ParseOptions&
 }
 
 std::string json_escape(std::string_view text) {
-  static constexpr char kHex[] = "0123456789abcdef";
   std::string out;
   out.reserve(text.size() + 2);
-  for (std::size_t i = 0; i < text.size();) {
-    const auto c = static_cast<unsigned char>(text[i]);
-    if (c >= 0x80) {
-      const std::size_t n = detail::utf8_sequence_length(text, i);
-      if (n == 0) {
-        out += "\\ufffd";  // ill-formed UTF-8: one replacement character per bad byte
-        ++i;
-        continue;
-      }
-      const std::string_view seq = text.substr(i, n);
-      if (seq == "\xE2\x80\xA8" || seq == "\xE2\x80\xA9") {
-        out += seq[2] == '\xA8' ? "\\u2028" : "\\u2029";  // line separators break JavaScript
-      } else {
-        out += seq;
-      }
-      i += n;
-      continue;
-    }
-    switch (c) {
-      case '"': out += "\\\""; break;
-      case '\\': out += "\\\\"; break;
-      case '\n': out += "\\n"; break;
-      case '\r': out += "\\r"; break;
-      case '\t': out += "\\t"; break;
-      case '\b': out += "\\b"; break;
-      case '\f': out += "\\f"; break;
-      default:
-        if (c < 0x20 || c == 0x7F) {
-          out += "\\u00";
-          out += kHex[c >> 4];
-          out += kHex[c & 0xF];
-        } else {
-          out += static_cast<char>(c);
-        }
-    }
-    ++i;
-  }
+  detail::append_escaped(out, text, detail::EscapeDialect::json);
   return out;
 }
 

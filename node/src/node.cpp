@@ -410,57 +410,17 @@ Result<Snapshot> Node::snapshot() const {
   return Snapshot(std::move(impl));
 }
 
-Result<std::uint64_t> Node::remove(const Pattern& pattern, unsigned cascade) {
-  if (!pattern.s && !pattern.p && !pattern.o && !pattern.context && !pattern.source)
-    return fail(Errc::invalid_argument, "refusing to remove with an empty pattern; name a subject, predicate, object, context or source");
+namespace {
+
+// Removes, in one transaction, the records that `collect` names (skipping any already gone,
+// as sub-trees may overlap); returns how many went.
+Result<std::uint64_t> remove_records(Env& env, const std::function<Result<std::vector<std::uint64_t>>(Txn&)>& collect) {
   std::uint64_t removed = 0;
-  auto written = impl_->env->write([&](Txn& txn) -> Result<void> {
+  auto written = env.write([&](Txn& txn) -> Result<void> {
     removed = 0;
-    Query query(txn.raw(), txn.env());
-    auto ids = query.collect(pattern, ListOptions{cascade, 0});
+    auto ids = collect(txn);
     if (!ids) return unexpected(ids.error());
     for (std::uint64_t id : *ids) {
-      if (auto d = delete_record(txn, id, Removal::explicit_removal); !d) return d;
-      ++removed;
-    }
-    return {};
-  }, WriteKind::removal);
-  if (!written) return unexpected(written.error());
-  return removed;
-}
-
-Result<std::uint64_t> Node::remove_item(std::uint64_t item_id, unsigned cascade) {
-  std::uint64_t removed = 0;
-  auto written = impl_->env->write([&](Txn& txn) -> Result<void> {
-    removed = 0;
-    auto item = get_item(txn.raw(), txn.env(), item_id);
-    if (!item) return unexpected(item.error());
-    if (!*item) return fail(Errc::not_found, "no item " + std::to_string(item_id) + " in " + txn.env().dir().string());
-    // The item's records and, with cascade, the sub-trees of their objects.
-    Query query(txn.raw(), txn.env());
-    std::vector<std::uint64_t> ids;
-    for (std::uint64_t id = item_id; id < item_id + (*item)->count; ++id) {
-      auto row = get_record(txn.raw(), txn.env(), id);
-      if (!row) return unexpected(row.error());
-      if (!*row) continue;
-      ids.push_back(id);
-    }
-    if (cascade > 0) {
-      std::vector<std::uint64_t> roots = ids;
-      for (std::uint64_t id : roots) {
-        auto row = get_record(txn.raw(), txn.env(), id);
-        if (!row || !*row) continue;
-        Pattern below;
-        auto object = query.terms().get((*row)->o);
-        if (!object) return unexpected(object.error());
-        if (object->is_literal()) continue;
-        below.s = *object;
-        auto sub = query.collect(below, ListOptions{cascade - 1, 0});
-        if (!sub) return unexpected(sub.error());
-        ids.insert(ids.end(), sub->begin(), sub->end());
-      }
-    }
-    for (std::uint64_t id : ids) {
       auto exists = get_record(txn.raw(), txn.env(), id);
       if (!exists) return unexpected(exists.error());
       if (!*exists) continue;
@@ -471,6 +431,48 @@ Result<std::uint64_t> Node::remove_item(std::uint64_t item_id, unsigned cascade)
   }, WriteKind::removal);
   if (!written) return unexpected(written.error());
   return removed;
+}
+
+// The records of an item and, with cascade N, the sub-trees (depth N) of their objects.
+Result<std::vector<std::uint64_t>> item_with_subtrees(Txn& txn, std::uint64_t item_id, unsigned cascade) {
+  auto item = get_item(txn.raw(), txn.env(), item_id);
+  if (!item) return unexpected(item.error());
+  if (!*item) return fail(Errc::not_found, "no item " + std::to_string(item_id) + " in " + txn.env().dir().string());
+  Query query(txn.raw(), txn.env());
+  std::vector<std::uint64_t> ids, objects;
+  for (std::uint64_t id = item_id; id < item_id + (*item)->count; ++id) {
+    auto row = get_record(txn.raw(), txn.env(), id);
+    if (!row) return unexpected(row.error());
+    if (!*row) continue;
+    ids.push_back(id);
+    objects.push_back((*row)->o);
+  }
+  if (cascade == 0) return ids;
+  for (std::uint64_t object_id : objects) {
+    auto object = query.terms().get(object_id);
+    if (!object) return unexpected(object.error());
+    if (object->is_literal()) continue;
+    Pattern below;
+    below.s = *object;
+    auto sub = query.collect(below, ListOptions{cascade - 1, 0});
+    if (!sub) return unexpected(sub.error());
+    ids.insert(ids.end(), sub->begin(), sub->end());
+  }
+  return ids;
+}
+
+}  // namespace
+
+Result<std::uint64_t> Node::remove(const Pattern& pattern, unsigned cascade) {
+  if (!pattern.s && !pattern.p && !pattern.o && !pattern.context && !pattern.source)
+    return fail(Errc::invalid_argument, "refusing to remove with an empty pattern; name a subject, predicate, object, context or source");
+  return remove_records(*impl_->env, [&](Txn& txn) {
+    return Query(txn.raw(), txn.env()).collect(pattern, ListOptions{cascade, 0});
+  });
+}
+
+Result<std::uint64_t> Node::remove_item(std::uint64_t item_id, unsigned cascade) {
+  return remove_records(*impl_->env, [&](Txn& txn) { return item_with_subtrees(txn, item_id, cascade); });
 }
 
 Result<std::vector<Change>> Node::watch(std::uint64_t bookmark, std::chrono::milliseconds timeout, std::size_t limit) const {

@@ -43,20 +43,30 @@ const char* kObservation = R"(
   _:sensor ex:model "ECG-1" .
 )";
 
-TEST(Store, SameTurtleWithBlankNodesTwiceGivesItemsWhoseBlankNodesNeverCollide) {
+// The same Turtle with blank nodes, put twice by one agent.
+class TwoObservations : public ::testing::Test {
+ protected:
+  void SetUp() override {
+    auto a = node.agent("writer");
+    ASSERT_TRUE(a);
+    auto f = a->store(item_of(turtle(kObservation)));
+    auto s = a->store(item_of(turtle(kObservation)));
+    ASSERT_TRUE(f && s);
+    first = *f;
+    second = *s;
+  }
   TempDir dir;
   Node node = make_node(dir.path());
-  auto agent = node.agent("writer");
-  ASSERT_TRUE(agent);
-  auto first = agent->store(item_of(turtle(kObservation)));
-  auto second = agent->store(item_of(turtle(kObservation)));
-  ASSERT_TRUE(first && second);
-  EXPECT_NE(*first, *second);
+  std::uint64_t first = 0, second = 0;
+};
+
+TEST_F(TwoObservations, SameTurtleWithBlankNodesTwiceGivesItemsWhoseBlankNodesNeverCollide) {
+  EXPECT_NE(first, second);
   auto snap = node.snapshot();
   ASSERT_TRUE(snap);
   std::set<std::string> blanks_first, blanks_second;
-  auto records_first = snap->item(*first);
-  auto records_second = snap->item(*second);
+  auto records_first = snap->item(first);
+  auto records_second = snap->item(second);
   ASSERT_TRUE(records_first && records_second);
   for (const auto& r : *records_first)
     for (const Term* t : {&r.triple.s, &r.triple.o}) if (t->is_blank()) blanks_first.insert(t->value);
@@ -67,15 +77,9 @@ TEST(Store, SameTurtleWithBlankNodesTwiceGivesItemsWhoseBlankNodesNeverCollide) 
   for (const auto& b : blanks_first) EXPECT_EQ(blanks_second.count(b), 0u) << b;
 }
 
-TEST(Store, CascadeListFromItemRootReturnsExactlyItsSubtree) {
-  TempDir dir;
-  Node node = make_node(dir.path());
-  auto agent = node.agent("writer");
-  auto first = agent->store(item_of(turtle(kObservation)));
-  auto second = agent->store(item_of(turtle(kObservation)));
-  ASSERT_TRUE(first && second);
+TEST_F(TwoObservations, CascadeListFromItemRootReturnsExactlyItsSubtree) {
   auto snap = node.snapshot();
-  auto item = snap->item(*first);
+  auto item = snap->item(first);
   ASSERT_TRUE(item);
   // Roots: the first item's ex:has triple; its sub-tree is that item's records only.
   Pattern root;
@@ -86,25 +90,19 @@ TEST(Store, CascadeListFromItemRootReturnsExactlyItsSubtree) {
   ASSERT_TRUE(listed);
   EXPECT_EQ(ids_of(*listed), ids_of(*item));
   EXPECT_EQ(listed->size(), 4u);
-  EXPECT_EQ(listed->front().meta.id, *first);
+  EXPECT_EQ(listed->front().meta.id, first);
   // Depth 1 stops below the observation: root triple + the observation's two triples.
   auto shallow = snap->list(root, ListOptions{1, 0});
   ASSERT_TRUE(shallow);
   EXPECT_EQ(shallow->size(), 3u);
 }
 
-TEST(Store, CascadeRemoveRemovesExactlyTheSubtree) {
-  TempDir dir;
-  Node node = make_node(dir.path());
-  auto agent = node.agent("writer");
-  auto first = agent->store(item_of(turtle(kObservation)));
-  auto second = agent->store(item_of(turtle(kObservation)));
-  ASSERT_TRUE(first && second);
+TEST_F(TwoObservations, CascadeRemoveRemovesExactlyTheSubtree) {
   std::vector<Record> first_records, second_records;
   {
     auto snap = node.snapshot();
-    first_records = *snap->item(*first);
-    second_records = *snap->item(*second);
+    first_records = *snap->item(first);
+    second_records = *snap->item(second);
   }
   Pattern root;
   root.s = ex("root");
@@ -113,10 +111,10 @@ TEST(Store, CascadeRemoveRemovesExactlyTheSubtree) {
   ASSERT_TRUE(removed) << removed.error().message;
   EXPECT_EQ(*removed, 4u);
   auto snap = node.snapshot();
-  auto left = snap->item(*first);
+  auto left = snap->item(first);
   ASSERT_FALSE(left);
   EXPECT_EQ(left.error().code, Errc::not_found);
-  auto kept = snap->item(*second);
+  auto kept = snap->item(second);
   ASSERT_TRUE(kept);
   EXPECT_EQ(ids_of(*kept), ids_of(second_records));
   auto stats = node.stats();
