@@ -174,6 +174,7 @@ Result<void> collect_term_if_unused(Txn& txn, std::uint64_t id) {
   rc = mdb_del(raw, env.terms, &k, nullptr);
   if (rc != 0) return lmdb_fail(rc, "removing a term");
   --txn.counters.terms;
+  txn.term_ids.clear();
   return {};
 }
 

@@ -88,11 +88,12 @@ Result<void> Env::open_tables(MDB_txn* txn, bool create) {
       {"idx_o", &idx_o, MDB_INTEGERKEY | dupfixed},
       {"inbox", &inbox, MDB_INTEGERKEY | dupfixed},
       {"outbox", &outbox, MDB_INTEGERKEY | dupfixed},
-      {"ring", &ring, MDB_INTEGERKEY},
       {"removals", &removals, MDB_INTEGERKEY},
   };
+  int rc = mdb_dbi_open(txn, nullptr, 0, &main);
+  if (rc != 0) return lmdb_fail(rc, "opening the main table in " + dir_.string());
   for (const auto& t : tables) {
-    int rc = mdb_dbi_open(txn, t.name, t.flags | (create ? MDB_CREATE : 0), t.dbi);
+    rc = mdb_dbi_open(txn, t.name, t.flags | (create ? MDB_CREATE : 0), t.dbi);
     if (rc != 0) return lmdb_fail(rc, std::string("opening table ") + t.name + " in " + dir_.string());
   }
   return {};
@@ -157,7 +158,7 @@ Result<std::shared_ptr<Env>> Env::open(const std::filesystem::path& dir_in, cons
       const uri::PrefixMap standard = uri::PrefixMap::standard();
       for (const auto& [prefix, ns] : standard.entries())
         if (auto r = put_meta(txn, env->meta, "prefix:" + prefix, ns); !r) return r;
-      if (auto r = save_counters(txn, env->meta, Counters{}); !r) return r;
+      if (auto r = save_counters(txn, env->main, Counters{}); !r) return r;
     }
     auto version = get_meta(txn, env->meta, "version");
     if (!version) return fail(Errc::corrupt, dir.string() + " holds no Tahvel store settings");
@@ -252,11 +253,11 @@ Result<void> Env::write(const std::function<Result<void>(Txn&)>& body, WriteKind
     if (auto r = begin(&raw, 0); !r) return r;
     Txn txn(*this, raw);
     auto run = [&]() -> Result<void> {
-      auto counters = load_counters(raw, meta);
+      auto counters = load_counters(raw, main);
       if (!counters) return unexpected(counters.error());
       txn.counters = *counters;
       if (auto r = body(txn); !r) return r;
-      return save_counters(raw, meta, txn.counters);
+      return save_counters(raw, main, txn.counters);
     };
     auto result = run();
     int rc = 0;

@@ -15,6 +15,7 @@
 #include <mutex>
 #include <string>
 #include <string_view>
+#include <unordered_map>
 #include <vector>
 
 #include "tahvel/node/error.h"
@@ -23,7 +24,7 @@
 
 namespace tahvel::node::detail {
 
-inline constexpr std::uint32_t kFormatVersion = 1;
+inline constexpr std::uint32_t kFormatVersion = 2;
 
 // Counters kept in one meta value so that a write touches one key for all of them.
 struct Counters {
@@ -41,6 +42,8 @@ struct Counters {
   std::uint64_t removals = 0;      // entries in the removal log
   std::uint64_t terms = 0;
   std::uint64_t subscriptions = 0;
+  std::uint64_t ring_head = 0;     // items below this id are gone or persistent: the ring's scan
+                                   // starts here
 };
 
 // Settings fixed at init.
@@ -80,8 +83,10 @@ class Env {
   WakeBoard& wake() { return wake_; }
 
   // Table handles.
-  MDB_dbi meta = 0, terms = 0, term_hash = 0, records = 0, items = 0;
-  MDB_dbi idx_s = 0, idx_p = 0, idx_o = 0, inbox = 0, outbox = 0, ring = 0, removals = 0;
+  // `main` is LMDB's unnamed table, which every write touches anyway (it holds the other
+  // tables' roots): the counters live there, so they cost no extra page per write.
+  MDB_dbi main = 0, meta = 0, terms = 0, term_hash = 0, records = 0, items = 0;
+  MDB_dbi idx_s = 0, idx_p = 0, idx_o = 0, inbox = 0, outbox = 0, removals = 0;
 
   // Runs `body` in a write transaction and commits it. When the map fills, aborts, grows the
   // map (up to max_map_bytes) and runs `body` again from the start; past the maximum returns
@@ -126,6 +131,9 @@ class Txn {
   MDB_txn* raw() { return txn_; }
   Counters counters;             // loaded before `body`, saved after it
   std::vector<std::uint32_t> wake_slots;  // woken after commit
+  // Term ids looked up or created in this transaction (write.cpp). Cleared whenever a term is
+  // collected, since a collected id must not be handed out again.
+  std::unordered_map<std::string, std::uint64_t> term_ids;
  private:
   Env& env_;
   MDB_txn* txn_;

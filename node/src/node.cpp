@@ -404,7 +404,7 @@ Result<Snapshot> Node::snapshot() const {
   auto txn = impl_->env->begin_read();
   if (!txn) return unexpected(txn.error());
   impl->txn = *txn;
-  auto counters = load_counters(impl->txn, impl_->env->meta);
+  auto counters = load_counters(impl->txn, impl_->env->main);
   if (!counters) return unexpected(counters.error());
   impl->last_seq = counters->next_seq - 1;
   return Snapshot(std::move(impl));
@@ -604,7 +604,7 @@ uri::PrefixMap Node::prefixes() const {
 Result<Stats> Node::stats() const {
   ReadTxn read(*impl_->env);
   if (auto r = read.begin(); !r) return unexpected(r.error());
-  auto c = load_counters(read.txn, impl_->env->meta);
+  auto c = load_counters(read.txn, impl_->env->main);
   if (!c) return unexpected(c.error());
   const Settings& s = impl_->env->settings();
   Stats st;
@@ -625,7 +625,7 @@ Result<Stats> Node::stats() const {
   std::uint64_t pages = 0;
   if (mdb_stat(read.txn, 1, &ms) == 0) pages += ms.ms_branch_pages + ms.ms_leaf_pages + ms.ms_overflow_pages;  // main DB
   for (MDB_dbi dbi : {env.meta, env.terms, env.term_hash, env.records, env.items, env.idx_s, env.idx_p, env.idx_o,
-                      env.inbox, env.outbox, env.ring, env.removals}) {
+                      env.inbox, env.outbox, env.removals}) {
     if (mdb_stat(read.txn, dbi, &ms) == 0) pages += ms.ms_branch_pages + ms.ms_leaf_pages + ms.ms_overflow_pages;
   }
   st.used_bytes = pages * ms.ms_psize;

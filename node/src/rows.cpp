@@ -98,10 +98,6 @@ Result<void> retire_item(Txn& txn, std::uint64_t item_id, const ItemRow& item) {
   MDB_val k = val(item_id);
   int rc = mdb_del(raw, env.items, &k, nullptr);
   if (rc != 0) return lmdb_fail(rc, "removing item " + std::to_string(item_id));
-  if (!item.persistent) {
-    rc = mdb_del(raw, env.ring, &k, nullptr);
-    if (rc != 0 && rc != MDB_NOTFOUND) return lmdb_fail(rc, "removing an item from the ring");
-  }
   if (auto r = del_dup(raw, env.outbox, item.source, item_id, "removing an item from an output buffer"); !r) return r;
   if (item.pending > 0) {
     auto dropped = drop_from_inboxes(txn, item_id);

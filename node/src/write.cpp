@@ -1,6 +1,7 @@
 // The write path; see write.h.
 #include "write.h"
 
+#include <optional>
 #include <unordered_map>
 
 #include "dictionary.h"
@@ -17,26 +18,50 @@ const char* position_name(int i) { return i == 0 ? "subject" : i == 1 ? "predica
 Result<void> put_dup(MDB_txn* txn, MDB_dbi dbi, std::uint64_t key, std::uint64_t value, unsigned flags, const char* what) {
   MDB_val k = val(key), v = val(value);
   int rc = mdb_put(txn, dbi, &k, &v, flags);
-  if (rc != 0 && rc != MDB_KEYEXIST) return lmdb_fail(rc, what);
+  // With MDB_APPENDDUP, KEYEXIST means an id not above the last one: the counters are wrong.
+  if (rc == MDB_KEYEXIST) return fail(Errc::corrupt, std::string(what) + ": id " + std::to_string(value) + " out of order");
+  if (rc != 0) return lmdb_fail(rc, what);
   return {};
 }
 
+// The key of a term in the transaction's term cache: kind, value, datatype and language.
+std::string cache_key(const Term& term) {
+  std::string key;
+  key.reserve(term.value.size() + term.datatype.size() + term.language.size() + 3);
+  key.push_back(static_cast<char>(term.kind));
+  key += term.value;
+  key.push_back('\0');
+  key += term.datatype;
+  key.push_back('\0');
+  key += term.language;
+  return key;
+}
+
 // Interns a term at a position; new IRIs are validated here, once, when they enter the
-// dictionary (terms already there were valid when they came).
+// dictionary (terms already there were valid when they came). Bulk loads repeat predicates,
+// classes and sensors endlessly, so ids found in this transaction are remembered for it.
 Result<std::uint64_t> term_id(Txn& txn, const Term& term, std::unordered_map<std::string, std::uint64_t>& blanks) {
   if (term.kind == TermKind::blank) {
     auto [it, fresh] = blanks.try_emplace(term.value, 0);
     if (fresh) it->second = inline_blank(txn.counters.next_blank++);
     return it->second;
   }
+  if (auto id = inline_id(term)) return *id;
+  std::string key = cache_key(term);
+  if (auto it = txn.term_ids.find(key); it != txn.term_ids.end()) return it->second;
   if (term.kind == TermKind::iri) {
     auto existing = find_term(txn.raw(), txn.env(), term);
     if (!existing) return existing;
-    if (*existing) return *existing;
+    if (*existing) {
+      txn.term_ids.emplace(std::move(key), *existing);
+      return *existing;
+    }
     if (auto n = uri::normalize(term.value); !n)
       return fail(Errc::invalid_iri, n.error().message);
   }
-  return intern_term(txn, term, false);
+  auto id = intern_term(txn, term, false);
+  if (id) txn.term_ids.emplace(std::move(key), *id);
+  return id;
 }
 
 Result<std::vector<Subscription>> load_subscriptions(Txn& txn) {
@@ -125,24 +150,37 @@ Result<void> route(Txn& txn, std::uint64_t item_id, ItemRow& item,
 }
 
 // Evicts the oldest non-persistent items not waiting in an input buffer until the ring fits.
+// The scan walks the items table from counters.ring_head, which then moves past the leading
+// run of items that are persistent or evicted, so persistent items are passed over once.
 Result<std::uint64_t> apply_ring(Txn& txn) {
   const std::uint64_t bound = txn.env().settings().ring;
   if (bound == 0 || txn.counters.ring_records <= bound) return std::uint64_t{0};
   std::vector<std::uint64_t> victims;
   std::uint64_t excess = txn.counters.ring_records - bound, freed = 0;
+  std::optional<std::uint64_t> first_survivor;  // first non-persistent item kept
+  std::uint64_t scanned_to = txn.counters.ring_head;
   MDB_cursor* cursor = nullptr;
-  int rc = mdb_cursor_open(txn.raw(), txn.env().ring, &cursor);
-  if (rc != 0) return lmdb_fail(rc, "opening the ring");
-  MDB_val k, v;
-  for (rc = mdb_cursor_get(cursor, &k, &v, MDB_FIRST); rc == 0 && freed < excess;
+  int rc = mdb_cursor_open(txn.raw(), txn.env().items, &cursor);
+  if (rc != 0) return lmdb_fail(rc, "opening items");
+  MDB_val k = val(txn.counters.ring_head), v;
+  for (rc = mdb_cursor_get(cursor, &k, &v, MDB_SET_RANGE); rc == 0 && freed < excess;
        rc = mdb_cursor_get(cursor, &k, &v, MDB_NEXT)) {
-    auto item = get_item(txn.raw(), txn.env(), u64(k));
-    if (!item) { mdb_cursor_close(cursor); return unexpected(item.error()); }
-    if (!*item || (*item)->pending > 0) continue;  // unread: kept until taken
+    ItemRow item;
+    if (!decode_item(view(v), item)) {
+      mdb_cursor_close(cursor);
+      return fail(Errc::corrupt, "item " + std::to_string(u64(k)) + " is truncated");
+    }
+    scanned_to = u64(k) + 1;
+    if (item.persistent) continue;
+    if (item.pending > 0) {  // unread: kept until taken
+      if (!first_survivor) first_survivor = u64(k);
+      continue;
+    }
     victims.push_back(u64(k));
-    freed += (*item)->live;
+    freed += item.live;
   }
   mdb_cursor_close(cursor);
+  txn.counters.ring_head = first_survivor.value_or(scanned_to);
   std::uint64_t removed = 0;
   for (std::uint64_t id : victims) {
     auto n = delete_item(txn, id, Removal::retention);
@@ -271,9 +309,10 @@ Result<std::uint64_t> insert_item(Txn& txn, const Item& item, const std::string&
     MDB_val k = val(record_id), v = val(bytes);
     int rc = mdb_put(raw, env.records, &k, &v, MDB_APPEND);
     if (rc != 0) return lmdb_fail(rc, "writing a record");
-    if (auto r = put_dup(raw, env.idx_s, row[0], record_id, 0, "indexing a subject"); !r) return unexpected(r.error());
-    if (auto r = put_dup(raw, env.idx_p, row[1], record_id, 0, "indexing a predicate"); !r) return unexpected(r.error());
-    if (auto r = put_dup(raw, env.idx_o, row[2], record_id, 0, "indexing an object"); !r) return unexpected(r.error());
+    // Record ids only grow, so each is the last of its key's duplicates: append, no search.
+    if (auto r = put_dup(raw, env.idx_s, row[0], record_id, MDB_APPENDDUP, "indexing a subject"); !r) return unexpected(r.error());
+    if (auto r = put_dup(raw, env.idx_p, row[1], record_id, MDB_APPENDDUP, "indexing a predicate"); !r) return unexpected(r.error());
+    if (auto r = put_dup(raw, env.idx_o, row[2], record_id, MDB_APPENDDUP, "indexing an object"); !r) return unexpected(r.error());
     if (row[1] == env.vocab.subscriber) declares_subscription = true;
     ids.push_back(row);
   }
@@ -282,11 +321,8 @@ Result<std::uint64_t> insert_item(Txn& txn, const Item& item, const std::string&
   if (auto r = refresh_caches(txn); !r) return unexpected(r.error());
   if (auto r = route(txn, item_id, meta, ids); !r) return unexpected(r.error());
   if (auto r = put_item(txn, item_id, meta, MDB_APPEND); !r) return unexpected(r.error());
-  if (auto r = put_dup(raw, env.outbox, *source, item_id, 0, "writing the output buffer"); !r) return unexpected(r.error());
+  if (auto r = put_dup(raw, env.outbox, *source, item_id, MDB_APPENDDUP, "writing the output buffer"); !r) return unexpected(r.error());
   if (!item.persistent) {
-    MDB_val k = val(item_id), v = val(std::string_view());
-    int rc = mdb_put(raw, env.ring, &k, &v, MDB_APPEND);
-    if (rc != 0) return lmdb_fail(rc, "writing the ring");
     txn.counters.ring_records += ids.size();
   } else {
     txn.counters.persistent_records += ids.size();
