@@ -6,12 +6,17 @@
 #include <signal.h>
 #include <sord/sord.h>
 #include <sqlite3.h>
+#include <linux/futex.h>
+#include <sys/mman.h>
 #include <sys/socket.h>
+#include <sys/syscall.h>
 #include <sys/wait.h>
 #include <time.h>
 #include <unistd.h>
 
+#include <atomic>
 #include <cstdio>
+#include <new>
 #include <stdexcept>
 #include <thread>
 
@@ -307,6 +312,75 @@ Percentiles unix_socket_one_way(std::size_t round_trips, std::chrono::microsecon
   int status = 0;
   waitpid(pid, &status, 0);
   if (!ok) throw std::runtime_error("unix socket ping-pong: the echo child went away");
+  return percentiles(std::move(us));
+}
+
+// --------------------------------------------------------------------------------------------
+// Futex wake-up
+
+namespace {
+
+struct FutexBoard {
+  std::atomic<std::uint32_t> word;  // bumped per probe; the child sleeps on it
+  std::atomic<std::uint32_t> taken; // probes the child has seen
+  std::atomic<std::int64_t> sent_ns, woke_ns;
+};
+
+std::int64_t steady_ns() {
+  return std::chrono::duration_cast<std::chrono::nanoseconds>(Clock::now().time_since_epoch()).count();
+}
+
+long futex(std::atomic<std::uint32_t>* word, int op, std::uint32_t value) {
+  timespec limit{1, 0};  // never sleep for good if a wake-up were lost: the bench would hang
+  return syscall(SYS_futex, reinterpret_cast<std::uint32_t*>(word), op, value,
+                 op == FUTEX_WAIT ? &limit : nullptr, nullptr, 0);
+}
+
+[[noreturn]] void futex_child(FutexBoard* b, std::size_t probes) {
+  std::uint32_t seen = 0;
+  while (b->taken.load() < probes) {
+    std::uint32_t now = b->word.load();
+    if (now == seen) {
+      futex(&b->word, FUTEX_WAIT, seen);
+      continue;
+    }
+    b->woke_ns.store(steady_ns());
+    seen = now;
+    b->taken.fetch_add(1);
+  }
+  _exit(0);
+}
+
+}  // namespace
+
+Percentiles futex_wake(std::size_t samples, std::chrono::microseconds pause) {
+  void* mem = mmap(nullptr, sizeof(FutexBoard), PROT_READ | PROT_WRITE, MAP_SHARED | MAP_ANONYMOUS, -1, 0);
+  if (mem == MAP_FAILED) throw std::runtime_error("futex bench: mmap failed");
+  auto* b = new (mem) FutexBoard{};
+  const std::size_t warmup = samples / 10 + 10, probes = warmup + samples;
+  std::fflush(nullptr);
+  pid_t pid = fork();
+  if (pid < 0) throw std::runtime_error("fork failed");
+  if (pid == 0) futex_child(b, probes);
+  std::vector<double> us;
+  us.reserve(samples);
+  bool ok = true;
+  for (std::size_t i = 0; ok && i < probes; ++i) {
+    std::this_thread::sleep_for(pause);
+    const std::int64_t sent = steady_ns();
+    b->word.fetch_add(1);
+    futex(&b->word, FUTEX_WAKE, 1);
+    const auto deadline = Clock::now() + std::chrono::seconds(5);
+    while (b->taken.load() <= i) {  // the child notes its time first, then counts
+      if (Clock::now() > deadline) { ok = false; break; }
+      std::this_thread::yield();
+    }
+    if (ok && i >= warmup) us.push_back(static_cast<double>(b->woke_ns.load() - sent) / 1000.0);
+  }
+  kill(pid, SIGKILL);
+  waitpid(pid, nullptr, 0);
+  munmap(mem, sizeof(FutexBoard));
+  if (!ok) throw std::runtime_error("futex wake-up: the child did not answer");
   return percentiles(std::move(us));
 }
 

@@ -6,6 +6,8 @@
 //   Sord    libsord in memory with SPO, POS and OPS indexes (no transactions, no durability).
 //   socket  a UNIX stream socketpair ping-pong with a forked child: the floor for any
 //           cross-process wake-up.
+//   futex   a bare FUTEX_WAIT/FUTEX_WAKE between two processes: the floor of the store's own
+//           waking mechanism.
 // Errors of the peers are thrown as std::runtime_error: they end the bench, which reports them.
 #pragma once
 
@@ -108,5 +110,10 @@ class SordPeer {
 // of each round trip of an 8-byte message. With a `pause`, the sender sleeps that long before
 // each round trip, so that both sides wake from sleep as a subscriber does.
 Percentiles unix_socket_one_way(std::size_t round_trips, std::chrono::microseconds pause);
+
+// Latency of a bare futex wake-up across processes, the mechanism the store's waking uses:
+// after `pause`, the parent increments a shared word and calls FUTEX_WAKE; a forked child
+// asleep in FUTEX_WAIT notes when it returns. The floor of store-to-wake, with no store.
+Percentiles futex_wake(std::size_t samples, std::chrono::microseconds pause);
 
 }  // namespace tahvel::cli::bench

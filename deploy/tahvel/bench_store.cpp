@@ -219,6 +219,8 @@ void measure_latency(const Config& c, const ScratchDir& tmp, Figures& f, const P
   say("UNIX socket ping-pong");
   set_percentiles(f, "unix_socket", unix_socket_one_way(c.round_trips, 0us));
   set_percentiles(f, "unix_socket_paused", unix_socket_one_way(c.wake_samples, c.wake_pause));
+  say("futex wake-up across processes");
+  set_percentiles(f, "futex_wake", futex_wake(c.wake_samples, c.wake_pause));
   say("store-to-wake across processes");
   WakeFigures wake = must(tahvel_wake(tmp.sub("wake"), c.wake_samples, c.wake_pause));
   set_percentiles(f, "wake", wake.wake);

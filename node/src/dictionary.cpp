@@ -62,7 +62,10 @@ Result<std::uint64_t> lookup_payload(MDB_txn* txn, const Env& env, std::string_v
   return found;
 }
 
-Result<void> pin(Txn& txn, std::uint64_t id) {
+}  // namespace
+
+Result<void> pin_term(Txn& txn, std::uint64_t id) {
+  if (is_inline(id)) return {};
   MDB_val k = val(id), v;
   int rc = mdb_get(txn.raw(), txn.env().terms, &k, &v);
   if (rc != 0) return lmdb_fail(rc, "reading term " + std::to_string(id));
@@ -74,6 +77,17 @@ Result<void> pin(Txn& txn, std::uint64_t id) {
   if (rc != 0) return lmdb_fail(rc, "pinning term " + std::to_string(id));
   return {};
 }
+
+Result<bool> is_pinned(MDB_txn* txn, const Env& env, std::uint64_t id) {
+  if (is_inline(id)) return false;
+  MDB_val k = val(id), v;
+  int rc = mdb_get(txn, env.terms, &k, &v);
+  if (rc == MDB_NOTFOUND) return false;
+  if (rc != 0) return lmdb_fail(rc, "reading term " + std::to_string(id));
+  return (static_cast<const std::uint8_t*>(v.mv_data)[0] & kPinned) != 0;
+}
+
+namespace {
 
 Result<bool> index_has(MDB_txn* txn, MDB_dbi dbi, std::uint64_t id) {
   MDB_val k = val(id), v;
@@ -133,7 +147,7 @@ Result<std::uint64_t> intern_term(Txn& txn, const Term& term, bool pinned) {
   if (!existing) return existing;
   if (*existing != 0) {
     if (pinned) {
-      if (auto p = pin(txn, *existing); !p) return unexpected(p.error());
+      if (auto p = pin_term(txn, *existing); !p) return unexpected(p.error());
     }
     return *existing;
   }

@@ -46,6 +46,13 @@ Result<std::uint64_t> find_term(MDB_txn* txn, const Env& env, const Term& term);
 // keeps it from collection.
 Result<std::uint64_t> intern_term(Txn& txn, const Term& term, bool pin);
 
+// Marks dictionary term `id` as pinned (see intern_term); inline ids need no pin.
+Result<void> pin_term(Txn& txn, std::uint64_t id);
+
+// True when dictionary term `id` is pinned: it will never be collected, so its id may be
+// remembered across transactions.
+Result<bool> is_pinned(MDB_txn* txn, const Env& env, std::uint64_t id);
+
 // Removes dictionary term `id` when no record refers to it any more and it is not pinned.
 Result<void> collect_term_if_unused(Txn& txn, std::uint64_t id);
 

@@ -134,15 +134,49 @@ struct Agent::Impl {
   std::string id, iri;
   std::uint32_t slot = 0;
 
-  // The subscriber's term id, 0 when the store has never seen the agent (then nothing waits).
-  Result<std::uint64_t> self_id(MDB_txn* txn) const { return find_term(txn, *env, Term::iri(iri)); }
+  // The agent's term id, 0 when the store has never seen the agent (then nothing waits for
+  // it). Remembered once the term is pinned (the agent wrote or subscribed): then it is never
+  // collected and its id never changes.
+  Result<std::uint64_t> self_id(MDB_txn* txn) const {
+    if (pinned_self) return pinned_self;
+    auto id = find_term(txn, *env, Term::iri(iri));
+    if (!id || *id == 0) return id;
+    auto pinned = is_pinned(txn, *env, *id);
+    if (!pinned) return unexpected(pinned.error());
+    if (*pinned) pinned_self = *id;
+    return id;
+  }
+  mutable std::uint64_t pinned_self = 0;
 
   // Reads (and with `remove`, takes) the head of the input buffer. Skips items removed since.
   Result<std::optional<Delivery>> head(bool remove);
+
+  // Removes `item` from the input buffer (acknowledges it); absent is not an error.
+  Result<void> drop(std::uint64_t item_id);
 };
+
+Result<void> Agent::Impl::drop(std::uint64_t item_id) {
+  return env->write([&](Txn& txn) -> Result<void> {
+    auto self = self_id(txn.raw());
+    if (!self) return unexpected(self.error());
+    if (*self == 0) return {};
+    MDB_val k = val(*self), v = val(item_id);
+    int rc = mdb_del(txn.raw(), txn.env().inbox, &k, &v);
+    if (rc == MDB_NOTFOUND) return {};
+    if (rc != 0) return lmdb_fail(rc, "acknowledging item " + std::to_string(item_id));
+    if (txn.counters.pending > 0) --txn.counters.pending;
+    auto item = get_item(txn.raw(), txn.env(), item_id);
+    if (!item) return unexpected(item.error());
+    if (!*item) return {};
+    ItemRow row = **item;
+    if (row.pending > 0) --row.pending;
+    return put_item(txn, item_id, row);
+  });
+}
 
 Result<std::optional<Delivery>> Agent::Impl::head(bool remove) {
   std::optional<Delivery> delivery;
+  std::uint64_t stale = 0;  // an item removed from the store but still in the input buffer
   auto body = [&](MDB_txn* txn, Txn* writer) -> Result<void> {
     auto self = self_id(txn);
     if (!self) return unexpected(self.error());
@@ -174,7 +208,10 @@ Result<std::optional<Delivery>> Agent::Impl::head(bool remove) {
         }
       }
       if (gone) {
-        if (!writer) return {};  // a reader cannot drop it; the next automatic take will
+        if (!writer) {  // a read-only take cannot drop it: done after the snapshot ends
+          stale = item_id;
+          return {};
+        }
         continue;
       }
       delivery = Delivery{item_id, std::move(*records)};
@@ -185,9 +222,15 @@ Result<std::optional<Delivery>> Agent::Impl::head(bool remove) {
     auto written = env->write([&](Txn& txn) { return body(txn.raw(), &txn); });
     if (!written) return unexpected(written.error());
   } else {
-    ReadTxn read(*env);
-    if (auto r = read.begin(); !r) return unexpected(r.error());
-    if (auto r = body(read.txn, nullptr); !r) return unexpected(r.error());
+    {
+      ReadTxn read(*env);
+      if (auto r = read.begin(); !r) return unexpected(r.error());
+      if (auto r = body(read.txn, nullptr); !r) return unexpected(r.error());
+    }
+    if (stale) {
+      if (auto d = drop(stale); !d) return unexpected(d.error());
+      return head(false);
+    }
   }
   return delivery;
 }
@@ -258,24 +301,7 @@ Result<std::optional<Delivery>> Agent::take(std::chrono::milliseconds timeout, A
 
 Result<void> Agent::ack(std::uint64_t item_id) noexcept {
   try {
-    return impl_->env->write([&](Txn& txn) -> Result<void> {
-      auto self = impl_->self_id(txn.raw());
-      if (!self) return unexpected(self.error());
-      if (*self == 0) return {};
-      MDB_val k = val(*self), v = val(item_id);
-      int rc = mdb_del(txn.raw(), txn.env().inbox, &k, &v);
-      if (rc == MDB_NOTFOUND) return {};
-      if (rc != 0) return lmdb_fail(rc, "acknowledging item " + std::to_string(item_id));
-      if (txn.counters.pending > 0) --txn.counters.pending;
-      auto item = get_item(txn.raw(), txn.env(), item_id);
-      if (!item) return unexpected(item.error());
-      if (*item) {
-        ItemRow row = **item;
-        if (row.pending > 0) --row.pending;
-        return put_item(txn, item_id, row);
-      }
-      return {};
-    });
+    return impl_->drop(item_id);
   } catch (const std::bad_alloc&) {
     return fail(Errc::io, "out of memory while acknowledging");
   }

@@ -313,7 +313,11 @@ Result<std::uint64_t> insert_item(Txn& txn, const Item& item, const std::string&
     if (auto r = put_dup(raw, env.idx_s, row[0], record_id, MDB_APPENDDUP, "indexing a subject"); !r) return unexpected(r.error());
     if (auto r = put_dup(raw, env.idx_p, row[1], record_id, MDB_APPENDDUP, "indexing a predicate"); !r) return unexpected(r.error());
     if (auto r = put_dup(raw, env.idx_o, row[2], record_id, MDB_APPENDDUP, "indexing an object"); !r) return unexpected(r.error());
-    if (row[1] == env.vocab.subscriber) declares_subscription = true;
+    if (row[1] == env.vocab.subscriber) {
+      declares_subscription = true;
+      // The subscriber's IRI keys its input buffer: pinned, so its id never changes.
+      if (auto p = pin_term(txn, row[2]); !p) return unexpected(p.error());
+    }
     ids.push_back(row);
   }
   const std::int64_t now = now_ns();

@@ -453,3 +453,42 @@ TEST(Store, AgentIriIsNodeIriSlashId) {
 
 }  // namespace
 }  // namespace tahvel::node
+
+namespace tahvel::node {
+namespace {
+
+TEST(Store, AgentWhoseIriWasCollectedStillReceivesAfterSubscribing) {
+  TempDir dir;
+  Node node = make_node(dir.path());
+  auto reader = node.agent("reader");
+  auto writer = node.agent("writer");
+  // The reader's IRI first appears as a plain object, unpinned, and is collected again.
+  auto mention = writer->store(Item{}.add(ex("note"), ex("about"), Term::iri(reader->iri())));
+  ASSERT_TRUE(mention);
+  ASSERT_TRUE(reader->take(std::chrono::milliseconds(0)));  // looks its own IRI up
+  ASSERT_TRUE(node.remove_item(*mention));
+  ASSERT_TRUE(reader->subscribe(Pattern{.p = ex("hr")}));
+  auto sent = writer->store(Item{}.add(ex("o"), ex("hr"), Term::integer(70)));
+  auto got = reader->take(std::chrono::milliseconds(0));
+  ASSERT_TRUE(got && *got);
+  EXPECT_EQ((*got)->item, *sent);
+}
+
+TEST(Store, SubscriptionWrittenByAnotherAgentRoutesToTheNamedSubscriber) {
+  TempDir dir;
+  Node node = make_node(dir.path());
+  auto config = node.agent("config");
+  auto reader = node.agent("reader");
+  Item sub;
+  sub.persistent = true;
+  sub.add(Term::blank("s"), Term::iri(std::string(uri::kTahvelNs) + "subscriber"), Term::iri(reader->iri()))
+      .add(Term::blank("s"), Term::iri(std::string(uri::kTahvelNs) + "predicate"), ex("hr"));
+  ASSERT_TRUE(config->store(sub));
+  auto sent = config->store(Item{}.add(ex("o"), ex("hr"), Term::integer(70)));
+  auto got = reader->take(std::chrono::milliseconds(0));
+  ASSERT_TRUE(got && *got);
+  EXPECT_EQ((*got)->item, *sent);
+}
+
+}  // namespace
+}  // namespace tahvel::node
