@@ -32,8 +32,6 @@
 
 #define AGENT_ID "example-c"
 #define HEART_RATE "<https://w3id.org/tahvel#heartRate>"
-#define TV_SUBSCRIBER "<https://w3id.org/tahvel#subscriber>"
-#define TV_PREDICATE "<https://w3id.org/tahvel#predicate>"
 #define TAKE_TIMEOUT_MS 1000
 
 static volatile sig_atomic_t g_stop = 0;
@@ -131,40 +129,6 @@ static tahvel_status process(tahvel_agent* agent, char* ntriples) {
   return TAHVEL_OK;
 }
 
-/* Sets *found to 1 when the agent already has a subscription to exactly {p = tv:heartRate}
- * (written by an earlier run), so that restarts do not pile up subscription items. A
- * subscription is the triples  _:x tv:subscriber <agent> ; tv:predicate P  (see tahvel.h). */
-static tahvel_status find_subscription(tahvel_node* node, const char* agent_iri, int* found) {
-  char me[2048];
-  char* heads = NULL;
-  char* line;
-  tahvel_status status;
-  *found = 0;
-  if (snprintf(me, sizeof me, "<%s>", agent_iri) >= (int)sizeof me) return TAHVEL_OK;
-  status = tahvel_list(node, NULL, TV_SUBSCRIBER, me, 0, 0, &heads, NULL);
-  for (line = heads; status == TAHVEL_OK && line != NULL && *line != '\0' && !*found;) {
-    char* next = strchr(line, '\n');
-    char* space = strchr(line, ' ');
-    char* triples = NULL;
-    if (next != NULL) *next++ = '\0';
-    if (space != NULL) {
-      *space = '\0'; /* line is now the subscription's subject, e.g. "_:b7" */
-      status = tahvel_list(node, line, NULL, NULL, 0, 0, &triples, NULL);
-      if (status == TAHVEL_OK) {
-        const char* mine = strstr(triples, " " TV_PREDICATE " " HEART_RATE " .\n");
-        const char* end = strchr(triples, '\n');
-        int lines = 0;
-        for (; end != NULL; end = strchr(end + 1, '\n')) ++lines;
-        *found = mine != NULL && lines == 2; /* subscriber + predicate, nothing else */
-      }
-      tahvel_free(triples);
-    }
-    line = next;
-  }
-  tahvel_free(heads);
-  return status;
-}
-
 /* Takes, derives and acknowledges until asked to stop. Returns the exit status. */
 static int run(tahvel_agent* agent, const struct options* options) {
   long done = 0;
@@ -199,7 +163,6 @@ int main(int argc, char** argv) {
   tahvel_node* node = NULL;
   tahvel_agent* agent = NULL;
   tahvel_status status;
-  int subscribed = 0;
   int exit_status;
 
   if (!parse_options(argc, argv, &options)) {
@@ -219,12 +182,9 @@ int main(int argc, char** argv) {
   }
   fprintf(stderr, "example_agent: running as %s\n", tahvel_agent_iri(agent));
 
-  status = find_subscription(node, tahvel_agent_iri(agent), &subscribed);
   tahvel_node_close(node); /* the agent handle keeps the store open by itself */
-  if (status != TAHVEL_OK) {
-    exit_status = report("tahvel_list", status);
-  } else if (!subscribed &&
-             (status = tahvel_subscribe(agent, NULL, HEART_RATE, NULL, NULL)) != TAHVEL_OK) {
+  /* Persistent and idempotent: a restart gets back the subscription an earlier run wrote. */
+  if ((status = tahvel_subscribe(agent, NULL, HEART_RATE, NULL, NULL)) != TAHVEL_OK) {
     exit_status = report("tahvel_subscribe", status);
   } else {
     exit_status = run(agent, &options);

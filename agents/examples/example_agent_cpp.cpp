@@ -10,13 +10,12 @@
 //         tv:heartRateClass "normal" ;                 "low" < 50 <= "normal" <= 100 < "high"
 //         prov:wasDerivedFrom <obs> .                  (left out when <obs> is a blank node:
 //                                                       blank nodes are local to their item)
-// The subscription is persistent (triples on the whiteboard): a restart finds the one an earlier
-// run wrote instead of adding another. Each item is acknowledged only after its derived item is
+// The subscription is persistent (triples on the whiteboard), and subscribe() returns the one an
+// earlier run wrote instead of adding another. Each item is acknowledged only after its derived item is
 // stored (Ack::manual), so a crash in between delivers it again on restart.
 //
 // Stops after N items, after SECONDS without input (default 10), or on SIGINT/SIGTERM.
 // Exit status: 0 done, 1 Tahvel error, 2 usage.
-#include <algorithm>
 #include <csignal>
 #include <cstdlib>
 #include <iostream>
@@ -98,33 +97,6 @@ tn::Result<void> process(tn::Agent& agent, const tn::Delivery& delivery) {
   return {};
 }
 
-// Subscribes to {p = tv:heartRate} unless an earlier run did. A subscription is an item of
-// triples  _:x tv:subscriber <agent> ; tv:predicate P  (tv:subject and tv:object when bound).
-tn::Result<void> subscribe_once(const tn::Node& node, tn::Agent& agent) {
-  const auto heart_rate = tn::Term::iri(kTv + "heartRate");
-  auto snapshot = node.snapshot();
-  if (!snapshot) return tahvel::unexpected(snapshot.error());
-  tn::Pattern mine;
-  mine.p = tn::Term::iri(kTv + "subscriber");
-  mine.o = tn::Term::iri(agent.iri());
-  auto heads = snapshot->list(mine);
-  if (!heads) return tahvel::unexpected(heads.error());
-  for (const tn::Record& head : *heads) {
-    auto triples = snapshot->item(head.meta.item);
-    if (!triples) continue;  // removed since
-    const bool same = triples->size() == 2 &&
-                      std::any_of(triples->begin(), triples->end(), [&](const tn::Record& r) {
-                        return r.triple.p.value == kTv + "predicate" && r.triple.o == heart_rate;
-                      });
-    if (same) return {};
-  }
-  tn::Pattern pattern;
-  pattern.p = heart_rate;
-  auto subscribed = agent.subscribe(pattern);
-  if (!subscribed) return tahvel::unexpected(subscribed.error());
-  return {};
-}
-
 int run(tn::Agent& agent, const Options& options) {
   long done = 0;
   long idle_ms = 0;
@@ -168,7 +140,10 @@ int main(int argc, char** argv) {
   if (!agent) return report("agent", agent.error());
   std::cerr << "example_agent_cpp: running as " << agent->iri() << '\n';
 
-  if (auto subscribed = subscribe_once(*node, *agent); !subscribed)
+  // Persistent, and idempotent: a restart finds the subscription an earlier run wrote.
+  tn::Pattern heart_rate;
+  heart_rate.p = tn::Term::iri(kTv + "heartRate");
+  if (auto subscribed = agent->subscribe(heart_rate); !subscribed)
     return report("subscribe", subscribed.error());
   return run(*agent, *options);
 }

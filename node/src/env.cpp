@@ -120,9 +120,10 @@ Result<std::shared_ptr<Env>> Env::open(const std::filesystem::path& dir_in, cons
   if (rc != 0) return lmdb_fail(rc, "creating LMDB environment");
   mdb_env_set_maxdbs(env->env_, kMaxTables);
   mdb_env_set_maxreaders(env->env_, kMaxReaders);
-  std::uint64_t initial = kInitialMapBytes;
-  if (init && init->max_map_bytes < initial) initial = init->max_map_bytes;
-  mdb_env_set_mapsize(env->env_, initial);
+  // Only a new store gets a map size here. An existing one is mapped at the size its meta page
+  // records (the largest any process grew it to): with MDB_WRITEMAP, LMDB sizes the file to the
+  // map, so opening with a smaller size would shrink the file under other processes' maps.
+  if (init) mdb_env_set_mapsize(env->env_, std::min<std::uint64_t>(kInitialMapBytes, init->max_map_bytes));
   // NOTLS: snapshots are not tied to threads. WRITEMAP: writes go straight to the shared map
   // (fewer copies); LMDB stays copy-on-write, so a killed writer leaves no trace.
   unsigned flags = MDB_NOTLS | MDB_WRITEMAP | MDB_NOSYNC | MDB_NOMETASYNC;

@@ -153,7 +153,29 @@ struct Agent::Impl {
 
   // Removes `item` from the input buffer (acknowledges it); absent is not an error.
   Result<void> drop(std::uint64_t item_id);
+
+  // The id of this agent's subscription with exactly `pattern`'s s, p and o, or 0.
+  Result<std::uint64_t> find_subscription(Txn& txn, const Pattern& pattern) const;
 };
+
+Result<std::uint64_t> Agent::Impl::find_subscription(Txn& txn, const Pattern& pattern) const {
+  if (auto r = refresh_caches(txn); !r) return unexpected(r.error());
+  auto self = self_id(txn.raw());
+  if (!self || *self == 0) return self;
+  std::uint64_t ids[3] = {0, 0, 0};
+  const std::optional<Term>* terms[3] = {&pattern.s, &pattern.p, &pattern.o};
+  for (int i = 0; i < 3; ++i) {
+    if (!*terms[i]) continue;
+    auto id = find_term(txn.raw(), *env, **terms[i]);
+    if (!id) return id;
+    if (*id == 0) return std::uint64_t{0};  // a term never seen: no subscription names it
+    ids[i] = *id;
+  }
+  std::lock_guard lock(env->cache_mutex);
+  for (const auto& sub : env->subs)
+    if (sub.agent == *self && sub.s == ids[0] && sub.p == ids[1] && sub.o == ids[2]) return sub.item;
+  return std::uint64_t{0};
+}
 
 Result<void> Agent::Impl::drop(std::uint64_t item_id) {
   return env->write([&](Txn& txn) -> Result<void> {
@@ -335,7 +357,22 @@ Result<std::uint64_t> Agent::subscribe(const Pattern& pattern) {
   if (pattern.s) item.add(node, Term::iri(std::string(kSubject)), *pattern.s);
   if (pattern.p) item.add(node, Term::iri(std::string(kPredicate)), *pattern.p);
   if (pattern.o) item.add(node, Term::iri(std::string(kObject)), *pattern.o);
-  return store(item);
+  if (auto v = validate_item(item, impl_->env->settings()); !v) return unexpected(v.error());
+  std::uint64_t id = 0;
+  auto written = impl_->env->write([&](Txn& txn) -> Result<void> {
+    auto existing = impl_->find_subscription(txn, pattern);
+    if (!existing) return unexpected(existing.error());
+    if (*existing) {  // a restarted agent subscribing again: the one it has stands
+      id = *existing;
+      return {};
+    }
+    auto stored = insert_item(txn, item, impl_->iri);
+    if (!stored) return unexpected(stored.error());
+    id = *stored;
+    return {};
+  });
+  if (!written) return unexpected(written.error());
+  return id;
 }
 
 Result<void> Agent::unsubscribe(std::uint64_t subscription) {

@@ -492,3 +492,25 @@ TEST(Store, SubscriptionWrittenByAnotherAgentRoutesToTheNamedSubscriber) {
 
 }  // namespace
 }  // namespace tahvel::node
+
+namespace tahvel::node {
+namespace {
+
+TEST(Store, SubscribingAgainWithTheSamePatternKeepsOneSubscription) {
+  TempDir dir;
+  Node node = make_node(dir.path());
+  auto first = node.agent("reader")->subscribe(Pattern{.p = ex("hr")});
+  auto again = node.agent("reader")->subscribe(Pattern{.p = ex("hr")});  // after a restart
+  auto other = node.agent("reader")->subscribe(Pattern{.p = ex("spo2")});
+  auto someone_else = node.agent("other")->subscribe(Pattern{.p = ex("hr")});
+  ASSERT_TRUE(first && again && other && someone_else);
+  EXPECT_EQ(*first, *again);
+  EXPECT_NE(*first, *other);
+  EXPECT_NE(*first, *someone_else);
+  EXPECT_EQ(node.stats()->subscriptions, 3u);
+  ASSERT_TRUE(node.agent("w")->store(Item{}.add(ex("o"), ex("hr"), Term::integer(70))));
+  EXPECT_EQ(*node.agent("reader")->pending(), 1u);
+}
+
+}  // namespace
+}  // namespace tahvel::node

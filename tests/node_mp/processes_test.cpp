@@ -235,5 +235,31 @@ TEST(Processes, WritersKilledMidWriteNeverLeaveHalfItems) {
   EXPECT_TRUE(node->agent("after")->store(measurement(0, kParts)));
 }
 
+TEST(Processes, OpeningAGrownStoreNeverShrinksItUnderAnotherProcess) {
+  TempDir dir;
+  Node node = make_node(dir.path());
+  auto agent = node.agent("w");
+  std::uint64_t last = 0;
+  for (int i = 0; i < 160; ++i) {  // ~80 MiB through a 64 MiB first map
+    auto id = agent->store(Item{}.add(ex("chunk" + std::to_string(i)), ex("data"),
+                                      Term::literal(std::string(1 << 19, 'a' + i % 26) + std::to_string(i))));
+    ASSERT_TRUE(id) << id.error().message;
+    last = *id;
+  }
+  const auto grown = std::filesystem::file_size(dir / "data.mdb");
+  ASSERT_GT(grown, 64u << 20);
+  pid_t other = spawn([&] {
+    auto opened = Node::open(dir.path());
+    if (!opened) return 2;
+    auto item = opened->snapshot()->item(last);
+    return item && item->size() == 1 ? 0 : 3;
+  });
+  EXPECT_EQ(wait_exit(other), 0);
+  EXPECT_GE(std::filesystem::file_size(dir / "data.mdb"), grown);
+  // This process still reads and writes its whole map.
+  EXPECT_EQ(node.snapshot()->item(last)->size(), 1u);
+  EXPECT_TRUE(agent->store(Item{}.add(ex("after"), ex("data"), Term::literal(std::string(1 << 19, 'z')))));
+}
+
 }  // namespace
 }  // namespace tahvel::node

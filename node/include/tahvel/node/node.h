@@ -169,7 +169,8 @@ class Agent {
   // Writes a subscription as a persistent item of triples (vocabulary: docs/record-model.md):
   // from now on every stored item with at least one triple matching the pattern's s, p and o
   // lands in this agent's input buffer. Other Pattern fields must be unset. Returns the
-  // subscription's item id.
+  // subscription's item id. Subscribing again with the same pattern (an agent restarted by its
+  // supervisor) returns the existing subscription instead of adding another.
   Result<std::uint64_t> subscribe(const Pattern& pattern);
 
   // Removes one of this agent's subscriptions (by the id subscribe returned).

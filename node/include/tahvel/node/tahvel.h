@@ -209,9 +209,8 @@ tahvel_status tahvel_store(tahvel_agent* agent, const char* rdf, size_t len, int
  * The subscription is itself written on the whiteboard as a persistent item of triples
  *     _:x tv:subscriber <agent IRI> ; tv:subject S ; tv:predicate P ; tv:object O .
  * (only the bound positions), so it survives restarts of the agent. Calling tahvel_subscribe
- * again with the same pattern writes a second subscription item: an agent that restarts should
- * look for its subscription first (tahvel_list with p = <https://w3id.org/tahvel#subscriber>
- * and o = its IRI; see agents/examples/example_agent.c). Remove one with tahvel_remove_item().
+ * again with the same pattern (an agent that restarts) adds nothing and gives back the existing
+ * subscription's id. Remove one with tahvel_remove_item().
  * Sets *subscription_out (may be NULL) to the subscription's item id.
  * Errors: TAHVEL_INVALID_ARGUMENT (NULL handle, a literal as s, a non-IRI as p, a blank node
  * anywhere), TAHVEL_SYNTAX, TAHVEL_INVALID_IRI, TAHVEL_STORE_FULL, TAHVEL_IO, TAHVEL_NO_MEMORY. */
