@@ -71,6 +71,7 @@ Result<void> save_counters(MDB_txn* txn, MDB_dbi meta, const Counters& c) {
 }
 
 Env::~Env() {
+  for (MDB_txn* txn : idle_readers_) mdb_txn_abort(txn);
   if (env_) mdb_env_close(env_);
 }
 
@@ -218,13 +219,36 @@ Result<void> Env::begin(MDB_txn** txn, unsigned flags) {
 
 Result<MDB_txn*> Env::begin_read() {
   MDB_txn* txn = nullptr;
+  {
+    std::lock_guard lock(idle_readers_mutex_);
+    if (!idle_readers_.empty()) {
+      txn = idle_readers_.back();
+      idle_readers_.pop_back();
+    }
+  }
+  if (txn) {
+    // Renewing keeps the reader slot: no trip through LMDB's reader-table mutex.
+    int rc = mdb_txn_renew(txn);
+    if (rc == 0) {
+      active_txns_.fetch_add(1);
+      return txn;
+    }
+    mdb_txn_abort(txn);  // e.g. MAP_RESIZED: the plain path below adopts the new size
+    txn = nullptr;
+  }
   if (auto r = begin(&txn, MDB_RDONLY); !r) return unexpected(r.error());
   return txn;
 }
 
 void Env::end_read(MDB_txn* txn) {
-  mdb_txn_abort(txn);
+  mdb_txn_reset(txn);
   active_txns_.fetch_sub(1);
+  std::lock_guard lock(idle_readers_mutex_);
+  if (idle_readers_.size() < kIdleReaders) {
+    idle_readers_.push_back(txn);
+  } else {
+    mdb_txn_abort(txn);
+  }
 }
 
 Result<void> Env::grow(WriteKind kind) {

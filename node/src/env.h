@@ -94,7 +94,8 @@ class Env {
   // reserve beyond the maximum, so that a full store can always be emptied.
   Result<void> write(const std::function<Result<void>(Txn&)>& body, WriteKind kind = WriteKind::data);
 
-  // Begins a read-only transaction (a snapshot). The caller ends it with end_read().
+  // Begins a read-only transaction (a snapshot), renewing an idle one when there is one. The
+  // caller ends it with end_read().
   Result<MDB_txn*> begin_read();
   void end_read(MDB_txn* txn);
 
@@ -114,6 +115,12 @@ class Env {
   Result<void> open_tables(MDB_txn* txn, bool create);
   Result<void> grow(WriteKind kind);
   Result<void> begin(MDB_txn** txn, unsigned flags);
+
+  // Read transactions reset after use, renewed by the next begin_read (a handful: one per
+  // thread that reads at once is enough).
+  static constexpr std::size_t kIdleReaders = 8;
+  std::mutex idle_readers_mutex_;
+  std::vector<MDB_txn*> idle_readers_;
 
   MDB_env* env_ = nullptr;
   std::filesystem::path dir_;
