@@ -28,28 +28,6 @@ milliseconds timeout_flag(const Args& args) {
   return milliseconds(static_cast<milliseconds::rep>(ms));
 }
 
-// A removal in the tail stream: "# removed ID" in N-Triples and Turtle; in JSON the record's
-// object with "removed":true and the change's "seq" first.
-void print_removal(std::ostream& out, node::Format format, const node::Change& change,
-                   const uri::PrefixMap& prefixes) {
-  if (format != node::Format::json) {
-    out << "# removed " << change.record.meta.id << "\n";
-    return;
-  }
-  std::string head = "{\"removed\":true,\"seq\":" + std::to_string(change.seq);
-  if (change.record.triple.s.value.empty()) {
-    out << head << ",\"id\":" << change.record.meta.id << "}\n";
-    return;
-  }
-  std::ostringstream json;
-  {
-    node::RecordWriter writer(json, format, prefixes);
-    writer.write(change.record);
-  }
-  std::string line = std::move(json).str();
-  out << head << "," << (line.starts_with("{") ? line.substr(1) : line);
-}
-
 // Writes the changes of one watch() batch that match `pattern`; counts inserted records in
 // `printed` and stops at `count` (0: no limit). Turtle declares the prefixes of each batch.
 void print_changes(std::ostream& out, const std::vector<node::Change>& changes,
@@ -68,14 +46,9 @@ void print_changes(std::ostream& out, const std::vector<node::Change>& changes,
   for (const node::Change& change : changes) {
     if (count != 0 && printed >= count) break;
     if (!matches(pattern, change.record)) continue;
-    if (change.removed) {
-      writer.reset();  // finishes pending Turtle before the comment
-      print_removal(out, format, change, prefixes);
-      continue;
-    }
     if (!writer) writer.emplace(out, format, prefixes);
-    writer->write(change.record);
-    ++printed;
+    writer->write(change);
+    if (!change.removed) ++printed;
   }
   writer.reset();
   finish_output(out);

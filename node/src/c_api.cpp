@@ -23,6 +23,7 @@
 #include <mutex>
 #include <new>
 #include <optional>
+#include <sstream>
 #include <string>
 #include <string_view>
 #include <unordered_set>
@@ -241,6 +242,24 @@ std::string to_ntriples(const std::vector<Record>& records) {
   return text;
 }
 
+// The records as N-Triples or JSON lines; nullopt for a format reads cannot produce.
+std::optional<std::string> render(const std::vector<Record>& records, int format) {
+  if (format == TAHVEL_FORMAT_NTRIPLES) return to_ntriples(records);
+  if (format != TAHVEL_FORMAT_JSON) return std::nullopt;
+  std::ostringstream out;
+  {
+    tahvel::node::RecordWriter writer(out, tahvel::node::Format::json);
+    for (const Record& record : records) writer.write(record);
+  }
+  return std::move(out).str();
+}
+
+tahvel_status bad_format(const char* fn, int format) {
+  return set_error(TAHVEL_INVALID_ARGUMENT, fn,
+                   "format " + std::to_string(format) +
+                       ": reads give TAHVEL_FORMAT_NTRIPLES or TAHVEL_FORMAT_JSON");
+}
+
 // Hands `text` to the caller as a malloc'd, NUL-terminated copy (freed with tahvel_free).
 tahvel_status copy_out(const char* fn, const std::string& text, char** out, size_t* len_out) {
   if (out != nullptr) {
@@ -356,13 +375,21 @@ extern "C" const char* tahvel_node_iri(const tahvel_node* node) {
 extern "C" tahvel_status tahvel_list(tahvel_node* node, const char* s, const char* p,
                                      const char* o, unsigned cascade, size_t limit,
                                      char** ntriples_out, size_t* len_out) {
+  return tahvel_list_as(node, s, p, o, cascade, limit, TAHVEL_FORMAT_NTRIPLES, ntriples_out,
+                        len_out);
+}
+
+extern "C" tahvel_status tahvel_list_as(tahvel_node* node, const char* s, const char* p,
+                                        const char* o, unsigned cascade, size_t limit, int format,
+                                        char** text_out, size_t* len_out) {
   static constexpr const char* fn = "tahvel_list";
   return guarded(fn, [&] {
-    clear(ntriples_out);
+    clear(text_out);
     clear(len_out);
     if (!registry().contains(node)) return bad_handle(fn, "node");
-    if (ntriples_out == nullptr)
+    if (text_out == nullptr)
       return set_error(TAHVEL_INVALID_ARGUMENT, fn, "ntriples_out must not be NULL");
+    if (format != TAHVEL_FORMAT_NTRIPLES && format != TAHVEL_FORMAT_JSON) return bad_format(fn, format);
     auto pattern = parse_pattern(s, p, o);
     if (!pattern) return set_error(fn, pattern.error());
     auto snapshot = node->node.snapshot();
@@ -372,7 +399,33 @@ extern "C" tahvel_status tahvel_list(tahvel_node* node, const char* s, const cha
     options.limit = limit;
     auto records = snapshot->list(*pattern, options);
     if (!records) return set_error(fn, records.error());
-    return copy_out(fn, to_ntriples(*records), ntriples_out, len_out);
+    return copy_out(fn, *render(*records, format), text_out, len_out);
+  });
+}
+
+extern "C" tahvel_status tahvel_watch(tahvel_node* node, uint64_t bookmark, int timeout_ms,
+                                      size_t limit, char** json_out, size_t* len_out,
+                                      uint64_t* bookmark_out) {
+  static constexpr const char* fn = "tahvel_watch";
+  return guarded(fn, [&] {
+    clear(json_out);
+    clear(len_out);
+    if (bookmark_out != nullptr) *bookmark_out = bookmark;
+    if (!registry().contains(node)) return bad_handle(fn, "node");
+    using namespace std::chrono;
+    // Negative: no limit, in long slices (a deadline must not overflow).
+    auto changes = node->node.watch(bookmark, timeout_ms >= 0 ? milliseconds(timeout_ms) : hours(1), limit);
+    while (changes && changes->empty() && timeout_ms < 0) changes = node->node.watch(bookmark, hours(1), limit);
+    if (!changes) return set_error(fn, changes.error());
+    std::ostringstream out;
+    {
+      tahvel::node::RecordWriter writer(out, tahvel::node::Format::json);
+      for (const tahvel::node::Change& change : *changes) writer.write(change);
+    }
+    tahvel_status status = copy_out(fn, std::move(out).str(), json_out, len_out);
+    if (status == TAHVEL_OK && bookmark_out != nullptr && !changes->empty())
+      *bookmark_out = changes->back().seq;
+    return status;
   });
 }
 
@@ -468,20 +521,49 @@ extern "C" tahvel_status tahvel_subscribe(tahvel_agent* agent, const char* s, co
 
 extern "C" tahvel_status tahvel_take(tahvel_agent* agent, int timeout_ms, uint64_t* item_out,
                                      char** ntriples_out, size_t* len_out) {
+  return tahvel_take_as(agent, timeout_ms, TAHVEL_FORMAT_NTRIPLES, item_out, ntriples_out, len_out);
+}
+
+extern "C" tahvel_status tahvel_take_as(tahvel_agent* agent, int timeout_ms, int format,
+                                        uint64_t* item_out, char** text_out, size_t* len_out) {
   static constexpr const char* fn = "tahvel_take";
   return guarded(fn, [&] {
     clear(item_out);
-    clear(ntriples_out);
+    clear(text_out);
     clear(len_out);
     if (!registry().contains(agent)) return bad_handle(fn, "agent");
+    if (format != TAHVEL_FORMAT_NTRIPLES && format != TAHVEL_FORMAT_JSON) return bad_format(fn, format);
     auto taken = take_waiting(agent->agent, timeout_ms);
     if (!taken) return set_error(fn, taken.error());
     if (!*taken)
       return set_error(TAHVEL_TIMEOUT, fn, "no item within " + std::to_string(timeout_ms) + " ms");
     const tahvel::node::Delivery& delivery = **taken;
-    tahvel_status status = copy_out(fn, to_ntriples(delivery.records), ntriples_out, len_out);
+    tahvel_status status = copy_out(fn, *render(delivery.records, format), text_out, len_out);
     if (status == TAHVEL_OK && item_out != nullptr) *item_out = delivery.item;
     return status;
+  });
+}
+
+extern "C" tahvel_status tahvel_pending(tahvel_agent* agent, uint64_t* count_out) {
+  static constexpr const char* fn = "tahvel_pending";
+  return guarded(fn, [&] {
+    clear(count_out);
+    if (!registry().contains(agent)) return bad_handle(fn, "agent");
+    if (count_out == nullptr) return set_error(TAHVEL_INVALID_ARGUMENT, fn, "count_out must not be NULL");
+    auto pending = agent->agent.pending();
+    if (!pending) return set_error(fn, pending.error());
+    *count_out = *pending;
+    return TAHVEL_OK;
+  });
+}
+
+extern "C" tahvel_status tahvel_unsubscribe(tahvel_agent* agent, uint64_t subscription) {
+  static constexpr const char* fn = "tahvel_unsubscribe";
+  return guarded(fn, [&] {
+    if (!registry().contains(agent)) return bad_handle(fn, "agent");
+    auto removed = agent->agent.unsubscribe(subscription);
+    if (!removed) return set_error(fn, removed.error());
+    return TAHVEL_OK;
   });
 }
 

@@ -552,9 +552,10 @@ struct RecordWriter::Impl {
     rethrow();
   }
 
-  void write_json(const Triple& triple, const RecordMeta* meta) {
+  void write_json(const Triple& triple, const RecordMeta* meta, std::string_view head = {}) {
     line.clear();
     line += '{';
+    line += head;
     if (meta != nullptr) {
       line +=
           "\"id\":" + std::to_string(meta->id) + ",\"item\":" + std::to_string(meta->item) + ',';
@@ -620,6 +621,17 @@ void RecordWriter::write(const Triple& triple) {
     impl_->write_json(triple, nullptr);
   else
     impl_->write_serd(triple);
+}
+
+void RecordWriter::write(const Change& change) {
+  if (!change.removed) return write(change.record);
+  if (impl_->format == Format::json) {
+    impl_->write_json(change.record.triple, &change.record.meta,
+                      "\"removed\":true,\"seq\":" + std::to_string(change.seq) + ",");
+    return;
+  }
+  impl_->finish();  // pending Turtle abbreviations end before the comment
+  impl_->out << "# removed " << change.record.meta.id << "\n";
 }
 
 void RecordWriter::finish() { impl_->finish(); }

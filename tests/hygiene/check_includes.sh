@@ -8,12 +8,13 @@ cd "$root" || exit 2
 status=0
 offend() { echo "$1"; status=1; }
 
-# What each component may include of Tahvel's own headers.
+# What each component may include of Tahvel's own headers (its own, and those below it).
 allowed() {
   case "$1" in
     uri) echo "uri" ;;
     node) echo "uri node" ;;
-    *) echo "uri node" ;;  # agents, aggregation, federation, deploy, tests: the public headers
+    deploy) echo "uri node agents aggregation federation" ;;  # the command uses everything
+    *) echo "uri node $1" ;;  # agents, aggregation, federation: node's API, not each other
   esac
 }
 

@@ -399,3 +399,81 @@ TEST(CApiStatus, LastErrorIsPerThread) {
 }
 
 }  // namespace
+
+namespace {
+
+TEST_F(CApiTest, TakeAsJsonCarriesWhoWroteItAndWhen) {
+  tahvel_agent* reader = open_agent("reader");
+  tahvel_agent* writer = open_agent("ecg");
+  ASSERT_EQ(tahvel_subscribe(reader, nullptr, kHeartRate, nullptr, nullptr), TAHVEL_OK);
+  uint64_t sent = store_nt(writer, observation(1, 72));
+  uint64_t pending = 0;
+  ASSERT_EQ(tahvel_pending(reader, &pending), TAHVEL_OK);
+  EXPECT_EQ(pending, 1u);
+  uint64_t item = 0;
+  Text text;
+  ASSERT_EQ(tahvel_take_as(reader, kWaitMs, TAHVEL_FORMAT_JSON, &item, &text.data, &text.len), TAHVEL_OK)
+      << tahvel_last_error();
+  EXPECT_EQ(item, sent);
+  EXPECT_NE(text.str().find("\"source\":\"http://example.org/home1/ecg\""), std::string::npos) << text.str();
+  EXPECT_NE(text.str().find("\"stored_at\":"), std::string::npos);
+  Text bad;
+  EXPECT_EQ(tahvel_take_as(reader, 0, TAHVEL_FORMAT_TURTLE, &item, &bad.data, &bad.len), TAHVEL_INVALID_ARGUMENT);
+  tahvel_agent_close(writer);
+  tahvel_agent_close(reader);
+}
+
+TEST_F(CApiTest, UnsubscribeStopsDeliveryAndUnknownIdIsNotFound) {
+  tahvel_agent* reader = open_agent("reader");
+  tahvel_agent* writer = open_agent("ecg");
+  uint64_t sub = 0;
+  ASSERT_EQ(tahvel_subscribe(reader, nullptr, kHeartRate, nullptr, &sub), TAHVEL_OK);
+  uint64_t again = 0;
+  ASSERT_EQ(tahvel_subscribe(reader, nullptr, kHeartRate, nullptr, &again), TAHVEL_OK);
+  EXPECT_EQ(again, sub);  // idempotent
+  ASSERT_EQ(tahvel_unsubscribe(reader, sub), TAHVEL_OK);
+  store_nt(writer, observation(1, 72));
+  uint64_t pending = 1;
+  ASSERT_EQ(tahvel_pending(reader, &pending), TAHVEL_OK);
+  EXPECT_EQ(pending, 0u);
+  EXPECT_EQ(tahvel_unsubscribe(reader, sub), TAHVEL_NOT_FOUND);
+  tahvel_agent_close(writer);
+  tahvel_agent_close(reader);
+}
+
+TEST_F(CApiTest, WatchResumesFromItsBookmarkAndReportsRemovals) {
+  tahvel_agent* writer = open_agent("ecg");
+  uint64_t first = store_nt(writer, observation(1, 72));
+  Text batch;
+  uint64_t bookmark = 0;
+  ASSERT_EQ(tahvel_watch(node_, 0, kWaitMs, 0, &batch.data, &batch.len, &bookmark), TAHVEL_OK)
+      << tahvel_last_error();
+  EXPECT_NE(batch.str().find("\"id\":" + std::to_string(first)), std::string::npos) << batch.str();
+  EXPECT_GE(bookmark, first);
+  ASSERT_EQ(tahvel_remove_item(node_, first, 0, nullptr), TAHVEL_OK);
+  Text removal;
+  uint64_t after = 0;
+  ASSERT_EQ(tahvel_watch(node_, bookmark, kWaitMs, 0, &removal.data, &removal.len, &after), TAHVEL_OK);
+  EXPECT_NE(removal.str().find("\"removed\":true"), std::string::npos) << removal.str();
+  EXPECT_GT(after, bookmark);
+  Text none;
+  uint64_t same = 0;
+  ASSERT_EQ(tahvel_watch(node_, after, 10, 0, &none.data, &none.len, &same), TAHVEL_OK);
+  EXPECT_EQ(none.str(), "");
+  EXPECT_EQ(same, after);
+  tahvel_agent_close(writer);
+}
+
+TEST_F(CApiTest, ListAsJsonGivesRecordsWithMetadata) {
+  tahvel_agent* writer = open_agent("ecg");
+  store_nt(writer, observation(1, 72) + observation(2, 80));
+  Text json;
+  ASSERT_EQ(tahvel_list_as(node_, nullptr, kHeartRate, nullptr, 0, 0, TAHVEL_FORMAT_JSON, &json.data, &json.len),
+            TAHVEL_OK);
+  const std::string lines = json.str();
+  EXPECT_EQ(std::count(lines.begin(), lines.end(), '\n'), 2);
+  EXPECT_NE(lines.find("\"persistent\":false"), std::string::npos);
+  tahvel_agent_close(writer);
+}
+
+}  // namespace

@@ -89,9 +89,12 @@ typedef enum tahvel_status {
                                     report the message of tahvel_last_error()) */
 } tahvel_status;
 
-/* Input formats for tahvel_store(). */
+/* Formats: input of tahvel_store() (N-Triples, Turtle); output of the *_as() reads
+ * (N-Triples, or JSON: one object per line per record with its metadata — id, item, stored_at,
+ * asserted_at, source, context, persistent — as `tahvel list --format json` prints it). */
 #define TAHVEL_FORMAT_NTRIPLES 1
 #define TAHVEL_FORMAT_TURTLE 2
+#define TAHVEL_FORMAT_JSON 3
 
 /* Opaque handles. */
 typedef struct tahvel_node tahvel_node;
@@ -155,6 +158,24 @@ const char* tahvel_node_iri(const tahvel_node* node);
  * TAHVEL_NO_MEMORY. */
 tahvel_status tahvel_list(tahvel_node* node, const char* s, const char* p, const char* o,
                           unsigned cascade, size_t limit, char** ntriples_out, size_t* len_out);
+
+/* As tahvel_list, in `format`: TAHVEL_FORMAT_NTRIPLES or TAHVEL_FORMAT_JSON (with metadata).
+ * Errors: as tahvel_list, and TAHVEL_INVALID_ARGUMENT for another format. */
+tahvel_status tahvel_list_as(tahvel_node* node, const char* s, const char* p, const char* o,
+                             unsigned cascade, size_t limit, int format, char** text_out,
+                             size_t* len_out);
+
+/* Changes on the whiteboard after `bookmark` (0: from the beginning), oldest first, at most
+ * `limit` (0: no limit), as JSON lines: an insertion is its record's object (its "id" is its
+ * sequence number); a removal is the removed record's object led by "removed":true and its
+ * "seq". Waits up to `timeout_ms` (negative: without limit) for the first change when there is
+ * none yet (woken by the writer's commit). Sets *bookmark_out (may be NULL) to the last sequence
+ * number returned, or to `bookmark` when none: pass it to the next call to resume exactly.
+ * The text (empty on timeout: TAHVEL_OK, not TAHVEL_TIMEOUT) is freed with tahvel_free().
+ * Removals older than the last 65,536 are no longer reported.
+ * Errors: TAHVEL_INVALID_ARGUMENT, TAHVEL_IO, TAHVEL_CORRUPT, TAHVEL_NO_MEMORY. */
+tahvel_status tahvel_watch(tahvel_node* node, uint64_t bookmark, int timeout_ms, size_t limit,
+                           char** json_out, size_t* len_out, uint64_t* bookmark_out);
 
 /* Removes every record of item `item` and, with cascade N, their sub-trees (as in tahvel_list).
  * The item is also removed from every input buffer it waits in. Sets *removed_out (may be NULL)
@@ -236,6 +257,21 @@ tahvel_status tahvel_subscribe(tahvel_agent* agent, const char* s, const char* p
  * Errors: TAHVEL_INVALID_ARGUMENT, TAHVEL_IO, TAHVEL_CORRUPT, TAHVEL_NO_MEMORY. */
 tahvel_status tahvel_take(tahvel_agent* agent, int timeout_ms, uint64_t* item_out,
                           char** ntriples_out, size_t* len_out);
+
+/* As tahvel_take, in `format`: TAHVEL_FORMAT_NTRIPLES or TAHVEL_FORMAT_JSON (each record with
+ * its metadata: who wrote it, when, in which context).
+ * Errors: as tahvel_take, and TAHVEL_INVALID_ARGUMENT for another format. */
+tahvel_status tahvel_take_as(tahvel_agent* agent, int timeout_ms, int format, uint64_t* item_out,
+                             char** text_out, size_t* len_out);
+
+/* Sets *count_out to the number of items waiting in the agent's input buffer.
+ * Errors: TAHVEL_INVALID_ARGUMENT, TAHVEL_IO. */
+tahvel_status tahvel_pending(tahvel_agent* agent, uint64_t* count_out);
+
+/* Ends one of the agent's subscriptions (the id tahvel_subscribe gave).
+ * Errors: TAHVEL_INVALID_ARGUMENT, TAHVEL_NOT_FOUND (no such subscription of this agent),
+ * TAHVEL_IO, TAHVEL_STORE_FULL. */
+tahvel_status tahvel_unsubscribe(tahvel_agent* agent, uint64_t subscription);
 
 /* Acknowledges `item`: removes it from the agent's input buffer, so it is not delivered again.
  * The item itself stays in the store, readable by everyone. Acknowledging an item that is not
