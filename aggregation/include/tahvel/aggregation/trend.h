@@ -1,0 +1,59 @@
+// Hospital-side trends of one HRV metric over a patient's windows, and comparison of a
+// patient's latest value with other patients'. Pure functions over small series (one point
+// per window: 288 five-minute windows a day). Definitions in docs/hrv.md ("Trends").
+#pragma once
+
+#include <cstddef>
+#include <optional>
+#include <vector>
+
+#include "tahvel/aggregation/hrv.h"
+
+namespace tahvel::aggregation {
+
+enum class HrvMetric { mean_nn, sdnn, rmssd, pnn50, mean_hr, lf, hf, lf_hf, sd1, sd2 };
+
+// The value of one metric (nullopt when its guard failed).
+std::optional<double> metric_value(const HrvMetrics& metrics, HrvMetric which) noexcept;
+
+// One point of a trend: time in seconds (any origin, ascending) and the metric's value.
+struct TrendPoint {
+  double time_s = 0;
+  double value = 0;
+};
+
+// The points of one metric over windows, timed at each window's end; windows where the
+// metric is nullopt are left out.
+std::vector<TrendPoint> trend_points(const std::vector<WindowMetrics>& windows, HrvMetric which);
+
+struct TrendOptions {
+  std::size_t baseline_points = 6;  // baseline: median of the first K points (30 min of 5-min windows)
+  double alert_robust_sds = 3.0;    // departure threshold in robust SDs (1.4826 * MAD)
+  std::size_t alert_consecutive = 3;  // points in a row beyond the threshold, on one side
+  double min_robust_sd = 0.0;       // floor for the robust SD (a flat baseline has MAD 0)
+};
+
+// A change alert: points [first, last] (indices into the series) lie beyond the threshold on
+// one side (direction +1 above, -1 below); raised at point first + alert_consecutive - 1.
+struct TrendAlert {
+  std::size_t first = 0, last = 0;
+  int direction = 0;
+};
+
+struct TrendSummary {
+  std::optional<double> baseline;        // median of the first K points (>= K points needed)
+  std::optional<double> robust_sd;       // max(1.4826 * MAD of the first K points, min_robust_sd)
+  std::optional<double> slope_per_hour;  // least-squares slope, value units per hour (>= 2 distinct times)
+  std::optional<double> latest;          // value of the last point
+  std::vector<TrendAlert> alerts;        // in order; points before K are not judged
+  bool alerting = false;                 // the last alert runs to the last point
+};
+
+// Baseline, slope and alerts of one series (points ascending in time).
+TrendSummary analyse_trend(const std::vector<TrendPoint>& points, const TrendOptions& options = {});
+
+// z-score of value against others: (value - mean) / SD (n - 1) of others; nullopt with fewer
+// than two others or when their SD is 0.
+std::optional<double> cross_patient_z(double value, const std::vector<double>& others) noexcept;
+
+}  // namespace tahvel::aggregation

@@ -1,0 +1,238 @@
+// HRV metrics. The Lomb-Scargle periodogram runs over the NN series as it is (unevenly timed,
+// with gaps where intervals were not NN) instead of interpolating and resampling: resampling
+// invents values across gaps and low-pass filters the HF band. The inner loop keeps cos/sin
+// of omega * t for every sample and advances them by one frequency step with the angle-sum
+// recurrence, so each frequency costs a few multiply-adds per sample and no trig calls.
+#include "tahvel/aggregation/hrv.h"
+
+#include <algorithm>
+#include <cmath>
+
+namespace tahvel::aggregation {
+
+namespace {
+
+constexpr double kTwoPi = 6.283185307179586476925286766559;
+
+struct NnSeries {
+  std::vector<double> t_s, nn_ms;   // NN intervals timed at their end beat
+  std::vector<double> diffs_samples;  // differences of adjacent NN intervals, in samples
+  double nn_seconds = 0;
+};
+
+NnSeries collect(const std::vector<Interval>& intervals, double fs) {
+  NnSeries s;
+  for (std::size_t i = 0; i < intervals.size(); ++i) {
+    const Interval& iv = intervals[i];
+    if (!iv.nn || iv.end <= iv.start) continue;
+    const double len = static_cast<double>(iv.end - iv.start);
+    s.t_s.push_back(static_cast<double>(iv.end) / fs);
+    s.nn_ms.push_back(len * 1000.0 / fs);
+    s.nn_seconds += len / fs;
+    if (i > 0) {
+      const Interval& prev = intervals[i - 1];
+      if (prev.nn && prev.end == iv.start && prev.end > prev.start) {
+        s.diffs_samples.push_back(len - static_cast<double>(prev.end - prev.start));
+      }
+    }
+  }
+  return s;
+}
+
+double mean(const std::vector<double>& v) {
+  double sum = 0;
+  for (double x : v) sum += x;
+  return sum / static_cast<double>(v.size());
+}
+
+// Sample variance (n - 1); v.size() >= 2.
+double sample_variance(const std::vector<double>& v) {
+  const double m = mean(v);
+  double ss = 0;
+  for (double x : v) ss += (x - m) * (x - m);
+  return ss / static_cast<double>(v.size() - 1);
+}
+
+void time_domain(const NnSeries& s, double fs, HrvMetrics& out) {
+  if (s.nn_ms.empty()) return;
+  out.mean_nn_ms = mean(s.nn_ms);
+  out.mean_hr_bpm = 60000.0 / *out.mean_nn_ms;
+  if (s.nn_ms.size() >= 2) out.sdnn_ms = std::sqrt(sample_variance(s.nn_ms));
+  const std::size_t nd = s.diffs_samples.size();
+  if (nd < 2) return;
+  const double to_ms = 1000.0 / fs;
+  const double limit = 50.0 * fs / 1000.0;  // 50 ms in samples: 18 at 360 Hz
+  double ss = 0;
+  std::size_t over = 0;
+  for (double d : s.diffs_samples) {
+    ss += d * d;
+    over += std::abs(d) > limit ? 1 : 0;
+  }
+  out.rmssd_ms = std::sqrt(ss / static_cast<double>(nd)) * to_ms;
+  out.pnn50_pct = 100.0 * static_cast<double>(over) / static_cast<double>(nd);
+  if (!out.sdnn_ms) return;
+  const double sd1_sq = 0.5 * sample_variance(s.diffs_samples) * to_ms * to_ms;
+  const double sd2_sq = 2.0 * *out.sdnn_ms * *out.sdnn_ms - sd1_sq;
+  out.sd1_ms = std::sqrt(sd1_sq);
+  if (sd2_sq >= 0) out.sd2_ms = std::sqrt(sd2_sq);
+}
+
+// Band power by the midpoint rule on a grid that divides the band exactly.
+double band_power(const std::vector<double>& t, const std::vector<double>& y, double lo,
+                  double hi, double df_target, std::size_t max_count) {
+  if (!(hi > lo)) return 0;
+  auto count = static_cast<std::size_t>(std::ceil((hi - lo) / df_target));
+  count = std::clamp<std::size_t>(count, 1, std::max<std::size_t>(max_count, 1));
+  const double df = (hi - lo) / static_cast<double>(count);
+  const std::vector<double> psd = lomb_scargle_density(t, y, lo + df / 2, df, count);
+  double sum = 0;
+  for (double p : psd) sum += p;
+  return sum * df;
+}
+
+}  // namespace
+
+std::vector<double> lomb_scargle_density(const std::vector<double>& t_s,
+                                         const std::vector<double>& nn_ms, double f0_hz,
+                                         double df_hz, std::size_t count) {
+  std::vector<double> psd(count, 0.0);
+  const std::size_t n = std::min(t_s.size(), nn_ms.size());
+  if (n < 3 || count == 0) return psd;
+  const double span = (t_s[n - 1] - t_s[0]) * static_cast<double>(n) / static_cast<double>(n - 1);
+  if (!(span > 0)) return psd;
+  const double ym = mean(std::vector<double>(nn_ms.begin(), nn_ms.begin() + static_cast<std::ptrdiff_t>(n)));
+  // Times relative to the first sample keep the recurrence's angles small.
+  std::vector<double> y(n), c(n), s(n), dc(n), ds(n);
+  for (std::size_t j = 0; j < n; ++j) {
+    const double tj = t_s[j] - t_s[0];
+    y[j] = nn_ms[j] - ym;
+    c[j] = std::cos(kTwoPi * f0_hz * tj);
+    s[j] = std::sin(kTwoPi * f0_hz * tj);
+    dc[j] = std::cos(kTwoPi * df_hz * tj);
+    ds[j] = std::sin(kTwoPi * df_hz * tj);
+  }
+  const double nd = static_cast<double>(n);
+  const double scale = 2.0 * span / nd;  // periodogram -> one-sided density integrating to var
+  for (std::size_t k = 0; k < count; ++k) {
+    double yc = 0, ys = 0, c2 = 0, s2 = 0;
+    for (std::size_t j = 0; j < n; ++j) {
+      yc += y[j] * c[j];
+      ys += y[j] * s[j];
+      c2 += c[j] * c[j] - s[j] * s[j];
+      s2 += 2 * c[j] * s[j];
+    }
+    // tau: tan(2 omega tau) = S2 / C2; rotate the sums by omega * tau.
+    const double h = std::hypot(c2, s2);
+    const double two_wt = std::atan2(s2, c2);
+    const double cw = std::cos(two_wt / 2), sw = std::sin(two_wt / 2);
+    const double cc = (nd + h) / 2, ss = (nd - h) / 2;  // sums of cos^2, sin^2 at omega(t - tau)
+    const double a = yc * cw + ys * sw, b = ys * cw - yc * sw;
+    double p = 0;
+    if (cc > 1e-12 * nd) p += a * a / cc;
+    if (ss > 1e-12 * nd) p += b * b / ss;
+    psd[k] = 0.5 * p * scale;
+    for (std::size_t j = 0; j < n; ++j) {  // advance omega by one step
+      const double cn = c[j] * dc[j] - s[j] * ds[j];
+      s[j] = s[j] * dc[j] + c[j] * ds[j];
+      c[j] = cn;
+    }
+  }
+  return psd;
+}
+
+BandPowers lomb_scargle_bands(const std::vector<double>& t_s, const std::vector<double>& nn_ms,
+                              const HrvOptions& o) {
+  BandPowers out;
+  const std::size_t n = std::min(t_s.size(), nn_ms.size());
+  if (n < 3) return out;
+  const double span = t_s[n - 1] - t_s[0];
+  if (!(span > 0)) return out;
+  const double df = 1.0 / (std::max(o.oversampling, 1.0) * span);
+  const double width = (o.lf_high_hz - o.lf_low_hz) + (o.hf_high_hz - o.hf_low_hz);
+  const auto share = [&](double w) {
+    return static_cast<std::size_t>(std::max(1.0, static_cast<double>(o.max_frequencies) * w / width));
+  };
+  out.lf_ms2 = band_power(t_s, nn_ms, o.lf_low_hz, o.lf_high_hz, df, share(o.lf_high_hz - o.lf_low_hz));
+  out.hf_ms2 = band_power(t_s, nn_ms, o.hf_low_hz, o.hf_high_hz, df, share(o.hf_high_hz - o.hf_low_hz));
+  return out;
+}
+
+HrvMetrics compute_hrv(const std::vector<Interval>& intervals, double fs, const HrvOptions& o) {
+  HrvMetrics out;
+  out.rr_count = intervals.size();
+  if (!(fs > 0)) return out;
+  const NnSeries s = collect(intervals, fs);
+  out.nn_count = s.nn_ms.size();
+  time_domain(s, fs, out);
+  if (s.nn_ms.size() < 3 || s.nn_seconds < std::min(o.min_hf_s, o.min_lf_s)) return out;
+  const BandPowers bands = lomb_scargle_bands(s.t_s, s.nn_ms, o);
+  if (s.nn_seconds >= o.min_hf_s) out.hf_ms2 = bands.hf_ms2;
+  if (s.nn_seconds >= o.min_lf_s) out.lf_ms2 = bands.lf_ms2;
+  if (out.lf_ms2 && out.hf_ms2 && *out.hf_ms2 > 0) out.lf_hf = *out.lf_ms2 / *out.hf_ms2;
+  return out;
+}
+
+std::vector<WindowMetrics> windowed_hrv(const std::vector<Interval>& intervals, double fs,
+                                        double window_s, double step_s, const HrvOptions& o) {
+  std::vector<WindowMetrics> out;
+  if (!(window_s > 0) || !(step_s > 0) || !(fs > 0) || intervals.empty()) return out;
+  const double last = static_cast<double>(intervals.back().end) / fs;
+  std::size_t first = 0;  // first interval that can belong to window k or later
+  for (std::size_t k = 0; static_cast<double>(k) * step_s <= last; ++k) {
+    const double start = static_cast<double>(k) * step_s, end = start + window_s;
+    while (first < intervals.size() && static_cast<double>(intervals[first].end) / fs < start) ++first;
+    std::vector<Interval> in;
+    for (std::size_t i = first; i < intervals.size(); ++i) {
+      const double t = static_cast<double>(intervals[i].end) / fs;
+      if (t >= end) break;
+      in.push_back(intervals[i]);
+    }
+    out.push_back({start, end, compute_hrv(in, fs, o)});
+  }
+  return out;
+}
+
+HrvWindower::HrvWindower(double fs, double window_s, double step_s, const HrvOptions& options)
+    : fs_(fs), window_s_(window_s), step_s_(step_s), options_(options) {}
+
+void HrvWindower::set_window(double window_s, double step_s) {
+  if (!(window_s > 0) || !(step_s > 0)) return;
+  origin_s_ += static_cast<double>(next_) * step_s_;
+  next_ = 0;
+  window_s_ = window_s;
+  step_s_ = step_s;
+}
+
+void HrvWindower::emit_front(std::vector<WindowMetrics>& completed) {
+  const double start = origin_s_ + static_cast<double>(next_) * step_s_, end = start + window_s_;
+  std::vector<Interval> in;
+  for (const Interval& iv : buffer_) {
+    const double t = static_cast<double>(iv.end) / fs_;
+    if (t >= end) break;
+    if (t >= start) in.push_back(iv);
+  }
+  completed.push_back({start, end, compute_hrv(in, fs_, options_)});
+  ++next_;
+  const double next_start = origin_s_ + static_cast<double>(next_) * step_s_;
+  while (!buffer_.empty() && static_cast<double>(buffer_.front().end) / fs_ < next_start) buffer_.pop_front();
+}
+
+void HrvWindower::push(const Interval& interval, std::vector<WindowMetrics>& completed) {
+  if (!(fs_ > 0) || !(window_s_ > 0) || !(step_s_ > 0)) return;
+  const double t = static_cast<double>(interval.end) / fs_;
+  while (origin_s_ + static_cast<double>(next_) * step_s_ + window_s_ <= t) emit_front(completed);
+  buffer_.push_back(interval);
+  last_end_s_ = t;
+}
+
+void HrvWindower::finish(std::vector<WindowMetrics>& completed) {
+  if (last_end_s_ >= 0) {
+    while (origin_s_ + static_cast<double>(next_) * step_s_ <= last_end_s_) emit_front(completed);
+  }
+  origin_s_ = 0;
+  next_ = 0;
+  last_end_s_ = -1;
+  buffer_.clear();
+}
+
+}  // namespace tahvel::aggregation
