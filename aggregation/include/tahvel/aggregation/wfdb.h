@@ -1,0 +1,117 @@
+// WFDB record input: the text header (.hea) and the signal files (.dat) of a PhysioNet record,
+// read without the WFDB library. Tuned for MIT-BIH-sized records (two signals, 650,000 frames,
+// 1.9 MB): read_signals() holds a whole record in memory; SignalReader replays one in chunks
+// (agents replay 1-second chunks) and holds only the chunk.
+//
+// Supported: single-segment records; signal formats 212 and 16; several signals per file
+// (interleaved) and several files per record; a byte offset before the first sample. Anything
+// else (multi-segment records, other formats, more than one sample per frame, skew) is refused
+// with an Error naming the header file, line and field. Nothing is ever read short silently:
+// a signal file that ends before the header's sample count is an Error that names the file and
+// the expected and found sample counts.
+//
+// Specification followed: the WFDB header format (PhysioNet "header(5)") and signal formats
+// ("signal(5)"); see docs/wfdb.md.
+#pragma once
+
+#include <cstddef>
+#include <cstdint>
+#include <memory>
+#include <string>
+#include <vector>
+
+#include "tahvel/aggregation/error.h"
+
+namespace tahvel::aggregation {
+
+// One signal line of a header.
+struct SignalInfo {
+  std::string file;          // signal file name as written in the header, relative to the header's
+                             // directory ("100.dat")
+  int format = 0;            // storage format: 212 or 16
+  double gain = 200;         // ADC units per physical unit; 0 or absent in the header means 200
+  int baseline = 0;          // ADC value of physical zero; absent means adc_zero
+  std::string units = "mV";  // physical units; absent means "mV"
+  int adc_resolution = 0;    // bits; absent or 0 means 12 (format 212) or 16 (format 16)
+  int adc_zero = 0;          // ADC value at the middle of the input range; absent means 0
+  int initial_value = 0;     // first sample; absent means adc_zero
+  int checksum = 0;          // 16-bit sum of all samples as written (0 when absent)
+  bool has_checksum = false;  // whether the header gave a checksum
+  int block_size = 0;        // 0 for ordinary files
+  std::int64_t byte_offset = 0;  // bytes to skip at the start of the file ("212+12")
+  std::string description;   // rest of the line ("MLII"); may be empty or contain spaces
+};
+
+// A parsed header. samples_per_signal is 0 when the header does not give it (then the signal
+// files are read to their end).
+struct RecordHeader {
+  std::string name;        // record name from the record line ("100")
+  int signal_count = 0;
+  double fs = 250;         // samples per second per signal; absent means 250 (the WFDB default)
+  std::int64_t samples_per_signal = 0;
+  std::vector<SignalInfo> signals;
+  std::string directory;   // directory of the .hea file; signal files are opened relative to it
+  std::vector<std::string> comments;  // '#' lines, without the '#' and surrounding blanks
+};
+
+// Reads and parses "<record_path>.hea". record_path is the record without extension
+// ("…/mitdb/100"). Accepts LF and CRLF line endings, '#' comment lines and blank lines.
+// Errors: the file cannot be opened; no record line; a field that does not parse (message
+// "<file>:<line>: field '<name>' ..."); fewer signal lines than the record line announces;
+// a multi-segment record; an unsupported format, more than one sample per frame or a skew.
+Result<RecordHeader> read_header(const std::string& record_path);
+
+// All samples of a record, raw ADC units, one vector per signal (in header order), each of
+// header.samples_per_signal values (or as many whole frames as the files hold when the header
+// gives no count).
+struct Signals {
+  RecordHeader header;
+  std::vector<std::vector<std::int32_t>> samples;
+};
+
+// Reads the header and every signal file of a record. Errors: those of read_header(); a signal
+// file that cannot be opened; a signal file shorter than the header says ("<file>: truncated:
+// expected N samples per signal, found M"). Bytes after the last announced sample are ignored.
+Result<Signals> read_signals(const std::string& record_path);
+
+// Streaming reader: frame by frame, for agents that replay a record in chunks. Move-only; owns
+// its open files and closes them in its destructor. Not thread-safe: one reader per thread.
+class SignalReader {
+ public:
+  // Reads the header and opens the signal files. Fails as read_header() does, when a signal
+  // file cannot be opened, or when a file is already shorter than the header's sample count
+  // (the same "truncated" message as read_signals()).
+  static Result<SignalReader> open(const std::string& record_path);
+
+  SignalReader(SignalReader&&) noexcept;
+  SignalReader& operator=(SignalReader&&) noexcept;
+  SignalReader(const SignalReader&) = delete;
+  SignalReader& operator=(const SignalReader&) = delete;
+  ~SignalReader();
+
+  // Appends up to `frames` frames to out: out is resized to header().signal_count vectors if it
+  // has fewer, and out[i] receives signal i's samples. Returns the number of frames appended;
+  // 0 at the end of the record. Errors: a file ends before the header's sample count
+  // ("truncated", naming the file, expected and found counts) or a read fails. After an error
+  // out holds no partial frame and further reads return the same error.
+  Result<std::size_t> read(std::size_t frames, std::vector<std::vector<std::int32_t>>& out);
+
+  const RecordHeader& header() const { return header_; }
+
+  // Frames read so far (the sample index of the next frame).
+  std::int64_t position() const { return position_; }
+
+ private:
+  struct Group;
+  SignalReader() = default;
+  RecordHeader header_;
+  std::vector<std::unique_ptr<Group>> groups_;
+  std::int64_t position_ = 0;
+  std::string error_;  // sticky error after a failed read
+};
+
+// Physical value of a raw sample: (adu - baseline) / gain, in info.units. A gain of 0 is read
+// as 200, the WFDB default.
+double to_physical(std::int32_t adu, const SignalInfo& info);
+
+}  // namespace tahvel::aggregation

@@ -1,0 +1,398 @@
+// WFDB header parsing and signal decoding (formats 212 and 16). The header parser is a small
+// field-by-field reader so that every error can name the file, line and field; the decoders
+// work on whole byte blocks so a 30-minute MIT-BIH record decodes in one pass.
+#include "tahvel/aggregation/wfdb.h"
+
+#include <charconv>
+#include <cmath>
+#include <filesystem>
+#include <fstream>
+#include <sstream>
+#include <system_error>
+
+namespace tahvel::aggregation {
+
+namespace {
+
+// ---- small text helpers ----
+
+std::string_view trim(std::string_view s) {
+  const char* blanks = " \t\r\n\f\v";
+  auto b = s.find_first_not_of(blanks);
+  if (b == std::string_view::npos) return {};
+  auto e = s.find_last_not_of(blanks);
+  return s.substr(b, e - b + 1);
+}
+
+// Splits on blanks; also returns where each token starts, so the description (the rest of a
+// signal line) can be taken verbatim.
+struct Tokens {
+  std::vector<std::string_view> items;
+  std::vector<std::size_t> starts;
+};
+
+Tokens tokenize(std::string_view line) {
+  Tokens t;
+  std::size_t i = 0;
+  while (i < line.size()) {
+    while (i < line.size() && (line[i] == ' ' || line[i] == '\t')) ++i;
+    if (i >= line.size()) break;
+    std::size_t b = i;
+    while (i < line.size() && line[i] != ' ' && line[i] != '\t') ++i;
+    t.items.push_back(line.substr(b, i - b));
+    t.starts.push_back(b);
+  }
+  return t;
+}
+
+template <class Int>
+bool parse_int(std::string_view s, Int& out) {
+  if (!s.empty() && s.front() == '+') s.remove_prefix(1);
+  if (s.empty()) return false;
+  auto [p, ec] = std::from_chars(s.data(), s.data() + s.size(), out);
+  return ec == std::errc() && p == s.data() + s.size();
+}
+
+bool parse_double(std::string_view s, double& out) {
+  if (!s.empty() && s.front() == '+') s.remove_prefix(1);
+  if (s.empty()) return false;
+  auto [p, ec] = std::from_chars(s.data(), s.data() + s.size(), out);
+  return ec == std::errc() && p == s.data() + s.size() && std::isfinite(out);
+}
+
+// Error context for one header line.
+struct Where {
+  const std::string& file;
+  int line;
+  std::string field_error(const char* field, std::string_view value, const std::string& why) const {
+    std::ostringstream m;
+    m << file << ":" << line << ": field '" << field << "' ('" << value << "'): " << why;
+    return m.str();
+  }
+};
+
+// ---- record line: name[/nseg] nsig [fs[/counterfreq][(base)]] [nsamp] [time] [date] ----
+
+Result<bool> parse_record_line(std::string_view line, const Where& at, RecordHeader& h) {
+  Tokens t = tokenize(line);
+  if (t.items.size() < 2)
+    return fail(at.file + ":" + std::to_string(at.line) +
+                ": record line needs at least a name and a signal count");
+  std::string_view name = t.items[0];
+  if (name.find('/') != std::string_view::npos)
+    return fail(at.field_error("record name", name,
+                               "multi-segment records are not supported"));
+  h.name = std::string(name);
+  if (!parse_int(t.items[1], h.signal_count) || h.signal_count < 0)
+    return fail(at.field_error("number of signals", t.items[1], "not a non-negative integer"));
+  if (t.items.size() > 2) {
+    std::string_view fs = t.items[2];
+    fs = fs.substr(0, fs.find_first_of("/("));  // counter frequency and base counter ignored
+    if (!parse_double(fs, h.fs) || h.fs <= 0)
+      return fail(at.field_error("sampling frequency", t.items[2], "not a positive number"));
+  }
+  if (t.items.size() > 3) {
+    if (!parse_int(t.items[3], h.samples_per_signal) || h.samples_per_signal < 0)
+      return fail(at.field_error("number of samples per signal", t.items[3],
+                                 "not a non-negative integer"));
+  }
+  return true;
+}
+
+// ---- signal line: file format[xsamp][:skew][+offset] gain[(baseline)][/units] adcres adczero
+//      initval checksum blocksize description ----
+
+Result<bool> parse_format(std::string_view tok, const Where& at, SignalInfo& s) {
+  std::size_t end = tok.find_first_of("x:+");
+  if (!parse_int(tok.substr(0, end), s.format))
+    return fail(at.field_error("format", tok, "not an integer"));
+  while (end != std::string_view::npos) {
+    char kind = tok[end];
+    std::size_t next = tok.find_first_of("x:+", end + 1);
+    std::string_view num = tok.substr(end + 1, next == std::string_view::npos ? next : next - end - 1);
+    std::int64_t v = 0;
+    if (!parse_int(num, v) || v < 0)
+      return fail(at.field_error("format", tok, "bad sample-per-frame, skew or offset suffix"));
+    if (kind == 'x' && v > 1)
+      return fail(at.field_error("format", tok, "more than one sample per frame is not supported"));
+    if (kind == ':' && v != 0)
+      return fail(at.field_error("format", tok, "skew is not supported"));
+    if (kind == '+') s.byte_offset = v;
+    end = next;
+  }
+  if (s.format != 212 && s.format != 16)
+    return fail(at.field_error("format", tok,
+                               "format " + std::to_string(s.format) +
+                                   " is not supported (supported: 16, 212)"));
+  return true;
+}
+
+Result<bool> parse_gain(std::string_view tok, const Where& at, SignalInfo& s, bool& has_baseline) {
+  std::size_t slash = tok.find('/');
+  if (slash != std::string_view::npos) {
+    s.units = std::string(tok.substr(slash + 1));
+    if (s.units.empty()) return fail(at.field_error("gain", tok, "empty units after '/'"));
+    tok = tok.substr(0, slash);
+  }
+  std::size_t paren = tok.find('(');
+  std::string_view g = tok.substr(0, paren);
+  if (!parse_double(g, s.gain) || s.gain < 0)
+    return fail(at.field_error("gain", tok, "not a non-negative number"));
+  if (s.gain == 0) s.gain = 200;  // WFDB: 0 means "uncalibrated", read with the default gain
+  if (paren != std::string_view::npos) {
+    if (tok.back() != ')' || !parse_int(tok.substr(paren + 1, tok.size() - paren - 2), s.baseline))
+      return fail(at.field_error("gain", tok, "baseline in parentheses is not an integer"));
+    has_baseline = true;
+  }
+  return true;
+}
+
+Result<SignalInfo> parse_signal_line(std::string_view line, const Where& at) {
+  Tokens t = tokenize(line);
+  SignalInfo s;
+  if (t.items.size() < 2)
+    return fail(at.file + ":" + std::to_string(at.line) +
+                ": signal line needs at least a file name and a format");
+  s.file = std::string(t.items[0]);
+  if (auto r = parse_format(t.items[1], at, s); !r) return fail(r.error().message);
+  bool has_baseline = false, has_zero = false, has_init = false;
+  if (t.items.size() > 2)
+    if (auto r = parse_gain(t.items[2], at, s, has_baseline); !r) return fail(r.error().message);
+  if (t.items.size() > 3 && (!parse_int(t.items[3], s.adc_resolution) || s.adc_resolution < 0))
+    return fail(at.field_error("ADC resolution", t.items[3], "not a non-negative integer"));
+  if (t.items.size() > 4) {
+    if (!parse_int(t.items[4], s.adc_zero))
+      return fail(at.field_error("ADC zero", t.items[4], "not an integer"));
+    has_zero = true;
+  }
+  if (t.items.size() > 5) {
+    if (!parse_int(t.items[5], s.initial_value))
+      return fail(at.field_error("initial value", t.items[5], "not an integer"));
+    has_init = true;
+  }
+  if (t.items.size() > 6) {
+    if (!parse_int(t.items[6], s.checksum))
+      return fail(at.field_error("checksum", t.items[6], "not an integer"));
+    s.has_checksum = true;
+  }
+  if (t.items.size() > 7 && !parse_int(t.items[7], s.block_size))
+    return fail(at.field_error("block size", t.items[7], "not an integer"));
+  if (t.items.size() > 8) s.description = std::string(trim(line.substr(t.starts[8])));
+  if (s.adc_resolution == 0) s.adc_resolution = s.format == 212 ? 12 : 16;
+  if (!has_zero) s.adc_zero = 0;
+  if (!has_baseline) s.baseline = s.adc_zero;
+  if (!has_init) s.initial_value = s.adc_zero;
+  return s;
+}
+
+std::string parent_dir(const std::string& path) {
+  auto p = std::filesystem::path(path).parent_path();
+  return p.empty() ? std::string(".") : p.string();
+}
+
+// ---- decoding ----
+
+// Values (12- or 16-bit samples, counted across the interleaved signals of one file) held by
+// `bytes` bytes of a format.
+std::int64_t values_in_bytes(int format, std::int64_t bytes) {
+  if (format == 16) return bytes / 2;
+  return 2 * (bytes / 3) + (bytes % 3 >= 2 ? 1 : 0);
+}
+
+std::int64_t bytes_for_values(int format, std::int64_t values) {
+  if (format == 16) return 2 * values;
+  return 3 * (values / 2) + (values % 2 ? 2 : 0);
+}
+
+std::int32_t sign12(unsigned v) { return static_cast<std::int32_t>(v & 0x800 ? v | ~0xFFFu : v); }
+
+}  // namespace
+
+// One signal file and the consecutive header signals stored in it (interleaved).
+struct SignalReader::Group {
+  std::string path;       // as opened (directory + file name)
+  int format = 0;
+  std::size_t first = 0;  // index of its first signal in the header
+  std::size_t count = 0;  // number of signals in the file
+  std::ifstream in;
+  std::vector<std::int32_t> pending;  // a decoded 212 value read ahead (at most one)
+  std::vector<unsigned char> bytes;   // reusable read buffer
+
+  // Decodes the next `want` values; returns how many were available (fewer only at end of file).
+  Result<std::size_t> next_values(std::size_t want, std::vector<std::int32_t>& out) {
+    out.clear();
+    std::size_t take = std::min(want, pending.size());
+    out.insert(out.end(), pending.begin(), pending.begin() + take);
+    pending.erase(pending.begin(), pending.begin() + take);
+    std::size_t rest = want - take;
+    if (rest == 0) return want;
+    // 212 packs values in pairs; an odd request reads the whole pair and keeps one back.
+    std::size_t values = format == 212 ? rest + (rest % 2) : rest;
+    bytes.resize(static_cast<std::size_t>(format == 212 ? 3 * (values / 2) : 2 * values));
+    in.read(reinterpret_cast<char*>(bytes.data()), static_cast<std::streamsize>(bytes.size()));
+    std::size_t got = static_cast<std::size_t>(in.gcount());
+    if (in.bad()) return fail(path + ": read error");
+    decode(got, out);
+    if (out.size() > want) {
+      pending.assign(out.begin() + static_cast<std::ptrdiff_t>(want), out.end());
+      out.resize(want);
+    }
+    return out.size();
+  }
+
+  void decode(std::size_t got, std::vector<std::int32_t>& out) const {
+    if (format == 16) {
+      for (std::size_t i = 0; i + 1 < got; i += 2)
+        out.push_back(static_cast<std::int16_t>(bytes[i] | (bytes[i + 1] << 8)));
+      return;
+    }
+    for (std::size_t i = 0; i + 1 < got; i += 3) {
+      unsigned b0 = bytes[i], b1 = bytes[i + 1];
+      out.push_back(sign12(b0 | ((b1 & 0x0Fu) << 8)));
+      if (i + 2 < got) out.push_back(sign12(bytes[i + 2] | ((b1 & 0xF0u) << 4)));
+    }
+  }
+};
+
+Result<RecordHeader> read_header(const std::string& record_path) {
+  const std::string file = record_path + ".hea";
+  std::ifstream in(file, std::ios::binary);
+  if (!in) return fail(file + ": cannot open header");
+  RecordHeader h;
+  h.directory = parent_dir(file);
+  bool have_record_line = false;
+  int line_no = 0;
+  for (std::string raw; std::getline(in, raw);) {
+    ++line_no;
+    std::string_view line = trim(raw);
+    if (line.empty()) continue;
+    if (line.front() == '#') {
+      h.comments.emplace_back(trim(line.substr(1)));
+      continue;
+    }
+    Where at{file, line_no};
+    if (!have_record_line) {
+      if (auto r = parse_record_line(line, at, h); !r) return fail(r.error().message);
+      have_record_line = true;
+    } else if (static_cast<int>(h.signals.size()) < h.signal_count) {
+      auto s = parse_signal_line(line, at);
+      if (!s) return fail(s.error().message);
+      h.signals.push_back(std::move(*s));
+    }
+    // Lines after the last signal line (info strings without '#') are ignored, as WFDB does.
+  }
+  if (in.bad()) return fail(file + ": read error");
+  if (!have_record_line) return fail(file + ": no record line");
+  if (static_cast<int>(h.signals.size()) < h.signal_count)
+    return fail(file + ": record line announces " + std::to_string(h.signal_count) +
+                " signals, found " + std::to_string(h.signals.size()) + " signal lines");
+  return h;
+}
+
+SignalReader::SignalReader(SignalReader&&) noexcept = default;
+SignalReader& SignalReader::operator=(SignalReader&&) noexcept = default;
+SignalReader::~SignalReader() = default;
+
+Result<SignalReader> SignalReader::open(const std::string& record_path) {
+  auto h = read_header(record_path);
+  if (!h) return fail(h.error().message);
+  SignalReader r;
+  r.header_ = std::move(*h);
+  const auto& sigs = r.header_.signals;
+  for (std::size_t i = 0; i < sigs.size();) {
+    std::size_t j = i + 1;
+    while (j < sigs.size() && sigs[j].file == sigs[i].file) {
+      if (sigs[j].format != sigs[i].format)
+        return fail(record_path + ".hea: signals " + std::to_string(i) + " and " +
+                    std::to_string(j) + " share file " + sigs[i].file + " but differ in format");
+      ++j;
+    }
+    for (const auto& g : r.groups_)
+      if (sigs[g->first].file == sigs[i].file)
+        return fail(record_path + ".hea: signals of file " + sigs[i].file + " are not consecutive");
+    auto g = std::make_unique<Group>();
+    g->path = (std::filesystem::path(r.header_.directory) / sigs[i].file).string();
+    g->format = sigs[i].format;
+    g->first = i;
+    g->count = j - i;
+    g->in.open(g->path, std::ios::binary);
+    if (!g->in) return fail(g->path + ": cannot open signal file");
+    std::error_code ec;
+    auto size = static_cast<std::int64_t>(std::filesystem::file_size(g->path, ec));
+    if (ec) return fail(g->path + ": cannot stat signal file: " + ec.message());
+    std::int64_t offset = sigs[i].byte_offset;
+    std::int64_t found = values_in_bytes(g->format, std::max<std::int64_t>(0, size - offset)) /
+                         static_cast<std::int64_t>(g->count);
+    std::int64_t expected = r.header_.samples_per_signal;
+    if (expected > 0 && found < expected)
+      return fail(g->path + ": truncated: expected " + std::to_string(expected) +
+                  " samples per signal, found " + std::to_string(found) + " (" +
+                  std::to_string(size) + " bytes, " +
+                  std::to_string(offset + bytes_for_values(g->format, expected * g->count)) +
+                  " needed)");
+    g->in.seekg(offset);
+    r.groups_.push_back(std::move(g));
+    i = j;
+  }
+  return r;
+}
+
+Result<std::size_t> SignalReader::read(std::size_t frames,
+                                       std::vector<std::vector<std::int32_t>>& out) {
+  if (!error_.empty()) return fail(error_);
+  const auto nsig = static_cast<std::size_t>(header_.signal_count);
+  const std::int64_t total = header_.samples_per_signal;
+  if (total > 0) frames = static_cast<std::size_t>(std::min<std::int64_t>(
+                     static_cast<std::int64_t>(frames), total - position_));
+  if (frames == 0 || nsig == 0) return std::size_t{0};
+  if (out.size() < nsig) out.resize(nsig);
+
+  // Decode every file first, then append: an error leaves `out` without a partial frame.
+  std::vector<std::vector<std::int32_t>> decoded(groups_.size());
+  std::size_t whole = frames;
+  for (std::size_t k = 0; k < groups_.size(); ++k) {
+    Group& g = *groups_[k];
+    auto got = g.next_values(frames * g.count, decoded[k]);
+    if (!got) return error_ = got.error().message, fail(error_);
+    std::size_t f = *got / g.count;
+    if (f < frames && total > 0) {
+      error_ = g.path + ": truncated: expected " + std::to_string(total) +
+               " samples per signal, found " + std::to_string(position_ + static_cast<std::int64_t>(f));
+      return fail(error_);
+    }
+    whole = std::min(whole, f);
+  }
+  for (std::size_t k = 0; k < groups_.size(); ++k) {
+    const Group& g = *groups_[k];
+    for (std::size_t c = 0; c < g.count; ++c) {
+      auto& dst = out[g.first + c];
+      dst.reserve(dst.size() + whole);
+      for (std::size_t f = 0; f < whole; ++f) dst.push_back(decoded[k][f * g.count + c]);
+    }
+  }
+  position_ += static_cast<std::int64_t>(whole);
+  return whole;
+}
+
+Result<Signals> read_signals(const std::string& record_path) {
+  auto reader = SignalReader::open(record_path);
+  if (!reader) return fail(reader.error().message);
+  Signals s;
+  s.samples.resize(static_cast<std::size_t>(reader->header().signal_count));
+  const std::int64_t total = reader->header().samples_per_signal;
+  const std::size_t chunk = total > 0 ? static_cast<std::size_t>(total) : std::size_t{1} << 16;
+  for (;;) {
+    auto n = reader->read(chunk, s.samples);
+    if (!n) return fail(n.error().message);
+    if (*n == 0) break;
+  }
+  s.header = reader->header();
+  return s;
+}
+
+double to_physical(std::int32_t adu, const SignalInfo& info) {
+  double gain = info.gain == 0 ? 200.0 : info.gain;
+  return (static_cast<double>(adu) - info.baseline) / gain;
+}
+
+}  // namespace tahvel::aggregation

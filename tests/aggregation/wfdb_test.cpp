@@ -1,0 +1,296 @@
+// WFDB header and signal reading: MIT-BIH record 100 read in place (never copied), checked
+// against values decoded by hand from its first bytes and against the header's checksums; and
+// malformed records written to a temporary directory.
+#include "tahvel/aggregation/wfdb.h"
+
+#include <gtest/gtest.h>
+#include <unistd.h>
+
+#include <cstdint>
+#include <filesystem>
+#include <fstream>
+#include <string>
+#include <vector>
+
+#include "mitdb_support.h"
+
+namespace tahvel::aggregation {
+namespace {
+
+namespace fs = std::filesystem;
+using testing::mitdb_dir;
+using testing::mitdb_record;
+
+bool have_mitdb() { return fs::exists(mitdb_dir() / "100.hea"); }
+
+#define REQUIRE_MITDB() \
+  if (!have_mitdb()) GTEST_SKIP() << "MIT-BIH records not found at " << mitdb_dir()
+
+// A scratch directory per test, removed afterwards.
+class WfdbTemp : public ::testing::Test {
+ protected:
+  void SetUp() override {
+    const auto* info = ::testing::UnitTest::GetInstance()->current_test_info();
+    dir_ = fs::temp_directory_path() /
+           ("tahvel-wfdb-" + std::to_string(::getpid()) + "-" + info->name());
+    fs::remove_all(dir_);
+    fs::create_directories(dir_);
+  }
+  void TearDown() override { fs::remove_all(dir_); }
+  std::string record(const std::string& name) const { return (dir_ / name).string(); }
+  void write(const std::string& name, const std::string& bytes) const {
+    std::ofstream(dir_ / name, std::ios::binary) << bytes;
+  }
+  fs::path dir_;
+};
+
+std::string bytes_of(std::initializer_list<int> v) {
+  std::string s;
+  for (int b : v) s.push_back(static_cast<char>(b));
+  return s;
+}
+
+// ---- record 100 ----
+
+TEST(WfdbRecord100, HeaderGivesFsSignalsSamplesGainBaselineFormat) {
+  REQUIRE_MITDB();
+  auto h = read_header(mitdb_record("100"));
+  ASSERT_TRUE(h) << h.error().message;
+  EXPECT_EQ(h->name, "100");
+  EXPECT_EQ(h->signal_count, 2);
+  EXPECT_DOUBLE_EQ(h->fs, 360.0);
+  EXPECT_EQ(h->samples_per_signal, 650000);
+  ASSERT_EQ(h->signals.size(), 2u);
+  for (const auto& s : h->signals) {
+    EXPECT_EQ(s.file, "100.dat");
+    EXPECT_EQ(s.format, 212);
+    EXPECT_DOUBLE_EQ(s.gain, 200.0);
+    EXPECT_EQ(s.baseline, 1024);
+    EXPECT_EQ(s.adc_zero, 1024);
+    EXPECT_EQ(s.adc_resolution, 11);
+    EXPECT_EQ(s.units, "mV");
+  }
+  EXPECT_EQ(h->signals[0].description, "MLII");
+  EXPECT_EQ(h->signals[1].description, "V5");
+  EXPECT_EQ(h->signals[0].initial_value, 995);
+  EXPECT_EQ(h->signals[1].initial_value, 1011);
+  EXPECT_EQ(h->signals[0].checksum, -22131);
+  EXPECT_EQ(h->signals[1].checksum, 20052);
+  ASSERT_FALSE(h->comments.empty());
+  EXPECT_EQ(h->comments[0], "69 M 1085 1629 x1");
+}
+
+TEST(WfdbRecord100, FirstSamplesMatchBytesDecodedByHand) {
+  REQUIRE_MITDB();
+  // Independent decoding of the first two 3-byte groups of 100.dat (format 212): sample 0 is
+  // byte0 + low nibble of byte1 << 8, sample 1 is byte2 + high nibble of byte1 << 4.
+  std::ifstream in(mitdb_dir() / "100.dat", std::ios::binary);
+  unsigned char b[6];
+  in.read(reinterpret_cast<char*>(b), 6);
+  ASSERT_EQ(in.gcount(), 6);
+  int mlii0 = b[0] | ((b[1] & 0x0F) << 8), v5_0 = b[2] | ((b[1] & 0xF0) << 4);
+  int mlii1 = b[3] | ((b[4] & 0x0F) << 8), v5_1 = b[5] | ((b[4] & 0xF0) << 4);
+  EXPECT_EQ(mlii0, 995);  // published: the first MLII sample of record 100 is 995 adu
+  EXPECT_EQ(v5_0, 1011);
+
+  auto sig = read_signals(mitdb_record("100"));
+  ASSERT_TRUE(sig) << sig.error().message;
+  ASSERT_EQ(sig->samples.size(), 2u);
+  ASSERT_EQ(sig->samples[0].size(), 650000u);
+  ASSERT_EQ(sig->samples[1].size(), 650000u);
+  EXPECT_EQ(sig->samples[0][0], mlii0);
+  EXPECT_EQ(sig->samples[1][0], v5_0);
+  EXPECT_EQ(sig->samples[0][1], mlii1);
+  EXPECT_EQ(sig->samples[1][1], v5_1);
+  EXPECT_EQ(sig->samples[0][0], sig->header.signals[0].initial_value);
+  EXPECT_EQ(sig->samples[1][0], sig->header.signals[1].initial_value);
+}
+
+TEST(WfdbRecord100, SampleSumsMatchHeaderChecksums) {
+  REQUIRE_MITDB();
+  auto sig = read_signals(mitdb_record("100"));
+  ASSERT_TRUE(sig) << sig.error().message;
+  for (std::size_t i = 0; i < 2; ++i) {
+    std::int64_t sum = 0;
+    for (auto v : sig->samples[i]) sum += v;
+    EXPECT_EQ(static_cast<std::int16_t>(static_cast<std::uint16_t>(sum & 0xFFFF)),
+              sig->header.signals[i].checksum)
+        << "signal " << i;
+  }
+}
+
+TEST(WfdbRecord100, StreamingInOneSecondChunksEqualsWholeRead) {
+  REQUIRE_MITDB();
+  auto whole = read_signals(mitdb_record("100"));
+  ASSERT_TRUE(whole) << whole.error().message;
+  auto r = SignalReader::open(mitdb_record("100"));
+  ASSERT_TRUE(r) << r.error().message;
+  std::vector<std::vector<std::int32_t>> out;
+  std::size_t chunks = 0;
+  for (;;) {
+    auto n = r->read(360, out);
+    ASSERT_TRUE(n) << n.error().message;
+    if (*n == 0) break;
+    ++chunks;
+  }
+  EXPECT_EQ(chunks, (650000u + 359) / 360);
+  EXPECT_EQ(r->position(), 650000);
+  EXPECT_EQ(out, whole->samples);
+}
+
+TEST(WfdbRecord100, PhysicalValueIsAduMinusBaselineOverGain) {
+  REQUIRE_MITDB();
+  auto h = read_header(mitdb_record("100"));
+  ASSERT_TRUE(h);
+  EXPECT_DOUBLE_EQ(to_physical(995, h->signals[0]), (995 - 1024) / 200.0);
+  EXPECT_DOUBLE_EQ(to_physical(1024, h->signals[0]), 0.0);
+}
+
+// ---- synthetic records ----
+
+TEST_F(WfdbTemp, Format16IsLittleEndianSignedAndInterleaved) {
+  write("r.hea", "r 2 100 3\r\nr.dat 16 100(5)/uV 16 0 0 0 0 a b c\r\nr.dat 16 100 16 0 0 0 0\r\n");
+  // frames: (1, -1), (256, -32768), (300, 7)
+  write("r.dat", bytes_of({0x01, 0x00, 0xFF, 0xFF, 0x00, 0x01, 0x00, 0x80, 0x2C, 0x01, 0x07, 0x00}));
+  auto s = read_signals(record("r"));
+  ASSERT_TRUE(s) << s.error().message;
+  EXPECT_EQ(s->samples[0], (std::vector<std::int32_t>{1, 256, 300}));
+  EXPECT_EQ(s->samples[1], (std::vector<std::int32_t>{-1, -32768, 7}));
+  EXPECT_EQ(s->header.signals[0].baseline, 5);
+  EXPECT_EQ(s->header.signals[0].units, "uV");
+  EXPECT_EQ(s->header.signals[0].description, "a b c");
+  EXPECT_EQ(s->header.signals[1].units, "mV");
+  EXPECT_DOUBLE_EQ(to_physical(105, s->header.signals[0]), 1.0);
+}
+
+TEST_F(WfdbTemp, Format212DecodesNegativeTwelveBitValuesAndOddSignalCounts) {
+  // One signal in 212: values 0x801 (-2047), 0x7FF (2047), 0xFFF (-1) pack as
+  // [01 78 FF] [FF 0F]: the last pair holds a single value in two bytes.
+  write("r.hea", "r 1 250 3\nr.dat 212 200 12 0 0 0 0\n");
+  write("r.dat", bytes_of({0x01, 0x78, 0xFF, 0xFF, 0x0F}));
+  auto s = read_signals(record("r"));
+  ASSERT_TRUE(s) << s.error().message;
+  EXPECT_EQ(s->samples[0], (std::vector<std::int32_t>{-2047, 2047, -1}));
+  // Streaming one frame at a time crosses the middle of a 3-byte pair.
+  auto r = SignalReader::open(record("r"));
+  ASSERT_TRUE(r) << r.error().message;
+  std::vector<std::vector<std::int32_t>> out;
+  for (int k = 0; k < 3; ++k) {
+    auto n = r->read(1, out);
+    ASSERT_TRUE(n) << n.error().message;
+    EXPECT_EQ(*n, 1u);
+  }
+  auto end = r->read(1, out);
+  ASSERT_TRUE(end);
+  EXPECT_EQ(*end, 0u);
+  EXPECT_EQ(out[0], (std::vector<std::int32_t>{-2047, 2047, -1}));
+}
+
+TEST_F(WfdbTemp, DefaultsApplyWhenOptionalFieldsAreAbsent) {
+  write("r.hea", "# leading comment\n\nr 1\nr.dat 16\n");
+  write("r.dat", bytes_of({0x05, 0x00}));
+  auto h = read_header(record("r"));
+  ASSERT_TRUE(h) << h.error().message;
+  EXPECT_DOUBLE_EQ(h->fs, 250.0);
+  EXPECT_EQ(h->samples_per_signal, 0);
+  EXPECT_DOUBLE_EQ(h->signals[0].gain, 200.0);
+  EXPECT_EQ(h->signals[0].baseline, 0);
+  EXPECT_EQ(h->signals[0].adc_resolution, 16);
+  EXPECT_EQ(h->signals[0].units, "mV");
+  auto s = read_signals(record("r"));  // no sample count: read to the end of the file
+  ASSERT_TRUE(s) << s.error().message;
+  EXPECT_EQ(s->samples[0], (std::vector<std::int32_t>{5}));
+}
+
+TEST_F(WfdbTemp, ByteOffsetIsSkipped) {
+  write("r.hea", "r 1 360 2\nr.dat 16+4 200 16 0 0 0 0\n");
+  write("r.dat", bytes_of({0xAA, 0xAA, 0xAA, 0xAA, 0x02, 0x00, 0x03, 0x00}));
+  auto s = read_signals(record("r"));
+  ASSERT_TRUE(s) << s.error().message;
+  EXPECT_EQ(s->samples[0], (std::vector<std::int32_t>{2, 3}));
+}
+
+TEST_F(WfdbTemp, BadGainFieldIsAnErrorNamingFileLineAndField) {
+  write("r.hea", "r 1 360 2\r\n# comment\r\nr.dat 212 2x0 11 1024 0 0 0 MLII\r\n");
+  auto h = read_header(record("r"));
+  ASSERT_FALSE(h);
+  const std::string& m = h.error().message;
+  EXPECT_NE(m.find("r.hea:3"), std::string::npos) << m;
+  EXPECT_NE(m.find("'gain'"), std::string::npos) << m;
+  EXPECT_NE(m.find("2x0"), std::string::npos) << m;
+}
+
+TEST_F(WfdbTemp, BadSamplingFrequencyIsAnErrorNamingTheField) {
+  write("r.hea", "r 1 fast 2\nr.dat 16\n");
+  auto h = read_header(record("r"));
+  ASSERT_FALSE(h);
+  EXPECT_NE(h.error().message.find("r.hea:1: field 'sampling frequency'"), std::string::npos)
+      << h.error().message;
+}
+
+TEST_F(WfdbTemp, UnsupportedFormatIsAnErrorNamingFileLineFieldAndFormat) {
+  write("r.hea", "r 1 360 2\nr.dat 311 200 10 0 0 0 0\n");
+  auto h = read_header(record("r"));
+  ASSERT_FALSE(h);
+  const std::string& m = h.error().message;
+  EXPECT_NE(m.find("r.hea:2: field 'format'"), std::string::npos) << m;
+  EXPECT_NE(m.find("311 is not supported"), std::string::npos) << m;
+  EXPECT_FALSE(read_signals(record("r")));
+}
+
+TEST_F(WfdbTemp, MissingSignalLinesAreAnError) {
+  write("r.hea", "r 2 360 2\nr.dat 16\n");
+  auto h = read_header(record("r"));
+  ASSERT_FALSE(h);
+  EXPECT_NE(h.error().message.find("announces 2 signals, found 1"), std::string::npos)
+      << h.error().message;
+}
+
+TEST_F(WfdbTemp, MissingHeaderIsAnErrorNamingTheFile) {
+  auto h = read_header(record("nothere"));
+  ASSERT_FALSE(h);
+  EXPECT_NE(h.error().message.find("nothere.hea"), std::string::npos);
+}
+
+TEST_F(WfdbTemp, TruncatedDatIsAnErrorWithExpectedAndFoundCounts) {
+  write("r.hea", "r 2 360 4\nr.dat 212 200 11 1024 0 0 0\nr.dat 212 200 11 1024 0 0 0\n");
+  write("r.dat", std::string(3 * 3, '\0'));  // 3 of 4 frames
+  auto s = read_signals(record("r"));
+  ASSERT_FALSE(s);
+  const std::string& m = s.error().message;
+  EXPECT_NE(m.find("r.dat"), std::string::npos) << m;
+  EXPECT_NE(m.find("expected 4 samples per signal, found 3"), std::string::npos) << m;
+  EXPECT_FALSE(SignalReader::open(record("r")));
+}
+
+TEST_F(WfdbTemp, FileShrinkingAfterOpenIsAnErrorNotAShortRead) {
+  write("r.hea", "r 1 360 4\nr.dat 16\n");
+  write("r.dat", std::string(8, '\0'));
+  auto r = SignalReader::open(record("r"));
+  ASSERT_TRUE(r) << r.error().message;
+  fs::resize_file(dir_ / "r.dat", 4);  // 2 of the 4 samples remain
+  std::vector<std::vector<std::int32_t>> out;
+  auto n = r->read(4, out);
+  ASSERT_FALSE(n);
+  EXPECT_NE(n.error().message.find("expected 4 samples per signal, found 2"), std::string::npos)
+      << n.error().message;
+  EXPECT_TRUE(out.empty() || out[0].empty()) << "no partial chunk appended after an error";
+  EXPECT_FALSE(r->read(1, out)) << "the error is sticky";
+}
+
+TEST_F(WfdbTemp, MissingDatIsAnErrorNamingTheFile) {
+  write("r.hea", "r 1 360 4\nmissing.dat 16\n");
+  auto s = read_signals(record("r"));
+  ASSERT_FALSE(s);
+  EXPECT_NE(s.error().message.find("missing.dat"), std::string::npos);
+}
+
+TEST_F(WfdbTemp, MultiSegmentRecordIsRefused) {
+  write("r.hea", "r/3 1 360 4\n");
+  auto h = read_header(record("r"));
+  ASSERT_FALSE(h);
+  EXPECT_NE(h.error().message.find("multi-segment"), std::string::npos);
+}
+
+}  // namespace
+}  // namespace tahvel::aggregation
