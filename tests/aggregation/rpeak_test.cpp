@@ -1,0 +1,184 @@
+// Unit tests of the R-peak detector on synthetic signals: one peak per beat at the R wave,
+// nothing on flat or noisy signals without beats, sampling rates, identical output under any
+// chunking, option checks. The MIT-BIH-wide checks are in tests/aggregation_mitdb.
+#include <gtest/gtest.h>
+
+#include <algorithm>
+#include <cmath>
+#include <cstdint>
+#include <cstdlib>
+#include <random>
+#include <stdexcept>
+#include <vector>
+
+#include "tahvel/aggregation/rpeak.h"
+
+namespace tahvel::aggregation {
+namespace {
+
+constexpr double kGain = 200;      // adu per mV, as MIT-BIH
+constexpr std::int32_t kZero = 1024;
+
+double gauss(double t, double centre, double width) {
+  const double z = (t - centre) / width;
+  return std::exp(-0.5 * z * z);
+}
+
+struct Synthetic {
+  std::vector<std::int32_t> samples;
+  std::vector<std::int64_t> r_waves;  // sample of each R-wave apex
+};
+
+// A P-QRS-T beat train: R waves of 1.2 mV (width 12 ms), small Q and S, a 0.35 mV T wave 250 ms
+// later, a P wave before; RR 0.8 s ± 10 % (deterministic), optional noise and baseline wander.
+Synthetic ecg(double fs, double seconds, double noise_mv = 0, double wander_mv = 0) {
+  std::mt19937 rng(12345);
+  std::uniform_real_distribution<double> jitter(-0.08, 0.08);
+  std::normal_distribution<double> noise(0, noise_mv);
+  std::vector<double> beats;
+  for (double t = 0.5; t < seconds - 0.5; t += 0.8 * (1 + jitter(rng))) beats.push_back(t);
+  Synthetic s;
+  const auto n = static_cast<std::size_t>(seconds * fs);
+  std::vector<double> mv(n, 0.0);
+  for (double b : beats) {
+    s.r_waves.push_back(std::llround(b * fs));
+    const auto lo = static_cast<std::size_t>(std::max(0.0, (b - 0.3) * fs));
+    const auto hi = std::min(n, static_cast<std::size_t>((b + 0.6) * fs));
+    for (std::size_t i = lo; i < hi; ++i) {
+      const double t = static_cast<double>(i) / fs;
+      mv[i] += 0.15 * gauss(t, b - 0.16, 0.025) - 0.15 * gauss(t, b - 0.025, 0.008) +
+               1.2 * gauss(t, b, 0.012) - 0.25 * gauss(t, b + 0.028, 0.009) +
+               0.35 * gauss(t, b + 0.25, 0.045);
+    }
+  }
+  for (std::size_t i = 0; i < n; ++i) {
+    const double t = static_cast<double>(i) / fs;
+    double v = mv[i] + wander_mv * std::sin(2 * 3.14159265358979 * 0.3 * t);
+    if (noise_mv > 0) v += noise(rng);
+    s.samples.push_back(kZero + static_cast<std::int32_t>(std::lround(v * kGain)));
+  }
+  return s;
+}
+
+DetectorOptions options(double fs) {
+  DetectorOptions o;
+  o.fs = fs;
+  o.gain = kGain;
+  return o;
+}
+
+// Every R wave has exactly one detection within `tolerance` samples, and nothing else.
+void expect_one_per_beat(const std::vector<std::int64_t>& got,
+                         const std::vector<std::int64_t>& want, std::int64_t tolerance) {
+  ASSERT_EQ(got.size(), want.size());
+  for (std::size_t i = 0; i < want.size(); ++i)
+    EXPECT_LE(std::llabs(got[i] - want[i]), tolerance) << "beat " << i << " at " << want[i];
+}
+
+std::vector<std::int64_t> chunked(const std::vector<std::int32_t>& x, const DetectorOptions& o,
+                                  std::size_t chunk) {
+  RPeakDetector d(o);
+  std::vector<std::int64_t> peaks;
+  for (std::size_t i = 0; i < x.size(); i += chunk)
+    d.push(x.data() + i, std::min(chunk, x.size() - i), peaks);
+  d.finish(peaks);
+  return peaks;
+}
+
+TEST(RPeak, CleanPeriodicQrsGivesOnePeakPerBeatAtTheRWave) {
+  const Synthetic s = ecg(360, 60);
+  // Within 20 ms of the apex (EC57 allows 150 ms), from the first beat on.
+  expect_one_per_beat(detect_r_peaks(s.samples, options(360)), s.r_waves, 7);
+}
+
+TEST(RPeak, OtherSamplingRates) {
+  for (double fs : {128.0, 250.0, 500.0, 1000.0}) {
+    SCOPED_TRACE(fs);
+    const Synthetic s = ecg(fs, 40);
+    expect_one_per_beat(detect_r_peaks(s.samples, options(fs)), s.r_waves,
+                        std::llround(0.02 * fs) + 1);
+  }
+}
+
+TEST(RPeak, NoiseAndBaselineWanderStillOnePeakPerBeat) {
+  const Synthetic s = ecg(360, 60, 0.03, 0.5);
+  expect_one_per_beat(detect_r_peaks(s.samples, options(360)), s.r_waves, 7);
+}
+
+TEST(RPeak, FlatSignalGivesNoPeaks) {
+  for (std::int32_t level : {0, 1024, -300}) {
+    const std::vector<std::int32_t> flat(360 * 30, level);
+    EXPECT_TRUE(detect_r_peaks(flat, options(360)).empty()) << level;
+  }
+}
+
+TEST(RPeak, NoisyButEmptySignalGivesNoPeaks) {
+  std::mt19937 rng(7);
+  std::normal_distribution<double> noise(0, 0.03 * kGain);  // 30 µV rms
+  std::vector<std::int32_t> x;
+  for (int i = 0; i < 360 * 60; ++i) {
+    const double wander = 0.5 * kGain * std::sin(2 * 3.14159265358979 * 0.25 * i / 360.0);
+    x.push_back(kZero + static_cast<std::int32_t>(std::lround(wander + noise(rng))));
+  }
+  EXPECT_TRUE(detect_r_peaks(x, options(360)).empty());
+}
+
+TEST(RPeak, BeatsAfterAPauseAndAnAmplitudeChange) {
+  // 20 s of beats, 5 s of flat line (sinus arrest), 20 s of beats at a third of the amplitude:
+  // the detector relearns and finds them all, and nothing in the pause.
+  const Synthetic a = ecg(360, 20);
+  Synthetic b = ecg(360, 20);
+  std::vector<std::int32_t> x = a.samples;
+  x.insert(x.end(), 360 * 5, kZero);
+  const auto offset = static_cast<std::int64_t>(x.size());
+  for (std::int32_t v : b.samples) x.push_back(kZero + (v - kZero) / 3);
+  std::vector<std::int64_t> want = a.r_waves;
+  for (std::int64_t r : b.r_waves) want.push_back(r + offset);
+  expect_one_per_beat(detect_r_peaks(x, options(360)), want, 7);
+}
+
+TEST(RPeak, OutputIsIdenticalWhateverTheChunking) {
+  const Synthetic s = ecg(360, 90, 0.05, 0.3);
+  const DetectorOptions o = options(360);
+  const std::vector<std::int64_t> whole = detect_r_peaks(s.samples, o);
+  ASSERT_FALSE(whole.empty());
+  for (std::size_t chunk : {std::size_t{1}, std::size_t{7}, std::size_t{360}, std::size_t{4096},
+                            s.samples.size()})
+    EXPECT_EQ(chunked(s.samples, o, chunk), whole) << "chunk " << chunk;
+}
+
+TEST(RPeak, PeaksAreReportedWithinTheDecisionDelay) {
+  const Synthetic s = ecg(360, 30);
+  RPeakDetector d(options(360));
+  std::vector<std::int64_t> peaks;
+  // After the learning seconds, each beat is out once the stream is decision_delay past it.
+  d.push(s.samples.data(), 360 * 20, peaks);
+  ASSERT_FALSE(peaks.empty());
+  const std::int64_t reported_to = 360 * 20 - d.decision_delay_samples();
+  const auto expected = std::count_if(s.r_waves.begin(), s.r_waves.end(),
+                                      [&](std::int64_t r) { return r + 20 < reported_to; });
+  EXPECT_GE(static_cast<std::int64_t>(peaks.size()), expected);
+  d.finish(peaks);
+  d.push(s.samples.data(), 10, peaks);  // ignored after finish()
+  EXPECT_TRUE(std::is_sorted(peaks.begin(), peaks.end()));
+}
+
+TEST(RPeak, ValidateRejectsUnusableOptions) {
+  EXPECT_TRUE(validate(options(360)).has_value());
+  DetectorOptions o = options(360);
+  o.fs = 0;
+  EXPECT_FALSE(validate(o).has_value());
+  EXPECT_THROW(RPeakDetector{o}, std::invalid_argument);
+  o = options(360);
+  o.lowpass_hz = 200;  // above Nyquist
+  EXPECT_FALSE(validate(o).has_value());
+  o = options(360);
+  o.highpass_hz = 20;  // above the low-pass
+  EXPECT_FALSE(validate(o).has_value());
+  o = options(360);
+  o.threshold_fraction = 1.5;
+  EXPECT_FALSE(validate(o).has_value());
+}
+
+}  // namespace
+}  // namespace tahvel::aggregation
