@@ -119,6 +119,7 @@ class RPeakDetector::Impl {
   void on_candidate(const Peak& p, std::vector<std::int64_t>& out);
   void classify(const Peak& p, std::vector<std::int64_t>& out);
   void searchback(std::int64_t now, std::vector<std::int64_t>& out);
+  bool gap_classified(std::int64_t n) const;
   void accept(const Peak& p, std::vector<std::int64_t>& out);
   bool tick(std::int64_t now);
   bool baseline_shift(std::int64_t at) const;
@@ -232,7 +233,7 @@ void RPeakDetector::Impl::step(std::int32_t x, std::vector<std::int64_t>& out) {
     held_.decided = n;
     on_candidate(held_, out);
   }
-  if (learned_) searchback(n, out);
+  if (learned_ && gap_classified(n)) searchback(n - delay(), out);
   if (tick(n) && !learned_) {
     learned_ = true;
     // Classify what was held back while learning (a handful of peaks), in order.
@@ -291,7 +292,7 @@ bool RPeakDetector::Impl::baseline_shift(std::int64_t at) const {
 }
 
 void RPeakDetector::Impl::classify(const Peak& p, std::vector<std::int64_t>& out) {
-  searchback(p.decided, out);
+  searchback(p.at, out);
   if (baseline_shift(p.at)) return;
   const bool twave = have_qrs_ && p.at - last_qrs_ < twave_ &&
                      p.max_slope < o_.twave_slope_ratio * last_slope_;
@@ -306,9 +307,22 @@ void RPeakDetector::Impl::classify(const Peak& p, std::vector<std::int64_t>& out
   }
 }
 
+// Search-back (Hamilton): when no QRS followed the last one within searchback_rr × the median
+// RR, the largest noise peak in the gap is taken for a missed beat if it reached
+// searchback_fraction × the threshold. Called per sample (once every candidate in the gap has
+// been classified: nothing held, no local maximum pending) and before classifying a candidate
+// that lies beyond the gap.
+// Whether every candidate in the search-back gap after the last QRS has been classified by
+// sample n: none is held or still rising in the integrator with its R wave inside the gap.
+bool RPeakDetector::Impl::gap_classified(std::int64_t n) const {
+  const double gap_end = static_cast<double>(last_qrs_) + o_.searchback_rr * rr_med_;
+  if (holding_ && static_cast<double>(held_.at) <= gap_end) return false;
+  return fmax_ == 0 || static_cast<double>(fmax_at_ - win_ - margin_) > gap_end;
+}
+
 void RPeakDetector::Impl::searchback(std::int64_t now, std::vector<std::int64_t>& out) {
   if (!have_qrs_ || !have_sb_) return;
-  if (now - last_qrs_ <= o_.searchback_rr * rr_med_ + delay()) return;
+  if (now - last_qrs_ <= o_.searchback_rr * rr_med_) return;
   if (sb_.height > o_.searchback_fraction * threshold()) {
     const Peak p = sb_;
     accept(p, out);
