@@ -106,6 +106,7 @@ extern const Command kDumpCommand;
 extern const Command kTakeCommand;
 extern const Command kTailCommand;
 extern const Command kStatsCommand;
+extern const Command kHrvCommand;
 
 int run_init(const Args& args);
 int run_put(const Args& args);
@@ -117,6 +118,7 @@ int run_dump(const Args& args);
 int run_take(const Args& args);
 int run_tail(const Args& args);
 int run_stats(const Args& args);
+int run_hrv(const Args& args);
 
 // Groups triples into items for `load`: one item per subject group (see docs/cli.md).
 std::vector<std::vector<node::Triple>> group_by_subject(std::vector<node::Triple> triples);

@@ -101,6 +101,7 @@ std::span<const Subcommand> subcommands() {
       {&kSubscribeCommand, run_subscribe}, {&kTakeCommand, run_take},
       {&kTailCommand, run_tail},   {&kDumpCommand, run_dump},
       {&kLoadCommand, run_load},   {&kStatsCommand, run_stats},
+      {&kHrvCommand, run_hrv},
   };
   return table;
 }

@@ -374,3 +374,41 @@ TEST_F(Cli, StatsJsonCountsRecordsAndItems) {
 }
 
 }  // namespace
+
+namespace {
+
+std::string mitdb_record(const std::string& name) {
+  const char* env = std::getenv("TAHVEL_MITDB");
+  fs::path dir = env && *env ? fs::path(env) : fs::path(TAHVEL_SOURCE_DIR) / ".." / "shared" / "data" / "mitdb";
+  return (dir / name).string();
+}
+
+TEST_F(Cli, HrvJsonHasBeatsMetricsAndWindows) {
+  Outcome r = run({"hrv", mitdb_record("100"), "--json", "--window", "600"});
+  ASSERT_EQ(r.status, 0) << r.err;
+  for (const char* key : {"\"record\":", "\"fs\":360", "\"beats\":[", "\"mean_nn_ms\":", "\"sdnn_ms\":",
+                          "\"rmssd_ms\":", "\"pnn50_pct\":", "\"mean_hr_bpm\":", "\"lf_ms2\":", "\"hf_ms2\":",
+                          "\"lf_hf\":", "\"sd1_ms\":", "\"sd2_ms\":", "\"nn_count\":", "\"rr_count\":",
+                          "\"windows\":[{\"start_s\":0,\"end_s\":600,"})
+    EXPECT_NE(r.out.find(key), std::string::npos) << key;
+  EXPECT_EQ(lines_of(r.out).size(), 1u);
+}
+
+TEST_F(Cli, HrvEvalScoresAgainstTheReferenceAnnotations) {
+  Outcome r = run({"hrv", mitdb_record("100"), "--eval"});
+  ASSERT_EQ(r.status, 0) << r.err;
+  EXPECT_NE(r.out.find("TP"), std::string::npos);
+  EXPECT_NE(r.out.find("Se"), std::string::npos);
+  EXPECT_NE(r.out.find("+P"), std::string::npos);
+}
+
+TEST_F(Cli, HrvOnAMissingRecordNamesTheFile) {
+  Outcome r = run({"hrv", (tmp_ / "nothing").string()});
+  EXPECT_EQ(r.status, 1);
+  EXPECT_NE(r.err.find("nothing.hea"), std::string::npos) << r.err;
+  Outcome bad = run({"hrv", mitdb_record("100"), "--window", "-5"});
+  EXPECT_EQ(bad.status, 2);
+  EXPECT_NE(bad.err.find("--window"), std::string::npos) << bad.err;
+}
+
+}  // namespace

@@ -1,0 +1,37 @@
+// The HRV chain; see pipeline.h.
+#include "tahvel/aggregation/pipeline.h"
+
+#include "tahvel/aggregation/wfdb.h"
+
+namespace tahvel::aggregation {
+
+Result<HrvReport> hrv_from_samples(const std::vector<std::int32_t>& samples, double fs,
+                                   double gain, const ChainOptions& options) {
+  if (!(options.window_s > 0)) return fail("window: must be a positive number of seconds");
+  if (options.step_s < 0) return fail("step: must not be negative");
+  DetectorOptions detector = options.detector;
+  detector.fs = fs;
+  detector.gain = gain;
+  if (auto valid = validate(detector); !valid) return unexpected(valid.error());
+  HrvReport report;
+  report.fs = fs;
+  report.beats = detect_r_peaks(samples, detector);
+  report.intervals = intervals_from_peaks(report.beats, fs, options.nn);
+  report.metrics = compute_hrv(report.intervals, fs, options.hrv);
+  const double step = options.step_s > 0 ? options.step_s : options.window_s;
+  report.windows = windowed_hrv(report.intervals, fs, options.window_s, step, options.hrv);
+  return report;
+}
+
+Result<HrvReport> hrv_from_record(const std::string& record_path, const ChainOptions& options,
+                                  std::size_t channel) {
+  auto signals = read_signals(record_path);
+  if (!signals) return unexpected(signals.error());
+  if (channel >= signals->samples.size())
+    return fail(record_path + ".hea: no signal " + std::to_string(channel) + " (the record has " +
+                std::to_string(signals->samples.size()) + ")");
+  const SignalInfo& info = signals->header.signals[channel];
+  return hrv_from_samples(signals->samples[channel], signals->header.fs, info.gain, options);
+}
+
+}  // namespace tahvel::aggregation
