@@ -119,7 +119,7 @@ class RPeakDetector::Impl {
   void on_candidate(const Peak& p, std::vector<std::int64_t>& out);
   void classify(const Peak& p, std::vector<std::int64_t>& out);
   void searchback(std::int64_t now, std::vector<std::int64_t>& out);
-  bool gap_classified(std::int64_t n) const;
+  bool gap_classified() const;
   void accept(const Peak& p, std::vector<std::int64_t>& out);
   bool tick(std::int64_t now);
   bool baseline_shift(std::int64_t at) const;
@@ -233,7 +233,7 @@ void RPeakDetector::Impl::step(std::int32_t x, std::vector<std::int64_t>& out) {
     held_.decided = n;
     on_candidate(held_, out);
   }
-  if (learned_ && gap_classified(n)) searchback(n - delay(), out);
+  if (learned_ && gap_classified()) searchback(n - delay(), out);
   if (tick(n) && !learned_) {
     learned_ = true;
     // Classify what was held back while learning (a handful of peaks), in order.
@@ -313,8 +313,8 @@ void RPeakDetector::Impl::classify(const Peak& p, std::vector<std::int64_t>& out
 // been classified: nothing held, no local maximum pending) and before classifying a candidate
 // that lies beyond the gap.
 // Whether every candidate in the search-back gap after the last QRS has been classified by
-// sample n: none is held or still rising in the integrator with its R wave inside the gap.
-bool RPeakDetector::Impl::gap_classified(std::int64_t n) const {
+// now: none is held or still rising in the integrator with its R wave inside the gap.
+bool RPeakDetector::Impl::gap_classified() const {
   const double gap_end = static_cast<double>(last_qrs_) + o_.searchback_rr * rr_med_;
   if (holding_ && static_cast<double>(held_.at) <= gap_end) return false;
   return fmax_ == 0 || static_cast<double>(fmax_at_ - win_ - margin_) > gap_end;
