@@ -1,0 +1,267 @@
+// HRV metrics (hrv.h): hand-computed time-domain cases, guards, Lomb-Scargle against a naive
+// implementation and on modulated series, windows batch vs streaming.
+#include <gtest/gtest.h>
+
+#include <cmath>
+#include <random>
+
+#include "tahvel/aggregation/hrv.h"
+
+namespace tahvel::aggregation {
+namespace {
+
+constexpr double kPi = 3.14159265358979323846;
+
+// A chain of intervals (samples) from a start sample; nn flags per interval.
+std::vector<Interval> chain(const std::vector<std::int64_t>& rr, const std::vector<bool>& nn,
+                            std::int64_t start = 0) {
+  std::vector<Interval> v;
+  for (std::size_t i = 0; i < rr.size(); ++i) {
+    v.push_back({start, start + rr[i], nn.empty() ? true : nn[i]});
+    start += rr[i];
+  }
+  return v;
+}
+
+TEST(Hrv, TimeDomainByHand) {
+  // fs 1000: samples are ms. NN 800 810 790 830; mean 807.5; deviations -7.5 2.5 -17.5 22.5,
+  // squares sum 875, / (n - 1) = 291.667; differences 10 -20 40, squares sum 2100, / 3 = 700.
+  const HrvMetrics m = compute_hrv(chain({800, 810, 790, 830}, {}), 1000);
+  EXPECT_EQ(m.nn_count, 4u);
+  EXPECT_EQ(m.rr_count, 4u);
+  EXPECT_DOUBLE_EQ(*m.mean_nn_ms, 807.5);
+  EXPECT_NEAR(*m.sdnn_ms, std::sqrt(875.0 / 3), 1e-9);
+  EXPECT_NEAR(*m.rmssd_ms, std::sqrt(700.0), 1e-9);
+  EXPECT_NEAR(*m.mean_hr_bpm, 60000.0 / 807.5, 1e-9);
+  EXPECT_DOUBLE_EQ(*m.pnn50_pct, 0.0);
+  // SD1^2 = var(10, -20, 40) / 2 = 900 / 2; SD2^2 = 2 * 291.667 - 450.
+  EXPECT_NEAR(*m.sd1_ms, std::sqrt(450.0), 1e-9);
+  EXPECT_NEAR(*m.sd2_ms, std::sqrt(2 * 875.0 / 3 - 450), 1e-9);
+  EXPECT_FALSE(m.lf_ms2);
+  EXPECT_FALSE(m.hf_ms2);
+  EXPECT_FALSE(m.lf_hf);
+}
+
+TEST(Hrv, RmssdOnlyOverAdjacentNn) {
+  // The 300 between 810 and 790 is not NN: the difference 790 - 810 is not taken.
+  const HrvMetrics m = compute_hrv(chain({800, 810, 300, 790, 830}, {true, true, false, true, true}), 1000);
+  EXPECT_EQ(m.nn_count, 4u);
+  EXPECT_EQ(m.rr_count, 5u);
+  EXPECT_NEAR(*m.sdnn_ms, std::sqrt(875.0 / 3), 1e-9);
+  EXPECT_NEAR(*m.rmssd_ms, std::sqrt((100.0 + 1600.0) / 2), 1e-9);
+}
+
+TEST(Hrv, IntervalsThatDoNotShareABeatAreNotAdjacent) {
+  auto v = chain({800, 810, 790}, {});
+  v[2].start += 5;  // a cut series: 790 does not start where 810 ended
+  v[2].end += 5;
+  const HrvMetrics m = compute_hrv(v, 1000);
+  EXPECT_FALSE(m.rmssd_ms);  // one adjacent difference only
+}
+
+TEST(Hrv, Pnn50ComparesIntegerSamples) {
+  // At 360 Hz, 50 ms is 18 samples: a difference of 18 does not count, 19 does.
+  const HrvMetrics m = compute_hrv(chain({300, 318, 337}, {}), 360);
+  EXPECT_DOUBLE_EQ(*m.pnn50_pct, 50.0);
+  const HrvMetrics none = compute_hrv(chain({300, 318, 300}, {}), 360);
+  EXPECT_DOUBLE_EQ(*none.pnn50_pct, 0.0);
+  const HrvMetrics all = compute_hrv(chain({300, 319, 300}, {}), 360);
+  EXPECT_DOUBLE_EQ(*all.pnn50_pct, 100.0);
+}
+
+TEST(Hrv, GuardsGiveNullopt) {
+  const HrvMetrics empty = compute_hrv({}, 360);
+  EXPECT_FALSE(empty.mean_nn_ms);
+  EXPECT_FALSE(empty.sdnn_ms);
+  const HrvMetrics one = compute_hrv(chain({300}, {}), 360);
+  EXPECT_TRUE(one.mean_nn_ms);
+  EXPECT_FALSE(one.sdnn_ms);
+  EXPECT_FALSE(one.rmssd_ms);
+  const HrvMetrics two = compute_hrv(chain({300, 310}, {}), 360);
+  EXPECT_TRUE(two.sdnn_ms);
+  EXPECT_FALSE(two.rmssd_ms);  // one difference
+  EXPECT_FALSE(two.pnn50_pct);
+  EXPECT_FALSE(two.sd1_ms);
+  const HrvMetrics none_nn = compute_hrv(chain({300, 310}, {false, false}), 360);
+  EXPECT_EQ(none_nn.nn_count, 0u);
+  EXPECT_FALSE(none_nn.mean_hr_bpm);
+  EXPECT_FALSE(compute_hrv(chain({300, 310, 320}, {}), 0).mean_nn_ms);
+  // 90 s of NN data: HF yes, LF (2 min) no.
+  std::vector<std::int64_t> rr(90, 1000);
+  for (std::size_t i = 0; i < rr.size(); i += 2) rr[i] += 20;
+  const HrvMetrics short_rec = compute_hrv(chain(rr, {}), 1000);
+  EXPECT_TRUE(short_rec.hf_ms2);
+  EXPECT_FALSE(short_rec.lf_ms2);
+  EXPECT_FALSE(short_rec.lf_hf);
+}
+
+// Beats whose RR follows 800 + amp * sin(2 pi f t) ms (t in s), for duration_s, at 1000 Hz.
+std::vector<Interval> modulated(double f_hz, double amp_ms, double duration_s) {
+  std::vector<std::int64_t> rr;
+  double t = 0;
+  while (t < duration_s) {
+    const double r = 800 + amp_ms * std::sin(2 * kPi * f_hz * t);
+    rr.push_back(std::llround(r));
+    t += static_cast<double>(rr.back()) / 1000;
+  }
+  return chain(rr, {});
+}
+
+TEST(LombScargle, PowerAt0_1HzIsLf) {
+  const HrvMetrics m = compute_hrv(modulated(0.1, 50, 300), 1000);
+  ASSERT_TRUE(m.lf_ms2 && m.hf_ms2);
+  const double var = *m.sdnn_ms * *m.sdnn_ms;  // about 50^2 / 2
+  EXPECT_NEAR(*m.lf_ms2 + *m.hf_ms2, var, 0.1 * var);
+  EXPECT_GT(*m.lf_ms2, 20 * *m.hf_ms2);
+  EXPECT_GT(*m.lf_hf, 20);
+}
+
+TEST(LombScargle, PowerAt0_25HzIsHf) {
+  const HrvMetrics m = compute_hrv(modulated(0.25, 30, 300), 1000);
+  ASSERT_TRUE(m.lf_ms2 && m.hf_ms2);
+  const double var = *m.sdnn_ms * *m.sdnn_ms;
+  EXPECT_NEAR(*m.lf_ms2 + *m.hf_ms2, var, 0.1 * var);
+  EXPECT_GT(*m.hf_ms2, 20 * *m.lf_ms2);
+}
+
+// Random RR with gaps: the density integrates to the (population) variance up to Nyquist.
+TEST(LombScargle, TotalPowerIsTheVariance) {
+  std::mt19937 gen(7);
+  std::normal_distribution<double> noise(0, 40);
+  std::vector<double> t, y;
+  double now = 0;
+  for (int i = 0; i < 600; ++i) {
+    const double r = 800 + noise(gen);
+    now += r / 1000;
+    if (i % 37 == 5) continue;  // a gap: this interval is not NN
+    t.push_back(now);
+    y.push_back(r);
+  }
+  double m = 0, var = 0;
+  for (double v : y) m += v;
+  m /= static_cast<double>(y.size());
+  for (double v : y) var += (v - m) * (v - m);
+  var /= static_cast<double>(y.size());
+  const double nyquist = 0.5 / 0.8, df = 1.0 / (4 * (t.back() - t.front()));
+  const auto count = static_cast<std::size_t>(nyquist / df);
+  const auto psd = lomb_scargle_density(t, y, df / 2, df, count);
+  double total = 0;
+  for (double p : psd) total += p * df;
+  EXPECT_NEAR(total, var, 0.1 * var);
+}
+
+// Naive Lomb-Scargle straight from the definition, with trig calls at every point.
+double naive_density(const std::vector<double>& t, const std::vector<double>& y, double f) {
+  const std::size_t n = t.size();
+  double mean = 0;
+  for (double v : y) mean += v;
+  mean /= static_cast<double>(n);
+  const double w = 2 * kPi * f;
+  double s2 = 0, c2 = 0;
+  for (double tj : t) {
+    s2 += std::sin(2 * w * (tj - t[0]));
+    c2 += std::cos(2 * w * (tj - t[0]));
+  }
+  const double tau = std::atan2(s2, c2) / (2 * w);
+  double yc = 0, ys = 0, cc = 0, ss = 0;
+  for (std::size_t j = 0; j < n; ++j) {
+    const double a = w * (t[j] - t[0] - tau);
+    yc += (y[j] - mean) * std::cos(a);
+    ys += (y[j] - mean) * std::sin(a);
+    cc += std::cos(a) * std::cos(a);
+    ss += std::sin(a) * std::sin(a);
+  }
+  const double p = 0.5 * (yc * yc / cc + ys * ys / ss);
+  const double span = (t[n - 1] - t[0]) * static_cast<double>(n) / static_cast<double>(n - 1);
+  return p * 2 * span / static_cast<double>(n);
+}
+
+TEST(LombScargle, MatchesNaiveImplementation) {
+  std::mt19937 gen(11);
+  std::uniform_real_distribution<double> rr(0.6, 1.1), val(700, 900);
+  std::vector<double> t, y;
+  double now = 0;
+  for (int i = 0; i < 400; ++i) {
+    now += rr(gen);
+    t.push_back(now);
+    y.push_back(val(gen));
+  }
+  const double f0 = 0.0123, df = 0.0017;
+  const std::size_t count = 230;
+  const auto fast = lomb_scargle_density(t, y, f0, df, count);
+  for (std::size_t k = 0; k < count; ++k) {
+    const double want = naive_density(t, y, f0 + static_cast<double>(k) * df);
+    EXPECT_NEAR(fast[k], want, 1e-7 * std::max(1.0, want)) << k;
+  }
+}
+
+std::vector<Interval> noisy_series(int n, unsigned seed) {
+  std::mt19937 gen(seed);
+  std::normal_distribution<double> noise(0, 30);
+  std::uniform_int_distribution<int> pick(0, 19);
+  std::vector<std::int64_t> rr;
+  std::vector<bool> nn;
+  for (int i = 0; i < n; ++i) {
+    rr.push_back(std::llround(288 + noise(gen)));
+    nn.push_back(pick(gen) != 0);
+  }
+  return chain(rr, nn, 4321);
+}
+
+void expect_same(const std::vector<WindowMetrics>& a, const std::vector<WindowMetrics>& b) {
+  ASSERT_EQ(a.size(), b.size());
+  for (std::size_t i = 0; i < a.size(); ++i) {
+    EXPECT_EQ(a[i].start_s, b[i].start_s) << i;
+    EXPECT_EQ(a[i].end_s, b[i].end_s) << i;
+    EXPECT_EQ(a[i].metrics.rr_count, b[i].metrics.rr_count) << i;
+    EXPECT_EQ(a[i].metrics.nn_count, b[i].metrics.nn_count) << i;
+    EXPECT_EQ(a[i].metrics.sdnn_ms, b[i].metrics.sdnn_ms) << i;
+    EXPECT_EQ(a[i].metrics.rmssd_ms, b[i].metrics.rmssd_ms) << i;
+    EXPECT_EQ(a[i].metrics.hf_ms2, b[i].metrics.hf_ms2) << i;
+    EXPECT_EQ(a[i].metrics.lf_ms2, b[i].metrics.lf_ms2) << i;
+  }
+}
+
+TEST(Windows, StreamingEqualsBatch) {
+  const auto series = noisy_series(1500, 3);
+  for (auto [window, step] : {std::pair{60.0, 30.0}, std::pair{300.0, 60.0}, std::pair{45.0, 45.0}}) {
+    const auto batch = windowed_hrv(series, 360, window, step);
+    HrvWindower w(360, window, step);
+    std::vector<WindowMetrics> streamed;
+    for (const auto& iv : series) w.push(iv, streamed);
+    w.finish(streamed);
+    expect_same(batch, streamed);
+  }
+}
+
+TEST(Windows, IntervalBelongsToTheWindowOfItsEndBeat) {
+  // fs 1000: intervals end at 0.9, 1.8 (window 1 s) and 2.7 s.
+  const auto w = windowed_hrv(chain({900, 900, 900}, {}), 1000, 1.0, 1.0);
+  ASSERT_EQ(w.size(), 3u);
+  EXPECT_EQ(w[0].metrics.rr_count, 1u);
+  EXPECT_EQ(w[1].metrics.rr_count, 1u);
+  EXPECT_EQ(w[2].metrics.rr_count, 1u);
+  EXPECT_DOUBLE_EQ(w[2].start_s, 2.0);
+  EXPECT_TRUE(windowed_hrv(chain({900}, {}), 1000, 0, 1).empty());
+}
+
+TEST(Windows, StreamingEmitsAWindowWhenAnIntervalPassesItsEnd) {
+  HrvWindower w(1000, 1.0, 1.0);
+  std::vector<WindowMetrics> done;
+  const auto series = chain({900, 900, 900}, {});
+  w.push(series[0], done);
+  EXPECT_TRUE(done.empty());
+  w.push(series[1], done);  // ends at 1.8 s: window [0, 1) is complete
+  ASSERT_EQ(done.size(), 1u);
+  EXPECT_EQ(done[0].metrics.rr_count, 1u);
+  w.set_window(2.0, 2.0);  // from window [1, 3) on
+  w.push(series[2], done);
+  w.finish(done);
+  ASSERT_EQ(done.size(), 2u);
+  EXPECT_DOUBLE_EQ(done[1].start_s, 1.0);
+  EXPECT_DOUBLE_EQ(done[1].end_s, 3.0);
+  EXPECT_EQ(done[1].metrics.rr_count, 2u);
+}
+
+}  // namespace
+}  // namespace tahvel::aggregation

@@ -1,0 +1,128 @@
+// RR/NN rules (rr.h): the reference rule on annotated beats and the RR-only rule on peaks.
+#include <gtest/gtest.h>
+
+#include "tahvel/aggregation/rr.h"
+
+namespace tahvel::aggregation {
+namespace {
+
+std::vector<bool> flags(const std::vector<Interval>& v) {
+  std::vector<bool> f;
+  for (const auto& i : v) f.push_back(i.nn);
+  return f;
+}
+
+TEST(ReferenceRule, BothBeatsMustBeNormal) {
+  const std::vector<Beat> beats{{0, 'N'}, {300, 'L'}, {600, 'V'}, {800, 'R'}, {1100, 'e'},
+                                {1400, 'j'}, {1700, 'A'}};
+  const auto iv = reference_intervals(beats);
+  ASSERT_EQ(iv.size(), 6u);
+  EXPECT_EQ(flags(iv), (std::vector<bool>{true, false, false, true, true, false}));
+  EXPECT_EQ(iv[1].start, 300);
+  EXPECT_EQ(iv[1].end, 600);
+}
+
+TEST(ReferenceRule, ExcludedRangesOverlapTheOpenInterval) {
+  const std::vector<Beat> beats{{0}, {300}, {600}, {900}, {1200}};
+  // A marker strictly inside (450), a range touching only beat 900 from the right side,
+  // and an unreadable stretch covering beat 1200's interval.
+  const auto iv = reference_intervals(beats, {{450, 450}, {900, 900}, {1000, 5000}});
+  EXPECT_EQ(flags(iv), (std::vector<bool>{true, false, true, false}));
+}
+
+TEST(ReferenceRule, FewerThanTwoBeatsGiveNothing) {
+  EXPECT_TRUE(reference_intervals({}).empty());
+  EXPECT_TRUE(reference_intervals({{5, 'N'}}).empty());
+  EXPECT_DOUBLE_EQ(nn_fraction({}), 0.0);
+}
+
+std::vector<std::int64_t> peaks_from_rr(const std::vector<int>& rr) {
+  std::vector<std::int64_t> p{1000};
+  for (int r : rr) p.push_back(p.back() + r);
+  return p;
+}
+
+TEST(DetectedRule, RegularRhythmIsAllNn) {
+  std::vector<int> rr;
+  for (int i = 0; i < 60; ++i) rr.push_back(300 + (i % 5) - 2);
+  const auto iv = intervals_from_peaks(peaks_from_rr(rr), 360);
+  EXPECT_DOUBLE_EQ(nn_fraction(iv), 1.0);
+}
+
+TEST(DetectedRule, PrematureBeatExcludesBothIntervals) {
+  std::vector<int> rr(40, 300);
+  rr[20] = 200;  // premature beat
+  rr[21] = 400;  // compensatory pause
+  const auto iv = intervals_from_peaks(peaks_from_rr(rr), 360);
+  for (std::size_t i = 0; i < iv.size(); ++i) EXPECT_EQ(iv[i].nn, i != 20 && i != 21) << i;
+}
+
+TEST(DetectedRule, SlightlyPrematureBeatWithPauseIsCaught) {
+  std::vector<int> rr(40, 300);
+  rr[20] = 275;  // 8 % early: below short_fraction, but followed by a pause
+  rr[21] = 325;
+  const auto iv = intervals_from_peaks(peaks_from_rr(rr), 360);
+  EXPECT_FALSE(iv[20].nn);
+  EXPECT_FALSE(iv[21].nn);
+  EXPECT_TRUE(iv[22].nn);
+}
+
+TEST(DetectedRule, MissedBeatAndGapAreNotNn) {
+  std::vector<int> rr(40, 300);
+  rr[10] = 600;  // a missed beat
+  rr[25] = 900;  // 2.5 s at 360 Hz: a gap
+  const auto iv = intervals_from_peaks(peaks_from_rr(rr), 360);
+  EXPECT_FALSE(iv[10].nn);
+  EXPECT_FALSE(iv[25].nn);
+  EXPECT_TRUE(iv[11].nn);
+  EXPECT_TRUE(iv[26].nn);
+}
+
+TEST(DetectedRule, SpuriousDetectionSplitsAnInterval) {
+  std::vector<int> rr(40, 300);
+  rr[15] = 120;  // a T wave taken for a beat
+  rr[16] = 180;
+  const auto iv = intervals_from_peaks(peaks_from_rr(rr), 360);
+  EXPECT_FALSE(iv[15].nn);
+  EXPECT_FALSE(iv[16].nn);
+  EXPECT_TRUE(iv[17].nn);
+}
+
+TEST(DetectedRule, GradualRateChangeIsFollowed) {
+  std::vector<int> rr;
+  for (int i = 0; i < 30; ++i) rr.push_back(300);
+  for (int i = 0; i < 30; ++i) rr.push_back(300 - 4 * i);  // 300 -> 184 in 4-sample steps
+  for (int i = 0; i < 30; ++i) rr.push_back(184);
+  const auto iv = intervals_from_peaks(peaks_from_rr(rr), 360);
+  EXPECT_GE(nn_fraction(iv), 0.98);
+}
+
+TEST(DetectedRule, SustainedFastRunIsExcludedThenAdopted) {
+  std::vector<int> rr(20, 300);
+  for (int i = 0; i < 60; ++i) rr.push_back(200);  // an abrupt run 33 % faster
+  const auto iv = intervals_from_peaks(peaks_from_rr(rr), 360);
+  EXPECT_FALSE(iv[20].nn);
+  EXPECT_FALSE(iv[30].nn);
+  EXPECT_TRUE(iv.back().nn);  // after rebase_beats short intervals the run is the new rhythm
+}
+
+TEST(DetectedRule, ExcludedRangesApply) {
+  const std::vector<int> rr(20, 300);
+  const auto peaks = peaks_from_rr(rr);
+  const auto iv = intervals_from_peaks(peaks, 360, {}, {{peaks[5] + 1, peaks[5] + 2}});
+  EXPECT_FALSE(iv[5].nn);
+  EXPECT_TRUE(iv[4].nn);
+  EXPECT_TRUE(iv[6].nn);
+}
+
+TEST(DetectedRule, DegenerateInput) {
+  EXPECT_TRUE(intervals_from_peaks({}, 360).empty());
+  EXPECT_TRUE(intervals_from_peaks({7}, 360).empty());
+  EXPECT_TRUE(intervals_from_peaks({1, 2, 3}, 0).empty());
+  const auto iv = intervals_from_peaks({100, 100, 400}, 360);
+  ASSERT_EQ(iv.size(), 2u);
+  EXPECT_FALSE(iv[0].nn);
+}
+
+}  // namespace
+}  // namespace tahvel::aggregation

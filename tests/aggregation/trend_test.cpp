@@ -1,0 +1,78 @@
+// Trends (trend.h): baseline, slope, alerts and the cross-patient z-score on synthetic series.
+#include <gtest/gtest.h>
+
+#include <cmath>
+
+#include "tahvel/aggregation/trend.h"
+
+namespace tahvel::aggregation {
+namespace {
+
+std::vector<TrendPoint> series(const std::vector<double>& values, double step_s = 300) {
+  std::vector<TrendPoint> p;
+  for (std::size_t i = 0; i < values.size(); ++i) p.push_back({static_cast<double>(i) * step_s, values[i]});
+  return p;
+}
+
+TEST(Trend, BaselineIsTheMedianWithMadScale) {
+  const auto s = analyse_trend(series({50, 52, 48, 51, 49, 100, 50, 51}));
+  ASSERT_TRUE(s.baseline);
+  EXPECT_DOUBLE_EQ(*s.baseline, 50.5);  // median of the first 6: the 100 does not drag it
+  // |deviations| 0.5 1.5 2.5 0.5 1.5 49.5 -> MAD 1.5
+  EXPECT_DOUBLE_EQ(*s.robust_sd, 1.4826 * 1.5);
+  EXPECT_DOUBLE_EQ(*s.latest, 51);
+  EXPECT_TRUE(s.alerts.empty());
+}
+
+TEST(Trend, SlopePerHourByLeastSquares) {
+  // 5-minute points rising 1 unit per point: 12 per hour.
+  std::vector<double> v;
+  for (int i = 0; i < 20; ++i) v.push_back(40 + i);
+  const auto s = analyse_trend(series(v));
+  EXPECT_NEAR(*s.slope_per_hour, 12.0, 1e-9);
+  EXPECT_FALSE(analyse_trend(series({3})).slope_per_hour);
+  EXPECT_FALSE(analyse_trend(series({3})).baseline);
+}
+
+TEST(Trend, AlertNeedsConsecutiveDepartures) {
+  // Baseline 50, MAD 1 -> robust SD 1.4826, threshold 4.45 away.
+  std::vector<double> v{49, 51, 50, 49, 51, 50};
+  for (double x : {56.0, 50.0, 57.0, 58.0, 59.0, 60.0, 50.0, 40.0, 41.0, 40.0}) v.push_back(x);
+  const auto s = analyse_trend(series(v));
+  ASSERT_EQ(s.alerts.size(), 2u);
+  EXPECT_EQ(s.alerts[0].first, 8u);
+  EXPECT_EQ(s.alerts[0].last, 11u);
+  EXPECT_EQ(s.alerts[0].direction, 1);
+  EXPECT_EQ(s.alerts[1].first, 13u);
+  EXPECT_EQ(s.alerts[1].last, 15u);
+  EXPECT_EQ(s.alerts[1].direction, -1);
+  EXPECT_TRUE(s.alerting);
+}
+
+TEST(Trend, SideChangeRestartsTheRun) {
+  std::vector<double> v{49, 51, 50, 49, 51, 50, 60, 40, 60, 40};
+  EXPECT_TRUE(analyse_trend(series(v)).alerts.empty());
+}
+
+TEST(Trend, PointsFromWindowsSkipMissingMetrics) {
+  std::vector<WindowMetrics> w(3);
+  w[0].end_s = 300;
+  w[0].metrics.sdnn_ms = 40;
+  w[2].end_s = 900;
+  w[2].metrics.sdnn_ms = 42;
+  const auto p = trend_points(w, HrvMetric::sdnn);
+  ASSERT_EQ(p.size(), 2u);
+  EXPECT_DOUBLE_EQ(p[1].time_s, 900);
+  EXPECT_DOUBLE_EQ(p[1].value, 42);
+  EXPECT_FALSE(metric_value(w[1].metrics, HrvMetric::rmssd));
+}
+
+TEST(Trend, CrossPatientZ) {
+  // others 10 20 30: mean 20, SD 10.
+  EXPECT_DOUBLE_EQ(*cross_patient_z(35, {10, 20, 30}), 1.5);
+  EXPECT_FALSE(cross_patient_z(35, {10}));
+  EXPECT_FALSE(cross_patient_z(35, {10, 10}));
+}
+
+}  // namespace
+}  // namespace tahvel::aggregation

@@ -1,0 +1,86 @@
+// The "must hold" of HRV on MIT-BIH (docs/hrv.md "Agreement on MIT-BIH"): on every record
+// where at least 95 % of the RR intervals are NN by the reference rule (computed from the
+// .atr annotations), SDNN from detected beats (rpeak.h, RR-only NN rule) lies within 2 % and
+// RMSSD within 4 % of the reference values. One test per record; records that do not qualify
+// are skipped.
+#include <gtest/gtest.h>
+
+#include <cmath>
+#include <cstdio>
+
+#include "../aggregation/mitdb_support.h"
+#include "tahvel/aggregation/annotations.h"
+#include "tahvel/aggregation/hrv.h"
+#include "tahvel/aggregation/rpeak.h"
+#include "tahvel/aggregation/rr.h"
+#include "tahvel/aggregation/wfdb.h"
+
+namespace tahvel::aggregation {
+namespace {
+
+using testing::mitdb_record;
+using testing::mitdb_records;
+
+struct Reference {
+  std::vector<Interval> intervals;
+  std::vector<SampleRange> unreadable;
+};
+
+// The reference rule from the annotations: beats by is_beat(); excluded are the unreadable
+// intervals, the flutter episodes ('[' to ']') and every '[', ']' and '!' marker.
+Reference reference_from(const std::vector<Annotation>& ann, std::int64_t record_end) {
+  Reference ref;
+  ref.unreadable = unreadable_intervals(ann, record_end);
+  std::vector<SampleRange> excluded = ref.unreadable;
+  for (const auto& r : flutter_intervals(ann, record_end)) excluded.push_back(r);
+  std::vector<Beat> beats;
+  for (const Annotation& a : ann) {
+    if (is_beat(a.code)) beats.push_back({a.sample, a.code});
+    if (a.code == '!' || a.code == '[' || a.code == ']') excluded.push_back({a.sample, a.sample});
+  }
+  ref.intervals = reference_intervals(beats, excluded);
+  return ref;
+}
+
+class HrvMitdb : public ::testing::TestWithParam<std::string> {};
+
+TEST_P(HrvMitdb, DetectedBeatsAgreeWithReference) {
+  const std::string path = mitdb_record(GetParam());
+  auto signals = read_signals(path);
+  ASSERT_TRUE(signals) << signals.error().message;
+  auto ann = read_annotations(path);
+  ASSERT_TRUE(ann) << ann.error().message;
+  const double fs = signals->header.fs;
+  const auto record_end = static_cast<std::int64_t>(signals->samples.at(0).size());
+
+  const Reference ref = reference_from(*ann, record_end);
+  const double fraction = nn_fraction(ref.intervals);
+  if (fraction < 0.95) GTEST_SKIP() << GetParam() << ": NN fraction " << fraction << " < 0.95";
+  const HrvMetrics want = compute_hrv(ref.intervals, fs);
+  ASSERT_TRUE(want.sdnn_ms && want.rmssd_ms) << GetParam();
+
+  DetectorOptions options;
+  options.fs = fs;
+  const auto peaks = detect_r_peaks(signals->samples[0], options);
+  // The detected series uses the unreadable intervals too: the scoring conventions leave
+  // them out for every method, and no HRV is claimed over signal nobody can read.
+  const auto detected = intervals_from_peaks(peaks, fs, NnRule{}, ref.unreadable);
+  const HrvMetrics got = compute_hrv(detected, fs);
+  ASSERT_TRUE(got.sdnn_ms && got.rmssd_ms) << GetParam();
+
+  const double sdnn_dev = 100.0 * (*got.sdnn_ms / *want.sdnn_ms - 1);
+  const double rmssd_dev = 100.0 * (*got.rmssd_ms / *want.rmssd_ms - 1);
+  std::printf("record %s NN %.3f/%.3f SDNN %.2f/%.2f ms (%+.2f %%) RMSSD %.2f/%.2f ms (%+.2f %%)%s\n",
+              GetParam().c_str(), fraction, nn_fraction(detected), *want.sdnn_ms, *got.sdnn_ms,
+              sdnn_dev, *want.rmssd_ms, *got.rmssd_ms, rmssd_dev, " qualifies");
+  EXPECT_LE(std::abs(sdnn_dev), 2.0) << GetParam();
+  EXPECT_LE(std::abs(rmssd_dev), 4.0) << GetParam();
+}
+
+std::string record_name(const ::testing::TestParamInfo<std::string>& info) { return "r" + info.param; }
+
+INSTANTIATE_TEST_SUITE_P(Records, HrvMitdb, ::testing::ValuesIn(mitdb_records()), record_name);
+GTEST_ALLOW_UNINSTANTIATED_PARAMETERIZED_TEST(HrvMitdb);
+
+}  // namespace
+}  // namespace tahvel::aggregation
