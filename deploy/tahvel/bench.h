@@ -1,4 +1,4 @@
-// `tahvel bench store`: the store benchmark, implemented in bench_store.cpp.
+// `tahvel bench store` (bench_store.cpp) and `tahvel bench hrv` (bench_hrv.cpp).
 #pragma once
 
 #include <string>
@@ -7,5 +7,6 @@
 namespace tahvel::cli {
 
 int bench_store_main(const std::vector<std::string>& args);
+int bench_hrv_main(const std::vector<std::string>& args);
 
 }  // namespace tahvel::cli

@@ -412,3 +412,16 @@ TEST_F(Cli, HrvOnAMissingRecordNamesTheFile) {
 }
 
 }  // namespace
+
+namespace {
+
+TEST_F(Cli, BenchHrvQuickJsonHasEveryFigure) {
+  setenv("TAHVEL_MITDB", fs::path(mitdb_record("RECORDS")).parent_path().c_str(), 1);
+  Outcome r = run({"bench", "hrv", "--quick", "--json"});
+  ASSERT_EQ(r.status, 0) << r.err;
+  for (const char* key : {"\"detector_x_realtime\":", "\"chain_x_realtime\":", "\"raw_bytes_per_patient_hour\":",
+                          "\"up_bytes_per_patient_hour\":", "\"reduction_ratio\":"})
+    EXPECT_NE(r.out.find(key), std::string::npos) << key << " in " << r.out;
+}
+
+}  // namespace

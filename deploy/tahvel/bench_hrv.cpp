@@ -1,0 +1,196 @@
+// `tahvel bench hrv`: speed of the detector and of the whole chain (samples -> HRV) as a
+// multiple of real time on one core, over real MIT-BIH records; and what stays home against
+// what goes up: bytes of raw ECG kept in a node store per patient-hour, against bytes of HRV
+// items (N-Triples, as on the wire) sent up per patient-hour.
+#include <unistd.h>
+
+#include <chrono>
+#include <cstdio>
+#include <cstdlib>
+#include <filesystem>
+#include <fstream>
+#include <sstream>
+#include <string>
+#include <vector>
+
+#include "args.h"
+#include "bench.h"
+#include "tahvel/aggregation/items.h"
+#include "tahvel/aggregation/pipeline.h"
+#include "tahvel/aggregation/wfdb.h"
+#include "tahvel/node/format.h"
+#include "tahvel/node/node.h"
+
+namespace tahvel::cli {
+namespace {
+
+namespace agg = tahvel::aggregation;
+namespace fs = std::filesystem;
+using Clock = std::chrono::steady_clock;
+
+const char* kUsage =
+    "usage: tahvel bench hrv [--json] [--quick] [--records N]\n"
+    "  --json       print one JSON object instead of the table\n"
+    "  --quick      three records, for smoke tests\n"
+    "  --records N  the first N records of $TAHVEL_MITDB/RECORDS (default: all)\n"
+    "Records are read from $TAHVEL_MITDB (default ../shared/data/mitdb).\n";
+
+struct Options {
+  bool json = false;
+  std::size_t records = 0;  // 0: all
+};
+
+fs::path mitdb_dir() {
+  const char* env = std::getenv("TAHVEL_MITDB");
+  return env && *env ? fs::path(env) : fs::path("../shared/data/mitdb");
+}
+
+std::vector<std::string> record_names(const fs::path& dir, std::size_t limit) {
+  std::ifstream in(dir / "RECORDS");
+  if (!in) fail("bench hrv: no " + (dir / "RECORDS").string() + " (set TAHVEL_MITDB to the MIT-BIH directory)");
+  std::vector<std::string> names;
+  for (std::string line; std::getline(in, line) && (limit == 0 || names.size() < limit);) {
+    while (!line.empty() && (line.back() == '\r' || line.back() == ' ')) line.pop_back();
+    if (!line.empty()) names.push_back(line);
+  }
+  return names;
+}
+
+double seconds_since(Clock::time_point start) {
+  return std::chrono::duration<double>(Clock::now() - start).count();
+}
+
+struct Speed {
+  double signal_s = 0, detector_s = 0, chain_s = 0;
+};
+
+Speed measure_speed(const std::vector<agg::Signals>& records) {
+  Speed speed;
+  for (const agg::Signals& r : records) {
+    const auto& lead = r.samples[0];
+    speed.signal_s += static_cast<double>(lead.size()) / r.header.fs;
+    agg::DetectorOptions detector;
+    detector.fs = r.header.fs;
+    detector.gain = r.header.signals[0].gain;
+    auto start = Clock::now();
+    auto peaks = agg::detect_r_peaks(lead, detector);
+    speed.detector_s += seconds_since(start);
+    start = Clock::now();
+    auto report = agg::hrv_from_samples(lead, r.header.fs, r.header.signals[0].gain);
+    speed.chain_s += seconds_since(start);
+    if (!report || report->beats.size() != peaks.size()) fail("bench hrv: the chain and the detector disagree");
+  }
+  return speed;
+}
+
+agg::RecordingInfo recording_of(const agg::Signals& r, const std::string& name) {
+  agg::RecordingInfo info;
+  info.sensor_iri = "http://example.org/home1/ecg";
+  info.iri = info.sensor_iri + "/recording/" + name;
+  info.fs = r.header.fs;
+  info.gain = r.header.signals[0].gain;
+  info.baseline = r.header.signals[0].baseline;
+  for (const auto& s : r.header.signals) info.leads.push_back(s.description);
+  info.source = "mitdb/" + name;
+  return info;
+}
+
+// Bytes a home node keeps for the record's raw ECG (1-second chunks of every lead, as the ECG
+// source agent stores them), scaled to one hour.
+double raw_bytes_per_hour(const agg::Signals& r, const agg::RecordingInfo& info) {
+  char pattern[] = "/tmp/tahvel-bench-hrv-XXXXXX";
+  if (!mkdtemp(pattern)) fail("bench hrv: cannot make a scratch directory");
+  const fs::path dir = fs::path(pattern) / "home";
+  double per_hour = 0;
+  {
+    auto node = node::Node::init(dir, node::InitOptions{.iri = "http://example.org/home1"});
+    if (!node) fail(node.error().message);
+    auto agent = node->agent("ecg");
+    if (!agent) fail(agent.error().message);
+    if (auto s = agent->store(agg::recording_item(info)); !s) fail(s.error().message);
+    const auto before = node->stats()->used_bytes;
+    const std::size_t frames = r.samples[0].size(), chunk = static_cast<std::size_t>(r.header.fs);
+    for (std::size_t at = 0; at < frames; at += chunk) {
+      auto stored = agent->store(agg::ecg_chunk_item(info, static_cast<std::int64_t>(at), r.samples, at,
+                                                     std::min(chunk, frames - at)));
+      if (!stored) fail(stored.error().message);
+    }
+    const double hours = static_cast<double>(frames) / r.header.fs / 3600;
+    per_hour = static_cast<double>(node->stats()->used_bytes - before) / hours;
+  }
+  fs::remove_all(pattern);
+  return per_hour;
+}
+
+// Bytes of the HRV window items (5-minute windows) as N-Triples, scaled to one hour.
+double up_bytes_per_hour(const agg::Signals& r, const agg::RecordingInfo& info) {
+  auto report = agg::hrv_from_samples(r.samples[0], r.header.fs, r.header.signals[0].gain);
+  if (!report) fail(report.error().message);
+  std::ostringstream wire;
+  {
+    node::RecordWriter writer(wire, node::Format::ntriples);
+    for (const auto& window : report->windows)
+      for (const auto& t : agg::hrv_window_item(info, window, "http://example.org/home1/hrv").triples)
+        writer.write(t);
+  }
+  const double hours = static_cast<double>(r.samples[0].size()) / r.header.fs / 3600;
+  return static_cast<double>(wire.str().size()) / hours;
+}
+
+}  // namespace
+
+int bench_hrv_main(const std::vector<std::string>& args) {
+  Options options;
+  for (std::size_t i = 0; i < args.size(); ++i) {
+    if (args[i] == "--help" || args[i] == "-h") {
+      std::fputs(kUsage, stdout);
+      return kExitOk;
+    } else if (args[i] == "--json") {
+      options.json = true;
+    } else if (args[i] == "--quick") {
+      options.records = 3;
+    } else if (args[i] == "--records" && i + 1 < args.size()) {
+      auto n = parse_u64(args[++i]);
+      if (!n || *n == 0) usage_error("bench hrv: --records: expected a positive integer");
+      options.records = *n;
+    } else {
+      usage_error("bench hrv: unknown argument '" + args[i] + "'\n" + kUsage);
+    }
+  }
+  const fs::path dir = mitdb_dir();
+  const auto names = record_names(dir, options.records);
+  std::vector<agg::Signals> records;
+  for (const auto& name : names) {
+    auto signals = agg::read_signals((dir / name).string());
+    if (!signals) fail(signals.error().message);
+    records.push_back(std::move(*signals));
+  }
+  if (records.empty()) fail("bench hrv: no records in " + dir.string());
+  const Speed speed = measure_speed(records);
+  const auto info = recording_of(records.front(), names.front());
+  const double raw = raw_bytes_per_hour(records.front(), info);
+  const double up = up_bytes_per_hour(records.front(), info);
+  const double detector_x = speed.signal_s / speed.detector_s, chain_x = speed.signal_s / speed.chain_s;
+  const double samples_per_s = speed.signal_s * records.front().header.fs / speed.chain_s;
+  if (options.json) {
+    std::printf(
+        "{\"records\":%zu,\"signal_hours\":%.4f,\"detector_x_realtime\":%.0f,\"chain_x_realtime\":%.0f,"
+        "\"chain_samples_per_s\":%.0f,\"raw_bytes_per_patient_hour\":%.0f,\"up_bytes_per_patient_hour\":%.0f,"
+        "\"reduction_ratio\":%.1f,\"target_chain_x_realtime\":20000,\"target_chain_met\":%d}\n",
+        records.size(), speed.signal_s / 3600, detector_x, chain_x, samples_per_s, raw, up, raw / up,
+        chain_x >= 20000 ? 1 : 0);
+  } else {
+    std::printf("tahvel bench hrv: %zu records, %.2f hours of ECG (first lead), one core\n\n", records.size(),
+                speed.signal_s / 3600);
+    std::printf("detector            %10.0f x real time\n", detector_x);
+    std::printf("whole chain         %10.0f x real time (%.1f M samples/s)   target >= 20000  %s\n", chain_x,
+                samples_per_s / 1e6, chain_x >= 20000 ? "met" : "NOT met");
+    std::printf("raw ECG at home     %10.0f bytes per patient-hour (record %s, all leads, 1 s chunks)\n", raw,
+                names.front().c_str());
+    std::printf("HRV items sent up   %10.0f bytes per patient-hour (5-min windows, N-Triples)\n", up);
+    std::printf("reduction           %10.1f x\n", raw / up);
+  }
+  return kExitOk;
+}
+
+}  // namespace tahvel::cli
