@@ -112,6 +112,7 @@ class RPeakDetector::Impl {
     double max_slope = 0;      // steepest band-passed slope in the QRS window (T-wave test)
     std::int64_t at = 0;       // the R wave: extremum of the band-passed QRS, delay-corrected
     std::int64_t decided = 0;  // sample at which the hold ended
+    double balance = 0;        // (R − S) / (R + S) on the original signal, for the polarity
   };
 
   void step(std::int32_t x, std::vector<std::int64_t>& out);
@@ -123,6 +124,7 @@ class RPeakDetector::Impl {
   void accept(const Peak& p, std::vector<std::int64_t>& out);
   bool tick(std::int64_t now);
   bool baseline_shift(std::int64_t at) const;
+  std::int64_t fiducial(std::int64_t qrs, double& balance) const;
   double threshold() const { return noise_med_ + frac_ * (qrs_med_ - noise_med_); }
   double bp(std::int64_t i) const { return bp_[i & kMask]; }
   double slope(std::int64_t i) const { return d_[i & kMask]; }
@@ -136,6 +138,7 @@ class RPeakDetector::Impl {
   std::int64_t win_, hold_, fpeak_timeout_, twave_, second_, relearn_, margin_, deriv_,
       bls_half_, bls_pair_;
   double bp_delay_, min_p2p_, frac_;
+  std::int64_t refine_;
 
   // Filters and the integration.
   Biquad hp_, lp_;
@@ -165,6 +168,7 @@ class RPeakDetector::Impl {
   double last_slope_ = 0;
   bool have_sb_ = false;
   Peak sb_;
+  double polarity_ = 0;  // running mean of the R-vs-S balance of recent beats, in [-1, 1]
   std::int64_t last_out_ = -1;
   bool finished_ = false;
 };
@@ -184,6 +188,7 @@ RPeakDetector::Impl::Impl(const DetectorOptions& o)
       bp_delay_(0),
       min_p2p_(o.min_qrs_mv * o.gain),
       frac_(o.threshold_fraction),
+      refine_(samples(50, o.fs)),
       hp_(butterworth(o.highpass_hz, o.fs, true)),
       lp_(butterworth(o.lowpass_hz, o.fs, false)) {
   bp_delay_ = group_delay(hp_, lp_, std::sqrt(o.highpass_hz * o.lowpass_hz), o.fs);
@@ -259,12 +264,37 @@ void RPeakDetector::Impl::on_fpeak(double height, std::int64_t at) {
   Peak p;
   p.height = height;
   p.max_slope = max_slope;
-  p.at = std::max<std::int64_t>(0, best_at - std::llround(bp_delay_));
+  p.at = fiducial(std::max<std::int64_t>(0, best_at - std::llround(bp_delay_)), p.balance);
   if (!holding_ || height > held_.height) {
     held_ = p;
     holding_ = true;
     hold_left_ = hold_;
   }
+}
+
+// The R wave on the original signal: the dominant extremum within ±50 ms of the band-passed
+// QRS, measured from the mean of the two window ends (a local baseline). The dominant polarity
+// of the lead (a running mean over beats) decides between an R and an S wave of similar size,
+// so consecutive beats of one morphology get the same fiducial point and RR intervals do not
+// jitter by an R–S distance; a wave of the other polarity wins only when twice as large.
+// `balance` gets (R − S) / (R + S) of this complex; accept() folds it into the polarity.
+std::int64_t RPeakDetector::Impl::fiducial(std::int64_t qrs, double& balance) const {
+  const std::int64_t lo = std::max<std::int64_t>(0, qrs - refine_);
+  const std::int64_t hi = std::min<std::int64_t>(n_, qrs + refine_);
+  if (hi - lo < 2) return qrs;
+  const double base = (raw(lo) + raw(hi)) / 2;
+  double up = 0, down = 0;
+  std::int64_t up_at = qrs, down_at = qrs;
+  for (std::int64_t i = lo; i <= hi; ++i) {
+    const double v = raw(i) - base;
+    if (v > up) up = v, up_at = i;
+    if (v < down) down = v, down_at = i;
+  }
+  down = -down;
+  if (up + down <= 0) return qrs;
+  const bool positive = polarity_ >= 0 ? !(down > 2 * up) : (up > 2 * down);
+  balance = (up - down) / (up + down);
+  return positive ? up_at : down_at;
 }
 
 void RPeakDetector::Impl::on_candidate(const Peak& p, std::vector<std::int64_t>& out) {
@@ -339,6 +369,7 @@ void RPeakDetector::Impl::accept(const Peak& p, std::vector<std::int64_t>& out) 
   have_qrs_ = true;
   last_qrs_ = p.at;
   last_slope_ = p.max_slope;
+  polarity_ += 0.1 * (p.balance - polarity_);
   have_sb_ = false;
   seconds_ = 0;
   second_peak_ = 0;
