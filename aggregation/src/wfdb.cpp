@@ -199,11 +199,6 @@ std::int64_t values_in_bytes(int format, std::int64_t bytes) {
   return 2 * (bytes / 3) + (bytes % 3 >= 2 ? 1 : 0);
 }
 
-std::int64_t bytes_for_values(int format, std::int64_t values) {
-  if (format == 16) return 2 * values;
-  return 3 * (values / 2) + (values % 2 ? 2 : 0);
-}
-
 std::int32_t sign12(unsigned v) { return static_cast<std::int32_t>(v & 0x800 ? v | ~0xFFFu : v); }
 
 }  // namespace
@@ -327,9 +322,7 @@ Result<SignalReader> SignalReader::open(const std::string& record_path) {
     if (expected > 0 && found < expected)
       return fail(g->path + ": truncated: expected " + std::to_string(expected) +
                   " samples per signal, found " + std::to_string(found) + " (" +
-                  std::to_string(size) + " bytes, " +
-                  std::to_string(offset + bytes_for_values(g->format, expected * g->count)) +
-                  " needed)");
+                  std::to_string(size) + " bytes)");
     g->in.seekg(offset);
     r.groups_.push_back(std::move(g));
     i = j;

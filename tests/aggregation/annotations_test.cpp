@@ -10,6 +10,7 @@
 #include <cstdint>
 #include <filesystem>
 #include <fstream>
+#include <random>
 #include <string>
 #include <vector>
 
@@ -198,6 +199,23 @@ TEST_F(AnnotTemp, TruncatedRecord100PrefixIsAnErrorNotACrash) {
                           all.size() - 1}) {
     auto a = read_annotations(write(all.substr(0, cut)));
     EXPECT_FALSE(a) << "cut at " << cut;
+  }
+}
+
+TEST_F(AnnotTemp, RandomlyCorruptedRecord100GivesAResultOrAnErrorNeverACrash) {
+  if (!fs::exists(mitdb_dir() / "100.atr")) GTEST_SKIP() << "MIT-BIH not found";
+  std::ifstream in(mitdb_dir() / "100.atr", std::ios::binary);
+  const std::string all((std::istreambuf_iterator<char>(in)), std::istreambuf_iterator<char>());
+  std::mt19937 rng(7);
+  for (int round = 0; round < 200; ++round) {
+    std::string bytes = all;
+    for (int k = 0; k < 8; ++k) bytes[rng() % bytes.size()] = static_cast<char>(rng() & 0xFF);
+    auto a = read_annotations(write(bytes));
+    if (a) {
+      for (const auto& x : *a) ASSERT_GE(x.sample, 0);
+    } else {
+      EXPECT_NE(a.error().message.find("r.atr"), std::string::npos) << a.error().message;
+    }
   }
 }
 

@@ -9,6 +9,7 @@
 #include <cstdint>
 #include <filesystem>
 #include <fstream>
+#include <random>
 #include <string>
 #include <vector>
 
@@ -283,6 +284,34 @@ TEST_F(WfdbTemp, MissingDatIsAnErrorNamingTheFile) {
   auto s = read_signals(record("r"));
   ASSERT_FALSE(s);
   EXPECT_NE(s.error().message.find("missing.dat"), std::string::npos);
+}
+
+TEST_F(WfdbTemp, RandomlyCorruptedHeaderGivesAResultOrAnErrorNeverACrash) {
+  const std::string good =
+      "r 2 360 4\r\nr.dat 212 200 11 1024 995 -22131 0 MLII\r\nr.dat 212 200 11 1024 1011 20052 0 V5\r\n";
+  write("r.dat", std::string(12, '\x11'));
+  std::mt19937 rng(11);
+  const std::string alphabet = "0123456789 +-/()x:.#\r\nabc\xff";
+  for (int round = 0; round < 500; ++round) {
+    std::string text = good;
+    for (int k = 0; k < 3; ++k) text[rng() % text.size()] = alphabet[rng() % alphabet.size()];
+    write("r.hea", text);
+    auto s = read_signals(record("r"));
+    if (s) {
+      for (const auto& v : s->samples) EXPECT_EQ(v.size(), s->samples.front().size());
+    } else {
+      // Every error names a file of the record (the header, or the signal file it names).
+      EXPECT_EQ(s.error().message.rfind(dir_.string(), 0), 0u) << s.error().message;
+    }
+  }
+}
+
+TEST_F(WfdbTemp, HugeSampleCountIsATruncationErrorNotAnAllocation) {
+  write("r.hea", "r 1 360 9000000000000000000\nr.dat 212\n");
+  write("r.dat", std::string(3, '\0'));
+  auto s = read_signals(record("r"));
+  ASSERT_FALSE(s);
+  EXPECT_NE(s.error().message.find("truncated"), std::string::npos) << s.error().message;
 }
 
 TEST_F(WfdbTemp, MultiSegmentRecordIsRefused) {
