@@ -113,6 +113,7 @@ class RPeakDetector::Impl {
     std::int64_t at = 0;       // the R wave: extremum of the band-passed QRS, delay-corrected
     std::int64_t decided = 0;  // sample at which the hold ended
     double balance = 0;        // (R − S) / (R + S) on the original signal, for the polarity
+    bool baseline_shift = false;  // fails the baseline-shift test (decided with the hold)
   };
 
   void step(std::int32_t x, std::vector<std::int64_t>& out);
@@ -126,12 +127,9 @@ class RPeakDetector::Impl {
   bool baseline_shift(std::int64_t at) const;
   std::int64_t fiducial(std::int64_t qrs, double& balance) const;
   double threshold() const { return noise_med_ + frac_ * (qrs_med_ - noise_med_); }
-  double bp(std::int64_t i) const { return bp_[i & kMask]; }
-  double slope(std::int64_t i) const { return d_[i & kMask]; }
-  double raw(std::int64_t i) const { return raw_[i & kMask]; }
-
-  static constexpr std::int64_t kRing = 4096;  // > 2 s at 1000 Hz
-  static constexpr std::int64_t kMask = kRing - 1;
+  double bp(std::int64_t i) const { return bp_[static_cast<std::size_t>(i & mask_)]; }
+  double slope(std::int64_t i) const { return d_[static_cast<std::size_t>(i & mask_)]; }
+  double raw(std::int64_t i) const { return raw_[static_cast<std::size_t>(i & mask_)]; }
 
   // Parameters in samples / adu.
   DetectorOptions o_;
@@ -144,7 +142,10 @@ class RPeakDetector::Impl {
   Biquad hp_, lp_;
   std::int64_t n_ = 0;
   double last_bp_ = 0, sum_ = 0, last_f_ = 0;
-  std::array<double, kRing> bp_{}, d_{}, raw_{};
+  // History rings of at least 4 s (power of two; allocated once): the longest look-back is
+  // the integration window plus the 95 ms peak timeout plus the hold, well under 2 s.
+  std::int64_t mask_;
+  std::vector<double> bp_, d_, raw_;
 
   // Local-maximum finder of the integrated slope (Hamilton's Peak()).
   double fmax_ = 0;
@@ -192,6 +193,12 @@ RPeakDetector::Impl::Impl(const DetectorOptions& o)
       hp_(butterworth(o.highpass_hz, o.fs, true)),
       lp_(butterworth(o.lowpass_hz, o.fs, false)) {
   bp_delay_ = group_delay(hp_, lp_, std::sqrt(o.highpass_hz * o.lowpass_hz), o.fs);
+  std::int64_t ring = 1024;
+  while (ring < 4 * second_) ring *= 2;
+  mask_ = ring - 1;
+  bp_.assign(static_cast<std::size_t>(ring), 0.0);
+  d_.assign(static_cast<std::size_t>(ring), 0.0);
+  raw_.assign(static_cast<std::size_t>(ring), 0.0);
   next_second_ = second_;
   learning_.reserve(128);
 }
@@ -210,13 +217,14 @@ void RPeakDetector::Impl::step(std::int32_t x, std::vector<std::int64_t>& out) {
     hp_.z1 = -hp_.b0 * x;
     hp_.z2 = hp_.b2 * x;
   }
-  raw_[n & kMask] = x;
+  const auto slot = static_cast<std::size_t>(n & mask_);
+  raw_[slot] = x;
   const double b = lp_.step(hp_.step(x));
-  bp_[n & kMask] = b;
+  bp_[slot] = b;
   const double d = std::fabs(b - last_bp_);
   last_bp_ = b;
-  d_[n & kMask] = d;
-  sum_ += d - (n >= win_ ? d_[(n - win_) & kMask] : 0.0);
+  d_[slot] = d;
+  sum_ += d - (n >= win_ ? slope(n - win_) : 0.0);
   const double f = sum_;
 
   // Local maxima of f: released when f falls to half of it or 95 ms pass.
@@ -236,6 +244,7 @@ void RPeakDetector::Impl::step(std::int32_t x, std::vector<std::int64_t>& out) {
   if (holding_ && --hold_left_ <= 0) {
     holding_ = false;
     held_.decided = n;
+    held_.baseline_shift = baseline_shift(held_.at);
     on_candidate(held_, out);
   }
   if (learned_ && gap_classified()) searchback(n - delay(), out);
@@ -280,7 +289,7 @@ void RPeakDetector::Impl::on_fpeak(double height, std::int64_t at) {
 // `balance` gets (R − S) / (R + S) of this complex; accept() folds it into the polarity.
 std::int64_t RPeakDetector::Impl::fiducial(std::int64_t qrs, double& balance) const {
   const std::int64_t lo = std::max<std::int64_t>(0, qrs - refine_);
-  const std::int64_t hi = std::min<std::int64_t>(n_, qrs + refine_);
+  const std::int64_t hi = std::min<std::int64_t>(n_ - 1, qrs + refine_);
   if (hi - lo < 2) return qrs;
   const double base = (raw(lo) + raw(hi)) / 2;
   double up = 0, down = 0;
@@ -323,7 +332,7 @@ bool RPeakDetector::Impl::baseline_shift(std::int64_t at) const {
 
 void RPeakDetector::Impl::classify(const Peak& p, std::vector<std::int64_t>& out) {
   searchback(p.at, out);
-  if (baseline_shift(p.at)) return;
+  if (p.baseline_shift) return;
   const bool twave = have_qrs_ && p.at - last_qrs_ < twave_ &&
                      p.max_slope < o_.twave_slope_ratio * last_slope_;
   if (p.height > threshold() && !twave) {
@@ -352,7 +361,7 @@ bool RPeakDetector::Impl::gap_classified() const {
 
 void RPeakDetector::Impl::searchback(std::int64_t now, std::vector<std::int64_t>& out) {
   if (!have_qrs_ || !have_sb_) return;
-  if (now - last_qrs_ <= o_.searchback_rr * rr_med_) return;
+  if (static_cast<double>(now - last_qrs_) <= o_.searchback_rr * rr_med_) return;
   if (sb_.height > o_.searchback_fraction * threshold()) {
     const Peak p = sb_;
     accept(p, out);
@@ -405,6 +414,7 @@ void RPeakDetector::Impl::finish(std::vector<std::int64_t>& out) {
   if (holding_) {
     holding_ = false;
     held_.decided = n_;
+    held_.baseline_shift = baseline_shift(held_.at);
     on_candidate(held_, out);
   }
   finished_ = true;
