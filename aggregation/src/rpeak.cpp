@@ -136,7 +136,7 @@ class RPeakDetector::Impl {
   std::int64_t win_, hold_, fpeak_timeout_, twave_, second_, relearn_, margin_, deriv_,
       bls_half_, bls_pair_;
   double bp_delay_, min_p2p_, frac_;
-  std::int64_t refine_;
+  std::int64_t refine_before_, refine_after_;
 
   // Filters and the integration.
   Biquad hp_, lp_;
@@ -189,7 +189,8 @@ RPeakDetector::Impl::Impl(const DetectorOptions& o)
       bp_delay_(0),
       min_p2p_(o.min_qrs_mv * o.gain),
       frac_(o.threshold_fraction),
-      refine_(samples(50, o.fs)),
+      refine_before_(samples(50, o.fs)),
+      refine_after_(samples(30, o.fs)),
       hp_(butterworth(o.highpass_hz, o.fs, true)),
       lp_(butterworth(o.lowpass_hz, o.fs, false)) {
   bp_delay_ = group_delay(hp_, lp_, std::sqrt(o.highpass_hz * o.lowpass_hz), o.fs);
@@ -281,15 +282,18 @@ void RPeakDetector::Impl::on_fpeak(double height, std::int64_t at) {
   }
 }
 
-// The R wave on the original signal: the dominant extremum within ±50 ms of the band-passed
-// QRS, measured from the mean of the two window ends (a local baseline). The dominant polarity
+// The R wave on the original signal: the dominant extremum from 50 ms before to 30 ms after the
+// band-passed QRS, measured from the mean of the two window ends (a local baseline). The window
+// looks further back than forward because the band-passed point is, if anything, late: wide
+// complexes carry more energy at low frequencies, which the band-pass delays more than its
+// centre (on paced or V2 leads a symmetric ±50 ms pushed some points past the 150 ms match). The dominant polarity
 // of the lead (a running mean over beats) decides between an R and an S wave of similar size,
 // so consecutive beats of one morphology get the same fiducial point and RR intervals do not
 // jitter by an R–S distance; a wave of the other polarity wins only when twice as large.
 // `balance` gets (R − S) / (R + S) of this complex; accept() folds it into the polarity.
 std::int64_t RPeakDetector::Impl::fiducial(std::int64_t qrs, double& balance) const {
-  const std::int64_t lo = std::max<std::int64_t>(0, qrs - refine_);
-  const std::int64_t hi = std::min<std::int64_t>(n_ - 1, qrs + refine_);
+  const std::int64_t lo = std::max<std::int64_t>(0, qrs - refine_before_);
+  const std::int64_t hi = std::min<std::int64_t>(n_ - 1, qrs + refine_after_);
   if (hi - lo < 2) return qrs;
   const double base = (raw(lo) + raw(hi)) / 2;
   double up = 0, down = 0;

@@ -5,10 +5,10 @@
 // size by an agent; it runs well above 10 M samples/s on one core (docs/rpeak.md).
 //
 // Output: absolute sample indices (0 = first sample pushed) of the R wave of each detected beat,
-// in increasing order. Each is the dominant extremum of the original signal within ±50 ms of the
-// band-passed QRS, of the lead's usual polarity unless the other is twice as large, so beats of
-// one morphology share a fiducial point (on MIT-BIH, 90 % within −11…+6 ms of the reference
-// annotation; EC57 scoring allows 150 ms).
+// in increasing order. Each is the dominant extremum of the original signal from 50 ms before to
+// 30 ms after the band-passed QRS, of the lead's usual polarity unless the other is twice as
+// large, so beats of one morphology share a fiducial point (on MIT-BIH, 90 % within −28…+6 ms
+// of the reference annotation, median 0; EC57 scoring allows 150 ms).
 //
 // Determinism: the detector is a per-sample state machine; every decision uses only samples
 // already pushed, so the peaks reported are IDENTICAL whatever the chunking of the input.
