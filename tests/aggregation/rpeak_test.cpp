@@ -7,6 +7,7 @@
 #include <cmath>
 #include <cstdint>
 #include <cstdlib>
+#include <limits>
 #include <random>
 #include <stdexcept>
 #include <vector>
@@ -161,6 +162,25 @@ TEST(RPeak, PeaksAreReportedWithinTheDecisionDelay) {
   d.finish(peaks);
   d.push(s.samples.data(), 10, peaks);  // ignored after finish()
   EXPECT_TRUE(std::is_sorted(peaks.begin(), peaks.end()));
+}
+
+TEST(RPeak, EmptyShortAndExtremeInputsAreSafe) {
+  EXPECT_TRUE(detect_r_peaks({}, options(360)).empty());
+  EXPECT_TRUE(detect_r_peaks({1024}, options(360)).empty());
+  // Full-scale square wave of the widest int32 range: no crash, no NaN-driven output storm.
+  std::vector<std::int32_t> x;
+  for (int i = 0; i < 360 * 20; ++i)
+    x.push_back((i / 90) % 2 ? std::numeric_limits<std::int32_t>::max()
+                             : std::numeric_limits<std::int32_t>::min());
+  const std::vector<std::int64_t> peaks = detect_r_peaks(x, options(360));
+  EXPECT_LE(peaks.size(), x.size() / 72);  // at most one per 200 ms hold
+  EXPECT_TRUE(std::is_sorted(peaks.begin(), peaks.end()));
+  RPeakDetector d(options(360));
+  std::vector<std::int64_t> out;
+  d.push(x.data(), 0, out);
+  d.finish(out);
+  d.finish(out);  // a second finish() adds nothing
+  EXPECT_TRUE(out.empty());
 }
 
 TEST(RPeak, ValidateRejectsUnusableOptions) {
