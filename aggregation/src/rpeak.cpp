@@ -103,14 +103,19 @@ class RPeakDetector::Impl {
   explicit Impl(const DetectorOptions& o);
   void push(const std::int32_t* s, std::size_t n, std::vector<std::int64_t>& out);
   void finish(std::vector<std::int64_t>& out);
-  std::int64_t delay() const { return win_ + hold_ + fpeak_timeout_; }
+  // R wave to decision: the R wave can lie 50 ms before the band-passed point, which lags it by
+  // the band-pass delay; the integrator peaks up to one window later, is released up to 95 ms
+  // after that, then held.
+  std::int64_t delay() const {
+    return refine_before_ + std::llround(std::ceil(bp_delay_)) + win_ + fpeak_timeout_ + hold_;
+  }
 
  private:
   // A local maximum of the integrated slope, with what classification needs.
   struct Peak {
     double height = 0;         // integrated |slope| (adu), the detection statistic
     double max_slope = 0;      // steepest band-passed slope in the QRS window (T-wave test)
-    std::int64_t at = 0;       // the R wave: extremum of the band-passed QRS, delay-corrected
+    std::int64_t at = 0;       // the R wave on the original signal (fiducial())
     std::int64_t decided = 0;  // sample at which the hold ended
     double balance = 0;        // (R − S) / (R + S) on the original signal, for the polarity
     bool baseline_shift = false;  // fails the baseline-shift test (decided with the hold)
@@ -122,6 +127,7 @@ class RPeakDetector::Impl {
   void classify(const Peak& p, std::vector<std::int64_t>& out);
   void searchback(std::int64_t now, std::vector<std::int64_t>& out);
   bool gap_classified() const;
+  void unfile_noise(std::int64_t at);
   void accept(const Peak& p, std::vector<std::int64_t>& out);
   bool tick(std::int64_t now);
   bool baseline_shift(std::int64_t at) const;
@@ -160,6 +166,7 @@ class RPeakDetector::Impl {
   bool learned_ = false;
   std::vector<Peak> learning_;  // candidates of the first seconds, replayed once learned
   std::array<double, 8> qrs_{}, noise_{}, rr_{};
+  std::array<std::int64_t, 8> noise_at_{};  // R wave of each noise_ entry (-1: none)
   double qrs_med_ = 0, noise_med_ = 0, rr_med_ = 0;
   std::array<double, 8> second_max_{};  // background per-second maxima (relearning)
   std::int64_t seconds_ = 0, next_second_ = 0;
@@ -202,6 +209,7 @@ RPeakDetector::Impl::Impl(const DetectorOptions& o)
   raw_.assign(static_cast<std::size_t>(ring), 0.0);
   next_second_ = second_;
   learning_.reserve(128);
+  noise_at_.fill(-1);
 }
 
 void RPeakDetector::Impl::push(const std::int32_t* s, std::size_t n,
@@ -344,6 +352,7 @@ void RPeakDetector::Impl::classify(const Peak& p, std::vector<std::int64_t>& out
     return;
   }
   shift_in(noise_, p.height);
+  shift_in(noise_at_, p.at);
   noise_med_ = median8(noise_);
   if (!have_qrs_ || p.at - last_qrs_ >= twave_) {
     if (!have_sb_ || p.height > sb_.height) sb_ = p, have_sb_ = true;
@@ -368,8 +377,26 @@ void RPeakDetector::Impl::searchback(std::int64_t now, std::vector<std::int64_t>
   if (static_cast<double>(now - last_qrs_) <= o_.searchback_rr * rr_med_) return;
   if (sb_.height > o_.searchback_fraction * threshold()) {
     const Peak p = sb_;
+    unfile_noise(p.at);
     accept(p, out);
   }
+}
+
+// A beat found by search-back was filed as noise when it was classified: take it out of the
+// noise buffer (the oldest entry fills the gap). Otherwise, after a sudden drop of amplitude,
+// the noise median climbs to the height of the beats themselves and every later beat is found
+// only by search-back.
+void RPeakDetector::Impl::unfile_noise(std::int64_t at) {
+  const auto it = std::find(noise_at_.begin(), noise_at_.end(), at);
+  if (it == noise_at_.end()) return;
+  const auto i = static_cast<std::size_t>(it - noise_at_.begin());
+  std::copy(noise_.begin() + static_cast<std::ptrdiff_t>(i) + 1, noise_.end(),
+            noise_.begin() + static_cast<std::ptrdiff_t>(i));
+  std::copy(noise_at_.begin() + static_cast<std::ptrdiff_t>(i) + 1, noise_at_.end(),
+            noise_at_.begin() + static_cast<std::ptrdiff_t>(i));
+  noise_[7] = noise_[6];
+  noise_at_[7] = -1;
+  noise_med_ = median8(noise_);
 }
 
 void RPeakDetector::Impl::accept(const Peak& p, std::vector<std::int64_t>& out) {
@@ -405,6 +432,7 @@ bool RPeakDetector::Impl::tick(std::int64_t now) {
   for (std::size_t i = 0; i < 8; ++i) qrs_[i] = second_max_[i % static_cast<std::size_t>(relearn_)];
   qrs_med_ = median8(qrs_);
   noise_.fill(0);
+  noise_at_.fill(-1);
   noise_med_ = 0;
   rr_.fill(static_cast<double>(second_));
   rr_med_ = static_cast<double>(second_);

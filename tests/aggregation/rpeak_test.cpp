@@ -138,6 +138,19 @@ TEST(RPeak, BeatsAfterAPauseAndAnAmplitudeChange) {
   expect_one_per_beat(detect_r_peaks(x, options(360)), want, 4);
 }
 
+TEST(RPeak, AbruptAmplitudeDropIsFollowed) {
+  // The gain falls to a quarter between two beats (an electrode or lead change): the beats
+  // below the old threshold are recovered by search-back until the medians adapt; none is lost.
+  const Synthetic a = ecg(360, 30);
+  const Synthetic b = ecg(360, 30);
+  std::vector<std::int32_t> x = a.samples;
+  const auto offset = static_cast<std::int64_t>(x.size());
+  for (std::int32_t v : b.samples) x.push_back(kZero + (v - kZero) / 4);
+  std::vector<std::int64_t> want = a.r_waves;
+  for (std::int64_t r : b.r_waves) want.push_back(r + offset);
+  expect_one_per_beat(detect_r_peaks(x, options(360)), want, 4);
+}
+
 TEST(RPeak, OutputIsIdenticalWhateverTheChunking) {
   const Synthetic s = ecg(360, 90, 0.05, 0.3);
   const DetectorOptions o = options(360);
@@ -157,7 +170,7 @@ TEST(RPeak, PeaksAreReportedWithinTheDecisionDelay) {
   ASSERT_FALSE(peaks.empty());
   const std::int64_t reported_to = 360 * 20 - d.decision_delay_samples();
   const auto expected = std::count_if(s.r_waves.begin(), s.r_waves.end(),
-                                      [&](std::int64_t r) { return r + 20 < reported_to; });
+                                      [&](std::int64_t r) { return r < reported_to; });
   EXPECT_GE(static_cast<std::int64_t>(peaks.size()), expected);
   d.finish(peaks);
   d.push(s.samples.data(), 10, peaks);  // ignored after finish()
