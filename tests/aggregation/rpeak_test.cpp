@@ -106,6 +106,14 @@ TEST(RPeak, NoiseAndBaselineWanderStillOnePeakPerBeat) {
   expect_one_per_beat(detect_r_peaks(s.samples, options(360)), s.r_waves, 4);
 }
 
+TEST(RPeak, MainsInterferenceStillOnePeakPerBeat) {
+  Synthetic s = ecg(500, 60, 0.02, 0.3);
+  for (std::size_t i = 0; i < s.samples.size(); ++i)  // 0.3 mV of 50 Hz
+    s.samples[i] += static_cast<std::int32_t>(
+        std::lround(0.3 * kGain * std::sin(2 * 3.14159265358979 * 50 * static_cast<double>(i) / 500)));
+  expect_one_per_beat(detect_r_peaks(s.samples, options(500)), s.r_waves, 6);
+}
+
 TEST(RPeak, FlatSignalGivesNoPeaks) {
   for (std::int32_t level : {0, 1024, -300}) {
     const std::vector<std::int32_t> flat(360 * 30, level);
