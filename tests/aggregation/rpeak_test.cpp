@@ -12,6 +12,7 @@
 #include <stdexcept>
 #include <vector>
 
+#include "tahvel/aggregation/ecgsyn.h"
 #include "tahvel/aggregation/rpeak.h"
 
 namespace tahvel::aggregation {
@@ -112,6 +113,37 @@ TEST(RPeak, MainsInterferenceStillOnePeakPerBeat) {
     s.samples[i] += static_cast<std::int32_t>(
         std::lround(0.3 * kGain * std::sin(2 * 3.14159265358979 * 50 * static_cast<double>(i) / 500)));
   expect_one_per_beat(detect_r_peaks(s.samples, options(500)), s.r_waves, 6);
+}
+
+// Against an independent generator with known beats (ECGSYN, McSharry et al. 2003): heart-rate
+// variability, respiratory baseline wander, white noise and 10 % premature ventricular beats
+// with compensatory pauses. Every true R peak has one detection within 150 ms (EC57), no extra.
+TEST(RPeak, EcgsynBeatsAreFoundWithoutExtras) {
+  struct Case {
+    double fs, hr, noise_mv;
+  };
+  for (const Case c : {Case{128, 90, 0.05}, Case{250, 50, 0.1}, Case{360, 75, 0.1},
+                       Case{500, 120, 0.1}, Case{1000, 160, 0.1}}) {
+    SCOPED_TRACE(::testing::Message() << "fs " << c.fs << ", " << c.hr << " bpm, noise "
+                                    << c.noise_mv << " mV");
+    SyntheticEcgOptions so;
+    so.fs = c.fs;
+    so.mean_hr_bpm = c.hr;
+    so.noise_mv = c.noise_mv;
+    so.baseline_wander_mv = 0.3;
+    so.ectopic_rate = 0.1;
+    auto generator = SyntheticEcg::create(so);
+    ASSERT_TRUE(generator.has_value()) << generator.error().message;
+    std::vector<std::int32_t> x;
+    generator->generate(static_cast<std::size_t>(180 * c.fs), x);
+    const std::vector<std::int64_t> truth = generator->take_beats().samples;
+    DetectorOptions o = options(c.fs);
+    o.gain = so.gain;
+    const std::vector<std::int64_t> got = detect_r_peaks(x, o);
+    ASSERT_EQ(got.size(), truth.size());
+    for (std::size_t i = 0; i < truth.size(); ++i)
+      EXPECT_LE(std::llabs(got[i] - truth[i]), std::llround(0.15 * c.fs)) << "beat " << i;
+  }
 }
 
 TEST(RPeak, FlatSignalGivesNoPeaks) {
