@@ -13,9 +13,12 @@
 // Determinism: the detector is a per-sample state machine; every decision uses only samples
 // already pushed, so the peaks reported are IDENTICAL whatever the chunking of the input.
 // Memory: three history rings of at least 4 s of samples, allocated at construction.
-// A beat is reported at most `decision_delay_samples()` samples after the stream passed it
-// (the 200 ms hold plus the integration window; a beat found by search-back is reported when
-// the search-back fires, up to 1.5 RR intervals later). finish() reports what is still held.
+// Latency: the beats of the first `relearn_s` seconds (8) are reported once the thresholds are
+// learned, at the end of those seconds. After that, a beat is reported at most
+// `decision_delay_samples()` samples after the stream passed it (461 ms with the defaults:
+// fiducial shift, band-pass delay, integration window, peak release and the 200 ms hold), unless
+// ever larger candidates keep arriving; a beat found by search-back is reported when the search
+// fires, 1.5 median RR after the previous beat. finish() reports the candidate still held.
 #pragma once
 
 #include <cstddef>
@@ -83,13 +86,16 @@ class RPeakDetector {
 
   // Feeds the next n samples (raw ADC units) of the stream and appends to peaks_out the beats
   // decided so far, as absolute sample indices, increasing across calls. Never throws; does
-  // not allocate except to grow peaks_out.
+  // not allocate except to grow peaks_out (and, in the learning seconds, if more than 128
+  // candidates are held back, which the 200 ms hold rules out). A moved-from detector may only
+  // be destroyed or assigned to.
   void push(const std::int32_t* samples, std::size_t n, std::vector<std::int64_t>& peaks_out);
   // Ends the stream: appends the beats still held. Afterwards push() starts nothing new:
   // further calls are ignored.
   void finish(std::vector<std::int64_t>& peaks_out);
 
-  // The most samples between a (non-search-back) beat and the push() that reports it.
+  // The most samples between a beat (after the learning seconds, not found by search-back)
+  // and the push() that reports it.
   std::int64_t decision_delay_samples() const noexcept;
 
  private:
