@@ -296,10 +296,11 @@ void RPeakDetector::Impl::on_fpeak(double height, std::int64_t at) {
 // band-passed QRS, measured from the mean of the two window ends (a local baseline). The window
 // looks further back than forward because the band-passed point is, if anything, late: wide
 // complexes carry more energy at low frequencies, which the band-pass delays more than its
-// centre (on paced or V2 leads a symmetric ±50 ms pushed some points past the 150 ms match). The dominant polarity
-// of the lead (a running mean over beats) decides between an R and an S wave of similar size,
-// so consecutive beats of one morphology get the same fiducial point and RR intervals do not
-// jitter by an R–S distance; a wave of the other polarity wins only when twice as large.
+// centre (on paced or V2 leads a symmetric ±50 ms pushed some points past the 150 ms match).
+// The dominant polarity of the lead (a running mean over beats) decides between an R and an S
+// wave of similar size, so consecutive beats of one morphology get the same fiducial point and
+// RR intervals do not jitter by an R–S distance; a wave of the other polarity wins only when
+// twice as large.
 // `balance` gets (R − S) / (R + S) of this complex; accept() folds it into the polarity.
 std::int64_t RPeakDetector::Impl::fiducial(std::int64_t qrs, double& balance) const {
   const std::int64_t lo = std::max<std::int64_t>(0, qrs - refine_before_);

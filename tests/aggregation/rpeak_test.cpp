@@ -109,9 +109,11 @@ TEST(RPeak, NoiseAndBaselineWanderStillOnePeakPerBeat) {
 
 TEST(RPeak, MainsInterferenceStillOnePeakPerBeat) {
   Synthetic s = ecg(500, 60, 0.02, 0.3);
-  for (std::size_t i = 0; i < s.samples.size(); ++i)  // 0.3 mV of 50 Hz
+  for (std::size_t i = 0; i < s.samples.size(); ++i) {  // 0.3 mV of 50 Hz
+    const double t = static_cast<double>(i) / 500;
     s.samples[i] += static_cast<std::int32_t>(
-        std::lround(0.3 * kGain * std::sin(2 * 3.14159265358979 * 50 * static_cast<double>(i) / 500)));
+        std::lround(0.3 * kGain * std::sin(2 * 3.14159265358979 * 50 * t)));
+  }
   expect_one_per_beat(detect_r_peaks(s.samples, options(500)), s.r_waves, 6);
 }
 
