@@ -29,131 +29,24 @@ double median_of(const std::deque<double>& d) { return median_of(std::vector<dou
 
 // Answers "does (start, end) overlap any excluded range" in O(log R): ranges sorted by first,
 // with the running maximum of last, so the ranges with first < end form a prefix.
-class ExclusionIndex {
- public:
-  explicit ExclusionIndex(std::vector<SampleRange> ranges) : ranges_(std::move(ranges)) {
-    std::sort(ranges_.begin(), ranges_.end());
-    std::int64_t m = INT64_MIN;
-    for (const auto& r : ranges_) max_last_.push_back(m = std::max(m, r.second));
-  }
-  bool overlaps(std::int64_t start, std::int64_t end) const {
-    auto it = std::lower_bound(ranges_.begin(), ranges_.end(), end,
-                               [](const SampleRange& r, std::int64_t e) { return r.first < e; });
-    if (it == ranges_.begin()) return false;
-    return max_last_[static_cast<std::size_t>(it - ranges_.begin()) - 1] > start;
-  }
+std::vector<std::int64_t> prepare_ranges(std::vector<SampleRange>& ranges) {
+  std::sort(ranges.begin(), ranges.end());
+  std::vector<std::int64_t> max_last;
+  max_last.reserve(ranges.size());
+  std::int64_t m = INT64_MIN;
+  for (const auto& r : ranges) max_last.push_back(m = std::max(m, r.second));
+  return max_last;
+}
 
- private:
-  std::vector<SampleRange> ranges_;
-  std::vector<std::int64_t> max_last_;
-};
+bool overlaps_any(const std::vector<SampleRange>& ranges, const std::vector<std::int64_t>& max_last,
+                  std::int64_t start, std::int64_t end) {
+  auto it = std::lower_bound(ranges.begin(), ranges.end(), end,
+                             [](const SampleRange& r, std::int64_t e) { return r.first < e; });
+  if (it == ranges.begin()) return false;
+  return max_last[static_cast<std::size_t>(it - ranges.begin()) - 1] > start;
+}
 
-// The state machine of NnRule over rr (in samples); returns the accepted flags.
-class DetectedRule {
- public:
-  DetectedRule(const std::vector<double>& rr, double fs, const NnRule& rule)
-      : rr_(rr), rule_(rule), max_rr_(rule.max_interval_s * fs), ok_(rr.size(), false) {}
-
-  std::vector<bool> run() {
-    const std::size_t n = rr_.size();
-    seed(0);
-    for (std::size_t i = 0; i < n;) i = step(i);
-    return std::move(ok_);
-  }
-
- private:
-  // Restart the reference from the median of the next reference_beats usable intervals.
-  void seed(std::size_t from) {
-    hist_.clear();
-    diffs_.clear();
-    std::vector<double> next;
-    for (std::size_t j = from; j < rr_.size() && next.size() < size_t_of(rule_.reference_beats); ++j) {
-      if (rr_[j] > max_rr_) break;
-      if (rr_[j] > 0) next.push_back(rr_[j]);
-    }
-    if (!next.empty()) hist_.push_back(median_of(next));
-  }
-
-  static std::size_t size_t_of(int v) { return static_cast<std::size_t>(std::max(v, 1)); }
-
-  std::size_t step(std::size_t i) {
-    const double r = rr_[i];
-    if (r <= 0) return i + 1;
-    if (r > max_rr_) {
-      seed(i + 1);
-      short_run_.clear();
-      return i + 1;
-    }
-    if (hist_.empty()) hist_.push_back(r);
-    const double ref = median_of(hist_);
-    const double spread = diffs_.size() >= 8 ? median_of(diffs_) : 0.0;
-    const double tol_short = std::max(rule_.short_fraction, rule_.spread_factor * spread / ref);
-    const double tol_long = std::max(rule_.long_fraction, rule_.spread_factor * spread / ref);
-    const double tol_prem =
-        std::max(rule_.premature_fraction, rule_.premature_spread_factor * spread / ref);
-    const bool continuous = i > 0 && ok_[i - 1] && std::abs(r - rr_[i - 1]) <= tol_prem * ref &&
-                            std::abs(r - ref) <= rule_.continuity_band * tol_short * ref;
-    if (!continuous && r < (1 - tol_short) * ref) return short_beat(i, tol_short * ref);
-    short_run_.clear();
-    if (!continuous && r > (1 + tol_long) * ref) {
-      if (sustained(i, tol_long)) {
-        hist_.assign(1, r);
-        diffs_.clear();
-        ok_[i] = true;
-      }
-      return i + 1;
-    }
-    if (!continuous && r < (1 - tol_prem) * ref && i + 1 < rr_.size() &&
-        rr_[i + 1] > (1 + tol_prem) * ref) {
-      return i + 2;
-    }
-    accept(i);
-    return i + 1;
-  }
-
-  // A premature (or spurious) beat: this interval and the next are not NN.
-  std::size_t short_beat(std::size_t i, double tol) {
-    short_run_.push_back(rr_[i]);
-    const std::size_t want = size_t_of(rule_.rebase_beats);
-    if (short_run_.size() >= want) {
-      auto [lo, hi] = std::minmax_element(short_run_.end() - static_cast<std::ptrdiff_t>(want),
-                                          short_run_.end());
-      if (*hi - *lo < tol) {
-        const std::size_t keep = std::min(short_run_.size(), size_t_of(rule_.reference_beats));
-        hist_.assign(short_run_.end() - static_cast<std::ptrdiff_t>(keep), short_run_.end());
-        diffs_.clear();
-        short_run_.clear();
-      }
-    }
-    return i + 2;
-  }
-
-  bool sustained(std::size_t i, double tol_long) const {
-    const std::size_t k = size_t_of(rule_.sustained_beats);
-    if (i + k >= rr_.size()) return false;
-    for (std::size_t j = i + 1; j <= i + k; ++j) {
-      if (std::abs(rr_[j] - rr_[i]) > tol_long * rr_[i] * 0.5) return false;
-    }
-    return true;
-  }
-
-  void accept(std::size_t i) {
-    ok_[i] = true;
-    if (i > 0 && ok_[i - 1]) {
-      diffs_.push_back(std::abs(rr_[i] - rr_[i - 1]));
-      if (diffs_.size() > size_t_of(rule_.spread_diffs)) diffs_.pop_front();
-    }
-    hist_.push_back(rr_[i]);
-    if (hist_.size() > size_t_of(rule_.reference_beats)) hist_.pop_front();
-  }
-
-  const std::vector<double>& rr_;
-  const NnRule& rule_;
-  double max_rr_;
-  std::vector<bool> ok_;
-  std::deque<double> hist_, diffs_;
-  std::vector<double> short_run_;
-};
+std::size_t size_t_of(int v) { return static_cast<std::size_t>(std::max(v, 1)); }
 
 }  // namespace
 
@@ -165,13 +58,14 @@ std::vector<Interval> reference_intervals(const std::vector<Beat>& beats,
                                           const std::vector<SampleRange>& excluded) {
   std::vector<Interval> out;
   if (beats.size() < 2) return out;
-  const ExclusionIndex index(excluded);
+  std::vector<SampleRange> ranges(excluded);
+  const std::vector<std::int64_t> max_last = prepare_ranges(ranges);
   out.reserve(beats.size() - 1);
   for (std::size_t i = 1; i < beats.size(); ++i) {
     const Beat& a = beats[i - 1];
     const Beat& b = beats[i];
     const bool nn = is_reference_normal(a.code) && is_reference_normal(b.code) &&
-                    b.sample > a.sample && !index.overlaps(a.sample, b.sample);
+                    b.sample > a.sample && !overlaps_any(ranges, max_last, a.sample, b.sample);
     out.push_back({a.sample, b.sample, nn});
   }
   return out;
@@ -182,16 +76,185 @@ std::vector<Interval> intervals_from_peaks(const std::vector<std::int64_t>& peak
                                            const std::vector<SampleRange>& excluded) {
   std::vector<Interval> out;
   if (peaks.size() < 2 || !(fs > 0)) return out;
-  std::vector<double> rr(peaks.size() - 1);
-  for (std::size_t i = 1; i < peaks.size(); ++i) rr[i - 1] = static_cast<double>(peaks[i] - peaks[i - 1]);
-  const std::vector<bool> ok = DetectedRule(rr, fs, rule).run();
-  const ExclusionIndex index(excluded);
-  out.reserve(rr.size());
-  for (std::size_t i = 0; i < rr.size(); ++i) {
-    const bool nn = ok[i] && !index.overlaps(peaks[i], peaks[i + 1]);
-    out.push_back({peaks[i], peaks[i + 1], nn});
-  }
+  out.reserve(peaks.size() - 1);
+  NnClassifier classifier(fs, rule, excluded);
+  for (const std::int64_t p : peaks) classifier.push(p, out);
+  classifier.finish(out);
   return out;
+}
+
+// --- NnClassifier: the rule as a state machine over the RR stream ---------------------------
+//
+// The front of pending_ is the next interval to judge. Each judgement either decides it (and,
+// for a short interval or a premature beat with its pause, the interval after it too) or, when
+// the branch it falls into needs intervals not pushed yet, waits and is redone on the next
+// push. A judgement changes no state before it knows it can finish, so redoing it is exact.
+
+NnClassifier::NnClassifier(double fs, const NnRule& rule, std::vector<SampleRange> excluded)
+    : fs_(fs), rule_(rule), max_rr_(rule.max_interval_s * fs), excluded_(std::move(excluded)) {
+  excluded_max_ = prepare_ranges(excluded_);
+}
+
+void NnClassifier::push(std::int64_t peak, std::vector<Interval>& decided) {
+  if (!(fs_ > 0)) return;
+  if (has_last_) {
+    pending_.push_back({last_peak_, peak, static_cast<double>(peak - last_peak_)});
+    advance(decided);
+  }
+  has_last_ = true;
+  last_peak_ = peak;
+}
+
+void NnClassifier::finish(std::vector<Interval>& decided) {
+  finishing_ = true;
+  advance(decided);
+  reset();
+}
+
+void NnClassifier::reset() {
+  has_last_ = false;
+  last_peak_ = 0;
+  pending_.clear();
+  finishing_ = false;
+  seed_pending_ = true;
+  skip_next_ = false;
+  prev_ok_ = false;
+  prev_rr_ = 0;
+  hist_.clear();
+  diffs_.clear();
+  short_run_.clear();
+}
+
+void NnClassifier::advance(std::vector<Interval>& decided) {
+  while (!pending_.empty()) {
+    if (skip_next_) {
+      skip_next_ = false;
+      decide(false, decided);
+      continue;
+    }
+    if (seed_pending_ && !seed()) return;
+    if (!step(decided)) return;
+  }
+}
+
+// Restart the reference from the median of the next reference_beats usable intervals (those
+// before the next gap; zero-length ones do not count). False while they are not all pushed.
+bool NnClassifier::seed() {
+  std::vector<double> next;
+  const std::size_t want = size_t_of(rule_.reference_beats);
+  bool complete = finishing_;
+  for (const Pending& p : pending_) {
+    if (p.rr > max_rr_ || next.size() >= want) {
+      complete = true;
+      break;
+    }
+    if (p.rr > 0) next.push_back(p.rr);
+  }
+  if (next.size() >= want) complete = true;
+  if (!complete) return false;
+  hist_.clear();
+  diffs_.clear();
+  if (!next.empty()) hist_.push_back(median_of(next));
+  seed_pending_ = false;
+  return true;
+}
+
+bool NnClassifier::step(std::vector<Interval>& decided) {
+  const double r = pending_.front().rr;
+  if (r <= 0) {
+    decide(false, decided);
+    return true;
+  }
+  if (r > max_rr_) {  // a gap: not NN, and the reference restarts after it
+    short_run_.clear();
+    seed_pending_ = true;
+    decide(false, decided);
+    return true;
+  }
+  if (hist_.empty()) hist_.push_back(r);
+  const double ref = median_of(hist_);
+  const double spread = diffs_.size() >= 8 ? median_of(diffs_) : 0.0;
+  const double tol_short = std::max(rule_.short_fraction, rule_.spread_factor * spread / ref);
+  const double tol_long = std::max(rule_.long_fraction, rule_.spread_factor * spread / ref);
+  const double tol_prem =
+      std::max(rule_.premature_fraction, rule_.premature_spread_factor * spread / ref);
+  const bool continuous = prev_ok_ && std::abs(r - prev_rr_) <= tol_prem * ref &&
+                          std::abs(r - ref) <= rule_.continuity_band * tol_short * ref;
+  if (!continuous && r < (1 - tol_short) * ref) {  // premature or spurious: it and the next
+    short_beat(r, tol_short * ref);
+    skip_next_ = true;
+    decide(false, decided);
+    return true;
+  }
+  if (!continuous && r > (1 + tol_long) * ref) {  // long: NN only if a new rhythm follows
+    const std::size_t k = size_t_of(rule_.sustained_beats);
+    if (pending_.size() <= k && !finishing_) return false;
+    bool sustained = pending_.size() > k;
+    for (std::size_t j = 1; sustained && j <= k; ++j) {
+      if (std::abs(pending_[j].rr - r) > tol_long * r * 0.5) sustained = false;
+    }
+    short_run_.clear();
+    if (sustained) {
+      hist_.assign(1, r);
+      diffs_.clear();
+    }
+    decide(sustained, decided);
+    return true;
+  }
+  if (!continuous && r < (1 - tol_prem) * ref) {  // slightly early: a pause must not follow
+    if (pending_.size() < 2 && !finishing_) return false;
+    if (pending_.size() >= 2 && pending_[1].rr > (1 + tol_prem) * ref) {
+      short_run_.clear();
+      skip_next_ = true;
+      decide(false, decided);
+      return true;
+    }
+  }
+  short_run_.clear();
+  accept(r);
+  decide(true, decided);
+  return true;
+}
+
+// A premature (or spurious) beat. After rebase_beats consecutive short intervals that agree
+// within tol, the reference restarts from them. Only the last max(rebase_beats,
+// reference_beats) of the run are ever looked at, so only those are kept.
+void NnClassifier::short_beat(double rr, double tol) {
+  const std::size_t want = size_t_of(rule_.rebase_beats);
+  const std::size_t ref_beats = size_t_of(rule_.reference_beats);
+  short_run_.push_back(rr);
+  if (short_run_.size() > std::max(want, ref_beats)) short_run_.pop_front();
+  if (short_run_.size() < want) return;
+  auto [lo, hi] =
+      std::minmax_element(short_run_.end() - static_cast<std::ptrdiff_t>(want), short_run_.end());
+  if (*hi - *lo < tol) {
+    const std::size_t keep = std::min(short_run_.size(), ref_beats);
+    hist_.assign(short_run_.end() - static_cast<std::ptrdiff_t>(keep), short_run_.end());
+    diffs_.clear();
+    short_run_.clear();
+  }
+}
+
+void NnClassifier::accept(double rr) {
+  if (prev_ok_) {
+    diffs_.push_back(std::abs(rr - prev_rr_));
+    if (diffs_.size() > size_t_of(rule_.spread_diffs)) diffs_.pop_front();
+  }
+  hist_.push_back(rr);
+  if (hist_.size() > size_t_of(rule_.reference_beats)) hist_.pop_front();
+}
+
+// Emits the front interval with the rule's decision, excluded ranges applied.
+void NnClassifier::decide(bool ok, std::vector<Interval>& decided) {
+  const Pending p = pending_.front();
+  pending_.pop_front();
+  prev_ok_ = ok;
+  prev_rr_ = p.rr;
+  decided.push_back({p.start, p.end, ok && !overlaps_excluded(p.start, p.end)});
+}
+
+bool NnClassifier::overlaps_excluded(std::int64_t start, std::int64_t end) const {
+  return overlaps_any(excluded_, excluded_max_, start, end);
 }
 
 double nn_fraction(const std::vector<Interval>& intervals) noexcept {

@@ -4,7 +4,9 @@
 // threshold are in docs/hrv.md ("NN rules").
 #pragma once
 
+#include <cstddef>
 #include <cstdint>
+#include <deque>
 #include <utility>
 #include <vector>
 
@@ -84,10 +86,82 @@ struct NnRule {
 
 // Intervals between consecutive detected peaks (samples, sorted ascending; duplicates give a
 // zero-length interval that is never NN), marked by NnRule. fs is the sampling frequency in Hz
-// (> 0). excluded as for reference_intervals. Fewer than two peaks give an empty series.
+// (> 0; otherwise the series is empty). excluded as for reference_intervals. Fewer than two
+// peaks give an empty series. The same as NnClassifier fed every peak and then finished.
 std::vector<Interval> intervals_from_peaks(const std::vector<std::int64_t>& peaks, double fs,
                                            const NnRule& rule = {},
                                            const std::vector<SampleRange>& excluded = {});
+
+// The streaming form of intervals_from_peaks, for peaks that arrive as a detector emits them.
+// Push the peaks in ascending order; each push appends to `decided` the intervals whose NN
+// decision has become final, oldest first, and finish() appends the rest. Everything appended,
+// concatenated, equals intervals_from_peaks(all peaks, fs, rule, excluded) exactly, whatever
+// the calls in between (the batch function is this class run over all peaks).
+//
+// Delay. The rule looks ahead: an interval far from the reference waits for the next one
+// (premature beat with a pause) or the next sustained_beats (a new, slower rhythm), and after
+// the start or a gap the reference is seeded from the next reference_beats intervals. An
+// interval's decision is therefore final once
+//     D = max(sustained_beats, reference_beats - 1, 1)   (8 with the defaults)
+// further intervals of positive length have been pushed (zero-length ones, from duplicate
+// peaks, do not count, and a zero-length interval itself may wait for D + 1). The bound is
+// reached only after the start and after a gap; in a steady rhythm most intervals are decided
+// when their end beat is pushed, an early one after the next beat, a long one after
+// sustained_beats more. Decisions come out in order. pending() is at most D after any push
+// when no two peaks are equal.
+//
+// Memory is bounded for an endless stream: the undecided intervals (pending()), the reference
+// window (reference_beats), the spread window (spread_diffs), the run of short intervals
+// (max(rebase_beats, reference_beats)) and the excluded ranges given at construction.
+// excluded need not be sorted. With fs <= 0 nothing is ever decided, as the batch function
+// returns nothing. Peaks out of order give an interval of non-positive length, never NN.
+// finish() returns the classifier to its constructed state, ready for a new stream. Not
+// thread-safe; no call throws except on allocation failure.
+class NnClassifier {
+ public:
+  NnClassifier(double fs, const NnRule& rule = {}, std::vector<SampleRange> excluded = {});
+
+  // Adds the next peak (sample index); appends the intervals decided by it to `decided`.
+  void push(std::int64_t peak, std::vector<Interval>& decided);
+
+  // Ends the stream: decides every pending interval (the look-ahead stops at the last peak, as
+  // in the batch function), appends them and resets.
+  void finish(std::vector<Interval>& decided);
+
+  // Intervals pushed but not yet decided.
+  std::size_t pending() const noexcept { return pending_.size(); }
+
+ private:
+  struct Pending {
+    std::int64_t start = 0;
+    std::int64_t end = 0;
+    double rr = 0;  // end - start, in samples
+  };
+
+  void advance(std::vector<Interval>& decided);
+  bool seed();
+  bool step(std::vector<Interval>& decided);
+  void short_beat(double rr, double tol);
+  void accept(double rr);
+  void decide(bool ok, std::vector<Interval>& decided);
+  bool overlaps_excluded(std::int64_t start, std::int64_t end) const;
+  void reset();
+
+  double fs_;
+  NnRule rule_;
+  double max_rr_;
+  std::vector<SampleRange> excluded_;       // sorted by first
+  std::vector<std::int64_t> excluded_max_;  // running maximum of last over excluded_
+  bool has_last_ = false;
+  std::int64_t last_peak_ = 0;
+  std::deque<Pending> pending_;  // undecided intervals; the front is the next to judge
+  bool finishing_ = false;       // inside finish(): look-ahead stops at the last peak
+  bool seed_pending_ = true;     // the reference restarts at the front interval
+  bool skip_next_ = false;       // the next interval is the pair of a short one: not NN
+  bool prev_ok_ = false;         // the decision and RR of the interval before the front
+  double prev_rr_ = 0;
+  std::deque<double> hist_, diffs_, short_run_;
+};
 
 // The fraction of intervals that are NN (0 for an empty series).
 double nn_fraction(const std::vector<Interval>& intervals) noexcept;
