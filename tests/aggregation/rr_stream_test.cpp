@@ -231,7 +231,8 @@ void check_series(const std::vector<std::int64_t>& peaks, double fs, const NnRul
   NnClassifier c(fs, rule, excluded);
   for (int round = 0; round < 2; ++round) {  // the second round checks the reset by finish()
     const Streamed s = stream(c, peaks);
-    EXPECT_TRUE(same(s.intervals, expected, why)) << "stream vs model, round " << round << ": " << why;
+    EXPECT_TRUE(same(s.intervals, expected, why))
+        << "stream vs model, round " << round << ": " << why;
     EXPECT_EQ(c.pending(), 0u);
     if (!(fs > 0) || peaks.size() < 2) continue;
     const std::size_t d = delay_bound(rule);
@@ -253,7 +254,8 @@ void check_series(const std::vector<std::int64_t>& peaks, double fs, const NnRul
       EXPECT_LE(s.max_pending, d);
     }
   }
-  for (const std::int64_t chunk : {std::int64_t{1}, static_cast<std::int64_t>(fs), std::int64_t{7919}}) {
+  const auto second = static_cast<std::int64_t>(fs);
+  for (const std::int64_t chunk : {std::int64_t{1}, second, std::int64_t{7919}}) {
     if (chunk <= 0) continue;
     EXPECT_TRUE(same(stream_in_chunks(peaks, fs, rule, excluded, chunk), expected, why))
         << "chunks of " << chunk << ": " << why;
@@ -349,7 +351,9 @@ std::vector<std::int64_t> random_peaks(std::uint32_t seed, std::size_t n, bool d
   const double fs = seed % 2 ? 360 : 250;
   double base = 0.8 * fs;
   std::vector<std::int64_t> p{static_cast<std::int64_t>(u(g) * fs)};
-  const auto add = [&](double rr) { p.push_back(p.back() + std::max<std::int64_t>(1, std::llround(rr))); };
+  const auto add = [&](double rr) {
+    p.push_back(p.back() + std::max<std::int64_t>(1, std::llround(rr)));
+  };
   while (p.size() < n) {
     const double x = u(g);
     base = std::clamp(base * (1 + 0.01 * z(g)), 0.3 * fs, 1.6 * fs);
@@ -387,7 +391,8 @@ TEST(NnClassifier, RandomSeriesFedOneByOneMatchBatch) {
     std::mt19937 g(seed * 7919);
     std::vector<SampleRange> excluded;
     for (int k = 0; k < 20; ++k) {
-      const std::int64_t a = peaks.front() + static_cast<std::int64_t>(g() % static_cast<std::uint32_t>(peaks.back() - peaks.front()));
+      const auto span = static_cast<std::uint32_t>(peaks.back() - peaks.front());
+      const std::int64_t a = peaks.front() + static_cast<std::int64_t>(g() % span);
       excluded.push_back({a, a + static_cast<std::int64_t>(g() % 2 ? 0 : g() % 5000)});
     }
     check_series(peaks, fs, NnRule{}, excluded);
