@@ -241,6 +241,10 @@ Result<std::optional<Delivery>> Agent::Impl::head(bool remove) {
     }
   };
   if (remove) {
+    // Look first in a snapshot: an empty buffer must not cost a write transaction (which
+    // would take the writer lock and wake every watcher) each time a taker wakes up.
+    auto peeked = head(false);
+    if (!peeked || !*peeked) return peeked;
     auto written = env->write([&](Txn& txn) { return body(txn.raw(), &txn); });
     if (!written) return unexpected(written.error());
   } else {
