@@ -277,10 +277,12 @@ Result<void> Env::write(const std::function<Result<void>(Txn&)>& body, WriteKind
     MDB_txn* raw = nullptr;
     if (auto r = begin(&raw, 0); !r) return r;
     Txn txn(*this, raw);
+    std::uint64_t first_seq = 0;
     auto run = [&]() -> Result<void> {
       auto counters = load_counters(raw, main);
       if (!counters) return unexpected(counters.error());
       txn.counters = *counters;
+      first_seq = counters->next_seq;
       if (auto r = body(txn); !r) return r;
       return save_counters(raw, main, txn.counters);
     };
@@ -300,7 +302,9 @@ Result<void> Env::write(const std::function<Result<void>(Txn&)>& body, WriteKind
     if (!result) return result;
     if (rc != 0) return lmdb_fail(rc, "committing a write to " + dir_.string());
     for (auto slot : txn.wake_slots) wake_.bump(slot);
-    wake_.bump(WakeBoard::kAnyCommit);
+    // Watchers follow the change stream: wake them only when it grew (not for acks, TTL rules
+    // or prefixes).
+    if (txn.counters.next_seq != first_seq) wake_.bump(WakeBoard::kAnyCommit);
     return {};
   }
 }
