@@ -1,19 +1,34 @@
-// Items of the ECG/HRV chain; see items.h and docs/vocabulary.md.
+// Items of the ECG/HRV chain and their readers; see items.h and docs/vocabulary.md.
 #include "tahvel/aggregation/items.h"
 
+#include <algorithm>
+#include <charconv>
 #include <cmath>
 #include <cstdio>
+#include <map>
+#include <system_error>
 
 namespace tahvel::aggregation {
 namespace {
 
 using node::Item;
+using node::Record;
 using node::Term;
 
-Term tv(const char* local) { return Term::iri(std::string(kTv) + local); }
+const std::string kSosa = "http://www.w3.org/ns/sosa/";
 
+Term tv(const char* local) { return tv_term(local); }
+Term rdf_type() { return Term::iri(std::string(node::kRdfType)); }
+Term derived_from() { return Term::iri(kProvDerivedFrom); }
+
+Term decimal_literal(std::string text) {
+  if (text.find('.') == std::string::npos) text += ".0";
+  return Term::literal(text, std::string(node::xsd::kDecimal));
+}
+
+// 6 significant digits: the HRV results (plenty for ms and ms^2, stable across platforms).
 Term decimal(double value) {
-  char buf[32];
+  char buf[48];
   std::snprintf(buf, sizeof buf, "%.6g", value);
   std::string text = buf;
   // xsd:decimal has no exponent: fall back to a fixed form for very small or large values.
@@ -21,11 +36,25 @@ Term decimal(double value) {
     std::snprintf(buf, sizeof buf, "%.6f", value);
     text = buf;
   }
-  if (text.find('.') == std::string::npos) text += ".0";
-  return Term::literal(text, std::string(node::xsd::kDecimal));
+  return decimal_literal(text);
+}
+
+// The shortest fixed form that reads back as the same double (fs, gain).
+Term exact_decimal(double value) {
+  char buf[400];
+  auto [end, ec] = std::to_chars(buf, buf + sizeof buf, value, std::chars_format::fixed);
+  if (ec != std::errc()) return decimal(value);
+  return decimal_literal(std::string(buf, end));
 }
 
 Term text(const std::string& value) { return Term::literal(value); }
+
+// "%.6g" for a time in seconds inside an IRI ("300", "150.5").
+std::string seconds_label(double s) {
+  char buf[48];
+  std::snprintf(buf, sizeof buf, "%.6g", s);
+  return buf;
+}
 
 // RFC 4648 base64 of raw bytes.
 std::string base64(const std::string& bytes) {
@@ -52,16 +81,123 @@ std::string base64(const std::string& bytes) {
   return out;
 }
 
+int base64_value(char c) {
+  if (c >= 'A' && c <= 'Z') return c - 'A';
+  if (c >= 'a' && c <= 'z') return c - 'a' + 26;
+  if (c >= '0' && c <= '9') return c - '0' + 52;
+  if (c == '+') return 62;
+  if (c == '/') return 63;
+  return -1;
+}
+
+// Decodes base64 (padding optional, no whitespace). nullopt on a character outside the
+// alphabet or a stray length.
+std::optional<std::string> unbase64(const std::string& in) {
+  std::string out;
+  out.reserve(in.size() / 4 * 3);
+  unsigned acc = 0;
+  int bits = 0;
+  std::size_t i = 0;
+  for (; i < in.size() && in[i] != '='; ++i) {
+    const int v = base64_value(in[i]);
+    if (v < 0) return std::nullopt;
+    acc = (acc << 6) | static_cast<unsigned>(v);
+    bits += 6;
+    if (bits >= 8) {
+      bits -= 8;
+      out += static_cast<char>((acc >> bits) & 0xFF);
+    }
+  }
+  for (; i < in.size(); ++i)
+    if (in[i] != '=') return std::nullopt;
+  if (bits >= 6) return std::nullopt;
+  return out;
+}
+
+std::optional<std::int64_t> to_int(std::string_view s) {
+  std::int64_t v = 0;
+  auto [end, ec] = std::from_chars(s.data(), s.data() + s.size(), v);
+  if (ec != std::errc() || end != s.data() + s.size()) return std::nullopt;
+  return v;
+}
+
+std::optional<double> to_double(std::string_view s) {
+  double v = 0;
+  auto [end, ec] = std::from_chars(s.data(), s.data() + s.size(), v);
+  if (ec != std::errc() || end != s.data() + s.size()) return std::nullopt;
+  return v;
+}
+
+// The objects of predicate tv:<local> among records with subject `subject`.
+std::vector<const Term*> objects(const std::vector<Record>& records, const std::string& subject,
+                                 const char* local) {
+  const std::string p = std::string(kTv) + local;
+  std::vector<const Term*> out;
+  for (const Record& r : records)
+    if (r.triple.s.value == subject && r.triple.p.value == p) out.push_back(&r.triple.o);
+  return out;
+}
+
+const Term* object(const std::vector<Record>& records, const std::string& subject, const char* local) {
+  auto all = objects(records, subject, local);
+  return all.empty() ? nullptr : all.front();
+}
+
+Unexpected<Error> missing(const std::string& subject, const char* local, const char* what) {
+  return fail("<" + subject + ">: tv:" + local + " " + what);
+}
+
+Result<std::int64_t> int_of(const std::vector<Record>& records, const std::string& subject,
+                            const char* local) {
+  const Term* t = object(records, subject, local);
+  if (!t) return missing(subject, local, "missing");
+  auto v = to_int(t->value);
+  if (!v) return missing(subject, local, ("is not an integer: '" + t->value + "'").c_str());
+  return *v;
+}
+
+// The subject of the first record whose predicate is tv:<local>; empty if none.
+std::string subject_with(const std::vector<Record>& records, const char* local) {
+  const std::string p = std::string(kTv) + local;
+  for (const Record& r : records)
+    if (r.triple.p.value == p && r.triple.s.is_iri()) return r.triple.s.value;
+  return {};
+}
+
+std::vector<std::string> derivations(const std::vector<Record>& records, const std::string& subject) {
+  std::vector<std::string> out;
+  for (const Record& r : records)
+    if (r.triple.s.value == subject && r.triple.p.value == kProvDerivedFrom && r.triple.o.is_iri())
+      out.push_back(r.triple.o.value);
+  return out;
+}
+
 }  // namespace
+
+Term tv_term(const char* local) { return Term::iri(std::string(kTv) + local); }
+
+std::string chunk_iri(const std::string& recording, std::int64_t start) {
+  return recording + "/chunk/" + std::to_string(start);
+}
+std::string rpeaks_iri(const std::string& recording, std::int64_t from) {
+  return recording + "/rpeaks/" + std::to_string(from);
+}
+std::string rr_iri(const std::string& recording, std::int64_t first_start) {
+  return recording + "/rr/" + std::to_string(first_start);
+}
+std::string rr_end_iri(const std::string& recording) { return recording + "/rr/end"; }
+std::string hrv_iri(const std::string& recording, double start_s) {
+  return recording + "/hrv/" + seconds_label(start_s);
+}
 
 Item recording_item(const RecordingInfo& info) {
   Item item;
   item.persistent = true;
   const Term rec = Term::iri(info.iri);
-  item.add(rec, Term::iri(std::string(node::kRdfType)), tv("EcgRecording"))
-      .add(rec, Term::iri("http://www.w3.org/ns/sosa/madeBySensor"), Term::iri(info.sensor_iri))
-      .add(rec, tv("samplingRate"), decimal(info.fs))
-      .add(rec, tv("gain"), decimal(info.gain))
+  item.add(rec, rdf_type(), tv("EcgRecording"))
+      .add(rec, Term::iri(kSosa + "madeBySensor"), Term::iri(info.sensor_iri))
+      .add(rec, tv("samplingRate"), exact_decimal(info.fs))
+      .add(rec, tv("gain"), exact_decimal(info.gain))
       .add(rec, tv("baseline"), Term::integer(info.baseline))
       .add(rec, tv("unit"), text(info.unit))
       .add(rec, tv("sampleFormat"), text("int16le interleaved"));
@@ -71,6 +207,42 @@ Item recording_item(const RecordingInfo& info) {
   if (!info.model.empty()) item.add(rec, tv("sensorModel"), text(info.model));
   if (!info.filters.empty()) item.add(rec, tv("filters"), text(info.filters));
   if (!info.source.empty()) item.add(rec, tv("replayedFrom"), text(info.source));
+  return item;
+}
+
+Result<RecordingInfo> read_recording(const std::vector<Record>& records, const std::string& iri) {
+  RecordingInfo info;
+  info.iri = iri;
+  for (const char* local : {"samplingRate", "gain"}) {
+    const Term* t = object(records, iri, local);
+    if (!t) return missing(iri, local, "missing (is it a tv:EcgRecording?)");
+    auto v = to_double(t->value);
+    if (!v || !(*v > 0)) return missing(iri, local, ("is not a positive number: '" + t->value + "'").c_str());
+    (std::string(local) == "gain" ? info.gain : info.fs) = *v;
+  }
+  if (const Term* t = object(records, iri, "baseline"))
+    info.baseline = static_cast<int>(to_int(t->value).value_or(0));
+  if (const Term* t = object(records, iri, "unit")) info.unit = t->value;
+  std::map<long, std::string> leads;
+  for (const Term* t : objects(records, iri, "lead")) {
+    const auto space = t->value.find(' ');
+    auto index = to_int(std::string_view(t->value).substr(0, space));
+    if (index) leads[static_cast<long>(*index)] = space == std::string::npos ? "" : t->value.substr(space + 1);
+  }
+  for (auto& [index, name] : leads) info.leads.push_back(name);
+  for (const Record& r : records)
+    if (r.triple.s.value == iri && r.triple.p.value == kSosa + "madeBySensor") info.sensor_iri = r.triple.o.value;
+  if (const Term* t = object(records, iri, "sensorMaker")) info.maker = t->value;
+  if (const Term* t = object(records, iri, "sensorModel")) info.model = t->value;
+  if (const Term* t = object(records, iri, "filters")) info.filters = t->value;
+  if (const Term* t = object(records, iri, "replayedFrom")) info.source = t->value;
+  return info;
+}
+
+Item recording_end_item(const std::string& recording_iri, std::int64_t end_sample) {
+  Item item;
+  item.persistent = true;
+  item.add(Term::iri(recording_iri), tv("endSample"), Term::integer(end_sample));
   return item;
 }
 
@@ -87,8 +259,8 @@ Item ecg_chunk_item(const RecordingInfo& info, std::int64_t start_sample,
     }
   }
   Item item;
-  const Term chunk = Term::blank("chunk");
-  item.add(chunk, Term::iri(std::string(node::kRdfType)), tv("EcgChunk"))
+  const Term chunk = Term::iri(chunk_iri(info.iri, start_sample));
+  item.add(chunk, rdf_type(), tv("EcgChunk"))
       .add(chunk, tv("recording"), Term::iri(info.iri))
       .add(chunk, tv("startSample"), Term::integer(start_sample))
       .add(chunk, tv("frameCount"), Term::integer(static_cast<std::int64_t>(frames)))
@@ -96,16 +268,163 @@ Item ecg_chunk_item(const RecordingInfo& info, std::int64_t start_sample,
   return item;
 }
 
-Item hrv_window_item(const RecordingInfo& info, const WindowMetrics& window,
-                     const std::string& agent_iri) {
+Result<EcgChunk> read_chunk(const std::vector<Record>& records) {
+  EcgChunk chunk;
+  chunk.iri = subject_with(records, "samples");
+  if (chunk.iri.empty()) return fail("no tv:samples in the item (not an ECG chunk)");
+  const Term* rec = object(records, chunk.iri, "recording");
+  if (!rec || !rec->is_iri()) return missing(chunk.iri, "recording", "missing");
+  chunk.recording = rec->value;
+  auto start = int_of(records, chunk.iri, "startSample");
+  if (!start) return unexpected(start.error());
+  auto frames = int_of(records, chunk.iri, "frameCount");
+  if (!frames) return unexpected(frames.error());
+  if (*frames <= 0) return missing(chunk.iri, "frameCount", "is not positive");
+  chunk.start_sample = *start;
+  chunk.frames = static_cast<std::size_t>(*frames);
+  auto bytes = unbase64(object(records, chunk.iri, "samples")->value);
+  if (!bytes) return missing(chunk.iri, "samples", "is not base64");
+  const std::size_t per_frame = bytes->size() / chunk.frames;
+  if (per_frame == 0 || per_frame % 2 != 0 || per_frame * chunk.frames != bytes->size())
+    return missing(chunk.iri, "samples",
+                   ("holds " + std::to_string(bytes->size()) + " bytes, not frames x leads x 2").c_str());
+  const std::size_t leads = per_frame / 2;
+  chunk.leads.assign(leads, std::vector<std::int32_t>(chunk.frames));
+  const auto* b = reinterpret_cast<const unsigned char*>(bytes->data());
+  for (std::size_t f = 0; f < chunk.frames; ++f)
+    for (std::size_t l = 0; l < leads; ++l, b += 2)
+      chunk.leads[l][f] = static_cast<std::int16_t>(static_cast<std::uint16_t>(b[0] | (b[1] << 8)));
+  return chunk;
+}
+
+std::string format_peaks(const std::vector<std::int64_t>& peaks) {
+  std::string out;
+  for (std::size_t i = 0; i < peaks.size(); ++i) {
+    if (i) out += ' ';
+    out += std::to_string(peaks[i]);
+  }
+  return out;
+}
+
+Result<std::vector<std::int64_t>> parse_peaks(const std::string& text) {
+  std::vector<std::int64_t> out;
+  std::size_t at = 0;
+  while (at < text.size()) {
+    const std::size_t space = std::min(text.find(' ', at), text.size());
+    auto v = to_int(std::string_view(text).substr(at, space - at));
+    if (!v) return fail("peaks: '" + text.substr(at, space - at) + "' is not a sample index");
+    out.push_back(*v);
+    at = space + 1;
+  }
+  return out;
+}
+
+Item rpeak_item(const RPeaks& p) {
   Item item;
-  const Term obs = Term::blank("hrv");
-  item.add(obs, Term::iri(std::string(node::kRdfType)), Term::iri("http://www.w3.org/ns/sosa/Observation"))
-      .add(obs, Term::iri("http://www.w3.org/ns/sosa/observedProperty"), tv("HeartRateVariability"))
-      .add(obs, Term::iri("http://www.w3.org/ns/prov#wasDerivedFrom"), Term::iri(info.iri))
+  const Term s = Term::iri(rpeaks_iri(p.recording, p.from_sample));
+  item.add(s, rdf_type(), tv("RPeaks"))
+      .add(s, tv("recording"), Term::iri(p.recording))
+      .add(s, tv("fromSample"), Term::integer(p.from_sample))
+      .add(s, tv("toSample"), Term::integer(p.to_sample))
+      .add(s, tv("peaks"), text(format_peaks(p.peaks)));
+  if (!p.derived_from.empty()) item.add(s, derived_from(), Term::iri(p.derived_from));
+  if (p.end_sample) item.add(s, tv("endSample"), Term::integer(*p.end_sample));
+  return item;
+}
+
+Result<RPeaks> read_rpeaks(const std::vector<Record>& records) {
+  RPeaks p;
+  p.iri = subject_with(records, "peaks");
+  if (p.iri.empty()) return fail("no tv:peaks in the item (not an R-peak item)");
+  const Term* rec = object(records, p.iri, "recording");
+  if (!rec || !rec->is_iri()) return missing(p.iri, "recording", "missing");
+  p.recording = rec->value;
+  auto from = int_of(records, p.iri, "fromSample");
+  if (!from) return unexpected(from.error());
+  auto to = int_of(records, p.iri, "toSample");
+  if (!to) return unexpected(to.error());
+  p.from_sample = *from;
+  p.to_sample = *to;
+  auto peaks = parse_peaks(object(records, p.iri, "peaks")->value);
+  if (!peaks) return fail("<" + p.iri + ">: tv:" + peaks.error().message);
+  p.peaks = std::move(*peaks);
+  auto from_items = derivations(records, p.iri);
+  if (!from_items.empty()) p.derived_from = from_items.front();
+  if (object(records, p.iri, "endSample")) {
+    auto end = int_of(records, p.iri, "endSample");
+    if (!end) return unexpected(end.error());
+    p.end_sample = *end;
+  }
+  return p;
+}
+
+std::string format_intervals(const std::vector<Interval>& intervals) {
+  std::string out;
+  for (std::size_t i = 0; i < intervals.size(); ++i) {
+    if (i) out += ';';
+    out += std::to_string(intervals[i].start) + ' ' + std::to_string(intervals[i].end) +
+           (intervals[i].nn ? " 1" : " 0");
+  }
+  return out;
+}
+
+Result<std::vector<Interval>> parse_intervals(const std::string& text) {
+  std::vector<Interval> out;
+  std::size_t at = 0;
+  while (at < text.size()) {
+    const std::size_t semi = std::min(text.find(';', at), text.size());
+    const std::string entry = text.substr(at, semi - at);
+    auto fields = parse_peaks(entry);
+    if (!fields || fields->size() != 3 || ((*fields)[2] != 0 && (*fields)[2] != 1))
+      return fail("intervals: '" + entry + "' is not 'start end nn'");
+    out.push_back({(*fields)[0], (*fields)[1], (*fields)[2] == 1});
+    at = semi + 1;
+  }
+  return out;
+}
+
+Item rr_item(const RrSeries& rr) {
+  Item item;
+  const Term s = Term::iri(rr.intervals.empty() ? rr_end_iri(rr.recording)
+                                                : rr_iri(rr.recording, rr.intervals.front().start));
+  item.add(s, rdf_type(), tv("RrSeries"))
+      .add(s, tv("recording"), Term::iri(rr.recording))
+      .add(s, tv("intervals"), text(format_intervals(rr.intervals)));
+  for (const std::string& from : rr.derived_from) item.add(s, derived_from(), Term::iri(from));
+  if (rr.end_sample) item.add(s, tv("endSample"), Term::integer(*rr.end_sample));
+  return item;
+}
+
+Result<RrSeries> read_rr(const std::vector<Record>& records) {
+  RrSeries rr;
+  rr.iri = subject_with(records, "intervals");
+  if (rr.iri.empty()) return fail("no tv:intervals in the item (not an RR item)");
+  const Term* rec = object(records, rr.iri, "recording");
+  if (!rec || !rec->is_iri()) return missing(rr.iri, "recording", "missing");
+  rr.recording = rec->value;
+  auto intervals = parse_intervals(object(records, rr.iri, "intervals")->value);
+  if (!intervals) return fail("<" + rr.iri + ">: tv:" + intervals.error().message);
+  rr.intervals = std::move(*intervals);
+  rr.derived_from = derivations(records, rr.iri);
+  if (object(records, rr.iri, "endSample")) {
+    auto end = int_of(records, rr.iri, "endSample");
+    if (!end) return unexpected(end.error());
+    rr.end_sample = *end;
+  }
+  return rr;
+}
+
+Item hrv_window_item(const RecordingInfo& info, const WindowMetrics& window,
+                     const std::string& agent_iri, const std::vector<std::string>& from) {
+  Item item;
+  const Term obs = Term::iri(hrv_iri(info.iri, window.start_s));
+  item.add(obs, rdf_type(), Term::iri(kSosa + "Observation"))
+      .add(obs, Term::iri(kSosa + "observedProperty"), tv("HeartRateVariability"))
+      .add(obs, derived_from(), Term::iri(info.iri))
       .add(obs, Term::iri("http://www.w3.org/ns/prov#wasAttributedTo"), Term::iri(agent_iri))
       .add(obs, tv("windowStartS"), decimal(window.start_s))
       .add(obs, tv("windowEndS"), decimal(window.end_s));
+  for (const std::string& iri : from) item.add(obs, derived_from(), Term::iri(iri));
   const HrvMetrics& m = window.metrics;
   const std::pair<const char*, const std::optional<double>*> results[] = {
       {"meanNnMs", &m.mean_nn_ms}, {"sdnnMs", &m.sdnn_ms},     {"rmssdMs", &m.rmssd_ms},

@@ -1,13 +1,32 @@
 // How ECG and HRV travel on the whiteboard: the items the sensor, signal-processing and HRV
-// agents write (vocabulary: docs/vocabulary.md). Building them in one place keeps the agents,
-// the command line and the benchmarks writing the same shapes.
+// agents write (vocabulary: docs/vocabulary.md), and the readers that turn delivered records
+// back into values. Building and reading them in one place keeps the agents (agents/hrv/),
+// the command line, the tests and the benchmarks on the same shapes.
+//
+// The chain, each item naming what it was derived from (IRIs, so that provenance can be
+// followed across items; blank nodes are local to their item):
+//
+//   <rec>                      tv:EcgRecording, persistent (recording_item)
+//   <rec>/chunk/<start>        tv:EcgChunk, one second of samples (ecg_chunk_item)
+//   <rec> tv:endSample N       the recording ended (recording_end_item, persistent)
+//   <rec>/rpeaks/<from>        R peaks decided while reading one chunk (rpeak_item)
+//   <rec>/rr/<first start>     RR intervals with the NN mark (rr_item)
+//   <rec>/hrv/<start_s>        one HRV window (hrv_window_item)
+//
+// Readers return an Error naming the item's subject and the predicate that is missing or does
+// not parse; they never throw.
 #pragma once
 
+#include <cstddef>
 #include <cstdint>
+#include <optional>
 #include <string>
 #include <vector>
 
+#include "tahvel/aggregation/error.h"
 #include "tahvel/aggregation/hrv.h"
+#include "tahvel/aggregation/rr.h"
+#include "tahvel/node/node.h"
 #include "tahvel/node/term.h"
 
 namespace tahvel::aggregation {
@@ -15,6 +34,10 @@ namespace tahvel::aggregation {
 // Tahvel's vocabulary namespace (tv:) and the LOINC codes used for HRV observations.
 inline constexpr const char* kTv = "https://w3id.org/tahvel#";
 inline constexpr const char* kLoinc = "http://loinc.org/rdf#";
+inline constexpr const char* kProvDerivedFrom = "http://www.w3.org/ns/prov#wasDerivedFrom";
+
+// tv:<local> as an IRI term.
+node::Term tv_term(const char* local);
 
 // What the ECG source states once per recording (a persistent item): format and provenance.
 struct RecordingInfo {
@@ -30,17 +53,88 @@ struct RecordingInfo {
   std::string source;         // where the samples come from ("mitdb/100", "ecgsyn seed 7")
 };
 
+// The recording item. fs and gain are written with as many digits as it takes to read back
+// the same double (so that agents downstream compute with exactly the source's values).
 node::Item recording_item(const RecordingInfo& info);
 
+// The recording from the records whose subject is `iri` (as Snapshot::list({.s = iri})
+// returns them; other subjects are ignored). Errors: no tv:samplingRate or tv:gain, or one
+// that does not parse as a positive number.
+Result<RecordingInfo> read_recording(const std::vector<node::Record>& records,
+                                     const std::string& iri);
+
+// `<rec> tv:endSample N` (persistent): the recording ended after N frames (samples 0..N-1).
+node::Item recording_end_item(const std::string& recording_iri, std::int64_t end_sample);
+
+// IRIs of the derived items of a recording.
+std::string chunk_iri(const std::string& recording_iri, std::int64_t start_sample);
+std::string rpeaks_iri(const std::string& recording_iri, std::int64_t from_sample);
+std::string rr_iri(const std::string& recording_iri, std::int64_t first_start);
+std::string rr_end_iri(const std::string& recording_iri);  // an RR item with no interval
+std::string hrv_iri(const std::string& recording_iri, double start_s);
+
 // One chunk of samples (usually one second): frames of all leads interleaved, each sample a
-// 16-bit little-endian two's-complement integer, as an xsd:base64Binary literal.
+// 16-bit little-endian two's-complement integer, as an xsd:base64Binary literal. The chunk is
+// named chunk_iri(info.iri, start_sample). leads[i][offset .. offset + frames) are written.
 node::Item ecg_chunk_item(const RecordingInfo& info, std::int64_t start_sample,
                           const std::vector<std::vector<std::int32_t>>& leads,
                           std::size_t offset, std::size_t frames);
 
-// One HRV window as a SOSA observation with a result per metric (absent metrics are left
-// out), derived from the recording.
+// A chunk read back: leads[i] holds `frames` samples of lead i.
+struct EcgChunk {
+  std::string iri;
+  std::string recording;
+  std::int64_t start_sample = 0;
+  std::size_t frames = 0;
+  std::vector<std::vector<std::int32_t>> leads;
+};
+
+// The first tv:EcgChunk in `records` (a delivered item). Errors: no chunk, a missing
+// tv:recording, tv:startSample, tv:frameCount or tv:samples, bad base64, or a byte count that is
+// not frames x leads x 2.
+Result<EcgChunk> read_chunk(const std::vector<node::Record>& records);
+
+// R peaks decided while the detector read the samples [from_sample, to_sample) of a recording
+// (peaks may lie before from_sample: a beat is decided up to decision_delay_samples() after
+// it). `peaks` is a plain literal of space-separated sample indices ("" for none). The final
+// item of a recording carries end_sample (from the source's tv:endSample) and the peaks that
+// finish() released.
+struct RPeaks {
+  std::string recording;
+  std::int64_t from_sample = 0, to_sample = 0;
+  std::vector<std::int64_t> peaks;
+  std::string derived_from;               // the chunk's IRI (or the recording's, for the end)
+  std::optional<std::int64_t> end_sample;
+  std::string iri;                        // filled by read_rpeaks; rpeak_item derives it
+};
+
+node::Item rpeak_item(const RPeaks& rpeaks);  // named rpeaks_iri(recording, from_sample)
+Result<RPeaks> read_rpeaks(const std::vector<node::Record>& records);
+
+// RR intervals with their NN mark, in order, as the compact literal "start end nn;..." (nn is
+// 1 or 0; "" for none). derived_from: the R-peak items read since the previous RR item. The
+// final item of a recording carries end_sample.
+struct RrSeries {
+  std::string recording;
+  std::vector<Interval> intervals;
+  std::vector<std::string> derived_from;
+  std::optional<std::int64_t> end_sample;
+  std::string iri;  // filled by read_rr; rr_item derives it (rr_iri, or rr_end_iri if empty)
+};
+
+node::Item rr_item(const RrSeries& rr);
+Result<RrSeries> read_rr(const std::vector<node::Record>& records);
+
+std::string format_intervals(const std::vector<Interval>& intervals);
+Result<std::vector<Interval>> parse_intervals(const std::string& text);
+std::string format_peaks(const std::vector<std::int64_t>& peaks);
+Result<std::vector<std::int64_t>> parse_peaks(const std::string& text);
+
+// One HRV window as a SOSA observation named hrv_iri(info.iri, window.start_s) with a result
+// per metric (absent metrics are left out), derived from the recording and from each IRI in
+// derived_from (the RR items of the window).
 node::Item hrv_window_item(const RecordingInfo& info, const WindowMetrics& window,
-                           const std::string& agent_iri);
+                           const std::string& agent_iri,
+                           const std::vector<std::string>& derived_from = {});
 
 }  // namespace tahvel::aggregation

@@ -1,0 +1,201 @@
+// Shared plumbing of the HRV pipeline agents; see agent_runtime.h.
+#include "agent_runtime.h"
+
+#include <charconv>
+#include <cmath>
+#include <csignal>
+#include <cstdlib>
+#include <iostream>
+#include <set>
+
+namespace tahvel::agents::hrv {
+namespace {
+
+volatile std::sig_atomic_t g_stop = 0;
+
+void on_signal(int) { g_stop = 1; }
+
+bool declared(const std::vector<std::string>& list, const std::string& flag) {
+  for (const auto& f : list)
+    if (f == flag) return true;
+  return false;
+}
+
+std::string node_error(const node::Error& e) {
+  return std::string(node::errc_name(e.code)) + " (" + e.message + ")";
+}
+
+}  // namespace
+
+Args::Args(int argc, char** argv, const std::vector<std::string>& valued,
+           const std::vector<std::string>& boolean) {
+  for (int i = 1; i < argc; ++i) {
+    const std::string arg = argv[i];
+    if (declared(valued, arg)) {
+      if (i + 1 >= argc) throw UsageError(arg + ": needs a value");
+      values_[arg] = argv[++i];
+    } else if (declared(boolean, arg)) {
+      values_[arg] = "";
+    } else if (arg.starts_with("-")) {
+      throw UsageError("unknown flag " + arg);
+    } else if (dir_.empty()) {
+      dir_ = arg;
+    } else {
+      throw UsageError("unexpected argument '" + arg + "'");
+    }
+  }
+  if (dir_.empty()) throw UsageError("the node directory is missing");
+}
+
+std::string Args::text(const std::string& flag, const std::string& fallback) const {
+  auto it = values_.find(flag);
+  return it == values_.end() ? fallback : it->second;
+}
+
+double Args::number(const std::string& flag, double fallback, double minimum) const {
+  auto it = values_.find(flag);
+  if (it == values_.end()) return fallback;
+  char* end = nullptr;
+  const double v = std::strtod(it->second.c_str(), &end);
+  if (it->second.empty() || *end != '\0' || !std::isfinite(v) || v < minimum)
+    throw UsageError(flag + ": '" + it->second + "' is not a number >= " + std::to_string(minimum));
+  return v;
+}
+
+void install_stop_handlers() {
+  struct sigaction action {};
+  action.sa_handler = on_signal;
+  sigemptyset(&action.sa_mask);
+  sigaction(SIGINT, &action, nullptr);
+  sigaction(SIGTERM, &action, nullptr);
+}
+
+bool stop_requested() { return g_stop != 0; }
+
+void log_line(const std::string& program, const std::string& message) {
+  std::cerr << (program + ": " + message + "\n") << std::flush;
+}
+
+std::optional<Session> open_session(const std::string& program, const std::string& dir,
+                                    const std::string& agent_id) {
+  auto node = node::Node::open(dir);
+  if (!node) {
+    log_line(program, "open " + dir + ": " + node_error(node.error()));
+    return std::nullopt;
+  }
+  auto agent = node->agent(agent_id);
+  if (!agent) {
+    log_line(program, "agent '" + agent_id + "': " + node_error(agent.error()));
+    return std::nullopt;
+  }
+  return Session{program, std::move(*node), std::move(*agent)};
+}
+
+bool subscribe_predicates(Session& session, const std::vector<std::string>& predicate_iris) {
+  for (const std::string& p : predicate_iris) {
+    node::Pattern pattern;
+    pattern.p = node::Term::iri(p);
+    if (auto s = session.agent.subscribe(pattern); !s) {
+      log_line(session.program, "subscribe <" + p + ">: " + node_error(s.error()));
+      return false;
+    }
+  }
+  return true;
+}
+
+int run_take_loop(Session& session, double idle_s, const Handler& handle) {
+  using Clock = std::chrono::steady_clock;
+  auto last_input = Clock::now();
+  std::uint64_t done = 0;
+  while (!stop_requested()) {
+    auto taken = session.agent.take(std::chrono::milliseconds(250), node::Ack::manual);
+    if (!taken) {
+      log_line(session.program, "take: " + node_error(taken.error()));
+      return kExitError;
+    }
+    if (!*taken) {
+      if (idle_s > 0 && Clock::now() - last_input >= std::chrono::duration<double>(idle_s)) {
+        log_line(session.program, "no input for " + std::to_string(static_cast<long>(idle_s)) + " s, stopping");
+        break;
+      }
+      continue;
+    }
+    last_input = Clock::now();
+    const node::Delivery& delivery = **taken;
+    const Outcome outcome = handle(delivery);
+    if (outcome.fatal) {  // not acknowledged: delivered again after a restart
+      log_line(session.program, *outcome.fatal);
+      return kExitError;
+    }
+    if (auto acked = session.agent.ack(delivery.item); !acked) {
+      log_line(session.program, "ack item " + std::to_string(delivery.item) + ": " + node_error(acked.error()));
+      return kExitError;
+    }
+    ++done;
+  }
+  log_line(session.program, "processed " + std::to_string(done) + " item(s)" +
+                                (stop_requested() ? ", stopped by signal" : ""));
+  return kExitOk;
+}
+
+aggregation::Result<aggregation::RecordingInfo> load_recording(const node::Node& node,
+                                                              const std::string& recording_iri) {
+  auto snapshot = node.snapshot();
+  if (!snapshot) return aggregation::fail("snapshot: " + node_error(snapshot.error()));
+  node::Pattern pattern;
+  pattern.s = node::Term::iri(recording_iri);
+  auto records = snapshot->list(pattern);
+  if (!records) return aggregation::fail("read <" + recording_iri + ">: " + node_error(records.error()));
+  if (records->empty()) return aggregation::fail("no recording item <" + recording_iri + "> on the board");
+  return aggregation::read_recording(*records, recording_iri);
+}
+
+aggregation::Result<std::vector<std::vector<node::Record>>> items_matching(
+    const node::Node& node, const node::Pattern& pattern) {
+  auto snapshot = node.snapshot();
+  if (!snapshot) return aggregation::fail("snapshot: " + node_error(snapshot.error()));
+  auto records = snapshot->list(pattern);
+  if (!records) return aggregation::fail("list: " + node_error(records.error()));
+  std::set<std::uint64_t> seen;
+  std::vector<std::vector<node::Record>> items;
+  for (const node::Record& r : *records) {
+    if (!seen.insert(r.meta.item).second) continue;
+    auto item = snapshot->item(r.meta.item);
+    if (!item) continue;  // removed meanwhile
+    items.push_back(std::move(*item));
+  }
+  return items;
+}
+
+bool on_board(const node::Node& node, const std::string& iri) {
+  auto snapshot = node.snapshot();
+  if (!snapshot) return false;
+  node::Pattern pattern;
+  pattern.s = node::Term::iri(iri);
+  auto n = snapshot->count(pattern);
+  return n && *n > 0;
+}
+
+Outcome store_output(Session& session, const node::Item& item, bool catching_up) {
+  const std::string& subject = item.triples.front().s.value;
+  if (on_board(session.node, subject)) return Outcome::ok();
+  if (auto s = session.agent.store(item); !s) return Outcome::error("store <" + subject + ">: " + node_error(s.error()));
+  if (catching_up) log_line(session.program, "caught up: wrote <" + subject + ">");
+  return Outcome::ok();
+}
+
+std::optional<std::int64_t> parse_int(const std::string& text) {
+  std::int64_t v = 0;
+  auto [end, ec] = std::from_chars(text.data(), text.data() + text.size(), v);
+  if (ec != std::errc() || end != text.data() + text.size()) return std::nullopt;
+  return v;
+}
+
+bool has_predicate(const std::vector<node::Record>& records, const char* local) {
+  const std::string p = std::string(aggregation::kTv) + local;
+  for (const node::Record& r : records)
+    if (r.triple.p.value == p) return true;
+  return false;
+}
+
+}  // namespace tahvel::agents::hrv

@@ -1,0 +1,107 @@
+// Plumbing shared by the HRV pipeline agents (agents/hrv/, docs/agents.md): the command line,
+// opening the node as one agent, the take -> process -> store -> ack loop with manual
+// acknowledgement, SIGINT/SIGTERM, the idle timeout, one-line errors, and reading a
+// recording's description from the board. Each executable keeps only its own stage.
+//
+// Error lines on stderr have one shape: "<program>: <what>: <cause>" (cause names the item or
+// file). Exit status: 0 done (end of input, idle, signal), 1 a Tahvel error, 2 usage.
+#pragma once
+
+#include <chrono>
+#include <functional>
+#include <map>
+#include <optional>
+#include <stdexcept>
+#include <string>
+#include <vector>
+
+#include "tahvel/aggregation/items.h"
+#include "tahvel/node/node.h"
+
+namespace tahvel::agents::hrv {
+
+inline constexpr int kExitOk = 0, kExitError = 1, kExitUsage = 2;
+
+// A bad command line; main() prints the message and the usage and exits with kExitUsage.
+struct UsageError : std::runtime_error {
+  using std::runtime_error::runtime_error;
+};
+
+// The command line: one positional argument (the node directory) and "--name value" or
+// "--name" flags, each of which must be declared. Throws UsageError.
+class Args {
+ public:
+  Args(int argc, char** argv, const std::vector<std::string>& valued,
+       const std::vector<std::string>& boolean);
+  const std::string& dir() const { return dir_; }
+  bool has(const std::string& flag) const { return values_.count(flag) != 0; }
+  std::string text(const std::string& flag, const std::string& fallback) const;
+  // A finite number >= minimum, or fallback when the flag is absent. Throws UsageError.
+  double number(const std::string& flag, double fallback, double minimum = 0) const;
+
+ private:
+  std::string dir_;
+  std::map<std::string, std::string> values_;
+};
+
+// SIGINT and SIGTERM set a flag that the loops below test; the current item is finished first.
+void install_stop_handlers();
+bool stop_requested();
+
+// "<program>: <message>" on stderr, one line.
+void log_line(const std::string& program, const std::string& message);
+
+// An opened node with one agent handle.
+struct Session {
+  std::string program;
+  node::Node node;
+  node::Agent agent;
+};
+
+// Opens DIR and makes the handle for `agent_id`. On error prints one line and returns nullopt.
+std::optional<Session> open_session(const std::string& program, const std::string& dir,
+                                    const std::string& agent_id);
+
+// Subscribes to each predicate (idempotent). False after printing the error.
+bool subscribe_predicates(Session& session, const std::vector<std::string>& predicate_iris);
+
+// What the handler of one delivered item decided. fatal: the item is not acknowledged (it is
+// delivered again after a restart) and the loop stops with kExitError; the message is printed.
+struct Outcome {
+  std::optional<std::string> fatal;
+  static Outcome ok() { return {}; }
+  static Outcome error(std::string message) { return {std::move(message)}; }
+};
+using Handler = std::function<Outcome(const node::Delivery&)>;
+
+// Takes items (Ack::manual), calls `handle`, and acknowledges each item after the handler
+// returned ok (its outputs are stored by then): at-least-once, crash-safe. Stops on a signal,
+// after idle_s seconds without input (0: never), or on a fatal outcome or a take/ack error.
+int run_take_loop(Session& session, double idle_s, const Handler& handle);
+
+// The recording's description from the board (the persistent recording item). Errors name
+// the recording.
+aggregation::Result<aggregation::RecordingInfo> load_recording(const node::Node& node,
+                                                              const std::string& recording_iri);
+
+// The full items (all their records) of every record matching `pattern`, in id order, once
+// per item: what an agent replays from the board to rebuild its state after a restart.
+aggregation::Result<std::vector<std::vector<node::Record>>> items_matching(
+    const node::Node& node, const node::Pattern& pattern);
+
+// A decimal integer, all of `text`; nullopt otherwise.
+std::optional<std::int64_t> parse_int(const std::string& text);
+
+// Whether any record has `iri` as its subject (an output already written).
+bool on_board(const node::Node& node, const std::string& iri);
+
+// Stores `item` unless its first subject (the output's IRI) is on the board already: every
+// output of the pipeline is named by its recording and position, so an input delivered again
+// (a crash between store and ack) or replayed after a (re)start writes nothing twice.
+// catching_up only makes the write logged.
+Outcome store_output(Session& session, const node::Item& item, bool catching_up);
+
+// True when one of the records has predicate tv:<local>.
+bool has_predicate(const std::vector<node::Record>& records, const char* local);
+
+}  // namespace tahvel::agents::hrv

@@ -1,0 +1,155 @@
+// tahvel-ecg-source: an ECG sensor on the whiteboard. Replays a WFDB record (MIT-BIH) or
+// generates a synthetic ECG (ECGSYN), and writes the recording item (persistent), one chunk
+// item per second of signal (all leads), and at the end `<recording> tv:endSample N`.
+//
+//   tahvel-ecg-source DIR --record PATH | --synthetic [--seed N] [--hr BPM] [--seconds S]
+//                     [--speed X] [--agent ID]
+//
+// --speed 1 (default) paces the chunks at real time, X at X times real time, 0 as fast as
+// possible. Pacing follows a monotonic clock from the start (chunk k is written at
+// t0 + (k + 1) s / X), so time does not drift however long the run. SIGINT/SIGTERM end the
+// recording after the current chunk (the end item is still written).
+#include <chrono>
+#include <cmath>
+#include <filesystem>
+#include <memory>
+#include <thread>
+
+#include <iostream>
+
+#include "agent_runtime.h"
+#include "tahvel/aggregation/ecgsyn.h"
+#include "tahvel/aggregation/wfdb.h"
+
+namespace {
+
+namespace agg = tahvel::aggregation;
+namespace rt = tahvel::agents::hrv;
+using Frames = std::vector<std::vector<std::int32_t>>;
+
+constexpr const char* kProgram = "tahvel-ecg-source";
+constexpr const char* kUsage =
+    "usage: tahvel-ecg-source DIR (--record PATH | --synthetic [--seed N] [--hr BPM] [--seconds S])\n"
+    "                         [--speed X] [--agent ID]";
+
+// Where the frames come from: fills `out` (one vector per lead) with up to n frames; 0 at end.
+struct Signal {
+  agg::RecordingInfo info;  // iri and sensor_iri are filled by the caller
+  std::string name;         // recording name
+  std::function<agg::Result<std::size_t>(std::size_t n, Frames& out)> read;
+};
+
+agg::Result<Signal> record_signal(const std::string& path) {
+  auto reader = agg::SignalReader::open(path);
+  if (!reader) return tahvel::unexpected(reader.error());
+  auto shared = std::make_shared<agg::SignalReader>(std::move(*reader));
+  const agg::RecordHeader& h = shared->header();
+  Signal s;
+  s.name = h.name;
+  s.info.fs = h.fs;
+  s.info.gain = h.signals.empty() ? 200 : h.signals[0].gain;
+  s.info.baseline = h.signals.empty() ? 0 : h.signals[0].baseline;
+  s.info.unit = h.signals.empty() ? "mV" : h.signals[0].units;
+  for (const auto& sig : h.signals) s.info.leads.push_back(sig.description);
+  s.info.source = std::filesystem::path(h.directory).filename().string() + "/" + h.name;
+  s.read = [shared](std::size_t n, Frames& out) { return shared->read(n, out); };
+  return s;
+}
+
+agg::Result<Signal> synthetic_signal(const rt::Args& args) {
+  agg::SyntheticEcgOptions options;
+  options.seed = static_cast<std::uint64_t>(args.number("--seed", 1));
+  options.mean_hr_bpm = args.number("--hr", options.mean_hr_bpm);
+  auto generator = agg::SyntheticEcg::create(options);
+  if (!generator) return tahvel::unexpected(generator.error());
+  const double seconds = args.number("--seconds", 0);
+  const std::int64_t total = seconds > 0 ? std::llround(seconds * options.fs) : -1;
+  auto shared = std::make_shared<agg::SyntheticEcg>(std::move(*generator));
+  Signal s;
+  s.name = "synthetic-" + std::to_string(options.seed);
+  s.info.fs = options.fs;
+  s.info.gain = options.gain;
+  s.info.baseline = options.adc_zero;
+  s.info.leads = {"ECGSYN"};
+  s.info.source = "ecgsyn seed " + std::to_string(options.seed) + " hr " + args.text("--hr", "70");
+  s.read = [shared, total](std::size_t n, Frames& out) -> agg::Result<std::size_t> {
+    const std::int64_t left = total < 0 ? static_cast<std::int64_t>(n) : total - shared->samples_generated();
+    const auto count = static_cast<std::size_t>(std::max<std::int64_t>(0, std::min<std::int64_t>(left, n)));
+    out.resize(1);
+    shared->generate(count, out[0]);
+    return count;
+  };
+  return s;
+}
+
+// Sleeps until `deadline`, in short slices so that a signal ends the wait promptly.
+void wait_until(std::chrono::steady_clock::time_point deadline) {
+  while (!rt::stop_requested()) {
+    const auto now = std::chrono::steady_clock::now();
+    if (now >= deadline) return;
+    std::this_thread::sleep_for(std::min<std::chrono::steady_clock::duration>(deadline - now,
+                                                                             std::chrono::milliseconds(100)));
+  }
+}
+
+int replay(rt::Session& session, Signal& signal, double speed) {
+  auto& agent = session.agent;
+  if (auto s = agent.store(agg::recording_item(signal.info)); !s) {
+    rt::log_line(kProgram, "store recording item: " + s.error().message);
+    return rt::kExitError;
+  }
+  const auto chunk = static_cast<std::size_t>(std::max(1.0, std::round(signal.info.fs)));
+  const auto t0 = std::chrono::steady_clock::now();
+  std::int64_t position = 0;
+  Frames frames;
+  while (!rt::stop_requested()) {
+    for (auto& lead : frames) lead.clear();
+    auto got = signal.read(chunk, frames);
+    if (!got) {
+      rt::log_line(kProgram, "read: " + got.error().message);
+      return rt::kExitError;
+    }
+    if (*got == 0) break;
+    if (speed > 0)
+      wait_until(t0 + std::chrono::duration_cast<std::chrono::steady_clock::duration>(std::chrono::duration<double>(
+                          static_cast<double>(position + static_cast<std::int64_t>(*got)) / signal.info.fs / speed)));
+    if (auto s = agent.store(agg::ecg_chunk_item(signal.info, position, frames, 0, *got)); !s) {
+      rt::log_line(kProgram, "store chunk " + std::to_string(position) + ": " + s.error().message);
+      return rt::kExitError;
+    }
+    position += static_cast<std::int64_t>(*got);
+  }
+  if (auto s = agent.store(agg::recording_end_item(signal.info.iri, position)); !s) {
+    rt::log_line(kProgram, "store end item: " + s.error().message);
+    return rt::kExitError;
+  }
+  rt::log_line(kProgram, "wrote " + std::to_string(position) + " frames of <" + signal.info.iri + ">" +
+                             (rt::stop_requested() ? " (stopped by signal)" : ""));
+  return rt::kExitOk;
+}
+
+}  // namespace
+
+int main(int argc, char** argv) {
+  try {
+    const rt::Args args(argc, argv, {"--record", "--seed", "--hr", "--seconds", "--speed", "--agent"},
+                        {"--synthetic"});
+    if (args.has("--record") == args.has("--synthetic")) throw rt::UsageError("give --record PATH or --synthetic");
+    const double speed = args.number("--speed", 1);
+    rt::install_stop_handlers();
+    auto signal = args.has("--record") ? record_signal(args.text("--record", "")) : synthetic_signal(args);
+    if (!signal) {
+      rt::log_line(kProgram, signal.error().message);
+      return rt::kExitError;
+    }
+    auto session = rt::open_session(kProgram, args.dir(), args.text("--agent", "ecg"));
+    if (!session) return rt::kExitError;
+    signal->info.sensor_iri = session->agent.iri();
+    signal->info.iri = session->agent.iri() + "/recording/" + signal->name;
+    return replay(*session, *signal, speed);
+  } catch (const rt::UsageError& e) {
+    rt::log_line(kProgram, e.what());
+    std::cerr << kUsage << '\n';
+    return rt::kExitUsage;
+  }
+}

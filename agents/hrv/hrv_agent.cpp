@@ -1,0 +1,208 @@
+// tahvel-hrv: HRV per window as a whiteboard agent. Subscribes to RR items (tv:intervals) and
+// to its configuration (triples whose subject is its own agent IRI); keeps one HrvWindower per
+// recording and writes one HRV window item per completed window, <recording>/hrv/<start_s>,
+// derived from the recording and the RR items whose intervals end in the window. The RR item
+// with tv:endSample finishes the recording's windows.
+//
+//   tahvel-hrv DIR [--agent ID] [--idle S] [--window S] [--step S]
+//
+// Configuration (persistent or not, any writer):
+//   <node>/hrv tv:windowSeconds 120 ; tv:stepSeconds 60 .     (step defaults to the window)
+// read at start and again whenever an item with such a triple arrives; the latest value of each
+// wins, over --window/--step (default 300 s, non-overlapping). A change applies from the next
+// window not yet produced (HrvWindower::set_window).
+// (Re)start: a recording seen for the first time is replayed from its earlier RR items on the
+// board through a new windower, writing only the windows not on the board yet, so windows open
+// at a crash come out as they would have (with the configuration in force now).
+#include <deque>
+#include <map>
+
+#include <iostream>
+
+#include "agent_runtime.h"
+#include "tahvel/aggregation/hrv.h"
+
+namespace {
+
+namespace agg = tahvel::aggregation;
+namespace rt = tahvel::agents::hrv;
+namespace tn = tahvel::node;
+
+constexpr const char* kProgram = "tahvel-hrv";
+
+struct WindowConfig {
+  double window_s = 300, step_s = 0;  // step 0: the window length
+  double step() const { return step_s > 0 ? step_s : window_s; }
+};
+
+// An RR item and the span of its interval ends (samples): which windows it fed.
+struct RrRef {
+  std::string iri;
+  std::int64_t first_end = 0, last_end = 0;
+};
+
+struct Stream {
+  agg::RecordingInfo info;
+  agg::HrvWindower windower;
+  std::int64_t last_end = -1;  // end of the last interval pushed
+  std::deque<RrRef> refs;
+};
+
+class HrvStage {
+ public:
+  HrvStage(rt::Session& session, WindowConfig defaults) : session_(session), config_(defaults) {}
+
+  // Reads the agent's configuration triples from the board; the latest of each wins.
+  void load_config() {
+    auto snapshot = session_.node.snapshot();
+    if (!snapshot) return rt::log_line(kProgram, "read configuration: " + snapshot.error().message);
+    tn::Pattern pattern;
+    pattern.s = tn::Term::iri(session_.agent.iri());
+    auto records = snapshot->list(pattern);
+    if (!records) return rt::log_line(kProgram, "read configuration: " + records.error().message);
+    WindowConfig next = config_;
+    for (const tn::Record& r : *records) {  // id order: later values win
+      char* end = nullptr;
+      const double v = std::strtod(r.triple.o.value.c_str(), &end);
+      const bool number = r.triple.o.is_literal() && *end == '\0' && v > 0;
+      if (r.triple.p.value == std::string(agg::kTv) + "windowSeconds" && number) next.window_s = v;
+      if (r.triple.p.value == std::string(agg::kTv) + "stepSeconds" && number) next.step_s = v;
+    }
+    if (next.window_s != config_.window_s || next.step() != config_.step())
+      rt::log_line(kProgram, "window " + std::to_string(next.window_s) + " s, step " + std::to_string(next.step()) + " s");
+    config_ = next;
+    for (auto& [iri, s] : streams_) s.windower.set_window(config_.window_s, config_.step());
+  }
+
+  rt::Outcome handle(const tn::Delivery& delivery) {
+    for (const tn::Record& r : delivery.records)
+      if (r.triple.s.value == session_.agent.iri()) {
+        load_config();
+        break;
+      }
+    if (!rt::has_predicate(delivery.records, "intervals")) return rt::Outcome::ok();
+    auto rr = agg::read_rr(delivery.records);
+    if (!rr) {
+      rt::log_line(kProgram, rr.error().message + "; skipped");
+      return rt::Outcome::ok();
+    }
+    rt::Outcome outcome;
+    Stream* s = stream_for(*rr, outcome);
+    if (!s || outcome.fatal) return outcome;
+    if (!rr->intervals.empty() && rr->intervals.front().end <= s->last_end) {
+      rt::log_line(kProgram, "<" + rr->iri + ">: already processed; skipped");
+      return rt::Outcome::ok();
+    }
+    return process(*s, *rr, false);
+  }
+
+ private:
+  Stream* stream_for(const agg::RrSeries& rr, rt::Outcome& outcome) {
+    if (auto it = streams_.find(rr.recording); it != streams_.end()) return &it->second;
+    auto info = rt::load_recording(session_.node, rr.recording);
+    if (!info) {
+      rt::log_line(kProgram, info.error().message + "; skipped");
+      return nullptr;
+    }
+    Stream s{*info, agg::HrvWindower(info->fs, config_.window_s, config_.step()), -1, {}};
+    Stream& stream = streams_.emplace(rr.recording, std::move(s)).first->second;
+    if (!rr.intervals.empty()) outcome = catch_up(stream, rr.intervals.front().start);
+    return &stream;
+  }
+
+  // After a (re)start: feeds the intervals of the recording's RR items on the board that end by
+  // `upto` through the new windower, writing the window items that are missing.
+  rt::Outcome catch_up(Stream& s, std::int64_t upto) {
+    tn::Pattern pattern;
+    pattern.p = agg::tv_term("recording");
+    pattern.o = tn::Term::iri(s.info.iri);
+    auto items = rt::items_matching(session_.node, pattern);
+    if (!items) return rt::Outcome::error("catch up <" + s.info.iri + ">: " + items.error().message);
+    std::map<std::int64_t, agg::RrSeries> earlier;
+    for (const auto& records : *items)
+      if (auto rr = agg::read_rr(records); rr && !rr->intervals.empty() && rr->intervals.back().end <= upto)
+        earlier.emplace(rr->intervals.front().start, std::move(*rr));
+    if (earlier.empty()) return rt::Outcome::ok();
+    for (const auto& [start, rr] : earlier)
+      if (auto o = process(s, rr, true); o.fatal) return o;
+    rt::log_line(kProgram, "replayed " + std::to_string(earlier.size()) + " earlier RR item(s) of <" + s.info.iri +
+                               "> from the board");
+    return rt::Outcome::ok();
+  }
+
+  // Pushes the intervals of one RR item and writes the windows they complete; the item with
+  // tv:endSample finishes the recording (then the stream is closed).
+  rt::Outcome process(Stream& s, const agg::RrSeries& rr, bool catching_up) {
+    std::vector<agg::WindowMetrics> completed;
+    for (const agg::Interval& interval : rr.intervals) s.windower.push(interval, completed);
+    if (!rr.intervals.empty()) {
+      s.last_end = rr.intervals.back().end;
+      s.refs.push_back({rr.iri, rr.intervals.front().end, rr.intervals.back().end});
+    }
+    if (rr.end_sample) s.windower.finish(completed);
+    for (const auto& window : completed)
+      if (auto o = store_window(s, window, catching_up); o.fatal) return o;
+    if (rr.end_sample) streams_.erase(rr.recording);  // s is gone from here on
+    return rt::Outcome::ok();
+  }
+
+  rt::Outcome store_window(Stream& s, const agg::WindowMetrics& window, bool catching_up) {
+    std::vector<std::string> from;
+    for (const RrRef& ref : s.refs)
+      if (static_cast<double>(ref.last_end) / s.info.fs >= window.start_s &&
+          static_cast<double>(ref.first_end) / s.info.fs < window.end_s)
+        from.push_back(ref.iri);
+    // Later windows start later: RR items that ended before this one are no longer needed.
+    while (!s.refs.empty() && static_cast<double>(s.refs.front().last_end) / s.info.fs < window.start_s)
+      s.refs.pop_front();
+    return rt::store_output(session_, agg::hrv_window_item(s.info, window, session_.agent.iri(), from), catching_up);
+  }
+
+  rt::Session& session_;
+  WindowConfig config_;
+  std::map<std::string, Stream> streams_;
+};
+
+// States once per node which HRV results have a LOINC code (persistent, written if absent).
+void state_loinc_codes(rt::Session& session) {
+  const tn::Term loinc = agg::tv_term("loinc");
+  auto snapshot = session.node.snapshot();
+  if (!snapshot) return;
+  tn::Pattern pattern;
+  pattern.s = agg::tv_term("sdnnMs");
+  pattern.p = loinc;
+  if (auto n = snapshot->count(pattern); !n || *n > 0) return;
+  tn::Item item;
+  item.persistent = true;
+  item.add(agg::tv_term("sdnnMs"), loinc, tn::Term::literal("80404-7"))
+      .add(agg::tv_term("meanHrBpm"), loinc, tn::Term::literal("8867-4"));
+  if (auto s = session.agent.store(item); !s) rt::log_line(kProgram, "store LOINC codes: " + s.error().message);
+}
+
+}  // namespace
+
+int main(int argc, char** argv) {
+  try {
+    const rt::Args args(argc, argv, {"--agent", "--idle", "--window", "--step"}, {});
+    const double idle = args.number("--idle", 0);
+    WindowConfig defaults{args.number("--window", 300, 1e-3), args.number("--step", 0)};
+    rt::install_stop_handlers();
+    auto session = rt::open_session(kProgram, args.dir(), args.text("--agent", "hrv"));
+    if (!session) return rt::kExitError;
+    if (!rt::subscribe_predicates(*session, {std::string(agg::kTv) + "intervals"})) return rt::kExitError;
+    tn::Pattern config;
+    config.s = tn::Term::iri(session->agent.iri());
+    if (auto s = session->agent.subscribe(config); !s) {
+      rt::log_line(kProgram, "subscribe to the configuration: " + s.error().message);
+      return rt::kExitError;
+    }
+    state_loinc_codes(*session);
+    HrvStage stage(*session, defaults);
+    stage.load_config();
+    return rt::run_take_loop(*session, idle, [&](const tn::Delivery& d) { return stage.handle(d); });
+  } catch (const rt::UsageError& e) {
+    rt::log_line(kProgram, e.what());
+    std::cerr << "usage: tahvel-hrv DIR [--agent ID] [--idle S] [--window S] [--step S]\n";
+    return rt::kExitUsage;
+  }
+}

@@ -1,0 +1,178 @@
+// tahvel-rpeak: R-peak detection as a whiteboard agent. Subscribes to ECG chunks (tv:samples)
+// and to recording ends (tv:endSample); keeps one streaming RPeakDetector per recording (fs and
+// gain from the recording item, lead 0) and writes, per chunk, the R-peak item
+// <recording>/rpeaks/<first sample> derived from the chunk; at the end of a recording, one more
+// with the peaks finish() releases and tv:endSample.
+//
+//   tahvel-rpeak DIR [--agent ID] [--idle S]
+//
+// Chunks must follow each other (tv:startSample = the previous chunk's end): an earlier one is
+// a repeat (skipped), a later one a gap (logged; the detector restarts at the new chunk).
+// (Re)start: the first chunk of a recording that does not start at sample 0 makes the agent
+// replay the recording's earlier chunks from the board through a new detector, writing only
+// the R-peak items that are not on the board yet, so its peaks are those an uninterrupted run
+// gives (after a restart nothing is repeated; after a late start the early items are written).
+#include <algorithm>
+#include <map>
+
+#include <iostream>
+
+#include "agent_runtime.h"
+#include "tahvel/aggregation/rpeak.h"
+
+namespace {
+
+namespace agg = tahvel::aggregation;
+namespace rt = tahvel::agents::hrv;
+namespace tn = tahvel::node;
+
+constexpr const char* kProgram = "tahvel-rpeak";
+
+struct Stream {
+  agg::RecordingInfo info;
+  agg::RPeakDetector detector;
+  std::int64_t offset = 0;  // sample index of the detector's first sample
+  std::int64_t next = 0;    // start of the chunk expected next
+};
+
+class RPeakStage {
+ public:
+  explicit RPeakStage(rt::Session& session) : session_(session) {}
+
+  rt::Outcome handle(const tn::Delivery& delivery) {
+    const auto& records = delivery.records;
+    if (rt::has_predicate(records, "samples")) return on_chunk(records);
+    // tv:endSample also closes the derived items (ours included): only the source's counts.
+    if (rt::has_predicate(records, "peaks") || rt::has_predicate(records, "intervals")) return rt::Outcome::ok();
+    if (rt::has_predicate(records, "endSample")) return on_end(records);
+    return rt::Outcome::ok();  // another triple of a subscribed shape: nothing to do
+  }
+
+ private:
+  static agg::DetectorOptions detector_options(const agg::RecordingInfo& info) {
+    agg::DetectorOptions options;
+    options.fs = info.fs;
+    options.gain = info.gain;
+    return options;
+  }
+
+  // The stream of a recording, created on first use and brought up to `upto` from the board.
+  Stream* stream_for(const std::string& recording, std::int64_t upto, rt::Outcome& outcome) {
+    if (auto it = streams_.find(recording); it != streams_.end()) return &it->second;
+    auto info = rt::load_recording(session_.node, recording);
+    if (!info) {
+      rt::log_line(kProgram, info.error().message + "; skipped");
+      return nullptr;
+    }
+    if (auto valid = agg::validate(detector_options(*info)); !valid) {
+      rt::log_line(kProgram, "<" + recording + ">: " + valid.error().message + "; skipped");
+      return nullptr;
+    }
+    Stream& s = streams_.emplace(recording, Stream{*info, agg::RPeakDetector(detector_options(*info))}).first->second;
+    if (upto > 0) outcome = catch_up(s, upto);
+    return &s;
+  }
+
+  // After a (re)start: feeds the recording's chunks [0, upto) that are on the board through
+  // the new detector, writing the R-peak items that are missing (none after a restart; the
+  // early ones after a late start).
+  rt::Outcome catch_up(Stream& s, std::int64_t upto) {
+    tn::Pattern pattern;
+    pattern.p = agg::tv_term("recording");
+    pattern.o = tn::Term::iri(s.info.iri);
+    auto items = rt::items_matching(session_.node, pattern);
+    if (!items) return rt::Outcome::error("catch up <" + s.info.iri + ">: " + items.error().message);
+    std::map<std::int64_t, agg::EcgChunk> chunks;
+    for (const auto& records : *items)
+      if (auto chunk = agg::read_chunk(records); chunk && chunk->start_sample < upto)
+        chunks.emplace(chunk->start_sample, std::move(*chunk));
+    for (auto& [start, chunk] : chunks)
+      if (auto o = process(s, chunk, true); o.fatal) return o;
+    rt::log_line(kProgram, "replayed " + std::to_string(chunks.size()) + " earlier chunk(s) of <" + s.info.iri +
+                               "> from the board, up to sample " + std::to_string(s.next));
+    return rt::Outcome::ok();
+  }
+
+  // Feeds one chunk (lead 0), restarting the detector at a gap, and writes its R-peak item.
+  rt::Outcome process(Stream& s, const agg::EcgChunk& chunk, bool catching_up) {
+    if (chunk.start_sample != s.next) {
+      rt::log_line(kProgram, "<" + s.info.iri + ">: gap from sample " + std::to_string(s.next) + " to " +
+                                 std::to_string(chunk.start_sample) + "; the detector restarts");
+      s.detector = agg::RPeakDetector(detector_options(s.info));
+      s.offset = chunk.start_sample;
+    }
+    agg::RPeaks out;
+    out.recording = s.info.iri;
+    out.from_sample = chunk.start_sample;
+    std::vector<std::int64_t> found;
+    s.detector.push(chunk.leads[0].data(), chunk.frames, found);
+    for (auto p : found) out.peaks.push_back(p + s.offset);
+    s.next = out.to_sample = chunk.start_sample + static_cast<std::int64_t>(chunk.frames);
+    out.derived_from = chunk.iri;
+    return rt::store_output(session_, agg::rpeak_item(out), catching_up);
+  }
+
+  rt::Outcome on_chunk(const std::vector<tn::Record>& records) {
+    auto chunk = agg::read_chunk(records);
+    if (!chunk) {
+      rt::log_line(kProgram, chunk.error().message + "; skipped");
+      return rt::Outcome::ok();
+    }
+    rt::Outcome outcome;
+    Stream* s = stream_for(chunk->recording, chunk->start_sample, outcome);
+    if (!s || outcome.fatal) return outcome;
+    if (chunk->start_sample < s->next) {
+      rt::log_line(kProgram, "<" + chunk->iri + ">: already processed; skipped");
+      return rt::Outcome::ok();
+    }
+    return process(*s, *chunk, false);
+  }
+
+  rt::Outcome on_end(const std::vector<tn::Record>& records) {
+    for (const tn::Record& r : records) {
+      if (r.triple.p.value != std::string(agg::kTv) + "endSample" || !r.triple.s.is_iri()) continue;
+      const std::string recording = r.triple.s.value;
+      const auto end = rt::parse_int(r.triple.o.value);
+      if (!end) {
+        rt::log_line(kProgram, "<" + recording + ">: tv:endSample '" + r.triple.o.value + "' is not an integer; skipped");
+        continue;
+      }
+      rt::Outcome outcome;
+      Stream* s = stream_for(recording, *end, outcome);
+      if (!s || outcome.fatal) return outcome;
+      agg::RPeaks out;
+      out.recording = recording;
+      out.from_sample = out.to_sample = s->next;
+      s->detector.finish(out.peaks);
+      for (auto& p : out.peaks) p += s->offset;
+      out.derived_from = recording;
+      out.end_sample = *end;
+      if (auto o = rt::store_output(session_, agg::rpeak_item(out), false); o.fatal) return o;
+      streams_.erase(recording);
+    }
+    return rt::Outcome::ok();
+  }
+
+  rt::Session& session_;
+  std::map<std::string, Stream> streams_;
+};
+
+}  // namespace
+
+int main(int argc, char** argv) {
+  try {
+    const rt::Args args(argc, argv, {"--agent", "--idle"}, {});
+    const double idle = args.number("--idle", 0);
+    rt::install_stop_handlers();
+    auto session = rt::open_session(kProgram, args.dir(), args.text("--agent", "rpeak"));
+    if (!session) return rt::kExitError;
+    if (!rt::subscribe_predicates(*session, {std::string(agg::kTv) + "samples", std::string(agg::kTv) + "endSample"}))
+      return rt::kExitError;
+    RPeakStage stage(*session);
+    return rt::run_take_loop(*session, idle, [&](const tn::Delivery& d) { return stage.handle(d); });
+  } catch (const rt::UsageError& e) {
+    rt::log_line(kProgram, e.what());
+    std::cerr << "usage: tahvel-rpeak DIR [--agent ID] [--idle S]\n";
+    return rt::kExitUsage;
+  }
+}

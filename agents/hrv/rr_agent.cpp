@@ -1,0 +1,134 @@
+// tahvel-rr: RR intervals and the NN mark as a whiteboard agent. Subscribes to R-peak items
+// (tv:peaks); keeps one streaming NnClassifier per recording (fs from the recording item) and
+// writes, whenever intervals are decided, the RR item <recording>/rr/<first start> with
+// tv:intervals "start end nn;..." derived from the R-peak items read since the previous RR item.
+// The R-peak item that carries tv:endSample finishes the classifier; the RR item written then
+// carries tv:endSample too (named <recording>/rr/end when it holds no interval).
+//
+//   tahvel-rr DIR [--agent ID] [--idle S]
+//
+// R-peak items must follow each other (tv:fromSample = the previous tv:toSample): an earlier
+// one is a repeat (skipped), a later one a gap (logged; the classifier restarts).
+// (Re)start: the first R-peak item of a recording that does not start at sample 0 makes the
+// agent replay the recording's earlier R-peak items from the board through a new classifier,
+// writing only the RR items that are not on the board yet.
+#include <map>
+
+#include <iostream>
+
+#include "agent_runtime.h"
+#include "tahvel/aggregation/rr.h"
+
+namespace {
+
+namespace agg = tahvel::aggregation;
+namespace rt = tahvel::agents::hrv;
+namespace tn = tahvel::node;
+
+constexpr const char* kProgram = "tahvel-rr";
+
+struct Stream {
+  std::string recording;
+  agg::NnClassifier classifier;
+  std::int64_t next = 0;                // tv:fromSample expected next
+  std::vector<std::string> read_since;  // R-peak items read since the last RR item
+};
+
+class RrStage {
+ public:
+  explicit RrStage(rt::Session& session) : session_(session) {}
+
+  rt::Outcome handle(const tn::Delivery& delivery) {
+    auto peaks = agg::read_rpeaks(delivery.records);
+    if (!peaks) {
+      rt::log_line(kProgram, peaks.error().message + "; skipped");
+      return rt::Outcome::ok();
+    }
+    rt::Outcome outcome;
+    Stream* s = stream_for(peaks->recording, peaks->from_sample, outcome);
+    if (!s || outcome.fatal) return outcome;
+    if (peaks->from_sample < s->next) {
+      rt::log_line(kProgram, "<" + peaks->iri + ">: already processed; skipped");
+      return rt::Outcome::ok();
+    }
+    return process(*s, *peaks, false);
+  }
+
+ private:
+  Stream* stream_for(const std::string& recording, std::int64_t upto, rt::Outcome& outcome) {
+    if (auto it = streams_.find(recording); it != streams_.end()) return &it->second;
+    auto info = rt::load_recording(session_.node, recording);
+    if (!info) {
+      rt::log_line(kProgram, info.error().message + "; skipped");
+      return nullptr;
+    }
+    Stream& s = streams_.emplace(recording, Stream{recording, agg::NnClassifier(info->fs), 0, {}}).first->second;
+    if (upto > 0) outcome = catch_up(s, upto);
+    return &s;
+  }
+
+  // After a (re)start: feeds the recording's R-peak items before `upto` that are on the board
+  // through the new classifier, writing the RR items that are missing.
+  rt::Outcome catch_up(Stream& s, std::int64_t upto) {
+    tn::Pattern pattern;
+    pattern.p = agg::tv_term("recording");
+    pattern.o = tn::Term::iri(s.recording);
+    auto items = rt::items_matching(session_.node, pattern);
+    if (!items) return rt::Outcome::error("catch up <" + s.recording + ">: " + items.error().message);
+    std::map<std::int64_t, agg::RPeaks> earlier;
+    for (const auto& records : *items)
+      if (auto p = agg::read_rpeaks(records); p && p->from_sample < upto && !p->end_sample)
+        earlier.emplace(p->from_sample, std::move(*p));
+    for (const auto& [from, p] : earlier)
+      if (auto o = process(s, p, true); o.fatal) return o;
+    rt::log_line(kProgram, "replayed " + std::to_string(earlier.size()) + " earlier R-peak item(s) of <" +
+                               s.recording + "> from the board, up to sample " + std::to_string(s.next));
+    return rt::Outcome::ok();
+  }
+
+  // Pushes the peaks of one R-peak item; writes an RR item when intervals were decided or the
+  // recording ended (then the stream is closed).
+  rt::Outcome process(Stream& s, const agg::RPeaks& p, bool catching_up) {
+    agg::RrSeries out;
+    out.recording = s.recording;
+    if (p.from_sample != s.next) {
+      rt::log_line(kProgram, "<" + p.recording + ">: gap from sample " + std::to_string(s.next) + " to " +
+                                 std::to_string(p.from_sample) + "; the NN classifier restarts");
+      s.classifier.finish(out.intervals);
+    }
+    for (std::int64_t peak : p.peaks) s.classifier.push(peak, out.intervals);
+    s.next = p.to_sample;
+    s.read_since.push_back(p.iri);
+    if (p.end_sample) {
+      s.classifier.finish(out.intervals);
+      out.end_sample = p.end_sample;
+    }
+    if (out.intervals.empty() && !out.end_sample) return rt::Outcome::ok();
+    out.derived_from = std::move(s.read_since);
+    s.read_since.clear();
+    if (p.end_sample) streams_.erase(p.recording);  // s is gone from here on
+    return rt::store_output(session_, agg::rr_item(out), catching_up);
+  }
+
+  rt::Session& session_;
+  std::map<std::string, Stream> streams_;
+};
+
+}  // namespace
+
+int main(int argc, char** argv) {
+  try {
+    const rt::Args args(argc, argv, {"--agent", "--idle"}, {});
+    const double idle = args.number("--idle", 0);
+    rt::install_stop_handlers();
+    auto session = rt::open_session(kProgram, args.dir(), args.text("--agent", "rr"));
+    if (!session) return rt::kExitError;
+    if (!rt::subscribe_predicates(*session, {std::string(agg::kTv) + "peaks"})) return rt::kExitError;
+    RrStage stage(*session);
+    return rt::run_take_loop(*session, idle, [&](const tn::Delivery& d) { return stage.handle(d); });
+  } catch (const rt::UsageError& e) {
+    rt::log_line(kProgram, e.what());
+    std::cerr << "usage: tahvel-rr DIR [--agent ID] [--idle S]\n";
+    return rt::kExitUsage;
+  }
+}

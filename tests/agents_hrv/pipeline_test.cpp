@@ -1,0 +1,319 @@
+// The HRV pipeline as whiteboard agents gives exactly what `tahvel hrv` gives.
+//
+// Each case inits a node in a temporary directory, starts tahvel-rpeak, tahvel-rr and tahvel-hrv
+// as processes, replays MIT-BIH record 100 with tahvel-ecg-source at full speed, waits (with a
+// deadline, woken by Node::watch) until every HRV window is on the board, stops the agents with
+// SIGTERM, and compares with hrv_from_record() over the same record: the peaks, the NN-marked
+// intervals and, per window, the decimal strings of every metric as the item builder writes them.
+// The record is found through $TAHVEL_MITDB or TAHVEL_SOURCE_DIR/../shared/data/mitdb; without
+// it the cases are skipped.
+#include <gtest/gtest.h>
+#include <signal.h>
+#include <sys/wait.h>
+#include <unistd.h>
+
+#include <chrono>
+#include <cstdlib>
+#include <filesystem>
+#include <map>
+#include <set>
+#include <string>
+#include <vector>
+
+#include "tahvel/aggregation/items.h"
+#include "tahvel/aggregation/pipeline.h"
+#include "tahvel/node/node.h"
+
+namespace {
+
+namespace agg = tahvel::aggregation;
+namespace fs = std::filesystem;
+namespace tn = tahvel::node;
+using namespace std::chrono_literals;
+
+const std::string kNodeIri = "http://example.org/home1";
+const std::string kRecording = kNodeIri + "/ecg/recording/100";
+const std::string kSosa = "http://www.w3.org/ns/sosa/";
+
+std::string record_path() {
+  const char* env = std::getenv("TAHVEL_MITDB");
+  const std::string dir = env && *env ? env : std::string(TAHVEL_SOURCE_DIR) + "/../shared/data/mitdb";
+  return dir + "/100";
+}
+
+// A child process running one agent; stopped with SIGTERM (SIGKILL after 20 s) when destroyed.
+class Process {
+ public:
+  explicit Process(std::vector<std::string> argv) {
+    pid_ = fork();
+    if (pid_ == 0) {
+      std::vector<char*> args;
+      for (auto& a : argv) args.push_back(a.data());
+      args.push_back(nullptr);
+      execv(args[0], args.data());
+      _exit(127);
+    }
+  }
+  Process(const Process&) = delete;
+  ~Process() { stop(); }
+
+  // The exit status once it ended, or -1 while it runs.
+  int poll() {
+    if (status_ < 0 && pid_ > 0) {
+      int s = 0;
+      if (waitpid(pid_, &s, WNOHANG) == pid_) status_ = WIFEXITED(s) ? WEXITSTATUS(s) : 128 + WTERMSIG(s);
+    }
+    return status_;
+  }
+  // SIGKILL: a crash, with no chance to finish the current item.
+  void crash() {
+    if (pid_ > 0 && poll() < 0) kill(pid_, SIGKILL);
+    while (pid_ > 0 && poll() < 0) usleep(1000);
+  }
+  // SIGTERM, then waits for the exit status.
+  int stop() {
+    if (pid_ <= 0 || poll() >= 0) return status_;
+    kill(pid_, SIGTERM);
+    const auto deadline = std::chrono::steady_clock::now() + 20s;
+    while (poll() < 0) {
+      if (std::chrono::steady_clock::now() > deadline) kill(pid_, SIGKILL);
+      usleep(10000);  // reaping a child has no wake-up to wait on; bounded by the deadline
+    }
+    return status_;
+  }
+
+ private:
+  pid_t pid_ = -1;
+  int status_ = -1;
+};
+
+std::string bin(const std::string& name) { return std::string(TAHVEL_BIN_DIR) + "/" + name; }
+
+tn::Pattern hrv_items() {
+  tn::Pattern p;
+  p.p = tn::Term::iri(kSosa + "observedProperty");
+  p.o = agg::tv_term("HeartRateVariability");
+  return p;
+}
+
+class PipelineTest : public ::testing::Test {
+ protected:
+  void SetUp() override {
+    record_ = record_path();
+    if (!fs::exists(record_ + ".hea")) GTEST_SKIP() << "no MIT-BIH record at " << record_;
+    char pattern[] = "/tmp/tahvel-agents-hrv-XXXXXX";
+    ASSERT_NE(mkdtemp(pattern), nullptr);
+    tmp_ = pattern;
+    dir_ = tmp_ + "/home1";
+    auto node = tn::Node::init(dir_, tn::InitOptions{.iri = kNodeIri});
+    ASSERT_TRUE(node) << node.error().message;
+    node_.emplace(std::move(*node));
+  }
+  void TearDown() override {
+    agents_.clear();
+    node_.reset();
+    if (!tmp_.empty()) fs::remove_all(tmp_);
+  }
+
+  // Writes the hrv agent's configuration, as an operator would.
+  void configure_window(double window_s) {
+    auto op = node_->agent("operator");
+    ASSERT_TRUE(op);
+    tn::Item item;
+    item.add(tn::Term::iri(kNodeIri + "/hrv"), agg::tv_term("windowSeconds"),
+             tn::Term::literal(std::to_string(static_cast<int>(window_s)), std::string(tn::xsd::kInteger)));
+    ASSERT_TRUE(op->store(item));
+  }
+
+  void start_agents() {
+    agents_.clear();
+    for (const char* name : {"tahvel-rpeak", "tahvel-rr", "tahvel-hrv"})
+      agents_.push_back(std::make_unique<Process>(std::vector<std::string>{bin(name), dir_, "--idle", "300"}));
+  }
+
+  // Starts the three processing agents, replays the record, waits for `windows` HRV items.
+  // With crash_after > 0, kills the three agents (SIGKILL) once that many R-peak items are on
+  // the board and starts them again.
+  void run_pipeline(std::size_t windows, std::uint64_t crash_after = 0) {
+    const std::uint64_t before = node_->stats()->subscriptions;
+    start_agents();
+    // rpeak: chunks and ends; rr: peaks; hrv: intervals and its configuration.
+    wait_until("the agents' subscriptions", [&] { return node_->stats()->subscriptions >= before + 5; });
+    if (HasFatalFailure()) return;
+    Process source({bin("tahvel-ecg-source"), dir_, "--record", record_, "--speed", "0"});
+    if (crash_after > 0) {
+      tn::Pattern rpeaks;
+      rpeaks.p = agg::tv_term("peaks");
+      wait_until("R-peak items", [&] { return *node_->snapshot()->count(rpeaks) >= crash_after; });
+      if (HasFatalFailure()) return;
+      for (auto& a : agents_) a->crash();
+      start_agents();
+    }
+    wait_until(std::to_string(windows) + " HRV items", [&] { return *node_->snapshot()->count(hrv_items()) >= windows; });
+    EXPECT_EQ(source.stop(), 0);
+    for (auto& a : agents_) EXPECT_EQ(a->stop(), 0) << "an agent did not stop cleanly on SIGTERM";
+  }
+
+  // Waits until `done()` holds, woken by each commit on the board (Node::watch); fails after a
+  // deadline or when an agent exits early.
+  template <class Done>
+  void wait_until(const std::string& what, Done done) {
+    std::uint64_t bookmark = 0;
+    const auto deadline = std::chrono::steady_clock::now() + 400s;
+    while (!done()) {
+      for (auto& a : agents_) ASSERT_LT(a->poll(), 0) << "an agent exited early, waiting for " << what;
+      ASSERT_LT(std::chrono::steady_clock::now(), deadline) << "timed out waiting for " << what;
+      auto changes = node_->watch(bookmark, 1000ms, 1000);
+      ASSERT_TRUE(changes);
+      if (!changes->empty()) bookmark = changes->back().seq;
+    }
+  }
+
+  std::vector<tn::Record> about(const std::string& iri) {
+    tn::Pattern p;
+    p.s = tn::Term::iri(iri);
+    auto records = node_->snapshot()->list(p);
+    EXPECT_TRUE(records);
+    return records ? *records : std::vector<tn::Record>{};
+  }
+
+  // Every item whose subject lies under <recording>/<kind>/, read with `read`.
+  template <class T, class Read>
+  std::vector<T> derived(const char* kind, Read read) {
+    tn::Pattern p;
+    p.p = agg::tv_term("recording");
+    p.o = tn::Term::iri(kRecording);
+    std::vector<T> out;
+    std::set<std::uint64_t> seen;
+    auto snapshot = node_->snapshot();
+    auto records = snapshot->list(p);  // kept: a range-for over *temporary would dangle
+    EXPECT_TRUE(records);
+    for (const auto& r : *records) {
+      if (!r.triple.s.value.starts_with(kRecording + "/" + kind + "/") || !seen.insert(r.meta.item).second) continue;
+      auto item = snapshot->item(r.meta.item);
+      EXPECT_TRUE(item);
+      if (!item) continue;
+      auto value = read(*item);
+      EXPECT_TRUE(value) << value.error().message;
+      if (value) out.push_back(std::move(*value));
+    }
+    return out;
+  }
+
+  // Compares each window's metrics, as decimal strings, with the item builder's for `expected`.
+  void expect_windows(const agg::HrvReport& expected) {
+    auto info = agg::read_recording(about(kRecording), kRecording);
+    ASSERT_TRUE(info) << info.error().message;
+    ASSERT_FALSE(expected.windows.empty());
+    for (const auto& window : expected.windows) {
+      const std::string iri = agg::hrv_iri(kRecording, window.start_s);
+      std::multiset<std::string> want, got;
+      for (const auto& t : agg::hrv_window_item(*info, window, kNodeIri + "/hrv").triples)
+        if (t.p.value.starts_with(agg::kTv)) want.insert(t.p.value + " " + t.o.to_ntriples());
+      for (const auto& r : about(iri))
+        if (r.triple.p.value.starts_with(agg::kTv)) got.insert(r.triple.p.value + " " + r.triple.o.to_ntriples());
+      EXPECT_EQ(got, want) << "window " << iri;
+    }
+    EXPECT_EQ(*node_->snapshot()->count(hrv_items()), expected.windows.size());
+  }
+
+  std::string record_, tmp_, dir_;
+  std::optional<tn::Node> node_;
+  std::vector<std::unique_ptr<Process>> agents_;
+};
+
+TEST_F(PipelineTest, WindowsEqualTahvelHrv) {
+  auto expected = agg::hrv_from_record(record_);
+  ASSERT_TRUE(expected) << expected.error().message;
+  run_pipeline(expected->windows.size());
+  ASSERT_FALSE(HasFatalFailure());
+  expect_windows(*expected);
+
+  // The intermediate items carry the same beats and NN-marked intervals as the batch chain.
+  auto peaks = derived<agg::RPeaks>("rpeaks", agg::read_rpeaks);
+  std::sort(peaks.begin(), peaks.end(), [](auto& a, auto& b) { return a.from_sample < b.from_sample; });
+  std::vector<std::int64_t> beats;
+  for (const auto& p : peaks) beats.insert(beats.end(), p.peaks.begin(), p.peaks.end());
+  EXPECT_EQ(beats, expected->beats);
+  auto rr = derived<agg::RrSeries>("rr", agg::read_rr);
+  std::sort(rr.begin(), rr.end(), [](auto& a, auto& b) {
+    return (a.intervals.empty() ? INT64_MAX : a.intervals.front().start) <
+           (b.intervals.empty() ? INT64_MAX : b.intervals.front().start);
+  });
+  std::vector<agg::Interval> intervals;
+  for (const auto& r : rr) intervals.insert(intervals.end(), r.intervals.begin(), r.intervals.end());
+  ASSERT_EQ(intervals.size(), expected->intervals.size());
+  for (std::size_t i = 0; i < intervals.size(); ++i) {
+    EXPECT_EQ(intervals[i].start, expected->intervals[i].start) << i;
+    EXPECT_EQ(intervals[i].end, expected->intervals[i].end) << i;
+    EXPECT_EQ(intervals[i].nn, expected->intervals[i].nn) << i;
+  }
+}
+
+TEST_F(PipelineTest, ConfiguredWindowGivesThoseWindows) {
+  configure_window(120);
+  agg::ChainOptions options;
+  options.window_s = 120;
+  auto expected = agg::hrv_from_record(record_, options);
+  ASSERT_TRUE(expected) << expected.error().message;
+  run_pipeline(expected->windows.size());
+  ASSERT_FALSE(HasFatalFailure());
+  expect_windows(*expected);
+  for (const auto& window : expected->windows) EXPECT_DOUBLE_EQ(window.end_s - window.start_s, 120);
+}
+
+// Agents killed in the middle of the record and started again: the windows are still exactly
+// those of `tahvel hrv`, and no output is written twice.
+TEST_F(PipelineTest, CrashAndRestartChangeNothing) {
+  auto expected = agg::hrv_from_record(record_);
+  ASSERT_TRUE(expected) << expected.error().message;
+  run_pipeline(expected->windows.size(), 600);
+  ASSERT_FALSE(HasFatalFailure());
+  expect_windows(*expected);
+  for (const char* predicate : {"peaks", "intervals", "windowStartS"}) {
+    tn::Pattern p;
+    p.p = agg::tv_term(predicate);
+    auto records = node_->snapshot()->list(p);
+    ASSERT_TRUE(records);
+    std::set<std::string> subjects;
+    for (const auto& r : *records) EXPECT_TRUE(subjects.insert(r.triple.s.value).second) << r.triple.s.value << " twice";
+  }
+}
+
+// prov:wasDerivedFrom leads from every HRV item, through RR and R-peak items, to ECG chunks.
+TEST_F(PipelineTest, ProvenanceLeadsBackToChunks) {
+  auto expected = agg::hrv_from_record(record_);
+  ASSERT_TRUE(expected) << expected.error().message;
+  run_pipeline(expected->windows.size());
+  ASSERT_FALSE(HasFatalFailure());
+  auto from = [&](const std::string& iri) {
+    std::vector<std::string> out;
+    for (const auto& r : about(iri))
+      if (r.triple.p.value == agg::kProvDerivedFrom) out.push_back(r.triple.o.value);
+    return out;
+  };
+  for (const auto& window : expected->windows) {
+    const std::string hrv = agg::hrv_iri(kRecording, window.start_s);
+    std::set<std::string> chunks;
+    bool names_recording = false;
+    for (const auto& rr : from(hrv)) {
+      if (rr == kRecording) names_recording = true;
+      if (!rr.starts_with(kRecording + "/rr/")) continue;
+      for (const auto& rpeaks : from(rr)) {
+        EXPECT_TRUE(rpeaks.starts_with(kRecording + "/rpeaks/")) << rr << " derived from " << rpeaks;
+        for (const auto& chunk : from(rpeaks))
+          if (chunk.starts_with(kRecording + "/chunk/")) chunks.insert(chunk);
+      }
+    }
+    EXPECT_TRUE(names_recording) << hrv;
+    ASSERT_FALSE(chunks.empty()) << hrv << " does not lead back to a chunk";
+    for (const auto& chunk : chunks) {
+      bool is_chunk = false;
+      for (const auto& r : about(chunk))
+        is_chunk |= r.triple.p.value == std::string(tn::kRdfType) && r.triple.o == agg::tv_term("EcgChunk");
+      EXPECT_TRUE(is_chunk) << chunk << " is not an ECG chunk on the board";
+    }
+  }
+}
+
+}  // namespace
