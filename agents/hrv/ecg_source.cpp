@@ -113,6 +113,7 @@ int replay(rt::Session& session, Signal& signal, double speed) {
     if (speed > 0)
       wait_until(t0 + std::chrono::duration_cast<std::chrono::steady_clock::duration>(std::chrono::duration<double>(
                           static_cast<double>(position + static_cast<std::int64_t>(*got)) / signal.info.fs / speed)));
+    if (rt::stop_requested()) break;  // stopped while waiting: this chunk's time has not come
     if (auto s = agent.store(agg::ecg_chunk_item(signal.info, position, frames, 0, *got)); !s) {
       rt::log_line(kProgram, "store chunk " + std::to_string(position) + ": " + s.error().message);
       return rt::kExitError;
