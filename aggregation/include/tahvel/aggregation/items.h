@@ -1,6 +1,6 @@
 // How ECG and HRV travel on the whiteboard: the items the sensor, signal-processing and HRV
 // agents write (vocabulary: docs/vocabulary.md), and the readers that turn delivered records
-// back into values. Building and reading them in one place keeps the agents (agents/hrv/),
+// back into values. Building and reading them in one place keeps the agents (aggregation/agents/),
 // the command line, the tests and the benchmarks on the same shapes.
 //
 // The chain, each item naming what it was derived from (IRIs, so that provenance can be

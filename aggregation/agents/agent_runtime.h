@@ -1,4 +1,4 @@
-// Plumbing shared by the HRV pipeline agents (agents/hrv/, docs/agents.md): the command line,
+// Plumbing shared by the HRV pipeline agents (aggregation/agents/, docs/agents.md): the command line,
 // opening the node as one agent, the take -> process -> store -> ack loop with manual
 // acknowledgement, SIGINT/SIGTERM, the idle timeout, one-line errors, and reading a
 // recording's description from the board. Each executable keeps only its own stage.
