@@ -39,7 +39,9 @@ case "${1:-}" in
   demo)
     install_missing_packages
     build build
-    exec ./deploy/demo/single-node.sh build/bin/tahvel
+    ./deploy/demo/single-node.sh build/bin/tahvel
+    # The HRV chain as agents on one node: a MIT-BIH record (or a synthetic ECG) replayed.
+    exec ./deploy/demo/hrv-pipeline.sh build/bin
     ;;
   test)
     install_missing_packages
