@@ -167,6 +167,14 @@ aggregation::Result<std::vector<std::vector<node::Record>>> items_matching(
   return items;
 }
 
+aggregation::Result<std::vector<std::vector<node::Record>>> recording_items(
+    const node::Node& node, const std::string& recording_iri) {
+  node::Pattern pattern;
+  pattern.p = aggregation::tv_term("recording");
+  pattern.o = node::Term::iri(recording_iri);
+  return items_matching(node, pattern);
+}
+
 bool on_board(const node::Node& node, const std::string& iri) {
   auto snapshot = node.snapshot();
   if (!snapshot) return false;

@@ -89,6 +89,10 @@ aggregation::Result<aggregation::RecordingInfo> load_recording(const node::Node&
 aggregation::Result<std::vector<std::vector<node::Record>>> items_matching(
     const node::Node& node, const node::Pattern& pattern);
 
+// items_matching for the items of one recording (those with tv:recording <recording_iri>).
+aggregation::Result<std::vector<std::vector<node::Record>>> recording_items(
+    const node::Node& node, const std::string& recording_iri);
+
 // A decimal integer, all of `text`; nullopt otherwise.
 std::optional<std::int64_t> parse_int(const std::string& text);
 

@@ -113,10 +113,7 @@ class HrvStage {
   // After a (re)start: feeds the intervals of the recording's RR items on the board that end by
   // `upto` through the new windower, writing the window items that are missing.
   rt::Outcome catch_up(Stream& s, std::int64_t upto) {
-    tn::Pattern pattern;
-    pattern.p = agg::tv_term("recording");
-    pattern.o = tn::Term::iri(s.info.iri);
-    auto items = rt::items_matching(session_.node, pattern);
+    auto items = rt::recording_items(session_.node, s.info.iri);
     if (!items) return rt::Outcome::error("catch up <" + s.info.iri + ">: " + items.error().message);
     std::map<std::int64_t, agg::RrSeries> earlier;
     for (const auto& records : *items)

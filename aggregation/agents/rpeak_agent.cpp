@@ -77,10 +77,7 @@ class RPeakStage {
   // the new detector, writing the R-peak items that are missing (none after a restart; the
   // early ones after a late start).
   rt::Outcome catch_up(Stream& s, std::int64_t upto) {
-    tn::Pattern pattern;
-    pattern.p = agg::tv_term("recording");
-    pattern.o = tn::Term::iri(s.info.iri);
-    auto items = rt::items_matching(session_.node, pattern);
+    auto items = rt::recording_items(session_.node, s.info.iri);
     if (!items) return rt::Outcome::error("catch up <" + s.info.iri + ">: " + items.error().message);
     std::map<std::int64_t, agg::EcgChunk> chunks;
     for (const auto& records : *items)

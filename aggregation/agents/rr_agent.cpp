@@ -70,10 +70,7 @@ class RrStage {
   // After a (re)start: feeds the recording's R-peak items before `upto` that are on the board
   // through the new classifier, writing the RR items that are missing.
   rt::Outcome catch_up(Stream& s, std::int64_t upto) {
-    tn::Pattern pattern;
-    pattern.p = agg::tv_term("recording");
-    pattern.o = tn::Term::iri(s.recording);
-    auto items = rt::items_matching(session_.node, pattern);
+    auto items = rt::recording_items(session_.node, s.recording);
     if (!items) return rt::Outcome::error("catch up <" + s.recording + ">: " + items.error().message);
     std::map<std::int64_t, agg::RPeaks> earlier;
     for (const auto& records : *items)
