@@ -7,21 +7,28 @@
 // intervals and, per window, the decimal strings of every metric as the item builder writes them.
 // The record is found through $TAHVEL_MITDB or TAHVEL_SOURCE_DIR/../shared/data/mitdb; without
 // it the cases are skipped.
+#include <fcntl.h>
 #include <gtest/gtest.h>
 #include <signal.h>
 #include <sys/wait.h>
 #include <unistd.h>
 
+#include <algorithm>
 #include <chrono>
+#include <cmath>
 #include <cstdlib>
 #include <filesystem>
+#include <fstream>
 #include <map>
+#include <sstream>
 #include <set>
 #include <string>
 #include <vector>
 
 #include "tahvel/aggregation/items.h"
 #include "tahvel/aggregation/pipeline.h"
+#include "tahvel/aggregation/rpeak.h"
+#include "tahvel/aggregation/wfdb.h"
 #include "tahvel/node/node.h"
 
 namespace {
@@ -42,11 +49,17 @@ std::string record_path() {
 }
 
 // A child process running one agent; stopped with SIGTERM (SIGKILL after 20 s) when destroyed.
+// With `stderr_path`, its stderr goes to that file.
 class Process {
  public:
-  explicit Process(std::vector<std::string> argv) {
+  explicit Process(std::vector<std::string> argv, const std::string& stderr_path = "") {
     pid_ = fork();
     if (pid_ == 0) {
+      if (!stderr_path.empty()) {
+        const int fd = open(stderr_path.c_str(), O_WRONLY | O_CREAT | O_APPEND, 0644);
+        if (fd < 0 || dup2(fd, 2) < 0) _exit(126);
+        close(fd);
+      }
       std::vector<char*> args;
       for (auto& a : argv) args.push_back(a.data());
       args.push_back(nullptr);
@@ -115,20 +128,58 @@ class PipelineTest : public ::testing::Test {
     if (!tmp_.empty()) fs::remove_all(tmp_);
   }
 
-  // Writes the hrv agent's configuration, as an operator would.
-  void configure_window(double window_s) {
+  // Writes the hrv agent's configuration, as an operator would (the step only when > 0).
+  void configure_window(double window_s, double step_s = 0) {
     auto op = node_->agent("operator");
     ASSERT_TRUE(op);
     tn::Item item;
-    item.add(tn::Term::iri(kNodeIri + "/hrv"), agg::tv_term("windowSeconds"),
-             tn::Term::literal(std::to_string(static_cast<int>(window_s)), std::string(tn::xsd::kInteger)));
+    const auto integer = [](double v) {
+      return tn::Term::literal(std::to_string(static_cast<int>(v)), std::string(tn::xsd::kInteger));
+    };
+    item.add(tn::Term::iri(kNodeIri + "/hrv"), agg::tv_term("windowSeconds"), integer(window_s));
+    if (step_s > 0) item.add(tn::Term::iri(kNodeIri + "/hrv"), agg::tv_term("stepSeconds"), integer(step_s));
     ASSERT_TRUE(op->store(item));
   }
 
-  void start_agents() {
+  // With `logs`, each agent's stderr goes to <tmp>/<program>.log (see agent_log).
+  void start_agents(bool logs = false) {
     agents_.clear();
     for (const char* name : {"tahvel-rpeak", "tahvel-rr", "tahvel-hrv"})
-      agents_.push_back(std::make_unique<Process>(std::vector<std::string>{bin(name), dir_, "--idle", "300"}));
+      agents_.push_back(std::make_unique<Process>(std::vector<std::string>{bin(name), dir_, "--idle", "300"},
+                                                  logs ? tmp_ + "/" + name + ".log" : ""));
+  }
+
+  std::string agent_log(const std::string& program) {
+    std::ifstream in(tmp_ + "/" + program + ".log");
+    std::ostringstream text;
+    text << in.rdbuf();
+    return text.str();
+  }
+
+  // Starts the three processing agents and waits until they have subscribed.
+  void start_and_subscribe(bool logs = false) {
+    const std::uint64_t before = node_->stats()->subscriptions;
+    start_agents(logs);
+    // rpeak: chunks and ends; rr: peaks; hrv: intervals and its configuration.
+    wait_until("the agents' subscriptions", [&] { return node_->stats()->subscriptions >= before + 5; });
+  }
+
+  // The HRV windows on the board (start and end in s, as written), by start.
+  std::vector<std::pair<double, double>> board_windows() {
+    tn::Pattern p;
+    p.p = agg::tv_term("windowStartS");
+    auto records = node_->snapshot()->list(p);
+    EXPECT_TRUE(records);
+    std::vector<std::pair<double, double>> out;
+    if (!records) return out;
+    for (const auto& r : *records) {
+      double end = -1;
+      for (const auto& e : about(r.triple.s.value))
+        if (e.triple.p == agg::tv_term("windowEndS")) end = std::stod(e.triple.o.value);
+      out.emplace_back(std::stod(r.triple.o.value), end);
+    }
+    std::sort(out.begin(), out.end());
+    return out;
   }
 
   // Starts the three processing agents, replays the record, waits for `windows` HRV items.
@@ -201,11 +252,12 @@ class PipelineTest : public ::testing::Test {
   }
 
   // Compares each window's metrics, as decimal strings, with the item builder's for `expected`.
-  void expect_windows(const agg::HrvReport& expected) {
+  void expect_windows(const agg::HrvReport& expected) { expect_windows(expected.windows); }
+  void expect_windows(const std::vector<agg::WindowMetrics>& windows) {
     auto info = agg::read_recording(about(kRecording), kRecording);
     ASSERT_TRUE(info) << info.error().message;
-    ASSERT_FALSE(expected.windows.empty());
-    for (const auto& window : expected.windows) {
+    ASSERT_FALSE(windows.empty());
+    for (const auto& window : windows) {
       const std::string iri = agg::hrv_iri(kRecording, window.start_s);
       std::multiset<std::string> want, got;
       for (const auto& t : agg::hrv_window_item(*info, window, kNodeIri + "/hrv").triples)
@@ -214,7 +266,7 @@ class PipelineTest : public ::testing::Test {
         if (r.triple.p.value.starts_with(agg::kTv)) got.insert(r.triple.p.value + " " + r.triple.o.to_ntriples());
       EXPECT_EQ(got, want) << "window " << iri;
     }
-    EXPECT_EQ(*node_->snapshot()->count(hrv_items()), expected.windows.size());
+    EXPECT_EQ(*node_->snapshot()->count(hrv_items()), windows.size());
   }
 
   std::string record_, tmp_, dir_;
@@ -314,6 +366,159 @@ TEST_F(PipelineTest, ProvenanceLeadsBackToChunks) {
       EXPECT_TRUE(is_chunk) << chunk << " is not an ECG chunk on the board";
     }
   }
+}
+
+}  // namespace
+
+namespace {
+
+// While record 100 is being replayed (paced: about 36 s), the hrv agent's window is changed to
+// 120 s once the first 300 s window is on the board. The windows produced before the change
+// keep 300 s; from the first window not yet produced (the boundary, read from the board) they
+// last 120 s, with exactly the metrics of an HrvWindower whose set_window(120, 120) is called
+// at that boundary.
+TEST_F(PipelineTest, WindowChangeMidStreamAppliesFromTheNextWindow) {
+  auto batch = agg::hrv_from_record(record_);
+  ASSERT_TRUE(batch) << batch.error().message;
+  start_and_subscribe();
+  ASSERT_FALSE(HasFatalFailure());
+  Process source({bin("tahvel-ecg-source"), dir_, "--record", record_, "--speed", "50"});
+  wait_until("the first HRV window", [&] { return *node_->snapshot()->count(hrv_items()) >= 1; });
+  ASSERT_FALSE(HasFatalFailure());
+  configure_window(120, 120);
+  ASSERT_FALSE(HasFatalFailure());
+  const auto is_short = [](const std::pair<double, double>& w) { return w.second - w.first == 120; };
+  wait_until("a 120 s window", [&] {
+    auto windows = board_windows();
+    return std::any_of(windows.begin(), windows.end(), is_short);
+  });
+  ASSERT_FALSE(HasFatalFailure());
+  // Windows are written in order: the first 120 s window starts where the change applied.
+  double boundary = -1;
+  for (const auto& w : board_windows())
+    if (is_short(w)) {
+      boundary = w.first;
+      break;
+    }
+  ASSERT_GT(boundary, 0) << "the change applied before the first window";
+
+  agg::HrvWindower windower(batch->fs, 300, 300);
+  std::vector<agg::WindowMetrics> expected;
+  bool changed = false;
+  for (const auto& interval : batch->intervals) {
+    windower.push(interval, expected);
+    if (!changed && !expected.empty() && expected.back().end_s >= boundary) {
+      ASSERT_DOUBLE_EQ(expected.back().end_s, boundary) << "no 300 s window ends at the boundary";
+      windower.set_window(120, 120);
+      changed = true;
+    }
+  }
+  windower.finish(expected);
+  ASSERT_TRUE(changed);
+
+  wait_until(std::to_string(expected.size()) + " HRV items",
+             [&] { return *node_->snapshot()->count(hrv_items()) >= expected.size(); });
+  ASSERT_FALSE(HasFatalFailure());
+  EXPECT_EQ(source.stop(), 0);
+  for (auto& a : agents_) EXPECT_EQ(a->stop(), 0) << "an agent did not stop cleanly on SIGTERM";
+
+  std::size_t before = 0, after = 0;
+  for (const auto& [start, end] : board_windows()) {
+    if (start < boundary) {
+      ++before;
+      EXPECT_DOUBLE_EQ(end - start, 300) << "window at " << start << " s, before the change at " << boundary << " s";
+    } else {
+      ++after;
+      EXPECT_DOUBLE_EQ(end - start, 120) << "window at " << start << " s, after the change at " << boundary << " s";
+    }
+  }
+  EXPECT_GE(before, 1u);
+  EXPECT_GE(after, 1u);
+  expect_windows(expected);
+}
+
+// The chunks of the first two minutes of record 100, stored directly, with the second
+// [60 s, 61 s) missing. tahvel-rpeak logs the gap and restarts its detector at the next chunk:
+// no agent fails, R-peak items continue after the gap, none covers the missing second, and the
+// peaks on either side are those of a detector that saw only that side.
+TEST_F(PipelineTest, GapInTheChunksIsLoggedAndRestartsTheDetector) {
+  auto signals = agg::read_signals(record_);
+  ASSERT_TRUE(signals) << signals.error().message;
+  const auto& h = signals->header;
+  agg::RecordingInfo info;
+  info.iri = kRecording;
+  info.sensor_iri = kNodeIri + "/ecg";
+  info.fs = h.fs;
+  info.gain = h.signals.empty() ? 200 : h.signals[0].gain;
+  info.baseline = h.signals.empty() ? 0 : h.signals[0].baseline;
+  for (const auto& sig : h.signals) info.leads.push_back(sig.description);
+  info.source = "mitdb/100";
+  const auto fs = static_cast<std::int64_t>(std::llround(info.fs));
+  const std::int64_t seconds = 120, missing = 60;
+  const std::int64_t gap_start = missing * fs, gap_end = gap_start + fs, end = seconds * fs;
+  ASSERT_GE(static_cast<std::int64_t>(signals->samples[0].size()), end);
+
+  start_and_subscribe(true);
+  ASSERT_FALSE(HasFatalFailure());
+  auto ecg = node_->agent("ecg");
+  ASSERT_TRUE(ecg);
+  ASSERT_TRUE(ecg->store(agg::recording_item(info)));
+  for (std::int64_t k = 0; k < seconds; ++k) {
+    if (k == missing) continue;
+    ASSERT_TRUE(ecg->store(agg::ecg_chunk_item(info, k * fs, signals->samples, static_cast<std::size_t>(k * fs),
+                                               static_cast<std::size_t>(fs))));
+  }
+  ASSERT_TRUE(ecg->store(agg::recording_end_item(kRecording, end)));
+
+  // The whole chain gets through: the R-peak end item, then the (one, partial) HRV window.
+  wait_until("the R-peak end item", [&] { return !about(agg::rpeaks_iri(kRecording, end)).empty(); });
+  ASSERT_FALSE(HasFatalFailure()) << agent_log("tahvel-rpeak");
+  wait_until("the HRV window", [&] { return *node_->snapshot()->count(hrv_items()) >= 1; });
+  ASSERT_FALSE(HasFatalFailure());
+  for (auto& a : agents_) EXPECT_EQ(a->stop(), 0) << "an agent did not stop cleanly on SIGTERM";
+
+  const std::string log = agent_log("tahvel-rpeak");
+  EXPECT_NE(log.find("gap from sample " + std::to_string(gap_start) + " to " + std::to_string(gap_end)),
+            std::string::npos)
+      << "tahvel-rpeak's log:\n" << log;
+
+  auto items = derived<agg::RPeaks>("rpeaks", agg::read_rpeaks);
+  std::sort(items.begin(), items.end(), [](auto& a, auto& b) { return a.from_sample < b.from_sample; });
+  ASSERT_EQ(items.size(), static_cast<std::size_t>(seconds));  // one per chunk given, and the end item
+  std::vector<std::int64_t> before_gap, after_gap;
+  std::size_t items_after = 0;
+  for (const auto& item : items) {
+    EXPECT_TRUE(item.to_sample <= gap_start || item.from_sample >= gap_end)
+        << item.iri << " covers [" << item.from_sample << ", " << item.to_sample << ")";
+    for (auto p : item.peaks) EXPECT_TRUE(p < gap_start || p >= gap_end) << item.iri << ": peak " << p;
+    auto& side = item.from_sample < gap_start ? before_gap : after_gap;
+    side.insert(side.end(), item.peaks.begin(), item.peaks.end());
+    if (item.from_sample >= gap_end) ++items_after;
+  }
+  EXPECT_EQ(items_after, static_cast<std::size_t>(seconds - missing));  // 59 chunks and the end
+  EXPECT_EQ(items.back().end_sample, end);
+
+  // Each side as a detector that saw only that side, in the same one-second pushes.
+  agg::DetectorOptions options;
+  options.fs = info.fs;
+  options.gain = info.gain;
+  const auto& lead = signals->samples[0];
+  std::vector<std::int64_t> want_before, want_after;
+  {
+    agg::RPeakDetector detector(options);
+    for (std::int64_t k = 0; k < missing; ++k)
+      detector.push(lead.data() + k * fs, static_cast<std::size_t>(fs), want_before);  // never finished
+  }
+  {
+    agg::RPeakDetector detector(options);
+    for (std::int64_t k = missing + 1; k < seconds; ++k)
+      detector.push(lead.data() + k * fs, static_cast<std::size_t>(fs), want_after);
+    detector.finish(want_after);
+    for (auto& p : want_after) p += gap_end;
+  }
+  EXPECT_EQ(before_gap, want_before);
+  EXPECT_EQ(after_gap, want_after);
+  EXPECT_GT(after_gap.size(), 50u);  // record 100 beats about 75 per minute
 }
 
 }  // namespace
