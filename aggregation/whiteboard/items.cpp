@@ -439,3 +439,170 @@ Item hrv_window_item(const RecordingInfo& info, const WindowMetrics& window,
 }
 
 }  // namespace tahvel::aggregation
+
+// ---- HRV windows read back, and trends (appended; see items.h) ----
+namespace tahvel::aggregation {
+namespace {
+
+struct MetricName {
+  HrvMetric metric;
+  const char* local;
+  std::optional<double> HrvMetrics::*field;
+};
+
+constexpr MetricName kMetricNames[] = {
+    {HrvMetric::mean_nn, "meanNnMs", &HrvMetrics::mean_nn_ms}, {HrvMetric::sdnn, "sdnnMs", &HrvMetrics::sdnn_ms},
+    {HrvMetric::rmssd, "rmssdMs", &HrvMetrics::rmssd_ms},      {HrvMetric::pnn50, "pnn50Pct", &HrvMetrics::pnn50_pct},
+    {HrvMetric::mean_hr, "meanHrBpm", &HrvMetrics::mean_hr_bpm}, {HrvMetric::lf, "lfMs2", &HrvMetrics::lf_ms2},
+    {HrvMetric::hf, "hfMs2", &HrvMetrics::hf_ms2},             {HrvMetric::lf_hf, "lfHf", &HrvMetrics::lf_hf},
+    {HrvMetric::sd1, "sd1Ms", &HrvMetrics::sd1_ms},            {HrvMetric::sd2, "sd2Ms", &HrvMetrics::sd2_ms}};
+
+Result<double> double_of(const std::vector<Record>& records, const std::string& subject, const char* local) {
+  const Term* t = object(records, subject, local);
+  if (!t) return missing(subject, local, "missing");
+  auto v = to_double(t->value);
+  if (!v || !std::isfinite(*v)) return missing(subject, local, ("is not a number: '" + t->value + "'").c_str());
+  return *v;
+}
+
+// An optional decimal: absent is fine, present must parse.
+Result<std::optional<double>> optional_double(const std::vector<Record>& records, const std::string& subject,
+                                              const char* local) {
+  if (!object(records, subject, local)) return std::optional<double>{};
+  auto v = double_of(records, subject, local);
+  if (!v) return unexpected(v.error());
+  return std::optional<double>{*v};
+}
+
+}  // namespace
+
+const char* metric_local_name(HrvMetric which) noexcept {
+  for (const auto& m : kMetricNames)
+    if (m.metric == which) return m.local;
+  return "";
+}
+
+std::optional<HrvMetric> metric_from_local_name(const std::string& local) noexcept {
+  for (const auto& m : kMetricNames)
+    if (local == m.local) return m.metric;
+  return std::nullopt;
+}
+
+Result<HrvWindowItem> read_hrv_window(const std::vector<Record>& records) {
+  HrvWindowItem w;
+  const std::string observed = kSosa + "observedProperty";
+  const std::string hrv = std::string(kTv) + "HeartRateVariability";
+  for (const Record& r : records)
+    if (r.triple.p.value == observed && r.triple.o.value == hrv && r.triple.s.is_iri()) {
+      w.iri = r.triple.s.value;
+      break;
+    }
+  if (w.iri.empty()) return fail("no sosa:observedProperty tv:HeartRateVariability in the item (not an HRV window)");
+  if (const Term* rec = object(records, w.iri, "recording"); rec && rec->is_iri()) {
+    w.recording = rec->value;
+  } else {
+    for (const std::string& from : derivations(records, w.iri))
+      if (w.iri.size() > from.size() + 5 && w.iri.compare(0, from.size(), from) == 0 &&
+          w.iri.compare(from.size(), 5, "/hrv/") == 0)
+        w.recording = from;
+  }
+  if (w.recording.empty()) return missing(w.iri, "recording", "missing (nor prov:wasDerivedFrom the recording)");
+  auto start = double_of(records, w.iri, "windowStartS");
+  if (!start) return unexpected(start.error());
+  auto end = double_of(records, w.iri, "windowEndS");
+  if (!end) return unexpected(end.error());
+  w.window.start_s = *start;
+  w.window.end_s = *end;
+  for (const auto& m : kMetricNames) {
+    auto v = optional_double(records, w.iri, m.local);
+    if (!v) return unexpected(v.error());
+    w.window.metrics.*m.field = *v;
+  }
+  if (object(records, w.iri, "nnCount")) {
+    auto n = int_of(records, w.iri, "nnCount");
+    if (!n) return unexpected(n.error());
+    w.window.metrics.nn_count = static_cast<std::size_t>(std::max<std::int64_t>(0, *n));
+  }
+  if (object(records, w.iri, "rrCount")) {
+    auto n = int_of(records, w.iri, "rrCount");
+    if (!n) return unexpected(n.error());
+    w.window.metrics.rr_count = static_cast<std::size_t>(std::max<std::int64_t>(0, *n));
+  }
+  return w;
+}
+
+std::string trend_iri(const std::string& recording, HrvMetric metric, double window_start_s) {
+  return recording + "/trend/" + metric_local_name(metric) + "/" + seconds_label(window_start_s);
+}
+
+Item trend_item(const TrendUpdate& u, const std::string& agent_iri) {
+  Item item;
+  const Term s = Term::iri(trend_iri(u.recording, u.metric, u.window_start_s));
+  item.add(s, rdf_type(), tv("HrvTrend"))
+      .add(s, tv("recording"), Term::iri(u.recording))
+      .add(s, tv("metric"), tv(metric_local_name(u.metric)))
+      .add(s, tv("windowStartS"), decimal(u.window_start_s))
+      .add(s, tv("windows"), Term::integer(static_cast<std::int64_t>(u.windows)))
+      .add(s, tv("alert"), Term::literal(u.alert ? "true" : "false", std::string(node::xsd::kBoolean)));
+  if (!u.window_iri.empty()) item.add(s, derived_from(), Term::iri(u.window_iri));
+  if (!agent_iri.empty()) item.add(s, Term::iri("http://www.w3.org/ns/prov#wasAttributedTo"), Term::iri(agent_iri));
+  if (u.latest) item.add(s, tv("latest"), decimal(*u.latest));
+  if (u.baseline) item.add(s, tv("baseline"), decimal(*u.baseline));
+  if (u.robust_sd) item.add(s, tv("robustSd"), decimal(*u.robust_sd));
+  if (u.slope_per_hour) item.add(s, tv("slopePerHour"), decimal(*u.slope_per_hour));
+  if (u.alert) item.add(s, tv("alertDirection"), text(u.alert_direction > 0 ? "above" : "below"));
+  if (u.z_against_others) {
+    item.add(s, tv("zAgainstOthers"), decimal(*u.z_against_others))
+        .add(s, tv("othersCount"), Term::integer(static_cast<std::int64_t>(u.others)));
+  }
+  return item;
+}
+
+Result<TrendUpdate> read_trend(const std::vector<Record>& records) {
+  TrendUpdate u;
+  const std::string type = std::string(kTv) + "HrvTrend";
+  for (const Record& r : records)
+    if (r.triple.p.value == node::kRdfType && r.triple.o.value == type && r.triple.s.is_iri()) {
+      u.iri = r.triple.s.value;
+      break;
+    }
+  if (u.iri.empty()) return fail("no tv:HrvTrend in the item (not a trend item)");
+  const Term* rec = object(records, u.iri, "recording");
+  if (!rec || !rec->is_iri()) return missing(u.iri, "recording", "missing");
+  u.recording = rec->value;
+  const Term* metric = object(records, u.iri, "metric");
+  const std::string prefix = kTv;
+  if (!metric || metric->value.compare(0, prefix.size(), prefix) != 0) return missing(u.iri, "metric", "missing");
+  auto which = metric_from_local_name(metric->value.substr(prefix.size()));
+  if (!which) return missing(u.iri, "metric", ("is not an HRV metric: <" + metric->value + ">").c_str());
+  u.metric = *which;
+  auto start = double_of(records, u.iri, "windowStartS");
+  if (!start) return unexpected(start.error());
+  u.window_start_s = *start;
+  auto windows = int_of(records, u.iri, "windows");
+  if (!windows) return unexpected(windows.error());
+  u.windows = static_cast<std::size_t>(std::max<std::int64_t>(0, *windows));
+  const Term* alert = object(records, u.iri, "alert");
+  if (!alert || (alert->value != "true" && alert->value != "false"))
+    return missing(u.iri, "alert", "missing or not true/false");
+  u.alert = alert->value == "true";
+  if (const Term* d = object(records, u.iri, "alertDirection")) u.alert_direction = d->value == "above" ? 1 : -1;
+  for (auto [local, field] : {std::pair{"latest", &TrendUpdate::latest}, std::pair{"baseline", &TrendUpdate::baseline},
+                              std::pair{"robustSd", &TrendUpdate::robust_sd},
+                              std::pair{"slopePerHour", &TrendUpdate::slope_per_hour},
+                              std::pair{"zAgainstOthers", &TrendUpdate::z_against_others}}) {
+    auto v = optional_double(records, u.iri, local);
+    if (!v) return unexpected(v.error());
+    u.*field = *v;
+  }
+  if (object(records, u.iri, "othersCount")) {
+    auto n = int_of(records, u.iri, "othersCount");
+    if (!n) return unexpected(n.error());
+    u.others = static_cast<std::size_t>(std::max<std::int64_t>(0, *n));
+  }
+  auto from = derivations(records, u.iri);
+  if (!from.empty()) u.window_iri = from.front();
+  return u;
+}
+
+}  // namespace tahvel::aggregation

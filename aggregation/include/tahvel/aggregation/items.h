@@ -138,3 +138,52 @@ node::Item hrv_window_item(const RecordingInfo& info, const WindowMetrics& windo
                            const std::vector<std::string>& derived_from = {});
 
 }  // namespace tahvel::aggregation
+
+// ---- HRV windows read back, and trends over them (tahvel-trend, docs/agents.md) ----
+//
+//   <rec>/trend/<metric>/<start_s>   one trend update after the window starting at start_s
+//                                    (trend_item)
+
+#include "tahvel/aggregation/trend.h"
+
+namespace tahvel::aggregation {
+
+// An HRV window item read back. recording: its tv:recording if present, else the
+// prov:wasDerivedFrom that the window's IRI extends (<rec>/hrv/<start_s>).
+struct HrvWindowItem {
+  std::string iri;
+  std::string recording;
+  WindowMetrics window;  // start_s, end_s and the metrics present (counts 0 when absent)
+};
+
+// The first sosa:Observation of tv:HeartRateVariability in `records`. Errors: none, no
+// tv:windowStartS / tv:windowEndS, a result that does not parse, or no recording.
+Result<HrvWindowItem> read_hrv_window(const std::vector<node::Record>& records);
+
+// The local name of a metric as the window item writes it ("sdnnMs", "meanHrBpm", ...), and
+// back (nullopt for an unknown name).
+const char* metric_local_name(HrvMetric which) noexcept;
+std::optional<HrvMetric> metric_from_local_name(const std::string& local) noexcept;
+
+// One update of a recording's trend of one metric, after the window starting at
+// window_start_s (computed over the recording's windows up to that one).
+struct TrendUpdate {
+  std::string recording;
+  HrvMetric metric = HrvMetric::sdnn;
+  double window_start_s = 0;
+  std::string window_iri;                 // the window item it follows (prov:wasDerivedFrom)
+  std::size_t windows = 0;                // points in the series (windows with the metric)
+  std::optional<double> latest, baseline, robust_sd, slope_per_hour;
+  bool alert = false;                     // TrendSummary::alerting
+  int alert_direction = 0;                // +1 above the baseline, -1 below (when alert)
+  std::optional<double> z_against_others; // cross_patient_z of latest against other recordings
+  std::size_t others = 0;                 // how many other recordings z was computed against
+  std::string iri;                        // filled by read_trend; trend_item derives it
+};
+
+std::string trend_iri(const std::string& recording_iri, HrvMetric metric, double window_start_s);
+node::Item trend_item(const TrendUpdate& update, const std::string& agent_iri);
+// The first tv:HrvTrend in `records`. Errors name the subject and the predicate.
+Result<TrendUpdate> read_trend(const std::vector<node::Record>& records);
+
+}  // namespace tahvel::aggregation

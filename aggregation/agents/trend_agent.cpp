@@ -1,0 +1,169 @@
+// tahvel-trend: hospital-side trends of HRV metrics as a whiteboard agent. Subscribes to HRV
+// window items (sosa:observedProperty tv:HeartRateVariability), groups them per recording and,
+// after each window, writes one trend item per metric, <recording>/trend/<metric>/<start_s>:
+// baseline, slope per hour, change alert (trend.h, docs/hrv.md "Trends") over the recording's
+// windows up to that one, and, when at least two other recordings are known, the z-score of
+// the latest value against the other recordings' latest values.
+//
+//   tahvel-trend DIR [--agent ID] [--idle S] [--metric NAME ...]     (agent id default "trend")
+//
+// NAME is a window result's local name (sdnnMs, rmssdMs, meanHrBpm, meanNnMs, pnn50Pct, lfMs2,
+// hfMs2, lfHf, sd1Ms, sd2Ms); default sdnnMs rmssdMs meanHrBpm. Items are immutable: every
+// update is a new item named by its window, written only if not on the board yet.
+// (Re)start: reads every HRV window on the board and writes the trend items that are missing.
+#include <cstring>
+#include <iostream>
+#include <map>
+#include <set>
+
+#include "agent_runtime.h"
+#include "tahvel/aggregation/trend.h"
+
+namespace {
+
+namespace agg = tahvel::aggregation;
+namespace rt = tahvel::agents::hrv;
+namespace tn = tahvel::node;
+
+constexpr const char* kProgram = "tahvel-trend";
+const std::string kSosa = "http://www.w3.org/ns/sosa/";
+
+tn::Pattern hrv_windows() {
+  tn::Pattern p;
+  p.p = tn::Term::iri(kSosa + "observedProperty");
+  p.o = agg::tv_term("HeartRateVariability");
+  return p;
+}
+
+struct Window {
+  std::string iri;
+  agg::WindowMetrics metrics;
+};
+
+// A recording's windows by start time.
+using Series = std::map<double, Window>;
+
+class TrendStage {
+ public:
+  TrendStage(rt::Session& session, std::vector<agg::HrvMetric> metrics)
+      : session_(session), metrics_(std::move(metrics)) {}
+
+  // Reads every HRV window on the board and writes the trend items that are missing.
+  rt::Outcome catch_up() {
+    auto items = rt::items_matching(session_.node, hrv_windows());
+    if (!items) return rt::Outcome::error("catch up: " + items.error().message);
+    std::size_t read = 0;
+    for (const auto& records : *items)
+      if (auto w = agg::read_hrv_window(records)) {
+        recordings_[w->recording][w->window.start_s] = {w->iri, w->window};
+        ++read;
+      }
+    for (const auto& [recording, series] : recordings_)
+      for (const auto& [start, window] : series)
+        if (auto o = write_updates(recording, start, true); o.fatal) return o;
+    if (read) rt::log_line(kProgram, "read " + std::to_string(read) + " HRV window(s) of " +
+                                         std::to_string(recordings_.size()) + " recording(s) from the board");
+    return rt::Outcome::ok();
+  }
+
+  rt::Outcome handle(const tn::Delivery& delivery) {
+    auto w = agg::read_hrv_window(delivery.records);
+    if (!w) {
+      rt::log_line(kProgram, w.error().message + "; skipped");
+      return rt::Outcome::ok();
+    }
+    recordings_[w->recording][w->window.start_s] = {w->iri, w->window};
+    return write_updates(w->recording, w->window.start_s, false);
+  }
+
+ private:
+  // The trend items of the window starting at `start` of `recording`, over the windows up to it.
+  rt::Outcome write_updates(const std::string& recording, double start, bool catching_up) {
+    const Series& series = recordings_.at(recording);
+    const Window& window = series.at(start);
+    const bool latest = series.rbegin()->first == start;
+    std::vector<agg::WindowMetrics> upto;
+    for (const auto& [s, w] : series) {
+      if (s > start) break;
+      upto.push_back(w.metrics);
+    }
+    for (agg::HrvMetric metric : metrics_) {
+      const std::string iri = agg::trend_iri(recording, metric, start);
+      if (rt::on_board(session_.node, iri)) continue;
+      const auto points = agg::trend_points(upto, metric);
+      const agg::TrendSummary summary = agg::analyse_trend(points, options_);
+      agg::TrendUpdate u;
+      u.recording = recording;
+      u.metric = metric;
+      u.window_start_s = start;
+      u.window_iri = window.iri;
+      u.windows = points.size();
+      u.latest = summary.latest;
+      u.baseline = summary.baseline;
+      u.robust_sd = summary.robust_sd;
+      u.slope_per_hour = summary.slope_per_hour;
+      u.alert = summary.alerting;
+      if (u.alert && !summary.alerts.empty()) u.alert_direction = summary.alerts.back().direction;
+      // Across patients: only for the recording's latest window (the others' latest values are
+      // those known now) and when this window has the metric itself.
+      if (latest && !points.empty() && points.back().time_s == window.metrics.end_s) {
+        std::vector<double> others;
+        for (const auto& [other, other_series] : recordings_) {
+          if (other == recording) continue;
+          for (auto it = other_series.rbegin(); it != other_series.rend(); ++it)
+            if (auto v = agg::metric_value(it->second.metrics.metrics, metric)) {
+              others.push_back(*v);
+              break;
+            }
+        }
+        u.z_against_others = agg::cross_patient_z(points.back().value, others);
+        if (u.z_against_others) u.others = others.size();
+      }
+      if (auto o = rt::store_output(session_, agg::trend_item(u, session_.agent.iri()), catching_up); o.fatal)
+        return o;
+    }
+    return rt::Outcome::ok();
+  }
+
+  rt::Session& session_;
+  std::vector<agg::HrvMetric> metrics_;
+  agg::TrendOptions options_;
+  std::map<std::string, Series> recordings_;
+};
+
+}  // namespace
+
+int main(int argc, char** argv) {
+  try {
+    const rt::Args args(argc, argv, {"--agent", "--idle", "--metric"}, {});
+    // --metric may repeat (Args keeps the last value): collect every one.
+    std::vector<agg::HrvMetric> metrics;
+    for (int i = 1; i + 1 < argc; ++i)
+      if (std::strcmp(argv[i], "--metric") == 0) {
+        auto m = agg::metric_from_local_name(argv[++i]);
+        if (!m) throw rt::UsageError(std::string("--metric: unknown metric '") + argv[i] + "'");
+        bool seen = false;
+        for (auto x : metrics) seen = seen || x == *m;
+        if (!seen) metrics.push_back(*m);
+      }
+    if (metrics.empty()) metrics = {agg::HrvMetric::sdnn, agg::HrvMetric::rmssd, agg::HrvMetric::mean_hr};
+    const double idle = args.number("--idle", 0);
+    rt::install_stop_handlers();
+    auto session = rt::open_session(kProgram, args.dir(), args.text("--agent", "trend"));
+    if (!session) return rt::kExitError;
+    if (auto s = session->agent.subscribe(hrv_windows()); !s) {
+      rt::log_line(kProgram, "subscribe to HRV windows: " + s.error().message);
+      return rt::kExitError;
+    }
+    TrendStage stage(*session, metrics);
+    if (auto o = stage.catch_up(); o.fatal) {
+      rt::log_line(kProgram, *o.fatal);
+      return rt::kExitError;
+    }
+    return rt::run_take_loop(*session, idle, [&](const tn::Delivery& d) { return stage.handle(d); });
+  } catch (const rt::UsageError& e) {
+    rt::log_line(kProgram, e.what());
+    std::cerr << "usage: tahvel-trend DIR [--agent ID] [--idle S] [--metric NAME ...]\n";
+    return rt::kExitUsage;
+  }
+}

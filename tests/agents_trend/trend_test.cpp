@@ -1,0 +1,271 @@
+// tahvel-trend as a process: synthetic HRV window items of three recordings in (written with
+// hrv_window_item, as tahvel-hrv writes them), trend items out (read with read_trend).
+//
+// Recording A has a stable SDNN (baseline 50, robust SD 1.48) and then a step to 80: the alert
+// must appear on the third window beyond the threshold and not before. B and C stay stable
+// (about 40 and 60), so that A's latest value has a z-score against two others. Part of the
+// windows is on the board before the agent starts (catch-up), the rest arrives while it runs,
+// and one more while it is stopped; restarting it writes only that window's items, no doubles.
+#include <gtest/gtest.h>
+#include <signal.h>
+#include <sys/wait.h>
+#include <unistd.h>
+
+#include <chrono>
+#include <cmath>
+#include <filesystem>
+#include <map>
+#include <memory>
+#include <set>
+#include <string>
+#include <vector>
+
+#include "tahvel/aggregation/items.h"
+#include "tahvel/node/node.h"
+
+namespace {
+
+namespace agg = tahvel::aggregation;
+namespace fs = std::filesystem;
+namespace tn = tahvel::node;
+using namespace std::chrono_literals;
+
+const std::string kNodeIri = "http://example.org/hospital";
+const std::string kRecA = kNodeIri + "/ecg/recording/a";
+const std::string kRecB = kNodeIri + "/ecg/recording/b";
+const std::string kRecC = kNodeIri + "/ecg/recording/c";
+
+// SDNN per 5-minute window: A stable then a step at window 8; B and C stable.
+const std::vector<double> kSdnnA = {50, 52, 48, 51, 49, 50, 53, 47, 80, 81, 79, 82, 80};
+const std::vector<double> kSdnnB = {40, 41, 39, 40, 42, 38, 40, 41, 39, 40, 41, 40};
+const std::vector<double> kSdnnC = {60, 62, 58, 61, 59, 60, 61, 59, 60, 62, 58, 60};
+
+class Process {
+ public:
+  explicit Process(std::vector<std::string> argv) {
+    pid_ = fork();
+    if (pid_ == 0) {
+      std::vector<char*> args;
+      for (auto& a : argv) args.push_back(a.data());
+      args.push_back(nullptr);
+      execv(args[0], args.data());
+      _exit(127);
+    }
+  }
+  Process(const Process&) = delete;
+  ~Process() { stop(); }
+  int poll() {
+    if (status_ < 0 && pid_ > 0) {
+      int s = 0;
+      if (waitpid(pid_, &s, WNOHANG) == pid_) status_ = WIFEXITED(s) ? WEXITSTATUS(s) : 128 + WTERMSIG(s);
+    }
+    return status_;
+  }
+  int stop() {
+    if (pid_ <= 0 || poll() >= 0) return status_;
+    kill(pid_, SIGTERM);
+    const auto deadline = std::chrono::steady_clock::now() + 20s;
+    while (poll() < 0) {
+      if (std::chrono::steady_clock::now() > deadline) kill(pid_, SIGKILL);
+      usleep(10000);
+    }
+    return status_;
+  }
+  // Waits for the process to exit by itself (bounded).
+  int wait(std::chrono::seconds limit) {
+    const auto deadline = std::chrono::steady_clock::now() + limit;
+    while (poll() < 0 && std::chrono::steady_clock::now() < deadline) usleep(10000);
+    return poll() >= 0 ? status_ : stop();
+  }
+
+ private:
+  pid_t pid_ = -1;
+  int status_ = -1;
+};
+
+tn::Pattern trend_items() {
+  tn::Pattern p;
+  p.p = tn::Term::iri(std::string(tn::kRdfType));
+  p.o = agg::tv_term("HrvTrend");
+  return p;
+}
+
+class TrendAgentTest : public ::testing::Test {
+ protected:
+  void SetUp() override {
+    char pattern[] = "/tmp/tahvel-agents-trend-XXXXXX";
+    ASSERT_NE(mkdtemp(pattern), nullptr);
+    tmp_ = pattern;
+    dir_ = tmp_ + "/hospital";
+    auto node = tn::Node::init(dir_, tn::InitOptions{.iri = kNodeIri});
+    ASSERT_TRUE(node) << node.error().message;
+    node_.emplace(std::move(*node));
+    auto hrv = node_->agent("hrv");
+    ASSERT_TRUE(hrv);
+    hrv_.emplace(std::move(*hrv));
+  }
+  void TearDown() override {
+    agent_.reset();
+    hrv_.reset();
+    node_.reset();
+    if (!tmp_.empty()) fs::remove_all(tmp_);
+  }
+
+  void start_agent(const std::string& idle) {
+    agent_ = std::make_unique<Process>(
+        std::vector<std::string>{std::string(TAHVEL_BIN_DIR) + "/tahvel-trend", dir_, "--idle", idle});
+  }
+
+  // Window k (300 s) of a recording with the given SDNN; RMSSD and mean HR vary a little.
+  void store_window(const std::string& recording, std::size_t k, double sdnn) {
+    agg::RecordingInfo info;
+    info.iri = recording;
+    agg::WindowMetrics w;
+    w.start_s = 300.0 * static_cast<double>(k);
+    w.end_s = w.start_s + 300;
+    w.metrics.sdnn_ms = sdnn;
+    w.metrics.rmssd_ms = 30 + static_cast<double>(k % 3);
+    w.metrics.mean_hr_bpm = 70 + static_cast<double>(k % 2);
+    w.metrics.nn_count = w.metrics.rr_count = 350;
+    ASSERT_TRUE(hrv_->store(agg::hrv_window_item(info, w, hrv_->iri())));
+  }
+
+  std::size_t count_trends() {
+    auto n = node_->snapshot()->count(trend_items());
+    EXPECT_TRUE(n);
+    return n ? static_cast<std::size_t>(*n) : 0;
+  }
+
+  void wait_for_trends(std::size_t n) {
+    std::uint64_t bookmark = 0;
+    const auto deadline = std::chrono::steady_clock::now() + 120s;
+    while (count_trends() < n) {
+      ASSERT_LT(agent_->poll(), 0) << "tahvel-trend exited early";
+      ASSERT_LT(std::chrono::steady_clock::now(), deadline) << "timed out waiting for " << n << " trend items";
+      auto changes = node_->watch(bookmark, 1000ms, 1000);
+      ASSERT_TRUE(changes);
+      if (!changes->empty()) bookmark = changes->back().seq;
+    }
+  }
+
+  // Every trend item on the board, by IRI; fails on a subject written twice.
+  std::map<std::string, agg::TrendUpdate> trends() {
+    std::map<std::string, agg::TrendUpdate> out;
+    auto records = node_->snapshot()->list(trend_items());
+    EXPECT_TRUE(records);
+    if (!records) return out;
+    for (const auto& r : *records) {
+      auto item = node_->snapshot()->item(r.meta.item);
+      EXPECT_TRUE(item);
+      if (!item) continue;
+      auto t = agg::read_trend(*item);
+      EXPECT_TRUE(t) << t.error().message;
+      if (!t) continue;
+      EXPECT_TRUE(out.emplace(t->iri, *t).second) << "written twice: " << t->iri;
+    }
+    return out;
+  }
+
+  std::string tmp_, dir_;
+  std::optional<tn::Node> node_;
+  std::optional<tn::Agent> hrv_;
+  std::unique_ptr<Process> agent_;
+};
+
+TEST_F(TrendAgentTest, BaselineSlopeAlertZAndNoDoublesAfterRestart) {
+  // Windows 0..3 of each recording before the agent starts: the catch-up writes their trends.
+  for (std::size_t k = 0; k < 4; ++k) {
+    store_window(kRecA, k, kSdnnA[k]);
+    store_window(kRecB, k, kSdnnB[k]);
+    store_window(kRecC, k, kSdnnC[k]);
+  }
+  start_agent("120");
+  wait_for_trends(4 * 3 * 3);
+  // The rest while it runs, interleaved across recordings (A's window 12 comes later).
+  for (std::size_t k = 4; k < 12; ++k) {
+    store_window(kRecA, k, kSdnnA[k]);
+    store_window(kRecB, k, kSdnnB[k]);
+    store_window(kRecC, k, kSdnnC[k]);
+  }
+  wait_for_trends(12 * 3 * 3);
+  EXPECT_EQ(agent_->stop(), 0);
+
+  auto all = trends();
+  ASSERT_EQ(all.size(), 12u * 3 * 3);
+  for (std::size_t k = 0; k < 12; ++k) {
+    const std::string iri = agg::trend_iri(kRecA, agg::HrvMetric::sdnn, 300.0 * static_cast<double>(k));
+    ASSERT_TRUE(all.count(iri)) << iri;
+    const agg::TrendUpdate& t = all.at(iri);
+    SCOPED_TRACE(iri);
+    EXPECT_EQ(t.recording, kRecA);
+    EXPECT_EQ(t.window_iri, agg::hrv_iri(kRecA, 300.0 * static_cast<double>(k)));
+    EXPECT_EQ(t.windows, k + 1);
+    ASSERT_TRUE(t.latest);
+    EXPECT_DOUBLE_EQ(*t.latest, kSdnnA[k]);
+    if (k < 5) {
+      EXPECT_FALSE(t.baseline);  // 6 points needed
+    } else {
+      ASSERT_TRUE(t.baseline);
+      EXPECT_DOUBLE_EQ(*t.baseline, 50);
+      ASSERT_TRUE(t.robust_sd);
+      EXPECT_NEAR(*t.robust_sd, 1.4826, 1e-4);
+    }
+    EXPECT_EQ(t.slope_per_hour.has_value(), k >= 1);
+    // The step starts at window 8; three in a row beyond 3 robust SDs: alert from window 10.
+    EXPECT_EQ(t.alert, k >= 10);
+    if (t.alert) {
+      EXPECT_EQ(t.alert_direction, 1);
+    }
+  }
+  const auto& last_a = all.at(agg::trend_iri(kRecA, agg::HrvMetric::sdnn, 3300));
+  ASSERT_TRUE(last_a.slope_per_hour);
+  EXPECT_GT(*last_a.slope_per_hour, 0);
+  const auto& stable_a = all.at(agg::trend_iri(kRecA, agg::HrvMetric::sdnn, 2100));
+  ASSERT_TRUE(stable_a.slope_per_hour);
+  EXPECT_LT(std::abs(*stable_a.slope_per_hour), 2.0);  // ±3 ms noise around 50 over 40 min
+  // B and C never alert.
+  for (const auto& [iri, t] : all)
+    if (t.recording != kRecA && t.metric == agg::HrvMetric::sdnn) {
+      EXPECT_FALSE(t.alert) << iri;
+    }
+  // Across patients: the latest item of each recording carries z against the other two.
+  const auto& last_b = all.at(agg::trend_iri(kRecB, agg::HrvMetric::sdnn, 3300));
+  const auto& last_c = all.at(agg::trend_iri(kRecC, agg::HrvMetric::sdnn, 3300));
+  ASSERT_TRUE(last_a.z_against_others);
+  ASSERT_TRUE(last_b.z_against_others);
+  ASSERT_TRUE(last_c.z_against_others);
+  EXPECT_EQ(last_a.others, 2u);
+  EXPECT_GT(*last_a.z_against_others, 1.0);   // 82 against about 40 and 60
+  EXPECT_LT(*last_b.z_against_others, -1.0);  // 40 against about 60 and 80
+  // The other metrics are there too, with their own series.
+  const auto& hr = all.at(agg::trend_iri(kRecB, agg::HrvMetric::mean_hr, 3300));
+  EXPECT_EQ(hr.windows, 12u);
+  ASSERT_TRUE(hr.baseline);
+  EXPECT_TRUE(all.count(agg::trend_iri(kRecC, agg::HrvMetric::rmssd, 0)));
+
+  // While the agent is stopped, one more window of A; the restart writes its three trend
+  // items (catch-up, or the delivery waiting in its buffer) and nothing else.
+  store_window(kRecA, 12, kSdnnA[12]);
+  const auto before = node_->snapshot()->count(tn::Pattern{});
+  ASSERT_TRUE(before);
+  start_agent("3");
+  EXPECT_EQ(agent_->wait(60s), 0);
+  all = trends();
+  EXPECT_EQ(all.size(), 12u * 3 * 3 + 3);
+  const auto after = node_->snapshot()->count(tn::Pattern{});
+  ASSERT_TRUE(after);
+  EXPECT_GT(*after, *before);
+  const auto& a12 = all.at(agg::trend_iri(kRecA, agg::HrvMetric::sdnn, 3600));
+  EXPECT_EQ(a12.windows, 13u);
+  EXPECT_TRUE(a12.alert);
+  EXPECT_TRUE(a12.z_against_others);
+
+  // A second restart has nothing to write.
+  const auto settled = node_->snapshot()->count(tn::Pattern{});
+  start_agent("2");
+  EXPECT_EQ(agent_->wait(60s), 0);
+  EXPECT_EQ(*node_->snapshot()->count(tn::Pattern{}), *settled);
+  EXPECT_EQ(trends().size(), 12u * 3 * 3 + 3);
+}
+
+}  // namespace
