@@ -10,6 +10,8 @@ PACKAGES=(
   build-essential cmake ninja-build pkg-config
   liblmdb-dev lmdb-utils libserd-dev serdi liburiparser-dev
   libsord-dev libsqlite3-dev
+  liblcm-dev liblcm-bin cyclonedds-dev cyclonedds-tools libcgal-dev libtomlplusplus-dev
+  swi-prolog-nox
   libgtest-dev libgmock-dev libbenchmark-dev
   iproute2 util-linux procps
 )

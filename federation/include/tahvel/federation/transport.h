@@ -1,0 +1,139 @@
+// A transport carries link frames between nodes (docs/protocol.md). It is a mailbox bound to one
+// IRI (the endpoint receives the frames addressed to that IRI) plus "send to any IRI". It gives
+// no delivery guarantee: frames may be lost, duplicated or reordered. Reliability (sequence
+// numbers, acknowledgement, resend, flow control) is the link's job, the same over every binding.
+//
+// Three bindings: in-memory (deterministic tests), LCM (UDP multicast, sensor-to-gateway LAN) and
+// Cyclone DDS (reliable QoS, gateway-to-hospital and above).
+//
+// Threads: send() may be called from any thread, also while another thread is in receive();
+// receive() from one thread at a time.
+#pragma once
+
+#include <chrono>
+#include <cstdint>
+#include <functional>
+#include <memory>
+#include <optional>
+#include <string>
+#include <string_view>
+#include <vector>
+
+#include "tahvel/node/error.h"
+
+namespace tahvel::federation {
+
+using node::Error;
+using node::Errc;
+using node::Result;
+
+// The protocol version this build speaks; frames of another version are dropped (P-statements in
+// docs/protocol.md).
+inline constexpr std::uint16_t kProtocolVersion = 1;
+
+enum class FrameKind : std::uint8_t {
+  hello = 1,      // child -> parent: registration (child IRI, software version, last ack seen)
+  welcome = 2,    // parent -> child: registration accepted, with the parent's last applied seq
+  up = 3,         // child -> parent: one item of the outbox
+  ack = 4,        // either way: cumulative acknowledgement (highest seq applied in order)
+  down = 5,       // parent -> child: one item of configuration or a command
+  query = 6,      // parent -> child: a remote query, routed down by the target IRI
+  answer = 7,     // child -> parent: one chunk of a query's answer
+  error = 8,      // either way: a refusal or failure, with a code and a message
+  heartbeat = 9,  // child -> parent: liveness and state (outbox depth, software version)
+};
+
+// 64-bit FNV-1a of the canonical description of Frame and FrameKind (federation/src/frame.cpp):
+// two builds interoperate only when their message types agree field for field.
+std::uint64_t message_fingerprint() noexcept;
+
+// One frame on the wire. The same fields in the LCM type (federation/types/*.lcm) and the IDL
+// type (federation/types/*.idl).
+struct Frame {
+  std::uint16_t version = kProtocolVersion;
+  std::uint64_t fingerprint = message_fingerprint();
+  FrameKind kind = FrameKind::heartbeat;
+  std::string from;               // sender node IRI
+  std::string to;                 // addressee node IRI (the endpoint that should receive it)
+  std::uint64_t seq = 0;          // kind-specific (docs/protocol.md)
+  std::uint64_t prev = 0;
+  std::uint64_t ack = 0;
+  std::string body;               // kind-specific payload bytes
+};
+
+// Called with one line whenever a binding drops something it received (undecodable bytes, a frame
+// for another IRI, a wrong version or fingerprint): what and why. Default: stderr.
+using DropLog = std::function<void(std::string_view reason)>;
+
+class Transport {
+ public:
+  virtual ~Transport() = default;
+
+  // The IRI this endpoint receives for.
+  virtual const std::string& self() const = 0;
+
+  // Sends `frame` to the endpoint bound to frame.to. Best effort: an error means it certainly
+  // did not leave (e.g. too large, transport closed), success does not mean it arrived.
+  virtual Result<void> send(const Frame& frame) = 0;
+
+  // The next frame addressed to self(), waiting up to `timeout`; nullopt on timeout.
+  // Frames that fail to decode, carry another version or fingerprint, or are addressed to another
+  // IRI never come out of here: they go to the DropLog.
+  virtual Result<std::optional<Frame>> receive(std::chrono::milliseconds timeout) = 0;
+};
+
+// ---------------------------------------------------------------------------------------------
+// In-memory binding: endpoints of one MemoryBus exchange frames inside one process. Tests may
+// make it drop, duplicate or reorder frames deterministically (a seeded schedule).
+
+class MemoryBus {
+ public:
+  struct Faults {
+    std::uint64_t seed = 1;
+    double drop = 0;       // probability a frame is lost
+    double duplicate = 0;  // probability a frame is delivered twice
+    double reorder = 0;    // probability a frame is delivered after the next one
+  };
+  MemoryBus();
+  ~MemoryBus();
+  void set_faults(const Faults& faults);
+  // Cuts (or restores) delivery to `iri`: frames sent to it while cut are lost.
+  void set_cut(std::string_view iri, bool cut);
+  std::unique_ptr<Transport> open(std::string_view self_iri, DropLog log = {});
+  // Hands raw bytes to the endpoint bound to `to`, as a wire binding would after reading them
+  // from the network (for tests of malformed input): they go through the same decode path.
+  void inject_raw(std::string_view to, std::string bytes);
+
+  struct Impl;
+
+ private:
+  std::shared_ptr<Impl> impl_;
+};
+
+// ---------------------------------------------------------------------------------------------
+// Wire bindings.
+
+struct LcmSettings {
+  // LCM provider URL. The default is LCM's own multicast group with ttl=0 (never leaves the
+  // host); tests run it in a private network namespace with multicast routed to loopback.
+  std::string url = "udpm://239.255.76.67:7667?ttl=0";
+};
+
+struct DdsSettings {
+  std::uint32_t domain = 0;
+  // Cyclone DDS XML configuration (or empty: CYCLONEDDS_URI from the environment, else the
+  // built-in default). deploy/cyclonedds-*.xml hold the ones we ship.
+  std::string config;
+};
+
+Result<std::unique_ptr<Transport>> open_lcm(const LcmSettings& settings, std::string_view self_iri,
+                                            DropLog log = {});
+Result<std::unique_ptr<Transport>> open_dds(const DdsSettings& settings, std::string_view self_iri,
+                                            DropLog log = {});
+
+// Encoding of a Frame into bytes and back, shared by the memory binding and by tests; the wire
+// bindings use their generated types. decode_frame names what is wrong on failure.
+std::string encode_frame(const Frame& frame);
+Result<Frame> decode_frame(std::string_view bytes);
+
+}  // namespace tahvel::federation
