@@ -28,3 +28,117 @@ constexpr std::uint64_t fnv1a64(std::string_view text) {
 std::uint64_t message_fingerprint() noexcept { return fnv1a64(kSchema); }
 
 }  // namespace tahvel::federation
+
+namespace tahvel::federation {
+namespace {
+
+// Little-endian fixed-width integers and length-prefixed strings (u32 length).
+void put_uint(std::string& out, std::uint64_t value, int bytes) {
+  for (int i = 0; i < bytes; ++i) out.push_back(static_cast<char>((value >> (8 * i)) & 0xff));
+}
+
+void put_bytes(std::string& out, std::string_view bytes) {
+  put_uint(out, bytes.size(), 4);
+  out.append(bytes);
+}
+
+class Reader {
+ public:
+  explicit Reader(std::string_view bytes) : bytes_(bytes) {}
+
+  Result<std::uint64_t> uint(int width, const char* field) {
+    if (bytes_.size() - pos_ < static_cast<std::size_t>(width)) return truncated(field);
+    std::uint64_t value = 0;
+    for (int i = 0; i < width; ++i)
+      value |= std::uint64_t{static_cast<unsigned char>(bytes_[pos_ + i])} << (8 * i);
+    pos_ += width;
+    return value;
+  }
+
+  Result<std::string> bytes(const char* field) {
+    auto size = uint(4, field);
+    if (!size) return Unexpected<Error>{size.error()};
+    if (bytes_.size() - pos_ < *size) return truncated(field);
+    std::string value(bytes_.substr(pos_, *size));
+    pos_ += *size;
+    return value;
+  }
+
+  std::size_t remaining() const { return bytes_.size() - pos_; }
+  std::size_t position() const { return pos_; }
+
+ private:
+  Unexpected<Error> truncated(const char* field) const {
+    return node::fail(Errc::syntax, "frame truncated in field '" + std::string(field) +
+                                        "' at byte " + std::to_string(pos_) + " of " +
+                                        std::to_string(bytes_.size()));
+  }
+
+  std::string_view bytes_;
+  std::size_t pos_ = 0;
+};
+
+}  // namespace
+
+std::string encode_frame(const Frame& frame) {
+  std::string out;
+  out.reserve(48 + frame.from.size() + frame.to.size() + frame.body.size());
+  put_uint(out, frame.version, 2);
+  put_uint(out, frame.fingerprint, 8);
+  put_uint(out, static_cast<std::uint8_t>(frame.kind), 1);
+  put_bytes(out, frame.from);
+  put_bytes(out, frame.to);
+  put_uint(out, frame.seq, 8);
+  put_uint(out, frame.prev, 8);
+  put_uint(out, frame.ack, 8);
+  put_bytes(out, frame.body);
+  return out;
+}
+
+Result<Frame> decode_frame(std::string_view bytes) {
+  Reader in(bytes);
+  Frame frame;
+  auto version = in.uint(2, "version");
+  if (!version) return Unexpected<Error>{version.error()};
+  frame.version = static_cast<std::uint16_t>(*version);
+  auto fingerprint = in.uint(8, "fingerprint");
+  if (!fingerprint) return Unexpected<Error>{fingerprint.error()};
+  frame.fingerprint = *fingerprint;
+  auto kind = in.uint(1, "kind");
+  if (!kind) return Unexpected<Error>{kind.error()};
+  if (*kind < 1 || *kind > 9)
+    return node::fail(Errc::syntax, "frame kind " + std::to_string(*kind) + " unknown (byte 10)");
+  frame.kind = static_cast<FrameKind>(*kind);
+  for (auto [field, name] : {std::pair{&frame.from, "from"}, std::pair{&frame.to, "to"}}) {
+    auto value = in.bytes(name);
+    if (!value) return Unexpected<Error>{value.error()};
+    *field = std::move(*value);
+  }
+  for (auto [field, name] : {std::pair{&frame.seq, "seq"}, std::pair{&frame.prev, "prev"},
+                             std::pair{&frame.ack, "ack"}}) {
+    auto value = in.uint(8, name);
+    if (!value) return Unexpected<Error>{value.error()};
+    *field = *value;
+  }
+  auto body = in.bytes("body");
+  if (!body) return Unexpected<Error>{body.error()};
+  frame.body = std::move(*body);
+  if (in.remaining() != 0)
+    return node::fail(Errc::syntax, std::to_string(in.remaining()) +
+                                        " stray bytes after the frame at byte " +
+                                        std::to_string(in.position()));
+  return frame;
+}
+
+std::optional<std::string> frame_refusal(const Frame& frame, std::string_view self_iri) {
+  if (frame.version != kProtocolVersion)
+    return "protocol version " + std::to_string(frame.version) + " from <" + frame.from +
+           ">, this node speaks " + std::to_string(kProtocolVersion);
+  if (frame.fingerprint != message_fingerprint())
+    return "message-type fingerprint mismatch from <" + frame.from + "> (other build's types differ)";
+  if (frame.to != self_iri) return "frame for <" + frame.to + ">, not for this endpoint <" +
+                                   std::string(self_iri) + ">";
+  return std::nullopt;
+}
+
+}  // namespace tahvel::federation

@@ -136,4 +136,9 @@ Result<std::unique_ptr<Transport>> open_dds(const DdsSettings& settings, std::st
 std::string encode_frame(const Frame& frame);
 Result<Frame> decode_frame(std::string_view bytes);
 
+// Why a received, decoded frame must be dropped by the endpoint bound to `self_iri` (another
+// protocol version, another fingerprint, addressed to another IRI), or nullopt to accept it.
+// Every binding applies this same rule (docs/protocol.md P4).
+std::optional<std::string> frame_refusal(const Frame& frame, std::string_view self_iri);
+
 }  // namespace tahvel::federation
