@@ -59,6 +59,7 @@ struct Subscription {
   std::uint64_t item;    // the subscription's own item id
   std::uint64_t agent;   // term id of the subscriber's IRI
   std::uint64_t s, p, o; // term ids, 0 = any
+  std::uint64_t context = 0; // term id of the item context it requires, 0 = any
   std::uint32_t slot = 0; // wake slot of the subscriber
 };
 
@@ -108,6 +109,9 @@ class Env {
   // Dictionary ids of the subscription vocabulary: interned and pinned at init, so fixed.
   struct Vocabulary {
     std::uint64_t subscriber = 0, subject = 0, predicate = 0, object = 0;
+    // tv:context came with federation: stores made before have it only once a subscription
+    // used it, so it is looked up when subscriptions are loaded (0 while absent).
+    std::uint64_t context = 0;
   } vocab;
 
  private:

@@ -162,9 +162,11 @@ Result<std::uint64_t> Agent::Impl::find_subscription(Txn& txn, const Pattern& pa
   if (auto r = refresh_caches(txn); !r) return unexpected(r.error());
   auto self = self_id(txn.raw());
   if (!self || *self == 0) return self;
-  std::uint64_t ids[3] = {0, 0, 0};
-  const std::optional<Term>* terms[3] = {&pattern.s, &pattern.p, &pattern.o};
-  for (int i = 0; i < 3; ++i) {
+  std::uint64_t ids[4] = {0, 0, 0, 0};
+  std::optional<Term> context;
+  if (pattern.context) context = Term::iri(*pattern.context);
+  const std::optional<Term>* terms[4] = {&pattern.s, &pattern.p, &pattern.o, &context};
+  for (int i = 0; i < 4; ++i) {
     if (!*terms[i]) continue;
     auto id = find_term(txn.raw(), *env, **terms[i]);
     if (!id) return id;
@@ -173,7 +175,8 @@ Result<std::uint64_t> Agent::Impl::find_subscription(Txn& txn, const Pattern& pa
   }
   std::lock_guard lock(env->cache_mutex);
   for (const auto& sub : env->subs)
-    if (sub.agent == *self && sub.s == ids[0] && sub.p == ids[1] && sub.o == ids[2]) return sub.item;
+    if (sub.agent == *self && sub.s == ids[0] && sub.p == ids[1] && sub.o == ids[2] && sub.context == ids[3])
+      return sub.item;
   return std::uint64_t{0};
 }
 
@@ -349,9 +352,189 @@ Result<std::uint64_t> Agent::pending() const noexcept {
   return std::uint64_t{n};
 }
 
+Result<std::vector<Delivery>> Agent::peek(std::uint64_t after, std::size_t limit,
+                                          std::chrono::milliseconds timeout) noexcept {
+  try {
+    const auto deadline = std::chrono::steady_clock::now() + timeout;
+    WakeBoard& board = impl_->env->wake();
+    for (;;) {
+      std::uint32_t token = board.prepare(impl_->slot);
+      std::vector<Delivery> out;
+      {
+        ReadTxn read(*impl_->env);
+        if (auto r = read.begin(); !r) {
+          board.finish(impl_->slot);
+          return unexpected(r.error());
+        }
+        auto self = impl_->self_id(read.txn);
+        if (!self) {
+          board.finish(impl_->slot);
+          return unexpected(self.error());
+        }
+        std::vector<std::uint64_t> ids;
+        if (*self) {
+          MDB_cursor* cursor = nullptr;
+          int rc = mdb_cursor_open(read.txn, impl_->env->inbox, &cursor);
+          if (rc != 0) {
+            board.finish(impl_->slot);
+            return lmdb_fail(rc, "opening the input buffer of " + impl_->iri);
+          }
+          std::uint64_t from = after + 1;
+          MDB_val k = val(*self), v = val(from);
+          for (rc = mdb_cursor_get(cursor, &k, &v, MDB_GET_BOTH_RANGE);
+               rc == 0 && (!limit || ids.size() < limit); rc = mdb_cursor_get(cursor, &k, &v, MDB_NEXT_DUP))
+            ids.push_back(u64(v));
+          mdb_cursor_close(cursor);
+        }
+        for (std::uint64_t id : ids) {
+          auto records = item_records(read.txn, *impl_->env, id);
+          if (!records && records.error().code == Errc::not_found) continue;  // removed since
+          if (!records) {
+            board.finish(impl_->slot);
+            return unexpected(records.error());
+          }
+          out.push_back(Delivery{id, std::move(*records)});
+        }
+      }
+      auto left = deadline - std::chrono::steady_clock::now();
+      if (!out.empty() || left <= std::chrono::nanoseconds::zero()) {
+        board.finish(impl_->slot);
+        return out;
+      }
+      board.wait(impl_->slot, token, std::chrono::duration_cast<std::chrono::nanoseconds>(left));
+      board.finish(impl_->slot);
+    }
+  } catch (const std::bad_alloc&) {
+    return fail(Errc::io, "out of memory while peeking");
+  }
+}
+
+Result<std::uint64_t> Agent::ack_through(std::uint64_t through) noexcept {
+  try {
+    std::uint64_t acked = 0;
+    auto written = impl_->env->write([&](Txn& txn) -> Result<void> {
+      acked = 0;
+      auto self = impl_->self_id(txn.raw());
+      if (!self) return unexpected(self.error());
+      if (*self == 0) return {};
+      MDB_cursor* cursor = nullptr;
+      int rc = mdb_cursor_open(txn.raw(), impl_->env->inbox, &cursor);
+      if (rc != 0) return lmdb_fail(rc, "opening the input buffer of " + impl_->iri);
+      std::vector<std::uint64_t> ids;
+      MDB_val k = val(*self), v;
+      for (rc = mdb_cursor_get(cursor, &k, &v, MDB_SET); rc == 0; rc = mdb_cursor_get(cursor, &k, &v, MDB_NEXT_DUP)) {
+        if (u64(v) > through) break;
+        ids.push_back(u64(v));
+      }
+      mdb_cursor_close(cursor);
+      for (std::uint64_t id : ids) {
+        MDB_val dk = val(*self), dv = val(id);
+        if ((rc = mdb_del(txn.raw(), impl_->env->inbox, &dk, &dv)) != 0)
+          return lmdb_fail(rc, "acknowledging item " + std::to_string(id));
+        if (txn.counters.pending > 0) --txn.counters.pending;
+        ++acked;
+        auto item = get_item(txn.raw(), txn.env(), id);
+        if (!item) return unexpected(item.error());
+        if (!*item) continue;
+        ItemRow row = **item;
+        if (row.pending > 0) --row.pending;
+        if (auto p = put_item(txn, id, row); !p) return p;
+      }
+      return {};
+    });
+    if (!written) return unexpected(written.error());
+    return acked;
+  } catch (const std::bad_alloc&) {
+    return fail(Errc::io, "out of memory while acknowledging");
+  }
+}
+
+namespace {
+
+std::string relay_mark_key(std::string_view stream) { return "relay:" + std::string(stream); }
+
+Result<std::uint64_t> read_relay_mark(MDB_txn* txn, const Env& env, std::string_view stream) {
+  std::string key = relay_mark_key(stream);
+  MDB_val k = val(key), v;
+  int rc = mdb_get(txn, env.meta, &k, &v);
+  if (rc == MDB_NOTFOUND) return std::uint64_t{0};
+  if (rc != 0) return lmdb_fail(rc, "reading the relay mark of " + std::string(stream));
+  if (v.mv_size != sizeof(std::uint64_t)) return fail(Errc::corrupt, "relay mark of " + std::string(stream) + " has " + std::to_string(v.mv_size) + " bytes");
+  return u64(v);
+}
+
+}  // namespace
+
+Result<RelayOutcome> Agent::relay(std::string_view stream, const std::vector<RelayedItem>& items) noexcept {
+  try {
+    if (stream.empty()) return fail(Errc::invalid_argument, "relay: empty stream name");
+    const std::string& node_iri = impl_->env->settings().iri;
+    for (std::size_t i = 0; i < items.size(); ++i) {
+      const std::string& source = items[i].source;
+      if (!uri::is_under(source, impl_->iri) && uri::is_under(source, node_iri))
+        return fail(Errc::invalid_argument, "relayed item " + std::to_string(i + 1) + " (seq " +
+                    std::to_string(items[i].seq) + "): source <" + source + "> is a writer of this node outside <" +
+                    impl_->iri + ">; a link agent relays only its own subtree or writers above this node");
+      if (auto n = uri::normalize(source); !n)
+        return fail(Errc::invalid_iri, "relayed item " + std::to_string(i + 1) + ": source: " + n.error().message);
+      if (auto v = validate_item(items[i].item, impl_->env->settings()); !v)
+        return unexpected(with_context(v.error(), "relayed item " + std::to_string(i + 1) + " (seq " + std::to_string(items[i].seq) + ")"));
+    }
+    RelayOutcome outcome;
+    auto written = impl_->env->write([&](Txn& txn) -> Result<void> {
+      outcome = RelayOutcome{};
+      auto mark = read_relay_mark(txn.raw(), *impl_->env, stream);
+      if (!mark) return unexpected(mark.error());
+      outcome.mark = *mark;
+      for (std::size_t i = 0; i < items.size(); ++i) {
+        const RelayedItem& relayed = items[i];
+        if (relayed.seq <= outcome.mark) {
+          ++outcome.duplicates;
+          continue;
+        }
+        if (relayed.prev != outcome.mark) {
+          outcome.gap = true;
+          break;
+        }
+        auto id = insert_item(txn, relayed.item, impl_->iri, &relayed.source);
+        if (!id) return unexpected(with_context(id.error(), "relayed item " + std::to_string(i + 1) + " (seq " + std::to_string(relayed.seq) + ")"));
+        outcome.stored.push_back(*id);
+        outcome.mark = relayed.seq;
+      }
+      if (outcome.mark != *mark) {
+        std::string key = relay_mark_key(stream);
+        MDB_val k = val(key), v = val(outcome.mark);
+        if (int rc = mdb_put(txn.raw(), impl_->env->meta, &k, &v, 0); rc != 0)
+          return lmdb_fail(rc, "writing the relay mark of " + std::string(stream));
+      }
+      if (!outcome.stored.empty()) {
+        auto reclaimed = apply_retention(txn);
+        if (!reclaimed) return unexpected(reclaimed.error());
+      }
+      return {};
+    });
+    if (!written) return unexpected(written.error());
+    return outcome;
+  } catch (const std::bad_alloc&) {
+    return fail(Errc::io, "out of memory while relaying");
+  }
+}
+
+Result<std::uint64_t> Agent::relay_mark(std::string_view stream) const noexcept {
+  try {
+    ReadTxn read(*impl_->env);
+    if (auto r = read.begin(); !r) return unexpected(r.error());
+    return read_relay_mark(read.txn, *impl_->env, stream);
+  } catch (const std::bad_alloc&) {
+    return fail(Errc::io, "out of memory while reading a relay mark");
+  }
+}
+
 Result<std::uint64_t> Agent::subscribe(const Pattern& pattern) {
-  if (pattern.context || pattern.source || pattern.since || pattern.until || pattern.after_id)
-    return fail(Errc::invalid_argument, "a subscription pattern takes subject, predicate and object only");
+  if (pattern.source || pattern.since || pattern.until || pattern.after_id)
+    return fail(Errc::invalid_argument, "a subscription pattern takes subject, predicate, object and context only");
+  if (pattern.context && pattern.context->empty())
+    return fail(Errc::invalid_argument, "a subscription's context must be an IRI");
   for (const auto* t : {&pattern.s, &pattern.p, &pattern.o})
     if (*t && (*t)->is_blank()) return fail(Errc::invalid_argument, "a subscription pattern cannot name a blank node");
   Item item;
@@ -361,6 +544,7 @@ Result<std::uint64_t> Agent::subscribe(const Pattern& pattern) {
   if (pattern.s) item.add(node, Term::iri(std::string(kSubject)), *pattern.s);
   if (pattern.p) item.add(node, Term::iri(std::string(kPredicate)), *pattern.p);
   if (pattern.o) item.add(node, Term::iri(std::string(kObject)), *pattern.o);
+  if (pattern.context) item.add(node, Term::iri(std::string(kSubscriptionContext)), Term::iri(*pattern.context));
   if (auto v = validate_item(item, impl_->env->settings()); !v) return unexpected(v.error());
   std::uint64_t id = 0;
   auto written = impl_->env->write([&](Txn& txn) -> Result<void> {

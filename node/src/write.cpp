@@ -72,6 +72,12 @@ Result<std::vector<Subscription>> load_subscriptions(Txn& txn) {
   MDB_cursor* cursor = nullptr;
   int rc = mdb_cursor_open(raw, env.idx_p, &cursor);
   if (rc != 0) return lmdb_fail(rc, "opening the predicate index");
+  std::uint64_t context_predicate = vocab.context;
+  if (!context_predicate) {
+    auto found = find_term(raw, env, Term::iri(std::string(kSubscriptionContext)));
+    if (!found) return unexpected(found.error());
+    context_predicate = *found;
+  }
   std::vector<std::uint64_t> ids;
   MDB_val k = val(vocab.subscriber), v;
   for (rc = mdb_cursor_get(cursor, &k, &v, MDB_SET); rc == 0; rc = mdb_cursor_get(cursor, &k, &v, MDB_NEXT_DUP))
@@ -93,6 +99,7 @@ Result<std::vector<Subscription>> load_subscriptions(Txn& txn) {
       if (r.p == vocab.subject) sub.s = r.o;
       else if (r.p == vocab.predicate) sub.p = r.o;
       else if (r.p == vocab.object) sub.o = r.o;
+      else if (context_predicate && r.p == context_predicate) sub.context = r.o;
     }
     mdb_cursor_close(cursor);
     subs.push_back(sub);
@@ -128,23 +135,52 @@ bool triple_matches(const Subscription& sub, std::uint64_t s, std::uint64_t p, s
   return (!sub.s || sub.s == s) && (!sub.p || sub.p == p) && (!sub.o || sub.o == o);
 }
 
+// Puts `item_id` into the input buffer of `agent` (a term id) unless it is there already.
+Result<void> deliver(Txn& txn, std::uint64_t agent, std::uint32_t slot, std::uint64_t item_id,
+                     ItemRow& item) {
+  MDB_val k = val(agent), v = val(item_id);
+  int rc = mdb_put(txn.raw(), txn.env().inbox, &k, &v, MDB_NODUPDATA);
+  if (rc == MDB_KEYEXIST) return {};  // two subscriptions of one agent: delivered once
+  if (rc != 0) return lmdb_fail(rc, "routing an item into an input buffer");
+  ++item.pending;
+  ++txn.counters.pending;
+  txn.wake_slots.push_back(slot);
+  return {};
+}
+
+// R18: an item whose context lies under this node's IRI is addressed to the agent named by the
+// context's first segment below the node (a local agent, or the link agent of a child node),
+// which gets it in its input buffer without subscribing. The segment "*" names no agent (it
+// addresses a whole subtree, see docs/protocol.md).
+Result<void> route_to_addressee(Txn& txn, std::uint64_t item_id, ItemRow& item,
+                                const std::string& context, const std::string& writer) {
+  const std::string& node_iri = txn.env().settings().iri;
+  if (context.size() <= node_iri.size() + 1 || context.compare(0, node_iri.size(), node_iri) != 0 ||
+      context[node_iri.size()] != '/')
+    return {};
+  std::size_t begin = node_iri.size() + 1;
+  std::size_t end = context.find_first_of("/#?", begin);
+  std::string addressee = context.substr(0, end);
+  if (addressee.size() == begin || addressee.compare(begin, std::string::npos, "*") == 0 ||
+      addressee == writer)
+    return {};
+  auto agent = intern_term(txn, Term::iri(addressee), true);  // keys an input buffer: pinned
+  if (!agent) return unexpected(agent.error());
+  return deliver(txn, *agent, WakeBoard::slot_for(addressee), item_id, item);
+}
+
 Result<void> route(Txn& txn, std::uint64_t item_id, ItemRow& item,
                    const std::vector<std::array<std::uint64_t, 3>>& triples) {
   std::lock_guard lock(txn.env().cache_mutex);
   for (const auto& sub : txn.env().subs) {
     if (sub.item == item_id) continue;  // a subscription does not receive itself
+    if (sub.context && sub.context != item.context) continue;
     bool hit = false;
     for (const auto& t : triples) {
       if (triple_matches(sub, t[0], t[1], t[2])) { hit = true; break; }
     }
     if (!hit) continue;
-    MDB_val k = val(sub.agent), v = val(item_id);
-    int rc = mdb_put(txn.raw(), txn.env().inbox, &k, &v, MDB_NODUPDATA);
-    if (rc == MDB_KEYEXIST) continue;  // two subscriptions of one agent: delivered once
-    if (rc != 0) return lmdb_fail(rc, "routing an item into an input buffer");
-    ++item.pending;
-    ++txn.counters.pending;
-    txn.wake_slots.push_back(sub.slot);
+    if (auto r = deliver(txn, sub.agent, sub.slot, item_id, item); !r) return r;
   }
   return {};
 }
@@ -274,11 +310,17 @@ Result<void> refresh_caches(Txn& txn) {
   return {};
 }
 
-Result<std::uint64_t> insert_item(Txn& txn, const Item& item, const std::string& agent_iri) {
+Result<std::uint64_t> insert_item(Txn& txn, const Item& item, const std::string& agent_iri,
+                                  const std::string* relayed_source) {
   MDB_txn* raw = txn.raw();
   Env& env = txn.env();
-  auto source = intern_term(txn, Term::iri(agent_iri), true);
-  if (!source) return source;
+  auto writer = intern_term(txn, Term::iri(agent_iri), true);
+  if (!writer) return writer;
+  auto source = writer;
+  if (relayed_source) {
+    source = intern_term(txn, Term::iri(*relayed_source), true);
+    if (!source) return source;
+  }
   std::uint64_t context = 0;
   if (!item.context.empty()) {
     auto found = find_term(raw, env, Term::iri(item.context));
@@ -324,8 +366,14 @@ Result<std::uint64_t> insert_item(Txn& txn, const Item& item, const std::string&
   ItemRow meta{ids.size(), ids.size(), 0, now, item.asserted_at.value_or(now), *source, context, item.persistent};
   if (auto r = refresh_caches(txn); !r) return unexpected(r.error());
   if (auto r = route(txn, item_id, meta, ids); !r) return unexpected(r.error());
+  if (context) {
+    auto normal = uri::normalize(item.context);
+    if (normal) {
+      if (auto r = route_to_addressee(txn, item_id, meta, *normal, agent_iri); !r) return unexpected(r.error());
+    }
+  }
   if (auto r = put_item(txn, item_id, meta, MDB_APPEND); !r) return unexpected(r.error());
-  if (auto r = put_dup(raw, env.outbox, *source, item_id, MDB_APPENDDUP, "writing the output buffer"); !r) return unexpected(r.error());
+  if (auto r = put_dup(raw, env.outbox, *writer, item_id, MDB_APPENDDUP, "writing the output buffer"); !r) return unexpected(r.error());
   if (!item.persistent) {
     txn.counters.ring_records += ids.size();
   } else {

@@ -15,8 +15,14 @@ namespace tahvel::node::detail {
 // literal sizes and language tags. Error names the triple (1-based) and position.
 Result<void> validate_item(const Item& item, const Settings& settings);
 
-// Inserts one validated item written by `agent_iri`, routes it, and returns its id.
-Result<std::uint64_t> insert_item(Txn& txn, const Item& item, const std::string& agent_iri);
+// The subscription vocabulary term for an item-context condition (tv:context).
+inline constexpr std::string_view kSubscriptionContext = "https://w3id.org/tahvel#context";
+
+// Inserts one validated item written by `agent_iri` (its output buffer), routes it, and returns
+// its id. Its records' source is `agent_iri`, or `*relayed_source` for an item relayed by a link
+// agent (the caller has checked that the agent may relay that source).
+Result<std::uint64_t> insert_item(Txn& txn, const Item& item, const std::string& agent_iri,
+                                  const std::string* relayed_source = nullptr);
 
 // Applies ring and TTL retention; returns the number of records reclaimed.
 Result<std::uint64_t> apply_retention(Txn& txn);

@@ -128,6 +128,22 @@ struct Delivery {
   std::vector<Record> records;  // the whole item as it is now
 };
 
+// An item that a link agent stores on behalf of a writer on another node (docs/protocol.md).
+struct RelayedItem {
+  std::uint64_t seq = 0;   // its sequence number on the stream (the item's id on the sender)
+  std::uint64_t prev = 0;  // the sequence number the sender sent just before it on the stream
+  std::string source;      // the original writer's IRI, kept as the records' source
+  Item item;
+};
+
+struct RelayOutcome {
+  std::uint64_t mark = 0;             // the stream's mark afterwards: last seq applied in order
+  std::vector<std::uint64_t> stored;  // ids of the items stored, in order
+  std::size_t duplicates = 0;         // items at or below the mark, dropped
+  bool gap = false;                   // an item's prev was not the mark: it and those after it
+                                      // were not applied (the sender resends from the mark)
+};
+
 enum class Ack {
   automatic,  // take() removes the item from the input buffer in the same transaction
   manual,     // take() leaves it there; the agent calls ack(item) once it has processed it, so a
@@ -166,9 +182,32 @@ class Agent {
   // Number of items waiting in this agent's input buffer.
   Result<std::uint64_t> pending() const noexcept;
 
+  // Up to `limit` items of the input buffer with id > `after`, oldest first, left in place (a
+  // sending window: the agent acknowledges them later with ack_through). Waits up to `timeout`
+  // for the first one. Items removed from the store meanwhile are skipped.
+  Result<std::vector<Delivery>> peek(std::uint64_t after, std::size_t limit,
+                                     std::chrono::milliseconds timeout) noexcept;
+
+  // Acknowledges every item of the input buffer with id <= `through`; returns how many.
+  Result<std::uint64_t> ack_through(std::uint64_t through) noexcept;
+
+  // Stores items relayed from another node, exactly once per (stream, seq), in one transaction
+  // (docs/protocol.md). The stream's mark (the last seq applied) is kept in the store and moves
+  // in the same transaction as the items, so a crash never applies an item twice nor loses the
+  // mark. For each item in order: seq <= mark is a duplicate (dropped); prev == mark stores it
+  // and sets mark = seq; anything else is a gap: it and the rest are left for a resend.
+  // The source of a relayed item must lie at or under this agent's IRI (a child node's writers,
+  // the child being this agent) or outside this node's IRI (a writer above, relayed down);
+  // invalid_argument otherwise, and nothing of the call is stored.
+  Result<RelayOutcome> relay(std::string_view stream, const std::vector<RelayedItem>& items) noexcept;
+
+  // The stream's mark (0 when nothing was relayed on it).
+  Result<std::uint64_t> relay_mark(std::string_view stream) const noexcept;
+
   // Writes a subscription as a persistent item of triples (vocabulary: docs/record-model.md):
   // from now on every stored item with at least one triple matching the pattern's s, p and o
-  // lands in this agent's input buffer. Other Pattern fields must be unset. Returns the
+  // (and, when pattern.context is set, written with exactly that context) lands in this agent's
+  // input buffer. Other Pattern fields must be unset. Returns the
   // subscription's item id. Subscribing again with the same pattern (an agent restarted by its
   // supervisor) returns the existing subscription instead of adding another.
   Result<std::uint64_t> subscribe(const Pattern& pattern);

@@ -1,0 +1,142 @@
+// The node features that federation stands on: subscriptions by item context, items addressed to
+// an agent by their context (R18), a sending window over the input buffer (peek, ack_through) and
+// exactly-once relaying of items from another node (relay, R19).
+#include <gtest/gtest.h>
+
+#include "test_support.h"
+
+namespace tahvel::node::testing {
+namespace {
+
+using namespace std::chrono_literals;
+
+Item reading(int n, std::string context = {}) {
+  Item item;
+  item.add(Term::iri(kNodeIri + "/obs/" + std::to_string(n)), ex("value"), Term::integer(n));
+  item.context = std::move(context);
+  return item;
+}
+
+std::vector<std::uint64_t> taken_ids(Agent& agent) {
+  std::vector<std::uint64_t> ids;
+  while (auto d = agent.take(0ms).value()) ids.push_back(d->item);
+  return ids;
+}
+
+TEST(Context, SubscriptionWithContextGetsOnlyItemsWrittenWithThatContext) {
+  TempDir dir;
+  Node node = make_node(dir.path());
+  Agent link = node.agent("link").value();
+  Agent writer = node.agent("writer").value();
+  ASSERT_TRUE(link.subscribe({.context = "http://example.org/group/a"}));
+  std::uint64_t in_group = writer.store(reading(1, "http://example.org/group/a")).value();
+  ASSERT_TRUE(writer.store(reading(2, "http://example.org/group/b")));
+  ASSERT_TRUE(writer.store(reading(3)));
+  EXPECT_EQ(taken_ids(link), std::vector<std::uint64_t>{in_group});
+  // Subscribing again with the same context is the same subscription.
+  EXPECT_EQ(link.subscribe({.context = "http://example.org/group/a"}).value(),
+            link.subscribe({.context = "http://example.org/group/a"}).value());
+  EXPECT_FALSE(link.subscribe({.context = ""}));
+}
+
+TEST(Context, ItemAddressedToAnAgentLandsInItsInputBufferWithoutSubscription) {
+  TempDir dir;
+  Node node = make_node(dir.path());
+  Agent hrv = node.agent("hrv").value();
+  Agent child = node.agent("ecg1").value();
+  Agent operator_ = node.agent("operator").value();
+  std::uint64_t to_hrv = operator_.store(reading(1, kNodeIri + "/hrv")).value();
+  // Below an agent's IRI (a node further down, reached through the link agent "ecg1").
+  std::uint64_t to_grandchild = operator_.store(reading(2, kNodeIri + "/ecg1/source")).value();
+  ASSERT_TRUE(operator_.store(reading(3, kNodeIri + "/*")));       // a subtree: no one agent
+  ASSERT_TRUE(operator_.store(reading(4, kNodeIri)));              // the node itself
+  ASSERT_TRUE(operator_.store(reading(5, "http://example.org/home10/hrv")));  // another node
+  ASSERT_TRUE(operator_.store(reading(6, kNodeIri + "/operator")));  // the writer itself
+  EXPECT_EQ(taken_ids(hrv), std::vector<std::uint64_t>{to_hrv});
+  EXPECT_EQ(taken_ids(child), std::vector<std::uint64_t>{to_grandchild});
+  EXPECT_TRUE(taken_ids(operator_).empty());
+}
+
+TEST(Window, PeekLeavesItemsAndAckThroughRemovesUpToAnId) {
+  TempDir dir;
+  Node node = make_node(dir.path());
+  Agent uplink = node.agent("uplink").value();
+  Agent writer = node.agent("writer").value();
+  ASSERT_TRUE(uplink.subscribe({.p = ex("value")}));
+  std::vector<std::uint64_t> ids;
+  for (int i = 0; i < 5; ++i) ids.push_back(writer.store(reading(i)).value());
+  auto first = uplink.peek(0, 2, 0ms).value();
+  ASSERT_EQ(first.size(), 2u);
+  EXPECT_EQ(first[0].item, ids[0]);
+  EXPECT_EQ(first[1].item, ids[1]);
+  auto next = uplink.peek(ids[1], 10, 0ms).value();
+  ASSERT_EQ(next.size(), 3u);
+  EXPECT_EQ(next[0].item, ids[2]);
+  EXPECT_EQ(uplink.pending().value(), 5u);
+  EXPECT_EQ(uplink.ack_through(ids[2]).value(), 3u);
+  EXPECT_EQ(uplink.pending().value(), 2u);
+  EXPECT_EQ(uplink.peek(0, 0, 0ms).value().front().item, ids[3]);
+  EXPECT_TRUE(uplink.peek(ids[4], 0, 10ms).value().empty());  // nothing after the last: timeout
+}
+
+RelayedItem relayed(std::uint64_t seq, std::uint64_t prev, std::string source, int n) {
+  return RelayedItem{seq, prev, std::move(source), reading(n)};
+}
+
+TEST(Relay, StoresEachSequenceOnceKeepsTheSourceAndStopsAtAGap) {
+  TempDir dir;
+  Node node = make_node(dir.path());
+  Agent child = node.agent("child").value();
+  const std::string source = kNodeIri + "/child/hrv";
+  auto first = child.relay("up", {relayed(10, 0, source, 1), relayed(12, 10, source, 2)}).value();
+  EXPECT_EQ(first.stored.size(), 2u);
+  EXPECT_EQ(first.mark, 12u);
+  // A resend of both plus a new one: only the new one is stored.
+  auto again = child.relay("up", {relayed(10, 0, source, 1), relayed(12, 10, source, 2),
+                                  relayed(15, 12, source, 3)}).value();
+  EXPECT_EQ(again.duplicates, 2u);
+  EXPECT_EQ(again.stored.size(), 1u);
+  EXPECT_EQ(again.mark, 15u);
+  // 20 follows 17, which never arrived: nothing is applied, the sender must resend from 15.
+  auto gap = child.relay("up", {relayed(20, 17, source, 5)}).value();
+  EXPECT_TRUE(gap.gap);
+  EXPECT_TRUE(gap.stored.empty());
+  EXPECT_EQ(gap.mark, 15u);
+  EXPECT_EQ(child.relay_mark("up").value(), 15u);
+  EXPECT_EQ(child.relay_mark("other").value(), 0u);
+
+  auto records = node.snapshot().value().list({.p = ex("value")}).value();
+  ASSERT_EQ(records.size(), 3u);
+  for (const auto& r : records) EXPECT_EQ(r.meta.source, source);
+}
+
+TEST(Relay, MarkSurvivesReopeningTheStore) {
+  TempDir dir;
+  {
+    Node node = make_node(dir.path());
+    ASSERT_TRUE(node.agent("child").value().relay("up", {relayed(3, 0, kNodeIri + "/child", 1)}));
+  }
+  Node node = Node::open(dir.path()).value();
+  Agent child = node.agent("child").value();
+  EXPECT_EQ(child.relay_mark("up").value(), 3u);
+  EXPECT_EQ(child.relay("up", {relayed(3, 0, kNodeIri + "/child", 1)}).value().duplicates, 1u);
+  EXPECT_EQ(node.stats().value().items, 1u);
+}
+
+TEST(Relay, SourceOfAnotherLocalWriterIsRefusedAndNothingIsStored) {
+  TempDir dir;
+  Node node = make_node(dir.path());
+  Agent child = node.agent("child").value();
+  auto refused = child.relay("up", {relayed(1, 0, kNodeIri + "/child/hrv", 1),
+                                    relayed(2, 1, kNodeIri + "/operator", 2)});
+  ASSERT_FALSE(refused);
+  EXPECT_EQ(refused.error().code, Errc::invalid_argument);
+  EXPECT_NE(refused.error().message.find("/operator"), std::string::npos);
+  EXPECT_EQ(node.stats().value().items, 0u);
+  EXPECT_EQ(child.relay_mark("up").value(), 0u);
+  // A writer above this node (relayed down from the parent) is accepted.
+  EXPECT_TRUE(child.relay("down", {relayed(1, 0, "http://example.org/hospital-operator", 1)}));
+}
+
+}  // namespace
+}  // namespace tahvel::node::testing
