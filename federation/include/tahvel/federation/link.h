@@ -1,0 +1,131 @@
+// The communication agent of a node (DESIGN §5): one Link per node links it to its parent (the
+// child role: items up, configuration down, queries answered) and to its children (the parent
+// role: their items relayed into this store, configuration and queries sent down, their state
+// kept as triples). The protocol is docs/protocol.md; its statements (P1...) are cited in code
+// and tests.
+//
+//   auto link = Link::start({.dir = "state/home1", .parent_iri = hospital, .up = dds,
+//                            .down = lcm});
+//   ... // runs in its own threads until stop() or destruction
+//
+// Nothing is kept only in memory: the outbox is the input buffer of the node's agent "uplink"
+// (its subscriptions are the forwarding policy), the down queue of child C is the input buffer of
+// agent C (the child, seen as an agent of this node), and the marks of both directions are in
+// the stores (node::Agent::relay). A link or node that restarts resumes where it was.
+#pragma once
+
+#include <chrono>
+#include <cstdint>
+#include <filesystem>
+#include <functional>
+#include <memory>
+#include <optional>
+#include <string>
+#include <string_view>
+#include <vector>
+
+#include "tahvel/federation/transport.h"
+#include "tahvel/node/node.h"
+
+namespace tahvel::federation {
+
+// One line per event worth an operator's attention (registration, refusal, link up/down, drop).
+using LinkLog = std::function<void(std::string_view line)>;
+
+// The vocabulary of link state, remote queries and answers (docs/protocol.md, "On the board").
+namespace vocab {
+inline constexpr std::string_view kTv = "https://w3id.org/tahvel#";
+inline const std::string kLastSeen = std::string(kTv) + "lastSeen";
+inline const std::string kLinkState = std::string(kTv) + "linkState";
+inline const std::string kOutboxDepth = std::string(kTv) + "outboxDepth";
+inline const std::string kSoftwareVersion = std::string(kTv) + "softwareVersion";
+inline const std::string kParent = std::string(kTv) + "parent";
+inline const std::string kRemoteQuery = std::string(kTv) + "RemoteQuery";
+inline const std::string kQueryTarget = std::string(kTv) + "queryTarget";
+inline const std::string kReplyTo = std::string(kTv) + "replyTo";
+inline const std::string kQuerySubject = std::string(kTv) + "querySubject";
+inline const std::string kQueryPredicate = std::string(kTv) + "queryPredicate";
+inline const std::string kQueryObject = std::string(kTv) + "queryObject";
+inline const std::string kQuerySince = std::string(kTv) + "querySince";
+inline const std::string kQueryUntil = std::string(kTv) + "queryUntil";
+inline const std::string kQueryCascade = std::string(kTv) + "queryCascade";
+inline const std::string kQueryLimit = std::string(kTv) + "queryLimit";
+inline const std::string kAnswerTo = std::string(kTv) + "answerTo";
+inline const std::string kAnswerChunk = std::string(kTv) + "answerChunk";
+inline const std::string kAnswerLast = std::string(kTv) + "answerLast";
+inline const std::string kAnswerRecords = std::string(kTv) + "answerRecords";
+inline const std::string kErrorCode = std::string(kTv) + "errorCode";
+inline const std::string kErrorMessage = std::string(kTv) + "errorMessage";
+}  // namespace vocab
+
+struct LinkOptions {
+  std::filesystem::path dir;  // the node's store
+
+  // Child role. parent_iri empty: this node is a root. `up` is bound to this node's IRI.
+  std::string parent_iri;
+  std::shared_ptr<Transport> up;
+  // The forwarding policy: subscriptions of agent "uplink", written at start (idempotent). Empty:
+  // keep what the store has, or on a new store the default — HRV windows only, never raw signals.
+  std::vector<node::Pattern> forward;
+
+  // Parent role: the transport children reach this node on (bound to this node's IRI; may be the
+  // same object as `up`). Null: a leaf.
+  std::shared_ptr<Transport> down;
+  std::vector<std::string> children;  // child ids accepted; empty: any direct child
+
+  std::size_t window = 512;                       // up or down items in flight per link
+  std::chrono::milliseconds resend_after{300};    // no acknowledgement for this long: resend
+  std::chrono::milliseconds heartbeat_every{1000};
+  std::chrono::milliseconds child_silence{3500};  // a child not heard for this long is "down"
+  std::string software_version = "tahvel 0.1.0";
+  LinkLog log;
+};
+
+struct LinkCounters {
+  std::uint64_t up_sent = 0;        // up frames sent (first sends and resends)
+  std::uint64_t up_resends = 0;     // times the up window went back to the parent's mark
+  std::uint64_t relayed_in = 0;     // items relayed into this store from children
+  std::uint64_t duplicates_in = 0;  // relayed items dropped as duplicates (P9)
+  std::uint64_t down_applied = 0;   // items relayed into this store from the parent
+  std::uint64_t refused = 0;        // frames refused (foreign IRI, unknown child, bad body)
+};
+
+class Link {
+ public:
+  static Result<std::unique_ptr<Link>> start(LinkOptions options);
+  ~Link();  // stops the link's threads
+  Link(const Link&) = delete;
+  Link& operator=(const Link&) = delete;
+
+  void stop();
+  bool connected() const;  // welcomed by the parent (child role)
+  LinkCounters counters() const;
+
+  struct Impl;
+
+ private:
+  explicit Link(std::unique_ptr<Impl> impl);
+  std::unique_ptr<Impl> impl_;
+};
+
+// ---------------------------------------------------------------------------------------------
+// Remote query, operator side: asks the node at `target` (this node or any node below it)
+// through this node's board and its running Link, calling `each` for every record of the answer
+// as chunks arrive. Errors: not_found "unknown node" (not under this node, or no such child),
+// unreachable (errc io, message starts "unreachable:"), timeout.
+
+struct RemoteQuery {
+  std::string target;
+  node::Pattern pattern;  // s, p, o, since, until
+  unsigned cascade = 0;
+  std::size_t limit = 0;
+};
+
+Result<std::uint64_t> remote_query(node::Node& node, const RemoteQuery& query,
+                                   std::chrono::milliseconds timeout,
+                                   const std::function<void(const node::Record&)>& each);
+
+// The default forwarding policy (HRV windows: sosa:observedProperty tv:HeartRateVariability).
+std::vector<node::Pattern> default_forward_policy();
+
+}  // namespace tahvel::federation

@@ -1,0 +1,1023 @@
+// The communication agent (link.h): child role, parent role and remote queries over any
+// Transport. Protocol statements (Pn) are in docs/protocol.md.
+//
+// Threads: one receiver per transport, one up-sender (child role), one down-pump per child
+// (parent role), one timer (hello/heartbeat, child silence, answer resends). Each thread opens
+// its own node::Node and agents (they are single-thread objects); shared state is under `mu`.
+#include "tahvel/federation/link.h"
+
+#include <algorithm>
+#include <atomic>
+#include <condition_variable>
+#include <deque>
+#include <iostream>
+#include <map>
+#include <mutex>
+#include <span>
+#include <thread>
+
+#include "base64.h"
+#include "tahvel/uri/iri.h"
+#include "wire.h"
+
+namespace tahvel::federation {
+namespace {
+
+using Clock = std::chrono::steady_clock;
+using namespace std::chrono_literals;
+
+constexpr std::size_t kAnswerChunkBytes = 48 * 1024;  // P14: fits LCM's datagram fragments well
+constexpr std::size_t kAnswerWindow = 16;
+constexpr std::string_view kUplinkAgent = "uplink";
+constexpr std::string_view kLinkAgent = "link";
+constexpr std::string_view kDownStream = "down";
+
+std::int64_t now_ns() {
+  return std::chrono::duration_cast<std::chrono::nanoseconds>(
+             std::chrono::system_clock::now().time_since_epoch())
+      .count();
+}
+
+// The whole item of a delivery, as the sender's store holds it, with what travels of its
+// metadata (P7).
+wire::ItemBody item_of(const node::Delivery& delivery) {
+  wire::ItemBody body;
+  if (delivery.records.empty()) return body;
+  const node::RecordMeta& meta = delivery.records.front().meta;
+  body.source = meta.source;
+  body.item.context = meta.context;
+  body.item.persistent = meta.persistent;
+  body.item.asserted_at = meta.asserted_at;
+  for (const auto& r : delivery.records) body.item.triples.push_back(r.triple);
+  return body;
+}
+
+const node::Term* object_of(const std::vector<node::Record>& records, const std::string& predicate) {
+  for (const auto& r : records)
+    if (r.triple.p.kind == node::TermKind::iri && r.triple.p.value == predicate) return &r.triple.o;
+  return nullptr;
+}
+
+std::optional<std::int64_t> integer_of(const std::vector<node::Record>& records, const std::string& predicate) {
+  const node::Term* t = object_of(records, predicate);
+  if (!t || t->kind != node::TermKind::literal) return std::nullopt;
+  try {
+    std::size_t used = 0;
+    long long v = std::stoll(t->value, &used);
+    if (used != t->value.size()) return std::nullopt;
+    return v;
+  } catch (...) {
+    return std::nullopt;
+  }
+}
+
+std::string query_key(std::string_view origin, std::uint64_t id) {
+  return std::string(origin) + "#" + std::to_string(id);
+}
+
+// The child of `self` on the way to `target` (self + "/" + first segment), or empty.
+std::string child_on_path(const std::string& self, const std::string& target) {
+  if (target.size() <= self.size() + 1 || target.compare(0, self.size(), self) != 0 || target[self.size()] != '/')
+    return {};
+  std::size_t end = target.find_first_of("/#?", self.size() + 1);
+  return target.substr(0, end);
+}
+
+}  // namespace
+
+std::vector<node::Pattern> default_forward_policy() {
+  return {node::Pattern{.p = node::Term::iri("http://www.w3.org/ns/sosa/observedProperty"),
+                        .o = node::Term::iri(std::string(vocab::kTv) + "HeartRateVariability")}};
+}
+
+struct Link::Impl {
+  LinkOptions opt;
+  std::string self;
+  std::atomic<bool> stopping{false};
+  std::vector<std::thread> threads;
+
+  mutable std::mutex mu;
+  std::condition_variable changed;
+  LinkCounters counters;
+
+  // Child role (P5-P8).
+  bool welcomed = false;
+  std::uint64_t up_mark = 0;       // the parent's mark of our stream: applied there
+  std::uint64_t up_last_sent = 0;  // the seq of the last up frame sent
+  std::deque<std::uint64_t> up_in_flight;
+  Clock::time_point up_progress{};
+  bool up_go_back = false;
+
+  // Parent role (P10-P12).
+  struct Child {
+    std::string id, iri;
+    bool connected = false;
+    bool ever = false;
+    Clock::time_point last_seen{};
+    std::int64_t last_seen_ns = 0;
+    std::string version;
+    std::uint64_t outbox_depth = 0;
+    std::uint64_t down_mark = 0, down_last_sent = 0;
+    std::deque<std::uint64_t> down_in_flight;
+    Clock::time_point down_progress{};
+    bool down_go_back = false;
+    bool pump_started = false;
+    bool state_dirty = true;
+    std::int64_t state_written_ns = 0;
+    std::uint64_t state_item = 0;
+  };
+  std::map<std::string, std::shared_ptr<Child>> children;  // by IRI
+
+  // Queries (P13-P16).
+  struct OutStream {  // answer chunks this node sends towards the origin
+    std::string origin;
+    std::uint64_t query = 0;
+    std::deque<Frame> unacked;
+    std::uint64_t next_chunk = 1;
+    Clock::time_point last_send{};
+  };
+  struct InStream {  // answer chunks this node receives from a child
+    bool forward_up = false;
+    std::string child;
+    std::string reply_to;
+    std::uint64_t expected = 1;
+    bool done = false;
+    Frame query_frame;  // resent until the first chunk or error arrives
+    Clock::time_point sent{};
+    int resends = 0;
+  };
+  std::map<std::string, OutStream> out_answers;
+  std::map<std::string, InStream> in_answers;
+  std::deque<std::pair<std::string, Frame>> board_writes;  // answers to write at the origin
+
+  void log(const std::string& line) const {
+    if (opt.log) opt.log(line);
+    else std::cerr << "tahvel link <" << self << ">: " << line << "\n";
+  }
+
+  Transport* child_transport() const { return opt.down.get(); }
+
+  void send(Transport* via, Frame frame) {
+    if (!via) return;
+    frame.from = self;
+    if (auto sent = via->send(frame); !sent) log("send " + frame.to + " failed: " + sent.error().message);
+  }
+
+  void send_error(Transport* via, const std::string& to, std::uint64_t seq, wire::ErrorBody body) {
+    Frame f;
+    f.kind = FrameKind::error;
+    f.to = to;
+    f.seq = seq;
+    f.body = wire::encode_error(body);
+    send(via, std::move(f));
+  }
+
+  // ---- receiving ----------------------------------------------------------------------------
+
+  void receive_loop(std::shared_ptr<Transport> transport) {
+    auto node = node::Node::open(opt.dir);
+    if (!node) {
+      log("cannot open the store: " + node.error().message);
+      return;
+    }
+    std::map<std::string, node::Agent> agents;  // this thread's relaying agents, by id
+    auto agent = [&](const std::string& id) -> node::Agent* {
+      auto it = agents.find(id);
+      if (it == agents.end()) {
+        auto a = node->agent(id);
+        if (!a) return nullptr;
+        it = agents.emplace(id, std::move(*a)).first;
+      }
+      return &it->second;
+    };
+    while (!stopping) {
+      auto first = transport->receive(100ms);
+      if (!first) {
+        log("receive failed: " + first.error().message);
+        std::this_thread::sleep_for(100ms);
+        continue;
+      }
+      if (!*first) continue;
+      // Drain what is queued so that runs of items from one sender go into one transaction.
+      std::vector<Frame> batch;
+      batch.push_back(std::move(**first));
+      while (batch.size() < 512) {
+        auto more = transport->receive(0ms);
+        if (!more || !*more) break;
+        batch.push_back(std::move(**more));
+      }
+      for (std::size_t i = 0; i < batch.size();) {
+        const Frame& f = batch[i];
+        if (f.kind == FrameKind::up || f.kind == FrameKind::down) {
+          std::size_t j = i + 1;
+          while (j < batch.size() && batch[j].kind == f.kind && batch[j].from == f.from) ++j;
+          relay_run(transport.get(), std::span(batch).subspan(i, j - i), agent);
+          i = j;
+        } else {
+          dispatch(transport.get(), f, agent);
+          ++i;
+        }
+      }
+    }
+  }
+
+  bool from_parent(const Frame& f) const { return opt.up && !opt.parent_iri.empty() && f.from == opt.parent_iri; }
+
+  std::shared_ptr<Child> accepted_child(const std::string& iri, std::string* why) {
+    auto id = uri::child_id(iri, self);
+    if (!id) {
+      *why = "<" + iri + "> is not a child of <" + self + "> (a child's IRI is the parent's IRI + \"/\" + its id)";
+      return nullptr;
+    }
+    if (!opt.children.empty() && std::find(opt.children.begin(), opt.children.end(), *id) == opt.children.end()) {
+      *why = "<" + iri + "> is not among the children configured for <" + self + ">";
+      return nullptr;
+    }
+    std::lock_guard lock(mu);
+    auto& child = children[iri];
+    if (!child) {
+      child = std::make_shared<Child>();
+      child->id = *id;
+      child->iri = iri;
+    }
+    return child;
+  }
+
+  template <class AgentFn>
+  void relay_run(Transport* via, std::span<const Frame> frames, AgentFn& agent) {
+    const Frame& head = frames.front();
+    const bool up = head.kind == FrameKind::up;
+    std::shared_ptr<Child> child;
+    if (up) {
+      std::lock_guard lock(mu);
+      auto it = children.find(head.from);
+      if (it != children.end() && it->second->connected) child = it->second;
+    }
+    if (up ? !child : !from_parent(head)) {
+      std::lock_guard lock(mu);
+      counters.refused += frames.size();
+      if (up && opt.down) {  // P6: a child the parent does not know registers again
+        send_error(via, head.from, 0, {"unregistered", "<" + head.from + "> must say hello to <" + self + "> first", ""});
+      } else {
+        log("dropped " + std::to_string(frames.size()) + " frame(s) from <" + head.from + ">: not this node's parent");
+      }
+      return;
+    }
+    std::vector<node::RelayedItem> items;
+    items.reserve(frames.size());
+    for (const Frame& f : frames) {
+      auto body = wire::decode_item(f.body);
+      if (!body) {
+        log("dropped a malformed " + std::string(up ? "up" : "down") + " frame from <" + f.from + ">: " + body.error().message);
+        std::lock_guard lock(mu);
+        ++counters.refused;
+        break;  // the rest follows it in the sender's sequence: they come again after a resend
+      }
+      if (!up && body->item.context.size() >= 2 && body->item.context.ends_with("/*"))
+        body->item.context = self + "/*";  // P11: a subtree address reaches each node as its own
+      items.push_back({f.seq, f.prev, std::move(body->source), std::move(body->item)});
+    }
+    node::Agent* relayer = agent(up ? child->id : std::string(kUplinkAgent));
+    if (!relayer) return;
+    std::string stream = up ? child->iri : std::string(kDownStream);
+    auto outcome = relayer->relay(stream, items);
+    Frame ack;
+    ack.kind = FrameKind::ack;
+    ack.to = head.from;
+    if (!outcome) {
+      // A refused source (P9) or a full store: nothing was applied; the sender keeps resending,
+      // which is right for a full store and visible in the log for a misbehaving child.
+      log("relay from <" + head.from + "> refused: " + outcome.error().message);
+      std::lock_guard lock(mu);
+      ++counters.refused;
+      auto mark = relayer->relay_mark(stream);
+      ack.ack = mark ? *mark : 0;
+    } else {
+      ack.ack = outcome->mark;
+      ack.prev = outcome->gap ? 1 : 0;
+      std::lock_guard lock(mu);
+      if (up) {
+        counters.relayed_in += outcome->stored.size();
+        child->last_seen = Clock::now();
+      } else {
+        counters.down_applied += outcome->stored.size();
+      }
+      counters.duplicates_in += outcome->duplicates;
+    }
+    send(via, std::move(ack));
+  }
+
+  template <class AgentFn>
+  void dispatch(Transport* via, const Frame& f, AgentFn& agent) {
+    if (from_parent(f)) return from_parent_frame(via, f, agent);
+    std::string why;
+    if (opt.down && via == opt.down.get()) {
+      auto child = accepted_child(f.from, &why);
+      if (child) return from_child_frame(via, f, child, agent);
+    } else {
+      why = "<" + f.from + "> is not the parent <" + opt.parent_iri + "> of <" + self + ">";
+    }
+    log("refused " + std::to_string(static_cast<int>(f.kind)) + "-frame: " + why);
+    std::lock_guard lock(mu);
+    ++counters.refused;
+    if (f.kind == FrameKind::hello) send_error(via, f.from, 0, {"refused", why, ""});
+  }
+
+  template <class AgentFn>
+  void from_child_frame(Transport* via, const Frame& f, const std::shared_ptr<Child>& child, AgentFn& agent) {
+    switch (f.kind) {
+      case FrameKind::hello: {
+        auto state = wire::decode_state(f.body);
+        node::Agent* link = agent(child->id);
+        if (!link) return;
+        auto mark = link->relay_mark(child->iri);
+        if (!mark) {
+          log("cannot read the mark of <" + child->iri + ">: " + mark.error().message);
+          return;
+        }
+        bool start_pump = false;
+        {
+          std::lock_guard lock(mu);
+          bool was = child->connected;
+          child->connected = child->ever = true;
+          child->last_seen = Clock::now();
+          child->last_seen_ns = now_ns();
+          if (state) {
+            child->version = state->software_version;
+            child->outbox_depth = state->outbox_depth;
+          }
+          child->down_mark = child->down_last_sent = f.ack;  // P6: resume down from the child's mark
+          child->down_in_flight.clear();
+          child->down_progress = Clock::now();
+          child->state_dirty = true;
+          start_pump = !child->pump_started;
+          child->pump_started = true;
+          if (!was) log("child <" + child->iri + "> registered (" + child->version + ")");
+        }
+        if (start_pump) threads_to_start_push(child);
+        Frame welcome;
+        welcome.kind = FrameKind::welcome;
+        welcome.to = child->iri;
+        welcome.ack = *mark;
+        send(via, std::move(welcome));
+        changed.notify_all();
+        return;
+      }
+      case FrameKind::heartbeat: {
+        auto state = wire::decode_state(f.body);
+        std::lock_guard lock(mu);
+        if (!child->connected) {
+          send_error(via, f.from, 0, {"unregistered", "<" + f.from + "> must say hello to <" + self + "> first", ""});
+          return;
+        }
+        child->last_seen = Clock::now();
+        child->last_seen_ns = now_ns();
+        if (state && (state->outbox_depth != child->outbox_depth || state->software_version != child->version)) {
+          child->outbox_depth = state->outbox_depth;
+          child->version = state->software_version;
+          child->state_dirty = true;
+        }
+        return;
+      }
+      case FrameKind::ack: {
+        std::lock_guard lock(mu);
+        child->last_seen = Clock::now();
+        if (f.seq != 0) return answer_ack(f);
+        if (f.ack > child->down_mark) {
+          child->down_mark = f.ack;
+          child->down_progress = Clock::now();
+        }
+        if (f.prev == 1) child->down_go_back = true;
+        changed.notify_all();
+        return;
+      }
+      case FrameKind::answer:
+        return answer_from_child(via, f);
+      case FrameKind::error:
+        return error_from_child(f);
+      default:
+        log("refused a frame of kind " + std::to_string(static_cast<int>(f.kind)) + " from child <" + f.from + ">");
+        std::lock_guard lock(mu);
+        ++counters.refused;
+    }
+  }
+
+  template <class AgentFn>
+  void from_parent_frame(Transport* via, const Frame& f, AgentFn&) {
+    switch (f.kind) {
+      case FrameKind::welcome: {
+        std::lock_guard lock(mu);
+        if (!welcomed) log("registered with the parent <" + opt.parent_iri + ">");
+        welcomed = true;
+        up_mark = f.ack;
+        up_last_sent = f.ack;
+        up_in_flight.clear();
+        up_progress = Clock::now();
+        changed.notify_all();
+        return;
+      }
+      case FrameKind::ack: {
+        std::lock_guard lock(mu);
+        if (f.seq != 0) return answer_ack(f);
+        if (f.ack > up_mark) {
+          up_mark = f.ack;
+          up_progress = Clock::now();
+        }
+        if (f.prev == 1) up_go_back = true;
+        changed.notify_all();
+        return;
+      }
+      case FrameKind::query:
+        return query_from_parent(via, f);
+      case FrameKind::error: {
+        auto body = wire::decode_error(f.body);
+        std::string code = body ? body->code : "malformed";
+        std::lock_guard lock(mu);
+        if (code == "unregistered") {
+          welcomed = false;
+        } else if (code == "refused") {
+          welcomed = false;
+          log("the parent refused this node: " + (body ? body->message : std::string()));
+        } else {
+          log("error from the parent: " + code + (body ? ": " + body->message : std::string()));
+        }
+        return;
+      }
+      default:
+        log("refused a frame of kind " + std::to_string(static_cast<int>(f.kind)) + " from the parent");
+        std::lock_guard lock(mu);
+        ++counters.refused;
+    }
+  }
+
+  // ---- queries ------------------------------------------------------------------------------
+
+  void query_from_parent(Transport* via, const Frame& f) {
+    auto q = wire::decode_query(f.body);
+    if (!q) {
+      log("dropped a malformed query from the parent: " + q.error().message);
+      return;
+    }
+    const std::string key = query_key(q->origin, f.seq);
+    {
+      std::lock_guard lock(mu);
+      if (out_answers.count(key) || in_answers.count(key)) return;  // a resent query under way
+    }
+    if (q->target == self) return answer_here(*q, f.seq);
+    std::string child_iri = child_on_path(self, q->target);
+    std::lock_guard lock(mu);
+    auto it = child_iri.empty() ? children.end() : children.find(child_iri);
+    if (it == children.end() || !opt.down) {
+      send_error(via, opt.parent_iri, f.seq, {"unknown_node", "no node <" + q->target + "> below <" + self + ">", q->origin});
+      return;
+    }
+    if (!it->second->connected) {
+      send_error(via, opt.parent_iri, f.seq,
+                 {"unreachable", "<" + child_iri + "> (on the way to <" + q->target + ">) is not connected to <" + self + ">", q->origin});
+      return;
+    }
+    Frame down = f;
+    down.to = child_iri;
+    InStream& in = in_answers[key];
+    in.forward_up = true;
+    in.child = child_iri;
+    in.query_frame = down;
+    in.sent = Clock::now();
+    send(opt.down.get(), std::move(down));
+  }
+
+  // Runs the query on this node's snapshot and queues the answer in chunks (P14).
+  void answer_here(const wire::QueryBody& q, std::uint64_t id) {
+    auto node = node::Node::open(opt.dir);
+    std::vector<node::Record> records;
+    std::optional<std::string> failure;
+    if (!node) failure = node.error().message;
+    else {
+      auto snap = node->snapshot();
+      if (!snap) failure = snap.error().message;
+      else {
+        node::Pattern pattern{.s = q.s, .p = q.p, .o = q.o, .since = q.since, .until = q.until};
+        auto found = snap->list(pattern, {.cascade = q.cascade, .limit = q.limit});
+        if (!found) failure = found.error().message;
+        else records = std::move(*found);
+      }
+    }
+    std::lock_guard lock(mu);
+    if (failure) {
+      send_error(opt.up.get(), opt.parent_iri, id, {"query_failed", "<" + self + ">: " + *failure, q.origin});
+      return;
+    }
+    OutStream& out = out_answers[query_key(q.origin, id)];
+    out.origin = q.origin;
+    out.query = id;
+    wire::AnswerBody chunk{q.origin, false, {}};
+    std::size_t bytes = 0;
+    auto flush = [&](bool last) {
+      chunk.last = last;
+      Frame f;
+      f.kind = FrameKind::answer;
+      f.to = opt.parent_iri;
+      f.seq = id;
+      f.prev = out.next_chunk++;
+      f.body = wire::encode_answer(chunk);
+      out.unacked.push_back(std::move(f));
+      chunk.records.clear();
+      bytes = 0;
+    };
+    for (auto& r : records) {
+      std::size_t size = r.triple.s.value.size() + r.triple.p.value.size() + r.triple.o.value.size() +
+                         r.meta.source.size() + r.meta.context.size() + 64;
+      if (bytes > 0 && bytes + size > kAnswerChunkBytes) flush(false);
+      bytes += size;
+      chunk.records.push_back(std::move(r));
+    }
+    flush(true);
+    send_answer_window(out);
+  }
+
+  // Caller holds mu.
+  void send_answer_window(OutStream& out) {
+    std::size_t n = std::min(out.unacked.size(), kAnswerWindow);
+    for (std::size_t i = 0; i < n; ++i) send(opt.up.get(), out.unacked[i]);
+    out.last_send = Clock::now();
+  }
+
+  // Caller holds mu.
+  void answer_ack(const Frame& f) {
+    const std::string key = query_key(f.body, f.seq);
+    auto it = out_answers.find(key);
+    if (it == out_answers.end()) return;
+    OutStream& out = it->second;
+    bool moved = false;
+    while (!out.unacked.empty() && out.unacked.front().prev <= f.ack) {
+      out.unacked.pop_front();
+      moved = true;
+    }
+    if (out.unacked.empty()) {
+      out_answers.erase(it);
+      return;
+    }
+    if (moved) send_answer_window(out);
+  }
+
+  void answer_from_child(Transport* via, const Frame& f) {
+    auto body = wire::decode_answer(f.body);
+    if (!body) {
+      log("dropped a malformed answer from <" + f.from + ">: " + body.error().message);
+      return;
+    }
+    const std::string key = query_key(body->origin, f.seq);
+    std::lock_guard lock(mu);
+    auto it = in_answers.find(key);
+    if (it == in_answers.end()) return;  // a query this node no longer waits for
+    InStream& in = it->second;
+    if (f.prev == in.expected && !in.done) {
+      ++in.expected;
+      if (body->last) in.done = true;
+      if (in.forward_up) {
+        OutStream& out = out_answers[key];
+        out.origin = body->origin;
+        out.query = f.seq;
+        Frame up = f;
+        up.to = opt.parent_iri;
+        up.prev = out.next_chunk++;
+        out.unacked.push_back(std::move(up));
+        if (out.unacked.size() <= kAnswerWindow) {
+          send(opt.up.get(), out.unacked.back());
+          out.last_send = Clock::now();
+        }
+      } else {
+        board_writes.emplace_back(in.reply_to, f);
+        changed.notify_all();
+      }
+    }
+    Frame ack;
+    ack.kind = FrameKind::ack;
+    ack.to = f.from;
+    ack.seq = f.seq;
+    ack.ack = in.expected - 1;
+    ack.body = body->origin;
+    send(via, std::move(ack));
+  }
+
+  void error_from_child(const Frame& f) {
+    auto body = wire::decode_error(f.body);
+    if (!body) {
+      log("dropped a malformed error from <" + f.from + ">: " + body.error().message);
+      return;
+    }
+    std::lock_guard lock(mu);
+    if (f.seq == 0) {
+      log("error from child <" + f.from + ">: " + body->code + ": " + body->message);
+      return;
+    }
+    const std::string key = query_key(body->origin, f.seq);
+    auto it = in_answers.find(key);
+    if (it == in_answers.end() || it->second.done) return;
+    it->second.done = true;
+    if (it->second.forward_up) {
+      Frame up = f;
+      up.to = opt.parent_iri;
+      send(opt.up.get(), std::move(up));
+    } else {
+      board_writes.emplace_back(it->second.reply_to, f);
+      changed.notify_all();
+    }
+  }
+
+  // ---- child role: up sender ----------------------------------------------------------------
+
+  void up_loop() {
+    auto node = node::Node::open(opt.dir);
+    if (!node) return log("cannot open the store: " + node.error().message);
+    auto uplink = node->agent(kUplinkAgent);
+    if (!uplink) return log("cannot open agent uplink: " + uplink.error().message);
+    std::uint64_t acked_locally = 0;
+    while (!stopping) {
+      std::uint64_t after = 0, mark = 0;
+      std::size_t room = 0;
+      {
+        std::unique_lock lock(mu);
+        if (!welcomed) {
+          changed.wait_for(lock, 100ms);
+          continue;
+        }
+        while (!up_in_flight.empty() && up_in_flight.front() <= up_mark) up_in_flight.pop_front();
+        if (up_go_back || (!up_in_flight.empty() && Clock::now() - up_progress > opt.resend_after)) {
+          up_last_sent = up_mark;  // P8: go back to the parent's mark
+          up_in_flight.clear();
+          up_go_back = false;
+          up_progress = Clock::now();
+          ++counters.up_resends;
+        }
+        mark = up_mark;
+        after = up_last_sent;
+        room = opt.window > up_in_flight.size() ? opt.window - up_in_flight.size() : 0;
+        if (room == 0) {
+          changed.wait_for(lock, 20ms);
+          continue;
+        }
+      }
+      if (mark > acked_locally) {
+        if (auto a = uplink->ack_through(mark); a) acked_locally = mark;
+      }
+      auto ready = uplink->peek(after, room, 50ms);
+      if (!ready) {
+        log("reading the outbox failed: " + ready.error().message);
+        std::this_thread::sleep_for(100ms);
+        continue;
+      }
+      std::vector<std::uint64_t> from_above;
+      std::unique_lock lock(mu);
+      if (!welcomed || up_last_sent != after) continue;  // the session moved meanwhile
+      for (const auto& d : *ready) {
+        wire::ItemBody body = item_of(d);
+        if (!uri::is_under(body.source, self)) {
+          // Written above this node (relayed down): never goes back up (P7).
+          from_above.push_back(d.item);
+          continue;
+        }
+        Frame f;
+        f.kind = FrameKind::up;
+        f.to = opt.parent_iri;
+        f.seq = d.item;
+        f.prev = up_last_sent;
+        f.body = wire::encode_item(body);
+        send(opt.up.get(), std::move(f));
+        if (up_in_flight.empty()) up_progress = Clock::now();
+        up_in_flight.push_back(d.item);
+        up_last_sent = d.item;
+        ++counters.up_sent;
+      }
+      lock.unlock();
+      for (std::uint64_t id : from_above) (void)uplink->ack(id);
+    }
+  }
+
+  // ---- parent role: down pump per child -----------------------------------------------------
+
+  std::mutex start_mu;
+  std::vector<std::shared_ptr<Child>> pumps_to_start;
+  void threads_to_start_push(const std::shared_ptr<Child>& child) {
+    std::lock_guard lock(start_mu);
+    pumps_to_start.push_back(child);
+  }
+
+  void pump_loop(std::shared_ptr<Child> child) {
+    auto node = node::Node::open(opt.dir);
+    if (!node) return log("cannot open the store: " + node.error().message);
+    auto agent = node->agent(child->id);
+    if (!agent) return log("cannot open agent " + child->id + ": " + agent.error().message);
+    std::uint64_t acked_locally = 0;
+    while (!stopping) {
+      std::uint64_t after = 0, mark = 0;
+      std::size_t room = 0;
+      {
+        std::unique_lock lock(mu);
+        if (!child->connected) {
+          changed.wait_for(lock, 100ms);
+          continue;
+        }
+        while (!child->down_in_flight.empty() && child->down_in_flight.front() <= child->down_mark)
+          child->down_in_flight.pop_front();
+        if (child->down_go_back ||
+            (!child->down_in_flight.empty() && Clock::now() - child->down_progress > opt.resend_after)) {
+          child->down_last_sent = child->down_mark;
+          child->down_in_flight.clear();
+          child->down_go_back = false;
+          child->down_progress = Clock::now();
+        }
+        mark = child->down_mark;
+        after = child->down_last_sent;
+        room = opt.window > child->down_in_flight.size() ? opt.window - child->down_in_flight.size() : 0;
+        if (room == 0) {
+          changed.wait_for(lock, 20ms);
+          continue;
+        }
+      }
+      if (mark > acked_locally) {
+        if (auto a = agent->ack_through(mark); a) acked_locally = mark;
+      }
+      auto ready = agent->peek(after, room, 50ms);
+      if (!ready) {
+        log("reading the down queue of <" + child->iri + "> failed: " + ready.error().message);
+        std::this_thread::sleep_for(100ms);
+        continue;
+      }
+      std::vector<std::uint64_t> local_acks;
+      {
+        std::lock_guard lock(mu);
+        if (!child->connected || child->down_last_sent != after) continue;
+        for (const auto& d : *ready) {
+          wire::ItemBody body = item_of(d);
+          if (uri::is_under(body.source, child->iri)) {  // came up from that child
+            local_acks.push_back(d.item);
+            continue;
+          }
+          if (object_of(d.records, vocab::kQueryTarget)) {
+            start_query(child, d);
+            local_acks.push_back(d.item);
+            continue;
+          }
+          if (body.item.context.ends_with("/*")) body.item.context = child->iri + "/*";  // P11
+          Frame f;
+          f.kind = FrameKind::down;
+          f.to = child->iri;
+          f.seq = d.item;
+          f.prev = child->down_last_sent;
+          f.body = wire::encode_item(body);
+          send(opt.down.get(), std::move(f));
+          if (child->down_in_flight.empty()) child->down_progress = Clock::now();
+          child->down_in_flight.push_back(d.item);
+          child->down_last_sent = d.item;
+        }
+      }
+      // Items not sent down are done with here; they leave the queue now (outside the lock).
+      for (std::uint64_t id : local_acks) (void)agent->ack(id);
+    }
+  }
+
+  // A query item written on this board (the origin) for a node below `child` (P13). Caller
+  // holds mu.
+  void start_query(const std::shared_ptr<Child>& child, const node::Delivery& d) {
+    wire::QueryBody q;
+    q.origin = self;
+    const node::Term* target = object_of(d.records, vocab::kQueryTarget);
+    const node::Term* reply_to = object_of(d.records, vocab::kReplyTo);
+    q.target = target->value;
+    if (auto t = object_of(d.records, vocab::kQuerySubject)) q.s = *t;
+    if (auto t = object_of(d.records, vocab::kQueryPredicate)) q.p = *t;
+    if (auto t = object_of(d.records, vocab::kQueryObject)) q.o = *t;
+    q.since = integer_of(d.records, vocab::kQuerySince);
+    q.until = integer_of(d.records, vocab::kQueryUntil);
+    q.cascade = static_cast<std::uint32_t>(integer_of(d.records, vocab::kQueryCascade).value_or(0));
+    q.limit = static_cast<std::uint64_t>(integer_of(d.records, vocab::kQueryLimit).value_or(0));
+    Frame f;
+    f.kind = FrameKind::query;
+    f.to = child->iri;
+    f.seq = d.item;
+    f.body = wire::encode_query(q);
+    InStream& in = in_answers[query_key(self, d.item)];
+    in.reply_to = reply_to ? reply_to->value : std::string();
+    in.child = child->iri;
+    in.query_frame = f;
+    in.sent = Clock::now();
+    send(opt.down.get(), std::move(f));
+  }
+
+  // ---- timer: hello/heartbeat, silence, state triples, resends, answers on the board ----------
+
+  void timer_loop() {
+    auto node = node::Node::open(opt.dir);
+    if (!node) return log("cannot open the store: " + node.error().message);
+    auto link = node->agent(kLinkAgent);
+    auto uplink = node->agent(kUplinkAgent);
+    if (!link || !uplink) return log("cannot open the link's agents");
+    Clock::time_point next_beat{};
+    while (!stopping) {
+      std::vector<std::pair<std::string, Frame>> writes;
+      std::vector<std::shared_ptr<Child>> dirty;
+      bool beat = false;
+      {
+        std::unique_lock lock(mu);
+        changed.wait_for(lock, 50ms, [&] { return !board_writes.empty() || stopping.load(); });
+        writes.assign(std::make_move_iterator(board_writes.begin()), std::make_move_iterator(board_writes.end()));
+        board_writes.clear();
+        const auto now = Clock::now();
+        if (now >= next_beat) {
+          beat = true;
+          next_beat = now + (welcomed ? opt.heartbeat_every : std::min(opt.heartbeat_every, std::chrono::milliseconds(250)));
+        }
+        const std::int64_t wall = now_ns();
+        for (auto& [iri, child] : children) {
+          if (child->connected && now - child->last_seen > opt.child_silence) {
+            child->connected = false;
+            child->state_dirty = true;
+            log("child <" + iri + "> silent for " + std::to_string(opt.child_silence.count()) + " ms: link down");
+          }
+          if (child->connected && wall - child->state_written_ns > 5'000'000'000) child->state_dirty = true;
+          if (child->state_dirty) dirty.push_back(child);
+        }
+        for (auto& [key, out] : out_answers)
+          if (!out.unacked.empty() && now - out.last_send > opt.resend_after) send_answer_window(out);
+        for (auto& [key, in] : in_answers) {
+          if (!in.done && in.expected == 1 && now - in.sent > 1s && in.resends < 10) {
+            ++in.resends;
+            in.sent = now;
+            send(opt.down.get(), in.query_frame);
+          }
+        }
+      }
+      if (beat && opt.up) {
+        auto depth = uplink->pending();
+        Frame f;
+        f.to = opt.parent_iri;
+        std::lock_guard lock(mu);
+        f.kind = welcomed ? FrameKind::heartbeat : FrameKind::hello;
+        if (!welcomed) {
+          auto down_mark = uplink->relay_mark(kDownStream);
+          f.ack = down_mark ? *down_mark : 0;
+        }
+        f.body = wire::encode_state({opt.software_version, depth ? *depth : 0});
+        send(opt.up.get(), std::move(f));
+      }
+      for (auto& [reply_to, frame] : writes) write_answer(*link, reply_to, frame);
+      for (auto& child : dirty) write_child_state(*node, *link, child);
+    }
+  }
+
+  // An answer chunk or error on the origin's board, addressed to the asking agent (P16).
+  void write_answer(node::Agent& link, const std::string& reply_to, const Frame& f) {
+    node::Item item;
+    item.context = reply_to;
+    const node::Term a = node::Term::blank("answer");
+    item.add(a, node::Term::iri(vocab::kAnswerTo), node::Term::integer(static_cast<std::int64_t>(f.seq)));
+    if (f.kind == FrameKind::answer) {
+      auto body = wire::decode_answer(f.body);
+      item.add(a, node::Term::iri(vocab::kAnswerChunk), node::Term::integer(static_cast<std::int64_t>(f.prev)));
+      item.add(a, node::Term::iri(vocab::kAnswerLast),
+               node::Term::literal(body && body->last ? "true" : "false", std::string(node::xsd::kBoolean)));
+      item.add(a, node::Term::iri(vocab::kAnswerRecords),
+               node::Term::literal(detail::base64_encode(f.body), std::string(node::xsd::kBase64Binary)));
+    } else {
+      auto body = wire::decode_error(f.body);
+      item.add(a, node::Term::iri(vocab::kErrorCode), node::Term::literal(body ? body->code : "malformed"));
+      item.add(a, node::Term::iri(vocab::kErrorMessage), node::Term::literal(body ? body->message : "malformed error"));
+    }
+    if (auto stored = link.store(item); !stored) log("cannot write an answer for <" + reply_to + ">: " + stored.error().message);
+  }
+
+  // The child's state as one persistent item about the child, replacing the previous (P12).
+  void write_child_state(node::Node& node, node::Agent& link, const std::shared_ptr<Child>& child) {
+    node::Item item;
+    item.persistent = true;
+    const node::Term c = node::Term::iri(child->iri);
+    std::uint64_t previous = 0;
+    {
+      std::lock_guard lock(mu);
+      item.add(c, node::Term::iri(vocab::kParent), node::Term::iri(self));
+      item.add(c, node::Term::iri(vocab::kLinkState), node::Term::literal(child->connected ? "up" : (child->ever ? "down" : "never connected")));
+      if (child->last_seen_ns)
+        item.add(c, node::Term::iri(vocab::kLastSeen), node::Term::integer(child->last_seen_ns));
+      item.add(c, node::Term::iri(vocab::kOutboxDepth), node::Term::integer(static_cast<std::int64_t>(child->outbox_depth)));
+      if (!child->version.empty())
+        item.add(c, node::Term::iri(vocab::kSoftwareVersion), node::Term::literal(child->version));
+      child->state_dirty = false;
+      child->state_written_ns = now_ns();
+      previous = child->state_item;
+    }
+    if (previous == 0) {  // after a restart: the state item the last run wrote
+      if (auto snap = node.snapshot()) {
+        if (auto old = snap->list({.s = c, .p = node::Term::iri(vocab::kLinkState)}); old && !old->empty())
+          previous = old->back().meta.item;
+      }
+    }
+    auto stored = link.store(item);
+    if (!stored) return log("cannot write the state of <" + child->iri + ">: " + stored.error().message);
+    if (previous) (void)node.remove_item(previous);
+    std::lock_guard lock(mu);
+    child->state_item = *stored;
+  }
+};
+
+Link::Link(std::unique_ptr<Impl> impl) : impl_(std::move(impl)) {}
+
+Link::~Link() { stop(); }
+
+void Link::stop() {
+  if (!impl_ || impl_->stopping.exchange(true)) return;
+  impl_->changed.notify_all();
+  for (;;) {
+    std::vector<std::thread> threads;
+    {
+      std::lock_guard lock(impl_->start_mu);
+      threads.swap(impl_->threads);
+    }
+    if (threads.empty()) break;
+    for (auto& t : threads) t.join();
+  }
+}
+
+bool Link::connected() const {
+  std::lock_guard lock(impl_->mu);
+  return impl_->welcomed;
+}
+
+LinkCounters Link::counters() const {
+  std::lock_guard lock(impl_->mu);
+  return impl_->counters;
+}
+
+Result<std::unique_ptr<Link>> Link::start(LinkOptions options) {
+  auto node = node::Node::open(options.dir);
+  if (!node) return Unexpected<Error>{node.error()};
+  if (!options.parent_iri.empty()) {
+    if (!options.up) return node::fail(Errc::invalid_argument, "a parent IRI needs a transport to the parent");
+    auto id = uri::child_id(node->iri(), options.parent_iri);
+    if (!id)
+      return node::fail(Errc::invalid_argument, "<" + node->iri() + "> cannot be a child of <" + options.parent_iri +
+                                                    ">: a child's IRI is its parent's IRI + \"/\" + an id");
+  }
+  for (const auto& transport : {options.up, options.down}) {
+    if (transport && transport->self() != node->iri())
+      return node::fail(Errc::invalid_argument, "transport bound to <" + transport->self() + ">, not to the node <" + node->iri() + ">");
+  }
+  auto impl = std::make_unique<Impl>();
+  impl->self = node->iri();
+  if (options.up) {
+    auto uplink = node->agent(kUplinkAgent);
+    if (!uplink) return Unexpected<Error>{uplink.error()};
+    auto policy = options.forward;
+    if (policy.empty()) {
+      // A new store gets the default; an existing one keeps the policy it has (P5).
+      auto snap = node->snapshot();
+      if (!snap) return Unexpected<Error>{snap.error()};
+      auto subs = snap->count({.p = node::Term::iri(std::string(vocab::kTv) + "subscriber"), .o = node::Term::iri(uplink->iri())});
+      if (!subs) return Unexpected<Error>{subs.error()};
+      if (*subs == 0) policy = default_forward_policy();
+    }
+    for (const auto& pattern : policy) {
+      if (auto s = uplink->subscribe(pattern); !s) return Unexpected<Error>{s.error()};
+    }
+  }
+  Link::Impl& s = *impl;
+  s.opt = std::move(options);
+  if (s.opt.down) {
+    // Configured children: their down queues also take whole-subtree items (P11), and their state
+    // is on the board from the start ("never connected").
+    for (const auto& id : s.opt.children) {
+      auto iri = uri::child_node_iri(s.self, id);
+      if (!iri) return node::fail(Errc::invalid_argument, "child id '" + id + "': " + iri.error().message);
+      auto agent = node->agent(id);
+      if (!agent) return Unexpected<Error>{agent.error()};
+      node::Pattern subtree;
+      subtree.context = s.self + "/*";
+      if (auto sub = agent->subscribe(subtree); !sub) return Unexpected<Error>{sub.error()};
+      auto child = std::make_shared<Impl::Child>();
+      child->id = id;
+      child->iri = *iri;
+      s.children[*iri] = child;
+    }
+  }
+  std::unique_ptr<Link> link(new Link(std::move(impl)));
+  Impl* p = link->impl_.get();
+  std::lock_guard lock(p->start_mu);
+  if (p->opt.up) {
+    p->threads.emplace_back([p, t = p->opt.up] { p->receive_loop(t); });
+    p->threads.emplace_back([p] { p->up_loop(); });
+  }
+  if (p->opt.down && p->opt.down != p->opt.up) p->threads.emplace_back([p, t = p->opt.down] { p->receive_loop(t); });
+  p->threads.emplace_back([p] { p->timer_loop(); });
+  // Down pumps start as children register; a small starter thread moves them into `threads`.
+  p->threads.emplace_back([p] {
+    while (!p->stopping) {
+      std::this_thread::sleep_for(20ms);
+      std::lock_guard lock(p->start_mu);
+      for (auto& child : p->pumps_to_start) p->threads.emplace_back([p, child] { p->pump_loop(child); });
+      p->pumps_to_start.clear();
+    }
+  });
+  return link;
+}
+
+}  // namespace tahvel::federation

@@ -1,0 +1,138 @@
+// The operator's side of a remote query (link.h: remote_query): a query item on this node's
+// board addressed to the target (R18 hands it to the link agent of the child on the way), then
+// answer chunks taken from the asking agent's input buffer (P13-P16).
+#include <unistd.h>
+
+#include <atomic>
+#include <map>
+
+#include "base64.h"
+#include "tahvel/federation/link.h"
+#include "tahvel/uri/iri.h"
+#include "wire.h"
+
+namespace tahvel::federation {
+namespace {
+
+using node::Term;
+
+const Term* object_of(const std::vector<node::Record>& records, const std::string& predicate) {
+  for (const auto& r : records)
+    if (r.triple.p.value == predicate) return &r.triple.o;
+  return nullptr;
+}
+
+}  // namespace
+
+Result<std::uint64_t> remote_query(node::Node& node, const RemoteQuery& query,
+                                   std::chrono::milliseconds timeout,
+                                   const std::function<void(const node::Record&)>& each) {
+  auto target = uri::normalize(query.target);
+  if (!target) return node::fail(Errc::invalid_iri, "--at: " + target.error().message);
+  const std::string& self = node.iri();
+  node::Pattern pattern = query.pattern;
+  if (*target == self) {  // asked here: the local store answers
+    auto snap = node.snapshot();
+    if (!snap) return Unexpected<Error>{snap.error()};
+    auto records = snap->list(pattern, {.cascade = query.cascade, .limit = query.limit});
+    if (!records) return Unexpected<Error>{records.error()};
+    for (const auto& r : *records) each(r);
+    return records->size();
+  }
+  if (!uri::is_under(*target, self))
+    return node::fail(Errc::not_found, "unknown node <" + *target + ">: not below <" + self + ">, where the query was asked");
+  std::size_t end = target->find_first_of("/#?", self.size() + 1);
+  const std::string child = target->substr(0, end);
+  {
+    auto snap = node.snapshot();
+    if (!snap) return Unexpected<Error>{snap.error()};
+    auto state = snap->list({.s = Term::iri(child), .p = Term::iri(vocab::kLinkState)});
+    if (!state) return Unexpected<Error>{state.error()};
+    if (state->empty())
+      return node::fail(Errc::not_found, "unknown node <" + *target + ">: <" + self + "> has no child <" + child + ">");
+    if (state->back().triple.o.value != "up")
+      return node::fail(Errc::io, "unreachable: <" + child + "> (on the way to <" + *target + ">) is " +
+                                      state->back().triple.o.value + " at <" + self + ">");
+  }
+  static std::atomic<int> counter{0};
+  auto agent = node.agent("query-" + std::to_string(getpid()) + "-" + std::to_string(++counter));
+  if (!agent) return Unexpected<Error>{agent.error()};
+  node::Item ask;
+  ask.context = *target;
+  const Term q = Term::blank("query");
+  ask.add(q, Term::iri(std::string(node::kRdfType)), Term::iri(vocab::kRemoteQuery));
+  ask.add(q, Term::iri(vocab::kQueryTarget), Term::iri(*target));
+  ask.add(q, Term::iri(vocab::kReplyTo), Term::iri(agent->iri()));
+  if (pattern.s) ask.add(q, Term::iri(vocab::kQuerySubject), *pattern.s);
+  if (pattern.p) ask.add(q, Term::iri(vocab::kQueryPredicate), *pattern.p);
+  if (pattern.o) ask.add(q, Term::iri(vocab::kQueryObject), *pattern.o);
+  if (pattern.since) ask.add(q, Term::iri(vocab::kQuerySince), Term::integer(*pattern.since));
+  if (pattern.until) ask.add(q, Term::iri(vocab::kQueryUntil), Term::integer(*pattern.until));
+  if (query.cascade) ask.add(q, Term::iri(vocab::kQueryCascade), Term::integer(query.cascade));
+  if (query.limit) ask.add(q, Term::iri(vocab::kQueryLimit), Term::integer(static_cast<std::int64_t>(query.limit)));
+  auto asked = agent->store(ask);
+  if (!asked) return Unexpected<Error>{asked.error()};
+  std::vector<std::uint64_t> to_remove{*asked};
+  auto cleanup = [&] {
+    for (std::uint64_t id : to_remove) (void)node.remove_item(id);
+  };
+
+  const auto deadline = std::chrono::steady_clock::now() + timeout;
+  std::uint64_t delivered = 0;
+  std::int64_t next_chunk = 1, last_chunk = 0;
+  std::map<std::int64_t, std::vector<node::Record>> early;  // chunks ahead of the next one
+  bool done = false;
+  while (!done) {
+    auto left = std::chrono::duration_cast<std::chrono::milliseconds>(deadline - std::chrono::steady_clock::now());
+    if (left.count() <= 0) {
+      cleanup();
+      return node::fail(Errc::timeout, "timeout: no complete answer from <" + *target + "> within " +
+                                           std::to_string(timeout.count()) + " ms (" + std::to_string(delivered) +
+                                           " records received)");
+    }
+    auto got = agent->take(left);
+    if (!got) {
+      cleanup();
+      return Unexpected<Error>{got.error()};
+    }
+    if (!*got) continue;
+    const auto& records = (*got)->records;
+    to_remove.push_back((*got)->item);
+    const Term* answer_to = object_of(records, vocab::kAnswerTo);
+    if (!answer_to || answer_to->value != std::to_string(*asked)) continue;
+    if (const Term* code = object_of(records, vocab::kErrorCode)) {
+      const Term* message = object_of(records, vocab::kErrorMessage);
+      cleanup();
+      std::string text = message ? message->value : code->value;
+      if (code->value == "unknown_node") return node::fail(Errc::not_found, "unknown node: " + text);
+      if (code->value == "unreachable") return node::fail(Errc::io, "unreachable: " + text);
+      return node::fail(Errc::io, code->value + ": " + text);
+    }
+    const Term* chunk = object_of(records, vocab::kAnswerChunk);
+    const Term* bytes = object_of(records, vocab::kAnswerRecords);
+    if (!chunk || !bytes) continue;
+    auto raw = detail::base64_decode(bytes->value);
+    if (!raw) continue;
+    auto body = wire::decode_answer(*raw);
+    if (!body) {
+      cleanup();
+      return node::fail(Errc::corrupt, "answer chunk " + chunk->value + " from <" + *target + ">: " + body.error().message);
+    }
+    std::int64_t n = std::stoll(chunk->value);
+    if (body->last) last_chunk = n;
+    early[n] = std::move(body->records);
+    for (auto it = early.find(next_chunk); it != early.end(); it = early.find(next_chunk)) {
+      for (const auto& r : it->second) {
+        each(r);
+        ++delivered;
+      }
+      early.erase(it);
+      ++next_chunk;
+    }
+    done = last_chunk > 0 && next_chunk > last_chunk;
+  }
+  cleanup();
+  return delivered;
+}
+
+}  // namespace tahvel::federation

@@ -1,0 +1,66 @@
+// Bodies of link frames (docs/protocol.md, "Bodies"): items, records, queries and errors in a
+// compact binary form — the hot path (items up) costs no RDF parsing. Integers are little-endian,
+// strings are u32 length + bytes. Decoders name the field and byte offset that is wrong.
+#pragma once
+
+#include <cstdint>
+#include <optional>
+#include <string>
+#include <string_view>
+#include <vector>
+
+#include "tahvel/federation/transport.h"
+#include "tahvel/node/node.h"
+
+namespace tahvel::federation::wire {
+
+// An item travelling up or down: the triples and what the receiving node keeps of the sender's
+// metadata (the source, context, asserted-at time and persistence).
+struct ItemBody {
+  std::string source;
+  node::Item item;
+};
+std::string encode_item(const ItemBody& body);
+Result<ItemBody> decode_item(std::string_view bytes);
+
+// A remote query (frame kind query; frame.seq is the query id at its origin).
+struct QueryBody {
+  std::string origin;    // IRI of the node where the operator asked
+  std::string target;    // IRI of the node that answers
+  std::optional<node::Term> s, p, o;
+  std::optional<std::int64_t> since, until;
+  std::uint32_t cascade = 0;
+  std::uint64_t limit = 0;
+};
+std::string encode_query(const QueryBody& body);
+Result<QueryBody> decode_query(std::string_view bytes);
+
+// One chunk of an answer (frame kind answer): the origin, records with their metadata, and
+// whether it is the last chunk.
+struct AnswerBody {
+  std::string origin;
+  bool last = false;
+  std::vector<node::Record> records;
+};
+std::string encode_answer(const AnswerBody& body);
+Result<AnswerBody> decode_answer(std::string_view bytes);
+
+// A refusal or failure (frame kind error): a stable code and a message. For a query, frame.seq
+// is the query id and the body also names the origin.
+struct ErrorBody {
+  std::string code;  // unknown_node, unreachable, refused, malformed, query_failed
+  std::string message;
+  std::string origin;
+};
+std::string encode_error(const ErrorBody& body);
+Result<ErrorBody> decode_error(std::string_view bytes);
+
+// Hello (child -> parent) and heartbeat bodies: the child's software version and state.
+struct StateBody {
+  std::string software_version;
+  std::uint64_t outbox_depth = 0;
+};
+std::string encode_state(const StateBody& body);
+Result<StateBody> decode_state(std::string_view bytes);
+
+}  // namespace tahvel::federation::wire

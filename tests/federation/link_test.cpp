@@ -1,0 +1,304 @@
+// The link protocol (docs/protocol.md) over the in-memory transport, with a seeded schedule of
+// lost, doubled and reordered frames: items up exactly once (P7-P9), configuration down to the
+// addressed node and agent only (P10-P11), registration checks (P5-P6), remote queries and their
+// errors (P13-P16), malformed frames dropped (P4). Waits are bounded by deadlines, never sleeps
+// that a result depends on.
+#include <gtest/gtest.h>
+#include <unistd.h>
+
+#include <filesystem>
+#include <mutex>
+#include <set>
+#include <thread>
+
+#include "tahvel/federation/link.h"
+#include "tahvel/federation/transport.h"
+
+namespace tahvel::federation {
+namespace {
+
+namespace fs = std::filesystem;
+using namespace std::chrono_literals;
+using node::Term;
+
+const std::string kHospital = "http://example.org/hospital";
+const std::string kHome1 = kHospital + "/home1";
+const std::string kHome2 = kHospital + "/home2";
+const std::string kEx = "http://example.org/ns#";
+const Term kHrvProperty = Term::iri(std::string(vocab::kTv) + "HeartRateVariability");
+const Term kObservedProperty = Term::iri("http://www.w3.org/ns/sosa/observedProperty");
+
+class TempDir {
+ public:
+  TempDir() {
+    std::string pattern = (fs::temp_directory_path() / "tahvel-link-XXXXXX").string();
+    path_ = mkdtemp(pattern.data());
+  }
+  ~TempDir() {
+    std::error_code ec;
+    fs::remove_all(path_, ec);
+  }
+  fs::path operator/(const std::string& name) const { return path_ / name; }
+
+ private:
+  fs::path path_;
+};
+
+// Lines a link or transport logged, for assertions about drops and refusals.
+struct Log {
+  std::mutex mu;
+  std::vector<std::string> lines;
+  LinkLog sink() {
+    return [this](std::string_view line) {
+      std::lock_guard lock(mu);
+      lines.emplace_back(line);
+    };
+  }
+  bool has(std::string_view part) {
+    std::lock_guard lock(mu);
+    for (const auto& l : lines)
+      if (l.find(part) != std::string::npos) return true;
+    return false;
+  }
+};
+
+// Polls `condition` until it holds or 20 s pass (links deliver within milliseconds; the deadline
+// only bounds a failing test).
+template <class F>
+bool eventually(F condition) {
+  const auto deadline = std::chrono::steady_clock::now() + 20s;
+  while (std::chrono::steady_clock::now() < deadline) {
+    if (condition()) return true;
+    std::this_thread::sleep_for(10ms);
+  }
+  return condition();
+}
+
+node::Item hrv_item(int n) {
+  node::Item item;
+  const Term obs = Term::iri(kHome1 + "/rec/hrv/" + std::to_string(n));
+  item.add(obs, kObservedProperty, kHrvProperty).add(obs, Term::iri(kEx + "n"), Term::integer(n));
+  return item;
+}
+
+node::Item raw_item(int n) {
+  node::Item item;
+  item.add(Term::iri(kHome1 + "/rec/chunk/" + std::to_string(n)), Term::iri(kEx + "samples"),
+           Term::literal("AAEC" + std::to_string(n)));
+  return item;
+}
+
+std::uint64_t count(const std::string& dir, node::Pattern pattern) {
+  auto node = node::Node::open(dir);
+  if (!node) return 0;
+  return node->snapshot().value().count(pattern).value();
+}
+
+// A hospital with two configured homes on one memory bus.
+struct Tree {
+  TempDir tmp;
+  MemoryBus bus;
+  Log hospital_log, home1_log, home2_log;
+  std::string hospital_dir = (tmp / "hospital").string();
+  std::string home1_dir = (tmp / "home1").string();
+  std::string home2_dir = (tmp / "home2").string();
+  std::unique_ptr<Link> hospital, home1, home2;
+
+  Tree() {
+    EXPECT_TRUE(node::Node::init(hospital_dir, {.iri = kHospital}));
+    EXPECT_TRUE(node::Node::init(home1_dir, {.iri = kHome1}));
+    EXPECT_TRUE(node::Node::init(home2_dir, {.iri = kHome2}));
+  }
+
+  std::unique_ptr<Link> start_hospital() {
+    return Link::start({.dir = hospital_dir, .down = std::shared_ptr<Transport>(bus.open(kHospital, hospital_log.sink())),
+                        .children = {"home1", "home2"}, .resend_after = 100ms, .log = hospital_log.sink()})
+        .value();
+  }
+  std::unique_ptr<Link> start_home(const std::string& dir, const std::string& iri, Log& log) {
+    return Link::start({.dir = dir, .parent_iri = kHospital, .up = std::shared_ptr<Transport>(bus.open(iri, log.sink())),
+                        .resend_after = 100ms, .heartbeat_every = 200ms, .log = log.sink()})
+        .value();
+  }
+};
+
+TEST(Link, ItemsGoUpExactlyOnceThroughLossDuplicationAndReorderingAndRawSignalsStayHome) {
+  Tree tree;
+  tree.bus.set_faults({.seed = 7, .drop = 0.2, .duplicate = 0.1, .reorder = 0.1});
+  tree.hospital = tree.start_hospital();
+  tree.home1 = tree.start_home(tree.home1_dir, kHome1, tree.home1_log);
+  auto home = node::Node::open(tree.home1_dir).value();
+  auto hrv = home.agent("hrv").value();
+  auto sensor = home.agent("ecg").value();
+  constexpr int kItems = 400;
+  for (int i = 0; i < kItems; ++i) {
+    ASSERT_TRUE(hrv.store(hrv_item(i)));
+    ASSERT_TRUE(sensor.store(raw_item(i)));
+  }
+  const node::Pattern numbered{.p = Term::iri(kEx + "n")};
+  ASSERT_TRUE(eventually([&] { return count(tree.hospital_dir, numbered) >= kItems; }))
+      << count(tree.hospital_dir, numbered) << " of " << kItems << " arrived";
+  auto hospital = node::Node::open(tree.hospital_dir).value();
+  // Let resends still in flight land (they must be dropped as duplicates).
+  std::this_thread::sleep_for(500ms);
+  auto records = hospital.snapshot().value().list(numbered).value();
+  std::set<std::string> seen;
+  for (const auto& r : records) {
+    EXPECT_TRUE(seen.insert(r.triple.o.value).second) << "item " << r.triple.o.value << " arrived twice";
+    EXPECT_EQ(r.meta.source, kHome1 + "/hrv");
+  }
+  EXPECT_EQ(seen.size(), static_cast<std::size_t>(kItems));
+  EXPECT_EQ(count(tree.hospital_dir, {.p = Term::iri(kEx + "samples")}), 0u) << "raw ECG went up";
+  EXPECT_GT(tree.home1->counters().up_resends, 0u) << "the fault schedule should have forced resends";
+}
+
+TEST(Link, AnItemWrittenWhileTheLinkIsCutArrivesOnceAfterItIsRestored) {
+  Tree tree;
+  tree.hospital = tree.start_hospital();
+  tree.home1 = tree.start_home(tree.home1_dir, kHome1, tree.home1_log);
+  ASSERT_TRUE(eventually([&] { return tree.home1->connected(); }));
+  auto hrv = node::Node::open(tree.home1_dir).value().agent("hrv").value();
+  for (int i = 0; i < 100; ++i) ASSERT_TRUE(hrv.store(hrv_item(i)));
+  tree.bus.set_cut(kHospital, true);
+  for (int i = 100; i < 200; ++i) ASSERT_TRUE(hrv.store(hrv_item(i)));
+  // The hospital's link stops while cut; a new one starts from the marks in the store.
+  tree.hospital.reset();
+  tree.bus.set_cut(kHospital, false);
+  for (int i = 200; i < 300; ++i) ASSERT_TRUE(hrv.store(hrv_item(i)));
+  tree.hospital = tree.start_hospital();
+  const node::Pattern numbered{.p = Term::iri(kEx + "n")};
+  ASSERT_TRUE(eventually([&] { return count(tree.hospital_dir, numbered) >= 300; }));
+  std::this_thread::sleep_for(300ms);
+  EXPECT_EQ(count(tree.hospital_dir, numbered), 300u);
+}
+
+TEST(Link, ConfigurationForOneHomeReachesThatHomeAndTheAddressedAgentOnly) {
+  Tree tree;
+  tree.hospital = tree.start_hospital();
+  tree.home1 = tree.start_home(tree.home1_dir, kHome1, tree.home1_log);
+  tree.home2 = tree.start_home(tree.home2_dir, kHome2, tree.home2_log);
+  ASSERT_TRUE(eventually([&] { return tree.home1->connected() && tree.home2->connected(); }));
+  auto home1_hrv = node::Node::open(tree.home1_dir).value().agent("hrv").value();
+  auto home2_hrv = node::Node::open(tree.home2_dir).value().agent("hrv").value();
+  auto operator_ = node::Node::open(tree.hospital_dir).value().agent("operator").value();
+  node::Item config;
+  config.context = kHome1 + "/hrv";
+  config.add(Term::iri(kHome1 + "/hrv"), Term::iri(kEx + "windowS"), Term::integer(120));
+  ASSERT_TRUE(operator_.store(config));
+  auto delivered = home1_hrv.take(10s).value();
+  ASSERT_TRUE(delivered.has_value());
+  ASSERT_EQ(delivered->records.size(), 1u);
+  EXPECT_EQ(delivered->records[0].triple.o.value, "120");
+  EXPECT_EQ(delivered->records[0].meta.source, kHospital + "/operator");
+  EXPECT_EQ(delivered->records[0].meta.context, kHome1 + "/hrv");
+  EXPECT_FALSE(home2_hrv.take(300ms).value().has_value());
+  EXPECT_EQ(count(tree.home2_dir, {.p = Term::iri(kEx + "windowS")}), 0u);
+  // A whole subtree: every home gets it.
+  node::Item all;
+  all.context = kHospital + "/*";
+  all.add(Term::iri(kHospital), Term::iri(kEx + "notice"), Term::literal("maintenance"));
+  ASSERT_TRUE(operator_.store(all));
+  EXPECT_TRUE(eventually([&] {
+    return count(tree.home1_dir, {.p = Term::iri(kEx + "notice")}) == 1 &&
+           count(tree.home2_dir, {.p = Term::iri(kEx + "notice")}) == 1;
+  }));
+  // Configuration relayed down never travels back up (P7), although it matches nothing there.
+  std::this_thread::sleep_for(300ms);
+  EXPECT_EQ(count(tree.hospital_dir, {.p = Term::iri(kEx + "notice")}), 1u);
+}
+
+TEST(Link, ParentRefusesAChildOutsideItsSubtreeAndAnUnconfiguredChild) {
+  Tree tree;
+  tree.hospital = tree.start_hospital();
+  EXPECT_FALSE(Link::start({.dir = tree.home1_dir, .parent_iri = "http://example.org/other",
+                            .up = std::shared_ptr<Transport>(tree.bus.open(kHome1))}));
+  // Frames from an IRI that is not a configured child of the hospital.
+  auto stranger = tree.bus.open(kHospital + "/home3");
+  Frame hello;
+  hello.kind = FrameKind::hello;
+  hello.from = kHospital + "/home3";
+  hello.to = kHospital;
+  ASSERT_TRUE(stranger->send(hello));
+  auto answer = stranger->receive(5s).value();
+  ASSERT_TRUE(answer.has_value());
+  EXPECT_EQ(answer->kind, FrameKind::error);
+  EXPECT_TRUE(tree.hospital_log.has("not among the children configured"));
+  auto deep = tree.bus.open(kHome1 + "/ecg");
+  hello.from = kHome1 + "/ecg";
+  ASSERT_TRUE(deep->send(hello));
+  answer = deep->receive(5s).value();
+  ASSERT_TRUE(answer.has_value());
+  EXPECT_EQ(answer->kind, FrameKind::error);
+  EXPECT_TRUE(tree.hospital_log.has("is not a child of"));
+}
+
+TEST(Link, MalformedFramesAreDroppedWithAReasonAndTheLinkKeepsWorking) {
+  Tree tree;
+  tree.hospital = tree.start_hospital();
+  tree.bus.inject_raw(kHospital, "garbage");
+  Frame old;
+  old.kind = FrameKind::hello;
+  old.version = kProtocolVersion + 1;
+  old.from = kHome1;
+  old.to = kHospital;
+  tree.bus.inject_raw(kHospital, encode_frame(old));
+  Frame bad_body;
+  bad_body.kind = FrameKind::up;
+  bad_body.from = kHome1;
+  bad_body.to = kHospital;
+  bad_body.body = "\x01\x02";
+  tree.bus.inject_raw(kHospital, encode_frame(bad_body));
+  tree.home1 = tree.start_home(tree.home1_dir, kHome1, tree.home1_log);
+  auto hrv = node::Node::open(tree.home1_dir).value().agent("hrv").value();
+  ASSERT_TRUE(hrv.store(hrv_item(1)));
+  EXPECT_TRUE(eventually([&] { return count(tree.hospital_dir, {.p = Term::iri(kEx + "n")}) == 1; }));
+  EXPECT_TRUE(tree.hospital_log.has("undecodable"));
+  EXPECT_TRUE(tree.hospital_log.has("protocol version"));
+}
+
+TEST(Link, RemoteQueryReturnsExactlyTheRecordsHeldBelowAndNamesItsErrors) {
+  Tree tree;
+  tree.hospital = tree.start_hospital();
+  tree.home1 = tree.start_home(tree.home1_dir, kHome1, tree.home1_log);
+  ASSERT_TRUE(eventually([&] { return tree.home1->connected(); }));
+  auto hospital = node::Node::open(tree.hospital_dir).value();
+  ASSERT_TRUE(eventually([&] {
+    return count(tree.hospital_dir, {.s = Term::iri(kHome1), .p = Term::iri(vocab::kLinkState), .o = Term::literal("up")}) == 1;
+  }));
+  auto sensor = node::Node::open(tree.home1_dir).value().agent("ecg").value();
+  // Enough raw data for several answer chunks.
+  std::string big(20000, 'x');
+  for (int i = 0; i < 20; ++i) {
+    node::Item item;
+    item.add(Term::iri(kHome1 + "/rec/chunk/" + std::to_string(i)), Term::iri(kEx + "samples"),
+             Term::literal(big + std::to_string(i)));
+    ASSERT_TRUE(sensor.store(item));
+  }
+  std::vector<node::Record> got;
+  auto n = remote_query(hospital, {.target = kHome1, .pattern = {.p = Term::iri(kEx + "samples")}}, 10s,
+                        [&](const node::Record& r) { got.push_back(r); });
+  ASSERT_TRUE(n) << n.error().message;
+  auto expected = node::Node::open(tree.home1_dir).value().snapshot().value().list({.p = Term::iri(kEx + "samples")}).value();
+  ASSERT_EQ(got.size(), expected.size());
+  for (std::size_t i = 0; i < got.size(); ++i) {
+    EXPECT_EQ(got[i].triple.o.value, expected[i].triple.o.value);
+    EXPECT_EQ(got[i].meta.id, expected[i].meta.id);
+    EXPECT_EQ(got[i].meta.source, kHome1 + "/ecg");
+  }
+  // Nothing of the raw data was stored at the hospital by asking.
+  EXPECT_EQ(count(tree.hospital_dir, {.p = Term::iri(kEx + "samples")}), 0u);
+
+  auto unknown = remote_query(hospital, {.target = kHospital + "/home9"}, 2s, [](const node::Record&) {});
+  ASSERT_FALSE(unknown);
+  EXPECT_EQ(unknown.error().code, Errc::not_found);
+  auto unreachable = remote_query(hospital, {.target = kHome2}, 2s, [](const node::Record&) {});
+  ASSERT_FALSE(unreachable);
+  EXPECT_EQ(unreachable.error().code, Errc::io);
+  EXPECT_NE(unreachable.error().message.find("unreachable"), std::string::npos);
+  auto below_home = remote_query(hospital, {.target = kHome1 + "/ecg9"}, 5s, [](const node::Record&) {});
+  ASSERT_FALSE(below_home);
+  EXPECT_EQ(below_home.error().code, Errc::not_found) << below_home.error().message;
+}
+
+}  // namespace
+}  // namespace tahvel::federation
