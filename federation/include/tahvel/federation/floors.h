@@ -1,0 +1,32 @@
+// Raw latency floors of the wire libraries: what LCM and Cyclone DDS themselves cost for one
+// small message, measured with the libraries alone (no Transport, no link), so that the link's
+// latency can be reported as a ratio against them in the same run (tests/bench).
+//
+// Both measure ping-pong between two threads of this process, each with its own LCM instance
+// (two sockets, through the kernel's multicast loopback) or its own DDS participant (one
+// Cyclone domain per process: the two participants talk through Cyclone's in-process delivery,
+// not the network). One-way latency is half a round trip. Packets: run inside a network
+// namespace (tests/tools/netns-run) like everything else that sends.
+#pragma once
+
+#include "tahvel/federation/transport.h"
+
+namespace tahvel::federation {
+
+struct LatencyFloor {
+  double p50_us = 0;  // median one-way latency, microseconds
+  double p99_us = 0;  // 99th percentile one-way latency, microseconds
+  int rounds = 0;     // round trips measured (after warm-up; lost ones are not counted)
+};
+
+// `rounds` ping-pongs of a tahvel_ping_t (one int64) over LCM at settings.url, after a warm-up
+// of rounds/10 (at least 10). A ping or pong lost by LCM (no answer within 1 s) is retried; more
+// than rounds/10 + 10 losses fail with Errc::timeout. rounds must be > 0.
+Result<LatencyFloor> raw_lcm_pingpong(const LcmSettings& settings, int rounds);
+
+// The same with a tahvel::Ping (one int64) written and taken on two RELIABLE/KEEP_ALL topics of
+// settings.domain (configured with settings.config as open_dds would). Fails with Errc::timeout
+// if the two participants do not match within 5 s or an answer takes more than 5 s.
+Result<LatencyFloor> raw_dds_pingpong(const DdsSettings& settings, int rounds);
+
+}  // namespace tahvel::federation

@@ -1,0 +1,263 @@
+// The Cyclone DDS binding (docs/transports.md): one participant per endpoint, a reader on the
+// topic named after its own IRI (dds_topic()), and one writer per destination IRI, created on
+// the first send to it. Tuned for gateway-to-hospital links: many endpoints, each frame wanted
+// by exactly one reader.
+//
+// Why one topic per destination rather than one topic keyed by `to`: matching then happens at
+// discovery, so a writer sends a frame only to the addressee's reader. With one shared topic
+// every reader in the domain would receive every frame and filter it locally (Cyclone 0.10
+// evaluates content filters on the reader side) — a hospital's thousands of homes would each
+// receive all downlink traffic. The price is one topic and one writer per destination in the
+// sender, and the discovery of each.
+//
+// QoS: RELIABLE with KEEP_ALL history on both sides, volatile durability. A reader keeps at most
+// kReaderMaxSamples frames not yet taken; when it is full, a writer blocks up to
+// kWriteBlocking and then send() fails with Errc::timeout (the frame did not leave).
+//
+// Discovery: a writer created by send() first waits (bounded by kMatchWait) until it has matched
+// at least one reader, so that a frame sent right after opening reaches a receiver that already
+// exists. Only the first send to a destination waits; if nobody has matched by then the frame
+// goes out to nobody (lost; the link resends).
+#include <dds/dds.h>
+
+#include <algorithm>
+#include <cstring>
+#include <deque>
+#include <map>
+#include <memory>
+#include <mutex>
+
+#include "tahvel/federation/transport.h"
+#include "tahvel/federation/wire_names.h"
+#include "dds_domain.h"
+#include "tahvel_frame.h"
+#include "wire_common.h"
+
+namespace tahvel::federation {
+namespace {
+
+constexpr std::chrono::milliseconds kMatchWait{2000};
+constexpr dds_duration_t kWriteBlocking = DDS_SECS(1);
+constexpr int32_t kReaderMaxSamples = 4096;
+constexpr uint32_t kTakeBatch = 64;
+
+using dds_domain::retcode;
+
+// ---- QoS ----------------------------------------------------------------------------------
+
+struct Qos {
+  Qos() : q(dds_create_qos()) {}
+  ~Qos() { dds_delete_qos(q); }
+  Qos(const Qos&) = delete;
+  Qos& operator=(const Qos&) = delete;
+  dds_qos_t* q;
+};
+
+void reliable_keep_all(dds_qos_t* q, bool reader) {
+  dds_qset_reliability(q, DDS_RELIABILITY_RELIABLE, kWriteBlocking);
+  dds_qset_history(q, DDS_HISTORY_KEEP_ALL, 0);
+  dds_qset_durability(q, DDS_DURABILITY_VOLATILE);
+  if (reader) {
+    dds_qset_resource_limits(q, kReaderMaxSamples, DDS_LENGTH_UNLIMITED, DDS_LENGTH_UNLIMITED);
+  }
+}
+
+// ---- The endpoint -------------------------------------------------------------------------
+
+struct Writer {
+  dds_entity_t writer = 0;
+  std::once_flag matched_once;  // the first send waits for a matched reader
+};
+
+class DdsTransport final : public Transport {
+ public:
+  DdsTransport(const DdsSettings& settings, std::string self, DropLog log)
+      : domain_(settings.domain), self_(std::move(self)), topic_name_(dds_topic(self_)),
+        log_(wire::or_stderr(std::move(log))) {}
+
+  ~DdsTransport() override {
+    if (participant_ > 0) dds_delete(participant_);  // deletes every child entity too
+    if (domain_acquired_) dds_domain::release(domain_);
+  }
+
+  DdsTransport(const DdsTransport&) = delete;
+  DdsTransport& operator=(const DdsTransport&) = delete;
+
+  Result<void> open(const DdsSettings& settings) {
+    if (auto ok = dds_domain::acquire(settings.domain, settings.config); !ok) {
+      return node::fail(ok.error().code, "open_dds <" + self_ + ">: " + ok.error().message);
+    }
+    domain_acquired_ = true;
+    const std::string where = "open_dds <" + self_ + ">: ";
+    participant_ = dds_create_participant(domain_, nullptr, nullptr);
+    if (participant_ < 0) return node::fail(Errc::io, where + "participant: " + retcode(participant_));
+    dds_entity_t topic =
+        dds_create_topic(participant_, &tahvel_Frame_desc, topic_name_.c_str(), nullptr, nullptr);
+    if (topic < 0) return node::fail(Errc::io, where + "topic " + topic_name_ + ": " + retcode(topic));
+    Qos qos;
+    reliable_keep_all(qos.q, true);
+    reader_ = dds_create_reader(participant_, topic, qos.q, nullptr);
+    if (reader_ < 0) return node::fail(Errc::io, where + "reader on " + topic_name_ + ": " + retcode(reader_));
+    dds_entity_t cond = dds_create_readcondition(reader_, DDS_ANY_STATE);
+    waitset_ = dds_create_waitset(participant_);
+    if (cond < 0 || waitset_ < 0) {
+      return node::fail(Errc::io, where + "read condition or waitset: " + retcode(cond < 0 ? cond : waitset_));
+    }
+    if (dds_return_t rc = dds_waitset_attach(waitset_, cond, 0); rc < 0) {
+      return node::fail(Errc::io, where + "waitset attach: " + retcode(rc));
+    }
+    return {};
+  }
+
+  const std::string& self() const override { return self_; }
+
+  Result<void> send(const Frame& frame) override {
+    if (auto ok = wire::check_sendable(frame, "dds <" + self_ + ">"); !ok) return ok;
+    auto writer = writer_for(frame.to);
+    if (!writer) return node::fail(writer.error().code, writer.error().message);
+    Writer& w = **writer;
+    std::call_once(w.matched_once, [&] { wait_for_reader(w.writer); });
+    tahvel_Frame msg{};
+    msg.version = frame.version;
+    msg.fingerprint = frame.fingerprint;
+    msg.kind = static_cast<uint8_t>(frame.kind);
+    msg.from = const_cast<char*>(frame.from.c_str());
+    msg.to = const_cast<char*>(frame.to.c_str());
+    msg.seq = frame.seq;
+    msg.prev = frame.prev;
+    msg.ack = frame.ack;
+    msg.body._length = msg.body._maximum = static_cast<uint32_t>(frame.body.size());
+    msg.body._buffer = reinterpret_cast<uint8_t*>(const_cast<char*>(frame.body.data()));
+    msg.body._release = false;
+    if (dds_return_t rc = dds_write(w.writer, &msg); rc < 0) {
+      return node::fail(rc == DDS_RETCODE_TIMEOUT ? Errc::timeout : Errc::io,
+                        "dds <" + self_ + ">: write on topic " + dds_topic(frame.to) + " failed: " +
+                            retcode(rc) + " (" + wire::describe(frame) + ")");
+    }
+    return {};
+  }
+
+  Result<std::optional<Frame>> receive(std::chrono::milliseconds timeout) override {
+    using clock = std::chrono::steady_clock;
+    const auto deadline = clock::now() + timeout;
+    for (;;) {
+      if (!queue_.empty()) {
+        Frame frame = std::move(queue_.front());
+        queue_.pop_front();
+        return std::optional<Frame>(std::move(frame));
+      }
+      if (auto taken = take_some(); !taken) return node::fail(taken.error().code, taken.error().message);
+      if (!queue_.empty()) continue;
+      const auto left = std::chrono::duration_cast<std::chrono::nanoseconds>(deadline - clock::now());
+      if (left.count() <= 0) return std::optional<Frame>();
+      dds_return_t rc = dds_waitset_wait(waitset_, nullptr, 0, left.count());
+      if (rc < 0) return node::fail(Errc::io, "dds <" + self_ + ">: waitset wait: " + retcode(rc));
+    }
+  }
+
+ private:
+  Result<Writer*> writer_for(const std::string& to) {
+    std::lock_guard lock(writers_mutex_);
+    auto it = writers_.find(to);
+    if (it != writers_.end()) return it->second.get();
+    const std::string name = dds_topic(to);
+    // The reader's own topic may be the same one (a frame to self): create_topic then returns
+    // the existing entity's equivalent, which is fine.
+    dds_entity_t topic = dds_create_topic(participant_, &tahvel_Frame_desc, name.c_str(), nullptr, nullptr);
+    if (topic < 0) {
+      return node::fail(Errc::io, "dds <" + self_ + ">: topic " + name + " for <" +
+                                      wire::printable(to) + ">: " + retcode(topic));
+    }
+    Qos qos;
+    reliable_keep_all(qos.q, false);
+    auto w = std::make_unique<Writer>();
+    w->writer = dds_create_writer(participant_, topic, qos.q, nullptr);
+    if (w->writer < 0) {
+      return node::fail(Errc::io, "dds <" + self_ + ">: writer on " + name + ": " + retcode(w->writer));
+    }
+    return writers_.emplace(to, std::move(w)).first->second.get();
+  }
+
+  // Waits until `writer` has matched a reader or kMatchWait has passed, on the writer's
+  // publication-matched status (no polling).
+  void wait_for_reader(dds_entity_t writer) {
+    if (dds_set_status_mask(writer, DDS_PUBLICATION_MATCHED_STATUS) < 0) return;
+    dds_entity_t ws = dds_create_waitset(participant_);
+    if (ws < 0) return;
+    dds_waitset_attach(ws, writer, 0);
+    const auto deadline = std::chrono::steady_clock::now() + kMatchWait;
+    for (;;) {
+      dds_publication_matched_status_t st{};
+      if (dds_get_publication_matched_status(writer, &st) < 0 || st.current_count > 0) break;
+      const auto left = std::chrono::duration_cast<std::chrono::nanoseconds>(
+          deadline - std::chrono::steady_clock::now());
+      if (left.count() <= 0) break;
+      dds_waitset_wait(ws, nullptr, 0, left.count());
+    }
+    dds_delete(ws);
+  }
+
+  // Takes what the reader holds (up to kTakeBatch samples) into queue_, dropping what must not
+  // come out of receive().
+  Result<void> take_some() {
+    void* samples[kTakeBatch] = {};
+    dds_sample_info_t infos[kTakeBatch];
+    dds_return_t n = dds_take(reader_, samples, infos, kTakeBatch, kTakeBatch);
+    if (n < 0) return node::fail(Errc::io, "dds <" + self_ + ">: take on " + topic_name_ + ": " + retcode(n));
+    for (dds_return_t i = 0; i < n; ++i) {
+      // Samples without data report a writer that went away (keyless topic: unregistered).
+      if (infos[i].valid_data) accept(*static_cast<const tahvel_Frame*>(samples[i]), infos[i]);
+    }
+    if (n > 0) dds_return_loan(reader_, samples, n);
+    return {};
+  }
+
+  void accept(const tahvel_Frame& msg, const dds_sample_info_t& info) {
+    Frame frame;
+    frame.version = msg.version;
+    frame.fingerprint = msg.fingerprint;
+    frame.kind = static_cast<FrameKind>(msg.kind);
+    frame.from = msg.from != nullptr ? msg.from : "";
+    frame.to = msg.to != nullptr ? msg.to : "";
+    frame.seq = msg.seq;
+    frame.prev = msg.prev;
+    frame.ack = msg.ack;
+    if (msg.body._length > 0) {
+      frame.body.assign(reinterpret_cast<const char*>(msg.body._buffer), msg.body._length);
+    }
+    if (auto why = wire::reject_reason(frame, self_)) {
+      char writer[40];
+      std::snprintf(writer, sizeof writer, "%016llx", static_cast<unsigned long long>(info.publication_handle));
+      log_("dds <" + self_ + ">: dropped " + wire::describe(frame) + " on topic " + topic_name_ +
+           " from writer " + writer + ": " + *why);
+      return;
+    }
+    queue_.push_back(std::move(frame));
+  }
+
+  dds_domainid_t domain_;
+  bool domain_acquired_ = false;
+  std::string self_;
+  std::string topic_name_;
+  DropLog log_;
+  dds_entity_t participant_ = 0;
+  dds_entity_t reader_ = 0;
+  dds_entity_t waitset_ = 0;
+  std::mutex writers_mutex_;
+  std::map<std::string, std::unique_ptr<Writer>> writers_;
+  std::deque<Frame> queue_;  // touched only by the receive() thread
+};
+
+}  // namespace
+
+Result<std::unique_ptr<Transport>> open_dds(const DdsSettings& settings, std::string_view self_iri,
+                                            DropLog log) {
+  if (self_iri.empty() || self_iri.find('\0') != std::string_view::npos) {
+    return node::fail(Errc::invalid_argument, "open_dds: the endpoint IRI is empty or has a NUL");
+  }
+  auto transport = std::make_unique<DdsTransport>(settings, std::string(self_iri), std::move(log));
+  if (auto ok = transport->open(settings); !ok) return node::fail(ok.error().code, ok.error().message);
+  return std::unique_ptr<Transport>(std::move(transport));
+}
+
+}  // namespace tahvel::federation

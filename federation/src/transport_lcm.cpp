@@ -1,0 +1,188 @@
+// The LCM binding (docs/transports.md): one lcm_t per endpoint, subscribed to the one channel
+// named after its own IRI (lcm_channel()); send() publishes a tahvel_frame_t on the channel of
+// frame.to. Tuned for the sensor-to-gateway LAN: small frames at a steady rate, occasionally a
+// chunk of raw signal of a few MB (LCM fragments it over UDP multicast).
+//
+// LCM may lose datagrams (a full socket buffer, a lost fragment): the link resends. What arrives
+// is decoded here, from the raw bytes, so that anything malformed is reported to the DropLog
+// with its channel and size instead of being printed by LCM's generated handler.
+#include <lcm/lcm.h>
+
+#include <cstring>
+#include <deque>
+#include <mutex>
+#include <vector>
+
+#include "tahvel/federation/transport.h"
+#include "tahvel/federation/wire_names.h"
+#include "tahvel_frame_t.h"
+#include "wire_common.h"
+
+namespace tahvel::federation {
+namespace {
+
+// Frames LCM keeps for our subscription between two lcm_handle calls (its default is 30, too few
+// for a burst between two receive() calls; beyond this LCM drops the newest).
+constexpr int kQueueCapacity = 10000;
+
+// The kernel socket buffer LCM asks for when the URL does not say (udpm's recv_buf_size; the
+// kernel caps it at net.core.rmem_max). The kernel default (~200 kB) holds only three of the
+// 64 kB fragments of a large frame, so a frame of a few MB arriving while the receiving thread
+// is busy would lose a fragment, and with it the whole frame.
+constexpr const char* kRecvBufSize = "recv_buf_size=4194304";
+
+// settings.url, with kRecvBufSize added to a udpm:// URL that sets no recv_buf_size.
+std::string effective_url(const std::string& url) {
+  if (url.rfind("udpm://", 0) != 0 || url.find("recv_buf_size=") != std::string::npos) return url;
+  return url + (url.find('?') == std::string::npos ? "?" : "&") + kRecvBufSize;
+}
+
+class LcmTransport final : public Transport {
+ public:
+  LcmTransport(lcm_t* lcm, std::string self, DropLog log)
+      : lcm_(lcm), self_(std::move(self)), channel_(lcm_channel(self_)),
+        log_(wire::or_stderr(std::move(log))) {}
+
+  ~LcmTransport() override {
+    if (sub_ != nullptr) lcm_unsubscribe(lcm_, sub_);
+    lcm_destroy(lcm_);
+  }
+
+  LcmTransport(const LcmTransport&) = delete;
+  LcmTransport& operator=(const LcmTransport&) = delete;
+
+  Result<void> subscribe() {
+    sub_ = lcm_subscribe(lcm_, channel_.c_str(), &LcmTransport::on_message, this);
+    if (sub_ == nullptr) {
+      return node::fail(Errc::io, "lcm <" + self_ + ">: cannot subscribe to channel " + channel_);
+    }
+    lcm_subscription_set_queue_capacity(sub_, kQueueCapacity);
+    return {};
+  }
+
+  const std::string& self() const override { return self_; }
+
+  Result<void> send(const Frame& frame) override {
+    if (auto ok = wire::check_sendable(frame, "lcm <" + self_ + ">"); !ok) return ok;
+    tahvel_frame_t msg{};
+    msg.version = static_cast<int16_t>(frame.version);
+    msg.fingerprint = static_cast<int64_t>(frame.fingerprint);
+    msg.kind = static_cast<uint8_t>(frame.kind);
+    msg.from = const_cast<char*>(frame.from.c_str());
+    msg.to = const_cast<char*>(frame.to.c_str());
+    msg.seq = static_cast<int64_t>(frame.seq);
+    msg.prev = static_cast<int64_t>(frame.prev);
+    msg.ack = static_cast<int64_t>(frame.ack);
+    msg.body_size = static_cast<int32_t>(frame.body.size());
+    msg.body = reinterpret_cast<uint8_t*>(const_cast<char*>(frame.body.data()));
+    const int size = tahvel_frame_t_encoded_size(&msg);
+    std::vector<char> bytes(static_cast<std::size_t>(size));
+    if (tahvel_frame_t_encode(bytes.data(), 0, size, &msg) != size) {
+      return node::fail(Errc::invalid_argument,
+                        "lcm <" + self_ + ">: cannot encode " + wire::describe(frame));
+    }
+    const std::string channel = lcm_channel(frame.to);
+    // lcm_publish on udpm locks internally; this lock also covers providers that do not.
+    std::lock_guard lock(send_mutex_);
+    if (lcm_publish(lcm_, channel.c_str(), bytes.data(), static_cast<unsigned>(size)) != 0) {
+      return node::fail(Errc::io, "lcm <" + self_ + ">: publish of " + std::to_string(size) +
+                                      " bytes on channel " + channel + " failed (" +
+                                      wire::describe(frame) + ")");
+    }
+    return {};
+  }
+
+  Result<std::optional<Frame>> receive(std::chrono::milliseconds timeout) override {
+    using clock = std::chrono::steady_clock;
+    const auto deadline = clock::now() + timeout;
+    while (queue_.empty()) {
+      // Rounded up, so that a wait never ends before the deadline.
+      const auto left = std::chrono::ceil<std::chrono::milliseconds>(deadline - clock::now());
+      if (left.count() <= 0) {
+        // One last non-blocking look, so that a zero timeout still drains what has arrived.
+        if (lcm_handle_timeout(lcm_, 0) < 0) return handle_error();
+        break;
+      }
+      // lcm_handle_timeout dispatches at most one message to on_message (which may drop it).
+      if (lcm_handle_timeout(lcm_, static_cast<int>(left.count())) < 0) return handle_error();
+    }
+    if (queue_.empty()) return std::optional<Frame>();
+    Frame frame = std::move(queue_.front());
+    queue_.pop_front();
+    return std::optional<Frame>(std::move(frame));
+  }
+
+ private:
+  Result<std::optional<Frame>> handle_error() {
+    return node::fail(Errc::io, "lcm <" + self_ + ">: lcm_handle_timeout failed on channel " +
+                                    channel_);
+  }
+
+  static void on_message(const lcm_recv_buf_t* rbuf, const char* channel, void* user) {
+    static_cast<LcmTransport*>(user)->accept(rbuf, channel);
+  }
+
+  void accept(const lcm_recv_buf_t* rbuf, const char* channel) {
+    const std::string where = "lcm <" + self_ + ">: dropped ";
+    tahvel_frame_t msg{};
+    const int used = tahvel_frame_t_decode(rbuf->data, 0, static_cast<int>(rbuf->data_size), &msg);
+    if (used < 0) {
+      log_(where + std::to_string(rbuf->data_size) + " bytes on channel " + channel +
+           ": not a tahvel_frame_t (LCM decode failed: type hash, length or string)");
+      return;
+    }
+    Frame frame;
+    frame.version = static_cast<std::uint16_t>(msg.version);
+    frame.fingerprint = static_cast<std::uint64_t>(msg.fingerprint);
+    frame.kind = static_cast<FrameKind>(msg.kind);
+    frame.from = msg.from != nullptr ? msg.from : "";
+    frame.to = msg.to != nullptr ? msg.to : "";
+    frame.seq = static_cast<std::uint64_t>(msg.seq);
+    frame.prev = static_cast<std::uint64_t>(msg.prev);
+    frame.ack = static_cast<std::uint64_t>(msg.ack);
+    if (msg.body_size > 0) {
+      frame.body.assign(reinterpret_cast<const char*>(msg.body),
+                        static_cast<std::size_t>(msg.body_size));
+    }
+    tahvel_frame_t_decode_cleanup(&msg);
+    if (static_cast<std::size_t>(used) != rbuf->data_size) {
+      log_(where + wire::describe(frame) + " on channel " + channel + ": " +
+           std::to_string(rbuf->data_size - static_cast<std::size_t>(used)) +
+           " trailing bytes after the frame");
+      return;
+    }
+    if (auto why = wire::reject_reason(frame, self_)) {
+      log_(where + wire::describe(frame) + " on channel " + channel + ": " + *why);
+      return;
+    }
+    queue_.push_back(std::move(frame));
+  }
+
+  lcm_t* lcm_;
+  lcm_subscription_t* sub_ = nullptr;
+  std::string self_;
+  std::string channel_;
+  DropLog log_;
+  std::mutex send_mutex_;
+  std::deque<Frame> queue_;  // decoded frames; touched only by the receive() thread
+};
+
+}  // namespace
+
+Result<std::unique_ptr<Transport>> open_lcm(const LcmSettings& settings, std::string_view self_iri,
+                                            DropLog log) {
+  if (self_iri.empty() || self_iri.find('\0') != std::string_view::npos) {
+    return node::fail(Errc::invalid_argument, "open_lcm: the endpoint IRI is empty or has a NUL");
+  }
+  const std::string url = effective_url(settings.url);
+  lcm_t* lcm = lcm_create(url.c_str());
+  if (lcm == nullptr) {
+    return node::fail(Errc::io, "open_lcm <" + std::string(self_iri) +
+                                    ">: lcm_create failed for provider " + url);
+  }
+  auto transport = std::make_unique<LcmTransport>(lcm, std::string(self_iri), std::move(log));
+  if (auto ok = transport->subscribe(); !ok) return node::fail(ok.error().code, ok.error().message);
+  return std::unique_ptr<Transport>(std::move(transport));
+}
+
+}  // namespace tahvel::federation

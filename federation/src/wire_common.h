@@ -1,0 +1,39 @@
+// What the wire bindings (transport_lcm.cpp, transport_dds.cpp) share: the checks on a frame
+// before it is sent and after it is received, and the wording of drop lines.
+#pragma once
+
+#include <optional>
+#include <string>
+#include <string_view>
+
+#include "tahvel/federation/transport.h"
+
+namespace tahvel::federation::wire {
+
+// The largest body a wire binding accepts in send(). LCM and DDS both fragment; this bound keeps
+// one frame's reassembly buffers (sender, network stack, receiver) at a size a gateway can hold.
+// The link splits anything larger.
+inline constexpr std::size_t kMaxBody = 64u << 20;
+
+// True for the kinds FrameKind names (1..9).
+bool known_kind(std::uint8_t kind) noexcept;
+
+// `text` made safe for a one-line log: control and non-ASCII bytes as \xNN, cut at `max` bytes.
+std::string printable(std::string_view text, std::size_t max = 160);
+
+// "kind 3 seq 5 from <iri> to <iri>" for log lines.
+std::string describe(const Frame& frame);
+
+// Why `frame` may not be sent by `binding` (an IRI with a NUL byte, an empty `to`, a body over
+// kMaxBody, an unknown kind), or success.
+Result<void> check_sendable(const Frame& frame, std::string_view binding);
+
+// Why a decoded frame received by the endpoint `self` must be dropped: frame_refusal (another
+// protocol version, another message fingerprint, addressed to another IRI), or a kind outside
+// FrameKind (which the generated decoders, unlike decode_frame, let through); nullopt when good.
+std::optional<std::string> reject_reason(const Frame& frame, std::string_view self);
+
+// `log`, or a sink that writes the line to stderr when `log` is empty (the DropLog default).
+DropLog or_stderr(DropLog log);
+
+}  // namespace tahvel::federation::wire
