@@ -1,0 +1,137 @@
+// The reasoner's rule language and its incremental evaluator, independent of any store: parse a
+// rule file into a Program, feed an Engine with the base facts that were added and removed, and
+// get back the conclusions that appeared and disappeared (docs/reasoner.md).
+//
+//   auto program = tahvel::reasoner::parse_rules(text, {.file = "spo2.rules",
+//                                                        .default_ns = "http://x/#",
+//                                                        .me = "http://x/home1"});
+//   tahvel::reasoner::Engine engine(*program);
+//   auto update = engine.apply(inserted, removed, now_ns);   // update.added, update.removed
+//
+// Language (the Prolog-like syntax of the thesis, Papers 2 and 5): `pred(S, O)` is the triple
+// S pred O; `fact(S, P, O)` is a triple with any predicate; predicates of other arity are
+// relations of their own whose conclusions are stored reified. Variables start upper-case or
+// with `_`; constants are <iri>, CURIEs (p:local with `@prefix p: <iri> .` or
+// `:- prefix(p, <iri>).`), `#name` and bare lower-case atoms (IRIs in the default namespace),
+// `me` (the node IRI), "strings" (optionally ^^datatype or @lang), 'quoted' strings and numbers.
+// Body literals: atoms, `\+ atom` (negation as failure, stratified), comparisons
+// `< > =< >= =:= =\=` on numbers and times, `X is Expr` (+ - * /), `=`, `\=`, `==`, `\==`,
+// `now(T)`, `now` inside expressions, `lesstime(A, B)`, and `!`: the alternatives of a
+// predicate are ranked when one of them contains a cut (or with `:- ranked(p/N).`): for each
+// value of all arguments but the last, only the first alternative in file order whose literals
+// before its cut hold gives conclusions (doctor > rule system > default).
+//
+// Workload: a few hundred rules, thousands to millions of facts, sessions every second or so
+// with few new facts; tuned for the session after a few new facts (semi-naive, in memory).
+#pragma once
+
+#include <cstdint>
+#include <filesystem>
+#include <memory>
+#include <span>
+#include <string>
+#include <string_view>
+#include <vector>
+
+#include "tahvel/node/term.h"
+#include "tahvel/uri/expected.h"
+#include "tahvel/uri/iri.h"
+
+namespace tahvel::reasoner {
+
+// The library's one error: a message naming the cause and its place ("spo2.rules:4:12: ...").
+struct Error {
+  std::string message;
+};
+
+template <class T>
+using Result = Expected<T, Error>;
+
+struct ParseOptions {
+  std::string file = "<rules>";  // named in error messages
+  std::string default_ns;        // namespace of #name and bare atoms (absolute IRI, required)
+  std::string me;                // the node IRI that `me` stands for (absolute IRI, required)
+  uri::PrefixMap prefixes = uri::PrefixMap::standard();  // CURIEs; the file may add more
+};
+
+// A parsed and checked rule set: ranked alternatives and demand-bound defaults rewritten into
+// stratified rules (docs/reasoner.md, "Compilation"). Immutable; share it between engines.
+class Program;
+
+// Parses and checks `text`. Errors name file, line and column: syntax, unknown prefix, unsafe
+// variables (a head or negated variable that no positive literal binds and no caller binds),
+// negation or ranking through recursion (not stratified), a conclusion with a variable
+// predicate, a cut inside a negation.
+Result<std::shared_ptr<const Program>> parse_rules(std::string_view text, const ParseOptions& options);
+
+// Reads `path` and parses it with options.file = path. Error when the file cannot be read.
+Result<std::shared_ptr<const Program>> load_rules(const std::filesystem::path& path, ParseOptions options);
+
+// Number of rules of the program as written (clauses, without the rewriting).
+std::size_t rule_count(const Program& program);
+
+// A conclusion: a predicate IRI and its arguments. Arity 2 is the triple args[0] predicate
+// args[1]; other arities are stored reified (see store_form).
+struct Atom {
+  std::string predicate;
+  std::vector<node::Term> args;
+  friend bool operator==(const Atom&, const Atom&) = default;
+  std::string to_string() const;  // N-Triples terms: <p>(<s>, "1"^^<...>)
+};
+bool operator<(const Atom& a, const Atom& b);
+
+// The triples a conclusion is stored as. A binary atom whose subject is an IRI or blank node is
+// the triple itself. Any other atom is a node N = `node_prefix` + 16 hex digits of a hash of the
+// atom, with N rdf:type <predicate> and N rdf:_1 args[0], N rdf:_2 args[1], ... (arity 0: the
+// type triple only).
+std::vector<node::Triple> store_form(const Atom& atom, std::string_view node_prefix);
+
+struct EngineStats {
+  std::size_t base_facts = 0;       // distinct base triples held
+  std::size_t conclusions = 0;      // distinct conclusions held
+  std::size_t derivations = 0;      // rule firings of the last apply (incl. repeated ones)
+  std::size_t strata_run = 0;       // strata evaluated by the last apply
+  std::size_t strata_recomputed = 0;  // of which recomputed from scratch (removal, negation, now)
+};
+
+// Incremental evaluator. Holds the base facts it was given (only those whose predicate some
+// rule reads, see relevant()) and all conclusions. Not thread-safe; one thread at a time.
+class Engine {
+ public:
+  explicit Engine(std::shared_ptr<const Program> program);
+  Engine(Engine&&) noexcept;
+  Engine& operator=(Engine&&) noexcept;
+  ~Engine();
+
+  struct Update {
+    std::vector<Atom> added;    // conclusions that hold now and did not before, sorted
+    std::vector<Atom> removed;  // conclusions that held before and lost all support, sorted
+  };
+
+  // Applies base changes (each inserted triple counts once per call; the same triple inserted
+  // twice needs two removals to go, as records do) and brings every conclusion up to date:
+  // semi-naive from the inserted facts where the strata allow it, recomputation of the strata
+  // that a removal, a change under negation or `now` (= now_ns, ns since the epoch) reaches.
+  // Removals of facts not held are ignored.
+  Update apply(std::span<const node::Triple> inserted, std::span<const node::Triple> removed,
+               std::int64_t now_ns);
+
+  // Replaces the rules, keeps the base facts, recomputes everything; the update is the
+  // difference between the old program's conclusions and the new one's.
+  Update reload(std::shared_ptr<const Program> program, std::int64_t now_ns);
+
+  // All conclusions held, sorted.
+  std::vector<Atom> conclusions() const;
+
+  // True when some rule reads triples with this predicate (all are, when a rule reads
+  // fact(S, P, O) with a variable P).
+  bool relevant(std::string_view predicate_iri) const;
+
+  EngineStats stats() const;
+
+ private:
+  struct Impl;
+  std::unique_ptr<Impl> impl_;
+};
+
+}  // namespace tahvel::reasoner

@@ -1,0 +1,388 @@
+// From rules as written to rules the evaluator runs (docs/reasoner.md, "Compilation"):
+//  1. demand: a head variable that no body literal binds (Prolog's `p(P, T) :- T = 97.`) is
+//     bound by the callers: the rule gets a demand literal, and each call of p gets a rule
+//     deriving that demand from the literals written before the call (a magic-set rewriting
+//     restricted to the rules that need it);
+//  2. ranking: alternative j of a ranked predicate gets `\+ applies_i(key)` for each earlier
+//     alternative i with a cut, applies_i(key) holding when i's literals before its cut do;
+//  3. safety and evaluation orders (plans) for the naive round and for each delta literal;
+//  4. strata: strongly connected components of the predicate graph in dependency order; a
+//     negation inside a component is an error.
+#include <algorithm>
+#include <functional>
+#include <map>
+#include <set>
+
+#include "program.h"
+
+namespace tahvel::reasoner {
+
+namespace {
+
+using VarSet = std::vector<bool>;
+
+void expr_vars(const Expr& e, std::vector<std::uint32_t>& out) {
+  if (e.kind == Expr::arg) {
+    if (e.leaf.is_var) out.push_back(e.leaf.index);
+  } else {
+    if (e.a) expr_vars(*e.a, out);
+    if (e.b) expr_vars(*e.b, out);
+  }
+}
+
+// Variables a literal needs bound before it runs, and those it binds.
+void needs_and_binds(const Literal& l, const VarSet& bound, std::vector<std::uint32_t>& needs,
+                     std::vector<std::uint32_t>& binds) {
+  needs.clear();
+  binds.clear();
+  switch (l.kind) {
+    case Literal::atom:
+      for (const Arg& a : l.args) if (a.is_var) binds.push_back(a.index);
+      break;
+    case Literal::negation:
+      for (const Arg& a : l.args) if (a.is_var) needs.push_back(a.index);
+      break;
+    case Literal::assign:
+      expr_vars(l.rhs, needs);
+      if (l.lhs.leaf.is_var) binds.push_back(l.lhs.leaf.index);
+      break;
+    case Literal::skolem:
+      for (std::size_t i = 1; i < l.args.size(); ++i) if (l.args[i].is_var) needs.push_back(l.args[i].index);
+      if (l.args[0].is_var) binds.push_back(l.args[0].index);
+      break;
+    case Literal::unify: {
+      bool left_bound = !l.lhs.leaf.is_var || bound[l.lhs.leaf.index];
+      bool right_bound = !l.rhs.leaf.is_var || bound[l.rhs.leaf.index];
+      if (!left_bound && !right_bound) needs.push_back(l.rhs.leaf.index);
+      if (l.lhs.leaf.is_var) binds.push_back(l.lhs.leaf.index);
+      if (l.rhs.leaf.is_var) binds.push_back(l.rhs.leaf.index);
+      break;
+    }
+    default:
+      expr_vars(l.lhs, needs);
+      expr_vars(l.rhs, needs);
+      break;
+  }
+}
+
+bool runnable(const Literal& l, const VarSet& bound) {
+  std::vector<std::uint32_t> needs, binds;
+  needs_and_binds(l, bound, needs, binds);
+  return std::all_of(needs.begin(), needs.end(), [&](std::uint32_t v) { return bound[v]; });
+}
+
+void bind_vars(const Literal& l, VarSet& bound) {
+  std::vector<std::uint32_t> needs, binds;
+  needs_and_binds(l, bound, needs, binds);
+  for (std::uint32_t v : binds) bound[v] = true;
+}
+
+// An evaluation order of `body` following `preference`: filters (built-ins, negations) as soon
+// as their variables are bound, atoms in preference order. Error names the literal that can
+// never run and its unbound variable.
+Result<std::vector<std::uint32_t>> plan(const Program& program, const Rule& rule,
+                                        std::vector<std::uint32_t> preference, VarSet bound) {
+  std::vector<std::uint32_t> order;
+  while (!preference.empty()) {
+    auto pick = std::find_if(preference.begin(), preference.end(), [&](std::uint32_t i) {
+      return rule.body[i].kind != Literal::atom && runnable(rule.body[i], bound);
+    });
+    if (pick == preference.end()) {
+      pick = std::find_if(preference.begin(), preference.end(),
+                          [&](std::uint32_t i) { return rule.body[i].kind == Literal::atom; });
+    }
+    if (pick == preference.end()) {
+      const Literal& l = rule.body[preference.front()];
+      std::vector<std::uint32_t> needs, binds;
+      needs_and_binds(l, bound, needs, binds);
+      std::string name = "?";
+      for (std::uint32_t v : needs) if (!bound[v]) { name = rule.var_names[v]; break; }
+      return unexpected(Error{where(program, l.pos) + ": variable " + name +
+                              " is not bound by any positive literal before it (unsafe)"});
+    }
+    bind_vars(rule.body[*pick], bound);
+    order.push_back(*pick);
+    preference.erase(pick);
+  }
+  return order;
+}
+
+// Variables bound by running every runnable literal to a fixpoint (order-free).
+VarSet reachable_bindings(const Rule& rule) {
+  VarSet bound(rule.vars, false);
+  for (bool changed = true; changed;) {
+    changed = false;
+    for (const Literal& l : rule.body) {
+      if (l.kind == Literal::cut || !runnable(l, bound)) continue;
+      VarSet before = bound;
+      bind_vars(l, bound);
+      changed |= before != bound;
+    }
+  }
+  return bound;
+}
+
+std::uint32_t add_pred(Program& program, std::string name, std::uint32_t arity) {
+  program.preds.push_back(Pred{std::move(name), arity, true, false});
+  return static_cast<std::uint32_t>(program.preds.size() - 1);
+}
+
+Literal atom_literal(std::uint32_t pred, std::vector<Arg> args, Pos pos, bool negated = false) {
+  Literal l;
+  l.kind = negated ? Literal::negation : Literal::atom;
+  l.pred = pred;
+  l.args = std::move(args);
+  l.pos = pos;
+  return l;
+}
+
+// Cut positions: index of the first literal after the cut (= number of literals before it),
+// or -1. The cut literal is removed from the body.
+Result<std::vector<int>> take_cuts(Program& program) {
+  std::vector<int> cuts;
+  for (Rule& rule : program.rules) {
+    int cut = -1;
+    for (std::size_t i = 0; i < rule.body.size(); ++i) {
+      if (rule.body[i].kind != Literal::cut) continue;
+      if (cut >= 0) return unexpected(Error{where(program, rule.body[i].pos) + ": a second cut in one rule"});
+      cut = static_cast<int>(i);
+    }
+    if (cut >= 0) rule.body.erase(rule.body.begin() + cut);
+    if (cut < 0 && program.preds[rule.head].ranked) cut = static_cast<int>(rule.body.size());
+    cuts.push_back(cut);
+  }
+  return cuts;
+}
+
+struct Demand {
+  std::vector<std::uint32_t> positions;  // head argument positions the callers bind
+  std::uint32_t pred = 0;
+};
+
+// Step 1: demand literals for rules with unbound head variables.
+Result<std::map<std::uint32_t, Demand>> add_demand_literals(Program& program, std::vector<int>& cuts) {
+  std::map<std::uint32_t, Demand> demands;  // by predicate
+  for (std::size_t r = 0; r < program.rules.size(); ++r) {
+    Rule& rule = program.rules[r];
+    VarSet bound = reachable_bindings(rule);
+    std::vector<std::uint32_t> positions;
+    for (std::size_t i = 0; i < rule.head_args.size(); ++i) {
+      const Arg& a = rule.head_args[i];
+      if (a.is_var && !bound[a.index]) positions.push_back(static_cast<std::uint32_t>(i));
+    }
+    if (positions.empty()) continue;
+    auto [it, fresh] = demands.try_emplace(rule.head);
+    if (fresh) {
+      it->second.positions = positions;
+      const Pred& p = program.preds[rule.head];
+      it->second.pred = add_pred(program, "demand for " + p.iri + "/" + std::to_string(p.arity),
+                                 static_cast<std::uint32_t>(positions.size()));
+    }
+    if (it->second.positions != positions) {
+      // Callers bind one set of positions; a rule that needs others could not run for them.
+      std::vector<std::uint32_t>& known = it->second.positions;
+      bool covered = std::includes(known.begin(), known.end(), positions.begin(), positions.end());
+      if (!covered)
+        return unexpected(Error{where(program, rule.pos) + ": head variable " +
+                                rule.var_names[rule.head_args[positions.back()].index] +
+                                " is bound by no literal, and other alternatives need other arguments from the caller"});
+      positions = known;
+    }
+    std::vector<Arg> args;
+    for (std::uint32_t i : positions) args.push_back(rule.head_args[i]);
+    rule.body.insert(rule.body.begin(), atom_literal(it->second.pred, std::move(args), rule.pos));
+    if (cuts[r] >= 0) ++cuts[r];
+  }
+  return demands;
+}
+
+// Step 2: the alternatives of ranked predicates, in file order.
+void add_ranking(Program& program, const std::vector<int>& cuts) {
+  std::map<std::uint32_t, std::vector<std::size_t>> by_pred;
+  for (std::size_t r = 0; r < program.rules.size(); ++r) by_pred[program.rules[r].head].push_back(r);
+  for (auto& [pred, alternatives] : by_pred) {
+    bool ranked = std::any_of(alternatives.begin(), alternatives.end(), [&](std::size_t r) { return cuts[r] >= 0; });
+    if (!ranked) continue;
+    const std::uint32_t arity = program.preds[pred].arity;
+    const std::uint32_t key = arity == 0 ? 0 : arity - 1;
+    std::vector<std::uint32_t> applies;  // helper predicate per earlier alternative with a cut
+    for (std::size_t n = 0; n < alternatives.size(); ++n) {
+      std::size_t r = alternatives[n];
+      Rule& rule = program.rules[r];
+      std::vector<Arg> key_args(rule.head_args.begin(), rule.head_args.begin() + key);
+      for (std::uint32_t a : applies) rule.body.push_back(atom_literal(a, key_args, rule.pos, true));
+      if (cuts[r] < 0) continue;
+      std::uint32_t a = add_pred(program, "alternative " + std::to_string(n + 1) + " of " +
+                                              program.preds[pred].iri + " applies", key);
+      Rule helper;
+      helper.head = a;
+      helper.head_args = key_args;
+      helper.body.assign(rule.body.begin(), rule.body.begin() + cuts[r]);
+      helper.vars = rule.vars;
+      helper.var_names = rule.var_names;
+      helper.uses_now = rule.uses_now;
+      helper.pos = rule.pos;
+      program.rules.push_back(std::move(helper));  // invalidates `rule`
+      applies.push_back(a);
+    }
+  }
+}
+
+// Step 1b: for every call of a predicate with demand, a rule deriving the demand.
+Result<void> add_demand_rules(Program& program, const std::map<std::uint32_t, Demand>& demands) {
+  for (std::size_t r = 0; r < program.rules.size(); ++r) {
+    for (std::size_t i = 0; i < program.rules[r].body.size(); ++i) {
+      const Rule& rule = program.rules[r];
+      const Literal& call = rule.body[i];
+      if (call.kind != Literal::atom && call.kind != Literal::negation) continue;
+      auto it = demands.find(call.pred);
+      if (it == demands.end()) continue;
+      Rule d;
+      d.head = it->second.pred;
+      for (std::uint32_t p : it->second.positions) d.head_args.push_back(call.args[p]);
+      d.body.assign(rule.body.begin(), rule.body.begin() + static_cast<long>(i));
+      d.vars = rule.vars;
+      d.var_names = rule.var_names;
+      d.uses_now = rule.uses_now;
+      d.pos = call.pos;
+      VarSet bound = reachable_bindings(d);
+      for (std::size_t k = 0; k < d.head_args.size(); ++k) {
+        const Arg& a = d.head_args[k];
+        if (a.is_var && !bound[a.index])
+          return unexpected(Error{where(program, call.pos) + ": this call of " + program.preds[call.pred].iri +
+                                  " leaves " + rule.var_names[a.index] +
+                                  " unbound, and an alternative of it binds that argument from its caller only"});
+      }
+      program.rules.push_back(std::move(d));
+    }
+  }
+  return {};
+}
+
+Result<void> make_plans(Program& program) {
+  for (Rule& rule : program.rules) {
+    std::vector<std::uint32_t> written(rule.body.size());
+    for (std::uint32_t i = 0; i < written.size(); ++i) written[i] = i;
+    auto full = plan(program, rule, written, VarSet(rule.vars, false));
+    if (!full) return unexpected(full.error());
+    VarSet bound(rule.vars, false);
+    for (std::uint32_t i : *full) bind_vars(rule.body[i], bound);
+    for (const Arg& a : rule.head_args) {
+      if (a.is_var && !bound[a.index])
+        return unexpected(Error{where(program, rule.pos) + ": head variable " + rule.var_names[a.index] +
+                                " is bound by no literal (unsafe)"});
+    }
+    rule.plans = {std::move(*full)};
+    for (std::uint32_t k = 0; k < rule.body.size(); ++k) {
+      if (rule.body[k].kind != Literal::atom) continue;
+      std::vector<std::uint32_t> pref{k};
+      for (std::uint32_t i = 0; i < rule.body.size(); ++i) if (i != k) pref.push_back(i);
+      auto delta = plan(program, rule, pref, VarSet(rule.vars, false));
+      if (!delta) return unexpected(delta.error());
+      rule.plans.push_back(std::move(*delta));
+      rule.kth_atom.push_back(k);
+    }
+  }
+  return {};
+}
+
+// Step 4: Tarjan's strongly connected components; emitted dependencies first.
+Result<void> stratify(Program& program) {
+  const std::size_t n = program.preds.size();
+  std::vector<std::vector<std::pair<std::uint32_t, bool>>> edges(n);  // head -> (body, negated)
+  std::vector<bool> defined(n, false);
+  for (const Rule& rule : program.rules) defined[rule.head] = true;
+  for (const Rule& rule : program.rules) {
+    for (const Literal& l : rule.body) {
+      if (l.kind != Literal::atom && l.kind != Literal::negation) continue;
+      bool neg = l.kind == Literal::negation;
+      if (l.pred != kAnyBinary) {
+        edges[rule.head].push_back({l.pred, neg});
+        continue;
+      }
+      for (std::uint32_t p = 0; p < n; ++p)
+        if (defined[p] && program.preds[p].arity == 2 && !program.preds[p].internal) edges[rule.head].push_back({p, neg});
+    }
+  }
+  std::vector<int> index(n, -1), low(n, 0), comp(n, -1);
+  std::vector<bool> on_stack(n, false);
+  std::vector<std::uint32_t> stack;
+  std::vector<std::vector<std::uint32_t>> components;
+  int counter = 0;
+  std::function<void(std::uint32_t)> visit = [&](std::uint32_t v) {
+    index[v] = low[v] = counter++;
+    stack.push_back(v);
+    on_stack[v] = true;
+    for (auto [w, neg] : edges[v]) {
+      if (index[w] < 0) { visit(w); low[v] = std::min(low[v], low[w]); }
+      else if (on_stack[w]) low[v] = std::min(low[v], index[w]);
+    }
+    if (low[v] != index[v]) return;
+    std::vector<std::uint32_t> members;
+    std::uint32_t w;
+    do {
+      w = stack.back();
+      stack.pop_back();
+      on_stack[w] = false;
+      comp[w] = static_cast<int>(components.size());
+      members.push_back(w);
+    } while (w != v);
+    components.push_back(std::move(members));
+  };
+  for (std::uint32_t p = 0; p < n; ++p) if (index[p] < 0) visit(p);
+  for (const Rule& rule : program.rules) {
+    for (const Literal& l : rule.body) {
+      if (l.kind != Literal::negation) continue;
+      for (auto [w, neg] : edges[rule.head]) {
+        if (neg && comp[w] == comp[rule.head] && (l.pred == w || l.pred == kAnyBinary))
+          return unexpected(Error{where(program, l.pos) + ": negation of " + program.preds[w].iri +
+                                  " depends on " + program.preds[rule.head].iri +
+                                  " itself (not stratified; ranking and \\+ cannot go through recursion)"});
+      }
+    }
+  }
+  program.strata.clear();
+  std::vector<int> stratum_of(components.size(), -1);
+  for (std::size_t c = 0; c < components.size(); ++c) {
+    Stratum s;
+    for (std::uint32_t p : components[c]) if (defined[p]) s.preds.push_back(p);
+    if (s.preds.empty()) continue;
+    stratum_of[c] = static_cast<int>(program.strata.size());
+    program.strata.push_back(std::move(s));
+  }
+  for (std::uint32_t r = 0; r < program.rules.size(); ++r) {
+    Stratum& s = program.strata[stratum_of[comp[program.rules[r].head]]];
+    s.rules.push_back(r);
+    s.volatile_ |= program.rules[r].uses_now;
+  }
+  return {};
+}
+
+void collect_reads(Program& program) {
+  std::set<std::uint32_t> binary;
+  for (const Rule& rule : program.rules) {
+    for (const Literal& l : rule.body) {
+      if (l.kind != Literal::atom && l.kind != Literal::negation) continue;
+      if (l.pred == kAnyBinary) program.reads_any_binary = true;
+      else if (program.preds[l.pred].arity == 2 && !program.preds[l.pred].internal) binary.insert(l.pred);
+    }
+  }
+  program.read_binary.assign(binary.begin(), binary.end());
+}
+
+}  // namespace
+
+Result<void> compile_program(Program& program) {
+  auto cuts = take_cuts(program);
+  if (!cuts) return unexpected(cuts.error());
+  auto demands = add_demand_literals(program, *cuts);
+  if (!demands) return unexpected(demands.error());
+  add_ranking(program, *cuts);
+  if (auto d = add_demand_rules(program, *demands); !d) return d;
+  if (auto p = make_plans(program); !p) return p;
+  if (auto s = stratify(program); !s) return s;
+  collect_reads(program);
+  return {};
+}
+
+}  // namespace tahvel::reasoner

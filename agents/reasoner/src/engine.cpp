@@ -1,0 +1,686 @@
+// The incremental evaluator (rules.h, docs/reasoner.md "Sessions"). Terms are interned to u32
+// ids; each predicate is a relation of rows that are never moved (a row keeps its index while it
+// comes and goes), with a base count (records in the store) and a derived flag (a rule gives it).
+// A session touches rows and remembers their state at its start, so the facts that appeared
+// and disappeared (for the strata above) and the conclusions that changed (for the store) are
+// read off the touched rows at the end.
+//
+// Strata run in dependency order. A stratum whose inputs only grew runs semi-naive: each rule
+// once per body atom that has new rows, that atom over the new rows only, then rounds over its
+// own new rows to the fixpoint. A stratum reached by a removal, by any change under a negation,
+// or using `now` is recomputed: its derived flags are cleared and it runs to the fixpoint again;
+// what differs from before is what changed.
+#include <algorithm>
+#include <cstdio>
+#include <cstring>
+#include <deque>
+#include <map>
+#include <set>
+
+#include "program.h"
+#include "table.h"
+#include "value.h"
+
+namespace tahvel::reasoner {
+
+namespace {
+
+using Id = std::uint32_t;  // term id; 0 = unbound
+
+// --- terms ------------------------------------------------------------------------------------
+
+class Dict {
+ public:
+  Dict() { offsets_.push_back(0); values_.emplace_back(); }
+
+  Id intern(const node::Term& term) {
+    encode(term);
+    std::uint64_t h = hash(key_);
+    Id id = table_.find(h, [&](std::uint32_t id) { return key(id) == key_; });
+    if (id != kNone) return id;
+    id = static_cast<Id>(values_.size());
+    arena_ += key_;
+    offsets_.push_back(arena_.size());
+    values_.push_back(value_of(term));
+    table_.insert(h, id);
+    return id;
+  }
+  Id find(const node::Term& term) {
+    encode(term);
+    Id id = table_.find(hash(key_), [&](std::uint32_t id) { return key(id) == key_; });
+    return id == kNone ? 0 : id;
+  }
+  // Decoded from the arena (terms are kept once, as their key).
+  node::Term term(Id id) const {
+    std::string_view k = key(id);
+    node::Term t;
+    t.kind = static_cast<node::TermKind>(k[0]);
+    std::size_t at = 1;
+    auto get = [&](std::string& out) {
+      std::uint32_t n;
+      std::memcpy(&n, k.data() + at, sizeof n);
+      out.assign(k.data() + at + sizeof n, n);
+      at += sizeof n + n;
+    };
+    get(t.value);
+    get(t.datatype);
+    t.language.assign(k.substr(at));
+    return t;
+  }
+  const Value& value(Id id) const { return values_[id]; }
+  std::size_t size() const { return values_.size(); }
+
+ private:
+  std::string_view key(Id id) const {
+    return std::string_view(arena_).substr(offsets_[id - 1], offsets_[id] - offsets_[id - 1]);
+  }
+  static std::uint64_t hash(std::string_view s) { return mix64(std::hash<std::string_view>{}(s)); }
+  void encode(const node::Term& t) {
+    key_.clear();
+    key_ += static_cast<char>(t.kind);
+    auto put = [&](const std::string& s) {
+      std::uint32_t n = static_cast<std::uint32_t>(s.size());
+      key_.append(reinterpret_cast<const char*>(&n), sizeof n);
+      key_ += s;
+    };
+    put(t.value);
+    put(t.datatype);
+    key_ += t.language;
+  }
+
+  std::string arena_;
+  std::vector<std::size_t> offsets_;  // key of id k: arena_[offsets_[k-1], offsets_[k])
+  std::vector<Value> values_;
+  IdTable table_;
+  std::string key_;
+};
+
+// --- relations --------------------------------------------------------------------------------
+
+std::uint64_t hash_ids(const Id* t, std::uint32_t n) {
+  std::uint64_t h = 0x9e3779b97f4a7c15ull ^ n;
+  for (std::uint32_t i = 0; i < n; ++i) h = mix64(h ^ t[i]) + i;
+  return mix64(h);
+}
+
+// The key of the bound positions `mask` of tuple t: exact for one or two positions.
+std::uint64_t index_key(const Id* t, std::uint32_t n, std::uint32_t mask) {
+  Id vals[16];
+  std::uint32_t k = 0;
+  for (std::uint32_t i = 0; i < n; ++i) if (mask & (1u << i)) vals[k++] = t[i];
+  if (k == 1) return vals[0];
+  if (k == 2) return (static_cast<std::uint64_t>(vals[0]) << 32) | vals[1];
+  std::uint64_t h = hash_ids(vals, k);
+  return h == ~0ull ? h - 1 : h;
+}
+
+struct Index {
+  std::uint32_t mask = 0;
+  KeyMap head;
+  std::vector<std::uint32_t> next;
+};
+
+constexpr std::uint8_t kTouched = 0x80, kWasAlive = 1, kWasDerived = 2;
+
+struct Relation {
+  std::uint32_t arity = 0;
+  Id pred_iri = 0;        // binary relations: the predicate's term id
+  int pred = -1;          // program predicate, -1 for a relation of base facts only
+  int stratum = -1;       // defining stratum, -1 for base facts only
+  std::vector<Id> data;   // row r: data[r * arity .. + arity)
+  std::vector<std::uint32_t> base;
+  std::vector<std::uint8_t> derived, mark;
+  std::vector<std::uint32_t> touched;
+  IdTable rows;
+  std::deque<Index> indexes;  // stable references: an index may be added during a walk
+
+  std::uint32_t size() const { return static_cast<std::uint32_t>(base.size()); }
+  const Id* row(std::uint32_t r) const { return data.data() + static_cast<std::size_t>(r) * arity; }
+  bool alive(std::uint32_t r) const { return base[r] > 0 || derived[r]; }
+
+  std::uint32_t find(const Id* t) const {
+    return rows.find(hash_ids(t, arity), [&](std::uint32_t r) {
+      return std::memcmp(row(r), t, arity * sizeof(Id)) == 0;
+    });
+  }
+  std::uint32_t ensure(const Id* t) {
+    std::uint64_t h = hash_ids(t, arity);
+    std::uint32_t r = rows.find(h, [&](std::uint32_t r) { return std::memcmp(row(r), t, arity * sizeof(Id)) == 0; });
+    if (r != kNone) return r;
+    r = size();
+    data.insert(data.end(), t, t + arity);
+    base.push_back(0);
+    derived.push_back(0);
+    mark.push_back(0);
+    rows.insert(h, r);
+    for (Index& ix : indexes) link(ix, r);
+    return r;
+  }
+  void link(Index& ix, std::uint32_t r) {
+    ix.next.push_back(ix.head.put(index_key(row(r), arity, ix.mask), r));
+  }
+  const Index& index(std::uint32_t mask) {
+    for (const Index& ix : indexes) if (ix.mask == mask) return ix;
+    indexes.push_back(Index{mask, {}, {}});
+    Index& ix = indexes.back();
+    ix.next.reserve(size());
+    for (std::uint32_t r = 0; r < size(); ++r) link(ix, r);
+    return ix;
+  }
+  void touch(std::uint32_t r) {
+    if (mark[r]) return;
+    mark[r] = kTouched | (alive(r) ? kWasAlive : 0) | (derived[r] ? kWasDerived : 0);
+    touched.push_back(r);
+  }
+  bool was_alive(std::uint32_t r) const { return mark[r] ? (mark[r] & kWasAlive) != 0 : alive(r); }
+};
+
+}  // namespace
+
+// --- the engine -------------------------------------------------------------------------------
+
+struct Engine::Impl {
+  std::shared_ptr<const Program> program;
+  Dict dict;
+  std::vector<Relation> rels;
+  std::vector<std::uint32_t> rel_of_pred;  // program predicate -> relation
+  KeyMap binary;                           // predicate term id -> relation
+  std::vector<Id> const_ids;               // program constant -> term id
+  std::vector<std::uint32_t> touched_rels;
+  std::vector<std::uint8_t> rel_is_touched;
+  std::int64_t now = 0;
+  Id now_id = 0;
+  bool first = true;
+  std::size_t current_stratum = 0;
+  EngineStats st;
+
+  explicit Impl(std::shared_ptr<const Program> p) : program(std::move(p)) {
+    for (const node::Term& t : program->constants) const_ids.push_back(dict.intern(t));
+    for (std::uint32_t i = 0; i < program->preds.size(); ++i) {
+      const Pred& pred = program->preds[i];
+      std::uint32_t r = (!pred.internal && pred.arity == 2) ? binary_rel(dict.intern(node::Term::iri(pred.iri)))
+                                                            : new_rel(pred.arity, 0);
+      rels[r].pred = static_cast<int>(i);
+      rel_of_pred.push_back(r);
+    }
+    for (std::size_t s = 0; s < program->strata.size(); ++s)
+      for (std::uint32_t p : program->strata[s].preds) rels[rel_of_pred[p]].stratum = static_cast<int>(s);
+  }
+
+  std::uint32_t new_rel(std::uint32_t arity, Id iri) {
+    rels.emplace_back();
+    rels.back().arity = arity;
+    rels.back().pred_iri = iri;
+    rel_is_touched.push_back(0);
+    return static_cast<std::uint32_t>(rels.size() - 1);
+  }
+  std::uint32_t binary_rel(Id iri) {
+    std::uint32_t r = binary.get(iri);
+    if (r != kNone) return r;
+    r = new_rel(2, iri);
+    binary.put(iri, r);
+    return r;
+  }
+  void touch(std::uint32_t rel, std::uint32_t row) {
+    rels[rel].touch(row);
+    if (!rel_is_touched[rel]) { rel_is_touched[rel] = 1; touched_rels.push_back(rel); }
+  }
+
+  bool relevant(std::string_view iri) const {
+    if (program->reads_any_binary) return true;
+    for (std::uint32_t p : program->read_binary) if (program->preds[p].iri == iri) return true;
+    return false;
+  }
+
+  // Rows of `rel` that became visible (plus) or stopped being visible (minus) this session.
+  std::vector<std::uint32_t> delta(std::uint32_t rel, bool plus) const {
+    std::vector<std::uint32_t> out;
+    const Relation& R = rels[rel];
+    for (std::uint32_t r : R.touched) {
+      bool was = (R.mark[r] & kWasAlive) != 0, now_alive = R.alive(r);
+      if (plus ? (now_alive && !was) : (!now_alive && was)) out.push_back(r);
+    }
+    return out;
+  }
+
+  void base_change(const node::Triple& t, bool insert);
+  void run_stratum(std::size_t s);
+  bool needs_recompute(const Stratum& stratum);
+  Update finish();
+  Update apply(std::span<const node::Triple> inserted, std::span<const node::Triple> removed, std::int64_t now_ns);
+  Atom atom_of(const Relation& R, std::uint32_t row) const;
+};
+
+// --- evaluation of one rule -------------------------------------------------------------------
+
+namespace {
+
+template <class EngineImpl>  // Engine::Impl (private: named only where it is visible)
+class RuleRun {
+ public:
+  // delta: per relation, the rows the first literal of `plan` iterates (nullptr: all rows).
+  RuleRun(EngineImpl& e, const Rule& rule, const std::vector<std::uint32_t>& plan,
+          const std::vector<std::vector<std::uint32_t>>* delta, std::vector<std::vector<std::uint32_t>>& out)
+      : e_(e), rule_(rule), plan_(plan), delta_(delta), out_(out), bind_(rule.vars, 0) {}
+
+  void run() { step(0); }
+
+ private:
+  Id arg(const Arg& a) const { return a.is_var ? bind_[a.index] : e_.const_ids[a.index]; }
+  void step(std::size_t k);
+  void atom(const Literal& l, std::size_t k);
+  void match_rel(const Literal& l, const Arg* args, std::uint32_t rel, std::size_t k, bool only_delta);
+  bool try_row(const Arg* args, std::uint32_t n, const Id* row, std::size_t k);
+  bool holds(const Literal& l);
+  Value eval(const Expr& x);
+  void emit();
+
+  EngineImpl& e_;
+  const Rule& rule_;
+  const std::vector<std::uint32_t>& plan_;
+  const std::vector<std::vector<std::uint32_t>>* delta_;
+  std::vector<std::vector<std::uint32_t>>& out_;
+  std::vector<Id> bind_;
+};
+
+template <class E>
+Value RuleRun<E>::eval(const Expr& x) {
+  switch (x.kind) {
+    case Expr::arg: { Id id = arg(x.leaf); return id ? e_.dict.value(id) : Value{}; }
+    case Expr::now: return Value{Value::time, e_.now, 0};
+    case Expr::neg: return reasoner::arith(ArithOp::neg, eval(*x.a), {});
+    case Expr::add: return reasoner::arith(ArithOp::add, eval(*x.a), eval(*x.b));
+    case Expr::sub: return reasoner::arith(ArithOp::sub, eval(*x.a), eval(*x.b));
+    case Expr::mul: return reasoner::arith(ArithOp::mul, eval(*x.a), eval(*x.b));
+    case Expr::div: return reasoner::arith(ArithOp::div, eval(*x.a), eval(*x.b));
+  }
+  return {};
+}
+
+template <class E>
+void RuleRun<E>::emit() {
+  Id tuple[16];
+  for (std::size_t i = 0; i < rule_.head_args.size(); ++i) tuple[i] = arg(rule_.head_args[i]);
+  ++e_.st.derivations;
+  std::uint32_t rel = e_.rel_of_pred[rule_.head];
+  Relation& R = e_.rels[rel];
+  std::uint32_t r = R.ensure(tuple);
+  if (R.derived[r]) return;
+  e_.touch(rel, r);
+  bool was_visible = R.alive(r);
+  R.derived[r] = 1;
+  if (!was_visible) out_[rel].push_back(r);
+}
+
+// Binds the unbound arguments of one literal to `row`; false (and nothing bound) on mismatch.
+template <class E>
+bool RuleRun<E>::try_row(const Arg* args, std::uint32_t n, const Id* row, std::size_t k) {
+  std::uint32_t newly[16];
+  std::uint32_t count = 0;
+  bool ok = true;
+  for (std::uint32_t i = 0; i < n && ok; ++i) {
+    Id want = arg(args[i]);
+    if (want) {
+      ok = want == row[i];
+    } else {
+      bind_[args[i].index] = row[i];
+      newly[count++] = args[i].index;
+    }
+  }
+  if (ok) step(k + 1);
+  for (std::uint32_t i = 0; i < count; ++i) bind_[newly[i]] = 0;
+  return ok;
+}
+
+template <class E>
+void RuleRun<E>::match_rel(const Literal& l, const Arg* args, std::uint32_t rel, std::size_t k, bool only_delta) {
+  Relation& R = e_.rels[rel];
+  const std::uint32_t n = R.arity;
+  if (only_delta) {
+    const auto& rows = (*delta_)[rel];
+    for (std::size_t i = 0; i < rows.size(); ++i) {
+      if (R.alive(rows[i])) try_row(args, n, R.row(rows[i]), k);
+    }
+    return;
+  }
+  Id probe[16];
+  std::uint32_t mask = 0;
+  for (std::uint32_t i = 0; i < n; ++i) {
+    probe[i] = arg(args[i]);
+    if (probe[i]) mask |= 1u << i;
+  }
+  (void)l;
+  if (mask == (1u << n) - 1) {
+    std::uint32_t r = R.find(probe);
+    if (r != kNone && R.alive(r)) step(k + 1);
+    return;
+  }
+  if (mask == 0) {
+    for (std::uint32_t r = 0; r < R.size(); ++r) if (R.alive(r)) try_row(args, n, R.row(r), k);
+    return;
+  }
+  const Index& ix = R.index(mask);
+  for (std::uint32_t r = ix.head.get(index_key(probe, n, mask)); r != kNone; r = ix.next[r]) {
+    if (R.alive(r)) try_row(args, n, R.row(r), k);
+  }
+}
+
+template <class E>
+void RuleRun<E>::atom(const Literal& l, std::size_t k) {
+  const bool only_delta = k == 0 && delta_ != nullptr;
+  if (l.pred != kAnyBinary) {
+    match_rel(l, l.args.data(), e_.rel_of_pred[l.pred], k, only_delta);
+    return;
+  }
+  // fact(S, P, O) with a variable P: one relation when P is bound, else every binary one.
+  const Arg so[2] = {l.args[0], l.args[2]};
+  const Arg& p = l.args[1];
+  if (Id bound = bind_[p.index]) {
+    std::uint32_t rel = e_.binary.get(bound);
+    if (rel != kNone) match_rel(l, so, rel, k, only_delta);
+    return;
+  }
+  for (std::uint32_t rel = 0; rel < e_.rels.size(); ++rel) {
+    const Relation& R = e_.rels[rel];
+    if (!R.pred_iri) continue;
+    if (only_delta && (*delta_)[rel].empty()) continue;
+    bind_[p.index] = R.pred_iri;
+    match_rel(l, so, rel, k, only_delta);
+  }
+  bind_[p.index] = 0;
+}
+
+template <class E>
+bool RuleRun<E>::holds(const Literal& l) {
+  switch (l.kind) {
+    case Literal::negation: {
+      Id tuple[16];
+      std::uint32_t rel;
+      if (l.pred == kAnyBinary) {
+        rel = e_.binary.get(arg(l.args[1]));
+        if (rel == kNone) return true;
+        tuple[0] = arg(l.args[0]);
+        tuple[1] = arg(l.args[2]);
+      } else {
+        rel = e_.rel_of_pred[l.pred];
+        for (std::size_t i = 0; i < l.args.size(); ++i) tuple[i] = arg(l.args[i]);
+      }
+      const Relation& R = e_.rels[rel];
+      std::uint32_t r = R.find(tuple);
+      return r == kNone || !R.alive(r);
+    }
+    case Literal::compare: {
+      auto c = compare_values(eval(l.lhs), eval(l.rhs));
+      if (!c) return false;
+      switch (l.op) {
+        case Literal::lt: return *c < 0;
+        case Literal::gt: return *c > 0;
+        case Literal::le: return *c <= 0;
+        case Literal::ge: return *c >= 0;
+        case Literal::eq: return *c == 0;
+        case Literal::ne: return *c != 0;
+      }
+      return false;
+    }
+    case Literal::identical: return arg(l.lhs.leaf) == arg(l.rhs.leaf);
+    case Literal::not_unify: return arg(l.lhs.leaf) != arg(l.rhs.leaf);
+    default: return false;
+  }
+}
+
+template <class E>
+void RuleRun<E>::step(std::size_t k) {
+  if (k == plan_.size()) { emit(); return; }
+  const Literal& l = rule_.body[plan_[k]];
+  switch (l.kind) {
+    case Literal::atom: atom(l, k); return;
+    case Literal::assign: {
+      Value v = eval(l.rhs);
+      if (v.kind == Value::none) return;
+      Id target = arg(l.lhs.leaf);
+      if (target) {
+        auto c = compare_values(e_.dict.value(target), v);
+        if (c && *c == 0) step(k + 1);
+        return;
+      }
+      bind_[l.lhs.leaf.index] = e_.dict.intern(term_of(v));
+      step(k + 1);
+      bind_[l.lhs.leaf.index] = 0;
+      return;
+    }
+    case Literal::skolem: {
+      std::uint64_t h = 1469598103934665603ull;  // FNV-1a 64 of the arguments' N-Triples
+      for (std::size_t i = 1; i < l.args.size(); ++i) {
+        for (unsigned char c : e_.dict.term(arg(l.args[i])).to_ntriples()) h = (h ^ c) * 1099511628211ull;
+        h = (h ^ 0x1f) * 1099511628211ull;
+      }
+      char hex[17];
+      std::snprintf(hex, sizeof hex, "%016llx", static_cast<unsigned long long>(h));
+      Id minted = e_.dict.intern(node::Term::iri(e_.program->me + "/.well-known/genid/s" + hex));
+      Id target = arg(l.args[0]);
+      if (target) { if (target == minted) step(k + 1); return; }
+      bind_[l.args[0].index] = minted;
+      step(k + 1);
+      bind_[l.args[0].index] = 0;
+      return;
+    }
+    case Literal::unify: {
+      Id a = arg(l.lhs.leaf), b = arg(l.rhs.leaf);
+      if (a && b) { if (a == b) step(k + 1); return; }
+      const Arg& free = a ? l.rhs.leaf : l.lhs.leaf;
+      bind_[free.index] = a ? a : b;
+      step(k + 1);
+      bind_[free.index] = 0;
+      return;
+    }
+    default:
+      if (holds(l)) step(k + 1);
+      return;
+  }
+}
+
+}  // namespace
+
+// --- strata -----------------------------------------------------------------------------------
+
+bool Engine::Impl::needs_recompute(const Stratum& stratum) {
+  if (first || stratum.volatile_) return true;
+  auto changed = [&](std::uint32_t rel, bool plus) { return rel_is_touched[rel] && !delta(rel, plus).empty(); };
+  for (std::uint32_t ri : stratum.rules) {
+    for (const Literal& l : program->rules[ri].body) {
+      if (l.kind != Literal::atom && l.kind != Literal::negation) continue;
+      const bool neg = l.kind == Literal::negation;
+      auto check = [&](std::uint32_t rel) { return changed(rel, false) || (neg && changed(rel, true)); };
+      if (l.pred != kAnyBinary) {
+        if (check(rel_of_pred[l.pred])) return true;
+        continue;
+      }
+      for (std::uint32_t rel : touched_rels) if (rels[rel].pred_iri && check(rel)) return true;
+    }
+  }
+  return false;
+}
+
+void Engine::Impl::run_stratum(std::size_t s) {
+  const Stratum& stratum = program->strata[s];
+  current_stratum = s;
+  std::vector<std::vector<std::uint32_t>> next(rels.size()), cur(rels.size());
+  const bool recompute = needs_recompute(stratum);
+  bool any_input = false;
+  if (recompute) {
+    for (std::uint32_t p : stratum.preds) {
+      std::uint32_t rel = rel_of_pred[p];
+      Relation& R = rels[rel];
+      for (std::uint32_t r = 0; r < R.size(); ++r) {
+        if (!R.derived[r]) continue;
+        touch(rel, r);
+        R.derived[r] = 0;
+      }
+    }
+    for (std::uint32_t ri : stratum.rules) {
+      const Rule& rule = program->rules[ri];
+      RuleRun(*this, rule, rule.plans[0], nullptr, next).run();
+    }
+    ++st.strata_recomputed;
+    any_input = true;
+  } else {
+    // Semi-naive seed: the rows that appeared in the relations this stratum reads.
+    for (std::uint32_t rel : touched_rels) cur[rel] = delta(rel, true);
+    for (std::uint32_t ri : stratum.rules) {
+      const Rule& rule = program->rules[ri];
+      for (std::size_t k = 0; k < rule.kth_atom.size(); ++k) {
+        const Literal& l = rule.body[rule.kth_atom[k]];
+        bool has = false;
+        if (l.pred != kAnyBinary) has = !cur[rel_of_pred[l.pred]].empty();
+        else for (std::uint32_t rel : touched_rels) has |= rels[rel].pred_iri && !cur[rel].empty();
+        if (!has) continue;
+        any_input = true;
+        RuleRun(*this, rule, rule.plans[1 + k], &cur, next).run();
+      }
+    }
+  }
+  if (any_input) ++st.strata_run;
+  // Rounds over this stratum's own new rows (recursion) to the fixpoint.
+  std::set<std::uint32_t> own;
+  for (std::uint32_t p : stratum.preds) own.insert(rel_of_pred[p]);
+  for (;;) {
+    bool more = false;
+    for (std::uint32_t rel = 0; rel < rels.size(); ++rel) {
+      cur[rel].clear();
+      if (!next[rel].empty()) { cur[rel].swap(next[rel]); more = true; }
+    }
+    if (!more) break;
+    for (std::uint32_t ri : stratum.rules) {
+      const Rule& rule = program->rules[ri];
+      for (std::size_t k = 0; k < rule.kth_atom.size(); ++k) {
+        const Literal& l = rule.body[rule.kth_atom[k]];
+        bool has = false;
+        if (l.pred != kAnyBinary) has = own.count(rel_of_pred[l.pred]) && !cur[rel_of_pred[l.pred]].empty();
+        else for (std::uint32_t rel : own) has |= rels[rel].pred_iri && !cur[rel].empty();
+        if (has) RuleRun(*this, rule, rule.plans[1 + k], &cur, next).run();
+      }
+    }
+  }
+}
+
+Atom Engine::Impl::atom_of(const Relation& R, std::uint32_t row) const {
+  Atom a;
+  a.predicate = R.pred_iri ? dict.term(R.pred_iri).value : program->preds[R.pred].iri;
+  for (std::uint32_t i = 0; i < R.arity; ++i) a.args.push_back(dict.term(R.row(row)[i]));
+  return a;
+}
+
+void Engine::Impl::base_change(const node::Triple& t, bool insert) {
+  if (!t.p.is_iri()) return;
+  Id p = insert ? dict.intern(t.p) : dict.find(t.p);
+  if (!p) return;
+  std::uint32_t rel = binary.get(p);
+  if (rel == kNone) {
+    if (!insert || !relevant(t.p.value)) return;
+    rel = binary_rel(p);
+  }
+  Relation& R = rels[rel];
+  if (!insert && R.pred >= 0 && !relevant(t.p.value)) return;
+  if (insert) {
+    if (R.pred >= 0 && !relevant(t.p.value)) return;
+    Id tuple[2] = {dict.intern(t.s), dict.intern(t.o)};
+    std::uint32_t r = R.ensure(tuple);
+    touch(rel, r);
+    ++R.base[r];
+    return;
+  }
+  Id tuple[2] = {dict.find(t.s), dict.find(t.o)};
+  if (!tuple[0] || !tuple[1]) return;
+  std::uint32_t r = R.find(tuple);
+  if (r == kNone || R.base[r] == 0) return;
+  touch(rel, r);
+  --R.base[r];
+}
+
+Engine::Update Engine::Impl::finish() {
+  Update u;
+  for (std::uint32_t rel : touched_rels) {
+    Relation& R = rels[rel];
+    const bool reported = R.pred >= 0 && !program->preds[R.pred].internal;
+    for (std::uint32_t r : R.touched) {
+      bool was = (R.mark[r] & kWasDerived) != 0;
+      if (reported && was != (R.derived[r] != 0)) (was ? u.removed : u.added).push_back(atom_of(R, r));
+      R.mark[r] = 0;
+    }
+    R.touched.clear();
+    rel_is_touched[rel] = 0;
+  }
+  touched_rels.clear();
+  std::sort(u.added.begin(), u.added.end());
+  std::sort(u.removed.begin(), u.removed.end());
+  return u;
+}
+
+Engine::Update Engine::Impl::apply(std::span<const node::Triple> inserted,
+                                   std::span<const node::Triple> removed, std::int64_t now_ns) {
+  now = now_ns;
+  st.derivations = st.strata_run = st.strata_recomputed = 0;
+  for (const node::Triple& t : inserted) base_change(t, true);
+  for (const node::Triple& t : removed) base_change(t, false);
+  for (std::size_t s = 0; s < program->strata.size(); ++s) run_stratum(s);
+  first = false;
+  return finish();
+}
+
+// --- public -----------------------------------------------------------------------------------
+
+Engine::Engine(std::shared_ptr<const Program> program) : impl_(std::make_unique<Impl>(std::move(program))) {}
+Engine::Engine(Engine&&) noexcept = default;
+Engine& Engine::operator=(Engine&&) noexcept = default;
+Engine::~Engine() = default;
+
+Engine::Update Engine::apply(std::span<const node::Triple> inserted, std::span<const node::Triple> removed,
+                             std::int64_t now_ns) {
+  return impl_->apply(inserted, removed, now_ns);
+}
+
+Engine::Update Engine::reload(std::shared_ptr<const Program> program, std::int64_t now_ns) {
+  std::vector<Atom> before = conclusions();
+  std::vector<node::Triple> base;
+  for (const Relation& R : impl_->rels) {
+    if (!R.pred_iri) continue;
+    for (std::uint32_t r = 0; r < R.size(); ++r) {
+      for (std::uint32_t n = 0; n < R.base[r]; ++n)
+        base.push_back({impl_->dict.term(R.row(r)[0]), impl_->dict.term(R.pred_iri), impl_->dict.term(R.row(r)[1])});
+    }
+  }
+  auto fresh = std::make_unique<Impl>(std::move(program));
+  fresh->apply(base, {}, now_ns);
+  impl_ = std::move(fresh);
+  std::vector<Atom> after = conclusions();
+  Update u;
+  std::set_difference(after.begin(), after.end(), before.begin(), before.end(), std::back_inserter(u.added));
+  std::set_difference(before.begin(), before.end(), after.begin(), after.end(), std::back_inserter(u.removed));
+  return u;
+}
+
+std::vector<Atom> Engine::conclusions() const {
+  std::vector<Atom> out;
+  for (const Relation& R : impl_->rels) {
+    if (R.pred < 0 || impl_->program->preds[R.pred].internal) continue;
+    for (std::uint32_t r = 0; r < R.size(); ++r) if (R.derived[r]) out.push_back(impl_->atom_of(R, r));
+  }
+  std::sort(out.begin(), out.end());
+  return out;
+}
+
+bool Engine::relevant(std::string_view predicate_iri) const { return impl_->relevant(predicate_iri); }
+
+EngineStats Engine::stats() const {
+  EngineStats s = impl_->st;
+  s.base_facts = s.conclusions = 0;
+  for (const Relation& R : impl_->rels) {
+    for (std::uint32_t r = 0; r < R.size(); ++r) {
+      s.base_facts += R.base[r] > 0;
+      s.conclusions += R.derived[r] && R.pred >= 0 && !impl_->program->preds[R.pred].internal;
+    }
+  }
+  return s;
+}
+
+}  // namespace tahvel::reasoner

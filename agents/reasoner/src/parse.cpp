@@ -1,0 +1,664 @@
+// The rule file parser: a hand-written lexer and recursive-descent parser for the thesis'
+// Prolog-like rules (a small grammar, no RDF inside, so no serd). Produces rules as written;
+// compile.cpp rewrites ranking and demand and checks safety. Every error names file:line:col.
+#include <cctype>
+#include <charconv>
+#include <map>
+#include <optional>
+
+#include "program.h"
+
+namespace tahvel::reasoner {
+
+std::string where(const Program& program, Pos pos) {
+  return program.file + ":" + std::to_string(pos.line) + ":" + std::to_string(pos.col);
+}
+
+namespace {
+
+enum class Tok { var, name, iri, literal, punct, end };
+
+struct Token {
+  Tok kind = Tok::end;
+  std::string text;   // var/name: the identifier; iri: the IRI; punct: the symbol
+  node::Term term;    // literal
+  Pos pos;
+};
+
+bool is_name_char(char c) { return std::isalnum(static_cast<unsigned char>(c)) || c == '_'; }
+bool is_local_char(char c) { return is_name_char(c) || c == '-' || c == '.'; }
+
+class Lexer {
+ public:
+  Lexer(std::string_view text, const ParseOptions& options, uri::PrefixMap& prefixes)
+      : text_(text), options_(options), prefixes_(prefixes) {}
+
+  Result<Token> next();
+  Pos pos() const { return {line_, col_}; }
+  struct State { std::size_t i; int line, col; };
+  State state() const { return {i_, line_, col_}; }
+  void restore(State s) { i_ = s.i; line_ = s.line; col_ = s.col; }
+  // Turtle's "p:" of @prefix (directly after the keyword).
+  Result<std::string> prefix_name() {
+    if (auto s = skip_space(); !s) return unexpected(s.error());
+    Pos start = pos();
+    std::string name;
+    while (is_name_char(at())) { name += at(); advance(); }
+    if (at() != ':') return error(start, "expected a prefix name followed by ':' after @prefix");
+    advance();
+    return name;
+  }
+
+ private:
+  char at(std::size_t k = 0) const { return i_ + k < text_.size() ? text_[i_ + k] : '\0'; }
+  void advance(std::size_t n = 1) {
+    for (; n > 0 && i_ < text_.size(); --n, ++i_) {
+      if (text_[i_] == '\n') { ++line_; col_ = 1; } else { ++col_; }
+    }
+  }
+  Unexpected<Error> error(Pos pos, const std::string& what) const {
+    return unexpected(Error{options_.file + ":" + std::to_string(pos.line) + ":" +
+                            std::to_string(pos.col) + ": " + what});
+  }
+  Result<void> skip_space();
+  Result<Token> identifier(Pos start);
+  Result<Token> iri_ref(Pos start);
+  Result<Token> number(Pos start);
+  Result<Token> string_literal(Pos start, char quote);
+  Result<std::string> curie(Pos start, std::string prefix);
+
+  std::string_view text_;
+  const ParseOptions& options_;
+  uri::PrefixMap& prefixes_;
+  std::size_t i_ = 0;
+  int line_ = 1, col_ = 1;
+};
+
+Result<void> Lexer::skip_space() {
+  for (;;) {
+    char c = at();
+    if (c == '%') {
+      while (at() && at() != '\n') advance();
+    } else if (c == '/' && at(1) == '*') {
+      Pos start = pos();
+      advance(2);
+      while (at() && !(at() == '*' && at(1) == '/')) advance();
+      if (!at()) return error(start, "comment not closed (missing */)");
+      advance(2);
+    } else if (std::isspace(static_cast<unsigned char>(c))) {
+      advance();
+    } else {
+      return {};
+    }
+  }
+}
+
+Result<std::string> Lexer::curie(Pos start, std::string prefix) {
+  advance();  // ':'
+  std::string local;
+  while (is_local_char(at())) { local += at(); advance(); }
+  while (!local.empty() && local.back() == '.') {  // the clause's full stop, not the name's
+    local.pop_back();
+    --i_;
+    --col_;
+  }
+  auto iri = prefixes_.expand(prefix + ":" + local);
+  if (!iri) return error(start, "CURIE " + prefix + ":" + local + ": " + iri.error().message);
+  return *iri;
+}
+
+Result<Token> Lexer::identifier(Pos start) {
+  std::string id;
+  while (is_name_char(at())) { id += at(); advance(); }
+  if (at() == ':' && (is_name_char(at(1)))) {
+    auto iri = curie(start, id);
+    if (!iri) return unexpected(iri.error());
+    return Token{Tok::iri, *iri, {}, start};
+  }
+  bool var = std::isupper(static_cast<unsigned char>(id[0])) || id[0] == '_';
+  return Token{var ? Tok::var : Tok::name, id, {}, start};
+}
+
+Result<Token> Lexer::iri_ref(Pos start) {
+  advance();  // '<'
+  std::string iri;
+  while (at() && at() != '>') { iri += at(); advance(); }
+  advance();
+  auto normal = uri::normalize(iri);
+  if (!normal) return error(start, "IRI <" + iri + ">: " + normal.error().message);
+  return Token{Tok::iri, *normal, {}, start};
+}
+
+Result<Token> Lexer::number(Pos start) {
+  std::string digits;
+  bool decimal = false, exponent = false;
+  while (std::isdigit(static_cast<unsigned char>(at()))) { digits += at(); advance(); }
+  if (at() == '.' && std::isdigit(static_cast<unsigned char>(at(1)))) {
+    decimal = true;
+    digits += at(); advance();
+    while (std::isdigit(static_cast<unsigned char>(at()))) { digits += at(); advance(); }
+  }
+  if ((at() == 'e' || at() == 'E') &&
+      (std::isdigit(static_cast<unsigned char>(at(1))) ||
+       ((at(1) == '-' || at(1) == '+') && std::isdigit(static_cast<unsigned char>(at(2)))))) {
+    exponent = true;
+    digits += at(); advance();
+    if (at() == '-' || at() == '+') { digits += at(); advance(); }
+    while (std::isdigit(static_cast<unsigned char>(at()))) { digits += at(); advance(); }
+  }
+  std::string_view dt = exponent ? node::xsd::kDouble : decimal ? node::xsd::kDecimal
+                                                                 : node::xsd::kInteger;
+  if (!exponent && !decimal) {  // canonical integer: no leading zeros
+    std::size_t z = 0;
+    while (z + 1 < digits.size() && digits[z] == '0') ++z;
+    digits.erase(0, z);
+  }
+  return Token{Tok::literal, {}, node::Term::literal(digits, std::string(dt)), start};
+}
+
+Result<Token> Lexer::string_literal(Pos start, char quote) {
+  advance();
+  std::string value;
+  for (;;) {
+    char c = at();
+    if (!c || c == '\n') return error(start, "string not closed (missing " + std::string(1, quote) + ")");
+    advance();
+    if (c == quote) break;
+    if (c == '\\') {
+      char e = at();
+      advance();
+      switch (e) {
+        case 'n': value += '\n'; break;
+        case 't': value += '\t'; break;
+        case 'r': value += '\r'; break;
+        case '\\': case '"': case '\'': value += e; break;
+        default: return error(pos(), std::string("unknown escape \\") + e + " in a string");
+      }
+    } else {
+      value += c;
+    }
+  }
+  node::Term term = node::Term::literal(value);
+  if (at() == '^' && at(1) == '^') {
+    advance(2);
+    Pos dpos = pos();
+    auto dt = next();
+    if (!dt) return dt;
+    if (dt->kind != Tok::iri) return error(dpos, "expected a datatype IRI after ^^");
+    term.datatype = dt->text;
+    if (term.datatype == node::xsd::kString) term.datatype.clear();
+  } else if (at() == '@') {
+    advance();
+    std::string lang;
+    while (is_name_char(at()) || at() == '-') { lang += static_cast<char>(std::tolower(at())); advance(); }
+    if (lang.empty()) return error(pos(), "expected a language tag after @");
+    term = node::Term::lang_literal(value, lang);
+  }
+  return Token{Tok::literal, {}, std::move(term), start};
+}
+
+Result<Token> Lexer::next() {
+  if (auto s = skip_space(); !s) return unexpected(s.error());
+  Pos start = pos();
+  char c = at();
+  if (!c) return Token{Tok::end, {}, {}, start};
+  if (is_name_char(c) && !std::isdigit(static_cast<unsigned char>(c))) return identifier(start);
+  if (std::isdigit(static_cast<unsigned char>(c))) return number(start);
+  if (c == '"' || c == '\'') return string_literal(start, c);
+  if (c == '<') {
+    // An IRI reference when a scheme-like run without spaces reaches '>'; else "less than".
+    std::size_t k = 1;
+    bool colon = false;
+    while (at(k) && at(k) != '>' && !std::isspace(static_cast<unsigned char>(at(k))) && at(k) != '<') {
+      colon |= at(k) == ':';
+      ++k;
+    }
+    if (at(k) == '>' && colon && std::isalpha(static_cast<unsigned char>(at(1)))) return iri_ref(start);
+  }
+  if (c == '#' && is_name_char(at(1))) {
+    advance();
+    std::string local;
+    while (is_name_char(at()) || at() == '-') { local += at(); advance(); }
+    return Token{Tok::iri, options_.default_ns + local, {}, start};
+  }
+  if (c == ':' && is_name_char(at(1))) {
+    auto iri = curie(start, "");
+    if (!iri) return unexpected(iri.error());
+    return Token{Tok::iri, *iri, {}, start};
+  }
+  if (c == '@' && std::isalpha(static_cast<unsigned char>(at(1)))) {
+    advance();
+    std::string kw = "@";
+    while (is_name_char(at())) { kw += at(); advance(); }
+    return Token{Tok::punct, kw, {}, start};
+  }
+  static const char* kSymbols[] = {"=:=", "=\\=", "\\==", ":-", "\\+", "=<", ">=", "\\=", "==",
+                                   "(", ")", ",", ".", "!", "=", "<", ">", "+", "-", "*", "/"};
+  for (const char* s : kSymbols) {
+    std::string_view sym(s);
+    if (text_.substr(i_, sym.size()) == sym) {
+      advance(sym.size());
+      return Token{Tok::punct, std::string(sym), {}, start};
+    }
+  }
+  return error(start, std::string("unexpected character '") + c + "'");
+}
+
+// ---------------------------------------------------------------------------------------------
+
+class Parser {
+ public:
+  Parser(std::string_view text, const ParseOptions& options, Program& program)
+      : options_(options), prefixes_(options.prefixes), lexer_(text, options, prefixes_),
+        program_(program) {}
+
+  Result<void> run();
+
+ private:
+  Result<void> advance() {
+    auto t = lexer_.next();
+    if (!t) return unexpected(t.error());
+    tok_ = std::move(*t);
+    return {};
+  }
+  bool is(std::string_view punct) const { return tok_.kind == Tok::punct && tok_.text == punct; }
+  Unexpected<Error> error(Pos pos, const std::string& what) const {
+    return unexpected(Error{where(program_, pos) + ": " + what});
+  }
+  Unexpected<Error> expected(const std::string& what) const {
+    std::string got = tok_.kind == Tok::end ? "end of file" : "'" + token_text() + "'";
+    return error(tok_.pos, "expected " + what + ", found " + got);
+  }
+  std::string token_text() const {
+    return tok_.kind == Tok::literal ? tok_.term.to_ntriples() : tok_.text;
+  }
+  Result<void> expect(std::string_view punct, const std::string& what) {
+    if (!is(punct)) return expected(what);
+    return advance();
+  }
+
+  Result<void> directive();
+  Result<void> clause();
+  Result<std::vector<Literal>> body();
+  Result<Literal> literal();
+  Result<Literal> callable(bool negated);
+  Result<Expr> expression();
+  Result<Expr> product();
+  Result<Expr> unary();
+  Result<Arg> term(bool allow_now);
+  Arg constant(const node::Term& term);
+  Arg variable(const std::string& name);
+  std::uint32_t pred(const std::string& iri, std::uint32_t arity);
+  std::string name_iri(const std::string& name) const {
+    return name == "me" ? options_.me : options_.default_ns + name;
+  }
+
+  const ParseOptions& options_;
+  uri::PrefixMap prefixes_;
+  Lexer lexer_;
+  Program& program_;
+  Token tok_;
+  Rule* rule_ = nullptr;  // the clause being parsed
+  std::map<std::string, std::uint32_t> var_index_;
+  std::map<std::string, std::uint32_t> const_index_;
+  std::map<std::pair<std::string, std::uint32_t>, std::uint32_t> pred_index_;
+};
+
+Arg Parser::constant(const node::Term& term) {
+  std::string key = std::to_string(static_cast<int>(term.kind)) + term.to_ntriples();
+  auto [it, fresh] = const_index_.try_emplace(key, static_cast<std::uint32_t>(program_.constants.size()));
+  if (fresh) program_.constants.push_back(term);
+  return Arg{false, it->second};
+}
+
+Arg Parser::variable(const std::string& name) {
+  if (name != "_") {
+    auto it = var_index_.find(name);
+    if (it != var_index_.end()) return Arg{true, it->second};
+  }
+  std::uint32_t index = rule_->vars++;
+  rule_->var_names.push_back(name);
+  if (name != "_") var_index_[name] = index;
+  return Arg{true, index};
+}
+
+std::uint32_t Parser::pred(const std::string& iri, std::uint32_t arity) {
+  auto [it, fresh] = pred_index_.try_emplace({iri, arity}, static_cast<std::uint32_t>(program_.preds.size()));
+  if (fresh) program_.preds.push_back(Pred{iri, arity, false, false});
+  return it->second;
+}
+
+Result<Arg> Parser::term(bool allow_now) {
+  Token t = tok_;
+  if (t.kind == Tok::var) {
+    if (auto a = advance(); !a) return unexpected(a.error());
+    return variable(t.text);
+  }
+  if (t.kind == Tok::literal) {
+    if (auto a = advance(); !a) return unexpected(a.error());
+    return constant(t.term);
+  }
+  if (t.kind == Tok::iri || (t.kind == Tok::name && (allow_now || t.text != "now"))) {
+    if (auto a = advance(); !a) return unexpected(a.error());
+    if (is("(")) return error(t.pos, "a compound term such as " + t.text + "(...) cannot be an argument");
+    return constant(node::Term::iri(t.kind == Tok::iri ? t.text : name_iri(t.text)));
+  }
+  if (is("-")) {  // a negative number
+    if (auto a = advance(); !a) return unexpected(a.error());
+    if (tok_.kind != Tok::literal || tok_.term.datatype.empty() || tok_.term.datatype == node::xsd::kString ||
+        tok_.term.value.empty() || !std::isdigit(static_cast<unsigned char>(tok_.term.value[0])))
+      return expected("a number after '-'");
+    node::Term neg = tok_.term;
+    neg.value = "-" + neg.value;
+    if (neg.value == "-0") neg.value = "0";
+    if (auto a = advance(); !a) return unexpected(a.error());
+    return constant(neg);
+  }
+  return expected("a term (variable, IRI, atom, string or number)");
+}
+
+Result<Expr> Parser::unary() {
+  if (is("-")) {
+    if (auto a = advance(); !a) return unexpected(a.error());
+    auto inner = unary();
+    if (!inner) return inner;
+    Expr e;
+    e.kind = Expr::neg;
+    e.a = std::make_shared<Expr>(std::move(*inner));
+    return e;
+  }
+  if (is("(")) {
+    if (auto a = advance(); !a) return unexpected(a.error());
+    auto inner = expression();
+    if (!inner) return inner;
+    if (auto c = expect(")", "')' closing the expression"); !c) return unexpected(c.error());
+    return inner;
+  }
+  if (tok_.kind == Tok::name && tok_.text == "now") {
+    if (auto a = advance(); !a) return unexpected(a.error());
+    rule_->uses_now = true;
+    Expr e;
+    e.kind = Expr::now;
+    return e;
+  }
+  auto arg = term(false);
+  if (!arg) return unexpected(arg.error());
+  Expr e;
+  e.leaf = *arg;
+  return e;
+}
+
+Result<Expr> Parser::product() {
+  auto left = unary();
+  if (!left) return left;
+  while (is("*") || is("/")) {
+    Expr e;
+    e.kind = is("*") ? Expr::mul : Expr::div;
+    if (auto a = advance(); !a) return unexpected(a.error());
+    auto right = unary();
+    if (!right) return right;
+    e.a = std::make_shared<Expr>(std::move(*left));
+    e.b = std::make_shared<Expr>(std::move(*right));
+    left = std::move(e);
+  }
+  return left;
+}
+
+Result<Expr> Parser::expression() {
+  auto left = product();
+  if (!left) return left;
+  while (is("+") || is("-")) {
+    Expr e;
+    e.kind = is("+") ? Expr::add : Expr::sub;
+    if (auto a = advance(); !a) return unexpected(a.error());
+    auto right = product();
+    if (!right) return right;
+    e.a = std::make_shared<Expr>(std::move(*left));
+    e.b = std::make_shared<Expr>(std::move(*right));
+    left = std::move(e);
+  }
+  return left;
+}
+
+// An atom: name, name(args), fact(S, P, O) and the built-ins now/1, lesstime/2, not/1.
+Result<Literal> Parser::callable(bool negated) {
+  Token head = tok_;
+  if (head.kind != Tok::name && head.kind != Tok::iri) return expected("a predicate");
+  if (auto a = advance(); !a) return unexpected(a.error());
+  Literal lit;
+  lit.pos = head.pos;
+  lit.kind = negated ? Literal::negation : Literal::atom;
+  if (head.kind == Tok::name && head.text == "not" && is("(")) {
+    if (negated) return error(head.pos, "not(...) inside a negation");
+    if (auto a = advance(); !a) return unexpected(a.error());
+    auto inner = callable(true);
+    if (!inner) return inner;
+    if (auto c = expect(")", "')' closing not("); !c) return unexpected(c.error());
+    return inner;
+  }
+  std::vector<Arg> args;
+  if (is("(")) {
+    if (auto a = advance(); !a) return unexpected(a.error());
+    for (;;) {
+      auto arg = term(false);
+      if (!arg) return unexpected(arg.error());
+      args.push_back(*arg);
+      if (is(")")) break;
+      if (auto c = expect(",", "',' or ')' in the arguments of " + head.text); !c) return unexpected(c.error());
+    }
+    if (auto a = advance(); !a) return unexpected(a.error());
+  }
+  if (args.size() > 15) return error(head.pos, head.text + ": at most 15 arguments");
+  if (head.kind == Tok::name && !negated) {
+    if (head.text == "now" && args.size() == 1) {
+      rule_->uses_now = true;
+      lit.kind = Literal::assign;
+      lit.lhs.leaf = args[0];
+      lit.rhs.kind = Expr::now;
+      return lit;
+    }
+    if (head.text == "skolem" && args.size() >= 2) {
+      lit.kind = Literal::skolem;
+      lit.args = std::move(args);
+      return lit;
+    }
+    if (head.text == "lesstime" && args.size() == 2) {
+      lit.kind = Literal::compare;
+      lit.op = Literal::lt;
+      lit.lhs.leaf = args[0];
+      lit.rhs.leaf = args[1];
+      return lit;
+    }
+  }
+  if (head.kind == Tok::name && head.text == "fact" && args.size() == 3) {
+    const Arg& p = args[1];
+    if (p.is_var) {
+      lit.pred = kAnyBinary;
+      lit.args = args;
+      return lit;
+    }
+    const node::Term& pt = program_.constants[p.index];
+    if (!pt.is_iri()) return error(head.pos, "the predicate of fact(S, P, O) must be an IRI, not " + pt.to_ntriples());
+    lit.pred = pred(pt.value, 2);
+    lit.args = {args[0], args[2]};
+    return lit;
+  }
+  std::string iri = head.kind == Tok::iri ? head.text : options_.default_ns + head.text;
+  lit.pred = pred(iri, static_cast<std::uint32_t>(args.size()));
+  lit.args = std::move(args);
+  return lit;
+}
+
+Result<Literal> Parser::literal() {
+  Pos start = tok_.pos;
+  if (is("!")) {
+    if (auto a = advance(); !a) return unexpected(a.error());
+    Literal cut;
+    cut.kind = Literal::cut;
+    cut.pos = start;
+    return cut;
+  }
+  if (is("\\+")) {
+    if (auto a = advance(); !a) return unexpected(a.error());
+    bool paren = is("(");
+    if (paren) { if (auto a = advance(); !a) return unexpected(a.error()); }
+    auto inner = callable(true);
+    if (!inner) return inner;
+    if (paren) { if (auto c = expect(")", "')' after the negated atom"); !c) return unexpected(c.error()); }
+    return inner;
+  }
+  // A name starts an atom unless an operator follows it (then it is a constant in a term).
+  bool name_like = tok_.kind == Tok::name || tok_.kind == Tok::iri;
+  if (name_like) {
+    auto saved = lexer_.state();
+    auto peek = lexer_.next();
+    lexer_.restore(saved);
+    if (!peek) return unexpected(peek.error());
+    static const char* kOps[] = {"<", ">", "=<", ">=", "=:=", "=\\=", "=", "\\=", "==", "\\==", "+", "-", "*", "/"};
+    bool op_follows = peek->kind == Tok::name && peek->text == "is";
+    for (const char* op : kOps) op_follows |= peek->kind == Tok::punct && peek->text == op;
+    if (!op_follows) return callable(false);
+  }
+  auto left = expression();
+  if (!left) return unexpected(left.error());
+  Literal lit;
+  lit.pos = start;
+  lit.lhs = std::move(*left);
+  struct OpName { const char* text; Literal::Kind kind; Literal::Op op; };
+  static const OpName kOps[] = {
+      {"<", Literal::compare, Literal::lt},   {">", Literal::compare, Literal::gt},
+      {"=<", Literal::compare, Literal::le},  {">=", Literal::compare, Literal::ge},
+      {"=:=", Literal::compare, Literal::eq}, {"=\\=", Literal::compare, Literal::ne},
+      {"=", Literal::unify, Literal::eq},     {"\\=", Literal::not_unify, Literal::ne},
+      {"==", Literal::identical, Literal::eq}, {"\\==", Literal::not_unify, Literal::ne}};
+  const OpName* found = nullptr;
+  for (const OpName& op : kOps) if (is(op.text)) found = &op;
+  if (tok_.kind == Tok::name && tok_.text == "is") {
+    if (lit.lhs.kind != Expr::arg) return error(start, "the left side of 'is' must be a variable or constant");
+    lit.kind = Literal::assign;
+  } else if (found) {
+    lit.kind = found->kind;
+    lit.op = found->op;
+  } else {
+    return expected("a comparison operator (< > =< >= =:= =\\= = \\= == \\==) or 'is'");
+  }
+  if (auto a = advance(); !a) return unexpected(a.error());
+  auto right = expression();
+  if (!right) return unexpected(right.error());
+  lit.rhs = std::move(*right);
+  bool terms_only = lit.kind == Literal::unify || lit.kind == Literal::not_unify || lit.kind == Literal::identical;
+  if (terms_only && (lit.lhs.kind != Expr::arg || lit.rhs.kind != Expr::arg))
+    return error(start, "=, \\=, == and \\== compare terms; use 'is' or =:= for arithmetic");
+  return lit;
+}
+
+Result<std::vector<Literal>> Parser::body() {
+  std::vector<Literal> out;
+  for (;;) {
+    auto lit = literal();
+    if (!lit) return unexpected(lit.error());
+    out.push_back(std::move(*lit));
+    if (!is(",")) return out;
+    if (auto a = advance(); !a) return unexpected(a.error());
+  }
+}
+
+Result<void> Parser::clause() {
+  program_.rules.emplace_back();
+  rule_ = &program_.rules.back();
+  rule_->pos = tok_.pos;
+  var_index_.clear();
+  Token head = tok_;
+  auto h = callable(false);
+  if (!h) return unexpected(h.error());
+  if (h->kind != Literal::atom) return error(head.pos, "a built-in cannot be a conclusion");
+  if (h->pred == kAnyBinary) return error(head.pos, "the predicate of a conclusion must be a constant, not a variable");
+  rule_->head = h->pred;
+  rule_->head_args = h->args;
+  if (is(":-")) {
+    if (auto a = advance(); !a) return unexpected(a.error());
+    auto b = body();
+    if (!b) return unexpected(b.error());
+    rule_ = &program_.rules.back();
+    rule_->body = std::move(*b);
+  }
+  ++program_.written_rules;
+  return expect(".", "',' or '.' after the literal");
+}
+
+// :- prefix(name, <iri>).   :- ranked(pred/N).
+Result<void> Parser::directive() {
+  Pos start = tok_.pos;
+  if (auto a = advance(); !a) return a;
+  if (tok_.kind != Tok::name) return expected("a directive (prefix or ranked)");
+  std::string which = tok_.text;
+  if (auto a = advance(); !a) return a;
+  if (auto c = expect("(", "'(' after " + which); !c) return c;
+  if (which == "prefix") {
+    if (tok_.kind != Tok::name && tok_.kind != Tok::var) return expected("a prefix name");
+    std::string name = tok_.text;
+    if (auto a = advance(); !a) return a;
+    if (auto c = expect(",", "',' after the prefix name"); !c) return c;
+    std::string ns;
+    if (tok_.kind == Tok::iri) ns = tok_.text;
+    else if (tok_.kind == Tok::literal) ns = tok_.term.value;
+    else return expected("the namespace IRI as <iri> or \"iri\"");
+    if (auto added = prefixes_.add(name, ns); !added)
+      return error(start, "prefix " + name + ": " + added.error().message);
+    if (auto a = advance(); !a) return a;
+  } else if (which == "ranked") {
+    Token name = tok_;
+    if (name.kind != Tok::name && name.kind != Tok::iri) return expected("a predicate name");
+    if (auto a = advance(); !a) return a;
+    if (auto c = expect("/", "'/' and the arity after the predicate"); !c) return c;
+    if (tok_.kind != Tok::literal || tok_.term.datatype != node::xsd::kInteger) return expected("the arity");
+    std::uint32_t arity = static_cast<std::uint32_t>(std::stoul(tok_.term.value));
+    std::string iri = name.kind == Tok::iri ? name.text : options_.default_ns + name.text;
+    program_.preds[pred(iri, arity)].ranked = true;
+    if (auto a = advance(); !a) return a;
+  } else {
+    return error(start, "unknown directive '" + which + "' (known: prefix, ranked)");
+  }
+  if (auto c = expect(")", "')' closing the directive"); !c) return c;
+  return expect(".", "'.' after the directive");
+}
+
+Result<void> Parser::run() {
+  if (auto a = advance(); !a) return a;
+  while (tok_.kind != Tok::end) {
+    Result<void> r;
+    if (is(":-")) {
+      r = directive();
+    } else if (is("@prefix")) {
+      // Turtle's form: @prefix p: <iri> .
+      Pos start = tok_.pos;
+      auto name = lexer_.prefix_name();
+      if (!name) return unexpected(name.error());
+      if (auto a = advance(); !a) return a;
+      if (tok_.kind != Tok::iri) return expected("the namespace <iri> of @prefix " + *name + ":");
+      if (auto added = prefixes_.add(*name, tok_.text); !added)
+        return error(start, "prefix " + *name + ": " + added.error().message);
+      if (auto a = advance(); !a) return a;
+      r = expect(".", "'.' after @prefix");
+    } else {
+      r = clause();
+    }
+    if (!r) return r;
+  }
+  return {};
+}
+
+}  // namespace
+
+Result<std::shared_ptr<Program>> parse_program(std::string_view text, const ParseOptions& options) {
+  auto program = std::make_shared<Program>();
+  program->file = options.file;
+  program->me = options.me;
+  if (!uri::normalize(options.default_ns)) return unexpected(Error{options.file + ": the default namespace '" + options.default_ns + "' is not an absolute IRI"});
+  if (!uri::normalize(options.me)) return unexpected(Error{options.file + ": the node IRI '" + options.me + "' (me) is not an absolute IRI"});
+  Parser parser(text, options, *program);
+  if (auto r = parser.run(); !r) return unexpected(r.error());
+  return program;
+}
+
+}  // namespace tahvel::reasoner

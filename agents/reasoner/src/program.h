@@ -1,0 +1,102 @@
+// The compiled form of a rule file, shared by the parser (parse.cpp), the compiler
+// (compile.cpp) and the evaluator (engine.cpp). Private to the reasoner.
+#pragma once
+
+#include <cstdint>
+#include <memory>
+#include <string>
+#include <vector>
+
+#include "tahvel/agents/rules.h"
+
+namespace tahvel::reasoner {
+
+struct Pos {
+  int line = 0, col = 0;
+};
+
+// A rule argument: a variable (index into the rule's variables) or a constant (index into
+// Program::constants).
+struct Arg {
+  bool is_var = false;
+  std::uint32_t index = 0;
+  friend bool operator==(const Arg&, const Arg&) = default;
+};
+
+// An arithmetic expression over arguments and `now`.
+struct Expr {
+  enum Kind { arg, now, add, sub, mul, div, neg } kind = arg;
+  Arg leaf;
+  std::shared_ptr<Expr> a, b;
+};
+
+// Predicate index kAnyBinary: fact(S, P, O) with a variable P (args = S, P, O).
+inline constexpr std::uint32_t kAnyBinary = 0xffffffffu;
+
+struct Literal {
+  enum Kind {
+    atom,      // pred(args)
+    negation,  // \+ pred(args)
+    compare,   // lhs op rhs on values
+    assign,    // lhs is rhs (lhs an argument)
+    unify,     // lhs = rhs (terms)
+    not_unify, // lhs \= rhs, lhs \== rhs
+    identical, // lhs == rhs
+    skolem,    // skolem(L, A1, ..., An): L = the IRI minted from A1..An (args)
+    cut,       // ! (only before compilation)
+  } kind = atom;
+  std::uint32_t pred = 0;  // atom, negation: index into Program::preds or kAnyBinary
+  std::vector<Arg> args;
+  enum Op { lt, gt, le, ge, eq, ne } op = lt;
+  Expr lhs, rhs;
+  Pos pos;
+};
+
+struct Pred {
+  std::string iri;       // user predicates: the IRI; internal ones: a descriptive name
+  std::uint32_t arity = 0;
+  bool internal = false;  // demand and ranking helpers: never stored, never reported
+  bool ranked = false;    // declared with :- ranked(p/N).
+};
+
+struct Rule {
+  std::uint32_t head = 0;      // index into preds
+  std::vector<Arg> head_args;
+  std::vector<Literal> body;   // as written (after rewriting), evaluation order in plans
+  std::uint32_t vars = 0;      // number of variables
+  std::vector<std::string> var_names;
+  bool uses_now = false;
+  Pos pos;
+  // Evaluation orders: plans[0] the full body (naive round); plans[1 + k] starts with the k-th
+  // positive atom of the body (the delta literal of a semi-naive round), kth_atom[k] its index.
+  std::vector<std::vector<std::uint32_t>> plans;
+  std::vector<std::uint32_t> kth_atom;
+};
+
+struct Stratum {
+  std::vector<std::uint32_t> preds;  // defined here
+  std::vector<std::uint32_t> rules;
+  bool volatile_ = false;            // some rule uses now: recomputed every session
+};
+
+class Program {
+ public:
+  std::string file;
+  std::string me;
+  std::vector<node::Term> constants;
+  std::vector<Pred> preds;
+  std::vector<Rule> rules;
+  std::vector<Stratum> strata;  // in evaluation order
+  std::vector<std::uint32_t> read_binary;  // binary predicates some rule reads
+  bool reads_any_binary = false;           // some rule reads fact(S, P, O) with a variable P
+  std::size_t written_rules = 0;
+};
+
+// parse.cpp: text to rules as written (cuts kept, no plans).
+Result<std::shared_ptr<Program>> parse_program(std::string_view text, const ParseOptions& options);
+// compile.cpp: ranking and demand rewriting, safety, strata, plans.
+Result<void> compile_program(Program& program);
+
+std::string where(const Program& program, Pos pos);
+
+}  // namespace tahvel::reasoner

@@ -1,0 +1,316 @@
+// The reasoner agent over a node (reasoner.h). A session: snapshot; the records after the last
+// session's sequence number (from the snapshot itself, so a session never sees half an item)
+// and the logged removals up to the snapshot's sequence number (Node::watch); a check that
+// every sequence number in between is accounted for, else a resync; Engine::apply; one item of
+// new conclusions; one removal per retracted conclusion.
+#include "tahvel/agents/reasoner.h"
+
+#include <algorithm>
+#include <chrono>
+#include <map>
+#include <set>
+#include <thread>
+
+#include "tahvel/node/node.h"
+
+namespace tahvel::reasoner {
+
+namespace {
+
+using Clock = std::chrono::steady_clock;
+
+double ms_since(Clock::time_point t) {
+  return std::chrono::duration<double, std::milli>(Clock::now() - t).count();
+}
+
+std::int64_t wall_ns() {
+  return std::chrono::duration_cast<std::chrono::nanoseconds>(
+             std::chrono::system_clock::now().time_since_epoch()).count();
+}
+
+std::string key_of(const node::Triple& t) {
+  return t.s.to_ntriples() + " " + t.p.to_ntriples() + " " + t.o.to_ntriples();
+}
+
+std::optional<std::filesystem::file_time_type> mtime(const std::filesystem::path& p) {
+  std::error_code ec;
+  auto t = std::filesystem::last_write_time(p, ec);
+  if (ec) return std::nullopt;
+  return t;
+}
+
+// Net effect of two updates in sequence.
+void compose(Engine::Update& first, const Engine::Update& second) {
+  std::set<Atom> added(first.added.begin(), first.added.end());
+  std::set<Atom> removed(first.removed.begin(), first.removed.end());
+  for (const Atom& a : second.added) { if (!removed.erase(a)) added.insert(a); }
+  for (const Atom& a : second.removed) { if (!added.erase(a)) removed.insert(a); }
+  first.added.assign(added.begin(), added.end());
+  first.removed.assign(removed.begin(), removed.end());
+}
+
+Error node_error(const node::Error& e) { return Error{e.message}; }
+
+}  // namespace
+
+struct Reasoner::Impl {
+  node::Node node;
+  node::Agent agent;
+  ReasonerOptions options;
+  ParseOptions parse;
+  std::shared_ptr<const Program> program;
+  std::optional<std::filesystem::file_time_type> rules_mtime;
+  Engine engine;
+  bool started = false;
+  std::uint64_t bookmark = 0;  // last seq of the previous session's snapshot
+  std::uint64_t reclaimed = 0;
+
+  Impl(node::Node n, node::Agent a, ReasonerOptions o, ParseOptions p, std::shared_ptr<const Program> prog)
+      : node(std::move(n)), agent(std::move(a)), options(std::move(o)), parse(std::move(p)),
+        program(prog), rules_mtime(mtime(options.rules)), engine(prog) {}
+
+  std::string genid(const node::Term& t) const {
+    return node.iri() + "/.well-known/genid/" + t.value;
+  }
+  std::vector<node::Triple> stored(const Atom& atom) const {
+    Atom a = atom;
+    for (node::Term& t : a.args) if (t.is_blank()) t = node::Term::iri(genid(t));
+    return store_form(a, agent.iri() + "/c/");
+  }
+  bool own(const node::Record& r) const { return r.meta.source == agent.iri(); }
+
+  void maybe_reload(SessionReport& report, Engine::Update& update, std::int64_t now);
+  Result<void> read_changes(const node::Snapshot& snap, std::vector<node::Triple>& in,
+                            std::vector<node::Triple>& out, bool& gap);
+  Result<Engine::Update> first_session(const node::Snapshot& snap, std::int64_t now, SessionReport& report,
+                                       std::vector<node::Triple>& extra_removals);
+  Result<Engine::Update> resync(const node::Snapshot& snap, std::int64_t now, SessionReport& report);
+  Result<void> write(const Engine::Update& update, const std::vector<node::Triple>& extra_removals, std::int64_t now);
+  Result<SessionReport> session();
+};
+
+void Reasoner::Impl::maybe_reload(SessionReport& report, Engine::Update& update, std::int64_t now) {
+  auto m = mtime(options.rules);
+  if (m == rules_mtime) return;
+  rules_mtime = m;
+  auto loaded = load_rules(options.rules, parse);
+  if (!loaded) {
+    report.rules_error = loaded.error().message;
+    return;
+  }
+  program = *loaded;
+  compose(update, engine.reload(program, now));
+  report.rules_reloaded = true;
+}
+
+// Insertions after the bookmark from the snapshot; removals up to its last seq from the log.
+// `gap`: some sequence number in (bookmark, last] is neither a record nor a logged removal.
+Result<void> Reasoner::Impl::read_changes(const node::Snapshot& snap, std::vector<node::Triple>& in,
+                                          std::vector<node::Triple>& out, bool& gap) {
+  const std::uint64_t last = snap.last_seq();
+  std::uint64_t present = 0, removals = 0, removed_new = 0;
+  node::Pattern after;
+  after.after_id = bookmark;
+  auto walked = snap.for_each(after, [&](const node::Record& r) {
+    ++present;
+    if (!own(r) && r.triple.p.is_iri() && engine.relevant(r.triple.p.value)) in.push_back(r.triple);
+    return true;
+  });
+  if (!walked) return unexpected(node_error(walked.error()));
+  if (last > bookmark + present) {  // something was removed: read the log
+    auto changes = node.watch(bookmark, std::chrono::milliseconds(0));
+    if (!changes) return unexpected(node_error(changes.error()));
+    for (const node::Change& c : *changes) {
+      if (!c.removed || c.seq > last) continue;
+      ++removals;
+      if (c.record.meta.id > bookmark) { ++removed_new; continue; }  // never seen
+      if (!own(c.record)) out.push_back(c.record.triple);
+    }
+  }
+  gap = last - bookmark != present + removals + removed_new;
+  return {};
+}
+
+Result<Engine::Update> Reasoner::Impl::first_session(const node::Snapshot& snap, std::int64_t now,
+                                                     SessionReport& report,
+                                                     std::vector<node::Triple>& extra_removals) {
+  std::vector<node::Triple> base;
+  std::map<std::string, node::Triple> mine;
+  auto walked = snap.for_each({}, [&](const node::Record& r) {
+    if (own(r)) mine.emplace(key_of(r.triple), r.triple);
+    else if (r.triple.p.is_iri() && engine.relevant(r.triple.p.value)) base.push_back(r.triple);
+    return true;
+  });
+  if (!walked) return unexpected(node_error(walked.error()));
+  report.facts_in = base.size();
+  Engine::Update u = engine.apply(base, {}, now);
+  // What is on the board from an earlier run stays; only the difference is written or removed.
+  std::vector<Atom> fresh;
+  for (const Atom& a : u.added) {
+    bool all_there = true;
+    for (const node::Triple& t : stored(a)) all_there &= mine.erase(key_of(t)) > 0;
+    if (!all_there) fresh.push_back(a);
+  }
+  u.added = std::move(fresh);
+  for (auto& [k, t] : mine) extra_removals.push_back(t);
+  return u;
+}
+
+Result<Engine::Update> Reasoner::Impl::resync(const node::Snapshot& snap, std::int64_t now, SessionReport& report) {
+  std::vector<node::Triple> base;
+  auto walked = snap.for_each({}, [&](const node::Record& r) {
+    if (!own(r) && r.triple.p.is_iri() && engine.relevant(r.triple.p.value)) base.push_back(r.triple);
+    return true;
+  });
+  if (!walked) return unexpected(node_error(walked.error()));
+  report.resynced = true;
+  report.facts_in = base.size();
+  std::vector<Atom> before = engine.conclusions();
+  Engine fresh(program);
+  fresh.apply(base, {}, now);
+  engine = std::move(fresh);
+  std::vector<Atom> after = engine.conclusions();
+  Engine::Update u;
+  std::set_difference(after.begin(), after.end(), before.begin(), before.end(), std::back_inserter(u.added));
+  std::set_difference(before.begin(), before.end(), after.begin(), after.end(), std::back_inserter(u.removed));
+  return u;
+}
+
+Result<void> Reasoner::Impl::write(const Engine::Update& update, const std::vector<node::Triple>& extra_removals,
+                                   std::int64_t now) {
+  if (!update.added.empty()) {
+    node::Item item;
+    item.asserted_at = now;
+    item.persistent = options.persistent;
+    for (const Atom& a : update.added)
+      for (node::Triple& t : stored(a)) item.triples.push_back(std::move(t));
+    if (auto id = agent.store(item); !id) return unexpected(node_error(id.error()));
+  }
+  std::vector<node::Triple> gone = extra_removals;
+  for (const Atom& a : update.removed) {
+    auto form = stored(a);
+    gone.insert(gone.end(), form.begin(), form.end());
+  }
+  for (const node::Triple& t : gone) {
+    node::Pattern p;
+    p.s = t.s;
+    p.p = t.p;
+    p.o = t.o;
+    p.source = agent.iri();
+    if (auto n = node.remove(p); !n) return unexpected(node_error(n.error()));
+  }
+  return {};
+}
+
+Result<SessionReport> Reasoner::Impl::session() {
+  const auto t0 = Clock::now();
+  SessionReport report;
+  const std::int64_t now = wall_ns();
+  Engine::Update update;
+  maybe_reload(report, update, now);
+  // Retention removes records without logging them: a change of the counter read before the
+  // snapshot means the mirror may hold reclaimed records.
+  auto stats = node.stats();
+  if (!stats) return unexpected(node_error(stats.error()));
+  auto snap = node.snapshot();
+  if (!snap) return unexpected(node_error(snap.error()));
+  report.seq = snap->last_seq();
+  report.time_ns = now;
+  std::vector<node::Triple> in, out, extra_removals;
+  bool gap = false;
+  const auto t1 = Clock::now();
+  if (!started) {
+    auto u = first_session(*snap, now, report, extra_removals);
+    if (!u) return unexpected(u.error());
+    compose(update, *u);
+    report.read_ms = ms_since(t1);
+  } else {
+    if (auto r = read_changes(*snap, in, out, gap); !r) return unexpected(r.error());
+    report.read_ms = ms_since(t1);
+    if (gap || stats->reclaimed_records != reclaimed) {
+      auto u = resync(*snap, now, report);
+      if (!u) return unexpected(u.error());
+      compose(update, *u);
+    } else {
+      report.facts_in = in.size();
+      report.facts_out = out.size();
+      compose(update, engine.apply(in, out, now));
+    }
+  }
+  report.derive_ms = ms_since(t1) - report.read_ms;
+  report.engine = engine.stats();
+  const auto t2 = Clock::now();
+  if (auto w = write(update, extra_removals, now); !w) {
+    // The engine moved on but the board did not: the next session starts from scratch and
+    // writes the difference between the board and the rules.
+    started = false;
+    engine = Engine(program);
+    return unexpected(w.error());
+  }
+  report.write_ms = ms_since(t2);
+  started = true;
+  bookmark = report.seq;
+  reclaimed = stats->reclaimed_records;
+  report.added = std::move(update.added);
+  report.removed = std::move(update.removed);
+  report.total_ms = ms_since(t0);
+  return report;
+}
+
+Result<Reasoner> Reasoner::open(const std::filesystem::path& dir, ReasonerOptions options) {
+  auto node = node::Node::open(dir);
+  if (!node) return unexpected(node_error(node.error()));
+  auto agent = node->agent(options.agent_id);
+  if (!agent) return unexpected(node_error(agent.error()));
+  ParseOptions parse;
+  parse.me = node->iri();
+  parse.default_ns = options.default_ns.empty() ? node->iri() + "#" : options.default_ns;
+  parse.prefixes = node->prefixes();
+  auto program = load_rules(options.rules, parse);
+  if (!program) return unexpected(program.error());
+  return Reasoner(std::make_unique<Impl>(std::move(*node), std::move(*agent), std::move(options),
+                                         std::move(parse), std::move(*program)));
+}
+
+Reasoner::Reasoner(std::unique_ptr<Impl> impl) : impl_(std::move(impl)) {}
+Reasoner::Reasoner(Reasoner&&) noexcept = default;
+Reasoner& Reasoner::operator=(Reasoner&&) noexcept = default;
+Reasoner::~Reasoner() = default;
+
+const std::string& Reasoner::iri() const { return impl_->agent.iri(); }
+
+Result<SessionReport> Reasoner::session() { return impl_->session(); }
+
+Result<void> Reasoner::run(const std::function<bool(const SessionReport&)>& on_session,
+                           const std::function<bool()>& stop) {
+  auto report = session();
+  if (!report) return unexpected(report.error());
+  if (!on_session(*report)) return {};
+  std::uint64_t watched = report->seq;
+  auto last = Clock::now();
+  bool pending = false;
+  while (!stop()) {
+    auto wait = std::chrono::milliseconds(100);
+    if (pending) {
+      auto left = std::chrono::duration_cast<std::chrono::milliseconds>(impl_->options.interval - (Clock::now() - last));
+      wait = std::clamp(left, std::chrono::milliseconds(0), wait);
+    }
+    auto changes = impl_->node.watch(watched, wait, 4096);
+    if (!changes) return unexpected(node_error(changes.error()));
+    for (const node::Change& c : *changes) {
+      watched = std::max(watched, c.seq);
+      const node::Record& r = c.record;
+      if (!impl_->own(r) && r.triple.p.is_iri() && impl_->engine.relevant(r.triple.p.value)) pending = true;
+    }
+    if (mtime(impl_->options.rules) != impl_->rules_mtime) pending = true;
+    if (!pending || Clock::now() - last < impl_->options.interval) continue;
+    last = Clock::now();
+    pending = false;
+    auto next = session();
+    if (!next) return unexpected(next.error());
+    if (!on_session(*next)) return {};
+  }
+  return {};
+}
+
+}  // namespace tahvel::reasoner

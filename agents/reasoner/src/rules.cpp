@@ -1,0 +1,61 @@
+// Public entry points of the rule language (rules.h): parsing, atoms and their stored form.
+#include <fstream>
+#include <sstream>
+
+#include "program.h"
+
+namespace tahvel::reasoner {
+
+Result<std::shared_ptr<const Program>> parse_rules(std::string_view text, const ParseOptions& options) {
+  auto program = parse_program(text, options);
+  if (!program) return unexpected(program.error());
+  if (auto c = compile_program(**program); !c) return unexpected(c.error());
+  return std::shared_ptr<const Program>(std::move(*program));
+}
+
+Result<std::shared_ptr<const Program>> load_rules(const std::filesystem::path& path, ParseOptions options) {
+  std::ifstream in(path, std::ios::binary);
+  if (!in) return unexpected(Error{path.string() + ": cannot read the rule file"});
+  std::ostringstream text;
+  text << in.rdbuf();
+  if (in.bad()) return unexpected(Error{path.string() + ": error while reading the rule file"});
+  options.file = path.string();
+  return parse_rules(text.str(), options);
+}
+
+std::size_t rule_count(const Program& program) { return program.written_rules; }
+
+std::string Atom::to_string() const {
+  std::string out = "<" + predicate + ">(";
+  for (std::size_t i = 0; i < args.size(); ++i) out += (i ? ", " : "") + args[i].to_ntriples();
+  return out + ")";
+}
+
+bool operator<(const Atom& a, const Atom& b) {
+  if (a.predicate != b.predicate) return a.predicate < b.predicate;
+  std::size_t n = std::min(a.args.size(), b.args.size());
+  for (std::size_t i = 0; i < n; ++i) {
+    const node::Term& x = a.args[i];
+    const node::Term& y = b.args[i];
+    if (x == y) continue;
+    return std::tie(x.kind, x.value, x.datatype, x.language) < std::tie(y.kind, y.value, y.datatype, y.language);
+  }
+  return a.args.size() < b.args.size();
+}
+
+std::vector<node::Triple> store_form(const Atom& atom, std::string_view node_prefix) {
+  if (atom.args.size() == 2 && !atom.args[0].is_literal())
+    return {{atom.args[0], node::Term::iri(atom.predicate), atom.args[1]}};
+  std::uint64_t h = 1469598103934665603ull;  // FNV-1a 64 of the atom's text
+  for (unsigned char c : atom.to_string()) h = (h ^ c) * 1099511628211ull;
+  char hex[17];
+  std::snprintf(hex, sizeof hex, "%016llx", static_cast<unsigned long long>(h));
+  node::Term n = node::Term::iri(std::string(node_prefix) + hex);
+  std::vector<node::Triple> out{{n, node::Term::iri(std::string(node::kRdfType)), node::Term::iri(atom.predicate)}};
+  const std::string rdf = "http://www.w3.org/1999/02/22-rdf-syntax-ns#_";
+  for (std::size_t i = 0; i < atom.args.size(); ++i)
+    out.push_back({n, node::Term::iri(rdf + std::to_string(i + 1)), atom.args[i]});
+  return out;
+}
+
+}  // namespace tahvel::reasoner

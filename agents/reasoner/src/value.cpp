@@ -1,0 +1,214 @@
+// Values of the built-ins (value.h): parsing of numeric and dateTime literals, arithmetic and
+// comparison. Times are ns since the Unix epoch (int64, ±292 years); no leap seconds.
+#include "value.h"
+
+#include <charconv>
+#include <cmath>
+#include <cstdio>
+#include <string_view>
+
+namespace tahvel::reasoner {
+
+namespace {
+
+constexpr std::string_view kXsd = "http://www.w3.org/2001/XMLSchema#";
+
+bool is_integer_type(std::string_view local) {
+  static const std::string_view kTypes[] = {
+      "integer", "int", "long", "short", "byte", "nonNegativeInteger", "positiveInteger",
+      "negativeInteger", "nonPositiveInteger", "unsignedLong", "unsignedInt", "unsignedShort",
+      "unsignedByte"};
+  for (auto t : kTypes) if (t == local) return true;
+  return false;
+}
+
+// Days from 1970-01-01 to y-m-d (proleptic Gregorian; H. Hinnant's algorithm).
+std::int64_t days_from_civil(std::int64_t y, unsigned m, unsigned d) {
+  y -= m <= 2;
+  const std::int64_t era = (y >= 0 ? y : y - 399) / 400;
+  const unsigned yoe = static_cast<unsigned>(y - era * 400);
+  const unsigned doy = (153 * (m + (m > 2 ? -3 : 9)) + 2) / 5 + d - 1;
+  const unsigned doe = yoe * 365 + yoe / 4 - yoe / 100 + doy;
+  return era * 146097 + static_cast<std::int64_t>(doe) - 719468;
+}
+
+bool digits(std::string_view s, std::size_t at, std::size_t n, int& out) {
+  if (at + n > s.size()) return false;
+  out = 0;
+  for (std::size_t k = at; k < at + n; ++k) {
+    if (s[k] < '0' || s[k] > '9') return false;
+    out = out * 10 + (s[k] - '0');
+  }
+  return true;
+}
+
+std::optional<std::int64_t> parse_datetime(std::string_view s) {
+  int y, mo, d, h, mi, se;
+  if (!digits(s, 0, 4, y) || s.size() < 19 || s[4] != '-' || !digits(s, 5, 2, mo) || s[7] != '-' ||
+      !digits(s, 8, 2, d) || s[10] != 'T' || !digits(s, 11, 2, h) || s[13] != ':' ||
+      !digits(s, 14, 2, mi) || s[16] != ':' || !digits(s, 17, 2, se))
+    return std::nullopt;
+  if (mo < 1 || mo > 12 || d < 1 || d > 31 || h > 24 || mi > 59 || se > 60) return std::nullopt;
+  std::size_t k = 19;
+  std::int64_t frac = 0;
+  if (k < s.size() && s[k] == '.') {
+    std::int64_t scale = 100000000;
+    for (++k; k < s.size() && s[k] >= '0' && s[k] <= '9'; ++k) {
+      frac += (s[k] - '0') * scale;
+      scale /= 10;
+    }
+  }
+  std::int64_t offset = 0;
+  if (k < s.size()) {
+    if (s[k] == 'Z') {
+      ++k;
+    } else if (s[k] == '+' || s[k] == '-') {
+      int oh, om;
+      if (!digits(s, k + 1, 2, oh) || s.size() < k + 6 || s[k + 3] != ':' || !digits(s, k + 4, 2, om)) return std::nullopt;
+      offset = (oh * 3600 + om * 60) * (s[k] == '-' ? -1 : 1);
+      k += 6;
+    }
+  }
+  if (k != s.size()) return std::nullopt;
+  std::int64_t secs = days_from_civil(y, static_cast<unsigned>(mo), static_cast<unsigned>(d)) * 86400 +
+                      h * 3600 + mi * 60 + se - offset;
+  return secs * 1000000000 + frac;
+}
+
+Value integer(std::int64_t i) { return {Value::integer, i, 0}; }
+Value real(double d) { return std::isfinite(d) ? Value{Value::real, 0, d} : Value{}; }
+double as_double(const Value& v) { return v.kind == Value::integer ? static_cast<double>(v.i) : v.d; }
+bool is_number(const Value& v) { return v.kind == Value::integer || v.kind == Value::real; }
+
+// Seconds to ns.
+std::int64_t ns_of(const Value& seconds) {
+  return seconds.kind == Value::integer ? seconds.i * 1000000000
+                                        : static_cast<std::int64_t>(std::llround(seconds.d * 1e9));
+}
+
+Value numeric(ArithOp op, const Value& a, const Value& b) {
+  if (a.kind == Value::integer && b.kind == Value::integer) {
+    switch (op) {
+      case ArithOp::add: return integer(a.i + b.i);
+      case ArithOp::sub: return integer(a.i - b.i);
+      case ArithOp::mul: return integer(a.i * b.i);
+      case ArithOp::div:
+        if (b.i == 0) return {};
+        return a.i % b.i == 0 ? integer(a.i / b.i) : real(static_cast<double>(a.i) / static_cast<double>(b.i));
+      default: return {};
+    }
+  }
+  double x = as_double(a), y = as_double(b);
+  switch (op) {
+    case ArithOp::add: return real(x + y);
+    case ArithOp::sub: return real(x - y);
+    case ArithOp::mul: return real(x * y);
+    case ArithOp::div: return y == 0 ? Value{} : real(x / y);
+    default: return {};
+  }
+}
+
+}  // namespace
+
+Value value_of(const node::Term& term) {
+  if (!term.is_literal() || term.datatype.size() <= kXsd.size() ||
+      std::string_view(term.datatype).substr(0, kXsd.size()) != kXsd)
+    return {};
+  std::string_view local = std::string_view(term.datatype).substr(kXsd.size());
+  std::string_view lex = term.value;
+  if (is_integer_type(local)) {
+    if (!lex.empty() && lex[0] == '+') lex.remove_prefix(1);
+    std::int64_t i = 0;
+    auto [end, ec] = std::from_chars(lex.data(), lex.data() + lex.size(), i);
+    if (ec != std::errc() || end != lex.data() + lex.size()) return {};
+    return integer(i);
+  }
+  if (local == "decimal" || local == "double" || local == "float") {
+    if (lex == "INF") return real(INFINITY);
+    double d = 0;
+    if (!lex.empty() && lex[0] == '+') lex.remove_prefix(1);
+    auto [end, ec] = std::from_chars(lex.data(), lex.data() + lex.size(), d);
+    if (ec != std::errc() || end != lex.data() + lex.size()) return {};
+    return real(d);
+  }
+  if (local == "dateTime" || local == "dateTimeStamp") {
+    auto ns = parse_datetime(lex);
+    if (!ns) return {};
+    return {Value::time, *ns, 0};
+  }
+  return {};
+}
+
+Value arith(ArithOp op, const Value& a, const Value& b) {
+  if (op == ArithOp::neg) {
+    if (a.kind == Value::integer) return integer(-a.i);
+    if (a.kind == Value::real) return real(-a.d);
+    return {};
+  }
+  if (is_number(a) && is_number(b)) return numeric(op, a, b);
+  if (a.kind == Value::time && is_number(b) && (op == ArithOp::add || op == ArithOp::sub))
+    return {Value::time, op == ArithOp::add ? a.i + ns_of(b) : a.i - ns_of(b), 0};
+  if (is_number(a) && b.kind == Value::time && op == ArithOp::add) return {Value::time, b.i + ns_of(a), 0};
+  if (a.kind == Value::time && b.kind == Value::time && op == ArithOp::sub) {
+    std::int64_t ns = a.i - b.i;
+    return ns % 1000000000 == 0 ? integer(ns / 1000000000) : real(static_cast<double>(ns) / 1e9);
+  }
+  return {};
+}
+
+std::optional<int> compare_values(const Value& a, const Value& b) {
+  auto sign = [](auto x, auto y) { return x < y ? -1 : (y < x ? 1 : 0); };
+  if (a.kind == Value::integer && b.kind == Value::integer) return sign(a.i, b.i);
+  if (is_number(a) && is_number(b)) return sign(as_double(a), as_double(b));
+  if (a.kind == Value::time && b.kind == Value::time) return sign(a.i, b.i);
+  if (a.kind == Value::time && is_number(b)) return sign(static_cast<double>(a.i) / 1e9, as_double(b));
+  if (is_number(a) && b.kind == Value::time) return sign(as_double(a), static_cast<double>(b.i) / 1e9);
+  return std::nullopt;
+}
+
+std::string format_time(std::int64_t ns) {
+  std::int64_t secs = ns / 1000000000, frac = ns % 1000000000;
+  if (frac < 0) { frac += 1000000000; --secs; }
+  std::int64_t days = secs / 86400, rem = secs % 86400;
+  if (rem < 0) { rem += 86400; --days; }
+  // civil_from_days (H. Hinnant)
+  days += 719468;
+  const std::int64_t era = (days >= 0 ? days : days - 146096) / 146097;
+  const unsigned doe = static_cast<unsigned>(days - era * 146097);
+  const unsigned yoe = (doe - doe / 1460 + doe / 36524 - doe / 146096) / 365;
+  const unsigned doy = doe - (365 * yoe + yoe / 4 - yoe / 100);
+  const unsigned mp = (5 * doy + 2) / 153;
+  const unsigned d = doy - (153 * mp + 2) / 5 + 1;
+  const unsigned m = mp < 10 ? mp + 3 : mp - 9;
+  const std::int64_t y = static_cast<std::int64_t>(yoe) + era * 400 + (m <= 2);
+  char buf[64];
+  int n = std::snprintf(buf, sizeof buf, "%04lld-%02u-%02uT%02lld:%02lld:%02lld", static_cast<long long>(y), m, d,
+                        static_cast<long long>(rem / 3600), static_cast<long long>(rem / 60 % 60),
+                        static_cast<long long>(rem % 60));
+  std::string out(buf, static_cast<std::size_t>(n));
+  if (frac) {
+    char f[16];
+    std::snprintf(f, sizeof f, ".%09lld", static_cast<long long>(frac));
+    std::string fs(f);
+    while (fs.back() == '0') fs.pop_back();
+    out += fs;
+  }
+  return out + "Z";
+}
+
+node::Term term_of(const Value& v) {
+  switch (v.kind) {
+    case Value::integer: return node::Term::integer(v.i);
+    case Value::real: {
+      char buf[32];
+      auto [end, ec] = std::to_chars(buf, buf + sizeof buf, v.d);
+      std::string lex(buf, end);
+      if (lex.find_first_of(".eEn") == std::string::npos) lex += ".0";
+      return node::Term::literal(lex, std::string(node::xsd::kDouble));
+    }
+    case Value::time: return node::Term::literal(format_time(v.i), std::string(node::xsd::kDateTime));
+    default: return node::Term::literal("");
+  }
+}
+
+}  // namespace tahvel::reasoner
