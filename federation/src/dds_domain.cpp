@@ -1,8 +1,10 @@
 // Process-wide registry of the Cyclone DDS domains in use (see dds_domain.h).
 #include "dds_domain.h"
 
+#include <cstdio>
 #include <map>
 #include <mutex>
+#include <string_view>
 
 namespace tahvel::federation::dds_domain {
 namespace {
@@ -23,7 +25,68 @@ std::map<dds_domainid_t, Use>& registry() {
   return r;
 }
 
+struct Watch {
+  std::string topic;
+  std::function<void(std::string)> sink;
+};
+
+std::mutex& watches_mutex() {
+  static std::mutex m;
+  return m;
+}
+
+std::map<int, Watch>& watches() {
+  static std::map<int, Watch> w;
+  return w;
+}
+
+// The topic named in "... deserialization <topic>/<type> failed ...", or empty.
+std::string rejected_topic(std::string_view message) {
+  constexpr std::string_view kMark = "deserialization ";
+  const auto at = message.find(kMark);
+  if (at == std::string_view::npos || message.find(" failed", at) == std::string_view::npos) return {};
+  const auto begin = at + kMark.size();
+  const auto slash = message.find('/', begin);
+  if (slash == std::string_view::npos) return {};
+  return std::string(message.substr(begin, slash - begin));
+}
+
+void log_sink(void*, const dds_log_data_t* data) {
+  std::string_view message(data->message, data->size);
+  const std::string topic = rejected_topic(message);
+  bool delivered = false;
+  if (!topic.empty()) {
+    std::string line(message);
+    while (!line.empty() && (line.back() == '\n' || line.back() == '\r')) line.pop_back();
+    std::lock_guard lock(watches_mutex());
+    for (auto& [token, watch] : watches()) {
+      if (watch.topic == topic) {
+        watch.sink(line);
+        delivered = true;
+      }
+    }
+  }
+  if (!delivered) std::fwrite(data->message, 1, data->size, stderr);
+}
+
 }  // namespace
+
+int watch_rejections(const std::string& topic, std::function<void(std::string line)> sink) {
+  // Installed once and never removed: dds_set_log_sink waits for Cyclone's threads, so it must
+  // not run while a sink call might be waiting for watches_mutex.
+  static std::once_flag installed;
+  std::call_once(installed, [] { dds_set_log_sink(&log_sink, nullptr); });
+  static int next = 0;
+  std::lock_guard lock(watches_mutex());
+  const int token = ++next;
+  watches().emplace(token, Watch{topic, std::move(sink)});
+  return token;
+}
+
+void unwatch_rejections(int token) {
+  std::lock_guard lock(watches_mutex());
+  watches().erase(token);
+}
 
 std::string retcode(dds_return_t rc) {
   return std::string(dds_strretcode(rc)) + " (" + std::to_string(rc) + ")";

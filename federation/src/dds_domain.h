@@ -6,6 +6,7 @@
 
 #include <dds/dds.h>
 
+#include <functional>
 #include <string>
 
 #include "tahvel/node/error.h"
@@ -16,6 +17,15 @@ namespace tahvel::federation::dds_domain {
 // Cyclone's defaults) if this process does not run it yet. Each success needs one release().
 node::Result<void> acquire(dds_domainid_t id, const std::string& config);
 void release(dds_domainid_t id);
+
+// Cyclone checks every sample that arrives from the network against its topic's type and drops
+// a malformed one with a warning in its log ("deserialization <topic>/<type> failed"); no reader
+// ever sees it. watch_rejections() installs (once per process, for good) a Cyclone log sink that
+// hands such warnings about `topic` to `sink`, as one line without the newline, on a Cyclone
+// thread; every other log message goes to stderr as Cyclone's default sink would write it.
+// Returns a token for unwatch_rejections, after which `sink` is no longer called.
+int watch_rejections(const std::string& topic, std::function<void(std::string line)> sink);
+void unwatch_rejections(int token);
 
 // Cyclone's name and number for a return code: "Timeout (-10)".
 std::string retcode(dds_return_t rc);

@@ -10,6 +10,9 @@
 // receive all downlink traffic. The price is one topic and one writer per destination in the
 // sender, and the discovery of each.
 //
+// Malformed samples never reach the reader: Cyclone rejects them on arrival and logs a warning,
+// which dds_domain::watch_rejections routes back here; receive() reports them to the DropLog.
+//
 // QoS: RELIABLE with KEEP_ALL history on both sides, volatile durability. A reader keeps at most
 // kReaderMaxSamples frames not yet taken; when it is full, a writer blocks up to
 // kWriteBlocking and then send() fails with Errc::timeout (the frame did not leave).
@@ -26,6 +29,7 @@
 #include <map>
 #include <memory>
 #include <mutex>
+#include <vector>
 
 #include "tahvel/federation/transport.h"
 #include "tahvel/federation/wire_names.h"
@@ -76,6 +80,7 @@ class DdsTransport final : public Transport {
         log_(wire::or_stderr(std::move(log))) {}
 
   ~DdsTransport() override {
+    if (watch_ != 0) dds_domain::unwatch_rejections(watch_);
     if (participant_ > 0) dds_delete(participant_);  // deletes every child entity too
     if (domain_acquired_) dds_domain::release(domain_);
   }
@@ -106,6 +111,12 @@ class DdsTransport final : public Transport {
     if (dds_return_t rc = dds_waitset_attach(waitset_, cond, 0); rc < 0) {
       return node::fail(Errc::io, where + "waitset attach: " + retcode(rc));
     }
+    watch_ = dds_domain::watch_rejections(topic_name_, [this](std::string line) {
+      std::lock_guard lock(rejected_mutex_);
+      rejected_.push_back("dds <" + self_ + ">: dropped a sample on topic " + topic_name_ +
+                          " that is not a tahvel::Frame (Cyclone: " + wire::printable(line, 400) +
+                          ")");
+    });
     return {};
   }
 
@@ -141,6 +152,7 @@ class DdsTransport final : public Transport {
     using clock = std::chrono::steady_clock;
     const auto deadline = clock::now() + timeout;
     for (;;) {
+      report_rejected();
       if (!queue_.empty()) {
         Frame frame = std::move(queue_.front());
         queue_.pop_front();
@@ -197,6 +209,16 @@ class DdsTransport final : public Transport {
     dds_delete(ws);
   }
 
+  // Hands the samples Cyclone rejected (collected on its thread) to the DropLog, on this one.
+  void report_rejected() {
+    std::vector<std::string> lines;
+    {
+      std::lock_guard lock(rejected_mutex_);
+      lines.swap(rejected_);
+    }
+    for (const auto& line : lines) log_(line);
+  }
+
   // Takes what the reader holds (up to kTakeBatch samples) into queue_, dropping what must not
   // come out of receive().
   Result<void> take_some() {
@@ -246,6 +268,9 @@ class DdsTransport final : public Transport {
   std::mutex writers_mutex_;
   std::map<std::string, std::unique_ptr<Writer>> writers_;
   std::deque<Frame> queue_;  // touched only by the receive() thread
+  int watch_ = 0;            // dds_domain::watch_rejections token
+  std::mutex rejected_mutex_;
+  std::vector<std::string> rejected_;  // drop lines from Cyclone's thread, for receive()
 };
 
 }  // namespace

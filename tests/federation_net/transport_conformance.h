@@ -17,6 +17,7 @@
 #include <condition_variable>
 #include <cstdlib>
 #include <functional>
+#include <iostream>
 #include <memory>
 #include <mutex>
 #include <optional>
@@ -260,6 +261,7 @@ TEST_P(TransportConformance, GarbageIsDroppedWithAReasonAndTheEndpointKeepsWorki
   auto lines = b.drops->lines();
   ASSERT_EQ(lines.size(), garbage.size());
   for (const auto& line : lines) {
+    std::cout << "[ " << GetParam().name << " ] " << line << "\n";
     EXPECT_NE(line.find(b->self()), std::string::npos) << "line does not name the endpoint: " << line;
     EXPECT_EQ(line.find('\n'), std::string::npos) << "not one line: " << line;
   }
@@ -286,7 +288,10 @@ TEST_P(TransportConformance, WrongVersionFingerprintOrKindIsDroppedWithAReason) 
   auto lines = b.drops->lines();
   ASSERT_EQ(lines.size(), 3u);
   std::string all;
-  for (const auto& l : lines) all += l + "\n";
+  for (const auto& l : lines) {
+    std::cout << "[ " << GetParam().name << " ] " << l << "\n";
+    all += l + "\n";
+  }
   EXPECT_NE(all.find("version " + std::to_string(kProtocolVersion + 1)), std::string::npos) << all;
   EXPECT_NE(all.find("fingerprint"), std::string::npos) << all;
   EXPECT_NE(all.find("kind 200 unknown"), std::string::npos) << all;
