@@ -120,6 +120,10 @@ int run_tail(const Args& args);
 int run_stats(const Args& args);
 int run_hrv(const Args& args);
 
+// The reasoner (commands_reason.cpp).
+extern const Command kReasonCommand;
+int run_reason(const Args& args);
+
 // Groups triples into items for `load`: one item per subject group (see docs/cli.md).
 std::vector<std::vector<node::Triple>> group_by_subject(std::vector<node::Triple> triples);
 

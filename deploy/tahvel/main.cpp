@@ -70,6 +70,7 @@ int run_bench(const std::vector<std::string>& rest) {
   std::vector<std::string> args(rest.begin() + 1, rest.end());
   if (rest[0] == "store") return bench_store_main(args);
   if (rest[0] == "hrv") return bench_hrv_main(args);
+  if (rest[0] == "reason") return bench_reason_main(args);
   usage_error("bench: unknown benchmark '" + rest[0] + "' (try 'store' or 'hrv')");
 }
 
@@ -106,6 +107,7 @@ std::span<const Subcommand> subcommands() {
       {&kTailCommand, run_tail},   {&kDumpCommand, run_dump},
       {&kLoadCommand, run_load},   {&kStatsCommand, run_stats},
       {&kHrvCommand, run_hrv},
+      {&kReasonCommand, run_reason},
   };
   return table;
 }

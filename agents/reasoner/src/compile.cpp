@@ -80,8 +80,24 @@ void bind_vars(const Literal& l, VarSet& bound) {
 // An evaluation order of `body` following `preference`: filters (built-ins, negations) as soon
 // as their variables are bound, atoms in preference order. Error names the literal that can
 // never run and its unbound variable.
+// With `greedy`, atoms after the first go by how bound they are (a fully bound atom is a
+// lookup; an atom sharing a bound variable follows an index rather than starting a cross
+// product), ties in preference order: the orders of delta rounds, where the written order was
+// made for another first literal.
+int boundness(const Literal& l, const VarSet& bound) {
+  int vars = 0, consts = 0, total = 0;
+  for (const Arg& a : l.args) {
+    if (l.pred == kAnyBinary && &a == &l.args[1]) continue;  // the predicate picks the relation
+    ++total;
+    if (!a.is_var) ++consts;
+    else if (bound[a.index]) ++vars;
+  }
+  return (vars + consts == total ? 1000 : 0) + 10 * vars + consts;
+}
+
 Result<std::vector<std::uint32_t>> plan(const Program& program, const Rule& rule,
-                                        std::vector<std::uint32_t> preference, VarSet bound) {
+                                        std::vector<std::uint32_t> preference, VarSet bound,
+                                        bool greedy = false) {
   std::vector<std::uint32_t> order;
   while (!preference.empty()) {
     auto pick = std::find_if(preference.begin(), preference.end(), [&](std::uint32_t i) {
@@ -90,6 +106,14 @@ Result<std::vector<std::uint32_t>> plan(const Program& program, const Rule& rule
     if (pick == preference.end()) {
       pick = std::find_if(preference.begin(), preference.end(),
                           [&](std::uint32_t i) { return rule.body[i].kind == Literal::atom; });
+      if (greedy && !order.empty()) {
+        int best = -1;
+        for (auto it = preference.begin(); it != preference.end(); ++it) {
+          if (rule.body[*it].kind != Literal::atom) continue;
+          int score = boundness(rule.body[*it], bound);
+          if (score > best) { best = score; pick = it; }
+        }
+      }
     }
     if (pick == preference.end()) {
       const Literal& l = rule.body[preference.front()];
@@ -277,7 +301,7 @@ Result<void> make_plans(Program& program) {
       if (rule.body[k].kind != Literal::atom) continue;
       std::vector<std::uint32_t> pref{k};
       for (std::uint32_t i = 0; i < rule.body.size(); ++i) if (i != k) pref.push_back(i);
-      auto delta = plan(program, rule, pref, VarSet(rule.vars, false));
+      auto delta = plan(program, rule, pref, VarSet(rule.vars, false), true);
       if (!delta) return unexpected(delta.error());
       rule.plans.push_back(std::move(*delta));
       rule.kth_atom.push_back(k);

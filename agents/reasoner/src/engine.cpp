@@ -390,6 +390,18 @@ void RuleRun<E>::atom(const Literal& l, std::size_t k) {
   bind_[p.index] = 0;
 }
 
+bool compare_op(Literal::Op op, int c) {
+  switch (op) {
+    case Literal::lt: return c < 0;
+    case Literal::gt: return c > 0;
+    case Literal::le: return c <= 0;
+    case Literal::ge: return c >= 0;
+    case Literal::eq: return c == 0;
+    case Literal::ne: return c != 0;
+  }
+  return false;
+}
+
 template <class E>
 bool RuleRun<E>::holds(const Literal& l) {
   switch (l.kind) {
@@ -410,17 +422,14 @@ bool RuleRun<E>::holds(const Literal& l) {
       return r == kNone || !R.alive(r);
     }
     case Literal::compare: {
-      auto c = compare_values(eval(l.lhs), eval(l.rhs));
-      if (!c) return false;
-      switch (l.op) {
-        case Literal::lt: return *c < 0;
-        case Literal::gt: return *c > 0;
-        case Literal::le: return *c <= 0;
-        case Literal::ge: return *c >= 0;
-        case Literal::eq: return *c == 0;
-        case Literal::ne: return *c != 0;
+      // Fast path: two integer arguments (timestamps, counts), no expression to evaluate.
+      if (l.lhs.kind == Expr::arg && l.rhs.kind == Expr::arg) {
+        const Value& a = e_.dict.value(arg(l.lhs.leaf));
+        const Value& b = e_.dict.value(arg(l.rhs.leaf));
+        if (a.kind == Value::integer && b.kind == Value::integer) return compare_op(l.op, a.i < b.i ? -1 : (b.i < a.i ? 1 : 0));
       }
-      return false;
+      auto c = compare_values(eval(l.lhs), eval(l.rhs));
+      return c && compare_op(l.op, *c);
     }
     case Literal::identical: return arg(l.lhs.leaf) == arg(l.rhs.leaf);
     case Literal::not_unify: return arg(l.lhs.leaf) != arg(l.rhs.leaf);
@@ -637,6 +646,11 @@ Engine::~Engine() = default;
 Engine::Update Engine::apply(std::span<const node::Triple> inserted, std::span<const node::Triple> removed,
                              std::int64_t now_ns) {
   return impl_->apply(inserted, removed, now_ns);
+}
+
+Engine::Update Engine::recompute(std::int64_t now_ns) {
+  impl_->first = true;
+  return impl_->apply({}, {}, now_ns);
 }
 
 Engine::Update Engine::reload(std::shared_ptr<const Program> program, std::int64_t now_ns) {

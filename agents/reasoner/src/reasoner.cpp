@@ -63,6 +63,9 @@ struct Reasoner::Impl {
   Engine engine;
   bool started = false;
   std::uint64_t bookmark = 0;  // last seq of the previous session's snapshot
+  // Ids of the item the previous session wrote (after its snapshot): the next session need not
+  // read its own conclusions back; the gap check still accounts for them.
+  std::uint64_t own_first = 0, own_last = 0;
   std::uint64_t reclaimed = 0;
 
   Impl(node::Node n, node::Agent a, ReasonerOptions o, ParseOptions p, std::shared_ptr<const Program> prog)
@@ -109,14 +112,26 @@ Result<void> Reasoner::Impl::read_changes(const node::Snapshot& snap, std::vecto
                                           std::vector<node::Triple>& out, bool& gap) {
   const std::uint64_t last = snap.last_seq();
   std::uint64_t present = 0, removals = 0, removed_new = 0;
-  node::Pattern after;
-  after.after_id = bookmark;
-  auto walked = snap.for_each(after, [&](const node::Record& r) {
-    ++present;
-    if (!own(r) && r.triple.p.is_iri() && engine.relevant(r.triple.p.value)) in.push_back(r.triple);
-    return true;
-  });
-  if (!walked) return unexpected(node_error(walked.error()));
+  const bool skip_own = own_first > bookmark && own_last >= own_first && own_last <= last;
+  auto read_from = [&](std::uint64_t after, std::uint64_t stop_at) -> Result<void> {
+    node::Pattern pattern;
+    pattern.after_id = after;
+    auto walked = snap.for_each(pattern, [&](const node::Record& r) {
+      if (stop_at && r.meta.id >= stop_at) return false;
+      ++present;
+      if (!own(r) && r.triple.p.is_iri() && engine.relevant(r.triple.p.value)) in.push_back(r.triple);
+      return true;
+    });
+    if (!walked) return unexpected(node_error(walked.error()));
+    return {};
+  };
+  if (skip_own) {
+    if (auto r = read_from(bookmark, own_first); !r) return r;
+    present += own_last - own_first + 1;
+    if (auto r = read_from(own_last, 0); !r) return r;
+  } else if (auto r = read_from(bookmark, 0); !r) {
+    return r;
+  }
   if (last > bookmark + present) {  // something was removed: read the log
     auto changes = node.watch(bookmark, std::chrono::milliseconds(0));
     if (!changes) return unexpected(node_error(changes.error()));
@@ -134,6 +149,7 @@ Result<void> Reasoner::Impl::read_changes(const node::Snapshot& snap, std::vecto
 Result<Engine::Update> Reasoner::Impl::first_session(const node::Snapshot& snap, std::int64_t now,
                                                      SessionReport& report,
                                                      std::vector<node::Triple>& extra_removals) {
+  const auto read_start = Clock::now();
   std::vector<node::Triple> base;
   std::map<std::string, node::Triple> mine;
   auto walked = snap.for_each({}, [&](const node::Record& r) {
@@ -143,6 +159,7 @@ Result<Engine::Update> Reasoner::Impl::first_session(const node::Snapshot& snap,
   });
   if (!walked) return unexpected(node_error(walked.error()));
   report.facts_in = base.size();
+  report.read_ms = ms_since(read_start);
   Engine::Update u = engine.apply(base, {}, now);
   // What is on the board from an earlier run stays; only the difference is written or removed.
   std::vector<Atom> fresh;
@@ -157,12 +174,14 @@ Result<Engine::Update> Reasoner::Impl::first_session(const node::Snapshot& snap,
 }
 
 Result<Engine::Update> Reasoner::Impl::resync(const node::Snapshot& snap, std::int64_t now, SessionReport& report) {
+  const auto read_start = Clock::now();
   std::vector<node::Triple> base;
   auto walked = snap.for_each({}, [&](const node::Record& r) {
     if (!own(r) && r.triple.p.is_iri() && engine.relevant(r.triple.p.value)) base.push_back(r.triple);
     return true;
   });
   if (!walked) return unexpected(node_error(walked.error()));
+  report.read_ms += ms_since(read_start);
   report.resynced = true;
   report.facts_in = base.size();
   std::vector<Atom> before = engine.conclusions();
@@ -178,13 +197,17 @@ Result<Engine::Update> Reasoner::Impl::resync(const node::Snapshot& snap, std::i
 
 Result<void> Reasoner::Impl::write(const Engine::Update& update, const std::vector<node::Triple>& extra_removals,
                                    std::int64_t now) {
+  own_first = own_last = 0;
   if (!update.added.empty()) {
     node::Item item;
     item.asserted_at = now;
     item.persistent = options.persistent;
     for (const Atom& a : update.added)
       for (node::Triple& t : stored(a)) item.triples.push_back(std::move(t));
-    if (auto id = agent.store(item); !id) return unexpected(node_error(id.error()));
+    auto id = agent.store(item);
+    if (!id) return unexpected(node_error(id.error()));
+    own_first = *id;
+    own_last = *id + item.triples.size() - 1;
   }
   std::vector<node::Triple> gone = extra_removals;
   for (const Atom& a : update.removed) {
@@ -223,7 +246,6 @@ Result<SessionReport> Reasoner::Impl::session() {
     auto u = first_session(*snap, now, report, extra_removals);
     if (!u) return unexpected(u.error());
     compose(update, *u);
-    report.read_ms = ms_since(t1);
   } else {
     if (auto r = read_changes(*snap, in, out, gap); !r) return unexpected(r.error());
     report.read_ms = ms_since(t1);

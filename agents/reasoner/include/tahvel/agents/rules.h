@@ -120,6 +120,11 @@ class Engine {
   // difference between the old program's conclusions and the new one's.
   Update reload(std::shared_ptr<const Program> program, std::int64_t now_ns);
 
+  // Derives everything again from the base facts held, as a first session does (all strata
+  // recomputed). The update is empty unless `now` changed a conclusion. For measurements and
+  // checks: the cost of a from-scratch evaluation without reading any store.
+  Update recompute(std::int64_t now_ns);
+
   // All conclusions held, sorted.
   std::vector<Atom> conclusions() const;
 

@@ -1,0 +1,132 @@
+// `tahvel reason DIR RULES`: the reasoner agent (agents/reasoner, docs/reasoner.md) from the
+// command line. One session with --once; otherwise a session whenever relevant records change,
+// until SIGINT or SIGTERM. Prints, per session, what was derived and retracted and how long it
+// took: a text block, or one JSON object per line with --json.
+#include <atomic>
+#include <csignal>
+#include <cstdio>
+#include <iostream>
+#include <sstream>
+
+#include "commands.h"
+#include "tahvel/agents/reasoner.h"
+
+namespace tahvel::cli {
+
+namespace {
+
+std::atomic<bool> g_stop{false};
+extern "C" void on_stop_signal(int) { g_stop = true; }
+
+std::string fixed(double v) {
+  char buf[32];
+  std::snprintf(buf, sizeof buf, "%.3f", v);
+  return buf;
+}
+
+std::string short_term(const node::Term& t, const uri::PrefixMap& prefixes) {
+  if (t.is_iri()) {
+    std::string c = prefixes.compact(t.value);
+    return c == t.value ? "<" + t.value + ">" : c;
+  }
+  return t.to_ntriples();
+}
+
+std::string short_atom(const reasoner::Atom& a, const uri::PrefixMap& prefixes) {
+  std::string out = short_term(node::Term::iri(a.predicate), prefixes) + "(";
+  for (std::size_t i = 0; i < a.args.size(); ++i) out += (i ? ", " : "") + short_term(a.args[i], prefixes);
+  return out + ")";
+}
+
+std::string json_atoms(const std::vector<reasoner::Atom>& atoms) {
+  std::string out = "[";
+  for (std::size_t i = 0; i < atoms.size(); ++i) {
+    out += i ? ",{" : "{";
+    out += "\"predicate\":\"" + node::json_escape(atoms[i].predicate) + "\",\"args\":[";
+    for (std::size_t k = 0; k < atoms[i].args.size(); ++k)
+      out += (k ? ",\"" : "\"") + node::json_escape(atoms[i].args[k].to_ntriples()) + "\"";
+    out += "]}";
+  }
+  return out + "]";
+}
+
+void print_json(const reasoner::SessionReport& r) {
+  std::ostringstream out;
+  out << "{\"seq\":" << r.seq << ",\"time_ns\":" << r.time_ns << ",\"facts_in\":" << r.facts_in
+      << ",\"facts_out\":" << r.facts_out << ",\"resynced\":" << (r.resynced ? "true" : "false")
+      << ",\"rules_reloaded\":" << (r.rules_reloaded ? "true" : "false") << ",\"rules_error\":"
+      << (r.rules_error ? "\"" + node::json_escape(*r.rules_error) + "\"" : std::string("null"))
+      << ",\"added\":" << json_atoms(r.added) << ",\"removed\":" << json_atoms(r.removed)
+      << ",\"total_ms\":" << fixed(r.total_ms) << ",\"read_ms\":" << fixed(r.read_ms)
+      << ",\"derive_ms\":" << fixed(r.derive_ms) << ",\"write_ms\":" << fixed(r.write_ms)
+      << ",\"conclusions\":" << r.engine.conclusions << ",\"base_facts\":" << r.engine.base_facts << "}\n";
+  std::cout << out.str() << std::flush;
+}
+
+void print_text(const reasoner::SessionReport& r, const uri::PrefixMap& prefixes) {
+  if (r.rules_error) std::cerr << "tahvel: rules not reloaded (the previous rules run): " << *r.rules_error << "\n";
+  std::cout << "session at seq " << r.seq << ": " << r.facts_in << " new and " << r.facts_out
+            << " removed facts" << (r.resynced ? " (resynchronised)" : "")
+            << (r.rules_reloaded ? ", rules reloaded" : "") << "; derived " << r.added.size()
+            << ", retracted " << r.removed.size() << " in " << fixed(r.total_ms) << " ms (read "
+            << fixed(r.read_ms) << ", derive " << fixed(r.derive_ms) << ", write " << fixed(r.write_ms)
+            << "); " << r.engine.conclusions << " conclusions over " << r.engine.base_facts << " facts\n";
+  for (const auto& a : r.added) std::cout << "+ " << short_atom(a, prefixes) << "\n";
+  for (const auto& a : r.removed) std::cout << "- " << short_atom(a, prefixes) << "\n";
+  std::cout << std::flush;
+}
+
+}  // namespace
+
+const Command kReasonCommand{
+    "reason",
+    "DIR RULES [--once] [--json] [--default-ns IRI] [--agent ID] [--interval MS]",
+    "Apply a rule file to the whiteboard in incremental sessions (the reasoner agent).",
+    "Runs a session now and then one whenever records that some rule reads change (at most one\n"
+    "per --interval), until interrupted; with --once, one session. Each session derives from\n"
+    "what changed since the previous one, writes each new conclusion once (source: the node\n"
+    "IRI/ID of --agent, default 'reasoner') and removes those that lost all support. The rule\n"
+    "file is reloaded when it changes; a broken file is reported (file:line:col) and the\n"
+    "previous rules keep running. #name and bare atoms are IRIs in --default-ns (default: the\n"
+    "node IRI followed by '#'); 'me' is the node IRI. Language: docs/reasoner.md.",
+    {{"--once", "", "", "one session, then exit"},
+     {"--json", "", "", "one JSON object per session instead of text"},
+     {"--default-ns", "", "IRI", "namespace of #name and bare atoms (default: node IRI + '#')"},
+     kFlagAgentWriter,
+     {"--interval", "", "MS", "at most one session per MS milliseconds (default 100)"}},
+    2, 2};
+
+int run_reason(const Args& args) {
+  reasoner::ReasonerOptions options;
+  options.rules = args.positional(1);
+  options.agent_id = agent_id(args, "reasoner");
+  options.interval = std::chrono::milliseconds(args.get_u64("--interval", 100));
+  std::string dir = args.positional(0);
+  node::Node node = open_node(dir);
+  uri::PrefixMap prefixes = prefixes_with_flags(node.prefixes(), args);
+  if (auto ns = args.get("--default-ns")) options.default_ns = parse_iri(*ns, prefixes, "--default-ns");
+  // Printing: the default namespace as the empty prefix (":stateIdle"), unless one is set.
+  if (!prefixes.entries().count("")) (void)prefixes.add("", options.default_ns.empty() ? node.iri() + "#" : options.default_ns);
+  auto reasoner = reasoner::Reasoner::open(dir, options);
+  if (!reasoner) fail(reasoner.error().message);
+  const bool json = args.has("--json");
+  auto print = [&](const reasoner::SessionReport& r) {
+    if (json) print_json(r); else print_text(r, prefixes);
+    return static_cast<bool>(std::cout);
+  };
+  if (args.has("--once")) {
+    auto report = reasoner->session();
+    if (!report) fail(report.error().message);
+    print(*report);
+    finish_output(std::cout);
+    return kExitOk;
+  }
+  std::signal(SIGINT, on_stop_signal);
+  std::signal(SIGTERM, on_stop_signal);
+  auto ran = reasoner->run(print, [] { return g_stop.load(); });
+  if (!ran) fail(ran.error().message);
+  finish_output(std::cout);
+  return kExitOk;
+}
+
+}  // namespace tahvel::cli
