@@ -2,11 +2,14 @@
 // `tail` is the only long-running one: it blocks in Node::watch (woken by commits, no polling)
 // and writes each batch as soon as it arrives.
 #include <algorithm>
+#include <charconv>
 #include <chrono>
 #include <iostream>
 #include <sstream>
 
 #include "commands.h"
+#include "tahvel/spatial/board.h"
+#include "tahvel/spatial/wkt.h"
 
 namespace tahvel::cli {
 namespace {
@@ -15,6 +18,33 @@ using std::chrono::milliseconds;
 
 const Flag kFlagListContext{"--context", "", "IRI", "only records with this context ('' for none)"};
 const Flag kFlagSource{"--source", "", "IRI", "only records written by this agent or node (or below it)"};
+const Flag kFlagArea{"--area", "", "IRI|WKT",
+                     "only records of features located in a room (IRI) or (MULTI)POLYGON, or from its sensors"};
+const Flag kFlagFloor{"--floor", "", "N", "with a WKT --area: only that floor (default: every floor)"};
+
+// The area of --area (and --floor): WKT when it reads as WKT, else a room's IRI or CURIE.
+spatial::AreaSpec area_flag(const Args& args, const uri::PrefixMap& prefixes) {
+  std::string text = args.required("--area");
+  spatial::AreaSpec spec;
+  if (!spatial::looks_like_wkt(text)) {
+    if (args.has("--floor")) usage_error("--floor: only with a WKT --area (a room has its own floor)");
+    spec.room_iri = parse_iri(text, prefixes, "--area");
+    return spec;
+  }
+  auto shape = spatial::parse_shape(text);
+  if (!shape) usage_error("--area: " + shape.error().message);
+  spec.shape = std::move(*shape);
+  if (auto floor = args.get("--floor")) {
+    int value = 0;
+    const char* end = floor->data() + floor->size();
+    auto parsed = std::from_chars(floor->data(), end, value);
+    if (floor->empty() || parsed.ec != std::errc() || parsed.ptr != end) {
+      usage_error("--floor: expected an integer, found '" + *floor + "'");
+    }
+    spec.floor = value;
+  }
+  return spec;
+}
 
 unsigned cascade_flag(const Args& args) {
   return static_cast<unsigned>(std::min<std::uint64_t>(args.get_u64("--cascade", 0), 1u << 20));
@@ -89,13 +119,16 @@ void print_stats_json(const node::Stats& s) {
 
 const Command kListCommand{
     "list",
-    "DIR [-s S] [-p P] [-o O] [--cascade N] [--limit N] [--format nt|ttl|json]",
+    "DIR [-s S] [-p P] [-o O] [--area IRI|WKT [--floor N]] [--cascade N] [--limit N] [--format nt|ttl|json]",
     "Print the records matching a pattern (all when none is given).",
     "Matches come in id order; with --cascade N each is followed by its sub-tree: the records\n"
     "whose subject is the match's object (an IRI or blank node), N levels deep. JSON output has\n"
     "one object per line with the record's metadata (id, item, stored_at, asserted_at, source,\n"
-    "context, persistent).",
-    {kFlagS, kFlagP, kFlagO, kFlagListContext, kFlagSource, kFlagCascade,
+    "context, persistent). With --area only matches whose subject is a feature located in the\n"
+    "area (a sensor inside it, or the room itself) or whose source is a sensor inside it are\n"
+    "kept; sensors are placed by geo:hasGeometry/geo:asWKT as the board says when the command\n"
+    "runs (docs/spatial.md).",
+    {kFlagS, kFlagP, kFlagO, kFlagListContext, kFlagSource, kFlagArea, kFlagFloor, kFlagCascade,
      {"--limit", "", "N", "print at most N records in all (0: no limit)"}, kFlagFormat},
     1, 1};
 
@@ -107,8 +140,20 @@ int run_list(const Args& args) {
   options.cascade = cascade_flag(args);
   options.limit = args.get_u64("--limit", 0);
   node::Format format = format_flag(args, node::Format::ntriples);
+  std::optional<spatial::AreaSpec> area;
+  if (args.has("--area")) {
+    area = area_flag(args, prefixes);
+  } else if (args.has("--floor")) {
+    usage_error("--floor: only with a WKT --area");
+  }
   node::Snapshot snapshot = check(node.snapshot());
-  write_records(std::cout, format, prefixes, check(snapshot.list(pattern, options)));
+  if (area) {
+    auto records = spatial::list_in_area(snapshot, pattern, *area, options);
+    if (!records) fail("--area: " + records.error().message);
+    write_records(std::cout, format, prefixes, *records);
+  } else {
+    write_records(std::cout, format, prefixes, check(snapshot.list(pattern, options)));
+  }
   finish_output(std::cout);
   return kExitOk;
 }

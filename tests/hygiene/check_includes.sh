@@ -13,7 +13,8 @@ allowed() {
   case "$1" in
     uri) echo "uri" ;;
     node) echo "uri node" ;;
-    deploy) echo "uri node agents aggregation federation" ;;  # the command uses everything
+    deploy) echo "uri node agents aggregation spatial federation" ;;  # the command uses everything
+    aggregation) echo "uri node aggregation spatial" ;;  # spatial/ is a library inside it
     *) echo "uri node $1" ;;  # agents, aggregation, federation: node's API, not each other
   esac
 }

@@ -1,0 +1,298 @@
+// The floor plan read from the whiteboard, areas, listing by area and area subscriptions
+// (board.h). Reading a plan is O(located features) per snapshot: homes and wards hold tens to
+// thousands of them, and the plan is re-read only when a geometry or floor record changes.
+#include "tahvel/spatial/board.h"
+
+#include <algorithm>
+#include <cctype>
+#include <charconv>
+#include <set>
+
+#include "tahvel/spatial/wkt.h"
+
+namespace tahvel::spatial {
+
+namespace {
+
+constexpr const char* kTvSubscriber = "https://w3id.org/tahvel#subscriber";
+constexpr const char* kTvPredicate = "https://w3id.org/tahvel#predicate";
+constexpr const char* kTvObject = "https://w3id.org/tahvel#object";
+
+Unexpected<Error> store_error(const node::Error& e) { return fail(e.message); }
+
+struct Latest {
+  std::uint64_t id = 0;
+  node::Term value;
+};
+
+// For every IRI subject of `predicate`: the object of its record with the highest id.
+Result<std::map<std::string, Latest>> latest_objects(const node::Snapshot& snapshot,
+                                                     const char* predicate) {
+  std::map<std::string, Latest> out;
+  node::Pattern pattern;
+  pattern.p = node::Term::iri(predicate);
+  auto read = snapshot.for_each(pattern, [&](const node::Record& r) {
+    if (!r.triple.s.is_iri()) return true;
+    Latest& latest = out[r.triple.s.value];
+    if (r.meta.id > latest.id) latest = {r.meta.id, r.triple.o};
+    return true;
+  });
+  if (!read) return store_error(read.error());
+  return out;
+}
+
+std::optional<int> parse_floor(const node::Term& term) {
+  if (!term.is_literal()) return std::nullopt;
+  const std::string& text = term.value;
+  int value = 0;
+  const char* begin = text.data() + (!text.empty() && text[0] == '+' ? 1 : 0);
+  auto [end, ec] = std::from_chars(begin, text.data() + text.size(), value);
+  if (ec != std::errc() || end != text.data() + text.size() || begin == end) return std::nullopt;
+  return value;
+}
+
+// The latest geo:asWKT literal of geometry `g`, or nullopt.
+Result<std::optional<std::string>> latest_wkt(const node::Snapshot& snapshot, const node::Term& g) {
+  node::Pattern pattern;
+  pattern.s = g;
+  pattern.p = node::Term::iri(kGeoAsWkt);
+  std::optional<std::string> wkt;
+  std::uint64_t best = 0;
+  auto read = snapshot.for_each(pattern, [&](const node::Record& r) {
+    if (r.triple.o.is_literal() && r.meta.id > best) {
+      best = r.meta.id;
+      wkt = r.triple.o.value;
+    }
+    return true;
+  });
+  if (!read) return store_error(read.error());
+  return wkt;
+}
+
+}  // namespace
+
+Result<BoardPlan> load_plan(const node::Snapshot& snapshot) {
+  auto geometries = latest_objects(snapshot, kGeoHasGeometry);
+  if (!geometries) return unexpected(geometries.error());
+  auto floors = latest_objects(snapshot, kTvFloor);
+  if (!floors) return unexpected(floors.error());
+  BoardPlan out;
+  for (const auto& [feature, geometry] : *geometries) {
+    int floor = 0;
+    if (auto it = floors->find(feature); it != floors->end()) {
+      auto parsed = parse_floor(it->second.value);
+      if (!parsed) {
+        out.problems.push_back(feature + ": tv:floor '" + it->second.value.value + "' is not an integer");
+        continue;
+      }
+      floor = *parsed;
+    }
+    if (geometry.value.is_literal()) {
+      out.problems.push_back(feature + ": geo:hasGeometry must name a geometry, not a literal");
+      continue;
+    }
+    auto wkt = latest_wkt(snapshot, geometry.value);
+    if (!wkt) return unexpected(wkt.error());
+    if (!*wkt) continue;  // a geometry without WKT (yet): not located
+    auto parsed = parse_wkt(**wkt);
+    if (!parsed) {
+      out.problems.push_back(feature + ": " + parsed.error().message);
+      continue;
+    }
+    Result<void> put = std::holds_alternative<Point>(*parsed)
+                           ? out.plan.put_sensor({feature, floor, std::get<Point>(*parsed)})
+                           : out.plan.put_room({feature, floor, std::get<Shape>(*parsed)});
+    if (!put) out.problems.push_back(feature + ": " + put.error().message);
+  }
+  return out;
+}
+
+node::Item located_feature_item(const std::string& feature_iri, const std::string& wkt, int floor) {
+  const std::string geometry = feature_iri + "/geometry";
+  node::Item item;
+  item.persistent = true;
+  item.add(node::Term::iri(feature_iri), node::Term::iri(kGeoHasGeometry), node::Term::iri(geometry))
+      .add(node::Term::iri(geometry), node::Term::iri(kGeoAsWkt),
+           node::Term::literal(wkt, kGeoWktLiteral))
+      .add(node::Term::iri(feature_iri), node::Term::iri(kTvFloor), node::Term::integer(floor));
+  return item;
+}
+
+bool looks_like_wkt(std::string_view text) {
+  std::size_t i = 0;
+  auto skip_space = [&] {
+    while (i < text.size() && std::isspace(static_cast<unsigned char>(text[i]))) ++i;
+  };
+  skip_space();
+  if (i < text.size() && text[i] == '<') {
+    std::size_t close = text.find('>', i);
+    if (close == std::string_view::npos) return false;
+    std::size_t after = close + 1;
+    // "<iri>" alone is an IRI; "<crs> POINT(...)" is WKT.
+    i = after;
+    skip_space();
+    if (i >= text.size()) return false;
+  }
+  std::size_t start = i;
+  while (i < text.size() && std::isalpha(static_cast<unsigned char>(text[i]))) ++i;
+  return i > start && (i == text.size() || text[i] != ':');
+}
+
+Result<Area> resolve_area(const Plan& plan, const AreaSpec& spec) {
+  if (!spec.room_iri.empty()) {
+    const Room* room = plan.room(spec.room_iri);
+    if (!room) {
+      return fail("no room " + spec.room_iri +
+                  " on the board (a feature with geo:hasGeometry whose geo:asWKT is a POLYGON or "
+                  "MULTIPOLYGON)");
+    }
+    return Area{room->shape, room->floor};
+  }
+  if (!spec.shape) return fail("an area needs a room IRI or a shape");
+  return Area{*spec.shape, spec.floor};
+}
+
+std::vector<std::string> features_in(const Plan& plan, const AreaSpec& spec, const Area& area) {
+  std::vector<std::string> out = plan.sensors_in(area);
+  if (!spec.room_iri.empty() && plan.room(spec.room_iri)) {
+    out.insert(std::lower_bound(out.begin(), out.end(), spec.room_iri), spec.room_iri);
+  }
+  return out;
+}
+
+Result<std::vector<node::Record>> list_in_area(const node::Snapshot& snapshot,
+                                               const node::Pattern& pattern, const AreaSpec& spec,
+                                               const node::ListOptions& options) {
+  auto board = load_plan(snapshot);
+  if (!board) return unexpected(board.error());
+  auto area = resolve_area(board->plan, spec);
+  if (!area) return unexpected(area.error());
+  const std::vector<std::string> located = features_in(board->plan, spec, *area);
+  const std::set<std::string> features(located.begin(), located.end());
+  const std::vector<std::string> sensor_list = board->plan.sensors_in(*area);
+  const std::set<std::string> sensors(sensor_list.begin(), sensor_list.end());
+
+  std::vector<node::Record> matches;
+  auto read = snapshot.for_each(pattern, [&](const node::Record& r) {
+    if ((r.triple.s.is_iri() && features.count(r.triple.s.value)) || sensors.count(r.meta.source)) {
+      matches.push_back(r);
+    }
+    return true;
+  });
+  if (!read) return store_error(read.error());
+
+  // Cascade and limit as Snapshot::list applies them: each match followed by its sub-tree,
+  // each record once.
+  std::vector<node::Record> out;
+  std::set<std::uint64_t> seen;
+  auto full = [&] { return options.limit != 0 && out.size() >= options.limit; };
+  for (node::Record& match : matches) {
+    if (full()) break;
+    if (!seen.insert(match.meta.id).second) continue;
+    out.push_back(match);
+    if (options.cascade == 0 || match.triple.o.is_literal()) continue;
+    node::Pattern below;
+    below.s = match.triple.o;
+    auto tree = snapshot.list(below, {options.cascade - 1, 0});
+    if (!tree) return store_error(tree.error());
+    for (node::Record& r : *tree) {
+      if (full()) break;
+      if (seen.insert(r.meta.id).second) out.push_back(std::move(r));
+    }
+  }
+  return out;
+}
+
+// ---------------------------------------------------------------------------------------------
+
+AreaSubscription::AreaSubscription(const node::Node& node, node::Agent& agent, AreaSpec spec)
+    : node_(&node), agent_(&agent), spec_(std::move(spec)) {}
+
+Result<AreaSubscription> AreaSubscription::open(const node::Node& node, node::Agent& agent,
+                                                AreaSpec spec) {
+  AreaSubscription subscription(node, agent, std::move(spec));
+  auto synced = subscription.sync();
+  if (!synced) return unexpected(synced.error());
+  return subscription;
+}
+
+std::vector<std::string> AreaSubscription::sensors() const {
+  std::vector<std::string> out;
+  for (const auto& [sensor, id] : subscriptions_) out.push_back(sensor);
+  return out;
+}
+
+Result<bool> AreaSubscription::refresh(std::chrono::milliseconds wait) {
+  auto changes = node_->watch(bookmark_, wait);
+  if (!changes) return store_error(changes.error());
+  if (changes->empty()) return false;
+  bookmark_ = changes->back().seq;
+  for (const node::Change& change : *changes) {
+    const std::string& p = change.record.triple.p.value;
+    if (p == kGeoAsWkt || p == kGeoHasGeometry || p == kTvFloor) return sync();
+  }
+  return false;
+}
+
+// Re-reads the plan and the agent's madeBySensor subscriptions from one snapshot, then
+// subscribes the sensors of the area that lack one and removes the others.
+Result<bool> AreaSubscription::sync() {
+  auto snapshot = node_->snapshot();
+  if (!snapshot) return store_error(snapshot.error());
+  bookmark_ = std::max(bookmark_, snapshot->last_seq());
+  auto board = load_plan(*snapshot);
+  if (!board) return unexpected(board.error());
+  auto area = resolve_area(board->plan, spec_);
+  if (!area) return unexpected(area.error());
+  const std::vector<std::string> wanted = board->plan.sensors_in(*area);
+
+  // The agent's subscriptions {p = sosa:madeBySensor, o = <sensor>}, as the board has them.
+  std::map<std::string, std::uint64_t> existing;
+  node::Pattern mine;
+  mine.p = node::Term::iri(kTvSubscriber);
+  mine.o = node::Term::iri(agent_->iri());
+  auto heads = snapshot->list(mine);
+  if (!heads) return store_error(heads.error());
+  for (const node::Record& head : *heads) {
+    auto records = snapshot->item(head.meta.item);
+    if (!records) continue;  // removed meanwhile
+    std::optional<std::string> sensor;
+    bool by_sensor = false, other = false;
+    for (const node::Record& r : *records) {
+      const std::string& p = r.triple.p.value;
+      if (p == kTvPredicate) {
+        by_sensor = r.triple.o.value == kSosaMadeBySensor;
+      } else if (p == kTvObject) {
+        sensor = r.triple.o.value;
+      } else if (p != kTvSubscriber) {
+        other = true;  // a subject or context in the pattern: not one of ours
+      }
+    }
+    if (by_sensor && sensor && !other) existing[*sensor] = head.meta.item;
+  }
+
+  std::map<std::string, std::uint64_t> next;
+  for (const auto& [sensor, id] : existing) {
+    if (std::binary_search(wanted.begin(), wanted.end(), sensor)) continue;
+    if (auto removed = agent_->unsubscribe(id); !removed) return store_error(removed.error());
+  }
+  for (const std::string& sensor : wanted) {
+    if (auto it = existing.find(sensor); it != existing.end()) {
+      next[sensor] = it->second;
+      continue;
+    }
+    node::Pattern pattern;
+    pattern.p = node::Term::iri(kSosaMadeBySensor);
+    pattern.o = node::Term::iri(sensor);
+    auto id = agent_->subscribe(pattern);
+    if (!id) return store_error(id.error());
+    next[sensor] = *id;
+  }
+  bool changed = next.size() != subscriptions_.size() ||
+                 !std::equal(next.begin(), next.end(), subscriptions_.begin(),
+                             [](const auto& a, const auto& b) { return a.first == b.first; });
+  subscriptions_ = std::move(next);
+  return changed;
+}
+
+}  // namespace tahvel::spatial

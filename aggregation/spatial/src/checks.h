@@ -1,0 +1,23 @@
+// Private: the validity rules of geometry.h for one ring and one hole, shared by the WKT parser
+// (which names the column) and validate() (which names the polygon and ring). No CGAL here so
+// that the parser compiles fast; geometry.cpp implements them with CGAL.
+#pragma once
+
+#include <optional>
+#include <string>
+
+#include "tahvel/spatial/geometry.h"
+
+namespace tahvel::spatial::detail {
+
+// Why `ring` (closing vertex already dropped) is not a valid ring, or nullopt.
+std::optional<std::string> ring_problem(const Ring& ring);
+
+// Why `hole` cannot be a hole of a polygon with outer ring `outer` (both valid rings), or
+// nullopt.
+std::optional<std::string> hole_problem(const Ring& outer, const Ring& hole);
+
+// The shortest decimal that reads back to `v` ("1.5", "1e-07"); wkt.cpp.
+std::string format_number(double v);
+
+}  // namespace tahvel::spatial::detail

@@ -1,0 +1,184 @@
+// Exact point-in-area tests and ring validity with CGAL (Epick: exact predicates on the input
+// doubles; nothing here constructs new coordinates, so nothing is rounded). Workload: a shape is
+// prepared once and tested against many points (Plan), or tested once (locate()).
+#include <algorithm>
+#include <string>
+
+#include <CGAL/Polygon_2_algorithms.h>
+
+#include "checks.h"
+#include "prepared.h"
+
+namespace tahvel::spatial {
+
+namespace detail {
+namespace {
+
+std::vector<CgalPoint> to_cgal(const Ring& ring) {
+  std::vector<CgalPoint> out;
+  out.reserve(ring.size());
+  for (const Point& p : ring) out.emplace_back(p.x, p.y);
+  return out;
+}
+
+Box box_of(const Ring& ring) {
+  Box box{ring[0].x, ring[0].y, ring[0].x, ring[0].y};
+  for (const Point& p : ring) {
+    box.xmin = std::min(box.xmin, p.x);
+    box.xmax = std::max(box.xmax, p.x);
+    box.ymin = std::min(box.ymin, p.y);
+    box.ymax = std::max(box.ymax, p.y);
+  }
+  return box;
+}
+
+Box join(const Box& a, const Box& b) {
+  return {std::min(a.xmin, b.xmin), std::min(a.ymin, b.ymin), std::max(a.xmax, b.xmax),
+          std::max(a.ymax, b.ymax)};
+}
+
+CGAL::Bounded_side side(const std::vector<CgalPoint>& ring, const CgalPoint& q) {
+  return CGAL::bounded_side_2(ring.begin(), ring.end(), q, Kernel());
+}
+
+std::string coordinates(Point p) {
+  return "(" + format_number(p.x) + " " + format_number(p.y) + ")";
+}
+
+}  // namespace
+
+std::optional<std::string> ring_problem(const Ring& ring) {
+  if (ring.size() < 3) {
+    return "a ring needs at least 3 distinct vertices, found " + std::to_string(ring.size());
+  }
+  std::vector<CgalPoint> points = to_cgal(ring);
+  // is_simple_2 also refuses a repeated vertex and a ring whose vertices are all collinear
+  // (its edges overlap), so a simple ring encloses a non-zero area.
+  if (!CGAL::is_simple_2(points.begin(), points.end(), Kernel())) {
+    return std::string("ring is not simple (an edge touches or crosses another, or a vertex repeats)");
+  }
+  return std::nullopt;
+}
+
+namespace {
+
+// True when segments ab and cd cross at one point interior to both (not a touch at an end).
+bool cross_properly(const CgalPoint& a, const CgalPoint& b, const CgalPoint& c,
+                    const CgalPoint& d) {
+  auto abc = CGAL::orientation(a, b, c), abd = CGAL::orientation(a, b, d);
+  auto cda = CGAL::orientation(c, d, a), cdb = CGAL::orientation(c, d, b);
+  return abc != CGAL::COLLINEAR && abd != CGAL::COLLINEAR && abc != abd &&
+         cda != CGAL::COLLINEAR && cdb != CGAL::COLLINEAR && cda != cdb;
+}
+
+}  // namespace
+
+std::optional<std::string> hole_problem(const Ring& outer, const Ring& hole) {
+  std::vector<CgalPoint> outer_points = to_cgal(outer), hole_points = to_cgal(hole);
+  for (const Point& p : hole) {
+    if (side(outer_points, CgalPoint(p.x, p.y)) == CGAL::ON_UNBOUNDED_SIDE) {
+      return "hole vertex " + coordinates(p) + " lies outside the outer ring";
+    }
+  }
+  for (const Point& p : outer) {
+    if (side(hole_points, CgalPoint(p.x, p.y)) == CGAL::ON_BOUNDED_SIDE) {
+      return "outer ring vertex " + coordinates(p) + " lies inside the hole";
+    }
+  }
+  for (std::size_t i = 0; i < hole_points.size(); ++i) {
+    const CgalPoint& a = hole_points[i];
+    const CgalPoint& b = hole_points[(i + 1) % hole_points.size()];
+    for (std::size_t j = 0; j < outer_points.size(); ++j) {
+      if (cross_properly(a, b, outer_points[j], outer_points[(j + 1) % outer_points.size()])) {
+        return "a hole edge crosses the outer ring";
+      }
+    }
+  }
+  return std::nullopt;
+}
+
+PreparedShape prepare(const Shape& shape) {
+  PreparedShape out;
+  for (const Polygon& polygon : shape.polygons) {
+    PreparedPolygon prepared;
+    prepared.box = box_of(polygon.outer);
+    prepared.outer = to_cgal(polygon.outer);
+    for (const Ring& hole : polygon.holes) prepared.holes.push_back(to_cgal(hole));
+    out.box = out.polygons.empty() ? prepared.box : join(out.box, prepared.box);
+    out.polygons.push_back(std::move(prepared));
+  }
+  return out;
+}
+
+namespace {
+
+Location locate_in(const PreparedShape& shape, Point p, bool use_boxes) {
+  const CgalPoint q(p.x, p.y);
+  bool on_boundary = false;
+  for (const PreparedPolygon& polygon : shape.polygons) {
+    if (use_boxes && !polygon.box.contains(p)) continue;
+    CGAL::Bounded_side outer = side(polygon.outer, q);
+    if (outer == CGAL::ON_UNBOUNDED_SIDE) continue;
+    if (outer == CGAL::ON_BOUNDARY) {
+      on_boundary = true;
+      continue;
+    }
+    Location here = Location::inside;
+    for (const std::vector<CgalPoint>& hole : polygon.holes) {
+      CGAL::Bounded_side in_hole = side(hole, q);
+      if (in_hole == CGAL::ON_BOUNDED_SIDE) {
+        here = Location::outside;  // the open inside of a hole is not part of the area
+        break;
+      }
+      if (in_hole == CGAL::ON_BOUNDARY) here = Location::boundary;
+    }
+    if (here == Location::inside) return Location::inside;
+    if (here == Location::boundary) on_boundary = true;
+  }
+  return on_boundary ? Location::boundary : Location::outside;
+}
+
+}  // namespace
+
+Location locate(const PreparedShape& shape, Point p) {
+  if (shape.polygons.empty() || !shape.box.contains(p)) return Location::outside;
+  return locate_in(shape, p, true);
+}
+
+Location locate_unfiltered(const PreparedShape& shape, Point p) {
+  return locate_in(shape, p, false);
+}
+
+}  // namespace detail
+
+Box bounding_box(const Shape& shape) {
+  Box box = detail::box_of(shape.polygons.at(0).outer);
+  for (const Polygon& polygon : shape.polygons) box = detail::join(box, detail::box_of(polygon.outer));
+  return box;
+}
+
+Result<void> validate(const Shape& shape) {
+  if (shape.polygons.empty()) return fail("a shape needs at least one polygon");
+  for (std::size_t i = 0; i < shape.polygons.size(); ++i) {
+    const Polygon& polygon = shape.polygons[i];
+    std::string where = "polygon " + std::to_string(i + 1);
+    if (auto problem = detail::ring_problem(polygon.outer)) {
+      return fail(where + ", outer ring: " + *problem);
+    }
+    for (std::size_t h = 0; h < polygon.holes.size(); ++h) {
+      std::string hole = where + ", hole " + std::to_string(h + 1) + ": ";
+      if (auto problem = detail::ring_problem(polygon.holes[h])) return fail(hole + *problem);
+      if (auto problem = detail::hole_problem(polygon.outer, polygon.holes[h])) {
+        return fail(hole + *problem);
+      }
+    }
+  }
+  return {};
+}
+
+Location locate(const Shape& shape, Point p) {
+  if (shape.polygons.empty()) return Location::outside;
+  return detail::locate(detail::prepare(shape), p);
+}
+
+}  // namespace tahvel::spatial

@@ -1,0 +1,121 @@
+// WKT reading and writing (tahvel/spatial/wkt.h): the accepted forms, the refused ones with the
+// column each error names, and the round trip through to_wkt.
+#include "tahvel/spatial/wkt.h"
+
+#include <gtest/gtest.h>
+
+namespace tahvel::spatial {
+namespace {
+
+// The error of parsing `text`, which must fail.
+Error error_of(std::string_view text) {
+  auto g = parse_wkt(text);
+  EXPECT_FALSE(g.has_value()) << text;
+  return g ? Error{} : g.error();
+}
+
+TEST(Wkt, ReadsAPoint) {
+  auto p = parse_point("POINT(1.5 -2e1)");
+  ASSERT_TRUE(p.has_value()) << p.error().message;
+  EXPECT_EQ(*p, (Point{1.5, -20}));
+}
+
+TEST(Wkt, KeywordsInAnyCaseAndSpacesAnywhere) {
+  auto p = parse_point("  point ( +3\t4 )\n");
+  ASSERT_TRUE(p.has_value()) << p.error().message;
+  EXPECT_EQ(*p, (Point{3, 4}));
+}
+
+TEST(Wkt, SkipsAGeoSparqlCrsIri) {
+  auto p = parse_point("<http://www.opengis.net/def/crs/OGC/1.3/CRS84> POINT(24.7 59.4)");
+  ASSERT_TRUE(p.has_value()) << p.error().message;
+  EXPECT_EQ(*p, (Point{24.7, 59.4}));
+}
+
+TEST(Wkt, ReadsAPolygonWithAHoleAndDropsTheClosingPoint) {
+  auto s = parse_shape("POLYGON((0 0, 6 0, 6 4, 0 4, 0 0), (2 1, 3 1, 3 2, 2 2, 2 1))");
+  ASSERT_TRUE(s.has_value()) << s.error().message;
+  ASSERT_EQ(s->polygons.size(), 1u);
+  EXPECT_EQ(s->polygons[0].outer, (Ring{{0, 0}, {6, 0}, {6, 4}, {0, 4}}));
+  ASSERT_EQ(s->polygons[0].holes.size(), 1u);
+  EXPECT_EQ(s->polygons[0].holes[0], (Ring{{2, 1}, {3, 1}, {3, 2}, {2, 2}}));
+}
+
+TEST(Wkt, ReadsAMultipolygon) {
+  auto s = parse_shape("MULTIPOLYGON(((0 0,1 0,1 1,0 0)),((5 5,6 5,6 6,5 6,5 5),(5.2 5.2,5.8 5.2,5.5 5.8,5.2 5.2)))");
+  ASSERT_TRUE(s.has_value()) << s.error().message;
+  ASSERT_EQ(s->polygons.size(), 2u);
+  EXPECT_EQ(s->polygons[0].outer.size(), 3u);
+  EXPECT_EQ(s->polygons[1].holes.size(), 1u);
+}
+
+TEST(Wkt, RoundTripsThroughToWkt) {
+  for (const char* text : {"POINT(0.1 -3)", "POLYGON((0 0, 4 0, 4 3, 2 1, 0 3, 0 0))",
+                           "POLYGON((0 0, 6 0, 6 4, 0 4, 0 0), (2 1, 3 1, 3 2, 2 2, 2 1))",
+                           "MULTIPOLYGON(((0 0, 1 0, 1 1, 0 0)), ((5 5, 6 5, 6 6, 5 5)))"}) {
+    auto g = parse_wkt(text);
+    ASSERT_TRUE(g.has_value()) << text << ": " << g.error().message;
+    std::string written = std::visit([](const auto& v) { return to_wkt(v); }, *g);
+    EXPECT_EQ(written, text);
+    auto again = parse_wkt(written);
+    ASSERT_TRUE(again.has_value());
+    EXPECT_EQ(std::visit([](const auto& v) { return to_wkt(v); }, *again), written);
+  }
+}
+
+struct Refusal {
+  const char* text;
+  std::size_t column;
+  const char* says;  // a part of the message
+};
+
+TEST(Wkt, RefusesMalformedTextNamingTheColumn) {
+  const Refusal cases[] = {
+      {"", 1, "expected a geometry type, found end of text"},
+      {"LINESTRING(0 0, 1 1)", 1, "unsupported geometry type 'LINESTRING'"},
+      {"POINT(1 2 3)", 11, "third coordinate"},
+      {"POINT Z (1 2 3)", 7, "Z and M coordinates are not supported"},
+      {"POINT EMPTY", 7, "EMPTY"},
+      {"POINT(1 ,2)", 9, "expected a number, found ','"},
+      {"POINT(1e 2)", 8, "exponent without digits"},
+      {"POINT(1e999 2)", 7, "out of range"},
+      {"POINT(nan 2)", 7, "expected a number, found 'nan'"},
+      {"POINT(1 2) x", 12, "unexpected 'x' after the geometry"},
+      {"POINT(1 2", 10, "expected ')', found end of text"},
+      {"POLYGON((0 0, 1 0, 0 0))", 9, "at least 4 points"},
+      {"POLYGON((0 0, 4 0, 4 4, 0 4))", 9, "not closed"},
+      {"POLYGON((0 0, 4 4, 4 0, 0 4, 0 0))", 9, "not simple"},
+      {"POLYGON((0 0, 1 0, 2 0, 0 0))", 9, "not simple"},
+      {"POLYGON((0 0, 4 0, 4 4, 0 4, 0 0), (5 5, 6 5, 6 6, 5 5))", 36, "outside the outer ring"},
+      {"MULTIPOLYGON(((0 0, 1 0, 1 1, 0 0)), ((0 0, 1 0, 1 1, 0 1)))", 39, "not closed"},
+      {"<http://x/crs POINT(1 2)", 1, "without '>'"},
+  };
+  for (const Refusal& c : cases) {
+    Error e = error_of(c.text);
+    EXPECT_EQ(e.column, c.column) << c.text << ": " << e.message;
+    EXPECT_NE(e.message.find("WKT column " + std::to_string(c.column) + ": "), std::string::npos)
+        << c.text << ": " << e.message;
+    EXPECT_NE(e.message.find(c.says), std::string::npos) << c.text << ": " << e.message;
+  }
+}
+
+TEST(Wkt, ParsePointAndParseShapeRefuseTheOtherKind) {
+  auto p = parse_point("  POLYGON((0 0, 1 0, 1 1, 0 0))");
+  ASSERT_FALSE(p.has_value());
+  EXPECT_EQ(p.error().column, 3u);
+  auto s = parse_shape("POINT(1 2)");
+  ASSERT_FALSE(s.has_value());
+  EXPECT_NE(s.error().message.find("expected a POLYGON or MULTIPOLYGON"), std::string::npos);
+}
+
+TEST(Geometry, ValidateNamesThePolygonAndRing) {
+  Shape bad{{Polygon{{{0, 0}, {4, 0}, {4, 4}, {0, 4}}, {{{1, 1}, {2, 2}, {2, 1}, {1, 2}}}}}};
+  auto v = validate(bad);
+  ASSERT_FALSE(v.has_value());
+  EXPECT_NE(v.error().message.find("polygon 1, hole 1: ring is not simple"), std::string::npos)
+      << v.error().message;
+  EXPECT_FALSE(validate(Shape{}).has_value());
+}
+
+}  // namespace
+}  // namespace tahvel::spatial

@@ -1,0 +1,231 @@
+// Areas on the whiteboard (tahvel/spatial/board.h), on a real store in a temporary directory:
+// the plan read from GeoSPARQL triples (latest wins), listing by area, and area subscriptions
+// following a sensor that moves from one room to another.
+#include "tahvel/spatial/board.h"
+
+#include <stdlib.h>
+
+#include <filesystem>
+#include <set>
+
+#include <gtest/gtest.h>
+
+#include "tahvel/spatial/wkt.h"
+
+namespace tahvel::spatial {
+namespace {
+
+namespace fs = std::filesystem;
+using Ids = std::vector<std::string>;
+using node::Term;
+
+const std::string kHome = "http://example.org/home1";
+const std::string kBedroom = kHome + "/room/bedroom";
+const std::string kHall = kHome + "/room/hall";
+const std::string kUpstairs = kHome + "/room/study";
+const std::string kMote = kHome + "/mote1";
+const std::string kMote2 = kHome + "/mote2";
+
+class BoardTest : public testing::Test {
+ protected:
+  void SetUp() override {
+    std::string templ = (fs::temp_directory_path() / "tahvel-spatial-XXXXXX").string();
+    ASSERT_NE(mkdtemp(templ.data()), nullptr);
+    dir_ = templ;
+    auto node = node::Node::init(dir_ / "store", {.iri = kHome});
+    ASSERT_TRUE(node.has_value()) << node.error().message;
+    node_.emplace(std::move(*node));
+    auto plan = node_->agent("plan");
+    ASSERT_TRUE(plan.has_value());
+    plan_.emplace(std::move(*plan));
+    // An L-shaped (concave) bedroom and a hall sharing its edge x = 4, a study upstairs.
+    put(located_feature_item(kBedroom, "POLYGON((0 0, 4 0, 4 2, 2 2, 2 4, 0 4, 0 0))", 0));
+    put(located_feature_item(kHall, "POLYGON((4 0, 8 0, 8 2, 4 2, 4 0))", 0));
+    put(located_feature_item(kUpstairs, "POLYGON((0 0, 4 0, 4 4, 0 4, 0 0))", 1));
+    put(located_feature_item(kMote, "POINT(1 1)", 0));       // in the bedroom
+    put(located_feature_item(kMote2, "POINT(1 1)", 1));      // same x y, upstairs
+  }
+  void TearDown() override {
+    plan_.reset();
+    node_.reset();
+    fs::remove_all(dir_);
+  }
+
+  void put(const node::Item& item) {
+    auto stored = plan_->store(item);
+    ASSERT_TRUE(stored.has_value()) << stored.error().message;
+  }
+
+  // A reading of `sensor`, written by the sensor's own agent (its IRI is its source).
+  void reading(const std::string& sensor_id, double celsius) {
+    auto agent = node_->agent(sensor_id);
+    ASSERT_TRUE(agent.has_value());
+    node::Item item;
+    item.add(Term::blank("o"), Term::iri(kSosaMadeBySensor), Term::iri(kHome + "/" + sensor_id))
+        .add(Term::blank("o"), Term::iri("http://www.w3.org/ns/sosa/hasSimpleResult"),
+             Term::literal(std::to_string(celsius), std::string(node::xsd::kDecimal)));
+    ASSERT_TRUE(agent->store(item).has_value());
+  }
+
+  BoardPlan plan() {
+    auto snapshot = node_->snapshot();
+    EXPECT_TRUE(snapshot.has_value());
+    auto board = load_plan(*snapshot);
+    EXPECT_TRUE(board.has_value());
+    return std::move(*board);
+  }
+
+  std::vector<node::Record> in_area(const AreaSpec& spec, node::Pattern pattern = {}) {
+    auto snapshot = node_->snapshot();
+    EXPECT_TRUE(snapshot.has_value());
+    auto records = list_in_area(*snapshot, pattern, spec);
+    EXPECT_TRUE(records.has_value()) << records.error().message;
+    return records ? *records : std::vector<node::Record>{};
+  }
+
+  std::uint64_t pending(node::Agent& agent) {
+    auto n = agent.pending();
+    EXPECT_TRUE(n.has_value());
+    return n ? *n : 0;
+  }
+
+  fs::path dir_;
+  std::optional<node::Node> node_;
+  std::optional<node::Agent> plan_;
+};
+
+TEST_F(BoardTest, PlanFromGeoSparqlTriples) {
+  BoardPlan board = plan();
+  EXPECT_TRUE(board.problems.empty());
+  EXPECT_EQ(board.plan.room_count(), 3u);
+  EXPECT_EQ(board.plan.sensor_count(), 2u);
+  EXPECT_EQ(board.plan.sensors_in_room(kBedroom), Ids{kMote});
+  EXPECT_EQ(board.plan.sensors_in_room(kUpstairs), Ids{kMote2});
+  EXPECT_EQ(board.plan.rooms_at({4, 1}, 0), (Ids{kBedroom, kHall}));
+}
+
+TEST_F(BoardTest, LatestGeometryWinsAndMalformedWktIsReportedNotFatal) {
+  put(located_feature_item(kMote, "POINT(6 1)", 0));  // moved into the hall
+  put(located_feature_item(kHome + "/broken", "POLYGON((0 0, 1 0, 1 1))", 0));
+  BoardPlan board = plan();
+  EXPECT_EQ(board.plan.sensors_in_room(kHall), Ids{kMote});
+  EXPECT_EQ(board.plan.sensors_in_room(kBedroom), Ids{});
+  ASSERT_EQ(board.problems.size(), 1u);
+  EXPECT_NE(board.problems[0].find(kHome + "/broken: WKT column 9: a ring needs at least 4 points"),
+            std::string::npos)
+      << board.problems[0];
+}
+
+TEST_F(BoardTest, ListByRoomSelectsTheRoomItsSensorsAndTheirReadings) {
+  reading("mote1", 21.5);
+  reading("mote2", 18.0);
+  std::vector<node::Record> records = in_area({kBedroom, std::nullopt, std::nullopt});
+  std::set<std::string> subjects, sources;
+  for (const auto& r : records) {
+    subjects.insert(r.triple.s.value);
+    sources.insert(r.meta.source);
+  }
+  EXPECT_TRUE(subjects.count(kBedroom));
+  EXPECT_TRUE(subjects.count(kMote));
+  EXPECT_FALSE(subjects.count(kMote2));  // upstairs
+  EXPECT_FALSE(subjects.count(kHall));
+  EXPECT_TRUE(sources.count(kMote));     // the bedroom mote's reading
+  EXPECT_FALSE(sources.count(kMote2));
+  // The reading's two triples (source mote1) and the bedroom's and mote1's own triples.
+  std::size_t readings = 0;
+  for (const auto& r : records) readings += r.meta.source == kMote;
+  EXPECT_EQ(readings, 2u);
+}
+
+TEST_F(BoardTest, ListByWktOnEveryFloorOrOne) {
+  auto shape = parse_shape("POLYGON((0 0, 2 0, 2 2, 0 2, 0 0))");
+  ASSERT_TRUE(shape.has_value());
+  node::Pattern floors;
+  floors.p = Term::iri(kTvFloor);
+  auto all = in_area({"", *shape, std::nullopt}, floors);
+  ASSERT_EQ(all.size(), 2u);  // mote1 and mote2: their tv:floor records
+  auto upstairs = in_area({"", *shape, 1}, floors);
+  ASSERT_EQ(upstairs.size(), 1u);
+  EXPECT_EQ(upstairs[0].triple.s.value, kMote2);
+}
+
+TEST_F(BoardTest, AnUnknownRoomIsAnErrorNamingIt) {
+  auto snapshot = node_->snapshot();
+  ASSERT_TRUE(snapshot.has_value());
+  auto records = list_in_area(*snapshot, {}, {kHome + "/room/attic", std::nullopt, std::nullopt});
+  ASSERT_FALSE(records.has_value());
+  EXPECT_NE(records.error().message.find("no room " + kHome + "/room/attic"), std::string::npos);
+}
+
+TEST_F(BoardTest, LooksLikeWkt) {
+  EXPECT_TRUE(looks_like_wkt("POLYGON((0 0, 1 0, 1 1, 0 0))"));
+  EXPECT_TRUE(looks_like_wkt("  point (1 2)"));
+  EXPECT_TRUE(looks_like_wkt("<http://www.opengis.net/def/crs/OGC/1.3/CRS84> POINT(1 2)"));
+  EXPECT_FALSE(looks_like_wkt("http://example.org/home1/room/bedroom"));
+  EXPECT_FALSE(looks_like_wkt("ex:bedroom"));
+  EXPECT_FALSE(looks_like_wkt("<http://example.org/home1/room/bedroom>"));
+}
+
+// The test: moving a sensor from one room to another changes which area subscription
+// receives its readings.
+TEST_F(BoardTest, MovingASensorMovesItsReadingsBetweenAreaSubscriptions) {
+  auto bed_agent = node_->agent("bedroom-watch");
+  auto hall_agent = node_->agent("hall-watch");
+  ASSERT_TRUE(bed_agent.has_value() && hall_agent.has_value());
+  auto bed = AreaSubscription::open(*node_, *bed_agent, {kBedroom, std::nullopt, std::nullopt});
+  auto hall = AreaSubscription::open(*node_, *hall_agent, {kHall, std::nullopt, std::nullopt});
+  ASSERT_TRUE(bed.has_value()) << bed.error().message;
+  ASSERT_TRUE(hall.has_value()) << hall.error().message;
+  EXPECT_EQ(bed->sensors(), Ids{kMote});
+  EXPECT_EQ(hall->sensors(), Ids{});
+
+  reading("mote1", 21.0);
+  EXPECT_EQ(pending(*bed_agent), 1u);
+  EXPECT_EQ(pending(*hall_agent), 0u);
+
+  put(located_feature_item(kMote, "POINT(6 1)", 0));  // carried into the hall
+  auto bed_changed = bed->refresh();
+  auto hall_changed = hall->refresh();
+  ASSERT_TRUE(bed_changed.has_value() && hall_changed.has_value());
+  EXPECT_TRUE(*bed_changed);
+  EXPECT_TRUE(*hall_changed);
+  EXPECT_EQ(bed->sensors(), Ids{});
+  EXPECT_EQ(hall->sensors(), Ids{kMote});
+
+  reading("mote1", 22.0);
+  EXPECT_EQ(pending(*bed_agent), 1u);   // only the reading from before the move
+  EXPECT_EQ(pending(*hall_agent), 1u);
+
+  // Onto the shared wall x = 4: closed rooms, so both receive it.
+  put(located_feature_item(kMote, "POINT(4 1)", 0));
+  ASSERT_TRUE(bed->refresh().has_value());
+  ASSERT_TRUE(hall->refresh().has_value());
+  reading("mote1", 23.0);
+  EXPECT_EQ(pending(*bed_agent), 2u);
+  EXPECT_EQ(pending(*hall_agent), 2u);
+
+  // A refresh with no plan change changes nothing.
+  reading("mote2", 17.0);
+  auto quiet = bed->refresh();
+  ASSERT_TRUE(quiet.has_value());
+  EXPECT_FALSE(*quiet);
+}
+
+TEST_F(BoardTest, AReopenedAreaSubscriptionDropsSensorsThatLeftWhileItWasAway) {
+  auto agent = node_->agent("bedroom-watch");
+  ASSERT_TRUE(agent.has_value());
+  {
+    auto bed = AreaSubscription::open(*node_, *agent, {kBedroom, std::nullopt, std::nullopt});
+    ASSERT_TRUE(bed.has_value());
+    EXPECT_EQ(bed->sensors(), Ids{kMote});
+  }
+  put(located_feature_item(kMote, "POINT(6 1)", 0));  // moved while no one watched
+  auto bed = AreaSubscription::open(*node_, *agent, {kBedroom, std::nullopt, std::nullopt});
+  ASSERT_TRUE(bed.has_value());
+  EXPECT_EQ(bed->sensors(), Ids{});
+  reading("mote1", 20.0);
+  EXPECT_EQ(pending(*agent), 0u);
+}
+
+}  // namespace
+}  // namespace tahvel::spatial
