@@ -2,6 +2,7 @@
 // command line. One session with --once; otherwise a session whenever relevant records change,
 // until SIGINT or SIGTERM. Prints, per session, what was derived and retracted and how long it
 // took: a text block, or one JSON object per line with --json.
+#include <algorithm>
 #include <atomic>
 #include <csignal>
 #include <cstdio>
@@ -110,7 +111,9 @@ int run_reason(const Args& args) {
   auto reasoner = reasoner::Reasoner::open(dir, options);
   if (!reasoner) fail(reasoner.error().message);
   const bool json = args.has("--json");
-  auto print = [&](const reasoner::SessionReport& r) {
+  auto print = [&](reasoner::SessionReport r) {
+    std::sort(r.added.begin(), r.added.end());
+    std::sort(r.removed.begin(), r.removed.end());
     if (json) print_json(r); else print_text(r, prefixes);
     return static_cast<bool>(std::cout);
   };

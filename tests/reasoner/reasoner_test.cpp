@@ -7,6 +7,8 @@
 #include <stdlib.h>
 
 #include <atomic>
+#include <condition_variable>
+#include <mutex>
 #include <filesystem>
 #include <fstream>
 #include <map>
@@ -284,6 +286,44 @@ TEST_F(ReasonerTest, ASessionNeverSeesAHalfWrittenItem) {
   }
   EXPECT_EQ(whole, items);
   EXPECT_EQ(half, 0u);
+}
+
+// RS16: run() starts a session when a record that some rule reads arrives (not for records no
+// rule reads), and stops when asked.
+TEST_F(ReasonerTest, RunStartsASessionWhenARelevantRecordArrives) {
+  auto file = rules("w.rules", "p(X, Y) :- a(X, Y).\n");
+  auto r = open(file);
+  std::mutex m;
+  std::condition_variable cv;
+  std::vector<tr::SessionReport> reports;
+  std::atomic<bool> stop{false};
+  std::thread runner([&] {
+    auto ran = r.run(
+        [&](const tr::SessionReport& report) {
+          std::lock_guard lock(m);
+          reports.push_back(report);
+          cv.notify_all();
+          return true;
+        },
+        [&] { return stop.load(); });
+    EXPECT_TRUE(ran.has_value());
+  });
+  auto wait_for = [&](std::size_t n) {
+    std::unique_lock lock(m);
+    return cv.wait_for(lock, std::chrono::seconds(20), [&] { return reports.size() >= n; });
+  };
+  ASSERT_TRUE(wait_for(1));  // the first session, at start
+  put({t("noise", "unread", "x")});
+  put({t("x", "a", "y")});
+  ASSERT_TRUE(wait_for(2));
+  stop = true;
+  runner.join();
+  std::lock_guard lock(m);
+  bool derived = false;
+  for (const auto& report : reports)
+    for (const auto& a : report.added) derived |= a.predicate == kNs + "p";
+  EXPECT_TRUE(derived);
+  EXPECT_EQ(board().count(nt("x", "p", "y")), 1u);
 }
 
 }  // namespace

@@ -16,6 +16,7 @@
 #include <deque>
 #include <map>
 #include <set>
+#include <unordered_set>
 
 #include "program.h"
 #include "table.h"
@@ -114,10 +115,26 @@ std::uint64_t index_key(const Id* t, std::uint32_t n, std::uint32_t mask) {
   return h == ~0ull ? h - 1 : h;
 }
 
+// Rows by the values of the bound positions `mask`: heads of chains through `next`. One bound
+// position keys a dense vector by term id (ids are dense), more go through a hash map.
 struct Index {
   std::uint32_t mask = 0;
+  bool direct = false;
+  std::vector<std::uint32_t> by_id;
   KeyMap head;
   std::vector<std::uint32_t> next;
+
+  std::uint32_t first(std::uint64_t key) const {
+    if (!direct) return head.get(key);
+    return key < by_id.size() ? by_id[key] : kNone;
+  }
+  std::uint32_t push(std::uint64_t key, std::uint32_t row) {
+    if (!direct) return head.put(key, row);
+    if (key >= by_id.size()) by_id.resize(std::max<std::size_t>(key + 1, by_id.size() * 3 / 2), kNone);
+    std::uint32_t old = by_id[key];
+    by_id[key] = row;
+    return old;
+  }
 };
 
 constexpr std::uint8_t kTouched = 0x80, kWasAlive = 1, kWasDerived = 2;
@@ -127,6 +144,7 @@ struct Relation {
   Id pred_iri = 0;        // binary relations: the predicate's term id
   int pred = -1;          // program predicate, -1 for a relation of base facts only
   int stratum = -1;       // defining stratum, -1 for base facts only
+  bool read = true;       // some rule reads it (base facts are kept only then)
   std::vector<Id> data;   // row r: data[r * arity .. + arity)
   std::vector<std::uint32_t> base;
   std::vector<std::uint8_t> derived, mark;
@@ -157,12 +175,14 @@ struct Relation {
     return r;
   }
   void link(Index& ix, std::uint32_t r) {
-    ix.next.push_back(ix.head.put(index_key(row(r), arity, ix.mask), r));
+    ix.next.push_back(ix.push(index_key(row(r), arity, ix.mask), r));
   }
   const Index& index(std::uint32_t mask) {
     for (const Index& ix : indexes) if (ix.mask == mask) return ix;
-    indexes.push_back(Index{mask, {}, {}});
+    indexes.emplace_back();
     Index& ix = indexes.back();
+    ix.mask = mask;
+    ix.direct = __builtin_popcount(mask) == 1;
     ix.next.reserve(size());
     for (std::uint32_t r = 0; r < size(); ++r) link(ix, r);
     return ix;
@@ -189,7 +209,7 @@ struct Engine::Impl {
   std::vector<std::uint32_t> touched_rels;
   std::vector<std::uint8_t> rel_is_touched;
   std::int64_t now = 0;
-  Id now_id = 0;
+  std::unordered_set<std::string> read_iris;  // binary predicates some rule reads
   bool first = true;
   std::size_t current_stratum = 0;
   EngineStats st;
@@ -205,6 +225,9 @@ struct Engine::Impl {
     }
     for (std::size_t s = 0; s < program->strata.size(); ++s)
       for (std::uint32_t p : program->strata[s].preds) rels[rel_of_pred[p]].stratum = static_cast<int>(s);
+    for (std::uint32_t p : program->read_binary) read_iris.insert(program->preds[p].iri);
+    for (Relation& R : rels)
+      if (R.pred_iri && R.pred >= 0) R.read = relevant(program->preds[R.pred].iri);
   }
 
   std::uint32_t new_rel(std::uint32_t arity, Id iri) {
@@ -227,9 +250,7 @@ struct Engine::Impl {
   }
 
   bool relevant(std::string_view iri) const {
-    if (program->reads_any_binary) return true;
-    for (std::uint32_t p : program->read_binary) if (program->preds[p].iri == iri) return true;
-    return false;
+    return program->reads_any_binary || read_iris.count(std::string(iri)) > 0;
   }
 
   // Rows of `rel` that became visible (plus) or stopped being visible (minus) this session.
@@ -360,7 +381,7 @@ void RuleRun<E>::match_rel(const Literal& l, const Arg* args, std::uint32_t rel,
     return;
   }
   const Index& ix = R.index(mask);
-  for (std::uint32_t r = ix.head.get(index_key(probe, n, mask)); r != kNone; r = ix.next[r]) {
+  for (std::uint32_t r = ix.first(index_key(probe, n, mask)); r != kNone; r = ix.next[r]) {
     if (R.alive(r)) try_row(args, n, R.row(r), k);
   }
 }
@@ -589,9 +610,8 @@ void Engine::Impl::base_change(const node::Triple& t, bool insert) {
     rel = binary_rel(p);
   }
   Relation& R = rels[rel];
-  if (!insert && R.pred >= 0 && !relevant(t.p.value)) return;
+  if (R.pred >= 0 && !R.read) return;  // a conclusion no rule reads: base facts not kept
   if (insert) {
-    if (R.pred >= 0 && !relevant(t.p.value)) return;
     Id tuple[2] = {dict.intern(t.s), dict.intern(t.o)};
     std::uint32_t r = R.ensure(tuple);
     touch(rel, r);
@@ -620,8 +640,6 @@ Engine::Update Engine::Impl::finish() {
     rel_is_touched[rel] = 0;
   }
   touched_rels.clear();
-  std::sort(u.added.begin(), u.added.end());
-  std::sort(u.removed.begin(), u.removed.end());
   return u;
 }
 

@@ -40,7 +40,11 @@ std::optional<std::filesystem::file_time_type> mtime(const std::filesystem::path
 }
 
 // Net effect of two updates in sequence.
-void compose(Engine::Update& first, const Engine::Update& second) {
+void compose(Engine::Update& first, Engine::Update&& second) {
+  if (first.added.empty() && first.removed.empty()) {
+    first = std::move(second);
+    return;
+  }
   std::set<Atom> added(first.added.begin(), first.added.end());
   std::set<Atom> removed(first.removed.begin(), first.removed.end());
   for (const Atom& a : second.added) { if (!removed.erase(a)) added.insert(a); }

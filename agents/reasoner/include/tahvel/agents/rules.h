@@ -104,8 +104,8 @@ class Engine {
   ~Engine();
 
   struct Update {
-    std::vector<Atom> added;    // conclusions that hold now and did not before, sorted
-    std::vector<Atom> removed;  // conclusions that held before and lost all support, sorted
+    std::vector<Atom> added;    // conclusions that hold now and did not before (any order)
+    std::vector<Atom> removed;  // conclusions that held before and lost all support (any order)
   };
 
   // Applies base changes (each inserted triple counts once per call; the same triple inserted
