@@ -249,14 +249,14 @@ Result<SessionReport> Reasoner::Impl::session() {
   if (!started) {
     auto u = first_session(*snap, now, report, extra_removals);
     if (!u) return unexpected(u.error());
-    compose(update, *u);
+    compose(update, std::move(*u));
   } else {
     if (auto r = read_changes(*snap, in, out, gap); !r) return unexpected(r.error());
     report.read_ms = ms_since(t1);
     if (gap || stats->reclaimed_records != reclaimed) {
       auto u = resync(*snap, now, report);
       if (!u) return unexpected(u.error());
-      compose(update, *u);
+      compose(update, std::move(*u));
     } else {
       report.facts_in = in.size();
       report.facts_out = out.size();
