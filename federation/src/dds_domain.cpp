@@ -15,14 +15,16 @@ struct Use {
   int users = 0;
 };
 
+// The registries are never destroyed: Cyclone may still log (and so call log_sink) while the
+// process exits, after function-local statics would have been destroyed.
 std::mutex& registry_mutex() {
-  static std::mutex m;
-  return m;
+  static auto* m = new std::mutex;
+  return *m;
 }
 
 std::map<dds_domainid_t, Use>& registry() {
-  static std::map<dds_domainid_t, Use> r;
-  return r;
+  static auto* r = new std::map<dds_domainid_t, Use>;
+  return *r;
 }
 
 struct Watch {
@@ -31,13 +33,13 @@ struct Watch {
 };
 
 std::mutex& watches_mutex() {
-  static std::mutex m;
-  return m;
+  static auto* m = new std::mutex;
+  return *m;
 }
 
 std::map<int, Watch>& watches() {
-  static std::map<int, Watch> w;
-  return w;
+  static auto* w = new std::map<int, Watch>;
+  return *w;
 }
 
 // The topic named in "... deserialization <topic>/<type> failed ...", or empty.
