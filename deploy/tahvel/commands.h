@@ -124,6 +124,18 @@ int run_hrv(const Args& args);
 extern const Command kReasonCommand;
 int run_reason(const Args& args);
 
+// Federation (commands_federation.cpp).
+extern const Command kLinkCommand;
+extern const Command kQueryCommand;
+extern const Command kUpCommand;
+extern const Command kDownCommand;
+extern const Command kStatusCommand;
+int run_link(const Args& args);
+int run_query(const Args& args);
+int run_up(const Args& args);
+int run_down(const Args& args);
+int run_status(const Args& args);
+
 // Groups triples into items for `load`: one item per subject group (see docs/cli.md).
 std::vector<std::vector<node::Triple>> group_by_subject(std::vector<node::Triple> triples);
 

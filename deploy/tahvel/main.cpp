@@ -46,7 +46,8 @@ void print_global_help(std::ostream& out) {
          "sosa:Observation (the node's prefixes and --prefix P=IRI), _:label, \"text\",\n"
          "\"text\"@en, \"72\"^^xsd:integer, 72 (xsd:integer), 72.5 (xsd:decimal), 7e2 (xsd:double),\n"
          "true/false (xsd:boolean), and 'a' for rdf:type.\n\n"
-         "exit status: 0 success, 1 failure, 2 bad command line, 3 take timed out.\n";
+         "exit status: 0 success, 1 failure, 2 bad command line, 3 timed out (take, query),\n"
+         "4 unknown node, 5 unreachable node (query).\n";
 }
 
 const Command* find_command(std::string_view name) {
@@ -111,6 +112,9 @@ std::span<const Subcommand> subcommands() {
       {&kLoadCommand, run_load},   {&kStatsCommand, run_stats},
       {&kHrvCommand, run_hrv},
       {&kReasonCommand, run_reason},
+      {&kUpCommand, run_up},       {&kDownCommand, run_down},
+      {&kStatusCommand, run_status}, {&kQueryCommand, run_query},
+      {&kLinkCommand, run_link},
   };
   return table;
 }

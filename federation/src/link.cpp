@@ -83,6 +83,15 @@ std::string child_on_path(const std::string& self, const std::string& target) {
   return target.substr(0, end);
 }
 
+// P11: a subtree address "<X>/*" that covers `node` (X is `node` or above it) reaches `node` as
+// "<node>/*", so each hop forwards it to all of its own children; an address of a subtree
+// further down stays as it is. Any other context is returned unchanged.
+std::string subtree_for(const std::string& context, const std::string& node) {
+  if (context.size() < 2 || !context.ends_with("/*")) return context;
+  const std::string base = context.substr(0, context.size() - 2);
+  return uri::is_under(node, base) ? node + "/*" : context;
+}
+
 }  // namespace
 
 std::vector<node::Pattern> default_forward_policy() {
@@ -273,8 +282,7 @@ struct Link::Impl {
         ++counters.refused;
         break;  // the rest follows it in the sender's sequence: they come again after a resend
       }
-      if (!up && body->item.context.size() >= 2 && body->item.context.ends_with("/*"))
-        body->item.context = self + "/*";  // P11: a subtree address reaches each node as its own
+      if (!up) body->item.context = subtree_for(body->item.context, self);  // P11
       items.push_back({f.seq, f.prev, std::move(body->source), std::move(body->item)});
     }
     node::Agent* relayer = agent(up ? child->id : std::string(kUplinkAgent));
@@ -759,7 +767,7 @@ struct Link::Impl {
             local_acks.push_back(d.item);
             continue;
           }
-          if (body.item.context.ends_with("/*")) body.item.context = child->iri + "/*";  // P11
+          body.item.context = subtree_for(body.item.context, child->iri);  // P11
           Frame f;
           f.kind = FrameKind::down;
           f.to = child->iri;

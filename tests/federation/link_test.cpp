@@ -1,6 +1,6 @@
 // The link protocol (docs/protocol.md) over the in-memory transport, with a seeded schedule of
 // lost, doubled and reordered frames: items up exactly once (P7-P9), configuration down to the
-// addressed node and agent only (P10-P11), registration checks (P5-P6), remote queries and their
+// addressed node and agent only (P10-P11), registration checks (P1, P6), remote queries and their
 // errors (P13-P16), malformed frames dropped (P4). Waits are bounded by deadlines, never sleeps
 // that a result depends on.
 #include <gtest/gtest.h>

@@ -1,0 +1,85 @@
+// The node's supervisor: starts agent processes, restarts the ones that die with exponential
+// back-off, logs why each died (exit status or signal), and stops them on request. `tahvel up`
+// runs one per deployment (or per node); the dispatcher starts behaviours through it too.
+//
+//   Supervisor sup(log);
+//   sup.start({.name = "home1/hrv", .argv = {"tahvel-hrv", "state/home1"}, .log_file = "..."});
+//   for (;;) { sup.poll(); std::this_thread::sleep_for(100ms); }   // reaps and restarts
+//
+// Threads: one thread at a time per Supervisor. It reaps only the children it started.
+#pragma once
+
+#include <sys/types.h>
+
+#include <chrono>
+#include <cstdint>
+#include <filesystem>
+#include <functional>
+#include <optional>
+#include <string>
+#include <string_view>
+#include <vector>
+
+#include "tahvel/node/error.h"
+
+namespace tahvel::agents {
+
+using node::Result;
+
+struct ProgramSpec {
+  std::string name;                  // unique within the supervisor ("home1/hrv")
+  std::vector<std::string> argv;     // argv[0] is looked up in PATH when it has no '/'
+  std::filesystem::path log_file;    // stdout and stderr are appended here (empty: inherited)
+  std::vector<std::pair<std::string, std::string>> env;  // added to the environment
+  bool restart = true;               // false: a program that exits stays stopped (a behaviour)
+};
+
+struct ProgramState {
+  std::string name;
+  pid_t pid = 0;                     // 0 while not running
+  bool running = false;
+  std::uint32_t restarts = 0;
+  std::string last_exit;             // "exited with status 1", "killed by signal 9 (Killed)"
+  std::optional<int> exit_status;    // of the last exit, when it exited normally
+};
+
+struct BackOff {
+  std::chrono::milliseconds first{500};
+  std::chrono::milliseconds max{30'000};
+  std::chrono::milliseconds stable{60'000};  // running this long resets the back-off
+};
+
+class Supervisor {
+ public:
+  using Log = std::function<void(std::string_view line)>;
+  explicit Supervisor(Log log = {}, BackOff back_off = {});
+  ~Supervisor();  // stops every program (SIGTERM, then SIGKILL after 5 s)
+  Supervisor(const Supervisor&) = delete;
+  Supervisor& operator=(const Supervisor&) = delete;
+
+  // Starts a program now. Errors: exists (a program of that name), invalid_argument (empty
+  // argv), io (fork or the log file failed). A program whose executable cannot be run exits with
+  // status 127 and is reported as such.
+  Result<void> start(ProgramSpec spec);
+
+  // Stops a program: SIGTERM, then SIGKILL after `grace`; it is not restarted. not_found when no
+  // program has that name.
+  Result<void> stop(std::string_view name, std::chrono::milliseconds grace = std::chrono::seconds(5));
+  void stop_all(std::chrono::milliseconds grace = std::chrono::seconds(5));
+
+  // Reaps programs that died (logging why), restarts those due. Call it regularly.
+  void poll();
+
+  std::vector<ProgramState> states() const;
+  std::optional<ProgramState> state(std::string_view name) const;
+
+ private:
+  struct Program;
+  void launch(Program& program);
+  void reaped(Program& program, int status);
+  Log log_;
+  BackOff back_off_;
+  std::vector<Program*> programs_;
+};
+
+}  // namespace tahvel::agents

@@ -1,0 +1,200 @@
+#include "tahvel/agents/supervisor.h"
+
+#include <fcntl.h>
+#include <signal.h>
+#include <sys/wait.h>
+#include <unistd.h>
+
+#include <cerrno>
+#include <cstring>
+#include <iostream>
+#include <thread>
+
+namespace tahvel::agents {
+
+using Clock = std::chrono::steady_clock;
+using node::Errc;
+using node::fail;
+
+struct Supervisor::Program {
+  ProgramSpec spec;
+  ProgramState state;
+  Clock::time_point started{};
+  std::optional<Clock::time_point> restart_at;
+  std::chrono::milliseconds delay{0};
+  bool stopping = false;
+};
+
+namespace {
+
+std::string describe(int status) {
+  if (WIFEXITED(status)) return "exited with status " + std::to_string(WEXITSTATUS(status));
+  if (WIFSIGNALED(status)) {
+    int sig = WTERMSIG(status);
+    return "killed by signal " + std::to_string(sig) + " (" + strsignal(sig) + ")";
+  }
+  return "ended (wait status " + std::to_string(status) + ")";
+}
+
+}  // namespace
+
+Supervisor::Supervisor(Log log, BackOff back_off) : log_(std::move(log)), back_off_(back_off) {
+  if (!log_) log_ = [](std::string_view line) { std::cerr << "tahvel supervisor: " << line << "\n"; };
+}
+
+Supervisor::~Supervisor() {
+  stop_all();
+  for (Program* p : programs_) delete p;
+}
+
+Result<void> Supervisor::start(ProgramSpec spec) {
+  if (spec.argv.empty() || spec.argv[0].empty()) return fail(Errc::invalid_argument, "program '" + spec.name + "': empty command");
+  for (Program* p : programs_)
+    if (p->spec.name == spec.name) return fail(Errc::exists, "a program named '" + spec.name + "' is already supervised");
+  if (!spec.log_file.empty()) {
+    std::error_code ec;
+    std::filesystem::create_directories(spec.log_file.parent_path(), ec);
+    int fd = ::open(spec.log_file.c_str(), O_WRONLY | O_CREAT | O_APPEND | O_CLOEXEC, 0644);
+    if (fd < 0) return fail(Errc::io, spec.log_file.string() + ": " + std::strerror(errno));
+    ::close(fd);
+  }
+  auto* program = new Program{std::move(spec), {}, {}, {}, back_off_.first, false};
+  program->state.name = program->spec.name;
+  programs_.push_back(program);
+  launch(*program);
+  return {};
+}
+
+void Supervisor::launch(Program& program) {
+  program.restart_at.reset();
+  std::vector<std::string> argv = program.spec.argv;
+  std::vector<char*> args;
+  for (auto& a : argv) args.push_back(a.data());
+  args.push_back(nullptr);
+  pid_t pid = fork();
+  if (pid < 0) {
+    log_("cannot start " + program.spec.name + ": fork: " + std::strerror(errno));
+    program.restart_at = Clock::now() + program.delay;
+    return;
+  }
+  if (pid == 0) {
+    // In the child: only async-signal-safe calls until exec.
+    setpgid(0, 0);
+    if (!program.spec.log_file.empty()) {
+      int fd = ::open(program.spec.log_file.c_str(), O_WRONLY | O_CREAT | O_APPEND, 0644);
+      if (fd >= 0) {
+        dup2(fd, 1);
+        dup2(fd, 2);
+        if (fd > 2) ::close(fd);
+      }
+    }
+    for (auto& [k, v] : program.spec.env) setenv(k.c_str(), v.c_str(), 1);
+    execvp(args[0], args.data());
+    const char msg[] = "tahvel supervisor: exec failed\n";
+    (void)!write(2, msg, sizeof msg - 1);
+    _exit(127);
+  }
+  program.state.pid = pid;
+  program.state.running = true;
+  program.started = Clock::now();
+  log_("started " + program.spec.name + " (pid " + std::to_string(pid) + ")");
+}
+
+void Supervisor::reaped(Program& program, int status) {
+  program.state.running = false;
+  program.state.pid = 0;
+  program.state.last_exit = describe(status);
+  program.state.exit_status = WIFEXITED(status) ? std::optional<int>(WEXITSTATUS(status)) : std::nullopt;
+  if (program.stopping || !program.spec.restart) {
+    log_(program.spec.name + " " + program.state.last_exit + (program.stopping ? " (stopped)" : ""));
+    return;
+  }
+  if (Clock::now() - program.started >= back_off_.stable) program.delay = back_off_.first;
+  program.restart_at = Clock::now() + program.delay;
+  log_(program.spec.name + " " + program.state.last_exit + "; restarting in " +
+       std::to_string(program.delay.count()) + " ms");
+  program.delay = std::min(program.delay * 2, back_off_.max);
+}
+
+void Supervisor::poll() {
+  for (Program* p : programs_) {
+    if (!p->state.running) continue;
+    int status = 0;
+    pid_t r = waitpid(p->state.pid, &status, WNOHANG);
+    if (r == p->state.pid) reaped(*p, status);
+  }
+  const auto now = Clock::now();
+  for (Program* p : programs_) {
+    if (!p->state.running && !p->stopping && p->restart_at && now >= *p->restart_at) {
+      ++p->state.restarts;
+      launch(*p);
+    }
+  }
+}
+
+Result<void> Supervisor::stop(std::string_view name, std::chrono::milliseconds grace) {
+  for (Program* p : programs_) {
+    if (p->spec.name != name) continue;
+    p->stopping = true;
+    p->restart_at.reset();
+    if (!p->state.running) return {};
+    kill(p->state.pid, SIGTERM);
+    const auto deadline = Clock::now() + grace;
+    for (;;) {
+      int status = 0;
+      pid_t r = waitpid(p->state.pid, &status, WNOHANG);
+      if (r == p->state.pid) {
+        reaped(*p, status);
+        return {};
+      }
+      if (Clock::now() >= deadline) {
+        kill(p->state.pid, SIGKILL);
+        waitpid(p->state.pid, &status, 0);
+        reaped(*p, status);
+        return {};
+      }
+      std::this_thread::sleep_for(std::chrono::milliseconds(10));
+    }
+  }
+  return fail(Errc::not_found, "no program named '" + std::string(name) + "'");
+}
+
+void Supervisor::stop_all(std::chrono::milliseconds grace) {
+  for (Program* p : programs_) {
+    p->stopping = true;
+    p->restart_at.reset();
+    if (p->state.running) kill(p->state.pid, SIGTERM);
+  }
+  const auto deadline = Clock::now() + grace;
+  for (Program* p : programs_) {
+    while (p->state.running) {
+      int status = 0;
+      pid_t r = waitpid(p->state.pid, &status, WNOHANG);
+      if (r == p->state.pid) {
+        reaped(*p, status);
+        break;
+      }
+      if (Clock::now() >= deadline) {
+        kill(p->state.pid, SIGKILL);
+        waitpid(p->state.pid, &status, 0);
+        reaped(*p, status);
+        break;
+      }
+      std::this_thread::sleep_for(std::chrono::milliseconds(10));
+    }
+  }
+}
+
+std::vector<ProgramState> Supervisor::states() const {
+  std::vector<ProgramState> out;
+  for (const Program* p : programs_) out.push_back(p->state);
+  return out;
+}
+
+std::optional<ProgramState> Supervisor::state(std::string_view name) const {
+  for (const Program* p : programs_)
+    if (p->spec.name == name) return p->state;
+  return std::nullopt;
+}
+
+}  // namespace tahvel::agents

@@ -1,0 +1,531 @@
+// Federation on the command line: `tahvel link` (a node's communication agent), `tahvel query`
+// (a remote query from this node down the tree), `tahvel up` / `tahvel down` (a deployment from
+// a topology file under a supervisor) and `tahvel status` (the tree of nodes and agents).
+#include <fcntl.h>
+#include <signal.h>
+#include <sys/stat.h>
+#include <sys/wait.h>
+#include <time.h>
+#include <unistd.h>
+
+#include <algorithm>
+#include <cerrno>
+#include <chrono>
+#include <cstring>
+#include <fstream>
+#include <iostream>
+#include <map>
+#include <sstream>
+#include <thread>
+
+#include "commands.h"
+#include "tahvel/agents/supervisor.h"
+#include "tahvel/federation/link.h"
+#include "tahvel/federation/transport.h"
+#include "tahvel/node/format.h"
+#include "tahvel/uri/iri.h"
+#include "topology.h"
+
+namespace tahvel::cli {
+namespace {
+
+namespace fs = std::filesystem;
+using namespace std::chrono_literals;
+
+inline constexpr int kExitUnknownNode = 4;
+inline constexpr int kExitUnreachable = 5;
+
+// --- transports ---------------------------------------------------------------------------
+
+std::shared_ptr<federation::Transport> open_transport(const std::string& kind, const Args& args,
+                                                      const std::string& self, federation::DropLog log) {
+  node::Result<std::unique_ptr<federation::Transport>> transport = node::fail(node::Errc::invalid_argument, "");
+  if (kind == "lcm") {
+    federation::LcmSettings settings;
+    if (auto url = args.get("--lcm-url")) settings.url = *url;
+    transport = federation::open_lcm(settings, self, std::move(log));
+  } else if (kind == "dds") {
+    federation::DdsSettings settings;
+    settings.domain = static_cast<std::uint32_t>(args.get_u64("--dds-domain", 0));
+    if (auto file = args.get("--dds-config")) settings.config = read_input(*file);
+    transport = federation::open_dds(settings, self, std::move(log));
+  } else {
+    usage_error("transport kind '" + kind + "': use lcm or dds");
+  }
+  return std::shared_ptr<federation::Transport>(check(std::move(transport)));
+}
+
+// "S P O" with '_' for any position, in the node's prefixes.
+node::Pattern forward_pattern(const std::string& text, const uri::PrefixMap& prefixes) {
+  std::istringstream in(text);
+  std::string s, p, o, extra;
+  if (!(in >> s >> p >> o) || (in >> extra))
+    usage_error("--forward '" + text + "': write three terms 'S P O', '_' for any");
+  node::Pattern pattern;
+  if (s != "_") pattern.s = parse_term(s, prefixes, "--forward", Position::subject);
+  if (p != "_") pattern.p = parse_term(p, prefixes, "--forward", Position::predicate);
+  if (o != "_") pattern.o = parse_term(o, prefixes, "--forward", Position::object);
+  return pattern;
+}
+
+volatile sig_atomic_t g_stop = 0;
+void on_stop_signal(int) { g_stop = 1; }
+
+void install_stop_handlers() {
+  struct sigaction action {};
+  action.sa_handler = on_stop_signal;
+  sigemptyset(&action.sa_mask);
+  sigaction(SIGTERM, &action, nullptr);
+  sigaction(SIGINT, &action, nullptr);
+}
+
+// --- times ----------------------------------------------------------------------------------
+
+// ns since the epoch from an integer (ns) or an RFC 3339 UTC time "2026-11-21T10:00:00Z" (with
+// optional fractional seconds).
+std::int64_t time_flag(const Args& args, std::string_view flag, const std::string& text) {
+  if (auto n = parse_u64(text)) return static_cast<std::int64_t>(*n);
+  struct tm tm {};
+  const char* rest = strptime(text.c_str(), "%Y-%m-%dT%H:%M:%S", &tm);
+  if (!rest) usage_error(std::string(flag) + " '" + text + "': give ns since the epoch or a time like 2026-11-21T10:00:00Z");
+  std::int64_t ns = static_cast<std::int64_t>(timegm(&tm)) * 1'000'000'000;
+  if (*rest == '.') {
+    ++rest;
+    std::int64_t scale = 100'000'000;
+    while (*rest >= '0' && *rest <= '9') {
+      ns += (*rest - '0') * scale;
+      scale /= 10;
+      ++rest;
+    }
+  }
+  if (std::string_view(rest) != "Z" && std::string_view(rest) != "+00:00")
+    usage_error(std::string(flag) + " '" + text + "': only UTC times (ending in Z) are accepted");
+  (void)args;
+  return ns;
+}
+
+std::string age_of(std::int64_t ns) {
+  if (ns <= 0) return "never";
+  auto now = std::chrono::duration_cast<std::chrono::nanoseconds>(std::chrono::system_clock::now().time_since_epoch()).count();
+  double s = (now - ns) / 1e9;
+  std::ostringstream out;
+  out.precision(1);
+  out << std::fixed << s << " s ago";
+  return out.str();
+}
+
+const Flag kFlagLcmUrl{"--lcm-url", "", "URL", "LCM provider URL (default udpm://239.255.76.67:7667?ttl=0)"};
+const Flag kFlagDdsDomain{"--dds-domain", "", "N", "Cyclone DDS domain id (default 0)"};
+const Flag kFlagDdsConfig{"--dds-config", "", "FILE", "Cyclone DDS XML configuration"};
+const Flag kFlagState{"--state", "", "DIR", "the deployment's state directory (default ./state)"};
+
+fs::path state_dir(const Args& args) { return args.get("--state").value_or("state"); }
+
+}  // namespace
+
+// --- tahvel link ------------------------------------------------------------------------------
+
+const Command kLinkCommand{
+    "link",
+    "DIR [--parent IRI --up lcm|dds] [--listen lcm|dds] [--child ID]... [--forward 'S P O']...",
+    "Run a node's communication agent (normally started by 'tahvel up').",
+    "Links the node at DIR to its parent (--parent, over --up) and serves its children (--listen).\n"
+    "Items its agent 'uplink' subscribes to go up exactly once (the policy: --forward patterns,\n"
+    "default HRV windows); items addressed to a node below go down; queries are answered or\n"
+    "routed on. Runs until SIGTERM or SIGINT. The protocol is docs/protocol.md.",
+    {{"--parent", "", "IRI", "the parent node's IRI"},
+     {"--up", "", "lcm|dds", "transport to the parent"},
+     {"--listen", "", "lcm|dds", "transport children reach this node on"},
+     {"--child", "", "ID", "accept this child id (repeatable; default: any direct child)", true},
+     {"--forward", "", "'S P O'", "forward items with a triple matching (repeatable; '_' = any)", true},
+     kFlagLcmUrl, kFlagDdsDomain, kFlagDdsConfig},
+    1, 1};
+
+int run_link(const Args& args) {
+  node::Node node = open_node(args.positional(0));
+  uri::PrefixMap prefixes = prefixes_with_flags(node.prefixes(), args);
+  federation::LinkOptions options;
+  options.dir = args.positional(0);
+  auto log = [iri = node.iri()](std::string_view line) { std::cerr << "tahvel link <" << iri << ">: " << line << std::endl; };
+  options.log = log;
+  auto parent = args.get("--parent");
+  auto up = args.get("--up");
+  if (parent.has_value() != up.has_value()) usage_error("--parent and --up go together");
+  auto listen = args.get("--listen");
+  if (!parent && !listen) usage_error("give --parent IRI --up KIND, --listen KIND, or both");
+  if (up) {
+    options.parent_iri = parse_iri(*parent, prefixes, "--parent");
+    options.up = open_transport(*up, args, node.iri(), log);
+  }
+  if (listen) options.down = (up && *up == *listen) ? options.up : open_transport(*listen, args, node.iri(), log);
+  options.children = args.all("--child");
+  for (const auto& text : args.all("--forward")) options.forward.push_back(forward_pattern(text, prefixes));
+  install_stop_handlers();
+  auto link = check(federation::Link::start(std::move(options)));
+  std::cerr << "tahvel link <" << node.iri() << ">: running" << (parent ? " (parent <" + *parent + "> over " + *up + ")" : "")
+            << (listen ? " (children over " + *listen + ")" : "") << std::endl;
+  while (!g_stop) std::this_thread::sleep_for(100ms);
+  link->stop();
+  auto c = link->counters();
+  std::cerr << "tahvel link <" << node.iri() << ">: stopped; sent up " << c.up_sent << ", relayed in " << c.relayed_in
+            << ", duplicates dropped " << c.duplicates_in << ", applied from above " << c.down_applied << std::endl;
+  return kExitOk;
+}
+
+// --- tahvel query -----------------------------------------------------------------------------
+
+const Command kQueryCommand{
+    "query",
+    "DIR --at NODE-IRI [-s S] [-p P] [-o O] [--since T] [--until T] [--cascade N] [--limit N] [--format nt|ttl|json]",
+    "Ask a node below this one for its records; the answer streams back.",
+    "Run against the node at DIR (e.g. the hospital): the query travels down the tree to the node\n"
+    "at --at, is answered from its store and comes back in chunks, printed as they arrive. Times\n"
+    "(--since, --until; by asserted-at) are ns since the epoch or UTC like 2026-11-21T10:00:00Z.\n"
+    "Exit status: 0 answered, 3 timeout, 4 unknown node, 5 unreachable node, 1 other failure.",
+    {{"--at", "", "NODE-IRI", "the node that answers (this node or any node below it)"},
+     kFlagS, kFlagP, kFlagO,
+     {"--since", "", "T", "records asserted at or after T"},
+     {"--until", "", "T", "records asserted before T"},
+     kFlagCascade,
+     {"--limit", "", "N", "at most N records (0: no limit)"},
+     {"--timeout", "", "S", "give up after S seconds (default 30)"},
+     kFlagFormat},
+    1, 1};
+
+int run_query(const Args& args) {
+  node::Node node = open_node(args.positional(0));
+  uri::PrefixMap prefixes = prefixes_with_flags(node.prefixes(), args);
+  federation::RemoteQuery query;
+  query.target = parse_iri(args.required("--at"), prefixes, "--at");
+  query.pattern = pattern_from_args(args, prefixes);
+  if (auto since = args.get("--since")) query.pattern.since = time_flag(args, "--since", *since);
+  if (auto until = args.get("--until")) query.pattern.until = time_flag(args, "--until", *until);
+  query.cascade = static_cast<unsigned>(args.get_u64("--cascade", 0));
+  query.limit = args.get_u64("--limit", 0);
+  auto timeout = std::chrono::seconds(args.get_u64("--timeout", 30));
+  node::Format format = format_flag(args, node::Format::ntriples);
+  std::vector<node::Record> turtle_records;  // Turtle needs the prefixes the records use: at the end
+  std::optional<node::RecordWriter> writer;
+  if (format != node::Format::turtle) writer.emplace(std::cout, format);
+  auto answered = federation::remote_query(node, query, timeout, [&](const node::Record& r) {
+    if (writer) writer->write(r);
+    else turtle_records.push_back(r);
+  });
+  if (writer) writer->finish();
+  if (!answered) {
+    const auto& e = answered.error();
+    int status = e.code == node::Errc::timeout ? kExitTimeout
+                 : e.code == node::Errc::not_found ? kExitUnknownNode
+                 : e.message.rfind("unreachable", 0) == 0 ? kExitUnreachable
+                 : kExitFailure;
+    throw Failure{status, "query: " + e.message};
+  }
+  if (!writer) write_records(std::cout, format, prefixes, turtle_records);
+  finish_output(std::cout);
+  std::cerr << "tahvel: " << *answered << " records from <" << query.target << ">\n";
+  return kExitOk;
+}
+
+// --- tahvel up / down / status ----------------------------------------------------------------
+
+namespace {
+
+fs::path self_bin_dir() {
+  std::error_code ec;
+  fs::path exe = fs::read_symlink("/proc/self/exe", ec);
+  return ec ? fs::path() : exe.parent_path();
+}
+
+std::string link_kind_of(const Topology& topo, const NodeSpec& node) {
+  const NodeSpec* parent = topo.node(node.parent);
+  return parent && parent->listen ? parent->listen->kind : std::string();
+}
+
+// The argv of a node's link process.
+std::vector<std::string> link_argv(const Topology& topo, const NodeSpec& spec, const fs::path& store, const fs::path& bin) {
+  std::vector<std::string> argv{(bin / "tahvel").string(), "link", store.string()};
+  auto transport_flags = [&](const LinkSpec& l) {
+    if (l.kind == "lcm") argv.insert(argv.end(), {"--lcm-url", l.lcm_url});
+    if (l.kind == "dds") {
+      argv.insert(argv.end(), {"--dds-domain", std::to_string(l.dds_domain)});
+      if (!l.dds_config.empty()) argv.insert(argv.end(), {"--dds-config", fs::absolute(l.dds_config).string()});
+    }
+  };
+  if (const NodeSpec* parent = topo.node(spec.parent)) {
+    argv.insert(argv.end(), {"--parent", parent->iri, "--up", parent->listen->kind});
+    transport_flags(*parent->listen);
+  }
+  if (spec.listen && !topo.children(spec.id).empty()) {
+    argv.insert(argv.end(), {"--listen", spec.listen->kind});
+    if (!(topo.node(spec.parent) && topo.node(spec.parent)->listen->kind == spec.listen->kind)) transport_flags(*spec.listen);
+    for (const NodeSpec* child : topo.children(spec.id)) argv.insert(argv.end(), {"--child", child->id});
+  }
+  for (const auto& f : spec.forward) argv.insert(argv.end(), {"--forward", f});
+  return argv;
+}
+
+std::string pid_file_name(const std::optional<std::string>& only) {
+  return "supervisor-" + only.value_or("all") + ".pid";
+}
+
+void write_state_file(const fs::path& file, const agents::Supervisor& sup) {
+  fs::path tmp = file;
+  tmp += ".tmp";
+  {
+    std::ofstream out(tmp);
+    for (const auto& s : sup.states())
+      out << s.name << '\t' << s.pid << '\t' << (s.running ? "running" : "stopped") << '\t' << s.restarts << '\t'
+          << s.last_exit << '\n';
+  }
+  fs::rename(tmp, file);
+}
+
+struct ProgramRow {
+  std::string name, pid, state, restarts, last_exit;
+};
+
+std::vector<ProgramRow> read_state_files(const fs::path& dir) {
+  std::vector<ProgramRow> rows;
+  std::error_code ec;
+  for (const auto& entry : fs::directory_iterator(dir, ec)) {
+    if (entry.path().extension() != ".state") continue;
+    std::ifstream in(entry.path());
+    std::string line;
+    while (std::getline(in, line)) {
+      std::vector<std::string> f;
+      std::stringstream ss(line);
+      std::string field;
+      while (std::getline(ss, field, '\t')) f.push_back(field);
+      f.resize(5);
+      rows.push_back({f[0], f[1], f[2], f[3], f[4]});
+    }
+  }
+  return rows;
+}
+
+bool process_alive(pid_t pid) { return pid > 0 && (kill(pid, 0) == 0 || errno == EPERM); }
+
+}  // namespace
+
+const Command kUpCommand{
+    "up",
+    "FILE [--state DIR] [--node ID] [--foreground]",
+    "Bring up a deployment (or one node of it) from a topology file.",
+    "Creates each node's store at DIR/<node id> when missing (IRI, durability and ring from the\n"
+    "file), then starts every node's link and agents under a supervisor that restarts dead ones\n"
+    "with back-off and logs why they died (DIR/logs/). With --node only that node (one machine of\n"
+    "a real deployment). The supervisor runs in the background until 'tahvel down'; with\n"
+    "--foreground it stays attached until SIGINT/SIGTERM. The file format is docs/deploy.md.",
+    {kFlagState, {"--node", "", "ID", "bring up only this node"},
+     {"--foreground", "", "", "run the supervisor in this process"}},
+    1, 1};
+
+int run_up(const Args& args) {
+  Topology topo = check(load_topology(args.positional(0)));
+  fs::path state = fs::absolute(state_dir(args));
+  std::optional<std::string> only = args.get("--node");
+  if (only && !topo.node(*only)) fail("--node '" + *only + "': no such node in " + topo.file.string());
+  std::error_code ec;
+  fs::create_directories(state / "logs", ec);
+  if (ec) fail(state.string() + ": " + ec.message());
+  fs::path pid_file = state / pid_file_name(only);
+  if (std::ifstream in(pid_file); in) {
+    pid_t pid = 0;
+    in >> pid;
+    if (process_alive(pid)) fail("already up (supervisor pid " + std::to_string(pid) + ", " + pid_file.string() + "); 'tahvel down --state " + state.string() + "' first");
+  }
+  const fs::path bin = self_bin_dir();
+  std::vector<agents::ProgramSpec> programs;
+  for (const NodeSpec& spec : topo.nodes) {
+    if (only && spec.id != *only) continue;
+    fs::path store = state / spec.id;
+    if (!fs::exists(store / "data.mdb")) {
+      node::InitOptions init;
+      init.iri = spec.iri;
+      init.durability = spec.durability == "durable" ? node::Durability::durable : node::Durability::fast;
+      init.ring = spec.ring;
+      check(node::Node::init(store, init));
+      std::cout << "up: created the store of " << spec.id << " <" << spec.iri << "> at " << store.string() << "\n";
+    }
+    if (!spec.parent.empty()) {
+      // The forwarding policy is on the board before any agent starts: an item written before
+      // the uplink subscribed would never be routed to it (P5).
+      node::Node node = check(node::Node::open(store));
+      node::Agent uplink = check(node.agent("uplink"));
+      std::vector<node::Pattern> policy;
+      for (const auto& f : spec.forward) policy.push_back(forward_pattern(f, node.prefixes()));
+      if (policy.empty()) policy = federation::default_forward_policy();
+      for (const auto& pattern : policy) check(uplink.subscribe(pattern));
+    }
+    if (!spec.parent.empty() || !topo.children(spec.id).empty())
+      programs.push_back({spec.id + "/link", link_argv(topo, spec, store, bin), state / "logs" / spec.id / "link.log", {}, true});
+    for (const AgentSpec& agent : spec.agents)
+      programs.push_back({spec.id + "/" + agent.id, expand_agent_command(agent, spec, store, bin),
+                          state / "logs" / spec.id / (agent.id + ".log"), {}, agent.restart});
+  }
+  const bool foreground = args.has("--foreground");
+  if (!foreground) {
+    // The supervisor lives on in a daemon; this process returns once it has started.
+    int ready[2];
+    if (pipe(ready) != 0) fail(std::string("pipe: ") + std::strerror(errno));
+    pid_t pid = fork();
+    if (pid < 0) fail(std::string("fork: ") + std::strerror(errno));
+    if (pid > 0) {
+      close(ready[1]);
+      char c = 0;
+      bool ok = read(ready[0], &c, 1) == 1;
+      close(ready[0]);
+      if (!ok) fail("the supervisor did not start; see " + (state / "logs" / "supervisor.log").string());
+      std::cout << "up: " << topo.name << ": " << programs.size() << " programs under supervisor (pid file "
+                << pid_file.string() << "); logs in " << (state / "logs").string() << "\n"
+                << "up: 'tahvel status --state " << state.string() << "' shows the tree, 'tahvel down --state "
+                << state.string() << "' stops it\n";
+      return kExitOk;
+    }
+    close(ready[0]);
+    setsid();
+    if (fork() > 0) _exit(0);  // not a session leader: never gets a controlling terminal
+    int log = ::open((state / "logs" / "supervisor.log").c_str(), O_WRONLY | O_CREAT | O_APPEND, 0644);
+    int null = ::open("/dev/null", O_RDONLY);
+    if (null >= 0) dup2(null, 0);
+    if (log >= 0) {
+      dup2(log, 1);
+      dup2(log, 2);
+    }
+    std::ofstream(pid_file) << getpid() << "\n";
+    (void)!write(ready[1], "1", 1);
+    close(ready[1]);
+  } else {
+    std::ofstream(pid_file) << getpid() << "\n";
+  }
+  install_stop_handlers();
+  signal(SIGPIPE, SIG_IGN);
+  agents::Supervisor supervisor([](std::string_view line) {
+    auto now = std::chrono::system_clock::to_time_t(std::chrono::system_clock::now());
+    char stamp[32];
+    std::strftime(stamp, sizeof stamp, "%Y-%m-%dT%H:%M:%SZ", std::gmtime(&now));
+    std::cerr << stamp << " " << line << std::endl;
+  });
+  for (auto& program : programs) {
+    if (auto started = supervisor.start(program); !started) std::cerr << "up: " << started.error().message << std::endl;
+  }
+  fs::path state_file = state / pid_file_name(only);
+  state_file.replace_extension(".state");
+  while (!g_stop) {
+    supervisor.poll();
+    write_state_file(state_file, supervisor);
+    std::this_thread::sleep_for(100ms);
+  }
+  supervisor.stop_all();
+  write_state_file(state_file, supervisor);
+  fs::remove(pid_file, ec);
+  return kExitOk;
+}
+
+const Command kDownCommand{
+    "down",
+    "[--state DIR]",
+    "Stop what 'tahvel up' started with this state directory.",
+    "Sends SIGTERM to each supervisor of DIR (its pid files), which stops its agents (SIGTERM,\n"
+    "SIGKILL after 5 s), and waits for them to end. The stores stay.",
+    {kFlagState},
+    0, 0};
+
+int run_down(const Args& args) {
+  fs::path state = state_dir(args);
+  std::error_code ec;
+  int stopped = 0;
+  for (const auto& entry : fs::directory_iterator(state, ec)) {
+    const std::string name = entry.path().filename().string();
+    if (name.rfind("supervisor-", 0) != 0 || entry.path().extension() != ".pid") continue;
+    pid_t pid = 0;
+    std::ifstream(entry.path()) >> pid;
+    if (!process_alive(pid)) {
+      fs::remove(entry.path(), ec);
+      continue;
+    }
+    kill(pid, SIGTERM);
+    const auto deadline = std::chrono::steady_clock::now() + 20s;
+    while (process_alive(pid) && std::chrono::steady_clock::now() < deadline) std::this_thread::sleep_for(50ms);
+    if (process_alive(pid)) fail("supervisor " + std::to_string(pid) + " did not stop within 20 s");
+    ++stopped;
+    std::cout << "down: stopped supervisor " << pid << " (" << name << ")\n";
+  }
+  if (ec) fail(state.string() + ": " + ec.message());
+  if (stopped == 0) std::cout << "down: nothing was running under " << state.string() << "\n";
+  return kExitOk;
+}
+
+const Command kStatusCommand{
+    "status",
+    "[--state DIR]",
+    "Print the tree of nodes and agents of a deployment.",
+    "For each node store under DIR: its IRI; the state its parent keeps of it (link up/down,\n"
+    "last seen, outbox depth, software version); and the programs the supervisor runs for it\n"
+    "(pid, restarts, last exit).",
+    {kFlagState},
+    0, 0};
+
+int run_status(const Args& args) {
+  fs::path state = state_dir(args);
+  struct Entry {
+    std::string id, iri;
+    std::map<std::string, std::string> link;  // as its parent's board says
+  };
+  std::vector<Entry> nodes;
+  std::map<std::string, std::map<std::string, std::string>> child_state;  // child IRI -> fields
+  std::error_code ec;
+  for (const auto& entry : fs::directory_iterator(state, ec)) {
+    if (!entry.is_directory() || !fs::exists(entry.path() / "data.mdb")) continue;
+    auto node = node::Node::open(entry.path());
+    if (!node) {
+      std::cerr << "tahvel: " << entry.path().string() << ": " << node.error().message << "\n";
+      continue;
+    }
+    nodes.push_back({entry.path().filename().string(), node->iri(), {}});
+    auto snap = node->snapshot();
+    if (!snap) continue;
+    auto records = snap->list({.p = node::Term::iri(federation::vocab::kLinkState)});
+    if (!records) continue;
+    for (const auto& r : *records) {
+      auto item = snap->item(r.meta.item);
+      if (!item) continue;
+      for (const auto& f : *item) {
+        std::string key = f.triple.p.value.substr(f.triple.p.value.find('#') + 1);
+        child_state[f.triple.s.value][key] = f.triple.o.value;
+      }
+    }
+  }
+  if (ec) fail(state.string() + ": " + ec.message());
+  if (nodes.empty()) fail("no node stores under " + state.string() + " (did 'tahvel up' run with this --state?)");
+  std::sort(nodes.begin(), nodes.end(), [](const Entry& a, const Entry& b) { return a.iri < b.iri; });
+  auto programs = read_state_files(state);
+  for (const Entry& n : nodes) {
+    int depth = 0;
+    for (const Entry& other : nodes)
+      if (other.iri != n.iri && uri::is_under(n.iri, other.iri)) ++depth;
+    std::string indent(depth * 2, ' ');
+    std::cout << indent << n.id << "  <" << n.iri << ">";
+    if (auto it = child_state.find(n.iri); it != child_state.end()) {
+      auto& f = it->second;
+      std::int64_t seen = 0;
+      if (auto p = parse_u64(f["lastSeen"])) seen = static_cast<std::int64_t>(*p);
+      std::cout << "  link " << f["linkState"] << ", last seen " << age_of(seen) << ", outbox " << f["outboxDepth"];
+      if (!f["softwareVersion"].empty()) std::cout << ", " << f["softwareVersion"];
+    } else if (depth == 0) {
+      std::cout << "  (root)";
+    }
+    std::cout << "\n";
+    for (const auto& p : programs) {
+      if (p.name.rfind(n.id + "/", 0) != 0) continue;
+      std::cout << indent << "  - " << p.name.substr(n.id.size() + 1) << "  " << p.state;
+      if (p.state == "running") std::cout << " (pid " << p.pid << ")";
+      if (p.restarts != "0") std::cout << ", " << p.restarts << " restarts";
+      if (!p.last_exit.empty()) std::cout << ", last: " << p.last_exit;
+      std::cout << "\n";
+    }
+  }
+  return kExitOk;
+}
+
+}  // namespace tahvel::cli

@@ -1,0 +1,63 @@
+// A deployment's topology file (TOML, docs/deploy.md): nodes, their IRIs, tiers, parents, links,
+// stores and agents. Parsed and checked as a whole before anything starts: an error names the
+// file, line and column (TOML syntax) or the node and key (meaning).
+#pragma once
+
+#include <cstdint>
+#include <filesystem>
+#include <optional>
+#include <string>
+#include <vector>
+
+#include "tahvel/node/error.h"
+
+namespace tahvel::cli {
+
+// How a node's children reach it (`listen`) — and so how each child links to it.
+struct LinkSpec {
+  std::string kind;  // "lcm" or "dds"
+  std::string lcm_url = "udpm://239.255.76.67:7667?ttl=0";
+  std::uint32_t dds_domain = 0;
+  std::string dds_config;  // path of a Cyclone DDS XML file (relative to the topology file)
+};
+
+struct AgentSpec {
+  std::string id;
+  std::vector<std::string> run;             // argv; placeholders below
+  std::vector<std::string> run_with_mitdb;  // used instead of `run` when TAHVEL_MITDB is set
+  bool restart = true;
+};
+
+struct NodeSpec {
+  std::string id;
+  std::string iri;
+  std::string tier;
+  std::string parent;                  // parent node id, empty for a root
+  std::optional<LinkSpec> listen;      // for its children
+  std::string durability = "fast";     // fast | durable
+  std::uint64_t ring = 0;
+  std::vector<std::string> forward;    // uplink policy patterns "S P O" (CURIEs, _ for any)
+  std::vector<AgentSpec> agents;
+};
+
+struct Topology {
+  std::filesystem::path file;
+  std::string name;
+  std::vector<NodeSpec> nodes;  // parents before their children
+
+  const NodeSpec* node(const std::string& id) const;
+  std::vector<const NodeSpec*> children(const std::string& id) const;
+};
+
+// Reads and checks FILE: TOML syntax; unique node ids; every parent exists, no cycles; a child's
+// IRI is its parent's IRI + "/" + its id (derived when omitted); a parent with children has a
+// `listen`; kinds are lcm or dds; agent ids are valid and unique per node.
+node::Result<Topology> load_topology(const std::filesystem::path& file);
+
+// An agent's argv with placeholders expanded: {store} (the node's store directory), {iri} (the
+// node IRI), {bin} (the directory of the running tahvel binary), {mitdb} (TAHVEL_MITDB).
+std::vector<std::string> expand_agent_command(const AgentSpec& agent, const NodeSpec& node,
+                                              const std::filesystem::path& store,
+                                              const std::filesystem::path& bin);
+
+}  // namespace tahvel::cli
