@@ -46,7 +46,8 @@ std::map<int, Watch>& watches() {
 std::string rejected_topic(std::string_view message) {
   constexpr std::string_view kMark = "deserialization ";
   const auto at = message.find(kMark);
-  if (at == std::string_view::npos || message.find(" failed", at) == std::string_view::npos) return {};
+  if (at == std::string_view::npos || message.find(" failed", at) == std::string_view::npos)
+    return {};
   const auto begin = at + kMark.size();
   const auto slash = message.find('/', begin);
   if (slash == std::string_view::npos) return {};

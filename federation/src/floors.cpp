@@ -74,7 +74,8 @@ struct LcmOwner {
 }  // namespace
 
 Result<LatencyFloor> raw_lcm_pingpong(const LcmSettings& settings, int rounds) {
-  if (rounds <= 0) return node::fail(Errc::invalid_argument, "raw_lcm_pingpong: rounds must be > 0");
+  if (rounds <= 0)
+    return node::fail(Errc::invalid_argument, "raw_lcm_pingpong: rounds must be > 0");
   LcmOwner a{lcm_create(settings.url.c_str())};
   LcmOwner b{lcm_create(settings.url.c_str())};
   if (a.lcm == nullptr || b.lcm == nullptr) {
@@ -116,7 +117,8 @@ Result<LatencyFloor> raw_lcm_pingpong(const LcmSettings& settings, int rounds) {
   echoer.join();
   if (static_cast<int>(samples.size()) < rounds) {
     return node::fail(Errc::timeout, "raw_lcm_pingpong on " + settings.url + ": " +
-                                         std::to_string(losses) + " pings without a pong within 1 s");
+                                         std::to_string(losses) +
+                                         " pings without a pong within 1 s");
   }
   return summarise(std::move(samples));
 }
@@ -136,7 +138,8 @@ struct DdsPair {
 };
 
 dds_entity_t make_endpoint(dds_entity_t pp, const std::string& topic_name, bool writer) {
-  dds_entity_t topic = dds_create_topic(pp, &tahvel_Ping_desc, topic_name.c_str(), nullptr, nullptr);
+  dds_entity_t topic =
+      dds_create_topic(pp, &tahvel_Ping_desc, topic_name.c_str(), nullptr, nullptr);
   if (topic < 0) return topic;
   dds_qos_t* qos = dds_create_qos();
   dds_qset_reliability(qos, DDS_RELIABILITY_RELIABLE, DDS_SECS(1));
@@ -184,7 +187,8 @@ bool take_one(dds_entity_t reader, dds_entity_t ws, clock::time_point deadline, 
 }  // namespace
 
 Result<LatencyFloor> raw_dds_pingpong(const DdsSettings& settings, int rounds) {
-  if (rounds <= 0) return node::fail(Errc::invalid_argument, "raw_dds_pingpong: rounds must be > 0");
+  if (rounds <= 0)
+    return node::fail(Errc::invalid_argument, "raw_dds_pingpong: rounds must be > 0");
   if (auto ok = dds_domain::acquire(settings.domain, settings.config); !ok) {
     return node::fail(ok.error().code, "raw_dds_pingpong: " + ok.error().message);
   }
@@ -197,13 +201,16 @@ Result<LatencyFloor> raw_dds_pingpong(const DdsSettings& settings, int rounds) {
   }
   const std::string suffix = unique_suffix();
   const std::string ping = "tahvel_floor_ping_" + suffix, pong = "tahvel_floor_pong_" + suffix;
-  dds_entity_t ping_w = make_endpoint(pair.a, ping, true), pong_r = make_endpoint(pair.a, pong, false);
-  dds_entity_t ping_r = make_endpoint(pair.b, ping, false), pong_w = make_endpoint(pair.b, pong, true);
+  dds_entity_t ping_w = make_endpoint(pair.a, ping, true),
+               pong_r = make_endpoint(pair.a, pong, false);
+  dds_entity_t ping_r = make_endpoint(pair.b, ping, false),
+               pong_w = make_endpoint(pair.b, pong, true);
   for (dds_entity_t e : {ping_w, pong_r, ping_r, pong_w}) {
     if (e < 0) return node::fail(Errc::io, "raw_dds_pingpong: endpoint: " + dds_domain::retcode(e));
   }
   if (!matched(pair.a, ping_w) || !matched(pair.b, pong_w)) {
-    return node::fail(Errc::timeout, "raw_dds_pingpong: ping and pong endpoints did not match within 5 s");
+    return node::fail(Errc::timeout,
+                      "raw_dds_pingpong: ping and pong endpoints did not match within 5 s");
   }
   dds_entity_t ws_a = dds_create_waitset(pair.a), ws_b = dds_create_waitset(pair.b);
   dds_waitset_attach(ws_a, dds_create_readcondition(pong_r, DDS_ANY_STATE), 0);

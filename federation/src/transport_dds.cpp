@@ -31,9 +31,9 @@
 #include <mutex>
 #include <vector>
 
+#include "dds_domain.h"
 #include "tahvel/federation/transport.h"
 #include "tahvel/federation/wire_names.h"
-#include "dds_domain.h"
 #include "tahvel_frame.h"
 #include "wire_common.h"
 
@@ -76,7 +76,9 @@ struct Writer {
 class DdsTransport final : public Transport {
  public:
   DdsTransport(const DdsSettings& settings, std::string self, DropLog log)
-      : domain_(settings.domain), self_(std::move(self)), topic_name_(dds_topic(self_)),
+      : domain_(settings.domain),
+        self_(std::move(self)),
+        topic_name_(dds_topic(self_)),
         log_(wire::or_stderr(std::move(log))) {}
 
   ~DdsTransport() override {
@@ -95,18 +97,22 @@ class DdsTransport final : public Transport {
     domain_acquired_ = true;
     const std::string where = "open_dds <" + self_ + ">: ";
     participant_ = dds_create_participant(domain_, nullptr, nullptr);
-    if (participant_ < 0) return node::fail(Errc::io, where + "participant: " + retcode(participant_));
+    if (participant_ < 0)
+      return node::fail(Errc::io, where + "participant: " + retcode(participant_));
     dds_entity_t topic =
         dds_create_topic(participant_, &tahvel_Frame_desc, topic_name_.c_str(), nullptr, nullptr);
-    if (topic < 0) return node::fail(Errc::io, where + "topic " + topic_name_ + ": " + retcode(topic));
+    if (topic < 0)
+      return node::fail(Errc::io, where + "topic " + topic_name_ + ": " + retcode(topic));
     Qos qos;
     reliable_keep_all(qos.q, true);
     reader_ = dds_create_reader(participant_, topic, qos.q, nullptr);
-    if (reader_ < 0) return node::fail(Errc::io, where + "reader on " + topic_name_ + ": " + retcode(reader_));
+    if (reader_ < 0)
+      return node::fail(Errc::io, where + "reader on " + topic_name_ + ": " + retcode(reader_));
     dds_entity_t cond = dds_create_readcondition(reader_, DDS_ANY_STATE);
     waitset_ = dds_create_waitset(participant_);
     if (cond < 0 || waitset_ < 0) {
-      return node::fail(Errc::io, where + "read condition or waitset: " + retcode(cond < 0 ? cond : waitset_));
+      return node::fail(
+          Errc::io, where + "read condition or waitset: " + retcode(cond < 0 ? cond : waitset_));
     }
     if (dds_return_t rc = dds_waitset_attach(waitset_, cond, 0); rc < 0) {
       return node::fail(Errc::io, where + "waitset attach: " + retcode(rc));
@@ -142,8 +148,8 @@ class DdsTransport final : public Transport {
     msg.body._release = false;
     if (dds_return_t rc = dds_write(w.writer, &msg); rc < 0) {
       return node::fail(rc == DDS_RETCODE_TIMEOUT ? Errc::timeout : Errc::io,
-                        "dds <" + self_ + ">: write on topic " + dds_topic(frame.to) + " failed: " +
-                            retcode(rc) + " (" + wire::describe(frame) + ")");
+                        "dds <" + self_ + ">: write on topic " + dds_topic(frame.to) +
+                            " failed: " + retcode(rc) + " (" + wire::describe(frame) + ")");
     }
     return {};
   }
@@ -158,9 +164,11 @@ class DdsTransport final : public Transport {
         queue_.pop_front();
         return std::optional<Frame>(std::move(frame));
       }
-      if (auto taken = take_some(); !taken) return node::fail(taken.error().code, taken.error().message);
+      if (auto taken = take_some(); !taken)
+        return node::fail(taken.error().code, taken.error().message);
       if (!queue_.empty()) continue;
-      const auto left = std::chrono::duration_cast<std::chrono::nanoseconds>(deadline - clock::now());
+      const auto left =
+          std::chrono::duration_cast<std::chrono::nanoseconds>(deadline - clock::now());
       if (left.count() <= 0) return std::optional<Frame>();
       dds_return_t rc = dds_waitset_wait(waitset_, nullptr, 0, left.count());
       if (rc < 0) return node::fail(Errc::io, "dds <" + self_ + ">: waitset wait: " + retcode(rc));
@@ -175,7 +183,8 @@ class DdsTransport final : public Transport {
     const std::string name = dds_topic(to);
     // The reader's own topic may be the same one (a frame to self): create_topic then returns
     // the existing entity's equivalent, which is fine.
-    dds_entity_t topic = dds_create_topic(participant_, &tahvel_Frame_desc, name.c_str(), nullptr, nullptr);
+    dds_entity_t topic =
+        dds_create_topic(participant_, &tahvel_Frame_desc, name.c_str(), nullptr, nullptr);
     if (topic < 0) {
       return node::fail(Errc::io, "dds <" + self_ + ">: topic " + name + " for <" +
                                       wire::printable(to) + ">: " + retcode(topic));
@@ -185,7 +194,8 @@ class DdsTransport final : public Transport {
     auto w = std::make_unique<Writer>();
     w->writer = dds_create_writer(participant_, topic, qos.q, nullptr);
     if (w->writer < 0) {
-      return node::fail(Errc::io, "dds <" + self_ + ">: writer on " + name + ": " + retcode(w->writer));
+      return node::fail(Errc::io,
+                        "dds <" + self_ + ">: writer on " + name + ": " + retcode(w->writer));
     }
     return writers_.emplace(to, std::move(w)).first->second.get();
   }
@@ -225,7 +235,9 @@ class DdsTransport final : public Transport {
     void* samples[kTakeBatch] = {};
     dds_sample_info_t infos[kTakeBatch];
     dds_return_t n = dds_take(reader_, samples, infos, kTakeBatch, kTakeBatch);
-    if (n < 0) return node::fail(Errc::io, "dds <" + self_ + ">: take on " + topic_name_ + ": " + retcode(n));
+    if (n < 0)
+      return node::fail(Errc::io,
+                        "dds <" + self_ + ">: take on " + topic_name_ + ": " + retcode(n));
     for (dds_return_t i = 0; i < n; ++i) {
       // Samples without data report a writer that went away (keyless topic: unregistered).
       if (infos[i].valid_data) accept(*static_cast<const tahvel_Frame*>(samples[i]), infos[i]);
@@ -249,7 +261,8 @@ class DdsTransport final : public Transport {
     }
     if (auto why = wire::reject_reason(frame, self_)) {
       char writer[40];
-      std::snprintf(writer, sizeof writer, "%016llx", static_cast<unsigned long long>(info.publication_handle));
+      std::snprintf(writer, sizeof writer, "%016llx",
+                    static_cast<unsigned long long>(info.publication_handle));
       log_("dds <" + self_ + ">: dropped " + wire::describe(frame) + " on topic " + topic_name_ +
            " from writer " + writer + ": " + *why);
       return;
@@ -281,7 +294,8 @@ Result<std::unique_ptr<Transport>> open_dds(const DdsSettings& settings, std::st
     return node::fail(Errc::invalid_argument, "open_dds: the endpoint IRI is empty or has a NUL");
   }
   auto transport = std::make_unique<DdsTransport>(settings, std::string(self_iri), std::move(log));
-  if (auto ok = transport->open(settings); !ok) return node::fail(ok.error().code, ok.error().message);
+  if (auto ok = transport->open(settings); !ok)
+    return node::fail(ok.error().code, ok.error().message);
   return std::unique_ptr<Transport>(std::move(transport));
 }
 

@@ -40,7 +40,9 @@ std::string effective_url(const std::string& url) {
 class LcmTransport final : public Transport {
  public:
   LcmTransport(lcm_t* lcm, std::string self, DropLog log)
-      : lcm_(lcm), self_(std::move(self)), channel_(lcm_channel(self_)),
+      : lcm_(lcm),
+        self_(std::move(self)),
+        channel_(lcm_channel(self_)),
         log_(wire::or_stderr(std::move(log))) {}
 
   ~LcmTransport() override {
@@ -114,8 +116,8 @@ class LcmTransport final : public Transport {
 
  private:
   Result<std::optional<Frame>> handle_error() {
-    return node::fail(Errc::io, "lcm <" + self_ + ">: lcm_handle_timeout failed on channel " +
-                                    channel_);
+    return node::fail(Errc::io,
+                      "lcm <" + self_ + ">: lcm_handle_timeout failed on channel " + channel_);
   }
 
   static void on_message(const lcm_recv_buf_t* rbuf, const char* channel, void* user) {

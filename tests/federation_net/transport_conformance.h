@@ -251,8 +251,8 @@ TEST_P(TransportConformance, GarbageIsDroppedWithAReasonAndTheEndpointKeepsWorki
   Endpoint a = open("a"), b = open("b");
   ASSERT_TRUE(a.transport && b.transport);
   const std::vector<std::string> garbage = {
-      std::string(), std::string(1, '\0'), "hello, this is not a frame", noise(1000, 3),
-      noise(70000, 4),  // more than one UDP datagram's worth
+      std::string(),  std::string(1, '\0'), "hello, this is not a frame",
+      noise(1000, 3), noise(70000, 4),  // more than one UDP datagram's worth
   };
   for (const auto& bytes : garbage) GetParam().inject_raw(b->self(), bytes);
   std::vector<Frame> frames;
@@ -262,7 +262,8 @@ TEST_P(TransportConformance, GarbageIsDroppedWithAReasonAndTheEndpointKeepsWorki
   ASSERT_EQ(lines.size(), garbage.size());
   for (const auto& line : lines) {
     std::cout << "[ " << GetParam().name << " ] " << line << "\n";
-    EXPECT_NE(line.find(b->self()), std::string::npos) << "line does not name the endpoint: " << line;
+    EXPECT_NE(line.find(b->self()), std::string::npos)
+        << "line does not name the endpoint: " << line;
     EXPECT_EQ(line.find('\n'), std::string::npos) << "not one line: " << line;
   }
   auto got = deliver(a, b, make_frame(*a, *b, FrameKind::up, 5, "still alive"));

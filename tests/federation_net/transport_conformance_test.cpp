@@ -5,7 +5,7 @@
 
 namespace tahvel::federation::conformance {
 
-INSTANTIATE_TEST_SUITE_P(Wire, TransportConformance, ::testing::Values(lcm_binding(), dds_binding()),
-                         BindingName);
+INSTANTIATE_TEST_SUITE_P(Wire, TransportConformance,
+                         ::testing::Values(lcm_binding(), dds_binding()), BindingName);
 
 }  // namespace tahvel::federation::conformance

@@ -111,8 +111,9 @@ TEST(WireOpen, DdsWithAnInvalidConfigurationFails) {
   require_netns();
   DdsSettings settings;
   settings.domain = 77;
-  settings.config = "<CycloneDDS><Domain><General><NoSuchSetting>1</NoSuchSetting></General>"
-                    "</Domain></CycloneDDS>";
+  settings.config =
+      "<CycloneDDS><Domain><General><NoSuchSetting>1</NoSuchSetting></General>"
+      "</Domain></CycloneDDS>";
   auto t = open_dds(settings, "tahvel://wire-open/dds/bad");
   ASSERT_FALSE(t);
   EXPECT_NE(t.error().message.find("dds_create_domain 77"), std::string::npos) << t.error().message;

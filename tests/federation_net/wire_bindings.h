@@ -7,9 +7,9 @@
 #include <map>
 #include <mutex>
 
+#include "junk_frame.h"
 #include "tahvel/federation/transport.h"
 #include "tahvel/federation/wire_names.h"
-#include "junk_frame.h"
 #include "transport_conformance.h"
 #include "wire_settings.h"
 
@@ -57,7 +57,8 @@ class DdsGarbageWriter {
     ASSERT_GT(participant_, 0) << "garbage writer: " << dds_strretcode(participant_);
     dds_entity_t& writer = writers_[to];
     if (writer == 0) {
-      dds_entity_t topic = dds_create_topic(participant_, &descriptor_, dds_topic(to).c_str(), nullptr, nullptr);
+      dds_entity_t topic =
+          dds_create_topic(participant_, &descriptor_, dds_topic(to).c_str(), nullptr, nullptr);
       ASSERT_GT(topic, 0) << dds_strretcode(topic);
       dds_qos_t* qos = dds_create_qos();
       dds_qset_reliability(qos, DDS_RELIABILITY_RELIABLE, DDS_SECS(1));
@@ -82,8 +83,8 @@ class DdsGarbageWriter {
     std::string config = settings.config;
     const auto at = config.find("<Discovery>");
     if (at != std::string::npos) {
-      config.insert(at + 11, "<ExternalDomainId>" + std::to_string(settings.domain) +
-                                 "</ExternalDomainId>");
+      config.insert(at + 11,
+                    "<ExternalDomainId>" + std::to_string(settings.domain) + "</ExternalDomainId>");
     }
     domain_ = dds_create_domain(kDomain, config.c_str());
     participant_ = domain_ > 0 ? dds_create_participant(kDomain, nullptr, nullptr) : domain_;
@@ -104,9 +105,18 @@ class DdsGarbageWriter {
     return matched;
   }
 
-  const dds_topic_descriptor_t descriptor_{
-      tahvel_test_Junk_desc.m_size, tahvel_test_Junk_desc.m_align, 0, 0, "tahvel::Frame", nullptr,
-      tahvel_test_Junk_desc.m_nops, tahvel_test_Junk_desc.m_ops, "", {nullptr, 0}, {nullptr, 0}, 0};
+  const dds_topic_descriptor_t descriptor_{tahvel_test_Junk_desc.m_size,
+                                           tahvel_test_Junk_desc.m_align,
+                                           0,
+                                           0,
+                                           "tahvel::Frame",
+                                           nullptr,
+                                           tahvel_test_Junk_desc.m_nops,
+                                           tahvel_test_Junk_desc.m_ops,
+                                           "",
+                                           {nullptr, 0},
+                                           {nullptr, 0},
+                                           0};
   std::mutex mutex_;
   dds_entity_t domain_ = 0;
   dds_entity_t participant_ = 0;
