@@ -11,5 +11,6 @@ int bench_store_main(const std::vector<std::string>& args);
 int bench_hrv_main(const std::vector<std::string>& args);
 int bench_spatial_main(const std::vector<std::string>& args);
 int bench_reason_main(const std::vector<std::string>& args);  // bench_reason.cpp
+int bench_federation_main(const std::vector<std::string>& args);  // bench_federation.cpp
 
 }  // namespace tahvel::cli

@@ -17,15 +17,18 @@ namespace {
 
 const Command kBenchCommand{
     "bench",
-    "store|hrv|spatial [--json] [--quick] [...]",
-    "Run a benchmark: 'store' (node store vs peers), 'hrv' (ECG chain speed, bytes) or\n"
-    "'spatial' (area queries: index vs brute force).",
+    "store|hrv|spatial|federation [--json] [--quick] [...]",
+    "Run a benchmark: 'store' (node store vs peers), 'hrv' (ECG chain speed, bytes),\n"
+    "'spatial' (area queries: index vs brute force) or 'federation' (link latency, ingest).",
     "'store' measures Tahvel's store against SQLite and sord on the same records in the same run\n"
     "and prints ratios. 'hrv' measures the R-peak detector and the whole HRV chain as multiples\n"
     "of real time on one core over MIT-BIH records, and raw bytes kept at home against HRV bytes\n"
     "sent up per patient-hour. 'spatial' measures which-sensors-in-a-room queries with 10,000\n"
-    "sensors and 1,000 rooms against testing every sensor. Everything after the benchmark's name\n"
-    "goes to it; 'tahvel bench store --help' (hrv, spatial) lists its flags.",
+    "sensors and 1,000 rooms against testing every sensor. 'federation' measures store-to-hospital\n"
+    "latency over DDS and LCM against the raw transports, items/s per link and hospital ingest\n"
+    "from K simulated homes; it sends packets, so run it under tests/tools/netns-run. Everything\n"
+    "after the benchmark's name goes to it; 'tahvel bench store --help' (hrv, spatial,\n"
+    "federation) lists its flags.",
     {{"--json", "", "", "(after 'store') print one JSON object instead of the table"},
      {"--quick", "", "", "(after 'store') a small run of seconds, for smoke tests"}},
     1, 64};
@@ -75,7 +78,8 @@ int run_bench(const std::vector<std::string>& rest) {
   if (rest[0] == "hrv") return bench_hrv_main(args);
   if (rest[0] == "spatial") return bench_spatial_main(args);
   if (rest[0] == "reason") return bench_reason_main(args);
-  usage_error("bench: unknown benchmark '" + rest[0] + "' (try 'store', 'hrv' or 'spatial')");
+  if (rest[0] == "federation") return bench_federation_main(args);
+  usage_error("bench: unknown benchmark '" + rest[0] + "' (try 'store', 'hrv', 'spatial' or 'federation')");
 }
 
 int dispatch(const std::vector<std::string>& argv) {
@@ -89,7 +93,8 @@ int dispatch(const std::vector<std::string>& argv) {
   const Command* command = find_command(name);
   if (!command) usage_error("unknown subcommand '" + name + "' (see 'tahvel --help')");
   // `tahvel bench store --help` is answered by the store benchmark itself.
-  bool bench_store = command == &kBenchCommand && !rest.empty() && (rest[0] == "store" || rest[0] == "hrv" || rest[0] == "spatial");
+  bool bench_store = command == &kBenchCommand && !rest.empty() && (rest[0] == "store" || rest[0] == "hrv" || rest[0] == "spatial" ||
+                                                                    rest[0] == "federation");
   if (wants_help(rest) && !bench_store) {
     print_help(std::cout, *command);
     return kExitOk;

@@ -1,0 +1,676 @@
+// `tahvel bench federation`: the link protocol (docs/protocol.md) end to end, with the raw
+// transports as floors in the same run (issue 4, "Must be measured"). Phases, in order:
+//   floors      raw_dds_pingpong / raw_lcm_pingpong (floors.h): the libraries alone, one-way.
+//   latency     per transport (DDS, LCM): two real stores in temporary directories, a hospital
+//               Link (`down` bound to its IRI) and a home Link (parent + `up`). One item at a
+//               time: Agent::store on the home, then wait until the relayed item is in the
+//               hospital's change stream (Node::watch); the time between is one sample.
+//   link rate   the same pair: a burst of items stored at home (store_all, 500 per call), time
+//               from the first store until the hospital's change stream holds them all.
+//   ingest      a hospital Link over DDS accepting any child, and K simulated homes in this
+//               process, each its own DDS endpoint speaking the child role directly (sim.h):
+//               hello, then its items as up frames in a window, go-back to the mark on a gap
+//               signal or when the mark stalls. Timed from the first up frame until the
+//               hospital's LinkCounters::relayed_in holds every item.
+//   ledger      after each phase the hospital's store is read back: every item carries a unique
+//               integer (bench:n); lost = numbers missing, duplicated = records beyond one.
+// It sends packets, so it refuses to run outside a private network namespace
+// (tests/tools/netns-run sets TAHVEL_IN_NETNS=1). Nothing here asserts on time: it prints
+// figures and whether each target is met.
+#include <algorithm>
+#include <atomic>
+#include <charconv>
+#include <condition_variable>
+#include <cstdio>
+#include <cstdlib>
+#include <iostream>
+#include <memory>
+#include <mutex>
+#include <optional>
+#include <stdexcept>
+#include <string>
+#include <thread>
+#include <vector>
+
+#include <unistd.h>
+
+#include "bench.h"
+#include "bench_measure.h"
+#include "bench_report.h"
+#include "tahvel/federation/floors.h"
+#include "tahvel/federation/link.h"
+#include "tahvel/federation/sim.h"
+#include "tahvel/federation/transport.h"
+#include "tahvel/node/node.h"
+
+namespace tahvel::cli {
+namespace bench {
+namespace {
+
+namespace fed = tahvel::federation;
+namespace fs = std::filesystem;
+using namespace std::chrono_literals;
+using node::Term;
+
+const char* kUsage =
+    "usage: tahvel bench federation [--json] [--quick] [--homes K]\n"
+    "  --json      print one JSON object instead of the table\n"
+    "  --quick     a small run of seconds, for smoke tests (50 homes unless --homes)\n"
+    "  --homes K   simulated homes feeding the hospital in the ingest phase (default 1000)\n"
+    "It sends packets (LCM multicast, DDS): run it in a private network namespace,\n"
+    "  tests/tools/netns-run build/bin/tahvel bench federation\n";
+
+// Targets (issue 4).
+constexpr double kLatencyRatioTarget = 2;      // link latency <= 2x the raw transport's
+constexpr double kIngestTarget = 100'000;      // hospital items/s
+
+struct Config {
+  bool json = false;
+  int rounds = 2'000;            // latency samples per transport (plus a tenth as warm-up)
+  std::size_t burst = 20'000;    // items per link-rate burst
+  std::size_t homes = 1'000;
+  bool homes_set = false;
+  std::size_t per_home = 200;    // items each simulated home sends
+  std::size_t window = 128;      // up frames in flight per simulated home
+};
+
+std::optional<Config> parse(const std::vector<std::string>& args) {
+  Config c;
+  bool quick = false;
+  for (std::size_t i = 0; i < args.size(); ++i) {
+    const std::string& a = args[i];
+    if (a == "--help" || a == "-h") return std::nullopt;
+    if (a == "--json") {
+      c.json = true;
+    } else if (a == "--quick") {
+      quick = true;
+    } else if (a == "--homes") {
+      if (i + 1 >= args.size()) throw std::invalid_argument("--homes needs a value");
+      const std::string& v = args[++i];
+      std::size_t n = 0;
+      auto [end, ec] = std::from_chars(v.data(), v.data() + v.size(), n);
+      if (ec != std::errc() || end != v.data() + v.size() || n == 0 || n > 100'000)
+        throw std::invalid_argument("--homes '" + v + "': expected an integer 1..100000");
+      c.homes = n;
+      c.homes_set = true;
+    } else {
+      throw std::invalid_argument("unknown argument '" + a + "'\n" + kUsage);
+    }
+  }
+  if (quick) {
+    c.rounds = 200;
+    c.burst = 2'000;
+    c.per_home = 100;
+    if (!c.homes_set) c.homes = 50;
+  }
+  return c;
+}
+
+// ---- items and the ledger ------------------------------------------------------------------
+
+const std::string kBenchN = "https://w3id.org/tahvel/bench#n";
+const Term kObservedProperty = Term::iri("http://www.w3.org/ns/sosa/observedProperty");
+const Term kHasResult = Term::iri("http://www.w3.org/ns/sosa/hasSimpleResult");
+const Term kHrv = Term::iri(std::string(fed::vocab::kTv) + "HeartRateVariability");
+
+// An HRV-window-like item of three triples carrying the unique number `n`. It matches the
+// default forwarding policy (HRV windows), so the home's Link sends it up as it would real data.
+node::Item numbered_item(const std::string& home, std::uint64_t n) {
+  node::Item item;
+  const Term obs = Term::iri(home + "/hrv/" + std::to_string(n));
+  item.add(obs, kObservedProperty, kHrv)
+      .add(obs, Term::iri(kBenchN), Term::integer(static_cast<std::int64_t>(n)))
+      .add(obs, kHasResult, Term::literal("42.5", "http://www.w3.org/2001/XMLSchema#decimal"));
+  return item;
+}
+
+// The number an item of numbered_item carries, when `r` is its bench:n record.
+std::optional<std::uint64_t> number_of(const node::Record& r) {
+  if (r.triple.p.value != kBenchN) return std::nullopt;
+  std::uint64_t n = 0;
+  const std::string& v = r.triple.o.value;
+  auto [end, ec] = std::from_chars(v.data(), v.data() + v.size(), n);
+  if (ec != std::errc() || end != v.data() + v.size()) return std::nullopt;
+  return n;
+}
+
+struct Ledger {
+  std::uint64_t expected = 0, lost = 0, duplicated = 0;
+};
+
+// Reads the hospital's store back: of the numbers [first, first + count), how many are
+// missing and how many records there are beyond one per number.
+Ledger check_numbers(const fs::path& dir, std::uint64_t first, std::uint64_t count) {
+  Ledger l;
+  l.expected = count;
+  auto node = node::Node::open(dir);
+  if (!node) throw std::runtime_error("ledger: " + node.error().message);
+  auto snap = node->snapshot();
+  if (!snap) throw std::runtime_error("ledger: " + snap.error().message);
+  std::vector<std::uint32_t> seen(count, 0);
+  auto visited = snap->for_each({.p = Term::iri(kBenchN)}, [&](const node::Record& r) {
+    if (auto n = number_of(r); n && *n >= first && *n - first < count) ++seen[*n - first];
+    return true;
+  });
+  if (!visited) throw std::runtime_error("ledger: " + visited.error().message);
+  for (std::uint32_t c : seen) {
+    if (c == 0) ++l.lost;
+    if (c > 1) l.duplicated += c - 1;
+  }
+  return l;
+}
+
+// ---- transports ----------------------------------------------------------------------------
+
+// Cyclone DDS on loopback only (as deploy/cyclonedds-loopback.xml), so the bench does not
+// depend on where it is run from. One configuration per process: every endpoint and the floor
+// use it.
+const char* kDdsLoopback =
+    "<CycloneDDS xmlns=\"https://cdds.io/config\"><Domain Id=\"any\"><General>"
+    "<Interfaces><NetworkInterface name=\"lo\" multicast=\"default\"/></Interfaces>"
+    "<AllowMulticast>default</AllowMulticast><MulticastTimeToLive>0</MulticastTimeToLive>"
+    "<DontRoute>true</DontRoute></General><Discovery><ParticipantIndex>auto</ParticipantIndex>"
+    "<MaxAutoParticipantIndex>50</MaxAutoParticipantIndex><Peers><Peer address=\"127.0.0.1\"/>"
+    "</Peers></Discovery></Domain></CycloneDDS>";
+
+fed::DdsSettings dds_settings() {
+  fed::DdsSettings s;
+  s.config = kDdsLoopback;
+  return s;
+}
+
+// Drops and link log lines, counted; the first few kept to explain a failure.
+struct Diagnostics {
+  std::mutex mu;
+  std::uint64_t drops = 0, log_lines = 0;
+  std::vector<std::string> first;
+  void note(std::string_view line, bool drop) {
+    std::lock_guard lock(mu);
+    ++(drop ? drops : log_lines);
+    if (first.size() < 20) first.emplace_back(line);
+  }
+  fed::DropLog drop_log() {
+    return [this](std::string_view l) { note(l, true); };
+  }
+  fed::LinkLog link_log() {
+    return [this](std::string_view l) { note(l, false); };
+  }
+  std::string summary() {
+    std::lock_guard lock(mu);
+    std::string s;
+    for (const auto& l : first) s += "\n  " + l;
+    return s;
+  }
+};
+
+enum class Kind { dds, lcm };
+const char* name_of(Kind k) { return k == Kind::dds ? "dds" : "lcm"; }
+
+std::shared_ptr<fed::Transport> open_transport(Kind kind, const std::string& iri, Diagnostics& diag) {
+  auto t = kind == Kind::dds ? fed::open_dds(dds_settings(), iri, diag.drop_log())
+                             : fed::open_lcm(fed::LcmSettings{}, iri, diag.drop_log());
+  if (!t) throw std::runtime_error(std::string("open ") + name_of(kind) + " <" + iri + ">: " + t.error().message);
+  return std::shared_ptr<fed::Transport>(std::move(*t));
+}
+
+// IRIs unique to this process and phase, so that nothing else on the bus is addressed.
+std::string hospital_iri(const std::string& phase) {
+  return "http://bench.tahvel.org/" + std::to_string(getpid()) + "/" + phase + "/hospital";
+}
+
+node::Node init_store(const fs::path& dir, const std::string& iri) {
+  if (auto n = node::Node::init(dir, {.iri = iri}); !n) throw std::runtime_error("init " + dir.string() + ": " + n.error().message);
+  auto n = node::Node::open(dir);
+  if (!n) throw std::runtime_error("open " + dir.string() + ": " + n.error().message);
+  return std::move(*n);
+}
+
+template <class F>
+bool wait_until(Clock::duration limit, F condition) {
+  const auto deadline = Clock::now() + limit;
+  while (!condition()) {
+    if (Clock::now() >= deadline) return false;
+    std::this_thread::sleep_for(1ms);
+  }
+  return true;
+}
+
+// ---- latency and link rate: a real home and a real hospital ---------------------------------
+
+struct LinkPair {
+  Diagnostics diag;
+  std::string hospital, home;
+  fs::path hospital_dir, home_dir;
+  std::unique_ptr<fed::Link> hospital_link, home_link;
+};
+
+void start_pair(LinkPair& p, Kind kind, const ScratchDir& scratch) {
+  p.hospital = hospital_iri(std::string("link-") + name_of(kind));
+  p.home = p.hospital + "/home1";
+  p.hospital_dir = scratch.sub(std::string(name_of(kind)) + "-hospital");
+  p.home_dir = scratch.sub(std::string(name_of(kind)) + "-home");
+  init_store(p.hospital_dir, p.hospital);
+  init_store(p.home_dir, p.home);
+  auto hospital = fed::Link::start({.dir = p.hospital_dir, .down = open_transport(kind, p.hospital, p.diag),
+                                    .children = {"home1"}, .log = p.diag.link_log()});
+  if (!hospital) throw std::runtime_error("hospital link: " + hospital.error().message);
+  p.hospital_link = std::move(*hospital);
+  auto home = fed::Link::start({.dir = p.home_dir, .parent_iri = p.hospital, .up = open_transport(kind, p.home, p.diag),
+                                .log = p.diag.link_log()});
+  if (!home) throw std::runtime_error("home link: " + home.error().message);
+  p.home_link = std::move(*home);
+  if (!wait_until(15s, [&] { return p.home_link->connected(); }))
+    throw std::runtime_error(std::string(name_of(kind)) + ": the home was not welcomed within 15 s" + p.diag.summary());
+}
+
+// Follows the hospital's change stream, counting bench:n records.
+class Watcher {
+ public:
+  explicit Watcher(const fs::path& dir) : node_(check(node::Node::open(dir))) {
+    bookmark_ = check(node_.snapshot()).last_seq();
+  }
+  // Waits until a record with number `n` appears; false after `limit`.
+  bool wait_for(std::uint64_t n, Clock::duration limit) {
+    return follow(limit, [&](std::uint64_t got) { return got == n; });
+  }
+  // Waits until `count` numbered records have appeared; false after `limit`.
+  bool wait_count(std::uint64_t count, Clock::duration limit) {
+    std::uint64_t seen = 0;
+    return follow(limit, [&](std::uint64_t) { return ++seen >= count; });
+  }
+
+ private:
+  template <class T>
+  static T check(node::Result<T> r) {
+    if (!r) throw std::runtime_error("hospital store: " + r.error().message);
+    return std::move(*r);
+  }
+  template <class Done>
+  bool follow(Clock::duration limit, Done done) {
+    const auto deadline = Clock::now() + limit;
+    for (;;) {
+      auto left = std::chrono::duration_cast<std::chrono::milliseconds>(deadline - Clock::now());
+      if (left.count() <= 0) return false;
+      auto changes = check(node_.watch(bookmark_, left));
+      bool finished = false;
+      for (const node::Change& c : changes) {
+        bookmark_ = c.seq;
+        if (finished || c.removed) continue;
+        if (auto n = number_of(c.record); n && done(*n)) finished = true;
+      }
+      if (finished) return true;
+    }
+  }
+  node::Node node_;
+  std::uint64_t bookmark_ = 0;
+};
+
+struct LinkFigures {
+  Percentiles up;
+  double items_per_s = 0;
+  Ledger ledger;
+  fed::LinkCounters home, hospital;
+};
+
+LinkFigures measure_link(Kind kind, const Config& cfg, const ScratchDir& scratch, std::uint64_t& next_number) {
+  LinkPair p;
+  start_pair(p, kind, scratch);
+  auto home_node = node::Node::open(p.home_dir);
+  if (!home_node) throw std::runtime_error(home_node.error().message);
+  auto sensor = home_node->agent("hrv");
+  if (!sensor) throw std::runtime_error(sensor.error().message);
+  Watcher watcher(p.hospital_dir);
+  const std::uint64_t first = next_number;
+  const std::string what = std::string(name_of(kind)) + " link: ";
+
+  // Latency: one item at a time, after a warm-up of a tenth.
+  const int warmup = std::max(10, cfg.rounds / 10);
+  std::vector<double> us;
+  us.reserve(static_cast<std::size_t>(cfg.rounds));
+  for (int i = 0; i < warmup + cfg.rounds; ++i) {
+    const std::uint64_t n = next_number++;
+    node::Item item = numbered_item(p.home, n);
+    const auto t0 = Clock::now();
+    if (auto s = sensor->store(item); !s) throw std::runtime_error(what + "store: " + s.error().message);
+    if (!watcher.wait_for(n, 10s)) throw std::runtime_error(what + "item " + std::to_string(n) + " not at the hospital after 10 s" + p.diag.summary());
+    if (i >= warmup) us.push_back(micros(Clock::now() - t0));
+  }
+  LinkFigures f;
+  f.up = percentiles(std::move(us));
+
+  // Link rate: a burst stored as fast as the home's store takes it.
+  std::vector<node::Item> chunk;
+  const auto t0 = Clock::now();
+  for (std::size_t i = 0; i < cfg.burst; ++i) {
+    chunk.push_back(numbered_item(p.home, next_number++));
+    if (chunk.size() == 500 || i + 1 == cfg.burst) {
+      if (auto s = sensor->store_all(chunk); !s) throw std::runtime_error(what + "store_all: " + s.error().message);
+      chunk.clear();
+    }
+  }
+  if (!watcher.wait_count(cfg.burst, 120s)) throw std::runtime_error(what + "the burst did not reach the hospital within 120 s" + p.diag.summary());
+  f.items_per_s = static_cast<double>(cfg.burst) / seconds(Clock::now() - t0);
+
+  f.home = p.home_link->counters();
+  f.hospital = p.hospital_link->counters();
+  p.home_link->stop();
+  p.hospital_link->stop();
+  f.ledger = check_numbers(p.hospital_dir, first, next_number - first);
+  return f;
+}
+
+// ---- hospital ingest: K simulated homes ----------------------------------------------------
+
+// One simulated home: its endpoint and its side of the up stream (P6-P8), kept by the bench.
+struct SimHome {
+  std::string iri, source;
+  std::unique_ptr<fed::Transport> transport;
+  std::vector<fed::Frame> frames;  // frames[s - 1] is the up frame of seq s (prev = s - 1)
+  std::mutex mu;
+  bool welcomed = false;
+  bool go_back = false;
+  std::uint64_t mark = 0, last_sent = 0;
+  Clock::time_point progress{}, last_hello{}, last_beat{};
+};
+
+struct IngestFigures {
+  double items_per_s = 0, seconds = 0, open_s = 0, register_s = 0;
+  std::uint64_t items = 0, go_backs = 0, send_failures = 0, relay_runs_hint = 0;
+  Ledger ledger;
+  fed::LinkCounters hospital;
+};
+
+class SimHomes {
+ public:
+  SimHomes(std::string parent, std::size_t window, Clock::duration resend_after)
+      : parent_(std::move(parent)), window_(window), resend_after_(resend_after) {}
+  ~SimHomes() { stop(); }
+
+  std::vector<std::unique_ptr<SimHome>> homes;
+
+  void start() {
+    sender_ = std::thread([this] { send_loop(); });
+    for (auto& h : homes) receivers_.emplace_back([this, home = h.get()] { receive_loop(*home); });
+  }
+  void stop() {
+    if (stopping_.exchange(true)) return;
+    wake_.notify_all();
+    if (sender_.joinable()) sender_.join();
+    for (auto& t : receivers_) t.join();
+    receivers_.clear();
+  }
+  void allow_items() {
+    items_allowed_ = true;
+    wake_.notify_all();
+  }
+  std::size_t welcomed() {
+    std::size_t n = 0;
+    for (auto& h : homes) {
+      std::lock_guard lock(h->mu);
+      n += h->welcomed;
+    }
+    return n;
+  }
+  std::uint64_t go_backs() const { return go_backs_; }
+  std::uint64_t send_failures() const { return send_failures_; }
+
+ private:
+  void send_loop() {
+    while (!stopping_) {
+      bool sent = false;
+      for (auto& h : homes) sent |= serve(*h);
+      if (!sent) {
+        std::unique_lock lock(wake_mu_);
+        wake_.wait_for(lock, 1ms);
+      }
+    }
+  }
+
+  // Says hello, beats, and sends the next run of up frames of one home; true if it sent items.
+  bool serve(SimHome& h) {
+    std::lock_guard lock(h.mu);
+    const auto now = Clock::now();
+    if (!h.welcomed) {
+      if (now - h.last_hello >= 250ms) {
+        h.last_hello = now;
+        (void)h.transport->send(fed::sim::hello_frame(h.iri, parent_, {}));
+      }
+      return false;
+    }
+    const std::uint64_t total = h.frames.size();
+    if (now - h.last_beat >= 1s) {  // P12: keep the parent from declaring this home down
+      h.last_beat = now;
+      (void)h.transport->send(fed::sim::heartbeat_frame(h.iri, parent_, {.outbox_depth = total - h.mark}));
+    }
+    if (!items_allowed_ || h.mark >= total) return false;
+    if (h.go_back || (h.last_sent > h.mark && now - h.progress > resend_after_)) {  // P8
+      h.last_sent = h.mark;
+      h.go_back = false;
+      h.progress = now;
+      ++go_backs_;
+    }
+    const std::uint64_t in_flight = h.last_sent - h.mark;
+    const std::uint64_t room = window_ > in_flight ? window_ - in_flight : 0;
+    const std::uint64_t left = total - h.last_sent;
+    // Send in runs of at least half a window (or what is left): the parent relays a run of
+    // consecutive frames of one child in one transaction (P9), as a real home's window does.
+    if (room < std::min<std::uint64_t>(window_ / 2, left)) return false;
+    const std::uint64_t n = std::min(room, left);
+    if (in_flight == 0) h.progress = now;
+    for (std::uint64_t i = 0; i < n; ++i) {
+      if (auto s = h.transport->send(h.frames[h.last_sent]); !s) {
+        ++send_failures_;  // did not leave: the next round sends it again
+        break;
+      }
+      ++h.last_sent;
+    }
+    return true;
+  }
+
+  void receive_loop(SimHome& h) {
+    while (!stopping_) {
+      auto got = h.transport->receive(200ms);
+      if (!got || !*got) continue;
+      const fed::Frame& f = **got;
+      std::lock_guard lock(h.mu);
+      if (f.kind == fed::FrameKind::welcome) {  // P6: resume from the parent's mark
+        h.welcomed = true;
+        h.mark = h.last_sent = f.ack;
+        h.progress = Clock::now();
+      } else if (f.kind == fed::FrameKind::ack && f.seq == 0) {
+        if (f.ack > h.mark) {
+          h.mark = f.ack;
+          h.progress = Clock::now();
+        }
+        if (f.prev == 1) h.go_back = true;
+      } else if (f.kind == fed::FrameKind::error) {
+        h.welcomed = false;  // unregistered or refused: say hello again
+      }
+      wake_.notify_one();
+    }
+  }
+
+  std::string parent_;
+  std::size_t window_;
+  Clock::duration resend_after_;
+  std::atomic<bool> stopping_{false}, items_allowed_{false};
+  std::atomic<std::uint64_t> go_backs_{0}, send_failures_{0};
+  std::mutex wake_mu_;
+  std::condition_variable wake_;
+  std::thread sender_;
+  std::vector<std::thread> receivers_;
+};
+
+IngestFigures measure_ingest(const Config& cfg, const ScratchDir& scratch, std::uint64_t& next_number) {
+  Diagnostics diag;
+  const std::string hospital = hospital_iri("ingest");
+  const fs::path dir = scratch.sub("ingest-hospital");
+  init_store(dir, hospital);
+  auto link = fed::Link::start({.dir = dir, .down = open_transport(Kind::dds, hospital, diag), .log = diag.link_log()});
+  if (!link) throw std::runtime_error("ingest hospital link: " + link.error().message);
+
+  IngestFigures f;
+  const std::uint64_t first = next_number;
+  SimHomes sim(hospital, cfg.window, 1s);
+  auto t_open = Clock::now();
+  for (std::size_t i = 0; i < cfg.homes; ++i) {
+    auto h = std::make_unique<SimHome>();
+    h->iri = hospital + "/home" + std::to_string(i + 1);
+    h->source = h->iri + "/hrv";
+    auto t = fed::open_dds(dds_settings(), h->iri, diag.drop_log());
+    if (!t) throw std::runtime_error("open dds <" + h->iri + ">: " + t.error().message);
+    h->transport = std::move(*t);
+    h->frames.reserve(cfg.per_home);
+    for (std::uint64_t s = 1; s <= cfg.per_home; ++s)
+      h->frames.push_back(fed::sim::up_frame(h->iri, hospital, s, s - 1, h->source, numbered_item(h->iri, next_number++)));
+    sim.homes.push_back(std::move(h));
+  }
+  f.open_s = seconds(Clock::now() - t_open);
+
+  auto t_register = Clock::now();
+  sim.start();
+  if (!wait_until(120s, [&] { return sim.welcomed() == cfg.homes; }))
+    throw std::runtime_error("ingest: " + std::to_string(sim.welcomed()) + " of " + std::to_string(cfg.homes) +
+                             " homes welcomed within 120 s" + diag.summary());
+  f.register_s = seconds(Clock::now() - t_register);
+
+  f.items = cfg.homes * cfg.per_home;
+  const std::uint64_t base = (*link)->counters().relayed_in;
+  const auto t0 = Clock::now();
+  sim.allow_items();
+  const bool all = wait_until(300s, [&] { return (*link)->counters().relayed_in - base >= f.items; });
+  f.seconds = seconds(Clock::now() - t0);
+  f.items_per_s = static_cast<double>((*link)->counters().relayed_in - base) / f.seconds;
+  sim.stop();
+  f.go_backs = sim.go_backs();
+  f.send_failures = sim.send_failures();
+  f.hospital = (*link)->counters();
+  (*link)->stop();
+  if (!all) std::cerr << "tahvel: bench federation: ingest incomplete after 300 s" << diag.summary() << "\n";
+  f.ledger = check_numbers(dir, first, next_number - first);
+  return f;
+}
+
+// ---- output --------------------------------------------------------------------------------
+
+void add_latency(Figures& fig, const char* kind, const LinkFigures& l, const fed::LatencyFloor& raw) {
+  const std::string k(kind);
+  fig.set(k + "_up_p50_us", l.up.p50_us);
+  fig.set(k + "_up_p99_us", l.up.p99_us);
+  fig.set(k + "_raw_p50_us", raw.p50_us);
+  fig.set(k + "_raw_p99_us", raw.p99_us);
+  const double r50 = raw.p50_us > 0 ? l.up.p50_us / raw.p50_us : 0;
+  const double r99 = raw.p99_us > 0 ? l.up.p99_us / raw.p99_us : 0;
+  fig.set("ratio_" + k + "_up_p50_vs_raw", r50);
+  fig.set("ratio_" + k + "_up_p99_vs_raw", r99);
+  fig.set("target_" + k + "_p50_met", r50 > 0 && r50 <= kLatencyRatioTarget ? 1 : 0);
+  fig.set("target_" + k + "_p99_met", r99 > 0 && r99 <= kLatencyRatioTarget ? 1 : 0);
+  fig.set(k + "_link_items_per_s", l.items_per_s);
+  fig.set(k + "_up_resends", static_cast<double>(l.home.up_resends));
+  fig.set(k + "_duplicates_dropped", static_cast<double>(l.hospital.duplicates_in));
+}
+
+void print_table(const Figures& f, const Config& cfg) {
+  auto yes = [&](const std::string& key) { return f.get(key) > 0 ? "met" : "MISSED"; };
+  std::printf("tahvel bench federation: %d latency samples per transport, bursts of %zu items, %zu homes x %zu items\n\n",
+              cfg.rounds, cfg.burst, cfg.homes, cfg.per_home);
+  std::printf("%-34s %10s %12s %8s   %s\n", "figure", "Tahvel", "raw floor", "ratio", "target");
+  std::printf("%s\n", std::string(86, '-').c_str());
+  for (const char* k : {"dds", "lcm"}) {
+    const std::string s(k);
+    for (const char* q : {"p50", "p99"}) {
+      const std::string qs(q);
+      std::printf("%-34s %10.1f %12.1f %8.2f   <= %gx raw: %s\n", (s + " store-to-hospital " + qs + " us").c_str(),
+                  f.get(s + "_up_" + qs + "_us"), f.get(s + "_raw_" + qs + "_us"),
+                  f.get("ratio_" + s + "_up_" + qs + "_vs_raw"), kLatencyRatioTarget, yes("target_" + s + "_" + qs + "_met"));
+    }
+  }
+  std::printf("%-34s %10.0f\n", "dds link items/s (one home)", f.get("dds_link_items_per_s"));
+  std::printf("%-34s %10.0f\n", "lcm link items/s (one home)", f.get("lcm_link_items_per_s"));
+  std::printf("%-34s %10.0f %12s %8s   >= %.0f: %s\n", ("hospital ingest items/s, " + std::to_string(cfg.homes) + " homes").c_str(),
+              f.get("hospital_ingest_items_per_s"), "", "", kIngestTarget, yes("target_ingest_met"));
+  std::printf("%-34s %10.0f %12s %8s   0: %s\n", "lost items (all phases)", f.get("lost"), "", "", yes("target_zero_loss_met"));
+  std::printf("%-34s %10.0f %12s %8s   0: %s\n", "duplicated items (all phases)", f.get("duplicated"), "", "", yes("target_zero_loss_met"));
+  std::printf("\ningest: %.2f s for %.0f items; opening %zu DDS endpoints %.2f s, registering them %.2f s; "
+              "%.0f go-backs, %.0f duplicates dropped\n",
+              f.get("ingest_seconds"), f.get("ingest_items"), cfg.homes, f.get("ingest_open_s"),
+              f.get("ingest_register_s"), f.get("ingest_go_backs"), f.get("ingest_duplicates_dropped"));
+  std::printf("raw floors: the libraries alone, ping-pong between two threads of this process, one-way = RTT/2.\n");
+}
+
+int run(const Config& cfg) {
+  const char* netns = std::getenv("TAHVEL_IN_NETNS");
+  if (!netns || std::string(netns) != "1") {
+    std::cerr << "tahvel: bench federation sends packets (LCM multicast, DDS) and runs only in a private\n"
+                 "network namespace. Run it as:\n"
+                 "  tests/tools/netns-run build/bin/tahvel bench federation [--json] [--quick] [--homes K]\n"
+                 "(netns-run sets TAHVEL_IN_NETNS=1; set it yourself only inside such a namespace)\n";
+    return 1;
+  }
+  ScratchDir scratch{fs::path{}};
+  Figures fig;
+  std::uint64_t next_number = 1;
+
+  auto dds_raw = fed::raw_dds_pingpong(dds_settings(), cfg.rounds);
+  if (!dds_raw) throw std::runtime_error("raw DDS ping-pong: " + dds_raw.error().message);
+  auto lcm_raw = fed::raw_lcm_pingpong(fed::LcmSettings{}, cfg.rounds);
+  if (!lcm_raw) throw std::runtime_error("raw LCM ping-pong: " + lcm_raw.error().message);
+
+  const LinkFigures dds = measure_link(Kind::dds, cfg, scratch, next_number);
+  const LinkFigures lcm = measure_link(Kind::lcm, cfg, scratch, next_number);
+  const IngestFigures ingest = measure_ingest(cfg, scratch, next_number);
+
+  add_latency(fig, "dds", dds, *dds_raw);
+  add_latency(fig, "lcm", lcm, *lcm_raw);
+  fig.set("hospital_ingest_items_per_s", ingest.items_per_s);
+  fig.set("homes", static_cast<double>(cfg.homes));
+  fig.set("target_ingest_met", ingest.items_per_s >= kIngestTarget ? 1 : 0);
+  const std::uint64_t lost = dds.ledger.lost + lcm.ledger.lost + ingest.ledger.lost;
+  const std::uint64_t duplicated = dds.ledger.duplicated + lcm.ledger.duplicated + ingest.ledger.duplicated;
+  fig.set("lost", static_cast<double>(lost));
+  fig.set("duplicated", static_cast<double>(duplicated));
+  fig.set("target_zero_loss_met", lost == 0 && duplicated == 0 ? 1 : 0);
+  fig.set("items_checked", static_cast<double>(dds.ledger.expected + lcm.ledger.expected + ingest.ledger.expected));
+  fig.set("latency_rounds", cfg.rounds);
+  fig.set("burst_items", static_cast<double>(cfg.burst));
+  fig.set("ingest_items", static_cast<double>(ingest.items));
+  fig.set("ingest_items_per_home", static_cast<double>(cfg.per_home));
+  fig.set("ingest_window", static_cast<double>(cfg.window));
+  fig.set("ingest_seconds", ingest.seconds);
+  fig.set("ingest_open_s", ingest.open_s);
+  fig.set("ingest_register_s", ingest.register_s);
+  fig.set("ingest_go_backs", static_cast<double>(ingest.go_backs));
+  fig.set("ingest_send_failures", static_cast<double>(ingest.send_failures));
+  fig.set("ingest_duplicates_dropped", static_cast<double>(ingest.hospital.duplicates_in));
+  fig.set("ingest_refused", static_cast<double>(ingest.hospital.refused));
+  fig.set("triples_per_item", 3);
+
+  if (cfg.json) {
+    print_json(std::cout, fig);
+  } else {
+    print_table(fig, cfg);
+  }
+  return 0;
+}
+
+}  // namespace
+}  // namespace bench
+
+int bench_federation_main(const std::vector<std::string>& args) {
+  try {
+    std::optional<bench::Config> config = bench::parse(args);
+    if (!config) {
+      std::cout << bench::kUsage;
+      return 0;
+    }
+    return bench::run(*config);
+  } catch (const std::invalid_argument& e) {
+    std::cerr << "tahvel: bench federation: " << e.what() << "\n";
+    return 2;
+  } catch (const std::exception& e) {
+    std::cerr << "tahvel: bench federation: " << e.what() << "\n";
+    return 1;
+  }
+}
+
+}  // namespace tahvel::cli
