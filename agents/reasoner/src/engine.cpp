@@ -310,9 +310,14 @@ Value RuleRun<E>::eval(const Expr& x) {
     case Expr::arg: { Id id = arg(x.leaf); return id ? e_.dict.value(id) : Value{}; }
     case Expr::now: return Value{Value::time, e_.now, 0};
     case Expr::neg: return reasoner::arith(ArithOp::neg, eval(*x.a), {});
-    case Expr::add: return reasoner::arith(ArithOp::add, eval(*x.a), eval(*x.b));
-    case Expr::sub: return reasoner::arith(ArithOp::sub, eval(*x.a), eval(*x.b));
-    case Expr::mul: return reasoner::arith(ArithOp::mul, eval(*x.a), eval(*x.b));
+    case Expr::add: case Expr::sub: case Expr::mul: {
+      Value a = eval(*x.a), b = eval(*x.b);
+      if (a.kind == Value::integer && b.kind == Value::integer) {  // the common case, inline
+        a.i = x.kind == Expr::add ? a.i + b.i : x.kind == Expr::sub ? a.i - b.i : a.i * b.i;
+        return a;
+      }
+      return reasoner::arith(x.kind == Expr::add ? ArithOp::add : x.kind == Expr::sub ? ArithOp::sub : ArithOp::mul, a, b);
+    }
     case Expr::div: return reasoner::arith(ArithOp::div, eval(*x.a), eval(*x.b));
   }
   return {};
@@ -449,7 +454,9 @@ bool RuleRun<E>::holds(const Literal& l) {
         const Value& b = e_.dict.value(arg(l.rhs.leaf));
         if (a.kind == Value::integer && b.kind == Value::integer) return compare_op(l.op, a.i < b.i ? -1 : (b.i < a.i ? 1 : 0));
       }
-      auto c = compare_values(eval(l.lhs), eval(l.rhs));
+      Value a = eval(l.lhs), b = eval(l.rhs);
+      if (a.kind == Value::integer && b.kind == Value::integer) return compare_op(l.op, a.i < b.i ? -1 : (b.i < a.i ? 1 : 0));
+      auto c = compare_values(a, b);
       return c && compare_op(l.op, *c);
     }
     case Literal::identical: return arg(l.lhs.leaf) == arg(l.rhs.leaf);
