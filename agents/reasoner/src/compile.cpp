@@ -283,6 +283,19 @@ Result<void> add_demand_rules(Program& program, const std::map<std::uint32_t, De
   return {};
 }
 
+std::uint32_t ready_step(const Rule& rule, const std::vector<std::uint32_t>& order) {
+  VarSet bound(rule.vars, false);
+  auto head_bound = [&] {
+    return std::all_of(rule.head_args.begin(), rule.head_args.end(),
+                       [&](const Arg& a) { return !a.is_var || bound[a.index]; });
+  };
+  for (std::uint32_t k = 0; k < order.size(); ++k) {
+    if (head_bound()) return k;
+    bind_vars(rule.body[order[k]], bound);
+  }
+  return static_cast<std::uint32_t>(order.size());
+}
+
 Result<void> make_plans(Program& program) {
   for (Rule& rule : program.rules) {
     std::vector<std::uint32_t> written(rule.body.size());
@@ -306,6 +319,8 @@ Result<void> make_plans(Program& program) {
       rule.plans.push_back(std::move(*delta));
       rule.kth_atom.push_back(k);
     }
+    rule.ready.clear();
+    for (const auto& order : rule.plans) rule.ready.push_back(ready_step(rule, order));
   }
   return {};
 }

@@ -282,7 +282,10 @@ class RuleRun {
   // delta: per relation, the rows the first literal of `plan` iterates (nullptr: all rows).
   RuleRun(EngineImpl& e, const Rule& rule, const std::vector<std::uint32_t>& plan,
           const std::vector<std::vector<std::uint32_t>>* delta, std::vector<std::vector<std::uint32_t>>& out)
-      : e_(e), rule_(rule), plan_(plan), delta_(delta), out_(out), bind_(rule.vars, 0) {}
+      : e_(e), rule_(rule), plan_(plan), delta_(delta), out_(out), bind_(rule.vars, 0) {
+    for (std::size_t i = 0; i < rule.plans.size(); ++i)
+      if (&rule.plans[i] == &plan) ready_ = rule.ready[i];
+  }
 
   void run() { step(0); }
 
@@ -302,6 +305,10 @@ class RuleRun {
   const std::vector<std::vector<std::uint32_t>>* delta_;
   std::vector<std::vector<std::uint32_t>>& out_;
   std::vector<Id> bind_;
+  std::size_t ready_ = ~std::size_t{0};
+  bool cut_ = false;  // the head is derived: unwind to the step where its variables were bound
+  bool head_derived() const;
+  void step_literal(std::size_t k);
 };
 
 template <class E>
@@ -321,6 +328,15 @@ Value RuleRun<E>::eval(const Expr& x) {
     case Expr::div: return reasoner::arith(ArithOp::div, eval(*x.a), eval(*x.b));
   }
   return {};
+}
+
+template <class E>
+bool RuleRun<E>::head_derived() const {
+  Id tuple[16];
+  for (std::size_t i = 0; i < rule_.head_args.size(); ++i) tuple[i] = arg(rule_.head_args[i]);
+  const Relation& R = e_.rels[e_.rel_of_pred[rule_.head]];
+  std::uint32_t r = R.find(tuple);
+  return r != kNone && R.derived[r];
 }
 
 template <class E>
@@ -364,7 +380,7 @@ void RuleRun<E>::match_rel(const Literal& l, const Arg* args, std::uint32_t rel,
   const std::uint32_t n = R.arity;
   if (only_delta) {
     const auto& rows = (*delta_)[rel];
-    for (std::size_t i = 0; i < rows.size(); ++i) {
+    for (std::size_t i = 0; i < rows.size() && !cut_; ++i) {
       if (R.alive(rows[i])) try_row(args, n, R.row(rows[i]), k);
     }
     return;
@@ -382,11 +398,11 @@ void RuleRun<E>::match_rel(const Literal& l, const Arg* args, std::uint32_t rel,
     return;
   }
   if (mask == 0) {
-    for (std::uint32_t r = 0; r < R.size(); ++r) if (R.alive(r)) try_row(args, n, R.row(r), k);
+    for (std::uint32_t r = 0; r < R.size() && !cut_; ++r) if (R.alive(r)) try_row(args, n, R.row(r), k);
     return;
   }
   const Index& ix = R.index(mask);
-  for (std::uint32_t r = ix.first(index_key(probe, n, mask)); r != kNone; r = ix.next[r]) {
+  for (std::uint32_t r = ix.first(index_key(probe, n, mask)); r != kNone && !cut_; r = ix.next[r]) {
     if (R.alive(r)) try_row(args, n, R.row(r), k);
   }
 }
@@ -406,7 +422,7 @@ void RuleRun<E>::atom(const Literal& l, std::size_t k) {
     if (rel != kNone) match_rel(l, so, rel, k, only_delta);
     return;
   }
-  for (std::uint32_t rel = 0; rel < e_.rels.size(); ++rel) {
+  for (std::uint32_t rel = 0; rel < e_.rels.size() && !cut_; ++rel) {
     const Relation& R = e_.rels[rel];
     if (!R.pred_iri) continue;
     if (only_delta && (*delta_)[rel].empty()) continue;
@@ -467,7 +483,22 @@ bool RuleRun<E>::holds(const Literal& l) {
 
 template <class E>
 void RuleRun<E>::step(std::size_t k) {
-  if (k == plan_.size()) { emit(); return; }
+  if (k == plan_.size()) {
+    emit();
+    cut_ = ready_ < plan_.size();
+    return;
+  }
+  if (k != ready_) {
+    step_literal(k);
+    return;
+  }
+  if (head_derived()) return;
+  step_literal(k);
+  cut_ = false;
+}
+
+template <class E>
+void RuleRun<E>::step_literal(std::size_t k) {
   const Literal& l = rule_.body[plan_[k]];
   switch (l.kind) {
     case Literal::atom: atom(l, k); return;

@@ -71,6 +71,10 @@ struct Rule {
   // positive atom of the body (the delta literal of a semi-naive round), kth_atom[k] its index.
   std::vector<std::vector<std::uint32_t>> plans;
   std::vector<std::uint32_t> kth_atom;
+  // Per plan: the step from which every head variable is bound. There the evaluator stops when
+  // the head is already derived (the rest could only derive it again: Prolog's once/1 for the
+  // variables that do not reach the head).
+  std::vector<std::uint32_t> ready;
 };
 
 struct Stratum {
