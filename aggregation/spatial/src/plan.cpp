@@ -230,6 +230,18 @@ const Sensor* Plan::sensor(std::string_view id) const {
 std::size_t Plan::room_count() const { return impl_->rooms.size(); }
 std::size_t Plan::sensor_count() const { return impl_->sensors.size(); }
 
+std::vector<std::string> Plan::room_ids() const {
+  std::vector<std::string> out;
+  for (const auto& [id, entry] : impl_->rooms) out.push_back(id);
+  return out;
+}
+
+std::vector<std::string> Plan::sensor_ids() const {
+  std::vector<std::string> out;
+  for (const auto& [id, index] : impl_->sensor_index) out.push_back(id);
+  return out;
+}
+
 std::vector<std::string> Plan::sensors_in(const Area& area) const {
   std::vector<std::string> out;
   if (area.shape.polygons.empty()) return out;

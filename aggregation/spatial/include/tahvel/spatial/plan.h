@@ -75,6 +75,9 @@ class Plan {
   const Sensor* sensor(std::string_view id) const;
   std::size_t room_count() const;
   std::size_t sensor_count() const;
+  // Every room id / sensor id, sorted.
+  std::vector<std::string> room_ids() const;
+  std::vector<std::string> sensor_ids() const;
 
   // Ids of the sensors inside `area` (closed), sorted. Tests exactly only the sensors whose
   // position lies in the area's bounding box (kd-tree range search). The area's shape must be

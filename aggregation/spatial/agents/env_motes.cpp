@@ -1,0 +1,197 @@
+// tahvel-env-motes: a simulator of the environment motes of a home (temperature, humidity,
+// light, PIR movement) placed on the floor plan of the board, honouring sensing subscriptions
+// as Paper 3 §5 describes them: a mote senses a quantity only while a subscription for that
+// quantity covers the room it stands in, at the subscription's period (its maximum age), or at
+// the rule's shorter period while its last reading is above the rule's threshold, until the
+// subscription's duration ends. Where several subscriptions cover one mote and quantity, the
+// shortest period applies. The motes are the point features with tv:senses (vocabulary:
+// docs/vocabulary.md, "Spatial"); the board is re-read each step, so moved motes and new
+// subscriptions apply from the next step.
+//
+//   tahvel-env-motes DIR [--seed N] [--start-ns T] [--steps N] [--step-s S]
+//
+// With --steps N: N steps of S seconds (default 10) of virtual time from --start-ns (default:
+// now), written as fast as possible, readings asserted at their virtual time (for tests and
+// replays). Without: real time, one step every S seconds, until SIGINT/SIGTERM.
+// A mote whose IRI is the node's IRI + "/" + ID writes as agent ID (its readings' source is the
+// mote); others are written by agent "env-motes". Values are deterministic for a seed: a daily
+// temperature and light cycle per room, noise, and PIR detections at a per-mote rate.
+#include <chrono>
+#include <cmath>
+#include <functional>
+#include <algorithm>
+#include <map>
+#include <optional>
+#include <random>
+#include <set>
+#include <thread>
+
+#include "agent_runtime.h"
+#include "tahvel/spatial/board.h"
+#include "tahvel/spatial/environment_board.h"
+
+namespace {
+
+namespace rt = tahvel::agents::hrv;
+namespace sp = tahvel::spatial;
+namespace tn = tahvel::node;
+
+constexpr const char* kProgram = "tahvel-env-motes";
+constexpr double kDay = 86400;
+
+std::int64_t wall_ns() {
+  return std::chrono::duration_cast<std::chrono::nanoseconds>(
+             std::chrono::system_clock::now().time_since_epoch()).count();
+}
+
+class Simulator {
+ public:
+  Simulator(tn::Node& node, std::uint32_t seed) : node_(node), rng_(seed) {}
+
+  // One step at time `now_ns`: the readings due, written. False after printing an error.
+  bool step(std::int64_t now_ns) {
+    auto snapshot = node_.snapshot();
+    if (!snapshot) return error(snapshot.error().message);
+    auto board = sp::load_plan(*snapshot);
+    if (!board) return error(board.error().message);
+    auto subscriptions = sp::read_sensing_subscriptions(*snapshot);
+    if (!subscriptions) return error(subscriptions.error().message);
+    auto capabilities = sp::read_capabilities(*snapshot);
+    if (!capabilities) return error(capabilities.error().message);
+    for (const std::string& problem : subscriptions->problems) warn_once(problem);
+    // The period of every (mote, quantity) some active subscription asks for.
+    std::map<std::pair<std::string, sp::Quantity>, double> due;
+    for (const sp::SensingSubscription& s : subscriptions->subscriptions) {
+      if (!s.active_at(now_ns)) continue;
+      if (!board->plan.room(s.area)) {
+        warn_once(s.iri + ": no room " + s.area + " on the board");
+        continue;
+      }
+      for (const std::string& mote : board->plan.sensors_in_room(s.area)) {
+        auto caps = capabilities->find(mote);
+        if (caps == capabilities->end()) continue;
+        if (std::find(caps->second.begin(), caps->second.end(), s.quantity) == caps->second.end()) continue;
+        auto key = std::make_pair(mote, s.quantity);
+        std::optional<double> last;
+        if (auto it = last_value_.find(key); it != last_value_.end()) last = it->second;
+        double period = sp::sensing_period_s(s, last);
+        auto [it, inserted] = due.emplace(key, period);
+        if (!inserted) it->second = std::min(it->second, period);
+      }
+    }
+    for (const auto& [key, period_s] : due) {
+      auto last = last_time_.find(key);
+      if (last != last_time_.end() && now_ns - last->second < static_cast<std::int64_t>(period_s * 1e9)) continue;
+      sp::Reading r{key.second, sense(key.first, key.second, now_ns), now_ns};
+      if (!write(key.first, r)) return false;
+      last_time_[key] = now_ns;
+      last_value_[key] = r.value;
+    }
+    return true;
+  }
+
+  std::uint64_t written() const { return written_; }
+
+ private:
+  bool error(const std::string& message) {
+    rt::log_line(kProgram, message);
+    return false;
+  }
+
+  void warn_once(const std::string& message) {
+    if (warned_.insert(message).second) rt::log_line(kProgram, message + "; skipped");
+  }
+
+  // A deterministic value: per-mote offsets from a hash of its IRI, a daily cycle, noise.
+  double sense(const std::string& mote, sp::Quantity q, std::int64_t now_ns) {
+    const double h = static_cast<double>(std::hash<std::string>{}(mote) % 1000) / 1000.0;
+    const double day = std::fmod(static_cast<double>(now_ns) / 1e9, kDay) / kDay;  // 0..1
+    std::normal_distribution<double> noise(0, 1);
+    switch (q) {
+      case sp::Quantity::temperature:
+        return std::round((19.5 + 3 * h + 1.5 * std::sin(2 * M_PI * (day - 0.375)) + 0.1 * noise(rng_)) * 10) / 10;
+      case sp::Quantity::humidity:
+        return std::round(40 + 20 * h + noise(rng_));
+      case sp::Quantity::light:
+        return std::round(std::max(0.0, 400 * std::sin(M_PI * (day - 0.25) * 2) + 50 * h + 5 * noise(rng_)));
+      case sp::Quantity::movement:
+        return std::bernoulli_distribution(0.15 + 0.3 * h)(rng_) ? 1 : 0;
+    }
+    return 0;
+  }
+
+  bool write(const std::string& mote, const sp::Reading& r) {
+    const std::string prefix = node_.iri() + "/";
+    std::string id = "env-motes";
+    if (mote.rfind(prefix, 0) == 0 && mote.find('/', prefix.size()) == std::string::npos &&
+        mote.size() > prefix.size()) {
+      id = mote.substr(prefix.size());
+    }
+    auto agent = agents_.find(id);
+    if (agent == agents_.end()) {
+      auto made = node_.agent(id);
+      if (!made) {
+        made = node_.agent("env-motes");
+        if (!made) return error("agent " + id + ": " + made.error().message);
+      }
+      agent = agents_.emplace(id, std::move(*made)).first;
+    }
+    auto stored = agent->second.store(sp::reading_item(mote, r));
+    if (!stored) return error("reading of " + mote + ": " + stored.error().message);
+    ++written_;
+    return true;
+  }
+
+  tn::Node& node_;
+  std::mt19937 rng_;
+  std::map<std::string, tn::Agent> agents_;
+  std::map<std::pair<std::string, sp::Quantity>, std::int64_t> last_time_;
+  std::map<std::pair<std::string, sp::Quantity>, double> last_value_;
+  std::set<std::string> warned_;
+  std::uint64_t written_ = 0;
+};
+
+int run(int argc, char** argv) {
+  rt::Args args(argc, argv, {"--seed", "--start-ns", "--steps", "--step-s"}, {});
+  const double step_s = args.number("--step-s", 10, 0.001);
+  const auto seed = static_cast<std::uint32_t>(args.number("--seed", 1));
+  const bool virtual_time = args.has("--steps");
+  const auto steps = static_cast<std::uint64_t>(args.number("--steps", 0));
+  std::int64_t now = wall_ns();
+  if (args.has("--start-ns")) {
+    auto parsed = rt::parse_int(args.text("--start-ns", ""));
+    if (!parsed) throw rt::UsageError("--start-ns: expected an integer (ns since the epoch)");
+    now = *parsed;
+  }
+  auto opened = tn::Node::open(args.dir());
+  if (!opened) {
+    rt::log_line(kProgram, opened.error().message);
+    return rt::kExitError;
+  }
+  rt::install_stop_handlers();
+  Simulator simulator(*opened, seed);
+  const auto step_ns = static_cast<std::int64_t>(step_s * 1e9);
+  for (std::uint64_t i = 0; !rt::stop_requested() && (!virtual_time || i < steps); ++i) {
+    if (!simulator.step(now)) return rt::kExitError;
+    if (virtual_time) {
+      now += step_ns;
+    } else {
+      std::this_thread::sleep_for(std::chrono::nanoseconds(step_ns));
+      now = wall_ns();
+    }
+  }
+  rt::log_line(kProgram, "wrote " + std::to_string(simulator.written()) + " reading(s)");
+  return rt::kExitOk;
+}
+
+}  // namespace
+
+int main(int argc, char** argv) {
+  try {
+    return run(argc, argv);
+  } catch (const rt::UsageError& e) {
+    rt::log_line(kProgram, e.what());
+    rt::log_line(kProgram, "usage: tahvel-env-motes DIR [--seed N] [--start-ns T] [--steps N] [--step-s S]");
+    return rt::kExitUsage;
+  }
+}

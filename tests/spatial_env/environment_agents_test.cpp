@@ -1,0 +1,163 @@
+// The environment agents as processes (docs/spatial.md, "Environment"): the demo home's floor
+// plan (deploy/floorplans/home.ttl) loaded with `tahvel put`, sensing subscriptions written on
+// the board, tahvel-env-motes run over one hour of virtual time, then tahvel-environment
+// --once at chosen times. Checks: motes sense only what a subscription asks for, in its area, at
+// its period, for its duration, and faster while the threshold rule holds; a room's quantity
+// with no reading within the valid time is "unknown" (the issue's test).
+#include <stdlib.h>
+#include <sys/wait.h>
+
+#include <filesystem>
+#include <map>
+
+#include <gtest/gtest.h>
+
+#include "tahvel/spatial/environment_board.h"
+
+namespace tahvel::spatial {
+namespace {
+
+namespace fs = std::filesystem;
+
+constexpr std::int64_t kS = 1'000'000'000;
+constexpr std::int64_t kT0 = 1'800'000'000 * kS;  // virtual start (2027-01-15)
+const std::string kHome = "http://example.org/home1";
+const std::string kTv = "https://w3id.org/tahvel#";
+
+int run(const std::string& command) {
+  int status = std::system(command.c_str());
+  return WIFEXITED(status) ? WEXITSTATUS(status) : -1;
+}
+
+std::string bin(const char* name) { return std::string(TAHVEL_BIN_DIR) + "/" + name; }
+
+class EnvironmentAgents : public testing::Test {
+ protected:
+  void SetUp() override {
+    std::string templ = (fs::temp_directory_path() / "tahvel-env-XXXXXX").string();
+    ASSERT_NE(mkdtemp(templ.data()), nullptr);
+    dir_ = templ;
+    store_ = (dir_ / "home1").string();
+    ASSERT_EQ(run(bin("tahvel") + " init " + store_ + " --iri " + kHome), 0);
+    ASSERT_EQ(run(bin("tahvel") + " put " + store_ + " --persistent " + TAHVEL_SOURCE_DIR +
+                  "/deploy/floorplans/home.ttl > /dev/null"),
+              0);
+  }
+  void TearDown() override { fs::remove_all(dir_); }
+
+  void subscribe(const std::string& id, Quantity q, const std::string& room, double max_age_s,
+                 double duration_s, std::optional<ThresholdRule> rule = std::nullopt) {
+    auto node = node::Node::open(store_);
+    ASSERT_TRUE(node.has_value());
+    auto agent = node->agent("gateway");
+    ASSERT_TRUE(agent.has_value());
+    SensingSubscription s;
+    s.iri = kHome + "/sensing/" + id;
+    s.quantity = q;
+    s.area = kHome + "/room/" + room;
+    s.max_age_s = max_age_s;
+    s.rule = rule;
+    ASSERT_TRUE(agent->store(sensing_subscription_item(s, duration_s, kT0)).has_value());
+  }
+
+  // Readings on the board per mote (local name) and quantity, in time order.
+  std::map<std::pair<std::string, Quantity>, std::vector<Reading>> readings() {
+    auto node = node::Node::open(store_);
+    EXPECT_TRUE(node.has_value());
+    auto snapshot = node->snapshot();
+    EXPECT_TRUE(snapshot.has_value());
+    auto all = readings_since(*snapshot, 0);
+    EXPECT_TRUE(all.has_value());
+    std::map<std::pair<std::string, Quantity>, std::vector<Reading>> out;
+    for (const MoteReading& r : *all) {
+      out[{r.mote.substr(kHome.size() + 1), r.reading.quantity}].push_back(r.reading);
+    }
+    for (auto& [key, list] : out) {
+      std::sort(list.begin(), list.end(), [](const Reading& a, const Reading& b) { return a.at_ns < b.at_ns; });
+    }
+    return out;
+  }
+
+  // The object of <room>/environment tv:<local>, in N-Triples lexical form ("unknown", "21.3").
+  std::string environment(const std::string& room, const std::string& local) {
+    auto node = node::Node::open(store_);
+    EXPECT_TRUE(node.has_value());
+    auto snapshot = node->snapshot();
+    node::Pattern p;
+    p.s = node::Term::iri(environment_iri(kHome + "/room/" + room));
+    p.p = node::Term::iri(kTv + local);
+    auto records = snapshot->list(p);
+    EXPECT_TRUE(records.has_value());
+    EXPECT_EQ(records->size(), 1u) << room << " " << local;
+    return records->empty() ? "" : records->front().triple.o.value;
+  }
+
+  void simulate_one_hour() {
+    ASSERT_EQ(run(bin("tahvel-env-motes") + " " + store_ + " --seed 7 --steps 360 --step-s 10 --start-ns " +
+                  std::to_string(kT0) + " 2> /dev/null"),
+              0);
+  }
+
+  void aggregate_at(std::int64_t now_ns) {
+    ASSERT_EQ(run(bin("tahvel-environment") + " " + store_ + " --once --valid-s 900 --now-ns " +
+                  std::to_string(now_ns)),
+              0);
+  }
+
+  fs::path dir_;
+  std::string store_;
+};
+
+TEST_F(EnvironmentAgents, MotesSenseWhatWhereAndHowOftenSubscriptionsAsk) {
+  subscribe("bed-temp", Quantity::temperature, "bedroom", 300, 1800);
+  subscribe("living-move", Quantity::movement, "living", 60, 0, ThresholdRule{0.5, 10});
+  simulate_one_hour();
+  auto all = readings();
+
+  // Bedroom temperature: every 300 s while the 30-minute subscription lasts, then nothing.
+  const auto& bed = all[{"mote-bed", Quantity::temperature}];
+  ASSERT_EQ(bed.size(), 6u);
+  for (std::size_t i = 0; i < bed.size(); ++i) EXPECT_EQ(bed[i].at_ns, kT0 + static_cast<std::int64_t>(i) * 300 * kS);
+  // What nobody asked for is not sensed: the bedroom mote's humidity, the hall, the kitchen.
+  EXPECT_EQ(all.count({"mote-bed", Quantity::humidity}), 0u);
+  EXPECT_EQ(all.count({"mote-hall", Quantity::movement}), 0u);
+  EXPECT_EQ(all.count({"mote-kitchen", Quantity::temperature}), 0u);
+
+  // Living-room movement from both PIR motes of the room: 10 s after a detection, else 60 s.
+  for (const char* mote : {"mote-living-1", "mote-living-2"}) {
+    const auto& pir = all[{mote, Quantity::movement}];
+    ASSERT_GT(pir.size(), 60u) << mote;  // more than the 60 of a plain 60 s period
+    std::size_t fast = 0;
+    for (std::size_t i = 1; i < pir.size(); ++i) {
+      std::int64_t expected = (pir[i - 1].value > 0.5 ? 10 : 60) * kS;
+      EXPECT_EQ(pir[i].at_ns - pir[i - 1].at_ns, expected) << mote << " reading " << i;
+      fast += pir[i - 1].value > 0.5;
+    }
+    EXPECT_GT(fast, 0u) << mote;
+  }
+}
+
+TEST_F(EnvironmentAgents, ARoomWithNoFreshReadingShowsUnknown) {
+  subscribe("bed-temp", Quantity::temperature, "bedroom", 300, 1800);  // ends after 30 min
+  subscribe("living-move", Quantity::movement, "living", 60, 0, ThresholdRule{0.5, 10});
+  subscribe("kitchen-humidity", Quantity::humidity, "kitchen", 600, 0);
+  simulate_one_hour();
+
+  aggregate_at(kT0 + 1700 * kS);  // last bedroom reading at 1500 s: 200 s old
+  EXPECT_NE(environment("bedroom", "temperature"), "unknown");
+  EXPECT_EQ(environment("bedroom", "temperatureAt"), std::to_string(kT0 + 1500 * kS));
+  EXPECT_EQ(environment("bedroom", "humidity"), "unknown");  // never sensed
+  EXPECT_EQ(environment("kitchen", "temperature"), "unknown");
+  EXPECT_NE(environment("kitchen", "humidity"), "unknown");
+  EXPECT_NE(environment("living", "movementLevel"), "unknown");
+  EXPECT_EQ(environment("hall", "movementLevel"), "unknown");  // a PIR mote, but not asked
+  EXPECT_EQ(environment("bedroom", "validTimeS"), "900.0");
+
+  aggregate_at(kT0 + 3600 * kS);  // 2100 s after the last bedroom reading: stale
+  EXPECT_EQ(environment("bedroom", "temperature"), "unknown");
+  EXPECT_NE(environment("kitchen", "humidity"), "unknown");     // still sensed every 600 s
+  EXPECT_NE(environment("living", "movementLevel"), "unknown");
+}
+
+}  // namespace
+}  // namespace tahvel::spatial
