@@ -1,0 +1,183 @@
+// The dispatcher (dispatcher.h): commands from the input buffer (acknowledged only once the
+// behaviour is started and its run recorded, so a crash in between starts it again), programs
+// through the Supervisor, ends written back when poll() finds them reaped.
+#include "tahvel/agents/dispatcher.h"
+
+#include <unistd.h>
+
+#include <cctype>
+#include <fstream>
+#include <map>
+#include <sstream>
+
+#include "tahvel/node/node.h"
+
+namespace tahvel::agents {
+
+namespace {
+
+const std::string kTv = "https://w3id.org/tahvel#";
+
+std::vector<std::string> words(const std::string& text) {
+  std::istringstream in(text);
+  std::vector<std::string> out;
+  for (std::string w; in >> w;) out.push_back(w);
+  return out;
+}
+
+bool plain_file_name(const std::string& name) {
+  return !name.empty() && name != "." && name != ".." && name.find('/') == std::string::npos;
+}
+
+bool is_word(const std::string& s) {
+  if (s.empty() || !std::islower(static_cast<unsigned char>(s[0]))) return false;
+  for (char c : s)
+    if (!std::isalnum(static_cast<unsigned char>(c)) && c != '_') return false;
+  return true;
+}
+
+std::string last_line(const std::filesystem::path& file) {
+  std::ifstream in(file);
+  std::string line, last;
+  while (std::getline(in, line))
+    if (!line.empty()) last = line;
+  return last;
+}
+
+}  // namespace
+
+struct Dispatcher::Impl {
+  node::Node node;
+  node::Agent agent;
+  DispatcherOptions options;
+  Supervisor& supervisor;
+  std::string ns;
+  struct Run {
+    std::string iri, name, command, program;
+    std::filesystem::path log;
+    bool stop_requested = false;
+  };
+  std::map<std::string, Run> runs;  // by supervisor program name
+
+  Impl(node::Node n, node::Agent a, DispatcherOptions o, Supervisor& s)
+      : node(std::move(n)), agent(std::move(a)), options(std::move(o)), supervisor(s) {
+    ns = options.default_ns.empty() ? node.iri() + "#" : options.default_ns;
+    if (options.log_dir.empty()) options.log_dir = options.folder.parent_path() / "dispatcher-log";
+  }
+
+  Result<void> record(const std::string& run, std::vector<node::Triple> triples) {
+    node::Item item;
+    item.triples = std::move(triples);
+    auto id = agent.store(item);
+    if (!id) return unexpected(id.error());
+    return {};
+  }
+  node::Triple t(const std::string& s, const std::string& p, node::Term o) {
+    return {node::Term::iri(s), node::Term::iri(p), std::move(o)};
+  }
+
+  bool is_command(const node::Record& r) const {
+    return r.triple.s.is_iri() && r.triple.s.value == node.iri() && r.triple.p.value == ns + "behavior" &&
+           r.triple.o.is_literal() && (r.meta.context.empty() || r.meta.context == agent.iri());
+  }
+
+  Result<void> command(std::uint64_t item, const std::string& text, std::vector<DispatchEvent>& events);
+  Result<void> reap(std::vector<DispatchEvent>& events);
+};
+
+Result<void> Dispatcher::Impl::command(std::uint64_t item, const std::string& text,
+                                       std::vector<DispatchEvent>& events) {
+  const std::string run = agent.iri() + "/run/" + std::to_string(item);
+  std::vector<std::string> argv = words(text);
+  if (argv.size() == 2 && argv[0] == "stop") {
+    for (auto& [program, r] : runs) {
+      if (r.name != argv[1]) continue;
+      r.stop_requested = true;
+      (void)supervisor.stop(program, std::chrono::seconds(2));
+      events.push_back({DispatchEvent::stopped, r.iri, r.command, "stop command " + run});
+    }
+    return {};
+  }
+  auto refuse = [&](const std::string& why) -> Result<void> {
+    events.push_back({DispatchEvent::refused, run, text, why});
+    return record(run, {t(run, kTv + "command", node::Term::literal(text)),
+                        t(run, kTv + "state", node::Term::literal("refused")),
+                        t(run, kTv + "output", node::Term::literal(why))});
+  };
+  if (argv.empty() || !plain_file_name(argv[0])) return refuse("not a behaviour name: '" + text + "'");
+  std::filesystem::path exe = options.folder / argv[0];
+  if (access(exe.c_str(), X_OK) != 0) return refuse(exe.string() + ": no such executable behaviour");
+  ProgramSpec spec;
+  spec.name = "behavior/" + std::to_string(item);
+  spec.argv = argv;
+  spec.argv[0] = exe.string();
+  spec.log_file = options.log_dir / (std::to_string(item) + "-" + argv[0] + ".log");
+  spec.restart = false;
+  spec.env = {{"TAHVEL_NODE", node.dir().string()}, {"TAHVEL_RUN", run}};
+  if (auto s = supervisor.start(spec); !s) return refuse(s.error().message);
+  runs[spec.name] = Run{run, argv[0], text, spec.name, spec.log_file, false};
+  events.push_back({DispatchEvent::started, run, text, ""});
+  auto state = supervisor.state(spec.name);
+  return record(run, {t(run, kTv + "command", node::Term::literal(text)),
+                      t(run, kTv + "state", node::Term::literal("running")),
+                      t(run, kTv + "pid", node::Term::integer(state ? state->pid : 0))});
+}
+
+Result<void> Dispatcher::Impl::reap(std::vector<DispatchEvent>& events) {
+  supervisor.poll();
+  for (auto it = runs.begin(); it != runs.end();) {
+    auto state = supervisor.state(it->first);
+    if (state && state->running) { ++it; continue; }
+    const Run& r = it->second;
+    std::string output = last_line(r.log);
+    std::string how = !state ? "gone" : r.stop_requested ? "stopped" : state->exit_status ? "exited" : "killed";
+    std::vector<node::Triple> triples = {t(r.iri, kTv + "state", node::Term::literal(how)),
+                                         t(r.iri, kTv + "output", node::Term::literal(output))};
+    if (state && state->exit_status) triples.push_back(t(r.iri, kTv + "exitStatus", node::Term::integer(*state->exit_status)));
+    if (!output.empty())
+      triples.push_back(t(ns + r.name, ns + "result", is_word(output) ? node::Term::iri(ns + output) : node::Term::literal(output)));
+    if (auto w = record(r.iri, std::move(triples)); !w) return w;
+    events.push_back({DispatchEvent::ended, r.iri, r.command, state ? state->last_exit : how});
+    it = runs.erase(it);
+  }
+  return {};
+}
+
+Result<Dispatcher> Dispatcher::open(const std::filesystem::path& dir, DispatcherOptions options,
+                                    Supervisor& supervisor) {
+  auto node = node::Node::open(dir);
+  if (!node) return unexpected(node.error());
+  auto agent = node->agent(options.agent_id);
+  if (!agent) return unexpected(agent.error());
+  auto impl = std::make_unique<Impl>(std::move(*node), std::move(*agent), std::move(options), supervisor);
+  node::Pattern commands;
+  commands.p = node::Term::iri(impl->ns + "behavior");
+  if (auto s = impl->agent.subscribe(commands); !s) return unexpected(s.error());
+  return Dispatcher(std::move(impl));
+}
+
+Dispatcher::Dispatcher(std::unique_ptr<Impl> impl) : impl_(std::move(impl)) {}
+Dispatcher::Dispatcher(Dispatcher&&) noexcept = default;
+Dispatcher& Dispatcher::operator=(Dispatcher&&) noexcept = default;
+Dispatcher::~Dispatcher() = default;
+
+const std::string& Dispatcher::iri() const { return impl_->agent.iri(); }
+
+std::size_t Dispatcher::running() const { return impl_->runs.size(); }
+
+Result<std::vector<DispatchEvent>> Dispatcher::poll(std::chrono::milliseconds wait) {
+  std::vector<DispatchEvent> events;
+  auto taken = impl_->agent.take(wait, node::Ack::manual);
+  if (!taken) return unexpected(taken.error());
+  if (*taken) {
+    for (const node::Record& r : (*taken)->records) {
+      if (!impl_->is_command(r)) continue;
+      if (auto c = impl_->command(r.meta.id, r.triple.o.value, events); !c) return unexpected(c.error());
+    }
+    if (auto a = impl_->agent.ack((*taken)->item); !a) return unexpected(a.error());
+  }
+  if (auto r = impl_->reap(events); !r) return unexpected(r.error());
+  return events;
+}
+
+}  // namespace tahvel::agents

@@ -1,0 +1,146 @@
+// The dispatcher (dispatcher.h) with the reasoner: the thesis' behaviour rules (Paper 2 §7.1)
+// derive command records, the dispatcher starts the named executables through the supervisor,
+// writes their end back (state, exit status, result), and the result feeds the next rule;
+// a stop command ends a running behaviour; a command naming no behaviour is refused.
+#include <gtest/gtest.h>
+#include <stdlib.h>
+
+#include <chrono>
+#include <filesystem>
+#include <fstream>
+#include <functional>
+
+#include "tahvel/agents/dispatcher.h"
+#include "tahvel/agents/reasoner.h"
+#include "tahvel/node/node.h"
+
+namespace {
+
+namespace fs = std::filesystem;
+namespace ta = tahvel::agents;
+namespace tn = tahvel::node;
+namespace tr = tahvel::reasoner;
+using namespace std::chrono_literals;
+
+const std::string kIri = "http://example.org/robot3";
+const std::string kNs = kIri + "#";
+const std::string kTv = "https://w3id.org/tahvel#";
+
+tn::Term n(const std::string& local) { return local == "me" ? tn::Term::iri(kIri) : tn::Term::iri(kNs + local); }
+
+class DispatcherTest : public ::testing::Test {
+ protected:
+  void SetUp() override {
+    std::string templ = (fs::temp_directory_path() / "tahvel-dispatcher-XXXXXX").string();
+    ASSERT_NE(mkdtemp(templ.data()), nullptr);
+    root_ = templ;
+    ASSERT_TRUE(tn::Node::init(root_ / "node", {.iri = kIri}).has_value());
+    fs::create_directories(root_ / "behaviours");
+    script("goAhead", "echo moving at \"$1\" >&2\necho ok\n");
+    script("solveObstacle", "echo fail\nexit 1\n");
+    script("handleFailState", "echo stopped motors\n");
+    script("monitorObstacles", "exec sleep 300\n");
+    auto node = tn::Node::open(root_ / "node");
+    node_ = std::make_unique<tn::Node>(std::move(*node));
+  }
+  void TearDown() override {
+    node_.reset();
+    fs::remove_all(root_);
+  }
+  void script(const std::string& name, const std::string& body) {
+    fs::path p = root_ / "behaviours" / name;
+    std::ofstream(p) << "#!/bin/sh\n" << body;
+    fs::permissions(p, fs::perms::owner_all);
+  }
+  void put(std::vector<tn::Triple> triples, const std::string& context = "") {
+    auto agent = node_->agent("sensors");
+    tn::Item item;
+    item.triples = std::move(triples);
+    item.context = context;
+    ASSERT_TRUE(agent->store(item).has_value());
+  }
+  bool holds(const tn::Term& s, const std::string& p, const tn::Term& o) {
+    auto snap = node_->snapshot();
+    return *snap->count({.s = s, .p = tn::Term::iri(p), .o = o}) > 0;
+  }
+  // Polls until `done` or 30 s.
+  std::vector<ta::DispatchEvent> poll_until(ta::Dispatcher& d, const std::function<bool()>& done) {
+    std::vector<ta::DispatchEvent> all;
+    auto deadline = std::chrono::steady_clock::now() + 30s;
+    while (!done() && std::chrono::steady_clock::now() < deadline) {
+      auto events = d.poll(20ms);
+      EXPECT_TRUE(events.has_value());
+      if (events) all.insert(all.end(), events->begin(), events->end());
+    }
+    return all;
+  }
+  fs::path root_;
+  std::unique_ptr<tn::Node> node_;
+};
+
+TEST_F(DispatcherTest, ThesisBehaviourRulesRunThroughTheSupervisorAndResultsFeedBack) {
+  fs::path rules = root_ / "behaviours.rules";
+  std::ofstream(rules) << "behavior(me, \"goAhead 200\") :-\n  state(me, stateCanmove),\n  obstacle(me, nothing).\n"
+                          "behavior(me, \"handleFailState\") :-\n  result(solveObstacle, fail),\n"
+                          "  state(me, stateDriveAround).\n";
+  ta::Supervisor supervisor([](std::string_view) {});
+  auto d = ta::Dispatcher::open(root_ / "node", {.folder = root_ / "behaviours"}, supervisor);
+  ASSERT_TRUE(d.has_value()) << d.error().message;
+  tr::ReasonerOptions ro;
+  ro.rules = rules;
+  auto r = tr::Reasoner::open(root_ / "node", ro);
+  ASSERT_TRUE(r.has_value()) << r.error().message;
+
+  put({{n("me"), n("state"), n("stateCanmove")}, {n("me"), n("obstacle"), n("nothing")}});
+  ASSERT_TRUE(r->session().has_value());
+  poll_until(*d, [&] { return holds(n("goAhead"), kNs + "result", n("ok")); });
+  EXPECT_TRUE(holds(n("goAhead"), kNs + "result", n("ok")));
+  auto snap = node_->snapshot();
+  auto states = snap->list({.p = tn::Term::iri(kTv + "exitStatus")});
+  ASSERT_EQ(states->size(), 1u);
+  EXPECT_EQ(states->at(0).triple.o, tn::Term::integer(0));
+  EXPECT_EQ(states->at(0).meta.source, d->iri());
+
+  // A command written by hand (context: the dispatcher), then the rule on its result.
+  put({{n("me"), n("behavior"), tn::Term::literal("solveObstacle")}}, d->iri());
+  poll_until(*d, [&] { return holds(n("solveObstacle"), kNs + "result", n("fail")); });
+  put({{n("me"), n("state"), n("stateDriveAround")}});
+  ASSERT_TRUE(r->session().has_value());
+  poll_until(*d, [&] { return holds(n("handleFailState"), kNs + "result", tn::Term::literal("stopped motors")); });
+  EXPECT_TRUE(holds(n("handleFailState"), kNs + "result", tn::Term::literal("stopped motors")));
+  // Sessions without new premises write no command again: nothing more starts.
+  ASSERT_TRUE(r->session().has_value());
+  auto events = d->poll(50ms);
+  ASSERT_TRUE(events.has_value());
+  EXPECT_TRUE(events->empty());
+  EXPECT_EQ(d->running(), 0u);
+}
+
+TEST_F(DispatcherTest, StopCommandEndsARunningBehaviourAndUnknownNamesAreRefused) {
+  ta::Supervisor supervisor([](std::string_view) {});
+  auto d = ta::Dispatcher::open(root_ / "node", {.folder = root_ / "behaviours"}, supervisor);
+  ASSERT_TRUE(d.has_value());
+  put({{n("me"), n("behavior"), tn::Term::literal("monitorObstacles")}}, d->iri());
+  poll_until(*d, [&] { return d->running() == 1; });
+  ASSERT_EQ(d->running(), 1u);
+  put({{n("me"), n("behavior"), tn::Term::literal("stop monitorObstacles")}}, d->iri());
+  auto events = poll_until(*d, [&] { return d->running() == 0; });
+  EXPECT_EQ(d->running(), 0u);
+  EXPECT_TRUE(holds(tn::Term::iri(events.empty() ? "" : events.back().run), kTv + "state", tn::Term::literal("stopped")));
+  put({{n("me"), n("behavior"), tn::Term::literal("../../bin/sh -c true")}}, d->iri());
+  put({{n("me"), n("behavior"), tn::Term::literal("noSuchBehaviour 1")}}, d->iri());
+  // Addressed to another agent: not a command for the dispatcher.
+  put({{n("me"), n("behavior"), tn::Term::literal("goAhead 1")}}, kIri + "/someone-else");
+  auto snap_count = [&] {
+    auto snap = node_->snapshot();
+    return *snap->count({.p = tn::Term::iri(kTv + "state"), .o = tn::Term::literal("refused")});
+  };
+  poll_until(*d, [&] { return snap_count() == 2; });
+  EXPECT_EQ(snap_count(), 2u);
+  auto more = d->poll(50ms);
+  ASSERT_TRUE(more.has_value());
+  EXPECT_EQ(d->running(), 0u);
+  EXPECT_FALSE(holds(n("goAhead"), kNs + "result", n("ok")));
+}
+
+}  // namespace
