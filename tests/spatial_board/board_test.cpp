@@ -149,6 +149,23 @@ TEST_F(BoardTest, ListByWktOnEveryFloorOrOne) {
   EXPECT_EQ(upstairs[0].triple.s.value, kMote2);
 }
 
+TEST_F(BoardTest, CascadeAndLimitApplyToTheKeptMatches) {
+  node::Pattern has_geometry;
+  has_geometry.p = Term::iri(kGeoHasGeometry);
+  auto snapshot = node_->snapshot();
+  ASSERT_TRUE(snapshot.has_value());
+  // The bedroom and mote1 match; each is followed by its geometry's WKT record.
+  auto records = list_in_area(*snapshot, has_geometry, {kBedroom, std::nullopt, std::nullopt}, {1, 0});
+  ASSERT_TRUE(records.has_value()) << records.error().message;
+  std::vector<std::string> shape;
+  for (const auto& r : *records) shape.push_back(r.triple.s.value + " " + r.triple.p.value);
+  EXPECT_EQ(shape, (std::vector<std::string>{kBedroom + " " + kGeoHasGeometry, kBedroom + "/geometry " + kGeoAsWkt,
+                                             kMote + " " + kGeoHasGeometry, kMote + "/geometry " + kGeoAsWkt}));
+  auto limited = list_in_area(*snapshot, has_geometry, {kBedroom, std::nullopt, std::nullopt}, {1, 3});
+  ASSERT_TRUE(limited.has_value());
+  EXPECT_EQ(limited->size(), 3u);
+}
+
 TEST_F(BoardTest, AnUnknownRoomIsAnErrorNamingIt) {
   auto snapshot = node_->snapshot();
   ASSERT_TRUE(snapshot.has_value());

@@ -249,10 +249,12 @@ std::vector<std::string> Plan::sensors_in(const Area& area) const {
   const Box& b = prepared.box;
   BoxQuery query(CgalPoint(b.xmin, b.ymin), CgalPoint(b.xmax, b.ymax));
   std::vector<IndexedPoint> candidates;
+  candidates.reserve(64);  // a room's box holds a few dozen sensors: one allocation, not six
   for (int floor : impl_->sensor_floor_numbers(area)) {
     SensorFloor& f = impl_->sensors_of(floor);
     candidates.clear();
     f.tree->search(std::back_inserter(candidates), query);
+    out.reserve(out.size() + candidates.size());
     for (const IndexedPoint& candidate : candidates) {
       const Sensor* sensor = &impl_->sensors[boost::get<1>(candidate)];
       if (detail::locate(prepared, sensor->at) != Location::outside) out.push_back(sensor->id);

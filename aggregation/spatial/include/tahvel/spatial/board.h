@@ -87,7 +87,8 @@ Result<std::vector<node::Record>> list_in_area(const node::Snapshot& snapshot,
 class AreaSubscription {
  public:
   // Subscribes `agent` (of `node`) to the sensors of `spec` as the board places them now.
-  // Errors: the store's; the room of `spec` is not on the board.
+  // `node` and `agent` are borrowed: both must outlive the AreaSubscription.
+  // Errors: the store's; the room of `spec` is not on the board (nothing is changed then).
   static Result<AreaSubscription> open(const node::Node& node, node::Agent& agent, AreaSpec spec);
 
   // Reads the change stream since the last call (waiting up to `wait` for a change); when a
