@@ -307,7 +307,6 @@ class RuleRun {
   std::vector<Id> bind_;
   std::size_t ready_ = ~std::size_t{0};
   bool cut_ = false;  // the head is derived: unwind to the step where its variables were bound
-  bool head_derived() const;
   void step_literal(std::size_t k);
 };
 
@@ -328,15 +327,6 @@ Value RuleRun<E>::eval(const Expr& x) {
     case Expr::div: return reasoner::arith(ArithOp::div, eval(*x.a), eval(*x.b));
   }
   return {};
-}
-
-template <class E>
-bool RuleRun<E>::head_derived() const {
-  Id tuple[16];
-  for (std::size_t i = 0; i < rule_.head_args.size(); ++i) tuple[i] = arg(rule_.head_args[i]);
-  const Relation& R = e_.rels[e_.rel_of_pred[rule_.head]];
-  std::uint32_t r = R.find(tuple);
-  return r != kNone && R.derived[r];
 }
 
 template <class E>
@@ -488,13 +478,8 @@ void RuleRun<E>::step(std::size_t k) {
     cut_ = ready_ < plan_.size();
     return;
   }
-  if (k != ready_) {
-    step_literal(k);
-    return;
-  }
-  if (head_derived()) return;
   step_literal(k);
-  cut_ = false;
+  if (k == ready_) cut_ = false;
 }
 
 template <class E>
@@ -709,6 +694,8 @@ Engine::Update Engine::recompute(std::int64_t now_ns) {
   return impl_->apply({}, {}, now_ns);
 }
 
+Engine::Update Engine::compact(std::int64_t now_ns) { return reload(impl_->program, now_ns); }
+
 Engine::Update Engine::reload(std::shared_ptr<const Program> program, std::int64_t now_ns) {
   std::vector<Atom> before = conclusions();
   std::vector<node::Triple> base;
@@ -743,8 +730,10 @@ bool Engine::relevant(std::string_view predicate_iri) const { return impl_->rele
 
 EngineStats Engine::stats() const {
   EngineStats s = impl_->st;
-  s.base_facts = s.conclusions = 0;
+  s.base_facts = s.conclusions = s.rows = 0;
+  s.terms = impl_->dict.size() - 1;
   for (const Relation& R : impl_->rels) {
+    s.rows += R.size();
     for (std::uint32_t r = 0; r < R.size(); ++r) {
       s.base_facts += R.base[r] > 0;
       s.conclusions += R.derived[r] && R.pred >= 0 && !impl_->program->preds[R.pred].internal;

@@ -235,6 +235,11 @@ Result<SessionReport> Reasoner::Impl::session() {
   const std::int64_t now = wall_ns();
   Engine::Update update;
   maybe_reload(report, update, now);
+  // Rows of facts that went accumulate (a ring store): rebuild when they dominate.
+  if (started) {
+    EngineStats es = engine.stats();
+    if (es.rows > 4 * (es.base_facts + es.conclusions) + 65536) compose(update, engine.compact(now));
+  }
   // Retention removes records without logging them: a change of the counter read before the
   // snapshot means the mirror may hold reclaimed records.
   auto stats = node.stats();

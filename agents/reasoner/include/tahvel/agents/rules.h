@@ -92,6 +92,8 @@ struct EngineStats {
   std::size_t derivations = 0;      // rule firings of the last apply (incl. repeated ones)
   std::size_t strata_run = 0;       // strata evaluated by the last apply
   std::size_t strata_recomputed = 0;  // of which recomputed from scratch (removal, negation, now)
+  std::size_t rows = 0;             // rows held, including those of facts that went (see compact)
+  std::size_t terms = 0;            // terms interned
 };
 
 // Incremental evaluator. Holds the base facts it was given (only those whose predicate some
@@ -124,6 +126,11 @@ class Engine {
   // recomputed). The update is empty unless `now` changed a conclusion. For measurements and
   // checks: the cost of a from-scratch evaluation without reading any store.
   Update recompute(std::int64_t now_ns);
+
+  // Rebuilds the engine from the base facts it holds: rows of facts that went and terms no
+  // longer used are dropped (rows never move while the engine runs, so they accumulate). The
+  // update is empty unless `now` changed a conclusion.
+  Update compact(std::int64_t now_ns);
 
   // All conclusions held, sorted.
   std::vector<Atom> conclusions() const;
