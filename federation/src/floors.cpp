@@ -85,8 +85,10 @@ Result<LatencyFloor> raw_lcm_pingpong(const LcmSettings& settings, int rounds) {
   const std::string ping = "TVFLOOR_PING_" + suffix, pong = "TVFLOOR_PONG_" + suffix;
   LcmEcho echo{b.lcm, pong};
   LcmWait wait;
-  tahvel_ping_t_subscribe(b.lcm, ping.c_str(), &lcm_echo, &echo);
-  tahvel_ping_t_subscribe(a.lcm, pong.c_str(), &lcm_pong, &wait);
+  tahvel_ping_t_subscription_t* echo_sub =
+      tahvel_ping_t_subscribe(b.lcm, ping.c_str(), &lcm_echo, &echo);
+  tahvel_ping_t_subscription_t* pong_sub =
+      tahvel_ping_t_subscribe(a.lcm, pong.c_str(), &lcm_pong, &wait);
 
   std::atomic<bool> stop{false};
   std::thread echoer([&] {
@@ -115,6 +117,8 @@ Result<LatencyFloor> raw_lcm_pingpong(const LcmSettings& settings, int rounds) {
   }
   stop = true;
   echoer.join();
+  tahvel_ping_t_unsubscribe(b.lcm, echo_sub);
+  tahvel_ping_t_unsubscribe(a.lcm, pong_sub);
   if (static_cast<int>(samples.size()) < rounds) {
     return node::fail(Errc::timeout, "raw_lcm_pingpong on " + settings.url + ": " +
                                          std::to_string(losses) +
