@@ -41,9 +41,10 @@ case "${1:-}" in
   demo)
     install_missing_packages
     build build
-    ./deploy/demo/single-node.sh build/bin/tahvel
-    # The HRV chain as agents on one node: a MIT-BIH record (or a synthetic ECG) replayed.
-    exec ./deploy/demo/hrv-pipeline.sh build/bin
+    # The home-to-hospital hierarchy (deploy/home-to-hospital.toml) in a private network
+    # namespace: ECG at the sensors, HRV at the homes and the hospital, a window change from the
+    # hospital, a remote query of raw ECG. The single-node demos stay in deploy/demo/.
+    exec ./deploy/demo/home-to-hospital.sh build/bin
     ;;
   test)
     install_missing_packages

@@ -100,6 +100,10 @@ int replay(rt::Session& session, Signal& signal, double speed) {
   }
   const auto chunk = static_cast<std::size_t>(std::max(1.0, std::round(signal.info.fs)));
   const auto t0 = std::chrono::steady_clock::now();
+  // A chunk holds when its first sample was taken: the replay's start plus the sample's offset
+  // on the recording's own clock (at --speed N that clock runs N times faster than the wall's).
+  const std::int64_t start_ns = std::chrono::duration_cast<std::chrono::nanoseconds>(
+                                    std::chrono::system_clock::now().time_since_epoch()).count();
   std::int64_t position = 0;
   Frames frames;
   while (!rt::stop_requested()) {
@@ -114,7 +118,9 @@ int replay(rt::Session& session, Signal& signal, double speed) {
       wait_until(t0 + std::chrono::duration_cast<std::chrono::steady_clock::duration>(std::chrono::duration<double>(
                           static_cast<double>(position + static_cast<std::int64_t>(*got)) / signal.info.fs / speed)));
     if (rt::stop_requested()) break;  // stopped while waiting: this chunk's time has not come
-    if (auto s = agent.store(agg::ecg_chunk_item(signal.info, position, frames, 0, *got)); !s) {
+    tahvel::node::Item item = agg::ecg_chunk_item(signal.info, position, frames, 0, *got);
+    item.asserted_at = start_ns + std::llround(static_cast<double>(position) * 1e9 / signal.info.fs);
+    if (auto s = agent.store(item); !s) {
       rt::log_line(kProgram, "store chunk " + std::to_string(position) + ": " + s.error().message);
       return rt::kExitError;
     }

@@ -1,0 +1,88 @@
+#!/usr/bin/env bash
+# The home-to-hospital hierarchy of deploy/home-to-hospital.toml on this machine, in a private
+# network namespace (loopback only): ECG on the sensor nodes -> HRV at each home -> HRV at the
+# hospital; a window change from the hospital for one home; a query from the hospital for a time
+# range of home 2's raw ECG, which never left the home. Says what happens at each step.
+#
+#   deploy/demo/home-to-hospital.sh [build/bin]        (what `./run.sh demo` runs)
+#
+# The sensors replay a synthetic ECG, or MIT-BIH records 100 and 119 when TAHVEL_MITDB is set.
+# Everything lives in a temporary directory that is removed at the end.
+set -euo pipefail
+
+BIN=$(cd "${1:-build/bin}" && pwd)
+here=$(cd "$(dirname "$0")" && pwd)
+root=$(cd "$here/../.." && pwd)
+if [ "${TAHVEL_IN_NETNS:-}" != 1 ]; then
+  exec "$root/tests/tools/netns-run" "$0" "$BIN"
+fi
+for tool in tahvel tahvel-ecg-source tahvel-rpeak tahvel-rr tahvel-hrv tahvel-trend; do
+  [ -x "$BIN/$tool" ] || { echo "home-to-hospital.sh: no $tool in $BIN (build first)" >&2; exit 2; }
+done
+
+work=$(mktemp -d "${TMPDIR:-/tmp}/tahvel-hierarchy.XXXXXX")
+state=$work/state
+cleanup() {
+  "$BIN/tahvel" down --state "$state" >/dev/null 2>&1 || true
+  [ -n "${TAHVEL_DEMO_KEEP:-}" ] || rm -rf "$work"
+}
+trap cleanup EXIT
+
+H=http://example.org/hospital
+say() { printf '\n--- %s\n' "$*"; }
+show() { printf '$ tahvel'; printf ' %q' "$@" | sed -e "s|$work|\$DEMO|g"; printf '\n'; }
+tahvel() { show "$@"; "$BIN/tahvel" "$@"; }
+quiet() { "$BIN/tahvel" "$@"; }
+count() { quiet list "$@" | wc -l; }
+# Waits up to $1 seconds for the command after it to succeed.
+wait_for() {
+  local limit=$1; shift
+  for _ in $(seq $((limit * 5))); do "$@" && return 0; sleep 0.2; done
+  echo "home-to-hospital.sh: gave up waiting for: $*" >&2
+  return 1
+}
+hrv_from() { quiet list "$state/hospital" -p sosa:observedProperty -o tv:HeartRateVariability --format json |
+  grep -c "\"source\":\"$H/$1/hrv\"" || true; }
+has_hrv_from() { [ "$(hrv_from "$1")" -ge "$2" ]; }
+
+say "1. Bring up the hierarchy: a hospital, two homes over Cyclone DDS, an ECG sensor node per home over LCM."
+echo "   Each node gets a store under \$DEMO/state/<node>, a link process and its agents, under one supervisor."
+tahvel up "$here/../home-to-hospital.toml" --state "$state"
+
+say "2. Wait for HRV windows (60 s of ECG each; the sensors replay at 10x) to reach the hospital from both homes."
+wait_for 120 has_hrv_from home1 2
+wait_for 120 has_hrv_from home2 2
+tahvel status --state "$state"
+echo
+echo "   HRV windows at the hospital: $(hrv_from home1) from home1, $(hrv_from home2) from home2 (source = each home's HRV agent)."
+quiet list "$state/hospital" -p tv:rmssdMs | head -n 2
+echo "   Raw ECG chunks: $(count "$state/home1" -p a -o tv:EcgChunk) at home1, $(count "$state/home2" -p a -o tv:EcgChunk) at home2," \
+     "$(count "$state/hospital" -p a -o tv:EcgChunk) at the hospital: raw signals stay home."
+
+say "3. From the hospital, change home1's HRV window to 30 s: a configuration item addressed to <$H/home1/hrv>."
+ttl=$work/window.ttl
+echo "<$H/home1/hrv> <https://w3id.org/tahvel#windowSeconds> 30 ." >"$ttl"
+tahvel put "$state/hospital" --agent operator --context "$H/home1/hrv" --format ttl "$ttl"
+thirty_from_home1() {
+  quiet list "$state/hospital" -p tv:windowStartS --format json | grep "$H/home1/" | sed 's/.*"value":"\([0-9.]*\)".*/\1/' >"$work/starts"
+  # A 30 s window starts at a multiple of 30 that is not a multiple of 60.
+  awk '{ if ($1 % 60 == 30) n++ } END { exit !(n >= 1) }' "$work/starts"
+}
+wait_for 120 thirty_from_home1
+echo "   home1 now sends 30 s windows; the configuration is on home1's board only:"
+echo "   tv:windowSeconds at home1: $(count "$state/home1" -p tv:windowSeconds), at home2: $(count "$state/home2" -p tv:windowSeconds)."
+
+say "4. From the hospital, ask home2 for 10 s of its raw ECG (by the samples' time): the query travels down and back."
+first=$(quiet list "$state/home2" -p tv:samples --limit 1 --format json | sed 's/.*"asserted_at":\([0-9]*\).*/\1/')
+since=$((first + 20000000000))
+until=$((first + 30000000000))
+show query "$state/hospital" --at "$H/home2" -p tv:samples --since "$since" --until "$until"
+quiet query "$state/hospital" --at "$H/home2" -p tv:samples --since "$since" --until "$until" >"$work/remote.nt"
+# The same range read on home2's own store (a query at the node itself is answered locally).
+quiet query "$state/home2" --at "$H/home2" -p tv:samples --since "$since" --until "$until" >"$work/local.nt" 2>/dev/null
+echo "   $(wc -l <"$work/remote.nt") chunk records, $(wc -c <"$work/remote.nt") bytes from the hospital's query;" \
+     "the same range read on home2 itself is $(cmp -s "$work/remote.nt" "$work/local.nt" && echo identical || echo DIFFERENT)."
+echo "   Nothing of it was stored at the hospital: $(count "$state/hospital" -p tv:samples) raw records there."
+
+say "5. Bring it down (the stores stay until this demo removes its directory)."
+tahvel down --state "$state"
