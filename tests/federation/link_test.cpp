@@ -300,5 +300,34 @@ TEST(Link, RemoteQueryReturnsExactlyTheRecordsHeldBelowAndNamesItsErrors) {
   EXPECT_EQ(below_home.error().code, Errc::not_found) << below_home.error().message;
 }
 
+TEST(Link, ParentChangesAChildsForwardingPolicyBySendingASubscriptionDown) {
+  Tree tree;
+  tree.hospital = tree.start_hospital();
+  tree.home1 = tree.start_home(tree.home1_dir, kHome1, tree.home1_log);
+  ASSERT_TRUE(eventually([&] { return tree.home1->connected(); }));
+  auto sensor = node::Node::open(tree.home1_dir).value().agent("ecg").value();
+  ASSERT_TRUE(sensor.store(raw_item(1)));
+  // The policy is subscriptions of home1's agent "uplink": the hospital writes one more, for
+  // home1 (context = home1's IRI), and raw samples start to go up.
+  auto operator_ = node::Node::open(tree.hospital_dir).value().agent("operator").value();
+  node::Item policy;
+  policy.context = kHome1;
+  policy.persistent = true;
+  const Term sub = Term::blank("sub");
+  policy.add(sub, Term::iri(std::string(vocab::kTv) + "subscriber"), Term::iri(kHome1 + "/uplink"))
+      .add(sub, Term::iri(std::string(vocab::kTv) + "predicate"), Term::iri(kEx + "samples"));
+  ASSERT_TRUE(operator_.store(policy));
+  ASSERT_TRUE(eventually([&] {
+    return count(tree.home1_dir, {.p = Term::iri(std::string(vocab::kTv) + "subscriber"), .o = Term::iri(kHome1 + "/uplink")}) == 2;
+  }));
+  ASSERT_TRUE(sensor.store(raw_item(2)));
+  ASSERT_TRUE(eventually([&] { return count(tree.hospital_dir, {.p = Term::iri(kEx + "samples")}) == 1; }));
+  // Only what was written after the policy changed.
+  auto records = node::Node::open(tree.hospital_dir).value().snapshot().value().list({.p = Term::iri(kEx + "samples")}).value();
+  ASSERT_EQ(records.size(), 1u);
+  EXPECT_EQ(records[0].triple.s.value, kHome1 + "/rec/chunk/2");
+  EXPECT_EQ(records[0].meta.source, kHome1 + "/ecg");
+}
+
 }  // namespace
 }  // namespace tahvel::federation
