@@ -106,7 +106,7 @@ Result<std::vector<std::uint32_t>> plan(const Program& program, const Rule& rule
     if (pick == preference.end()) {
       pick = std::find_if(preference.begin(), preference.end(),
                           [&](std::uint32_t i) { return rule.body[i].kind == Literal::atom; });
-      if (greedy && !order.empty()) {
+      if (greedy && (!order.empty() || std::find(bound.begin(), bound.end(), true) != bound.end())) {
         int best = -1;
         for (auto it = preference.begin(); it != preference.end(); ++it) {
           if (rule.body[*it].kind != Literal::atom) continue;
@@ -321,6 +321,20 @@ Result<void> make_plans(Program& program) {
     }
     rule.ready.clear();
     for (const auto& order : rule.plans) rule.ready.push_back(ready_step(rule, order));
+    rule.neg_plans.clear();
+    rule.neg_literal.clear();
+    for (std::uint32_t k = 0; k < rule.body.size(); ++k) {
+      if (rule.body[k].kind != Literal::negation) continue;
+      VarSet bound(rule.vars, false);
+      for (const Arg& a : rule.body[k].args) if (a.is_var) bound[a.index] = true;
+      std::vector<std::uint32_t> rest;
+      for (std::uint32_t i = 0; i < rule.body.size(); ++i) if (i != k) rest.push_back(i);
+      auto order = plan(program, rule, rest, bound, true);
+      if (!order) return unexpected(order.error());
+      order->insert(order->begin(), k);
+      rule.neg_plans.push_back(std::move(*order));
+      rule.neg_literal.push_back(k);
+    }
   }
   return {};
 }
@@ -393,6 +407,7 @@ Result<void> stratify(Program& program) {
     Stratum& s = program.strata[stratum_of[comp[program.rules[r].head]]];
     s.rules.push_back(r);
     s.volatile_ |= program.rules[r].uses_now;
+    for (auto [w, neg] : edges[program.rules[r].head]) s.recursive |= comp[w] == comp[program.rules[r].head];
   }
   return {};
 }

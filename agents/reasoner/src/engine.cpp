@@ -267,6 +267,9 @@ struct Engine::Impl {
   void base_change(const node::Triple& t, bool insert);
   void run_stratum(std::size_t s);
   bool needs_recompute(const Stratum& stratum);
+  bool only_negations_grew(const Stratum& stratum);
+  void retract_for_negations(const Stratum& stratum, std::vector<std::vector<std::uint32_t>>& cur,
+                             std::vector<std::vector<std::uint32_t>>& next);
   Update finish();
   Update apply(std::span<const node::Triple> inserted, std::span<const node::Triple> removed, std::int64_t now_ns);
   Atom atom_of(const Relation& R, std::uint32_t row) const;
@@ -288,6 +291,20 @@ class RuleRun {
   }
 
   void run() { step(0); }
+  // Modes for a negation that gained rows (Engine::Impl::retract_for_negations): the first
+  // literal is a negation read as positive over the delta; other negations are not checked;
+  // head tuples are collected instead of derived.
+  void collect_into(std::vector<std::vector<Id>>* out) { collect_ = out; neg_first_ = true; skip_neg_ = true; }
+  // Runs with the head bound to `tuple` (re-derivation of one conclusion).
+  void run_bound(const Id* tuple) {
+    for (std::size_t i = 0; i < rule_.head_args.size(); ++i) {
+      const Arg& a = rule_.head_args[i];
+      Id have = arg(a);
+      if (have && have != tuple[i]) return;
+      if (a.is_var) bind_[a.index] = tuple[i];
+    }
+    step(0);
+  }
 
  private:
   Id arg(const Arg& a) const { return a.is_var ? bind_[a.index] : e_.const_ids[a.index]; }
@@ -307,6 +324,8 @@ class RuleRun {
   std::vector<Id> bind_;
   std::size_t ready_ = ~std::size_t{0};
   bool cut_ = false;  // the head is derived: unwind to the step where its variables were bound
+  bool neg_first_ = false, skip_neg_ = false;
+  std::vector<std::vector<Id>>* collect_ = nullptr;
   void step_literal(std::size_t k);
 };
 
@@ -333,6 +352,10 @@ template <class E>
 void RuleRun<E>::emit() {
   Id tuple[16];
   for (std::size_t i = 0; i < rule_.head_args.size(); ++i) tuple[i] = arg(rule_.head_args[i]);
+  if (collect_) {
+    collect_->emplace_back(tuple, tuple + rule_.head_args.size());
+    return;
+  }
   ++e_.st.derivations;
   std::uint32_t rel = e_.rel_of_pred[rule_.head];
   Relation& R = e_.rels[rel];
@@ -438,6 +461,7 @@ template <class E>
 bool RuleRun<E>::holds(const Literal& l) {
   switch (l.kind) {
     case Literal::negation: {
+      if (skip_neg_) return true;
       Id tuple[16];
       std::uint32_t rel;
       if (l.pred == kAnyBinary) {
@@ -485,6 +509,7 @@ void RuleRun<E>::step(std::size_t k) {
 template <class E>
 void RuleRun<E>::step_literal(std::size_t k) {
   const Literal& l = rule_.body[plan_[k]];
+  if (k == 0 && neg_first_) { atom(l, k); return; }
   switch (l.kind) {
     case Literal::atom: atom(l, k); return;
     case Literal::assign: {
@@ -554,12 +579,81 @@ bool Engine::Impl::needs_recompute(const Stratum& stratum) {
   return false;
 }
 
+// A stratum that reads nothing of its own, whose positive inputs did not shrink and whose
+// negated inputs only grew: the conclusions it may lose are those a rule gives with a negated
+// literal true on one of the new rows. These are withdrawn and derived again if another
+// derivation holds (delete and re-derive, without recomputing the stratum).
+bool Engine::Impl::only_negations_grew(const Stratum& stratum) {
+  if (first || stratum.volatile_ || stratum.recursive) return false;
+  auto changed = [&](std::uint32_t rel, bool plus) { return rel_is_touched[rel] && !delta(rel, plus).empty(); };
+  bool grew = false;
+  for (std::uint32_t ri : stratum.rules) {
+    for (const Literal& l : program->rules[ri].body) {
+      if (l.kind != Literal::atom && l.kind != Literal::negation) continue;
+      std::vector<std::uint32_t> rels_read;
+      if (l.pred != kAnyBinary) rels_read.push_back(rel_of_pred[l.pred]);
+      else for (std::uint32_t rel : touched_rels) if (rels[rel].pred_iri) rels_read.push_back(rel);
+      for (std::uint32_t rel : rels_read) {
+        if (changed(rel, false)) return false;
+        if (l.kind == Literal::negation && changed(rel, true)) grew = true;
+      }
+    }
+  }
+  return grew;
+}
+
+void Engine::Impl::retract_for_negations(const Stratum& stratum, std::vector<std::vector<std::uint32_t>>& cur,
+                                         std::vector<std::vector<std::uint32_t>>& next) {
+  for (std::uint32_t rel : touched_rels) cur[rel] = delta(rel, true);
+  // Candidates: head tuples with some negated literal on a new row (other negations ignored).
+  std::vector<std::pair<std::uint32_t, std::vector<std::vector<Id>>>> candidates;
+  for (std::uint32_t ri : stratum.rules) {
+    const Rule& rule = program->rules[ri];
+    std::vector<std::vector<Id>> found;
+    for (std::size_t k = 0; k < rule.neg_plans.size(); ++k) {
+      const Literal& l = rule.body[rule.neg_literal[k]];
+      if (l.pred == kAnyBinary || cur[rel_of_pred[l.pred]].empty()) continue;
+      RuleRun run(*this, rule, rule.neg_plans[k], &cur, next);
+      run.collect_into(&found);
+      run.run();
+    }
+    if (!found.empty()) candidates.emplace_back(rule.head, std::move(found));
+  }
+  // Withdraw them, then derive each again from any rule of its predicate.
+  std::vector<std::pair<std::uint32_t, std::uint32_t>> withdrawn;  // (relation, row)
+  for (auto& [head, tuples] : candidates) {
+    std::uint32_t rel = rel_of_pred[head];
+    Relation& R = rels[rel];
+    for (const auto& t : tuples) {
+      std::uint32_t r = R.find(t.data());
+      if (r == kNone || !R.derived[r]) continue;
+      touch(rel, r);
+      R.derived[r] = 0;
+      withdrawn.emplace_back(rel, r);
+    }
+  }
+  for (auto [rel, row] : withdrawn) {
+    std::vector<Id> tuple(rels[rel].row(row), rels[rel].row(row) + rels[rel].arity);
+    for (std::uint32_t ri : stratum.rules) {
+      const Rule& rule = program->rules[ri];
+      if (rel_of_pred[rule.head] != rel || rels[rel].derived[row]) continue;
+      RuleRun(*this, rule, rule.plans[0], nullptr, next).run_bound(tuple.data());
+    }
+  }
+}
+
 void Engine::Impl::run_stratum(std::size_t s) {
   const Stratum& stratum = program->strata[s];
   current_stratum = s;
   std::vector<std::vector<std::uint32_t>> next(rels.size()), cur(rels.size());
-  const bool recompute = needs_recompute(stratum);
+  const bool negations_grew = only_negations_grew(stratum);
+  const bool recompute = !negations_grew && needs_recompute(stratum);
   bool any_input = false;
+  if (negations_grew) {
+    retract_for_negations(stratum, cur, next);
+    any_input = true;
+    for (auto& rows : cur) rows.clear();
+  }
   if (recompute) {
     for (std::uint32_t p : stratum.preds) {
       std::uint32_t rel = rel_of_pred[p];

@@ -75,12 +75,17 @@ struct Rule {
   // the head is already derived (the rest could only derive it again: Prolog's once/1 for the
   // variables that do not reach the head).
   std::vector<std::uint32_t> ready;
+  // Orders that start with a negated literal read as positive (over the rows its relation
+  // gained), for finding the conclusions a growing negated relation may take away.
+  std::vector<std::vector<std::uint32_t>> neg_plans;
+  std::vector<std::uint32_t> neg_literal;
 };
 
 struct Stratum {
   std::vector<std::uint32_t> preds;  // defined here
   std::vector<std::uint32_t> rules;
   bool volatile_ = false;            // some rule uses now: recomputed every session
+  bool recursive = false;            // some rule reads a predicate of this stratum
 };
 
 class Program {
