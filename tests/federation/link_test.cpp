@@ -329,5 +329,51 @@ TEST(Link, ParentChangesAChildsForwardingPolicyBySendingASubscriptionDown) {
   EXPECT_EQ(records[0].meta.source, kHome1 + "/ecg");
 }
 
+TEST(Link, ConfigurationTravelsTwoHopsDownToAnAgentOfASensorNode) {
+  Tree tree;
+  const std::string sensor_iri = kHome1 + "/ecg1";
+  const std::string sensor_dir = (tree.tmp / "ecg1").string();
+  ASSERT_TRUE(node::Node::init(sensor_dir, {.iri = sensor_iri}));
+  tree.hospital = tree.start_hospital();
+  // home1 is a child of the hospital and the parent of ecg1, on the same bus.
+  auto home1_endpoint = std::shared_ptr<Transport>(tree.bus.open(kHome1, tree.home1_log.sink()));
+  tree.home1 = Link::start({.dir = tree.home1_dir, .parent_iri = kHospital, .up = home1_endpoint, .down = home1_endpoint,
+                            .resend_after = 100ms, .heartbeat_every = 200ms, .log = tree.home1_log.sink()})
+                   .value();
+  auto sensor_link = Link::start({.dir = sensor_dir, .parent_iri = kHome1,
+                                  .up = std::shared_ptr<Transport>(tree.bus.open(sensor_iri, tree.home2_log.sink())),
+                                  .resend_after = 100ms, .heartbeat_every = 200ms, .log = tree.home2_log.sink()})
+                         .value();
+  ASSERT_TRUE(eventually([&] { return tree.home1->connected() && sensor_link->connected(); }));
+  auto source = node::Node::open(sensor_dir).value().agent("source").value();
+  auto operator_ = node::Node::open(tree.hospital_dir).value().agent("operator").value();
+  node::Item config;
+  config.context = sensor_iri + "/source";
+  config.add(Term::iri(sensor_iri + "/source"), Term::iri(kEx + "rateHz"), Term::integer(250));
+  ASSERT_TRUE(operator_.store(config));
+  auto delivered = source.take(10s).value();
+  ASSERT_TRUE(delivered.has_value());
+  EXPECT_EQ(delivered->records[0].triple.o.value, "250");
+  EXPECT_EQ(delivered->records[0].meta.source, kHospital + "/operator");
+  // Stored on the way (home1 keeps what passed through its board) and at the sensor, once each.
+  EXPECT_EQ(count(tree.home1_dir, {.p = Term::iri(kEx + "rateHz")}), 1u);
+  EXPECT_EQ(count(sensor_dir, {.p = Term::iri(kEx + "rateHz")}), 1u);
+  // A query two hops down, and a timeout when the node on the way stops answering.
+  auto hospital = node::Node::open(tree.hospital_dir).value();
+  ASSERT_TRUE(eventually([&] {
+    return count(tree.hospital_dir, {.s = Term::iri(kHome1), .p = Term::iri(vocab::kLinkState), .o = Term::literal("up")}) == 1;
+  }));
+  std::size_t got = 0;
+  auto answered = remote_query(hospital, {.target = sensor_iri, .pattern = {.p = Term::iri(kEx + "rateHz")}}, 10s,
+                               [&](const node::Record&) { ++got; });
+  ASSERT_TRUE(answered) << answered.error().message;
+  EXPECT_EQ(got, 1u);
+  sensor_link.reset();
+  tree.home1.reset();  // stopped; the hospital still believes home1 is up for a while
+  auto late = remote_query(hospital, {.target = sensor_iri}, 1s, [](const node::Record&) {});
+  ASSERT_FALSE(late);
+  EXPECT_EQ(late.error().code, Errc::timeout) << late.error().message;
+}
+
 }  // namespace
 }  // namespace tahvel::federation
