@@ -156,14 +156,15 @@ struct Relation {
   const Id* row(std::uint32_t r) const { return data.data() + static_cast<std::size_t>(r) * arity; }
   bool alive(std::uint32_t r) const { return base[r] > 0 || derived[r]; }
 
+  bool same(std::uint32_t r, const Id* t) const {  // arity 0: one row, data() may be null
+    return arity == 0 || std::memcmp(row(r), t, arity * sizeof(Id)) == 0;
+  }
   std::uint32_t find(const Id* t) const {
-    return rows.find(hash_ids(t, arity), [&](std::uint32_t r) {
-      return std::memcmp(row(r), t, arity * sizeof(Id)) == 0;
-    });
+    return rows.find(hash_ids(t, arity), [&](std::uint32_t r) { return same(r, t); });
   }
   std::uint32_t ensure(const Id* t) {
     std::uint64_t h = hash_ids(t, arity);
-    std::uint32_t r = rows.find(h, [&](std::uint32_t r) { return std::memcmp(row(r), t, arity * sizeof(Id)) == 0; });
+    std::uint32_t r = rows.find(h, [&](std::uint32_t r) { return same(r, t); });
     if (r != kNone) return r;
     r = size();
     data.insert(data.end(), t, t + arity);
@@ -177,8 +178,11 @@ struct Relation {
   void link(Index& ix, std::uint32_t r) {
     ix.next.push_back(ix.push(index_key(row(r), arity, ix.mask), r));
   }
+  std::int8_t small_index[16] = {-1, -1, -1, -1, -1, -1, -1, -1, -1, -1, -1, -1, -1, -1, -1, -1};
   const Index& index(std::uint32_t mask) {
+    if (mask < 16 && small_index[mask] >= 0) return indexes[static_cast<std::size_t>(small_index[mask])];
     for (const Index& ix : indexes) if (ix.mask == mask) return ix;
+    if (mask < 16 && indexes.size() < 127) small_index[mask] = static_cast<std::int8_t>(indexes.size());
     indexes.emplace_back();
     Index& ix = indexes.back();
     ix.mask = mask;
