@@ -32,6 +32,8 @@
 #include <thread>
 #include <vector>
 
+#include <pthread.h>
+#include <time.h>
 #include <unistd.h>
 
 #include "bench.h"
@@ -53,10 +55,11 @@ using namespace std::chrono_literals;
 using node::Term;
 
 const char* kUsage =
-    "usage: tahvel bench federation [--json] [--quick] [--homes K]\n"
-    "  --json      print one JSON object instead of the table\n"
-    "  --quick     a small run of seconds, for smoke tests (50 homes unless --homes)\n"
-    "  --homes K   simulated homes feeding the hospital in the ingest phase (default 1000)\n"
+    "usage: tahvel bench federation [--json] [--quick] [--homes K] [--ingest-only]\n"
+    "  --json         print one JSON object instead of the table\n"
+    "  --quick        a small run of seconds, for smoke tests (50 homes unless --homes)\n"
+    "  --homes K      simulated homes feeding the hospital in the ingest phase (default 1000)\n"
+    "  --ingest-only  only the ingest phase (for profiling the hospital; no latency figures)\n"
     "It sends packets (LCM multicast, DDS): run it in a private network namespace,\n"
     "  tests/tools/netns-run build/bin/tahvel bench federation\n";
 
@@ -70,6 +73,7 @@ struct Config {
   std::size_t burst = 20'000;    // items per link-rate burst
   std::size_t homes = 1'000;
   bool homes_set = false;
+  bool ingest_only = false;     // --ingest-only: skip the floors and the latency phases
   std::size_t per_home = 200;    // items each simulated home sends
   std::size_t window = 128;      // up frames in flight per simulated home
 };
@@ -84,6 +88,8 @@ std::optional<Config> parse(const std::vector<std::string>& args) {
       c.json = true;
     } else if (a == "--quick") {
       quick = true;
+    } else if (a == "--ingest-only") {
+      c.ingest_only = true;
     } else if (a == "--homes") {
       if (i + 1 >= args.size()) throw std::invalid_argument("--homes needs a value");
       const std::string& v = args[++i];
@@ -162,16 +168,18 @@ Ledger check_numbers(const fs::path& dir, std::uint64_t first, std::uint64_t cou
 
 // ---- transports ----------------------------------------------------------------------------
 
-// Cyclone DDS on loopback only (as deploy/cyclonedds-loopback.xml), so the bench does not
-// depend on where it is run from. One configuration per process: every endpoint and the floor
-// use it.
+// Cyclone DDS on loopback only (deploy/cyclonedds-loopback.xml without its unicast peer), so
+// the bench does not depend on where it is run from. One configuration per process: every
+// endpoint and the floor use it. Discovery is by multicast, which the namespace routes to lo;
+// the peer 127.0.0.1 of the deploy file would have each of the ingest phase's 1,001
+// participants announce itself to 51 unicast ports, nearly all closed: a tenth of the CPU
+// during ingest went to those packets and the ICMP errors they raise.
 const char* kDdsLoopback =
     "<CycloneDDS xmlns=\"https://cdds.io/config\"><Domain Id=\"any\"><General>"
-    "<Interfaces><NetworkInterface name=\"lo\" multicast=\"default\"/></Interfaces>"
-    "<AllowMulticast>default</AllowMulticast><MulticastTimeToLive>0</MulticastTimeToLive>"
-    "<DontRoute>true</DontRoute></General><Discovery><ParticipantIndex>auto</ParticipantIndex>"
-    "<MaxAutoParticipantIndex>50</MaxAutoParticipantIndex><Peers><Peer address=\"127.0.0.1\"/>"
-    "</Peers></Discovery></Domain></CycloneDDS>";
+    "<Interfaces><NetworkInterface name=\"lo\" multicast=\"true\"/></Interfaces>"
+    "<AllowMulticast>true</AllowMulticast><MulticastTimeToLive>0</MulticastTimeToLive>"
+    "<DontRoute>true</DontRoute></General><Discovery><ParticipantIndex>none</ParticipantIndex>"
+    "</Discovery></Domain></CycloneDDS>";
 
 fed::DdsSettings dds_settings() {
   fed::DdsSettings s;
@@ -218,12 +226,52 @@ std::string hospital_iri(const std::string& phase) {
   return "http://bench.tahvel.org/" + std::to_string(getpid()) + "/" + phase + "/hospital";
 }
 
-node::Node init_store(const fs::path& dir, const std::string& iri) {
+// Grows a new store's map before anything else uses it, so that the timed phases have `need`
+// bytes free and the map never grows under them. Why: Env::grow (node/src/env.cpp) checks that
+// this process has no transaction open and then remaps, without keeping new readers out in
+// between; with 1,000 children, each child's down pump reading the store every 50 ms, a reader
+// started inside that window and the hospital crashed in LMDB (mdb_txn_renew during
+// mdb_env_set_mapsize). Until the node fixes that, the bench writes filler literals (unique, so
+// the term dictionary keeps each; it never shrinks) until the map has doubled to at least twice
+// `need`, which leaves about half of it free. The filler's pages are subtracted from the store
+// size the bench reports.
+void pregrow(const fs::path& dir, std::uint64_t need) {
+  std::uint64_t map = 64ull << 20;  // a new store's map (node/src/env.cpp kInitialMapBytes)
+  while (map < 2 * need) map *= 2;
+  const std::uint64_t filler_bytes = map / 2 + (8ull << 20);
+  auto node = node::Node::open(dir);
+  if (!node) throw std::runtime_error("open " + dir.string() + ": " + node.error().message);
+  auto filler = node->agent("bench-filler");
+  if (!filler) throw std::runtime_error(filler.error().message);
+  std::string chunk(900 * 1024, 'x');
+  for (std::uint64_t written = 0, i = 0; written < filler_bytes; written += chunk.size(), ++i) {
+    const std::string tag = std::to_string(i) + ":";
+    chunk.replace(0, tag.size(), tag);
+    node::Item item;
+    item.add(Term::iri("http://bench.tahvel.org/filler"), Term::iri(kBenchN + "Filler"), Term::literal(chunk));
+    if (auto id = filler->store(item); !id) throw std::runtime_error("growing " + dir.string() + ": " + id.error().message);
+  }
+}
+
+// Bytes in use in the store at `dir` (pages in use x page size).
+std::uint64_t used_bytes(const fs::path& dir) {
+  auto node = node::Node::open(dir);
+  if (!node) return 0;
+  auto st = node->stats();
+  return st ? st->used_bytes : 0;
+}
+
+node::Node init_store(const fs::path& dir, const std::string& iri, std::uint64_t pregrow_bytes = 0) {
   if (auto n = node::Node::init(dir, {.iri = iri}); !n) throw std::runtime_error("init " + dir.string() + ": " + n.error().message);
+  if (pregrow_bytes > 0) pregrow(dir, pregrow_bytes);
   auto n = node::Node::open(dir);
   if (!n) throw std::runtime_error("open " + dir.string() + ": " + n.error().message);
   return std::move(*n);
 }
+
+// Room for `items` items of three triples with a margin: measured about 0.5 KB per item at the
+// hospital (hospital_bytes_per_item).
+std::uint64_t room_for(std::uint64_t items) { return (16ull << 20) + items * 1024; }
 
 template <class F>
 bool wait_until(Clock::duration limit, F condition) {
@@ -244,13 +292,13 @@ struct LinkPair {
   std::unique_ptr<fed::Link> hospital_link, home_link;
 };
 
-void start_pair(LinkPair& p, Kind kind, const ScratchDir& scratch) {
+void start_pair(LinkPair& p, Kind kind, const ScratchDir& scratch, std::uint64_t items) {
   p.hospital = hospital_iri(std::string("link-") + name_of(kind));
   p.home = p.hospital + "/home1";
   p.hospital_dir = scratch.sub(std::string(name_of(kind)) + "-hospital");
   p.home_dir = scratch.sub(std::string(name_of(kind)) + "-home");
-  init_store(p.hospital_dir, p.hospital);
-  init_store(p.home_dir, p.home);
+  init_store(p.hospital_dir, p.hospital, room_for(items));
+  init_store(p.home_dir, p.home, room_for(items));
   auto hospital = fed::Link::start({.dir = p.hospital_dir, .down = open_transport(kind, p.hospital, p.diag),
                                     .children = {"home1"}, .log = p.diag.link_log()});
   if (!hospital) throw std::runtime_error("hospital link: " + hospital.error().message);
@@ -305,6 +353,41 @@ class Watcher {
   std::uint64_t bookmark_ = 0;
 };
 
+// The store's own part of a hop, no link: Agent::store on a node until another thread, asleep
+// in Node::watch on the same store, has seen the item. A link hop costs this twice (the home's
+// outbox, the hospital's relay) plus the transport.
+Percentiles store_to_watch(const ScratchDir& scratch, int rounds, std::uint64_t& next_number) {
+  const fs::path dir = scratch.sub("store-floor");
+  const std::string iri = hospital_iri("store-floor");
+  node::Node node = init_store(dir, iri, room_for(static_cast<std::uint64_t>(rounds) * 2));
+  auto writer = node.agent("hrv");
+  if (!writer) throw std::runtime_error(writer.error().message);
+  const int warmup = std::max(10, rounds / 10);
+  const std::uint64_t first = next_number;
+  next_number += static_cast<std::uint64_t>(warmup + rounds);
+  Watcher watcher(dir);
+  std::atomic<std::uint64_t> seen{0};
+  std::thread follower([&] {
+    for (std::uint64_t i = 0; i < static_cast<std::uint64_t>(warmup + rounds); ++i) {
+      if (!watcher.wait_for(first + i, 10s)) break;
+      seen.store(i + 1);
+      seen.notify_one();
+    }
+  });
+  std::vector<double> us;
+  for (int i = 0; i < warmup + rounds; ++i) {
+    const auto t0 = Clock::now();
+    if (auto st = writer->store(numbered_item(iri, first + static_cast<std::uint64_t>(i))); !st) {
+      follower.join();
+      throw std::runtime_error("store floor: " + st.error().message);
+    }
+    for (std::uint64_t now = seen.load(); now < static_cast<std::uint64_t>(i) + 1; now = seen.load()) seen.wait(now);
+    if (i >= warmup) us.push_back(micros(Clock::now() - t0));
+  }
+  follower.join();
+  return percentiles(std::move(us));
+}
+
 struct LinkFigures {
   Percentiles up;
   double items_per_s = 0;
@@ -314,7 +397,7 @@ struct LinkFigures {
 
 LinkFigures measure_link(Kind kind, const Config& cfg, const ScratchDir& scratch, std::uint64_t& next_number) {
   LinkPair p;
-  start_pair(p, kind, scratch);
+  start_pair(p, kind, scratch, static_cast<std::uint64_t>(cfg.rounds) * 11 / 10 + 10 + cfg.burst);
   auto home_node = node::Node::open(p.home_dir);
   if (!home_node) throw std::runtime_error(home_node.error().message);
   auto sensor = home_node->agent("hrv");
@@ -374,11 +457,24 @@ struct SimHome {
 };
 
 struct IngestFigures {
-  double items_per_s = 0, seconds = 0, open_s = 0, register_s = 0;
+  double items_per_s = 0, seconds = 0, open_s = 0, register_s = 0, bytes_per_item = 0;
+  double process_cpu_s = 0, sim_cpu_s = 0, hospital_cpu_s = 0;  // during the timed part
   std::uint64_t items = 0, go_backs = 0, send_failures = 0, relay_runs_hint = 0;
   Ledger ledger;
   fed::LinkCounters hospital;
 };
+
+// CPU seconds used so far by a running thread (0 when it cannot be read) or by a clock.
+double cpu_of(clockid_t clock) {
+  timespec ts{};
+  if (clock_gettime(clock, &ts) != 0) return 0;
+  return static_cast<double>(ts.tv_sec) + static_cast<double>(ts.tv_nsec) * 1e-9;
+}
+double thread_cpu(std::thread& t) {
+  clockid_t clock{};
+  if (!t.joinable() || pthread_getcpuclockid(t.native_handle(), &clock) != 0) return 0;
+  return cpu_of(clock);
+}
 
 class SimHomes {
  public:
@@ -410,6 +506,13 @@ class SimHomes {
       n += h->welcomed;
     }
     return n;
+  }
+  // CPU time the simulated homes' threads have used so far (they share the machine with the
+  // hospital; subtracting them gives the hospital's own cost).
+  double cpu_seconds() {
+    double total = thread_cpu(sender_);
+    for (auto& t : receivers_) total += thread_cpu(t);
+    return total;
   }
   std::uint64_t go_backs() const { return go_backs_; }
   std::uint64_t send_failures() const { return send_failures_; }
@@ -505,7 +608,8 @@ IngestFigures measure_ingest(const Config& cfg, const ScratchDir& scratch, std::
   Diagnostics diag;
   const std::string hospital = hospital_iri("ingest");
   const fs::path dir = scratch.sub("ingest-hospital");
-  init_store(dir, hospital);
+  init_store(dir, hospital, room_for(cfg.homes * cfg.per_home));
+  const std::uint64_t used_before = used_bytes(dir);
   auto link = fed::Link::start({.dir = dir, .down = open_transport(Kind::dds, hospital, diag), .log = diag.link_log()});
   if (!link) throw std::runtime_error("ingest hospital link: " + link.error().message);
 
@@ -536,11 +640,16 @@ IngestFigures measure_ingest(const Config& cfg, const ScratchDir& scratch, std::
 
   f.items = cfg.homes * cfg.per_home;
   const std::uint64_t base = (*link)->counters().relayed_in;
+  const double cpu0 = cpu_of(CLOCK_PROCESS_CPUTIME_ID), sim0 = sim.cpu_seconds(), main0 = cpu_of(CLOCK_THREAD_CPUTIME_ID);
   const auto t0 = Clock::now();
   sim.allow_items();
   const bool all = wait_until(300s, [&] { return (*link)->counters().relayed_in - base >= f.items; });
   f.seconds = seconds(Clock::now() - t0);
-  f.items_per_s = static_cast<double>((*link)->counters().relayed_in - base) / f.seconds;
+  const std::uint64_t relayed = (*link)->counters().relayed_in - base;
+  f.items_per_s = static_cast<double>(relayed) / f.seconds;
+  f.process_cpu_s = cpu_of(CLOCK_PROCESS_CPUTIME_ID) - cpu0;
+  f.sim_cpu_s = sim.cpu_seconds() - sim0;
+  f.hospital_cpu_s = f.process_cpu_s - f.sim_cpu_s - (cpu_of(CLOCK_THREAD_CPUTIME_ID) - main0);
   sim.stop();
   f.go_backs = sim.go_backs();
   f.send_failures = sim.send_failures();
@@ -548,10 +657,35 @@ IngestFigures measure_ingest(const Config& cfg, const ScratchDir& scratch, std::
   (*link)->stop();
   if (!all) std::cerr << "tahvel: bench federation: ingest incomplete after 300 s" << diag.summary() << "\n";
   f.ledger = check_numbers(dir, first, next_number - first);
+  if (f.items > 0) f.bytes_per_item = static_cast<double>(used_bytes(dir) - used_before) / static_cast<double>(f.items);
   return f;
 }
 
 // ---- output --------------------------------------------------------------------------------
+
+void add_ingest(Figures& fig, const IngestFigures& ingest, const Config& cfg) {
+  fig.set("hospital_ingest_items_per_s", ingest.items_per_s);
+  fig.set("homes", static_cast<double>(cfg.homes));
+  fig.set("target_ingest_met", ingest.items_per_s >= kIngestTarget ? 1 : 0);
+  fig.set("ingest_items", static_cast<double>(ingest.items));
+  fig.set("ingest_items_per_home", static_cast<double>(cfg.per_home));
+  fig.set("ingest_window", static_cast<double>(cfg.window));
+  fig.set("ingest_seconds", ingest.seconds);
+  fig.set("ingest_open_s", ingest.open_s);
+  fig.set("ingest_register_s", ingest.register_s);
+  fig.set("ingest_go_backs", static_cast<double>(ingest.go_backs));
+  fig.set("ingest_send_failures", static_cast<double>(ingest.send_failures));
+  fig.set("ingest_duplicates_dropped", static_cast<double>(ingest.hospital.duplicates_in));
+  fig.set("ingest_refused", static_cast<double>(ingest.hospital.refused));
+  fig.set("ingest_process_cpu_s", ingest.process_cpu_s);
+  fig.set("ingest_sim_cpu_s", ingest.sim_cpu_s);
+  fig.set("ingest_hospital_cpu_s", ingest.hospital_cpu_s);
+  const double us_per_item = ingest.items > 0 ? ingest.hospital_cpu_s * 1e6 / static_cast<double>(ingest.items) : 0;
+  fig.set("hospital_cpu_us_per_item", us_per_item);
+  fig.set("hospital_ingest_cpu_bound_items_per_s", us_per_item > 0 ? 1e6 / us_per_item : 0);
+  fig.set("hospital_bytes_per_item", ingest.bytes_per_item);
+  fig.set("triples_per_item", 3);
+}
 
 void add_latency(Figures& fig, const char* kind, const LinkFigures& l, const fed::LatencyFloor& raw) {
   const std::string k(kind);
@@ -577,6 +711,7 @@ void print_table(const Figures& f, const Config& cfg) {
   std::printf("%-34s %10s %12s %8s   %s\n", "figure", "Tahvel", "raw floor", "ratio", "target");
   std::printf("%s\n", std::string(86, '-').c_str());
   for (const char* k : {"dds", "lcm"}) {
+    if (cfg.ingest_only) break;
     const std::string s(k);
     for (const char* q : {"p50", "p99"}) {
       const std::string qs(q);
@@ -585,8 +720,12 @@ void print_table(const Figures& f, const Config& cfg) {
                   f.get("ratio_" + s + "_up_" + qs + "_vs_raw"), kLatencyRatioTarget, yes("target_" + s + "_" + qs + "_met"));
     }
   }
-  std::printf("%-34s %10.0f\n", "dds link items/s (one home)", f.get("dds_link_items_per_s"));
-  std::printf("%-34s %10.0f\n", "lcm link items/s (one home)", f.get("lcm_link_items_per_s"));
+  if (!cfg.ingest_only) {
+    std::printf("%-34s %10.1f %12.1f   (no link: one store, one wake; a link hop has two)\n",
+                "store-to-watch p50 / p99 us", f.get("store_watch_p50_us"), f.get("store_watch_p99_us"));
+    std::printf("%-34s %10.0f\n", "dds link items/s (one home)", f.get("dds_link_items_per_s"));
+    std::printf("%-34s %10.0f\n", "lcm link items/s (one home)", f.get("lcm_link_items_per_s"));
+  }
   std::printf("%-34s %10.0f %12s %8s   >= %.0f: %s\n", ("hospital ingest items/s, " + std::to_string(cfg.homes) + " homes").c_str(),
               f.get("hospital_ingest_items_per_s"), "", "", kIngestTarget, yes("target_ingest_met"));
   std::printf("%-34s %10.0f %12s %8s   0: %s\n", "lost items (all phases)", f.get("lost"), "", "", yes("target_zero_loss_met"));
@@ -595,6 +734,10 @@ void print_table(const Figures& f, const Config& cfg) {
               "%.0f go-backs, %.0f duplicates dropped\n",
               f.get("ingest_seconds"), f.get("ingest_items"), cfg.homes, f.get("ingest_open_s"),
               f.get("ingest_register_s"), f.get("ingest_go_backs"), f.get("ingest_duplicates_dropped"));
+  std::printf("ingest CPU: %.2f s in all, %.2f s the simulated homes, %.2f s the hospital (Link, store, DDS):\n"
+              "  %.1f us of hospital CPU per item, i.e. %.0f items/s if the hospital had one core to itself\n",
+              f.get("ingest_process_cpu_s"), f.get("ingest_sim_cpu_s"), f.get("ingest_hospital_cpu_s"),
+              f.get("hospital_cpu_us_per_item"), f.get("hospital_ingest_cpu_bound_items_per_s"));
   std::printf("raw floors: the libraries alone, ping-pong between two threads of this process, one-way = RTT/2.\n");
 }
 
@@ -610,41 +753,36 @@ int run(const Config& cfg) {
   ScratchDir scratch{fs::path{}};
   Figures fig;
   std::uint64_t next_number = 1;
-
-  auto dds_raw = fed::raw_dds_pingpong(dds_settings(), cfg.rounds);
-  if (!dds_raw) throw std::runtime_error("raw DDS ping-pong: " + dds_raw.error().message);
-  auto lcm_raw = fed::raw_lcm_pingpong(fed::LcmSettings{}, cfg.rounds);
-  if (!lcm_raw) throw std::runtime_error("raw LCM ping-pong: " + lcm_raw.error().message);
-
-  const LinkFigures dds = measure_link(Kind::dds, cfg, scratch, next_number);
-  const LinkFigures lcm = measure_link(Kind::lcm, cfg, scratch, next_number);
+  std::vector<Ledger> ledgers;
+  if (!cfg.ingest_only) {
+    auto dds_raw = fed::raw_dds_pingpong(dds_settings(), cfg.rounds);
+    if (!dds_raw) throw std::runtime_error("raw DDS ping-pong: " + dds_raw.error().message);
+    auto lcm_raw = fed::raw_lcm_pingpong(fed::LcmSettings{}, cfg.rounds);
+    if (!lcm_raw) throw std::runtime_error("raw LCM ping-pong: " + lcm_raw.error().message);
+    const Percentiles store_floor = store_to_watch(scratch, cfg.rounds, next_number);
+    const LinkFigures dds = measure_link(Kind::dds, cfg, scratch, next_number);
+    const LinkFigures lcm = measure_link(Kind::lcm, cfg, scratch, next_number);
+    add_latency(fig, "dds", dds, *dds_raw);
+    add_latency(fig, "lcm", lcm, *lcm_raw);
+    fig.set("store_watch_p50_us", store_floor.p50_us);
+    fig.set("store_watch_p99_us", store_floor.p99_us);
+    ledgers = {dds.ledger, lcm.ledger};
+  }
   const IngestFigures ingest = measure_ingest(cfg, scratch, next_number);
-
-  add_latency(fig, "dds", dds, *dds_raw);
-  add_latency(fig, "lcm", lcm, *lcm_raw);
-  fig.set("hospital_ingest_items_per_s", ingest.items_per_s);
-  fig.set("homes", static_cast<double>(cfg.homes));
-  fig.set("target_ingest_met", ingest.items_per_s >= kIngestTarget ? 1 : 0);
-  const std::uint64_t lost = dds.ledger.lost + lcm.ledger.lost + ingest.ledger.lost;
-  const std::uint64_t duplicated = dds.ledger.duplicated + lcm.ledger.duplicated + ingest.ledger.duplicated;
-  fig.set("lost", static_cast<double>(lost));
-  fig.set("duplicated", static_cast<double>(duplicated));
-  fig.set("target_zero_loss_met", lost == 0 && duplicated == 0 ? 1 : 0);
-  fig.set("items_checked", static_cast<double>(dds.ledger.expected + lcm.ledger.expected + ingest.ledger.expected));
+  add_ingest(fig, ingest, cfg);
+  ledgers.push_back(ingest.ledger);
+  Ledger all;
+  for (const Ledger& l : ledgers) {
+    all.expected += l.expected;
+    all.lost += l.lost;
+    all.duplicated += l.duplicated;
+  }
+  fig.set("lost", static_cast<double>(all.lost));
+  fig.set("duplicated", static_cast<double>(all.duplicated));
+  fig.set("target_zero_loss_met", all.lost == 0 && all.duplicated == 0 ? 1 : 0);
+  fig.set("items_checked", static_cast<double>(all.expected));
   fig.set("latency_rounds", cfg.rounds);
   fig.set("burst_items", static_cast<double>(cfg.burst));
-  fig.set("ingest_items", static_cast<double>(ingest.items));
-  fig.set("ingest_items_per_home", static_cast<double>(cfg.per_home));
-  fig.set("ingest_window", static_cast<double>(cfg.window));
-  fig.set("ingest_seconds", ingest.seconds);
-  fig.set("ingest_open_s", ingest.open_s);
-  fig.set("ingest_register_s", ingest.register_s);
-  fig.set("ingest_go_backs", static_cast<double>(ingest.go_backs));
-  fig.set("ingest_send_failures", static_cast<double>(ingest.send_failures));
-  fig.set("ingest_duplicates_dropped", static_cast<double>(ingest.hospital.duplicates_in));
-  fig.set("ingest_refused", static_cast<double>(ingest.hospital.refused));
-  fig.set("triples_per_item", 3);
-
   if (cfg.json) {
     print_json(std::cout, fig);
   } else {
