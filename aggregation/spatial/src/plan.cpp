@@ -120,7 +120,7 @@ struct Plan::Impl {
       points.emplace_back(CgalPoint(sensors[i].at.x, sensors[i].at.y), i);
     }
     f.tree = std::make_unique<Tree>(points.begin(), points.end());
-    f.tree->build();
+    if (!points.empty()) f.tree->build();  // CGAL's build() dereferences the first point
     f.stale = false;
     return f;
   }
@@ -252,6 +252,7 @@ std::vector<std::string> Plan::sensors_in(const Area& area) const {
   candidates.reserve(64);  // a room's box holds a few dozen sensors: one allocation, not six
   for (int floor : impl_->sensor_floor_numbers(area)) {
     SensorFloor& f = impl_->sensors_of(floor);
+    if (f.tree->size() == 0) continue;
     candidates.clear();
     f.tree->search(std::back_inserter(candidates), query);
     out.reserve(out.size() + candidates.size());
