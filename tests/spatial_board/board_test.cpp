@@ -228,6 +228,32 @@ TEST_F(BoardTest, MovingASensorMovesItsReadingsBetweenAreaSubscriptions) {
   EXPECT_FALSE(*quiet);
 }
 
+TEST_F(BoardTest, RemovingASensorsGeometryEndsItsSubscriptionAndANewSensorGetsOne) {
+  auto agent = node_->agent("bedroom-watch");
+  ASSERT_TRUE(agent.has_value());
+  auto bed = AreaSubscription::open(*node_, *agent, {kBedroom, std::nullopt, std::nullopt});
+  ASSERT_TRUE(bed.has_value());
+  node::Pattern wkt;
+  wkt.s = Term::iri(kMote + "/geometry");
+  auto removed = node_->remove(wkt);
+  ASSERT_TRUE(removed.has_value());
+  EXPECT_EQ(*removed, 1u);
+  auto changed = bed->refresh();
+  ASSERT_TRUE(changed.has_value());
+  EXPECT_TRUE(*changed);
+  EXPECT_EQ(bed->sensors(), Ids{});
+  reading("mote1", 20.0);
+  EXPECT_EQ(pending(*agent), 0u);
+
+  put(located_feature_item(kHome + "/mote3", "POINT(0.5 3.5)", 0));  // a new mote, bedroom arm
+  changed = bed->refresh();
+  ASSERT_TRUE(changed.has_value());
+  EXPECT_TRUE(*changed);
+  EXPECT_EQ(bed->sensors(), Ids{kHome + "/mote3"});
+  reading("mote3", 20.5);
+  EXPECT_EQ(pending(*agent), 1u);
+}
+
 TEST_F(BoardTest, AReopenedAreaSubscriptionDropsSensorsThatLeftWhileItWasAway) {
   auto agent = node_->agent("bedroom-watch");
   ASSERT_TRUE(agent.has_value());
