@@ -460,7 +460,7 @@ struct SimHome {
 struct IngestFigures {
   double items_per_s = 0, seconds = 0, open_s = 0, register_s = 0, bytes_per_item = 0;
   double process_cpu_s = 0, sim_cpu_s = 0, hospital_cpu_s = 0;  // during the timed part
-  std::uint64_t items = 0, go_backs = 0, send_failures = 0, relay_runs_hint = 0;
+  std::uint64_t items = 0, go_backs = 0, send_failures = 0;
   Ledger ledger;
   fed::LinkCounters hospital;
 };
@@ -605,6 +605,24 @@ class SimHomes {
   std::vector<std::thread> receivers_;
 };
 
+// K homes below `hospital`, each with its DDS endpoint and its items encoded as up frames
+// (before the clock starts: the bench times the hospital, not the encoder).
+void open_homes(SimHomes& sim, const Config& cfg, const std::string& hospital, Diagnostics& diag,
+                std::uint64_t& next_number) {
+  for (std::size_t i = 0; i < cfg.homes; ++i) {
+    auto h = std::make_unique<SimHome>();
+    h->iri = hospital + "/home" + std::to_string(i + 1);
+    h->source = h->iri + "/hrv";
+    auto t = fed::open_dds(dds_settings(), h->iri, diag.drop_log());
+    if (!t) throw std::runtime_error("open dds <" + h->iri + ">: " + t.error().message);
+    h->transport = std::move(*t);
+    h->frames.reserve(cfg.per_home);
+    for (std::uint64_t s = 1; s <= cfg.per_home; ++s)
+      h->frames.push_back(fed::sim::up_frame(h->iri, hospital, s, s - 1, h->source, numbered_item(h->iri, next_number++)));
+    sim.homes.push_back(std::move(h));
+  }
+}
+
 IngestFigures measure_ingest(const Config& cfg, const ScratchDir& scratch, std::uint64_t& next_number) {
   Diagnostics diag;
   const std::string hospital = hospital_iri("ingest");
@@ -618,18 +636,7 @@ IngestFigures measure_ingest(const Config& cfg, const ScratchDir& scratch, std::
   const std::uint64_t first = next_number;
   SimHomes sim(hospital, cfg.window, 1s);
   auto t_open = Clock::now();
-  for (std::size_t i = 0; i < cfg.homes; ++i) {
-    auto h = std::make_unique<SimHome>();
-    h->iri = hospital + "/home" + std::to_string(i + 1);
-    h->source = h->iri + "/hrv";
-    auto t = fed::open_dds(dds_settings(), h->iri, diag.drop_log());
-    if (!t) throw std::runtime_error("open dds <" + h->iri + ">: " + t.error().message);
-    h->transport = std::move(*t);
-    h->frames.reserve(cfg.per_home);
-    for (std::uint64_t s = 1; s <= cfg.per_home; ++s)
-      h->frames.push_back(fed::sim::up_frame(h->iri, hospital, s, s - 1, h->source, numbered_item(h->iri, next_number++)));
-    sim.homes.push_back(std::move(h));
-  }
+  open_homes(sim, cfg, hospital, diag, next_number);
   f.open_s = seconds(Clock::now() - t_open);
 
   auto t_register = Clock::now();
