@@ -117,6 +117,8 @@ struct Link::Impl {
   std::deque<std::uint64_t> up_in_flight;
   Clock::time_point up_progress{};
   bool up_go_back = false;
+  std::uint64_t up_went_back_to = ~0ull;
+  Clock::time_point up_went_back_at{};
 
   // Parent role (P10-P12).
   struct Child {
@@ -131,6 +133,8 @@ struct Link::Impl {
     std::deque<std::uint64_t> down_in_flight;
     Clock::time_point down_progress{};
     bool down_go_back = false;
+    std::uint64_t went_back_to = ~0ull;
+    Clock::time_point went_back_at{};
     bool pump_started = false;
     bool state_dirty = true;
     std::int64_t state_written_ns = 0;
@@ -191,6 +195,7 @@ struct Link::Impl {
       return;
     }
     std::map<std::string, node::Agent> agents;  // this thread's relaying agents, by id
+    std::map<std::string, HeldFrames> held;     // per stream: items that came ahead of a hole
     auto agent = [&](const std::string& id) -> node::Agent* {
       auto it = agents.find(id);
       if (it == agents.end()) {
@@ -221,7 +226,7 @@ struct Link::Impl {
         if (f.kind == FrameKind::up || f.kind == FrameKind::down) {
           std::size_t j = i + 1;
           while (j < batch.size() && batch[j].kind == f.kind && batch[j].from == f.from) ++j;
-          relay_run(transport.get(), std::span(batch).subspan(i, j - i), agent);
+          relay_run(transport.get(), std::span(batch).subspan(i, j - i), agent, held);
           i = j;
         } else {
           dispatch(transport.get(), f, agent);
@@ -253,8 +258,17 @@ struct Link::Impl {
     return child;
   }
 
+  // P8: items of one stream that arrived after a lost one wait here (bounded, in memory only)
+  // until the hole is filled, so a loss costs the resend of the missing items, not of everything
+  // sent after them. Only the stream's receive thread touches it.
+  struct HeldFrames {
+    std::optional<std::uint64_t> mark;                  // the store's mark, read once
+    std::map<std::uint64_t, node::RelayedItem> by_prev;  // keyed by the seq each one follows
+  };
+  static constexpr std::size_t kHeldMax = 4096;
+
   template <class AgentFn>
-  void relay_run(Transport* via, std::span<const Frame> frames, AgentFn& agent) {
+  void relay_run(Transport* via, std::span<const Frame> frames, AgentFn& agent, std::map<std::string, HeldFrames>& held) {
     const Frame& head = frames.front();
     const bool up = head.kind == FrameKind::up;
     std::shared_ptr<Child> child;
@@ -289,7 +303,35 @@ struct Link::Impl {
     node::Agent* relayer = agent(up ? child->id : std::string(kUplinkAgent));
     if (!relayer) return;
     std::string stream = up ? child->iri : std::string(kDownStream);
-    auto outcome = relayer->relay(stream, items);
+    HeldFrames& buffer = held[stream];
+    if (!buffer.mark) {
+      auto mark = relayer->relay_mark(stream);
+      if (!mark) return log("cannot read the mark of " + stream + ": " + mark.error().message);
+      buffer.mark = *mark;
+    }
+    std::size_t early_duplicates = 0;
+    for (auto& item : items) {
+      if (item.seq <= *buffer.mark) ++early_duplicates;
+      else buffer.by_prev.insert_or_assign(item.prev, std::move(item));
+    }
+    // The run that continues the mark, through items held from earlier batches.
+    std::vector<node::RelayedItem> run;
+    for (auto it = buffer.by_prev.find(*buffer.mark); it != buffer.by_prev.end();
+         it = buffer.by_prev.find(run.back().seq)) {
+      run.push_back(std::move(it->second));
+      buffer.by_prev.erase(it);
+    }
+    node::Result<node::RelayOutcome> outcome = node::RelayOutcome{*buffer.mark, {}, 0, false};
+    if (!run.empty()) outcome = relayer->relay(stream, run);
+    if (outcome) {
+      buffer.mark = outcome->mark;
+      outcome->duplicates += early_duplicates;
+      std::erase_if(buffer.by_prev, [&](const auto& e) { return e.second.seq <= *buffer.mark; });
+      while (buffer.by_prev.size() > kHeldMax) buffer.by_prev.erase(std::prev(buffer.by_prev.end()));
+      outcome->gap = outcome->gap || !buffer.by_prev.empty();
+    } else {
+      buffer = HeldFrames{};  // read the mark again; the sender resends what is missing
+    }
     Frame ack;
     ack.kind = FrameKind::ack;
     ack.to = head.from;
@@ -401,7 +443,11 @@ struct Link::Impl {
           child->down_mark = f.ack;
           child->down_progress = Clock::now();
         }
-        if (f.prev == 1) child->down_go_back = true;
+        if (f.prev == 1 && (f.ack != child->went_back_to || Clock::now() - child->went_back_at > opt.resend_after)) {
+          child->down_go_back = true;  // P8: once per mark and interval, not on every gap ack
+          child->went_back_to = f.ack;
+          child->went_back_at = Clock::now();
+        }
         changed.notify_all();
         return;
       }
@@ -437,7 +483,11 @@ struct Link::Impl {
           up_mark = f.ack;
           up_progress = Clock::now();
         }
-        if (f.prev == 1) up_go_back = true;
+        if (f.prev == 1 && (f.ack != up_went_back_to || Clock::now() - up_went_back_at > opt.resend_after)) {
+          up_go_back = true;  // P8: once per mark and interval, not on every gap ack
+          up_went_back_to = f.ack;
+          up_went_back_at = Clock::now();
+        }
         changed.notify_all();
         return;
       }
