@@ -23,6 +23,8 @@
 #include "tahvel/federation/link.h"
 #include "tahvel/federation/transport.h"
 #include "tahvel/node/format.h"
+#include "tahvel/spatial/board.h"
+#include "tahvel/spatial/wkt.h"
 #include "tahvel/uri/iri.h"
 #include "topology.h"
 
@@ -121,6 +123,25 @@ const Flag kFlagState{"--state", "", "DIR", "the deployment's state directory (d
 
 fs::path state_dir(const Args& args) { return args.get("--state").value_or("state"); }
 
+// The spatial library's answer to a query by area (federation::AreaQuery): the area is a room's
+// absolute IRI or WKT, as the asking node sent it.
+node::Result<std::vector<node::Record>> area_answer(const node::Snapshot& snapshot, const node::Pattern& pattern,
+                                                    const std::string& area, std::optional<std::int64_t> floor,
+                                                    const node::ListOptions& options) {
+  spatial::AreaSpec spec;
+  if (spatial::looks_like_wkt(area)) {
+    auto shape = spatial::parse_shape(area);
+    if (!shape) return node::fail(node::Errc::syntax, "area: " + shape.error().message);
+    spec.shape = std::move(*shape);
+    if (floor) spec.floor = static_cast<int>(*floor);
+  } else {
+    spec.room_iri = area;
+  }
+  auto records = spatial::list_in_area(snapshot, pattern, spec, options);
+  if (!records) return node::fail(node::Errc::not_found, records.error().message);
+  return std::move(*records);
+}
+
 }  // namespace
 
 // --- tahvel link ------------------------------------------------------------------------------
@@ -159,6 +180,7 @@ int run_link(const Args& args) {
   }
   if (listen) options.down = (up && *up == *listen) ? options.up : open_transport(*listen, args, node.iri(), log);
   options.children = args.all("--child");
+  options.area_query = area_answer;
   for (const auto& text : args.all("--forward")) options.forward.push_back(forward_pattern(text, prefixes));
   install_stop_handlers();
   auto link = check(federation::Link::start(std::move(options)));
@@ -176,14 +198,18 @@ int run_link(const Args& args) {
 
 const Command kQueryCommand{
     "query",
-    "DIR --at NODE-IRI [-s S] [-p P] [-o O] [--since T] [--until T] [--cascade N] [--limit N] [--format nt|ttl|json]",
+    "DIR --at NODE-IRI [-s S] [-p P] [-o O] [--area IRI|WKT [--floor N]] [--since T] [--until T] [--cascade N] [--limit N] [--format nt|ttl|json]",
     "Ask a node below this one for its records; the answer streams back.",
     "Run against the node at DIR (e.g. the hospital): the query travels down the tree to the node\n"
     "at --at, is answered from its store and comes back in chunks, printed as they arrive. Times\n"
     "(--since, --until; by asserted-at) are ns since the epoch or UTC like 2026-11-21T10:00:00Z.\n"
+    "With --area the node that answers keeps the records located in a room or WKT area of its own\n"
+    "floor plan (as 'tahvel list --area' does there; docs/spatial.md).\n"
     "Exit status: 0 answered, 3 timeout, 4 unknown node, 5 unreachable node, 1 other failure.",
     {{"--at", "", "NODE-IRI", "the node that answers (this node or any node below it)"},
      kFlagS, kFlagP, kFlagO,
+     {"--area", "", "IRI|WKT", "only records located in this room or (MULTI)POLYGON, resolved at the target"},
+     {"--floor", "", "N", "with a WKT --area: only that floor"},
      {"--since", "", "T", "records asserted at or after T"},
      {"--until", "", "T", "records asserted before T"},
      kFlagCascade,
@@ -202,6 +228,26 @@ int run_query(const Args& args) {
   if (auto until = args.get("--until")) query.pattern.until = time_flag(args, "--until", *until);
   query.cascade = static_cast<unsigned>(args.get_u64("--cascade", 0));
   query.limit = args.get_u64("--limit", 0);
+  if (auto area = args.get("--area")) {
+    if (spatial::looks_like_wkt(*area)) {
+      if (auto shape = spatial::parse_shape(*area); !shape) usage_error("--area: " + shape.error().message);
+      query.area = *area;
+    } else {
+      query.area = parse_iri(*area, prefixes, "--area");  // absolute: the target's prefixes may differ
+      if (args.has("--floor")) usage_error("--floor: only with a WKT --area (a room has its own floor)");
+    }
+    if (auto floor = args.get("--floor")) {
+      try {
+        std::size_t used = 0;
+        query.floor = std::stoll(*floor, &used);
+        if (used != floor->size()) throw std::invalid_argument("trailing");
+      } catch (const std::exception&) {
+        usage_error("--floor: expected an integer, found '" + *floor + "'");
+      }
+    }
+  } else if (args.has("--floor")) {
+    usage_error("--floor: only with --area");
+  }
   auto timeout = std::chrono::seconds(args.get_u64("--timeout", 30));
   node::Format format = format_flag(args, node::Format::ntriples);
   std::vector<node::Record> turtle_records;  // Turtle needs the prefixes the records use: at the end
@@ -210,7 +256,7 @@ int run_query(const Args& args) {
   auto answered = federation::remote_query(node, query, timeout, [&](const node::Record& r) {
     if (writer) writer->write(r);
     else turtle_records.push_back(r);
-  });
+  }, area_answer);
   if (writer) writer->finish();
   if (!answered) {
     const auto& e = answered.error();

@@ -561,7 +561,11 @@ struct Link::Impl {
       if (!snap) failure = snap.error().message;
       else {
         node::Pattern pattern{.s = q.s, .p = q.p, .o = q.o, .since = q.since, .until = q.until};
-        auto found = snap->list(pattern, {.cascade = q.cascade, .limit = q.limit});
+        node::ListOptions options{.cascade = q.cascade, .limit = q.limit};
+        node::Result<std::vector<node::Record>> found = std::vector<node::Record>{};
+        if (q.area.empty()) found = snap->list(pattern, options);
+        else if (opt.area_query) found = opt.area_query(*snap, pattern, q.area, q.floor, options);
+        else found = node::fail(Errc::invalid_argument, "this node's link answers no queries by area");
         if (!found) failure = found.error().message;
         else records = std::move(*found);
       }
@@ -862,6 +866,8 @@ struct Link::Impl {
     q.until = integer_of(d.records, vocab::kQueryUntil);
     q.cascade = static_cast<std::uint32_t>(integer_of(d.records, vocab::kQueryCascade).value_or(0));
     q.limit = static_cast<std::uint64_t>(integer_of(d.records, vocab::kQueryLimit).value_or(0));
+    if (auto t = object_of(d.records, vocab::kQueryArea)) q.area = t->value;
+    q.floor = integer_of(d.records, vocab::kQueryFloor);
     Frame f;
     f.kind = FrameKind::query;
     f.to = child->iri;

@@ -26,7 +26,8 @@ const Term* object_of(const std::vector<node::Record>& records, const std::strin
 
 Result<std::uint64_t> remote_query(node::Node& node, const RemoteQuery& query,
                                    std::chrono::milliseconds timeout,
-                                   const std::function<void(const node::Record&)>& each) {
+                                   const std::function<void(const node::Record&)>& each,
+                                   const AreaQuery& area_query) {
   auto target = uri::normalize(query.target);
   if (!target) return node::fail(Errc::invalid_iri, "--at: " + target.error().message);
   const std::string& self = node.iri();
@@ -34,7 +35,11 @@ Result<std::uint64_t> remote_query(node::Node& node, const RemoteQuery& query,
   if (*target == self) {  // asked here: the local store answers
     auto snap = node.snapshot();
     if (!snap) return Unexpected<Error>{snap.error()};
-    auto records = snap->list(pattern, {.cascade = query.cascade, .limit = query.limit});
+    node::ListOptions options{.cascade = query.cascade, .limit = query.limit};
+    node::Result<std::vector<node::Record>> records = std::vector<node::Record>{};
+    if (query.area.empty()) records = snap->list(pattern, options);
+    else if (area_query) records = area_query(*snap, pattern, query.area, query.floor, options);
+    else return node::fail(Errc::invalid_argument, "no area resolver for a query by area");
     if (!records) return Unexpected<Error>{records.error()};
     for (const auto& r : *records) each(r);
     return records->size();
@@ -70,6 +75,8 @@ Result<std::uint64_t> remote_query(node::Node& node, const RemoteQuery& query,
   if (pattern.until) ask.add(q, Term::iri(vocab::kQueryUntil), Term::integer(*pattern.until));
   if (query.cascade) ask.add(q, Term::iri(vocab::kQueryCascade), Term::integer(query.cascade));
   if (query.limit) ask.add(q, Term::iri(vocab::kQueryLimit), Term::integer(static_cast<std::int64_t>(query.limit)));
+  if (!query.area.empty()) ask.add(q, Term::iri(vocab::kQueryArea), Term::literal(query.area));
+  if (query.floor) ask.add(q, Term::iri(vocab::kQueryFloor), Term::integer(*query.floor));
   auto asked = agent->store(ask);
   if (!asked) return Unexpected<Error>{asked.error()};
   std::vector<std::uint64_t> to_remove{*asked};

@@ -159,6 +159,7 @@ std::string encode_query(const QueryBody& body) {
   Out out;
   out.str(body.origin).str(body.target).opt_term(body.s).opt_term(body.p).opt_term(body.o);
   out.opt_i64(body.since).opt_i64(body.until).u32(body.cascade).u64(body.limit);
+  out.str(body.area).opt_i64(body.floor);
   return out.take();
 }
 
@@ -174,6 +175,8 @@ Result<QueryBody> decode_query(std::string_view bytes) {
   body.until = in.opt_i64("until");
   body.cascade = in.u32("cascade");
   body.limit = in.u64("limit");
+  body.area = in.str("area");
+  body.floor = in.opt_i64("floor");
   return in.finish(std::move(body));
 }
 

@@ -31,6 +31,8 @@ struct QueryBody {
   std::optional<std::int64_t> since, until;
   std::uint32_t cascade = 0;
   std::uint64_t limit = 0;
+  std::string area;                // a room IRI or WKT; empty: no area (link.h AreaQuery)
+  std::optional<std::int64_t> floor;
 };
 std::string encode_query(const QueryBody& body);
 Result<QueryBody> decode_query(std::string_view bytes);

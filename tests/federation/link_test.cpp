@@ -375,5 +375,61 @@ TEST(Link, ConfigurationTravelsTwoHopsDownToAnAgentOfASensorNode) {
   EXPECT_EQ(late.error().code, Errc::timeout) << late.error().message;
 }
 
+TEST(Link, QueryByAreaIsResolvedAtTheTargetThroughItsAreaQuery) {
+  Tree tree;
+  tree.hospital = tree.start_hospital();
+  // home1 resolves areas with a stand-in for the spatial library: it keeps the records whose
+  // subject starts with the area's text, and records what it was asked.
+  std::mutex asked_mu;
+  std::vector<std::pair<std::string, std::optional<std::int64_t>>> asked;
+  AreaQuery by_prefix = [&](const node::Snapshot& snap, const node::Pattern& pattern, const std::string& area,
+                            std::optional<std::int64_t> floor, const node::ListOptions& options) -> node::Result<std::vector<node::Record>> {
+    {
+      std::lock_guard lock(asked_mu);
+      asked.emplace_back(area, floor);
+    }
+    auto all = snap.list(pattern, options);
+    if (!all) return all;
+    std::vector<node::Record> kept;
+    for (auto& r : *all)
+      if (r.triple.s.value.rfind(area, 0) == 0) kept.push_back(std::move(r));
+    return kept;
+  };
+  tree.home1 = Link::start({.dir = tree.home1_dir, .parent_iri = kHospital,
+                            .up = std::shared_ptr<Transport>(tree.bus.open(kHome1, tree.home1_log.sink())),
+                            .resend_after = 100ms, .heartbeat_every = 200ms, .log = tree.home1_log.sink(),
+                            .area_query = by_prefix})
+                   .value();
+  ASSERT_TRUE(eventually([&] {
+    return count(tree.hospital_dir, {.s = Term::iri(kHome1), .p = Term::iri(vocab::kLinkState), .o = Term::literal("up")}) == 1;
+  }));
+  auto motes = node::Node::open(tree.home1_dir).value().agent("motes").value();
+  for (const std::string room : {"bedroom", "kitchen"}) {
+    node::Item reading;
+    reading.add(Term::iri(kHome1 + "/" + room + "/t1"), Term::iri(kEx + "celsius"), Term::integer(21));
+    ASSERT_TRUE(motes.store(reading));
+  }
+  auto hospital = node::Node::open(tree.hospital_dir).value();
+  std::vector<std::string> subjects;
+  auto n = remote_query(hospital, {.target = kHome1, .pattern = {.p = Term::iri(kEx + "celsius")}, .area = kHome1 + "/bedroom", .floor = 2},
+                        10s, [&](const node::Record& r) { subjects.push_back(r.triple.s.value); });
+  ASSERT_TRUE(n) << n.error().message;
+  EXPECT_EQ(subjects, std::vector<std::string>{kHome1 + "/bedroom/t1"});
+  {
+    std::lock_guard lock(asked_mu);
+    ASSERT_EQ(asked.size(), 1u);
+    EXPECT_EQ(asked[0].first, kHome1 + "/bedroom");
+    EXPECT_EQ(asked[0].second, std::optional<std::int64_t>(2));
+  }
+  // A node whose link has no area resolver says so.
+  tree.home2 = tree.start_home(tree.home2_dir, kHome2, tree.home2_log);
+  ASSERT_TRUE(eventually([&] {
+    return count(tree.hospital_dir, {.s = Term::iri(kHome2), .p = Term::iri(vocab::kLinkState), .o = Term::literal("up")}) == 1;
+  }));
+  auto refused = remote_query(hospital, {.target = kHome2, .area = kHome2 + "/bedroom"}, 10s, [](const node::Record&) {});
+  ASSERT_FALSE(refused);
+  EXPECT_NE(refused.error().message.find("area"), std::string::npos) << refused.error().message;
+}
+
 }  // namespace
 }  // namespace tahvel::federation

@@ -50,6 +50,8 @@ inline const std::string kQuerySince = std::string(kTv) + "querySince";
 inline const std::string kQueryUntil = std::string(kTv) + "queryUntil";
 inline const std::string kQueryCascade = std::string(kTv) + "queryCascade";
 inline const std::string kQueryLimit = std::string(kTv) + "queryLimit";
+inline const std::string kQueryArea = std::string(kTv) + "queryArea";
+inline const std::string kQueryFloor = std::string(kTv) + "queryFloor";
 inline const std::string kAnswerTo = std::string(kTv) + "answerTo";
 inline const std::string kAnswerChunk = std::string(kTv) + "answerChunk";
 inline const std::string kAnswerLast = std::string(kTv) + "answerLast";
@@ -57,6 +59,14 @@ inline const std::string kAnswerRecords = std::string(kTv) + "answerRecords";
 inline const std::string kErrorCode = std::string(kTv) + "errorCode";
 inline const std::string kErrorMessage = std::string(kTv) + "errorMessage";
 }  // namespace vocab
+
+// Answers a query that names an area (a room IRI or WKT, and a floor for WKT) on one snapshot:
+// the records matching `pattern` located in the area, with `options` applied. Federation knows
+// no geometry; the command line gives the spatial library's answer (docs/spatial.md). Errors
+// name what is wrong with the area.
+using AreaQuery = std::function<node::Result<std::vector<node::Record>>(
+    const node::Snapshot& snapshot, const node::Pattern& pattern, const std::string& area,
+    std::optional<std::int64_t> floor, const node::ListOptions& options)>;
 
 struct LinkOptions {
   std::filesystem::path dir;  // the node's store
@@ -79,6 +89,7 @@ struct LinkOptions {
   std::chrono::milliseconds child_silence{3500};  // a child not heard for this long is "down"
   std::string software_version = "tahvel 0.1.0";
   LinkLog log;
+  AreaQuery area_query;  // answers queries with an area; unset: they fail with query_failed
 };
 
 struct LinkCounters {
@@ -119,11 +130,15 @@ struct RemoteQuery {
   node::Pattern pattern;  // s, p, o, since, until
   unsigned cascade = 0;
   std::size_t limit = 0;
+  std::string area;       // a room IRI (absolute) or WKT; the target resolves it (AreaQuery)
+  std::optional<std::int64_t> floor;
 };
 
+// `area_query` answers a query with an area when the target is this node itself.
 Result<std::uint64_t> remote_query(node::Node& node, const RemoteQuery& query,
                                    std::chrono::milliseconds timeout,
-                                   const std::function<void(const node::Record&)>& each);
+                                   const std::function<void(const node::Record&)>& each,
+                                   const AreaQuery& area_query = {});
 
 // The default forwarding policy (HRV windows: sosa:observedProperty tv:HeartRateVariability).
 std::vector<node::Pattern> default_forward_policy();
