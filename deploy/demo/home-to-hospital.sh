@@ -2,7 +2,8 @@
 # The home-to-hospital hierarchy of deploy/home-to-hospital.toml on this machine, in a private
 # network namespace (loopback only): ECG on the sensor nodes -> HRV at each home -> HRV at the
 # hospital; a window change from the hospital for one home; a query from the hospital for a time
-# range of home 2's raw ECG, which never left the home. Says what happens at each step.
+# range of home 2's raw ECG, which never left the home; a query by area for one room's
+# environment readings. Says what happens at each step.
 #
 #   deploy/demo/home-to-hospital.sh [build/bin]        (what `./run.sh demo` runs)
 #
@@ -16,7 +17,7 @@ root=$(cd "$here/../.." && pwd)
 if [ "${TAHVEL_IN_NETNS:-}" != 1 ]; then
   exec "$root/tests/tools/netns-run" "$0" "$BIN"
 fi
-for tool in tahvel tahvel-ecg-source tahvel-rpeak tahvel-rr tahvel-hrv tahvel-trend; do
+for tool in tahvel tahvel-ecg-source tahvel-rpeak tahvel-rr tahvel-hrv tahvel-trend tahvel-env-motes tahvel-environment; do
   [ -x "$BIN/$tool" ] || { echo "home-to-hospital.sh: no $tool in $BIN (build first)" >&2; exit 2; }
 done
 
@@ -84,5 +85,15 @@ echo "   $(wc -l <"$work/remote.nt") chunk records, $(wc -c <"$work/remote.nt") 
      "the same range read on home2 itself is $(cmp -s "$work/remote.nt" "$work/local.nt" && echo identical || echo DIFFERENT)."
 echo "   Nothing of it was stored at the hospital: $(count "$state/hospital" -p tv:samples) raw records there."
 
-say "5. Bring it down (the stores stay until this demo removes its directory)."
+say "5. From the hospital, ask home1 what its motes sensed in the bedroom: a query by area, resolved on home1's floor plan."
+has_bedroom_readings() { [ "$(quiet list "$state/home1" --area "$H/home1/room/bedroom" | wc -l)" -gt 0 ]; }
+wait_for 60 has_bedroom_readings
+show query "$state/hospital" --at "$H/home1" --area "$H/home1/room/bedroom" --format ttl
+quiet query "$state/hospital" --at "$H/home1" --area "$H/home1/room/bedroom" --format ttl 2>/dev/null >"$work/bedroom.ttl"
+echo "   ... $(grep -c 'hasSimpleResult' "$work/bedroom.ttl") readings; the last one:"
+grep -v '^@prefix' "$work/bedroom.ttl" | grep -v '^$' | tail -n 6
+echo "   (the motes of the other rooms are not in the answer; the hospital holds none of these readings:" \
+     "$(count "$state/hospital" -p sosa:hasSimpleResult) there)"
+
+say "6. Bring it down (the stores stay until this demo removes its directory)."
 tahvel down --state "$state"

@@ -390,8 +390,22 @@ int run_up(const Args& args) {
       init.iri = spec.iri;
       init.durability = spec.durability == "durable" ? node::Durability::durable : node::Durability::fast;
       init.ring = spec.ring;
-      check(node::Node::init(store, init));
+      node::Node created = check(node::Node::init(store, init));
       std::cout << "up: created the store of " << spec.id << " <" << spec.iri << "> at " << store.string() << "\n";
+      // Files the topology puts on a new board (a floor plan, sensing subscriptions): one
+      // persistent item each, relative IRIs against the node's IRI + "/", as `tahvel put` reads.
+      node::Agent loader = check(created.agent("deploy"));
+      for (const fs::path& file : spec.load) {
+        node::ParseOptions parse;
+        parse.base_iri = base_iri_of(created);
+        parse.source_name = file.string();
+        parse.prefixes = created.prefixes();
+        node::Item item;
+        item.persistent = true;
+        item.triples = check(node::parse_rdf(read_input(file.string()), parse));
+        check(loader.store(item));
+        std::cout << "up: put " << item.triples.size() << " triples of " << file.string() << " on " << spec.id << "\n";
+      }
     }
     if (!spec.parent.empty()) {
       // The forwarding policy is on the board before any agent starts: an item written before

@@ -108,6 +108,13 @@ node::Result<Topology> load_topology(const std::filesystem::path& file) {
     auto forward = strings((*t)["forward"].node(), file, "node '" + spec.id + "': forward");
     if (!forward) return Unexpected<node::Error>{forward.error()};
     spec.forward = *forward;
+    auto load = strings((*t)["load"].node(), file, "node '" + spec.id + "': load");
+    if (!load) return Unexpected<node::Error>{load.error()};
+    for (const auto& l : *load) {
+      std::filesystem::path p = l;
+      if (p.is_relative()) p = file.parent_path() / p;
+      spec.load.push_back(p.lexically_normal());
+    }
     if (const toml::array* agents = (*t)["agent"].as_array()) {
       std::set<std::string> seen;
       for (const auto& a : *agents) {

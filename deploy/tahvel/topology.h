@@ -37,6 +37,7 @@ struct NodeSpec {
   std::string durability = "fast";     // fast | durable
   std::uint64_t ring = 0;
   std::vector<std::string> forward;    // uplink policy patterns "S P O" (CURIEs, _ for any)
+  std::vector<std::filesystem::path> load;  // Turtle files put (persistent) into a new store
   std::vector<AgentSpec> agents;
 };
 
