@@ -2,6 +2,9 @@
 // docs/record-model.md for what each table holds.
 #include "env.h"
 
+#include <chrono>
+#include <thread>
+
 #include <unistd.h>
 
 #include <map>
@@ -194,21 +197,34 @@ Result<std::shared_ptr<Env>> Env::open(const std::filesystem::path& dir_in, cons
   return env;
 }
 
+bool Env::quiesce_locked() {
+  const auto deadline = std::chrono::steady_clock::now() + std::chrono::seconds(1);
+  while (active_txns_.load() != 0) {
+    if (std::chrono::steady_clock::now() >= deadline) return false;
+    std::this_thread::sleep_for(std::chrono::microseconds(50));
+  }
+  return true;
+}
+
 Result<void> Env::begin(MDB_txn** txn, unsigned flags) {
   for (int attempt = 0; attempt < 2; ++attempt) {
-    int rc = mdb_txn_begin(env_, nullptr, flags, txn);
-    if (rc == 0) {
-      active_txns_.fetch_add(1);
-      return {};
+    int rc = 0;
+    {
+      std::shared_lock lock(growth_mutex_);
+      rc = mdb_txn_begin(env_, nullptr, flags, txn);
+      if (rc == 0) {
+        active_txns_.fetch_add(1);
+        return {};
+      }
     }
     // Another process grew the map: adopt its size and try again. LMDB allows that only while
     // this process has no transaction open.
     if (rc == MDB_MAP_RESIZED) {
-      if (active_txns_.load() != 0)
+      std::unique_lock lock(growth_mutex_);
+      if (!quiesce_locked())
         return fail(Errc::io, "the store in " + dir_.string() +
                                   " grew in another process while this process holds a snapshot;"
                                   " release the snapshot and retry");
-      std::lock_guard lock(growth_mutex_);
       mdb_env_set_mapsize(env_, 0);
       continue;
     }
@@ -228,11 +244,13 @@ Result<MDB_txn*> Env::begin_read() {
   }
   if (txn) {
     // Renewing keeps the reader slot: no trip through LMDB's reader-table mutex.
+    std::shared_lock lock(growth_mutex_);
     int rc = mdb_txn_renew(txn);
     if (rc == 0) {
       active_txns_.fetch_add(1);
       return txn;
     }
+    lock.unlock();
     mdb_txn_abort(txn);  // e.g. MAP_RESIZED: the plain path below adopts the new size
     txn = nullptr;
   }
@@ -252,7 +270,7 @@ void Env::end_read(MDB_txn* txn) {
 }
 
 Result<void> Env::grow(WriteKind kind) {
-  std::lock_guard lock(growth_mutex_);
+  std::unique_lock lock(growth_mutex_);
   MDB_envinfo info;
   mdb_env_info(env_, &info);
   std::uint64_t current = info.me_mapsize;
@@ -263,7 +281,7 @@ Result<void> Env::grow(WriteKind kind) {
   if (current >= limit)
     return fail(Errc::store_full, "store full: " + dir_.string() + " reached its maximum of " +
                                       std::to_string(settings_.max_map_bytes) + " bytes");
-  if (active_txns_.load() != 0)
+  if (!quiesce_locked())
     return fail(Errc::store_full, "store full: " + dir_.string() +
                                       " cannot grow while this process holds a snapshot");
   std::uint64_t next = std::min(limit, std::max(current * 2, current + kInitialMapBytes));

@@ -13,6 +13,7 @@
 #include <functional>
 #include <memory>
 #include <mutex>
+#include <shared_mutex>
 #include <string>
 #include <string_view>
 #include <unordered_map>
@@ -130,7 +131,13 @@ class Env {
   std::filesystem::path dir_;
   Settings settings_;
   WakeBoard wake_;
-  std::mutex growth_mutex_;
+  // Starting a transaction holds it shared; changing the map size holds it exclusively, so no
+  // thread of this process starts a transaction while LMDB remaps (mdb_env_set_mapsize needs
+  // none active in the process).
+  std::shared_mutex growth_mutex_;
+  // Waits, holding growth_mutex_ exclusively, until this process has no transaction active
+  // (up to a second: other threads' reads are short). False when one stays open (a snapshot held).
+  bool quiesce_locked();
   std::atomic<int> active_txns_{0};
 };
 
