@@ -19,6 +19,7 @@
 #include <thread>
 
 #include "commands.h"
+#include "tahvel/agents/dispatcher.h"
 #include "tahvel/agents/supervisor.h"
 #include "tahvel/federation/link.h"
 #include "tahvel/federation/transport.h"
@@ -469,10 +470,32 @@ int run_up(const Args& args) {
   for (auto& program : programs) {
     if (auto started = supervisor.start(program); !started) std::cerr << "up: " << started.error().message << std::endl;
   }
+  // The dispatcher of each node with behaviours starts them through this same supervisor
+  // (docs/reasoner.md, "Dispatcher"): one mechanism for agents and behaviours.
+  std::vector<agents::Dispatcher> dispatchers;
+  for (const NodeSpec& spec : topo.nodes) {
+    if ((only && spec.id != *only) || spec.behaviours.empty()) continue;
+    agents::DispatcherOptions options;
+    options.folder = spec.behaviours;
+    options.log_dir = state / "logs" / spec.id / "behaviours";
+    auto dispatcher = agents::Dispatcher::open(state / spec.id, options, supervisor);
+    if (!dispatcher) {
+      std::cerr << "up: dispatcher of " << spec.id << ": " << dispatcher.error().message << std::endl;
+      continue;
+    }
+    std::cerr << "up: dispatcher <" << dispatcher->iri() << "> runs behaviours from " << spec.behaviours.string() << std::endl;
+    dispatchers.push_back(std::move(*dispatcher));
+  }
   fs::path state_file = state / pid_file_name(only);
   state_file.replace_extension(".state");
   while (!g_stop) {
     supervisor.poll();
+    for (auto& dispatcher : dispatchers) {
+      auto events = dispatcher.poll(std::chrono::milliseconds(0));
+      if (!events) std::cerr << "up: dispatcher <" << dispatcher.iri() << ">: " << events.error().message << std::endl;
+      else
+        for (const auto& e : *events) std::cerr << "up: " << e.run << " \"" << e.command << "\" " << e.detail << std::endl;
+    }
     write_state_file(state_file, supervisor);
     std::this_thread::sleep_for(100ms);
   }

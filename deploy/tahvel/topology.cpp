@@ -108,6 +108,11 @@ node::Result<Topology> load_topology(const std::filesystem::path& file) {
     auto forward = strings((*t)["forward"].node(), file, "node '" + spec.id + "': forward");
     if (!forward) return Unexpected<node::Error>{forward.error()};
     spec.forward = *forward;
+    if (auto behaviours = (*t)["behaviours"].value<std::string>()) {
+      std::filesystem::path p = *behaviours;
+      if (p.is_relative()) p = file.parent_path() / p;
+      spec.behaviours = p.lexically_normal();
+    }
     auto load = strings((*t)["load"].node(), file, "node '" + spec.id + "': load");
     if (!load) return Unexpected<node::Error>{load.error()};
     for (const auto& l : *load) {

@@ -424,4 +424,57 @@ TEST_F(Cli, BenchHrvQuickJsonHasEveryFigure) {
     EXPECT_NE(r.out.find(key), std::string::npos) << key << " in " << r.out;
 }
 
+// A one-node deployment (no links, so no packets): `up` creates the store and puts its files,
+// the node's dispatcher starts a behaviour from a command record through the supervisor, and
+// `down` stops everything.
+TEST_F(Cli, UpRunsTheDispatcherOfANodeAndDownStopsIt) {
+  fs::create_directories(tmp_ / "behaviours");
+  spit(tmp_ / "behaviours" / "greet", "#!/bin/sh\necho \"hello $1\"\necho done\n");
+  fs::permissions(tmp_ / "behaviours" / "greet", fs::perms::owner_all);
+  spit(tmp_ / "plan.ttl", "<room/kitchen> a <https://w3id.org/tahvel#Room> .\n");
+  spit(tmp_ / "robot.toml",
+       "[[node]]\nid = \"robot\"\niri = \"http://example.org/robot3\"\nbehaviours = \"behaviours\"\n"
+       "load = [\"plan.ttl\"]\n");
+  const std::string state = (tmp_ / "state").string();
+  Outcome up = run({"up", (tmp_ / "robot.toml").string(), "--state", state});
+  ASSERT_EQ(up.status, 0) << up.err;
+  const std::string store = state + "/robot";
+  // The file of `load`, relative IRIs against the node's IRI.
+  Outcome room = run({"list", store, "-s", "http://example.org/robot3/room/kitchen"});
+  EXPECT_EQ(lines_of(room.out).size(), 1u) << room.out << room.err;
+  Outcome put = run({"put", store, "--format", "nt"},
+                    "<http://example.org/robot3> <http://example.org/robot3#behavior> \"greet world\" .\n");
+  ASSERT_EQ(put.status, 0) << put.err;
+  bool exited = false;
+  for (int i = 0; i < 200 && !exited; ++i) {
+    exited = run({"list", store, "-p", "tv:state", "-o", "\"exited\""}).out.find("exited") != std::string::npos;
+    if (!exited) std::this_thread::sleep_for(std::chrono::milliseconds(50));
+  }
+  EXPECT_TRUE(exited) << slurp(tmp_ / "state" / "logs" / "supervisor.log");
+  Outcome result = run({"list", store, "-p", "<http://example.org/robot3#result>"});
+  EXPECT_NE(result.out.find("<http://example.org/robot3#done>"), std::string::npos) << result.out;
+  Outcome status = run({"status", "--state", state});
+  EXPECT_EQ(status.status, 0) << status.err;
+  EXPECT_NE(status.out.find("robot  <http://example.org/robot3>"), std::string::npos) << status.out;
+  Outcome down = run({"down", "--state", state});
+  EXPECT_EQ(down.status, 0) << down.err;
+  EXPECT_NE(down.out.find("stopped supervisor"), std::string::npos) << down.out;
+  EXPECT_FALSE(fs::exists(tmp_ / "state" / "supervisor-all.pid"));
+}
+
+TEST_F(Cli, UpRefusesATopologyWhoseChildIriIsNotUnderItsParent) {
+  spit(tmp_ / "bad.toml",
+       "[[node]]\nid = \"hospital\"\niri = \"http://example.org/hospital\"\nlisten = { kind = \"dds\" }\n\n"
+       "[[node]]\nid = \"home1\"\nparent = \"hospital\"\niri = \"http://example.org/elsewhere/home1\"\n");
+  Outcome up = run({"up", (tmp_ / "bad.toml").string(), "--state", (tmp_ / "state").string()});
+  EXPECT_EQ(up.status, 1);
+  EXPECT_NE(up.err.find("must be its parent's IRI"), std::string::npos) << up.err;
+  spit(tmp_ / "syntax.toml", "[[node]]\nid = \"x\n");
+  up = run({"up", (tmp_ / "syntax.toml").string(), "--state", (tmp_ / "state").string()});
+  EXPECT_EQ(up.status, 1);
+  EXPECT_NE(up.err.find("syntax.toml:2:"), std::string::npos) << up.err;
+  EXPECT_FALSE(fs::exists(tmp_ / "state" / "hospital"));
+}
+
 }  // namespace
+
