@@ -1,8 +1,10 @@
 // Differential tests (STYLE §11): on seeded random layouts, the indexed queries of Plan agree
-// with the brute-force test of every sensor and every room, before and after sensors move and
-// rooms are replaced; and locate() agrees with an independent exact oracle written here in
-// integer arithmetic (coordinates are multiples of 1/2, so doubled they are small integers and
-// every orientation is computed exactly without CGAL).
+// with the brute-force test of every sensor and every room (which rooms hold a point, and which
+// rooms lie in an area), before and after sensors move and rooms are replaced; and locate()
+// agrees with an independent exact oracle written here in integer arithmetic (coordinates are
+// multiples of 1/2, so doubled they are small integers and every orientation is computed
+// exactly without CGAL).
+#include <algorithm>
 #include <cmath>
 #include <cstdint>
 #include <random>
@@ -121,8 +123,37 @@ Plan random_plan(Layout& layout, int rooms, int sensors) {
   return plan;
 }
 
-// Every room as an area, and random areas on one floor or all: index == brute force.
-void expect_queries_agree(const Plan& plan, Layout& layout, int rooms, int sensors) {
+// A large area for polygon features (8..40 m rectangles on the half grid, so room vertices often
+// lie on its walls), sometimes with a rectangular hole, sometimes with a second rectangle
+// sharing its east wall (a multipolygon whose union a room may span).
+Shape big_area(Layout& layout) {
+  for (;;) {
+    double x0 = layout.half_step(-2, 100), y0 = layout.half_step(-2, 100);
+    double w = layout.half_step(8, 40), h = layout.half_step(8, 40);
+    Polygon polygon;
+    polygon.outer = {{x0, y0}, {x0 + w, y0}, {x0 + w, y0 + h}, {x0, y0 + h}};
+    if (layout.chance(0.4)) {
+      double hx = layout.half_step(x0 + 1, x0 + w - 4), hy = layout.half_step(y0 + 1, y0 + h - 4);
+      double hw = layout.half_step(1, 8), hh = layout.half_step(1, 8);
+      polygon.holes.push_back({{hx, hy}, {hx + hw, hy}, {hx + hw, hy + hh}, {hx, hy + hh}});
+    }
+    Shape shape;
+    shape.polygons.push_back(std::move(polygon));
+    if (layout.chance(0.3)) {
+      double w2 = layout.half_step(4, 20);
+      shape.polygons.push_back(
+          {{{x0 + w, y0}, {x0 + w + w2, y0}, {x0 + w + w2, y0 + h}, {x0 + w, y0 + h}}, {}});
+    }
+    if (validate(shape).has_value()) return shape;
+  }
+}
+
+// Every room as an area, and random areas on one floor or all: index == brute force, for
+// sensors (points) and for rooms (polygon features lying in the area). `rooms_found` counts
+// the rooms found in the large areas, so that the caller can check the test exercises
+// containment at all.
+void expect_queries_agree(const Plan& plan, Layout& layout, int rooms, int sensors,
+                          std::size_t& rooms_found) {
   for (int i = 0; i < rooms; ++i) {
     std::string id = "r" + std::to_string(i);
     const Room* room = plan.room(id);
@@ -132,11 +163,23 @@ void expect_queries_agree(const Plan& plan, Layout& layout, int rooms, int senso
     EXPECT_EQ(plan.sensors_in(area), plan.sensors_in_scan(area)) << id;
     Area all_floors{room->shape, std::nullopt};
     EXPECT_EQ(plan.sensors_in(all_floors), plan.sensors_in_brute_force(all_floors)) << id;
+    Ids in_room = plan.rooms_in(area);
+    EXPECT_EQ(in_room, plan.rooms_in_brute_force(area)) << id;
+    EXPECT_TRUE(std::binary_search(in_room.begin(), in_room.end(), id)) << id;  // itself
   }
   for (int i = 0; i < 20; ++i) {
     Shape shape = layout.room(layout.half_step(0, 120), layout.half_step(0, 120));
     Area area{shape, layout.chance(0.5) ? std::optional<int>(layout.floor()) : std::nullopt};
     EXPECT_EQ(plan.sensors_in(area), plan.sensors_in_brute_force(area)) << to_wkt(shape);
+    EXPECT_EQ(plan.rooms_in(area), plan.rooms_in_brute_force(area)) << to_wkt(shape);
+  }
+  for (int i = 0; i < 30; ++i) {
+    Shape shape = big_area(layout);
+    Area area{shape, layout.chance(0.5) ? std::optional<int>(layout.floor()) : std::nullopt};
+    Ids found = plan.rooms_in(area);
+    EXPECT_EQ(found, plan.rooms_in_brute_force(area)) << to_wkt(shape);
+    EXPECT_EQ(plan.sensors_in(area), plan.sensors_in_brute_force(area)) << to_wkt(shape);
+    rooms_found += found.size();
   }
   for (int i = 0; i < sensors; ++i) {
     const Sensor* s = plan.sensor("s" + std::to_string(i));
@@ -147,11 +190,12 @@ void expect_queries_agree(const Plan& plan, Layout& layout, int rooms, int senso
 
 TEST(SpatialDifferential, IndexAgreesWithBruteForceOnRandomLayouts) {
   constexpr int kRooms = 100, kSensors = 3000;
+  std::size_t rooms_found = 0;
   for (std::uint32_t seed : {1u, 2u, 3u, 4u, 5u}) {
     SCOPED_TRACE("seed " + std::to_string(seed));
     Layout layout(seed);
     Plan plan = random_plan(layout, kRooms, kSensors);
-    expect_queries_agree(plan, layout, kRooms, kSensors);
+    expect_queries_agree(plan, layout, kRooms, kSensors, rooms_found);
     // Move a tenth of the sensors (some across floors), replace a tenth of the rooms, drop a few.
     for (int i = 0; i < kSensors; i += 10) {
       ASSERT_TRUE(plan.put_sensor({"s" + std::to_string(i), layout.floor(), layout.point(-2, 130)})
@@ -164,8 +208,11 @@ TEST(SpatialDifferential, IndexAgreesWithBruteForceOnRandomLayouts) {
     }
     for (int i = 5; i < kRooms; i += 25) plan.remove_room("r" + std::to_string(i));
     for (int i = 7; i < kSensors; i += 97) plan.remove_sensor("s" + std::to_string(i));
-    expect_queries_agree(plan, layout, kRooms, kSensors);
+    expect_queries_agree(plan, layout, kRooms, kSensors, rooms_found);
   }
+  // 600 large areas over 100 rooms on 3 floors: containment must occur often, or the rooms'
+  // part of the test would compare empty answers.
+  EXPECT_GT(rooms_found, 100u);
 }
 
 TEST(SpatialDifferential, LocateAgreesWithAnIntegerOracle) {

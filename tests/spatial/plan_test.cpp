@@ -1,6 +1,6 @@
 // Membership (tahvel/spatial/geometry.h, plan.h): concave rooms, holes, points on edges and on
 // vertices, two floors; the boundary rule (closed areas) the same in locate(), sensors_in() and
-// rooms_at().
+// rooms_at(); polygon features lying in an area (lies_in, rooms_in) under the same rule.
 #include "tahvel/spatial/plan.h"
 
 #include <cmath>
@@ -146,6 +146,92 @@ TEST(Plan, RefusesInvalidInputAndStaysUnchanged) {
   EXPECT_FALSE(plan.put_room({"", 1, shape(kLShape)}).has_value());
   EXPECT_FALSE(plan.put_sensor({"m", 1, {std::nan(""), 0}}).has_value());
   EXPECT_EQ(plan.sensor("m"), nullptr);
+}
+
+// --- polygon features lying in an area (lies_in, Plan::rooms_in; docs/spatial.md S14) ---------
+
+// A 10 x 10 area with a 2 x 2 hole in the middle (4..6, 4..6).
+const char* kAreaWithHole = "POLYGON((0 0, 10 0, 10 10, 0 10, 0 0), (4 4, 6 4, 6 6, 4 6, 4 4))";
+
+TEST(LiesIn, ARoomInsideALargerArea) {
+  Shape area = shape(kAreaWithHole);
+  EXPECT_TRUE(lies_in(shape("POLYGON((1 1, 3 1, 3 3, 1 3, 1 1))"), area));
+  EXPECT_TRUE(lies_in(shape(kLShape), shape("POLYGON((-1 -1, 5 -1, 5 5, -1 5, -1 -1))")));
+  EXPECT_TRUE(lies_in(area, area));  // a shape lies in itself, holes and all
+  EXPECT_TRUE(lies_in(shape(kLShape), shape(kLShape)));
+}
+
+TEST(LiesIn, ARoomSharingAWallWithTheAreasBoundaryIsIn) {
+  Shape area = shape(kAreaWithHole);
+  EXPECT_TRUE(lies_in(shape("POLYGON((0 0, 3 0, 3 3, 0 3, 0 0))"), area));    // a corner, 2 walls
+  EXPECT_TRUE(lies_in(shape("POLYGON((2 0, 3 0, 3 10, 2 10, 2 0))"), area));  // wall to wall
+  EXPECT_TRUE(lies_in(shape("POLYGON((6 4, 8 4, 8 6, 6 6, 6 4))"), area));    // the hole's wall
+  // Touching all four walls from inside, but the hole lies strictly inside this diamond.
+  EXPECT_FALSE(lies_in(shape("POLYGON((5 0, 10 5, 5 10, 0 5, 5 0))"), area));
+  EXPECT_TRUE(lies_in(shape("POLYGON((5 0, 10 5, 5 10, 0 5, 5 0), (4 4, 6 4, 6 6, 4 6, 4 4))"), area));
+  // A room outside sharing the area's wall is not in it.
+  EXPECT_FALSE(lies_in(shape("POLYGON((10 0, 12 0, 12 2, 10 2, 10 0))"), area));
+  // Exact: 1e-15 beyond the wall is out.
+  EXPECT_FALSE(lies_in(shape("POLYGON((1 1, 10.000000000000002 1, 3 3, 1 3, 1 1))"), area));
+}
+
+TEST(LiesIn, ARoomCrossingTheBoundaryIsOut) {
+  Shape area = shape(kAreaWithHole);
+  EXPECT_FALSE(lies_in(shape("POLYGON((8 8, 12 8, 12 12, 8 12, 8 8))"), area));
+  // Every vertex on the boundary of the L, one edge through its notch (through no proper crossing:
+  // it leaves and re-enters at vertices).
+  EXPECT_FALSE(lies_in(shape("POLYGON((0 0, 4 2, 2 4, 0 0))"), shape(kLShape)));
+  EXPECT_TRUE(lies_in(shape("POLYGON((0 0, 4 2, 2 2, 2 4, 0 0))"), shape(kLShape)));
+}
+
+TEST(LiesIn, ARoomInsideAnAreasHoleIsOut) {
+  Shape area = shape(kAreaWithHole);
+  EXPECT_FALSE(lies_in(shape("POLYGON((4.5 4.5, 5.5 4.5, 5.5 5.5, 4.5 5.5, 4.5 4.5))"), area));
+  // The hole itself as a room: every point of its boundary is in the area, its inside is not.
+  EXPECT_FALSE(lies_in(shape("POLYGON((4 4, 6 4, 6 6, 4 6, 4 4))"), area));
+  // A room around the hole (the hole strictly inside the room) is out; with the same hole, in.
+  EXPECT_FALSE(lies_in(shape("POLYGON((3 3, 7 3, 7 7, 3 7, 3 3))"), area));
+  EXPECT_TRUE(lies_in(shape("POLYGON((3 3, 7 3, 7 7, 3 7, 3 3), (4 4, 6 4, 6 6, 4 6, 4 4))"), area));
+  // A larger hole in the room covers the area's hole too.
+  EXPECT_TRUE(lies_in(shape("POLYGON((2 2, 8 2, 8 8, 2 8, 2 2), (3 3, 7 3, 7 7, 3 7, 3 3))"), area));
+  // A hole of the area whose vertices all lie on the room's boundary, its inside in the room's.
+  EXPECT_FALSE(lies_in(shape("POLYGON((0 0, 4 0, 4 4, 0 4, 0 0))"),
+                       shape("POLYGON((-1 -1, 5 -1, 5 5, -1 5, -1 -1), (0 0, 4 0, 2 2, 0 0))")));
+}
+
+TEST(LiesIn, MultipolygonsOnBothSides) {
+  // Two halves of an area sharing the wall x = 5: a room across the wall lies in their union.
+  Shape halves = shape("MULTIPOLYGON(((0 0, 5 0, 5 5, 0 5, 0 0)), ((5 0, 10 0, 10 5, 5 5, 5 0)))");
+  EXPECT_TRUE(lies_in(shape("POLYGON((4 1, 6 1, 6 2, 4 2, 4 1))"), halves));
+  // A two-part feature is in only when both parts are.
+  EXPECT_TRUE(lies_in(shape("MULTIPOLYGON(((1 1, 2 1, 2 2, 1 2, 1 1)), ((8 1, 9 1, 9 2, 8 2, 8 1)))"),
+                      halves));
+  EXPECT_FALSE(lies_in(shape("MULTIPOLYGON(((1 1, 2 1, 2 2, 1 2, 1 1)), ((8 4, 9 4, 9 6, 8 6, 8 4)))"),
+                       halves));
+}
+
+TEST(RoomsIn, IndexedWithFloorsAndTheBoundaryRule) {
+  Plan plan;
+  ASSERT_TRUE(plan.put_room({"area", 0, shape(kAreaWithHole)}).has_value());
+  ASSERT_TRUE(plan.put_room({"inside", 0, shape("POLYGON((1 1, 3 1, 3 3, 1 3, 1 1))")}).has_value());
+  ASSERT_TRUE(plan.put_room({"wall", 0, shape("POLYGON((0 7, 2 7, 2 10, 0 10, 0 7))")}).has_value());
+  ASSERT_TRUE(plan.put_room({"crossing", 0, shape("POLYGON((8 8, 12 8, 12 12, 8 12, 8 8))")}).has_value());
+  ASSERT_TRUE(plan.put_room({"in-hole", 0, shape("POLYGON((4 4, 5 4, 5 5, 4 5, 4 4))")}).has_value());
+  ASSERT_TRUE(plan.put_room({"neighbour", 0, shape("POLYGON((10 0, 12 0, 12 2, 10 2, 10 0))")}).has_value());
+  ASSERT_TRUE(plan.put_room({"upstairs", 1, shape("POLYGON((1 1, 3 1, 3 3, 1 3, 1 1))")}).has_value());
+  const Room* area = plan.room("area");
+  ASSERT_NE(area, nullptr);
+  Area ground{area->shape, 0};
+  EXPECT_EQ(plan.rooms_in(ground), (Ids{"area", "inside", "wall"}));
+  EXPECT_EQ(plan.rooms_in(ground), plan.rooms_in_brute_force(ground));
+  Area first{area->shape, 1};
+  EXPECT_EQ(plan.rooms_in(first), Ids{"upstairs"});
+  Area every{area->shape, std::nullopt};
+  EXPECT_EQ(plan.rooms_in(every), (Ids{"area", "inside", "upstairs", "wall"}));
+  EXPECT_EQ(plan.rooms_in(every), plan.rooms_in_brute_force(every));
+  // Moving the room out of the area (a replacement) is seen by the next query.
+  ASSERT_TRUE(plan.put_room({"inside", 0, shape("POLYGON((9 1, 11 1, 11 3, 9 3, 9 1))")}).has_value());
+  EXPECT_EQ(plan.rooms_in(ground), (Ids{"area", "wall"}));
 }
 
 }  // namespace

@@ -149,6 +149,45 @@ TEST_F(BoardTest, ListByWktOnEveryFloorOrOne) {
   EXPECT_EQ(upstairs[0].triple.s.value, kMote2);
 }
 
+// Issue 6: an area selects the records whose subject is a feature located in it, polygon
+// features included (docs/spatial.md S14): a wardrobe drawn in the bedroom, against its walls,
+// and the bedroom itself lie in a WKT area around the bedroom; the hall, which crosses it, and
+// the study upstairs (with --floor 0) do not.
+TEST_F(BoardTest, ListByWktSelectsRoomsLyingInTheArea) {
+  const std::string wardrobe = kHome + "/furniture/wardrobe";
+  put(located_feature_item(wardrobe, "POLYGON((0 3, 1 3, 1 4, 0 4, 0 3))", 0));
+  node::Item about;
+  about.add(Term::iri(wardrobe), Term::iri("http://www.w3.org/2000/01/rdf-schema#label"),
+            Term::literal("wardrobe"));
+  put(about);
+  auto shape = parse_shape("POLYGON((-1 -1, 5 -1, 5 5, -1 5, -1 -1))");
+  ASSERT_TRUE(shape.has_value());
+  node::Pattern has_geometry;
+  has_geometry.p = Term::iri(kGeoHasGeometry);
+  auto subjects = [&](const std::vector<node::Record>& records) {
+    std::set<std::string> out;
+    for (const auto& r : records) out.insert(r.triple.s.value);
+    return out;
+  };
+  EXPECT_EQ(subjects(in_area({"", *shape, 0}, has_geometry)),
+            (std::set<std::string>{kBedroom, kMote, wardrobe}));
+  EXPECT_EQ(subjects(in_area({"", *shape, std::nullopt}, has_geometry)),
+            (std::set<std::string>{kBedroom, kMote, kMote2, kUpstairs, wardrobe}));
+  // Every record about the wardrobe, not only its geometry: its label too.
+  std::vector<node::Record> all = in_area({"", *shape, 0});
+  bool label = false;
+  for (const auto& r : all) {
+    label = label || (r.triple.s.value == wardrobe && r.triple.o.value == "wardrobe");
+  }
+  EXPECT_TRUE(label);
+  // The bedroom as the area: the wardrobe against its walls is in it, the hall beside it is not.
+  EXPECT_EQ(subjects(in_area({kBedroom, std::nullopt, std::nullopt}, has_geometry)),
+            (std::set<std::string>{kBedroom, kMote, wardrobe}));
+  BoardPlan board = plan();
+  EXPECT_EQ(features_in(board.plan, {"", *shape, 0}, Area{*shape, 0}),
+            (Ids{wardrobe, kMote, kBedroom}));  // sorted IRIs
+}
+
 TEST_F(BoardTest, CascadeAndLimitApplyToTheKeptMatches) {
   node::Pattern has_geometry;
   has_geometry.p = Term::iri(kGeoHasGeometry);

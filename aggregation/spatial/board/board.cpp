@@ -6,6 +6,7 @@
 #include <algorithm>
 #include <cctype>
 #include <charconv>
+#include <iterator>
 #include <set>
 
 #include "tahvel/spatial/wkt.h"
@@ -154,10 +155,16 @@ Result<Area> resolve_area(const Plan& plan, const AreaSpec& spec) {
 
 std::vector<std::string> features_in(const Plan& plan, const AreaSpec& spec, const Area& area) {
   std::vector<std::string> out = plan.sensors_in(area);
-  if (!spec.room_iri.empty() && plan.room(spec.room_iri)) {
-    out.insert(std::lower_bound(out.begin(), out.end(), spec.room_iri), spec.room_iri);
+  std::vector<std::string> rooms = plan.rooms_in(area);
+  // The room named as the area lies in it (rooms_in finds it); kept explicitly all the same.
+  if (!spec.room_iri.empty() && plan.room(spec.room_iri) &&
+      !std::binary_search(rooms.begin(), rooms.end(), spec.room_iri)) {
+    rooms.insert(std::lower_bound(rooms.begin(), rooms.end(), spec.room_iri), spec.room_iri);
   }
-  return out;
+  std::vector<std::string> merged;
+  merged.reserve(out.size() + rooms.size());
+  std::set_union(out.begin(), out.end(), rooms.begin(), rooms.end(), std::back_inserter(merged));
+  return merged;
 }
 
 Result<std::vector<node::Record>> list_in_area(const node::Snapshot& snapshot,

@@ -14,6 +14,7 @@
 #include <CGAL/property_map.h>
 #include <boost/tuple/tuple.hpp>
 
+#include "containment.h"
 #include "prepared.h"
 
 namespace tahvel::spatial {
@@ -280,6 +281,53 @@ std::vector<std::string> Plan::rooms_at(Point p, int floor) const {
     if (detail::locate(entry->prepared, p) != Location::outside) out.push_back(entry->room.id);
   }
   std::sort(out.begin(), out.end());
+  return out;
+}
+
+std::vector<std::string> Plan::rooms_in(const Area& area) const {
+  std::vector<std::string> out;
+  if (area.shape.polygons.empty()) return out;
+  detail::PreparedShape prepared = detail::prepare(area.shape);
+  detail::AreaRegion region(area.shape, prepared);
+  const Box& b = prepared.box;
+  std::vector<int> floors;
+  if (area.floor) {
+    floors.push_back(*area.floor);
+  } else {
+    for (const auto& [floor, index] : impl_->room_floors) floors.push_back(floor);
+  }
+  for (int floor : floors) {
+    RoomFloor& f = impl_->rooms_of(floor);
+    if (f.members.empty() || !f.bounds.intersects(b)) continue;
+    // A room whose box lies in the area's box has its box's lower-left corner there too, and
+    // is listed in that corner's cell: visiting only that cell finds each candidate once.
+    for (std::size_t r = f.row(b.ymin); r <= f.row(b.ymax); ++r) {
+      for (std::size_t c = f.column(b.xmin); c <= f.column(b.xmax); ++c) {
+        for (std::uint32_t i : f.cells[r * f.nx + c]) {
+          const RoomEntry* entry = f.members[i];
+          const Box& rb = entry->prepared.box;
+          if (rb.xmin < b.xmin || rb.ymin < b.ymin || rb.xmax > b.xmax || rb.ymax > b.ymax) {
+            continue;
+          }
+          if (f.row(rb.ymin) != r || f.column(rb.xmin) != c) continue;
+          if (region.holds(entry->room.shape, entry->prepared)) out.push_back(entry->room.id);
+        }
+      }
+    }
+  }
+  std::sort(out.begin(), out.end());
+  return out;
+}
+
+std::vector<std::string> Plan::rooms_in_brute_force(const Area& area) const {
+  std::vector<std::string> out;
+  if (area.shape.polygons.empty()) return out;
+  detail::PreparedShape prepared = detail::prepare(area.shape);
+  detail::AreaRegion region(area.shape, prepared);
+  for (const auto& [id, entry] : impl_->rooms) {
+    if (area.floor && entry.room.floor != *area.floor) continue;
+    if (region.holds(entry.room.shape, entry.prepared, false)) out.push_back(id);
+  }
   return out;
 }
 

@@ -66,9 +66,10 @@ struct AreaSpec {
 // The area `spec` names in `plan`. Error: the room is not on the board (or has no polygon).
 Result<Area> resolve_area(const Plan& plan, const AreaSpec& spec);
 
-// The features located in `area`: the sensors inside it (closed, plan.h) and, when the area is a
-// room, the room itself. Sorted IRIs. (A polygon feature lying inside a larger area is not
-// counted: only points are tested for containment; docs/spatial.md.)
+// The features located in `area`: the sensors inside it (closed, plan.h) and the polygon
+// features (rooms, zones, furniture...) lying in it (Plan::rooms_in: closed, a shared wall is
+// in, a crossing is not; docs/spatial.md S14), which include the room when the area is a room.
+// Sorted IRIs.
 std::vector<std::string> features_in(const Plan& plan, const AreaSpec& spec, const Area& area);
 
 // The records matching `pattern` whose subject is a feature located in the area or whose source

@@ -78,4 +78,12 @@ Location locate(const Shape& shape, Point p);
 // The boundary rule: locate(shape, p) != Location::outside.
 inline bool contains(const Shape& shape, Point p) { return locate(shape, p) != Location::outside; }
 
+// Polygon containment under the same closed rule (docs/spatial.md S14): true when every point
+// of `inner`'s closed region (its polygons, each minus the open inside of its holes) belongs to
+// `area`'s closed region. So a shape touching the area's boundary from inside, or sharing a wall
+// with it, lies in it; one crossing the boundary, or overlapping the open inside of one of the
+// area's holes, does not; a shape lies in itself. Both shapes valid. Exact: cheap exact
+// predicates first (box, every vertex located), then an exact regularized difference.
+bool lies_in(const Shape& inner, const Shape& area);
+
 }  // namespace tahvel::spatial

@@ -1,5 +1,6 @@
-// A floor plan with its sensors, indexed for the two questions of spatial sensing
-// (docs/spatial.md): which sensors lie in an area, and which rooms hold a point.
+// A floor plan with its sensors, indexed for the questions of spatial sensing
+// (docs/spatial.md): which sensors lie in an area, which rooms hold a point, and which rooms
+// (polygon features) lie in an area.
 //
 //   Plan plan;
 //   plan.put_room({"bedroom", 1, *parse_shape("POLYGON((0 0,4 0,4 3,0 3,0 0))")});
@@ -14,7 +15,8 @@
 // per floor (adaptive to clustered motes, exact closed-box range search), and an area query
 // tests exactly only the sensors in the area's bounding box. Rooms are boxes queried by point;
 // rooms of one floor tile it at similar sizes, so a uniform grid per floor (cell = the median
-// room extent) yields a handful of candidates per lookup. Both are rebuilt lazily: a change
+// room extent) yields a handful of candidates per lookup; the same grid gives the rooms whose
+// box lies in an area's box, the only ones tested for lying in the area. Both are rebuilt lazily: a change
 // marks its floor stale, and the next query on that floor rebuilds it (O(n log n) for the
 // kd-tree, O(n) for the grid). Plans change rarely (a mote moved, a room drawn); queries are
 // frequent.
@@ -88,11 +90,18 @@ class Plan {
   // Ids of the rooms on `floor` whose closed shape holds `p`, sorted (several on a shared edge
   // or vertex, none outside every room).
   std::vector<std::string> rooms_at(Point p, int floor) const;
+  // Ids of the rooms (polygon features) lying in `area` (lies_in of geometry.h: closed, a
+  // shared wall is in, a crossing is not), on the area's floor or on every floor when it is
+  // unset, sorted. A room named as the area lies in it. Uses the rooms' grid: only rooms whose
+  // box lies in the area's box are tested exactly (each found once, in the cell of its box's
+  // lower-left corner).
+  std::vector<std::string> rooms_in(const Area& area) const;
 
   // The same answers by testing every sensor or room of the floor exactly, with no index and no
   // bounding-box filter: the naive model for differential tests and the benchmark's baseline.
   std::vector<std::string> sensors_in_brute_force(const Area& area) const;
   std::vector<std::string> rooms_at_brute_force(Point p, int floor) const;
+  std::vector<std::string> rooms_in_brute_force(const Area& area) const;
   // Every sensor, but the area's bounding box tested first: the strongest index-free peer
   // (reported beside the brute force by `tahvel bench spatial`).
   std::vector<std::string> sensors_in_scan(const Area& area) const;
