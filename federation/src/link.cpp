@@ -133,6 +133,9 @@ struct Link::Impl {
     std::deque<std::uint64_t> down_in_flight;
     Clock::time_point down_progress{};
     bool down_go_back = false;
+    // Wakes this child's down pump only: with a thousand children, one condition variable for
+    // all would wake every pump at each hello or ack.
+    std::condition_variable wake;
     std::uint64_t went_back_to = ~0ull;
     Clock::time_point went_back_at{};
     bool pump_started = false;
@@ -416,7 +419,7 @@ struct Link::Impl {
         welcome.to = child->iri;
         welcome.ack = *mark;
         send(via, std::move(welcome));
-        changed.notify_all();
+        child->wake.notify_all();
         return;
       }
       case FrameKind::heartbeat: {
@@ -448,7 +451,7 @@ struct Link::Impl {
           child->went_back_to = f.ack;
           child->went_back_at = Clock::now();
         }
-        changed.notify_all();
+        child->wake.notify_all();
         return;
       }
       case FrameKind::answer:
@@ -784,7 +787,7 @@ struct Link::Impl {
       {
         std::unique_lock lock(mu);
         if (!child->connected) {
-          changed.wait_for(lock, 100ms);
+          child->wake.wait_for(lock, 100ms);
           continue;
         }
         while (!child->down_in_flight.empty() && child->down_in_flight.front() <= child->down_mark)
@@ -801,7 +804,7 @@ struct Link::Impl {
         idle = child->down_in_flight.empty();
         room = opt.window > child->down_in_flight.size() ? opt.window - child->down_in_flight.size() : 0;
         if (room == 0) {
-          changed.wait_for(lock, 20ms);
+          child->wake.wait_for(lock, 20ms);
           continue;
         }
       }
@@ -1003,6 +1006,10 @@ Link::~Link() { stop(); }
 void Link::stop() {
   if (!impl_ || impl_->stopping.exchange(true)) return;
   impl_->changed.notify_all();
+  {
+    std::lock_guard lock(impl_->mu);
+    for (auto& [iri, child] : impl_->children) child->wake.notify_all();
+  }
   for (;;) {
     std::vector<std::thread> threads;
     {
