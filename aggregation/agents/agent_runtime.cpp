@@ -206,4 +206,14 @@ bool has_predicate(const std::vector<node::Record>& records, const char* local) 
   return false;
 }
 
+int guarded_main(const char* program, const char* usage, const std::function<int()>& body) {
+  try {
+    return body();
+  } catch (const UsageError& e) {
+    log_line(program, e.what());
+    std::cerr << usage << '\n';
+    return kExitUsage;
+  }
+}
+
 }  // namespace tahvel::agents::hrv

@@ -27,6 +27,10 @@ struct UsageError : std::runtime_error {
   using std::runtime_error::runtime_error;
 };
 
+// Runs an agent's `body` as its main(): a UsageError prints "<program>: <message>" and `usage`
+// on standard error and gives kExitUsage; otherwise the body's exit status.
+int guarded_main(const char* program, const char* usage, const std::function<int()>& body);
+
 // The command line: one positional argument (the node directory) and "--name value" or
 // "--name" flags, each of which must be declared. Throws UsageError.
 class Args {

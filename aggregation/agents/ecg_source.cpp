@@ -138,7 +138,7 @@ int replay(rt::Session& session, Signal& signal, double speed) {
 }  // namespace
 
 int main(int argc, char** argv) {
-  try {
+  return rt::guarded_main(kProgram, kUsage, [&]() -> int {
     const rt::Args args(argc, argv, {"--record", "--seed", "--hr", "--seconds", "--speed", "--agent"},
                         {"--synthetic"});
     if (args.has("--record") == args.has("--synthetic")) throw rt::UsageError("give --record PATH or --synthetic");
@@ -154,9 +154,5 @@ int main(int argc, char** argv) {
     signal->info.sensor_iri = session->agent.iri();
     signal->info.iri = session->agent.iri() + "/recording/" + signal->name;
     return replay(*session, *signal, speed);
-  } catch (const rt::UsageError& e) {
-    rt::log_line(kProgram, e.what());
-    std::cerr << kUsage << '\n';
-    return rt::kExitUsage;
-  }
+  });
 }

@@ -179,7 +179,7 @@ void state_loinc_codes(rt::Session& session) {
 }  // namespace
 
 int main(int argc, char** argv) {
-  try {
+  return rt::guarded_main(kProgram, "usage: tahvel-hrv DIR [--agent ID] [--idle S] [--window S] [--step S]", [&]() -> int {
     const rt::Args args(argc, argv, {"--agent", "--idle", "--window", "--step"}, {});
     const double idle = args.number("--idle", 0);
     WindowConfig defaults{args.number("--window", 300, 1e-3), args.number("--step", 0)};
@@ -197,9 +197,5 @@ int main(int argc, char** argv) {
     HrvStage stage(*session, defaults);
     stage.load_config();
     return rt::run_take_loop(*session, idle, [&](const tn::Delivery& d) { return stage.handle(d); });
-  } catch (const rt::UsageError& e) {
-    rt::log_line(kProgram, e.what());
-    std::cerr << "usage: tahvel-hrv DIR [--agent ID] [--idle S] [--window S] [--step S]\n";
-    return rt::kExitUsage;
-  }
+  });
 }

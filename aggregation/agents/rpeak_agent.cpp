@@ -157,7 +157,7 @@ class RPeakStage {
 }  // namespace
 
 int main(int argc, char** argv) {
-  try {
+  return rt::guarded_main(kProgram, "usage: tahvel-rpeak DIR [--agent ID] [--idle S]", [&]() -> int {
     const rt::Args args(argc, argv, {"--agent", "--idle"}, {});
     const double idle = args.number("--idle", 0);
     rt::install_stop_handlers();
@@ -167,9 +167,5 @@ int main(int argc, char** argv) {
       return rt::kExitError;
     RPeakStage stage(*session);
     return rt::run_take_loop(*session, idle, [&](const tn::Delivery& d) { return stage.handle(d); });
-  } catch (const rt::UsageError& e) {
-    rt::log_line(kProgram, e.what());
-    std::cerr << "usage: tahvel-rpeak DIR [--agent ID] [--idle S]\n";
-    return rt::kExitUsage;
-  }
+  });
 }

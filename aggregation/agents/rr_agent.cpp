@@ -114,7 +114,7 @@ class RrStage {
 }  // namespace
 
 int main(int argc, char** argv) {
-  try {
+  return rt::guarded_main(kProgram, "usage: tahvel-rr DIR [--agent ID] [--idle S]", [&]() -> int {
     const rt::Args args(argc, argv, {"--agent", "--idle"}, {});
     const double idle = args.number("--idle", 0);
     rt::install_stop_handlers();
@@ -123,9 +123,5 @@ int main(int argc, char** argv) {
     if (!rt::subscribe_predicates(*session, {std::string(agg::kTv) + "peaks"})) return rt::kExitError;
     RrStage stage(*session);
     return rt::run_take_loop(*session, idle, [&](const tn::Delivery& d) { return stage.handle(d); });
-  } catch (const rt::UsageError& e) {
-    rt::log_line(kProgram, e.what());
-    std::cerr << "usage: tahvel-rr DIR [--agent ID] [--idle S]\n";
-    return rt::kExitUsage;
-  }
+  });
 }

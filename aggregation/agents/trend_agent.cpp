@@ -134,7 +134,7 @@ class TrendStage {
 }  // namespace
 
 int main(int argc, char** argv) {
-  try {
+  return rt::guarded_main(kProgram, "usage: tahvel-trend DIR [--agent ID] [--idle S] [--metric NAME ...]", [&]() -> int {
     const rt::Args args(argc, argv, {"--agent", "--idle", "--metric"}, {});
     // --metric may repeat (Args keeps the last value): collect every one.
     std::vector<agg::HrvMetric> metrics;
@@ -161,9 +161,5 @@ int main(int argc, char** argv) {
       return rt::kExitError;
     }
     return rt::run_take_loop(*session, idle, [&](const tn::Delivery& d) { return stage.handle(d); });
-  } catch (const rt::UsageError& e) {
-    rt::log_line(kProgram, e.what());
-    std::cerr << "usage: tahvel-trend DIR [--agent ID] [--idle S] [--metric NAME ...]\n";
-    return rt::kExitUsage;
-  }
+  });
 }

@@ -822,20 +822,14 @@ int run(const Config& cfg) {
 }  // namespace bench
 
 int bench_federation_main(const std::vector<std::string>& args) {
-  try {
+  return guarded_bench_main("federation", [&] {
     std::optional<bench::Config> config = bench::parse(args);
     if (!config) {
       std::cout << bench::kUsage;
       return 0;
     }
     return bench::run(*config);
-  } catch (const std::invalid_argument& e) {
-    std::cerr << "tahvel: bench federation: " << e.what() << "\n";
-    return 2;
-  } catch (const std::exception& e) {
-    std::cerr << "tahvel: bench federation: " << e.what() << "\n";
-    return 1;
-  }
+  });
 }
 
 }  // namespace tahvel::cli

@@ -2,6 +2,10 @@
 // table are data: one line per (figure, peer) pair, so a new peer is one more line.
 #include "bench_report.h"
 
+#include <iostream>
+#include <stdexcept>
+#include "bench.h"
+
 #include <algorithm>
 #include <cmath>
 #include <cstdio>
@@ -179,3 +183,19 @@ void print_table(std::ostream& out, const Figures& f) {
 }
 
 }  // namespace tahvel::cli::bench
+
+namespace tahvel::cli {
+
+int guarded_bench_main(const char* name, const std::function<int()>& body) {
+  try {
+    return body();
+  } catch (const std::invalid_argument& e) {
+    std::cerr << "tahvel: bench " << name << ": " << e.what() << "\n";
+    return 2;
+  } catch (const std::exception& e) {
+    std::cerr << "tahvel: bench " << name << ": " << e.what() << "\n";
+    return 1;
+  }
+}
+
+}  // namespace tahvel::cli

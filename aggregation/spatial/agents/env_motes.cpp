@@ -187,11 +187,5 @@ int run(int argc, char** argv) {
 }  // namespace
 
 int main(int argc, char** argv) {
-  try {
-    return run(argc, argv);
-  } catch (const rt::UsageError& e) {
-    rt::log_line(kProgram, e.what());
-    rt::log_line(kProgram, "usage: tahvel-env-motes DIR [--seed N] [--start-ns T] [--steps N] [--step-s S]");
-    return rt::kExitUsage;
-  }
+  return rt::guarded_main(kProgram, "usage: tahvel-env-motes DIR [--seed N] [--start-ns T] [--steps N] [--step-s S]", [&] { return run(argc, argv); });
 }

@@ -122,13 +122,8 @@ int run(int argc, char** argv) {
 }  // namespace
 
 int main(int argc, char** argv) {
-  try {
-    return run(argc, argv);
-  } catch (const rt::UsageError& e) {
-    rt::log_line(kProgram, e.what());
-    rt::log_line(kProgram,
-                 "usage: tahvel-environment DIR [--agent ID] [--valid-s S] [--once] [--now-ns T] "
-                 "[--interval-s S] [--idle S]");
-    return rt::kExitUsage;
-  }
+  return rt::guarded_main(kProgram,
+                          "usage: tahvel-environment DIR [--agent ID] [--valid-s S] [--once] [--now-ns T] "
+                          "[--interval-s S] [--idle S]",
+                          [&] { return run(argc, argv); });
 }
