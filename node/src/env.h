@@ -61,6 +61,8 @@ struct Subscription {
   std::uint64_t agent;   // term id of the subscriber's IRI
   std::uint64_t s, p, o; // term ids, 0 = any
   std::uint64_t context = 0; // term id of the item context it requires, 0 = any
+  std::uint64_t source = 0;  // term id of the source IRI it requires (or one under it), 0 = any
+  std::string source_iri;    // that IRI, for the "under it" test
   std::uint32_t slot = 0; // wake slot of the subscriber
 };
 

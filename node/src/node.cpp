@@ -162,11 +162,12 @@ Result<std::uint64_t> Agent::Impl::find_subscription(Txn& txn, const Pattern& pa
   if (auto r = refresh_caches(txn); !r) return unexpected(r.error());
   auto self = self_id(txn.raw());
   if (!self || *self == 0) return self;
-  std::uint64_t ids[4] = {0, 0, 0, 0};
-  std::optional<Term> context;
+  std::uint64_t ids[5] = {0, 0, 0, 0, 0};
+  std::optional<Term> context, source;
   if (pattern.context) context = Term::iri(*pattern.context);
-  const std::optional<Term>* terms[4] = {&pattern.s, &pattern.p, &pattern.o, &context};
-  for (int i = 0; i < 4; ++i) {
+  if (pattern.source) source = Term::iri(*pattern.source);
+  const std::optional<Term>* terms[5] = {&pattern.s, &pattern.p, &pattern.o, &context, &source};
+  for (int i = 0; i < 5; ++i) {
     if (!*terms[i]) continue;
     auto id = find_term(txn.raw(), *env, **terms[i]);
     if (!id) return id;
@@ -175,7 +176,8 @@ Result<std::uint64_t> Agent::Impl::find_subscription(Txn& txn, const Pattern& pa
   }
   std::lock_guard lock(env->cache_mutex);
   for (const auto& sub : env->subs)
-    if (sub.agent == *self && sub.s == ids[0] && sub.p == ids[1] && sub.o == ids[2] && sub.context == ids[3])
+    if (sub.agent == *self && sub.s == ids[0] && sub.p == ids[1] && sub.o == ids[2] && sub.context == ids[3] &&
+        sub.source == ids[4])
       return sub.item;
   return std::uint64_t{0};
 }
@@ -537,11 +539,20 @@ Result<std::uint64_t> Agent::relay_mark(std::string_view stream) const noexcept 
   }
 }
 
-Result<std::uint64_t> Agent::subscribe(const Pattern& pattern) {
-  if (pattern.source || pattern.since || pattern.until || pattern.after_id)
-    return fail(Errc::invalid_argument, "a subscription pattern takes subject, predicate, object and context only");
+Result<std::uint64_t> Agent::subscribe(const Pattern& given) {
+  Pattern pattern = given;
+  if (pattern.source && !pattern.source->empty()) {
+    // Kept in normal form: routing compares sources by dictionary id first.
+    auto normal = uri::normalize(*pattern.source);
+    if (!normal) return fail(Errc::invalid_iri, "subscription source: " + normal.error().message);
+    pattern.source = std::move(*normal);
+  }
+  if (pattern.since || pattern.until || pattern.after_id)
+    return fail(Errc::invalid_argument, "a subscription pattern takes subject, predicate, object, context and source only");
   if (pattern.context && pattern.context->empty())
     return fail(Errc::invalid_argument, "a subscription's context must be an IRI");
+  if (pattern.source && pattern.source->empty())
+    return fail(Errc::invalid_argument, "a subscription's source must be an IRI");
   for (const auto* t : {&pattern.s, &pattern.p, &pattern.o})
     if (*t && (*t)->is_blank()) return fail(Errc::invalid_argument, "a subscription pattern cannot name a blank node");
   Item item;
@@ -552,6 +563,7 @@ Result<std::uint64_t> Agent::subscribe(const Pattern& pattern) {
   if (pattern.p) item.add(node, Term::iri(std::string(kPredicate)), *pattern.p);
   if (pattern.o) item.add(node, Term::iri(std::string(kObject)), *pattern.o);
   if (pattern.context) item.add(node, Term::iri(std::string(kSubscriptionContext)), Term::iri(*pattern.context));
+  if (pattern.source) item.add(node, Term::iri(std::string(kSubscriptionSource)), Term::iri(*pattern.source));
   if (auto v = validate_item(item, impl_->env->settings()); !v) return unexpected(v.error());
   std::uint64_t id = 0;
   auto written = impl_->env->write([&](Txn& txn) -> Result<void> {

@@ -78,6 +78,9 @@ Result<std::vector<Subscription>> load_subscriptions(Txn& txn) {
     if (!found) return unexpected(found.error());
     context_predicate = *found;
   }
+  // tv:source is looked up the same way: it exists once a subscription has used it.
+  auto source_predicate = find_term(raw, env, Term::iri(std::string(kSubscriptionSource)));
+  if (!source_predicate) return unexpected(source_predicate.error());
   std::vector<std::uint64_t> ids;
   MDB_val k = val(vocab.subscriber), v;
   for (rc = mdb_cursor_get(cursor, &k, &v, MDB_SET); rc == 0; rc = mdb_cursor_get(cursor, &k, &v, MDB_NEXT_DUP))
@@ -100,6 +103,7 @@ Result<std::vector<Subscription>> load_subscriptions(Txn& txn) {
       else if (r.p == vocab.predicate) sub.p = r.o;
       else if (r.p == vocab.object) sub.o = r.o;
       else if (context_predicate && r.p == context_predicate) sub.context = r.o;
+      else if (*source_predicate && r.p == *source_predicate) sub.source = r.o;
     }
     mdb_cursor_close(cursor);
     subs.push_back(sub);
@@ -169,12 +173,22 @@ Result<void> route_to_addressee(Txn& txn, std::uint64_t item_id, ItemRow& item,
   return deliver(txn, *agent, WakeBoard::slot_for(addressee), item_id, item);
 }
 
+// A subscription's source condition: the item's source is the subscription's source IRI or
+// lies under it (as Pattern::source reads). The prefix test rejects almost every other source
+// without parsing an IRI.
+bool source_matches(const Subscription& sub, std::uint64_t source, std::string_view source_iri) {
+  if (!sub.source || sub.source == source) return true;
+  return source_iri.starts_with(sub.source_iri) && uri::is_under(source_iri, sub.source_iri);
+}
+
 Result<void> route(Txn& txn, std::uint64_t item_id, ItemRow& item,
-                   const std::vector<std::array<std::uint64_t, 3>>& triples) {
+                   const std::vector<std::array<std::uint64_t, 3>>& triples,
+                   std::string_view source_iri) {
   std::lock_guard lock(txn.env().cache_mutex);
   for (const auto& sub : txn.env().subs) {
     if (sub.item == item_id) continue;  // a subscription does not receive itself
     if (sub.context && sub.context != item.context) continue;
+    if (!source_matches(sub, item.source, source_iri)) continue;
     bool hit = false;
     for (const auto& t : triples) {
       if (triple_matches(sub, t[0], t[1], t[2])) { hit = true; break; }
@@ -297,6 +311,11 @@ Result<void> refresh_caches(Txn& txn) {
       auto iri = reader.iri(sub.agent);
       if (!iri) return unexpected(iri.error());
       sub.slot = WakeBoard::slot_for(*iri);
+      if (sub.source) {
+        auto source = reader.iri(sub.source);
+        if (!source) return unexpected(source.error());
+        sub.source_iri = std::move(*source);
+      }
     }
     env.subs = std::move(*subs);
     env.subs_gen = txn.counters.sub_gen;
@@ -365,7 +384,8 @@ Result<std::uint64_t> insert_item(Txn& txn, const Item& item, const std::string&
   const std::int64_t now = now_ns();
   ItemRow meta{ids.size(), ids.size(), 0, now, item.asserted_at.value_or(now), *source, context, item.persistent};
   if (auto r = refresh_caches(txn); !r) return unexpected(r.error());
-  if (auto r = route(txn, item_id, meta, ids); !r) return unexpected(r.error());
+  if (auto r = route(txn, item_id, meta, ids, relayed_source ? *relayed_source : agent_iri); !r)
+    return unexpected(r.error());
   if (context) {
     auto normal = uri::normalize(item.context);
     if (normal) {

@@ -17,6 +17,9 @@ Result<void> validate_item(const Item& item, const Settings& settings);
 
 // The subscription vocabulary term for an item-context condition (tv:context).
 inline constexpr std::string_view kSubscriptionContext = "https://w3id.org/tahvel#context";
+// The subscription vocabulary term for a source condition (tv:source): the writer's IRI or an
+// IRI above it.
+inline constexpr std::string_view kSubscriptionSource = "https://w3id.org/tahvel#source";
 
 // Inserts one validated item written by `agent_iri` (its output buffer), routes it, and returns
 // its id. Its records' source is `agent_iri`, or `*relayed_source` for an item relayed by a link

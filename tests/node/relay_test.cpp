@@ -39,6 +39,35 @@ TEST(Context, SubscriptionWithContextGetsOnlyItemsWrittenWithThatContext) {
   EXPECT_FALSE(link.subscribe({.context = ""}));
 }
 
+// Area subscriptions (docs/spatial.md) select readings by the sensor that wrote them: the
+// source, or a writer under it (a child node's agents, relayed up).
+TEST(Source, SubscriptionWithSourceGetsOnlyItemsOfThatWriterOrOfWritersUnderIt) {
+  TempDir dir;
+  Node node = make_node(dir.path());
+  Agent watcher = node.agent("watcher").value();
+  Agent mote = node.agent("mote1").value();
+  Agent other = node.agent("mote10").value();  // a prefix of the IRI string is not "under"
+  Agent link = node.agent("child").value();
+  ASSERT_TRUE(watcher.subscribe({.p = ex("value"), .source = kNodeIri + "/mote1"}));
+  ASSERT_TRUE(watcher.subscribe({.source = kNodeIri + "/child"}));
+  std::uint64_t own = mote.store(reading(1)).value();
+  ASSERT_TRUE(other.store(reading(2)));
+  Item no_value;
+  no_value.add(Term::iri(kNodeIri + "/obs/3"), ex("note"), Term::integer(3));
+  ASSERT_TRUE(mote.store(no_value));  // the source matches, the predicate does not
+  RelayedItem from_below{1, 0, kNodeIri + "/child/ecg", reading(4)};
+  auto relayed = link.relay("child-up", {from_below});
+  ASSERT_TRUE(relayed.has_value()) << relayed.error().message;
+  ASSERT_EQ(relayed->stored.size(), 1u);
+  EXPECT_EQ(taken_ids(watcher), (std::vector<std::uint64_t>{own, relayed->stored[0]}));
+  // The same source, written another way, is the same subscription; an invalid one is refused.
+  EXPECT_EQ(watcher.subscribe({.source = kNodeIri + "/child"}).value(),
+            watcher.subscribe({.source = kNodeIri + "/./child"}).value());
+  auto bad = watcher.subscribe({.source = "not an iri"});
+  ASSERT_FALSE(bad.has_value());
+  EXPECT_EQ(bad.error().code, Errc::invalid_iri);
+}
+
 TEST(Context, ItemAddressedToAnAgentLandsInItsInputBufferWithoutSubscription) {
   TempDir dir;
   Node node = make_node(dir.path());

@@ -206,8 +206,9 @@ class Agent {
 
   // Writes a subscription as a persistent item of triples (vocabulary: docs/record-model.md):
   // from now on every stored item with at least one triple matching the pattern's s, p and o
-  // (and, when pattern.context is set, written with exactly that context) lands in this agent's
-  // input buffer. Other Pattern fields must be unset. Returns the
+  // (and, when pattern.context is set, written with exactly that context; when pattern.source
+  // is set, whose source is that IRI or lies under it) lands in this agent's input buffer.
+  // since, until and after_id must be unset. Returns the
   // subscription's item id. Subscribing again with the same pattern (an agent restarted by its
   // supervisor) returns the existing subscription instead of adding another.
   Result<std::uint64_t> subscribe(const Pattern& pattern);
