@@ -1,7 +1,9 @@
-// Areas on the whiteboard (tahvel/spatial/board.h), on a real store in a temporary directory:
-// the plan read from GeoSPARQL triples (latest wins), listing by area, and area subscriptions
-// following a sensor that moves from one room to another.
+// Areas on the whiteboard (tahvel/spatial/board.h, area_subscriptions.h), on a real store in a
+// temporary directory: the plan read from GeoSPARQL triples (latest wins), listing by area, and
+// area subscriptions following a sensor that moves from one room to another, kept by the agent
+// itself or by the node's keeper.
 #include "tahvel/spatial/board.h"
+#include "tahvel/spatial/area_subscriptions.h"
 
 #include <stdlib.h>
 
@@ -81,6 +83,14 @@ class BoardTest : public testing::Test {
     auto records = list_in_area(*snapshot, pattern, spec);
     EXPECT_TRUE(records.has_value()) << records.error().message;
     return records ? *records : std::vector<node::Record>{};
+  }
+
+  // The pattern of readings (a moved sensor's new geometry has the sensor as subject: selected
+  // by an area subscription without a pattern, as `tahvel list --area` selects it).
+  static node::Pattern readings() {
+    node::Pattern p;
+    p.p = Term::iri("http://www.w3.org/ns/sosa/hasSimpleResult");
+    return p;
   }
 
   std::uint64_t pending(node::Agent& agent) {
@@ -228,8 +238,8 @@ TEST_F(BoardTest, MovingASensorMovesItsReadingsBetweenAreaSubscriptions) {
   auto bed_agent = node_->agent("bedroom-watch");
   auto hall_agent = node_->agent("hall-watch");
   ASSERT_TRUE(bed_agent.has_value() && hall_agent.has_value());
-  auto bed = AreaSubscription::open(*node_, *bed_agent, {kBedroom, std::nullopt, std::nullopt});
-  auto hall = AreaSubscription::open(*node_, *hall_agent, {kHall, std::nullopt, std::nullopt});
+  auto bed = AreaSubscription::open(*node_, *bed_agent, {kBedroom, std::nullopt, std::nullopt}, readings());
+  auto hall = AreaSubscription::open(*node_, *hall_agent, {kHall, std::nullopt, std::nullopt}, readings());
   ASSERT_TRUE(bed.has_value()) << bed.error().message;
   ASSERT_TRUE(hall.has_value()) << hall.error().message;
   EXPECT_EQ(bed->sensors(), Ids{kMote});
@@ -270,7 +280,7 @@ TEST_F(BoardTest, MovingASensorMovesItsReadingsBetweenAreaSubscriptions) {
 TEST_F(BoardTest, RemovingASensorsGeometryEndsItsSubscriptionAndANewSensorGetsOne) {
   auto agent = node_->agent("bedroom-watch");
   ASSERT_TRUE(agent.has_value());
-  auto bed = AreaSubscription::open(*node_, *agent, {kBedroom, std::nullopt, std::nullopt});
+  auto bed = AreaSubscription::open(*node_, *agent, {kBedroom, std::nullopt, std::nullopt}, readings());
   ASSERT_TRUE(bed.has_value());
   node::Pattern wkt;
   wkt.s = Term::iri(kMote + "/geometry");
@@ -297,16 +307,121 @@ TEST_F(BoardTest, AReopenedAreaSubscriptionDropsSensorsThatLeftWhileItWasAway) {
   auto agent = node_->agent("bedroom-watch");
   ASSERT_TRUE(agent.has_value());
   {
-    auto bed = AreaSubscription::open(*node_, *agent, {kBedroom, std::nullopt, std::nullopt});
+    auto bed = AreaSubscription::open(*node_, *agent, {kBedroom, std::nullopt, std::nullopt}, readings());
     ASSERT_TRUE(bed.has_value());
     EXPECT_EQ(bed->sensors(), Ids{kMote});
   }
   put(located_feature_item(kMote, "POINT(6 1)", 0));  // moved while no one watched
-  auto bed = AreaSubscription::open(*node_, *agent, {kBedroom, std::nullopt, std::nullopt});
+  auto bed = AreaSubscription::open(*node_, *agent, {kBedroom, std::nullopt, std::nullopt}, readings());
   ASSERT_TRUE(bed.has_value());
   EXPECT_EQ(bed->sensors(), Ids{});
   reading("mote1", 20.0);
   EXPECT_EQ(pending(*agent), 0u);
+}
+
+// `tahvel subscribe --area` and `tahvel up`: the declaration is on the board, the node's keeper
+// expands it and follows the plan; the subscriber does nothing but take.
+TEST_F(BoardTest, TheKeeperMovesADeclaredAreaSubscriptionWithItsSensor) {
+  auto ui = node_->agent("ui");
+  ASSERT_TRUE(ui.has_value());
+  auto declared = declare_area_subscription(*node_, *ui, {kBedroom, std::nullopt, std::nullopt}, readings());
+  ASSERT_TRUE(declared.has_value()) << declared.error().message;
+  // Declaring again (a restarted agent) is the same declaration.
+  EXPECT_EQ(declare_area_subscription(*node_, *ui, {kBedroom, std::nullopt, std::nullopt}, readings()).value(), *declared);
+  auto keeper = AreaKeeper::open(dir_ / "store");
+  ASSERT_TRUE(keeper.has_value()) << keeper.error().message;
+  auto snapshot = node_->snapshot();
+  ASSERT_TRUE(snapshot.has_value());
+  EXPECT_EQ(area_expansion(*snapshot, *declared).value().sensors, Ids{kMote});
+
+  reading("mote1", 21.0);
+  reading("mote2", 19.0);  // upstairs: not in the bedroom
+  EXPECT_EQ(pending(*ui), 1u);
+
+  put(located_feature_item(kMote, "POINT(6 1)", 0));  // carried into the hall
+  auto synced = keeper->poll();
+  ASSERT_TRUE(synced.has_value()) << synced.error().message;
+  ASSERT_TRUE(synced->has_value());
+  EXPECT_EQ((*synced)->removed, 2u);  // mote1 as a source and as a subject
+  reading("mote1", 22.0);
+  EXPECT_EQ(pending(*ui), 1u);
+
+  put(located_feature_item(kMote, "POINT(1 3)", 0));  // back, into the bedroom's other arm
+  ASSERT_TRUE(keeper->poll().has_value());
+  reading("mote1", 23.0);
+  EXPECT_EQ(pending(*ui), 2u);
+
+  // A poll with no plan change does not sync.
+  reading("mote1", 24.0);
+  auto quiet = keeper->poll();
+  ASSERT_TRUE(quiet.has_value());
+  EXPECT_FALSE(quiet->has_value());
+  EXPECT_EQ(pending(*ui), 3u);
+
+  // Removing the declaration ends it: the keeper removes its expansions.
+  ASSERT_TRUE(node_->remove_item(*declared).has_value());
+  auto ended = keeper->poll();
+  ASSERT_TRUE(ended.has_value() && ended->has_value());
+  EXPECT_EQ((*ended)->declarations, 0u);
+  reading("mote1", 25.0);
+  EXPECT_EQ(pending(*ui), 3u);
+}
+
+TEST_F(BoardTest, AnAreaSubscriptionSelectsRecordsAboutFeaturesInTheAreaBySubject) {
+  auto ui = node_->agent("ui");
+  auto writer = node_->agent("environment");
+  ASSERT_TRUE(ui.has_value() && writer.has_value());
+  auto declared = declare_area_subscription(*node_, *ui, {kBedroom, std::nullopt, std::nullopt});
+  ASSERT_TRUE(declared.has_value());
+  ASSERT_TRUE(sync_area_subscriptions(*node_).has_value());
+  const Term state = Term::iri("https://w3id.org/tahvel#environment");
+  node::Item about_bedroom, about_hall;
+  about_bedroom.add(Term::iri(kBedroom), state, Term::blank("e"));
+  about_hall.add(Term::iri(kHall), state, Term::blank("e"));
+  auto bedroom_item = writer->store(about_bedroom);
+  ASSERT_TRUE(bedroom_item.has_value());
+  ASSERT_TRUE(writer->store(about_hall).has_value());
+  auto taken = ui->take(std::chrono::milliseconds(0));
+  ASSERT_TRUE(taken.has_value() && taken->has_value());
+  EXPECT_EQ((*taken)->item, *bedroom_item);
+  EXPECT_EQ(pending(*ui), 0u);
+}
+
+TEST_F(BoardTest, AWktAreaOnOneFloorExpandsToTheSensorsOfThatFloorOnly) {
+  auto ui = node_->agent("ui");
+  ASSERT_TRUE(ui.has_value());
+  auto square = parse_shape("POLYGON((0 0, 4 0, 4 4, 0 4, 0 0))");
+  ASSERT_TRUE(square.has_value());
+  auto declared = declare_area_subscription(*node_, *ui, {"", *square, 1}, readings());
+  ASSERT_TRUE(declared.has_value()) << declared.error().message;
+  ASSERT_TRUE(sync_area_subscriptions(*node_).has_value());
+  auto snapshot = node_->snapshot();
+  ASSERT_TRUE(snapshot.has_value());
+  EXPECT_EQ(area_expansion(*snapshot, *declared).value().sensors, Ids{kMote2});
+  reading("mote1", 21.0);
+  reading("mote2", 19.0);
+  EXPECT_EQ(pending(*ui), 1u);
+}
+
+TEST_F(BoardTest, ADeclarationForARoomNotYetDrawnIsReportedThenExpandedWhenItIs) {
+  auto ui = node_->agent("ui");
+  ASSERT_TRUE(ui.has_value());
+  const std::string kitchen = kHome + "/room/kitchen";
+  auto declared = declare_area_subscription(*node_, *ui, {kitchen, std::nullopt, std::nullopt}, readings());
+  ASSERT_TRUE(declared.has_value());
+  auto keeper = AreaKeeper::open(dir_ / "store");
+  ASSERT_TRUE(keeper.has_value());
+  auto report = sync_area_subscriptions(*node_);
+  ASSERT_TRUE(report.has_value());
+  ASSERT_EQ(report->problems.size(), 1u);
+  EXPECT_NE(report->problems[0].find(kitchen), std::string::npos) << report->problems[0];
+  put(located_feature_item(kitchen, "POLYGON((5 3, 7 3, 7 5, 5 5, 5 3))", 0));
+  put(located_feature_item(kHome + "/mote9", "POINT(6 4)", 0));
+  auto synced = keeper->poll();
+  ASSERT_TRUE(synced.has_value() && synced->has_value());
+  EXPECT_TRUE((*synced)->problems.empty());
+  reading("mote9", 20.0);
+  EXPECT_EQ(pending(*ui), 1u);
 }
 
 }  // namespace

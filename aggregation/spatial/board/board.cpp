@@ -10,14 +10,12 @@
 #include <set>
 
 #include "tahvel/spatial/wkt.h"
+#include "tahvel/uri/iri.h"
 
 namespace tahvel::spatial {
 
 namespace {
 
-constexpr const char* kTvSubscriber = "https://w3id.org/tahvel#subscriber";
-constexpr const char* kTvPredicate = "https://w3id.org/tahvel#predicate";
-constexpr const char* kTvObject = "https://w3id.org/tahvel#object";
 
 Unexpected<Error> store_error(const node::Error& e) { return fail(e.message); }
 
@@ -68,6 +66,18 @@ Result<std::optional<std::string>> latest_wkt(const node::Snapshot& snapshot, co
   });
   if (!read) return store_error(read.error());
   return wkt;
+}
+
+// True when `source` is one of `sensors` or lies under one (a sensor that is a node of its own,
+// whose agents write under its IRI): the ancestors of an IRI are its prefixes ending before a
+// '/', '#' or '?', so each is looked up rather than every sensor tested.
+bool from_sensor_in(const std::set<std::string>& sensors, const std::string& source) {
+  if (sensors.count(source)) return true;
+  for (std::size_t i = source.find_first_of("/#?"); i != std::string::npos; i = source.find_first_of("/#?", i + 1)) {
+    auto it = sensors.find(source.substr(0, i));
+    if (it != sensors.end() && uri::is_under(source, *it)) return true;
+  }
+  return false;
 }
 
 }  // namespace
@@ -181,7 +191,7 @@ Result<std::vector<node::Record>> list_in_area(const node::Snapshot& snapshot,
 
   std::vector<node::Record> matches;
   auto read = snapshot.for_each(pattern, [&](const node::Record& r) {
-    if ((r.triple.s.is_iri() && features.count(r.triple.s.value)) || sensors.count(r.meta.source)) {
+    if ((r.triple.s.is_iri() && features.count(r.triple.s.value)) || from_sensor_in(sensors, r.meta.source)) {
       matches.push_back(r);
     }
     return true;
@@ -208,98 +218,6 @@ Result<std::vector<node::Record>> list_in_area(const node::Snapshot& snapshot,
     }
   }
   return out;
-}
-
-// ---------------------------------------------------------------------------------------------
-
-AreaSubscription::AreaSubscription(const node::Node& node, node::Agent& agent, AreaSpec spec)
-    : node_(&node), agent_(&agent), spec_(std::move(spec)) {}
-
-Result<AreaSubscription> AreaSubscription::open(const node::Node& node, node::Agent& agent,
-                                                AreaSpec spec) {
-  AreaSubscription subscription(node, agent, std::move(spec));
-  auto synced = subscription.sync();
-  if (!synced) return unexpected(synced.error());
-  return subscription;
-}
-
-std::vector<std::string> AreaSubscription::sensors() const {
-  std::vector<std::string> out;
-  for (const auto& [sensor, id] : subscriptions_) out.push_back(sensor);
-  return out;
-}
-
-Result<bool> AreaSubscription::refresh(std::chrono::milliseconds wait) {
-  auto changes = node_->watch(bookmark_, wait);
-  if (!changes) return store_error(changes.error());
-  if (changes->empty()) return false;
-  bookmark_ = changes->back().seq;
-  for (const node::Change& change : *changes) {
-    const std::string& p = change.record.triple.p.value;
-    if (p == kGeoAsWkt || p == kGeoHasGeometry || p == kTvFloor) return sync();
-  }
-  return false;
-}
-
-// Re-reads the plan and the agent's madeBySensor subscriptions from one snapshot, then
-// subscribes the sensors of the area that lack one and removes the others.
-Result<bool> AreaSubscription::sync() {
-  auto snapshot = node_->snapshot();
-  if (!snapshot) return store_error(snapshot.error());
-  bookmark_ = std::max(bookmark_, snapshot->last_seq());
-  auto board = load_plan(*snapshot);
-  if (!board) return unexpected(board.error());
-  auto area = resolve_area(board->plan, spec_);
-  if (!area) return unexpected(area.error());
-  const std::vector<std::string> wanted = board->plan.sensors_in(*area);
-
-  // The agent's subscriptions {p = sosa:madeBySensor, o = <sensor>}, as the board has them.
-  std::map<std::string, std::uint64_t> existing;
-  node::Pattern mine;
-  mine.p = node::Term::iri(kTvSubscriber);
-  mine.o = node::Term::iri(agent_->iri());
-  auto heads = snapshot->list(mine);
-  if (!heads) return store_error(heads.error());
-  for (const node::Record& head : *heads) {
-    auto records = snapshot->item(head.meta.item);
-    if (!records) continue;  // removed meanwhile
-    std::optional<std::string> sensor;
-    bool by_sensor = false, other = false;
-    for (const node::Record& r : *records) {
-      const std::string& p = r.triple.p.value;
-      if (p == kTvPredicate) {
-        by_sensor = r.triple.o.value == kSosaMadeBySensor;
-      } else if (p == kTvObject) {
-        sensor = r.triple.o.value;
-      } else if (p != kTvSubscriber) {
-        other = true;  // a subject or context in the pattern: not one of ours
-      }
-    }
-    if (by_sensor && sensor && !other) existing[*sensor] = head.meta.item;
-  }
-
-  std::map<std::string, std::uint64_t> next;
-  for (const auto& [sensor, id] : existing) {
-    if (std::binary_search(wanted.begin(), wanted.end(), sensor)) continue;
-    if (auto removed = agent_->unsubscribe(id); !removed) return store_error(removed.error());
-  }
-  for (const std::string& sensor : wanted) {
-    if (auto it = existing.find(sensor); it != existing.end()) {
-      next[sensor] = it->second;
-      continue;
-    }
-    node::Pattern pattern;
-    pattern.p = node::Term::iri(kSosaMadeBySensor);
-    pattern.o = node::Term::iri(sensor);
-    auto id = agent_->subscribe(pattern);
-    if (!id) return store_error(id.error());
-    next[sensor] = *id;
-  }
-  bool changed = next.size() != subscriptions_.size() ||
-                 !std::equal(next.begin(), next.end(), subscriptions_.begin(),
-                             [](const auto& a, const auto& b) { return a.first == b.first; });
-  subscriptions_ = std::move(next);
-  return changed;
 }
 
 }  // namespace tahvel::spatial

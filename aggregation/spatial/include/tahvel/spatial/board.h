@@ -1,6 +1,7 @@
 // Areas on the whiteboard (docs/spatial.md): the floor plan as GeoSPARQL triples read from a
 // snapshot, areas named by a room's IRI or by WKT, the records located in an area (`tahvel list
-// --area`), and area subscriptions that follow sensors as they are added or moved.
+// --area`). Area subscriptions, which follow sensors as they are added or moved, are in
+// area_subscriptions.h.
 //
 // Triples read (vocabulary: docs/vocabulary.md, "Spatial"):
 //   <feature> geo:hasGeometry <g> .   <g> geo:asWKT "POLYGON((...))"^^geo:wktLiteral .
@@ -73,43 +74,10 @@ Result<Area> resolve_area(const Plan& plan, const AreaSpec& spec);
 std::vector<std::string> features_in(const Plan& plan, const AreaSpec& spec, const Area& area);
 
 // The records matching `pattern` whose subject is a feature located in the area or whose source
-// is a sensor located there, in id order, with the cascade and limit of `options` applied to
+// is a sensor located there (or a writer under one: uri::is_under), in id order, with the cascade and limit of `options` applied to
 // those matches (as Snapshot::list does). Errors: the store's, or resolve_area's.
 Result<std::vector<node::Record>> list_in_area(const node::Snapshot& snapshot,
                                                const node::Pattern& pattern, const AreaSpec& spec,
                                                const node::ListOptions& options = {});
-
-// An agent's subscription to an area: one node subscription {p = sosa:madeBySensor, o = sensor}
-// per sensor located in the area, kept current as sensors are added, moved or removed and as
-// the room is redrawn. Readings reach the agent when they name their sensor with
-// sosa:madeBySensor. The AreaSubscription owns the agent's madeBySensor subscriptions: it
-// removes those of sensors that are not (or no longer) in the area, also ones left by an earlier
-// run. One per agent.
-class AreaSubscription {
- public:
-  // Subscribes `agent` (of `node`) to the sensors of `spec` as the board places them now.
-  // `node` and `agent` are borrowed: both must outlive the AreaSubscription.
-  // Errors: the store's; the room of `spec` is not on the board (nothing is changed then).
-  static Result<AreaSubscription> open(const node::Node& node, node::Agent& agent, AreaSpec spec);
-
-  // Reads the change stream since the last call (waiting up to `wait` for a change); when a
-  // geo:asWKT, geo:hasGeometry or tv:floor record was stored or removed, re-reads the plan and
-  // subscribes/unsubscribes the difference. Returns true when the set of sensors changed.
-  // Call it before taking readings, or from the agent's loop.
-  Result<bool> refresh(std::chrono::milliseconds wait = std::chrono::milliseconds(0));
-
-  // The sensors subscribed to now, sorted.
-  std::vector<std::string> sensors() const;
-
- private:
-  AreaSubscription(const node::Node& node, node::Agent& agent, AreaSpec spec);
-  Result<bool> sync();
-
-  const node::Node* node_;
-  node::Agent* agent_;
-  AreaSpec spec_;
-  std::uint64_t bookmark_ = 0;
-  std::map<std::string, std::uint64_t> subscriptions_;  // sensor IRI -> subscription item
-};
 
 }  // namespace tahvel::spatial
