@@ -16,6 +16,7 @@
 #include "args.h"
 #include "tahvel/node/format.h"
 #include "tahvel/node/node.h"
+#include "tahvel/spatial/board.h"
 #include "tahvel/uri/iri.h"
 
 namespace tahvel::cli {
@@ -33,6 +34,9 @@ inline const Flag kFlagS{"-s", "--subject", "TERM", "match this subject: <iri>, 
 inline const Flag kFlagP{"-p", "--predicate", "TERM", "match this predicate: <iri>, IRI, CURIE or 'a'"};
 inline const Flag kFlagO{"-o", "--object", "TERM",
                          "match this object: IRI, CURIE, _:b, \"x\", \"x\"@en, \"x\"^^type, 72"};
+inline const Flag kFlagArea{"--area", "", "IRI|WKT",
+                            "only records of features located in a room (IRI) or (MULTI)POLYGON, or from its sensors"};
+inline const Flag kFlagFloor{"--floor", "", "N", "with a WKT --area: only that floor (default: every floor)"};
 inline const Flag kFlagCascade{"--cascade", "", "N",
                                "follow each match's object to its triples, N levels deep"};
 inline const Flag kFlagFormat{"--format", "", "nt|ttl|json",
@@ -72,6 +76,9 @@ std::string parse_iri(std::string_view text, const uri::PrefixMap& prefixes,
                       std::string_view flag);
 // The pattern of -s, -p, -o (and --context, --source when the command has them).
 node::Pattern pattern_from_args(const Args& args, const uri::PrefixMap& prefixes);
+
+// The area of --area (and --floor): WKT when it reads as WKT, else a room's IRI or CURIE.
+spatial::AreaSpec area_flag(const Args& args, const uri::PrefixMap& prefixes);
 bool pattern_has_triple(const node::Pattern& pattern);
 // True when `record` matches every bound field of `pattern` (s, p, o, context, source).
 bool matches(const node::Pattern& pattern, const node::Record& record);
@@ -101,6 +108,7 @@ extern const Command kPutCommand;
 extern const Command kLoadCommand;
 extern const Command kRemoveCommand;
 extern const Command kSubscribeCommand;
+extern const Command kAreasCommand;
 extern const Command kListCommand;
 extern const Command kDumpCommand;
 extern const Command kTakeCommand;
@@ -113,6 +121,7 @@ int run_put(const Args& args);
 int run_load(const Args& args);
 int run_remove(const Args& args);
 int run_subscribe(const Args& args);
+int run_areas(const Args& args);
 int run_list(const Args& args);
 int run_dump(const Args& args);
 int run_take(const Args& args);

@@ -1,6 +1,7 @@
 // Helpers shared by the `tahvel` subcommands: terms and patterns from the command line, the
 // prefix table, input and output. Everything here runs once per invocation (not hot).
 #include <algorithm>
+#include <charconv>
 #include <cerrno>
 #include <cstring>
 #include <poll.h>
@@ -11,6 +12,7 @@
 #include <sstream>
 
 #include "commands.h"
+#include "tahvel/spatial/wkt.h"
 
 namespace tahvel::cli {
 namespace {
@@ -377,6 +379,29 @@ void write_records(std::ostream& out, node::Format format, const uri::PrefixMap&
 std::string base_iri_of(const node::Node& node) {
   const std::string& iri = node.iri();
   return iri.ends_with('/') ? iri : iri + "/";
+}
+
+spatial::AreaSpec area_flag(const Args& args, const uri::PrefixMap& prefixes) {
+  std::string text = args.required("--area");
+  spatial::AreaSpec spec;
+  if (!spatial::looks_like_wkt(text)) {
+    if (args.has("--floor")) usage_error("--floor: only with a WKT --area (a room has its own floor)");
+    spec.room_iri = parse_iri(text, prefixes, "--area");
+    return spec;
+  }
+  auto shape = spatial::parse_shape(text);
+  if (!shape) usage_error("--area: " + shape.error().message);
+  spec.shape = std::move(*shape);
+  if (auto floor = args.get("--floor")) {
+    int value = 0;
+    const char* end = floor->data() + floor->size();
+    auto parsed = std::from_chars(floor->data(), end, value);
+    if (floor->empty() || parsed.ec != std::errc() || parsed.ptr != end) {
+      usage_error("--floor: expected an integer, found '" + *floor + "'");
+    }
+    spec.floor = value;
+  }
+  return spec;
 }
 
 }  // namespace tahvel::cli

@@ -20,6 +20,7 @@
 
 #include "commands.h"
 #include "tahvel/agents/dispatcher.h"
+#include "tahvel/spatial/area_subscriptions.h"
 #include "tahvel/agents/supervisor.h"
 #include "tahvel/federation/link.h"
 #include "tahvel/federation/transport.h"
@@ -486,10 +487,32 @@ int run_up(const Args& args) {
     std::cerr << "up: dispatcher <" << dispatcher->iri() << "> runs behaviours from " << spec.behaviours.string() << std::endl;
     dispatchers.push_back(std::move(*dispatcher));
   }
+  // Each node's area keeper (docs/spatial.md, S9) keeps its area subscriptions current as
+  // sensors are added or moved; in this process, as the dispatchers are.
+  std::vector<spatial::AreaKeeper> keepers;
+  for (const NodeSpec& spec : topo.nodes) {
+    if (only && spec.id != *only) continue;
+    auto keeper = spatial::AreaKeeper::open(state / spec.id);
+    if (!keeper) {
+      std::cerr << "up: area keeper of " << spec.id << ": " << keeper.error().message << std::endl;
+      continue;
+    }
+    keepers.push_back(std::move(*keeper));
+  }
   fs::path state_file = state / pid_file_name(only);
   state_file.replace_extension(".state");
   while (!g_stop) {
     supervisor.poll();
+    for (auto& keeper : keepers) {
+      auto synced = keeper.poll(std::chrono::milliseconds(0));
+      if (!synced) {
+        std::cerr << "up: area keeper <" << keeper.iri() << ">: " << synced.error().message << std::endl;
+      } else if (*synced) {
+        std::cerr << "up: area keeper <" << keeper.iri() << ">: " << (*synced)->added << " subscriptions added, "
+                  << (*synced)->removed << " removed" << std::endl;
+        for (const auto& problem : (*synced)->problems) std::cerr << "up: area keeper <" << keeper.iri() << ">: " << problem << std::endl;
+      }
+    }
     for (auto& dispatcher : dispatchers) {
       auto events = dispatcher.poll(std::chrono::milliseconds(0));
       if (!events) std::cerr << "up: dispatcher <" << dispatcher.iri() << ">: " << events.error().message << std::endl;

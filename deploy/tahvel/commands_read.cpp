@@ -18,34 +18,6 @@ using std::chrono::milliseconds;
 
 const Flag kFlagListContext{"--context", "", "IRI", "only records with this context ('' for none)"};
 const Flag kFlagSource{"--source", "", "IRI", "only records written by this agent or node (or below it)"};
-const Flag kFlagArea{"--area", "", "IRI|WKT",
-                     "only records of features located in a room (IRI) or (MULTI)POLYGON, or from its sensors"};
-const Flag kFlagFloor{"--floor", "", "N", "with a WKT --area: only that floor (default: every floor)"};
-
-// The area of --area (and --floor): WKT when it reads as WKT, else a room's IRI or CURIE.
-spatial::AreaSpec area_flag(const Args& args, const uri::PrefixMap& prefixes) {
-  std::string text = args.required("--area");
-  spatial::AreaSpec spec;
-  if (!spatial::looks_like_wkt(text)) {
-    if (args.has("--floor")) usage_error("--floor: only with a WKT --area (a room has its own floor)");
-    spec.room_iri = parse_iri(text, prefixes, "--area");
-    return spec;
-  }
-  auto shape = spatial::parse_shape(text);
-  if (!shape) usage_error("--area: " + shape.error().message);
-  spec.shape = std::move(*shape);
-  if (auto floor = args.get("--floor")) {
-    int value = 0;
-    const char* end = floor->data() + floor->size();
-    auto parsed = std::from_chars(floor->data(), end, value);
-    if (floor->empty() || parsed.ec != std::errc() || parsed.ptr != end) {
-      usage_error("--floor: expected an integer, found '" + *floor + "'");
-    }
-    spec.floor = value;
-  }
-  return spec;
-}
-
 unsigned cascade_flag(const Args& args) {
   return static_cast<unsigned>(std::min<std::uint64_t>(args.get_u64("--cascade", 0), 1u << 20));
 }

@@ -3,6 +3,7 @@
 #include <unordered_map>
 
 #include "commands.h"
+#include "tahvel/spatial/area_subscriptions.h"
 
 namespace tahvel::cli {
 namespace {
@@ -213,12 +214,17 @@ int run_remove(const Args& args) {
 
 const Command kSubscribeCommand{
     "subscribe",
-    "DIR --agent ID [-s S] [-p P] [-o O]",
-    "Subscribe an agent to a triple pattern; print the subscription id.",
+    "DIR --agent ID [-s S] [-p P] [-o O] [--area IRI|WKT [--floor N]]",
+    "Subscribe an agent to a triple pattern, or to the records of an area; print the subscription id.",
     "From now on every item with at least one triple matching the pattern lands once in the\n"
     "agent's input buffer (see 'tahvel take'). The subscription is itself stored as persistent\n"
-    "triples on the whiteboard.",
-    {{"--agent", "", "ID", "the subscribing agent (required)"}, kFlagS, kFlagP, kFlagO},
+    "triples on the whiteboard.\n"
+    "With --area (a room's IRI or CURIE, or a (MULTI)POLYGON in WKT) the agent gets what 'tahvel\n"
+    "list --area' selects: matching items whose subject is a feature located in the area or whose\n"
+    "source is a sensor there. The printed id is the area subscription's declaration; the node's\n"
+    "area keeper ('tahvel up', or 'tahvel areas DIR') keeps it current as sensors are added or\n"
+    "moved. 'tahvel remove --item ID' ends it.",
+    {{"--agent", "", "ID", "the subscribing agent (required)"}, kFlagS, kFlagP, kFlagO, kFlagArea, kFlagFloor},
     1, 1};
 
 int run_subscribe(const Args& args) {
@@ -227,8 +233,61 @@ int run_subscribe(const Args& args) {
   args.required("--agent");
   node::Pattern pattern = pattern_from_args(args, prefixes);
   node::Agent agent = check(node.agent(agent_id(args, "")));
-  print_number(check(agent.subscribe(pattern)));
+  if (!args.has("--area")) {
+    if (args.has("--floor")) usage_error("--floor: only with a WKT --area");
+    print_number(check(agent.subscribe(pattern)));
+    return kExitOk;
+  }
+  spatial::AreaSpec area = area_flag(args, prefixes);
+  {
+    // A room that is not on the board is refused, as 'list --area' refuses it: a typo would
+    // otherwise wait silently for a room that never comes.
+    node::Snapshot snapshot = check(node.snapshot());
+    auto board = spatial::load_plan(snapshot);
+    if (!board) fail("--area: " + board.error().message);
+    if (auto resolved = spatial::resolve_area(board->plan, area); !resolved)
+      fail("--area: " + resolved.error().message);
+  }
+  auto declaration = spatial::declare_area_subscription(node, agent, area, pattern);
+  if (!declaration) fail("--area: " + declaration.error().message);
+  auto synced = spatial::sync_area_subscriptions(node, *declaration);
+  if (!synced) fail("--area: " + synced.error().message);
+  node::Snapshot snapshot = check(node.snapshot());
+  auto expansion = spatial::area_expansion(snapshot, *declaration);
+  if (!expansion) fail("--area: " + expansion.error().message);
+  std::cerr << "subscribe: " << expansion->sensors.size() << " sensors and " << expansion->features.size()
+            << " located features in the area now; 'tahvel up' (or 'tahvel areas DIR') keeps it current\n";
+  print_number(*declaration);
   return kExitOk;
+}
+
+const Command kAreasCommand{
+    "areas",
+    "DIR [--once]",
+    "Keep the node's area subscriptions current (the area keeper that 'tahvel up' runs).",
+    "Expands each area subscription ('tahvel subscribe --area') into subscriptions by sensor and\n"
+    "by located feature, and again whenever a geometry, a floor or an area subscription is\n"
+    "stored or removed. Prints one line per change. Runs until stopped; --once syncs and exits.",
+    {{"--once", "", "", "sync once and exit"}},
+    1, 1};
+
+int run_areas(const Args& args) {
+  auto keeper = spatial::AreaKeeper::open(args.positional(0));
+  if (!keeper) fail(args.positional(0) + ": " + keeper.error().message);
+  auto print = [](const spatial::AreaSyncReport& r) {
+    std::cout << "areas: " << r.declarations << " area subscriptions, " << r.added << " subscriptions added, "
+              << r.removed << " removed" << std::endl;
+    for (const std::string& problem : r.problems) std::cerr << "areas: " << problem << std::endl;
+  };
+  auto first = keeper->sync();
+  if (!first) fail(first.error().message);
+  print(*first);
+  if (args.has("--once")) return kExitOk;
+  while (true) {
+    auto synced = keeper->poll(std::chrono::milliseconds(1000));
+    if (!synced) fail(synced.error().message);
+    if (*synced) print(**synced);
+  }
 }
 
 }  // namespace tahvel::cli

@@ -112,7 +112,8 @@ std::span<const Subcommand> subcommands() {
   static const Subcommand table[] = {
       {&kInitCommand, run_init},   {&kPutCommand, run_put},
       {&kListCommand, run_list},   {&kRemoveCommand, run_remove},
-      {&kSubscribeCommand, run_subscribe}, {&kTakeCommand, run_take},
+      {&kSubscribeCommand, run_subscribe}, {&kAreasCommand, run_areas},
+      {&kTakeCommand, run_take},
       {&kTailCommand, run_tail},   {&kDumpCommand, run_dump},
       {&kLoadCommand, run_load},   {&kStatsCommand, run_stats},
       {&kHrvCommand, run_hrv},

@@ -190,7 +190,7 @@ TEST_F(Cli, UnknownFlagExits2NamingTheFlag) {
 }
 
 TEST_F(Cli, EverySubcommandHelpExits0WithItsUsageLine) {
-  for (std::string name : {"init", "put", "list", "remove", "subscribe", "take", "tail", "dump",
+  for (std::string name : {"init", "put", "list", "remove", "subscribe", "areas", "take", "tail", "dump",
                            "load", "stats", "bench"}) {
     Outcome r = run({name, "--help"});
     EXPECT_EQ(r.status, 0) << name << ": " << r.err;
@@ -476,5 +476,99 @@ TEST_F(Cli, UpRefusesATopologyWhoseChildIriIsNotUnderItsParent) {
   EXPECT_FALSE(fs::exists(tmp_ / "state" / "hospital"));
 }
 
-}  // namespace
+// A bedroom and a hall sharing the wall x = 4, and mote1 in the bedroom (docs/spatial.md).
+const char* kPlan =
+    "@prefix geo: <http://www.opengis.net/ont/geosparql#> .\n"
+    "@prefix tv: <https://w3id.org/tahvel#> .\n"
+    "<room/bedroom> geo:hasGeometry <room/bedroom/geometry> .\n"
+    "<room/bedroom/geometry> geo:asWKT \"POLYGON((0 0, 4 0, 4 4, 0 4, 0 0))\"^^geo:wktLiteral .\n"
+    "<room/hall> geo:hasGeometry <room/hall/geometry> .\n"
+    "<room/hall/geometry> geo:asWKT \"POLYGON((4 0, 8 0, 8 4, 4 4, 4 0))\"^^geo:wktLiteral .\n"
+    "<mote1> geo:hasGeometry <mote1/geometry> .\n"
+    "<mote1/geometry> geo:asWKT \"POINT(1 1)\"^^geo:wktLiteral .\n";
 
+const char* kReading = "_:o <http://www.w3.org/ns/sosa/hasSimpleResult> 21 .\n";
+
+std::string move_mote1_to(const std::string& wkt) {
+  return "<http://example.org/home1/mote1/geometry> <http://www.opengis.net/ont/geosparql#asWKT> \"" + wkt +
+         "\"^^<http://www.opengis.net/ont/geosparql#wktLiteral> .\n";
+}
+
+TEST_F(Cli, ListByAreaSelectsTheRoomsSensorReadings) {
+  init();
+  put(kPlan, {"--persistent", "--format", "ttl"});
+  put(kReading, {"--agent", "mote1", "--format", "ttl"});
+  Outcome bedroom = run({"list", node_, "--area", kNodeIri + "/room/bedroom", "-p", "sosa:hasSimpleResult"});
+  EXPECT_EQ(bedroom.status, 0) << bedroom.err;
+  EXPECT_EQ(lines_of(bedroom.out).size(), 1u) << bedroom.out;
+  Outcome hall = run({"list", node_, "--area", "POLYGON((4 0, 8 0, 8 4, 4 4, 4 0))", "-p", "sosa:hasSimpleResult"});
+  EXPECT_EQ(hall.status, 0) << hall.err;
+  EXPECT_TRUE(hall.out.empty()) << hall.out;
+}
+
+// The issue's point, from the command line: moving a sensor from one room to another changes
+// which area subscriptions receive its readings (the keeper run once with `areas --once`).
+TEST_F(Cli, SubscribeByAreaFollowsASensorMovedToAnotherRoom) {
+  init();
+  put(kPlan, {"--persistent", "--format", "ttl"});
+  for (const auto& [agent, room] : {std::pair{"bedroom-ui", "bedroom"}, std::pair{"hall-ui", "hall"}}) {
+    Outcome sub = run({"subscribe", node_, "--agent", agent, "--area", kNodeIri + "/room/" + room, "-p",
+                       "sosa:hasSimpleResult"});
+    ASSERT_EQ(sub.status, 0) << sub.err;
+    EXPECT_TRUE(std::regex_match(sub.out, std::regex("[0-9]+\n"))) << sub.out;
+  }
+  auto taken = [&](const std::string& agent) {
+    return lines_of(run({"take", node_, "--agent", agent, "--timeout", "0", "--format", "nt"}).out).size();
+  };
+  put(kReading, {"--agent", "mote1", "--format", "ttl"});
+  EXPECT_EQ(taken("bedroom-ui"), 1u);
+  EXPECT_EQ(taken("hall-ui"), 0u);
+
+  put(move_mote1_to("POINT(6 1)"), {"--persistent", "--format", "nt"});
+  Outcome areas = run({"areas", node_, "--once"});
+  ASSERT_EQ(areas.status, 0) << areas.err;
+  EXPECT_NE(areas.out.find("2 area subscriptions"), std::string::npos) << areas.out;
+  put(kReading, {"--agent", "mote1", "--format", "ttl"});
+  EXPECT_EQ(taken("bedroom-ui"), 0u);
+  EXPECT_EQ(taken("hall-ui"), 1u);
+}
+
+TEST_F(Cli, SubscribeByAnUnknownRoomExits1NamingItAndByRoomWithFloorExits2) {
+  init();
+  put(kPlan, {"--persistent", "--format", "ttl"});
+  Outcome unknown = run({"subscribe", node_, "--agent", "ui", "--area", kNodeIri + "/room/kitchen"});
+  EXPECT_EQ(unknown.status, 1);
+  EXPECT_NE(unknown.err.find(kNodeIri + "/room/kitchen"), std::string::npos) << unknown.err;
+  Outcome floor = run({"subscribe", node_, "--agent", "ui", "--area", kNodeIri + "/room/bedroom", "--floor", "1"});
+  EXPECT_EQ(floor.status, 2) << floor.err;
+  Outcome bad_wkt = run({"subscribe", node_, "--agent", "ui", "--area", "POLYGON((0 0, 1 0, 1 1))"});
+  EXPECT_EQ(bad_wkt.status, 2);
+  EXPECT_NE(bad_wkt.err.find("column"), std::string::npos) << bad_wkt.err;
+  EXPECT_TRUE(run({"list", node_, "-p", "tv:areaSubscriber"}).out.empty());
+}
+
+// Under `tahvel up` the node's area keeper keeps the subscription current by itself.
+TEST_F(Cli, UpKeepsAreaSubscriptionsCurrentWhenASensorMoves) {
+  spit(tmp_ / "plan.ttl", kPlan);
+  spit(tmp_ / "home.toml", "[[node]]\nid = \"home1\"\niri = \"http://example.org/home1\"\nload = [\"plan.ttl\"]\n");
+  const std::string state = (tmp_ / "state").string();
+  Outcome up = run({"up", (tmp_ / "home.toml").string(), "--state", state});
+  ASSERT_EQ(up.status, 0) << up.err;
+  const std::string store = state + "/home1";
+  Outcome sub = run({"subscribe", store, "--agent", "ui", "--area", kNodeIri + "/room/hall", "-p", "sosa:hasSimpleResult"});
+  ASSERT_EQ(sub.status, 0) << sub.err;
+  ASSERT_EQ(run({"put", store, "--persistent", "--format", "nt"}, move_mote1_to("POINT(5 2)")).status, 0);
+  bool followed = false;  // the keeper polls every 100 ms
+  for (int i = 0; i < 100 && !followed; ++i) {
+    followed = run({"list", store, "-p", "tv:source", "-o", kNodeIri + "/mote1"}).out.find("mote1") != std::string::npos;
+    if (!followed) std::this_thread::sleep_for(std::chrono::milliseconds(50));
+  }
+  EXPECT_TRUE(followed) << slurp(tmp_ / "state" / "logs" / "supervisor.log");
+  ASSERT_EQ(run({"put", store, "--agent", "mote1", "--format", "ttl"}, kReading).status, 0);
+  Outcome take = run({"take", store, "--agent", "ui", "--timeout", "2000", "--format", "nt"});
+  EXPECT_EQ(take.status, 0) << take.err;
+  EXPECT_EQ(lines_of(take.out).size(), 1u) << take.out;
+  EXPECT_EQ(run({"down", "--state", state}).status, 0);
+}
+
+}  // namespace

@@ -80,11 +80,13 @@ class AreaKeeper {
   // Waits up to `wait` for a change; returns the sync's report when it synced.
   Result<std::optional<AreaSyncReport>> poll(std::chrono::milliseconds wait = std::chrono::milliseconds(0));
 
+  // Syncs now, whatever changed.
+  Result<AreaSyncReport> sync();
+
   const std::string& iri() const { return node_.iri(); }
 
  private:
   AreaKeeper(node::Node node, node::Agent agent) : node_(std::move(node)), agent_(std::move(agent)) {}
-  Result<AreaSyncReport> sync();
 
   node::Node node_;
   node::Agent agent_;
