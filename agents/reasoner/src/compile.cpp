@@ -11,6 +11,7 @@
 #include <algorithm>
 #include <functional>
 #include <map>
+#include <optional>
 #include <set>
 
 #include "program.h"
@@ -77,27 +78,104 @@ void bind_vars(const Literal& l, VarSet& bound) {
   for (std::uint32_t v : binds) bound[v] = true;
 }
 
+// A comparison that bounds a variable V (program.h, RangeBound): V's side is V plus or minus
+// terms without V; `needs` are the variables of the other side and of those terms, which must be
+// bound before the atom that binds V for the bound to be known there.
+struct RangeCandidate {
+  std::uint32_t var = 0;
+  RangeBound bound;
+  std::vector<std::uint32_t> needs;
+};
+
+bool mentions(const Expr& e, std::uint32_t var) {
+  std::vector<std::uint32_t> vars;
+  expr_vars(e, vars);
+  return std::find(vars.begin(), vars.end(), var) != vars.end();
+}
+
+// V when `e` is V + t1 - t2 ... with no t mentioning V (the terms go to `offsets`), else nothing.
+std::optional<std::uint32_t> peel(const Expr& e, std::vector<std::pair<bool, Expr>>& offsets) {
+  if (e.kind == Expr::arg) return e.leaf.is_var ? std::optional(e.leaf.index) : std::nullopt;
+  if (e.kind != Expr::add && e.kind != Expr::sub) return std::nullopt;
+  std::vector<std::pair<bool, Expr>> mine = offsets;
+  if (auto v = peel(*e.a, mine); v && !mentions(*e.b, *v)) {
+    mine.emplace_back(e.kind == Expr::sub, *e.b);
+    offsets = std::move(mine);
+    return v;
+  }
+  if (e.kind == Expr::sub) return std::nullopt;  // t - V: V with a negative sign
+  mine = offsets;
+  if (auto v = peel(*e.b, mine); v && !mentions(*e.a, *v)) {
+    mine.emplace_back(false, *e.a);
+    offsets = std::move(mine);
+    return v;
+  }
+  return std::nullopt;
+}
+
+std::vector<RangeCandidate> range_candidates(const Rule& rule) {
+  std::vector<RangeCandidate> out;
+  for (const Literal& l : rule.body) {
+    if (l.kind != Literal::compare || l.op == Literal::ne) continue;
+    const bool below = l.op == Literal::lt || l.op == Literal::le || l.op == Literal::eq;  // lhs =< rhs
+    const bool above = l.op == Literal::gt || l.op == Literal::ge || l.op == Literal::eq;  // lhs >= rhs
+    for (int side = 0; side < 2; ++side) {
+      const Expr& mine = side == 0 ? l.lhs : l.rhs;
+      const Expr& other = side == 0 ? l.rhs : l.lhs;
+      RangeCandidate c;
+      auto v = peel(mine, c.bound.offsets);
+      if (!v || mentions(other, *v)) continue;
+      c.var = *v;
+      c.bound.other = other;
+      c.bound.upper = side == 0 ? below : above;
+      c.bound.lower = side == 0 ? above : below;
+      expr_vars(other, c.needs);
+      for (const auto& [subtracted, term] : c.bound.offsets) expr_vars(term, c.needs);
+      out.push_back(std::move(c));
+    }
+  }
+  return out;
+}
+
+// The sides (0, 1 or 2) from which comparisons runnable under `bound` bound `var`.
+int range_sides(std::uint32_t var, const std::vector<RangeCandidate>& ranges, const VarSet& bound) {
+  bool lower = false, upper = false;
+  for (const RangeCandidate& c : ranges) {
+    if (c.var != var || !std::all_of(c.needs.begin(), c.needs.end(), [&](std::uint32_t v) { return bound[v]; }))
+      continue;
+    lower |= c.bound.lower;
+    upper |= c.bound.upper;
+  }
+  return int{lower} + int{upper};
+}
+
+// How bound an atom is: a fully bound atom is a lookup; a bound variable or constant follows an
+// index; a variable that comparisons bound is a scan of part of a sorted index — a window
+// (both sides, such as a time window) counts for more than a lone constant, a half-open range
+// (H > 90) for less than a window, neither for as much as an equality.
+int boundness(const Literal& l, const VarSet& bound, const std::vector<RangeCandidate>& ranges) {
+  int vars = 0, consts = 0, total = 0, ranged = 0;
+  for (std::size_t i = 0; i < l.args.size(); ++i) {
+    const Arg& a = l.args[i];
+    if (l.pred == kAnyBinary && i == 1) continue;  // the predicate picks the relation
+    ++total;
+    if (!a.is_var) ++consts;
+    else if (bound[a.index]) ++vars;
+    else if (l.pred != kAnyBinary) ranged = std::max(ranged, range_sides(a.index, ranges, bound));
+  }
+  return (vars + consts == total ? 1000 : 0) + 10 * vars + 3 * ranged + consts;
+}
+
 // An evaluation order of `body` following `preference`: filters (built-ins, negations) as soon
 // as their variables are bound, atoms in preference order. Error names the literal that can
 // never run and its unbound variable.
 // With `greedy`, atoms after the first go by how bound they are (a fully bound atom is a
 // lookup; an atom sharing a bound variable follows an index rather than starting a cross
-// product), ties in preference order: the orders of delta rounds, where the written order was
-// made for another first literal.
-int boundness(const Literal& l, const VarSet& bound) {
-  int vars = 0, consts = 0, total = 0;
-  for (const Arg& a : l.args) {
-    if (l.pred == kAnyBinary && &a == &l.args[1]) continue;  // the predicate picks the relation
-    ++total;
-    if (!a.is_var) ++consts;
-    else if (bound[a.index]) ++vars;
-  }
-  return (vars + consts == total ? 1000 : 0) + 10 * vars + consts;
-}
-
+// product; a variable that a comparison bounds is a range scan), ties in preference order.
 Result<std::vector<std::uint32_t>> plan(const Program& program, const Rule& rule,
                                         std::vector<std::uint32_t> preference, VarSet bound,
                                         bool greedy = false) {
+  const std::vector<RangeCandidate> ranges = range_candidates(rule);
   std::vector<std::uint32_t> order;
   while (!preference.empty()) {
     auto pick = std::find_if(preference.begin(), preference.end(), [&](std::uint32_t i) {
@@ -110,7 +188,7 @@ Result<std::vector<std::uint32_t>> plan(const Program& program, const Rule& rule
         int best = -1;
         for (auto it = preference.begin(); it != preference.end(); ++it) {
           if (rule.body[*it].kind != Literal::atom) continue;
-          int score = boundness(rule.body[*it], bound);
+          int score = boundness(rule.body[*it], bound, ranges);
           if (score > best) { best = score; pick = it; }
         }
       }
@@ -283,6 +361,32 @@ Result<void> add_demand_rules(Program& program, const std::map<std::uint32_t, De
   return {};
 }
 
+// Per step of `order`: the argument of the atom there that a comparison bounds, when the
+// comparison's other variables are bound by the steps before (`bound`: those bound on entry).
+std::vector<RangeScan> range_scans(const Rule& rule, const std::vector<std::uint32_t>& order, VarSet bound) {
+  const std::vector<RangeCandidate> candidates = range_candidates(rule);
+  std::vector<RangeScan> scans(order.size());
+  for (std::size_t k = 0; k < order.size(); ++k) {
+    const Literal& l = rule.body[order[k]];
+    if (l.kind == Literal::atom && l.pred != kAnyBinary) {
+      for (std::size_t i = 0; i < l.args.size() && scans[k].position < 0; ++i) {
+        const Arg& a = l.args[i];
+        if (!a.is_var || bound[a.index]) continue;
+        for (const RangeCandidate& c : candidates) {
+          if (c.var != a.index || !std::all_of(c.needs.begin(), c.needs.end(), [&](std::uint32_t v) { return bound[v]; }))
+            continue;
+          scans[k].position = static_cast<int>(i);
+          scans[k].bounds.push_back(c.bound);
+        }
+      }
+    }
+    bind_vars(l, bound);
+    if (l.kind == Literal::negation)  // the first step of a negation plan, read as positive
+      for (const Arg& a : l.args) if (a.is_var) bound[a.index] = true;
+  }
+  return scans;
+}
+
 std::uint32_t ready_step(const Rule& rule, const std::vector<std::uint32_t>& order) {
   VarSet bound(rule.vars, false);
   auto head_bound = [&] {
@@ -300,7 +404,7 @@ Result<void> make_plans(Program& program) {
   for (Rule& rule : program.rules) {
     std::vector<std::uint32_t> written(rule.body.size());
     for (std::uint32_t i = 0; i < written.size(); ++i) written[i] = i;
-    auto full = plan(program, rule, written, VarSet(rule.vars, false));
+    auto full = plan(program, rule, written, VarSet(rule.vars, false), true);
     if (!full) return unexpected(full.error());
     VarSet bound(rule.vars, false);
     for (std::uint32_t i : *full) bind_vars(rule.body[i], bound);
@@ -320,9 +424,14 @@ Result<void> make_plans(Program& program) {
       rule.kth_atom.push_back(k);
     }
     rule.ready.clear();
-    for (const auto& order : rule.plans) rule.ready.push_back(ready_step(rule, order));
+    rule.plan_ranges.clear();
+    for (const auto& order : rule.plans) {
+      rule.ready.push_back(ready_step(rule, order));
+      rule.plan_ranges.push_back(range_scans(rule, order, VarSet(rule.vars, false)));
+    }
     rule.neg_plans.clear();
     rule.neg_literal.clear();
+    rule.neg_plan_ranges.clear();
     for (std::uint32_t k = 0; k < rule.body.size(); ++k) {
       if (rule.body[k].kind != Literal::negation) continue;
       VarSet bound(rule.vars, false);
@@ -332,6 +441,7 @@ Result<void> make_plans(Program& program) {
       auto order = plan(program, rule, rest, bound, true);
       if (!order) return unexpected(order.error());
       order->insert(order->begin(), k);
+      rule.neg_plan_ranges.push_back(range_scans(rule, *order, VarSet(rule.vars, false)));
       rule.neg_plans.push_back(std::move(*order));
       rule.neg_literal.push_back(k);
     }

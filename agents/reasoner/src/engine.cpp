@@ -11,6 +11,7 @@
 // or using `now` is recomputed: its derived flags are cleared and it runs to the fixpoint again;
 // what differs from before is what changed.
 #include <algorithm>
+#include <cmath>
 #include <cstdio>
 #include <cstring>
 #include <deque>
@@ -137,6 +138,35 @@ struct Index {
   }
 };
 
+// The place of a number or time on one line, for sorted indexes: integers and reals as
+// themselves, times as seconds since the epoch, as compare_values compares them. The map is
+// monotone (a value that compares >= another never has a smaller key), though not one to one
+// (integers beyond 2^53, times closer than a few ns share keys): a range of keys holds every
+// value in the range of values, and the comparison itself, still in the rule, decides.
+bool sort_key(const Value& v, double& key) {
+  switch (v.kind) {
+    case Value::integer: key = static_cast<double>(v.i); return true;
+    case Value::real: key = v.d; return true;
+    case Value::time: key = static_cast<double>(v.i) / 1e9; return true;
+    default: return false;
+  }
+}
+
+// Rows by the values of the bound positions `mask` (their index_key), then by the key of the
+// value at `column`; rows whose value there is not a number or time are left out (no
+// comparison holds on them). Rows are added to the index when it is next used.
+struct SortedIndex {
+  struct Entry {
+    std::uint64_t eq;
+    double key;
+    std::uint32_t row;
+    bool operator<(const Entry& o) const { return eq != o.eq ? eq < o.eq : key < o.key; }
+  };
+  std::uint32_t mask = 0, column = 0;
+  std::uint32_t rows_seen = 0;
+  std::vector<Entry> entries;
+};
+
 constexpr std::uint8_t kTouched = 0x80, kWasAlive = 1, kWasDerived = 2;
 
 struct Relation {
@@ -190,6 +220,30 @@ struct Relation {
     ix.next.reserve(size());
     for (std::uint32_t r = 0; r < size(); ++r) link(ix, r);
     return ix;
+  }
+  std::deque<SortedIndex> sorted;  // stable references, as indexes
+  // The sorted index on `column` under the bound positions `mask`, brought up to date: the
+  // rows added since its last use are sorted and merged in. Existing entries only move right,
+  // so a walk by position that this update interrupts skips none of them (it may see one twice).
+  const SortedIndex& sorted_index(std::uint32_t mask, std::uint32_t column, const Dict& dict) {
+    SortedIndex* sx = nullptr;
+    for (SortedIndex& s : sorted) if (s.mask == mask && s.column == column) sx = &s;
+    if (!sx) {
+      sx = &sorted.emplace_back();
+      sx->mask = mask;
+      sx->column = column;
+    }
+    if (sx->rows_seen == size()) return *sx;
+    const std::size_t old = sx->entries.size();
+    for (std::uint32_t r = sx->rows_seen; r < size(); ++r) {
+      double key;
+      if (!sort_key(dict.value(row(r)[column]), key)) continue;
+      sx->entries.push_back({mask ? index_key(row(r), arity, mask) : 0, key, r});
+    }
+    sx->rows_seen = size();
+    std::sort(sx->entries.begin() + static_cast<long>(old), sx->entries.end());
+    std::inplace_merge(sx->entries.begin(), sx->entries.begin() + static_cast<long>(old), sx->entries.end());
+    return *sx;
   }
   void touch(std::uint32_t r) {
     if (mark[r]) return;
@@ -291,7 +345,9 @@ class RuleRun {
           const std::vector<std::vector<std::uint32_t>>* delta, std::vector<std::vector<std::uint32_t>>& out)
       : e_(e), rule_(rule), plan_(plan), delta_(delta), out_(out), bind_(rule.vars, 0) {
     for (std::size_t i = 0; i < rule.plans.size(); ++i)
-      if (&rule.plans[i] == &plan) ready_ = rule.ready[i];
+      if (&rule.plans[i] == &plan) { ready_ = rule.ready[i]; ranges_ = &rule.plan_ranges[i]; }
+    for (std::size_t i = 0; i < rule.neg_plans.size(); ++i)
+      if (&rule.neg_plans[i] == &plan) ranges_ = &rule.neg_plan_ranges[i];
   }
 
   void run() { step(0); }
@@ -315,6 +371,9 @@ class RuleRun {
   void step(std::size_t k);
   void atom(const Literal& l, std::size_t k);
   void match_rel(const Literal& l, const Arg* args, std::uint32_t rel, std::size_t k, bool only_delta);
+  void match_range(const RangeScan& scan, const Arg* args, Relation& R, const Id* probe, std::uint32_t mask,
+                   std::size_t k);
+  bool range_of(const RangeScan& scan, double& lo, double& hi);
   bool try_row(const Arg* args, std::uint32_t n, const Id* row, std::size_t k);
   bool holds(const Literal& l);
   Value eval(const Expr& x);
@@ -327,6 +386,7 @@ class RuleRun {
   std::vector<std::vector<std::uint32_t>>& out_;
   std::vector<Id> bind_;
   std::size_t ready_ = ~std::size_t{0};
+  const std::vector<RangeScan>* ranges_ = nullptr;  // per step of plan_
   bool cut_ = false;  // the head is derived: unwind to the step where its variables were bound
   bool neg_first_ = false, skip_neg_ = false;
   std::vector<std::vector<Id>>* collect_ = nullptr;
@@ -414,6 +474,12 @@ void RuleRun<E>::match_rel(const Literal& l, const Arg* args, std::uint32_t rel,
     if (r != kNone && R.alive(r)) step(k + 1);
     return;
   }
+  // A range scan unless the bounded argument is bound already (run_bound binds head variables
+  // the plan did not expect bound).
+  if (ranges_ && (*ranges_)[k].position >= 0 && !(mask & (1u << (*ranges_)[k].position))) {
+    match_range((*ranges_)[k], args, R, probe, mask, k);
+    return;
+  }
   if (mask == 0) {
     for (std::uint32_t r = 0; r < R.size() && !cut_; ++r) if (R.alive(r)) try_row(args, n, R.row(r), k);
     return;
@@ -421,6 +487,49 @@ void RuleRun<E>::match_rel(const Literal& l, const Arg* args, std::uint32_t rel,
   const Index& ix = R.index(mask);
   for (std::uint32_t r = ix.first(index_key(probe, n, mask)); r != kNone && !cut_; r = ix.next[r]) {
     if (R.alive(r)) try_row(args, n, R.row(r), k);
+  }
+}
+
+// The keys (sort_key) between which the bounded argument's value must lie for every comparison
+// of `scan` to hold, widened by more than the rounding of the arithmetic (a range of keys is a
+// superset: the comparisons decide). False when no value can satisfy them (an undefined bound:
+// the comparison fails on every row).
+template <class E>
+bool RuleRun<E>::range_of(const RangeScan& scan, double& lo, double& hi) {
+  lo = -HUGE_VAL;
+  hi = HUGE_VAL;
+  for (const RangeBound& b : scan.bounds) {
+    double key, term;
+    if (!sort_key(eval(b.other), key)) return false;
+    double scale = std::fabs(key);
+    for (const auto& [subtracted, x] : b.offsets) {  // V + t op other: V op other - t
+      if (!sort_key(eval(x), term)) return false;
+      key += subtracted ? term : -term;
+      scale += std::fabs(term);
+    }
+    const double slack = scale * 1e-12 + 1e-6;
+    if (b.lower) lo = std::max(lo, key - slack);
+    if (b.upper) hi = std::min(hi, key + slack);
+  }
+  return lo <= hi;
+}
+
+template <class E>
+void RuleRun<E>::match_range(const RangeScan& scan, const Arg* args, Relation& R, const Id* probe,
+                             std::uint32_t mask, std::size_t k) {
+  double lo, hi;
+  if (!range_of(scan, lo, hi)) return;
+  const auto column = static_cast<std::uint32_t>(scan.position);
+  const SortedIndex& sx = R.sorted_index(mask, column, e_.dict);
+  const std::uint64_t eq = mask ? index_key(probe, R.arity, mask) : 0;
+  using Entry = SortedIndex::Entry;
+  std::size_t at = static_cast<std::size_t>(
+      std::lower_bound(sx.entries.begin(), sx.entries.end(), Entry{eq, lo, 0}) - sx.entries.begin());
+  // By position, re-reading the vector: a step below may merge new rows into this index.
+  for (; at < sx.entries.size() && !cut_; ++at) {
+    const Entry en = sx.entries[at];
+    if (en.eq != eq || en.key > hi) break;
+    if (R.alive(en.row)) try_row(args, R.arity, R.row(en.row), k);
   }
 }
 

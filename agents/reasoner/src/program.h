@@ -52,6 +52,22 @@ struct Literal {
   Pos pos;
 };
 
+// A bound on the values of one argument of an atom, taken from a comparison of the body:
+// `V + o1 - o2 ... op other` (V alone on one side, plus or minus terms that do not contain it)
+// bounds V by other - o1 + o2 ... (docs/reasoner.md, "Range scans"). The comparison stays in the
+// body and is checked on every row; the bound only narrows which rows are tried.
+struct RangeBound {
+  bool lower = false, upper = false;  // V >= bound, V =< bound (strict comparisons widened)
+  Expr other;
+  std::vector<std::pair<bool, Expr>> offsets;  // (subtracted, term) of V's side
+};
+
+// The argument of an atom read through a sorted index, and its bounds (position -1: none).
+struct RangeScan {
+  int position = -1;
+  std::vector<RangeBound> bounds;
+};
+
 struct Pred {
   std::string iri;       // user predicates: the IRI; internal ones: a descriptive name
   std::uint32_t arity = 0;
@@ -67,7 +83,8 @@ struct Rule {
   std::vector<std::string> var_names;
   bool uses_now = false;
   Pos pos;
-  // Evaluation orders: plans[0] the full body (naive round); plans[1 + k] starts with the k-th
+  // Evaluation orders: plans[0] the full body (naive round: its first atom as written, then
+  // the most bound atom at each step); plans[1 + k] starts with the k-th
   // positive atom of the body (the delta literal of a semi-naive round), kth_atom[k] its index.
   std::vector<std::vector<std::uint32_t>> plans;
   std::vector<std::uint32_t> kth_atom;
@@ -79,6 +96,8 @@ struct Rule {
   // gained), for finding the conclusions a growing negated relation may take away.
   std::vector<std::vector<std::uint32_t>> neg_plans;
   std::vector<std::uint32_t> neg_literal;
+  // Per plan (and per negation plan), per step: the range scan of the atom at that step.
+  std::vector<std::vector<RangeScan>> plan_ranges, neg_plan_ranges;
 };
 
 struct Stratum {
