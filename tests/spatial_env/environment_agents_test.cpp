@@ -2,11 +2,13 @@
 // plan (deploy/floorplans/home.ttl) loaded with `tahvel put`, sensing subscriptions written on
 // the board, tahvel-env-motes run over one hour of virtual time, then tahvel-environment
 // --once at chosen times. Checks: motes sense only what a subscription asks for, in its area, at
-// its period, for its duration, and faster while the threshold rule holds; a room's quantity
+// its period, for its duration, and faster while the threshold rule holds; a room's motes take
+// turns; a room's quantity
 // with no reading within the valid time is "unknown" (the test).
 #include <stdlib.h>
 #include <sys/wait.h>
 
+#include <algorithm>
 #include <filesystem>
 #include <map>
 
@@ -135,6 +137,25 @@ TEST_F(EnvironmentAgents, MotesSenseWhatWhereAndHowOftenSubscriptionsAsk) {
     }
     EXPECT_GT(fast, 0u) << mote;
   }
+}
+
+// The network decides which motes answer (Paper 3 §5): the living room has two light motes;
+// the room gets one reading per period, from each mote in turn, not one from each.
+TEST_F(EnvironmentAgents, OneMoteAtATimeAnswersForARoomAndTheMotesTakeTurns) {
+  subscribe("living-light", Quantity::light, "living", 300, 0);
+  simulate_one_hour();
+  auto all = readings();
+  const auto& one = all[{"mote-living-1", Quantity::light}];
+  const auto& two = all[{"mote-living-2", Quantity::light}];
+  EXPECT_EQ(one.size(), 6u);
+  EXPECT_EQ(two.size(), 6u);
+  std::vector<std::int64_t> times;
+  for (const auto* list : {&one, &two})
+    for (const Reading& r : *list) times.push_back(r.at_ns);
+  std::sort(times.begin(), times.end());
+  ASSERT_EQ(times.size(), 12u);
+  for (std::size_t i = 0; i < times.size(); ++i) EXPECT_EQ(times[i], kT0 + static_cast<std::int64_t>(i) * 300 * kS);
+  for (std::size_t i = 1; i < one.size(); ++i) EXPECT_EQ(one[i].at_ns - one[i - 1].at_ns, 600 * kS);
 }
 
 TEST_F(EnvironmentAgents, ARoomWithNoFreshReadingShowsUnknown) {

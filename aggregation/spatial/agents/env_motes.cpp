@@ -1,10 +1,11 @@
 // tahvel-env-motes: a simulator of the environment motes of a home (temperature, humidity,
 // light, PIR movement) placed on the floor plan of the board, honouring sensing subscriptions
-// as Paper 3 §5 describes them: a mote senses a quantity only while a subscription for that
-// quantity covers the room it stands in, at the subscription's period (its maximum age), or at
-// the rule's shorter period while its last reading is above the rule's threshold, until the
-// subscription's duration ends. Where several subscriptions cover one mote and quantity, the
-// shortest period applies. The motes are the point features with tv:senses (vocabulary:
+// as Paper 3 §5 describes them: a quantity is sensed in a room only while a subscription for it
+// covers the room, at the subscription's period (its maximum age), or at the rule's shorter
+// period while the last reading is above the rule's threshold, until the subscription's
+// duration ends. Where several subscriptions cover one room and quantity, the shortest period
+// applies. The network decides which motes answer: every PIR mote of the room for movement,
+// and for the other quantities one capable mote per reading, in turn. The motes are the point features with tv:senses (vocabulary:
 // docs/vocabulary.md, "Spatial"); the board is re-read each step, so moved motes and new
 // subscriptions apply from the next step.
 //
@@ -19,6 +20,7 @@
 #include <chrono>
 #include <cmath>
 #include <functional>
+#include <limits>
 #include <algorithm>
 #include <map>
 #include <optional>
@@ -59,33 +61,70 @@ class Simulator {
     auto capabilities = sp::read_capabilities(*snapshot);
     if (!capabilities) return error(capabilities.error().message);
     for (const std::string& problem : subscriptions->problems) warn_once(problem);
-    // The period of every (mote, quantity) some active subscription asks for.
-    std::map<std::pair<std::string, sp::Quantity>, double> due;
+    // Which motes answer is the network's decision (Paper 3 §5: "the actual nodes that are going
+    // to provide the requested data are determined in the WSN"). Movement: every PIR mote of the
+    // room, each watching its own part of it (the movement level counts their detections). The
+    // other quantities: one reading per room and period, from the capable motes of the room in
+    // turn, the one that answered least recently first — the room gets its reading at the period
+    // asked, and the motes share the battery cost.
+    std::map<std::pair<std::string, sp::Quantity>, double> each_due;   // (mote, movement)
+    std::map<std::pair<std::string, sp::Quantity>, RoomDue> room_due;  // (room, quantity)
     for (const sp::SensingSubscription& s : subscriptions->subscriptions) {
       if (!s.active_at(now_ns)) continue;
       if (!board->plan.room(s.area)) {
         warn_once(s.iri + ": no room " + s.area + " on the board");
         continue;
       }
+      std::vector<std::string> capable;
       for (const std::string& mote : board->plan.sensors_in_room(s.area)) {
         auto caps = capabilities->find(mote);
         if (caps == capabilities->end()) continue;
-        if (std::find(caps->second.begin(), caps->second.end(), s.quantity) == caps->second.end()) continue;
-        auto key = std::make_pair(mote, s.quantity);
+        if (std::find(caps->second.begin(), caps->second.end(), s.quantity) != caps->second.end())
+          capable.push_back(mote);
+      }
+      if (capable.empty()) {
+        warn_once(s.iri + ": no mote in " + s.area + " senses " + sp::quantity_name(s.quantity));
+        continue;
+      }
+      auto ask = [&](auto& due, const std::pair<std::string, sp::Quantity>& key) -> double& {
         std::optional<double> last;
         if (auto it = last_value_.find(key); it != last_value_.end()) last = it->second;
         double period = sp::sensing_period_s(s, last);
-        auto [it, inserted] = due.emplace(key, period);
-        if (!inserted) it->second = std::min(it->second, period);
+        auto [it, inserted] = due.try_emplace(key);
+        auto& slot = period_of(it->second);
+        slot = inserted ? period : std::min(slot, period);
+        return slot;
+      };
+      if (s.quantity == sp::Quantity::movement) {
+        for (const std::string& mote : capable) ask(each_due, {mote, s.quantity});
+      } else {
+        std::pair<std::string, sp::Quantity> key{s.area, s.quantity};
+        ask(room_due, key);
+        room_due[key].motes = std::move(capable);
       }
     }
-    for (const auto& [key, period_s] : due) {
-      auto last = last_time_.find(key);
-      if (last != last_time_.end() && now_ns - last->second < static_cast<std::int64_t>(period_s * 1e9)) continue;
+    for (const auto& [key, period_s] : each_due) {
+      if (!is_due(key, period_s, now_ns)) continue;
       sp::Reading r{key.second, sense(key.first, key.second, now_ns), now_ns};
       if (!write(key.first, r)) return false;
       last_time_[key] = now_ns;
       last_value_[key] = r.value;
+    }
+    for (const auto& [key, due] : room_due) {
+      if (!is_due(key, due.period_s, now_ns)) continue;
+      const std::string* mote = &due.motes.front();
+      for (const std::string& m : due.motes) {
+        auto answered = [&](const std::string& x) {
+          auto it = last_answered_.find({x, key.second});
+          return it == last_answered_.end() ? std::numeric_limits<std::int64_t>::min() : it->second;
+        };
+        if (answered(m) < answered(*mote)) mote = &m;
+      }
+      sp::Reading r{key.second, sense(*mote, key.second, now_ns), now_ns};
+      if (!write(*mote, r)) return false;
+      last_time_[key] = now_ns;
+      last_value_[key] = r.value;
+      last_answered_[{*mote, key.second}] = now_ns;
     }
     return true;
   }
@@ -142,11 +181,25 @@ class Simulator {
     return true;
   }
 
+  struct RoomDue {
+    double period_s = 0;
+    std::vector<std::string> motes;  // capable motes of the room, sorted
+  };
+  static double& period_of(double& period) { return period; }
+  static double& period_of(RoomDue& due) { return due.period_s; }
+
+  bool is_due(const std::pair<std::string, sp::Quantity>& key, double period_s, std::int64_t now_ns) const {
+    auto last = last_time_.find(key);
+    return last == last_time_.end() || now_ns - last->second >= static_cast<std::int64_t>(period_s * 1e9);
+  }
+
   tn::Node& node_;
   std::mt19937 rng_;
   std::map<std::string, tn::Agent> agents_;
   std::map<std::pair<std::string, sp::Quantity>, std::int64_t> last_time_;
+  // Keyed by (mote, movement) for PIR, by (room, quantity) for the others.
   std::map<std::pair<std::string, sp::Quantity>, double> last_value_;
+  std::map<std::pair<std::string, sp::Quantity>, std::int64_t> last_answered_;  // (mote, quantity)
   std::set<std::string> warned_;
   std::uint64_t written_ = 0;
 };
