@@ -9,6 +9,7 @@
 #include <random>
 #include <set>
 #include <sstream>
+#include <tuple>
 
 #include "tahvel/agents/rules.h"
 
@@ -255,6 +256,119 @@ TEST(Rules, IncrementalEqualsFromScratchOnRandomData) {
     scratch.apply(held, {}, 0);
     ASSERT_EQ(strings(incremental.conclusions()), strings(scratch.conclusions())) << "round " << round;
   }
+}
+
+// Range scans (a comparison bounds the variable an atom binds: a sorted index is read over the
+// bounded window) against a naive model that tries every pair: time windows, offsets on either
+// side, =:=, a constant bound, a window under an equality-bound argument, and values of every
+// kind (integers, decimals, times compared with numbers as seconds, strings that no comparison
+// accepts), through random insertions and removals applied session by session.
+struct ModelValue {
+  enum Kind { none, number, time } kind = none;
+  double x = 0;
+};
+ModelValue model_add(ModelValue a, ModelValue b) {
+  if (a.kind == ModelValue::none || b.kind == ModelValue::none) return {};
+  if (a.kind == ModelValue::time && b.kind == ModelValue::time) return {};
+  return {a.kind == ModelValue::time || b.kind == ModelValue::time ? ModelValue::time : ModelValue::number, a.x + b.x};
+}
+ModelValue model_sub(ModelValue a, ModelValue b) {
+  if (a.kind == ModelValue::none || b.kind == ModelValue::none) return {};
+  if (a.kind == ModelValue::number && b.kind == ModelValue::time) return {};
+  return {a.kind == ModelValue::time && b.kind == ModelValue::number ? ModelValue::time : ModelValue::number, a.x - b.x};
+}
+ModelValue num(double x) { return {ModelValue::number, x}; }
+bool defined(ModelValue a, ModelValue b) { return a.kind != ModelValue::none && b.kind != ModelValue::none; }
+
+TEST(Rules, RangeScansEqualANaiveModelOnRandomData) {
+  auto program = parse(
+      "win(X, E) :- at(X, T), ev(E, TE), lesstime(TE, T), TE >= T - 10.\n"
+      "near(X, Y) :- at(X, T), at(Y, U), U + 2 >= T, U - 2 =< T.\n"
+      "same(X, Y) :- at(X, T), ev(Y, U), U =:= T.\n"
+      "big(X) :- at(X, T), T > 40.\n"
+      "far(X, E) :- ev(E, TE), at(X, T), T - TE > 7, 5 + TE < T + 0.5.\n"
+      "r3(G, X, V) :- grp(X, G), at(X, V).\n"
+      "cg(G, X, Y) :- r3(G, X, V), r3(G, Y, W), W >= V - 3, W =< V + 3.\n");
+  ASSERT_TRUE(program);
+  std::mt19937 rng(5150);
+  // Values k in [0, 60): integer k, decimal k.5, the time k seconds after the epoch, or a string.
+  auto value = [&](ModelValue& m) {
+    const int k = static_cast<int>(rng() % 60);
+    char buf[32];
+    switch (rng() % 5) {
+      case 0: case 1: m = num(k); return tn::Term::integer(k);
+      case 2: m = num(k + 0.5); return tn::Term::literal(std::to_string(k) + ".5", std::string(tn::xsd::kDecimal));
+      case 3:
+        m = {ModelValue::time, static_cast<double>(k)};
+        std::snprintf(buf, sizeof buf, "1970-01-01T00:00:%02dZ", k);
+        return tn::Term::literal(buf, std::string(tn::xsd::kDateTime));
+      default: m = {}; return tn::Term::literal(std::to_string(k));
+    }
+  };
+  std::size_t checked = 0;
+  for (int round = 0; round < 30; ++round) {
+    tr::Engine incremental(program);
+    std::vector<std::pair<tn::Triple, ModelValue>> held;  // with the value of the object
+    for (int session = 0; session < 12; ++session) {
+      std::vector<tn::Triple> in, out;
+      for (int i = 0, adds = 1 + static_cast<int>(rng() % 10); i < adds; ++i) {
+        ModelValue m;
+        const std::string s = "s" + std::to_string(rng() % 15);
+        switch (rng() % 5) {
+          case 0: case 1: { tn::Term v = value(m); held.push_back({tl(s, "at", v), m}); break; }
+          case 2: case 3: { tn::Term v = value(m); held.push_back({tl(s, "ev", v), m}); break; }
+          default: held.push_back({t(s, "grp", "g" + std::to_string(rng() % 3)), {}});
+        }
+        in.push_back(held.back().first);
+      }
+      for (int i = 0, removes = round % 3 == 0 ? 0 : static_cast<int>(rng() % 4); i < removes && !held.empty(); ++i) {
+        std::size_t k = rng() % held.size();
+        out.push_back(held[k].first);
+        held.erase(held.begin() + static_cast<long>(k));
+      }
+      incremental.apply(in, out, 0);
+    }
+    // The model: every pair of held facts, the comparisons as written, on seconds.
+    std::set<std::string> expected;
+    auto add = [&](const std::string& p, std::vector<tn::Term> args) { expected.insert(tr::Atom{kNs + p, std::move(args)}.to_string()); };
+    auto of = [&](const char* p) {
+      std::vector<std::pair<tn::Term, ModelValue>> out;
+      for (const auto& [f, m] : held) if (f.p == n(p)) out.push_back({f.s, m});
+      return out;
+    };
+    const auto at = of("at"), ev = of("ev");
+    std::vector<std::pair<tn::Term, tn::Term>> grp;
+    for (const auto& [f, m] : held) if (f.p == n("grp")) grp.push_back({f.s, f.o});
+    for (const auto& [x, T] : at) {
+      if (T.kind != ModelValue::none && T.x > 40) add("big", {x});
+      for (const auto& [e, TE] : ev) {
+        if (defined(TE, T) && TE.x < T.x && model_sub(T, num(10)).x <= TE.x) add("win", {x, e});
+        if (defined(TE, T) && TE.x == T.x) add("same", {x, e});
+        ModelValue d = model_sub(T, TE), l = model_add(num(5), TE), r = model_add(T, num(0.5));
+        if (defined(d, d) && d.x > 7 && defined(l, r) && l.x < r.x) add("far", {x, e});
+      }
+      for (const auto& [y, U] : at) {
+        ModelValue hi = model_add(U, num(2)), lo = model_sub(U, num(2));
+        if (defined(hi, T) && defined(lo, T) && hi.x >= T.x && lo.x <= T.x) add("near", {x, y});
+      }
+    }
+    // r3 holds the value of each at fact of a grouped subject; cg pairs them within a group.
+    std::vector<std::tuple<tn::Term, tn::Term, tn::Term, ModelValue>> r3;  // g, x, value term, value
+    for (const auto& [x, g] : grp)
+      for (const auto& [f, m] : held)
+        if (f.p == n("at") && f.s == x) r3.push_back({g, x, f.o, m});
+    for (const auto& [g, x, vt, v] : r3) {
+      add("r3", {g, x, vt});
+      for (const auto& [g2, y, wt, w] : r3) {
+        if (g2 != g || !defined(v, w)) continue;
+        ModelValue lo = model_sub(v, num(3)), hi = model_add(v, num(3));
+        if (defined(lo, hi) && w.x >= lo.x && w.x <= hi.x) add("cg", {g, x, y});
+      }
+    }
+    ASSERT_EQ(strings(incremental.conclusions()), expected) << "round " << round;
+    checked += expected.size();
+  }
+  EXPECT_GT(checked, 3000u);  // the rules do fire on this data
 }
 
 // The parser on mutated rule files: never a crash, and every error names the file, a line and a
