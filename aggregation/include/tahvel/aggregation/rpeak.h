@@ -4,18 +4,20 @@
 // after a long silence). Tuned for ambulatory ECG sampled at 100–1000 Hz, fed in chunks of any
 // size by an agent; it runs well above 10 M samples/s on one core (docs/rpeak.md).
 //
-// Output: absolute sample indices (0 = first sample pushed) of the R wave of each detected beat,
-// in increasing order. Each is the dominant extremum of the original signal from 50 ms before to
-// 30 ms after the band-passed QRS, of the lead's usual polarity unless the other is twice as
-// large, so beats of one morphology share a fiducial point (on MIT-BIH, 90 % within −28…+6 ms
-// of the reference annotation, median 0; EC57 scoring allows 150 ms).
+// Output: absolute sample indices (0 = first sample pushed) of the fiducial point of each
+// detected beat, in increasing order: the centre (centroid of the squared deviation from the
+// local baseline, over ±42 ms) of the QRS's main deflection, which is the dominant extremum of
+// the original signal within ±60 ms of the band-passed QRS, of the lead's usual polarity unless
+// the other is 1.5 times as large. Beats of one morphology thus share a fiducial point to the
+// sample, which RR intervals and HRV need (on MIT-BIH the point lies within a sample of the
+// reference annotation for most records; EC57 scoring allows 150 ms). docs/rpeak.md, step 3.
 //
 // Determinism: the detector is a per-sample state machine; every decision uses only samples
 // already pushed, so the peaks reported are IDENTICAL whatever the chunking of the input.
 // Memory: three history rings of at least 4 s of samples, allocated at construction.
 // Latency: the beats of the first `relearn_s` seconds (8) are reported once the thresholds are
 // learned, at the end of those seconds. After that, a beat is reported at most
-// `decision_delay_samples()` samples after the stream passed it (461 ms with the defaults:
+// `decision_delay_samples()` samples after the stream passed it (514 ms with the defaults:
 // fiducial shift, band-pass delay, integration window, peak release and the 200 ms hold), unless
 // ever larger candidates keep arriving; a beat found by search-back is reported when the search
 // fires, 1.5 median RR after the previous beat. finish() reports the candidate still held.
