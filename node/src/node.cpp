@@ -306,6 +306,47 @@ Result<std::vector<std::uint64_t>> Agent::store_all(const std::vector<Item>& ite
   }
 }
 
+Result<std::vector<std::uint64_t>> Agent::replace(const std::vector<Pattern>& removals,
+                                                  const std::vector<Item>& items) noexcept {
+  try {
+    for (const Pattern& p : removals) {
+      if (!p.s && !p.p && !p.o && !p.context && !p.source)
+        return fail(Errc::invalid_argument, "refusing to remove with an empty pattern; name a subject, predicate, object, context or source");
+    }
+    for (std::size_t i = 0; i < items.size(); ++i) {
+      if (auto v = validate_item(items[i], impl_->env->settings()); !v)
+        return unexpected(items.size() == 1 ? v.error() : with_context(v.error(), "item " + std::to_string(i + 1)));
+    }
+    std::vector<std::uint64_t> ids;
+    auto written = impl_->env->write([&](Txn& txn) -> Result<void> {
+      ids.clear();
+      Query query(txn.raw(), txn.env());
+      for (const Pattern& p : removals) {
+        auto gone = query.collect(p, ListOptions{0, 0});
+        if (!gone) return unexpected(gone.error());
+        for (std::uint64_t id : *gone) {
+          auto exists = get_record(txn.raw(), txn.env(), id);
+          if (!exists) return unexpected(exists.error());
+          if (!*exists) continue;  // matched by an earlier pattern too
+          if (auto d = delete_record(txn, id, Removal::explicit_removal); !d) return d;
+        }
+      }
+      for (std::size_t i = 0; i < items.size(); ++i) {
+        auto id = insert_item(txn, items[i], impl_->iri);
+        if (!id) return unexpected(items.size() == 1 ? id.error() : with_context(id.error(), "item " + std::to_string(i + 1)));
+        ids.push_back(*id);
+      }
+      auto reclaimed = apply_retention(txn);
+      if (!reclaimed) return unexpected(reclaimed.error());
+      return {};
+    });
+    if (!written) return unexpected(written.error());
+    return ids;
+  } catch (const std::bad_alloc&) {
+    return fail(Errc::io, "out of memory while replacing");
+  }
+}
+
 Result<std::optional<Delivery>> Agent::take(std::chrono::milliseconds timeout, Ack ack) noexcept {
   try {
     const auto deadline = std::chrono::steady_clock::now() + timeout;

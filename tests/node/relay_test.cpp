@@ -68,6 +68,53 @@ TEST(Source, SubscriptionWithSourceGetsOnlyItemsOfThatWriterOrOfWritersUnderIt) 
   EXPECT_EQ(bad.error().code, Errc::invalid_iri);
 }
 
+// A room's state or a reasoner's conclusions are replaced, not removed then stored: a reader
+// must never find neither the old records nor the new.
+TEST(Replace, RemovesAndStoresInOneTransactionOrDoesNothing) {
+  TempDir dir;
+  InitOptions options;
+  options.max_literal_bytes = 64;
+  Node node = make_node(dir.path(), options);
+  Agent env = node.agent("environment").value();
+  Agent ui = node.agent("ui").value();
+  ASSERT_TRUE(ui.subscribe({.p = ex("temperature")}));
+  Item old_state;
+  old_state.add(ex("bedroom"), ex("temperature"), Term::integer(20));
+  ASSERT_TRUE(env.store(old_state));
+  ASSERT_TRUE(ui.take(0ms).value());
+  const std::uint64_t before = node.snapshot().value().last_seq();
+
+  Item new_state;
+  new_state.add(ex("bedroom"), ex("temperature"), Term::integer(21));
+  auto replaced = env.replace({{.s = ex("bedroom"), .p = ex("temperature")}}, {new_state});
+  ASSERT_TRUE(replaced.has_value()) << replaced.error().message;
+  ASSERT_EQ(replaced->size(), 1u);
+  auto now = node.snapshot().value().list({.s = ex("bedroom")}).value();
+  ASSERT_EQ(now.size(), 1u);
+  EXPECT_EQ(now[0].triple.o.value, "21");
+  // One commit: the change stream has the removal and the new record, and the new item is
+  // routed like any stored item.
+  auto changes = node.watch(before, 0ms).value();
+  ASSERT_EQ(changes.size(), 2u);
+  EXPECT_TRUE(changes[0].removed);
+  EXPECT_FALSE(changes[1].removed);
+  auto delivered = ui.take(0ms).value();
+  ASSERT_TRUE(delivered.has_value());
+  EXPECT_EQ(delivered->item, (*replaced)[0]);
+
+  // A new item that is refused leaves the old records in place.
+  Item too_large;
+  too_large.add(ex("bedroom"), ex("temperature"), Term::literal(std::string(100, 'x')));
+  auto refused = env.replace({{.s = ex("bedroom")}}, {too_large});
+  ASSERT_FALSE(refused.has_value());
+  EXPECT_EQ(refused.error().code, Errc::literal_too_large);
+  EXPECT_EQ(node.snapshot().value().list({.s = ex("bedroom")}).value().size(), 1u);
+  // A removal pattern with nothing bound is refused, as Node::remove refuses it.
+  auto empty = env.replace({Pattern{}}, {new_state});
+  ASSERT_FALSE(empty.has_value());
+  EXPECT_EQ(empty.error().code, Errc::invalid_argument);
+}
+
 TEST(Context, ItemAddressedToAnAgentLandsInItsInputBufferWithoutSubscription) {
   TempDir dir;
   Node node = make_node(dir.path());

@@ -13,7 +13,7 @@
 // woken by every reading (it subscribes to sosa:madeBySensor) and at least every --interval-s
 // (default 60: values turn "unknown" by the clock, with no reading to wake it), until
 // SIGINT/SIGTERM or --idle S seconds without a reading. Each update replaces the rooms'
-// environment items (remove, then store: a reader may briefly see none).
+// environment items (all rooms in one transaction: a reader never sees a room without one).
 #include <chrono>
 #include <map>
 
@@ -57,17 +57,22 @@ std::optional<std::string> update(rt::Session& session, std::int64_t now_ns, dou
     if (!mote) continue;  // a reading of a mote that is not on the plan
     for (const std::string& room : board->plan.rooms_at(mote->at, mote->floor)) aggregator.add(room, r.reading);
   }
+  // Every room's state replaced in one transaction: a reader sees the previous states or the
+  // new ones, never a room without its state.
+  std::vector<tn::Pattern> old_states;
+  std::vector<tn::Item> new_states;
   for (const std::string& room : rooms) {
     sp::RoomEnvironment env = aggregator.environment(room, now_ns, valid_s);
     tn::Pattern old_item, old_link;
     old_item.s = tn::Term::iri(sp::environment_iri(room));
     old_link.s = tn::Term::iri(room);
     old_link.p = tn::Term::iri(kTvEnvironment);
-    if (auto removed = session.node.remove(old_item); !removed) return removed.error().message;
-    if (auto removed = session.node.remove(old_link); !removed) return removed.error().message;
-    if (auto stored = session.agent.store(sp::environment_item(room, env, now_ns, valid_s)); !stored) {
-      return "environment of " + room + ": " + stored.error().message;
-    }
+    old_states.push_back(std::move(old_item));
+    old_states.push_back(std::move(old_link));
+    new_states.push_back(sp::environment_item(room, env, now_ns, valid_s));
+  }
+  if (auto stored = session.agent.replace(old_states, new_states); !stored) {
+    return "room environments: " + stored.error().message;
   }
   return std::nullopt;
 }

@@ -169,6 +169,14 @@ class Agent {
   // Stores many items in one transaction (bulk load). Returns their ids in order.
   Result<std::vector<std::uint64_t>> store_all(const std::vector<Item>& items) noexcept;
 
+  // Removes the records matching each of `removals` (as Node::remove with cascade 0) and stores
+  // `items` (as store_all), in one transaction: a reader sees the old records or the new ones,
+  // never neither (a room's state, a reasoner's conclusions). Either list may be empty. Returns
+  // the ids of the items stored. Errors: those of store_all; invalid_argument for a removal
+  // pattern with nothing bound. On error nothing is removed or stored.
+  Result<std::vector<std::uint64_t>> replace(const std::vector<Pattern>& removals,
+                                             const std::vector<Item>& items) noexcept;
+
   // The oldest item in this agent's input buffer, waiting up to `timeout` for one to arrive
   // (woken by the writer's commit, no polling). Returns nullopt on timeout. An item removed from
   // the store before it was taken is skipped.
