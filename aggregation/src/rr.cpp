@@ -195,7 +195,13 @@ bool NnClassifier::step(std::vector<Interval>& decided) {
     }
     short_run_.clear();
     if (sustained) {
-      hist_.assign(1, r);
+      // The reference restarts from the new rhythm: the long interval and the k that confirmed
+      // it. From the long interval alone the median would sit at that one value, and in sinus
+      // arrhythmia the next shorter intervals were all rejected as premature until
+      // rebase_beats of them agreed (113, 115 on MIT-BIH).
+      hist_.clear();
+      for (std::size_t j = 0; j <= k; ++j) hist_.push_back(pending_[j].rr);
+      while (hist_.size() > size_t_of(rule_.reference_beats)) hist_.pop_front();
       diffs_.clear();
     }
     decide(sustained, decided);

@@ -84,7 +84,10 @@ class ModelRule {
     short_run_.clear();
     if (!continuous && r > (1 + tol_long) * ref) {
       if (sustained(i, tol_long)) {
-        hist_.assign(1, r);
+        const std::size_t k = size_t_of(rule_.sustained_beats);
+        hist_.assign(rr_.begin() + static_cast<std::ptrdiff_t>(i),
+                     rr_.begin() + static_cast<std::ptrdiff_t>(i + k + 1));
+        while (hist_.size() > size_t_of(rule_.reference_beats)) hist_.pop_front();
         diffs_.clear();
         ok_[i] = true;
       }

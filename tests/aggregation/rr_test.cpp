@@ -106,6 +106,19 @@ TEST(DetectedRule, SustainedFastRunIsExcludedThenAdopted) {
   EXPECT_TRUE(iv.back().nn);  // after rebase_beats short intervals the run is the new rhythm
 }
 
+// Sinus arrhythmia after a slower rhythm sets in: the reference restarts from the long
+// interval and the ones that confirmed it, so the shorter beats of the new rhythm are not
+// taken for premature beats. (Restarted from the long interval alone, the reference after
+// 600, 540 was 570, and the 500 was rejected as premature, with the 540 after it.)
+TEST(DetectedRule, IrregularSlowerRhythmIsAdoptedWhole) {
+  std::vector<int> rr(20, 400);
+  const int cycle[] = {600, 540, 500, 540};  // a breathing cycle of four beats
+  for (int i = 0; i < 40; ++i) rr.push_back(cycle[i % 4]);
+  const auto iv = intervals_from_peaks(peaks_from_rr(rr), 360);
+  ASSERT_EQ(iv.size(), rr.size());
+  for (std::size_t i = 20; i < iv.size(); ++i) EXPECT_TRUE(iv[i].nn) << "interval " << i;
+}
+
 TEST(DetectedRule, ExcludedRangesApply) {
   const std::vector<int> rr(20, 300);
   const auto peaks = peaks_from_rr(rr);

@@ -65,7 +65,7 @@ std::vector<Interval> reference_intervals(const std::vector<Beat>& beats,
 //    reference restarts from them (a sustained rate change);
 //  - longer than (1 + tol_long) * ref: a missed beat or pause, not NN, unless the next
 //    sustained_beats intervals stay within tol_long / 2 of it (a new rhythm), which restarts
-//    the reference;
+//    the reference from it and those sustained_beats intervals;
 //  - shorter than (1 - tol_prem) * ref and followed by one longer than (1 + tol_prem) * ref:
 //    a premature beat with its compensatory pause; both are not NN.
 // Whatever the comparison, an interval longer than max_interval_s or overlapping an excluded
