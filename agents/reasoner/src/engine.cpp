@@ -100,6 +100,8 @@ class Dict {
 // --- relations --------------------------------------------------------------------------------
 
 std::uint64_t hash_ids(const Id* t, std::uint32_t n) {
+  // Pairs (every triple's relation) in one mix: the lookups of fully bound atoms hash them.
+  if (n == 2) return mix64((static_cast<std::uint64_t>(t[0]) << 32 | t[1]) ^ 0x9e3779b97f4a7c15ull);
   std::uint64_t h = 0x9e3779b97f4a7c15ull ^ n;
   for (std::uint32_t i = 0; i < n; ++i) h = mix64(h ^ t[i]) + i;
   return mix64(h);
@@ -169,6 +171,9 @@ struct SortedIndex {
 
 constexpr std::uint8_t kTouched = 0x80, kWasAlive = 1, kWasDerived = 2;
 
+// Rows under the bound arguments up to which a chain is walked rather than a range searched.
+constexpr int kShortChain = 16;
+
 struct Relation {
   std::uint32_t arity = 0;
   Id pred_iri = 0;        // binary relations: the predicate's term id
@@ -187,10 +192,18 @@ struct Relation {
   bool alive(std::uint32_t r) const { return base[r] > 0 || derived[r]; }
 
   bool same(std::uint32_t r, const Id* t) const {  // arity 0: one row, data() may be null
+    if (arity == 2) return row(r)[0] == t[0] && row(r)[1] == t[1];
     return arity == 0 || std::memcmp(row(r), t, arity * sizeof(Id)) == 0;
   }
   std::uint32_t find(const Id* t) const {
     return rows.find(hash_ids(t, arity), [&](std::uint32_t r) { return same(r, t); });
+  }
+  // find for the lookups of fully bound atoms, which mostly miss (is this timestamp's subject a
+  // movement event?): the direct index on the first argument answers most misses with one load.
+  std::uint32_t probe(const Id* t) {
+    if (arity == 0) return find(t);
+    if (index(1).first(t[0]) == kNone) return kNone;
+    return find(t);
   }
   std::uint32_t ensure(const Id* t) {
     std::uint64_t h = hash_ids(t, arity);
@@ -377,6 +390,7 @@ class RuleRun {
   bool try_row(const Arg* args, std::uint32_t n, const Id* row, std::size_t k);
   bool holds(const Literal& l);
   Value eval(const Expr& x);
+  Value small_eval(const Expr& x);
   void emit();
 
   EngineImpl& e_;
@@ -392,6 +406,22 @@ class RuleRun {
   std::vector<std::vector<Id>>* collect_ = nullptr;
   void step_literal(std::size_t k);
 };
+
+// eval without the call for the forms of window bounds (T - 600, T + D): integer leaves, inline.
+template <class E>
+Value RuleRun<E>::small_eval(const Expr& x) {
+  if (x.kind == Expr::arg) { Id id = arg(x.leaf); return id ? e_.dict.value(id) : Value{}; }
+  if ((x.kind == Expr::add || x.kind == Expr::sub) && x.a->kind == Expr::arg && x.b->kind == Expr::arg) {
+    Id ia = arg(x.a->leaf), ib = arg(x.b->leaf);
+    if (ia && ib) {
+      const Value& a = e_.dict.value(ia);
+      const Value& b = e_.dict.value(ib);
+      if (a.kind == Value::integer && b.kind == Value::integer)
+        return Value{Value::integer, x.kind == Expr::add ? a.i + b.i : a.i - b.i, 0};
+    }
+  }
+  return eval(x);
+}
 
 template <class E>
 Value RuleRun<E>::eval(const Expr& x) {
@@ -470,13 +500,15 @@ void RuleRun<E>::match_rel(const Literal& l, const Arg* args, std::uint32_t rel,
   }
   (void)l;
   if (mask == (1u << n) - 1) {
-    std::uint32_t r = R.find(probe);
+    std::uint32_t r = R.probe(probe);
     if (r != kNone && R.alive(r)) step(k + 1);
     return;
   }
   // A range scan unless the bounded argument is bound already (run_bound binds head variables
-  // the plan did not expect bound).
-  if (ranges_ && (*ranges_)[k].position >= 0 && !(mask & (1u << (*ranges_)[k].position))) {
+  // the plan did not expect bound) or the rows under the bound arguments are few: then
+  // following them is cheaper than a binary search (a sample's one heart rate).
+  const bool ranged = ranges_ && (*ranges_)[k].position >= 0 && !(mask & (1u << (*ranges_)[k].position));
+  if (ranged && mask == 0) {
     match_range((*ranges_)[k], args, R, probe, mask, k);
     return;
   }
@@ -485,7 +517,16 @@ void RuleRun<E>::match_rel(const Literal& l, const Arg* args, std::uint32_t rel,
     return;
   }
   const Index& ix = R.index(mask);
-  for (std::uint32_t r = ix.first(index_key(probe, n, mask)); r != kNone && !cut_; r = ix.next[r]) {
+  const std::uint32_t head = ix.first(index_key(probe, n, mask));
+  if (ranged) {
+    std::uint32_t r = head;
+    for (int seen = 0; r != kNone && seen < kShortChain; ++seen) r = ix.next[r];
+    if (r != kNone) {
+      match_range((*ranges_)[k], args, R, probe, mask, k);
+      return;
+    }
+  }
+  for (std::uint32_t r = head; r != kNone && !cut_; r = ix.next[r]) {
     if (R.alive(r)) try_row(args, n, R.row(r), k);
   }
 }
@@ -586,8 +627,8 @@ bool RuleRun<E>::holds(const Literal& l) {
         rel = e_.rel_of_pred[l.pred];
         for (std::size_t i = 0; i < l.args.size(); ++i) tuple[i] = arg(l.args[i]);
       }
-      const Relation& R = e_.rels[rel];
-      std::uint32_t r = R.find(tuple);
+      Relation& R = e_.rels[rel];
+      std::uint32_t r = R.probe(tuple);
       return r == kNone || !R.alive(r);
     }
     case Literal::compare: {
@@ -597,7 +638,7 @@ bool RuleRun<E>::holds(const Literal& l) {
         const Value& b = e_.dict.value(arg(l.rhs.leaf));
         if (a.kind == Value::integer && b.kind == Value::integer) return compare_op(l.op, a.i < b.i ? -1 : (b.i < a.i ? 1 : 0));
       }
-      Value a = eval(l.lhs), b = eval(l.rhs);
+      Value a = small_eval(l.lhs), b = small_eval(l.rhs);
       if (a.kind == Value::integer && b.kind == Value::integer) return compare_op(l.op, a.i < b.i ? -1 : (b.i < a.i ? 1 : 0));
       auto c = compare_values(a, b);
       return c && compare_op(l.op, *c);
