@@ -92,15 +92,21 @@ class RPeakStage {
 
   // Feeds one chunk (lead 0), restarting the detector at a gap, and writes its R-peak item.
   rt::Outcome process(Stream& s, const agg::EcgChunk& chunk, bool catching_up) {
-    if (chunk.start_sample != s.next) {
-      rt::log_line(kProgram, "<" + s.info.iri + ">: gap from sample " + std::to_string(s.next) + " to " +
-                                 std::to_string(chunk.start_sample) + "; the detector restarts");
-      s.detector = agg::RPeakDetector(detector_options(s.info));
-      s.offset = chunk.start_sample;
-    }
     agg::RPeaks out;
     out.recording = s.info.iri;
     out.from_sample = chunk.start_sample;
+    if (chunk.start_sample != s.next) {
+      rt::log_line(kProgram, "<" + s.info.iri + ">: gap from sample " + std::to_string(s.next) + " to " +
+                                 std::to_string(chunk.start_sample) + "; the detector restarts");
+      // The old detector still holds the beats of its last half second (its decision delay);
+      // they belong to the signal before the gap, so they are released and go in this item
+      // (an item's peaks may lie before its from_sample) rather than being dropped.
+      std::vector<std::int64_t> held;
+      s.detector.finish(held);
+      for (auto p : held) out.peaks.push_back(p + s.offset);
+      s.detector = agg::RPeakDetector(detector_options(s.info));
+      s.offset = chunk.start_sample;
+    }
     std::vector<std::int64_t> found;
     s.detector.push(chunk.leads[0].data(), chunk.frames, found);
     for (auto p : found) out.peaks.push_back(p + s.offset);

@@ -441,7 +441,7 @@ TEST_F(PipelineTest, WindowChangeMidStreamAppliesFromTheNextWindow) {
 // [60 s, 61 s) missing. tahvel-rpeak logs the gap and restarts its detector at the next chunk:
 // no agent fails, R-peak items continue after the gap, none covers the missing second, and the
 // peaks on either side are those of a detector that saw only that side.
-TEST_F(PipelineTest, GapInTheChunksIsLoggedAndRestartsTheDetector) {
+TEST_F(PipelineTest, GapInTheChunksIsLoggedAndRestartsTheDetectorKeepingTheBeatsItHeld) {
   auto signals = agg::read_signals(record_);
   ASSERT_TRUE(signals) << signals.error().message;
   const auto& h = signals->header;
@@ -454,7 +454,9 @@ TEST_F(PipelineTest, GapInTheChunksIsLoggedAndRestartsTheDetector) {
   for (const auto& sig : h.signals) info.leads.push_back(sig.description);
   info.source = "mitdb/100";
   const auto fs = static_cast<std::int64_t>(std::llround(info.fs));
-  const std::int64_t seconds = 120, missing = 60;
+  // Second 45 is missing; record 100 has a beat 17 samples before it, which the detector still
+  // holds when the gap comes.
+  const std::int64_t seconds = 120, missing = 45;
   const std::int64_t gap_start = missing * fs, gap_end = gap_start + fs, end = seconds * fs;
   ASSERT_GE(static_cast<std::int64_t>(signals->samples[0].size()), end);
 
@@ -491,23 +493,31 @@ TEST_F(PipelineTest, GapInTheChunksIsLoggedAndRestartsTheDetector) {
     EXPECT_TRUE(item.to_sample <= gap_start || item.from_sample >= gap_end)
         << item.iri << " covers [" << item.from_sample << ", " << item.to_sample << ")";
     for (auto p : item.peaks) EXPECT_TRUE(p < gap_start || p >= gap_end) << item.iri << ": peak " << p;
-    auto& side = item.from_sample < gap_start ? before_gap : after_gap;
-    side.insert(side.end(), item.peaks.begin(), item.peaks.end());
+    // The beats held at the gap come in the first item after it, before its from_sample.
+    for (auto p : item.peaks) (p < gap_start ? before_gap : after_gap).push_back(p);
     if (item.from_sample >= gap_end) ++items_after;
   }
-  EXPECT_EQ(items_after, static_cast<std::size_t>(seconds - missing));  // 59 chunks and the end
+  EXPECT_EQ(items_after, static_cast<std::size_t>(seconds - missing));  // 74 chunks and the end
   EXPECT_EQ(items.back().end_sample, end);
 
-  // Each side as a detector that saw only that side, in the same one-second pushes.
+  std::sort(before_gap.begin(), before_gap.end());
+  std::sort(after_gap.begin(), after_gap.end());
+
+  // Each side as a detector that saw only that side, in the same one-second pushes and then
+  // finished: nothing the detector held at the gap is lost.
   agg::DetectorOptions options;
   options.fs = info.fs;
   options.gain = info.gain;
   const auto& lead = signals->samples[0];
   std::vector<std::int64_t> want_before, want_after;
+  std::size_t held_at_gap = 0;
   {
     agg::RPeakDetector detector(options);
     for (std::int64_t k = 0; k < missing; ++k)
-      detector.push(lead.data() + k * fs, static_cast<std::size_t>(fs), want_before);  // never finished
+      detector.push(lead.data() + k * fs, static_cast<std::size_t>(fs), want_before);
+    held_at_gap = want_before.size();
+    detector.finish(want_before);
+    held_at_gap = want_before.size() - held_at_gap;
   }
   {
     agg::RPeakDetector detector(options);
@@ -516,6 +526,7 @@ TEST_F(PipelineTest, GapInTheChunksIsLoggedAndRestartsTheDetector) {
     detector.finish(want_after);
     for (auto& p : want_after) p += gap_end;
   }
+  EXPECT_GE(held_at_gap, 1u);  // the case this checks: a beat was still held at the gap
   EXPECT_EQ(before_gap, want_before);
   EXPECT_EQ(after_gap, want_after);
   EXPECT_GT(after_gap.size(), 50u);  // record 100 beats about 75 per minute
