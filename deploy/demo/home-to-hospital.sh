@@ -3,7 +3,8 @@
 # network namespace (loopback only): ECG on the sensor nodes -> HRV at each home -> HRV at the
 # hospital; a window change from the hospital for one home; a query from the hospital for a time
 # range of home 2's raw ECG, which never left the home; a query by area for one room's
-# environment readings. Says what happens at each step.
+# environment readings; an area subscription that follows a moved mote. Says what happens at
+# each step.
 #
 #   deploy/demo/home-to-hospital.sh [build/bin]        (what `./run.sh demo` runs)
 #
@@ -95,5 +96,16 @@ grep -v '^@prefix' "$work/bedroom.ttl" | grep -v '^$' | tail -n 6
 echo "   (the motes of the other rooms are not in the answer; the hospital holds none of these readings:" \
      "$(count "$state/hospital" -p sosa:hasSimpleResult) there)"
 
-say "6. Bring it down (the stores stay until this demo removes its directory)."
+say "6. At home1, a carer's display subscribes to the living room's readings: an area subscription, kept current by home1's area keeper."
+tahvel subscribe "$state/home1" --agent carer-display --area "$H/home1/room/living" -p sosa:hasSimpleResult
+echo "   The next reading from a living-room mote (movement is sensed every 10-60 s):"
+tahvel take "$state/home1" --agent carer-display --timeout 90000 --format ttl | grep -v '^@prefix' | grep -v '^$'
+follows() { [ "$(quiet list "$state/home1" -p tv:source -o "$H/home1/mote-living-1" | wc -l)" -eq "$1" ]; }
+echo "   Carry mote-living-1 into the kitchen (a new position is a new geo:asWKT record):"
+echo "<$H/home1/mote-living-1/geometry> <http://www.opengis.net/ont/geosparql#asWKT> \"POINT(7 1)\"^^<http://www.opengis.net/ont/geosparql#wktLiteral> ." >"$work/move.nt"
+tahvel put "$state/home1" --agent carer --persistent --format nt "$work/move.nt"
+wait_for 10 follows 0
+echo "   The keeper removed the display's subscription to that mote: its readings no longer reach the display."
+
+say "7. Bring it down (the stores stay until this demo removes its directory)."
 tahvel down --state "$state"
