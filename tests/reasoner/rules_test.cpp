@@ -288,7 +288,13 @@ TEST(Rules, RangeScansEqualANaiveModelOnRandomData) {
       "big(X) :- at(X, T), T > 40.\n"
       "far(X, E) :- ev(E, TE), at(X, T), T - TE > 7, 5 + TE < T + 0.5.\n"
       "r3(G, X, V) :- grp(X, G), at(X, V).\n"
-      "cg(G, X, Y) :- r3(G, X, V), r3(G, Y, W), W >= V - 3, W =< V + 3.\n");
+      "cg(G, X, Y) :- r3(G, X, V), r3(G, Y, W), W >= V - 3, W =< V + 3.\n"
+      // Independent runs (two atoms joined to the rest by comparisons only), kept once enumerated:
+      // the head's variable inside the run, outside it, no range, and under a negation that grows.
+      "wmove(X, E) :- at(X, T), ev(E, TE), grp(E, g1), lesstime(TE, T), TE >= T - 10.\n"
+      "anyev(X) :- at(X, T), ev(E, TE), grp(E, G), TE > T.\n"
+      "pairg(X) :- at(X, T), grp(Y, G), ev(Y, U), U \\== T.\n"
+      "calm(X, E) :- at(X, T), ev(E, TE), grp(E, G), TE >= T - 5, TE =< T, \\+ big(X).\n");
   ASSERT_TRUE(program);
   std::mt19937 rng(5150);
   // Values k in [0, 60): integer k, decimal k.5, the time k seconds after the epoch, or a string.
@@ -339,6 +345,33 @@ TEST(Rules, RangeScansEqualANaiveModelOnRandomData) {
     const auto at = of("at"), ev = of("ev");
     std::vector<std::pair<tn::Term, tn::Term>> grp;
     for (const auto& [f, m] : held) if (f.p == n("grp")) grp.push_back({f.s, f.o});
+    // The objects of the at and ev facts as terms (for \\==), and the grouped subjects.
+    auto object_of = [&](const char* p) {
+      std::vector<tn::Term> out;
+      for (const auto& [f, m] : held) if (f.p == n(p)) out.push_back(f.o);
+      return out;
+    };
+    const auto at_o = object_of("at"), ev_o = object_of("ev");
+    auto grouped = [&](const tn::Term& e, const char* g) {
+      for (const auto& [f, m] : held) if (f.p == n("grp") && f.s == e && (!g || f.o == n(g))) return true;
+      return false;
+    };
+    for (std::size_t i = 0; i < at.size(); ++i) {
+      const auto& [x, T] = at[i];
+      for (std::size_t j = 0; j < ev.size(); ++j) {
+        const auto& [e, TE] = ev[j];
+        if (!grouped(e, nullptr)) continue;
+        if (grouped(e, "g1") && defined(TE, T) && TE.x < T.x && model_sub(T, num(10)).x <= TE.x) add("wmove", {x, e});
+        if (defined(TE, T) && TE.x > T.x) add("anyev", {x});
+        if (ev_o[j] != at_o[i]) add("pairg", {x});
+        ModelValue lo = model_sub(T, num(5));
+        if (defined(TE, T) && lo.x <= TE.x && TE.x <= T.x) {
+          bool big_x = false;  // big(X) for any at fact of x
+          for (const auto& [x2, T2] : at) big_x |= x2 == x && T2.kind != ModelValue::none && T2.x > 40;
+          if (!big_x) add("calm", {x, e});
+        }
+      }
+    }
     for (const auto& [x, T] : at) {
       if (T.kind != ModelValue::none && T.x > 40) add("big", {x});
       for (const auto& [e, TE] : ev) {

@@ -387,6 +387,79 @@ std::vector<RangeScan> range_scans(const Rule& rule, const std::vector<std::uint
   return scans;
 }
 
+std::vector<std::uint32_t> literal_vars(const Literal& l) {
+  std::vector<std::uint32_t> out;
+  for (const Arg& a : l.args) if (a.is_var) out.push_back(a.index);
+  expr_vars(l.lhs, out);
+  expr_vars(l.rhs, out);
+  return out;
+}
+
+// Per step of `order`: the independent run (program.h, Memo) that starts there. A run starts at
+// an atom after the first step none of whose variables is bound yet, and goes on while the
+// steps are atoms joined to it by its own variables only, or filters (comparisons, negations,
+// ==, \==) on its variables and earlier ones; it needs two atoms.
+std::vector<Memo> independent_runs(const Rule& rule, const std::vector<std::uint32_t>& order, VarSet bound) {
+  std::vector<Memo> memos(order.size());
+  const std::vector<RangeCandidate> candidates = range_candidates(rule);
+  auto is_filter = [](const Literal& l) {
+    return l.kind == Literal::compare || l.kind == Literal::negation || l.kind == Literal::identical ||
+           l.kind == Literal::not_unify;
+  };
+  for (std::size_t k = 0; k < order.size();) {
+    const Literal& first = rule.body[order[k]];
+    const std::vector<std::uint32_t> first_vars = literal_vars(first);
+    bool starts = k > 0 && first.kind == Literal::atom && !first_vars.empty() &&
+                  std::none_of(first_vars.begin(), first_vars.end(), [&](std::uint32_t v) { return bound[v]; });
+    std::size_t end = k + 1, atoms = 1;
+    VarSet own(rule.vars, false);
+    for (std::uint32_t v : first_vars) own[v] = true;
+    std::vector<std::uint32_t> cross;
+    while (starts && end < order.size()) {
+      const Literal& l = rule.body[order[end]];
+      const std::vector<std::uint32_t> vars = literal_vars(l);
+      const bool outer = std::any_of(vars.begin(), vars.end(), [&](std::uint32_t v) { return bound[v]; });
+      const bool mine = std::any_of(vars.begin(), vars.end(), [&](std::uint32_t v) { return own[v]; });
+      if (l.kind == Literal::atom && mine && !outer) {
+        for (std::uint32_t v : vars) own[v] = true;
+        ++atoms;
+      } else if (is_filter(l) && mine) {
+        if (outer) cross.push_back(static_cast<std::uint32_t>(end));
+      } else {
+        break;
+      }
+      ++end;
+    }
+    if (!starts || atoms < 2) {
+      bind_vars(first, bound);
+      if (first.kind == Literal::negation)  // the first step of a negation plan, read as positive
+        for (const Arg& a : first.args) if (a.is_var) bound[a.index] = true;
+      ++k;
+      continue;
+    }
+    Memo& m = memos[k];
+    m.end = static_cast<std::uint32_t>(end);
+    m.cross = cross;
+    VarSet read(rule.vars, false);  // by the steps after the run, its cross filters and the head
+    for (std::size_t q = end; q < order.size(); ++q) for (std::uint32_t v : literal_vars(rule.body[order[q]])) read[v] = true;
+    for (std::uint32_t q : cross) for (std::uint32_t v : literal_vars(rule.body[order[q]])) read[v] = true;
+    for (const Arg& a : rule.head_args) if (a.is_var) read[a.index] = true;
+    for (std::uint32_t v = 0; v < rule.vars; ++v) if (own[v] && read[v]) m.exported.push_back(v);
+    for (std::size_t slot = 0; slot < m.exported.size() && m.range.position < 0; ++slot) {
+      for (const RangeCandidate& c : candidates) {
+        if (c.var != m.exported[slot] ||
+            !std::all_of(c.needs.begin(), c.needs.end(), [&](std::uint32_t v) { return bound[v]; }))
+          continue;
+        m.range.position = static_cast<int>(slot);
+        m.range.bounds.push_back(c.bound);
+      }
+    }
+    for (std::size_t q = k; q < end; ++q) bind_vars(rule.body[order[q]], bound);
+    k = end;
+  }
+  return memos;
+}
+
 std::uint32_t ready_step(const Rule& rule, const std::vector<std::uint32_t>& order) {
   VarSet bound(rule.vars, false);
   auto head_bound = [&] {
@@ -425,13 +498,16 @@ Result<void> make_plans(Program& program) {
     }
     rule.ready.clear();
     rule.plan_ranges.clear();
+    rule.plan_memos.clear();
     for (const auto& order : rule.plans) {
       rule.ready.push_back(ready_step(rule, order));
       rule.plan_ranges.push_back(range_scans(rule, order, VarSet(rule.vars, false)));
+      rule.plan_memos.push_back(independent_runs(rule, order, VarSet(rule.vars, false)));
     }
     rule.neg_plans.clear();
     rule.neg_literal.clear();
     rule.neg_plan_ranges.clear();
+    rule.neg_plan_memos.clear();
     for (std::uint32_t k = 0; k < rule.body.size(); ++k) {
       if (rule.body[k].kind != Literal::negation) continue;
       VarSet bound(rule.vars, false);
@@ -442,6 +518,7 @@ Result<void> make_plans(Program& program) {
       if (!order) return unexpected(order.error());
       order->insert(order->begin(), k);
       rule.neg_plan_ranges.push_back(range_scans(rule, *order, VarSet(rule.vars, false)));
+      rule.neg_plan_memos.push_back(independent_runs(rule, *order, VarSet(rule.vars, false)));
       rule.neg_plans.push_back(std::move(*order));
       rule.neg_literal.push_back(k);
     }

@@ -358,9 +358,15 @@ class RuleRun {
           const std::vector<std::vector<std::uint32_t>>* delta, std::vector<std::vector<std::uint32_t>>& out)
       : e_(e), rule_(rule), plan_(plan), delta_(delta), out_(out), bind_(rule.vars, 0) {
     for (std::size_t i = 0; i < rule.plans.size(); ++i)
-      if (&rule.plans[i] == &plan) { ready_ = rule.ready[i]; ranges_ = &rule.plan_ranges[i]; }
+      if (&rule.plans[i] == &plan) { ready_ = rule.ready[i]; ranges_ = &rule.plan_ranges[i]; memos_ = &rule.plan_memos[i]; }
     for (std::size_t i = 0; i < rule.neg_plans.size(); ++i)
-      if (&rule.neg_plans[i] == &plan) ranges_ = &rule.neg_plan_ranges[i];
+      if (&rule.neg_plans[i] == &plan) { ranges_ = &rule.neg_plan_ranges[i]; memos_ = &rule.neg_plan_memos[i]; }
+    if (memos_ && std::none_of(memos_->begin(), memos_->end(), [](const Memo& m) { return m.end != 0; })) memos_ = nullptr;
+    if (memos_) {
+      memo_state_.resize(plan.size());
+      cross_step_.assign(plan.size(), 0);
+      for (const Memo& m : *memos_) for (std::uint32_t q : m.cross) cross_step_[q] = 1;
+    }
   }
 
   void run() { step(0); }
@@ -387,6 +393,9 @@ class RuleRun {
   void match_range(const RangeScan& scan, const Arg* args, Relation& R, const Id* probe, std::uint32_t mask,
                    std::size_t k);
   bool range_of(const RangeScan& scan, double& lo, double& hi);
+  void memo_step(std::size_t k);
+  void memo_build(std::size_t k);
+  void memo_replay(std::size_t k);
   bool try_row(const Arg* args, std::uint32_t n, const Id* row, std::size_t k);
   bool holds(const Literal& l);
   Value eval(const Expr& x);
@@ -401,6 +410,19 @@ class RuleRun {
   std::vector<Id> bind_;
   std::size_t ready_ = ~std::size_t{0};
   const std::vector<RangeScan>* ranges_ = nullptr;  // per step of plan_
+  // Independent runs (program.h, Memo): per step, the bindings kept once enumerated.
+  struct MemoState {
+    std::uint32_t reaches = 0;
+    bool built = false;
+    std::vector<Id> rows;  // exported.size() ids per binding
+    std::vector<std::pair<double, std::uint32_t>> by_key;  // (sort_key, binding) with a range
+  };
+  const std::vector<Memo>* memos_ = nullptr;
+  std::vector<MemoState> memo_state_;
+  std::vector<std::uint8_t> cross_step_;  // steps that are cross filters of a run
+  std::size_t collect_at_ = ~std::size_t{0};  // while a run is enumerated: the step after it
+  MemoState* collecting_ = nullptr;
+  const Memo* collecting_spec_ = nullptr;
   bool cut_ = false;  // the head is derived: unwind to the step where its variables were bound
   bool neg_first_ = false, skip_neg_ = false;
   std::vector<std::vector<Id>>* collect_ = nullptr;
@@ -507,7 +529,8 @@ void RuleRun<E>::match_rel(const Literal& l, const Arg* args, std::uint32_t rel,
   // A range scan unless the bounded argument is bound already (run_bound binds head variables
   // the plan did not expect bound) or the rows under the bound arguments are few: then
   // following them is cheaper than a binary search (a sample's one heart rate).
-  const bool ranged = ranges_ && (*ranges_)[k].position >= 0 && !(mask & (1u << (*ranges_)[k].position));
+  const bool ranged = ranges_ && collecting_ == nullptr && (*ranges_)[k].position >= 0 &&
+                      !(mask & (1u << (*ranges_)[k].position));
   if (ranged && mask == 0) {
     match_range((*ranges_)[k], args, R, probe, mask, k);
     return;
@@ -651,13 +674,96 @@ bool RuleRun<E>::holds(const Literal& l) {
 
 template <class E>
 void RuleRun<E>::step(std::size_t k) {
+  if (k == collect_at_) {  // enumerating an independent run: keep its bindings
+    for (std::uint32_t v : collecting_spec_->exported) collecting_->rows.push_back(bind_[v]);
+    return;
+  }
   if (k == plan_.size()) {
     emit();
     cut_ = ready_ < plan_.size();
     return;
   }
-  step_literal(k);
+  if (memos_) {
+    if ((*memos_)[k].end && collecting_ == nullptr) {
+      memo_step(k);
+    } else if (cross_step_[k] && collecting_) {
+      step(k + 1);  // checked when the run's bindings are replayed
+    } else {
+      step_literal(k);
+    }
+  } else {
+    step_literal(k);
+  }
   if (k == ready_) cut_ = false;
+}
+
+// Rows a run's enumeration costs per outer binding (with its range scans) against enumerating
+// it once unconstrained: the run is kept from this many reaches on, so that a run reached once
+// or twice (a session's few new rows) stays a narrow nested scan.
+constexpr std::uint32_t kMemoAfterReaches = 8;
+
+template <class E>
+void RuleRun<E>::memo_step(std::size_t k) {
+  const Memo& spec = (*memos_)[k];
+  MemoState& m = memo_state_[k];
+  // A head variable bound by run_bound among the exported ones: enumerate in place.
+  bool prebound = std::any_of(spec.exported.begin(), spec.exported.end(), [&](std::uint32_t v) { return bind_[v] != 0; });
+  if (prebound || (!m.built && ++m.reaches < kMemoAfterReaches)) {
+    step_literal(k);
+    return;
+  }
+  if (!m.built) memo_build(k);
+  memo_replay(k);
+}
+
+// Enumerates the run without its cross filters and range scans (both read outer variables), its
+// bindings of the exported variables collected at its end.
+template <class E>
+void RuleRun<E>::memo_build(std::size_t k) {
+  const Memo& spec = (*memos_)[k];
+  MemoState& m = memo_state_[k];
+  collect_at_ = spec.end;
+  collecting_ = &m;
+  collecting_spec_ = &spec;
+  step_literal(k);
+  collect_at_ = ~std::size_t{0};
+  collecting_ = nullptr;
+  collecting_spec_ = nullptr;
+  m.built = true;
+  if (spec.range.position < 0) return;
+  const std::size_t width = spec.exported.size();
+  for (std::size_t i = 0; i * width < m.rows.size(); ++i) {
+    double key;
+    if (sort_key(e_.dict.value(m.rows[i * width + static_cast<std::size_t>(spec.range.position)]), key))
+      m.by_key.emplace_back(key, static_cast<std::uint32_t>(i));
+  }
+  std::sort(m.by_key.begin(), m.by_key.end());
+}
+
+template <class E>
+void RuleRun<E>::memo_replay(std::size_t k) {
+  const Memo& spec = (*memos_)[k];
+  MemoState& m = memo_state_[k];
+  const std::size_t width = spec.exported.size();
+  // A cut set below the run but above this step (the head's variables are bound inside the run)
+  // ends only that binding: each replayed binding is a different one.
+  const bool cut_inside = ready_ > k && ready_ <= spec.end;
+  auto visit = [&](std::size_t i) {
+    for (std::size_t s = 0; s < width; ++s) bind_[spec.exported[s]] = m.rows[i * width + s];
+    bool pass = true;
+    for (std::uint32_t q : spec.cross) if (!holds(rule_.body[plan_[q]])) { pass = false; break; }
+    if (pass) step(spec.end);
+    for (std::uint32_t v : spec.exported) bind_[v] = 0;
+    if (cut_inside) cut_ = false;
+  };
+  if (spec.range.position < 0) {
+    for (std::size_t i = 0; i * width < m.rows.size() && !cut_; ++i) visit(i);
+    return;
+  }
+  double lo, hi;
+  if (!range_of(spec.range, lo, hi)) return;
+  auto at = std::lower_bound(m.by_key.begin(), m.by_key.end(), std::pair<double, std::uint32_t>(lo, 0));
+  for (; at != m.by_key.end() && at->first <= hi && !cut_; ++at) visit(at->second);
 }
 
 template <class E>

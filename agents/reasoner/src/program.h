@@ -68,6 +68,20 @@ struct RangeScan {
   std::vector<RangeBound> bounds;
 };
 
+// A run of plan steps, from an atom that shares no variable with the steps before it, whose
+// atoms (two or more) are joined among themselves only: what they bind does not depend on the
+// bindings before the run, only whether those pass its `cross` filters (comparisons and
+// negations that also read earlier variables: a time window between the run's events and the
+// outer sample). The evaluator re-enumerates it per outer binding while that is cheap, then
+// keeps its bindings of `exported` once and replays them, through `range` when a comparison
+// bounds one of them (docs/reasoner.md, "Independent parts").
+struct Memo {
+  std::uint32_t end = 0;                // the step after the run; 0: no run starts here
+  std::vector<std::uint32_t> exported;  // its variables that later steps, cross filters or the head read
+  std::vector<std::uint32_t> cross;     // steps of its cross filters
+  RangeScan range;                      // position: index into exported
+};
+
 struct Pred {
   std::string iri;       // user predicates: the IRI; internal ones: a descriptive name
   std::uint32_t arity = 0;
@@ -98,6 +112,8 @@ struct Rule {
   std::vector<std::uint32_t> neg_literal;
   // Per plan (and per negation plan), per step: the range scan of the atom at that step.
   std::vector<std::vector<RangeScan>> plan_ranges, neg_plan_ranges;
+  // Per plan, per step: the independent run that starts there (Memo::end 0: none).
+  std::vector<std::vector<Memo>> plan_memos, neg_plan_memos;
 };
 
 struct Stratum {
