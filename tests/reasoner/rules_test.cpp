@@ -294,7 +294,9 @@ TEST(Rules, RangeScansEqualANaiveModelOnRandomData) {
       "wmove(X, E) :- at(X, T), ev(E, TE), grp(E, g1), lesstime(TE, T), TE >= T - 10.\n"
       "anyev(X) :- at(X, T), ev(E, TE), grp(E, G), TE > T.\n"
       "pairg(X) :- at(X, T), grp(Y, G), ev(Y, U), U \\== T.\n"
-      "calm(X, E) :- at(X, T), ev(E, TE), grp(E, G), TE >= T - 5, TE =< T, \\+ big(X).\n");
+      "calm(X, E) :- at(X, T), ev(E, TE), grp(E, G), TE >= T - 5, TE =< T, \\+ big(X).\n"
+      // A full round may start from the atom with fewer rows (here the window U > 55).
+      "hot(X, E) :- at(X, T), ev(E, U), U > 55, T =:= U.\n");
   ASSERT_TRUE(program);
   std::mt19937 rng(5150);
   // Values k in [0, 60): integer k, decimal k.5, the time k seconds after the epoch, or a string.
@@ -360,6 +362,7 @@ TEST(Rules, RangeScansEqualANaiveModelOnRandomData) {
       const auto& [x, T] = at[i];
       for (std::size_t j = 0; j < ev.size(); ++j) {
         const auto& [e, TE] = ev[j];
+        if (defined(TE, T) && TE.x > 55 && TE.x == T.x) add("hot", {x, e});
         if (!grouped(e, nullptr)) continue;
         if (grouped(e, "g1") && defined(TE, T) && TE.x < T.x && model_sub(T, num(10)).x <= TE.x) add("wmove", {x, e});
         if (defined(TE, T) && TE.x > T.x) add("anyev", {x});
