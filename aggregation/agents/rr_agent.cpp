@@ -93,7 +93,13 @@ class RrStage {
                                  std::to_string(p.from_sample) + "; the NN classifier restarts");
       s.classifier.finish(out.intervals);
     }
-    for (std::int64_t peak : p.peaks) s.classifier.push(peak, out.intervals);
+    // The detector's empty-gap evidence travels with the peaks, so the classifier decides as
+    // intervals_from_peaks does in `tahvel hrv`.
+    auto gap = p.empty_gap_ends.begin();
+    for (std::int64_t peak : p.peaks) {
+      while (gap != p.empty_gap_ends.end() && *gap < peak) ++gap;
+      s.classifier.push(peak, gap != p.empty_gap_ends.end() && *gap == peak, out.intervals);
+    }
     s.next = p.to_sample;
     s.read_since.push_back(p.iri);
     if (p.end_sample) {

@@ -15,8 +15,9 @@ Result<HrvReport> hrv_from_samples(const std::vector<std::int32_t>& samples, dou
   if (auto valid = validate(detector); !valid) return unexpected(valid.error());
   HrvReport report;
   report.fs = fs;
-  report.beats = detect_r_peaks(samples, detector);
-  report.intervals = intervals_from_peaks(report.beats, fs, options.nn);
+  Detection detection = detect_beats(samples, detector);
+  report.beats = std::move(detection.peaks);
+  report.intervals = intervals_from_peaks(report.beats, detection.empty_gap_ends, fs, options.nn);
   report.metrics = compute_hrv(report.intervals, fs, options.hrv);
   const double step = options.step_s > 0 ? options.step_s : options.window_s;
   report.windows = windowed_hrv(report.intervals, fs, options.window_s, step, options.hrv);

@@ -87,9 +87,9 @@ Result<void> validate(const DetectorOptions& o) {
       !positive(o.relearn_s) || !positive(o.searchback_rr))
     return fail("rpeak: integration_ms, hold_ms, twave_ms, relearn_s, searchback_rr must be > 0");
   if (!(o.threshold_fraction > 0 && o.threshold_fraction < 1) || !(o.searchback_fraction > 0) ||
-      !(o.twave_slope_ratio >= 0) || !(o.min_qrs_mv >= 0))
+      !(o.twave_slope_ratio >= 0) || !(o.min_qrs_mv >= 0) || !(o.empty_gap_fraction >= 0))
     return fail("rpeak: threshold_fraction must be in (0,1); searchback_fraction > 0; "
-                "twave_slope_ratio, min_qrs_mv >= 0");
+                "twave_slope_ratio, min_qrs_mv, empty_gap_fraction >= 0");
   // The history rings hold 2 s; longer windows would overrun them.
   if (!(o.relearn_s >= 1 && o.relearn_s <= 8))
     return fail("rpeak: relearn_s must be in [1, 8], got " + std::to_string(o.relearn_s));
@@ -103,6 +103,9 @@ class RPeakDetector::Impl {
   explicit Impl(const DetectorOptions& o);
   void push(const std::int32_t* s, std::size_t n, std::vector<std::int64_t>& out);
   void finish(std::vector<std::int64_t>& out);
+  // Where accept() appends the beats that end a confirmed empty gap (null: nowhere); set by
+  // the public calls for their duration.
+  std::vector<std::int64_t>* empty_gap_out_ = nullptr;
   // Beat to decision: the reported point can lie up to locate_half_ + centroid_half_ before the
   // band-passed point, which lags the QRS by the band-pass delay; the integrator peaks up to one
   // window later, is released up to 95 ms after that, then held.
@@ -137,6 +140,7 @@ class RPeakDetector::Impl {
   void accept(const Peak& p, std::vector<std::int64_t>& out);
   bool tick(std::int64_t now);
   bool baseline_shift(std::int64_t at) const;
+  bool empty_gap_before(std::int64_t at) const;
   std::int64_t fiducial(std::int64_t qrs, double& balance) const;
   std::int64_t locate(std::int64_t qrs) const;
   bool dominant_positive(double up, double down) const;
@@ -187,6 +191,11 @@ class RPeakDetector::Impl {
   double polarity_ = 0;  // running mean of the R-vs-S balance of recent beats, in [-1, 1]
   std::int64_t last_out_ = -1;
   bool finished_ = false;
+  // Every local maximum of the integrated slope (band-passed QRS point, height), newest at
+  // events_[(events_n_ - 1) % size]: the evidence that a gap between beats is empty. Up to
+  // ~30 maxima a second pass the 15 Hz low-pass, so 128 cover the 2 s gaps the NN rule keeps.
+  std::array<std::pair<std::int64_t, double>, 128> events_{};
+  std::size_t events_n_ = 0;
 };
 
 RPeakDetector::Impl::Impl(const DetectorOptions& o)
@@ -284,6 +293,10 @@ void RPeakDetector::Impl::on_fpeak(double height, std::int64_t at) {
     if (std::fabs(v) > best) best = std::fabs(v), best_at = i;
     max_slope = std::max(max_slope, slope(i));
   }
+  // Below the floor it is never a beat, but it still counts against an empty gap: a small
+  // missed QRS often lies there.
+  events_[events_n_++ % events_.size()] = {
+      std::max<std::int64_t>(0, best_at - std::llround(bp_delay_)), height};
   if (hi_v - lo_v < min_p2p_) return;  // below the noise floor: never a beat
   Peak p;
   p.height = height;
@@ -475,7 +488,27 @@ void RPeakDetector::Impl::unfile_noise(std::int64_t at) {
   noise_med_ = median8(noise_);
 }
 
+// Whether the gap before a beat accepted at `at` holds nothing QRS-like: every local maximum of
+// the integrated slope from twave_ after the previous beat (its T wave) to hold_ before this one
+// (this complex and its P wave) stayed below empty_gap_fraction of the QRS median. Only a
+// gap entirely covered by the event ring can be confirmed.
+bool RPeakDetector::Impl::empty_gap_before(std::int64_t at) const {
+  if (!have_qrs_ || !(o_.empty_gap_fraction > 0) || !(qrs_med_ > 0)) return false;
+  const std::int64_t from = last_qrs_ + twave_, to = at - hold_;
+  const double limit = o_.empty_gap_fraction * qrs_med_;
+  const std::size_t kept = std::min(events_n_, events_.size());
+  for (std::size_t k = 1; k <= kept; ++k) {
+    const auto& [when, height] = events_[(events_n_ - k) % events_.size()];
+    // Events are stored in the order of their integrator maxima, which may put a QRS point
+    // up to one window (plus margin) before that of an older event: stop only past that.
+    if (when + win_ + margin_ <= from) return true;
+    if (when > from && when < to && height >= limit) return false;
+  }
+  return events_n_ <= events_.size();  // the ring reaches back to the start of the stream
+}
+
 void RPeakDetector::Impl::accept(const Peak& p, std::vector<std::int64_t>& out) {
+  const bool empty_gap = empty_gap_before(p.at);
   shift_in(qrs_, p.height);
   qrs_med_ = median8(qrs_);
   if (have_qrs_) {
@@ -491,6 +524,7 @@ void RPeakDetector::Impl::accept(const Peak& p, std::vector<std::int64_t>& out) 
   second_peak_ = 0;
   if (p.beat > last_out_) {
     out.push_back(p.beat);
+    if (empty_gap && empty_gap_out_) empty_gap_out_->push_back(p.beat);
     last_out_ = p.beat;
   }
 }
@@ -553,6 +587,19 @@ void RPeakDetector::push(const std::int32_t* samples, std::size_t n,
   impl_->push(samples, n, peaks_out);
 }
 void RPeakDetector::finish(std::vector<std::int64_t>& peaks_out) { impl_->finish(peaks_out); }
+void RPeakDetector::push(const std::int32_t* samples, std::size_t n,
+                         std::vector<std::int64_t>& peaks_out,
+                         std::vector<std::int64_t>& empty_gap_out) {
+  impl_->empty_gap_out_ = &empty_gap_out;
+  impl_->push(samples, n, peaks_out);
+  impl_->empty_gap_out_ = nullptr;
+}
+void RPeakDetector::finish(std::vector<std::int64_t>& peaks_out,
+                           std::vector<std::int64_t>& empty_gap_out) {
+  impl_->empty_gap_out_ = &empty_gap_out;
+  impl_->finish(peaks_out);
+  impl_->empty_gap_out_ = nullptr;
+}
 std::int64_t RPeakDetector::decision_delay_samples() const noexcept { return impl_->delay(); }
 
 std::vector<std::int64_t> detect_r_peaks(const std::vector<std::int32_t>& samples,
@@ -562,6 +609,14 @@ std::vector<std::int64_t> detect_r_peaks(const std::vector<std::int32_t>& sample
   detector.push(samples.data(), samples.size(), peaks);
   detector.finish(peaks);
   return peaks;
+}
+
+Detection detect_beats(const std::vector<std::int32_t>& samples, const DetectorOptions& options) {
+  RPeakDetector detector(options);
+  Detection d;
+  detector.push(samples.data(), samples.size(), d.peaks, d.empty_gap_ends);
+  detector.finish(d.peaks, d.empty_gap_ends);
+  return d;
 }
 
 }  // namespace tahvel::aggregation

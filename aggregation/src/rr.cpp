@@ -83,6 +83,23 @@ std::vector<Interval> intervals_from_peaks(const std::vector<std::int64_t>& peak
   return out;
 }
 
+std::vector<Interval> intervals_from_peaks(const std::vector<std::int64_t>& peaks,
+                                           const std::vector<std::int64_t>& empty_gap_ends,
+                                           double fs, const NnRule& rule,
+                                           const std::vector<SampleRange>& excluded) {
+  std::vector<Interval> out;
+  if (peaks.size() < 2 || !(fs > 0)) return out;
+  out.reserve(peaks.size() - 1);
+  NnClassifier classifier(fs, rule, excluded);
+  auto gap = empty_gap_ends.begin();
+  for (const std::int64_t p : peaks) {
+    while (gap != empty_gap_ends.end() && *gap < p) ++gap;
+    classifier.push(p, gap != empty_gap_ends.end() && *gap == p, out);
+  }
+  classifier.finish(out);
+  return out;
+}
+
 // --- NnClassifier: the rule as a state machine over the RR stream ---------------------------
 //
 // The front of pending_ is the next interval to judge. Each judgement either decides it (and,
@@ -96,9 +113,13 @@ NnClassifier::NnClassifier(double fs, const NnRule& rule, std::vector<SampleRang
 }
 
 void NnClassifier::push(std::int64_t peak, std::vector<Interval>& decided) {
+  push(peak, false, decided);
+}
+
+void NnClassifier::push(std::int64_t peak, bool after_empty_gap, std::vector<Interval>& decided) {
   if (!(fs_ > 0)) return;
   if (has_last_) {
-    pending_.push_back({last_peak_, peak, static_cast<double>(peak - last_peak_)});
+    pending_.push_back({last_peak_, peak, static_cast<double>(peak - last_peak_), after_empty_gap});
     advance(decided);
   }
   has_last_ = true;
@@ -120,6 +141,8 @@ void NnClassifier::reset() {
   skip_next_ = false;
   prev_ok_ = false;
   prev_rr_ = 0;
+  prev_pause_ = false;
+  rebased_short_ = false;
   hist_.clear();
   diffs_.clear();
   short_run_.clear();
@@ -156,6 +179,7 @@ bool NnClassifier::seed() {
   diffs_.clear();
   if (!next.empty()) hist_.push_back(median_of(next));
   seed_pending_ = false;
+  rebased_short_ = false;
   return true;
 }
 
@@ -187,6 +211,16 @@ bool NnClassifier::step(std::vector<Interval>& decided) {
     return true;
   }
   if (!continuous && r > (1 + tol_long) * ref) {  // long: NN only if a new rhythm follows
+    if (confirmed_pause()) {
+      // A sinus pause or a blocked P wave: real intervals between normal beats, NN by the
+      // reference rule. Not a sinus interval either: it stays out of the reference and the
+      // spread, and the next interval is judged against the reference alone.
+      short_run_.clear();
+      decide(true, decided);
+      prev_ok_ = false;
+      prev_pause_ = true;
+      return true;
+    }
     const std::size_t k = size_t_of(rule_.sustained_beats);
     if (pending_.size() <= k && !finishing_) return false;
     bool sustained = pending_.size() > k;
@@ -195,6 +229,7 @@ bool NnClassifier::step(std::vector<Interval>& decided) {
     }
     short_run_.clear();
     if (sustained) {
+      rebased_short_ = false;
       // The reference restarts from the new rhythm: the long interval and the k that confirmed
       // it. From the long interval alone the median would sit at that one value, and in sinus
       // arrhythmia the next shorter intervals were all rejected as premature until
@@ -238,6 +273,7 @@ void NnClassifier::short_beat(double rr, double tol) {
     hist_.assign(short_run_.end() - static_cast<std::ptrdiff_t>(keep), short_run_.end());
     diffs_.clear();
     short_run_.clear();
+    rebased_short_ = true;
   }
 }
 
@@ -250,10 +286,20 @@ void NnClassifier::accept(double rr) {
   if (hist_.size() > size_t_of(rule_.reference_beats)) hist_.pop_front();
 }
 
+// A long front interval is a confirmed pause when the detector found its gap empty, the
+// interval before it was NN (or a confirmed pause: a run of blocked beats), and the reference
+// is not a run of short intervals (bigeminy: there the reference is the coupling interval, and
+// an ectopic beat's compensatory pause is long and empty).
+bool NnClassifier::confirmed_pause() const {
+  return rule_.keep_confirmed_pauses && pending_.front().empty_gap && (prev_ok_ || prev_pause_) &&
+         !rebased_short_;
+}
+
 // Emits the front interval with the rule's decision, excluded ranges applied.
 void NnClassifier::decide(bool ok, std::vector<Interval>& decided) {
   const Pending p = pending_.front();
   pending_.pop_front();
+  prev_pause_ = false;
   prev_ok_ = ok;
   prev_rr_ = p.rr;
   decided.push_back({p.start, p.end, ok && !overlaps_excluded(p.start, p.end)});

@@ -193,6 +193,56 @@ TEST(RPeak, AbruptAmplitudeDropIsFollowed) {
   expect_one_per_beat(detect_r_peaks(x, options(360)), want, 4);
 }
 
+// A beat after a gap with nothing in it (one beat removed whole: P, QRS and T) is reported as
+// ending a confirmed empty gap; a beat after a gap that hides a QRS too small to be detected
+// (a tenth of the others) is not. Ordinary beats end empty gaps too (their T wave lies in the
+// twave_ms after the previous beat, their P wave in the hold_ms before them); the flag matters
+// only to a long interval.
+TEST(RPeak, EmptyGapsAreReportedAndGapsHidingAQrsAreNot) {
+  const double fs = 360;
+  Synthetic s = ecg(fs, 60);
+  const std::size_t dropped = 40, small = 55;
+  ASSERT_GT(s.r_waves.size(), small + 2);
+  const auto zero = [&](std::int64_t from, std::int64_t to, double scale) {
+    for (std::int64_t i = std::max<std::int64_t>(0, from); i < to; ++i) {
+      auto& x = s.samples[static_cast<std::size_t>(i)];
+      x = kZero + static_cast<std::int32_t>(std::lround((x - kZero) * scale));
+    }
+  };
+  const auto at = [&](std::size_t k) { return s.r_waves[k]; };
+  // The beat is removed from midway between its neighbours' T waves and their P waves.
+  zero((at(dropped - 1) + at(dropped)) / 2, (at(dropped) + at(dropped + 1)) / 2, 0);
+  zero(at(small) - static_cast<std::int64_t>(0.08 * fs), at(small) + static_cast<std::int64_t>(0.08 * fs), 0.1);
+  Detection d;
+  RPeakDetector det(options(fs));
+  det.push(s.samples.data(), s.samples.size(), d.peaks, d.empty_gap_ends);
+  det.finish(d.peaks, d.empty_gap_ends);
+  EXPECT_EQ(d.peaks, detect_r_peaks(s.samples, options(fs)));
+  const auto near = [&](std::int64_t want) {
+    return std::any_of(d.empty_gap_ends.begin(), d.empty_gap_ends.end(),
+                       [&](std::int64_t p) { return std::llabs(p - want) <= 5; });
+  };
+  const auto found = [&](std::int64_t want) {
+    return std::any_of(d.peaks.begin(), d.peaks.end(),
+                       [&](std::int64_t p) { return std::llabs(p - want) <= 5; });
+  };
+  ASSERT_FALSE(found(at(dropped)));
+  ASSERT_FALSE(found(at(small)));  // the small QRS is missed, so its gap is not empty
+  EXPECT_TRUE(near(at(dropped + 1)));
+  EXPECT_FALSE(near(at(small + 1)));
+  EXPECT_TRUE(std::includes(d.peaks.begin(), d.peaks.end(), d.empty_gap_ends.begin(),
+                            d.empty_gap_ends.end()));
+  // Identical in chunks.
+  RPeakDetector chunks(options(fs));
+  Detection c;
+  for (std::size_t i = 0; i < s.samples.size(); i += 97)
+    chunks.push(s.samples.data() + i, std::min<std::size_t>(97, s.samples.size() - i), c.peaks,
+                c.empty_gap_ends);
+  chunks.finish(c.peaks, c.empty_gap_ends);
+  EXPECT_EQ(c.peaks, d.peaks);
+  EXPECT_EQ(c.empty_gap_ends, d.empty_gap_ends);
+}
+
 TEST(RPeak, OutputIsIdenticalWhateverTheChunking) {
   const Synthetic s = ecg(360, 90, 0.05, 0.3);
   const DetectorOptions o = options(360);

@@ -281,6 +281,30 @@ std::vector<int> join(std::initializer_list<std::vector<int>> parts) {
 
 // --- Synthetic series -----------------------------------------------------------------------
 
+// The empty-gap evidence pushed with each peak gives the batch result with the same evidence,
+// one peak at a time: confirmed pauses need no look-ahead.
+TEST(NnClassifier, ConfirmedPausesMatchBatch) {
+  const auto peaks = peaks_from_rr(join({repeat(300, 12), {600}, repeat(300, 5), {600, 600, 600},
+                                         repeat(300, 6), {600}, repeat(300, 4), {200, 450},
+                                         repeat(300, 4)}));
+  std::vector<std::int64_t> empty;
+  for (std::size_t i = 1; i < peaks.size(); ++i)
+    if (peaks[i] - peaks[i - 1] > 400 && i != 30) empty.push_back(peaks[i]);  // i = 30: unconfirmed
+  const auto batch = intervals_from_peaks(peaks, empty, 360);
+  NnClassifier c(360);
+  std::vector<Interval> streamed;
+  std::size_t next = 0;
+  for (const std::int64_t p : peaks) {
+    const bool gap = next < empty.size() && empty[next] == p;
+    next += gap ? 1 : 0;
+    c.push(p, gap, streamed);
+  }
+  c.finish(streamed);
+  std::string why;
+  EXPECT_TRUE(same(streamed, batch, why)) << why;
+  EXPECT_LT(nn_fraction(intervals_from_peaks(peaks, 360)), nn_fraction(batch));
+}
+
 TEST(NnClassifier, PrematureBeatsMatchBatch) {
   check_series(peaks_from_rr(join({repeat(300, 12), {200, 400}, repeat(300, 6), {270, 330},
                                    repeat(300, 5), {200, 400}, {200, 400}, repeat(300, 4)})),

@@ -119,6 +119,65 @@ TEST(DetectedRule, IrregularSlowerRhythmIsAdoptedWhole) {
   for (std::size_t i = 20; i < iv.size(); ++i) EXPECT_TRUE(iv[i].nn) << "interval " << i;
 }
 
+// A long interval over a gap the detector found empty (a sinus pause, a blocked P wave) is NN,
+// as the reference rule keeps it between two normal beats; the same interval without that
+// evidence may hide a missed beat and is not (the old rule rejected both). The pause moves
+// neither the reference nor the spread: the intervals after it are judged as before.
+TEST(DetectedRule, ConfirmedPauseIsNnAndAnUnconfirmedOneIsNot) {
+  std::vector<int> rr(40, 300);
+  rr[10] = 600;  // a blocked beat: nothing in the gap
+  rr[12] = 300;
+  rr[25] = 600;  // the same length, but the detector saw something in the gap
+  const auto peaks = peaks_from_rr(rr);
+  const auto iv = intervals_from_peaks(peaks, {peaks[11]}, 360);
+  ASSERT_EQ(iv.size(), rr.size());
+  EXPECT_TRUE(iv[10].nn);
+  EXPECT_FALSE(iv[25].nn);
+  for (std::size_t i = 0; i < iv.size(); ++i)
+    if (i != 25) {
+      EXPECT_TRUE(iv[i].nn) << "interval " << i;
+    }
+  // Without the evidence, or with the rule's option off, the pause is rejected as before.
+  EXPECT_FALSE(intervals_from_peaks(peaks, 360)[10].nn);
+  NnRule off;
+  off.keep_confirmed_pauses = false;
+  EXPECT_FALSE(intervals_from_peaks(peaks, {peaks[11]}, 360, off)[10].nn);
+}
+
+// Consecutive blocked beats (2:1 conduction for a few beats) are all confirmed pauses, and the
+// return to 1:1 is not taken for a premature beat: the reference stayed at the sinus rate.
+TEST(DetectedRule, RunOfConfirmedPausesKeepsTheSinusReference) {
+  std::vector<int> rr(30, 300);
+  for (int i = 10; i < 14; ++i) rr[static_cast<std::size_t>(i)] = 600;
+  const auto peaks = peaks_from_rr(rr);
+  std::vector<std::int64_t> empty;
+  for (int i = 11; i <= 14; ++i) empty.push_back(peaks[static_cast<std::size_t>(i)]);
+  const auto iv = intervals_from_peaks(peaks, empty, 360);
+  EXPECT_DOUBLE_EQ(nn_fraction(iv), 1.0);
+}
+
+// A pause only counts after a normal interval: after a premature beat the long interval is its
+// compensatory pause, empty or not, and after a reference rebased on a run of short intervals
+// (bigeminy: the coupling interval) every compensatory pause is long and empty.
+TEST(DetectedRule, PauseAfterAnEctopicBeatOrInBigeminyIsNotConfirmed) {
+  std::vector<int> rr(30, 300);
+  rr[10] = 200;  // premature
+  rr[11] = 400;  // its pause, empty
+  auto peaks = peaks_from_rr(rr);
+  auto iv = intervals_from_peaks(peaks, {peaks[12]}, 360);
+  EXPECT_FALSE(iv[11].nn);
+
+  std::vector<int> big(10, 400);
+  for (int i = 0; i < 30; ++i) big.push_back(i % 2 == 0 ? 250 : 550);  // N-V, V-N
+  peaks = peaks_from_rr(big);
+  std::vector<std::int64_t> all_empty(peaks.begin() + 1, peaks.end());
+  iv = intervals_from_peaks(peaks, all_empty, 360);
+  for (std::size_t i = 30; i < iv.size(); ++i)
+    if (big[i] == 550) {
+      EXPECT_FALSE(iv[i].nn) << "interval " << i;
+    }
+}
+
 TEST(DetectedRule, ExcludedRangesApply) {
   const std::vector<int> rr(20, 300);
   const auto peaks = peaks_from_rr(rr);

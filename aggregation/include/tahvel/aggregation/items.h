@@ -103,6 +103,10 @@ struct RPeaks {
   std::string recording;
   std::int64_t from_sample = 0, to_sample = 0;
   std::vector<std::int64_t> peaks;
+  // The peaks (a subset of `peaks`, ascending) that end a confirmed empty gap
+  // (RPeakDetector::push with empty_gap_out): tv:emptyGapEnds, in the format of tv:peaks,
+  // written only when not empty; an item without it has none.
+  std::vector<std::int64_t> empty_gap_ends;
   std::string derived_from;               // the chunk's IRI (or the recording's, for the end)
   std::optional<std::int64_t> end_sample;
   std::string iri;                        // filled by read_rpeaks; rpeak_item derives it

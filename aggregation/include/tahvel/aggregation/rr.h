@@ -65,7 +65,12 @@ std::vector<Interval> reference_intervals(const std::vector<Beat>& beats,
 //    reference restarts from them (a sustained rate change);
 //  - longer than (1 + tol_long) * ref: a missed beat or pause, not NN, unless the next
 //    sustained_beats intervals stay within tol_long / 2 of it (a new rhythm), which restarts
-//    the reference from it and those sustained_beats intervals;
+//    the reference from it and those sustained_beats intervals; but a confirmed pause is NN:
+//    the detector found its gap empty (the end beat is in empty_gap_ends, see
+//    DetectorOptions::empty_gap_fraction), the interval before it was NN (or a confirmed pause
+//    itself), and the reference does not come from a run of short intervals (in bigeminy the
+//    reference is the coupling interval and every compensatory pause looks long). A confirmed
+//    pause is NN but moves neither the reference nor the spread (keep_confirmed_pauses);
 //  - shorter than (1 - tol_prem) * ref and followed by one longer than (1 + tol_prem) * ref:
 //    a premature beat with its compensatory pause; both are not NN.
 // Whatever the comparison, an interval longer than max_interval_s or overlapping an excluded
@@ -82,6 +87,7 @@ struct NnRule {
   int sustained_beats = 3;              // intervals that confirm a new, longer rhythm
   int rebase_beats = 20;                // short intervals that confirm a new, faster rhythm
   int spread_diffs = 32;                // adjacent accepted pairs in the spread median
+  bool keep_confirmed_pauses = true;    // a long interval over an empty gap is NN (above)
 };
 
 // Intervals between consecutive detected peaks (samples, sorted ascending; duplicates give a
@@ -90,6 +96,12 @@ struct NnRule {
 // peaks give an empty series. The same as NnClassifier fed every peak and then finished.
 std::vector<Interval> intervals_from_peaks(const std::vector<std::int64_t>& peaks, double fs,
                                            const NnRule& rule = {},
+                                           const std::vector<SampleRange>& excluded = {});
+// The same with the detector's empty-gap evidence: empty_gap_ends are the peaks (a subset of
+// peaks, ascending: Detection::empty_gap_ends) that end a confirmed empty gap.
+std::vector<Interval> intervals_from_peaks(const std::vector<std::int64_t>& peaks,
+                                           const std::vector<std::int64_t>& empty_gap_ends,
+                                           double fs, const NnRule& rule = {},
                                            const std::vector<SampleRange>& excluded = {});
 
 // The streaming form of intervals_from_peaks, for peaks that arrive as a detector emits them.
@@ -123,6 +135,9 @@ class NnClassifier {
 
   // Adds the next peak (sample index); appends the intervals decided by it to `decided`.
   void push(std::int64_t peak, std::vector<Interval>& decided);
+  // The same for a peak that the detector reports as ending a confirmed empty gap
+  // (after_empty_gap), which lets a long interval ending there be a confirmed pause.
+  void push(std::int64_t peak, bool after_empty_gap, std::vector<Interval>& decided);
 
   // Ends the stream: decides every pending interval (the look-ahead stops at the last peak, as
   // in the batch function), appends them and resets.
@@ -136,11 +151,13 @@ class NnClassifier {
     std::int64_t start = 0;
     std::int64_t end = 0;
     double rr = 0;  // end - start, in samples
+    bool empty_gap = false;  // the detector found nothing QRS-like between the two beats
   };
 
   void advance(std::vector<Interval>& decided);
   bool seed();
   bool step(std::vector<Interval>& decided);
+  bool confirmed_pause() const;
   void short_beat(double rr, double tol);
   void accept(double rr);
   void decide(bool ok, std::vector<Interval>& decided);
@@ -160,6 +177,8 @@ class NnClassifier {
   bool skip_next_ = false;       // the next interval is the pair of a short one: not NN
   bool prev_ok_ = false;         // the decision and RR of the interval before the front
   double prev_rr_ = 0;
+  bool prev_pause_ = false;      // the interval before the front was a confirmed pause
+  bool rebased_short_ = false;   // the reference restarted from a run of short intervals
   std::deque<double> hist_, diffs_, short_run_;
 };
 
