@@ -5,7 +5,9 @@
 //     restricted to the rules that need it);
 //  2. ranking: alternative j of a ranked predicate gets `\+ applies_i(key)` for each earlier
 //     alternative i with a cut, applies_i(key) holding when i's literals before its cut do;
-//  3. safety and evaluation orders (plans) for the naive round and for each delta literal;
+//  3. safety and evaluation orders (plans) for the naive round and for each delta literal, with
+//     per step the range scan a comparison allows and the independent run that starts there
+//     (docs/reasoner.md, "Joins");
 //  4. strata: strongly connected components of the predicate graph in dependency order; a
 //     negation inside a component is an error.
 #include <algorithm>

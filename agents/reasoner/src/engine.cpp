@@ -10,6 +10,11 @@
 // own new rows to the fixpoint. A stratum reached by a removal, by any change under a negation,
 // or using `now` is recomputed: its derived flags are cleared and it runs to the fixpoint again;
 // what differs from before is what changed.
+//
+// Joins (docs/reasoner.md, "Joins") are tuned for sensor data: thousands of readings joined with
+// context by time windows. An atom whose variable comparisons bound reads a sorted index over
+// the window; a part of a rule independent of the steps before it is enumerated once per rule
+// run and replayed; a full round starts from the atom with the fewest rows to read.
 #include <algorithm>
 #include <cmath>
 #include <cstdio>
