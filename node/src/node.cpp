@@ -281,29 +281,8 @@ Result<std::uint64_t> Agent::store(const Item& item) noexcept {
 }
 
 Result<std::vector<std::uint64_t>> Agent::store_all(const std::vector<Item>& items) noexcept {
-  try {
-    if (items.empty()) return std::vector<std::uint64_t>{};
-    for (std::size_t i = 0; i < items.size(); ++i) {
-      if (auto v = validate_item(items[i], impl_->env->settings()); !v)
-        return unexpected(items.size() == 1 ? v.error() : with_context(v.error(), "item " + std::to_string(i + 1)));
-    }
-    std::vector<std::uint64_t> ids;
-    auto written = impl_->env->write([&](Txn& txn) -> Result<void> {
-      ids.clear();
-      for (std::size_t i = 0; i < items.size(); ++i) {
-        auto id = insert_item(txn, items[i], impl_->iri);
-        if (!id) return unexpected(items.size() == 1 ? id.error() : with_context(id.error(), "item " + std::to_string(i + 1)));
-        ids.push_back(*id);
-      }
-      auto reclaimed = apply_retention(txn);
-      if (!reclaimed) return unexpected(reclaimed.error());
-      return {};
-    });
-    if (!written) return unexpected(written.error());
-    return ids;
-  } catch (const std::bad_alloc&) {
-    return fail(Errc::io, "out of memory while storing");
-  }
+  if (items.empty()) return std::vector<std::uint64_t>{};
+  return replace({}, items);
 }
 
 Result<std::vector<std::uint64_t>> Agent::replace(const std::vector<Pattern>& removals,
@@ -343,7 +322,7 @@ Result<std::vector<std::uint64_t>> Agent::replace(const std::vector<Pattern>& re
     if (!written) return unexpected(written.error());
     return ids;
   } catch (const std::bad_alloc&) {
-    return fail(Errc::io, "out of memory while replacing");
+    return fail(Errc::io, "out of memory while storing");
   }
 }
 
