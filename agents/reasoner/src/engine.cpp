@@ -210,7 +210,7 @@ struct Relation {
   }
   // find for the lookups of fully bound atoms, which mostly miss (is this timestamp's subject a
   // movement event?): the direct index on the first argument answers most misses with one load.
-  std::uint32_t probe(const Id* t) {
+  std::uint32_t lookup(const Id* t) {
     if (arity == 0) return find(t);
     if (index(1).first(t[0]) == kNone) return kNone;
     return find(t);
@@ -536,7 +536,7 @@ void RuleRun<E>::match_rel(const Literal& l, const Arg* args, std::uint32_t rel,
   }
   (void)l;
   if (mask == (1u << n) - 1) {
-    std::uint32_t r = R.probe(probe);
+    std::uint32_t r = R.lookup(probe);
     if (r != kNone && R.alive(r)) step(k + 1);
     return;
   }
@@ -697,7 +697,7 @@ bool RuleRun<E>::holds(const Literal& l) {
         for (std::size_t i = 0; i < l.args.size(); ++i) tuple[i] = arg(l.args[i]);
       }
       Relation& R = e_.rels[rel];
-      std::uint32_t r = R.probe(tuple);
+      std::uint32_t r = R.lookup(tuple);
       return r == kNone || !R.alive(r);
     }
     case Literal::compare: {
