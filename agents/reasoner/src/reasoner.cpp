@@ -199,32 +199,41 @@ Result<Engine::Update> Reasoner::Impl::resync(const node::Snapshot& snap, std::i
   return u;
 }
 
+// A session's conclusions change in one transaction (Agent::replace): a reader sees the
+// conclusions before the session or after it, never a mix.
 Result<void> Reasoner::Impl::write(const Engine::Update& update, const std::vector<node::Triple>& extra_removals,
                                    std::int64_t now) {
   own_first = own_last = 0;
+  std::vector<node::Item> items;
   if (!update.added.empty()) {
     node::Item item;
     item.asserted_at = now;
     item.persistent = options.persistent;
     for (const Atom& a : update.added)
       for (node::Triple& t : stored(a)) item.triples.push_back(std::move(t));
-    auto id = agent.store(item);
-    if (!id) return unexpected(node_error(id.error()));
-    own_first = *id;
-    own_last = *id + item.triples.size() - 1;
+    items.push_back(std::move(item));
   }
   std::vector<node::Triple> gone = extra_removals;
   for (const Atom& a : update.removed) {
     auto form = stored(a);
     gone.insert(gone.end(), form.begin(), form.end());
   }
+  std::vector<node::Pattern> removals;
+  removals.reserve(gone.size());
   for (const node::Triple& t : gone) {
     node::Pattern p;
     p.s = t.s;
     p.p = t.p;
     p.o = t.o;
     p.source = agent.iri();
-    if (auto n = node.remove(p); !n) return unexpected(node_error(n.error()));
+    removals.push_back(std::move(p));
+  }
+  if (items.empty() && removals.empty()) return {};
+  auto ids = agent.replace(removals, items);
+  if (!ids) return unexpected(node_error(ids.error()));
+  if (!ids->empty()) {
+    own_first = ids->front();
+    own_last = ids->front() + items.front().triples.size() - 1;
   }
   return {};
 }
