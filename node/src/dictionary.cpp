@@ -4,6 +4,7 @@
 #include <charconv>
 
 #include "codec.h"
+#include "tahvel/uri/iri.h"
 
 namespace tahvel::node::detail {
 namespace {
@@ -40,9 +41,9 @@ bool has_explicit_datatype(const Term& term) {
          term.datatype != xsd::kString;
 }
 
-// Looks `bytes` up in term_hash; returns the id or 0.
+// Looks `bytes` up in term_hash; returns the id or 0, and with `pinned` whether the term is.
 Result<std::uint64_t> lookup_payload(MDB_txn* txn, const Env& env, std::string_view bytes,
-                                     std::uint64_t hash) {
+                                     std::uint64_t hash, bool* pinned = nullptr) {
   MDB_cursor* cursor = nullptr;
   int rc = mdb_cursor_open(txn, env.term_hash, &cursor);
   if (rc != 0) return lmdb_fail(rc, "opening the term index");
@@ -54,6 +55,7 @@ Result<std::uint64_t> lookup_payload(MDB_txn* txn, const Env& env, std::string_v
     MDB_val tk = val(id), tv;
     if (mdb_get(txn, env.terms, &tk, &tv) == 0 && tv.mv_size >= 1 && view(tv).substr(1) == bytes) {
       found = id;
+      if (pinned) *pinned = static_cast<const std::uint8_t*>(tv.mv_data)[0] & kPinned;
       break;
     }
   }
@@ -133,8 +135,56 @@ Result<std::uint64_t> find_term(MDB_txn* txn, const Env& env, const Term& term) 
   return lookup_payload(txn, env, bytes, codec::hash64(bytes));
 }
 
+void term_key(const Term& term, std::string& key) {
+  key.clear();
+  key.reserve(term.value.size() + term.datatype.size() + term.language.size() + 3);
+  key.push_back(static_cast<char>(term.kind));
+  key += term.value;
+  key.push_back('\0');
+  key += term.datatype;
+  key.push_back('\0');
+  key += term.language;
+}
+
 Result<std::uint64_t> intern_term(Txn& txn, const Term& term, bool pinned) {
   if (auto id = inline_id(term)) return *id;
+  std::string key;
+  term_key(term, key);
+  return intern_keyed(txn, term, key, {.pin = pinned});
+}
+
+namespace {
+
+// Remembers `id` for the rest of the transaction and, once it commits, for the process.
+void remember(Txn& txn, std::string_view key, std::uint64_t id, bool pinned, bool beyond_txn) {
+  txn.term_ids.try_emplace(std::string(key), id);
+  if (pinned) {
+    txn.staged_pinned.try_emplace(std::string(key), id);
+  } else if (beyond_txn) {
+    txn.staged_unpinned.try_emplace(std::string(key), id);
+  }
+}
+
+}  // namespace
+
+Result<std::uint64_t> intern_keyed(Txn& txn, const Term& term, std::string_view key,
+                                   const InternOptions& options) {
+  if (auto id = inline_id(term)) return *id;
+  const bool pinned = options.pin;
+  Env& env = txn.env();
+  // Known in this transaction, or committed and known to the process: no B-tree search. A
+  // term must be known pinned to skip the search when the caller pins it.
+  if (auto it = txn.term_ids.find(key); it != txn.term_ids.end()) {
+    if (!pinned || txn.staged_pinned.contains(key)) return it->second;
+  }
+  bool cached_pinned = false;
+  if (std::uint64_t id = env.term_cache.find(key, TermCache::generation(txn.counters), &cached_pinned)) {
+    if (pinned && !cached_pinned) {
+      if (auto p = pin_term(txn, id); !p) return unexpected(p.error());
+    }
+    remember(txn, key, id, pinned || cached_pinned, true);
+    return id;
+  }
   std::uint64_t datatype_id = 0;
   if (has_explicit_datatype(term)) {
     auto dt = intern_term(txn, Term::iri(term.datatype), true);
@@ -143,13 +193,21 @@ Result<std::uint64_t> intern_term(Txn& txn, const Term& term, bool pinned) {
   }
   std::string bytes = payload(term, datatype_id);
   std::uint64_t hash = codec::hash64(bytes);
-  auto existing = lookup_payload(txn.raw(), txn.env(), bytes, hash);
+  bool was_pinned = false;
+  auto existing = lookup_payload(txn.raw(), env, bytes, hash, &was_pinned);
   if (!existing) return existing;
   if (*existing != 0) {
-    if (pinned) {
+    if (pinned && !was_pinned) {
       if (auto p = pin_term(txn, *existing); !p) return unexpected(p.error());
     }
+    remember(txn, key, *existing, pinned || was_pinned, true);
     return *existing;
+  }
+  // A new IRI is checked once, as it enters the dictionary (R1); terms already there were
+  // checked when they came. Parsing alone decides; normalize only words the refusal.
+  if (options.check_iri && term.kind == TermKind::iri && !uri::is_valid(term.value)) {
+    auto n = uri::normalize(term.value);
+    return fail(Errc::invalid_iri, n ? "invalid IRI <" + term.value + ">" : n.error().message);
   }
   std::uint64_t id = txn.counters.next_term++;
   std::string value;
@@ -163,6 +221,7 @@ Result<std::uint64_t> intern_term(Txn& txn, const Term& term, bool pinned) {
   rc = mdb_put(txn.raw(), txn.env().term_hash, &hk, &hv, 0);
   if (rc != 0) return lmdb_fail(rc, "indexing a term");
   ++txn.counters.terms;
+  remember(txn, key, id, pinned, options.remember_new);
   return id;
 }
 
@@ -188,11 +247,14 @@ Result<void> collect_term_if_unused(Txn& txn, std::uint64_t id) {
   rc = mdb_del(raw, env.terms, &k, nullptr);
   if (rc != 0) return lmdb_fail(rc, "removing a term");
   --txn.counters.terms;
+  // Ids seen before this collection may name the collected term: forget them (the process
+  // cache ignores unpinned entries from now on, as the collection generation moved).
   txn.term_ids.clear();
+  txn.staged_unpinned.clear();
   return {};
 }
 
-Result<Term> TermReader::get(std::uint64_t id) {
+Result<Term> TermReader::get(std::uint64_t id, bool repeating) {
   if (is_inline(id)) {
     std::uint64_t kind = (id >> kInlineKindShift) & 7;
     std::uint64_t bits = id & kInlinePayloadMask;
@@ -202,6 +264,20 @@ Result<Term> TermReader::get(std::uint64_t id) {
     return Term::integer(v);
   }
   if (auto it = memo_.find(id); it != memo_.end()) return it->second;
+  if (repeating) {
+    Term cached;
+    if (env_.decoded.find(id, cached)) {
+      memo_.emplace(id, cached);
+      return cached;
+    }
+    // Only a snapshot's terms are shared: the writer's own transaction may hold ids that an
+    // abort would hand out again.
+    if (env_.writing.load(std::memory_order_relaxed) != txn_) {
+      auto term = get(id, false);
+      if (term) env_.decoded.add(id, *term);
+      return term;
+    }
+  }
   MDB_val k = val(id), v;
   int rc = mdb_get(txn_, env_.terms, &k, &v);
   if (rc != 0) return lmdb_fail(rc, "reading term " + std::to_string(id));
@@ -231,7 +307,7 @@ Result<Term> TermReader::get(std::uint64_t id) {
 
 Result<std::string> TermReader::iri(std::uint64_t id) {
   if (id == 0) return std::string();
-  auto term = get(id);
+  auto term = get(id, true);
   if (!term) return unexpected(term.error());
   return term->value;
 }

@@ -43,8 +43,27 @@ Result<std::uint64_t> find_term(MDB_txn* txn, const Env& env, const Term& term);
 
 // Finds or creates the id of `term` (not a blank node: those are renamed by the caller).
 // `pin` marks the term as used outside the indexes (source, context, datatype, buffers), which
-// keeps it from collection.
+// keeps it from collection. Ids found or created are remembered (intern_keyed).
 Result<std::uint64_t> intern_term(Txn& txn, const Term& term, bool pin);
+
+// The key of `term` in the write path's caches (Txn::term_ids, Env::term_cache): kind, value,
+// datatype and language. Written into `out`, which is cleared first.
+void term_key(const Term& term, std::string& out);
+
+struct InternOptions {
+  bool pin = false;           // as intern_term's `pin`
+  bool remember_new = true;   // a term this call creates is kept in the process's cache once the
+                              // transaction commits (predicates, classes, sensors: terms that
+                              // repeat; not the fresh subject of each observation)
+  bool check_iri = false;     // a new IRI is checked (uri::is_valid) as it enters the
+                              // dictionary (R1): invalid_iri, and nothing is added
+};
+
+// intern_term with `key` = term_key(term) already made. Looks in the transaction's ids, then the
+// process's cache (Env::term_cache), then the dictionary; what it finds or creates is remembered
+// for the transaction and, after the commit, for the process.
+Result<std::uint64_t> intern_keyed(Txn& txn, const Term& term, std::string_view key,
+                                   const InternOptions& options);
 
 // Marks dictionary term `id` as pinned (see intern_term); inline ids need no pin.
 Result<void> pin_term(Txn& txn, std::uint64_t id);
@@ -61,8 +80,10 @@ Result<void> collect_term_if_unused(Txn& txn, std::uint64_t id);
 class TermReader {
  public:
   TermReader(MDB_txn* txn, const Env& env) : txn_(txn), env_(env) {}
-  Result<Term> get(std::uint64_t id);
-  Result<std::string> iri(std::uint64_t id);  // "" for id 0
+  // `repeating`: a term that comes back in record after record (a predicate, source, context or
+  // datatype): looked up in, and added to, the process's cache of decoded terms (Env::decoded).
+  Result<Term> get(std::uint64_t id, bool repeating = false);
+  Result<std::string> iri(std::uint64_t id);  // "" for id 0; repeating
 
  private:
   MDB_txn* txn_;

@@ -73,6 +73,43 @@ Result<void> save_counters(MDB_txn* txn, MDB_dbi meta, const Counters& c) {
   return {};
 }
 
+std::uint64_t TermCache::find(std::string_view key, std::uint64_t gen, bool* pinned) {
+  std::lock_guard lock(mu_);
+  *pinned = true;
+  if (auto it = pinned_.find(key); it != pinned_.end()) return it->second;
+  *pinned = false;
+  if (gen != gen_) return 0;
+  if (auto it = unpinned_.find(key); it != unpinned_.end()) return it->second;
+  return 0;
+}
+
+void TermCache::publish(StringIdMap& pinned, StringIdMap& unpinned, std::uint64_t gen) {
+  if (pinned.empty() && unpinned.empty()) return;
+  std::lock_guard lock(mu_);
+  if (pinned_.size() + pinned.size() > kMaxEntries) pinned_.clear();
+  pinned_.merge(pinned);
+  if (gen < gen_) return;  // seen before a collection another transaction already published
+  if (gen > gen_ || unpinned_.size() + unpinned.size() > kMaxEntries) {
+    unpinned_.clear();
+    gen_ = gen;
+  }
+  unpinned_.merge(unpinned);
+}
+
+bool DecodedTerms::find(std::uint64_t id, Term& out) {
+  std::lock_guard lock(mu_);
+  auto it = terms_.find(id);
+  if (it == terms_.end()) return false;
+  out = it->second;
+  return true;
+}
+
+void DecodedTerms::add(std::uint64_t id, const Term& term) {
+  std::lock_guard lock(mu_);
+  if (terms_.size() >= kMaxEntries) terms_.clear();
+  terms_.emplace(id, term);
+}
+
 Env::~Env() {
   for (MDB_txn* txn : idle_readers_) mdb_txn_abort(txn);
   if (env_) mdb_env_close(env_);
@@ -304,7 +341,9 @@ Result<void> Env::write(const std::function<Result<void>(Txn&)>& body, WriteKind
       if (auto r = body(txn); !r) return r;
       return save_counters(raw, main, txn.counters);
     };
+    writing.store(raw);
     auto result = run();
+    writing.store(nullptr);
     int rc = 0;
     if (result) {
       rc = mdb_txn_commit(raw);
@@ -319,10 +358,13 @@ Result<void> Env::write(const std::function<Result<void>(Txn&)>& body, WriteKind
     }
     if (!result) return result;
     if (rc != 0) return lmdb_fail(rc, "committing a write to " + dir_.string());
+    // Wake first: a sleeping taker is the latency the node is measured by; the rest is
+    // bookkeeping of this process.
     for (auto slot : txn.wake_slots) wake_.bump(slot);
     // Watchers follow the change stream: wake them only when it grew (not for acks, TTL rules
     // or prefixes).
     if (txn.counters.next_seq != first_seq) wake_.bump(WakeBoard::kAnyCommit);
+    term_cache.publish(txn.staged_pinned, txn.staged_unpinned, TermCache::generation(txn.counters));
     return {};
   }
 }

@@ -75,6 +75,54 @@ class Txn;
 
 enum class WriteKind { data, removal };
 
+// Hashing and equality for maps keyed by std::string that are searched with a string_view
+// (no key built per lookup on the write path).
+struct StringHash {
+  using is_transparent = void;
+  std::size_t operator()(std::string_view s) const noexcept { return std::hash<std::string_view>{}(s); }
+};
+using StringIdMap = std::unordered_map<std::string, std::uint64_t, StringHash, std::equal_to<>>;
+
+// Dictionary ids this process has seen committed, so that the write path does not look the
+// same writers, sources, predicates and classes up again in every transaction (each lookup is
+// two B-tree searches, several microseconds when the caches are cold). Keys are the write
+// path's term keys (write.cpp). Two kinds of entry:
+//   pinned    terms that can never be collected (docs/record-model.md R16): valid for good.
+//   unpinned  valid while no term has been collected since they were seen. The generation is
+//             the number of terms ever collected, next_term - 1 - terms, which only collection
+//             changes; any process that collects one changes it in the stored counters.
+// Entries come only from committed transactions (Env::write publishes what a transaction
+// staged after its commit): an aborted transaction's ids are handed out again.
+class TermCache {
+ public:
+  static std::uint64_t generation(const Counters& c) { return c.next_term - 1 - c.terms; }
+  // The id of `key`, or 0; unpinned entries only when `gen` is the cache's generation.
+  // `*pinned` tells which kind the entry is.
+  std::uint64_t find(std::string_view key, std::uint64_t gen, bool* pinned);
+  void publish(StringIdMap& pinned, StringIdMap& unpinned, std::uint64_t gen);
+
+ private:
+  static constexpr std::size_t kMaxEntries = 1 << 16;  // then it starts again: no unbounded growth
+  std::mutex mu_;
+  StringIdMap pinned_, unpinned_;
+  std::uint64_t gen_ = 0;
+};
+
+// Decoded dictionary terms by id. An id is never handed out twice once committed (next_term
+// only grows), so the term an id names in any committed state never changes: entries need no
+// invalidation. Only terms read in a snapshot are added (a write transaction may see ids of
+// its own that an abort would hand out again).
+class DecodedTerms {
+ public:
+  bool find(std::uint64_t id, Term& out);
+  void add(std::uint64_t id, const Term& term);
+
+ private:
+  static constexpr std::size_t kMaxEntries = 1 << 14;
+  std::mutex mu_;
+  std::unordered_map<std::uint64_t, Term> terms_;
+};
+
 class Env {
  public:
   // Opens (or with `init` creates) the environment of `dir`; shared per process.
@@ -107,6 +155,9 @@ class Env {
   std::mutex cache_mutex;
   std::uint64_t subs_gen = ~0ull;
   std::vector<Subscription> subs;
+  // Indexes into `subs`: those with no context condition, and those with one by its term id.
+  std::vector<std::uint32_t> subs_any_context;
+  std::unordered_map<std::uint64_t, std::vector<std::uint32_t>> subs_by_context;
   std::uint64_t ttl_gen = ~0ull;
   std::vector<TtlRule> ttl_rules;
   // Dictionary ids of the subscription vocabulary: interned and pinned at init, so fixed.
@@ -116,6 +167,12 @@ class Env {
     // used it, so it is looked up when subscriptions are loaded (0 while absent).
     std::uint64_t context = 0;
   } vocab;
+
+  TermCache term_cache;
+  mutable DecodedTerms decoded;
+  // The write transaction in progress in this process (LMDB allows one at a time), so that a
+  // reader of terms can tell a snapshot from the writer's own transaction.
+  std::atomic<MDB_txn*> writing{nullptr};
 
  private:
   Env() = default;
@@ -153,7 +210,9 @@ class Txn {
   std::vector<std::uint32_t> wake_slots;  // woken after commit
   // Term ids looked up or created in this transaction (write.cpp). Cleared whenever a term is
   // collected, since a collected id must not be handed out again.
-  std::unordered_map<std::string, std::uint64_t> term_ids;
+  StringIdMap term_ids;
+  // Ids to publish to the Env's TermCache once this transaction has committed (dictionary.cpp).
+  StringIdMap staged_pinned, staged_unpinned;
  private:
   Env& env_;
   MDB_txn* txn_;

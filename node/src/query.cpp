@@ -201,7 +201,7 @@ Result<Record> Query::materialize(std::uint64_t id, const RecordRow& row) {
   const ItemRow meta = **it;
   auto s = terms_.get(row.s);
   if (!s) return unexpected(s.error());
-  auto p = terms_.get(row.p);
+  auto p = terms_.get(row.p, true);
   if (!p) return unexpected(p.error());
   auto o = terms_.get(row.o);
   if (!o) return unexpected(o.error());

@@ -24,44 +24,22 @@ Result<void> put_dup(MDB_txn* txn, MDB_dbi dbi, std::uint64_t key, std::uint64_t
   return {};
 }
 
-// The key of a term in the transaction's term cache: kind, value, datatype and language.
-std::string cache_key(const Term& term) {
-  std::string key;
-  key.reserve(term.value.size() + term.datatype.size() + term.language.size() + 3);
-  key.push_back(static_cast<char>(term.kind));
-  key += term.value;
-  key.push_back('\0');
-  key += term.datatype;
-  key.push_back('\0');
-  key += term.language;
-  return key;
-}
-
 // Interns a term at a position; new IRIs are validated here, once, when they enter the
-// dictionary (terms already there were valid when they came). Bulk loads repeat predicates,
-// classes and sensors endlessly, so ids found in this transaction are remembered for it.
-Result<std::uint64_t> term_id(Txn& txn, const Term& term, std::unordered_map<std::string, std::uint64_t>& blanks) {
+// dictionary (terms already there were valid when they came). Sensor data repeats predicates,
+// classes and sensors endlessly: intern_keyed finds them in the transaction's or the process's
+// cache without a search. A new subject (an observation's own IRI) is remembered for this
+// transaction only: it rarely comes again.
+Result<std::uint64_t> term_id(Txn& txn, const Term& term, int position,
+                              std::unordered_map<std::string, std::uint64_t>& blanks, std::string& key) {
   if (term.kind == TermKind::blank) {
     auto [it, fresh] = blanks.try_emplace(term.value, 0);
     if (fresh) it->second = inline_blank(txn.counters.next_blank++);
     return it->second;
   }
   if (auto id = inline_id(term)) return *id;
-  std::string key = cache_key(term);
-  if (auto it = txn.term_ids.find(key); it != txn.term_ids.end()) return it->second;
-  if (term.kind == TermKind::iri) {
-    auto existing = find_term(txn.raw(), txn.env(), term);
-    if (!existing) return existing;
-    if (*existing) {
-      txn.term_ids.emplace(std::move(key), *existing);
-      return *existing;
-    }
-    if (auto n = uri::normalize(term.value); !n)
-      return fail(Errc::invalid_iri, n.error().message);
-  }
-  auto id = intern_term(txn, term, false);
-  if (id) txn.term_ids.emplace(std::move(key), *id);
-  return id;
+  term_key(term, key);
+  if (auto it = txn.term_ids.find(std::string_view(key)); it != txn.term_ids.end()) return it->second;
+  return intern_keyed(txn, term, key, {.remember_new = position != 0, .check_iri = true});
 }
 
 Result<std::vector<Subscription>> load_subscriptions(Txn& txn) {
@@ -181,21 +159,32 @@ bool source_matches(const Subscription& sub, std::uint64_t source, std::string_v
   return source_iri.starts_with(sub.source_iri) && uri::is_under(source_iri, sub.source_iri);
 }
 
+Result<void> route_to(Txn& txn, const Subscription& sub, std::uint64_t item_id, ItemRow& item,
+                      const std::vector<std::array<std::uint64_t, 3>>& triples,
+                      std::string_view source_iri) {
+  if (sub.item == item_id) return {};  // a subscription does not receive itself
+  if (!source_matches(sub, item.source, source_iri)) return {};
+  for (const auto& t : triples) {
+    if (triple_matches(sub, t[0], t[1], t[2])) return deliver(txn, sub.agent, sub.slot, item_id, item);
+  }
+  return {};
+}
+
+// Subscriptions that require a context are looked up by the item's context: a parent with a
+// thousand children has a thousand subtree subscriptions, and an item matches at most those
+// of its own context.
 Result<void> route(Txn& txn, std::uint64_t item_id, ItemRow& item,
                    const std::vector<std::array<std::uint64_t, 3>>& triples,
                    std::string_view source_iri) {
-  std::lock_guard lock(txn.env().cache_mutex);
-  for (const auto& sub : txn.env().subs) {
-    if (sub.item == item_id) continue;  // a subscription does not receive itself
-    if (sub.context && sub.context != item.context) continue;
-    if (!source_matches(sub, item.source, source_iri)) continue;
-    bool hit = false;
-    for (const auto& t : triples) {
-      if (triple_matches(sub, t[0], t[1], t[2])) { hit = true; break; }
-    }
-    if (!hit) continue;
-    if (auto r = deliver(txn, sub.agent, sub.slot, item_id, item); !r) return r;
-  }
+  Env& env = txn.env();
+  std::lock_guard lock(env.cache_mutex);
+  for (std::uint32_t i : env.subs_any_context)
+    if (auto r = route_to(txn, env.subs[i], item_id, item, triples, source_iri); !r) return r;
+  if (!item.context) return {};
+  auto found = env.subs_by_context.find(item.context);
+  if (found == env.subs_by_context.end()) return {};
+  for (std::uint32_t i : found->second)
+    if (auto r = route_to(txn, env.subs[i], item_id, item, triples, source_iri); !r) return r;
   return {};
 }
 
@@ -318,6 +307,15 @@ Result<void> refresh_caches(Txn& txn) {
       }
     }
     env.subs = std::move(*subs);
+    env.subs_any_context.clear();
+    env.subs_by_context.clear();
+    for (std::uint32_t i = 0; i < env.subs.size(); ++i) {
+      if (env.subs[i].context) {
+        env.subs_by_context[env.subs[i].context].push_back(i);
+      } else {
+        env.subs_any_context.push_back(i);
+      }
+    }
     env.subs_gen = txn.counters.sub_gen;
   }
   if (env.ttl_gen != txn.counters.ttl_gen) {
@@ -333,22 +331,24 @@ Result<std::uint64_t> insert_item(Txn& txn, const Item& item, const std::string&
                                   const std::string* relayed_source) {
   MDB_txn* raw = txn.raw();
   Env& env = txn.env();
-  auto writer = intern_term(txn, Term::iri(agent_iri), true);
+  // Writer, source and context are pinned: after the first item, the caches know them.
+  std::string key;
+  auto pinned_iri = [&](const std::string& iri, bool check) {
+    const Term term = Term::iri(iri);
+    term_key(term, key);
+    return intern_keyed(txn, term, key, {.pin = true, .check_iri = check});
+  };
+  auto writer = pinned_iri(agent_iri, false);
   if (!writer) return writer;
   auto source = writer;
   if (relayed_source) {
-    source = intern_term(txn, Term::iri(*relayed_source), true);
+    source = pinned_iri(*relayed_source, false);
     if (!source) return source;
   }
   std::uint64_t context = 0;
   if (!item.context.empty()) {
-    auto found = find_term(raw, env, Term::iri(item.context));
-    if (!found) return found;
-    if (*found == 0) {
-      if (auto n = uri::normalize(item.context); !n) return fail(Errc::invalid_iri, "context: " + n.error().message);
-    }
-    auto ctx = intern_term(txn, Term::iri(item.context), true);
-    if (!ctx) return ctx;
+    auto ctx = pinned_iri(item.context, true);
+    if (!ctx) return fail(ctx.error().code, "context: " + ctx.error().message);
     context = *ctx;
   }
   const std::uint64_t item_id = txn.counters.next_seq;
@@ -361,7 +361,7 @@ Result<std::uint64_t> insert_item(Txn& txn, const Item& item, const std::string&
     std::array<std::uint64_t, 3> row{};
     const Term* terms[] = {&t.s, &t.p, &t.o};
     for (int pos = 0; pos < 3; ++pos) {
-      auto id = term_id(txn, *terms[pos], blanks);
+      auto id = term_id(txn, *terms[pos], pos, blanks, key);
       if (!id) return fail(id.error().code, "triple " + std::to_string(i + 1) + ", " + position_name(pos) + ": " + id.error().message);
       row[pos] = *id;
     }
