@@ -181,8 +181,11 @@ Result<std::uint64_t> intern_keyed(Txn& txn, const Term& term, std::string_view 
   if (std::uint64_t id = env.term_cache.find(key, TermCache::generation(txn.counters), &cached_pinned)) {
     if (pinned && !cached_pinned) {
       if (auto p = pin_term(txn, id); !p) return unexpected(p.error());
+      remember(txn, key, id, true, true);  // pinned now: the process learns it after the commit
+      return id;
     }
-    remember(txn, key, id, pinned || cached_pinned, true);
+    // Already known to the process: remembered for this transaction only, not staged again.
+    if (!txn.term_ids.contains(key)) txn.term_ids.emplace(std::string(key), id);
     return id;
   }
   std::uint64_t datatype_id = 0;
