@@ -1,7 +1,8 @@
 // The communication agent (link.h): child role, parent role and remote queries over any
 // Transport. Protocol statements (Pn) are in docs/protocol.md.
 //
-// Threads: one receiver per transport, one up-sender (child role), one down-pump per child
+// Threads: two receivers per transport (one takes and decodes frames, one applies them to the
+// store), one up-sender (child role), one down-pump per child
 // (parent role), one timer (hello/heartbeat, child silence, answer resends). Each thread opens
 // its own node::Node and agents (they are single-thread objects); shared state is under `mu`.
 #include "tahvel/federation/link.h"
@@ -191,12 +192,58 @@ struct Link::Impl {
 
   // ---- receiving ----------------------------------------------------------------------------
 
+  // Frames taken off a transport, with the bodies of item frames already decoded.
+  struct ReceivedBatch {
+    std::vector<Frame> frames;
+    std::vector<std::optional<node::Result<wire::ItemBody>>> items;  // set for up and down frames
+  };
+
+  // Two stages per transport: a taker thread takes frames off the transport and decodes item
+  // bodies; this thread applies them to the store and answers, batch after batch in arrival
+  // order. Taking and decoding then overlap with the store transaction of the batch before, on
+  // the other core. The queue is short: a
+  // backlog stays in the transport, whose flow control (the senders' windows) bounds it.
   void receive_loop(std::shared_ptr<Transport> transport) {
     auto node = node::Node::open(opt.dir);
     if (!node) {
       log("cannot open the store: " + node.error().message);
       return;
     }
+    std::mutex queue_mu;
+    std::condition_variable queue_cv;
+    std::deque<ReceivedBatch> queue;
+    constexpr std::size_t kQueuedBatches = 4;
+    std::thread taker([&] {
+      while (!stopping) {
+        auto first = transport->receive(100ms);
+        if (!first) {
+          log("receive failed: " + first.error().message);
+          std::this_thread::sleep_for(100ms);
+          continue;
+        }
+        if (!*first) continue;
+        // Drain what is queued so that runs of items from one sender go into one transaction.
+        ReceivedBatch batch;
+        batch.frames.push_back(std::move(**first));
+        while (batch.frames.size() < 512) {
+          auto more = transport->receive(0ms);
+          if (!more || !*more) break;
+          batch.frames.push_back(std::move(**more));
+        }
+        batch.items.resize(batch.frames.size());
+        for (std::size_t i = 0; i < batch.frames.size(); ++i) {
+          const Frame& f = batch.frames[i];
+          if (f.kind == FrameKind::up || f.kind == FrameKind::down) batch.items[i] = wire::decode_item(f.body);
+        }
+        std::unique_lock lock(queue_mu);
+        // `stopping` is not signalled through queue_cv: re-checked every 100 ms.
+        while (queue.size() >= kQueuedBatches && !stopping) queue_cv.wait_for(lock, 100ms);
+        if (stopping) break;
+        queue.push_back(std::move(batch));
+        queue_cv.notify_all();
+      }
+    });
+
     std::map<std::string, node::Agent> agents;  // this thread's relaying agents, by id
     std::map<std::string, HeldFrames> held;     // per stream: items that came ahead of a hole
     auto agent = [&](const std::string& id) -> node::Agent* {
@@ -208,28 +255,26 @@ struct Link::Impl {
       }
       return &it->second;
     };
-    while (!stopping) {
-      auto first = transport->receive(100ms);
-      if (!first) {
-        log("receive failed: " + first.error().message);
-        std::this_thread::sleep_for(100ms);
-        continue;
+    while (true) {
+      ReceivedBatch batch;
+      {
+        std::unique_lock lock(queue_mu);
+        queue_cv.wait_for(lock, 100ms, [&] { return !queue.empty() || stopping; });
+        if (queue.empty()) {
+          if (stopping) break;
+          continue;
+        }
+        batch = std::move(queue.front());
+        queue.pop_front();
+        queue_cv.notify_all();
       }
-      if (!*first) continue;
-      // Drain what is queued so that runs of items from one sender go into one transaction.
-      std::vector<Frame> batch;
-      batch.push_back(std::move(**first));
-      while (batch.size() < 512) {
-        auto more = transport->receive(0ms);
-        if (!more || !*more) break;
-        batch.push_back(std::move(**more));
-      }
-      for (std::size_t i = 0; i < batch.size();) {
-        const Frame& f = batch[i];
+      for (std::size_t i = 0; i < batch.frames.size();) {
+        const Frame& f = batch.frames[i];
         if (f.kind == FrameKind::up || f.kind == FrameKind::down) {
           std::size_t j = i + 1;
-          while (j < batch.size() && batch[j].kind == f.kind && batch[j].from == f.from) ++j;
-          relay_run(transport.get(), std::span(batch).subspan(i, j - i), agent, held);
+          while (j < batch.frames.size() && batch.frames[j].kind == f.kind && batch.frames[j].from == f.from) ++j;
+          relay_run(transport.get(), std::span(batch.frames).subspan(i, j - i),
+                    std::span(batch.items).subspan(i, j - i), agent, held);
           i = j;
         } else {
           dispatch(transport.get(), f, agent);
@@ -237,6 +282,7 @@ struct Link::Impl {
         }
       }
     }
+    taker.join();
   }
 
   bool from_parent(const Frame& f) const { return opt.up && !opt.parent_iri.empty() && f.from == opt.parent_iri; }
@@ -271,7 +317,9 @@ struct Link::Impl {
   static constexpr std::size_t kHeldMax = 4096;
 
   template <class AgentFn>
-  void relay_run(Transport* via, std::span<const Frame> frames, AgentFn& agent, std::map<std::string, HeldFrames>& held) {
+  void relay_run(Transport* via, std::span<const Frame> frames,
+                 std::span<std::optional<node::Result<wire::ItemBody>>> bodies, AgentFn& agent,
+                 std::map<std::string, HeldFrames>& held) {
     const Frame& head = frames.front();
     const bool up = head.kind == FrameKind::up;
     std::shared_ptr<Child> child;
@@ -292,8 +340,9 @@ struct Link::Impl {
     }
     std::vector<node::RelayedItem> items;
     items.reserve(frames.size());
-    for (const Frame& f : frames) {
-      auto body = wire::decode_item(f.body);
+    for (std::size_t k = 0; k < frames.size(); ++k) {
+      const Frame& f = frames[k];
+      auto& body = *bodies[k];
       if (!body) {
         log("dropped a malformed " + std::string(up ? "up" : "down") + " frame from <" + f.from + ">: " + body.error().message);
         std::lock_guard lock(mu);
