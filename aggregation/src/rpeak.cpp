@@ -11,6 +11,7 @@
 #include <cmath>
 #include <complex>
 #include <numbers>
+#include <optional>
 #include <stdexcept>
 #include <string>
 
@@ -144,6 +145,14 @@ class RPeakDetector::Impl {
   std::int64_t fiducial(std::int64_t qrs, double& balance) const;
   std::int64_t locate(std::int64_t qrs) const;
   bool dominant_positive(double up, double down) const;
+  // The largest positive and negative deviations of the original signal over [qrs - before,
+  // qrs + after], measured from the mean of the window's ends; nullopt when the window is too
+  // short or flat.
+  struct Deflections {
+    double up = 0, down = 0;  // both >= 0
+    std::int64_t up_at = 0, down_at = 0;
+  };
+  std::optional<Deflections> deflections(std::int64_t qrs, std::int64_t before, std::int64_t after) const;
   double threshold() const { return noise_med_ + frac_ * (qrs_med_ - noise_med_); }
   double bp(std::int64_t i) const { return bp_[static_cast<std::size_t>(i & mask_)]; }
   double slope(std::int64_t i) const { return d_[static_cast<std::size_t>(i & mask_)]; }
@@ -320,22 +329,27 @@ void RPeakDetector::Impl::on_fpeak(double height, std::int64_t at) {
 // RR intervals do not jitter by an R–S distance; a wave of the other polarity wins only when
 // twice as large.
 // `balance` gets (R − S) / (R + S) of this complex; accept() folds it into the polarity.
-std::int64_t RPeakDetector::Impl::fiducial(std::int64_t qrs, double& balance) const {
-  const std::int64_t lo = std::max<std::int64_t>(0, qrs - refine_before_);
-  const std::int64_t hi = std::min<std::int64_t>(n_ - 1, qrs + refine_after_);
-  if (hi - lo < 2) return qrs;
+auto RPeakDetector::Impl::deflections(std::int64_t qrs, std::int64_t before, std::int64_t after) const
+    -> std::optional<Deflections> {
+  const std::int64_t lo = std::max<std::int64_t>(0, qrs - before);
+  const std::int64_t hi = std::min<std::int64_t>(n_ - 1, qrs + after);
+  if (hi - lo < 2) return std::nullopt;
   const double base = (raw(lo) + raw(hi)) / 2;
-  double up = 0, down = 0;
-  std::int64_t up_at = qrs, down_at = qrs;
+  Deflections d{0, 0, qrs, qrs};
   for (std::int64_t i = lo; i <= hi; ++i) {
     const double v = raw(i) - base;
-    if (v > up) up = v, up_at = i;
-    if (v < down) down = v, down_at = i;
+    if (v > d.up) d.up = v, d.up_at = i;
+    if (-v > d.down) d.down = -v, d.down_at = i;
   }
-  down = -down;
-  if (up + down <= 0) return qrs;
-  balance = (up - down) / (up + down);
-  return dominant_positive(up, down) ? up_at : down_at;
+  if (d.up + d.down <= 0) return std::nullopt;
+  return d;
+}
+
+std::int64_t RPeakDetector::Impl::fiducial(std::int64_t qrs, double& balance) const {
+  auto d = deflections(qrs, refine_before_, refine_after_);
+  if (!d) return qrs;
+  balance = (d->up - d->down) / (d->up + d->down);
+  return dominant_positive(d->up, d->down) ? d->up_at : d->down_at;
 }
 
 // Between a positive deflection `up` and a negative one `down` (both > 0), the lead's dominant
@@ -363,20 +377,9 @@ bool RPeakDetector::Impl::dominant_positive(double up, double down) const {
 // normal beat to the next falls from 2.0 to 1.6 samples rms over all 45 records — 0.4–0.5 in
 // most, the floor set by the annotations' own rounding to whole samples (docs/rpeak.md).
 std::int64_t RPeakDetector::Impl::locate(std::int64_t qrs) const {
-  const std::int64_t lo = std::max<std::int64_t>(0, qrs - locate_half_);
-  const std::int64_t hi = std::min<std::int64_t>(n_ - 1, qrs + locate_half_);
-  if (hi - lo < 2) return qrs;
-  const double base = (raw(lo) + raw(hi)) / 2;
-  double up = 0, down = 0;
-  std::int64_t up_at = qrs, down_at = qrs;
-  for (std::int64_t i = lo; i <= hi; ++i) {
-    const double v = raw(i) - base;
-    if (v > up) up = v, up_at = i;
-    if (v < down) down = v, down_at = i;
-  }
-  down = -down;
-  if (up + down <= 0) return qrs;
-  const std::int64_t peak = dominant_positive(up, down) ? up_at : down_at;
+  auto d = deflections(qrs, locate_half_, locate_half_);
+  if (!d) return qrs;
+  const std::int64_t peak = dominant_positive(d->up, d->down) ? d->up_at : d->down_at;
   double centre = static_cast<double>(peak);
   for (int pass = 0; pass < 3; ++pass) {
     const std::int64_t mid = std::llround(centre);

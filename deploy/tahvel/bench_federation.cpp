@@ -822,14 +822,7 @@ int run(const Config& cfg) {
 }  // namespace bench
 
 int bench_federation_main(const std::vector<std::string>& args) {
-  return guarded_bench_main("federation", [&] {
-    std::optional<bench::Config> config = bench::parse(args);
-    if (!config) {
-      std::cout << bench::kUsage;
-      return 0;
-    }
-    return bench::run(*config);
-  });
+  return parse_and_run_bench("federation", args, bench::kUsage, bench::parse, bench::run);
 }
 
 }  // namespace tahvel::cli

@@ -405,14 +405,7 @@ int run(const Config& c) {
 }  // namespace bench
 
 int bench_store_main(const std::vector<std::string>& args) {
-  return guarded_bench_main("store", [&] {
-    std::optional<bench::Config> config = bench::parse(args);
-    if (!config) {
-      std::cout << bench::kUsage;
-      return 0;
-    }
-    return bench::run(*config);
-  });
+  return parse_and_run_bench("store", args, bench::kUsage, bench::parse, bench::run);
 }
 
 }  // namespace tahvel::cli

@@ -16,6 +16,7 @@
 #include <string>
 #include <thread>
 #include <vector>
+#include "temp_dir.h"
 
 namespace {
 
@@ -51,12 +52,8 @@ std::vector<std::string> lines_of(const std::string& text) {
 class Cli : public ::testing::Test {
  protected:
   void SetUp() override {
-    std::string pattern = (fs::temp_directory_path() / "tahvel-cli-XXXXXX").string();
-    ASSERT_NE(mkdtemp(pattern.data()), nullptr);
-    tmp_ = pattern;
     node_ = (tmp_ / "node").string();
   }
-  void TearDown() override { fs::remove_all(tmp_); }
 
   // Starts `tahvel ARGS` with `input` on standard input; returns its pid. Standard output goes
   // to tmp/outN, or to `stdout_path` when given.
@@ -107,7 +104,8 @@ class Cli : public ::testing::Test {
     return r.out;
   }
 
-  fs::path tmp_;
+  tahvel::test_support::TempDir dir_{"tahvel-cli"};
+  const fs::path tmp_ = dir_.path();
   std::string node_;
 
  private:

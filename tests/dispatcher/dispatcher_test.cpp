@@ -13,6 +13,7 @@
 #include "tahvel/agents/dispatcher.h"
 #include "tahvel/agents/reasoner.h"
 #include "tahvel/node/node.h"
+#include "temp_dir.h"
 
 namespace {
 
@@ -31,9 +32,6 @@ tn::Term n(const std::string& local) { return local == "me" ? tn::Term::iri(kIri
 class DispatcherTest : public ::testing::Test {
  protected:
   void SetUp() override {
-    std::string templ = (fs::temp_directory_path() / "tahvel-dispatcher-XXXXXX").string();
-    ASSERT_NE(mkdtemp(templ.data()), nullptr);
-    root_ = templ;
     ASSERT_TRUE(tn::Node::init(root_ / "node", {.iri = kIri}).has_value());
     fs::create_directories(root_ / "behaviours");
     script("goAhead", "echo moving at \"$1\" >&2\necho ok\n");
@@ -45,7 +43,6 @@ class DispatcherTest : public ::testing::Test {
   }
   void TearDown() override {
     node_.reset();
-    fs::remove_all(root_);
   }
   void script(const std::string& name, const std::string& body) {
     fs::path p = root_ / "behaviours" / name;
@@ -74,7 +71,8 @@ class DispatcherTest : public ::testing::Test {
     }
     return all;
   }
-  fs::path root_;
+  tahvel::test_support::TempDir tmp_{"tahvel-dispatcher"};
+  const fs::path root_ = tmp_.path();
   std::unique_ptr<tn::Node> node_;
 };
 

@@ -13,6 +13,7 @@
 
 #include "tahvel/federation/link.h"
 #include "tahvel/federation/transport.h"
+#include "temp_dir.h"
 
 namespace tahvel::federation {
 namespace {
@@ -28,21 +29,7 @@ const std::string kEx = "http://example.org/ns#";
 const Term kHrvProperty = Term::iri(std::string(vocab::kTv) + "HeartRateVariability");
 const Term kObservedProperty = Term::iri("http://www.w3.org/ns/sosa/observedProperty");
 
-class TempDir {
- public:
-  TempDir() {
-    std::string pattern = (fs::temp_directory_path() / "tahvel-link-XXXXXX").string();
-    path_ = mkdtemp(pattern.data());
-  }
-  ~TempDir() {
-    std::error_code ec;
-    fs::remove_all(path_, ec);
-  }
-  fs::path operator/(const std::string& name) const { return path_ / name; }
-
- private:
-  fs::path path_;
-};
+using tahvel::test_support::TempDir;
 
 // Lines a link or transport logged, for assertions about drops and refusals.
 struct Log {
@@ -96,7 +83,7 @@ std::uint64_t count(const std::string& dir, node::Pattern pattern) {
 
 // A hospital with two configured homes on one memory bus.
 struct Tree {
-  TempDir tmp;
+  TempDir tmp{"tahvel-link"};
   MemoryBus bus;
   Log hospital_log, home1_log, home2_log;
   std::string hospital_dir = (tmp / "hospital").string();

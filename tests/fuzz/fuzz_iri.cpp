@@ -7,13 +7,9 @@
 #include <vector>
 
 #include "tahvel/uri/iri.h"
+#include "require.h"
 
 using namespace tahvel::uri;
-
-#define REQUIRE(cond) \
-  do {                \
-    if (!(cond)) __builtin_trap(); \
-  } while (0)
 
 extern "C" int LLVMFuzzerTestOneInput(const std::uint8_t* data, std::size_t size) {
   std::string_view text(reinterpret_cast<const char*>(data), size);

@@ -8,13 +8,9 @@
 #include <vector>
 
 #include "tahvel/node/format.h"
+#include "require.h"
 
 using namespace tahvel::node;
-
-#define REQUIRE(cond) \
-  do {                \
-    if (!(cond)) __builtin_trap(); \
-  } while (0)
 
 namespace {
 

@@ -10,13 +10,9 @@
 
 #include "tahvel/spatial/plan.h"
 #include "tahvel/spatial/wkt.h"
+#include "require.h"
 
 using namespace tahvel::spatial;
-
-#define REQUIRE(cond) \
-  do {                \
-    if (!(cond)) __builtin_trap(); \
-  } while (0)
 
 extern "C" int LLVMFuzzerTestOneInput(const std::uint8_t* data, std::size_t size) {
   std::string_view text(reinterpret_cast<const char*>(data), size);

@@ -13,6 +13,7 @@
 #include <thread>
 
 #include "tahvel/node/node.h"
+#include "temp_dir.h"
 
 namespace {
 
@@ -39,17 +40,12 @@ struct Text {
 class CApiTest : public ::testing::Test {
  protected:
   void SetUp() override {
-    std::string templ = (fs::temp_directory_path() / "tahvel-capi-XXXXXX").string();
-    ASSERT_NE(mkdtemp(templ.data()), nullptr);
-    root_ = templ;
     dir_ = (root_ / "store").string();
     ASSERT_EQ(tahvel_node_init(dir_.c_str(), kNodeIri, &node_), TAHVEL_OK) << tahvel_last_error();
   }
 
   void TearDown() override {
     tahvel_node_close(node_);
-    std::error_code ignored;
-    fs::remove_all(root_, ignored);
   }
 
   tahvel_agent* open_agent(const char* id) {
@@ -67,7 +63,8 @@ class CApiTest : public ::testing::Test {
     return item;
   }
 
-  fs::path root_;
+  tahvel::test_support::TempDir tmp_{"tahvel-capi"};
+  const fs::path root_ = tmp_.path();
   std::string dir_;
   tahvel_node* node_ = nullptr;
 };

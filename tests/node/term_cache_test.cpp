@@ -11,9 +11,8 @@ namespace tahvel::node {
 namespace {
 
 using namespace std::chrono_literals;
-using testing::ex;
-using testing::make_node;
-using testing::TempDir;
+using namespace testing;  // tahvel::node::testing: TempDir, make_node, ex
+using Triples = std::vector<Triple>;
 
 Item one(Term s, Term p, Term o) {
   Item item;
@@ -21,14 +20,17 @@ Item one(Term s, Term p, Term o) {
   return item;
 }
 
-// The records with predicate `p`, read back through a fresh snapshot.
-std::vector<Record> with_predicate(const Node& node, const Term& p) {
+// The triples with predicate `p`, in id order, read back through a fresh snapshot.
+Triples with_predicate(const Node& node, const Term& p) {
   auto snap = node.snapshot();
   EXPECT_TRUE(snap);
   if (!snap) return {};
   auto records = snap->list(Pattern{.p = p});
   EXPECT_TRUE(records) << (records ? "" : records.error().message);
-  return records ? *records : std::vector<Record>{};
+  Triples out;
+  if (records)
+    for (const Record& r : *records) out.push_back(r.triple);
+  return out;
 }
 
 TEST(TermCache, ATermCollectedAndStoredAgainGetsItsNewId) {
@@ -46,10 +48,7 @@ TEST(TermCache, ATermCollectedAndStoredAgainGetsItsNewId) {
   auto again = agent->store(one(ex("c"), p, o));
   ASSERT_TRUE(again) << again.error().message;
   EXPECT_GT(node.stats()->terms, terms_before);  // p and o entered the dictionary again
-  auto records = with_predicate(node, p);
-  ASSERT_EQ(records.size(), 1u);
-  EXPECT_EQ(records[0].triple.s, ex("c"));
-  EXPECT_EQ(records[0].triple.o, o);
+  EXPECT_EQ(with_predicate(node, p), (Triples{{ex("c"), p, o}}));
 }
 
 TEST(TermCache, RemovalAndStoreInOneTransactionUseTheSameTermSafely) {
@@ -63,11 +62,7 @@ TEST(TermCache, RemovalAndStoreInOneTransactionUseTheSameTermSafely) {
   auto replaced = agent->replace({Pattern{.s = ex("room"), .p = p}}, {one(ex("room"), p, o)});
   ASSERT_TRUE(replaced) << replaced.error().message;
   ASSERT_TRUE(agent->store(one(ex("hall"), p, o)));  // and once more, from the caches
-  auto records = with_predicate(node, p);
-  ASSERT_EQ(records.size(), 2u);
-  EXPECT_EQ(records[0].triple.s, ex("room"));
-  EXPECT_EQ(records[1].triple.s, ex("hall"));
-  for (const auto& r : records) EXPECT_EQ(r.triple.o, o);
+  EXPECT_EQ(with_predicate(node, p), (Triples{{ex("room"), p, o}, {ex("hall"), p, o}}));
 }
 
 TEST(TermCache, ANewTermOfAFailedWriteIsNotRemembered) {
@@ -83,13 +78,10 @@ TEST(TermCache, ANewTermOfAFailedWriteIsNotRemembered) {
   EXPECT_EQ(failed.error().code, Errc::invalid_iri);
   ASSERT_TRUE(agent->store(one(ex("other"), ex("taken"), Term::literal("the ids of p and o"))));
   ASSERT_TRUE(agent->store(one(ex("b"), p, o)));
-  auto records = with_predicate(node, p);
-  ASSERT_EQ(records.size(), 1u);
-  EXPECT_EQ(records[0].triple.s, ex("b"));
-  EXPECT_EQ(records[0].triple.o, o);
+  EXPECT_EQ(with_predicate(node, p), (Triples{{ex("b"), p, o}}));
   auto taken = with_predicate(node, ex("taken"));
   ASSERT_EQ(taken.size(), 1u);
-  EXPECT_EQ(taken[0].triple.o, Term::literal("the ids of p and o"));
+  EXPECT_EQ(taken[0].o, Term::literal("the ids of p and o"));
 }
 
 TEST(TermCache, ACollectionThroughAnotherHandleIsSeen) {
@@ -106,9 +98,7 @@ TEST(TermCache, ACollectionThroughAnotherHandleIsSeen) {
     ASSERT_TRUE(other->remove_item(*first));
   }
   ASSERT_TRUE(agent->store(one(ex("b"), p, Term::literal("w"))));
-  auto records = with_predicate(node, p);
-  ASSERT_EQ(records.size(), 1u);
-  EXPECT_EQ(records[0].triple.o, Term::literal("w"));
+  EXPECT_EQ(with_predicate(node, p), (Triples{{ex("b"), p, Term::literal("w")}}));
 }
 
 TEST(TermCache, TakersReadPredicatesAndSourcesOfManyItemsCorrectly) {

@@ -1,32 +1,16 @@
-// Shared helpers for node tests: a temporary store directory that cleans up after itself.
+// Shared helpers for node tests: the node IRI and namespace they use, and a new store.
 #pragma once
 
-#include <unistd.h>
-
-#include <cstdlib>
 #include <filesystem>
+#include <stdexcept>
 #include <string>
 
 #include "tahvel/node/node.h"
+#include "temp_dir.h"
 
 namespace tahvel::node::testing {
 
-class TempDir {
- public:
-  TempDir() {
-    std::string pattern = (std::filesystem::temp_directory_path() / "tahvel-test-XXXXXX").string();
-    path_ = mkdtemp(pattern.data());
-  }
-  ~TempDir() {
-    std::error_code ec;
-    std::filesystem::remove_all(path_, ec);
-  }
-  const std::filesystem::path& path() const { return path_; }
-  std::filesystem::path operator/(const std::string& name) const { return path_ / name; }
-
- private:
-  std::filesystem::path path_;
-};
+using tahvel::test_support::TempDir;
 
 inline const std::string kNodeIri = "http://example.org/home1";
 inline const std::string kEx = "http://example.org/ns#";

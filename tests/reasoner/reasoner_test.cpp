@@ -18,6 +18,7 @@
 
 #include "tahvel/agents/reasoner.h"
 #include "tahvel/node/node.h"
+#include "temp_dir.h"
 
 namespace {
 
@@ -33,9 +34,6 @@ tn::Term n(const std::string& local) { return local == "me" ? tn::Term::iri(kIri
 class ReasonerTest : public ::testing::Test {
  protected:
   void SetUp() override {
-    std::string templ = (fs::temp_directory_path() / "tahvel-reasoner-XXXXXX").string();
-    ASSERT_NE(mkdtemp(templ.data()), nullptr);
-    root_ = templ;
     auto node = tn::Node::init(root_ / "node", {.iri = kIri});
     ASSERT_TRUE(node.has_value()) << node.error().message;
     node_ = std::make_unique<tn::Node>(std::move(*node));
@@ -46,7 +44,6 @@ class ReasonerTest : public ::testing::Test {
   void TearDown() override {
     init_.reset();
     node_.reset();
-    fs::remove_all(root_);
   }
   fs::path rules(const std::string& name, const std::string& text) {
     fs::path p = root_ / name;
@@ -94,7 +91,8 @@ class ReasonerTest : public ::testing::Test {
   }
   static tn::Triple t(const std::string& s, const std::string& p, const std::string& o) { return {n(s), n(p), n(o)}; }
 
-  fs::path root_;
+  tahvel::test_support::TempDir tmp_{"tahvel-reasoner"};
+  const fs::path root_ = tmp_.path();
   std::unique_ptr<tn::Node> node_;
   std::unique_ptr<tn::Agent> init_;
 };

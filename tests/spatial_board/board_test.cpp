@@ -13,6 +13,7 @@
 #include <gtest/gtest.h>
 
 #include "tahvel/spatial/wkt.h"
+#include "temp_dir.h"
 
 namespace tahvel::spatial {
 namespace {
@@ -31,9 +32,6 @@ const std::string kMote2 = kHome + "/mote2";
 class BoardTest : public testing::Test {
  protected:
   void SetUp() override {
-    std::string templ = (fs::temp_directory_path() / "tahvel-spatial-XXXXXX").string();
-    ASSERT_NE(mkdtemp(templ.data()), nullptr);
-    dir_ = templ;
     auto node = node::Node::init(dir_ / "store", {.iri = kHome});
     ASSERT_TRUE(node.has_value()) << node.error().message;
     node_.emplace(std::move(*node));
@@ -50,7 +48,6 @@ class BoardTest : public testing::Test {
   void TearDown() override {
     plan_.reset();
     node_.reset();
-    fs::remove_all(dir_);
   }
 
   void put(const node::Item& item) {
@@ -99,7 +96,8 @@ class BoardTest : public testing::Test {
     return n ? *n : 0;
   }
 
-  fs::path dir_;
+  tahvel::test_support::TempDir tmp_{"tahvel-spatial"};
+  const fs::path dir_ = tmp_.path();
   std::optional<node::Node> node_;
   std::optional<node::Agent> plan_;
 };

@@ -15,6 +15,7 @@
 #include <gtest/gtest.h>
 
 #include "tahvel/spatial/environment_board.h"
+#include "temp_dir.h"
 
 namespace tahvel::spatial {
 namespace {
@@ -36,16 +37,12 @@ std::string bin(const char* name) { return std::string(TAHVEL_BIN_DIR) + "/" + n
 class EnvironmentAgents : public testing::Test {
  protected:
   void SetUp() override {
-    std::string templ = (fs::temp_directory_path() / "tahvel-env-XXXXXX").string();
-    ASSERT_NE(mkdtemp(templ.data()), nullptr);
-    dir_ = templ;
     store_ = (dir_ / "home1").string();
     ASSERT_EQ(run(bin("tahvel") + " init " + store_ + " --iri " + kHome), 0);
     ASSERT_EQ(run(bin("tahvel") + " put " + store_ + " --persistent " + TAHVEL_SOURCE_DIR +
                   "/deploy/floorplans/home.ttl > /dev/null"),
               0);
   }
-  void TearDown() override { fs::remove_all(dir_); }
 
   void subscribe(const std::string& id, Quantity q, const std::string& room, double max_age_s,
                  double duration_s, std::optional<ThresholdRule> rule = std::nullopt) {
@@ -106,7 +103,8 @@ class EnvironmentAgents : public testing::Test {
               0);
   }
 
-  fs::path dir_;
+  tahvel::test_support::TempDir tmp_{"tahvel-env"};
+  const fs::path dir_ = tmp_.path();
   std::string store_;
 };
 
