@@ -1,6 +1,7 @@
 #include "topology.h"
 
 #include <cstdlib>
+#include <filesystem>
 #include <map>
 #include <set>
 #include <toml++/toml.h>
@@ -67,6 +68,11 @@ std::vector<const NodeSpec*> Topology::children(const std::string& id) const {
 
 node::Result<Topology> load_topology(const std::filesystem::path& file) {
   toml::table root;
+  std::error_code ec;
+  if (!std::filesystem::is_regular_file(file, ec)) {
+    return node::fail(Errc::not_found, "cannot read topology file " + file.string() + ": " +
+                                          (std::filesystem::exists(file, ec) ? "not a regular file" : "no such file"));
+  }
   try {
     root = toml::parse_file(file.string());
   } catch (const toml::parse_error& e) {

@@ -474,6 +474,13 @@ TEST_F(Cli, UpRefusesATopologyWhoseChildIriIsNotUnderItsParent) {
   EXPECT_FALSE(fs::exists(tmp_ / "state" / "hospital"));
 }
 
+TEST_F(Cli, UpNamesATopologyFileThatDoesNotExist) {
+  Outcome up = run({"up", (tmp_ / "missing.toml").string(), "--state", (tmp_ / "state").string()});
+  EXPECT_EQ(up.status, 1);
+  EXPECT_NE(up.err.find("missing.toml: no such file"), std::string::npos) << up.err;
+  EXPECT_FALSE(fs::exists(tmp_ / "state"));
+}
+
 // A bedroom and a hall sharing the wall x = 4, and mote1 in the bedroom (docs/spatial.md).
 const char* kPlan =
     "@prefix geo: <http://www.opengis.net/ont/geosparql#> .\n"
