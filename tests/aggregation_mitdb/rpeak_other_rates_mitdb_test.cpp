@@ -1,0 +1,112 @@
+// The R-peak detector on real ECG at sampling rates other than MIT-BIH's 360 Hz. Other
+// databases and devices record at 128 Hz (Holter, nsrdb), 250 Hz (afdb, many patches),
+// 500 or 1000 Hz (12-lead carts): the detector's filters and windows are defined in seconds,
+// so it must find the same beats there. Every shared record is band-limited and resampled
+// (windowed-sinc interpolation, cut-off at 0.45 of the lower rate) to each rate, its
+// annotations moved to the new sample grid, and scored as at 360 Hz (score_beats: bxb's rule).
+#include <gtest/gtest.h>
+
+#include <algorithm>
+#include <cmath>
+#include <cstdint>
+#include <cstdio>
+#include <numbers>
+#include <numeric>
+#include <string>
+#include <vector>
+
+#include "../aggregation/mitdb_support.h"
+#include "tahvel/aggregation/annotations.h"
+#include "tahvel/aggregation/rpeak.h"
+#include "tahvel/aggregation/score.h"
+#include "tahvel/aggregation/wfdb.h"
+
+namespace tahvel::aggregation {
+namespace {
+
+using testing::mitdb_record;
+using testing::mitdb_records;
+
+// Resamples `x` from fs_in to fs_out (whole hertz): each output sample is the input convolved
+// with a Blackman-windowed sinc whose cut-off (0.45 of the lower of the two rates) keeps the
+// ECG band and removes what would alias when the rate goes down. The output grid falls on
+// fs_out / gcd phases of the input grid, so one kernel per phase serves the whole record.
+std::vector<std::int32_t> resample(const std::vector<std::int32_t>& x, int fs_in, int fs_out) {
+  const double cutoff = 0.45 * std::min(fs_in, fs_out);  // Hz
+  const double step = 2 * cutoff / fs_in;                // the sinc's argument per input sample
+  const int half = static_cast<int>(std::ceil(8 / step));  // eight zero crossings each side
+  const int phases = fs_out / std::gcd(fs_in, fs_out);
+  std::vector<std::vector<double>> kernels(static_cast<std::size_t>(phases));
+  for (int p = 0; p < phases; ++p) {
+    const double frac = static_cast<double>(static_cast<std::int64_t>(p) * fs_in % fs_out) / fs_out;
+    std::vector<double>& h = kernels[static_cast<std::size_t>(p)];
+    double weight = 0;
+    for (int k = -half + 1; k <= half; ++k) {
+      const double d = frac - k;  // distance from input sample centre + k to the output point
+      const double u = step * d;
+      const double sinc = u == 0 ? 1 : std::sin(std::numbers::pi * u) / (std::numbers::pi * u);
+      const double r = d / (half + 1);  // -1..1 over the window
+      h.push_back(sinc * (0.42 + 0.5 * std::cos(std::numbers::pi * r) +
+                          0.08 * std::cos(2 * std::numbers::pi * r)));
+      weight += h.back();
+    }
+    for (double& v : h) v /= weight;  // unit gain at DC
+  }
+  const auto n_in = static_cast<std::int64_t>(x.size());
+  std::vector<std::int32_t> y(static_cast<std::size_t>(n_in * fs_out / fs_in));
+  for (std::size_t j = 0; j < y.size(); ++j) {
+    const auto scaled = static_cast<std::int64_t>(j) * fs_in;
+    const std::int64_t centre = scaled / fs_out;
+    const std::vector<double>& h = kernels[j % static_cast<std::size_t>(phases)];
+    double sum = 0;
+    for (int k = -half + 1; k <= half; ++k)
+      sum += h[static_cast<std::size_t>(k + half - 1)] *
+             x[static_cast<std::size_t>(std::clamp<std::int64_t>(centre + k, 0, n_in - 1))];
+    y[j] = static_cast<std::int32_t>(std::lround(sum));
+  }
+  return y;
+}
+
+std::vector<Annotation> moved(std::vector<Annotation> annotations, int fs_in, int fs_out) {
+  for (Annotation& a : annotations)
+    a.sample = std::llround(static_cast<double>(a.sample) * fs_out / fs_in);
+  return annotations;
+}
+
+class RPeakAtOtherRates : public ::testing::TestWithParam<int> {};
+
+TEST_P(RPeakAtOtherRates, GrossSensitivityAndPositivePredictivityAtLeast99_5Percent) {
+  const int fs = GetParam();
+  const std::vector<std::string> names = mitdb_records();
+  if (names.empty()) GTEST_SKIP() << "MIT-BIH records not found (set TAHVEL_MITDB)";
+  BeatScore gross;
+  for (const std::string& name : names) {
+    auto signals = read_signals(mitdb_record(name));
+    ASSERT_TRUE(signals.has_value()) << signals.error().message;
+    auto reference = read_annotations(mitdb_record(name));
+    ASSERT_TRUE(reference.has_value()) << reference.error().message;
+    const auto fs_in = static_cast<int>(signals->header.fs);
+    ASSERT_EQ(fs_in, signals->header.fs) << name << ": a whole-hertz rate";
+    DetectorOptions o;
+    o.fs = fs;
+    o.gain = signals->header.signals[0].gain;
+    const std::vector<std::int32_t> lead = resample(signals->samples[0], fs_in, fs);
+    const BeatScore s = score_beats(moved(*reference, fs_in, fs), detect_r_peaks(lead, o), fs);
+    std::printf("%s at %d Hz  TP %5lld  FN %3lld  FP %3lld\n", name.c_str(), fs,
+                static_cast<long long>(s.tp), static_cast<long long>(s.fn),
+                static_cast<long long>(s.fp));
+    gross += s;
+  }
+  const double se = 100 * gross.sensitivity(), ppv = 100 * gross.positive_predictivity();
+  std::printf("gross at %d Hz over %zu records: TP %lld FN %lld FP %lld  Se %.3f %%  +P %.3f %%\n",
+              fs, names.size(), static_cast<long long>(gross.tp),
+              static_cast<long long>(gross.fn), static_cast<long long>(gross.fp), se, ppv);
+  EXPECT_GE(se, 99.5) << "gross sensitivity at " << fs << " Hz";
+  EXPECT_GE(ppv, 99.5) << "gross positive predictivity at " << fs << " Hz";
+}
+
+INSTANTIATE_TEST_SUITE_P(Rates, RPeakAtOtherRates, ::testing::Values(128, 250, 500, 1000),
+                         [](const auto& info) { return std::to_string(info.param) + "Hz"; });
+
+}  // namespace
+}  // namespace tahvel::aggregation
