@@ -420,7 +420,7 @@ int run_up(const Args& args) {
       for (const auto& pattern : policy) check(uplink.subscribe(pattern));
     }
     if (!spec.parent.empty() || !topo.children(spec.id).empty())
-      programs.push_back({spec.id + "/link", link_argv(topo, spec, store, bin), state / "logs" / spec.id / "link.log", {}, true});
+      programs.push_back({spec.id + "/link", link_argv(topo, spec, store, bin), state / "logs" / spec.id / "link.log", {}, agents::Restart::always});
     for (const AgentSpec& agent : spec.agents)
       programs.push_back({spec.id + "/" + agent.id, expand_agent_command(agent, spec, store, bin),
                           state / "logs" / spec.id / (agent.id + ".log"), {}, agent.restart});

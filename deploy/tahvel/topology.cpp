@@ -51,6 +51,20 @@ node::Result<std::vector<std::string>> strings(const toml::node* n, const std::f
   return out;
 }
 
+// `restart` of an agent: "on-failure" (also when absent), "always", "never"; true and false
+// (the older spelling) mean "always" and "never".
+node::Result<agents::Restart> restart_policy(const toml::node* n, const std::filesystem::path& file,
+                                             const std::string& agent_id) {
+  if (!n) return agents::Restart::on_failure;
+  if (auto b = n->value<bool>(); b && n->is_boolean()) return *b ? agents::Restart::always : agents::Restart::never;
+  if (auto text = n->value<std::string>()) {
+    for (auto r : {agents::Restart::on_failure, agents::Restart::always, agents::Restart::never})
+      if (*text == agents::restart_name(r)) return r;
+  }
+  return node::fail(Errc::invalid_argument, where(*n, file) + ": agent '" + agent_id +
+                                                "': restart must be \"on-failure\", \"always\" or \"never\"");
+}
+
 }  // namespace
 
 const NodeSpec* Topology::node(const std::string& id) const {
@@ -144,7 +158,8 @@ node::Result<Topology> load_topology(const std::filesystem::path& file) {
         auto with_mitdb = strings((*at)["run_with_mitdb"].node(), file, "agent '" + agent.id + "': run_with_mitdb");
         if (!with_mitdb) return Unexpected<node::Error>{with_mitdb.error()};
         agent.run_with_mitdb = *with_mitdb;
-        agent.restart = (*at)["restart"].value_or(true);
+        if (auto r = restart_policy((*at)["restart"].node(), file, agent.id); r) agent.restart = *r;
+        else return Unexpected<node::Error>{r.error()};
         spec.agents.push_back(std::move(agent));
       }
     }

@@ -9,6 +9,7 @@
 #include <string>
 #include <vector>
 
+#include "tahvel/agents/supervisor.h"
 #include "tahvel/node/error.h"
 
 namespace tahvel::cli {
@@ -25,7 +26,7 @@ struct AgentSpec {
   std::string id;
   std::vector<std::string> run;             // argv; placeholders below
   std::vector<std::string> run_with_mitdb;  // used instead of `run` when TAHVEL_MITDB is set
-  bool restart = true;
+  agents::Restart restart = agents::Restart::on_failure;
 };
 
 struct NodeSpec {

@@ -474,6 +474,49 @@ TEST_F(Cli, UpRefusesATopologyWhoseChildIriIsNotUnderItsParent) {
   EXPECT_FALSE(fs::exists(tmp_ / "state" / "hospital"));
 }
 
+// An agent that finishes (exit 0) stays finished under the default restart policy — a replay
+// is not replayed again — while restart = "always" runs it again and "never" does not retry
+// a failure.
+TEST_F(Cli, UpRestartsAnAgentAfterItFinishesOnlyWhenItsPolicyIsAlways) {
+  const std::string marks = (tmp_ / "marks").string();
+  auto agent = [&](const std::string& id, const std::string& script, const std::string& restart) {
+    return "  [[node.agent]]\n  id = \"" + id + "\"\n  run = [\"/bin/sh\", \"-c\", \"" + script + "\"]\n" +
+           (restart.empty() ? "" : "  restart = \"" + restart + "\"\n");
+  };
+  spit(tmp_ / "node.toml",
+       "[[node]]\nid = \"solo\"\niri = \"http://example.org/solo\"\n" +
+           agent("replay", "echo replay >> " + marks, "") +
+           agent("poller", "echo poller >> " + marks, "always") +
+           agent("once", "echo once >> " + marks + "; exit 1", "never"));
+  const std::string state = (tmp_ / "state").string();
+  Outcome up = run({"up", (tmp_ / "node.toml").string(), "--state", state});
+  ASSERT_EQ(up.status, 0) << up.err;
+  auto count = [&](const std::string& word) {
+    std::size_t n = 0;
+    for (const std::string& line : lines_of(slurp(tmp_ / "marks"))) n += line == word ? 1 : 0;
+    return n;
+  };
+  for (int i = 0; i < 100 && count("poller") < 2; ++i) std::this_thread::sleep_for(std::chrono::milliseconds(50));
+  std::this_thread::sleep_for(std::chrono::milliseconds(700));  // more than the first back-off
+  EXPECT_GE(count("poller"), 2u);
+  EXPECT_EQ(count("replay"), 1u);
+  EXPECT_EQ(count("once"), 1u);
+  const std::string log = slurp(tmp_ / "state" / "logs" / "supervisor.log");
+  EXPECT_NE(log.find("solo/replay exited with status 0 (finished; restart = on-failure)"), std::string::npos) << log;
+  EXPECT_NE(log.find("solo/once exited with status 1 (not restarted: restart = never)"), std::string::npos) << log;
+  EXPECT_EQ(run({"down", "--state", state}).status, 0);
+}
+
+TEST_F(Cli, UpRefusesAnUnknownRestartPolicyNamingTheAgent) {
+  spit(tmp_ / "node.toml",
+       "[[node]]\nid = \"solo\"\niri = \"http://example.org/solo\"\n"
+       "  [[node.agent]]\n  id = \"hrv\"\n  run = [\"true\"]\n  restart = \"sometimes\"\n");
+  Outcome up = run({"up", (tmp_ / "node.toml").string(), "--state", (tmp_ / "state").string()});
+  EXPECT_EQ(up.status, 1);
+  EXPECT_NE(up.err.find("node.toml:7:"), std::string::npos) << up.err;
+  EXPECT_NE(up.err.find("agent 'hrv': restart must be \"on-failure\", \"always\" or \"never\""), std::string::npos) << up.err;
+}
+
 TEST_F(Cli, UpNamesATopologyFileThatDoesNotExist) {
   Outcome up = run({"up", (tmp_ / "missing.toml").string(), "--state", (tmp_ / "state").string()});
   EXPECT_EQ(up.status, 1);

@@ -112,7 +112,7 @@ Result<void> Dispatcher::Impl::command(std::uint64_t item, const std::string& te
   spec.argv = argv;
   spec.argv[0] = exe.string();
   spec.log_file = options.log_dir / (std::to_string(item) + "-" + argv[0] + ".log");
-  spec.restart = false;
+  spec.restart = Restart::never;
   spec.env = {{"TAHVEL_NODE", node.dir().string()}, {"TAHVEL_RUN", run}};
   if (auto s = supervisor.start(spec); !s) return refuse(s.error().message);
   runs[spec.name] = Run{run, argv[0], text, spec.name, spec.log_file, false};

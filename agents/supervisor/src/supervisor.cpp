@@ -38,6 +38,15 @@ std::string describe(int status) {
 
 }  // namespace
 
+std::string_view restart_name(Restart restart) {
+  switch (restart) {
+    case Restart::on_failure: return "on-failure";
+    case Restart::always: return "always";
+    case Restart::never: return "never";
+  }
+  return "?";
+}
+
 Supervisor::Supervisor(Log log, BackOff back_off) : log_(std::move(log)), back_off_(back_off) {
   if (!log_) log_ = [](std::string_view line) { std::cerr << "tahvel supervisor: " << line << "\n"; };
 }
@@ -71,6 +80,8 @@ void Supervisor::launch(Program& program) {
   std::vector<char*> args;
   for (auto& a : argv) args.push_back(a.data());
   args.push_back(nullptr);
+  // Built before fork: the child may only make async-signal-safe calls.
+  const std::string exec_failed = "tahvel supervisor: " + program.spec.name + ": cannot run " + argv[0] + "\n";
   pid_t pid = fork();
   if (pid < 0) {
     log_("cannot start " + program.spec.name + ": fork: " + std::strerror(errno));
@@ -90,8 +101,7 @@ void Supervisor::launch(Program& program) {
     }
     for (auto& [k, v] : program.spec.env) setenv(k.c_str(), v.c_str(), 1);
     execvp(args[0], args.data());
-    const char msg[] = "tahvel supervisor: exec failed\n";
-    (void)!write(2, msg, sizeof msg - 1);
+    (void)!write(2, exec_failed.data(), exec_failed.size());
     _exit(127);
   }
   program.state.pid = pid;
@@ -105,8 +115,13 @@ void Supervisor::reaped(Program& program, int status) {
   program.state.pid = 0;
   program.state.last_exit = describe(status);
   program.state.exit_status = WIFEXITED(status) ? std::optional<int>(WEXITSTATUS(status)) : std::nullopt;
-  if (program.stopping || !program.spec.restart) {
-    log_(program.spec.name + " " + program.state.last_exit + (program.stopping ? " (stopped)" : ""));
+  const bool finished = WIFEXITED(status) && WEXITSTATUS(status) == 0;
+  const Restart policy = program.spec.restart;
+  if (program.stopping || policy == Restart::never || (policy == Restart::on_failure && finished)) {
+    std::string why = program.stopping ? " (stopped)"
+                      : policy == Restart::never ? " (not restarted: restart = never)"
+                                                 : " (finished; restart = on-failure)";
+    log_(program.spec.name + " " + program.state.last_exit + why);
     return;
   }
   if (Clock::now() - program.started >= back_off_.stable) program.delay = back_off_.first;

@@ -26,12 +26,23 @@ namespace tahvel::agents {
 
 using node::Result;
 
+// When a program that ended is started again (after the back-off).
+enum class Restart {
+  on_failure,  // when it dies: a non-zero exit status or a signal. Status 0 means it finished
+               // its work (a replay that reached its end) and it stays stopped.
+  always,      // whenever it ends, status 0 included (a program meant to run until stopped)
+  never,       // never (a behaviour the dispatcher started once)
+};
+
+// "on-failure", "always", "never" (as topology files write them).
+std::string_view restart_name(Restart restart);
+
 struct ProgramSpec {
   std::string name;                  // unique within the supervisor ("home1/hrv")
   std::vector<std::string> argv;     // argv[0] is looked up in PATH when it has no '/'
   std::filesystem::path log_file;    // stdout and stderr are appended here (empty: inherited)
   std::vector<std::pair<std::string, std::string>> env;  // added to the environment
-  bool restart = true;               // false: a program that exits stays stopped (a behaviour)
+  Restart restart = Restart::on_failure;
 };
 
 struct ProgramState {

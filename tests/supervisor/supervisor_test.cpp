@@ -1,0 +1,129 @@
+// The supervisor (agents/supervisor): which programs it starts again, with what back-off, and
+// what it logs about each end. The programs are /bin/sh one-liners.
+#include <gtest/gtest.h>
+
+#include <chrono>
+#include <functional>
+#include <string>
+#include <thread>
+#include <vector>
+
+#include "tahvel/agents/supervisor.h"
+
+namespace tahvel::agents {
+namespace {
+
+using namespace std::chrono_literals;
+
+class SupervisorTest : public ::testing::Test {
+ protected:
+  SupervisorTest()
+      : supervisor_([this](std::string_view line) { log_.emplace_back(line); },
+                    BackOff{.first = 20ms, .max = 80ms, .stable = 60s}) {}
+
+  void start(const std::string& name, const std::string& script, Restart restart) {
+    ProgramSpec spec;
+    spec.name = name;
+    spec.argv = {"/bin/sh", "-c", script};
+    spec.restart = restart;
+    ASSERT_TRUE(supervisor_.start(spec).has_value());
+  }
+
+  // Polls the supervisor until `done` holds or `limit` passes.
+  bool poll_until(const std::function<bool()>& done, std::chrono::milliseconds limit = 5000ms) {
+    const auto deadline = std::chrono::steady_clock::now() + limit;
+    while (std::chrono::steady_clock::now() < deadline) {
+      supervisor_.poll();
+      if (done()) return true;
+      std::this_thread::sleep_for(5ms);
+    }
+    return false;
+  }
+
+  // Polls for `span` and returns the program's state at the end.
+  ProgramState after(const std::string& name, std::chrono::milliseconds span) {
+    poll_until([] { return false; }, span);
+    return *supervisor_.state(name);
+  }
+
+  bool logged(const std::string& text) const {
+    for (const auto& line : log_)
+      if (line.find(text) != std::string::npos) return true;
+    return false;
+  }
+
+  std::vector<std::string> log_;
+  Supervisor supervisor_;
+};
+
+TEST_F(SupervisorTest, AProgramThatFinishesWithStatusZeroStaysStopped) {
+  start("replay", "exit 0", Restart::on_failure);
+  const ProgramState s = after("replay", 300ms);
+  EXPECT_FALSE(s.running);
+  EXPECT_EQ(s.restarts, 0u);
+  EXPECT_EQ(s.exit_status, 0);
+  EXPECT_TRUE(logged("replay exited with status 0 (finished; restart = on-failure)"));
+}
+
+TEST_F(SupervisorTest, AProgramThatFailsIsStartedAgainWithBackOffAndTheLogSaysWhy) {
+  start("agent", "exit 3", Restart::on_failure);
+  ASSERT_TRUE(poll_until([&] { return supervisor_.state("agent")->restarts >= 3; }));
+  EXPECT_TRUE(logged("agent exited with status 3; restarting in 20 ms"));
+  EXPECT_TRUE(logged("agent exited with status 3; restarting in 40 ms"));  // doubled
+  EXPECT_TRUE(logged("agent exited with status 3; restarting in 80 ms"));  // up to the cap
+}
+
+TEST_F(SupervisorTest, AProgramKilledByASignalIsStartedAgainAndTheLogNamesTheSignal) {
+  start("agent", "kill -9 $$", Restart::on_failure);
+  ASSERT_TRUE(poll_until([&] { return supervisor_.state("agent")->restarts >= 1; }));
+  EXPECT_TRUE(logged("agent killed by signal 9"));
+}
+
+TEST_F(SupervisorTest, RestartAlwaysStartsAProgramAgainAfterStatusZero) {
+  start("loop", "exit 0", Restart::always);
+  ASSERT_TRUE(poll_until([&] { return supervisor_.state("loop")->restarts >= 2; }));
+  EXPECT_TRUE(logged("loop exited with status 0; restarting in"));
+}
+
+TEST_F(SupervisorTest, RestartNeverLeavesAFailedProgramStopped) {
+  start("behaviour", "exit 1", Restart::never);
+  const ProgramState s = after("behaviour", 300ms);
+  EXPECT_FALSE(s.running);
+  EXPECT_EQ(s.restarts, 0u);
+  EXPECT_EQ(s.exit_status, 1);
+  EXPECT_TRUE(logged("behaviour exited with status 1 (not restarted: restart = never)"));
+}
+
+TEST_F(SupervisorTest, AStoppedProgramIsNotStartedAgain) {
+  start("agent", "sleep 30", Restart::always);
+  ASSERT_TRUE(poll_until([&] { return supervisor_.state("agent")->running; }));
+  ASSERT_TRUE(supervisor_.stop("agent", 2000ms).has_value());
+  const ProgramState s = after("agent", 200ms);
+  EXPECT_FALSE(s.running);
+  EXPECT_EQ(s.restarts, 0u);
+  EXPECT_TRUE(logged("agent killed by signal 15"));
+  EXPECT_TRUE(logged("(stopped)"));
+}
+
+TEST_F(SupervisorTest, AProgramThatCannotBeRunExitsWithStatus127) {
+  ProgramSpec spec;
+  spec.name = "missing";
+  spec.argv = {"/nonexistent/tahvel-agent"};
+  spec.restart = Restart::never;
+  ASSERT_TRUE(supervisor_.start(spec).has_value());
+  ASSERT_TRUE(poll_until([&] { return !supervisor_.state("missing")->running; }));
+  EXPECT_EQ(supervisor_.state("missing")->exit_status, 127);
+}
+
+TEST_F(SupervisorTest, TwoProgramsOfOneNameAreRefused) {
+  start("agent", "sleep 30", Restart::on_failure);
+  ProgramSpec again;
+  again.name = "agent";
+  again.argv = {"/bin/true"};
+  auto second = supervisor_.start(again);
+  ASSERT_FALSE(second.has_value());
+  EXPECT_EQ(second.error().code, node::Errc::exists);
+}
+
+}  // namespace
+}  // namespace tahvel::agents
