@@ -13,6 +13,8 @@
 #include <cmath>
 #include <filesystem>
 #include <memory>
+#include <optional>
+#include <cstdlib>
 #include <thread>
 
 #include <iostream>
@@ -92,19 +94,113 @@ void wait_until(std::chrono::steady_clock::time_point deadline) {
   }
 }
 
+// What an earlier run of this source left of a recording on the board.
+struct EarlierRun {
+  bool recording = false;                // the recording item is there
+  std::optional<std::int64_t> end;       // its tv:endSample: that run ended it
+  std::int64_t next = 0;                 // the frame after its last chunk
+  std::optional<std::int64_t> start_ns;  // asserted-at of its frame 0 (from a chunk's time)
+};
+
+tahvel::node::Result<EarlierRun> earlier_run(const rt::Session& session, const std::string& iri, double fs) {
+  using tahvel::node::Term;
+  const std::string tv = agg::kTv;
+  auto snapshot = session.node.snapshot();
+  if (!snapshot) return tahvel::unexpected(snapshot.error());
+  EarlierRun run;
+  tahvel::node::Pattern of_recording;
+  of_recording.s = Term::iri(iri);
+  of_recording.source = session.agent.iri();
+  auto records = snapshot->list(of_recording);
+  if (!records) return tahvel::unexpected(records.error());
+  for (const auto& r : *records) {
+    if (r.triple.p.value == tv + "endSample") run.end = std::strtoll(r.triple.o.value.c_str(), nullptr, 10);
+    if (r.triple.p.value == tv + "samplingRate") run.recording = true;
+  }
+  // Chunks name the recording (tv:recording) and say where they start and how many frames they
+  // hold; the last one (by start) is where this run goes on.
+  tahvel::node::Pattern chunks;
+  chunks.p = Term::iri(tv + "recording");
+  chunks.o = Term::iri(iri);
+  chunks.source = session.agent.iri();
+  auto named = snapshot->list(chunks);
+  if (!named) return tahvel::unexpected(named.error());
+  for (const auto& r : *named) {
+    tahvel::node::Pattern chunk;
+    chunk.s = r.triple.s;
+    auto fields = snapshot->list(chunk);
+    if (!fields) return tahvel::unexpected(fields.error());
+    std::int64_t start = -1, frames = -1;
+    for (const auto& f : *fields) {
+      if (f.triple.p.value == tv + "startSample") start = std::strtoll(f.triple.o.value.c_str(), nullptr, 10);
+      if (f.triple.p.value == tv + "frameCount") frames = std::strtoll(f.triple.o.value.c_str(), nullptr, 10);
+    }
+    if (start < 0 || frames < 0 || start + frames <= run.next) continue;
+    run.next = start + frames;
+    run.start_ns = r.meta.asserted_at - std::llround(static_cast<double>(start) * 1e9 / fs);
+  }
+  return run;
+}
+
+// Reads and drops `frames` frames (to where an earlier run stopped). False at the signal's end.
+agg::Result<bool> skip(Signal& signal, std::int64_t frames) {
+  Frames scratch;
+  while (frames > 0) {
+    for (auto& lead : scratch) lead.clear();
+    auto got = signal.read(static_cast<std::size_t>(std::min<std::int64_t>(frames, 1 << 16)), scratch);
+    if (!got) return tahvel::unexpected(got.error());
+    if (*got == 0) return false;
+    frames -= static_cast<std::int64_t>(*got);
+  }
+  return true;
+}
+
 int replay(rt::Session& session, Signal& signal, double speed) {
   auto& agent = session.agent;
-  if (auto s = agent.store(agg::recording_item(signal.info)); !s) {
-    rt::log_line(kProgram, "store recording item: " + s.error().message);
-    return rt::kExitError;
+  // A restart must not write the same seconds twice. A recording an earlier run ended (its
+  // tv:endSample is there: it reached its end or was stopped) is over; this run records anew
+  // as <name>-2, -3, ... A recording left without an end (the source was killed) goes on after
+  // its last chunk, on the same time axis.
+  const std::string base_iri = signal.info.iri;
+  EarlierRun earlier;
+  for (int take = 2;; ++take) {
+    auto found = earlier_run(session, signal.info.iri, signal.info.fs);
+    if (!found) {
+      rt::log_line(kProgram, "reading the board: " + found.error().message);
+      return rt::kExitError;
+    }
+    earlier = *found;
+    if (!earlier.end) break;
+    signal.info.iri = base_iri + "-" + std::to_string(take);
+  }
+  if (signal.info.iri != base_iri)
+    rt::log_line(kProgram, "<" + base_iri + "> was ended by an earlier run; recording anew as <" + signal.info.iri + ">");
+  if (!earlier.recording) {
+    if (auto s = agent.store(agg::recording_item(signal.info)); !s) {
+      rt::log_line(kProgram, "store recording item: " + s.error().message);
+      return rt::kExitError;
+    }
+  }
+  std::int64_t position = 0;
+  if (earlier.next > 0) {
+    auto more = skip(signal, earlier.next);
+    if (!more) {
+      rt::log_line(kProgram, "read: " + more.error().message);
+      return rt::kExitError;
+    }
+    position = earlier.next;
+    rt::log_line(kProgram, "<" + signal.info.iri + "> goes on from frame " + std::to_string(position) +
+                               ", after the chunks an earlier run wrote");
   }
   const auto chunk = static_cast<std::size_t>(std::max(1.0, std::round(signal.info.fs)));
-  const auto t0 = std::chrono::steady_clock::now();
+  // Pacing restarts here: the next chunk is due one chunk period from now.
+  const auto t0 = std::chrono::steady_clock::now() -
+                  std::chrono::duration_cast<std::chrono::steady_clock::duration>(
+                      std::chrono::duration<double>(static_cast<double>(position) / signal.info.fs / (speed > 0 ? speed : 1)));
   // A chunk holds when its first sample was taken: the replay's start plus the sample's offset
   // on the recording's own clock (at --speed N that clock runs N times faster than the wall's).
-  const std::int64_t start_ns = std::chrono::duration_cast<std::chrono::nanoseconds>(
-                                    std::chrono::system_clock::now().time_since_epoch()).count();
-  std::int64_t position = 0;
+  const std::int64_t start_ns = earlier.start_ns.value_or(std::chrono::duration_cast<std::chrono::nanoseconds>(
+                                    std::chrono::system_clock::now().time_since_epoch()).count());
   Frames frames;
   while (!rt::stop_requested()) {
     for (auto& lead : frames) lead.clear();

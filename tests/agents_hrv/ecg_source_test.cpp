@@ -1,0 +1,154 @@
+// tahvel-ecg-source started again on a board that holds an earlier run: a source killed in the
+// middle goes on after its last chunk, so every second of signal is on the board once and the
+// same as an uninterrupted run wrote it; a recording that was ended is not written again.
+#include <gtest/gtest.h>
+#include <signal.h>
+#include <sys/wait.h>
+#include <unistd.h>
+
+#include <chrono>
+#include <cstdlib>
+#include <filesystem>
+#include <map>
+#include <string>
+#include <thread>
+#include <vector>
+
+#include "tahvel/aggregation/items.h"
+#include "tahvel/node/node.h"
+
+namespace {
+
+namespace agg = tahvel::aggregation;
+namespace fs = std::filesystem;
+namespace tn = tahvel::node;
+using namespace std::chrono_literals;
+
+const std::string kNodeIri = "http://example.org/home1";
+const std::string kRecording = kNodeIri + "/ecg/recording/synthetic-5";
+constexpr std::int64_t kFrames = 60 * 360;  // --seconds 60 at the generator's 360 Hz
+
+pid_t spawn_source(const std::string& dir, const std::string& speed) {
+  std::vector<std::string> argv = {std::string(TAHVEL_BIN_DIR) + "/tahvel-ecg-source", dir, "--synthetic",
+                                   "--seed", "5", "--seconds", "60", "--speed", speed};
+  pid_t pid = fork();
+  if (pid == 0) {
+    std::vector<char*> args;
+    for (auto& a : argv) args.push_back(a.data());
+    args.push_back(nullptr);
+    execv(args[0], args.data());
+    _exit(127);
+  }
+  return pid;
+}
+
+int exit_status(pid_t pid) {
+  int status = 0;
+  waitpid(pid, &status, 0);
+  return WIFEXITED(status) ? WEXITSTATUS(status) : 128 + WTERMSIG(status);
+}
+
+class EcgSourceTest : public ::testing::Test {
+ protected:
+  void SetUp() override {
+    char pattern[] = "/tmp/tahvel-ecg-source-XXXXXX";
+    ASSERT_NE(mkdtemp(pattern), nullptr);
+    tmp_ = pattern;
+  }
+  void TearDown() override {
+    if (!tmp_.empty()) fs::remove_all(tmp_);
+  }
+
+  std::string new_node(const std::string& name) {
+    const std::string dir = tmp_ + "/" + name;
+    auto node = tn::Node::init(dir, tn::InitOptions{.iri = kNodeIri});
+    EXPECT_TRUE(node) << node.error().message;
+    return dir;
+  }
+
+  // Each chunk of `recording` on the board: start sample -> the samples literal, and how many
+  // chunk items name that start.
+  struct Chunks {
+    std::map<std::int64_t, std::string> samples;
+    std::map<std::int64_t, int> copies;
+  };
+  static Chunks chunks(const std::string& dir, const std::string& recording) {
+    Chunks out;
+    auto node = tn::Node::open(dir);
+    EXPECT_TRUE(node) << node.error().message;
+    auto snapshot = node->snapshot();
+    EXPECT_TRUE(snapshot);
+    tn::Pattern of;
+    of.p = agg::tv_term("recording");
+    of.o = tn::Term::iri(recording);
+    auto named = snapshot->list(of);
+    EXPECT_TRUE(named);
+    for (const auto& r : *named) {
+      auto fields = snapshot->list(tn::Pattern{.s = r.triple.s});
+      EXPECT_TRUE(fields);
+      std::int64_t start = -1;
+      std::string samples;
+      for (const auto& f : *fields) {
+        if (f.triple.p == agg::tv_term("startSample")) start = std::stoll(f.triple.o.value);
+        if (f.triple.p == agg::tv_term("samples")) samples = f.triple.o.value;
+      }
+      out.samples[start] = samples;
+      ++out.copies[start];
+    }
+    return out;
+  }
+
+  static std::vector<std::string> objects(const std::string& dir, const std::string& s, const std::string& p) {
+    auto node = tn::Node::open(dir);
+    auto snapshot = node->snapshot();
+    auto records = snapshot->list(tn::Pattern{.s = tn::Term::iri(s), .p = tn::Term::iri(p)});
+    std::vector<std::string> out;
+    for (const auto& r : *records) out.push_back(r.triple.o.value);
+    return out;
+  }
+
+  std::string tmp_;
+};
+
+TEST_F(EcgSourceTest, ARestartAfterAKillGoesOnAfterTheLastChunkAndWritesEachSecondOnce) {
+  const std::string whole = new_node("whole");
+  ASSERT_EQ(exit_status(spawn_source(whole, "0")), 0);
+  const Chunks reference = chunks(whole, kRecording);
+  ASSERT_EQ(reference.samples.size(), 60u);
+
+  const std::string crashed = new_node("crashed");
+  const pid_t first = spawn_source(crashed, "20");  // 3 s of wall time for the 60 s
+  const auto deadline = std::chrono::steady_clock::now() + 20s;
+  while (chunks(crashed, kRecording).samples.size() < 10 && std::chrono::steady_clock::now() < deadline)
+    std::this_thread::sleep_for(20ms);
+  kill(first, SIGKILL);
+  exit_status(first);
+  const std::size_t before = chunks(crashed, kRecording).samples.size();
+  ASSERT_GE(before, 10u);
+  ASSERT_LT(before, 60u) << "the source ended before it was killed";
+
+  ASSERT_EQ(exit_status(spawn_source(crashed, "0")), 0);
+  const Chunks after = chunks(crashed, kRecording);
+  for (const auto& [start, n] : after.copies) EXPECT_EQ(n, 1) << "chunk at " << start;
+  EXPECT_EQ(after.samples, reference.samples);
+  EXPECT_EQ(objects(crashed, kRecording, std::string(agg::kTv) + "endSample"),
+            std::vector<std::string>{std::to_string(kFrames)});
+  EXPECT_EQ(objects(crashed, kRecording, std::string(agg::kTv) + "samplingRate").size(), 1u)
+      << "one recording item";
+}
+
+TEST_F(EcgSourceTest, ARecordingThatWasEndedIsNotWrittenAgainTheNextRunRecordsAnew) {
+  const std::string dir = new_node("home1");
+  ASSERT_EQ(exit_status(spawn_source(dir, "0")), 0);
+  ASSERT_EQ(exit_status(spawn_source(dir, "0")), 0);
+  const Chunks first = chunks(dir, kRecording);
+  EXPECT_EQ(first.samples.size(), 60u);
+  for (const auto& [start, n] : first.copies) EXPECT_EQ(n, 1) << "chunk at " << start;
+  EXPECT_EQ(objects(dir, kRecording, std::string(agg::kTv) + "endSample").size(), 1u);
+  const Chunks second = chunks(dir, kRecording + "-2");
+  EXPECT_EQ(second.samples, first.samples);  // the same seed: the same signal, under a new name
+  EXPECT_EQ(objects(dir, kRecording + "-2", std::string(agg::kTv) + "endSample"),
+            std::vector<std::string>{std::to_string(kFrames)});
+}
+
+}  // namespace
