@@ -16,6 +16,7 @@
 
 #include "tahvel/aggregation/items.h"
 #include "tahvel/node/node.h"
+#include "temp_dir.h"
 
 namespace {
 
@@ -50,17 +51,8 @@ int exit_status(pid_t pid) {
 
 class EcgSourceTest : public ::testing::Test {
  protected:
-  void SetUp() override {
-    char pattern[] = "/tmp/tahvel-ecg-source-XXXXXX";
-    ASSERT_NE(mkdtemp(pattern), nullptr);
-    tmp_ = pattern;
-  }
-  void TearDown() override {
-    if (!tmp_.empty()) fs::remove_all(tmp_);
-  }
-
   std::string new_node(const std::string& name) {
-    const std::string dir = tmp_ + "/" + name;
+    const std::string dir = (tmp_ / name).string();
     auto node = tn::Node::init(dir, tn::InitOptions{.iri = kNodeIri});
     EXPECT_TRUE(node) << node.error().message;
     return dir;
@@ -107,7 +99,7 @@ class EcgSourceTest : public ::testing::Test {
     return out;
   }
 
-  std::string tmp_;
+  tahvel::test_support::TempDir tmp_{"tahvel-ecg-source"};
 };
 
 TEST_F(EcgSourceTest, ARestartAfterAKillGoesOnAfterTheLastChunkAndWritesEachSecondOnce) {
