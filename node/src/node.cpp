@@ -274,6 +274,8 @@ Agent::~Agent() = default;
 const std::string& Agent::iri() const { return impl_->iri; }
 const std::string& Agent::id() const { return impl_->id; }
 
+std::uint32_t Agent::buffer_version() const noexcept { return impl_->env->wake().version(impl_->slot); }
+
 Result<std::uint64_t> Agent::store(const Item& item) noexcept {
   auto ids = store_all(std::vector<Item>{item});
   if (!ids) return unexpected(ids.error());
@@ -764,6 +766,29 @@ Result<std::uint64_t> Node::remove(const Pattern& pattern, unsigned cascade) {
 Result<std::uint64_t> Node::remove_item(std::uint64_t item_id, unsigned cascade) {
   return remove_records(*impl_->env, [&](Txn& txn) { return item_with_subtrees(txn, item_id, cascade); });
 }
+
+bool Node::wait_for_commit(const std::function<bool()>& ready, std::chrono::nanoseconds timeout) const {
+  const auto deadline = std::chrono::steady_clock::now() + timeout;
+  WakeBoard& board = impl_->env->wake();
+  for (;;) {
+    // A commit bumps the slots of the input buffers it changed before the commit slot: a
+    // buffer version that `ready` misses moves the commit slot past `token`, and wait returns.
+    std::uint32_t token = board.prepare(WakeBoard::kAnyCommit);
+    if (ready()) {
+      board.finish(WakeBoard::kAnyCommit);
+      return true;
+    }
+    auto left = deadline - std::chrono::steady_clock::now();
+    if (left <= std::chrono::nanoseconds::zero()) {
+      board.finish(WakeBoard::kAnyCommit);
+      return false;
+    }
+    board.wait(WakeBoard::kAnyCommit, token, std::chrono::duration_cast<std::chrono::nanoseconds>(left));
+    board.finish(WakeBoard::kAnyCommit);
+  }
+}
+
+void Node::wake_waiters() const { impl_->env->wake().bump(WakeBoard::kAnyCommit); }
 
 Result<std::vector<Change>> Node::watch(std::uint64_t bookmark, std::chrono::milliseconds timeout, std::size_t limit) const {
   const auto deadline = std::chrono::steady_clock::now() + timeout;

@@ -60,6 +60,10 @@ void WakeBoard::finish(std::uint32_t slot) {
   shared_->waiters[slot].fetch_sub(1, std::memory_order_seq_cst);
 }
 
+std::uint32_t WakeBoard::version(std::uint32_t slot) const {
+  return shared_->seq[slot].load(std::memory_order_seq_cst);
+}
+
 void WakeBoard::bump(std::uint32_t slot) {
   shared_->seq[slot].fetch_add(1, std::memory_order_seq_cst);
   // A waiter killed while asleep leaves its count behind: that costs spurious FUTEX_WAKE calls,

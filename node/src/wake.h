@@ -40,6 +40,9 @@ class WakeBoard {
   // Writer side, after commit.
   void bump(std::uint32_t slot);
 
+  // The slot's sequence word now (it changes at every bump).
+  std::uint32_t version(std::uint32_t slot) const;
+
  private:
   struct Shared {
     std::atomic<std::uint32_t> seq[kSlots];

@@ -3,6 +3,9 @@
 // exactly-once relaying of items from another node (relay, R19).
 #include <gtest/gtest.h>
 
+#include <atomic>
+#include <thread>
+
 #include "test_support.h"
 
 namespace tahvel::node::testing {
@@ -153,6 +156,60 @@ TEST(Window, PeekLeavesItemsAndAckThroughRemovesUpToAnId) {
   EXPECT_EQ(uplink.pending().value(), 2u);
   EXPECT_EQ(uplink.peek(0, 0, 0ms).value().front().item, ids[3]);
   EXPECT_TRUE(uplink.peek(ids[4], 0, 10ms).value().empty());  // nothing after the last: timeout
+}
+
+// One thread serving many input buffers (a parent's link sending down to its children) reads
+// each agent's buffer_version and sleeps in wait_for_commit until one of them moves.
+TEST(Window, BufferVersionMovesWhenAnItemArrivesForThatAgent) {
+  TempDir dir;
+  Node node = make_node(dir.path());
+  Agent child = node.agent("child").value();
+  Agent writer = node.agent("writer").value();
+  ASSERT_TRUE(child.subscribe({.p = ex("value")}));
+  const std::uint32_t before = child.buffer_version();
+  ASSERT_TRUE(writer.store(reading(1)));
+  const std::uint32_t after_item = child.buffer_version();
+  EXPECT_NE(after_item, before);
+  ASSERT_TRUE(child.ack_through(~0ull));  // taking or acknowledging brings nothing new
+  EXPECT_EQ(child.buffer_version(), after_item);
+}
+
+TEST(Window, WaitForCommitReturnsWhenAnyOfManyBuffersGetsAnItemOrWhenWoken) {
+  TempDir dir;
+  Node node = make_node(dir.path());
+  std::vector<Agent> children;
+  for (int i = 0; i < 50; ++i) {
+    children.push_back(node.agent("child" + std::to_string(i)).value());
+    ASSERT_TRUE(children.back().subscribe({.context = "http://example.org/group/" + std::to_string(i)}));
+  }
+  std::vector<std::uint32_t> seen;
+  for (const Agent& c : children) seen.push_back(c.buffer_version());
+  auto changed = [&] {
+    for (std::size_t i = 0; i < children.size(); ++i)
+      if (children[i].buffer_version() != seen[i]) return true;
+    return false;
+  };
+  EXPECT_FALSE(node.wait_for_commit(changed, 1ms));  // nothing yet: times out
+  // A writer in another thread (another process would do the same) addresses the 37th child.
+  std::thread writer([&] {
+    Node other = Node::open(dir.path()).value();
+    Agent w = other.agent("writer").value();
+    std::this_thread::sleep_for(20ms);  // most likely asleep by now; correct either way
+    ASSERT_TRUE(w.store(reading(1, "http://example.org/group/37")));
+  });
+  EXPECT_TRUE(node.wait_for_commit(changed, 60s));
+  writer.join();
+  EXPECT_NE(children[37].buffer_version(), seen[37]);
+  EXPECT_EQ(children[37].peek(0, 0, 0ms).value().size(), 1u);
+  // wake_waiters: a waiter whose own condition (here a flag) is set by another thread.
+  std::atomic<bool> flag{false};
+  std::thread waker([&] {
+    std::this_thread::sleep_for(20ms);
+    flag = true;
+    node.wake_waiters();
+  });
+  EXPECT_TRUE(node.wait_for_commit([&] { return flag.load(); }, 60s));
+  waker.join();
 }
 
 RelayedItem relayed(std::uint64_t seq, std::uint64_t prev, std::string source, int n) {

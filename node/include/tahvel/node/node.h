@@ -199,6 +199,13 @@ class Agent {
   // Acknowledges every item of the input buffer with id <= `through`; returns how many.
   Result<std::uint64_t> ack_through(std::uint64_t through) noexcept;
 
+  // A number that changes whenever a commit puts an item into this agent's input buffer, for a
+  // thread that serves many agents' buffers and sleeps in Node::wait_for_commit (a parent's
+  // link sending down to a thousand children). It may also change for items of other agents
+  // (agents share 1,023 wake slots by a hash of their IRI); it never stays the same when an item
+  // arrived. Read it before reading the buffer: a change seen afterwards means read it again.
+  std::uint32_t buffer_version() const noexcept;
+
   // Stores items relayed from another node, exactly once per (stream, seq), in one transaction
   // (docs/protocol.md). The stream's mark (the last seq applied) is kept in the store and moves
   // in the same transaction as the items, so a crash never applies an item twice nor loses the
@@ -304,6 +311,20 @@ class Node {
   // `timeout` for the first one when there is none yet; an empty vector means timeout.
   Result<std::vector<Change>> watch(std::uint64_t bookmark, std::chrono::milliseconds timeout,
                                     std::size_t limit = 0) const;
+
+  // Sleeps until a commit that adds records to this store (from any process; every item routed
+  // into an input buffer is such a commit, and changes the agent's buffer_version() before the
+  // commit's wake-up) or a call of wake_waiters(), and calls `ready` again; returns true as soon
+  // as `ready` does, false when `timeout` passes first. `ready` is called once before sleeping,
+  // after this thread is registered as a waiter, so no commit between the check and the sleep
+  // is missed. For a thread serving many input buffers: `ready` compares their buffer_version()
+  // with what it saw last.
+  bool wait_for_commit(const std::function<bool()>& ready, std::chrono::nanoseconds timeout) const;
+
+  // Wakes every thread in wait_for_commit or watch on this store (in any process: they share
+  // the wake word of commits); each calls its check again and sleeps on if nothing changed.
+  // Safe from any thread. A link uses it to hand its pump a registration or an acknowledgement.
+  void wake_waiters() const;
 
   // Time-to-live for non-persistent records of one predicate (0 removes the rule). Records
   // older than this (by stored_at) are reclaimed at the next write or reclaim().
