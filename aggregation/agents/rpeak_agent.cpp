@@ -101,17 +101,19 @@ class RPeakStage {
       // The old detector still holds the beats of its last half second (its decision delay);
       // they belong to the signal before the gap, so they are released and go in this item
       // (an item's peaks may lie before its from_sample) rather than being dropped.
-      std::vector<std::int64_t> held, held_gaps;
-      s.detector.finish(held, held_gaps);
+      std::vector<std::int64_t> held, held_gaps, held_p_waves;
+      s.detector.finish(held, held_gaps, held_p_waves);
       for (auto p : held) out.peaks.push_back(p + s.offset);
       for (auto p : held_gaps) out.empty_gap_ends.push_back(p + s.offset);
+      for (auto p : held_p_waves) out.p_wave_gap_ends.push_back(p + s.offset);
       s.detector = agg::RPeakDetector(detector_options(s.info));
       s.offset = chunk.start_sample;
     }
-    std::vector<std::int64_t> found, gaps;
-    s.detector.push(chunk.leads[0].data(), chunk.frames, found, gaps);
+    std::vector<std::int64_t> found, gaps, p_waves;
+    s.detector.push(chunk.leads[0].data(), chunk.frames, found, gaps, p_waves);
     for (auto p : found) out.peaks.push_back(p + s.offset);
     for (auto p : gaps) out.empty_gap_ends.push_back(p + s.offset);
+    for (auto p : p_waves) out.p_wave_gap_ends.push_back(p + s.offset);
     s.next = out.to_sample = chunk.start_sample + static_cast<std::int64_t>(chunk.frames);
     out.derived_from = chunk.iri;
     return rt::store_output(session_, agg::rpeak_item(out), catching_up);
@@ -148,9 +150,10 @@ class RPeakStage {
       agg::RPeaks out;
       out.recording = recording;
       out.from_sample = out.to_sample = s->next;
-      s->detector.finish(out.peaks, out.empty_gap_ends);
+      s->detector.finish(out.peaks, out.empty_gap_ends, out.p_wave_gap_ends);
       for (auto& p : out.peaks) p += s->offset;
       for (auto& p : out.empty_gap_ends) p += s->offset;
+      for (auto& p : out.p_wave_gap_ends) p += s->offset;
       out.derived_from = recording;
       out.end_sample = *end;
       if (auto o = rt::store_output(session_, agg::rpeak_item(out), false); o.fatal) return o;

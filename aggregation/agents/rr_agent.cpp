@@ -93,12 +93,15 @@ class RrStage {
                                  std::to_string(p.from_sample) + "; the NN classifier restarts");
       s.classifier.finish(out.intervals);
     }
-    // The detector's empty-gap evidence travels with the peaks, so the classifier decides as
-    // intervals_from_peaks does in `tahvel hrv`.
+    // The detector's gap evidence (empty gaps, blocked P waves) travels with the peaks, so the
+    // classifier decides as intervals_from_peaks does in `tahvel hrv`.
     auto gap = p.empty_gap_ends.begin();
+    auto p_wave = p.p_wave_gap_ends.begin();
     for (std::int64_t peak : p.peaks) {
       while (gap != p.empty_gap_ends.end() && *gap < peak) ++gap;
-      s.classifier.push(peak, gap != p.empty_gap_ends.end() && *gap == peak, out.intervals);
+      while (p_wave != p.p_wave_gap_ends.end() && *p_wave < peak) ++p_wave;
+      s.classifier.push(peak, gap != p.empty_gap_ends.end() && *gap == peak,
+                        p_wave != p.p_wave_gap_ends.end() && *p_wave == peak, out.intervals);
     }
     s.next = p.to_sample;
     s.read_since.push_back(p.iri);

@@ -328,6 +328,8 @@ Item rpeak_item(const RPeaks& p) {
       .add(s, tv("toSample"), Term::integer(p.to_sample))
       .add(s, tv("peaks"), text(format_peaks(p.peaks)));
   if (!p.empty_gap_ends.empty()) item.add(s, tv("emptyGapEnds"), text(format_peaks(p.empty_gap_ends)));
+  if (!p.p_wave_gap_ends.empty())
+    item.add(s, tv("pWaveGapEnds"), text(format_peaks(p.p_wave_gap_ends)));
   if (!p.derived_from.empty()) item.add(s, derived_from(), Term::iri(p.derived_from));
   if (p.end_sample) item.add(s, tv("endSample"), Term::integer(*p.end_sample));
   return item;
@@ -353,6 +355,11 @@ Result<RPeaks> read_rpeaks(const std::vector<Record>& records) {
     auto ends = parse_peaks(gaps->value);
     if (!ends) return fail("<" + p.iri + ">: tv:emptyGapEnds: " + ends.error().message);
     p.empty_gap_ends = std::move(*ends);
+  }
+  if (const Term* gaps = object(records, p.iri, "pWaveGapEnds")) {
+    auto ends = parse_peaks(gaps->value);
+    if (!ends) return fail("<" + p.iri + ">: tv:pWaveGapEnds: " + ends.error().message);
+    p.p_wave_gap_ends = std::move(*ends);
   }
   auto from_items = derivations(records, p.iri);
   if (!from_items.empty()) p.derived_from = from_items.front();

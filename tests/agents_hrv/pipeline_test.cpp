@@ -284,9 +284,24 @@ TEST_F(PipelineTest, WindowsEqualTahvelHrv) {
   // The intermediate items carry the same beats and NN-marked intervals as the batch chain.
   auto peaks = derived<agg::RPeaks>("rpeaks", agg::read_rpeaks);
   std::sort(peaks.begin(), peaks.end(), [](auto& a, auto& b) { return a.from_sample < b.from_sample; });
-  std::vector<std::int64_t> beats;
-  for (const auto& p : peaks) beats.insert(beats.end(), p.peaks.begin(), p.peaks.end());
+  std::vector<std::int64_t> beats, empty_gaps, p_wave_gaps;
+  for (const auto& p : peaks) {
+    beats.insert(beats.end(), p.peaks.begin(), p.peaks.end());
+    empty_gaps.insert(empty_gaps.end(), p.empty_gap_ends.begin(), p.empty_gap_ends.end());
+    p_wave_gaps.insert(p_wave_gaps.end(), p.p_wave_gap_ends.begin(), p.p_wave_gap_ends.end());
+  }
   EXPECT_EQ(beats, expected->beats);
+  // And the detector's gap evidence (tv:emptyGapEnds, tv:pWaveGapEnds), which the NN rule
+  // uses: the same as the batch detector's.
+  auto signals = agg::read_signals(record_);
+  ASSERT_TRUE(signals) << signals.error().message;
+  agg::DetectorOptions detector;
+  detector.fs = signals->header.fs;
+  detector.gain = signals->header.signals[0].gain;
+  const agg::Detection detection = agg::detect_beats(signals->samples[0], detector);
+  EXPECT_EQ(empty_gaps, detection.empty_gap_ends);
+  EXPECT_EQ(p_wave_gaps, detection.p_wave_gap_ends);
+  EXPECT_FALSE(p_wave_gaps.empty());
   auto rr = derived<agg::RrSeries>("rr", agg::read_rr);
   std::sort(rr.begin(), rr.end(), [](auto& a, auto& b) {
     return (a.intervals.empty() ? INT64_MAX : a.intervals.front().start) <

@@ -243,6 +243,65 @@ TEST(RPeak, EmptyGapsAreReportedAndGapsHidingAQrsAreNot) {
   EXPECT_EQ(c.empty_gap_ends, d.empty_gap_ends);
 }
 
+// A blocked beat (second-degree AV block): its QRS and T wave are gone, its P wave is still
+// there. The P wave reaches about 8 % of the QRS height in the integrated slope (as the blocked
+// P waves of MIT-BIH 231 do), more than empty_gap_fraction, so without the P-wave cue the gap
+// is not empty; with it, the gap is empty and the beat after it is reported as ending a gap
+// with a P wave. A gap hiding a small QRS of about that height is still not empty: a QRS does
+// not have the shape of the record's P wave.
+TEST(RPeak, BlockedPWaveLeavesTheGapEmptyAndASmallQrsDoesNot) {
+  const double fs = 360;
+  Synthetic s = ecg(fs, 60);
+  const std::size_t blocked = 40, small = 55;
+  ASSERT_GT(s.r_waves.size(), small + 2);
+  const auto at = [&](std::size_t k) { return s.r_waves[k]; };
+  const auto scale = [&](std::int64_t from, std::int64_t to, double by) {
+    for (std::int64_t i = std::max<std::int64_t>(0, from); i < to; ++i) {
+      auto& x = s.samples[static_cast<std::size_t>(i)];
+      x = kZero + static_cast<std::int32_t>(std::lround((x - kZero) * by));
+    }
+  };
+  const auto ms = [&](double t) { return static_cast<std::int64_t>(t * fs / 1000); };
+  // The blocked beat: everything from 80 ms before its R wave (after its P wave) to midway to
+  // the next beat removed. The small QRS: 8 % of the others, its P and T waves left alone.
+  scale(at(blocked) - ms(80), (at(blocked) + at(blocked + 1)) / 2, 0);
+  scale(at(small) - ms(60), at(small) + ms(60), 0.08);
+  const auto run = [&](const DetectorOptions& o) {
+    Detection d;
+    RPeakDetector det(o);
+    for (std::size_t i = 0; i < s.samples.size(); i += 101)
+      det.push(s.samples.data() + i, std::min<std::size_t>(101, s.samples.size() - i), d.peaks,
+               d.empty_gap_ends, d.p_wave_gap_ends);
+    det.finish(d.peaks, d.empty_gap_ends, d.p_wave_gap_ends);
+    return d;
+  };
+  const auto has = [](const std::vector<std::int64_t>& v, std::int64_t want) {
+    return std::any_of(v.begin(), v.end(),
+                       [&](std::int64_t p) { return std::llabs(p - want) <= 5; });
+  };
+  const Detection d = run(options(fs));
+  ASSERT_FALSE(has(d.peaks, at(blocked)));
+  ASSERT_FALSE(has(d.peaks, at(small)));
+  EXPECT_TRUE(has(d.empty_gap_ends, at(blocked + 1)));
+  EXPECT_TRUE(has(d.p_wave_gap_ends, at(blocked + 1)));
+  EXPECT_FALSE(has(d.empty_gap_ends, at(small + 1)));
+  EXPECT_FALSE(has(d.p_wave_gap_ends, at(small + 1)));
+  EXPECT_TRUE(std::includes(d.empty_gap_ends.begin(), d.empty_gap_ends.end(),
+                            d.p_wave_gap_ends.begin(), d.p_wave_gap_ends.end()));
+  // The same whole, and the same through detect_beats.
+  const Detection whole = detect_beats(s.samples, options(fs));
+  EXPECT_EQ(whole.peaks, d.peaks);
+  EXPECT_EQ(whole.empty_gap_ends, d.empty_gap_ends);
+  EXPECT_EQ(whole.p_wave_gap_ends, d.p_wave_gap_ends);
+  // Without the cue the blocked P wave counts against the gap, and nothing is a P-wave gap.
+  DetectorOptions no_cue = options(fs);
+  no_cue.pwave_fraction = 0;
+  const Detection plain = run(no_cue);
+  EXPECT_EQ(plain.peaks, d.peaks);
+  EXPECT_FALSE(has(plain.empty_gap_ends, at(blocked + 1)));
+  EXPECT_TRUE(plain.p_wave_gap_ends.empty());
+}
+
 TEST(RPeak, OutputIsIdenticalWhateverTheChunking) {
   const Synthetic s = ecg(360, 90, 0.05, 0.3);
   const DetectorOptions o = options(360);

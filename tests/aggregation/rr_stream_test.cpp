@@ -305,6 +305,36 @@ TEST(NnClassifier, ConfirmedPausesMatchBatch) {
   EXPECT_LT(nn_fraction(intervals_from_peaks(peaks, 360)), nn_fraction(batch));
 }
 
+// The blocked-P-wave evidence pushed with each peak gives the batch result with the same
+// evidence (a 2:1 block adopted as a slower rhythm, then the return to 1:1, twice), one peak at
+// a time and within the delay bound: the return needs no look-ahead.
+TEST(NnClassifier, ReturnAfterABlockMatchesBatch) {
+  const auto peaks = peaks_from_rr(join({repeat(300, 14), repeat(600, 10), repeat(300, 8),
+                                         {600}, repeat(600, 6), {200, 400}, repeat(300, 9)}));
+  std::vector<std::int64_t> empty, p_wave;
+  for (std::size_t i = 1; i < peaks.size(); ++i)
+    if (peaks[i] - peaks[i - 1] > 400 && i != 15 && i != 33) {
+      empty.push_back(peaks[i]);
+      if (i % 4 != 0) p_wave.push_back(peaks[i]);
+    }
+  const auto batch = intervals_from_peaks(peaks, empty, p_wave, 360);
+  NnClassifier c(360);
+  std::vector<Interval> streamed;
+  std::size_t next_empty = 0, next_p = 0;
+  for (const std::int64_t peak : peaks) {
+    const bool gap = next_empty < empty.size() && empty[next_empty] == peak;
+    const bool p = next_p < p_wave.size() && p_wave[next_p] == peak;
+    next_empty += gap ? 1 : 0;
+    next_p += p ? 1 : 0;
+    c.push(peak, gap, p, streamed);
+    EXPECT_LE(c.pending(), 8u);
+  }
+  c.finish(streamed);
+  std::string why;
+  EXPECT_TRUE(same(streamed, batch, why)) << why;
+  EXPECT_LT(nn_fraction(intervals_from_peaks(peaks, empty, 360)), nn_fraction(batch));
+}
+
 TEST(NnClassifier, PrematureBeatsMatchBatch) {
   check_series(peaks_from_rr(join({repeat(300, 12), {200, 400}, repeat(300, 6), {270, 330},
                                    repeat(300, 5), {200, 400}, {200, 400}, repeat(300, 4)})),

@@ -156,6 +156,55 @@ TEST(DetectedRule, RunOfConfirmedPausesKeepsTheSinusReference) {
   EXPECT_DOUBLE_EQ(nn_fraction(iv), 1.0);
 }
 
+// 2:1 AV block as in MIT-BIH 231: the first blocked interval hides its P wave (no evidence),
+// so the slower rhythm is adopted from it and the three after it, which end at gaps that held
+// a blocked P wave. When conduction returns to 1:1, the intervals are NN at once: the rule
+// remembered the sinus reference. Without the P-wave evidence (an empty gap alone, as in a
+// slow stretch of atrial fibrillation) or with the option off, the return is taken for
+// premature beats until a run of them rebases the reference, as before.
+TEST(DetectedRule, EndOfABlockedRunReturnsToTheRhythmBeforeIt) {
+  std::vector<int> rr(20, 300);
+  for (int i = 0; i < 12; ++i) rr.push_back(600);  // intervals 20..31: 2:1 conduction
+  for (int i = 0; i < 25; ++i) rr.push_back(300 + (i % 3) * 4);  // 32..: 1:1 again
+  const auto peaks = peaks_from_rr(rr);
+  std::vector<std::int64_t> blocked;  // ends of intervals 21..31: a P wave in an empty gap
+  for (std::size_t i = 22; i <= 32; ++i) blocked.push_back(peaks[i]);
+  const auto iv = intervals_from_peaks(peaks, blocked, blocked, 360);
+  ASSERT_EQ(iv.size(), rr.size());
+  for (std::size_t i = 0; i < iv.size(); ++i) EXPECT_TRUE(iv[i].nn) << "interval " << i;
+
+  const auto empty_only = intervals_from_peaks(peaks, blocked, 360);
+  EXPECT_FALSE(empty_only[32].nn);
+  EXPECT_FALSE(empty_only[33].nn);
+  NnRule off;
+  off.return_to_prior_rhythm = false;
+  EXPECT_FALSE(intervals_from_peaks(peaks, blocked, blocked, 360, off)[32].nn);
+  // Blocked P waves behind only one of the four intervals that sustain the slower rhythm are
+  // not enough: the return is rejected as before.
+  const std::vector<std::int64_t> one(blocked.begin(), blocked.begin() + 1);
+  const std::vector<std::int64_t> late(blocked.begin() + 3, blocked.end());
+  std::vector<std::int64_t> sparse = one;
+  sparse.insert(sparse.end(), late.begin(), late.end());
+  EXPECT_FALSE(intervals_from_peaks(peaks, sparse, sparse, 360)[32].nn);
+}
+
+// A reference rebased on a run of short intervals is not remembered: in bigeminy it is the
+// coupling interval, and a later "return" to it would be an ectopic beat.
+TEST(DetectedRule, ReferenceFromShortIntervalsIsNotReturnedTo) {
+  std::vector<int> rr(10, 400);
+  for (int i = 0; i < 60; ++i) rr.push_back(250);  // a fast run, adopted after 20 short beats
+  for (int i = 0; i < 8; ++i) rr.push_back(500);   // 70..77: slower, over blocked P waves
+  for (int i = 0; i < 6; ++i) rr.push_back(250);
+  const auto peaks = peaks_from_rr(rr);
+  std::vector<std::int64_t> blocked;
+  for (std::size_t i = 71; i <= 78; ++i) blocked.push_back(peaks[i]);
+  const auto iv = intervals_from_peaks(peaks, blocked, blocked, 360);
+  ASSERT_EQ(iv.size(), rr.size());
+  EXPECT_TRUE(iv[69].nn);   // the fast run was adopted
+  EXPECT_TRUE(iv[70].nn);   // and so is the slower rhythm
+  EXPECT_FALSE(iv[78].nn);  // but the 250 after it is not a return
+}
+
 // A pause only counts after a normal interval: after a premature beat the long interval is its
 // compensatory pause, empty or not, and after a reference rebased on a run of short intervals
 // (bigeminy: the coupling interval) every compensatory pause is long and empty.

@@ -118,5 +118,59 @@ TEST(NnClassifierMitdb, StreamingEqualsBatchOnDetectedPeaksOfEveryRecord) {
   }
 }
 
+// With the detector's gap evidence (empty gaps, blocked P waves), as `tahvel hrv` and the
+// agents use it: the stream fed one peak at a time with its flags equals the batch function,
+// within the same delay, on every record; and the evidence matters somewhere (231: its 2:1
+// block), so the comparison is not the evidence-free one above again.
+TEST(NnClassifierMitdb, StreamingWithGapEvidenceEqualsBatchOnEveryRecord) {
+  const std::vector<std::string> names = mitdb_records();
+  if (names.empty()) GTEST_SKIP() << "MIT-BIH records not found (set TAHVEL_MITDB)";
+  const std::size_t d = delay_bound(NnRule{});
+  std::size_t records_changed = 0;
+  for (const std::string& name : names) {
+    SCOPED_TRACE("record " + name);
+    auto signals = read_signals(mitdb_record(name));
+    ASSERT_TRUE(signals.has_value());
+    DetectorOptions o;
+    o.fs = signals->header.fs;
+    o.gain = signals->header.signals[0].gain;
+    const Detection det = detect_beats(signals->samples[0], o);
+    ASSERT_GT(det.peaks.size(), 100u);
+    const std::vector<Interval> batch =
+        intervals_from_peaks(det.peaks, det.empty_gap_ends, det.p_wave_gap_ends, o.fs);
+    ASSERT_EQ(batch.size(), det.peaks.size() - 1);
+    const std::vector<Interval> empty_only =
+        intervals_from_peaks(det.peaks, det.empty_gap_ends, o.fs);
+    records_changed += std::equal(batch.begin(), batch.end(), empty_only.begin(),
+                                  [](const Interval& a, const Interval& b) { return a.nn == b.nn; })
+                           ? 0
+                           : 1;
+    NnClassifier one(o.fs);
+    std::vector<Interval> streamed;
+    std::size_t next_empty = 0, next_p = 0, max_pending = 0;
+    for (std::size_t k = 0; k < det.peaks.size(); ++k) {
+      const std::int64_t p = det.peaks[k];
+      const bool empty =
+          next_empty < det.empty_gap_ends.size() && det.empty_gap_ends[next_empty] == p;
+      const bool p_wave = next_p < det.p_wave_gap_ends.size() && det.p_wave_gap_ends[next_p] == p;
+      next_empty += empty ? 1 : 0;
+      next_p += p_wave ? 1 : 0;
+      one.push(p, empty, p_wave, streamed);
+      max_pending = std::max(max_pending, one.pending());
+      if (k >= 1) {
+        ASSERT_GE(streamed.size() + d, k) << "decisions late after peak " << k;
+      }
+    }
+    EXPECT_EQ(next_empty, det.empty_gap_ends.size()) << "empty-gap ends not a subset of the peaks";
+    EXPECT_EQ(next_p, det.p_wave_gap_ends.size()) << "P-wave gap ends not a subset of the peaks";
+    one.finish(streamed);
+    expect_same(streamed, batch, batch.size(), "one by one with evidence");
+    EXPECT_EQ(streamed.size(), batch.size());
+    EXPECT_LE(max_pending, d);
+    if (HasFatalFailure()) return;
+  }
+  EXPECT_GE(records_changed, 1u);
+}
+
 }  // namespace
 }  // namespace tahvel::aggregation

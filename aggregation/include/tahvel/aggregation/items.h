@@ -107,6 +107,10 @@ struct RPeaks {
   // (RPeakDetector::push with empty_gap_out): tv:emptyGapEnds, in the format of tv:peaks,
   // written only when not empty; an item without it has none.
   std::vector<std::int64_t> empty_gap_ends;
+  // The empty-gap ends (a subset of them, ascending) whose gap held a blocked P wave
+  // (RPeakDetector::push with p_wave_gap_out): tv:pWaveGapEnds, in the same format, written
+  // only when not empty.
+  std::vector<std::int64_t> p_wave_gap_ends;
   std::string derived_from;               // the chunk's IRI (or the recording's, for the end)
   std::optional<std::int64_t> end_sample;
   std::string iri;                        // filled by read_rpeaks; rpeak_item derives it

@@ -77,6 +77,21 @@ struct DetectorOptions {
   // P wave), not a missed beat. 0 disables the evidence. On MIT-BIH the missed beats left
   // after search-back reach 0.06 and more (one, in noise, reached nothing).
   double empty_gap_fraction = 0.05;
+  // A wave in the gap that is the record's own P wave does not count against an empty gap: a
+  // blocked P wave (second-degree AV block) is no QRS. The detector keeps a running template
+  // of the P wave, the original signal from 250 to 90 ms before each accepted beat (PR
+  // interval 120-200 ms); a gap maximum at or above empty_gap_fraction is ignored when it
+  // stays below `pwave_fraction` of the median QRS height and the signal around it (160 ms,
+  // best of the centres within 80 ms) correlates with that template at `pwave_correlation`
+  // or more (Pearson, after removing the line between the window ends: amplitude and baseline
+  // do not matter, shape does). A missed QRS, even a small one, has the shape of a QRS, not
+  // of a P wave. The P wave is well under 0.25 mV against a QRS of 1 mV or more, so 0.15 of
+  // the QRS height in the integrated slope (where a P wave, mostly below 5 Hz, is smaller
+  // still) leaves P waves in and keeps out anything the search-back could have taken for a
+  // beat (it looks from half the threshold, 0.16-0.24). pwave_fraction 0 disables the cue.
+  // docs/rpeak.md step 8, docs/hrv.md.
+  double pwave_fraction = 0.15;
+  double pwave_correlation = 0.9;
 };
 
 // Checks that the options are usable (fs and gain positive, band 0 < highpass < lowpass <
@@ -105,10 +120,17 @@ class RPeakDetector {
   // the peaks, as sample indices. Both overloads decide identically.
   void push(const std::int32_t* samples, std::size_t n, std::vector<std::int64_t>& peaks_out,
             std::vector<std::int64_t>& empty_gap_out);
+  // The same, and appends to p_wave_gap_out those of the beats appended to empty_gap_out whose
+  // empty gap held a P wave (DetectorOptions::pwave_fraction): a blocked P wave, the sign of
+  // second-degree AV block. A subset of the empty-gap ends, in the same order.
+  void push(const std::int32_t* samples, std::size_t n, std::vector<std::int64_t>& peaks_out,
+            std::vector<std::int64_t>& empty_gap_out, std::vector<std::int64_t>& p_wave_gap_out);
   // Ends the stream: appends the beats still held. Afterwards push() starts nothing new:
   // further calls are ignored.
   void finish(std::vector<std::int64_t>& peaks_out);
   void finish(std::vector<std::int64_t>& peaks_out, std::vector<std::int64_t>& empty_gap_out);
+  void finish(std::vector<std::int64_t>& peaks_out, std::vector<std::int64_t>& empty_gap_out,
+              std::vector<std::int64_t>& p_wave_gap_out);
 
   // The most samples between a beat (after the learning seconds, not found by search-back)
   // and the push() that reports it.
@@ -123,11 +145,13 @@ class RPeakDetector {
 std::vector<std::int64_t> detect_r_peaks(const std::vector<std::int32_t>& samples,
                                          const DetectorOptions& options);
 
-// The whole record at once, with the empty-gap evidence: `peaks` as detect_r_peaks returns
-// them, `empty_gap_ends` the subset of them that end a confirmed empty gap.
+// The whole record at once, with the gap evidence: `peaks` as detect_r_peaks returns them,
+// `empty_gap_ends` the subset of them that end a confirmed empty gap, `p_wave_gap_ends` the
+// subset of those whose gap held a blocked P wave.
 struct Detection {
   std::vector<std::int64_t> peaks;
   std::vector<std::int64_t> empty_gap_ends;
+  std::vector<std::int64_t> p_wave_gap_ends;
 };
 Detection detect_beats(const std::vector<std::int32_t>& samples, const DetectorOptions& options);
 

@@ -72,7 +72,15 @@ std::vector<Interval> reference_intervals(const std::vector<Beat>& beats,
 //    reference is the coupling interval and every compensatory pause looks long). A confirmed
 //    pause is NN but moves neither the reference nor the spread (keep_confirmed_pauses);
 //  - shorter than (1 - tol_prem) * ref and followed by one longer than (1 + tol_prem) * ref:
-//    a premature beat with its compensatory pause; both are not NN.
+//    a premature beat with its compensatory pause; both are not NN;
+//  - a return to the rhythm before a block (return_to_prior_rhythm): when the reference
+//    restarts from a new, slower rhythm and at least half of its sustaining intervals (the
+//    long one and the sustained_beats after it) end at gaps that held a blocked P wave and
+//    nothing QRS-like (p_wave_gap_ends: 2:1 AV block), the reference before it is
+//    remembered, unless it came from a run of short intervals; a later short interval within
+//    tol_short of that remembered reference is NN and restores it with its spread (the block
+//    ends, conduction is 1:1 again). A slower rhythm adopted without that evidence, a gap or
+//    a run of short intervals forgets it.
 // Whatever the comparison, an interval longer than max_interval_s or overlapping an excluded
 // range is not NN, and the reference restarts after a gap longer than max_interval_s.
 struct NnRule {
@@ -88,6 +96,7 @@ struct NnRule {
   int rebase_beats = 20;                // short intervals that confirm a new, faster rhythm
   int spread_diffs = 32;                // adjacent accepted pairs in the spread median
   bool keep_confirmed_pauses = true;    // a long interval over an empty gap is NN (above)
+  bool return_to_prior_rhythm = true;   // the end of a blocked run is NN (above)
 };
 
 // Intervals between consecutive detected peaks (samples, sorted ascending; duplicates give a
@@ -101,6 +110,14 @@ std::vector<Interval> intervals_from_peaks(const std::vector<std::int64_t>& peak
 // peaks, ascending: Detection::empty_gap_ends) that end a confirmed empty gap.
 std::vector<Interval> intervals_from_peaks(const std::vector<std::int64_t>& peaks,
                                            const std::vector<std::int64_t>& empty_gap_ends,
+                                           double fs, const NnRule& rule = {},
+                                           const std::vector<SampleRange>& excluded = {});
+// The same with the blocked-P-wave evidence too: p_wave_gap_ends are the empty-gap ends (a
+// subset of them, ascending: Detection::p_wave_gap_ends) whose gap held a P wave. This is what
+// `tahvel hrv` and the agents use.
+std::vector<Interval> intervals_from_peaks(const std::vector<std::int64_t>& peaks,
+                                           const std::vector<std::int64_t>& empty_gap_ends,
+                                           const std::vector<std::int64_t>& p_wave_gap_ends,
                                            double fs, const NnRule& rule = {},
                                            const std::vector<SampleRange>& excluded = {});
 
@@ -124,7 +141,8 @@ std::vector<Interval> intervals_from_peaks(const std::vector<std::int64_t>& peak
 //
 // Memory is bounded for an endless stream: the undecided intervals (pending()), the reference
 // window (reference_beats), the spread window (spread_diffs), the run of short intervals
-// (max(rebase_beats, reference_beats)) and the excluded ranges given at construction.
+// (max(rebase_beats, reference_beats)), a remembered reference and spread from before a block
+// and the excluded ranges given at construction.
 // excluded need not be sorted. With fs <= 0 nothing is ever decided, as the batch function
 // returns nothing. Peaks out of order give an interval of non-positive length, never NN.
 // finish() returns the classifier to its constructed state, ready for a new stream. Not
@@ -138,6 +156,11 @@ class NnClassifier {
   // The same for a peak that the detector reports as ending a confirmed empty gap
   // (after_empty_gap), which lets a long interval ending there be a confirmed pause.
   void push(std::int64_t peak, bool after_empty_gap, std::vector<Interval>& decided);
+  // The same for a peak whose empty gap also held a P wave (p_wave_in_gap, meaningful only
+  // with after_empty_gap: Detection::p_wave_gap_ends), the evidence of a blocked beat that
+  // lets the rule return to the rhythm before a block.
+  void push(std::int64_t peak, bool after_empty_gap, bool p_wave_in_gap,
+            std::vector<Interval>& decided);
 
   // Ends the stream: decides every pending interval (the look-ahead stops at the last peak, as
   // in the batch function), appends them and resets.
@@ -152,12 +175,15 @@ class NnClassifier {
     std::int64_t end = 0;
     double rr = 0;  // end - start, in samples
     bool empty_gap = false;  // the detector found nothing QRS-like between the two beats
+    bool p_wave = false;     // ... but a P wave: a blocked beat
   };
 
   void advance(std::vector<Interval>& decided);
   bool seed();
   bool step(std::vector<Interval>& decided);
   bool confirmed_pause() const;
+  void remember_prior(std::size_t k);
+  bool returns_to_prior(double rr, double tol) const;
   void short_beat(double rr, double tol);
   void accept(double rr);
   void decide(bool ok, std::vector<Interval>& decided);
@@ -180,6 +206,8 @@ class NnClassifier {
   bool prev_pause_ = false;      // the interval before the front was a confirmed pause
   bool rebased_short_ = false;   // the reference restarted from a run of short intervals
   std::deque<double> hist_, diffs_, short_run_;
+  // The reference and spread before a slower rhythm adopted over empty gaps (empty: none).
+  std::deque<double> prior_hist_, prior_diffs_;
 };
 
 // The fraction of intervals that are NN (0 for an empty series).
