@@ -2,9 +2,10 @@
 // Transport. Protocol statements (Pn) are in docs/protocol.md.
 //
 // Threads: two receivers per transport (one takes and decodes frames, one applies them to the
-// store), one up-sender (child role), one down-pump per child
-// (parent role), one timer (hello/heartbeat, child silence, answer resends). Each thread opens
-// its own node::Node and agents (they are single-thread objects); shared state is under `mu`.
+// store; a small batch on an idle link the taker applies itself), one up-sender (child role), one
+// down pump for all children (parent role), one timer (hello/heartbeat, child silence, answer
+// resends). Each thread opens its own node::Node and agents (single-thread objects: a
+// transport's two receivers share theirs, one at a time); shared state is under `mu`.
 #include "tahvel/federation/link.h"
 
 #include <algorithm>
@@ -29,7 +30,11 @@ using namespace std::chrono_literals;
 
 constexpr std::size_t kAnswerChunkBytes = 48 * 1024;  // P14: fits LCM's datagram fragments well
 constexpr std::size_t kAnswerWindow = 16;
-constexpr std::chrono::milliseconds kIdlePumpWait{250};  // a down pump with nothing in flight
+constexpr std::chrono::milliseconds kIdlePumpWait{250};  // the down pump with nothing to pace
+// A batch of at most this many frames, taken while the applier is idle, is applied by the taker
+// itself (one thread hand-off less on a quiet link); larger ones go to the applier, so that
+// under load taking overlaps with the store transaction of the batch before.
+constexpr std::size_t kInlineFrames = 8;
 constexpr std::string_view kUplinkAgent = "uplink";
 constexpr std::string_view kLinkAgent = "link";
 constexpr std::string_view kDownStream = "down";
@@ -134,15 +139,12 @@ struct Link::Impl {
     std::deque<std::uint64_t> down_in_flight;
     Clock::time_point down_progress{};
     bool down_go_back = false;
-    // Wakes this child's down pump only: with a thousand children, one condition variable for
-    // all would wake every pump at each hello or ack.
-    std::condition_variable wake;
     std::uint64_t went_back_to = ~0ull;
     Clock::time_point went_back_at{};
-    bool pump_started = false;
+    bool pumped = false;      // handed to the down pump (at its first hello)
+    bool pump_dirty = false;  // the pump reads its queue again: a hello or an ack came
     bool state_dirty = true;
     std::int64_t state_written_ns = 0;
-    std::uint64_t state_item = 0;
   };
   std::map<std::string, std::shared_ptr<Child>> children;  // by IRI
 
@@ -196,22 +198,58 @@ struct Link::Impl {
   struct ReceivedBatch {
     std::vector<Frame> frames;
     std::vector<std::optional<node::Result<wire::ItemBody>>> items;  // set for up and down frames
+    std::vector<std::vector<node::RelayedItem>> applied;  // the items relayed, kept to be freed
   };
 
   // Two stages per transport: a taker thread takes frames off the transport and decodes item
   // bodies; this thread applies them to the store and answers, batch after batch in arrival
   // order. Taking and decoding then overlap with the store transaction of the batch before, on
-  // the other core. The queue is short: a
-  // backlog stays in the transport, whose flow control (the senders' windows) bounds it.
+  // the other core. The queue is short: a backlog stays in the transport, whose flow control (the
+  // senders' windows) bounds it. On a quiet link the hand-off is a wake-up on the path of every
+  // item (docs/bench.md), so a small batch that finds the applier idle and nothing queued is
+  // applied by the taker itself. One thread applies at a time (`applying`), and the taker applies
+  // only when everything taken before is applied, so the order is the same either way.
   void receive_loop(std::shared_ptr<Transport> transport) {
     auto node = node::Node::open(opt.dir);
     if (!node) {
       log("cannot open the store: " + node.error().message);
       return;
     }
+    // The relaying agents and held items, used by whichever thread is applying.
+    std::map<std::string, node::Agent> agents;  // by id
+    std::map<std::string, HeldFrames> held;     // per stream: items that came ahead of a hole
+    auto agent = [&](const std::string& id) -> node::Agent* {
+      auto it = agents.find(id);
+      if (it == agents.end()) {
+        auto a = node->agent(id);
+        if (!a) return nullptr;
+        it = agents.emplace(id, std::move(*a)).first;
+      }
+      return &it->second;
+    };
+    auto apply = [&](ReceivedBatch& batch) {
+      for (std::size_t i = 0; i < batch.frames.size();) {
+        const Frame& f = batch.frames[i];
+        if (f.kind == FrameKind::up || f.kind == FrameKind::down) {
+          std::size_t j = i + 1;
+          while (j < batch.frames.size() && batch.frames[j].kind == f.kind && batch.frames[j].from == f.from) ++j;
+          relay_run(transport.get(), std::span(batch.frames).subspan(i, j - i),
+                    std::span(batch.items).subspan(i, j - i), agent, held, batch.applied);
+          i = j;
+        } else {
+          dispatch(transport.get(), f, agent);
+          ++i;
+        }
+      }
+    };
+
     std::mutex queue_mu;
     std::condition_variable queue_cv;
     std::deque<ReceivedBatch> queue;
+    bool applying = false;  // a thread is applying a batch (under queue_mu)
+    // Batches the applier is done with. The taker, which allocated their frames and items, frees
+    // them: under load the applier is the bottleneck, and the frees were ~7% of its time.
+    std::vector<ReceivedBatch> spent;
     constexpr std::size_t kQueuedBatches = 4;
     std::thread taker([&] {
       while (!stopping) {
@@ -220,6 +258,13 @@ struct Link::Impl {
           log("receive failed: " + first.error().message);
           std::this_thread::sleep_for(100ms);
           continue;
+        }
+        {
+          std::vector<ReceivedBatch> garbage;
+          {
+            std::lock_guard lock(queue_mu);
+            garbage.swap(spent);
+          }
         }
         if (!*first) continue;
         // Drain what is queued so that runs of items from one sender go into one transaction.
@@ -236,6 +281,14 @@ struct Link::Impl {
           if (f.kind == FrameKind::up || f.kind == FrameKind::down) batch.items[i] = wire::decode_item(f.body);
         }
         std::unique_lock lock(queue_mu);
+        if (queue.empty() && !applying && batch.frames.size() <= kInlineFrames) {
+          applying = true;
+          lock.unlock();
+          apply(batch);
+          lock.lock();
+          applying = false;
+          continue;  // nothing was queued meanwhile: this thread is the only one that queues
+        }
         // `stopping` is not signalled through queue_cv: re-checked every 100 ms.
         while (queue.size() >= kQueuedBatches && !stopping) queue_cv.wait_for(lock, 100ms);
         if (stopping) break;
@@ -244,21 +297,12 @@ struct Link::Impl {
       }
     });
 
-    std::map<std::string, node::Agent> agents;  // this thread's relaying agents, by id
-    std::map<std::string, HeldFrames> held;     // per stream: items that came ahead of a hole
-    auto agent = [&](const std::string& id) -> node::Agent* {
-      auto it = agents.find(id);
-      if (it == agents.end()) {
-        auto a = node->agent(id);
-        if (!a) return nullptr;
-        it = agents.emplace(id, std::move(*a)).first;
-      }
-      return &it->second;
-    };
     while (true) {
       ReceivedBatch batch;
       {
         std::unique_lock lock(queue_mu);
+        // The taker queues only while this thread applies or has batches waiting, and applies
+        // itself only with nothing queued: never two at once.
         queue_cv.wait_for(lock, 100ms, [&] { return !queue.empty() || stopping; });
         if (queue.empty()) {
           if (stopping) break;
@@ -266,21 +310,13 @@ struct Link::Impl {
         }
         batch = std::move(queue.front());
         queue.pop_front();
+        applying = true;
         queue_cv.notify_all();
       }
-      for (std::size_t i = 0; i < batch.frames.size();) {
-        const Frame& f = batch.frames[i];
-        if (f.kind == FrameKind::up || f.kind == FrameKind::down) {
-          std::size_t j = i + 1;
-          while (j < batch.frames.size() && batch.frames[j].kind == f.kind && batch.frames[j].from == f.from) ++j;
-          relay_run(transport.get(), std::span(batch.frames).subspan(i, j - i),
-                    std::span(batch.items).subspan(i, j - i), agent, held);
-          i = j;
-        } else {
-          dispatch(transport.get(), f, agent);
-          ++i;
-        }
-      }
+      apply(batch);
+      std::lock_guard lock(queue_mu);
+      applying = false;
+      spent.push_back(std::move(batch));
     }
     taker.join();
   }
@@ -319,7 +355,7 @@ struct Link::Impl {
   template <class AgentFn>
   void relay_run(Transport* via, std::span<const Frame> frames,
                  std::span<std::optional<node::Result<wire::ItemBody>>> bodies, AgentFn& agent,
-                 std::map<std::string, HeldFrames>& held) {
+                 std::map<std::string, HeldFrames>& held, std::vector<std::vector<node::RelayedItem>>& applied) {
     const Frame& head = frames.front();
     const bool up = head.kind == FrameKind::up;
     std::shared_ptr<Child> child;
@@ -361,20 +397,30 @@ struct Link::Impl {
       if (!mark) return log("cannot read the mark of " + stream + ": " + mark.error().message);
       buffer.mark = *mark;
     }
+    // The run that continues the mark: items in order go straight into it (the usual case, no
+    // hole); anything else waits among the held items, which then continue the run.
     std::size_t early_duplicates = 0;
-    for (auto& item : items) {
-      if (item.seq <= *buffer.mark) ++early_duplicates;
-      else buffer.by_prev.insert_or_assign(item.prev, std::move(item));
-    }
-    // The run that continues the mark, through items held from earlier batches.
     std::vector<node::RelayedItem> run;
-    for (auto it = buffer.by_prev.find(*buffer.mark); it != buffer.by_prev.end();
-         it = buffer.by_prev.find(run.back().seq)) {
+    run.reserve(items.size());
+    std::uint64_t next = *buffer.mark;  // the seq the run has reached
+    for (auto& item : items) {
+      if (item.seq <= *buffer.mark) {
+        ++early_duplicates;
+      } else if (buffer.by_prev.empty() && item.prev == next) {
+        next = item.seq;
+        run.push_back(std::move(item));
+      } else {
+        buffer.by_prev.insert_or_assign(item.prev, std::move(item));
+      }
+    }
+    for (auto it = buffer.by_prev.find(next); it != buffer.by_prev.end(); it = buffer.by_prev.find(next)) {
+      next = it->second.seq;
       run.push_back(std::move(it->second));
       buffer.by_prev.erase(it);
     }
     node::Result<node::RelayOutcome> outcome = node::RelayOutcome{*buffer.mark, {}, 0, false};
     if (!run.empty()) outcome = relayer->relay(stream, run);
+    applied.push_back(std::move(run));  // freed by the taker, with the rest of the batch
     if (outcome) {
       buffer.mark = outcome->mark;
       outcome->duplicates += early_duplicates;
@@ -443,7 +489,6 @@ struct Link::Impl {
         node::Pattern subtree;
         subtree.context = self + "/*";
         if (auto sub = link->subscribe(subtree); !sub) log("cannot subscribe <" + child->iri + "> to subtree items: " + sub.error().message);
-        bool start_pump = false;
         {
           std::lock_guard lock(mu);
           bool was = child->connected;
@@ -458,17 +503,19 @@ struct Link::Impl {
           child->down_in_flight.clear();
           child->down_progress = Clock::now();
           child->state_dirty = true;
-          start_pump = !child->pump_started;
-          child->pump_started = true;
+          if (!child->pumped) {
+            child->pumped = true;
+            pump_new.push_back(child);
+          }
           if (!was) log("child <" + child->iri + "> registered (" + child->version + ")");
         }
-        if (start_pump) threads_to_start_push(child);
         Frame welcome;
         welcome.kind = FrameKind::welcome;
         welcome.to = child->iri;
         welcome.ack = *mark;
         send(via, std::move(welcome));
-        child->wake.notify_all();
+        std::lock_guard lock(mu);
+        nudge_pump(*child);  // after the welcome: down frames follow it
         return;
       }
       case FrameKind::heartbeat: {
@@ -491,16 +538,19 @@ struct Link::Impl {
         std::lock_guard lock(mu);
         child->last_seen = Clock::now();
         if (f.seq != 0) return answer_ack(f);
+        bool news = false;  // for the pump: room in the window, items to acknowledge, a go-back
         if (f.ack > child->down_mark) {
           child->down_mark = f.ack;
           child->down_progress = Clock::now();
+          news = true;
         }
         if (f.prev == 1 && (f.ack != child->went_back_to || Clock::now() - child->went_back_at > opt.resend_after)) {
           child->down_go_back = true;  // P8: once per mark and interval, not on every gap ack
           child->went_back_to = f.ack;
           child->went_back_at = Clock::now();
+          news = true;
         }
-        child->wake.notify_all();
+        if (news) nudge_pump(*child);
         return;
       }
       case FrameKind::answer:
@@ -778,9 +828,6 @@ struct Link::Impl {
           continue;
         }
       }
-      if (mark > acked_locally) {
-        if (auto a = uplink->ack_through(mark); a) acked_locally = mark;
-      }
       auto ready = uplink->peek(after, room, 50ms);
       if (!ready) {
         log("reading the outbox failed: " + ready.error().message);
@@ -809,103 +856,174 @@ struct Link::Impl {
         up_last_sent = d.item;
         ++counters.up_sent;
       }
+      mark = up_mark;
       lock.unlock();
       for (std::uint64_t id : from_above) (void)uplink->ack(id);
+      // What the parent applied leaves the outbox after the send, not before the peek: a new
+      // item goes up first, and this store transaction runs while it travels.
+      if (mark > acked_locally) {
+        if (auto a = uplink->ack_through(mark); a) acked_locally = mark;
+      }
     }
   }
 
-  // ---- parent role: down pump per child -----------------------------------------------------
+  // ---- parent role: one down pump for all children ------------------------------------------
+  //
+  // One thread sends down to every connected child (P10). It reads a child's down queue when
+  // the queue got an item (Agent::buffer_version moved), when the receiver nudged it (a hello,
+  // an ack that moved the mark or asked to go back) or when its oldest frame in flight is due
+  // for a resend; in between it sleeps in Node::wait_for_commit. A thread per child (1,000 at a
+  // hospital, each waking to re-check its window) cost the hospital ~4% of its CPU, and a hello
+  // storm woke them all to fight over `mu` (docs/bench.md).
 
-  std::mutex start_mu;
-  std::vector<std::shared_ptr<Child>> pumps_to_start;
-  void threads_to_start_push(const std::shared_ptr<Child>& child) {
-    std::lock_guard lock(start_mu);
-    pumps_to_start.push_back(child);
+  std::vector<std::shared_ptr<Child>> pump_new;  // welcomed for the first time; under mu
+  std::atomic<bool> pump_nudged{false};
+  std::optional<node::Node> waker;  // for wake_waiters(), from any thread
+
+  // Has the pump read `child`'s queue again soon. Caller holds mu.
+  void nudge_pump(Child& child) {
+    child.pump_dirty = true;
+    pump_nudged.store(true);
+    if (waker) waker->wake_waiters();
   }
 
-  void pump_loop(std::shared_ptr<Child> child) {
+  struct Pumped {
+    std::shared_ptr<Child> child;
+    node::Agent agent;             // the child as an agent of this node: its down queue
+    std::uint32_t version = 0;     // agent.buffer_version() when the queue was last read
+    std::uint64_t acked_locally = 0;
+    bool read = true;              // read the queue at the next visit
+    Clock::time_point due{};       // visit by then with no news (a resend)
+  };
+
+  void pump_loop() {
     auto node = node::Node::open(opt.dir);
     if (!node) return log("cannot open the store: " + node.error().message);
-    auto agent = node->agent(child->id);
-    if (!agent) return log("cannot open agent " + child->id + ": " + agent.error().message);
-    std::uint64_t acked_locally = 0;
+    std::vector<Pumped> pumped;
     while (!stopping) {
-      std::uint64_t after = 0, mark = 0;
-      std::size_t room = 0;
-      bool idle = false;
-      {
-        std::unique_lock lock(mu);
-        if (!child->connected) {
-          child->wake.wait_for(lock, 100ms);
-          continue;
-        }
-        while (!child->down_in_flight.empty() && child->down_in_flight.front() <= child->down_mark)
-          child->down_in_flight.pop_front();
-        if (child->down_go_back ||
-            (!child->down_in_flight.empty() && Clock::now() - child->down_progress > opt.resend_after)) {
-          child->down_last_sent = child->down_mark;
-          child->down_in_flight.clear();
-          child->down_go_back = false;
-          child->down_progress = Clock::now();
-        }
-        mark = child->down_mark;
-        after = child->down_last_sent;
-        idle = child->down_in_flight.empty();
-        room = opt.window > child->down_in_flight.size() ? opt.window - child->down_in_flight.size() : 0;
-        if (room == 0) {
-          child->wake.wait_for(lock, 20ms);
-          continue;
-        }
-      }
-      if (mark > acked_locally) {
-        if (auto a = agent->ack_through(mark); a) acked_locally = mark;
-      }
-      // A new item in the queue wakes peek at once; its timeout only paces the checks above.
-      // With nothing in flight there are no resends to pace, so an idle child's pump wakes
-      // rarely: a hospital runs one pump per child, and 1,000 pumps at 50 ms cost it a quarter
-      // of its CPU (tahvel bench federation, docs/bench.md).
-      auto ready = agent->peek(after, room, idle ? kIdlePumpWait : 50ms);
-      if (!ready) {
-        log("reading the down queue of <" + child->iri + "> failed: " + ready.error().message);
-        std::this_thread::sleep_for(100ms);
-        continue;
-      }
-      std::vector<std::uint64_t> local_acks;
+      // Before the visits: a nudge during them makes the wait below return at once.
+      const bool nudged = pump_nudged.exchange(false);
+      std::vector<std::shared_ptr<Child>> fresh;
       {
         std::lock_guard lock(mu);
-        if (!child->connected || child->down_last_sent != after) continue;
-        for (const auto& d : *ready) {
-          wire::ItemBody body = item_of(d);
-          if (uri::is_under(body.source, child->iri)) {  // came up from that child
-            local_acks.push_back(d.item);
-            continue;
-          }
-          if (object_of(d.records, vocab::kQueryTarget)) {
-            start_query(child, d);
-            local_acks.push_back(d.item);
-            continue;
-          }
-          body.item.context = subtree_for(body.item.context, child->iri);  // P11
-          Frame f;
-          f.kind = FrameKind::down;
-          f.to = child->iri;
-          f.seq = d.item;
-          f.prev = child->down_last_sent;
-          f.body = wire::encode_item(body);
-          send(opt.down.get(), std::move(f));
-          if (child->down_in_flight.empty()) child->down_progress = Clock::now();
-          child->down_in_flight.push_back(d.item);
-          child->down_last_sent = d.item;
-        }
+        fresh.swap(pump_new);
       }
-      // Items not sent down are done with here; they leave the queue now (outside the lock).
-      for (std::uint64_t id : local_acks) (void)agent->ack(id);
+      for (auto& child : fresh) {
+        auto agent = node->agent(child->id);
+        if (!agent) {
+          log("cannot open agent " + child->id + ": " + agent.error().message);
+          continue;
+        }
+        pumped.push_back({child, std::move(*agent)});
+      }
+      auto due = Clock::now() + kIdlePumpWait;
+      for (auto& p : pumped) {
+        // Only children with news or a resend due; a nudge (rare) has every child visited.
+        if (nudged || !fresh.empty() || p.read || p.agent.buffer_version() != p.version || Clock::now() >= p.due)
+          p.due = visit(p);
+        due = std::min(due, p.due);
+      }
+      auto left = due - Clock::now();
+      if (left <= Clock::duration::zero()) continue;
+      node->wait_for_commit(
+          [&] {
+            if (stopping || pump_nudged.load()) return true;
+            for (const auto& p : pumped)
+              if (p.agent.buffer_version() != p.version) return true;
+            return false;
+          },
+          left);
     }
+  }
+
+  // Sends what a child's window has room for, goes back on a gap or a stalled mark (P8), and
+  // acknowledges locally what the child applied. Returns when it next needs a visit with no news
+  // (a resend due), at the latest a far time.
+  Clock::time_point visit(Pumped& p) {
+    Child& child = *p.child;
+    constexpr auto kNever = Clock::time_point::max();
+    // Read before the queue: an item routed after this moves it again, and the pump comes back.
+    const std::uint32_t version = p.agent.buffer_version();
+    std::uint64_t after = 0, mark = 0;
+    std::size_t room = 0;
+    {
+      std::lock_guard lock(mu);
+      if (version != p.version) p.read = true;
+      if (std::exchange(child.pump_dirty, false)) p.read = true;
+      p.version = version;
+      if (!child.connected) return kNever;  // a hello nudges it
+      while (!child.down_in_flight.empty() && child.down_in_flight.front() <= child.down_mark)
+        child.down_in_flight.pop_front();
+      const auto now = Clock::now();
+      if (child.down_go_back ||
+          (!child.down_in_flight.empty() && now - child.down_progress > opt.resend_after)) {
+        child.down_last_sent = child.down_mark;
+        child.down_in_flight.clear();
+        child.down_go_back = false;
+        child.down_progress = now;
+        p.read = true;
+      }
+      const auto resend = child.down_in_flight.empty() ? kNever : child.down_progress + opt.resend_after;
+      mark = child.down_mark;
+      after = child.down_last_sent;
+      room = opt.window > child.down_in_flight.size() ? opt.window - child.down_in_flight.size() : 0;
+      if (!p.read && mark <= p.acked_locally) return resend;
+      if (room == 0) return resend;  // p.read stays: the ack that makes room nudges
+    }
+    if (mark > p.acked_locally) {
+      if (auto a = p.agent.ack_through(mark); a) p.acked_locally = mark;
+    }
+    if (!p.read) return resend_time(child);
+    auto ready = p.agent.peek(after, room, 0ms);
+    if (!ready) {
+      log("reading the down queue of <" + child.iri + "> failed: " + ready.error().message);
+      return Clock::now() + 100ms;  // p.read stays
+    }
+    p.read = ready->size() >= room;  // a full window's worth: there may be more
+    std::vector<std::uint64_t> local_acks;
+    {
+      std::lock_guard lock(mu);
+      if (!child.connected || child.down_last_sent != after) {
+        p.read = true;  // the session moved meanwhile (a hello, which nudged): read again
+        return Clock::now();
+      }
+      for (const auto& d : *ready) {
+        wire::ItemBody body = item_of(d);
+        if (uri::is_under(body.source, child.iri)) {  // came up from that child
+          local_acks.push_back(d.item);
+          continue;
+        }
+        if (object_of(d.records, vocab::kQueryTarget)) {
+          start_query(child, d);
+          local_acks.push_back(d.item);
+          continue;
+        }
+        body.item.context = subtree_for(body.item.context, child.iri);  // P11
+        Frame f;
+        f.kind = FrameKind::down;
+        f.to = child.iri;
+        f.seq = d.item;
+        f.prev = child.down_last_sent;
+        f.body = wire::encode_item(body);
+        send(opt.down.get(), std::move(f));
+        if (child.down_in_flight.empty()) child.down_progress = Clock::now();
+        child.down_in_flight.push_back(d.item);
+        child.down_last_sent = d.item;
+      }
+    }
+    // Items not sent down are done with here; they leave the queue now (outside the lock).
+    for (std::uint64_t id : local_acks) (void)p.agent.ack(id);
+    return resend_time(child);
+  }
+
+  Clock::time_point resend_time(const Child& child) {
+    std::lock_guard lock(mu);
+    return child.down_in_flight.empty() ? Clock::time_point::max() : child.down_progress + opt.resend_after;
   }
 
   // A query item written on this board (the origin) for a node below `child` (P13). Caller
   // holds mu.
-  void start_query(const std::shared_ptr<Child>& child, const node::Delivery& d) {
+  void start_query(const Child& child, const node::Delivery& d) {
     wire::QueryBody q;
     q.origin = self;
     const node::Term* target = object_of(d.records, vocab::kQueryTarget);
@@ -922,12 +1040,12 @@ struct Link::Impl {
     q.floor = integer_of(d.records, vocab::kQueryFloor);
     Frame f;
     f.kind = FrameKind::query;
-    f.to = child->iri;
+    f.to = child.iri;
     f.seq = d.item;
     f.body = wire::encode_query(q);
     InStream& in = in_answers[query_key(self, d.item)];
     in.reply_to = reply_to ? reply_to->value : std::string();
-    in.child = child->iri;
+    in.child = child.iri;
     in.query_frame = f;
     in.sent = Clock::now();
     send(opt.down.get(), std::move(f));
@@ -990,7 +1108,7 @@ struct Link::Impl {
         send(opt.up.get(), std::move(f));
       }
       for (auto& [reply_to, frame] : writes) write_answer(*link, reply_to, frame);
-      for (auto& child : dirty) write_child_state(*node, *link, child);
+      write_child_states(*link, dirty);
     }
   }
 
@@ -1015,36 +1133,45 @@ struct Link::Impl {
     if (auto stored = link.store(item); !stored) log("cannot write an answer for <" + reply_to + ">: " + stored.error().message);
   }
 
-  // The child's state as one persistent item about the child, replacing the previous (P12).
-  void write_child_state(node::Node& node, node::Agent& link, const std::shared_ptr<Child>& child) {
+  // Each child's state as one persistent item about the child, replacing the previous one, also
+  // one left by an earlier run of the link (P12): the records about the child that agent `link`
+  // wrote are removed in the transaction that stores the new item. Up to kStatesPerWrite
+  // children share a transaction: a thousand children whose heartbeats change their outbox depth
+  // cost a hospital a few transactions a second instead of two per child (store, then remove),
+  // which took a tenth of its CPU during ingest (docs/bench.md); a chunk keeps each transaction
+  // short, since the relays of children's items wait for the store's one writer.
+  void write_child_states(node::Agent& link, const std::vector<std::shared_ptr<Child>>& dirty) {
+    constexpr std::size_t kStatesPerWrite = 64;
+    for (std::size_t first = 0; first < dirty.size(); first += kStatesPerWrite) {
+      const std::size_t end = std::min(dirty.size(), first + kStatesPerWrite);
+      std::vector<node::Pattern> previous;
+      std::vector<node::Item> items;
+      {
+        std::lock_guard lock(mu);
+        for (std::size_t k = first; k < end; ++k) {
+          Child& child = *dirty[k];
+          items.push_back(state_item(child));
+          child.state_dirty = false;
+          child.state_written_ns = now_ns();
+          previous.push_back({.s = node::Term::iri(child.iri), .source = link.iri()});
+        }
+      }
+      if (auto stored = link.replace(previous, items); !stored)
+        log("cannot write the state of " + std::to_string(items.size()) + " child(ren): " + stored.error().message);
+    }
+  }
+
+  // Caller holds mu.
+  node::Item state_item(const Child& child) const {
     node::Item item;
     item.persistent = true;
-    const node::Term c = node::Term::iri(child->iri);
-    std::uint64_t previous = 0;
-    {
-      std::lock_guard lock(mu);
-      item.add(c, node::Term::iri(vocab::kParent), node::Term::iri(self));
-      item.add(c, node::Term::iri(vocab::kLinkState), node::Term::literal(child->connected ? "up" : (child->ever ? "down" : "never connected")));
-      if (child->last_seen_ns)
-        item.add(c, node::Term::iri(vocab::kLastSeen), node::Term::integer(child->last_seen_ns));
-      item.add(c, node::Term::iri(vocab::kOutboxDepth), node::Term::integer(static_cast<std::int64_t>(child->outbox_depth)));
-      if (!child->version.empty())
-        item.add(c, node::Term::iri(vocab::kSoftwareVersion), node::Term::literal(child->version));
-      child->state_dirty = false;
-      child->state_written_ns = now_ns();
-      previous = child->state_item;
-    }
-    if (previous == 0) {  // after a restart: the state item the last run wrote
-      if (auto snap = node.snapshot()) {
-        if (auto old = snap->list({.s = c, .p = node::Term::iri(vocab::kLinkState)}); old && !old->empty())
-          previous = old->back().meta.item;
-      }
-    }
-    auto stored = link.store(item);
-    if (!stored) return log("cannot write the state of <" + child->iri + ">: " + stored.error().message);
-    if (previous) (void)node.remove_item(previous);
-    std::lock_guard lock(mu);
-    child->state_item = *stored;
+    const node::Term c = node::Term::iri(child.iri);
+    item.add(c, node::Term::iri(vocab::kParent), node::Term::iri(self));
+    item.add(c, node::Term::iri(vocab::kLinkState), node::Term::literal(child.connected ? "up" : (child.ever ? "down" : "never connected")));
+    if (child.last_seen_ns) item.add(c, node::Term::iri(vocab::kLastSeen), node::Term::integer(child.last_seen_ns));
+    item.add(c, node::Term::iri(vocab::kOutboxDepth), node::Term::integer(static_cast<std::int64_t>(child.outbox_depth)));
+    if (!child.version.empty()) item.add(c, node::Term::iri(vocab::kSoftwareVersion), node::Term::literal(child.version));
+    return item;
   }
 };
 
@@ -1055,19 +1182,9 @@ Link::~Link() { stop(); }
 void Link::stop() {
   if (!impl_ || impl_->stopping.exchange(true)) return;
   impl_->changed.notify_all();
-  {
-    std::lock_guard lock(impl_->mu);
-    for (auto& [iri, child] : impl_->children) child->wake.notify_all();
-  }
-  for (;;) {
-    std::vector<std::thread> threads;
-    {
-      std::lock_guard lock(impl_->start_mu);
-      threads.swap(impl_->threads);
-    }
-    if (threads.empty()) break;
-    for (auto& t : threads) t.join();
-  }
+  if (impl_->waker) impl_->waker->wake_waiters();  // the down pump
+  for (auto& t : impl_->threads) t.join();
+  impl_->threads.clear();
 }
 
 bool Link::connected() const {
@@ -1130,25 +1247,17 @@ Result<std::unique_ptr<Link>> Link::start(LinkOptions options) {
       child->iri = *iri;
       s.children[*iri] = child;
     }
+    s.waker = std::move(*node);
   }
   std::unique_ptr<Link> link(new Link(std::move(impl)));
   Impl* p = link->impl_.get();
-  std::lock_guard lock(p->start_mu);
   if (p->opt.up) {
     p->threads.emplace_back([p, t = p->opt.up] { p->receive_loop(t); });
     p->threads.emplace_back([p] { p->up_loop(); });
   }
   if (p->opt.down && p->opt.down != p->opt.up) p->threads.emplace_back([p, t = p->opt.down] { p->receive_loop(t); });
   p->threads.emplace_back([p] { p->timer_loop(); });
-  // Down pumps start as children register; a small starter thread moves them into `threads`.
-  p->threads.emplace_back([p] {
-    while (!p->stopping) {
-      std::this_thread::sleep_for(20ms);
-      std::lock_guard lock(p->start_mu);
-      for (auto& child : p->pumps_to_start) p->threads.emplace_back([p, child] { p->pump_loop(child); });
-      p->pumps_to_start.clear();
-    }
-  });
+  if (p->opt.down) p->threads.emplace_back([p] { p->pump_loop(); });
   return link;
 }
 

@@ -129,7 +129,7 @@ class DdsTransport final : public Transport {
   const std::string& self() const override { return self_; }
 
   Result<void> send(const Frame& frame) override {
-    if (auto ok = wire::check_sendable(frame, "dds <" + self_ + ">"); !ok) return ok;
+    if (auto ok = wire::check_sendable(frame, "dds", self_); !ok) return ok;
     auto writer = writer_for(frame.to);
     if (!writer) return node::fail(writer.error().code, writer.error().message);
     Writer& w = **writer;

@@ -65,7 +65,7 @@ class LcmTransport final : public Transport {
   const std::string& self() const override { return self_; }
 
   Result<void> send(const Frame& frame) override {
-    if (auto ok = wire::check_sendable(frame, "lcm <" + self_ + ">"); !ok) return ok;
+    if (auto ok = wire::check_sendable(frame, "lcm", self_); !ok) return ok;
     tahvel_frame_t msg{};
     msg.version = static_cast<int16_t>(frame.version);
     msg.fingerprint = static_cast<int64_t>(frame.fingerprint);

@@ -32,17 +32,17 @@ std::string describe(const Frame& frame) {
          printable(frame.to) + ">";
 }
 
-Result<void> check_sendable(const Frame& frame, std::string_view binding) {
-  const std::string where = std::string(binding) + " send (" + describe(frame) + ")";
-  if (frame.to.empty()) return node::fail(Errc::invalid_argument, where + ": empty `to` IRI");
-  if (frame.to.find('\0') != std::string::npos || frame.from.find('\0') != std::string::npos) {
-    return node::fail(Errc::invalid_argument, where + ": an IRI contains a NUL byte");
-  }
-  if (frame.body.size() > kMaxBody) {
+Result<void> check_sendable(const Frame& frame, std::string_view binding, std::string_view self) {
+  auto refuse = [&](const std::string& why) {
     return node::fail(Errc::invalid_argument,
-                      where + ": body of " + std::to_string(frame.body.size()) +
-                          " bytes is over the limit of " + std::to_string(kMaxBody));
-  }
+                      std::string(binding) + " <" + std::string(self) + "> send (" + describe(frame) + "): " + why);
+  };
+  if (frame.to.empty()) return refuse("empty `to` IRI");
+  if (frame.to.find('\0') != std::string::npos || frame.from.find('\0') != std::string::npos)
+    return refuse("an IRI contains a NUL byte");
+  if (frame.body.size() > kMaxBody)
+    return refuse("body of " + std::to_string(frame.body.size()) + " bytes is over the limit of " +
+                  std::to_string(kMaxBody));
   return {};
 }
 

@@ -24,9 +24,10 @@ std::string printable(std::string_view text, std::size_t max = 160);
 // "kind 3 seq 5 from <iri> to <iri>" for log lines.
 std::string describe(const Frame& frame);
 
-// Why `frame` may not be sent by `binding` (an IRI with a NUL byte, an empty `to`, a body over
-// kMaxBody, an unknown kind), or success.
-Result<void> check_sendable(const Frame& frame, std::string_view binding);
+// Why `frame` may not be sent by the endpoint `self` of `binding` ("dds", "lcm"): an IRI with a
+// NUL byte, an empty `to`, a body over kMaxBody; or success. Runs on every send, so the message
+// is made only on failure.
+Result<void> check_sendable(const Frame& frame, std::string_view binding, std::string_view self);
 
 // Why a decoded frame received by the endpoint `self` must be dropped: frame_refusal (another
 // protocol version, another message fingerprint, addressed to another IRI), or a kind outside

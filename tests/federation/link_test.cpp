@@ -6,6 +6,7 @@
 #include <gtest/gtest.h>
 #include <unistd.h>
 
+#include <algorithm>
 #include <filesystem>
 #include <mutex>
 #include <set>
@@ -192,6 +193,105 @@ TEST(Link, ConfigurationForOneHomeReachesThatHomeAndTheAddressedAgentOnly) {
   // Configuration relayed down never travels back up (P7), although it matches nothing there.
   std::this_thread::sleep_for(300ms);
   EXPECT_EQ(count(tree.hospital_dir, {.p = Term::iri(kEx + "notice")}), 1u);
+}
+
+// The parent sends down to all of its children from one pump (P10): each child's queue is read
+// when an item lands in it, and lost, doubled or reordered frames are made good per child by
+// go-back to that child's mark (P8), without holding up the others.
+TEST(Link, ConfigurationReachesEachOfManyChildrenExactlyOnceThroughLossDuplicationAndReordering) {
+  TempDir tmp{"tahvel-link-many"};
+  MemoryBus bus;
+  Log log;
+  const std::string hospital_dir = (tmp / "hospital").string();
+  ASSERT_TRUE(node::Node::init(hospital_dir, {.iri = kHospital}));
+  auto hospital = Link::start({.dir = hospital_dir, .down = std::shared_ptr<Transport>(bus.open(kHospital, log.sink())),
+                               .resend_after = 100ms, .log = log.sink()})
+                      .value();
+  constexpr int kHomes = 12, kEach = 25, kNotices = 10;
+  std::vector<std::string> dirs;
+  std::vector<std::unique_ptr<Link>> homes;
+  for (int h = 1; h <= kHomes; ++h) {
+    const std::string iri = kHospital + "/home" + std::to_string(h);
+    dirs.push_back((tmp / ("home" + std::to_string(h))).string());
+    ASSERT_TRUE(node::Node::init(dirs.back(), {.iri = iri}));
+    homes.push_back(Link::start({.dir = dirs.back(), .parent_iri = kHospital,
+                                 .up = std::shared_ptr<Transport>(bus.open(iri, log.sink())),
+                                 .resend_after = 100ms, .heartbeat_every = 200ms, .log = log.sink()})
+                        .value());
+  }
+  ASSERT_TRUE(eventually([&] {
+    for (auto& home : homes)
+      if (!home->connected()) return false;
+    return true;
+  }));
+  bus.set_faults({.seed = 11, .drop = 0.2, .duplicate = 0.1, .reorder = 0.1});
+  auto operator_ = node::Node::open(hospital_dir).value().agent("operator").value();
+  for (int i = 0; i < kEach; ++i) {
+    for (int h = 1; h <= kHomes; ++h) {
+      const std::string home = kHospital + "/home" + std::to_string(h);
+      node::Item config;
+      config.context = home + "/hrv";
+      config.add(Term::iri(home + "/hrv"), Term::iri(kEx + "setting"), Term::integer(i));
+      ASSERT_TRUE(operator_.store(config));
+    }
+    if (i < kNotices) {
+      node::Item all;
+      all.context = kHospital + "/*";
+      all.add(Term::iri(kHospital), Term::iri(kEx + "notice"), Term::integer(i));
+      ASSERT_TRUE(operator_.store(all));
+    }
+  }
+  for (int h = 0; h < kHomes; ++h) {
+    EXPECT_TRUE(eventually([&] {
+      return count(dirs[h], {.p = Term::iri(kEx + "setting")}) >= kEach &&
+             count(dirs[h], {.p = Term::iri(kEx + "notice")}) >= kNotices;
+    })) << "home" << h + 1;
+  }
+  std::this_thread::sleep_for(500ms);  // resends still in flight must be dropped as duplicates
+  for (int h = 0; h < kHomes; ++h) {
+    auto home = node::Node::open(dirs[h]).value();
+    auto settings = home.snapshot().value().list({.p = Term::iri(kEx + "setting")}).value();
+    std::set<std::string> seen;
+    for (const auto& r : settings) {
+      EXPECT_TRUE(seen.insert(r.triple.o.value).second) << "home" << h + 1 << " got setting " << r.triple.o.value << " twice";
+      EXPECT_EQ(r.meta.source, kHospital + "/operator");
+      EXPECT_EQ(r.triple.s.value, kHospital + "/home" + std::to_string(h + 1) + "/hrv") << "another home's setting";
+    }
+    EXPECT_EQ(seen.size(), static_cast<std::size_t>(kEach)) << "home" << h + 1;
+    EXPECT_EQ(count(dirs[h], {.p = Term::iri(kEx + "notice")}), static_cast<std::uint64_t>(kNotices)) << "home" << h + 1;
+  }
+}
+
+// P12: each child's state is one item on the parent's board, replaced (never accumulated) as the
+// child registers, falls silent, and across a restart of the parent's link.
+TEST(Link, EachChildHasOneStateItemThatFollowsItsLinkAcrossARestartOfTheParent) {
+  Tree tree;
+  auto state_of = [&](const std::string& child) {
+    auto node = node::Node::open(tree.hospital_dir).value();
+    auto records = node.snapshot().value().list({.s = Term::iri(child), .p = Term::iri(vocab::kLinkState)}).value();
+    std::vector<std::string> states;
+    for (const auto& r : records) states.push_back(r.triple.o.value);
+    return states;
+  };
+  using States = std::vector<std::string>;
+  tree.hospital = tree.start_hospital();
+  ASSERT_TRUE(eventually([&] { return state_of(kHome2) == States{"never connected"}; }));
+  tree.home1 = tree.start_home(tree.home1_dir, kHome1, tree.home1_log);
+  ASSERT_TRUE(eventually([&] { return state_of(kHome1) == States{"up"}; })) << state_of(kHome1).size() << " state records";
+  auto registrations = [&] {
+    std::lock_guard lock(tree.hospital_log.mu);
+    return std::count_if(tree.hospital_log.lines.begin(), tree.hospital_log.lines.end(),
+                         [](const std::string& l) { return l.find("<" + kHome1 + "> registered") != std::string::npos; });
+  };
+  ASSERT_EQ(registrations(), 1);
+  tree.hospital.reset();
+  tree.hospital = tree.start_hospital();  // the new run replaces what the last one wrote
+  ASSERT_TRUE(eventually([&] { return registrations() == 2 && state_of(kHome1) == States{"up"}; }))
+      << state_of(kHome1).size() << " state records";
+  EXPECT_EQ(state_of(kHome2), States{"never connected"});
+  tree.home1.reset();  // silent for child_silence: down
+  EXPECT_TRUE(eventually([&] { return state_of(kHome1) == States{"down"}; })) << state_of(kHome1).size() << " state records";
+  EXPECT_EQ(count(tree.hospital_dir, {.s = Term::iri(kHome1), .p = Term::iri(vocab::kParent)}), 1u);
 }
 
 TEST(Link, ParentRefusesAChildOutsideItsSubtreeAndAnUnconfiguredChild) {
