@@ -267,6 +267,10 @@ TEST(Relay, SourceOfAnotherLocalWriterIsRefusedAndNothingIsStored) {
   EXPECT_NE(refused.error().message.find("/operator"), std::string::npos);
   EXPECT_EQ(node.stats().value().items, 0u);
   EXPECT_EQ(child.relay_mark("up").value(), 0u);
+  // The handle remembers the sources it accepted, never one it refused.
+  EXPECT_TRUE(child.relay("up", {relayed(1, 0, kNodeIri + "/child/hrv", 1)}));
+  EXPECT_FALSE(child.relay("up", {relayed(2, 1, kNodeIri + "/operator", 2)}));
+  EXPECT_EQ(child.relay_mark("up").value(), 1u);
   // A writer above this node (relayed down from the parent) is accepted.
   EXPECT_TRUE(child.relay("down", {relayed(1, 0, "http://example.org/hospital-operator", 1)}));
 }
