@@ -89,10 +89,11 @@ Result<void> validate(const DetectorOptions& o) {
     return fail("rpeak: integration_ms, hold_ms, twave_ms, relearn_s, searchback_rr must be > 0");
   if (!(o.threshold_fraction > 0 && o.threshold_fraction < 1) || !(o.searchback_fraction > 0) ||
       !(o.twave_slope_ratio >= 0) || !(o.min_qrs_mv >= 0) || !(o.empty_gap_fraction >= 0) ||
-      !(o.pwave_fraction >= 0) || !std::isfinite(o.pwave_correlation))
+      !(o.pwave_fraction >= 0) || !std::isfinite(o.pwave_correlation) ||
+      !(o.twave_qtc >= 0 && o.twave_qtc <= 1))
     return fail("rpeak: threshold_fraction must be in (0,1); searchback_fraction > 0; "
                 "twave_slope_ratio, min_qrs_mv, empty_gap_fraction, pwave_fraction >= 0; "
-                "pwave_correlation finite");
+                "pwave_correlation finite; twave_qtc in [0, 1]");
   // The history rings hold 2 s; longer windows would overrun them.
   if (!(o.relearn_s >= 1 && o.relearn_s <= 8))
     return fail("rpeak: relearn_s must be in [1, 8], got " + std::to_string(o.relearn_s));
@@ -222,8 +223,7 @@ class RPeakDetector::Impl {
   // over about 8 beats). The search looks at every p_step_-th sample and centre first (about
   // 120 per second: a P wave has nothing above 10-15 Hz), then at every sample around the best
   // centre when that came within 0.1 of the threshold. At the full rate throughout, the chain
-  // was 15 % slower (on MIT-BIH the test runs for every P and T wave above 5 % in a gap); the
-  // coarse search alone changed decisions near the threshold.
+  // was 15 % slower (on MIT-BIH the test runs for every P and T wave above 5 % in a gap).
   std::int64_t p_half_, p_lead_, p_search_, p_step_;
   std::vector<double> p_mean_;
   bool p_ready_ = false;  // p_mean_ is not flat
@@ -520,14 +520,17 @@ void RPeakDetector::Impl::unfile_noise(std::int64_t at) {
 }
 
 // Whether the gap before a beat accepted at `at` holds nothing QRS-like: every local maximum of
-// the integrated slope from twave_ after the previous beat (its T wave) to hold_ before this one
+// the integrated slope from the end of the previous beat's T wave (twave_, or later at slow
+// rates: DetectorOptions::twave_qtc, with rr_[0] the interval before that beat) to hold_ before
+// this one
 // (this complex and its P wave) stayed below empty_gap_fraction of the QRS median, or is a P
 // wave (pwave_at; then the gap held a blocked P wave). Only a gap entirely covered by the event
 // ring can be confirmed.
 auto RPeakDetector::Impl::gap_before(std::int64_t at) const -> Gap {
   Gap gap;
   if (!have_qrs_ || !(o_.empty_gap_fraction > 0) || !(qrs_med_ > 0)) return gap;
-  const std::int64_t from = last_qrs_ + twave_, to = at - hold_;
+  const std::int64_t qt = std::llround(o_.twave_qtc * std::sqrt(rr_[0] / o_.fs) * o_.fs);
+  const std::int64_t from = last_qrs_ + std::max(twave_, qt), to = at - hold_;
   const double limit = o_.empty_gap_fraction * qrs_med_;
   const std::size_t kept = std::min(events_n_, events_.size());
   bool covered = events_n_ <= events_.size();  // the ring reaches back to the start

@@ -302,6 +302,45 @@ TEST(RPeak, BlockedPWaveLeavesTheGapEmptyAndASmallQrsDoesNot) {
   EXPECT_TRUE(plain.p_wave_gap_ends.empty());
 }
 
+// At a slow rate the T wave ends later (QT grows with RR): here RR is 1.2 s and the T wave's
+// steep downslope lies about 410 ms after the R wave, past twave_ms. A beat dropped whole
+// (P, QRS, T) leaves a gap with nothing in it but that T wave; the gap starts after
+// twave_qtc * sqrt(RR) = 438 ms, so it is empty. With twave_qtc 0 it starts at 360 ms and the
+// T wave counts against it. (The P-wave cue is off in both runs: a T wave could look like a P.)
+TEST(RPeak, EmptyGapStartsAfterTheTWaveOfASlowRhythm) {
+  const double fs = 360;
+  const std::size_t n = static_cast<std::size_t>(60 * fs);
+  std::vector<double> mv(n, 0.0);
+  std::vector<std::int64_t> r_waves;
+  const std::size_t dropped = 30;
+  for (std::size_t k = 0; 0.6 + 1.2 * static_cast<double>(k) < 59; ++k) {
+    const double b = 0.6 + 1.2 * static_cast<double>(k);
+    r_waves.push_back(std::llround(b * fs));
+    if (k == dropped) continue;
+    const auto lo = static_cast<std::size_t>((b - 0.3) * fs);
+    const auto hi = std::min(n, static_cast<std::size_t>((b + 0.7) * fs));
+    for (std::size_t i = lo; i < hi; ++i) {
+      const double t = static_cast<double>(i) / fs;
+      mv[i] += 0.15 * gauss(t, b - 0.16, 0.025) + 1.2 * gauss(t, b, 0.012) -
+               0.25 * gauss(t, b + 0.028, 0.009) + 0.5 * gauss(t, b + 0.36, 0.035);
+    }
+  }
+  std::vector<std::int32_t> x;
+  for (double v : mv) x.push_back(kZero + static_cast<std::int32_t>(std::lround(v * kGain)));
+  const auto empty_after = [&](double qtc) {
+    DetectorOptions o = options(fs);
+    o.pwave_fraction = 0;
+    o.twave_qtc = qtc;
+    const Detection d = detect_beats(x, o);
+    EXPECT_EQ(d.peaks.size(), r_waves.size() - 1);
+    const std::int64_t want = r_waves[dropped + 1];
+    return std::any_of(d.empty_gap_ends.begin(), d.empty_gap_ends.end(),
+                       [&](std::int64_t p) { return std::llabs(p - want) <= 5; });
+  };
+  EXPECT_TRUE(empty_after(0.40));
+  EXPECT_FALSE(empty_after(0));
+}
+
 TEST(RPeak, OutputIsIdenticalWhateverTheChunking) {
   const Synthetic s = ecg(360, 90, 0.05, 0.3);
   const DetectorOptions o = options(360);

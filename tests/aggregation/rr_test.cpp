@@ -157,11 +157,12 @@ TEST(DetectedRule, RunOfConfirmedPausesKeepsTheSinusReference) {
 }
 
 // 2:1 AV block as in MIT-BIH 231: the first blocked interval hides its P wave (no evidence),
-// so the slower rhythm is adopted from it and the three after it, which end at gaps that held
-// a blocked P wave. When conduction returns to 1:1, the intervals are NN at once: the rule
-// remembered the sinus reference. Without the P-wave evidence (an empty gap alone, as in a
-// slow stretch of atrial fibrillation) or with the option off, the return is taken for
-// premature beats until a run of them rebases the reference, as before.
+// so the slower rhythm is adopted from it and the three after it; the gaps of the slower
+// rhythm held blocked P waves. When conduction returns to 1:1, the intervals are NN at once:
+// the rule remembered the sinus reference. Without the P-wave evidence (an empty gap alone, as
+// in a slow stretch of atrial fibrillation), with it behind too few of the slow intervals, or
+// with the option off, the return is taken for premature beats until a run of them rebases
+// the reference, as before.
 TEST(DetectedRule, EndOfABlockedRunReturnsToTheRhythmBeforeIt) {
   std::vector<int> rr(20, 300);
   for (int i = 0; i < 12; ++i) rr.push_back(600);  // intervals 20..31: 2:1 conduction
@@ -179,13 +180,14 @@ TEST(DetectedRule, EndOfABlockedRunReturnsToTheRhythmBeforeIt) {
   NnRule off;
   off.return_to_prior_rhythm = false;
   EXPECT_FALSE(intervals_from_peaks(peaks, blocked, blocked, 360, off)[32].nn);
-  // Blocked P waves behind only one of the four intervals that sustain the slower rhythm are
-  // not enough: the return is rejected as before.
-  const std::vector<std::int64_t> one(blocked.begin(), blocked.begin() + 1);
-  const std::vector<std::int64_t> late(blocked.begin() + 3, blocked.end());
-  std::vector<std::int64_t> sparse = one;
-  sparse.insert(sparse.end(), late.begin(), late.end());
-  EXPECT_FALSE(intervals_from_peaks(peaks, sparse, sparse, 360)[32].nn);
+  // A blocked P wave behind one of the twelve slow intervals is not enough (at least two, and a
+  // third of them); behind four of them it is.
+  const std::vector<std::int64_t> one(blocked.begin() + 5, blocked.begin() + 6);
+  EXPECT_FALSE(intervals_from_peaks(peaks, blocked, one, 360)[32].nn);
+  const std::vector<std::int64_t> three(blocked.begin() + 2, blocked.begin() + 5);
+  EXPECT_FALSE(intervals_from_peaks(peaks, blocked, three, 360)[32].nn);
+  const std::vector<std::int64_t> four(blocked.begin() + 2, blocked.begin() + 6);
+  EXPECT_TRUE(intervals_from_peaks(peaks, blocked, four, 360)[32].nn);
 }
 
 // A reference rebased on a run of short intervals is not remembered: in bigeminy it is the

@@ -70,10 +70,11 @@ struct DetectorOptions {
   // without a QRS, the thresholds are relearned from the per-second maxima.
   double relearn_s = 8;
   // Empty-gap evidence for the NN rule (docs/hrv.md, "Confirmed pauses"): a beat is reported
-  // as ending a confirmed empty gap when, between `twave_ms` after the previous beat and
-  // `hold_ms` before this one, no local maximum of the integrated slope (counting those below
-  // `min_qrs_mv`, which never become candidates) reached this fraction of the median QRS
-  // height. A long interval whose gap holds nothing QRS-like is a pause (sinus pause, blocked
+  // as ending a confirmed empty gap when, between the end of the previous beat's T wave
+  // (`twave_ms` after it, or later at slow rates: `twave_qtc`) and `hold_ms` before this one,
+  // no local maximum of the integrated slope (counting those below `min_qrs_mv`, which never
+  // become candidates) reached this fraction of the median QRS height (a P wave aside:
+  // `pwave_fraction`). A long interval whose gap holds nothing QRS-like is a pause (sinus pause, blocked
   // P wave), not a missed beat. 0 disables the evidence. On MIT-BIH the missed beats left
   // after search-back reach 0.06 and more (one, in noise, reached nothing).
   double empty_gap_fraction = 0.05;
@@ -92,6 +93,13 @@ struct DetectorOptions {
   // docs/rpeak.md step 8, docs/hrv.md.
   double pwave_fraction = 0.15;
   double pwave_correlation = 0.9;
+  // The gap of the empty-gap evidence starts after the previous beat's T wave, which ends
+  // later at slower rates: max(twave_ms, twave_qtc * sqrt(RR)) after that beat, RR in seconds
+  // the interval before it (Bazett: QT = QTc sqrt(RR)). 0.40 s: an upper-normal QTc of 0.44 s
+  // counted from the QRS onset, less the ~40 ms from onset to the reported point. At RR 0.81 s
+  // it equals twave_ms; in 2:1 AV block the T wave of the beat before a blocked P wave reached
+  // past 360 ms (MIT-BIH 231). 0 keeps twave_ms alone.
+  double twave_qtc = 0.40;
 };
 
 // Checks that the options are usable (fs and gain positive, band 0 < highpass < lowpass <

@@ -74,13 +74,13 @@ std::vector<Interval> reference_intervals(const std::vector<Beat>& beats,
 //  - shorter than (1 - tol_prem) * ref and followed by one longer than (1 + tol_prem) * ref:
 //    a premature beat with its compensatory pause; both are not NN;
 //  - a return to the rhythm before a block (return_to_prior_rhythm): when the reference
-//    restarts from a new, slower rhythm and at least half of its sustaining intervals (the
-//    long one and the sustained_beats after it) end at gaps that held a blocked P wave and
-//    nothing QRS-like (p_wave_gap_ends: 2:1 AV block), the reference before it is
-//    remembered, unless it came from a run of short intervals; a later short interval within
-//    tol_short of that remembered reference is NN and restores it with its spread (the block
-//    ends, conduction is 1:1 again). A slower rhythm adopted without that evidence, a gap or
-//    a run of short intervals forgets it.
+//    restarts from a new, slower rhythm, the reference before it is remembered (unless it
+//    came from a run of short intervals); a later short interval within tol_short of that
+//    remembered reference is NN and restores it with its spread (the block ends, conduction is
+//    1:1 again) when the slower rhythm was a block: at least two, and at least a third, of the
+//    intervals kept at it ended at gaps that held a P wave and nothing QRS-like
+//    (p_wave_gap_ends: 2:1 AV block). A gap, a run of short intervals or the next slower
+//    rhythm forgets it.
 // Whatever the comparison, an interval longer than max_interval_s or overlapping an excluded
 // range is not NN, and the reference restarts after a gap longer than max_interval_s.
 struct NnRule {
@@ -182,7 +182,9 @@ class NnClassifier {
   bool seed();
   bool step(std::vector<Interval>& decided);
   bool confirmed_pause() const;
-  void remember_prior(std::size_t k);
+  void remember_prior();
+  void forget_prior();
+  void count_slow(const Pending& p);
   bool returns_to_prior(double rr, double tol) const;
   void short_beat(double rr, double tol);
   void accept(double rr);
@@ -208,6 +210,8 @@ class NnClassifier {
   std::deque<double> hist_, diffs_, short_run_;
   // The reference and spread before a slower rhythm adopted over empty gaps (empty: none).
   std::deque<double> prior_hist_, prior_diffs_;
+  // Since then: the intervals kept at the slower rhythm, and how many ended at a P-wave gap.
+  std::size_t slow_kept_ = 0, slow_p_waves_ = 0;
 };
 
 // The fraction of intervals that are NN (0 for an empty series).
