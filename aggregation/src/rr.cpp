@@ -165,13 +165,15 @@ void NnClassifier::reset() {
   diffs_.clear();
   short_run_.clear();
   forget_prior();
+  forget_ectopic_run();
 }
 
 void NnClassifier::advance(std::vector<Interval>& decided) {
   while (!pending_.empty()) {
     if (skip_next_) {
       skip_next_ = false;
-      decide(false, decided);
+      const bool short_too = pending_.front().rr < short_limit_;
+      decide(false, decided, short_too ? Track::short_interval : Track::other);
       continue;
     }
     if (seed_pending_ && !seed()) return;
@@ -197,6 +199,7 @@ bool NnClassifier::seed() {
   hist_.clear();
   diffs_.clear();
   forget_prior();
+  forget_ectopic_run();
   if (!next.empty()) hist_.push_back(median_of(next));
   seed_pending_ = false;
   rebased_short_ = false;
@@ -222,6 +225,11 @@ bool NnClassifier::step(std::vector<Interval>& decided) {
   const double tol_long = std::max(rule_.long_fraction, rule_.spread_factor * spread / ref);
   const double tol_prem =
       std::max(rule_.premature_fraction, rule_.premature_spread_factor * spread / ref);
+  // For the ectopic-run state, which follows every decided interval (track()).
+  short_limit_ = (1 - tol_short) * ref;
+  short_tol_ = tol_short * ref;
+  steady_tol_ = tol_prem * ref;
+  regular_ = diffs_.size() >= 8 && spread < rule_.regular_spread * ref;
   const bool continuous = prev_ok_ && std::abs(r - prev_rr_) <= tol_prem * ref &&
                           std::abs(r - ref) <= rule_.continuity_band * tol_short * ref;
   if (!continuous && r < (1 - tol_short) * ref && returns_to_prior(r, tol_short)) {
@@ -237,7 +245,7 @@ bool NnClassifier::step(std::vector<Interval>& decided) {
   if (!continuous && r < (1 - tol_short) * ref) {  // premature or spurious: it and the next
     short_beat(r, tol_short * ref);
     skip_next_ = true;
-    decide(false, decided);
+    decide(false, decided, Track::short_interval);
     return true;
   }
   if (!continuous && r > (1 + tol_long) * ref) {  // long: NN only if a new rhythm follows
@@ -284,9 +292,19 @@ bool NnClassifier::step(std::vector<Interval>& decided) {
     }
   }
   short_run_.clear();
+  if (ectopic_) {
+    // After an ectopic run, an interval still early against the sinus reference is the focus
+    // going on (it took over because it fires faster): not NN, and kept out of the reference,
+    // until an interval at the sinus rate or a steady rhythm.
+    if (r < (1 - tol_prem) * ref && steady_with(r) < rule_.sinus_return_beats) {
+      decide(false, decided, Track::candidate);
+      return true;
+    }
+    ectopic_ = false;
+  }
   accept(r);
   count_slow(pending_.front());
-  decide(true, decided);
+  decide(true, decided, Track::candidate);
   return true;
 }
 
@@ -367,10 +385,47 @@ bool NnClassifier::confirmed_pause() const {
          !rebased_short_;
 }
 
+// The ectopic-run state (NnRule::hold_after_ectopic_run), updated with every decided interval
+// of positive length up to max_interval_s. kind says how the rule saw it: short_interval
+// (rejected as short, or the interval after such a one and short itself), candidate (within
+// the tolerances: accepted, or held after an ectopic run) or other (long, premature with a
+// pause, a return after a block). A run is ectopic_run_beats short intervals in a row, each
+// within tol_short of the one before: an ectopic focus firing at its own steady rate. Noise that
+// splits intervals gives short intervals too, but of unrelated lengths (a fragment, then the
+// rest of the interval), and the run starts again. Only a run out of a regular rhythm counts:
+// in atrial fibrillation or marked sinus arrhythmia the reference rule keeps intervals of every
+// length, and an irregular rhythm after a run is what the rhythm was before it.
+void NnClassifier::track(double rr, Track kind) {
+  if (!rule_.hold_after_ectopic_run) return;
+  if (kind != Track::short_interval) {
+    run_ = 0;
+  } else {
+    if (run_ > 0 && std::abs(rr - run_last_) > short_tol_) run_ = 0;
+    run_last_ = rr;
+    if (++run_ >= std::max(rule_.ectopic_run_beats, 1) && regular_) ectopic_ = true;
+  }
+  if (kind == Track::candidate) steady_ = steady_with(rr);
+  last_rr_ = rr;
+}
+
+// How many candidate intervals in a row (rr included; see track()) each stayed within tol_prem
+// of the interval decided just before it. A short interval between them breaks the count, since
+// the next one is then far from it.
+int NnClassifier::steady_with(double rr) const {
+  return last_rr_ > 0 && std::abs(rr - last_rr_) <= steady_tol_ ? steady_ + 1 : 1;
+}
+
+void NnClassifier::forget_ectopic_run() {
+  run_ = steady_ = 0;
+  run_last_ = last_rr_ = 0;
+  ectopic_ = false;
+}
+
 // Emits the front interval with the rule's decision, excluded ranges applied.
-void NnClassifier::decide(bool ok, std::vector<Interval>& decided) {
+void NnClassifier::decide(bool ok, std::vector<Interval>& decided, Track kind) {
   const Pending p = pending_.front();
   pending_.pop_front();
+  if (p.rr > 0 && p.rr <= max_rr_) track(p.rr, kind);
   prev_pause_ = false;
   prev_ok_ = ok;
   prev_rr_ = p.rr;

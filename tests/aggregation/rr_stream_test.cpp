@@ -220,22 +220,27 @@ bool same(const std::vector<Interval>& a, const std::vector<Interval>& b, std::s
   return true;
 }
 
-// Every check on one series: model == batch == one-by-one stream == chunked streams; each
+// Every check on one series: model == batch with the rules the model knows (it predates
+// hold_after_ectopic_run, which is turned off for that comparison), batch == one-by-one
+// stream == chunked streams with the rule as given; each
 // interval decided by the time D + 1 positive-length intervals from it (itself included) are
 // pushed, and one left for finish() only when fewer were; pending() <= D
 // when no peaks repeat; and a finished classifier starts a new stream afresh.
 void check_series(const std::vector<std::int64_t>& peaks, double fs, const NnRule& rule = {},
                   const std::vector<SampleRange>& excluded = {}) {
-  const std::vector<Interval> expected = model(peaks, fs, rule, excluded);
+  NnRule known = rule;
+  known.hold_after_ectopic_run = false;
   std::string why;
-  EXPECT_TRUE(same(intervals_from_peaks(peaks, fs, rule, excluded), expected, why))
+  EXPECT_TRUE(same(intervals_from_peaks(peaks, fs, known, excluded),
+                   model(peaks, fs, known, excluded), why))
       << "batch vs model: " << why;
+  const std::vector<Interval> expected = intervals_from_peaks(peaks, fs, rule, excluded);
 
   NnClassifier c(fs, rule, excluded);
   for (int round = 0; round < 2; ++round) {  // the second round checks the reset by finish()
     const Streamed s = stream(c, peaks);
     EXPECT_TRUE(same(s.intervals, expected, why))
-        << "stream vs model, round " << round << ": " << why;
+        << "stream vs batch, round " << round << ": " << why;
     EXPECT_EQ(c.pending(), 0u);
     if (!(fs > 0) || peaks.size() < 2) continue;
     const std::size_t d = delay_bound(rule);
@@ -345,6 +350,24 @@ TEST(NnClassifier, MissedBeatsAndSpuriousDetectionsMatchBatch) {
   check_series(peaks_from_rr(join({repeat(300, 12), {600}, repeat(300, 8), {120, 180},
                                    repeat(300, 3), {600, 600}, repeat(300, 4), {600}})),
                360);
+}
+
+// The hold after an ectopic run (early intervals after it, until the sinus rate or a steady
+// rhythm) needs no look-ahead: streamed, one peak at a time or in chunks, it decides as the
+// batch does, and the series does exercise it (the batch differs with the option off).
+TEST(NnClassifier, EctopicRunsMatchBatch) {
+  std::vector<int> rr;
+  for (int i = 0; i < 30; ++i) rr.push_back(i % 2 ? 302 : 298);
+  for (int r : {220, 230, 215, 225, 272, 268, 277, 300, 302, 298}) rr.push_back(r);
+  for (int r : {220, 230, 215, 225, 276, 276, 276, 276, 276, 2000, 300, 300}) rr.push_back(r);
+  for (int i = 0; i < 12; ++i) rr.push_back(i % 2 ? 302 : 298);
+  for (int r : {215, 225, 220, 270, 0, 271, 300}) rr.push_back(r);
+  const auto peaks = peaks_from_rr(rr);
+  check_series(peaks, 360);
+  NnRule off;
+  off.hold_after_ectopic_run = false;
+  std::string why;
+  EXPECT_FALSE(same(intervals_from_peaks(peaks, 360), intervals_from_peaks(peaks, 360, off), why));
 }
 
 TEST(NnClassifier, RateChangesMatchBatch) {

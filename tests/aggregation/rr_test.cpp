@@ -229,6 +229,73 @@ TEST(DetectedRule, PauseAfterAnEctopicBeatOrInBigeminyIsNotConfirmed) {
     }
 }
 
+// An ectopic focus (junctional, atrial) that takes over from a regular sinus rhythm fires
+// faster than the sinus node; after its run of premature beats it may go on only a little
+// faster, no longer short enough to be rejected. Those intervals are not NN (the reference rule
+// drops the ectopic beats) and do not move the reference, so the sinus rhythm is NN again as
+// soon as it returns. Without the option they were kept as NN, and the reference drifted down.
+TEST(DetectedRule, EarlyIntervalsAfterAnEctopicRunAreNotNn) {
+  std::vector<int> rr;
+  for (int i = 0; i < 30; ++i) rr.push_back(i % 2 ? 302 : 298);  // regular: spread 4 of 300
+  for (int r : {220, 230, 215, 225}) rr.push_back(r);              // 30..33: the ectopic run
+  for (int r : {272, 268, 277}) rr.push_back(r);                   // 34..36: the focus goes on
+  for (int i = 0; i < 10; ++i) rr.push_back(i % 2 ? 302 : 298);  // 37..: sinus again
+  const auto peaks = peaks_from_rr(rr);
+  const auto iv = intervals_from_peaks(peaks, 360);
+  ASSERT_EQ(iv.size(), rr.size());
+  for (std::size_t i = 0; i < iv.size(); ++i) EXPECT_EQ(iv[i].nn, i < 30 || i > 36) << i;
+
+  NnRule off;
+  off.hold_after_ectopic_run = false;
+  const auto kept = intervals_from_peaks(peaks, 360, off);
+  for (std::size_t i = 34; i <= 36; ++i) EXPECT_TRUE(kept[i].nn) << i;
+}
+
+// The hold ends at the first interval at the sinus rate, and also after a steady rhythm
+// (sinus_return_beats intervals in a row within tol_prem of each other), so a new, slightly
+// faster rhythm is not held for long.
+TEST(DetectedRule, HoldAfterAnEctopicRunEndsAtTheSinusRateOrASteadyRhythm) {
+  std::vector<int> rr;
+  for (int i = 0; i < 30; ++i) rr.push_back(i % 2 ? 302 : 298);
+  for (int r : {220, 230, 215, 225}) rr.push_back(r);        // 30..33: the run
+  for (int r : {270, 300, 272}) rr.push_back(r);             // 34 held, 35 sinus, 36 NN again
+  for (int r : {220, 230, 215, 225}) rr.push_back(r);        // 37..40: another run
+  for (int i = 0; i < 12; ++i) rr.push_back(276);            // 41..: a steady, faster rhythm
+  const auto iv = intervals_from_peaks(peaks_from_rr(rr), 360);
+  ASSERT_EQ(iv.size(), rr.size());
+  EXPECT_FALSE(iv[34].nn);
+  EXPECT_TRUE(iv[35].nn);
+  EXPECT_TRUE(iv[36].nn);
+  for (std::size_t i = 41; i <= 43; ++i) EXPECT_FALSE(iv[i].nn) << i;  // not steady yet
+  for (std::size_t i = 44; i < iv.size(); ++i) EXPECT_TRUE(iv[i].nn) << i;
+}
+
+// What is not an ectopic run: short intervals of unrelated lengths (noise detections that split
+// intervals), and a run out of an irregular rhythm (atrial fibrillation, marked sinus
+// arrhythmia), where the reference rule keeps intervals of every length. An early interval
+// after either is judged as before.
+TEST(DetectedRule, SplitIntervalsOrAnIrregularRhythmAreNoEctopicRun) {
+  std::vector<int> rr;
+  for (int i = 0; i < 30; ++i) rr.push_back(i % 2 ? 302 : 298);
+  for (int r : {80, 220, 170, 130, 60, 240}) rr.push_back(r);  // 30..35: noise splits three
+  for (int r : {272, 300, 300}) rr.push_back(r);               // 36: early but not short
+  auto iv = intervals_from_peaks(peaks_from_rr(rr), 360);
+  ASSERT_EQ(iv.size(), rr.size());
+  EXPECT_TRUE(iv[36].nn);
+
+  rr.clear();
+  for (int i = 0; i < 30; ++i) rr.push_back(i % 2 ? 306 : 294);  // spread 12: 4 % of 300
+  for (int r : {200, 205, 195, 200}) rr.push_back(r);            // 30..33: short, agreeing
+  for (int r : {265, 300, 294}) rr.push_back(r);                 // 34: early but not short
+  const auto peaks = peaks_from_rr(rr);
+  iv = intervals_from_peaks(peaks, 360);
+  ASSERT_EQ(iv.size(), rr.size());
+  EXPECT_TRUE(iv[34].nn);
+  NnRule wider;  // the same rhythm counted as regular: the interval is held
+  wider.regular_spread = 0.05;
+  EXPECT_FALSE(intervals_from_peaks(peaks, 360, wider)[34].nn);
+}
+
 TEST(DetectedRule, ExcludedRangesApply) {
   const std::vector<int> rr(20, 300);
   const auto peaks = peaks_from_rr(rr);

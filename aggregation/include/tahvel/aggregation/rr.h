@@ -80,7 +80,18 @@ std::vector<Interval> reference_intervals(const std::vector<Beat>& beats,
 //    1:1 again) when the slower rhythm was a block: at least two, and at least a third, of the
 //    intervals kept at it ended at gaps that held a P wave and nothing QRS-like
 //    (p_wave_gap_ends: 2:1 AV block). A gap, a run of short intervals or the next slower
-//    rhythm forgets it.
+//    rhythm forgets it;
+//  - an ectopic run out of a regular rhythm (hold_after_ectopic_run): after ectopic_run_beats
+//    consecutive short intervals (below (1 - tol_short) * ref), each within tol_short * ref of
+//    the one before (a focus firing at its own rate; noise that splits intervals gives
+//    unrelated lengths), when the rhythm before them was regular (spread < regular_spread *
+//    ref), an interval that is still early, below (1 - tol_prem) * ref, though not short
+//    enough to be rejected, is not NN and moves neither the reference nor the spread. An
+//    accelerated junctional or atrial focus takes over only while it fires faster than the
+//    sinus node, so after its run it goes on a little faster than the sinus rhythm; the
+//    reference rule drops those beats, the RR rule alone kept them. The first interval at
+//    the sinus rate, or sinus_return_beats intervals in a row each within tol_prem * ref of
+//    the one before (a steady new rhythm), ends this; so does a gap.
 // Whatever the comparison, an interval longer than max_interval_s or overlapping an excluded
 // range is not NN, and the reference restarts after a gap longer than max_interval_s.
 struct NnRule {
@@ -97,6 +108,10 @@ struct NnRule {
   int spread_diffs = 32;                // adjacent accepted pairs in the spread median
   bool keep_confirmed_pauses = true;    // a long interval over an empty gap is NN (above)
   bool return_to_prior_rhythm = true;   // the end of a blocked run is NN (above)
+  bool hold_after_ectopic_run = true;   // early intervals after an ectopic run are not NN (above)
+  int ectopic_run_beats = 3;            // consecutive short intervals that make a run
+  double regular_spread = 0.03;         // a rhythm is regular below this spread / ref
+  int sinus_return_beats = 4;           // steady intervals that end the ectopic rhythm
 };
 
 // Intervals between consecutive detected peaks (samples, sorted ascending; duplicates give a
@@ -141,8 +156,8 @@ std::vector<Interval> intervals_from_peaks(const std::vector<std::int64_t>& peak
 //
 // Memory is bounded for an endless stream: the undecided intervals (pending()), the reference
 // window (reference_beats), the spread window (spread_diffs), the run of short intervals
-// (max(rebase_beats, reference_beats)), a remembered reference and spread from before a block
-// and the excluded ranges given at construction.
+// (max(rebase_beats, reference_beats)), a remembered reference and spread from before a block,
+// a few scalars for the ectopic-run state and the excluded ranges given at construction.
 // excluded need not be sorted. With fs <= 0 nothing is ever decided, as the batch function
 // returns nothing. Peaks out of order give an interval of non-positive length, never NN.
 // finish() returns the classifier to its constructed state, ready for a new stream. Not
@@ -188,7 +203,11 @@ class NnClassifier {
   bool returns_to_prior(double rr, double tol) const;
   void short_beat(double rr, double tol);
   void accept(double rr);
-  void decide(bool ok, std::vector<Interval>& decided);
+  enum class Track { other, short_interval, candidate };  // see track()
+  void decide(bool ok, std::vector<Interval>& decided, Track kind = Track::other);
+  void track(double rr, Track kind);
+  int steady_with(double rr) const;
+  void forget_ectopic_run();
   bool overlaps_excluded(std::int64_t start, std::int64_t end) const;
   void reset();
 
@@ -212,6 +231,15 @@ class NnClassifier {
   std::deque<double> prior_hist_, prior_diffs_;
   // Since then: the intervals kept at the slower rhythm, and how many ended at a P-wave gap.
   std::size_t slow_kept_ = 0, slow_p_waves_ = 0;
+  // The ectopic-run state (hold_after_ectopic_run). The limits are those of the last judgement,
+  // for the interval skipped after a short one; tracked over every decided interval.
+  double short_limit_ = 0, short_tol_ = 0, steady_tol_ = 0;
+  bool regular_ = false;       // the spread of the accepted rhythm is below regular_spread
+  int run_ = 0;                // consecutive short intervals that agree, up to the last decided
+  double run_last_ = 0;        // the last of them
+  int steady_ = 0;             // candidate intervals in a row within steady_tol_ of the last
+  double last_rr_ = 0;         // the last decided interval (0: none since the reference restarted)
+  bool ectopic_ = false;       // an ectopic run, and since then no sinus rate nor steady rhythm
 };
 
 // The fraction of intervals that are NN (0 for an empty series).
