@@ -363,7 +363,8 @@ Result<void> Env::write(const std::function<Result<void>(Txn&)>& body, WriteKind
     for (auto slot : txn.wake_slots) wake_.bump(slot);
     // Watchers follow the change stream: wake them only when it grew (not for acks, TTL rules
     // or prefixes).
-    if (txn.counters.next_seq != first_seq) wake_.bump(WakeBoard::kAnyCommit);
+    // Threads waiting for input buffers (a link's pump) wake only when one changed.
+    if (txn.counters.next_seq != first_seq) wake_.bump_commit(!txn.wake_slots.empty());
     term_cache.publish(txn.staged_pinned, txn.staged_unpinned, TermCache::generation(txn.counters));
     return {};
   }

@@ -789,12 +789,12 @@ bool Node::wait_for_commit(const std::function<bool()>& ready, std::chrono::nano
       board.finish(WakeBoard::kAnyCommit);
       return false;
     }
-    board.wait(WakeBoard::kAnyCommit, token, std::chrono::duration_cast<std::chrono::nanoseconds>(left));
+    board.wait_buffers(token, std::chrono::duration_cast<std::chrono::nanoseconds>(left));
     board.finish(WakeBoard::kAnyCommit);
   }
 }
 
-void Node::wake_waiters() const { impl_->env->wake().bump(WakeBoard::kAnyCommit); }
+void Node::wake_waiters() const { impl_->env->wake().wake_buffer_waiters(); }
 
 Result<std::vector<Change>> Node::watch(std::uint64_t bookmark, std::chrono::milliseconds timeout, std::size_t limit) const {
   const auto deadline = std::chrono::steady_clock::now() + timeout;

@@ -60,6 +60,32 @@ void WakeBoard::finish(std::uint32_t slot) {
   shared_->waiters[slot].fetch_sub(1, std::memory_order_seq_cst);
 }
 
+namespace {
+// FUTEX_WAIT_BITSET masks on the commit word: plain FUTEX_WAIT waiters (watchers) match every
+// mask; a buffer waiter sleeps on kBuffersBit only.
+constexpr std::uint32_t kWatchersBit = 1;
+constexpr std::uint32_t kBuffersBit = 2;
+}  // namespace
+
+void WakeBoard::bump_commit(bool buffers_changed) {
+  shared_->seq[kAnyCommit].fetch_add(1, std::memory_order_seq_cst);
+  if (shared_->waiters[kAnyCommit].load(std::memory_order_seq_cst) != 0) {
+    syscall(SYS_futex, reinterpret_cast<std::uint32_t*>(&shared_->seq[kAnyCommit]), FUTEX_WAKE_BITSET, INT32_MAX,
+            nullptr, nullptr, buffers_changed ? FUTEX_BITSET_MATCH_ANY : kWatchersBit);
+  }
+}
+
+void WakeBoard::wait_buffers(std::uint32_t token, std::chrono::nanoseconds timeout) {
+  if (timeout.count() <= 0) return;
+  // FUTEX_WAIT_BITSET takes an absolute CLOCK_MONOTONIC deadline.
+  timespec now{};
+  clock_gettime(CLOCK_MONOTONIC, &now);
+  const std::int64_t end = static_cast<std::int64_t>(now.tv_sec) * 1'000'000'000 + now.tv_nsec + timeout.count();
+  timespec deadline{static_cast<time_t>(end / 1'000'000'000), static_cast<long>(end % 1'000'000'000)};
+  syscall(SYS_futex, reinterpret_cast<std::uint32_t*>(&shared_->seq[kAnyCommit]), FUTEX_WAIT_BITSET, token,
+          &deadline, nullptr, kBuffersBit);
+}
+
 std::uint32_t WakeBoard::version(std::uint32_t slot) const {
   return shared_->seq[slot].load(std::memory_order_seq_cst);
 }

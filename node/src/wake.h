@@ -40,6 +40,18 @@ class WakeBoard {
   // Writer side, after commit.
   void bump(std::uint32_t slot);
 
+  // The commit slot (kAnyCommit), after a commit that grew the change stream. Watchers sleep on
+  // it with plain FUTEX_WAIT and are woken by every such commit; a thread waiting for input
+  // buffers (wait_buffers) only by commits that routed an item into one (`buffers_changed`) and
+  // by wake_buffer_waiters. Its waiter count is shared, so the wake call is made either way.
+  void bump_commit(bool buffers_changed);
+  // kAnyCommit's word moves and every waiter on it wakes, the buffer waiters included.
+  void wake_buffer_waiters() { bump_commit(true); }
+
+  // As wait(kAnyCommit, ...), but woken only by commits that changed an input buffer (or a
+  // change of the word before the sleep began).
+  void wait_buffers(std::uint32_t token, std::chrono::nanoseconds timeout);
+
   // The slot's sequence word now (it changes at every bump).
   std::uint32_t version(std::uint32_t slot) const;
 

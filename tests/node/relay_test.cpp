@@ -190,11 +190,13 @@ TEST(Window, WaitForCommitReturnsWhenAnyOfManyBuffersGetsAnItemOrWhenWoken) {
     return false;
   };
   EXPECT_FALSE(node.wait_for_commit(changed, 1ms));  // nothing yet: times out
-  // A writer in another thread (another process would do the same) addresses the 37th child.
+  // A writer in another thread (another process would do the same) stores an item for nobody,
+  // which need not wake the waiter, then one for the 37th child, which must.
   std::thread writer([&] {
     Node other = Node::open(dir.path()).value();
     Agent w = other.agent("writer").value();
     std::this_thread::sleep_for(20ms);  // most likely asleep by now; correct either way
+    ASSERT_TRUE(w.store(reading(2, "http://example.org/group/none")));  // routed nowhere
     ASSERT_TRUE(w.store(reading(1, "http://example.org/group/37")));
   });
   EXPECT_TRUE(node.wait_for_commit(changed, 60s));

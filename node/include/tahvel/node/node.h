@@ -312,10 +312,10 @@ class Node {
   Result<std::vector<Change>> watch(std::uint64_t bookmark, std::chrono::milliseconds timeout,
                                     std::size_t limit = 0) const;
 
-  // Sleeps until a commit that adds records to this store (from any process; every item routed
-  // into an input buffer is such a commit, and changes the agent's buffer_version() before the
-  // commit's wake-up) or a call of wake_waiters(), and calls `ready` again; returns true as soon
-  // as `ready` does, false when `timeout` passes first. `ready` is called once before sleeping,
+  // Sleeps until a commit that routes an item into an input buffer (from any process; it changes
+  // the agent's buffer_version() before the commit's wake-up; commits that route nothing, such
+  // as a parent relaying its children's items, do not wake it) or a call of wake_waiters(), and
+  // calls `ready` again; returns true as soon as `ready` does, false when `timeout` passes first. `ready` is called once before sleeping,
   // after this thread is registered as a waiter, so no commit between the check and the sleep
   // is missed. For a thread serving many input buffers: `ready` compares their buffer_version()
   // with what it saw last.
