@@ -23,6 +23,7 @@
 #include <condition_variable>
 #include <cstdio>
 #include <cstdlib>
+#include <deque>
 #include <iostream>
 #include <memory>
 #include <mutex>
@@ -192,10 +193,16 @@ struct Diagnostics {
   std::mutex mu;
   std::uint64_t drops = 0, log_lines = 0;
   std::vector<std::string> first;
+  std::deque<std::string> last;  // the 20 lines after the first 20
   void note(std::string_view line, bool drop) {
     std::lock_guard lock(mu);
     ++(drop ? drops : log_lines);
-    if (first.size() < 20) first.emplace_back(line);
+    if (first.size() < 20) {
+      first.emplace_back(line);
+      return;
+    }
+    last.emplace_back(line);
+    if (last.size() > 20) last.pop_front();
   }
   fed::DropLog drop_log() {
     return [this](std::string_view l) { note(l, true); };
@@ -205,8 +212,10 @@ struct Diagnostics {
   }
   std::string summary() {
     std::lock_guard lock(mu);
-    std::string s;
+    std::string s = "\n  " + std::to_string(log_lines) + " link log line(s), " + std::to_string(drops) + " drop(s)";
     for (const auto& l : first) s += "\n  " + l;
+    if (!last.empty()) s += "\n  ...";
+    for (const auto& l : last) s += "\n  " + l;
     return s;
   }
 };
@@ -521,6 +530,21 @@ class SimHomes {
     return total;
   }
   std::uint64_t go_backs() const { return go_backs_; }
+  // The homes that have not had all their items acknowledged, with their side of the stream.
+  std::string unfinished(std::size_t at_most) {
+    std::string s;
+    std::size_t n = 0;
+    for (auto& h : homes) {
+      std::lock_guard lock(h->mu);
+      if (h->mark >= h->frames.size()) continue;
+      if (++n > at_most) continue;
+      s += "\n  <" + h->iri + "> welcomed " + std::to_string(h->welcomed.load()) + ", mark " +
+           std::to_string(h->mark.load()) + ", last sent " + std::to_string(h->last_sent) + ", go back " +
+           std::to_string(h->go_back) + ", no progress for " +
+           std::to_string(std::chrono::duration_cast<std::chrono::milliseconds>(Clock::now() - h->progress).count()) + " ms";
+    }
+    return "\n  " + std::to_string(n) + " home(s) not done" + s;
+  }
   std::uint64_t send_failures() const { return send_failures_; }
 
  private:
@@ -554,7 +578,7 @@ class SimHomes {
       h.progress = now;
       ++go_backs_;
     }
-    const std::uint64_t in_flight = h.last_sent - h.mark;
+    const std::uint64_t in_flight = h.last_sent > h.mark ? h.last_sent - h.mark : 0;
     const std::uint64_t room = window_ > in_flight ? window_ - in_flight : 0;
     const std::uint64_t left = total - h.last_sent;
     // Send in runs of at least half a window (or what is left): the parent relays a run of
@@ -595,15 +619,20 @@ class SimHomes {
       const fed::Frame& f = **got;
       std::lock_guard lock(h.mu);
       if (f.kind == fed::FrameKind::welcome) {  // P6: resume from the parent's mark
+        // A home says hello every 250 ms until welcomed, so more than one welcome may come, the
+        // later ones after items were sent and acknowledged: the parent's mark never goes back,
+        // so neither does this one (a welcome that set it back, followed by an ack, left the
+        // mark above the last frame sent, and the home waiting for ever).
         h.welcomed = true;
-        h.mark = f.ack;
-        h.last_sent = f.ack;
+        h.mark = std::max<std::uint64_t>(h.mark, f.ack);
+        h.last_sent = h.mark;
         h.progress = Clock::now();
       } else if (f.kind == fed::FrameKind::ack && f.seq == 0) {
         if (f.ack > h.mark) {
           h.mark = f.ack;
           h.progress = Clock::now();
         }
+        h.last_sent = std::max<std::uint64_t>(h.last_sent, h.mark);  // what the parent has is sent
         if (f.prev == 1) h.go_back = true;
       } else if (f.kind == fed::FrameKind::error) {
         h.welcomed = false;  // unregistered or refused: say hello again
@@ -676,12 +705,14 @@ IngestFigures measure_ingest(const Config& cfg, const ScratchDir& scratch, std::
   f.process_cpu_s = cpu_of(CLOCK_PROCESS_CPUTIME_ID) - cpu0;
   f.sim_cpu_s = sim.cpu_seconds() - sim0;
   f.hospital_cpu_s = f.process_cpu_s - f.sim_cpu_s - (cpu_of(CLOCK_THREAD_CPUTIME_ID) - main0);
+  const std::string unfinished = f.complete ? std::string() : sim.unfinished(10);
   sim.stop();
   f.go_backs = sim.go_backs();
   f.send_failures = sim.send_failures();
   f.hospital = (*link)->counters();
   (*link)->stop();
-  if (!f.complete) std::cerr << "tahvel: bench federation: ingest incomplete after 300 s" << diag.summary() << "\n";
+  if (!f.complete)
+    std::cerr << "tahvel: bench federation: ingest incomplete after 300 s" << unfinished << diag.summary() << "\n";
   f.ledger = check_numbers(dir, first, next_number - first);
   if (f.items > 0) f.bytes_per_item = static_cast<double>(used_bytes(dir) - used_before) / static_cast<double>(f.items);
   return f;
