@@ -167,6 +167,10 @@ class Env {
     // used it, so it is looked up when subscriptions are loaded (0 while absent).
     std::uint64_t context = 0;
   } vocab;
+  // load_vocabulary fills `vocab` once per Env: every Node::open in the process shares this Env,
+  // and writers read `vocab` in their transactions without a lock.
+  std::mutex vocab_mutex;
+  bool vocab_loaded = false;
 
   TermCache term_cache;
   mutable DecodedTerms decoded;

@@ -36,6 +36,10 @@ struct ReadTxn {
 };
 
 Result<void> load_vocabulary(Env& env) {
+  // Once per Env: a later Node::open on another thread must not write `vocab` while a writer of
+  // this process reads it (the ids are fixed, but the stores would be a data race).
+  std::lock_guard lock(env.vocab_mutex);
+  if (env.vocab_loaded) return {};
   ReadTxn read(env);
   if (auto r = read.begin(); !r) return r;
   std::uint64_t* slots[] = {&env.vocab.subscriber, &env.vocab.subject, &env.vocab.predicate, &env.vocab.object};
@@ -46,6 +50,7 @@ Result<void> load_vocabulary(Env& env) {
     if (*id == 0) return fail(Errc::corrupt, env.dir().string() + ": vocabulary term missing: " + std::string(iris[i]));
     *slots[i] = *id;
   }
+  env.vocab_loaded = true;
   return {};
 }
 

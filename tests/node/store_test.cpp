@@ -2,7 +2,9 @@
 // subscriptions and input buffers, errors that leave nothing behind, retention.
 #include <gtest/gtest.h>
 
+#include <atomic>
 #include <set>
+#include <thread>
 
 #include "tahvel/node/format.h"
 #include "tahvel/node/node.h"
@@ -270,6 +272,32 @@ TEST(Store, SubscriberGetsMatchingItemsOnceInOrder) {
   }
   EXPECT_EQ(got, sent);
   EXPECT_EQ(*reader->pending(), 0u);
+}
+
+// Every Node::open in a process shares one Env; opening must not rewrite the vocabulary ids
+// that a writer on another thread reads in its transaction (a data race ThreadSanitizer reported
+// from the link's threads: load_vocabulary against insert_item). Fails only under -fsanitize=thread.
+TEST(Store, OpeningTheStoreOnAnotherThreadWhileOneWritesLeavesTheWriterAlone) {
+  TempDir dir;
+  Node node = make_node(dir.path());
+  auto writer = node.agent("writer");
+  ASSERT_TRUE(writer);
+  std::atomic<bool> done{false};
+  std::thread opener([&] {
+    while (!done) {
+      auto other = Node::open(dir.path());
+      ASSERT_TRUE(other) << other.error().message;
+    }
+  });
+  for (int i = 0; i < 200; ++i)
+    ASSERT_TRUE(writer->store(Item{}.add(ex("obs" + std::to_string(i)), ex("hr"), Term::integer(70 + i))));
+  done = true;
+  opener.join();
+  auto again = Node::open(dir.path());
+  ASSERT_TRUE(again);
+  auto snap = again->snapshot();
+  ASSERT_TRUE(snap);
+  EXPECT_EQ(*snap->count({.p = ex("hr")}), 200u);
 }
 
 TEST(Store, ManualAckRedeliversUntilAcknowledged) {
