@@ -908,13 +908,21 @@ struct Link::Impl {
         std::lock_guard lock(mu);
         fresh.swap(pump_new);
       }
+      std::vector<std::shared_ptr<Child>> retry;
       for (auto& child : fresh) {
         auto agent = node->agent(child->id);
         if (!agent) {
-          log("cannot open agent " + child->id + ": " + agent.error().message);
+          // A store error now must not leave the child unserved for good: tried again after
+          // the idle wait.
+          log("cannot open agent " + child->id + ": " + agent.error().message + "; trying again");
+          retry.push_back(child);
           continue;
         }
         pumped.push_back({child, std::move(*agent)});
+      }
+      if (!retry.empty()) {
+        std::lock_guard lock(mu);
+        pump_new.insert(pump_new.end(), retry.begin(), retry.end());
       }
       auto due = Clock::now() + kIdlePumpWait;
       for (auto& p : pumped) {
