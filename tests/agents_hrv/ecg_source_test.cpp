@@ -2,9 +2,6 @@
 // middle goes on after its last chunk, so every second of signal is on the board once and the
 // same as an uninterrupted run wrote it; a recording that was ended is not written again.
 #include <gtest/gtest.h>
-#include <signal.h>
-#include <sys/wait.h>
-#include <unistd.h>
 
 #include <chrono>
 #include <cstdlib>
@@ -16,6 +13,7 @@
 
 #include "tahvel/aggregation/items.h"
 #include "tahvel/node/node.h"
+#include "agent_process.h"
 #include "temp_dir.h"
 
 namespace {
@@ -29,24 +27,15 @@ const std::string kNodeIri = "http://example.org/home1";
 const std::string kRecording = kNodeIri + "/ecg/recording/synthetic-5";
 constexpr std::int64_t kFrames = 60 * 360;  // --seconds 60 at the generator's 360 Hz
 
-pid_t spawn_source(const std::string& dir, const std::string& speed) {
-  std::vector<std::string> argv = {std::string(TAHVEL_BIN_DIR) + "/tahvel-ecg-source", dir, "--synthetic",
-                                   "--seed", "5", "--seconds", "60", "--speed", speed};
-  pid_t pid = fork();
-  if (pid == 0) {
-    std::vector<char*> args;
-    for (auto& a : argv) args.push_back(a.data());
-    args.push_back(nullptr);
-    execv(args[0], args.data());
-    _exit(127);
-  }
-  return pid;
+// The source on `dir`: 60 s of ECGSYN seed 5, paced at `speed` times real time (0: at once).
+std::vector<std::string> source_argv(const std::string& dir, const std::string& speed) {
+  return {std::string(TAHVEL_BIN_DIR) + "/tahvel-ecg-source", dir, "--synthetic", "--seed", "5",
+          "--seconds", "60", "--speed", speed};
 }
 
-int exit_status(pid_t pid) {
-  int status = 0;
-  waitpid(pid, &status, 0);
-  return WIFEXITED(status) ? WEXITSTATUS(status) : 128 + WTERMSIG(status);
+int run_source(const std::string& dir) {
+  tahvel::test_support::AgentProcess source(source_argv(dir, "0"));
+  return source.wait(std::chrono::seconds(60));
 }
 
 class EcgSourceTest : public ::testing::Test {
@@ -104,22 +93,21 @@ class EcgSourceTest : public ::testing::Test {
 
 TEST_F(EcgSourceTest, ARestartAfterAKillGoesOnAfterTheLastChunkAndWritesEachSecondOnce) {
   const std::string whole = new_node("whole");
-  ASSERT_EQ(exit_status(spawn_source(whole, "0")), 0);
+  ASSERT_EQ(run_source(whole), 0);
   const Chunks reference = chunks(whole, kRecording);
   ASSERT_EQ(reference.samples.size(), 60u);
 
   const std::string crashed = new_node("crashed");
-  const pid_t first = spawn_source(crashed, "20");  // 3 s of wall time for the 60 s
+  tahvel::test_support::AgentProcess first(source_argv(crashed, "20"));  // 3 s of wall time for the 60 s
   const auto deadline = std::chrono::steady_clock::now() + 20s;
   while (chunks(crashed, kRecording).samples.size() < 10 && std::chrono::steady_clock::now() < deadline)
     std::this_thread::sleep_for(20ms);
-  kill(first, SIGKILL);
-  exit_status(first);
+  first.crash();
   const std::size_t before = chunks(crashed, kRecording).samples.size();
   ASSERT_GE(before, 10u);
   ASSERT_LT(before, 60u) << "the source ended before it was killed";
 
-  ASSERT_EQ(exit_status(spawn_source(crashed, "0")), 0);
+  ASSERT_EQ(run_source(crashed), 0);
   const Chunks after = chunks(crashed, kRecording);
   for (const auto& [start, n] : after.copies) EXPECT_EQ(n, 1) << "chunk at " << start;
   EXPECT_EQ(after.samples, reference.samples);
@@ -131,8 +119,8 @@ TEST_F(EcgSourceTest, ARestartAfterAKillGoesOnAfterTheLastChunkAndWritesEachSeco
 
 TEST_F(EcgSourceTest, ARecordingThatWasEndedIsNotWrittenAgainTheNextRunRecordsAnew) {
   const std::string dir = new_node("home1");
-  ASSERT_EQ(exit_status(spawn_source(dir, "0")), 0);
-  ASSERT_EQ(exit_status(spawn_source(dir, "0")), 0);
+  ASSERT_EQ(run_source(dir), 0);
+  ASSERT_EQ(run_source(dir), 0);
   const Chunks first = chunks(dir, kRecording);
   EXPECT_EQ(first.samples.size(), 60u);
   for (const auto& [start, n] : first.copies) EXPECT_EQ(n, 1) << "chunk at " << start;

@@ -7,10 +7,7 @@
 // intervals and, per window, the decimal strings of every metric as the item builder writes them.
 // The record is found through $TAHVEL_MITDB or TAHVEL_SOURCE_DIR/../shared/data/mitdb; without
 // it the cases are skipped.
-#include <fcntl.h>
 #include <gtest/gtest.h>
-#include <signal.h>
-#include <sys/wait.h>
 #include <unistd.h>
 
 #include <algorithm>
@@ -30,6 +27,7 @@
 #include "tahvel/aggregation/rpeak.h"
 #include "tahvel/aggregation/wfdb.h"
 #include "tahvel/node/node.h"
+#include "agent_process.h"
 
 namespace {
 
@@ -48,57 +46,7 @@ std::string record_path() {
   return dir + "/100";
 }
 
-// A child process running one agent; stopped with SIGTERM (SIGKILL after 20 s) when destroyed.
-// With `stderr_path`, its stderr goes to that file.
-class Process {
- public:
-  explicit Process(std::vector<std::string> argv, const std::string& stderr_path = "") {
-    pid_ = fork();
-    if (pid_ == 0) {
-      if (!stderr_path.empty()) {
-        const int fd = open(stderr_path.c_str(), O_WRONLY | O_CREAT | O_APPEND, 0644);
-        if (fd < 0 || dup2(fd, 2) < 0) _exit(126);
-        close(fd);
-      }
-      std::vector<char*> args;
-      for (auto& a : argv) args.push_back(a.data());
-      args.push_back(nullptr);
-      execv(args[0], args.data());
-      _exit(127);
-    }
-  }
-  Process(const Process&) = delete;
-  ~Process() { stop(); }
-
-  // The exit status once it ended, or -1 while it runs.
-  int poll() {
-    if (status_ < 0 && pid_ > 0) {
-      int s = 0;
-      if (waitpid(pid_, &s, WNOHANG) == pid_) status_ = WIFEXITED(s) ? WEXITSTATUS(s) : 128 + WTERMSIG(s);
-    }
-    return status_;
-  }
-  // SIGKILL: a crash, with no chance to finish the current item.
-  void crash() {
-    if (pid_ > 0 && poll() < 0) kill(pid_, SIGKILL);
-    while (pid_ > 0 && poll() < 0) usleep(1000);
-  }
-  // SIGTERM, then waits for the exit status.
-  int stop() {
-    if (pid_ <= 0 || poll() >= 0) return status_;
-    kill(pid_, SIGTERM);
-    const auto deadline = std::chrono::steady_clock::now() + 20s;
-    while (poll() < 0) {
-      if (std::chrono::steady_clock::now() > deadline) kill(pid_, SIGKILL);
-      usleep(10000);  // reaping a child has no wake-up to wait on; bounded by the deadline
-    }
-    return status_;
-  }
-
- private:
-  pid_t pid_ = -1;
-  int status_ = -1;
-};
+using Process = tahvel::test_support::AgentProcess;
 
 std::string bin(const std::string& name) { return std::string(TAHVEL_BIN_DIR) + "/" + name; }
 

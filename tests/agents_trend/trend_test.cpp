@@ -7,8 +7,6 @@
 // windows is on the board before the agent starts (catch-up), the rest arrives while it runs,
 // and one more while it is stopped; restarting it writes only that window's items, no doubles.
 #include <gtest/gtest.h>
-#include <signal.h>
-#include <sys/wait.h>
 #include <unistd.h>
 
 #include <chrono>
@@ -22,6 +20,7 @@
 
 #include "tahvel/aggregation/items.h"
 #include "tahvel/node/node.h"
+#include "agent_process.h"
 
 namespace {
 
@@ -40,48 +39,7 @@ const std::vector<double> kSdnnA = {50, 52, 48, 51, 49, 50, 53, 47, 80, 81, 79, 
 const std::vector<double> kSdnnB = {40, 41, 39, 40, 42, 38, 40, 41, 39, 40, 41, 40};
 const std::vector<double> kSdnnC = {60, 62, 58, 61, 59, 60, 61, 59, 60, 62, 58, 60};
 
-class Process {
- public:
-  explicit Process(std::vector<std::string> argv) {
-    pid_ = fork();
-    if (pid_ == 0) {
-      std::vector<char*> args;
-      for (auto& a : argv) args.push_back(a.data());
-      args.push_back(nullptr);
-      execv(args[0], args.data());
-      _exit(127);
-    }
-  }
-  Process(const Process&) = delete;
-  ~Process() { stop(); }
-  int poll() {
-    if (status_ < 0 && pid_ > 0) {
-      int s = 0;
-      if (waitpid(pid_, &s, WNOHANG) == pid_) status_ = WIFEXITED(s) ? WEXITSTATUS(s) : 128 + WTERMSIG(s);
-    }
-    return status_;
-  }
-  int stop() {
-    if (pid_ <= 0 || poll() >= 0) return status_;
-    kill(pid_, SIGTERM);
-    const auto deadline = std::chrono::steady_clock::now() + 20s;
-    while (poll() < 0) {
-      if (std::chrono::steady_clock::now() > deadline) kill(pid_, SIGKILL);
-      usleep(10000);
-    }
-    return status_;
-  }
-  // Waits for the process to exit by itself (bounded).
-  int wait(std::chrono::seconds limit) {
-    const auto deadline = std::chrono::steady_clock::now() + limit;
-    while (poll() < 0 && std::chrono::steady_clock::now() < deadline) usleep(10000);
-    return poll() >= 0 ? status_ : stop();
-  }
-
- private:
-  pid_t pid_ = -1;
-  int status_ = -1;
-};
+using Process = tahvel::test_support::AgentProcess;
 
 tn::Pattern trend_items() {
   tn::Pattern p;

@@ -46,6 +46,16 @@ class SupervisorTest : public ::testing::Test {
     return *supervisor_.state(name);
   }
 
+  // After 300 ms of polling: `name` ended with `status`, was not started again, and the log
+  // says why (`why`, after the status).
+  void expect_left_stopped(const std::string& name, int status, const std::string& why) {
+    const ProgramState s = after(name, 300ms);
+    EXPECT_FALSE(s.running);
+    EXPECT_EQ(s.restarts, 0u);
+    EXPECT_EQ(s.exit_status, status);
+    EXPECT_TRUE(logged(name + " exited with status " + std::to_string(status) + " " + why));
+  }
+
   bool logged(const std::string& text) const {
     for (const auto& line : log_)
       if (line.find(text) != std::string::npos) return true;
@@ -58,11 +68,7 @@ class SupervisorTest : public ::testing::Test {
 
 TEST_F(SupervisorTest, AProgramThatFinishesWithStatusZeroStaysStopped) {
   start("replay", "exit 0", Restart::on_failure);
-  const ProgramState s = after("replay", 300ms);
-  EXPECT_FALSE(s.running);
-  EXPECT_EQ(s.restarts, 0u);
-  EXPECT_EQ(s.exit_status, 0);
-  EXPECT_TRUE(logged("replay exited with status 0 (finished; restart = on-failure)"));
+  expect_left_stopped("replay", 0, "(finished; restart = on-failure)");
 }
 
 TEST_F(SupervisorTest, AProgramThatFailsIsStartedAgainWithBackOffAndTheLogSaysWhy) {
@@ -87,11 +93,7 @@ TEST_F(SupervisorTest, RestartAlwaysStartsAProgramAgainAfterStatusZero) {
 
 TEST_F(SupervisorTest, RestartNeverLeavesAFailedProgramStopped) {
   start("behaviour", "exit 1", Restart::never);
-  const ProgramState s = after("behaviour", 300ms);
-  EXPECT_FALSE(s.running);
-  EXPECT_EQ(s.restarts, 0u);
-  EXPECT_EQ(s.exit_status, 1);
-  EXPECT_TRUE(logged("behaviour exited with status 1 (not restarted: restart = never)"));
+  expect_left_stopped("behaviour", 1, "(not restarted: restart = never)");
 }
 
 TEST_F(SupervisorTest, AStoppedProgramIsNotStartedAgain) {
