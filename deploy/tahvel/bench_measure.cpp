@@ -19,6 +19,51 @@ std::int64_t now_ns() {
 double micros(Clock::duration d) { return std::chrono::duration<double, std::micro>(d).count(); }
 double seconds(Clock::duration d) { return std::chrono::duration<double>(d).count(); }
 
+namespace {
+
+std::vector<int> usable_cpus() {
+  cpu_set_t set;
+  CPU_ZERO(&set);
+  std::vector<int> cpus;
+  if (sched_getaffinity(0, sizeof set, &set) != 0) return cpus;
+  for (int cpu = 0; cpu < CPU_SETSIZE; ++cpu) {
+    if (CPU_ISSET(cpu, &set)) cpus.push_back(cpu);
+  }
+  return cpus;
+}
+
+}  // namespace
+
+Placement one_cpu() {
+  std::vector<int> cpus = usable_cpus();
+  if (cpus.empty()) return {};
+  return {cpus[0], cpus[0]};
+}
+
+std::optional<Placement> two_cpus() {
+  std::vector<int> cpus = usable_cpus();
+  if (cpus.size() < 2) return std::nullopt;
+  return Placement{cpus[0], cpus[1]};
+}
+
+bool pin_to_cpu(int cpu) {
+  if (cpu < 0) return true;
+  cpu_set_t set;
+  CPU_ZERO(&set);
+  CPU_SET(cpu, &set);
+  return sched_setaffinity(0, sizeof set, &set) == 0;
+}
+
+ScopedPin::ScopedPin(int cpu) {
+  if (cpu < 0) return;
+  saved_ = sched_getaffinity(0, sizeof before_, &before_) == 0;
+  if (saved_) pin_to_cpu(cpu);
+}
+
+ScopedPin::~ScopedPin() {
+  if (saved_) sched_setaffinity(0, sizeof before_, &before_);
+}
+
 Percentiles percentiles(std::vector<double> us) {
   Percentiles p;
   p.samples = us.size();

@@ -3,10 +3,13 @@
 // removed when the bench ends.
 #pragma once
 
+#include <sched.h>
+
 #include <chrono>
 #include <cstddef>
 #include <cstdint>
 #include <filesystem>
+#include <optional>
 #include <string>
 #include <vector>
 
@@ -34,6 +37,36 @@ struct Rate {
   Clock::duration elapsed{};
   double items_per_s() const;
   double triples_per_s() const;
+};
+
+// Where the two processes of a latency pair run. A hand-off between processes on one CPU
+// costs a context switch; between two CPUs it also costs waking the other CPU, which on a
+// virtual machine is an inter-processor interrupt through the hypervisor and dominates the
+// figure. Each measurement and its floor run under the same placement.
+struct Placement {
+  int parent_cpu = -1, child_cpu = -1;  // -1: wherever the scheduler puts it
+  bool pinned() const { return parent_cpu >= 0; }
+};
+
+// Both processes on the first CPU this process may use, or on its first two; nullopt for
+// "two CPUs" when it may use only one.
+Placement one_cpu();
+std::optional<Placement> two_cpus();
+
+// Pins the calling process to `cpu` (no-op for -1); returns false when the kernel refuses.
+bool pin_to_cpu(int cpu);
+
+// Pins this process for its lifetime and restores the CPUs it could use before.
+class ScopedPin {
+ public:
+  explicit ScopedPin(int cpu);
+  ScopedPin(const ScopedPin&) = delete;
+  ScopedPin& operator=(const ScopedPin&) = delete;
+  ~ScopedPin();
+
+ private:
+  bool saved_ = false;
+  cpu_set_t before_{};
 };
 
 // A fresh directory under `parent` (or the system's temporary directory when empty), removed

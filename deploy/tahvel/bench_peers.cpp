@@ -286,7 +286,8 @@ bool full_io(int fd, char* buf, std::size_t n, bool write_side) {
 
 }  // namespace
 
-Percentiles unix_socket_one_way(std::size_t round_trips, std::chrono::microseconds pause) {
+Percentiles unix_socket_one_way(std::size_t round_trips, std::chrono::microseconds pause,
+                                Placement where) {
   int fds[2];
   if (socketpair(AF_UNIX, SOCK_STREAM, 0, fds) != 0) throw std::runtime_error("socketpair failed");
   std::fflush(nullptr);
@@ -294,8 +295,10 @@ Percentiles unix_socket_one_way(std::size_t round_trips, std::chrono::microsecon
   if (pid < 0) throw std::runtime_error("fork failed");
   if (pid == 0) {
     ::close(fds[0]);
+    pin_to_cpu(where.child_cpu);
     echo_child(fds[1]);
   }
+  ScopedPin pinned(where.parent_cpu);
   ::close(fds[1]);
   std::vector<double> us;
   us.reserve(round_trips);
@@ -353,7 +356,7 @@ long futex(std::atomic<std::uint32_t>* word, int op, std::uint32_t value) {
 
 }  // namespace
 
-Percentiles futex_wake(std::size_t samples, std::chrono::microseconds pause) {
+Percentiles futex_wake(std::size_t samples, std::chrono::microseconds pause, Placement where) {
   void* mem = mmap(nullptr, sizeof(FutexBoard), PROT_READ | PROT_WRITE, MAP_SHARED | MAP_ANONYMOUS, -1, 0);
   if (mem == MAP_FAILED) throw std::runtime_error("futex bench: mmap failed");
   auto* b = new (mem) FutexBoard{};
@@ -361,7 +364,11 @@ Percentiles futex_wake(std::size_t samples, std::chrono::microseconds pause) {
   std::fflush(nullptr);
   pid_t pid = fork();
   if (pid < 0) throw std::runtime_error("fork failed");
-  if (pid == 0) futex_child(b, probes);
+  if (pid == 0) {
+    pin_to_cpu(where.child_cpu);
+    futex_child(b, probes);
+  }
+  ScopedPin pinned(where.parent_cpu);
   std::vector<double> us;
   us.reserve(samples);
   bool ok = true;

@@ -108,12 +108,15 @@ class SordPeer {
 
 // One-way latency of a UNIX stream socketpair between this process and a forked child: half
 // of each round trip of an 8-byte message. With a `pause`, the sender sleeps that long before
-// each round trip, so that both sides wake from sleep as a subscriber does.
-Percentiles unix_socket_one_way(std::size_t round_trips, std::chrono::microseconds pause);
+// each round trip, so that both sides wake from sleep as a subscriber does. `where` pins the
+// two processes.
+Percentiles unix_socket_one_way(std::size_t round_trips, std::chrono::microseconds pause,
+                                Placement where = {});
 
 // Latency of a bare futex wake-up across processes, the mechanism the store's waking uses:
 // after `pause`, the parent increments a shared word and calls FUTEX_WAKE; a forked child
 // asleep in FUTEX_WAIT notes when it returns. The floor of store-to-wake, with no store.
-Percentiles futex_wake(std::size_t samples, std::chrono::microseconds pause);
+Percentiles futex_wake(std::size_t samples, std::chrono::microseconds pause,
+                       Placement where = {});
 
 }  // namespace tahvel::cli::bench

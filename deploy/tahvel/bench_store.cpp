@@ -216,17 +216,31 @@ void time_queries(Figures& f, const std::string& prefix, const QueryPlan& plan, 
 // Phases
 
 void measure_latency(const Config& c, const ScratchDir& tmp, Figures& f, const Progress& say) {
-  say("UNIX socket ping-pong");
-  set_percentiles(f, "unix_socket", unix_socket_one_way(c.round_trips, 0us));
-  set_percentiles(f, "unix_socket_paused", unix_socket_one_way(c.wake_samples, c.wake_pause));
-  say("futex wake-up across processes");
-  set_percentiles(f, "futex_wake", futex_wake(c.wake_samples, c.wake_pause));
-  say("store-to-wake across processes");
-  WakeFigures wake = must(tahvel_wake(tmp.sub("wake"), c.wake_samples, c.wake_pause));
+  // Back to back, both processes on one CPU: the conditions of the socket floor (the
+  // scheduler keeps an unpinned ping-pong pair on one CPU most of the time, and pinning makes
+  // the figure repeatable). Then the same across two CPUs, and paused, unpinned.
+  const Placement one = one_cpu();
+  say("UNIX socket ping-pong, one CPU");
+  set_percentiles(f, "unix_socket", unix_socket_one_way(c.round_trips, 0us, one));
+  say("store-to-wake across processes, back to back, one CPU");
+  WakeFigures wake = must(tahvel_wake(tmp.sub("wake"), c.wake_samples, 0us, one));
   set_percentiles(f, "wake", wake.wake);
   set_percentiles(f, "wake_store_call", wake.store_call);
   set_percentiles(f, "wake_after_store", wake.after_store);
   f.set("wake_samples", static_cast<double>(wake.wake.samples));
+  if (std::optional<Placement> two = two_cpus()) {
+    say("UNIX socket ping-pong and store-to-wake, two CPUs");
+    set_percentiles(f, "unix_socket_two_cpus", unix_socket_one_way(c.round_trips, 0us, *two));
+    WakeFigures across = must(tahvel_wake(tmp.sub("wake_two"), c.wake_samples, 0us, *two));
+    set_percentiles(f, "wake_two_cpus", across.wake);
+  }
+  say("UNIX socket, futex and store-to-wake, paused");
+  set_percentiles(f, "unix_socket_paused", unix_socket_one_way(c.wake_samples, c.wake_pause));
+  set_percentiles(f, "futex_wake", futex_wake(c.wake_samples, c.wake_pause));
+  WakeFigures paused = must(tahvel_wake(tmp.sub("wake_paused"), c.wake_samples, c.wake_pause));
+  set_percentiles(f, "wake_paused", paused.wake);
+  set_percentiles(f, "wake_paused_store_call", paused.store_call);
+  set_percentiles(f, "wake_paused_after_store", paused.after_store);
 }
 
 double median(std::vector<double> values) {

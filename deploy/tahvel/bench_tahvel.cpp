@@ -1,10 +1,13 @@
 // Store-to-wake latency across processes for `tahvel bench store` (see bench_tahvel.h).
-// The parent waits for the child's progress by polling shared memory; that polling is the
-// bench's own and is outside every timed span.
+// The writer waits for the subscriber's "taken" count on a futex of its own, outside every
+// timed span, so that back-to-back probes alternate like the socket ping-pong they are
+// compared with.
 #include "bench_tahvel.h"
 
+#include <linux/futex.h>
 #include <signal.h>
 #include <sys/mman.h>
+#include <sys/syscall.h>
 #include <sys/wait.h>
 #include <unistd.h>
 
@@ -28,8 +31,9 @@ const char* kProbe = "http://example.org/vocab#wakeProbe";
 // The memory shared with the subscriber: a header, then the send and wake times.
 struct WakeBoard {
   std::atomic<int> state{0};  // 0 starting, 1 subscribed, 2 failed
-  std::atomic<std::uint64_t> received{0};
-  std::size_t samples = 0;
+  std::atomic<std::uint32_t> received{0};  // probes taken; a futex word the writer sleeps on
+  std::size_t samples = 0;  // probes sent, the first `warmup` of them not counted
+  std::size_t warmup = 0;
   char error[512] = {};
 
   std::int64_t* sent() { return reinterpret_cast<std::int64_t*>(this + 1); }
@@ -81,6 +85,12 @@ class Child {
   pid_t pid_;
 };
 
+long futex(std::atomic<std::uint32_t>* word, int op, std::uint32_t value) {
+  timespec limit{0, 1'000'000};  // re-check the child and the deadline every millisecond
+  return syscall(SYS_futex, reinterpret_cast<std::uint32_t*>(word), op, value,
+                 op == FUTEX_WAIT ? &limit : nullptr, nullptr, 0);
+}
+
 bool report(WakeBoard* b, const std::string& message) {
   std::snprintf(b->error, sizeof b->error, "%s", message.c_str());
   b->state.store(2);
@@ -112,6 +122,7 @@ bool run_subscriber(const std::filesystem::path& dir, WakeBoard* b) {
     if (i < b->samples) b->woke()[i] = woke;
     if (auto acked = agent->ack((*delivery)->item); !acked) return report(b, acked.error().message);
     b->received.fetch_add(1);
+    futex(&b->received, FUTEX_WAKE, 1);
   }
   return true;
 }
@@ -122,6 +133,16 @@ bool wait_for(Child& child, Clock::duration limit, const std::function<bool()>& 
   while (!done()) {
     if (Clock::now() > deadline || !child.alive()) return done();
     std::this_thread::sleep_for(20us);
+  }
+  return true;
+}
+
+// Sleeps on the subscriber's count until it reaches `count`, the child dies or `limit` passes.
+bool wait_for_taken(Child& child, WakeBoard* b, std::uint32_t count, Clock::duration limit) {
+  const auto deadline = Clock::now() + limit;
+  for (std::uint32_t seen = b->received.load(); seen < count; seen = b->received.load()) {
+    if (Clock::now() > deadline || !child.alive()) return b->received.load() >= count;
+    futex(&b->received, FUTEX_WAIT, seen);
   }
   return true;
 }
@@ -141,7 +162,7 @@ node::Item probe(std::uint64_t i) {
 // Percentiles of to[i] - from[i] over the probes that were taken.
 Percentiles span(WakeBoard* b, const std::int64_t* from, const std::int64_t* to) {
   std::vector<double> us;
-  for (std::size_t i = 0; i < b->samples; ++i) {
+  for (std::size_t i = b->warmup; i < b->samples; ++i) {
     if (b->woke()[i] > 0) us.push_back(static_cast<double>(to[i] - from[i]) / 1e3);
   }
   return percentiles(std::move(us));
@@ -158,18 +179,22 @@ node::Result<node::Node> tahvel_init(const std::filesystem::path& dir,
 }
 
 node::Result<WakeFigures> tahvel_wake(const std::filesystem::path& dir, std::size_t samples,
-                                      std::chrono::microseconds pause) {
+                                      std::chrono::microseconds pause, Placement where) {
   if (auto created = tahvel_init(dir, node::Durability::fast); !created) {
     return node::fail(created.error().code, created.error().message);
   }  // closed again here: only the child's own handle exists across the fork
+  const std::size_t warmup = samples / 10 + 10;  // as the socket floor: page faults, caches
+  samples += warmup;
   SharedBoard shared(samples);
   WakeBoard* b = shared.get();
   if (!b) return node::fail(node::Errc::io, "wake bench: mmap failed");
+  b->warmup = warmup;
   std::fflush(nullptr);
   pid_t pid = fork();
   if (pid < 0) return node::fail(node::Errc::io, "wake bench: fork failed");
-  if (pid == 0) _exit(run_subscriber(dir, b) ? 0 : 1);
+  if (pid == 0) _exit(pin_to_cpu(where.child_cpu) && run_subscriber(dir, b) ? 0 : 1);
   Child child(pid);
+  ScopedPin pinned(where.parent_cpu);
   auto node = node::Node::open(dir);
   if (!node) return node::fail(node.error().code, node.error().message);
   auto agent = node->agent("sensor");
@@ -178,10 +203,10 @@ node::Result<WakeFigures> tahvel_wake(const std::filesystem::path& dir, std::siz
     return child_failed(b, "subscribing");
   }
   for (std::size_t i = 0; i < samples; ++i) {
-    if (!wait_for(child, 5s, [&] { return b->received.load() >= i; })) {
+    if (!wait_for_taken(child, b, static_cast<std::uint32_t>(i), 5s)) {
       return child_failed(b, "probe " + std::to_string(i) + " was not taken");
     }
-    std::this_thread::sleep_for(pause);
+    if (pause.count() > 0) std::this_thread::sleep_for(pause);
     node::Item item = probe(i);
     b->sent()[i] = now_ns();
     if (auto stored = agent->store(item); !stored) {
@@ -189,7 +214,7 @@ node::Result<WakeFigures> tahvel_wake(const std::filesystem::path& dir, std::siz
     }
     b->returned()[i] = now_ns();
   }
-  if (!wait_for(child, 5s, [&] { return b->received.load() >= samples; })) {
+  if (!wait_for_taken(child, b, static_cast<std::uint32_t>(samples), 5s)) {
     return child_failed(b, "the last probe was not taken");
   }
   child.reap();

@@ -23,13 +23,15 @@ node::Result<node::Node> tahvel_init(const std::filesystem::path& dir, node::Dur
 // wake time (taken as take() returns with the item) pass through memory shared with the child.
 // The subscriber takes with Ack::manual and acknowledges after noting the time, as an agent
 // acknowledges after processing: the wake is the moment it holds the item, not the later
-// write that removes it from its input buffer.
+// write that removes it from its input buffer. With no pause the probes run back to back, the
+// writer asleep until the subscriber has taken the last one, as a socket ping-pong does.
+// `where` pins the writer and the subscriber.
 struct WakeFigures {
   Percentiles wake;         // store() called -> take() returned in the subscriber
   Percentiles store_call;   // store() called -> store() returned (commit, routing, futex wake)
   Percentiles after_store;  // store() returned -> take() returned
 };
 node::Result<WakeFigures> tahvel_wake(const std::filesystem::path& dir, std::size_t samples,
-                                      std::chrono::microseconds pause);
+                                      std::chrono::microseconds pause, Placement where = {});
 
 }  // namespace tahvel::cli::bench

@@ -3,6 +3,7 @@
 #include "tahvel/node/node.h"
 
 #include <algorithm>
+#include <span>
 
 #include "dictionary.h"
 #include "env.h"
@@ -156,6 +157,10 @@ struct Agent::Impl {
   // Reads (and with `remove`, takes) the head of the input buffer. Skips items removed since.
   Result<std::optional<Delivery>> head(bool remove);
 
+  // Agent::replace without copying the items (store() of one item passes it in place).
+  Result<std::vector<std::uint64_t>> write_items(std::span<const Pattern> removals,
+                                                 std::span<const Item> items) noexcept;
+
   // Removes `item` from the input buffer (acknowledges it); absent is not an error.
   Result<void> drop(std::uint64_t item_id);
 
@@ -285,29 +290,34 @@ const std::string& Agent::id() const { return impl_->id; }
 std::uint32_t Agent::buffer_version() const noexcept { return impl_->env->wake().version(impl_->slot); }
 
 Result<std::uint64_t> Agent::store(const Item& item) noexcept {
-  auto ids = store_all(std::vector<Item>{item});
+  auto ids = impl_->write_items({}, std::span<const Item>(&item, 1));
   if (!ids) return unexpected(ids.error());
   return ids->front();
 }
 
 Result<std::vector<std::uint64_t>> Agent::store_all(const std::vector<Item>& items) noexcept {
   if (items.empty()) return std::vector<std::uint64_t>{};
-  return replace({}, items);
+  return impl_->write_items({}, items);
 }
 
 Result<std::vector<std::uint64_t>> Agent::replace(const std::vector<Pattern>& removals,
                                                   const std::vector<Item>& items) noexcept {
+  return impl_->write_items(removals, items);
+}
+
+Result<std::vector<std::uint64_t>> Agent::Impl::write_items(std::span<const Pattern> removals,
+                                                            std::span<const Item> items) noexcept {
   try {
     for (const Pattern& p : removals) {
       if (!p.s && !p.p && !p.o && !p.context && !p.source)
         return fail(Errc::invalid_argument, "refusing to remove with an empty pattern; name a subject, predicate, object, context or source");
     }
     for (std::size_t i = 0; i < items.size(); ++i) {
-      if (auto v = validate_item(items[i], impl_->env->settings()); !v)
+      if (auto v = validate_item(items[i], env->settings()); !v)
         return unexpected(items.size() == 1 ? v.error() : with_context(v.error(), "item " + std::to_string(i + 1)));
     }
     std::vector<std::uint64_t> ids;
-    auto written = impl_->env->write([&](Txn& txn) -> Result<void> {
+    auto written = env->write([&](Txn& txn) -> Result<void> {
       ids.clear();
       Query query(txn.raw(), txn.env());
       for (const Pattern& p : removals) {
@@ -321,7 +331,7 @@ Result<std::vector<std::uint64_t>> Agent::replace(const std::vector<Pattern>& re
         }
       }
       for (std::size_t i = 0; i < items.size(); ++i) {
-        auto id = insert_item(txn, items[i], impl_->iri);
+        auto id = insert_item(txn, items[i], iri);
         if (!id) return unexpected(items.size() == 1 ? id.error() : with_context(id.error(), "item " + std::to_string(i + 1)));
         ids.push_back(*id);
       }
