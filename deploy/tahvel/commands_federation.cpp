@@ -41,21 +41,52 @@ inline constexpr int kExitUnreachable = 5;
 
 // --- transports ---------------------------------------------------------------------------
 
-std::shared_ptr<federation::Transport> open_transport(const std::string& kind, const Args& args,
-                                                      const std::string& self, federation::DropLog log) {
-  node::Result<std::unique_ptr<federation::Transport>> transport = node::fail(node::Errc::invalid_argument, "");
+// The settings of one transport from the flags, `prefix` "" for the parent side and "--listen-"
+// for the children's side (which falls back to the parent side's flag when not given).
+struct TransportFlags {
+  std::string kind;
+  federation::LcmSettings lcm;
+  federation::DdsSettings dds;
+  std::string dds_config_file;
+
+  bool same_endpoint(const TransportFlags& o) const {
+    if (kind != o.kind) return false;
+    if (kind == "lcm") return lcm.url == o.lcm.url;
+    return dds.domain == o.dds.domain && dds_config_file == o.dds_config_file;
+  }
+};
+
+TransportFlags transport_flags(const std::string& kind, const Args& args, const std::string& prefix) {
+  auto flag = [&](const std::string& name) -> std::optional<std::string> {
+    if (!prefix.empty()) {
+      if (auto v = args.get(prefix + name)) return v;
+    }
+    return args.get("--" + name);
+  };
+  TransportFlags t;
+  t.kind = kind;
   if (kind == "lcm") {
-    federation::LcmSettings settings;
-    if (auto url = args.get("--lcm-url")) settings.url = *url;
-    transport = federation::open_lcm(settings, self, std::move(log));
+    if (auto url = flag("lcm-url")) t.lcm.url = *url;
   } else if (kind == "dds") {
-    federation::DdsSettings settings;
-    settings.domain = static_cast<std::uint32_t>(args.get_u64("--dds-domain", 0));
-    if (auto file = args.get("--dds-config")) settings.config = read_input(*file);
-    transport = federation::open_dds(settings, self, std::move(log));
+    if (auto domain = flag("dds-domain")) {
+      auto n = parse_u64(*domain);
+      if (!n || *n > 230) usage_error("DDS domain '" + *domain + "': give a number from 0 to 230");
+      t.dds.domain = static_cast<std::uint32_t>(*n);
+    }
+    if (auto file = flag("dds-config")) {
+      t.dds_config_file = *file;
+      t.dds.config = read_input(*file);
+    }
   } else {
     usage_error("transport kind '" + kind + "': use lcm or dds");
   }
+  return t;
+}
+
+std::shared_ptr<federation::Transport> open_transport(const TransportFlags& t, const std::string& self,
+                                                      federation::DropLog log) {
+  node::Result<std::unique_ptr<federation::Transport>> transport =
+      t.kind == "lcm" ? federation::open_lcm(t.lcm, self, std::move(log)) : federation::open_dds(t.dds, self, std::move(log));
   return std::shared_ptr<federation::Transport>(check(std::move(transport)));
 }
 
@@ -121,6 +152,9 @@ std::string age_of(std::int64_t ns) {
 const Flag kFlagLcmUrl{"--lcm-url", "", "URL", "LCM provider URL (default udpm://239.255.76.67:7667?ttl=0)"};
 const Flag kFlagDdsDomain{"--dds-domain", "", "N", "Cyclone DDS domain id (default 0)"};
 const Flag kFlagDdsConfig{"--dds-config", "", "FILE", "Cyclone DDS XML configuration"};
+const Flag kFlagListenLcmUrl{"--listen-lcm-url", "", "URL", "LCM URL children reach this node on (default: --lcm-url)"};
+const Flag kFlagListenDdsDomain{"--listen-dds-domain", "", "N", "DDS domain children reach this node on (default: --dds-domain)"};
+const Flag kFlagListenDdsConfig{"--listen-dds-config", "", "FILE", "Cyclone DDS configuration for the children's side (default: --dds-config)"};
 const Flag kFlagState{"--state", "", "DIR", "the deployment's state directory (default ./state)"};
 
 fs::path state_dir(const Args& args) { return args.get("--state").value_or("state"); }
@@ -161,7 +195,7 @@ const Command kLinkCommand{
      {"--listen", "", "lcm|dds", "transport children reach this node on"},
      {"--child", "", "ID", "accept this child id (repeatable; default: any direct child)", true},
      {"--forward", "", "'S P O'", "forward items with a triple matching (repeatable; '_' = any)", true},
-     kFlagLcmUrl, kFlagDdsDomain, kFlagDdsConfig},
+     kFlagLcmUrl, kFlagDdsDomain, kFlagDdsConfig, kFlagListenLcmUrl, kFlagListenDdsDomain, kFlagListenDdsConfig},
     1, 1};
 
 int run_link(const Args& args) {
@@ -176,11 +210,19 @@ int run_link(const Args& args) {
   if (parent.has_value() != up.has_value()) usage_error("--parent and --up go together");
   auto listen = args.get("--listen");
   if (!parent && !listen) usage_error("give --parent IRI --up KIND, --listen KIND, or both");
+  std::optional<TransportFlags> up_flags, listen_flags;
+  if (up) up_flags = transport_flags(*up, args, "");
+  if (listen) listen_flags = transport_flags(*listen, args, "--listen-");
   if (up) {
     options.parent_iri = parse_iri(*parent, prefixes, "--parent");
-    options.up = open_transport(*up, args, node.iri(), log);
+    options.up = open_transport(*up_flags, node.iri(), log);
   }
-  if (listen) options.down = (up && *up == *listen) ? options.up : open_transport(*listen, args, node.iri(), log);
+  // One endpoint serves both sides only when they are the same LCM URL or DDS domain and
+  // configuration; a gateway may reach its parent on one domain and its children on another.
+  if (listen) {
+    options.down = up_flags && up_flags->same_endpoint(*listen_flags) ? options.up
+                                                                       : open_transport(*listen_flags, node.iri(), log);
+  }
   options.children = args.all("--child");
   options.area_query = area_answer;
   for (const auto& text : args.all("--forward")) options.forward.push_back(forward_pattern(text, prefixes));
@@ -284,28 +326,24 @@ fs::path self_bin_dir() {
   return ec ? fs::path() : exe.parent_path();
 }
 
-std::string link_kind_of(const Topology& topo, const NodeSpec& node) {
-  const NodeSpec* parent = topo.node(node.parent);
-  return parent && parent->listen ? parent->listen->kind : std::string();
-}
-
 // The argv of a node's link process.
 std::vector<std::string> link_argv(const Topology& topo, const NodeSpec& spec, const fs::path& store, const fs::path& bin) {
   std::vector<std::string> argv{(bin / "tahvel").string(), "link", store.string()};
-  auto transport_flags = [&](const LinkSpec& l) {
-    if (l.kind == "lcm") argv.insert(argv.end(), {"--lcm-url", l.lcm_url});
+  // The parent's side with the plain flags, the children's side with the --listen- ones.
+  auto transport_flags = [&](const LinkSpec& l, const std::string& prefix) {
+    if (l.kind == "lcm") argv.insert(argv.end(), {prefix + "lcm-url", l.lcm_url});
     if (l.kind == "dds") {
-      argv.insert(argv.end(), {"--dds-domain", std::to_string(l.dds_domain)});
-      if (!l.dds_config.empty()) argv.insert(argv.end(), {"--dds-config", fs::absolute(l.dds_config).string()});
+      argv.insert(argv.end(), {prefix + "dds-domain", std::to_string(l.dds_domain)});
+      if (!l.dds_config.empty()) argv.insert(argv.end(), {prefix + "dds-config", fs::absolute(l.dds_config).string()});
     }
   };
   if (const NodeSpec* parent = topo.node(spec.parent)) {
     argv.insert(argv.end(), {"--parent", parent->iri, "--up", parent->listen->kind});
-    transport_flags(*parent->listen);
+    transport_flags(*parent->listen, "--");
   }
   if (spec.listen && !topo.children(spec.id).empty()) {
     argv.insert(argv.end(), {"--listen", spec.listen->kind});
-    if (!(topo.node(spec.parent) && topo.node(spec.parent)->listen->kind == spec.listen->kind)) transport_flags(*spec.listen);
+    transport_flags(*spec.listen, "--listen-");
     for (const NodeSpec* child : topo.children(spec.id)) argv.insert(argv.end(), {"--child", child->id});
   }
   for (const auto& f : spec.forward) argv.insert(argv.end(), {"--forward", f});
