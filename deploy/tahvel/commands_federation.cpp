@@ -70,7 +70,7 @@ TransportFlags transport_flags(const std::string& kind, const Args& args, const 
   } else if (kind == "dds") {
     if (auto domain = flag("dds-domain")) {
       auto n = parse_u64(*domain);
-      if (!n || *n > 230) usage_error("DDS domain '" + *domain + "': give a number from 0 to 230");
+      if (!n || *n > 232) usage_error("DDS domain '" + *domain + "': give a number from 0 to 232");
       t.dds.domain = static_cast<std::uint32_t>(*n);
     }
     if (auto file = flag("dds-config")) {
