@@ -90,10 +90,11 @@ Result<void> validate(const DetectorOptions& o) {
   if (!(o.threshold_fraction > 0 && o.threshold_fraction < 1) || !(o.searchback_fraction > 0) ||
       !(o.twave_slope_ratio >= 0) || !(o.min_qrs_mv >= 0) || !(o.empty_gap_fraction >= 0) ||
       !(o.pwave_fraction >= 0) || !std::isfinite(o.pwave_correlation) ||
-      !(o.twave_qtc >= 0 && o.twave_qtc <= 1))
+      !(o.twave_qtc >= 0 && o.twave_qtc <= 1) ||
+      !(o.own_pwave_ms >= 0 && o.own_pwave_ms <= 1000))
     return fail("rpeak: threshold_fraction must be in (0,1); searchback_fraction > 0; "
                 "twave_slope_ratio, min_qrs_mv, empty_gap_fraction, pwave_fraction >= 0; "
-                "pwave_correlation finite; twave_qtc in [0, 1]");
+                "pwave_correlation finite; twave_qtc in [0, 1]; own_pwave_ms in [0, 1000]");
   // The history rings hold 2 s; longer windows would overrun them.
   if (!(o.relearn_s >= 1 && o.relearn_s <= 8))
     return fail("rpeak: relearn_s must be in [1, 8], got " + std::to_string(o.relearn_s));
@@ -225,6 +226,7 @@ class RPeakDetector::Impl {
   // centre when that came within 0.1 of the threshold. At the full rate throughout, the chain
   // was 15 % slower (on MIT-BIH the test runs for every P and T wave above 5 % in a gap).
   std::int64_t p_half_, p_lead_, p_search_, p_step_;
+  std::int64_t own_p_;  // DetectorOptions::own_pwave_ms in samples
   std::vector<double> p_mean_;
   bool p_ready_ = false;  // p_mean_ is not flat
   int p_beats_ = 0;
@@ -254,7 +256,8 @@ RPeakDetector::Impl::Impl(const DetectorOptions& o)
       p_half_(samples(80, o.fs)),
       p_lead_(samples(170, o.fs)),
       p_search_(samples(80, o.fs)),
-      p_step_(std::max<std::int64_t>(1, std::llround(o.fs / 120))) {
+      p_step_(std::max<std::int64_t>(1, std::llround(o.fs / 120))),
+      own_p_(std::llround(o.own_pwave_ms * o.fs / 1000)) {
   bp_delay_ = group_delay(hp_, lp_, std::sqrt(o.highpass_hz * o.lowpass_hz), o.fs);
   std::int64_t ring = 1024;
   while (ring < 4 * second_) ring *= 2;
@@ -524,14 +527,17 @@ void RPeakDetector::Impl::unfile_noise(std::int64_t at) {
 // rates: DetectorOptions::twave_qtc, with rr_[0] the interval before that beat) to hold_ before
 // this one
 // (this complex and its P wave) stayed below empty_gap_fraction of the QRS median, or is a P
-// wave (pwave_at; then the gap held a blocked P wave). Only a gap entirely covered by the event
-// ring can be confirmed.
+// wave (pwave_at; then the gap held a blocked P wave), or is this beat's own P wave: below
+// pwave_fraction and within own_p_ before it (DetectorOptions::own_pwave_ms; a long PR interval
+// puts it past hold_). Only a gap entirely covered by the event ring can be confirmed.
 auto RPeakDetector::Impl::gap_before(std::int64_t at) const -> Gap {
   Gap gap;
   if (!have_qrs_ || !(o_.empty_gap_fraction > 0) || !(qrs_med_ > 0)) return gap;
   const std::int64_t qt = std::llround(o_.twave_qtc * std::sqrt(rr_[0] / o_.fs) * o_.fs);
   const std::int64_t from = last_qrs_ + std::max(twave_, qt), to = at - hold_;
+  const std::int64_t own_p = at - own_p_;
   const double limit = o_.empty_gap_fraction * qrs_med_;
+  const double p_limit = o_.pwave_fraction * qrs_med_;
   const std::size_t kept = std::min(events_n_, events_.size());
   bool covered = events_n_ <= events_.size();  // the ring reaches back to the start
   for (std::size_t k = 1; k <= kept; ++k) {
@@ -543,8 +549,11 @@ auto RPeakDetector::Impl::gap_before(std::int64_t at) const -> Gap {
       break;
     }
     if (when > from && when < to && height >= limit) {
-      if (!pwave_at(when, height)) return Gap{};
-      gap.p_wave = true;
+      if (pwave_at(when, height)) {
+        gap.p_wave = true;  // shaped like the template (this beat's own P wave too, as before)
+      } else if (when < own_p || height >= p_limit) {
+        return Gap{};  // nor this beat's own P wave, which may have any shape
+      }
     }
   }
   if (!covered) return Gap{};

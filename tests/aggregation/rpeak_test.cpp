@@ -341,6 +341,59 @@ TEST(RPeak, EmptyGapStartsAfterTheTWaveOfASlowRhythm) {
   EXPECT_FALSE(empty_after(0));
 }
 
+// The P wave of the beat that ends a pause can lie before the last hold_ms: with a long PR
+// interval (first-degree AV block) its peak comes 250 ms or more before the R wave, and after a
+// pause it may not have the template's shape. Here one beat is dropped whole (a sinus pause)
+// and the beat after it has a biphasic P wave (lobes of 0.08 mV, 275 and 245 ms before its R
+// wave): above empty_gap_fraction in the integrated slope, below pwave_fraction, and unlike
+// the template (the other beats' P waves are monophasic). It is that beat's own P wave, so the
+// gap is empty (own_pwave_ms 300); with own_pwave_ms at hold_ms (the gap as before) or without
+// the P-wave cue (pwave_fraction 0) it counts against the gap. The same wave in the middle of
+// another dropped beat's gap is no P wave of the next beat and still counts.
+TEST(RPeak, TheBeatsOwnPWaveBeforeTheHoldLeavesItsGapEmpty) {
+  const double fs = 360;
+  const std::size_t n = static_cast<std::size_t>(60 * fs);
+  std::vector<double> mv(n, 0.0);
+  std::vector<std::int64_t> r_waves;
+  const std::size_t paused = 30, other = 50;
+  const auto biphasic = [](double t, double at) {
+    return 0.08 * (gauss(t, at - 0.015, 0.012) - gauss(t, at + 0.015, 0.012));
+  };
+  for (std::size_t k = 0; 0.6 + 0.8 * static_cast<double>(k) < 59; ++k) {
+    const double b = 0.6 + 0.8 * static_cast<double>(k);
+    r_waves.push_back(std::llround(b * fs));
+    if (k == paused || k == other) continue;
+    const auto lo = static_cast<std::size_t>((b - 0.35) * fs);
+    const auto hi = std::min(n, static_cast<std::size_t>((b + 0.6) * fs));
+    for (std::size_t i = lo; i < hi; ++i) {
+      const double t = static_cast<double>(i) / fs;
+      const double p = k == paused + 1 ? biphasic(t, b - 0.26) : 0.15 * gauss(t, b - 0.16, 0.025);
+      mv[i] += p - 0.15 * gauss(t, b - 0.025, 0.008) + 1.2 * gauss(t, b, 0.012) -
+               0.25 * gauss(t, b + 0.028, 0.009) + 0.35 * gauss(t, b + 0.25, 0.045);
+    }
+  }
+  const double after_other = 0.6 + 0.8 * static_cast<double>(other + 1);
+  for (std::size_t i = static_cast<std::size_t>((after_other - 1.0) * fs);
+       i < static_cast<std::size_t>((after_other - 0.4) * fs); ++i)
+    mv[i] += biphasic(static_cast<double>(i) / fs, after_other - 0.66);
+  std::vector<std::int32_t> x;
+  for (double v : mv) x.push_back(kZero + static_cast<std::int32_t>(std::lround(v * kGain)));
+  const auto empty = [&](const DetectorOptions& o, std::size_t k) {
+    const Detection d = detect_beats(x, o);
+    EXPECT_EQ(d.peaks.size(), r_waves.size() - 2);  // the biphasic waves are no beats
+    return std::any_of(d.empty_gap_ends.begin(), d.empty_gap_ends.end(),
+                       [&](std::int64_t p) { return std::llabs(p - r_waves[k]) <= 5; });
+  };
+  EXPECT_TRUE(empty(options(fs), paused + 1));
+  EXPECT_FALSE(empty(options(fs), other + 1));
+  DetectorOptions before = options(fs);
+  before.own_pwave_ms = before.hold_ms;
+  EXPECT_FALSE(empty(before, paused + 1));
+  DetectorOptions no_cue = options(fs);
+  no_cue.pwave_fraction = 0;
+  EXPECT_FALSE(empty(no_cue, paused + 1));
+}
+
 TEST(RPeak, OutputIsIdenticalWhateverTheChunking) {
   const Synthetic s = ecg(360, 90, 0.05, 0.3);
   const DetectorOptions o = options(360);
@@ -400,6 +453,9 @@ TEST(RPeak, ValidateRejectsUnusableOptions) {
   EXPECT_FALSE(validate(o).has_value());
   o = options(360);
   o.threshold_fraction = 1.5;
+  EXPECT_FALSE(validate(o).has_value());
+  o = options(360);
+  o.own_pwave_ms = -1;
   EXPECT_FALSE(validate(o).has_value());
 }
 

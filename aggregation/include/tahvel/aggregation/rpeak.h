@@ -100,6 +100,16 @@ struct DetectorOptions {
   // it equals twave_ms; in 2:1 AV block the T wave of the beat before a blocked P wave reached
   // past 360 ms (MIT-BIH 231). 0 keeps twave_ms alone.
   double twave_qtc = 0.40;
+  // The gap ends `hold_ms` before the beat, but the beat's own P wave may lie earlier: its
+  // peak comes about one PR interval before the R wave, up to 200 ms normally and more with
+  // first-degree AV block. A maximum below `pwave_fraction` of the median QRS height within
+  // this many ms before the beat is taken for that P wave and does not count against the gap,
+  // whatever its shape (after a pause the P wave may differ from the template). 300 ms covers a
+  // PR interval up to about 300 ms; MIT-BIH 108 (borderline first-degree block) has the P
+  // waves of two pause-ending beats at 230-260 ms. A missed QRS there would be 300 ms or less
+  // before a detected one; above pwave_fraction it still counts. At or below hold_ms (or with
+  // pwave_fraction 0) nothing changes. docs/rpeak.md step 8.
+  double own_pwave_ms = 300;
 };
 
 // Checks that the options are usable (fs and gain positive, band 0 < highpass < lowpass <
