@@ -3,6 +3,7 @@
 // a topology file under a supervisor) and `tahvel status` (the tree of nodes and agents).
 #include <fcntl.h>
 #include <signal.h>
+#include <sys/file.h>
 #include <sys/stat.h>
 #include <sys/wait.h>
 #include <time.h>
@@ -389,7 +390,42 @@ std::vector<ProgramRow> read_state_files(const fs::path& dir) {
   return rows;
 }
 
-bool process_alive(pid_t pid) { return pid > 0 && (kill(pid, 0) == 0 || errno == EPERM); }
+// A supervisor holds an exclusive lock (flock) on its pid file for as long as it runs; the lock
+// goes with the process, however it ends (SIGKILL, power loss). A pid file that nobody holds is
+// stale, and the pid in it says nothing: a SIGKILLed supervisor not yet reaped (a zombie, which
+// kill(pid, 0) still finds) or, after a reboot, another program that got the same pid. So `up`
+// and `down` believe the lock, not the pid. Returns the pid of the supervisor that holds
+// `pid_file`, -1 if one holds it and has not written its pid yet, 0 if none does.
+pid_t supervisor_holding(const fs::path& pid_file) {
+  const int fd = ::open(pid_file.c_str(), O_RDONLY | O_CLOEXEC);
+  if (fd < 0) return 0;
+  pid_t pid = 0;
+  if (flock(fd, LOCK_SH | LOCK_NB) != 0) {
+    pid = -1;
+    char text[32] = {};
+    if (pread(fd, text, sizeof text - 1, 0) > 0 && std::atoi(text) > 0) pid = std::atoi(text);
+  }
+  ::close(fd);
+  return pid;
+}
+
+// Takes `pid_file` for this process (the running supervisor) and writes its pid there; the
+// descriptor stays open, and so the lock held, until the process ends. False if another
+// supervisor holds it.
+bool hold_pid_file(const fs::path& pid_file) {
+  const int fd = ::open(pid_file.c_str(), O_RDWR | O_CREAT | O_CLOEXEC, 0644);
+  if (fd < 0) return false;
+  if (flock(fd, LOCK_EX | LOCK_NB) != 0) {
+    ::close(fd);
+    return false;
+  }
+  const std::string text = std::to_string(getpid()) + "\n";
+  if (ftruncate(fd, 0) != 0 || pwrite(fd, text.data(), text.size(), 0) != static_cast<ssize_t>(text.size())) {
+    ::close(fd);
+    return false;
+  }
+  return true;  // fd deliberately left open (close-on-exec: the programs do not inherit it)
+}
 
 }  // namespace
 
@@ -415,11 +451,9 @@ int run_up(const Args& args) {
   fs::create_directories(state / "logs", ec);
   if (ec) fail(state.string() + ": " + ec.message());
   fs::path pid_file = state / pid_file_name(only);
-  if (std::ifstream in(pid_file); in) {
-    pid_t pid = 0;
-    in >> pid;
-    if (process_alive(pid)) fail("already up (supervisor pid " + std::to_string(pid) + ", " + pid_file.string() + "); 'tahvel down --state " + state.string() + "' first");
-  }
+  if (pid_t pid = supervisor_holding(pid_file); pid != 0)
+    fail("already up (supervisor pid " + (pid > 0 ? std::to_string(pid) : std::string("starting")) + ", " + pid_file.string() +
+         "); 'tahvel down --state " + state.string() + "' first");
   const fs::path bin = self_bin_dir();
   std::vector<agents::ProgramSpec> programs;
   for (const NodeSpec& spec : topo.nodes) {
@@ -492,11 +526,14 @@ int run_up(const Args& args) {
       dup2(log, 1);
       dup2(log, 2);
     }
-    std::ofstream(pid_file) << getpid() << "\n";
+    if (!hold_pid_file(pid_file)) {
+      std::cerr << "up: " << pid_file.string() << " is held by another supervisor (or cannot be written)" << std::endl;
+      _exit(1);  // `up` sees no "ready" and says the supervisor did not start
+    }
     (void)!write(ready[1], "1", 1);
     close(ready[1]);
-  } else {
-    std::ofstream(pid_file) << getpid() << "\n";
+  } else if (!hold_pid_file(pid_file)) {
+    fail(pid_file.string() + " is held by another supervisor (or cannot be written)");
   }
   install_stop_handlers();
   signal(SIGPIPE, SIG_IGN);
@@ -582,16 +619,20 @@ int run_down(const Args& args) {
   for (const auto& entry : fs::directory_iterator(state, ec)) {
     const std::string name = entry.path().filename().string();
     if (name.rfind("supervisor-", 0) != 0 || entry.path().extension() != ".pid") continue;
-    pid_t pid = 0;
-    std::ifstream(entry.path()) >> pid;
-    if (!process_alive(pid)) {
+    pid_t pid = supervisor_holding(entry.path());
+    const auto deadline = std::chrono::steady_clock::now() + 20s;
+    while (pid < 0 && std::chrono::steady_clock::now() < deadline) {  // starting: its pid comes
+      std::this_thread::sleep_for(50ms);
+      pid = supervisor_holding(entry.path());
+    }
+    if (pid == 0) {  // stale (no supervisor holds it): never signal the pid written there
       fs::remove(entry.path(), ec);
       continue;
     }
-    kill(pid, SIGTERM);
-    const auto deadline = std::chrono::steady_clock::now() + 20s;
-    while (process_alive(pid) && std::chrono::steady_clock::now() < deadline) std::this_thread::sleep_for(50ms);
-    if (process_alive(pid)) fail("supervisor " + std::to_string(pid) + " did not stop within 20 s");
+    if (pid > 0) kill(pid, SIGTERM);
+    while (supervisor_holding(entry.path()) != 0 && std::chrono::steady_clock::now() < deadline)
+      std::this_thread::sleep_for(50ms);
+    if (supervisor_holding(entry.path()) != 0) fail("supervisor " + std::to_string(pid) + " did not stop within 20 s");
     ++stopped;
     std::cout << "down: stopped supervisor " << pid << " (" << name << ")\n";
   }

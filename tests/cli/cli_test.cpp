@@ -3,6 +3,7 @@
 // input, output and error redirected to files, and checks exit status and output.
 #include <fcntl.h>
 #include <gtest/gtest.h>
+#include <signal.h>
 #include <sys/wait.h>
 #include <unistd.h>
 
@@ -458,6 +459,43 @@ TEST_F(Cli, UpRunsTheDispatcherOfANodeAndDownStopsIt) {
   EXPECT_EQ(down.status, 0) << down.err;
   EXPECT_NE(down.out.find("stopped supervisor"), std::string::npos) << down.out;
   EXPECT_FALSE(fs::exists(tmp_ / "state" / "supervisor-all.pid"));
+}
+
+// A supervisor that died without cleaning up (SIGKILL, a crash, power loss) leaves its pid file,
+// and the pid in it may be a zombie not yet reaped or, after a reboot, another program's. `up`
+// starts anyway and `down` never signals that pid: both go by the lock the running supervisor
+// holds on its pid file. (Found by Chaos.*: `tahvel up --node` after a crashed node's supervisor
+// refused with "already up" while the supervisor was a zombie.)
+TEST_F(Cli, UpAndDownIgnoreAStalePidFileWhosePidIsAnotherProgram) {
+  pid_t other = fork();  // another program that now has the pid written in the stale file
+  if (other == 0) {
+    execl("/bin/sleep", "sleep", "120", static_cast<char*>(nullptr));
+    _exit(127);
+  }
+  ASSERT_GT(other, 0);
+  spit(tmp_ / "node.toml",
+       "[[node]]\nid = \"solo\"\niri = \"http://example.org/solo\"\n"
+       "  [[node.agent]]\n  id = \"idle\"\n  run = [\"/bin/sleep\", \"600\"]\n");
+  const std::string state = (tmp_ / "state").string();
+  fs::create_directories(state);
+  spit(tmp_ / "state" / "supervisor-all.pid", std::to_string(other) + "\n");
+  Outcome down = run({"down", "--state", state});
+  EXPECT_EQ(down.status, 0) << down.err;
+  EXPECT_NE(down.out.find("nothing was running"), std::string::npos) << down.out;
+  EXPECT_EQ(waitpid(other, nullptr, WNOHANG), 0) << "down signalled the pid of a stale pid file";
+  spit(tmp_ / "state" / "supervisor-all.pid", std::to_string(other) + "\n");
+  Outcome up = run({"up", (tmp_ / "node.toml").string(), "--state", state});
+  ASSERT_EQ(up.status, 0) << up.err;
+  Outcome again = run({"up", (tmp_ / "node.toml").string(), "--state", state});
+  EXPECT_EQ(again.status, 1);
+  EXPECT_NE(again.err.find("already up"), std::string::npos) << again.err;
+  down = run({"down", "--state", state});
+  EXPECT_EQ(down.status, 0) << down.err;
+  EXPECT_NE(down.out.find("stopped supervisor"), std::string::npos) << down.out;
+  EXPECT_FALSE(fs::exists(tmp_ / "state" / "supervisor-all.pid"));
+  EXPECT_EQ(waitpid(other, nullptr, WNOHANG), 0) << "the other program was signalled";
+  kill(other, SIGKILL);
+  waitpid(other, nullptr, 0);
 }
 
 TEST_F(Cli, UpRefusesATopologyWhoseChildIriIsNotUnderItsParent) {
