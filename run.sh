@@ -50,8 +50,8 @@ case "${1:-}" in
     install_missing_packages
     build build
     # "open": acceptance tests of requirements not met yet (docs/testing.md); run them with
-    # ctest --test-dir build -L open.
-    ctest --test-dir build -LE 'bench|open' --output-on-failure -j "$jobs"
+    # ctest --test-dir build -L open. "soak": the long failure-schedule run (-L soak).
+    ctest --test-dir build -LE 'bench|open|soak' --output-on-failure -j "$jobs"
     if [ "${CI:-}" = true ] || [ "${TAHVEL_SANITIZE:-}" = 1 ]; then
       echo "run.sh: second build under AddressSanitizer + UndefinedBehaviorSanitizer"
       build build-asan -DTAHVEL_SANITIZE=ON -DCMAKE_BUILD_TYPE=Debug
