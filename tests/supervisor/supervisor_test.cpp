@@ -1,6 +1,9 @@
 // The supervisor (agents/supervisor): which programs it starts again, with what back-off, and
 // what it logs about each end. The programs are /bin/sh one-liners.
 #include <gtest/gtest.h>
+#include <signal.h>
+#include <sys/wait.h>
+#include <unistd.h>
 
 #include <chrono>
 #include <functional>
@@ -125,6 +128,52 @@ TEST_F(SupervisorTest, TwoProgramsOfOneNameAreRefused) {
   auto second = supervisor_.start(again);
   ASSERT_FALSE(second.has_value());
   EXPECT_EQ(second.error().code, node::Errc::exists);
+}
+
+// A supervisor SIGKILLed (a crash) takes its programs with it: none runs on unsupervised, beside
+// the copy a restarted supervisor would start. (Found with the chaos tests: a killed supervisor
+// left its programs running after `tahvel down`.)
+TEST(SupervisorDeath, ProgramsDieWithAKilledSupervisor) {
+  int pipe_fds[2];
+  ASSERT_EQ(pipe(pipe_fds), 0);
+  pid_t helper = fork();
+  if (helper == 0) {  // the supervisor's process
+    close(pipe_fds[0]);
+    Supervisor supervisor([](std::string_view) {});
+    ProgramSpec spec;
+    spec.name = "idle";
+    spec.argv = {"/bin/sleep", "600"};
+    if (!supervisor.start(spec)) _exit(1);
+    const pid_t program = supervisor.state("idle")->pid;
+    if (write(pipe_fds[1], &program, sizeof program) != sizeof program) _exit(1);
+    for (;;) pause();
+  }
+  close(pipe_fds[1]);
+  pid_t program = 0;
+  ASSERT_EQ(read(pipe_fds[0], &program, sizeof program), static_cast<ssize_t>(sizeof program));
+  close(pipe_fds[0]);
+  ASSERT_GT(program, 0);
+  EXPECT_EQ(kill(program, 0), 0) << "the program should run";
+  kill(helper, SIGKILL);
+  waitpid(helper, nullptr, 0);
+  // The program is reparented and reaped by init; it must be gone within a few seconds.
+  bool gone = false;
+  for (int i = 0; i < 500 && !gone; ++i) {
+    gone = kill(program, 0) != 0;
+    if (!gone) {
+      // A zombie still answers kill(0); its /proc state says Z.
+      FILE* f = fopen(("/proc/" + std::to_string(program) + "/stat").c_str(), "r");
+      char state = '?';
+      if (f) {
+        (void)!fscanf(f, "%*d %*s %c", &state);
+        fclose(f);
+      }
+      gone = state == 'Z';
+      if (!gone) std::this_thread::sleep_for(10ms);
+    }
+  }
+  EXPECT_TRUE(gone) << "the program of a killed supervisor is still running";
+  if (!gone) kill(program, SIGKILL);
 }
 
 }  // namespace

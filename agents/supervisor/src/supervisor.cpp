@@ -2,6 +2,7 @@
 
 #include <fcntl.h>
 #include <signal.h>
+#include <sys/prctl.h>
 #include <sys/wait.h>
 #include <unistd.h>
 
@@ -82,6 +83,7 @@ void Supervisor::launch(Program& program) {
   args.push_back(nullptr);
   // Built before fork: the child may only make async-signal-safe calls.
   const std::string exec_failed = "tahvel supervisor: " + program.spec.name + ": cannot run " + argv[0] + "\n";
+  const pid_t supervisor = getpid();
   pid_t pid = fork();
   if (pid < 0) {
     log_("cannot start " + program.spec.name + ": fork: " + std::strerror(errno));
@@ -91,6 +93,14 @@ void Supervisor::launch(Program& program) {
   if (pid == 0) {
     // In the child: only async-signal-safe calls until exec.
     setpgid(0, 0);
+    // A program does not outlive its supervisor: SIGKILLed with it, it would run on unsupervised,
+    // `tahvel down` (which signals supervisors) would not stop it, and the supervisor started
+    // again would run a second copy beside it (two links of one node, two writers). The signal
+    // comes when the thread that forked ends, so programs are started from a thread that lives
+    // as long as the supervisor (the main thread of `tahvel up`). If the supervisor already died
+    // before prctl, the program does not start.
+    prctl(PR_SET_PDEATHSIG, SIGKILL);
+    if (getppid() != supervisor) _exit(1);
     if (!program.spec.log_file.empty()) {
       int fd = ::open(program.spec.log_file.c_str(), O_WRONLY | O_CREAT | O_APPEND, 0644);
       if (fd >= 0) {

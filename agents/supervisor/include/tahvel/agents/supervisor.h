@@ -70,7 +70,9 @@ class Supervisor {
 
   // Starts a program now. Errors: exists (a program of that name), invalid_argument (empty
   // argv), io (fork or the log file failed). A program whose executable cannot be run exits with
-  // status 127 and is reported as such.
+  // status 127 and is reported as such. Programs get SIGKILL when the supervisor's process dies
+  // (Linux PR_SET_PDEATHSIG: in fact when the thread that called start() or poll() ends; call
+  // them from one thread that lives as long as the supervisor).
   Result<void> start(ProgramSpec spec);
 
   // Stops a program: SIGTERM, then SIGKILL after `grace`; it is not restarted. not_found when no
