@@ -8,6 +8,8 @@
 //                 supervisor starts them again with back-off (0.5 s doubling)
 //   crash-node    the node's machine goes down: its supervisor and programs SIGKILLed at once,
 //                 then `tahvel up --node` again 0-2 s later (as systemd would)
+//   kill-supervisor  only the node's supervisor SIGKILLed (its programs must go with it), then
+//                 `tahvel up --node` again 0-2 s later
 //   kill          SIGKILL one program (a node's link, which is both its uplink and the agent its
 //                 children reach, or a load writer)
 //   freeze        SIGSTOP a program or a whole node for 0.3-15 s, then SIGCONT (beyond 3.5 s the
@@ -84,7 +86,7 @@ struct ProgramRow {
   std::string state, last_exit;
 };
 
-enum class FaultKind { kill_node, kill, freeze, kill_repeat, crash_node };
+enum class FaultKind { kill_node, kill, freeze, kill_repeat, crash_node, kill_supervisor };
 
 struct Fault {
   FaultKind kind;
@@ -103,6 +105,9 @@ struct Fault {
       case FaultKind::kill: out << "kill " << what; break;
       case FaultKind::freeze: out << "freeze " << what << " for " << hold.count() << " ms"; break;
       case FaultKind::crash_node: out << "crash-node " << what << ", up again after " << hold.count() << " ms"; break;
+      case FaultKind::kill_supervisor:
+        out << "kill-supervisor " << what << ", up again after " << hold.count() << " ms";
+        break;
       case FaultKind::kill_repeat:
         out << "kill-repeat " << what << " x" << times << " (gaps";
         for (auto g : gaps) out << " " << g.count();
@@ -124,12 +129,14 @@ std::vector<Fault> make_schedule(std::uint64_t seed, int count, std::chrono::mil
   for (int i = 0; i < count; ++i) {
     Fault f;
     const int roll = pick(100);
-    f.kind = roll < 20   ? FaultKind::kill_node
-             : roll < 35 ? FaultKind::crash_node
+    f.kind = roll < 18   ? FaultKind::kill_node
+             : roll < 29 ? FaultKind::crash_node
+             : roll < 36 ? FaultKind::kill_supervisor
              : roll < 50 ? FaultKind::kill
              : roll < 75 ? FaultKind::freeze
                          : FaultKind::kill_repeat;
     const bool whole_node = f.kind == FaultKind::kill_node || f.kind == FaultKind::crash_node ||
+                            f.kind == FaultKind::kill_supervisor ||
                             (f.kind == FaultKind::freeze && pick(3) == 0);
     if (whole_node) {
       f.what = kNodes[pick(static_cast<int>(kNodes.size()))];
@@ -147,7 +154,7 @@ std::vector<Fault> make_schedule(std::uint64_t seed, int count, std::chrono::mil
       const int tier = pick(4);
       f.hold = tier < 2 ? ms(300, 1500) : tier == 2 ? ms(1500, 6000) : ms(6000, 15000);
     }
-    if (f.kind == FaultKind::crash_node) f.hold = ms(0, 2000);
+    if (f.kind == FaultKind::crash_node || f.kind == FaultKind::kill_supervisor) f.hold = ms(0, 2000);
     if (f.kind == FaultKind::kill_repeat) {
       f.times = 2 + pick(3);
       for (int k = 1; k < f.times; ++k) f.gaps.push_back(ms(0, 400));
@@ -338,6 +345,19 @@ class FaultRunner {
         const bool up = d_.bring_up(f.what);
         log(std::string(up ? "up again: " : "NOT up again: ") + f.what);
         if (!up) ADD_FAILURE() << "tahvel up --node " << f.what << " failed after a crash";
+        break;
+      }
+      case FaultKind::kill_supervisor: {
+        // Only the node's supervisor dies (its programs must not run on without it), and is
+        // started again.
+        std::unique_lock lock(crash_mu_);
+        pid_t sup = d_.supervisor(f.what);
+        if (sup > 0 && kill(sup, SIGKILL) == 0) log("SIGKILL the supervisor of " + f.what + " (pid " + std::to_string(sup) + ")");
+        else log("supervisor of " + f.what + " not running");
+        std::this_thread::sleep_for(f.hold);
+        const bool up = d_.bring_up(f.what);
+        log(std::string(up ? "up again: " : "NOT up again: ") + f.what);
+        if (!up) ADD_FAILURE() << "tahvel up --node " << f.what << " failed after its supervisor was killed";
         break;
       }
       case FaultKind::freeze: {
