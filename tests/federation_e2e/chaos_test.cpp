@@ -15,13 +15,14 @@
 //   freeze        SIGSTOP a program or a whole node for 0.3-15 s, then SIGCONT (beyond 3.5 s the
 //                 parent's child_silence declares a child down; beyond 10 s Cyclone's lease ends)
 //   kill-repeat   SIGKILL a program, wait for the supervisor to start it again, SIGKILL it again
-//                 0-400 ms later (during its hello/welcome handshake), 2-4 times
+//                 0-800 ms after the supervisor reports it started (DDS discovery, hello,
+//                 welcome: its handshake), 2-4 times
 //
 // Faults start at random times in the schedule and overlap freely. After the schedule the load
 // stops, the system settles, and the checks are: every item written reaches the hospital (and a
 // sensor's items its home) exactly once with its writer's IRI as source; no outbox (uplink) or
-// child down queue holds anything; after `tahvel down` every store opens and no process of the
-// deployment is left. TAHVEL_CHAOS_SEED=N replays a schedule (the faults and their times; the
+// child down queue holds anything; each parent keeps one state item per child, "up"; after
+// `tahvel down` every store opens and no process of the deployment is left. TAHVEL_CHAOS_SEED=N replays a schedule (the faults and their times; the
 // system's own timing is not replayed); the seed is printed at the start and with every failure.
 #include <gtest/gtest.h>
 #include <signal.h>
@@ -157,7 +158,7 @@ std::vector<Fault> make_schedule(std::uint64_t seed, int count, std::chrono::mil
     if (f.kind == FaultKind::crash_node || f.kind == FaultKind::kill_supervisor) f.hold = ms(0, 2000);
     if (f.kind == FaultKind::kill_repeat) {
       f.times = 2 + pick(3);
-      for (int k = 1; k < f.times; ++k) f.gaps.push_back(ms(0, 400));
+      for (int k = 1; k < f.times; ++k) f.gaps.push_back(ms(0, 800));
     }
     out.push_back(std::move(f));
   }
@@ -530,6 +531,26 @@ void run_chaos(ChaosPlan plan) {
              std::to_string(seconds_since(schedule_end)) + " s");
   std::this_thread::sleep_for(1s);  // anything late (a resend, a duplicate) would land now
 
+  // Each parent keeps one state item per child (P12), and it says "up" again once all is well.
+  auto link_states = [&](const std::string& child, const std::string& parent) {
+    std::vector<std::string> states;
+    auto node = Node::open(d.store(parent));
+    if (!node) return states;
+    auto snap = node->snapshot();
+    if (!snap) return states;
+    auto records = snap->list({.s = Term::iri(iri_of(child)), .p = Term::iri("https://w3id.org/tahvel#linkState")});
+    if (records)
+      for (const auto& r : *records) states.push_back(r.triple.o.value);
+    return states;
+  };
+  for (const auto& [child, parent] : kParent) {
+    std::vector<std::string> states;
+    EXPECT_TRUE(eventually([&] {
+      states = link_states(child, parent);
+      return states.size() == 1 && states[0] == "up";
+    }, 15s)) << parent << " keeps " << states.size() << " state item(s) of " << child << ", the first: "
+             << (states.empty() ? std::string("none") : states[0]);
+  }
   for (const auto& [child, parent] : kParent) {
     EXPECT_EQ(pending(d.store(child), "uplink"), 0u) << "items stuck in the outbox of " << child;
     EXPECT_EQ(pending(d.store(parent), child), 0u) << "items stuck in " << parent << "'s down queue of " << child;
