@@ -300,6 +300,14 @@ class FaultRunner {
     std::cout << out.str() << std::flush;
   }
 
+  // After f.hold, `tahvel up --node` again, as systemd would restart the node's unit.
+  void bring_back_up(const Fault& f, const std::string& after) {
+    std::this_thread::sleep_for(f.hold);
+    const bool up = d_.bring_up(f.what);
+    log(std::string(up ? "up again: " : "NOT up again: ") + f.what);
+    if (!up) ADD_FAILURE() << "tahvel up --node " << f.what << " failed after " << after;
+  }
+
   void signal_program(const std::string& program, int sig, std::vector<pid_t>* hit = nullptr) {
     pid_t pid = d_.pid_of(program);
     if (pid <= 0) {
@@ -342,10 +350,7 @@ class FaultRunner {
         } else {
           log("supervisor of " + f.what + " not running");
         }
-        std::this_thread::sleep_for(f.hold);
-        const bool up = d_.bring_up(f.what);
-        log(std::string(up ? "up again: " : "NOT up again: ") + f.what);
-        if (!up) ADD_FAILURE() << "tahvel up --node " << f.what << " failed after a crash";
+        bring_back_up(f, "a crash");
         break;
       }
       case FaultKind::kill_supervisor: {
@@ -355,10 +360,7 @@ class FaultRunner {
         pid_t sup = d_.supervisor(f.what);
         if (sup > 0 && kill(sup, SIGKILL) == 0) log("SIGKILL the supervisor of " + f.what + " (pid " + std::to_string(sup) + ")");
         else log("supervisor of " + f.what + " not running");
-        std::this_thread::sleep_for(f.hold);
-        const bool up = d_.bring_up(f.what);
-        log(std::string(up ? "up again: " : "NOT up again: ") + f.what);
-        if (!up) ADD_FAILURE() << "tahvel up --node " << f.what << " failed after its supervisor was killed";
+        bring_back_up(f, "its supervisor was killed");
         break;
       }
       case FaultKind::freeze: {
