@@ -177,10 +177,26 @@ struct Link::Impl {
 
   Transport* child_transport() const { return opt.down.get(); }
 
-  void send(Transport* via, Frame frame) {
-    if (!via) return;
+  // False when the frame certainly did not leave (logged). A binding may block in send (a DDS
+  // writer whose reader stopped taking waits up to 1 s), so the item streams and the heartbeat
+  // send with `mu` released: a stalled parent must not stop this node from serving its
+  // children, nor a stalled child the others.
+  bool send(Transport* via, Frame frame) {
+    if (!via) return false;
     frame.from = self;
-    if (auto sent = via->send(frame); !sent) log("send " + frame.to + " failed: " + sent.error().message);
+    if (auto sent = via->send(frame); !sent) {
+      log("send " + frame.to + " failed: " + sent.error().message);
+      return false;
+    }
+    return true;
+  }
+
+  // Sends `frames` in order, with `mu` not held, and stops at the first that did not leave: the
+  // rest stay in flight in the stream's bookkeeping and go again at the next go-back (P8), so a
+  // blocked binding costs one wait per round, not one per frame.
+  void send_run(Transport* via, std::vector<Frame>& frames) {
+    for (Frame& f : frames)
+      if (!send(via, std::move(f))) break;
   }
 
   void send_error(Transport* via, const std::string& to, std::uint64_t seq, wire::ErrorBody body) {
@@ -835,6 +851,7 @@ struct Link::Impl {
         continue;
       }
       std::vector<std::uint64_t> from_above;
+      std::vector<Frame> frames;
       std::unique_lock lock(mu);
       if (!welcomed || up_last_sent != after) continue;  // the session moved meanwhile
       for (const auto& d : *ready) {
@@ -850,7 +867,7 @@ struct Link::Impl {
         f.seq = d.item;
         f.prev = up_last_sent;
         f.body = wire::encode_item(body);
-        send(opt.up.get(), std::move(f));
+        frames.push_back(std::move(f));
         if (up_in_flight.empty()) up_progress = Clock::now();
         up_in_flight.push_back(d.item);
         up_last_sent = d.item;
@@ -858,6 +875,9 @@ struct Link::Impl {
       }
       mark = up_mark;
       lock.unlock();
+      // Only this thread sends up frames, so they leave in the order of the stream; a go-back
+      // meanwhile (an ack of the parent) at worst has some of them sent twice, which P9 drops.
+      send_run(opt.up.get(), frames);
       for (std::uint64_t id : from_above) (void)uplink->ack(id);
       // What the parent applied leaves the outbox after the send, not before the peek: a new
       // item goes up first, and this store transaction runs while it travels.
@@ -989,6 +1009,7 @@ struct Link::Impl {
     }
     p.read = ready->size() >= room;  // a full window's worth: there may be more
     std::vector<std::uint64_t> local_acks;
+    std::vector<Frame> frames;
     {
       std::lock_guard lock(mu);
       if (!child.connected || child.down_last_sent != after) {
@@ -1002,7 +1023,7 @@ struct Link::Impl {
           continue;
         }
         if (object_of(d.records, vocab::kQueryTarget)) {
-          start_query(child, d);
+          frames.push_back(start_query(child, d));
           local_acks.push_back(d.item);
           continue;
         }
@@ -1013,12 +1034,14 @@ struct Link::Impl {
         f.seq = d.item;
         f.prev = child.down_last_sent;
         f.body = wire::encode_item(body);
-        send(opt.down.get(), std::move(f));
+        frames.push_back(std::move(f));
         if (child.down_in_flight.empty()) child.down_progress = Clock::now();
         child.down_in_flight.push_back(d.item);
         child.down_last_sent = d.item;
       }
     }
+    // Only this thread sends down frames, in the order of each child's stream.
+    send_run(opt.down.get(), frames);
     // Items not sent down are done with here; they leave the queue now (outside the lock).
     for (std::uint64_t id : local_acks) (void)p.agent.ack(id);
     return resend_time(child);
@@ -1029,9 +1052,9 @@ struct Link::Impl {
     return child.down_in_flight.empty() ? Clock::time_point::max() : child.down_progress + opt.resend_after;
   }
 
-  // A query item written on this board (the origin) for a node below `child` (P13). Caller
-  // holds mu.
-  void start_query(const Child& child, const node::Delivery& d) {
+  // A query item written on this board (the origin) for a node below `child` (P13): the query
+  // frame to send, now kept for resends. Caller holds mu.
+  Frame start_query(const Child& child, const node::Delivery& d) {
     wire::QueryBody q;
     q.origin = self;
     const node::Term* target = object_of(d.records, vocab::kQueryTarget);
@@ -1056,7 +1079,7 @@ struct Link::Impl {
     in.child = child.iri;
     in.query_frame = f;
     in.sent = Clock::now();
-    send(opt.down.get(), std::move(f));
+    return f;
   }
 
   // ---- timer: hello/heartbeat, silence, state triples, resends, answers on the board ----------
@@ -1104,14 +1127,14 @@ struct Link::Impl {
       }
       if (beat && opt.up) {
         auto depth = uplink->pending();
+        auto down_mark = uplink->relay_mark(kDownStream);
         Frame f;
         f.to = opt.parent_iri;
-        std::lock_guard lock(mu);
-        f.kind = welcomed ? FrameKind::heartbeat : FrameKind::hello;
-        if (!welcomed) {
-          auto down_mark = uplink->relay_mark(kDownStream);
-          f.ack = down_mark ? *down_mark : 0;
+        {
+          std::lock_guard lock(mu);
+          f.kind = welcomed ? FrameKind::heartbeat : FrameKind::hello;
         }
+        if (f.kind == FrameKind::hello) f.ack = down_mark ? *down_mark : 0;
         f.body = wire::encode_state({opt.software_version, depth ? *depth : 0});
         send(opt.up.get(), std::move(f));
       }

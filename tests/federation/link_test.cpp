@@ -7,6 +7,7 @@
 #include <unistd.h>
 
 #include <algorithm>
+#include <condition_variable>
 #include <filesystem>
 #include <mutex>
 #include <set>
@@ -460,6 +461,82 @@ TEST(Link, ConfigurationTravelsTwoHopsDownToAnAgentOfASensorNode) {
   auto late = remote_query(hospital, {.target = sensor_iri}, 1s, [](const node::Record&) {});
   ASSERT_FALSE(late);
   EXPECT_EQ(late.error().code, Errc::timeout) << late.error().message;
+}
+
+// A binding whose sends to one IRI block while `stalled`, as a Cyclone DDS writer does when the
+// reader on the other side has stopped taking (a frozen parent): each waits up to 1 s, then fails
+// with a timeout. Everything else passes through.
+class StallingTransport : public Transport {
+ public:
+  StallingTransport(std::unique_ptr<Transport> inner, std::string stalled_to)
+      : inner_(std::move(inner)), stalled_to_(std::move(stalled_to)) {}
+  const std::string& self() const override { return inner_->self(); }
+  Result<void> send(const Frame& frame) override {
+    if (frame.to == stalled_to_) {
+      std::unique_lock lock(mu_);
+      if (stalled_) {
+        ++blocked_;
+        if (cv_.wait_for(lock, 1s, [&] { return !stalled_; }) == false)
+          return node::fail(Errc::timeout, "write blocked 1 s: the reader takes nothing");
+      }
+    }
+    return inner_->send(frame);
+  }
+  Result<std::optional<Frame>> receive(std::chrono::milliseconds timeout) override { return inner_->receive(timeout); }
+  void stall(bool on) {
+    std::lock_guard lock(mu_);
+    stalled_ = on;
+    cv_.notify_all();
+  }
+  int blocked() {
+    std::lock_guard lock(mu_);
+    return blocked_;
+  }
+
+ private:
+  std::unique_ptr<Transport> inner_;
+  std::string stalled_to_;
+  std::mutex mu_;
+  std::condition_variable cv_;
+  bool stalled_ = false;
+  int blocked_ = 0;
+};
+
+TEST(Link, AGatewayKeepsTakingItsSensorsItemsWhileItsParentStallsItsSends) {
+  Tree tree;
+  const std::string sensor_iri = kHome1 + "/ecg1";
+  const std::string sensor_dir = (tree.tmp / "ecg1").string();
+  ASSERT_TRUE(node::Node::init(sensor_dir, {.iri = sensor_iri}));
+  tree.hospital = tree.start_hospital();
+  auto home1_endpoint = std::make_shared<StallingTransport>(tree.bus.open(kHome1, tree.home1_log.sink()), kHospital);
+  tree.home1 = Link::start({.dir = tree.home1_dir, .parent_iri = kHospital, .up = home1_endpoint, .down = home1_endpoint,
+                            .resend_after = 100ms, .heartbeat_every = 200ms, .log = tree.home1_log.sink()})
+                   .value();
+  auto sensor_link = Link::start({.dir = sensor_dir, .parent_iri = kHome1,
+                                  .up = std::shared_ptr<Transport>(tree.bus.open(sensor_iri, tree.home2_log.sink())),
+                                  .resend_after = 100ms, .heartbeat_every = 200ms, .log = tree.home2_log.sink()})
+                         .value();
+  ASSERT_TRUE(eventually([&] { return tree.home1->connected() && sensor_link->connected(); }));
+  auto hrv = node::Node::open(sensor_dir).value().agent("hrv").value();
+  const node::Pattern numbered{.p = Term::iri(kEx + "n")};
+
+  home1_endpoint->stall(true);
+  for (int i = 0; i < 20; ++i) ASSERT_TRUE(hrv.store(hrv_item(i)));
+  ASSERT_TRUE(eventually([&] { return home1_endpoint->blocked() > 0; })) << "the home never tried to send up";
+  // While its sends up block, the home still relays what its sensor sends it, item by item.
+  for (int i = 20; i < 40; ++i) ASSERT_TRUE(hrv.store(hrv_item(i)));
+  const auto deadline = std::chrono::steady_clock::now() + 4s;
+  while (count(tree.home1_dir, numbered) < 40 && std::chrono::steady_clock::now() < deadline)
+    std::this_thread::sleep_for(10ms);
+  EXPECT_EQ(count(tree.home1_dir, numbered), 40u) << "the home stopped serving its sensor while its parent stalled";
+  EXPECT_EQ(count(tree.hospital_dir, numbered), 0u);
+
+  home1_endpoint->stall(false);
+  ASSERT_TRUE(eventually([&] { return count(tree.hospital_dir, numbered) >= 40; }))
+      << count(tree.hospital_dir, numbered) << " of 40 reached the hospital after the stall";
+  std::this_thread::sleep_for(300ms);
+  EXPECT_EQ(count(tree.hospital_dir, numbered), 40u);
+  sensor_link.reset();
 }
 
 TEST(Link, QueryByAreaIsResolvedAtTheTargetThroughItsAreaQuery) {
