@@ -367,28 +367,6 @@ void write_state_file(const fs::path& file, const agents::Supervisor& sup) {
   fs::rename(tmp, file);
 }
 
-struct ProgramRow {
-  std::string name, pid, state, restarts, last_exit;
-};
-
-std::vector<ProgramRow> read_state_files(const fs::path& dir) {
-  std::vector<ProgramRow> rows;
-  std::error_code ec;
-  for (const auto& entry : fs::directory_iterator(dir, ec)) {
-    if (entry.path().extension() != ".state") continue;
-    std::ifstream in(entry.path());
-    std::string line;
-    while (std::getline(in, line)) {
-      std::vector<std::string> f;
-      std::stringstream ss(line);
-      std::string field;
-      while (std::getline(ss, field, '\t')) f.push_back(field);
-      f.resize(5);
-      rows.push_back({f[0], f[1], f[2], f[3], f[4]});
-    }
-  }
-  return rows;
-}
 
 // A supervisor holds an exclusive lock (flock) on its pid file for as long as it runs; the lock
 // goes with the process, however it ends (SIGKILL, power loss). A pid file that nobody holds is
@@ -425,6 +403,36 @@ bool hold_pid_file(const fs::path& pid_file) {
     return false;
   }
   return true;  // fd deliberately left open (close-on-exec: the programs do not inherit it)
+}
+
+struct ProgramRow {
+  std::string name, pid, state, restarts, last_exit;
+};
+
+// The programs' rows of every supervisor's state file in `dir`. A supervisor rewrites its file
+// every 100 ms while it runs; one that was killed leaves its last rows behind, and its programs
+// died with it (PR_SET_PDEATHSIG), so those rows say so instead of "running".
+std::vector<ProgramRow> read_state_files(const fs::path& dir) {
+  std::vector<ProgramRow> rows;
+  std::error_code ec;
+  for (const auto& entry : fs::directory_iterator(dir, ec)) {
+    if (entry.path().extension() != ".state") continue;
+    fs::path pid_file = entry.path();
+    pid_file.replace_extension(".pid");
+    const bool supervised = supervisor_holding(pid_file) != 0;
+    std::ifstream in(entry.path());
+    std::string line;
+    while (std::getline(in, line)) {
+      std::vector<std::string> f;
+      std::stringstream ss(line);
+      std::string field;
+      while (std::getline(ss, field, '\t')) f.push_back(field);
+      f.resize(5);
+      if (!supervised && f[2] == "running") f[2] = "stopped (its supervisor is not running)";
+      rows.push_back({f[0], f[1], f[2], f[3], f[4]});
+    }
+  }
+  return rows;
 }
 
 }  // namespace

@@ -498,6 +498,38 @@ TEST_F(Cli, UpAndDownIgnoreAStalePidFileWhosePidIsAnotherProgram) {
   waitpid(other, nullptr, 0);
 }
 
+// The supervisor of a node is SIGKILLed: its programs die with it, and `status` must not go on
+// showing them as running from the supervisor's last state file.
+TEST_F(Cli, StatusDoesNotCallProgramsRunningOnceTheirSupervisorIsGone) {
+  spit(tmp_ / "node.toml",
+       "[[node]]\nid = \"solo\"\niri = \"http://example.org/solo\"\n"
+       "  [[node.agent]]\n  id = \"idle\"\n  run = [\"/bin/sleep\", \"600\"]\n");
+  const std::string state = (tmp_ / "state").string();
+  Outcome up = run({"up", (tmp_ / "node.toml").string(), "--state", state});
+  ASSERT_EQ(up.status, 0) << up.err;
+  Outcome before;
+  for (int i = 0; i < 100; ++i) {  // the supervisor writes its state file within 100 ms
+    before = run({"status", "--state", state});
+    if (before.out.find("idle  running") != std::string::npos) break;
+    std::this_thread::sleep_for(std::chrono::milliseconds(50));
+  }
+  ASSERT_NE(before.out.find("idle  running"), std::string::npos) << before.out << before.err;
+  const pid_t supervisor = std::atoi(slurp(tmp_ / "state" / "supervisor-all.pid").c_str());
+  ASSERT_GT(supervisor, 0);
+  ASSERT_EQ(kill(supervisor, SIGKILL), 0);
+  Outcome after;
+  for (int i = 0; i < 100; ++i) {  // the lock on the pid file goes when the process is gone
+    after = run({"status", "--state", state});
+    if (after.out.find("idle  running") == std::string::npos) break;
+    std::this_thread::sleep_for(std::chrono::milliseconds(50));
+  }
+  EXPECT_EQ(after.status, 0) << after.err;
+  EXPECT_EQ(after.out.find("idle  running"), std::string::npos) << after.out;
+  EXPECT_NE(after.out.find("idle  stopped (its supervisor is not running)"), std::string::npos) << after.out;
+  Outcome down = run({"down", "--state", state});
+  EXPECT_EQ(down.status, 0) << down.err;
+}
+
 TEST_F(Cli, UpRefusesATopologyWhoseChildIriIsNotUnderItsParent) {
   spit(tmp_ / "bad.toml",
        "[[node]]\nid = \"hospital\"\niri = \"http://example.org/hospital\"\nlisten = { kind = \"dds\" }\n\n"
