@@ -1,10 +1,14 @@
 // `tahvel bench federation`: the link protocol (docs/protocol.md) end to end, with the raw
 // transports as floors in the same run (issue 4, "Must be measured"). Phases, in order:
-//   floors      raw_dds_pingpong / raw_lcm_pingpong (floors.h): the libraries alone, one-way.
+//   floors      dds_ping / lcm_ping (floors.h) against an echo in a second process (the far end,
+//               below): the libraries alone, one-way = RTT/2; also raw_*_pingpong within this
+//               process, for comparison (Cyclone delivers in-process without its network stack).
 //   latency     per transport (DDS, LCM): two real stores in temporary directories, a hospital
-//               Link (`down` bound to its IRI) and a home Link (parent + `up`). One item at a
-//               time: Agent::store on the home, then wait until the relayed item is in the
-//               hospital's change stream (Node::watch); the time between is one sample.
+//               Link (`down` bound to its IRI) in the far end and a home Link (parent + `up`) in
+//               this process, as on two machines. One item at a time: Agent::store on the home,
+//               then wait until the relayed item is in the hospital's change stream (Node::watch,
+//               from this process: an agent of the hospital's store); the time between is one
+//               sample.
 //   link rate   the same pair: a burst of items stored at home (store_all, 500 per call), time
 //               from the first store until the hospital's change stream holds them all.
 //   ingest      a hospital Link over DDS accepting any child, and K simulated homes in this
@@ -23,17 +27,21 @@
 #include <condition_variable>
 #include <cstdio>
 #include <cstdlib>
+#include <cstring>
 #include <deque>
 #include <iostream>
 #include <memory>
 #include <mutex>
 #include <optional>
+#include <sstream>
 #include <stdexcept>
 #include <string>
 #include <thread>
 #include <vector>
 
+#include <poll.h>
 #include <pthread.h>
+#include <sys/wait.h>
 #include <time.h>
 #include <unistd.h>
 
@@ -293,26 +301,145 @@ bool wait_until(Clock::duration limit, F condition) {
   return true;
 }
 
+// ---- the far end: a second process ---------------------------------------------------------
+
+// A link's two ends run in two processes when deployed (on two machines), and Cyclone DDS
+// delivers between two participants of one process without its network stack. So the floors and
+// the link latency are measured against a second process, forked at the start of the run before
+// this one touches LCM or DDS (Cyclone's threads do not survive a fork). It takes one command per
+// line on a pipe and answers one line:
+//   lcm-echo NAME / dds-echo NAME        "ready" once listening, then "ok" or "error ..." when the
+//                                        ping side has stopped it
+//   hospital KIND DIR IRI CHILD          a hospital Link over KIND (dds, lcm) on the store at DIR
+//                                        accepting CHILD: "ready"; then at "stop" it stops,
+//                                        answering "ok DUPLICATES_DROPPED RELAYED_IN"
+// It exits when the pipe closes.
+class FarEnd {
+ public:
+  FarEnd() {
+    int to[2], from[2];
+    if (pipe(to) != 0 || pipe(from) != 0) throw std::runtime_error(std::string("pipe: ") + std::strerror(errno));
+    pid_ = fork();
+    if (pid_ < 0) throw std::runtime_error(std::string("fork: ") + std::strerror(errno));
+    if (pid_ == 0) {
+      close(to[1]);
+      close(from[0]);
+      serve(to[0], from[1]);
+      _exit(0);  // not the parent's destructors (its scratch directory)
+    }
+    close(to[0]);
+    close(from[1]);
+    out_ = to[1];
+    in_ = from[0];
+  }
+  ~FarEnd() {
+    close(out_);
+    close(in_);
+    waitpid(pid_, nullptr, 0);
+  }
+  FarEnd(const FarEnd&) = delete;
+  FarEnd& operator=(const FarEnd&) = delete;
+
+  void send(const std::string& line) {
+    const std::string text = line + "\n";
+    if (write(out_, text.data(), text.size()) != static_cast<ssize_t>(text.size()))
+      throw std::runtime_error("far end: cannot write to its pipe (did it die?)");
+  }
+  // The next answer line, waiting up to `limit`.
+  std::string answer(std::chrono::milliseconds limit) { return read_line(in_, limit, "far end: no answer to the bench"); }
+  // Sends `line` and expects an answer starting with `want`; returns the answer.
+  std::string request(const std::string& line, const std::string& want, std::chrono::milliseconds limit) {
+    send(line);
+    std::string got = answer(limit);
+    if (got.rfind(want, 0) != 0) throw std::runtime_error("far end: '" + line + "' answered '" + got + "'");
+    return got;
+  }
+
+ private:
+  static std::string read_line(int fd, std::chrono::milliseconds limit, const char* what) {
+    std::string line;
+    const auto deadline = Clock::now() + limit;
+    for (;;) {
+      auto left = std::chrono::duration_cast<std::chrono::milliseconds>(deadline - Clock::now());
+      pollfd p{fd, POLLIN, 0};
+      if (left.count() <= 0 || poll(&p, 1, static_cast<int>(left.count())) <= 0)
+        throw std::runtime_error(std::string(what) + " within " + std::to_string(limit.count()) + " ms");
+      char c = 0;
+      if (read(fd, &c, 1) != 1) throw std::runtime_error(std::string(what) + ": the pipe closed");
+      if (c == '\n') return line;
+      line += c;
+    }
+  }
+
+  static void serve(int in, int out) {
+    auto reply = [&](const std::string& line) {
+      const std::string text = line + "\n";
+      (void)!write(out, text.data(), text.size());
+    };
+    for (;;) {
+      std::string line;
+      try {
+        line = read_line(in, std::chrono::hours(24), "bench");
+      } catch (const std::exception&) {
+        return;  // the bench closed the pipe (or died)
+      }
+      std::istringstream words(line);
+      std::string command, a, b, c, d;
+      words >> command >> a >> b >> c >> d;
+      try {
+        if (command == "lcm-echo" || command == "dds-echo") {
+          auto ready = [&] { reply("ready"); };
+          auto done = command == "lcm-echo" ? fed::lcm_echo(fed::LcmSettings{}, a, ready, 5s)
+                                            : fed::dds_echo(dds_settings(), a, ready, 5s);
+          reply(done ? "ok" : "error " + done.error().message);
+        } else if (command == "hospital") {
+          Diagnostics diag;
+          const Kind kind = a == "dds" ? Kind::dds : Kind::lcm;
+          auto link = fed::Link::start({.dir = b, .down = open_transport(kind, c, diag), .children = {d}, .log = diag.link_log()});
+          if (!link) {
+            reply("error hospital link: " + link.error().message);
+            continue;
+          }
+          reply("ready");
+          std::string next;
+          try {
+            next = read_line(in, std::chrono::hours(24), "bench");
+          } catch (const std::exception&) {
+            return;
+          }
+          const fed::LinkCounters counters = (*link)->counters();
+          (*link)->stop();
+          reply("ok " + std::to_string(counters.duplicates_in) + " " + std::to_string(counters.relayed_in));
+        } else {
+          reply("error unknown command '" + command + "'");
+        }
+      } catch (const std::exception& e) {
+        reply(std::string("error ") + e.what());
+      }
+    }
+  }
+
+  pid_t pid_ = -1;
+  int out_ = -1, in_ = -1;
+};
+
 // ---- latency and link rate: a real home and a real hospital ---------------------------------
 
 struct LinkPair {
   Diagnostics diag;
   std::string hospital, home;
   fs::path hospital_dir, home_dir;
-  std::unique_ptr<fed::Link> hospital_link, home_link;
+  std::unique_ptr<fed::Link> home_link;  // the hospital's runs in the far end
 };
 
-void start_pair(LinkPair& p, Kind kind, const ScratchDir& scratch, std::uint64_t items) {
+void start_pair(LinkPair& p, Kind kind, const ScratchDir& scratch, std::uint64_t items, FarEnd& far) {
   p.hospital = hospital_iri(std::string("link-") + name_of(kind));
   p.home = p.hospital + "/home1";
   p.hospital_dir = scratch.sub(std::string(name_of(kind)) + "-hospital");
   p.home_dir = scratch.sub(std::string(name_of(kind)) + "-home");
   init_store(p.hospital_dir, p.hospital, room_for(items));
   init_store(p.home_dir, p.home, room_for(items));
-  auto hospital = fed::Link::start({.dir = p.hospital_dir, .down = open_transport(kind, p.hospital, p.diag),
-                                    .children = {"home1"}, .log = p.diag.link_log()});
-  if (!hospital) throw std::runtime_error("hospital link: " + hospital.error().message);
-  p.hospital_link = std::move(*hospital);
+  far.request(std::string("hospital ") + name_of(kind) + " " + p.hospital_dir.string() + " " + p.hospital + " home1", "ready", 30s);
   auto home = fed::Link::start({.dir = p.home_dir, .parent_iri = p.hospital, .up = open_transport(kind, p.home, p.diag),
                                 .log = p.diag.link_log()});
   if (!home) throw std::runtime_error("home link: " + home.error().message);
@@ -405,9 +532,9 @@ struct LinkFigures {
   fed::LinkCounters home, hospital;
 };
 
-LinkFigures measure_link(Kind kind, const Config& cfg, const ScratchDir& scratch, std::uint64_t& next_number) {
+LinkFigures measure_link(Kind kind, const Config& cfg, const ScratchDir& scratch, std::uint64_t& next_number, FarEnd& far) {
   LinkPair p;
-  start_pair(p, kind, scratch, static_cast<std::uint64_t>(cfg.rounds) * 11 / 10 + 10 + cfg.burst);
+  start_pair(p, kind, scratch, static_cast<std::uint64_t>(cfg.rounds) * 11 / 10 + 10 + cfg.burst, far);
   auto home_node = node::Node::open(p.home_dir);
   if (!home_node) throw std::runtime_error(home_node.error().message);
   auto sensor = home_node->agent("hrv");
@@ -445,9 +572,9 @@ LinkFigures measure_link(Kind kind, const Config& cfg, const ScratchDir& scratch
   f.items_per_s = static_cast<double>(cfg.burst) / seconds(Clock::now() - t0);
 
   f.home = p.home_link->counters();
-  f.hospital = p.hospital_link->counters();
   p.home_link->stop();
-  p.hospital_link->stop();
+  std::istringstream stopped(far.request("stop", "ok", 30s).substr(2));
+  stopped >> f.hospital.duplicates_in >> f.hospital.relayed_in;
   f.ledger = check_numbers(p.hospital_dir, first, next_number - first);
   return f;
 }
@@ -718,6 +845,18 @@ IngestFigures measure_ingest(const Config& cfg, const ScratchDir& scratch, std::
   return f;
 }
 
+// The raw floor between this process and the far end: the far end echoes, this one pings.
+fed::LatencyFloor floor_to_far_end(FarEnd& far, Kind kind, int rounds) {
+  static int counter = 0;
+  const std::string name = "bench_" + std::to_string(getpid()) + "_" + std::to_string(counter++);
+  far.request(std::string(name_of(kind)) + "-echo " + name, "ready", 30s);
+  auto floor = kind == Kind::dds ? fed::dds_ping(dds_settings(), name, rounds) : fed::lcm_ping(fed::LcmSettings{}, name, rounds);
+  const std::string done = far.answer(30s);
+  if (!floor) throw std::runtime_error(std::string("raw ") + name_of(kind) + " ping-pong: " + floor.error().message);
+  if (done != "ok") throw std::runtime_error(std::string("raw ") + name_of(kind) + " ping-pong, far end: " + done);
+  return *floor;
+}
+
 // ---- output --------------------------------------------------------------------------------
 
 void add_ingest(Figures& fig, const IngestFigures& ingest, const Config& cfg) {
@@ -796,7 +935,10 @@ void print_table(const Figures& f, const Config& cfg) {
               "  %.1f us of hospital CPU per item, i.e. %.0f items/s if the hospital had one core to itself\n",
               f.get("ingest_process_cpu_s"), f.get("ingest_sim_cpu_s"), f.get("ingest_hospital_cpu_s"),
               f.get("hospital_cpu_us_per_item"), f.get("hospital_ingest_cpu_bound_items_per_s"));
-  std::printf("raw floors: the libraries alone, ping-pong between two threads of this process, one-way = RTT/2.\n");
+  if (!cfg.ingest_only)
+    std::printf("raw floors: the libraries alone, ping-pong between two processes, one-way = RTT/2 (within one process:\n"
+                "  DDS %.1f us, LCM %.1f us p50). The link's two ends are two processes too.\n",
+                f.get("dds_raw_in_process_p50_us"), f.get("lcm_raw_in_process_p50_us"));
 }
 
 int run(const Config& cfg) {
@@ -808,20 +950,26 @@ int run(const Config& cfg) {
                  "(netns-run sets TAHVEL_IN_NETNS=1; set it yourself only inside such a namespace)\n";
     return 1;
   }
+  std::optional<FarEnd> far;  // first: forked before this process touches LCM or DDS
+  if (!cfg.ingest_only) far.emplace();
   ScratchDir scratch{fs::path{}};
   Figures fig;
   std::uint64_t next_number = 1;
   std::vector<Ledger> ledgers;
   if (!cfg.ingest_only) {
-    auto dds_raw = fed::raw_dds_pingpong(dds_settings(), cfg.rounds);
-    if (!dds_raw) throw std::runtime_error("raw DDS ping-pong: " + dds_raw.error().message);
-    auto lcm_raw = fed::raw_lcm_pingpong(fed::LcmSettings{}, cfg.rounds);
-    if (!lcm_raw) throw std::runtime_error("raw LCM ping-pong: " + lcm_raw.error().message);
+    const fed::LatencyFloor dds_raw = floor_to_far_end(*far, Kind::dds, cfg.rounds);
+    const fed::LatencyFloor lcm_raw = floor_to_far_end(*far, Kind::lcm, cfg.rounds);
+    auto dds_inproc = fed::raw_dds_pingpong(dds_settings(), cfg.rounds);
+    if (!dds_inproc) throw std::runtime_error("raw DDS ping-pong in this process: " + dds_inproc.error().message);
+    auto lcm_inproc = fed::raw_lcm_pingpong(fed::LcmSettings{}, cfg.rounds);
+    if (!lcm_inproc) throw std::runtime_error("raw LCM ping-pong in this process: " + lcm_inproc.error().message);
     const Percentiles store_floor = store_to_watch(scratch, cfg.rounds, next_number);
-    const LinkFigures dds = measure_link(Kind::dds, cfg, scratch, next_number);
-    const LinkFigures lcm = measure_link(Kind::lcm, cfg, scratch, next_number);
-    add_latency(fig, "dds", dds, *dds_raw);
-    add_latency(fig, "lcm", lcm, *lcm_raw);
+    const LinkFigures dds = measure_link(Kind::dds, cfg, scratch, next_number, *far);
+    const LinkFigures lcm = measure_link(Kind::lcm, cfg, scratch, next_number, *far);
+    add_latency(fig, "dds", dds, dds_raw);
+    add_latency(fig, "lcm", lcm, lcm_raw);
+    fig.set("dds_raw_in_process_p50_us", dds_inproc->p50_us);
+    fig.set("lcm_raw_in_process_p50_us", lcm_inproc->p50_us);
     fig.set("store_watch_p50_us", store_floor.p50_us);
     fig.set("store_watch_p99_us", store_floor.p99_us);
     ledgers = {dds.ledger, lcm.ledger};

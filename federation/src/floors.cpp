@@ -1,6 +1,6 @@
-// Raw LCM and Cyclone DDS ping-pong latency (floors.h): the library alone, a one-int64 message,
-// two threads of this process. The answering thread echoes every ping; the measuring thread
-// sends one ping at a time and waits for its pong.
+// Raw LCM and Cyclone DDS ping-pong latency (floors.h): the library alone, a one-int64 message.
+// The echo side answers every ping; the ping side sends one ping at a time and waits for its
+// pong. Both sides run in one process (raw_*_pingpong: two threads) or in two (the halves).
 #include "tahvel/federation/floors.h"
 
 #include <dds/dds.h>
@@ -10,6 +10,8 @@
 #include <algorithm>
 #include <atomic>
 #include <cmath>
+#include <condition_variable>
+#include <mutex>
 #include <thread>
 #include <vector>
 
@@ -44,13 +46,25 @@ int warmup_of(int rounds) { return std::max(10, rounds / 10); }
 
 // ---- LCM ------------------------------------------------------------------------------------
 
+struct LcmOwner {
+  lcm_t* lcm = nullptr;
+  ~LcmOwner() {
+    if (lcm != nullptr) lcm_destroy(lcm);
+  }
+};
+
 struct LcmEcho {
   lcm_t* lcm;
   std::string pong_channel;
+  bool stop = false;
 };
 
-void lcm_echo(const lcm_recv_buf_t*, const char*, const tahvel_ping_t* msg, void* user) {
+void lcm_echo_one(const lcm_recv_buf_t*, const char*, const tahvel_ping_t* msg, void* user) {
   auto* echo = static_cast<LcmEcho*>(user);
+  if (msg->seq < 0) {
+    echo->stop = true;
+    return;
+  }
   tahvel_ping_t_publish(echo->lcm, echo->pong_channel.c_str(), msg);
 }
 
@@ -64,36 +78,35 @@ void lcm_pong(const lcm_recv_buf_t*, const char*, const tahvel_ping_t* msg, void
   if (msg->seq == wait->want) wait->got = true;
 }
 
-struct LcmOwner {
-  lcm_t* lcm = nullptr;
-  ~LcmOwner() {
-    if (lcm != nullptr) lcm_destroy(lcm);
-  }
-};
+std::string lcm_ping_channel(const std::string& name) { return "TVFLOOR_PING_" + name; }
+std::string lcm_pong_channel(const std::string& name) { return "TVFLOOR_PONG_" + name; }
 
 }  // namespace
 
-Result<LatencyFloor> raw_lcm_pingpong(const LcmSettings& settings, int rounds) {
-  if (rounds <= 0)
-    return node::fail(Errc::invalid_argument, "raw_lcm_pingpong: rounds must be > 0");
-  LcmOwner a{lcm_create(settings.url.c_str())};
+Result<void> lcm_echo(const LcmSettings& settings, const std::string& name,
+                      const std::function<void()>& ready, std::chrono::milliseconds idle) {
   LcmOwner b{lcm_create(settings.url.c_str())};
-  if (a.lcm == nullptr || b.lcm == nullptr) {
-    return node::fail(Errc::io, "raw_lcm_pingpong: lcm_create failed for " + settings.url);
+  if (b.lcm == nullptr) return node::fail(Errc::io, "lcm_echo: lcm_create failed for " + settings.url);
+  LcmEcho echo{b.lcm, lcm_pong_channel(name)};
+  tahvel_ping_t_subscription_t* sub =
+      tahvel_ping_t_subscribe(b.lcm, lcm_ping_channel(name).c_str(), &lcm_echo_one, &echo);
+  if (ready) ready();
+  auto last = clock::now();
+  while (!echo.stop && clock::now() - last < idle) {
+    if (lcm_handle_timeout(b.lcm, 50) > 0) last = clock::now();
   }
-  const std::string suffix = unique_suffix();
-  const std::string ping = "TVFLOOR_PING_" + suffix, pong = "TVFLOOR_PONG_" + suffix;
-  LcmEcho echo{b.lcm, pong};
-  LcmWait wait;
-  tahvel_ping_t_subscription_t* echo_sub =
-      tahvel_ping_t_subscribe(b.lcm, ping.c_str(), &lcm_echo, &echo);
-  tahvel_ping_t_subscription_t* pong_sub =
-      tahvel_ping_t_subscribe(a.lcm, pong.c_str(), &lcm_pong, &wait);
+  tahvel_ping_t_unsubscribe(b.lcm, sub);
+  return {};
+}
 
-  std::atomic<bool> stop{false};
-  std::thread echoer([&] {
-    while (!stop.load()) lcm_handle_timeout(b.lcm, 20);
-  });
+Result<LatencyFloor> lcm_ping(const LcmSettings& settings, const std::string& name, int rounds) {
+  if (rounds <= 0) return node::fail(Errc::invalid_argument, "lcm ping-pong: rounds must be > 0");
+  LcmOwner a{lcm_create(settings.url.c_str())};
+  if (a.lcm == nullptr) return node::fail(Errc::io, "lcm ping-pong: lcm_create failed for " + settings.url);
+  const std::string ping = lcm_ping_channel(name);
+  LcmWait wait;
+  tahvel_ping_t_subscription_t* pong_sub =
+      tahvel_ping_t_subscribe(a.lcm, lcm_pong_channel(name).c_str(), &lcm_pong, &wait);
   const int warmup = warmup_of(rounds), max_losses = rounds / 10 + 10;
   int losses = 0;
   std::vector<double> samples;
@@ -115,31 +128,67 @@ Result<LatencyFloor> raw_lcm_pingpong(const LcmSettings& settings, int rounds) {
     }
     if (seq >= warmup) samples.push_back(micros(clock::now() - t0) / 2);
   }
-  stop = true;
-  echoer.join();
-  tahvel_ping_t_unsubscribe(b.lcm, echo_sub);
+  // The echo stops at this ping (or after its idle time if LCM drops all three).
+  tahvel_ping_t stop{-1};
+  for (int i = 0; i < 3; ++i) tahvel_ping_t_publish(a.lcm, ping.c_str(), &stop);
   tahvel_ping_t_unsubscribe(a.lcm, pong_sub);
   if (static_cast<int>(samples.size()) < rounds) {
-    return node::fail(Errc::timeout, "raw_lcm_pingpong on " + settings.url + ": " +
-                                         std::to_string(losses) +
+    return node::fail(Errc::timeout, "lcm ping-pong on " + settings.url + ": " + std::to_string(losses) +
                                          " pings without a pong within 1 s");
   }
   return summarise(std::move(samples));
+}
+
+Result<LatencyFloor> raw_lcm_pingpong(const LcmSettings& settings, int rounds) {
+  if (rounds <= 0) return node::fail(Errc::invalid_argument, "raw_lcm_pingpong: rounds must be > 0");
+  const std::string name = unique_suffix();
+  std::mutex mu;
+  std::condition_variable cv;
+  bool listening = false;
+  Result<void> echoed{};
+  std::thread echoer([&] {
+    echoed = lcm_echo(settings, name, [&] {
+      std::lock_guard lock(mu);
+      listening = true;
+      cv.notify_all();
+    }, std::chrono::seconds(2));
+    std::lock_guard lock(mu);
+    listening = true;  // also when it failed before listening
+    cv.notify_all();
+  });
+  {
+    std::unique_lock lock(mu);
+    cv.wait(lock, [&] { return listening; });
+  }
+  auto floor = lcm_ping(settings, name, rounds);
+  echoer.join();
+  if (!echoed) return node::fail(echoed.error().code, echoed.error().message);
+  return floor;
 }
 
 // ---- Cyclone DDS ----------------------------------------------------------------------------
 
 namespace {
 
-struct DdsPair {
+// A participant of its own, on a domain joined for as long as it lives.
+struct DdsParticipant {
   dds_domainid_t domain;
-  dds_entity_t a = 0, b = 0;  // participants: a measures, b echoes
-  ~DdsPair() {
-    if (a > 0) dds_delete(a);
-    if (b > 0) dds_delete(b);
-    dds_domain::release(domain);
+  bool joined = false;
+  dds_entity_t pp = 0;
+  ~DdsParticipant() {
+    if (pp > 0) dds_delete(pp);
+    if (joined) dds_domain::release(domain);
   }
 };
+
+Result<void> join(DdsParticipant& p, const DdsSettings& settings, const char* who) {
+  if (auto ok = dds_domain::acquire(settings.domain, settings.config); !ok)
+    return node::fail(ok.error().code, std::string(who) + ": " + ok.error().message);
+  p.joined = true;
+  p.pp = dds_create_participant(settings.domain, nullptr, nullptr);
+  if (p.pp < 0) return node::fail(Errc::io, std::string(who) + ": participant: " + dds_domain::retcode(p.pp));
+  return {};
+}
 
 dds_entity_t make_endpoint(dds_entity_t pp, const std::string& topic_name, bool writer) {
   dds_entity_t topic =
@@ -154,17 +203,27 @@ dds_entity_t make_endpoint(dds_entity_t pp, const std::string& topic_name, bool 
   return e;
 }
 
-// Waits on the writer's publication-matched status until it has a reader, up to 5 s.
-bool matched(dds_entity_t pp, dds_entity_t writer) {
-  dds_set_status_mask(writer, DDS_PUBLICATION_MATCHED_STATUS);
+// Waits on `entity`'s publication- (writer) or subscription-matched (reader) status until it has
+// matched the other side, up to `limit`. A sample written before its writer matched a reader is
+// lost (volatile durability): each side waits before its first write.
+bool matched(dds_entity_t pp, dds_entity_t entity, bool writer, std::chrono::seconds limit) {
+  const uint32_t mask = writer ? DDS_PUBLICATION_MATCHED_STATUS : DDS_SUBSCRIPTION_MATCHED_STATUS;
+  dds_set_status_mask(entity, mask);
   dds_entity_t ws = dds_create_waitset(pp);
-  dds_waitset_attach(ws, writer, 0);
-  const auto deadline = clock::now() + std::chrono::seconds(5);
+  dds_waitset_attach(ws, entity, 0);
+  const auto deadline = clock::now() + limit;
   bool ok = false;
   for (;;) {
-    dds_publication_matched_status_t st{};
-    if (dds_get_publication_matched_status(writer, &st) < 0) break;
-    if ((ok = st.current_count > 0)) break;
+    if (writer) {
+      dds_publication_matched_status_t st{};
+      if (dds_get_publication_matched_status(entity, &st) < 0) break;
+      ok = st.current_count > 0;
+    } else {
+      dds_subscription_matched_status_t st{};
+      if (dds_get_subscription_matched_status(entity, &st) < 0) break;
+      ok = st.current_count > 0;
+    }
+    if (ok) break;
     auto left = std::chrono::duration_cast<std::chrono::nanoseconds>(deadline - clock::now());
     if (left.count() <= 0) break;
     dds_waitset_wait(ws, nullptr, 0, left.count());
@@ -188,52 +247,50 @@ bool take_one(dds_entity_t reader, dds_entity_t ws, clock::time_point deadline, 
   }
 }
 
+std::string dds_ping_topic(const std::string& name) { return "tahvel_floor_ping_" + name; }
+std::string dds_pong_topic(const std::string& name) { return "tahvel_floor_pong_" + name; }
+
 }  // namespace
 
-Result<LatencyFloor> raw_dds_pingpong(const DdsSettings& settings, int rounds) {
-  if (rounds <= 0)
-    return node::fail(Errc::invalid_argument, "raw_dds_pingpong: rounds must be > 0");
-  if (auto ok = dds_domain::acquire(settings.domain, settings.config); !ok) {
-    return node::fail(ok.error().code, "raw_dds_pingpong: " + ok.error().message);
-  }
-  DdsPair pair{settings.domain};
-  pair.a = dds_create_participant(settings.domain, nullptr, nullptr);
-  pair.b = dds_create_participant(settings.domain, nullptr, nullptr);
-  if (pair.a < 0 || pair.b < 0) {
-    return node::fail(Errc::io, "raw_dds_pingpong: participant: " +
-                                    dds_domain::retcode(pair.a < 0 ? pair.a : pair.b));
-  }
-  const std::string suffix = unique_suffix();
-  const std::string ping = "tahvel_floor_ping_" + suffix, pong = "tahvel_floor_pong_" + suffix;
-  dds_entity_t ping_w = make_endpoint(pair.a, ping, true),
-               pong_r = make_endpoint(pair.a, pong, false);
-  dds_entity_t ping_r = make_endpoint(pair.b, ping, false),
-               pong_w = make_endpoint(pair.b, pong, true);
-  for (dds_entity_t e : {ping_w, pong_r, ping_r, pong_w}) {
-    if (e < 0) return node::fail(Errc::io, "raw_dds_pingpong: endpoint: " + dds_domain::retcode(e));
-  }
-  if (!matched(pair.a, ping_w) || !matched(pair.b, pong_w)) {
-    return node::fail(Errc::timeout,
-                      "raw_dds_pingpong: ping and pong endpoints did not match within 5 s");
-  }
-  dds_entity_t ws_a = dds_create_waitset(pair.a), ws_b = dds_create_waitset(pair.b);
-  dds_waitset_attach(ws_a, dds_create_readcondition(pong_r, DDS_ANY_STATE), 0);
-  dds_waitset_attach(ws_b, dds_create_readcondition(ping_r, DDS_ANY_STATE), 0);
-  dds_entity_t wake = dds_create_guardcondition(pair.b);
-  dds_waitset_attach(ws_b, wake, 0);
-
-  std::atomic<bool> stop{false};
-  std::thread echoer([&] {
-    while (!stop.load()) {
-      tahvel_Ping msg{};
-      void* sample = &msg;
-      dds_sample_info_t info;
-      dds_return_t n = dds_take(ping_r, &sample, &info, 1, 1);
-      if (n == 1 && info.valid_data) dds_write(pong_w, &msg);
-      if (n == 0) dds_waitset_wait(ws_b, nullptr, 0, DDS_SECS(1));
-      if (n < 0) break;
+Result<void> dds_echo(const DdsSettings& settings, const std::string& name,
+                      const std::function<void()>& ready, std::chrono::milliseconds idle) {
+  DdsParticipant b{settings.domain};
+  if (auto ok = join(b, settings, "dds_echo"); !ok) return ok;
+  dds_entity_t ping_r = make_endpoint(b.pp, dds_ping_topic(name), false),
+               pong_w = make_endpoint(b.pp, dds_pong_topic(name), true);
+  if (ping_r < 0 || pong_w < 0)
+    return node::fail(Errc::io, "dds_echo: endpoint: " + dds_domain::retcode(ping_r < 0 ? ping_r : pong_w));
+  if (ready) ready();
+  if (!matched(b.pp, pong_w, true, std::chrono::seconds(10)))
+    return node::fail(Errc::timeout, "dds_echo: no reader of the pong topic within 10 s");
+  dds_entity_t ws = dds_create_waitset(b.pp);
+  dds_waitset_attach(ws, dds_create_readcondition(ping_r, DDS_ANY_STATE), 0);
+  auto last = clock::now();
+  for (;;) {
+    tahvel_Ping msg{};
+    if (!take_one(ping_r, ws, clock::now() + std::chrono::milliseconds(50), &msg)) {
+      if (clock::now() - last >= idle) break;
+      continue;
     }
-  });
+    last = clock::now();
+    if (msg.seq < 0) break;
+    dds_write(pong_w, &msg);
+  }
+  return {};
+}
+
+Result<LatencyFloor> dds_ping(const DdsSettings& settings, const std::string& name, int rounds) {
+  if (rounds <= 0) return node::fail(Errc::invalid_argument, "dds ping-pong: rounds must be > 0");
+  DdsParticipant a{settings.domain};
+  if (auto ok = join(a, settings, "dds ping-pong"); !ok) return node::fail(ok.error().code, ok.error().message);
+  dds_entity_t ping_w = make_endpoint(a.pp, dds_ping_topic(name), true),
+               pong_r = make_endpoint(a.pp, dds_pong_topic(name), false);
+  if (ping_w < 0 || pong_r < 0)
+    return node::fail(Errc::io, "dds ping-pong: endpoint: " + dds_domain::retcode(ping_w < 0 ? ping_w : pong_r));
+  if (!matched(a.pp, ping_w, true, std::chrono::seconds(10)) || !matched(a.pp, pong_r, false, std::chrono::seconds(10)))
+    return node::fail(Errc::timeout, "dds ping-pong: the echo's endpoints did not match within 10 s");
+  dds_entity_t ws = dds_create_waitset(a.pp);
+  dds_waitset_attach(ws, dds_create_readcondition(pong_r, DDS_ANY_STATE), 0);
   const int warmup = warmup_of(rounds);
   std::vector<double> samples;
   samples.reserve(static_cast<std::size_t>(rounds));
@@ -244,15 +301,26 @@ Result<LatencyFloor> raw_dds_pingpong(const DdsSettings& settings, int rounds) {
     const auto deadline = t0 + std::chrono::seconds(5);
     if (dds_write(ping_w, &msg) < 0) lost = true;
     while (!lost && answer.seq != seq) {
-      if (!take_one(pong_r, ws_a, deadline, &answer)) lost = true;
+      if (!take_one(pong_r, ws, deadline, &answer)) lost = true;
     }
     if (!lost && seq >= warmup) samples.push_back(micros(clock::now() - t0) / 2);
   }
-  stop = true;
-  dds_set_guardcondition(wake, true);
-  echoer.join();
-  if (lost) return node::fail(Errc::timeout, "raw_dds_pingpong: no pong within 5 s");
+  tahvel_Ping stop{-1};
+  dds_write(ping_w, &stop);
+  if (lost) return node::fail(Errc::timeout, "dds ping-pong: no pong within 5 s");
   return summarise(std::move(samples));
+}
+
+Result<LatencyFloor> raw_dds_pingpong(const DdsSettings& settings, int rounds) {
+  if (rounds <= 0) return node::fail(Errc::invalid_argument, "raw_dds_pingpong: rounds must be > 0");
+  const std::string name = unique_suffix();
+  Result<void> echoed{};
+  std::thread echoer([&] { echoed = dds_echo(settings, name, {}, std::chrono::seconds(15)); });
+  auto floor = dds_ping(settings, name, rounds);
+  echoer.join();
+  if (!floor) return floor;
+  if (!echoed) return node::fail(echoed.error().code, echoed.error().message);
+  return floor;
 }
 
 }  // namespace tahvel::federation

@@ -4,7 +4,11 @@
 
 #include <gtest/gtest.h>
 
+#include <sys/wait.h>
+#include <unistd.h>
+
 #include <cstdlib>
+#include <functional>
 #include <iostream>
 
 #include "wire_settings.h"
@@ -37,6 +41,49 @@ TEST(Floors, RawDdsPingPongGivesSaneFigures) {
   expect_sane("dds", raw_dds_pingpong(conformance::test_dds_settings(), 500), 500);
 }
 
+// The halves in two processes, as the bench measures them: a forked echo (before this process
+// touches LCM or DDS), its readiness through a pipe.
+template <class Echo, class Ping>
+void across_processes(const char* name, Echo echo, Ping ping) {
+  int ready[2];
+  ASSERT_EQ(pipe(ready), 0);
+  const std::string channel = std::string(name) + "_" + std::to_string(getpid());
+  pid_t child = fork();
+  ASSERT_GE(child, 0);
+  if (child == 0) {
+    close(ready[0]);
+    auto done = echo(channel, [&] { (void)!write(ready[1], "r", 1); });
+    if (!done) std::cerr << "echo process: " << done.error().message << std::endl;
+    _exit(done ? 0 : 1);
+  }
+  close(ready[1]);
+  char c = 0;
+  ASSERT_EQ(read(ready[0], &c, 1), 1) << "the echo process never listened";
+  close(ready[0]);
+  expect_sane(name, ping(channel), 300);
+  int status = 0;
+  ASSERT_EQ(waitpid(child, &status, 0), child);
+  EXPECT_TRUE(WIFEXITED(status) && WEXITSTATUS(status) == 0) << "the echo process failed";
+}
+
+TEST(Floors, LcmPingPongBetweenTwoProcessesGivesSaneFigures) {
+  require_netns();
+  const LcmSettings settings = conformance::test_lcm_settings();
+  across_processes(
+      "lcm_2p",
+      [&](const std::string& n, const std::function<void()>& ready) { return lcm_echo(settings, n, ready, std::chrono::seconds(5)); },
+      [&](const std::string& n) { return lcm_ping(settings, n, 300); });
+}
+
+TEST(Floors, DdsPingPongBetweenTwoProcessesGivesSaneFigures) {
+  require_netns();
+  const DdsSettings settings = conformance::test_dds_settings();
+  across_processes(
+      "dds_2p",
+      [&](const std::string& n, const std::function<void()>& ready) { return dds_echo(settings, n, ready, std::chrono::seconds(5)); },
+      [&](const std::string& n) { return dds_ping(settings, n, 300); });
+}
+
 TEST(Floors, ZeroRoundsIsAnError) {
   auto lcm = raw_lcm_pingpong(conformance::test_lcm_settings(), 0);
   ASSERT_FALSE(lcm);
@@ -44,6 +91,8 @@ TEST(Floors, ZeroRoundsIsAnError) {
   auto dds = raw_dds_pingpong(conformance::test_dds_settings(), 0);
   ASSERT_FALSE(dds);
   EXPECT_EQ(dds.error().code, Errc::invalid_argument);
+  EXPECT_EQ(lcm_ping(conformance::test_lcm_settings(), "zero", 0).error().code, Errc::invalid_argument);
+  EXPECT_EQ(dds_ping(conformance::test_dds_settings(), "zero", 0).error().code, Errc::invalid_argument);
 }
 
 }  // namespace

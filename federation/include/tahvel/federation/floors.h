@@ -2,12 +2,19 @@
 // small message, measured with the libraries alone (no Transport, no link), so that the link's
 // latency can be reported as a ratio against them in the same run (tests/bench).
 //
-// Both measure ping-pong between two threads of this process, each with its own LCM instance
-// (two sockets, through the kernel's multicast loopback) or its own DDS participant (one
-// Cyclone domain per process: the two participants talk through Cyclone's in-process delivery,
-// not the network). One-way latency is half a round trip. Packets: run inside a network
-// namespace (tests/tools/netns-run) like everything else that sends.
+// raw_*_pingpong measure ping-pong between two threads of this process, each with its own LCM
+// instance (two sockets, through the kernel's multicast loopback) or its own DDS participant
+// (one Cyclone domain per process: the two participants talk through Cyclone's in-process
+// delivery, not the network). The halves (*_echo, *_ping) measure it between two processes,
+// as a link's two ends are deployed; for DDS that is the network path (about 30 us one-way on
+// the development VM against 8-20 us in-process). One-way latency is half a round trip.
+// Packets: run inside a network namespace (tests/tools/netns-run) like everything else that
+// sends.
 #pragma once
+
+#include <chrono>
+#include <functional>
+#include <string>
 
 #include "tahvel/federation/transport.h"
 
@@ -28,5 +35,18 @@ Result<LatencyFloor> raw_lcm_pingpong(const LcmSettings& settings, int rounds);
 // settings.domain (configured with settings.config as open_dds would). Fails with Errc::timeout
 // if the two participants do not match within 5 s or an answer takes more than 5 s.
 Result<LatencyFloor> raw_dds_pingpong(const DdsSettings& settings, int rounds);
+
+// The two halves of the same ping-pongs, for two processes. `name` names the channels or
+// topics; both sides use the same one (unique on the bus). The echo calls `ready` once it
+// listens (start pinging after it: LCM has no discovery), answers until the ping side's stop
+// message or `idle` without a ping, then returns. The ping side measures `rounds` as above and
+// sends the stop message. A DDS echo waits up to 10 s for the ping side to match. `name`: letters,
+// digits and underscores only (it goes into DDS topic names).
+Result<void> lcm_echo(const LcmSettings& settings, const std::string& name, const std::function<void()>& ready,
+                      std::chrono::milliseconds idle);
+Result<LatencyFloor> lcm_ping(const LcmSettings& settings, const std::string& name, int rounds);
+Result<void> dds_echo(const DdsSettings& settings, const std::string& name, const std::function<void()>& ready,
+                      std::chrono::milliseconds idle);
+Result<LatencyFloor> dds_ping(const DdsSettings& settings, const std::string& name, int rounds);
 
 }  // namespace tahvel::federation
