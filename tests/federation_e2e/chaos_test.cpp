@@ -1,11 +1,22 @@
-// Seeded, randomized failure schedules over a real hierarchy under `tahvel up` (hospital; two
-// homes over Cyclone DDS; a sensor node below each home over LCM; one supervisor per node, as on
-// separate machines), each case in its own network namespace. A load agent on every sensor and home node writes numbered items (load_writer.cpp)
-// that the forwarding policies send all the way up, while a random schedule of faults hits the
-// programs the supervisor runs:
+// Seeded, randomized failure schedules over a real hierarchy under `tahvel up`, each case in its
+// own network namespace, on a layout the seed also chooses:
 //
-//   kill-node     SIGKILL every program of a node (sensor, home or the hospital); its
-//                 supervisor starts them again with back-off (0.5 s doubling)
+//   hospital                      the root, always
+//   ├─ home1 .. home3             1-3 homes
+//   │  └─ ecg1a ..                0-3 sensor nodes under each home
+//   │     └─ patch1a              sometimes a fourth level: a node under one sensor
+//   └─ ecg0a                      sometimes a sensor directly under the hospital
+//
+// Each node with children listens on a transport drawn at random: Cyclone DDS in a domain from
+// 0-3 (parents may share a domain or not), or LCM on a URL of its own (another multicast port,
+// always ttl=0: loopback only). A gateway whose parent and children use one kind thus has two
+// endpoints of it (layouts_test.cpp). One supervisor per node, as on separate machines. A load
+// agent on a random non-empty subset of the non-root nodes writes numbered items
+// (load_writer.cpp) that every forwarding policy on the way sends up, while a random schedule of
+// faults hits the nodes of the layout and the programs their supervisors run:
+//
+//   kill-node     SIGKILL every program of a node (any node, the hospital too); its supervisor
+//                 starts them again with back-off (0.5 s doubling)
 //   crash-node    the node's machine goes down: its supervisor and programs SIGKILLed at once,
 //                 then `tahvel up --node` again 0-2 s later (as systemd would)
 //   kill-supervisor  only the node's supervisor SIGKILLed (its programs must go with it), then
@@ -19,16 +30,21 @@
 //                 welcome: its handshake), 2-4 times
 //
 // Faults start at random times in the schedule and overlap freely. After the schedule the load
-// stops, the system settles, and the checks are: every item written reaches the hospital (and a
-// sensor's items its home) exactly once with its writer's IRI as source; no outbox (uplink) or
-// child down queue holds anything; each parent keeps one state item per child, "up"; after
-// `tahvel down` every store opens and no process of the deployment is left. TAHVEL_CHAOS_SEED=N replays a schedule (the faults and their times; the
-// system's own timing is not replayed); the seed is printed at the start and with every failure.
+// stops, the system settles, and the checks are: every item written reaches every ancestor of
+// its writer (each stores what it relays) exactly once with its writer's IRI as source, and no
+// node holds a load item whose source is not a writer at or below it; no outbox (uplink) or child
+// down queue holds anything; each parent keeps one state item per child, "up"; after `tahvel
+// down` every store opens and no process of the deployment is left.
+//
+// TAHVEL_CHAOS_SEED=N replays a layout and a schedule (the faults and their times; the system's
+// own timing is not replayed); the seed is printed at the start and with every failure, the
+// layout as a tree at the start and with every failure, and the topology file on failure.
 #include <gtest/gtest.h>
 #include <signal.h>
 #include <sys/wait.h>
 #include <unistd.h>
 
+#include <algorithm>
 #include <atomic>
 #include <cstdlib>
 #include <filesystem>
@@ -36,6 +52,7 @@
 #include <iostream>
 #include <map>
 #include <mutex>
+#include <optional>
 #include <random>
 #include <set>
 #include <sstream>
@@ -55,20 +72,134 @@ using tahvel::node::Term;
 const std::string kBin = TAHVEL_BIN_DIR;
 const std::string kHospital = "http://example.org/hospital";
 const std::string kLoadSeq = "https://w3id.org/tahvel#loadSeq";
-const std::vector<std::string> kNodes = {"hospital", "home1", "home2", "ecg1", "ecg2"};
-const std::vector<std::string> kWriters = {"home1", "home2", "ecg1", "ecg2"};  // nodes with a load agent
-const std::map<std::string, std::string> kParent = {{"home1", "hospital"}, {"home2", "hospital"}, {"ecg1", "home1"}, {"ecg2", "home2"}};
+// How a parent's children reach it (the `listen` of the topology file).
+struct Listen {
+  std::string kind;  // "dds" or "lcm"
+  int dds_domain = 0;
+  std::string lcm_url;
 
-std::string iri_of(const std::string& node) {
-  if (node == "hospital") return kHospital;
-  if (node.rfind("home", 0) == 0) return kHospital + "/" + node;
-  return kHospital + "/home" + node.substr(3) + "/" + node;
-}
+  std::string toml(const std::string& dds_config) const {
+    if (kind == "dds")
+      return "{ kind = \"dds\", domain = " + std::to_string(dds_domain) + ", config = \"" + dds_config + "\" }";
+    return "{ kind = \"lcm\", url = \"" + lcm_url + "\" }";
+  }
+  std::string describe() const { return kind == "dds" ? "dds domain " + std::to_string(dds_domain) : "lcm " + lcm_url; }
+};
 
-std::vector<std::string> programs_of(const std::string& node) {
-  if (node == "hospital") return {"hospital/link"};
-  return {node + "/link", node + "/load"};
-}
+struct LayoutNode {
+  std::string id, parent, tier;  // parent empty for the root
+  std::optional<Listen> listen;  // set when the node has children
+  bool writes = false;           // runs a load agent
+};
+
+// The tree a seed chose. Nodes are in creation order: every parent before its children.
+class Layout {
+ public:
+  // Draws a layout from `rng` (see the header comment for its shape).
+  static Layout random(std::mt19937_64& rng) {
+    auto pick = [&](int n) { return static_cast<int>(std::uniform_int_distribution<int>(0, n - 1)(rng)); };
+    Layout l;
+    l.add({"hospital", "", "hospital"});
+    const int homes = 1 + pick(3);
+    for (int h = 1; h <= homes; ++h) {
+      const std::string home = "home" + std::to_string(h);
+      l.add({home, "hospital", "home"});
+      const int sensors = pick(4);
+      for (int k = 0; k < sensors; ++k) l.add({"ecg" + std::to_string(h) + char('a' + k), home, "sensor"});
+    }
+    if (pick(3) == 0) l.add({"ecg0a", "hospital", "sensor"});
+    if (pick(3) == 0) {
+      // A fourth level (third below the hospital when under ecg0a): a node under one sensor.
+      std::vector<std::string> sensors;
+      for (const auto& n : l.nodes_)
+        if (n.tier == "sensor") sensors.push_back(n.id);
+      if (!sensors.empty()) {
+        const std::string under = sensors[pick(static_cast<int>(sensors.size()))];
+        l.add({"patch" + under.substr(3), under, "patch"});
+      }
+    }
+    // Each parent its own transport; LCM parents each their own URL (port, and a group of three).
+    int next_lcm_port = 7667;
+    for (auto& n : l.nodes_) {
+      if (l.children(n.id).empty()) continue;
+      Listen listen;
+      if (pick(2) == 0) {
+        listen.kind = "dds";
+        listen.dds_domain = pick(4);
+      } else {
+        listen.kind = "lcm";
+        listen.lcm_url = "udpm://239.255.76." + std::to_string(67 + pick(3)) + ":" + std::to_string(next_lcm_port++) + "?ttl=0";
+      }
+      n.listen = listen;
+    }
+    for (auto& n : l.nodes_)
+      if (!n.parent.empty() && pick(2) == 0) n.writes = true;
+    if (l.writers().empty()) l.nodes_[1 + pick(static_cast<int>(l.nodes_.size()) - 1)].writes = true;
+    return l;
+  }
+
+  std::vector<std::string> ids() const {
+    std::vector<std::string> out;
+    for (const auto& n : nodes_) out.push_back(n.id);
+    return out;
+  }
+  std::vector<std::string> writers() const {
+    std::vector<std::string> out;
+    for (const auto& n : nodes_)
+      if (n.writes) out.push_back(n.id);
+    return out;
+  }
+  const LayoutNode& node(const std::string& id) const { return nodes_[index_.at(id)]; }
+  std::vector<std::string> children(const std::string& id) const {
+    std::vector<std::string> out;
+    for (const auto& n : nodes_)
+      if (n.parent == id) out.push_back(n.id);
+    return out;
+  }
+  // Parent first, the hospital last.
+  std::vector<std::string> ancestors(const std::string& id) const {
+    std::vector<std::string> out;
+    for (std::string at = node(id).parent; !at.empty(); at = node(at).parent) out.push_back(at);
+    return out;
+  }
+  // Every (child, parent) link.
+  std::vector<std::pair<std::string, std::string>> links() const {
+    std::vector<std::pair<std::string, std::string>> out;
+    for (const auto& n : nodes_)
+      if (!n.parent.empty()) out.emplace_back(n.id, n.parent);
+    return out;
+  }
+  std::string iri(const std::string& id) const {
+    const auto& n = node(id);
+    return n.parent.empty() ? kHospital : iri(n.parent) + "/" + id;
+  }
+  std::vector<std::string> programs(const std::string& id) const {
+    if (node(id).writes) return {id + "/link", id + "/load"};
+    return {id + "/link"};
+  }
+
+  // One line per node, children below their parent, indented by depth:
+  // "    home1 (home) load; children over dds domain 2".
+  std::string tree(const std::string& from = "hospital") const {
+    const LayoutNode& n = node(from);
+    std::ostringstream out;
+    out << std::string(2 * (ancestors(n.id).size() + 1), ' ') << n.id << " (" << n.tier << ")";
+    if (n.writes) out << " load";
+    if (n.listen) out << "; children over " << n.listen->describe();
+    out << "\n";
+    for (const auto& child : children(n.id)) out << tree(child);
+    return out.str();
+  }
+
+ private:
+  void add(LayoutNode n) {
+    index_[n.id] = nodes_.size();
+    nodes_.push_back(std::move(n));
+  }
+
+  std::vector<LayoutNode> nodes_;
+  std::map<std::string, std::size_t> index_;
+};
 
 double seconds_since(Clock::time_point t0) { return std::chrono::duration<double>(Clock::now() - t0).count(); }
 
@@ -119,13 +250,11 @@ struct Fault {
   }
 };
 
-std::vector<Fault> make_schedule(std::uint64_t seed, int count, std::chrono::milliseconds span) {
-  std::mt19937_64 rng(seed);
+// Drawn from `rng` after the layout, so that one seed gives both.
+std::vector<Fault> make_schedule(std::mt19937_64& rng, const Layout& layout, int count, std::chrono::milliseconds span) {
   auto pick = [&](int n) { return static_cast<int>(std::uniform_int_distribution<int>(0, n - 1)(rng)); };
   auto ms = [&](int lo, int hi) { return std::chrono::milliseconds(std::uniform_int_distribution<int>(lo, hi)(rng)); };
-  std::vector<std::string> all_programs;
-  for (const auto& n : kNodes)
-    for (const auto& p : programs_of(n)) all_programs.push_back(p);
+  const std::vector<std::string> nodes = layout.ids();
   std::vector<Fault> out;
   for (int i = 0; i < count; ++i) {
     Fault f;
@@ -140,12 +269,12 @@ std::vector<Fault> make_schedule(std::uint64_t seed, int count, std::chrono::mil
                             f.kind == FaultKind::kill_supervisor ||
                             (f.kind == FaultKind::freeze && pick(3) == 0);
     if (whole_node) {
-      f.what = kNodes[pick(static_cast<int>(kNodes.size()))];
-      f.programs = programs_of(f.what);
+      f.what = nodes[pick(static_cast<int>(nodes.size()))];
+      f.programs = layout.programs(f.what);
     } else {
       // Links are what the protocol is about: two in three single-program faults hit one.
-      std::string node = kNodes[pick(static_cast<int>(kNodes.size()))];
-      f.what = (node == "hospital" || pick(3) != 0) ? node + "/link" : node + "/load";
+      std::string node = nodes[pick(static_cast<int>(nodes.size()))];
+      f.what = (!layout.node(node).writes || pick(3) != 0) ? node + "/link" : node + "/load";
       f.programs = {f.what};
     }
     f.at = ms(0, static_cast<int>(span.count()));
@@ -171,45 +300,45 @@ std::uint64_t chosen_seed() {
   return std::random_device{}() ^ (static_cast<std::uint64_t>(std::random_device{}()) << 32);
 }
 
-// The hierarchy with a load agent on every sensor and home node; `tahvel up` in the
-// constructor, `tahvel down` by down() or the destructor.
+// The layout under `tahvel up` (its topology file in the case's folder), a load agent on each
+// of its writers; `tahvel up` in the constructor, `tahvel down` by down() or the destructor.
 class ChaosDeployment {
  public:
-  explicit ChaosDeployment(int every_ms) {
+  ChaosDeployment(const Layout& layout, int every_ms) : layout_(layout) {
     std::string pattern = (fs::temp_directory_path() / "tahvel-chaos-XXXXXX").string();
     root_ = mkdtemp(pattern.data());
     state_ = root_ / "state";
     stop_file_ = root_ / "stop-load";
-    std::ofstream toml(root_ / "topology.toml");
-    const std::string dds = std::string(TAHVEL_SOURCE_DIR) + "/deploy/cyclonedds-loopback.xml";
-    auto load = [&] {
-      std::ostringstream a;
-      a << "[[node.agent]]\nid = \"load\"\nrun = [\"" << kBin << "/tahvel-e2e-load\", \"{store}\", \"--every-ms\", \""
-        << every_ms << "\", \"--stop-file\", \"" << stop_file_.string() << "\"]\n\n";
-      return a.str();
-    };
-    toml << "[deployment]\nname = \"chaos\"\n\n"
-         << "[[node]]\nid = \"hospital\"\niri = \"" << kHospital << "\"\ntier = \"hospital\"\n"
-         << "store = { durability = \"durable\" }\n"
-         << "listen = { kind = \"dds\", domain = 0, config = \"" << dds << "\" }\n\n";
-    for (int home = 1; home <= 2; ++home) {
-      const std::string h = std::to_string(home);
-      toml << "[[node]]\nid = \"home" << h << "\"\ntier = \"home\"\nparent = \"hospital\"\n"
-           << "listen = { kind = \"lcm\" }\n"
-           << "forward = [\"_ sosa:observedProperty tv:HeartRateVariability\", \"_ tv:loadSeq _\"]\n"
-           << load()
-           << "[[node]]\nid = \"ecg" << h << "\"\ntier = \"sensor\"\nparent = \"home" << h << "\"\n"
-           << "forward = [\"_ tv:loadSeq _\"]\n"
-           << load();
-    }
-    toml.close();
+    std::ofstream(topology()) << topology_toml(every_ms);
     // One supervisor per node, as one machine each of a real deployment runs it (docs/deploy.md).
-    for (const auto& n : kNodes) EXPECT_TRUE(bring_up(n)) << n;
+    for (const auto& n : layout_.ids()) EXPECT_TRUE(bring_up(n)) << n;
+  }
+
+  std::string topology_toml(int every_ms) const {
+    const std::string dds_config = std::string(TAHVEL_SOURCE_DIR) + "/deploy/cyclonedds-loopback.xml";
+    std::ostringstream toml;
+    toml << "[deployment]\nname = \"chaos\"\n";
+    for (const auto& id : layout_.ids()) {
+      const LayoutNode& n = layout_.node(id);
+      toml << "\n[[node]]\nid = \"" << n.id << "\"\ntier = \"" << n.tier << "\"\n";
+      if (n.parent.empty()) {
+        toml << "iri = \"" << kHospital << "\"\nstore = { durability = \"durable\" }\n";
+      } else {
+        toml << "parent = \"" << n.parent << "\"\n";
+        // Every node on the way forwards the load, so that each item goes all the way up.
+        toml << "forward = [\"_ tv:loadSeq _\"]\n";
+      }
+      if (n.listen) toml << "listen = " << n.listen->toml(dds_config) << "\n";
+      if (n.writes)
+        toml << "\n  [[node.agent]]\n  id = \"load\"\n  run = [\"" << kBin << "/tahvel-e2e-load\", \"{store}\", \"--every-ms\", \""
+             << every_ms << "\", \"--stop-file\", \"" << stop_file_.string() << "\"]\n";
+    }
+    return toml.str();
   }
 
   // `tahvel up --node`, as systemd starts a node's supervisor again after a crash.
   bool bring_up(const std::string& node) {
-    auto up = run(kBin + "/tahvel up " + (root_ / "topology.toml").string() + " --node " + node + " --state " + state_.string());
+    auto up = run(kBin + "/tahvel up " + topology().string() + " --node " + node + " --state " + state_.string());
     if (up.first != 0) {
       std::cerr << "chaos: tahvel up --node " << node << ": " << up.second;
       return false;
@@ -226,8 +355,13 @@ class ChaosDeployment {
   ~ChaosDeployment() {
     down();
     std::error_code ec;
-    if (!::testing::Test::HasFailure()) fs::remove_all(root_, ec);
-    else std::cerr << "chaos: state and logs kept in " << root_ << "\n";
+    if (!::testing::Test::HasFailure()) {
+      fs::remove_all(root_, ec);
+      return;
+    }
+    std::ifstream toml(topology());
+    std::cerr << "chaos: the layout's topology file " << topology() << ":\n" << toml.rdbuf() << "\n"
+              << "chaos: state and logs kept in " << root_ << "\n";
   }
 
   int down() {
@@ -251,7 +385,7 @@ class ChaosDeployment {
   // the pids it last wrote).
   std::map<std::string, ProgramRow> programs() const {
     std::map<std::string, ProgramRow> rows;
-    for (const auto& n : kNodes) read_state(state_ / ("supervisor-" + n + ".state"), rows);
+    for (const auto& n : layout_.ids()) read_state(state_ / ("supervisor-" + n + ".state"), rows);
     return rows;
   }
 
@@ -279,8 +413,10 @@ class ChaosDeployment {
   fs::path store(const std::string& node) const { return state_ / node; }
   const fs::path& root() const { return root_; }
   const fs::path& stop_file() const { return stop_file_; }
+  fs::path topology() const { return root_ / "topology.toml"; }
 
  private:
+  const Layout& layout_;
   fs::path root_, state_, stop_file_;
   bool down_ = false;
 };
@@ -421,22 +557,18 @@ std::vector<pid_t> children_of(pid_t parent) {
   return out;
 }
 
-// The numbers of the load items on `store` written by `writer_node`'s load agent, with how often
-// each is there.
-std::map<std::int64_t, int> load_items(const fs::path& store, const std::string& writer_node, std::string* problem = nullptr) {
-  std::map<std::int64_t, int> out;
+// The load items on a store: for each source, the numbers there with how often each is there.
+using LoadCensus = std::map<std::string, std::map<std::int64_t, int>>;
+
+LoadCensus load_items(const fs::path& store) {
+  LoadCensus out;
   auto node = Node::open(store);
-  if (!node) {
-    if (problem) *problem = store.string() + ": " + node.error().message;
-    return out;
-  }
+  if (!node) return out;
   auto snap = node->snapshot();
   if (!snap) return out;
   auto records = snap->list({.p = Term::iri(kLoadSeq)});
   if (!records) return out;
-  const std::string source = iri_of(writer_node) + "/load";
-  for (const auto& r : *records)
-    if (r.meta.source == source) ++out[std::stoll(r.triple.o.value)];
+  for (const auto& r : *records) ++out[r.meta.source][std::stoll(r.triple.o.value)];
   return out;
 }
 
@@ -468,24 +600,40 @@ struct ChaosPlan {
   int faults;
   std::chrono::milliseconds span;     // faults start within this time
   std::chrono::milliseconds settle;   // then at most this long for everything to arrive
-  int every_ms;                       // load: one item per writer every so often
+  int every_ms;                       // load: one item per writer every so often, with four writers
+                                      // (with more, each writes less often)
 };
 
+std::string some(const std::vector<std::int64_t>& v) {
+  std::ostringstream out;
+  for (std::size_t i = 0; i < v.size() && i < 12; ++i) out << " " << v[i];
+  if (v.size() > 12) out << " ...";
+  return out.str();
+}
+
 void run_chaos(ChaosPlan plan) {
-  if (const char* s = std::getenv("TAHVEL_CHAOS_EVERY_MS"); s && *s) plan.every_ms = std::atoi(s);
   const std::uint64_t seed = chosen_seed();
   const std::string replay = "TAHVEL_CHAOS_SEED=" + std::to_string(seed);
-  std::cout << "chaos seed " << seed << " (replay with " << replay << ")\n";
-  SCOPED_TRACE("chaos seed " + std::to_string(seed) + " (replay with " + replay + ")");
-  const std::vector<Fault> schedule = make_schedule(seed, plan.faults, plan.span);
+  std::mt19937_64 rng(seed);
+  const Layout layout = Layout::random(rng);
+  const std::vector<Fault> schedule = make_schedule(rng, layout, plan.faults, plan.span);
+  std::cout << "chaos seed " << seed << " (replay with " << replay << ")\nchaos layout:\n" << layout.tree();
+  SCOPED_TRACE("chaos seed " + std::to_string(seed) + " (replay with " + replay + "), layout:\n" + layout.tree());
   for (const auto& f : schedule) std::cout << "chaos schedule: " << f.describe() << "\n";
+  const std::vector<std::string> writers = layout.writers();
+  // Much the same load in all, whatever the number of writers: every_ms is for four.
+  int every_ms = plan.every_ms * std::max<int>(4, static_cast<int>(writers.size())) / 4;
+  if (const char* s = std::getenv("TAHVEL_CHAOS_EVERY_MS"); s && *s) every_ms = std::atoi(s);
+  std::map<std::string, std::string> source;  // writer node -> its load agent's IRI
+  for (const auto& w : writers) source[w] = layout.iri(w) + "/load";
 
-  ChaosDeployment d(plan.every_ms);
-  for (const auto& n : kNodes) ASSERT_GT(d.supervisor(n), 0) << n;
+  ChaosDeployment d(layout, every_ms);
+  for (const auto& n : layout.ids()) ASSERT_GT(d.supervisor(n), 0) << n;
   // Every link registered and items flowing before the first fault.
   ASSERT_TRUE(eventually([&] {
-    for (const auto& w : kWriters)
-      if (load_items(d.store("hospital"), w).empty()) return false;
+    auto at_hospital = load_items(d.store("hospital"));
+    for (const auto& w : writers)
+      if (at_hospital[source[w]].empty()) return false;
     return true;
   }, 60s)) << "no load items from every writer at the hospital before the schedule";
 
@@ -503,7 +651,7 @@ void run_chaos(ChaosPlan plan) {
   // The writers finish (status 0) once they see the stop file, also after a restart pending now.
   ASSERT_TRUE(eventually([&] {
     auto rows = d.programs();
-    for (const auto& w : kWriters) {
+    for (const auto& w : writers) {
       const auto& r = rows[w + "/load"];
       if (r.state != "stopped" || r.last_exit != "exited with status 0") return false;
     }
@@ -512,19 +660,20 @@ void run_chaos(ChaosPlan plan) {
 
   // What each writer stored: exactly 1..M, whatever it went through.
   std::map<std::string, std::int64_t> written;
-  for (const auto& w : kWriters) {
-    auto mine = load_items(d.store(w), w);
+  for (const auto& w : writers) {
+    auto mine = load_items(d.store(w))[source[w]];
     ASSERT_FALSE(mine.empty()) << w;
     written[w] = mine.rbegin()->first;
     EXPECT_EQ(mine.size(), static_cast<std::size_t>(written[w])) << w << ": the writer's own numbering has holes";
     runner.log(w + " wrote " + std::to_string(written[w]) + " items");
   }
 
-  // Settle: everything at the hospital, every outbox and down queue empty.
+  // Settle: everything at every ancestor of its writer, every outbox and down queue empty.
   auto settled = [&] {
-    for (const auto& w : kWriters)
-      if (load_items(d.store("hospital"), w).size() < static_cast<std::size_t>(written[w])) return false;
-    for (const auto& [child, parent] : kParent)
+    for (const auto& w : writers)
+      for (const auto& a : layout.ancestors(w))
+        if (load_items(d.store(a))[source[w]].size() < static_cast<std::size_t>(written[w])) return false;
+    for (const auto& [child, parent] : layout.links())
       if (pending(d.store(child), "uplink") != 0 || pending(d.store(parent), child) != 0) return false;
     return true;
   };
@@ -540,12 +689,12 @@ void run_chaos(ChaosPlan plan) {
     if (!node) return states;
     auto snap = node->snapshot();
     if (!snap) return states;
-    auto records = snap->list({.s = Term::iri(iri_of(child)), .p = Term::iri("https://w3id.org/tahvel#linkState")});
+    auto records = snap->list({.s = Term::iri(layout.iri(child)), .p = Term::iri("https://w3id.org/tahvel#linkState")});
     if (records)
       for (const auto& r : *records) states.push_back(r.triple.o.value);
     return states;
   };
-  for (const auto& [child, parent] : kParent) {
+  for (const auto& [child, parent] : layout.links()) {
     std::vector<std::string> states;
     EXPECT_TRUE(eventually([&] {
       states = link_states(child, parent);
@@ -553,54 +702,45 @@ void run_chaos(ChaosPlan plan) {
     }, 15s)) << parent << " keeps " << states.size() << " state item(s) of " << child << ", the first: "
              << (states.empty() ? std::string("none") : states[0]);
   }
-  for (const auto& [child, parent] : kParent) {
+  for (const auto& [child, parent] : layout.links()) {
     EXPECT_EQ(pending(d.store(child), "uplink"), 0u) << "items stuck in the outbox of " << child;
     EXPECT_EQ(pending(d.store(parent), child), 0u) << "items stuck in " << parent << "'s down queue of " << child;
   }
-  auto expect_exactly_once = [&](const std::string& at, const std::string& w) {
-    auto got = load_items(d.store(at), w);
-    std::vector<std::int64_t> lost, doubled, unknown;
-    for (std::int64_t n = 1; n <= written[w]; ++n) {
-      auto it = got.find(n);
-      if (it == got.end()) lost.push_back(n);
-      else if (it->second > 1) doubled.push_back(n);
+  // Every writer's items exactly once at each of its ancestors; on every node, no load item whose
+  // source is not a writer at or below it (a source rewritten on the way, or an item gone astray).
+  for (const auto& at : layout.ids()) {
+    const LoadCensus census = load_items(d.store(at));
+    std::set<std::string> expected_sources;
+    for (const auto& w : writers) {
+      auto up = layout.ancestors(w);
+      if (w != at && std::find(up.begin(), up.end(), at) == up.end()) continue;
+      expected_sources.insert(source[w]);
+      if (w == at) continue;  // checked above
+      auto found = census.find(source[w]);
+      const std::map<std::int64_t, int> got = found == census.end() ? std::map<std::int64_t, int>{} : found->second;
+      std::vector<std::int64_t> lost, doubled, unknown;
+      for (std::int64_t n = 1; n <= written[w]; ++n) {
+        auto it = got.find(n);
+        if (it == got.end()) lost.push_back(n);
+        else if (it->second > 1) doubled.push_back(n);
+      }
+      for (const auto& [n, count] : got)
+        if (n < 1 || n > written[w]) unknown.push_back(n);
+      EXPECT_TRUE(lost.empty()) << w << " -> " << at << ": " << lost.size() << " of " << written[w] << " lost:" << some(lost);
+      EXPECT_TRUE(doubled.empty()) << w << " -> " << at << ": " << doubled.size() << " doubled:" << some(doubled);
+      EXPECT_TRUE(unknown.empty()) << w << " -> " << at << ": " << unknown.size() << " never written:" << some(unknown);
     }
-    for (const auto& [n, count] : got)
-      if (n < 1 || n > written[w]) unknown.push_back(n);
-    auto some = [](const std::vector<std::int64_t>& v) {
-      std::ostringstream out;
-      for (std::size_t i = 0; i < v.size() && i < 12; ++i) out << " " << v[i];
-      if (v.size() > 12) out << " ...";
-      return out.str();
-    };
-    EXPECT_TRUE(lost.empty()) << w << " -> " << at << ": " << lost.size() << " of " << written[w] << " lost:" << some(lost);
-    EXPECT_TRUE(doubled.empty()) << w << " -> " << at << ": " << doubled.size() << " doubled:" << some(doubled);
-    EXPECT_TRUE(unknown.empty()) << w << " -> " << at << ": " << unknown.size() << " never written:" << some(unknown);
-  };
-  for (const auto& w : kWriters) expect_exactly_once("hospital", w);
-  expect_exactly_once("home1", "ecg1");
-  expect_exactly_once("home2", "ecg2");
-  // Nothing at the hospital under a source that is not a writer's (a source rewritten on the way).
-  {
-    std::set<std::string> sources;
-    for (const auto& w : kWriters) sources.insert(iri_of(w) + "/load");
-    auto node = Node::open(d.store("hospital"));
-    ASSERT_TRUE(node.has_value());
     std::size_t foreign = 0;
-    auto snap = node->snapshot();
-    ASSERT_TRUE(snap.has_value());
-    auto records = snap->list({.p = Term::iri(kLoadSeq)});
-    ASSERT_TRUE(records.has_value());
-    for (const auto& r : *records)
-      if (!sources.count(r.meta.source)) ++foreign;
-    EXPECT_EQ(foreign, 0u) << "load items at the hospital with a source that is not their writer";
+    for (const auto& [src, numbers] : census)
+      if (!expected_sources.count(src)) foreign += numbers.size();
+    EXPECT_EQ(foreign, 0u) << "load items at " << at << " with a source that is not a writer at or below it";
   }
 
   EXPECT_EQ(d.down(), 0) << "tahvel down failed";
   std::vector<std::string> left;
   eventually([&] { left = leftover_processes(d.root()); return left.empty(); }, 10s);
   for (const auto& p : left) ADD_FAILURE() << "still running after tahvel down: " << p;
-  for (const auto& n : kNodes) {
+  for (const auto& n : layout.ids()) {
     auto node = Node::open(d.store(n));
     ASSERT_TRUE(node.has_value()) << n << "'s store does not open: " << node.error().message;
     auto snap = node->snapshot();
@@ -608,6 +748,59 @@ void run_chaos(ChaosPlan plan) {
     EXPECT_TRUE(snap->count({}).has_value()) << n << "'s store cannot be read";
   }
   runner.log("checked");
+}
+
+// The layouts themselves, without bringing any up: one seed gives one layout, and over many
+// seeds every shape the header comment promises is drawn, so a change to the generator cannot
+// quietly narrow what the chaos cases cover.
+TEST(ChaosLayout, SeedsReplayTheirLayoutAndDrawEveryShape) {
+  std::set<int> home_counts, sensor_counts;
+  bool sensor_under_hospital = false, fourth_level = false, shared_domain = false, dds_to_dds = false,
+       lcm_to_lcm = false, lcm_parent = false, dds_parent = false;
+  for (std::uint64_t seed = 0; seed < 500; ++seed) {
+    std::mt19937_64 rng(seed), again(seed);
+    const Layout layout = Layout::random(rng);
+    ASSERT_EQ(layout.tree(), Layout::random(again).tree()) << "seed " << seed;
+    SCOPED_TRACE("seed " + std::to_string(seed) + ":\n" + layout.tree());
+    ASSERT_EQ(layout.ids().front(), "hospital");
+    ASSERT_FALSE(layout.writers().empty());
+    EXPECT_FALSE(layout.node("hospital").writes);
+    int homes = 0;
+    std::set<std::string> lcm_urls;
+    std::map<int, int> parents_in_domain;
+    for (const auto& id : layout.ids()) {
+      const LayoutNode& n = layout.node(id);
+      if (n.tier == "home") {
+        ++homes;
+        sensor_counts.insert(static_cast<int>(layout.children(id).size()));
+      }
+      if (id == "ecg0a") sensor_under_hospital = true;
+      if (layout.ancestors(id).size() == 3) fourth_level = true;
+      ASSERT_EQ(layout.children(id).empty(), !n.listen.has_value()) << id;
+      if (!n.listen) continue;
+      if (n.listen->kind == "lcm") {
+        lcm_parent = true;
+        EXPECT_TRUE(lcm_urls.insert(n.listen->lcm_url).second) << "two parents on " << n.listen->lcm_url;
+        EXPECT_TRUE(n.listen->lcm_url.ends_with("?ttl=0")) << n.listen->lcm_url;
+      } else {
+        dds_parent = true;
+        shared_domain |= ++parents_in_domain[n.listen->dds_domain] > 1;
+      }
+      if (n.parent.empty()) continue;
+      const Listen& up = *layout.node(n.parent).listen;
+      dds_to_dds |= up.kind == "dds" && n.listen->kind == "dds" && up.dds_domain != n.listen->dds_domain;
+      lcm_to_lcm |= up.kind == "lcm" && n.listen->kind == "lcm";
+    }
+    home_counts.insert(homes);
+  }
+  EXPECT_EQ(home_counts, (std::set<int>{1, 2, 3}));
+  EXPECT_EQ(sensor_counts, (std::set<int>{0, 1, 2, 3}));
+  EXPECT_TRUE(sensor_under_hospital);
+  EXPECT_TRUE(fourth_level);
+  EXPECT_TRUE(lcm_parent && dds_parent);
+  EXPECT_TRUE(shared_domain) << "no two parents ever share a DDS domain";
+  EXPECT_TRUE(dds_to_dds) << "no gateway ever has two DDS domains";
+  EXPECT_TRUE(lcm_to_lcm) << "no gateway ever has two LCM URLs";
 }
 
 // The default-suite variant: five faults within 15 s (all kinds can be drawn), under 60 s in all.
