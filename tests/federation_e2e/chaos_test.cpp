@@ -72,6 +72,7 @@ using tahvel::node::Term;
 const std::string kBin = TAHVEL_BIN_DIR;
 const std::string kHospital = "http://example.org/hospital";
 const std::string kLoadSeq = "https://w3id.org/tahvel#loadSeq";
+
 // How a parent's children reach it (the `listen` of the topology file).
 struct Listen {
   std::string kind;  // "dds" or "lcm"
@@ -667,6 +668,19 @@ void run_chaos(ChaosPlan plan) {
     EXPECT_EQ(mine.size(), static_cast<std::size_t>(written[w])) << w << ": the writer's own numbering has holes";
     runner.log(w + " wrote " + std::to_string(written[w]) + " items");
   }
+
+  // Every link runs again before anything is judged: a program killed often late in the
+  // schedule waits out its back-off (up to 30 s), and a node with no load on its way (a leaf
+  // without a writer) would otherwise still be down, rightly so, when its parent's state of it
+  // is checked.
+  std::vector<std::string> not_running;
+  EXPECT_TRUE(eventually([&] {
+    auto rows = d.programs();
+    not_running.clear();
+    for (const auto& n : layout.ids())
+      if (rows[n + "/link"].state != "running") not_running.push_back(n + "/link");
+    return not_running.empty();
+  }, 60s)) << "links not started again within 60 s of the schedule's end: " << testing::PrintToString(not_running);
 
   // Settle: everything at every ancestor of its writer, every outbox and down queue empty.
   auto settled = [&] {
