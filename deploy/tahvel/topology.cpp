@@ -3,6 +3,7 @@
 #include <cstdlib>
 #include <filesystem>
 #include <map>
+#include <optional>
 #include <set>
 #include <toml++/toml.h>
 
@@ -63,6 +64,53 @@ node::Result<agents::Restart> restart_policy(const toml::node* n, const std::fil
   }
   return node::fail(Errc::invalid_argument, where(*n, file) + ": agent '" + agent_id +
                                                 "': restart must be \"on-failure\", \"always\" or \"never\"");
+}
+
+// The UDP port of an LCM `udpm://` URL (LCM's default 7667 when it names none), or nothing for
+// another provider.
+std::optional<std::uint32_t> lcm_udp_port(const std::string& url) {
+  constexpr std::string_view scheme = "udpm://";
+  if (!url.starts_with(scheme)) return std::nullopt;
+  const std::string address = url.substr(scheme.size(), url.find('?') == std::string::npos ? std::string::npos
+                                                                                           : url.find('?') - scheme.size());
+  const auto colon = address.rfind(':');
+  if (colon == std::string::npos) return 7667;
+  char* end = nullptr;
+  const unsigned long port = std::strtoul(address.c_str() + colon + 1, &end, 10);
+  if (end == address.c_str() + colon + 1 || *end != '\0' || port > 65535) return std::nullopt;
+  return static_cast<std::uint32_t>(port);
+}
+
+// Cyclone DDS binds its sockets for domain D on ports from 7400 + 250 D (its default port mapping:
+// discovery and data, multicast and one unicast pair per participant index, "auto" indices on
+// one host counting up from 0) without SO_REUSEADDR. An LCM link whose UDP port falls among them
+// fails to bind ("Address already in use") as soon as enough DDS participants run on its host —
+// LCM's default 7667 is domain 1's fourth participant — and then fails on every restart while
+// that participant lives. Nodes of one file may share a host (`tahvel up FILE` puts all on one),
+// so such a file is refused.
+constexpr std::uint32_t kDdsPortBase = 7400, kDdsDomainGain = 250;
+
+node::Result<void> check_lcm_ports_clear_of_dds(const Topology& topo) {
+  std::map<std::uint32_t, std::string> dds_domains;  // domain -> a node listening on it
+  for (const auto& n : topo.nodes)
+    if (n.listen && n.listen->kind == "dds") dds_domains.emplace(n.listen->dds_domain, n.id);
+  for (const auto& n : topo.nodes) {
+    if (!n.listen || n.listen->kind != "lcm") continue;
+    const auto port = lcm_udp_port(n.listen->lcm_url);
+    if (!port) continue;
+    for (const auto& [domain, dds_node] : dds_domains) {
+      const std::uint32_t first = kDdsPortBase + kDdsDomainGain * domain, last = first + kDdsDomainGain - 1;
+      if (*port < first || *port > last) continue;
+      return node::fail(Errc::invalid_argument,
+                        topo.file.string() + ": node '" + n.id + "': listen.url " + n.listen->lcm_url + ": UDP port " +
+                            std::to_string(*port) + " is among the ports Cyclone DDS takes for domain " +
+                            std::to_string(domain) + " (" + std::to_string(first) + "-" + std::to_string(last) +
+                            "), which node '" + dds_node + "' listens on; on a host running both, the LCM link " +
+                            "would find its port taken. Use a port outside " + std::to_string(first) + "-" +
+                            std::to_string(last) + " or another DDS domain");
+    }
+  }
+  return {};
 }
 
 }  // namespace
@@ -200,6 +248,7 @@ node::Result<Topology> load_topology(const std::filesystem::path& file) {
     }
     if (!progress) return node::fail(Errc::invalid_argument, file.string() + ": the parents of the nodes form a cycle");
   }
+  if (auto clear = check_lcm_ports_clear_of_dds(topo); !clear) return Unexpected<node::Error>{clear.error()};
   return topo;
 }
 

@@ -544,6 +544,39 @@ TEST_F(Cli, UpRefusesATopologyWhoseChildIriIsNotUnderItsParent) {
   EXPECT_FALSE(fs::exists(tmp_ / "state" / "hospital"));
 }
 
+// Cyclone DDS takes ports 7400 + 250 D ... for domain D and binds them without SO_REUSEADDR: an
+// LCM listen on one of them (LCM's default 7667 is domain 1's fourth participant) could not bind
+// once enough DDS links ran on the host, and its link failed on every restart (chaos seed
+// 8167902797962811051: home3 on udpm://...:7667 beside four links in domain 1). `up` refuses it,
+// naming the node, the port and the domain; a port outside the domain's ports, or the default
+// port beside domain 0, is fine. The file is checked before `--node` is looked up, so with a
+// node that is not in it nothing is started, with or without the check (no links on the host's
+// network).
+TEST_F(Cli, UpRefusesAnLcmPortAmongTheDdsDomainsPorts) {
+  auto topology = [](const std::string& home_listen, int hospital_domain) {
+    return "[[node]]\nid = \"hospital\"\niri = \"http://example.org/hospital\"\nlisten = { kind = \"dds\", domain = " +
+           std::to_string(hospital_domain) + " }\n\n[[node]]\nid = \"home1\"\nparent = \"hospital\"\nlisten = " + home_listen +
+           "\n\n[[node]]\nid = \"ecg1\"\nparent = \"home1\"\n";
+  };
+  const std::string state = (tmp_ / "state").string();
+  for (const std::string& listen : {std::string("{ kind = \"lcm\" }"),
+                                    std::string("{ kind = \"lcm\", url = \"udpm://239.255.76.67:7667?ttl=0\" }"),
+                                    std::string("{ kind = \"lcm\", url = \"udpm://239.255.76.68:7899\" }")}) {
+    spit(tmp_ / "clash.toml", topology(listen, 1));
+    Outcome up = run({"up", (tmp_ / "clash.toml").string(), "--state", state, "--node", "nobody"});
+    EXPECT_EQ(up.status, 1) << listen;
+    EXPECT_NE(up.err.find("node 'home1': listen.url"), std::string::npos) << up.err;
+    EXPECT_NE(up.err.find("among the ports Cyclone DDS takes for domain 1 (7650-7899)"), std::string::npos) << up.err;
+  }
+  for (const auto& [listen, domain] : {std::pair<std::string, int>{"{ kind = \"lcm\" }", 0},
+                                       {"{ kind = \"lcm\", url = \"udpm://239.255.76.67:7900?ttl=0\" }", 1},
+                                       {"{ kind = \"lcm\", url = \"udpm://239.255.76.67:7649?ttl=0\" }", 1}}) {
+    spit(tmp_ / "clear.toml", topology(listen, domain));
+    Outcome up = run({"up", (tmp_ / "clear.toml").string(), "--state", state, "--node", "nobody"});
+    EXPECT_NE(up.err.find("--node 'nobody': no such node"), std::string::npos) << listen << " beside domain " << domain << ": " << up.err;
+  }
+}
+
 // An agent that finishes (exit 0) stays finished under the default restart policy — a replay
 // is not replayed again — while restart = "always" runs it again and "never" does not retry
 // a failure.
