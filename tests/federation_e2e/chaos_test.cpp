@@ -119,19 +119,27 @@ class Layout {
         l.add({"patch" + under.substr(3), under, "patch"});
       }
     }
-    // Each parent its own transport; LCM parents each their own URL (port, and a group of three).
-    int next_lcm_port = 7667;
+    // Each parent its own transport; LCM parents each their own URL (a port of its own, and a
+    // group of three). The ports count up from LCM's default 7667, skipping those Cyclone takes
+    // for the DDS domains drawn (7400 + 250 D, 250 each), which `tahvel up` refuses.
+    std::set<int> dds_domains;
     for (auto& n : l.nodes_) {
       if (l.children(n.id).empty()) continue;
       Listen listen;
-      if (pick(2) == 0) {
-        listen.kind = "dds";
-        listen.dds_domain = pick(4);
-      } else {
-        listen.kind = "lcm";
-        listen.lcm_url = "udpm://239.255.76." + std::to_string(67 + pick(3)) + ":" + std::to_string(next_lcm_port++) + "?ttl=0";
-      }
+      listen.kind = pick(2) == 0 ? "dds" : "lcm";
+      if (listen.kind == "dds") dds_domains.insert(listen.dds_domain = pick(4));
       n.listen = listen;
+    }
+    auto taken_by_dds = [&](int port) {
+      for (int d : dds_domains)
+        if (port >= 7400 + 250 * d && port < 7400 + 250 * (d + 1)) return true;
+      return false;
+    };
+    int next_lcm_port = 7667;
+    for (auto& n : l.nodes_) {
+      if (!n.listen || n.listen->kind != "lcm") continue;
+      while (taken_by_dds(next_lcm_port)) ++next_lcm_port;
+      n.listen->lcm_url = "udpm://239.255.76." + std::to_string(67 + pick(3)) + ":" + std::to_string(next_lcm_port++) + "?ttl=0";
     }
     for (auto& n : l.nodes_)
       if (!n.parent.empty() && pick(2) == 0) n.writes = true;
@@ -301,6 +309,29 @@ std::uint64_t chosen_seed() {
   return std::random_device{}() ^ (static_cast<std::uint64_t>(std::random_device{}()) << 32);
 }
 
+// The layout as a topology file (docs/deploy.md); the load agents stop once `stop_file` exists.
+std::string topology_toml(const Layout& layout, int every_ms, const fs::path& stop_file) {
+  const std::string dds_config = std::string(TAHVEL_SOURCE_DIR) + "/deploy/cyclonedds-loopback.xml";
+  std::ostringstream toml;
+  toml << "[deployment]\nname = \"chaos\"\n";
+  for (const auto& id : layout.ids()) {
+    const LayoutNode& n = layout.node(id);
+    toml << "\n[[node]]\nid = \"" << n.id << "\"\ntier = \"" << n.tier << "\"\n";
+    if (n.parent.empty()) {
+      toml << "iri = \"" << kHospital << "\"\nstore = { durability = \"durable\" }\n";
+    } else {
+      toml << "parent = \"" << n.parent << "\"\n";
+      // Every node on the way forwards the load, so that each item goes all the way up.
+      toml << "forward = [\"_ tv:loadSeq _\"]\n";
+    }
+    if (n.listen) toml << "listen = " << n.listen->toml(dds_config) << "\n";
+    if (n.writes)
+      toml << "\n  [[node.agent]]\n  id = \"load\"\n  run = [\"" << kBin << "/tahvel-e2e-load\", \"{store}\", \"--every-ms\", \""
+           << every_ms << "\", \"--stop-file\", \"" << stop_file.string() << "\"]\n";
+  }
+  return toml.str();
+}
+
 // The layout under `tahvel up` (its topology file in the case's folder), a load agent on each
 // of its writers; `tahvel up` in the constructor, `tahvel down` by down() or the destructor.
 class ChaosDeployment {
@@ -310,31 +341,9 @@ class ChaosDeployment {
     root_ = mkdtemp(pattern.data());
     state_ = root_ / "state";
     stop_file_ = root_ / "stop-load";
-    std::ofstream(topology()) << topology_toml(every_ms);
+    std::ofstream(topology()) << topology_toml(layout_, every_ms, stop_file_);
     // One supervisor per node, as one machine each of a real deployment runs it (docs/deploy.md).
     for (const auto& n : layout_.ids()) EXPECT_TRUE(bring_up(n)) << n;
-  }
-
-  std::string topology_toml(int every_ms) const {
-    const std::string dds_config = std::string(TAHVEL_SOURCE_DIR) + "/deploy/cyclonedds-loopback.xml";
-    std::ostringstream toml;
-    toml << "[deployment]\nname = \"chaos\"\n";
-    for (const auto& id : layout_.ids()) {
-      const LayoutNode& n = layout_.node(id);
-      toml << "\n[[node]]\nid = \"" << n.id << "\"\ntier = \"" << n.tier << "\"\n";
-      if (n.parent.empty()) {
-        toml << "iri = \"" << kHospital << "\"\nstore = { durability = \"durable\" }\n";
-      } else {
-        toml << "parent = \"" << n.parent << "\"\n";
-        // Every node on the way forwards the load, so that each item goes all the way up.
-        toml << "forward = [\"_ tv:loadSeq _\"]\n";
-      }
-      if (n.listen) toml << "listen = " << n.listen->toml(dds_config) << "\n";
-      if (n.writes)
-        toml << "\n  [[node.agent]]\n  id = \"load\"\n  run = [\"" << kBin << "/tahvel-e2e-load\", \"{store}\", \"--every-ms\", \""
-             << every_ms << "\", \"--stop-file\", \"" << stop_file_.string() << "\"]\n";
-    }
-    return toml.str();
   }
 
   // `tahvel up --node`, as systemd starts a node's supervisor again after a crash.
@@ -764,9 +773,9 @@ void run_chaos(ChaosPlan plan) {
   runner.log("checked");
 }
 
-// The layouts themselves, without bringing any up: one seed gives one layout, and over many
-// seeds every shape the header comment promises is drawn, so a change to the generator cannot
-// quietly narrow what the chaos cases cover.
+// The layouts themselves, without bringing any up: one seed gives one layout, `tahvel up`
+// accepts its file, and over many seeds every shape the header comment promises is drawn, so a
+// change to the generator cannot quietly narrow what the chaos cases cover.
 TEST(ChaosLayout, SeedsReplayTheirLayoutAndDrawEveryShape) {
   std::set<int> home_counts, sensor_counts;
   bool sensor_under_hospital = false, fourth_level = false, shared_domain = false, dds_to_dds = false,
@@ -782,6 +791,7 @@ TEST(ChaosLayout, SeedsReplayTheirLayoutAndDrawEveryShape) {
     int homes = 0;
     std::set<std::string> lcm_urls;
     std::map<int, int> parents_in_domain;
+    std::vector<int> lcm_ports;
     for (const auto& id : layout.ids()) {
       const LayoutNode& n = layout.node(id);
       if (n.tier == "home") {
@@ -794,6 +804,7 @@ TEST(ChaosLayout, SeedsReplayTheirLayoutAndDrawEveryShape) {
       if (!n.listen) continue;
       if (n.listen->kind == "lcm") {
         lcm_parent = true;
+        lcm_ports.push_back(std::stoi(n.listen->lcm_url.substr(n.listen->lcm_url.rfind(':') + 1)));
         EXPECT_TRUE(lcm_urls.insert(n.listen->lcm_url).second) << "two parents on " << n.listen->lcm_url;
         EXPECT_TRUE(n.listen->lcm_url.ends_with("?ttl=0")) << n.listen->lcm_url;
       } else {
@@ -806,7 +817,27 @@ TEST(ChaosLayout, SeedsReplayTheirLayoutAndDrawEveryShape) {
       lcm_to_lcm |= up.kind == "lcm" && n.listen->kind == "lcm";
     }
     home_counts.insert(homes);
+    for (int port : lcm_ports)
+      for (const auto& [domain, parents] : parents_in_domain)
+        EXPECT_FALSE(port >= 7400 + 250 * domain && port < 7400 + 250 * (domain + 1))
+            << "LCM port " << port << " among DDS domain " << domain << "'s ports (tahvel up refuses it)";
   }
+  // `tahvel up` accepts every layout's file (it checks a file before it looks up --node, so a
+  // node that is not in it starts nothing).
+  std::string pattern = (fs::temp_directory_path() / "tahvel-chaos-layouts-XXXXXX").string();
+  const fs::path dir = mkdtemp(pattern.data());
+  for (std::uint64_t seed = 0; seed < 100; ++seed) {
+    std::mt19937_64 rng(seed);
+    const Layout layout = Layout::random(rng);
+    std::ofstream(dir / "topology.toml") << topology_toml(layout, 10, dir / "stop");
+    auto up = ChaosDeployment::run(kBin + "/tahvel up " + (dir / "topology.toml").string() + " --state " +
+                                   (dir / "state").string() + " --node nobody");
+    EXPECT_NE(up.second.find("--node 'nobody': no such node"), std::string::npos)
+        << "seed " << seed << ": " << up.second << "\n" << layout.tree();
+  }
+  std::error_code ec;
+  fs::remove_all(dir, ec);
+
   EXPECT_EQ(home_counts, (std::set<int>{1, 2, 3}));
   EXPECT_EQ(sensor_counts, (std::set<int>{0, 1, 2, 3}));
   EXPECT_TRUE(sensor_under_hospital);
