@@ -9,7 +9,7 @@
 //
 // Each node with children listens on a transport drawn at random: Cyclone DDS in a domain from
 // 0-3 (parents may share a domain or not), or LCM on a URL of its own (another multicast port,
-// always ttl=0: loopback only). A gateway whose parent and children use one kind thus has two
+// clear of the ports Cyclone takes for the domains drawn; always ttl=0: loopback only). A gateway whose parent and children use one kind thus has two
 // endpoints of it (layouts_test.cpp). One supervisor per node, as on separate machines. A load
 // agent on a random non-empty subset of the non-root nodes writes numbered items
 // (load_writer.cpp) that every forwarding policy on the way sends up, while a random schedule of
