@@ -466,6 +466,11 @@ TEST_F(Cli, UpRunsTheDispatcherOfANodeAndDownStopsIt) {
 // starts anyway and `down` never signals that pid: both go by the lock the running supervisor
 // holds on its pid file. (Found by Chaos.*: `tahvel up --node` after a crashed node's supervisor
 // refused with "already up" while the supervisor was a zombie.)
+// One node with one agent that does nothing for ten minutes.
+const char* const kIdleNodeToml =
+    "[[node]]\nid = \"solo\"\niri = \"http://example.org/solo\"\n"
+    "  [[node.agent]]\n  id = \"idle\"\n  run = [\"/bin/sleep\", \"600\"]\n";
+
 TEST_F(Cli, UpAndDownIgnoreAStalePidFileWhosePidIsAnotherProgram) {
   pid_t other = fork();  // another program that now has the pid written in the stale file
   if (other == 0) {
@@ -473,9 +478,7 @@ TEST_F(Cli, UpAndDownIgnoreAStalePidFileWhosePidIsAnotherProgram) {
     _exit(127);
   }
   ASSERT_GT(other, 0);
-  spit(tmp_ / "node.toml",
-       "[[node]]\nid = \"solo\"\niri = \"http://example.org/solo\"\n"
-       "  [[node.agent]]\n  id = \"idle\"\n  run = [\"/bin/sleep\", \"600\"]\n");
+  spit(tmp_ / "node.toml", kIdleNodeToml);
   const std::string state = (tmp_ / "state").string();
   fs::create_directories(state);
   spit(tmp_ / "state" / "supervisor-all.pid", std::to_string(other) + "\n");
@@ -501,28 +504,28 @@ TEST_F(Cli, UpAndDownIgnoreAStalePidFileWhosePidIsAnotherProgram) {
 // The supervisor of a node is SIGKILLed: its programs die with it, and `status` must not go on
 // showing them as running from the supervisor's last state file.
 TEST_F(Cli, StatusDoesNotCallProgramsRunningOnceTheirSupervisorIsGone) {
-  spit(tmp_ / "node.toml",
-       "[[node]]\nid = \"solo\"\niri = \"http://example.org/solo\"\n"
-       "  [[node.agent]]\n  id = \"idle\"\n  run = [\"/bin/sleep\", \"600\"]\n");
+  spit(tmp_ / "node.toml", kIdleNodeToml);
   const std::string state = (tmp_ / "state").string();
   Outcome up = run({"up", (tmp_ / "node.toml").string(), "--state", state});
   ASSERT_EQ(up.status, 0) << up.err;
-  Outcome before;
-  for (int i = 0; i < 100; ++i) {  // the supervisor writes its state file within 100 ms
-    before = run({"status", "--state", state});
-    if (before.out.find("idle  running") != std::string::npos) break;
-    std::this_thread::sleep_for(std::chrono::milliseconds(50));
-  }
+  // `status` again every 50 ms, up to 5 s, until its output does (or does not) show the agent
+  // running: the supervisor rewrites its state file every 100 ms, and the lock on its pid file
+  // goes when the process is gone.
+  auto status_until = [&](bool running) {
+    Outcome out;
+    for (int i = 0; i < 100; ++i) {
+      out = run({"status", "--state", state});
+      if ((out.out.find("idle  running") != std::string::npos) == running) break;
+      std::this_thread::sleep_for(std::chrono::milliseconds(50));
+    }
+    return out;
+  };
+  Outcome before = status_until(true);
   ASSERT_NE(before.out.find("idle  running"), std::string::npos) << before.out << before.err;
   const pid_t supervisor = std::atoi(slurp(tmp_ / "state" / "supervisor-all.pid").c_str());
   ASSERT_GT(supervisor, 0);
   ASSERT_EQ(kill(supervisor, SIGKILL), 0);
-  Outcome after;
-  for (int i = 0; i < 100; ++i) {  // the lock on the pid file goes when the process is gone
-    after = run({"status", "--state", state});
-    if (after.out.find("idle  running") == std::string::npos) break;
-    std::this_thread::sleep_for(std::chrono::milliseconds(50));
-  }
+  Outcome after = status_until(false);
   EXPECT_EQ(after.status, 0) << after.err;
   EXPECT_EQ(after.out.find("idle  running"), std::string::npos) << after.out;
   EXPECT_NE(after.out.find("idle  stopped (its supervisor is not running)"), std::string::npos) << after.out;

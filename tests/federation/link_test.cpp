@@ -104,6 +104,19 @@ struct Tree {
                         .children = {"home1", "home2"}, .resend_after = 100ms, .log = hospital_log.sink()})
         .value();
   }
+  // home1 as a gateway on `endpoint` (its side towards the hospital and towards its children),
+  // and a sensor node ecg1 below it with a store at `sensor_dir`: the sensor's link.
+  std::unique_ptr<Link> start_gateway_and_sensor(std::shared_ptr<Transport> endpoint, const std::string& sensor_dir) {
+    const std::string sensor_iri = kHome1 + "/ecg1";
+    EXPECT_TRUE(node::Node::init(sensor_dir, {.iri = sensor_iri}));
+    home1 = Link::start({.dir = home1_dir, .parent_iri = kHospital, .up = endpoint, .down = endpoint,
+                         .resend_after = 100ms, .heartbeat_every = 200ms, .log = home1_log.sink()})
+                .value();
+    return Link::start({.dir = sensor_dir, .parent_iri = kHome1,
+                        .up = std::shared_ptr<Transport>(bus.open(sensor_iri, home2_log.sink())),
+                        .resend_after = 100ms, .heartbeat_every = 200ms, .log = home2_log.sink()})
+        .value();
+  }
   std::unique_ptr<Link> start_home(const std::string& dir, const std::string& iri, Log& log) {
     return Link::start({.dir = dir, .parent_iri = kHospital, .up = std::shared_ptr<Transport>(bus.open(iri, log.sink())),
                         .resend_after = 100ms, .heartbeat_every = 200ms, .log = log.sink()})
@@ -421,17 +434,10 @@ TEST(Link, ConfigurationTravelsTwoHopsDownToAnAgentOfASensorNode) {
   Tree tree;
   const std::string sensor_iri = kHome1 + "/ecg1";
   const std::string sensor_dir = (tree.tmp / "ecg1").string();
-  ASSERT_TRUE(node::Node::init(sensor_dir, {.iri = sensor_iri}));
   tree.hospital = tree.start_hospital();
   // home1 is a child of the hospital and the parent of ecg1, on the same bus.
-  auto home1_endpoint = std::shared_ptr<Transport>(tree.bus.open(kHome1, tree.home1_log.sink()));
-  tree.home1 = Link::start({.dir = tree.home1_dir, .parent_iri = kHospital, .up = home1_endpoint, .down = home1_endpoint,
-                            .resend_after = 100ms, .heartbeat_every = 200ms, .log = tree.home1_log.sink()})
-                   .value();
-  auto sensor_link = Link::start({.dir = sensor_dir, .parent_iri = kHome1,
-                                  .up = std::shared_ptr<Transport>(tree.bus.open(sensor_iri, tree.home2_log.sink())),
-                                  .resend_after = 100ms, .heartbeat_every = 200ms, .log = tree.home2_log.sink()})
-                         .value();
+  auto sensor_link =
+      tree.start_gateway_and_sensor(std::shared_ptr<Transport>(tree.bus.open(kHome1, tree.home1_log.sink())), sensor_dir);
   ASSERT_TRUE(eventually([&] { return tree.home1->connected() && sensor_link->connected(); }));
   auto source = node::Node::open(sensor_dir).value().agent("source").value();
   auto operator_ = node::Node::open(tree.hospital_dir).value().agent("operator").value();
@@ -504,18 +510,10 @@ class StallingTransport : public Transport {
 
 TEST(Link, AGatewayKeepsTakingItsSensorsItemsWhileItsParentStallsItsSends) {
   Tree tree;
-  const std::string sensor_iri = kHome1 + "/ecg1";
   const std::string sensor_dir = (tree.tmp / "ecg1").string();
-  ASSERT_TRUE(node::Node::init(sensor_dir, {.iri = sensor_iri}));
   tree.hospital = tree.start_hospital();
   auto home1_endpoint = std::make_shared<StallingTransport>(tree.bus.open(kHome1, tree.home1_log.sink()), kHospital);
-  tree.home1 = Link::start({.dir = tree.home1_dir, .parent_iri = kHospital, .up = home1_endpoint, .down = home1_endpoint,
-                            .resend_after = 100ms, .heartbeat_every = 200ms, .log = tree.home1_log.sink()})
-                   .value();
-  auto sensor_link = Link::start({.dir = sensor_dir, .parent_iri = kHome1,
-                                  .up = std::shared_ptr<Transport>(tree.bus.open(sensor_iri, tree.home2_log.sink())),
-                                  .resend_after = 100ms, .heartbeat_every = 200ms, .log = tree.home2_log.sink()})
-                         .value();
+  auto sensor_link = tree.start_gateway_and_sensor(home1_endpoint, sensor_dir);
   ASSERT_TRUE(eventually([&] { return tree.home1->connected() && sensor_link->connected(); }));
   auto hrv = node::Node::open(sensor_dir).value().agent("hrv").value();
   const node::Pattern numbered{.p = Term::iri(kEx + "n")};
