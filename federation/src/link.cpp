@@ -178,9 +178,9 @@ struct Link::Impl {
   Transport* child_transport() const { return opt.down.get(); }
 
   // False when the frame certainly did not leave (logged). A binding may block in send (a DDS
-  // writer whose reader stopped taking waits up to 1 s), so the item streams and the heartbeat
-  // send with `mu` released: a stalled parent must not stop this node from serving its
-  // children, nor a stalled child the others.
+  // writer whose reader stopped taking waits up to 1 s), so nothing is sent with `mu` held: a
+  // stalled parent must not stop this node from serving its children, nor a stalled child the
+  // others.
   bool send(Transport* via, Frame frame) {
     if (!via) return false;
     frame.from = self;
@@ -199,13 +199,39 @@ struct Link::Impl {
       if (!send(via, std::move(f))) break;
   }
 
-  void send_error(Transport* via, const std::string& to, std::uint64_t seq, wire::ErrorBody body) {
-    Frame f;
-    f.kind = FrameKind::error;
-    f.to = to;
-    f.seq = seq;
-    f.body = wire::encode_error(body);
-    send(via, std::move(f));
+  // Frames decided while `mu` is held (acknowledgements, answer chunks, queries, errors), sent by
+  // send_all() once it is released, for the reason given at send().
+  struct Outgoing {
+    std::vector<std::pair<Transport*, Frame>> frames;
+    void add(Transport* via, Frame f) {
+      if (via) frames.emplace_back(via, std::move(f));
+    }
+    void error(Transport* via, const std::string& to, std::uint64_t seq, const wire::ErrorBody& body) {
+      Frame f;
+      f.kind = FrameKind::error;
+      f.to = to;
+      f.seq = seq;
+      f.body = wire::encode_error(body);
+      add(via, std::move(f));
+    }
+  };
+
+  // Sends in order, with `mu` not held. After a frame that did not leave, the later ones on the
+  // same binding are skipped, as in send_run: answer chunks go again from the resend timer, a
+  // query from the parent's, and acknowledgements and errors answer the peer's next resend.
+  void send_all(Outgoing& out) {
+    std::vector<Transport*> failed;
+    for (auto& [via, f] : out.frames) {
+      if (std::find(failed.begin(), failed.end(), via) != failed.end()) continue;
+      if (!send(via, std::move(f))) failed.push_back(via);
+    }
+    out.frames.clear();
+  }
+
+  void send_error(Transport* via, const std::string& to, std::uint64_t seq, const wire::ErrorBody& body) {
+    Outgoing out;
+    out.error(via, to, seq, body);
+    send_all(out);
   }
 
   // ---- receiving ----------------------------------------------------------------------------
@@ -381,8 +407,10 @@ struct Link::Impl {
       if (it != children.end() && it->second->connected) child = it->second;
     }
     if (up ? !child : !from_parent(head)) {
-      std::lock_guard lock(mu);
-      counters.refused += frames.size();
+      {
+        std::lock_guard lock(mu);
+        counters.refused += frames.size();
+      }
       if (up && opt.down) {  // P6: a child the parent does not know registers again
         send_error(via, head.from, 0, {"unregistered", "<" + head.from + "> must say hello to <" + self + "> first", ""});
       } else {
@@ -483,8 +511,10 @@ struct Link::Impl {
       why = "<" + f.from + "> is not the parent <" + opt.parent_iri + "> of <" + self + ">";
     }
     log("refused " + std::to_string(static_cast<int>(f.kind)) + "-frame: " + why);
-    std::lock_guard lock(mu);
-    ++counters.refused;
+    {
+      std::lock_guard lock(mu);
+      ++counters.refused;
+    }
     if (f.kind == FrameKind::hello) send_error(via, f.from, 0, {"refused", why, ""});
   }
 
@@ -536,8 +566,9 @@ struct Link::Impl {
       }
       case FrameKind::heartbeat: {
         auto state = wire::decode_state(f.body);
-        std::lock_guard lock(mu);
+        std::unique_lock lock(mu);
         if (!child->connected) {
+          lock.unlock();
           send_error(via, f.from, 0, {"unregistered", "<" + f.from + "> must say hello to <" + self + "> first", ""});
           return;
         }
@@ -551,9 +582,14 @@ struct Link::Impl {
         return;
       }
       case FrameKind::ack: {
-        std::lock_guard lock(mu);
+        std::unique_lock lock(mu);
         child->last_seen = Clock::now();
-        if (f.seq != 0) return answer_ack(f);
+        if (f.seq != 0) {
+          Outgoing out;
+          answer_ack(f, out);
+          lock.unlock();
+          return send_all(out);
+        }
         bool news = false;  // for the pump: room in the window, items to acknowledge, a go-back
         if (f.ack > child->down_mark) {
           child->down_mark = f.ack;
@@ -595,8 +631,13 @@ struct Link::Impl {
         return;
       }
       case FrameKind::ack: {
-        std::lock_guard lock(mu);
-        if (f.seq != 0) return answer_ack(f);
+        std::unique_lock lock(mu);
+        if (f.seq != 0) {
+          Outgoing out;
+          answer_ack(f, out);
+          lock.unlock();
+          return send_all(out);
+        }
         if (f.ack > up_mark) {
           up_mark = f.ack;
           up_progress = Clock::now();
@@ -647,25 +688,27 @@ struct Link::Impl {
     }
     if (q->target == self) return answer_here(*q, f.seq);
     std::string child_iri = child_on_path(self, q->target);
-    std::lock_guard lock(mu);
-    auto it = child_iri.empty() ? children.end() : children.find(child_iri);
-    if (it == children.end() || !opt.down) {
-      send_error(via, opt.parent_iri, f.seq, {"unknown_node", "no node <" + q->target + "> below <" + self + ">", q->origin});
-      return;
+    Outgoing out;
+    {
+      std::lock_guard lock(mu);
+      auto it = child_iri.empty() ? children.end() : children.find(child_iri);
+      if (it == children.end() || !opt.down) {
+        out.error(via, opt.parent_iri, f.seq, {"unknown_node", "no node <" + q->target + "> below <" + self + ">", q->origin});
+      } else if (!it->second->connected) {
+        out.error(via, opt.parent_iri, f.seq,
+                  {"unreachable", "<" + child_iri + "> (on the way to <" + q->target + ">) is not connected to <" + self + ">", q->origin});
+      } else {
+        Frame down = f;
+        down.to = child_iri;
+        InStream& in = in_answers[key];
+        in.forward_up = true;
+        in.child = child_iri;
+        in.query_frame = down;
+        in.sent = Clock::now();
+        out.add(opt.down.get(), std::move(down));
+      }
     }
-    if (!it->second->connected) {
-      send_error(via, opt.parent_iri, f.seq,
-                 {"unreachable", "<" + child_iri + "> (on the way to <" + q->target + ">) is not connected to <" + self + ">", q->origin});
-      return;
-    }
-    Frame down = f;
-    down.to = child_iri;
-    InStream& in = in_answers[key];
-    in.forward_up = true;
-    in.child = child_iri;
-    in.query_frame = down;
-    in.sent = Clock::now();
-    send(opt.down.get(), std::move(down));
+    send_all(out);
   }
 
   // Runs the query on this node's snapshot and queues the answer in chunks (P14).
@@ -688,11 +731,9 @@ struct Link::Impl {
         else records = std::move(*found);
       }
     }
-    std::lock_guard lock(mu);
-    if (failure) {
-      send_error(opt.up.get(), opt.parent_iri, id, {"query_failed", "<" + self + ">: " + *failure, q.origin});
-      return;
-    }
+    if (failure) return send_error(opt.up.get(), opt.parent_iri, id, {"query_failed", "<" + self + ">: " + *failure, q.origin});
+    Outgoing window;
+    std::unique_lock lock(mu);
     OutStream& out = out_answers[query_key(q.origin, id)];
     out.origin = q.origin;
     out.query = id;
@@ -718,18 +759,20 @@ struct Link::Impl {
       chunk.records.push_back(std::move(r));
     }
     flush(true);
-    send_answer_window(out);
+    answer_window(out, window);
+    lock.unlock();
+    send_all(window);
   }
 
-  // Caller holds mu.
-  void send_answer_window(OutStream& out) {
+  // Caller holds mu: the chunks of `out` in its window, to send once mu is released.
+  void answer_window(OutStream& out, Outgoing& window) {
     std::size_t n = std::min(out.unacked.size(), kAnswerWindow);
-    for (std::size_t i = 0; i < n; ++i) send(opt.up.get(), out.unacked[i]);
+    for (std::size_t i = 0; i < n; ++i) window.add(opt.up.get(), out.unacked[i]);
     out.last_send = Clock::now();
   }
 
   // Caller holds mu.
-  void answer_ack(const Frame& f) {
+  void answer_ack(const Frame& f, Outgoing& window) {
     const std::string key = query_key(f.body, f.seq);
     auto it = out_answers.find(key);
     if (it == out_answers.end()) return;
@@ -743,7 +786,7 @@ struct Link::Impl {
       out_answers.erase(it);
       return;
     }
-    if (moved) send_answer_window(out);
+    if (moved) answer_window(out, window);
   }
 
   void answer_from_child(Transport* via, const Frame& f) {
@@ -753,7 +796,8 @@ struct Link::Impl {
       return;
     }
     const std::string key = query_key(body->origin, f.seq);
-    std::lock_guard lock(mu);
+    Outgoing out;
+    std::unique_lock lock(mu);
     auto it = in_answers.find(key);
     if (it == in_answers.end()) return;  // a query this node no longer waits for
     InStream& in = it->second;
@@ -761,16 +805,16 @@ struct Link::Impl {
       ++in.expected;
       if (body->last) in.done = true;
       if (in.forward_up) {
-        OutStream& out = out_answers[key];
-        out.origin = body->origin;
-        out.query = f.seq;
+        OutStream& stream = out_answers[key];
+        stream.origin = body->origin;
+        stream.query = f.seq;
         Frame up = f;
         up.to = opt.parent_iri;
-        up.prev = out.next_chunk++;
-        out.unacked.push_back(std::move(up));
-        if (out.unacked.size() <= kAnswerWindow) {
-          send(opt.up.get(), out.unacked.back());
-          out.last_send = Clock::now();
+        up.prev = stream.next_chunk++;
+        stream.unacked.push_back(std::move(up));
+        if (stream.unacked.size() <= kAnswerWindow) {
+          out.add(opt.up.get(), stream.unacked.back());
+          stream.last_send = Clock::now();
         }
       } else {
         board_writes.emplace_back(in.reply_to, f);
@@ -783,7 +827,9 @@ struct Link::Impl {
     ack.seq = f.seq;
     ack.ack = in.expected - 1;
     ack.body = body->origin;
-    send(via, std::move(ack));
+    out.add(via, std::move(ack));
+    lock.unlock();
+    send_all(out);
   }
 
   void error_from_child(const Frame& f) {
@@ -792,7 +838,7 @@ struct Link::Impl {
       log("dropped a malformed error from <" + f.from + ">: " + body.error().message);
       return;
     }
-    std::lock_guard lock(mu);
+    std::unique_lock lock(mu);
     if (f.seq == 0) {
       log("error from child <" + f.from + ">: " + body->code + ": " + body->message);
       return;
@@ -804,6 +850,7 @@ struct Link::Impl {
     if (it->second.forward_up) {
       Frame up = f;
       up.to = opt.parent_iri;
+      lock.unlock();
       send(opt.up.get(), std::move(up));
     } else {
       board_writes.emplace_back(it->second.reply_to, f);
@@ -1095,6 +1142,7 @@ struct Link::Impl {
       std::vector<std::pair<std::string, Frame>> writes;
       std::vector<std::shared_ptr<Child>> dirty;
       bool beat = false;
+      Outgoing resends;
       {
         std::unique_lock lock(mu);
         changed.wait_for(lock, 50ms, [&] { return !board_writes.empty() || stopping.load(); });
@@ -1116,15 +1164,16 @@ struct Link::Impl {
           if (child->state_dirty) dirty.push_back(child);
         }
         for (auto& [key, out] : out_answers)
-          if (!out.unacked.empty() && now - out.last_send > opt.resend_after) send_answer_window(out);
+          if (!out.unacked.empty() && now - out.last_send > opt.resend_after) answer_window(out, resends);
         for (auto& [key, in] : in_answers) {
           if (!in.done && in.expected == 1 && now - in.sent > 1s && in.resends < 10) {
             ++in.resends;
             in.sent = now;
-            send(opt.down.get(), in.query_frame);
+            resends.add(opt.down.get(), in.query_frame);
           }
         }
       }
+      send_all(resends);
       if (beat && opt.up) {
         auto depth = uplink->pending();
         auto down_mark = uplink->relay_mark(kDownStream);

@@ -9,6 +9,7 @@
 #include <algorithm>
 #include <condition_variable>
 #include <filesystem>
+#include <map>
 #include <mutex>
 #include <set>
 #include <thread>
@@ -482,6 +483,7 @@ class StallingTransport : public Transport {
       std::unique_lock lock(mu_);
       if (stalled_) {
         ++blocked_;
+        ++blocked_kinds_[frame.kind];
         if (cv_.wait_for(lock, 1s, [&] { return !stalled_; }) == false)
           return node::fail(Errc::timeout, "write blocked 1 s: the reader takes nothing");
       }
@@ -498,6 +500,10 @@ class StallingTransport : public Transport {
     std::lock_guard lock(mu_);
     return blocked_;
   }
+  int blocked(FrameKind kind) {
+    std::lock_guard lock(mu_);
+    return blocked_kinds_[kind];
+  }
 
  private:
   std::unique_ptr<Transport> inner_;
@@ -506,6 +512,7 @@ class StallingTransport : public Transport {
   std::condition_variable cv_;
   bool stalled_ = false;
   int blocked_ = 0;
+  std::map<FrameKind, int> blocked_kinds_;
 };
 
 TEST(Link, AGatewayKeepsTakingItsSensorsItemsWhileItsParentStallsItsSends) {
@@ -534,6 +541,54 @@ TEST(Link, AGatewayKeepsTakingItsSensorsItemsWhileItsParentStallsItsSends) {
       << count(tree.hospital_dir, numbered) << " of 40 reached the hospital after the stall";
   std::this_thread::sleep_for(300ms);
   EXPECT_EQ(count(tree.hospital_dir, numbered), 40u);
+  sensor_link.reset();
+}
+
+TEST(Link, AGatewayKeepsTakingItsSensorsItemsWhileItsAnswerToAStalledParentWaits) {
+  Tree tree;
+  const std::string sensor_dir = (tree.tmp / "ecg1").string();
+  tree.hospital = tree.start_hospital();
+  auto home1_endpoint = std::make_shared<StallingTransport>(tree.bus.open(kHome1, tree.home1_log.sink()), kHospital);
+  auto sensor_link = tree.start_gateway_and_sensor(home1_endpoint, sensor_dir);
+  ASSERT_TRUE(eventually([&] { return tree.home1->connected() && sensor_link->connected(); }));
+  ASSERT_TRUE(eventually([&] {
+    return count(tree.hospital_dir, {.s = Term::iri(kHome1), .p = Term::iri(vocab::kLinkState), .o = Term::literal("up")}) == 1;
+  }));
+  // Raw data at the home whose answer takes more chunks than the answer window (P14).
+  auto ecg = node::Node::open(tree.home1_dir).value().agent("ecg").value();
+  const std::string samples(40 * 1024, 'x');
+  for (int i = 0; i < 40; ++i) {
+    node::Item chunk;
+    chunk.add(Term::iri(kHome1 + "/rec/long/" + std::to_string(i)), Term::iri(kEx + "samples"),
+              Term::literal(std::to_string(i) + samples));
+    ASSERT_TRUE(ecg.store(chunk));
+  }
+
+  home1_endpoint->stall(true);
+  auto hospital = node::Node::open(tree.hospital_dir).value();
+  std::size_t got = 0;
+  Result<std::uint64_t> answered = 0;
+  std::thread asking([&] {
+    answered = remote_query(hospital, {.target = kHome1, .pattern = {.p = Term::iri(kEx + "samples")}}, 30s,
+                            [&](const node::Record&) { ++got; });
+  });
+  ASSERT_TRUE(eventually([&] { return home1_endpoint->blocked(FrameKind::answer) > 0; }))
+      << "the home never tried to send its answer up";
+  // While its answer waits on the stalled parent, the home still relays what its sensor sends.
+  auto hrv = node::Node::open(sensor_dir).value().agent("hrv").value();
+  for (int i = 0; i < 20; ++i) ASSERT_TRUE(hrv.store(hrv_item(i)));
+  const node::Pattern numbered{.p = Term::iri(kEx + "n")};
+  const auto deadline = std::chrono::steady_clock::now() + 3s;
+  while (count(tree.home1_dir, numbered) < 20 && std::chrono::steady_clock::now() < deadline)
+    std::this_thread::sleep_for(10ms);
+  EXPECT_EQ(count(tree.home1_dir, numbered), 20u) << "the home stopped serving its sensor while its answer waited";
+
+  // Once the parent takes again, the whole answer arrives, and the sensor's items too.
+  home1_endpoint->stall(false);
+  asking.join();
+  ASSERT_TRUE(answered) << answered.error().message;
+  EXPECT_EQ(got, 40u);
+  ASSERT_TRUE(eventually([&] { return count(tree.hospital_dir, numbered) == 20; }));
   sensor_link.reset();
 }
 
