@@ -282,7 +282,7 @@ TEST(Hierarchy, CutLinksAndAKilledHomeLoseNothingAndDoubleNothing) {
   kill(sensor_link, SIGCONT);
   // Home 2 killed outright (its link and agents, SIGKILL); the supervisor restarts them.
   std::map<std::string, pid_t> home2;
-  for (const std::string& program : {"home2/link", "home2/rpeak", "home2/rr", "home2/hrv"}) {
+  for (const std::string program : {"home2/link", "home2/rpeak", "home2/rr", "home2/hrv"}) {
     home2[program] = d.pid_of(program);
     ASSERT_GT(home2[program], 0) << program;
   }

@@ -65,7 +65,7 @@ struct Dispatcher::Impl {
     if (options.log_dir.empty()) options.log_dir = options.folder.parent_path() / "dispatcher-log";
   }
 
-  Result<void> record(const std::string& run, std::vector<node::Triple> triples) {
+  Result<void> record(std::vector<node::Triple> triples) {
     node::Item item;
     item.triples = std::move(triples);
     auto id = agent.store(item);
@@ -100,7 +100,7 @@ Result<void> Dispatcher::Impl::command(std::uint64_t item, const std::string& te
   }
   auto refuse = [&](const std::string& why) -> Result<void> {
     events.push_back({DispatchEvent::refused, run, text, why});
-    return record(run, {t(run, kTv + "command", node::Term::literal(text)),
+    return record({t(run, kTv + "command", node::Term::literal(text)),
                         t(run, kTv + "state", node::Term::literal("refused")),
                         t(run, kTv + "output", node::Term::literal(why))});
   };
@@ -118,7 +118,7 @@ Result<void> Dispatcher::Impl::command(std::uint64_t item, const std::string& te
   runs[spec.name] = Run{run, argv[0], text, spec.name, spec.log_file, false};
   events.push_back({DispatchEvent::started, run, text, ""});
   auto state = supervisor.state(spec.name);
-  return record(run, {t(run, kTv + "command", node::Term::literal(text)),
+  return record({t(run, kTv + "command", node::Term::literal(text)),
                       t(run, kTv + "state", node::Term::literal("running")),
                       t(run, kTv + "pid", node::Term::integer(state ? state->pid : 0))});
 }
@@ -136,7 +136,7 @@ Result<void> Dispatcher::Impl::reap(std::vector<DispatchEvent>& events) {
     if (state && state->exit_status) triples.push_back(t(r.iri, kTv + "exitStatus", node::Term::integer(*state->exit_status)));
     if (!output.empty())
       triples.push_back(t(ns + r.name, ns + "result", is_word(output) ? node::Term::iri(ns + output) : node::Term::literal(output)));
-    if (auto w = record(r.iri, std::move(triples)); !w) return w;
+    if (auto w = record(std::move(triples)); !w) return w;
     events.push_back({DispatchEvent::ended, r.iri, r.command, state ? state->last_exit : how});
     it = runs.erase(it);
   }

@@ -528,7 +528,7 @@ void RuleRun<E>::match_rel(const Literal& l, const Arg* args, std::uint32_t rel,
     }
     return;
   }
-  Id probe[16];
+  Id probe[16] = {};
   std::uint32_t mask = 0;
   for (std::uint32_t i = 0; i < n; ++i) {
     probe[i] = arg(args[i]);
@@ -576,7 +576,7 @@ std::size_t RuleRun<E>::first_rows() {
   const Literal& l = rule_.body[plan_[q]];
   if (l.pred == kAnyBinary) return ~std::size_t{0} / 2;
   Relation& R = e_.rels[e_.rel_of_pred[l.pred]];
-  Id probe[16];
+  Id probe[16] = {};
   std::uint32_t mask = 0;
   for (std::uint32_t i = 0; i < R.arity; ++i) {
     probe[i] = arg(l.args[i]);
