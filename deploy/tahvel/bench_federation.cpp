@@ -310,6 +310,8 @@ bool wait_until(Clock::duration limit, F condition) {
 // line on a pipe and answers one line:
 //   lcm-echo NAME / dds-echo NAME        "ready" once listening, then "ok" or "error ..." when the
 //                                        ping side has stopped it
+//   binding-echo KIND IRI                the same through the binding (transport.h) of KIND bound
+//                                        to IRI (floors.h binding_echo)
 //   hospital KIND DIR IRI CHILD          a hospital Link over KIND (dds, lcm) on the store at DIR
 //                                        accepting CHILD: "ready"; then at "stop" it stops,
 //                                        answering "ok DUPLICATES_DROPPED RELAYED_IN"
@@ -392,6 +394,12 @@ class FarEnd {
           auto done = command == "lcm-echo" ? fed::lcm_echo(fed::LcmSettings{}, a, ready, 5s)
                                             : fed::dds_echo(dds_settings(), a, ready, 5s);
           reply(done ? "ok" : "error " + done.error().message);
+        } else if (command == "binding-echo") {
+          Diagnostics diag;
+          auto endpoint = open_transport(a == "dds" ? Kind::dds : Kind::lcm, b, diag);
+          reply("ready");
+          auto done = fed::binding_echo(*endpoint, 5s);
+          reply(done ? "ok" : "error " + done.error().message + diag.summary());
         } else if (command == "hospital") {
           Diagnostics diag;
           const Kind kind = a == "dds" ? Kind::dds : Kind::lcm;
@@ -857,6 +865,24 @@ fed::LatencyFloor floor_to_far_end(FarEnd& far, Kind kind, int rounds) {
   return *floor;
 }
 
+// The body size of the up frame that carries a numbered_item (its encoding in federation/wire.h,
+// measured once): the binding floor sends frames of the same size as the link phase.
+constexpr std::size_t kUpBodyBytes = 568;
+
+// The same through the bindings (floors.h binding_ping), with frames of an up frame's size.
+fed::LatencyFloor binding_to_far_end(FarEnd& far, Kind kind, int rounds) {
+  const std::string echo = hospital_iri(std::string("binding-") + name_of(kind)) + "/echo";
+  far.request(std::string("binding-echo ") + name_of(kind) + " " + echo, "ready", 30s);
+  Diagnostics diag;
+  auto endpoint = open_transport(kind, hospital_iri(std::string("binding-") + name_of(kind)) + "/ping", diag);
+  auto floor = fed::binding_ping(*endpoint, echo, rounds, kUpBodyBytes);
+  const std::string done = far.answer(30s);
+  const std::string what = std::string(name_of(kind)) + " binding ping-pong";
+  if (!floor) throw std::runtime_error(what + ": " + floor.error().message + diag.summary());
+  if (done != "ok") throw std::runtime_error(what + ", far end: " + done);
+  return *floor;
+}
+
 // ---- output --------------------------------------------------------------------------------
 
 void add_ingest(Figures& fig, const IngestFigures& ingest, const Config& cfg) {
@@ -884,8 +910,11 @@ void add_ingest(Figures& fig, const IngestFigures& ingest, const Config& cfg) {
   fig.set("triples_per_item", 3);
 }
 
-void add_latency(Figures& fig, const char* kind, const LinkFigures& l, const fed::LatencyFloor& raw) {
+void add_latency(Figures& fig, const char* kind, const LinkFigures& l, const fed::LatencyFloor& raw,
+                 const fed::LatencyFloor& binding) {
   const std::string k(kind);
+  fig.set(k + "_binding_p50_us", binding.p50_us);
+  fig.set(k + "_binding_p99_us", binding.p99_us);
   fig.set(k + "_up_p50_us", l.up.p50_us);
   fig.set(k + "_up_p99_us", l.up.p99_us);
   fig.set(k + "_raw_p50_us", raw.p50_us);
@@ -918,6 +947,9 @@ void print_table(const Figures& f, const Config& cfg) {
     }
   }
   if (!cfg.ingest_only) {
+    for (const char* k : {"dds", "lcm"})
+      std::printf("%-34s %10.1f %12.1f   (the binding alone, no link, no store)\n", (std::string(k) + " binding p50 / p99 us").c_str(),
+                  f.get(std::string(k) + "_binding_p50_us"), f.get(std::string(k) + "_binding_p99_us"));
     std::printf("%-34s %10.1f %12.1f   (no link: one store, one wake; a link hop has two)\n",
                 "store-to-watch p50 / p99 us", f.get("store_watch_p50_us"), f.get("store_watch_p99_us"));
     std::printf("%-34s %10.0f\n", "dds link items/s (one home)", f.get("dds_link_items_per_s"));
@@ -959,6 +991,8 @@ int run(const Config& cfg) {
   if (!cfg.ingest_only) {
     const fed::LatencyFloor dds_raw = floor_to_far_end(*far, Kind::dds, cfg.rounds);
     const fed::LatencyFloor lcm_raw = floor_to_far_end(*far, Kind::lcm, cfg.rounds);
+    const fed::LatencyFloor dds_binding = binding_to_far_end(*far, Kind::dds, cfg.rounds);
+    const fed::LatencyFloor lcm_binding = binding_to_far_end(*far, Kind::lcm, cfg.rounds);
     auto dds_inproc = fed::raw_dds_pingpong(dds_settings(), cfg.rounds);
     if (!dds_inproc) throw std::runtime_error("raw DDS ping-pong in this process: " + dds_inproc.error().message);
     auto lcm_inproc = fed::raw_lcm_pingpong(fed::LcmSettings{}, cfg.rounds);
@@ -966,8 +1000,8 @@ int run(const Config& cfg) {
     const Percentiles store_floor = store_to_watch(scratch, cfg.rounds, next_number);
     const LinkFigures dds = measure_link(Kind::dds, cfg, scratch, next_number, *far);
     const LinkFigures lcm = measure_link(Kind::lcm, cfg, scratch, next_number, *far);
-    add_latency(fig, "dds", dds, dds_raw);
-    add_latency(fig, "lcm", lcm, lcm_raw);
+    add_latency(fig, "dds", dds, dds_raw, dds_binding);
+    add_latency(fig, "lcm", lcm, lcm_raw, lcm_binding);
     fig.set("dds_raw_in_process_p50_us", dds_inproc->p50_us);
     fig.set("lcm_raw_in_process_p50_us", lcm_inproc->p50_us);
     fig.set("store_watch_p50_us", store_floor.p50_us);

@@ -323,4 +323,61 @@ Result<LatencyFloor> raw_dds_pingpong(const DdsSettings& settings, int rounds) {
   return floor;
 }
 
+// ---- Through the bindings --------------------------------------------------------------------
+
+Result<void> binding_echo(Transport& endpoint, std::chrono::milliseconds idle) {
+  for (;;) {
+    auto got = endpoint.receive(idle);
+    if (!got) return node::fail(got.error().code, "binding echo: " + got.error().message);
+    if (!*got || (*got)->kind == FrameKind::error) return {};
+    Frame back = std::move(**got);
+    back.to = std::move(back.from);
+    back.from = endpoint.self();
+    if (auto sent = endpoint.send(back); !sent) return node::fail(sent.error().code, "binding echo: " + sent.error().message);
+  }
+}
+
+Result<LatencyFloor> binding_ping(Transport& endpoint, const std::string& echo_iri, int rounds, std::size_t body_bytes) {
+  if (rounds <= 0) return node::fail(Errc::invalid_argument, "binding ping-pong: rounds must be > 0");
+  const int warmup = warmup_of(rounds), max_losses = rounds / 10 + 10;
+  int losses = 0, measured = 0;
+  std::vector<double> samples;
+  samples.reserve(static_cast<std::size_t>(rounds));
+  Frame ping;
+  ping.kind = FrameKind::up;
+  ping.from = endpoint.self();
+  ping.to = echo_iri;
+  ping.body.assign(body_bytes, 'x');
+  for (std::uint64_t seq = 1; measured < rounds && losses <= max_losses; ++seq) {
+    ping.seq = seq;
+    const auto t0 = clock::now();
+    const auto deadline = t0 + std::chrono::seconds(1);
+    if (auto sent = endpoint.send(ping); !sent) return node::fail(sent.error().code, "binding ping-pong: " + sent.error().message);
+    bool back = false;
+    while (!back) {
+      const auto left = std::chrono::ceil<std::chrono::milliseconds>(deadline - clock::now());
+      if (left.count() <= 0) break;
+      auto got = endpoint.receive(left);
+      if (!got) return node::fail(got.error().code, "binding ping-pong: " + got.error().message);
+      back = *got && (*got)->seq == seq;  // an earlier ping's late answer is skipped
+    }
+    if (!back) {
+      ++losses;
+      continue;
+    }
+    if (static_cast<int>(seq) - losses > warmup) {
+      samples.push_back(micros(clock::now() - t0) / 2);
+      ++measured;
+    }
+  }
+  Frame stop = ping;
+  stop.kind = FrameKind::error;
+  stop.body.clear();
+  for (int i = 0; i < 3; ++i) (void)endpoint.send(stop);  // LCM may drop one
+  if (measured < rounds)
+    return node::fail(Errc::timeout, "binding ping-pong to <" + echo_iri + ">: " + std::to_string(losses) +
+                                         " frames without an answer within 1 s");
+  return summarise(std::move(samples));
+}
+
 }  // namespace tahvel::federation

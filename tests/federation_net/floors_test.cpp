@@ -10,6 +10,7 @@
 #include <cstdlib>
 #include <functional>
 #include <iostream>
+#include <thread>
 
 #include "wire_settings.h"
 
@@ -82,6 +83,45 @@ TEST(Floors, DdsPingPongBetweenTwoProcessesGivesSaneFigures) {
       "dds_2p",
       [&](const std::string& n, const std::function<void()>& ready) { return dds_echo(settings, n, ready, std::chrono::seconds(5)); },
       [&](const std::string& n) { return dds_ping(settings, n, 300); });
+}
+
+// Through the bindings: the echo opens its endpoint in the forked process, as the bench's far end.
+TEST(Floors, DdsBindingPingPongBetweenTwoProcessesGivesSaneFigures) {
+  require_netns();
+  const DdsSettings settings = conformance::test_dds_settings();
+  auto iri = [](const std::string& n, const char* end) { return "http://floors.test/" + n + "/" + end; };
+  across_processes(
+      "dds_binding",
+      [&](const std::string& n, const std::function<void()>& ready) -> Result<void> {
+        auto echo = open_dds(settings, iri(n, "echo"), {});
+        if (!echo) return node::fail(echo.error().code, echo.error().message);
+        ready();
+        return binding_echo(**echo, std::chrono::seconds(5));
+      },
+      [&](const std::string& n) -> Result<LatencyFloor> {
+        auto ping = open_dds(settings, iri(n, "ping"), {});
+        if (!ping) return node::fail(ping.error().code, ping.error().message);
+        return binding_ping(**ping, iri(n, "echo"), 300, 568);
+      });
+}
+
+TEST(Floors, BindingPingPongSendsAgainPastLostFramesAndStopsTheEcho) {
+  MemoryBus bus;
+  bus.set_faults({.seed = 3, .drop = 0.01});
+  auto echo = bus.open("http://floors.test/echo");
+  auto ping = bus.open("http://floors.test/ping");
+  Result<void> echoed{};
+  std::thread echoer([&] { echoed = binding_echo(*echo, std::chrono::seconds(10)); });
+  auto floor = binding_ping(*ping, "http://floors.test/echo", 100, 100);
+  // With one frame in 100 lost, some rounds were lost and sent again; the echo stopped at
+  // the ping side's stop frame (three are sent), long before its 10 s of idleness.
+  bus.set_faults({});
+  const auto t0 = std::chrono::steady_clock::now();
+  echoer.join();
+  EXPECT_LT(std::chrono::steady_clock::now() - t0, std::chrono::seconds(5)) << "the echo did not stop";
+  expect_sane("memory binding", floor, 100);
+  EXPECT_TRUE(echoed) << echoed.error().message;
+  EXPECT_EQ(binding_ping(*ping, "http://floors.test/echo", 0, 100).error().code, Errc::invalid_argument);
 }
 
 TEST(Floors, ZeroRoundsIsAnError) {

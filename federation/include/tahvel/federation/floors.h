@@ -1,6 +1,7 @@
 // Raw latency floors of the wire libraries: what LCM and Cyclone DDS themselves cost for one
 // small message, measured with the libraries alone (no Transport, no link), so that the link's
-// latency can be reported as a ratio against them in the same run (tests/bench).
+// latency can be reported as a ratio against them in the same run (tests/bench); and the same
+// through the project's own bindings (binding_*), without a link or a store.
 //
 // raw_*_pingpong measure ping-pong between two threads of this process, each with its own LCM
 // instance (two sockets, through the kernel's multicast loopback) or its own DDS participant
@@ -48,5 +49,19 @@ Result<LatencyFloor> lcm_ping(const LcmSettings& settings, const std::string& na
 Result<void> dds_echo(const DdsSettings& settings, const std::string& name, const std::function<void()>& ready,
                       std::chrono::milliseconds idle);
 Result<LatencyFloor> dds_ping(const DdsSettings& settings, const std::string& name, int rounds);
+
+// The same ping-pong through this project's bindings (transport.h) instead of the bare library:
+// frames of `body_bytes` between two endpoints, as a link sends them but without a store on
+// either side. A link's latency then splits into the wire library (the raw floor), what the
+// binding adds (this against that) and what the link and the stores add (the link against this).
+// binding_echo sends every frame it receives back to its sender until a frame of kind `error`
+// arrives or `idle` passes without a frame. binding_ping sends `rounds` frames to `echo_iri`
+// (after a warm-up of rounds/10, at least 10), each once the one before came back, then the
+// error frame that stops the echo. A frame not back within 1 s is counted lost and the next one
+// sent (LCM may drop, and it has no discovery: the first frames may find no echo yet); more than
+// rounds/10 + 10 losses fail with Errc::timeout.
+Result<void> binding_echo(Transport& endpoint, std::chrono::milliseconds idle);
+Result<LatencyFloor> binding_ping(Transport& endpoint, const std::string& echo_iri, int rounds,
+                                  std::size_t body_bytes);
 
 }  // namespace tahvel::federation
