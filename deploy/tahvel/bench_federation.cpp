@@ -244,14 +244,13 @@ std::string hospital_iri(const std::string& phase) {
 }
 
 // Grows a new store's map before anything else uses it, so that the timed phases have `need`
-// bytes free and the map never grows under them. Why: Env::grow (node/src/env.cpp) checks that
-// this process has no transaction open and then remaps, without keeping new readers out in
-// between; with 1,000 children, each child's down pump reading the store every 50 ms, a reader
-// started inside that window and the hospital crashed in LMDB (mdb_txn_renew during
-// mdb_env_set_mapsize). Until the node fixes that, the bench writes filler literals (unique, so
-// the term dictionary keeps each; it never shrinks) until the map has doubled to at least twice
-// `need`, which leaves about half of it free. The filler's pages are subtracted from the store
-// size the bench reports.
+// bytes free and never pay for a remap (Env::grow waits for this process's reads to end, up to a
+// second, and with 1,000 children's down pumps reading there is always one). The map only grows
+// when full, so the bench writes filler literals (unique, so the term dictionary keeps each; it
+// never shrinks) until the map has doubled to at least twice `need`, which leaves about half of
+// it free. The filler's pages are subtracted from the store size the bench reports. (The first
+// ingest runs crashed in LMDB here, a reader starting during the remap; node/src/env.cpp now
+// keeps readers out while it grows, ae32603.)
 void pregrow(const fs::path& dir, std::uint64_t need) {
   std::uint64_t map = 64ull << 20;  // a new store's map (node/src/env.cpp kInitialMapBytes)
   if (2 * need <= map) return;      // fits as it is: no filler (it costs page faults later)
