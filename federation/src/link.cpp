@@ -216,14 +216,16 @@ struct Link::Impl {
     }
   };
 
-  // Sends in order, with `mu` not held. After a frame that did not leave, the later ones on the
-  // same binding are skipped, as in send_run: answer chunks go again from the resend timer, a
-  // query from the parent's, and acknowledgements and errors answer the peer's next resend.
+  // Sends in order, with `mu` not held. After a frame that did not leave, the later ones to the
+  // same peer on the same binding are skipped, as in send_run (a stalled peer costs one wait,
+  // and the others still get theirs): answer chunks go again from the resend timer, a query from
+  // the parent's, and acknowledgements and errors answer the peer's next resend.
   void send_all(Outgoing& out) {
-    std::vector<Transport*> failed;
+    std::vector<std::pair<Transport*, std::string>> failed;
     for (auto& [via, f] : out.frames) {
-      if (std::find(failed.begin(), failed.end(), via) != failed.end()) continue;
-      if (!send(via, std::move(f))) failed.push_back(via);
+      std::pair<Transport*, std::string> peer{via, f.to};
+      if (std::find(failed.begin(), failed.end(), peer) != failed.end()) continue;
+      if (!send(via, std::move(f))) failed.push_back(std::move(peer));
     }
     out.frames.clear();
   }
