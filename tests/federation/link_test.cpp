@@ -515,19 +515,33 @@ class StallingTransport : public Transport {
   std::map<FrameKind, int> blocked_kinds_;
 };
 
+// The hospital, home1 as a gateway whose sends to the hospital can be stalled, and its sensor
+// ecg1 (in `sensor_dir`); the caller waits for the links to be up.
+struct StallableGateway {
+  std::string sensor_dir;
+  std::shared_ptr<StallingTransport> home1_endpoint;
+  std::unique_ptr<Link> sensor_link;
+};
+
+StallableGateway start_stallable_gateway(Tree& tree) {
+  StallableGateway g;
+  g.sensor_dir = (tree.tmp / "ecg1").string();
+  tree.hospital = tree.start_hospital();
+  g.home1_endpoint = std::make_shared<StallingTransport>(tree.bus.open(kHome1, tree.home1_log.sink()), kHospital);
+  g.sensor_link = tree.start_gateway_and_sensor(g.home1_endpoint, g.sensor_dir);
+  return g;
+}
+
 TEST(Link, AGatewayKeepsTakingItsSensorsItemsWhileItsParentStallsItsSends) {
   Tree tree;
-  const std::string sensor_dir = (tree.tmp / "ecg1").string();
-  tree.hospital = tree.start_hospital();
-  auto home1_endpoint = std::make_shared<StallingTransport>(tree.bus.open(kHome1, tree.home1_log.sink()), kHospital);
-  auto sensor_link = tree.start_gateway_and_sensor(home1_endpoint, sensor_dir);
-  ASSERT_TRUE(eventually([&] { return tree.home1->connected() && sensor_link->connected(); }));
-  auto hrv = node::Node::open(sensor_dir).value().agent("hrv").value();
+  StallableGateway g = start_stallable_gateway(tree);
+  ASSERT_TRUE(eventually([&] { return tree.home1->connected() && g.sensor_link->connected(); }));
+  auto hrv = node::Node::open(g.sensor_dir).value().agent("hrv").value();
   const node::Pattern numbered{.p = Term::iri(kEx + "n")};
 
-  home1_endpoint->stall(true);
+  g.home1_endpoint->stall(true);
   for (int i = 0; i < 20; ++i) ASSERT_TRUE(hrv.store(hrv_item(i)));
-  ASSERT_TRUE(eventually([&] { return home1_endpoint->blocked() > 0; })) << "the home never tried to send up";
+  ASSERT_TRUE(eventually([&] { return g.home1_endpoint->blocked() > 0; })) << "the home never tried to send up";
   // While its sends up block, the home still relays what its sensor sends it, item by item.
   for (int i = 20; i < 40; ++i) ASSERT_TRUE(hrv.store(hrv_item(i)));
   const auto deadline = std::chrono::steady_clock::now() + 4s;
@@ -536,21 +550,18 @@ TEST(Link, AGatewayKeepsTakingItsSensorsItemsWhileItsParentStallsItsSends) {
   EXPECT_EQ(count(tree.home1_dir, numbered), 40u) << "the home stopped serving its sensor while its parent stalled";
   EXPECT_EQ(count(tree.hospital_dir, numbered), 0u);
 
-  home1_endpoint->stall(false);
+  g.home1_endpoint->stall(false);
   ASSERT_TRUE(eventually([&] { return count(tree.hospital_dir, numbered) >= 40; }))
       << count(tree.hospital_dir, numbered) << " of 40 reached the hospital after the stall";
   std::this_thread::sleep_for(300ms);
   EXPECT_EQ(count(tree.hospital_dir, numbered), 40u);
-  sensor_link.reset();
+  g.sensor_link.reset();
 }
 
 TEST(Link, AGatewayKeepsTakingItsSensorsItemsWhileItsAnswerToAStalledParentWaits) {
   Tree tree;
-  const std::string sensor_dir = (tree.tmp / "ecg1").string();
-  tree.hospital = tree.start_hospital();
-  auto home1_endpoint = std::make_shared<StallingTransport>(tree.bus.open(kHome1, tree.home1_log.sink()), kHospital);
-  auto sensor_link = tree.start_gateway_and_sensor(home1_endpoint, sensor_dir);
-  ASSERT_TRUE(eventually([&] { return tree.home1->connected() && sensor_link->connected(); }));
+  StallableGateway g = start_stallable_gateway(tree);
+  ASSERT_TRUE(eventually([&] { return tree.home1->connected() && g.sensor_link->connected(); }));
   ASSERT_TRUE(eventually([&] {
     return count(tree.hospital_dir, {.s = Term::iri(kHome1), .p = Term::iri(vocab::kLinkState), .o = Term::literal("up")}) == 1;
   }));
@@ -564,7 +575,7 @@ TEST(Link, AGatewayKeepsTakingItsSensorsItemsWhileItsAnswerToAStalledParentWaits
     ASSERT_TRUE(ecg.store(chunk));
   }
 
-  home1_endpoint->stall(true);
+  g.home1_endpoint->stall(true);
   auto hospital = node::Node::open(tree.hospital_dir).value();
   std::size_t got = 0;
   Result<std::uint64_t> answered = 0;
@@ -572,10 +583,10 @@ TEST(Link, AGatewayKeepsTakingItsSensorsItemsWhileItsAnswerToAStalledParentWaits
     answered = remote_query(hospital, {.target = kHome1, .pattern = {.p = Term::iri(kEx + "samples")}}, 30s,
                             [&](const node::Record&) { ++got; });
   });
-  ASSERT_TRUE(eventually([&] { return home1_endpoint->blocked(FrameKind::answer) > 0; }))
+  ASSERT_TRUE(eventually([&] { return g.home1_endpoint->blocked(FrameKind::answer) > 0; }))
       << "the home never tried to send its answer up";
   // While its answer waits on the stalled parent, the home still relays what its sensor sends.
-  auto hrv = node::Node::open(sensor_dir).value().agent("hrv").value();
+  auto hrv = node::Node::open(g.sensor_dir).value().agent("hrv").value();
   for (int i = 0; i < 20; ++i) ASSERT_TRUE(hrv.store(hrv_item(i)));
   const node::Pattern numbered{.p = Term::iri(kEx + "n")};
   const auto deadline = std::chrono::steady_clock::now() + 3s;
@@ -584,12 +595,12 @@ TEST(Link, AGatewayKeepsTakingItsSensorsItemsWhileItsAnswerToAStalledParentWaits
   EXPECT_EQ(count(tree.home1_dir, numbered), 20u) << "the home stopped serving its sensor while its answer waited";
 
   // Once the parent takes again, the whole answer arrives, and the sensor's items too.
-  home1_endpoint->stall(false);
+  g.home1_endpoint->stall(false);
   asking.join();
   ASSERT_TRUE(answered) << answered.error().message;
   EXPECT_EQ(got, 40u);
   ASSERT_TRUE(eventually([&] { return count(tree.hospital_dir, numbered) == 20; }));
-  sensor_link.reset();
+  g.sensor_link.reset();
 }
 
 TEST(Link, QueryByAreaIsResolvedAtTheTargetThroughItsAreaQuery) {
