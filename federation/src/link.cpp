@@ -30,6 +30,12 @@ using namespace std::chrono_literals;
 
 constexpr std::size_t kAnswerChunkBytes = 48 * 1024;  // P14: fits LCM's datagram fragments well
 constexpr std::size_t kAnswerWindow = 16;
+// A node in the middle acknowledges a child's chunks at most this far beyond what its parent
+// acknowledged, so that a fast child and a slow parent cost it a bounded buffer (P14).
+constexpr std::size_t kAnswerRelayAhead = 2 * kAnswerWindow;
+// An answer stream with no chunk and no acknowledgement for this long is forgotten (a parent or
+// child that went away mid-answer; the origin gave up long before).
+constexpr std::chrono::minutes kAnswerForgetAfter{10};
 constexpr std::chrono::milliseconds kIdlePumpWait{250};  // the down pump with nothing to pace
 // A batch of at most this many frames, taken while the applier is idle, is applied by the taker
 // itself (one thread hand-off less on a quiet link); larger ones go to the applier, so that
@@ -149,26 +155,49 @@ struct Link::Impl {
   std::map<std::string, std::shared_ptr<Child>> children;  // by IRI
 
   // Queries (P13-P16).
+  // What the answerer still has to read for a query answered on this node (P14).
+  struct Reading {
+    wire::QueryBody q;
+    std::uint64_t id = 0;          // the query's id (frames' seq)
+    bool started = false;
+    std::uint64_t horizon = 0;     // the store's last seq when reading began: nothing later is read
+    std::uint64_t cursor = 0;      // id of the last match read (paged reading)
+    std::uint64_t taken = 0;       // records put into chunks so far (for q.limit)
+    std::vector<node::Record> whole;  // read at once (cascade or area), taken from the front
+    std::size_t next_of_whole = 0;
+    wire::AnswerBody chunk;        // the chunk being filled
+    std::size_t chunk_bytes = 0;
+    bool done = false;             // the last chunk is made
+  };
   struct OutStream {  // answer chunks this node sends towards the origin
     std::string origin;
     std::uint64_t query = 0;
     std::deque<Frame> unacked;
     std::uint64_t next_chunk = 1;
-    Clock::time_point last_send{};
+    std::uint64_t sent_through = 0;   // the highest chunk sent so far
+    std::uint64_t acked_through = 0;  // the highest chunk the parent acknowledged
+    std::shared_ptr<Reading> reading;  // answered here and not all read yet
+    Clock::time_point last_send{}, last_progress{};
   };
   struct InStream {  // answer chunks this node receives from a child
     bool forward_up = false;
     std::string child;
     std::string reply_to;
     std::uint64_t expected = 1;
+    std::uint64_t passed = 0;  // chunks passed on: acknowledged by the parent, or on the board
     bool done = false;
     Frame query_frame;  // resent until the first chunk or error arrives
     Clock::time_point sent{};
+    Clock::time_point last_progress{};
     int resends = 0;
   };
   std::map<std::string, OutStream> out_answers;
   std::map<std::string, InStream> in_answers;
-  std::deque<std::pair<std::string, Frame>> board_writes;  // answers to write at the origin
+  struct BoardWrite {  // an answer chunk or error to write on the board at the origin
+    std::string key, reply_to;
+    Frame frame;
+  };
+  std::deque<BoardWrite> board_writes;
 
   void log(const std::string& line) const {
     if (opt.log) opt.log(line);
@@ -688,7 +717,18 @@ struct Link::Impl {
       std::lock_guard lock(mu);
       if (out_answers.count(key) || in_answers.count(key)) return;  // a resent query under way
     }
-    if (q->target == self) return answer_here(*q, f.seq);
+    if (q->target == self) {
+      std::lock_guard lock(mu);
+      OutStream& out = out_answers[key];
+      out.origin = q->origin;
+      out.query = f.seq;
+      out.last_progress = Clock::now();
+      out.reading = std::make_shared<Reading>();
+      out.reading->q = std::move(*q);
+      out.reading->id = f.seq;
+      answers_due.notify_all();
+      return;
+    }
     std::string child_iri = child_on_path(self, q->target);
     Outgoing out;
     {
@@ -713,82 +753,190 @@ struct Link::Impl {
     send_all(out);
   }
 
-  // Runs the query on this node's snapshot and queues the answer in chunks (P14).
-  void answer_here(const wire::QueryBody& q, std::uint64_t id) {
+  // ---- answering a query on this node (P14) -------------------------------------------------
+  //
+  // One answerer thread reads the records of the queries asked of this node and packs them into
+  // chunks as the parent acknowledges the ones before, never more than the window ahead. So an
+  // operator asking a home for a day of raw ECG costs the home a window of chunks in memory, not
+  // the day (the whole answer was read at once before: ~5x its size at the peak), and the
+  // receive thread that took the query goes back to the node's children at once.
+
+  std::condition_variable answers_due;  // with mu: a stream being read has room in its window
+
+  void answer_loop() {
     auto node = node::Node::open(opt.dir);
-    std::vector<node::Record> records;
-    std::optional<std::string> failure;
-    if (!node) failure = node.error().message;
-    else {
-      auto snap = node->snapshot();
-      if (!snap) failure = snap.error().message;
-      else {
-        node::Pattern pattern{.s = q.s, .p = q.p, .o = q.o, .since = q.since, .until = q.until};
+    if (!node) return log("cannot open the store: " + node.error().message);
+    std::unique_lock lock(mu);
+    while (!stopping) {
+      auto due = std::find_if(out_answers.begin(), out_answers.end(), [](const auto& e) {
+        return e.second.reading && e.second.unacked.size() < kAnswerWindow;
+      });
+      if (due == out_answers.end()) {
+        answers_due.wait_for(lock, 100ms);
+        continue;
+      }
+      const std::string key = due->first;
+      std::shared_ptr<Reading> reading = due->second.reading;
+      const std::size_t room = kAnswerWindow - due->second.unacked.size();
+      lock.unlock();
+      std::vector<wire::AnswerBody> chunks;
+      auto read = read_chunks(*node, *reading, room, chunks);
+      std::vector<Frame> frames;
+      for (auto& chunk : chunks) {
+        Frame f;
+        f.kind = FrameKind::answer;
+        f.to = opt.parent_iri;
+        f.seq = reading->id;
+        f.body = wire::encode_answer(chunk);
+        frames.push_back(std::move(f));
+      }
+      Outgoing window;
+      lock.lock();
+      auto it = out_answers.find(key);
+      if (it == out_answers.end() || it->second.reading != reading) continue;  // forgotten meanwhile
+      OutStream& out = it->second;
+      if (!read) {
+        out_answers.erase(it);
+        window.error(opt.up.get(), opt.parent_iri, reading->id, {"query_failed", "<" + self + ">: " + read.error().message, reading->q.origin});
+      } else {
+        for (Frame& f : frames) {
+          f.prev = out.next_chunk++;
+          out.unacked.push_back(std::move(f));
+        }
+        if (reading->done) out.reading.reset();
+        answer_window(out, window);
+      }
+      lock.unlock();
+      send_all(window);
+      lock.lock();
+    }
+  }
+
+  // Reads on from where `r` stopped and packs the records into at most `room` full chunks, plus
+  // the last chunk (possibly empty) once everything is read. Touches nothing but `r`, so it runs
+  // without mu. A plain pattern is read page by page in record-id order up to the horizon (the
+  // records present when the reading began), each page on a fresh snapshot, released at once
+  // (a snapshot held for the whole answer would keep a ring store from reusing its pages). With
+  // a cascade or an area the answer is read whole at the start, as `list` reads it: each record
+  // appears once across the answer, which pages read on separate snapshots could not promise.
+  node::Result<void> read_chunks(node::Node& node, Reading& r, std::size_t room, std::vector<wire::AnswerBody>& chunks) {
+    auto snap = node.snapshot();
+    if (!snap) return tahvel::unexpected(snap.error());
+    const wire::QueryBody& q = r.q;
+    node::Pattern pattern{.s = q.s, .p = q.p, .o = q.o, .since = q.since, .until = q.until};
+    const bool whole = q.cascade > 0 || !q.area.empty();
+    if (!r.started) {
+      r.started = true;
+      r.horizon = snap->last_seq();
+      if (whole) {
         node::ListOptions options{.cascade = q.cascade, .limit = q.limit};
         node::Result<std::vector<node::Record>> found = std::vector<node::Record>{};
         if (q.area.empty()) found = snap->list(pattern, options);
         else if (opt.area_query) found = opt.area_query(*snap, pattern, q.area, q.floor, options);
         else found = node::fail(Errc::invalid_argument, "this node's link answers no queries by area");
-        if (!found) failure = found.error().message;
-        else records = std::move(*found);
+        if (!found) return tahvel::unexpected(found.error());
+        r.whole = std::move(*found);
       }
     }
-    if (failure) return send_error(opt.up.get(), opt.parent_iri, id, {"query_failed", "<" + self + ">: " + *failure, q.origin});
-    Outgoing window;
-    std::unique_lock lock(mu);
-    OutStream& out = out_answers[query_key(q.origin, id)];
-    out.origin = q.origin;
-    out.query = id;
-    wire::AnswerBody chunk{q.origin, false, {}};
-    std::size_t bytes = 0;
-    auto flush = [&](bool last) {
-      chunk.last = last;
-      Frame f;
-      f.kind = FrameKind::answer;
-      f.to = opt.parent_iri;
-      f.seq = id;
-      f.prev = out.next_chunk++;
-      f.body = wire::encode_answer(chunk);
-      out.unacked.push_back(std::move(f));
-      chunk.records.clear();
-      bytes = 0;
+    auto seal = [&](bool last) {
+      r.chunk.origin = q.origin;
+      r.chunk.last = last;
+      chunks.push_back(std::move(r.chunk));
+      r.chunk = {};
+      r.chunk_bytes = 0;
     };
-    for (auto& r : records) {
-      std::size_t size = r.triple.s.value.size() + r.triple.p.value.size() + r.triple.o.value.size() +
-                         r.meta.source.size() + r.meta.context.size() + 64;
-      if (bytes > 0 && bytes + size > kAnswerChunkBytes) flush(false);
-      bytes += size;
-      chunk.records.push_back(std::move(r));
+    // False when `room` chunks are full and the record must wait for the next call.
+    auto take = [&](node::Record record) {
+      const std::size_t size = record.triple.s.value.size() + record.triple.p.value.size() +
+                               record.triple.o.value.size() + record.meta.source.size() + record.meta.context.size() + 64;
+      if (r.chunk_bytes > 0 && r.chunk_bytes + size > kAnswerChunkBytes) {
+        if (chunks.size() >= room) return false;
+        seal(false);
+      }
+      r.chunk_bytes += size;
+      r.chunk.records.push_back(std::move(record));
+      ++r.taken;
+      return true;
+    };
+    bool exhausted = true;
+    if (whole) {
+      while (r.next_of_whole < r.whole.size()) {
+        if (!take(std::move(r.whole[r.next_of_whole]))) {
+          exhausted = false;
+          break;
+        }
+        ++r.next_of_whole;
+      }
+    } else {
+      pattern.after_id = r.cursor;
+      auto walked = snap->for_each(pattern, [&](const node::Record& record) {
+        if (record.meta.id > r.horizon) return false;     // stored after the query arrived
+        if (q.limit && r.taken >= q.limit) return false;
+        if (!take(record)) {
+          exhausted = false;
+          return false;
+        }
+        r.cursor = record.meta.id;
+        return true;
+      });
+      if (!walked) return walked;
     }
-    flush(true);
-    answer_window(out, window);
-    lock.unlock();
-    send_all(window);
+    if (exhausted) {
+      seal(true);
+      r.done = true;
+      r.whole = {};
+    }
+    return {};
   }
 
-  // Caller holds mu: the chunks of `out` in its window, to send once mu is released.
-  void answer_window(OutStream& out, Outgoing& window) {
-    std::size_t n = std::min(out.unacked.size(), kAnswerWindow);
-    for (std::size_t i = 0; i < n; ++i) window.add(opt.up.get(), out.unacked[i]);
-    out.last_send = Clock::now();
+  // Caller holds mu: the chunks of `out` within its window that were not sent yet (with `again`,
+  // the whole window: a resend), to send once mu is released.
+  void answer_window(OutStream& out, Outgoing& window, bool again = false) {
+    const std::size_t n = std::min(out.unacked.size(), kAnswerWindow);
+    bool sent = false;
+    for (std::size_t i = 0; i < n; ++i) {
+      const Frame& f = out.unacked[i];
+      if (!again && f.prev <= out.sent_through) continue;
+      window.add(opt.up.get(), f);
+      out.sent_through = std::max(out.sent_through, f.prev);
+      sent = true;
+    }
+    if (sent) out.last_send = Clock::now();
   }
 
-  // Caller holds mu.
+  // Caller holds mu. The parent acknowledged chunks of an answer stream of this node.
   void answer_ack(const Frame& f, Outgoing& window) {
     const std::string key = query_key(f.body, f.seq);
     auto it = out_answers.find(key);
     if (it == out_answers.end()) return;
     OutStream& out = it->second;
-    bool moved = false;
-    while (!out.unacked.empty() && out.unacked.front().prev <= f.ack) {
-      out.unacked.pop_front();
-      moved = true;
+    if (f.ack <= out.acked_through) return;
+    out.acked_through = f.ack;
+    out.last_send = out.last_progress = Clock::now();  // progress: the resend timer starts again
+    while (!out.unacked.empty() && out.unacked.front().prev <= f.ack) out.unacked.pop_front();
+    if (out.reading) answers_due.notify_all();
+    answer_window(out, window);
+    // A node in the middle: the child may send on, as far as this node has room for.
+    auto in = in_answers.find(key);
+    if (in != in_answers.end() && in->second.forward_up) {
+      in->second.passed = out.acked_through;
+      window.add(opt.down.get(), answer_ack_to_child(in->second, f.seq, f.body));
     }
-    if (out.unacked.empty()) {
-      out_answers.erase(it);
-      return;
-    }
-    if (moved) answer_window(out, window);
+    if (out.unacked.empty() && !out.reading) out_answers.erase(it);
+  }
+
+  // Caller holds mu. The acknowledgement of a child's answer chunks: those taken in order, but
+  // at most kAnswerRelayAhead beyond the ones passed on (acknowledged by the parent, or written
+  // on the board at the origin), so that a fast child and a slow parent or board cost this node
+  // a bounded buffer; the child's window holds the rest back until this node sends a new ack.
+  Frame answer_ack_to_child(const InStream& in, std::uint64_t query, const std::string& origin) {
+    Frame ack;
+    ack.kind = FrameKind::ack;
+    ack.to = in.child;
+    ack.seq = query;
+    ack.ack = std::min<std::uint64_t>(in.expected - 1, in.passed + kAnswerRelayAhead);
+    ack.body = origin;
+    return ack;
   }
 
   void answer_from_child(Transport* via, const Frame& f) {
@@ -803,33 +951,30 @@ struct Link::Impl {
     auto it = in_answers.find(key);
     if (it == in_answers.end()) return;  // a query this node no longer waits for
     InStream& in = it->second;
-    if (f.prev == in.expected && !in.done) {
+    const bool next = f.prev == in.expected && !in.done;
+    if (next) {
       ++in.expected;
+      in.last_progress = Clock::now();
       if (body->last) in.done = true;
-      if (in.forward_up) {
-        OutStream& stream = out_answers[key];
+    }
+    if (in.forward_up) {
+      OutStream& stream = out_answers[key];
+      if (next) {
         stream.origin = body->origin;
         stream.query = f.seq;
+        stream.last_progress = Clock::now();
         Frame up = f;
         up.to = opt.parent_iri;
         up.prev = stream.next_chunk++;
         stream.unacked.push_back(std::move(up));
-        if (stream.unacked.size() <= kAnswerWindow) {
-          out.add(opt.up.get(), stream.unacked.back());
-          stream.last_send = Clock::now();
-        }
-      } else {
-        board_writes.emplace_back(in.reply_to, f);
-        changed.notify_all();
+        answer_window(stream, out);
       }
+      if (stream.unacked.empty() && !stream.reading) out_answers.erase(key);
+    } else if (next) {
+      board_writes.push_back({key, in.reply_to, f});
+      changed.notify_all();
     }
-    Frame ack;
-    ack.kind = FrameKind::ack;
-    ack.to = f.from;
-    ack.seq = f.seq;
-    ack.ack = in.expected - 1;
-    ack.body = body->origin;
-    out.add(via, std::move(ack));
+    out.add(via, answer_ack_to_child(in, f.seq, body->origin));
     lock.unlock();
     send_all(out);
   }
@@ -855,7 +1000,7 @@ struct Link::Impl {
       lock.unlock();
       send(opt.up.get(), std::move(up));
     } else {
-      board_writes.emplace_back(it->second.reply_to, f);
+      board_writes.push_back({key, it->second.reply_to, f});
       changed.notify_all();
     }
   }
@@ -1141,7 +1286,7 @@ struct Link::Impl {
     if (!link || !uplink) return log("cannot open the link's agents");
     Clock::time_point next_beat{};
     while (!stopping) {
-      std::vector<std::pair<std::string, Frame>> writes;
+      std::vector<BoardWrite> writes;
       std::vector<std::shared_ptr<Child>> dirty;
       bool beat = false;
       Outgoing resends;
@@ -1166,7 +1311,13 @@ struct Link::Impl {
           if (child->state_dirty) dirty.push_back(child);
         }
         for (auto& [key, out] : out_answers)
-          if (!out.unacked.empty() && now - out.last_send > opt.resend_after) answer_window(out, resends);
+          if (!out.unacked.empty() && now - out.last_send > opt.resend_after) answer_window(out, resends, true);
+        std::erase_if(out_answers, [&](const auto& e) {
+          return now - e.second.last_progress > kAnswerForgetAfter && now - e.second.last_send > kAnswerForgetAfter;
+        });
+        std::erase_if(in_answers, [&](const auto& e) {
+          return now - std::max(e.second.sent, e.second.last_progress) > kAnswerForgetAfter;
+        });
         for (auto& [key, in] : in_answers) {
           if (!in.done && in.expected == 1 && now - in.sent > 1s && in.resends < 10) {
             ++in.resends;
@@ -1189,7 +1340,27 @@ struct Link::Impl {
         f.body = wire::encode_state({opt.software_version, depth ? *depth : 0});
         send(opt.up.get(), std::move(f));
       }
-      for (auto& [reply_to, frame] : writes) write_answer(*link, reply_to, frame);
+      for (const BoardWrite& w : writes) write_answer(*link, w.reply_to, w.frame);
+      if (!writes.empty()) {
+        // What is on the board is passed on: the children may send on (answer_ack_to_child).
+        // Chunks are written only here, at the origin, so their origin is this node.
+        Outgoing acks;
+        {
+          std::lock_guard lock(mu);
+          std::vector<std::string> moved;
+          for (const BoardWrite& w : writes) {
+            auto it = in_answers.find(w.key);
+            if (it == in_answers.end() || w.frame.kind != FrameKind::answer || w.frame.prev <= it->second.passed) continue;
+            it->second.passed = w.frame.prev;
+            if (std::find(moved.begin(), moved.end(), w.key) == moved.end()) moved.push_back(w.key);
+          }
+          for (const std::string& key : moved) {
+            const InStream& in = in_answers.at(key);
+            acks.add(opt.down.get(), answer_ack_to_child(in, in.query_frame.seq, self));
+          }
+        }
+        send_all(acks);
+      }
       write_child_states(*link, dirty);
     }
   }
@@ -1264,6 +1435,7 @@ Link::~Link() { stop(); }
 void Link::stop() {
   if (!impl_ || impl_->stopping.exchange(true)) return;
   impl_->changed.notify_all();
+  impl_->answers_due.notify_all();
   if (impl_->waker) impl_->waker->wake_waiters();  // the down pump
   for (auto& t : impl_->threads) t.join();
   impl_->threads.clear();
@@ -1339,6 +1511,7 @@ Result<std::unique_ptr<Link>> Link::start(LinkOptions options) {
   }
   if (p->opt.down && p->opt.down != p->opt.up) p->threads.emplace_back([p, t = p->opt.down] { p->receive_loop(t); });
   p->threads.emplace_back([p] { p->timer_loop(); });
+  if (p->opt.up) p->threads.emplace_back([p] { p->answer_loop(); });
   if (p->opt.down) p->threads.emplace_back([p] { p->pump_loop(); });
   return link;
 }

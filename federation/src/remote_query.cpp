@@ -125,6 +125,9 @@ Result<std::uint64_t> remote_query(node::Node& node, const RemoteQuery& query,
       cleanup();
       return node::fail(Errc::corrupt, "answer chunk " + chunk->value + " from <" + *target + ">: " + body.error().message);
     }
+    // Off the board as soon as it is read: a long answer must not pile up in this node's store
+    // (it is in memory until printed, and the link sends no more than its window ahead).
+    if (node.remove_item((*got)->item)) to_remove.pop_back();
     std::int64_t n = std::stoll(chunk->value);
     if (body->last) last_chunk = n;
     early[n] = std::move(body->records);

@@ -7,6 +7,7 @@
 #include <unistd.h>
 
 #include <algorithm>
+#include <atomic>
 #include <condition_variable>
 #include <filesystem>
 #include <map>
@@ -601,6 +602,173 @@ TEST(Link, AGatewayKeepsTakingItsSensorsItemsWhileItsAnswerToAStalledParentWaits
   EXPECT_EQ(got, 40u);
   ASSERT_TRUE(eventually([&] { return count(tree.hospital_dir, numbered) == 20; }));
   g.sensor_link.reset();
+}
+
+// Wraps an endpoint: counts the answer chunks it sends, by chunk number, and can lose the
+// acknowledgements of answer chunks that reach it (a parent whose acks do not arrive).
+class AnswerTap : public Transport {
+ public:
+  explicit AnswerTap(std::unique_ptr<Transport> inner) : inner_(std::move(inner)) {}
+  const std::string& self() const override { return inner_->self(); }
+  Result<void> send(const Frame& frame) override {
+    if (frame.kind == FrameKind::answer) {
+      std::lock_guard lock(mu_);
+      ++sent_[frame.prev];
+    }
+    return inner_->send(frame);
+  }
+  Result<std::optional<Frame>> receive(std::chrono::milliseconds timeout) override {
+    auto got = inner_->receive(timeout);
+    if (got && *got && (*got)->kind == FrameKind::ack && (*got)->seq != 0 && losing_acks_.load())
+      return std::optional<Frame>{};
+    return got;
+  }
+  void lose_acks(bool on) { losing_acks_ = on; }
+  std::map<std::uint64_t, int> sent() {
+    std::lock_guard lock(mu_);
+    return sent_;
+  }
+  std::uint64_t highest_sent() {
+    std::lock_guard lock(mu_);
+    return sent_.empty() ? 0 : sent_.rbegin()->first;
+  }
+
+ private:
+  std::unique_ptr<Transport> inner_;
+  std::atomic<bool> losing_acks_{false};
+  std::mutex mu_;
+  std::map<std::uint64_t, int> sent_;
+};
+
+// `n` records of raw samples at the node in `dir`, each large enough to fill an answer chunk
+// (48 KiB, P14) nearly alone, so that the answer has `n` chunks.
+void store_chunk_sized_records(const std::string& dir, const std::string& node_iri, int n, int first = 0) {
+  auto ecg = node::Node::open(dir).value().agent("ecg").value();
+  const std::string samples(40 * 1024, 'x');
+  for (int i = first; i < first + n; ++i) {
+    node::Item chunk;
+    chunk.add(Term::iri(node_iri + "/rec/long/" + std::to_string(i)), Term::iri(kEx + "samples"),
+              Term::literal(std::to_string(i) + samples));
+    ASSERT_TRUE(ecg.store(chunk));
+  }
+}
+
+// The hospital and home1, whose endpoint is tapped; the caller waits with home1_is_up.
+std::shared_ptr<AnswerTap> start_tapped_home(Tree& tree, std::chrono::milliseconds resend_after) {
+  tree.hospital = tree.start_hospital();
+  auto tap = std::make_shared<AnswerTap>(tree.bus.open(kHome1, tree.home1_log.sink()));
+  tree.home1 = Link::start({.dir = tree.home1_dir, .parent_iri = kHospital, .up = tap, .down = tap, .resend_after = resend_after,
+                            .heartbeat_every = 200ms, .log = tree.home1_log.sink()})
+                   .value();
+  return tap;
+}
+
+// home1 registered, and the hospital's state triples say so (so a query for it is routed).
+bool home1_is_up(Tree& tree) {
+  return eventually([&] {
+    return tree.home1->connected() &&
+           count(tree.hospital_dir, {.s = Term::iri(kHome1), .p = Term::iri(vocab::kLinkState), .o = Term::literal("up")}) == 1;
+  });
+}
+
+// A remote query from the hospital for the raw samples held at `target`, asked on its own
+// thread; finish() waits for its end.
+class SamplesQuery {
+ public:
+  SamplesQuery(Tree& tree, const std::string& target, std::chrono::seconds timeout)
+      : hospital_(node::Node::open(tree.hospital_dir).value()), asking_([this, target, timeout] {
+          answered_ = remote_query(hospital_, {.target = target, .pattern = {.p = Term::iri(kEx + "samples")}}, timeout,
+                                   [this](const node::Record&) { ++got_; });
+        }) {}
+  ~SamplesQuery() {
+    if (asking_.joinable()) asking_.join();
+  }
+  // The number of records answered, or the query's error.
+  Result<std::size_t> finish() {
+    asking_.join();
+    if (!answered_) return tahvel::unexpected(answered_.error());
+    return got_;
+  }
+
+ private:
+  node::Node hospital_;
+  Result<std::uint64_t> answered_ = 0;
+  std::size_t got_ = 0;
+  std::thread asking_;
+};
+
+TEST(Link, EachAnswerChunkIsSentOnceWhenNoneIsLost) {
+  Tree tree;
+  // No resend can be due while the answer flows: every send counted is a first send.
+  auto tap = start_tapped_home(tree, 10s);
+  ASSERT_TRUE(home1_is_up(tree));
+  constexpr int kChunks = 60;
+  store_chunk_sized_records(tree.home1_dir, kHome1, kChunks);
+  auto got = SamplesQuery(tree, kHome1, 30s).finish();
+  ASSERT_TRUE(got) << got.error().message;
+  EXPECT_EQ(*got, static_cast<std::size_t>(kChunks));
+  const auto sent = tap->sent();
+  EXPECT_EQ(sent.size(), static_cast<std::size_t>(kChunks));
+  for (const auto& [chunk, times] : sent) EXPECT_EQ(times, 1) << "chunk " << chunk << " was sent " << times << " times";
+}
+
+TEST(Link, AnAnswerRunsNoFurtherThanItsWindowAheadOfTheParentsAcksAndHoldsWhatWasThereWhenAsked) {
+  Tree tree;
+  auto tap = start_tapped_home(tree, 100ms);
+  ASSERT_TRUE(home1_is_up(tree));
+  constexpr int kChunks = 50;
+  store_chunk_sized_records(tree.home1_dir, kHome1, kChunks);
+
+  tap->lose_acks(true);
+  SamplesQuery query(tree, kHome1, 30s);
+  ASSERT_TRUE(eventually([&] { return tap->highest_sent() >= 16; })) << "the answer did not start";
+  // No acknowledgement arrives: the home resends its window (resend_after = 100 ms), and goes no
+  // further than it (P14: 16 chunks).
+  ASSERT_TRUE(eventually([&] { return tap->sent()[1] >= 3; })) << "the window was not resent";
+  EXPECT_EQ(tap->highest_sent(), 16u);
+  // Records stored after the query arrived are not part of its answer.
+  store_chunk_sized_records(tree.home1_dir, kHome1, 5, kChunks);
+
+  tap->lose_acks(false);
+  auto got = query.finish();
+  ASSERT_TRUE(got) << got.error().message;
+  EXPECT_EQ(*got, static_cast<std::size_t>(kChunks));
+  EXPECT_EQ(tap->highest_sent(), static_cast<std::uint64_t>(kChunks));
+}
+
+TEST(Link, AGatewayRelayingAnAnswerHoldsItsChildBackWhileItsParentDoesNotAcknowledge) {
+  Tree tree;
+  auto home1_endpoint = start_tapped_home(tree, 100ms);  // a gateway: its children use it too
+  const std::string sensor_iri = kHome1 + "/ecg1";
+  const std::string sensor_dir = (tree.tmp / "ecg1").string();
+  ASSERT_TRUE(node::Node::init(sensor_dir, {.iri = sensor_iri}));
+  auto sensor_endpoint = std::make_shared<AnswerTap>(tree.bus.open(sensor_iri, tree.home2_log.sink()));
+  auto sensor = Link::start({.dir = sensor_dir, .parent_iri = kHome1, .up = sensor_endpoint, .resend_after = 100ms,
+                             .heartbeat_every = 200ms, .log = tree.home2_log.sink()})
+                    .value();
+  ASSERT_TRUE(eventually([&] { return tree.home1->connected() && sensor->connected(); }));
+  ASSERT_TRUE(eventually([&] {
+    return count(tree.hospital_dir, {.s = Term::iri(kHome1), .p = Term::iri(vocab::kLinkState), .o = Term::literal("up")}) == 1 &&
+           count(tree.home1_dir, {.s = Term::iri(sensor_iri), .p = Term::iri(vocab::kLinkState), .o = Term::literal("up")}) == 1;
+  }));
+  constexpr int kChunks = 100;
+  store_chunk_sized_records(sensor_dir, sensor_iri, kChunks);
+
+  home1_endpoint->lose_acks(true);  // the hospital's acknowledgements do not reach the gateway
+  SamplesQuery query(tree, sensor_iri, 60s);
+  // The gateway takes the sensor's chunks beyond its own window towards the hospital, but only
+  // so far (32 beyond what the hospital acknowledged, and the sensor's window of 16 on top).
+  ASSERT_TRUE(eventually([&] { return sensor_endpoint->highest_sent() > 16; })) << "the gateway took no more than one window";
+  ASSERT_TRUE(eventually([&] { return home1_endpoint->sent()[1] >= 3; })) << "the gateway did not resend its window";
+  const std::uint64_t held_back_at = sensor_endpoint->highest_sent();
+  EXPECT_LE(held_back_at, 48u);
+  EXPECT_EQ(home1_endpoint->highest_sent(), 16u);
+
+  home1_endpoint->lose_acks(false);
+  auto got = query.finish();
+  ASSERT_TRUE(got) << got.error().message;
+  EXPECT_EQ(*got, static_cast<std::size_t>(kChunks));
+  sensor.reset();
 }
 
 TEST(Link, QueryByAreaIsResolvedAtTheTargetThroughItsAreaQuery) {
