@@ -177,6 +177,9 @@ struct Link::Impl {
     std::uint64_t sent_through = 0;   // the highest chunk sent so far
     std::uint64_t acked_through = 0;  // the highest chunk the parent acknowledged
     std::shared_ptr<Reading> reading;  // answered here and not all read yet
+    // Relayed from a child whose last chunk has not come yet: kept while empty, so that the
+    // child's next chunks continue its numbering instead of starting a new stream at 1.
+    bool relaying = false;
     Clock::time_point last_send{}, last_progress{};
   };
   struct InStream {  // answer chunks this node receives from a child
@@ -922,7 +925,7 @@ struct Link::Impl {
       in->second.passed = out.acked_through;
       window.add(opt.down.get(), answer_ack_to_child(in->second, f.seq, f.body));
     }
-    if (out.unacked.empty() && !out.reading) out_answers.erase(it);
+    if (out.unacked.empty() && !out.reading && !out.relaying) out_answers.erase(it);
   }
 
   // Caller holds mu. The acknowledgement of a child's answer chunks: those taken in order, but
@@ -967,9 +970,10 @@ struct Link::Impl {
         up.to = opt.parent_iri;
         up.prev = stream.next_chunk++;
         stream.unacked.push_back(std::move(up));
+        stream.relaying = !in.done;
         answer_window(stream, out);
       }
-      if (stream.unacked.empty() && !stream.reading) out_answers.erase(key);
+      if (stream.unacked.empty() && !stream.reading && !stream.relaying) out_answers.erase(key);
     } else if (next) {
       board_writes.push_back({key, in.reply_to, f});
       changed.notify_all();
