@@ -187,7 +187,10 @@ struct Link::Impl {
     std::string child;
     std::string reply_to;
     std::uint64_t expected = 1;
-    std::uint64_t passed = 0;  // chunks passed on: acknowledged by the parent, or on the board
+    // Chunks passed on: acknowledged by the parent, or at the origin taken off the board by the
+    // asking agent (a consumer slower than the link must hold the child back, not fill the store).
+    std::uint64_t passed = 0;
+    std::deque<std::pair<std::uint64_t, std::uint64_t>> unread;  // at the origin: (chunk, item id)
     bool done = false;
     Frame query_frame;  // resent until the first chunk or error arrives
     Clock::time_point sent{};
@@ -1296,7 +1299,9 @@ struct Link::Impl {
       Outgoing resends;
       {
         std::unique_lock lock(mu);
-        changed.wait_for(lock, 50ms, [&] { return !board_writes.empty() || stopping.load(); });
+        // While answer chunks wait on the board, look often for the asker having taken them.
+        const bool unread = std::any_of(in_answers.begin(), in_answers.end(), [](const auto& e) { return !e.second.unread.empty(); });
+        changed.wait_for(lock, unread ? 5ms : 50ms, [&] { return !board_writes.empty() || stopping.load(); });
         writes.assign(std::make_move_iterator(board_writes.begin()), std::make_move_iterator(board_writes.end()));
         board_writes.clear();
         const auto now = Clock::now();
@@ -1344,33 +1349,55 @@ struct Link::Impl {
         f.body = wire::encode_state({opt.software_version, depth ? *depth : 0});
         send(opt.up.get(), std::move(f));
       }
-      for (const BoardWrite& w : writes) write_answer(*link, w.reply_to, w.frame);
-      if (!writes.empty()) {
-        // What is on the board is passed on: the children may send on (answer_ack_to_child).
-        // Chunks are written only here, at the origin, so their origin is this node.
-        Outgoing acks;
-        {
-          std::lock_guard lock(mu);
-          std::vector<std::string> moved;
-          for (const BoardWrite& w : writes) {
-            auto it = in_answers.find(w.key);
-            if (it == in_answers.end() || w.frame.kind != FrameKind::answer || w.frame.prev <= it->second.passed) continue;
-            it->second.passed = w.frame.prev;
-            if (std::find(moved.begin(), moved.end(), w.key) == moved.end()) moved.push_back(w.key);
-          }
-          for (const std::string& key : moved) {
-            const InStream& in = in_answers.at(key);
-            acks.add(opt.down.get(), answer_ack_to_child(in, in.query_frame.seq, self));
-          }
-        }
-        send_all(acks);
-      }
+      std::vector<std::pair<const BoardWrite*, std::uint64_t>> written;
+      for (const BoardWrite& w : writes) written.emplace_back(&w, write_answer(*link, w.reply_to, w.frame));
+      Outgoing acks = acks_for_chunks_read(*node, written);
+      send_all(acks);
       write_child_states(*link, dirty);
     }
   }
 
-  // An answer chunk or error on the origin's board, addressed to the asking agent (P16).
-  void write_answer(node::Agent& link, const std::string& reply_to, const Frame& f) {
+  // The chunks just `written` on the board (item ids; 0 when the write failed) wait there until
+  // the asking agent has taken them off; those taken, in chunk order, are passed on, and the
+  // children may send on (answer_ack_to_child). Chunks are written only here, at the origin, so
+  // their origin is this node.
+  Outgoing acks_for_chunks_read(node::Node& node, const std::vector<std::pair<const BoardWrite*, std::uint64_t>>& written) {
+    std::lock_guard lock(mu);
+    for (const auto& [w, item] : written) {
+      auto it = in_answers.find(w->key);
+      if (it == in_answers.end() || w->frame.kind != FrameKind::answer) continue;
+      it->second.unread.emplace_back(w->frame.prev, item);
+    }
+    Outgoing acks;
+    std::optional<node::Snapshot> snap;
+    for (auto& [key, in] : in_answers) {
+      if (in.unread.empty()) continue;
+      if (!snap) {
+        auto s = node.snapshot();
+        if (!s) {
+          log("cannot read the board for answers taken: " + s.error().message);
+          return acks;
+        }
+        snap.emplace(std::move(*s));
+      }
+      const std::uint64_t before = in.passed;
+      while (!in.unread.empty()) {
+        const auto [chunk, item] = in.unread.front();
+        if (item != 0) {
+          auto still = snap->item(item);
+          if (still || still.error().code != Errc::not_found) break;
+        }
+        in.passed = std::max(in.passed, chunk);
+        in.unread.pop_front();
+      }
+      if (in.passed != before) acks.add(opt.down.get(), answer_ack_to_child(in, in.query_frame.seq, self));
+    }
+    return acks;
+  }
+
+  // An answer chunk or error on the origin's board, addressed to the asking agent (P16); the
+  // item's id, or 0 when it could not be written (logged).
+  std::uint64_t write_answer(node::Agent& link, const std::string& reply_to, const Frame& f) {
     node::Item item;
     item.context = reply_to;
     const node::Term a = node::Term::blank("answer");
@@ -1387,7 +1414,12 @@ struct Link::Impl {
       item.add(a, node::Term::iri(vocab::kErrorCode), node::Term::literal(body ? body->code : "malformed"));
       item.add(a, node::Term::iri(vocab::kErrorMessage), node::Term::literal(body ? body->message : "malformed error"));
     }
-    if (auto stored = link.store(item); !stored) log("cannot write an answer for <" + reply_to + ">: " + stored.error().message);
+    auto stored = link.store(item);
+    if (!stored) {
+      log("cannot write an answer for <" + reply_to + ">: " + stored.error().message);
+      return 0;
+    }
+    return *stored;
   }
 
   // Each child's state as one persistent item about the child, replacing the previous one, also

@@ -10,6 +10,7 @@
 #include <atomic>
 #include <condition_variable>
 #include <filesystem>
+#include <limits>
 #include <map>
 #include <mutex>
 #include <set>
@@ -682,18 +683,30 @@ bool home1_is_up(Tree& tree) {
 }
 
 // A remote query from the hospital for the raw samples held at `target`, asked on its own
-// thread; finish() waits for its end.
+// thread; finish() waits for its end. With `pause_after`, the caller stops taking records after
+// that many until resume(): a consumer slower than the link.
 class SamplesQuery {
  public:
-  SamplesQuery(Tree& tree, const std::string& target, std::chrono::seconds timeout)
-      : hospital_(node::Node::open(tree.hospital_dir).value()), asking_([this, target, timeout] {
+  SamplesQuery(Tree& tree, const std::string& target, std::chrono::seconds timeout,
+               std::size_t pause_after = std::numeric_limits<std::size_t>::max())
+      : hospital_(node::Node::open(tree.hospital_dir).value()), pause_after_(pause_after), asking_([this, target, timeout] {
           answered_ = remote_query(hospital_, {.target = target, .pattern = {.p = Term::iri(kEx + "samples")}}, timeout,
-                                   [this](const node::Record&) { ++got_; });
+                                   [this](const node::Record&) {
+                                     std::unique_lock lock(mu_);
+                                     resumed_.wait(lock, [&] { return got_.load() < pause_after_; });
+                                     ++got_;
+                                   });
         }) {}
   ~SamplesQuery() {
+    resume();
     if (asking_.joinable()) asking_.join();
   }
   std::size_t received() const { return got_.load(); }
+  void resume() {
+    std::lock_guard lock(mu_);
+    pause_after_ = std::numeric_limits<std::size_t>::max();
+    resumed_.notify_all();
+  }
   // The number of records answered, or the query's error.
   Result<std::size_t> finish() {
     asking_.join();
@@ -705,6 +718,9 @@ class SamplesQuery {
   node::Node hospital_;
   Result<std::uint64_t> answered_ = 0;
   std::atomic<std::size_t> got_{0};
+  std::mutex mu_;
+  std::condition_variable resumed_;
+  std::size_t pause_after_;
   std::thread asking_;
 };
 
@@ -741,6 +757,33 @@ TEST(Link, AnAnswerRunsNoFurtherThanItsWindowAheadOfTheParentsAcksAndHoldsWhatWa
   store_chunk_sized_records(tree.home1_dir, kHome1, 5, kChunks);
 
   tap->lose_acks(false);
+  auto got = query.finish();
+  ASSERT_TRUE(got) << got.error().message;
+  EXPECT_EQ(*got, static_cast<std::size_t>(kChunks));
+  EXPECT_EQ(tap->highest_sent(), static_cast<std::uint64_t>(kChunks));
+}
+
+TEST(Link, AnAnswerTheAskerDoesNotReadHoldsTheTargetBackInsteadOfPilingUpOnTheOriginsBoard) {
+  Tree tree;
+  auto tap = start_tapped_home(tree, 100ms);
+  ASSERT_TRUE(home1_is_up(tree));
+  constexpr int kChunks = 120;
+  store_chunk_sized_records(tree.home1_dir, kHome1, kChunks);
+
+  // The asker takes chunk 1 and hands its record over, takes chunk 2 and waits.
+  SamplesQuery query(tree, kHome1, 60s, /*pause_after=*/1);
+  ASSERT_TRUE(eventually([&] { return query.received() == 1 && tap->highest_sent() >= 16; }));
+  // The hospital acknowledges at most 32 chunks beyond those taken off its board (two), and the
+  // home's window is 16 beyond that: nothing more leaves the home, nothing more is on the board.
+  std::this_thread::sleep_for(500ms);
+  EXPECT_LE(tap->highest_sent(), 2u + 32 + 16);
+  std::uint64_t on_board = 0;
+  auto board = node::Node::open(tree.hospital_dir).value().snapshot().value();
+  ASSERT_TRUE(board.for_each({.p = Term::iri(vocab::kAnswerChunk)}, [&](const node::Record&) { return ++on_board, true; }));
+  EXPECT_LE(on_board, 32u + 16);
+  EXPECT_GE(on_board, 16u);
+
+  query.resume();
   auto got = query.finish();
   ASSERT_TRUE(got) << got.error().message;
   EXPECT_EQ(*got, static_cast<std::size_t>(kChunks));
