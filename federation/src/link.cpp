@@ -17,6 +17,7 @@
 #include <mutex>
 #include <span>
 #include <thread>
+#include <utility>
 
 #include "base64.h"
 #include "tahvel/uri/iri.h"
@@ -767,13 +768,26 @@ struct Link::Impl {
   // the day (the whole answer was read at once before: ~5x its size at the peak), and the
   // receive thread that took the query goes back to the node's children at once.
 
-  std::condition_variable answers_due;  // with mu: a stream being read has room in its window
+  std::condition_variable answers_due;  // with mu: a stream being read has room in its window,
+                                        // or answers_up holds frames
+  // With mu: answer chunks due to the parent that the receiving thread made due (a child's chunk
+  // relayed, an ack that opened the window). The answerer sends them: a parent whose reader
+  // stalls blocks a send for up to 1 s, and the thread that takes the children's items must not
+  // wait on it.
+  Outgoing answers_up;
 
   void answer_loop() {
     auto node = node::Node::open(opt.dir);
     if (!node) return log("cannot open the store: " + node.error().message);
     std::unique_lock lock(mu);
     while (!stopping) {
+      if (!answers_up.frames.empty()) {
+        Outgoing sends = std::exchange(answers_up, {});
+        lock.unlock();
+        send_all(sends);
+        lock.lock();
+        continue;
+      }
       auto due = std::find_if(out_answers.begin(), out_answers.end(), [](const auto& e) {
         return e.second.reading && e.second.unacked.size() < kAnswerWindow;
       });
@@ -920,8 +934,8 @@ struct Link::Impl {
     out.acked_through = f.ack;
     out.last_send = out.last_progress = Clock::now();  // progress: the resend timer starts again
     while (!out.unacked.empty() && out.unacked.front().prev <= f.ack) out.unacked.pop_front();
-    if (out.reading) answers_due.notify_all();
-    answer_window(out, window);
+    answer_window(out, answers_up);
+    answers_due.notify_all();
     // A node in the middle: the child may send on, as far as this node has room for.
     auto in = in_answers.find(key);
     if (in != in_answers.end() && in->second.forward_up) {
@@ -974,7 +988,8 @@ struct Link::Impl {
         up.prev = stream.next_chunk++;
         stream.unacked.push_back(std::move(up));
         stream.relaying = !in.done;
-        answer_window(stream, out);
+        answer_window(stream, answers_up);
+        answers_due.notify_all();
       }
       if (stream.unacked.empty() && !stream.reading && !stream.relaying) out_answers.erase(key);
     } else if (next) {
@@ -1004,8 +1019,8 @@ struct Link::Impl {
     if (it->second.forward_up) {
       Frame up = f;
       up.to = opt.parent_iri;
-      lock.unlock();
-      send(opt.up.get(), std::move(up));
+      answers_up.add(opt.up.get(), std::move(up));  // sent by the answerer, as the chunks are
+      answers_due.notify_all();
     } else {
       board_writes.push_back({key, it->second.reply_to, f});
       changed.notify_all();

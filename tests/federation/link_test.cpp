@@ -560,51 +560,6 @@ TEST(Link, AGatewayKeepsTakingItsSensorsItemsWhileItsParentStallsItsSends) {
   g.sensor_link.reset();
 }
 
-TEST(Link, AGatewayKeepsTakingItsSensorsItemsWhileItsAnswerToAStalledParentWaits) {
-  Tree tree;
-  StallableGateway g = start_stallable_gateway(tree);
-  ASSERT_TRUE(eventually([&] { return tree.home1->connected() && g.sensor_link->connected(); }));
-  ASSERT_TRUE(eventually([&] {
-    return count(tree.hospital_dir, {.s = Term::iri(kHome1), .p = Term::iri(vocab::kLinkState), .o = Term::literal("up")}) == 1;
-  }));
-  // Raw data at the home whose answer takes more chunks than the answer window (P14).
-  auto ecg = node::Node::open(tree.home1_dir).value().agent("ecg").value();
-  const std::string samples(40 * 1024, 'x');
-  for (int i = 0; i < 40; ++i) {
-    node::Item chunk;
-    chunk.add(Term::iri(kHome1 + "/rec/long/" + std::to_string(i)), Term::iri(kEx + "samples"),
-              Term::literal(std::to_string(i) + samples));
-    ASSERT_TRUE(ecg.store(chunk));
-  }
-
-  g.home1_endpoint->stall(true);
-  auto hospital = node::Node::open(tree.hospital_dir).value();
-  std::size_t got = 0;
-  Result<std::uint64_t> answered = 0;
-  std::thread asking([&] {
-    answered = remote_query(hospital, {.target = kHome1, .pattern = {.p = Term::iri(kEx + "samples")}}, 30s,
-                            [&](const node::Record&) { ++got; });
-  });
-  ASSERT_TRUE(eventually([&] { return g.home1_endpoint->blocked(FrameKind::answer) > 0; }))
-      << "the home never tried to send its answer up";
-  // While its answer waits on the stalled parent, the home still relays what its sensor sends.
-  auto hrv = node::Node::open(g.sensor_dir).value().agent("hrv").value();
-  for (int i = 0; i < 20; ++i) ASSERT_TRUE(hrv.store(hrv_item(i)));
-  const node::Pattern numbered{.p = Term::iri(kEx + "n")};
-  const auto deadline = std::chrono::steady_clock::now() + 3s;
-  while (count(tree.home1_dir, numbered) < 20 && std::chrono::steady_clock::now() < deadline)
-    std::this_thread::sleep_for(10ms);
-  EXPECT_EQ(count(tree.home1_dir, numbered), 20u) << "the home stopped serving its sensor while its answer waited";
-
-  // Once the parent takes again, the whole answer arrives, and the sensor's items too.
-  g.home1_endpoint->stall(false);
-  asking.join();
-  ASSERT_TRUE(answered) << answered.error().message;
-  EXPECT_EQ(got, 40u);
-  ASSERT_TRUE(eventually([&] { return count(tree.hospital_dir, numbered) == 20; }));
-  g.sensor_link.reset();
-}
-
 // Wraps an endpoint: counts the answer chunks it sends, by chunk number, can hold back the
 // chunks after a given one (a slow node), and can lose the acknowledgements of answer chunks that
 // reach it (a parent whose acks do not arrive).
@@ -788,6 +743,52 @@ TEST(Link, AnAnswerTheAskerDoesNotReadHoldsTheTargetBackInsteadOfPilingUpOnTheOr
   ASSERT_TRUE(got) << got.error().message;
   EXPECT_EQ(*got, static_cast<std::size_t>(kChunks));
   EXPECT_EQ(tap->highest_sent(), static_cast<std::uint64_t>(kChunks));
+}
+
+// The hospital asks for the 40 chunk-sized records held at `target` (home1 itself, or its sensor
+// through it) while home1's sends to the hospital are stalled. While the answer waits on the
+// stalled parent, home1 must still take, item by item, what its sensor sends it: no answer chunk
+// is sent from the thread that receives. Once the parent takes again, everything arrives.
+void expect_the_gateway_serves_its_sensor_while_an_answer_waits(Tree& tree, StallableGateway& g, const std::string& target_dir,
+                                                                const std::string& target) {
+  const std::string sensor_iri = kHome1 + "/ecg1";
+  ASSERT_TRUE(home1_is_up(tree));
+  ASSERT_TRUE(eventually([&] {
+    return g.sensor_link->connected() &&
+           count(tree.home1_dir, {.s = Term::iri(sensor_iri), .p = Term::iri(vocab::kLinkState), .o = Term::literal("up")}) == 1;
+  }));
+  store_chunk_sized_records(target_dir, target, 40);  // more chunks than the answer window (P14)
+
+  g.home1_endpoint->stall(true);  // the query still goes down; the answer's way up is stalled
+  SamplesQuery query(tree, target, 60s);
+  ASSERT_TRUE(eventually([&] { return g.home1_endpoint->blocked(FrameKind::answer) > 0; }))
+      << "home1 never tried to send the answer up";
+  auto hrv = node::Node::open(g.sensor_dir).value().agent("hrv").value();
+  for (int i = 0; i < 20; ++i) ASSERT_TRUE(hrv.store(hrv_item(i)));
+  const node::Pattern numbered{.p = Term::iri(kEx + "n")};
+  const auto deadline = std::chrono::steady_clock::now() + 3s;
+  while (count(tree.home1_dir, numbered) < 20 && std::chrono::steady_clock::now() < deadline)
+    std::this_thread::sleep_for(10ms);
+  EXPECT_EQ(count(tree.home1_dir, numbered), 20u) << "home1 stopped serving its sensor while the answer waited";
+
+  g.home1_endpoint->stall(false);
+  auto got = query.finish();
+  ASSERT_TRUE(got) << got.error().message;
+  EXPECT_EQ(*got, 40u);
+  ASSERT_TRUE(eventually([&] { return count(tree.hospital_dir, numbered) == 20; }));
+  g.sensor_link.reset();
+}
+
+TEST(Link, AGatewayKeepsTakingItsSensorsItemsWhileItsAnswerToAStalledParentWaits) {
+  Tree tree;
+  StallableGateway g = start_stallable_gateway(tree);
+  expect_the_gateway_serves_its_sensor_while_an_answer_waits(tree, g, tree.home1_dir, kHome1);
+}
+
+TEST(Link, AGatewayKeepsTakingItsSensorsItemsWhileARelayedAnswerToAStalledParentWaits) {
+  Tree tree;
+  StallableGateway g = start_stallable_gateway(tree);
+  expect_the_gateway_serves_its_sensor_while_an_answer_waits(tree, g, g.sensor_dir, kHome1 + "/ecg1");
 }
 
 // home1 as a gateway and its sensor ecg1, both endpoints tapped.
