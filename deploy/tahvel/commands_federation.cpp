@@ -39,6 +39,7 @@ using namespace std::chrono_literals;
 
 inline constexpr int kExitUnknownNode = 4;
 inline constexpr int kExitUnreachable = 5;
+inline constexpr int kExitInterrupted = 130;  // as a shell reports a command ended by SIGINT
 
 // --- transports ---------------------------------------------------------------------------
 
@@ -298,11 +299,17 @@ int run_query(const Args& args) {
   std::vector<node::Record> turtle_records;  // Turtle needs the prefixes the records use: at the end
   std::optional<node::RecordWriter> writer;
   if (format != node::Format::turtle) writer.emplace(std::cout, format);
+  // Ctrl-C, SIGTERM or a reader that went away (`| head`) cancels the query below (P18) instead
+  // of leaving its answer to run on into this node's store.
+  install_stop_handlers();
+  auto cancelled = [] { return g_stop != 0 || !std::cout.good(); };
   auto answered = federation::remote_query(node, query, timeout, [&](const node::Record& r) {
     if (writer) writer->write(r);
     else turtle_records.push_back(r);
-  }, area_answer);
+  }, area_answer, cancelled);
   if (writer) writer->finish();
+  if (!answered && g_stop) throw Failure{kExitInterrupted, "query: interrupted; " + answered.error().message};
+  if (!answered && !std::cout.good()) throw Failure{kExitFailure, "query: cannot write the answer (output closed); " + answered.error().message};
   if (!answered) {
     const auto& e = answered.error();
     int status = e.code == node::Errc::timeout ? kExitTimeout

@@ -193,6 +193,7 @@ struct Link::Impl {
     std::uint64_t passed = 0;
     std::deque<std::pair<std::uint64_t, std::uint64_t>> unread;  // at the origin: (chunk, item id)
     bool done = false;
+    bool cancelled = false;  // P18: the child's chunks are answered with a cancel, not taken
     Frame query_frame;  // resent until the first chunk or error arrives
     Clock::time_point sent{};
     Clock::time_point last_progress{};
@@ -693,7 +694,13 @@ struct Link::Impl {
       case FrameKind::error: {
         auto body = wire::decode_error(f.body);
         std::string code = body ? body->code : "malformed";
-        std::lock_guard lock(mu);
+        std::unique_lock lock(mu);
+        if (code == "cancelled" && f.seq != 0) {
+          Outgoing out;
+          cancel_from_parent(f, *body, out);
+          lock.unlock();
+          return send_all(out);
+        }
         if (code == "unregistered") {
           welcomed = false;
         } else if (code == "refused") {
@@ -959,6 +966,27 @@ struct Link::Impl {
     return ack;
   }
 
+  // Caller holds mu. P18: tells the child that query `query` (of `origin`) is cancelled.
+  Frame cancel_frame(const InStream& in, std::uint64_t query, const std::string& origin) {
+    Frame f;
+    f.kind = FrameKind::error;
+    f.to = in.child;
+    f.seq = query;
+    f.body = wire::encode_error({"cancelled", "the query was cancelled at <" + origin + ">", origin});
+    return f;
+  }
+
+  // Caller holds mu. P18: the parent cancelled a query this node answers or relays: its answer
+  // stream ends here, and a child answering it is told in turn.
+  void cancel_from_parent(const Frame& f, const wire::ErrorBody& body, Outgoing& out) {
+    const std::string key = query_key(body.origin, f.seq);
+    out_answers.erase(key);
+    auto in = in_answers.find(key);
+    if (in == in_answers.end() || in->second.cancelled) return;
+    in->second.cancelled = in->second.done = true;
+    out.add(opt.down.get(), cancel_frame(in->second, f.seq, body.origin));
+  }
+
   void answer_from_child(Transport* via, const Frame& f) {
     auto body = wire::decode_answer(f.body);
     if (!body) {
@@ -971,6 +999,11 @@ struct Link::Impl {
     auto it = in_answers.find(key);
     if (it == in_answers.end()) return;  // a query this node no longer waits for
     InStream& in = it->second;
+    if (in.cancelled) {  // the child missed the cancel (P18): it comes again with each chunk
+      out.add(via, cancel_frame(in, f.seq, body->origin));
+      lock.unlock();
+      return send_all(out);
+    }
     const bool next = f.prev == in.expected && !in.done;
     if (next) {
       ++in.expected;
@@ -1366,8 +1399,10 @@ struct Link::Impl {
       }
       std::vector<std::pair<const BoardWrite*, std::uint64_t>> written;
       for (const BoardWrite& w : writes) written.emplace_back(&w, write_answer(*link, w.reply_to, w.frame));
-      Outgoing acks = acks_for_chunks_read(*node, written);
+      std::vector<std::uint64_t> abandoned;
+      Outgoing acks = acks_for_chunks_read(*node, written, abandoned);
       send_all(acks);
+      for (std::uint64_t item : abandoned) (void)node->remove_item(item);
       write_child_states(*link, dirty);
     }
   }
@@ -1375,18 +1410,22 @@ struct Link::Impl {
   // The chunks just `written` on the board (item ids; 0 when the write failed) wait there until
   // the asking agent has taken them off; those taken, in chunk order, are passed on, and the
   // children may send on (answer_ack_to_child). Chunks are written only here, at the origin, so
-  // their origin is this node.
-  Outgoing acks_for_chunks_read(node::Node& node, const std::vector<std::pair<const BoardWrite*, std::uint64_t>>& written) {
+  // their origin is this node. A query whose item the asker removed before its answer was all
+  // read is cancelled (P18): the child is told, and the chunks still on the board go to
+  // `abandoned`, for the caller to remove.
+  Outgoing acks_for_chunks_read(node::Node& node, const std::vector<std::pair<const BoardWrite*, std::uint64_t>>& written,
+                                std::vector<std::uint64_t>& abandoned) {
     std::lock_guard lock(mu);
     for (const auto& [w, item] : written) {
       auto it = in_answers.find(w->key);
       if (it == in_answers.end() || w->frame.kind != FrameKind::answer) continue;
-      it->second.unread.emplace_back(w->frame.prev, item);
+      if (!it->second.cancelled) it->second.unread.emplace_back(w->frame.prev, item);
+      else if (item != 0) abandoned.push_back(item);  // taken from the child just before the cancel
     }
     Outgoing acks;
     std::optional<node::Snapshot> snap;
     for (auto& [key, in] : in_answers) {
-      if (in.unread.empty()) continue;
+      if (in.forward_up || in.cancelled || (in.done && in.unread.empty())) continue;
       if (!snap) {
         auto s = node.snapshot();
         if (!s) {
@@ -1394,6 +1433,14 @@ struct Link::Impl {
           return acks;
         }
         snap.emplace(std::move(*s));
+      }
+      if (auto asked = snap->item(in.query_frame.seq); !asked && asked.error().code == Errc::not_found) {
+        for (const auto& [chunk, item] : in.unread)
+          if (item != 0) abandoned.push_back(item);
+        in.unread.clear();
+        if (!in.done) acks.add(opt.down.get(), cancel_frame(in, in.query_frame.seq, self));
+        in.cancelled = in.done = true;
+        continue;
       }
       const std::uint64_t before = in.passed;
       while (!in.unread.empty()) {

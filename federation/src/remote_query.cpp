@@ -27,7 +27,7 @@ const Term* object_of(const std::vector<node::Record>& records, const std::strin
 Result<std::uint64_t> remote_query(node::Node& node, const RemoteQuery& query,
                                    std::chrono::milliseconds timeout,
                                    const std::function<void(const node::Record&)>& each,
-                                   const AreaQuery& area_query) {
+                                   const AreaQuery& area_query, const std::function<bool()>& cancelled) {
   auto target = uri::normalize(query.target);
   if (!target) return node::fail(Errc::invalid_iri, "--at: " + target.error().message);
   const std::string& self = node.iri();
@@ -97,7 +97,11 @@ Result<std::uint64_t> remote_query(node::Node& node, const RemoteQuery& query,
                                            std::to_string(timeout.count()) + " ms (" + std::to_string(delivered) +
                                            " records received)");
     }
-    auto got = agent->take(left);
+    if (cancelled && cancelled()) {
+      cleanup();  // the query item gone, the link cancels the query below (P18)
+      return node::fail(Errc::io, "cancelled after " + std::to_string(delivered) + " records from <" + *target + ">");
+    }
+    auto got = agent->take(cancelled ? std::min(left, std::chrono::milliseconds(100)) : left);
     if (!got) {
       cleanup();
       return Unexpected<Error>{got.error()};

@@ -639,7 +639,7 @@ bool home1_is_up(Tree& tree) {
 
 // A remote query from the hospital for the raw samples held at `target`, asked on its own
 // thread; finish() waits for its end. With `pause_after`, the caller stops taking records after
-// that many until resume(): a consumer slower than the link.
+// that many until resume(): a consumer slower than the link. cancel() cancels it (P18).
 class SamplesQuery {
  public:
   SamplesQuery(Tree& tree, const std::string& target, std::chrono::seconds timeout,
@@ -650,13 +650,14 @@ class SamplesQuery {
                                      std::unique_lock lock(mu_);
                                      resumed_.wait(lock, [&] { return got_.load() < pause_after_; });
                                      ++got_;
-                                   });
+                                   }, {}, [this] { return cancelled_.load(); });
         }) {}
   ~SamplesQuery() {
     resume();
     if (asking_.joinable()) asking_.join();
   }
   std::size_t received() const { return got_.load(); }
+  void cancel() { cancelled_ = true; }
   void resume() {
     std::lock_guard lock(mu_);
     pause_after_ = std::numeric_limits<std::size_t>::max();
@@ -673,6 +674,7 @@ class SamplesQuery {
   node::Node hospital_;
   Result<std::uint64_t> answered_ = 0;
   std::atomic<std::size_t> got_{0};
+  std::atomic<bool> cancelled_{false};
   std::mutex mu_;
   std::condition_variable resumed_;
   std::size_t pause_after_;
@@ -743,6 +745,54 @@ TEST(Link, AnAnswerTheAskerDoesNotReadHoldsTheTargetBackInsteadOfPilingUpOnTheOr
   ASSERT_TRUE(got) << got.error().message;
   EXPECT_EQ(*got, static_cast<std::size_t>(kChunks));
   EXPECT_EQ(tap->highest_sent(), static_cast<std::uint64_t>(kChunks));
+}
+
+// All the answer chunks `tap` has sent, first sends and resends.
+int answer_sends(AnswerTap& tap) {
+  int total = 0;
+  for (const auto& [chunk, times] : tap.sent()) total += times;
+  return total;
+}
+
+// The node behind `tap` has stopped sending answer chunks: a live stream would resend its window
+// every 100 ms (resend_after) while nothing acknowledges it.
+bool answer_sends_stop(AnswerTap& tap) {
+  return eventually([&] {
+    const int before = answer_sends(tap);
+    std::this_thread::sleep_for(400ms);
+    return answer_sends(tap) == before;
+  });
+}
+
+// Neither the query item nor any of its answer items is left on the hospital's board.
+bool hospital_board_is_clear_of_the_query(Tree& tree) {
+  return eventually([&] {
+    return count(tree.hospital_dir, {.p = Term::iri(vocab::kAnswerChunk)}) == 0 &&
+           count(tree.hospital_dir, {.o = Term::iri(vocab::kRemoteQuery)}) == 0;
+  });
+}
+
+// Starts a query for the 120 chunk-sized records at `target` whose asker pauses after the first
+// record; once `sender` has sent a window, cancels it. The caller checks what stopped.
+void ask_and_cancel(Tree& tree, const std::string& target, AnswerTap& sender) {
+  SamplesQuery query(tree, target, 60s, /*pause_after=*/1);
+  ASSERT_TRUE(eventually([&] { return query.received() == 1 && sender.highest_sent() >= 16; }));
+  query.cancel();
+  query.resume();
+  auto got = query.finish();
+  ASSERT_FALSE(got);
+  EXPECT_EQ(got.error().message.rfind("cancelled", 0), 0u) << got.error().message;
+}
+
+TEST(Link, ACancelledQueryStopsTheTargetAndLeavesNothingOnTheOriginsBoard) {
+  Tree tree;
+  auto tap = start_tapped_home(tree, 100ms);
+  ASSERT_TRUE(home1_is_up(tree));
+  store_chunk_sized_records(tree.home1_dir, kHome1, 120);
+  ask_and_cancel(tree, kHome1, *tap);
+  EXPECT_TRUE(hospital_board_is_clear_of_the_query(tree));
+  EXPECT_TRUE(answer_sends_stop(*tap)) << "home1 went on answering a cancelled query";
+  EXPECT_LT(tap->highest_sent(), 120u);
 }
 
 // The hospital asks for the 40 chunk-sized records held at `target` (home1 itself, or its sensor
@@ -862,6 +912,18 @@ TEST(Link, AGatewayKeepsARelayedAnswersNumberingWhenItsParentHasAcknowledgedAllS
   auto got = query.finish();
   ASSERT_TRUE(got) << got.error().message;
   EXPECT_EQ(*got, static_cast<std::size_t>(kChunks));
+}
+
+TEST(Link, ACancelReachesTheTargetThroughAGatewayThatRelaysItsAnswer) {
+  Tree tree;
+  TappedGateway g = start_tapped_gateway(tree);
+  ASSERT_TRUE(tapped_gateway_is_up(tree, g));
+  store_chunk_sized_records(g.sensor_dir, g.sensor_iri, 120);
+  ask_and_cancel(tree, g.sensor_iri, *g.home1_endpoint);
+  EXPECT_TRUE(hospital_board_is_clear_of_the_query(tree));
+  EXPECT_TRUE(answer_sends_stop(*g.sensor_endpoint)) << "the sensor went on answering a cancelled query";
+  EXPECT_TRUE(answer_sends_stop(*g.home1_endpoint)) << "the gateway went on relaying a cancelled query";
+  EXPECT_LT(g.sensor_endpoint->highest_sent(), 120u);
 }
 
 TEST(Link, QueryByAreaIsResolvedAtTheTargetThroughItsAreaQuery) {

@@ -123,7 +123,10 @@ class Link {
 // Remote query, operator side: asks the node at `target` (this node or any node below it)
 // through this node's board and its running Link, calling `each` for every record of the answer
 // as chunks arrive. Errors: not_found "unknown node" (not under this node, or no such child),
-// unreachable (errc io, message starts "unreachable:"), timeout.
+// unreachable (errc io, message starts "unreachable:"), timeout. `cancelled`, when given, is
+// asked at least every 100 ms and between chunks: once it says true, the query ends (errc io,
+// message starts "cancelled"), its items leave the board, and the link tells the nodes below
+// to stop answering (docs/protocol.md P18). A timeout cancels the same way.
 
 struct RemoteQuery {
   std::string target;
@@ -138,7 +141,7 @@ struct RemoteQuery {
 Result<std::uint64_t> remote_query(node::Node& node, const RemoteQuery& query,
                                    std::chrono::milliseconds timeout,
                                    const std::function<void(const node::Record&)>& each,
-                                   const AreaQuery& area_query = {});
+                                   const AreaQuery& area_query = {}, const std::function<bool()>& cancelled = {});
 
 // The default forwarding policy (HRV windows: sosa:observedProperty tv:HeartRateVariability).
 std::vector<node::Pattern> default_forward_policy();
