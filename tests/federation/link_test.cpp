@@ -861,18 +861,23 @@ TappedGateway start_tapped_gateway(Tree& tree) {
   return g;
 }
 
-// Both links registered, and each parent's state triples say so (so queries are routed).
-bool tapped_gateway_is_up(Tree& tree, TappedGateway& g) {
-  return home1_is_up(tree) && eventually([&] {
-    return g.sensor->connected() &&
-           count(tree.home1_dir, {.s = Term::iri(g.sensor_iri), .p = Term::iri(vocab::kLinkState), .o = Term::literal("up")}) == 1;
-  });
-}
-
-TEST(Link, AGatewayRelayingAnAnswerHoldsItsChildBackWhileItsParentDoesNotAcknowledge) {
+// The hospital, and home1 as a gateway with its sensor ecg1 (TappedGateway), both links
+// registered and each parent's state triples saying so (so queries are routed).
+class AnswerThroughAGateway : public ::testing::Test {
+ protected:
+  void SetUp() override {
+    g = start_tapped_gateway(tree);
+    ASSERT_TRUE(home1_is_up(tree));
+    ASSERT_TRUE(eventually([&] {
+      return g.sensor->connected() &&
+             count(tree.home1_dir, {.s = Term::iri(g.sensor_iri), .p = Term::iri(vocab::kLinkState), .o = Term::literal("up")}) == 1;
+    }));
+  }
   Tree tree;
-  TappedGateway g = start_tapped_gateway(tree);
-  ASSERT_TRUE(tapped_gateway_is_up(tree, g));
+  TappedGateway g;
+};
+
+TEST_F(AnswerThroughAGateway, TheGatewayHoldsItsChildBackWhileItsParentDoesNotAcknowledge) {
   auto& home1_endpoint = g.home1_endpoint;
   auto& sensor_endpoint = g.sensor_endpoint;
   const std::string& sensor_iri = g.sensor_iri;
@@ -896,10 +901,7 @@ TEST(Link, AGatewayRelayingAnAnswerHoldsItsChildBackWhileItsParentDoesNotAcknowl
   EXPECT_EQ(*got, static_cast<std::size_t>(kChunks));
 }
 
-TEST(Link, AGatewayKeepsARelayedAnswersNumberingWhenItsParentHasAcknowledgedAllSoFar) {
-  Tree tree;
-  TappedGateway g = start_tapped_gateway(tree);
-  ASSERT_TRUE(tapped_gateway_is_up(tree, g));
+TEST_F(AnswerThroughAGateway, TheGatewayKeepsTheAnswersNumberingWhenItsParentHasAcknowledgedAllSoFar) {
   constexpr int kChunks = 20;
   store_chunk_sized_records(g.sensor_dir, g.sensor_iri, kChunks);
   g.sensor_endpoint->hold_chunks_after(5);  // a slow sensor: the gateway's stream runs empty
@@ -914,10 +916,7 @@ TEST(Link, AGatewayKeepsARelayedAnswersNumberingWhenItsParentHasAcknowledgedAllS
   EXPECT_EQ(*got, static_cast<std::size_t>(kChunks));
 }
 
-TEST(Link, ACancelReachesTheTargetThroughAGatewayThatRelaysItsAnswer) {
-  Tree tree;
-  TappedGateway g = start_tapped_gateway(tree);
-  ASSERT_TRUE(tapped_gateway_is_up(tree, g));
+TEST_F(AnswerThroughAGateway, ACancelReachesTheTargetThroughTheGateway) {
   store_chunk_sized_records(g.sensor_dir, g.sensor_iri, 120);
   ask_and_cancel(tree, g.sensor_iri, *g.home1_endpoint);
   EXPECT_TRUE(hospital_board_is_clear_of_the_query(tree));
