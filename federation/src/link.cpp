@@ -37,6 +37,9 @@ constexpr std::size_t kAnswerRelayAhead = 2 * kAnswerWindow;
 // An answer stream with no chunk and no acknowledgement for this long is forgotten (a parent or
 // child that went away mid-answer; the origin gave up long before).
 constexpr std::chrono::minutes kAnswerForgetAfter{10};
+// A query item still on the origin's board this long after its asker's timeout (tv:queryTimeout)
+// belongs to an asker that died without removing it (SIGKILL): the link clears it (P18).
+constexpr std::chrono::seconds kAskerGrace{2};
 constexpr std::chrono::milliseconds kIdlePumpWait{250};  // the down pump with nothing to pace
 // A batch of at most this many frames, taken while the applier is idle, is applied by the taker
 // itself (one thread hand-off less on a quiet link); larger ones go to the applier, so that
@@ -195,6 +198,7 @@ struct Link::Impl {
     bool done = false;
     bool cancelled = false;  // P18: the child's chunks are answered with a cancel, not taken
     Frame query_frame;  // resent until the first chunk or error arrives
+    Clock::time_point expires = Clock::time_point::max();  // at the origin: asker's timeout + kAskerGrace
     Clock::time_point sent{};
     Clock::time_point last_progress{};
     int resends = 0;
@@ -966,11 +970,11 @@ struct Link::Impl {
     return ack;
   }
 
-  // Caller holds mu. P18: tells the child that query `query` (of `origin`) is cancelled.
-  Frame cancel_frame(const InStream& in, std::uint64_t query, const std::string& origin) {
+  // P18: tells `child` that query `query` (of `origin`) is cancelled.
+  static Frame cancel_frame(const std::string& child, std::uint64_t query, const std::string& origin) {
     Frame f;
     f.kind = FrameKind::error;
-    f.to = in.child;
+    f.to = child;
     f.seq = query;
     f.body = wire::encode_error({"cancelled", "the query was cancelled at <" + origin + ">", origin});
     return f;
@@ -984,7 +988,7 @@ struct Link::Impl {
     auto in = in_answers.find(key);
     if (in == in_answers.end() || in->second.cancelled) return;
     in->second.cancelled = in->second.done = true;
-    out.add(opt.down.get(), cancel_frame(in->second, f.seq, body.origin));
+    out.add(opt.down.get(), cancel_frame(in->second.child, f.seq, body.origin));
   }
 
   void answer_from_child(Transport* via, const Frame& f) {
@@ -997,10 +1001,16 @@ struct Link::Impl {
     Outgoing out;
     std::unique_lock lock(mu);
     auto it = in_answers.find(key);
-    if (it == in_answers.end()) return;  // a query this node no longer waits for
+    if (it == in_answers.end()) {
+      // A query this node no longer waits for (forgotten, or lost when it restarted): without a
+      // cancel the child would resend its window for good (P18).
+      out.add(via, cancel_frame(f.from, f.seq, body->origin));
+      lock.unlock();
+      return send_all(out);
+    }
     InStream& in = it->second;
     if (in.cancelled) {  // the child missed the cancel (P18): it comes again with each chunk
-      out.add(via, cancel_frame(in, f.seq, body->origin));
+      out.add(via, cancel_frame(in.child, f.seq, body->origin));
       lock.unlock();
       return send_all(out);
     }
@@ -1328,6 +1338,9 @@ struct Link::Impl {
     in.child = child.iri;
     in.query_frame = f;
     in.sent = Clock::now();
+    // Capped at a year: a timeout beyond it is "never" and must not overflow the clock.
+    if (auto ms = integer_of(d.records, vocab::kQueryTimeout); ms && *ms > 0)
+      in.expires = in.sent + std::chrono::milliseconds(std::min<std::int64_t>(*ms, 365ll * 24 * 3600 * 1000)) + kAskerGrace;
     return f;
   }
 
@@ -1369,9 +1382,8 @@ struct Link::Impl {
         }
         for (auto& [key, out] : out_answers)
           if (!out.unacked.empty() && now - out.last_send > opt.resend_after) answer_window(out, resends, true);
-        std::erase_if(out_answers, [&](const auto& e) {
-          return now - e.second.last_progress > kAnswerForgetAfter && now - e.second.last_send > kAnswerForgetAfter;
-        });
+        // Resends are not progress: a parent that never acknowledges again is given up on.
+        std::erase_if(out_answers, [&](const auto& e) { return now - e.second.last_progress > kAnswerForgetAfter; });
         std::erase_if(in_answers, [&](const auto& e) {
           return now - std::max(e.second.sent, e.second.last_progress) > kAnswerForgetAfter;
         });
@@ -1412,7 +1424,8 @@ struct Link::Impl {
   // children may send on (answer_ack_to_child). Chunks are written only here, at the origin, so
   // their origin is this node. A query whose item the asker removed before its answer was all
   // read is cancelled (P18): the child is told, and the chunks still on the board go to
-  // `abandoned`, for the caller to remove.
+  // `abandoned`, for the caller to remove. So is a query whose item outlives its asker's timeout
+  // by kAskerGrace (the asker died without removing it); its item goes to `abandoned` too.
   Outgoing acks_for_chunks_read(node::Node& node, const std::vector<std::pair<const BoardWrite*, std::uint64_t>>& written,
                                 std::vector<std::uint64_t>& abandoned) {
     std::lock_guard lock(mu);
@@ -1424,8 +1437,11 @@ struct Link::Impl {
     }
     Outgoing acks;
     std::optional<node::Snapshot> snap;
+    const auto now = Clock::now();
     for (auto& [key, in] : in_answers) {
-      if (in.forward_up || in.cancelled || (in.done && in.unread.empty())) continue;
+      if (in.forward_up || in.cancelled) continue;
+      const bool expired = now >= in.expires;
+      if (in.done && in.unread.empty() && !expired) continue;
       if (!snap) {
         auto s = node.snapshot();
         if (!s) {
@@ -1434,11 +1450,17 @@ struct Link::Impl {
         }
         snap.emplace(std::move(*s));
       }
-      if (auto asked = snap->item(in.query_frame.seq); !asked && asked.error().code == Errc::not_found) {
+      auto asked = snap->item(in.query_frame.seq);
+      if ((!asked && asked.error().code == Errc::not_found) || expired) {
+        if (asked) {
+          log("query " + std::to_string(in.query_frame.seq) + " of <" + in.reply_to +
+              "> is still on the board after its timeout: its asker is gone; removed with its answer");
+          abandoned.push_back(in.query_frame.seq);
+        }
         for (const auto& [chunk, item] : in.unread)
           if (item != 0) abandoned.push_back(item);
         in.unread.clear();
-        if (!in.done) acks.add(opt.down.get(), cancel_frame(in, in.query_frame.seq, self));
+        if (!in.done) acks.add(opt.down.get(), cancel_frame(in.child, in.query_frame.seq, self));
         in.cancelled = in.done = true;
         continue;
       }

@@ -64,6 +64,9 @@ Result<std::uint64_t> remote_query(node::Node& node, const RemoteQuery& query,
   if (!agent) return Unexpected<Error>{agent.error()};
   node::Item ask;
   ask.context = *target;
+  // A ring at the origin must not reclaim the query while it runs: the link would read that as a
+  // cancel (P18). Every way out of this function removes it.
+  ask.persistent = true;
   const Term q = Term::blank("query");
   ask.add(q, Term::iri(std::string(node::kRdfType)), Term::iri(vocab::kRemoteQuery));
   ask.add(q, Term::iri(vocab::kQueryTarget), Term::iri(*target));
@@ -77,12 +80,19 @@ Result<std::uint64_t> remote_query(node::Node& node, const RemoteQuery& query,
   if (query.limit) ask.add(q, Term::iri(vocab::kQueryLimit), Term::integer(static_cast<std::int64_t>(query.limit)));
   if (!query.area.empty()) ask.add(q, Term::iri(vocab::kQueryArea), Term::literal(query.area));
   if (query.floor) ask.add(q, Term::iri(vocab::kQueryFloor), Term::integer(*query.floor));
+  ask.add(q, Term::iri(vocab::kQueryTimeout), Term::integer(timeout.count()));
   auto asked = agent->store(ask);
   if (!asked) return Unexpected<Error>{asked.error()};
-  std::vector<std::uint64_t> to_remove{*asked};
-  auto cleanup = [&] {
-    for (std::uint64_t id : to_remove) (void)node.remove_item(id);
-  };
+  // The query item and any answer item taken but not yet removed leave the board on every way
+  // out, a throwing `each` included.
+  struct RemoveOnExit {
+    node::Node& node;
+    std::vector<std::uint64_t> ids;
+    ~RemoveOnExit() {
+      for (std::uint64_t id : ids) (void)node.remove_item(id);
+    }
+  } board{node, {*asked}};
+  std::vector<std::uint64_t>& to_remove = board.ids;
 
   const auto deadline = std::chrono::steady_clock::now() + timeout;
   std::uint64_t delivered = 0;
@@ -92,18 +102,16 @@ Result<std::uint64_t> remote_query(node::Node& node, const RemoteQuery& query,
   while (!done) {
     auto left = std::chrono::duration_cast<std::chrono::milliseconds>(deadline - std::chrono::steady_clock::now());
     if (left.count() <= 0) {
-      cleanup();
       return node::fail(Errc::timeout, "timeout: no complete answer from <" + *target + "> within " +
                                            std::to_string(timeout.count()) + " ms (" + std::to_string(delivered) +
                                            " records received)");
     }
     if (cancelled && cancelled()) {
-      cleanup();  // the query item gone, the link cancels the query below (P18)
+      // The query item leaves the board on return, and the link cancels the query below (P18).
       return node::fail(Errc::io, "cancelled after " + std::to_string(delivered) + " records from <" + *target + ">");
     }
     auto got = agent->take(cancelled ? std::min(left, std::chrono::milliseconds(100)) : left);
     if (!got) {
-      cleanup();
       return Unexpected<Error>{got.error()};
     }
     if (!*got) continue;
@@ -113,7 +121,6 @@ Result<std::uint64_t> remote_query(node::Node& node, const RemoteQuery& query,
     if (!answer_to || answer_to->value != std::to_string(*asked)) continue;
     if (const Term* code = object_of(records, vocab::kErrorCode)) {
       const Term* message = object_of(records, vocab::kErrorMessage);
-      cleanup();
       std::string text = message ? message->value : code->value;
       if (code->value == "unknown_node") return node::fail(Errc::not_found, "unknown node: " + text);
       if (code->value == "unreachable") return node::fail(Errc::io, "unreachable: " + text);
@@ -126,7 +133,6 @@ Result<std::uint64_t> remote_query(node::Node& node, const RemoteQuery& query,
     if (!raw) continue;
     auto body = wire::decode_answer(*raw);
     if (!body) {
-      cleanup();
       return node::fail(Errc::corrupt, "answer chunk " + chunk->value + " from <" + *target + ">: " + body.error().message);
     }
     // Off the board as soon as it is read: a long answer must not pile up in this node's store
@@ -145,7 +151,6 @@ Result<std::uint64_t> remote_query(node::Node& node, const RemoteQuery& query,
     }
     done = last_chunk > 0 && next_chunk > last_chunk;
   }
-  cleanup();
   return delivered;
 }
 

@@ -96,8 +96,9 @@ struct Tree {
   std::string home2_dir = (tmp / "home2").string();
   std::unique_ptr<Link> hospital, home1, home2;
 
-  Tree() {
-    EXPECT_TRUE(node::Node::init(hospital_dir, {.iri = kHospital}));
+  // `hospital_ring`: the hospital's store keeps at most that many non-persistent records.
+  explicit Tree(std::uint64_t hospital_ring = 0) {
+    EXPECT_TRUE(node::Node::init(hospital_dir, {.iri = kHospital, .ring = hospital_ring}));
     EXPECT_TRUE(node::Node::init(home1_dir, {.iri = kHome1}));
     EXPECT_TRUE(node::Node::init(home2_dir, {.iri = kHome2}));
   }
@@ -747,6 +748,29 @@ TEST(Link, AnAnswerTheAskerDoesNotReadHoldsTheTargetBackInsteadOfPilingUpOnTheOr
   EXPECT_EQ(tap->highest_sent(), static_cast<std::uint64_t>(kChunks));
 }
 
+// A hospital whose store is a ring takes in more than the ring holds while an operator's query
+// runs: the ring must not reclaim the query item (that reads as a cancel, P18), so the whole
+// answer still arrives.
+TEST(Link, AQueryRunsToItsEndWhileTheOriginsRingReclaimsTheRecordsAroundIt) {
+  Tree tree(/*hospital_ring=*/100);
+  auto tap = start_tapped_home(tree, 100ms);
+  ASSERT_TRUE(home1_is_up(tree));
+  constexpr int kChunks = 40;
+  store_chunk_sized_records(tree.home1_dir, kHome1, kChunks);
+
+  SamplesQuery query(tree, kHome1, 20s, /*pause_after=*/1);
+  ASSERT_TRUE(eventually([&] { return query.received() == 1; }));
+  auto hospital = node::Node::open(tree.hospital_dir).value();
+  auto trend = hospital.agent("trend").value();
+  for (int i = 0; i < 300; ++i) ASSERT_TRUE(trend.store(hrv_item(i)));
+  ASSERT_GT(hospital.stats().value().reclaimed_records, 0u) << "the ring reclaimed nothing: the test proves nothing";
+
+  query.resume();
+  auto got = query.finish();
+  ASSERT_TRUE(got) << got.error().message;
+  EXPECT_EQ(*got, static_cast<std::size_t>(kChunks));
+}
+
 // All the answer chunks `tap` has sent, first sends and resends.
 int answer_sends(AnswerTap& tap) {
   int total = 0;
@@ -839,6 +863,53 @@ TEST(Link, AGatewayKeepsTakingItsSensorsItemsWhileARelayedAnswerToAStalledParent
   Tree tree;
   StallableGateway g = start_stallable_gateway(tree);
   expect_the_gateway_serves_its_sensor_while_an_answer_waits(tree, g, g.sensor_dir, kHome1 + "/ecg1");
+}
+
+// The hospital's link restarts while home1 answers a query: the new link knows nothing of it
+// and must tell home1 to stop (P18), not leave it resending its window for good.
+TEST(Link, AnOriginThatLostAQueryInARestartStopsTheTargetsResends) {
+  Tree tree;
+  auto tap = start_tapped_home(tree, 100ms);
+  ASSERT_TRUE(home1_is_up(tree));
+  store_chunk_sized_records(tree.home1_dir, kHome1, 120);
+  SamplesQuery query(tree, kHome1, 5s, /*pause_after=*/1);
+  ASSERT_TRUE(eventually([&] { return query.received() == 1 && tap->highest_sent() >= 16; }));
+
+  tree.hospital.reset();
+  tree.hospital = tree.start_hospital();
+  EXPECT_TRUE(answer_sends_stop(*tap)) << "home1 went on resending an answer nobody waits for";
+  EXPECT_LT(tap->highest_sent(), 120u);
+  query.resume();
+  auto got = query.finish();
+  ASSERT_FALSE(got);
+  EXPECT_EQ(got.error().code, Errc::timeout) << got.error().message;
+}
+
+// An asker killed with SIGKILL never removes its query item nor reads its answer. The P13 item
+// is written here by hand, as such an asker left it, with a timeout of 300 ms: 2 s after it,
+// the hospital's link removes the item and the answer on its board and stops the target.
+TEST(Link, AQueryLeftBehindByADeadAskerIsClearedAfterItsTimeout) {
+  Tree tree;
+  auto tap = start_tapped_home(tree, 100ms);
+  ASSERT_TRUE(home1_is_up(tree));
+  store_chunk_sized_records(tree.home1_dir, kHome1, 120);
+  auto asker = node::Node::open(tree.hospital_dir).value().agent("query-1-1").value();
+  node::Item ask;
+  ask.context = kHome1;
+  const Term q = Term::blank("query");
+  ask.persistent = true;
+  ask.add(q, Term::iri(std::string(node::kRdfType)), Term::iri(vocab::kRemoteQuery))
+      .add(q, Term::iri(vocab::kQueryTarget), Term::iri(kHome1))
+      .add(q, Term::iri(vocab::kReplyTo), Term::iri(asker.iri()))
+      .add(q, Term::iri(vocab::kQueryPredicate), Term::iri(kEx + "samples"))
+      .add(q, Term::iri(vocab::kQueryTimeout), Term::integer(300));
+  ASSERT_TRUE(asker.store(ask));
+  ASSERT_TRUE(eventually([&] { return count(tree.hospital_dir, {.p = Term::iri(vocab::kAnswerChunk)}) > 0; }));
+
+  EXPECT_TRUE(hospital_board_is_clear_of_the_query(tree));
+  EXPECT_TRUE(answer_sends_stop(*tap)) << "home1 went on answering a query whose asker is gone";
+  EXPECT_LT(tap->highest_sent(), 120u);
+  EXPECT_TRUE(tree.hospital_log.has("its asker is gone"));
 }
 
 // home1 as a gateway and its sensor ecg1, both endpoints tapped.

@@ -52,6 +52,8 @@ inline const std::string kQueryCascade = std::string(kTv) + "queryCascade";
 inline const std::string kQueryLimit = std::string(kTv) + "queryLimit";
 inline const std::string kQueryArea = std::string(kTv) + "queryArea";
 inline const std::string kQueryFloor = std::string(kTv) + "queryFloor";
+// The asker's timeout in ms: its link clears a query still on the board 2 s after (P18).
+inline const std::string kQueryTimeout = std::string(kTv) + "queryTimeout";
 inline const std::string kAnswerTo = std::string(kTv) + "answerTo";
 inline const std::string kAnswerChunk = std::string(kTv) + "answerChunk";
 inline const std::string kAnswerLast = std::string(kTv) + "answerLast";
