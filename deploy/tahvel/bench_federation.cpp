@@ -498,7 +498,8 @@ class Watcher {
 };
 
 // The store's own part of a hop, no link: Agent::store on a node until another thread, asleep
-// in Node::watch on the same store, has seen the item. A link hop costs this twice (the home's
+// in Node::watch on the same store, has seen the item (the time it saw it: one wake-up, not also
+// the hand-back to the storing thread). A link hop costs this twice (the home's
 // outbox, the hospital's relay) plus the transport.
 Percentiles store_to_watch(const ScratchDir& scratch, int rounds, std::uint64_t& next_number) {
   const fs::path dir = scratch.sub("store-floor");
@@ -511,9 +512,11 @@ Percentiles store_to_watch(const ScratchDir& scratch, int rounds, std::uint64_t&
   next_number += static_cast<std::uint64_t>(warmup + rounds);
   Watcher watcher(dir);
   std::atomic<std::uint64_t> seen{0};
+  std::vector<Clock::time_point> seen_at(static_cast<std::size_t>(warmup + rounds));
   std::thread follower([&] {
     for (std::uint64_t i = 0; i < static_cast<std::uint64_t>(warmup + rounds); ++i) {
       if (!watcher.wait_for(first + i, 10s)) break;
+      seen_at[i] = Clock::now();
       seen.store(i + 1);
       seen.notify_one();
     }
@@ -526,7 +529,7 @@ Percentiles store_to_watch(const ScratchDir& scratch, int rounds, std::uint64_t&
       throw std::runtime_error("store floor: " + st.error().message);
     }
     for (std::uint64_t now = seen.load(); now < static_cast<std::uint64_t>(i) + 1; now = seen.load()) seen.wait(now);
-    if (i >= warmup) us.push_back(micros(Clock::now() - t0));
+    if (i >= warmup) us.push_back(micros(seen_at[static_cast<std::size_t>(i)] - t0));
   }
   follower.join();
   return percentiles(std::move(us));
