@@ -135,7 +135,8 @@ Result<std::uint64_t> find_term(MDB_txn* txn, const Env& env, const Term& term) 
   return lookup_payload(txn, env, bytes, codec::hash64(bytes));
 }
 
-void term_key(const Term& term, std::string& key) {
+void term_key(const Term& term, TermKey& out) {
+  std::string& key = out.text;
   key.clear();
   key.reserve(term.value.size() + term.datatype.size() + term.language.size() + 3);
   key.push_back(static_cast<char>(term.kind));
@@ -144,11 +145,12 @@ void term_key(const Term& term, std::string& key) {
   key += term.datatype;
   key.push_back('\0');
   key += term.language;
+  out.hash = std::hash<std::string_view>{}(key);
 }
 
 Result<std::uint64_t> intern_term(Txn& txn, const Term& term, bool pinned) {
   if (auto id = inline_id(term)) return *id;
-  std::string key;
+  TermKey key;
   term_key(term, key);
   return intern_keyed(txn, term, key, {.pin = pinned});
 }
@@ -156,18 +158,18 @@ Result<std::uint64_t> intern_term(Txn& txn, const Term& term, bool pinned) {
 namespace {
 
 // Remembers `id` for the rest of the transaction and, once it commits, for the process.
-void remember(Txn& txn, std::string_view key, std::uint64_t id, bool pinned, bool beyond_txn) {
-  txn.term_ids.try_emplace(std::string(key), id);
+void remember(Txn& txn, const TermKey& key, std::uint64_t id, bool pinned, bool beyond_txn) {
+  txn.term_ids.try_emplace(key, id);
   if (pinned) {
-    txn.staged_pinned.try_emplace(std::string(key), id);
+    txn.staged_pinned.try_emplace(key, id);
   } else if (beyond_txn) {
-    txn.staged_unpinned.try_emplace(std::string(key), id);
+    txn.staged_unpinned.try_emplace(key, id);
   }
 }
 
 }  // namespace
 
-Result<std::uint64_t> intern_keyed(Txn& txn, const Term& term, std::string_view key,
+Result<std::uint64_t> intern_keyed(Txn& txn, const Term& term, const TermKey& key,
                                    const InternOptions& options) {
   if (auto id = inline_id(term)) return *id;
   const bool pinned = options.pin;
@@ -185,7 +187,7 @@ Result<std::uint64_t> intern_keyed(Txn& txn, const Term& term, std::string_view 
       return id;
     }
     // Already known to the process: remembered for this transaction only, not staged again.
-    if (!txn.term_ids.contains(key)) txn.term_ids.emplace(std::string(key), id);
+    txn.term_ids.try_emplace(key, id);
     return id;
   }
   std::uint64_t datatype_id = 0;

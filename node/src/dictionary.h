@@ -47,8 +47,8 @@ Result<std::uint64_t> find_term(MDB_txn* txn, const Env& env, const Term& term);
 Result<std::uint64_t> intern_term(Txn& txn, const Term& term, bool pin);
 
 // The key of `term` in the write path's caches (Txn::term_ids, Env::term_cache): kind, value,
-// datatype and language. Written into `out`, which is cleared first.
-void term_key(const Term& term, std::string& out);
+// datatype and language, and its hash. Written into `out`, whose text is cleared first.
+void term_key(const Term& term, TermKey& out);
 
 struct InternOptions {
   bool pin = false;           // as intern_term's `pin`
@@ -62,7 +62,7 @@ struct InternOptions {
 // intern_term with `key` = term_key(term) already made. Looks in the transaction's ids, then the
 // process's cache (Env::term_cache), then the dictionary; what it finds or creates is remembered
 // for the transaction and, after the commit, for the process.
-Result<std::uint64_t> intern_keyed(Txn& txn, const Term& term, std::string_view key,
+Result<std::uint64_t> intern_keyed(Txn& txn, const Term& term, const TermKey& key,
                                    const InternOptions& options);
 
 // Marks dictionary term `id` as pinned (see intern_term); inline ids need no pin.

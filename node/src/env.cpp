@@ -73,7 +73,7 @@ Result<void> save_counters(MDB_txn* txn, MDB_dbi meta, const Counters& c) {
   return {};
 }
 
-std::uint64_t TermCache::find(std::string_view key, std::uint64_t gen, bool* pinned) {
+std::uint64_t TermCache::find(const TermKey& key, std::uint64_t gen, bool* pinned) {
   std::lock_guard lock(mu_);
   *pinned = true;
   if (auto it = pinned_.find(key); it != pinned_.end()) return it->second;
@@ -83,7 +83,7 @@ std::uint64_t TermCache::find(std::string_view key, std::uint64_t gen, bool* pin
   return 0;
 }
 
-void TermCache::publish(StringIdMap& pinned, StringIdMap& unpinned, std::uint64_t gen) {
+void TermCache::publish(TermIdMap& pinned, TermIdMap& unpinned, std::uint64_t gen) {
   if (pinned.empty() && unpinned.empty()) return;
   std::lock_guard lock(mu_);
   if (pinned_.size() + pinned.size() > kMaxEntries) pinned_.clear();

@@ -75,13 +75,19 @@ class Txn;
 
 enum class WriteKind { data, removal };
 
-// Hashing and equality for maps keyed by std::string that are searched with a string_view
-// (no key built per lookup on the write path).
-struct StringHash {
-  using is_transparent = void;
-  std::size_t operator()(std::string_view s) const noexcept { return std::hash<std::string_view>{}(s); }
+// A term's key in the write path's caches (term_key, dictionary.h) with its hash, computed once:
+// one term is looked up in up to four of these maps (the transaction's ids, the process's pinned
+// and unpinned caches, then remembered), and hashing the key at each was ~10% of a hospital's
+// ingest.
+struct TermKey {
+  std::string text;
+  std::size_t hash = 0;
+  bool operator==(const TermKey& other) const noexcept { return hash == other.hash && text == other.text; }
 };
-using StringIdMap = std::unordered_map<std::string, std::uint64_t, StringHash, std::equal_to<>>;
+struct TermKeyHash {
+  std::size_t operator()(const TermKey& key) const noexcept { return key.hash; }
+};
+using TermIdMap = std::unordered_map<TermKey, std::uint64_t, TermKeyHash>;
 
 // Dictionary ids this process has seen committed, so that the write path does not look the
 // same writers, sources, predicates and classes up again in every transaction (each lookup is
@@ -98,13 +104,13 @@ class TermCache {
   static std::uint64_t generation(const Counters& c) { return c.next_term - 1 - c.terms; }
   // The id of `key`, or 0; unpinned entries only when `gen` is the cache's generation.
   // `*pinned` tells which kind the entry is.
-  std::uint64_t find(std::string_view key, std::uint64_t gen, bool* pinned);
-  void publish(StringIdMap& pinned, StringIdMap& unpinned, std::uint64_t gen);
+  std::uint64_t find(const TermKey& key, std::uint64_t gen, bool* pinned);
+  void publish(TermIdMap& pinned, TermIdMap& unpinned, std::uint64_t gen);
 
  private:
   static constexpr std::size_t kMaxEntries = 1 << 16;  // then it starts again: no unbounded growth
   std::mutex mu_;
-  StringIdMap pinned_, unpinned_;
+  TermIdMap pinned_, unpinned_;
   std::uint64_t gen_ = 0;
 };
 
@@ -214,9 +220,9 @@ class Txn {
   std::vector<std::uint32_t> wake_slots;  // woken after commit
   // Term ids looked up or created in this transaction (write.cpp). Cleared whenever a term is
   // collected, since a collected id must not be handed out again.
-  StringIdMap term_ids;
+  TermIdMap term_ids;
   // Ids to publish to the Env's TermCache once this transaction has committed (dictionary.cpp).
-  StringIdMap staged_pinned, staged_unpinned;
+  TermIdMap staged_pinned, staged_unpinned;
  private:
   Env& env_;
   MDB_txn* txn_;

@@ -30,7 +30,7 @@ Result<void> put_dup(MDB_txn* txn, MDB_dbi dbi, std::uint64_t key, std::uint64_t
 // cache without a search. A new subject (an observation's own IRI) is remembered for this
 // transaction only: it rarely comes again.
 Result<std::uint64_t> term_id(Txn& txn, const Term& term, int position,
-                              std::unordered_map<std::string, std::uint64_t>& blanks, std::string& key) {
+                              std::unordered_map<std::string, std::uint64_t>& blanks, TermKey& key) {
   if (term.kind == TermKind::blank) {
     auto [it, fresh] = blanks.try_emplace(term.value, 0);
     if (fresh) it->second = inline_blank(txn.counters.next_blank++);
@@ -38,7 +38,6 @@ Result<std::uint64_t> term_id(Txn& txn, const Term& term, int position,
   }
   if (auto id = inline_id(term)) return *id;
   term_key(term, key);
-  if (auto it = txn.term_ids.find(std::string_view(key)); it != txn.term_ids.end()) return it->second;
   return intern_keyed(txn, term, key, {.remember_new = position != 0, .check_iri = true});
 }
 
@@ -332,7 +331,7 @@ Result<std::uint64_t> insert_item(Txn& txn, const Item& item, const std::string&
   MDB_txn* raw = txn.raw();
   Env& env = txn.env();
   // Writer, source and context are pinned: after the first item, the caches know them.
-  std::string key;
+  TermKey key;
   auto pinned_iri = [&](const std::string& iri, bool check) {
     const Term term = Term::iri(iri);
     term_key(term, key);
