@@ -682,16 +682,29 @@ class SamplesQuery {
   std::thread asking_;
 };
 
+// The hospital and home1 (endpoint tapped, resending after `resend_after`), home1 registered,
+// and `chunks` chunk-sized records on home1 for the hospital to ask for.
+std::shared_ptr<AnswerTap> start_answering_home(Tree& tree, std::chrono::milliseconds resend_after, int chunks) {
+  auto tap = start_tapped_home(tree, resend_after);
+  EXPECT_TRUE(home1_is_up(tree));
+  store_chunk_sized_records(tree.home1_dir, kHome1, chunks);
+  return tap;
+}
+
+// `query` ends with every one of the `chunks` records asked for.
+void expect_whole_answer(SamplesQuery& query, int chunks) {
+  auto got = query.finish();
+  ASSERT_TRUE(got) << got.error().message;
+  EXPECT_EQ(*got, static_cast<std::size_t>(chunks));
+}
+
 TEST(Link, EachAnswerChunkIsSentOnceWhenNoneIsLost) {
   Tree tree;
-  // No resend can be due while the answer flows: every send counted is a first send.
-  auto tap = start_tapped_home(tree, 10s);
-  ASSERT_TRUE(home1_is_up(tree));
   constexpr int kChunks = 60;
-  store_chunk_sized_records(tree.home1_dir, kHome1, kChunks);
-  auto got = SamplesQuery(tree, kHome1, 30s).finish();
-  ASSERT_TRUE(got) << got.error().message;
-  EXPECT_EQ(*got, static_cast<std::size_t>(kChunks));
+  // No resend can be due while the answer flows: every send counted is a first send.
+  auto tap = start_answering_home(tree, 10s, kChunks);
+  SamplesQuery query(tree, kHome1, 30s);
+  expect_whole_answer(query, kChunks);
   const auto sent = tap->sent();
   EXPECT_EQ(sent.size(), static_cast<std::size_t>(kChunks));
   for (const auto& [chunk, times] : sent) EXPECT_EQ(times, 1) << "chunk " << chunk << " was sent " << times << " times";
@@ -699,10 +712,8 @@ TEST(Link, EachAnswerChunkIsSentOnceWhenNoneIsLost) {
 
 TEST(Link, AnAnswerRunsNoFurtherThanItsWindowAheadOfTheParentsAcksAndHoldsWhatWasThereWhenAsked) {
   Tree tree;
-  auto tap = start_tapped_home(tree, 100ms);
-  ASSERT_TRUE(home1_is_up(tree));
   constexpr int kChunks = 50;
-  store_chunk_sized_records(tree.home1_dir, kHome1, kChunks);
+  auto tap = start_answering_home(tree, 100ms, kChunks);
 
   tap->lose_acks(true);
   SamplesQuery query(tree, kHome1, 30s);
@@ -715,18 +726,14 @@ TEST(Link, AnAnswerRunsNoFurtherThanItsWindowAheadOfTheParentsAcksAndHoldsWhatWa
   store_chunk_sized_records(tree.home1_dir, kHome1, 5, kChunks);
 
   tap->lose_acks(false);
-  auto got = query.finish();
-  ASSERT_TRUE(got) << got.error().message;
-  EXPECT_EQ(*got, static_cast<std::size_t>(kChunks));
+  expect_whole_answer(query, kChunks);
   EXPECT_EQ(tap->highest_sent(), static_cast<std::uint64_t>(kChunks));
 }
 
 TEST(Link, AnAnswerTheAskerDoesNotReadHoldsTheTargetBackInsteadOfPilingUpOnTheOriginsBoard) {
   Tree tree;
-  auto tap = start_tapped_home(tree, 100ms);
-  ASSERT_TRUE(home1_is_up(tree));
   constexpr int kChunks = 120;
-  store_chunk_sized_records(tree.home1_dir, kHome1, kChunks);
+  auto tap = start_answering_home(tree, 100ms, kChunks);
 
   // The asker takes chunk 1 and hands its record over, takes chunk 2 and waits.
   SamplesQuery query(tree, kHome1, 60s, /*pause_after=*/1);
@@ -742,9 +749,7 @@ TEST(Link, AnAnswerTheAskerDoesNotReadHoldsTheTargetBackInsteadOfPilingUpOnTheOr
   EXPECT_GE(on_board, 16u);
 
   query.resume();
-  auto got = query.finish();
-  ASSERT_TRUE(got) << got.error().message;
-  EXPECT_EQ(*got, static_cast<std::size_t>(kChunks));
+  expect_whole_answer(query, kChunks);
   EXPECT_EQ(tap->highest_sent(), static_cast<std::uint64_t>(kChunks));
 }
 
@@ -753,10 +758,8 @@ TEST(Link, AnAnswerTheAskerDoesNotReadHoldsTheTargetBackInsteadOfPilingUpOnTheOr
 // answer still arrives.
 TEST(Link, AQueryRunsToItsEndWhileTheOriginsRingReclaimsTheRecordsAroundIt) {
   Tree tree(/*hospital_ring=*/100);
-  auto tap = start_tapped_home(tree, 100ms);
-  ASSERT_TRUE(home1_is_up(tree));
   constexpr int kChunks = 40;
-  store_chunk_sized_records(tree.home1_dir, kHome1, kChunks);
+  auto tap = start_answering_home(tree, 100ms, kChunks);
 
   SamplesQuery query(tree, kHome1, 20s, /*pause_after=*/1);
   ASSERT_TRUE(eventually([&] { return query.received() == 1; }));
@@ -766,9 +769,7 @@ TEST(Link, AQueryRunsToItsEndWhileTheOriginsRingReclaimsTheRecordsAroundIt) {
   ASSERT_GT(hospital.stats().value().reclaimed_records, 0u) << "the ring reclaimed nothing: the test proves nothing";
 
   query.resume();
-  auto got = query.finish();
-  ASSERT_TRUE(got) << got.error().message;
-  EXPECT_EQ(*got, static_cast<std::size_t>(kChunks));
+  expect_whole_answer(query, kChunks);
 }
 
 // All the answer chunks `tap` has sent, first sends and resends.
@@ -810,9 +811,7 @@ void ask_and_cancel(Tree& tree, const std::string& target, AnswerTap& sender) {
 
 TEST(Link, ACancelledQueryStopsTheTargetAndLeavesNothingOnTheOriginsBoard) {
   Tree tree;
-  auto tap = start_tapped_home(tree, 100ms);
-  ASSERT_TRUE(home1_is_up(tree));
-  store_chunk_sized_records(tree.home1_dir, kHome1, 120);
+  auto tap = start_answering_home(tree, 100ms, 120);
   ask_and_cancel(tree, kHome1, *tap);
   EXPECT_TRUE(hospital_board_is_clear_of_the_query(tree));
   EXPECT_TRUE(answer_sends_stop(*tap)) << "home1 went on answering a cancelled query";
@@ -846,9 +845,7 @@ void expect_the_gateway_serves_its_sensor_while_an_answer_waits(Tree& tree, Stal
   EXPECT_EQ(count(tree.home1_dir, numbered), 20u) << "home1 stopped serving its sensor while the answer waited";
 
   g.home1_endpoint->stall(false);
-  auto got = query.finish();
-  ASSERT_TRUE(got) << got.error().message;
-  EXPECT_EQ(*got, 40u);
+  expect_whole_answer(query, 40);
   ASSERT_TRUE(eventually([&] { return count(tree.hospital_dir, numbered) == 20; }));
   g.sensor_link.reset();
 }
@@ -869,9 +866,7 @@ TEST(Link, AGatewayKeepsTakingItsSensorsItemsWhileARelayedAnswerToAStalledParent
 // and must tell home1 to stop (P18), not leave it resending its window for good.
 TEST(Link, AnOriginThatLostAQueryInARestartStopsTheTargetsResends) {
   Tree tree;
-  auto tap = start_tapped_home(tree, 100ms);
-  ASSERT_TRUE(home1_is_up(tree));
-  store_chunk_sized_records(tree.home1_dir, kHome1, 120);
+  auto tap = start_answering_home(tree, 100ms, 120);
   SamplesQuery query(tree, kHome1, 5s, /*pause_after=*/1);
   ASSERT_TRUE(eventually([&] { return query.received() == 1 && tap->highest_sent() >= 16; }));
 
@@ -890,9 +885,7 @@ TEST(Link, AnOriginThatLostAQueryInARestartStopsTheTargetsResends) {
 // the hospital's link removes the item and the answer on its board and stops the target.
 TEST(Link, AQueryLeftBehindByADeadAskerIsClearedAfterItsTimeout) {
   Tree tree;
-  auto tap = start_tapped_home(tree, 100ms);
-  ASSERT_TRUE(home1_is_up(tree));
-  store_chunk_sized_records(tree.home1_dir, kHome1, 120);
+  auto tap = start_answering_home(tree, 100ms, 120);
   auto asker = node::Node::open(tree.hospital_dir).value().agent("query-1-1").value();
   node::Item ask;
   ask.context = kHome1;
@@ -967,9 +960,7 @@ TEST_F(AnswerThroughAGateway, TheGatewayHoldsItsChildBackWhileItsParentDoesNotAc
   EXPECT_EQ(home1_endpoint->highest_sent(), 16u);
 
   home1_endpoint->lose_acks(false);
-  auto got = query.finish();
-  ASSERT_TRUE(got) << got.error().message;
-  EXPECT_EQ(*got, static_cast<std::size_t>(kChunks));
+  expect_whole_answer(query, kChunks);
 }
 
 TEST_F(AnswerThroughAGateway, TheGatewayKeepsTheAnswersNumberingWhenItsParentHasAcknowledgedAllSoFar) {
@@ -982,9 +973,7 @@ TEST_F(AnswerThroughAGateway, TheGatewayKeepsTheAnswersNumberingWhenItsParentHas
   // goes, the answer must complete).
   std::this_thread::sleep_for(200ms);
   g.sensor_endpoint->hold_chunks_after(~0ull);
-  auto got = query.finish();
-  ASSERT_TRUE(got) << got.error().message;
-  EXPECT_EQ(*got, static_cast<std::size_t>(kChunks));
+  expect_whole_answer(query, kChunks);
 }
 
 TEST_F(AnswerThroughAGateway, ACancelReachesTheTargetThroughTheGateway) {
