@@ -45,6 +45,13 @@ constexpr std::chrono::milliseconds kIdlePumpWait{250};  // the down pump with n
 // itself (one thread hand-off less on a quiet link); larger ones go to the applier, so that
 // under load taking overlaps with the store transaction of the batch before.
 constexpr std::size_t kInlineFrames = 8;
+// P8: the ack of an item stream waits for this many items or LinkOptions::ack_delay, unless the
+// sender asks for it (its window half full) or it signals a gap or a resend. On a quiet link an
+// ack sent at once lands at the sender just as the next item is stored there, and the two store
+// transactions and wake-ups contend (docs/bench.md); a busy one acks each run as before.
+constexpr std::size_t kAckEvery = 64;
+// In an up or down frame's `ack` field: the sender asks for the stream's ack now (P8).
+constexpr std::uint64_t kAckNow = 1;
 constexpr std::string_view kUplinkAgent = "uplink";
 constexpr std::string_view kLinkAgent = "link";
 constexpr std::string_view kDownStream = "down";
@@ -286,6 +293,69 @@ struct Link::Impl {
     std::vector<std::vector<node::RelayedItem>> applied;  // the items relayed, kept to be freed
   };
 
+  // The acks of item streams held back (P8), by peer. Shared by the thread applying a batch,
+  // which holds or sends them, and the taker, which sends those due while it waits for frames.
+  class HeldAcks {
+   public:
+    explicit HeldAcks(std::chrono::milliseconds delay) : delay_(delay) {}
+    // Holds `ack` for `items` more items of the peer's stream, unless `now`, kAckEvery items are
+    // held or an older one is due; returns the ack to send at once, if any.
+    std::optional<Frame> hold(Frame ack, std::size_t items, bool now) {
+      std::lock_guard lock(mu_);
+      auto it = held_.find(ack.to);
+      if (it != held_.end()) {
+        items += it->second.items;
+        if (Clock::now() >= it->second.due) now = true;
+      }
+      if (now || items >= kAckEvery) {
+        if (it != held_.end()) held_.erase(it);
+        return ack;
+      }
+      if (it == held_.end()) {
+        it = held_.emplace(ack.to, Held{{}, 0, Clock::now() + delay_}).first;
+      }
+      it->second.ack = std::move(ack);
+      it->second.items = items;
+      return std::nullopt;
+    }
+    // The held acks due by `now` (all of them when `all`), removed.
+    std::vector<Frame> take_due(bool all = false) {
+      std::vector<Frame> due;
+      std::lock_guard lock(mu_);
+      const auto now = Clock::now();
+      for (auto it = held_.begin(); it != held_.end();) {
+        if (all || now >= it->second.due) {
+          due.push_back(std::move(it->second.ack));
+          it = held_.erase(it);
+        } else {
+          ++it;
+        }
+      }
+      return due;
+    }
+    // How long the taker may wait for frames before an ack falls due.
+    std::chrono::milliseconds wait_at_most(std::chrono::milliseconds idle) const {
+      std::lock_guard lock(mu_);
+      auto wait = idle;
+      const auto now = Clock::now();
+      for (const auto& [to, h] : held_) {
+        auto left = std::chrono::ceil<std::chrono::milliseconds>(h.due - now);
+        wait = std::min(wait, std::max(left, std::chrono::milliseconds(0)));
+      }
+      return wait;
+    }
+
+   private:
+    struct Held {
+      Frame ack;
+      std::size_t items = 0;
+      Clock::time_point due;
+    };
+    const std::chrono::milliseconds delay_;
+    mutable std::mutex mu_;
+    std::map<std::string, Held> held_;  // by the peer the ack goes to
+  };
+
   // Two stages per transport: a taker thread takes frames off the transport and decodes item
   // bodies; this thread applies them to the store and answers, batch after batch in arrival
   // order. Taking and decoding then overlap with the store transaction of the batch before, on
@@ -303,6 +373,7 @@ struct Link::Impl {
     // The relaying agents and held items, used by whichever thread is applying.
     std::map<std::string, node::Agent> agents;  // by id
     std::map<std::string, HeldFrames> held;     // per stream: items that came ahead of a hole
+    HeldAcks acks(opt.ack_delay);
     auto agent = [&](const std::string& id) -> node::Agent* {
       auto it = agents.find(id);
       if (it == agents.end()) {
@@ -319,7 +390,7 @@ struct Link::Impl {
           std::size_t j = i + 1;
           while (j < batch.frames.size() && batch.frames[j].kind == f.kind && batch.frames[j].from == f.from) ++j;
           relay_run(transport.get(), std::span(batch.frames).subspan(i, j - i),
-                    std::span(batch.items).subspan(i, j - i), agent, held, batch.applied);
+                    std::span(batch.items).subspan(i, j - i), agent, held, acks, batch.applied);
           i = j;
         } else {
           dispatch(transport.get(), f, agent);
@@ -338,7 +409,8 @@ struct Link::Impl {
     constexpr std::size_t kQueuedBatches = 4;
     std::thread taker([&] {
       while (!stopping) {
-        auto first = transport->receive(100ms);
+        auto first = transport->receive(acks.wait_at_most(100ms));
+        for (Frame& ack : acks.take_due()) send(transport.get(), std::move(ack));
         if (!first) {
           log("receive failed: " + first.error().message);
           std::this_thread::sleep_for(100ms);
@@ -404,6 +476,7 @@ struct Link::Impl {
       spent.push_back(std::move(batch));
     }
     taker.join();
+    for (Frame& ack : acks.take_due(true)) send(transport.get(), std::move(ack));
   }
 
   bool from_parent(const Frame& f) const { return opt.up && !opt.parent_iri.empty() && f.from == opt.parent_iri; }
@@ -440,7 +513,8 @@ struct Link::Impl {
   template <class AgentFn>
   void relay_run(Transport* via, std::span<const Frame> frames,
                  std::span<std::optional<node::Result<wire::ItemBody>>> bodies, AgentFn& agent,
-                 std::map<std::string, HeldFrames>& held, std::vector<std::vector<node::RelayedItem>>& applied) {
+                 std::map<std::string, HeldFrames>& held, HeldAcks& acks,
+                 std::vector<std::vector<node::RelayedItem>>& applied) {
     const Frame& head = frames.front();
     const bool up = head.kind == FrameKind::up;
     std::shared_ptr<Child> child;
@@ -506,6 +580,7 @@ struct Link::Impl {
       buffer.by_prev.erase(it);
     }
     node::Result<node::RelayOutcome> outcome = node::RelayOutcome{*buffer.mark, {}, 0, false};
+    const std::size_t relayed = run.size();
     if (!run.empty()) outcome = relayer->relay(stream, run);
     applied.push_back(std::move(run));  // freed by the taker, with the rest of the batch
     if (outcome) {
@@ -540,7 +615,11 @@ struct Link::Impl {
       }
       counters.duplicates_in += outcome->duplicates;
     }
-    send(via, std::move(ack));
+    // At once what the sender must act on: a refusal, a gap, a resend (duplicates), a run that
+    // applied nothing, or its window half full (P8).
+    const bool now = !outcome || ack.prev == 1 || outcome->duplicates > 0 || relayed == 0 ||
+                     std::any_of(frames.begin(), frames.end(), [](const Frame& f) { return f.ack == kAckNow; });
+    if (auto due = acks.hold(std::move(ack), relayed, now)) send(via, std::move(*due));
   }
 
   template <class AgentFn>
@@ -1132,6 +1211,7 @@ struct Link::Impl {
         up_last_sent = d.item;
         ++counters.up_sent;
       }
+      if (!frames.empty() && up_in_flight.size() * 2 >= opt.window) frames.back().ack = kAckNow;  // P8
       mark = up_mark;
       lock.unlock();
       // Only this thread sends up frames, so they leave in the order of the stream; a go-back
@@ -1297,6 +1377,10 @@ struct Link::Impl {
         if (child.down_in_flight.empty()) child.down_progress = Clock::now();
         child.down_in_flight.push_back(d.item);
         child.down_last_sent = d.item;
+      }
+      if (!frames.empty() && child.down_in_flight.size() * 2 >= opt.window) {
+        auto last = std::find_if(frames.rbegin(), frames.rend(), [](const Frame& f) { return f.kind == FrameKind::down; });
+        if (last != frames.rend()) last->ack = kAckNow;  // P8
       }
     }
     // Only this thread sends down frames, in the order of each child's stream.

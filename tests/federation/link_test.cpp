@@ -103,9 +103,10 @@ struct Tree {
     EXPECT_TRUE(node::Node::init(home2_dir, {.iri = kHome2}));
   }
 
-  std::unique_ptr<Link> start_hospital() {
+  std::unique_ptr<Link> start_hospital(std::chrono::milliseconds ack_delay = LinkOptions{}.ack_delay) {
     return Link::start({.dir = hospital_dir, .down = std::shared_ptr<Transport>(bus.open(kHospital, hospital_log.sink())),
-                        .children = {"home1", "home2"}, .resend_after = 100ms, .log = hospital_log.sink()})
+                        .children = {"home1", "home2"}, .resend_after = 100ms, .ack_delay = ack_delay,
+                        .log = hospital_log.sink()})
         .value();
   }
   // home1 as a gateway on `endpoint` (its side towards the hospital and towards its children),
@@ -121,12 +122,24 @@ struct Tree {
                         .resend_after = 100ms, .heartbeat_every = 200ms, .log = home2_log.sink()})
         .value();
   }
-  std::unique_ptr<Link> start_home(const std::string& dir, const std::string& iri, Log& log) {
+  std::unique_ptr<Link> start_home(const std::string& dir, const std::string& iri, Log& log,
+                                   std::size_t window = LinkOptions{}.window) {
     return Link::start({.dir = dir, .parent_iri = kHospital, .up = std::shared_ptr<Transport>(bus.open(iri, log.sink())),
-                        .resend_after = 100ms, .heartbeat_every = 200ms, .log = log.sink()})
+                        .window = window, .resend_after = 100ms, .heartbeat_every = 200ms, .log = log.sink()})
         .value();
   }
 };
+
+// Items in the outbox of the node at `dir`: stored there and not yet acknowledged by its parent.
+std::uint64_t outbox(const std::string& dir) {
+  return node::Node::open(dir).value().agent("uplink").value().pending().value();
+}
+
+// Stores hrv_item(first) .. hrv_item(first + n - 1) on home1, each in its own transaction.
+void store_hrv_items(const std::string& home_dir, int first, int n) {
+  auto hrv = node::Node::open(home_dir).value().agent("hrv").value();
+  for (int i = first; i < first + n; ++i) ASSERT_TRUE(hrv.store(hrv_item(i)));
+}
 
 TEST(Link, ItemsGoUpExactlyOnceThroughLossDuplicationAndReorderingAndRawSignalsStayHome) {
   Tree tree;
@@ -156,6 +169,47 @@ TEST(Link, ItemsGoUpExactlyOnceThroughLossDuplicationAndReorderingAndRawSignalsS
   EXPECT_EQ(seen.size(), static_cast<std::size_t>(kItems));
   EXPECT_EQ(count(tree.hospital_dir, {.p = Term::iri(kEx + "samples")}), 0u) << "raw ECG went up";
   EXPECT_GT(tree.home1->counters().up_resends, 0u) << "the fault schedule should have forced resends";
+}
+
+TEST(Link, AQuietLinkAcknowledgesItemsTogetherAfterTheAckDelayAndTheOutboxEmpties) {
+  Tree tree;
+  tree.hospital = tree.start_hospital();
+  tree.home1 = tree.start_home(tree.home1_dir, kHome1, tree.home1_log);
+  ASSERT_TRUE(eventually([&] { return tree.home1->connected(); }));
+  const node::Pattern numbered{.p = Term::iri(kEx + "n")};
+  for (int i = 0; i < 5; ++i) {  // one at a time, as an HRV agent writes: nothing else to ack with
+    store_hrv_items(tree.home1_dir, i, 1);
+    ASSERT_TRUE(eventually([&] { return count(tree.hospital_dir, numbered) == static_cast<std::uint64_t>(i + 1); }));
+  }
+  EXPECT_TRUE(eventually([&] { return outbox(tree.home1_dir) == 0; }))
+      << outbox(tree.home1_dir) << " item(s) left in the outbox: a held ack was never sent";
+  EXPECT_EQ(tree.home1->counters().up_resends, 0u) << "an ack held back made the home resend";
+}
+
+TEST(Link, ASendersFullWindowIsAcknowledgedAtOnceWhateverTheAckDelay) {
+  Tree tree;
+  tree.hospital = tree.start_hospital(10min);  // only the sender's ask or 64 items bring an ack
+  tree.home1 = tree.start_home(tree.home1_dir, kHome1, tree.home1_log, /*window=*/8);
+  ASSERT_TRUE(eventually([&] { return tree.home1->connected(); }));
+  store_hrv_items(tree.home1_dir, 0, 300);
+  const node::Pattern numbered{.p = Term::iri(kEx + "n")};
+  EXPECT_TRUE(eventually([&] { return count(tree.hospital_dir, numbered) == 300; }))
+      << count(tree.hospital_dir, numbered) << " of 300 arrived: the window of 8 stalled on a held ack";
+  EXPECT_TRUE(eventually([&] { return outbox(tree.home1_dir) < 8; })) << outbox(tree.home1_dir);
+  EXPECT_EQ(tree.home1->counters().up_resends, 0u) << "the window went on only by the home's resends";
+}
+
+TEST(Link, AStreamIsAcknowledgedEverySixtyFourItemsWhateverTheAckDelay) {
+  Tree tree;
+  tree.hospital = tree.start_hospital(10min);
+  tree.home1 = tree.start_home(tree.home1_dir, kHome1, tree.home1_log);  // window 512: never half full here
+  ASSERT_TRUE(eventually([&] { return tree.home1->connected(); }));
+  store_hrv_items(tree.home1_dir, 0, 200);
+  const node::Pattern numbered{.p = Term::iri(kEx + "n")};
+  ASSERT_TRUE(eventually([&] { return count(tree.hospital_dir, numbered) == 200; }));
+  EXPECT_TRUE(eventually([&] { return outbox(tree.home1_dir) < 64; }))
+      << outbox(tree.home1_dir) << " of 200 items still unacknowledged";
+  EXPECT_EQ(tree.home1->counters().up_resends, 0u);
 }
 
 TEST(Link, AnItemWrittenWhileTheLinkIsCutArrivesOnceAfterItIsRestored) {

@@ -87,6 +87,9 @@ struct LinkOptions {
 
   std::size_t window = 512;                       // up or down items in flight per link
   std::chrono::milliseconds resend_after{300};    // no acknowledgement for this long: resend
+  // A quiet stream's items are acknowledged together after this long (or at 64 items, or at once
+  // when the sender's window is half full or something must be resent: P8).
+  std::chrono::milliseconds ack_delay{2};
   std::chrono::milliseconds heartbeat_every{1000};
   std::chrono::milliseconds child_silence{3500};  // a child not heard for this long is "down"
   std::string software_version = "tahvel 0.1.0";
