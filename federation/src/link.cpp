@@ -1436,6 +1436,7 @@ struct Link::Impl {
     auto link = node->agent(kLinkAgent);
     auto uplink = node->agent(kUplinkAgent);
     if (!link || !uplink) return log("cannot open the link's agents");
+    if (opt.down) interrupt_earlier_queries(*node, *link);
     Clock::time_point next_beat{};
     while (!stopping) {
       std::vector<BoardWrite> writes;
@@ -1503,6 +1504,80 @@ struct Link::Impl {
     }
   }
 
+  // P13: queries asked on this board that an earlier run of the link had sent down. Their answer
+  // streams' state was in that run's memory, so the rest of an answer cannot come: the asker is
+  // told at once (error `link_restarted`, exit 1 for `tahvel query`) instead of at its timeout, and
+  // the node below is told to stop (P18). The query stays known, cancelled, so that a dead asker's
+  // items are still cleared kAskerGrace after its timeout. Queries still waiting in a child's
+  // queue are not touched: the down pump sends them as usual.
+  void interrupt_earlier_queries(node::Node& node, node::Agent& link) {
+    auto snap = node.snapshot();
+    if (!snap) return log("cannot read the board for earlier queries: " + snap.error().message);
+    auto asked = snap->list({.p = node::Term::iri(vocab::kQueryTarget)});
+    if (!asked) return log("cannot read the board for earlier queries: " + asked.error().message);
+    for (const node::Record& r : *asked) {
+      const std::uint64_t query = r.meta.item;
+      const std::string child = child_on_path(self, r.triple.o.value);
+      auto records = snap->item(query);
+      if (child.empty() || !records) continue;
+      auto queue = node.agent(child.substr(self.size() + 1));
+      if (!queue) continue;
+      auto waiting = queue->peek(query - 1, 1, 0ms);
+      if (!waiting || (!waiting->empty() && waiting->front().item == query)) continue;
+      const node::Term* reply_to = object_of(*records, vocab::kReplyTo);
+      if (!reply_to) continue;
+      const std::string key = query_key(self, query);
+      {
+        std::lock_guard lock(mu);
+        if (in_answers.count(key)) continue;  // sent by this run's pump meanwhile
+      }
+      Frame error;
+      error.kind = FrameKind::error;
+      error.seq = query;
+      error.body = wire::encode_error({"link_restarted",
+                                       "the link of <" + self + "> restarted while the query ran; what was not printed is lost: ask again",
+                                       self});
+      // The earlier run's chunks still on the board go with the query when it ends.
+      std::vector<std::uint64_t> unread = answers_on_board(node, reply_to->value, query);
+      const std::uint64_t written = write_answer(link, reply_to->value, error);
+      log("query " + std::to_string(query) + " of <" + reply_to->value + "> was under way when this link stopped: told its asker");
+      Outgoing cancel;
+      {
+        std::lock_guard lock(mu);
+        InStream& in = in_answers[key];
+        in.reply_to = reply_to->value;
+        in.child = child;
+        in.query_frame.seq = query;
+        in.done = in.cancelled = true;
+        in.sent = in.last_progress = Clock::now();
+        for (std::uint64_t item : unread) in.unread.emplace_back(0, item);
+        if (written != 0) in.unread.emplace_back(0, written);
+        if (auto ms = integer_of(*records, vocab::kQueryTimeout); ms && *ms > 0) {
+          const std::int64_t left_ns = r.meta.stored_at + std::min<std::int64_t>(*ms, 365ll * 24 * 3600 * 1000) * 1'000'000 - now_ns();
+          in.expires = in.sent + std::chrono::nanoseconds(std::max<std::int64_t>(left_ns, 0)) + kAskerGrace;
+        }
+        cancel.add(opt.down.get(), cancel_frame(child, query, self));
+      }
+      send_all(cancel);
+    }
+  }
+
+  // The answer items of `query` in the input buffer of the asking agent `reply_to`.
+  std::vector<std::uint64_t> answers_on_board(node::Node& node, const std::string& reply_to, std::uint64_t query) {
+    std::vector<std::uint64_t> items;
+    auto id = uri::child_id(reply_to, self);
+    if (!id) return items;
+    auto asker = node.agent(*id);
+    if (!asker) return items;
+    auto waiting = asker->peek(0, 1024, 0ms);
+    if (!waiting) return items;
+    for (const node::Delivery& d : *waiting) {
+      auto to = integer_of(d.records, vocab::kAnswerTo);
+      if (to && static_cast<std::uint64_t>(*to) == query) items.push_back(d.item);
+    }
+    return items;
+  }
+
   // The chunks just `written` on the board (item ids; 0 when the write failed) wait there until
   // the asking agent has taken them off; those taken, in chunk order, are passed on, and the
   // children may send on (answer_ack_to_child). Chunks are written only here, at the origin, so
@@ -1523,7 +1598,8 @@ struct Link::Impl {
     std::optional<node::Snapshot> snap;
     const auto now = Clock::now();
     for (auto& [key, in] : in_answers) {
-      if (in.forward_up || in.cancelled) continue;
+      // A cancelled query has no unread chunks, but for one interrupted by a restart (its error).
+      if (in.forward_up || (in.cancelled && in.unread.empty())) continue;
       const bool expired = now >= in.expires;
       if (in.done && in.unread.empty() && !expired) continue;
       if (!snap) {

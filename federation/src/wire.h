@@ -50,7 +50,8 @@ Result<AnswerBody> decode_answer(std::string_view bytes);
 // A refusal or failure (frame kind error): a stable code and a message. For a query, frame.seq
 // is the query id and the body also names the origin.
 struct ErrorBody {
-  std::string code;  // refused, unregistered, unknown_node, unreachable, query_failed, cancelled
+  std::string code;  // refused, unregistered, unknown_node, unreachable, query_failed, cancelled,
+                    // link_restarted
   std::string message;
   std::string origin;
 };
