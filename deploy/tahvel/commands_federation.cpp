@@ -17,6 +17,7 @@
 #include <iostream>
 #include <map>
 #include <sstream>
+#include <set>
 #include <thread>
 
 #include "commands.h"
@@ -457,6 +458,65 @@ const Command kUpCommand{
      {"--foreground", "", "", "run the supervisor in this process"}},
     1, 1};
 
+namespace {
+
+// A `forward` pattern of the file, errors naming the file and node.
+node::Pattern forward_pattern_of(const NodeSpec& spec, const std::string& text, const uri::PrefixMap& prefixes,
+                                 const Topology& topo) {
+  try {
+    return forward_pattern(text, prefixes);
+  } catch (const Failure& f) {
+    fail(topo.file.string() + ": node '" + spec.id + "': forward: " + f.message);
+  }
+}
+
+// The triples of a `load` file as the node's new board reads them: relative IRIs against the
+// node's IRI + "/", as `tahvel put` reads.
+std::vector<node::Triple> load_file_triples(const NodeSpec& spec, const fs::path& file, const uri::PrefixMap& prefixes,
+                                            const Topology& topo) {
+  node::ParseOptions parse;
+  parse.base_iri = spec.iri + "/";
+  parse.source_name = file.string();
+  parse.prefixes = prefixes;
+  try {
+    auto triples = node::parse_rdf(read_input(file.string()), parse);
+    if (!triples) fail(topo.file.string() + ": node '" + spec.id + "': load: " + triples.error().message);
+    return std::move(*triples);
+  } catch (const Failure& f) {
+    fail(topo.file.string() + ": node '" + spec.id + "': load: " + f.message);
+  }
+}
+
+// A node's new store with the files the topology puts on its board (a floor plan, sensing
+// subscriptions: one persistent item each). Made beside `store` and renamed into place once
+// whole, so a failure leaves no store that `up` would then take as made and never load.
+void create_store(const NodeSpec& spec, const fs::path& store, const Topology& topo) {
+  const fs::path making = store.string() + ".making";
+  std::error_code ec;
+  fs::remove_all(making, ec);
+  {
+    node::InitOptions init;
+    init.iri = spec.iri;
+    init.durability = spec.durability == "durable" ? node::Durability::durable : node::Durability::fast;
+    init.ring = spec.ring;
+    node::Node created = check(node::Node::init(making, init));
+    node::Agent loader = check(created.agent("deploy"));
+    for (const fs::path& file : spec.load) {
+      node::Item item;
+      item.persistent = true;
+      item.triples = load_file_triples(spec, file, created.prefixes(), topo);
+      check(loader.store(item));
+      std::cout << "up: put " << item.triples.size() << " triples of " << file.string() << " on " << spec.id << "\n";
+    }
+  }
+  fs::remove_all(store, ec);  // an empty folder, or one a failed creation left
+  fs::rename(making, store, ec);
+  if (ec) fail(store.string() + ": " + ec.message());
+  std::cout << "up: created the store of " << spec.id << " <" << spec.iri << "> at " << store.string() << "\n";
+}
+
+}  // namespace
+
 int run_up(const Args& args) {
   Topology topo = check(load_topology(args.positional(0)));
   fs::path state = fs::absolute(state_dir(args));
@@ -466,45 +526,66 @@ int run_up(const Args& args) {
   fs::create_directories(state / "logs", ec);
   if (ec) fail(state.string() + ": " + ec.message());
   fs::path pid_file = state / pid_file_name(only);
+  const std::string down_first = "; 'tahvel down --state " + state.string() + "' first";
   if (pid_t pid = supervisor_holding(pid_file); pid != 0)
     fail("already up (supervisor pid " + (pid > 0 ? std::to_string(pid) : std::string("starting")) + ", " + pid_file.string() +
-         "); 'tahvel down --state " + state.string() + "' first");
+         ")" + down_first);
+  // One supervisor per node: `up --node X` beside `up` of the whole file would run X's link and
+  // agents twice (two ECG sources writing every chunk twice).
+  if (only && supervisor_holding(state / pid_file_name(std::nullopt)) != 0)
+    fail("node '" + *only + "' already runs under the supervisor of the whole file (" +
+         (state / pid_file_name(std::nullopt)).string() + ")" + down_first);
+  if (!only) {
+    for (const NodeSpec& spec : topo.nodes)
+      if (supervisor_holding(state / pid_file_name(spec.id)) != 0)
+        fail("node '" + spec.id + "' already runs under its own supervisor (" + (state / pid_file_name(spec.id)).string() +
+             "); 'tahvel down --state " + state.string() + " --node " + spec.id + "' first");
+  }
+  // Everything is checked before anything is created: a store that exists must be the node's,
+  // and the files and patterns a new one gets must read.
+  std::vector<const NodeSpec*> mine;
+  for (const NodeSpec& spec : topo.nodes)
+    if (!only || spec.id == *only) mine.push_back(&spec);
+  const std::string in_file = topo.file.string() + ": node '";
+  for (const NodeSpec* spec : mine) {
+    const fs::path store = state / spec->id;
+    if (fs::exists(store / "data.mdb")) {
+      node::Node existing = check(node::Node::open(store));
+      if (existing.iri() != spec->iri)
+        fail(in_file + spec->id + "': the store at " + store.string() + " is the node <" + existing.iri() + ">, the file says <" +
+             spec->iri + "> (a changed iri or parent); move that store away, or give the node another id");
+      for (const auto& f : spec->forward) forward_pattern_of(*spec, f, existing.prefixes(), topo);
+    } else {
+      const uri::PrefixMap prefixes = uri::PrefixMap::standard();
+      for (const auto& f : spec->forward) forward_pattern_of(*spec, f, prefixes, topo);
+      for (const fs::path& file : spec->load) (void)load_file_triples(*spec, file, prefixes, topo);
+    }
+  }
   const fs::path bin = self_bin_dir();
   std::vector<agents::ProgramSpec> programs;
-  for (const NodeSpec& spec : topo.nodes) {
-    if (only && spec.id != *only) continue;
+  for (const NodeSpec* node_spec : mine) {
+    const NodeSpec& spec = *node_spec;
     fs::path store = state / spec.id;
-    if (!fs::exists(store / "data.mdb")) {
-      node::InitOptions init;
-      init.iri = spec.iri;
-      init.durability = spec.durability == "durable" ? node::Durability::durable : node::Durability::fast;
-      init.ring = spec.ring;
-      node::Node created = check(node::Node::init(store, init));
-      std::cout << "up: created the store of " << spec.id << " <" << spec.iri << "> at " << store.string() << "\n";
-      // Files the topology puts on a new board (a floor plan, sensing subscriptions): one
-      // persistent item each, relative IRIs against the node's IRI + "/", as `tahvel put` reads.
-      node::Agent loader = check(created.agent("deploy"));
-      for (const fs::path& file : spec.load) {
-        node::ParseOptions parse;
-        parse.base_iri = base_iri_of(created);
-        parse.source_name = file.string();
-        parse.prefixes = created.prefixes();
-        node::Item item;
-        item.persistent = true;
-        item.triples = check(node::parse_rdf(read_input(file.string()), parse));
-        check(loader.store(item));
-        std::cout << "up: put " << item.triples.size() << " triples of " << file.string() << " on " << spec.id << "\n";
-      }
-    }
+    if (!fs::exists(store / "data.mdb")) create_store(spec, store, topo);
     if (!spec.parent.empty()) {
       // The forwarding policy is on the board before any agent starts: an item written before
       // the uplink subscribed would never be routed to it (P5).
       node::Node node = check(node::Node::open(store));
       node::Agent uplink = check(node.agent("uplink"));
       std::vector<node::Pattern> policy;
-      for (const auto& f : spec.forward) policy.push_back(forward_pattern(f, node.prefixes()));
+      for (const auto& f : spec.forward) policy.push_back(forward_pattern_of(spec, f, node.prefixes(), topo));
       if (policy.empty()) policy = federation::default_forward_policy();
-      for (const auto& pattern : policy) check(uplink.subscribe(pattern));
+      std::set<std::uint64_t> kept;
+      for (const auto& pattern : policy) kept.insert(check(uplink.subscribe(pattern)));
+      // A pattern taken out of the file stops going up (a narrowed policy keeps raw data home):
+      // the uplink's own subscriptions are the file's. Those the parent sent down stay.
+      auto snap = check(node.snapshot());
+      const std::string subscriber = std::string(federation::vocab::kTv) + "subscriber";
+      for (const auto& r : check(snap.list({.p = node::Term::iri(subscriber), .o = node::Term::iri(uplink.iri())}))) {
+        if (r.meta.source != uplink.iri() || kept.count(r.meta.item)) continue;
+        check(uplink.unsubscribe(r.meta.item));
+        std::cout << "up: " << spec.id << ": removed a forwarding pattern no longer in the file (item " << r.meta.item << ")\n";
+      }
     }
     if (!spec.parent.empty() || !topo.children(spec.id).empty())
       programs.push_back({spec.id + "/link", link_argv(topo, spec, store, bin), state / "logs" / spec.id / "link.log", {}, agents::Restart::always});
@@ -620,20 +701,27 @@ int run_up(const Args& args) {
 
 const Command kDownCommand{
     "down",
-    "[--state DIR]",
+    "[--state DIR] [--node ID]",
     "Stop what 'tahvel up' started with this state directory.",
     "Sends SIGTERM to each supervisor of DIR (its pid files), which stops its agents (SIGTERM,\n"
-    "SIGKILL after 5 s), and waits for them to end. The stores stay.",
-    {kFlagState},
+    "SIGKILL after 5 s), and waits for them to end. The stores stay. With --node only the\n"
+    "supervisor that 'tahvel up FILE --node ID' started.",
+    {kFlagState, {"--node", "", "ID", "stop only the node brought up with 'up --node ID'"}},
     0, 0};
 
 int run_down(const Args& args) {
   fs::path state = state_dir(args);
+  std::optional<std::string> only = args.get("--node");
+  if (only && supervisor_holding(state / pid_file_name(only)) == 0 &&
+      supervisor_holding(state / pid_file_name(std::nullopt)) != 0)
+    fail("--node '" + *only + "': it runs under the supervisor of the whole file (" +
+         (state / pid_file_name(std::nullopt)).string() + "), which 'tahvel down --state " + state.string() + "' stops");
   std::error_code ec;
   int stopped = 0;
   for (const auto& entry : fs::directory_iterator(state, ec)) {
     const std::string name = entry.path().filename().string();
     if (name.rfind("supervisor-", 0) != 0 || entry.path().extension() != ".pid") continue;
+    if (only && name != pid_file_name(only)) continue;
     pid_t pid = supervisor_holding(entry.path());
     const auto deadline = std::chrono::steady_clock::now() + 20s;
     while (pid < 0 && std::chrono::steady_clock::now() < deadline) {  // starting: its pid comes

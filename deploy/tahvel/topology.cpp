@@ -1,5 +1,6 @@
 #include "topology.h"
 
+#include <algorithm>
 #include <cstdlib>
 #include <filesystem>
 #include <map>
@@ -19,21 +20,84 @@ std::string where(const toml::node& n, const std::filesystem::path& file) {
   return file.string() + ":" + std::to_string(src.begin.line) + ":" + std::to_string(src.begin.column);
 }
 
+std::optional<std::uint32_t> lcm_udp_port(const std::string& url);
+
+// A misspelt key would otherwise be skipped and its default used (`durabilty = "durable"` a fast
+// store), so every table accepts only the keys it knows.
+// `what` names the node ("node 'h': "), `table` the table's path within it ("store.").
+node::Result<void> only_keys(const toml::table& t, std::initializer_list<std::string_view> known,
+                             const std::filesystem::path& file, const std::string& what, const std::string& table = "") {
+  for (const auto& [key, value] : t) {
+    if (std::find(known.begin(), known.end(), key.str()) != known.end()) continue;
+    std::string list;
+    for (auto k : known) list += (list.empty() ? "" : ", ") + std::string(k);
+    return node::fail(Errc::invalid_argument, where(value, file) + ": " + what + "unknown key '" + table + std::string(key.str()) +
+                                                  "' (known here: " + list + ")");
+  }
+  return {};
+}
+
+// `key` of `t`: nothing when absent, its value when it has type T, else an error naming the key.
+template <class T>
+node::Result<std::optional<T>> typed(const toml::table& t, std::string_view key, const std::filesystem::path& file,
+                                     const std::string& what, std::string_view wanted) {
+  const toml::node* n = t.get(key);
+  if (!n) return std::optional<T>{};
+  auto v = n->value_exact<T>();
+  if (!v) return node::fail(Errc::invalid_argument, where(*n, file) + ": " + what + std::string(key) + " must be " + std::string(wanted));
+  return std::optional<T>{std::move(*v)};
+}
+
+// `key` of `t` as a table, nothing when absent.
+node::Result<const toml::table*> table_at(const toml::table& t, std::string_view key, const std::filesystem::path& file,
+                                          const std::string& what) {
+  const toml::node* n = t.get(key);
+  if (!n) return nullptr;
+  if (!n->is_table())
+    return node::fail(Errc::invalid_argument, where(*n, file) + ": " + what + std::string(key) + " must be a table { ... }");
+  return n->as_table();
+}
+
+#define TAHVEL_TRY(var, expr)                                      \
+  auto var##_result = (expr);                                      \
+  if (!var##_result) return Unexpected<node::Error>{var##_result.error()}; \
+  auto var = std::move(*var##_result)
+
 node::Result<LinkSpec> link_spec(const toml::table& t, const std::filesystem::path& file, const std::string& node_id) {
+  const std::string what = "node '" + node_id + "': listen.";
+  if (auto ok = only_keys(t, {"kind", "url", "domain", "config"}, file, "node '" + node_id + "': ", "listen."); !ok)
+    return Unexpected<node::Error>{ok.error()};
   LinkSpec spec;
-  auto kind = t["kind"].value<std::string>();
+  TAHVEL_TRY(kind, typed<std::string>(t, "kind", file, what, "\"lcm\" or \"dds\""));
   if (!kind || (*kind != "lcm" && *kind != "dds"))
-    return node::fail(Errc::invalid_argument, where(t, file) + ": node '" + node_id + "': listen.kind must be \"lcm\" or \"dds\"");
+    return node::fail(Errc::invalid_argument, where(t, file) + ": " + what + "kind must be \"lcm\" or \"dds\"");
   spec.kind = *kind;
-  if (auto url = t["url"].value<std::string>()) spec.lcm_url = *url;
-  if (auto domain = t["domain"].value<std::int64_t>()) {
+  TAHVEL_TRY(url, typed<std::string>(t, "url", file, what, "a string (an LCM URL such as \"udpm://239.255.76.67:7667?ttl=0\")"));
+  TAHVEL_TRY(domain, typed<std::int64_t>(t, "domain", file, what, "an integer 0..232"));
+  TAHVEL_TRY(config, typed<std::string>(t, "config", file, what, "a string (a Cyclone DDS XML file)"));
+  if (spec.kind == "lcm" && (domain || config))
+    return node::fail(Errc::invalid_argument, where(t, file) + ": " + what + "domain and config are for kind = \"dds\"");
+  if (spec.kind == "dds" && url)
+    return node::fail(Errc::invalid_argument, where(t, file) + ": " + what + "url is for kind = \"lcm\"");
+  if (url) {
+    // Checked here, not when the link first runs: a bad URL there is a link that dies at each restart.
+    if (!url->starts_with("udpm://") || !lcm_udp_port(*url))
+      return node::fail(Errc::invalid_argument, where(*t.get("url"), file) + ": " + what + "url '" + *url +
+                                                    "': expected udpm://GROUP:PORT[?ttl=N] (LCM over UDP multicast)");
+    spec.lcm_url = *url;
+  }
+  if (domain) {
     if (*domain < 0 || *domain > 232)
-      return node::fail(Errc::invalid_argument, where(t, file) + ": node '" + node_id + "': listen.domain must be 0..232");
+      return node::fail(Errc::invalid_argument, where(*t.get("domain"), file) + ": " + what + "domain must be 0..232");
     spec.dds_domain = static_cast<std::uint32_t>(*domain);
   }
-  if (auto config = t["config"].value<std::string>()) {
+  if (config) {
     std::filesystem::path p = *config;
     if (p.is_relative()) p = file.parent_path() / p;
+    std::error_code ec;
+    if (!std::filesystem::is_regular_file(p, ec))
+      return node::fail(Errc::not_found, where(*t.get("config"), file) + ": " + what + "config: cannot read " +
+                                             p.lexically_normal().string());
     spec.dds_config = p.lexically_normal().string();
   }
   return spec;
@@ -113,6 +177,13 @@ node::Result<void> check_lcm_ports_clear_of_dds(const Topology& topo) {
   return {};
 }
 
+// "a -> b -> a" for the cycle of `path` (parents followed from path[0]) that starts at `at`.
+std::string describe_cycle(const std::vector<std::string>& path, const std::string& at) {
+  std::string text;
+  for (auto it = std::find(path.begin(), path.end(), at); it != path.end(); ++it) text += *it + " -> ";
+  return text + at;
+}
+
 }  // namespace
 
 const NodeSpec* Topology::node(const std::string& id) const {
@@ -143,7 +214,16 @@ node::Result<Topology> load_topology(const std::filesystem::path& file) {
   }
   Topology topo;
   topo.file = file;
-  topo.name = root["deployment"]["name"].value_or(file.stem().string());
+  if (auto ok = only_keys(root, {"deployment", "node"}, file, ""); !ok) return Unexpected<node::Error>{ok.error()};
+  TAHVEL_TRY(deployment, table_at(root, "deployment", file, ""));
+  topo.name = file.stem().string();
+  if (deployment) {
+    if (auto ok = only_keys(*deployment, {"name"}, file, "", "deployment."); !ok) return Unexpected<node::Error>{ok.error()};
+    TAHVEL_TRY(name, typed<std::string>(*deployment, "name", file, "deployment.", "a string"));
+    if (name) topo.name = *name;
+  }
+  if (root.get("node") && !root.get("node")->is_array_of_tables())
+    return node::fail(Errc::invalid_argument, where(*root.get("node"), file) + ": node must be [[node]] tables");
   const toml::array* nodes = root["node"].as_array();
   if (!nodes || nodes->empty()) return node::fail(Errc::invalid_argument, file.string() + ": no [[node]] tables");
   std::vector<NodeSpec> specs;
@@ -152,31 +232,46 @@ node::Result<Topology> load_topology(const std::filesystem::path& file) {
     const toml::table* t = entry.as_table();
     if (!t) return node::fail(Errc::invalid_argument, where(entry, file) + ": [[node]] must be a table");
     NodeSpec spec;
-    auto id = (*t)["id"].value<std::string>();
+    TAHVEL_TRY(id, typed<std::string>(*t, "id", file, "node: ", "a string"));
     if (!id) return node::fail(Errc::invalid_argument, where(*t, file) + ": a node needs an id");
     if (auto ok = uri::check_id(*id); !ok) return node::fail(Errc::invalid_argument, where(*t, file) + ": node id '" + *id + "': " + ok.error().message);
     spec.id = *id;
     if (by_id.count(spec.id)) return node::fail(Errc::invalid_argument, where(*t, file) + ": node id '" + spec.id + "' appears twice");
-    spec.iri = (*t)["iri"].value_or(std::string());
-    spec.tier = (*t)["tier"].value_or(std::string());
-    spec.parent = (*t)["parent"].value_or(std::string());
-    if (const toml::table* listen = (*t)["listen"].as_table()) {
+    // STATE/<id> is the node's store, beside the supervisors' files in STATE.
+    if (spec.id == "logs" || spec.id.starts_with("supervisor-"))
+      return node::fail(Errc::invalid_argument, where(*t, file) + ": node id '" + spec.id +
+                                                    "' is taken by the state directory's own files (logs/, supervisor-*)");
+    const std::string what = "node '" + spec.id + "': ";
+    if (auto ok = only_keys(*t, {"id", "iri", "tier", "parent", "listen", "store", "forward", "behaviours", "load", "agent"}, file, what); !ok)
+      return Unexpected<node::Error>{ok.error()};
+    TAHVEL_TRY(iri, typed<std::string>(*t, "iri", file, what, "a string (an absolute IRI)"));
+    TAHVEL_TRY(tier, typed<std::string>(*t, "tier", file, what, "a string"));
+    TAHVEL_TRY(parent, typed<std::string>(*t, "parent", file, what, "a string (the parent node's id)"));
+    spec.iri = iri.value_or("");
+    spec.tier = tier.value_or("");
+    spec.parent = parent.value_or("");
+    TAHVEL_TRY(listen, table_at(*t, "listen", file, what));
+    if (listen) {
       auto l = link_spec(*listen, file, spec.id);
       if (!l) return Unexpected<node::Error>{l.error()};
       spec.listen = *l;
     }
-    if (const toml::table* store = (*t)["store"].as_table()) {
-      spec.durability = (*store)["durability"].value_or(std::string("fast"));
+    TAHVEL_TRY(store, table_at(*t, "store", file, what));
+    if (store) {
+      if (auto ok = only_keys(*store, {"durability", "ring"}, file, what, "store."); !ok) return Unexpected<node::Error>{ok.error()};
+      TAHVEL_TRY(durability, typed<std::string>(*store, "durability", file, what + "store.", "\"fast\" or \"durable\""));
+      spec.durability = durability.value_or("fast");
       if (spec.durability != "fast" && spec.durability != "durable")
-        return node::fail(Errc::invalid_argument, where(*store, file) + ": node '" + spec.id + "': store.durability must be \"fast\" or \"durable\"");
-      auto ring = (*store)["ring"].value_or(std::int64_t{0});
-      if (ring < 0) return node::fail(Errc::invalid_argument, where(*store, file) + ": node '" + spec.id + "': store.ring must be >= 0");
-      spec.ring = static_cast<std::uint64_t>(ring);
+        return node::fail(Errc::invalid_argument, where(*store->get("durability"), file) + ": " + what + "store.durability must be \"fast\" or \"durable\"");
+      TAHVEL_TRY(ring, typed<std::int64_t>(*store, "ring", file, what + "store.", "an integer >= 0"));
+      if (ring && *ring < 0) return node::fail(Errc::invalid_argument, where(*store->get("ring"), file) + ": " + what + "store.ring must be >= 0");
+      spec.ring = static_cast<std::uint64_t>(ring.value_or(0));
     }
     auto forward = strings((*t)["forward"].node(), file, "node '" + spec.id + "': forward");
     if (!forward) return Unexpected<node::Error>{forward.error()};
     spec.forward = *forward;
-    if (auto behaviours = (*t)["behaviours"].value<std::string>()) {
+    TAHVEL_TRY(behaviours, typed<std::string>(*t, "behaviours", file, what, "a string (a folder)"));
+    if (behaviours) {
       std::filesystem::path p = *behaviours;
       if (p.is_relative()) p = file.parent_path() / p;
       spec.behaviours = p.lexically_normal();
@@ -188,13 +283,18 @@ node::Result<Topology> load_topology(const std::filesystem::path& file) {
       if (p.is_relative()) p = file.parent_path() / p;
       spec.load.push_back(p.lexically_normal());
     }
+    if (t->get("agent") && !t->get("agent")->is_array_of_tables())
+      return node::fail(Errc::invalid_argument, where(*t->get("agent"), file) + ": " + what + "agent must be [[node.agent]] tables");
     if (const toml::array* agents = (*t)["agent"].as_array()) {
       std::set<std::string> seen;
       for (const auto& a : *agents) {
         const toml::table* at = a.as_table();
         if (!at) return node::fail(Errc::invalid_argument, where(a, file) + ": [[node.agent]] must be a table");
         AgentSpec agent;
-        agent.id = (*at)["id"].value_or(std::string());
+        TAHVEL_TRY(agent_id, typed<std::string>(*at, "id", file, what + "agent: ", "a string"));
+        agent.id = agent_id.value_or("");
+        if (auto ok = only_keys(*at, {"id", "run", "run_with_mitdb", "restart"}, file, what + "agent '" + agent.id + "': "); !ok)
+          return Unexpected<node::Error>{ok.error()};
         if (auto ok = uri::check_id(agent.id); !ok)
           return node::fail(Errc::invalid_argument, where(*at, file) + ": node '" + spec.id + "': agent id '" + agent.id + "': " + ok.error().message);
         if (!seen.insert(agent.id).second || agent.id == "link" || agent.id == "uplink")
@@ -228,6 +328,9 @@ node::Result<Topology> load_topology(const std::filesystem::path& file) {
         auto n = uri::normalize(spec.iri);
         if (!n) return node::fail(Errc::invalid_iri, file.string() + ": node '" + spec.id + "': iri: " + n.error().message);
         spec.iri = *n;
+        if (spec.iri.ends_with("/"))
+          return node::fail(Errc::invalid_iri, file.string() + ": node '" + spec.id + "': iri <" + spec.iri +
+                                                   "> ends in '/': its children are its IRI + \"/\" + their id, so write it without the '/'");
       } else {
         const NodeSpec& parent = specs[by_id[spec.parent]];
         if (!parent.listen)
@@ -246,7 +349,27 @@ node::Result<Topology> load_topology(const std::filesystem::path& file) {
       placed.insert(spec.id);
       progress = true;
     }
-    if (!progress) return node::fail(Errc::invalid_argument, file.string() + ": the parents of the nodes form a cycle");
+    if (!progress) {
+      // Every node left is on a cycle or below one: follow the parents from one until a node repeats.
+      std::vector<std::string> path;
+      std::string at;
+      for (const auto& spec : specs)
+        if (!placed.count(spec.id)) at = spec.id;
+      while (std::find(path.begin(), path.end(), at) == path.end()) {
+        path.push_back(at);
+        at = specs[by_id[at]].parent;
+      }
+      return node::fail(Errc::invalid_argument, file.string() + ": node '" + at + "': parent: the parents form a cycle (" +
+                                                    describe_cycle(path, at) + ")");
+    }
+  }
+  for (const auto& n : topo.nodes) {
+    for (const NodeSpec* child : topo.children(n.id))
+      for (const auto& agent : n.agents)
+        if (agent.id == child->id)
+          return node::fail(Errc::invalid_argument, file.string() + ": node '" + n.id + "': agent id '" + agent.id +
+                                                        "' is also its child node's id (a child node is agent '" + child->id +
+                                                        "' of its parent)");
   }
   if (auto clear = check_lcm_ports_clear_of_dds(topo); !clear) return Unexpected<node::Error>{clear.error()};
   return topo;

@@ -623,6 +623,100 @@ TEST_F(Cli, UpRefusesAnUnknownRestartPolicyNamingTheAgent) {
   EXPECT_NE(up.err.find("agent 'hrv': restart must be \"on-failure\", \"always\" or \"never\""), std::string::npos) << up.err;
 }
 
+// A topology that could not run as written is refused before anything is made, the error naming
+// the node, the key and (for a value) its line: a misspelt key would otherwise fall back to its
+// default silently (`durabilty = "durable"`: a fast store), and a bad link setting would pass
+// `up` and then kill the link at every restart.
+TEST_F(Cli, UpRefusesATopologyThatCouldNotRunAsWrittenNamingWhatAndWhere) {
+  spit(tmp_ / "dds.xml", "<CycloneDDS/>\n");
+  const std::string hospital = "[[node]]\nid = \"hospital\"\niri = \"http://example.org/hospital\"\n";
+  const std::string listening = hospital + "listen = { kind = \"dds\", config = \"dds.xml\" }\n";
+  const std::pair<std::string, std::string> cases[] = {
+      {hospital + "store = { durabilty = \"durable\" }\n", "t.toml:4:23: node 'hospital': unknown key 'store.durabilty'"},
+      {hospital + "store = \"durable\"\n", "t.toml:4:9: node 'hospital': store must be a table"},
+      {hospital + "store = { ring = 1.5 }\n", "node 'hospital': store.ring must be an integer"},
+      {hospital + "listen = { kind = \"dds\", domian = 5 }\n", "node 'hospital': unknown key 'listen.domian'"},
+      {hospital + "listen = { kind = \"lcm\", url = \"http://not-lcm\" }\n", "listen.url 'http://not-lcm': expected udpm://"},
+      {hospital + "listen = { kind = \"dds\", config = \"missing.xml\" }\n", "listen.config: cannot read"},
+      {hospital + "forwrd = [\"_ a tv:EcgChunk\"]\n", "node 'hospital': unknown key 'forwrd'"},
+      {hospital + "[[node]]\nid = \"home1\"\nparent = 5\n", "t.toml:6:10: node 'home1': parent must be a string"},
+      {"[[node]]\nid = \"hospital\"\niri = \"http://example.org/hospital/\"\n", "iri <http://example.org/hospital/> ends in '/'"},
+      {listening + "[[node]]\nid = \"a\"\nparent = \"b\"\n[[node]]\nid = \"b\"\nparent = \"a\"\n", "the parents form a cycle (b -> a -> b)"},
+      {"[[node]]\nid = \"logs\"\niri = \"http://example.org/logs\"\n", "node id 'logs' is taken by the state directory"},
+      {listening + "  [[node.agent]]\n  id = \"home1\"\n  run = [\"true\"]\n[[node]]\nid = \"home1\"\nparent = \"hospital\"\n",
+       "node 'hospital': agent id 'home1' is also its child node's id"},
+      {hospital + "  [[node.agent]]\n  id = \"hrv\"\n  run = [\"true\"]\n  restrat = \"never\"\n", "agent 'hrv': unknown key 'restrat'"},
+  };
+  for (const auto& [text, expected] : cases) {
+    spit(tmp_ / "t.toml", text);
+    Outcome up = run({"up", (tmp_ / "t.toml").string(), "--state", (tmp_ / "state").string()});
+    EXPECT_EQ(up.status, 1) << text;
+    EXPECT_NE(up.err.find(expected), std::string::npos) << "expected: " << expected << "\ngot: " << up.err;
+    EXPECT_FALSE(fs::exists(tmp_ / "state")) << text;
+  }
+}
+
+// `up --node X` beside `up` of the whole file (or the other way round) would run X's programs
+// twice; `down --node X` stops only what `up --node X` started.
+TEST_F(Cli, OneNodeRunsUnderOneSupervisorAndDownNodeStopsOnlyThatOne) {
+  spit(tmp_ / "node.toml", kIdleNodeToml);
+  const std::string file = (tmp_ / "node.toml").string(), state = (tmp_ / "state").string();
+  ASSERT_EQ(run({"up", file, "--state", state}).status, 0);
+  Outcome twice = run({"up", file, "--state", state, "--node", "solo"});
+  EXPECT_EQ(twice.status, 1);
+  EXPECT_NE(twice.err.find("node 'solo' already runs under the supervisor of the whole file"), std::string::npos) << twice.err;
+  Outcome partial = run({"down", "--state", state, "--node", "solo"});
+  EXPECT_EQ(partial.status, 1);
+  EXPECT_NE(partial.err.find("runs under the supervisor of the whole file"), std::string::npos) << partial.err;
+  ASSERT_EQ(run({"down", "--state", state}).status, 0);
+
+  ASSERT_EQ(run({"up", file, "--state", state, "--node", "solo"}).status, 0);
+  Outcome whole = run({"up", file, "--state", state});
+  EXPECT_EQ(whole.status, 1);
+  EXPECT_NE(whole.err.find("node 'solo' already runs under its own supervisor"), std::string::npos) << whole.err;
+  Outcome down = run({"down", "--state", state, "--node", "solo"});
+  EXPECT_EQ(down.status, 0) << down.err;
+  EXPECT_NE(down.out.find("stopped supervisor"), std::string::npos) << down.out;
+  EXPECT_FALSE(fs::exists(tmp_ / "state" / "supervisor-solo.pid"));
+}
+
+// A store left by an earlier file under the same id is another node's (a changed iri, or a node
+// moved under another parent): `up` says so instead of starting a link that the parent refuses
+// at every restart.
+TEST_F(Cli, UpRefusesAStoreThatBelongsToAnotherIri) {
+  spit(tmp_ / "node.toml", kIdleNodeToml);
+  const std::string state = (tmp_ / "state").string();
+  ASSERT_EQ(run({"up", (tmp_ / "node.toml").string(), "--state", state}).status, 0);
+  ASSERT_EQ(run({"down", "--state", state}).status, 0);
+  std::string moved = kIdleNodeToml;
+  moved.replace(moved.find("example.org/solo"), 16, "example.org/other");
+  spit(tmp_ / "moved.toml", moved);
+  Outcome up = run({"up", (tmp_ / "moved.toml").string(), "--state", state});
+  EXPECT_EQ(up.status, 1);
+  EXPECT_NE(up.err.find("the store at " + state + "/solo is the node <http://example.org/solo>, the file says "
+                        "<http://example.org/other>"), std::string::npos) << up.err;
+  EXPECT_FALSE(fs::exists(tmp_ / "state" / "supervisor-all.pid"));
+}
+
+// A `load` file that cannot be read stops `up` before any store is made; once it is there, the
+// next `up` makes the store and loads it (a store made first would have been taken as done, and
+// the file never loaded).
+TEST_F(Cli, UpMakesNoStoreWhenALoadFileIsMissingAndLoadsItOnceItIsThere) {
+  spit(tmp_ / "node.toml", "[[node]]\nid = \"solo\"\niri = \"http://example.org/solo\"\nload = [\"plan.ttl\"]\n");
+  const std::string state = (tmp_ / "state").string();
+  Outcome up = run({"up", (tmp_ / "node.toml").string(), "--state", state});
+  EXPECT_EQ(up.status, 1);
+  EXPECT_NE(up.err.find("node.toml: node 'solo': load: cannot open"), std::string::npos) << up.err;
+  EXPECT_FALSE(fs::exists(tmp_ / "state" / "solo"));
+  spit(tmp_ / "plan.ttl", "<room/bedroom> a <https://w3id.org/tahvel#Room> .\n");
+  up = run({"up", (tmp_ / "node.toml").string(), "--state", state});
+  ASSERT_EQ(up.status, 0) << up.err;
+  ASSERT_EQ(run({"down", "--state", state}).status, 0);
+  Outcome listed = run({"list", state + "/solo", "-s", "<http://example.org/solo/room/bedroom>"});
+  EXPECT_EQ(listed.status, 0) << listed.err;
+  EXPECT_EQ(lines_of(listed.out).size(), 1u) << listed.out;
+}
+
 TEST_F(Cli, UpNamesATopologyFileThatDoesNotExist) {
   Outcome up = run({"up", (tmp_ / "missing.toml").string(), "--state", (tmp_ / "state").string()});
   EXPECT_EQ(up.status, 1);
