@@ -142,15 +142,20 @@ std::int64_t time_flag(const Args& args, std::string_view flag, const std::strin
   return ns;
 }
 
-std::string age_of(std::int64_t ns) {
-  if (ns <= 0) return "never";
-  auto now = std::chrono::duration_cast<std::chrono::nanoseconds>(std::chrono::system_clock::now().time_since_epoch()).count();
-  double s = (now - ns) / 1e9;
+// "4.2 s"
+std::string seconds_text(double seconds) {
   std::ostringstream out;
   out.precision(1);
-  out << std::fixed << s << " s ago";
+  out << std::fixed << seconds << " s";
   return out.str();
 }
+
+double seconds_since(std::int64_t unix_ns) {
+  const auto now = std::chrono::duration_cast<std::chrono::nanoseconds>(std::chrono::system_clock::now().time_since_epoch()).count();
+  return (now - unix_ns) / 1e9;
+}
+
+std::string age_of(std::int64_t unix_ns) { return unix_ns <= 0 ? "never" : seconds_text(seconds_since(unix_ns)) + " ago"; }
 
 const Flag kFlagLcmUrl{"--lcm-url", "", "URL", "LCM provider URL (default udpm://239.255.76.67:7667?ttl=0)"};
 const Flag kFlagDdsDomain{"--dds-domain", "", "N", "Cyclone DDS domain id (default 0)"};
@@ -368,9 +373,14 @@ void write_state_file(const fs::path& file, const agents::Supervisor& sup) {
   tmp += ".tmp";
   {
     std::ofstream out(tmp);
-    for (const auto& s : sup.states())
-      out << s.name << '\t' << s.pid << '\t' << (s.running ? "running" : "stopped") << '\t' << s.restarts << '\t'
-          << s.last_exit << '\n';
+    const auto now = std::chrono::steady_clock::now();
+    for (const auto& s : sup.states()) {
+      std::string state = s.running ? "running" : "stopped";
+      if (!s.running && s.restart_at) {
+        state = "restarting in " + seconds_text(std::max(0.0, std::chrono::duration<double>(*s.restart_at - now).count()));
+      }
+      out << s.name << '\t' << s.pid << '\t' << state << '\t' << s.restarts << '\t' << s.last_exit << '\n';
+    }
   }
   fs::rename(tmp, file);
 }
@@ -436,7 +446,7 @@ std::vector<ProgramRow> read_state_files(const fs::path& dir) {
       std::string field;
       while (std::getline(ss, field, '\t')) f.push_back(field);
       f.resize(5);
-      if (!supervised && f[2] == "running") f[2] = "stopped (its supervisor is not running)";
+      if (!supervised && f[2].rfind("stopped", 0) != 0) f[2] = "stopped (its supervisor is not running)";
       rows.push_back({f[0], f[1], f[2], f[3], f[4]});
     }
   }
@@ -754,11 +764,14 @@ const Command kStatusCommand{
     {kFlagState},
     0, 0};
 
+// A parent's link rewrites the state of a connected child at least every 5 s, with the time it
+// last heard from the child (heartbeats every second): an "up" older than this was not rewritten.
+constexpr double kStateStaleAfterS = 15.0;
+
 int run_status(const Args& args) {
   fs::path state = state_dir(args);
   struct Entry {
     std::string id, iri;
-    std::map<std::string, std::string> link;  // as its parent's board says
   };
   std::vector<Entry> nodes;
   std::map<std::string, std::map<std::string, std::string>> child_state;  // child IRI -> fields
@@ -770,7 +783,7 @@ int run_status(const Args& args) {
       std::cerr << "tahvel: " << entry.path().string() << ": " << node.error().message << "\n";
       continue;
     }
-    nodes.push_back({entry.path().filename().string(), node->iri(), {}});
+    nodes.push_back({entry.path().filename().string(), node->iri()});
     auto snap = node->snapshot();
     if (!snap) continue;
     auto records = snap->list({.p = node::Term::iri(federation::vocab::kLinkState)});
@@ -798,8 +811,24 @@ int run_status(const Args& args) {
       auto& f = it->second;
       std::int64_t seen = 0;
       if (auto p = parse_u64(f["lastSeen"])) seen = static_cast<std::int64_t>(*p);
-      std::cout << "  link " << f["linkState"] << ", last seen " << age_of(seen) << ", outbox " << f["outboxDepth"];
-      if (!f["softwareVersion"].empty()) std::cout << ", " << f["softwareVersion"];
+      // The parent's link writes this state; while that link is not running, or not writing,
+      // the state is its last word, not the link's (a stopped hospital left every home "up").
+      std::string parent_link = "the parent's link";
+      for (const Entry& other : nodes)
+        if (other.iri == f["parent"]) parent_link = other.id + "/link";
+      const ProgramRow* writer = nullptr;
+      for (const auto& p : programs)
+        if (p.name == parent_link) writer = &p;
+      std::string said = "link " + f["linkState"] + ", last seen " + age_of(seen) + ", outbox " + f["outboxDepth"];
+      if (!f["softwareVersion"].empty()) said += ", " + f["softwareVersion"];
+      if (writer && writer->state != "running") {
+        std::cout << "  link state unknown: " << parent_link << " is " << writer->state << " (it last said: " << said << ")";
+      } else if (f["linkState"] == "up" && seconds_since(seen) > kStateStaleAfterS) {
+        std::cout << "  link state unknown: " << parent_link << " has not refreshed it for " << seconds_text(seconds_since(seen))
+                  << " (it last said: " << said << ")";
+      } else {
+        std::cout << "  " << said;
+      }
     } else if (depth == 0) {
       std::cout << "  (root)";
     }

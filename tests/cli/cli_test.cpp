@@ -533,6 +533,26 @@ TEST_F(Cli, StatusDoesNotCallProgramsRunningOnceTheirSupervisorIsGone) {
   EXPECT_EQ(down.status, 0) << down.err;
 }
 
+// A program that died and waits out its back-off is about to run again: `status` says so, and
+// when, rather than "stopped" (which is what a program that stays stopped shows).
+TEST_F(Cli, StatusShowsAProgramWaitingOutItsBackOffAsRestarting) {
+  spit(tmp_ / "node.toml",
+       "[[node]]\nid = \"solo\"\niri = \"http://example.org/solo\"\n"
+       "  [[node.agent]]\n  id = \"flaky\"\n  run = [\"/bin/sh\", \"-c\", \"exit 3\"]\n");
+  const std::string state = (tmp_ / "state").string();
+  Outcome up = run({"up", (tmp_ / "node.toml").string(), "--state", state});
+  ASSERT_EQ(up.status, 0) << up.err;
+  Outcome status;
+  for (int i = 0; i < 100; ++i) {
+    status = run({"status", "--state", state});
+    if (status.out.find("flaky  restarting in ") != std::string::npos) break;
+    std::this_thread::sleep_for(std::chrono::milliseconds(50));
+  }
+  EXPECT_NE(status.out.find("flaky  restarting in "), std::string::npos) << status.out << status.err;
+  EXPECT_NE(status.out.find("last: exited with status 3"), std::string::npos) << status.out;
+  EXPECT_EQ(run({"down", "--state", state}).status, 0);
+}
+
 TEST_F(Cli, UpRefusesATopologyWhoseChildIriIsNotUnderItsParent) {
   spit(tmp_ / "bad.toml",
        "[[node]]\nid = \"hospital\"\niri = \"http://example.org/hospital\"\nlisten = { kind = \"dds\" }\n\n"

@@ -7,8 +7,10 @@
 #include <sys/wait.h>
 
 #include <chrono>
+#include <cstdio>
 #include <filesystem>
 #include <fstream>
+#include <iostream>
 #include <string>
 #include <thread>
 
@@ -93,5 +95,106 @@ INSTANTIATE_TEST_SUITE_P(
                       Endpoints{"LcmUrls", "{ kind = \"lcm\", url = \"udpm://239.255.76.67:7711?ttl=0\" }",
                                 "{ kind = \"lcm\", url = \"udpm://239.255.76.68:7712?ttl=0\" }"}),
     [](const auto& info) { return info.param.name; });
+
+// Runs a shell command line and returns its standard output.
+std::string output_of(const std::string& command) {
+  std::string out;
+  FILE* pipe = popen(command.c_str(), "r");
+  if (!pipe) return out;
+  char buffer[4096];
+  std::size_t n;
+  while ((n = fread(buffer, 1, sizeof buffer, pipe)) > 0) out.append(buffer, n);
+  pclose(pipe);
+  return out;
+}
+
+std::size_t count(const fs::path& store, const std::string& type) {
+  auto node = Node::open(store);
+  if (!node) return 0;
+  auto snap = node->snapshot();
+  if (!snap) return 0;
+  auto records = snap->list(Pattern{.p = Term::iri("http://www.w3.org/1999/02/22-rdf-syntax-ns#type"),
+                                    .o = Term::iri("https://w3id.org/tahvel#" + type)});
+  return records ? records->size() : 0;
+}
+
+template <class F>
+bool eventually(F condition, std::chrono::seconds limit = 60s) {
+  const auto deadline = std::chrono::steady_clock::now() + limit;
+  while (std::chrono::steady_clock::now() < deadline) {
+    if (condition()) return true;
+    std::this_thread::sleep_for(200ms);
+  }
+  return condition();
+}
+
+class Deployment : public ::testing::Test {
+ protected:
+  Deployment() {
+    std::string pattern = (fs::temp_directory_path() / "tahvel-layout-XXXXXX").string();
+    root_ = mkdtemp(pattern.data());
+    state_ = root_ / "state";
+  }
+  ~Deployment() override {
+    shell(kBin + "/tahvel down --state " + state_.string() + " >/dev/null");
+    std::error_code ec;
+    if (!HasFailure()) fs::remove_all(root_, ec);
+    else std::cerr << "state and logs kept in " << root_ << "\n";
+  }
+  void write_topology(const std::string& text) { std::ofstream(root_ / "topology.toml") << text; }
+  std::string tahvel(const std::string& args) { return output_of(kBin + "/tahvel " + args + " 2>&1"); }
+  std::string up(const std::string& flags = "") {
+    return tahvel("up " + (root_ / "topology.toml").string() + " --state " + state_.string() + " " + flags);
+  }
+  std::string status() { return tahvel("status --state " + state_.string()); }
+
+  fs::path root_, state_;
+};
+
+// One machine per node (`up --node`). The ward's link writes the gateway's state; once the ward
+// is stopped, that state is the link's last word, and `status` must not show it as current (an
+// operator read "link up, last seen 45 s ago" for a link nobody was running).
+TEST_F(Deployment, StatusDoesNotShowAStoppedParentsLastWordAsTheLinksState) {
+  write_topology("[[node]]\nid = \"ward\"\niri = \"" + kWard + "\"\nlisten = { kind = \"dds\", domain = 6, " + kDdsConfig +
+                 " }\n\n[[node]]\nid = \"gateway\"\nparent = \"ward\"\n");
+  up("--node ward");
+  up("--node gateway");
+  std::string shown;
+  ASSERT_TRUE(eventually([&] { return (shown = status()).find("gateway  <" + kWard + "/gateway>  link up, last seen") != std::string::npos; }))
+      << shown;
+  tahvel("down --state " + state_.string() + " --node ward");
+  shown = status();
+  EXPECT_EQ(shown.find("gateway>  link up"), std::string::npos) << shown;
+  EXPECT_NE(shown.find("gateway  <" + kWard + "/gateway>  link state unknown: ward/link is stopped (it last said: link up"),
+            std::string::npos)
+      << shown;
+}
+
+// A forwarding pattern taken out of the topology file stops going up at the next `up`: the
+// narrowed policy keeps that data on the node.
+TEST_F(Deployment, AForwardPatternTakenOutOfTheFileStopsGoingUp) {
+  const std::string top = "[[node]]\nid = \"ward\"\niri = \"" + kWard + "\"\nlisten = { kind = \"lcm\", url = \"udpm://239.255.76.67:7713?ttl=0\" }\n\n"
+                          "[[node]]\nid = \"bed\"\nparent = \"ward\"\n";
+  write_topology(top + "forward = [\"_ a tv:EcgChunk\", \"_ a tv:EcgRecording\"]\n");
+  up();
+  const std::string bed = (state_ / "bed").string();
+  auto put = [&](const std::string& subject, const std::string& type) {
+    return shell("echo '<" + kWard + "/bed/" + subject + "> <http://www.w3.org/1999/02/22-rdf-syntax-ns#type> <https://w3id.org/tahvel#" + type +
+                 "> .' | " + kBin + "/tahvel put " + bed + " --format nt >/dev/null");
+  };
+  ASSERT_EQ(put("rec1", "EcgRecording"), 0);
+  ASSERT_EQ(put("chunk1", "EcgChunk"), 0);
+  ASSERT_TRUE(eventually([&] { return count(state_ / "ward", "EcgChunk") == 1; }));
+  EXPECT_EQ(count(state_ / "ward", "EcgRecording"), 1u);
+  tahvel("down --state " + state_.string());
+  write_topology(top + "forward = [\"_ a tv:EcgChunk\"]\n");
+  const std::string said = up();
+  EXPECT_NE(said.find("bed: removed a forwarding pattern no longer in the file"), std::string::npos) << said;
+  ASSERT_EQ(put("rec2", "EcgRecording"), 0);  // stored before the chunk: in order on the link
+  ASSERT_EQ(put("chunk2", "EcgChunk"), 0);
+  ASSERT_TRUE(eventually([&] { return count(state_ / "ward", "EcgChunk") == 2; }));
+  EXPECT_EQ(count(state_ / "ward", "EcgRecording"), 1u);
+  EXPECT_EQ(count(state_ / "bed", "EcgRecording"), 2u);
+}
 
 }  // namespace

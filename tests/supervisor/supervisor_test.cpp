@@ -82,6 +82,28 @@ TEST_F(SupervisorTest, AProgramThatFailsIsStartedAgainWithBackOffAndTheLogSaysWh
   EXPECT_TRUE(logged("agent exited with status 3; restarting in 80 ms"));  // up to the cap
 }
 
+// `tahvel status` shows a program waiting out its back-off as restarting, with when, rather than
+// as stopped; one that finished has no restart time.
+TEST_F(SupervisorTest, AProgramWaitingOutItsBackOffSaysWhenItStartsAgain) {
+  Supervisor slow([](std::string_view) {}, BackOff{.first = 10s, .max = 10s, .stable = 60s});
+  ASSERT_TRUE(slow.start({.name = "agent", .argv = {"/bin/sh", "-c", "exit 3"}}).has_value());
+  ASSERT_TRUE(slow.start({.name = "replay", .argv = {"/bin/sh", "-c", "exit 0"}}).has_value());
+  const auto deadline = std::chrono::steady_clock::now() + 5s;
+  while ((slow.state("agent")->running || slow.state("replay")->running) && std::chrono::steady_clock::now() < deadline) {
+    slow.poll();
+    std::this_thread::sleep_for(5ms);
+  }
+  const ProgramState agent = *slow.state("agent");
+  ASSERT_FALSE(agent.running);
+  ASSERT_TRUE(agent.restart_at.has_value());
+  const auto wait = *agent.restart_at - std::chrono::steady_clock::now();
+  EXPECT_GT(wait, 5s);
+  EXPECT_LE(wait, 10s);
+  EXPECT_FALSE(slow.state("replay")->restart_at.has_value());
+  ASSERT_TRUE(slow.stop("agent").has_value());
+  EXPECT_FALSE(slow.state("agent")->restart_at.has_value());
+}
+
 TEST_F(SupervisorTest, AProgramKilledByASignalIsStartedAgainAndTheLogNamesTheSignal) {
   start("agent", "kill -9 $$", Restart::on_failure);
   ASSERT_TRUE(poll_until([&] { return supervisor_.state("agent")->restarts >= 1; }));

@@ -212,13 +212,20 @@ void Supervisor::stop_all(std::chrono::milliseconds grace) {
 
 std::vector<ProgramState> Supervisor::states() const {
   std::vector<ProgramState> out;
-  for (const Program* p : programs_) out.push_back(p->state);
+  for (const Program* p : programs_) {
+    out.push_back(p->state);
+    out.back().restart_at = p->restart_at;
+  }
   return out;
 }
 
 std::optional<ProgramState> Supervisor::state(std::string_view name) const {
   for (const Program* p : programs_)
-    if (p->spec.name == name) return p->state;
+    if (p->spec.name == name) {
+      ProgramState s = p->state;
+      s.restart_at = p->restart_at;
+      return s;
+    }
   return std::nullopt;
 }
 

@@ -52,6 +52,9 @@ struct ProgramState {
   std::uint32_t restarts = 0;
   std::string last_exit;             // "exited with status 1", "killed by signal 9 (Killed)"
   std::optional<int> exit_status;    // of the last exit, when it exited normally
+  // While a program that died waits out its back-off: when it is started again. Empty while it
+  // runs, and for a program that stays stopped (finished, restart = never, or stopped on request).
+  std::optional<std::chrono::steady_clock::time_point> restart_at;
 };
 
 struct BackOff {
