@@ -565,6 +565,14 @@ int run_up(const Args& args) {
         fail(in_file + spec->id + "': the store at " + store.string() + " is the node <" + existing.iri() + ">, the file says <" +
              spec->iri + "> (a changed iri or parent); move that store away, or give the node another id");
       for (const auto& f : spec->forward) forward_pattern_of(*spec, f, existing.prefixes(), topo);
+      // Durability and ring are the store's, set when it was made: a changed ring would remove
+      // records (or keep more) behind the operator's back, so the file's is only compared.
+      const node::Stats made = check(existing.stats());
+      const std::string made_durability = made.durability == node::Durability::durable ? "durable" : "fast";
+      if (made_durability != spec->durability || made.ring != spec->ring)
+        std::cerr << "up: warning: " << in_file << spec->id << "': the store at " << store.string() << " was made with durability "
+                  << made_durability << ", ring " << made.ring << "; the file's durability " << spec->durability << ", ring "
+                  << spec->ring << " apply only to a new store (move this one away to make it so)\n";
     } else {
       const uri::PrefixMap prefixes = uri::PrefixMap::standard();
       for (const auto& f : spec->forward) forward_pattern_of(*spec, f, prefixes, topo);
@@ -572,6 +580,10 @@ int run_up(const Args& args) {
     }
   }
   const fs::path bin = self_bin_dir();
+  for (const NodeSpec* spec : mine)
+    for (const AgentSpec& agent : spec->agents)
+      if (auto argv = expand_agent_command(agent, *spec, state / spec->id, bin); !argv)
+        fail(topo.file.string() + ": " + argv.error().message);
   std::vector<agents::ProgramSpec> programs;
   for (const NodeSpec* node_spec : mine) {
     const NodeSpec& spec = *node_spec;
@@ -600,7 +612,7 @@ int run_up(const Args& args) {
     if (!spec.parent.empty() || !topo.children(spec.id).empty())
       programs.push_back({spec.id + "/link", link_argv(topo, spec, store, bin), state / "logs" / spec.id / "link.log", {}, agents::Restart::always});
     for (const AgentSpec& agent : spec.agents)
-      programs.push_back({spec.id + "/" + agent.id, expand_agent_command(agent, spec, store, bin),
+      programs.push_back({spec.id + "/" + agent.id, check(expand_agent_command(agent, spec, store, bin)),
                           state / "logs" / spec.id / (agent.id + ".log"), {}, agent.restart});
   }
   const bool foreground = args.has("--foreground");

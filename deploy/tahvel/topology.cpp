@@ -375,14 +375,24 @@ node::Result<Topology> load_topology(const std::filesystem::path& file) {
   return topo;
 }
 
-std::vector<std::string> expand_agent_command(const AgentSpec& agent, const NodeSpec& node,
-                                              const std::filesystem::path& store,
-                                              const std::filesystem::path& bin) {
-  const char* mitdb = std::getenv("TAHVEL_MITDB");
-  const bool use_mitdb = mitdb && *mitdb && !agent.run_with_mitdb.empty();
+node::Result<std::vector<std::string>> expand_agent_command(const AgentSpec& agent, const NodeSpec& node,
+                                                            const std::filesystem::path& store,
+                                                            const std::filesystem::path& bin) {
+  const char* env = std::getenv("TAHVEL_MITDB");
+  const std::string mitdb = env ? env : "";
+  const bool use_mitdb = !mitdb.empty() && !agent.run_with_mitdb.empty();
   std::vector<std::string> argv = use_mitdb ? agent.run_with_mitdb : agent.run;
+  const std::string what = "node '" + node.id + "': agent '" + agent.id + "': ";
+  // An empty {mitdb} would make "/100" of "{mitdb}/100": a replay of a file that is not there,
+  // failing and restarted for ever, far from its cause.
+  const bool wants_mitdb = std::any_of(argv.begin(), argv.end(), [](const std::string& a) { return a.find("{mitdb}") != std::string::npos; });
+  if (wants_mitdb && mitdb.empty())
+    return node::fail(Errc::invalid_argument, what + "its command uses {mitdb} but TAHVEL_MITDB is not set (set it to a "
+                                                     "directory of MIT-BIH records, or put {mitdb} in run_with_mitdb only)");
+  if (wants_mitdb && !std::filesystem::is_directory(mitdb))
+    return node::fail(Errc::invalid_argument, what + "TAHVEL_MITDB=" + mitdb + " is not a directory");
   const std::pair<std::string, std::string> vars[] = {
-      {"{store}", store.string()}, {"{iri}", node.iri}, {"{bin}", bin.string()}, {"{mitdb}", mitdb ? mitdb : ""}};
+      {"{store}", store.string()}, {"{iri}", node.iri}, {"{bin}", bin.string()}, {"{mitdb}", mitdb}};
   for (auto& arg : argv) {
     for (const auto& [key, value] : vars) {
       for (std::size_t at = arg.find(key); at != std::string::npos; at = arg.find(key, at + value.size()))

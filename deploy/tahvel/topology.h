@@ -59,8 +59,10 @@ node::Result<Topology> load_topology(const std::filesystem::path& file);
 
 // An agent's argv with placeholders expanded: {store} (the node's store directory), {iri} (the
 // node IRI), {bin} (the directory of the running tahvel binary), {mitdb} (TAHVEL_MITDB).
-std::vector<std::string> expand_agent_command(const AgentSpec& agent, const NodeSpec& node,
-                                              const std::filesystem::path& store,
-                                              const std::filesystem::path& bin);
+// Errors (invalid_argument, naming node and agent): {mitdb} used while TAHVEL_MITDB is unset
+// or not a directory.
+node::Result<std::vector<std::string>> expand_agent_command(const AgentSpec& agent, const NodeSpec& node,
+                                                            const std::filesystem::path& store,
+                                                            const std::filesystem::path& bin);
 
 }  // namespace tahvel::cli

@@ -553,6 +553,51 @@ TEST_F(Cli, StatusShowsAProgramWaitingOutItsBackOffAsRestarting) {
   EXPECT_EQ(run({"down", "--state", state}).status, 0);
 }
 
+// `{mitdb}` in a command while TAHVEL_MITDB is unset used to become "" ("/100": a replay of a
+// file that is not there, failing and restarted for ever). `up` refuses it before making the
+// store, naming the node and the agent; the same with TAHVEL_MITDB set to a directory runs.
+TEST_F(Cli, UpRefusesAMitdbPlaceholderWithoutTahvelMitdb) {
+  spit(tmp_ / "node.toml",
+       "[[node]]\nid = \"bed\"\niri = \"http://example.org/bed\"\n"
+       "  [[node.agent]]\n  id = \"source\"\n  run = [\"/bin/sleep\", \"600\", \"{mitdb}/100\"]\n");
+  const std::string state = (tmp_ / "state").string();
+  const char* before = std::getenv("TAHVEL_MITDB");
+  const std::string saved = before ? before : "";
+  unsetenv("TAHVEL_MITDB");
+  Outcome up = run({"up", (tmp_ / "node.toml").string(), "--state", state});
+  EXPECT_EQ(up.status, 1);
+  EXPECT_NE(up.err.find("node 'bed': agent 'source': its command uses {mitdb} but TAHVEL_MITDB is not set"), std::string::npos)
+      << up.err;
+  EXPECT_FALSE(fs::exists(tmp_ / "state" / "bed"));
+  setenv("TAHVEL_MITDB", (tmp_ / "nowhere").c_str(), 1);
+  up = run({"up", (tmp_ / "node.toml").string(), "--state", state});
+  EXPECT_EQ(up.status, 1);
+  EXPECT_NE(up.err.find("TAHVEL_MITDB=" + (tmp_ / "nowhere").string() + " is not a directory"), std::string::npos) << up.err;
+  setenv("TAHVEL_MITDB", tmp_.c_str(), 1);
+  up = run({"up", (tmp_ / "node.toml").string(), "--state", state});
+  EXPECT_EQ(up.status, 0) << up.err;
+  EXPECT_EQ(run({"down", "--state", state}).status, 0);
+  if (before) setenv("TAHVEL_MITDB", saved.c_str(), 1);
+  else unsetenv("TAHVEL_MITDB");
+}
+
+// Durability and ring are fixed when a store is made; a file that later says otherwise is not
+// applied (a smaller ring would remove records), and `up` says so rather than ignoring it.
+TEST_F(Cli, UpWarnsThatAChangedRingDoesNotApplyToAnExistingStore) {
+  const std::string node = "[[node]]\nid = \"solo\"\niri = \"http://example.org/solo\"\n";
+  spit(tmp_ / "node.toml", node);
+  const std::string state = (tmp_ / "state").string();
+  ASSERT_EQ(run({"up", (tmp_ / "node.toml").string(), "--state", state}).status, 0);
+  ASSERT_EQ(run({"down", "--state", state}).status, 0);
+  spit(tmp_ / "node.toml", node + "store = { ring = 1000 }\n");
+  Outcome up = run({"up", (tmp_ / "node.toml").string(), "--state", state});
+  EXPECT_EQ(up.status, 0) << up.err;
+  EXPECT_NE(up.err.find("was made with durability fast, ring 0; the file's durability fast, ring 1000 apply only to a new store"),
+            std::string::npos)
+      << up.err;
+  EXPECT_EQ(run({"down", "--state", state}).status, 0);
+}
+
 TEST_F(Cli, UpRefusesATopologyWhoseChildIriIsNotUnderItsParent) {
   spit(tmp_ / "bad.toml",
        "[[node]]\nid = \"hospital\"\niri = \"http://example.org/hospital\"\nlisten = { kind = \"dds\" }\n\n"
