@@ -85,6 +85,15 @@ TEST(Iri, NormalizeIsIdempotent) {
   }
 }
 
+// uriparser writes IPv6 hosts in full; a node made as http://[::1]:8080/ward then had the IRI
+// http://[0000:...:0001]:8080/ward while its records kept [::1], so they were not under it.
+TEST(Iri, NormalizeKeepsAnIpv6HostAsWrittenInLowerCase) {
+  EXPECT_EQ(ok(normalize("http://[::1]:8080/ward/./x")), "http://[::1]:8080/ward/x");
+  EXPECT_EQ(ok(normalize("HTTP://[FE80::A]/b")), "http://[fe80::a]/b");
+  EXPECT_EQ(ok(resolve("http://[::1]/ward/", "bed")), "http://[::1]/ward/bed");
+  EXPECT_TRUE(is_under(ok(normalize("http://[::1]/ward/bed")), "http://[::1]/ward"));
+}
+
 TEST(Iri, NormalizeNeverTurnsPathIntoAuthority) {
   // Without "/." the path "//evil/x" would read back as the host "evil" (RFC 3986 §3.3).
   EXPECT_EQ(ok(normalize("http:/.//evil/x")), "http:/.//evil/x");

@@ -174,8 +174,23 @@ std::string ParsedUri::to_string() const {
   std::string text(static_cast<std::size_t>(required) + 1, '\0');
   if (uriToStringA(text.data(), &uri_, required + 1, nullptr) != URI_SUCCESS) return {};
   text.resize(static_cast<std::size_t>(required));
+  keep_ip6_literal_as_written(text);
   keep_path_out_of_authority(text);
   return finish(text, encoded_);
+}
+
+void ParsedUri::keep_ip6_literal_as_written(std::string& text) const {
+  // uriparser writes an IPv6 host in full ("[::1]" becomes "[0000:...:0001]"), while the write
+  // path keeps an IRI that needs no normalising as it is: the same node would have two IRIs,
+  // and records written as "[::1]" would not be under it. The literal stays as written, in
+  // lower case (hexadecimal digits are case-insensitive).
+  if (uri_.hostData.ip6 == nullptr || uri_.hostText.first == nullptr) return;
+  const std::size_t open = text.find('[');
+  const std::size_t close = text.find(']', open);
+  if (open == std::string::npos || close == std::string::npos) return;
+  std::string literal(uri_.hostText.first, uri_.hostText.afterLast);
+  for (char& c : literal) c = static_cast<char>(std::tolower(static_cast<unsigned char>(c)));
+  text.replace(open + 1, close - open - 1, literal);
 }
 
 void ParsedUri::keep_path_out_of_authority(std::string& text) const {

@@ -46,6 +46,7 @@ class ParsedUri {
  private:
   std::size_t origin(std::size_t ascii_pos) const;
   void keep_path_out_of_authority(std::string& text) const;
+  void keep_ip6_literal_as_written(std::string& text) const;
 
   std::string ascii_;                // what uriparser parsed
   std::vector<std::size_t> origin_;  // encoded form only: ascii_[i] came from text[origin_[i]]
