@@ -1403,9 +1403,12 @@ struct Link::Impl {
     const node::Term* target = object_of(d.records, vocab::kQueryTarget);
     const node::Term* reply_to = object_of(d.records, vocab::kReplyTo);
     q.target = target->value;
-    if (auto t = object_of(d.records, vocab::kQuerySubject)) q.s = *t;
+    auto as_asked = [](const node::Term& t) {
+      return t.is_literal() && t.datatype == vocab::kBlankNodeLabel ? node::Term::blank(t.value) : t;
+    };
+    if (auto t = object_of(d.records, vocab::kQuerySubject)) q.s = as_asked(*t);
     if (auto t = object_of(d.records, vocab::kQueryPredicate)) q.p = *t;
-    if (auto t = object_of(d.records, vocab::kQueryObject)) q.o = *t;
+    if (auto t = object_of(d.records, vocab::kQueryObject)) q.o = as_asked(*t);
     q.since = integer_of(d.records, vocab::kQuerySince);
     q.until = integer_of(d.records, vocab::kQueryUntil);
     q.cascade = static_cast<std::uint32_t>(integer_of(d.records, vocab::kQueryCascade).value_or(0));

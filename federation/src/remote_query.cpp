@@ -71,9 +71,10 @@ Result<std::uint64_t> remote_query(node::Node& node, const RemoteQuery& query,
   ask.add(q, Term::iri(std::string(node::kRdfType)), Term::iri(vocab::kRemoteQuery));
   ask.add(q, Term::iri(vocab::kQueryTarget), Term::iri(*target));
   ask.add(q, Term::iri(vocab::kReplyTo), Term::iri(agent->iri()));
-  if (pattern.s) ask.add(q, Term::iri(vocab::kQuerySubject), *pattern.s);
+  auto as_written = [](const Term& t) { return t.is_blank() ? Term::literal(t.value, vocab::kBlankNodeLabel) : t; };
+  if (pattern.s) ask.add(q, Term::iri(vocab::kQuerySubject), as_written(*pattern.s));
   if (pattern.p) ask.add(q, Term::iri(vocab::kQueryPredicate), *pattern.p);
-  if (pattern.o) ask.add(q, Term::iri(vocab::kQueryObject), *pattern.o);
+  if (pattern.o) ask.add(q, Term::iri(vocab::kQueryObject), as_written(*pattern.o));
   if (pattern.since) ask.add(q, Term::iri(vocab::kQuerySince), Term::integer(*pattern.since));
   if (pattern.until) ask.add(q, Term::iri(vocab::kQueryUntil), Term::integer(*pattern.until));
   if (query.cascade) ask.add(q, Term::iri(vocab::kQueryCascade), Term::integer(query.cascade));

@@ -459,6 +459,37 @@ TEST(Link, RemoteQueryReturnsExactlyTheRecordsHeldBelowAndNamesItsErrors) {
   EXPECT_EQ(below_home.error().code, Errc::not_found) << below_home.error().message;
 }
 
+// A blank node in the pattern is the node of that label in the target's store, as `tahvel list
+// -s _:b1` there means. Written on the asking board as a blank node it was renamed (as every
+// item's blank nodes are) and matched nothing.
+TEST(Link, ARemoteQueryByABlankNodeMatchesThatNodeInTheTargetsStore) {
+  Tree tree;
+  tree.hospital = tree.start_hospital();
+  tree.home1 = tree.start_home(tree.home1_dir, kHome1, tree.home1_log);
+  ASSERT_TRUE(eventually([&] {
+    return count(tree.hospital_dir, {.s = Term::iri(kHome1), .p = Term::iri(vocab::kLinkState), .o = Term::literal("up")}) == 1;
+  }));
+  auto sensor = node::Node::open(tree.home1_dir).value().agent("ecg").value();
+  node::Item item;
+  item.add(Term::blank("w"), Term::iri(kEx + "n"), Term::integer(1));
+  item.add(Term::blank("w"), Term::iri(kEx + "of"), Term::blank("v"));
+  ASSERT_TRUE(sensor.store(item));
+  auto at_home = node::Node::open(tree.home1_dir).value().snapshot().value().list({.p = Term::iri(kEx + "of")}).value();
+  ASSERT_EQ(at_home.size(), 1u);
+  const Term subject = at_home[0].triple.s, object = at_home[0].triple.o;
+  ASSERT_TRUE(subject.is_blank());
+  auto hospital = node::Node::open(tree.hospital_dir).value();
+  std::vector<node::Record> got;
+  auto n = remote_query(hospital, {.target = kHome1, .pattern = {.s = subject}}, 10s, [&](const node::Record& r) { got.push_back(r); });
+  ASSERT_TRUE(n) << n.error().message;
+  EXPECT_EQ(got.size(), 2u);
+  got.clear();
+  n = remote_query(hospital, {.target = kHome1, .pattern = {.o = object}}, 10s, [&](const node::Record& r) { got.push_back(r); });
+  ASSERT_TRUE(n) << n.error().message;
+  ASSERT_EQ(got.size(), 1u);
+  EXPECT_EQ(got[0].triple.s, subject);
+}
+
 TEST(Link, ParentChangesAChildsForwardingPolicyBySendingASubscriptionDown) {
   Tree tree;
   tree.hospital = tree.start_hospital();

@@ -46,6 +46,9 @@ inline const std::string kReplyTo = std::string(kTv) + "replyTo";
 inline const std::string kQuerySubject = std::string(kTv) + "querySubject";
 inline const std::string kQueryPredicate = std::string(kTv) + "queryPredicate";
 inline const std::string kQueryObject = std::string(kTv) + "queryObject";
+// A blank node of a query's pattern is written on the board as a literal of this datatype (its
+// label): as a blank node it would be renamed on write, as every blank node of an item is.
+inline const std::string kBlankNodeLabel = std::string(kTv) + "BlankNodeLabel";
 inline const std::string kQuerySince = std::string(kTv) + "querySince";
 inline const std::string kQueryUntil = std::string(kTv) + "queryUntil";
 inline const std::string kQueryCascade = std::string(kTv) + "queryCascade";
