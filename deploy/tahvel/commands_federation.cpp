@@ -429,16 +429,31 @@ struct ProgramRow {
 
 // The programs' rows of every supervisor's state file in `dir`. A supervisor rewrites its file
 // every 100 ms while it runs; one that was killed leaves its last rows behind, and its programs
-// died with it (PR_SET_PDEATHSIG), so those rows say so instead of "running".
+// died with it (PR_SET_PDEATHSIG), so those rows say so instead of "running". A node brought up
+// one way (`up --node X`) and later another (`up` of the whole file) has rows in two files: the
+// running supervisor's row wins, then the newest file's, so each program is shown once.
 std::vector<ProgramRow> read_state_files(const fs::path& dir) {
-  std::vector<ProgramRow> rows;
+  struct StateFile {
+    fs::path path;
+    bool supervised;
+    fs::file_time_type written;
+  };
+  std::vector<StateFile> files;
   std::error_code ec;
   for (const auto& entry : fs::directory_iterator(dir, ec)) {
     if (entry.path().extension() != ".state") continue;
     fs::path pid_file = entry.path();
     pid_file.replace_extension(".pid");
-    const bool supervised = supervisor_holding(pid_file) != 0;
-    std::ifstream in(entry.path());
+    std::error_code time_ec;
+    files.push_back({entry.path(), supervisor_holding(pid_file) != 0, fs::last_write_time(entry.path(), time_ec)});
+  }
+  std::sort(files.begin(), files.end(), [](const StateFile& a, const StateFile& b) {
+    return a.supervised != b.supervised ? a.supervised : a.written > b.written;
+  });
+  std::vector<ProgramRow> rows;
+  std::set<std::string> shown;
+  for (const StateFile& file : files) {
+    std::ifstream in(file.path);
     std::string line;
     while (std::getline(in, line)) {
       std::vector<std::string> f;
@@ -446,7 +461,8 @@ std::vector<ProgramRow> read_state_files(const fs::path& dir) {
       std::string field;
       while (std::getline(ss, field, '\t')) f.push_back(field);
       f.resize(5);
-      if (!supervised && f[2].rfind("stopped", 0) != 0) f[2] = "stopped (its supervisor is not running)";
+      if (!shown.insert(f[0]).second) continue;
+      if (!file.supervised && f[2].rfind("stopped", 0) != 0) f[2] = "stopped (its supervisor is not running)";
       rows.push_back({f[0], f[1], f[2], f[3], f[4]});
     }
   }

@@ -598,6 +598,25 @@ TEST_F(Cli, UpWarnsThatAChangedRingDoesNotApplyToAnExistingStore) {
   EXPECT_EQ(run({"down", "--state", state}).status, 0);
 }
 
+// A node brought up on its own (`up --node`), stopped, then brought up with the whole file has
+// rows in two supervisors' state files: `status` shows the running supervisor's, once.
+TEST_F(Cli, StatusShowsEachProgramOnceAfterANodeRanUnderAnotherSupervisor) {
+  spit(tmp_ / "node.toml", kIdleNodeToml);
+  const std::string state = (tmp_ / "state").string();
+  ASSERT_EQ(run({"up", (tmp_ / "node.toml").string(), "--state", state, "--node", "solo"}).status, 0);
+  ASSERT_EQ(run({"down", "--state", state}).status, 0);
+  ASSERT_EQ(run({"up", (tmp_ / "node.toml").string(), "--state", state}).status, 0);
+  Outcome status;
+  for (int i = 0; i < 100; ++i) {
+    status = run({"status", "--state", state});
+    if (status.out.find("idle  running") != std::string::npos) break;
+    std::this_thread::sleep_for(std::chrono::milliseconds(50));
+  }
+  EXPECT_NE(status.out.find("idle  running"), std::string::npos) << status.out;
+  EXPECT_EQ(status.out.find("idle  stopped"), std::string::npos) << status.out;
+  EXPECT_EQ(run({"down", "--state", state}).status, 0);
+}
+
 TEST_F(Cli, UpRefusesATopologyWhoseChildIriIsNotUnderItsParent) {
   spit(tmp_ / "bad.toml",
        "[[node]]\nid = \"hospital\"\niri = \"http://example.org/hospital\"\nlisten = { kind = \"dds\" }\n\n"
