@@ -8,9 +8,15 @@
 // transport's two receivers share theirs, one at a time); shared state is under `mu`.
 #include "tahvel/federation/link.h"
 
+#include <fcntl.h>
+#include <sys/file.h>
+#include <unistd.h>
+
 #include <algorithm>
 #include <atomic>
+#include <cerrno>
 #include <condition_variable>
+#include <cstring>
 #include <deque>
 #include <iostream>
 #include <map>
@@ -126,6 +132,12 @@ std::vector<node::Pattern> default_forward_policy() {
 struct Link::Impl {
   LinkOptions opt;
   std::string self;
+  // A shared lock on DIR/link.lock held while this link serves children: `remote_query` tells
+  // "no link runs here" from a query that would time out (the lock goes with the process).
+  int serving_lock = -1;
+  ~Impl() {
+    if (serving_lock >= 0) ::close(serving_lock);
+  }
   std::atomic<bool> stopping{false};
   std::vector<std::thread> threads;
 
@@ -1785,6 +1797,9 @@ Result<std::unique_ptr<Link>> Link::start(LinkOptions options) {
       s.children[*iri] = child;
     }
     s.waker = std::move(*node);
+    s.serving_lock = ::open((s.opt.dir / kServingLockFile).c_str(), O_RDWR | O_CREAT | O_CLOEXEC, 0644);
+    if (s.serving_lock < 0 || flock(s.serving_lock, LOCK_SH) != 0)
+      return node::fail(Errc::io, (s.opt.dir / kServingLockFile).string() + ": " + std::strerror(errno));
   }
   std::unique_ptr<Link> link(new Link(std::move(impl)));
   Impl* p = link->impl_.get();

@@ -1,9 +1,13 @@
 // The operator's side of a remote query (link.h: remote_query): a query item on this node's
 // board addressed to the target (R18 hands it to the link agent of the child on the way), then
 // answer chunks taken from the asking agent's input buffer (P13-P16).
+#include <fcntl.h>
+#include <sys/file.h>
 #include <unistd.h>
 
 #include <atomic>
+#include <cerrno>
+#include <filesystem>
 #include <map>
 
 #include "base64.h"
@@ -20,6 +24,17 @@ const Term* object_of(const std::vector<node::Record>& records, const std::strin
   for (const auto& r : records)
     if (r.triple.p.value == predicate) return &r.triple.o;
   return nullptr;
+}
+
+// Whether a link serving this node's children runs: it holds a shared lock on the lock file,
+// so an exclusive one cannot be had. (A stopped node leaves its children's state "up" on the
+// board, and the query would wait out its whole timeout.)
+bool link_serving(const std::filesystem::path& dir) {
+  const int fd = ::open((dir / kServingLockFile).c_str(), O_RDONLY | O_CLOEXEC);
+  if (fd < 0) return false;
+  const bool held = flock(fd, LOCK_EX | LOCK_NB) != 0 && errno == EWOULDBLOCK;
+  ::close(fd);
+  return held;
 }
 
 }  // namespace
@@ -59,6 +74,10 @@ Result<std::uint64_t> remote_query(node::Node& node, const RemoteQuery& query,
       return node::fail(Errc::io, "unreachable: <" + child + "> (on the way to <" + *target + ">) is " +
                                       state->back().triple.o.value + " at <" + self + ">");
   }
+  if (!link_serving(node.dir()))
+    return node::fail(Errc::io, "unreachable: no link runs for <" + self + "> (nothing holds " +
+                                    (node.dir() / kServingLockFile).string() + "), so nothing reaches <" + child +
+                                    ">; start the node's link ('tahvel up')");
   static std::atomic<int> counter{0};
   auto agent = node.agent("query-" + std::to_string(getpid()) + "-" + std::to_string(++counter));
   if (!agent) return Unexpected<Error>{agent.error()};

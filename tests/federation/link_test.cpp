@@ -490,6 +490,29 @@ TEST(Link, ARemoteQueryByABlankNodeMatchesThatNodeInTheTargetsStore) {
   EXPECT_EQ(got[0].triple.s, subject);
 }
 
+// A node whose link is stopped keeps its children's last state ("up") on its board; a query
+// asked there used to wait out its whole timeout. Whether a link serves the node's children is
+// known at once (the link's lock), and the query is unreachable, naming the node.
+TEST(Link, AQueryAskedWhereNoLinkRunsIsUnreachableAtOnce) {
+  Tree tree;
+  tree.hospital = tree.start_hospital();
+  tree.home1 = tree.start_home(tree.home1_dir, kHome1, tree.home1_log);
+  ASSERT_TRUE(eventually([&] {
+    return count(tree.hospital_dir, {.s = Term::iri(kHome1), .p = Term::iri(vocab::kLinkState), .o = Term::literal("up")}) == 1;
+  }));
+  auto hospital = node::Node::open(tree.hospital_dir).value();
+  auto asked = remote_query(hospital, {.target = kHome1}, 10s, [](const node::Record&) {});
+  ASSERT_TRUE(asked) << asked.error().message;
+  tree.hospital.reset();
+  ASSERT_EQ(count(tree.hospital_dir, {.s = Term::iri(kHome1), .p = Term::iri(vocab::kLinkState), .o = Term::literal("up")}), 1u);
+  const auto before = std::chrono::steady_clock::now();
+  asked = remote_query(hospital, {.target = kHome1}, 60s, [](const node::Record&) {});
+  ASSERT_FALSE(asked);
+  EXPECT_EQ(asked.error().code, Errc::io);
+  EXPECT_EQ(asked.error().message.rfind("unreachable: no link runs for <" + kHospital + ">", 0), 0u) << asked.error().message;
+  EXPECT_LT(std::chrono::steady_clock::now() - before, 30s) << "waited for the timeout";
+}
+
 TEST(Link, ParentChangesAChildsForwardingPolicyBySendingASubscriptionDown) {
   Tree tree;
   tree.hospital = tree.start_hospital();
