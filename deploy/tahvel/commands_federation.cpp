@@ -15,6 +15,7 @@
 #include <cstring>
 #include <fstream>
 #include <iostream>
+#include <limits>
 #include <map>
 #include <sstream>
 #include <set>
@@ -119,27 +120,74 @@ void install_stop_handlers() {
 
 // --- times ----------------------------------------------------------------------------------
 
-// ns since the epoch from an integer (ns) or an RFC 3339 UTC time "2026-11-21T10:00:00Z" (with
-// optional fractional seconds).
-std::int64_t time_flag(const Args& args, std::string_view flag, const std::string& text) {
-  if (auto n = parse_u64(text)) return static_cast<std::int64_t>(*n);
-  struct tm tm {};
-  const char* rest = strptime(text.c_str(), "%Y-%m-%dT%H:%M:%S", &tm);
-  if (!rest) usage_error(std::string(flag) + " '" + text + "': give ns since the epoch or a time like 2026-11-21T10:00:00Z");
-  std::int64_t ns = static_cast<std::int64_t>(timegm(&tm)) * 1'000'000'000;
-  if (*rest == '.') {
-    ++rest;
-    std::int64_t scale = 100'000'000;
-    while (*rest >= '0' && *rest <= '9') {
-      ns += (*rest - '0') * scale;
-      scale /= 10;
-      ++rest;
-    }
+// ns since the epoch from an integer (ns) or an RFC 3339 time "2026-11-21T10:00:00Z" (optional
+// fractional seconds; Z or an offset ±HH:MM; 't' and 'z' in either case). Out-of-range numbers
+// and dates that do not exist (February 30) are usage errors, not times moved elsewhere.
+std::int64_t time_flag(std::string_view flag, const std::string& text) {
+  const std::string what = std::string(flag) + " '" + text + "': ";
+  if (!text.empty() && std::all_of(text.begin(), text.end(), [](char c) { return c >= '0' && c <= '9'; })) {
+    auto n = parse_u64(text);
+    if (!n || *n > static_cast<std::uint64_t>(std::numeric_limits<std::int64_t>::max()))
+      usage_error(what + "out of range (ns since the epoch, at most " + std::to_string(std::numeric_limits<std::int64_t>::max()) + ")");
+    return static_cast<std::int64_t>(*n);
   }
-  if (std::string_view(rest) != "Z" && std::string_view(rest) != "+00:00")
-    usage_error(std::string(flag) + " '" + text + "': only UTC times (ending in Z) are accepted");
-  (void)args;
-  return ns;
+  const std::string form = "give ns since the epoch or an RFC 3339 time like 2026-11-21T10:00:00Z";
+  std::size_t at = 0;
+  auto digits = [&](std::size_t count) -> int {
+    int value = 0;
+    for (std::size_t i = 0; i < count; ++i, ++at) {
+      if (at >= text.size() || text[at] < '0' || text[at] > '9') usage_error(what + form);
+      value = value * 10 + (text[at] - '0');
+    }
+    return value;
+  };
+  auto expect = [&](std::string_view one_of) {
+    if (at >= text.size() || one_of.find(text[at]) == std::string_view::npos) usage_error(what + form);
+    ++at;
+  };
+  struct tm tm {};
+  tm.tm_year = digits(4) - 1900;
+  expect("-");
+  tm.tm_mon = digits(2) - 1;
+  expect("-");
+  tm.tm_mday = digits(2);
+  expect("Tt");
+  tm.tm_hour = digits(2);
+  expect(":");
+  tm.tm_min = digits(2);
+  expect(":");
+  tm.tm_sec = digits(2);
+  const struct tm asked = tm;
+  const time_t seconds = timegm(&tm);
+  if (tm.tm_year != asked.tm_year || tm.tm_mon != asked.tm_mon || tm.tm_mday != asked.tm_mday ||
+      tm.tm_hour != asked.tm_hour || tm.tm_min != asked.tm_min || tm.tm_sec != asked.tm_sec)
+    usage_error(what + "no such date or time");
+  std::int64_t fraction = 0;
+  if (at < text.size() && text[at] == '.') {
+    ++at;
+    std::int64_t scale = 100'000'000;
+    const std::size_t first = at;
+    for (; at < text.size() && text[at] >= '0' && text[at] <= '9'; ++at, scale /= 10) fraction += (text[at] - '0') * scale;
+    if (at == first) usage_error(what + "a '.' needs digits after it");
+  }
+  std::int64_t offset_s = 0;
+  if (at < text.size() && (text[at] == 'Z' || text[at] == 'z')) {
+    ++at;
+  } else if (at < text.size() && (text[at] == '+' || text[at] == '-')) {
+    const int sign = text[at++] == '+' ? 1 : -1;
+    const int hours = digits(2);
+    expect(":");
+    const int minutes = digits(2);
+    if (hours > 23 || minutes > 59) usage_error(what + "no such offset");
+    offset_s = sign * (hours * 3600 + minutes * 60);
+  } else {
+    usage_error(what + "give the offset: Z for UTC, or ±HH:MM");
+  }
+  if (at != text.size()) usage_error(what + form);
+  const std::int64_t utc_s = static_cast<std::int64_t>(seconds) - offset_s;
+  if (utc_s < 0 || utc_s > std::numeric_limits<std::int64_t>::max() / 1'000'000'000 - 1)
+    usage_error(what + "outside the times a record can have (1970 to 2262)");
+  return utc_s * 1'000'000'000 + fraction;
 }
 
 // "4.2 s"
@@ -250,11 +298,11 @@ int run_link(const Args& args) {
 
 const Command kQueryCommand{
     "query",
-    "DIR --at NODE-IRI [-s S] [-p P] [-o O] [--area IRI|WKT [--floor N]] [--since T] [--until T] [--cascade N] [--limit N] [--format nt|ttl|json]",
+    "DIR --at NODE-IRI [-s S] [-p P] [-o O] [--area IRI|WKT [--floor N]] [--since T] [--until T] [--cascade N] [--limit N] [--format nt|ttl|json] [--timeout S]",
     "Ask a node below this one for its records; the answer streams back.",
     "Run against the node at DIR (e.g. the hospital): the query travels down the tree to the node\n"
     "at --at, is answered from its store and comes back in chunks, printed as they arrive. Times\n"
-    "(--since, --until; by asserted-at) are ns since the epoch or UTC like 2026-11-21T10:00:00Z.\n"
+    "(--since, --until; by asserted-at) are ns since the epoch or RFC 3339 times: 2026-11-21T10:00:00Z, …T12:00:00.5+02:00.\n"
     "With --area the node that answers keeps the records located in a room or WKT area of its own\n"
     "floor plan (as 'tahvel list --area' does there; docs/spatial.md).\n"
     "Exit status: 0 answered, 3 timeout, 4 unknown node, 5 unreachable node, 1 other failure.",
@@ -276,8 +324,11 @@ int run_query(const Args& args) {
   federation::RemoteQuery query;
   query.target = parse_iri(args.required("--at"), prefixes, "--at");
   query.pattern = pattern_from_args(args, prefixes);
-  if (auto since = args.get("--since")) query.pattern.since = time_flag(args, "--since", *since);
-  if (auto until = args.get("--until")) query.pattern.until = time_flag(args, "--until", *until);
+  if (auto since = args.get("--since")) query.pattern.since = time_flag("--since", *since);
+  if (auto until = args.get("--until")) query.pattern.until = time_flag("--until", *until);
+  if (query.pattern.since && query.pattern.until && *query.pattern.until <= *query.pattern.since)
+    usage_error("--until " + *args.get("--until") + " is not after --since " + *args.get("--since") +
+                " (records asserted at or after --since and before --until)");
   query.cascade = static_cast<unsigned>(args.get_u64("--cascade", 0));
   query.limit = args.get_u64("--limit", 0);
   if (auto area = args.get("--area")) {

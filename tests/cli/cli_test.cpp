@@ -617,6 +617,48 @@ TEST_F(Cli, StatusShowsEachProgramOnceAfterANodeRanUnderAnotherSupervisor) {
   EXPECT_EQ(run({"down", "--state", state}).status, 0);
 }
 
+// RFC 3339 time (+HH:MM from now, written with offset `offset`).
+std::string rfc3339(std::chrono::minutes from_now, int offset_hours) {
+  const auto t = std::chrono::system_clock::to_time_t(std::chrono::system_clock::now() + from_now + std::chrono::hours(offset_hours));
+  struct tm tm {};
+  gmtime_r(&t, &tm);
+  char text[64];
+  std::strftime(text, sizeof text, "%Y-%m-%dT%H:%M:%S", &tm);
+  char zone[16];
+  std::snprintf(zone, sizeof zone, "%c%02d:00", offset_hours < 0 ? '-' : '+', std::abs(offset_hours));
+  return std::string(text) + zone;
+}
+
+// --since and --until of `query` (here asked of the node itself, which answers from its store):
+// numbers past int64 wrapped (--since 2^64-1 returned everything), February 30 became 2 March,
+// "…00.Z" passed; offsets other than Z were refused. Now each is a usage error naming the flag,
+// and an offset is honoured.
+TEST_F(Cli, QueryTimesAreCheckedAndHonourTheirOffset) {
+  init();
+  put("<a> <b> \"1\" .");
+  auto query = [&](const std::string& flag, const std::string& time) {
+    return run({"query", node_, "--at", kNodeIri, flag, time});
+  };
+  Outcome r = query("--since", "18446744073709551615");
+  EXPECT_EQ(r.status, 2);
+  EXPECT_NE(r.err.find("--since '18446744073709551615': out of range"), std::string::npos) << r.err;
+  r = query("--since", "2026-02-30T10:00:00Z");
+  EXPECT_EQ(r.status, 2);
+  EXPECT_NE(r.err.find("no such date or time"), std::string::npos) << r.err;
+  EXPECT_EQ(query("--until", "2026-11-21T10:00:00.Z").status, 2);
+  EXPECT_EQ(query("--until", "2026-11-21T10:00:00").status, 2);
+  r = run({"query", node_, "--at", kNodeIri, "--since", "2026-11-21T11:00:00Z", "--until", "2026-11-21T10:00:00Z"});
+  EXPECT_EQ(r.status, 2);
+  EXPECT_NE(r.err.find("is not after --since"), std::string::npos) << r.err;
+  // The record was asserted now. Half an hour from now is "half an hour ago" on a UTC-01:00
+  // clock, and half an hour ago is "half an hour from now" on a UTC+01:00 clock: read as UTC,
+  // both would leave the record out.
+  EXPECT_EQ(lines_of(query("--until", rfc3339(std::chrono::minutes(30), -1)).out).size(), 1u);
+  EXPECT_EQ(lines_of(query("--since", rfc3339(std::chrono::minutes(-30), 1)).out).size(), 1u);
+  EXPECT_EQ(lines_of(query("--since", rfc3339(std::chrono::minutes(30), 0).replace(19, 6, "z")).out).size(), 0u);
+  EXPECT_EQ(lines_of(query("--since", rfc3339(std::chrono::minutes(-30), 0).replace(19, 6, "z")).out).size(), 1u);
+}
+
 TEST_F(Cli, UpRefusesATopologyWhoseChildIriIsNotUnderItsParent) {
   spit(tmp_ / "bad.toml",
        "[[node]]\nid = \"hospital\"\niri = \"http://example.org/hospital\"\nlisten = { kind = \"dds\" }\n\n"
