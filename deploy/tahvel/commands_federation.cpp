@@ -353,16 +353,16 @@ int run_query(const Args& args) {
   }
   auto timeout = std::chrono::seconds(args.get_u64("--timeout", 30));
   node::Format format = format_flag(args, node::Format::ntriples);
-  std::vector<node::Record> turtle_records;  // Turtle needs the prefixes the records use: at the end
+  // Printed as the records come, Turtle too (with all of DIR's prefixes, as `dump` does: the
+  // prefixes a long answer uses are known only at its end, and it must not wait in memory).
   std::optional<node::RecordWriter> writer;
-  if (format != node::Format::turtle) writer.emplace(std::cout, format);
   // Ctrl-C, SIGTERM or a reader that went away (`| head`) cancels the query below (P18) instead
   // of leaving its answer to run on into this node's store.
   install_stop_handlers();
   auto cancelled = [] { return g_stop != 0 || !std::cout.good(); };
   auto answered = federation::remote_query(node, query, timeout, [&](const node::Record& r) {
-    if (writer) writer->write(r);
-    else turtle_records.push_back(r);
+    if (!writer) writer.emplace(std::cout, format, prefixes);
+    writer->write(r);
   }, area_answer, cancelled);
   if (writer) writer->finish();
   if (!answered && g_stop) throw Failure{kExitInterrupted, "query: interrupted; " + answered.error().message};
@@ -375,7 +375,6 @@ int run_query(const Args& args) {
                  : kExitFailure;
     throw Failure{status, "query: " + e.message};
   }
-  if (!writer) write_records(std::cout, format, prefixes, turtle_records);
   finish_output(std::cout);
   std::cerr << "tahvel: " << *answered << " records from <" << query.target << ">\n";
   return kExitOk;

@@ -245,6 +245,15 @@ TEST(Hierarchy, RemoteQueryOfHomeTwoRawEcgForATimeRangeReturnsExactlyTheStoredBy
                                      &status);
   ASSERT_EQ(status, 0);
   EXPECT_EQ(static_cast<std::size_t>(std::count(from_sensor.begin(), from_sensor.end(), '\n')), sensor.size());
+  // Turtle: the same triples (printed as they come, with DIR's prefixes declared first).
+  std::string turtle = d.tahvel("query " + d.store("hospital").string() + " --at " + kHome2 + " -p tv:samples --since " +
+                                    std::to_string(since) + " --until " + std::to_string(until) + " --format ttl",
+                                &status);
+  ASSERT_EQ(status, 0);
+  auto parsed = tahvel::node::parse_rdf(turtle, {});
+  ASSERT_TRUE(parsed) << parsed.error().message;
+  const std::string lines = expected.str();
+  EXPECT_EQ(parsed->size(), static_cast<std::size_t>(std::count(lines.begin(), lines.end(), '\n')));
   // Errors are distinct: unknown node (4), unreachable is covered by the unit tests.
   d.tahvel("query " + d.store("hospital").string() + " --at " + kHospital + "/home9 --timeout 5 2>/dev/null", &status);
   EXPECT_EQ(status, 4);
