@@ -43,6 +43,9 @@ constexpr std::size_t kAnswerRelayAhead = 2 * kAnswerWindow;
 // An answer stream with no chunk and no acknowledgement for this long is forgotten (a parent or
 // child that went away mid-answer; the origin gave up long before).
 constexpr std::chrono::minutes kAnswerForgetAfter{10};
+// P15: a node that has part of an answer and has heard nothing more from the child for this
+// long sends its ack again; a child whose link restarted meanwhile answers link_restarted.
+constexpr std::chrono::seconds kAnswerKeepalive{2};
 // A query item still on the origin's board this long after its asker's timeout (tv:queryTimeout)
 // belongs to an asker that died without removing it (SIGKILL): the link clears it (P18).
 constexpr std::chrono::seconds kAskerGrace{2};
@@ -220,6 +223,7 @@ struct Link::Impl {
     Clock::time_point expires = Clock::time_point::max();  // at the origin: asker's timeout + kAskerGrace
     Clock::time_point sent{};
     Clock::time_point last_progress{};
+    Clock::time_point last_keepalive{};  // P15: the ack sent again to a child that went quiet
     int resends = 0;
   };
   std::map<std::string, OutStream> out_answers;
@@ -1030,7 +1034,16 @@ struct Link::Impl {
   void answer_ack(const Frame& f, Outgoing& window) {
     const std::string key = query_key(f.body, f.seq);
     auto it = out_answers.find(key);
-    if (it == out_answers.end()) return;
+    if (it == out_answers.end()) {
+      // P15: an ack for an answer this node does not have: its link restarted (the stream was
+      // in the memory of the run before) or it forgot the stream. The rest cannot come; the
+      // asker is told now instead of at its timeout.
+      if (!in_answers.count(key))
+        window.error(opt.up.get(), opt.parent_iri, f.seq,
+                     {"link_restarted", "<" + self + "> no longer has the answer to query " + std::to_string(f.seq) +
+                                            " of <" + f.body + "> (its link restarted, or it forgot the stream)", f.body});
+      return;
+    }
     OutStream& out = it->second;
     if (f.ack <= out.acked_through) return;
     out.acked_through = f.ack;
@@ -1094,8 +1107,14 @@ struct Link::Impl {
     auto it = in_answers.find(key);
     if (it == in_answers.end()) {
       // A query this node no longer waits for (forgotten, or lost when it restarted): without a
-      // cancel the child would resend its window for good (P18).
+      // cancel the child would resend its window for good (P18). Above, the asker may still
+      // wait for the rest (P15): it is told the answer is lost. (At the origin an earlier run's
+      // queries are ended at start, interrupt_earlier_queries.)
       out.add(via, cancel_frame(f.from, f.seq, body->origin));
+      if (body->origin != self)
+        out.error(opt.up.get(), opt.parent_iri, f.seq,
+                  {"link_restarted", "<" + self + "> lost the answer to query " + std::to_string(f.seq) + " of <" + body->origin +
+                                         "> coming from <" + f.from + "> (its link restarted)", body->origin});
       lock.unlock();
       return send_all(out);
     }
@@ -1133,6 +1152,29 @@ struct Link::Impl {
     out.add(via, answer_ack_to_child(in, f.seq, body->origin));
     lock.unlock();
     send_all(out);
+  }
+
+  // Caller holds mu. P15: the child answers of `child_iri` come from went down: the rest cannot
+  // come. Each asker is told now (an error up, or on the board at the origin), not at its timeout.
+  void end_answers_from(const std::string& child_iri, const std::string& code, const std::string& why) {
+    for (auto& [key, in] : in_answers) {
+      if (in.child != child_iri || in.done || in.cancelled) continue;
+      in.done = true;
+      Frame f;
+      f.kind = FrameKind::error;
+      f.from = child_iri;
+      f.seq = in.query_frame.seq;
+      f.body = wire::encode_error({code, why, key.substr(0, key.rfind('#'))});
+      if (in.forward_up) {
+        f.to = opt.parent_iri;
+        answers_up.add(opt.up.get(), std::move(f));
+        answers_due.notify_all();
+      } else {
+        f.to = self;
+        board_writes.push_back({key, in.reply_to, std::move(f)});
+        changed.notify_all();
+      }
+    }
   }
 
   void error_from_child(const Frame& f) {
@@ -1476,6 +1518,7 @@ struct Link::Impl {
             child->connected = false;
             child->state_dirty = true;
             log("child <" + iri + "> silent for " + std::to_string(opt.child_silence.count()) + " ms: link down");
+            end_answers_from(iri, "unreachable", "<" + iri + "> went silent at <" + self + "> while it answered");
           }
           if (child->connected && wall - child->state_written_ns > 5'000'000'000) child->state_dirty = true;
           if (child->state_dirty) dirty.push_back(child);
@@ -1492,6 +1535,13 @@ struct Link::Impl {
             ++in.resends;
             in.sent = now;
             resends.add(opt.down.get(), in.query_frame);
+          }
+          // P15: a child that sent part of an answer and went quiet is sent its ack again; one
+          // whose link restarted since answers that it no longer has the stream.
+          if (!in.done && !in.cancelled && in.expected > 1 &&
+              now - std::max(in.last_progress, in.last_keepalive) > kAnswerKeepalive) {
+            in.last_keepalive = now;
+            resends.add(opt.down.get(), answer_ack_to_child(in, in.query_frame.seq, key.substr(0, key.rfind('#'))));
           }
         }
       }

@@ -994,6 +994,74 @@ TEST(Link, AQueryUnderWayWhenTheOriginsLinkRestartsEndsAtOnceAndStopsTheTarget) 
       << "answer items left on the hospital's board";
 }
 
+// P15: the target's link restarts while its answer is under way; the stream was in the memory
+// of the run before. The hospital, hearing nothing more, sends its ack again; the new run has no
+// such stream and says so, and the asker ends with link_restarted instead of its timeout.
+TEST(Link, AQueryWhoseTargetsLinkRestartsMidAnswerEndsWithLinkRestarted) {
+  Tree tree;
+  auto tap = start_answering_home(tree, 100ms, 120);
+  SamplesQuery query(tree, kHome1, 60s, /*pause_after=*/1);
+  ASSERT_TRUE(eventually([&] { return query.received() == 1 && tap->highest_sent() >= 16; }));
+  tree.home1.reset();
+  tree.home1 = Link::start({.dir = tree.home1_dir, .parent_iri = kHospital, .up = tap, .down = tap, .resend_after = 100ms,
+                            .heartbeat_every = 200ms, .log = tree.home1_log.sink()})
+                   .value();
+  query.resume();
+  const auto resumed = std::chrono::steady_clock::now();
+  auto got = query.finish();
+  ASSERT_FALSE(got);
+  EXPECT_EQ(got.error().code, Errc::io) << got.error().message;
+  EXPECT_EQ(got.error().message.rfind("link_restarted: <" + kHome1 + "> no longer has the answer", 0), 0u) << got.error().message;
+  EXPECT_LT(std::chrono::steady_clock::now() - resumed, 30s) << "the asker waited for its timeout";
+}
+
+// P15: the target goes silent mid-answer (its node stopped). Once the hospital declares it down,
+// the asker ends with unreachable (exit 5 for `tahvel query`), not at its timeout.
+TEST(Link, AQueryWhoseTargetGoesSilentMidAnswerEndsUnreachable) {
+  Tree tree;
+  auto tap = start_answering_home(tree, 100ms, 120);
+  SamplesQuery query(tree, kHome1, 60s, /*pause_after=*/1);
+  ASSERT_TRUE(eventually([&] { return query.received() == 1 && tap->highest_sent() >= 16; }));
+  tree.home1.reset();
+  query.resume();
+  auto got = query.finish();
+  ASSERT_FALSE(got);
+  EXPECT_EQ(got.error().code, Errc::io) << got.error().message;
+  EXPECT_EQ(got.error().message.rfind("unreachable: <" + kHome1 + "> went silent at <" + kHospital + ">", 0), 0u)
+      << got.error().message;
+  EXPECT_LT(query.received(), 120u);
+}
+
+// P15: the node in the middle (home1, between the hospital and its sensor) restarts while an
+// answer from the sensor passes through it. Its new run has no such stream: the sensor's next
+// chunks, or the hospital's ack sent again, are answered with link_restarted up to the asker.
+TEST(Link, AQueryWhoseNodeOnTheWayRestartsMidAnswerEndsWithLinkRestarted) {
+  Tree tree;
+  const std::string sensor_dir = (tree.tmp / "ecg1").string(), sensor_iri = kHome1 + "/ecg1";
+  tree.hospital = tree.start_hospital();
+  auto endpoint = std::shared_ptr<Transport>(tree.bus.open(kHome1, tree.home1_log.sink()));
+  auto sensor_link = tree.start_gateway_and_sensor(endpoint, sensor_dir);
+  ASSERT_TRUE(home1_is_up(tree));
+  ASSERT_TRUE(eventually([&] {
+    return count(tree.home1_dir, {.s = Term::iri(sensor_iri), .p = Term::iri(vocab::kLinkState), .o = Term::literal("up")}) == 1;
+  }));
+  store_chunk_sized_records(sensor_dir, sensor_iri, 120);
+  SamplesQuery query(tree, sensor_iri, 60s, /*pause_after=*/1);
+  ASSERT_TRUE(eventually([&] { return query.received() == 1; }));
+  tree.home1.reset();
+  tree.home1 = Link::start({.dir = tree.home1_dir, .parent_iri = kHospital, .up = endpoint, .down = endpoint,
+                            .resend_after = 100ms, .heartbeat_every = 200ms, .log = tree.home1_log.sink()})
+                   .value();
+  query.resume();
+  const auto resumed = std::chrono::steady_clock::now();
+  auto got = query.finish();
+  ASSERT_FALSE(got);
+  EXPECT_EQ(got.error().code, Errc::io) << got.error().message;
+  EXPECT_EQ(got.error().message.rfind("link_restarted: <" + kHome1 + ">", 0), 0u) << got.error().message;
+  EXPECT_LT(std::chrono::steady_clock::now() - resumed, 30s) << "the asker waited for its timeout";
+  EXPECT_LT(query.received(), 120u);
+}
+
 // An asker killed with SIGKILL never removes its query item nor reads its answer. The P13 item
 // is written here by hand, as such an asker left it, with a timeout of 300 ms: 2 s after it,
 // the hospital's link removes the item and the answer on its board and stops the target.
