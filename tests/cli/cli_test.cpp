@@ -91,6 +91,19 @@ class Cli : public ::testing::Test {
     return finish(spawn(args, input, n), n);
   }
 
+  // `tahvel status --state STATE` every 50 ms, up to 5 s, until its output shows `text` (or,
+  // with shown = false, no longer shows it): the supervisor rewrites its state file every
+  // 100 ms, and the lock on its pid file goes when the process is gone.
+  Outcome status_until(const std::string& state, const std::string& text, bool shown = true) {
+    Outcome out;
+    for (int i = 0; i < 100; ++i) {
+      out = run({"status", "--state", state});
+      if ((out.out.find(text) != std::string::npos) == shown) break;
+      std::this_thread::sleep_for(std::chrono::milliseconds(50));
+    }
+    return out;
+  }
+
   void init() {
     Outcome r = run({"init", node_, "--iri", kNodeIri});
     ASSERT_EQ(r.status, 0) << r.err;
@@ -508,24 +521,12 @@ TEST_F(Cli, StatusDoesNotCallProgramsRunningOnceTheirSupervisorIsGone) {
   const std::string state = (tmp_ / "state").string();
   Outcome up = run({"up", (tmp_ / "node.toml").string(), "--state", state});
   ASSERT_EQ(up.status, 0) << up.err;
-  // `status` again every 50 ms, up to 5 s, until its output does (or does not) show the agent
-  // running: the supervisor rewrites its state file every 100 ms, and the lock on its pid file
-  // goes when the process is gone.
-  auto status_until = [&](bool running) {
-    Outcome out;
-    for (int i = 0; i < 100; ++i) {
-      out = run({"status", "--state", state});
-      if ((out.out.find("idle  running") != std::string::npos) == running) break;
-      std::this_thread::sleep_for(std::chrono::milliseconds(50));
-    }
-    return out;
-  };
-  Outcome before = status_until(true);
+  Outcome before = status_until(state, "idle  running");
   ASSERT_NE(before.out.find("idle  running"), std::string::npos) << before.out << before.err;
   const pid_t supervisor = std::atoi(slurp(tmp_ / "state" / "supervisor-all.pid").c_str());
   ASSERT_GT(supervisor, 0);
   ASSERT_EQ(kill(supervisor, SIGKILL), 0);
-  Outcome after = status_until(false);
+  Outcome after = status_until(state, "idle  running", false);
   EXPECT_EQ(after.status, 0) << after.err;
   EXPECT_EQ(after.out.find("idle  running"), std::string::npos) << after.out;
   EXPECT_NE(after.out.find("idle  stopped (its supervisor is not running)"), std::string::npos) << after.out;
@@ -540,14 +541,8 @@ TEST_F(Cli, StatusShowsAProgramWaitingOutItsBackOffAsRestarting) {
        "[[node]]\nid = \"solo\"\niri = \"http://example.org/solo\"\n"
        "  [[node.agent]]\n  id = \"flaky\"\n  run = [\"/bin/sh\", \"-c\", \"exit 3\"]\n");
   const std::string state = (tmp_ / "state").string();
-  Outcome up = run({"up", (tmp_ / "node.toml").string(), "--state", state});
-  ASSERT_EQ(up.status, 0) << up.err;
-  Outcome status;
-  for (int i = 0; i < 100; ++i) {
-    status = run({"status", "--state", state});
-    if (status.out.find("flaky  restarting in ") != std::string::npos) break;
-    std::this_thread::sleep_for(std::chrono::milliseconds(50));
-  }
+  ASSERT_EQ(run({"up", (tmp_ / "node.toml").string(), "--state", state}).status, 0);
+  Outcome status = status_until(state, "flaky  restarting in ");
   EXPECT_NE(status.out.find("flaky  restarting in "), std::string::npos) << status.out << status.err;
   EXPECT_NE(status.out.find("last: exited with status 3"), std::string::npos) << status.out;
   EXPECT_EQ(run({"down", "--state", state}).status, 0);
@@ -606,12 +601,7 @@ TEST_F(Cli, StatusShowsEachProgramOnceAfterANodeRanUnderAnotherSupervisor) {
   ASSERT_EQ(run({"up", (tmp_ / "node.toml").string(), "--state", state, "--node", "solo"}).status, 0);
   ASSERT_EQ(run({"down", "--state", state}).status, 0);
   ASSERT_EQ(run({"up", (tmp_ / "node.toml").string(), "--state", state}).status, 0);
-  Outcome status;
-  for (int i = 0; i < 100; ++i) {
-    status = run({"status", "--state", state});
-    if (status.out.find("idle  running") != std::string::npos) break;
-    std::this_thread::sleep_for(std::chrono::milliseconds(50));
-  }
+  Outcome status = status_until(state, "idle  running");
   EXPECT_NE(status.out.find("idle  running"), std::string::npos) << status.out;
   EXPECT_EQ(status.out.find("idle  stopped"), std::string::npos) << status.out;
   EXPECT_EQ(run({"down", "--state", state}).status, 0);

@@ -86,6 +86,11 @@ std::uint64_t count(const std::string& dir, node::Pattern pattern) {
   return node->snapshot().value().count(pattern).value();
 }
 
+// The state the parent at `parent_dir` keeps of `child_iri` says "up" (P12).
+bool state_says_up(const std::string& parent_dir, const std::string& child_iri) {
+  return count(parent_dir, {.s = Term::iri(child_iri), .p = Term::iri(vocab::kLinkState), .o = Term::literal("up")}) == 1;
+}
+
 // A hospital with two configured homes on one memory bus.
 struct Tree {
   TempDir tmp{"tahvel-link"};
@@ -121,6 +126,12 @@ struct Tree {
                         .up = std::shared_ptr<Transport>(bus.open(sensor_iri, home2_log.sink())),
                         .resend_after = 100ms, .heartbeat_every = 200ms, .log = home2_log.sink()})
         .value();
+  }
+  // The hospital and home1, once the hospital's state of home1 says "up" (so a query is routed).
+  bool start_hospital_and_home1() {
+    hospital = start_hospital();
+    home1 = start_home(home1_dir, kHome1, home1_log);
+    return eventually([&] { return state_says_up(hospital_dir, kHome1); });
   }
   std::unique_ptr<Link> start_home(const std::string& dir, const std::string& iri, Log& log,
                                    std::size_t window = LinkOptions{}.window) {
@@ -421,9 +432,7 @@ TEST(Link, RemoteQueryReturnsExactlyTheRecordsHeldBelowAndNamesItsErrors) {
   tree.home1 = tree.start_home(tree.home1_dir, kHome1, tree.home1_log);
   ASSERT_TRUE(eventually([&] { return tree.home1->connected(); }));
   auto hospital = node::Node::open(tree.hospital_dir).value();
-  ASSERT_TRUE(eventually([&] {
-    return count(tree.hospital_dir, {.s = Term::iri(kHome1), .p = Term::iri(vocab::kLinkState), .o = Term::literal("up")}) == 1;
-  }));
+  ASSERT_TRUE(eventually([&] { return state_says_up(tree.hospital_dir, kHome1); }));
   auto sensor = node::Node::open(tree.home1_dir).value().agent("ecg").value();
   // Enough raw data for several answer chunks.
   std::string big(20000, 'x');
@@ -464,11 +473,7 @@ TEST(Link, RemoteQueryReturnsExactlyTheRecordsHeldBelowAndNamesItsErrors) {
 // item's blank nodes are) and matched nothing.
 TEST(Link, ARemoteQueryByABlankNodeMatchesThatNodeInTheTargetsStore) {
   Tree tree;
-  tree.hospital = tree.start_hospital();
-  tree.home1 = tree.start_home(tree.home1_dir, kHome1, tree.home1_log);
-  ASSERT_TRUE(eventually([&] {
-    return count(tree.hospital_dir, {.s = Term::iri(kHome1), .p = Term::iri(vocab::kLinkState), .o = Term::literal("up")}) == 1;
-  }));
+  ASSERT_TRUE(tree.start_hospital_and_home1());
   auto sensor = node::Node::open(tree.home1_dir).value().agent("ecg").value();
   node::Item item;
   item.add(Term::blank("w"), Term::iri(kEx + "n"), Term::integer(1));
@@ -495,16 +500,12 @@ TEST(Link, ARemoteQueryByABlankNodeMatchesThatNodeInTheTargetsStore) {
 // known at once (the link's lock), and the query is unreachable, naming the node.
 TEST(Link, AQueryAskedWhereNoLinkRunsIsUnreachableAtOnce) {
   Tree tree;
-  tree.hospital = tree.start_hospital();
-  tree.home1 = tree.start_home(tree.home1_dir, kHome1, tree.home1_log);
-  ASSERT_TRUE(eventually([&] {
-    return count(tree.hospital_dir, {.s = Term::iri(kHome1), .p = Term::iri(vocab::kLinkState), .o = Term::literal("up")}) == 1;
-  }));
+  ASSERT_TRUE(tree.start_hospital_and_home1());
   auto hospital = node::Node::open(tree.hospital_dir).value();
   auto asked = remote_query(hospital, {.target = kHome1}, 10s, [](const node::Record&) {});
   ASSERT_TRUE(asked) << asked.error().message;
   tree.hospital.reset();
-  ASSERT_EQ(count(tree.hospital_dir, {.s = Term::iri(kHome1), .p = Term::iri(vocab::kLinkState), .o = Term::literal("up")}), 1u);
+  ASSERT_TRUE(state_says_up(tree.hospital_dir, kHome1));
   const auto before = std::chrono::steady_clock::now();
   asked = remote_query(hospital, {.target = kHome1}, 60s, [](const node::Record&) {});
   ASSERT_FALSE(asked);
@@ -566,9 +567,7 @@ TEST(Link, ConfigurationTravelsTwoHopsDownToAnAgentOfASensorNode) {
   EXPECT_EQ(count(sensor_dir, {.p = Term::iri(kEx + "rateHz")}), 1u);
   // A query two hops down, and a timeout when the node on the way stops answering.
   auto hospital = node::Node::open(tree.hospital_dir).value();
-  ASSERT_TRUE(eventually([&] {
-    return count(tree.hospital_dir, {.s = Term::iri(kHome1), .p = Term::iri(vocab::kLinkState), .o = Term::literal("up")}) == 1;
-  }));
+  ASSERT_TRUE(eventually([&] { return state_says_up(tree.hospital_dir, kHome1); }));
   std::size_t got = 0;
   auto answered = remote_query(hospital, {.target = sensor_iri, .pattern = {.p = Term::iri(kEx + "rateHz")}}, 10s,
                                [&](const node::Record&) { ++got; });
@@ -742,7 +741,7 @@ std::shared_ptr<AnswerTap> start_tapped_home(Tree& tree, std::chrono::millisecon
 bool home1_is_up(Tree& tree) {
   return eventually([&] {
     return tree.home1->connected() &&
-           count(tree.hospital_dir, {.s = Term::iri(kHome1), .p = Term::iri(vocab::kLinkState), .o = Term::literal("up")}) == 1;
+           state_says_up(tree.hospital_dir, kHome1);
   });
 }
 
@@ -936,7 +935,7 @@ void expect_the_gateway_serves_its_sensor_while_an_answer_waits(Tree& tree, Stal
   ASSERT_TRUE(home1_is_up(tree));
   ASSERT_TRUE(eventually([&] {
     return g.sensor_link->connected() &&
-           count(tree.home1_dir, {.s = Term::iri(sensor_iri), .p = Term::iri(vocab::kLinkState), .o = Term::literal("up")}) == 1;
+           state_says_up(tree.home1_dir, sensor_iri);
   }));
   store_chunk_sized_records(target_dir, target, 40);  // more chunks than the answer window (P14)
 
@@ -970,15 +969,25 @@ TEST(Link, AGatewayKeepsTakingItsSensorsItemsWhileARelayedAnswerToAStalledParent
   expect_the_gateway_serves_its_sensor_while_an_answer_waits(tree, g, g.sensor_dir, kHome1 + "/ecg1");
 }
 
+// An answer of 120 chunks from home1 under way: the asker (paused after its first record) has
+// taken a chunk and home1 has sent its window.
+struct PausedAnswer {
+  Tree tree;
+  std::shared_ptr<AnswerTap> tap = start_answering_home(tree, 100ms, 120);
+  SamplesQuery query{tree, kHome1, 60s, /*pause_after=*/1};
+  bool under_way() {
+    return eventually([&] { return query.received() == 1 && tap->highest_sent() >= 16; });
+  }
+};
+
 // The hospital's link restarts while home1 answers a query: the new link knows nothing of it
-// and must tell home1 to stop (P18), not leave it resending its window for good.
-// The hospital's link restarts while an answer runs: its stream's state is gone, so the asker is
+// and must tell home1 to stop (P18), not leave it resending its window for good. The hospital's
+// link restarts while an answer runs: its stream's state is gone, so the asker is
 // told at once (not at its timeout of a minute), home1 stops, and nothing stays on the board.
 TEST(Link, AQueryUnderWayWhenTheOriginsLinkRestartsEndsAtOnceAndStopsTheTarget) {
-  Tree tree;
-  auto tap = start_answering_home(tree, 100ms, 120);
-  SamplesQuery query(tree, kHome1, 60s, /*pause_after=*/1);
-  ASSERT_TRUE(eventually([&] { return query.received() == 1 && tap->highest_sent() >= 16; }));
+  PausedAnswer answer;
+  ASSERT_TRUE(answer.under_way());
+  auto& [tree, tap, query] = answer;
 
   tree.hospital.reset();
   tree.hospital = tree.start_hospital();
@@ -994,42 +1003,47 @@ TEST(Link, AQueryUnderWayWhenTheOriginsLinkRestartsEndsAtOnceAndStopsTheTarget) 
       << "answer items left on the hospital's board";
 }
 
-// P15: the target's link restarts while its answer is under way; the stream was in the memory
-// of the run before. The hospital, hearing nothing more, sends its ack again; the new run has no
-// such stream and says so, and the asker ends with link_restarted instead of its timeout.
-TEST(Link, AQueryWhoseTargetsLinkRestartsMidAnswerEndsWithLinkRestarted) {
-  Tree tree;
-  auto tap = start_answering_home(tree, 100ms, 120);
-  SamplesQuery query(tree, kHome1, 60s, /*pause_after=*/1);
-  ASSERT_TRUE(eventually([&] { return query.received() == 1 && tap->highest_sent() >= 16; }));
+// home1's link stopped and started again on `endpoint`: a new run, with none of the old one's
+// answer streams in memory.
+void restart_home1(Tree& tree, std::shared_ptr<Transport> endpoint) {
   tree.home1.reset();
-  tree.home1 = Link::start({.dir = tree.home1_dir, .parent_iri = kHospital, .up = tap, .down = tap, .resend_after = 100ms,
-                            .heartbeat_every = 200ms, .log = tree.home1_log.sink()})
+  tree.home1 = Link::start({.dir = tree.home1_dir, .parent_iri = kHospital, .up = endpoint, .down = endpoint,
+                            .resend_after = 100ms, .heartbeat_every = 200ms, .log = tree.home1_log.sink()})
                    .value();
+}
+
+// The paused `query` is resumed and ends, well before its 60 s timeout, with an error whose
+// message starts with `prefix`, having received part of its `chunks` records.
+void expect_query_ends_early_with(SamplesQuery& query, const std::string& prefix, std::size_t chunks) {
   query.resume();
   const auto resumed = std::chrono::steady_clock::now();
   auto got = query.finish();
   ASSERT_FALSE(got);
   EXPECT_EQ(got.error().code, Errc::io) << got.error().message;
-  EXPECT_EQ(got.error().message.rfind("link_restarted: <" + kHome1 + "> no longer has the answer", 0), 0u) << got.error().message;
+  EXPECT_EQ(got.error().message.rfind(prefix, 0), 0u) << got.error().message;
   EXPECT_LT(std::chrono::steady_clock::now() - resumed, 30s) << "the asker waited for its timeout";
+  EXPECT_LT(query.received(), chunks);
+}
+
+// P15: the target's link restarts while its answer is under way; the stream was in the memory
+// of the run before. The hospital, hearing nothing more, sends its ack again; the new run has no
+// such stream and says so, and the asker ends with link_restarted instead of its timeout.
+TEST(Link, AQueryWhoseTargetsLinkRestartsMidAnswerEndsWithLinkRestarted) {
+  PausedAnswer answer;
+  ASSERT_TRUE(answer.under_way());
+  auto& [tree, tap, query] = answer;
+  restart_home1(tree, tap);
+  expect_query_ends_early_with(query, "link_restarted: <" + kHome1 + "> no longer has the answer", 120);
 }
 
 // P15: the target goes silent mid-answer (its node stopped). Once the hospital declares it down,
 // the asker ends with unreachable (exit 5 for `tahvel query`), not at its timeout.
 TEST(Link, AQueryWhoseTargetGoesSilentMidAnswerEndsUnreachable) {
-  Tree tree;
-  auto tap = start_answering_home(tree, 100ms, 120);
-  SamplesQuery query(tree, kHome1, 60s, /*pause_after=*/1);
-  ASSERT_TRUE(eventually([&] { return query.received() == 1 && tap->highest_sent() >= 16; }));
+  PausedAnswer answer;
+  ASSERT_TRUE(answer.under_way());
+  auto& [tree, tap, query] = answer;
   tree.home1.reset();
-  query.resume();
-  auto got = query.finish();
-  ASSERT_FALSE(got);
-  EXPECT_EQ(got.error().code, Errc::io) << got.error().message;
-  EXPECT_EQ(got.error().message.rfind("unreachable: <" + kHome1 + "> went silent at <" + kHospital + ">", 0), 0u)
-      << got.error().message;
-  EXPECT_LT(query.received(), 120u);
+  expect_query_ends_early_with(query, "unreachable: <" + kHome1 + "> went silent at <" + kHospital + ">", 120);
 }
 
 // P15: the node in the middle (home1, between the hospital and its sensor) restarts while an
@@ -1042,24 +1056,12 @@ TEST(Link, AQueryWhoseNodeOnTheWayRestartsMidAnswerEndsWithLinkRestarted) {
   auto endpoint = std::shared_ptr<Transport>(tree.bus.open(kHome1, tree.home1_log.sink()));
   auto sensor_link = tree.start_gateway_and_sensor(endpoint, sensor_dir);
   ASSERT_TRUE(home1_is_up(tree));
-  ASSERT_TRUE(eventually([&] {
-    return count(tree.home1_dir, {.s = Term::iri(sensor_iri), .p = Term::iri(vocab::kLinkState), .o = Term::literal("up")}) == 1;
-  }));
+  ASSERT_TRUE(eventually([&] { return state_says_up(tree.home1_dir, sensor_iri); }));
   store_chunk_sized_records(sensor_dir, sensor_iri, 120);
   SamplesQuery query(tree, sensor_iri, 60s, /*pause_after=*/1);
   ASSERT_TRUE(eventually([&] { return query.received() == 1; }));
-  tree.home1.reset();
-  tree.home1 = Link::start({.dir = tree.home1_dir, .parent_iri = kHospital, .up = endpoint, .down = endpoint,
-                            .resend_after = 100ms, .heartbeat_every = 200ms, .log = tree.home1_log.sink()})
-                   .value();
-  query.resume();
-  const auto resumed = std::chrono::steady_clock::now();
-  auto got = query.finish();
-  ASSERT_FALSE(got);
-  EXPECT_EQ(got.error().code, Errc::io) << got.error().message;
-  EXPECT_EQ(got.error().message.rfind("link_restarted: <" + kHome1 + ">", 0), 0u) << got.error().message;
-  EXPECT_LT(std::chrono::steady_clock::now() - resumed, 30s) << "the asker waited for its timeout";
-  EXPECT_LT(query.received(), 120u);
+  restart_home1(tree, endpoint);
+  expect_query_ends_early_with(query, "link_restarted: <" + kHome1 + ">", 120);
 }
 
 // An asker killed with SIGKILL never removes its query item nor reads its answer. The P13 item
@@ -1116,7 +1118,7 @@ class AnswerThroughAGateway : public ::testing::Test {
     ASSERT_TRUE(home1_is_up(tree));
     ASSERT_TRUE(eventually([&] {
       return g.sensor->connected() &&
-             count(tree.home1_dir, {.s = Term::iri(g.sensor_iri), .p = Term::iri(vocab::kLinkState), .o = Term::literal("up")}) == 1;
+             state_says_up(tree.home1_dir, g.sensor_iri);
     }));
   }
   Tree tree;
@@ -1192,9 +1194,7 @@ TEST(Link, QueryByAreaIsResolvedAtTheTargetThroughItsAreaQuery) {
                             .resend_after = 100ms, .heartbeat_every = 200ms, .log = tree.home1_log.sink(),
                             .area_query = by_prefix})
                    .value();
-  ASSERT_TRUE(eventually([&] {
-    return count(tree.hospital_dir, {.s = Term::iri(kHome1), .p = Term::iri(vocab::kLinkState), .o = Term::literal("up")}) == 1;
-  }));
+  ASSERT_TRUE(eventually([&] { return state_says_up(tree.hospital_dir, kHome1); }));
   auto motes = node::Node::open(tree.home1_dir).value().agent("motes").value();
   for (const std::string room : {"bedroom", "kitchen"}) {
     node::Item reading;
@@ -1215,9 +1215,7 @@ TEST(Link, QueryByAreaIsResolvedAtTheTargetThroughItsAreaQuery) {
   }
   // A node whose link has no area resolver says so.
   tree.home2 = tree.start_home(tree.home2_dir, kHome2, tree.home2_log);
-  ASSERT_TRUE(eventually([&] {
-    return count(tree.hospital_dir, {.s = Term::iri(kHome2), .p = Term::iri(vocab::kLinkState), .o = Term::literal("up")}) == 1;
-  }));
+  ASSERT_TRUE(eventually([&] { return state_says_up(tree.hospital_dir, kHome2); }));
   auto refused = remote_query(hospital, {.target = kHome2, .area = kHome2 + "/bedroom"}, 10s, [](const node::Record&) {});
   ASSERT_FALSE(refused);
   EXPECT_NE(refused.error().message.find("area"), std::string::npos) << refused.error().message;

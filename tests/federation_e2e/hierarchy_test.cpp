@@ -15,6 +15,7 @@
 #include <sstream>
 #include <thread>
 
+#include "e2e_support.h"
 #include "tahvel/federation/link.h"
 #include "tahvel/node/format.h"
 #include "tahvel/node/node.h"
@@ -36,33 +37,8 @@ const std::string kTv = "https://w3id.org/tahvel#";
 const std::string kSosa = "http://www.w3.org/ns/sosa/";
 const std::string kRdfType = "http://www.w3.org/1999/02/22-rdf-syntax-ns#type";
 
-struct Output {
-  int status = -1;
-  std::string out;
-};
-
-// Runs a shell command line; stdout captured, stderr passed through.
-Output run(const std::string& command) {
-  Output result;
-  FILE* pipe = popen(command.c_str(), "r");
-  if (!pipe) return result;
-  char buffer[65536];
-  std::size_t n;
-  while ((n = fread(buffer, 1, sizeof buffer, pipe)) > 0) result.out.append(buffer, n);
-  int status = pclose(pipe);
-  result.status = WIFEXITED(status) ? WEXITSTATUS(status) : -1;
-  return result;
-}
-
-template <class F>
-bool eventually(F condition, std::chrono::seconds limit = 120s) {
-  const auto deadline = std::chrono::steady_clock::now() + limit;
-  while (std::chrono::steady_clock::now() < deadline) {
-    if (condition()) return true;
-    std::this_thread::sleep_for(200ms);
-  }
-  return condition();
-}
+using tahvel::e2e::eventually;
+using tahvel::e2e::run;
 
 std::vector<Record> list(const fs::path& store, const Pattern& pattern) {
   auto node = Node::open(store);

@@ -7,13 +7,13 @@
 #include <sys/wait.h>
 
 #include <chrono>
-#include <cstdio>
 #include <filesystem>
 #include <fstream>
 #include <iostream>
 #include <string>
 #include <thread>
 
+#include "e2e_support.h"
 #include "tahvel/node/node.h"
 
 namespace {
@@ -23,6 +23,8 @@ using namespace std::chrono_literals;
 using tahvel::node::Node;
 using tahvel::node::Pattern;
 using tahvel::node::Term;
+using tahvel::e2e::eventually;
+using tahvel::e2e::run;
 
 const std::string kBin = TAHVEL_BIN_DIR;
 const std::string kWard = "http://example.org/ward-7";
@@ -32,16 +34,20 @@ int shell(const std::string& command) {
   return WIFEXITED(status) ? WEXITSTATUS(status) : -1;
 }
 
-std::size_t ecg_chunks_from(const fs::path& store, const std::string& source) {
+// The records `_ a tv:TYPE` on the node at `store`.
+std::vector<tahvel::node::Record> of_type(const fs::path& store, const std::string& type) {
   auto node = Node::open(store);
-  if (!node) return 0;
+  if (!node) return {};
   auto snap = node->snapshot();
-  if (!snap) return 0;
+  if (!snap) return {};
   auto records = snap->list(Pattern{.p = Term::iri("http://www.w3.org/1999/02/22-rdf-syntax-ns#type"),
-                                    .o = Term::iri("https://w3id.org/tahvel#EcgChunk")});
-  if (!records) return 0;
+                                    .o = Term::iri("https://w3id.org/tahvel#" + type)});
+  return records ? std::move(*records) : std::vector<tahvel::node::Record>{};
+}
+
+std::size_t ecg_chunks_from(const fs::path& store, const std::string& source) {
   std::size_t n = 0;
-  for (const auto& r : *records) n += r.triple.s.value.rfind(source + "/", 0) == 0;
+  for (const auto& r : of_type(store, "EcgChunk")) n += r.triple.s.value.rfind(source + "/", 0) == 0;
   return n;
 }
 
@@ -96,37 +102,7 @@ INSTANTIATE_TEST_SUITE_P(
                                 "{ kind = \"lcm\", url = \"udpm://239.255.76.68:7712?ttl=0\" }"}),
     [](const auto& info) { return info.param.name; });
 
-// Runs a shell command line and returns its standard output.
-std::string output_of(const std::string& command) {
-  std::string out;
-  FILE* pipe = popen(command.c_str(), "r");
-  if (!pipe) return out;
-  char buffer[4096];
-  std::size_t n;
-  while ((n = fread(buffer, 1, sizeof buffer, pipe)) > 0) out.append(buffer, n);
-  pclose(pipe);
-  return out;
-}
-
-std::size_t count(const fs::path& store, const std::string& type) {
-  auto node = Node::open(store);
-  if (!node) return 0;
-  auto snap = node->snapshot();
-  if (!snap) return 0;
-  auto records = snap->list(Pattern{.p = Term::iri("http://www.w3.org/1999/02/22-rdf-syntax-ns#type"),
-                                    .o = Term::iri("https://w3id.org/tahvel#" + type)});
-  return records ? records->size() : 0;
-}
-
-template <class F>
-bool eventually(F condition, std::chrono::seconds limit = 60s) {
-  const auto deadline = std::chrono::steady_clock::now() + limit;
-  while (std::chrono::steady_clock::now() < deadline) {
-    if (condition()) return true;
-    std::this_thread::sleep_for(200ms);
-  }
-  return condition();
-}
+std::size_t count(const fs::path& store, const std::string& type) { return of_type(store, type).size(); }
 
 class Deployment : public ::testing::Test {
  protected:
@@ -142,7 +118,7 @@ class Deployment : public ::testing::Test {
     else std::cerr << "state and logs kept in " << root_ << "\n";
   }
   void write_topology(const std::string& text) { std::ofstream(root_ / "topology.toml") << text; }
-  std::string tahvel(const std::string& args) { return output_of(kBin + "/tahvel " + args + " 2>&1"); }
+  std::string tahvel(const std::string& args) { return run(kBin + "/tahvel " + args + " 2>&1").out; }
   std::string up(const std::string& flags = "") {
     return tahvel("up " + (root_ / "topology.toml").string() + " --state " + state_.string() + " " + flags);
   }
