@@ -290,7 +290,8 @@ int run_link(const Args& args) {
   link->stop();
   auto c = link->counters();
   std::cerr << "tahvel link <" << node.iri() << ">: stopped; sent up " << c.up_sent << ", relayed in " << c.relayed_in
-            << ", duplicates dropped " << c.duplicates_in << ", applied from above " << c.down_applied << std::endl;
+            << ", duplicates dropped " << c.duplicates_in << ", applied from above " << c.down_applied
+            << ", items refused " << c.items_refused << ", refused by the other end " << c.items_refused_by_peer << std::endl;
   return kExitOk;
 }
 

@@ -61,6 +61,8 @@ constexpr std::size_t kInlineFrames = 8;
 constexpr std::size_t kAckEvery = 64;
 // In an up or down frame's `ack` field: the sender asks for the stream's ack now (P8).
 constexpr std::uint64_t kAckNow = 1;
+// The error code of P9a: an item passed over for good (frame seq = the item's seq).
+constexpr std::string_view kItemRefused = "item_refused";
 constexpr std::string_view kUplinkAgent = "uplink";
 constexpr std::string_view kLinkAgent = "link";
 constexpr std::string_view kDownStream = "down";
@@ -622,7 +624,14 @@ struct Link::Impl {
     } else {
       ack.ack = outcome->mark;
       ack.prev = outcome->gap ? 1 : 0;
+      // P9a: an item this node can never store is passed over, not resent for ever; the sender
+      // is told which, and why.
+      for (const node::RefusedItem& r : outcome->refused) {
+        log("refused item " + std::to_string(r.seq) + " from <" + head.from + "> (it stays in the sender's store): " + r.why.message);
+        send_error(via, head.from, r.seq, {std::string(kItemRefused), r.why.message, ""});
+      }
       std::lock_guard lock(mu);
+      counters.items_refused += outcome->refused.size();
       if (up) {
         counters.relayed_in += outcome->stored.size();
         child->last_seen = Clock::now();
@@ -633,7 +642,7 @@ struct Link::Impl {
     }
     // At once what the sender must act on: a refusal, a gap, a resend (duplicates), a run that
     // applied nothing, or its window half full (P8).
-    const bool now = !outcome || ack.prev == 1 || outcome->duplicates > 0 || relayed == 0 ||
+    const bool now = !outcome || ack.prev == 1 || outcome->duplicates > 0 || relayed == 0 || !outcome->refused.empty() ||
                      std::any_of(frames.begin(), frames.end(), [](const Frame& f) { return f.ack == kAckNow; });
     if (auto due = acks.hold(std::move(ack), relayed, now)) send(via, std::move(*due));
   }
@@ -794,6 +803,11 @@ struct Link::Impl {
         auto body = wire::decode_error(f.body);
         std::string code = body ? body->code : "malformed";
         std::unique_lock lock(mu);
+        if (code == kItemRefused) {
+          ++counters.items_refused_by_peer;
+          log("the parent refused item " + std::to_string(f.seq) + " (it stays in this node's store): " + body->message);
+          return;
+        }
         if (code == "cancelled" && f.seq != 0) {
           Outgoing out;
           cancel_from_parent(f, *body, out);
@@ -1184,6 +1198,11 @@ struct Link::Impl {
       return;
     }
     std::unique_lock lock(mu);
+    if (body->code == kItemRefused) {
+      ++counters.items_refused_by_peer;
+      log("child <" + f.from + "> refused item " + std::to_string(f.seq) + " sent down (it stays in this node's store): " + body->message);
+      return;
+    }
     if (f.seq == 0) {
       log("error from child <" + f.from + ">: " + body->code + ": " + body->message);
       return;

@@ -507,10 +507,25 @@ Result<std::uint64_t> read_relay_mark(MDB_txn* txn, const Env& env, std::string_
 
 }  // namespace
 
+namespace {
+
+// Errors that say the item itself can never be stored here, whatever is retried.
+bool refuses_the_item(Errc code) {
+  return code == Errc::invalid_argument || code == Errc::invalid_iri || code == Errc::syntax ||
+         code == Errc::literal_too_large;
+}
+
+}  // namespace
+
 Result<RelayOutcome> Agent::relay(std::string_view stream, const std::vector<RelayedItem>& items) noexcept {
   try {
     if (stream.empty()) return fail(Errc::invalid_argument, "relay: empty stream name");
     const std::string& node_iri = impl_->env->settings().iri;
+    auto about = [&](std::size_t i) {
+      return "relayed item " + std::to_string(i + 1) + " (seq " + std::to_string(items[i].seq) + ")";
+    };
+    // Why each item is refused, if it is; the checks that need no transaction come first.
+    std::vector<std::optional<Error>> refusal(items.size());
     // A link agent's items come from few writers: each distinct source is checked once and
     // remembered by this handle (the checks parse IRIs, were a quarter of a hospital's ingest
     // cost, and depend only on the source, this agent and the node). A lone item on a quiet
@@ -520,53 +535,76 @@ Result<RelayOutcome> Agent::relay(std::string_view stream, const std::vector<Rel
       const std::string& source = items[i].source;
       bool known = std::find(checked_sources.begin(), checked_sources.end(), source) != checked_sources.end();
       if (!known) {
-        if (!uri::is_under(source, impl_->iri) && uri::is_under(source, node_iri))
-          return fail(Errc::invalid_argument, "relayed item " + std::to_string(i + 1) + " (seq " +
-                      std::to_string(items[i].seq) + "): source <" + source + "> is a writer of this node outside <" +
-                      impl_->iri + ">; a link agent relays only its own subtree or writers above this node");
-        if (auto n = uri::normalize(source); !n)
-          return fail(Errc::invalid_iri, "relayed item " + std::to_string(i + 1) + ": source: " + n.error().message);
+        if (!uri::is_under(source, impl_->iri) && uri::is_under(source, node_iri)) {
+          refusal[i] = Error{Errc::invalid_argument, about(i) + ": source <" + source + "> is a writer of this node outside <" +
+                                                         impl_->iri + ">; a link agent relays only its own subtree or writers above this node"};
+          continue;
+        }
+        if (auto n = uri::normalize(source); !n) {
+          refusal[i] = Error{Errc::invalid_iri, about(i) + ": source: " + n.error().message};
+          continue;
+        }
         if (checked_sources.size() >= 16) checked_sources.erase(checked_sources.begin());
         checked_sources.push_back(source);
       }
-      if (auto v = validate_item(items[i].item, impl_->env->settings()); !v)
-        return unexpected(with_context(v.error(), "relayed item " + std::to_string(i + 1) + " (seq " + std::to_string(items[i].seq) + ")"));
+      if (auto v = validate_item(items[i].item, impl_->env->settings()); !v) {
+        if (!refuses_the_item(v.error().code)) return unexpected(with_context(v.error(), about(i)));
+        refusal[i] = with_context(v.error(), about(i));
+      }
     }
     RelayOutcome outcome;
-    auto written = impl_->env->write([&](Txn& txn) -> Result<void> {
-      outcome = RelayOutcome{};
-      auto mark = read_relay_mark(txn.raw(), *impl_->env, stream);
-      if (!mark) return unexpected(mark.error());
-      outcome.mark = *mark;
-      for (std::size_t i = 0; i < items.size(); ++i) {
-        const RelayedItem& relayed = items[i];
-        if (relayed.seq <= outcome.mark) {
-          ++outcome.duplicates;
-          continue;
+    // An item refused only when it is written (a term's IRI is checked when the dictionary first
+    // meets it) aborts the transaction; it is then run again with that item refused, once per
+    // such item.
+    for (;;) {
+      std::optional<std::size_t> refused_in_write;
+      auto written = impl_->env->write([&](Txn& txn) -> Result<void> {
+        outcome = RelayOutcome{};
+        refused_in_write.reset();
+        auto mark = read_relay_mark(txn.raw(), *impl_->env, stream);
+        if (!mark) return unexpected(mark.error());
+        outcome.mark = *mark;
+        for (std::size_t i = 0; i < items.size(); ++i) {
+          const RelayedItem& relayed = items[i];
+          if (relayed.seq <= outcome.mark) {
+            ++outcome.duplicates;
+            continue;
+          }
+          if (relayed.prev != outcome.mark) {
+            outcome.gap = true;
+            break;
+          }
+          if (refusal[i]) {
+            outcome.refused.push_back({relayed.seq, *refusal[i]});
+          } else {
+            auto id = insert_item(txn, relayed.item, impl_->iri, &relayed.source);
+            if (!id) {
+              if (refuses_the_item(id.error().code)) refused_in_write = i;
+              return unexpected(with_context(id.error(), about(i)));
+            }
+            outcome.stored.push_back(*id);
+          }
+          outcome.mark = relayed.seq;
         }
-        if (relayed.prev != outcome.mark) {
-          outcome.gap = true;
-          break;
+        if (outcome.mark != *mark) {
+          std::string key = relay_mark_key(stream);
+          MDB_val k = val(key), v = val(outcome.mark);
+          if (int rc = mdb_put(txn.raw(), impl_->env->meta, &k, &v, 0); rc != 0)
+            return lmdb_fail(rc, "writing the relay mark of " + std::string(stream));
         }
-        auto id = insert_item(txn, relayed.item, impl_->iri, &relayed.source);
-        if (!id) return unexpected(with_context(id.error(), "relayed item " + std::to_string(i + 1) + " (seq " + std::to_string(relayed.seq) + ")"));
-        outcome.stored.push_back(*id);
-        outcome.mark = relayed.seq;
+        if (!outcome.stored.empty()) {
+          auto reclaimed = apply_retention(txn);
+          if (!reclaimed) return unexpected(reclaimed.error());
+        }
+        return {};
+      });
+      if (!written && refused_in_write) {
+        refusal[*refused_in_write] = written.error();
+        continue;
       }
-      if (outcome.mark != *mark) {
-        std::string key = relay_mark_key(stream);
-        MDB_val k = val(key), v = val(outcome.mark);
-        if (int rc = mdb_put(txn.raw(), impl_->env->meta, &k, &v, 0); rc != 0)
-          return lmdb_fail(rc, "writing the relay mark of " + std::string(stream));
-      }
-      if (!outcome.stored.empty()) {
-        auto reclaimed = apply_retention(txn);
-        if (!reclaimed) return unexpected(reclaimed.error());
-      }
-      return {};
-    });
-    if (!written) return unexpected(written.error());
-    return outcome;
+      if (!written) return unexpected(written.error());
+      return outcome;
+    }
   } catch (const std::bad_alloc&) {
     return fail(Errc::io, "out of memory while relaying");
   }

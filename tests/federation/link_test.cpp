@@ -101,10 +101,12 @@ struct Tree {
   std::string home2_dir = (tmp / "home2").string();
   std::unique_ptr<Link> hospital, home1, home2;
 
-  // `hospital_ring`: the hospital's store keeps at most that many non-persistent records.
-  explicit Tree(std::uint64_t hospital_ring = 0) {
-    EXPECT_TRUE(node::Node::init(hospital_dir, {.iri = kHospital, .ring = hospital_ring}));
-    EXPECT_TRUE(node::Node::init(home1_dir, {.iri = kHome1}));
+  // `hospital_ring`: the hospital's store keeps at most that many non-persistent records;
+  // `home1_max_literal`: home1's store refuses longer literals.
+  explicit Tree(std::uint64_t hospital_ring = 0, std::uint64_t home1_max_literal = node::InitOptions{}.max_literal_bytes,
+                std::uint64_t hospital_max_literal = node::InitOptions{}.max_literal_bytes) {
+    EXPECT_TRUE(node::Node::init(hospital_dir, {.iri = kHospital, .ring = hospital_ring, .max_literal_bytes = hospital_max_literal}));
+    EXPECT_TRUE(node::Node::init(home1_dir, {.iri = kHome1, .max_literal_bytes = home1_max_literal}));
     EXPECT_TRUE(node::Node::init(home2_dir, {.iri = kHome2}));
   }
 
@@ -241,6 +243,53 @@ TEST(Link, AnItemWrittenWhileTheLinkIsCutArrivesOnceAfterItIsRestored) {
   ASSERT_TRUE(eventually([&] { return count(tree.hospital_dir, numbered) >= 300; }));
   std::this_thread::sleep_for(300ms);
   EXPECT_EQ(count(tree.hospital_dir, numbered), 300u);
+}
+
+// P9a: the home's store allows longer literals than the hospital's. Resending the long one
+// could never succeed; it is passed over (and stays at home), and the items after it go up.
+TEST(Link, AnItemTheParentCanNeverStoreIsPassedOverAndTheItemsAfterItStillGoUp) {
+  Tree tree(0, node::InitOptions{}.max_literal_bytes, /*hospital_max_literal=*/200);
+  tree.hospital = tree.start_hospital();
+  tree.home1 = tree.start_home(tree.home1_dir, kHome1, tree.home1_log);
+  ASSERT_TRUE(eventually([&] { return tree.home1->connected(); }));
+  auto hrv = node::Node::open(tree.home1_dir).value().agent("hrv").value();
+  node::Item too_long = hrv_item(0);
+  too_long.add(Term::iri(kHome1 + "/rec/hrv/0"), Term::iri(kEx + "note"), Term::literal(std::string(300, 'x')));
+  ASSERT_TRUE(hrv.store(too_long));
+  store_hrv_items(tree.home1_dir, 1, 3);
+  const node::Pattern numbered{.p = Term::iri(kEx + "n")};
+  EXPECT_TRUE(eventually([&] { return count(tree.hospital_dir, numbered) == 3; }))
+      << count(tree.hospital_dir, numbered) << " of the 3 items after the long one arrived";
+  EXPECT_EQ(count(tree.hospital_dir, {.p = Term::iri(kEx + "note")}), 0u);
+  EXPECT_TRUE(eventually([&] { return outbox(tree.home1_dir) == 0; })) << outbox(tree.home1_dir) << " left in the outbox";
+  EXPECT_EQ(count(tree.home1_dir, {.p = Term::iri(kEx + "note")}), 1u) << "the refused item must stay at home";
+  EXPECT_TRUE(eventually([&] { return tree.home1_log.has("the parent refused item"); }));
+  EXPECT_TRUE(tree.hospital_log.has("literal of 300 bytes exceeds the node's limit of 200"));
+  EXPECT_EQ(tree.hospital->counters().items_refused, 1u);
+  EXPECT_EQ(tree.home1->counters().items_refused_by_peer, 1u);
+  EXPECT_EQ(tree.hospital->counters().relayed_in, 3u);
+}
+
+// The same downwards: configuration the home can never store does not hold up what follows.
+TEST(Link, ConfigurationAChildCanNeverStoreIsPassedOverAndTheConfigurationAfterItArrives) {
+  Tree tree(0, /*home1_max_literal=*/200);
+  tree.hospital = tree.start_hospital();
+  tree.home1 = tree.start_home(tree.home1_dir, kHome1, tree.home1_log);
+  ASSERT_TRUE(eventually([&] { return tree.home1->connected(); }));
+  auto operator_ = node::Node::open(tree.hospital_dir).value().agent("operator").value();
+  for (const std::string& value : {std::string(300, 'x'), std::string("short")}) {
+    node::Item config;
+    config.context = kHome1 + "/hrv";
+    config.add(Term::iri(kHome1 + "/hrv"), Term::iri(kEx + "label"), Term::literal(value));
+    ASSERT_TRUE(operator_.store(config));
+  }
+  auto home1_hrv = node::Node::open(tree.home1_dir).value().agent("hrv").value();
+  auto delivered = home1_hrv.take(10s).value();
+  ASSERT_TRUE(delivered.has_value()) << "the configuration after the long one never arrived";
+  EXPECT_EQ(delivered->records[0].triple.o.value, "short");
+  EXPECT_TRUE(eventually([&] { return tree.hospital_log.has("child <" + kHome1 + "> refused item"); }));
+  EXPECT_TRUE(tree.home1_log.has("literal of 300 bytes exceeds the node's limit of 200"));
+  EXPECT_EQ(tree.home1->counters().items_refused, 1u);
 }
 
 TEST(Link, ConfigurationForOneHomeReachesThatHomeAndTheAddressedAgentOnly) {

@@ -258,23 +258,59 @@ TEST(Relay, MarkSurvivesReopeningTheStore) {
   EXPECT_EQ(node.stats().value().items, 1u);
 }
 
-TEST(Relay, SourceOfAnotherLocalWriterIsRefusedAndNothingIsStored) {
+TEST(Relay, AnItemFromAnotherLocalWriterIsRefusedAndTheStreamGoesOnPastIt) {
   TempDir dir;
   Node node = make_node(dir.path());
   Agent child = node.agent("child").value();
-  auto refused = child.relay("up", {relayed(1, 0, kNodeIri + "/child/hrv", 1),
-                                    relayed(2, 1, kNodeIri + "/operator", 2)});
-  ASSERT_FALSE(refused);
-  EXPECT_EQ(refused.error().code, Errc::invalid_argument);
-  EXPECT_NE(refused.error().message.find("/operator"), std::string::npos);
-  EXPECT_EQ(node.stats().value().items, 0u);
-  EXPECT_EQ(child.relay_mark("up").value(), 0u);
+  auto outcome = child.relay("up", {relayed(1, 0, kNodeIri + "/child/hrv", 1),
+                                    relayed(2, 1, kNodeIri + "/operator", 2),
+                                    relayed(3, 2, kNodeIri + "/child/hrv", 3)}).value();
+  EXPECT_EQ(outcome.stored.size(), 2u);
+  EXPECT_EQ(outcome.mark, 3u);
+  ASSERT_EQ(outcome.refused.size(), 1u);
+  EXPECT_EQ(outcome.refused[0].seq, 2u);
+  EXPECT_EQ(outcome.refused[0].why.code, Errc::invalid_argument);
+  EXPECT_NE(outcome.refused[0].why.message.find("/operator"), std::string::npos);
+  EXPECT_NE(outcome.refused[0].why.message.find("seq 2"), std::string::npos);
+  auto records = node.snapshot().value().list({.p = ex("value")}).value();
+  ASSERT_EQ(records.size(), 2u);
+  for (const auto& r : records) EXPECT_EQ(r.meta.source, kNodeIri + "/child/hrv");
   // The handle remembers the sources it accepted, never one it refused.
-  EXPECT_TRUE(child.relay("up", {relayed(1, 0, kNodeIri + "/child/hrv", 1)}));
-  EXPECT_FALSE(child.relay("up", {relayed(2, 1, kNodeIri + "/operator", 2)}));
-  EXPECT_EQ(child.relay_mark("up").value(), 1u);
+  EXPECT_EQ(child.relay("up", {relayed(4, 3, kNodeIri + "/operator", 4)}).value().refused.size(), 1u);
+  EXPECT_EQ(child.relay_mark("up").value(), 4u);
   // A writer above this node (relayed down from the parent) is accepted.
-  EXPECT_TRUE(child.relay("down", {relayed(1, 0, "http://example.org/hospital-operator", 1)}));
+  EXPECT_TRUE(child.relay("down", {relayed(1, 0, "http://example.org/hospital-operator", 1)}).value().refused.empty());
+}
+
+// The sender's node may allow what this one does not (a larger literal limit): resending such
+// an item could never succeed, so it is passed over and the items after it are stored.
+TEST(Relay, AnItemThisNodeCanNeverStoreIsPassedOverNotRetriedForEver) {
+  TempDir dir;
+  Node node = Node::init(dir.path(), {.iri = kNodeIri, .max_literal_bytes = 100}).value();
+  Agent child = node.agent("child").value();
+  const std::string source = kNodeIri + "/child/hrv";
+  RelayedItem too_large = relayed(2, 1, source, 2);
+  too_large.item.add(Term::iri(kNodeIri + "/obs/2"), ex("note"), Term::literal(std::string(101, 'x')));
+  // An IRI is checked when the dictionary first meets it, inside the write: that refusal
+  // aborts the transaction, which then runs again without the item.
+  RelayedItem bad_iri = relayed(4, 3, source, 4);
+  bad_iri.item.add(Term::iri(kNodeIri + "/obs/4"), ex("seeAlso"), Term::iri("http://exa mple.org/x"));
+  auto outcome = child.relay("up", {relayed(1, 0, source, 1), too_large, relayed(3, 2, source, 3), bad_iri,
+                                    relayed(5, 4, source, 5)}).value();
+  EXPECT_EQ(outcome.mark, 5u);
+  EXPECT_EQ(outcome.stored.size(), 3u);
+  ASSERT_EQ(outcome.refused.size(), 2u);
+  EXPECT_EQ(outcome.refused[0].seq, 2u);
+  EXPECT_EQ(outcome.refused[0].why.code, Errc::literal_too_large);
+  EXPECT_EQ(outcome.refused[1].seq, 4u);
+  EXPECT_EQ(outcome.refused[1].why.code, Errc::invalid_iri);
+  EXPECT_EQ(node.stats().value().items, 3u);
+  EXPECT_EQ(node.snapshot().value().list({.p = ex("seeAlso")}).value().size(), 0u);
+  EXPECT_EQ(node.snapshot().value().list({.p = ex("note")}).value().size(), 0u);
+  // Sent again (the sender did not hear the ack): duplicates, not refused again.
+  auto again = child.relay("up", {too_large}).value();
+  EXPECT_EQ(again.duplicates, 1u);
+  EXPECT_TRUE(again.refused.empty());
 }
 
 }  // namespace

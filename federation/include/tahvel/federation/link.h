@@ -107,6 +107,9 @@ struct LinkCounters {
   std::uint64_t duplicates_in = 0;  // relayed items dropped as duplicates (P9)
   std::uint64_t down_applied = 0;   // items relayed into this store from the parent
   std::uint64_t refused = 0;        // frames refused (foreign IRI, unknown child, bad body)
+  std::uint64_t items_refused = 0;  // items received that this store can never hold, passed over
+                                    // (P9a)
+  std::uint64_t items_refused_by_peer = 0;  // items sent that the receiver refused so (P9a)
 };
 
 class Link {

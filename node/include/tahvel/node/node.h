@@ -136,12 +136,20 @@ struct RelayedItem {
   Item item;
 };
 
+// An item that Agent::relay refused for good: what it breaks is in `why`.
+struct RefusedItem {
+  std::uint64_t seq = 0;
+  Error why;
+};
+
 struct RelayOutcome {
   std::uint64_t mark = 0;             // the stream's mark afterwards: last seq applied in order
   std::vector<std::uint64_t> stored;  // ids of the items stored, in order
   std::size_t duplicates = 0;         // items at or below the mark, dropped
   bool gap = false;                   // an item's prev was not the mark: it and those after it
                                       // were not applied (the sender resends from the mark)
+  std::vector<RefusedItem> refused;   // items in order that this node can never store; the
+                                      // mark moved past them
 };
 
 enum class Ack {
@@ -212,8 +220,12 @@ class Agent {
   // mark. For each item in order: seq <= mark is a duplicate (dropped); prev == mark stores it
   // and sets mark = seq; anything else is a gap: it and the rest are left for a resend.
   // The source of a relayed item must lie at or under this agent's IRI (a child node's writers,
-  // the child being this agent) or outside this node's IRI (a writer above, relayed down);
-  // invalid_argument otherwise, and nothing of the call is stored.
+  // the child being this agent) or outside this node's IRI (a writer above, relayed down).
+  // An item this node can never store — such a source, or a term that breaks its rules (an
+  // invalid IRI, a literal over its limit: the sender's node may allow more) — is refused: not
+  // stored, listed in `refused`, and the mark moves past it as if applied, so that one bad item
+  // does not hold up the rest of the stream for ever (it stays in the sender's store). An error
+  // that may pass (a full store, I/O) fails the call instead, and nothing of it is stored.
   Result<RelayOutcome> relay(std::string_view stream, const std::vector<RelayedItem>& items) noexcept;
 
   // The stream's mark (0 when nothing was relayed on it).
