@@ -28,6 +28,7 @@
 #include "base64.h"
 #include "tahvel/uri/iri.h"
 #include "wire.h"
+#include "wire_common.h"
 
 namespace tahvel::federation {
 namespace {
@@ -37,6 +38,7 @@ using namespace std::chrono_literals;
 
 constexpr std::size_t kAnswerChunkBytes = 48 * 1024;  // P14: fits LCM's datagram fragments well
 constexpr std::size_t kAnswerWindow = 16;
+constexpr std::size_t kAnswerPartMax = 1 << 20;  // base64 characters per literal of a chunk
 // A node in the middle acknowledges a child's chunks at most this far beyond what its parent
 // acknowledged, so that a fast child and a slow parent cost it a bounded buffer (P14).
 constexpr std::size_t kAnswerRelayAhead = 2 * kAnswerWindow;
@@ -1224,6 +1226,18 @@ struct Link::Impl {
 
   // ---- child role: up sender ----------------------------------------------------------------
 
+  // An item whose frame no binding takes (P4: bodies up to 64 MiB) could never be sent: it is
+  // passed over in the stream (the next frame chains to the one before it) and stays in this
+  // store, rather than being retried for ever ahead of everything after it (as P9a at the
+  // receiver).
+  bool fits_a_frame(const Frame& f, std::uint64_t item) {
+    if (f.body.size() <= wire::kMaxBody) return true;
+    log("item " + std::to_string(item) + " is not sent to <" + f.to + "> (it stays in this store): its frame body of " +
+        std::to_string(f.body.size()) + " bytes is over the links' limit of " + std::to_string(wire::kMaxBody));
+    ++counters.items_refused;
+    return false;
+  }
+
   void up_loop() {
     auto node = node::Node::open(opt.dir);
     if (!node) return log("cannot open the store: " + node.error().message);
@@ -1278,6 +1292,10 @@ struct Link::Impl {
         f.seq = d.item;
         f.prev = up_last_sent;
         f.body = wire::encode_item(body);
+        if (!fits_a_frame(f, d.item)) {
+          from_above.push_back(d.item);  // acknowledged here, as those are
+          continue;
+        }
         frames.push_back(std::move(f));
         if (up_in_flight.empty()) up_progress = Clock::now();
         up_in_flight.push_back(d.item);
@@ -1446,6 +1464,10 @@ struct Link::Impl {
         f.seq = d.item;
         f.prev = child.down_last_sent;
         f.body = wire::encode_item(body);
+        if (!fits_a_frame(f, d.item)) {
+          local_acks.push_back(d.item);
+          continue;
+        }
         frames.push_back(std::move(f));
         if (child.down_in_flight.empty()) child.down_progress = Clock::now();
         child.down_in_flight.push_back(d.item);
@@ -1513,6 +1535,10 @@ struct Link::Impl {
     auto uplink = node->agent(kUplinkAgent);
     if (!link || !uplink) return log("cannot open the link's agents");
     if (opt.down) interrupt_earlier_queries(*node, *link);
+    // Answer chunks go on the board as base64 literals in parts this store takes (P14).
+    std::size_t answer_part = kAnswerPartMax;
+    if (auto st = node->stats(); st && st->max_literal_bytes > 0)
+      answer_part = std::max<std::size_t>(4, std::min<std::size_t>(answer_part, st->max_literal_bytes) / 4 * 4);
     Clock::time_point next_beat{};
     while (!stopping) {
       std::vector<BoardWrite> writes;
@@ -1579,7 +1605,11 @@ struct Link::Impl {
         send(opt.up.get(), std::move(f));
       }
       std::vector<std::pair<const BoardWrite*, std::uint64_t>> written;
-      for (const BoardWrite& w : writes) written.emplace_back(&w, write_answer(*link, w.reply_to, w.frame));
+      for (const BoardWrite& w : writes) {
+        auto id = write_answer(*link, w.reply_to, w.frame, answer_part);
+        if (!id && w.frame.kind == FrameKind::answer) answer_not_written(*link, w, id.error(), answer_part);
+        written.emplace_back(&w, id ? *id : 0);
+      }
       std::vector<std::uint64_t> abandoned;
       Outgoing acks = acks_for_chunks_read(*node, written, abandoned);
       send_all(acks);
@@ -1623,7 +1653,8 @@ struct Link::Impl {
                                        self});
       // The earlier run's chunks still on the board go with the query when it ends.
       std::vector<std::uint64_t> unread = answers_on_board(node, reply_to->value, query);
-      const std::uint64_t written = write_answer(link, reply_to->value, error);
+      const auto stored = write_answer(link, reply_to->value, error, kAnswerPartMax);
+      const std::uint64_t written = stored ? *stored : 0;
       log("query " + std::to_string(query) + " of <" + reply_to->value + "> was under way when this link stopped: told its asker");
       Outgoing cancel;
       {
@@ -1725,7 +1756,7 @@ struct Link::Impl {
 
   // An answer chunk or error on the origin's board, addressed to the asking agent (P16); the
   // item's id, or 0 when it could not be written (logged).
-  std::uint64_t write_answer(node::Agent& link, const std::string& reply_to, const Frame& f) {
+  node::Result<std::uint64_t> write_answer(node::Agent& link, const std::string& reply_to, const Frame& f, std::size_t part) {
     node::Item item;
     item.context = reply_to;
     const node::Term a = node::Term::blank("answer");
@@ -1735,19 +1766,43 @@ struct Link::Impl {
       item.add(a, node::Term::iri(vocab::kAnswerChunk), node::Term::integer(static_cast<std::int64_t>(f.prev)));
       item.add(a, node::Term::iri(vocab::kAnswerLast),
                node::Term::literal(body && body->last ? "true" : "false", std::string(node::xsd::kBoolean)));
-      item.add(a, node::Term::iri(vocab::kAnswerRecords),
-               node::Term::literal(detail::base64_encode(f.body), std::string(node::xsd::kBase64Binary)));
+      // In parts, in order: one record of the target may be as large as the target's literal
+      // limit allows, which may be more than this store's.
+      const std::string encoded = detail::base64_encode(f.body);
+      std::size_t at = 0;
+      do {
+        item.add(a, node::Term::iri(vocab::kAnswerRecords),
+                 node::Term::literal(encoded.substr(at, part), std::string(node::xsd::kBase64Binary)));
+        at += part;
+      } while (at < encoded.size());
     } else {
       auto body = wire::decode_error(f.body);
       item.add(a, node::Term::iri(vocab::kErrorCode), node::Term::literal(body ? body->code : "malformed"));
       item.add(a, node::Term::iri(vocab::kErrorMessage), node::Term::literal(body ? body->message : "malformed error"));
     }
     auto stored = link.store(item);
-    if (!stored) {
-      log("cannot write an answer for <" + reply_to + ">: " + stored.error().message);
-      return 0;
+    if (!stored) log("cannot write an answer for <" + reply_to + ">: " + stored.error().message);
+    return stored;
+  }
+
+  // A chunk that could not be written on the board (a full store, I/O) would leave the asker
+  // waiting for it until its timeout: it is told now (query_failed), and the answer is
+  // cancelled below (P18).
+  void answer_not_written(node::Agent& link, const BoardWrite& w, const node::Error& why, std::size_t part) {
+    Frame failed;
+    failed.kind = FrameKind::error;
+    failed.seq = w.frame.seq;
+    failed.body = wire::encode_error({"query_failed", "answer chunk " + std::to_string(w.frame.prev) + " could not be written on the board of <" + self + ">: " + why.message, self});
+    (void)write_answer(link, w.reply_to, failed, part);
+    Outgoing cancel;
+    {
+      std::lock_guard lock(mu);
+      auto it = in_answers.find(w.key);
+      if (it == in_answers.end() || it->second.done) return;
+      it->second.cancelled = it->second.done = true;
+      cancel.add(opt.down.get(), cancel_frame(it->second.child, it->second.query_frame.seq, self));
     }
-    return *stored;
+    send_all(cancel);
   }
 
   // Each child's state as one persistent item about the child, replacing the previous one, also

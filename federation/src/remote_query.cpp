@@ -147,10 +147,13 @@ Result<std::uint64_t> remote_query(node::Node& node, const RemoteQuery& query,
       return node::fail(Errc::io, code->value + ": " + text);
     }
     const Term* chunk = object_of(records, vocab::kAnswerChunk);
-    const Term* bytes = object_of(records, vocab::kAnswerRecords);
-    if (!chunk || !bytes) continue;
-    auto raw = detail::base64_decode(bytes->value);
-    if (!raw) continue;
+    if (!chunk) continue;
+    // The chunk's base64 in one literal or several, in the item's order (P14).
+    std::string encoded;
+    for (const auto& r : records)
+      if (r.triple.p.value == vocab::kAnswerRecords) encoded += r.triple.o.value;
+    auto raw = detail::base64_decode(encoded);
+    if (!raw) return node::fail(Errc::corrupt, "answer chunk " + chunk->value + " from <" + *target + ">: not base64");
     auto body = wire::decode_answer(*raw);
     if (!body) {
       return node::fail(Errc::corrupt, "answer chunk " + chunk->value + " from <" + *target + ">: " + body.error().message);

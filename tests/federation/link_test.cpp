@@ -101,12 +101,12 @@ struct Tree {
   std::string home2_dir = (tmp / "home2").string();
   std::unique_ptr<Link> hospital, home1, home2;
 
-  // `hospital_ring`: the hospital's store keeps at most that many non-persistent records;
-  // `home1_max_literal`: home1's store refuses longer literals.
-  explicit Tree(std::uint64_t hospital_ring = 0, std::uint64_t home1_max_literal = node::InitOptions{}.max_literal_bytes,
-                std::uint64_t hospital_max_literal = node::InitOptions{}.max_literal_bytes) {
-    EXPECT_TRUE(node::Node::init(hospital_dir, {.iri = kHospital, .ring = hospital_ring, .max_literal_bytes = hospital_max_literal}));
-    EXPECT_TRUE(node::Node::init(home1_dir, {.iri = kHome1, .max_literal_bytes = home1_max_literal}));
+  // The stores' settings but their IRIs (a ring, a literal limit, a maximum size).
+  explicit Tree(node::InitOptions hospital_store = {}, node::InitOptions home1_store = {}) {
+    hospital_store.iri = kHospital;
+    home1_store.iri = kHome1;
+    EXPECT_TRUE(node::Node::init(hospital_dir, hospital_store));
+    EXPECT_TRUE(node::Node::init(home1_dir, home1_store));
     EXPECT_TRUE(node::Node::init(home2_dir, {.iri = kHome2}));
   }
 
@@ -248,7 +248,7 @@ TEST(Link, AnItemWrittenWhileTheLinkIsCutArrivesOnceAfterItIsRestored) {
 // P9a: the home's store allows longer literals than the hospital's. Resending the long one
 // could never succeed; it is passed over (and stays at home), and the items after it go up.
 TEST(Link, AnItemTheParentCanNeverStoreIsPassedOverAndTheItemsAfterItStillGoUp) {
-  Tree tree(0, node::InitOptions{}.max_literal_bytes, /*hospital_max_literal=*/200);
+  Tree tree({.max_literal_bytes = 200});
   tree.hospital = tree.start_hospital();
   tree.home1 = tree.start_home(tree.home1_dir, kHome1, tree.home1_log);
   ASSERT_TRUE(eventually([&] { return tree.home1->connected(); }));
@@ -270,9 +270,27 @@ TEST(Link, AnItemTheParentCanNeverStoreIsPassedOverAndTheItemsAfterItStillGoUp) 
   EXPECT_EQ(tree.hospital->counters().relayed_in, 3u);
 }
 
+// A frame has at most 64 MiB of body (P4); a store may allow larger items. Such an item is not
+// sent, and does not hold back the items after it.
+TEST(Link, AnItemTooLargeForAnyFrameStaysHomeAndTheItemsAfterItGoUp) {
+  Tree tree({}, {.max_literal_bytes = 80u << 20});
+  ASSERT_TRUE(tree.start_hospital_and_home1());
+  auto hrv = node::Node::open(tree.home1_dir).value().agent("hrv").value();
+  node::Item huge = hrv_item(0);
+  huge.add(Term::iri(kHome1 + "/rec/hrv/0"), Term::iri(kEx + "note"), Term::literal(std::string(65u << 20, 'x')));
+  ASSERT_TRUE(hrv.store(huge));
+  store_hrv_items(tree.home1_dir, 1, 2);
+  const node::Pattern numbered{.p = Term::iri(kEx + "n")};
+  EXPECT_TRUE(eventually([&] { return count(tree.hospital_dir, numbered) == 2; }))
+      << count(tree.hospital_dir, numbered) << " of the 2 items after the huge one arrived";
+  EXPECT_TRUE(eventually([&] { return outbox(tree.home1_dir) == 0; })) << outbox(tree.home1_dir) << " left in the outbox";
+  EXPECT_TRUE(tree.home1_log.has("is over the links' limit"));
+  EXPECT_EQ(tree.home1->counters().items_refused, 1u);
+}
+
 // The same downwards: configuration the home can never store does not hold up what follows.
 TEST(Link, ConfigurationAChildCanNeverStoreIsPassedOverAndTheConfigurationAfterItArrives) {
-  Tree tree(0, /*home1_max_literal=*/200);
+  Tree tree({}, {.max_literal_bytes = 200});
   tree.hospital = tree.start_hospital();
   tree.home1 = tree.start_home(tree.home1_dir, kHome1, tree.home1_log);
   ASSERT_TRUE(eventually([&] { return tree.home1->connected(); }));
@@ -520,6 +538,63 @@ TEST(Link, RemoteQueryReturnsExactlyTheRecordsHeldBelowAndNamesItsErrors) {
 // A blank node in the pattern is the node of that label in the target's store, as `tahvel list
 // -s _:b1` there means. Written on the asking board as a blank node it was renamed (as every
 // item's blank nodes are) and matched nothing.
+// The answer crosses the asking node's board (P14), whose literal limit the target's largest
+// record may come close to: a record as large as the target allows must still come back whole.
+TEST(Link, ARemoteQueryReturnsARecordAsLargeAsTheTargetAllows) {
+  Tree tree;
+  ASSERT_TRUE(tree.start_hospital_and_home1());
+  const std::size_t largest = node::InitOptions{}.max_literal_bytes;
+  node::Item item;
+  item.add(Term::iri(kHome1 + "/rec/chunk/0"), Term::iri(kEx + "samples"), Term::literal(std::string(largest, 'x')));
+  ASSERT_TRUE(node::Node::open(tree.home1_dir).value().agent("ecg").value().store(item));
+  auto hospital = node::Node::open(tree.hospital_dir).value();
+  std::vector<node::Record> got;
+  auto n = remote_query(hospital, {.target = kHome1, .pattern = {.p = Term::iri(kEx + "samples")}}, 20s,
+                        [&](const node::Record& r) { got.push_back(r); });
+  ASSERT_TRUE(n) << n.error().message;
+  ASSERT_EQ(got.size(), 1u);
+  EXPECT_EQ(got[0].triple.o.value.size(), largest);
+}
+
+// A chunk the asking node cannot write on its board (here its store is full) ends the query
+// with that reason at once, rather than at the asker's timeout with a chunk missing.
+TEST(Link, AnAnswerChunkTheAskingBoardCannotHoldEndsTheQueryWithTheReason) {
+  Tree tree({.max_map_bytes = 1 << 20});
+  ASSERT_TRUE(tree.start_hospital_and_home1());
+  node::Item item;
+  item.add(Term::iri(kHome1 + "/rec/chunk/0"), Term::iri(kEx + "samples"), Term::literal(std::string(900'000, 'x')));
+  ASSERT_TRUE(node::Node::open(tree.home1_dir).value().agent("ecg").value().store(item));
+  auto hospital = node::Node::open(tree.hospital_dir).value();
+  const auto asked = std::chrono::steady_clock::now();
+  auto n = remote_query(hospital, {.target = kHome1, .pattern = {.p = Term::iri(kEx + "samples")}}, 30s,
+                        [](const node::Record&) {});
+  ASSERT_FALSE(n);
+  EXPECT_EQ(n.error().message.rfind("query_failed: answer chunk 1 could not be written on the board of <" + kHospital + ">", 0), 0u)
+      << n.error().message;
+  EXPECT_LT(std::chrono::steady_clock::now() - asked, 20s) << "the query waited for its timeout";
+}
+
+// The same where the asking node's own limit is small: every chunk crosses its board in parts.
+TEST(Link, ARemoteQueryAnswersWholeThroughAnAskingBoardWithASmallLiteralLimit) {
+  Tree tree({.max_literal_bytes = 1000});
+  ASSERT_TRUE(tree.start_hospital_and_home1());
+  auto sensor = node::Node::open(tree.home1_dir).value().agent("ecg").value();
+  for (int i = 0; i < 30; ++i) {
+    node::Item item;
+    item.add(Term::iri(kHome1 + "/rec/chunk/" + std::to_string(i)), Term::iri(kEx + "samples"),
+             Term::literal(std::string(5000 + i, static_cast<char>('a' + i % 26))));
+    ASSERT_TRUE(sensor.store(item));
+  }
+  auto hospital = node::Node::open(tree.hospital_dir).value();
+  std::vector<node::Record> got;
+  auto n = remote_query(hospital, {.target = kHome1, .pattern = {.p = Term::iri(kEx + "samples")}}, 20s,
+                        [&](const node::Record& r) { got.push_back(r); });
+  ASSERT_TRUE(n) << n.error().message;
+  auto expected = node::Node::open(tree.home1_dir).value().snapshot().value().list({.p = Term::iri(kEx + "samples")}).value();
+  ASSERT_EQ(got.size(), expected.size());
+  for (std::size_t i = 0; i < got.size(); ++i) EXPECT_EQ(got[i].triple.o.value, expected[i].triple.o.value);
+}
+
 TEST(Link, ARemoteQueryByABlankNodeMatchesThatNodeInTheTargetsStore) {
   Tree tree;
   ASSERT_TRUE(tree.start_hospital_and_home1());
@@ -913,7 +988,7 @@ TEST(Link, AnAnswerTheAskerDoesNotReadHoldsTheTargetBackInsteadOfPilingUpOnTheOr
 // runs: the ring must not reclaim the query item (that reads as a cancel, P18), so the whole
 // answer still arrives.
 TEST(Link, AQueryRunsToItsEndWhileTheOriginsRingReclaimsTheRecordsAroundIt) {
-  Tree tree(/*hospital_ring=*/100);
+  Tree tree({.ring = 100});
   constexpr int kChunks = 40;
   auto tap = start_answering_home(tree, 100ms, kChunks);
 
