@@ -11,6 +11,7 @@
 
 #include <algorithm>
 #include <cerrno>
+#include <charconv>
 #include <chrono>
 #include <cstring>
 #include <fstream>
@@ -315,9 +316,20 @@ const Command kQueryCommand{
      {"--until", "", "T", "records asserted before T"},
      kFlagCascade,
      {"--limit", "", "N", "at most N records (0: no limit)"},
-     {"--timeout", "", "S", "give up after S seconds (default 30)"},
+     {"--timeout", "", "S", "give up after S seconds (default 30; a fraction allowed: 2.5)"},
      kFlagFormat},
     1, 1};
+
+// --timeout S: seconds, a fraction allowed ("2.5"), more than 0 and at most a day.
+std::chrono::milliseconds timeout_flag(const Args& args) {
+  auto text = args.get("--timeout");
+  if (!text) return std::chrono::seconds(30);
+  double seconds = 0;
+  auto [end, ec] = std::from_chars(text->data(), text->data() + text->size(), seconds);
+  if (ec != std::errc() || end != text->data() + text->size() || !(seconds >= 0.001) || seconds > 86400)
+    usage_error("query: --timeout: '" + *text + "' is not a number of seconds from 0.001 to 86400");
+  return std::chrono::milliseconds(static_cast<std::int64_t>(seconds * 1000 + 0.5));
+}
 
 int run_query(const Args& args) {
   node::Node node = open_node(args.positional(0));
@@ -352,7 +364,7 @@ int run_query(const Args& args) {
   } else if (args.has("--floor")) {
     usage_error("--floor: only with --area");
   }
-  auto timeout = std::chrono::seconds(args.get_u64("--timeout", 30));
+  const std::chrono::milliseconds timeout = timeout_flag(args);
   node::Format format = format_flag(args, node::Format::ntriples);
   // Printed as the records come, Turtle too (with all of DIR's prefixes, as `dump` does: the
   // prefixes a long answer uses are known only at its end, and it must not wait in memory).

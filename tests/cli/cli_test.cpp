@@ -649,6 +649,20 @@ TEST_F(Cli, QueryTimesAreCheckedAndHonourTheirOffset) {
   EXPECT_EQ(lines_of(query("--since", rfc3339(std::chrono::minutes(-30), 0).replace(19, 6, "z")).out).size(), 1u);
 }
 
+TEST_F(Cli, QueryTimeoutIsSecondsWithAFractionAndMoreThanZero) {
+  init();
+  put("<a> <b> \"1\" .");
+  auto query = [&](const std::string& timeout) { return run({"query", node_, "--at", kNodeIri, "--timeout", timeout}); };
+  Outcome r = query("0.5");
+  EXPECT_EQ(r.status, 0) << r.err;
+  EXPECT_EQ(lines_of(r.out).size(), 1u);
+  for (const char* bad : {"0", "-1", "abc", "2s", "1e9"}) {
+    r = query(bad);
+    EXPECT_EQ(r.status, 2) << bad;
+    EXPECT_NE(r.err.find("--timeout: '" + std::string(bad) + "' is not a number of seconds"), std::string::npos) << r.err;
+  }
+}
+
 TEST_F(Cli, UpRefusesATopologyWhoseChildIriIsNotUnderItsParent) {
   spit(tmp_ / "bad.toml",
        "[[node]]\nid = \"hospital\"\niri = \"http://example.org/hospital\"\nlisten = { kind = \"dds\" }\n\n"
