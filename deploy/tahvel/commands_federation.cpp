@@ -813,6 +813,10 @@ const Command kDownCommand{
 int run_down(const Args& args) {
   fs::path state = state_dir(args);
   std::optional<std::string> only = args.get("--node");
+  if (std::error_code ec; !fs::is_directory(state, ec)) {
+    std::cout << "down: nothing was running under " << state.string() << " (no such directory)\n";
+    return kExitOk;
+  }
   if (only && supervisor_holding(state / pid_file_name(only)) == 0 &&
       supervisor_holding(state / pid_file_name(std::nullopt)) != 0)
     fail("--node '" + *only + "': it runs under the supervisor of the whole file (" +
@@ -861,6 +865,8 @@ constexpr double kStateStaleAfterS = 15.0;
 
 int run_status(const Args& args) {
   fs::path state = state_dir(args);
+  if (std::error_code ec; !fs::is_directory(state, ec))
+    fail("no directory " + state.string() + " (did 'tahvel up' run with this --state?)");
   struct Entry {
     std::string id, iri;
   };

@@ -516,6 +516,16 @@ TEST_F(Cli, UpAndDownIgnoreAStalePidFileWhosePidIsAnotherProgram) {
 
 // The supervisor of a node is SIGKILLed: its programs die with it, and `status` must not go on
 // showing them as running from the supervisor's last state file.
+TEST_F(Cli, StatusAndDownNameAStateDirectoryThatDoesNotExist) {
+  const std::string missing = (tmp_ / "no-such-state").string();
+  Outcome status = run({"status", "--state", missing});
+  EXPECT_EQ(status.status, 1);
+  EXPECT_NE(status.err.find("no directory " + missing + " (did 'tahvel up' run with this --state?)"), std::string::npos) << status.err;
+  Outcome down = run({"down", "--state", missing});
+  EXPECT_EQ(down.status, 0) << down.err;
+  EXPECT_NE(down.out.find("nothing was running under " + missing), std::string::npos) << down.out;
+}
+
 TEST_F(Cli, StatusDoesNotCallProgramsRunningOnceTheirSupervisorIsGone) {
   spit(tmp_ / "node.toml", kIdleNodeToml);
   const std::string state = (tmp_ / "state").string();
