@@ -27,7 +27,7 @@
 
 #include "base64.h"
 #include "tahvel/uri/iri.h"
-#include "wire.h"
+#include "tahvel/federation/wire.h"
 #include "wire_common.h"
 
 namespace tahvel::federation {

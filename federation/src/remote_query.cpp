@@ -13,7 +13,7 @@
 #include "base64.h"
 #include "tahvel/federation/link.h"
 #include "tahvel/uri/iri.h"
-#include "wire.h"
+#include "tahvel/federation/wire.h"
 
 namespace tahvel::federation {
 namespace {

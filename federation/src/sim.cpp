@@ -1,7 +1,7 @@
 // Child-role frames for load generators (sim.h), encoded with the Link's own body codecs.
 #include "tahvel/federation/sim.h"
 
-#include "wire.h"
+#include "tahvel/federation/wire.h"
 
 namespace tahvel::federation::sim {
 namespace {

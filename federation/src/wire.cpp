@@ -1,4 +1,4 @@
-#include "wire.h"
+#include "tahvel/federation/wire.h"
 
 namespace tahvel::federation::wire {
 namespace {

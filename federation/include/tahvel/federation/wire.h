@@ -1,6 +1,8 @@
 // Bodies of link frames (docs/protocol.md, "Bodies"): items, records, queries and errors in a
 // compact binary form — the hot path (items up) costs no RDF parsing. Integers are little-endian,
 // strings are u32 length + bytes. Decoders name the field and byte offset that is wrong.
+// Public so that tools outside the library can read and write frames' bodies as a link does (a
+// protocol analyser; tests/fuzz/fuzz_wire.cpp).
 #pragma once
 
 #include <cstdint>
