@@ -524,8 +524,13 @@ Result<RelayOutcome> Agent::relay(std::string_view stream, const std::vector<Rel
     auto about = [&](std::size_t i) {
       return "relayed item " + std::to_string(i + 1) + " (seq " + std::to_string(items[i].seq) + ")";
     };
-    // Why each item is refused, if it is; the checks that need no transaction come first.
-    std::vector<std::optional<Error>> refusal(items.size());
+    // Why each item is refused, if it is (sized at the first refusal: nearly every call has
+    // none); the checks that need no transaction come first.
+    std::vector<std::optional<Error>> refusal;
+    auto refuse = [&](std::size_t i, Error why) {
+      refusal.resize(items.size());
+      refusal[i] = std::move(why);
+    };
     // A link agent's items come from few writers: each distinct source is checked once and
     // remembered by this handle (the checks parse IRIs, were a quarter of a hospital's ingest
     // cost, and depend only on the source, this agent and the node). A lone item on a quiet
@@ -536,12 +541,12 @@ Result<RelayOutcome> Agent::relay(std::string_view stream, const std::vector<Rel
       bool known = std::find(checked_sources.begin(), checked_sources.end(), source) != checked_sources.end();
       if (!known) {
         if (!uri::is_under(source, impl_->iri) && uri::is_under(source, node_iri)) {
-          refusal[i] = Error{Errc::invalid_argument, about(i) + ": source <" + source + "> is a writer of this node outside <" +
-                                                         impl_->iri + ">; a link agent relays only its own subtree or writers above this node"};
+          refuse(i, Error{Errc::invalid_argument, about(i) + ": source <" + source + "> is a writer of this node outside <" +
+                                                       impl_->iri + ">; a link agent relays only its own subtree or writers above this node"});
           continue;
         }
         if (auto n = uri::normalize(source); !n) {
-          refusal[i] = Error{Errc::invalid_iri, about(i) + ": source: " + n.error().message};
+          refuse(i, Error{Errc::invalid_iri, about(i) + ": source: " + n.error().message});
           continue;
         }
         if (checked_sources.size() >= 16) checked_sources.erase(checked_sources.begin());
@@ -549,7 +554,7 @@ Result<RelayOutcome> Agent::relay(std::string_view stream, const std::vector<Rel
       }
       if (auto v = validate_item(items[i].item, impl_->env->settings()); !v) {
         if (!refuses_the_item(v.error().code)) return unexpected(with_context(v.error(), about(i)));
-        refusal[i] = with_context(v.error(), about(i));
+        refuse(i, with_context(v.error(), about(i)));
       }
     }
     RelayOutcome outcome;
@@ -574,7 +579,7 @@ Result<RelayOutcome> Agent::relay(std::string_view stream, const std::vector<Rel
             outcome.gap = true;
             break;
           }
-          if (refusal[i]) {
+          if (!refusal.empty() && refusal[i]) {
             outcome.refused.push_back({relayed.seq, *refusal[i]});
           } else {
             auto id = insert_item(txn, relayed.item, impl_->iri, &relayed.source);
@@ -599,7 +604,7 @@ Result<RelayOutcome> Agent::relay(std::string_view stream, const std::vector<Rel
         return {};
       });
       if (!written && refused_in_write) {
-        refusal[*refused_in_write] = written.error();
+        refuse(*refused_in_write, written.error());
         continue;
       }
       if (!written) return unexpected(written.error());
