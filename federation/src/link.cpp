@@ -63,6 +63,9 @@ constexpr std::size_t kInlineFrames = 8;
 constexpr std::size_t kAckEvery = 64;
 // In an up or down frame's `ack` field: the sender asks for the stream's ack now (P8).
 constexpr std::uint64_t kAckNow = 1;
+// P12: a connected child's state is rewritten at least this often, so that its tv:lastSeen is
+// never older than child_silence (3.5 s) while the child is heard (status prints its age).
+constexpr std::int64_t kStateRefreshNs = 2'000'000'000;
 // The error code of P9a: an item passed over for good (frame seq = the item's seq).
 constexpr std::string_view kItemRefused = "item_refused";
 constexpr std::string_view kUplinkAgent = "uplink";
@@ -1565,7 +1568,7 @@ struct Link::Impl {
             log("child <" + iri + "> silent for " + std::to_string(opt.child_silence.count()) + " ms: link down");
             end_answers_from(iri, "unreachable", "<" + iri + "> went silent at <" + self + "> while it answered");
           }
-          if (child->connected && wall - child->state_written_ns > 5'000'000'000) child->state_dirty = true;
+          if (child->connected && wall - child->state_written_ns > kStateRefreshNs) child->state_dirty = true;
           if (child->state_dirty) dirty.push_back(child);
         }
         for (auto& [key, out] : out_answers)

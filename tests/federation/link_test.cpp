@@ -444,6 +444,27 @@ TEST(Link, EachChildHasOneStateItemThatFollowsItsLinkAcrossARestartOfTheParent) 
   EXPECT_EQ(count(tree.hospital_dir, {.s = Term::iri(kHome1), .p = Term::iri(vocab::kParent)}), 1u);
 }
 
+// `tahvel status` prints the age of tv:lastSeen: while a child is heard it must never look
+// older than child_silence (3.5 s), the age at which the parent would call it down.
+TEST(Link, AChildThatIsHeardNeverLooksSilentLongerThanChildSilenceInItsState) {
+  Tree tree;
+  ASSERT_TRUE(tree.start_hospital_and_home1());
+  auto last_seen_age = [&] {
+    auto records = node::Node::open(tree.hospital_dir).value().snapshot().value()
+                       .list({.s = Term::iri(kHome1), .p = Term::iri(vocab::kLastSeen)}).value();
+    EXPECT_EQ(records.size(), 1u);
+    const auto now = std::chrono::system_clock::now().time_since_epoch();
+    return records.empty() ? 0ns : std::chrono::nanoseconds(now) - std::chrono::nanoseconds(std::stoll(records[0].triple.o.value));
+  };
+  std::chrono::nanoseconds oldest{0};
+  for (auto until = std::chrono::steady_clock::now() + 7s; std::chrono::steady_clock::now() < until;) {
+    oldest = std::max(oldest, last_seen_age());
+    std::this_thread::sleep_for(100ms);
+  }
+  EXPECT_LT(oldest, 3500ms) << "tv:lastSeen was " << std::chrono::duration_cast<std::chrono::milliseconds>(oldest).count()
+                            << " ms old while the child was heard";
+}
+
 TEST(Link, ParentRefusesAChildOutsideItsSubtreeAndAnUnconfiguredChild) {
   Tree tree;
   tree.hospital = tree.start_hospital();
