@@ -851,15 +851,15 @@ int run_down(const Args& args) {
 
 const Command kStatusCommand{
     "status",
-    "[--state DIR]",
+    "[--state DIR] [--json]",
     "Print the tree of nodes and agents of a deployment.",
     "For each node store under DIR: its IRI; the state its parent keeps of it (link up/down,\n"
     "last seen, outbox depth, software version); and the programs the supervisor runs for it\n"
-    "(pid, restarts, last exit).",
-    {kFlagState},
+    "(pid, restarts, last exit). --json prints the same as one JSON object (docs/cli.md).",
+    {kFlagState, {"--json", "", "", "print one JSON object instead of the tree"}},
     0, 0};
 
-// A parent's link rewrites the state of a connected child at least every 5 s, with the time it
+// A parent's link rewrites the state of a connected child at least every 2 s, with the time it
 // last heard from the child (heartbeats every second): an "up" older than this was not rewritten.
 constexpr double kStateStaleAfterS = 15.0;
 
@@ -898,15 +898,19 @@ int run_status(const Args& args) {
   if (nodes.empty()) fail("no node stores under " + state.string() + " (did 'tahvel up' run with this --state?)");
   std::sort(nodes.begin(), nodes.end(), [](const Entry& a, const Entry& b) { return a.iri < b.iri; });
   auto programs = read_state_files(state);
+  const bool json = args.has("--json");
+  if (json) std::cout << "{\"state\":\"" << node::json_escape(state.string()) << "\",\"nodes\":[";
+  bool first_node = true;
   for (const Entry& n : nodes) {
     int depth = 0;
     for (const Entry& other : nodes)
       if (other.iri != n.iri && uri::is_under(n.iri, other.iri)) ++depth;
-    std::string indent(depth * 2, ' ');
-    std::cout << indent << n.id << "  <" << n.iri << ">";
+    // What the parent keeps of this node's link, and whether it can be believed.
+    std::optional<std::map<std::string, std::string>> link;
+    std::int64_t seen = 0;
+    std::string said, unknown_because;
     if (auto it = child_state.find(n.iri); it != child_state.end()) {
       auto& f = it->second;
-      std::int64_t seen = 0;
       if (auto p = parse_u64(f["lastSeen"])) seen = static_cast<std::int64_t>(*p);
       // The parent's link writes this state; while that link is not running, or not writing,
       // the state is its last word, not the link's (a stopped hospital left every home "up").
@@ -916,19 +920,54 @@ int run_status(const Args& args) {
       const ProgramRow* writer = nullptr;
       for (const auto& p : programs)
         if (p.name == parent_link) writer = &p;
-      std::string said = "link " + f["linkState"] + ", last seen " + age_of(seen) + ", outbox " + f["outboxDepth"];
+      said = "link " + f["linkState"] + ", last seen " + age_of(seen) + ", outbox " + f["outboxDepth"];
       if (!f["softwareVersion"].empty()) said += ", " + f["softwareVersion"];
-      if (writer && writer->state != "running") {
-        std::cout << "  link state unknown: " << parent_link << " is " << writer->state << " (it last said: " << said << ")";
-      } else if (f["linkState"] == "up" && seconds_since(seen) > kStateStaleAfterS) {
-        std::cout << "  link state unknown: " << parent_link << " has not refreshed it for " << seconds_text(seconds_since(seen))
-                  << " (it last said: " << said << ")";
-      } else {
-        std::cout << "  " << said;
-      }
-    } else if (depth == 0) {
-      std::cout << "  (root)";
+      if (writer && writer->state != "running")
+        unknown_because = parent_link + " is " + writer->state;
+      else if (f["linkState"] == "up" && seconds_since(seen) > kStateStaleAfterS)
+        unknown_because = parent_link + " has not refreshed it for " + seconds_text(seconds_since(seen));
+      link = f;
     }
+    if (json) {
+      std::cout << (first_node ? "" : ",") << "{\"id\":\"" << node::json_escape(n.id) << "\",\"iri\":\""
+                << node::json_escape(n.iri) << "\",\"depth\":" << depth << ",\"link\":";
+      first_node = false;
+      if (!link) {
+        std::cout << "null";
+      } else {
+        auto& f = *link;
+        std::cout << "{\"parent\":\"" << node::json_escape(f["parent"]) << "\",\"state\":\"" << node::json_escape(f["linkState"])
+                  << "\",\"known\":" << (unknown_because.empty() ? "true" : "false") << ",\"unknown_because\":";
+        if (unknown_because.empty()) std::cout << "null";
+        else std::cout << "\"" << node::json_escape(unknown_because) << "\"";
+        std::cout << ",\"last_seen_ns\":" << (seen > 0 ? std::to_string(seen) : "null")
+                  << ",\"outbox_depth\":" << (parse_u64(f["outboxDepth"]) ? f["outboxDepth"] : "null")
+                  << ",\"software_version\":";
+        if (f["softwareVersion"].empty()) std::cout << "null";
+        else std::cout << "\"" << node::json_escape(f["softwareVersion"]) << "\"";
+        std::cout << "}";
+      }
+      std::cout << ",\"programs\":[";
+      bool first_program = true;
+      for (const auto& p : programs) {
+        if (p.name.rfind(n.id + "/", 0) != 0) continue;
+        std::cout << (first_program ? "" : ",") << "{\"name\":\"" << node::json_escape(p.name.substr(n.id.size() + 1))
+                  << "\",\"state\":\"" << node::json_escape(p.state) << "\",\"pid\":"
+                  << (p.state == "running" && parse_u64(p.pid) ? p.pid : "null")
+                  << ",\"restarts\":" << (parse_u64(p.restarts) ? p.restarts : "0") << ",\"last_exit\":";
+        if (p.last_exit.empty()) std::cout << "null";
+        else std::cout << "\"" << node::json_escape(p.last_exit) << "\"";
+        std::cout << "}";
+        first_program = false;
+      }
+      std::cout << "]}";
+      continue;
+    }
+    std::string indent(depth * 2, ' ');
+    std::cout << indent << n.id << "  <" << n.iri << ">";
+    if (link && !unknown_because.empty()) std::cout << "  link state unknown: " << unknown_because << " (it last said: " << said << ")";
+    else if (link) std::cout << "  " << said;
+    else if (depth == 0) std::cout << "  (root)";
     std::cout << "\n";
     for (const auto& p : programs) {
       if (p.name.rfind(n.id + "/", 0) != 0) continue;
@@ -939,6 +978,7 @@ int run_status(const Args& args) {
       std::cout << "\n";
     }
   }
+  if (json) std::cout << "]}\n";
   return kExitOk;
 }
 

@@ -558,6 +558,27 @@ TEST_F(Cli, StatusShowsAProgramWaitingOutItsBackOffAsRestarting) {
   EXPECT_EQ(run({"down", "--state", state}).status, 0);
 }
 
+// For monitoring scripts: the same tree as one JSON object.
+TEST_F(Cli, StatusJsonHasEachNodesLinkAndPrograms) {
+  spit(tmp_ / "node.toml",
+       "[[node]]\nid = \"solo\"\niri = \"http://example.org/solo\"\n"
+       "  [[node.agent]]\n  id = \"flaky\"\n  run = [\"/bin/sh\", \"-c\", \"exit 3\"]\n");
+  const std::string state = (tmp_ / "state").string();
+  ASSERT_EQ(run({"up", (tmp_ / "node.toml").string(), "--state", state}).status, 0);
+  ASSERT_NE(status_until(state, "last: exited with status 3").out.find("last: exited"), std::string::npos);
+  Outcome json = run({"status", "--state", state, "--json"});
+  EXPECT_EQ(json.status, 0) << json.err;
+  EXPECT_EQ(json.out.rfind("{\"state\":\"" + state + "\",\"nodes\":[{\"id\":\"solo\",\"iri\":\"http://example.org/solo\",\"depth\":0,"
+                           "\"link\":null,\"programs\":[",
+                           0),
+            0u)
+      << json.out;
+  EXPECT_NE(json.out.find("{\"name\":\"flaky\",\"state\":\""), std::string::npos) << json.out;
+  EXPECT_NE(json.out.find("\"last_exit\":\"exited with status 3\"}"), std::string::npos) << json.out;
+  EXPECT_TRUE(json.out.ends_with("}]}]}\n")) << json.out;
+  EXPECT_EQ(run({"down", "--state", state}).status, 0);
+}
+
 // `{mitdb}` in a command while TAHVEL_MITDB is unset used to become "" ("/100": a replay of a
 // file that is not there, failing and restarted for ever). `up` refuses it before making the
 // store, naming the node and the agent; the same with TAHVEL_MITDB set to a directory runs.

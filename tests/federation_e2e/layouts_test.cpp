@@ -138,12 +138,18 @@ TEST_F(Deployment, StatusDoesNotShowAStoppedParentsLastWordAsTheLinksState) {
   std::string shown;
   ASSERT_TRUE(eventually([&] { return (shown = status()).find("gateway  <" + kWard + "/gateway>  link up, last seen") != std::string::npos; }))
       << shown;
+  const std::string gateway_json = "{\"id\":\"gateway\",\"iri\":\"" + kWard + "/gateway\",\"depth\":1,\"link\":{\"parent\":\"" + kWard +
+                                   "\",\"state\":\"up\",";
+  shown = tahvel("status --json --state " + state_.string());
+  EXPECT_NE(shown.find(gateway_json + "\"known\":true,\"unknown_because\":null,\"last_seen_ns\":"), std::string::npos) << shown;
   tahvel("down --state " + state_.string() + " --node ward");
   shown = status();
   EXPECT_EQ(shown.find("gateway>  link up"), std::string::npos) << shown;
   EXPECT_NE(shown.find("gateway  <" + kWard + "/gateway>  link state unknown: ward/link is stopped (it last said: link up"),
             std::string::npos)
       << shown;
+  shown = tahvel("status --json --state " + state_.string());
+  EXPECT_NE(shown.find(gateway_json + "\"known\":false,\"unknown_because\":\"ward/link is stopped\","), std::string::npos) << shown;
 }
 
 // A forwarding pattern taken out of the topology file stops going up at the next `up`: the
