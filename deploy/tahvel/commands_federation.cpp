@@ -764,11 +764,13 @@ int run_up(const Args& args) {
   std::vector<spatial::AreaKeeper> keepers;
   for (const NodeSpec& spec : topo.nodes) {
     if (only && spec.id != *only) continue;
-    auto keeper = spatial::AreaKeeper::open(state / spec.id);
+    spatial::AreaSyncReport first;
+    auto keeper = spatial::AreaKeeper::open(state / spec.id, &first);
     if (!keeper) {
       std::cerr << "up: area keeper of " << spec.id << ": " << keeper.error().message << std::endl;
       continue;
     }
+    for (const auto& problem : first.problems) std::cerr << "up: area keeper <" << keeper->iri() << ">: " << problem << std::endl;
     keepers.push_back(std::move(*keeper));
   }
   fs::path state_file = state / pid_file_name(only);

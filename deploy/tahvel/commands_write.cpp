@@ -245,7 +245,7 @@ int run_subscribe(const Args& args) {
     node::Snapshot snapshot = check(node.snapshot());
     auto board = spatial::load_plan(snapshot);
     if (!board) fail("--area: " + board.error().message);
-    if (auto resolved = spatial::resolve_area(board->plan, area); !resolved)
+    if (auto resolved = spatial::resolve_area(*board, area); !resolved)
       fail("--area: " + resolved.error().message);
   }
   auto declaration = spatial::declare_area_subscription(node, agent, area, pattern);
@@ -272,16 +272,15 @@ const Command kAreasCommand{
     1, 1};
 
 int run_areas(const Args& args) {
-  auto keeper = spatial::AreaKeeper::open(args.positional(0));
+  spatial::AreaSyncReport first;
+  auto keeper = spatial::AreaKeeper::open(args.positional(0), &first);
   if (!keeper) fail(args.positional(0) + ": " + keeper.error().message);
   auto print = [](const spatial::AreaSyncReport& r) {
     std::cout << "areas: " << r.declarations << " area subscriptions, " << r.added << " subscriptions added, "
               << r.removed << " removed" << std::endl;
     for (const std::string& problem : r.problems) std::cerr << "areas: " << problem << std::endl;
   };
-  auto first = keeper->sync();
-  if (!first) fail(first.error().message);
-  print(*first);
+  print(first);
   if (args.has("--once")) return kExitOk;
   while (true) {
     auto synced = keeper->poll(std::chrono::milliseconds(1000));

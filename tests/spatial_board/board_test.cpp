@@ -221,6 +221,21 @@ TEST_F(BoardTest, AnUnknownRoomIsAnErrorNamingIt) {
   EXPECT_NE(records.error().message.find("no room " + kHome + "/room/attic"), std::string::npos);
 }
 
+// A room that is on the board with a place the plan cannot use is not "no room": the error says
+// what is wrong with it, and a sensor named as an area is said to be one.
+TEST_F(BoardTest, NamingARoomWithMalformedGeometryOrASensorSaysSo) {
+  const std::string bowtie = kHome + "/room/bowtie";
+  put(located_feature_item(bowtie, "POLYGON((0 0, 10 0, 0 10, 10 10, 0 0))", 0));
+  auto snapshot = node_->snapshot();
+  ASSERT_TRUE(snapshot.has_value());
+  auto records = list_in_area(*snapshot, {}, {bowtie, std::nullopt, std::nullopt});
+  ASSERT_FALSE(records.has_value());
+  EXPECT_EQ(records.error().message.rfind("room " + bowtie + " cannot be used: WKT column", 0), 0u) << records.error().message;
+  auto sensor = list_in_area(*snapshot, {}, {kMote, std::nullopt, std::nullopt});
+  ASSERT_FALSE(sensor.has_value());
+  EXPECT_EQ(sensor.error().message, kMote + " is a sensor (its geo:asWKT is a POINT), not a room");
+}
+
 TEST_F(BoardTest, LooksLikeWkt) {
   EXPECT_TRUE(looks_like_wkt("POLYGON((0 0, 1 0, 1 1, 0 0))"));
   EXPECT_TRUE(looks_like_wkt("  point (1 2)"));
@@ -399,6 +414,41 @@ TEST_F(BoardTest, AWktAreaOnOneFloorExpandsToTheSensorsOfThatFloorOnly) {
   reading("mote1", 21.0);
   reading("mote2", 19.0);
   EXPECT_EQ(pending(*ui), 1u);
+}
+
+// Declarations written by hand, several in one item (as `tahvel put` of a file makes them):
+// each subject of tv:areaSubscriber is a declaration of its own, expanded on its own, and a
+// problem is reported against the declaration that has it. The keeper's first sync is reported.
+TEST_F(BoardTest, EachDeclarationInAnItemIsKeptAndItsProblemsAreItsOwn) {
+  const std::string kTv = "https://w3id.org/tahvel#";
+  node::Item item;
+  item.persistent = true;
+  item.add(Term::blank("a"), Term::iri(kTv + "areaSubscriber"), Term::iri(kHome + "/ui-bed"))
+      .add(Term::blank("a"), Term::iri(kTv + "area"), Term::iri(kBedroom))
+      .add(Term::blank("a"), Term::iri(kTv + "predicate"), Term::iri("http://www.w3.org/ns/sosa/hasSimpleResult"))
+      .add(Term::blank("b"), Term::iri(kTv + "areaSubscriber"), Term::iri(kHome + "/ui-up"))
+      .add(Term::blank("b"), Term::iri(kTv + "area"), Term::iri(kUpstairs))
+      .add(Term::blank("c"), Term::iri(kTv + "areaSubscriber"), Term::iri(kHome + "/ui-bad"))
+      .add(Term::blank("c"), Term::iri(kTv + "area"), Term::iri(kHall))
+      .add(Term::blank("c"), Term::iri(kTv + "areaFloor"), Term::integer(1));
+  auto writer = node_->agent("operator");
+  ASSERT_TRUE(writer.has_value());
+  ASSERT_TRUE(writer->store(item).has_value());
+  AreaSyncReport first;
+  auto keeper = AreaKeeper::open(dir_ / "store", &first);
+  ASSERT_TRUE(keeper.has_value()) << keeper.error().message;
+  EXPECT_EQ(first.declarations, 3u);
+  EXPECT_EQ(first.added, 6u);  // per room: its mote as a source and as a subject, and the room
+  ASSERT_EQ(first.problems.size(), 1u);
+  EXPECT_NE(first.problems[0].find("of <" + kHome + "/ui-bad>: tv:areaFloor goes with a WKT tv:area only"), std::string::npos)
+      << first.problems[0];
+  reading("mote1", 21.0);
+  reading("mote2", 19.0);
+  auto bed = node_->agent("ui-bed"), up = node_->agent("ui-up"), bad = node_->agent("ui-bad");
+  ASSERT_TRUE(bed && up && bad);
+  EXPECT_EQ(pending(*bed), 1u);
+  EXPECT_EQ(pending(*up), 1u);
+  EXPECT_EQ(pending(*bad), 0u);
 }
 
 TEST_F(BoardTest, ADeclarationForARoomNotYetDrawnIsReportedThenExpandedWhenItIs) {

@@ -45,12 +45,18 @@ struct Declaration {
   std::string problem;  // why it cannot be expanded, empty when it can
 };
 
-Declaration parse_declaration(std::uint64_t id, const std::vector<node::Record>& records) {
+// The declaration about `subject` among an item's records (an item may hold several, one per
+// subject of tv:areaSubscriber).
+Declaration parse_declaration(std::uint64_t id, const Term& subject, const std::vector<node::Record>& records) {
   Declaration d;
   d.id = id;
+  int areas = 0, subscribers = 0;
   for (const node::Record& r : records) {
+    if (r.triple.s != subject) continue;
     const std::string& p = r.triple.p.value;
     const Term& o = r.triple.o;
+    if (p == kTvArea) ++areas;
+    if (p == kTvAreaSubscriber) ++subscribers;
     if (p == kTvAreaSubscriber) d.agent = o.value;
     else if (p == kTvSubject) d.pattern.s = o;
     else if (p == kTvPredicate) d.pattern.p = o;
@@ -68,22 +74,28 @@ Declaration parse_declaration(std::uint64_t id, const std::vector<node::Record>&
       else d.problem = "tv:areaFloor '" + o.value + "' is not an integer";
     }
   }
+  if (d.problem.empty() && subscribers > 1) d.problem = "more than one tv:areaSubscriber";
+  if (d.problem.empty() && areas > 1) d.problem = "more than one tv:area";
   if (d.problem.empty() && d.spec.room_iri.empty() && !d.spec.shape) d.problem = "no tv:area";
+  if (d.problem.empty() && !d.spec.room_iri.empty() && d.spec.floor)
+    d.problem = "tv:areaFloor goes with a WKT tv:area only (a room has its own floor)";
   return d;
 }
 
-// Every declaration on the board, by item id.
+// Every declaration on the board, by the id of its tv:areaSubscriber record (the item's id for
+// one written by declare_area_subscription, whose first record that is).
 Result<std::map<std::uint64_t, Declaration>> load_declarations(const node::Snapshot& snapshot) {
   node::Pattern heads;
   heads.p = Term::iri(kTvAreaSubscriber);
   auto found = snapshot.list(heads);
   if (!found) return store_error(found.error());
   std::map<std::uint64_t, Declaration> out;
+  std::set<std::pair<std::uint64_t, std::string>> seen;  // (item, subject) already read
   for (const node::Record& head : *found) {
-    if (out.count(head.meta.item)) continue;
+    if (!seen.insert({head.meta.item, head.triple.s.value}).second) continue;
     auto records = snapshot.item(head.meta.item);
     if (!records) continue;  // removed meanwhile
-    out.emplace(head.meta.item, parse_declaration(head.meta.item, *records));
+    out.emplace(head.meta.id, parse_declaration(head.meta.id, head.triple.s, *records));
   }
   return out;
 }
@@ -119,10 +131,11 @@ Result<Expansions> load_expansions(const node::Snapshot& snapshot,
 }
 
 // What `d` should expand to on `plan`; sets d.problem when it cannot be expanded.
-std::set<Key> wanted_keys(const Plan& plan, Declaration& d) {
+std::set<Key> wanted_keys(const BoardPlan& board, Declaration& d) {
+  const Plan& plan = board.plan;
   std::set<Key> keys;
   if (!d.problem.empty()) return keys;
-  auto area = resolve_area(plan, d.spec);
+  auto area = resolve_area(board, d.spec);
   if (!area) {
     d.problem = area.error().message;
     return keys;
@@ -225,7 +238,7 @@ Result<AreaSyncReport> sync_area_subscriptions(node::Node& node,
   std::vector<std::uint64_t> to_remove;
   for (auto& [id, d] : *declarations) {
     if (declaration && id != *declaration) continue;
-    const std::set<Key> wanted = wanted_keys(board->plan, d);
+    const std::set<Key> wanted = wanted_keys(*board, d);
     if (!d.problem.empty()) report.problems.push_back("area subscription " + std::to_string(id) + " of <" + d.agent + ">: " + d.problem);
     auto& have = (*expansions)[id];
     for (const Key& key : wanted)
@@ -281,7 +294,7 @@ bool changes_the_plan(const node::Change& change) {
 
 }  // namespace
 
-Result<AreaKeeper> AreaKeeper::open(const std::filesystem::path& store_dir) {
+Result<AreaKeeper> AreaKeeper::open(const std::filesystem::path& store_dir, AreaSyncReport* first) {
   auto node = node::Node::open(store_dir);
   if (!node) return store_error(node.error());
   auto agent = node->agent(kAreaKeeperId);
@@ -290,7 +303,9 @@ Result<AreaKeeper> AreaKeeper::open(const std::filesystem::path& store_dir) {
   declarations.p = Term::iri(kTvAreaSubscriber);
   if (auto s = agent->subscribe(declarations); !s) return store_error(s.error());
   AreaKeeper keeper(std::move(*node), std::move(*agent));
-  if (auto synced = keeper.sync(); !synced) return unexpected(synced.error());
+  auto synced = keeper.sync();
+  if (!synced) return unexpected(synced.error());
+  if (first) *first = std::move(*synced);
   return keeper;
 }
 
@@ -340,7 +355,7 @@ Result<AreaSubscription> AreaSubscription::open(node::Node& node, node::Agent& a
     if (!snapshot) return store_error(snapshot.error());
     auto board = load_plan(*snapshot);
     if (!board) return unexpected(board.error());
-    if (auto area = resolve_area(board->plan, spec); !area) return unexpected(area.error());
+    if (auto area = resolve_area(*board, spec); !area) return unexpected(area.error());
   }
   auto declaration = declare_area_subscription(node, agent, spec, pattern);
   if (!declaration) return unexpected(declaration.error());

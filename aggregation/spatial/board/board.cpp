@@ -149,10 +149,16 @@ bool looks_like_wkt(std::string_view text) {
   return i > start && (i == text.size() || text[i] != ':');
 }
 
-Result<Area> resolve_area(const Plan& plan, const AreaSpec& spec) {
+Result<Area> resolve_area(const BoardPlan& board, const AreaSpec& spec) {
   if (!spec.room_iri.empty()) {
-    const Room* room = plan.room(spec.room_iri);
+    const Room* room = board.plan.room(spec.room_iri);
     if (!room) {
+      // On the board but skipped by the plan (a malformed WKT or floor): say why.
+      const std::string prefix = spec.room_iri + ": ";
+      for (const std::string& problem : board.problems)
+        if (problem.rfind(prefix, 0) == 0) return fail("room " + spec.room_iri + " cannot be used: " + problem.substr(prefix.size()));
+      if (board.plan.sensor(spec.room_iri))
+        return fail(spec.room_iri + " is a sensor (its geo:asWKT is a POINT), not a room");
       return fail("no room " + spec.room_iri +
                   " on the board (a feature with geo:hasGeometry whose geo:asWKT is a POLYGON or "
                   "MULTIPOLYGON)");
@@ -182,7 +188,7 @@ Result<std::vector<node::Record>> list_in_area(const node::Snapshot& snapshot,
                                                const node::ListOptions& options) {
   auto board = load_plan(snapshot);
   if (!board) return unexpected(board.error());
-  auto area = resolve_area(board->plan, spec);
+  auto area = resolve_area(*board, spec);
   if (!area) return unexpected(area.error());
   const std::vector<std::string> located = features_in(board->plan, spec, *area);
   const std::set<std::string> features(located.begin(), located.end());

@@ -74,8 +74,9 @@ Result<AreaExpansion> area_expansion(const node::Snapshot& snapshot, std::uint64
 // geo:hasGeometry or tv:floor record was stored or removed, or a declaration was removed.
 class AreaKeeper {
  public:
-  // Subscribes the keeper agent to new declarations and syncs once. Errors: the store's.
-  static Result<AreaKeeper> open(const std::filesystem::path& store_dir);
+  // Subscribes the keeper agent to new declarations and syncs once; that sync's report goes to
+  // `*first` when given. Errors: the store's.
+  static Result<AreaKeeper> open(const std::filesystem::path& store_dir, AreaSyncReport* first = nullptr);
 
   // Waits up to `wait` for a change; returns the sync's report when it synced.
   Result<std::optional<AreaSyncReport>> poll(std::chrono::milliseconds wait = std::chrono::milliseconds(0));

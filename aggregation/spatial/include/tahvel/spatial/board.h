@@ -64,8 +64,9 @@ struct AreaSpec {
   std::optional<int> floor;      // with a shape: its floor (unset: every floor)
 };
 
-// The area `spec` names in `plan`. Error: the room is not on the board (or has no polygon).
-Result<Area> resolve_area(const Plan& plan, const AreaSpec& spec);
+// The area `spec` names on `board`. Error: the room is not on the board, or is there with a
+// place the plan cannot use (its problem line), or is not a polygon.
+Result<Area> resolve_area(const BoardPlan& board, const AreaSpec& spec);
 
 // The features located in `area`: the sensors inside it (closed, plan.h) and the polygon
 // features (rooms, zones, furniture...) lying in it (Plan::rooms_in: closed, a shared wall is
