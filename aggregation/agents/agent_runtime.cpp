@@ -31,6 +31,7 @@ Args::Args(int argc, char** argv, const std::vector<std::string>& valued,
            const std::vector<std::string>& boolean) {
   for (int i = 1; i < argc; ++i) {
     const std::string arg = argv[i];
+    if (arg == "-h" || arg == "--help") throw HelpRequested{};
     if (declared(valued, arg)) {
       if (i + 1 >= argc) throw UsageError(arg + ": needs a value");
       values_[arg] = argv[++i];
@@ -209,6 +210,9 @@ bool has_predicate(const std::vector<node::Record>& records, const char* local) 
 int guarded_main(const char* program, const char* usage, const std::function<int()>& body) {
   try {
     return body();
+  } catch (const HelpRequested&) {
+    std::cout << usage << '\n';
+    return 0;
   } catch (const UsageError& e) {
     log_line(program, e.what());
     std::cerr << usage << '\n';

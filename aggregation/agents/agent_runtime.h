@@ -26,6 +26,8 @@ inline constexpr int kExitOk = 0, kExitError = 1, kExitUsage = 2;
 struct UsageError : std::runtime_error {
   using std::runtime_error::runtime_error;
 };
+// Thrown by Args for -h / --help: guarded_main prints the usage on standard output, status 0.
+struct HelpRequested {};
 
 // Runs an agent's `body` as its main(): a UsageError prints "<program>: <message>" and `usage`
 // on standard error and gives kExitUsage; otherwise the body's exit status.

@@ -495,4 +495,20 @@ TEST_F(PipelineTest, GapInTheChunksIsLoggedAndRestartsTheDetectorKeepingTheBeats
   EXPECT_GT(after_gap.size(), 50u);  // record 100 beats about 75 per minute
 }
 
+// `--help` is how an operator finds an agent's flags: the usage on standard output, status 0
+// (it used to be "unknown flag --help" and status 2).
+TEST(AgentPrograms, HelpPrintsTheUsageOnStandardOutputAndExitsZero) {
+  for (const std::string name : {"tahvel-ecg-source", "tahvel-rpeak", "tahvel-rr", "tahvel-hrv", "tahvel-trend",
+                                 "tahvel-environment", "tahvel-env-motes"}) {
+    FILE* out = popen((bin(name) + " --help 2>/dev/null").c_str(), "r");
+    ASSERT_NE(out, nullptr);
+    std::string text;
+    char buffer[512];
+    while (std::fgets(buffer, sizeof buffer, out)) text += buffer;
+    const int status = pclose(out);
+    EXPECT_EQ(status, 0) << name;
+    EXPECT_EQ(text.rfind("usage: " + name + " DIR", 0), 0u) << name << ": " << text;
+  }
+}
+
 }  // namespace
