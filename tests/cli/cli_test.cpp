@@ -104,6 +104,17 @@ class Cli : public ::testing::Test {
     return out;
   }
 
+  // `up` of one node whose agent "flaky" exits with status 3 at once; returns the state
+  // directory.
+  std::string up_a_node_with_a_flaky_agent() {
+    spit(tmp_ / "node.toml",
+         "[[node]]\nid = \"solo\"\niri = \"http://example.org/solo\"\n"
+         "  [[node.agent]]\n  id = \"flaky\"\n  run = [\"/bin/sh\", \"-c\", \"exit 3\"]\n");
+    const std::string state = (tmp_ / "state").string();
+    EXPECT_EQ(run({"up", (tmp_ / "node.toml").string(), "--state", state}).status, 0);
+    return state;
+  }
+
   void init() {
     Outcome r = run({"init", node_, "--iri", kNodeIri});
     ASSERT_EQ(r.status, 0) << r.err;
@@ -547,11 +558,7 @@ TEST_F(Cli, StatusDoesNotCallProgramsRunningOnceTheirSupervisorIsGone) {
 // A program that died and waits out its back-off is about to run again: `status` says so, and
 // when, rather than "stopped" (which is what a program that stays stopped shows).
 TEST_F(Cli, StatusShowsAProgramWaitingOutItsBackOffAsRestarting) {
-  spit(tmp_ / "node.toml",
-       "[[node]]\nid = \"solo\"\niri = \"http://example.org/solo\"\n"
-       "  [[node.agent]]\n  id = \"flaky\"\n  run = [\"/bin/sh\", \"-c\", \"exit 3\"]\n");
-  const std::string state = (tmp_ / "state").string();
-  ASSERT_EQ(run({"up", (tmp_ / "node.toml").string(), "--state", state}).status, 0);
+  const std::string state = up_a_node_with_a_flaky_agent();
   Outcome status = status_until(state, "flaky  restarting in ");
   EXPECT_NE(status.out.find("flaky  restarting in "), std::string::npos) << status.out << status.err;
   EXPECT_NE(status.out.find("last: exited with status 3"), std::string::npos) << status.out;
@@ -560,11 +567,7 @@ TEST_F(Cli, StatusShowsAProgramWaitingOutItsBackOffAsRestarting) {
 
 // For monitoring scripts: the same tree as one JSON object.
 TEST_F(Cli, StatusJsonHasEachNodesLinkAndPrograms) {
-  spit(tmp_ / "node.toml",
-       "[[node]]\nid = \"solo\"\niri = \"http://example.org/solo\"\n"
-       "  [[node.agent]]\n  id = \"flaky\"\n  run = [\"/bin/sh\", \"-c\", \"exit 3\"]\n");
-  const std::string state = (tmp_ / "state").string();
-  ASSERT_EQ(run({"up", (tmp_ / "node.toml").string(), "--state", state}).status, 0);
+  const std::string state = up_a_node_with_a_flaky_agent();
   ASSERT_NE(status_until(state, "last: exited with status 3").out.find("last: exited"), std::string::npos);
   Outcome json = run({"status", "--state", state, "--json"});
   EXPECT_EQ(json.status, 0) << json.err;

@@ -514,6 +514,22 @@ TEST(Link, MalformedFramesAreDroppedWithAReasonAndTheLinkKeepsWorking) {
   EXPECT_TRUE(tree.hospital_log.has("protocol version"));
 }
 
+// home1's kEx:samples records as the hospital's remote query returns them (P13), and as home1's
+// own store holds them.
+struct SamplesAnswer {
+  node::Result<std::uint64_t> answered;
+  std::vector<node::Record> got, expected;
+};
+SamplesAnswer ask_home1_for_samples(const Tree& tree, std::chrono::seconds timeout) {
+  auto hospital = node::Node::open(tree.hospital_dir).value();
+  const node::Pattern samples{.p = Term::iri(kEx + "samples")};
+  SamplesAnswer a{0, {}, {}};
+  a.answered = remote_query(hospital, {.target = kHome1, .pattern = samples}, timeout,
+                            [&](const node::Record& r) { a.got.push_back(r); });
+  a.expected = node::Node::open(tree.home1_dir).value().snapshot().value().list(samples).value();
+  return a;
+}
+
 TEST(Link, RemoteQueryReturnsExactlyTheRecordsHeldBelowAndNamesItsErrors) {
   Tree tree;
   tree.hospital = tree.start_hospital();
@@ -530,11 +546,8 @@ TEST(Link, RemoteQueryReturnsExactlyTheRecordsHeldBelowAndNamesItsErrors) {
              Term::literal(big + std::to_string(i)));
     ASSERT_TRUE(sensor.store(item));
   }
-  std::vector<node::Record> got;
-  auto n = remote_query(hospital, {.target = kHome1, .pattern = {.p = Term::iri(kEx + "samples")}}, 10s,
-                        [&](const node::Record& r) { got.push_back(r); });
+  auto [n, got, expected] = ask_home1_for_samples(tree, 10s);
   ASSERT_TRUE(n) << n.error().message;
-  auto expected = node::Node::open(tree.home1_dir).value().snapshot().value().list({.p = Term::iri(kEx + "samples")}).value();
   ASSERT_EQ(got.size(), expected.size());
   for (std::size_t i = 0; i < got.size(); ++i) {
     EXPECT_EQ(got[i].triple.o.value, expected[i].triple.o.value);
@@ -556,9 +569,6 @@ TEST(Link, RemoteQueryReturnsExactlyTheRecordsHeldBelowAndNamesItsErrors) {
   EXPECT_EQ(below_home.error().code, Errc::not_found) << below_home.error().message;
 }
 
-// A blank node in the pattern is the node of that label in the target's store, as `tahvel list
-// -s _:b1` there means. Written on the asking board as a blank node it was renamed (as every
-// item's blank nodes are) and matched nothing.
 // The answer crosses the asking node's board (P14), whose literal limit the target's largest
 // record may come close to: a record as large as the target allows must still come back whole.
 TEST(Link, ARemoteQueryReturnsARecordAsLargeAsTheTargetAllows) {
@@ -568,10 +578,7 @@ TEST(Link, ARemoteQueryReturnsARecordAsLargeAsTheTargetAllows) {
   node::Item item;
   item.add(Term::iri(kHome1 + "/rec/chunk/0"), Term::iri(kEx + "samples"), Term::literal(std::string(largest, 'x')));
   ASSERT_TRUE(node::Node::open(tree.home1_dir).value().agent("ecg").value().store(item));
-  auto hospital = node::Node::open(tree.hospital_dir).value();
-  std::vector<node::Record> got;
-  auto n = remote_query(hospital, {.target = kHome1, .pattern = {.p = Term::iri(kEx + "samples")}}, 20s,
-                        [&](const node::Record& r) { got.push_back(r); });
+  auto [n, got, expected] = ask_home1_for_samples(tree, 20s);
   ASSERT_TRUE(n) << n.error().message;
   ASSERT_EQ(got.size(), 1u);
   EXPECT_EQ(got[0].triple.o.value.size(), largest);
@@ -606,16 +613,15 @@ TEST(Link, ARemoteQueryAnswersWholeThroughAnAskingBoardWithASmallLiteralLimit) {
              Term::literal(std::string(5000 + i, static_cast<char>('a' + i % 26))));
     ASSERT_TRUE(sensor.store(item));
   }
-  auto hospital = node::Node::open(tree.hospital_dir).value();
-  std::vector<node::Record> got;
-  auto n = remote_query(hospital, {.target = kHome1, .pattern = {.p = Term::iri(kEx + "samples")}}, 20s,
-                        [&](const node::Record& r) { got.push_back(r); });
+  auto [n, got, expected] = ask_home1_for_samples(tree, 20s);
   ASSERT_TRUE(n) << n.error().message;
-  auto expected = node::Node::open(tree.home1_dir).value().snapshot().value().list({.p = Term::iri(kEx + "samples")}).value();
   ASSERT_EQ(got.size(), expected.size());
   for (std::size_t i = 0; i < got.size(); ++i) EXPECT_EQ(got[i].triple.o.value, expected[i].triple.o.value);
 }
 
+// A blank node in the pattern is the node of that label in the target's store, as `tahvel list
+// -s _:b1` there means. Written on the asking board as a blank node it was renamed (as every
+// item's blank nodes are) and matched nothing.
 TEST(Link, ARemoteQueryByABlankNodeMatchesThatNodeInTheTargetsStore) {
   Tree tree;
   ASSERT_TRUE(tree.start_hospital_and_home1());
