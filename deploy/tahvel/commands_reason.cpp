@@ -58,7 +58,7 @@ void print_json(const reasoner::SessionReport& r) {
       << ",\"rules_reloaded\":" << (r.rules_reloaded ? "true" : "false") << ",\"rules_error\":"
       << (r.rules_error ? "\"" + node::json_escape(*r.rules_error) + "\"" : std::string("null"))
       << ",\"added\":" << json_atoms(r.added) << ",\"removed\":" << json_atoms(r.removed)
-      << ",\"total_ms\":" << fixed(r.total_ms) << ",\"read_ms\":" << fixed(r.read_ms)
+      << ",\"stale_records_removed\":" << r.stale_records_removed << ",\"total_ms\":" << fixed(r.total_ms) << ",\"read_ms\":" << fixed(r.read_ms)
       << ",\"derive_ms\":" << fixed(r.derive_ms) << ",\"write_ms\":" << fixed(r.write_ms)
       << ",\"conclusions\":" << r.engine.conclusions << ",\"base_facts\":" << r.engine.base_facts << "}\n";
   std::cout << out.str() << std::flush;
@@ -69,7 +69,11 @@ void print_text(const reasoner::SessionReport& r, const uri::PrefixMap& prefixes
   std::cout << "session at seq " << r.seq << ": " << r.facts_in << " new and " << r.facts_out
             << " removed facts" << (r.resynced ? " (resynchronised)" : "")
             << (r.rules_reloaded ? ", rules reloaded" : "") << "; derived " << r.added.size()
-            << ", retracted " << r.removed.size() << " in " << fixed(r.total_ms) << " ms (read "
+            << ", retracted " << r.removed.size()
+            << (r.stale_records_removed ? " and " + std::to_string(r.stale_records_removed) +
+                                              " records of an earlier run's conclusions that no longer hold"
+                                        : std::string())
+            << " in " << fixed(r.total_ms) << " ms (read "
             << fixed(r.read_ms) << ", derive " << fixed(r.derive_ms) << ", write " << fixed(r.write_ms)
             << "); " << r.engine.conclusions << " conclusions over " << r.engine.base_facts << " facts\n";
   for (const auto& a : r.added) std::cout << "+ " << short_atom(a, prefixes) << "\n";

@@ -177,6 +177,56 @@ TEST_F(ReasonerTest, RemovingAPremiseRetractsExactlyWhatLostAllSupport) {
   EXPECT_EQ(board(), left);
 }
 
+// A snapshot held by a process keeps the store from growing (Env::grow). The reasoner wrote a
+// session's conclusions with the session's snapshot still open, so a write that needed the store
+// to grow failed with store_full, and so did every session after it.
+TEST_F(ReasonerTest, ASessionWhoseConclusionsMakeTheStoreGrowIsWritten) {
+  const std::uint64_t first_map = node_->stats()->map_bytes;
+  for (int i = 0; node_->stats()->used_bytes + (3u << 20) < first_map; ++i) {  // nearly full
+    tn::Item filler;
+    filler.add(n("filler" + std::to_string(i)), n("blob"),
+               tn::Term::literal(std::to_string(i) + std::string(1'000'000, static_cast<char>('a' + i % 26))));
+    ASSERT_TRUE(init_->store(filler).has_value());
+  }
+  constexpr int kLinks = 400;
+  std::vector<tn::Triple> chain;
+  for (int i = 0; i < kLinks; ++i) chain.push_back(t("c" + std::to_string(i), "next", "c" + std::to_string(i + 1)));
+  put(chain);
+  auto r = open(rules("reach.rules", "reach(X, Y) :- next(X, Y).\nreach(X, Z) :- reach(X, Y), next(Y, Z).\n"));
+  auto s = r.session();
+  ASSERT_TRUE(s.has_value()) << s.error().message;
+  EXPECT_EQ(s->added.size(), static_cast<std::size_t>(kLinks * (kLinks + 1) / 2));
+  EXPECT_GT(node_->stats()->map_bytes, first_map) << "the store did not have to grow: the test proves nothing";
+}
+
+// Conclusions an earlier run wrote that no longer hold go at the first session (RS13), and the
+// session says how many (it said "retracted 0").
+TEST_F(ReasonerTest, TheFirstSessionReportsTheEarlierRunsConclusionsItRemoves) {
+  auto file = rules("anc.rules", "anc(X, Y) :- parent(X, Y).\nanc(X, Z) :- parent(X, Y), anc(Y, Z).\n");
+  put({t("a", "parent", "b")});
+  const std::uint64_t b_c = put({t("b", "parent", "c")});
+  {
+    auto r = open(file);
+    ASSERT_EQ(r.session().value().added.size(), 3u);
+  }
+  ASSERT_TRUE(node_->remove_item(b_c).has_value());
+  auto restarted = open(file);
+  auto s = restarted.session();
+  ASSERT_TRUE(s.has_value());
+  EXPECT_EQ(s->stale_records_removed, 2u);  // anc(b, c), anc(a, c)
+  EXPECT_EQ(board(), (std::map<std::string, int>{{nt("a", "anc", "b"), 1}}));
+}
+
+// A directory opens as an empty stream; read as a rule file without rules it retracted every
+// conclusion of the agent.
+TEST_F(ReasonerTest, ADirectoryIsNotARuleFile) {
+  tr::ReasonerOptions o;
+  o.rules = root_;
+  auto r = tr::Reasoner::open(root_ / "node", o);
+  ASSERT_FALSE(r.has_value());
+  EXPECT_EQ(r.error().message, root_.string() + ": cannot read the rule file: it is a directory");
+}
+
 TEST_F(ReasonerTest, RulesReloadAndABrokenFileIsReportedWhileThePreviousRulesRun) {
   auto file = rules("live.rules", "p(X, Y) :- a(X, Y).\n");
   put({t("x", "a", "y")});

@@ -253,8 +253,9 @@ Result<SessionReport> Reasoner::Impl::session() {
   // snapshot means the mirror may hold reclaimed records.
   auto stats = node.stats();
   if (!stats) return unexpected(node_error(stats.error()));
-  auto snap = node.snapshot();
-  if (!snap) return unexpected(node_error(snap.error()));
+  std::optional<node::Snapshot> snap;
+  if (auto s = node.snapshot(); s) snap.emplace(std::move(*s));
+  else return unexpected(node_error(s.error()));
   report.seq = snap->last_seq();
   report.time_ns = now;
   std::vector<node::Triple> in, out, extra_removals;
@@ -279,6 +280,10 @@ Result<SessionReport> Reasoner::Impl::session() {
   }
   report.derive_ms = ms_since(t1) - report.read_ms;
   report.engine = engine.stats();
+  report.stale_records_removed = extra_removals.size();
+  // Released before writing: a snapshot held by this process keeps the store from growing
+  // (Env::grow), and the write may need it to (it failed with store_full, for ever).
+  snap.reset();
   const auto t2 = Clock::now();
   if (auto w = write(update, extra_removals, now); !w) {
     // The engine moved on but the board did not: the next session starts from scratch and

@@ -14,6 +14,9 @@ Result<std::shared_ptr<const Program>> parse_rules(std::string_view text, const 
 }
 
 Result<std::shared_ptr<const Program>> load_rules(const std::filesystem::path& path, ParseOptions options) {
+  // A directory opens as an empty stream: read as no rules, it would retract every conclusion.
+  if (std::error_code ec; std::filesystem::is_directory(path, ec))
+    return unexpected(Error{path.string() + ": cannot read the rule file: it is a directory"});
   std::ifstream in(path, std::ios::binary);
   if (!in) return unexpected(Error{path.string() + ": cannot read the rule file"});
   std::ostringstream text;

@@ -44,6 +44,8 @@ struct SessionReport {
                                  // rules ran from scratch on the snapshot, the difference applied
   std::vector<Atom> added;       // conclusions written
   std::vector<Atom> removed;     // conclusions retracted
+  std::size_t stale_records_removed = 0;  // at the first session: records of conclusions an
+                                          // earlier run wrote that no longer hold
   std::optional<std::string> rules_error;  // the rule file changed but does not parse: the
                                            // message (file:line:col); the previous rules ran
   bool rules_reloaded = false;
