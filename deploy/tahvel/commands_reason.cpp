@@ -97,7 +97,7 @@ const Command kReasonCommand{
     {{"--once", "", "", "one session, then exit"},
      {"--json", "", "", "one JSON object per session instead of text"},
      {"--default-ns", "", "IRI", "namespace of #name and bare atoms (default: node IRI + '#')"},
-     kFlagAgentWriter,
+     {"--agent", "", "ID", "write as agent ID (IRI: node IRI/ID); default \"reasoner\""},
      {"--interval", "", "MS", "at most one session per MS milliseconds (default 100)"}},
     2, 2};
 

@@ -127,7 +127,10 @@ TEST(Rules, ParseErrorsNameFileLineAndColumn) {
   struct Case { const char* text; const char* where; };
   const Case cases[] = {
       {"p(X, Y) :- q(X.\n", "bad.rules:1:15:"},
-      {"p(X) :- q(X), \\+ r(Y).\n", "bad.rules:1:18:"},          // Y unbound under negation
+      {"p(X) :- q(X), \\+ r(Y).\n", "bad.rules:1:18:"},          // Y unbound under negation (not _)
+      {"p(X, 1) :- q(X, Y), Y > 99999999999999999999.\n", "bad.rules:1:25:"},  // beyond int64
+      {":- ranked(p/99999999999999999999).\n", "bad.rules:1:13:"},           // arity out of range
+      {":- ranked(p/16).\n", "bad.rules:1:13:"},
       {"ok(a, b).\nq(X) :- \\+ r(X), s(X, Y), Y < .\n", "bad.rules:2:"},
       {"p(X, Y) :- q(X, Y), \\+ p(Y, X).\n", "bad.rules:1:24:"},  // not stratified
       {"p(X, Y) :- foo:bar(X, Y).\n", "bad.rules:1:12:"},      // unknown prefix
@@ -176,6 +179,59 @@ TEST(Rules, ArithmeticTimesAndNow) {
   auto later = engine.apply({}, {}, now + 150LL * 60 * 1000000000);
   EXPECT_EQ(later.added.size(), 2u);    // late(a, 150), late(b, 30)
   EXPECT_EQ(later.removed.size(), 1u);  // late(a, 30)
+}
+
+// Integer arithmetic that leaves int64, and times outside the ns range, are undefined like a
+// division by zero: the literal fails, nothing wraps around into a wrong conclusion. (Under
+// UBSan, the overflow itself would fail this test.)
+TEST(Rules, ArithmeticBeyondTheRangeOfIntegersAndTimesDerivesNothing) {
+  auto program = parse(
+      "sum(X, Y) :- v(X, V), Y is V + V.\n"
+      "product(X, Y) :- v(X, V), Y is V * V.\n"
+      "negated(X, Y) :- v(X, V), Y is -(V) - 1.\n"
+      "quotient(X, Y) :- v(X, V), w(X, W), Y is V / W.\n"
+      "later(X, T) :- at(X, A), T is A + 9000000000.\n"
+      "dated(X, true) :- at(X, A), A > 0.\n");
+  ASSERT_TRUE(program);
+  tr::Engine engine(program);
+  auto dt = [](const char* s) { return tn::Term::literal(s, std::string(tn::xsd::kDateTime)); };
+  std::vector<tn::Triple> in = {
+      tl("big", "v", tn::Term::integer(INT64_MAX)), tl("small", "v", tn::Term::integer(3)),
+      tl("min", "v", tn::Term::integer(INT64_MIN)), tl("min", "w", tn::Term::integer(-1)),
+      tl("now", "at", dt("2026-01-01T10:00:00Z")), tl("far", "at", dt("3000-01-01T00:00:00Z"))};
+  std::set<std::string> got = strings(engine.apply(in, {}, 0).added);
+  const std::set<std::string> want = {
+      tr::Atom{kNs + "sum", {n("small"), tn::Term::integer(6)}}.to_string(),
+      tr::Atom{kNs + "product", {n("small"), tn::Term::integer(9)}}.to_string(),
+      tr::Atom{kNs + "negated", {n("small"), tn::Term::integer(-4)}}.to_string(),
+      tr::Atom{kNs + "negated", {n("big"), tn::Term::integer(INT64_MIN)}}.to_string(),
+      tr::Atom{kNs + "dated", {n("now"), n("true")}}.to_string()};
+  EXPECT_EQ(got, want);  // none of big + big, big * big, -min, min / -1, a time past 2262
+}
+
+std::vector<tn::Triple> triples(std::initializer_list<tn::Triple> list) { return list; }
+
+// `_` (or `_Name`) under a negation means any value, as in Prolog, and the conclusion follows
+// the negated facts as they come and go.
+TEST(Rules, AnAnonymousVariableUnderANegationMeansAnyValue) {
+  auto program = parse(
+      "lonely(X, true) :- person(X, _), \\+ knows(X, _).\n"
+      "unasked(X, true) :- person(X, _), \\+ fact(_Who, asked, X).\n"
+      "calm(me, true) :- person(_, _), \\+ alarm(_, _).\n");
+  ASSERT_TRUE(program);
+  tr::Engine engine(program);
+  auto u = engine.apply(triples({t("a", "person", "yes"), t("b", "person", "yes"), t("a", "knows", "b")}), {}, 0);
+  EXPECT_EQ(strings(u.added), (std::set<std::string>{a2("lonely", "b", "true").to_string(),
+                                                      a2("unasked", "a", "true").to_string(),
+                                                      a2("unasked", "b", "true").to_string(),
+                                                      a2("calm", "me", "true").to_string()}));
+  auto v = engine.apply(triples({t("b", "knows", "c"), t("c", "asked", "a"), t("z", "alarm", "on")}), {}, 0);
+  EXPECT_TRUE(v.added.empty());
+  EXPECT_EQ(strings(v.removed), (std::set<std::string>{a2("lonely", "b", "true").to_string(),
+                                                        a2("unasked", "a", "true").to_string(),
+                                                        a2("calm", "me", "true").to_string()}));
+  auto w = engine.apply({}, triples({t("z", "alarm", "on")}), 0);
+  EXPECT_EQ(strings(w.added), std::set<std::string>{a2("calm", "me", "true").to_string()});
 }
 
 TEST(Rules, NonBinaryConclusionsHaveTheDocumentedStoredForm) {

@@ -202,7 +202,8 @@ Result<std::vector<std::uint32_t>> plan(const Program& program, const Rule& rule
       std::string name = "?";
       for (std::uint32_t v : needs) if (!bound[v]) { name = rule.var_names[v]; break; }
       return unexpected(Error{where(program, l.pos) + ": variable " + name +
-                              " is not bound by any positive literal before it (unsafe)"});
+                              " is not bound by any positive literal before it (unsafe" +
+                              (l.kind == Literal::negation ? std::string("; for 'any value' write _ there") : "") + ")"});
     }
     bind_vars(rule.body[*pick], bound);
     order.push_back(*pick);
@@ -256,6 +257,56 @@ Result<std::vector<int>> take_cuts(Program& program) {
     cuts.push_back(cut);
   }
   return cuts;
+}
+
+// Every variable a literal mentions (with repeats).
+void literal_vars(const Literal& l, std::vector<std::uint32_t>& out) {
+  for (const Arg& a : l.args) if (a.is_var) out.push_back(a.index);
+  expr_vars(l.lhs, out);
+  expr_vars(l.rhs, out);
+}
+
+// Step 0: a negation's anonymous variables (`_`, `_Name`) that occur nowhere else in its rule
+// are existential, as in Prolog: `\+ knows(X, _)` holds when X knows no one. (A named variable
+// there stays an error: more often a typo than meant.) The negation becomes
+// `\+ h(X)` with a helper rule `h(X) :- knows(X, _)`, so that the evaluator only ever negates
+// fully bound atoms.
+void add_existential_negations(Program& program, std::vector<int>& cuts) {
+  const std::size_t written = program.rules.size();
+  for (std::size_t r = 0; r < written; ++r) {
+    for (std::size_t i = 0; i < program.rules[r].body.size(); ++i) {
+      Rule& rule = program.rules[r];
+      Literal& neg = rule.body[i];
+      if (neg.kind != Literal::negation) continue;
+      std::vector<std::uint32_t> elsewhere;
+      for (const Arg& a : rule.head_args) if (a.is_var) elsewhere.push_back(a.index);
+      for (std::size_t k = 0; k < rule.body.size(); ++k) if (k != i) literal_vars(rule.body[k], elsewhere);
+      std::vector<Arg> kept;
+      bool existential = false;
+      for (const Arg& a : neg.args) {
+        if (!a.is_var) continue;
+        if (rule.var_names[a.index][0] == '_' &&
+            std::find(elsewhere.begin(), elsewhere.end(), a.index) == elsewhere.end())
+          existential = true;
+        else if (std::find(kept.begin(), kept.end(), a) == kept.end()) kept.push_back(a);
+      }
+      if (!existential) continue;
+      const std::string called = neg.pred == kAnyBinary ? std::string("fact/3") : program.preds[neg.pred].iri;
+      Rule helper;
+      helper.head = add_pred(program, "some " + called + " for " + where(program, neg.pos),
+                             static_cast<std::uint32_t>(kept.size()));
+      helper.head_args = kept;
+      helper.body.push_back(neg);
+      helper.body.back().kind = Literal::atom;
+      helper.vars = rule.vars;
+      helper.var_names = rule.var_names;
+      helper.pos = neg.pos;
+      neg.pred = helper.head;
+      neg.args = kept;
+      program.rules.push_back(std::move(helper));  // invalidates `rule` and `neg`
+      cuts.push_back(-1);
+    }
+  }
 }
 
 struct Demand {
@@ -618,6 +669,7 @@ void collect_reads(Program& program) {
 Result<void> compile_program(Program& program) {
   auto cuts = take_cuts(program);
   if (!cuts) return unexpected(cuts.error());
+  add_existential_negations(program, *cuts);
   auto demands = add_demand_literals(program, *cuts);
   if (!demands) return unexpected(demands.error());
   add_ranking(program, *cuts);

@@ -453,7 +453,7 @@ Value RuleRun<E>::small_eval(const Expr& x) {
       const Value& a = e_.dict.value(ia);
       const Value& b = e_.dict.value(ib);
       if (a.kind == Value::integer && b.kind == Value::integer)
-        return Value{Value::integer, x.kind == Expr::add ? a.i + b.i : a.i - b.i, 0};
+        return integer_arith(x.kind == Expr::add ? ArithOp::add : ArithOp::sub, a.i, b.i);
     }
   }
   return eval(x);
@@ -467,11 +467,9 @@ Value RuleRun<E>::eval(const Expr& x) {
     case Expr::neg: return reasoner::arith(ArithOp::neg, eval(*x.a), {});
     case Expr::add: case Expr::sub: case Expr::mul: {
       Value a = eval(*x.a), b = eval(*x.b);
-      if (a.kind == Value::integer && b.kind == Value::integer) {  // the common case, inline
-        a.i = x.kind == Expr::add ? a.i + b.i : x.kind == Expr::sub ? a.i - b.i : a.i * b.i;
-        return a;
-      }
-      return reasoner::arith(x.kind == Expr::add ? ArithOp::add : x.kind == Expr::sub ? ArithOp::sub : ArithOp::mul, a, b);
+      const ArithOp op = x.kind == Expr::add ? ArithOp::add : x.kind == Expr::sub ? ArithOp::sub : ArithOp::mul;
+      if (a.kind == Value::integer && b.kind == Value::integer) return integer_arith(op, a.i, b.i);  // the common case
+      return reasoner::arith(op, a, b);
     }
     case Expr::div: return reasoner::arith(ArithOp::div, eval(*x.a), eval(*x.b));
   }

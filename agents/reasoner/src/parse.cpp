@@ -16,6 +16,8 @@ std::string where(const Program& program, Pos pos) {
 
 namespace {
 
+constexpr std::size_t kMaxArity = 15;  // the engine's rows hold at most 15 arguments
+
 enum class Tok { var, name, iri, literal, punct, end };
 
 struct Token {
@@ -152,6 +154,9 @@ Result<Token> Lexer::number(Pos start) {
     std::size_t z = 0;
     while (z + 1 < digits.size() && digits[z] == '0') ++z;
     digits.erase(0, z);
+    std::int64_t fits;
+    auto [end, ec] = std::from_chars(digits.data(), digits.data() + digits.size(), fits);
+    if (ec != std::errc()) return error(start, "integer " + digits + " is out of range (at most 9223372036854775807)");
   }
   return Token{Tok::literal, {}, node::Term::literal(digits, std::string(dt)), start};
 }
@@ -448,7 +453,7 @@ Result<Literal> Parser::callable(bool negated) {
     }
     if (auto a = advance(); !a) return unexpected(a.error());
   }
-  if (args.size() > 15) return error(head.pos, head.text + ": at most 15 arguments");
+  if (args.size() > kMaxArity) return error(head.pos, head.text + ": at most " + std::to_string(kMaxArity) + " arguments");
   if (head.kind == Tok::name && !negated) {
     if (head.text == "now" && args.size() == 1) {
       rule_->uses_now = true;
@@ -612,7 +617,10 @@ Result<void> Parser::directive() {
     if (auto a = advance(); !a) return a;
     if (auto c = expect("/", "'/' and the arity after the predicate"); !c) return c;
     if (tok_.kind != Tok::literal || tok_.term.datatype != node::xsd::kInteger) return expected("the arity");
-    std::uint32_t arity = static_cast<std::uint32_t>(std::stoul(tok_.term.value));
+    std::uint32_t arity = 0;
+    auto [end, ec] = std::from_chars(tok_.term.value.data(), tok_.term.value.data() + tok_.term.value.size(), arity);
+    if (ec != std::errc() || arity > kMaxArity)
+      return error(tok_.pos, "arity " + tok_.term.value + " is out of range (at most " + std::to_string(kMaxArity) + ")");
     std::string iri = name.kind == Tok::iri ? name.text : options_.default_ns + name.text;
     program_.preds[pred(iri, arity)].ranked = true;
     if (auto a = advance(); !a) return a;

@@ -72,32 +72,37 @@ std::optional<std::int64_t> parse_datetime(std::string_view s) {
   if (k != s.size()) return std::nullopt;
   std::int64_t secs = days_from_civil(y, static_cast<unsigned>(mo), static_cast<unsigned>(d)) * 86400 +
                       h * 3600 + mi * 60 + se - offset;
-  return secs * 1000000000 + frac;
+  // Outside 1677-09-21..2262-04-11 the ns do not fit: not a time (rather than a wrapped one).
+  std::int64_t ns;
+  if (__builtin_mul_overflow(secs, std::int64_t{1000000000}, &ns) || __builtin_add_overflow(ns, frac, &ns))
+    return std::nullopt;
+  return ns;
 }
 
-Value integer(std::int64_t i) { return {Value::integer, i, 0}; }
-Value real(double d) { return std::isfinite(d) ? Value{Value::real, 0, d} : Value{}; }
+Value time(std::int64_t ns) { return {Value::time, ns, 0}; }
 double as_double(const Value& v) { return v.kind == Value::integer ? static_cast<double>(v.i) : v.d; }
 bool is_number(const Value& v) { return v.kind == Value::integer || v.kind == Value::real; }
 
-// Seconds to ns.
-std::int64_t ns_of(const Value& seconds) {
-  return seconds.kind == Value::integer ? seconds.i * 1000000000
-                                        : static_cast<std::int64_t>(std::llround(seconds.d * 1e9));
+// Seconds to ns; nullopt when they do not fit in an int64 (±292 years).
+std::optional<std::int64_t> ns_of(const Value& seconds) {
+  std::int64_t ns;
+  if (seconds.kind == Value::integer)
+    return __builtin_mul_overflow(seconds.i, std::int64_t{1000000000}, &ns) ? std::nullopt : std::optional(ns);
+  const double x = seconds.d * 1e9;
+  if (!(x > -9.2e18 && x < 9.2e18)) return std::nullopt;  // llround is unspecified beyond
+  return static_cast<std::int64_t>(std::llround(x));
+}
+
+// time ± seconds; none when the result leaves the range of times.
+Value shifted(std::int64_t ns, const Value& seconds, bool add) {
+  auto by = ns_of(seconds);
+  std::int64_t out;
+  if (!by || (add ? __builtin_add_overflow(ns, *by, &out) : __builtin_sub_overflow(ns, *by, &out))) return {};
+  return time(out);
 }
 
 Value numeric(ArithOp op, const Value& a, const Value& b) {
-  if (a.kind == Value::integer && b.kind == Value::integer) {
-    switch (op) {
-      case ArithOp::add: return integer(a.i + b.i);
-      case ArithOp::sub: return integer(a.i - b.i);
-      case ArithOp::mul: return integer(a.i * b.i);
-      case ArithOp::div:
-        if (b.i == 0) return {};
-        return a.i % b.i == 0 ? integer(a.i / b.i) : real(static_cast<double>(a.i) / static_cast<double>(b.i));
-      default: return {};
-    }
-  }
+  if (a.kind == Value::integer && b.kind == Value::integer) return integer_arith(op, a.i, b.i);
   double x = as_double(a), y = as_double(b);
   switch (op) {
     case ArithOp::add: return real(x + y);
@@ -141,16 +146,17 @@ Value value_of(const node::Term& term) {
 
 Value arith(ArithOp op, const Value& a, const Value& b) {
   if (op == ArithOp::neg) {
-    if (a.kind == Value::integer) return integer(-a.i);
+    if (a.kind == Value::integer) return integer_arith(ArithOp::neg, a.i, 0);
     if (a.kind == Value::real) return real(-a.d);
     return {};
   }
   if (is_number(a) && is_number(b)) return numeric(op, a, b);
   if (a.kind == Value::time && is_number(b) && (op == ArithOp::add || op == ArithOp::sub))
-    return {Value::time, op == ArithOp::add ? a.i + ns_of(b) : a.i - ns_of(b), 0};
-  if (is_number(a) && b.kind == Value::time && op == ArithOp::add) return {Value::time, b.i + ns_of(a), 0};
+    return shifted(a.i, b, op == ArithOp::add);
+  if (is_number(a) && b.kind == Value::time && op == ArithOp::add) return shifted(b.i, a, true);
   if (a.kind == Value::time && b.kind == Value::time && op == ArithOp::sub) {
-    std::int64_t ns = a.i - b.i;
+    std::int64_t ns;
+    if (__builtin_sub_overflow(a.i, b.i, &ns)) return {};
     return ns % 1000000000 == 0 ? integer(ns / 1000000000) : real(static_cast<double>(ns) / 1e9);
   }
   return {};

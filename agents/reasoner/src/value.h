@@ -2,6 +2,7 @@
 // to literals. Private to the reasoner.
 #pragma once
 
+#include <cmath>
 #include <cstdint>
 #include <optional>
 
@@ -20,9 +21,29 @@ struct Value {
 Value value_of(const node::Term& term);
 
 // Arithmetic: + - * / on numbers (integers stay integers unless / leaves a remainder), time ±
-// seconds, time - time (seconds). none when undefined (a type mismatch, division by zero).
+// seconds, time - time (seconds). none when undefined: a type mismatch, division by zero, an
+// integer result outside int64, a time outside 1677-09-21..2262-04-11.
 enum class ArithOp { add, sub, mul, div, neg };
 Value arith(ArithOp op, const Value& a, const Value& b);
+
+inline Value integer(std::int64_t i) { return {Value::integer, i, 0}; }
+inline Value real(double d) { return std::isfinite(d) ? Value{Value::real, 0, d} : Value{}; }
+
+// arith on two integers (neg: of a). Inline: the evaluator's common case.
+inline Value integer_arith(ArithOp op, std::int64_t a, std::int64_t b) {
+  std::int64_t out;
+  switch (op) {
+    case ArithOp::add: return __builtin_add_overflow(a, b, &out) ? Value{} : integer(out);
+    case ArithOp::sub: return __builtin_sub_overflow(a, b, &out) ? Value{} : integer(out);
+    case ArithOp::mul: return __builtin_mul_overflow(a, b, &out) ? Value{} : integer(out);
+    case ArithOp::div:
+      if (b == 0) return {};
+      if (b == -1) return __builtin_sub_overflow(std::int64_t{0}, a, &out) ? Value{} : integer(out);
+      return a % b == 0 ? integer(a / b) : real(static_cast<double>(a) / static_cast<double>(b));
+    case ArithOp::neg: return __builtin_sub_overflow(std::int64_t{0}, a, &out) ? Value{} : integer(out);
+  }
+  return {};
+}
 
 // Comparison of two numbers, two times, or a time and a number of seconds since the epoch.
 // nullopt when the values are not comparable. Result: -1, 0, 1.
