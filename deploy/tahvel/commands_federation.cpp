@@ -796,6 +796,10 @@ int run_up(const Args& args) {
     write_state_file(state_file, supervisor);
     std::this_thread::sleep_for(100ms);
   }
+  for (auto& dispatcher : dispatchers) {  // its behaviours first, recorded as stopped
+    auto events = dispatcher.stop_all(std::chrono::seconds(2));
+    if (!events) std::cerr << "up: dispatcher <" << dispatcher.iri() << ">: " << events.error().message << std::endl;
+  }
   supervisor.stop_all();
   write_state_file(state_file, supervisor);
   fs::remove(pid_file, ec);

@@ -141,4 +141,90 @@ TEST_F(DispatcherTest, StopCommandEndsARunningBehaviourAndUnknownNamesAreRefused
   EXPECT_FALSE(holds(n("goAhead"), kNs + "result", n("ok")));
 }
 
+// Each run has one state at a time, and each behaviour one result: its latest run's. (A rule
+// reading result(solveObstacle, R) must not see an old failure beside the new success.)
+TEST_F(DispatcherTest, ARunHasOneStateAndABehaviourOnlyItsLatestResult) {
+  script("flip", "if [ -e \"$0.done\" ]; then echo success; else touch \"$0.done\"; echo fail; fi\n");
+  ta::Supervisor supervisor([](std::string_view) {});
+  auto d = ta::Dispatcher::open(root_ / "node", {.folder = root_ / "behaviours"}, supervisor);
+  ASSERT_TRUE(d.has_value());
+  put({{n("me"), n("behavior"), tn::Term::literal("flip")}}, d->iri());
+  poll_until(*d, [&] { return holds(n("flip"), kNs + "result", n("fail")); });
+  put({{n("me"), n("behavior"), tn::Term::literal("flip")}}, d->iri());
+  poll_until(*d, [&] { return holds(n("flip"), kNs + "result", n("success")); });
+  auto snap = node_->snapshot();
+  auto results = snap->list({.s = n("flip"), .p = tn::Term::iri(kNs + "result")});
+  ASSERT_EQ(results->size(), 1u);
+  EXPECT_EQ(results->at(0).triple.o, n("success"));
+  auto states = snap->list({.p = tn::Term::iri(kTv + "state")});
+  ASSERT_EQ(states->size(), 2u);  // two runs, each "exited" only
+  for (const auto& r : *states) EXPECT_EQ(r.triple.o, tn::Term::literal("exited")) << r.triple.s.value;
+}
+
+// A behaviour's last line longer than the node's literal limit is recorded cut, and the run's
+// end is recorded (it used to fail on every poll and the run stayed "running").
+TEST_F(DispatcherTest, AnOutputLineOverTheLiteralLimitIsRecordedCut) {
+  ASSERT_TRUE(tn::Node::init(root_ / "small", {.iri = kIri, .max_literal_bytes = 1000}).has_value());
+  script("chatty", "head -c 300000 /dev/zero | tr '\\0' x; echo\n");
+  ta::Supervisor supervisor([](std::string_view) {});
+  auto d = ta::Dispatcher::open(root_ / "small", {.folder = root_ / "behaviours"}, supervisor);
+  ASSERT_TRUE(d.has_value());
+  auto small = tn::Node::open(root_ / "small");
+  auto writer = small->agent("sensors");
+  tn::Item item;
+  item.triples = {{n("me"), n("behavior"), tn::Term::literal("chatty")}};
+  item.context = d->iri();
+  ASSERT_TRUE(writer->store(item).has_value());
+  auto ended = [&] {
+    auto snap = small->snapshot();
+    return *snap->count({.p = tn::Term::iri(kTv + "state"), .o = tn::Term::literal("exited")}) == 1;
+  };
+  poll_until(*d, ended);
+  ASSERT_TRUE(ended());
+  auto snap = small->snapshot();
+  auto output = snap->list({.p = tn::Term::iri(kTv + "output")});
+  ASSERT_EQ(output->size(), 1u);
+  const std::string& line = output->at(0).triple.o.value;
+  EXPECT_LE(line.size(), 1000u);
+  EXPECT_EQ(line.substr(0, 10), "xxxxxxxxxx");
+  EXPECT_EQ(line.substr(line.size() - 3), "\u2026");
+}
+
+// `tahvel up` stopping: its behaviours are stopped and recorded so. A dispatcher that died
+// with runs in progress has them recorded "interrupted" when it next opens, not left running.
+TEST_F(DispatcherTest, RunsInProgressAtStopAreRecordedStoppedOrInterrupted) {
+  auto state_of = [&](const std::string& run) {
+    auto snap = node_->snapshot();
+    auto states = snap->list({.s = tn::Term::iri(run), .p = tn::Term::iri(kTv + "state")});
+    std::vector<std::string> out;
+    for (const auto& r : *states) out.push_back(r.triple.o.value);
+    return out;
+  };
+  std::string first, second;
+  {
+    ta::Supervisor supervisor([](std::string_view) {});
+    auto d = ta::Dispatcher::open(root_ / "node", {.folder = root_ / "behaviours"}, supervisor);
+    ASSERT_TRUE(d.has_value());
+    put({{n("me"), n("behavior"), tn::Term::literal("monitorObstacles")}}, d->iri());
+    auto events = poll_until(*d, [&] { return d->running() == 1; });
+    ASSERT_EQ(events.size(), 1u);
+    first = events[0].run;
+    auto stopped = d->stop_all(std::chrono::seconds(2));
+    ASSERT_TRUE(stopped.has_value());
+    EXPECT_EQ(d->running(), 0u);
+    EXPECT_EQ(state_of(first), std::vector<std::string>{"stopped"});
+
+    put({{n("me"), n("behavior"), tn::Term::literal("monitorObstacles")}}, d->iri());
+    events = poll_until(*d, [&] { return d->running() == 1; });
+    ASSERT_EQ(events.size(), 1u);
+    second = events[0].run;
+  }  // the dispatcher and its supervisor gone without stop_all: as when `up` is killed
+  EXPECT_EQ(state_of(second), std::vector<std::string>{"running"});
+  ta::Supervisor supervisor([](std::string_view) {});
+  auto again = ta::Dispatcher::open(root_ / "node", {.folder = root_ / "behaviours"}, supervisor);
+  ASSERT_TRUE(again.has_value());
+  EXPECT_EQ(state_of(second), std::vector<std::string>{"interrupted"});
+  EXPECT_EQ(state_of(first), std::vector<std::string>{"stopped"});
+}
+
 }  // namespace

@@ -5,6 +5,7 @@
 
 #include <unistd.h>
 
+#include <algorithm>
 #include <cctype>
 #include <fstream>
 #include <map>
@@ -36,12 +37,30 @@ bool is_word(const std::string& s) {
   return true;
 }
 
-std::string last_line(const std::filesystem::path& file) {
-  std::ifstream in(file);
-  std::string line, last;
-  while (std::getline(in, line))
-    if (!line.empty()) last = line;
-  return last;
+// The output recorded of a run: its log's last non-empty line, at most `max` bytes (cut at a
+// UTF-8 character boundary, "…" appended). Only the log's tail is read: a behaviour may log
+// for days. A line longer than the store's literal limit would make the end unrecordable.
+constexpr std::size_t kOutputMax = 4096;
+constexpr std::streamoff kTailRead = 64 * 1024;
+
+std::string last_line(const std::filesystem::path& file, std::size_t max) {
+  std::ifstream in(file, std::ios::binary | std::ios::ate);
+  if (!in) return "";
+  const std::streamoff size = in.tellg();
+  const std::streamoff from = size > kTailRead ? size - kTailRead : 0;
+  in.seekg(from);
+  std::string tail(static_cast<std::size_t>(size - from), '\0');
+  in.read(tail.data(), static_cast<std::streamsize>(tail.size()));
+  tail.resize(static_cast<std::size_t>(in.gcount()));
+  while (!tail.empty() && (tail.back() == '\n' || tail.back() == '\r')) tail.pop_back();
+  std::size_t start = tail.rfind('\n');
+  std::string line = tail.substr(start == std::string::npos ? 0 : start + 1);
+  if (line.size() > max) {
+    std::size_t cut = max - std::min<std::size_t>(max, 3);  // room for the 3 bytes of "…"
+    while (cut > 0 && (static_cast<unsigned char>(line[cut]) & 0xC0) == 0x80) --cut;
+    line = line.substr(0, cut) + (max >= 3 ? "\u2026" : "");
+  }
+  return line;
 }
 
 }  // namespace
@@ -58,6 +77,7 @@ struct Dispatcher::Impl {
     bool stop_requested = false;
   };
   std::map<std::string, Run> runs;  // by supervisor program name
+  std::size_t output_max = kOutputMax;  // within the node's literal limit
 
   Impl(node::Node n, node::Agent a, DispatcherOptions o, Supervisor& s)
       : node(std::move(n)), agent(std::move(a)), options(std::move(o)), supervisor(s) {
@@ -65,12 +85,18 @@ struct Dispatcher::Impl {
     if (options.log_dir.empty()) options.log_dir = options.folder.parent_path() / "dispatcher-log";
   }
 
-  Result<void> record(std::vector<node::Triple> triples) {
+  // Stores `triples` as one item, first removing this dispatcher's records matching `replaced`
+  // in the same transaction (a run has one state; a behaviour one latest result).
+  Result<void> record(std::vector<node::Triple> triples, std::vector<node::Pattern> replaced = {}) {
     node::Item item;
     item.triples = std::move(triples);
-    auto id = agent.store(item);
-    if (!id) return unexpected(id.error());
+    for (auto& pattern : replaced) pattern.source = agent.iri();
+    auto ids = agent.replace(replaced, {item});
+    if (!ids) return unexpected(ids.error());
     return {};
+  }
+  node::Pattern state_of(const std::string& run) const {
+    return {.s = node::Term::iri(run), .p = node::Term::iri(kTv + "state")};
   }
   node::Triple t(const std::string& s, const std::string& p, node::Term o) {
     return {node::Term::iri(s), node::Term::iri(p), std::move(o)};
@@ -83,7 +109,31 @@ struct Dispatcher::Impl {
 
   Result<void> command(std::uint64_t item, const std::string& text, std::vector<DispatchEvent>& events);
   Result<void> reap(std::vector<DispatchEvent>& events);
+  Result<std::size_t> close_interrupted_runs();
 };
+
+// Runs recorded as running by an earlier dispatcher on this node: they ended with it (the
+// supervisor that ran them stopped them, or died with them), unseen.
+Result<std::size_t> Dispatcher::Impl::close_interrupted_runs() {
+  std::vector<node::Record> running;
+  {  // the snapshot is released before writing (a held snapshot pins the store)
+    auto snap = node.snapshot();
+    if (!snap) return unexpected(snap.error());
+    auto listed = snap->list({.p = node::Term::iri(kTv + "state"), .o = node::Term::literal("running"),
+                              .source = agent.iri()});
+    if (!listed) return unexpected(listed.error());
+    running = std::move(*listed);
+  }
+  for (const node::Record& r : running) {
+    const std::string& run = r.triple.s.value;
+    if (auto w = record({t(run, kTv + "state", node::Term::literal("interrupted")),
+                         t(run, kTv + "output", node::Term::literal("the dispatcher stopped before this run ended"))},
+                        {state_of(run)});
+        !w)
+      return unexpected(w.error());
+  }
+  return running.size();
+}
 
 Result<void> Dispatcher::Impl::command(std::uint64_t item, const std::string& text,
                                        std::vector<DispatchEvent>& events) {
@@ -129,14 +179,17 @@ Result<void> Dispatcher::Impl::reap(std::vector<DispatchEvent>& events) {
     auto state = supervisor.state(it->first);
     if (state && state->running) { ++it; continue; }
     const Run& r = it->second;
-    std::string output = last_line(r.log);
+    std::string output = last_line(r.log, output_max);
     std::string how = !state ? "gone" : r.stop_requested ? "stopped" : state->exit_status ? "exited" : "killed";
     std::vector<node::Triple> triples = {t(r.iri, kTv + "state", node::Term::literal(how)),
                                          t(r.iri, kTv + "output", node::Term::literal(output))};
+    std::vector<node::Pattern> replaced = {state_of(r.iri)};
     if (state && state->exit_status) triples.push_back(t(r.iri, kTv + "exitStatus", node::Term::integer(*state->exit_status)));
-    if (!output.empty())
+    if (!output.empty()) {
       triples.push_back(t(ns + r.name, ns + "result", is_word(output) ? node::Term::iri(ns + output) : node::Term::literal(output)));
-    if (auto w = record(std::move(triples)); !w) return w;
+      replaced.push_back({.s = node::Term::iri(ns + r.name), .p = node::Term::iri(ns + "result")});
+    }
+    if (auto w = record(std::move(triples), std::move(replaced)); !w) return w;
     events.push_back({DispatchEvent::ended, r.iri, r.command, state ? state->last_exit : how});
     it = runs.erase(it);
   }
@@ -153,6 +206,9 @@ Result<Dispatcher> Dispatcher::open(const std::filesystem::path& dir, Dispatcher
   node::Pattern commands;
   commands.p = node::Term::iri(impl->ns + "behavior");
   if (auto s = impl->agent.subscribe(commands); !s) return unexpected(s.error());
+  if (auto stats = impl->node.stats(); stats)
+    impl->output_max = std::min<std::uint64_t>(kOutputMax, stats->max_literal_bytes);
+  if (auto closed = impl->close_interrupted_runs(); !closed) return unexpected(closed.error());
   return Dispatcher(std::move(impl));
 }
 
@@ -164,6 +220,16 @@ Dispatcher::~Dispatcher() = default;
 const std::string& Dispatcher::iri() const { return impl_->agent.iri(); }
 
 std::size_t Dispatcher::running() const { return impl_->runs.size(); }
+
+Result<std::vector<DispatchEvent>> Dispatcher::stop_all(std::chrono::milliseconds grace) {
+  for (auto& [program, r] : impl_->runs) {
+    r.stop_requested = true;
+    (void)impl_->supervisor.stop(program, grace);
+  }
+  std::vector<DispatchEvent> events;
+  if (auto r = impl_->reap(events); !r) return unexpected(r.error());
+  return events;
+}
 
 Result<std::vector<DispatchEvent>> Dispatcher::poll(std::chrono::milliseconds wait) {
   std::vector<DispatchEvent> events;

@@ -10,10 +10,13 @@
 // starts once, even across restarts of the dispatcher.
 //
 // Written back, per run R = <dispatcher IRI>/run/<id of the command record>:
-//   R tv:command "name args"; R tv:state "running" | "exited" | "killed" | "stopped" | "refused";
-//   R tv:exitStatus N (when it exited); R tv:output "last line of its standard output";
+//   R tv:command "name args";
+//   R tv:state "running", replaced at its end by "exited" | "killed" | "stopped" | "refused",
+//     or "interrupted" (it was running when the dispatcher stopped; written when it next opens);
+//   R tv:exitStatus N (when it exited); R tv:output "last line of its output" (at most 4 KiB);
 //   <ns>name <ns>result <ns>word  — the last output line when it is one lower-case word
-//   (the thesis' result(solveObstacle, fail)), else the line as a string.
+//   (the thesis' result(solveObstacle, fail)), else the line as a string. It replaces the
+//   result of the behaviour's previous run (a rule reads the latest one).
 //
 //   Supervisor sup;
 //   auto d = Dispatcher::open("state/robot3", {.folder = "behaviours"}, sup);
@@ -61,6 +64,10 @@ class Dispatcher {
 
   // Number of behaviours running now.
   std::size_t running() const;
+
+  // Stops every running behaviour (SIGTERM, SIGKILL after `grace`) and records them "stopped":
+  // what `tahvel up` does when it is stopped. Returns their ends.
+  Result<std::vector<DispatchEvent>> stop_all(std::chrono::milliseconds grace);
 
  private:
   struct Impl;
