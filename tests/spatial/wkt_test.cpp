@@ -84,8 +84,14 @@ TEST(Wkt, RefusesMalformedTextNamingTheColumn) {
       {"POINT(1 2", 10, "expected ')', found end of text"},
       {"POLYGON((0 0, 1 0, 0 0))", 9, "at least 4 points"},
       {"POLYGON((0 0, 4 0, 4 4, 0 4))", 9, "not closed"},
-      {"POLYGON((0 0, 4 4, 4 0, 0 4, 0 0))", 9, "not simple"},
-      {"POLYGON((0 0, 1 0, 2 0, 0 0))", 9, "not simple"},
+      // Not simple: the column of the later of the two edges that meet.
+      {"POLYGON((0 0, 4 4, 4 0, 0 4, 0 0))", 20, "the edge from (4 0) to (0 4) meets the edge from (0 0) to (4 4)"},
+      {"POLYGON((0 0, 1 0, 2 0, 0 0))", 20, "the edge from (2 0) to (0 0) meets the edge from (0 0) to (1 0)"},
+      {"POLYGON((0 0, 4 0, 4 4, 2 4, 2 0, 0 4, 0 0))", 25, "the edge from (2 4) to (2 0) meets the edge from (0 0) to (4 0)"},
+      {"POLYGON((0 0, 4 0, 2 0, 2 4, 0 0))", 15, "the edge from (4 0) to (2 0) meets the edge from (0 0) to (4 0)"},
+      {"POLYGON((0 0, 4 0, 4 4, 0 4, 0 0), (0 0, 4 0, 4 4, 0 4, 0 0))", 8, "holes cover all of it"},
+      {"POLYGON((0 0, 4 0, 4 4, 0 4, 0 0), (0 0, 4 0, 4 4, 0 0), (0 0, 4 4, 0 4, 0 0))", 8, "no area"},
+      {"POINT(\u22121 2)", 7, "expected a number, found '\u2212'"},  // a Unicode minus, whole
       {"POLYGON((0 0, 4 0, 4 4, 0 4, 0 0), (5 5, 6 5, 6 6, 5 5))", 36, "outside the outer ring"},
       {"MULTIPOLYGON(((0 0, 1 0, 1 1, 0 0)), ((0 0, 1 0, 1 1, 0 1)))", 39, "not closed"},
       {"<http://x/crs POINT(1 2)", 1, "without '>'"},
@@ -97,6 +103,15 @@ TEST(Wkt, RefusesMalformedTextNamingTheColumn) {
         << c.text << ": " << e.message;
     EXPECT_NE(e.message.find(c.says), std::string::npos) << c.text << ": " << e.message;
   }
+}
+
+// Exporters (QGIS, some CAD tools) repeat a vertex; OGC allows it. It is kept once.
+TEST(Wkt, AVertexRepeatedAtOnceIsKeptOnce) {
+  auto s = parse_shape("POLYGON((0 0, 4 0, 4 0, 4 4, 0 4, 0 4, 0 0, 0 0))");
+  ASSERT_TRUE(s.has_value()) << s.error().message;
+  EXPECT_EQ(s->polygons[0].outer, (Ring{{0, 0}, {4, 0}, {4, 4}, {0, 4}}));
+  Error e = error_of("POLYGON((0 0, 0 0, 1 1, 1 1, 0 0))");  // still too few distinct vertices
+  EXPECT_NE(e.message.find("at least 3 distinct vertices, found 2"), std::string::npos) << e.message;
 }
 
 TEST(Wkt, ParsePointAndParseShapeRefuseTheOtherKind) {

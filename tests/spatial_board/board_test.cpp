@@ -243,6 +243,11 @@ TEST_F(BoardTest, LooksLikeWkt) {
   EXPECT_FALSE(looks_like_wkt("http://example.org/home1/room/bedroom"));
   EXPECT_FALSE(looks_like_wkt("ex:bedroom"));
   EXPECT_FALSE(looks_like_wkt("<http://example.org/home1/room/bedroom>"));
+  // A relative IRI is refused as one ("not an IRI or CURIE"), not read as WKT of type KITCHEN.
+  EXPECT_FALSE(looks_like_wkt("kitchen"));
+  EXPECT_FALSE(looks_like_wkt("room/kitchen"));
+  EXPECT_TRUE(looks_like_wkt("MultiPolygon(((0 0, 1 0, 1 1, 0 0)))"));
+  EXPECT_TRUE(looks_like_wkt("LINESTRING(0 0, 1 1)"));  // WKT, refused by the parser as a type
 }
 
 // The test: moving a sensor from one room to another changes which area subscription

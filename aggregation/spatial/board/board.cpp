@@ -146,7 +146,15 @@ bool looks_like_wkt(std::string_view text) {
   }
   std::size_t start = i;
   while (i < text.size() && std::isalpha(static_cast<unsigned char>(text[i]))) ++i;
-  return i > start && (i == text.size() || text[i] != ':');
+  if (i == start || (i < text.size() && text[i] == ':')) return false;
+  // Only an OGC geometry type starts WKT: "kitchen" is a (relative, so refused) IRI, not WKT.
+  std::string word(text.substr(start, i - start));
+  for (char& c : word) c = static_cast<char>(std::toupper(static_cast<unsigned char>(c)));
+  static const std::set<std::string> kTypes = {
+      "POINT", "LINESTRING", "POLYGON", "MULTIPOINT", "MULTILINESTRING", "MULTIPOLYGON",
+      "GEOMETRYCOLLECTION", "TRIANGLE", "TIN", "POLYHEDRALSURFACE", "CIRCULARSTRING",
+      "COMPOUNDCURVE", "CURVEPOLYGON", "MULTICURVE", "MULTISURFACE"};
+  return kTypes.count(word) > 0;
 }
 
 Result<Area> resolve_area(const BoardPlan& board, const AreaSpec& spec) {

@@ -2,6 +2,7 @@
 // doubles; nothing here constructs new coordinates, so nothing is rounded). Workload: a shape is
 // prepared once and tested against many points (Plan), or tested once (locate()).
 #include <algorithm>
+#include <cmath>
 #include <string>
 
 #include <CGAL/Polygon_2_algorithms.h>
@@ -47,15 +48,51 @@ std::string coordinates(Point p) {
 
 }  // namespace
 
-std::optional<std::string> ring_problem(const Ring& ring) {
+namespace {
+
+// The first two edges (i < j; edge k runs from vertex k to k + 1) that meet other than at the
+// vertex adjacent edges share: crossing, touching, or folding back along each other.
+std::optional<std::pair<std::size_t, std::size_t>> meeting_edges(const std::vector<CgalPoint>& v) {
+  const std::size_t n = v.size();
+  for (std::size_t j = 1; j < n; ++j) {
+    const Kernel::Segment_2 later(v[j], v[(j + 1) % n]);
+    for (std::size_t i = 0; i < j; ++i) {
+      const CgalPoint& a = v[i];
+      const CgalPoint& b = v[(i + 1) % n];
+      const bool follows = i + 1 == j, wraps = i == 0 && j == n - 1;
+      if (follows || wraps) {
+        // Adjacent: sharing their common vertex is fine; overlapping beyond it is not.
+        const CgalPoint& shared = follows ? b : a;
+        const CgalPoint& mine = follows ? a : b;
+        const CgalPoint& theirs = follows ? v[(j + 1) % n] : v[j];
+        if (CGAL::collinear(mine, shared, theirs) && !CGAL::collinear_are_strictly_ordered_along_line(mine, shared, theirs))
+          return std::pair{i, j};
+      } else if (CGAL::do_intersect(Kernel::Segment_2(a, b), later)) {
+        return std::pair{i, j};
+      }
+    }
+  }
+  return std::nullopt;
+}
+
+}  // namespace
+
+std::optional<RingProblem> ring_problem(const Ring& ring) {
   if (ring.size() < 3) {
-    return "a ring needs at least 3 distinct vertices, found " + std::to_string(ring.size());
+    return RingProblem{"a ring needs at least 3 distinct vertices, found " + std::to_string(ring.size()), 0};
   }
   std::vector<CgalPoint> points = to_cgal(ring);
   // is_simple_2 also refuses a repeated vertex and a ring whose vertices are all collinear
   // (its edges overlap), so a simple ring encloses a non-zero area.
   if (!CGAL::is_simple_2(points.begin(), points.end(), Kernel())) {
-    return std::string("ring is not simple (an edge touches or crosses another, or a vertex repeats)");
+    auto edge = [&](std::size_t k) {
+      return "the edge from " + coordinates(ring[k]) + " to " + coordinates(ring[(k + 1) % ring.size()]);
+    };
+    if (auto meet = meeting_edges(points)) {
+      return RingProblem{"ring is not simple: " + edge(meet->second) + " meets " + edge(meet->first) + " (crossing, touching or overlapping it)",
+                         meet->second};
+    }
+    return RingProblem{"ring is not simple (an edge touches or crosses another, or a vertex repeats)", 0};
   }
   return std::nullopt;
 }
@@ -94,6 +131,21 @@ std::optional<std::string> hole_problem(const Ring& outer, const Ring& hole) {
       }
     }
   }
+  return std::nullopt;
+}
+
+std::optional<std::string> area_problem(const Polygon& polygon) {
+  if (polygon.holes.empty()) return std::nullopt;
+  auto area = [](const Ring& ring) {
+    std::vector<CgalPoint> points = to_cgal(ring);
+    return std::abs(CGAL::to_double(CGAL::polygon_area_2(points.begin(), points.end(), Kernel())));
+  };
+  const double outer = area(polygon.outer);
+  double holes = 0;
+  for (const Ring& hole : polygon.holes) holes += area(hole);
+  // Holes within the outer ring that do not overlap (as OGC requires) leave outer - holes;
+  // a relative margin for the rounding of the two sums.
+  if (outer - holes <= outer * 1e-9) return "its holes cover all of it: it encloses no area";
   return std::nullopt;
 }
 
@@ -163,15 +215,16 @@ Result<void> validate(const Shape& shape) {
     const Polygon& polygon = shape.polygons[i];
     std::string where = "polygon " + std::to_string(i + 1);
     if (auto problem = detail::ring_problem(polygon.outer)) {
-      return fail(where + ", outer ring: " + *problem);
+      return fail(where + ", outer ring: " + problem->message);
     }
     for (std::size_t h = 0; h < polygon.holes.size(); ++h) {
       std::string hole = where + ", hole " + std::to_string(h + 1) + ": ";
-      if (auto problem = detail::ring_problem(polygon.holes[h])) return fail(hole + *problem);
+      if (auto problem = detail::ring_problem(polygon.holes[h])) return fail(hole + problem->message);
       if (auto problem = detail::hole_problem(polygon.outer, polygon.holes[h])) {
         return fail(hole + *problem);
       }
     }
+    if (auto problem = detail::area_problem(polygon)) return fail(where + ": " + *problem);
   }
   return {};
 }

@@ -66,7 +66,11 @@ class Parser {
       while (end < text_.size() && is_alpha(text_[end])) ++end;
       return "'" + std::string(text_.substr(pos_, end - pos_)) + "'";
     }
-    return "'" + std::string(1, text_[pos_]) + "'";
+    // A whole UTF-8 character (a Unicode minus, a non-breaking space), not its first byte.
+    std::size_t end = pos_ + 1;
+    while (end < text_.size() && (static_cast<unsigned char>(text_[end]) & 0xC0) == 0x80) ++end;
+    if (static_cast<unsigned char>(text_[pos_]) < 0x80) end = pos_ + 1;
+    return "'" + std::string(text_.substr(pos_, end - pos_)) + "'";
   }
 
   void skip_space() {
@@ -189,26 +193,38 @@ class Parser {
     std::size_t at = pos_;
     if (auto open = expect('('); !open) return unexpected(open.error());
     Ring ring;
+    std::vector<std::size_t> columns;  // of each vertex, for errors
+    std::size_t read = 0;
     do {
+      skip_space();
+      std::size_t point_at = pos_;
       auto point = coordinates();
       if (!point) return unexpected(point.error());
+      ++read;
+      // A vertex repeated at once adds nothing (OGC allows it; exporters write it): kept once.
+      if (!ring.empty() && ring.back() == *point) continue;
       ring.push_back(*point);
+      columns.push_back(point_at);
     } while (accept(','));
     if (auto close = expect(')'); !close) return unexpected(close.error());
-    if (ring.size() < 4) {
+    if (read < 4) {
       return error(at, "a ring needs at least 4 points (3 vertices and the closing one), found " +
-                           std::to_string(ring.size()));
+                           std::to_string(read));
     }
     if (!(ring.front() == ring.back())) {
       return error(at, "ring is not closed (its last point differs from its first)");
     }
-    ring.pop_back();
-    if (auto problem = detail::ring_problem(ring)) return error(at, *problem);
+    if (ring.size() > 1) ring.pop_back();
+    if (auto problem = detail::ring_problem(ring)) {
+      return error(problem->vertex == 0 ? at : columns[problem->vertex], problem->message);
+    }
     return ring;
   }
 
   // "((outer), (hole), ...)".
   Result<Polygon> polygon_text() {
+    skip_space();
+    const std::size_t polygon_at = pos_;
     if (auto open = expect('('); !open) return unexpected(open.error());
     Polygon polygon;
     auto outer = ring();
@@ -223,6 +239,7 @@ class Parser {
       polygon.holes.push_back(std::move(*hole));
     }
     if (auto close = expect(')'); !close) return unexpected(close.error());
+    if (auto problem = detail::area_problem(polygon)) return error(polygon_at, "polygon: " + *problem);
     return polygon;
   }
 

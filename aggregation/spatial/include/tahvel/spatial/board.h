@@ -53,7 +53,8 @@ Result<BoardPlan> load_plan(const node::Snapshot& snapshot);
 node::Item located_feature_item(const std::string& feature_iri, const std::string& wkt, int floor);
 
 // True when `text` reads as WKT rather than as an IRI or CURIE: after spaces and an optional
-// "<crs>", a word of letters not followed by ':' ("POLYGON((...", "point (1 2)").
+// "<crs>", an OGC geometry type in any case, not followed by ':' ("POLYGON((...", "point (1 2)";
+// not "kitchen", "ex:kitchen" or "<http://…/kitchen>").
 bool looks_like_wkt(std::string_view text);
 
 // What an area names: a room on the board (kept by IRI, so that redrawing the room moves the

@@ -29,9 +29,10 @@ struct Point {
 };
 
 // A ring's vertices in order, without repeating the first at the end (WKT repeats it; the
-// parser drops it). A valid ring has at least 3 vertices, is simple (no edge touches or crosses
-// another except consecutive edges at their shared vertex) and encloses a non-zero area. Either
-// orientation.
+// parser drops it, and keeps a vertex repeated at once only once). A valid ring has at least 3
+// vertices, is simple (no edge touches or crosses another except consecutive edges at their
+// shared vertex) and encloses a non-zero area. Either orientation. A polygon's holes must leave
+// some of its area.
 using Ring = std::vector<Point>;
 
 struct Polygon {
@@ -59,7 +60,7 @@ struct Box {
 Box bounding_box(const Shape& shape);
 
 // Checks the rules stated above for every ring of every polygon. The error names the polygon
-// and ring ("polygon 2, hole 1: ring is not simple (an edge touches or crosses another)").
+// and ring ("polygon 2, hole 1: ring is not simple: the edge from (2 1) to (1 2) meets …").
 // Shapes from parse_wkt() are already valid.
 Result<void> validate(const Shape& shape);
 

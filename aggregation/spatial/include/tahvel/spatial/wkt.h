@@ -12,7 +12,8 @@
 // coordinate ("POINT Z", or a third number: floors are tv:floor, not a coordinate), NaN or
 // infinite numbers, a ring that is not closed (first point != last), has fewer than 3 distinct
 // vertices, is not simple or encloses no area, a hole with a vertex outside its outer ring
-// (or an outer vertex inside it, or an edge crossing it), and anything after the geometry.
+// (or an outer vertex inside it, or an edge crossing it), holes covering the whole polygon, and
+// anything after the geometry. A vertex repeated at once is kept once.
 // Not checked: holes overlapping each other, polygons of a multipolygon overlapping (the
 // area is then still well defined: the union of the polygons, each minus its open holes).
 #pragma once
