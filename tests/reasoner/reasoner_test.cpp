@@ -217,6 +217,38 @@ TEST_F(ReasonerTest, TheFirstSessionReportsTheEarlierRunsConclusionsItRemoves) {
   EXPECT_EQ(board(), (std::map<std::string, int>{{nt("a", "anc", "b"), 1}}));
 }
 
+// On a ring store the ring may reclaim the reasoner's own conclusions. One that still holds is
+// written again at the next session (the board had lost it until the reasoner restarted).
+TEST_F(ReasonerTest, AConclusionTheRingReclaimedIsWrittenAgainWhileItHolds) {
+  auto ring = tn::Node::init(root_ / "ring", {.iri = kIri, .ring = 40});
+  ASSERT_TRUE(ring.has_value()) << ring.error().message;
+  auto writer = ring->agent("init");
+  tn::Item premises;
+  premises.persistent = true;  // the ring takes only non-persistent records
+  premises.triples = {t("a", "parent", "b"), t("b", "parent", "c")};
+  ASSERT_TRUE(writer->store(premises).has_value());
+  tr::ReasonerOptions o;
+  o.rules = rules("anc.rules", "anc(X, Y) :- parent(X, Y).\nanc(X, Z) :- parent(X, Y), anc(Y, Z).\n");
+  auto r = tr::Reasoner::open(root_ / "ring", o);
+  ASSERT_TRUE(r.has_value()) << r.error().message;
+  ASSERT_EQ(r->session().value().added.size(), 3u);
+  auto anc = [&] {
+    auto snap = ring->snapshot();
+    return *snap->count({.p = n("anc"), .source = kIri + "/reasoner"});
+  };
+  ASSERT_EQ(anc(), 3u);
+  for (int i = 0; i < 60; ++i) {  // readings push the oldest non-persistent records out
+    tn::Item reading;
+    reading.add(n("sensor"), n("value"), tn::Term::integer(i));
+    ASSERT_TRUE(writer->store(reading).has_value());
+  }
+  ASSERT_EQ(anc(), 0u) << "the ring did not reclaim the conclusions: the test proves nothing";
+  auto s = r->session();
+  ASSERT_TRUE(s.has_value()) << s.error().message;
+  EXPECT_EQ(anc(), 3u);
+  EXPECT_TRUE(s->removed.empty());
+}
+
 // A directory opens as an empty stream; read as a rule file without rules it retracted every
 // conclusion of the agent.
 TEST_F(ReasonerTest, ADirectoryIsNotARuleFile) {

@@ -91,7 +91,8 @@ struct Reasoner::Impl {
                             std::vector<node::Triple>& out, bool& gap);
   Result<Engine::Update> first_session(const node::Snapshot& snap, std::int64_t now, SessionReport& report,
                                        std::vector<node::Triple>& extra_removals);
-  Result<Engine::Update> resync(const node::Snapshot& snap, std::int64_t now, SessionReport& report);
+  Result<Engine::Update> resync(const node::Snapshot& snap, std::int64_t now, SessionReport& report,
+                                std::vector<node::Triple>& extra_removals);
   Result<void> write(const Engine::Update& update, const std::vector<node::Triple>& extra_removals, std::int64_t now);
   Result<SessionReport> session();
 };
@@ -177,11 +178,17 @@ Result<Engine::Update> Reasoner::Impl::first_session(const node::Snapshot& snap,
   return u;
 }
 
-Result<Engine::Update> Reasoner::Impl::resync(const node::Snapshot& snap, std::int64_t now, SessionReport& report) {
+// From scratch, after a gap or a reclaim: the conclusions that changed, and also the board
+// checked against them, since a ring or TTL may have reclaimed this reasoner's own records (a
+// conclusion that still holds is written again) or left part of an n-ary one.
+Result<Engine::Update> Reasoner::Impl::resync(const node::Snapshot& snap, std::int64_t now, SessionReport& report,
+                                              std::vector<node::Triple>& extra_removals) {
   const auto read_start = Clock::now();
   std::vector<node::Triple> base;
+  std::map<std::string, node::Triple> mine;
   auto walked = snap.for_each({}, [&](const node::Record& r) {
-    if (!own(r) && r.triple.p.is_iri() && engine.relevant(r.triple.p.value)) base.push_back(r.triple);
+    if (own(r)) mine.emplace(key_of(r.triple), r.triple);
+    else if (r.triple.p.is_iri() && engine.relevant(r.triple.p.value)) base.push_back(r.triple);
     return true;
   });
   if (!walked) return unexpected(node_error(walked.error()));
@@ -196,6 +203,16 @@ Result<Engine::Update> Reasoner::Impl::resync(const node::Snapshot& snap, std::i
   Engine::Update u;
   std::set_difference(after.begin(), after.end(), before.begin(), before.end(), std::back_inserter(u.added));
   std::set_difference(before.begin(), before.end(), after.begin(), after.end(), std::back_inserter(u.removed));
+  const std::size_t changed = u.added.size();
+  for (const Atom& a : after) {
+    bool all_there = true;
+    for (const node::Triple& t : stored(a)) all_there &= mine.erase(key_of(t)) > 0;
+    if (!all_there && !std::binary_search(u.added.begin(), u.added.begin() + static_cast<long>(changed), a))
+      u.added.push_back(a);  // reclaimed from the board: written again
+  }
+  for (const Atom& a : u.removed)
+    for (const node::Triple& t : stored(a)) mine.erase(key_of(t));
+  for (auto& [k, t] : mine) extra_removals.push_back(t);
   return u;
 }
 
@@ -269,7 +286,7 @@ Result<SessionReport> Reasoner::Impl::session() {
     if (auto r = read_changes(*snap, in, out, gap); !r) return unexpected(r.error());
     report.read_ms = ms_since(t1);
     if (gap || stats->reclaimed_records != reclaimed) {
-      auto u = resync(*snap, now, report);
+      auto u = resync(*snap, now, report, extra_removals);
       if (!u) return unexpected(u.error());
       compose(update, std::move(*u));
     } else {
