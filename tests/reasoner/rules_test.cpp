@@ -131,6 +131,8 @@ TEST(Rules, ParseErrorsNameFileLineAndColumn) {
       {"p(X, 1) :- q(X, Y), Y > 99999999999999999999.\n", "bad.rules:1:25:"},  // beyond int64
       {":- ranked(p/99999999999999999999).\n", "bad.rules:1:13:"},           // arity out of range
       {":- ranked(p/16).\n", "bad.rules:1:13:"},
+      {"p(X, \"\\u12\") :- q(X, Y).\n", "bad.rules:1:9:"},        // \u needs 4 hex digits
+      {"p(X, \"\\uD800\") :- q(X, Y).\n", "bad.rules:1:9:"},      // a surrogate
       {"ok(a, b).\nq(X) :- \\+ r(X), s(X, Y), Y < .\n", "bad.rules:2:"},
       {"p(X, Y) :- q(X, Y), \\+ p(Y, X).\n", "bad.rules:1:24:"},  // not stratified
       {"p(X, Y) :- foo:bar(X, Y).\n", "bad.rules:1:12:"},      // unknown prefix
@@ -158,6 +160,20 @@ TEST(Rules, PrefixesIrisHashNamesLiteralsAndMe) {
   ASSERT_EQ(u.added.size(), 1u);
   EXPECT_EQ(u.added[0].predicate, "http://ex.org/p");
   EXPECT_EQ(u.added[0].args[1], tn::Term::lang_literal("a b", "en"));
+}
+
+// Rule files are UTF-8: non-ASCII names (IRIs are Unicode) and Turtle's \u and \U escapes.
+TEST(Rules, NonAsciiNamesAndUnicodeEscapes) {
+  auto program = parse(
+      "@prefix ex: <http://ex.org/> .\n"
+      "väri(X, \"caf\\u00e9 \\U0001F600\") :- ex:lämpötila(X, V), V > 20.\n");
+  ASSERT_TRUE(program);
+  tr::Engine engine(program);
+  std::vector<tn::Triple> in = {{n("a"), tn::Term::iri("http://ex.org/lämpötila"), tn::Term::integer(25)}};
+  auto u = engine.apply(in, {}, 0);
+  ASSERT_EQ(u.added.size(), 1u);
+  EXPECT_EQ(u.added[0].predicate, kNs + "väri");
+  EXPECT_EQ(u.added[0].args[1], tn::Term::literal("caf\u00e9 \U0001F600"));
 }
 
 TEST(Rules, ArithmeticTimesAndNow) {
