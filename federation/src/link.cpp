@@ -155,8 +155,39 @@ struct Link::Impl {
   std::condition_variable changed;
   LinkCounters counters;
 
+  // This node's store id (P6a): it names the streams of this store's items at the peers.
+  std::string store_id;  // under mu
+  std::optional<node::Node> own;  // this node's store, for its id and last seq; under own_mu
+  std::mutex own_mu;  // a Node is used by one thread at a time; the receive loops both use it
+
+  std::string current_store_id() {
+    std::lock_guard lock(mu);
+    return store_id;
+  }
+  // The highest seq this store has issued (its item ids are below it); max on error, so that
+  // nothing looks restored when the store cannot be read.
+  std::uint64_t last_seq_here() {
+    std::lock_guard own_lock(own_mu);
+    auto stats = own->stats();
+    return stats ? stats->last_seq : ~0ull;
+  }
+  // P6a: a peer has applied more of this store's stream than the store has issued, so this
+  // store was restored from a backup (its ids go back in time). It takes a new id, so that its
+  // streams start again at the peers, and every peer registers again to learn it.
+  void renew_store_id(const std::string& why) {
+    std::lock_guard own_lock(own_mu);
+    auto id = own->renew_store_id();
+    std::lock_guard lock(mu);
+    if (!id) return log("cannot renew the store id (" + why + "): " + id.error().message);
+    log("this store takes a new id " + *id + " (was " + store_id + "): " + why);
+    store_id = *id;
+    welcomed = false;  // says hello again, with the new id
+    for (auto& [iri, child] : children) child->connected = false;  // they say hello again
+  }
+
   // Child role (P5-P8).
   bool welcomed = false;
+  std::string parent_store_id;  // from the welcome: names the down stream (P6a); under mu
   std::uint64_t up_mark = 0;       // the parent's mark of our stream: applied there
   std::uint64_t up_last_sent = 0;  // the seq of the last up frame sent
   std::deque<std::uint64_t> up_in_flight;
@@ -168,6 +199,7 @@ struct Link::Impl {
   // Parent role (P10-P12).
   struct Child {
     std::string id, iri;
+    std::string store_id;  // from its hello: names its up stream (P6a); under mu
     bool connected = false;
     bool ever = false;
     Clock::time_point last_seen{};
@@ -186,6 +218,15 @@ struct Link::Impl {
     std::int64_t state_written_ns = 0;
   };
   std::map<std::string, std::shared_ptr<Child>> children;  // by IRI
+
+  // Stream names (P6a): a child's items by its IRI and store id; what comes down by the parent's
+  // store id. Without an id (a peer from before store ids): the names used then.
+  static std::string up_stream(const std::string& child_iri, const std::string& child_store) {
+    return child_store.empty() ? child_iri : child_iri + "#" + child_store;
+  }
+  std::string down_stream() const {  // under mu
+    return parent_store_id.empty() ? std::string(kDownStream) : std::string(kDownStream) + "#" + parent_store_id;
+  }
 
   // Queries (P13-P16).
   // What the answerer still has to read for a query answered on this node (P14).
@@ -546,6 +587,16 @@ struct Link::Impl {
       auto it = children.find(head.from);
       if (it != children.end() && it->second->connected) child = it->second;
     }
+    bool unwelcomed = false;
+    if (!up) {
+      std::lock_guard lock(mu);
+      unwelcomed = !welcomed;
+    }
+    if (unwelcomed && from_parent(head)) {
+      // P6a: until the welcome names the parent's store, it is not known which stream these
+      // continue; the parent sends them again after the welcome (as if they were lost).
+      return;
+    }
     if (up ? !child : !from_parent(head)) {
       {
         std::lock_guard lock(mu);
@@ -574,7 +625,11 @@ struct Link::Impl {
     }
     node::Agent* relayer = agent(up ? child->id : std::string(kUplinkAgent));
     if (!relayer) return;
-    std::string stream = up ? child->iri : std::string(kDownStream);
+    std::string stream;
+    {
+      std::lock_guard lock(mu);
+      stream = up ? up_stream(child->iri, child->store_id) : down_stream();
+    }
     HeldFrames& buffer = held[stream];
     if (!buffer.mark) {
       auto mark = relayer->relay_mark(stream);
@@ -677,10 +732,22 @@ struct Link::Impl {
         auto state = wire::decode_state(f.body);
         node::Agent* link = agent(child->id);
         if (!link) return;
-        auto mark = link->relay_mark(child->iri);
+        const std::string child_store = state ? state->store_id : std::string();
+        auto mark = link->relay_mark(up_stream(child->iri, child_store));
         if (!mark) {
           log("cannot read the mark of <" + child->iri + ">: " + mark.error().message);
           return;
+        }
+        // P6a: the child's down mark counts in this store's ids only if it names this store.
+        std::uint64_t down_from = f.ack;
+        if (f.ack != 0 && (!state || state->peer_store_id != store_id)) {
+          log("child <" + child->iri + ">: its down mark " + std::to_string(f.ack) +
+              " is for another store of this node; its queue is sent from the start");
+          down_from = 0;
+        } else if (f.ack != 0 && f.ack > last_seq_here()) {
+          renew_store_id("child <" + child->iri + "> has applied up to " + std::to_string(f.ack) +
+                         " of this store, which has issued less");
+          down_from = 0;
         }
         // P11: its down queue also takes whole-subtree items (idempotent; configured children
         // were subscribed at start).
@@ -689,6 +756,10 @@ struct Link::Impl {
         if (auto sub = link->subscribe(subtree); !sub) log("cannot subscribe <" + child->iri + "> to subtree items: " + sub.error().message);
         {
           std::lock_guard lock(mu);
+          if (child->store_id != child_store && !child->store_id.empty())
+            log("child <" + child->iri + "> has another store (id " + child_store + ", was " + child->store_id +
+                "): its items are a new stream, from its start");
+          child->store_id = child_store;
           bool was = child->connected;
           child->connected = child->ever = true;
           child->last_seen = Clock::now();
@@ -697,7 +768,7 @@ struct Link::Impl {
             child->version = state->software_version;
             child->outbox_depth = state->outbox_depth;
           }
-          child->down_mark = child->down_last_sent = f.ack;  // P6: resume down from the child's mark
+          child->down_mark = child->down_last_sent = down_from;  // P6: resume down from the child's mark
           child->down_in_flight.clear();
           child->down_progress = Clock::now();
           child->state_dirty = true;
@@ -711,6 +782,7 @@ struct Link::Impl {
         welcome.kind = FrameKind::welcome;
         welcome.to = child->iri;
         welcome.ack = *mark;
+        welcome.body = wire::encode_state({opt.software_version, 0, current_store_id(), ""});
         send(via, std::move(welcome));
         std::lock_guard lock(mu);
         nudge_pump(*child);  // after the welcome: down frames follow it
@@ -772,8 +844,23 @@ struct Link::Impl {
   void from_parent_frame(Transport* via, const Frame& f, AgentFn&) {
     switch (f.kind) {
       case FrameKind::welcome: {
+        auto state = wire::decode_state(f.body);
+        // P6a: a parent that has applied more of this store's stream than the store has issued
+        // knows a store that was here before (this one was restored from a backup): this store
+        // takes a new id, and says hello with it.
+        if (f.ack > last_seq_here()) {
+          renew_store_id("the parent <" + opt.parent_iri + "> has applied up to " + std::to_string(f.ack) +
+                         " of this store, which has issued less");
+          return;
+        }
         std::lock_guard lock(mu);
         if (!welcomed) log("registered with the parent <" + opt.parent_iri + ">");
+        if (state && state->store_id != parent_store_id) {
+          if (!parent_store_id.empty())
+            log("the parent <" + opt.parent_iri + "> has another store (id " + state->store_id + ", was " +
+                parent_store_id + "): what comes down is a new stream, from its start");
+          parent_store_id = state->store_id;
+        }
         welcomed = true;
         up_mark = f.ack;
         up_last_sent = f.ack;
@@ -1596,15 +1683,23 @@ struct Link::Impl {
       send_all(resends);
       if (beat && opt.up) {
         auto depth = uplink->pending();
-        auto down_mark = uplink->relay_mark(kDownStream);
         Frame f;
         f.to = opt.parent_iri;
+        std::string stream, parent_store;
         {
           std::lock_guard lock(mu);
           f.kind = welcomed ? FrameKind::heartbeat : FrameKind::hello;
+          stream = down_stream();
+          parent_store = parent_store_id;
         }
-        if (f.kind == FrameKind::hello) f.ack = down_mark ? *down_mark : 0;
-        f.body = wire::encode_state({opt.software_version, depth ? *depth : 0});
+        wire::StateBody state{opt.software_version, depth ? *depth : 0, "", ""};
+        if (f.kind == FrameKind::hello) {
+          auto down_mark = uplink->relay_mark(stream);
+          f.ack = down_mark ? *down_mark : 0;
+          state.store_id = current_store_id();
+          state.peer_store_id = parent_store;
+        }
+        f.body = wire::encode_state(state);
         send(opt.up.get(), std::move(f));
       }
       std::vector<std::pair<const BoardWrite*, std::uint64_t>> written;
@@ -1889,6 +1984,12 @@ Result<std::unique_ptr<Link>> Link::start(LinkOptions options) {
   }
   auto impl = std::make_unique<Impl>();
   impl->self = node->iri();
+  auto store_id = node->store_id();
+  if (!store_id) return Unexpected<Error>{store_id.error()};
+  impl->store_id = *store_id;
+  auto own = node::Node::open(options.dir);
+  if (!own) return Unexpected<Error>{own.error()};
+  impl->own.emplace(std::move(*own));
   if (options.up) {
     auto uplink = node->agent(kUplinkAgent);
     if (!uplink) return Unexpected<Error>{uplink.error()};

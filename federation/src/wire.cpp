@@ -93,6 +93,7 @@ class In {
   }
 
   bool ok() const { return !error_; }
+  bool at_end() const { return pos_ == bytes_.size(); }
   template <class T>
   Result<T> finish(T value) {
     if (!error_ && pos_ != bytes_.size())
@@ -229,7 +230,12 @@ Result<ErrorBody> decode_error(std::string_view bytes) {
 }
 
 std::string encode_state(const StateBody& body) {
-  return Out().str(body.software_version).u64(body.outbox_depth).take();
+  Out out;
+  out.str(body.software_version).u64(body.outbox_depth);
+  // The store ids follow only when there are any: a body without them is what a link from
+  // before store ids sends, and reads the same.
+  if (!body.store_id.empty() || !body.peer_store_id.empty()) out.str(body.store_id).str(body.peer_store_id);
+  return out.take();
 }
 
 Result<StateBody> decode_state(std::string_view bytes) {
@@ -237,6 +243,10 @@ Result<StateBody> decode_state(std::string_view bytes) {
   StateBody body;
   body.software_version = in.str("software_version");
   body.outbox_depth = in.u64("outbox_depth");
+  if (in.ok() && !in.at_end()) {
+    body.store_id = in.str("store_id");
+    body.peer_store_id = in.str("peer_store_id");
+  }
   return in.finish(std::move(body));
 }
 

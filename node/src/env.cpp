@@ -7,7 +7,9 @@
 
 #include <unistd.h>
 
+#include <cstdio>
 #include <map>
+#include <random>
 #include <utility>
 
 #include "codec.h"
@@ -46,6 +48,13 @@ std::uint64_t bytes_u64(std::string_view s) {
 }
 
 }  // namespace
+
+std::string new_store_id() {
+  std::random_device random;  // the kernel's entropy (getrandom)
+  char out[33];
+  std::snprintf(out, sizeof out, "%08x%08x%08x%08x", random(), random(), random(), random());
+  return out;
+}
 
 Error lmdb_error(int rc, std::string_view what) {
   Errc code = Errc::io;
@@ -218,6 +227,9 @@ Result<std::shared_ptr<Env>> Env::open(const std::filesystem::path& dir_in, cons
       return fail(Errc::corrupt, dir.string() + ": store settings incomplete");
     env->settings_ = Settings{*iri, *durability == "durable" ? Durability::durable : Durability::fast,
                               bytes_u64(*ring), bytes_u64(*max_literal), bytes_u64(*max_map)};
+    // A store made before store ids existed gets one at its first open.
+    if (!get_meta(txn, env->meta, kStoreIdKey))
+      if (auto r = put_meta(txn, env->meta, kStoreIdKey, new_store_id()); !r) return r;
     return {};
   };
   if (auto r = body(); !r) {

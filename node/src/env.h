@@ -48,6 +48,11 @@ struct Counters {
 };
 
 // Settings fixed at init.
+// The store's identity in its meta table: random, made when the store is created (or first
+// opened by a build that has ids), renewed by Node::renew_store_id.
+inline constexpr std::string_view kStoreIdKey = "store_id";
+std::string new_store_id();
+
 struct Settings {
   std::string iri;
   Durability durability = Durability::fast;

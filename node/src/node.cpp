@@ -963,6 +963,27 @@ Result<void> Node::set_prefix(std::string_view prefix, std::string_view namespac
   });
 }
 
+Result<std::string> Node::store_id() const {
+  ReadTxn read(*impl_->env);
+  if (auto r = read.begin(); !r) return unexpected(r.error());
+  MDB_val k = val(kStoreIdKey), v;
+  int rc = mdb_get(read.txn, impl_->env->meta, &k, &v);
+  if (rc != 0) return lmdb_fail(rc, "reading the store id");
+  return std::string(view(v));
+}
+
+Result<std::string> Node::renew_store_id() {
+  std::string id = new_store_id();
+  auto written = impl_->env->write([&](Txn& txn) -> Result<void> {
+    MDB_val k = val(kStoreIdKey), v = val(id);
+    int rc = mdb_put(txn.raw(), txn.env().meta, &k, &v, 0);
+    if (rc != 0) return lmdb_fail(rc, "writing the store id");
+    return {};
+  });
+  if (!written) return unexpected(written.error());
+  return id;
+}
+
 uri::PrefixMap Node::prefixes() const {
   uri::PrefixMap map;
   ReadTxn read(*impl_->env);

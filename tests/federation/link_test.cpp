@@ -245,6 +245,78 @@ TEST(Link, AnItemWrittenWhileTheLinkIsCutArrivesOnceAfterItIsRestored) {
   EXPECT_EQ(count(tree.hospital_dir, numbered), 300u);
 }
 
+// P6a: a home whose store is made again (a replaced disk or gateway) issues item ids from the
+// start. The hospital's mark of the old store's stream must not swallow them as duplicates.
+TEST(Link, AChildWhoseStoreIsMadeAgainHasAllOfItsNewItemsArrive) {
+  Tree tree;
+  tree.hospital = tree.start_hospital();
+  tree.home1 = tree.start_home(tree.home1_dir, kHome1, tree.home1_log);
+  store_hrv_items(tree.home1_dir, 0, 50);
+  const node::Pattern numbered{.p = Term::iri(kEx + "n")};
+  ASSERT_TRUE(eventually([&] { return count(tree.hospital_dir, numbered) == 50 && outbox(tree.home1_dir) == 0; }));
+  tree.home1.reset();
+  std::filesystem::remove_all(tree.home1_dir);
+  ASSERT_TRUE(node::Node::init(tree.home1_dir, {.iri = kHome1}));
+  tree.home1 = tree.start_home(tree.home1_dir, kHome1, tree.home1_log);  // subscribes the outbox
+  store_hrv_items(tree.home1_dir, 1000, 10);
+  EXPECT_TRUE(eventually([&] { return count(tree.hospital_dir, numbered) == 60; })) << count(tree.hospital_dir, numbered);
+  EXPECT_TRUE(tree.hospital_log.has("has another store"));
+}
+
+// P6a: a home's store restored from a backup goes back in time: its next ids are ones the
+// hospital has applied already. The home takes a new store id and its new items arrive.
+TEST(Link, AChildRestoredFromABackupHasItsNewItemsArrive) {
+  Tree tree;
+  const std::string backup = (tree.tmp / "home1-backup").string();
+  tree.hospital = tree.start_hospital();
+  tree.home1 = tree.start_home(tree.home1_dir, kHome1, tree.home1_log);
+  store_hrv_items(tree.home1_dir, 0, 10);
+  const node::Pattern numbered{.p = Term::iri(kEx + "n")};
+  ASSERT_TRUE(eventually([&] { return count(tree.hospital_dir, numbered) == 10 && outbox(tree.home1_dir) == 0; }));
+  tree.home1.reset();
+  std::filesystem::copy(tree.home1_dir, backup, std::filesystem::copy_options::recursive);
+  tree.home1 = tree.start_home(tree.home1_dir, kHome1, tree.home1_log);
+  store_hrv_items(tree.home1_dir, 100, 40);
+  ASSERT_TRUE(eventually([&] { return count(tree.hospital_dir, numbered) == 50 && outbox(tree.home1_dir) == 0; }));
+  tree.home1.reset();
+  std::filesystem::remove_all(tree.home1_dir);
+  std::filesystem::rename(backup, tree.home1_dir);
+  store_hrv_items(tree.home1_dir, 1000, 5);
+  tree.home1 = tree.start_home(tree.home1_dir, kHome1, tree.home1_log);
+  EXPECT_TRUE(eventually([&] { return count(tree.hospital_dir, {.p = Term::iri(kEx + "n")}) >= 55; }));
+  for (int n = 1000; n < 1005; ++n)
+    EXPECT_EQ(count(tree.hospital_dir, {.p = Term::iri(kEx + "n"), .o = Term::integer(n)}), 1u) << n;
+  EXPECT_TRUE(tree.home1_log.has("this store takes a new id"));
+}
+
+// P6a: the same downwards. A hospital whose store is made again issues configuration with ids
+// that a home has applied already from the old store; the home still gets it.
+TEST(Link, ConfigurationFromAParentWhoseStoreIsMadeAgainArrives) {
+  Tree tree;
+  tree.hospital = tree.start_hospital();
+  tree.home1 = tree.start_home(tree.home1_dir, kHome1, tree.home1_log);
+  auto configure = [&](int first, int n) {
+    auto operator_ = node::Node::open(tree.hospital_dir).value().agent("operator").value();
+    for (int i = first; i < first + n; ++i) {
+      node::Item config;
+      config.context = kHome1 + "/hrv";
+      config.add(Term::iri(kHome1 + "/hrv"), Term::iri(kEx + "setting"), Term::integer(i));
+      ASSERT_TRUE(operator_.store(config));
+    }
+  };
+  const node::Pattern settings{.p = Term::iri(kEx + "setting")};
+  configure(0, 30);
+  ASSERT_TRUE(eventually([&] { return count(tree.home1_dir, settings) == 30; }));
+  tree.hospital.reset();
+  std::filesystem::remove_all(tree.hospital_dir);
+  ASSERT_TRUE(node::Node::init(tree.hospital_dir, {.iri = kHospital}));
+  tree.hospital = tree.start_hospital();
+  configure(1000, 5);
+  EXPECT_TRUE(eventually([&] { return count(tree.home1_dir, settings) == 35; })) << count(tree.home1_dir, settings);
+  std::this_thread::sleep_for(300ms);
+  EXPECT_EQ(count(tree.home1_dir, settings), 35u);
+}
+
 // P9a: the home's store allows longer literals than the hospital's. Resending the long one
 // could never succeed; it is passed over (and stays at home), and the items after it go up.
 TEST(Link, AnItemTheParentCanNeverStoreIsPassedOverAndTheItemsAfterItStillGoUp) {

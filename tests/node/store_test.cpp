@@ -143,6 +143,25 @@ TEST(Store, RecordMetadataCarriesSourceContextAndTimes) {
   }
 }
 
+// A link tells a replaced store from the one it knew by this id (docs/protocol.md P6a).
+TEST(Store, AStoreKeepsItsIdAcrossOpensAndAStoreMadeAgainInItsPlaceHasAnother) {
+  TempDir dir;
+  std::string first;
+  {
+    Node node = make_node(dir.path() / "n");
+    first = node.store_id().value();
+    EXPECT_EQ(first.size(), 32u);
+  }
+  EXPECT_EQ(Node::open(dir.path() / "n")->store_id().value(), first);
+  std::filesystem::remove_all(dir.path() / "n");
+  Node again = make_node(dir.path() / "n");
+  const std::string second = again.store_id().value();
+  EXPECT_NE(second, first);
+  const std::string renewed = again.renew_store_id().value();
+  EXPECT_NE(renewed, second);
+  EXPECT_EQ(Node::open(dir.path() / "n")->store_id().value(), renewed);
+}
+
 TEST(Store, LiteralsKeepDatatypeAndLanguage) {
   TempDir dir;
   Node node = make_node(dir.path());

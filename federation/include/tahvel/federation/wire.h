@@ -60,10 +60,14 @@ struct ErrorBody {
 std::string encode_error(const ErrorBody& body);
 Result<ErrorBody> decode_error(std::string_view bytes);
 
-// Hello (child -> parent) and heartbeat bodies: the child's software version and state.
+// Hello (child -> parent), welcome (parent -> child) and heartbeat bodies: the sender's
+// software version and state, and for hello and welcome the store ids that name the streams
+// (docs/protocol.md P6a).
 struct StateBody {
   std::string software_version;
   std::uint64_t outbox_depth = 0;
+  std::string store_id;       // the sender's store (node::Node::store_id)
+  std::string peer_store_id;  // hello: the parent's store that the child's down mark counts in
 };
 std::string encode_state(const StateBody& body);
 Result<StateBody> decode_state(std::string_view bytes);

@@ -354,6 +354,14 @@ class Node {
 
   Result<Stats> stats() const;
 
+  // The store's identity: 32 hex digits, random, made when the store was created. A store made
+  // again in the same place (a replaced disk, a new machine) has another one, so that a peer
+  // which kept positions in this store's streams (a link's marks) can tell them void.
+  Result<std::string> store_id() const;
+  // A new identity, for a store restored from a backup: its ids go back in time, and peers must
+  // not take them for ones they have seen. Returns the new id.
+  Result<std::string> renew_store_id();
+
  private:
   friend class Agent;
   struct Impl;
