@@ -12,10 +12,13 @@
 // wins, over --window/--step (default 300 s, non-overlapping). A change applies from the next
 // window not yet produced (HrvWindower::set_window).
 // (Re)start: a recording seen for the first time is replayed from its earlier RR items on the
-// board through a new windower, writing only the windows not on the board yet, so windows open
-// at a crash come out as they would have (with the configuration in force now).
+// board through a new windower, from the end of the last window it wrote (HrvWindower::
+// resume_after), so windows open at a crash come out as they would have (with the
+// configuration in force now), and none overlaps one already written.
+#include <algorithm>
 #include <deque>
 #include <map>
+#include <optional>
 
 #include <iostream>
 
@@ -119,6 +122,17 @@ class HrvStage {
     for (const auto& records : *items)
       if (auto rr = agg::read_rr(records); rr && !rr->intervals.empty() && rr->intervals.back().end <= upto)
         earlier.emplace(rr->intervals.front().start, std::move(*rr));
+    // The windows on the board were made with the setting of their time; the replay goes on
+    // after the last of them with today's (a shorter window from 0 would overlap them).
+    tn::Pattern mine{.p = tn::Term::iri(agg::kProvDerivedFrom), .o = tn::Term::iri(s.info.iri),
+                     .source = session_.agent.iri()};
+    auto written = rt::items_matching(session_.node, mine);
+    if (!written) return rt::Outcome::error("catch up <" + s.info.iri + ">: " + written.error().message);
+    std::optional<double> last_written_end;
+    for (const auto& records : *written)
+      if (auto window = agg::read_hrv_window(records))
+        last_written_end = std::max(last_written_end.value_or(window->window.end_s), window->window.end_s);
+    if (last_written_end) s.windower.resume_after(*last_written_end);
     if (earlier.empty()) return rt::Outcome::ok();
     for (const auto& [start, rr] : earlier)
       if (auto o = process(s, rr, true); o.fatal) return o;

@@ -203,6 +203,11 @@ void HrvWindower::set_window(double window_s, double step_s) {
   step_s_ = step_s;
 }
 
+void HrvWindower::resume_after(double end_s) {
+  origin_s_ = std::max(0.0, end_s - window_s_ + step_s_);
+  next_ = 0;
+}
+
 void HrvWindower::emit_front(std::vector<WindowMetrics>& completed) {
   const double start = origin_s_ + static_cast<double>(next_) * step_s_, end = start + window_s_;
   std::vector<Interval> in;

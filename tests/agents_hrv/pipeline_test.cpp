@@ -400,6 +400,38 @@ TEST_F(PipelineTest, WindowChangeMidStreamAppliesFromTheNextWindow) {
   expect_windows(expected);
 }
 
+// A window change, then a restart of the agents (a crash, `down`/`up`, a reboot): the restarted
+// hrv agent replays the recording's RR items with the new setting, but goes on after the last
+// window it wrote. It used to start the new grid at 0, writing 120 s windows inside the 300 s
+// ones already written (and sent up to the hospital).
+TEST_F(PipelineTest, ARestartAfterAWindowChangeWritesNoWindowOverlappingOneWritten) {
+  start_and_subscribe();
+  ASSERT_FALSE(HasFatalFailure());
+  Process source({bin("tahvel-ecg-source"), dir_, "--record", record_, "--speed", "60"});
+  wait_until("two HRV windows", [&] { return *node_->snapshot()->count(hrv_items()) >= 2; });
+  ASSERT_FALSE(HasFatalFailure());
+  for (auto& a : agents_) a->crash();
+  configure_window(120, 120);
+  ASSERT_FALSE(HasFatalFailure());
+  start_agents();
+  wait_until("the recording's last window", [&] {
+    auto windows = board_windows();
+    return !windows.empty() && windows.back().second >= 1800;
+  });
+  ASSERT_FALSE(HasFatalFailure());
+  EXPECT_EQ(source.stop(), 0);
+  const auto windows = board_windows();
+  ASSERT_GE(windows.size(), 3u);
+  bool changed = false;
+  for (std::size_t i = 0; i < windows.size(); ++i) {
+    const auto [start, end] = windows[i];
+    if (i > 0) EXPECT_GE(start, windows[i - 1].second - 1e-9) << "window " << start << "-" << end << " overlaps the one before";
+    if (end - start < 300 - 1e-9 && end < 1800) changed = true;
+    if (changed && end < 1800) EXPECT_DOUBLE_EQ(end - start, 120) << "window at " << start;
+  }
+  EXPECT_TRUE(changed) << "no 120 s window: the test proves nothing";
+}
+
 // The chunks of the first two minutes of record 100, stored directly, with the second
 // [60 s, 61 s) missing. tahvel-rpeak logs the gap and restarts its detector at the next chunk:
 // no agent fails, R-peak items continue after the gap, none covers the missing second, and the

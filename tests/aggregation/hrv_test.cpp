@@ -263,5 +263,25 @@ TEST(Windows, StreamingEmitsAWindowWhenAnIntervalPassesItsEnd) {
   EXPECT_EQ(done[1].metrics.rr_count, 2u);
 }
 
+// After a restart with another setting: the next window ends one step after the last one
+// written, so none overlaps it (non-overlapping windows continue where it ended; overlapping
+// ones of the same setting continue their grid).
+TEST(Windows, ResumingAfterAWrittenWindowProducesNoWindowOverlappingIt) {
+  const auto series = chain(std::vector<std::int64_t>(10, 1000), {});  // interval ends at 1, 2, ... 10 s
+  auto windows_of = [&](double window, double step, double written_end) {
+    HrvWindower w(1000, window, step);
+    w.resume_after(written_end);
+    std::vector<WindowMetrics> done;
+    for (const auto& interval : series) w.push(interval, done);
+    std::vector<std::pair<double, double>> out;
+    for (const auto& m : done) out.emplace_back(m.start_s, m.end_s);
+    return out;
+  };
+  using Spans = std::vector<std::pair<double, double>>;
+  EXPECT_EQ(windows_of(2, 2, 6), (Spans{{6, 8}, {8, 10}}));   // was 6 s windows up to 6 s
+  EXPECT_EQ(windows_of(4, 2, 6), (Spans{{4, 8}, {6, 10}}));   // overlapping: the grid goes on
+  EXPECT_EQ(windows_of(3, 3, 0.5), (Spans{{0.5, 3.5}, {3.5, 6.5}, {6.5, 9.5}}));
+}
+
 }  // namespace
 }  // namespace tahvel::aggregation
