@@ -611,9 +611,6 @@ int run_up(const Args& args) {
   fs::path state = fs::absolute(state_dir(args));
   std::optional<std::string> only = args.get("--node");
   if (only && !topo.node(*only)) fail("--node '" + *only + "': no such node in " + topo.file.string());
-  std::error_code ec;
-  fs::create_directories(state / "logs", ec);
-  if (ec) fail(state.string() + ": " + ec.message());
   fs::path pid_file = state / pid_file_name(only);
   const std::string down_first = "; 'tahvel down --state " + state.string() + "' first";
   if (pid_t pid = supervisor_holding(pid_file); pid != 0)
@@ -663,6 +660,10 @@ int run_up(const Args& args) {
     for (const AgentSpec& agent : spec->agents)
       if (auto argv = expand_agent_command(agent, *spec, state / spec->id, bin); !argv)
         fail(topo.file.string() + ": " + argv.error().message);
+  // Only now, with everything checked: a refused file leaves no state directory behind.
+  std::error_code ec;
+  fs::create_directories(state / "logs", ec);
+  if (ec) fail(state.string() + ": " + ec.message());
   std::vector<agents::ProgramSpec> programs;
   for (const NodeSpec* node_spec : mine) {
     const NodeSpec& spec = *node_spec;

@@ -1,5 +1,7 @@
 #include "topology.h"
 
+#include <unistd.h>
+
 #include <algorithm>
 #include <cstdlib>
 #include <filesystem>
@@ -363,6 +365,14 @@ node::Result<Topology> load_topology(const std::filesystem::path& file) {
                                                     describe_cycle(path, at) + ")");
     }
   }
+  // Two nodes with one IRI would bind one name twice: their children flip between them.
+  std::map<std::string, std::string> by_iri;
+  for (const auto& n : topo.nodes) {
+    auto [it, fresh] = by_iri.emplace(n.iri, n.id);
+    if (!fresh)
+      return node::fail(Errc::invalid_argument, file.string() + ": nodes '" + it->second + "' and '" + n.id +
+                                                    "' have the same IRI <" + n.iri + ">");
+  }
   for (const auto& n : topo.nodes) {
     for (const NodeSpec* child : topo.children(n.id))
       for (const auto& agent : n.agents)
@@ -374,6 +384,24 @@ node::Result<Topology> load_topology(const std::filesystem::path& file) {
   if (auto clear = check_lcm_ports_clear_of_dds(topo); !clear) return Unexpected<node::Error>{clear.error()};
   return topo;
 }
+
+namespace {
+
+bool on_path(const std::string& name) {
+  const char* path = std::getenv("PATH");
+  if (!path) return false;
+  std::string_view rest(path);
+  while (true) {
+    const std::size_t colon = rest.find(':');
+    const std::string dir(rest.substr(0, colon));
+    const std::string candidate = (dir.empty() ? std::string(".") : dir) + "/" + name;
+    if (access(candidate.c_str(), X_OK) == 0 && !std::filesystem::is_directory(candidate)) return true;
+    if (colon == std::string_view::npos) return false;
+    rest.remove_prefix(colon + 1);
+  }
+}
+
+}  // namespace
 
 node::Result<std::vector<std::string>> expand_agent_command(const AgentSpec& agent, const NodeSpec& node,
                                                             const std::filesystem::path& store,
@@ -394,10 +422,36 @@ node::Result<std::vector<std::string>> expand_agent_command(const AgentSpec& age
   const std::pair<std::string, std::string> vars[] = {
       {"{store}", store.string()}, {"{iri}", node.iri}, {"{bin}", bin.string()}, {"{mitdb}", mitdb}};
   for (auto& arg : argv) {
+    // A misspelt placeholder ("{stor}") would be passed on literally, and the agent would fail
+    // and be restarted for ever, far from its cause. (A shell's "${x}" is not one.)
+    for (std::size_t open = arg.find('{'); open != std::string::npos; open = arg.find('{', open + 1)) {
+      const std::size_t close = arg.find('}', open);
+      if (close == std::string::npos) break;
+      const std::string name = arg.substr(open, close - open + 1);
+      const bool word = name.size() > 2 && std::all_of(name.begin() + 1, name.end() - 1, [](char c) {
+        return (c >= 'a' && c <= 'z') || c == '_';
+      });
+      if (!word || (open > 0 && arg[open - 1] == '$')) continue;
+      if (std::none_of(std::begin(vars), std::end(vars), [&](const auto& v) { return v.first == name; }))
+        return node::fail(Errc::invalid_argument, what + "unknown placeholder " + name + " in '" + arg +
+                                                       "' (known: {store}, {iri}, {bin}, {mitdb})");
+    }
     for (const auto& [key, value] : vars) {
       for (std::size_t at = arg.find(key); at != std::string::npos; at = arg.find(key, at + value.size()))
         arg.replace(at, key.size(), value);
     }
+  }
+  // The program itself: a path that is not an executable file, or a bare name not on PATH,
+  // would only show as "exited with status 127; restarting" in the supervisor's log.
+  const std::string& program = argv.front();
+  if (program.find('/') != std::string::npos) {
+    if (access(program.c_str(), X_OK) != 0 || std::filesystem::is_directory(program))
+      return node::fail(Errc::invalid_argument, what + "cannot run '" + program + "': " +
+                                                     (std::filesystem::exists(program) ? "not an executable file" : "no such file") +
+                                                     " (programs of this build: {bin}/tahvel-...)");
+  } else if (!on_path(program)) {
+    return node::fail(Errc::invalid_argument, what + "cannot run '" + program + "': not found on PATH (programs of this build: {bin}/" +
+                                                   program + ")");
   }
   return argv;
 }

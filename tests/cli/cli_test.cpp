@@ -810,6 +810,16 @@ TEST_F(Cli, UpRefusesATopologyThatCouldNotRunAsWrittenNamingWhatAndWhere) {
       {listening + "  [[node.agent]]\n  id = \"home1\"\n  run = [\"true\"]\n[[node]]\nid = \"home1\"\nparent = \"hospital\"\n",
        "node 'hospital': agent id 'home1' is also its child node's id"},
       {hospital + "  [[node.agent]]\n  id = \"hrv\"\n  run = [\"true\"]\n  restrat = \"never\"\n", "agent 'hrv': unknown key 'restrat'"},
+      // What used to start and then fail for ever in the supervisor's log ("status 127").
+      {hospital + "  [[node.agent]]\n  id = \"trend\"\n  run = [\"true\", \"{stor}\"]\n",
+       "node 'hospital': agent 'trend': unknown placeholder {stor} in '{stor}'"},
+      {hospital + "  [[node.agent]]\n  id = \"x\"\n  run = [\"/nonexistent/prog\"]\n",
+       "node 'hospital': agent 'x': cannot run '/nonexistent/prog': no such file"},
+      {hospital + "  [[node.agent]]\n  id = \"x\"\n  run = [\"tahvel-no-such-agent\"]\n",
+       "agent 'x': cannot run 'tahvel-no-such-agent': not found on PATH"},
+      // Two nodes under one name: their children would flip between them.
+      {listening + "[[node]]\nid = \"h2\"\niri = \"http://example.org/hospital\"\n",
+       "nodes 'hospital' and 'h2' have the same IRI <http://example.org/hospital>"},
   };
   for (const auto& [text, expected] : cases) {
     spit(tmp_ / "t.toml", text);
