@@ -13,6 +13,7 @@
 
 #include "commands.h"
 #include "tahvel/spatial/wkt.h"
+#include "tahvel/uri/unicode_escape.h"
 
 namespace tahvel::cli {
 namespace {
@@ -61,40 +62,14 @@ std::optional<Term> bare_literal(std::string_view s) {
   return std::nullopt;
 }
 
-void append_utf8(std::string& out, std::uint32_t cp) {
-  if (cp < 0x80) {
-    out += static_cast<char>(cp);
-  } else if (cp < 0x800) {
-    out += static_cast<char>(0xC0 | (cp >> 6));
-    out += static_cast<char>(0x80 | (cp & 0x3F));
-  } else if (cp < 0x10000) {
-    out += static_cast<char>(0xE0 | (cp >> 12));
-    out += static_cast<char>(0x80 | ((cp >> 6) & 0x3F));
-    out += static_cast<char>(0x80 | (cp & 0x3F));
-  } else {
-    out += static_cast<char>(0xF0 | (cp >> 18));
-    out += static_cast<char>(0x80 | ((cp >> 12) & 0x3F));
-    out += static_cast<char>(0x80 | ((cp >> 6) & 0x3F));
-    out += static_cast<char>(0x80 | (cp & 0x3F));
-  }
-}
-
 // Decodes \uXXXX or \UXXXXXXXX at text[i] (the 'u' or 'U'); returns the characters consumed.
 std::size_t unicode_escape(std::string_view text, std::size_t i, std::string& out,
                            std::string_view flag) {
   std::size_t n = text[i] == 'u' ? 4 : 8;
   if (i + n >= text.size()) bad_value(flag, "truncated \\u escape");
-  std::uint32_t cp = 0;
-  for (std::size_t k = 1; k <= n; ++k) {
-    char c = text[i + k];
-    int d = (c >= '0' && c <= '9') ? c - '0'
-            : (c >= 'a' && c <= 'f') ? c - 'a' + 10
-            : (c >= 'A' && c <= 'F') ? c - 'A' + 10 : -1;
-    if (d < 0) bad_value(flag, "bad hex digit in \\u escape");
-    cp = cp * 16 + static_cast<std::uint32_t>(d);
-  }
-  if (cp > 0x10FFFF || (cp >= 0xD800 && cp <= 0xDFFF)) bad_value(flag, "invalid code point");
-  append_utf8(out, cp);
+  auto c = uri::escaped_code_point(text.substr(i + 1, n));
+  if (!c) bad_value(flag, "\\" + std::string(1, text[i]) + " escape: not " + std::to_string(n) + " hex digits of a character");
+  uri::append_utf8(out, *c);
   return n;
 }
 

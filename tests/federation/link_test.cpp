@@ -154,6 +154,15 @@ void store_hrv_items(const std::string& home_dir, int first, int n) {
   for (int i = first; i < first + n; ++i) ASSERT_TRUE(hrv.store(hrv_item(i)));
 }
 
+// Stores hrv_item(first) .. on home1 (running) and waits until the hospital holds `total`
+// numbered items and home1's outbox is empty: all of it acknowledged.
+bool home1_sends(Tree& tree, int first, int n, std::uint64_t total) {
+  store_hrv_items(tree.home1_dir, first, n);
+  return eventually([&] {
+    return count(tree.hospital_dir, {.p = Term::iri(kEx + "n")}) == total && outbox(tree.home1_dir) == 0;
+  });
+}
+
 TEST(Link, ItemsGoUpExactlyOnceThroughLossDuplicationAndReorderingAndRawSignalsStayHome) {
   Tree tree;
   tree.bus.set_faults({.seed = 7, .drop = 0.2, .duplicate = 0.1, .reorder = 0.1});
@@ -251,9 +260,8 @@ TEST(Link, AChildWhoseStoreIsMadeAgainHasAllOfItsNewItemsArrive) {
   Tree tree;
   tree.hospital = tree.start_hospital();
   tree.home1 = tree.start_home(tree.home1_dir, kHome1, tree.home1_log);
-  store_hrv_items(tree.home1_dir, 0, 50);
+  ASSERT_TRUE(home1_sends(tree, 0, 50, 50));
   const node::Pattern numbered{.p = Term::iri(kEx + "n")};
-  ASSERT_TRUE(eventually([&] { return count(tree.hospital_dir, numbered) == 50 && outbox(tree.home1_dir) == 0; }));
   tree.home1.reset();
   std::filesystem::remove_all(tree.home1_dir);
   ASSERT_TRUE(node::Node::init(tree.home1_dir, {.iri = kHome1}));
@@ -270,14 +278,11 @@ TEST(Link, AChildRestoredFromABackupHasItsNewItemsArrive) {
   const std::string backup = (tree.tmp / "home1-backup").string();
   tree.hospital = tree.start_hospital();
   tree.home1 = tree.start_home(tree.home1_dir, kHome1, tree.home1_log);
-  store_hrv_items(tree.home1_dir, 0, 10);
-  const node::Pattern numbered{.p = Term::iri(kEx + "n")};
-  ASSERT_TRUE(eventually([&] { return count(tree.hospital_dir, numbered) == 10 && outbox(tree.home1_dir) == 0; }));
+  ASSERT_TRUE(home1_sends(tree, 0, 10, 10));
   tree.home1.reset();
   std::filesystem::copy(tree.home1_dir, backup, std::filesystem::copy_options::recursive);
   tree.home1 = tree.start_home(tree.home1_dir, kHome1, tree.home1_log);
-  store_hrv_items(tree.home1_dir, 100, 40);
-  ASSERT_TRUE(eventually([&] { return count(tree.hospital_dir, numbered) == 50 && outbox(tree.home1_dir) == 0; }));
+  ASSERT_TRUE(home1_sends(tree, 100, 40, 50));
   tree.home1.reset();
   std::filesystem::remove_all(tree.home1_dir);
   std::filesystem::rename(backup, tree.home1_dir);

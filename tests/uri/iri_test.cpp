@@ -2,6 +2,7 @@
 // (UTF-8) IRIs, ids, agent and child IRIs, the "is under" test that routing and authorisation
 // rely on, and CURIE expansion. Each test names the behaviour it checks.
 #include "tahvel/uri/iri.h"
+#include "tahvel/uri/unicode_escape.h"
 
 #include <gtest/gtest.h>
 
@@ -610,6 +611,18 @@ TEST(IriPrefixMap, CompactThenExpandRoundTrips) {
     EXPECT_NE(curie, iri);
     EXPECT_EQ(ok(map.expand(curie)), iri);
   }
+}
+
+// \u and \U escapes name characters; surrogates, values past U+10FFFF and non-hex digits are
+// refused rather than written as bytes that are not UTF-8.
+TEST(UnicodeEscape, EscapesBecomeUtf8AndNonCharactersAreRefused) {
+  std::string out;
+  for (const char* hex : {"0041", "00e9", "20AC", "0001F600"}) append_utf8(out, escaped_code_point(hex).value());
+  EXPECT_EQ(out, "A\u00e9\u20ac\U0001F600");
+  EXPECT_FALSE(escaped_code_point("D800"));      // a surrogate
+  EXPECT_FALSE(escaped_code_point("00110000"));  // past U+10FFFF
+  EXPECT_FALSE(escaped_code_point("00g1"));
+  EXPECT_FALSE(escaped_code_point(""));
 }
 
 }  // namespace

@@ -7,6 +7,7 @@
 #include <optional>
 
 #include "program.h"
+#include "tahvel/uri/unicode_escape.h"
 
 namespace tahvel::reasoner {
 
@@ -32,23 +33,6 @@ bool is_name_char(char c) {
   return std::isalnum(static_cast<unsigned char>(c)) || c == '_' || static_cast<unsigned char>(c) >= 0x80;
 }
 
-void append_utf8(std::string& out, std::uint32_t cp) {
-  if (cp < 0x80) {
-    out += static_cast<char>(cp);
-  } else if (cp < 0x800) {
-    out += static_cast<char>(0xC0 | (cp >> 6));
-    out += static_cast<char>(0x80 | (cp & 0x3F));
-  } else if (cp < 0x10000) {
-    out += static_cast<char>(0xE0 | (cp >> 12));
-    out += static_cast<char>(0x80 | ((cp >> 6) & 0x3F));
-    out += static_cast<char>(0x80 | (cp & 0x3F));
-  } else {
-    out += static_cast<char>(0xF0 | (cp >> 18));
-    out += static_cast<char>(0x80 | ((cp >> 12) & 0x3F));
-    out += static_cast<char>(0x80 | ((cp >> 6) & 0x3F));
-    out += static_cast<char>(0x80 | (cp & 0x3F));
-  }
-}
 bool is_local_char(char c) { return is_name_char(c) || c == '-' || c == '.'; }
 
 class Lexer {
@@ -200,18 +184,17 @@ Result<Token> Lexer::string_literal(Pos start, char quote) {
         case '\\': case '"': case '\'': value += e; break;
         case 'u': case 'U': {  // \uXXXX, \UXXXXXXXX as in Turtle
           Pos at_escape = pos();
-          const int digits = e == 'u' ? 4 : 8;
-          std::uint32_t cp = 0;
-          for (int k = 0; k < digits; ++k) {
-            char h = at();
-            if (!std::isxdigit(static_cast<unsigned char>(h)))
-              return error(at_escape, std::string("\\") + e + " needs " + std::to_string(digits) + " hex digits");
-            cp = cp * 16 + static_cast<std::uint32_t>(std::isdigit(static_cast<unsigned char>(h)) ? h - '0' : (std::tolower(h) - 'a' + 10));
+          const std::size_t digits = e == 'u' ? 4 : 8;
+          std::string hex;
+          for (std::size_t k = 0; k < digits && std::isxdigit(static_cast<unsigned char>(at())); ++k) {
+            hex += at();
             advance();
           }
-          if (cp > 0x10FFFF || (cp >= 0xD800 && cp <= 0xDFFF))
-            return error(at_escape, "\\" + std::string(1, e) + " escape is not a Unicode character");
-          append_utf8(value, cp);
+          if (hex.size() != digits)
+            return error(at_escape, std::string("\\") + e + " needs " + std::to_string(digits) + " hex digits");
+          auto c = uri::escaped_code_point(hex);
+          if (!c) return error(at_escape, "\\" + std::string(1, e) + " escape is not a Unicode character");
+          uri::append_utf8(value, *c);
           break;
         }
         default: return error(pos(), std::string("unknown escape \\") + e + " in a string");
