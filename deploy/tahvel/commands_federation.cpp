@@ -110,6 +110,9 @@ node::Pattern forward_pattern(const std::string& text, const uri::PrefixMap& pre
 
 volatile sig_atomic_t g_stop = 0;
 void on_stop_signal(int) { g_stop = 1; }
+// A running supervisor is asked to apply a changed topology file (`tahvel up` again).
+volatile sig_atomic_t g_apply = 0;
+void on_apply_signal(int) { g_apply = 1; }
 
 void install_stop_handlers() {
   struct sigaction action {};
@@ -260,7 +263,9 @@ int run_link(const Args& args) {
   uri::PrefixMap prefixes = prefixes_with_flags(node.prefixes(), args);
   federation::LinkOptions options;
   options.dir = args.positional(0);
-  auto log = [iri = node.iri()](std::string_view line) { std::cerr << "tahvel link <" << iri << ">: " << line << std::endl; };
+  auto log = [iri = node.iri()](std::string_view line) {
+    std::cerr << log_stamp() << " tahvel link <" << iri << ">: " << line << std::endl;
+  };
   options.log = log;
   auto parent = args.get("--parent");
   auto up = args.get("--up");
@@ -285,12 +290,12 @@ int run_link(const Args& args) {
   for (const auto& text : args.all("--forward")) options.forward.push_back(forward_pattern(text, prefixes));
   install_stop_handlers();
   auto link = check(federation::Link::start(std::move(options)));
-  std::cerr << "tahvel link <" << node.iri() << ">: running" << (parent ? " (parent <" + *parent + "> over " + *up + ")" : "")
-            << (listen ? " (children over " + *listen + ")" : "") << std::endl;
+  std::cerr << log_stamp() << " tahvel link <" << node.iri() << ">: running"
+            << (parent ? " (parent <" + *parent + "> over " + *up + ")" : "") << (listen ? " (children over " + *listen + ")" : "") << std::endl;
   while (!g_stop) std::this_thread::sleep_for(100ms);
   link->stop();
   auto c = link->counters();
-  std::cerr << "tahvel link <" << node.iri() << ">: stopped; sent up " << c.up_sent << ", relayed in " << c.relayed_in
+  std::cerr << log_stamp() << " tahvel link <" << node.iri() << ">: stopped; sent up " << c.up_sent << ", relayed in " << c.relayed_in
             << ", duplicates dropped " << c.duplicates_in << ", applied from above " << c.down_applied
             << ", items refused " << c.items_refused << ", refused by the other end " << c.items_refused_by_peer << std::endl;
   return kExitOk;
@@ -567,13 +572,15 @@ std::vector<node::Triple> load_file_triples(const NodeSpec& spec, const fs::path
   parse.base_iri = spec.iri + "/";
   parse.source_name = file.string();
   parse.prefixes = prefixes;
+  std::string text;
   try {
-    auto triples = node::parse_rdf(read_input(file.string()), parse);
-    if (!triples) fail(topo.file.string() + ": node '" + spec.id + "': load: " + triples.error().message);
-    return std::move(*triples);
+    text = read_input(file.string());
   } catch (const Failure& f) {
     fail(topo.file.string() + ": node '" + spec.id + "': load: " + f.message);
   }
+  auto triples = node::parse_rdf(text, parse);
+  if (!triples) fail(topo.file.string() + ": node '" + spec.id + "': load: " + triples.error().message);
+  return std::move(*triples);
 }
 
 // A node's new store with the files the topology puts on its board (a floor plan, sensing
@@ -604,6 +611,233 @@ void create_store(const NodeSpec& spec, const fs::path& store, const Topology& t
   std::cout << "up: created the store of " << spec.id << " <" << spec.iri << "> at " << store.string() << "\n";
 }
 
+// The programs `up` runs for the nodes `mine`: each node's link (when it has a parent or
+// children) and its agents, as the supervisor starts them.
+std::vector<agents::ProgramSpec> programs_of(const Topology& topo, const std::vector<const NodeSpec*>& mine,
+                                             const fs::path& state, const fs::path& bin) {
+  std::vector<agents::ProgramSpec> programs;
+  for (const NodeSpec* spec : mine) {
+    const fs::path store = state / spec->id;
+    if (!spec->parent.empty() || !topo.children(spec->id).empty())
+      programs.push_back({spec->id + "/link", link_argv(topo, *spec, store, bin), state / "logs" / spec->id / "link.log", {},
+                          agents::Restart::always});
+    for (const AgentSpec& agent : spec->agents)
+      programs.push_back({spec->id + "/" + agent.id, check(expand_agent_command(agent, *spec, store, bin)),
+                          state / "logs" / spec->id / (agent.id + ".log"), {}, agent.restart});
+  }
+  return programs;
+}
+
+std::vector<const NodeSpec*> nodes_brought_up(const Topology& topo, const std::optional<std::string>& only) {
+  std::vector<const NodeSpec*> mine;
+  for (const NodeSpec& spec : topo.nodes)
+    if (!only || spec.id == *only) mine.push_back(&spec);
+  return mine;
+}
+
+// What one supervisor runs from a topology file: the programs, and per node its dispatcher (of
+// behaviours, started through the same supervisor: docs/reasoner.md) and area keeper (docs/
+// spatial.md, S9). apply() makes it run the file as written now: what is new starts, what left
+// the file stops, a program whose command changed (a parent's link with a new child) restarts;
+// the rest runs on untouched.
+class Deployment {
+ public:
+  Deployment(agents::Supervisor& supervisor, fs::path state, std::optional<std::string> only)
+      : supervisor_(supervisor), state_(std::move(state)), only_(std::move(only)) {}
+
+  // One line per change made, for the log and for the `up` that asked.
+  std::vector<std::string> apply(const Topology& topo) {
+    std::vector<std::string> changes;
+    const auto mine = nodes_brought_up(topo, only_);
+    const std::vector<agents::ProgramSpec> in_order = programs_of(topo, mine, state_, self_bin_dir());  // parents first
+    std::map<std::string, const agents::ProgramSpec*> wanted;
+    for (const auto& program : in_order) wanted[program.name] = &program;
+    for (auto it = applied_.begin(); it != applied_.end();) {
+      if (wanted.count(it->first)) {
+        ++it;
+        continue;
+      }
+      (void)supervisor_.remove(it->first);
+      changes.push_back("stopped " + it->first + " (no longer in the file)");
+      it = applied_.erase(it);
+    }
+    for (const agents::ProgramSpec& program : in_order) {
+      const std::string& name = program.name;
+      auto it = applied_.find(name);
+      if (it != applied_.end() && same_program(it->second, program)) continue;
+      const bool changed = it != applied_.end();
+      if (changed) (void)supervisor_.remove(name);
+      if (auto started = supervisor_.start(program); !started) {
+        changes.push_back("cannot start " + name + ": " + started.error().message);
+        if (changed) applied_.erase(it);
+        continue;
+      }
+      changes.push_back((changed ? "restarted " : "started ") + name + (changed ? " (its command changed)" : ""));
+      applied_[name] = program;
+    }
+    std::set<std::string> ids;
+    for (const NodeSpec* spec : mine) ids.insert(spec->id);
+    for (auto it = dispatchers_.begin(); it != dispatchers_.end();) {
+      const NodeSpec* spec = topo.node(it->first);
+      if (ids.count(it->first) && spec->behaviours == it->second.folder) {
+        ++it;
+        continue;
+      }
+      (void)it->second.dispatcher.stop_all(std::chrono::seconds(2));
+      changes.push_back("stopped the dispatcher of " + it->first);
+      it = dispatchers_.erase(it);
+    }
+    std::erase_if(keepers_, [&](const auto& entry) { return !ids.count(entry.first); });
+    for (const NodeSpec* spec : mine) {
+      if (!spec->behaviours.empty() && !dispatchers_.count(spec->id)) {
+        agents::DispatcherOptions options;
+        options.folder = spec->behaviours;
+        options.log_dir = state_ / "logs" / spec->id / "behaviours";
+        auto dispatcher = agents::Dispatcher::open(state_ / spec->id, options, supervisor_);
+        if (!dispatcher) {
+          changes.push_back("dispatcher of " + spec->id + ": " + dispatcher.error().message);
+        } else {
+          changes.push_back("dispatcher <" + dispatcher->iri() + "> runs behaviours from " + spec->behaviours.string());
+          dispatchers_.emplace(spec->id, Dispatching{spec->behaviours, std::move(*dispatcher)});
+        }
+      }
+      if (!keepers_.count(spec->id)) {
+        spatial::AreaSyncReport first;
+        auto keeper = spatial::AreaKeeper::open(state_ / spec->id, &first);
+        if (!keeper) {
+          changes.push_back("area keeper of " + spec->id + ": " + keeper.error().message);
+          continue;
+        }
+        for (const auto& problem : first.problems) changes.push_back("area keeper <" + keeper->iri() + ">: " + problem);
+        keepers_.emplace(spec->id, std::move(*keeper));
+      }
+    }
+    return changes;
+  }
+
+  // Keepers and dispatchers: their work of the moment, logged.
+  void poll(const agents::Supervisor::Log& log) {
+    for (auto& [id, keeper] : keepers_) {
+      auto synced = keeper.poll(std::chrono::milliseconds(0));
+      if (!synced) {
+        log("up: area keeper <" + keeper.iri() + ">: " + synced.error().message);
+      } else if (*synced) {
+        log("up: area keeper <" + keeper.iri() + ">: " + std::to_string((*synced)->added) + " subscriptions added, " +
+            std::to_string((*synced)->removed) + " removed");
+        for (const auto& problem : (*synced)->problems) log("up: area keeper <" + keeper.iri() + ">: " + problem);
+      }
+    }
+    for (auto& [id, d] : dispatchers_) {
+      auto events = d.dispatcher.poll(std::chrono::milliseconds(0));
+      if (!events) log("up: dispatcher <" + d.dispatcher.iri() + ">: " + events.error().message);
+      else
+        for (const auto& e : *events) log("up: " + e.run + " \"" + e.command + "\" " + e.detail);
+    }
+  }
+
+  void stop(const agents::Supervisor::Log& log) {
+    for (auto& [id, d] : dispatchers_) {  // its behaviours first, recorded as stopped
+      auto events = d.dispatcher.stop_all(std::chrono::seconds(2));
+      if (!events) log("up: dispatcher <" + d.dispatcher.iri() + ">: " + events.error().message);
+    }
+    supervisor_.stop_all();
+  }
+
+ private:
+  static bool same_program(const agents::ProgramSpec& a, const agents::ProgramSpec& b) {
+    return a.argv == b.argv && a.env == b.env && a.log_file == b.log_file && a.restart == b.restart;
+  }
+  struct Dispatching {
+    fs::path folder;
+    agents::Dispatcher dispatcher;
+  };
+  agents::Supervisor& supervisor_;
+  fs::path state_;
+  std::optional<std::string> only_;
+  std::map<std::string, agents::ProgramSpec> applied_;
+  std::map<std::string, Dispatching> dispatchers_;
+  std::map<std::string, spatial::AreaKeeper> keepers_;
+};
+
+// The request `up` leaves for a running supervisor before SIGHUP (its id, then the topology
+// file), and the supervisor's answer (the id, then one line per change).
+fs::path apply_request_file(const fs::path& pid_file) { return fs::path(pid_file).replace_extension(".apply"); }
+fs::path apply_answer_file(const fs::path& pid_file) { return fs::path(pid_file).replace_extension(".applied"); }
+
+void write_whole(const fs::path& file, const std::string& text) {
+  fs::path tmp = file;
+  tmp += ".tmp";
+  {
+    std::ofstream out(tmp);
+    out << text;
+    if (!out.flush()) fail(tmp.string() + ": cannot write");
+  }
+  std::error_code ec;
+  fs::rename(tmp, file, ec);
+  if (ec) fail(file.string() + ": " + ec.message());
+}
+
+// In the running supervisor, on SIGHUP: applies the file the request names, and answers.
+void apply_requested(Deployment& deployment, const fs::path& pid_file, const agents::Supervisor::Log& log) {
+  std::ifstream in(apply_request_file(pid_file));
+  std::string id, file;
+  if (!std::getline(in, id) || !std::getline(in, file)) return log("up: SIGHUP without a request to apply a file: ignored");
+  std::string answer = id + "\n";
+  auto topo = load_topology(file);
+  if (!topo) {
+    answer += "error: " + topo.error().message + "\n";
+    log("up: cannot apply " + file + ": " + topo.error().message);
+  } else {
+    try {
+      auto changes = deployment.apply(*topo);
+      log("up: applied " + file + ": " + (changes.empty() ? "nothing to change" : std::to_string(changes.size()) + " change(s)"));
+      for (const auto& change : changes) {
+        log("up: " + change);
+        answer += change + "\n";
+      }
+    } catch (const Failure& f) {
+      answer += "error: " + f.message + "\n";
+      log("up: cannot apply " + file + ": " + f.message);
+    }
+  }
+  try {
+    write_whole(apply_answer_file(pid_file), answer);
+  } catch (const Failure& f) {
+    log("up: " + f.message);
+  }
+}
+
+// In `up`, when the supervisor of this selection runs: asks it to apply `file` and prints what
+// it changed.
+int ask_to_apply(pid_t supervisor, const fs::path& pid_file, const fs::path& file) {
+  const std::string id = std::to_string(getpid()) + "-" +
+                         std::to_string(std::chrono::steady_clock::now().time_since_epoch().count());
+  write_whole(apply_request_file(pid_file), id + "\n" + fs::absolute(file).string() + "\n");
+  if (kill(supervisor, SIGHUP) != 0) fail("cannot signal the supervisor " + std::to_string(supervisor) + ": " + std::strerror(errno));
+  // Stopping a changed program may take its 5 s of grace, several in turn.
+  const auto deadline = std::chrono::steady_clock::now() + 60s;
+  while (std::chrono::steady_clock::now() < deadline) {
+    std::ifstream in(apply_answer_file(pid_file));
+    std::string answered;
+    if (std::getline(in, answered) && answered == id) {
+      std::vector<std::string> lines;
+      for (std::string line; std::getline(in, line);) lines.push_back(line);
+      for (const auto& line : lines)
+        if (line.rfind("error: ", 0) == 0) fail("the running supervisor (pid " + std::to_string(supervisor) + ") did not apply " + file.string() + ": " + line.substr(7));
+      if (lines.empty())
+        std::cout << "up: the running supervisor (pid " << supervisor << ") already runs " << file.string() << " as written: nothing to change\n";
+      else
+        std::cout << "up: applied " << file.string() << " to the running supervisor (pid " << supervisor << "):\n";
+      for (const auto& line : lines) std::cout << "up:   " << line << "\n";
+      return kExitOk;
+    }
+    if (supervisor_holding(pid_file) == 0) fail("the supervisor " + std::to_string(supervisor) + " ended before it applied " + file.string());
+    std::this_thread::sleep_for(50ms);
+  }
+  fail("the supervisor " + std::to_string(supervisor) + " did not answer within 60 s; its log is " +
+       (pid_file.parent_path() / "logs" / "supervisor.log").string());
+}
+
 }  // namespace
 
 int run_up(const Args& args) {
@@ -612,15 +846,18 @@ int run_up(const Args& args) {
   std::optional<std::string> only = args.get("--node");
   if (only && !topo.node(*only)) fail("--node '" + *only + "': no such node in " + topo.file.string());
   fs::path pid_file = state / pid_file_name(only);
-  const std::string down_first = "; 'tahvel down --state " + state.string() + "' first";
-  if (pid_t pid = supervisor_holding(pid_file); pid != 0)
-    fail("already up (supervisor pid " + (pid > 0 ? std::to_string(pid) : std::string("starting")) + ", " + pid_file.string() +
-         ")" + down_first);
+  // The supervisor of this selection already running is asked to apply the file as it is now,
+  // once it is checked (below): `up` again after an edit adds a node, restarts what changed.
+  const pid_t running = supervisor_holding(pid_file);
+  if (running < 0) fail("a supervisor is starting (" + pid_file.string() + "); try again in a moment");
   // One supervisor per node: `up --node X` beside `up` of the whole file would run X's link and
   // agents twice (two ECG sources writing every chunk twice).
-  if (only && supervisor_holding(state / pid_file_name(std::nullopt)) != 0)
-    fail("node '" + *only + "' already runs under the supervisor of the whole file (" +
-         (state / pid_file_name(std::nullopt)).string() + ")" + down_first);
+  if (only) {
+    if (pid_t whole = supervisor_holding(state / pid_file_name(std::nullopt)); whole != 0)
+      fail("the supervisor of the whole file runs under " + state.string() + " (pid " + std::to_string(whole) + "), node '" +
+           *only + "' with it: 'tahvel up " + topo.file.string() + " --state " + state.string() +
+           "' applies the file to it (it starts what is new), 'tahvel down --state " + state.string() + "' stops it");
+  }
   if (!only) {
     for (const NodeSpec& spec : topo.nodes)
       if (supervisor_holding(state / pid_file_name(spec.id)) != 0)
@@ -629,9 +866,7 @@ int run_up(const Args& args) {
   }
   // Everything is checked before anything is created: a store that exists must be the node's,
   // and the files and patterns a new one gets must read.
-  std::vector<const NodeSpec*> mine;
-  for (const NodeSpec& spec : topo.nodes)
-    if (!only || spec.id == *only) mine.push_back(&spec);
+  const std::vector<const NodeSpec*> mine = nodes_brought_up(topo, only);
   const std::string in_file = topo.file.string() + ": node '";
   for (const NodeSpec* spec : mine) {
     const fs::path store = state / spec->id;
@@ -664,7 +899,6 @@ int run_up(const Args& args) {
   std::error_code ec;
   fs::create_directories(state / "logs", ec);
   if (ec) fail(state.string() + ": " + ec.message());
-  std::vector<agents::ProgramSpec> programs;
   for (const NodeSpec* node_spec : mine) {
     const NodeSpec& spec = *node_spec;
     fs::path store = state / spec.id;
@@ -689,15 +923,13 @@ int run_up(const Args& args) {
         std::cout << "up: " << spec.id << ": removed a forwarding pattern no longer in the file (item " << r.meta.item << ")\n";
       }
     }
-    if (!spec.parent.empty() || !topo.children(spec.id).empty())
-      programs.push_back({spec.id + "/link", link_argv(topo, spec, store, bin), state / "logs" / spec.id / "link.log", {}, agents::Restart::always});
-    for (const AgentSpec& agent : spec.agents)
-      programs.push_back({spec.id + "/" + agent.id, check(expand_agent_command(agent, spec, store, bin)),
-                          state / "logs" / spec.id / (agent.id + ".log"), {}, agent.restart});
   }
+  if (running > 0) return ask_to_apply(running, pid_file, topo.file);
+  const std::size_t program_count = programs_of(topo, mine, state, bin).size();
   const bool foreground = args.has("--foreground");
   if (!foreground) {
     // The supervisor lives on in a daemon; this process returns once it has started.
+    std::cout.flush();  // or the daemon would write this process's buffered lines again, into its log
     int ready[2];
     if (pipe(ready) != 0) fail(std::string("pipe: ") + std::strerror(errno));
     pid_t pid = fork();
@@ -708,7 +940,7 @@ int run_up(const Args& args) {
       bool ok = read(ready[0], &c, 1) == 1;
       close(ready[0]);
       if (!ok) fail("the supervisor did not start; see " + (state / "logs" / "supervisor.log").string());
-      std::cout << "up: " << topo.name << ": " << programs.size() << " programs under supervisor (pid file "
+      std::cout << "up: " << topo.name << ": " << program_count << " programs under supervisor (pid file "
                 << pid_file.string() << "); logs in " << (state / "logs").string() << "\n"
                 << "up: 'tahvel status --state " << state.string() << "' shows the tree, 'tahvel down --state "
                 << state.string() << "' stops it\n";
@@ -734,76 +966,32 @@ int run_up(const Args& args) {
     fail(pid_file.string() + " is held by another supervisor (or cannot be written)");
   }
   install_stop_handlers();
+  struct sigaction on_hup {};
+  on_hup.sa_handler = on_apply_signal;
+  sigemptyset(&on_hup.sa_mask);
+  sigaction(SIGHUP, &on_hup, nullptr);
   signal(SIGPIPE, SIG_IGN);
-  agents::Supervisor supervisor([](std::string_view line) {
-    auto now = std::chrono::system_clock::to_time_t(std::chrono::system_clock::now());
-    char stamp[32];
-    std::strftime(stamp, sizeof stamp, "%Y-%m-%dT%H:%M:%SZ", std::gmtime(&now));
-    std::cerr << stamp << " " << line << std::endl;
-  });
-  for (auto& program : programs) {
-    if (auto started = supervisor.start(program); !started) std::cerr << "up: " << started.error().message << std::endl;
-  }
-  // The dispatcher of each node with behaviours starts them through this same supervisor
-  // (docs/reasoner.md, "Dispatcher"): one mechanism for agents and behaviours.
-  std::vector<agents::Dispatcher> dispatchers;
-  for (const NodeSpec& spec : topo.nodes) {
-    if ((only && spec.id != *only) || spec.behaviours.empty()) continue;
-    agents::DispatcherOptions options;
-    options.folder = spec.behaviours;
-    options.log_dir = state / "logs" / spec.id / "behaviours";
-    auto dispatcher = agents::Dispatcher::open(state / spec.id, options, supervisor);
-    if (!dispatcher) {
-      std::cerr << "up: dispatcher of " << spec.id << ": " << dispatcher.error().message << std::endl;
-      continue;
-    }
-    std::cerr << "up: dispatcher <" << dispatcher->iri() << "> runs behaviours from " << spec.behaviours.string() << std::endl;
-    dispatchers.push_back(std::move(*dispatcher));
-  }
-  // Each node's area keeper (docs/spatial.md, S9) keeps its area subscriptions current as
-  // sensors are added or moved; in this process, as the dispatchers are.
-  std::vector<spatial::AreaKeeper> keepers;
-  for (const NodeSpec& spec : topo.nodes) {
-    if (only && spec.id != *only) continue;
-    spatial::AreaSyncReport first;
-    auto keeper = spatial::AreaKeeper::open(state / spec.id, &first);
-    if (!keeper) {
-      std::cerr << "up: area keeper of " << spec.id << ": " << keeper.error().message << std::endl;
-      continue;
-    }
-    for (const auto& problem : first.problems) std::cerr << "up: area keeper <" << keeper->iri() << ">: " << problem << std::endl;
-    keepers.push_back(std::move(*keeper));
-  }
+  const agents::Supervisor::Log log = [](std::string_view line) { std::cerr << log_stamp() << " " << line << std::endl; };
+  agents::Supervisor supervisor(log);
+  Deployment deployment(supervisor, state, only);
+  for (const auto& change : deployment.apply(topo))
+    if (change.rfind("started ", 0) != 0) log("up: " + change);  // the supervisor logs each start
   fs::path state_file = state / pid_file_name(only);
   state_file.replace_extension(".state");
   while (!g_stop) {
     supervisor.poll();
-    for (auto& keeper : keepers) {
-      auto synced = keeper.poll(std::chrono::milliseconds(0));
-      if (!synced) {
-        std::cerr << "up: area keeper <" << keeper.iri() << ">: " << synced.error().message << std::endl;
-      } else if (*synced) {
-        std::cerr << "up: area keeper <" << keeper.iri() << ">: " << (*synced)->added << " subscriptions added, "
-                  << (*synced)->removed << " removed" << std::endl;
-        for (const auto& problem : (*synced)->problems) std::cerr << "up: area keeper <" << keeper.iri() << ">: " << problem << std::endl;
-      }
+    if (g_apply) {
+      g_apply = 0;
+      apply_requested(deployment, pid_file, log);
     }
-    for (auto& dispatcher : dispatchers) {
-      auto events = dispatcher.poll(std::chrono::milliseconds(0));
-      if (!events) std::cerr << "up: dispatcher <" << dispatcher.iri() << ">: " << events.error().message << std::endl;
-      else
-        for (const auto& e : *events) std::cerr << "up: " << e.run << " \"" << e.command << "\" " << e.detail << std::endl;
-    }
+    deployment.poll(log);
     write_state_file(state_file, supervisor);
     std::this_thread::sleep_for(100ms);
   }
-  for (auto& dispatcher : dispatchers) {  // its behaviours first, recorded as stopped
-    auto events = dispatcher.stop_all(std::chrono::seconds(2));
-    if (!events) std::cerr << "up: dispatcher <" << dispatcher.iri() << ">: " << events.error().message << std::endl;
-  }
-  supervisor.stop_all();
+  deployment.stop(log);
   write_state_file(state_file, supervisor);
-  fs::remove(pid_file, ec);
+  std::error_code removed;
+  fs::remove(pid_file, removed);
   return kExitOk;
 }
 
@@ -866,19 +1054,60 @@ const Command kStatusCommand{
     {kFlagState, {"--json", "", "", "print one JSON object instead of the tree"}},
     0, 0};
 
-// A parent's link rewrites the state of a connected child at least every 2 s, with the time it
-// last heard from the child (heartbeats every second): an "up" older than this was not rewritten.
-constexpr double kStateStaleAfterS = 15.0;
+namespace {
+
+// A link rewrites the state it keeps of a connected child, and its own uplink's, at least every
+// 2-3 s, with the time it last heard the other end (heartbeats every second): an "up" older than
+// this was not rewritten (the link is stopped, frozen or cannot write).
+constexpr double kStateStaleAfterS = 6.0;
+
+// One node of the tree `status` prints: a store under DIR, or a child whose state a store here
+// keeps but whose own store is on another machine.
+struct StatusNode {
+  std::string id, iri;
+  bool remote = false;
+  std::map<std::string, std::string> link;    // its parent's view (P12), when a store here has it
+  std::map<std::string, std::string> uplink;  // its own view of its uplink (P12a), local nodes
+};
+
+// The fields of each item with a triple of `predicate`, by the item's subject, keyed by the
+// local name of each predicate ("linkState", "lastSeen", …).
+void read_state_items(const node::Snapshot& snap, const std::string& predicate,
+                      std::map<std::string, std::map<std::string, std::string>>& by_subject) {
+  auto records = snap.list({.p = node::Term::iri(predicate)});
+  if (!records) return;
+  for (const auto& r : *records) {
+    auto item = snap.item(r.meta.item);
+    if (!item) continue;
+    for (const auto& f : *item)
+      by_subject[f.triple.s.value][f.triple.p.value.substr(f.triple.p.value.find('#') + 1)] = f.triple.o.value;
+  }
+}
+
+// Why a state a link wrote cannot be believed now, or empty: the link that writes it is not
+// running (a stopped hospital left every home "up"), or an "up" has not been rewritten.
+std::string unbelieved_because(const std::vector<ProgramRow>& programs, const std::string& writer, const std::string& state,
+                               std::int64_t heard_ns) {
+  for (const auto& p : programs)
+    if (p.name == writer && p.state != "running") return writer + " is " + p.state;
+  if (state == "up" && seconds_since(heard_ns) > kStateStaleAfterS)
+    return writer + " has not refreshed it for " + seconds_text(seconds_since(heard_ns));
+  return {};
+}
+
+void print_json_string_or_null(const std::string& text) {
+  if (text.empty()) std::cout << "null";
+  else std::cout << "\"" << node::json_escape(text) << "\"";
+}
+
+}  // namespace
 
 int run_status(const Args& args) {
   fs::path state = state_dir(args);
   if (std::error_code ec; !fs::is_directory(state, ec))
     fail("no directory " + state.string() + " (did 'tahvel up' run with this --state?)");
-  struct Entry {
-    std::string id, iri;
-  };
-  std::vector<Entry> nodes;
-  std::map<std::string, std::map<std::string, std::string>> child_state;  // child IRI -> fields
+  std::vector<StatusNode> nodes;
+  std::map<std::string, std::map<std::string, std::string>> child_state, own_state;  // by node IRI
   std::error_code ec;
   for (const auto& entry : fs::directory_iterator(state, ec)) {
     if (!entry.is_directory() || !fs::exists(entry.path() / "data.mdb")) continue;
@@ -887,83 +1116,106 @@ int run_status(const Args& args) {
       std::cerr << "tahvel: " << entry.path().string() << ": " << node.error().message << "\n";
       continue;
     }
-    nodes.push_back({entry.path().filename().string(), node->iri()});
+    nodes.push_back({.id = entry.path().filename().string(), .iri = node->iri()});
     auto snap = node->snapshot();
     if (!snap) continue;
-    auto records = snap->list({.p = node::Term::iri(federation::vocab::kLinkState)});
-    if (!records) continue;
-    for (const auto& r : *records) {
-      auto item = snap->item(r.meta.item);
-      if (!item) continue;
-      for (const auto& f : *item) {
-        std::string key = f.triple.p.value.substr(f.triple.p.value.find('#') + 1);
-        child_state[f.triple.s.value][key] = f.triple.o.value;
-      }
-    }
+    read_state_items(*snap, federation::vocab::kLinkState, child_state);
+    std::map<std::string, std::map<std::string, std::string>> own;
+    read_state_items(*snap, federation::vocab::kUplinkState, own);
+    if (auto it = own.find(node->iri()); it != own.end()) own_state[node->iri()] = it->second;
   }
   if (ec) fail(state.string() + ": " + ec.message());
   if (nodes.empty()) fail("no node stores under " + state.string() + " (did 'tahvel up' run with this --state?)");
-  std::sort(nodes.begin(), nodes.end(), [](const Entry& a, const Entry& b) { return a.iri < b.iri; });
+  auto local_id = [&](const std::string& iri) -> std::string {
+    for (const StatusNode& n : nodes)
+      if (n.iri == iri && !n.remote) return n.id;
+    return {};
+  };
+  // A child whose store is elsewhere is still part of the tree this machine knows of.
+  for (const auto& [iri, fields] : child_state) {
+    if (!local_id(iri).empty()) continue;
+    auto parent = fields.find("parent");
+    std::string id = iri;
+    if (parent != fields.end())
+      if (auto child = uri::child_id(iri, parent->second)) id = *child;
+    nodes.push_back({.id = id, .iri = iri, .remote = true});
+  }
+  for (StatusNode& n : nodes) {
+    if (auto it = child_state.find(n.iri); it != child_state.end()) n.link = it->second;
+    if (auto it = own_state.find(n.iri); it != own_state.end() && !n.remote) n.uplink = it->second;
+  }
+  std::sort(nodes.begin(), nodes.end(), [](const StatusNode& a, const StatusNode& b) { return a.iri < b.iri; });
   auto programs = read_state_files(state);
   const bool json = args.has("--json");
   if (json) std::cout << "{\"state\":\"" << node::json_escape(state.string()) << "\",\"nodes\":[";
   bool first_node = true;
-  for (const Entry& n : nodes) {
+  for (StatusNode& n : nodes) {
     int depth = 0;
-    for (const Entry& other : nodes)
+    for (const StatusNode& other : nodes)
       if (other.iri != n.iri && uri::is_under(n.iri, other.iri)) ++depth;
-    // What the parent keeps of this node's link, and whether it can be believed.
-    std::optional<std::map<std::string, std::string>> link;
-    std::int64_t seen = 0;
+    // What the parent keeps of this node's link (written by the parent's link: shown as that
+    // program's name when the parent is here), and whether it can be believed.
     std::string said, unknown_because;
-    if (auto it = child_state.find(n.iri); it != child_state.end()) {
-      auto& f = it->second;
+    std::int64_t seen = 0;
+    if (!n.link.empty()) {
+      auto& f = n.link;
       if (auto p = parse_u64(f["lastSeen"])) seen = static_cast<std::int64_t>(*p);
-      // The parent's link writes this state; while that link is not running, or not writing,
-      // the state is its last word, not the link's (a stopped hospital left every home "up").
-      std::string parent_link = "the parent's link";
-      for (const Entry& other : nodes)
-        if (other.iri == f["parent"]) parent_link = other.id + "/link";
-      const ProgramRow* writer = nullptr;
-      for (const auto& p : programs)
-        if (p.name == parent_link) writer = &p;
+      const std::string parent_id = local_id(f["parent"]);
       said = "link " + f["linkState"] + ", last seen " + age_of(seen) + ", outbox " + f["outboxDepth"];
       if (!f["softwareVersion"].empty()) said += ", " + f["softwareVersion"];
-      if (writer && writer->state != "running")
-        unknown_because = parent_link + " is " + writer->state;
-      else if (f["linkState"] == "up" && seconds_since(seen) > kStateStaleAfterS)
-        unknown_because = parent_link + " has not refreshed it for " + seconds_text(seconds_since(seen));
-      link = f;
+      unknown_because =
+          unbelieved_because(programs, parent_id.empty() ? "the parent's link" : parent_id + "/link", f["linkState"], seen);
+    }
+    // This node's own view of its uplink, shown when its parent is not here to say more.
+    std::string uplink_said, uplink_unknown_because;
+    std::int64_t heard = 0;
+    if (!n.uplink.empty()) {
+      auto& f = n.uplink;
+      if (auto p = parse_u64(f["parentLastHeard"])) heard = static_cast<std::int64_t>(*p);
+      uplink_said = "uplink to <" + f["parent"] + "> " + f["uplinkState"];
+      if (!f["uplinkRefusal"].empty()) uplink_said += " (" + f["uplinkRefusal"] + ")";
+      uplink_said += ", parent last heard " + age_of(heard) + ", outbox " + f["outboxDepth"];
+      uplink_unknown_because = unbelieved_because(programs, n.id + "/link", f["uplinkState"], heard);
     }
     if (json) {
       std::cout << (first_node ? "" : ",") << "{\"id\":\"" << node::json_escape(n.id) << "\",\"iri\":\""
-                << node::json_escape(n.iri) << "\",\"depth\":" << depth << ",\"link\":";
+                << node::json_escape(n.iri) << "\",\"depth\":" << depth << ",\"remote\":" << (n.remote ? "true" : "false")
+                << ",\"link\":";
       first_node = false;
-      if (!link) {
+      if (n.link.empty()) {
         std::cout << "null";
       } else {
-        auto& f = *link;
+        auto& f = n.link;
         std::cout << "{\"parent\":\"" << node::json_escape(f["parent"]) << "\",\"state\":\"" << node::json_escape(f["linkState"])
                   << "\",\"known\":" << (unknown_because.empty() ? "true" : "false") << ",\"unknown_because\":";
-        if (unknown_because.empty()) std::cout << "null";
-        else std::cout << "\"" << node::json_escape(unknown_because) << "\"";
+        print_json_string_or_null(unknown_because);
         std::cout << ",\"last_seen_ns\":" << (seen > 0 ? std::to_string(seen) : "null")
-                  << ",\"outbox_depth\":" << (parse_u64(f["outboxDepth"]) ? f["outboxDepth"] : "null")
-                  << ",\"software_version\":";
-        if (f["softwareVersion"].empty()) std::cout << "null";
-        else std::cout << "\"" << node::json_escape(f["softwareVersion"]) << "\"";
+                  << ",\"outbox_depth\":" << (parse_u64(f["outboxDepth"]) ? f["outboxDepth"] : "null") << ",\"software_version\":";
+        print_json_string_or_null(f["softwareVersion"]);
+        std::cout << "}";
+      }
+      std::cout << ",\"uplink\":";
+      if (n.uplink.empty()) {
+        std::cout << "null";
+      } else {
+        auto& f = n.uplink;
+        std::cout << "{\"parent\":\"" << node::json_escape(f["parent"]) << "\",\"state\":\"" << node::json_escape(f["uplinkState"])
+                  << "\",\"known\":" << (uplink_unknown_because.empty() ? "true" : "false") << ",\"unknown_because\":";
+        print_json_string_or_null(uplink_unknown_because);
+        std::cout << ",\"parent_last_heard_ns\":" << (heard > 0 ? std::to_string(heard) : "null")
+                  << ",\"outbox_depth\":" << (parse_u64(f["outboxDepth"]) ? f["outboxDepth"] : "null") << ",\"refusal\":";
+        print_json_string_or_null(f["uplinkRefusal"]);
         std::cout << "}";
       }
       std::cout << ",\"programs\":[";
       bool first_program = true;
       for (const auto& p : programs) {
-        if (p.name.rfind(n.id + "/", 0) != 0) continue;
+        if (n.remote || p.name.rfind(n.id + "/", 0) != 0) continue;
         std::cout << (first_program ? "" : ",") << "{\"name\":\"" << node::json_escape(p.name.substr(n.id.size() + 1))
                   << "\",\"state\":\"" << node::json_escape(p.state) << "\",\"pid\":"
                   << (p.state == "running" && parse_u64(p.pid) ? p.pid : "null")
                   << ",\"restarts\":" << (parse_u64(p.restarts) ? p.restarts : "0") << ",\"last_exit\":";
-        if (p.last_exit.empty()) std::cout << "null";
-        else std::cout << "\"" << node::json_escape(p.last_exit) << "\"";
+        print_json_string_or_null(p.last_exit);
         std::cout << "}";
         first_program = false;
       }
@@ -972,12 +1224,20 @@ int run_status(const Args& args) {
     }
     std::string indent(depth * 2, ' ');
     std::cout << indent << n.id << "  <" << n.iri << ">";
-    if (link && !unknown_because.empty()) std::cout << "  link state unknown: " << unknown_because << " (it last said: " << said << ")";
-    else if (link) std::cout << "  " << said;
-    else if (depth == 0) std::cout << "  (root)";
+    if (n.remote) std::cout << "  (on another machine)";
+    if (!n.link.empty() && !unknown_because.empty())
+      std::cout << "  link state unknown: " << unknown_because << " (it last said: " << said << ")";
+    else if (!n.link.empty())
+      std::cout << "  " << said;
+    else if (!n.uplink.empty() && !uplink_unknown_because.empty())
+      std::cout << "  uplink state unknown: " << uplink_unknown_because << " (it last said: " << uplink_said << ")";
+    else if (!n.uplink.empty())
+      std::cout << "  " << uplink_said;
+    else if (depth == 0)
+      std::cout << "  (root)";
     std::cout << "\n";
     for (const auto& p : programs) {
-      if (p.name.rfind(n.id + "/", 0) != 0) continue;
+      if (n.remote || p.name.rfind(n.id + "/", 0) != 0) continue;
       std::cout << indent << "  - " << p.name.substr(n.id.size() + 1) << "  " << p.state;
       if (p.state == "running") std::cout << " (pid " << p.pid << ")";
       if (p.restarts != "0") std::cout << ", " << p.restarts << " restarts";

@@ -252,6 +252,9 @@ node::Result<Topology> load_topology(const std::filesystem::path& file) {
     spec.iri = iri.value_or("");
     spec.tier = tier.value_or("");
     spec.parent = parent.value_or("");
+    spec.at = where(*t, file);
+    spec.parent_at = t->get("parent") ? where(*t->get("parent"), file) : spec.at;
+    spec.iri_at = t->get("iri") ? where(*t->get("iri"), file) : spec.at;
     TAHVEL_TRY(listen, table_at(*t, "listen", file, what));
     if (listen) {
       auto l = link_spec(*listen, file, spec.id);
@@ -277,6 +280,11 @@ node::Result<Topology> load_topology(const std::filesystem::path& file) {
       std::filesystem::path p = *behaviours;
       if (p.is_relative()) p = file.parent_path() / p;
       spec.behaviours = p.lexically_normal();
+      // A misspelt folder would run no behaviour, and say so nowhere.
+      if (std::error_code ec; !std::filesystem::is_directory(spec.behaviours, ec))
+        return node::fail(Errc::not_found, where(*t->get("behaviours"), file) + ": " + what + "behaviours: " +
+                                               spec.behaviours.string() + " is not a folder" +
+                                               (std::filesystem::exists(spec.behaviours, ec) ? "" : " (no such directory)"));
     }
     auto load = strings((*t)["load"].node(), file, "node '" + spec.id + "': load");
     if (!load) return Unexpected<node::Error>{load.error()};
@@ -323,26 +331,26 @@ node::Result<Topology> load_topology(const std::filesystem::path& file) {
     for (auto& spec : specs) {
       if (placed.count(spec.id)) continue;
       if (!spec.parent.empty() && !by_id.count(spec.parent))
-        return node::fail(Errc::invalid_argument, file.string() + ": node '" + spec.id + "': parent '" + spec.parent + "' is not a node of this file");
+        return node::fail(Errc::invalid_argument, spec.parent_at + ": node '" + spec.id + "': parent '" + spec.parent + "' is not a node of this file");
       if (!spec.parent.empty() && !placed.count(spec.parent)) continue;
       if (spec.parent.empty()) {
-        if (spec.iri.empty()) return node::fail(Errc::invalid_argument, file.string() + ": root node '" + spec.id + "' needs an iri");
+        if (spec.iri.empty()) return node::fail(Errc::invalid_argument, spec.at + ": root node '" + spec.id + "' needs an iri");
         auto n = uri::normalize(spec.iri);
-        if (!n) return node::fail(Errc::invalid_iri, file.string() + ": node '" + spec.id + "': iri: " + n.error().message);
+        if (!n) return node::fail(Errc::invalid_iri, spec.iri_at + ": node '" + spec.id + "': iri: " + n.error().message);
         spec.iri = *n;
         if (spec.iri.ends_with("/"))
-          return node::fail(Errc::invalid_iri, file.string() + ": node '" + spec.id + "': iri <" + spec.iri +
+          return node::fail(Errc::invalid_iri, spec.iri_at + ": node '" + spec.id + "': iri <" + spec.iri +
                                                    "> ends in '/': its children are its IRI + \"/\" + their id, so write it without the '/'");
       } else {
         const NodeSpec& parent = specs[by_id[spec.parent]];
         if (!parent.listen)
-          return node::fail(Errc::invalid_argument, file.string() + ": node '" + parent.id + "' has children but no listen = { kind = ... }");
+          return node::fail(Errc::invalid_argument, parent.at + ": node '" + parent.id + "' has children (node '" + spec.id + "') but no listen = { kind = ... }");
         auto derived = uri::child_node_iri(parent.iri, spec.id);
-        if (!derived) return node::fail(Errc::invalid_iri, file.string() + ": node '" + spec.id + "': " + derived.error().message);
+        if (!derived) return node::fail(Errc::invalid_iri, spec.at + ": node '" + spec.id + "': " + derived.error().message);
         if (!spec.iri.empty()) {
           auto given = uri::normalize(spec.iri);
           if (!given || *given != *derived)
-            return node::fail(Errc::invalid_argument, file.string() + ": node '" + spec.id + "': iri <" + spec.iri +
+            return node::fail(Errc::invalid_argument, spec.iri_at + ": node '" + spec.id + "': iri <" + spec.iri +
                                                           "> must be its parent's IRI + \"/" + spec.id + "\" = <" + *derived + ">");
         }
         spec.iri = *derived;
@@ -361,7 +369,7 @@ node::Result<Topology> load_topology(const std::filesystem::path& file) {
         path.push_back(at);
         at = specs[by_id[at]].parent;
       }
-      return node::fail(Errc::invalid_argument, file.string() + ": node '" + at + "': parent: the parents form a cycle (" +
+      return node::fail(Errc::invalid_argument, specs[by_id[at]].parent_at + ": node '" + at + "': parent: the parents form a cycle (" +
                                                     describe_cycle(path, at) + ")");
     }
   }
@@ -370,14 +378,14 @@ node::Result<Topology> load_topology(const std::filesystem::path& file) {
   for (const auto& n : topo.nodes) {
     auto [it, fresh] = by_iri.emplace(n.iri, n.id);
     if (!fresh)
-      return node::fail(Errc::invalid_argument, file.string() + ": nodes '" + it->second + "' and '" + n.id +
+      return node::fail(Errc::invalid_argument, n.iri_at + ": nodes '" + it->second + "' and '" + n.id +
                                                     "' have the same IRI <" + n.iri + ">");
   }
   for (const auto& n : topo.nodes) {
     for (const NodeSpec* child : topo.children(n.id))
       for (const auto& agent : n.agents)
         if (agent.id == child->id)
-          return node::fail(Errc::invalid_argument, file.string() + ": node '" + n.id + "': agent id '" + agent.id +
+          return node::fail(Errc::invalid_argument, n.at + ": node '" + n.id + "': agent id '" + agent.id +
                                                         "' is also its child node's id (a child node is agent '" + child->id +
                                                         "' of its parent)");
   }

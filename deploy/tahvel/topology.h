@@ -41,6 +41,9 @@ struct NodeSpec {
   std::vector<std::filesystem::path> load;  // Turtle files put (persistent) into a new store
   std::filesystem::path behaviours;    // the dispatcher's folder of behaviours; empty: none
   std::vector<AgentSpec> agents;
+  // Where the file says it ("FILE:LINE:COL"), for errors found once all nodes are read: the
+  // node's table, its `parent` and its `iri` (the table's when the key is absent).
+  std::string at, parent_at, iri_at;
 };
 
 struct Topology {

@@ -195,6 +195,13 @@ struct Link::Impl {
   bool up_go_back = false;
   std::uint64_t up_went_back_to = ~0ull;
   Clock::time_point up_went_back_at{};
+  // P12a: this node's own view of its uplink, on its board.
+  bool ever_welcomed = false;
+  Clock::time_point parent_heard{};
+  std::int64_t parent_heard_ns = 0;
+  std::string refused_by_parent;  // the parent's refusal, until a welcome
+  std::string own_state_said;     // what the item on the board says now (rewritten on change)
+  std::int64_t own_state_written_ns = 0;
 
   // Parent role (P10-P12).
   struct Child {
@@ -545,6 +552,12 @@ struct Link::Impl {
 
   bool from_parent(const Frame& f) const { return opt.up && !opt.parent_iri.empty() && f.from == opt.parent_iri; }
 
+  void heard_from_parent() {
+    std::lock_guard lock(mu);
+    parent_heard = Clock::now();
+    parent_heard_ns = now_ns();
+  }
+
   std::shared_ptr<Child> accepted_child(const std::string& iri, std::string* why) {
     auto id = uri::child_id(iri, self);
     if (!id) {
@@ -592,6 +605,7 @@ struct Link::Impl {
       std::lock_guard lock(mu);
       unwelcomed = !welcomed;
     }
+    if (!up && from_parent(head)) heard_from_parent();
     if (unwelcomed && from_parent(head)) {
       // P6a: until the welcome names the parent's store, it is not known which stream these
       // continue; the parent sends them again after the welcome (as if they were lost).
@@ -709,7 +723,10 @@ struct Link::Impl {
 
   template <class AgentFn>
   void dispatch(Transport* via, const Frame& f, AgentFn& agent) {
-    if (from_parent(f)) return from_parent_frame(via, f, agent);
+    if (from_parent(f)) {
+      heard_from_parent();
+      return from_parent_frame(via, f, agent);
+    }
     std::string why;
     if (opt.down && via == opt.down.get()) {
       auto child = accepted_child(f.from, &why);
@@ -803,6 +820,13 @@ struct Link::Impl {
           child->version = state->software_version;
           child->state_dirty = true;
         }
+        lock.unlock();
+        // P12a: so that the child hears its parent while nothing else comes down (an ack whose
+        // mark 0 moves nothing).
+        Frame heard;
+        heard.kind = FrameKind::ack;
+        heard.to = child->iri;
+        send(via, std::move(heard));
         return;
       }
       case FrameKind::ack: {
@@ -861,7 +885,8 @@ struct Link::Impl {
                 parent_store_id + "): what comes down is a new stream, from its start");
           parent_store_id = state->store_id;
         }
-        welcomed = true;
+        welcomed = ever_welcomed = true;
+        refused_by_parent.clear();
         up_mark = f.ack;
         up_last_sent = f.ack;
         up_in_flight.clear();
@@ -910,6 +935,7 @@ struct Link::Impl {
           welcomed = false;
         } else if (code == "refused") {
           welcomed = false;
+          refused_by_parent = body ? body->message : std::string("refused");
           log("the parent refused this node: " + (body ? body->message : std::string()));
         } else {
           log("error from the parent: " + code + (body ? ": " + body->message : std::string()));
@@ -1701,6 +1727,7 @@ struct Link::Impl {
         }
         f.body = wire::encode_state(state);
         send(opt.up.get(), std::move(f));
+        write_own_state(*link, depth ? *depth : 0);
       }
       std::vector<std::pair<const BoardWrite*, std::uint64_t>> written;
       for (const BoardWrite& w : writes) {
@@ -1928,6 +1955,40 @@ struct Link::Impl {
       }
       if (auto stored = link.replace(previous, items); !stored)
         log("cannot write the state of " + std::to_string(items.size()) + " child(ren): " + stored.error().message);
+    }
+  }
+
+  // P12a: this node's view of its uplink as one persistent item about the node, written by its
+  // agent `link` when what it says changes and every kStateRefreshNs while the link is up, so
+  // that `tahvel status` on a machine without the parent can say how the uplink is.
+  void write_own_state(node::Agent& link, std::uint64_t outbox_depth) {
+    node::Item item;
+    item.persistent = true;
+    const node::Term me = node::Term::iri(self);
+    std::string said;
+    {
+      std::lock_guard lock(mu);
+      const bool silent = welcomed && Clock::now() - parent_heard > opt.child_silence;
+      const std::string state = !refused_by_parent.empty() ? "refused"
+                                : welcomed && !silent      ? "up"
+                                : ever_welcomed            ? "down"
+                                                           : "never connected";
+      said = state + " " + std::to_string(outbox_depth) + " " + refused_by_parent;
+      const std::int64_t wall = now_ns();
+      if (said == own_state_said && !(state == "up" && wall - own_state_written_ns > kStateRefreshNs)) return;
+      own_state_said = said;
+      own_state_written_ns = wall;
+      item.add(me, node::Term::iri(vocab::kParent), node::Term::iri(opt.parent_iri));
+      item.add(me, node::Term::iri(vocab::kUplinkState), node::Term::literal(state));
+      if (parent_heard_ns) item.add(me, node::Term::iri(vocab::kParentLastHeard), node::Term::integer(parent_heard_ns));
+      item.add(me, node::Term::iri(vocab::kOutboxDepth), node::Term::integer(static_cast<std::int64_t>(outbox_depth)));
+      if (!refused_by_parent.empty())
+        item.add(me, node::Term::iri(vocab::kUplinkRefusal), node::Term::literal(refused_by_parent));
+    }
+    if (auto stored = link.replace({{.s = node::Term::iri(self), .source = link.iri()}}, {item}); !stored) {
+      log("cannot write this node's uplink state: " + stored.error().message);
+      std::lock_guard lock(mu);
+      own_state_said.clear();  // again at the next beat
     }
   }
 

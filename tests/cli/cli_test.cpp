@@ -10,6 +10,7 @@
 #include <chrono>
 #include <cstdlib>
 #include <filesystem>
+#include <functional>
 #include <fstream>
 #include <regex>
 #include <set>
@@ -89,6 +90,15 @@ class Cli : public ::testing::Test {
   Outcome run(const std::vector<std::string>& args, const std::string& input = "") {
     int n = ++runs_;
     return finish(spawn(args, input, n), n);
+  }
+
+  // Up to 5 s, every 50 ms, until `condition` holds.
+  static bool eventually(const std::function<bool()>& condition) {
+    for (int i = 0; i < 100; ++i) {
+      if (condition()) return true;
+      std::this_thread::sleep_for(std::chrono::milliseconds(50));
+    }
+    return condition();
   }
 
   // `tahvel status --state STATE` every 50 ms, up to 5 s, until its output shows `text` (or,
@@ -513,9 +523,9 @@ TEST_F(Cli, UpAndDownIgnoreAStalePidFileWhosePidIsAnotherProgram) {
   spit(tmp_ / "state" / "supervisor-all.pid", std::to_string(other) + "\n");
   Outcome up = run({"up", (tmp_ / "node.toml").string(), "--state", state});
   ASSERT_EQ(up.status, 0) << up.err;
-  Outcome again = run({"up", (tmp_ / "node.toml").string(), "--state", state});
-  EXPECT_EQ(again.status, 1);
-  EXPECT_NE(again.err.find("already up"), std::string::npos) << again.err;
+  Outcome again = run({"up", (tmp_ / "node.toml").string(), "--state", state});  // the running one answers
+  EXPECT_EQ(again.status, 0) << again.err;
+  EXPECT_NE(again.out.find("nothing to change"), std::string::npos) << again.out;
   down = run({"down", "--state", state});
   EXPECT_EQ(down.status, 0) << down.err;
   EXPECT_NE(down.out.find("stopped supervisor"), std::string::npos) << down.out;
@@ -572,7 +582,7 @@ TEST_F(Cli, StatusJsonHasEachNodesLinkAndPrograms) {
   Outcome json = run({"status", "--state", state, "--json"});
   EXPECT_EQ(json.status, 0) << json.err;
   EXPECT_EQ(json.out.rfind("{\"state\":\"" + state + "\",\"nodes\":[{\"id\":\"solo\",\"iri\":\"http://example.org/solo\",\"depth\":0,"
-                           "\"link\":null,\"programs\":[",
+                           "\"remote\":false,\"link\":null,\"uplink\":null,\"programs\":[",
                            0),
             0u)
       << json.out;
@@ -804,8 +814,8 @@ TEST_F(Cli, UpRefusesATopologyThatCouldNotRunAsWrittenNamingWhatAndWhere) {
       {hospital + "listen = { kind = \"dds\", config = \"missing.xml\" }\n", "listen.config: cannot read"},
       {hospital + "forwrd = [\"_ a tv:EcgChunk\"]\n", "node 'hospital': unknown key 'forwrd'"},
       {hospital + "[[node]]\nid = \"home1\"\nparent = 5\n", "t.toml:6:10: node 'home1': parent must be a string"},
-      {"[[node]]\nid = \"hospital\"\niri = \"http://example.org/hospital/\"\n", "iri <http://example.org/hospital/> ends in '/'"},
-      {listening + "[[node]]\nid = \"a\"\nparent = \"b\"\n[[node]]\nid = \"b\"\nparent = \"a\"\n", "the parents form a cycle (b -> a -> b)"},
+      {"[[node]]\nid = \"hospital\"\niri = \"http://example.org/hospital/\"\n", "t.toml:3:7: node 'hospital': iri <http://example.org/hospital/> ends in '/'"},
+      {listening + "[[node]]\nid = \"a\"\nparent = \"b\"\n[[node]]\nid = \"b\"\nparent = \"a\"\n", "t.toml:10:10: node 'b': parent: the parents form a cycle (b -> a -> b)"},
       {"[[node]]\nid = \"logs\"\niri = \"http://example.org/logs\"\n", "node id 'logs' is taken by the state directory"},
       {listening + "  [[node.agent]]\n  id = \"home1\"\n  run = [\"true\"]\n[[node]]\nid = \"home1\"\nparent = \"hospital\"\n",
        "node 'hospital': agent id 'home1' is also its child node's id"},
@@ -819,7 +829,13 @@ TEST_F(Cli, UpRefusesATopologyThatCouldNotRunAsWrittenNamingWhatAndWhere) {
        "agent 'x': cannot run 'tahvel-no-such-agent': not found on PATH"},
       // Two nodes under one name: their children would flip between them.
       {listening + "[[node]]\nid = \"h2\"\niri = \"http://example.org/hospital\"\n",
-       "nodes 'hospital' and 'h2' have the same IRI <http://example.org/hospital>"},
+       "t.toml:7:7: nodes 'hospital' and 'h2' have the same IRI <http://example.org/hospital>"},
+      // Errors about parents, found once every node is read, name the line too.
+      {hospital + "[[node]]\nid = \"home1\"\nparent = \"hospitl\"\n", "t.toml:6:10: node 'home1': parent 'hospitl' is not a node of this file"},
+      {hospital + "[[node]]\nid = \"home1\"\nparent = \"hospital\"\n",
+       "t.toml:1:1: node 'hospital' has children (node 'home1') but no listen"},
+      // A misspelt behaviours folder would run nothing, silently.
+      {hospital + "behaviours = \"behavours\"\n", "t.toml:4:14: node 'hospital': behaviours: "},
   };
   for (const auto& [text, expected] : cases) {
     spit(tmp_ / "t.toml", text);
@@ -830,6 +846,50 @@ TEST_F(Cli, UpRefusesATopologyThatCouldNotRunAsWrittenNamingWhatAndWhere) {
   }
 }
 
+// `up` again with an edited file, while its supervisor runs, applies the edit: what is new
+// starts, what left the file stops, a program whose command changed restarts, the rest runs on
+// with the same pid. A file that does not check is refused and changes nothing.
+TEST_F(Cli, UpAgainAppliesAnEditedFileToTheRunningSupervisor) {
+  const std::string file = (tmp_ / "node.toml").string(), state = (tmp_ / "state").string();
+  spit(file, kIdleNodeToml);
+  ASSERT_EQ(run({"up", file, "--state", state}).status, 0);
+  auto pid_of = [&](const std::string& program) -> std::string {
+    Outcome shown = run({"status", "--state", state, "--json"});
+    const std::string key = "{\"name\":\"" + program + "\",\"state\":\"running\",\"pid\":";
+    auto at = shown.out.find(key);
+    if (at == std::string::npos) return {};
+    at += key.size();
+    return shown.out.substr(at, shown.out.find(',', at) - at);
+  };
+  std::string idle_pid;
+  ASSERT_TRUE(eventually([&] { return !(idle_pid = pid_of("idle")).empty(); }));
+
+  spit(file, std::string(kIdleNodeToml) + "  [[node.agent]]\n  id = \"second\"\n  run = [\"/bin/sleep\", \"601\"]\n");
+  Outcome added = run({"up", file, "--state", state});
+  ASSERT_EQ(added.status, 0) << added.err;
+  EXPECT_NE(added.out.find("up:   started solo/second"), std::string::npos) << added.out;
+  EXPECT_EQ(added.out.find("solo/idle"), std::string::npos) << added.out;
+  EXPECT_TRUE(eventually([&] { return !pid_of("second").empty(); }));
+  EXPECT_EQ(pid_of("idle"), idle_pid) << "an unchanged program was restarted";
+
+  spit(file, "[[node]]\nid = \"solo\"\niri = \"http://example.org/solo\"\n"
+             "  [[node.agent]]\n  id = \"idle\"\n  run = [\"/bin/sleep\", \"602\"]\n");
+  Outcome changed = run({"up", file, "--state", state});
+  ASSERT_EQ(changed.status, 0) << changed.err;
+  EXPECT_NE(changed.out.find("up:   stopped solo/second (no longer in the file)"), std::string::npos) << changed.out;
+  EXPECT_NE(changed.out.find("up:   restarted solo/idle (its command changed)"), std::string::npos) << changed.out;
+  std::string new_pid;
+  EXPECT_TRUE(eventually([&] { return !(new_pid = pid_of("idle")).empty() && new_pid != idle_pid; }));
+  EXPECT_EQ(run({"status", "--state", state}).out.find("second"), std::string::npos);
+
+  spit(file, "[[node]]\nid = \"solo\"\niri = \"http://example.org/solo\"\n  [[node.agent]]\n  id = \"\"\n");
+  Outcome bad = run({"up", file, "--state", state});
+  EXPECT_EQ(bad.status, 1);
+  EXPECT_NE(bad.err.find(file), std::string::npos) << bad.err;
+  EXPECT_EQ(pid_of("idle"), new_pid) << "a refused file changed what runs";
+  ASSERT_EQ(run({"down", "--state", state}).status, 0);
+}
+
 // `up --node X` beside `up` of the whole file (or the other way round) would run X's programs
 // twice; `down --node X` stops only what `up --node X` started.
 TEST_F(Cli, OneNodeRunsUnderOneSupervisorAndDownNodeStopsOnlyThatOne) {
@@ -838,7 +898,8 @@ TEST_F(Cli, OneNodeRunsUnderOneSupervisorAndDownNodeStopsOnlyThatOne) {
   ASSERT_EQ(run({"up", file, "--state", state}).status, 0);
   Outcome twice = run({"up", file, "--state", state, "--node", "solo"});
   EXPECT_EQ(twice.status, 1);
-  EXPECT_NE(twice.err.find("node 'solo' already runs under the supervisor of the whole file"), std::string::npos) << twice.err;
+  EXPECT_NE(twice.err.find("the supervisor of the whole file runs under " + state), std::string::npos) << twice.err;
+  EXPECT_NE(twice.err.find("'tahvel up " + file + " --state " + state + "' applies the file to it"), std::string::npos) << twice.err;
   Outcome partial = run({"down", "--state", state, "--node", "solo"});
   EXPECT_EQ(partial.status, 1);
   EXPECT_NE(partial.err.find("runs under the supervisor of the whole file"), std::string::npos) << partial.err;
@@ -881,6 +942,12 @@ TEST_F(Cli, UpMakesNoStoreWhenALoadFileIsMissingAndLoadsItOnceItIsThere) {
   Outcome up = run({"up", (tmp_ / "node.toml").string(), "--state", state});
   EXPECT_EQ(up.status, 1);
   EXPECT_NE(up.err.find("node.toml: node 'solo': load: cannot open"), std::string::npos) << up.err;
+  EXPECT_FALSE(fs::exists(tmp_ / "state" / "solo"));
+  spit(tmp_ / "plan.ttl", "<room/bedroom> a\n");  // malformed: named once, with the line
+  up = run({"up", (tmp_ / "node.toml").string(), "--state", state});
+  EXPECT_EQ(up.status, 1);
+  EXPECT_NE(up.err.find("node.toml: node 'solo': load: " + (tmp_ / "plan.ttl").string() + ":2:"), std::string::npos) << up.err;
+  EXPECT_EQ(up.err.find("load: " + (tmp_ / "node.toml").string()), std::string::npos) << up.err;
   EXPECT_FALSE(fs::exists(tmp_ / "state" / "solo"));
   spit(tmp_ / "plan.ttl", "<room/bedroom> a <https://w3id.org/tahvel#Room> .\n");
   up = run({"up", (tmp_ / "node.toml").string(), "--state", state});

@@ -521,6 +521,42 @@ TEST(Link, EachChildHasOneStateItemThatFollowsItsLinkAcrossARestartOfTheParent) 
   EXPECT_EQ(count(tree.hospital_dir, {.s = Term::iri(kHome1), .p = Term::iri(vocab::kParent)}), 1u);
 }
 
+// P12a: a child keeps its own view of its uplink on its board (what `tahvel status` shows on a
+// machine without the parent): up once welcomed, down within child_silence of its parent going
+// silent (nothing else comes down on a quiet link: the parent's answers to heartbeats are what
+// it hears), up again when the parent is back, and refused with the parent's reason.
+TEST(Link, AChildKeepsItsOwnViewOfItsUplinkThatFollowsItsParent) {
+  Tree tree;
+  auto own_state = [&](const std::string& dir, const std::string& iri) {
+    auto node = node::Node::open(dir).value();
+    auto records = node.snapshot().value().list({.s = Term::iri(iri), .p = Term::iri(vocab::kUplinkState)}).value();
+    std::vector<std::string> states;
+    for (const auto& r : records) states.push_back(r.triple.o.value);
+    return states;
+  };
+  using States = std::vector<std::string>;
+  tree.home1 = tree.start_home(tree.home1_dir, kHome1, tree.home1_log);
+  ASSERT_TRUE(eventually([&] { return own_state(tree.home1_dir, kHome1) == States{"never connected"}; }));
+  tree.hospital = tree.start_hospital();
+  ASSERT_TRUE(eventually([&] { return own_state(tree.home1_dir, kHome1) == States{"up"}; }));
+  // Up for longer than child_silence with nothing but heartbeats: still up.
+  std::this_thread::sleep_for(LinkOptions{}.child_silence + 1s);
+  EXPECT_EQ(own_state(tree.home1_dir, kHome1), States{"up"});
+  EXPECT_EQ(count(tree.home1_dir, {.s = Term::iri(kHome1), .p = Term::iri(vocab::kParent), .o = Term::iri(kHospital)}), 1u);
+  EXPECT_EQ(count(tree.home1_dir, {.s = Term::iri(kHome1), .p = Term::iri(vocab::kParentLastHeard)}), 1u);
+  tree.hospital.reset();
+  EXPECT_TRUE(eventually([&] { return own_state(tree.home1_dir, kHome1) == States{"down"}; }));
+  tree.hospital = tree.start_hospital();
+  EXPECT_TRUE(eventually([&] { return own_state(tree.home1_dir, kHome1) == States{"up"}; }));
+
+  const std::string home3 = kHospital + "/home3", home3_dir = (tree.tmp / "home3").string();  // not configured
+  ASSERT_TRUE(node::Node::init(home3_dir, {.iri = home3}));
+  Log home3_log;
+  auto link3 = tree.start_home(home3_dir, home3, home3_log);
+  EXPECT_TRUE(eventually([&] { return own_state(home3_dir, home3) == States{"refused"}; }));
+  EXPECT_EQ(count(home3_dir, {.s = Term::iri(home3), .p = Term::iri(vocab::kUplinkRefusal)}), 1u);
+}
+
 // `tahvel status` prints the age of tv:lastSeen: while a child is heard it must never look
 // older than child_silence (3.5 s), the age at which the parent would call it down.
 TEST(Link, AChildThatIsHeardNeverLooksSilentLongerThanChildSilenceInItsState) {

@@ -138,7 +138,7 @@ TEST_F(Deployment, StatusDoesNotShowAStoppedParentsLastWordAsTheLinksState) {
   std::string shown;
   ASSERT_TRUE(eventually([&] { return (shown = status()).find("gateway  <" + kWard + "/gateway>  link up, last seen") != std::string::npos; }))
       << shown;
-  const std::string gateway_json = "{\"id\":\"gateway\",\"iri\":\"" + kWard + "/gateway\",\"depth\":1,\"link\":{\"parent\":\"" + kWard +
+  const std::string gateway_json = "{\"id\":\"gateway\",\"iri\":\"" + kWard + "/gateway\",\"depth\":1,\"remote\":false,\"link\":{\"parent\":\"" + kWard +
                                    "\",\"state\":\"up\",";
   shown = tahvel("status --json --state " + state_.string());
   EXPECT_NE(shown.find(gateway_json + "\"known\":true,\"unknown_because\":null,\"last_seen_ns\":"), std::string::npos) << shown;
@@ -150,6 +150,74 @@ TEST_F(Deployment, StatusDoesNotShowAStoppedParentsLastWordAsTheLinksState) {
       << shown;
   shown = tahvel("status --json --state " + state_.string());
   EXPECT_NE(shown.find(gateway_json + "\"known\":false,\"unknown_because\":\"ward/link is stopped\","), std::string::npos) << shown;
+}
+
+// Two machines, each with its own state directory (`up --node`). On the ward's machine `status`
+// shows the gateway (known from the state the ward's link keeps of it) as a node on another
+// machine; on the gateway's machine it shows the gateway's own view of its uplink, not "(root)";
+// a frozen ward is seen on both sides within seconds instead of being shown "up".
+TEST_F(Deployment, StatusOnEachMachineShowsWhatThatMachineKnowsOfTheLinkBetweenThem) {
+  write_topology("[[node]]\nid = \"ward\"\niri = \"" + kWard + "\"\nlisten = { kind = \"dds\", domain = 6, " + kDdsConfig +
+                 " }\n\n[[node]]\nid = \"gateway\"\nparent = \"ward\"\n");
+  const fs::path ward_machine = root_ / "ward-machine", gateway_machine = root_ / "gateway-machine";
+  const std::string file = (root_ / "topology.toml").string();
+  tahvel("up " + file + " --node ward --state " + ward_machine.string());
+  tahvel("up " + file + " --node gateway --state " + gateway_machine.string());
+  auto status_of = [&](const fs::path& machine) { return tahvel("status --state " + machine.string()); };
+  std::string ward_sees, gateway_sees;
+  EXPECT_TRUE(eventually([&] {
+    return (ward_sees = status_of(ward_machine)).find("  gateway  <" + kWard + "/gateway>  (on another machine)  link up, last seen") !=
+           std::string::npos;
+  })) << ward_sees;
+  EXPECT_TRUE(eventually([&] {
+    return (gateway_sees = status_of(gateway_machine)).find("gateway  <" + kWard + "/gateway>  uplink to <" + kWard +
+                                                            "> up, parent last heard") != std::string::npos;
+  })) << gateway_sees;
+  EXPECT_EQ(gateway_sees.find("(root)"), std::string::npos) << gateway_sees;
+  const std::string json = tahvel("status --json --state " + gateway_machine.string());
+  EXPECT_NE(json.find("\"remote\":false,\"link\":null,\"uplink\":{\"parent\":\"" + kWard + "\",\"state\":\"up\",\"known\":true,"),
+            std::string::npos)
+      << json;
+
+  // The ward's link frozen (a hung process): it neither refreshes the gateway's state nor
+  // answers the gateway's heartbeats.
+  const std::string ward_link = "pgrep -f '[t]ahvel link " + (ward_machine / "ward").string() + " '";  // not this shell
+  ASSERT_EQ(shell("kill -STOP $(" + ward_link + ")"), 0);
+  EXPECT_TRUE(eventually(
+      [&] { return (ward_sees = status_of(ward_machine)).find("gateway>  (on another machine)  link state unknown: ward/link has not refreshed it") != std::string::npos; },
+      15s))
+      << ward_sees;
+  EXPECT_TRUE(eventually(
+      [&] { return (gateway_sees = status_of(gateway_machine)).find("uplink to <" + kWard + "> down, parent last heard") != std::string::npos; },
+      15s))
+      << gateway_sees;
+  shell("kill -CONT $(" + ward_link + ")");
+  EXPECT_TRUE(eventually([&] { return status_of(gateway_machine).find("> up, parent last heard") != std::string::npos; }, 15s));
+  tahvel("down --state " + gateway_machine.string());
+  tahvel("down --state " + ward_machine.string());
+}
+
+// A home added to the file of a running deployment: `up` again starts the new node's link and
+// restarts the parent's (its accepted children changed), and the new child registers; the
+// gateway that was there keeps its link.
+TEST_F(Deployment, AChildAddedToTheFileOfARunningDeploymentRegistersAfterUpAgain) {
+  const std::string ward = "[[node]]\nid = \"ward\"\niri = \"" + kWard + "\"\nlisten = { kind = \"dds\", domain = 6, " +
+                           kDdsConfig + " }\n\n[[node]]\nid = \"gateway\"\nparent = \"ward\"\n";
+  write_topology(ward);
+  up();
+  std::string shown;
+  ASSERT_TRUE(eventually([&] { return (shown = status()).find("gateway  <" + kWard + "/gateway>  link up") != std::string::npos; }))
+      << shown;
+  write_topology(ward + "\n[[node]]\nid = \"gateway2\"\nparent = \"ward\"\n");
+  const std::string applied = up();
+  EXPECT_NE(applied.find("up:   restarted ward/link (its command changed)"), std::string::npos) << applied;
+  EXPECT_NE(applied.find("up:   started gateway2/link"), std::string::npos) << applied;
+  EXPECT_EQ(applied.find("gateway/link"), std::string::npos) << applied;
+  EXPECT_TRUE(eventually([&] {
+    shown = status();
+    return shown.find("gateway2  <" + kWard + "/gateway2>  link up") != std::string::npos &&
+           shown.find("gateway  <" + kWard + "/gateway>  link up") != std::string::npos;
+  })) << shown;
 }
 
 // A forwarding pattern taken out of the topology file stops going up at the next `up`: the

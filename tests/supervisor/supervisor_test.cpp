@@ -152,6 +152,22 @@ TEST_F(SupervisorTest, TwoProgramsOfOneNameAreRefused) {
   EXPECT_EQ(second.error().code, node::Errc::exists);
 }
 
+// `tahvel up` applying a changed file replaces a program whose command changed: the old one
+// stops and is forgotten, and one of the same name starts with the new command.
+TEST_F(SupervisorTest, ARemovedProgramIsStoppedAndForgottenAndItsNameCanBeStartedAgain) {
+  start("agent", "sleep 30", Restart::always);
+  ASSERT_TRUE(poll_until([&] { return supervisor_.state("agent")->running; }));
+  const pid_t old_pid = supervisor_.state("agent")->pid;
+  ASSERT_TRUE(supervisor_.remove("agent", 2000ms).has_value());
+  EXPECT_FALSE(supervisor_.state("agent").has_value());
+  EXPECT_TRUE(supervisor_.states().empty());
+  EXPECT_NE(kill(old_pid, 0), 0) << "the removed program still runs";
+  start("agent", "sleep 31", Restart::always);
+  ASSERT_TRUE(poll_until([&] { return supervisor_.state("agent")->running; }));
+  EXPECT_NE(supervisor_.state("agent")->pid, old_pid);
+  EXPECT_EQ(supervisor_.remove("nobody").error().code, node::Errc::not_found);
+}
+
 // A supervisor SIGKILLed (a crash) takes its programs with it: none runs on unsupervised, beside
 // the copy a restarted supervisor would start. (Found with the chaos tests: a killed supervisor
 // left its programs running after `tahvel down`.)

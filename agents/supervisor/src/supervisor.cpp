@@ -184,6 +184,17 @@ Result<void> Supervisor::stop(std::string_view name, std::chrono::milliseconds g
   return fail(Errc::not_found, "no program named '" + std::string(name) + "'");
 }
 
+Result<void> Supervisor::remove(std::string_view name, std::chrono::milliseconds grace) {
+  if (auto stopped = stop(name, grace); !stopped) return stopped;
+  for (auto it = programs_.begin(); it != programs_.end(); ++it) {
+    if ((*it)->spec.name != name) continue;
+    delete *it;
+    programs_.erase(it);
+    break;
+  }
+  return {};
+}
+
 void Supervisor::stop_all(std::chrono::milliseconds grace) {
   for (Program* p : programs_) {
     p->stopping = true;

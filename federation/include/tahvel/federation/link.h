@@ -40,6 +40,10 @@ inline const std::string kLinkState = std::string(kTv) + "linkState";
 inline const std::string kOutboxDepth = std::string(kTv) + "outboxDepth";
 inline const std::string kSoftwareVersion = std::string(kTv) + "softwareVersion";
 inline const std::string kParent = std::string(kTv) + "parent";
+// A node's own view of its uplink (P12a): "up", "down", "never connected" or "refused".
+inline const std::string kUplinkState = std::string(kTv) + "uplinkState";
+inline const std::string kParentLastHeard = std::string(kTv) + "parentLastHeard";
+inline const std::string kUplinkRefusal = std::string(kTv) + "uplinkRefusal";
 inline const std::string kRemoteQuery = std::string(kTv) + "RemoteQuery";
 inline const std::string kQueryTarget = std::string(kTv) + "queryTarget";
 inline const std::string kReplyTo = std::string(kTv) + "replyTo";

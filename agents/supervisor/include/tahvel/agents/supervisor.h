@@ -81,6 +81,9 @@ class Supervisor {
   // Stops a program: SIGTERM, then SIGKILL after `grace`; it is not restarted. not_found when no
   // program has that name.
   Result<void> stop(std::string_view name, std::chrono::milliseconds grace = std::chrono::seconds(5));
+  // Stops a program as stop() does and forgets it: it leaves states(), and a program of that
+  // name may be started again (a changed command). not_found when no program has that name.
+  Result<void> remove(std::string_view name, std::chrono::milliseconds grace = std::chrono::seconds(5));
   void stop_all(std::chrono::milliseconds grace = std::chrono::seconds(5));
 
   // Reaps programs that died (logging why), restarts those due. Call it regularly.
