@@ -184,11 +184,16 @@ Result<std::shared_ptr<Env>> Env::open(const std::filesystem::path& dir_in, cons
 
   if (auto w = env->wake_.open(dir / "wake"); !w) return unexpected(w.error());
 
+  // An existing store is opened in a read transaction: a writer of another process that hangs
+  // inside its transaction (stopped, stuck) must not hang every process that opens the store,
+  // `tahvel status` among them. Only a store made before store ids needs a write, once.
+  const unsigned first_flags = init ? 0 : MDB_RDONLY;
+  bool needs_store_id = false;
   MDB_txn* txn = nullptr;
-  rc = mdb_txn_begin(env->env_, nullptr, 0, &txn);
+  rc = mdb_txn_begin(env->env_, nullptr, first_flags, &txn);
   if (rc == MDB_MAP_RESIZED) {
     mdb_env_set_mapsize(env->env_, 0);
-    rc = mdb_txn_begin(env->env_, nullptr, 0, &txn);
+    rc = mdb_txn_begin(env->env_, nullptr, first_flags, &txn);
   }
   if (rc != 0) return lmdb_fail(rc, "starting the first transaction in " + dir.string());
   auto body = [&]() -> Result<void> {
@@ -228,16 +233,30 @@ Result<std::shared_ptr<Env>> Env::open(const std::filesystem::path& dir_in, cons
     env->settings_ = Settings{*iri, *durability == "durable" ? Durability::durable : Durability::fast,
                               bytes_u64(*ring), bytes_u64(*max_literal), bytes_u64(*max_map)};
     // A store made before store ids existed gets one at its first open.
-    if (!get_meta(txn, env->meta, kStoreIdKey))
-      if (auto r = put_meta(txn, env->meta, kStoreIdKey, new_store_id()); !r) return r;
+    if (!get_meta(txn, env->meta, kStoreIdKey)) {
+      if (first_flags & MDB_RDONLY) needs_store_id = true;
+      else if (auto r = put_meta(txn, env->meta, kStoreIdKey, new_store_id()); !r) return r;
+    }
     return {};
   };
   if (auto r = body(); !r) {
     mdb_txn_abort(txn);
     return unexpected(r.error());
   }
-  rc = mdb_txn_commit(txn);
+  rc = mdb_txn_commit(txn);  // also for a read transaction: the table handles outlive it
   if (rc != 0) return lmdb_fail(rc, "committing the first transaction in " + dir.string());
+  if (needs_store_id) {
+    rc = mdb_txn_begin(env->env_, nullptr, 0, &txn);
+    if (rc != 0) return lmdb_fail(rc, "starting a transaction in " + dir.string());
+    Result<void> r;
+    if (!get_meta(txn, env->meta, kStoreIdKey)) r = put_meta(txn, env->meta, kStoreIdKey, new_store_id());
+    if (!r) {
+      mdb_txn_abort(txn);
+      return unexpected(r.error());
+    }
+    rc = mdb_txn_commit(txn);
+    if (rc != 0) return lmdb_fail(rc, "giving " + dir.string() + " a store id");
+  }
   if (env->settings_.durability == Durability::durable) {
     mdb_env_set_flags(env->env_, MDB_NOSYNC | MDB_NOMETASYNC, 0);
     if (init) mdb_env_sync(env->env_, 1);

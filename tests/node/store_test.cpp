@@ -1,6 +1,9 @@
 // Store behaviour in one process: items, blank-node renaming, cascade read and removal,
 // subscriptions and input buffers, errors that leave nothing behind, retention.
 #include <gtest/gtest.h>
+#include <lmdb.h>
+#include <sys/wait.h>
+#include <unistd.h>
 
 #include <atomic>
 #include <set>
@@ -160,6 +163,35 @@ TEST(Store, AStoreKeepsItsIdAcrossOpensAndAStoreMadeAgainInItsPlaceHasAnother) {
   const std::string renewed = again.renew_store_id().value();
   EXPECT_NE(renewed, second);
   EXPECT_EQ(Node::open(dir.path() / "n")->store_id().value(), renewed);
+}
+
+// A store made before store ids gets one at its first open, and keeps it (an existing store is
+// opened in a read transaction; this is the one write an open may need).
+TEST(Store, AStoreMadeBeforeStoreIdsGetsOneAtItsFirstOpenAndKeepsIt) {
+  TempDir dir;
+  { make_node(dir.path() / "n"); }
+  pid_t pid = fork();  // LMDB's own handle on the store, in a process of its own
+  if (pid == 0) {
+    MDB_env* env = nullptr;
+    MDB_txn* txn = nullptr;
+    MDB_dbi meta = 0;
+    MDB_val key{8, const_cast<char*>("store_id")};
+    const bool ok = mdb_env_create(&env) == 0 && mdb_env_set_maxdbs(env, 32) == 0 &&
+                    mdb_env_open(env, (dir.path() / "n").c_str(), 0, 0644) == 0 && mdb_txn_begin(env, nullptr, 0, &txn) == 0 &&
+                    mdb_dbi_open(txn, "meta", 0, &meta) == 0 && mdb_del(txn, meta, &key, nullptr) == 0 && mdb_txn_commit(txn) == 0;
+    _exit(ok ? 0 : 1);
+  }
+  int status = 0;
+  waitpid(pid, &status, 0);
+  ASSERT_TRUE(WIFEXITED(status) && WEXITSTATUS(status) == 0) << "could not take the store id away";
+  std::string given;
+  {
+    auto opened = Node::open(dir.path() / "n");
+    ASSERT_TRUE(opened) << opened.error().message;
+    given = opened->store_id().value();
+    EXPECT_EQ(given.size(), 32u);
+  }
+  EXPECT_EQ(Node::open(dir.path() / "n")->store_id().value(), given);
 }
 
 TEST(Store, LiteralsKeepDatatypeAndLanguage) {

@@ -5,6 +5,7 @@
 #include <signal.h>
 #include <sys/resource.h>
 #include <sys/wait.h>
+#include <lmdb.h>
 #include <unistd.h>
 
 #include <chrono>
@@ -233,6 +234,43 @@ TEST(Processes, WritersKilledMidWriteNeverLeaveHalfItems) {
   }
   // And the store still takes writes.
   EXPECT_TRUE(node->agent("after")->store(measurement(0, kParts)));
+}
+
+// A writer that hangs inside its transaction (a stopped or stuck process holds the store's
+// write lock) must not hang every process that opens the store to read it: `tahvel status`, an
+// operator's `tahvel list`. (Opening took a write transaction, and waited for ever.)
+TEST(Processes, AStoreOpensAndReadsWhileAnotherProcessHangsInsideAWriteTransaction) {
+  TempDir dir;
+  std::uint64_t id = 0;
+  {
+    Node node = make_node(dir.path());
+    id = node.agent("w")->store(measurement(1, 3)).value();
+  }
+  int ready[2];
+  ASSERT_EQ(pipe(ready), 0);
+  pid_t writer = spawn([&] {  // holds the write lock, as a writer stopped mid-transaction does
+    MDB_env* env = nullptr;
+    MDB_txn* txn = nullptr;
+    if (mdb_env_create(&env) != 0 || mdb_env_set_maxdbs(env, 32) != 0 || mdb_env_open(env, dir.path().c_str(), 0, 0644) != 0 ||
+        mdb_txn_begin(env, nullptr, 0, &txn) != 0)
+      return 2;
+    (void)!write(ready[1], "1", 1);
+    pause();
+    return 0;
+  });
+  close(ready[1]);
+  char c = 0;
+  ASSERT_EQ(read(ready[0], &c, 1), 1) << "the writer could not take the write lock";
+  close(ready[0]);
+  pid_t reader = spawn([&] {
+    auto opened = Node::open(dir.path());
+    if (!opened) return 2;
+    auto item = opened->snapshot()->item(id);
+    return item && item->size() == 3 ? 0 : 3;
+  });
+  EXPECT_EQ(wait_exit(reader, 10s), 0) << "-1: opening the store waited for the hung writer";
+  kill(writer, SIGKILL);
+  waitpid(writer, nullptr, 0);
 }
 
 TEST(Processes, OpeningAGrownStoreNeverShrinksItUnderAnotherProcess) {
