@@ -243,8 +243,10 @@ std::string parse_iri(std::string_view text, const uri::PrefixMap& prefixes,
     if (!normal) bad_value(flag, normal.error().message);
     return std::string(text);
   }
-  bad_value(flag, "unknown prefix '" + prefix + "' in '" + std::string(text) + "' (add --prefix " +
-                      prefix + "=IRI, or write <" + std::string(text) + "> for an absolute IRI)");
+  // A command line can add the prefix; a topology file's pattern uses the node's own prefixes.
+  const std::string add = flag.starts_with("--") ? "add --prefix " + prefix + "=IRI, or " : "";
+  bad_value(flag, "unknown prefix '" + prefix + "' in '" + std::string(text) + "' (" + add + "write <" + std::string(text) +
+                      "> for an absolute IRI)");
 }
 
 node::Term parse_term(std::string_view text, const uri::PrefixMap& prefixes,

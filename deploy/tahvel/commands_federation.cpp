@@ -95,16 +95,18 @@ std::shared_ptr<federation::Transport> open_transport(const TransportFlags& t, c
   return std::shared_ptr<federation::Transport>(check(std::move(transport)));
 }
 
-// "S P O" with '_' for any position, in the node's prefixes.
-node::Pattern forward_pattern(const std::string& text, const uri::PrefixMap& prefixes) {
+// "S P O" with '_' for any position, in the node's prefixes. Errors name `origin` (the flag, or
+// the pattern as a topology file writes it).
+node::Pattern forward_pattern(const std::string& text, const uri::PrefixMap& prefixes, std::string_view origin = "--forward") {
   std::istringstream in(text);
   std::string s, p, o, extra;
   if (!(in >> s >> p >> o) || (in >> extra))
-    usage_error("--forward '" + text + "': write three terms 'S P O', '_' for any");
+    usage_error(std::string(origin) + " '" + text + "': write three terms 'S P O', '_' for any");
   node::Pattern pattern;
-  if (s != "_") pattern.s = parse_term(s, prefixes, "--forward", Position::subject);
-  if (p != "_") pattern.p = parse_term(p, prefixes, "--forward", Position::predicate);
-  if (o != "_") pattern.o = parse_term(o, prefixes, "--forward", Position::object);
+  const std::string named = origin == "--forward" ? std::string(origin) : std::string(origin) + " '" + text + "'";
+  if (s != "_") pattern.s = parse_term(s, prefixes, named, Position::subject);
+  if (p != "_") pattern.p = parse_term(p, prefixes, named, Position::predicate);
+  if (o != "_") pattern.o = parse_term(o, prefixes, named, Position::object);
   return pattern;
 }
 
@@ -255,6 +257,7 @@ const Command kLinkCommand{
      {"--listen", "", "lcm|dds", "transport children reach this node on"},
      {"--child", "", "ID", "accept this child id (repeatable; default: any direct child)", true},
      {"--forward", "", "'S P O'", "forward items with a triple matching (repeatable; '_' = any)", true},
+     {"--no-default-forward", "", "", "never subscribe the default policy (the policy on the board is the whole of it)"},
      kFlagLcmUrl, kFlagDdsDomain, kFlagDdsConfig, kFlagListenLcmUrl, kFlagListenDdsDomain, kFlagListenDdsConfig},
     1, 1};
 
@@ -288,6 +291,7 @@ int run_link(const Args& args) {
   options.children = args.all("--child");
   options.area_query = area_answer;
   for (const auto& text : args.all("--forward")) options.forward.push_back(forward_pattern(text, prefixes));
+  options.default_forward = !args.has("--no-default-forward");
   install_stop_handlers();
   auto link = check(federation::Link::start(std::move(options)));
   std::cerr << log_stamp() << " tahvel link <" << node.iri() << ">: running"
@@ -429,6 +433,8 @@ std::vector<std::string> link_argv(const Topology& topo, const NodeSpec& spec, c
     for (const NodeSpec* child : topo.children(spec.id)) argv.insert(argv.end(), {"--child", child->id});
   }
   for (const auto& f : spec.forward) argv.insert(argv.end(), {"--forward", f});
+  // `up` writes the whole policy on the board before the link starts; `forward = []` is none.
+  if (!spec.parent.empty()) argv.push_back("--no-default-forward");
   return argv;
 }
 
@@ -558,7 +564,7 @@ namespace {
 node::Pattern forward_pattern_of(const NodeSpec& spec, const std::string& text, const uri::PrefixMap& prefixes,
                                  const Topology& topo) {
   try {
-    return forward_pattern(text, prefixes);
+    return forward_pattern(text, prefixes, "pattern");
   } catch (const Failure& f) {
     fail(topo.file.string() + ": node '" + spec.id + "': forward: " + f.message);
   }
@@ -910,7 +916,7 @@ int run_up(const Args& args) {
       node::Agent uplink = check(node.agent("uplink"));
       std::vector<node::Pattern> policy;
       for (const auto& f : spec.forward) policy.push_back(forward_pattern_of(spec, f, node.prefixes(), topo));
-      if (policy.empty()) policy = federation::default_forward_policy();
+      if (!spec.forward_given) policy = federation::default_forward_policy();
       std::set<std::uint64_t> kept;
       for (const auto& pattern : policy) kept.insert(check(uplink.subscribe(pattern)));
       // A pattern taken out of the file stops going up (a narrowed policy keeps raw data home):

@@ -275,6 +275,7 @@ node::Result<Topology> load_topology(const std::filesystem::path& file) {
     auto forward = strings((*t)["forward"].node(), file, "node '" + spec.id + "': forward");
     if (!forward) return Unexpected<node::Error>{forward.error()};
     spec.forward = *forward;
+    spec.forward_given = t->get("forward") != nullptr;
     TAHVEL_TRY(behaviours, typed<std::string>(*t, "behaviours", file, what, "a string (a folder)"));
     if (behaviours) {
       std::filesystem::path p = *behaviours;

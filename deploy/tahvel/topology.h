@@ -38,6 +38,7 @@ struct NodeSpec {
   std::string durability = "fast";     // fast | durable
   std::uint64_t ring = 0;
   std::vector<std::string> forward;    // uplink policy patterns "S P O" (CURIEs, _ for any)
+  bool forward_given = false;          // absent: the default policy; `forward = []`: nothing goes up
   std::vector<std::filesystem::path> load;  // Turtle files put (persistent) into a new store
   std::filesystem::path behaviours;    // the dispatcher's folder of behaviours; empty: none
   std::vector<AgentSpec> agents;

@@ -2061,7 +2061,7 @@ Result<std::unique_ptr<Link>> Link::start(LinkOptions options) {
       if (!snap) return Unexpected<Error>{snap.error()};
       auto subs = snap->count({.p = node::Term::iri(std::string(vocab::kTv) + "subscriber"), .o = node::Term::iri(uplink->iri())});
       if (!subs) return Unexpected<Error>{subs.error()};
-      if (*subs == 0) policy = default_forward_policy();
+      if (*subs == 0 && options.default_forward) policy = default_forward_policy();
     }
     for (const auto& pattern : policy) {
       if (auto s = uplink->subscribe(pattern); !s) return Unexpected<Error>{s.error()};

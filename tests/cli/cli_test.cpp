@@ -834,6 +834,9 @@ TEST_F(Cli, UpRefusesATopologyThatCouldNotRunAsWrittenNamingWhatAndWhere) {
       {hospital + "[[node]]\nid = \"home1\"\nparent = \"hospitl\"\n", "t.toml:6:10: node 'home1': parent 'hospitl' is not a node of this file"},
       {hospital + "[[node]]\nid = \"home1\"\nparent = \"hospital\"\n",
        "t.toml:1:1: node 'hospital' has children (node 'home1') but no listen"},
+      // A pattern of the file is named as the file writes it, not as a command-line flag.
+      {listening + "[[node]]\nid = \"home1\"\nparent = \"hospital\"\nforward = [\"_ zz:foo _\"]\n",
+       "node 'home1': forward: pattern '_ zz:foo _': unknown prefix 'zz' in 'zz:foo' (write <zz:foo> for an absolute IRI)"},
       // A misspelt behaviours folder would run nothing, silently.
       {hospital + "behaviours = \"behavours\"\n", "t.toml:4:14: node 'hospital': behaviours: "},
   };

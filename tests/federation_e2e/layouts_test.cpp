@@ -245,6 +245,24 @@ TEST_F(Deployment, AForwardPatternTakenOutOfTheFileStopsGoingUp) {
   ASSERT_TRUE(eventually([&] { return count(state_ / "ward", "EcgChunk") == 2; }));
   EXPECT_EQ(count(state_ / "ward", "EcgRecording"), 1u);
   EXPECT_EQ(count(state_ / "bed", "EcgRecording"), 2u);
+
+  // `forward = []` is nothing at all, not the default (HRV windows), applied to the running
+  // deployment: the bed's link restarts with the new policy.
+  write_topology(top + "forward = []\n");
+  const std::string applied = up();
+  EXPECT_NE(applied.find("bed: removed a forwarding pattern no longer in the file"), std::string::npos) << applied;
+  EXPECT_NE(applied.find("up:   restarted bed/link (its command changed)"), std::string::npos) << applied;
+  std::string shown;
+  ASSERT_TRUE(eventually([&] { return (shown = status()).find("bed  <" + kWard + "/bed>  link up") != std::string::npos; })) << shown;
+  ASSERT_EQ(put("chunk3", "EcgChunk"), 0);
+  ASSERT_EQ(shell("echo '<" + kWard + "/bed/hrv1> <http://www.w3.org/ns/sosa/observedProperty> <https://w3id.org/tahvel#HeartRateVariability> .' | " +
+                  kBin + "/tahvel put " + bed + " --format nt >/dev/null"),
+            0);
+  std::this_thread::sleep_for(3s);  // what would go up has long arrived on a link that is up
+  EXPECT_EQ(count(state_ / "ward", "EcgChunk"), 2u);
+  auto ward = Node::open(state_ / "ward");
+  ASSERT_TRUE(ward);
+  EXPECT_EQ(ward->snapshot()->count({.s = Term::iri(kWard + "/bed/hrv1")}).value(), 0u) << "the default policy came back";
 }
 
 }  // namespace

@@ -86,6 +86,8 @@ struct LinkOptions {
   // The forwarding policy: subscriptions of agent "uplink", written at start (idempotent). Empty:
   // keep what the store has, or on a new store the default — HRV windows only, never raw signals.
   std::vector<node::Pattern> forward;
+  // False: the policy on the board is the whole of it, none included (`tahvel up` writes it).
+  bool default_forward = true;
 
   // Parent role: the transport children reach this node on (bound to this node's IRI; may be the
   // same object as `up`). Null: a leaf.
