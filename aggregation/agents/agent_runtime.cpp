@@ -8,6 +8,8 @@
 #include <iostream>
 #include <set>
 
+#include "tahvel/node/format.h"
+
 namespace tahvel::agents::hrv {
 namespace {
 
@@ -74,7 +76,7 @@ void install_stop_handlers() {
 bool stop_requested() { return g_stop != 0; }
 
 void log_line(const std::string& program, const std::string& message) {
-  std::cerr << (program + ": " + message + "\n") << std::flush;
+  std::cerr << (node::log_stamp() + " " + program + ": " + message + "\n") << std::flush;
 }
 
 std::optional<Session> open_session(const std::string& program, const std::string& dir,

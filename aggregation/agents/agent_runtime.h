@@ -54,7 +54,7 @@ class Args {
 void install_stop_handlers();
 bool stop_requested();
 
-// "<program>: <message>" on stderr, one line.
+// "<UTC time> <program>: <message>" on stderr, one line (node::log_stamp).
 void log_line(const std::string& program, const std::string& message);
 
 // An opened node with one agent handle.

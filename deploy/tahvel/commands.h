@@ -57,10 +57,6 @@ void check(node::Result<void>&& result);
 // --- node and prefixes ----------------------------------------------------------------------
 
 node::Node open_node(const std::string& dir);
-// Now in UTC to the millisecond, "2026-11-22T10:53:01.123Z": the start of a log line of the
-// long-running commands (up's supervisor, link, reason), so that logs of several processes and
-// machines can be read side by side.
-std::string log_stamp();
 // `base` plus every --prefix P=IRI of `args` (usage error naming --prefix when malformed).
 uri::PrefixMap prefixes_with_flags(uri::PrefixMap base, const Args& args);
 // The agent id of --agent (default `fallback`), checked (usage error naming --agent).

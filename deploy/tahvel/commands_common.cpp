@@ -2,9 +2,6 @@
 // prefix table, input and output. Everything here runs once per invocation (not hot).
 #include <algorithm>
 #include <charconv>
-#include <chrono>
-#include <cstdio>
-#include <ctime>
 #include <cerrno>
 #include <cstring>
 #include <poll.h>
@@ -197,18 +194,6 @@ uri::PrefixMap prefixes_with_flags(uri::PrefixMap base, const Args& args) {
     if (!added) bad_value("--prefix", added.error().message);
   }
   return base;
-}
-
-std::string log_stamp() {
-  const auto now = std::chrono::system_clock::now();
-  const std::time_t seconds = std::chrono::system_clock::to_time_t(now);
-  const auto ms = std::chrono::duration_cast<std::chrono::milliseconds>(now.time_since_epoch()).count() % 1000;
-  std::tm utc{};
-  gmtime_r(&seconds, &utc);
-  char text[64];
-  std::snprintf(text, sizeof text, "%04d-%02d-%02dT%02d:%02d:%02d.%03dZ", utc.tm_year + 1900, utc.tm_mon + 1, utc.tm_mday,
-                utc.tm_hour, utc.tm_min, utc.tm_sec, static_cast<int>(ms));
-  return text;
 }
 
 std::string agent_id(const Args& args, std::string_view fallback) {

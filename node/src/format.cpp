@@ -32,9 +32,11 @@
 #include <serd/serd.h>
 
 #include <algorithm>
+#include <chrono>
 #include <cstdarg>
 #include <cstdio>
 #include <cstring>
+#include <ctime>
 #include <exception>
 #include <map>
 #include <memory>
@@ -451,6 +453,18 @@ Result<std::vector<Triple>> parse_rdf(std::string_view text, const ParseOptions&
   auto triples = Parser(text, options, Parser::Pass::fast).run();
   if (triples || triples.error().code != Errc::syntax) return triples;
   return Parser(text, options, Parser::Pass::locate).run();  // same input: fails at the same place
+}
+
+std::string log_stamp() {
+  const auto now = std::chrono::system_clock::now();
+  const std::time_t seconds = std::chrono::system_clock::to_time_t(now);
+  const auto ms = std::chrono::duration_cast<std::chrono::milliseconds>(now.time_since_epoch()).count() % 1000;
+  std::tm utc{};
+  gmtime_r(&seconds, &utc);
+  char text[64];
+  std::snprintf(text, sizeof text, "%04d-%02d-%02dT%02d:%02d:%02d.%03dZ", utc.tm_year + 1900, utc.tm_mon + 1, utc.tm_mday,
+                utc.tm_hour, utc.tm_min, utc.tm_sec, static_cast<int>(ms));
+  return text;
 }
 
 std::string json_escape(std::string_view text) {

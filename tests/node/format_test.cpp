@@ -6,7 +6,9 @@
 #include <gtest/gtest.h>
 
 #include <algorithm>
+#include <chrono>
 #include <random>
+#include <regex>
 #include <sstream>
 #include <string>
 #include <vector>
@@ -659,6 +661,26 @@ TEST(Format, JsonTripleOmitsMetadataAndNamesBlankNodes) {
             "{\"s\":{\"type\":\"bnode\",\"value\":\"b1\"},"
             "\"p\":{\"type\":\"uri\",\"value\":\"http://x/p\"},"
             "\"o\":{\"type\":\"literal\",\"value\":\"s\"}}\n");
+}
+
+// Log lines of several processes and machines are read side by side: UTC, milliseconds, and the
+// time it is (not local time, not the boot clock).
+TEST(Format, ALogStampIsTheUtcTimeNowToTheMillisecond) {
+  const auto before = std::chrono::system_clock::now();
+  const std::string stamp = tn::log_stamp();
+  const auto after = std::chrono::system_clock::now();
+  std::smatch m;
+  ASSERT_TRUE(std::regex_match(stamp, m, std::regex(R"((\d{4})-(\d\d)-(\d\d)T(\d\d):(\d\d):(\d\d)\.(\d{3})Z)"))) << stamp;
+  std::tm utc{};
+  utc.tm_year = std::stoi(m[1]) - 1900;
+  utc.tm_mon = std::stoi(m[2]) - 1;
+  utc.tm_mday = std::stoi(m[3]);
+  utc.tm_hour = std::stoi(m[4]);
+  utc.tm_min = std::stoi(m[5]);
+  utc.tm_sec = std::stoi(m[6]);
+  const auto at = std::chrono::system_clock::from_time_t(timegm(&utc)) + std::chrono::milliseconds(std::stoi(m[7]));
+  EXPECT_GE(at, std::chrono::time_point_cast<std::chrono::milliseconds>(before));
+  EXPECT_LE(at, after);
 }
 
 TEST(Format, JsonEscapesControlCharacters) {

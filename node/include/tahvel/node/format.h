@@ -63,4 +63,9 @@ class RecordWriter {
 // Escapes `text` as the body of a JSON string (no quotes added).
 std::string json_escape(std::string_view text);
 
+// Now in UTC to the millisecond, "2026-11-22T10:53:01.123Z": the start of a log line of a
+// long-running process (agents, links, the supervisor), so that the logs of several processes
+// and machines can be read side by side.
+std::string log_stamp();
+
 }  // namespace tahvel::node
