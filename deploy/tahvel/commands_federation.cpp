@@ -267,7 +267,7 @@ int run_link(const Args& args) {
   federation::LinkOptions options;
   options.dir = args.positional(0);
   auto log = [iri = node.iri()](std::string_view line) {
-    std::cerr << log_stamp() << " tahvel link <" << iri << ">: " << line << std::endl;
+    std::cerr << node::log_stamp() << " tahvel link <" << iri << ">: " << line << std::endl;
   };
   options.log = log;
   auto parent = args.get("--parent");
@@ -294,12 +294,12 @@ int run_link(const Args& args) {
   options.default_forward = !args.has("--no-default-forward");
   install_stop_handlers();
   auto link = check(federation::Link::start(std::move(options)));
-  std::cerr << log_stamp() << " tahvel link <" << node.iri() << ">: running"
+  std::cerr << node::log_stamp() << " tahvel link <" << node.iri() << ">: running"
             << (parent ? " (parent <" + *parent + "> over " + *up + ")" : "") << (listen ? " (children over " + *listen + ")" : "") << std::endl;
   while (!g_stop) std::this_thread::sleep_for(100ms);
   link->stop();
   auto c = link->counters();
-  std::cerr << log_stamp() << " tahvel link <" << node.iri() << ">: stopped; sent up " << c.up_sent << ", relayed in " << c.relayed_in
+  std::cerr << node::log_stamp() << " tahvel link <" << node.iri() << ">: stopped; sent up " << c.up_sent << ", relayed in " << c.relayed_in
             << ", duplicates dropped " << c.duplicates_in << ", applied from above " << c.down_applied
             << ", items refused " << c.items_refused << ", refused by the other end " << c.items_refused_by_peer << std::endl;
   return kExitOk;
@@ -617,6 +617,20 @@ void create_store(const NodeSpec& spec, const fs::path& store, const Topology& t
   std::cout << "up: created the store of " << spec.id << " <" << spec.iri << "> at " << store.string() << "\n";
 }
 
+// Writes `file` whole or not at all (beside it, then renamed).
+void write_whole(const fs::path& file, const std::string& text) {
+  fs::path tmp = file;
+  tmp += ".tmp";
+  {
+    std::ofstream out(tmp);
+    out << text;
+    if (!out.flush()) fail(tmp.string() + ": cannot write");
+  }
+  std::error_code ec;
+  fs::rename(tmp, file, ec);
+  if (ec) fail(file.string() + ": " + ec.message());
+}
+
 // The programs `up` runs for the nodes `mine`: each node's link (when it has a parent or
 // children) and its agents, as the supervisor starts them.
 std::vector<agents::ProgramSpec> programs_of(const Topology& topo, const std::vector<const NodeSpec*>& mine,
@@ -678,11 +692,22 @@ class Deployment {
         if (changed) applied_.erase(it);
         continue;
       }
-      changes.push_back((changed ? "restarted " : "started ") + name + (changed ? " (its command changed)" : ""));
+      changes.push_back(changed ? "restarted " + name + " (" + what_changed(it->second, program) + ")" : "started " + name);
       applied_[name] = program;
     }
     std::set<std::string> ids;
-    for (const NodeSpec* spec : mine) ids.insert(spec->id);
+    std::string listed;
+    for (const NodeSpec* spec : mine) {
+      ids.insert(spec->id);
+      listed += spec->id + "\n";
+    }
+    // The nodes this supervisor runs, for `status` to tell a store left from a node taken out of
+    // the file from one that is part of the deployment.
+    try {
+      write_whole(fs::path(state_ / pid_file_name(only_)).replace_extension(".nodes"), listed);
+    } catch (const Failure& f) {
+      changes.push_back(f.message);
+    }
     for (auto it = dispatchers_.begin(); it != dispatchers_.end();) {
       const NodeSpec* spec = topo.node(it->first);
       if (ids.count(it->first) && spec->behaviours == it->second.folder) {
@@ -753,6 +778,17 @@ class Deployment {
   static bool same_program(const agents::ProgramSpec& a, const agents::ProgramSpec& b) {
     return a.argv == b.argv && a.env == b.env && a.log_file == b.log_file && a.restart == b.restart;
   }
+  static std::string what_changed(const agents::ProgramSpec& was, const agents::ProgramSpec& now) {
+    std::vector<std::string> what;
+    if (was.argv != now.argv || was.env != now.env) what.push_back("its command changed");
+    if (was.restart != now.restart)
+      what.push_back("restart \"" + std::string(agents::restart_name(was.restart)) + "\" -> \"" +
+                     std::string(agents::restart_name(now.restart)) + "\"");
+    if (was.log_file != now.log_file) what.push_back("its log file changed");
+    std::string text;
+    for (const auto& w : what) text += (text.empty() ? "" : ", ") + w;
+    return text;
+  }
   struct Dispatching {
     fs::path folder;
     agents::Dispatcher dispatcher;
@@ -769,19 +805,6 @@ class Deployment {
 // file), and the supervisor's answer (the id, then one line per change).
 fs::path apply_request_file(const fs::path& pid_file) { return fs::path(pid_file).replace_extension(".apply"); }
 fs::path apply_answer_file(const fs::path& pid_file) { return fs::path(pid_file).replace_extension(".applied"); }
-
-void write_whole(const fs::path& file, const std::string& text) {
-  fs::path tmp = file;
-  tmp += ".tmp";
-  {
-    std::ofstream out(tmp);
-    out << text;
-    if (!out.flush()) fail(tmp.string() + ": cannot write");
-  }
-  std::error_code ec;
-  fs::rename(tmp, file, ec);
-  if (ec) fail(file.string() + ": " + ec.message());
-}
 
 // In the running supervisor, on SIGHUP: applies the file the request names, and answers.
 void apply_requested(Deployment& deployment, const fs::path& pid_file, const agents::Supervisor::Log& log) {
@@ -816,6 +839,16 @@ void apply_requested(Deployment& deployment, const fs::path& pid_file, const age
 // In `up`, when the supervisor of this selection runs: asks it to apply `file` and prints what
 // it changed.
 int ask_to_apply(pid_t supervisor, const fs::path& pid_file, const fs::path& file) {
+  // One request at a time: two `up`s at once would overwrite each other's request, and one
+  // would wait for an answer that never comes. The next waits here for the one before.
+  struct Turn {
+    int fd;
+    ~Turn() {
+      if (fd >= 0) ::close(fd);  // and the lock with it
+    }
+  } turn{::open(fs::path(pid_file).replace_extension(".apply.lock").c_str(), O_RDWR | O_CREAT | O_CLOEXEC, 0644)};
+  if (turn.fd < 0 || flock(turn.fd, LOCK_EX) != 0)
+    fail(fs::path(pid_file).replace_extension(".apply.lock").string() + ": " + std::strerror(errno));
   const std::string id = std::to_string(getpid()) + "-" +
                          std::to_string(std::chrono::steady_clock::now().time_since_epoch().count());
   write_whole(apply_request_file(pid_file), id + "\n" + fs::absolute(file).string() + "\n");
@@ -850,7 +883,11 @@ int run_up(const Args& args) {
   Topology topo = check(load_topology(args.positional(0)));
   fs::path state = fs::absolute(state_dir(args));
   std::optional<std::string> only = args.get("--node");
-  if (only && !topo.node(*only)) fail("--node '" + *only + "': no such node in " + topo.file.string());
+  if (only && !topo.node(*only)) {
+    const bool runs = supervisor_holding(state / pid_file_name(only)) != 0;
+    fail("--node '" + *only + "': no such node in " + topo.file.string() +
+         (runs ? " (it still runs from an earlier file: 'tahvel down --state " + state.string() + " --node " + *only + "' stops it)" : ""));
+  }
   fs::path pid_file = state / pid_file_name(only);
   // The supervisor of this selection already running is asked to apply the file as it is now,
   // once it is checked (below): `up` again after an edit adds a node, restarts what changed.
@@ -917,8 +954,18 @@ int run_up(const Args& args) {
       std::vector<node::Pattern> policy;
       for (const auto& f : spec.forward) policy.push_back(forward_pattern_of(spec, f, node.prefixes(), topo));
       if (!spec.forward_given) policy = federation::default_forward_policy();
+      auto before = check(node.snapshot());
+      std::set<std::uint64_t> had;
+      for (const auto& r : check(before.list({.p = node::Term::iri(std::string(federation::vocab::kTv) + "subscriber"),
+                                               .o = node::Term::iri(uplink.iri())})))
+        had.insert(r.meta.item);
       std::set<std::uint64_t> kept;
-      for (const auto& pattern : policy) kept.insert(check(uplink.subscribe(pattern)));
+      for (std::size_t k = 0; k < policy.size(); ++k) {
+        const std::uint64_t item = check(uplink.subscribe(policy[k]));
+        kept.insert(item);
+        if (!had.count(item) && k < spec.forward.size() && !had.empty())  // not at a new store's first policy
+          std::cout << "up: " << spec.id << ": added the forwarding pattern '" << spec.forward[k] << "' (item " << item << ")\n";
+      }
       // A pattern taken out of the file stops going up (a narrowed policy keeps raw data home):
       // the uplink's own subscriptions are the file's. Those the parent sent down stay.
       auto snap = check(node.snapshot());
@@ -977,7 +1024,7 @@ int run_up(const Args& args) {
   sigemptyset(&on_hup.sa_mask);
   sigaction(SIGHUP, &on_hup, nullptr);
   signal(SIGPIPE, SIG_IGN);
-  const agents::Supervisor::Log log = [](std::string_view line) { std::cerr << log_stamp() << " " << line << std::endl; };
+  const agents::Supervisor::Log log = [](std::string_view line) { std::cerr << node::log_stamp() << " " << line << std::endl; };
   agents::Supervisor supervisor(log);
   Deployment deployment(supervisor, state, only);
   for (const auto& change : deployment.apply(topo))
@@ -1101,9 +1148,37 @@ std::string unbelieved_because(const std::vector<ProgramRow>& programs, const st
   return {};
 }
 
+// The ids of the nodes the running supervisor of the whole file runs (its .nodes file), or
+// nothing when none runs or it does not say (one from before .nodes files). A node of a store
+// under `state` that it does not run was taken out of the file (a node brought up alone,
+// `up --node`, cannot be: that `up` would not find it).
+std::optional<std::set<std::string>> nodes_supervised(const fs::path& state) {
+  const fs::path whole = state / pid_file_name(std::nullopt);
+  if (supervisor_holding(whole) == 0) return std::nullopt;
+  std::ifstream in(fs::path(whole).replace_extension(".nodes"));
+  if (!in) return std::nullopt;
+  std::set<std::string> ids;
+  for (std::string id; std::getline(in, id);) ids.insert(id);
+  return ids;
+}
+
 void print_json_string_or_null(const std::string& text) {
   if (text.empty()) std::cout << "null";
   else std::cout << "\"" << node::json_escape(text) << "\"";
+}
+
+// One side's view of a link in `status --json`: the parent's of a child (P12) or the child's
+// own (P12a), which differ in their time (`time_key`) and last field (`extra_key`).
+void print_link_json(const std::string& parent, const std::string& state, const std::string& unknown_because,
+                     std::string_view time_key, std::int64_t time_ns, const std::string& outbox, std::string_view extra_key,
+                     const std::string& extra) {
+  std::cout << "{\"parent\":\"" << node::json_escape(parent) << "\",\"state\":\"" << node::json_escape(state)
+            << "\",\"known\":" << (unknown_because.empty() ? "true" : "false") << ",\"unknown_because\":";
+  print_json_string_or_null(unknown_because);
+  std::cout << ",\"" << time_key << "\":" << (time_ns > 0 ? std::to_string(time_ns) : "null")
+            << ",\"outbox_depth\":" << (parse_u64(outbox) ? outbox : "null") << ",\"" << extra_key << "\":";
+  print_json_string_or_null(extra);
+  std::cout << "}";
 }
 
 }  // namespace
@@ -1152,10 +1227,24 @@ int run_status(const Args& args) {
   }
   std::sort(nodes.begin(), nodes.end(), [](const StatusNode& a, const StatusNode& b) { return a.iri < b.iri; });
   auto programs = read_state_files(state);
+  const std::optional<std::set<std::string>> deployed = nodes_supervised(state);
+  auto in_deployment = [&](const std::string& id) { return !deployed || deployed->count(id) > 0; };
+  // What a store left behind by a node taken out of the file kept of its children is not news.
+  std::erase_if(nodes, [&](const StatusNode& n) {
+    if (!n.remote) return false;
+    auto parent = n.link.find("parent");
+    const std::string keeper = parent == n.link.end() ? std::string() : local_id(parent->second);
+    return !keeper.empty() && !in_deployment(keeper);
+  });
   const bool json = args.has("--json");
   if (json) std::cout << "{\"state\":\"" << node::json_escape(state.string()) << "\",\"nodes\":[";
   bool first_node = true;
   for (StatusNode& n : nodes) {
+    const bool left = !n.remote && !in_deployment(n.id);
+    if (left) {  // what its links last wrote is no longer news
+      n.link.clear();
+      n.uplink.clear();
+    }
     int depth = 0;
     for (const StatusNode& other : nodes)
       if (other.iri != n.iri && uri::is_under(n.iri, other.iri)) ++depth;
@@ -1186,33 +1275,18 @@ int run_status(const Args& args) {
     if (json) {
       std::cout << (first_node ? "" : ",") << "{\"id\":\"" << node::json_escape(n.id) << "\",\"iri\":\""
                 << node::json_escape(n.iri) << "\",\"depth\":" << depth << ",\"remote\":" << (n.remote ? "true" : "false")
+                << ",\"in_deployment\":" << (left ? "false" : "true")
                 << ",\"link\":";
       first_node = false;
-      if (n.link.empty()) {
-        std::cout << "null";
-      } else {
-        auto& f = n.link;
-        std::cout << "{\"parent\":\"" << node::json_escape(f["parent"]) << "\",\"state\":\"" << node::json_escape(f["linkState"])
-                  << "\",\"known\":" << (unknown_because.empty() ? "true" : "false") << ",\"unknown_because\":";
-        print_json_string_or_null(unknown_because);
-        std::cout << ",\"last_seen_ns\":" << (seen > 0 ? std::to_string(seen) : "null")
-                  << ",\"outbox_depth\":" << (parse_u64(f["outboxDepth"]) ? f["outboxDepth"] : "null") << ",\"software_version\":";
-        print_json_string_or_null(f["softwareVersion"]);
-        std::cout << "}";
-      }
+      if (n.link.empty()) std::cout << "null";
+      else
+        print_link_json(n.link["parent"], n.link["linkState"], unknown_because, "last_seen_ns", seen, n.link["outboxDepth"],
+                        "software_version", n.link["softwareVersion"]);
       std::cout << ",\"uplink\":";
-      if (n.uplink.empty()) {
-        std::cout << "null";
-      } else {
-        auto& f = n.uplink;
-        std::cout << "{\"parent\":\"" << node::json_escape(f["parent"]) << "\",\"state\":\"" << node::json_escape(f["uplinkState"])
-                  << "\",\"known\":" << (uplink_unknown_because.empty() ? "true" : "false") << ",\"unknown_because\":";
-        print_json_string_or_null(uplink_unknown_because);
-        std::cout << ",\"parent_last_heard_ns\":" << (heard > 0 ? std::to_string(heard) : "null")
-                  << ",\"outbox_depth\":" << (parse_u64(f["outboxDepth"]) ? f["outboxDepth"] : "null") << ",\"refusal\":";
-        print_json_string_or_null(f["uplinkRefusal"]);
-        std::cout << "}";
-      }
+      if (n.uplink.empty()) std::cout << "null";
+      else
+        print_link_json(n.uplink["parent"], n.uplink["uplinkState"], uplink_unknown_because, "parent_last_heard_ns", heard,
+                        n.uplink["outboxDepth"], "refusal", n.uplink["uplinkRefusal"]);
       std::cout << ",\"programs\":[";
       bool first_program = true;
       for (const auto& p : programs) {
@@ -1231,6 +1305,7 @@ int run_status(const Args& args) {
     std::string indent(depth * 2, ' ');
     std::cout << indent << n.id << "  <" << n.iri << ">";
     if (n.remote) std::cout << "  (on another machine)";
+    if (left) std::cout << "  not in the running deployment (taken out of its file; the store is kept)";
     if (!n.link.empty() && !unknown_because.empty())
       std::cout << "  link state unknown: " << unknown_because << " (it last said: " << said << ")";
     else if (!n.link.empty())
@@ -1239,7 +1314,7 @@ int run_status(const Args& args) {
       std::cout << "  uplink state unknown: " << uplink_unknown_because << " (it last said: " << uplink_said << ")";
     else if (!n.uplink.empty())
       std::cout << "  " << uplink_said;
-    else if (depth == 0)
+    else if (depth == 0 && !left)
       std::cout << "  (root)";
     std::cout << "\n";
     for (const auto& p : programs) {

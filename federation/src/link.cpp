@@ -225,6 +225,7 @@ struct Link::Impl {
     std::int64_t state_written_ns = 0;
   };
   std::map<std::string, std::shared_ptr<Child>> children;  // by IRI
+  std::map<std::string, std::pair<std::string, Clock::time_point>> refusals_logged;  // sender -> last reason logged
 
   // Stream names (P6a): a child's items by its IRI and store id; what comes down by the parent's
   // store id. Without an id (a peer from before store ids): the names used then.
@@ -734,12 +735,23 @@ struct Link::Impl {
     } else {
       why = "<" + f.from + "> is not the parent <" + opt.parent_iri + "> of <" + self + ">";
     }
-    log("refused " + std::to_string(static_cast<int>(f.kind)) + "-frame: " + why);
+    bool say = false;
     {
       std::lock_guard lock(mu);
       ++counters.refused;
+      // Once per sender and reason a minute: a refused child says hello every second.
+      auto& last = refusals_logged[f.from];
+      if (last.first != why || Clock::now() - last.second > std::chrono::minutes(1)) {
+        last = {why, Clock::now()};
+        say = true;
+      }
     }
-    if (f.kind == FrameKind::hello) send_error(via, f.from, 0, {"refused", why, ""});
+    if (say) log("refused " + std::to_string(static_cast<int>(f.kind)) + "-frame: " + why);
+    // A child that was welcomed and is no longer accepted (its parent restarted with a file
+    // without it) learns so from its next heartbeat or item, not only at its next hello.
+    if (opt.down && via == opt.down.get() &&
+        (f.kind == FrameKind::hello || f.kind == FrameKind::heartbeat || f.kind == FrameKind::up))
+      send_error(via, f.from, 0, {"refused", why, ""});
   }
 
   template <class AgentFn>
@@ -935,8 +947,9 @@ struct Link::Impl {
           welcomed = false;
         } else if (code == "refused") {
           welcomed = false;
-          refused_by_parent = body ? body->message : std::string("refused");
-          log("the parent refused this node: " + (body ? body->message : std::string()));
+          const std::string why = body ? body->message : std::string("refused");
+          if (why != refused_by_parent) log("the parent refused this node: " + why);  // not at every hello
+          refused_by_parent = why;
         } else {
           log("error from the parent: " + code + (body ? ": " + body->message : std::string()));
         }
@@ -1671,7 +1684,9 @@ struct Link::Impl {
         const auto now = Clock::now();
         if (now >= next_beat) {
           beat = true;
-          next_beat = now + (welcomed ? opt.heartbeat_every : std::min(opt.heartbeat_every, std::chrono::milliseconds(250)));
+          // A refused node asks again at the heartbeat's pace, not four times a second.
+          next_beat = now + (welcomed || !refused_by_parent.empty() ? opt.heartbeat_every
+                                                                    : std::min(opt.heartbeat_every, std::chrono::milliseconds(250)));
         }
         const std::int64_t wall = now_ns();
         for (auto& [iri, child] : children) {
@@ -2084,6 +2099,20 @@ Result<std::unique_ptr<Link>> Link::start(LinkOptions options) {
       child->id = id;
       child->iri = *iri;
       s.children[*iri] = child;
+    }
+    // The state an earlier run kept of a child that is no longer configured (taken out of the
+    // file) would stay "up" on the board for ever: it goes (P12).
+    if (!s.opt.children.empty()) {
+      auto link_agent = node->agent(kLinkAgent);
+      if (!link_agent) return Unexpected<Error>{link_agent.error()};
+      auto snap = node->snapshot();
+      if (!snap) return Unexpected<Error>{snap.error()};
+      auto states = snap->list({.p = node::Term::iri(vocab::kLinkState), .source = link_agent->iri()});
+      if (!states) return Unexpected<Error>{states.error()};
+      for (const auto& r : *states) {
+        if (s.children.count(r.triple.s.value)) continue;
+        if (auto gone = node->remove_item(r.meta.item); !gone) return Unexpected<Error>{gone.error()};
+      }
     }
     s.waker = std::move(*node);
     s.serving_lock = ::open((s.opt.dir / kServingLockFile).c_str(), O_RDWR | O_CREAT | O_CLOEXEC, 0644);

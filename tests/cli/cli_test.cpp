@@ -582,7 +582,7 @@ TEST_F(Cli, StatusJsonHasEachNodesLinkAndPrograms) {
   Outcome json = run({"status", "--state", state, "--json"});
   EXPECT_EQ(json.status, 0) << json.err;
   EXPECT_EQ(json.out.rfind("{\"state\":\"" + state + "\",\"nodes\":[{\"id\":\"solo\",\"iri\":\"http://example.org/solo\",\"depth\":0,"
-                           "\"remote\":false,\"link\":null,\"uplink\":null,\"programs\":[",
+                           "\"remote\":false,\"in_deployment\":true,\"link\":null,\"uplink\":null,\"programs\":[",
                            0),
             0u)
       << json.out;
@@ -881,9 +881,34 @@ TEST_F(Cli, UpAgainAppliesAnEditedFileToTheRunningSupervisor) {
   ASSERT_EQ(changed.status, 0) << changed.err;
   EXPECT_NE(changed.out.find("up:   stopped solo/second (no longer in the file)"), std::string::npos) << changed.out;
   EXPECT_NE(changed.out.find("up:   restarted solo/idle (its command changed)"), std::string::npos) << changed.out;
+  spit(file, "[[node]]\nid = \"solo\"\niri = \"http://example.org/solo\"\n"
+             "  [[node.agent]]\n  id = \"idle\"\n  run = [\"/bin/sleep\", \"602\"]\n  restart = \"always\"\n");
+  Outcome policy = run({"up", file, "--state", state});
+  EXPECT_NE(policy.out.find("up:   restarted solo/idle (restart \"on-failure\" -> \"always\")"), std::string::npos) << policy.out;
   std::string new_pid;
   EXPECT_TRUE(eventually([&] { return !(new_pid = pid_of("idle")).empty() && new_pid != idle_pid; }));
   EXPECT_EQ(run({"status", "--state", state}).out.find("second"), std::string::npos);
+
+  // Three edits at once are each applied, in turn (they used to overwrite each other's request,
+  // and the `up`s whose request was lost waited 60 s and failed).
+  std::vector<std::pair<pid_t, int>> at_once;
+  for (int k = 1; k <= 3; ++k) {
+    const std::string edit = (tmp_ / ("edit" + std::to_string(k) + ".toml")).string();
+    spit(edit, "[[node]]\nid = \"solo\"\niri = \"http://example.org/solo\"\n  [[node.agent]]\n  id = \"x" + std::to_string(k) +
+                   "\"\n  run = [\"/bin/sleep\", \"600\"]\n");
+    const int n = 1000 + k;
+    at_once.emplace_back(spawn({"up", edit, "--state", state}, "", n), n);
+  }
+  for (int k = 1; k <= 3; ++k) {
+    Outcome applied = finish(at_once[k - 1].first, at_once[k - 1].second);
+    EXPECT_EQ(applied.status, 0) << applied.err;
+    EXPECT_NE(applied.out.find("up:   started solo/x" + std::to_string(k)), std::string::npos) << applied.out;
+  }
+  new_pid = "";
+  spit(file, "[[node]]\nid = \"solo\"\niri = \"http://example.org/solo\"\n"
+             "  [[node.agent]]\n  id = \"idle\"\n  run = [\"/bin/sleep\", \"602\"]\n");
+  ASSERT_EQ(run({"up", file, "--state", state}).status, 0);
+  ASSERT_TRUE(eventually([&] { return !(new_pid = pid_of("idle")).empty(); }));
 
   spit(file, "[[node]]\nid = \"solo\"\niri = \"http://example.org/solo\"\n  [[node.agent]]\n  id = \"\"\n");
   Outcome bad = run({"up", file, "--state", state});

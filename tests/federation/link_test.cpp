@@ -91,6 +91,14 @@ bool state_says_up(const std::string& parent_dir, const std::string& child_iri) 
   return count(parent_dir, {.s = Term::iri(child_iri), .p = Term::iri(vocab::kLinkState), .o = Term::literal("up")}) == 1;
 }
 
+// The node's own view of its uplink (P12a): the objects of its tv:uplinkState records.
+std::vector<std::string> uplink_states(const std::string& dir, const std::string& iri) {
+  auto records = node::Node::open(dir).value().snapshot().value().list({.s = Term::iri(iri), .p = Term::iri(vocab::kUplinkState)}).value();
+  std::vector<std::string> states;
+  for (const auto& r : records) states.push_back(r.triple.o.value);
+  return states;
+}
+
 // A hospital with two configured homes on one memory bus.
 struct Tree {
   TempDir tmp{"tahvel-link"};
@@ -527,13 +535,7 @@ TEST(Link, EachChildHasOneStateItemThatFollowsItsLinkAcrossARestartOfTheParent) 
 // it hears), up again when the parent is back, and refused with the parent's reason.
 TEST(Link, AChildKeepsItsOwnViewOfItsUplinkThatFollowsItsParent) {
   Tree tree;
-  auto own_state = [&](const std::string& dir, const std::string& iri) {
-    auto node = node::Node::open(dir).value();
-    auto records = node.snapshot().value().list({.s = Term::iri(iri), .p = Term::iri(vocab::kUplinkState)}).value();
-    std::vector<std::string> states;
-    for (const auto& r : records) states.push_back(r.triple.o.value);
-    return states;
-  };
+  auto own_state = uplink_states;
   using States = std::vector<std::string>;
   tree.home1 = tree.start_home(tree.home1_dir, kHome1, tree.home1_log);
   ASSERT_TRUE(eventually([&] { return own_state(tree.home1_dir, kHome1) == States{"never connected"}; }));
@@ -555,6 +557,27 @@ TEST(Link, AChildKeepsItsOwnViewOfItsUplinkThatFollowsItsParent) {
   auto link3 = tree.start_home(home3_dir, home3, home3_log);
   EXPECT_TRUE(eventually([&] { return own_state(home3_dir, home3) == States{"refused"}; }));
   EXPECT_EQ(count(home3_dir, {.s = Term::iri(home3), .p = Term::iri(vocab::kUplinkRefusal)}), 1u);
+}
+
+// A child that was welcomed learns that its parent no longer accepts it (the parent restarted
+// with a file without it) from the answer to its next heartbeat: "refused", with the reason, not
+// "down" for ever. The parent drops the state it kept of it.
+TEST(Link, AWelcomedChildThatItsParentNoLongerAcceptsIsRefusedNotLeftDown) {
+  Tree tree;
+  ASSERT_TRUE(tree.start_hospital_and_home1());
+  using States = std::vector<std::string>;
+  auto own_state = [&] { return uplink_states(tree.home1_dir, kHome1); };
+  ASSERT_TRUE(eventually([&] { return own_state() == States{"up"}; }));
+  tree.hospital.reset();
+  tree.hospital = Link::start({.dir = tree.hospital_dir, .down = std::shared_ptr<Transport>(tree.bus.open(kHospital, tree.hospital_log.sink())),
+                               .children = {"home2"}, .log = tree.hospital_log.sink()})
+                      .value();
+  EXPECT_TRUE(eventually([&] { return own_state() == States{"refused"}; })) << own_state().size() << " states";
+  // Nor does the parent keep, from its earlier run, a state of it that would say "up" for ever.
+  EXPECT_EQ(count(tree.hospital_dir, {.s = Term::iri(kHome1), .p = Term::iri(vocab::kLinkState)}), 0u);
+  EXPECT_EQ(count(tree.home1_dir, {.s = Term::iri(kHome1), .p = Term::iri(vocab::kUplinkRefusal),
+                                   .o = Term::literal("<" + kHome1 + "> is not among the children configured for <" + kHospital + ">")}),
+            1u);
 }
 
 // `tahvel status` prints the age of tv:lastSeen: while a child is heard it must never look

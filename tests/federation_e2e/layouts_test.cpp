@@ -138,7 +138,7 @@ TEST_F(Deployment, StatusDoesNotShowAStoppedParentsLastWordAsTheLinksState) {
   std::string shown;
   ASSERT_TRUE(eventually([&] { return (shown = status()).find("gateway  <" + kWard + "/gateway>  link up, last seen") != std::string::npos; }))
       << shown;
-  const std::string gateway_json = "{\"id\":\"gateway\",\"iri\":\"" + kWard + "/gateway\",\"depth\":1,\"remote\":false,\"link\":{\"parent\":\"" + kWard +
+  const std::string gateway_json = "{\"id\":\"gateway\",\"iri\":\"" + kWard + "/gateway\",\"depth\":1,\"remote\":false,\"in_deployment\":true,\"link\":{\"parent\":\"" + kWard +
                                    "\",\"state\":\"up\",";
   shown = tahvel("status --json --state " + state_.string());
   EXPECT_NE(shown.find(gateway_json + "\"known\":true,\"unknown_because\":null,\"last_seen_ns\":"), std::string::npos) << shown;
@@ -175,7 +175,7 @@ TEST_F(Deployment, StatusOnEachMachineShowsWhatThatMachineKnowsOfTheLinkBetweenT
   })) << gateway_sees;
   EXPECT_EQ(gateway_sees.find("(root)"), std::string::npos) << gateway_sees;
   const std::string json = tahvel("status --json --state " + gateway_machine.string());
-  EXPECT_NE(json.find("\"remote\":false,\"link\":null,\"uplink\":{\"parent\":\"" + kWard + "\",\"state\":\"up\",\"known\":true,"),
+  EXPECT_NE(json.find("\"remote\":false,\"in_deployment\":true,\"link\":null,\"uplink\":{\"parent\":\"" + kWard + "\",\"state\":\"up\",\"known\":true,"),
             std::string::npos)
       << json;
 
@@ -199,7 +199,7 @@ TEST_F(Deployment, StatusOnEachMachineShowsWhatThatMachineKnowsOfTheLinkBetweenT
 
 // A home added to the file of a running deployment: `up` again starts the new node's link and
 // restarts the parent's (its accepted children changed), and the new child registers; the
-// gateway that was there keeps its link.
+// gateway that was there keeps its link. Taken out again, it is shown as such.
 TEST_F(Deployment, AChildAddedToTheFileOfARunningDeploymentRegistersAfterUpAgain) {
   const std::string ward = "[[node]]\nid = \"ward\"\niri = \"" + kWard + "\"\nlisten = { kind = \"dds\", domain = 6, " +
                            kDdsConfig + " }\n\n[[node]]\nid = \"gateway\"\nparent = \"ward\"\n";
@@ -218,6 +218,18 @@ TEST_F(Deployment, AChildAddedToTheFileOfARunningDeploymentRegistersAfterUpAgain
     return shown.find("gateway2  <" + kWard + "/gateway2>  link up") != std::string::npos &&
            shown.find("gateway  <" + kWard + "/gateway>  link up") != std::string::npos;
   })) << shown;
+
+  // Taken out again: its programs stop, its store stays, and status says so rather than show
+  // what its parent's link last wrote of it as a link that went quiet.
+  write_topology(ward);
+  const std::string removed = up();
+  EXPECT_NE(removed.find("up:   stopped gateway2/link (no longer in the file)"), std::string::npos) << removed;
+  shown = status();
+  EXPECT_NE(shown.find("gateway2  <" + kWard + "/gateway2>  not in the running deployment (taken out of its file; the store is kept)\n"),
+            std::string::npos)
+      << shown;
+  EXPECT_EQ(shown.find("gateway2/link"), std::string::npos) << shown;
+  EXPECT_TRUE(fs::exists(state_ / "gateway2" / "data.mdb"));
 }
 
 // A forwarding pattern taken out of the topology file stops going up at the next `up`: the
@@ -237,8 +249,9 @@ TEST_F(Deployment, AForwardPatternTakenOutOfTheFileStopsGoingUp) {
   ASSERT_TRUE(eventually([&] { return count(state_ / "ward", "EcgChunk") == 1; }));
   EXPECT_EQ(count(state_ / "ward", "EcgRecording"), 1u);
   tahvel("down --state " + state_.string());
-  write_topology(top + "forward = [\"_ a tv:EcgChunk\"]\n");
+  write_topology(top + "forward = [\"_ a tv:EcgChunk\", \"_ a tv:HrvWindow\"]\n");
   const std::string said = up();
+  EXPECT_NE(said.find("bed: added the forwarding pattern '_ a tv:HrvWindow'"), std::string::npos) << said;
   EXPECT_NE(said.find("bed: removed a forwarding pattern no longer in the file"), std::string::npos) << said;
   ASSERT_EQ(put("rec2", "EcgRecording"), 0);  // stored before the chunk: in order on the link
   ASSERT_EQ(put("chunk2", "EcgChunk"), 0);
