@@ -47,6 +47,17 @@ tn::Triple t(const std::string& s, const std::string& p, const std::string& o) {
 tn::Triple tl(const std::string& s, const std::string& p, tn::Term o) { return {n(s), n(p), std::move(o)}; }
 tr::Atom a2(const std::string& p, const std::string& s, const std::string& o) { return {kNs + p, {n(s), n(o)}}; }
 
+// The one conclusion `text` draws from `in`; an empty atom (and a failure) when it does not parse
+// or draws another number of them.
+tr::Atom only_conclusion(const std::string& text, const std::vector<tn::Triple>& in) {
+  auto program = parse(text);
+  if (!program) return {};
+  tr::Engine engine(program);
+  auto u = engine.apply(in, {}, 0);
+  EXPECT_EQ(u.added.size(), 1u) << text;
+  return u.added.size() == 1 ? u.added[0] : tr::Atom{};
+}
+
 std::set<std::string> strings(const std::vector<tr::Atom>& atoms) {
   std::set<std::string> out;
   for (const auto& a : atoms) out.insert(a.to_string());
@@ -146,34 +157,27 @@ TEST(Rules, ParseErrorsNameFileLineAndColumn) {
 }
 
 TEST(Rules, PrefixesIrisHashNamesLiteralsAndMe) {
-  auto program = parse(
+  const tr::Atom got = only_conclusion(
       "@prefix ex: <http://ex.org/> .\n"
       ":- prefix(sosa, <http://www.w3.org/ns/sosa/>).\n"
-      "<http://ex.org/p>(X, \"a b\"@en) :- ex:q(X, 'str'), #r(X, me), sosa:s(X, 4.5).\n");
-  ASSERT_TRUE(program);
-  tr::Engine engine(program);
-  std::vector<tn::Triple> in = {{n("x"), tn::Term::iri("http://ex.org/q"), tn::Term::literal("str")},
-                                {n("x"), n("r"), tn::Term::iri(kMe)},
-                                {n("x"), tn::Term::iri("http://www.w3.org/ns/sosa/s"),
-                                 tn::Term::literal("4.5", std::string(tn::xsd::kDecimal))}};
-  auto u = engine.apply(in, {}, 0);
-  ASSERT_EQ(u.added.size(), 1u);
-  EXPECT_EQ(u.added[0].predicate, "http://ex.org/p");
-  EXPECT_EQ(u.added[0].args[1], tn::Term::lang_literal("a b", "en"));
+      "<http://ex.org/p>(X, \"a b\"@en) :- ex:q(X, 'str'), #r(X, me), sosa:s(X, 4.5).\n",
+      {{n("x"), tn::Term::iri("http://ex.org/q"), tn::Term::literal("str")},
+       {n("x"), n("r"), tn::Term::iri(kMe)},
+       {n("x"), tn::Term::iri("http://www.w3.org/ns/sosa/s"), tn::Term::literal("4.5", std::string(tn::xsd::kDecimal))}});
+  EXPECT_EQ(got.predicate, "http://ex.org/p");
+  ASSERT_EQ(got.args.size(), 2u);
+  EXPECT_EQ(got.args[1], tn::Term::lang_literal("a b", "en"));
 }
 
 // Rule files are UTF-8: non-ASCII names (IRIs are Unicode) and Turtle's \u and \U escapes.
 TEST(Rules, NonAsciiNamesAndUnicodeEscapes) {
-  auto program = parse(
+  const tr::Atom got = only_conclusion(
       "@prefix ex: <http://ex.org/> .\n"
-      "väri(X, \"caf\\u00e9 \\U0001F600\") :- ex:lämpötila(X, V), V > 20.\n");
-  ASSERT_TRUE(program);
-  tr::Engine engine(program);
-  std::vector<tn::Triple> in = {{n("a"), tn::Term::iri("http://ex.org/lämpötila"), tn::Term::integer(25)}};
-  auto u = engine.apply(in, {}, 0);
-  ASSERT_EQ(u.added.size(), 1u);
-  EXPECT_EQ(u.added[0].predicate, kNs + "väri");
-  EXPECT_EQ(u.added[0].args[1], tn::Term::literal("caf\u00e9 \U0001F600"));
+      "väri(X, \"caf\\u00e9 \\U0001F600\") :- ex:lämpötila(X, V), V > 20.\n",
+      {{n("a"), tn::Term::iri("http://ex.org/lämpötila"), tn::Term::integer(25)}});
+  EXPECT_EQ(got.predicate, kNs + "väri");
+  ASSERT_EQ(got.args.size(), 2u);
+  EXPECT_EQ(got.args[1], tn::Term::literal("caf\u00e9 \U0001F600"));
 }
 
 TEST(Rules, ArithmeticTimesAndNow) {
