@@ -813,7 +813,12 @@ IngestFigures measure_ingest(const Config& cfg, const ScratchDir& scratch, std::
   const fs::path dir = scratch.sub("ingest-hospital");
   init_store(dir, hospital, room_for(cfg.homes * cfg.per_home));
   const std::uint64_t used_before = used_bytes(dir);
-  auto link = fed::Link::start({.dir = dir, .down = open_transport(Kind::dds, hospital, diag), .log = diag.link_log()});
+  // Not in push mode (LinkOptions::push): the simulated homes share this process, where Cyclone
+  // hands a sample to the hospital's reader inside the home's dds_write, so the hospital would
+  // take and relay on the homes' sender thread, one frame per transaction, and its CPU would be
+  // counted as theirs. Between processes its receive thread takes what has arrived meanwhile.
+  auto link = fed::Link::start(
+      {.dir = dir, .down = open_transport(Kind::dds, hospital, diag), .push = false, .log = diag.link_log()});
   if (!link) throw std::runtime_error("ingest hospital link: " + link.error().message);
 
   IngestFigures f;

@@ -301,7 +301,8 @@ int run_link(const Args& args) {
   auto c = link->counters();
   std::cerr << node::log_stamp() << " tahvel link <" << node.iri() << ">: stopped; sent up " << c.up_sent << ", relayed in " << c.relayed_in
             << ", duplicates dropped " << c.duplicates_in << ", applied from above " << c.down_applied
-            << ", items refused " << c.items_refused << ", refused by the other end " << c.items_refused_by_peer << std::endl;
+            << ", items refused " << c.items_refused << ", refused by the other end " << c.items_refused_by_peer
+            << ", frames taken on the transport's thread " << c.taken_pushed << std::endl;
   return kExitOk;
 }
 

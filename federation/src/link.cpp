@@ -72,6 +72,19 @@ constexpr std::string_view kUplinkAgent = "uplink";
 constexpr std::string_view kLinkAgent = "link";
 constexpr std::string_view kDownStream = "down";
 
+// Sends made on a transport's own thread in push mode, for the receive loop's taker thread to
+// make (LinkOptions::push). Cyclone hands a frame to a reader in the same process inside the
+// sender's dds_write and runs one listener call per reader at a time, so a send from within a
+// listener call could come back to a reader whose call is under way on this very thread (a
+// reply to a reply, between two links of one process) and wait for itself for ever; and a first
+// send to a peer waits for discovery, which may need the thread it would block.
+struct DeferredSends {
+  std::mutex& mu;
+  std::condition_variable& ready;
+  std::vector<std::pair<Transport*, Frame>>& frames;
+};
+thread_local DeferredSends* t_deferred_sends = nullptr;
+
 std::int64_t now_ns() {
   return std::chrono::duration_cast<std::chrono::nanoseconds>(
              std::chrono::system_clock::now().time_since_epoch())
@@ -304,6 +317,12 @@ struct Link::Impl {
   bool send(Transport* via, Frame frame) {
     if (!via) return false;
     frame.from = self;
+    if (DeferredSends* later = t_deferred_sends) {
+      std::lock_guard lock(later->mu);
+      later->frames.emplace_back(via, std::move(frame));
+      later->ready.notify_all();
+      return true;
+    }
     if (auto sent = via->send(frame); !sent) {
       log("send " + frame.to + " failed: " + sent.error().message);
       return false;
@@ -475,54 +494,129 @@ struct Link::Impl {
     std::condition_variable queue_cv;
     std::deque<ReceivedBatch> queue;
     bool applying = false;  // a thread is applying a batch (under queue_mu)
+    // Push mode: the transport's thread left frames in the transport because the queue was full;
+    // the applier, having made room, has the taker thread take them (under queue_mu).
+    bool deferred = false;
     // Batches the applier is done with. The taker, which allocated their frames and items, frees
     // them: under load the applier is the bottleneck, and the frees were ~7% of its time.
     std::vector<ReceivedBatch> spent;
     constexpr std::size_t kQueuedBatches = 4;
+
+    // One round of taking, by one thread at a time: waits up to `wait` for a first frame,
+    // drains what follows (runs of items from one sender then go into one transaction), decodes
+    // item bodies, and applies the batch or queues it for the applier. False when nothing came.
+    //
+    // In push mode the transport's thread takes too, so nothing that takes may wait long: a
+    // round takes nothing while the queue is full (`deferred`: the applier has the taker take
+    // once it made room), and applies only items of known peers itself. Anything else may make
+    // a first send to a new peer, which waits for DDS discovery, which may need the very thread
+    // that would be waiting.
+    std::atomic<bool> push_mode{true};  // until on_arrival says the transport has no thread
+    auto take_round = [&](std::chrono::milliseconds wait, bool on_transport_thread) -> bool {
+      const bool push = push_mode.load();
+      for (Frame& ack : acks.take_due()) send(transport.get(), std::move(ack));
+      {
+        std::vector<ReceivedBatch> garbage;
+        std::lock_guard lock(queue_mu);
+        garbage.swap(spent);
+        if (push && queue.size() >= kQueuedBatches) {
+          deferred = true;
+          return false;
+        }
+      }
+      auto first = transport->receive(wait);
+      if (!first) {
+        log("receive failed: " + first.error().message);
+        if (!push) std::this_thread::sleep_for(100ms);
+        return false;
+      }
+      if (!*first) return false;
+      ReceivedBatch batch;
+      batch.frames.push_back(std::move(**first));
+      while (batch.frames.size() < 512) {
+        auto more = transport->receive(0ms);
+        if (!more || !*more) break;
+        batch.frames.push_back(std::move(**more));
+      }
+      batch.items.resize(batch.frames.size());
+      for (std::size_t i = 0; i < batch.frames.size(); ++i) {
+        const Frame& f = batch.frames[i];
+        if (f.kind == FrameKind::up || f.kind == FrameKind::down) batch.items[i] = wire::decode_item(f.body);
+      }
+      if (on_transport_thread) {
+        std::lock_guard lock(mu);
+        counters.taken_pushed += batch.frames.size();
+      }
+      const bool inline_ok = batch.frames.size() <= kInlineFrames && (!push || items_of_known_peers(batch.frames));
+      std::unique_lock lock(queue_mu);
+      if (inline_ok && queue.empty() && !applying) {
+        applying = true;
+        lock.unlock();
+        apply(batch);
+        lock.lock();
+        applying = false;
+        return true;  // nothing was queued meanwhile: only a taking thread queues
+      }
+      // `stopping` is not signalled through queue_cv: re-checked every 100 ms. In push mode
+      // there is room (checked above, and only a taking thread adds).
+      while (queue.size() >= kQueuedBatches && !stopping) queue_cv.wait_for(lock, 100ms);
+      if (stopping) return false;
+      queue.push_back(std::move(batch));
+      queue_cv.notify_all();
+      return true;
+    };
+    // Takes until the transport is empty. A thread that finds another one taking leaves it to
+    // take `again`. On the transport's thread every send waits for the taker (DeferredSends).
+    std::atomic<bool> taking{false}, again{false};
+    std::vector<std::pair<Transport*, Frame>> deferred_sends;  // under queue_mu
+    DeferredSends defer{queue_mu, queue_cv, deferred_sends};
+    auto take_all = [&](bool on_transport_thread) {
+      again = true;
+      bool took = false;
+      DeferredSends* outer = t_deferred_sends;
+      if (on_transport_thread) t_deferred_sends = &defer;
+      while (again.load()) {
+        bool idle = false;
+        if (!taking.compare_exchange_strong(idle, true)) break;
+        took = true;
+        again = false;
+        while (!stopping && take_round(0ms, on_transport_thread)) {
+        }
+        taking = false;
+      }
+      t_deferred_sends = outer;
+      return took;
+    };
+    auto send_deferred = [&] {
+      std::vector<std::pair<Transport*, Frame>> frames;
+      {
+        std::lock_guard lock(queue_mu);
+        frames.swap(deferred_sends);
+      }
+      for (auto& [via, f] : frames) send(via, std::move(f));
+    };
+
+    // Push mode (Transport::on_arrival; Cyclone DDS): frames are taken on the transport's
+    // receive thread as they arrive, and a quiet link's item is relayed there without waking
+    // a thread of ours (tens of µs here; docs/bench.md). The taker thread then only sends held
+    // acks as they fall due, takes what the transport's thread deferred, and every 100 ms takes
+    // anything left (frames that arrived before push mode began).
+    if (!opt.push || !transport->on_arrival([&] { take_all(true); })) push_mode = false;
     std::thread taker([&] {
       while (!stopping) {
-        auto first = transport->receive(acks.wait_at_most(100ms));
-        for (Frame& ack : acks.take_due()) send(transport.get(), std::move(ack));
-        if (!first) {
-          log("receive failed: " + first.error().message);
-          std::this_thread::sleep_for(100ms);
+        if (!push_mode) {  // the only thread that takes
+          take_round(acks.wait_at_most(100ms), false);
           continue;
         }
-        {
-          std::vector<ReceivedBatch> garbage;
-          {
-            std::lock_guard lock(queue_mu);
-            garbage.swap(spent);
-          }
-        }
-        if (!*first) continue;
-        // Drain what is queued so that runs of items from one sender go into one transaction.
-        ReceivedBatch batch;
-        batch.frames.push_back(std::move(**first));
-        while (batch.frames.size() < 512) {
-          auto more = transport->receive(0ms);
-          if (!more || !*more) break;
-          batch.frames.push_back(std::move(**more));
-        }
-        batch.items.resize(batch.frames.size());
-        for (std::size_t i = 0; i < batch.frames.size(); ++i) {
-          const Frame& f = batch.frames[i];
-          if (f.kind == FrameKind::up || f.kind == FrameKind::down) batch.items[i] = wire::decode_item(f.body);
-        }
+        // Another thread taking sends the acks that are due; meanwhile this one waits a little
+        // rather than spin on an ack that is due now.
+        const auto at_least = take_all(false) ? 0ms : 1ms;
+        send_deferred();
         std::unique_lock lock(queue_mu);
-        if (queue.empty() && !applying && batch.frames.size() <= kInlineFrames) {
-          applying = true;
-          lock.unlock();
-          apply(batch);
-          lock.lock();
-          applying = false;
-          continue;  // nothing was queued meanwhile: this thread is the only one that queues
-        }
-        // `stopping` is not signalled through queue_cv: re-checked every 100 ms.
-        while (queue.size() >= kQueuedBatches && !stopping) queue_cv.wait_for(lock, 100ms);
-        if (stopping) break;
-        queue.push_back(std::move(batch));
-        queue_cv.notify_all();
+        queue_cv.wait_for(lock, std::max(at_least, acks.wait_at_most(100ms)), [&] {
+          return stopping || !deferred_sends.empty() || (deferred && queue.size() < kQueuedBatches);
+        });
+        deferred = false;
       }
     });
 
@@ -530,8 +624,8 @@ struct Link::Impl {
       ReceivedBatch batch;
       {
         std::unique_lock lock(queue_mu);
-        // The taker queues only while this thread applies or has batches waiting, and applies
-        // itself only with nothing queued: never two at once.
+        // A taking thread queues only while this thread applies or has batches waiting, and
+        // applies itself only with nothing queued: never two at once.
         queue_cv.wait_for(lock, 100ms, [&] { return !queue.empty() || stopping; });
         if (queue.empty()) {
           if (stopping) break;
@@ -540,15 +634,37 @@ struct Link::Impl {
         batch = std::move(queue.front());
         queue.pop_front();
         applying = true;
-        queue_cv.notify_all();
+        queue_cv.notify_all();  // room for a waiting taker, and a deferred take
       }
       apply(batch);
       std::lock_guard lock(queue_mu);
       applying = false;
       spent.push_back(std::move(batch));
     }
+    // No call of the transport's thread is under way after this, and none starts.
+    if (push_mode) transport->on_arrival({});
     taker.join();
+    send_deferred();
     for (Frame& ack : acks.take_due(true)) send(transport.get(), std::move(ack));
+  }
+
+  // Whether every frame of `frames` is an item from a peer this node already exchanges items
+  // with (a connected child's up frame, the welcoming parent's down frame): what the transport's
+  // own thread may relay, since the replies go to peers it has sent to before.
+  bool items_of_known_peers(const std::vector<Frame>& frames) {
+    std::lock_guard lock(mu);
+    const std::string* last = nullptr;
+    for (const Frame& f : frames) {
+      if (last && *last == f.from) continue;
+      if (f.kind == FrameKind::up) {
+        auto it = children.find(f.from);
+        if (it == children.end() || !it->second->connected) return false;
+      } else if (f.kind != FrameKind::down || !welcomed || !from_parent(f)) {
+        return false;
+      }
+      last = &f.from;
+    }
+    return true;
   }
 
   bool from_parent(const Frame& f) const { return opt.up && !opt.parent_iri.empty() && f.from == opt.parent_iri; }

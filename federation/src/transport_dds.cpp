@@ -154,6 +154,22 @@ class DdsTransport final : public Transport {
     return {};
   }
 
+  bool on_arrival(std::function<void()> ready) override {
+    {
+      std::lock_guard lock(ready_mutex_);
+      ready_ = ready;
+    }
+    dds_listener_t* listener = nullptr;
+    if (ready) {
+      listener = dds_create_listener(this);
+      dds_lset_data_available(listener, &DdsTransport::data_available);
+    }
+    // Cyclone waits here for a listener call under way to return.
+    dds_return_t rc = dds_set_listener(reader_, listener);
+    if (listener) dds_delete_listener(listener);
+    return rc >= 0;
+  }
+
   Result<std::optional<Frame>> receive(std::chrono::milliseconds timeout) override {
     using clock = std::chrono::steady_clock;
     const auto deadline = clock::now() + timeout;
@@ -229,6 +245,16 @@ class DdsTransport final : public Transport {
     for (const auto& line : lines) log_(line);
   }
 
+  static void data_available(dds_entity_t, void* arg) {
+    auto* self = static_cast<DdsTransport*>(arg);
+    std::function<void()> ready;
+    {
+      std::lock_guard lock(self->ready_mutex_);
+      ready = self->ready_;
+    }
+    if (ready) ready();
+  }
+
   // Takes what the reader holds (up to kTakeBatch samples) into queue_, dropping what must not
   // come out of receive().
   Result<void> take_some() {
@@ -280,6 +306,8 @@ class DdsTransport final : public Transport {
   dds_entity_t waitset_ = 0;
   std::mutex writers_mutex_;
   std::map<std::string, std::unique_ptr<Writer>> writers_;
+  std::mutex ready_mutex_;
+  std::function<void()> ready_;  // on_arrival's
   std::deque<Frame> queue_;  // touched only by the receive() thread
   int watch_ = 0;            // dds_domain::watch_rejections token
   std::mutex rejected_mutex_;

@@ -45,6 +45,9 @@ struct Binding {
   // faults); false when frames may be lost (LCM).
   bool lossless = false;
   bool needs_netns = true;
+  // True when the binding receives on a thread of its own and offers push mode
+  // (Transport::on_arrival): Cyclone DDS.
+  bool pushes = false;
 };
 
 // Test names show the binding's name, not its bytes.
@@ -414,6 +417,49 @@ TEST_P(TransportConformance, BurstOfTenThousandFramesArrivesIntact) {
   if (GetParam().lossless) {
     EXPECT_EQ(seen.size(), sent.load());
   }
+}
+
+// Push mode (Transport::on_arrival): a binding with a receive thread of its own calls the
+// function as frames arrive (there, or inside the sender's send() when Cyclone delivers within
+// one process), and they can be taken there, in order; after on_arrival({}) returns no call is
+// under way and frames wait for receive() again. A binding without such a thread says so, and
+// receive() keeps delivering.
+TEST_P(TransportConformance, OnArrivalTakesFramesOnTheBindingsThreadOrSaysItCannot) {
+  Endpoint a = open("a"), b = open("b");
+  ASSERT_TRUE(a.transport && b.transport);
+  std::mutex mu;
+  std::condition_variable arrived;
+  std::vector<std::uint64_t> taken;
+  const bool pushed = b->on_arrival([&] {
+    for (;;) {
+      auto got = b->receive(0ms);
+      if (!got || !*got) return;
+      std::lock_guard lock(mu);
+      taken.push_back((*got)->seq);
+      arrived.notify_all();
+    }
+  });
+  ASSERT_EQ(pushed, GetParam().pushes);
+  constexpr std::uint64_t kFrames = 100;
+  if (!pushed) {
+    auto got = deliver(a, b, make_frame(*a, *b, FrameKind::up, 1, "pulled"));
+    ASSERT_TRUE(got) << "receive() no longer delivers after on_arrival said no";
+    return;
+  }
+  for (std::uint64_t i = 1; i <= kFrames; ++i) ASSERT_TRUE(a->send(make_frame(*a, *b, FrameKind::up, i, "pushed")));
+  {
+    std::unique_lock lock(mu);
+    ASSERT_TRUE(arrived.wait_for(lock, 10s, [&] { return taken.size() >= kFrames; }))
+        << taken.size() << " of " << kFrames << " frames taken on the binding's thread";
+    for (std::uint64_t i = 0; i < kFrames; ++i) EXPECT_EQ(taken[i], i + 1);
+  }
+  b->on_arrival({});
+  ASSERT_TRUE(a->send(make_frame(*a, *b, FrameKind::up, kFrames + 1, "pulled")));
+  auto got = next(b, 10s);
+  ASSERT_TRUE(got) << "after on_arrival({}) the frame did not come out of receive()";
+  EXPECT_EQ(got->seq, kFrames + 1);
+  std::lock_guard lock(mu);
+  EXPECT_EQ(taken.size(), kFrames) << "the function was called after on_arrival({}) returned";
 }
 
 }  // namespace tahvel::federation::conformance

@@ -133,6 +133,7 @@ inline Binding dds_binding() {
     DdsGarbageWriter::instance().write(to, bytes);
   };
   b.lossless = true;
+  b.pushes = true;
   return b;
 }
 

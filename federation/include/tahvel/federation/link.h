@@ -101,6 +101,12 @@ struct LinkOptions {
   std::chrono::milliseconds ack_delay{2};
   std::chrono::milliseconds heartbeat_every{1000};
   std::chrono::milliseconds child_silence{3500};  // a child not heard for this long is "down"
+  // Frames are taken on the transport's own receive thread where it has one (Cyclone DDS:
+  // Transport::on_arrival), and a small run of items from a known peer is relayed there, saving
+  // a thread's wake-up on the path of every item. A writer that holds this store's write lock
+  // for long then holds up that thread too (the peers resend what it misses). False: a thread
+  // of the link's takes every frame.
+  bool push = true;
   std::string software_version = "tahvel 0.1.0";
   LinkLog log;
   AreaQuery area_query;  // answers queries with an area; unset: they fail with query_failed
@@ -116,6 +122,7 @@ struct LinkCounters {
   std::uint64_t items_refused = 0;  // items received that this store can never hold, passed over
                                     // (P9a)
   std::uint64_t items_refused_by_peer = 0;  // items sent that the receiver refused so (P9a)
+  std::uint64_t taken_pushed = 0;  // frames taken on a transport's own thread (LinkOptions::push)
 };
 
 class Link {

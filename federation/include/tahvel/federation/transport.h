@@ -80,6 +80,23 @@ class Transport {
   // Frames that fail to decode, carry another version or fingerprint, or are addressed to another
   // IRI never come out of here: they go to the DropLog.
   virtual Result<std::optional<Frame>> receive(std::chrono::milliseconds timeout) = 0;
+
+  // Push mode, where the binding has a thread of its own that receives (Cyclone DDS): `ready`
+  // is called on that thread whenever frames may have arrived (or, for a sender in the same
+  // process, inside that sender's send()), and may take them there with receive(0ms), saving the
+  // wake-up of a thread of the caller's. Returns false when the binding has no such thread: the
+  // caller then waits in receive(). An empty `ready` ends push mode and returns once no call of
+  // the previous one is under way (so never from within `ready`). The binding makes one call at
+  // a time per endpoint; `ready` counts as a thread calling receive(), and the caller keeps the
+  // one-at-a-time rule between it and its own threads.
+  //
+  // `ready` must not send: a send to an endpoint of the same process is delivered inside it, and
+  // a reply coming back to this endpoint would wait for this very call to end. Nor may it wait
+  // for long: it holds up the binding's receiving for every endpoint of the process.
+  virtual bool on_arrival(std::function<void()> ready) {
+    (void)ready;
+    return false;
+  }
 };
 
 // ---------------------------------------------------------------------------------------------
