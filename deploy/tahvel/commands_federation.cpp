@@ -590,6 +590,69 @@ std::vector<node::Triple> load_file_triples(const NodeSpec& spec, const fs::path
   return std::move(*triples);
 }
 
+// What a load item says of the file it came from (docs/deploy.md): its name as the topology
+// file's folder sees it, and a digest of its bytes. `up` loads a file once per node, so that a
+// file added to the topology of an existing node is loaded then, and one changed since is named.
+const std::string kLoadFile = std::string(federation::vocab::kTv) + "loadFile";
+const std::string kLoadDigest = std::string(federation::vocab::kTv) + "loadDigest";
+
+std::string load_name(const fs::path& file, const Topology& topo) {
+  return fs::absolute(file).lexically_normal().lexically_relative(fs::absolute(topo.file).parent_path().lexically_normal()).generic_string();
+}
+
+// FNV-1a, 64 bits: a change of the file, not a defence against anyone.
+std::string load_digest(const fs::path& file) {
+  std::uint64_t h = 0xcbf29ce484222325ull;
+  for (unsigned char c : read_input(file.string())) h = (h ^ c) * 0x100000001b3ull;
+  char hex[17];
+  std::snprintf(hex, sizeof hex, "%016llx", static_cast<unsigned long long>(h));
+  return std::string("fnv1a64:") + hex;
+}
+
+// Puts `file` on the node's board as one persistent item, with its name and digest.
+void load_onto(node::Agent& loader, const NodeSpec& spec, const fs::path& file, const uri::PrefixMap& prefixes,
+               const Topology& topo) {
+  node::Item item;
+  item.persistent = true;
+  item.triples = load_file_triples(spec, file, prefixes, topo);
+  const std::size_t triples = item.triples.size();
+  const node::Term source = node::Term::blank("loaded");
+  item.add(source, node::Term::iri(kLoadFile), node::Term::literal(load_name(file, topo)))
+      .add(source, node::Term::iri(kLoadDigest), node::Term::literal(load_digest(file)));
+  check(loader.store(item));
+  std::cout << "up: put " << triples << " triples of " << file.string() << " on " << spec.id << "\n";
+}
+
+// On an existing store: loads the topology's files it has not had yet, and names those changed
+// since they were loaded (a loaded file is not replaced: its item may have been edited or
+// removed on purpose, and removing it and loading the new one would not be one transaction).
+void load_new_files(const NodeSpec& spec, node::Node& node, const Topology& topo) {
+  if (spec.load.empty()) return;
+  node::Agent loader = check(node.agent("deploy"));
+  auto snap = check(node.snapshot());
+  std::map<std::string, std::pair<std::string, std::uint64_t>> loaded;  // name -> (digest, item)
+  std::map<std::uint64_t, std::string> digests;                         // item -> digest
+  for (const auto& r : check(snap.list({.p = node::Term::iri(kLoadDigest), .source = loader.iri()})))
+    digests[r.meta.item] = r.triple.o.value;
+  for (const auto& r : check(snap.list({.p = node::Term::iri(kLoadFile), .source = loader.iri()})))
+    loaded[r.triple.o.value] = {digests[r.meta.item], r.meta.item};
+  if (loaded.empty() && check(snap.count({.source = loader.iri()})) > 0) {
+    std::cerr << "up: warning: " << topo.file.string() << ": node '" << spec.id << "': its store was made before up recorded "
+              << "the files it loads; its load files are not loaded again nor checked\n";
+    return;
+  }
+  for (const fs::path& file : spec.load) {
+    auto it = loaded.find(load_name(file, topo));
+    if (it == loaded.end()) {
+      load_onto(loader, spec, file, node.prefixes(), topo);
+    } else if (it->second.first != load_digest(file)) {
+      std::cerr << "up: warning: " << topo.file.string() << ": node '" << spec.id << "': " << file.string()
+                << " changed since up loaded it (item " << it->second.second << "); to load it anew: tahvel remove "
+                << node.dir().string() << " --item " << it->second.second << ", then up again\n";
+    }
+  }
+}
+
 // A node's new store with the files the topology puts on its board (a floor plan, sensing
 // subscriptions: one persistent item each). Made beside `store` and renamed into place once
 // whole, so a failure leaves no store that `up` would then take as made and never load.
@@ -604,13 +667,7 @@ void create_store(const NodeSpec& spec, const fs::path& store, const Topology& t
     init.ring = spec.ring;
     node::Node created = check(node::Node::init(making, init));
     node::Agent loader = check(created.agent("deploy"));
-    for (const fs::path& file : spec.load) {
-      node::Item item;
-      item.persistent = true;
-      item.triples = load_file_triples(spec, file, created.prefixes(), topo);
-      check(loader.store(item));
-      std::cout << "up: put " << item.triples.size() << " triples of " << file.string() << " on " << spec.id << "\n";
-    }
+    for (const fs::path& file : spec.load) load_onto(loader, spec, file, created.prefixes(), topo);
   }
   fs::remove_all(store, ec);  // an empty folder, or one a failed creation left
   fs::rename(making, store, ec);
@@ -920,6 +977,7 @@ int run_up(const Args& args) {
         fail(in_file + spec->id + "': the store at " + store.string() + " is the node <" + existing.iri() + ">, the file says <" +
              spec->iri + "> (a changed iri or parent); move that store away, or give the node another id");
       for (const auto& f : spec->forward) forward_pattern_of(*spec, f, existing.prefixes(), topo);
+      for (const fs::path& file : spec->load) (void)load_file_triples(*spec, file, existing.prefixes(), topo);
       // Durability and ring are the store's, set when it was made: a changed ring would remove
       // records (or keep more) behind the operator's back, so the file's is only compared.
       const node::Stats made = check(existing.stats());
@@ -946,7 +1004,12 @@ int run_up(const Args& args) {
   for (const NodeSpec* node_spec : mine) {
     const NodeSpec& spec = *node_spec;
     fs::path store = state / spec.id;
-    if (!fs::exists(store / "data.mdb")) create_store(spec, store, topo);
+    if (!fs::exists(store / "data.mdb")) {
+      create_store(spec, store, topo);
+    } else {
+      node::Node existing = check(node::Node::open(store));
+      load_new_files(spec, existing, topo);
+    }
     if (!spec.parent.empty()) {
       // The forwarding policy is on the board before any agent starts: an item written before
       // the uplink subscribed would never be routed to it (P5).

@@ -986,6 +986,56 @@ TEST_F(Cli, UpMakesNoStoreWhenALoadFileIsMissingAndLoadsItOnceItIsThere) {
   EXPECT_EQ(lines_of(listed.out).size(), 1u) << listed.out;
 }
 
+// A load file added to the topology of an existing node is loaded at the next `up`, once; one
+// changed since it was loaded is named with the item to remove, and loaded anew after that.
+TEST_F(Cli, UpLoadsAFileAddedToAnExistingNodeOnceAndNamesOneChangedSinceItWasLoaded) {
+  const std::string state = (tmp_ / "state").string(), store = state + "/solo";
+  const std::string node = "[[node]]\nid = \"solo\"\niri = \"http://example.org/solo\"\n";
+  spit(tmp_ / "node.toml", node);
+  ASSERT_EQ(run({"up", (tmp_ / "node.toml").string(), "--state", state}).status, 0);
+  ASSERT_EQ(run({"down", "--state", state}).status, 0);
+  auto rooms = [&] {
+    Outcome listed = run({"list", store, "-p", "<https://w3id.org/tahvel#roomName>"});
+    EXPECT_EQ(listed.status, 0) << listed.err;
+    return lines_of(listed.out);
+  };
+
+  spit(tmp_ / "plan.ttl", "<room/bedroom> <https://w3id.org/tahvel#roomName> \"bedroom\" .\n");
+  spit(tmp_ / "node.toml", node + "load = [\"plan.ttl\"]\n");
+  Outcome up = run({"up", (tmp_ / "node.toml").string(), "--state", state});
+  ASSERT_EQ(up.status, 0) << up.err;
+  EXPECT_NE(up.out.find("up: put 1 triples of " + (tmp_ / "plan.ttl").string() + " on solo"), std::string::npos) << up.out;
+  ASSERT_EQ(run({"down", "--state", state}).status, 0);
+  ASSERT_EQ(rooms().size(), 1u);
+
+  up = run({"up", (tmp_ / "node.toml").string(), "--state", state});  // the same file: nothing
+  ASSERT_EQ(up.status, 0) << up.err;
+  EXPECT_EQ(up.out.find("up: put"), std::string::npos) << up.out;
+  EXPECT_EQ(up.err.find("warning"), std::string::npos) << up.err;
+  ASSERT_EQ(run({"down", "--state", state}).status, 0);
+  EXPECT_EQ(rooms().size(), 1u) << "loaded twice";
+
+  spit(tmp_ / "plan.ttl", "<room/bedroom> <https://w3id.org/tahvel#roomName> \"main bedroom\" .\n");
+  up = run({"up", (tmp_ / "node.toml").string(), "--state", state});
+  ASSERT_EQ(up.status, 0) << up.err;
+  const std::string changed = "plan.ttl changed since up loaded it (item ";
+  const std::size_t at = up.err.find(changed);
+  ASSERT_NE(at, std::string::npos) << up.err;
+  const std::size_t from = at + changed.size();
+  const std::string item = up.err.substr(from, up.err.find(')', from) - from);
+  EXPECT_NE(up.err.find("tahvel remove " + store + " --item " + item + ", then up again"), std::string::npos) << up.err;
+  ASSERT_EQ(run({"down", "--state", state}).status, 0);
+  ASSERT_EQ(rooms().size(), 1u);
+  EXPECT_NE(rooms()[0].find("\"bedroom\""), std::string::npos) << "replaced without being asked";
+
+  ASSERT_EQ(run({"remove", store, "--item", item}).status, 0);
+  up = run({"up", (tmp_ / "node.toml").string(), "--state", state});
+  ASSERT_EQ(up.status, 0) << up.err;
+  ASSERT_EQ(run({"down", "--state", state}).status, 0);
+  ASSERT_EQ(rooms().size(), 1u);
+  EXPECT_NE(rooms()[0].find("\"main bedroom\""), std::string::npos) << rooms()[0];
+}
+
 TEST_F(Cli, UpNamesATopologyFileThatDoesNotExist) {
   Outcome up = run({"up", (tmp_ / "missing.toml").string(), "--state", (tmp_ / "state").string()});
   EXPECT_EQ(up.status, 1);
