@@ -61,8 +61,12 @@ constexpr std::size_t kInlineFrames = 8;
 // ack sent at once lands at the sender just as the next item is stored there, and the two store
 // transactions and wake-ups contend (docs/bench.md); a busy one acks each run as before.
 constexpr std::size_t kAckEvery = 64;
-// In an up or down frame's `ack` field: the sender asks for the stream's ack now (P8).
+// Bits of an up or down frame's `ack` field: the sender asks for the stream's ack now (P8); more
+// frames of the run it sends back to back follow this one (P9b).
 constexpr std::uint64_t kAckNow = 1;
+constexpr std::uint64_t kMoreFollow = 2;
+// How long a receiver in push mode holds a run whose last frame has not come (P9b).
+constexpr std::chrono::milliseconds kRunWait{20};
 // P12: a connected child's state is rewritten at least this often, so that its tv:lastSeen is
 // never older than child_silence (3.5 s) while the child is heard (status prints its age).
 constexpr std::int64_t kStateRefreshNs = 2'000'000'000;
@@ -512,9 +516,41 @@ struct Link::Impl {
     // a first send to a new peer, which waits for DDS discovery, which may need the very thread
     // that would be waiting.
     std::atomic<bool> push_mode{true};  // until on_arrival says the transport has no thread
+    // Applies `batch` here or queues it for the applier (see take_round). True.
+    auto hand_on = [&](ReceivedBatch batch, bool push) {
+      const bool inline_ok = batch.frames.size() <= kInlineFrames && (!push || items_of_known_peers(batch.frames));
+      std::unique_lock lock(queue_mu);
+      if (inline_ok && queue.empty() && !applying) {
+        applying = true;
+        lock.unlock();
+        apply(batch);
+        lock.lock();
+        applying = false;
+        return true;  // nothing was queued meanwhile: only a taking thread queues
+      }
+      // `stopping` is not signalled through queue_cv: re-checked every 100 ms. In push mode
+      // there is room (checked by take_round, and only a taking thread adds).
+      while (queue.size() >= kQueuedBatches && !stopping) queue_cv.wait_for(lock, 100ms);
+      if (stopping) return false;
+      queue.push_back(std::move(batch));
+      queue_cv.notify_all();
+      return true;
+    };
+    // Push mode: the frames of a run its sender marked as going on (P9b), held until the run's
+    // last frame comes, so that a burst goes into the store a run per transaction (as the taker's
+    // later wake-up gathered it in pull mode) rather than a frame per transaction. Touched only
+    // by the thread that takes; `run_since_ns` is also read by the taker to wake for it.
+    ReceivedBatch run_so_far;
+    std::atomic<std::int64_t> run_since_ns{0};  // 0: nothing held
+    auto goes_on = [](const Frame& f) {
+      return (f.kind == FrameKind::up || f.kind == FrameKind::down) && (f.ack & kMoreFollow) != 0;
+    };
     auto take_round = [&](std::chrono::milliseconds wait, bool on_transport_thread) -> bool {
       const bool push = push_mode.load();
-      for (Frame& ack : acks.take_due()) send(transport.get(), std::move(ack));
+      // On the transport's thread a send would only go to the taker, which wakes for held acks
+      // as they fall due anyway.
+      if (!on_transport_thread)
+        for (Frame& ack : acks.take_due()) send(transport.get(), std::move(ack));
       {
         std::vector<ReceivedBatch> garbage;
         std::lock_guard lock(queue_mu);
@@ -530,7 +566,14 @@ struct Link::Impl {
         if (!push) std::this_thread::sleep_for(100ms);
         return false;
       }
-      if (!*first) return false;
+      if (!*first) {
+        // A held run whose last frame is late (its sender stopped, say) waits no longer.
+        const std::int64_t since = run_since_ns.load();
+        if (since == 0 || now_ns() - since < std::chrono::nanoseconds(kRunWait).count()) return false;
+        run_since_ns = 0;
+        hand_on(std::exchange(run_so_far, {}), push);
+        return false;
+      }
       ReceivedBatch batch;
       batch.frames.push_back(std::move(**first));
       while (batch.frames.size() < 512) {
@@ -547,23 +590,20 @@ struct Link::Impl {
         std::lock_guard lock(mu);
         counters.taken_pushed += batch.frames.size();
       }
-      const bool inline_ok = batch.frames.size() <= kInlineFrames && (!push || items_of_known_peers(batch.frames));
-      std::unique_lock lock(queue_mu);
-      if (inline_ok && queue.empty() && !applying) {
-        applying = true;
-        lock.unlock();
-        apply(batch);
-        lock.lock();
-        applying = false;
-        return true;  // nothing was queued meanwhile: only a taking thread queues
+      if (push) {
+        if (!run_so_far.frames.empty()) {
+          std::move(batch.frames.begin(), batch.frames.end(), std::back_inserter(run_so_far.frames));
+          std::move(batch.items.begin(), batch.items.end(), std::back_inserter(run_so_far.items));
+          batch = std::exchange(run_so_far, {});
+        }
+        if (goes_on(batch.frames.back()) && batch.frames.size() < 512) {
+          if (run_since_ns.load() == 0) run_since_ns = now_ns();
+          run_so_far = std::move(batch);
+          return true;
+        }
+        run_since_ns = 0;
       }
-      // `stopping` is not signalled through queue_cv: re-checked every 100 ms. In push mode
-      // there is room (checked above, and only a taking thread adds).
-      while (queue.size() >= kQueuedBatches && !stopping) queue_cv.wait_for(lock, 100ms);
-      if (stopping) return false;
-      queue.push_back(std::move(batch));
-      queue_cv.notify_all();
-      return true;
+      return hand_on(std::move(batch), push);
     };
     // Takes until the transport is empty. A thread that finds another one taking leaves it to
     // take `again`. On the transport's thread every send waits for the taker (DeferredSends).
@@ -580,7 +620,9 @@ struct Link::Impl {
         if (!taking.compare_exchange_strong(idle, true)) break;
         took = true;
         again = false;
-        while (!stopping && take_round(0ms, on_transport_thread)) {
+        // On the transport's thread one round drains what is there: a frame delivered after it
+        // brings a call of its own (Cyclone queues it behind this one).
+        while (!stopping && take_round(0ms, on_transport_thread) && !on_transport_thread) {
         }
         taking = false;
       }
@@ -612,8 +654,13 @@ struct Link::Impl {
         // rather than spin on an ack that is due now.
         const auto at_least = take_all(false) ? 0ms : 1ms;
         send_deferred();
+        auto wait = std::max(at_least, acks.wait_at_most(100ms));
+        if (const std::int64_t since = run_since_ns.load(); since != 0) {
+          const auto held = std::chrono::nanoseconds(now_ns() - since);
+          wait = std::min(wait, std::max(at_least, std::chrono::ceil<std::chrono::milliseconds>(kRunWait - held)));
+        }
         std::unique_lock lock(queue_mu);
-        queue_cv.wait_for(lock, std::max(at_least, acks.wait_at_most(100ms)), [&] {
+        queue_cv.wait_for(lock, wait, [&] {
           return stopping || !deferred_sends.empty() || (deferred && queue.size() < kQueuedBatches);
         });
         deferred = false;
@@ -834,7 +881,7 @@ struct Link::Impl {
     // At once what the sender must act on: a refusal, a gap, a resend (duplicates), a run that
     // applied nothing, or its window half full (P8).
     const bool now = !outcome || ack.prev == 1 || outcome->duplicates > 0 || relayed == 0 || !outcome->refused.empty() ||
-                     std::any_of(frames.begin(), frames.end(), [](const Frame& f) { return f.ack == kAckNow; });
+                     std::any_of(frames.begin(), frames.end(), [](const Frame& f) { return (f.ack & kAckNow) != 0; });
     if (auto due = acks.hold(std::move(ack), relayed, now)) send(via, std::move(*due));
   }
 
@@ -1547,7 +1594,8 @@ struct Link::Impl {
         up_last_sent = d.item;
         ++counters.up_sent;
       }
-      if (!frames.empty() && up_in_flight.size() * 2 >= opt.window) frames.back().ack = kAckNow;  // P8
+      for (std::size_t k = 0; k + 1 < frames.size(); ++k) frames[k].ack |= kMoreFollow;  // P9b
+      if (!frames.empty() && up_in_flight.size() * 2 >= opt.window) frames.back().ack |= kAckNow;  // P8
       mark = up_mark;
       lock.unlock();
       // Only this thread sends up frames, so they leave in the order of the stream; a go-back
@@ -1718,10 +1766,10 @@ struct Link::Impl {
         child.down_in_flight.push_back(d.item);
         child.down_last_sent = d.item;
       }
-      if (!frames.empty() && child.down_in_flight.size() * 2 >= opt.window) {
-        auto last = std::find_if(frames.rbegin(), frames.rend(), [](const Frame& f) { return f.kind == FrameKind::down; });
-        if (last != frames.rend()) last->ack = kAckNow;  // P8
-      }
+      auto last = std::find_if(frames.rbegin(), frames.rend(), [](const Frame& f) { return f.kind == FrameKind::down; });
+      for (auto f = frames.rbegin(); f != frames.rend(); ++f)
+        if (f->kind == FrameKind::down && f != last) f->ack |= kMoreFollow;  // P9b
+      if (last != frames.rend() && child.down_in_flight.size() * 2 >= opt.window) last->ack |= kAckNow;  // P8
     }
     // Only this thread sends down frames, in the order of each child's stream.
     send_run(opt.down.get(), frames);
