@@ -18,6 +18,7 @@
 
 #include "tahvel/federation/link.h"
 #include "tahvel/federation/transport.h"
+#include "eventually.h"
 #include "temp_dir.h"
 
 namespace tahvel::federation {
@@ -54,17 +55,7 @@ struct Log {
   }
 };
 
-// Polls `condition` until it holds or 20 s pass (links deliver within milliseconds; the deadline
-// only bounds a failing test).
-template <class F>
-bool eventually(F condition) {
-  const auto deadline = std::chrono::steady_clock::now() + 20s;
-  while (std::chrono::steady_clock::now() < deadline) {
-    if (condition()) return true;
-    std::this_thread::sleep_for(10ms);
-  }
-  return condition();
-}
+using test_support::eventually;
 
 node::Item hrv_item(int n) {
   node::Item item;

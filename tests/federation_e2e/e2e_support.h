@@ -7,6 +7,8 @@
 #include <string>
 #include <thread>
 
+#include "eventually.h"
+
 namespace tahvel::e2e {
 
 struct Output {
@@ -27,15 +29,10 @@ inline Output run(const std::string& command) {
   return result;
 }
 
-// Asks `condition` every 200 ms until it holds or `limit` has passed; its last answer.
+// Asks `condition` every 200 ms (it runs commands) until it holds or `limit` has passed.
 template <class F>
 bool eventually(F condition, std::chrono::milliseconds limit = std::chrono::seconds(120)) {
-  const auto deadline = std::chrono::steady_clock::now() + limit;
-  while (std::chrono::steady_clock::now() < deadline) {
-    if (condition()) return true;
-    std::this_thread::sleep_for(std::chrono::milliseconds(200));
-  }
-  return condition();
+  return test_support::eventually(condition, limit, std::chrono::milliseconds(200));
 }
 
 }  // namespace tahvel::e2e

@@ -11,6 +11,7 @@
 #include "tahvel/federation/link.h"
 #include "tahvel/federation/sim.h"
 #include "tahvel/node/node.h"
+#include "eventually.h"
 #include "temp_dir.h"
 #include "wire_settings.h"
 
@@ -23,15 +24,7 @@ using node::Term;
 const std::string kHospital = "http://example.org/push-hospital";
 const std::string kHome = kHospital + "/home1";
 
-template <class F>
-bool eventually(F condition) {
-  const auto deadline = std::chrono::steady_clock::now() + 20s;
-  while (std::chrono::steady_clock::now() < deadline) {
-    if (condition()) return true;
-    std::this_thread::sleep_for(10ms);
-  }
-  return condition();
-}
+using test_support::eventually;
 
 std::uint64_t numbered(const std::string& dir) {
   auto node = node::Node::open(dir).value();
