@@ -10,6 +10,7 @@
 #include <unistd.h>
 
 #include <algorithm>
+#include <atomic>
 #include <cerrno>
 #include <charconv>
 #include <chrono>
@@ -18,6 +19,7 @@
 #include <iostream>
 #include <limits>
 #include <map>
+#include <optional>
 #include <sstream>
 #include <set>
 #include <thread>
@@ -204,10 +206,11 @@ std::string seconds_text(double seconds) {
   return out.str();
 }
 
-double seconds_since(std::int64_t unix_ns) {
-  const auto now = std::chrono::duration_cast<std::chrono::nanoseconds>(std::chrono::system_clock::now().time_since_epoch()).count();
-  return (now - unix_ns) / 1e9;
+std::int64_t unix_now_ns() {
+  return std::chrono::duration_cast<std::chrono::nanoseconds>(std::chrono::system_clock::now().time_since_epoch()).count();
 }
+
+double seconds_since(std::int64_t unix_ns) { return static_cast<double>(unix_now_ns() - unix_ns) / 1e9; }
 
 std::string age_of(std::int64_t unix_ns) { return unix_ns <= 0 ? "never" : seconds_text(seconds_since(unix_ns)) + " ago"; }
 
@@ -777,6 +780,8 @@ class Deployment {
       it = dispatchers_.erase(it);
     }
     std::erase_if(keepers_, [&](const auto& entry) { return !ids.count(entry.first); });
+    std::erase_if(published_, [&](const auto& entry) { return !ids.count(entry.first); });
+    node_ids_ = ids;
     for (const NodeSpec* spec : mine) {
       if (!spec->behaviours.empty() && !dispatchers_.count(spec->id)) {
         agents::DispatcherOptions options;
@@ -830,9 +835,56 @@ class Deployment {
       if (!events) log("up: dispatcher <" + d.dispatcher.iri() + ">: " + events.error().message);
     }
     supervisor_.stop_all();
+    publish_programs(log, true);  // a remote reader sees them stopped, not as they last ran
+  }
+
+  // Each node's programs on its board (agents/supervisor.h, "on the board"), when they change
+  // and every kProgramsRefresh: a machine above knows them only from there (`tahvel status`).
+  void publish_programs(const agents::Supervisor::Log& log, bool now_all = false) {
+    const auto now = std::chrono::steady_clock::now();
+    const std::vector<agents::ProgramState> states = supervisor_.states();
+    for (const std::string& id : node_ids_) {
+      std::vector<agents::ProgramState> programs;
+      std::string said;
+      for (agents::ProgramState s : states) {
+        if (s.name.rfind(id + "/", 0) != 0) continue;
+        s.name.erase(0, id.size() + 1);
+        said += s.name + ' ' + std::string(agents::program_state_name(s)) + ' ' + std::to_string(s.running ? s.pid : 0) +
+                ' ' + std::to_string(s.restarts) + ' ' + s.last_exit + '\n';
+        programs.push_back(std::move(s));
+      }
+      Published& board = published_[id];
+      if (!now_all && said == board.said && now - board.at < agents::kProgramsRefresh) continue;
+      board.said = said;
+      board.at = now;
+      auto written = write_programs(board, state_ / id, programs);
+      if (!written && written.error().message != board.failure)
+        log("up: cannot write the programs of " + id + " on its board: " + written.error().message);
+      board.failure = written ? std::string() : written.error().message;
+    }
   }
 
  private:
+  struct Published {
+    std::optional<node::Node> node;  // opened at the first write
+    std::string said, failure;       // what the last write said; its error, once logged
+    std::chrono::steady_clock::time_point at{};
+  };
+  static node::Result<void> write_programs(Published& board, const fs::path& dir, const std::vector<agents::ProgramState>& programs) {
+    if (!board.node) {
+      auto opened = node::Node::open(dir);
+      if (!opened) return Unexpected<node::Error>{opened.error()};
+      board.node.emplace(std::move(*opened));
+    }
+    auto item = agents::programs_item(board.node->iri(), programs, unix_now_ns());
+    if (!item) return Unexpected<node::Error>{item.error()};
+    auto agent = board.node->agent("supervisor");
+    if (!agent) return Unexpected<node::Error>{agent.error()};
+    auto stored = agent->replace({{.source = agent->iri()}}, {*item});
+    if (!stored) return Unexpected<node::Error>{stored.error()};
+    return {};
+  }
+
   static bool same_program(const agents::ProgramSpec& a, const agents::ProgramSpec& b) {
     return a.argv == b.argv && a.env == b.env && a.log_file == b.log_file && a.restart == b.restart;
   }
@@ -857,6 +909,8 @@ class Deployment {
   std::map<std::string, agents::ProgramSpec> applied_;
   std::map<std::string, Dispatching> dispatchers_;
   std::map<std::string, spatial::AreaKeeper> keepers_;
+  std::set<std::string> node_ids_;                // the nodes this supervisor runs
+  std::map<std::string, Published> published_;    // by node id
 };
 
 // The request `up` leaves for a running supervisor before SIGHUP (its id, then the topology
@@ -1102,6 +1156,7 @@ int run_up(const Args& args) {
       apply_requested(deployment, pid_file, log);
     }
     deployment.poll(log);
+    deployment.publish_programs(log);
     write_state_file(state_file, supervisor);
     std::this_thread::sleep_for(100ms);
   }
@@ -1163,12 +1218,16 @@ int run_down(const Args& args) {
 
 const Command kStatusCommand{
     "status",
-    "[--state DIR] [--json]",
+    "[--state DIR] [--json] [--local] [--timeout S]",
     "Print the tree of nodes and agents of a deployment.",
     "For each node store under DIR: its IRI; the state its parent keeps of it (link up/down,\n"
     "last seen, outbox depth, software version); and the programs the supervisor runs for it\n"
-    "(pid, restarts, last exit). --json prints the same as one JSON object (docs/cli.md).",
-    {kFlagState, {"--json", "", "", "print one JSON object instead of the tree"}},
+    "(pid, restarts, last exit). A child on another machine is asked, through the running link,\n"
+    "for its programs and its own children's states, and so on down the tree (unless --local).\n"
+    "--json prints the same as one JSON object (docs/cli.md).",
+    {kFlagState, {"--json", "", "", "print one JSON object instead of the tree"},
+     {"--local", "", "", "only what this machine's stores hold: ask no node on another machine"},
+     {"--timeout", "", "S", "how long to wait for each node on another machine (default 3; a fraction allowed)"}},
     0, 0};
 
 namespace {
@@ -1177,20 +1236,28 @@ namespace {
 // 2-3 s, with the time it last heard the other end (heartbeats every second): an "up" older than
 // this was not rewritten (the link is stopped, frozen or cannot write).
 constexpr double kStateStaleAfterS = 6.0;
+// A supervisor rewrites a node's programs on its board every agents::kProgramsRefresh (5 s).
+constexpr double kProgramsStaleAfterS = 15.0;
 
-// One node of the tree `status` prints: a store under DIR, or a child whose state a store here
-// keeps but whose own store is on another machine.
+using Fields = std::map<std::string, std::string>;  // by the local name of each predicate
+
+// One node of the tree `status` prints: a store under DIR, or a node on another machine known
+// from the state its parent keeps of it (a store here, or a node on another machine asked).
 struct StatusNode {
   std::string id, iri;
   bool remote = false;
-  std::map<std::string, std::string> link;    // its parent's view (P12), when a store here has it
-  std::map<std::string, std::string> uplink;  // its own view of its uplink (P12a), local nodes
+  Fields link;    // its parent's view (P12), when known
+  Fields uplink;  // its own view of its uplink (P12a), local nodes
+  std::vector<ProgramRow> programs;  // named as on the node ("link", "hrv")
+  // A node on another machine: whether its board was read (`asked`), else why not, and when its
+  // supervisor last wrote its programs there.
+  bool asked = false;
+  std::string not_asked;
+  std::int64_t programs_at = 0;
 };
 
-// The fields of each item with a triple of `predicate`, by the item's subject, keyed by the
-// local name of each predicate ("linkState", "lastSeen", …).
-void read_state_items(const node::Snapshot& snap, const std::string& predicate,
-                      std::map<std::string, std::map<std::string, std::string>>& by_subject) {
+// The fields of each item with a triple of `predicate`, by the item's subject.
+void read_state_items(const node::Snapshot& snap, const std::string& predicate, std::map<std::string, Fields>& by_subject) {
   auto records = snap.list({.p = node::Term::iri(predicate)});
   if (!records) return;
   for (const auto& r : *records) {
@@ -1201,12 +1268,70 @@ void read_state_items(const node::Snapshot& snap, const std::string& predicate,
   }
 }
 
-// Why a state a link wrote cannot be believed now, or empty: the link that writes it is not
-// running (a stopped hospital left every home "up"), or an "up" has not been rewritten.
-std::string unbelieved_because(const std::vector<ProgramRow>& programs, const std::string& writer, const std::string& state,
+// What the board of `target`, a node on another machine, says of its children (P12, written by
+// its link) and of its programs (written by its supervisor), read with remote queries through
+// `from`, the store here above it, and its running link.
+struct RemoteBoard {
+  std::map<std::string, Fields> children;  // by child IRI
+  std::vector<ProgramRow> programs;
+  std::int64_t programs_at = 0;
+};
+
+node::Result<RemoteBoard> ask_board(node::Node& from, const std::string& target, std::chrono::milliseconds budget) {
+  const auto deadline = std::chrono::steady_clock::now() + budget;
+  const std::string link = target + "/link", supervisor = target + "/supervisor";
+  RemoteBoard board;
+  std::vector<std::pair<std::string, Fields>> programs;  // by program IRI, in the supervisor's order
+  auto program = [&](const std::string& iri) -> Fields& {
+    for (auto& [name, fields] : programs)
+      if (name == iri) return fields;
+    return programs.emplace_back(iri, Fields{}).second;
+  };
+  auto ask = [&](node::Pattern pattern, unsigned cascade, const std::function<void(const node::Record&)>& each) -> node::Result<void> {
+    const auto left = std::chrono::duration_cast<std::chrono::milliseconds>(deadline - std::chrono::steady_clock::now());
+    if (left.count() <= 0) return node::fail(node::Errc::timeout, "no answer within " + seconds_text(budget.count() / 1e3));
+    auto answered = federation::remote_query(from, {.target = target, .pattern = std::move(pattern), .cascade = cascade}, left, each);
+    if (!answered) return Unexpected<node::Error>{answered.error()};
+    return {};
+  };
+  auto local_name = [](const std::string& iri) { return iri.substr(iri.find('#') + 1); };
+  // Each field of a child's state is asked for by its predicate: the pattern of a query names
+  // no source, and the state item has no one triple that leads to the others.
+  for (const std::string& p : {federation::vocab::kLinkState, federation::vocab::kParent, federation::vocab::kLastSeen,
+                               federation::vocab::kOutboxDepth, federation::vocab::kSoftwareVersion}) {
+    auto asked = ask({.p = node::Term::iri(p)}, 0, [&](const node::Record& r) {
+      if (r.meta.source == link && r.triple.s.value != target) board.children[r.triple.s.value][local_name(p)] = r.triple.o.value;
+    });
+    if (!asked) return Unexpected<node::Error>{asked.error()};
+  }
+  std::erase_if(board.children, [](const auto& c) { return !c.second.count("linkState"); });
+  auto asked = ask({.s = node::Term::iri(target), .p = node::Term::iri(agents::vocab::kProgram)}, 1, [&](const node::Record& r) {
+    if (r.meta.source != supervisor) return;
+    if (r.triple.p.value == agents::vocab::kProgram) program(r.triple.o.value);
+    else program(r.triple.s.value)[local_name(r.triple.p.value)] = r.triple.o.value;
+  });
+  if (!asked) return Unexpected<node::Error>{asked.error()};
+  asked = ask({.s = node::Term::iri(target), .p = node::Term::iri(agents::vocab::kProgramsAt)}, 0, [&](const node::Record& r) {
+    if (r.meta.source != supervisor) return;
+    if (auto at = parse_u64(r.triple.o.value)) board.programs_at = static_cast<std::int64_t>(*at);
+  });
+  if (!asked) return Unexpected<node::Error>{asked.error()};
+  for (auto& [iri, f] : programs) {
+    auto name = uri::child_id(iri, target);
+    if (!name) continue;
+    board.programs.push_back({*name, f["pid"], f["programState"], f["restarts"].empty() ? "0" : f["restarts"], f["lastExit"]});
+  }
+  return board;
+}
+
+// Why a state a link wrote cannot be believed now, or empty: the link that writes it
+// (`writer`, the program "link" of `keeper` when known) is not running (a stopped hospital left
+// every home "up"), or an "up" has not been rewritten.
+std::string unbelieved_because(const StatusNode* keeper, const std::string& writer, const std::string& state,
                                std::int64_t heard_ns) {
-  for (const auto& p : programs)
-    if (p.name == writer && p.state != "running") return writer + " is " + p.state;
+  if (keeper)
+    for (const auto& p : keeper->programs)
+      if (p.name == "link" && p.state != "running") return writer + " is " + p.state;
   if (state == "up" && seconds_since(heard_ns) > kStateStaleAfterS)
     return writer + " has not refreshed it for " + seconds_text(seconds_since(heard_ns));
   return {};
@@ -1245,14 +1370,27 @@ void print_link_json(const std::string& parent, const std::string& state, const 
   std::cout << "}";
 }
 
+// --timeout S of status: seconds, a fraction allowed, more than 0 and at most a minute.
+std::chrono::milliseconds status_timeout(const Args& args) {
+  auto text = args.get("--timeout");
+  if (!text) return std::chrono::seconds(3);
+  double seconds = 0;
+  auto [end, ec] = std::from_chars(text->data(), text->data() + text->size(), seconds);
+  if (ec != std::errc() || end != text->data() + text->size() || !(seconds >= 0.001) || seconds > 60)
+    usage_error("status: --timeout: '" + *text + "' is not a number of seconds from 0.001 to 60");
+  return std::chrono::milliseconds(static_cast<std::int64_t>(seconds * 1000 + 0.5));
+}
+
 }  // namespace
 
 int run_status(const Args& args) {
   fs::path state = state_dir(args);
   if (std::error_code ec; !fs::is_directory(state, ec))
     fail("no directory " + state.string() + " (did 'tahvel up' run with this --state?)");
+  const std::chrono::milliseconds ask_budget = status_timeout(args);
   std::vector<StatusNode> nodes;
-  std::map<std::string, std::map<std::string, std::string>> child_state, own_state;  // by node IRI
+  std::map<std::string, Fields> child_state, own_state;  // by node IRI
+  std::map<std::string, fs::path> store_of;               // the stores here, by node IRI
   std::error_code ec;
   for (const auto& entry : fs::directory_iterator(state, ec)) {
     if (!entry.is_directory() || !fs::exists(entry.path() / "data.mdb")) continue;
@@ -1262,35 +1400,48 @@ int run_status(const Args& args) {
       continue;
     }
     nodes.push_back({.id = entry.path().filename().string(), .iri = node->iri()});
+    store_of[node->iri()] = entry.path();
     auto snap = node->snapshot();
     if (!snap) continue;
     read_state_items(*snap, federation::vocab::kLinkState, child_state);
-    std::map<std::string, std::map<std::string, std::string>> own;
+    std::map<std::string, Fields> own;
     read_state_items(*snap, federation::vocab::kUplinkState, own);
     if (auto it = own.find(node->iri()); it != own.end()) own_state[node->iri()] = it->second;
   }
   if (ec) fail(state.string() + ": " + ec.message());
   if (nodes.empty()) fail("no node stores under " + state.string() + " (did 'tahvel up' run with this --state?)");
+  auto find = [&](const std::string& iri) -> StatusNode* {
+    for (StatusNode& n : nodes)
+      if (n.iri == iri) return &n;
+    return nullptr;
+  };
   auto local_id = [&](const std::string& iri) -> std::string {
-    for (const StatusNode& n : nodes)
-      if (n.iri == iri && !n.remote) return n.id;
-    return {};
+    const StatusNode* n = find(iri);
+    return n && !n->remote ? n->id : std::string();
   };
   // A child whose store is elsewhere is still part of the tree this machine knows of.
-  for (const auto& [iri, fields] : child_state) {
-    if (!local_id(iri).empty()) continue;
+  auto add_remote = [&](const std::string& iri, const Fields& fields) {
     auto parent = fields.find("parent");
     std::string id = iri;
     if (parent != fields.end())
       if (auto child = uri::child_id(iri, parent->second)) id = *child;
-    nodes.push_back({.id = id, .iri = iri, .remote = true});
-  }
+    nodes.push_back({.id = id, .iri = iri, .remote = true, .link = fields});
+  };
+  for (const auto& [iri, fields] : child_state)
+    if (!find(iri)) add_remote(iri, fields);
   for (StatusNode& n : nodes) {
     if (auto it = child_state.find(n.iri); it != child_state.end()) n.link = it->second;
     if (auto it = own_state.find(n.iri); it != own_state.end() && !n.remote) n.uplink = it->second;
   }
-  std::sort(nodes.begin(), nodes.end(), [](const StatusNode& a, const StatusNode& b) { return a.iri < b.iri; });
-  auto programs = read_state_files(state);
+  for (ProgramRow& p : read_state_files(state)) {
+    const auto slash = p.name.find('/');
+    if (slash == std::string::npos) continue;
+    for (StatusNode& n : nodes)
+      if (!n.remote && n.id == p.name.substr(0, slash)) {
+        n.programs.push_back(p);
+        n.programs.back().name.erase(0, slash + 1);
+      }
+  }
   const std::optional<std::set<std::string>> deployed = nodes_supervised(state);
   auto in_deployment = [&](const std::string& id) { return !deployed || deployed->count(id) > 0; };
   // What a store left behind by a node taken out of the file kept of its children is not news.
@@ -1300,6 +1451,72 @@ int run_status(const Args& args) {
     const std::string keeper = parent == n.link.end() ? std::string() : local_id(parent->second);
     return !keeper.empty() && !in_deployment(keeper);
   });
+  // The nodes on other machines, asked through the store here above them (and its link), from
+  // the top down: each one's children are asked in turn.
+  if (args.has("--local")) {
+    for (StatusNode& n : nodes)
+      if (n.remote) n.not_asked = "not asked (--local)";
+  } else {
+    // The deepest store here above `target`, whose link the questions go through.
+    auto via_of = [&](const std::string& target) {
+      std::string via;
+      for (const auto& [iri, dir] : store_of)
+        if (uri::is_under(target, iri) && iri.size() > via.size()) via = iri;
+      return via;
+    };
+    // One level of the tree at a time, its nodes asked side by side (a hospital with hundreds
+    // of homes); each thread opens its own handles on the stores (node.h: one thread per Node).
+    std::vector<std::size_t> level;
+    for (std::size_t i = 0; i < nodes.size(); ++i)
+      if (nodes[i].remote) level.push_back(i);
+    while (!level.empty()) {
+      std::vector<std::optional<node::Result<RemoteBoard>>> boards(level.size());
+      std::atomic<std::size_t> next{0};
+      auto ask_some = [&] {
+        std::map<std::string, node::Node> opened;
+        for (std::size_t k; (k = next++) < level.size();) {
+          const std::string& target = nodes[level[k]].iri;
+          const std::string via = via_of(target);
+          if (via.empty()) {
+            boards[k] = node::fail(node::Errc::not_found, "no store here is above it");
+            continue;
+          }
+          if (!opened.count(via)) {
+            auto node = node::Node::open(store_of.at(via));
+            if (!node) {
+              boards[k] = Unexpected<node::Error>{node.error()};
+              continue;
+            }
+            opened.emplace(via, std::move(*node));
+          }
+          boards[k] = ask_board(opened.at(via), target, ask_budget);
+        }
+      };
+      std::vector<std::thread> askers;
+      for (std::size_t t = 0; t < std::min<std::size_t>(level.size(), 16); ++t) askers.emplace_back(ask_some);
+      for (auto& t : askers) t.join();
+      std::vector<std::size_t> below;
+      for (std::size_t k = 0; k < level.size(); ++k) {
+        StatusNode& n = nodes[level[k]];
+        auto& board = *boards[k];
+        if (!board) {
+          n.not_asked = board.error().message;
+          continue;
+        }
+        n.asked = true;
+        n.programs = std::move(board->programs);
+        n.programs_at = board->programs_at;
+        const std::string target = n.iri;  // `nodes` grows below: no reference into it past here
+        for (auto& [iri, fields] : board->children) {
+          if (find(iri) || !uri::is_under(iri, target)) continue;
+          add_remote(iri, fields);
+          below.push_back(nodes.size() - 1);
+        }
+      }
+      level = std::move(below);
+    }
+  }
+  std::sort(nodes.begin(), nodes.end(), [](const StatusNode& a, const StatusNode& b) { return a.iri < b.iri; });
   const bool json = args.has("--json");
   if (json) std::cout << "{\"state\":\"" << node::json_escape(state.string()) << "\",\"nodes\":[";
   bool first_node = true;
@@ -1319,11 +1536,13 @@ int run_status(const Args& args) {
     if (!n.link.empty()) {
       auto& f = n.link;
       if (auto p = parse_u64(f["lastSeen"])) seen = static_cast<std::int64_t>(*p);
-      const std::string parent_id = local_id(f["parent"]);
+      const StatusNode* keeper = find(f["parent"]);
+      const std::string writer = keeper && !keeper->remote ? keeper->id + "/link"
+                                 : keeper                  ? "the link of <" + keeper->iri + ">"
+                                                           : "the parent's link";
       said = "link " + f["linkState"] + ", last seen " + age_of(seen) + ", outbox " + f["outboxDepth"];
       if (!f["softwareVersion"].empty()) said += ", " + f["softwareVersion"];
-      unknown_because =
-          unbelieved_because(programs, parent_id.empty() ? "the parent's link" : parent_id + "/link", f["linkState"], seen);
+      unknown_because = unbelieved_because(keeper, writer, f["linkState"], seen);
     }
     // This node's own view of its uplink, shown when its parent is not here to say more.
     std::string uplink_said, uplink_unknown_because;
@@ -1334,8 +1553,14 @@ int run_status(const Args& args) {
       uplink_said = "uplink to <" + f["parent"] + "> " + f["uplinkState"];
       if (!f["uplinkRefusal"].empty()) uplink_said += " (" + f["uplinkRefusal"] + ")";
       uplink_said += ", parent last heard " + age_of(heard) + ", outbox " + f["outboxDepth"];
-      uplink_unknown_because = unbelieved_because(programs, n.id + "/link", f["uplinkState"], heard);
+      uplink_unknown_because = unbelieved_because(&n, n.id + "/link", f["uplinkState"], heard);
     }
+    // A remote node's programs are what its supervisor last wrote on its board.
+    std::string programs_unknown_because;
+    if (n.remote && !n.asked) programs_unknown_because = n.not_asked;
+    else if (n.remote && n.programs_at == 0) programs_unknown_because = "its board has none (no supervisor writes them there)";
+    else if (n.remote && seconds_since(n.programs_at) > kProgramsStaleAfterS)
+      programs_unknown_because = "its supervisor has not refreshed them for " + seconds_text(seconds_since(n.programs_at));
     if (json) {
       std::cout << (first_node ? "" : ",") << "{\"id\":\"" << node::json_escape(n.id) << "\",\"iri\":\""
                 << node::json_escape(n.iri) << "\",\"depth\":" << depth << ",\"remote\":" << (n.remote ? "true" : "false")
@@ -1353,9 +1578,8 @@ int run_status(const Args& args) {
                         n.uplink["outboxDepth"], "refusal", n.uplink["uplinkRefusal"]);
       std::cout << ",\"programs\":[";
       bool first_program = true;
-      for (const auto& p : programs) {
-        if (n.remote || p.name.rfind(n.id + "/", 0) != 0) continue;
-        std::cout << (first_program ? "" : ",") << "{\"name\":\"" << node::json_escape(p.name.substr(n.id.size() + 1))
+      for (const auto& p : n.programs) {
+        std::cout << (first_program ? "" : ",") << "{\"name\":\"" << node::json_escape(p.name)
                   << "\",\"state\":\"" << node::json_escape(p.state) << "\",\"pid\":"
                   << (p.state == "running" && parse_u64(p.pid) ? p.pid : "null")
                   << ",\"restarts\":" << (parse_u64(p.restarts) ? p.restarts : "0") << ",\"last_exit\":";
@@ -1363,7 +1587,11 @@ int run_status(const Args& args) {
         std::cout << "}";
         first_program = false;
       }
-      std::cout << "]}";
+      std::cout << "],\"programs_known\":" << (programs_unknown_because.empty() ? "true" : "false")
+                << ",\"programs_unknown_because\":";
+      print_json_string_or_null(programs_unknown_because);
+      std::cout << ",\"programs_written_ns\":" << (n.remote && n.programs_at > 0 ? std::to_string(n.programs_at) : "null")
+                << "}";
       continue;
     }
     std::string indent(depth * 2, ' ');
@@ -1381,9 +1609,11 @@ int run_status(const Args& args) {
     else if (depth == 0 && !left)
       std::cout << "  (root)";
     std::cout << "\n";
-    for (const auto& p : programs) {
-      if (n.remote || p.name.rfind(n.id + "/", 0) != 0) continue;
-      std::cout << indent << "  - " << p.name.substr(n.id.size() + 1) << "  " << p.state;
+    if (n.remote && !programs_unknown_because.empty())
+      std::cout << indent << "  programs " << (n.programs.empty() ? "unknown" : "as last written, now unknown") << ": "
+                << programs_unknown_because << "\n";
+    for (const auto& p : n.programs) {
+      std::cout << indent << "  - " << p.name << "  " << p.state;
       if (p.state == "running") std::cout << " (pid " << p.pid << ")";
       if (p.restarts != "0") std::cout << ", " << p.restarts << " restarts";
       if (!p.last_exit.empty()) std::cout << ", last: " << p.last_exit;

@@ -10,6 +10,7 @@
 #include <filesystem>
 #include <fstream>
 #include <iostream>
+#include <map>
 #include <string>
 #include <thread>
 
@@ -195,6 +196,56 @@ TEST_F(Deployment, StatusOnEachMachineShowsWhatThatMachineKnowsOfTheLinkBetweenT
   EXPECT_TRUE(eventually([&] { return status_of(gateway_machine).find("> up, parent last heard") != std::string::npos; }, 15s));
   tahvel("down --state " + gateway_machine.string());
   tahvel("down --state " + ward_machine.string());
+}
+
+// Three machines, one node each (`up --node`). On the ward's machine `status` shows the whole
+// tree: the gateway, known from the state the ward's link keeps of it, and, asked through the
+// link, the sensor below the gateway and the programs of both, as their supervisors wrote them
+// on their boards (a program that keeps failing shows its restarts and its last exit there).
+// With --local nothing is asked; a machine that went down is shown as such, its programs unknown.
+TEST_F(Deployment, StatusOnTheRootsMachineShowsTheNodesAndProgramsOfTheMachinesBelowIt) {
+  write_topology("[[node]]\nid = \"ward\"\niri = \"" + kWard + "\"\nlisten = { kind = \"dds\", domain = 6, " + kDdsConfig +
+                 " }\n\n[[node]]\nid = \"gateway\"\nparent = \"ward\"\n"
+                 "listen = { kind = \"lcm\", url = \"udpm://239.255.76.68:7712?ttl=0\" }\n\n[[node]]\nid = \"sensor\"\nparent = \"gateway\"\n\n  [[node.agent]]\n  id = \"flaky\"\n"
+                 "  run = [\"sh\", \"-c\", \"exit 3\"]\n");
+  const std::string file = (root_ / "topology.toml").string();
+  std::map<std::string, fs::path> machine;
+  for (const std::string id : {"ward", "gateway", "sensor"}) {
+    machine[id] = root_ / (id + "-machine");
+    tahvel("up " + file + " --node " + id + " --state " + machine[id].string());
+  }
+  auto status_of = [&](const std::string& id, const std::string& flags = "") {
+    return tahvel("status --state " + machine[id].string() + flags);
+  };
+  const std::string sensor_line = "    sensor  <" + kWard + "/gateway/sensor>  (on another machine)  link up, last seen";
+  std::string shown;
+  ASSERT_TRUE(eventually([&] {
+    shown = status_of("ward");
+    return shown.find(sensor_line) != std::string::npos &&
+           shown.find(" restarts, last: exited with status 3") != std::string::npos;
+  })) << shown;
+  EXPECT_NE(shown.find("  gateway  <" + kWard + "/gateway>  (on another machine)  link up, last seen"), std::string::npos) << shown;
+  EXPECT_NE(shown.find("\n    - link  running (pid "), std::string::npos) << shown;  // the gateway's, under it
+  EXPECT_NE(shown.find("      - link  running (pid "), std::string::npos) << shown;  // the sensor's
+  EXPECT_NE(shown.find("      - flaky  "), std::string::npos) << shown;
+  const std::string json = status_of("ward", " --json");
+  EXPECT_NE(json.find("{\"id\":\"sensor\",\"iri\":\"" + kWard + "/gateway/sensor\",\"depth\":2,\"remote\":true,"), std::string::npos) << json;
+  EXPECT_NE(json.find("\"programs_known\":true,\"programs_unknown_because\":null,\"programs_written_ns\":1"), std::string::npos) << json;
+
+  shown = status_of("ward", " --local");
+  EXPECT_EQ(shown.find("sensor"), std::string::npos) << shown;
+  EXPECT_NE(shown.find("(on another machine)  link up, last seen"), std::string::npos) << shown;
+  EXPECT_NE(shown.find("    programs unknown: not asked (--local)\n"), std::string::npos) << shown;
+
+  tahvel("down --state " + machine["sensor"].string());
+  EXPECT_TRUE(eventually([&] {
+    shown = status_of("ward");
+    return shown.find("    sensor  <" + kWard + "/gateway/sensor>  (on another machine)  link down") != std::string::npos;
+  }, 15s)) << shown;
+  EXPECT_NE(shown.find("      programs unknown: "), std::string::npos) << shown;
+  EXPECT_EQ(shown.find("flaky"), std::string::npos) << shown;
+  tahvel("down --state " + machine["gateway"].string());
+  tahvel("down --state " + machine["ward"].string());
 }
 
 // A home added to the file of a running deployment: `up` again starts the new node's link and

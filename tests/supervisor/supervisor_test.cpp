@@ -214,5 +214,35 @@ TEST(SupervisorDeath, ProgramsDieWithAKilledSupervisor) {
   if (!gone) kill(program, SIGKILL);
 }
 
+// What a machine above reads of a node's programs (tahvel status, docs/deploy.md): each program
+// under its agent IRI, with the state, pid, restarts and last exit the supervisor knows.
+TEST(ProgramsOnTheBoard, EachProgramIsNamedByItsAgentIriWithWhatItsSupervisorKnows) {
+  ProgramState link{.name = "link", .pid = 4711, .running = true};
+  ProgramState flaky{.name = "flaky", .restarts = 2, .last_exit = "exited with status 3",
+                     .restart_at = std::chrono::steady_clock::now() + 1s};
+  ProgramState replay{.name = "replay", .restarts = 0, .last_exit = "exited with status 0"};
+  auto item = programs_item("http://h/home1", {link, flaky, replay}, 1234);
+  ASSERT_TRUE(item.has_value()) << item.error().message;
+  EXPECT_TRUE(item->persistent);
+  auto has = [&](const std::string& s, const std::string& p, const std::string& o) {
+    for (const auto& t : item->triples)
+      if (t.s.value == s && t.p.value == p && t.o.value == o) return true;
+    return false;
+  };
+  EXPECT_TRUE(has("http://h/home1", vocab::kProgramsAt, "1234"));
+  EXPECT_TRUE(has("http://h/home1", vocab::kProgram, "http://h/home1/link"));
+  EXPECT_TRUE(has("http://h/home1/link", vocab::kProgramState, "running"));
+  EXPECT_TRUE(has("http://h/home1/link", vocab::kPid, "4711"));
+  EXPECT_TRUE(has("http://h/home1/flaky", vocab::kProgramState, "restarting"));
+  EXPECT_TRUE(has("http://h/home1/flaky", vocab::kRestarts, "2"));
+  EXPECT_TRUE(has("http://h/home1/flaky", vocab::kLastExit, "exited with status 3"));
+  EXPECT_TRUE(has("http://h/home1/replay", vocab::kProgramState, "stopped"));
+  for (const auto& t : item->triples) EXPECT_FALSE(t.s.value == "http://h/home1/flaky" && t.p.value == vocab::kPid);
+
+  auto bad = programs_item("http://h/home1", {ProgramState{.name = "a b"}}, 1);
+  ASSERT_FALSE(bad.has_value());
+  EXPECT_NE(bad.error().message.find("program 'a b' of <http://h/home1>"), std::string::npos) << bad.error().message;
+}
+
 }  // namespace
 }  // namespace tahvel::agents

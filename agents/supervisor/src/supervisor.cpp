@@ -11,6 +11,8 @@
 #include <iostream>
 #include <thread>
 
+#include "tahvel/uri/iri.h"
+
 namespace tahvel::agents {
 
 using Clock = std::chrono::steady_clock;
@@ -238,6 +240,35 @@ std::optional<ProgramState> Supervisor::state(std::string_view name) const {
       return s;
     }
   return std::nullopt;
+}
+
+}  // namespace tahvel::agents
+
+namespace tahvel::agents {
+
+std::string_view program_state_name(const ProgramState& state) {
+  if (state.running) return "running";
+  return state.restart_at ? "restarting" : "stopped";
+}
+
+Result<node::Item> programs_item(const std::string& node_iri, const std::vector<ProgramState>& programs,
+                                 std::int64_t now_ns) {
+  using node::Term;
+  node::Item item;
+  item.persistent = true;  // a ring store must not reclaim what an operator reads the tree from
+  const Term node = Term::iri(node_iri);
+  item.add(node, Term::iri(vocab::kProgramsAt), Term::integer(now_ns));
+  for (const ProgramState& p : programs) {
+    auto iri = uri::agent_iri(node_iri, p.name);
+    if (!iri) return fail(Errc::invalid_iri, "program '" + p.name + "' of <" + node_iri + ">: " + iri.error().message);
+    const Term program = Term::iri(*iri);
+    item.add(node, Term::iri(vocab::kProgram), program);
+    item.add(program, Term::iri(vocab::kProgramState), Term::literal(std::string(program_state_name(p))));
+    if (p.running && p.pid > 0) item.add(program, Term::iri(vocab::kPid), Term::integer(p.pid));
+    item.add(program, Term::iri(vocab::kRestarts), Term::integer(p.restarts));
+    if (!p.last_exit.empty()) item.add(program, Term::iri(vocab::kLastExit), Term::literal(p.last_exit));
+  }
+  return item;
 }
 
 }  // namespace tahvel::agents

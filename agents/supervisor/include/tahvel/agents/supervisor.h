@@ -21,6 +21,7 @@
 #include <vector>
 
 #include "tahvel/node/error.h"
+#include "tahvel/node/term.h"
 
 namespace tahvel::agents {
 
@@ -100,5 +101,38 @@ class Supervisor {
   BackOff back_off_;
   std::vector<Program*> programs_;
 };
+
+// ---- on the board ------------------------------------------------------------------------
+// What a supervisor runs for one node, as one persistent item on that node's board written by
+// its agent `supervisor`, so that an operator on a machine above sees a node's programs through
+// the link (`tahvel status` asks with a remote query; docs/deploy.md). Each program is named by
+// its agent IRI (node IRI + "/" + its name on the node):
+//
+//   <N> tv:program <N/hrv> ; tv:programsAt 1763732000000000000 .   # ns since the Unix epoch
+//   <N/hrv> tv:programState "running" ; tv:pid 4711 ; tv:restarts 0 ; tv:lastExit "…" .
+//
+// tv:programState is "running", "stopped" or "restarting" (waiting out its back-off);
+// tv:pid and tv:lastExit are absent when unknown. A supervisor rewrites the item when it
+// changes and every kProgramsRefresh, so an item much older than that was left by a supervisor
+// that stopped or froze.
+namespace vocab {
+inline constexpr std::string_view kTv = "https://w3id.org/tahvel#";
+inline const std::string kProgram = std::string(kTv) + "program";
+inline const std::string kProgramsAt = std::string(kTv) + "programsAt";
+inline const std::string kProgramState = std::string(kTv) + "programState";
+inline const std::string kPid = std::string(kTv) + "pid";
+inline const std::string kRestarts = std::string(kTv) + "restarts";
+inline const std::string kLastExit = std::string(kTv) + "lastExit";
+}  // namespace vocab
+
+inline constexpr std::chrono::seconds kProgramsRefresh{5};
+
+// "running", "stopped" or "restarting", as the board says it.
+std::string_view program_state_name(const ProgramState& state);
+
+// The item above for node `node_iri`; `programs` carry their names on the node ("hrv", not
+// "home1/hrv"). Errors: invalid_iri when a name cannot extend the node's IRI.
+Result<node::Item> programs_item(const std::string& node_iri, const std::vector<ProgramState>& programs,
+                                 std::int64_t now_ns);
 
 }  // namespace tahvel::agents
