@@ -168,6 +168,18 @@ TEST_F(SupervisorTest, ARemovedProgramIsStoppedAndForgottenAndItsNameCanBeStarte
   EXPECT_EQ(supervisor_.remove("nobody").error().code, node::Errc::not_found);
 }
 
+// `up` applies a changed command by removing the program and starting it again: it stays where
+// it was in states(), and so in `tahvel status`, instead of moving to the end of its node.
+TEST_F(SupervisorTest, AProgramRemovedAndStartedAgainKeepsItsPlace) {
+  for (const char* name : {"link", "ecg", "hrv"}) start(name, "sleep 30", Restart::always);
+  ASSERT_TRUE(supervisor_.remove("ecg", 2000ms).has_value());
+  start("ecg", "sleep 31", Restart::always);
+  start("trend", "sleep 30", Restart::always);
+  std::vector<std::string> names;
+  for (const auto& s : supervisor_.states()) names.push_back(s.name);
+  EXPECT_EQ(names, (std::vector<std::string>{"link", "ecg", "hrv", "trend"}));
+}
+
 // A supervisor SIGKILLed (a crash) takes its programs with it: none runs on unsupervised, beside
 // the copy a restarted supervisor would start. (Found with the chaos tests: a killed supervisor
 // left its programs running after `tahvel down`.)

@@ -6,6 +6,7 @@
 #include <sys/wait.h>
 #include <unistd.h>
 
+#include <algorithm>
 #include <cerrno>
 #include <cstring>
 #include <iostream>
@@ -72,7 +73,13 @@ Result<void> Supervisor::start(ProgramSpec spec) {
   }
   auto* program = new Program{std::move(spec), {}, {}, {}, back_off_.first, false};
   program->state.name = program->spec.name;
-  programs_.push_back(program);
+  // A program removed and started again (a changed command) keeps its place in states().
+  auto place = programs_.end();
+  if (auto v = vacated_.find(program->spec.name); v != vacated_.end()) {
+    place = programs_.begin() + static_cast<std::ptrdiff_t>(std::min(v->second, programs_.size()));
+    vacated_.erase(v);
+  }
+  programs_.insert(place, program);
   launch(*program);
   return {};
 }
@@ -190,6 +197,7 @@ Result<void> Supervisor::remove(std::string_view name, std::chrono::milliseconds
   if (auto stopped = stop(name, grace); !stopped) return stopped;
   for (auto it = programs_.begin(); it != programs_.end(); ++it) {
     if ((*it)->spec.name != name) continue;
+    vacated_[std::string(name)] = static_cast<std::size_t>(it - programs_.begin());
     delete *it;
     programs_.erase(it);
     break;

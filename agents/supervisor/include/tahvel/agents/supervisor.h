@@ -15,6 +15,7 @@
 #include <cstdint>
 #include <filesystem>
 #include <functional>
+#include <map>
 #include <optional>
 #include <string>
 #include <string_view>
@@ -83,13 +84,15 @@ class Supervisor {
   // program has that name.
   Result<void> stop(std::string_view name, std::chrono::milliseconds grace = std::chrono::seconds(5));
   // Stops a program as stop() does and forgets it: it leaves states(), and a program of that
-  // name may be started again (a changed command). not_found when no program has that name.
+  // name may be started again (a changed command), which takes its place in states() again.
+  // not_found when no program has that name.
   Result<void> remove(std::string_view name, std::chrono::milliseconds grace = std::chrono::seconds(5));
   void stop_all(std::chrono::milliseconds grace = std::chrono::seconds(5));
 
   // Reaps programs that died (logging why), restarts those due. Call it regularly.
   void poll();
 
+  // In the order the programs were started; one removed and started again keeps its place.
   std::vector<ProgramState> states() const;
   std::optional<ProgramState> state(std::string_view name) const;
 
@@ -99,7 +102,8 @@ class Supervisor {
   void reaped(Program& program, int status);
   Log log_;
   BackOff back_off_;
-  std::vector<Program*> programs_;
+  std::vector<Program*> programs_;                  // in the order of states()
+  std::map<std::string, std::size_t> vacated_;      // removed programs' places, by name
 };
 
 // ---- on the board ------------------------------------------------------------------------
