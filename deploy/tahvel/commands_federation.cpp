@@ -333,14 +333,18 @@ const Command kQueryCommand{
      kFlagFormat},
     1, 1};
 
-// --timeout S: seconds, a fraction allowed ("2.5"), more than 0 and at most a day.
-std::chrono::milliseconds timeout_flag(const Args& args) {
+// --timeout S of `command`: seconds, a fraction allowed ("2.5"), at least 1 ms and at most
+// `at_most`; `fallback` when the flag is not given.
+std::chrono::milliseconds seconds_flag(const Args& args, std::string_view command, std::chrono::milliseconds fallback,
+                                       std::chrono::seconds at_most) {
   auto text = args.get("--timeout");
-  if (!text) return std::chrono::seconds(30);
+  if (!text) return fallback;
   double seconds = 0;
   auto [end, ec] = std::from_chars(text->data(), text->data() + text->size(), seconds);
-  if (ec != std::errc() || end != text->data() + text->size() || !(seconds >= 0.001) || seconds > 86400)
-    usage_error("query: --timeout: '" + *text + "' is not a number of seconds from 0.001 to 86400");
+  if (ec != std::errc() || end != text->data() + text->size() || !(seconds >= 0.001) ||
+      seconds > static_cast<double>(at_most.count()))
+    usage_error(std::string(command) + ": --timeout: '" + *text + "' is not a number of seconds from 0.001 to " +
+                std::to_string(at_most.count()));
   return std::chrono::milliseconds(static_cast<std::int64_t>(seconds * 1000 + 0.5));
 }
 
@@ -377,7 +381,7 @@ int run_query(const Args& args) {
   } else if (args.has("--floor")) {
     usage_error("--floor: only with --area");
   }
-  const std::chrono::milliseconds timeout = timeout_flag(args);
+  const std::chrono::milliseconds timeout = seconds_flag(args, "query", std::chrono::seconds(30), std::chrono::hours(24));
   node::Format format = format_flag(args, node::Format::ntriples);
   // Printed as the records come, Turtle too (with all of DIR's prefixes, as `dump` does: the
   // prefixes a long answer uses are known only at its end, and it must not wait in memory).
@@ -1370,24 +1374,13 @@ void print_link_json(const std::string& parent, const std::string& state, const 
   std::cout << "}";
 }
 
-// --timeout S of status: seconds, a fraction allowed, more than 0 and at most a minute.
-std::chrono::milliseconds status_timeout(const Args& args) {
-  auto text = args.get("--timeout");
-  if (!text) return std::chrono::seconds(3);
-  double seconds = 0;
-  auto [end, ec] = std::from_chars(text->data(), text->data() + text->size(), seconds);
-  if (ec != std::errc() || end != text->data() + text->size() || !(seconds >= 0.001) || seconds > 60)
-    usage_error("status: --timeout: '" + *text + "' is not a number of seconds from 0.001 to 60");
-  return std::chrono::milliseconds(static_cast<std::int64_t>(seconds * 1000 + 0.5));
-}
-
 }  // namespace
 
 int run_status(const Args& args) {
   fs::path state = state_dir(args);
   if (std::error_code ec; !fs::is_directory(state, ec))
     fail("no directory " + state.string() + " (did 'tahvel up' run with this --state?)");
-  const std::chrono::milliseconds ask_budget = status_timeout(args);
+  const std::chrono::milliseconds ask_budget = seconds_flag(args, "status", std::chrono::seconds(3), std::chrono::seconds(60));
   std::vector<StatusNode> nodes;
   std::map<std::string, Fields> child_state, own_state;  // by node IRI
   std::map<std::string, fs::path> store_of;               // the stores here, by node IRI

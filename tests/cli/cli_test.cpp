@@ -709,6 +709,22 @@ TEST_F(Cli, QueryTimeoutIsSecondsWithAFractionAndMoreThanZero) {
   }
 }
 
+// How long status waits for each node on another machine: seconds, at most a minute (an
+// operator's look at the tree, not a query that may run long).
+TEST_F(Cli, StatusTimeoutIsSecondsFromAMillisecondToAMinute) {
+  const std::string state = up_a_node_with_a_flaky_agent();
+  Outcome r = run({"status", "--state", state, "--timeout", "0.5"});
+  EXPECT_EQ(r.status, 0) << r.err;
+  for (const char* bad : {"0", "61", "abc"}) {
+    r = run({"status", "--state", state, "--timeout", bad});
+    EXPECT_EQ(r.status, 2) << bad;
+    EXPECT_NE(r.err.find("status: --timeout: '" + std::string(bad) + "' is not a number of seconds from 0.001 to 60"),
+              std::string::npos)
+        << r.err;
+  }
+  EXPECT_EQ(run({"down", "--state", state}).status, 0);
+}
+
 TEST_F(Cli, UpRefusesATopologyWhoseChildIriIsNotUnderItsParent) {
   spit(tmp_ / "bad.toml",
        "[[node]]\nid = \"hospital\"\niri = \"http://example.org/hospital\"\nlisten = { kind = \"dds\" }\n\n"

@@ -23,6 +23,7 @@
 
 #include "tahvel/node/error.h"
 #include "tahvel/node/term.h"
+#include "tahvel/uri/iri.h"
 
 namespace tahvel::agents {
 
@@ -120,13 +121,12 @@ class Supervisor {
 // changes and every kProgramsRefresh, so an item much older than that was left by a supervisor
 // that stopped or froze.
 namespace vocab {
-inline constexpr std::string_view kTv = "https://w3id.org/tahvel#";
-inline const std::string kProgram = std::string(kTv) + "program";
-inline const std::string kProgramsAt = std::string(kTv) + "programsAt";
-inline const std::string kProgramState = std::string(kTv) + "programState";
-inline const std::string kPid = std::string(kTv) + "pid";
-inline const std::string kRestarts = std::string(kTv) + "restarts";
-inline const std::string kLastExit = std::string(kTv) + "lastExit";
+inline const std::string kProgram = std::string(uri::kTahvelNs) + "program";
+inline const std::string kProgramsAt = std::string(uri::kTahvelNs) + "programsAt";
+inline const std::string kProgramState = std::string(uri::kTahvelNs) + "programState";
+inline const std::string kPid = std::string(uri::kTahvelNs) + "pid";
+inline const std::string kRestarts = std::string(uri::kTahvelNs) + "restarts";
+inline const std::string kLastExit = std::string(uri::kTahvelNs) + "lastExit";
 }  // namespace vocab
 
 inline constexpr std::chrono::seconds kProgramsRefresh{5};
