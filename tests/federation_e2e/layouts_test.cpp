@@ -202,7 +202,8 @@ TEST_F(Deployment, StatusOnEachMachineShowsWhatThatMachineKnowsOfTheLinkBetweenT
 // tree: the gateway, known from the state the ward's link keeps of it, and, asked through the
 // link, the sensor below the gateway and the programs of both, as their supervisors wrote them
 // on their boards (a program that keeps failing shows its restarts and its last exit there).
-// With --local nothing is asked; a machine that went down is shown as such, its programs unknown.
+// With --local nothing is asked; programs a frozen supervisor no longer rewrites are not shown
+// as current; a machine that went down is shown as such, its programs unknown.
 TEST_F(Deployment, StatusOnTheRootsMachineShowsTheNodesAndProgramsOfTheMachinesBelowIt) {
   write_topology("[[node]]\nid = \"ward\"\niri = \"" + kWard + "\"\nlisten = { kind = \"dds\", domain = 6, " + kDdsConfig +
                  " }\n\n[[node]]\nid = \"gateway\"\nparent = \"ward\"\n"
@@ -236,6 +237,17 @@ TEST_F(Deployment, StatusOnTheRootsMachineShowsTheNodesAndProgramsOfTheMachinesB
   EXPECT_EQ(shown.find("sensor"), std::string::npos) << shown;
   EXPECT_NE(shown.find("(on another machine)  link up, last seen"), std::string::npos) << shown;
   EXPECT_NE(shown.find("    programs unknown: not asked (--local)\n"), std::string::npos) << shown;
+
+  // The sensor's supervisor frozen: its programs still run, but what its board says of them is
+  // no longer rewritten, and status says so instead of showing it as current.
+  const std::string supervisor_pid = "$(cat " + (machine["sensor"] / "supervisor-sensor.pid").string() + ")";
+  ASSERT_EQ(shell("kill -STOP " + supervisor_pid), 0);
+  EXPECT_TRUE(eventually([&] {
+    shown = status_of("ward");
+    return shown.find("      programs as last written, now unknown: its supervisor has not refreshed them for") != std::string::npos;
+  }, 30s)) << shown;
+  EXPECT_NE(shown.find("      - link  running (pid "), std::string::npos) << shown;
+  shell("kill -CONT " + supervisor_pid);
 
   tahvel("down --state " + machine["sensor"].string());
   EXPECT_TRUE(eventually([&] {
