@@ -839,7 +839,9 @@ class Deployment {
       if (!events) log("up: dispatcher <" + d.dispatcher.iri() + ">: " + events.error().message);
     }
     supervisor_.stop_all();
-    publish_programs(log, true);  // a remote reader sees them stopped, not as they last ran
+    // The board then says they stopped, not how they last ran: for `status` on a machine above
+    // once this node's link runs again (until then that machine cannot ask).
+    publish_programs(log, true);
   }
 
   // Each node's programs on its board (agents/supervisor.h, "on the board"), when they change
@@ -1253,11 +1255,11 @@ struct StatusNode {
   Fields link;    // its parent's view (P12), when known
   Fields uplink;  // its own view of its uplink (P12a), local nodes
   std::vector<ProgramRow> programs;  // named as on the node ("link", "hrv")
-  // A node on another machine: whether its board was read (`asked`), else why not, and when its
-  // supervisor last wrote its programs there.
-  bool asked = false;
-  std::string not_asked;
+  // A node on another machine: why its programs or its children are not known (empty: they
+  // are), and when its supervisor last wrote its programs on its board.
+  std::string programs_unknown_because, children_unknown_because;
   std::int64_t programs_at = 0;
+  bool programs_current = true;  // a remote node's: read now, and rewritten recently
 };
 
 // The fields of each item with a triple of `predicate`, by the item's subject.
@@ -1274,52 +1276,65 @@ void read_state_items(const node::Snapshot& snap, const std::string& predicate, 
 
 // What the board of `target`, a node on another machine, says of its children (P12, written by
 // its link) and of its programs (written by its supervisor), read with remote queries through
-// `from`, the store here above it, and its running link.
+// `from`, the store here above it, and its running link, before `deadline`. Each part that
+// could not be read says why; the children then stay unknown (and are not asked in turn).
 struct RemoteBoard {
   std::map<std::string, Fields> children;  // by child IRI
   std::vector<ProgramRow> programs;
   std::int64_t programs_at = 0;
+  std::string children_error, programs_error;
 };
 
-node::Result<RemoteBoard> ask_board(node::Node& from, const std::string& target, std::chrono::milliseconds budget) {
-  const auto deadline = std::chrono::steady_clock::now() + budget;
-  const std::string link = target + "/link", supervisor = target + "/supervisor";
+RemoteBoard ask_board(node::Node& from, const std::string& target, std::chrono::steady_clock::time_point deadline,
+                      std::chrono::milliseconds budget) {
   RemoteBoard board;
-  std::vector<std::pair<std::string, Fields>> programs;  // by program IRI, in the supervisor's order
-  auto program = [&](const std::string& iri) -> Fields& {
-    for (auto& [name, fields] : programs)
-      if (name == iri) return fields;
-    return programs.emplace_back(iri, Fields{}).second;
-  };
-  auto ask = [&](node::Pattern pattern, unsigned cascade, const std::function<void(const node::Record&)>& each) -> node::Result<void> {
+  auto link = uri::agent_iri(target, "link"), supervisor = uri::agent_iri(target, "supervisor");
+  if (!link || !supervisor) {
+    board.children_error = board.programs_error = "<" + target + "> cannot have agents: " + (link ? supervisor : link).error().message;
+    return board;
+  }
+  // Asks for every record of predicate `p` (about `subject` when given) that `writer` wrote.
+  // A query's pattern names no source, and a state item has no one triple that leads to the
+  // rest, so each field is asked for by its predicate.
+  auto ask = [&](const std::string& p, const std::string& subject, const std::string& writer,
+                 const std::function<void(const node::Record&)>& each) -> std::string {
     const auto left = std::chrono::duration_cast<std::chrono::milliseconds>(deadline - std::chrono::steady_clock::now());
-    if (left.count() <= 0) return node::fail(node::Errc::timeout, "no answer within " + seconds_text(budget.count() / 1e3));
-    auto answered = federation::remote_query(from, {.target = target, .pattern = std::move(pattern), .cascade = cascade}, left, each);
-    if (!answered) return Unexpected<node::Error>{answered.error()};
-    return {};
+    if (left.count() <= 0) return "no answer within " + seconds_text(static_cast<double>(budget.count()) / 1e3);
+    node::Pattern pattern{.p = node::Term::iri(p)};
+    if (!subject.empty()) pattern.s = node::Term::iri(subject);
+    auto answered = federation::remote_query(from, {.target = target, .pattern = std::move(pattern)}, left, [&](const node::Record& r) {
+      if (r.meta.source == writer) each(r);
+    });
+    if (answered) return {};
+    if (answered.error().code == node::Errc::timeout) return "no answer within " + seconds_text(static_cast<double>(budget.count()) / 1e3);
+    return answered.error().message;
   };
   auto local_name = [](const std::string& iri) { return iri.substr(iri.find('#') + 1); };
-  // Each field of a child's state is asked for by its predicate: the pattern of a query names
-  // no source, and the state item has no one triple that leads to the others.
   for (const std::string& p : {federation::vocab::kLinkState, federation::vocab::kParent, federation::vocab::kLastSeen,
                                federation::vocab::kOutboxDepth, federation::vocab::kSoftwareVersion}) {
-    auto asked = ask({.p = node::Term::iri(p)}, 0, [&](const node::Record& r) {
-      if (r.meta.source == link && r.triple.s.value != target) board.children[r.triple.s.value][local_name(p)] = r.triple.o.value;
+    board.children_error = ask(p, "", *link, [&](const node::Record& r) {
+      if (r.triple.s.value != target) board.children[r.triple.s.value][local_name(p)] = r.triple.o.value;
     });
-    if (!asked) return Unexpected<node::Error>{asked.error()};
+    if (!board.children_error.empty()) break;
   }
+  if (!board.children_error.empty()) board.children.clear();
   std::erase_if(board.children, [](const auto& c) { return !c.second.count("linkState"); });
-  auto asked = ask({.s = node::Term::iri(target), .p = node::Term::iri(agents::vocab::kProgram)}, 1, [&](const node::Record& r) {
-    if (r.meta.source != supervisor) return;
-    if (r.triple.p.value == agents::vocab::kProgram) program(r.triple.o.value);
-    else program(r.triple.s.value)[local_name(r.triple.p.value)] = r.triple.o.value;
-  });
-  if (!asked) return Unexpected<node::Error>{asked.error()};
-  asked = ask({.s = node::Term::iri(target), .p = node::Term::iri(agents::vocab::kProgramsAt)}, 0, [&](const node::Record& r) {
-    if (r.meta.source != supervisor) return;
-    if (auto at = parse_u64(r.triple.o.value)) board.programs_at = static_cast<std::int64_t>(*at);
-  });
-  if (!asked) return Unexpected<node::Error>{asked.error()};
+
+  std::vector<std::pair<std::string, Fields>> programs;  // by program IRI, in the supervisor's order
+  board.programs_error = ask(agents::vocab::kProgram, target, *supervisor,
+                             [&](const node::Record& r) { programs.emplace_back(r.triple.o.value, Fields{}); });
+  for (const std::string& p : {agents::vocab::kProgramState, agents::vocab::kPid, agents::vocab::kRestarts, agents::vocab::kLastExit}) {
+    if (!board.programs_error.empty()) break;
+    board.programs_error = ask(p, "", *supervisor, [&](const node::Record& r) {
+      for (auto& [iri, fields] : programs)
+        if (iri == r.triple.s.value) fields[local_name(p)] = r.triple.o.value;
+    });
+  }
+  if (board.programs_error.empty())
+    board.programs_error = ask(agents::vocab::kProgramsAt, target, *supervisor, [&](const node::Record& r) {
+      if (auto at = parse_u64(r.triple.o.value)) board.programs_at = static_cast<std::int64_t>(*at);
+    });
+  if (!board.programs_error.empty()) return board;
   for (auto& [iri, f] : programs) {
     auto name = uri::child_id(iri, target);
     if (!name) continue;
@@ -1333,7 +1348,7 @@ node::Result<RemoteBoard> ask_board(node::Node& from, const std::string& target,
 // every home "up"), or an "up" has not been rewritten.
 std::string unbelieved_because(const StatusNode* keeper, const std::string& writer, const std::string& state,
                                std::int64_t heard_ns) {
-  if (keeper)
+  if (keeper && keeper->programs_current)
     for (const auto& p : keeper->programs)
       if (p.name == "link" && p.state != "running") return writer + " is " + p.state;
   if (state == "up" && seconds_since(heard_ns) > kStateStaleAfterS)
@@ -1448,7 +1463,7 @@ int run_status(const Args& args) {
   // the top down: each one's children are asked in turn.
   if (args.has("--local")) {
     for (StatusNode& n : nodes)
-      if (n.remote) n.not_asked = "not asked (--local)";
+      if (n.remote) n.programs_unknown_because = n.children_unknown_because = "not asked (--local)";
   } else {
     // The deepest store here above `target`, whose link the questions go through.
     auto via_of = [&](const std::string& target) {
@@ -1463,26 +1478,35 @@ int run_status(const Args& args) {
     for (std::size_t i = 0; i < nodes.size(); ++i)
       if (nodes[i].remote) level.push_back(i);
     while (!level.empty()) {
-      std::vector<std::optional<node::Result<RemoteBoard>>> boards(level.size());
+      // Every node of a level answers within one --timeout: a level of many silent nodes costs
+      // that once, not once per node.
+      const auto deadline = std::chrono::steady_clock::now() + ask_budget;
+      std::vector<RemoteBoard> boards(level.size());
       std::atomic<std::size_t> next{0};
       auto ask_some = [&] {
         std::map<std::string, node::Node> opened;
         for (std::size_t k; (k = next++) < level.size();) {
+          RemoteBoard& board = boards[k];
+          auto cannot = [&](const std::string& why) { board.children_error = board.programs_error = why; };
           const std::string& target = nodes[level[k]].iri;
           const std::string via = via_of(target);
           if (via.empty()) {
-            boards[k] = node::fail(node::Errc::not_found, "no store here is above it");
+            cannot("no store here is above it");
             continue;
           }
-          if (!opened.count(via)) {
-            auto node = node::Node::open(store_of.at(via));
-            if (!node) {
-              boards[k] = Unexpected<node::Error>{node.error()};
-              continue;
+          try {
+            if (!opened.count(via)) {
+              auto node = node::Node::open(store_of.at(via));
+              if (!node) {
+                cannot(node.error().message);
+                continue;
+              }
+              opened.emplace(via, std::move(*node));
             }
-            opened.emplace(via, std::move(*node));
+            board = ask_board(opened.at(via), target, deadline, ask_budget);
+          } catch (const std::exception& e) {  // a thread must not end the process
+            cannot(e.what());
           }
-          boards[k] = ask_board(opened.at(via), target, ask_budget);
         }
       };
       std::vector<std::thread> askers;
@@ -1491,16 +1515,13 @@ int run_status(const Args& args) {
       std::vector<std::size_t> below;
       for (std::size_t k = 0; k < level.size(); ++k) {
         StatusNode& n = nodes[level[k]];
-        auto& board = *boards[k];
-        if (!board) {
-          n.not_asked = board.error().message;
-          continue;
-        }
-        n.asked = true;
-        n.programs = std::move(board->programs);
-        n.programs_at = board->programs_at;
+        RemoteBoard& board = boards[k];
+        n.programs_unknown_because = board.programs_error;
+        n.children_unknown_because = board.children_error;
+        n.programs = std::move(board.programs);
+        n.programs_at = board.programs_at;
         const std::string target = n.iri;  // `nodes` grows below: no reference into it past here
-        for (auto& [iri, fields] : board->children) {
+        for (auto& [iri, fields] : board.children) {
           if (find(iri) || !uri::is_under(iri, target)) continue;
           add_remote(iri, fields);
           below.push_back(nodes.size() - 1);
@@ -1508,6 +1529,17 @@ int run_status(const Args& args) {
       }
       level = std::move(below);
     }
+  }
+  // A remote node's programs are what its supervisor last wrote on its board: believed when
+  // read now and rewritten within kProgramsStaleAfterS (by the clock of that machine: the
+  // machines' clocks are taken to agree, as the link's times are).
+  for (StatusNode& n : nodes) {
+    if (!n.remote) continue;
+    if (n.programs_unknown_because.empty() && n.programs_at == 0)
+      n.programs_unknown_because = "its board has none (no supervisor writes them there)";
+    else if (n.programs_unknown_because.empty() && seconds_since(n.programs_at) > kProgramsStaleAfterS)
+      n.programs_unknown_because = "its supervisor has not refreshed them for " + seconds_text(seconds_since(n.programs_at));
+    n.programs_current = n.programs_unknown_because.empty();
   }
   std::sort(nodes.begin(), nodes.end(), [](const StatusNode& a, const StatusNode& b) { return a.iri < b.iri; });
   const bool json = args.has("--json");
@@ -1548,12 +1580,7 @@ int run_status(const Args& args) {
       uplink_said += ", parent last heard " + age_of(heard) + ", outbox " + f["outboxDepth"];
       uplink_unknown_because = unbelieved_because(&n, n.id + "/link", f["uplinkState"], heard);
     }
-    // A remote node's programs are what its supervisor last wrote on its board.
-    std::string programs_unknown_because;
-    if (n.remote && !n.asked) programs_unknown_because = n.not_asked;
-    else if (n.remote && n.programs_at == 0) programs_unknown_because = "its board has none (no supervisor writes them there)";
-    else if (n.remote && seconds_since(n.programs_at) > kProgramsStaleAfterS)
-      programs_unknown_because = "its supervisor has not refreshed them for " + seconds_text(seconds_since(n.programs_at));
+    const std::string& programs_unknown_because = n.programs_unknown_because;
     if (json) {
       std::cout << (first_node ? "" : ",") << "{\"id\":\"" << node::json_escape(n.id) << "\",\"iri\":\""
                 << node::json_escape(n.iri) << "\",\"depth\":" << depth << ",\"remote\":" << (n.remote ? "true" : "false")
@@ -1574,8 +1601,8 @@ int run_status(const Args& args) {
       for (const auto& p : n.programs) {
         std::cout << (first_program ? "" : ",") << "{\"name\":\"" << node::json_escape(p.name)
                   << "\",\"state\":\"" << node::json_escape(p.state) << "\",\"pid\":"
-                  << (p.state == "running" && parse_u64(p.pid) ? p.pid : "null")
-                  << ",\"restarts\":" << (parse_u64(p.restarts) ? p.restarts : "0") << ",\"last_exit\":";
+                  << (p.state == "running" && parse_u64(p.pid) ? std::to_string(*parse_u64(p.pid)) : "null")
+                  << ",\"restarts\":" << parse_u64(p.restarts).value_or(0) << ",\"last_exit\":";
         print_json_string_or_null(p.last_exit);
         std::cout << "}";
         first_program = false;
@@ -1584,7 +1611,9 @@ int run_status(const Args& args) {
                 << ",\"programs_unknown_because\":";
       print_json_string_or_null(programs_unknown_because);
       std::cout << ",\"programs_written_ns\":" << (n.remote && n.programs_at > 0 ? std::to_string(n.programs_at) : "null")
-                << "}";
+                << ",\"children_unknown_because\":";
+      print_json_string_or_null(n.children_unknown_because);
+      std::cout << "}";
       continue;
     }
     std::string indent(depth * 2, ' ');
@@ -1602,9 +1631,15 @@ int run_status(const Args& args) {
     else if (depth == 0 && !left)
       std::cout << "  (root)";
     std::cout << "\n";
-    if (n.remote && !programs_unknown_because.empty())
-      std::cout << indent << "  programs " << (n.programs.empty() ? "unknown" : "as last written, now unknown") << ": "
-                << programs_unknown_because << "\n";
+    if (n.remote && !programs_unknown_because.empty() && programs_unknown_because == n.children_unknown_because) {
+      std::cout << indent << "  programs and children unknown: " << programs_unknown_because << "\n";
+    } else {
+      if (n.remote && !programs_unknown_because.empty())
+        std::cout << indent << "  programs " << (n.programs.empty() ? "unknown" : "as last written, now unknown") << ": "
+                  << programs_unknown_because << "\n";
+      if (n.remote && !n.children_unknown_because.empty())
+        std::cout << indent << "  children unknown: " << n.children_unknown_because << "\n";
+    }
     for (const auto& p : n.programs) {
       std::cout << indent << "  - " << p.name << "  " << p.state;
       if (p.state == "running") std::cout << " (pid " << p.pid << ")";

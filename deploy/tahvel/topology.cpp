@@ -308,7 +308,8 @@ node::Result<Topology> load_topology(const std::filesystem::path& file) {
           return Unexpected<node::Error>{ok.error()};
         if (auto ok = uri::check_id(agent.id); !ok)
           return node::fail(Errc::invalid_argument, where(*at, file) + ": node '" + spec.id + "': agent id '" + agent.id + "': " + ok.error().message);
-        if (!seen.insert(agent.id).second || agent.id == "link" || agent.id == "uplink")
+        // link and uplink are the link's agents; supervisor writes the node's programs (up).
+        if (!seen.insert(agent.id).second || agent.id == "link" || agent.id == "uplink" || agent.id == "supervisor")
           return node::fail(Errc::invalid_argument, where(*at, file) + ": node '" + spec.id + "': agent id '" + agent.id + "' is taken");
         auto run = strings((*at)["run"].node(), file, "agent '" + agent.id + "': run");
         if (!run) return Unexpected<node::Error>{run.error()};

@@ -7,6 +7,7 @@
 
 #include <atomic>
 #include <cerrno>
+#include <charconv>
 #include <filesystem>
 #include <map>
 
@@ -161,7 +162,10 @@ Result<std::uint64_t> remote_query(node::Node& node, const RemoteQuery& query,
     // Off the board as soon as it is read: a long answer must not pile up in this node's store
     // (it is in memory until printed, and the link sends no more than its window ahead).
     if (node.remove_item((*got)->item)) to_remove.pop_back();
-    std::int64_t n = std::stoll(chunk->value);
+    std::int64_t n = 0;
+    if (auto [end, ec] = std::from_chars(chunk->value.data(), chunk->value.data() + chunk->value.size(), n);
+        ec != std::errc() || end != chunk->value.data() + chunk->value.size() || n < 1)
+      return node::fail(Errc::corrupt, "answer chunk number '" + chunk->value + "' from <" + *target + ">: not a positive integer");
     if (body->last) last_chunk = n;
     early[n] = std::move(body->records);
     for (auto it = early.find(next_chunk); it != early.end(); it = early.find(next_chunk)) {

@@ -589,7 +589,8 @@ TEST_F(Cli, StatusJsonHasEachNodesLinkAndPrograms) {
   EXPECT_NE(json.out.find("{\"name\":\"flaky\",\"state\":\""), std::string::npos) << json.out;
   EXPECT_NE(json.out.find("\"last_exit\":\"exited with status 3\"}"), std::string::npos) << json.out;
   // A local node's programs come from its supervisor's state file: known, and written nowhere.
-  EXPECT_TRUE(json.out.ends_with("}],\"programs_known\":true,\"programs_unknown_because\":null,\"programs_written_ns\":null}]}\n"))
+  EXPECT_TRUE(json.out.ends_with("}],\"programs_known\":true,\"programs_unknown_because\":null,\"programs_written_ns\":null,"
+                                  "\"children_unknown_because\":null}]}\n"))
       << json.out;
   EXPECT_EQ(run({"down", "--state", state}).status, 0);
 }
@@ -838,6 +839,8 @@ TEST_F(Cli, UpRefusesATopologyThatCouldNotRunAsWrittenNamingWhatAndWhere) {
       {listening + "  [[node.agent]]\n  id = \"home1\"\n  run = [\"true\"]\n[[node]]\nid = \"home1\"\nparent = \"hospital\"\n",
        "node 'hospital': agent id 'home1' is also its child node's id"},
       {hospital + "  [[node.agent]]\n  id = \"hrv\"\n  run = [\"true\"]\n  restrat = \"never\"\n", "agent 'hrv': unknown key 'restrat'"},
+      // The supervisor writes the node's programs as agent `supervisor` (replacing what it wrote).
+      {hospital + "  [[node.agent]]\n  id = \"supervisor\"\n  run = [\"true\"]\n", "node 'hospital': agent id 'supervisor' is taken"},
       // What used to start and then fail for ever in the supervisor's log ("status 127").
       {hospital + "  [[node.agent]]\n  id = \"trend\"\n  run = [\"true\", \"{stor}\"]\n",
        "node 'hospital': agent 'trend': unknown placeholder {stor} in '{stor}'"},

@@ -236,7 +236,7 @@ TEST_F(Deployment, StatusOnTheRootsMachineShowsTheNodesAndProgramsOfTheMachinesB
   shown = status_of("ward", " --local");
   EXPECT_EQ(shown.find("sensor"), std::string::npos) << shown;
   EXPECT_NE(shown.find("(on another machine)  link up, last seen"), std::string::npos) << shown;
-  EXPECT_NE(shown.find("    programs unknown: not asked (--local)\n"), std::string::npos) << shown;
+  EXPECT_NE(shown.find("    programs and children unknown: not asked (--local)\n"), std::string::npos) << shown;
 
   // The sensor's supervisor frozen: its programs still run, but what its board says of them is
   // no longer rewritten, and status says so instead of showing it as current.
@@ -254,7 +254,7 @@ TEST_F(Deployment, StatusOnTheRootsMachineShowsTheNodesAndProgramsOfTheMachinesB
     shown = status_of("ward");
     return shown.find("    sensor  <" + kWard + "/gateway/sensor>  (on another machine)  link down") != std::string::npos;
   }, 15s)) << shown;
-  EXPECT_NE(shown.find("      programs unknown: "), std::string::npos) << shown;
+  EXPECT_NE(shown.find("      programs and children unknown: unreachable: "), std::string::npos) << shown;
   EXPECT_EQ(shown.find("flaky"), std::string::npos) << shown;
   tahvel("down --state " + machine["gateway"].string());
   tahvel("down --state " + machine["ward"].string());

@@ -171,13 +171,22 @@ TEST_F(SupervisorTest, ARemovedProgramIsStoppedAndForgottenAndItsNameCanBeStarte
 // `up` applies a changed command by removing the program and starting it again: it stays where
 // it was in states(), and so in `tahvel status`, instead of moving to the end of its node.
 TEST_F(SupervisorTest, AProgramRemovedAndStartedAgainKeepsItsPlace) {
-  for (const char* name : {"link", "ecg", "hrv"}) start(name, "sleep 30", Restart::always);
+  for (const char* name : {"link", "ecg", "hrv", "rr"}) start(name, "sleep 30", Restart::always);
+  auto names = [&] {
+    std::vector<std::string> out;
+    for (const auto& s : supervisor_.states()) out.push_back(s.name);
+    return out;
+  };
   ASSERT_TRUE(supervisor_.remove("ecg", 2000ms).has_value());
   start("ecg", "sleep 31", Restart::always);
   start("trend", "sleep 30", Restart::always);
-  std::vector<std::string> names;
-  for (const auto& s : supervisor_.states()) names.push_back(s.name);
-  EXPECT_EQ(names, (std::vector<std::string>{"link", "ecg", "hrv", "trend"}));
+  EXPECT_EQ(names(), (std::vector<std::string>{"link", "ecg", "hrv", "rr", "trend"}));
+  // Two removed before either starts again: each goes back before its old successor.
+  ASSERT_TRUE(supervisor_.remove("ecg", 2000ms).has_value());
+  ASSERT_TRUE(supervisor_.remove("rr", 2000ms).has_value());
+  start("ecg", "sleep 32", Restart::always);
+  start("rr", "sleep 32", Restart::always);
+  EXPECT_EQ(names(), (std::vector<std::string>{"link", "ecg", "hrv", "rr", "trend"}));
 }
 
 // A supervisor SIGKILLed (a crash) takes its programs with it: none runs on unsupervised, beside

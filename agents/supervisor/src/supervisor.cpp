@@ -73,10 +73,11 @@ Result<void> Supervisor::start(ProgramSpec spec) {
   }
   auto* program = new Program{std::move(spec), {}, {}, {}, back_off_.first, false};
   program->state.name = program->spec.name;
-  // A program removed and started again (a changed command) keeps its place in states().
+  // A program removed and started again (a changed command) goes back before the program that
+  // followed it, when that one is still there: it keeps its place in states().
   auto place = programs_.end();
   if (auto v = vacated_.find(program->spec.name); v != vacated_.end()) {
-    place = programs_.begin() + static_cast<std::ptrdiff_t>(std::min(v->second, programs_.size()));
+    place = std::find_if(programs_.begin(), programs_.end(), [&](const Program* p) { return p->spec.name == v->second; });
     vacated_.erase(v);
   }
   programs_.insert(place, program);
@@ -197,7 +198,7 @@ Result<void> Supervisor::remove(std::string_view name, std::chrono::milliseconds
   if (auto stopped = stop(name, grace); !stopped) return stopped;
   for (auto it = programs_.begin(); it != programs_.end(); ++it) {
     if ((*it)->spec.name != name) continue;
-    vacated_[std::string(name)] = static_cast<std::size_t>(it - programs_.begin());
+    vacated_[std::string(name)] = std::next(it) == programs_.end() ? std::string() : (*std::next(it))->spec.name;
     delete *it;
     programs_.erase(it);
     break;

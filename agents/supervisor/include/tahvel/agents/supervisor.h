@@ -104,7 +104,7 @@ class Supervisor {
   Log log_;
   BackOff back_off_;
   std::vector<Program*> programs_;                  // in the order of states()
-  std::map<std::string, std::size_t> vacated_;      // removed programs' places, by name
+  std::map<std::string, std::string> vacated_;      // a removed program's successor, by name
 };
 
 // ---- on the board ------------------------------------------------------------------------
