@@ -573,6 +573,29 @@ const Command kUpCommand{
 
 namespace {
 
+// The pattern of subscription `item` as the file writes one ("S P O", '_' for any, IRIs in the
+// store's prefixes), from its records (docs/record-model.md R9).
+std::string pattern_text(const node::Snapshot& snap, std::uint64_t item, const uri::PrefixMap& prefixes) {
+  std::string parts[3] = {"_", "_", "_"};
+  const std::string tv(federation::vocab::kTv);
+  const std::string names[3] = {tv + "subject", tv + "predicate", tv + "object"};
+  auto records = snap.item(item);
+  if (!records) return "?";
+  for (const node::Record& r : *records) {
+    for (int k = 0; k < 3; ++k) {
+      if (r.triple.p.value != names[k]) continue;
+      if (r.triple.o.kind != node::TermKind::iri) {
+        parts[k] = r.triple.o.to_ntriples();
+      } else if (std::string curie = prefixes.compact(r.triple.o.value); curie != r.triple.o.value) {
+        parts[k] = curie;
+      } else {
+        parts[k] = "<" + curie + ">";
+      }
+    }
+  }
+  return parts[0] + " " + parts[1] + " " + parts[2];
+}
+
 // A `forward` pattern of the file, errors naming the file and node.
 node::Pattern forward_pattern_of(const NodeSpec& spec, const std::string& text, const uri::PrefixMap& prefixes,
                                  const Topology& topo) {
@@ -738,6 +761,11 @@ class Deployment {
   // One line per change made, for the log and for the `up` that asked.
   std::vector<std::string> apply(const Topology& topo) {
     std::vector<std::string> changes;
+    // Another file taking over a running deployment is most often the wrong file: said first.
+    const fs::path file = fs::absolute(topo.file).lexically_normal();
+    if (!file_.empty() && file != file_)
+      changes.push_back("the deployment ran " + file_.string() + " until now and runs " + file.string() + " from now on");
+    file_ = file;
     const auto mine = nodes_brought_up(topo, only_);
     const std::vector<agents::ProgramSpec> in_order = programs_of(topo, mine, state_, self_bin_dir());  // parents first
     std::map<std::string, const agents::ProgramSpec*> wanted;
@@ -917,6 +945,7 @@ class Deployment {
   agents::Supervisor& supervisor_;
   fs::path state_;
   std::optional<std::string> only_;
+  fs::path file_;  // the topology file applied last (absolute)
   std::map<std::string, agents::ProgramSpec> applied_;
   std::map<std::string, Dispatching> dispatchers_;
   std::map<std::string, spatial::AreaKeeper> keepers_;
@@ -1101,8 +1130,10 @@ int run_up(const Args& args) {
       const std::string subscriber = std::string(federation::vocab::kTv) + "subscriber";
       for (const auto& r : check(snap.list({.p = node::Term::iri(subscriber), .o = node::Term::iri(uplink.iri())}))) {
         if (r.meta.source != uplink.iri() || kept.count(r.meta.item)) continue;
+        const std::string pattern = pattern_text(snap, r.meta.item, node.prefixes());
         check(uplink.unsubscribe(r.meta.item));
-        std::cout << "up: " << spec.id << ": removed a forwarding pattern no longer in the file (item " << r.meta.item << ")\n";
+        std::cout << "up: " << spec.id << ": removed the forwarding pattern '" << pattern
+                  << "', no longer in the file (item " << r.meta.item << ")\n";
       }
     }
   }
@@ -1118,10 +1149,18 @@ int run_up(const Args& args) {
     if (pid < 0) fail(std::string("fork: ") + std::strerror(errno));
     if (pid > 0) {
       close(ready[1]);
-      char c = 0;
-      bool ok = read(ready[0], &c, 1) == 1;
+      // "1" once the supervisor holds its pid file; otherwise why not (or nothing: it died).
+      std::string answer;
+      char buffer[512];
+      for (ssize_t n; (n = read(ready[0], buffer, sizeof buffer)) != 0;) {
+        if (n < 0 && errno == EINTR) continue;
+        if (n < 0) break;
+        answer.append(buffer, static_cast<std::size_t>(n));
+      }
       close(ready[0]);
-      if (!ok) fail("the supervisor did not start; see " + (state / "logs" / "supervisor.log").string());
+      if (answer != "1")
+        fail("the supervisor did not start" + (answer.size() > 1 ? ": " + answer.substr(1) : std::string()) + "; see " +
+             (state / "logs" / "supervisor.log").string());
       std::cout << "up: " << topo.name << ": " << program_count << " programs under supervisor (pid file "
                 << pid_file.string() << "); logs in " << (state / "logs").string() << "\n"
                 << "up: 'tahvel status --state " << state.string() << "' shows the tree, 'tahvel down --state "
@@ -1139,8 +1178,11 @@ int run_up(const Args& args) {
       dup2(log, 2);
     }
     if (!hold_pid_file(pid_file)) {
-      std::cerr << "up: " << pid_file.string() << " is held by another supervisor (or cannot be written)" << std::endl;
-      _exit(1);  // `up` sees no "ready" and says the supervisor did not start
+      const std::string why = pid_file.string() + " is held by another supervisor (or cannot be written)";
+      std::cerr << "up: " << why << std::endl;
+      const std::string answer = "0" + why;
+      (void)!write(ready[1], answer.data(), answer.size());
+      _exit(1);  // `up` says why the supervisor did not start
     }
     (void)!write(ready[1], "1", 1);
     close(ready[1]);
@@ -1194,6 +1236,14 @@ int run_down(const Args& args) {
   if (std::error_code ec; !fs::is_directory(state, ec)) {
     std::cout << "down: nothing was running under " << state.string() << " (no such directory)\n";
     return kExitOk;
+  }
+  if (only && !fs::exists(state / *only / "data.mdb") && supervisor_holding(state / pid_file_name(only)) == 0) {
+    std::string nodes;  // the stores under DIR: the nodes brought up there
+    std::error_code list_ec;
+    for (const auto& entry : fs::directory_iterator(state, list_ec))
+      if (fs::exists(entry.path() / "data.mdb")) nodes += (nodes.empty() ? "" : ", ") + entry.path().filename().string();
+    fail("--node '" + *only + "': no such node under " + state.string() +
+         (nodes.empty() ? std::string(" (it holds no node's store)") : " (its nodes: " + nodes + ")"));
   }
   if (only && supervisor_holding(state / pid_file_name(only)) == 0 &&
       supervisor_holding(state / pid_file_name(std::nullopt)) != 0)

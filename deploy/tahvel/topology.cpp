@@ -5,11 +5,14 @@
 #include <algorithm>
 #include <cstdlib>
 #include <filesystem>
+#include <fstream>
+#include <iterator>
 #include <map>
 #include <optional>
 #include <set>
 #include <toml++/toml.h>
 
+#include "tahvel/federation/transport.h"
 #include "tahvel/uri/iri.h"
 
 namespace tahvel::cli {
@@ -83,9 +86,8 @@ node::Result<LinkSpec> link_spec(const toml::table& t, const std::filesystem::pa
     return node::fail(Errc::invalid_argument, where(t, file) + ": " + what + "url is for kind = \"lcm\"");
   if (url) {
     // Checked here, not when the link first runs: a bad URL there is a link that dies at each restart.
-    if (!url->starts_with("udpm://") || !lcm_udp_port(*url))
-      return node::fail(Errc::invalid_argument, where(*t.get("url"), file) + ": " + what + "url '" + *url +
-                                                    "': expected udpm://GROUP:PORT[?ttl=N] (LCM over UDP multicast)");
+    if (auto ok = federation::check_lcm_url(*url); !ok)
+      return node::fail(Errc::invalid_argument, where(*t.get("url"), file) + ": " + what + "url: " + ok.error().message);
     spec.lcm_url = *url;
   }
   if (domain) {
@@ -97,9 +99,14 @@ node::Result<LinkSpec> link_spec(const toml::table& t, const std::filesystem::pa
     std::filesystem::path p = *config;
     if (p.is_relative()) p = file.parent_path() / p;
     std::error_code ec;
-    if (!std::filesystem::is_regular_file(p, ec))
+    std::ifstream in(p, std::ios::binary);
+    if (!std::filesystem::is_regular_file(p, ec) || !in)
       return node::fail(Errc::not_found, where(*t.get("config"), file) + ": " + what + "config: cannot read " +
                                              p.lexically_normal().string());
+    const std::string xml((std::istreambuf_iterator<char>(in)), std::istreambuf_iterator<char>());
+    if (auto ok = federation::check_dds_config(xml); !ok)
+      return node::fail(Errc::invalid_argument, where(*t.get("config"), file) + ": " + what + "config " +
+                                                    p.lexically_normal().string() + ": " + ok.error().message);
     spec.dds_config = p.lexically_normal().string();
   }
   return spec;
@@ -336,7 +343,7 @@ node::Result<Topology> load_topology(const std::filesystem::path& file) {
         return node::fail(Errc::invalid_argument, spec.parent_at + ": node '" + spec.id + "': parent '" + spec.parent + "' is not a node of this file");
       if (!spec.parent.empty() && !placed.count(spec.parent)) continue;
       if (spec.parent.empty()) {
-        if (spec.iri.empty()) return node::fail(Errc::invalid_argument, spec.at + ": root node '" + spec.id + "' needs an iri");
+        if (spec.iri.empty()) return node::fail(Errc::invalid_argument, spec.at + ": node '" + spec.id + "' has no parent, so it is a root, and a root needs an iri (or give it a parent)");
         auto n = uri::normalize(spec.iri);
         if (!n) return node::fail(Errc::invalid_iri, spec.iri_at + ": node '" + spec.id + "': iri: " + n.error().message);
         spec.iri = *n;

@@ -22,6 +22,7 @@
 // exists. Only the first send to a destination waits; if nobody has matched by then the frame
 // goes out to nobody (lost; the link resends).
 #include <dds/dds.h>
+#include <dds/ddsrt/xmlparser.h>
 
 #include <algorithm>
 #include <cstring>
@@ -91,6 +92,9 @@ class DdsTransport final : public Transport {
   DdsTransport& operator=(const DdsTransport&) = delete;
 
   Result<void> open(const DdsSettings& settings) {
+    if (!settings.config.empty()) {
+      if (auto ok = check_dds_config(settings.config); !ok) return node::fail(ok.error().code, "open_dds <" + self_ + ">: " + ok.error().message);
+    }
     if (auto ok = dds_domain::acquire(settings.domain, settings.config); !ok) {
       return node::fail(ok.error().code, "open_dds <" + self_ + ">: " + ok.error().message);
     }
@@ -315,6 +319,46 @@ class DdsTransport final : public Transport {
 };
 
 }  // namespace
+
+Result<void> check_dds_config(std::string_view xml) {
+  const std::size_t first = xml.find_first_not_of(" \t\r\n");
+  if (first == std::string_view::npos || xml[first] != '<')
+    return node::fail(Errc::invalid_argument, "Cyclone DDS configuration: not XML (it should start with '<', "
+                                              "as <CycloneDDS> ... </CycloneDDS> does)");
+  struct Outcome {
+    std::string message;
+    int line = 0;
+    bool element = false;
+  } outcome;
+  ddsrt_xmlp_callbacks callbacks{};
+  callbacks.elem_open = [](void* arg, uintptr_t, uintptr_t*, const char*, int) {
+    static_cast<Outcome*>(arg)->element = true;
+    return 0;
+  };
+  callbacks.attr = [](void*, uintptr_t, const char*, const char*, int) { return 0; };
+  callbacks.elem_data = [](void*, uintptr_t, const char*, int) { return 0; };
+  callbacks.elem_close = [](void*, uintptr_t, int) { return 0; };
+  callbacks.error = [](void* arg, const char* message, int line) {
+    auto* o = static_cast<Outcome*>(arg);
+    if (o->message.empty()) {
+      o->message = message;
+      o->line = line;
+    }
+  };
+  const std::string text(xml);  // the parser reads a NUL-terminated string
+  ddsrt_xmlp_state* parser = ddsrt_xmlp_new_string(text.c_str(), &outcome, &callbacks);
+  if (parser == nullptr) return node::fail(Errc::io, "Cyclone DDS configuration: cannot start the XML parser");
+  // Leniently (a missing or anonymous close tag passes): a configuration refused here must be one
+  // Cyclone would refuse too.
+  ddsrt_xmlp_set_options(parser, DDSRT_XMLP_ANONYMOUS_CLOSE_TAG | DDSRT_XMLP_MISSING_CLOSE_AS_EOF);
+  const int rc = ddsrt_xmlp_parse(parser);
+  ddsrt_xmlp_free(parser);
+  if (rc < 0 || !outcome.message.empty())
+    return node::fail(Errc::invalid_argument, "Cyclone DDS configuration, line " + std::to_string(outcome.line) + ": " +
+                                                  (outcome.message.empty() ? "not well-formed XML" : outcome.message));
+  if (!outcome.element) return node::fail(Errc::invalid_argument, "Cyclone DDS configuration: no XML element");
+  return {};
+}
 
 Result<std::unique_ptr<Transport>> open_dds(const DdsSettings& settings, std::string_view self_iri,
                                             DropLog log) {

@@ -6,8 +6,10 @@
 // LCM may lose datagrams (a full socket buffer, a lost fragment): the link resends. What arrives
 // is decoded here, from the raw bytes, so that anything malformed is reported to the DropLog
 // with its channel and size instead of being printed by LCM's generated handler.
+#include <arpa/inet.h>
 #include <lcm/lcm.h>
 
+#include <charconv>
 #include <cstring>
 #include <deque>
 #include <mutex>
@@ -171,10 +173,59 @@ class LcmTransport final : public Transport {
 
 }  // namespace
 
+Result<void> check_lcm_url(std::string_view url) {
+  constexpr std::string_view scheme = "udpm://";
+  auto bad = [&](const std::string& why) {
+    return node::fail(Errc::invalid_argument, "LCM URL '" + std::string(url) + "': " + why);
+  };
+  if (!url.starts_with(scheme))
+    return bad("not udpm://GROUP:PORT[?ttl=N], LCM over UDP multicast with GROUP an IPv4 multicast address");
+  std::string_view rest = url.substr(scheme.size());
+  const std::size_t question = rest.find('?');
+  const std::string_view address = rest.substr(0, question);
+  std::string_view options = question == std::string_view::npos ? std::string_view{} : rest.substr(question + 1);
+  auto number = [](std::string_view text, std::uint64_t& out) {
+    auto [end, ec] = std::from_chars(text.data(), text.data() + text.size(), out);
+    return !text.empty() && ec == std::errc() && end == text.data() + text.size();
+  };
+  const std::size_t colon = address.rfind(':');
+  const std::string group(address.substr(0, colon));
+  if (!group.empty()) {
+    in_addr a{};
+    if (inet_pton(AF_INET, group.c_str(), &a) != 1) return bad("'" + group + "' is not an IPv4 address");
+    if ((ntohl(a.s_addr) >> 28) != 0xE) return bad(group + " is not a multicast address (224.0.0.0 to 239.255.255.255)");
+  }
+  if (colon != std::string_view::npos) {
+    std::uint64_t port = 0;
+    if (!number(address.substr(colon + 1), port) || port == 0 || port > 65535)
+      return bad("port '" + std::string(address.substr(colon + 1)) + "' is not 1..65535");
+  }
+  while (!options.empty()) {
+    const std::size_t amp = options.find('&');
+    const std::string_view option = options.substr(0, amp);
+    options = amp == std::string_view::npos ? std::string_view{} : options.substr(amp + 1);
+    const std::size_t eq = option.find('=');
+    const std::string_view name = option.substr(0, eq);
+    const std::string_view value = eq == std::string_view::npos ? std::string_view{} : option.substr(eq + 1);
+    std::uint64_t n = 0;
+    if (name == "ttl") {
+      if (!number(value, n) || n > 255) return bad("ttl '" + std::string(value) + "' is not 0..255");
+    } else if (name == "recv_buf_size") {
+      if (!number(value, n) || n == 0 || n > (1ull << 31)) return bad("recv_buf_size '" + std::string(value) + "' is not a size in bytes");
+    } else {
+      return bad("unknown option '" + std::string(option) + "' (known: ttl, recv_buf_size)");
+    }
+  }
+  return {};
+}
+
 Result<std::unique_ptr<Transport>> open_lcm(const LcmSettings& settings, std::string_view self_iri,
                                             DropLog log) {
   if (self_iri.empty() || self_iri.find('\0') != std::string_view::npos) {
     return node::fail(Errc::invalid_argument, "open_lcm: the endpoint IRI is empty or has a NUL");
+  }
+  if (settings.url.starts_with("udpm://")) {
+    if (auto ok = check_lcm_url(settings.url); !ok) return node::fail(ok.error().code, "open_lcm: " + ok.error().message);
   }
   const std::string url = effective_url(settings.url);
   lcm_t* lcm = lcm_create(url.c_str());

@@ -822,15 +822,28 @@ TEST_F(Cli, UpRefusesAnUnknownRestartPolicyNamingTheAgent) {
 // `up` and then kill the link at every restart.
 TEST_F(Cli, UpRefusesATopologyThatCouldNotRunAsWrittenNamingWhatAndWhere) {
   spit(tmp_ / "dds.xml", "<CycloneDDS/>\n");
+  spit(tmp_ / "broken.xml", "<CycloneDDS>\n  <Domain>\n  </General>\n</CycloneDDS>\n");
   const std::string hospital = "[[node]]\nid = \"hospital\"\niri = \"http://example.org/hospital\"\n";
   const std::string listening = hospital + "listen = { kind = \"dds\", config = \"dds.xml\" }\n";
   const std::pair<std::string, std::string> cases[] = {
+      {"[[node]]\nid = \"home1\"\n", "node 'home1' has no parent, so it is a root, and a root needs an iri (or give it a parent)"},
       {hospital + "store = { durabilty = \"durable\" }\n", "t.toml:4:23: node 'hospital': unknown key 'store.durabilty'"},
       {hospital + "store = \"durable\"\n", "t.toml:4:9: node 'hospital': store must be a table"},
       {hospital + "store = { ring = 1.5 }\n", "node 'hospital': store.ring must be an integer"},
       {hospital + "listen = { kind = \"dds\", domian = 5 }\n", "node 'hospital': unknown key 'listen.domian'"},
-      {hospital + "listen = { kind = \"lcm\", url = \"http://not-lcm\" }\n", "listen.url 'http://not-lcm': expected udpm://"},
+      {hospital + "listen = { kind = \"lcm\", url = \"http://not-lcm\" }\n", "listen.url: LCM URL 'http://not-lcm': not udpm://"},
+      // liblcm says only "lcm_create failed" for these, at every restart of the link.
+      {hospital + "listen = { kind = \"lcm\", url = \"udpm://10.0.0.1:7667?ttl=0\" }\n",
+       "t.toml:4:32: node 'hospital': listen.url: LCM URL 'udpm://10.0.0.1:7667?ttl=0': 10.0.0.1 is not a multicast address"},
+      {hospital + "listen = { kind = \"lcm\", url = \"udpm://239.255.76.67:7701?ttl=0&tll=1\" }\n",
+       "unknown option 'tll=1' (known: ttl, recv_buf_size)"},
+      {hospital + "listen = { kind = \"lcm\", url = \"udpm://239.255.76.67:7701?ttl=256\" }\n", "ttl '256' is not 0..255"},
+      {hospital + "listen = { kind = \"lcm\", url = \"udpm://239.255.76.67:70000\" }\n", "port '70000' is not 1..65535"},
       {hospital + "listen = { kind = \"dds\", config = \"missing.xml\" }\n", "listen.config: cannot read"},
+      // Cyclone says only that dds_create_domain failed.
+      {hospital + "listen = { kind = \"dds\", config = \"t.toml\" }\n", "t.toml: Cyclone DDS configuration: not XML"},
+      {hospital + "listen = { kind = \"dds\", config = \"broken.xml\" }\n",
+       "broken.xml: Cyclone DDS configuration, line 3: open/close tag mismatch (General)"},
       {hospital + "forwrd = [\"_ a tv:EcgChunk\"]\n", "node 'hospital': unknown key 'forwrd'"},
       {hospital + "[[node]]\nid = \"home1\"\nparent = 5\n", "t.toml:6:10: node 'home1': parent must be a string"},
       {"[[node]]\nid = \"hospital\"\niri = \"http://example.org/hospital/\"\n", "t.toml:3:7: node 'hospital': iri <http://example.org/hospital/> ends in '/'"},
@@ -936,6 +949,17 @@ TEST_F(Cli, UpAgainAppliesAnEditedFileToTheRunningSupervisor) {
   EXPECT_EQ(bad.status, 1);
   EXPECT_NE(bad.err.find(file), std::string::npos) << bad.err;
   EXPECT_EQ(pid_of("idle"), new_pid) << "a refused file changed what runs";
+
+  // Another file taking over the running deployment is said (most often it is the wrong file).
+  const std::string other = (tmp_ / "other.toml").string();
+  spit(other, "[[node]]\nid = \"solo\"\niri = \"http://example.org/solo\"\n"
+              "  [[node.agent]]\n  id = \"idle\"\n  run = [\"/bin/sleep\", \"602\"]\n");
+  Outcome another = run({"up", other, "--state", state});
+  ASSERT_EQ(another.status, 0) << another.err;
+  EXPECT_NE(another.out.find("up:   the deployment ran " + fs::absolute(file).lexically_normal().string() + " until now and runs " +
+                             fs::absolute(other).lexically_normal().string() + " from now on"),
+            std::string::npos)
+      << another.out;
   ASSERT_EQ(run({"down", "--state", state}).status, 0);
 }
 
@@ -952,6 +976,9 @@ TEST_F(Cli, OneNodeRunsUnderOneSupervisorAndDownNodeStopsOnlyThatOne) {
   Outcome partial = run({"down", "--state", state, "--node", "solo"});
   EXPECT_EQ(partial.status, 1);
   EXPECT_NE(partial.err.find("runs under the supervisor of the whole file"), std::string::npos) << partial.err;
+  Outcome misspelt = run({"down", "--state", state, "--node", "sollo"});
+  EXPECT_EQ(misspelt.status, 1);
+  EXPECT_NE(misspelt.err.find("--node 'sollo': no such node under " + state + " (its nodes: solo)"), std::string::npos) << misspelt.err;
   ASSERT_EQ(run({"down", "--state", state}).status, 0);
 
   ASSERT_EQ(run({"up", file, "--state", state, "--node", "solo"}).status, 0);

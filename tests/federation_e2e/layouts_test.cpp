@@ -315,7 +315,7 @@ TEST_F(Deployment, AForwardPatternTakenOutOfTheFileStopsGoingUp) {
   write_topology(top + "forward = [\"_ a tv:EcgChunk\", \"_ a tv:HrvWindow\"]\n");
   const std::string said = up();
   EXPECT_NE(said.find("bed: added the forwarding pattern '_ a tv:HrvWindow'"), std::string::npos) << said;
-  EXPECT_NE(said.find("bed: removed a forwarding pattern no longer in the file"), std::string::npos) << said;
+  EXPECT_NE(said.find("bed: removed the forwarding pattern '_ rdf:type tv:EcgRecording', no longer in the file"), std::string::npos) << said;
   ASSERT_EQ(put("rec2", "EcgRecording"), 0);  // stored before the chunk: in order on the link
   ASSERT_EQ(put("chunk2", "EcgChunk"), 0);
   ASSERT_TRUE(eventually([&] { return count(state_ / "ward", "EcgChunk") == 2; }));
@@ -326,7 +326,7 @@ TEST_F(Deployment, AForwardPatternTakenOutOfTheFileStopsGoingUp) {
   // deployment: the bed's link restarts with the new policy.
   write_topology(top + "forward = []\n");
   const std::string applied = up();
-  EXPECT_NE(applied.find("bed: removed a forwarding pattern no longer in the file"), std::string::npos) << applied;
+  EXPECT_NE(applied.find("bed: removed the forwarding pattern '_ rdf:type tv:EcgChunk', no longer in the file"), std::string::npos) << applied;
   EXPECT_NE(applied.find("up:   restarted bed/link (its command changed)"), std::string::npos) << applied;
   std::string shown;
   ASSERT_TRUE(eventually([&] { return (shown = status()).find("bed  <" + kWard + "/bed>  link up") != std::string::npos; })) << shown;

@@ -3,6 +3,8 @@
 #include <gtest/gtest.h>
 
 #include <cstdlib>
+#include <fstream>
+#include <iterator>
 #include <string>
 
 #include "tahvel/federation/wire_names.h"
@@ -121,6 +123,62 @@ TEST(WireOpen, DdsWithAnInvalidConfigurationFails) {
   settings.config = conformance::test_dds_settings().config;
   auto good = open_dds(settings, "tahvel://wire-open/dds/good");
   EXPECT_TRUE(good) << (good ? "" : good.error().message);
+}
+
+// What liblcm refuses only with "lcm_create failed" (a link configured so dies at each
+// restart), said part by part; the forms LCM accepts pass.
+TEST(WireOpen, LcmUrlCheckNamesWhatIsWrongAndPassesWhatLcmAccepts) {
+  for (const char* url : {"udpm://239.255.76.67:7667?ttl=0", "udpm://", "udpm://?ttl=1", "udpm://239.255.76.67",
+                          "udpm://224.0.0.1:1?ttl=0&recv_buf_size=4194304", "udpm://239.255.255.255:65535"})
+    EXPECT_TRUE(check_lcm_url(url)) << url << ": " << check_lcm_url(url).error().message;
+  const std::pair<const char*, const char*> refused[] = {
+      {"udp://239.255.76.67:7667", "not udpm://GROUP:PORT"},
+      {"udpm://10.0.0.1:7667", "10.0.0.1 is not a multicast address"},
+      {"udpm://240.0.0.1:7667", "240.0.0.1 is not a multicast address"},
+      {"udpm://hospital.example:7667", "'hospital.example' is not an IPv4 address"},
+      {"udpm://239.255.76.67:0", "port '0' is not 1..65535"},
+      {"udpm://239.255.76.67:7667x", "port '7667x' is not 1..65535"},
+      {"udpm://239.255.76.67:7667?ttl=-1", "ttl '-1' is not 0..255"},
+      {"udpm://239.255.76.67:7667?ttl=0&tll=1", "unknown option 'tll=1' (known: ttl, recv_buf_size)"},
+      {"udpm://239.255.76.67:7667?recv_buf_size=lots", "recv_buf_size 'lots' is not a size in bytes"},
+  };
+  for (const auto& [url, why] : refused) {
+    auto checked = check_lcm_url(url);
+    ASSERT_FALSE(checked) << url;
+    EXPECT_EQ(checked.error().code, Errc::invalid_argument);
+    EXPECT_NE(checked.error().message.find(std::string("LCM URL '") + url + "': " + why), std::string::npos)
+        << checked.error().message;
+  }
+}
+
+TEST(WireOpen, LcmWithAUnicastGroupIsRefusedBeforeLcmIsAsked) {
+  require_netns();
+  LcmSettings settings;
+  settings.url = "udpm://10.0.0.1:7667?ttl=0";
+  auto t = open_lcm(settings, "tahvel://wire-open/lcm-unicast");
+  ASSERT_FALSE(t);
+  EXPECT_EQ(t.error().code, Errc::invalid_argument);
+  EXPECT_NE(t.error().message.find("10.0.0.1 is not a multicast address"), std::string::npos) << t.error().message;
+}
+
+// The configurations we ship parse; what is not XML, or not well-formed, is said with its line
+// before Cyclone is asked (which says only that dds_create_domain failed).
+TEST(WireOpen, DdsConfigCheckPassesTheShippedFilesAndNamesTheLineOfAnError) {
+  for (const char* name : {"cyclonedds-loopback.xml", "cyclonedds-multi-host.xml"}) {
+    std::ifstream in(std::string(TAHVEL_SOURCE_DIR) + "/deploy/" + name);
+    const std::string xml((std::istreambuf_iterator<char>(in)), std::istreambuf_iterator<char>());
+    ASSERT_FALSE(xml.empty()) << name;
+    EXPECT_TRUE(check_dds_config(xml)) << name << ": " << check_dds_config(xml).error().message;
+  }
+  EXPECT_TRUE(check_dds_config("<CycloneDDS/>"));
+  auto not_xml = check_dds_config("[node]\nid = 1\n");
+  ASSERT_FALSE(not_xml);
+  EXPECT_NE(not_xml.error().message.find("not XML"), std::string::npos) << not_xml.error().message;
+  EXPECT_FALSE(check_dds_config("   "));
+  auto mismatch = check_dds_config("<CycloneDDS>\n<Domain>\n</General>\n</CycloneDDS>");
+  ASSERT_FALSE(mismatch);
+  EXPECT_EQ(mismatch.error().code, Errc::invalid_argument);
+  EXPECT_NE(mismatch.error().message.find("line 3"), std::string::npos) << mismatch.error().message;
 }
 
 }  // namespace

@@ -143,6 +143,18 @@ struct DdsSettings {
   std::string config;
 };
 
+// Whether a link can open the LCM URL `url`: udpm://GROUP:PORT?OPTIONS, GROUP an IPv4 multicast
+// address (224.0.0.0/4; empty: LCM's 239.255.76.67), PORT 1..65535 (absent: 7667), OPTIONS
+// `&`-separated among ttl=0..255 and recv_buf_size=BYTES. The error says which part is wrong:
+// liblcm itself says only that lcm_create failed, so a link configured so would die at each
+// restart. open_lcm checks udpm:// URLs so; other providers go to liblcm as they are.
+Result<void> check_lcm_url(std::string_view url);
+
+// Whether `xml` (a Cyclone DDS configuration, as DdsSettings::config) parses with Cyclone's own
+// XML parser; the error gives the line and the parser's message. The elements are Cyclone's to
+// judge when the domain is created.
+Result<void> check_dds_config(std::string_view xml);
+
 Result<std::unique_ptr<Transport>> open_lcm(const LcmSettings& settings, std::string_view self_iri,
                                             DropLog log = {});
 Result<std::unique_ptr<Transport>> open_dds(const DdsSettings& settings, std::string_view self_iri,
