@@ -6,6 +6,7 @@
 #include <unistd.h>
 
 #include <chrono>
+#include <filesystem>
 #include <functional>
 #include <string>
 #include <thread>
@@ -80,6 +81,27 @@ TEST_F(SupervisorTest, AProgramThatFailsIsStartedAgainWithBackOffAndTheLogSaysWh
   EXPECT_TRUE(logged("agent exited with status 3; restarting in 20 ms"));
   EXPECT_TRUE(logged("agent exited with status 3; restarting in 40 ms"));  // doubled
   EXPECT_TRUE(logged("agent exited with status 3; restarting in 80 ms"));  // up to the cap
+}
+
+// A program that fails most often says why as it goes: the last line of its log goes with its
+// exit (to `status`, and through the board to the machines above), cut to a line's length.
+TEST_F(SupervisorTest, AFailedProgramsLastExitEndsWithTheLastLineOfItsLog) {
+  const std::filesystem::path dir = std::filesystem::temp_directory_path() / ("tahvel-sup-" + std::to_string(getpid()));
+  std::filesystem::create_directories(dir);
+  auto run_to_end = [&](const std::string& name, const std::string& script) {
+    EXPECT_TRUE(supervisor_.start({.name = name, .argv = {"/bin/sh", "-c", script}, .log_file = dir / (name + ".log"),
+                                   .restart = Restart::never}).has_value());
+    EXPECT_TRUE(poll_until([&] { return !supervisor_.state(name)->running && supervisor_.state(name)->pid == 0; }));
+    return supervisor_.state(name)->last_exit;
+  };
+  EXPECT_EQ(run_to_end("bad-flag", "echo starting; echo \"tahvel-hrv: unknown flag '--windw'\" >&2; echo; exit 2"),
+            "exited with status 2 (its log ends: tahvel-hrv: unknown flag '--windw')");
+  const std::string said = run_to_end("long", "printf 'x%.0s' $(seq 300) >&2; exit 1");
+  EXPECT_EQ(said, "exited with status 1 (its log ends: " + std::string(160, 'x') + "...)");
+  EXPECT_EQ(run_to_end("silent", "exit 4"), "exited with status 4");
+  EXPECT_EQ(run_to_end("fine", "echo all done; exit 0"), "exited with status 0");  // not a failure
+  EXPECT_EQ(run_to_end("tabs", "printf 'a\\tb\\n' >&2; exit 1"), "exited with status 1 (its log ends: a b)");
+  std::filesystem::remove_all(dir);
 }
 
 // `tahvel status` shows a program waiting out its back-off as restarting, with when, rather than

@@ -7,6 +7,7 @@
 #include <unistd.h>
 
 #include <algorithm>
+#include <cctype>
 #include <cerrno>
 #include <cstring>
 #include <iostream>
@@ -30,6 +31,34 @@ struct Supervisor::Program {
 };
 
 namespace {
+
+// The last line of `log_file` (at most kLastLineBytes, control characters as spaces), or "":
+// what a program that failed wrote last is most often why, and an operator reading `status`
+// on the machine above should not need the log on this one to know it.
+constexpr std::size_t kLastLineBytes = 160;
+std::string last_line_of(const std::filesystem::path& log_file) {
+  if (log_file.empty()) return {};
+  const int fd = ::open(log_file.c_str(), O_RDONLY | O_CLOEXEC);
+  if (fd < 0) return {};
+  char tail[4096];
+  const off_t size = lseek(fd, 0, SEEK_END);
+  const off_t from = std::max<off_t>(0, size - static_cast<off_t>(sizeof tail));
+  const ssize_t n = size > 0 ? pread(fd, tail, static_cast<std::size_t>(size - from), from) : 0;
+  ::close(fd);
+  if (n <= 0) return {};
+  std::string_view text(tail, static_cast<std::size_t>(n));
+  while (!text.empty() && std::isspace(static_cast<unsigned char>(text.back()))) text.remove_suffix(1);
+  if (const std::size_t newline = text.rfind('\n'); newline != std::string_view::npos) text.remove_prefix(newline + 1);
+  std::string line(text.substr(0, kLastLineBytes));
+  if (text.size() > kLastLineBytes) {
+    while (!line.empty() && (static_cast<unsigned char>(line.back()) & 0xC0) == 0x80) line.pop_back();  // a cut UTF-8 sequence
+    if (!line.empty() && static_cast<unsigned char>(line.back()) >= 0xC0) line.pop_back();
+    line += "...";
+  }
+  for (char& c : line)
+    if (static_cast<unsigned char>(c) < 0x20 || c == 0x7F) c = ' ';
+  return line;
+}
 
 std::string describe(int status) {
   if (WIFEXITED(status)) return "exited with status " + std::to_string(WEXITSTATUS(status));
@@ -134,6 +163,9 @@ void Supervisor::reaped(Program& program, int status) {
   program.state.running = false;
   program.state.pid = 0;
   program.state.last_exit = describe(status);
+  if (WIFEXITED(status) && WEXITSTATUS(status) != 0) {
+    if (std::string said = last_line_of(program.spec.log_file); !said.empty()) program.state.last_exit += " (its log ends: " + said + ")";
+  }
   program.state.exit_status = WIFEXITED(status) ? std::optional<int>(WEXITSTATUS(status)) : std::nullopt;
   const bool finished = WIFEXITED(status) && WEXITSTATUS(status) == 0;
   const Restart policy = program.spec.restart;

@@ -53,7 +53,9 @@ struct ProgramState {
   pid_t pid = 0;                     // 0 while not running
   bool running = false;
   std::uint32_t restarts = 0;
-  std::string last_exit;             // "exited with status 1", "killed by signal 9 (Killed)"
+  // "exited with status 1", "killed by signal 9 (Killed)"; a non-zero status with the last line
+  // of the program's log file: "exited with status 2 (its log ends: unknown flag '--windw')".
+  std::string last_exit;
   std::optional<int> exit_status;    // of the last exit, when it exited normally
   // While a program that died waits out its back-off: when it is started again. Empty while it
   // runs, and for a program that stays stopped (finished, restart = never, or stopped on request).
