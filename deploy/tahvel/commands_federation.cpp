@@ -1093,8 +1093,11 @@ int run_up(const Args& args) {
         fail(topo.file.string() + ": " + argv.error().message);
   // Only now, with everything checked: a refused file leaves no state directory behind.
   std::error_code ec;
+  const bool new_state = !fs::exists(state, ec);
   fs::create_directories(state / "logs", ec);
   if (ec) fail(state.string() + ": " + ec.message());
+  // A mistyped --state would start a second, empty deployment beside the first: said.
+  if (new_state) std::cout << "up: created the state directory " << state.string() << "\n";
   for (const NodeSpec* node_spec : mine) {
     const NodeSpec& spec = *node_spec;
     fs::path store = state / spec.id;

@@ -890,7 +890,9 @@ TEST_F(Cli, UpRefusesATopologyThatCouldNotRunAsWrittenNamingWhatAndWhere) {
 TEST_F(Cli, UpAgainAppliesAnEditedFileToTheRunningSupervisor) {
   const std::string file = (tmp_ / "node.toml").string(), state = (tmp_ / "state").string();
   spit(file, kIdleNodeToml);
-  ASSERT_EQ(run({"up", file, "--state", state}).status, 0);
+  Outcome first = run({"up", file, "--state", state});
+  ASSERT_EQ(first.status, 0) << first.err;
+  EXPECT_NE(first.out.find("up: created the state directory " + state + "\n"), std::string::npos) << first.out;
   auto pid_of = [&](const std::string& program) -> std::string {
     Outcome shown = run({"status", "--state", state, "--json"});
     const std::string key = "{\"name\":\"" + program + "\",\"state\":\"running\",\"pid\":";
