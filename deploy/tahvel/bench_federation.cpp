@@ -535,12 +535,54 @@ Percentiles store_to_watch(const ScratchDir& scratch, int rounds, std::uint64_t&
   return percentiles(std::move(us));
 }
 
+struct QueryFigures {
+  std::uint64_t records = 0, bytes = 0;  // bytes: of the records' literals (the samples)
+  double seconds = 0;
+};
+
 struct LinkFigures {
   Percentiles up;
   double items_per_s = 0;
+  QueryFigures query;
   Ledger ledger;
   fed::LinkCounters home, hospital;
 };
+
+// What an operator at the hospital does at 3 a.m.: asks the home for raw data that never went
+// up. The home stores kQueryChunks ECG-like chunks (one record each, kChunkBase64 characters of
+// base64: a second of 360 Hz samples in 16 bits is about that), which the default policy keeps
+// at home; a remote query from the hospital's store (in this process, through the hospital's link
+// in the far end) asks for them all. Timed from asking until the last record is handed over.
+constexpr std::size_t kQueryChunks = 2'000, kChunkBase64 = 1'920;
+
+QueryFigures measure_query(LinkPair& p, node::Node& home, const std::string& what) {
+  const Term samples = Term::iri(std::string(fed::vocab::kTv) + "samples");
+  auto ecg = home.agent("ecg");
+  if (!ecg) throw std::runtime_error(what + ecg.error().message);
+  std::vector<node::Item> chunks;
+  static constexpr char kBase64[] = "ABCDEFGHIJKLMNOPQRSTUVWXYZabcdefghijklmnopqrstuvwxyz0123456789+/";
+  for (std::size_t i = 0; i < kQueryChunks; ++i) {
+    std::string text(kChunkBase64, 'A');
+    for (std::size_t k = 0; k < text.size(); ++k) text[k] = kBase64[(k * 7 + i * 13 + k / 64) % 64];
+    node::Item item;
+    item.add(Term::iri(p.home + "/ecg/chunk/" + std::to_string(i)), samples, Term::literal(text, std::string(node::xsd::kBase64Binary)));
+    chunks.push_back(std::move(item));
+  }
+  if (auto s = ecg->store_all(chunks); !s) throw std::runtime_error(what + "storing the chunks: " + s.error().message);
+  auto hospital = node::Node::open(p.hospital_dir);
+  if (!hospital) throw std::runtime_error(what + hospital.error().message);
+  QueryFigures q;
+  const auto t0 = Clock::now();
+  auto answered = fed::remote_query(*hospital, {.target = p.home, .pattern = {.p = samples}}, 60s, [&](const node::Record& r) {
+    ++q.records;
+    q.bytes += r.triple.o.value.size();
+  });
+  q.seconds = seconds(Clock::now() - t0);
+  if (!answered) throw std::runtime_error(what + "remote query: " + answered.error().message + p.diag.summary());
+  if (q.records != kQueryChunks)
+    throw std::runtime_error(what + "remote query: " + std::to_string(q.records) + " records, not " + std::to_string(kQueryChunks));
+  return q;
+}
 
 LinkFigures measure_link(Kind kind, const Config& cfg, const ScratchDir& scratch, std::uint64_t& next_number, FarEnd& far) {
   LinkPair p;
@@ -580,6 +622,7 @@ LinkFigures measure_link(Kind kind, const Config& cfg, const ScratchDir& scratch
   }
   if (!watcher.wait_count(cfg.burst, 120s)) throw std::runtime_error(what + "the burst did not reach the hospital within 120 s" + p.diag.summary());
   f.items_per_s = static_cast<double>(cfg.burst) / seconds(Clock::now() - t0);
+  f.query = measure_query(p, *home_node, what);
 
   f.home = p.home_link->counters();
   p.home_link->stop();
@@ -933,6 +976,8 @@ void add_latency(Figures& fig, const char* kind, const LinkFigures& l, const fed
   fig.set("target_" + k + "_p50_met", r50 > 0 && r50 <= kLatencyRatioTarget ? 1 : 0);
   fig.set("target_" + k + "_p99_met", r99 > 0 && r99 <= kLatencyRatioTarget ? 1 : 0);
   fig.set(k + "_link_items_per_s", l.items_per_s);
+  fig.set(k + "_query_records_per_s", l.query.seconds > 0 ? static_cast<double>(l.query.records) / l.query.seconds : 0);
+  fig.set(k + "_query_mb_per_s", l.query.seconds > 0 ? static_cast<double>(l.query.bytes) / l.query.seconds / 1e6 : 0);
   fig.set(k + "_up_resends", static_cast<double>(l.home.up_resends));
   fig.set(k + "_duplicates_dropped", static_cast<double>(l.hospital.duplicates_in));
 }
@@ -961,6 +1006,10 @@ void print_table(const Figures& f, const Config& cfg) {
                 "store-to-watch p50 / p99 us", f.get("store_watch_p50_us"), f.get("store_watch_p99_us"));
     std::printf("%-34s %10.0f\n", "dds link items/s (one home)", f.get("dds_link_items_per_s"));
     std::printf("%-34s %10.0f\n", "lcm link items/s (one home)", f.get("lcm_link_items_per_s"));
+    for (const char* k : {"dds", "lcm"})
+      std::printf("%-34s %10.0f   (%.1f MB/s; %zu raw chunks of %zu bytes asked from the hospital)\n",
+                  (std::string(k) + " remote query records/s").c_str(), f.get(std::string(k) + "_query_records_per_s"),
+                  f.get(std::string(k) + "_query_mb_per_s"), kQueryChunks, kChunkBase64);
   }
   std::printf("%-34s %10.0f %12s %8s   >= %.0f: %s\n", ("hospital ingest items/s, " + std::to_string(cfg.homes) + " homes").c_str(),
               f.get("hospital_ingest_items_per_s"), "", "", kIngestTarget, yes("target_ingest_met"));

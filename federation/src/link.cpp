@@ -1909,7 +1909,21 @@ struct Link::Impl {
         write_own_state(*link, depth ? *depth : 0);
       }
       std::vector<std::pair<const BoardWrite*, std::uint64_t>> written;
-      for (const BoardWrite& w : writes) {
+      // The chunks that came meanwhile go on the board in one transaction: one commit (one sync
+      // on a durable store) for a window of chunks, not one each. Should that fail, one by one,
+      // so that only the chunk that cannot be written fails its query.
+      std::vector<node::Item> items;
+      for (const BoardWrite& w : writes) items.push_back(answer_item(w.reply_to, w.frame, answer_part));
+      std::optional<std::vector<std::uint64_t>> ids;
+      if (items.size() > 1) {
+        if (auto all = link->store_all(items)) ids = std::move(*all);
+      }
+      for (std::size_t k = 0; k < writes.size(); ++k) {
+        const BoardWrite& w = writes[k];
+        if (ids) {
+          written.emplace_back(&w, (*ids)[k]);
+          continue;
+        }
         auto id = write_answer(*link, w.reply_to, w.frame, answer_part);
         if (!id && w.frame.kind == FrameKind::answer) answer_not_written(*link, w, id.error(), answer_part);
         written.emplace_back(&w, id ? *id : 0);
@@ -2061,6 +2075,13 @@ struct Link::Impl {
   // An answer chunk or error on the origin's board, addressed to the asking agent (P16); the
   // item's id, or 0 when it could not be written (logged).
   node::Result<std::uint64_t> write_answer(node::Agent& link, const std::string& reply_to, const Frame& f, std::size_t part) {
+    auto stored = link.store(answer_item(reply_to, f, part));
+    if (!stored) log("cannot write an answer for <" + reply_to + ">: " + stored.error().message);
+    return stored;
+  }
+
+  // The item of write_answer.
+  static node::Item answer_item(const std::string& reply_to, const Frame& f, std::size_t part) {
     node::Item item;
     item.context = reply_to;
     const node::Term a = node::Term::blank("answer");
@@ -2084,9 +2105,7 @@ struct Link::Impl {
       item.add(a, node::Term::iri(vocab::kErrorCode), node::Term::literal(body ? body->code : "malformed"));
       item.add(a, node::Term::iri(vocab::kErrorMessage), node::Term::literal(body ? body->message : "malformed error"));
     }
-    auto stored = link.store(item);
-    if (!stored) log("cannot write an answer for <" + reply_to + ">: " + stored.error().message);
-    return stored;
+    return item;
   }
 
   // A chunk that could not be written on the board (a full store, I/O) would leave the asker

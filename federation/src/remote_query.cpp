@@ -21,6 +21,10 @@ namespace {
 
 using node::Term;
 
+// Answer items read per round at most: the origin's link keeps no more than its window (32
+// chunks beyond those read) waiting on the board.
+constexpr std::size_t kChunksPerRound = 64;
+
 const Term* object_of(const std::vector<node::Record>& records, const std::string& predicate) {
   for (const auto& r : records)
     if (r.triple.p.value == predicate) return &r.triple.o;
@@ -78,7 +82,8 @@ Result<std::uint64_t> remote_query(node::Node& node, const RemoteQuery& query,
   if (!link_serving(node.dir()))
     return node::fail(Errc::io, "unreachable: no link runs for <" + self + "> (nothing holds " +
                                     (node.dir() / kServingLockFile).string() + "), so nothing reaches <" + child +
-                                    ">; start the node's link ('tahvel up')");
+                                    ">; if 'tahvel status' shows the link restarting, ask again once it runs, "
+                                    "else start it ('tahvel up')");
   static std::atomic<int> counter{0};
   auto agent = node.agent("query-" + std::to_string(getpid()) + "-" + std::to_string(++counter));
   if (!agent) return Unexpected<Error>{agent.error()};
@@ -109,15 +114,14 @@ Result<std::uint64_t> remote_query(node::Node& node, const RemoteQuery& query,
   struct RemoveOnExit {
     node::Node& node;
     std::vector<std::uint64_t> ids;
-    ~RemoveOnExit() {
-      for (std::uint64_t id : ids) (void)node.remove_item(id);
-    }
+    ~RemoveOnExit() { (void)node.remove_items(ids); }
   } board{node, {*asked}};
   std::vector<std::uint64_t>& to_remove = board.ids;
 
   const auto deadline = std::chrono::steady_clock::now() + timeout;
   std::uint64_t delivered = 0;
   std::int64_t next_chunk = 1, last_chunk = 0;
+  std::uint64_t read_through = 0;  // the answer items read so far: those up to this id
   std::map<std::int64_t, std::vector<node::Record>> early;  // chunks ahead of the next one
   bool done = false;
   while (!done) {
@@ -131,43 +135,46 @@ Result<std::uint64_t> remote_query(node::Node& node, const RemoteQuery& query,
       // The query item leaves the board on return, and the link cancels the query below (P18).
       return node::fail(Errc::io, "cancelled after " + std::to_string(delivered) + " records from <" + *target + ">");
     }
-    auto got = agent->take(cancelled ? std::min(left, std::chrono::milliseconds(100)) : left);
-    if (!got) {
-      return Unexpected<Error>{got.error()};
+    // Every answer item waiting is read, then all go off the board in one transaction: one commit
+    // (one sync, on a durable store) per round rather than two per chunk (a take, a removal).
+    auto got = agent->peek(read_through, kChunksPerRound, cancelled ? std::min(left, std::chrono::milliseconds(100)) : left);
+    if (!got) return Unexpected<Error>{got.error()};
+    if (got->empty()) continue;
+    const std::size_t first_unremoved = to_remove.size();
+    for (const node::Delivery& delivery : *got) {
+      read_through = delivery.item;
+      to_remove.push_back(delivery.item);
     }
-    if (!*got) continue;
-    const auto& records = (*got)->records;
-    to_remove.push_back((*got)->item);
-    const Term* answer_to = object_of(records, vocab::kAnswerTo);
-    if (!answer_to || answer_to->value != std::to_string(*asked)) continue;
-    if (const Term* code = object_of(records, vocab::kErrorCode)) {
-      const Term* message = object_of(records, vocab::kErrorMessage);
-      std::string text = message ? message->value : code->value;
-      if (code->value == "unknown_node") return node::fail(Errc::not_found, "unknown node: " + text);
-      if (code->value == "unreachable") return node::fail(Errc::io, "unreachable: " + text);
-      return node::fail(Errc::io, code->value + ": " + text);
+    for (const node::Delivery& delivery : *got) {
+      const auto& records = delivery.records;
+      const Term* answer_to = object_of(records, vocab::kAnswerTo);
+      if (!answer_to || answer_to->value != std::to_string(*asked)) continue;
+      if (const Term* code = object_of(records, vocab::kErrorCode)) {
+        const Term* message = object_of(records, vocab::kErrorMessage);
+        std::string text = message ? message->value : code->value;
+        if (code->value == "unknown_node") return node::fail(Errc::not_found, "unknown node: " + text);
+        if (code->value == "unreachable") return node::fail(Errc::io, "unreachable: " + text);
+        return node::fail(Errc::io, code->value + ": " + text);
+      }
+      const Term* chunk = object_of(records, vocab::kAnswerChunk);
+      if (!chunk) continue;
+      // The chunk's base64 in one literal or several, in the item's order (P14).
+      std::string encoded;
+      for (const auto& r : records)
+        if (r.triple.p.value == vocab::kAnswerRecords) encoded += r.triple.o.value;
+      auto raw = detail::base64_decode(encoded);
+      if (!raw) return node::fail(Errc::corrupt, "answer chunk " + chunk->value + " from <" + *target + ">: not base64");
+      auto body = wire::decode_answer(*raw);
+      if (!body) {
+        return node::fail(Errc::corrupt, "answer chunk " + chunk->value + " from <" + *target + ">: " + body.error().message);
+      }
+      std::int64_t n = 0;
+      if (auto [end, ec] = std::from_chars(chunk->value.data(), chunk->value.data() + chunk->value.size(), n);
+          ec != std::errc() || end != chunk->value.data() + chunk->value.size() || n < 1)
+        return node::fail(Errc::corrupt, "answer chunk number '" + chunk->value + "' from <" + *target + ">: not a positive integer");
+      if (body->last) last_chunk = n;
+      early[n] = std::move(body->records);
     }
-    const Term* chunk = object_of(records, vocab::kAnswerChunk);
-    if (!chunk) continue;
-    // The chunk's base64 in one literal or several, in the item's order (P14).
-    std::string encoded;
-    for (const auto& r : records)
-      if (r.triple.p.value == vocab::kAnswerRecords) encoded += r.triple.o.value;
-    auto raw = detail::base64_decode(encoded);
-    if (!raw) return node::fail(Errc::corrupt, "answer chunk " + chunk->value + " from <" + *target + ">: not base64");
-    auto body = wire::decode_answer(*raw);
-    if (!body) {
-      return node::fail(Errc::corrupt, "answer chunk " + chunk->value + " from <" + *target + ">: " + body.error().message);
-    }
-    // Off the board as soon as it is read: a long answer must not pile up in this node's store
-    // (it is in memory until printed, and the link sends no more than its window ahead).
-    if (node.remove_item((*got)->item)) to_remove.pop_back();
-    std::int64_t n = 0;
-    if (auto [end, ec] = std::from_chars(chunk->value.data(), chunk->value.data() + chunk->value.size(), n);
-        ec != std::errc() || end != chunk->value.data() + chunk->value.size() || n < 1)
-      return node::fail(Errc::corrupt, "answer chunk number '" + chunk->value + "' from <" + *target + ">: not a positive integer");
-    if (body->last) last_chunk = n;
-    early[n] = std::move(body->records);
     for (auto it = early.find(next_chunk); it != early.end(); it = early.find(next_chunk)) {
       for (const auto& r : it->second) {
         each(r);
@@ -176,6 +183,12 @@ Result<std::uint64_t> remote_query(node::Node& node, const RemoteQuery& query,
       early.erase(it);
       ++next_chunk;
     }
+    // Off the board once handed over, not before: the link acknowledges chunks below only as
+    // they leave the board (P14), so a caller that is slow to take records (a slow pipe) holds
+    // the answer back at the target instead of in this process. And off it then: a long answer
+    // must not pile up in this node's store.
+    if (node.remove_items({to_remove.begin() + static_cast<std::ptrdiff_t>(first_unremoved), to_remove.end()}))
+      to_remove.resize(first_unremoved);
     done = last_chunk > 0 && next_chunk > last_chunk;
   }
   return delivered;

@@ -831,6 +831,20 @@ Result<std::uint64_t> Node::remove_item(std::uint64_t item_id, unsigned cascade)
   return remove_records(*impl_->env, [&](Txn& txn) { return item_with_subtrees(txn, item_id, cascade); });
 }
 
+Result<std::uint64_t> Node::remove_items(const std::vector<std::uint64_t>& item_ids) {
+  if (item_ids.empty()) return std::uint64_t{0};
+  return remove_records(*impl_->env, [&](Txn& txn) -> Result<std::vector<std::uint64_t>> {
+    std::vector<std::uint64_t> ids;
+    for (std::uint64_t item : item_ids) {
+      auto records = item_with_subtrees(txn, item, 0);
+      if (!records && records.error().code == Errc::not_found) continue;
+      if (!records) return unexpected(records.error());
+      ids.insert(ids.end(), records->begin(), records->end());
+    }
+    return ids;
+  });
+}
+
 bool Node::wait_for_commit(const std::function<bool()>& ready, std::chrono::nanoseconds timeout) const {
   const auto deadline = std::chrono::steady_clock::now() + timeout;
   WakeBoard& board = impl_->env->wake();

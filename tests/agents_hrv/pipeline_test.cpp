@@ -425,9 +425,13 @@ TEST_F(PipelineTest, ARestartAfterAWindowChangeWritesNoWindowOverlappingOneWritt
   bool changed = false;
   for (std::size_t i = 0; i < windows.size(); ++i) {
     const auto [start, end] = windows[i];
-    if (i > 0) EXPECT_GE(start, windows[i - 1].second - 1e-9) << "window " << start << "-" << end << " overlaps the one before";
+    if (i > 0) {
+      EXPECT_GE(start, windows[i - 1].second - 1e-9) << "window " << start << "-" << end << " overlaps the one before";
+    }
     if (end - start < 300 - 1e-9 && end < 1800) changed = true;
-    if (changed && end < 1800) EXPECT_DOUBLE_EQ(end - start, 120) << "window at " << start;
+    if (changed && end < 1800) {
+      EXPECT_DOUBLE_EQ(end - start, 120) << "window at " << start;
+    }
   }
   EXPECT_TRUE(changed) << "no 120 s window: the test proves nothing";
 }

@@ -403,6 +403,31 @@ TEST(Store, RemovedUnreadItemLeavesInputBuffer) {
   EXPECT_EQ(node.stats()->pending_deliveries, 0u);
 }
 
+// What a reader of many items (answer chunks) removes once read, in one commit: each listed
+// item goes with its records and its place in input buffers; one already gone (or listed twice)
+// is skipped, not an error that would leave the rest on the board.
+TEST(Store, RemoveItemsRemovesEachListedItemAndSkipsThoseGone) {
+  TempDir dir;
+  Node node = make_node(dir.path());
+  auto reader = node.agent("reader");
+  auto writer = node.agent("writer");
+  ASSERT_TRUE(reader->subscribe(Pattern{.p = ex("hr")}));
+  const std::uint64_t subscription_records = node.stats()->records;
+  std::vector<std::uint64_t> ids;
+  for (int i = 0; i < 4; ++i)
+    ids.push_back(*writer->store(Item{}.add(ex("o" + std::to_string(i)), ex("hr"), Term::integer(70 + i)).add(ex("o" + std::to_string(i)), ex("at"), Term::integer(i))));
+  ASSERT_TRUE(node.remove_item(ids[3]));
+  auto removed = node.remove_items({ids[0], ids[2], ids[3], ids[0], 999'999});
+  ASSERT_TRUE(removed) << removed.error().message;
+  EXPECT_EQ(*removed, 4u);  // two records of each of ids[0] and ids[2]
+  EXPECT_EQ(*reader->pending(), 1u);
+  auto left = reader->take(std::chrono::milliseconds(0));
+  ASSERT_TRUE(left && *left);
+  EXPECT_EQ((*left)->item, ids[1]);
+  EXPECT_EQ(node.stats()->records, subscription_records + 2);  // and ids[1]
+  EXPECT_EQ(*node.remove_items({}), 0u);
+}
+
 TEST(Store, OutputBufferListsWhatTheAgentWrote) {
   TempDir dir;
   Node node = make_node(dir.path());

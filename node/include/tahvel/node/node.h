@@ -319,6 +319,11 @@ class Node {
   // Removes every record of an item, and with cascade N their sub-trees. Error not_found.
   Result<std::uint64_t> remove_item(std::uint64_t item_id, unsigned cascade = 0);
 
+  // Removes every record of each item of `item_ids` in one transaction (one commit: one sync on
+  // a durable store, where remove_item per item syncs each); items already gone are skipped.
+  // Returns the number of records removed.
+  Result<std::uint64_t> remove_items(const std::vector<std::uint64_t>& item_ids);
+
   // Changes after `bookmark` (a seq), oldest first, at most `limit` (0: no limit). Waits up to
   // `timeout` for the first one when there is none yet; an empty vector means timeout.
   Result<std::vector<Change>> watch(std::uint64_t bookmark, std::chrono::milliseconds timeout,
