@@ -90,8 +90,11 @@ bool matches(const node::Pattern& pattern, const node::Record& record);
 node::Format format_flag(const Args& args, node::Format fallback, bool allow_json = true);
 // The whole of FILE, or of standard input for "-". Failure naming the file.
 std::string read_input(const std::string& path);
-// Flushes `out` and fails (naming standard output) when anything could not be written.
+// Flushes `out` and fails (naming standard output) when anything could not be written; quietly
+// (status 1, no message) when standard output is a pipe whose reader has gone.
 void finish_output(std::ostream& out);
+// True when standard output is a pipe whose reader has gone (`tahvel … | head`).
+bool stdout_reader_gone();
 // The entries of `prefixes` that some IRI or datatype of `records` uses (for Turtle output).
 uri::PrefixMap used_prefixes(const uri::PrefixMap& prefixes,
                              const std::vector<node::Record>& records);

@@ -401,7 +401,12 @@ int run_query(const Args& args) {
   }, area_answer, cancelled);
   if (writer) writer->finish();
   if (!answered && g_stop) throw Failure{kExitInterrupted, "query: interrupted; " + answered.error().message};
-  if (!answered && !std::cout.good()) throw Failure{kExitFailure, "query: cannot write the answer (output closed); " + answered.error().message};
+  if (!answered && !std::cout.good()) {
+    // A reader that went away (`tahvel query … | head`) is not worth a message, as for every
+    // command; a write that failed otherwise (a full disk) is.
+    if (stdout_reader_gone()) throw Failure{kExitFailure, ""};
+    throw Failure{kExitFailure, "query: cannot write the answer (" + std::string(std::strerror(errno)) + "); " + answered.error().message};
+  }
   if (!answered) {
     const auto& e = answered.error();
     int status = e.code == node::Errc::timeout ? kExitTimeout
@@ -1360,7 +1365,8 @@ RemoteBoard ask_board(node::Node& from, const std::string& target, std::chrono::
     if (left.count() <= 0) return "no answer within " + seconds_text(static_cast<double>(budget.count()) / 1e3);
     node::Pattern pattern{.p = node::Term::iri(p)};
     if (!subject.empty()) pattern.s = node::Term::iri(subject);
-    auto answered = federation::remote_query(from, {.target = target, .pattern = std::move(pattern)}, left, [&](const node::Record& r) {
+    // A node whose link restarts is shown as it is now, not waited for: status asks many nodes.
+    auto answered = federation::remote_query(from, {.target = target, .pattern = std::move(pattern), .restart_grace = {}}, left, [&](const node::Record& r) {
       if (r.meta.source == writer) each(r);
     });
     if (answered) return {};

@@ -1464,6 +1464,9 @@ struct Link::Impl {
 
   // Caller holds mu. P15: the child answers of `child_iri` come from went down: the rest cannot
   // come. Each asker is told now (an error up, or on the board at the origin), not at its timeout.
+  // `why` is completed with how far each answer had come ("before its first chunk", "after 12
+  // chunks"): an operator told that a node went silent "while it answered" after nothing came
+  // looks for a lost answer.
   void end_answers_from(const std::string& child_iri, const std::string& code, const std::string& why) {
     for (auto& [key, in] : in_answers) {
       if (in.child != child_iri || in.done || in.cancelled) continue;
@@ -1472,7 +1475,9 @@ struct Link::Impl {
       f.kind = FrameKind::error;
       f.from = child_iri;
       f.seq = in.query_frame.seq;
-      f.body = wire::encode_error({code, why, key.substr(0, key.rfind('#'))});
+      const std::string when = in.expected <= 1 ? " before its first answer chunk"
+                                                : " after " + std::to_string(in.expected - 1) + " answer chunk(s)";
+      f.body = wire::encode_error({code, why + when, key.substr(0, key.rfind('#'))});
       if (in.forward_up) {
         f.to = opt.parent_iri;
         answers_up.add(opt.up.get(), std::move(f));
@@ -1858,7 +1863,7 @@ struct Link::Impl {
             child->connected = false;
             child->state_dirty = true;
             log("child <" + iri + "> silent for " + std::to_string(opt.child_silence.count()) + " ms: link down");
-            end_answers_from(iri, "unreachable", "<" + iri + "> went silent at <" + self + "> while it answered");
+            end_answers_from(iri, "unreachable", "<" + iri + "> went silent at <" + self + ">");
           }
           if (child->connected && wall - child->state_written_ns > kStateRefreshNs) child->state_dirty = true;
           if (child->state_dirty) dirty.push_back(child);

@@ -10,6 +10,7 @@
 #include <charconv>
 #include <filesystem>
 #include <map>
+#include <thread>
 
 #include "base64.h"
 #include "tahvel/federation/link.h"
@@ -68,22 +69,33 @@ Result<std::uint64_t> remote_query(node::Node& node, const RemoteQuery& query,
     return node::fail(Errc::not_found, "unknown node <" + *target + ">: not below <" + self + ">, where the query was asked");
   std::size_t end = target->find_first_of("/#?", self.size() + 1);
   const std::string child = target->substr(0, end);
-  {
-    auto snap = node.snapshot();
-    if (!snap) return Unexpected<Error>{snap.error()};
-    auto state = snap->list({.s = Term::iri(child), .p = Term::iri(vocab::kLinkState)});
-    if (!state) return Unexpected<Error>{state.error()};
-    if (state->empty())
-      return node::fail(Errc::not_found, "unknown node <" + *target + ">: <" + self + "> has no child <" + child + ">");
-    if (state->back().triple.o.value != "up")
-      return node::fail(Errc::io, "unreachable: <" + child + "> (on the way to <" + *target + ">) is " +
-                                      state->back().triple.o.value + " at <" + self + ">");
-  }
-  if (!link_serving(node.dir()))
+  const auto grace_end = std::chrono::steady_clock::now() + std::min(timeout, query.restart_grace);
+  for (;;) {
+    std::string child_state;
+    {  // the snapshot is not held while waiting
+      auto snap = node.snapshot();
+      if (!snap) return Unexpected<Error>{snap.error()};
+      auto state = snap->list({.s = Term::iri(child), .p = Term::iri(vocab::kLinkState)});
+      if (!state) return Unexpected<Error>{state.error()};
+      if (state->empty())
+        return node::fail(Errc::not_found, "unknown node <" + *target + ">: <" + self + "> has no child <" + child + ">");
+      child_state = state->back().triple.o.value;
+    }
+    const bool serving = link_serving(node.dir());
+    if (child_state == "up" && serving) break;
+    const bool restarting = !serving || child_state == "never connected";
+    if (restarting && std::chrono::steady_clock::now() < grace_end && !(cancelled && cancelled())) {
+      std::this_thread::sleep_for(std::chrono::milliseconds(50));
+      continue;
+    }
+    if (child_state != "up")
+      return node::fail(Errc::io, "unreachable: <" + child + "> (on the way to <" + *target + ">) is " + child_state +
+                                      " at <" + self + ">");
     return node::fail(Errc::io, "unreachable: no link runs for <" + self + "> (nothing holds " +
                                     (node.dir() / kServingLockFile).string() + "), so nothing reaches <" + child +
                                     ">; if 'tahvel status' shows the link restarting, ask again once it runs, "
                                     "else start it ('tahvel up')");
+  }
   static std::atomic<int> counter{0};
   auto agent = node.agent("query-" + std::to_string(getpid()) + "-" + std::to_string(++counter));
   if (!agent) return Unexpected<Error>{agent.error()};
