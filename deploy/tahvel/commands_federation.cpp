@@ -420,6 +420,104 @@ int run_query(const Args& args) {
   return kExitOk;
 }
 
+// --- tahvel stats --predicates [--at IRI] -------------------------------------------------------
+
+namespace {
+
+// The holdings item a node's supervisor wrote on its board (agents/supervisor.h), asked for
+// through the link. The time it was written, 0 when the node's board has none.
+std::int64_t remote_predicates(node::Node& node, const std::string& target, std::chrono::milliseconds timeout,
+                               std::vector<node::PredicateSummary>& out) {
+  auto writer = uri::agent_iri(target, "supervisor");
+  if (!writer) throw Failure{kExitUsage, "stats: --at <" + target + ">: " + writer.error().message};
+  std::int64_t written = 0;
+  std::map<std::string, node::PredicateSummary> by_holding;  // by the blank node's label there
+  auto number = [](const node::Term& t) {
+    std::int64_t n = 0;
+    std::from_chars(t.value.data(), t.value.data() + t.value.size(), n);
+    return n;
+  };
+  auto fail_with = [&](const node::Error& e) {
+    const int status = e.code == node::Errc::timeout ? kExitTimeout
+                       : e.code == node::Errc::not_found ? kExitUnknownNode
+                       : e.message.rfind("unreachable", 0) == 0 ? kExitUnreachable
+                       : kExitFailure;
+    throw Failure{status, "stats: " + e.message};
+  };
+  const auto deadline = std::chrono::steady_clock::now() + timeout;
+  auto left = [&] {
+    return std::max(std::chrono::milliseconds(1),
+                    std::chrono::duration_cast<std::chrono::milliseconds>(deadline - std::chrono::steady_clock::now()));
+  };
+  auto at = federation::remote_query(node, {.target = target, .pattern = {.s = node::Term::iri(target), .p = node::Term::iri(agents::vocab::kHoldingsAt)}},
+                                     left(), [&](const node::Record& r) {
+                                       if (r.meta.source == *writer) written = std::max(written, number(r.triple.o));
+                                     });
+  if (!at) fail_with(at.error());
+  auto held = federation::remote_query(node, {.target = target, .pattern = {.s = node::Term::iri(target), .p = node::Term::iri(agents::vocab::kHolds)}, .cascade = 1},
+                                       left(), [&](const node::Record& r) {
+                                         if (r.meta.source != *writer || !r.triple.s.is_blank()) return;
+                                         node::PredicateSummary& h = by_holding[r.triple.s.value];
+                                         if (r.triple.p.value == agents::vocab::kHeldPredicate) h.predicate = r.triple.o.value;
+                                         else if (r.triple.p.value == agents::vocab::kHeldRecords) h.records = static_cast<std::uint64_t>(number(r.triple.o));
+                                         else if (r.triple.p.value == agents::vocab::kFirstAssertedAt) h.first_asserted_at = number(r.triple.o);
+                                         else if (r.triple.p.value == agents::vocab::kLastAssertedAt) h.last_asserted_at = number(r.triple.o);
+                                       });
+  if (!held) fail_with(held.error());
+  for (auto& [label, h] : by_holding)
+    if (!h.predicate.empty()) out.push_back(std::move(h));
+  std::sort(out.begin(), out.end(), [](const auto& a, const auto& b) { return a.predicate < b.predicate; });
+  return written;
+}
+
+}  // namespace
+
+int print_predicates(node::Node& node, const Args& args) {
+  const uri::PrefixMap prefixes = node.prefixes();
+  std::vector<node::PredicateSummary> held;
+  std::optional<std::string> target;
+  if (auto at = args.get("--at")) target = parse_iri(*at, prefixes, "--at");
+  std::int64_t written = 0;  // 0: read here and now
+  if (target && *target != node.iri()) {
+    written = remote_predicates(node, *target, seconds_flag(args, "stats", std::chrono::seconds(10), std::chrono::seconds(600)), held);
+    if (written == 0)
+      throw Failure{kExitFailure, "stats: <" + *target + ">'s board has no holdings item: its supervisor ('tahvel up') writes "
+                                  "one every 5 s; a node not run by 'tahvel up', or by an older version, has none"};
+  } else {
+    held = check(check(node.snapshot()).predicates());
+  }
+  // The data first: the predicates of most records (a node's own bookkeeping has a few each).
+  std::stable_sort(held.begin(), held.end(), [](const auto& a, const auto& b) { return a.records > b.records; });
+  const std::string iri = target.value_or(node.iri());
+  if (args.has("--json")) {
+    std::cout << "{\"iri\":\"" << node::json_escape(iri) << "\",\"written_ns\":";
+    if (written) std::cout << written; else std::cout << "null";
+    std::cout << ",\"predicates\":[";
+    for (std::size_t k = 0; k < held.size(); ++k)
+      std::cout << (k ? "," : "") << "{\"predicate\":\"" << node::json_escape(held[k].predicate) << "\",\"records\":" << held[k].records
+                << ",\"first_asserted_at_ns\":" << held[k].first_asserted_at << ",\"last_asserted_at_ns\":" << held[k].last_asserted_at << "}";
+    std::cout << "]}\n";
+  } else {
+    std::cout << "<" << iri << "> holds" << (written ? " (as its supervisor wrote it " + age_of(written) + ")" : std::string()) << ":\n";
+    std::size_t width = 9;
+    std::vector<std::string> names;
+    for (const auto& h : held) {
+      std::string curie = prefixes.compact(h.predicate);
+      names.push_back(curie == h.predicate ? "<" + curie + ">" : curie);
+      width = std::max(width, names.back().size());
+    }
+    auto row = [&](const std::string& name, const std::string& records, const std::string& first, const std::string& last) {
+      std::cout << name << std::string(width + 1 - name.size(), ' ') << std::string(10 - std::min<std::size_t>(10, records.size()), ' ')
+                << records << "  " << first << std::string(28 - std::min<std::size_t>(27, first.size()), ' ') << last << "\n";
+    };
+    row("predicate", "records", "first stored, asserted at", "last stored, asserted at");
+    for (std::size_t k = 0; k < held.size(); ++k)
+      row(names[k], std::to_string(held[k].records), node::utc_text(held[k].first_asserted_at), node::utc_text(held[k].last_asserted_at));
+  }
+  finish_output(std::cout);
+  return kExitOk;
+}
+
 // --- tahvel up / down / status ----------------------------------------------------------------
 
 namespace {
@@ -920,11 +1018,19 @@ class Deployment {
       if (!opened) return Unexpected<node::Error>{opened.error()};
       board.node.emplace(std::move(*opened));
     }
-    auto item = agents::programs_item(board.node->iri(), programs, unix_now_ns());
+    const std::int64_t now = unix_now_ns();
+    auto item = agents::programs_item(board.node->iri(), programs, now);
     if (!item) return Unexpected<node::Error>{item.error()};
+    node::Result<std::vector<node::PredicateSummary>> held = std::vector<node::PredicateSummary>{};
+    {  // released before the write: a snapshot held here would keep the store from growing
+      auto snap = board.node->snapshot();
+      if (!snap) return Unexpected<node::Error>{snap.error()};
+      held = snap->predicates();
+      if (!held) return Unexpected<node::Error>{held.error()};
+    }
     auto agent = board.node->agent("supervisor");
     if (!agent) return Unexpected<node::Error>{agent.error()};
-    auto stored = agent->replace({{.source = agent->iri()}}, {*item});
+    auto stored = agent->replace({{.source = agent->iri()}}, {*item, agents::holdings_item(board.node->iri(), *held, now)});
     if (!stored) return Unexpected<node::Error>{stored.error()};
     return {};
   }

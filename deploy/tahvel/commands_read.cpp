@@ -212,15 +212,23 @@ int run_tail(const Args& args) {
 
 const Command kStatsCommand{
     "stats",
-    "DIR [--json]",
-    "Print the node's settings and counters.",
+    "DIR [--json] [--predicates [--at NODE-IRI [--timeout S]]]",
+    "Print the node's settings and counters, or what it holds per predicate.",
     "Text output has one 'key: value' line per counter; --json prints one JSON object with the\n"
-    "same keys.",
-    {{"--json", "", "", "print one JSON object instead of key: value lines"}},
+    "same keys. --predicates prints, per predicate, the records and the asserted-at of the first\n"
+    "and last stored: what there is to ask for. With --at, of a node below DIR's, as its\n"
+    "supervisor last wrote it on its board (every 5 s), read through the running link.",
+    {{"--json", "", "", "print one JSON object instead of key: value lines"},
+     {"--predicates", "", "", "what the store holds per predicate"},
+     {"--at", "", "NODE-IRI", "with --predicates: of the node at NODE-IRI below DIR's (exit 4 unknown, 5 unreachable)"},
+     {"--timeout", "", "S", "with --at: seconds to wait for the answer (default 10; exit 3)"}},
     1, 1};
 
 int run_stats(const Args& args) {
   node::Node node = open_node(args.positional(0));
+  if ((args.has("--at") || args.has("--timeout")) && !args.has("--predicates"))
+    usage_error("stats: --at and --timeout go with --predicates");
+  if (args.has("--predicates")) return print_predicates(node, args);
   node::Stats stats = check(node.stats());
   if (args.has("--json")) {
     print_stats_json(stats);

@@ -455,16 +455,23 @@ Result<std::vector<Triple>> parse_rdf(std::string_view text, const ParseOptions&
   return Parser(text, options, Parser::Pass::locate).run();  // same input: fails at the same place
 }
 
-std::string log_stamp() {
-  const auto now = std::chrono::system_clock::now();
-  const std::time_t seconds = std::chrono::system_clock::to_time_t(now);
-  const auto ms = std::chrono::duration_cast<std::chrono::milliseconds>(now.time_since_epoch()).count() % 1000;
+std::string utc_text(std::int64_t ns) {
+  // Floor division: a time before 1970 still has its milliseconds in 0..999.
+  std::int64_t ms = ns / 1'000'000 - (ns % 1'000'000 < 0 ? 1 : 0);
+  std::int64_t s = ms / 1000 - (ms % 1000 < 0 ? 1 : 0);
+  const auto milli = static_cast<int>(ms - s * 1000);
+  const std::time_t seconds = static_cast<std::time_t>(s);
   std::tm utc{};
   gmtime_r(&seconds, &utc);
   char text[64];
   std::snprintf(text, sizeof text, "%04d-%02d-%02dT%02d:%02d:%02d.%03dZ", utc.tm_year + 1900, utc.tm_mon + 1, utc.tm_mday,
-                utc.tm_hour, utc.tm_min, utc.tm_sec, static_cast<int>(ms));
+                utc.tm_hour, utc.tm_min, utc.tm_sec, milli);
   return text;
+}
+
+std::string log_stamp() {
+  const auto now = std::chrono::system_clock::now();
+  return utc_text(std::chrono::duration_cast<std::chrono::nanoseconds>(now.time_since_epoch()).count());
 }
 
 std::string json_escape(std::string_view text) {

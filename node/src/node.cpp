@@ -3,6 +3,7 @@
 #include "tahvel/node/node.h"
 
 #include <algorithm>
+#include <cstring>
 #include <span>
 
 #include "dictionary.h"
@@ -124,6 +125,55 @@ Result<std::uint64_t> Snapshot::count(const Pattern& pattern) const {
   auto walked = query.for_each(pattern, [&](std::uint64_t, const RecordRow&) { ++n; return true; });
   if (!walked) return unexpected(walked.error());
   return n;
+}
+
+Result<std::vector<PredicateSummary>> Snapshot::predicates() const {
+  MDB_txn* txn = impl_->txn;
+  const Env& env = *impl_->env;
+  MDB_cursor* cursor = nullptr;
+  if (int rc = mdb_cursor_open(txn, env.idx_p, &cursor); rc != 0) return lmdb_fail(rc, "reading the predicate index");
+  struct Close {
+    MDB_cursor* c;
+    ~Close() { mdb_cursor_close(c); }
+  } close{cursor};
+  auto asserted_at = [&](const MDB_val& record) -> Result<std::int64_t> {
+    std::uint64_t id = 0;
+    std::memcpy(&id, record.mv_data, sizeof id);
+    auto row = get_record(txn, env, id);
+    if (!row) return unexpected(row.error());
+    if (!*row) return fail(Errc::corrupt, "the predicate index names record " + std::to_string(id) + ", which is not there");
+    auto item = get_item(txn, env, (*row)->item);
+    if (!item) return unexpected(item.error());
+    if (!*item) return fail(Errc::corrupt, "record " + std::to_string(id) + " has no item");
+    return (*item)->asserted_at;
+  };
+  TermReader terms(txn, env);
+  std::vector<PredicateSummary> out;
+  MDB_val key, first;
+  for (int rc = mdb_cursor_get(cursor, &key, &first, MDB_FIRST); rc != MDB_NOTFOUND;
+       rc = mdb_cursor_get(cursor, &key, &first, MDB_NEXT_NODUP)) {
+    if (rc != 0) return lmdb_fail(rc, "reading the predicate index");
+    std::uint64_t predicate = 0;
+    std::memcpy(&predicate, key.mv_data, sizeof predicate);
+    PredicateSummary summary;
+    auto iri = terms.iri(predicate);
+    if (!iri) return unexpected(iri.error());
+    summary.predicate = std::move(*iri);
+    std::size_t records = 0;
+    if (int c = mdb_cursor_count(cursor, &records); c != 0) return lmdb_fail(c, "counting a predicate's records");
+    summary.records = records;
+    auto oldest = asserted_at(first);
+    if (!oldest) return unexpected(oldest.error());
+    summary.first_asserted_at = *oldest;
+    MDB_val last;
+    if (int l = mdb_cursor_get(cursor, &key, &last, MDB_LAST_DUP); l != 0) return lmdb_fail(l, "reading the predicate index");
+    auto newest = asserted_at(last);
+    if (!newest) return unexpected(newest.error());
+    summary.last_asserted_at = *newest;
+    out.push_back(std::move(summary));
+  }
+  std::sort(out.begin(), out.end(), [](const PredicateSummary& a, const PredicateSummary& b) { return a.predicate < b.predicate; });
+  return out;
 }
 
 Result<std::vector<Record>> Snapshot::item(std::uint64_t item_id) const {

@@ -406,6 +406,30 @@ TEST_F(Cli, StatsJsonCountsRecordsAndItems) {
   EXPECT_EQ(std::stoul(m[1]), lines_of(run({"dump", node_}).out).size()) << r.out;
 }
 
+// What there is to ask for, before asking: per predicate, the records and the asserted-at of the
+// first and last stored, the most records first.
+TEST_F(Cli, StatsPredicatesSaysWhatTheStoreHoldsPerPredicate) {
+  init();
+  put(kObservation);
+  put("@prefix sosa: <http://www.w3.org/ns/sosa/> .\n_:o a sosa:Observation ; sosa:hasSimpleResult 80 .\n");
+  Outcome text = run({"stats", node_, "--predicates"});
+  ASSERT_EQ(text.status, 0) << text.err;
+  const auto lines = lines_of(text.out);
+  ASSERT_EQ(lines.size(), 5u) << text.out;
+  EXPECT_EQ(lines[0], "<" + kNodeIri + "> holds:");
+  EXPECT_EQ(lines[1].rfind("predicate ", 0), 0u) << text.out;
+  EXPECT_TRUE(std::regex_match(lines[2], std::regex("(rdf:type|sosa:hasSimpleResult) +2  20[0-9-]+T[0-9:.]+Z +20[0-9-]+T[0-9:.]+Z"))) << lines[2];
+  EXPECT_TRUE(std::regex_match(lines[4], std::regex("sosa:observedProperty +1  .*"))) << lines[4];
+  Outcome json = run({"stats", node_, "--predicates", "--json"});
+  ASSERT_EQ(json.status, 0) << json.err;
+  EXPECT_NE(json.out.find("{\"predicate\":\"http://www.w3.org/ns/sosa/observedProperty\",\"records\":1,\"first_asserted_at_ns\":"),
+            std::string::npos) << json.out;
+  EXPECT_EQ(json.out.rfind("{\"iri\":\"" + kNodeIri + "\",\"written_ns\":null,\"predicates\":[", 0), 0u) << json.out;
+  Outcome alone = run({"stats", node_, "--at", kNodeIri});
+  EXPECT_EQ(alone.status, 2);
+  EXPECT_NE(alone.err.find("--at and --timeout go with --predicates"), std::string::npos) << alone.err;
+}
+
 }  // namespace
 
 namespace {

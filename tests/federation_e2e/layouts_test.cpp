@@ -11,6 +11,7 @@
 #include <fstream>
 #include <iostream>
 #include <map>
+#include <regex>
 #include <string>
 #include <thread>
 
@@ -232,6 +233,22 @@ TEST_F(Deployment, StatusOnTheRootsMachineShowsTheNodesAndProgramsOfTheMachinesB
   const std::string json = status_of("ward", " --json");
   EXPECT_NE(json.find("{\"id\":\"sensor\",\"iri\":\"" + kWard + "/gateway/sensor\",\"depth\":2,\"remote\":true,"), std::string::npos) << json;
   EXPECT_NE(json.find("\"programs_known\":true,\"programs_unknown_because\":null,\"programs_written_ns\":1"), std::string::npos) << json;
+
+  // What the nodes below hold, without fetching it (`stats --predicates --at`), one and two hops
+  // down: each keeps its own uplink's state, the gateway also its child's.
+  const std::string ward_store = (machine["ward"] / "ward").string();
+  // (The supervisor rewrites what its node holds every 5 s: the links' records come with the next.)
+  std::string held;
+  EXPECT_TRUE(eventually([&] {
+    held = tahvel("stats " + ward_store + " --predicates --at " + kWard + "/gateway");
+    return std::regex_search(held, std::regex("\ntv:linkState +1  20")) && std::regex_search(held, std::regex("\ntv:uplinkState +1  20"));
+  }, 15s)) << held;
+  EXPECT_NE(held.find("<" + kWard + "/gateway> holds (as its supervisor wrote it "), std::string::npos) << held;
+  EXPECT_TRUE(eventually([&] {
+    held = tahvel("stats " + ward_store + " --predicates --json --at " + kWard + "/gateway/sensor");
+    return held.find("{\"predicate\":\"https://w3id.org/tahvel#uplinkState\",\"records\":1,") != std::string::npos;
+  }, 15s)) << held;
+  EXPECT_EQ(held.find("#linkState\""), std::string::npos) << held;  // the sensor has no child
 
   shown = status_of("ward", " --local");
   EXPECT_EQ(shown.find("sensor"), std::string::npos) << shown;

@@ -428,6 +428,38 @@ TEST(Store, RemoveItemsRemovesEachListedItemAndSkipsThoseGone) {
   EXPECT_EQ(*node.remove_items({}), 0u);
 }
 
+// What an operator asks before fetching anything: per predicate, how many records and the
+// asserted-at of the first and last stored (for a sensor's data, its time range).
+TEST(Store, PredicatesSayHowManyRecordsAndWhenTheFirstAndLastStoredWereAsserted) {
+  TempDir dir;
+  Node node = make_node(dir.path());
+  auto ecg = node.agent("ecg");
+  for (int i = 0; i < 5; ++i) {
+    Item chunk;
+    chunk.asserted_at = 1'000'000'000LL * (100 + i);
+    chunk.add(ex("chunk" + std::to_string(i)), ex("samples"), Term::literal("AAAA"));
+    if (i % 2 == 0) chunk.add(ex("chunk" + std::to_string(i)), ex("lead"), Term::literal("MLII"));
+    ASSERT_TRUE(ecg->store(chunk));
+  }
+  Item late;  // stored last, asserted earliest: the range is of the first and last stored
+  late.asserted_at = 1'000'000'000LL * 50;
+  late.add(ex("chunk9"), ex("samples"), Term::literal("BBBB"));
+  ASSERT_TRUE(ecg->store(late));
+  ASSERT_TRUE(node.remove_item(*ecg->written().value().begin()));  // the first chunk goes
+
+  auto held = node.snapshot().value().predicates();
+  ASSERT_TRUE(held) << held.error().message;
+  ASSERT_EQ(held->size(), 2u);
+  EXPECT_EQ((*held)[0].predicate, testing::kEx + "lead");  // in IRI order
+  EXPECT_EQ((*held)[0].records, 2u);
+  EXPECT_EQ((*held)[0].first_asserted_at, 102'000'000'000LL);
+  EXPECT_EQ((*held)[0].last_asserted_at, 104'000'000'000LL);
+  EXPECT_EQ((*held)[1].predicate, testing::kEx + "samples");
+  EXPECT_EQ((*held)[1].records, 5u);
+  EXPECT_EQ((*held)[1].first_asserted_at, 101'000'000'000LL);
+  EXPECT_EQ((*held)[1].last_asserted_at, 50'000'000'000LL);
+}
+
 TEST(Store, OutputBufferListsWhatTheAgentWrote) {
   TempDir dir;
   Node node = make_node(dir.path());

@@ -8,6 +8,7 @@
 #include <chrono>
 #include <filesystem>
 #include <functional>
+#include <map>
 #include <string>
 #include <thread>
 #include <vector>
@@ -285,6 +286,39 @@ TEST(ProgramsOnTheBoard, EachProgramIsNamedByItsAgentIriWithWhatItsSupervisorKno
   auto bad = programs_item("http://h/home1", {ProgramState{.name = "a b"}}, 1);
   ASSERT_FALSE(bad.has_value());
   EXPECT_NE(bad.error().message.find("program 'a b' of <http://h/home1>"), std::string::npos) << bad.error().message;
+}
+
+// Beside the programs, what the node's store holds: one blank node per predicate under the
+// node's IRI, so that `stats --at` reads them with one query (cascade 1).
+TEST(ProgramsOnTheBoard, HoldingsAreOneNodePerPredicateWithItsRecordsAndTimeRange) {
+  node::Item item = holdings_item("http://h/home1",
+                                  {{.predicate = "http://h/v#samples", .records = 86400, .first_asserted_at = 10, .last_asserted_at = 20},
+                                   {.predicate = "http://h/v#lead", .records = 1, .first_asserted_at = 5, .last_asserted_at = 5}},
+                                  1234);
+  EXPECT_TRUE(item.persistent);
+  std::map<std::string, std::map<std::string, std::string>> holding;  // by blank label: predicate -> object
+  int holds = 0;
+  for (const auto& t : item.triples) {
+    if (t.s.value == "http://h/home1") {
+      if (t.p.value == vocab::kHoldingsAt) EXPECT_EQ(t.o.value, "1234");
+      else if (t.p.value == vocab::kHolds && t.o.is_blank()) ++holds;
+      else ADD_FAILURE() << "unexpected " << t.p.value;
+    } else {
+      ASSERT_TRUE(t.s.is_blank()) << t.s.value;
+      holding[t.s.value][t.p.value] = t.o.value;
+    }
+  }
+  EXPECT_EQ(holds, 2);
+  ASSERT_EQ(holding.size(), 2u);
+  bool samples = false;
+  for (auto& [label, h] : holding) {
+    if (h[vocab::kHeldPredicate] != "http://h/v#samples") continue;
+    samples = true;
+    EXPECT_EQ(h[vocab::kHeldRecords], "86400");
+    EXPECT_EQ(h[vocab::kFirstAssertedAt], "10");
+    EXPECT_EQ(h[vocab::kLastAssertedAt], "20");
+  }
+  EXPECT_TRUE(samples);
 }
 
 }  // namespace

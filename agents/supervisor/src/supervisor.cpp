@@ -312,4 +312,21 @@ Result<node::Item> programs_item(const std::string& node_iri, const std::vector<
   return item;
 }
 
+node::Item holdings_item(const std::string& node_iri, const std::vector<node::PredicateSummary>& held, std::int64_t now_ns) {
+  using node::Term;
+  node::Item item;
+  item.persistent = true;  // as the programs: what an operator reads the tree from
+  const Term node = Term::iri(node_iri);
+  item.add(node, Term::iri(vocab::kHoldingsAt), Term::integer(now_ns));
+  for (std::size_t k = 0; k < held.size(); ++k) {
+    const Term h = Term::blank("h" + std::to_string(k));
+    item.add(node, Term::iri(vocab::kHolds), h);
+    item.add(h, Term::iri(vocab::kHeldPredicate), Term::iri(held[k].predicate));
+    item.add(h, Term::iri(vocab::kHeldRecords), Term::integer(static_cast<std::int64_t>(held[k].records)));
+    item.add(h, Term::iri(vocab::kFirstAssertedAt), Term::integer(held[k].first_asserted_at));
+    item.add(h, Term::iri(vocab::kLastAssertedAt), Term::integer(held[k].last_asserted_at));
+  }
+  return item;
+}
+
 }  // namespace tahvel::agents

@@ -67,5 +67,8 @@ std::string json_escape(std::string_view text);
 // long-running process (agents, links, the supervisor), so that the logs of several processes
 // and machines can be read side by side.
 std::string log_stamp();
+// `ns` since the Unix epoch as an RFC 3339 UTC time with milliseconds ("2026-11-27T20:40:00.123Z"),
+// the form `--since` and `--until` take.
+std::string utc_text(std::int64_t ns);
 
 }  // namespace tahvel::node

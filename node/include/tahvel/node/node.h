@@ -87,6 +87,12 @@ struct Change {
 // While a process holds a snapshot it cannot adopt a map that another process grew: a new
 // snapshot or write in that process then fails (Errc::io, "release the snapshot and retry").
 
+struct PredicateSummary {
+  std::string predicate;  // IRI
+  std::uint64_t records = 0;
+  std::int64_t first_asserted_at = 0, last_asserted_at = 0;  // ns since the epoch
+};
+
 class Snapshot {
  public:
   Snapshot(Snapshot&&) noexcept;
@@ -103,6 +109,12 @@ class Snapshot {
 
   // Number of records matching `pattern`.
   Result<std::uint64_t> count(const Pattern& pattern) const;
+
+  // What the store holds, per predicate, in predicate IRI order: how many records, and the
+  // asserted-at of the first and of the last stored of them (the oldest and newest record ids:
+  // for data stored as it happens, such as a sensor's, its time range). Costs two record
+  // lookups per distinct predicate, not a scan: an operator may ask a large store for it.
+  Result<std::vector<PredicateSummary>> predicates() const;
 
   // All current records of one item, in id order. Error not_found when none remain.
   Result<std::vector<Record>> item(std::uint64_t item_id) const;

@@ -22,6 +22,7 @@
 #include <vector>
 
 #include "tahvel/node/error.h"
+#include "tahvel/node/node.h"
 #include "tahvel/node/term.h"
 #include "tahvel/uri/iri.h"
 
@@ -129,6 +130,13 @@ inline const std::string kProgramState = std::string(uri::kTahvelNs) + "programS
 inline const std::string kPid = std::string(uri::kTahvelNs) + "pid";
 inline const std::string kRestarts = std::string(uri::kTahvelNs) + "restarts";
 inline const std::string kLastExit = std::string(uri::kTahvelNs) + "lastExit";
+// What the node's store holds (holdings_item).
+inline const std::string kHoldingsAt = std::string(uri::kTahvelNs) + "holdingsAt";
+inline const std::string kHolds = std::string(uri::kTahvelNs) + "holds";
+inline const std::string kHeldPredicate = std::string(uri::kTahvelNs) + "heldPredicate";
+inline const std::string kHeldRecords = std::string(uri::kTahvelNs) + "heldRecords";
+inline const std::string kFirstAssertedAt = std::string(uri::kTahvelNs) + "firstAssertedAt";
+inline const std::string kLastAssertedAt = std::string(uri::kTahvelNs) + "lastAssertedAt";
 }  // namespace vocab
 
 inline constexpr std::chrono::seconds kProgramsRefresh{5};
@@ -140,5 +148,13 @@ std::string_view program_state_name(const ProgramState& state);
 // "home1/hrv"). Errors: invalid_iri when a name cannot extend the node's IRI.
 Result<node::Item> programs_item(const std::string& node_iri, const std::vector<ProgramState>& programs,
                                  std::int64_t now_ns);
+
+// Beside it, what the node's store holds (Snapshot::predicates), so that an operator above can
+// see what there is to ask for (`tahvel stats DIR --at NODE`) without fetching it:
+//
+//   <N> tv:holdingsAt 1763732000000000000 ; tv:holds _:h1, _:h2 .
+//   _:h1 tv:heldPredicate tv:samples ; tv:heldRecords 86400 ;
+//       tv:firstAssertedAt 1763645600000000000 ; tv:lastAssertedAt 1763731999000000000 .
+node::Item holdings_item(const std::string& node_iri, const std::vector<node::PredicateSummary>& held, std::int64_t now_ns);
 
 }  // namespace tahvel::agents
