@@ -550,7 +550,7 @@ struct LinkFigures {
 
 // What an operator at the hospital does at 3 a.m.: asks the home for raw data that never went
 // up. The home stores kQueryChunks ECG-like chunks (one record each, kChunkBase64 characters of
-// base64: a second of 360 Hz samples in 16 bits is about that), which the default policy keeps
+// base64: a second of two leads at 360 Hz in 16 bits), which the default policy keeps
 // at home; a remote query from the hospital's store (in this process, through the hospital's link
 // in the far end) asks for them all. Timed from asking until the last record is handed over.
 constexpr std::size_t kQueryChunks = 2'000, kChunkBase64 = 1'920;

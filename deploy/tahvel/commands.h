@@ -95,8 +95,9 @@ std::string read_input(const std::string& path);
 void finish_output(std::ostream& out);
 // True when standard output is a pipe whose reader has gone (`tahvel … | head`).
 bool stdout_reader_gone();
-// `stats DIR --predicates [--at IRI] [--timeout S] [--json]` (commands_read.cpp): what the store,
-// or the node at IRI below it (from its board, through the link), holds per predicate.
+// `stats DIR --predicates [--at IRI] [--timeout S] [--json]` (the stats command is in
+// commands_read.cpp; this, in commands_federation.cpp): what the store, or the node at IRI below
+// it (from its board, through the link), holds per predicate.
 int print_predicates(node::Node& node, const Args& args);
 // The entries of `prefixes` that some IRI or datatype of `records` uses (for Turtle output).
 uri::PrefixMap used_prefixes(const uri::PrefixMap& prefixes,

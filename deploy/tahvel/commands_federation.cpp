@@ -405,7 +405,7 @@ int run_query(const Args& args) {
     // A reader that went away (`tahvel query … | head`) is not worth a message, as for every
     // command; a write that failed otherwise (a full disk) is.
     if (stdout_reader_gone()) throw Failure{kExitFailure, ""};
-    throw Failure{kExitFailure, "query: cannot write the answer (" + std::string(std::strerror(errno)) + "); " + answered.error().message};
+    throw Failure{kExitFailure, "query: cannot write the answer to standard output; " + answered.error().message};
   }
   if (!answered) {
     const auto& e = answered.error();
@@ -444,19 +444,16 @@ std::int64_t remote_predicates(node::Node& node, const std::string& target, std:
                        : kExitFailure;
     throw Failure{status, "stats: " + e.message};
   };
-  const auto deadline = std::chrono::steady_clock::now() + timeout;
-  auto left = [&] {
-    return std::max(std::chrono::milliseconds(1),
-                    std::chrono::duration_cast<std::chrono::milliseconds>(deadline - std::chrono::steady_clock::now()));
-  };
-  auto at = federation::remote_query(node, {.target = target, .pattern = {.s = node::Term::iri(target), .p = node::Term::iri(agents::vocab::kHoldingsAt)}},
-                                     left(), [&](const node::Record& r) {
-                                       if (r.meta.source == *writer) written = std::max(written, number(r.triple.o));
-                                     });
-  if (!at) fail_with(at.error());
-  auto held = federation::remote_query(node, {.target = target, .pattern = {.s = node::Term::iri(target), .p = node::Term::iri(agents::vocab::kHolds)}, .cascade = 1},
-                                       left(), [&](const node::Record& r) {
-                                         if (r.meta.source != *writer || !r.triple.s.is_blank()) return;
+  // One query (what the supervisor wrote about the node and, one level down, its holdings), so
+  // that the time and the figures are of one write: it replaces them every 5 s.
+  auto held = federation::remote_query(node, {.target = target, .pattern = {.s = node::Term::iri(target)}, .cascade = 1},
+                                       timeout, [&](const node::Record& r) {
+                                         if (r.meta.source != *writer) return;
+                                         if (r.triple.s.value == target && r.triple.p.value == agents::vocab::kHoldingsAt) {
+                                           written = std::max(written, number(r.triple.o));
+                                           return;
+                                         }
+                                         if (!r.triple.s.is_blank()) return;
                                          node::PredicateSummary& h = by_holding[r.triple.s.value];
                                          if (r.triple.p.value == agents::vocab::kHeldPredicate) h.predicate = r.triple.o.value;
                                          else if (r.triple.p.value == agents::vocab::kHeldRecords) h.records = static_cast<std::uint64_t>(number(r.triple.o));
@@ -676,8 +673,9 @@ const Command kUpCommand{
 
 namespace {
 
-// The pattern of subscription `item` as the file writes one ("S P O", '_' for any, IRIs in the
-// store's prefixes), from its records (docs/record-model.md R9).
+// The subject, predicate and object of subscription `item` in the form of the file's patterns
+// ("S P O", '_' for any, IRIs in the store's prefixes; the file's `a` comes back as rdf:type),
+// from its records (docs/record-model.md R9). A forward pattern of the file binds only those.
 std::string pattern_text(const node::Snapshot& snap, std::uint64_t item, const uri::PrefixMap& prefixes) {
   std::string parts[3] = {"_", "_", "_"};
   const std::string tv(federation::vocab::kTv);
@@ -1352,10 +1350,12 @@ int run_down(const Args& args) {
     return kExitOk;
   }
   if (only && !fs::exists(state / *only / "data.mdb") && supervisor_holding(state / pid_file_name(only)) == 0) {
-    std::string nodes;  // the stores under DIR: the nodes brought up there
+    std::set<std::string> stores;  // the nodes brought up under DIR
     std::error_code list_ec;
     for (const auto& entry : fs::directory_iterator(state, list_ec))
-      if (fs::exists(entry.path() / "data.mdb")) nodes += (nodes.empty() ? "" : ", ") + entry.path().filename().string();
+      if (fs::exists(entry.path() / "data.mdb")) stores.insert(entry.path().filename().string());
+    std::string nodes;
+    for (const auto& id : stores) nodes += (nodes.empty() ? "" : ", ") + id;
     fail("--node '" + *only + "': no such node under " + state.string() +
          (nodes.empty() ? std::string(" (it holds no node's store)") : " (its nodes: " + nodes + ")"));
   }

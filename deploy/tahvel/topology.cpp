@@ -99,8 +99,9 @@ node::Result<LinkSpec> link_spec(const toml::table& t, const std::filesystem::pa
     std::filesystem::path p = *config;
     if (p.is_relative()) p = file.parent_path() / p;
     std::error_code ec;
-    std::ifstream in(p, std::ios::binary);
-    if (!std::filesystem::is_regular_file(p, ec) || !in)
+    std::ifstream in;
+    if (std::filesystem::is_regular_file(p, ec)) in.open(p, std::ios::binary);  // not a FIFO, which would block
+    if (!in.is_open() || !in)
       return node::fail(Errc::not_found, where(*t.get("config"), file) + ": " + what + "config: cannot read " +
                                              p.lexically_normal().string());
     const std::string xml((std::istreambuf_iterator<char>(in)), std::istreambuf_iterator<char>());

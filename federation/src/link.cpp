@@ -1464,9 +1464,9 @@ struct Link::Impl {
 
   // Caller holds mu. P15: the child answers of `child_iri` come from went down: the rest cannot
   // come. Each asker is told now (an error up, or on the board at the origin), not at its timeout.
-  // `why` is completed with how far each answer had come ("before its first chunk", "after 12
-  // chunks"): an operator told that a node went silent "while it answered" after nothing came
-  // looks for a lost answer.
+  // `why` is completed with how far each answer had come ("before its first answer chunk", "after
+  // 12 answer chunk(s)"): an operator told that a node went silent "while it answered" after
+  // nothing came looks for a lost answer.
   void end_answers_from(const std::string& child_iri, const std::string& code, const std::string& why) {
     for (auto& [key, in] : in_answers) {
       if (in.child != child_iri || in.done || in.cancelled) continue;

@@ -69,8 +69,11 @@ Result<std::uint64_t> remote_query(node::Node& node, const RemoteQuery& query,
     return node::fail(Errc::not_found, "unknown node <" + *target + ">: not below <" + self + ">, where the query was asked");
   std::size_t end = target->find_first_of("/#?", self.size() + 1);
   const std::string child = target->substr(0, end);
+  // One deadline for the whole call: the wait for a restarting link comes out of the timeout.
+  const auto deadline = std::chrono::steady_clock::now() + timeout;
   const auto grace_end = std::chrono::steady_clock::now() + std::min(timeout, query.restart_grace);
   for (;;) {
+    if (cancelled && cancelled()) return node::fail(Errc::io, "cancelled before anything was asked of <" + *target + ">");
     std::string child_state;
     {  // the snapshot is not held while waiting
       auto snap = node.snapshot();
@@ -84,7 +87,7 @@ Result<std::uint64_t> remote_query(node::Node& node, const RemoteQuery& query,
     const bool serving = link_serving(node.dir());
     if (child_state == "up" && serving) break;
     const bool restarting = !serving || child_state == "never connected";
-    if (restarting && std::chrono::steady_clock::now() < grace_end && !(cancelled && cancelled())) {
+    if (restarting && std::chrono::steady_clock::now() < grace_end) {
       std::this_thread::sleep_for(std::chrono::milliseconds(50));
       continue;
     }
@@ -118,7 +121,8 @@ Result<std::uint64_t> remote_query(node::Node& node, const RemoteQuery& query,
   if (query.limit) ask.add(q, Term::iri(vocab::kQueryLimit), Term::integer(static_cast<std::int64_t>(query.limit)));
   if (!query.area.empty()) ask.add(q, Term::iri(vocab::kQueryArea), Term::literal(query.area));
   if (query.floor) ask.add(q, Term::iri(vocab::kQueryFloor), Term::integer(*query.floor));
-  ask.add(q, Term::iri(vocab::kQueryTimeout), Term::integer(timeout.count()));
+  const auto time_left = std::chrono::duration_cast<std::chrono::milliseconds>(deadline - std::chrono::steady_clock::now());
+  ask.add(q, Term::iri(vocab::kQueryTimeout), Term::integer(std::max<std::int64_t>(1, time_left.count())));
   auto asked = agent->store(ask);
   if (!asked) return Unexpected<Error>{asked.error()};
   // The query item and any answer item taken but not yet removed leave the board on every way
@@ -130,7 +134,6 @@ Result<std::uint64_t> remote_query(node::Node& node, const RemoteQuery& query,
   } board{node, {*asked}};
   std::vector<std::uint64_t>& to_remove = board.ids;
 
-  const auto deadline = std::chrono::steady_clock::now() + timeout;
   std::uint64_t delivered = 0;
   std::int64_t next_chunk = 1, last_chunk = 0;
   std::uint64_t read_through = 0;  // the answer items read so far: those up to this id
@@ -186,14 +189,18 @@ Result<std::uint64_t> remote_query(node::Node& node, const RemoteQuery& query,
         return node::fail(Errc::corrupt, "answer chunk number '" + chunk->value + "' from <" + *target + ">: not a positive integer");
       if (body->last) last_chunk = n;
       early[n] = std::move(body->records);
-    }
-    for (auto it = early.find(next_chunk); it != early.end(); it = early.find(next_chunk)) {
-      for (const auto& r : it->second) {
-        each(r);
-        ++delivered;
+      // Handed over as each chunk is read, so that what came before an error later in the round
+      // is not lost to the caller.
+      for (auto it = early.find(next_chunk); it != early.end(); it = early.find(next_chunk)) {
+        for (const auto& r : it->second) {
+          each(r);
+          ++delivered;
+        }
+        early.erase(it);
+        ++next_chunk;
       }
-      early.erase(it);
-      ++next_chunk;
+      if (cancelled && cancelled())
+        return node::fail(Errc::io, "cancelled after " + std::to_string(delivered) + " records from <" + *target + ">");
     }
     // Off the board once handed over, not before: the link acknowledges chunks below only as
     // they leave the board (P14), so a caller that is slow to take records (a slow pipe) holds

@@ -190,15 +190,19 @@ Result<void> check_lcm_url(std::string_view url) {
   };
   const std::size_t colon = address.rfind(':');
   const std::string group(address.substr(0, colon));
+  // liblcm takes its default group only for an empty address, not for ":PORT".
+  if (group.empty() && colon != std::string_view::npos) return bad("no group before ':' (leave the whole address out for LCM's default)");
   if (!group.empty()) {
     in_addr a{};
     if (inet_pton(AF_INET, group.c_str(), &a) != 1) return bad("'" + group + "' is not an IPv4 address");
     if ((ntohl(a.s_addr) >> 28) != 0xE) return bad(group + " is not a multicast address (224.0.0.0 to 239.255.255.255)");
   }
   if (colon != std::string_view::npos) {
+    const std::string_view text = address.substr(colon + 1);
     std::uint64_t port = 0;
-    if (!number(address.substr(colon + 1), port) || port == 0 || port > 65535)
-      return bad("port '" + std::string(address.substr(colon + 1)) + "' is not 1..65535");
+    // A leading 0 would be octal to liblcm (strtol base 0): 07667 is its port 4023.
+    if (!number(text, port) || port == 0 || port > 65535 || text.front() == '0')
+      return bad("port '" + std::string(text) + "' is not 1..65535 (in decimal, without a leading 0)");
   }
   while (!options.empty()) {
     const std::size_t amp = options.find('&');

@@ -126,7 +126,8 @@ TEST(WireOpen, DdsWithAnInvalidConfigurationFails) {
 }
 
 // What liblcm refuses only with "lcm_create failed" (a link configured so dies at each
-// restart), said part by part; the forms LCM accepts pass.
+// restart), or takes for something else than written, said part by part; the forms LCM takes
+// as written pass.
 TEST(WireOpen, LcmUrlCheckNamesWhatIsWrongAndPassesWhatLcmAccepts) {
   for (const char* url : {"udpm://239.255.76.67:7667?ttl=0", "udpm://", "udpm://?ttl=1", "udpm://239.255.76.67",
                           "udpm://224.0.0.1:1?ttl=0&recv_buf_size=4194304", "udpm://239.255.255.255:65535"})
@@ -138,6 +139,8 @@ TEST(WireOpen, LcmUrlCheckNamesWhatIsWrongAndPassesWhatLcmAccepts) {
       {"udpm://hospital.example:7667", "'hospital.example' is not an IPv4 address"},
       {"udpm://239.255.76.67:0", "port '0' is not 1..65535"},
       {"udpm://239.255.76.67:7667x", "port '7667x' is not 1..65535"},
+      {"udpm://239.255.76.67:07667", "port '07667' is not 1..65535 (in decimal, without a leading 0)"},
+      {"udpm://:7667", "no group before ':'"},
       {"udpm://239.255.76.67:7667?ttl=-1", "ttl '-1' is not 0..255"},
       {"udpm://239.255.76.67:7667?ttl=0&tll=1", "unknown option 'tll=1' (known: ttl, recv_buf_size)"},
       {"udpm://239.255.76.67:7667?recv_buf_size=lots", "recv_buf_size 'lots' is not a size in bytes"},

@@ -7,6 +7,7 @@
 
 #include <chrono>
 #include <filesystem>
+#include <fstream>
 #include <functional>
 #include <map>
 #include <string>
@@ -102,6 +103,13 @@ TEST_F(SupervisorTest, AFailedProgramsLastExitEndsWithTheLastLineOfItsLog) {
   EXPECT_EQ(run_to_end("silent", "exit 4"), "exited with status 4");
   EXPECT_EQ(run_to_end("fine", "echo all done; exit 0"), "exited with status 0");  // not a failure
   EXPECT_EQ(run_to_end("tabs", "printf 'a\\tb\\n' >&2; exit 1"), "exited with status 1 (its log ends: a b)");
+  // Cut at a character, not inside one: 159 bytes and a 2-byte "é" that would end at 161.
+  EXPECT_EQ(run_to_end("accents", "printf '%159s\\303\\251tail' x >&2; exit 1"),
+            "exited with status 1 (its log ends: " + std::string(158, ' ') + "x...)");
+  // Each run appends to the same log: a run that wrote nothing has nothing to say, not the line
+  // of a run before it.
+  std::ofstream(dir / "quiet.log") << "connected to the hospital\n";
+  EXPECT_EQ(run_to_end("quiet", "exit 5"), "exited with status 5");
   std::filesystem::remove_all(dir);
 }
 

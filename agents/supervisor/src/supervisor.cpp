@@ -28,33 +28,49 @@ struct Supervisor::Program {
   std::optional<Clock::time_point> restart_at;
   std::chrono::milliseconds delay{0};
   bool stopping = false;
+  off_t log_start = 0;  // where this run's output begins in the log file
 };
 
 namespace {
 
-// The last line of `log_file` (at most kLastLineBytes, control characters as spaces), or "":
-// what a program that failed wrote last is most often why, and an operator reading `status`
-// on the machine above should not need the log on this one to know it.
+// What a program that failed wrote last is most often why, and an operator reading `status` on
+// the machine above should not need the log on this one to know it: a failed run's last line
+// goes with its exit, at most this long.
 constexpr std::size_t kLastLineBytes = 160;
-std::string last_line_of(const std::filesystem::path& log_file) {
+
+// The size of `file` now (0 when it is not there): where the output of a run about to start
+// begins, since every run of a program appends to the same log.
+off_t size_of(const std::filesystem::path& file) {
+  std::error_code ec;
+  const auto size = file.empty() ? 0 : std::filesystem::file_size(file, ec);
+  return ec ? 0 : static_cast<off_t>(size);
+}
+
+// `text` cut to at most `bytes` without splitting a UTF-8 sequence.
+std::string utf8_prefix(std::string_view text, std::size_t bytes) {
+  if (text.size() <= bytes) return std::string(text);
+  std::size_t end = bytes;
+  while (end > 0 && (static_cast<unsigned char>(text[end]) & 0xC0) == 0x80) --end;  // back to a sequence's start
+  return std::string(text.substr(0, end));
+}
+
+// The last line the run that began at `from` wrote to `log_file` (cut to kLastLineBytes,
+// control characters as spaces), or "" when it wrote none.
+std::string last_line_of(const std::filesystem::path& log_file, off_t from) {
   if (log_file.empty()) return {};
   const int fd = ::open(log_file.c_str(), O_RDONLY | O_CLOEXEC);
   if (fd < 0) return {};
   char tail[4096];
   const off_t size = lseek(fd, 0, SEEK_END);
-  const off_t from = std::max<off_t>(0, size - static_cast<off_t>(sizeof tail));
-  const ssize_t n = size > 0 ? pread(fd, tail, static_cast<std::size_t>(size - from), from) : 0;
+  const off_t start = std::max<off_t>(from, size - static_cast<off_t>(sizeof tail));
+  const ssize_t n = size > start ? pread(fd, tail, static_cast<std::size_t>(size - start), start) : 0;
   ::close(fd);
   if (n <= 0) return {};
   std::string_view text(tail, static_cast<std::size_t>(n));
   while (!text.empty() && std::isspace(static_cast<unsigned char>(text.back()))) text.remove_suffix(1);
   if (const std::size_t newline = text.rfind('\n'); newline != std::string_view::npos) text.remove_prefix(newline + 1);
-  std::string line(text.substr(0, kLastLineBytes));
-  if (text.size() > kLastLineBytes) {
-    while (!line.empty() && (static_cast<unsigned char>(line.back()) & 0xC0) == 0x80) line.pop_back();  // a cut UTF-8 sequence
-    if (!line.empty() && static_cast<unsigned char>(line.back()) >= 0xC0) line.pop_back();
-    line += "...";
-  }
+  std::string line = utf8_prefix(text, kLastLineBytes);
+  if (line.size() < text.size()) line += "...";
   for (char& c : line)
     if (static_cast<unsigned char>(c) < 0x20 || c == 0x7F) c = ' ';
   return line;
@@ -123,6 +139,7 @@ void Supervisor::launch(Program& program) {
   // Built before fork: the child may only make async-signal-safe calls.
   const std::string exec_failed = "tahvel supervisor: " + program.spec.name + ": cannot run " + argv[0] + "\n";
   const pid_t supervisor = getpid();
+  program.log_start = size_of(program.spec.log_file);
   pid_t pid = fork();
   if (pid < 0) {
     log_("cannot start " + program.spec.name + ": fork: " + std::strerror(errno));
@@ -164,7 +181,8 @@ void Supervisor::reaped(Program& program, int status) {
   program.state.pid = 0;
   program.state.last_exit = describe(status);
   if (WIFEXITED(status) && WEXITSTATUS(status) != 0) {
-    if (std::string said = last_line_of(program.spec.log_file); !said.empty()) program.state.last_exit += " (its log ends: " + said + ")";
+    if (std::string said = last_line_of(program.spec.log_file, program.log_start); !said.empty())
+      program.state.last_exit += " (its log ends: " + said + ")";
   }
   program.state.exit_status = WIFEXITED(status) ? std::optional<int>(WEXITSTATUS(status)) : std::nullopt;
   const bool finished = WIFEXITED(status) && WEXITSTATUS(status) == 0;

@@ -143,11 +143,13 @@ struct DdsSettings {
   std::string config;
 };
 
-// Whether a link can open the LCM URL `url`: udpm://GROUP:PORT?OPTIONS, GROUP an IPv4 multicast
-// address (224.0.0.0/4; empty: LCM's 239.255.76.67), PORT 1..65535 (absent: 7667), OPTIONS
-// `&`-separated among ttl=0..255 and recv_buf_size=BYTES. The error says which part is wrong:
-// liblcm itself says only that lcm_create failed, so a link configured so would die at each
-// restart. open_lcm checks udpm:// URLs so; other providers go to liblcm as they are.
+// Whether a link can open the LCM URL `url` as written: udpm://GROUP:PORT?OPTIONS, GROUP an IPv4
+// multicast address (224.0.0.0/4; the whole address left out: LCM's 239.255.76.67:7667), PORT
+// 1..65535 in decimal (absent: 7667), OPTIONS `&`-separated among ttl=0..255 and
+// recv_buf_size=BYTES. The error says which part is wrong. liblcm says only that lcm_create
+// failed (a link configured so dies at each restart), or only warns and goes on with something
+// else (an unknown option, a ttl that wraps, an octal port): both are refused here. open_lcm
+// checks udpm:// URLs so; other providers go to liblcm as they are.
 Result<void> check_lcm_url(std::string_view url);
 
 // Whether `xml` (a Cyclone DDS configuration, as DdsSettings::config) parses with Cyclone's own
