@@ -353,6 +353,18 @@ std::chrono::milliseconds seconds_flag(const Args& args, std::string_view comman
   return std::chrono::milliseconds(static_cast<std::int64_t>(seconds * 1000 + 0.5));
 }
 
+// A remote query's error as `command`'s failure, with the exit status that says which it was
+// (docs/cli.md): 3 no answer in time, 4 unknown node, 5 unreachable, 1 anything else.
+namespace {
+[[noreturn]] void fail_remote(std::string_view command, const node::Error& e) {
+  const int status = e.code == node::Errc::timeout ? kExitTimeout
+                     : e.code == node::Errc::not_found ? kExitUnknownNode
+                     : e.message.rfind("unreachable", 0) == 0 ? kExitUnreachable
+                     : kExitFailure;
+  throw Failure{status, std::string(command) + ": " + e.message};
+}
+}  // namespace
+
 int run_query(const Args& args) {
   node::Node node = open_node(args.positional(0));
   uri::PrefixMap prefixes = prefixes_with_flags(node.prefixes(), args);
@@ -407,14 +419,7 @@ int run_query(const Args& args) {
     if (stdout_reader_gone()) throw Failure{kExitFailure, ""};
     throw Failure{kExitFailure, "query: cannot write the answer to standard output; " + answered.error().message};
   }
-  if (!answered) {
-    const auto& e = answered.error();
-    int status = e.code == node::Errc::timeout ? kExitTimeout
-                 : e.code == node::Errc::not_found ? kExitUnknownNode
-                 : e.message.rfind("unreachable", 0) == 0 ? kExitUnreachable
-                 : kExitFailure;
-    throw Failure{status, "query: " + e.message};
-  }
+  if (!answered) fail_remote("query", answered.error());
   finish_output(std::cout);
   std::cerr << "tahvel: " << *answered << " records from <" << query.target << ">\n";
   return kExitOk;
@@ -437,13 +442,6 @@ std::int64_t remote_predicates(node::Node& node, const std::string& target, std:
     std::from_chars(t.value.data(), t.value.data() + t.value.size(), n);
     return n;
   };
-  auto fail_with = [&](const node::Error& e) {
-    const int status = e.code == node::Errc::timeout ? kExitTimeout
-                       : e.code == node::Errc::not_found ? kExitUnknownNode
-                       : e.message.rfind("unreachable", 0) == 0 ? kExitUnreachable
-                       : kExitFailure;
-    throw Failure{status, "stats: " + e.message};
-  };
   // One query (what the supervisor wrote about the node and, one level down, its holdings), so
   // that the time and the figures are of one write: it replaces them every 5 s.
   auto held = federation::remote_query(node, {.target = target, .pattern = {.s = node::Term::iri(target)}, .cascade = 1},
@@ -460,7 +458,7 @@ std::int64_t remote_predicates(node::Node& node, const std::string& target, std:
                                          else if (r.triple.p.value == agents::vocab::kFirstAssertedAt) h.first_asserted_at = number(r.triple.o);
                                          else if (r.triple.p.value == agents::vocab::kLastAssertedAt) h.last_asserted_at = number(r.triple.o);
                                        });
-  if (!held) fail_with(held.error());
+  if (!held) fail_remote("stats", held.error());
   for (auto& [label, h] : by_holding)
     if (!h.predicate.empty()) out.push_back(std::move(h));
   std::sort(out.begin(), out.end(), [](const auto& a, const auto& b) { return a.predicate < b.predicate; });
