@@ -254,7 +254,7 @@ node::Result<std::vector<node::Record>> area_answer(const node::Snapshot& snapsh
 
 const Command kLinkCommand{
     "link",
-    "DIR [--parent IRI --up lcm|dds] [--listen lcm|dds] [--child ID]... [--forward 'S P O']...",
+    "DIR [--parent IRI --up lcm|dds] [--listen lcm|dds]... [--child ID]... [--forward 'S P O']...",
     "Run a node's communication agent (normally started by 'tahvel up').",
     "Links the node at DIR to its parent (--parent, over --up) and serves its children (--listen).\n"
     "Items its agent 'uplink' subscribes to go up exactly once (the policy: --forward patterns,\n"
@@ -262,7 +262,7 @@ const Command kLinkCommand{
     "routed on. Runs until SIGTERM or SIGINT. The protocol is docs/protocol.md.",
     {{"--parent", "", "IRI", "the parent node's IRI"},
      {"--up", "", "lcm|dds", "transport to the parent"},
-     {"--listen", "", "lcm|dds", "transport children reach this node on"},
+     {"--listen", "", "lcm|dds", "transport children reach this node on (repeatable: lcm and dds)", true},
      {"--child", "", "ID", "accept this child id (repeatable; default: any direct child)", true},
      {"--forward", "", "'S P O'", "forward items with a triple matching (repeatable; '_' = any)", true},
      {"--no-default-forward", "", "", "never subscribe the default policy (the policy on the board is the whole of it)"},
@@ -281,20 +281,30 @@ int run_link(const Args& args) {
   auto parent = args.get("--parent");
   auto up = args.get("--up");
   if (parent.has_value() != up.has_value()) usage_error("--parent and --up go together");
-  auto listen = args.get("--listen");
-  if (!parent && !listen) usage_error("give --parent IRI --up KIND, --listen KIND, or both");
-  std::optional<TransportFlags> up_flags, listen_flags;
+  const std::vector<std::string> listens = args.all("--listen");
+  if (!parent && listens.empty()) usage_error("give --parent IRI --up KIND, --listen KIND, or both");
+  for (std::size_t i = 0; i < listens.size(); ++i)
+    for (std::size_t j = 0; j < i; ++j)
+      if (listens[i] == listens[j]) usage_error("--listen " + listens[i] + " is given twice: a node listens once on each kind");
+  std::optional<TransportFlags> up_flags;
+  std::vector<TransportFlags> listen_flags;
   if (up) up_flags = transport_flags(*up, args, "");
-  if (listen) listen_flags = transport_flags(*listen, args, "--listen-");
+  for (const auto& kind : listens) listen_flags.push_back(transport_flags(kind, args, "--listen-"));
   if (up) {
     options.parent_iri = parse_iri(*parent, prefixes, "--parent");
     options.up = open_transport(*up_flags, node.iri(), log);
   }
   // One endpoint serves both sides only when they are the same LCM URL or DDS domain and
   // configuration; a gateway may reach its parent on one domain and its children on another.
-  if (listen) {
-    options.down = up_flags && up_flags->same_endpoint(*listen_flags) ? options.up
-                                                                       : open_transport(*listen_flags, node.iri(), log);
+  for (const auto& flags : listen_flags) {
+    auto transport = up_flags && up_flags->same_endpoint(flags) ? options.up : open_transport(flags, node.iri(), log);
+    if (!options.down) {
+      options.down = std::move(transport);
+    } else if (transport == options.up) {  // the endpoint to the parent serves children too: first
+      options.also_down.push_back(std::exchange(options.down, std::move(transport)));
+    } else {
+      options.also_down.push_back(std::move(transport));
+    }
   }
   options.children = args.all("--child");
   options.area_query = area_answer;
@@ -303,7 +313,8 @@ int run_link(const Args& args) {
   install_stop_handlers();
   auto link = check(federation::Link::start(std::move(options)));
   std::cerr << node::log_stamp() << " tahvel link <" << node.iri() << ">: running"
-            << (parent ? " (parent <" + *parent + "> over " + *up + ")" : "") << (listen ? " (children over " + *listen + ")" : "") << std::endl;
+            << (parent ? " (parent <" + *parent + "> over " + *up + ")" : "")
+            << (listens.empty() ? "" : " (children over " + (listens.size() == 1 ? listens[0] : listens[0] + " and " + listens[1]) + ")") << std::endl;
   while (!g_stop) std::this_thread::sleep_for(100ms);
   link->stop();
   auto c = link->counters();
@@ -534,14 +545,19 @@ std::vector<std::string> link_argv(const Topology& topo, const NodeSpec& spec, c
       if (!l.dds_config.empty()) argv.insert(argv.end(), {prefix + "dds-config", fs::absolute(l.dds_config).string()});
     }
   };
-  if (const NodeSpec* parent = topo.node(spec.parent)) {
-    argv.insert(argv.end(), {"--parent", parent->iri, "--up", parent->listen->kind});
-    transport_flags(*parent->listen, "--");
+  if (const LinkSpec* uplink = topo.uplink(spec)) {
+    argv.insert(argv.end(), {"--parent", topo.node(spec.parent)->iri, "--up", uplink->kind});
+    transport_flags(*uplink, "--");
   }
-  if (spec.listen && !topo.children(spec.id).empty()) {
-    argv.insert(argv.end(), {"--listen", spec.listen->kind});
-    transport_flags(*spec.listen, "--listen-");
-    for (const NodeSpec* child : topo.children(spec.id)) argv.insert(argv.end(), {"--child", child->id});
+  const auto children = topo.children(spec.id);
+  if (!children.empty()) {
+    // Only the kinds some child links over: a listen nobody uses opens no endpoint.
+    for (const LinkSpec& l : spec.listen) {
+      if (std::none_of(children.begin(), children.end(), [&](const NodeSpec* c) { return c->up == l.kind; })) continue;
+      argv.insert(argv.end(), {"--listen", l.kind});
+      transport_flags(l, "--listen-");
+    }
+    for (const NodeSpec* child : children) argv.insert(argv.end(), {"--child", child->id});
   }
   for (const auto& f : spec.forward) argv.insert(argv.end(), {"--forward", f});
   // `up` writes the whole policy on the board before the link starts; `forward = []` is none.

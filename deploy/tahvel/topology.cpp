@@ -167,16 +167,18 @@ constexpr std::uint32_t kDdsPortBase = 7400, kDdsDomainGain = 250;
 node::Result<void> check_lcm_ports_clear_of_dds(const Topology& topo) {
   std::map<std::uint32_t, std::string> dds_domains;  // domain -> a node listening on it
   for (const auto& n : topo.nodes)
-    if (n.listen && n.listen->kind == "dds") dds_domains.emplace(n.listen->dds_domain, n.id);
+    for (const auto& l : n.listen)
+      if (l.kind == "dds") dds_domains.emplace(l.dds_domain, n.id);
   for (const auto& n : topo.nodes) {
-    if (!n.listen || n.listen->kind != "lcm") continue;
-    const auto port = lcm_udp_port(n.listen->lcm_url);
+    auto lcm = std::find_if(n.listen.begin(), n.listen.end(), [](const LinkSpec& l) { return l.kind == "lcm"; });
+    if (lcm == n.listen.end()) continue;
+    const auto port = lcm_udp_port(lcm->lcm_url);
     if (!port) continue;
     for (const auto& [domain, dds_node] : dds_domains) {
       const std::uint32_t first = kDdsPortBase + kDdsDomainGain * domain, last = first + kDdsDomainGain - 1;
       if (*port < first || *port > last) continue;
       return node::fail(Errc::invalid_argument,
-                        topo.file.string() + ": node '" + n.id + "': listen.url " + n.listen->lcm_url + ": UDP port " +
+                        topo.file.string() + ": node '" + n.id + "': listen.url " + lcm->lcm_url + ": UDP port " +
                             std::to_string(*port) + " is among the ports Cyclone DDS takes for domain " +
                             std::to_string(domain) + " (" + std::to_string(first) + "-" + std::to_string(last) +
                             "), which node '" + dds_node + "' listens on; on a host running both, the LCM link " +
@@ -195,6 +197,14 @@ std::string describe_cycle(const std::vector<std::string>& path, const std::stri
 }
 
 }  // namespace
+
+const LinkSpec* Topology::uplink(const NodeSpec& child) const {
+  const NodeSpec* parent = node(child.parent);
+  if (!parent) return nullptr;
+  for (const auto& l : parent->listen)
+    if (l.kind == child.up) return &l;
+  return nullptr;
+}
 
 const NodeSpec* Topology::node(const std::string& id) const {
   for (const auto& n : nodes)
@@ -252,7 +262,7 @@ node::Result<Topology> load_topology(const std::filesystem::path& file) {
       return node::fail(Errc::invalid_argument, where(*t, file) + ": node id '" + spec.id +
                                                     "' is taken by the state directory's own files (logs/, supervisor-*)");
     const std::string what = "node '" + spec.id + "': ";
-    if (auto ok = only_keys(*t, {"id", "iri", "tier", "parent", "listen", "store", "forward", "behaviours", "load", "agent"}, file, what); !ok)
+    if (auto ok = only_keys(*t, {"id", "iri", "tier", "parent", "up", "listen", "store", "forward", "behaviours", "load", "agent"}, file, what); !ok)
       return Unexpected<node::Error>{ok.error()};
     TAHVEL_TRY(iri, typed<std::string>(*t, "iri", file, what, "a string (an absolute IRI)"));
     TAHVEL_TRY(tier, typed<std::string>(*t, "tier", file, what, "a string"));
@@ -263,11 +273,36 @@ node::Result<Topology> load_topology(const std::filesystem::path& file) {
     spec.at = where(*t, file);
     spec.parent_at = t->get("parent") ? where(*t->get("parent"), file) : spec.at;
     spec.iri_at = t->get("iri") ? where(*t->get("iri"), file) : spec.at;
-    TAHVEL_TRY(listen, table_at(*t, "listen", file, what));
-    if (listen) {
-      auto l = link_spec(*listen, file, spec.id);
-      if (!l) return Unexpected<node::Error>{l.error()};
-      spec.listen = *l;
+    TAHVEL_TRY(up, typed<std::string>(*t, "up", file, what, "\"lcm\" or \"dds\" (which of its parent's listen it links over)"));
+    spec.up = up.value_or("");
+    spec.up_at = t->get("up") ? where(*t->get("up"), file) : spec.at;
+    if (up && *up != "lcm" && *up != "dds")
+      return node::fail(Errc::invalid_argument, spec.up_at + ": " + what + "up must be \"lcm\" or \"dds\"");
+    // `listen = { ... }` or, for a node that serves children on both kinds, an array of them.
+    if (const toml::node* listen = t->get("listen")) {
+      std::vector<const toml::table*> tables;
+      if (const toml::array* several = listen->as_array()) {
+        for (const auto& one : *several) {
+          if (!one.is_table())
+            return node::fail(Errc::invalid_argument, where(one, file) + ": " + what + "listen: each entry must be a table { kind = ... }");
+          tables.push_back(one.as_table());
+        }
+        if (tables.empty()) return node::fail(Errc::invalid_argument, where(*listen, file) + ": " + what + "listen is empty");
+      } else if (listen->is_table()) {
+        tables.push_back(listen->as_table());
+      } else {
+        return node::fail(Errc::invalid_argument, where(*listen, file) + ": " + what +
+                                                      "listen must be a table { kind = ... } or an array of them");
+      }
+      for (const toml::table* one : tables) {
+        auto l = link_spec(*one, file, spec.id);
+        if (!l) return Unexpected<node::Error>{l.error()};
+        for (const auto& earlier : spec.listen)
+          if (earlier.kind == l->kind)
+            return node::fail(Errc::invalid_argument, where(*one, file) + ": " + what + "listen: a second kind = \"" + l->kind +
+                                                          "\"; a node listens once on each kind");
+        spec.listen.push_back(*l);
+      }
     }
     TAHVEL_TRY(store, table_at(*t, "store", file, what));
     if (store) {
@@ -344,6 +379,9 @@ node::Result<Topology> load_topology(const std::filesystem::path& file) {
         return node::fail(Errc::invalid_argument, spec.parent_at + ": node '" + spec.id + "': parent '" + spec.parent + "' is not a node of this file");
       if (!spec.parent.empty() && !placed.count(spec.parent)) continue;
       if (spec.parent.empty()) {
+        if (!spec.up.empty())
+          return node::fail(Errc::invalid_argument, spec.up_at + ": node '" + spec.id + "': up = \"" + spec.up +
+                                                        "\", but it has no parent to link to");
         if (spec.iri.empty()) return node::fail(Errc::invalid_argument, spec.at + ": node '" + spec.id + "' has no parent, so it is a root, and a root needs an iri (or give it a parent)");
         auto n = uri::normalize(spec.iri);
         if (!n) return node::fail(Errc::invalid_iri, spec.iri_at + ": node '" + spec.id + "': iri: " + n.error().message);
@@ -353,8 +391,15 @@ node::Result<Topology> load_topology(const std::filesystem::path& file) {
                                                    "> ends in '/': its children are its IRI + \"/\" + their id, so write it without the '/'");
       } else {
         const NodeSpec& parent = specs[by_id[spec.parent]];
-        if (!parent.listen)
+        if (parent.listen.empty())
           return node::fail(Errc::invalid_argument, parent.at + ": node '" + parent.id + "' has children (node '" + spec.id + "') but no listen = { kind = ... }");
+        if (spec.up.empty() && parent.listen.size() > 1)
+          return node::fail(Errc::invalid_argument, spec.at + ": node '" + spec.id + "': its parent '" + parent.id +
+                                                        "' listens on lcm and dds; say which this node links over: up = \"lcm\" or up = \"dds\"");
+        if (spec.up.empty()) spec.up = parent.listen.front().kind;
+        if (std::none_of(parent.listen.begin(), parent.listen.end(), [&](const LinkSpec& l) { return l.kind == spec.up; }))
+          return node::fail(Errc::invalid_argument, spec.up_at + ": node '" + spec.id + "': up = \"" + spec.up + "\", but its parent '" +
+                                                        parent.id + "' listens on " + parent.listen.front().kind + " only");
         auto derived = uri::child_node_iri(parent.iri, spec.id);
         if (!derived) return node::fail(Errc::invalid_iri, spec.at + ": node '" + spec.id + "': " + derived.error().message);
         if (!spec.iri.empty()) {

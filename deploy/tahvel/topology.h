@@ -34,7 +34,9 @@ struct NodeSpec {
   std::string iri;
   std::string tier;
   std::string parent;                  // parent node id, empty for a root
-  std::optional<LinkSpec> listen;      // for its children
+  std::vector<LinkSpec> listen;        // for its children: at most one per kind
+  std::string up;                      // the kind of its parent's `listen` it links over
+  std::string up_at;                   // where `up` is written (the node's table when absent)
   std::string durability = "fast";     // fast | durable
   std::uint64_t ring = 0;
   std::vector<std::string> forward;    // uplink policy patterns "S P O" (CURIEs, _ for any)
@@ -54,11 +56,14 @@ struct Topology {
 
   const NodeSpec* node(const std::string& id) const;
   std::vector<const NodeSpec*> children(const std::string& id) const;
+  // The parent's `listen` that `child` links over; null for a root.
+  const LinkSpec* uplink(const NodeSpec& child) const;
 };
 
 // Reads and checks FILE: TOML syntax; unique node ids; every parent exists, no cycles; a child's
 // IRI is its parent's IRI + "/" + its id (derived when omitted); a parent with children has a
-// `listen`; kinds are lcm or dds; agent ids are valid and unique per node.
+// `listen` (one table, or an array with at most one per kind), and a child whose parent listens
+// on several says which with `up`; kinds are lcm or dds; agent ids are valid and unique per node.
 node::Result<Topology> load_topology(const std::filesystem::path& file);
 
 // An agent's argv with placeholders expanded: {store} (the node's store directory), {iri} (the

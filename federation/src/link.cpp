@@ -240,6 +240,9 @@ struct Link::Impl {
     bool down_go_back = false;
     std::uint64_t went_back_to = ~0ull;
     Clock::time_point went_back_at{};
+    // The transport its last hello came on: a node may listen on more than one (LCM for the
+    // sensors of its LAN, DDS for nodes further away), and everything for this child goes there.
+    Transport* via = nullptr;
     bool pumped = false;      // handed to the down pump (at its first hello)
     bool pump_dirty = false;  // the pump reads its queue again: a hello or an ack came
     bool state_dirty = true;
@@ -316,7 +319,18 @@ struct Link::Impl {
     else std::cerr << "tahvel link <" << self << ">: " << line << "\n";
   }
 
-  Transport* child_transport() const { return opt.down.get(); }
+  // Whether frames arriving on `via` come from children (a transport this node listens on).
+  bool is_down(const Transport* via) const {
+    if (!via) return false;
+    if (via == opt.down.get()) return true;
+    return std::any_of(opt.also_down.begin(), opt.also_down.end(), [&](const auto& t) { return t.get() == via; });
+  }
+  // The transport that reaches the child `iri`; under mu.
+  Transport* via_to(const std::string& iri) const {
+    auto it = children.find(iri);
+    if (it != children.end() && it->second->via) return it->second->via;
+    return opt.down.get();
+  }
 
   // False when the frame certainly did not leave (logged). A binding may block in send (a DDS
   // writer whose reader stopped taking waits up to 1 s), so nothing is sent with `mu` held: a
@@ -897,7 +911,7 @@ struct Link::Impl {
       return from_parent_frame(via, f, agent);
     }
     std::string why;
-    if (opt.down && via == opt.down.get()) {
+    if (is_down(via)) {
       auto child = accepted_child(f.from, &why);
       if (child) return from_child_frame(via, f, child, agent);
     } else {
@@ -917,7 +931,7 @@ struct Link::Impl {
     if (say) log("refused " + std::to_string(static_cast<int>(f.kind)) + "-frame: " + why);
     // A child that was welcomed and is no longer accepted (its parent restarted with a file
     // without it) learns so from its next heartbeat or item, not only at its next hello.
-    if (opt.down && via == opt.down.get() &&
+    if (is_down(via) &&
         (f.kind == FrameKind::hello || f.kind == FrameKind::heartbeat || f.kind == FrameKind::up))
       send_error(via, f.from, 0, {"refused", why, ""});
   }
@@ -957,6 +971,7 @@ struct Link::Impl {
             log("child <" + child->iri + "> has another store (id " + child_store + ", was " + child->store_id +
                 "): its items are a new stream, from its start");
           child->store_id = child_store;
+          child->via = via;
           bool was = child->connected;
           child->connected = child->ever = true;
           child->last_seen = Clock::now();
@@ -1173,7 +1188,7 @@ struct Link::Impl {
         in.child = child_iri;
         in.query_frame = down;
         in.sent = Clock::now();
-        out.add(opt.down.get(), std::move(down));
+        out.add(via_to(child_iri), std::move(down));
       }
     }
     send_all(out);
@@ -1368,7 +1383,7 @@ struct Link::Impl {
     auto in = in_answers.find(key);
     if (in != in_answers.end() && in->second.forward_up) {
       in->second.passed = out.acked_through;
-      window.add(opt.down.get(), answer_ack_to_child(in->second, f.seq, f.body));
+      window.add(via_to(in->second.child), answer_ack_to_child(in->second, f.seq, f.body));
     }
     if (out.unacked.empty() && !out.reading && !out.relaying) out_answers.erase(it);
   }
@@ -1405,7 +1420,7 @@ struct Link::Impl {
     auto in = in_answers.find(key);
     if (in == in_answers.end() || in->second.cancelled) return;
     in->second.cancelled = in->second.done = true;
-    out.add(opt.down.get(), cancel_frame(in->second.child, f.seq, body.origin));
+    out.add(via_to(in->second.child), cancel_frame(in->second.child, f.seq, body.origin));
   }
 
   void answer_from_child(Transport* via, const Frame& f) {
@@ -1743,8 +1758,10 @@ struct Link::Impl {
     p.read = ready->size() >= room;  // a full window's worth: there may be more
     std::vector<std::uint64_t> local_acks;
     std::vector<Frame> frames;
+    Transport* via = nullptr;
     {
       std::lock_guard lock(mu);
+      via = via_to(child.iri);
       if (!child.connected || child.down_last_sent != after) {
         p.read = true;  // the session moved meanwhile (a hello, which nudged): read again
         return Clock::now();
@@ -1782,7 +1799,7 @@ struct Link::Impl {
       if (last != frames.rend() && child.down_in_flight.size() * 2 >= opt.window) last->ack |= kAckNow;  // P8
     }
     // Only this thread sends down frames, in the order of each child's stream.
-    send_run(opt.down.get(), frames);
+    send_run(via, frames);
     // Items not sent down are done with here; they leave the queue now (outside the lock).
     for (std::uint64_t id : local_acks) (void)p.agent.ack(id);
     return resend_time(child);
@@ -1884,14 +1901,14 @@ struct Link::Impl {
           if (!in.done && in.expected == 1 && now - in.sent > 1s && in.resends < 10) {
             ++in.resends;
             in.sent = now;
-            resends.add(opt.down.get(), in.query_frame);
+            resends.add(via_to(in.child), in.query_frame);
           }
           // P15: a child that sent part of an answer and went quiet is sent its ack again; one
           // whose link restarted since answers that it no longer has the stream.
           if (!in.done && !in.cancelled && in.expected > 1 &&
               now - std::max(in.last_progress, in.last_keepalive) > kAnswerKeepalive) {
             in.last_keepalive = now;
-            resends.add(opt.down.get(), answer_ack_to_child(in, in.query_frame.seq, key.substr(0, key.rfind('#'))));
+            resends.add(via_to(in.child), answer_ack_to_child(in, in.query_frame.seq, key.substr(0, key.rfind('#'))));
           }
         }
       }
@@ -1999,7 +2016,7 @@ struct Link::Impl {
           const std::int64_t left_ns = r.meta.stored_at + std::min<std::int64_t>(*ms, 365ll * 24 * 3600 * 1000) * 1'000'000 - now_ns();
           in.expires = in.sent + std::chrono::nanoseconds(std::max<std::int64_t>(left_ns, 0)) + kAskerGrace;
         }
-        cancel.add(opt.down.get(), cancel_frame(child, query, self));
+        cancel.add(via_to(child), cancel_frame(child, query, self));
       }
       send_all(cancel);
     }
@@ -2063,7 +2080,7 @@ struct Link::Impl {
         for (const auto& [chunk, item] : in.unread)
           if (item != 0) abandoned.push_back(item);
         in.unread.clear();
-        if (!in.done) acks.add(opt.down.get(), cancel_frame(in.child, in.query_frame.seq, self));
+        if (!in.done) acks.add(via_to(in.child), cancel_frame(in.child, in.query_frame.seq, self));
         in.cancelled = in.done = true;
         continue;
       }
@@ -2077,7 +2094,7 @@ struct Link::Impl {
         in.passed = std::max(in.passed, chunk);
         in.unread.pop_front();
       }
-      if (in.passed != before) acks.add(opt.down.get(), answer_ack_to_child(in, in.query_frame.seq, self));
+      if (in.passed != before) acks.add(via_to(in.child), answer_ack_to_child(in, in.query_frame.seq, self));
     }
     return acks;
   }
@@ -2133,7 +2150,7 @@ struct Link::Impl {
       auto it = in_answers.find(w.key);
       if (it == in_answers.end() || it->second.done) return;
       it->second.cancelled = it->second.done = true;
-      cancel.add(opt.down.get(), cancel_frame(it->second.child, it->second.query_frame.seq, self));
+      cancel.add(via_to(it->second.child), cancel_frame(it->second.child, it->second.query_frame.seq, self));
     }
     send_all(cancel);
   }
@@ -2247,7 +2264,15 @@ Result<std::unique_ptr<Link>> Link::start(LinkOptions options) {
       return node::fail(Errc::invalid_argument, "<" + node->iri() + "> cannot be a child of <" + options.parent_iri +
                                                     ">: a child's IRI is its parent's IRI + \"/\" + an id");
   }
-  for (const auto& transport : {options.up, options.down}) {
+  if (!options.also_down.empty() && !options.down)
+    return node::fail(Errc::invalid_argument, "also_down without down: a node listens on `down` first");
+  for (const auto& transport : options.also_down) {
+    if (!transport || transport == options.down || transport == options.up)
+      return node::fail(Errc::invalid_argument, "also_down holds a null transport or one already given as up or down");
+  }
+  std::vector<std::shared_ptr<Transport>> bound{options.up, options.down};
+  bound.insert(bound.end(), options.also_down.begin(), options.also_down.end());
+  for (const auto& transport : bound) {
     if (transport && transport->self() != node->iri())
       return node::fail(Errc::invalid_argument, "transport bound to <" + transport->self() + ">, not to the node <" + node->iri() + ">");
   }
@@ -2320,6 +2345,8 @@ Result<std::unique_ptr<Link>> Link::start(LinkOptions options) {
   }
   if (p->opt.down && p->opt.down != p->opt.up)
     p->threads.emplace_back([p, t = p->opt.down] { name_thread("tv-apply-down"), p->receive_loop(t); });
+  for (const auto& t : p->opt.also_down)
+    p->threads.emplace_back([p, t] { name_thread("tv-apply-down"), p->receive_loop(t); });
   p->threads.emplace_back([p] { name_thread("tv-timer"), p->timer_loop(); });
   if (p->opt.up) p->threads.emplace_back([p] { name_thread("tv-answer"), p->answer_loop(); });
   if (p->opt.down) p->threads.emplace_back([p] { name_thread("tv-pump"), p->pump_loop(); });

@@ -899,6 +899,17 @@ TEST_F(Cli, UpRefusesATopologyThatCouldNotRunAsWrittenNamingWhatAndWhere) {
        "node 'home1': forward: pattern '_ zz:foo _': unknown prefix 'zz' in 'zz:foo' (write <zz:foo> for an absolute IRI)"},
       // A misspelt behaviours folder would run nothing, silently.
       {hospital + "behaviours = \"behavours\"\n", "t.toml:4:14: node 'hospital': behaviours: "},
+      // A node listening on both kinds: each child says which it links over.
+      {hospital + "listen = [{ kind = \"dds\", config = \"dds.xml\" }, { kind = \"dds\", domain = 1 }]\n",
+       "t.toml:4:49: node 'hospital': listen: a second kind = \"dds\"; a node listens once on each kind"},
+      {hospital + "listen = []\n", "node 'hospital': listen is empty"},
+      {hospital + "listen = \"dds\"\n", "node 'hospital': listen must be a table { kind = ... } or an array of them"},
+      {hospital + "listen = [{ kind = \"dds\", config = \"dds.xml\" }, { kind = \"lcm\" }]\n[[node]]\nid = \"home1\"\nparent = \"hospital\"\n",
+       "t.toml:5:1: node 'home1': its parent 'hospital' listens on lcm and dds; say which this node links over: up = \"lcm\" or up = \"dds\""},
+      {listening + "[[node]]\nid = \"home1\"\nparent = \"hospital\"\nup = \"lcm\"\n",
+       "t.toml:8:6: node 'home1': up = \"lcm\", but its parent 'hospital' listens on dds only"},
+      {listening + "[[node]]\nid = \"home1\"\nparent = \"hospital\"\nup = \"udp\"\n", "t.toml:8:6: node 'home1': up must be \"lcm\" or \"dds\""},
+      {hospital + "up = \"dds\"\n", "t.toml:4:6: node 'hospital': up = \"dds\", but it has no parent to link to"},
   };
   for (const auto& [text, expected] : cases) {
     spit(tmp_ / "t.toml", text);

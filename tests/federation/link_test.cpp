@@ -421,6 +421,51 @@ TEST(Link, ConfigurationForOneHomeReachesThatHomeAndTheAddressedAgentOnly) {
   EXPECT_EQ(count(tree.hospital_dir, {.p = Term::iri(kEx + "notice")}), 1u);
 }
 
+// A node may listen on two transports (LCM for its LAN, DDS beyond): home1 reaches the hospital
+// on one bus and home2 on another. Items come up from both, and what goes to a child — its
+// configuration, a query, the acks of its items — goes on the transport its hello came on.
+TEST(Link, AParentListeningOnTwoTransportsServesEachChildOnTheOneItsHelloCameOn) {
+  Tree tree;
+  MemoryBus second;
+  tree.hospital = Link::start({.dir = tree.hospital_dir,
+                               .down = std::shared_ptr<Transport>(tree.bus.open(kHospital, tree.hospital_log.sink())),
+                               .also_down = {std::shared_ptr<Transport>(second.open(kHospital, tree.hospital_log.sink()))},
+                               .children = {"home1", "home2"}, .resend_after = 100ms, .log = tree.hospital_log.sink()})
+                      .value();
+  tree.home1 = tree.start_home(tree.home1_dir, kHome1, tree.home1_log);
+  tree.home2 = Link::start({.dir = tree.home2_dir, .parent_iri = kHospital,
+                            .up = std::shared_ptr<Transport>(second.open(kHome2, tree.home2_log.sink())),
+                            .resend_after = 100ms, .heartbeat_every = 200ms, .log = tree.home2_log.sink()})
+                   .value();
+  ASSERT_TRUE(eventually([&] { return tree.home1->connected() && tree.home2->connected(); }));
+
+  store_hrv_items(tree.home1_dir, 0, 30);
+  store_hrv_items(tree.home2_dir, 100, 30);
+  ASSERT_TRUE(eventually([&] {
+    return count(tree.hospital_dir, {.p = Term::iri(kEx + "n")}) == 60 && outbox(tree.home1_dir) == 0 &&
+           outbox(tree.home2_dir) == 0;
+  }));
+  EXPECT_EQ(count(tree.hospital_dir, {.p = Term::iri(kEx + "n"), .source = kHome2}), 30u);
+
+  auto operator_ = node::Node::open(tree.hospital_dir).value().agent("operator").value();
+  node::Item config;
+  config.context = kHome2 + "/hrv";
+  config.add(Term::iri(kHome2 + "/hrv"), Term::iri(kEx + "windowS"), Term::integer(90));
+  ASSERT_TRUE(operator_.store(config));
+  auto delivered = node::Node::open(tree.home2_dir).value().agent("hrv").value().take(10s).value();
+  ASSERT_TRUE(delivered.has_value());
+  EXPECT_EQ(delivered->records[0].triple.o.value, "90");
+  EXPECT_EQ(count(tree.home1_dir, {.p = Term::iri(kEx + "windowS")}), 0u);
+
+  ASSERT_TRUE(eventually([&] { return state_says_up(tree.hospital_dir, kHome2); }));
+  auto hospital = node::Node::open(tree.hospital_dir).value();
+  std::vector<node::Record> got;
+  auto answered = remote_query(hospital, {.target = kHome2, .pattern = {.p = Term::iri(kEx + "n")}}, 10s,
+                               [&](const node::Record& r) { got.push_back(r); });
+  ASSERT_TRUE(answered) << answered.error().message;
+  EXPECT_EQ(got.size(), 30u);
+}
+
 // The parent sends down to all of its children from one pump (P10): each child's queue is read
 // when an item lands in it, and lost, doubled or reordered frames are made good per child by
 // go-back to that child's mark (P8), without holding up the others.

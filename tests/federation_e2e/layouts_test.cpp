@@ -359,3 +359,36 @@ TEST_F(Deployment, AForwardPatternTakenOutOfTheFileStopsGoingUp) {
 }
 
 }  // namespace
+
+// A ward that listens on LCM for the bed monitors of its own LAN and on DDS for a home further
+// away: each child links over the kind its `up` names, items come up from both, and a query
+// from the ward reaches each over its own link.
+TEST_F(Deployment, AParentListeningOnLcmAndDdsServesAChildOnEach) {
+  write_topology("[[node]]\nid = \"ward\"\niri = \"" + kWard + "\"\n"
+                 "listen = [{ kind = \"dds\", domain = 7, " + kDdsConfig + " }, { kind = \"lcm\", url = \"udpm://239.255.76.67:7714?ttl=0\" }]\n\n"
+                 "[[node]]\nid = \"home\"\nparent = \"ward\"\nup = \"dds\"\nforward = [\"_ a tv:EcgChunk\"]\n\n"
+                 "[[node]]\nid = \"bed\"\nparent = \"ward\"\nup = \"lcm\"\nforward = [\"_ a tv:EcgChunk\"]\n");
+  const std::string said = up();
+  std::string shown;
+  ASSERT_TRUE(eventually([&] {
+    shown = status();
+    return shown.find("home  <" + kWard + "/home>  link up") != std::string::npos &&
+           shown.find("bed  <" + kWard + "/bed>  link up") != std::string::npos;
+  })) << said << shown;
+  auto put = [&](const std::string& node, const std::string& subject) {
+    return shell("echo '<" + kWard + "/" + node + "/" + subject +
+                 "> <http://www.w3.org/1999/02/22-rdf-syntax-ns#type> <https://w3id.org/tahvel#EcgChunk> .' | " + kBin +
+                 "/tahvel put " + (state_ / node).string() + " --format nt >/dev/null");
+  };
+  for (int i = 0; i < 5; ++i) {
+    ASSERT_EQ(put("home", "chunk" + std::to_string(i)), 0);
+    ASSERT_EQ(put("bed", "chunk" + std::to_string(i)), 0);
+  }
+  ASSERT_TRUE(eventually([&] { return count(state_ / "ward", "EcgChunk") == 10; })) << count(state_ / "ward", "EcgChunk");
+  for (const std::string node : {"home", "bed"}) {
+    const auto answer = run(kBin + "/tahvel query " + (state_ / "ward").string() + " --at " + kWard + "/" + node +
+                            " -p rdf:type -o tv:EcgChunk --format nt --timeout 20 2>/dev/null");
+    EXPECT_EQ(answer.status, 0) << node << ": " << answer.out;
+    EXPECT_EQ(std::count(answer.out.begin(), answer.out.end(), '\n'), 5) << node << ": " << answer.out;
+  }
+}

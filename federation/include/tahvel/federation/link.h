@@ -92,6 +92,10 @@ struct LinkOptions {
   // Parent role: the transport children reach this node on (bound to this node's IRI; may be the
   // same object as `up`). Null: a leaf.
   std::shared_ptr<Transport> down;
+  // Further transports children reach this node on, each bound to this node's IRI and distinct
+  // from `up` and `down` (a gateway with its LAN's sensors on LCM and a node further away on
+  // DDS). A child is answered on the transport its hello came on.
+  std::vector<std::shared_ptr<Transport>> also_down;
   std::vector<std::string> children;  // child ids accepted; empty: any direct child
 
   std::size_t window = 512;                       // up or down items in flight per link
