@@ -712,12 +712,11 @@ std::string pattern_text(const node::Snapshot& snap, std::uint64_t item, const u
 }
 
 // A `forward` pattern of the file, errors naming the file and node.
-node::Pattern forward_pattern_of(const NodeSpec& spec, const std::string& text, const uri::PrefixMap& prefixes,
-                                 const Topology& topo) {
+node::Pattern forward_pattern_of(const NodeSpec& spec, const std::string& text, const uri::PrefixMap& prefixes) {
   try {
     return forward_pattern(text, prefixes, "pattern");
   } catch (const Failure& f) {
-    fail(topo.file.string() + ": node '" + spec.id + "': forward: " + f.message);
+    fail(spec.forward_at + ": node '" + spec.id + "': forward: " + f.message);
   }
 }
 
@@ -1193,7 +1192,7 @@ int run_up(const Args& args) {
       if (existing.iri() != spec->iri)
         fail(in_file + spec->id + "': the store at " + store.string() + " is the node <" + existing.iri() + ">, the file says <" +
              spec->iri + "> (a changed iri or parent); move that store away, or give the node another id");
-      for (const auto& f : spec->forward) forward_pattern_of(*spec, f, existing.prefixes(), topo);
+      for (const auto& f : spec->forward) forward_pattern_of(*spec, f, existing.prefixes());
       for (const fs::path& file : spec->load) (void)load_file_triples(*spec, file, existing.prefixes(), topo);
       // Durability and ring are the store's, set when it was made: a changed ring would remove
       // records (or keep more) behind the operator's back, so the file's is only compared.
@@ -1205,7 +1204,7 @@ int run_up(const Args& args) {
                   << spec->ring << " apply only to a new store (move this one away to make it so)\n";
     } else {
       const uri::PrefixMap prefixes = uri::PrefixMap::standard();
-      for (const auto& f : spec->forward) forward_pattern_of(*spec, f, prefixes, topo);
+      for (const auto& f : spec->forward) forward_pattern_of(*spec, f, prefixes);
       for (const fs::path& file : spec->load) (void)load_file_triples(*spec, file, prefixes, topo);
     }
   }
@@ -1236,13 +1235,18 @@ int run_up(const Args& args) {
       node::Node node = check(node::Node::open(store));
       node::Agent uplink = check(node.agent("uplink"));
       std::vector<node::Pattern> policy;
-      for (const auto& f : spec.forward) policy.push_back(forward_pattern_of(spec, f, node.prefixes(), topo));
+      for (const auto& f : spec.forward) policy.push_back(forward_pattern_of(spec, f, node.prefixes()));
       if (!spec.forward_given) policy = federation::default_forward_policy();
       auto before = check(node.snapshot());
       std::set<std::uint64_t> had;
       for (const auto& r : check(before.list({.p = node::Term::iri(std::string(federation::vocab::kTv) + "subscriber"),
                                                .o = node::Term::iri(uplink.iri())})))
         had.insert(r.meta.item);
+      // Said once, when the node's first policy is written: a sensor node left without `forward`
+      // sends its parent nothing of its raw signal, and nothing else says so.
+      if (!spec.forward_given && had.empty())
+        std::cout << "up: " << spec.id << ": no forward in the file, so only HRV windows go up to '" << spec.parent
+                  << "' (the default); raw signals stay on the node\n";
       std::set<std::uint64_t> kept;
       for (std::size_t k = 0; k < policy.size(); ++k) {
         const std::uint64_t item = check(uplink.subscribe(policy[k]));

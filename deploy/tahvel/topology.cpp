@@ -84,6 +84,7 @@ node::Result<LinkSpec> link_spec(const toml::table& t, const std::filesystem::pa
     return node::fail(Errc::invalid_argument, where(t, file) + ": " + what + "domain and config are for kind = \"dds\"");
   if (spec.kind == "dds" && url)
     return node::fail(Errc::invalid_argument, where(t, file) + ": " + what + "url is for kind = \"lcm\"");
+  spec.url_at = where(t.get("url") ? *t.get("url") : static_cast<const toml::node&>(t), file);
   if (url) {
     // Checked here, not when the link first runs: a bad URL there is a link that dies at each restart.
     if (auto ok = federation::check_lcm_url(*url); !ok)
@@ -178,7 +179,7 @@ node::Result<void> check_lcm_ports_clear_of_dds(const Topology& topo) {
       const std::uint32_t first = kDdsPortBase + kDdsDomainGain * domain, last = first + kDdsDomainGain - 1;
       if (*port < first || *port > last) continue;
       return node::fail(Errc::invalid_argument,
-                        topo.file.string() + ": node '" + n.id + "': listen.url " + lcm->lcm_url + ": UDP port " +
+                        lcm->url_at + ": node '" + n.id + "': listen.url " + lcm->lcm_url + ": UDP port " +
                             std::to_string(*port) + " is among the ports Cyclone DDS takes for domain " +
                             std::to_string(domain) + " (" + std::to_string(first) + "-" + std::to_string(last) +
                             "), which node '" + dds_node + "' listens on; on a host running both, the LCM link " +
@@ -187,6 +188,16 @@ node::Result<void> check_lcm_ports_clear_of_dds(const Topology& topo) {
     }
   }
   return {};
+}
+
+// Whose agent `id` is on every node `tahvel up` runs (so no child node may have it), or null.
+const char* agent_id_in_use(const std::string& id) {
+  if (id == "link" || id == "uplink") return "the node's link (its communication agent)";
+  if (id == "supervisor") return "the supervisor, which replaces what it wrote every few seconds";
+  if (id == "deploy") return "the one `up` loads files as";
+  if (id == "cli") return "the one `tahvel put` and `tahvel store` write as";
+  if (id.starts_with("query-")) return "one of `tahvel query`'s";
+  return nullptr;
 }
 
 // "a -> b -> a" for the cycle of `path` (parents followed from path[0]) that starts at `at`.
@@ -319,6 +330,7 @@ node::Result<Topology> load_topology(const std::filesystem::path& file) {
     if (!forward) return Unexpected<node::Error>{forward.error()};
     spec.forward = *forward;
     spec.forward_given = t->get("forward") != nullptr;
+    spec.forward_at = t->get("forward") ? where(*t->get("forward"), file) : spec.at;
     TAHVEL_TRY(behaviours, typed<std::string>(*t, "behaviours", file, what, "a string (a folder)"));
     if (behaviours) {
       std::filesystem::path p = *behaviours;
@@ -391,6 +403,9 @@ node::Result<Topology> load_topology(const std::filesystem::path& file) {
                                                    "> ends in '/': its children are its IRI + \"/\" + their id, so write it without the '/'");
       } else {
         const NodeSpec& parent = specs[by_id[spec.parent]];
+        if (const char* owner = agent_id_in_use(spec.id))
+          return node::fail(Errc::invalid_argument, spec.at + ": node id '" + spec.id + "' is taken on its parent '" + parent.id +
+                                                        "': a child node is agent '" + spec.id + "' of its parent, and that agent is " + owner);
         if (parent.listen.empty())
           return node::fail(Errc::invalid_argument, parent.at + ": node '" + parent.id + "' has children (node '" + spec.id + "') but no listen = { kind = ... }");
         if (spec.up.empty() && parent.listen.size() > 1)

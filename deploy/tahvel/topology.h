@@ -20,6 +20,7 @@ struct LinkSpec {
   std::string lcm_url = "udpm://239.255.76.67:7667?ttl=0";
   std::uint32_t dds_domain = 0;
   std::string dds_config;  // path of a Cyclone DDS XML file (relative to the topology file)
+  std::string url_at;      // where `url` is written ("FILE:LINE:COL"; the table's when absent)
 };
 
 struct AgentSpec {
@@ -41,6 +42,7 @@ struct NodeSpec {
   std::uint64_t ring = 0;
   std::vector<std::string> forward;    // uplink policy patterns "S P O" (CURIEs, _ for any)
   bool forward_given = false;          // absent: the default policy; `forward = []`: nothing goes up
+  std::string forward_at;              // where `forward` is written (the node's table when absent)
   std::vector<std::filesystem::path> load;  // Turtle files put (persistent) into a new store
   std::filesystem::path behaviours;    // the dispatcher's folder of behaviours; empty: none
   std::vector<AgentSpec> agents;

@@ -751,6 +751,10 @@ struct Link::Impl {
       *why = "<" + iri + "> is not among the children configured for <" + self + ">";
       return nullptr;
     }
+    if (*id == kLinkAgent || *id == kUplinkAgent) {  // P1: child C is agent C of this node
+      *why = "<" + iri + "> has the id '" + *id + "', which is this node's own agent '" + *id + "' at <" + self + ">";
+      return nullptr;
+    }
     std::lock_guard lock(mu);
     auto& child = children[iri];
     if (!child) {
@@ -2308,6 +2312,8 @@ Result<std::unique_ptr<Link>> Link::start(LinkOptions options) {
     for (const auto& id : s.opt.children) {
       auto iri = uri::child_node_iri(s.self, id);
       if (!iri) return node::fail(Errc::invalid_argument, "child id '" + id + "': " + iri.error().message);
+      if (id == kLinkAgent || id == kUplinkAgent)
+        return node::fail(Errc::invalid_argument, "child id '" + id + "' is this node's own agent '" + id + "' (P1)");
       auto agent = node->agent(id);
       if (!agent) return Unexpected<Error>{agent.error()};
       node::Pattern subtree;

@@ -786,6 +786,7 @@ TEST_F(Cli, UpRefusesAnLcmPortAmongTheDdsDomainsPorts) {
     spit(tmp_ / "clash.toml", topology(listen, 1));
     Outcome up = run({"up", (tmp_ / "clash.toml").string(), "--state", state, "--node", "nobody"});
     EXPECT_EQ(up.status, 1) << listen;
+    EXPECT_NE(up.err.find("clash.toml:9:"), std::string::npos) << up.err;  // the line of home1's listen
     EXPECT_NE(up.err.find("node 'home1': listen.url"), std::string::npos) << up.err;
     EXPECT_NE(up.err.find("among the ports Cyclone DDS takes for domain 1 (7650-7899)"), std::string::npos) << up.err;
   }
@@ -896,7 +897,15 @@ TEST_F(Cli, UpRefusesATopologyThatCouldNotRunAsWrittenNamingWhatAndWhere) {
        "t.toml:1:1: node 'hospital' has children (node 'home1') but no listen"},
       // A pattern of the file is named as the file writes it, not as a command-line flag.
       {listening + "[[node]]\nid = \"home1\"\nparent = \"hospital\"\nforward = [\"_ zz:foo _\"]\n",
-       "node 'home1': forward: pattern '_ zz:foo _': unknown prefix 'zz' in 'zz:foo' (write <zz:foo> for an absolute IRI)"},
+       "t.toml:8:11: node 'home1': forward: pattern '_ zz:foo _': unknown prefix 'zz' in 'zz:foo' (write <zz:foo> for an absolute IRI)"},
+      // A child node is agent <id> of its parent: the agents every node has are not free. A child
+      // 'supervisor' had what its parent relayed from it replaced away every 5 s.
+      {listening + "[[node]]\nid = \"supervisor\"\nparent = \"hospital\"\n",
+       "t.toml:5:1: node id 'supervisor' is taken on its parent 'hospital': a child node is agent 'supervisor' of its parent, and that agent is the supervisor"},
+      {listening + "[[node]]\nid = \"uplink\"\nparent = \"hospital\"\n", "node id 'uplink' is taken on its parent 'hospital'"},
+      {listening + "[[node]]\nid = \"link\"\nparent = \"hospital\"\n", "node id 'link' is taken on its parent 'hospital'"},
+      {listening + "[[node]]\nid = \"cli\"\nparent = \"hospital\"\n", "node id 'cli' is taken on its parent 'hospital'"},
+      {listening + "[[node]]\nid = \"query-7\"\nparent = \"hospital\"\n", "node id 'query-7' is taken on its parent 'hospital'"},
       // A misspelt behaviours folder would run nothing, silently.
       {hospital + "behaviours = \"behavours\"\n", "t.toml:4:14: node 'hospital': behaviours: "},
       // A node listening on both kinds: each child says which it links over.

@@ -662,6 +662,29 @@ TEST(Link, ParentRefusesAChildOutsideItsSubtreeAndAnUnconfiguredChild) {
   EXPECT_TRUE(tree.hospital_log.has("is not a child of"));
 }
 
+// P1: child C is agent C of its parent, so no child may take the id of the link's own agents,
+// configured or not (its items would be the uplink's outbox, its state the link's).
+TEST(Link, ParentRefusesAChildWhoseIdIsOneOfTheLinksOwnAgents) {
+  Tree tree;
+  EXPECT_FALSE(Link::start({.dir = tree.hospital_dir, .down = std::shared_ptr<Transport>(tree.bus.open(kHospital)),
+                            .children = {"home1", "uplink"}}));
+  tree.hospital = Link::start({.dir = tree.hospital_dir, .down = std::shared_ptr<Transport>(tree.bus.open(kHospital)),
+                               .log = tree.hospital_log.sink()})
+                      .value();
+  for (const std::string id : {"uplink", "link"}) {
+    auto impostor = tree.bus.open(kHospital + "/" + id);
+    Frame hello;
+    hello.kind = FrameKind::hello;
+    hello.from = kHospital + "/" + id;
+    hello.to = kHospital;
+    ASSERT_TRUE(impostor->send(hello));
+    auto answer = impostor->receive(5s).value();
+    ASSERT_TRUE(answer.has_value()) << id;
+    EXPECT_EQ(answer->kind, FrameKind::error) << id;
+    EXPECT_TRUE(tree.hospital_log.has("which is this node's own agent '" + id + "'")) << id;
+  }
+}
+
 TEST(Link, MalformedFramesAreDroppedWithAReasonAndTheLinkKeepsWorking) {
   Tree tree;
   tree.hospital = tree.start_hospital();
