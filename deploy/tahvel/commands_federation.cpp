@@ -1499,7 +1499,7 @@ RemoteBoard ask_board(node::Node& from, const std::string& target, std::chrono::
   };
   auto local_name = [](const std::string& iri) { return iri.substr(iri.find('#') + 1); };
   for (const std::string& p : {federation::vocab::kLinkState, federation::vocab::kParent, federation::vocab::kLastSeen,
-                               federation::vocab::kOutboxDepth, federation::vocab::kSoftwareVersion}) {
+                               federation::vocab::kOutboxDepth, federation::vocab::kSoftwareVersion, federation::vocab::kLinkConflict}) {
     board.children_error = ask(p, "", *link, [&](const node::Record& r) {
       if (r.triple.s.value != target) board.children[r.triple.s.value][local_name(p)] = r.triple.o.value;
     });
@@ -1567,13 +1567,15 @@ void print_json_string_or_null(const std::string& text) {
 // own (P12a), which differ in their time (`time_key`) and last field (`extra_key`).
 void print_link_json(const std::string& parent, const std::string& state, const std::string& unknown_because,
                      std::string_view time_key, std::int64_t time_ns, const std::string& outbox, std::string_view extra_key,
-                     const std::string& extra) {
+                     const std::string& extra, const std::string& conflict) {
   std::cout << "{\"parent\":\"" << node::json_escape(parent) << "\",\"state\":\"" << node::json_escape(state)
             << "\",\"known\":" << (unknown_because.empty() ? "true" : "false") << ",\"unknown_because\":";
   print_json_string_or_null(unknown_because);
   std::cout << ",\"" << time_key << "\":" << (time_ns > 0 ? std::to_string(time_ns) : "null")
             << ",\"outbox_depth\":" << (parse_u64(outbox) ? outbox : "null") << ",\"" << extra_key << "\":";
   print_json_string_or_null(extra);
+  std::cout << ",\"conflict\":";
+  print_json_string_or_null(conflict);
   std::cout << "}";
 }
 
@@ -1755,6 +1757,7 @@ int run_status(const Args& args) {
                                                            : "the parent's link";
       said = "link " + f["linkState"] + ", last seen " + age_of(seen) + ", outbox " + f["outboxDepth"];
       if (!f["softwareVersion"].empty()) said += ", " + f["softwareVersion"];
+      if (!f["linkConflict"].empty()) said += "; CONFLICT: " + f["linkConflict"];
       unknown_because = unbelieved_because(keeper, writer, f["linkState"], seen);
     }
     // This node's own view of its uplink, shown when its parent is not here to say more.
@@ -1766,6 +1769,7 @@ int run_status(const Args& args) {
       uplink_said = "uplink to <" + f["parent"] + "> " + f["uplinkState"];
       if (!f["uplinkRefusal"].empty()) uplink_said += " (" + f["uplinkRefusal"] + ")";
       uplink_said += ", parent last heard " + age_of(heard) + ", outbox " + f["outboxDepth"];
+      if (!f["linkConflict"].empty()) uplink_said += "; CONFLICT: " + f["linkConflict"];
       uplink_unknown_because = unbelieved_because(&n, n.id + "/link", f["uplinkState"], heard);
     }
     const std::string& programs_unknown_because = n.programs_unknown_because;
@@ -1778,12 +1782,12 @@ int run_status(const Args& args) {
       if (n.link.empty()) std::cout << "null";
       else
         print_link_json(n.link["parent"], n.link["linkState"], unknown_because, "last_seen_ns", seen, n.link["outboxDepth"],
-                        "software_version", n.link["softwareVersion"]);
+                        "software_version", n.link["softwareVersion"], n.link["linkConflict"]);
       std::cout << ",\"uplink\":";
       if (n.uplink.empty()) std::cout << "null";
       else
         print_link_json(n.uplink["parent"], n.uplink["uplinkState"], uplink_unknown_because, "parent_last_heard_ns", heard,
-                        n.uplink["outboxDepth"], "refusal", n.uplink["uplinkRefusal"]);
+                        n.uplink["outboxDepth"], "refusal", n.uplink["uplinkRefusal"], n.uplink["linkConflict"]);
       std::cout << ",\"programs\":[";
       bool first_program = true;
       for (const auto& p : n.programs) {

@@ -160,6 +160,38 @@ std::vector<node::Pattern> default_forward_policy() {
                         .o = node::Term::iri(std::string(vocab::kTv) + "HeartRateVariability")}};
 }
 
+// Two nodes with one IRI on one network (a second deployment of the same file, a copied store)
+// take turns: each hello or welcome names the other's store, and their items mix under one IRI.
+// A store id that changes once is a store made again; kFlips changes within kWindow are two
+// stores alive at once. Said for kSaidFor after the last change.
+class StoreFlips {
+ public:
+  // A hello or welcome named `store`, after `before` (empty: the first). True when that makes a
+  // conflict that was not one before.
+  bool saw(const std::string& before, const std::string& store, const std::string& who) {
+    if (before.empty() || before == store) return false;
+    const auto now = Clock::now();
+    flips_.push_back(now);
+    while (!flips_.empty() && now - flips_.front() > kWindow) flips_.pop_front();
+    if (flips_.size() < kFlips) return false;
+    const bool fresh = !active();
+    said_ = "two stores (ids " + before + " and " + store + ") take turns as " + who +
+            ": two nodes with one IRI on this network, such as a second deployment of the same file; their items mix";
+    last_ = now;
+    return fresh;
+  }
+  bool active() const { return !said_.empty() && Clock::now() - last_ < kSaidFor; }
+  std::string said() const { return active() ? said_ : std::string(); }
+
+ private:
+  static constexpr std::size_t kFlips = 3;
+  static constexpr auto kWindow = std::chrono::seconds(60);
+  static constexpr auto kSaidFor = std::chrono::minutes(2);
+  std::deque<Clock::time_point> flips_;
+  std::string said_;
+  Clock::time_point last_{};
+};
+
 struct Link::Impl {
   LinkOptions opt;
   std::string self;
@@ -221,6 +253,7 @@ struct Link::Impl {
   Clock::time_point parent_heard{};
   std::int64_t parent_heard_ns = 0;
   std::string refused_by_parent;  // the parent's refusal, until a welcome
+  StoreFlips parent_flips;        // welcomes from two parents' stores in turn; under mu
   std::string own_state_said;     // what the item on the board says now (rewritten on change)
   std::int64_t own_state_written_ns = 0;
 
@@ -243,6 +276,7 @@ struct Link::Impl {
     // The transport its last hello came on: a node may listen on more than one (LCM for the
     // sensors of its LAN, DDS for nodes further away), and everything for this child goes there.
     Transport* via = nullptr;
+    StoreFlips flips;  // hellos from two stores in turn
     bool pumped = false;      // handed to the down pump (at its first hello)
     bool pump_dirty = false;  // the pump reads its queue again: a hello or an ack came
     bool state_dirty = true;
@@ -974,6 +1008,8 @@ struct Link::Impl {
           if (child->store_id != child_store && !child->store_id.empty())
             log("child <" + child->iri + "> has another store (id " + child_store + ", was " + child->store_id +
                 "): its items are a new stream, from its start");
+          if (child->flips.saw(child->store_id, child_store, "the child <" + child->iri + ">"))
+            log("conflict: " + child->flips.said());
           child->store_id = child_store;
           child->via = via;
           bool was = child->connected;
@@ -1082,6 +1118,8 @@ struct Link::Impl {
           if (!parent_store_id.empty())
             log("the parent <" + opt.parent_iri + "> has another store (id " + state->store_id + ", was " +
                 parent_store_id + "): what comes down is a new stream, from its start");
+          if (parent_flips.saw(parent_store_id, state->store_id, "the parent <" + opt.parent_iri + ">"))
+            log("conflict: " + parent_flips.said());
           parent_store_id = state->store_id;
         }
         welcomed = ever_welcomed = true;
@@ -2202,7 +2240,8 @@ struct Link::Impl {
                                 : welcomed && !silent      ? "up"
                                 : ever_welcomed            ? "down"
                                                            : "never connected";
-      said = state + " " + std::to_string(outbox_depth) + " " + refused_by_parent;
+      const std::string conflict = parent_flips.said();
+      said = state + " " + std::to_string(outbox_depth) + " " + refused_by_parent + " " + conflict;
       const std::int64_t wall = now_ns();
       if (said == own_state_said && !(state == "up" && wall - own_state_written_ns > kStateRefreshNs)) return;
       own_state_said = said;
@@ -2213,6 +2252,7 @@ struct Link::Impl {
       item.add(me, node::Term::iri(vocab::kOutboxDepth), node::Term::integer(static_cast<std::int64_t>(outbox_depth)));
       if (!refused_by_parent.empty())
         item.add(me, node::Term::iri(vocab::kUplinkRefusal), node::Term::literal(refused_by_parent));
+      if (!conflict.empty()) item.add(me, node::Term::iri(vocab::kLinkConflict), node::Term::literal(conflict));
     }
     if (auto stored = link.replace({{.s = node::Term::iri(self), .source = link.iri()}}, {item}); !stored) {
       log("cannot write this node's uplink state: " + stored.error().message);
@@ -2231,6 +2271,8 @@ struct Link::Impl {
     if (child.last_seen_ns) item.add(c, node::Term::iri(vocab::kLastSeen), node::Term::integer(child.last_seen_ns));
     item.add(c, node::Term::iri(vocab::kOutboxDepth), node::Term::integer(static_cast<std::int64_t>(child.outbox_depth)));
     if (!child.version.empty()) item.add(c, node::Term::iri(vocab::kSoftwareVersion), node::Term::literal(child.version));
+    if (const std::string conflict = child.flips.said(); !conflict.empty())
+      item.add(c, node::Term::iri(vocab::kLinkConflict), node::Term::literal(conflict));
     return item;
   }
 };

@@ -18,6 +18,7 @@
 
 #include "tahvel/federation/link.h"
 #include "tahvel/federation/transport.h"
+#include "tahvel/federation/wire.h"
 #include "eventually.h"
 #include "temp_dir.h"
 
@@ -683,6 +684,49 @@ TEST(Link, ParentRefusesAChildWhoseIdIsOneOfTheLinksOwnAgents) {
     EXPECT_EQ(answer->kind, FrameKind::error) << id;
     EXPECT_TRUE(tree.hospital_log.has("which is this node's own agent '" + id + "'")) << id;
   }
+}
+
+// P6b: two stores taking turns under one IRI (a second deployment of the same file on one
+// network) are said to be a conflict, on the side that sees it, in the state status shows.
+TEST(Link, TwoStoresTakingTurnsUnderOneIriAreAConflictInTheStateOfTheSideThatSeesIt) {
+  Tree tree;
+  tree.hospital = tree.start_hospital();
+  auto twin = tree.bus.open(kHome1);
+  auto hello_from = [&](const std::string& store) {
+    Frame hello;
+    hello.kind = FrameKind::hello;
+    hello.from = kHome1;
+    hello.to = kHospital;
+    hello.body = wire::encode_state({"twin", 0, store, ""});
+    return twin->send(hello);
+  };
+  const Term conflict = Term::iri(vocab::kLinkConflict);
+  // One new store (a store made again) is no conflict.
+  ASSERT_TRUE(hello_from("aaaa"));
+  ASSERT_TRUE(hello_from("bbbb"));
+  ASSERT_TRUE(eventually([&] { return tree.hospital_log.has("has another store (id bbbb, was aaaa)"); }));
+  std::this_thread::sleep_for(300ms);
+  EXPECT_EQ(count(tree.hospital_dir, {.s = Term::iri(kHome1), .p = conflict}), 0u);
+  ASSERT_TRUE(hello_from("aaaa"));
+  ASSERT_TRUE(hello_from("bbbb"));
+  EXPECT_TRUE(eventually([&] { return tree.hospital_log.has("conflict: two stores (ids aaaa and bbbb) take turns as the child <" + kHome1 + ">"); }));
+  EXPECT_TRUE(eventually([&] { return count(tree.hospital_dir, {.s = Term::iri(kHome1), .p = conflict}) == 1; }));
+
+  // The child's side: welcomes from two stores of its parent.
+  Tree other;
+  auto parent = other.bus.open(kHospital);
+  other.home1 = other.start_home(other.home1_dir, kHome1, other.home1_log);
+  for (const std::string store : {"cccc", "dddd", "cccc", "dddd"}) {
+    Frame welcome;
+    welcome.kind = FrameKind::welcome;
+    welcome.from = kHospital;
+    welcome.to = kHome1;
+    welcome.body = wire::encode_state({"twin", 0, store, ""});
+    ASSERT_TRUE(parent->send(welcome));
+    std::this_thread::sleep_for(50ms);
+  }
+  EXPECT_TRUE(eventually([&] { return other.home1_log.has("conflict: two stores (ids cccc and dddd) take turns as the parent <" + kHospital + ">"); }));
+  EXPECT_TRUE(eventually([&] { return count(other.home1_dir, {.s = Term::iri(kHome1), .p = conflict}) == 1; }));
 }
 
 TEST(Link, MalformedFramesAreDroppedWithAReasonAndTheLinkKeepsWorking) {

@@ -44,6 +44,8 @@ inline const std::string kParent = std::string(kTv) + "parent";
 inline const std::string kUplinkState = std::string(kTv) + "uplinkState";
 inline const std::string kParentLastHeard = std::string(kTv) + "parentLastHeard";
 inline const std::string kUplinkRefusal = std::string(kTv) + "uplinkRefusal";
+// Two stores take turns under one child's or parent's IRI (P6b), said for two minutes after.
+inline const std::string kLinkConflict = std::string(kTv) + "linkConflict";
 inline const std::string kRemoteQuery = std::string(kTv) + "RemoteQuery";
 inline const std::string kQueryTarget = std::string(kTv) + "queryTarget";
 inline const std::string kReplyTo = std::string(kTv) + "replyTo";
