@@ -35,6 +35,7 @@
 #include "tahvel/spatial/wkt.h"
 #include "tahvel/uri/iri.h"
 #include "topology.h"
+#include "vocabulary.h"
 
 namespace tahvel::cli {
 namespace {
@@ -720,6 +721,22 @@ node::Pattern forward_pattern_of(const NodeSpec& spec, const std::string& text, 
   }
 }
 
+// Warns about a `forward` pattern that names a tv: term the vocabulary does not have: no item of
+// Tahvel's has it, so the pattern forwards nothing (a misspelt class, say), and nothing else
+// would say so. A warning, not a refusal: an agent of the deployment's own may write such terms.
+void warn_of_unknown_terms(const NodeSpec& spec, const std::string& text, const node::Pattern& pattern) {
+  constexpr std::string_view kTv = federation::vocab::kTv;
+  for (const auto* term : {&pattern.s, &pattern.p, &pattern.o}) {
+    if (!*term || !(*term)->is_iri() || !(*term)->value.starts_with(kTv)) continue;
+    const std::string_view local = std::string_view((*term)->value).substr(kTv.size());
+    if (is_tahvel_term(local)) continue;
+    std::cerr << "up: warning: " << spec.forward_at << ": node '" << spec.id << "': forward: pattern '" << text << "': tv:" << local
+              << " is not a term of the tv: vocabulary (docs/vocabulary.md)";
+    if (auto near = nearest_tahvel_term(local)) std::cerr << "; did you mean tv:" << *near << "?";
+    std::cerr << " Only items that an agent of the deployment's own writes with it will go up\n";
+  }
+}
+
 // The triples of a `load` file as the node's new board reads them: relative IRIs against the
 // node's IRI + "/", as `tahvel put` reads.
 std::vector<node::Triple> load_file_triples(const NodeSpec& spec, const fs::path& file, const uri::PrefixMap& prefixes,
@@ -1192,7 +1209,7 @@ int run_up(const Args& args) {
       if (existing.iri() != spec->iri)
         fail(in_file + spec->id + "': the store at " + store.string() + " is the node <" + existing.iri() + ">, the file says <" +
              spec->iri + "> (a changed iri or parent); move that store away, or give the node another id");
-      for (const auto& f : spec->forward) forward_pattern_of(*spec, f, existing.prefixes());
+      for (const auto& f : spec->forward) warn_of_unknown_terms(*spec, f, forward_pattern_of(*spec, f, existing.prefixes()));
       for (const fs::path& file : spec->load) (void)load_file_triples(*spec, file, existing.prefixes(), topo);
       // Durability and ring are the store's, set when it was made: a changed ring would remove
       // records (or keep more) behind the operator's back, so the file's is only compared.
@@ -1204,7 +1221,7 @@ int run_up(const Args& args) {
                   << spec->ring << " apply only to a new store (move this one away to make it so)\n";
     } else {
       const uri::PrefixMap prefixes = uri::PrefixMap::standard();
-      for (const auto& f : spec->forward) forward_pattern_of(*spec, f, prefixes);
+      for (const auto& f : spec->forward) warn_of_unknown_terms(*spec, f, forward_pattern_of(*spec, f, prefixes));
       for (const fs::path& file : spec->load) (void)load_file_triples(*spec, file, prefixes, topo);
     }
   }

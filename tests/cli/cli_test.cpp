@@ -932,6 +932,34 @@ TEST_F(Cli, UpRefusesATopologyThatCouldNotRunAsWrittenNamingWhatAndWhere) {
 // `up` again with an edited file, while its supervisor runs, applies the edit: what is new
 // starts, what left the file stops, a program whose command changed restarts, the rest runs on
 // with the same pid. A file that does not check is refused and changes nothing.
+// What `up` cannot refuse but an integrator must hear of: a forwarding pattern naming a tv: term
+// that nothing of Tahvel's writes (a misspelling forwards nothing), and a node left with the
+// default policy (a sensor node without `forward` sends its raw signal nowhere), said once.
+TEST_F(Cli, UpWarnsOfAForwardTermOutsideTheVocabularyAndSaysOnceWhenTheDefaultPolicyApplies) {
+  const std::string file = (tmp_ / "t.toml").string(), state = (tmp_ / "state").string();
+  spit(file, "[[node]]\nid = \"hospital\"\niri = \"http://example.org/hospital\"\n"
+             "listen = { kind = \"lcm\", url = \"udpm://239.255.76.67:7721?ttl=0\" }\n"
+             "[[node]]\nid = \"home1\"\nparent = \"hospital\"\n"
+             "forward = [\"_ sosa:observedProperty tv:HeartRateVariabilty\", \"_ a tv:EcgChunk\"]\n"
+             "[[node]]\nid = \"home2\"\nparent = \"hospital\"\n");
+  Outcome first = run({"up", file, "--state", state});
+  ASSERT_EQ(first.status, 0) << first.err;
+  EXPECT_NE(first.err.find("t.toml:8:11: node 'home1': forward: pattern '_ sosa:observedProperty tv:HeartRateVariabilty': "
+                           "tv:HeartRateVariabilty is not a term of the tv: vocabulary (docs/vocabulary.md); did you mean "
+                           "tv:HeartRateVariability?"),
+            std::string::npos)
+      << first.err;
+  EXPECT_EQ(first.err.find("tv:EcgChunk is not"), std::string::npos) << first.err;
+  EXPECT_NE(first.out.find("up: home2: no forward in the file, so only HRV windows go up to 'hospital' (the default); "
+                           "raw signals stay on the node\n"),
+            std::string::npos)
+      << first.out;
+  EXPECT_EQ(first.out.find("home1: no forward"), std::string::npos) << first.out;
+  Outcome again = run({"up", file, "--state", state});
+  EXPECT_EQ(again.out.find("no forward"), std::string::npos) << again.out;
+  EXPECT_EQ(run({"down", "--state", state}).status, 0);
+}
+
 TEST_F(Cli, UpAgainAppliesAnEditedFileToTheRunningSupervisor) {
   const std::string file = (tmp_ / "node.toml").string(), state = (tmp_ / "state").string();
   spit(file, kIdleNodeToml);

@@ -1,0 +1,182 @@
+// The tv: vocabulary's terms; see vocabulary.h. One per line, sorted: the hygiene check
+// (tests/hygiene/check_vocabulary.sh) reads this list and compares it with the terms the
+// sources, deploy files and docs use.
+#include "vocabulary.h"
+
+#include <algorithm>
+#include <array>
+#include <vector>
+
+namespace tahvel::cli {
+namespace {
+
+constexpr std::array kTerms = {
+    std::string_view("BlankNodeLabel"),
+    std::string_view("EcgChunk"),
+    std::string_view("EcgRecording"),
+    std::string_view("HeartRateClassification"),
+    std::string_view("HeartRateVariability"),
+    std::string_view("HrvTrend"),
+    std::string_view("RPeaks"),
+    std::string_view("RemoteQuery"),
+    std::string_view("Room"),
+    std::string_view("RoomEnvironment"),
+    std::string_view("RrSeries"),
+    std::string_view("SensingSubscription"),
+    std::string_view("alert"),
+    std::string_view("alertDirection"),
+    std::string_view("answerChunk"),
+    std::string_view("answerLast"),
+    std::string_view("answerRecords"),
+    std::string_view("answerTo"),
+    std::string_view("area"),
+    std::string_view("areaFloor"),
+    std::string_view("areaSubscriber"),
+    std::string_view("areaSubscription"),
+    std::string_view("baseline"),
+    std::string_view("behavior"),
+    std::string_view("command"),
+    std::string_view("computedAt"),
+    std::string_view("context"),
+    std::string_view("durationS"),
+    std::string_view("emptyGapEnds"),
+    std::string_view("endSample"),
+    std::string_view("environment"),
+    std::string_view("errorCode"),
+    std::string_view("errorMessage"),
+    std::string_view("exitStatus"),
+    std::string_view("filters"),
+    std::string_view("firstAssertedAt"),
+    std::string_view("floor"),
+    std::string_view("frameCount"),
+    std::string_view("fromSample"),
+    std::string_view("gain"),
+    std::string_view("heartRate"),
+    std::string_view("heartRateClass"),
+    std::string_view("heldPredicate"),
+    std::string_view("heldRecords"),
+    std::string_view("hfMs2"),
+    std::string_view("holdingsAt"),
+    std::string_view("holds"),
+    std::string_view("humidity"),
+    std::string_view("intervals"),
+    std::string_view("lastAssertedAt"),
+    std::string_view("lastExit"),
+    std::string_view("lastSeen"),
+    std::string_view("latest"),
+    std::string_view("lead"),
+    std::string_view("lfHf"),
+    std::string_view("lfMs2"),
+    std::string_view("light"),
+    std::string_view("linkConflict"),
+    std::string_view("linkState"),
+    std::string_view("loadDigest"),
+    std::string_view("loadFile"),
+    std::string_view("loinc"),
+    std::string_view("maxAgeS"),
+    std::string_view("meanHrBpm"),
+    std::string_view("meanNnMs"),
+    std::string_view("metric"),
+    std::string_view("movement"),
+    std::string_view("movementLevel"),
+    std::string_view("nnCount"),
+    std::string_view("object"),
+    std::string_view("othersCount"),
+    std::string_view("outboxDepth"),
+    std::string_view("output"),
+    std::string_view("pWaveGapEnds"),
+    std::string_view("parent"),
+    std::string_view("parentLastHeard"),
+    std::string_view("peaks"),
+    std::string_view("pid"),
+    std::string_view("pnn50Pct"),
+    std::string_view("predicate"),
+    std::string_view("program"),
+    std::string_view("programState"),
+    std::string_view("programsAt"),
+    std::string_view("quantity"),
+    std::string_view("queryArea"),
+    std::string_view("queryCascade"),
+    std::string_view("queryFloor"),
+    std::string_view("queryLimit"),
+    std::string_view("queryObject"),
+    std::string_view("queryPredicate"),
+    std::string_view("querySince"),
+    std::string_view("querySubject"),
+    std::string_view("queryTarget"),
+    std::string_view("queryTimeout"),
+    std::string_view("queryUntil"),
+    std::string_view("recording"),
+    std::string_view("replayedFrom"),
+    std::string_view("replyTo"),
+    std::string_view("restarts"),
+    std::string_view("rmssdMs"),
+    std::string_view("robustSd"),
+    std::string_view("room"),
+    std::string_view("rrCount"),
+    std::string_view("sampleFormat"),
+    std::string_view("samples"),
+    std::string_view("samplingRate"),
+    std::string_view("sd1Ms"),
+    std::string_view("sd2Ms"),
+    std::string_view("sdnnMs"),
+    std::string_view("senses"),
+    std::string_view("sensorMaker"),
+    std::string_view("sensorModel"),
+    std::string_view("slopePerHour"),
+    std::string_view("softwareVersion"),
+    std::string_view("source"),
+    std::string_view("startSample"),
+    std::string_view("state"),
+    std::string_view("stepSeconds"),
+    std::string_view("subject"),
+    std::string_view("subscriber"),
+    std::string_view("temperature"),
+    std::string_view("temperatureAt"),
+    std::string_view("thresholdAbove"),
+    std::string_view("thresholdPeriodS"),
+    std::string_view("toSample"),
+    std::string_view("unit"),
+    std::string_view("uplinkRefusal"),
+    std::string_view("uplinkState"),
+    std::string_view("validTimeS"),
+    std::string_view("windowEndS"),
+    std::string_view("windowSeconds"),
+    std::string_view("windowStartS"),
+    std::string_view("windows"),
+    std::string_view("zAgainstOthers"),
+};
+
+// Levenshtein distance, for the suggestion (the terms are short).
+std::size_t edits(std::string_view a, std::string_view b) {
+  std::vector<std::size_t> row(b.size() + 1);
+  for (std::size_t j = 0; j <= b.size(); ++j) row[j] = j;
+  for (std::size_t i = 1; i <= a.size(); ++i) {
+    std::size_t diagonal = row[0];
+    row[0] = i;
+    for (std::size_t j = 1; j <= b.size(); ++j) {
+      const std::size_t above = row[j];
+      row[j] = std::min({row[j] + 1, row[j - 1] + 1, diagonal + (a[i - 1] == b[j - 1] ? 0 : 1)});
+      diagonal = above;
+    }
+  }
+  return row[b.size()];
+}
+
+}  // namespace
+
+bool is_tahvel_term(std::string_view local_name) {
+  return std::binary_search(kTerms.begin(), kTerms.end(), local_name);
+}
+
+std::optional<std::string_view> nearest_tahvel_term(std::string_view local_name) {
+  std::optional<std::string_view> best;
+  std::size_t best_edits = 4;  // more than 3 edits away is another word, not a slip
+  for (std::string_view term : kTerms) {
+    const std::size_t e = edits(local_name, term);
+    if (e < best_edits) best_edits = e, best = term;
+  }
+  return best;
+}
+
+}  // namespace tahvel::cli
