@@ -5,8 +5,10 @@
 #include <chrono>
 #include <thread>
 
+#include <fcntl.h>
 #include <unistd.h>
 
+#include <cerrno>
 #include <cstdio>
 #include <map>
 #include <random>
@@ -18,6 +20,9 @@ namespace tahvel::node::detail {
 namespace {
 
 constexpr std::uint64_t kInitialMapBytes = 64ull << 20;
+// How far beyond the last page in use the data file's blocks are allocated (reserve_disk): more
+// than a write transaction of the store's usual size dirties in new pages.
+constexpr std::uint64_t kDiskAhead = 16ull << 20;
 constexpr unsigned kMaxReaders = 510;
 constexpr unsigned kMaxTables = 16;
 
@@ -358,8 +363,39 @@ Result<void> Env::grow(WriteKind kind) {
   return {};
 }
 
+Result<void> Env::reserve_disk(WriteKind kind) {
+  MDB_envinfo info;
+  MDB_stat stat;
+  if (mdb_env_info(env_, &info) != 0 || mdb_env_stat(env_, &stat) != 0) return {};
+  const std::uint64_t page = stat.ms_psize;
+  const std::uint64_t in_use = (info.me_last_pgno + 1) * page;
+  const std::uint64_t want = std::min<std::uint64_t>(info.me_mapsize, in_use + kDiskAhead);
+  const std::uint64_t reserved = disk_reserved_.load();
+  if (want <= reserved) return {};
+  int fd = -1;
+  if (mdb_env_get_fd(env_, &fd) != 0) return {};
+  // fallocate, not posix_fallocate: where the filesystem cannot, glibc's emulation writes a byte
+  // into every block of the range.
+  const int rc = fallocate(fd, 0, static_cast<off_t>(reserved), static_cast<off_t>(want - reserved)) == 0 ? 0 : errno;
+  if (rc == 0) {
+    disk_reserved_.store(want);
+    return {};
+  }
+  // A removal frees space and mostly reuses pages: it goes on within what is already allocated.
+  if (rc == ENOSPC && kind == WriteKind::removal && reserved >= in_use + (1u << 20)) return {};
+  if (rc == ENOSPC)
+    return fail(Errc::store_full, "store full: the disk holding " + dir_.string() + " has no room left for the store to grow (" +
+                                      std::to_string(want / (1 << 20)) + " MB wanted); free some space");
+  if (rc == EOPNOTSUPP || rc == ENOSYS || rc == EINVAL) {
+    disk_reserved_.store(~0ull);  // this filesystem cannot: as before, without the reserve
+    return {};
+  }
+  return fail(Errc::io, "reserving disk space for " + dir_.string() + ": " + std::strerror(rc));
+}
+
 Result<void> Env::write(const std::function<Result<void>(Txn&)>& body, WriteKind kind) {
   for (;;) {
+    if (auto r = reserve_disk(kind); !r) return r;
     MDB_txn* raw = nullptr;
     if (auto r = begin(&raw, 0); !r) return r;
     Txn txn(*this, raw);

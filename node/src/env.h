@@ -194,6 +194,14 @@ class Env {
   Result<void> open_tables(MDB_txn* txn, bool create);
   Result<void> grow(WriteKind kind);
   Result<void> begin(MDB_txn** txn, unsigned flags);
+  // With MDB_WRITEMAP the data file is as large as the map but sparse: a page written where the
+  // file has no block yet takes one from the filesystem, and on a full disk that is SIGBUS in
+  // whichever process writes (the supervisor included), not an error. So before each write the
+  // file's blocks are allocated (fallocate) up to kDiskAhead beyond the last page in use; a full
+  // disk is then a store_full error naming it (a removal goes on within what is allocated).
+  // Filesystems without fallocate are left as they were.
+  Result<void> reserve_disk(WriteKind kind);
+  std::atomic<std::uint64_t> disk_reserved_{0};  // bytes of the file allocated by this process
 
   // Read transactions reset after use, renewed by the next begin_read (a handful: one per
   // thread that reads at once is enough).
