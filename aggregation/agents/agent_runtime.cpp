@@ -7,6 +7,8 @@
 #include <cstdlib>
 #include <iostream>
 #include <set>
+#include <thread>
+#include <algorithm>
 
 #include "tahvel/node/format.h"
 
@@ -74,6 +76,26 @@ void install_stop_handlers() {
 }
 
 bool stop_requested() { return g_stop != 0; }
+
+namespace {
+constexpr std::chrono::milliseconds kStopCheck{100};
+}  // namespace
+
+bool pause_unless_stopped(std::chrono::nanoseconds duration) {
+  const auto until = std::chrono::steady_clock::now() + duration;
+  for (auto now = std::chrono::steady_clock::now(); now < until && !stop_requested(); now = std::chrono::steady_clock::now())
+    std::this_thread::sleep_for(std::min<std::chrono::nanoseconds>(until - now, kStopCheck));
+  return !stop_requested();
+}
+
+node::Result<std::optional<node::Delivery>> take_unless_stopped(node::Agent& agent, std::chrono::milliseconds timeout) {
+  const auto until = std::chrono::steady_clock::now() + timeout;
+  for (;;) {
+    const auto left = std::chrono::duration_cast<std::chrono::milliseconds>(until - std::chrono::steady_clock::now());
+    auto taken = agent.take(std::clamp(left, std::chrono::milliseconds(0), kStopCheck));
+    if (!taken || *taken || stop_requested() || left <= kStopCheck) return taken;
+  }
+}
 
 void log_line(const std::string& program, const std::string& message) {
   std::cerr << (node::log_stamp() + " " + program + ": " + message + "\n") << std::flush;

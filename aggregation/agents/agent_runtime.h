@@ -53,6 +53,12 @@ class Args {
 // SIGINT and SIGTERM set a flag that the loops below test; the current item is finished first.
 void install_stop_handlers();
 bool stop_requested();
+// Sleeps for `duration`, or until SIGINT/SIGTERM; false when stopped. A plain sleep_for goes on
+// sleeping after the signal, and the supervisor kills what has not ended within 5 s.
+bool pause_unless_stopped(std::chrono::nanoseconds duration);
+// Takes the next item of `agent`'s input buffer within `timeout`, in slices that notice a stop
+// request; nullopt after the timeout or a stop.
+node::Result<std::optional<node::Delivery>> take_unless_stopped(node::Agent& agent, std::chrono::milliseconds timeout);
 
 // "<UTC time> <program>: <message>" on stderr, one line (node::log_stamp).
 void log_line(const std::string& program, const std::string& message);

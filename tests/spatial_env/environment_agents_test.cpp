@@ -11,10 +11,12 @@
 #include <algorithm>
 #include <filesystem>
 #include <map>
+#include <thread>
 
 #include <gtest/gtest.h>
 
 #include "tahvel/spatial/environment_board.h"
+#include "agent_process.h"
 #include "temp_dir.h"
 
 namespace tahvel::spatial {
@@ -176,6 +178,20 @@ TEST_F(EnvironmentAgents, ARoomWithNoFreshReadingShowsUnknown) {
   EXPECT_EQ(environment("bedroom", "temperature"), "unknown");
   EXPECT_NE(environment("kitchen", "humidity"), "unknown");     // still sensed every 600 s
   EXPECT_NE(environment("living", "movementLevel"), "unknown");
+}
+
+// Both programs run under the supervisor, which sends SIGTERM and kills what has not ended 5 s
+// later (every `down` took 5 s per home, the environment agent waiting out its 60 s interval).
+TEST_F(EnvironmentAgents, BothProgramsEndCleanlyOnSigtermWhileWaiting) {
+  for (const auto& argv : {std::vector<std::string>{bin("tahvel-environment"), store_, "--interval-s", "60"},
+                           std::vector<std::string>{bin("tahvel-env-motes"), store_, "--step-s", "60"}}) {
+    tahvel::test_support::AgentProcess program(argv, (dir_ / "stderr").string());
+    std::this_thread::sleep_for(std::chrono::milliseconds(700));  // in its wait, past its first round
+    ASSERT_EQ(program.poll(), -1) << argv[0] << " ended by itself";
+    const auto asked = std::chrono::steady_clock::now();
+    EXPECT_EQ(program.stop(), 0) << argv[0];
+    EXPECT_LT(std::chrono::steady_clock::now() - asked, std::chrono::seconds(5)) << argv[0] << " outlived the supervisor's grace";
+  }
 }
 
 }  // namespace

@@ -229,7 +229,7 @@ int run(int argc, char** argv) {
     if (virtual_time) {
       now += step_ns;
     } else {
-      std::this_thread::sleep_for(std::chrono::nanoseconds(step_ns));
+      if (!rt::pause_unless_stopped(std::chrono::nanoseconds(step_ns))) break;
       now = wall_ns();
     }
   }

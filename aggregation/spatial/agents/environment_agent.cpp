@@ -105,7 +105,7 @@ int run(int argc, char** argv) {
       rt::log_line(kProgram, *e);
       return rt::kExitError;
     }
-    auto taken = session->agent.take(timeout);  // a reading, or the interval
+    auto taken = rt::take_unless_stopped(session->agent, timeout);  // a reading, the interval, or a stop
     if (!taken) {
       rt::log_line(kProgram, taken.error().message);
       return rt::kExitError;
