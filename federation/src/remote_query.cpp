@@ -25,6 +25,11 @@ using node::Term;
 // Answer items read per round at most: the origin's link keeps no more than its window (32
 // chunks beyond those read) waiting on the board.
 constexpr std::size_t kChunksPerRound = 64;
+// While the answer is awaited, whether this node's link still runs is looked at this often; one
+// that stopped (`tahvel down`) for longer than kLinkGone ends the query as unreachable, rather
+// than at its timeout. A link that restarts within it tells the asker itself (link_restarted).
+constexpr std::chrono::milliseconds kLinkCheckEvery{500};
+constexpr std::chrono::milliseconds kLinkGone{3000};
 
 const Term* object_of(const std::vector<node::Record>& records, const std::string& predicate) {
   for (const auto& r : records)
@@ -138,6 +143,8 @@ Result<std::uint64_t> remote_query(node::Node& node, const RemoteQuery& query,
   std::int64_t next_chunk = 1, last_chunk = 0;
   std::uint64_t read_through = 0;  // the answer items read so far: those up to this id
   std::map<std::int64_t, std::vector<node::Record>> early;  // chunks ahead of the next one
+  constexpr auto kServing = std::chrono::steady_clock::time_point::max();
+  auto unserved_since = kServing;  // since when the link is seen gone
   bool done = false;
   while (!done) {
     auto left = std::chrono::duration_cast<std::chrono::milliseconds>(deadline - std::chrono::steady_clock::now());
@@ -152,9 +159,21 @@ Result<std::uint64_t> remote_query(node::Node& node, const RemoteQuery& query,
     }
     // Every answer item waiting is read, then all go off the board in one transaction: one commit
     // (one sync, on a durable store) per round rather than two per chunk (a take, a removal).
-    auto got = agent->peek(read_through, kChunksPerRound, cancelled ? std::min(left, std::chrono::milliseconds(100)) : left);
+    auto got = agent->peek(read_through, kChunksPerRound,
+                           std::min(left, cancelled ? std::chrono::milliseconds(100) : kLinkCheckEvery));
     if (!got) return Unexpected<Error>{got.error()};
-    if (got->empty()) continue;
+    if (got->empty()) {
+      if (link_serving(node.dir())) {
+        unserved_since = kServing;
+      } else if (unserved_since == kServing) {
+        unserved_since = std::chrono::steady_clock::now();
+      } else if (std::chrono::steady_clock::now() - unserved_since >= kLinkGone) {
+        return node::fail(Errc::io, "unreachable: the link of <" + self + "> stopped while the query ran (nothing holds " +
+                                        (node.dir() / kServingLockFile).string() + "), after " + std::to_string(delivered) +
+                                        " records from <" + *target + ">; what was not printed is lost: ask again once it runs");
+      }
+      continue;
+    }
     const std::size_t first_unremoved = to_remove.size();
     for (const node::Delivery& delivery : *got) {
       read_through = delivery.item;

@@ -1471,6 +1471,17 @@ TEST(Link, AQueryWhoseTargetGoesSilentMidAnswerEndsUnreachable) {
   expect_query_ends_early_with(query, "unreachable: <" + kHome1 + "> went silent at <" + kHospital + "> after ", 120);
 }
 
+// The asking node's own link is stopped (`tahvel down`) while the answer comes: nothing will
+// bring the rest, so the asker ends as unreachable a few seconds later, not at its timeout of
+// a minute (a restart would have told it link_restarted).
+TEST(Link, AQueryWhoseOriginsLinkStopsMidAnswerEndsUnreachable) {
+  PausedAnswer answer;
+  ASSERT_TRUE(answer.under_way());
+  auto& [tree, tap, query] = answer;
+  tree.hospital.reset();
+  expect_query_ends_early_with(query, "unreachable: the link of <" + kHospital + "> stopped while the query ran", 120);
+}
+
 // P15: the node in the middle (home1, between the hospital and its sensor) restarts while an
 // answer from the sensor passes through it. Its new run has no such stream: the sensor's next
 // chunks, or the hospital's ack sent again, are answered with link_restarted up to the asker.
