@@ -629,6 +629,19 @@ struct ProgramRow {
   std::string name, pid, state, restarts, last_exit;
 };
 
+// A running supervisor rewrites its state file every 100 ms; one that has not for this long is
+// stopped (SIGSTOP), hung, or held up (a write to a store it waits for), and what the file says
+// of its programs is not known to be true now.
+constexpr double kSupervisorSilentS = 5;
+
+// Seconds since the state file beside `pid_file` was written; 0 when there is none.
+double state_file_silent_for(const fs::path& pid_file) {
+  std::error_code ec;
+  const auto written = fs::last_write_time(fs::path(pid_file).replace_extension(".state"), ec);
+  if (ec) return 0;
+  return std::chrono::duration<double>(fs::file_time_type::clock::now() - written).count();
+}
+
 // The programs' rows of every supervisor's state file in `dir`. A supervisor rewrites its file
 // every 100 ms while it runs; one that was killed leaves its last rows behind, and its programs
 // died with it (PR_SET_PDEATHSIG), so those rows say so instead of "running". A node brought up
@@ -639,6 +652,7 @@ std::vector<ProgramRow> read_state_files(const fs::path& dir) {
     fs::path path;
     bool supervised;
     fs::file_time_type written;
+    double silent_s;  // since it was written
   };
   std::vector<StateFile> files;
   std::error_code ec;
@@ -647,7 +661,8 @@ std::vector<ProgramRow> read_state_files(const fs::path& dir) {
     fs::path pid_file = entry.path();
     pid_file.replace_extension(".pid");
     std::error_code time_ec;
-    files.push_back({entry.path(), supervisor_holding(pid_file) != 0, fs::last_write_time(entry.path(), time_ec)});
+    files.push_back({entry.path(), supervisor_holding(pid_file) != 0, fs::last_write_time(entry.path(), time_ec),
+                     state_file_silent_for(pid_file)});
   }
   std::sort(files.begin(), files.end(), [](const StateFile& a, const StateFile& b) {
     return a.supervised != b.supervised ? a.supervised : a.written > b.written;
@@ -665,6 +680,9 @@ std::vector<ProgramRow> read_state_files(const fs::path& dir) {
       f.resize(5);
       if (!shown.insert(f[0]).second) continue;
       if (!file.supervised && f[2].rfind("stopped", 0) != 0) f[2] = "stopped (its supervisor is not running)";
+      if (file.supervised && file.silent_s > kSupervisorSilentS)
+        f[2] = "unknown: its supervisor has not written its state for " + seconds_text(file.silent_s) +
+               " (stopped, hung or held up); it last said " + f[2];
       rows.push_back({f[0], f[1], f[2], f[3], f[4]});
     }
   }
@@ -1140,6 +1158,11 @@ int ask_to_apply(pid_t supervisor, const fs::path& pid_file, const fs::path& fil
   } turn{::open(fs::path(pid_file).replace_extension(".apply.lock").c_str(), O_RDWR | O_CREAT | O_CLOEXEC, 0644)};
   if (turn.fd < 0 || flock(turn.fd, LOCK_EX) != 0)
     fail(fs::path(pid_file).replace_extension(".apply.lock").string() + ": " + std::strerror(errno));
+  // A supervisor stopped with SIGSTOP (or hung) takes the signal and never answers.
+  if (const double silent = state_file_silent_for(pid_file); silent > kSupervisorSilentS)
+    fail("the supervisor " + std::to_string(supervisor) + " has not written its state for " + seconds_text(silent) +
+         " (stopped, hung or held up): nothing applied. If it was stopped, 'kill -CONT " + std::to_string(supervisor) +
+         "'; its log is " + (pid_file.parent_path() / "logs" / "supervisor.log").string());
   const std::string id = std::to_string(getpid()) + "-" +
                          std::to_string(std::chrono::steady_clock::now().time_since_epoch().count());
   write_whole(apply_request_file(pid_file), id + "\n" + fs::absolute(file).string() + "\n");

@@ -960,6 +960,29 @@ TEST_F(Cli, UpWarnsOfAForwardTermOutsideTheVocabularyAndSaysOnceWhenTheDefaultPo
   EXPECT_EQ(run({"down", "--state", state}).status, 0);
 }
 
+// A supervisor stopped with SIGSTOP (or hung) still holds its lock, and its state file still
+// says "running" of programs that may have died: status says what it knows is old, and `up`
+// says at once that nothing will answer instead of waiting a minute for it.
+TEST_F(Cli, AStoppedSupervisorsProgramsAreShownAsUnknownAndUpSaysItWillNotAnswer) {
+  const std::string file = (tmp_ / "node.toml").string(), state = (tmp_ / "state").string();
+  spit(file, kIdleNodeToml);
+  ASSERT_EQ(run({"up", file, "--state", state}).status, 0);
+  ASSERT_TRUE(eventually([&] { return run({"status", "--state", state}).out.find("idle  running (pid") != std::string::npos; }));
+  const pid_t supervisor = std::atoi(slurp(tmp_ / "state" / "supervisor-all.pid").c_str());
+  ASSERT_GT(supervisor, 0);
+  ASSERT_EQ(kill(supervisor, SIGSTOP), 0);
+  std::this_thread::sleep_for(std::chrono::milliseconds(5500));
+  Outcome shown = run({"status", "--state", state});
+  Outcome up = run({"up", file, "--state", state});
+  kill(supervisor, SIGCONT);
+  EXPECT_NE(shown.out.find("idle  unknown: its supervisor has not written its state for "), std::string::npos) << shown.out;
+  EXPECT_NE(shown.out.find("(stopped, hung or held up); it last said running"), std::string::npos) << shown.out;
+  EXPECT_EQ(up.status, 1);
+  EXPECT_NE(up.err.find("the supervisor " + std::to_string(supervisor) + " has not written its state for "), std::string::npos) << up.err;
+  EXPECT_TRUE(eventually([&] { return run({"status", "--state", state}).out.find("idle  running (pid") != std::string::npos; }));
+  EXPECT_EQ(run({"down", "--state", state}).status, 0);
+}
+
 TEST_F(Cli, UpAgainAppliesAnEditedFileToTheRunningSupervisor) {
   const std::string file = (tmp_ / "node.toml").string(), state = (tmp_ / "state").string();
   spit(file, kIdleNodeToml);
