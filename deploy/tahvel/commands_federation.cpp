@@ -875,6 +875,10 @@ void write_whole(const fs::path& file, const std::string& text) {
 
 // The programs `up` runs for the nodes `mine`: each node's link (when it has a parent or
 // children) and its agents, as the supervisor starts them.
+// The longest a node's link waits before it is started again: the node's items, its
+// configuration and queries to it wait for it (other programs back off up to 30 s).
+constexpr std::chrono::milliseconds kLinkMaxBackOff{2000};
+
 std::vector<agents::ProgramSpec> programs_of(const Topology& topo, const std::vector<const NodeSpec*>& mine,
                                              const fs::path& state, const fs::path& bin) {
   std::vector<agents::ProgramSpec> programs;
@@ -882,7 +886,7 @@ std::vector<agents::ProgramSpec> programs_of(const Topology& topo, const std::ve
     const fs::path store = state / spec->id;
     if (!spec->parent.empty() || !topo.children(spec->id).empty())
       programs.push_back({spec->id + "/link", link_argv(topo, *spec, store, bin), state / "logs" / spec->id / "link.log", {},
-                          agents::Restart::always});
+                          agents::Restart::always, kLinkMaxBackOff});
     for (const AgentSpec& agent : spec->agents)
       programs.push_back({spec->id + "/" + agent.id, check(expand_agent_command(agent, *spec, store, bin)),
                           state / "logs" / spec->id / (agent.id + ".log"), {}, agent.restart});

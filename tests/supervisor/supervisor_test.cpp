@@ -85,6 +85,16 @@ TEST_F(SupervisorTest, AProgramThatFailsIsStartedAgainWithBackOffAndTheLogSaysWh
   EXPECT_TRUE(logged("agent exited with status 3; restarting in 80 ms"));  // up to the cap
 }
 
+// A program may cap its own back-off below the supervisor's (a node's link: all else waits for it).
+TEST_F(SupervisorTest, AProgramsOwnBackOffCapHoldsBelowTheSupervisors) {
+  ASSERT_TRUE(supervisor_.start({.name = "link", .argv = {"/bin/sh", "-c", "exit 3"}, .restart = Restart::always,
+                                 .max_delay = 40ms}).has_value());
+  ASSERT_TRUE(poll_until([&] { return supervisor_.state("link")->restarts >= 4; }));
+  EXPECT_TRUE(logged("link exited with status 3; restarting in 20 ms"));
+  EXPECT_TRUE(logged("link exited with status 3; restarting in 40 ms"));
+  EXPECT_FALSE(logged("link exited with status 3; restarting in 80 ms"));
+}
+
 // A program that fails most often says why as it goes: the last line of its log goes with its
 // exit (to `status`, and through the board to the machines above), cut to a line's length.
 TEST_F(SupervisorTest, AFailedProgramsLastExitEndsWithTheLastLineOfItsLog) {
@@ -99,13 +109,13 @@ TEST_F(SupervisorTest, AFailedProgramsLastExitEndsWithTheLastLineOfItsLog) {
   EXPECT_EQ(run_to_end("bad-flag", "echo starting; echo \"tahvel-hrv: unknown flag '--windw'\" >&2; echo; exit 2"),
             "exited with status 2 (its log ends: tahvel-hrv: unknown flag '--windw')");
   const std::string said = run_to_end("long", "printf 'x%.0s' $(seq 300) >&2; exit 1");
-  EXPECT_EQ(said, "exited with status 1 (its log ends: " + std::string(160, 'x') + "...)");
+  EXPECT_EQ(said, "exited with status 1 (its log ends: " + std::string(240, 'x') + "...)");
   EXPECT_EQ(run_to_end("silent", "exit 4"), "exited with status 4");
   EXPECT_EQ(run_to_end("fine", "echo all done; exit 0"), "exited with status 0");  // not a failure
   EXPECT_EQ(run_to_end("tabs", "printf 'a\\tb\\n' >&2; exit 1"), "exited with status 1 (its log ends: a b)");
-  // Cut at a character, not inside one: 159 bytes and a 2-byte "é" that would end at 161.
-  EXPECT_EQ(run_to_end("accents", "printf '%159s\\303\\251tail' x >&2; exit 1"),
-            "exited with status 1 (its log ends: " + std::string(158, ' ') + "x...)");
+  // Cut at a character, not inside one: 239 bytes and a 2-byte "é" that would end at 241.
+  EXPECT_EQ(run_to_end("accents", "printf '%239s\\303\\251tail' x >&2; exit 1"),
+            "exited with status 1 (its log ends: " + std::string(238, ' ') + "x...)");
   // Each run appends to the same log: a run that wrote nothing has nothing to say, not the line
   // of a run before it.
   std::ofstream(dir / "quiet.log") << "connected to the hospital\n";

@@ -36,7 +36,7 @@ namespace {
 // What a program that failed wrote last is most often why, and an operator reading `status` on
 // the machine above should not need the log on this one to know it: a failed run's last line
 // goes with its exit, at most this long.
-constexpr std::size_t kLastLineBytes = 160;
+constexpr std::size_t kLastLineBytes = 240;
 
 // The size of `file` now (0 when it is not there): where the output of a run about to start
 // begins, since every run of a program appends to the same log.
@@ -198,7 +198,8 @@ void Supervisor::reaped(Program& program, int status) {
   program.restart_at = Clock::now() + program.delay;
   log_(program.spec.name + " " + program.state.last_exit + "; restarting in " +
        std::to_string(program.delay.count()) + " ms");
-  program.delay = std::min(program.delay * 2, back_off_.max);
+  const auto cap = program.spec.max_delay.count() > 0 ? std::min(program.spec.max_delay, back_off_.max) : back_off_.max;
+  program.delay = std::min(program.delay * 2, cap);
 }
 
 void Supervisor::poll() {

@@ -47,6 +47,9 @@ struct ProgramSpec {
   std::filesystem::path log_file;    // stdout and stderr are appended here (empty: inherited)
   std::vector<std::pair<std::string, std::string>> env;  // added to the environment
   Restart restart = Restart::on_failure;
+  // Caps this program's back-off below the supervisor's BackOff::max (zero: no cap of its own).
+  // A node's link is what all else on it waits for: it is not left down for 30 s.
+  std::chrono::milliseconds max_delay{0};
 };
 
 struct ProgramState {
