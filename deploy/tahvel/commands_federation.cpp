@@ -2,6 +2,7 @@
 // (a remote query from this node down the tree), `tahvel up` / `tahvel down` (a deployment from
 // a topology file under a supervisor) and `tahvel status` (the tree of nodes and agents).
 #include <fcntl.h>
+#include <sys/statvfs.h>
 #include <signal.h>
 #include <sys/file.h>
 #include <sys/stat.h>
@@ -1491,7 +1492,27 @@ struct StatusNode {
   std::string programs_unknown_because, children_unknown_because;
   std::int64_t programs_at = 0;
   bool programs_current = true;  // a remote node's: read now, and rewritten recently
+  std::string store_warning;     // a local store near its maximum, or its disk near full
 };
+
+// What an operator must know of a store here before anything else: writes to it are refused
+// or soon will be (at 90% of its maximum, or under 64 MB free on its disk; its programs then
+// fail, and its link cannot even write its children's state). Empty when there is room.
+std::string store_warning(const node::Node& node, const fs::path& dir) {
+  constexpr double kMB = 1 << 20;
+  std::ostringstream said;
+  said.precision(1);
+  said << std::fixed;
+  if (auto st = node.stats(); st && st->max_map_bytes > 0 && st->used_bytes * 10 >= st->max_map_bytes * 9)
+    said << st->used_bytes / kMB << " MB of its maximum " << st->max_map_bytes / kMB
+         << " MB used: writes that do not fit are refused";
+  struct statvfs disk {};
+  if (statvfs(dir.c_str(), &disk) == 0) {
+    const double free_mb = static_cast<double>(disk.f_bavail) * static_cast<double>(disk.f_frsize) / kMB;
+    if (free_mb < 64) said << (said.tellp() > 0 ? "; " : "") << "the disk holding it has " << free_mb << " MB free";
+  }
+  return said.str();
+}
 
 // The fields of each item with a triple of `predicate`, by the item's subject.
 void read_state_items(const node::Snapshot& snap, const std::string& predicate, std::map<std::string, Fields>& by_subject) {
@@ -1642,6 +1663,7 @@ int run_status(const Args& args) {
       continue;
     }
     nodes.push_back({.id = entry.path().filename().string(), .iri = node->iri()});
+    nodes.back().store_warning = store_warning(*node, entry.path());
     store_of[node->iri()] = entry.path();
     auto snap = node->snapshot();
     if (!snap) continue;
@@ -1849,6 +1871,8 @@ int run_status(const Args& args) {
       std::cout << ",\"programs_written_ns\":" << (n.remote && n.programs_at > 0 ? std::to_string(n.programs_at) : "null")
                 << ",\"children_unknown_because\":";
       print_json_string_or_null(n.children_unknown_because);
+      std::cout << ",\"store_warning\":";
+      print_json_string_or_null(n.store_warning);
       std::cout << "}";
       continue;
     }
@@ -1867,6 +1891,7 @@ int run_status(const Args& args) {
     else if (depth == 0 && !left)
       std::cout << "  (root)";
     std::cout << "\n";
+    if (!n.store_warning.empty()) std::cout << indent << "  STORE " << n.store_warning << "\n";
     if (n.remote && !programs_unknown_because.empty() && programs_unknown_because == n.children_unknown_because) {
       std::cout << indent << "  programs and children unknown: " << programs_unknown_because << "\n";
     } else {

@@ -615,7 +615,7 @@ TEST_F(Cli, StatusJsonHasEachNodesLinkAndPrograms) {
   EXPECT_NE(json.out.find("\"last_exit\":\"exited with status 3 (its log ends: flaky: no widget)\"}"), std::string::npos) << json.out;
   // A local node's programs come from its supervisor's state file: known, and written nowhere.
   EXPECT_TRUE(json.out.ends_with("}],\"programs_known\":true,\"programs_unknown_because\":null,\"programs_written_ns\":null,"
-                                  "\"children_unknown_because\":null}]}\n"))
+                                  "\"children_unknown_because\":null,\"store_warning\":null}]}\n"))
       << json.out;
   EXPECT_EQ(run({"down", "--state", state}).status, 0);
 }
@@ -981,6 +981,28 @@ TEST_F(Cli, AStoppedSupervisorsProgramsAreShownAsUnknownAndUpSaysItWillNotAnswer
   EXPECT_NE(up.err.find("the supervisor " + std::to_string(supervisor) + " has not written its state for "), std::string::npos) << up.err;
   EXPECT_TRUE(eventually([&] { return run({"status", "--state", state}).out.find("idle  running (pid") != std::string::npos; }));
   EXPECT_EQ(run({"down", "--state", state}).status, 0);
+}
+
+// A store at its maximum refuses writes; its programs then fail and its link cannot write its
+// children's state, which `status` showed as a frozen link. It says the store is full first.
+TEST_F(Cli, StatusSaysWhenAStoreIsFull) {
+  const fs::path state = tmp_ / "state";
+  ASSERT_EQ(run({"init", (state / "solo").string(), "--iri", "http://example.org/solo", "--max-map", "2097152"}).status, 0);
+  const std::string literal(100000, 'x');  // each with its number: one literal is stored once
+  Outcome put;
+  for (int i = 0; i < 100 && (put = run({"put", (state / "solo").string(), "--format", "nt"},
+                                         "<http://example.org/solo/r" + std::to_string(i) + "> <http://example.org/p> \"" +
+                                             literal + std::to_string(i) + "\" .\n")).status == 0;
+       ++i) {
+  }
+  ASSERT_NE(put.status, 0) << "2 MB took 10 MB";
+  Outcome shown = run({"status", "--state", state.string(), "--local"});
+  EXPECT_NE(shown.out.find("solo  <http://example.org/solo>"), std::string::npos) << shown.out;
+  EXPECT_NE(shown.out.find("\n  STORE 1."), std::string::npos) << shown.out;  // 1.8 to 2.0 MB of 2
+  EXPECT_NE(shown.out.find(" MB of its maximum 2.0 MB used: writes that do not fit are refused\n"), std::string::npos) << shown.out;
+  Outcome json = run({"status", "--state", state.string(), "--local", "--json"});
+  EXPECT_NE(json.out.find("\"store_warning\":\""), std::string::npos) << json.out;
+  EXPECT_NE(json.out.find(" MB of its maximum 2.0 MB used: "), std::string::npos) << json.out;
 }
 
 TEST_F(Cli, UpAgainAppliesAnEditedFileToTheRunningSupervisor) {
