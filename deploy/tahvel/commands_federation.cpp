@@ -876,6 +876,22 @@ void write_whole(const fs::path& file, const std::string& text) {
 
 // The programs `up` runs for the nodes `mine`: each node's link (when it has a parent or
 // children) and its agents, as the supervisor starts them.
+// The Cyclone DDS files a link's argv names, as a digest of their paths and bytes: the link reads
+// them when it starts, so a file edited in place changes the link as much as a changed flag, and
+// `up` restarts it (its argv alone is the same). Empty when it names none.
+std::string dds_config_digest(const std::vector<std::string>& argv) {
+  std::string named;
+  for (std::size_t i = 0; i + 1 < argv.size(); ++i) {
+    if (argv[i] != "--dds-config" && argv[i] != "--listen-dds-config") continue;
+    std::ifstream in(argv[i + 1], std::ios::binary);
+    named += argv[i + 1] + '\0' + std::string(std::istreambuf_iterator<char>(in), std::istreambuf_iterator<char>()) + '\0';
+  }
+  if (named.empty()) return {};
+  std::ostringstream hex;
+  hex << std::hex << std::hash<std::string>{}(named);
+  return hex.str();
+}
+
 // The longest a node's link waits before it is started again: the node's items, its
 // configuration and queries to it wait for it (other programs back off up to 30 s).
 constexpr std::chrono::milliseconds kLinkMaxBackOff{2000};
@@ -885,9 +901,13 @@ std::vector<agents::ProgramSpec> programs_of(const Topology& topo, const std::ve
   std::vector<agents::ProgramSpec> programs;
   for (const NodeSpec* spec : mine) {
     const fs::path store = state / spec->id;
-    if (!spec->parent.empty() || !topo.children(spec->id).empty())
-      programs.push_back({spec->id + "/link", link_argv(topo, *spec, store, bin), state / "logs" / spec->id / "link.log", {},
+    if (!spec->parent.empty() || !topo.children(spec->id).empty()) {
+      auto argv = link_argv(topo, *spec, store, bin);
+      std::vector<std::pair<std::string, std::string>> env;
+      if (auto digest = dds_config_digest(argv); !digest.empty()) env.emplace_back("TAHVEL_DDS_CONFIG_DIGEST", digest);
+      programs.push_back({spec->id + "/link", std::move(argv), state / "logs" / spec->id / "link.log", std::move(env),
                           agents::Restart::always, kLinkMaxBackOff});
+    }
     for (const AgentSpec& agent : spec->agents)
       programs.push_back({spec->id + "/" + agent.id, check(expand_agent_command(agent, *spec, store, bin)),
                           state / "logs" / spec->id / (agent.id + ".log"), {}, agent.restart});
@@ -1091,7 +1111,8 @@ class Deployment {
   }
   static std::string what_changed(const agents::ProgramSpec& was, const agents::ProgramSpec& now) {
     std::vector<std::string> what;
-    if (was.argv != now.argv || was.env != now.env) what.push_back("its command changed");
+    if (was.argv != now.argv) what.push_back("its command changed");
+    else if (was.env != now.env) what.push_back("a file it reads at start changed");
     if (was.restart != now.restart)
       what.push_back("restart \"" + std::string(agents::restart_name(was.restart)) + "\" -> \"" +
                      std::string(agents::restart_name(now.restart)) + "\"");

@@ -392,3 +392,20 @@ TEST_F(Deployment, AParentListeningOnLcmAndDdsServesAChildOnEach) {
     EXPECT_EQ(std::count(answer.out.begin(), answer.out.end(), '\n'), 5) << node << ": " << answer.out;
   }
 }
+
+// A Cyclone DDS file edited in place (the file's path, and so the link's command, unchanged) is
+// applied by the next `up`: the links that read it restart (it used to say "nothing to change").
+TEST_F(Deployment, UpAgainRestartsTheLinksThatReadAnEditedDdsConfiguration) {
+  fs::copy_file(std::string(TAHVEL_SOURCE_DIR) + "/deploy/cyclonedds-loopback.xml", root_ / "dds.xml");
+  write_topology("[[node]]\nid = \"ward\"\niri = \"" + kWard + "\"\nlisten = { kind = \"dds\", domain = 8, config = \"dds.xml\" }\n\n"
+                 "[[node]]\nid = \"bed\"\nparent = \"ward\"\n");
+  up();
+  std::string shown;
+  ASSERT_TRUE(eventually([&] { return (shown = status()).find("bed  <" + kWard + "/bed>  link up") != std::string::npos; })) << shown;
+  EXPECT_NE(up().find("nothing to change"), std::string::npos);
+  std::ofstream(root_ / "dds.xml", std::ios::app) << "<!-- edited -->\n";
+  const std::string applied = up();
+  EXPECT_NE(applied.find("up:   restarted ward/link (a file it reads at start changed)"), std::string::npos) << applied;
+  EXPECT_NE(applied.find("up:   restarted bed/link (a file it reads at start changed)"), std::string::npos) << applied;
+  EXPECT_TRUE(eventually([&] { return (shown = status()).find("bed  <" + kWard + "/bed>  link up") != std::string::npos; })) << shown;
+}
