@@ -23,6 +23,8 @@ constexpr std::uint64_t kInitialMapBytes = 64ull << 20;
 // How far beyond the last page in use the data file's blocks are allocated (reserve_disk): more
 // than a write transaction of the store's usual size dirties in new pages.
 constexpr std::uint64_t kDiskAhead = 16ull << 20;
+// Where the disk has less than that left: what must be allocated for a write to go on.
+constexpr std::uint64_t kDiskLeast = 4ull << 20;
 constexpr unsigned kMaxReaders = 510;
 constexpr unsigned kMaxTables = 16;
 
@@ -369,20 +371,35 @@ Result<void> Env::reserve_disk(WriteKind kind) {
   if (mdb_env_info(env_, &info) != 0 || mdb_env_stat(env_, &stat) != 0) return {};
   const std::uint64_t page = stat.ms_psize;
   const std::uint64_t in_use = (info.me_last_pgno + 1) * page;
-  const std::uint64_t want = std::min<std::uint64_t>(info.me_mapsize, in_use + kDiskAhead);
   const std::uint64_t reserved = disk_reserved_.load();
-  if (want <= reserved) return {};
+  if (std::min<std::uint64_t>(info.me_mapsize, in_use + kDiskAhead) <= reserved) return {};
+  // Twice the distance at a time: one fallocate (a filesystem transaction) per kDiskAhead of
+  // growth, not one per write.
+  const std::uint64_t want = std::min<std::uint64_t>(info.me_mapsize, in_use + 2 * kDiskAhead);
   int fd = -1;
   if (mdb_env_get_fd(env_, &fd) != 0) return {};
   // fallocate, not posix_fallocate: where the filesystem cannot, glibc's emulation writes a byte
-  // into every block of the range.
-  const int rc = fallocate(fd, 0, static_cast<off_t>(reserved), static_cast<off_t>(want - reserved)) == 0 ? 0 : errno;
+  // into every block of the range. Blocks already allocated cost nothing, so a range from 0 is
+  // as good as one from what this process reserved before.
+  auto allocate = [&](std::uint64_t from, std::uint64_t to) {
+    int rc = 0;
+    do rc = fallocate(fd, 0, static_cast<off_t>(from), static_cast<off_t>(to - from)) == 0 ? 0 : errno;
+    while (rc == EINTR);  // the agents' stop handlers do not restart system calls
+    return rc;
+  };
+  const int rc = allocate(reserved, want);
   if (rc == 0) {
     disk_reserved_.store(want);
     return {};
   }
-  // A removal frees space and mostly reuses pages: it goes on within what is already allocated.
-  if (rc == ENOSPC && kind == WriteKind::removal && reserved >= in_use + (1u << 20)) return {};
+  // Near a full disk the store goes on as long as a write's worth is there (kDiskLeast; a
+  // removal, which frees space and mostly reuses pages, with less): allocated already, by this
+  // process or another (a fresh `tahvel rm` on a full disk is how space is won back), or now.
+  if (rc == ENOSPC) {
+    const std::uint64_t least = kind == WriteKind::removal ? (1u << 20) : kDiskLeast;
+    const std::uint64_t enough = std::min<std::uint64_t>(info.me_mapsize, in_use + least);
+    if (enough <= reserved || allocate(0, enough) == 0) return {};
+  }
   if (rc == ENOSPC)
     return fail(Errc::store_full, "store full: the disk holding " + dir_.string() + " has no room left for the store to grow (" +
                                       std::to_string(want / (1 << 20)) + " MB wanted); free some space");

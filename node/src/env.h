@@ -199,7 +199,8 @@ class Env {
   // whichever process writes (the supervisor included), not an error. So before each write the
   // file's blocks are allocated (fallocate) up to kDiskAhead beyond the last page in use; a full
   // disk is then a store_full error naming it (a removal goes on within what is allocated).
-  // Filesystems without fallocate are left as they were.
+  // Filesystems without fallocate are left as they were. Checked before the transaction: one
+  // transaction that writes more than kDiskAhead of new pages is not covered.
   Result<void> reserve_disk(WriteKind kind);
   std::atomic<std::uint64_t> disk_reserved_{0};  // bytes of the file allocated by this process
 
