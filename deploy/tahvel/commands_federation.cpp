@@ -1142,7 +1142,11 @@ fs::path apply_request_file(const fs::path& pid_file) { return fs::path(pid_file
 fs::path apply_answer_file(const fs::path& pid_file) { return fs::path(pid_file).replace_extension(".applied"); }
 
 // In the running supervisor, on SIGHUP: applies the file the request names, and answers.
-void apply_requested(Deployment& deployment, const fs::path& pid_file, const agents::Supervisor::Log& log) {
+// `before_answer` runs once the file is applied, before the answer is written: the supervisor
+// writes its state there, since applying may take longer than kSupervisorSilentS and the `up`
+// next in turn must not take it for stopped.
+void apply_requested(Deployment& deployment, const fs::path& pid_file, const agents::Supervisor::Log& log,
+                     const std::function<void()>& before_answer) {
   std::ifstream in(apply_request_file(pid_file));
   std::string id, file;
   if (!std::getline(in, id) || !std::getline(in, file)) return log("up: SIGHUP without a request to apply a file: ignored");
@@ -1164,6 +1168,7 @@ void apply_requested(Deployment& deployment, const fs::path& pid_file, const age
       log("up: cannot apply " + file + ": " + f.message);
     }
   }
+  before_answer();
   try {
     write_whole(apply_answer_file(pid_file), answer);
   } catch (const Failure& f) {
@@ -1184,11 +1189,6 @@ int ask_to_apply(pid_t supervisor, const fs::path& pid_file, const fs::path& fil
   } turn{::open(fs::path(pid_file).replace_extension(".apply.lock").c_str(), O_RDWR | O_CREAT | O_CLOEXEC, 0644)};
   if (turn.fd < 0 || flock(turn.fd, LOCK_EX) != 0)
     fail(fs::path(pid_file).replace_extension(".apply.lock").string() + ": " + std::strerror(errno));
-  // A supervisor stopped with SIGSTOP (or hung) takes the signal and never answers.
-  if (const double silent = state_file_silent_for(pid_file); silent > kSupervisorSilentS)
-    fail("the supervisor " + std::to_string(supervisor) + " has not written its state for " + seconds_text(silent) +
-         " (stopped, hung or held up): nothing applied. If it was stopped, 'kill -CONT " + std::to_string(supervisor) +
-         "'; its log is " + (pid_file.parent_path() / "logs" / "supervisor.log").string());
   const std::string id = std::to_string(getpid()) + "-" +
                          std::to_string(std::chrono::steady_clock::now().time_since_epoch().count());
   write_whole(apply_request_file(pid_file), id + "\n" + fs::absolute(file).string() + "\n");
@@ -1233,6 +1233,12 @@ int run_up(const Args& args) {
   // once it is checked (below): `up` again after an edit adds a node, restarts what changed.
   const pid_t running = supervisor_holding(pid_file);
   if (running < 0) fail("a supervisor is starting (" + pid_file.string() + "); try again in a moment");
+  // A supervisor stopped with SIGSTOP (or hung) would never answer, and one stopped inside a
+  // write to a store would hold up this `up` at its own writes: said before anything is touched.
+  if (const double silent = running > 0 ? state_file_silent_for(pid_file) : 0; silent > kSupervisorSilentS)
+    fail("the supervisor " + std::to_string(running) + " has not written its state for " + seconds_text(silent) +
+         " (stopped, hung or held up): nothing applied. If it was stopped, 'kill -CONT " + std::to_string(running) +
+         "'; its log is " + (pid_file.parent_path() / "logs" / "supervisor.log").string());
   // One supervisor per node: `up --node X` beside `up` of the whole file would run X's link and
   // agents twice (two ECG sources writing every chunk twice).
   if (only) {
@@ -1402,7 +1408,7 @@ int run_up(const Args& args) {
     supervisor.poll();
     if (g_apply) {
       g_apply = 0;
-      apply_requested(deployment, pid_file, log);
+      apply_requested(deployment, pid_file, log, [&] { write_state_file(state_file, supervisor); });
     }
     deployment.poll(log);
     deployment.publish_programs(log);

@@ -169,7 +169,7 @@ class StoreFlips {
   // A hello or welcome named `store`, after `before` (empty: the first). True when that makes a
   // conflict that was not one before.
   bool saw(const std::string& before, const std::string& store, const std::string& who) {
-    if (before.empty() || before == store) return false;
+    if (before.empty() || store.empty() || before == store) return false;  // no id: a peer from before ids
     const auto now = Clock::now();
     flips_.push_back(now);
     while (!flips_.empty() && now - flips_.front() > kWindow) flips_.pop_front();
@@ -277,6 +277,7 @@ struct Link::Impl {
     // sensors of its LAN, DDS for nodes further away), and everything for this child goes there.
     Transport* via = nullptr;
     StoreFlips flips;  // hellos from two stores in turn
+    std::string conflict_written;  // what its state item on the board says of a conflict
     bool pumped = false;      // handed to the down pump (at its first hello)
     bool pump_dirty = false;  // the pump reads its queue again: a hello or an ack came
     bool state_dirty = true;
@@ -1930,6 +1931,7 @@ struct Link::Impl {
             end_answers_from(iri, "unreachable", "<" + iri + "> went silent at <" + self + ">");
           }
           if (child->connected && wall - child->state_written_ns > kStateRefreshNs) child->state_dirty = true;
+          if (child->flips.said() != child->conflict_written) child->state_dirty = true;  // a conflict ended (P6b)
           if (child->state_dirty) dirty.push_back(child);
         }
         for (auto& [key, out] : out_answers)
@@ -2215,6 +2217,7 @@ struct Link::Impl {
         for (std::size_t k = first; k < end; ++k) {
           Child& child = *dirty[k];
           items.push_back(state_item(child));
+          child.conflict_written = child.flips.said();
           child.state_dirty = false;
           child.state_written_ns = now_ns();
           previous.push_back({.s = node::Term::iri(child.iri), .source = link.iri()});

@@ -205,6 +205,8 @@ class Simulator {
 };
 
 int run(int argc, char** argv) {
+  // First: a SIGTERM while the store opens ends the program cleanly at its first check.
+  rt::install_stop_handlers();
   rt::Args args(argc, argv, {"--seed", "--start-ns", "--steps", "--step-s"}, {});
   const double step_s = args.number("--step-s", 10, 0.001);
   const auto seed = static_cast<std::uint32_t>(args.number("--seed", 1));
@@ -221,7 +223,6 @@ int run(int argc, char** argv) {
     rt::log_line(kProgram, opened.error().message);
     return rt::kExitError;
   }
-  rt::install_stop_handlers();
   Simulator simulator(*opened, seed);
   const auto step_ns = static_cast<std::int64_t>(step_s * 1e9);
   for (std::uint64_t i = 0; !rt::stop_requested() && (!virtual_time || i < steps); ++i) {

@@ -78,6 +78,8 @@ std::optional<std::string> update(rt::Session& session, std::int64_t now_ns, dou
 }
 
 int run(int argc, char** argv) {
+  // First: a SIGTERM while the store opens ends the program cleanly at its first check.
+  rt::install_stop_handlers();
   rt::Args args(argc, argv, {"--agent", "--valid-s", "--now-ns", "--interval-s", "--idle"}, {"--once"});
   const double valid_s = args.number("--valid-s", 900, 0.001);
   const double interval_s = args.number("--interval-s", 60, 0.01);
@@ -97,7 +99,6 @@ int run(int argc, char** argv) {
     return rt::kExitOk;
   }
   if (!rt::subscribe_predicates(*session, {"http://www.w3.org/ns/sosa/madeBySensor"})) return rt::kExitError;
-  rt::install_stop_handlers();
   auto last_input = std::chrono::steady_clock::now();
   const auto timeout = std::chrono::milliseconds(static_cast<std::int64_t>(interval_s * 1000));
   while (!rt::stop_requested()) {
