@@ -1222,7 +1222,9 @@ struct Link::Impl {
         out.error(via, opt.parent_iri, f.seq, {"unknown_node", "no node <" + q->target + "> below <" + self + ">", q->origin});
       } else if (!it->second->connected) {
         out.error(via, opt.parent_iri, f.seq,
-                  {"unreachable", "<" + child_iri + "> (on the way to <" + q->target + ">) is not connected to <" + self + ">", q->origin});
+                  {"unreachable", "<" + child_iri + "> (on the way to <" + q->target + ">) is " +
+                                      (it->second->ever ? "down" : "never connected") + " at <" + self + ">",  // as remote_query says it
+                   q->origin});
       } else {
         Frame down = f;
         down.to = child_iri;
