@@ -23,12 +23,15 @@
 // figures and whether each target is met.
 #include <algorithm>
 #include <atomic>
+#include <cctype>
 #include <charconv>
 #include <condition_variable>
 #include <cstdio>
 #include <cstdlib>
 #include <cstring>
 #include <deque>
+#include <fstream>
+#include <map>
 #include <iostream>
 #include <memory>
 #include <mutex>
@@ -651,6 +654,7 @@ struct SimHome {
 struct IngestFigures {
   double items_per_s = 0, seconds = 0, open_s = 0, register_s = 0, bytes_per_item = 0;
   double process_cpu_s = 0, sim_cpu_s = 0, hospital_cpu_s = 0;  // during the timed part
+  std::map<std::string, double> cpu_by_thread;  // during the timed part; threads that ended meanwhile are not in it
   std::uint64_t items = 0, go_backs = 0, send_failures = 0;
   bool complete = false;  // every item relayed within the time limit (else the ledger counts the rest lost)
   Ledger ledger;
@@ -667,6 +671,26 @@ double thread_cpu(std::thread& t) {
   clockid_t clock{};
   if (!t.joinable() || pthread_getcpuclockid(t.native_handle(), &clock) != 0) return 0;
   return cpu_of(clock);
+}
+
+// CPU seconds each thread of this process has used, summed by thread name (`tv-apply-down`,
+// Cyclone's `recv`, …): where the hospital's time goes, without a profiler. A thread's CPU
+// clock is read by its id (the kernel's encoding of a thread clock, as glibc builds it).
+std::map<std::string, double> cpu_by_thread_name() {
+  std::map<std::string, double> by_name;
+  std::error_code ec;
+  for (const auto& entry : fs::directory_iterator("/proc/self/task", ec)) {
+    const std::string tid_text = entry.path().filename().string();
+    pid_t tid = 0;
+    auto [end, parse_ec] = std::from_chars(tid_text.data(), tid_text.data() + tid_text.size(), tid);
+    if (parse_ec != std::errc() || tid <= 0) continue;
+    std::ifstream comm(entry.path() / "comm");
+    std::string name;
+    if (!std::getline(comm, name)) continue;
+    const clockid_t clock = static_cast<clockid_t>((~static_cast<unsigned>(tid) << 3) | 6);  // CPUCLOCK_SCHED
+    by_name[name] += cpu_of(clock);
+  }
+  return by_name;
 }
 
 class SimHomes {
@@ -881,6 +905,7 @@ IngestFigures measure_ingest(const Config& cfg, const ScratchDir& scratch, std::
   f.items = cfg.homes * cfg.per_home;
   const std::uint64_t base = (*link)->counters().relayed_in;
   const double cpu0 = cpu_of(CLOCK_PROCESS_CPUTIME_ID), sim0 = sim.cpu_seconds(), main0 = cpu_of(CLOCK_THREAD_CPUTIME_ID);
+  const auto threads0 = cpu_by_thread_name();
   const auto t0 = Clock::now();
   sim.allow_items();
   f.complete = wait_until(300s, [&] { return (*link)->counters().relayed_in - base >= f.items; });
@@ -890,6 +915,11 @@ IngestFigures measure_ingest(const Config& cfg, const ScratchDir& scratch, std::
   f.process_cpu_s = cpu_of(CLOCK_PROCESS_CPUTIME_ID) - cpu0;
   f.sim_cpu_s = sim.cpu_seconds() - sim0;
   f.hospital_cpu_s = f.process_cpu_s - f.sim_cpu_s - (cpu_of(CLOCK_THREAD_CPUTIME_ID) - main0);
+  for (const auto& [name, seconds] : cpu_by_thread_name()) {
+    auto before = threads0.find(name);
+    const double used = seconds - (before == threads0.end() ? 0 : before->second);
+    if (used >= 0.005) f.cpu_by_thread[name] = used;
+  }
   const std::string unfinished = f.complete ? std::string() : sim.unfinished(10);
   sim.stop();
   f.go_backs = sim.go_backs();
@@ -958,6 +988,14 @@ void add_ingest(Figures& fig, const IngestFigures& ingest, const Config& cfg) {
   fig.set("hospital_ingest_cpu_bound_items_per_s", us_per_item > 0 ? 1e6 / us_per_item : 0);
   fig.set("hospital_bytes_per_item", ingest.bytes_per_item);
   fig.set("triples_per_item", 3);
+  // By thread name: the link's threads are tv-*; Cyclone's are recv, tev, gc, dq.builtins, …;
+  // "tahvel" is this thread and the simulated homes' (unnamed) threads.
+  for (const auto& [name, seconds] : ingest.cpu_by_thread) {
+    std::string key = "ingest_cpu_s_" + name;
+    for (char& c : key)
+      if (!std::isalnum(static_cast<unsigned char>(c))) c = '_';
+    fig.set(key, seconds);
+  }
 }
 
 void add_latency(Figures& fig, const char* kind, const LinkFigures& l, const fed::LatencyFloor& raw,
@@ -1023,6 +1061,10 @@ void print_table(const Figures& f, const Config& cfg) {
               "  %.1f us of hospital CPU per item, i.e. %.0f items/s if the hospital had one core to itself\n",
               f.get("ingest_process_cpu_s"), f.get("ingest_sim_cpu_s"), f.get("ingest_hospital_cpu_s"),
               f.get("hospital_cpu_us_per_item"), f.get("hospital_ingest_cpu_bound_items_per_s"));
+  std::printf("  by thread (CPU s):");
+  for (const auto& [key, value] : f.all())
+    if (key.starts_with("ingest_cpu_s_")) std::printf(" %s %.2f", key.c_str() + 13, value);
+  std::printf("\n");
   if (!cfg.ingest_only)
     std::printf("raw floors: the libraries alone, ping-pong between two processes, one-way = RTT/2 (within one process:\n"
                 "  DDS %.1f us, LCM %.1f us p50). The link's two ends are two processes too.\n",

@@ -4,6 +4,7 @@
 #include <charconv>
 
 #include "codec.h"
+#include "rows.h"
 #include "tahvel/uri/iri.h"
 
 namespace tahvel::node::detail {
@@ -232,6 +233,7 @@ Result<std::uint64_t> intern_keyed(Txn& txn, const Term& term, const TermKey& ke
 
 Result<void> collect_term_if_unused(Txn& txn, std::uint64_t id) {
   if (id == 0 || is_inline(id)) return {};
+  if (auto f = flush_index(txn); !f) return f;
   MDB_txn* raw = txn.raw();
   Env& env = txn.env();
   MDB_val k = val(id), v;

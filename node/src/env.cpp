@@ -2,6 +2,8 @@
 // docs/record-model.md for what each table holds.
 #include "env.h"
 
+#include "rows.h"
+
 #include <chrono>
 #include <thread>
 
@@ -423,6 +425,7 @@ Result<void> Env::write(const std::function<Result<void>(Txn&)>& body, WriteKind
       txn.counters = *counters;
       first_seq = counters->next_seq;
       if (auto r = body(txn); !r) return r;
+      if (auto r = flush_index(txn); !r) return r;
       return save_counters(raw, main, txn.counters);
     };
     writing.store(raw);

@@ -237,6 +237,14 @@ class Txn {
   TermIdMap term_ids;
   // Ids to publish to the Env's TermCache once this transaction has committed (dictionary.cpp).
   TermIdMap staged_pinned, staged_unpinned;
+  // Index and output-buffer entries of the items inserted since the last flush_index (rows.h),
+  // in insertion order. They go in by key, all values of one key in one put: a batch of items
+  // repeats predicates, classes and writers, and one put per entry was a fifth of an ingest.
+  struct IndexEntry {
+    MDB_dbi dbi;
+    std::uint64_t key, value;
+  };
+  std::vector<IndexEntry> unflushed_index;
  private:
   Env& env_;
   MDB_txn* txn_;

@@ -1,6 +1,8 @@
 // Record and item rows; deletion. See rows.h.
 #include "rows.h"
 
+#include <algorithm>
+
 #include <ctime>
 #include <vector>
 
@@ -12,6 +14,7 @@ namespace {
 
 constexpr std::uint64_t kRemovalLogLimit = 65536;  // watchers further behind miss removals
 constexpr std::uint8_t kItemPersistent = 1;
+constexpr std::uint8_t kItemRelayed = 2;  // the writer's term id follows (ItemRow::writer)
 
 void put_string(std::string& out, std::string_view s) {
   codec::put_varint(out, s.size());
@@ -98,7 +101,7 @@ Result<void> retire_item(Txn& txn, std::uint64_t item_id, const ItemRow& item) {
   MDB_val k = val(item_id);
   int rc = mdb_del(raw, env.items, &k, nullptr);
   if (rc != 0) return lmdb_fail(rc, "removing item " + std::to_string(item_id));
-  if (auto r = del_dup(raw, env.outbox, item.source, item_id, "removing an item from an output buffer"); !r) return r;
+  if (auto r = del_dup(raw, env.outbox, item.output_buffer(), item_id, "removing an item from an output buffer"); !r) return r;
   if (item.pending > 0) {
     auto dropped = drop_from_inboxes(txn, item_id);
     if (!dropped) return unexpected(dropped.error());
@@ -146,7 +149,8 @@ std::string encode_item(const ItemRow& row) {
   codec::put_varint(out, codec::zigzag(row.asserted_at - row.stored_at));
   codec::put_varint(out, row.source);
   codec::put_varint(out, row.context);
-  out.push_back(static_cast<char>(row.persistent ? kItemPersistent : 0));
+  out.push_back(static_cast<char>((row.persistent ? kItemPersistent : 0) | (row.writer ? kItemRelayed : 0)));
+  if (row.writer) codec::put_varint(out, row.writer);
   return out;
 }
 
@@ -160,7 +164,10 @@ bool decode_item(std::string_view bytes, ItemRow& row) {
     return false;
   row.stored_at = codec::unzigzag(stored);
   row.asserted_at = row.stored_at + codec::unzigzag(asserted_delta);
-  row.persistent = bytes[pos] & kItemPersistent;
+  const std::uint8_t flags = static_cast<std::uint8_t>(bytes[pos++]);
+  row.persistent = flags & kItemPersistent;
+  row.writer = 0;
+  if ((flags & kItemRelayed) && !codec::get_varint(bytes, pos, row.writer)) return false;
   return true;
 }
 
@@ -192,7 +199,52 @@ Result<void> put_item(Txn& txn, std::uint64_t id, const ItemRow& row, unsigned f
   return {};
 }
 
+Result<void> flush_index(Txn& txn) {
+  auto& entries = txn.unflushed_index;
+  if (entries.empty()) return {};
+  // Stable: the values of one key stay in the ascending order they were added in.
+  std::stable_sort(entries.begin(), entries.end(), [](const Txn::IndexEntry& a, const Txn::IndexEntry& b) {
+    return a.dbi != b.dbi ? a.dbi < b.dbi : a.key < b.key;
+  });
+  std::vector<std::uint64_t> values;
+  MDB_cursor* cursor = nullptr;
+  MDB_dbi cursor_dbi = 0;
+  Result<void> result;
+  for (std::size_t first = 0; first < entries.size() && result;) {
+    const Txn::IndexEntry& head = entries[first];
+    std::size_t end = first;
+    values.clear();
+    while (end < entries.size() && entries[end].dbi == head.dbi && entries[end].key == head.key)
+      values.push_back(entries[end++].value);
+    if (!cursor || cursor_dbi != head.dbi) {
+      if (cursor) mdb_cursor_close(cursor);
+      cursor = nullptr;
+      if (int rc = mdb_cursor_open(txn.raw(), head.dbi, &cursor); rc != 0) {
+        result = lmdb_fail(rc, "opening an index");
+        break;
+      }
+      cursor_dbi = head.dbi;
+    }
+    // MDB_MULTIPLE (the tables are MDB_DUPFIXED): data[0] is the first value and its size,
+    // data[1].mv_size the count; LMDB writes back how many it stored.
+    MDB_val k = val(head.key);
+    MDB_val data[2] = {val(values.data(), sizeof(std::uint64_t)), MDB_val{values.size(), nullptr}};
+    int rc = mdb_cursor_put(cursor, &k, data, MDB_MULTIPLE | MDB_APPENDDUP);
+    if (rc == MDB_KEYEXIST) {
+      result = fail(Errc::corrupt, "indexing: id " + std::to_string(values[data[1].mv_size]) + " out of order under key " +
+                                       std::to_string(head.key));
+    } else if (rc != 0) {
+      result = lmdb_fail(rc, "indexing " + std::to_string(values.size()) + " entries");
+    }
+    first = end;
+  }
+  if (cursor) mdb_cursor_close(cursor);
+  entries.clear();
+  return result;
+}
+
 Result<void> delete_record(Txn& txn, std::uint64_t id, Removal why) {
+  if (auto f = flush_index(txn); !f) return f;
   MDB_txn* raw = txn.raw();
   Env& env = txn.env();
   auto row = get_record(raw, env, id);

@@ -4,6 +4,7 @@
 // records: id -> varint(s) varint(p) varint(o) varint(id - item)
 // items:   id -> varint(count) varint(live) varint(pending) zigzag(stored_at)
 //                zigzag(asserted_at - stored_at) varint(source) varint(context) flags
+//                [varint(writer) when flags has the relayed bit]
 // Metadata is per record in the model (DESIGN §2) and per item on disk: every record of an
 // item shares it, and storing it once keeps a triple near 30 bytes.
 #pragma once
@@ -30,6 +31,9 @@ struct ItemRow {
   std::uint64_t source = 0;   // term id
   std::uint64_t context = 0;  // term id, 0 for none
   bool persistent = false;
+  std::uint64_t writer = 0;   // term id of the agent whose output buffer holds the item, when
+                              // not the source (a link agent relaying from below); 0: the source
+  std::uint64_t output_buffer() const { return writer ? writer : source; }
 };
 
 std::string encode_record(std::uint64_t id, const RecordRow& row);
@@ -41,6 +45,12 @@ bool decode_item(std::string_view bytes, ItemRow& row);
 Result<std::optional<RecordRow>> get_record(MDB_txn* txn, const Env& env, std::uint64_t id);
 Result<std::optional<ItemRow>> get_item(MDB_txn* txn, const Env& env, std::uint64_t id);
 Result<void> put_item(Txn& txn, std::uint64_t id, const ItemRow& row, unsigned flags = 0);
+
+// Puts the entries in txn.unflushed_index into their tables and empties it. Values only grow
+// (record and item ids), so each entry is the last of its key: appended, no search among the
+// duplicates. Anything that reads or deletes index or output-buffer entries in a transaction
+// that inserted items flushes first; Env::write flushes before it commits.
+Result<void> flush_index(Txn& txn);
 
 // Why a record goes: explicit removal is logged for watchers; retention is not.
 enum class Removal { explicit_removal, retention };

@@ -15,15 +15,6 @@ constexpr std::size_t kTtlScanBudget = 64;  // records examined per rule per wri
 
 const char* position_name(int i) { return i == 0 ? "subject" : i == 1 ? "predicate" : "object"; }
 
-Result<void> put_dup(MDB_txn* txn, MDB_dbi dbi, std::uint64_t key, std::uint64_t value, unsigned flags, const char* what) {
-  MDB_val k = val(key), v = val(value);
-  int rc = mdb_put(txn, dbi, &k, &v, flags);
-  // With MDB_APPENDDUP, KEYEXIST means an id not above the last one: the counters are wrong.
-  if (rc == MDB_KEYEXIST) return fail(Errc::corrupt, std::string(what) + ": id " + std::to_string(value) + " out of order");
-  if (rc != 0) return lmdb_fail(rc, what);
-  return {};
-}
-
 // Interns a term at a position; new IRIs are validated here, once, when they enter the
 // dictionary (terms already there were valid when they came). Sensor data repeats predicates,
 // classes and sensors endlessly: intern_keyed finds them in the transaction's or the process's
@@ -42,6 +33,7 @@ Result<std::uint64_t> term_id(Txn& txn, const Term& term, int position,
 }
 
 Result<std::vector<Subscription>> load_subscriptions(Txn& txn) {
+  if (auto f = flush_index(txn); !f) return unexpected(f.error());
   std::vector<Subscription> subs;
   const auto& vocab = txn.env().vocab;
   MDB_txn* raw = txn.raw();
@@ -229,6 +221,7 @@ Result<std::uint64_t> apply_ring(Txn& txn) {
 }
 
 Result<std::uint64_t> apply_ttl(Txn& txn, const std::vector<TtlRule>& rules) {
+  if (auto f = flush_index(txn); !f) return unexpected(f.error());
   std::uint64_t removed = 0;
   const std::int64_t now = now_ns();
   for (const auto& rule : rules) {
@@ -369,10 +362,9 @@ Result<std::uint64_t> insert_item(Txn& txn, const Item& item, const std::string&
     MDB_val k = val(record_id), v = val(bytes);
     int rc = mdb_put(raw, env.records, &k, &v, MDB_APPEND);
     if (rc != 0) return lmdb_fail(rc, "writing a record");
-    // Record ids only grow, so each is the last of its key's duplicates: append, no search.
-    if (auto r = put_dup(raw, env.idx_s, row[0], record_id, MDB_APPENDDUP, "indexing a subject"); !r) return unexpected(r.error());
-    if (auto r = put_dup(raw, env.idx_p, row[1], record_id, MDB_APPENDDUP, "indexing a predicate"); !r) return unexpected(r.error());
-    if (auto r = put_dup(raw, env.idx_o, row[2], record_id, MDB_APPENDDUP, "indexing an object"); !r) return unexpected(r.error());
+    txn.unflushed_index.push_back({env.idx_s, row[0], record_id});
+    txn.unflushed_index.push_back({env.idx_p, row[1], record_id});
+    txn.unflushed_index.push_back({env.idx_o, row[2], record_id});
     if (row[1] == env.vocab.subscriber) {
       declares_subscription = true;
       // The subscriber's IRI keys its input buffer: pinned, so its id never changes.
@@ -381,7 +373,8 @@ Result<std::uint64_t> insert_item(Txn& txn, const Item& item, const std::string&
     ids.push_back(row);
   }
   const std::int64_t now = now_ns();
-  ItemRow meta{ids.size(), ids.size(), 0, now, item.asserted_at.value_or(now), *source, context, item.persistent};
+  ItemRow meta{ids.size(), ids.size(), 0, now, item.asserted_at.value_or(now), *source, context, item.persistent,
+               *writer != *source ? *writer : 0};
   if (auto r = refresh_caches(txn); !r) return unexpected(r.error());
   if (auto r = route(txn, item_id, meta, ids, relayed_source ? *relayed_source : agent_iri); !r)
     return unexpected(r.error());
@@ -392,7 +385,7 @@ Result<std::uint64_t> insert_item(Txn& txn, const Item& item, const std::string&
     }
   }
   if (auto r = put_item(txn, item_id, meta, MDB_APPEND); !r) return unexpected(r.error());
-  if (auto r = put_dup(raw, env.outbox, *writer, item_id, MDB_APPENDDUP, "writing the output buffer"); !r) return unexpected(r.error());
+  txn.unflushed_index.push_back({env.outbox, *writer, item_id});
   if (!item.persistent) {
     txn.counters.ring_records += ids.size();
   } else {

@@ -245,6 +245,29 @@ TEST(Relay, StoresEachSequenceOnceKeepsTheSourceAndStopsAtAGap) {
   for (const auto& r : records) EXPECT_EQ(r.meta.source, source);
 }
 
+// A relayed item is in the output buffer of the link agent that relayed it, though its source is
+// the writer below. When retention takes the item, its entry must go from that buffer too: an
+// entry left behind would name an item that is gone, and a ring-bounded node's buffers would grow
+// for ever.
+TEST(Relay, RetentionTakesARelayedItemOutOfTheRelayingAgentsOutputBuffer) {
+  TempDir dir;
+  InitOptions options;
+  options.ring = 10;
+  Node node = make_node(dir.path(), options);
+  Agent child = node.agent("child").value();
+  const std::string source = kNodeIri + "/child/hrv";
+  std::vector<RelayedItem> items;
+  for (std::uint64_t seq = 1; seq <= 40; ++seq) items.push_back(relayed(seq, seq - 1, source, static_cast<int>(seq)));
+  for (std::size_t first = 0; first < items.size(); first += 8) {
+    std::vector<RelayedItem> run(items.begin() + first, items.begin() + first + 8);
+    ASSERT_TRUE(child.relay("up", run).has_value());
+  }
+  auto written = child.written(0, 0).value();
+  auto snapshot = node.snapshot().value();
+  EXPECT_LE(written.size(), 10u);
+  for (std::uint64_t id : written) EXPECT_FALSE(snapshot.item(id).value().empty()) << "item " << id << " is gone";
+}
+
 TEST(Relay, MarkSurvivesReopeningTheStore) {
   TempDir dir;
   {
