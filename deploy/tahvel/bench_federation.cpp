@@ -910,6 +910,7 @@ IngestFigures measure_ingest(const Config& cfg, const ScratchDir& scratch, std::
   sim.allow_items();
   f.complete = wait_until(300s, [&] { return (*link)->counters().relayed_in - base >= f.items; });
   f.seconds = seconds(Clock::now() - t0);
+  if (std::getenv("TAHVEL_BENCH_TIMES")) std::fprintf(stderr, "TIMED %.6f %.6f\n", cpu_of(CLOCK_MONOTONIC) - f.seconds, cpu_of(CLOCK_MONOTONIC));
   const std::uint64_t relayed = (*link)->counters().relayed_in - base;
   f.items_per_s = static_cast<double>(relayed) / f.seconds;
   f.process_cpu_s = cpu_of(CLOCK_PROCESS_CPUTIME_ID) - cpu0;
@@ -980,6 +981,8 @@ void add_ingest(Figures& fig, const IngestFigures& ingest, const Config& cfg) {
   fig.set("ingest_send_failures", static_cast<double>(ingest.send_failures));
   fig.set("ingest_duplicates_dropped", static_cast<double>(ingest.hospital.duplicates_in));
   fig.set("ingest_refused", static_cast<double>(ingest.hospital.refused));
+  fig.set("ingest_items_per_write",
+          ingest.hospital.relay_writes ? static_cast<double>(ingest.hospital.relayed_in) / static_cast<double>(ingest.hospital.relay_writes) : 0);
   fig.set("ingest_process_cpu_s", ingest.process_cpu_s);
   fig.set("ingest_sim_cpu_s", ingest.sim_cpu_s);
   fig.set("ingest_hospital_cpu_s", ingest.hospital_cpu_s);
@@ -1054,9 +1057,10 @@ void print_table(const Figures& f, const Config& cfg) {
   std::printf("%-34s %10.0f %12s %8s   0: %s\n", "lost items (all phases)", f.get("lost"), "", "", yes("target_zero_loss_met"));
   std::printf("%-34s %10.0f %12s %8s   0: %s\n", "duplicated items (all phases)", f.get("duplicated"), "", "", yes("target_zero_loss_met"));
   std::printf("\ningest: %.2f s for %.0f items; opening %zu DDS endpoints %.2f s, registering them %.2f s; "
-              "%.0f go-backs, %.0f duplicates dropped\n",
+              "%.0f go-backs, %.0f duplicates dropped, %.1f items per store transaction\n",
               f.get("ingest_seconds"), f.get("ingest_items"), cfg.homes, f.get("ingest_open_s"),
-              f.get("ingest_register_s"), f.get("ingest_go_backs"), f.get("ingest_duplicates_dropped"));
+              f.get("ingest_register_s"), f.get("ingest_go_backs"), f.get("ingest_duplicates_dropped"),
+              f.get("ingest_items_per_write"));
   std::printf("ingest CPU: %.2f s in all, %.2f s the simulated homes, %.2f s the hospital (Link, store, DDS):\n"
               "  %.1f us of hospital CPU per item, i.e. %.0f items/s if the hospital had one core to itself\n",
               f.get("ingest_process_cpu_s"), f.get("ingest_sim_cpu_s"), f.get("ingest_hospital_cpu_s"),

@@ -930,6 +930,7 @@ struct Link::Impl {
       counters.items_refused += outcome->refused.size();
       if (up) {
         counters.relayed_in += outcome->stored.size();
+        if (!outcome->stored.empty()) ++counters.relay_writes;
         child->last_seen = Clock::now();
       } else {
         counters.down_applied += outcome->stored.size();
@@ -1051,10 +1052,14 @@ struct Link::Impl {
         }
         child->last_seen = Clock::now();
         child->last_seen_ns = now_ns();
-        if (state && (state->outbox_depth != child->outbox_depth || state->software_version != child->version)) {
+        // A new version is written at once; a new outbox depth with the next refresh of the
+        // child's state (kStateRefreshNs): under load every heartbeat of every child brings
+        // one, and a thousand children each rewriting their state every beat took the
+        // hospital's writer from its ingest.
+        if (state) {
+          if (state->software_version != child->version) child->state_dirty = true;
           child->outbox_depth = state->outbox_depth;
           child->version = state->software_version;
-          child->state_dirty = true;
         }
         lock.unlock();
         // P12a: so that the child hears its parent while nothing else comes down (an ack whose

@@ -122,6 +122,7 @@ struct LinkCounters {
   std::uint64_t up_sent = 0;        // up frames sent (first sends and resends)
   std::uint64_t up_resends = 0;     // times the up window went back to the parent's mark
   std::uint64_t relayed_in = 0;     // items relayed into this store from children
+  std::uint64_t relay_writes = 0;   // store transactions that relayed them
   std::uint64_t duplicates_in = 0;  // relayed items dropped as duplicates (P9)
   std::uint64_t down_applied = 0;   // items relayed into this store from the parent
   std::uint64_t refused = 0;        // frames refused (foreign IRI, unknown child, bad body)
