@@ -910,7 +910,12 @@ IngestFigures measure_ingest(const Config& cfg, const ScratchDir& scratch, std::
   sim.allow_items();
   f.complete = wait_until(300s, [&] { return (*link)->counters().relayed_in - base >= f.items; });
   f.seconds = seconds(Clock::now() - t0);
-  if (std::getenv("TAHVEL_BENCH_TIMES")) std::fprintf(stderr, "TIMED %.6f %.6f\n", cpu_of(CLOCK_MONOTONIC) - f.seconds, cpu_of(CLOCK_MONOTONIC));
+  // For profiling the timed part alone: `perf record -k CLOCK_MONOTONIC …`, then
+  // `perf report --time FROM,TO` with the two times this prints (docs/bench.md).
+  if (std::getenv("TAHVEL_BENCH_TIMES")) {
+    const double to = cpu_of(CLOCK_MONOTONIC);
+    std::fprintf(stderr, "tahvel: bench federation: ingest timed from %.6f to %.6f (CLOCK_MONOTONIC)\n", to - f.seconds, to);
+  }
   const std::uint64_t relayed = (*link)->counters().relayed_in - base;
   f.items_per_s = static_cast<double>(relayed) / f.seconds;
   f.process_cpu_s = cpu_of(CLOCK_PROCESS_CPUTIME_ID) - cpu0;
