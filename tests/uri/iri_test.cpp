@@ -225,6 +225,29 @@ TEST(Iri, IsValidAcceptsAbsoluteIrisOnly) {
   EXPECT_FALSE(is_valid("http://h/\xFF"));
 }
 
+// is_valid remembers prefixes after which a run of unreserved characters parsed, and skips the
+// parser for the next such run. Whatever came before, its answer must be the parser's: random
+// prefixes (valid, invalid, the '/' in a host, a query, a fragment, after an IP literal or a
+// port) with random tails of unreserved, reserved and forbidden characters, asked in an order
+// that has many tails follow a prefix already remembered.
+TEST(Iri, IsValidAnswersAsTheParserWhateverItRememberedBefore) {
+  const std::vector<std::string> prefixes = {
+      "http://h/home1/hrv/", "http://h/", "http://", "http:/", "http:", "urn:a/", "file:///", "http://h/a?q=/",
+      "http://h/a#f/", "http://[::1]/", "http://h:80/", "http://h:8x/", "http://h/%zz/", "http://h/a b/",
+      "//h/", "/a/", "a/", "http://h/é/", "http://h/a/../", "mailto:x@y/", "http://[::1/", "http://h/{x}/"};
+  const std::string tail_chars = "az09-._~AZ/?#[]@!$&'()*+,;=%: {}<>\\"
+                                 "\x7f\xc3\xa9";
+  std::mt19937 rng(20261128);
+  for (int round = 0; round < 20000; ++round) {
+    std::string text = prefixes[rng() % prefixes.size()];
+    const bool unreserved_tail = rng() % 2;
+    const std::size_t length = rng() % 6;  // 0: the prefix alone
+    for (std::size_t i = 0; i < length; ++i)
+      text += unreserved_tail ? "az09-._~AZ"[rng() % 10] : tail_chars[rng() % tail_chars.size()];
+    ASSERT_EQ(is_valid(text), normalize(text).has_value()) << "<" << text << "> after round " << round;
+  }
+}
+
 // --- resolve: RFC 3986 §5.4 -----------------------------------------------------------------
 
 constexpr const char* kRfcBase = "http://a/b/c/d;p?q";
