@@ -939,6 +939,60 @@ IngestFigures measure_ingest(const Config& cfg, const ScratchDir& scratch, std::
   return f;
 }
 
+// The hospital's store alone: the ingest's items (K homes x per_home, three triples each) relayed
+// straight into a new store by one agent per home, in runs of `run` items (about what the link
+// puts in one transaction under the ingest's load: ingest_items_per_write), with no transport,
+// no link and no other thread. It says how much of the hospital's time per item is the store's.
+struct StoreRelayFigures {
+  double items_per_s = 0, cpu_us_per_item = 0;
+  std::size_t run = 0;
+  Ledger ledger;
+};
+
+StoreRelayFigures measure_store_relay(const Config& cfg, const ScratchDir& scratch, std::uint64_t& next_number) {
+  const std::string hospital = hospital_iri("store");
+  const fs::path dir = scratch.sub("store-hospital");
+  node::Node node = init_store(dir, hospital, room_for(cfg.homes * cfg.per_home));
+  StoreRelayFigures f;
+  f.run = std::min<std::size_t>(cfg.per_home, 100);
+  const std::uint64_t first = next_number;
+  struct Home {
+    node::Agent agent;
+    std::string source, stream;
+    std::vector<node::RelayedItem> items;
+  };
+  std::vector<Home> homes;
+  homes.reserve(cfg.homes);
+  for (std::size_t i = 0; i < cfg.homes; ++i) {
+    const std::string id = "home" + std::to_string(i + 1);
+    auto agent = node.agent(id);
+    if (!agent) throw std::runtime_error("agent " + id + ": " + agent.error().message);
+    Home h{std::move(*agent), hospital + "/" + id + "/hrv", hospital + "/" + id, {}};
+    for (std::uint64_t s = 1; s <= cfg.per_home; ++s)
+      h.items.push_back({s, s - 1, h.source, numbered_item(hospital + "/" + id, next_number++)});
+    homes.push_back(std::move(h));
+  }
+  const double cpu0 = cpu_of(CLOCK_THREAD_CPUTIME_ID);
+  const auto t0 = Clock::now();
+  std::uint64_t stored = 0;
+  for (std::size_t from = 0; from < cfg.per_home; from += f.run) {
+    for (Home& h : homes) {
+      const std::size_t to = std::min(cfg.per_home, from + f.run);
+      std::vector<node::RelayedItem> run(std::make_move_iterator(h.items.begin() + static_cast<std::ptrdiff_t>(from)),
+                                         std::make_move_iterator(h.items.begin() + static_cast<std::ptrdiff_t>(to)));
+      auto outcome = h.agent.relay(h.stream, run);
+      if (!outcome) throw std::runtime_error("relay into " + dir.string() + ": " + outcome.error().message);
+      stored += outcome->stored.size();
+    }
+  }
+  const double seconds_taken = seconds(Clock::now() - t0);
+  const double cpu = cpu_of(CLOCK_THREAD_CPUTIME_ID) - cpu0;
+  f.items_per_s = static_cast<double>(stored) / seconds_taken;
+  f.cpu_us_per_item = stored ? cpu * 1e6 / static_cast<double>(stored) : 0;
+  f.ledger = check_numbers(dir, first, next_number - first);
+  return f;
+}
+
 // The raw floor between this process and the far end: the far end echoes, this one pings.
 fed::LatencyFloor floor_to_far_end(FarEnd& far, Kind kind, int rounds) {
   static int counter = 0;
@@ -1070,6 +1124,8 @@ void print_table(const Figures& f, const Config& cfg) {
               "  %.1f us of hospital CPU per item, i.e. %.0f items/s if the hospital had one core to itself\n",
               f.get("ingest_process_cpu_s"), f.get("ingest_sim_cpu_s"), f.get("ingest_hospital_cpu_s"),
               f.get("hospital_cpu_us_per_item"), f.get("hospital_ingest_cpu_bound_items_per_s"));
+  std::printf("the store alone, the same items relayed by one thread in runs of %.0f: %.0f items/s, %.1f us of CPU per item\n",
+              f.get("store_relay_items_per_write"), f.get("store_relay_items_per_s"), f.get("store_relay_cpu_us_per_item"));
   std::printf("  by thread (CPU s):");
   for (const auto& [key, value] : f.all())
     if (key.starts_with("ingest_cpu_s_")) std::printf(" %s %.2f", key.c_str() + 13, value);
@@ -1118,6 +1174,11 @@ int run(const Config& cfg) {
   const IngestFigures ingest = measure_ingest(cfg, scratch, next_number);
   add_ingest(fig, ingest, cfg);
   ledgers.push_back(ingest.ledger);
+  const StoreRelayFigures store_only = measure_store_relay(cfg, scratch, next_number);
+  fig.set("store_relay_items_per_s", store_only.items_per_s);
+  fig.set("store_relay_cpu_us_per_item", store_only.cpu_us_per_item);
+  fig.set("store_relay_items_per_write", static_cast<double>(store_only.run));
+  ledgers.push_back(store_only.ledger);
   Ledger all;
   for (const Ledger& l : ledgers) {
     all.expected += l.expected;

@@ -160,7 +160,8 @@ namespace {
 
 // Remembers `id` for the rest of the transaction and, once it commits, for the process.
 void remember(Txn& txn, const TermKey& key, std::uint64_t id, bool pinned, bool beyond_txn) {
-  txn.term_ids.try_emplace(key, id);
+  auto [known, fresh] = txn.term_ids.try_emplace(key, Txn::KnownTerm{id, pinned});
+  if (!fresh && pinned) known->second.pinned = true;
   if (pinned) {
     txn.staged_pinned.try_emplace(key, id);
   } else if (beyond_txn) {
@@ -178,7 +179,7 @@ Result<std::uint64_t> intern_keyed(Txn& txn, const Term& term, const TermKey& ke
   // Known in this transaction, or committed and known to the process: no B-tree search. A
   // term must be known pinned to skip the search when the caller pins it.
   if (auto it = txn.term_ids.find(key); it != txn.term_ids.end()) {
-    if (!pinned || txn.staged_pinned.contains(key)) return it->second;
+    if (!pinned || it->second.pinned) return it->second.id;
   }
   bool cached_pinned = false;
   if (std::uint64_t id = env.term_cache.find(key, TermCache::generation(txn.counters), &cached_pinned)) {
@@ -188,7 +189,8 @@ Result<std::uint64_t> intern_keyed(Txn& txn, const Term& term, const TermKey& ke
       return id;
     }
     // Already known to the process: remembered for this transaction only, not staged again.
-    txn.term_ids.try_emplace(key, id);
+    auto [known, fresh] = txn.term_ids.try_emplace(key, Txn::KnownTerm{id, cached_pinned});
+    if (!fresh && cached_pinned) known->second.pinned = true;
     return id;
   }
   std::uint64_t datatype_id = 0;

@@ -232,9 +232,15 @@ class Txn {
   MDB_txn* raw() { return txn_; }
   Counters counters;             // loaded before `body`, saved after it
   std::vector<std::uint32_t> wake_slots;  // woken after commit
-  // Term ids looked up or created in this transaction (write.cpp). Cleared whenever a term is
-  // collected, since a collected id must not be handed out again.
-  TermIdMap term_ids;
+  // Term ids looked up or created in this transaction (write.cpp), and whether the term is
+  // known to be pinned (then a caller that pins it needs nothing more: the writer and source of
+  // every item of a relayed run). Cleared whenever a term is collected, since a collected id
+  // must not be handed out again.
+  struct KnownTerm {
+    std::uint64_t id = 0;
+    bool pinned = false;
+  };
+  std::unordered_map<TermKey, KnownTerm, TermKeyHash> term_ids;
   // Ids to publish to the Env's TermCache once this transaction has committed (dictionary.cpp).
   TermIdMap staged_pinned, staged_unpinned;
   // Index and output-buffer entries of the items inserted since the last flush_index (rows.h),
