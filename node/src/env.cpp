@@ -432,10 +432,22 @@ Result<void> Env::write(const std::function<Result<void>(Txn&)>& body, WriteKind
     auto result = run();
     writing.store(nullptr);
     int rc = 0;
-    if (result) {
-      rc = mdb_txn_commit(raw);
+    auto end_txn = [&] {
+      if (result) {
+        rc = mdb_txn_commit(raw);
+      } else {
+        mdb_txn_abort(raw);
+      }
+    };
+    if (txn.touched_caches) {
+      // Held across the commit or abort: once LMDB's writer lock is free, another thread's
+      // write must not find the cache at a generation this transaction reached but did not
+      // store, which another process may have stored since, with other subscriptions.
+      std::lock_guard lock(cache_mutex);
+      end_txn();
+      if (!result || rc != 0) subs_gen = ttl_gen = ~0ull;
     } else {
-      mdb_txn_abort(raw);
+      end_txn();
     }
     active_txns_.fetch_sub(1);
     bool map_full = (!result && result.error().code == Errc::store_full) || rc == MDB_MAP_FULL;

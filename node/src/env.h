@@ -251,6 +251,10 @@ class Txn {
     std::uint64_t key, value;
   };
   std::vector<IndexEntry> unflushed_index;
+  // This transaction changed the Env's subscription or TTL cache (write.cpp): should it not
+  // commit, the cache is marked stale, for its generation may be reached again by a different
+  // change that does.
+  bool touched_caches = false;
  private:
   Env& env_;
   MDB_txn* txn_;

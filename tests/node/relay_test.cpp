@@ -4,6 +4,8 @@
 #include <gtest/gtest.h>
 
 #include <atomic>
+#include <random>
+#include <set>
 #include <thread>
 
 #include "test_support.h"
@@ -69,6 +71,58 @@ TEST(Source, SubscriptionWithSourceGetsOnlyItemsOfThatWriterOrOfWritersUnderIt) 
   auto bad = watcher.subscribe({.source = "not an iri"});
   ASSERT_FALSE(bad.has_value());
   EXPECT_EQ(bad.error().code, Errc::invalid_iri);
+}
+
+// A new subscription joins the process's routing as it is stored (not by reloading all of
+// them): each of many subscriptions, made one after another between writes, of every kind of
+// condition, gets exactly the items written after it that its pattern matches. (Later
+// subscriptions are items too, and some match: they are left out of the comparison.)
+TEST(Source, SubscriptionsMadeBetweenWritesEachGetExactlyTheLaterItemsTheyMatch) {
+  TempDir dir;
+  Node node = make_node(dir.path());
+  const std::string contexts[] = {"", "http://example.org/ctx/a"};
+  struct Made {
+    std::string agent;
+    Pattern pattern;
+    std::vector<std::uint64_t> expected;
+  };
+  std::vector<Made> made;
+  std::set<std::uint64_t> written;
+  std::mt19937 rng(20261128);
+  for (int round = 0; round < 40; ++round) {
+    Pattern p;
+    switch (round % 5) {
+      case 0: p.p = ex("p" + std::to_string(rng() % 3)); break;
+      case 1: p.o = Term::integer(static_cast<int>(rng() % 4)); break;
+      case 2: p.context = contexts[1]; break;
+      case 3: p.source = kNodeIri + "/w" + std::to_string(rng() % 2); break;
+      default: p.s = Term::iri(kNodeIri + "/obs/" + std::to_string(rng() % 3)); p.p = ex("p0"); break;
+    }
+    made.push_back({"sub" + std::to_string(round), p, {}});
+    ASSERT_TRUE(node.agent(made.back().agent)->subscribe(p));
+    for (int k = 0; k < 3; ++k) {
+      const std::string writer = "w" + std::to_string(rng() % 2);
+      Item item;
+      item.add(Term::iri(kNodeIri + "/obs/" + std::to_string(rng() % 3)), ex("p" + std::to_string(rng() % 3)),
+               Term::integer(static_cast<int>(rng() % 4)));
+      item.context = contexts[rng() % 2];
+      const std::uint64_t id = node.agent(writer)->store(item).value();
+      written.insert(id);
+      const Triple& t = item.triples[0];
+      for (Made& m : made) {
+        const Pattern& q = m.pattern;
+        if ((!q.s || *q.s == t.s) && (!q.p || *q.p == t.p) && (!q.o || *q.o == t.o) &&
+            (!q.context || *q.context == item.context) && (!q.source || *q.source == kNodeIri + "/" + writer))
+          m.expected.push_back(id);
+      }
+    }
+  }
+  for (Made& m : made) {
+    Agent agent = node.agent(m.agent).value();
+    std::vector<std::uint64_t> taken = taken_ids(agent);
+    std::erase_if(taken, [&](std::uint64_t id) { return !written.contains(id); });
+    EXPECT_EQ(taken, m.expected) << m.agent;
+  }
 }
 
 // A room's state or a reasoner's conclusions are replaced, not removed then stored: a reader

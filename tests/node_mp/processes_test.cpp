@@ -128,6 +128,39 @@ TEST(Processes, SubscriberInAnotherProcessGetsEachItemOnceAcrossRestarts) {
   for (std::uint64_t id : got) EXPECT_EQ(node->snapshot()->item(id)->front().triple.p, ex("hr"));
 }
 
+// A write that declares a subscription and then fails has touched this process's subscription
+// cache. Another process's subscription then brings the store to the generation that cache had
+// reached: this process must route by what the store holds, not by what it had cached.
+TEST(Processes, AFailedWriteThatDeclaredASubscriptionLeavesNoSubscriptionBehindInTheCache) {
+  TempDir dir;
+  Node node = make_node(dir.path());
+  Agent writer = node.agent("writer").value();
+  Agent phantom = node.agent("phantom").value();
+  // The cache is current, and the phantom's IRI has its dictionary id (else the failed write's
+  // new id would be handed out again, to the other process's subscriber).
+  ASSERT_TRUE(phantom.store(Item{}.add(ex("warm"), ex("other"), Term::integer(0))));
+  const Term declared = Term::blank("subscription");
+  Item declaration;
+  declaration.add(declared, Term::iri("https://w3id.org/tahvel#subscriber"), Term::iri(phantom.iri()))
+      .add(declared, Term::iri("https://w3id.org/tahvel#predicate"), ex("hr"));
+  Item refused;  // its IRI is refused as it enters the dictionary: the transaction aborts
+  refused.add(Term::iri("not an iri"), ex("hr"), Term::integer(1));
+  ASSERT_FALSE(writer.store_all({declaration, refused}).has_value());
+  pid_t other = spawn([&] {
+    auto n = Node::open(dir.path());
+    if (!n) return 2;
+    return n->agent("real")->subscribe(Pattern{.p = ex("hr")}) ? 0 : 3;
+  });
+  ASSERT_EQ(wait_exit(other), 0);
+  ASSERT_TRUE(writer.store(Item{}.add(ex("obs"), ex("hr"), Term::integer(72))));
+  auto to_real = node.agent("real")->take(0ms);
+  ASSERT_TRUE(to_real.has_value()) << to_real.error().message;
+  EXPECT_TRUE(to_real->has_value()) << "the subscription made in the other process got nothing";
+  auto to_phantom = phantom.take(0ms);
+  ASSERT_TRUE(to_phantom.has_value()) << to_phantom.error().message;
+  EXPECT_FALSE(to_phantom->has_value()) << "the subscription of the failed write received an item";
+}
+
 TEST(Processes, WaitingSubscriberSleepsInsteadOfPolling) {
   TempDir dir;
   make_node(dir.path());

@@ -227,8 +227,8 @@ TEST(Iri, IsValidAcceptsAbsoluteIrisOnly) {
 
 // is_valid remembers prefixes after which a run of unreserved characters parsed, and skips the
 // parser for the next such run. Whatever came before, its answer must be the parser's: random
-// prefixes (valid, invalid, the '/' in a host, a query, a fragment, after an IP literal or a
-// port) with random tails of unreserved, reserved and forbidden characters, asked in an order
+// prefixes (valid, invalid, "http://" with the tail as the host, the '/' in a query or a
+// fragment, after an IP literal or a port) with random tails of unreserved, reserved and forbidden characters, asked in an order
 // that has many tails follow a prefix already remembered.
 TEST(Iri, IsValidAnswersAsTheParserWhateverItRememberedBefore) {
   const std::vector<std::string> prefixes = {
