@@ -129,9 +129,7 @@ TEST(Source, SubscriptionsMadeBetweenWritesEachGetExactlyTheLaterItemsTheyMatch)
 // must never find neither the old records nor the new.
 TEST(Replace, RemovesAndStoresInOneTransactionOrDoesNothing) {
   TempDir dir;
-  InitOptions options;
-  options.max_literal_bytes = 64;
-  Node node = make_node(dir.path(), options);
+  Node node = make_node(dir.path(), {.max_literal_bytes = 64});
   Agent env = node.agent("environment").value();
   Agent ui = node.agent("ui").value();
   ASSERT_TRUE(ui.subscribe({.p = ex("temperature")}));
@@ -305,9 +303,7 @@ TEST(Relay, StoresEachSequenceOnceKeepsTheSourceAndStopsAtAGap) {
 // for ever.
 TEST(Relay, RetentionTakesARelayedItemOutOfTheRelayingAgentsOutputBuffer) {
   TempDir dir;
-  InitOptions options;
-  options.ring = 10;
-  Node node = make_node(dir.path(), options);
+  Node node = make_node(dir.path(), {.ring = 10});
   Agent child = node.agent("child").value();
   const std::string source = kNodeIri + "/child/hrv";
   std::vector<RelayedItem> items;
