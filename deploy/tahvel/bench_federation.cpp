@@ -87,7 +87,7 @@ struct Config {
   bool homes_set = false;
   bool ingest_only = false;     // --ingest-only: skip the floors and the latency phases
   std::size_t per_home = 200;    // items each simulated home sends
-  std::size_t window = 128;      // up frames in flight per simulated home
+  std::size_t window = fed::LinkOptions{}.window;  // up frames in flight per simulated home, as a home's Link
 };
 
 std::optional<Config> parse(const std::vector<std::string>& args) {
@@ -818,7 +818,10 @@ class SimHomes {
     const std::uint64_t n = std::min(room, left);
     if (in_flight == 0) h.progress = now;
     for (std::uint64_t i = 0; i < n; ++i) {
-      if (auto s = h.transport->send(h.frames[h.last_sent]); !s) {
+      fed::Frame& f = h.frames[h.last_sent];
+      // As a home's Link marks them: the run goes on (P9b), the window is half full (P8).
+      f.ack = i + 1 < n ? fed::kMoreFollow : (in_flight + n) * 2 >= window_ ? fed::kAckNow : 0;
+      if (auto s = h.transport->send(f); !s) {
         ++send_failures_;  // did not leave: the next round sends it again
         break;
       }

@@ -61,11 +61,7 @@ constexpr std::size_t kInlineFrames = 8;
 // sender asks for it (its window half full) or it signals a gap or a resend. On a quiet link an
 // ack sent at once lands at the sender just as the next item is stored there, and the two store
 // transactions and wake-ups contend (docs/bench.md); a busy one acks each run as before.
-constexpr std::size_t kAckEvery = 64;
-// Bits of an up or down frame's `ack` field: the sender asks for the stream's ack now (P8); more
-// frames of the run it sends back to back follow this one (P9b).
-constexpr std::uint64_t kAckNow = 1;
-constexpr std::uint64_t kMoreFollow = 2;
+constexpr std::size_t kAckEvery = 256;
 // How long a receiver in push mode holds a run whose last frame has not come (P9b).
 constexpr std::chrono::milliseconds kRunWait{20};
 // P12: a connected child's state is rewritten at least this often, so that its tv:lastSeen is

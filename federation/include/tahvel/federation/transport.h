@@ -43,6 +43,10 @@ enum class FrameKind : std::uint8_t {
   heartbeat = 9,  // child -> parent: liveness and state (outbox depth, software version)
 };
 
+// Bits of an up or down frame's `ack` field (docs/protocol.md P8, P9b).
+inline constexpr std::uint64_t kAckNow = 1;      // the sender's window is half full: ack the stream now
+inline constexpr std::uint64_t kMoreFollow = 2;  // more frames of the run sent back to back follow
+
 // 64-bit FNV-1a of the canonical description of Frame and FrameKind (federation/src/frame.cpp):
 // two builds interoperate only when their message types agree field for field.
 std::uint64_t message_fingerprint() noexcept;
