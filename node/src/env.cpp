@@ -418,6 +418,7 @@ Result<void> Env::write(const std::function<Result<void>(Txn&)>& body, WriteKind
     MDB_txn* raw = nullptr;
     if (auto r = begin(&raw, 0); !r) return r;
     Txn txn(*this, raw);
+    txn.unflushed_index.swap(spare_index_);  // this thread is the process's one writer now
     std::uint64_t first_seq = 0;
     auto run = [&]() -> Result<void> {
       auto counters = load_counters(raw, main);
@@ -431,6 +432,9 @@ Result<void> Env::write(const std::function<Result<void>(Txn&)>& body, WriteKind
     writing.store(raw);
     auto result = run();
     writing.store(nullptr);
+    // Handed back while this thread is still the writer (before the commit or abort).
+    txn.unflushed_index.clear();
+    if (txn.unflushed_index.capacity() <= kSpareIndexMax) spare_index_.swap(txn.unflushed_index);
     int rc = 0;
     auto end_txn = [&] {
       if (result) {

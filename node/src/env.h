@@ -134,6 +134,12 @@ class DecodedTerms {
   std::unordered_map<std::uint64_t, Term> terms_;
 };
 
+// An index or output-buffer entry waiting in a write transaction (Txn::unflushed_index).
+struct IndexEntry {
+  MDB_dbi dbi;
+  std::uint64_t key, value;
+};
+
 class Env {
  public:
   // Opens (or with `init` creates) the environment of `dir`; shared per process.
@@ -218,6 +224,11 @@ class Env {
   // thread of this process starts a transaction while LMDB remaps (mdb_env_set_mapsize needs
   // none active in the process).
   std::shared_mutex growth_mutex_;
+  // The buffer of Txn::unflushed_index, handed from one write transaction of this process to
+  // the next (LMDB runs one at a time): growing it anew was 3% of a relay. Not kept beyond
+  // kSpareIndexMax entries, so one bulk load does not hold its size for ever.
+  static constexpr std::size_t kSpareIndexMax = 1 << 16;
+  std::vector<IndexEntry> spare_index_;
   // Waits, holding growth_mutex_ exclusively, until this process has no transaction active
   // (up to a second: other threads' reads are short). False when one stays open (a snapshot held).
   bool quiesce_locked();
@@ -246,10 +257,7 @@ class Txn {
   // Index and output-buffer entries of the items inserted since the last flush_index (rows.h),
   // in insertion order. They go in by key, all values of one key in one put: a batch of items
   // repeats predicates, classes and writers, and one put per entry was a fifth of an ingest.
-  struct IndexEntry {
-    MDB_dbi dbi;
-    std::uint64_t key, value;
-  };
+  using IndexEntry = detail::IndexEntry;
   std::vector<IndexEntry> unflushed_index;
   // This transaction changed the Env's subscription or TTL cache (write.cpp): should it not
   // commit, the cache is marked stale, for its generation may be reached again by a different
