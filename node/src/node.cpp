@@ -401,19 +401,12 @@ Result<std::optional<Delivery>> Agent::take(std::chrono::milliseconds timeout, A
     const auto deadline = std::chrono::steady_clock::now() + timeout;
     WakeBoard& board = impl_->env->wake();
     for (;;) {
-      std::uint32_t token = board.prepare(impl_->slot);
+      const std::uint32_t token = board.version(impl_->slot);
       auto got = impl_->head(ack == Ack::automatic);
-      if (!got || *got) {
-        board.finish(impl_->slot);
-        return got;
-      }
+      if (!got || *got) return got;
       auto left = deadline - std::chrono::steady_clock::now();
-      if (left <= std::chrono::nanoseconds::zero()) {
-        board.finish(impl_->slot);
-        return std::optional<Delivery>();
-      }
-      board.wait(impl_->slot, token, std::chrono::duration_cast<std::chrono::nanoseconds>(left));
-      board.finish(impl_->slot);
+      if (left <= std::chrono::nanoseconds::zero()) return std::optional<Delivery>();
+      board.sleep(impl_->slot, token, std::chrono::duration_cast<std::chrono::nanoseconds>(left));
     }
   } catch (const std::bad_alloc&) {
     return fail(Errc::io, "out of memory while taking");
@@ -450,27 +443,18 @@ Result<std::vector<Delivery>> Agent::peek(std::uint64_t after, std::size_t limit
     const auto deadline = std::chrono::steady_clock::now() + timeout;
     WakeBoard& board = impl_->env->wake();
     for (;;) {
-      std::uint32_t token = board.prepare(impl_->slot);
+      const std::uint32_t token = board.version(impl_->slot);
       std::vector<Delivery> out;
       {
         ReadTxn read(*impl_->env);
-        if (auto r = read.begin(); !r) {
-          board.finish(impl_->slot);
-          return unexpected(r.error());
-        }
+        if (auto r = read.begin(); !r) return unexpected(r.error());
         auto self = impl_->self_id(read.txn);
-        if (!self) {
-          board.finish(impl_->slot);
-          return unexpected(self.error());
-        }
+        if (!self) return unexpected(self.error());
         std::vector<std::uint64_t> ids;
         if (*self) {
           MDB_cursor* cursor = nullptr;
           int rc = mdb_cursor_open(read.txn, impl_->env->inbox, &cursor);
-          if (rc != 0) {
-            board.finish(impl_->slot);
-            return lmdb_fail(rc, "opening the input buffer of " + impl_->iri);
-          }
+          if (rc != 0) return lmdb_fail(rc, "opening the input buffer of " + impl_->iri);
           std::uint64_t from = after + 1;
           MDB_val k = val(*self), v = val(from);
           for (rc = mdb_cursor_get(cursor, &k, &v, MDB_GET_BOTH_RANGE);
@@ -481,20 +465,13 @@ Result<std::vector<Delivery>> Agent::peek(std::uint64_t after, std::size_t limit
         for (std::uint64_t id : ids) {
           auto records = item_records(read.txn, *impl_->env, id);
           if (!records && records.error().code == Errc::not_found) continue;  // removed since
-          if (!records) {
-            board.finish(impl_->slot);
-            return unexpected(records.error());
-          }
+          if (!records) return unexpected(records.error());
           out.push_back(Delivery{id, std::move(*records)});
         }
       }
       auto left = deadline - std::chrono::steady_clock::now();
-      if (!out.empty() || left <= std::chrono::nanoseconds::zero()) {
-        board.finish(impl_->slot);
-        return out;
-      }
-      board.wait(impl_->slot, token, std::chrono::duration_cast<std::chrono::nanoseconds>(left));
-      board.finish(impl_->slot);
+      if (!out.empty() || left <= std::chrono::nanoseconds::zero()) return out;
+      board.sleep(impl_->slot, token, std::chrono::duration_cast<std::chrono::nanoseconds>(left));
     }
   } catch (const std::bad_alloc&) {
     return fail(Errc::io, "out of memory while peeking");
@@ -901,32 +878,31 @@ bool Node::wait_for_commit(const std::function<bool()>& ready, std::chrono::nano
   for (;;) {
     // A commit bumps the slots of the input buffers it changed before the commit slot: a
     // buffer version that `ready` misses moves the commit slot past `token`, and wait returns.
-    std::uint32_t token = board.prepare(WakeBoard::kAnyCommit);
-    if (ready()) {
-      board.finish(WakeBoard::kAnyCommit);
-      return true;
-    }
+    const std::uint32_t token = board.version(WakeBoard::kAnyCommit);
+    if (ready()) return true;
     auto left = deadline - std::chrono::steady_clock::now();
-    if (left <= std::chrono::nanoseconds::zero()) {
-      board.finish(WakeBoard::kAnyCommit);
-      return false;
-    }
-    board.wait_buffers(token, std::chrono::duration_cast<std::chrono::nanoseconds>(left));
-    board.finish(WakeBoard::kAnyCommit);
+    if (left <= std::chrono::nanoseconds::zero()) return false;
+    board.sleep_buffers(token, std::chrono::duration_cast<std::chrono::nanoseconds>(left));
   }
 }
 
 void Node::wake_waiters() const { impl_->env->wake().wake_buffer_waiters(); }
 
+void set_wait_spin(std::chrono::microseconds budget) { WakeBoard::set_spin_budget(budget); }
+
+std::chrono::microseconds wait_spin() {
+  return std::chrono::duration_cast<std::chrono::microseconds>(WakeBoard::spin_budget());
+}
+
 Result<std::vector<Change>> Node::watch(std::uint64_t bookmark, std::chrono::milliseconds timeout, std::size_t limit) const {
   const auto deadline = std::chrono::steady_clock::now() + timeout;
   WakeBoard& board = impl_->env->wake();
   for (;;) {
-    std::uint32_t token = board.prepare(WakeBoard::kAnyCommit);
+    const std::uint32_t token = board.version(WakeBoard::kAnyCommit);
     std::vector<Change> changes;
     {
       ReadTxn read(*impl_->env);
-      if (auto r = read.begin(); !r) { board.finish(WakeBoard::kAnyCommit); return unexpected(r.error()); }
+      if (auto r = read.begin(); !r) return unexpected(r.error());
       Query query(read.txn, *impl_->env);
       // Insertions: records after the bookmark. Removals: the log after the bookmark.
       Pattern after;
@@ -936,7 +912,7 @@ Result<std::vector<Change>> Node::watch(std::uint64_t bookmark, std::chrono::mil
         if (rec) changes.push_back(Change{id, false, std::move(*rec)});
         return !(limit && changes.size() >= limit);
       });
-      if (!walked) { board.finish(WakeBoard::kAnyCommit); return unexpected(walked.error()); }
+      if (!walked) return unexpected(walked.error());
       MDB_cursor* cursor = nullptr;
       if (mdb_cursor_open(read.txn, impl_->env->removals, &cursor) == 0) {
         std::uint64_t from = bookmark + 1;
@@ -949,18 +925,13 @@ Result<std::vector<Change>> Node::watch(std::uint64_t bookmark, std::chrono::mil
       }
     }
     if (!changes.empty()) {
-      board.finish(WakeBoard::kAnyCommit);
       std::sort(changes.begin(), changes.end(), [](const Change& a, const Change& b) { return a.seq < b.seq; });
       if (limit && changes.size() > limit) changes.resize(limit);
       return changes;
     }
     auto left = deadline - std::chrono::steady_clock::now();
-    if (left <= std::chrono::nanoseconds::zero()) {
-      board.finish(WakeBoard::kAnyCommit);
-      return changes;
-    }
-    board.wait(WakeBoard::kAnyCommit, token, std::chrono::duration_cast<std::chrono::nanoseconds>(left));
-    board.finish(WakeBoard::kAnyCommit);
+    if (left <= std::chrono::nanoseconds::zero()) return changes;
+    board.sleep(WakeBoard::kAnyCommit, token, std::chrono::duration_cast<std::chrono::nanoseconds>(left));
   }
 }
 

@@ -4,10 +4,14 @@
 #include <fcntl.h>
 #include <linux/futex.h>
 #include <sys/mman.h>
+#include <sched.h>
 #include <sys/syscall.h>
 #include <unistd.h>
 
+#include <algorithm>
 #include <cerrno>
+#include <cstdio>
+#include <cstdlib>
 #include <cstring>
 #include <ctime>
 
@@ -42,21 +46,96 @@ std::uint32_t WakeBoard::slot_for(std::string_view agent_iri) {
   return 1 + static_cast<std::uint32_t>(codec::hash64(agent_iri) % (kSlots - 1));
 }
 
-std::uint32_t WakeBoard::prepare(std::uint32_t slot) {
-  shared_->waiters[slot].fetch_add(1, std::memory_order_seq_cst);
-  return shared_->seq[slot].load(std::memory_order_seq_cst);
+namespace {
+
+// How this thread's recent sleeps ended: a thread whose last kQuietAfter spins all ran out
+// waits on a quiet word and goes straight to the futex, spinning only every kProbeEvery-th time
+// to notice that its stream got busy.
+struct SpinRecord {
+  unsigned misses = 0;
+  unsigned sleeps = 0;
+};
+thread_local SpinRecord t_spin;
+constexpr unsigned kQuietAfter = 4;
+constexpr unsigned kProbeEvery = 64;
+
+std::chrono::nanoseconds read_spin_budget() {
+  const char* text = std::getenv("TAHVEL_SPIN_US");
+  if (!text || !*text) return WakeBoard::kDefaultSpin;
+  char* end = nullptr;
+  errno = 0;
+  const long long us = std::strtoll(text, &end, 10);
+  if (errno != 0 || *end != '\0' || us < 0) {
+    std::fprintf(stderr, "tahvel: TAHVEL_SPIN_US='%s' is not a whole number of microseconds; spinning up to %lld us\n",
+                 text, static_cast<long long>(WakeBoard::kDefaultSpin.count()));
+    return WakeBoard::kDefaultSpin;
+  }
+  return std::chrono::microseconds(std::min<long long>(us, 100'000));
 }
 
-void WakeBoard::wait(std::uint32_t slot, std::uint32_t token, std::chrono::nanoseconds timeout) {
+inline void cpu_relax() {
+#if defined(__x86_64__) || defined(__i386__)
+  __builtin_ia32_pause();
+#elif defined(__aarch64__)
+  asm volatile("yield");
+#endif
+}
+
+// True when `word` moved past `token` within `budget`. Every few looks it yields: on a machine
+// of two cores a spinning reader must not keep the thread it waits for off the CPU.
+bool spin_until_moved(const std::atomic<std::uint32_t>& word, std::uint32_t token, std::chrono::nanoseconds budget) {
+  const auto end = std::chrono::steady_clock::now() + budget;
+  for (unsigned i = 1;; ++i) {
+    if (word.load(std::memory_order_acquire) != token) return true;
+    cpu_relax();
+    if (i % 16 == 0) {
+      if (std::chrono::steady_clock::now() >= end) return false;
+      sched_yield();
+    }
+  }
+}
+
+std::atomic<std::int64_t> g_spin_ns{-1};  // -1: not read from the environment yet
+
+}  // namespace
+
+std::chrono::nanoseconds WakeBoard::spin_budget() {
+  std::int64_t ns = g_spin_ns.load(std::memory_order_relaxed);
+  if (ns < 0) {
+    ns = read_spin_budget().count();
+    g_spin_ns.store(ns, std::memory_order_relaxed);
+  }
+  return std::chrono::nanoseconds(ns);
+}
+
+void WakeBoard::set_spin_budget(std::chrono::nanoseconds budget) {
+  g_spin_ns.store(std::max<std::int64_t>(budget.count(), 0), std::memory_order_relaxed);
+}
+
+void WakeBoard::sleep(std::uint32_t slot, std::uint32_t token, std::chrono::nanoseconds timeout) {
   if (timeout.count() <= 0) return;
-  timespec ts{static_cast<time_t>(timeout.count() / 1'000'000'000),
-              static_cast<long>(timeout.count() % 1'000'000'000)};
-  // Not FUTEX_PRIVATE: the word lives in a file mapping shared between processes.
-  syscall(SYS_futex, reinterpret_cast<std::uint32_t*>(&shared_->seq[slot]), FUTEX_WAIT, token, &ts,
-          nullptr, 0);
-}
-
-void WakeBoard::finish(std::uint32_t slot) {
+  std::atomic<std::uint32_t>& word = shared_->seq[slot];
+  const std::chrono::nanoseconds budget = std::min(spin_budget(), timeout);
+  SpinRecord& record = t_spin;
+  ++record.sleeps;
+  if (budget.count() > 0 && (record.misses < kQuietAfter || record.sleeps % kProbeEvery == 0)) {
+    if (spin_until_moved(word, token, budget)) {
+      record.misses = 0;
+      return;
+    }
+    ++record.misses;
+    timeout -= budget;
+    if (timeout.count() <= 0) return;
+  }
+  // Counted a waiter before the word is read again (both sequentially consistent): either the
+  // writer sees the count and wakes this thread, or this thread sees the word moved.
+  shared_->waiters[slot].fetch_add(1, std::memory_order_seq_cst);
+  if (word.load(std::memory_order_seq_cst) == token) {
+    timespec ts{static_cast<time_t>(timeout.count() / 1'000'000'000),
+                static_cast<long>(timeout.count() % 1'000'000'000)};
+    // Not FUTEX_PRIVATE: the word lives in a file mapping shared between processes.
+    syscall(SYS_futex, reinterpret_cast<std::uint32_t*>(&word), FUTEX_WAIT, token, &ts, nullptr, 0);
+  }
   shared_->waiters[slot].fetch_sub(1, std::memory_order_seq_cst);
 }
 
@@ -75,8 +154,13 @@ void WakeBoard::bump_commit(bool buffers_changed) {
   }
 }
 
-void WakeBoard::wait_buffers(std::uint32_t token, std::chrono::nanoseconds timeout) {
+void WakeBoard::sleep_buffers(std::uint32_t token, std::chrono::nanoseconds timeout) {
   if (timeout.count() <= 0) return;
+  shared_->waiters[kAnyCommit].fetch_add(1, std::memory_order_seq_cst);
+  if (shared_->seq[kAnyCommit].load(std::memory_order_seq_cst) != token) {
+    shared_->waiters[kAnyCommit].fetch_sub(1, std::memory_order_seq_cst);
+    return;
+  }
   // FUTEX_WAIT_BITSET takes an absolute CLOCK_MONOTONIC deadline.
   timespec now{};
   clock_gettime(CLOCK_MONOTONIC, &now);
@@ -84,6 +168,7 @@ void WakeBoard::wait_buffers(std::uint32_t token, std::chrono::nanoseconds timeo
   timespec deadline{static_cast<time_t>(end / 1'000'000'000), static_cast<long>(end % 1'000'000'000)};
   syscall(SYS_futex, reinterpret_cast<std::uint32_t*>(&shared_->seq[kAnyCommit]), FUTEX_WAIT_BITSET, token,
           &deadline, nullptr, kBuffersBit);
+  shared_->waiters[kAnyCommit].fetch_sub(1, std::memory_order_seq_cst);
 }
 
 std::uint32_t WakeBoard::version(std::uint32_t slot) const {

@@ -4,6 +4,10 @@
 // slots it affected after its commit and calls FUTEX_WAKE only when the slot's waiter count is
 // non-zero, so a write with nobody asleep costs no system call. Collisions only cause a
 // spurious wake-up; the woken side re-checks its buffer.
+//
+// A waiter first watches its word for a short while before it sleeps (see sleep()): on this
+// kind of machine (virtual CPUs) a futex wake-up costs tens of µs on each side, the waker's
+// FUTEX_WAKE included, while a word seen moving costs well under one.
 #pragma once
 
 #include <atomic>
@@ -30,12 +34,16 @@ class WakeBoard {
 
   static std::uint32_t slot_for(std::string_view agent_iri);
 
-  // Waiter protocol: token = prepare(slot); re-check the condition; if still unmet,
-  // wait(slot, token, timeout); always finish(slot). A bump between prepare and wait makes wait
-  // return at once, so no wake-up is lost.
-  std::uint32_t prepare(std::uint32_t slot);
-  void wait(std::uint32_t slot, std::uint32_t token, std::chrono::nanoseconds timeout);
-  void finish(std::uint32_t slot);
+  // Waiter protocol: token = version(slot); check the condition; if unmet,
+  // sleep(slot, token, timeout), and check again. A bump after version() moves the word past
+  // `token` and sleep returns at once, so no wake-up is lost.
+  //
+  // sleep() first spins on the word for up to spin_budget() while this thread's recent sleeps
+  // were ended by a bump within that budget (a busy stream: the spin saves both wake-ups); a
+  // thread whose waits run long (a quiet buffer) goes straight to the futex, bar an occasional
+  // probe, and costs no CPU. Only then does it count itself a waiter, so a writer whose readers
+  // are all spinning makes no system call.
+  void sleep(std::uint32_t slot, std::uint32_t token, std::chrono::nanoseconds timeout);
 
   // Writer side, after commit.
   void bump(std::uint32_t slot);
@@ -48,12 +56,20 @@ class WakeBoard {
   // kAnyCommit's word moves and every waiter on it wakes, the buffer waiters included.
   void wake_buffer_waiters() { bump_commit(true); }
 
-  // As wait(kAnyCommit, ...), but woken only by commits that changed an input buffer (or a
-  // change of the word before the sleep began).
-  void wait_buffers(std::uint32_t token, std::chrono::nanoseconds timeout);
+  // As sleep(kAnyCommit, ...), but woken only by commits that changed an input buffer (or a
+  // change of the word before the sleep began). It never spins: the word moves at every commit,
+  // and its one user (a parent's down pump) would spin through a hospital's whole ingest.
+  void sleep_buffers(std::uint32_t token, std::chrono::nanoseconds timeout);
 
   // The slot's sequence word now (it changes at every bump).
   std::uint32_t version(std::uint32_t slot) const;
+
+  // How long sleep() may spin: TAHVEL_SPIN_US in the environment (0: never), read once;
+  // default kDefaultSpin.
+  static constexpr std::chrono::microseconds kDefaultSpin{200};
+  static std::chrono::nanoseconds spin_budget();
+  // Overrides it for this process (tests compare both ways).
+  static void set_spin_budget(std::chrono::nanoseconds budget);
 
  private:
   struct Shared {

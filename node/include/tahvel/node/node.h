@@ -386,4 +386,16 @@ class Node {
   std::shared_ptr<Impl> impl_;
 };
 
+// ---------------------------------------------------------------------------------------------
+// Waiting
+//
+// A thread in Agent::take, Agent::peek or Node::watch first watches the store's wake word for up
+// to this long before it sleeps in the kernel: a futex wake-up costs tens of µs on each side on
+// virtual CPUs, a word seen moving well under one. It spins only while its recent waits ended
+// within the budget (a busy stream), and yields the CPU as it spins; a waiter on a quiet buffer
+// goes straight to sleep. Default: TAHVEL_SPIN_US from the environment, else 200 µs. Zero never
+// spins: for a node whose CPU time counts for more than a hop's latency. For the whole process.
+void set_wait_spin(std::chrono::microseconds budget);
+std::chrono::microseconds wait_spin();
+
 }  // namespace tahvel::node

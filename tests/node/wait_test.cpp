@@ -1,0 +1,124 @@
+// Waiting for the board: a thread in take or watch first spins on the store's wake word, then
+// sleeps on the futex (node.h, "Waiting"). Whichever way a waiter ends up waiting, no item and no
+// commit may be missed: these cases run with spinning off, and on with gaps between the writes
+// both shorter and longer than the budget, so that spins that see the word move, spins that run
+// out into a sleep, and the quiet mode all meet a writer.
+#include <gtest/gtest.h>
+
+#include <chrono>
+#include <random>
+#include <thread>
+
+#include "test_support.h"
+#include "tahvel/node/node.h"
+
+namespace tahvel::node {
+namespace {
+
+using namespace std::chrono_literals;
+using testing::ex;
+using testing::make_node;
+using testing::TempDir;
+
+// Restores the process's spin budget after a case.
+class SpinBudget {
+ public:
+  explicit SpinBudget(std::chrono::microseconds budget) : before_(wait_spin()) { set_wait_spin(budget); }
+  ~SpinBudget() { set_wait_spin(before_); }
+
+ private:
+  std::chrono::microseconds before_;
+};
+
+// Gaps between writes around the spin budget: a third well inside, a third just past it, a third
+// far past it (the waiter has long gone to sleep).
+std::chrono::microseconds gap(std::mt19937& rng, std::chrono::microseconds budget) {
+  const auto b = std::max<std::int64_t>(budget.count(), 50);
+  switch (rng() % 3) {
+    case 0: return std::chrono::microseconds(rng() % (b / 2 + 1));
+    case 1: return std::chrono::microseconds(b + static_cast<std::int64_t>(rng() % b));
+    default: return std::chrono::microseconds(5 * b);
+  }
+}
+
+class Waiting : public ::testing::TestWithParam<int> {};
+
+TEST_P(Waiting, PingPongBetweenTwoAgentsLosesNoWakeUp) {
+  SpinBudget budget{std::chrono::microseconds(GetParam())};
+  TempDir dir;
+  make_node(dir.path());
+  auto node = Node::open(dir.path());
+  auto agent = node->agent("ping");
+  ASSERT_TRUE(agent->subscribe(Pattern{.p = ex("pong")}));
+  ASSERT_TRUE(node->agent("pong")->subscribe(Pattern{.p = ex("ping")}));
+  constexpr int kRounds = 300;
+  std::thread responder([&] {
+    auto node = Node::open(dir.path());
+    auto agent = node->agent("pong");
+    std::mt19937 rng(7);
+    for (int i = 0; i < kRounds; ++i) {
+      auto d = agent->take(20s);
+      ASSERT_TRUE(d && *d) << "ping " << i << " never woke the responder";
+      std::this_thread::sleep_for(gap(rng, wait_spin()));
+      ASSERT_TRUE(agent->store(Item{}.add(ex("r" + std::to_string(i)), ex("pong"), Term::integer(i))));
+    }
+  });
+  std::mt19937 rng(11);
+  int answered = 0;
+  for (int i = 0; i < kRounds; ++i) {
+    std::this_thread::sleep_for(gap(rng, wait_spin()));
+    ASSERT_TRUE(agent->store(Item{}.add(ex("q" + std::to_string(i)), ex("ping"), Term::integer(i))));
+    auto d = agent->take(20s);
+    if (!d || !*d) break;
+    ASSERT_EQ((*d)->records.at(0).triple.o, Term::integer(i));
+    ++answered;
+  }
+  responder.join();
+  EXPECT_EQ(answered, kRounds);
+}
+
+TEST_P(Waiting, AWatcherSeesEveryCommitInOrder) {
+  SpinBudget budget{std::chrono::microseconds(GetParam())};
+  TempDir dir;
+  Node node = make_node(dir.path());
+  const std::uint64_t start = node.snapshot()->last_seq();
+  constexpr int kItems = 400;
+  std::thread writer([&] {
+    auto mine = Node::open(dir.path());
+    auto agent = mine->agent("writer");
+    std::mt19937 rng(5);
+    for (int i = 0; i < kItems; ++i) {
+      std::this_thread::sleep_for(gap(rng, wait_spin()));
+      ASSERT_TRUE(agent->store(Item{}.add(ex("o" + std::to_string(i)), ex("n"), Term::integer(i))));
+    }
+  });
+  std::uint64_t bookmark = start;
+  int next = 0;
+  while (next < kItems) {
+    auto changes = node.watch(bookmark, 20s);
+    ASSERT_TRUE(changes);
+    if (changes->empty()) break;  // 20 s without a commit it was woken for
+    for (const Change& c : *changes) {
+      bookmark = c.seq;
+      ASSERT_EQ(c.record.triple.o, Term::integer(next)) << "after " << next << " items";
+      ++next;
+    }
+  }
+  writer.join();
+  EXPECT_EQ(next, kItems);
+}
+
+INSTANTIATE_TEST_SUITE_P(SpinBudgets, Waiting, ::testing::Values(0, 200),
+                         [](const ::testing::TestParamInfo<int>& info) {
+                           return info.param == 0 ? std::string("SleepingOnly") : "Spinning" + std::to_string(info.param) + "us";
+                         });
+
+TEST(WaitSpin, IsSetForTheWholeProcessAndNeverNegative) {
+  SpinBudget budget{50us};
+  EXPECT_EQ(wait_spin(), 50us);
+  set_wait_spin(-5us);
+  EXPECT_EQ(wait_spin(), 0us);
+}
+
+}  // namespace
+}  // namespace tahvel::node
