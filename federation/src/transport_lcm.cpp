@@ -7,9 +7,12 @@
 // is decoded here, from the raw bytes, so that anything malformed is reported to the DropLog
 // with its channel and size instead of being printed by LCM's generated handler.
 #include <arpa/inet.h>
+#include <sched.h>
 #include <lcm/lcm.h>
 
+#include <algorithm>
 #include <charconv>
+#include <chrono>
 #include <cstring>
 #include <deque>
 #include <mutex>
@@ -17,6 +20,7 @@
 
 #include "tahvel/federation/transport.h"
 #include "tahvel/federation/wire_names.h"
+#include "tahvel/node/node.h"
 #include "tahvel_frame_t.h"
 #include "wire_common.h"
 
@@ -107,6 +111,11 @@ class LcmTransport final : public Transport {
         if (lcm_handle_timeout(lcm_, 0) < 0) return handle_error();
         break;
       }
+      // First look without blocking for a while, as a waiter on the store does (node.h,
+      // "Waiting"): LCM's own thread has the datagram, and waking this one from its pipe costs
+      // a futex-sized wake-up on virtual CPUs. Only while recent waits were short.
+      if (!spin_for_frame(left)) return handle_error();
+      if (!queue_.empty()) break;
       // lcm_handle_timeout dispatches at most one message to on_message (which may drop it).
       if (lcm_handle_timeout(lcm_, static_cast<int>(left.count())) < 0) return handle_error();
     }
@@ -117,6 +126,23 @@ class LcmTransport final : public Transport {
   }
 
  private:
+  // Polls LCM without blocking for up to the process's wait spin (at most `left`), yielding
+  // between looks; false on an LCM error. Four spins in a row that found nothing make the next
+  // waits block at once, bar a probe in 64.
+  bool spin_for_frame(std::chrono::milliseconds left) {
+    using clock = std::chrono::steady_clock;
+    ++waits_;
+    const auto budget = std::min<std::chrono::nanoseconds>(node::wait_spin(), left);
+    if (budget.count() <= 0 || (misses_ >= 4 && waits_ % 64 != 0)) return true;
+    const auto end = clock::now() + budget;
+    while (queue_.empty() && clock::now() < end) {
+      if (lcm_handle_timeout(lcm_, 0) < 0) return false;
+      if (queue_.empty()) sched_yield();
+    }
+    misses_ = queue_.empty() ? misses_ + 1 : 0;
+    return true;
+  }
+
   Result<std::optional<Frame>> handle_error() {
     return node::fail(Errc::io,
                       "lcm <" + self_ + ">: lcm_handle_timeout failed on channel " + channel_);
@@ -169,6 +195,7 @@ class LcmTransport final : public Transport {
   DropLog log_;
   std::mutex send_mutex_;
   std::deque<Frame> queue_;  // decoded frames; touched only by the receive() thread
+  unsigned misses_ = 0, waits_ = 0;  // spin_for_frame's record of recent waits
 };
 
 }  // namespace
