@@ -587,6 +587,8 @@ QueryFigures measure_query(LinkPair& p, node::Node& home, const std::string& wha
   return q;
 }
 
+double cpu_of(clockid_t clock);
+
 LinkFigures measure_link(Kind kind, const Config& cfg, const ScratchDir& scratch, std::uint64_t& next_number, FarEnd& far) {
   LinkPair p;
   start_pair(p, kind, scratch, static_cast<std::uint64_t>(cfg.rounds) * 11 / 10 + 10 + cfg.burst, far);
@@ -602,6 +604,7 @@ LinkFigures measure_link(Kind kind, const Config& cfg, const ScratchDir& scratch
   const int warmup = std::max(10, cfg.rounds / 10);
   std::vector<double> us;
   us.reserve(static_cast<std::size_t>(cfg.rounds));
+  const double latency_from = cpu_of(CLOCK_MONOTONIC);
   for (int i = 0; i < warmup + cfg.rounds; ++i) {
     const std::uint64_t n = next_number++;
     node::Item item = numbered_item(p.home, n);
@@ -610,6 +613,9 @@ LinkFigures measure_link(Kind kind, const Config& cfg, const ScratchDir& scratch
     if (!watcher.wait_for(n, 10s)) throw std::runtime_error(what + "item " + std::to_string(n) + " not at the hospital after 10 s" + p.diag.summary());
     if (i >= warmup) us.push_back(micros(Clock::now() - t0));
   }
+  if (std::getenv("TAHVEL_BENCH_TIMES"))
+    std::fprintf(stderr, "tahvel: bench federation: %s latency timed from %.6f to %.6f (CLOCK_MONOTONIC)\n",
+                 name_of(kind), latency_from, cpu_of(CLOCK_MONOTONIC));
   LinkFigures f;
   f.up = percentiles(std::move(us));
 
