@@ -41,6 +41,14 @@ std::chrono::microseconds gap(std::mt19937& rng, std::chrono::microseconds budge
   }
 }
 
+// After a gap drawn by `rng`, `agent` stores the one-triple item `subject predicate n`: the
+// writes every case below makes at irregular times.
+Result<std::uint64_t> store_after_gap(Agent& agent, std::mt19937& rng, const std::string& subject,
+                                      const std::string& predicate, int n) {
+  std::this_thread::sleep_for(gap(rng, wait_spin()));
+  return agent.store(Item{}.add(ex(subject), ex(predicate), Term::integer(n)));
+}
+
 class Waiting : public ::testing::TestWithParam<int> {};
 
 TEST_P(Waiting, PingPongBetweenTwoAgentsLosesNoWakeUp) {
@@ -59,15 +67,13 @@ TEST_P(Waiting, PingPongBetweenTwoAgentsLosesNoWakeUp) {
     for (int i = 0; i < kRounds; ++i) {
       auto d = agent->take(20s);
       ASSERT_TRUE(d && *d) << "ping " << i << " never woke the responder";
-      std::this_thread::sleep_for(gap(rng, wait_spin()));
-      ASSERT_TRUE(agent->store(Item{}.add(ex("r" + std::to_string(i)), ex("pong"), Term::integer(i))));
+      ASSERT_TRUE(store_after_gap(*agent, rng, "r" + std::to_string(i), "pong", i));
     }
   });
   std::mt19937 rng(11);
   int answered = 0;
   for (int i = 0; i < kRounds; ++i) {
-    std::this_thread::sleep_for(gap(rng, wait_spin()));
-    ASSERT_TRUE(agent->store(Item{}.add(ex("q" + std::to_string(i)), ex("ping"), Term::integer(i))));
+    ASSERT_TRUE(store_after_gap(*agent, rng, "q" + std::to_string(i), "ping", i));
     auto d = agent->take(20s);
     if (!d || !*d) break;
     ASSERT_EQ((*d)->records.at(0).triple.o, Term::integer(i));
@@ -88,8 +94,7 @@ TEST_P(Waiting, AWatcherSeesEveryCommitInOrder) {
     auto agent = mine->agent("writer");
     std::mt19937 rng(5);
     for (int i = 0; i < kItems; ++i) {
-      std::this_thread::sleep_for(gap(rng, wait_spin()));
-      ASSERT_TRUE(agent->store(Item{}.add(ex("o" + std::to_string(i)), ex("n"), Term::integer(i))));
+      ASSERT_TRUE(store_after_gap(*agent, rng, "o" + std::to_string(i), "n", i));
     }
   });
   std::uint64_t bookmark = start;
