@@ -234,9 +234,11 @@ struct Diagnostics {
 enum class Kind { dds, lcm };
 const char* name_of(Kind k) { return k == Kind::dds ? "dds" : "lcm"; }
 
-std::shared_ptr<fed::Transport> open_transport(Kind kind, const std::string& iri, Diagnostics& diag) {
+// `end`: which end of a link the endpoint is, for LCM (LcmEnd; the binding floor's are shared).
+std::shared_ptr<fed::Transport> open_transport(Kind kind, const std::string& iri, Diagnostics& diag,
+                                               fed::LcmEnd end = fed::LcmEnd::shared) {
   auto t = kind == Kind::dds ? fed::open_dds(dds_settings(), iri, diag.drop_log())
-                             : fed::open_lcm(fed::LcmSettings{}, iri, diag.drop_log());
+                             : fed::open_lcm(fed::LcmSettings{.end = end}, iri, diag.drop_log());
   if (!t) throw std::runtime_error(std::string("open ") + name_of(kind) + " <" + iri + ">: " + t.error().message);
   return std::shared_ptr<fed::Transport>(std::move(*t));
 }
@@ -405,7 +407,7 @@ class FarEnd {
         } else if (command == "hospital") {
           Diagnostics diag;
           const Kind kind = a == "dds" ? Kind::dds : Kind::lcm;
-          auto link = fed::Link::start({.dir = b, .down = open_transport(kind, c, diag), .children = {d}, .log = diag.link_log()});
+          auto link = fed::Link::start({.dir = b, .down = open_transport(kind, c, diag, fed::LcmEnd::parent), .children = {d}, .log = diag.link_log()});
           if (!link) {
             reply("error hospital link: " + link.error().message);
             continue;
@@ -450,7 +452,7 @@ void start_pair(LinkPair& p, Kind kind, const ScratchDir& scratch, std::uint64_t
   init_store(p.hospital_dir, p.hospital, room_for(items));
   init_store(p.home_dir, p.home, room_for(items));
   far.request(std::string("hospital ") + name_of(kind) + " " + p.hospital_dir.string() + " " + p.hospital + " home1", "ready", 30s);
-  auto home = fed::Link::start({.dir = p.home_dir, .parent_iri = p.hospital, .up = open_transport(kind, p.home, p.diag),
+  auto home = fed::Link::start({.dir = p.home_dir, .parent_iri = p.hospital, .up = open_transport(kind, p.home, p.diag, fed::LcmEnd::child),
                                 .log = p.diag.link_log()});
   if (!home) throw std::runtime_error("home link: " + home.error().message);
   p.home_link = std::move(*home);

@@ -58,9 +58,11 @@ struct TransportFlags {
   federation::DdsSettings dds;
   std::string dds_config_file;
 
+  // An LCM link's two ends listen on different ports (LcmEnd), so a node's end toward its
+  // parent never serves its children too.
   bool same_endpoint(const TransportFlags& o) const {
     if (kind != o.kind) return false;
-    if (kind == "lcm") return lcm.url == o.lcm.url;
+    if (kind == "lcm") return lcm.url == o.lcm.url && lcm.end == o.lcm.end;
     return dds.domain == o.dds.domain && dds_config_file == o.dds_config_file;
   }
 };
@@ -76,6 +78,7 @@ TransportFlags transport_flags(const std::string& kind, const Args& args, const 
   t.kind = kind;
   if (kind == "lcm") {
     if (auto url = flag("lcm-url")) t.lcm.url = *url;
+    t.lcm.end = prefix.empty() ? federation::LcmEnd::child : federation::LcmEnd::parent;
   } else if (kind == "dds") {
     if (auto domain = flag("dds-domain")) {
       auto n = parse_u64(*domain);
@@ -221,7 +224,7 @@ std::string age_of(std::int64_t unix_ns) {
   return age < -0.05 ? seconds_text(-age) + " ahead of this machine's clock" : seconds_text(std::max(age, 0.0)) + " ago";
 }
 
-const Flag kFlagLcmUrl{"--lcm-url", "", "URL", "LCM provider URL (default udpm://239.255.76.67:7667?ttl=0)"};
+const Flag kFlagLcmUrl{"--lcm-url", "", "URL", "LCM URL of the link to the parent: frames up on its PORT, down on PORT + 1 (default udpm://239.255.76.67:7667?ttl=0)"};
 const Flag kFlagDdsDomain{"--dds-domain", "", "N", "Cyclone DDS domain id (default 0)"};
 const Flag kFlagDdsConfig{"--dds-config", "", "FILE", "Cyclone DDS XML configuration"};
 const Flag kFlagListenLcmUrl{"--listen-lcm-url", "", "URL", "LCM URL children reach this node on (default: --lcm-url)"};
@@ -296,8 +299,8 @@ int run_link(const Args& args) {
     options.parent_iri = parse_iri(*parent, prefixes, "--parent");
     options.up = open_transport(*up_flags, node.iri(), log);
   }
-  // One endpoint serves both sides only when they are the same LCM URL or DDS domain and
-  // configuration; a gateway may reach its parent on one domain and its children on another.
+  // One endpoint serves both sides only when they are the same DDS domain and configuration; a
+  // gateway may reach its parent on one domain and its children on another.
   for (const auto& flags : listen_flags) {
     auto transport = up_flags && up_flags->same_endpoint(flags) ? options.up : open_transport(flags, node.iri(), log);
     if (!options.down) {

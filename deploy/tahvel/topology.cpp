@@ -86,8 +86,9 @@ node::Result<LinkSpec> link_spec(const toml::table& t, const std::filesystem::pa
     return node::fail(Errc::invalid_argument, where(t, file) + ": " + what + "url is for kind = \"lcm\"");
   spec.url_at = where(t.get("url") ? *t.get("url") : static_cast<const toml::node&>(t), file);
   if (url) {
-    // Checked here, not when the link first runs: a bad URL there is a link that dies at each restart.
-    if (auto ok = federation::check_lcm_url(*url); !ok)
+    // Checked here, not when the link first runs: a bad URL there is a link that dies at each
+    // restart. A link takes the URL's port and the next (LcmEnd).
+    if (auto ok = federation::lcm_down_url(*url); !ok)
       return node::fail(Errc::invalid_argument, where(*t.get("url"), file) + ": " + what + "url: " + ok.error().message);
     spec.lcm_url = *url;
   }
@@ -173,14 +174,17 @@ node::Result<void> check_lcm_ports_clear_of_dds(const Topology& topo) {
   for (const auto& n : topo.nodes) {
     auto lcm = std::find_if(n.listen.begin(), n.listen.end(), [](const LinkSpec& l) { return l.kind == "lcm"; });
     if (lcm == n.listen.end()) continue;
-    const auto port = lcm_udp_port(lcm->lcm_url);
-    if (!port) continue;
+    const auto up_port = lcm_udp_port(lcm->lcm_url);
+    if (!up_port) continue;
     for (const auto& [domain, dds_node] : dds_domains) {
       const std::uint32_t first = kDdsPortBase + kDdsDomainGain * domain, last = first + kDdsDomainGain - 1;
-      if (*port < first || *port > last) continue;
+      // The link's frames down take the port after the URL's (LcmEnd).
+      const std::uint32_t port = *up_port >= first && *up_port <= last ? *up_port : *up_port + 1;
+      if (port < first || port > last) continue;
       return node::fail(Errc::invalid_argument,
                         lcm->url_at + ": node '" + n.id + "': listen.url " + lcm->lcm_url + ": UDP port " +
-                            std::to_string(*port) + " is among the ports Cyclone DDS takes for domain " +
+                            std::to_string(port) + (port == *up_port ? "" : " (the link's port for frames down)") +
+                            " is among the ports Cyclone DDS takes for domain " +
                             std::to_string(domain) + " (" + std::to_string(first) + "-" + std::to_string(last) +
                             "), which node '" + dds_node + "' listens on; on a host running both, the LCM link " +
                             "would find its port taken. Use a port outside " + std::to_string(first) + "-" +

@@ -1,6 +1,7 @@
 // The LCM binding (docs/transports.md): one lcm_t per endpoint, subscribed to the one channel
 // named after its own IRI (lcm_channel()); send() publishes a tahvel_frame_t on the channel of
-// frame.to. Tuned for the sensor-to-gateway LAN: small frames at a steady rate, occasionally a
+// frame.to, through a second, send-only lcm_t when the endpoint is a link's end (LcmEnd) and
+// sends on the other port. Tuned for the sensor-to-gateway LAN: small frames at a steady rate, occasionally a
 // chunk of raw signal of a few MB (LCM fragments it over UDP multicast).
 //
 // LCM may lose datagrams (a full socket buffer, a lost fragment): the link resends. What arrives
@@ -45,8 +46,11 @@ std::string effective_url(const std::string& url) {
 
 class LcmTransport final : public Transport {
  public:
-  LcmTransport(lcm_t* lcm, std::string self, DropLog log)
-      : lcm_(lcm),
+  // `listen` receives (and sends, if `send` is null); `send` is never subscribed, so liblcm
+  // starts no receive thread for it. Takes both.
+  LcmTransport(lcm_t* listen, lcm_t* send, std::string self, DropLog log)
+      : lcm_(listen),
+        send_lcm_(send),
         self_(std::move(self)),
         channel_(lcm_channel(self_)),
         log_(wire::or_stderr(std::move(log))) {}
@@ -54,6 +58,7 @@ class LcmTransport final : public Transport {
   ~LcmTransport() override {
     if (sub_ != nullptr) lcm_unsubscribe(lcm_, sub_);
     lcm_destroy(lcm_);
+    if (send_lcm_ != nullptr) lcm_destroy(send_lcm_);
   }
 
   LcmTransport(const LcmTransport&) = delete;
@@ -92,7 +97,7 @@ class LcmTransport final : public Transport {
     const std::string channel = lcm_channel(frame.to);
     // lcm_publish on udpm locks internally; this lock also covers providers that do not.
     std::lock_guard lock(send_mutex_);
-    if (lcm_publish(lcm_, channel.c_str(), bytes.data(), static_cast<unsigned>(size)) != 0) {
+    if (lcm_publish(send_lcm_ != nullptr ? send_lcm_ : lcm_, channel.c_str(), bytes.data(), static_cast<unsigned>(size)) != 0) {
       return node::fail(Errc::io, "lcm <" + self_ + ">: publish of " + std::to_string(size) +
                                       " bytes on channel " + channel + " failed (" +
                                       wire::describe(frame) + ")");
@@ -189,6 +194,7 @@ class LcmTransport final : public Transport {
   }
 
   lcm_t* lcm_;
+  lcm_t* send_lcm_;  // null: sends through lcm_
   lcm_subscription_t* sub_ = nullptr;
   std::string self_;
   std::string channel_;
@@ -250,21 +256,65 @@ Result<void> check_lcm_url(std::string_view url) {
   return {};
 }
 
+Result<std::string> lcm_down_url(std::string_view url) {
+  if (auto ok = check_lcm_url(url); !ok) return node::fail(ok.error().code, ok.error().message);
+  const std::string_view rest = url.substr(std::string_view("udpm://").size());
+  const std::size_t question = rest.find('?');
+  const std::string_view address = rest.substr(0, question);
+  const std::string_view options = question == std::string_view::npos ? std::string_view{} : rest.substr(question);
+  const std::size_t colon = address.rfind(':');
+  std::string group(address.substr(0, colon));
+  std::uint32_t port = 7667;  // liblcm's defaults, as check_lcm_url describes
+  if (group.empty()) group = "239.255.76.67";
+  if (colon != std::string_view::npos) std::from_chars(address.data() + colon + 1, address.data() + address.size(), port);
+  if (port == 65535) {
+    return node::fail(Errc::invalid_argument, "LCM URL '" + std::string(url) +
+                                                  "': a link takes two ports, PORT for frames up and PORT + 1 for frames "
+                                                  "down, and there is no port after 65535");
+  }
+  return "udpm://" + group + ":" + std::to_string(port + 1) + std::string(options);
+}
+
 Result<std::unique_ptr<Transport>> open_lcm(const LcmSettings& settings, std::string_view self_iri,
                                             DropLog log) {
   if (self_iri.empty() || self_iri.find('\0') != std::string_view::npos) {
     return node::fail(Errc::invalid_argument, "open_lcm: the endpoint IRI is empty or has a NUL");
   }
-  if (settings.url.starts_with("udpm://")) {
+  const bool udpm = settings.url.starts_with("udpm://");
+  if (udpm) {
     if (auto ok = check_lcm_url(settings.url); !ok) return node::fail(ok.error().code, "open_lcm: " + ok.error().message);
   }
-  const std::string url = effective_url(settings.url);
-  lcm_t* lcm = lcm_create(url.c_str());
-  if (lcm == nullptr) {
-    return node::fail(Errc::io, "open_lcm <" + std::string(self_iri) +
-                                    ">: lcm_create failed for provider " + url);
+  // A link's end listens on the port of the frames addressed to it and sends on the other.
+  std::string listen_url = settings.url, send_url;
+  if (udpm && settings.end != LcmEnd::shared) {
+    auto down = lcm_down_url(settings.url);
+    if (!down) return node::fail(down.error().code, "open_lcm: " + down.error().message);
+    if (settings.end == LcmEnd::parent) {
+      send_url = *down;
+    } else {
+      listen_url = *down;
+      send_url = settings.url;
+    }
   }
-  auto transport = std::make_unique<LcmTransport>(lcm, std::string(self_iri), std::move(log));
+  auto create = [&](const std::string& url) -> Result<lcm_t*> {
+    const std::string effective = effective_url(url);
+    lcm_t* lcm = lcm_create(effective.c_str());
+    if (lcm == nullptr)
+      return node::fail(Errc::io, "open_lcm <" + std::string(self_iri) + ">: lcm_create failed for provider " + effective);
+    return lcm;
+  };
+  auto listen = create(listen_url);
+  if (!listen) return node::fail(listen.error().code, listen.error().message);
+  lcm_t* send = nullptr;
+  if (!send_url.empty()) {
+    auto created = create(send_url);
+    if (!created) {
+      lcm_destroy(*listen);
+      return node::fail(created.error().code, created.error().message);
+    }
+    send = *created;
+  }
+  auto transport = std::make_unique<LcmTransport>(*listen, send, std::string(self_iri), std::move(log));
   if (auto ok = transport->subscribe(); !ok) return node::fail(ok.error().code, ok.error().message);
   return std::unique_ptr<Transport>(std::move(transport));
 }

@@ -769,8 +769,9 @@ TEST_F(Cli, UpRefusesATopologyWhoseChildIriIsNotUnderItsParent) {
 // LCM listen on one of them (LCM's default 7667 is domain 1's fourth participant) could not bind
 // once enough DDS links ran on the host, and its link failed on every restart (chaos seed
 // 8167902797962811051: home3 on udpm://...:7667 beside four links in domain 1). `up` refuses it,
-// naming the node, the port and the domain; a port outside the domain's ports, or the default
-// port beside domain 0, is fine. The file is checked before `--node` is looked up, so with a
+// naming the node, the port and the domain; so it does when the port after it (the link's
+// frames down) is one of them. A port outside the domain's ports, or the default port beside
+// domain 0, is fine. The file is checked before `--node` is looked up, so with a
 // node that is not in it nothing is started, with or without the check (no links on the host's
 // network).
 TEST_F(Cli, UpRefusesAnLcmPortAmongTheDdsDomainsPorts) {
@@ -782,17 +783,21 @@ TEST_F(Cli, UpRefusesAnLcmPortAmongTheDdsDomainsPorts) {
   const std::string state = (tmp_ / "state").string();
   for (const std::string& listen : {std::string("{ kind = \"lcm\" }"),
                                     std::string("{ kind = \"lcm\", url = \"udpm://239.255.76.67:7667?ttl=0\" }"),
-                                    std::string("{ kind = \"lcm\", url = \"udpm://239.255.76.68:7899\" }")}) {
+                                    std::string("{ kind = \"lcm\", url = \"udpm://239.255.76.68:7899\" }"),
+                                    std::string("{ kind = \"lcm\", url = \"udpm://239.255.76.68:7649\" }")}) {
     spit(tmp_ / "clash.toml", topology(listen, 1));
     Outcome up = run({"up", (tmp_ / "clash.toml").string(), "--state", state, "--node", "nobody"});
     EXPECT_EQ(up.status, 1) << listen;
     EXPECT_NE(up.err.find("clash.toml:9:"), std::string::npos) << up.err;  // the line of home1's listen
     EXPECT_NE(up.err.find("node 'home1': listen.url"), std::string::npos) << up.err;
     EXPECT_NE(up.err.find("among the ports Cyclone DDS takes for domain 1 (7650-7899)"), std::string::npos) << up.err;
+    if (listen.find(":7649") != std::string::npos) {
+      EXPECT_NE(up.err.find("UDP port 7650 (the link's port for frames down)"), std::string::npos) << up.err;
+    }
   }
   for (const auto& [listen, domain] : {std::pair<std::string, int>{"{ kind = \"lcm\" }", 0},
                                        {"{ kind = \"lcm\", url = \"udpm://239.255.76.67:7900?ttl=0\" }", 1},
-                                       {"{ kind = \"lcm\", url = \"udpm://239.255.76.67:7649?ttl=0\" }", 1}}) {
+                                       {"{ kind = \"lcm\", url = \"udpm://239.255.76.67:7648?ttl=0\" }", 1}}) {
     spit(tmp_ / "clear.toml", topology(listen, domain));
     Outcome up = run({"up", (tmp_ / "clear.toml").string(), "--state", state, "--node", "nobody"});
     EXPECT_NE(up.err.find("--node 'nobody': no such node"), std::string::npos) << listen << " beside domain " << domain << ": " << up.err;
@@ -866,6 +871,8 @@ TEST_F(Cli, UpRefusesATopologyThatCouldNotRunAsWrittenNamingWhatAndWhere) {
        "unknown option 'tll=1' (known: ttl, recv_buf_size)"},
       {hospital + "listen = { kind = \"lcm\", url = \"udpm://239.255.76.67:7701?ttl=256\" }\n", "ttl '256' is not 0..255"},
       {hospital + "listen = { kind = \"lcm\", url = \"udpm://239.255.76.67:70000\" }\n", "port '70000' is not 1..65535"},
+      // A link takes the port after the URL's for frames down.
+      {hospital + "listen = { kind = \"lcm\", url = \"udpm://239.255.76.67:65535\" }\n", "there is no port after 65535"},
       {hospital + "listen = { kind = \"dds\", config = \"missing.xml\" }\n", "listen.config: cannot read"},
       // Cyclone says only that dds_create_domain failed.
       {hospital + "listen = { kind = \"dds\", config = \"t.toml\" }\n", "t.toml: Cyclone DDS configuration: not XML"},

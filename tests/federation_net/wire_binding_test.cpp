@@ -13,6 +13,8 @@
 namespace tahvel::federation {
 namespace {
 
+using namespace std::chrono_literals;
+
 void require_netns() {
   const char* in = std::getenv("TAHVEL_IN_NETNS");
   ASSERT_TRUE(in != nullptr && std::string(in) == "1")
@@ -152,6 +154,74 @@ TEST(WireOpen, LcmUrlCheckNamesWhatIsWrongAndPassesWhatLcmAccepts) {
     EXPECT_NE(checked.error().message.find(std::string("LCM URL '") + url + "': " + why), std::string::npos)
         << checked.error().message;
   }
+}
+
+// A link takes the URL's port for frames up and the next for frames down, same group and options.
+TEST(WireOpen, LcmDownUrlIsTheNextPortAndThereIsNoneAfter65535) {
+  EXPECT_EQ(lcm_down_url("udpm://239.255.76.67:7667?ttl=0").value(), "udpm://239.255.76.67:7668?ttl=0");
+  EXPECT_EQ(lcm_down_url("udpm://224.0.0.1:1?ttl=1&recv_buf_size=65536").value(),
+            "udpm://224.0.0.1:2?ttl=1&recv_buf_size=65536");
+  EXPECT_EQ(lcm_down_url("udpm://").value(), "udpm://239.255.76.67:7668");  // liblcm's defaults
+  EXPECT_EQ(lcm_down_url("udpm://?ttl=0").value(), "udpm://239.255.76.67:7668?ttl=0");
+  EXPECT_EQ(lcm_down_url("udpm://239.1.2.3").value(), "udpm://239.1.2.3:7668");
+  auto last = lcm_down_url("udpm://239.1.2.3:65535");
+  ASSERT_FALSE(last);
+  EXPECT_EQ(last.error().code, Errc::invalid_argument);
+  EXPECT_NE(last.error().message.find("there is no port after 65535"), std::string::npos) << last.error().message;
+  auto bad = lcm_down_url("udpm://10.0.0.1:7667");
+  ASSERT_FALSE(bad);
+  EXPECT_NE(bad.error().message.find("10.0.0.1 is not a multicast address"), std::string::npos) << bad.error().message;
+  // An end cannot be opened on such a URL; a shared endpoint can.
+  require_netns();
+  LcmSettings settings{.url = "udpm://239.255.76.67:65535?ttl=0", .end = LcmEnd::parent};
+  auto end = open_lcm(settings, "tahvel://wire-open/lcm-last-port");
+  ASSERT_FALSE(end);
+  EXPECT_NE(end.error().message.find("there is no port after 65535"), std::string::npos) << end.error().message;
+  settings.end = LcmEnd::shared;
+  EXPECT_TRUE(open_lcm(settings, "tahvel://wire-open/lcm-last-port"));
+}
+
+// Each end of an LCM link hears only the port of the frames addressed to it: the parent's frames
+// to the child travel on PORT + 1, the child's to the parent on PORT. Plain LCM listeners on each
+// port, bound to each IRI, show which port each frame took.
+TEST(WireOpen, LcmLinkEndsSendEachDirectionOnItsOwnPort) {
+  require_netns();
+  const std::string parent_iri = "tahvel://wire-ends/parent", child_iri = parent_iri + "/child";
+  const LcmSettings up_port = conformance::test_lcm_settings();
+  const LcmSettings down_port{.url = lcm_down_url(up_port.url).value()};
+  auto open = [](LcmSettings settings, LcmEnd end, const std::string& iri) {
+    settings.end = end;
+    auto t = open_lcm(settings, iri);
+    EXPECT_TRUE(t) << iri << ": " << (t ? "" : t.error().message);
+    return t ? std::move(*t) : nullptr;
+  };
+  auto parent = open(up_port, LcmEnd::parent, parent_iri), child = open(up_port, LcmEnd::child, child_iri);
+  auto parent_on_up = open(up_port, LcmEnd::shared, parent_iri), parent_on_down = open(down_port, LcmEnd::shared, parent_iri);
+  auto child_on_up = open(up_port, LcmEnd::shared, child_iri), child_on_down = open(down_port, LcmEnd::shared, child_iri);
+  ASSERT_TRUE(parent && child && parent_on_up && parent_on_down && child_on_up && child_on_down);
+
+  Frame up;
+  up.kind = FrameKind::hello;
+  up.from = child_iri;
+  up.to = parent_iri;
+  up.seq = 1;
+  Frame down = up;
+  down.kind = FrameKind::welcome;
+  down.from = parent_iri;
+  down.to = child_iri;
+  down.seq = 2;
+  ASSERT_TRUE(child->send(up));
+  ASSERT_TRUE(parent->send(down));
+  auto seq_of = [](Transport& t, std::chrono::milliseconds wait) -> std::uint64_t {
+    auto got = t.receive(wait);
+    return got && *got ? (*got)->seq : 0;
+  };
+  EXPECT_EQ(seq_of(*parent, 2s), 1u);
+  EXPECT_EQ(seq_of(*child, 2s), 2u);
+  EXPECT_EQ(seq_of(*parent_on_up, 2s), 1u);
+  EXPECT_EQ(seq_of(*child_on_down, 2s), 2u);
+  EXPECT_EQ(seq_of(*parent_on_down, 300ms), 0u) << "the child's frame up travelled on the port down";
+  EXPECT_EQ(seq_of(*child_on_up, 300ms), 0u) << "the parent's frame down travelled on the port up";
 }
 
 TEST(WireOpen, LcmWithAUnicastGroupIsRefusedBeforeLcmIsAsked) {

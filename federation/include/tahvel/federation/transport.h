@@ -134,11 +134,26 @@ class MemoryBus {
 // ---------------------------------------------------------------------------------------------
 // Wire bindings.
 
+// Which end of a link an LCM endpoint is. Multicast delivers every datagram to every socket
+// on its group and port, the sender's own included, and liblcm's receive thread wakes for each
+// before it filters by channel. So a link's two directions take two ports of the URL's group:
+// frames to the parent travel on the URL's port P, frames to a child on P + 1, and each end
+// listens only on the port of the frames addressed to it. A node then never wakes for its own
+// frames, nor a child for its siblings' frames up. `shared` sends and listens on P alone, as
+// plain LCM does, for tools and tests that are not a link's end; both ends of a link must be
+// split or both shared. Only udpm:// URLs have ports; other providers stay shared.
+enum class LcmEnd { shared, parent, child };
+
 struct LcmSettings {
   // LCM provider URL. The default is LCM's own multicast group with ttl=0 (never leaves the
   // host); tests run it in a private network namespace with multicast routed to loopback.
   std::string url = "udpm://239.255.76.67:7667?ttl=0";
+  LcmEnd end = LcmEnd::shared;
 };
+
+// The udpm:// URL of the port after `url`'s (where a parent end sends and a child end listens),
+// with the same group and options; an error for a port of 65535, or a URL check_lcm_url refuses.
+Result<std::string> lcm_down_url(std::string_view url);
 
 struct DdsSettings {
   std::uint32_t domain = 0;
