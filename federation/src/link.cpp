@@ -24,6 +24,7 @@
 #include <mutex>
 #include <span>
 #include <thread>
+#include <unordered_map>
 #include <utility>
 
 #include "base64.h"
@@ -108,6 +109,24 @@ wire::ItemBody item_of(const node::Delivery& delivery) {
   for (const auto& r : delivery.records) body.item.triples.push_back(r.triple);
   return body;
 }
+
+// uri::is_under(iri, ancestor) for one fixed ancestor, remembered per IRI. An up stream carries
+// the items of a handful of sources, and normalising both IRIs again for each item cost ~6 µs of
+// a link hop's ~130 (docs/bench.md, session 23).
+class UnderAncestor {
+ public:
+  explicit UnderAncestor(std::string ancestor) : ancestor_(std::move(ancestor)) {}
+  bool operator()(const std::string& iri) {
+    if (auto it = known_.find(iri); it != known_.end()) return it->second;
+    if (known_.size() >= kRemembered) known_.clear();  // a stream of ever new sources: start over
+    return known_.emplace(iri, uri::is_under(iri, ancestor_)).first->second;
+  }
+
+ private:
+  static constexpr std::size_t kRemembered = 4096;
+  std::string ancestor_;
+  std::unordered_map<std::string, bool> known_;
+};
 
 const node::Term* object_of(const std::vector<node::Record>& records, const std::string& predicate) {
   for (const auto& r : records)
@@ -1607,6 +1626,7 @@ struct Link::Impl {
     auto uplink = node->agent(kUplinkAgent);
     if (!uplink) return log("cannot open agent uplink: " + uplink.error().message);
     std::uint64_t acked_locally = 0;
+    UnderAncestor from_this_subtree(self);
     while (!stopping) {
       std::uint64_t after = 0, mark = 0;
       std::size_t room = 0;
@@ -1644,7 +1664,7 @@ struct Link::Impl {
       if (!welcomed || up_last_sent != after) continue;  // the session moved meanwhile
       for (const auto& d : *ready) {
         wire::ItemBody body = item_of(d);
-        if (!uri::is_under(body.source, self)) {
+        if (!from_this_subtree(body.source)) {
           // Written above this node (relayed down): never goes back up (P7).
           from_above.push_back(d.item);
           continue;

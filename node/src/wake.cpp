@@ -148,7 +148,8 @@ constexpr std::uint32_t kBuffersBit = 2;
 
 void WakeBoard::bump_commit(bool buffers_changed) {
   shared_->seq[kAnyCommit].fetch_add(1, std::memory_order_seq_cst);
-  if (shared_->waiters[kAnyCommit].load(std::memory_order_seq_cst) != 0) {
+  if (shared_->waiters[kAnyCommit].load(std::memory_order_seq_cst) != 0 ||
+      (buffers_changed && shared_->buffer_waiters.load(std::memory_order_seq_cst) != 0)) {
     syscall(SYS_futex, reinterpret_cast<std::uint32_t*>(&shared_->seq[kAnyCommit]), FUTEX_WAKE_BITSET, INT32_MAX,
             nullptr, nullptr, buffers_changed ? FUTEX_BITSET_MATCH_ANY : kWatchersBit);
   }
@@ -156,9 +157,9 @@ void WakeBoard::bump_commit(bool buffers_changed) {
 
 void WakeBoard::sleep_buffers(std::uint32_t token, std::chrono::nanoseconds timeout) {
   if (timeout.count() <= 0) return;
-  shared_->waiters[kAnyCommit].fetch_add(1, std::memory_order_seq_cst);
+  shared_->buffer_waiters.fetch_add(1, std::memory_order_seq_cst);
   if (shared_->seq[kAnyCommit].load(std::memory_order_seq_cst) != token) {
-    shared_->waiters[kAnyCommit].fetch_sub(1, std::memory_order_seq_cst);
+    shared_->buffer_waiters.fetch_sub(1, std::memory_order_seq_cst);
     return;
   }
   // FUTEX_WAIT_BITSET takes an absolute CLOCK_MONOTONIC deadline.
@@ -168,7 +169,7 @@ void WakeBoard::sleep_buffers(std::uint32_t token, std::chrono::nanoseconds time
   timespec deadline{static_cast<time_t>(end / 1'000'000'000), static_cast<long>(end % 1'000'000'000)};
   syscall(SYS_futex, reinterpret_cast<std::uint32_t*>(&shared_->seq[kAnyCommit]), FUTEX_WAIT_BITSET, token,
           &deadline, nullptr, kBuffersBit);
-  shared_->waiters[kAnyCommit].fetch_sub(1, std::memory_order_seq_cst);
+  shared_->buffer_waiters.fetch_sub(1, std::memory_order_seq_cst);
 }
 
 std::uint32_t WakeBoard::version(std::uint32_t slot) const {

@@ -50,8 +50,9 @@ class WakeBoard {
 
   // The commit slot (kAnyCommit), after a commit that grew the change stream. Watchers sleep on
   // it with plain FUTEX_WAIT and are woken by every such commit; a thread waiting for input
-  // buffers (wait_buffers) only by commits that routed an item into one (`buffers_changed`) and
-  // by wake_buffer_waiters. Its waiter count is shared, so the wake call is made either way.
+  // buffers (sleep_buffers) only by commits that routed an item into one (`buffers_changed`) and
+  // by wake_buffer_waiters. The two kinds are counted apart, so that a commit routing nothing
+  // makes no system call for a parent's down pump asleep on the slot (one per relayed run).
   void bump_commit(bool buffers_changed);
   // kAnyCommit's word moves and every waiter on it wakes, the buffer waiters included.
   void wake_buffer_waiters() { bump_commit(true); }
@@ -74,7 +75,8 @@ class WakeBoard {
  private:
   struct Shared {
     std::atomic<std::uint32_t> seq[kSlots];
-    std::atomic<std::uint32_t> waiters[kSlots];
+    std::atomic<std::uint32_t> waiters[kSlots];  // [kAnyCommit]: the watchers only
+    std::atomic<std::uint32_t> buffer_waiters;   // threads in sleep_buffers
   };
   Shared* shared_ = nullptr;
 };
