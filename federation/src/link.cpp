@@ -747,10 +747,13 @@ struct Link::Impl {
           if (stopping) break;
           continue;
         }
+        // Room for a taker waiting in hand_on, or for a deferred take; anything else would
+        // only wake the taker thread in push mode, which waits on the same condition.
+        const bool room_awaited = queue.size() >= kQueuedBatches || deferred;
         batch = std::move(queue.front());
         queue.pop_front();
         applying = true;
-        queue_cv.notify_all();  // room for a waiting taker, and a deferred take
+        if (room_awaited) queue_cv.notify_all();
       }
       apply(batch);
       std::lock_guard lock(queue_mu);
