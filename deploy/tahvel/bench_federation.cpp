@@ -1,14 +1,15 @@
 // `tahvel bench federation`: the link protocol (docs/protocol.md) end to end, with the raw
 // transports as floors in the same run (issue 4, "Must be measured"). Phases, in order:
-//   floors      dds_ping / lcm_ping (floors.h) against an echo in a second process (the far end,
-//               below): the libraries alone, one-way = RTT/2; also raw_*_pingpong within this
-//               process, for comparison (Cyclone delivers in-process without its network stack).
+//   floors      binding_ping (floors.h) through the bindings against an echo in a second
+//               process (the far end, below); raw_*_pingpong within this process, for comparison
+//               (Cyclone delivers in-process without its network stack).
 //   latency     per transport (DDS, LCM): two real stores in temporary directories, a hospital
 //               Link (`down` bound to its IRI) in the far end and a home Link (parent + `up`) in
 //               this process, as on two machines. One item at a time: Agent::store on the home,
 //               then wait until the relayed item is in the hospital's change stream (Node::watch,
 //               from this process: an agent of the hospital's store); the time between is one
-//               sample.
+//               sample. In kLatencyBlocks blocks, each after a block of the raw floor, dds_ping /
+//               lcm_ping against the far end: the libraries alone, one-way = RTT/2.
 //   link rate   the same pair: a burst of items stored at home (store_all, 500 per call), time
 //               from the first store until the hospital's change stream holds them all.
 //   ingest      a hospital Link over DDS accepting any child, and K simulated homes in this
@@ -317,8 +318,9 @@ bool wait_until(Clock::duration limit, F condition) {
 //   binding-echo KIND IRI                the same through the binding (transport.h) of KIND bound
 //                                        to IRI (floors.h binding_echo)
 //   hospital KIND DIR IRI CHILD          a hospital Link over KIND (dds, lcm) on the store at DIR
-//                                        accepting CHILD: "ready"; then at "stop" it stops,
-//                                        answering "ok DUPLICATES_DROPPED RELAYED_IN"
+//                                        accepting CHILD: "ready"; it serves lcm-echo and
+//                                        dds-echo meanwhile, and at "stop" it stops, answering
+//                                        "ok DUPLICATES_DROPPED RELAYED_IN"
 // It exits when the pipe closes.
 class FarEnd {
  public:
@@ -392,12 +394,16 @@ class FarEnd {
       std::istringstream words(line);
       std::string command, a, b, c, d;
       words >> command >> a >> b >> c >> d;
+      // The raw floors' echo: also while a hospital runs, between blocks of the link's rounds.
+      auto echo = [&](const std::string& which, const std::string& name) {
+        auto ready = [&] { reply("ready"); };
+        auto done = which == "lcm-echo" ? fed::lcm_echo(fed::LcmSettings{}, name, ready, 5s)
+                                        : fed::dds_echo(dds_settings(), name, ready, 5s);
+        reply(done ? "ok" : "error " + done.error().message);
+      };
       try {
         if (command == "lcm-echo" || command == "dds-echo") {
-          auto ready = [&] { reply("ready"); };
-          auto done = command == "lcm-echo" ? fed::lcm_echo(fed::LcmSettings{}, a, ready, 5s)
-                                            : fed::dds_echo(dds_settings(), a, ready, 5s);
-          reply(done ? "ok" : "error " + done.error().message);
+          echo(command, a);
         } else if (command == "binding-echo") {
           Diagnostics diag;
           auto endpoint = open_transport(a == "dds" ? Kind::dds : Kind::lcm, b, diag);
@@ -413,11 +419,18 @@ class FarEnd {
             continue;
           }
           reply("ready");
-          std::string next;
-          try {
-            next = read_line(in, std::chrono::hours(24), "bench");
-          } catch (const std::exception&) {
-            return;
+          for (;;) {
+            std::string next;
+            try {
+              next = read_line(in, std::chrono::hours(24), "bench");
+            } catch (const std::exception&) {
+              return;
+            }
+            std::istringstream next_words(next);
+            std::string next_command, name;
+            next_words >> next_command >> name;
+            if (next_command != "lcm-echo" && next_command != "dds-echo") break;  // "stop"
+            echo(next_command, name);
           }
           const fed::LinkCounters counters = (*link)->counters();
           (*link)->stop();
@@ -547,6 +560,7 @@ struct QueryFigures {
 
 struct LinkFigures {
   Percentiles up;
+  Percentiles raw;  // the raw floor, measured in blocks between the link's (measure_link)
   double items_per_s = 0;
   QueryFigures query;
   Ledger ledger;
@@ -590,10 +604,21 @@ QueryFigures measure_query(LinkPair& p, node::Node& home, const std::string& wha
 }
 
 double cpu_of(clockid_t clock);
+fed::LatencyFloor floor_to_far_end(FarEnd& far, Kind kind, int rounds);
+
+// The latency phase alternates blocks of the raw floor and of the link (measure_link).
+constexpr int kLatencyBlocks = 4;
 
 LinkFigures measure_link(Kind kind, const Config& cfg, const ScratchDir& scratch, std::uint64_t& next_number, FarEnd& far) {
+  // Latency: one item at a time, in blocks, each after a block of the raw floor of the same
+  // transport against the same far end. The machine's speed drifts by tens of percent within a
+  // run, and a floor measured once, seconds before the link, made the ratio swing with it. Each
+  // block starts with a warm-up: the waiting threads went quiet during the floor's block and
+  // spin again after a probe that finds their stream busy (one wait in 64).
+  const int per_block = std::max(1, cfg.rounds / kLatencyBlocks);
+  const int warmup = std::max(10, std::min(100, per_block / 5));
   LinkPair p;
-  start_pair(p, kind, scratch, static_cast<std::uint64_t>(cfg.rounds) * 11 / 10 + 10 + cfg.burst, far);
+  start_pair(p, kind, scratch, static_cast<std::uint64_t>(kLatencyBlocks * (warmup + per_block)) + 10 + cfg.burst, far);
   auto home_node = node::Node::open(p.home_dir);
   if (!home_node) throw std::runtime_error(home_node.error().message);
   auto sensor = home_node->agent("hrv");
@@ -602,24 +627,26 @@ LinkFigures measure_link(Kind kind, const Config& cfg, const ScratchDir& scratch
   const std::uint64_t first = next_number;
   const std::string what = std::string(name_of(kind)) + " link: ";
 
-  // Latency: one item at a time, after a warm-up of a tenth.
-  const int warmup = std::max(10, cfg.rounds / 10);
-  std::vector<double> us;
-  us.reserve(static_cast<std::size_t>(cfg.rounds));
-  const double latency_from = cpu_of(CLOCK_MONOTONIC);
-  for (int i = 0; i < warmup + cfg.rounds; ++i) {
-    const std::uint64_t n = next_number++;
-    node::Item item = numbered_item(p.home, n);
-    const auto t0 = Clock::now();
-    if (auto s = sensor->store(item); !s) throw std::runtime_error(what + "store: " + s.error().message);
-    if (!watcher.wait_for(n, 10s)) throw std::runtime_error(what + "item " + std::to_string(n) + " not at the hospital after 10 s" + p.diag.summary());
-    if (i >= warmup) us.push_back(micros(Clock::now() - t0));
+  std::vector<double> us, raw_us;
+  for (int block = 0; block < kLatencyBlocks; ++block) {
+    const fed::LatencyFloor raw = floor_to_far_end(far, kind, per_block);
+    raw_us.insert(raw_us.end(), raw.one_way_us.begin(), raw.one_way_us.end());
+    const double block_from = cpu_of(CLOCK_MONOTONIC);
+    for (int i = 0; i < warmup + per_block; ++i) {
+      const std::uint64_t n = next_number++;
+      node::Item item = numbered_item(p.home, n);
+      const auto t0 = Clock::now();
+      if (auto s = sensor->store(item); !s) throw std::runtime_error(what + "store: " + s.error().message);
+      if (!watcher.wait_for(n, 10s)) throw std::runtime_error(what + "item " + std::to_string(n) + " not at the hospital after 10 s" + p.diag.summary());
+      if (i >= warmup) us.push_back(micros(Clock::now() - t0));
+    }
+    if (std::getenv("TAHVEL_BENCH_TIMES"))
+      std::fprintf(stderr, "tahvel: bench federation: %s latency block %d timed from %.6f to %.6f (CLOCK_MONOTONIC)\n",
+                   name_of(kind), block + 1, block_from, cpu_of(CLOCK_MONOTONIC));
   }
-  if (std::getenv("TAHVEL_BENCH_TIMES"))
-    std::fprintf(stderr, "tahvel: bench federation: %s latency timed from %.6f to %.6f (CLOCK_MONOTONIC)\n",
-                 name_of(kind), latency_from, cpu_of(CLOCK_MONOTONIC));
   LinkFigures f;
   f.up = percentiles(std::move(us));
+  f.raw = percentiles(std::move(raw_us));
 
   // Link rate: a burst stored as fast as the home's store takes it.
   std::vector<node::Item> chunk;
@@ -1104,8 +1131,8 @@ void add_ingest(Figures& fig, const IngestFigures& ingest, const Config& cfg) {
   }
 }
 
-void add_latency(Figures& fig, const char* kind, const LinkFigures& l, const fed::LatencyFloor& raw,
-                 const fed::LatencyFloor& binding) {
+void add_latency(Figures& fig, const char* kind, const LinkFigures& l, const fed::LatencyFloor& binding) {
+  const Percentiles& raw = l.raw;
   const std::string k(kind);
   fig.set(k + "_binding_p50_us", binding.p50_us);
   fig.set(k + "_binding_p99_us", binding.p99_us);
@@ -1196,8 +1223,6 @@ int run(const Config& cfg) {
   std::uint64_t next_number = 1;
   std::vector<Ledger> ledgers;
   if (!cfg.ingest_only) {
-    const fed::LatencyFloor dds_raw = floor_to_far_end(*far, Kind::dds, cfg.rounds);
-    const fed::LatencyFloor lcm_raw = floor_to_far_end(*far, Kind::lcm, cfg.rounds);
     const fed::LatencyFloor dds_binding = binding_to_far_end(*far, Kind::dds, cfg.rounds);
     const fed::LatencyFloor lcm_binding = binding_to_far_end(*far, Kind::lcm, cfg.rounds);
     auto dds_inproc = fed::raw_dds_pingpong(dds_settings(), cfg.rounds);
@@ -1207,8 +1232,8 @@ int run(const Config& cfg) {
     const Percentiles store_floor = store_to_watch(scratch, cfg.rounds, next_number);
     const LinkFigures dds = measure_link(Kind::dds, cfg, scratch, next_number, *far);
     const LinkFigures lcm = measure_link(Kind::lcm, cfg, scratch, next_number, *far);
-    add_latency(fig, "dds", dds, dds_raw, dds_binding);
-    add_latency(fig, "lcm", lcm, lcm_raw, lcm_binding);
+    add_latency(fig, "dds", dds, dds_binding);
+    add_latency(fig, "lcm", lcm, lcm_binding);
     fig.set("dds_raw_in_process_p50_us", dds_inproc->p50_us);
     fig.set("lcm_raw_in_process_p50_us", lcm_inproc->p50_us);
     fig.set("store_watch_p50_us", store_floor.p50_us);

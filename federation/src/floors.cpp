@@ -33,7 +33,8 @@ LatencyFloor summarise(std::vector<double> one_way_us) {
     std::size_t i = static_cast<std::size_t>(std::ceil(q * static_cast<double>(n)));
     return one_way_us[std::min(n - 1, i == 0 ? 0 : i - 1)];
   };
-  return LatencyFloor{at(0.50), at(0.99), static_cast<int>(n)};
+  const double p50 = at(0.50), p99 = at(0.99);
+  return LatencyFloor{p50, p99, static_cast<int>(n), std::move(one_way_us)};
 }
 
 // Names no other run on this host uses at the same time.

@@ -16,6 +16,7 @@
 #include <chrono>
 #include <functional>
 #include <string>
+#include <vector>
 
 #include "tahvel/federation/transport.h"
 
@@ -25,6 +26,7 @@ struct LatencyFloor {
   double p50_us = 0;  // median one-way latency, microseconds
   double p99_us = 0;  // 99th percentile one-way latency, microseconds
   int rounds = 0;     // round trips measured (after warm-up; lost ones are not counted)
+  std::vector<double> one_way_us;  // every sample, ascending (to pool several measurements)
 };
 
 // `rounds` ping-pongs of a tahvel_ping_t (one int64) over LCM at settings.url, after a warm-up
