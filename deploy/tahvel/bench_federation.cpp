@@ -413,7 +413,8 @@ class FarEnd {
         } else if (command == "hospital") {
           Diagnostics diag;
           const Kind kind = a == "dds" ? Kind::dds : Kind::lcm;
-          auto link = fed::Link::start({.dir = b, .down = open_transport(kind, c, diag, fed::LcmEnd::parent), .children = {d}, .log = diag.link_log()});
+          auto link = fed::Link::start({.dir = b, .down = open_transport(kind, c, diag, fed::LcmEnd::parent),
+                                        .children = {d}, .log = diag.link_log()});
           if (!link) {
             reply("error hospital link: " + link.error().message);
             continue;
@@ -465,8 +466,8 @@ void start_pair(LinkPair& p, Kind kind, const ScratchDir& scratch, std::uint64_t
   init_store(p.hospital_dir, p.hospital, room_for(items));
   init_store(p.home_dir, p.home, room_for(items));
   far.request(std::string("hospital ") + name_of(kind) + " " + p.hospital_dir.string() + " " + p.hospital + " home1", "ready", 30s);
-  auto home = fed::Link::start({.dir = p.home_dir, .parent_iri = p.hospital, .up = open_transport(kind, p.home, p.diag, fed::LcmEnd::child),
-                                .log = p.diag.link_log()});
+  auto home = fed::Link::start({.dir = p.home_dir, .parent_iri = p.hospital,
+                                .up = open_transport(kind, p.home, p.diag, fed::LcmEnd::child), .log = p.diag.link_log()});
   if (!home) throw std::runtime_error("home link: " + home.error().message);
   p.home_link = std::move(*home);
   if (!wait_until(15s, [&] { return p.home_link->connected(); }))

@@ -1,8 +1,8 @@
 // The LCM binding (docs/transports.md): one lcm_t per endpoint, subscribed to the one channel
 // named after its own IRI (lcm_channel()); send() publishes a tahvel_frame_t on the channel of
 // frame.to, through a second, send-only lcm_t when the endpoint is a link's end (LcmEnd) and
-// sends on the other port. Tuned for the sensor-to-gateway LAN: small frames at a steady rate, occasionally a
-// chunk of raw signal of a few MB (LCM fragments it over UDP multicast).
+// sends on the other port. Tuned for the sensor-to-gateway LAN: small frames at a steady rate,
+// occasionally a chunk of raw signal of a few MB (LCM fragments it over UDP multicast).
 //
 // LCM may lose datagrams (a full socket buffer, a lost fragment): the link resends. What arrives
 // is decoded here, from the raw bytes, so that anything malformed is reported to the DropLog
@@ -97,7 +97,8 @@ class LcmTransport final : public Transport {
     const std::string channel = lcm_channel(frame.to);
     // lcm_publish on udpm locks internally; this lock also covers providers that do not.
     std::lock_guard lock(send_mutex_);
-    if (lcm_publish(send_lcm_ != nullptr ? send_lcm_ : lcm_, channel.c_str(), bytes.data(), static_cast<unsigned>(size)) != 0) {
+    lcm_t* via = send_lcm_ != nullptr ? send_lcm_ : lcm_;
+    if (lcm_publish(via, channel.c_str(), bytes.data(), static_cast<unsigned>(size)) != 0) {
       return node::fail(Errc::io, "lcm <" + self_ + ">: publish of " + std::to_string(size) +
                                       " bytes on channel " + channel + " failed (" +
                                       wire::describe(frame) + ")");
@@ -266,7 +267,8 @@ Result<std::string> lcm_down_url(std::string_view url) {
   std::string group(address.substr(0, colon));
   std::uint32_t port = 7667;  // liblcm's defaults, as check_lcm_url describes
   if (group.empty()) group = "239.255.76.67";
-  if (colon != std::string_view::npos) std::from_chars(address.data() + colon + 1, address.data() + address.size(), port);
+  if (colon != std::string_view::npos)
+    std::from_chars(address.data() + colon + 1, address.data() + address.size(), port);
   if (port == 65535) {
     return node::fail(Errc::invalid_argument, "LCM URL '" + std::string(url) +
                                                   "': a link takes two ports, PORT for frames up and PORT + 1 for frames "

@@ -196,8 +196,10 @@ TEST(WireOpen, LcmLinkEndsSendEachDirectionOnItsOwnPort) {
     return t ? std::move(*t) : nullptr;
   };
   auto parent = open(up_port, LcmEnd::parent, parent_iri), child = open(up_port, LcmEnd::child, child_iri);
-  auto parent_on_up = open(up_port, LcmEnd::shared, parent_iri), parent_on_down = open(down_port, LcmEnd::shared, parent_iri);
-  auto child_on_up = open(up_port, LcmEnd::shared, child_iri), child_on_down = open(down_port, LcmEnd::shared, child_iri);
+  auto parent_on_up = open(up_port, LcmEnd::shared, parent_iri);
+  auto parent_on_down = open(down_port, LcmEnd::shared, parent_iri);
+  auto child_on_up = open(up_port, LcmEnd::shared, child_iri);
+  auto child_on_down = open(down_port, LcmEnd::shared, child_iri);
   ASSERT_TRUE(parent && child && parent_on_up && parent_on_down && child_on_up && child_on_down);
 
   Frame up;
