@@ -200,6 +200,11 @@ fed::DdsSettings dds_settings() {
   return s;
 }
 
+// The raw LCM floor's port: apart from the links' (LcmSettings' default port for frames up, the
+// next one for frames down), so that the link's receive threads, listening there while the floor
+// runs between the link's blocks, do not wake for the floor's pings.
+fed::LcmSettings lcm_floor_settings() { return {.url = "udpm://239.255.76.67:7669?ttl=0"}; }
+
 // Drops and link log lines, counted; the first few kept to explain a failure.
 struct Diagnostics {
   std::mutex mu;
@@ -397,7 +402,7 @@ class FarEnd {
       // The raw floors' echo: also while a hospital runs, between blocks of the link's rounds.
       auto echo = [&](const std::string& which, const std::string& name) {
         auto ready = [&] { reply("ready"); };
-        auto done = which == "lcm-echo" ? fed::lcm_echo(fed::LcmSettings{}, name, ready, 5s)
+        auto done = which == "lcm-echo" ? fed::lcm_echo(lcm_floor_settings(), name, ready, 5s)
                                         : fed::dds_echo(dds_settings(), name, ready, 5s);
         reply(done ? "ok" : "error " + done.error().message);
       };
@@ -1070,7 +1075,7 @@ fed::LatencyFloor floor_to_far_end(FarEnd& far, Kind kind, int rounds) {
   static int counter = 0;
   const std::string name = "bench_" + std::to_string(getpid()) + "_" + std::to_string(counter++);
   far.request(std::string(name_of(kind)) + "-echo " + name, "ready", 30s);
-  auto floor = kind == Kind::dds ? fed::dds_ping(dds_settings(), name, rounds) : fed::lcm_ping(fed::LcmSettings{}, name, rounds);
+  auto floor = kind == Kind::dds ? fed::dds_ping(dds_settings(), name, rounds) : fed::lcm_ping(lcm_floor_settings(), name, rounds);
   const std::string done = far.answer(30s);
   if (!floor) throw std::runtime_error(std::string("raw ") + name_of(kind) + " ping-pong: " + floor.error().message);
   if (done != "ok") throw std::runtime_error(std::string("raw ") + name_of(kind) + " ping-pong, far end: " + done);
@@ -1228,7 +1233,7 @@ int run(const Config& cfg) {
     const fed::LatencyFloor lcm_binding = binding_to_far_end(*far, Kind::lcm, cfg.rounds);
     auto dds_inproc = fed::raw_dds_pingpong(dds_settings(), cfg.rounds);
     if (!dds_inproc) throw std::runtime_error("raw DDS ping-pong in this process: " + dds_inproc.error().message);
-    auto lcm_inproc = fed::raw_lcm_pingpong(fed::LcmSettings{}, cfg.rounds);
+    auto lcm_inproc = fed::raw_lcm_pingpong(lcm_floor_settings(), cfg.rounds);
     if (!lcm_inproc) throw std::runtime_error("raw LCM ping-pong in this process: " + lcm_inproc.error().message);
     const Percentiles store_floor = store_to_watch(scratch, cfg.rounds, next_number);
     const LinkFigures dds = measure_link(Kind::dds, cfg, scratch, next_number, *far);

@@ -144,12 +144,15 @@ namespace {
 // mask; a buffer waiter sleeps on kBuffersBit only.
 constexpr std::uint32_t kWatchersBit = 1;
 constexpr std::uint32_t kBuffersBit = 2;
+// A buffer waiter's unit in the commit slot's waiter count (wake.h, Shared).
+constexpr std::uint32_t kBufferWaiter = 1u << 16;
+constexpr std::uint32_t kWatcherCount = kBufferWaiter - 1;  // the mask of the watchers' part
 }  // namespace
 
 void WakeBoard::bump_commit(bool buffers_changed) {
   shared_->seq[kAnyCommit].fetch_add(1, std::memory_order_seq_cst);
-  if (shared_->waiters[kAnyCommit].load(std::memory_order_seq_cst) != 0 ||
-      (buffers_changed && shared_->buffer_waiters.load(std::memory_order_seq_cst) != 0)) {
+  const std::uint32_t waiting = shared_->waiters[kAnyCommit].load(std::memory_order_seq_cst);
+  if ((waiting & kWatcherCount) != 0 || (buffers_changed && waiting != 0)) {
     syscall(SYS_futex, reinterpret_cast<std::uint32_t*>(&shared_->seq[kAnyCommit]), FUTEX_WAKE_BITSET, INT32_MAX,
             nullptr, nullptr, buffers_changed ? FUTEX_BITSET_MATCH_ANY : kWatchersBit);
   }
@@ -157,9 +160,9 @@ void WakeBoard::bump_commit(bool buffers_changed) {
 
 void WakeBoard::sleep_buffers(std::uint32_t token, std::chrono::nanoseconds timeout) {
   if (timeout.count() <= 0) return;
-  shared_->buffer_waiters.fetch_add(1, std::memory_order_seq_cst);
+  shared_->waiters[kAnyCommit].fetch_add(kBufferWaiter, std::memory_order_seq_cst);
   if (shared_->seq[kAnyCommit].load(std::memory_order_seq_cst) != token) {
-    shared_->buffer_waiters.fetch_sub(1, std::memory_order_seq_cst);
+    shared_->waiters[kAnyCommit].fetch_sub(kBufferWaiter, std::memory_order_seq_cst);
     return;
   }
   // FUTEX_WAIT_BITSET takes an absolute CLOCK_MONOTONIC deadline.
@@ -169,7 +172,7 @@ void WakeBoard::sleep_buffers(std::uint32_t token, std::chrono::nanoseconds time
   timespec deadline{static_cast<time_t>(end / 1'000'000'000), static_cast<long>(end % 1'000'000'000)};
   syscall(SYS_futex, reinterpret_cast<std::uint32_t*>(&shared_->seq[kAnyCommit]), FUTEX_WAIT_BITSET, token,
           &deadline, nullptr, kBuffersBit);
-  shared_->buffer_waiters.fetch_sub(1, std::memory_order_seq_cst);
+  shared_->waiters[kAnyCommit].fetch_sub(kBufferWaiter, std::memory_order_seq_cst);
 }
 
 std::uint32_t WakeBoard::version(std::uint32_t slot) const {

@@ -75,8 +75,10 @@ class WakeBoard {
  private:
   struct Shared {
     std::atomic<std::uint32_t> seq[kSlots];
-    std::atomic<std::uint32_t> waiters[kSlots];  // [kAnyCommit]: the watchers only
-    std::atomic<std::uint32_t> buffer_waiters;   // threads in sleep_buffers
+    // [kAnyCommit] counts both kinds of its waiters: watchers in the low 16 bits, threads in
+    // sleep_buffers from bit 16 (kBufferWaiter). The file keeps its size, so a process of an
+    // older version on the same store (which counts both as 1) still wakes and is woken.
+    std::atomic<std::uint32_t> waiters[kSlots];
   };
   Shared* shared_ = nullptr;
 };
