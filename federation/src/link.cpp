@@ -58,6 +58,9 @@ constexpr std::chrono::milliseconds kIdlePumpWait{250};  // the down pump with n
 // itself (one thread hand-off less on a quiet link); larger ones go to the applier, so that
 // under load taking overlaps with the store transaction of the batch before.
 constexpr std::size_t kInlineFrames = 8;
+// How often at most the uplink removes from the outbox what the parent applied (up_loop).
+constexpr auto kOutboxTrimEvery = std::chrono::milliseconds(50);
+
 // P8: the ack of an item stream waits for this many items or LinkOptions::ack_delay, unless the
 // sender asks for it (its window half full) or it signals a gap or a resend. On a quiet link an
 // ack sent at once lands at the sender just as the next item is stored there, and the two store
@@ -1629,6 +1632,7 @@ struct Link::Impl {
     auto uplink = node->agent(kUplinkAgent);
     if (!uplink) return log("cannot open agent uplink: " + uplink.error().message);
     std::uint64_t acked_locally = 0;
+    Clock::time_point trimmed{};  // when the outbox last lost what the parent applied
     UnderAncestor from_this_subtree(self);
     while (!stopping) {
       std::uint64_t after = 0, mark = 0;
@@ -1696,10 +1700,15 @@ struct Link::Impl {
       // meanwhile (an ack of the parent) at worst has some of them sent twice, which P9 drops.
       send_run(opt.up.get(), frames);
       for (std::uint64_t id : from_above) (void)uplink->ack(id);
-      // What the parent applied leaves the outbox after the send, not before the peek: a new
-      // item goes up first, and this store transaction runs while it travels.
-      if (mark > acked_locally) {
+      // What the parent applied leaves the outbox after the send, not before the peek (a new
+      // item goes up first, and this store transaction runs while it travels), and at most every
+      // kOutboxTrimEvery: under a steady stream an ack comes every ack_delay, and a write of the
+      // home's store for each was in a third of the slowest 2% of a hop (docs/bench.md, session
+      // 23). Items the parent applied but still here are not sent again: a new session starts
+      // after the parent's mark (P8).
+      if (mark > acked_locally && Clock::now() - trimmed >= kOutboxTrimEvery) {
         if (auto a = uplink->ack_through(mark); a) acked_locally = mark;
+        trimmed = Clock::now();
       }
     }
   }
