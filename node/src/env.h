@@ -283,6 +283,15 @@ inline std::uint64_t u64(const MDB_val& v) {
   return x;
 }
 
+// An LMDB cursor closed when it goes out of scope: mdb_cursor_open(txn, dbi, &cursor.c).
+struct Cursor {
+  MDB_cursor* c = nullptr;
+  Cursor() = default;
+  Cursor(const Cursor&) = delete;
+  Cursor& operator=(const Cursor&) = delete;
+  ~Cursor() { if (c) mdb_cursor_close(c); }
+};
+
 Result<Counters> load_counters(MDB_txn* txn, MDB_dbi meta);
 Result<void> save_counters(MDB_txn* txn, MDB_dbi meta, const Counters& c);
 

@@ -486,29 +486,30 @@ Result<std::uint64_t> Agent::ack_through(std::uint64_t through) noexcept {
       auto self = impl_->self_id(txn.raw());
       if (!self) return unexpected(self.error());
       if (*self == 0) return {};
-      MDB_cursor* cursor = nullptr;
-      int rc = mdb_cursor_open(txn.raw(), impl_->env->inbox, &cursor);
+      // A link's outbox is trimmed a run at a time (hundreds of items) while its agents store:
+      // one cursor per table walks the run in id order instead of a search from the root for
+      // each entry, which took 0.4 µs per item while every store waited (docs/bench.md).
+      Cursor inbox, items;
+      int rc = mdb_cursor_open(txn.raw(), impl_->env->inbox, &inbox.c);
+      if (rc == 0) rc = mdb_cursor_open(txn.raw(), impl_->env->items, &items.c);
       if (rc != 0) return lmdb_fail(rc, "opening the input buffer of " + impl_->iri);
-      std::vector<std::uint64_t> ids;
       MDB_val k = val(*self), v;
-      for (rc = mdb_cursor_get(cursor, &k, &v, MDB_SET); rc == 0; rc = mdb_cursor_get(cursor, &k, &v, MDB_NEXT_DUP)) {
-        if (u64(v) > through) break;
-        ids.push_back(u64(v));
-      }
-      mdb_cursor_close(cursor);
-      for (std::uint64_t id : ids) {
-        MDB_val dk = val(*self), dv = val(id);
-        if ((rc = mdb_del(txn.raw(), impl_->env->inbox, &dk, &dv)) != 0)
-          return lmdb_fail(rc, "acknowledging item " + std::to_string(id));
+      rc = mdb_cursor_get(inbox.c, &k, &v, MDB_SET);
+      while (rc == 0) {
+        const std::uint64_t id = u64(v);
+        if (id > through) break;
+        // Deleting the key's last entry moves the cursor to the next key, so the next entry is
+        // this agent's only while it has more (counted before the delete).
+        std::size_t left = 0;
+        if ((rc = mdb_cursor_count(inbox.c, &left)) != 0) break;
+        if ((rc = mdb_cursor_del(inbox.c, 0)) != 0) return lmdb_fail(rc, "acknowledging item " + std::to_string(id));
         if (txn.counters.pending > 0) --txn.counters.pending;
         ++acked;
-        auto item = get_item(txn.raw(), txn.env(), id);
-        if (!item) return unexpected(item.error());
-        if (!*item) continue;
-        ItemRow row = **item;
-        if (row.pending > 0) --row.pending;
-        if (auto p = put_item(txn, id, row); !p) return p;
+        if (auto r = release_item(items.c, id); !r) return r;
+        if (left <= 1) break;
+        rc = mdb_cursor_get(inbox.c, &k, &v, MDB_GET_CURRENT);
       }
+      if (rc != 0 && rc != MDB_NOTFOUND) return lmdb_fail(rc, "reading the input buffer of " + impl_->iri);
       return {};
     });
     if (!written) return unexpected(written.error());

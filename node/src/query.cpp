@@ -6,11 +6,6 @@
 namespace tahvel::node::detail {
 namespace {
 
-struct Cursor {
-  MDB_cursor* c = nullptr;
-  ~Cursor() { if (c) mdb_cursor_close(c); }
-};
-
 bool has_metadata_filter(const Pattern& p) {
   return p.context || p.source || p.since || p.until;
 }

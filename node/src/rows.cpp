@@ -199,6 +199,22 @@ Result<void> put_item(Txn& txn, std::uint64_t id, const ItemRow& row, unsigned f
   return {};
 }
 
+Result<void> release_item(MDB_cursor* items, std::uint64_t id) {
+  MDB_val k = val(id), v;
+  int rc = mdb_cursor_get(items, &k, &v, MDB_SET_KEY);
+  if (rc == MDB_NOTFOUND) return {};
+  if (rc != 0) return lmdb_fail(rc, "reading item " + std::to_string(id));
+  ItemRow row;
+  if (!decode_item(view(v), row)) return fail(Errc::corrupt, "item " + std::to_string(id) + " is truncated");
+  if (row.pending == 0) return {};
+  --row.pending;
+  const std::string bytes = encode_item(row);
+  MDB_val key = val(id), value = val(bytes);
+  if ((rc = mdb_cursor_put(items, &key, &value, MDB_CURRENT)) != 0)
+    return lmdb_fail(rc, "writing item " + std::to_string(id));
+  return {};
+}
+
 Result<void> flush_index(Txn& txn) {
   auto& entries = txn.unflushed_index;
   if (entries.empty()) return {};

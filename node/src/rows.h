@@ -46,6 +46,12 @@ Result<std::optional<RecordRow>> get_record(MDB_txn* txn, const Env& env, std::u
 Result<std::optional<ItemRow>> get_item(MDB_txn* txn, const Env& env, std::uint64_t id);
 Result<void> put_item(Txn& txn, std::uint64_t id, const ItemRow& row, unsigned flags = 0);
 
+// One input buffer fewer holds item `id`: its pending count goes down, rewritten in place through
+// `items`, a cursor on the items table. A cursor already near `id` finds it without a search from
+// the root, so a caller releasing a run of items in id order keeps one cursor for them all. An
+// item no longer in the store is passed over.
+Result<void> release_item(MDB_cursor* items, std::uint64_t id);
+
 // Puts the entries in txn.unflushed_index into their tables and empties it. Values only grow
 // (record and item ids), so each entry is the last of its key: appended, no search among the
 // duplicates. Anything that reads or deletes index or output-buffer entries in a transaction

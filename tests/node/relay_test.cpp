@@ -210,6 +210,41 @@ TEST(Window, PeekLeavesItemsAndAckThroughRemovesUpToAnId) {
   EXPECT_TRUE(uplink.peek(ids[4], 0, 10ms).value().empty());  // nothing after the last: timeout
 }
 
+// A link trims its outbox a run at a time: the whole buffer may go, while the buffers of other
+// agents (stored beside it) keep theirs, and an item acknowledged by every buffer that held it
+// is no longer kept from the ring.
+TEST(Window, AckThroughEmptiesOneBufferLeavesTheOthersAndLetsTheRingTakeTheItems) {
+  TempDir dir;
+  Node node = make_node(dir.path(), {.ring = 4});
+  Agent before = node.agent("a-buffer").value();  // agents interned before and after the uplink
+  Agent uplink = node.agent("uplink").value();
+  Agent after = node.agent("z-buffer").value();
+  Agent writer = node.agent("writer").value();
+  for (Agent* a : {&before, &uplink, &after}) ASSERT_TRUE(a->subscribe({.p = ex("value")}));
+  std::vector<std::uint64_t> ids;
+  for (int i = 0; i < 6; ++i) ids.push_back(writer.store(reading(i)).value());
+  EXPECT_EQ(uplink.ack_through(ids.back() + 1000).value(), 6u);
+  EXPECT_EQ(uplink.pending().value(), 0u);
+  EXPECT_EQ(before.pending().value(), 6u);
+  EXPECT_EQ(after.pending().value(), 6u);
+  EXPECT_EQ(uplink.ack_through(ids.back()).value(), 0u);  // nothing left to acknowledge
+  // Readings are not persistent (the subscriptions are): what the ring bounds.
+  auto readings = [&] {
+    const Stats st = node.stats().value();
+    return st.records - st.persistent_records;
+  };
+  // The other two buffers still hold every item: the ring keeps them all.
+  ASSERT_TRUE(writer.store(reading(6)));
+  EXPECT_EQ(readings(), 7u);
+  EXPECT_EQ(before.ack_through(ids[3]).value(), 4u);
+  EXPECT_EQ(after.ack_through(ids[3]).value(), 4u);
+  ASSERT_TRUE(writer.store(reading(7)));
+  // Items 0-3 were released by all three buffers; the uplink's later items stay pending in the
+  // other two (and the two new ones in all three), so the ring takes exactly the first four.
+  EXPECT_EQ(readings(), 4u);
+  EXPECT_EQ(before.peek(0, 0, 0ms).value().front().item, ids[4]);
+}
+
 // One thread serving many input buffers (a parent's link sending down to its children) reads
 // each agent's buffer_version and sleeps in wait_for_commit until one of them moves.
 TEST(Window, BufferVersionMovesWhenAnItemArrivesForThatAgent) {

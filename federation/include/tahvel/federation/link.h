@@ -102,9 +102,11 @@ struct LinkOptions {
 
   std::size_t window = 512;                       // up or down items in flight per link
   std::chrono::milliseconds resend_after{300};    // no acknowledgement for this long: resend
-  // A quiet stream's items are acknowledged together after this long (or at 64 items, or at once
-  // when the sender's window is half full or something must be resent: P8).
-  std::chrono::milliseconds ack_delay{2};
+  // A quiet stream's items are acknowledged together after this long (or at 256 items, or at once
+  // when the sender's window is half full or something must be resent: P8). Each ack costs both
+  // ends a send, a receive and a wake-up, and whatever item travels meanwhile waits for them; at
+  // 2 ms a steady stream of single items had one round in thirty slowed so (docs/bench.md).
+  std::chrono::milliseconds ack_delay{20};
   std::chrono::milliseconds heartbeat_every{1000};
   std::chrono::milliseconds child_silence{3500};  // a child not heard for this long is "down"
   // Frames are taken on the transport's own receive thread where it has one (Cyclone DDS:
