@@ -367,17 +367,18 @@ Result<void> Env::grow(WriteKind kind) {
   return {};
 }
 
-Result<void> Env::reserve_disk(WriteKind kind) {
+Result<void> Env::reserve_disk(WriteKind kind, std::uint64_t new_bytes) {
   MDB_envinfo info;
   MDB_stat stat;
   if (mdb_env_info(env_, &info) != 0 || mdb_env_stat(env_, &stat) != 0) return {};
   const std::uint64_t page = stat.ms_psize;
   const std::uint64_t in_use = (info.me_last_pgno + 1) * page;
   const std::uint64_t reserved = disk_reserved_.load();
-  if (std::min<std::uint64_t>(info.me_mapsize, in_use + kDiskAhead) <= reserved) return {};
-  // Twice the distance at a time: one fallocate (a filesystem transaction) per kDiskAhead of
+  const std::uint64_t ahead = kDiskAhead + new_bytes;
+  if (std::min<std::uint64_t>(info.me_mapsize, in_use + ahead) <= reserved) return {};
+  // A kDiskAhead more at a time: one fallocate (a filesystem transaction) per kDiskAhead of
   // growth, not one per write.
-  const std::uint64_t want = std::min<std::uint64_t>(info.me_mapsize, in_use + 2 * kDiskAhead);
+  const std::uint64_t want = std::min<std::uint64_t>(info.me_mapsize, in_use + ahead + kDiskAhead);
   int fd = -1;
   if (mdb_env_get_fd(env_, &fd) != 0) return {};
   // fallocate, not posix_fallocate: where the filesystem cannot, glibc's emulation writes a byte
@@ -398,7 +399,7 @@ Result<void> Env::reserve_disk(WriteKind kind) {
   // removal, which frees space and mostly reuses pages, with less): allocated already, by this
   // process or another (a fresh `tahvel rm` on a full disk is how space is won back), or now.
   if (rc == ENOSPC) {
-    const std::uint64_t least = kind == WriteKind::removal ? (1u << 20) : kDiskLeast;
+    const std::uint64_t least = (kind == WriteKind::removal ? (1u << 20) : kDiskLeast) + new_bytes;
     const std::uint64_t enough = std::min<std::uint64_t>(info.me_mapsize, in_use + least);
     if (enough <= reserved || allocate(0, enough) == 0) return {};
   }
@@ -412,9 +413,9 @@ Result<void> Env::reserve_disk(WriteKind kind) {
   return fail(Errc::io, "reserving disk space for " + dir_.string() + ": " + std::strerror(rc));
 }
 
-Result<void> Env::write(const std::function<Result<void>(Txn&)>& body, WriteKind kind) {
+Result<void> Env::write(const std::function<Result<void>(Txn&)>& body, WriteKind kind, std::uint64_t new_bytes) {
   for (;;) {
-    if (auto r = reserve_disk(kind); !r) return r;
+    if (auto r = reserve_disk(kind, new_bytes); !r) return r;
     MDB_txn* raw = nullptr;
     if (auto r = begin(&raw, 0); !r) return r;
     Txn txn(*this, raw);

@@ -161,7 +161,10 @@ class Env {
   // map (up to max_map_bytes) and runs `body` again from the start; past the maximum returns
   // store_full. Any error from `body` aborts: nothing is written. Removals may grow into a
   // reserve beyond the maximum, so that a full store can always be emptied.
-  Result<void> write(const std::function<Result<void>(Txn&)>& body, WriteKind kind = WriteKind::data);
+  // `new_bytes` bounds what `body` may add to the data file (write_bound, write.h): the disk
+  // reserve covers it before the transaction starts.
+  Result<void> write(const std::function<Result<void>(Txn&)>& body, WriteKind kind = WriteKind::data,
+                     std::uint64_t new_bytes = 0);
 
   // Begins a read-only transaction (a snapshot), renewing an idle one when there is one. The
   // caller ends it with end_read().
@@ -203,11 +206,11 @@ class Env {
   // With MDB_WRITEMAP the data file is as large as the map but sparse: a page written where the
   // file has no block yet takes one from the filesystem, and on a full disk that is SIGBUS in
   // whichever process writes (the supervisor included), not an error. So before each write the
-  // file's blocks are allocated (fallocate) up to kDiskAhead beyond the last page in use; a full
-  // disk is then a store_full error naming it (a removal goes on within what is allocated).
-  // Filesystems without fallocate are left as they were. Checked before the transaction: one
-  // transaction that writes more than kDiskAhead of new pages is not covered.
-  Result<void> reserve_disk(WriteKind kind);
+  // file's blocks are allocated (fallocate) up to kDiskAhead, plus what the transaction may add
+  // (`new_bytes`), beyond the last page in use; a full disk is then a store_full error naming it
+  // (a removal goes on within what is allocated). Filesystems without fallocate are left as they
+  // were.
+  Result<void> reserve_disk(WriteKind kind, std::uint64_t new_bytes);
   std::atomic<std::uint64_t> disk_reserved_{0};  // bytes of the file allocated by this process
 
   // Read transactions reset after use, renewed by the next begin_read (a handful: one per

@@ -366,6 +366,8 @@ Result<std::vector<std::uint64_t>> Agent::Impl::write_items(std::span<const Patt
       if (auto v = validate_item(items[i], env->settings()); !v)
         return unexpected(items.size() == 1 ? v.error() : with_context(v.error(), "item " + std::to_string(i + 1)));
     }
+    std::uint64_t new_bytes = 0;
+    for (const Item& item : items) new_bytes += write_bound(item);
     std::vector<std::uint64_t> ids;
     auto written = env->write([&](Txn& txn) -> Result<void> {
       ids.clear();
@@ -388,7 +390,7 @@ Result<std::vector<std::uint64_t>> Agent::Impl::write_items(std::span<const Patt
       auto reclaimed = apply_retention(txn);
       if (!reclaimed) return unexpected(reclaimed.error());
       return {};
-    });
+    }, WriteKind::data, new_bytes);
     if (!written) return unexpected(written.error());
     return ids;
   } catch (const std::bad_alloc&) {
@@ -586,6 +588,8 @@ Result<RelayOutcome> Agent::relay(std::string_view stream, const std::vector<Rel
       }
     }
     RelayOutcome outcome;
+    std::uint64_t new_bytes = 0;
+    for (const RelayedItem& relayed : items) new_bytes += write_bound(relayed.item) + relayed.source.size();
     // An item refused only when it is written (a term's IRI is checked when the dictionary first
     // meets it) aborts the transaction; it is then run again with that item refused, once per
     // such item.
@@ -630,7 +634,7 @@ Result<RelayOutcome> Agent::relay(std::string_view stream, const std::vector<Rel
           if (!reclaimed) return unexpected(reclaimed.error());
         }
         return {};
-      });
+      }, WriteKind::data, new_bytes);
       if (!written && refused_in_write) {
         refuse(*refused_in_write, written.error());
         continue;

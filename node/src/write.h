@@ -27,6 +27,12 @@ inline constexpr std::string_view kSubscriptionSource = "https://w3id.org/tahvel
 Result<std::uint64_t> insert_item(Txn& txn, const Item& item, const std::string& agent_iri,
                                   const std::string* relayed_source = nullptr);
 
+// An upper bound on the bytes of new pages that inserting `item` may add to the data file: its
+// terms (a large literal takes overflow pages of its own) and a generous share of the record,
+// index and item rows per triple. Env::write reserves the disk for it before the transaction
+// writes, since with a memory-mapped file a page with no disk block behind it is SIGBUS.
+std::uint64_t write_bound(const Item& item);
+
 // Applies ring and TTL retention; returns the number of records reclaimed.
 Result<std::uint64_t> apply_retention(Txn& txn);
 
