@@ -22,7 +22,7 @@ value() {  # the number after "key": in the flat JSON object, or nothing
 status=0
 for key in dds_up_p50_us dds_up_p99_us lcm_up_p50_us lcm_up_p99_us dds_raw_p50_us lcm_raw_p50_us \
            dds_raw_p99_us lcm_raw_p99_us dds_binding_p50_us lcm_binding_p50_us dds_link_items_per_s lcm_link_items_per_s dds_query_records_per_s dds_query_mb_per_s lcm_query_records_per_s lcm_query_mb_per_s \
-           hospital_ingest_items_per_s homes lost duplicated items_checked; do
+           hospital_ingest_items_per_s hospital_ingest_in_process_items_per_s homes lost duplicated items_checked; do
   v=$(value "$key")
   if [[ -z $v ]]; then echo "FAIL: missing or not a number: $key"; status=1; fi
 done
