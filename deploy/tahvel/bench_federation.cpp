@@ -195,7 +195,7 @@ const char* kDdsLoopback =
     "<Interfaces><NetworkInterface name=\"lo\" multicast=\"true\"/></Interfaces>"
     "<AllowMulticast>true</AllowMulticast><MulticastTimeToLive>0</MulticastTimeToLive>"
     "<DontRoute>true</DontRoute></General><Discovery><ParticipantIndex>none</ParticipantIndex>"
-    "</Discovery></Domain></CycloneDDS>";
+    "</Discovery><Internal><WriteBatch>true</WriteBatch></Internal></Domain></CycloneDDS>";
 
 fed::DdsSettings dds_settings() {
   fed::DdsSettings s;

@@ -276,6 +276,7 @@ Result<void> dds_echo(const DdsSettings& settings, const std::string& name,
     last = clock::now();
     if (msg.seq < 0) break;
     dds_write(pong_w, &msg);
+    dds_write_flush(pong_w);  // sent now also under Internal/WriteBatch (our configurations)
   }
   return {};
 }
@@ -301,6 +302,7 @@ Result<LatencyFloor> dds_ping(const DdsSettings& settings, const std::string& na
     const auto t0 = clock::now();
     const auto deadline = t0 + std::chrono::seconds(5);
     if (dds_write(ping_w, &msg) < 0) lost = true;
+    dds_write_flush(ping_w);
     while (!lost && answer.seq != seq) {
       if (!take_one(pong_r, ws, deadline, &answer)) lost = true;
     }
@@ -308,6 +310,7 @@ Result<LatencyFloor> dds_ping(const DdsSettings& settings, const std::string& na
   }
   tahvel_Ping stop{-1};
   dds_write(ping_w, &stop);
+  dds_write_flush(ping_w);
   if (lost) return node::fail(Errc::timeout, "dds ping-pong: no pong within 5 s");
   return summarise(std::move(samples));
 }

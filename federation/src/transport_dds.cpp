@@ -150,11 +150,19 @@ class DdsTransport final : public Transport {
     msg.body._length = msg.body._maximum = static_cast<uint32_t>(frame.body.size());
     msg.body._buffer = reinterpret_cast<uint8_t*>(const_cast<char*>(frame.body.data()));
     msg.body._release = false;
+    // With Cyclone's Internal/WriteBatch (the configurations we ship set it) a write waits in the
+    // writer's packet until a flush: the frames of a run that goes on (P9b) then travel in a few
+    // datagrams instead of one each, and the run's last frame, any other frame or a failure
+    // sends what waits. Without it the flush finds nothing to send.
     if (dds_return_t rc = dds_write(w.writer, &msg); rc < 0) {
+      dds_write_flush(w.writer);
       return node::fail(rc == DDS_RETCODE_TIMEOUT ? Errc::timeout : Errc::io,
                         "dds <" + self_ + ">: write on topic " + dds_topic(frame.to) +
                             " failed: " + retcode(rc) + " (" + wire::describe(frame) + ")");
     }
+    const bool run_goes_on =
+        (frame.kind == FrameKind::up || frame.kind == FrameKind::down) && (frame.ack & kMoreFollow) != 0;
+    if (!run_goes_on) dds_write_flush(w.writer);
     return {};
   }
 

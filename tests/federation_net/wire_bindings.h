@@ -73,6 +73,7 @@ class DdsGarbageWriter {
     sample.bytes._length = sample.bytes._maximum = static_cast<uint32_t>(bytes.size());
     sample.bytes._release = false;
     ASSERT_EQ(dds_write(writer, &sample), DDS_RETCODE_OK);
+    dds_write_flush(writer);  // the shipped configuration batches writes
   }
 
  private:

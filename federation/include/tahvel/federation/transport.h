@@ -77,7 +77,10 @@ class Transport {
   virtual const std::string& self() const = 0;
 
   // Sends `frame` to the endpoint bound to frame.to. Best effort: an error means it certainly
-  // did not leave (e.g. too large, transport closed), success does not mean it arrived.
+  // did not leave (e.g. too large, transport closed), success does not mean it arrived. A frame
+  // of a run marked kMoreFollow may be held to travel with the frames after it (Cyclone DDS under
+  // a configuration with Internal/WriteBatch); it leaves at the latest with the next frame to the
+  // same endpoint that is not so marked, or when a send fails.
   virtual Result<void> send(const Frame& frame) = 0;
 
   // The next frame addressed to self(), waiting up to `timeout`; nullopt on timeout.
@@ -158,7 +161,9 @@ Result<std::string> lcm_down_url(std::string_view url);
 struct DdsSettings {
   std::uint32_t domain = 0;
   // Cyclone DDS XML configuration (or empty: CYCLONEDDS_URI from the environment, else the
-  // built-in default). deploy/cyclonedds-*.xml hold the ones we ship.
+  // built-in default). deploy/cyclonedds-*.xml hold the ones we ship; they set
+  // Internal/WriteBatch, which packs a run of frames into few datagrams (docs/transports.md).
+  // The binding flushes at each run's end, so any configuration is correct without it too.
   std::string config;
 };
 
