@@ -977,6 +977,21 @@ void open_homes(SimHomes& sim, const Config& cfg, const std::string& hospital, D
   }
 }
 
+// Opens the K homes of `sim` and has them say hello until the hospital has welcomed them all
+// (before the clock starts); `f` gets the time each took.
+void open_and_register(SimHomes& sim, const Config& cfg, const std::string& hospital, Diagnostics& diag,
+                       std::uint64_t& next_number, IngestFigures& f, const std::string& what) {
+  auto t_open = Clock::now();
+  open_homes(sim, cfg, hospital, diag, next_number);
+  f.open_s = seconds(Clock::now() - t_open);
+  auto t_register = Clock::now();
+  sim.start();
+  if (!wait_until(120s, [&] { return sim.welcomed() == cfg.homes; }))
+    throw std::runtime_error(what + ": " + std::to_string(sim.welcomed()) + " of " + std::to_string(cfg.homes) +
+                             " homes welcomed within 120 s" + diag.summary());
+  f.register_s = seconds(Clock::now() - t_register);
+}
+
 IngestFigures measure_ingest(const Config& cfg, const ScratchDir& scratch, std::uint64_t& next_number) {
   Diagnostics diag;
   const std::string hospital = hospital_iri("ingest");
@@ -994,16 +1009,7 @@ IngestFigures measure_ingest(const Config& cfg, const ScratchDir& scratch, std::
   IngestFigures f;
   const std::uint64_t first = next_number;
   SimHomes sim(hospital, cfg.window, 1s);
-  auto t_open = Clock::now();
-  open_homes(sim, cfg, hospital, diag, next_number);
-  f.open_s = seconds(Clock::now() - t_open);
-
-  auto t_register = Clock::now();
-  sim.start();
-  if (!wait_until(120s, [&] { return sim.welcomed() == cfg.homes; }))
-    throw std::runtime_error("ingest: " + std::to_string(sim.welcomed()) + " of " + std::to_string(cfg.homes) +
-                             " homes welcomed within 120 s" + diag.summary());
-  f.register_s = seconds(Clock::now() - t_register);
+  open_and_register(sim, cfg, hospital, diag, next_number, f, "ingest");
 
   f.items = cfg.homes * cfg.per_home;
   const std::uint64_t base = (*link)->counters().relayed_in;
@@ -1059,15 +1065,7 @@ IngestFigures measure_ingest_apart(const Config& cfg, const ScratchDir& scratch,
   IngestFigures f;
   const std::uint64_t first = next_number;
   SimHomes sim(hospital, cfg.window, 1s);
-  auto t_open = Clock::now();
-  open_homes(sim, cfg, hospital, diag, next_number);
-  f.open_s = seconds(Clock::now() - t_open);
-  auto t_register = Clock::now();
-  sim.start();
-  if (!wait_until(120s, [&] { return sim.welcomed() == cfg.homes; }))
-    throw std::runtime_error("ingest between processes: " + std::to_string(sim.welcomed()) + " of " +
-                             std::to_string(cfg.homes) + " homes welcomed within 120 s" + diag.summary());
-  f.register_s = seconds(Clock::now() - t_register);
+  open_and_register(sim, cfg, hospital, diag, next_number, f, "ingest between processes");
 
   f.items = cfg.homes * cfg.per_home;
   const double far0 = far_cpu(far), cpu0 = cpu_of(CLOCK_PROCESS_CPUTIME_ID), sim0 = sim.cpu_seconds();

@@ -291,14 +291,16 @@ TEST(Store, FullStoreIsRefusedWithClearErrorAndNothingHalfWritten) {
 }
 
 // Runs `body` in a child process with its own mount namespace and a tmpfs of `size` mounted on
-// `dir`. The child ends through `say(text, status)`; a child that cannot mount ends with 77.
+// `dir`, with a new store at dir/store and its agent "w". The child ends through
+// `say(text, status)`; a child that cannot mount ends with 77.
 using Say = std::function<void(const std::string& text, int status)>;
 struct ChildEnd {
   int status = -1;  // exit status, or -1 when killed
   int signal = 0;
   std::string said;
 };
-ChildEnd run_on_small_disk(const std::filesystem::path& dir, const char* size, const std::function<void(const Say&)>& body) {
+ChildEnd run_on_small_disk(const std::filesystem::path& dir, const char* size,
+                           const std::function<void(const Say&, Node&, Agent&)>& body) {
   int pipe_fds[2];
   if (pipe(pipe_fds) != 0) return {.said = "pipe failed"};
   const pid_t pid = fork();
@@ -313,7 +315,12 @@ ChildEnd run_on_small_disk(const std::filesystem::path& dir, const char* size, c
     if (unshare(CLONE_NEWNS) != 0 || mount("none", "/", nullptr, MS_REC | MS_PRIVATE, nullptr) != 0 ||
         mount("tmpfs", dir.c_str(), "tmpfs", 0, options.c_str()) != 0)
       say("cannot mount a tmpfs here", 77);
-    body(say);
+    if (auto made = Node::init(dir / "store", {.iri = "http://example.org/n"}); !made) say("init: " + made.error().message, 1);
+    auto node = Node::open(dir / "store");
+    if (!node) say("open: " + node.error().message, 1);
+    auto agent = node->agent("w");
+    if (!agent) say("agent: " + agent.error().message, 1);
+    body(say, *node, *agent);
     say("the body ended without saying how", 1);
   }
   close(pipe_fds[1]);
@@ -335,23 +342,19 @@ ChildEnd run_on_small_disk(const std::filesystem::path& dir, const char* size, c
 // child with a 24 MiB tmpfs (skipped where mounting is not allowed).
 TEST(Store, AFullDiskIsAStoreFullErrorNotACrash) {
   TempDir dir;
-  const ChildEnd end = run_on_small_disk(dir.path(), "24m", [&](const Say& say) {
-    auto made = Node::init(dir.path() / "store", {.iri = "http://example.org/n"});
-    if (!made) say("init: " + made.error().message, 1);
-    auto node = Node::open(dir.path() / "store");
-    auto agent = node->agent("w");
+  const ChildEnd end = run_on_small_disk(dir.path(), "24m", [&](const Say& say, Node& node, Agent& agent) {
     std::uint64_t stored = 0;
     Result<std::uint64_t> last = std::uint64_t{0};
     for (int i = 0; i < 2000 && last; ++i) {
       Item item;
       item.add(ex("chunk" + std::to_string(i)), ex("data"), Term::literal(std::string(200000, 'a' + i % 26) + std::to_string(i)));
-      if ((last = agent->store(item))) ++stored;
+      if ((last = agent.store(item))) ++stored;
     }
     if (last) say("the 24 MiB disk took 400 MB", 1);
     if (last.error().code != Errc::store_full || last.error().message.find("the disk holding") == std::string::npos)
       say("wrong error: " + last.error().message, 1);
-    if (node->stats()->items != stored) say("items " + std::to_string(node->stats()->items) + " of " + std::to_string(stored), 1);
-    if (auto removed = node->remove_item(1); !removed) say("remove: " + removed.error().message, 1);
+    if (node.stats()->items != stored) say("items " + std::to_string(node.stats()->items) + " of " + std::to_string(stored), 1);
+    if (auto removed = node.remove_item(1); !removed) say("remove: " + removed.error().message, 1);
     // A fresh process (`tahvel rm` run to make room) removes too: it has reserved nothing itself.
     const pid_t fresh = fork();
     if (fresh == 0) {
@@ -373,24 +376,20 @@ TEST(Store, AFullDiskIsAStoreFullErrorNotACrash) {
 // store_full rather than SIGBUS halfway through, and smaller writes go on.
 TEST(Store, ATransactionLargerThanTheDiskLeftIsRefusedWholeNotACrash) {
   TempDir dir;
-  const ChildEnd end = run_on_small_disk(dir.path(), "40m", [&](const Say& say) {
-    auto made = Node::init(dir.path() / "store", {.iri = "http://example.org/n"});
-    if (!made) say("init: " + made.error().message, 1);
-    auto node = Node::open(dir.path() / "store");
-    auto agent = node->agent("w");
+  const ChildEnd end = run_on_small_disk(dir.path(), "40m", [&](const Say& say, Node& node, Agent& agent) {
     std::vector<Item> batch;
     for (int i = 0; i < 48; ++i) {
       Item item;
       item.add(ex("chunk" + std::to_string(i)), ex("data"), Term::literal(std::string(900000, 'a' + i % 26) + std::to_string(i)));
       batch.push_back(std::move(item));
     }
-    auto stored = agent->store_all(batch);
+    auto stored = agent.store_all(batch);
     if (stored) say("48 literals of 900 kB went onto a 40 MiB disk", 1);
     if (stored.error().code != Errc::store_full || stored.error().message.find("the disk holding") == std::string::npos)
       say("wrong error: " + stored.error().message, 1);
-    if (node->stats()->items != 0) say("items " + std::to_string(node->stats()->items) + " of the refused batch stored", 1);
+    if (node.stats()->items != 0) say("items " + std::to_string(node.stats()->items) + " of the refused batch stored", 1);
     batch.resize(8);
-    if (auto fits = agent->store_all(batch); !fits) say("8 of them: " + fits.error().message, 1);
+    if (auto fits = agent.store_all(batch); !fits) say("8 of them: " + fits.error().message, 1);
     say(stored.error().message, 0);
   });
   ASSERT_EQ(end.signal, 0) << "the writer died of signal " << end.signal << " (7: SIGBUS)";
