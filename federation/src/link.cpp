@@ -569,8 +569,8 @@ struct Link::Impl {
     std::condition_variable queue_cv;
     std::deque<ReceivedBatch> queue;
     bool applying = false;  // a thread is applying a batch (under queue_mu)
-    // Push mode: the transport's thread left frames in the transport because the queue was full;
-    // the applier, having made room, has the taker thread take them (under queue_mu).
+    // Push mode: the transport's thread left frames in the transport, because the queue was full
+    // or the applier busy; the taker thread takes them, once there is room (under queue_mu).
     bool deferred = false;
     // Batches the applier is done with. The taker, which allocated their frames and items, frees
     // them: under load the applier is the bottleneck, and the frees were ~7% of its time.
@@ -714,7 +714,25 @@ struct Link::Impl {
     // a thread of ours (tens of µs here; docs/bench.md). The taker thread then only sends held
     // acks as they fall due, takes what the transport's thread deferred, and every 100 ms takes
     // anything left (frames that arrived before push mode began).
-    if (!opt.push || !transport->on_arrival([&] { take_all(true); })) push_mode = false;
+    //
+    // Under load (the applier busy or batches queued) the transport's thread leaves the taking
+    // to the taker thread, as in pull mode: decoding there held up Cyclone's one receive thread
+    // of the process, which then read the sockets of a thousand homes more slowly (docs/bench.md,
+    // session 24).
+    auto arrived = [&] {
+      {
+        std::lock_guard lock(queue_mu);
+        if (applying || !queue.empty()) {
+          if (!deferred) {  // one wake-up for the taker, not one per sample
+            deferred = true;
+            queue_cv.notify_all();
+          }
+          return;
+        }
+      }
+      take_all(true);
+    };
+    if (!opt.push || !transport->on_arrival(arrived)) push_mode = false;
     std::thread taker([&] {
       name_thread(opt.up == transport ? "tv-take-up" : "tv-take-down");
       while (!stopping) {
