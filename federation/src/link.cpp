@@ -221,6 +221,9 @@ struct Link::Impl {
   }
   std::atomic<bool> stopping{false};
   std::vector<std::thread> threads;
+  // A run younger than child_silence has not yet heard every child that is up: those say hello
+  // again within a heartbeat of hearing "unregistered" from it (P15, a query on the way down).
+  const Clock::time_point run_started = Clock::now();
 
   mutable std::mutex mu;
   std::condition_variable changed;
@@ -1262,6 +1265,13 @@ struct Link::Impl {
     {
       std::lock_guard lock(mu);
       auto it = child_iri.empty() ? children.end() : children.find(child_iri);
+      // P15: in a young run, a child that is not connected yet (never heard, or not yet known to
+      // a node that accepts any child) is most likely on its way back: the query is left
+      // unanswered, and the parent's resend, a second later, finds it connected.
+      const bool young = Clock::now() - run_started < opt.child_silence;
+      const bool not_yet = it == children.end() ? opt.children.empty() && !child_iri.empty()
+                                                : !it->second->connected && !it->second->ever;
+      if (opt.down && young && not_yet) return;
       if (it == children.end() || !opt.down) {
         out.error(via, opt.parent_iri, f.seq, {"unknown_node", "no node <" + q->target + "> below <" + self + ">", q->origin});
       } else if (!it->second->connected) {

@@ -997,6 +997,40 @@ TEST(Link, ConfigurationTravelsTwoHopsDownToAnAgentOfASensorNode) {
   EXPECT_EQ(late.error().code, Errc::timeout) << late.error().message;
 }
 
+// P15: a gateway whose link has just restarted has not heard its sensor yet (it says hello again
+// within a heartbeat of hearing "unregistered"). A query from the hospital for the sensor that
+// arrives then is answered once the sensor is back, not refused as an unknown node.
+TEST(Link, AQueryOnTheWayDownWaitsForAChildThatHasNotYetSaidHelloToANewRunOfItsParent) {
+  Tree tree;
+  const std::string sensor_iri = kHome1 + "/ecg1";
+  const std::string sensor_dir = (tree.tmp / "ecg1").string();
+  tree.hospital = tree.start_hospital();
+  auto sensor_link =
+      tree.start_gateway_and_sensor(std::shared_ptr<Transport>(tree.bus.open(kHome1, tree.home1_log.sink())), sensor_dir);
+  ASSERT_TRUE(eventually([&] { return tree.home1->connected() && sensor_link->connected(); }));
+  ASSERT_TRUE(node::Node::open(sensor_dir).value().agent("ecg").value().store(raw_item(7)));
+  auto hospital = node::Node::open(tree.hospital_dir).value();
+  const RemoteQuery ask{.target = sensor_iri, .pattern = {.p = Term::iri(kEx + "samples")}};
+
+  // home1's new run accepts any child (as before): it knows none until its first hello.
+  tree.home1.reset();
+  std::shared_ptr<Transport> endpoint(tree.bus.open(kHome1, tree.home1_log.sink()));
+  tree.home1 = Link::start({.dir = tree.home1_dir, .parent_iri = kHospital, .up = endpoint, .down = endpoint,
+                            .resend_after = 100ms, .heartbeat_every = 200ms, .log = tree.home1_log.sink()})
+                   .value();
+  ASSERT_TRUE(eventually([&] { return tree.home1->connected() && state_says_up(tree.hospital_dir, kHome1); }));
+  std::size_t got = 0;
+  auto answered = remote_query(hospital, ask, 10s, [&](const node::Record&) { ++got; });
+  ASSERT_TRUE(answered) << answered.error().message;
+  EXPECT_EQ(got, 1u);
+
+  // A node that is not there is still an unknown node, once the run is no longer young.
+  std::this_thread::sleep_for(LinkOptions{}.child_silence);
+  auto unknown = remote_query(hospital, {.target = kHome1 + "/ecg9"}, 10s, [](const node::Record&) {});
+  ASSERT_FALSE(unknown);
+  EXPECT_EQ(unknown.error().code, Errc::not_found) << unknown.error().message;
+}
+
 // A binding whose sends to one IRI block while `stalled`, as a Cyclone DDS writer does when the
 // reader on the other side has stopped taking (a frozen parent): each waits up to 1 s, then fails
 // with a timeout. Everything else passes through.
