@@ -821,7 +821,8 @@ struct Link::Impl {
   std::shared_ptr<Child> accepted_child(const std::string& iri, std::string* why) {
     auto id = uri::child_id(iri, self);
     if (!id) {
-      *why = "<" + iri + "> is not a child of <" + self + "> (a child's IRI is the parent's IRI + \"/\" + its id)";
+      *why = "<" + iri + "> is not a child of <" + self + "> (a child's IRI is the parent's IRI + \"/\" + its id): " +
+             id.error().message;
       return nullptr;
     }
     if (!opt.children.empty() && std::find(opt.children.begin(), opt.children.end(), *id) == opt.children.end()) {

@@ -666,6 +666,33 @@ TEST(Link, ParentRefusesAChildOutsideItsSubtreeAndAnUnconfiguredChild) {
   EXPECT_TRUE(tree.hospital_log.has("is not a child of"));
 }
 
+// A node that accepts any child still refuses one whose id is not in NFC: "café" with a
+// combining accent would be a second node that looks like "café" (uri::check_id).
+TEST(Link, ParentRefusesAChildWhoseIdLooksLikeAnotherButIsNotInNfc) {
+  Tree tree;
+  auto gateway = Link::start({.dir = tree.hospital_dir, .down = std::shared_ptr<Transport>(tree.bus.open(kHospital)),
+                              .log = tree.hospital_log.sink()})
+                     .value();
+  auto decomposed = tree.bus.open(kHospital + "/cafe\xCC\x81");
+  Frame hello;
+  hello.kind = FrameKind::hello;
+  hello.from = kHospital + "/cafe\xCC\x81";
+  hello.to = kHospital;
+  ASSERT_TRUE(decomposed->send(hello));
+  auto answer = decomposed->receive(5s).value();
+  ASSERT_TRUE(answer.has_value());
+  EXPECT_EQ(answer->kind, FrameKind::error);
+  EXPECT_TRUE(tree.hospital_log.has("not in Unicode normalization form C (NFC)"));
+  EXPECT_EQ(count(tree.hospital_dir, {.s = Term::iri(kHospital + "/cafe\xCC\x81"), .p = Term::iri(vocab::kLinkState)}), 0u);
+
+  auto composed = tree.bus.open(kHospital + "/caf\xC3\xA9");
+  hello.from = kHospital + "/caf\xC3\xA9";
+  ASSERT_TRUE(composed->send(hello));
+  answer = composed->receive(5s).value();
+  ASSERT_TRUE(answer.has_value());
+  EXPECT_EQ(answer->kind, FrameKind::welcome);
+}
+
 // P1: child C is agent C of its parent, so no child may take the id of the link's own agents,
 // configured or not (its items would be the uplink's outbox, its state the link's).
 TEST(Link, ParentRefusesAChildWhoseIdIsOneOfTheLinksOwnAgents) {

@@ -353,6 +353,26 @@ TEST(Iri, CheckIdRejectsControlCharacters) {
 
 TEST(Iri, CheckIdRejectsMalformedUtf8) { EXPECT_EQ(err(check_id("ok\xFF")).position, 2u); }
 
+// "café" written with a combining accent (e + U+0301) looks like "café" precomposed (U+00E9):
+// as ids they would name two nodes that an operator cannot tell apart.
+TEST(Iri, CheckIdRejectsAnIdNotInNfcNamingTheComposedForm) {
+  IriError e = err(check_id("kodu-cafe\xCC\x81"));
+  EXPECT_EQ(e.position, 8u);  // the 'e' the accent combines with
+  EXPECT_TRUE(contains(e.message, "not in Unicode normalization form C (NFC): U+0065 U+0301 is composed U+00E9 ('kodu-caf\xC3\xA9')"))
+      << e.message;
+  EXPECT_EQ(ok(check_id("kodu-caf\xC3\xA9")), "kodu-caf\xC3\xA9");
+  // Hangul syllables decomposed into jamo are not NFC either.
+  EXPECT_FALSE(check_id("\xE1\x84\x80\xE1\x85\xA1").has_value());  // U+1100 U+1161, NFC: U+AC00
+  EXPECT_EQ(ok(check_id("\xEA\xB0\x80")), "\xEA\xB0\x80");
+}
+
+TEST(Iri, AChildIriOrAgentIriWithAnIdNotInNfcIsRefused) {
+  EXPECT_TRUE(contains(err(child_id("http://h/kodu/cafe\xCC\x81", "http://h/kodu")).message, "NFC"));
+  EXPECT_EQ(ok(child_id("http://h/kodu/caf\xC3\xA9", "http://h/kodu")), "caf\xC3\xA9");
+  EXPECT_TRUE(contains(err(agent_iri("http://h/kodu", "cafe\xCC\x81")).message, "NFC"));
+  EXPECT_TRUE(contains(err(child_node_iri("http://h", "o\xCC\x88lle")).message, "NFC"));  // o + U+0308
+}
+
 // --- agent_iri and child_node_iri -----------------------------------------------------------
 
 TEST(Iri, AgentIriAppendsSlashAndId) {

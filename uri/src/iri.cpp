@@ -7,6 +7,7 @@
 
 #include <algorithm>
 #include <array>
+#include <cstdio>
 #include <string>
 
 #include "parsed_uri.h"
@@ -33,6 +34,20 @@ bool forbidden_in_id(char32_t c) {
   return control || separator || c == ' ' || is_unicode_space(c);
 }
 
+// "U+0065 U+0301" for well-formed UTF-8 `text`.
+std::string code_points(std::string_view text) {
+  std::string out;
+  for (std::size_t pos = 0; pos < text.size();) {
+    detail::CodePoint cp = detail::decode_utf8(text, pos);
+    if (cp.length == 0) break;
+    char buf[16];
+    std::snprintf(buf, sizeof buf, "%sU+%04X", out.empty() ? "" : " ", static_cast<unsigned>(cp.value));
+    out += buf;
+    pos += cp.length;
+  }
+  return out;
+}
+
 // Why `id` cannot name one path segment below a node, or nothing when it can.
 std::optional<Failure> id_failure(std::string_view id) {
   if (id.empty()) return Failure{0, "an id cannot be empty"};
@@ -43,6 +58,21 @@ std::optional<Failure> id_failure(std::string_view id) {
       return Failure{pos, detail::unexpected_at(id, pos) + " in an id"};
     }
     pos += cp.length;
+  }
+  // Two ids that look the same must name the same node or agent: "café" with a combining
+  // accent (as some editors and file systems write it) and "café" precomposed are different
+  // bytes, so only the composed form (NFC, RFC 3987 §5.3.2.2) is an id.
+  if (auto nfc = detail::nfc_if_different(id)) {
+    // The part that differs, by code point: on screen both forms look the same.
+    std::size_t at = 0, tail = 0;
+    while (at < id.size() && at < nfc->size() && id[at] == (*nfc)[at]) ++at;
+    while (at > 0 && detail::decode_utf8(id, at).length == 0) --at;  // a character's start
+    while (tail < id.size() - at && tail < nfc->size() - at && id[id.size() - 1 - tail] == (*nfc)[nfc->size() - 1 - tail]) ++tail;
+    while (tail > 0 && detail::decode_utf8(id, id.size() - tail).length == 0) --tail;
+    return Failure{at, "not in Unicode normalization form C (NFC): " +
+                           code_points(id.substr(at, id.size() - tail - at)) + " is composed " +
+                           code_points(std::string_view(*nfc).substr(at, nfc->size() - tail - at)) +
+                           " ('" + *nfc + "'); an id is written composed, so that ids that look alike are one"};
   }
   return std::nullopt;
 }

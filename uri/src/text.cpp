@@ -2,7 +2,11 @@
 // ids, tens to hundreds of bytes; clarity wins over speed here.
 #include "text.h"
 
+#include <uninorm.h>
+
 #include <cstdio>
+#include <cstdlib>
+#include <memory>
 
 namespace tahvel::uri::detail {
 namespace {
@@ -84,6 +88,18 @@ bool has_non_ascii(std::string_view text) {
     if (static_cast<unsigned char>(ch) >= 0x80) return true;
   }
   return false;
+}
+
+std::optional<std::string> nfc_if_different(std::string_view text) {
+  if (!has_non_ascii(text)) return std::nullopt;
+  std::size_t length = 0;
+  std::unique_ptr<uint8_t, decltype(&std::free)> nfc(
+      u8_normalize(UNINORM_NFC, reinterpret_cast<const uint8_t*>(text.data()), text.size(), nullptr, &length),
+      &std::free);
+  if (!nfc) return std::nullopt;  // out of memory, or not UTF-8: the callers have checked that
+  std::string_view normal(reinterpret_cast<const char*>(nfc.get()), length);
+  if (normal == text) return std::nullopt;
+  return std::string(normal);
 }
 
 std::string unexpected_at(std::string_view input, std::size_t position) {

@@ -3,6 +3,7 @@
 #pragma once
 
 #include <cstddef>
+#include <optional>
 #include <string>
 #include <string_view>
 
@@ -23,6 +24,10 @@ CodePoint decode_utf8(std::string_view text, std::size_t pos);
 bool is_iri_char(char32_t c);
 
 bool has_non_ascii(std::string_view text);
+
+// `text` (well-formed UTF-8) in Unicode normalization form C, when that differs from `text`;
+// nothing when it is already in NFC (all ASCII text is).
+std::optional<std::string> nfc_if_different(std::string_view text);
 
 // An error found at `position` of `input`, before it is worded for one of the public functions.
 struct Failure {
