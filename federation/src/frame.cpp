@@ -12,7 +12,7 @@ namespace {
 constexpr std::string_view kSchema =
     "frame{u16 version;u64 fingerprint;u8 kind;str from;str to;u64 seq;u64 prev;u64 ack;"
     "bytes body}"
-    "kind{hello=1;welcome=2;up=3;ack=4;down=5;query=6;answer=7;error=8;heartbeat=9}";
+    "kind{hello=1;welcome=2;up=3;ack=4;down=5;query=6;answer=7;error=8;heartbeat=9;packed=10}";
 
 constexpr std::uint64_t fnv1a64(std::string_view text) {
   std::uint64_t h = 0xcbf29ce484222325ull;

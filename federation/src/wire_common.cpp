@@ -55,6 +55,66 @@ std::optional<std::string> reject_reason(const Frame& frame, std::string_view se
   return std::nullopt;
 }
 
+namespace {
+
+void put_le(std::string& out, std::uint64_t value, int bytes) {
+  for (int i = 0; i < bytes; ++i) out.push_back(static_cast<char>((value >> (8 * i)) & 0xff));
+}
+
+std::uint64_t get_le(std::string_view in, std::size_t pos, int bytes) {
+  std::uint64_t value = 0;
+  for (int i = 0; i < bytes; ++i) value |= std::uint64_t{static_cast<unsigned char>(in[pos + i])} << (8 * i);
+  return value;
+}
+
+}  // namespace
+
+void append_packed(std::string& pack, const Frame& frame) {
+  put_le(pack, static_cast<std::uint8_t>(frame.kind), 1);
+  put_le(pack, frame.seq, 8);
+  put_le(pack, frame.prev, 8);
+  put_le(pack, frame.ack, 8);
+  put_le(pack, frame.body.size(), 4);
+  pack.append(frame.body);
+}
+
+std::vector<Frame> unpack(const Frame& sample, std::string& error) {
+  std::vector<Frame> frames;
+  const std::string_view in(sample.body);
+  std::size_t pos = 0;
+  while (pos < in.size()) {
+    if (in.size() - pos < kPackedFrameHeader) {
+      error = "packed frame " + std::to_string(frames.size() + 1) + " truncated in its header at byte " +
+              std::to_string(pos) + " of " + std::to_string(in.size());
+      return frames;
+    }
+    Frame f;
+    f.version = sample.version;
+    f.fingerprint = sample.fingerprint;
+    f.from = sample.from;
+    f.to = sample.to;
+    f.kind = static_cast<FrameKind>(get_le(in, pos, 1));
+    f.seq = get_le(in, pos + 1, 8);
+    f.prev = get_le(in, pos + 9, 8);
+    f.ack = get_le(in, pos + 17, 8);
+    const std::uint64_t size = get_le(in, pos + 25, 4);
+    pos += kPackedFrameHeader;
+    if (size > in.size() - pos) {
+      error = "packed frame " + std::to_string(frames.size() + 1) + " says its body has " + std::to_string(size) +
+              " bytes, " + std::to_string(in.size() - pos) + " are left";
+      return frames;
+    }
+    f.body.assign(in.substr(pos, size));
+    pos += size;
+    frames.push_back(std::move(f));
+  }
+  if (frames.size() != sample.seq) {  // which of them to believe? none
+    error = "the sample says it packs " + std::to_string(sample.seq) + " frames, it holds " + std::to_string(frames.size());
+    frames.clear();
+  }
+  return frames;
+}
+
 DropLog or_stderr(DropLog log) {
   if (log) return log;
   return [](std::string_view line) {

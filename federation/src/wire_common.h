@@ -5,6 +5,7 @@
 #include <optional>
 #include <string>
 #include <string_view>
+#include <vector>
 
 #include "tahvel/federation/transport.h"
 
@@ -33,6 +34,17 @@ Result<void> check_sendable(const Frame& frame, std::string_view binding, std::s
 // protocol version, another message fingerprint, addressed to another IRI), or a kind outside
 // FrameKind (which the generated decoders, unlike decode_frame, let through); nullopt when good.
 std::optional<std::string> reject_reason(const Frame& frame, std::string_view self);
+
+// Packing (docs/transports.md): the frames of a run, all from one sender to one addressee, in
+// the body of one sample of kind kPackedKind. Per frame, little-endian: u8 kind, u64 seq, u64
+// prev, u64 ack, u32 body length, the body.
+inline constexpr std::size_t kPackedFrameHeader = 1 + 8 + 8 + 8 + 4;
+void append_packed(std::string& pack, const Frame& frame);
+
+// The frames packed in the body of `sample`, each with the sample's version, fingerprint, from
+// and to. Decoding is strict (P17): at the first frame that does not decode the rest of the
+// sample is dropped, and `error` says where and why; it is left empty when all decoded.
+std::vector<Frame> unpack(const Frame& sample, std::string& error);
 
 // `log`, or a sink that writes the line to stderr when `log` is empty (the DropLog default).
 DropLog or_stderr(DropLog log);

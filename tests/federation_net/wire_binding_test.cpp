@@ -5,7 +5,9 @@
 #include <cstdlib>
 #include <fstream>
 #include <iterator>
+#include <mutex>
 #include <string>
+#include <vector>
 
 #include "tahvel/federation/wire_names.h"
 #include "wire_settings.h"
@@ -69,6 +71,65 @@ TEST_P(WireSend, RefusesEmptyToNulInAnIriAndAnOversizedBody) {
 
 INSTANTIATE_TEST_SUITE_P(Wire, WireSend, ::testing::Values("lcm", "dds"),
                          [](const auto& info) { return info.param; });
+
+// A packed DDS sample (kind kPackedKind, docs/transports.md "Packing") is decoded strictly:
+// the frames before one that does not decode come through, the rest is dropped with a line
+// saying why; a count that does not match drops the whole sample; a frame of an unknown kind
+// inside is dropped as it would be alone. Malformed packs are sent as send() passes a frame of
+// that kind: as it is, one sample.
+std::string packed(FrameKind kind, std::uint64_t seq, const std::string& body, std::size_t claimed_size) {
+  std::string out(1, static_cast<char>(kind));
+  for (std::uint64_t v : {seq, seq - 1, std::uint64_t{0}})
+    for (int i = 0; i < 8; ++i) out.push_back(static_cast<char>((v >> (8 * i)) & 0xff));
+  for (int i = 0; i < 4; ++i) out.push_back(static_cast<char>((claimed_size >> (8 * i)) & 0xff));
+  return out + body;
+}
+
+TEST(WireDds, APackedSampleThatDoesNotDecodeIsDroppedFromThereWithAReason) {
+  require_netns();
+  std::vector<std::string> lines;
+  std::mutex mu;
+  auto a = open_dds(conformance::test_dds_settings(), "tahvel://wire-pack/a").value();
+  auto b = open_dds(conformance::test_dds_settings(), "tahvel://wire-pack/b", [&](std::string_view l) {
+             std::lock_guard lock(mu);
+             lines.emplace_back(l);
+           }).value();
+  auto sample = [&](std::uint64_t count, std::string body) {
+    Frame f;
+    f.kind = static_cast<FrameKind>(kPackedKind);
+    f.from = a->self();
+    f.to = b->self();
+    f.seq = count;
+    f.body = std::move(body);
+    ASSERT_TRUE(a->send(f));
+  };
+  const std::string one = packed(FrameKind::up, 1, "one", 3), two = packed(FrameKind::up, 2, "two", 3);
+  sample(3, one + two + "xyz");                                              // a header cut short
+  sample(2, packed(FrameKind::up, 3, "three", 5) + packed(FrameKind::up, 4, "four", 100));  // a body cut short
+  sample(2, packed(FrameKind::up, 5, "five", 4));                           // says 2, holds 1
+  sample(2, packed(static_cast<FrameKind>(200), 6, "six", 3) + packed(FrameKind::up, 7, "seven", 5));
+  Frame good;
+  good.kind = FrameKind::up;
+  good.from = a->self();
+  good.to = b->self();
+  good.seq = 8;
+  ASSERT_TRUE(a->send(good));
+  std::vector<std::uint64_t> seqs;
+  for (;;) {
+    auto got = b->receive(10s).value();
+    ASSERT_TRUE(got.has_value()) << "the good frame did not come";
+    seqs.push_back(got->seq);
+    if (got->seq == 8) break;
+  }
+  EXPECT_EQ(seqs, (std::vector<std::uint64_t>{1, 2, 3, 7, 8}));
+  std::string all;
+  for (const auto& l : lines) all += l + "\n";
+  EXPECT_EQ(lines.size(), 4u) << all;
+  EXPECT_NE(all.find("packed frame 3 truncated in its header"), std::string::npos) << all;
+  EXPECT_NE(all.find("packed frame 2 says its body has 100 bytes, 4 are left"), std::string::npos) << all;
+  EXPECT_NE(all.find("the sample says it packs 2 frames, it holds 1"), std::string::npos) << all;
+  EXPECT_NE(all.find("kind 200 unknown"), std::string::npos) << all;
+}
 
 TEST(WireOpen, EmptyIriIsRefused) {
   require_netns();

@@ -47,6 +47,12 @@ enum class FrameKind : std::uint8_t {
 inline constexpr std::uint64_t kAckNow = 1;      // the sender's window is half full: ack the stream now
 inline constexpr std::uint64_t kMoreFollow = 2;  // more frames of the run sent back to back follow
 
+// The kind of a Cyclone DDS sample that carries several frames of one sender to one addressee
+// (docs/transports.md, "Packing"). The DDS binding makes and unpacks such samples itself: it
+// never comes out of receive(), and other bindings drop it as unknown. A frame of this kind
+// handed to the DDS binding's send() goes as it is, one sample (tests send malformed packs so).
+inline constexpr std::uint8_t kPackedKind = 10;
+
 // 64-bit FNV-1a of the canonical description of Frame and FrameKind (federation/src/frame.cpp):
 // two builds interoperate only when their message types agree field for field.
 std::uint64_t message_fingerprint() noexcept;
@@ -78,9 +84,11 @@ class Transport {
 
   // Sends `frame` to the endpoint bound to frame.to. Best effort: an error means it certainly
   // did not leave (e.g. too large, transport closed), success does not mean it arrived. A frame
-  // of a run marked kMoreFollow may be held to travel with the frames after it (Cyclone DDS under
-  // a configuration with Internal/WriteBatch); it leaves at the latest with the next frame to the
-  // same endpoint that is not so marked, or when a send fails.
+  // of a run marked kMoreFollow may be held to travel with the frames after it (Cyclone DDS packs
+  // a run into few samples, and with Internal/WriteBatch into few datagrams); it leaves at the
+  // latest with the next frame to the same endpoint that is not so marked. When a later send to
+  // that endpoint fails, the frames held with it may be lost too: the link sends again what is
+  // not acknowledged (P8).
   virtual Result<void> send(const Frame& frame) = 0;
 
   // The next frame addressed to self(), waiting up to `timeout`; nullopt on timeout.
