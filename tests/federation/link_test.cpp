@@ -641,28 +641,28 @@ TEST(Link, AChildThatIsHeardNeverLooksSilentLongerThanChildSilenceInItsState) {
                             << " ms old while the child was heard";
 }
 
+// The kind of the hospital's answer to a hello from `iri` (nullopt: none within 5 s).
+std::optional<FrameKind> answer_to_hello(MemoryBus& bus, const std::string& iri) {
+  auto endpoint = bus.open(iri);
+  Frame hello;
+  hello.kind = FrameKind::hello;
+  hello.from = iri;
+  hello.to = kHospital;
+  if (!endpoint->send(hello)) return std::nullopt;
+  auto answer = endpoint->receive(5s);
+  if (!answer || !*answer) return std::nullopt;
+  return (*answer)->kind;
+}
+
 TEST(Link, ParentRefusesAChildOutsideItsSubtreeAndAnUnconfiguredChild) {
   Tree tree;
   tree.hospital = tree.start_hospital();
   EXPECT_FALSE(Link::start({.dir = tree.home1_dir, .parent_iri = "http://example.org/other",
                             .up = std::shared_ptr<Transport>(tree.bus.open(kHome1))}));
   // Frames from an IRI that is not a configured child of the hospital.
-  auto stranger = tree.bus.open(kHospital + "/home3");
-  Frame hello;
-  hello.kind = FrameKind::hello;
-  hello.from = kHospital + "/home3";
-  hello.to = kHospital;
-  ASSERT_TRUE(stranger->send(hello));
-  auto answer = stranger->receive(5s).value();
-  ASSERT_TRUE(answer.has_value());
-  EXPECT_EQ(answer->kind, FrameKind::error);
+  EXPECT_EQ(answer_to_hello(tree.bus, kHospital + "/home3"), FrameKind::error);
   EXPECT_TRUE(tree.hospital_log.has("not among the children configured"));
-  auto deep = tree.bus.open(kHome1 + "/ecg");
-  hello.from = kHome1 + "/ecg";
-  ASSERT_TRUE(deep->send(hello));
-  answer = deep->receive(5s).value();
-  ASSERT_TRUE(answer.has_value());
-  EXPECT_EQ(answer->kind, FrameKind::error);
+  EXPECT_EQ(answer_to_hello(tree.bus, kHome1 + "/ecg"), FrameKind::error);
   EXPECT_TRUE(tree.hospital_log.has("is not a child of"));
 }
 
@@ -673,24 +673,10 @@ TEST(Link, ParentRefusesAChildWhoseIdLooksLikeAnotherButIsNotInNfc) {
   auto gateway = Link::start({.dir = tree.hospital_dir, .down = std::shared_ptr<Transport>(tree.bus.open(kHospital)),
                               .log = tree.hospital_log.sink()})
                      .value();
-  auto decomposed = tree.bus.open(kHospital + "/cafe\xCC\x81");
-  Frame hello;
-  hello.kind = FrameKind::hello;
-  hello.from = kHospital + "/cafe\xCC\x81";
-  hello.to = kHospital;
-  ASSERT_TRUE(decomposed->send(hello));
-  auto answer = decomposed->receive(5s).value();
-  ASSERT_TRUE(answer.has_value());
-  EXPECT_EQ(answer->kind, FrameKind::error);
+  EXPECT_EQ(answer_to_hello(tree.bus, kHospital + "/cafe\xCC\x81"), FrameKind::error);
   EXPECT_TRUE(tree.hospital_log.has("not in Unicode normalization form C (NFC)"));
   EXPECT_EQ(count(tree.hospital_dir, {.s = Term::iri(kHospital + "/cafe\xCC\x81"), .p = Term::iri(vocab::kLinkState)}), 0u);
-
-  auto composed = tree.bus.open(kHospital + "/caf\xC3\xA9");
-  hello.from = kHospital + "/caf\xC3\xA9";
-  ASSERT_TRUE(composed->send(hello));
-  answer = composed->receive(5s).value();
-  ASSERT_TRUE(answer.has_value());
-  EXPECT_EQ(answer->kind, FrameKind::welcome);
+  EXPECT_EQ(answer_to_hello(tree.bus, kHospital + "/caf\xC3\xA9"), FrameKind::welcome);
 }
 
 // P1: child C is agent C of its parent, so no child may take the id of the link's own agents,
@@ -703,15 +689,7 @@ TEST(Link, ParentRefusesAChildWhoseIdIsOneOfTheLinksOwnAgents) {
                                .log = tree.hospital_log.sink()})
                       .value();
   for (const std::string id : {"uplink", "link"}) {
-    auto impostor = tree.bus.open(kHospital + "/" + id);
-    Frame hello;
-    hello.kind = FrameKind::hello;
-    hello.from = kHospital + "/" + id;
-    hello.to = kHospital;
-    ASSERT_TRUE(impostor->send(hello));
-    auto answer = impostor->receive(5s).value();
-    ASSERT_TRUE(answer.has_value()) << id;
-    EXPECT_EQ(answer->kind, FrameKind::error) << id;
+    EXPECT_EQ(answer_to_hello(tree.bus, kHospital + "/" + id), FrameKind::error) << id;
     EXPECT_TRUE(tree.hospital_log.has("which is this node's own agent '" + id + "'")) << id;
   }
 }
