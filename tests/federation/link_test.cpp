@@ -129,6 +129,14 @@ struct Tree {
                         .resend_after = 100ms, .heartbeat_every = 200ms, .log = home2_log.sink()})
         .value();
   }
+  // The hospital, home1 as a gateway and the sensor ecg1 below it with its store at `sensor_dir`,
+  // once home1 and the sensor are welcomed: the sensor's link.
+  std::unique_ptr<Link> start_three_tiers(const std::string& sensor_dir) {
+    hospital = start_hospital();
+    auto sensor = start_gateway_and_sensor(std::shared_ptr<Transport>(bus.open(kHome1, home1_log.sink())), sensor_dir);
+    EXPECT_TRUE(eventually([&] { return home1->connected() && sensor->connected(); }));
+    return sensor;
+  }
   // The hospital and home1, once the hospital's state of home1 says "up" (so a query is routed).
   bool start_hospital_and_home1() {
     hospital = start_hospital();
@@ -969,11 +977,7 @@ TEST(Link, ConfigurationTravelsTwoHopsDownToAnAgentOfASensorNode) {
   Tree tree;
   const std::string sensor_iri = kHome1 + "/ecg1";
   const std::string sensor_dir = (tree.tmp / "ecg1").string();
-  tree.hospital = tree.start_hospital();
-  // home1 is a child of the hospital and the parent of ecg1, on the same bus.
-  auto sensor_link =
-      tree.start_gateway_and_sensor(std::shared_ptr<Transport>(tree.bus.open(kHome1, tree.home1_log.sink())), sensor_dir);
-  ASSERT_TRUE(eventually([&] { return tree.home1->connected() && sensor_link->connected(); }));
+  auto sensor_link = tree.start_three_tiers(sensor_dir);  // home1: the hospital's child, ecg1's parent
   auto source = node::Node::open(sensor_dir).value().agent("source").value();
   auto operator_ = node::Node::open(tree.hospital_dir).value().agent("operator").value();
   node::Item config;
@@ -1009,10 +1013,7 @@ TEST(Link, AQueryOnTheWayDownWaitsForAChildThatHasNotYetSaidHelloToANewRunOfItsP
   Tree tree;
   const std::string sensor_iri = kHome1 + "/ecg1";
   const std::string sensor_dir = (tree.tmp / "ecg1").string();
-  tree.hospital = tree.start_hospital();
-  auto sensor_link =
-      tree.start_gateway_and_sensor(std::shared_ptr<Transport>(tree.bus.open(kHome1, tree.home1_log.sink())), sensor_dir);
-  ASSERT_TRUE(eventually([&] { return tree.home1->connected() && sensor_link->connected(); }));
+  auto sensor_link = tree.start_three_tiers(sensor_dir);
   ASSERT_TRUE(node::Node::open(sensor_dir).value().agent("ecg").value().store(raw_item(7)));
   auto hospital = node::Node::open(tree.hospital_dir).value();
   const RemoteQuery ask{.target = sensor_iri, .pattern = {.p = Term::iri(kEx + "samples")}};
