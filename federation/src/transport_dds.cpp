@@ -159,10 +159,15 @@ class DdsTransport final : public Transport {
     const bool goes_on =
         (frame.kind == FrameKind::up || frame.kind == FrameKind::down) && (frame.ack & kMoreFollow) != 0;
     const std::size_t size = wire::kPackedFrameHeader + frame.body.size();
-    if (w.packed > 0 && (w.pack.size() + size > kPackBytes || w.pack_from != frame.from)) {
+    // A pack carries one version and fingerprint, this build's: a frame with others goes alone,
+    // as it is (as does a pack handed to send()).
+    static const std::uint64_t fingerprint = message_fingerprint();
+    const bool packable = size <= kPackBytes && frame.version == kProtocolVersion &&
+                          frame.fingerprint == fingerprint && static_cast<std::uint8_t>(frame.kind) != kPackedKind;
+    if (w.packed > 0 && (!packable || w.pack.size() + size > kPackBytes || w.pack_from != frame.from)) {
       if (auto ok = write_pack(w, frame.to, false); !ok) return ok;
     }
-    if (size <= kPackBytes && (goes_on || w.packed > 0)) {
+    if (packable && (goes_on || w.packed > 0)) {
       if (w.packed == 0) w.pack_from = frame.from;
       wire::append_packed(w.pack, frame);
       ++w.packed;

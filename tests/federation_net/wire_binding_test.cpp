@@ -75,8 +75,9 @@ INSTANTIATE_TEST_SUITE_P(Wire, WireSend, ::testing::Values("lcm", "dds"),
 // A packed DDS sample (kind kPackedKind, docs/transports.md "Packing") is decoded strictly:
 // the frames before one that does not decode come through, the rest is dropped with a line
 // saying why; a count that does not match drops the whole sample; a frame of an unknown kind
-// inside is dropped as it would be alone. Malformed packs are sent as send() passes a frame of
-// that kind: as it is, one sample.
+// inside is dropped as it would be alone; a frame of another protocol version is never packed
+// (it would pass as this build's). Malformed packs are sent as send() passes a frame of that
+// kind: as it is, one sample.
 std::string packed(FrameKind kind, std::uint64_t seq, const std::string& body, std::size_t claimed_size) {
   std::string out(1, static_cast<char>(kind));
   for (std::uint64_t v : {seq, seq - 1, std::uint64_t{0}})
@@ -113,6 +114,11 @@ TEST(WireDds, APackedSampleThatDoesNotDecodeIsDroppedFromThereWithAReason) {
   good.from = a->self();
   good.to = b->self();
   good.seq = 8;
+  Frame other_version = good;  // in a run, but a pack carries this build's version only
+  other_version.seq = 9;
+  other_version.version = kProtocolVersion + 1;
+  other_version.ack = kMoreFollow;
+  ASSERT_TRUE(a->send(other_version));
   ASSERT_TRUE(a->send(good));
   std::vector<std::uint64_t> seqs;
   for (;;) {
@@ -124,7 +130,8 @@ TEST(WireDds, APackedSampleThatDoesNotDecodeIsDroppedFromThereWithAReason) {
   EXPECT_EQ(seqs, (std::vector<std::uint64_t>{1, 2, 3, 7, 8}));
   std::string all;
   for (const auto& l : lines) all += l + "\n";
-  EXPECT_EQ(lines.size(), 4u) << all;
+  EXPECT_EQ(lines.size(), 5u) << all;
+  EXPECT_NE(all.find("protocol version " + std::to_string(kProtocolVersion + 1)), std::string::npos) << all;
   EXPECT_NE(all.find("packed frame 3 truncated in its header"), std::string::npos) << all;
   EXPECT_NE(all.find("packed frame 2 says its body has 100 bytes, 4 are left"), std::string::npos) << all;
   EXPECT_NE(all.find("the sample says it packs 2 frames, it holds 1"), std::string::npos) << all;
