@@ -107,7 +107,7 @@ const Command kInitCommand{
 int run_init(const Args& args) {
   node::InitOptions options;
   options.iri = args.required("--iri");
-  if (auto iri = uri::normalize(options.iri); !iri) usage_error("--iri: " + iri.error().message);
+  if (auto iri = uri::node_iri(options.iri); !iri) usage_error("--iri: " + iri.error().message);
   options.durability = args.has("--durable") ? node::Durability::durable : node::Durability::fast;
   options.ring = args.get_u64("--ring", options.ring);
   options.max_literal_bytes = args.get_u64("--max-literal", options.max_literal_bytes);

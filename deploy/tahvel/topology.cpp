@@ -399,7 +399,7 @@ node::Result<Topology> load_topology(const std::filesystem::path& file) {
           return node::fail(Errc::invalid_argument, spec.up_at + ": node '" + spec.id + "': up = \"" + spec.up +
                                                         "\", but it has no parent to link to");
         if (spec.iri.empty()) return node::fail(Errc::invalid_argument, spec.at + ": node '" + spec.id + "' has no parent, so it is a root, and a root needs an iri (or give it a parent)");
-        auto n = uri::normalize(spec.iri);
+        auto n = uri::node_iri(spec.iri);
         if (!n) return node::fail(Errc::invalid_iri, spec.iri_at + ": node '" + spec.id + "': iri: " + n.error().message);
         spec.iri = *n;
         if (spec.iri.ends_with("/"))

@@ -883,6 +883,9 @@ TEST_F(Cli, UpRefusesATopologyThatCouldNotRunAsWrittenNamingWhatAndWhere) {
       {"[[node]]\nid = \"hospital\"\niri = \"http://example.org/hospital/\"\n", "t.toml:3:7: node 'hospital': iri <http://example.org/hospital/> ends in '/'"},
       {listening + "[[node]]\nid = \"a\"\nparent = \"b\"\n[[node]]\nid = \"b\"\nparent = \"a\"\n", "t.toml:10:10: node 'b': parent: the parents form a cycle (b -> a -> b)"},
       {"[[node]]\nid = \"logs\"\niri = \"http://example.org/logs\"\n", "node id 'logs' is taken by the state directory"},
+      // "café" with a combining accent: the same on screen as the precomposed one, other bytes.
+      {"[[node]]\nid = \"hospital\"\niri = \"http://example.org/cafe\xCC\x81\"\n",
+       "t.toml:3:7: node 'hospital': iri: invalid IRI 'http://example.org/cafe\xCC\x81' at position 22: not in Unicode normalization form C (NFC)"},
       {listening + "  [[node.agent]]\n  id = \"home1\"\n  run = [\"true\"]\n[[node]]\nid = \"home1\"\nparent = \"hospital\"\n",
        "node 'hospital': agent id 'home1' is also its child node's id"},
       {hospital + "  [[node.agent]]\n  id = \"hrv\"\n  run = [\"true\"]\n  restrat = \"never\"\n", "agent 'hrv': unknown key 'restrat'"},

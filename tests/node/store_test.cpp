@@ -687,6 +687,12 @@ TEST(Store, InitRefusesExistingStoreAndOpenRefusesMissingOne) {
   auto bad = Node::init(dir / "bad", InitOptions{.iri = "not an iri"});
   ASSERT_FALSE(bad);
   EXPECT_EQ(bad.error().code, Errc::invalid_iri);
+  // Two stores whose IRIs look alike would be two nodes: only the composed form names one.
+  auto decomposed = Node::init(dir / "decomposed", InitOptions{.iri = "http://example.org/cafe\xCC\x81"});
+  ASSERT_FALSE(decomposed);
+  EXPECT_EQ(decomposed.error().code, Errc::invalid_iri);
+  EXPECT_NE(decomposed.error().message.find("NFC"), std::string::npos) << decomposed.error().message;
+  EXPECT_FALSE(std::filesystem::exists(dir / "decomposed" / "data.mdb"));
 }
 
 TEST(Store, AgentIriIsNodeIriSlashId) {

@@ -373,6 +373,16 @@ TEST(Iri, AChildIriOrAgentIriWithAnIdNotInNfcIsRefused) {
   EXPECT_TRUE(contains(err(child_node_iri("http://h", "o\xCC\x88lle")).message, "NFC"));  // o + U+0308
 }
 
+TEST(Iri, ANodeIriNotInNfcIsRefusedAndOneInNfcIsNormalised) {
+  // "https://kodu.example/cafe" + U+0301: looks like the precomposed one, is other bytes.
+  IriError e = err(node_iri("https://kodu.example/cafe\xCC\x81"));
+  EXPECT_EQ(e.position, 24u);  // the 'e' the accent combines with
+  EXPECT_TRUE(contains(e.message, "U+0065 U+0301 is composed U+00E9")) << e.message;
+  EXPECT_TRUE(contains(e.message, "a node IRI is written composed")) << e.message;
+  EXPECT_EQ(ok(node_iri("HTTPS://Kodu.Example/caf\xC3\xA9")), "https://kodu.example/caf\xC3\xA9");
+  EXPECT_TRUE(contains(err(node_iri("kodu")).message, "invalid IRI 'kodu'"));
+}
+
 // --- agent_iri and child_node_iri -----------------------------------------------------------
 
 TEST(Iri, AgentIriAppendsSlashAndId) {

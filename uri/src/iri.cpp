@@ -48,6 +48,27 @@ std::string code_points(std::string_view text) {
   return out;
 }
 
+// Why `text` is not in Unicode normalization form C, or nothing when it is. Two names that
+// look the same must name the same node or agent: "café" with a combining accent (as some
+// editors and file systems write it) and "café" precomposed are different bytes, so only the
+// composed form (NFC, RFC 3987 §5.3.2.2) names one. `what` and `whats` word the message.
+std::optional<Failure> nfc_failure(std::string_view text, std::string_view what, std::string_view whats) {
+  auto nfc = detail::nfc_if_different(text);
+  if (!nfc) return std::nullopt;
+  // The part that differs, by code point: on screen both forms look the same.
+  std::size_t at = 0, tail = 0;
+  while (at < text.size() && at < nfc->size() && text[at] == (*nfc)[at]) ++at;
+  while (at > 0 && detail::decode_utf8(text, at).length == 0) --at;  // a character's start
+  while (tail < text.size() - at && tail < nfc->size() - at &&
+         text[text.size() - 1 - tail] == (*nfc)[nfc->size() - 1 - tail])
+    ++tail;
+  while (tail > 0 && detail::decode_utf8(text, text.size() - tail).length == 0) --tail;
+  return Failure{at, "not in Unicode normalization form C (NFC): " + code_points(text.substr(at, text.size() - tail - at)) +
+                         " is composed " + code_points(std::string_view(*nfc).substr(at, nfc->size() - tail - at)) +
+                         " ('" + *nfc + "'); " + std::string(what) + " is written composed, so that " +
+                         std::string(whats) + " that look alike are one"};
+}
+
 // Why `id` cannot name one path segment below a node, or nothing when it can.
 std::optional<Failure> id_failure(std::string_view id) {
   if (id.empty()) return Failure{0, "an id cannot be empty"};
@@ -59,22 +80,7 @@ std::optional<Failure> id_failure(std::string_view id) {
     }
     pos += cp.length;
   }
-  // Two ids that look the same must name the same node or agent: "café" with a combining
-  // accent (as some editors and file systems write it) and "café" precomposed are different
-  // bytes, so only the composed form (NFC, RFC 3987 §5.3.2.2) is an id.
-  if (auto nfc = detail::nfc_if_different(id)) {
-    // The part that differs, by code point: on screen both forms look the same.
-    std::size_t at = 0, tail = 0;
-    while (at < id.size() && at < nfc->size() && id[at] == (*nfc)[at]) ++at;
-    while (at > 0 && detail::decode_utf8(id, at).length == 0) --at;  // a character's start
-    while (tail < id.size() - at && tail < nfc->size() - at && id[id.size() - 1 - tail] == (*nfc)[nfc->size() - 1 - tail]) ++tail;
-    while (tail > 0 && detail::decode_utf8(id, id.size() - tail).length == 0) --tail;
-    return Failure{at, "not in Unicode normalization form C (NFC): " +
-                           code_points(id.substr(at, id.size() - tail - at)) + " is composed " +
-                           code_points(std::string_view(*nfc).substr(at, nfc->size() - tail - at)) +
-                           " ('" + *nfc + "'); an id is written composed, so that ids that look alike are one"};
-  }
-  return std::nullopt;
+  return nfc_failure(id, "an id", "ids");
 }
 
 // is_under for texts already in normal form.
@@ -222,6 +228,13 @@ IriResult<std::string> resolve(std::string_view base, std::string_view reference
 IriResult<std::string> check_id(std::string_view id) {
   if (auto failure = id_failure(id)) return unexpected(make_error("invalid id", id, *failure));
   return std::string(id);
+}
+
+IriResult<std::string> node_iri(std::string_view text) {
+  auto normal = normal_form(text);
+  if (!normal) return unexpected(make_error(kInvalidIri, text, normal.error()));
+  if (auto failure = nfc_failure(text, "a node IRI", "node IRIs")) return unexpected(make_error(kInvalidIri, text, *failure));
+  return std::move(*normal);
 }
 
 IriResult<std::string> agent_iri(std::string_view node_iri, std::string_view id) {

@@ -42,6 +42,11 @@ IriResult<std::string> resolve(std::string_view base, std::string_view reference
 // position. child_id, agent_iri and child_node_iri check ids so too.
 IriResult<std::string> check_id(std::string_view id);
 
+// The IRI of a node that has no parent here (a store's `init`, a topology's root): parsed and
+// normalised as by `normalize`, and in Unicode normalization form C as ids are (check_id), so
+// that two node IRIs that look alike are one. The error names the code points that differ.
+IriResult<std::string> node_iri(std::string_view text);
+
 // Agent IRI = node IRI + "/" + id (DESIGN §2). A trailing '/' on the node IRI is not doubled.
 // Errors: invalid node IRI, invalid id.
 IriResult<std::string> agent_iri(std::string_view node_iri, std::string_view id);
