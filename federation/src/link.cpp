@@ -181,10 +181,13 @@ std::vector<node::Pattern> default_forward_policy() {
 // Two nodes with one IRI on one network (a second deployment of the same file, a copied store)
 // take turns: each hello or welcome names the other's store, and their items mix under one IRI.
 // A store id that changes once is a store made again; kFlips changes within kWindow are two
-// stores alive at once. Said for kSaidFor after the last change.
+// stores alive at once. A frame from a store other than the registered one (a heartbeat, an ack)
+// counts as a change: the registered store is alive, and so is that one. The conflict lasts
+// `hold` after the last change (LinkOptions::conflict_hold).
 class StoreFlips {
  public:
-  // A hello or welcome named `store`, after `before` (empty: the first). True when that makes a
+  void set_hold(Clock::duration hold) { hold_ = hold; }
+  // A frame named `store`, where `before` was expected (empty: none yet). True when that makes a
   // conflict that was not one before.
   bool saw(const std::string& before, const std::string& store, const std::string& who) {
     if (before.empty() || store.empty() || before == store) return false;  // no id: a peer from before ids
@@ -194,17 +197,19 @@ class StoreFlips {
     if (flips_.size() < kFlips) return false;
     const bool fresh = !active();
     said_ = "two stores (ids " + before + " and " + store + ") take turns as " + who +
-            ": two nodes with one IRI on this network, such as a second deployment of the same file; their items mix";
+            ": two nodes with one IRI on this network, such as a second deployment of the same file; this link "
+            "does not link with it until " + std::to_string(std::chrono::duration_cast<std::chrono::seconds>(hold_).count()) +
+            " s after the last sign of two";
     last_ = now;
     return fresh;
   }
-  bool active() const { return !said_.empty() && Clock::now() - last_ < kSaidFor; }
+  bool active() const { return !said_.empty() && Clock::now() - last_ < hold_; }
   std::string said() const { return active() ? said_ : std::string(); }
 
  private:
   static constexpr std::size_t kFlips = 3;
   static constexpr auto kWindow = std::chrono::seconds(60);
-  static constexpr auto kSaidFor = std::chrono::minutes(2);
+  Clock::duration hold_ = std::chrono::minutes(2);
   std::deque<Clock::time_point> flips_;
   std::string said_;
   Clock::time_point last_{};
@@ -314,6 +319,56 @@ struct Link::Impl {
   }
   std::string down_stream() const {  // under mu
     return parent_store_id.empty() ? std::string(kDownStream) : std::string(kDownStream) + "#" + parent_store_id;
+  }
+
+  // P6b: the tag of store `id` that up and down frames carry in bits kStoreTagShift.. of `ack`:
+  // 48 bits of its FNV-1a hash, never 0 (0: no tag, a peer from before tags, or no id).
+  static std::uint64_t store_tag(const std::string& id) {
+    if (id.empty()) return 0;
+    std::uint64_t hash = 0xcbf29ce484222325ull;
+    for (unsigned char c : id) hash = (hash ^ c) * 0x100000001b3ull;
+    const std::uint64_t tag = hash >> kStoreTagShift;
+    return tag != 0 ? tag : 1;
+  }
+  // P6b: a frame names a store (`got`) other than the one registered for its sender
+  // (`expected`). Either empty: a peer from before store ids, or none registered yet.
+  static bool store_differs(const std::string& expected, const std::string& got) {
+    return !expected.empty() && !got.empty() && expected != got;
+  }
+  // Caller holds mu. An item-stream ack to `to` of the stream of `to`'s store `peer_store`
+  // (empty: not known), its body naming both stores (P6b): a second node under the same IRI
+  // takes it for no ack of its own, and a second node under this one's IRI is seen by its store.
+  Frame stream_ack(const std::string& to, const std::string& peer_store) const {
+    Frame ack;
+    ack.kind = FrameKind::ack;
+    ack.to = to;
+    ack.body = wire::encode_state({"", 0, store_id, peer_store});
+    return ack;
+  }
+  // P6b: up or down frames came from a store of the peer's IRI other than the registered one
+  // (`tag`): the child `child`, or the parent when null. Both stores are alive.
+  void other_store_sent(Child* child, std::uint64_t tag) {
+    char other[40];
+    std::snprintf(other, sizeof other, "(store tag %012llx)", static_cast<unsigned long long>(tag));
+    std::lock_guard lock(mu);
+    ++counters.refused;
+    if (child) {
+      if (child->flips.saw(child->store_id, other, "the child <" + child->iri + ">")) log("conflict: " + child->flips.said());
+      if (child->flips.active()) disconnect_for_conflict(*child);
+    } else {
+      if (parent_flips.saw(parent_store_id, other, "the parent <" + opt.parent_iri + ">")) log("conflict: " + parent_flips.said());
+      if (parent_flips.active() && welcomed) {
+        log("the parent is not linked with while the conflict lasts");
+        welcomed = false;
+      }
+    }
+  }
+  // Caller holds mu. P6b: a child under which two stores take turns is not linked with (its
+  // frames are refused) until the conflict has passed.
+  void disconnect_for_conflict(Child& child) {
+    if (child.connected) log("child <" + child.iri + "> is not linked with while the conflict lasts");
+    child.connected = false;
+    child.state_dirty = true;
   }
 
   // Queries (P13-P16).
@@ -837,6 +892,7 @@ struct Link::Impl {
     auto& child = children[iri];
     if (!child) {
       child = std::make_shared<Child>();
+      child->flips.set_hold(opt.conflict_hold);
       child->id = *id;
       child->iri = iri;
     }
@@ -860,10 +916,12 @@ struct Link::Impl {
     const Frame& head = frames.front();
     const bool up = head.kind == FrameKind::up;
     std::shared_ptr<Child> child;
+    std::string conflict;  // P6b: why a known child is not linked with
     if (up) {
       std::lock_guard lock(mu);
       auto it = children.find(head.from);
       if (it != children.end() && it->second->connected) child = it->second;
+      else if (it != children.end()) conflict = it->second->flips.said();
     }
     bool unwelcomed = false;
     if (!up) {
@@ -881,17 +939,29 @@ struct Link::Impl {
         std::lock_guard lock(mu);
         counters.refused += frames.size();
       }
-      if (up && opt.down) {  // P6: a child the parent does not know registers again
+      if (up && opt.down && !conflict.empty()) {
+        send_error(via, head.from, 0, {"refused", conflict, ""});
+      } else if (up && opt.down) {  // P6: a child the parent does not know registers again
         send_error(via, head.from, 0, {"unregistered", "<" + head.from + "> must say hello to <" + self + "> first", ""});
       } else {
         log("dropped " + std::to_string(frames.size()) + " frame(s) from <" + head.from + ">: not this node's parent");
       }
       return;
     }
+    std::uint64_t registered_tag = 0;
+    {
+      std::lock_guard lock(mu);
+      registered_tag = store_tag(up ? child->store_id : parent_store_id);
+    }
     std::vector<node::RelayedItem> items;
     items.reserve(frames.size());
+    std::uint64_t foreign_tag = 0;  // P6b: of frames from another store than the registered one
     for (std::size_t k = 0; k < frames.size(); ++k) {
       const Frame& f = frames[k];
+      if (const std::uint64_t tag = f.ack >> kStoreTagShift; tag != 0 && registered_tag != 0 && tag != registered_tag) {
+        foreign_tag = tag;
+        continue;  // the other store's seqs are not this stream's: never applied, never acknowledged
+      }
       auto& body = *bodies[k];
       if (!body) {
         log("dropped a malformed " + std::string(up ? "up" : "down") + " frame from <" + f.from + ">: " + body.error().message);
@@ -902,6 +972,8 @@ struct Link::Impl {
       if (!up) body->item.context = subtree_for(body->item.context, self);  // P11
       items.push_back({f.seq, f.prev, std::move(body->source), std::move(body->item)});
     }
+    if (foreign_tag != 0) other_store_sent(up ? child.get() : nullptr, foreign_tag);
+    if (items.empty() && foreign_tag != 0) return;
     node::Agent* relayer = agent(up ? child->id : std::string(kUplinkAgent));
     if (!relayer) return;
     std::string stream;
@@ -950,8 +1022,10 @@ struct Link::Impl {
       buffer = HeldFrames{};  // read the mark again; the sender resends what is missing
     }
     Frame ack;
-    ack.kind = FrameKind::ack;
-    ack.to = head.from;
+    {
+      std::lock_guard lock(mu);
+      ack = stream_ack(head.from, up ? child->store_id : parent_store_id);
+    }
     if (!outcome) {
       // A refused source (P9) or a full store: nothing was applied; the sender keeps resending,
       // which is right for a full store and visible in the log for a misbehaving child.
@@ -1048,6 +1122,7 @@ struct Link::Impl {
         node::Pattern subtree;
         subtree.context = self + "/*";
         if (auto sub = link->subscribe(subtree); !sub) log("cannot subscribe <" + child->iri + "> to subtree items: " + sub.error().message);
+        std::string refuse;
         {
           std::lock_guard lock(mu);
           if (child->store_id != child_store && !child->store_id.empty())
@@ -1057,6 +1132,19 @@ struct Link::Impl {
             log("conflict: " + child->flips.said());
           child->store_id = child_store;
           child->via = via;
+          if (child->flips.active()) {
+            // P6b: which store is the impostor cannot be told; linking with either mixes their
+            // items under one IRI and lets one's acknowledgements empty the other's outbox.
+            refuse = child->flips.said();
+            disconnect_for_conflict(*child);
+          }
+        }
+        if (!refuse.empty()) {
+          send_error(via, f.from, 0, {"refused", refuse, ""});
+          return;
+        }
+        {
+          std::lock_guard lock(mu);
           bool was = child->connected;
           child->connected = child->ever = true;
           child->last_seen = Clock::now();
@@ -1088,9 +1176,24 @@ struct Link::Impl {
       case FrameKind::heartbeat: {
         auto state = wire::decode_state(f.body);
         std::unique_lock lock(mu);
+        if (state && child->connected && store_differs(child->store_id, state->store_id)) {
+          // P6b: another store than the registered one beats as this child: both are alive.
+          if (child->flips.saw(child->store_id, state->store_id, "the child <" + child->iri + ">"))
+            log("conflict: " + child->flips.said());
+          if (child->flips.active()) disconnect_for_conflict(*child);
+          else {
+            // Its answer names the registered store: the other says hello again (P6b).
+            Frame answer = stream_ack(child->iri, child->store_id);
+            lock.unlock();
+            send(via, std::move(answer));
+            return;
+          }
+        }
         if (!child->connected) {
+          const std::string conflict = child->flips.said();
           lock.unlock();
-          send_error(via, f.from, 0, {"unregistered", "<" + f.from + "> must say hello to <" + self + "> first", ""});
+          if (!conflict.empty()) send_error(via, f.from, 0, {"refused", conflict, ""});
+          else send_error(via, f.from, 0, {"unregistered", "<" + f.from + "> must say hello to <" + self + "> first", ""});
           return;
         }
         child->last_seen = Clock::now();
@@ -1104,24 +1207,33 @@ struct Link::Impl {
           child->outbox_depth = state->outbox_depth;
           child->version = state->software_version;
         }
-        lock.unlock();
         // P12a: so that the child hears its parent while nothing else comes down (an ack whose
         // mark 0 moves nothing).
-        Frame heard;
-        heard.kind = FrameKind::ack;
-        heard.to = child->iri;
+        Frame heard = stream_ack(child->iri, child->store_id);
+        lock.unlock();
         send(via, std::move(heard));
         return;
       }
       case FrameKind::ack: {
         std::unique_lock lock(mu);
-        child->last_seen = Clock::now();
         if (f.seq != 0) {
+          child->last_seen = Clock::now();
           Outgoing out;
           answer_ack(f, out);
           lock.unlock();
           return send_all(out);
         }
+        // P6b: the acknowledgement of another store than the registered one (a second node
+        // under this child's IRI) would move the registered one's down window.
+        auto stores = wire::decode_state(f.body);
+        if (stores && store_differs(store_id, stores->peer_store_id)) return;  // of another parent's down stream
+        if (stores && store_differs(child->store_id, stores->store_id)) {
+          if (child->flips.saw(child->store_id, stores->store_id, "the child <" + child->iri + ">"))
+            log("conflict: " + child->flips.said());
+          if (child->flips.active()) disconnect_for_conflict(*child);
+          return;
+        }
+        child->last_seen = Clock::now();
         bool news = false;  // for the pump: room in the window, items to acknowledge, a go-back
         if (f.ack > child->down_mark) {
           child->down_mark = f.ack;
@@ -1171,6 +1283,13 @@ struct Link::Impl {
             log("conflict: " + parent_flips.said());
           parent_store_id = state->store_id;
         }
+        // P6b: while two stores take turns as the parent, this node links with neither: their
+        // acknowledgements would empty its outbox of items that only one of them has.
+        if (parent_flips.active()) {
+          if (welcomed) log("the parent is not linked with while the conflict lasts");
+          welcomed = false;
+          return;
+        }
         welcomed = ever_welcomed = true;
         refused_by_parent.clear();
         up_mark = f.ack;
@@ -1187,6 +1306,26 @@ struct Link::Impl {
           answer_ack(f, out);
           lock.unlock();
           return send_all(out);
+        }
+        if (auto stores = wire::decode_state(f.body)) {
+          // P6b: from another store than the parent that welcomed this node: two parents under
+          // one IRI.
+          if (store_differs(parent_store_id, stores->store_id)) {
+            if (parent_flips.saw(parent_store_id, stores->store_id, "the parent <" + opt.parent_iri + ">"))
+              log("conflict: " + parent_flips.said());
+            if (parent_flips.active() && welcomed) {
+              log("the parent is not linked with while the conflict lasts");
+              welcomed = false;
+            }
+            return;
+          }
+          // Of another store of this node's IRI: the parent holds that one as this node (a second
+          // node under this IRI said hello after this one). This one says hello again, which
+          // the parent sees as two stores taking turns.
+          if (store_differs(store_id, stores->peer_store_id)) {
+            welcomed = false;
+            return;
+          }
         }
         if (f.ack > up_mark) {
           up_mark = f.ack;
@@ -1698,6 +1837,7 @@ struct Link::Impl {
       std::vector<Frame> frames;
       std::unique_lock lock(mu);
       if (!welcomed || up_last_sent != after) continue;  // the session moved meanwhile
+      const std::uint64_t own_tag = store_tag(store_id) << kStoreTagShift;  // P6b
       for (const auto& d : *ready) {
         wire::ItemBody body = item_of(d);
         if (!from_this_subtree(body.source)) {
@@ -1710,6 +1850,7 @@ struct Link::Impl {
         f.to = opt.parent_iri;
         f.seq = d.item;
         f.prev = up_last_sent;
+        f.ack = own_tag;
         f.body = wire::encode_item(body);
         if (!fits_a_frame(f, d.item)) {
           from_above.push_back(d.item);  // acknowledged here, as those are
@@ -1890,6 +2031,7 @@ struct Link::Impl {
         f.to = child.iri;
         f.seq = d.item;
         f.prev = child.down_last_sent;
+        f.ack = store_tag(store_id) << kStoreTagShift;  // P6b
         f.body = wire::encode_item(body);
         if (!fits_a_frame(f, d.item)) {
           local_acks.push_back(d.item);
@@ -2032,11 +2174,11 @@ struct Link::Impl {
           stream = down_stream();
           parent_store = parent_store_id;
         }
-        wire::StateBody state{opt.software_version, depth ? *depth : 0, "", ""};
+        // A heartbeat names this store too: a parent then sees a second node under this IRI (P6b).
+        wire::StateBody state{opt.software_version, depth ? *depth : 0, current_store_id(), ""};
         if (f.kind == FrameKind::hello) {
           auto down_mark = uplink->relay_mark(stream);
           f.ack = down_mark ? *down_mark : 0;
-          state.store_id = current_store_id();
           state.peer_store_id = parent_store;
         }
         f.body = wire::encode_state(state);
@@ -2415,6 +2557,7 @@ Result<std::unique_ptr<Link>> Link::start(LinkOptions options) {
   }
   Link::Impl& s = *impl;
   s.opt = std::move(options);
+  s.parent_flips.set_hold(s.opt.conflict_hold);
   if (s.opt.down) {
     // Configured children: their down queues also take whole-subtree items (P11), and their state
     // is on the board from the start ("never connected").
@@ -2429,6 +2572,7 @@ Result<std::unique_ptr<Link>> Link::start(LinkOptions options) {
       subtree.context = s.self + "/*";
       if (auto sub = agent->subscribe(subtree); !sub) return Unexpected<Error>{sub.error()};
       auto child = std::make_shared<Impl::Child>();
+      child->flips.set_hold(s.opt.conflict_hold);
       child->id = id;
       child->iri = *iri;
       s.children[*iri] = child;

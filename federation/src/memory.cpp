@@ -19,7 +19,9 @@ struct MemoryBus::Impl {
   };
 
   std::mutex mutex;
-  std::map<std::string, std::shared_ptr<Mailbox>, std::less<>> mailboxes;
+  // Every endpoint bound to an IRI gets each frame to it, as on LCM or DDS, where two nodes with
+  // one IRI (a misconfiguration, P6b) both receive.
+  std::map<std::string, std::vector<std::shared_ptr<Mailbox>>, std::less<>> mailboxes;
   std::set<std::string, std::less<>> cut;
   Faults faults;
   std::mt19937_64 random{1};
@@ -29,8 +31,10 @@ struct MemoryBus::Impl {
   void deliver_locked(const std::string& to, std::string bytes) {
     auto it = mailboxes.find(to);
     if (it == mailboxes.end() || cut.count(to)) return;  // nobody listening: lost, as on a wire
-    it->second->queue.push_back(std::move(bytes));
-    it->second->ready.notify_one();
+    for (const auto& mailbox : it->second) {
+      mailbox->queue.push_back(bytes);
+      mailbox->ready.notify_one();
+    }
   }
 
   void send(const std::string& to, std::string bytes) {
@@ -60,13 +64,15 @@ class MemoryTransport final : public Transport {
       : bus_(std::move(bus)), self_(std::move(self)), log_(std::move(log)) {
     std::lock_guard lock(bus_->mutex);
     mailbox_ = std::make_shared<MemoryBus::Impl::Mailbox>();
-    bus_->mailboxes[self_] = mailbox_;
+    bus_->mailboxes[self_].push_back(mailbox_);
   }
 
   ~MemoryTransport() override {
     std::lock_guard lock(bus_->mutex);
     auto it = bus_->mailboxes.find(self_);
-    if (it != bus_->mailboxes.end() && it->second == mailbox_) bus_->mailboxes.erase(it);
+    if (it == bus_->mailboxes.end()) return;
+    std::erase(it->second, mailbox_);
+    if (it->second.empty()) bus_->mailboxes.erase(it);
   }
 
   const std::string& self() const override { return self_; }

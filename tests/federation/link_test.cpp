@@ -54,6 +54,12 @@ struct Log {
       if (l.find(part) != std::string::npos) return true;
     return false;
   }
+  std::string text() {  // for a failure's message
+    std::lock_guard lock(mu);
+    std::string all;
+    for (const auto& l : lines) all += l + "\n";
+    return all;
+  }
 };
 
 using test_support::eventually;
@@ -743,6 +749,56 @@ TEST(Link, TwoStoresTakingTurnsUnderOneIriAreAConflictInTheStateOfTheSideThatSee
   }
   EXPECT_TRUE(eventually([&] { return other.home1_log.has("conflict: two stores (ids cccc and dddd) take turns as the parent <" + kHospital + ">"); }));
   EXPECT_TRUE(eventually([&] { return count(other.home1_dir, {.s = Term::iri(kHome1), .p = conflict}) == 1; }));
+}
+
+// P6b: a second node under a child's IRI (a second deployment of the same file on one network):
+// the parent sees two stores taking turns, links with neither while both live (their items
+// would mix under one IRI, and one's acknowledgements would empty the other's outbox), and once
+// one is gone links again with the other, which then sends everything it kept. Nothing of either
+// store is lost or doubled.
+TEST(Link, ASecondNodeUnderAChildsIriStopsThatLinkUntilItGoesAndNothingIsLost) {
+  Tree tree;
+  const auto hold = 1500ms;
+  tree.hospital = Link::start({.dir = tree.hospital_dir, .down = std::shared_ptr<Transport>(tree.bus.open(kHospital, tree.hospital_log.sink())),
+                               .children = {"home1", "home2"}, .resend_after = 100ms, .conflict_hold = hold,
+                               .log = tree.hospital_log.sink()})
+                      .value();
+  auto start_home1 = [&](const std::string& dir, Log& log) {
+    return Link::start({.dir = dir, .parent_iri = kHospital, .up = std::shared_ptr<Transport>(tree.bus.open(kHome1, log.sink())),
+                        .resend_after = 100ms, .heartbeat_every = 200ms, .conflict_hold = hold, .log = log.sink()})
+        .value();
+  };
+  tree.home1 = start_home1(tree.home1_dir, tree.home1_log);
+  ASSERT_TRUE(home1_sends(tree, 0, 20, 20));
+
+  const std::string twin_dir = (tree.tmp / "twin").string();
+  ASSERT_TRUE(node::Node::init(twin_dir, {.iri = kHome1}));
+  Log twin_log;
+  auto twin = start_home1(twin_dir, twin_log);
+  store_hrv_items(twin_dir, 1000, 20);  // after its start: the uplink's outbox takes them
+  ASSERT_TRUE(eventually([&] { return tree.hospital_log.has("conflict: two stores"); })) << tree.hospital_log.text();
+  ASSERT_TRUE(eventually([&] { return count(tree.hospital_dir, {.s = Term::iri(kHome1), .p = Term::iri(vocab::kLinkConflict)}) == 1; }));
+
+  // While both live, nothing more of home1's is taken, and none of it leaves its outbox.
+  store_hrv_items(tree.home1_dir, 20, 20);
+  std::this_thread::sleep_for(1s);
+  for (int n = 20; n < 40; ++n) EXPECT_EQ(count(tree.hospital_dir, {.p = Term::iri(kEx + "n"), .o = Term::integer(n)}), 0u) << n;
+  EXPECT_EQ(outbox(tree.home1_dir), 20u);
+
+  twin.reset();
+  ASSERT_TRUE(eventually([&] { return count(tree.hospital_dir, {.p = Term::iri(kEx + "n"), .o = Term::integer(39)}) == 1; }, 15s))
+      << tree.home1_log.text();
+  EXPECT_TRUE(eventually([&] { return outbox(tree.home1_dir) == 0; }));
+  for (int n = 0; n < 40; ++n) EXPECT_EQ(count(tree.hospital_dir, {.p = Term::iri(kEx + "n"), .o = Term::integer(n)}), 1u) << n;
+  // The twin's items: each at the hospital once, or still in the twin's outbox.
+  const std::uint64_t kept = outbox(twin_dir);
+  std::uint64_t arrived = 0;
+  for (int n = 1000; n < 1020; ++n) {
+    const std::uint64_t c = count(tree.hospital_dir, {.p = Term::iri(kEx + "n"), .o = Term::integer(n)});
+    EXPECT_LE(c, 1u) << n;
+    arrived += c;
+  }
+  EXPECT_GE(arrived + kept, 20u) << "arrived " << arrived << ", kept " << kept;
 }
 
 TEST(Link, MalformedFramesAreDroppedWithAReasonAndTheLinkKeepsWorking) {

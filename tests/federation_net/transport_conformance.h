@@ -411,7 +411,9 @@ TEST_P(TransportConformance, ARunOfFramesArrivesIntactAndInOrderWithAnotherFrame
     expect_same(sent[at], f);
     ++at;
   }
-  if (GetParam().lossless) EXPECT_EQ(got.size(), sent.size());
+  if (GetParam().lossless) {
+    EXPECT_EQ(got.size(), sent.size());
+  }
 }
 
 TEST_P(TransportConformance, BurstOfTenThousandFramesArrivesIntact) {

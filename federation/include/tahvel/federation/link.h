@@ -109,6 +109,9 @@ struct LinkOptions {
   std::chrono::milliseconds ack_delay{20};
   std::chrono::milliseconds heartbeat_every{1000};
   std::chrono::milliseconds child_silence{3500};  // a child not heard for this long is "down"
+  // Two stores alive under one peer IRI (P6b): the link does not link with that peer until this
+  // long after the last sign of the second store.
+  std::chrono::milliseconds conflict_hold{120000};
   // Frames are taken on the transport's own receive thread where it has one (Cyclone DDS:
   // Transport::on_arrival), and a small run of items from a known peer is relayed there, saving
   // a thread's wake-up on the path of every item. A writer that holds this store's write lock

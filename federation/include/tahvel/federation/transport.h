@@ -46,6 +46,9 @@ enum class FrameKind : std::uint8_t {
 // Bits of an up or down frame's `ack` field (docs/protocol.md P8, P9b).
 inline constexpr std::uint64_t kAckNow = 1;      // the sender's window is half full: ack the stream now
 inline constexpr std::uint64_t kMoreFollow = 2;  // more frames of the run sent back to back follow
+// Bits kStoreTagShift and up of an up or down frame's `ack`: a 48-bit tag of the sender's store
+// id (0: none), so that frames of two stores under one IRI are told apart (P6b).
+inline constexpr int kStoreTagShift = 16;
 
 // The kind of a Cyclone DDS sample that carries several frames of one sender to one addressee
 // (docs/transports.md, "Packing"). The DDS binding makes and unpacks such samples itself: it
@@ -116,7 +119,8 @@ class Transport {
 
 // ---------------------------------------------------------------------------------------------
 // In-memory binding: endpoints of one MemoryBus exchange frames inside one process. Tests may
-// make it drop, duplicate or reorder frames deterministically (a seeded schedule).
+// make it drop, duplicate or reorder frames deterministically (a seeded schedule). Endpoints
+// opened with the same IRI each get every frame to it, as on the wire bindings.
 
 class MemoryBus {
  public:
