@@ -801,6 +801,55 @@ TEST(Link, ASecondNodeUnderAChildsIriStopsThatLinkUntilItGoesAndNothingIsLost) {
   EXPECT_GE(arrived + kept, 20u) << "arrived " << arrived << ", kept " << kept;
 }
 
+// P6b: an acknowledgement names the store whose stream it moves. One of another store of the
+// child's IRI (a second node under it, registered at the parent) would otherwise empty this
+// one's outbox of items the parent never applied.
+TEST(Link, AChildKeepsItsOutboxWhenAnAckIsOfAnotherStoresStream) {
+  Tree tree;
+  auto parent = tree.bus.open(kHospital);
+  tree.home1 = tree.start_home(tree.home1_dir, kHome1, tree.home1_log);
+  const std::string own_store = node::Node::open(tree.home1_dir).value().store_id().value();
+  auto next = [&](FrameKind kind) -> std::optional<Frame> {
+    for (auto deadline = std::chrono::steady_clock::now() + 5s; std::chrono::steady_clock::now() < deadline;) {
+      auto f = parent->receive(100ms);
+      if (f && *f && (*f)->kind == kind) return **f;
+    }
+    return std::nullopt;
+  };
+  ASSERT_TRUE(next(FrameKind::hello));
+  Frame welcome;
+  welcome.kind = FrameKind::welcome;
+  welcome.from = kHospital;
+  welcome.to = kHome1;
+  welcome.body = wire::encode_state({"test", 0, "pppp", ""});
+  ASSERT_TRUE(parent->send(welcome));
+  store_hrv_items(tree.home1_dir, 0, 5);
+  std::set<std::uint64_t> sent;
+  while (sent.size() < 5) {
+    auto up = next(FrameKind::up);
+    ASSERT_TRUE(up);
+    sent.insert(up->seq);
+  }
+  const std::uint64_t last = *sent.rbegin();
+  auto ack_of = [&](const std::string& peer_store) {
+    Frame ack;
+    ack.kind = FrameKind::ack;
+    ack.from = kHospital;
+    ack.to = kHome1;
+    ack.ack = last;
+    ack.body = wire::encode_state({"", 0, "pppp", peer_store});
+    return parent->send(ack);
+  };
+  ASSERT_TRUE(ack_of("a-store-that-is-not-home1s"));
+  // The parent holds that other store as this node: this one says hello again.
+  EXPECT_TRUE(next(FrameKind::hello));
+  EXPECT_EQ(outbox(tree.home1_dir), 5u);
+  welcome.ack = last;  // the parent's mark of home1's stream: all of it applied
+  ASSERT_TRUE(parent->send(welcome));
+  ASSERT_TRUE(ack_of(own_store));
+  EXPECT_TRUE(eventually([&] { return outbox(tree.home1_dir) == 0; }));
+}
+
 TEST(Link, MalformedFramesAreDroppedWithAReasonAndTheLinkKeepsWorking) {
   Tree tree;
   tree.hospital = tree.start_hospital();
