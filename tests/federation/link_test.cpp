@@ -801,6 +801,41 @@ TEST(Link, ASecondNodeUnderAChildsIriStopsThatLinkUntilItGoesAndNothingIsLost) {
   EXPECT_GE(arrived + kept, 20u) << "arrived " << arrived << ", kept " << kept;
 }
 
+// P6b, the child's side: a second node under its parent's IRI (a second hospital of the same
+// file on one network). The child links with neither while both live, and once one is gone
+// sends everything to the other, once.
+TEST(Link, ASecondNodeUnderTheParentsIriStopsTheChildsUplinkUntilItGoesAndNothingIsLost) {
+  Tree tree;
+  const auto hold = 1500ms;
+  auto start_hospital = [&](const std::string& dir, Log& log) {
+    return Link::start({.dir = dir, .down = std::shared_ptr<Transport>(tree.bus.open(kHospital, log.sink())),
+                        .children = {"home1", "home2"}, .resend_after = 100ms, .conflict_hold = hold, .log = log.sink()})
+        .value();
+  };
+  tree.hospital = start_hospital(tree.hospital_dir, tree.hospital_log);
+  tree.home1 = Link::start({.dir = tree.home1_dir, .parent_iri = kHospital,
+                            .up = std::shared_ptr<Transport>(tree.bus.open(kHome1, tree.home1_log.sink())),
+                            .resend_after = 100ms, .heartbeat_every = 200ms, .conflict_hold = hold, .log = tree.home1_log.sink()})
+                   .value();
+  ASSERT_TRUE(home1_sends(tree, 0, 20, 20));
+
+  const std::string twin_dir = (tree.tmp / "twin-hospital").string();
+  ASSERT_TRUE(node::Node::init(twin_dir, {.iri = kHospital}));
+  Log twin_log;
+  auto twin = start_hospital(twin_dir, twin_log);
+  ASSERT_TRUE(eventually([&] { return tree.home1_log.has("conflict: two stores"); })) << tree.home1_log.text();
+  ASSERT_TRUE(eventually([&] { return tree.home1_log.has("the parent is not linked with while the conflict lasts"); }))
+      << tree.home1_log.text();
+  store_hrv_items(tree.home1_dir, 20, 20);
+  std::this_thread::sleep_for(1s);
+  EXPECT_EQ(outbox(tree.home1_dir), 20u);  // sent to neither, kept
+  for (int n = 20; n < 40; ++n) EXPECT_EQ(count(tree.hospital_dir, {.p = Term::iri(kEx + "n"), .o = Term::integer(n)}), 0u) << n;
+
+  twin.reset();
+  ASSERT_TRUE(eventually([&] { return outbox(tree.home1_dir) == 0; }, 15s)) << tree.home1_log.text();
+  for (int n = 0; n < 40; ++n) EXPECT_EQ(count(tree.hospital_dir, {.p = Term::iri(kEx + "n"), .o = Term::integer(n)}), 1u) << n;
+}
+
 // P6b: an acknowledgement names the store whose stream it moves. One of another store of the
 // child's IRI (a second node under it, registered at the parent) would otherwise empty this
 // one's outbox of items the parent never applied.
