@@ -45,6 +45,7 @@ struct options {
   const char* dir;
   long count; /* 0: no limit */
   long idle_seconds;
+  const char* bad; /* the argument that could not be parsed (NULL: DIR is missing) */
 };
 
 static int parse_options(int argc, char** argv, struct options* options) {
@@ -52,7 +53,9 @@ static int parse_options(int argc, char** argv, struct options* options) {
   options->dir = NULL;
   options->count = 0;
   options->idle_seconds = 10;
+  options->bad = NULL;
   for (i = 1; i < argc; ++i) {
+    options->bad = argv[i];
     if ((strcmp(argv[i], "--count") == 0 || strcmp(argv[i], "--idle") == 0) && i + 1 < argc) {
       char* end = NULL;
       long value = strtol(argv[i + 1], &end, 10);
@@ -66,6 +69,7 @@ static int parse_options(int argc, char** argv, struct options* options) {
       return 0;
     }
   }
+  options->bad = NULL;
   return options->dir != NULL;
 }
 
@@ -166,7 +170,10 @@ int main(int argc, char** argv) {
   int exit_status;
 
   if (!parse_options(argc, argv, &options)) {
+    /* The cause last: a supervisor shows the last line of a failed program's log. */
     fprintf(stderr, "usage: example_agent DIR [--count N] [--idle SECONDS]\n");
+    if (options.bad != NULL) fprintf(stderr, "example_agent: bad argument '%s'\n", options.bad);
+    else fprintf(stderr, "example_agent: the node directory is missing\n");
     return 2;
   }
   signal(SIGINT, on_signal);

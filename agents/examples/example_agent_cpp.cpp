@@ -41,10 +41,12 @@ struct Options {
   long idle_seconds = 10;
 };
 
-std::optional<Options> parse_options(int argc, char** argv) {
+// The options, or nullopt with `error` saying which argument is wrong.
+std::optional<Options> parse_options(int argc, char** argv, std::string& error) {
   Options options;
   for (int i = 1; i < argc; ++i) {
     const std::string_view arg = argv[i];
+    error = "bad argument '" + std::string(arg) + "'";
     if ((arg == "--count" || arg == "--idle") && i + 1 < argc) {
       char* end = nullptr;
       const long value = std::strtol(argv[++i], &end, 10);
@@ -56,6 +58,7 @@ std::optional<Options> parse_options(int argc, char** argv) {
       return std::nullopt;
     }
   }
+  error = "the node directory is missing";
   if (options.dir.empty()) return std::nullopt;
   return options;
 }
@@ -126,9 +129,12 @@ int run(tn::Agent& agent, const Options& options) {
 }  // namespace
 
 int main(int argc, char** argv) {
-  const auto options = parse_options(argc, argv);
+  std::string error;
+  const auto options = parse_options(argc, argv, error);
   if (!options) {
-    std::cerr << "usage: example_agent_cpp DIR [--count N] [--idle SECONDS]\n";
+    // The cause last: a supervisor shows the last line of a failed program's log.
+    std::cerr << "usage: example_agent_cpp DIR [--count N] [--idle SECONDS]\n"
+              << "example_agent_cpp: " << error << "\n";
     return 2;
   }
   std::signal(SIGINT, [](int) { g_stop = 1; });

@@ -42,7 +42,7 @@ Args::Args(int argc, char** argv, const std::vector<std::string>& valued,
     } else if (declared(boolean, arg)) {
       values_[arg] = "";
     } else if (arg.starts_with("-")) {
-      throw UsageError("unknown flag " + arg);
+      throw UsageError("unknown flag '" + arg + "'");
     } else if (dir_.empty()) {
       dir_ = arg;
     } else {
@@ -238,8 +238,11 @@ int guarded_main(const char* program, const char* usage, const std::function<int
     std::cout << usage << '\n';
     return 0;
   } catch (const UsageError& e) {
-    log_line(program, e.what());
+    // The usage first and the error last: the supervisor shows the last line of a failed
+    // program's log with its exit (`tahvel status`, on the machines above too), and that line
+    // must be the cause, not the usage.
     std::cerr << usage << '\n';
+    log_line(program, e.what());
     return kExitUsage;
   }
 }

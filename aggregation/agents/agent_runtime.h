@@ -22,15 +22,16 @@ namespace tahvel::agents::hrv {
 
 inline constexpr int kExitOk = 0, kExitError = 1, kExitUsage = 2;
 
-// A bad command line; main() prints the message and the usage and exits with kExitUsage.
+// A bad command line; main() prints the usage and then the message and exits with kExitUsage.
 struct UsageError : std::runtime_error {
   using std::runtime_error::runtime_error;
 };
 // Thrown by Args for -h / --help: guarded_main prints the usage on standard output, status 0.
 struct HelpRequested {};
 
-// Runs an agent's `body` as its main(): a UsageError prints "<program>: <message>" and `usage`
-// on standard error and gives kExitUsage; otherwise the body's exit status.
+// Runs an agent's `body` as its main(): a UsageError prints `usage` and then, as the last line,
+// "<program>: <message>" on standard error (the line a supervisor shows of a failed program)
+// and gives kExitUsage; otherwise the body's exit status.
 int guarded_main(const char* program, const char* usage, const std::function<int()>& body);
 
 // The command line: one positional argument (the node directory) and "--name value" or

@@ -151,10 +151,16 @@ std::optional<std::uint64_t> parse_u64(std::string_view text) {
   return v;
 }
 
-bool wants_help(std::span<const std::string> argv) {
-  for (const std::string& a : argv) {
+bool wants_help(const Command& command, std::span<const std::string> argv) {
+  for (std::size_t i = 0; i < argv.size(); ++i) {
+    const std::string& a = argv[i];
     if (a == "--") return false;
     if (a == "-h" || a == "--help") return true;
+    // The next argument is this flag's value, whatever it looks like, as parse_args takes it: a
+    // child node named "-h" (`tahvel link DIR --child -h`, as `up` runs it) is not a request for
+    // help, which would print the usage and exit 0 in place of running the link.
+    if (looks_like_flag(a) && !(a.starts_with("--") && a.find('=') != std::string::npos))
+      if (const Flag* flag = find_flag(command, a); flag && !flag->value.empty()) ++i;
   }
   return false;
 }

@@ -82,8 +82,9 @@ class Args {
   std::vector<std::string> positional_;
 };
 
-// True when `argv` asks for help ("-h" or "--help" before any "--").
-bool wants_help(std::span<const std::string> argv);
+// True when `argv` asks for help: "-h" or "--help" in a flag's place before any "--". The value
+// of a flag that takes one ("--child -h") is a value, not a request for help.
+bool wants_help(const Command& command, std::span<const std::string> argv);
 
 // Parses `argv` (the arguments after the subcommand name). Usage errors name the flag.
 Args parse_args(const Command& command, std::span<const std::string> argv);

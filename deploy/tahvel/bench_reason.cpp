@@ -336,7 +336,7 @@ std::string json_num(double v) {
 }  // namespace
 
 int bench_reason_main(const std::vector<std::string>& argv) {
-  if (wants_help(argv)) { print_help(std::cout, kBenchReasonCommand); return kExitOk; }
+  if (wants_help(kBenchReasonCommand, argv)) { print_help(std::cout, kBenchReasonCommand); return kExitOk; }
   Args args = parse_args(kBenchReasonCommand, argv);
   const bool quick = args.has("--quick"), json = args.has("--json");
   std::string templ = (fs::temp_directory_path() / "tahvel-bench-reason-XXXXXX").string();

@@ -582,6 +582,11 @@ void write_state_file(const fs::path& file, const agents::Supervisor& sup) {
     const auto now = std::chrono::steady_clock::now();
     for (const auto& s : sup.states()) {
       std::string state = s.running ? "running" : "stopped";
+      // Alive but doing nothing, and what to do about it (a SIGSTOPped link looks like a link
+      // that is down, from its parent's and children's side).
+      if (s.running && s.suspended == agents::Suspension::signal)
+        state = "suspended (stopped by a signal: 'kill -CONT " + std::to_string(s.pid) + "' resumes it)";
+      if (s.running && s.suspended == agents::Suspension::debugger) state = "suspended (stopped by a debugger)";
       if (!s.running && s.restart_at) {
         state = "restarting in " + seconds_text(std::max(0.0, std::chrono::duration<double>(*s.restart_at - now).count()));
       }
@@ -841,11 +846,19 @@ void load_new_files(const NodeSpec& spec, node::Node& node, const Topology& topo
   }
 }
 
+// Where create_store makes a node's store before renaming it into place: STATE/<id>.making.
+// A first `up` interrupted there (Ctrl-C, SIGKILL) leaves one, holding the node's IRI, which is
+// not a node (`status` and `down` pass it over; node ids cannot end so) and which the next `up`
+// makes anew.
+constexpr std::string_view kMakingSuffix = ".making";
+
+bool store_being_made(const fs::path& dir) { return dir.filename().string().ends_with(kMakingSuffix); }
+
 // A node's new store with the files the topology puts on its board (a floor plan, sensing
 // subscriptions: one persistent item each). Made beside `store` and renamed into place once
 // whole, so a failure leaves no store that `up` would then take as made and never load.
 void create_store(const NodeSpec& spec, const fs::path& store, const Topology& topo) {
-  const fs::path making = store.string() + ".making";
+  const fs::path making = store.string() + std::string(kMakingSuffix);
   std::error_code ec;
   fs::remove_all(making, ec);
   {
@@ -1429,11 +1442,37 @@ const Command kDownCommand{
     "down",
     "[--state DIR] [--node ID]",
     "Stop what 'tahvel up' started with this state directory.",
-    "Sends SIGTERM to each supervisor of DIR (its pid files), which stops its agents (SIGTERM,\n"
-    "SIGKILL after 5 s), and waits for them to end. The stores stay. With --node only the\n"
+    "Sends SIGTERM and SIGCONT to each supervisor of DIR (its pid files; SIGCONT so that one\n"
+    "stopped with SIGSTOP handles the SIGTERM), which stops its agents (the same, then SIGKILL\n"
+    "after 5 s), and waits up to 20 s for them to end. The stores stay. With --node only the\n"
     "supervisor that 'tahvel up FILE --node ID' started.",
     {kFlagState, {"--node", "", "ID", "stop only the node brought up with 'up --node ID'"}},
     0, 0};
+
+namespace {
+
+// Why the supervisor `pid`, sent SIGTERM and SIGCONT, still runs, from its state in
+// /proc/PID/stat, and what to do about it.
+std::string not_stopped_because(pid_t pid, const fs::path& state) {
+  const std::string p = std::to_string(pid), stat = "/proc/" + p + "/stat";
+  const std::string head = "supervisor " + p + " did not stop within 20 s: ";
+  const std::string kill_it = "'kill -KILL " + p + "' ends it and its programs at once";
+  const std::optional<char> now = agents::process_state(pid);
+  if (now == 'T')
+    return head + "it is stopped (state T in " + stat + ": stopped by a signal again since SIGCONT); 'kill -CONT " + p +
+           "' lets it stop, or " + kill_it;
+  if (now == 't')
+    return head + "a debugger holds it (state t in " + stat + "); once the debugger lets it go it stops (SIGTERM is pending)";
+  if (now == 'D')
+    return head + "it waits in the kernel (state D in " + stat + ", most often for a disk or a network file system); " +
+           kill_it + " once that wait ends";
+  if (now)
+    return head + "it runs (state " + std::string(1, *now) + " in " + stat + ") but has not finished stopping its programs; see " +
+           (state / "logs" / "supervisor.log").string() + ", or " + kill_it;
+  return head + "its state cannot be read (" + stat + "); see " + (state / "logs" / "supervisor.log").string();
+}
+
+}  // namespace
 
 int run_down(const Args& args) {
   fs::path state = state_dir(args);
@@ -1446,7 +1485,7 @@ int run_down(const Args& args) {
     std::set<std::string> stores;  // the nodes brought up under DIR
     std::error_code list_ec;
     for (const auto& entry : fs::directory_iterator(state, list_ec))
-      if (fs::exists(entry.path() / "data.mdb")) stores.insert(entry.path().filename().string());
+      if (fs::exists(entry.path() / "data.mdb") && !store_being_made(entry.path())) stores.insert(entry.path().filename().string());
     std::string nodes;
     for (const auto& id : stores) nodes += (nodes.empty() ? "" : ", ") + id;
     fail("--node '" + *only + "': no such node under " + state.string() +
@@ -1472,10 +1511,16 @@ int run_down(const Args& args) {
       fs::remove(entry.path(), ec);
       continue;
     }
-    if (pid > 0) kill(pid, SIGTERM);
+    if (pid > 0) {
+      // SIGCONT after SIGTERM, as systemd does: a supervisor stopped with SIGSTOP then handles
+      // the SIGTERM now, instead of keeping it pending until someone resumes it (and finding
+      // the deployment stopped then, long after this `down` failed).
+      kill(pid, SIGTERM);
+      kill(pid, SIGCONT);
+    }
     while (supervisor_holding(entry.path()) != 0 && std::chrono::steady_clock::now() < deadline)
       std::this_thread::sleep_for(50ms);
-    if (supervisor_holding(entry.path()) != 0) fail("supervisor " + std::to_string(pid) + " did not stop within 20 s");
+    if (supervisor_holding(entry.path()) != 0) fail(not_stopped_because(pid, state));
     ++stopped;
     std::cout << "down: stopped supervisor " << pid << " (" << name << ")\n";
   }
@@ -1653,6 +1698,10 @@ std::optional<std::set<std::string>> nodes_supervised(const fs::path& state) {
   return ids;
 }
 
+// A program with a process: running, or suspended ("suspended" on a board; with why and what
+// to do in a state file).
+bool alive(const ProgramRow& p) { return p.state == "running" || p.state.starts_with("suspended"); }
+
 void print_json_string_or_null(const std::string& text) {
   if (text.empty()) std::cout << "null";
   else std::cout << "\"" << node::json_escape(text) << "\"";
@@ -1684,9 +1733,15 @@ int run_status(const Args& args) {
   std::vector<StatusNode> nodes;
   std::map<std::string, Fields> child_state, own_state;  // by node IRI
   std::map<std::string, fs::path> store_of;               // the stores here, by node IRI
+  std::string unfinished;                                 // stores an interrupted first `up` left
   std::error_code ec;
   for (const auto& entry : fs::directory_iterator(state, ec)) {
     if (!entry.is_directory() || !fs::exists(entry.path() / "data.mdb")) continue;
+    // Not a node, though it holds one's IRI: shown as one, it doubled the node in the tree.
+    if (store_being_made(entry.path())) {
+      unfinished += (unfinished.empty() ? "" : ", ") + entry.path().filename().string();
+      continue;
+    }
     auto node = node::Node::open(entry.path());
     if (!node) {
       std::cerr << "tahvel: " << entry.path().string() << ": " << node.error().message << "\n";
@@ -1703,7 +1758,10 @@ int run_status(const Args& args) {
     if (auto it = own.find(node->iri()); it != own.end()) own_state[node->iri()] = it->second;
   }
   if (ec) fail(state.string() + ": " + ec.message());
-  if (nodes.empty()) fail("no node stores under " + state.string() + " (did 'tahvel up' run with this --state?)");
+  if (nodes.empty())
+    fail("no node stores under " + state.string() +
+         (unfinished.empty() ? " (did 'tahvel up' run with this --state?)"
+                             : " (only " + unfinished + ", left unfinished by an interrupted 'tahvel up': the next 'up' makes it anew)"));
   auto find = [&](const std::string& iri) -> StatusNode* {
     for (StatusNode& n : nodes)
       if (n.iri == iri) return &n;
@@ -1889,7 +1947,7 @@ int run_status(const Args& args) {
       for (const auto& p : n.programs) {
         std::cout << (first_program ? "" : ",") << "{\"name\":\"" << node::json_escape(p.name)
                   << "\",\"state\":\"" << node::json_escape(p.state) << "\",\"pid\":"
-                  << (p.state == "running" && parse_u64(p.pid) ? std::to_string(*parse_u64(p.pid)) : "null")
+                  << (alive(p) && parse_u64(p.pid) ? std::to_string(*parse_u64(p.pid)) : "null")
                   << ",\"restarts\":" << parse_u64(p.restarts).value_or(0) << ",\"last_exit\":";
         print_json_string_or_null(p.last_exit);
         std::cout << "}";
@@ -1933,7 +1991,8 @@ int run_status(const Args& args) {
     }
     for (const auto& p : n.programs) {
       std::cout << indent << "  - " << p.name << "  " << p.state;
-      if (p.state == "running") std::cout << " (pid " << p.pid << ")";
+      // A local suspended program's state says its pid already; a remote one's is "suspended".
+      if (p.state == "running" || p.state == "suspended") std::cout << " (pid " << p.pid << ")";
       if (p.restarts != "0") std::cout << ", " << p.restarts << " restarts";
       if (!p.last_exit.empty()) std::cout << ", last: " << p.last_exit;
       std::cout << "\n";

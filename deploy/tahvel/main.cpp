@@ -95,7 +95,7 @@ int dispatch(const std::vector<std::string>& argv) {
   // `tahvel bench store --help` is answered by the store benchmark itself.
   bool bench_store = command == &kBenchCommand && !rest.empty() && (rest[0] == "store" || rest[0] == "hrv" || rest[0] == "spatial" ||
                                                                     rest[0] == "federation");
-  if (wants_help(rest) && !bench_store) {
+  if (wants_help(*command, rest) && !bench_store) {
     print_help(std::cout, *command);
     return kExitOk;
   }

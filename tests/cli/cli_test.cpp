@@ -237,6 +237,25 @@ TEST_F(Cli, EverySubcommandHelpExits0WithItsUsageLine) {
   }
 }
 
+// A flag's value is a value, whatever it looks like. `up` runs a parent's link with `--child ID`,
+// and for a child node named "-h" that link printed its usage and exited 0, restarted for ever:
+// the parent served no child. Only "-h" and "--help" in a flag's place ask for help.
+TEST_F(Cli, AFlagsValueThatLooksLikeHelpIsAValueNotAskingForHelp) {
+  const std::string missing = (tmp_ / "no-store").string();
+  for (const std::string help : {"-h", "--help"}) {
+    Outcome link = run({"link", missing, "--listen", "lcm", "--child", help});
+    EXPECT_EQ(link.status, 1) << help << ": " << link.out << link.err;  // it went on, to find no store
+    EXPECT_EQ(link.out, "") << help;
+    EXPECT_NE(link.err.find("no store in " + missing), std::string::npos) << link.err;
+    for (const std::vector<std::string>& asked : {std::vector<std::string>{"link", missing, "--child", "x", help},
+                                                  {"link", missing, "--child=" + help, help}, {"link", help, missing}}) {
+      Outcome r = run(asked);
+      EXPECT_EQ(r.status, 0) << testing::PrintToString(asked) << ": " << r.err;
+      EXPECT_EQ(r.out.rfind("usage: tahvel link ", 0), 0u) << r.out;
+    }
+  }
+}
+
 TEST_F(Cli, TakePrintsASubscribedItemOnceThenTimesOutWithExit3) {
   init();
   Outcome s = run({"subscribe", node_, "--agent", "reader", "-p", "sosa:observedProperty",
@@ -883,6 +902,8 @@ TEST_F(Cli, UpRefusesATopologyThatCouldNotRunAsWrittenNamingWhatAndWhere) {
       {"[[node]]\nid = \"hospital\"\niri = \"http://example.org/hospital/\"\n", "t.toml:3:7: node 'hospital': iri <http://example.org/hospital/> ends in '/'"},
       {listening + "[[node]]\nid = \"a\"\nparent = \"b\"\n[[node]]\nid = \"b\"\nparent = \"a\"\n", "t.toml:10:10: node 'b': parent: the parents form a cycle (b -> a -> b)"},
       {"[[node]]\nid = \"logs\"\niri = \"http://example.org/logs\"\n", "node id 'logs' is taken by the state directory"},
+      // Where `up` makes a node's store (status passes such a store over: it is not a node).
+      {"[[node]]\nid = \"hq.making\"\niri = \"http://example.org/hq\"\n", "node id 'hq.making' is taken by the state directory"},
       // "café" with a combining accent: the same on screen as the precomposed one, other bytes.
       {"[[node]]\nid = \"hospital\"\niri = \"http://example.org/cafe\xCC\x81\"\n",
        "t.toml:3:7: node 'hospital': iri: invalid IRI 'http://example.org/cafe\xCC\x81' at position 22: not in Unicode normalization form C (NFC)"},
@@ -990,6 +1011,86 @@ TEST_F(Cli, AStoppedSupervisorsProgramsAreShownAsUnknownAndUpSaysItWillNotAnswer
   EXPECT_EQ(up.status, 1);
   EXPECT_NE(up.err.find("the supervisor " + std::to_string(supervisor) + " has not written its state for "), std::string::npos) << up.err;
   EXPECT_TRUE(eventually([&] { return run({"status", "--state", state}).out.find("idle  running (pid") != std::string::npos; }));
+  EXPECT_EQ(run({"down", "--state", state}).status, 0);
+}
+
+// Ctrl-C (or SIGKILL) during a first `up` leaves the store it was making, STATE/<id>.making,
+// which holds the node's IRI: `status` showed it as a node beside the real one. It is not a
+// node: status passes it over, and says so when it is all there is.
+TEST_F(Cli, StatusDoesNotShowAStoreAnInterruptedUpLeftAsANode) {
+  const fs::path state = tmp_ / "state";
+  // What a first `up` of node "solo" interrupted before its store was whole leaves.
+  ASSERT_EQ(run({"init", (state / "solo.making").string(), "--iri", "http://example.org/solo"}).status, 0);
+  Outcome alone = run({"status", "--state", state.string()});
+  EXPECT_EQ(alone.status, 1);
+  EXPECT_NE(alone.err.find("no node stores under " + state.string() +
+                           " (only solo.making, left unfinished by an interrupted 'tahvel up': the next 'up' makes it anew)"),
+            std::string::npos)
+      << alone.err;
+  spit(tmp_ / "node.toml", kIdleNodeToml);
+  ASSERT_EQ(run({"up", (tmp_ / "node.toml").string(), "--state", state.string()}).status, 0);
+  EXPECT_FALSE(fs::exists(state / "solo.making"));  // made anew, then renamed into place
+  // The same left by another node's first `up` while this one runs.
+  ASSERT_EQ(run({"init", (state / "ward.making").string(), "--iri", "http://example.org/ward"}).status, 0);
+  Outcome shown = status_until(state.string(), "idle  running");
+  EXPECT_NE(shown.out.find("solo  <http://example.org/solo>  (root)\n"), std::string::npos) << shown.out;
+  EXPECT_EQ(shown.out.find("making"), std::string::npos) << shown.out;
+  EXPECT_EQ(shown.out.find("ward"), std::string::npos) << shown.out;
+  Outcome json = run({"status", "--state", state.string(), "--json"});
+  EXPECT_EQ(json.out.find("making"), std::string::npos) << json.out;
+  Outcome down = run({"down", "--state", state.string(), "--node", "nobody"});
+  EXPECT_NE(down.err.find("(its nodes: solo)"), std::string::npos) << down.err;
+  EXPECT_EQ(run({"down", "--state", state.string()}).status, 0);
+}
+
+// The pid `status` shows of a running program (0 when it shows none).
+pid_t pid_shown(const std::string& status, const std::string& program) {
+  std::smatch m;
+  if (!std::regex_search(status, m, std::regex("- " + program + "  running \\(pid ([0-9]+)\\)"))) return 0;
+  return static_cast<pid_t>(std::stol(m[1]));
+}
+
+// `down` of a supervisor stopped with SIGSTOP: the SIGTERM stayed pending, `down` failed after
+// 20 s, and a `kill -CONT` later stopped the deployment. `down` sends SIGCONT after SIGTERM (as
+// systemd does), and the supervisor stops with its programs.
+TEST_F(Cli, DownStopsASupervisorStoppedWithSigstopAndItsPrograms) {
+  const std::string file = (tmp_ / "node.toml").string(), state = (tmp_ / "state").string();
+  spit(file, kIdleNodeToml);
+  ASSERT_EQ(run({"up", file, "--state", state}).status, 0);
+  const pid_t idle = pid_shown(status_until(state, "idle  running (pid").out, "idle");
+  ASSERT_GT(idle, 0);
+  const pid_t supervisor = std::atoi(slurp(tmp_ / "state" / "supervisor-all.pid").c_str());
+  ASSERT_GT(supervisor, 0);
+  ASSERT_EQ(kill(supervisor, SIGSTOP), 0);
+  Outcome down = run({"down", "--state", state});
+  EXPECT_EQ(down.status, 0) << down.err;
+  EXPECT_NE(down.out.find("down: stopped supervisor " + std::to_string(supervisor)), std::string::npos) << down.out;
+  EXPECT_FALSE(fs::exists(tmp_ / "state" / "supervisor-all.pid"));
+  EXPECT_TRUE(eventually([&] { return kill(idle, 0) != 0; })) << "its program " << idle << " still runs";
+  EXPECT_NE(run({"status", "--state", state}).out.find("- idle  stopped"), std::string::npos);
+  if (HasFailure()) kill(supervisor, SIGKILL);
+}
+
+// A program stopped with SIGSTOP is alive and does nothing: `status` said "running" while the
+// node's parent showed its link down, and nothing pointed at the frozen process. It says
+// "suspended", with the pid and how to resume it.
+TEST_F(Cli, StatusShowsAProgramStoppedWithSigstopAsSuspended) {
+  const std::string file = (tmp_ / "node.toml").string(), state = (tmp_ / "state").string();
+  spit(file, kIdleNodeToml);
+  ASSERT_EQ(run({"up", file, "--state", state}).status, 0);
+  const pid_t idle = pid_shown(status_until(state, "idle  running (pid").out, "idle");
+  ASSERT_GT(idle, 0);
+  ASSERT_EQ(kill(idle, SIGSTOP), 0);
+  const std::string pid = std::to_string(idle);
+  const std::string suspended = "suspended (stopped by a signal: 'kill -CONT " + pid + "' resumes it)";
+  Outcome shown = status_until(state, "- idle  suspended");
+  EXPECT_NE(shown.out.find("- idle  " + suspended + "\n"), std::string::npos) << shown.out;
+  Outcome json = run({"status", "--state", state, "--json"});
+  EXPECT_NE(json.out.find("{\"name\":\"idle\",\"state\":\"" + suspended + "\",\"pid\":" + pid + ","), std::string::npos)
+      << json.out;
+  ASSERT_EQ(kill(idle, SIGCONT), 0);
+  shown = status_until(state, "- idle  running (pid " + pid + ")");
+  EXPECT_NE(shown.out.find("- idle  running (pid " + pid + ")"), std::string::npos) << shown.out;
   EXPECT_EQ(run({"down", "--state", state}).status, 0);
 }
 

@@ -181,14 +181,19 @@ TEST_F(Deployment, StatusOnEachMachineShowsWhatThatMachineKnowsOfTheLinkBetweenT
             std::string::npos)
       << json;
 
-  // The ward's link frozen (a hung process): it neither refreshes the gateway's state nor
-  // answers the gateway's heartbeats.
+  // The ward's link frozen (SIGSTOP): it neither refreshes the gateway's state nor answers the
+  // gateway's heartbeats. The ward's machine says why, naming the frozen program.
   const std::string ward_link = "pgrep -f '[t]ahvel link " + (ward_machine / "ward").string() + " '";  // not this shell
   ASSERT_EQ(shell("kill -STOP $(" + ward_link + ")"), 0);
   EXPECT_TRUE(eventually(
-      [&] { return (ward_sees = status_of(ward_machine)).find("gateway>  (on another machine)  link state unknown: ward/link has not refreshed it") != std::string::npos; },
+      [&] {
+        return (ward_sees = status_of(ward_machine))
+                   .find("gateway>  (on another machine)  link state unknown: ward/link is suspended (stopped by a signal: 'kill -CONT ") !=
+               std::string::npos;
+      },
       15s))
       << ward_sees;
+  EXPECT_NE(ward_sees.find("\n  - link  suspended (stopped by a signal: 'kill -CONT "), std::string::npos) << ward_sees;
   EXPECT_TRUE(eventually(
       [&] { return (gateway_sees = status_of(gateway_machine)).find("uplink to <" + kWard + "> down, parent last heard") != std::string::npos; },
       15s))
@@ -310,6 +315,19 @@ TEST_F(Deployment, AChildAddedToTheFileOfARunningDeploymentRegistersAfterUpAgain
       << shown;
   EXPECT_EQ(shown.find("gateway2/link"), std::string::npos) << shown;
   EXPECT_TRUE(fs::exists(state_ / "gateway2" / "data.mdb"));
+}
+
+// A child node named "-h" (an id like any other): its parent's link runs with `--child -h`,
+// which that link took for a request for help, printing its usage and exiting 0, restarted for
+// ever, so that the parent served no child at all. The child registers.
+TEST_F(Deployment, AChildNodeNamedLikeAHelpFlagRegisters) {
+  write_topology("[[node]]\nid = \"ward\"\niri = \"" + kWard + "\"\nlisten = { kind = \"lcm\", url = \"udpm://239.255.76.67:7715?ttl=0\" }\n\n"
+                 "[[node]]\nid = \"-h\"\nparent = \"ward\"\n");
+  const std::string said = up();
+  std::string shown;
+  EXPECT_TRUE(eventually([&] { return (shown = status()).find("-h  <" + kWard + "/-h>  link up") != std::string::npos; }))
+      << said << shown;
+  EXPECT_EQ(shown.find("restarts"), std::string::npos) << shown;  // neither link exited
 }
 
 // A forwarding pattern taken out of the topology file stops going up at the next `up`: the

@@ -123,6 +123,33 @@ TEST_F(SupervisorTest, AFailedProgramsLastExitEndsWithTheLastLineOfItsLog) {
   std::filesystem::remove_all(dir);
 }
 
+// The same with the programs `tahvel up` runs: a mistyped flag shows, with the exit, as the
+// error naming it. The agents used to print their usage after the error, and the supervisor
+// showed the usage line.
+TEST_F(SupervisorTest, ABundledProgramGivenAnUnknownFlagEndsItsLogWithTheErrorNamingTheFlag) {
+  const std::filesystem::path dir = std::filesystem::temp_directory_path() / ("tahvel-sup-bad-flag-" + std::to_string(getpid()));
+  std::filesystem::create_directories(dir);
+  const std::string bin = TAHVEL_BIN_DIR, store = (dir / "store").string();
+  std::vector<std::pair<std::vector<std::string>, std::string>> cases = {  // argv, the end of the last line
+      {{bin + "/tahvel", "link", store, "--windw", "300"}, "tahvel: link: unknown flag '--windw' (see 'tahvel link --help')"},
+      {{bin + "/example_agent", store, "--windw", "300"}, "example_agent: bad argument '--windw'"},
+      {{bin + "/example_agent_cpp", store, "--windw", "300"}, "example_agent_cpp: bad argument '--windw'"},
+  };
+  // Built with the signal processing and the spatial libraries (tests/CMakeLists.txt).
+  for (const std::string name : {"tahvel-ecg-source", "tahvel-rpeak", "tahvel-rr", "tahvel-hrv", "tahvel-trend",
+                                 "tahvel-environment", "tahvel-env-motes"})
+    if (std::filesystem::exists(bin + "/" + name)) cases.push_back({{bin + "/" + name, store, "--windw", "300"}, name + ": unknown flag '--windw'"});
+  for (const auto& [argv, said] : cases) {
+    const std::string name = std::filesystem::path(argv[0]).filename().string();
+    ASSERT_TRUE(supervisor_.start({.name = name, .argv = argv, .log_file = dir / (name + ".log"), .restart = Restart::never}).has_value());
+    ASSERT_TRUE(poll_until([&] { return !supervisor_.state(name)->running; })) << name;
+    const std::string last_exit = supervisor_.state(name)->last_exit;
+    EXPECT_TRUE(last_exit.starts_with("exited with status 2 (its log ends: ")) << last_exit;
+    EXPECT_TRUE(last_exit.ends_with(said + ")")) << last_exit;
+  }
+  std::filesystem::remove_all(dir);
+}
+
 // `tahvel status` shows a program waiting out its back-off as restarting, with when, rather than
 // as stopped; one that finished has no restart time.
 TEST_F(SupervisorTest, AProgramWaitingOutItsBackOffSaysWhenItStartsAgain) {
@@ -171,6 +198,28 @@ TEST_F(SupervisorTest, AStoppedProgramIsNotStartedAgain) {
   EXPECT_EQ(s.restarts, 0u);
   EXPECT_TRUE(logged("agent killed by signal 15"));
   EXPECT_TRUE(logged("(stopped)"));
+}
+
+// A program stopped with SIGSTOP is alive and does nothing (a node's link: its parent says it is
+// down): it is suspended, not running, until SIGCONT. Stopped while so, it gets SIGCONT after
+// SIGTERM and ends by the SIGTERM, not by the SIGKILL at the end of the grace.
+TEST_F(SupervisorTest, AProgramStoppedWithSigstopIsSuspendedUntilSigcontAndStopsOnSigterm) {
+  start("link", "exec sleep 600", Restart::always);
+  ASSERT_TRUE(poll_until([&] { return supervisor_.state("link")->running; }));
+  const pid_t pid = supervisor_.state("link")->pid;
+  ASSERT_EQ(kill(pid, SIGSTOP), 0);
+  ASSERT_TRUE(poll_until([&] { return supervisor_.state("link")->suspended == Suspension::signal; }));
+  EXPECT_TRUE(supervisor_.state("link")->running);
+  EXPECT_EQ(program_state_name(*supervisor_.state("link")), "suspended");
+  ASSERT_EQ(kill(pid, SIGCONT), 0);
+  ASSERT_TRUE(poll_until([&] { return supervisor_.state("link")->suspended == Suspension::none; }));
+  EXPECT_EQ(program_state_name(*supervisor_.state("link")), "running");
+  EXPECT_EQ(supervisor_.state("link")->pid, pid);
+  ASSERT_EQ(kill(pid, SIGSTOP), 0);
+  ASSERT_TRUE(poll_until([&] { return supervisor_.state("link")->suspended == Suspension::signal; }));
+  ASSERT_TRUE(supervisor_.stop("link", 30s).has_value());
+  EXPECT_EQ(supervisor_.state("link")->last_exit, "killed by signal 15 (Terminated)");
+  EXPECT_EQ(supervisor_.state("link")->suspended, Suspension::none);
 }
 
 TEST_F(SupervisorTest, AProgramThatCannotBeRunExitsWithStatus127) {
@@ -283,7 +332,8 @@ TEST(ProgramsOnTheBoard, EachProgramIsNamedByItsAgentIriWithWhatItsSupervisorKno
   ProgramState flaky{.name = "flaky", .restarts = 2, .last_exit = "exited with status 3",
                      .restart_at = std::chrono::steady_clock::now() + 1s};
   ProgramState replay{.name = "replay", .restarts = 0, .last_exit = "exited with status 0"};
-  auto item = programs_item("http://h/home1", {link, flaky, replay}, 1234);
+  ProgramState frozen{.name = "hrv", .pid = 4712, .running = true, .suspended = Suspension::signal};
+  auto item = programs_item("http://h/home1", {link, flaky, replay, frozen}, 1234);
   ASSERT_TRUE(item.has_value()) << item.error().message;
   EXPECT_TRUE(item->persistent);
   auto has = [&](const std::string& s, const std::string& p, const std::string& o) {
@@ -299,6 +349,8 @@ TEST(ProgramsOnTheBoard, EachProgramIsNamedByItsAgentIriWithWhatItsSupervisorKno
   EXPECT_TRUE(has("http://h/home1/flaky", vocab::kRestarts, "2"));
   EXPECT_TRUE(has("http://h/home1/flaky", vocab::kLastExit, "exited with status 3"));
   EXPECT_TRUE(has("http://h/home1/replay", vocab::kProgramState, "stopped"));
+  EXPECT_TRUE(has("http://h/home1/hrv", vocab::kProgramState, "suspended"));  // alive, with its pid
+  EXPECT_TRUE(has("http://h/home1/hrv", vocab::kPid, "4712"));
   for (const auto& t : item->triples) EXPECT_FALSE(t.s.value == "http://h/home1/flaky" && t.p.value == vocab::kPid);
 
   auto bad = programs_item("http://h/home1", {ProgramState{.name = "a b"}}, 1);

@@ -10,6 +10,7 @@
 #include <cctype>
 #include <cerrno>
 #include <cstring>
+#include <fstream>
 #include <iostream>
 #include <thread>
 
@@ -74,6 +75,13 @@ std::string last_line_of(const std::filesystem::path& log_file, off_t from) {
   for (char& c : line)
     if (static_cast<unsigned char>(c) < 0x20 || c == 0x7F) c = ' ';
   return line;
+}
+
+// SIGTERM, then SIGCONT: a program stopped with SIGSTOP would otherwise keep the SIGTERM
+// pending until SIGKILL came at the end of the grace (systemd stops services the same way).
+void term_and_cont(pid_t pid) {
+  kill(pid, SIGTERM);
+  kill(pid, SIGCONT);
 }
 
 std::string describe(int status) {
@@ -179,6 +187,7 @@ void Supervisor::launch(Program& program) {
 void Supervisor::reaped(Program& program, int status) {
   program.state.running = false;
   program.state.pid = 0;
+  program.state.suspended = Suspension::none;
   program.state.last_exit = describe(status);
   if (WIFEXITED(status) && WEXITSTATUS(status) != 0) {
     if (std::string said = last_line_of(program.spec.log_file, program.log_start); !said.empty())
@@ -207,7 +216,15 @@ void Supervisor::poll() {
     if (!p->state.running) continue;
     int status = 0;
     pid_t r = waitpid(p->state.pid, &status, WNOHANG);
-    if (r == p->state.pid) reaped(*p, status);
+    if (r == p->state.pid) {
+      reaped(*p, status);
+      continue;
+    }
+    // A program stopped with SIGSTOP (or held by a debugger) is alive and does nothing: shown
+    // as "running" it hid why its node's link was down. Read from /proc rather than from
+    // waitpid(WUNTRACED), which does not see a debugger's stops.
+    const std::optional<char> now = process_state(p->state.pid);
+    p->state.suspended = now == 'T' ? Suspension::signal : now == 't' ? Suspension::debugger : Suspension::none;
   }
   const auto now = Clock::now();
   for (Program* p : programs_) {
@@ -224,7 +241,7 @@ Result<void> Supervisor::stop(std::string_view name, std::chrono::milliseconds g
     p->stopping = true;
     p->restart_at.reset();
     if (!p->state.running) return {};
-    kill(p->state.pid, SIGTERM);
+    term_and_cont(p->state.pid);
     const auto deadline = Clock::now() + grace;
     for (;;) {
       int status = 0;
@@ -261,7 +278,7 @@ void Supervisor::stop_all(std::chrono::milliseconds grace) {
   for (Program* p : programs_) {
     p->stopping = true;
     p->restart_at.reset();
-    if (p->state.running) kill(p->state.pid, SIGTERM);
+    if (p->state.running) term_and_cont(p->state.pid);
   }
   const auto deadline = Clock::now() + grace;
   for (Program* p : programs_) {
@@ -307,8 +324,18 @@ std::optional<ProgramState> Supervisor::state(std::string_view name) const {
 namespace tahvel::agents {
 
 std::string_view program_state_name(const ProgramState& state) {
-  if (state.running) return "running";
+  if (state.running) return state.suspended == Suspension::none ? "running" : "suspended";
   return state.restart_at ? "restarting" : "stopped";
+}
+
+std::optional<char> process_state(pid_t pid) {
+  std::ifstream in("/proc/" + std::to_string(pid) + "/stat");
+  std::string stat;
+  if (!std::getline(in, stat)) return std::nullopt;
+  // "PID (COMM) S ...": COMM may hold spaces and parentheses, so the state follows the last ')'.
+  const std::size_t close = stat.rfind(')');
+  if (close == std::string::npos || close + 2 >= stat.size()) return std::nullopt;
+  return stat[close + 2];
 }
 
 Result<node::Item> programs_item(const std::string& node_iri, const std::vector<ProgramState>& programs,

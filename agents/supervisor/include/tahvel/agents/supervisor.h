@@ -52,10 +52,20 @@ struct ProgramSpec {
   std::chrono::milliseconds max_delay{0};
 };
 
+// Why a running program does not run (proc(5), the state letter of /proc/PID/stat).
+enum class Suspension {
+  none,
+  signal,    // 'T': stopped by SIGSTOP (or SIGTSTP, SIGTTIN, SIGTTOU) until SIGCONT
+  debugger,  // 't': stopped by a debugger that traces it, until the debugger lets it go
+};
+
 struct ProgramState {
   std::string name;
   pid_t pid = 0;                     // 0 while not running
   bool running = false;
+  // A running program that is stopped, as poll() last saw it: it holds what it holds (a node's
+  // link: its children and parent see the node as down) and does nothing, though alive.
+  Suspension suspended = Suspension::none;
   std::uint32_t restarts = 0;
   // "exited with status 1", "killed by signal 9 (Killed)"; a non-zero status with the last line
   // of the program's log file: "exited with status 2 (its log ends: unknown flag '--windw')".
@@ -87,8 +97,9 @@ class Supervisor {
   // them from one thread that lives as long as the supervisor).
   Result<void> start(ProgramSpec spec);
 
-  // Stops a program: SIGTERM, then SIGKILL after `grace`; it is not restarted. not_found when no
-  // program has that name.
+  // Stops a program: SIGTERM and SIGCONT (a suspended program then handles the SIGTERM, as
+  // under systemd), then SIGKILL after `grace`; it is not restarted. not_found when no program
+  // has that name.
   Result<void> stop(std::string_view name, std::chrono::milliseconds grace = std::chrono::seconds(5));
   // Stops a program as stop() does and forgets it: it leaves states(), and a program of that
   // name may be started again (a changed command), which takes its place in states() again.
@@ -96,7 +107,8 @@ class Supervisor {
   Result<void> remove(std::string_view name, std::chrono::milliseconds grace = std::chrono::seconds(5));
   void stop_all(std::chrono::milliseconds grace = std::chrono::seconds(5));
 
-  // Reaps programs that died (logging why), restarts those due. Call it regularly.
+  // Reaps programs that died (logging why), restarts those due, and notes which running ones
+  // are suspended (ProgramState::suspended). Call it regularly.
   void poll();
 
   // In the order the programs were started; one removed and started again keeps its place.
@@ -122,10 +134,11 @@ class Supervisor {
 //   <N> tv:program <N/hrv> ; tv:programsAt 1763732000000000000 .   # ns since the Unix epoch
 //   <N/hrv> tv:programState "running" ; tv:pid 4711 ; tv:restarts 0 ; tv:lastExit "…" .
 //
-// tv:programState is "running", "stopped" or "restarting" (waiting out its back-off);
-// tv:pid and tv:lastExit are absent when unknown. A supervisor rewrites the item when it
-// changes and every kProgramsRefresh, so an item much older than that was left by a supervisor
-// that stopped or froze.
+// tv:programState is "running", "suspended" (running, but stopped by a signal or a debugger:
+// ProgramState::suspended), "stopped" or "restarting" (waiting out its back-off); tv:pid (of a
+// running or suspended program) and tv:lastExit are absent when unknown. A supervisor rewrites
+// the item when it changes and every kProgramsRefresh, so an item much older than that was left
+// by a supervisor that stopped or froze.
 namespace vocab {
 inline const std::string kProgram = std::string(uri::kTahvelNs) + "program";
 inline const std::string kProgramsAt = std::string(uri::kTahvelNs) + "programsAt";
@@ -144,8 +157,13 @@ inline const std::string kLastAssertedAt = std::string(uri::kTahvelNs) + "lastAs
 
 inline constexpr std::chrono::seconds kProgramsRefresh{5};
 
-// "running", "stopped" or "restarting", as the board says it.
+// "running", "suspended", "stopped" or "restarting", as the board says it.
 std::string_view program_state_name(const ProgramState& state);
+
+// The state letter of process `pid` in /proc/PID/stat (proc(5): R running, S sleeping, D waiting
+// in the kernel, T stopped by a signal, t stopped by a debugger, Z zombie, ...), or nullopt when
+// there is no such process.
+std::optional<char> process_state(pid_t pid);
 
 // The item above for node `node_iri`; `programs` carry their names on the node ("hrv", not
 // "home1/hrv"). Errors: invalid_iri when a name cannot extend the node's IRI.
