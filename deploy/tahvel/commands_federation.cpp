@@ -1684,13 +1684,21 @@ std::string unbelieved_because(const StatusNode* keeper, const std::string& writ
   return {};
 }
 
-// The ids of the nodes the running supervisor of the whole file runs (its .nodes file), or
-// nothing when none runs or it does not say (one from before .nodes files). A node of a store
-// under `state` that it does not run was taken out of the file (a node brought up alone,
-// `up --node`, cannot be: that `up` would not find it).
+// The ids of the nodes the supervisor of the whole file runs, or ran until `down` (its .nodes
+// file), or nothing when it does not say (one from before .nodes files) or a supervisor of one
+// node (`up --node`) runs here now: the state is then a machine's share of a deployment, which
+// an older whole-file list does not describe. A node of a store under `state` that is not in
+// the list was taken out of the file (a node brought up alone cannot be: that `up` would not
+// find it).
 std::optional<std::set<std::string>> nodes_supervised(const fs::path& state) {
   const fs::path whole = state / pid_file_name(std::nullopt);
-  if (supervisor_holding(whole) == 0) return std::nullopt;
+  if (supervisor_holding(whole) == 0) {
+    std::error_code ec;
+    for (const auto& entry : fs::directory_iterator(state, ec)) {
+      const std::string name = entry.path().filename().string();
+      if (name.starts_with("supervisor-") && name.ends_with(".pid") && supervisor_holding(entry.path()) != 0) return std::nullopt;
+    }
+  }
   std::ifstream in(fs::path(whole).replace_extension(".nodes"));
   if (!in) return std::nullopt;
   std::set<std::string> ids;
@@ -1967,7 +1975,7 @@ int run_status(const Args& args) {
     std::string indent(depth * 2, ' ');
     std::cout << indent << n.id << "  <" << n.iri << ">";
     if (n.remote) std::cout << "  (on another machine)";
-    if (left) std::cout << "  not in the running deployment (taken out of its file; the store is kept)";
+    if (left) std::cout << "  not in the deployment (taken out of its file; the store is kept)";
     if (!n.link.empty() && !unknown_because.empty())
       std::cout << "  link state unknown: " << unknown_because << " (it last said: " << said << ")";
     else if (!n.link.empty())

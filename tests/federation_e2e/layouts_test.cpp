@@ -310,11 +310,17 @@ TEST_F(Deployment, AChildAddedToTheFileOfARunningDeploymentRegistersAfterUpAgain
   const std::string removed = up();
   EXPECT_NE(removed.find("up:   stopped gateway2/link (no longer in the file)"), std::string::npos) << removed;
   shown = status();
-  EXPECT_NE(shown.find("gateway2  <" + kWard + "/gateway2>  not in the running deployment (taken out of its file; the store is kept)\n"),
+  EXPECT_NE(shown.find("gateway2  <" + kWard + "/gateway2>  not in the deployment (taken out of its file; the store is kept)\n"),
             std::string::npos)
       << shown;
   EXPECT_EQ(shown.find("gateway2/link"), std::string::npos) << shown;
   EXPECT_TRUE(fs::exists(state_ / "gateway2" / "data.mdb"));
+  // Once the deployment is down, too: not shown as a node whose uplink went quiet.
+  tahvel("down --state " + state_.string());
+  shown = status();
+  EXPECT_NE(shown.find("gateway2  <" + kWard + "/gateway2>  not in the deployment (taken out of its file; the store is kept)\n"),
+            std::string::npos)
+      << shown;
 }
 
 // A child node named "-h" (an id like any other): its parent's link runs with `--child -h`,
