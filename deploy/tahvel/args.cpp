@@ -135,8 +135,9 @@ std::uint64_t Args::get_u64(std::string_view flag, std::uint64_t fallback) const
   auto text = get(flag);
   if (!text) return fallback;
   if (auto v = parse_u64(*text)) return *v;
-  usage_error(prefix_of(*command_) + std::string(flag) + ": '" + *text +
-              "' is not a non-negative integer");
+  const bool digits = !text->empty() && std::all_of(text->begin(), text->end(), [](char c) { return c >= '0' && c <= '9'; });
+  usage_error(prefix_of(*command_) + std::string(flag) + ": '" + *text + "' is " +
+              (digits ? "too large (at most 18446744073709551615)" : "not a non-negative integer"));
 }
 
 void Args::add(std::string_view flag, std::string value) {

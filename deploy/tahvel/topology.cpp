@@ -399,6 +399,11 @@ node::Result<Topology> load_topology(const std::filesystem::path& file) {
         if (!spec.up.empty())
           return node::fail(Errc::invalid_argument, spec.up_at + ": node '" + spec.id + "': up = \"" + spec.up +
                                                         "\", but it has no parent to link to");
+        // Nothing goes up from a root: a forward policy there is a node placed wrong, or a
+        // parent forgotten.
+        if (spec.forward_given && !spec.forward.empty())
+          return node::fail(Errc::invalid_argument, spec.forward_at + ": node '" + spec.id +
+                                                        "': forward, but it has no parent to forward to (give it a parent, or leave forward out)");
         if (spec.iri.empty()) return node::fail(Errc::invalid_argument, spec.at + ": node '" + spec.id + "' has no parent, so it is a root, and a root needs an iri (or give it a parent)");
         auto n = uri::node_iri(spec.iri);
         if (!n) return node::fail(Errc::invalid_iri, spec.iri_at + ": node '" + spec.id + "': iri: " + n.error().message);

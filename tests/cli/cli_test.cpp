@@ -222,6 +222,18 @@ TEST_F(Cli, UnknownFlagExits2NamingTheFlag) {
   EXPECT_NE(m.err.find("--limit"), std::string::npos) << m.err;
 }
 
+// A number past 2^64 - 1 is a number, too large: "not a non-negative integer" sent the reader
+// looking for a typo.
+TEST_F(Cli, ANumberFlagBeyondItsRangeSaysTooLargeAndAWordSaysNotAnInteger) {
+  init();
+  Outcome big = run({"list", node_, "--limit", "99999999999999999999"});
+  EXPECT_EQ(big.status, 2);
+  EXPECT_NE(big.err.find("--limit: '99999999999999999999' is too large (at most 18446744073709551615)"), std::string::npos) << big.err;
+  Outcome word = run({"list", node_, "--limit", "ten"});
+  EXPECT_EQ(word.status, 2);
+  EXPECT_NE(word.err.find("--limit: 'ten' is not a non-negative integer"), std::string::npos) << word.err;
+}
+
 TEST_F(Cli, EverySubcommandHelpExits0WithItsUsageLine) {
   for (std::string name : {"init", "put", "list", "remove", "subscribe", "areas", "take", "tail", "dump",
                            "load", "stats", "bench"}) {
@@ -950,6 +962,7 @@ TEST_F(Cli, UpRefusesATopologyThatCouldNotRunAsWrittenNamingWhatAndWhere) {
        "t.toml:8:6: node 'home1': up = \"lcm\", but its parent 'hospital' listens on dds only"},
       {listening + "[[node]]\nid = \"home1\"\nparent = \"hospital\"\nup = \"udp\"\n", "t.toml:8:6: node 'home1': up must be \"lcm\" or \"dds\""},
       {hospital + "up = \"dds\"\n", "t.toml:4:6: node 'hospital': up = \"dds\", but it has no parent to link to"},
+      {hospital + "forward = [\"_ a tv:EcgChunk\"]\n", "t.toml:4:11: node 'hospital': forward, but it has no parent to forward to"},
   };
   for (const auto& [text, expected] : cases) {
     spit(tmp_ / "t.toml", text);
