@@ -461,6 +461,16 @@ node::Result<Topology> load_topology(const std::filesystem::path& file) {
       return node::fail(Errc::invalid_argument, n.iri_at + ": nodes '" + it->second + "' and '" + n.id +
                                                     "' have the same IRI <" + n.iri + ">");
   }
+  // A root whose IRI lies below another node's is that node's child or agent by name, yet linked
+  // to nothing: its items would pass for that node's subtree wherever they met.
+  for (const auto& root : topo.nodes) {
+    if (!root.parent.empty()) continue;
+    for (const auto& n : topo.nodes)
+      if (&n != &root && uri::is_under(root.iri, n.iri))
+        return node::fail(Errc::invalid_argument, root.iri_at + ": node '" + root.id + "': iri <" + root.iri + "> lies below node '" +
+                                                      n.id + "' <" + n.iri + ">, but it has no parent: give it parent = \"" + n.id +
+                                                      "\" (its IRI is then derived), or an IRI of its own");
+  }
   for (const auto& n : topo.nodes) {
     for (const NodeSpec* child : topo.children(n.id))
       for (const auto& agent : n.agents)

@@ -963,6 +963,8 @@ TEST_F(Cli, UpRefusesATopologyThatCouldNotRunAsWrittenNamingWhatAndWhere) {
       {listening + "[[node]]\nid = \"home1\"\nparent = \"hospital\"\nup = \"udp\"\n", "t.toml:8:6: node 'home1': up must be \"lcm\" or \"dds\""},
       {hospital + "up = \"dds\"\n", "t.toml:4:6: node 'hospital': up = \"dds\", but it has no parent to link to"},
       {hospital + "forward = [\"_ a tv:EcgChunk\"]\n", "t.toml:4:11: node 'hospital': forward, but it has no parent to forward to"},
+      {hospital + "[[node]]\nid = \"annex\"\niri = \"http://example.org/hospital/annex\"\n",
+       "t.toml:6:7: node 'annex': iri <http://example.org/hospital/annex> lies below node 'hospital' <http://example.org/hospital>, but it has no parent"},
   };
   for (const auto& [text, expected] : cases) {
     spit(tmp_ / "t.toml", text);
