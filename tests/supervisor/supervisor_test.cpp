@@ -116,6 +116,10 @@ TEST_F(SupervisorTest, AFailedProgramsLastExitEndsWithTheLastLineOfItsLog) {
   // Cut at a character, not inside one: 239 bytes and a 2-byte "é" that would end at 241.
   EXPECT_EQ(run_to_end("accents", "printf '%239s\\303\\251tail' x >&2; exit 1"),
             "exited with status 1 (its log ends: " + std::string(238, ' ') + "x...)");
+  // Bytes that are not UTF-8 (a binary dump, Latin-1 text) go on the board and onto a terminal as
+  // U+FFFD; an escape sequence's ESC as a space.
+  EXPECT_EQ(run_to_end("latin1", "printf 'caf\\351 \\377\\033[2J ok\\n' >&2; exit 1"),
+            "exited with status 1 (its log ends: caf\xEF\xBF\xBD \xEF\xBF\xBD [2J ok)");
   // Each run appends to the same log: a run that wrote nothing has nothing to say, not the line
   // of a run before it.
   std::ofstream(dir / "quiet.log") << "connected to the hospital\n";
