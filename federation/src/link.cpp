@@ -203,6 +203,18 @@ class StoreFlips {
     last_ = now;
     return fresh;
   }
+  // Two stores were seen alive at once (P6b: a registered store heard after another said hello
+  // under its IRI): a conflict now. True when it was not one before.
+  bool declare(const std::string& registered, const std::string& other, const std::string& who) {
+    flips_.assign(kFlips, Clock::now());
+    const bool fresh = !active();
+    said_ = "two stores (ids " + registered + " and " + other + ") are alive as " + who +
+            ": two nodes with one IRI on this network, such as a second deployment of the same file; this link "
+            "does not link with it until " + std::to_string(std::chrono::duration_cast<std::chrono::seconds>(hold_).count()) +
+            " s after the last sign of two";
+    last_ = Clock::now();
+    return fresh;
+  }
   bool active() const { return !said_.empty() && Clock::now() - last_ < hold_; }
   std::string said() const { return active() ? said_ : std::string(); }
 
@@ -280,6 +292,9 @@ struct Link::Impl {
   std::int64_t parent_heard_ns = 0;
   std::string refused_by_parent;  // the parent's refusal, until a welcome
   StoreFlips parent_flips;        // welcomes from two parents' stores in turn; under mu
+  Clock::time_point parent_store_heard{};  // last frame naming the welcoming parent's store
+  std::string pending_parent_store;        // P6b: a welcome from another store while it lived
+  Clock::time_point pending_parent_since{};
   std::string own_state_said;     // what the item on the board says now (rewritten on change)
   std::int64_t own_state_written_ns = 0;
 
@@ -303,6 +318,10 @@ struct Link::Impl {
     // sensors of its LAN, DDS for nodes further away), and everything for this child goes there.
     Transport* via = nullptr;
     StoreFlips flips;  // hellos from two stores in turn
+    // P6b: a store that said hello while the registered one was alive, and since when; it is
+    // registered once that one has been silent for child_silence.
+    std::string pending_store;
+    Clock::time_point pending_since{};
     std::string conflict_written;  // what its state item on the board says of a conflict
     bool pumped = false;      // handed to the down pump (at its first hello)
     bool pump_dirty = false;  // the pump reads its queue again: a hello or an ack came
@@ -321,15 +340,27 @@ struct Link::Impl {
     return parent_store_id.empty() ? std::string(kDownStream) : std::string(kDownStream) + "#" + parent_store_id;
   }
 
-  // P6b: the tag of store `id` that up and down frames carry in bits kStoreTagShift.. of `ack`:
-  // 48 bits of its FNV-1a hash, never 0 (0: no tag, a peer from before tags, or no id).
+  // P6b: the tag of store `id` that up and down frames carry in `ack`: 24 bits of its FNV-1a
+  // hash, never 0 (0: no tag, a peer from before tags, or no id).
   static std::uint64_t store_tag(const std::string& id) {
     if (id.empty()) return 0;
     std::uint64_t hash = 0xcbf29ce484222325ull;
     for (unsigned char c : id) hash = (hash ^ c) * 0x100000001b3ull;
-    const std::uint64_t tag = hash >> kStoreTagShift;
+    const std::uint64_t tag = (hash >> 40) & kStoreTagMask;
     return tag != 0 ? tag : 1;
   }
+  // The tag bits of a frame from store `from` to store `to`.
+  static std::uint64_t store_tags(const std::string& from, const std::string& to) {
+    return (store_tag(from) << kStoreTagShift) | (store_tag(to) << kPeerStoreTagShift);
+  }
+  static std::string seconds_text(Clock::duration d) {
+    char text[32];
+    std::snprintf(text, sizeof text, "%.1f s", std::chrono::duration<double>(d).count());
+    return text;
+  }
+  // P6b: a registered store heard this long after another said hello (or welcomed) under its
+  // IRI is alive beside it (frames of a store that stopped arrive within milliseconds).
+  static constexpr auto kBothAlive = std::chrono::seconds(1);
   // P6b: a frame names a store (`got`) other than the one registered for its sender
   // (`expected`). Either empty: a peer from before store ids, or none registered yet.
   static bool store_differs(const std::string& expected, const std::string& got) {
@@ -345,11 +376,15 @@ struct Link::Impl {
     ack.body = wire::encode_state({"", 0, store_id, peer_store});
     return ack;
   }
-  // P6b: up or down frames came from a store of the peer's IRI other than the registered one
-  // (`tag`): the child `child`, or the parent when null. Both stores are alive.
-  void other_store_sent(Child* child, std::uint64_t tag) {
-    char other[40];
-    std::snprintf(other, sizeof other, "(store tag %012llx)", static_cast<unsigned long long>(tag));
+  static std::string describe_tag(const char* what, std::uint64_t tag) {
+    char text[80];
+    std::snprintf(text, sizeof text, "(%s, tag %06llx)", what, static_cast<unsigned long long>(tag));
+    return text;
+  }
+  // P6b: up or down frames came from, or went to, a store of the peer's or this node's IRI other
+  // than the registered one (`other` says which): from the child `child`, or from the parent when
+  // null. Two stores are alive under one IRI.
+  void other_store_sent(Child* child, const std::string& other) {
     std::lock_guard lock(mu);
     ++counters.refused;
     if (child) {
@@ -948,19 +983,25 @@ struct Link::Impl {
       }
       return;
     }
-    std::uint64_t registered_tag = 0;
+    std::uint64_t registered_tag = 0, own_tag = 0;
     {
       std::lock_guard lock(mu);
       registered_tag = store_tag(up ? child->store_id : parent_store_id);
+      own_tag = store_tag(store_id);
     }
     std::vector<node::RelayedItem> items;
     items.reserve(frames.size());
-    std::uint64_t foreign_tag = 0;  // P6b: of frames from another store than the registered one
+    std::string foreign;  // P6b: why frames of this run are not this stream's
     for (std::size_t k = 0; k < frames.size(); ++k) {
       const Frame& f = frames[k];
-      if (const std::uint64_t tag = f.ack >> kStoreTagShift; tag != 0 && registered_tag != 0 && tag != registered_tag) {
-        foreign_tag = tag;
+      const std::uint64_t from_tag = (f.ack >> kStoreTagShift) & kStoreTagMask, to_tag = f.ack >> kPeerStoreTagShift;
+      if (from_tag != 0 && registered_tag != 0 && from_tag != registered_tag) {
+        foreign = describe_tag("from another store", from_tag);
         continue;  // the other store's seqs are not this stream's: never applied, never acknowledged
+      }
+      if (to_tag != 0 && own_tag != 0 && to_tag != own_tag) {
+        foreign = describe_tag("to another store of this node's IRI", to_tag);
+        continue;  // sent on a link with that other store
       }
       auto& body = *bodies[k];
       if (!body) {
@@ -972,8 +1013,8 @@ struct Link::Impl {
       if (!up) body->item.context = subtree_for(body->item.context, self);  // P11
       items.push_back({f.seq, f.prev, std::move(body->source), std::move(body->item)});
     }
-    if (foreign_tag != 0) other_store_sent(up ? child.get() : nullptr, foreign_tag);
-    if (items.empty() && foreign_tag != 0) return;
+    if (!foreign.empty()) other_store_sent(up ? child.get() : nullptr, foreign);
+    if (items.empty() && !foreign.empty()) return;
     node::Agent* relayer = agent(up ? child->id : std::string(kUplinkAgent));
     if (!relayer) return;
     std::string stream;
@@ -1125,6 +1166,33 @@ struct Link::Impl {
         std::string refuse;
         {
           std::lock_guard lock(mu);
+          const auto now = Clock::now();
+          if (child->connected && store_differs(child->store_id, child_store) && now - child->last_seen < opt.child_silence) {
+            // P6b: the registered store is alive. A store made again in its place (a replaced disk)
+            // comes after the old one fell silent; this one waits until it has.
+            if (child->pending_store != child_store) {
+              child->pending_store = child_store;
+              child->pending_since = now;
+            } else if (child->last_seen > child->pending_since + kBothAlive) {
+              if (child->flips.declare(child->store_id, child_store, "the child <" + child->iri + ">"))
+                log("conflict: " + child->flips.said());
+              disconnect_for_conflict(*child);
+            }
+            refuse = child->flips.active()
+                         ? child->flips.said()
+                         : "another store (id " + child->store_id + ") is registered as <" + child->iri + "> and was heard " +
+                               seconds_text(now - child->last_seen) + " ago; this one (id " + child_store +
+                               ") registers once that one has been silent " + seconds_text(opt.child_silence) +
+                               " (a second node with this IRI on this network?)";
+          }
+        }
+        if (!refuse.empty()) {
+          send_error(via, f.from, 0, {"refused", refuse, ""});
+          return;
+        }
+        {
+          std::lock_guard lock(mu);
+          if (child->store_id != child_store) child->pending_store.clear();
           if (child->store_id != child_store && !child->store_id.empty())
             log("child <" + child->iri + "> has another store (id " + child_store + ", was " + child->store_id +
                 "): its items are a new stream, from its start");
@@ -1167,7 +1235,9 @@ struct Link::Impl {
         welcome.kind = FrameKind::welcome;
         welcome.to = child->iri;
         welcome.ack = *mark;
-        welcome.body = wire::encode_state({opt.software_version, 0, current_store_id(), ""});
+        // Its peer store names the stream the mark is of: a second node under the child's IRI
+        // gets this welcome too, and must not take the mark for its own (P6b).
+        welcome.body = wire::encode_state({opt.software_version, 0, current_store_id(), child_store});
         send(via, std::move(welcome));
         std::lock_guard lock(mu);
         nudge_pump(*child);  // after the welcome: down frames follow it
@@ -1265,6 +1335,9 @@ struct Link::Impl {
     switch (f.kind) {
       case FrameKind::welcome: {
         auto state = wire::decode_state(f.body);
+        // P6b: the welcome of another store of this node's IRI (a second node under it), whose
+        // mark would empty this one's outbox of items never applied.
+        if (state && store_differs(current_store_id(), state->peer_store_id)) return;
         // P6a: a parent that has applied more of this store's stream than the store has issued
         // knows a store that was here before (this one was restored from a backup): this store
         // takes a new id, and says hello with it.
@@ -1274,6 +1347,24 @@ struct Link::Impl {
           return;
         }
         std::lock_guard lock(mu);
+        const auto now = Clock::now();
+        if (state && ever_welcomed && store_differs(parent_store_id, state->store_id) &&
+            now - parent_store_heard < opt.child_silence) {
+          // P6b: the parent store that welcomed this node is alive; a store made again in its
+          // place comes after it fell silent. Until then this welcome is not taken.
+          if (pending_parent_store != state->store_id) {
+            pending_parent_store = state->store_id;
+            pending_parent_since = now;
+          } else if (parent_store_heard > pending_parent_since + kBothAlive) {
+            if (parent_flips.declare(parent_store_id, state->store_id, "the parent <" + opt.parent_iri + ">"))
+              log("conflict: " + parent_flips.said());
+            if (welcomed) log("the parent is not linked with while the conflict lasts");
+            welcomed = false;
+          }
+          return;
+        }
+        if (state && state->store_id != parent_store_id) pending_parent_store.clear();
+        parent_store_heard = now;
         if (!welcomed) log("registered with the parent <" + opt.parent_iri + ">");
         if (state && state->store_id != parent_store_id) {
           if (!parent_store_id.empty())
@@ -1319,6 +1410,7 @@ struct Link::Impl {
             }
             return;
           }
+          if (!stores->store_id.empty()) parent_store_heard = Clock::now();
           // Of another store of this node's IRI: the parent holds that one as this node (a second
           // node under this IRI said hello after this one). This one says hello again, which
           // the parent sees as two stores taking turns.
@@ -1837,7 +1929,7 @@ struct Link::Impl {
       std::vector<Frame> frames;
       std::unique_lock lock(mu);
       if (!welcomed || up_last_sent != after) continue;  // the session moved meanwhile
-      const std::uint64_t own_tag = store_tag(store_id) << kStoreTagShift;  // P6b
+      const std::uint64_t own_tag = store_tags(store_id, parent_store_id);  // P6b
       for (const auto& d : *ready) {
         wire::ItemBody body = item_of(d);
         if (!from_this_subtree(body.source)) {
@@ -2031,7 +2123,7 @@ struct Link::Impl {
         f.to = child.iri;
         f.seq = d.item;
         f.prev = child.down_last_sent;
-        f.ack = store_tag(store_id) << kStoreTagShift;  // P6b
+        f.ack = store_tags(store_id, child.store_id);  // P6b
         f.body = wire::encode_item(body);
         if (!fits_a_frame(f, d.item)) {
           local_acks.push_back(d.item);

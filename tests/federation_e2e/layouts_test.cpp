@@ -433,3 +433,42 @@ TEST_F(Deployment, UpAgainRestartsTheLinksThatReadAnEditedDdsConfiguration) {
   EXPECT_NE(applied.find("up:   restarted bed/link (a file it reads at start changed)"), std::string::npos) << applied;
   EXPECT_TRUE(eventually([&] { return (shown = status()).find("bed  <" + kWard + "/bed>  link up") != std::string::npos; })) << shown;
 }
+
+// A second deployment of the same file on one network (another state directory, the same DDS
+// domain): every node has a twin under its IRI. The links see two stores taking turns (P6b),
+// status says CONFLICT, and neither ward takes the other deployment's items; each home keeps
+// what it could not send.
+TEST_F(Deployment, ASecondDeploymentOfTheSameFileOnOneNetworkIsAConflictAndMixesNothing) {
+  write_topology("[[node]]\nid = \"ward\"\niri = \"" + kWard + "\"\nlisten = { kind = \"dds\", domain = 9, " + kDdsConfig + " }\n\n"
+                 "[[node]]\nid = \"home\"\nparent = \"ward\"\nforward = [\"_ a tv:EcgChunk\"]\n");
+  const fs::path other = root_ / "state-b";
+  auto put = [&](const fs::path& state, const std::string& subject) {
+    return shell("echo '<" + kWard + "/home/" + subject + "> <http://www.w3.org/1999/02/22-rdf-syntax-ns#type> " +
+                 "<https://w3id.org/tahvel#EcgChunk> .' | " + kBin + "/tahvel put " + (state / "home").string() +
+                 " --format nt >/dev/null");
+  };
+  auto chunks = [&](const fs::path& state, char deployment) {
+    std::size_t n = 0;
+    for (const auto& r : of_type(state / "ward", "EcgChunk")) n += r.triple.s.value.rfind(kWard + "/home/" + deployment, 0) == 0;
+    return n;
+  };
+  up();
+  std::string shown;
+  ASSERT_TRUE(eventually([&] { return (shown = status()).find("home  <" + kWard + "/home>  link up") != std::string::npos; })) << shown;
+  for (int i = 0; i < 5; ++i) ASSERT_EQ(put(state_, "a" + std::to_string(i)), 0);
+  ASSERT_TRUE(eventually([&] { return chunks(state_, 'a') == 5; }));
+
+  tahvel("up " + (root_ / "topology.toml").string() + " --state " + other.string());
+  for (int i = 0; i < 5; ++i) ASSERT_EQ(put(other, "b" + std::to_string(i)), 0);
+  for (int i = 5; i < 10; ++i) ASSERT_EQ(put(state_, "a" + std::to_string(i)), 0);
+  std::string shown_b;
+  EXPECT_TRUE(eventually([&] {
+    shown = status();
+    shown_b = tahvel("status --state " + other.string());
+    return shown.find("CONFLICT: two stores") != std::string::npos && shown_b.find("CONFLICT: two stores") != std::string::npos;
+  })) << shown << shown_b;
+  std::this_thread::sleep_for(std::chrono::seconds(3));
+  EXPECT_EQ(chunks(state_, 'b'), 0u) << shown;
+  EXPECT_EQ(chunks(other, 'a'), 0u) << shown_b;
+  tahvel("down --state " + other.string());
+}

@@ -46,9 +46,11 @@ enum class FrameKind : std::uint8_t {
 // Bits of an up or down frame's `ack` field (docs/protocol.md P8, P9b).
 inline constexpr std::uint64_t kAckNow = 1;      // the sender's window is half full: ack the stream now
 inline constexpr std::uint64_t kMoreFollow = 2;  // more frames of the run sent back to back follow
-// Bits kStoreTagShift and up of an up or down frame's `ack`: a 48-bit tag of the sender's store
-// id (0: none), so that frames of two stores under one IRI are told apart (P6b).
-inline constexpr int kStoreTagShift = 16;
+// An up or down frame's `ack` also names both ends' stores (P6b), so that frames of two stores
+// under one IRI are told apart: bits 16-39 a 24-bit tag of the sender's store id, bits 40-63 of
+// the store it sends to (0: none).
+inline constexpr int kStoreTagShift = 16, kPeerStoreTagShift = 40;
+inline constexpr std::uint64_t kStoreTagMask = 0xFFFFFF;
 
 // The kind of a Cyclone DDS sample that carries several frames of one sender to one addressee
 // (docs/transports.md, "Packing"). The DDS binding makes and unpacks such samples itself: it
