@@ -114,6 +114,18 @@ class Cli : public ::testing::Test {
     return out;
   }
 
+  // `up` of the topology `toml` (written to node.toml) with its state at `state`, then the pid
+  // `status` shows for its program `program` once running (0 when `up` failed or none shows).
+  pid_t up_and_pid_of(const char* toml, const std::string& state, const std::string& program) {
+    const std::string file = (tmp_ / "node.toml").string();
+    spit(file, toml);
+    if (run({"up", file, "--state", state}).status != 0) return 0;
+    std::smatch m;
+    const std::string shown = status_until(state, program + "  running (pid").out;
+    if (!std::regex_search(shown, m, std::regex("- " + program + "  running \\(pid ([0-9]+)\\)"))) return 0;
+    return static_cast<pid_t>(std::stol(m[1]));
+  }
+
   // `up` of one node whose agent "flaky" exits with status 3 at once; returns the state
   // directory.
   std::string up_a_node_with_a_flaky_agent() {
@@ -1059,20 +1071,13 @@ TEST_F(Cli, StatusDoesNotShowAStoreAnInterruptedUpLeftAsANode) {
 }
 
 // The pid `status` shows of a running program (0 when it shows none).
-pid_t pid_shown(const std::string& status, const std::string& program) {
-  std::smatch m;
-  if (!std::regex_search(status, m, std::regex("- " + program + "  running \\(pid ([0-9]+)\\)"))) return 0;
-  return static_cast<pid_t>(std::stol(m[1]));
-}
 
 // `down` of a supervisor stopped with SIGSTOP: the SIGTERM stayed pending, `down` failed after
 // 20 s, and a `kill -CONT` later stopped the deployment. `down` sends SIGCONT after SIGTERM (as
 // systemd does), and the supervisor stops with its programs.
 TEST_F(Cli, DownStopsASupervisorStoppedWithSigstopAndItsPrograms) {
-  const std::string file = (tmp_ / "node.toml").string(), state = (tmp_ / "state").string();
-  spit(file, kIdleNodeToml);
-  ASSERT_EQ(run({"up", file, "--state", state}).status, 0);
-  const pid_t idle = pid_shown(status_until(state, "idle  running (pid").out, "idle");
+  const std::string state = (tmp_ / "state").string();
+  const pid_t idle = up_and_pid_of(kIdleNodeToml, state, "idle");
   ASSERT_GT(idle, 0);
   const pid_t supervisor = std::atoi(slurp(tmp_ / "state" / "supervisor-all.pid").c_str());
   ASSERT_GT(supervisor, 0);
@@ -1090,10 +1095,8 @@ TEST_F(Cli, DownStopsASupervisorStoppedWithSigstopAndItsPrograms) {
 // node's parent showed its link down, and nothing pointed at the frozen process. It says
 // "suspended", with the pid and how to resume it.
 TEST_F(Cli, StatusShowsAProgramStoppedWithSigstopAsSuspended) {
-  const std::string file = (tmp_ / "node.toml").string(), state = (tmp_ / "state").string();
-  spit(file, kIdleNodeToml);
-  ASSERT_EQ(run({"up", file, "--state", state}).status, 0);
-  const pid_t idle = pid_shown(status_until(state, "idle  running (pid").out, "idle");
+  const std::string state = (tmp_ / "state").string();
+  const pid_t idle = up_and_pid_of(kIdleNodeToml, state, "idle");
   ASSERT_GT(idle, 0);
   ASSERT_EQ(kill(idle, SIGSTOP), 0);
   const std::string pid = std::to_string(idle);

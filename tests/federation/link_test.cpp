@@ -714,22 +714,17 @@ TEST(Link, TwoStoresTakingTurnsUnderOneIriAreAConflictInTheStateOfTheSideThatSee
   Tree tree;
   tree.hospital = tree.start_hospital();
   auto twin = tree.bus.open(kHome1);
-  auto hello_from = [&](const std::string& store) {
-    Frame hello;
-    hello.kind = FrameKind::hello;
-    hello.from = kHome1;
-    hello.to = kHospital;
-    hello.body = wire::encode_state({"twin", 0, store, ""});
-    return twin->send(hello);
+  // A hello or heartbeat from home1's IRI naming `store` as the sender's.
+  auto from_store = [&](FrameKind kind, const std::string& store) {
+    Frame f;
+    f.kind = kind;
+    f.from = kHome1;
+    f.to = kHospital;
+    f.body = wire::encode_state({"twin", 0, store, ""});
+    return twin->send(f);
   };
-  auto heartbeat_from = [&](const std::string& store) {
-    Frame beat;
-    beat.kind = FrameKind::heartbeat;
-    beat.from = kHome1;
-    beat.to = kHospital;
-    beat.body = wire::encode_state({"twin", 0, store, ""});
-    return twin->send(beat);
-  };
+  auto hello_from = [&](const std::string& store) { return from_store(FrameKind::hello, store); };
+  auto heartbeat_from = [&](const std::string& store) { return from_store(FrameKind::heartbeat, store); };
   const Term conflict = Term::iri(vocab::kLinkConflict);
   // A new store while the registered one is heard waits (a store made again comes after the old
   // one fell silent): no conflict yet.
