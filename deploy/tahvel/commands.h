@@ -76,6 +76,8 @@ std::string parse_iri(std::string_view text, const uri::PrefixMap& prefixes,
                       std::string_view flag);
 // The pattern of -s, -p, -o (and --context, --source when the command has them).
 node::Pattern pattern_from_args(const Args& args, const uri::PrefixMap& prefixes);
+// --cascade N; depths beyond 2^20 (deeper than any store's sub-trees) are taken as 2^20.
+unsigned cascade_flag(const Args& args);
 
 // The area of --area (and --floor): WKT when it reads as WKT, else a room's IRI or CURIE.
 spatial::AreaSpec area_flag(const Args& args, const uri::PrefixMap& prefixes);

@@ -229,7 +229,7 @@ std::string parse_iri(std::string_view text, const uri::PrefixMap& prefixes,
     return std::string(text);
   }
   // A command line can add the prefix; a topology file's pattern uses the node's own prefixes.
-  const std::string add = flag.starts_with("--") ? "add --prefix " + prefix + "=IRI, or " : "";
+  const std::string add = flag.starts_with("-") ? "add --prefix " + prefix + "=IRI, or " : "";
   bad_value(flag, "unknown prefix '" + prefix + "' in '" + std::string(text) + "' (" + add + "write <" + std::string(text) +
                       "> for an absolute IRI)");
 }
@@ -258,6 +258,10 @@ node::Term parse_term(std::string_view text, const uri::PrefixMap& prefixes,
     bad_value(flag, "a predicate must be an IRI");
   }
   return term;
+}
+
+unsigned cascade_flag(const Args& args) {
+  return static_cast<unsigned>(std::min<std::uint64_t>(args.get_u64("--cascade", 0), 1u << 20));
 }
 
 node::Pattern pattern_from_args(const Args& args, const uri::PrefixMap& prefixes) {

@@ -32,6 +32,7 @@
 #include "tahvel/federation/link.h"
 #include "tahvel/federation/transport.h"
 #include "tahvel/node/format.h"
+#include "tahvel/node/process.h"
 #include "tahvel/spatial/board.h"
 #include "tahvel/spatial/wkt.h"
 #include "tahvel/uri/iri.h"
@@ -170,8 +171,12 @@ std::int64_t time_flag(std::string_view flag, const std::string& text) {
   tm.tm_min = digits(2);
   expect(":");
   tm.tm_sec = digits(2);
+  // A leap second (23:59:60Z; RFC 3339 allows second 60) is the second after :59, as POSIX time,
+  // which has no leap seconds, counts it.
+  const int leap = tm.tm_sec == 60 ? 1 : 0;
+  tm.tm_sec -= leap;
   const struct tm asked = tm;
-  const time_t seconds = timegm(&tm);
+  const time_t seconds = timegm(&tm) + leap;
   if (tm.tm_year != asked.tm_year || tm.tm_mon != asked.tm_mon || tm.tm_mday != asked.tm_mday ||
       tm.tm_hour != asked.tm_hour || tm.tm_min != asked.tm_min || tm.tm_sec != asked.tm_sec)
     usage_error(what + "no such date or time");
@@ -392,7 +397,7 @@ int run_query(const Args& args) {
   if (query.pattern.since && query.pattern.until && *query.pattern.until <= *query.pattern.since)
     usage_error("--until " + *args.get("--until") + " is not after --since " + *args.get("--since") +
                 " (records asserted at or after --since and before --until)");
-  query.cascade = static_cast<unsigned>(args.get_u64("--cascade", 0));
+  query.cascade = cascade_flag(args);
   query.limit = args.get_u64("--limit", 0);
   if (auto area = args.get("--area")) {
     if (spatial::looks_like_wkt(*area)) {
@@ -437,7 +442,12 @@ int run_query(const Args& args) {
   }
   if (!answered) fail_remote("query", answered.error());
   finish_output(std::cout);
-  std::cerr << "tahvel: " << *answered << " records from <" << query.target << ">\n";
+  // A count for the operator at a terminal; a script's standard error stays empty on success.
+  if (isatty(STDERR_FILENO)) {
+    auto target = uri::normalize(query.target);
+    std::cerr << "tahvel: query: " << *answered << (*answered == 1 ? " record" : " records") << " from <"
+              << (target ? *target : query.target) << ">\n";
+  }
   return kExitOk;
 }
 
@@ -1457,7 +1467,7 @@ std::string not_stopped_because(pid_t pid, const fs::path& state) {
   const std::string p = std::to_string(pid), stat = "/proc/" + p + "/stat";
   const std::string head = "supervisor " + p + " did not stop within 20 s: ";
   const std::string kill_it = "'kill -KILL " + p + "' ends it and its programs at once";
-  const std::optional<char> now = agents::process_state(pid);
+  const std::optional<char> now = node::process_state(pid);
   if (now == 'T')
     return head + "it is stopped (state T in " + stat + ": stopped by a signal again since SIGCONT); 'kill -CONT " + p +
            "' lets it stop, or " + kill_it;

@@ -18,10 +18,6 @@ using std::chrono::milliseconds;
 
 const Flag kFlagListContext{"--context", "", "IRI", "only records with this context ('' for none)"};
 const Flag kFlagSource{"--source", "", "IRI", "only records written by this agent or node (or below it)"};
-unsigned cascade_flag(const Args& args) {
-  return static_cast<unsigned>(std::min<std::uint64_t>(args.get_u64("--cascade", 0), 1u << 20));
-}
-
 // One year: longer waits are refused rather than overflowing a deadline in the library.
 milliseconds timeout_flag(const Args& args) {
   constexpr std::uint64_t kMax = 365ull * 24 * 3600 * 1000;

@@ -200,7 +200,7 @@ int run_remove(const Args& args) {
   node::Node node = open_node(args.positional(0));
   uri::PrefixMap prefixes = prefixes_with_flags(node.prefixes(), args);
   node::Pattern pattern = pattern_from_args(args, prefixes);
-  auto cascade = static_cast<unsigned>(std::min<std::uint64_t>(args.get_u64("--cascade", 0), 1u << 20));
+  const unsigned cascade = cascade_flag(args);
   if (args.has("--item") == pattern_has_triple(pattern)) {
     usage_error("remove: give either --item ID or a pattern (-s, -p, -o)");
   }

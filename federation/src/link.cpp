@@ -71,6 +71,9 @@ constexpr std::chrono::milliseconds kRunWait{20};
 // P12: a connected child's state is rewritten at least this often, so that its tv:lastSeen is
 // never older than child_silence (3.5 s) while the child is heard (status prints its age).
 constexpr std::int64_t kStateRefreshNs = 2'000'000'000;
+// A gap between two of the timer's rounds longer than this is this process stalled, not its
+// children silent (timer_loop).
+constexpr std::chrono::seconds kOwnStall{1};
 // The error code of P9a: an item passed over for good (frame seq = the item's seq).
 constexpr std::string_view kItemRefused = "item_refused";
 constexpr std::string_view kUplinkAgent = "uplink";
@@ -2201,6 +2204,7 @@ struct Link::Impl {
     if (auto st = node->stats(); st && st->max_literal_bytes > 0)
       answer_part = std::max<std::size_t>(4, std::min<std::size_t>(answer_part, st->max_literal_bytes) / 4 * 4);
     Clock::time_point next_beat{};
+    Clock::time_point last_round = Clock::now();
     while (!stopping) {
       std::vector<BoardWrite> writes;
       std::vector<std::shared_ptr<Child>> dirty;
@@ -2221,6 +2225,13 @@ struct Link::Impl {
                                                                     : std::min(opt.heartbeat_every, std::chrono::milliseconds(250)));
         }
         const std::int64_t wall = now_ns();
+        // A round comes at least every 50 ms. A longer gap is this process not running (stopped
+        // by a signal, a paused machine): its children were not heard because it did not listen,
+        // so each keeps the silence it had left, rather than all being declared down at once.
+        const auto stalled = now - last_round - std::chrono::milliseconds(50);
+        last_round = now;
+        if (stalled > kOwnStall)
+          for (auto& [iri, child] : children) child->last_seen = std::min(now, child->last_seen + stalled);
         for (auto& [iri, child] : children) {
           if (child->connected && now - child->last_seen > opt.child_silence) {
             child->connected = false;
@@ -2687,6 +2698,12 @@ Result<std::unique_ptr<Link>> Link::start(LinkOptions options) {
     s.serving_lock = ::open((s.opt.dir / kServingLockFile).c_str(), O_RDWR | O_CREAT | O_CLOEXEC, 0644);
     if (s.serving_lock < 0 || flock(s.serving_lock, LOCK_SH) != 0)
       return node::fail(Errc::io, (s.opt.dir / kServingLockFile).string() + ": " + std::strerror(errno));
+    // Who holds it: an asker whose answer does not come looks whether this process was stopped
+    // (kill -STOP, a debugger), which the lock alone does not show.
+    const std::string pid = std::to_string(getpid()) + "\n";
+    if (ftruncate(s.serving_lock, 0) != 0 ||
+        pwrite(s.serving_lock, pid.data(), pid.size(), 0) != static_cast<ssize_t>(pid.size()))
+      s.log((s.opt.dir / kServingLockFile).string() + ": cannot write this process's id: " + std::strerror(errno));
   }
   std::unique_ptr<Link> link(new Link(std::move(impl)));
   Impl* p = link->impl_.get();

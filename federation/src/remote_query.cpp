@@ -14,6 +14,7 @@
 
 #include "base64.h"
 #include "tahvel/federation/link.h"
+#include "tahvel/node/process.h"
 #include "tahvel/uri/iri.h"
 #include "tahvel/federation/wire.h"
 
@@ -39,13 +40,33 @@ const Term* object_of(const std::vector<node::Record>& records, const std::strin
 
 // Whether a link serving this node's children runs: it holds a shared lock on the lock file,
 // so an exclusive one cannot be had. (A stopped node leaves its children's state "up" on the
-// board, and the query would wait out its whole timeout.)
-bool link_serving(const std::filesystem::path& dir) {
+// board, and the query would wait out its whole timeout.) A link stopped by a signal or a
+// debugger holds the lock and does nothing: `stopped_pid` is its process id then.
+struct LinkSeen {
+  bool serving = false;
+  std::optional<pid_t> stopped_pid;
+};
+
+LinkSeen link_serving(const std::filesystem::path& dir) {
+  LinkSeen seen;
   const int fd = ::open((dir / kServingLockFile).c_str(), O_RDONLY | O_CLOEXEC);
-  if (fd < 0) return false;
-  const bool held = flock(fd, LOCK_EX | LOCK_NB) != 0 && errno == EWOULDBLOCK;
+  if (fd < 0) return seen;
+  seen.serving = flock(fd, LOCK_EX | LOCK_NB) != 0 && errno == EWOULDBLOCK;
+  if (seen.serving) {
+    char text[24] = {};
+    const ssize_t got = pread(fd, text, sizeof text - 1, 0);
+    pid_t pid = 0;
+    const auto [end, ec] = std::from_chars(text, text + std::max<ssize_t>(got, 0), pid);
+    if (ec == std::errc() && pid > 0 && node::is_stopped(node::process_state(pid))) seen.stopped_pid = pid;
+  }
   ::close(fd);
-  return held;
+  return seen;
+}
+
+std::string stopped_link(const std::string& self, pid_t pid) {
+  const std::string p = std::to_string(pid);
+  return "the link of <" + self + "> (process " + p + ") is stopped by a signal or a debugger (state T or t in /proc/" + p +
+         "/stat); 'kill -CONT " + p + "' resumes it";
 }
 
 }  // namespace
@@ -89,7 +110,10 @@ Result<std::uint64_t> remote_query(node::Node& node, const RemoteQuery& query,
         return node::fail(Errc::not_found, "unknown node <" + *target + ">: <" + self + "> has no child <" + child + ">");
       child_state = state->back().triple.o.value;
     }
-    const bool serving = link_serving(node.dir());
+    const LinkSeen link = link_serving(node.dir());
+    if (link.stopped_pid)
+      return node::fail(Errc::io, "unreachable: nothing reaches <" + child + ">: " + stopped_link(self, *link.stopped_pid));
+    const bool serving = link.serving;
     if (child_state == "up" && serving) break;
     const bool restarting = !serving || child_state == "never connected";
     if (restarting && std::chrono::steady_clock::now() < grace_end) {
@@ -163,16 +187,20 @@ Result<std::uint64_t> remote_query(node::Node& node, const RemoteQuery& query,
                            std::min(left, cancelled ? std::chrono::milliseconds(100) : kLinkCheckEvery));
     if (!got) return Unexpected<Error>{got.error()};
     if (got->empty()) {
-      if (link_serving(node.dir())) {
+      const LinkSeen link = link_serving(node.dir());
+      const auto now = std::chrono::steady_clock::now();
+      if (link.serving && !link.stopped_pid) {
         unserved_since = kServing;
-      } else if (unserved_since == kServing) {
-        unserved_since = std::chrono::steady_clock::now();
-      } else if (std::chrono::steady_clock::now() - unserved_since >= kLinkGone) {
-        return node::fail(Errc::io, "unreachable: the link of <" + self + "> stopped while the query ran (nothing holds " +
-                                        (node.dir() / kServingLockFile).string() + "), after " + std::to_string(delivered) +
-                                        " records from <" + *target + ">; what was not printed is lost: ask again once it runs");
+        continue;
       }
-      continue;
+      if (unserved_since == kServing) unserved_since = now;
+      if (now - unserved_since < kLinkGone) continue;
+      if (link.stopped_pid)
+        return node::fail(Errc::io, "unreachable: " + stopped_link(self, *link.stopped_pid) + "; it stopped while the query ran, after " +
+                                        std::to_string(delivered) + " records from <" + *target + ">; ask again once it runs");
+      return node::fail(Errc::io, "unreachable: the link of <" + self + "> stopped while the query ran (nothing holds " +
+                                      (node.dir() / kServingLockFile).string() + "), after " + std::to_string(delivered) +
+                                      " records from <" + *target + ">; what was not printed is lost: ask again once it runs");
     }
     const std::size_t first_unremoved = to_remove.size();
     for (const node::Delivery& delivery : *got) {

@@ -198,7 +198,24 @@ TEST_F(Deployment, StatusOnEachMachineShowsWhatThatMachineKnowsOfTheLinkBetweenT
       [&] { return (gateway_sees = status_of(gateway_machine)).find("uplink to <" + kWard + "> down, parent last heard") != std::string::npos; },
       15s))
       << gateway_sees;
+  // A query asked on the ward's machine meanwhile waited out its whole timeout and said only
+  // "timeout": it ends at once, unreachable, naming the frozen process.
+  const std::string pids = run(ward_link).out, ward_pid = pids.substr(0, pids.find('\n'));
+  const std::string ask_gateway = kBin + "/tahvel query " + (ward_machine / "ward").string() + " --at " + kWard + "/gateway -p a --timeout 20 2>&1";
+  const auto frozen = run(ask_gateway);
+  EXPECT_EQ(frozen.status, 5) << frozen.out;
+  EXPECT_NE(frozen.out.find("is stopped by a signal or a debugger (state T or t in /proc/" + ward_pid + "/stat); 'kill -CONT " + ward_pid +
+                            "' resumes it"),
+            std::string::npos)
+      << frozen.out;
   shell("kill -CONT $(" + ward_link + ")");
+  // The gateway was not silent, the ward was: once resumed, the ward keeps it connected (it
+  // declared it down at once, and a query asked then was refused as unreachable).
+  const auto resumed = run(ask_gateway);
+  EXPECT_EQ(resumed.status, 0) << resumed.out;
+  std::ifstream ward_log(ward_machine / "logs" / "ward" / "link.log");
+  const std::string logged((std::istreambuf_iterator<char>(ward_log)), std::istreambuf_iterator<char>());
+  EXPECT_EQ(logged.find("silent for"), std::string::npos) << logged;
   EXPECT_TRUE(eventually([&] { return status_of(gateway_machine).find("> up, parent last heard") != std::string::npos; }, 15s));
   tahvel("down --state " + gateway_machine.string());
   tahvel("down --state " + ward_machine.string());

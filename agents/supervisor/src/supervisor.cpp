@@ -14,6 +14,7 @@
 #include <iostream>
 #include <thread>
 
+#include "tahvel/node/process.h"
 #include "tahvel/uri/iri.h"
 
 namespace tahvel::agents {
@@ -250,7 +251,7 @@ void Supervisor::poll() {
     // A program stopped with SIGSTOP (or held by a debugger) is alive and does nothing: shown
     // as "running" it hid why its node's link was down. Read from /proc rather than from
     // waitpid(WUNTRACED), which does not see a debugger's stops.
-    const std::optional<char> now = process_state(p->state.pid);
+    const std::optional<char> now = node::process_state(p->state.pid);
     p->state.suspended = now == 'T' ? Suspension::signal : now == 't' ? Suspension::debugger : Suspension::none;
   }
   const auto now = Clock::now();
@@ -353,16 +354,6 @@ namespace tahvel::agents {
 std::string_view program_state_name(const ProgramState& state) {
   if (state.running) return state.suspended == Suspension::none ? "running" : "suspended";
   return state.restart_at ? "restarting" : "stopped";
-}
-
-std::optional<char> process_state(pid_t pid) {
-  std::ifstream in("/proc/" + std::to_string(pid) + "/stat");
-  std::string stat;
-  if (!std::getline(in, stat)) return std::nullopt;
-  // "PID (COMM) S ...": COMM may hold spaces and parentheses, so the state follows the last ')'.
-  const std::size_t close = stat.rfind(')');
-  if (close == std::string::npos || close + 2 >= stat.size()) return std::nullopt;
-  return stat[close + 2];
 }
 
 Result<node::Item> programs_item(const std::string& node_iri, const std::vector<ProgramState>& programs,

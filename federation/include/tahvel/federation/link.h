@@ -155,7 +155,8 @@ class Link {
   std::unique_ptr<Impl> impl_;
 };
 
-// The file in a node's store directory that a link serving children holds a shared lock on.
+// The file in a node's store directory that a link serving children holds a shared lock on; it
+// holds that process's id.
 inline constexpr const char* kServingLockFile = "link.lock";
 
 // ---------------------------------------------------------------------------------------------
@@ -163,7 +164,8 @@ inline constexpr const char* kServingLockFile = "link.lock";
 // through this node's board and its running Link, calling `each` for every record of the answer
 // as chunks arrive. Errors: not_found "unknown node" (not under this node, or no such child),
 // unreachable (errc io, message starts "unreachable:"; also when no link serves this node's
-// children: no process holds its kServingLockFile), timeout. `cancelled`, when given, is
+// children: no process holds its kServingLockFile, or the one that does is stopped by a
+// signal or a debugger), timeout. `cancelled`, when given, is
 // asked at least every 100 ms and between chunks: once it says true, the query ends (errc io,
 // message starts "cancelled"), its items leave the board, and the link tells the nodes below
 // to stop answering (docs/protocol.md P18). A timeout cancels the same way.

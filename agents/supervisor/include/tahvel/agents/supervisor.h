@@ -160,11 +160,6 @@ inline constexpr std::chrono::seconds kProgramsRefresh{5};
 // "running", "suspended", "stopped" or "restarting", as the board says it.
 std::string_view program_state_name(const ProgramState& state);
 
-// The state letter of process `pid` in /proc/PID/stat (proc(5): R running, S sleeping, D waiting
-// in the kernel, T stopped by a signal, t stopped by a debugger, Z zombie, ...), or nullopt when
-// there is no such process.
-std::optional<char> process_state(pid_t pid);
-
 // The item above for node `node_iri`; `programs` carry their names on the node ("hrv", not
 // "home1/hrv"). Errors: invalid_iri when a name cannot extend the node's IRI.
 Result<node::Item> programs_item(const std::string& node_iri, const std::vector<ProgramState>& programs,
