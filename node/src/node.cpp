@@ -4,7 +4,9 @@
 
 #include <algorithm>
 #include <cstring>
+#include <map>
 #include <span>
+#include <type_traits>
 
 #include "dictionary.h"
 #include "env.h"
@@ -355,6 +357,35 @@ Result<std::vector<std::uint64_t>> Agent::replace(const std::vector<Pattern>& re
   return impl_->write_items(removals, items);
 }
 
+namespace {
+
+// The removals of a write, grouped for Query::collect_exact: patterns giving s, p and o with the
+// same subject and metadata filters together (a reasoner retracting conclusions, a link
+// replacing a state), every other pattern alone.
+std::vector<std::vector<const Pattern*>> removal_groups(std::span<const Pattern> removals) {
+  std::vector<std::vector<const Pattern*>> groups;
+  std::map<std::string, std::size_t> exact;  // the shared part, encoded -> its group
+  for (const Pattern& p : removals) {
+    if (!p.s || !p.p || !p.o) {
+      groups.push_back({&p});
+      continue;
+    }
+    auto text = [](const auto& field) -> std::string {
+      if (!field) return "-";
+      if constexpr (std::is_same_v<std::decay_t<decltype(*field)>, std::string>) return "+" + *field;
+      else return "+" + std::to_string(*field);
+    };
+    std::string key = p.s->to_ntriples() + '\0' + text(p.context) + '\0' + text(p.source) + '\0' + text(p.since) + '\0' +
+                      text(p.until) + '\0' + text(p.after_id);
+    auto [at, fresh] = exact.emplace(std::move(key), groups.size());
+    if (fresh) groups.emplace_back();
+    groups[at->second].push_back(&p);
+  }
+  return groups;
+}
+
+}  // namespace
+
 Result<std::vector<std::uint64_t>> Agent::Impl::write_items(std::span<const Pattern> removals,
                                                             std::span<const Item> items) noexcept {
   try {
@@ -372,8 +403,8 @@ Result<std::vector<std::uint64_t>> Agent::Impl::write_items(std::span<const Patt
     auto written = env->write([&](Txn& txn) -> Result<void> {
       ids.clear();
       Query query(txn.raw(), txn.env());
-      for (const Pattern& p : removals) {
-        auto gone = query.collect(p, ListOptions{0, 0});
+      for (const auto& group : removal_groups(removals)) {
+        auto gone = group.size() == 1 ? query.collect(*group.front(), ListOptions{0, 0}) : query.collect_exact(group);
         if (!gone) return unexpected(gone.error());
         for (std::uint64_t id : *gone) {
           auto exists = get_record(txn.raw(), txn.env(), id);

@@ -1,6 +1,8 @@
 // Pattern matching; see query.h.
 #include "query.h"
 
+#include <unordered_set>
+
 #include "tahvel/uri/iri.h"
 
 namespace tahvel::node::detail {
@@ -66,6 +68,58 @@ Result<bool> Query::metadata_matches(const Pattern& pattern, const Bound& bound,
   return true;
 }
 
+Result<std::size_t> Query::index_count(MDB_dbi index, std::uint64_t term) {
+  Cursor probe;
+  int rc = mdb_cursor_open(txn_, index, &probe.c);
+  if (rc != 0) return lmdb_fail(rc, "opening an index");
+  MDB_val k = val(term), v;
+  rc = mdb_cursor_get(probe.c, &k, &v, MDB_SET);
+  if (rc == MDB_NOTFOUND) return std::size_t{0};
+  if (rc != 0) return lmdb_fail(rc, "reading an index");
+  std::size_t n = 0;
+  mdb_cursor_count(probe.c, &n);
+  return n;
+}
+
+Result<std::vector<std::uint64_t>> Query::collect_exact(std::span<const Pattern* const> patterns) {
+  std::vector<std::uint64_t> out;
+  if (patterns.empty()) return out;
+  auto each_alone = [&]() -> Result<std::vector<std::uint64_t>> {
+    for (const Pattern* p : patterns) {
+      auto r = for_each(*p, [&](std::uint64_t id, const RecordRow&) { return out.push_back(id), true; });
+      if (!r) return unexpected(r.error());
+    }
+    return std::move(out);
+  };
+  Pattern walk = *patterns.front();
+  walk.p.reset();
+  walk.o.reset();
+  auto bound = resolve(walk);
+  if (!bound) return unexpected(bound.error());
+  if (bound->empty) return out;
+  auto records = index_count(env_.idx_s, bound->s);
+  if (!records) return unexpected(records.error());
+  // One walk of the subject's records when it reads few per pattern: removing a conclusion of
+  // a transitive closure alone reads thousands (its subject's and object's lists interleave),
+  // all the removed conclusions of one subject together read its list once.
+  constexpr std::size_t kRecordsPerPattern = 8;
+  if (*records > kRecordsPerPattern * patterns.size()) return each_alone();
+  std::unordered_map<std::uint64_t, std::unordered_set<std::uint64_t>> wanted;  // p -> o
+  for (const Pattern* p : patterns) {
+    auto pid = find_term(txn_, env_, *p->p);
+    if (!pid) return unexpected(pid.error());
+    auto oid = find_term(txn_, env_, *p->o);
+    if (!oid) return unexpected(oid.error());
+    if (*pid != 0 && *oid != 0) wanted[*pid].insert(*oid);
+  }
+  auto r = for_each(walk, [&](std::uint64_t id, const RecordRow& row) {
+    if (auto it = wanted.find(row.p); it != wanted.end() && it->second.count(row.o)) out.push_back(id);
+    return true;
+  });
+  if (!r) return unexpected(r.error());
+  return out;
+}
+
 Result<void> Query::for_each(const Pattern& pattern,
                              const std::function<bool(std::uint64_t, const RecordRow&)>& visit) {
   auto bound = resolve(pattern);
@@ -74,25 +128,18 @@ Result<void> Query::for_each(const Pattern& pattern,
   const Bound& b = *bound;
   std::uint64_t first = pattern.after_id ? *pattern.after_id + 1 : 0;
 
-  // Pick the bound position with the fewest records.
+  // Walk the list of the bound position with the fewest records.
   MDB_dbi index = 0;
   std::uint64_t key = 0;
   std::size_t best = SIZE_MAX;
-  Cursor cur;
   const std::pair<MDB_dbi, std::uint64_t> candidates[] = {{env_.idx_s, b.s}, {env_.idx_p, b.p}, {env_.idx_o, b.o}};
   for (const auto& [dbi, id] : candidates) {
     if (id == 0) continue;
-    Cursor probe;
-    int rc = mdb_cursor_open(txn_, dbi, &probe.c);
-    if (rc != 0) return lmdb_fail(rc, "opening an index");
-    MDB_val k = val(id), v;
-    rc = mdb_cursor_get(probe.c, &k, &v, MDB_SET);
-    if (rc == MDB_NOTFOUND) return {};  // a bound term with no records
-    if (rc != 0) return lmdb_fail(rc, "reading an index");
-    std::size_t n = 0;
-    mdb_cursor_count(probe.c, &n);
-    if (n < best) {
-      best = n;
+    auto n = index_count(dbi, id);
+    if (!n) return unexpected(n.error());
+    if (*n == 0) return {};  // a bound term with no records
+    if (*n < best) {
+      best = *n;
       index = dbi;
       key = id;
     }
@@ -106,6 +153,7 @@ Result<void> Query::for_each(const Pattern& pattern,
     return visit(id, row);
   };
 
+  Cursor cur;
   if (key == 0) {  // nothing bound: scan records in id order
     int rc = mdb_cursor_open(txn_, env_.records, &cur.c);
     if (rc != 0) return lmdb_fail(rc, "opening records");

@@ -7,6 +7,7 @@
 #include <cstdint>
 #include <functional>
 #include <optional>
+#include <span>
 #include <unordered_map>
 #include <vector>
 
@@ -25,6 +26,11 @@ class Query {
   Result<void> for_each(const Pattern& pattern,
                         const std::function<bool(std::uint64_t, const RecordRow&)>& visit);
 
+  // Ids of the records matching any of `patterns`, which all give s, p and o and share the
+  // subject and every metadata filter (the removals of Agent::replace, grouped). An id may come
+  // twice.
+  Result<std::vector<std::uint64_t>> collect_exact(std::span<const Pattern* const> patterns);
+
   // Ids of the matches and, with cascade, their sub-trees (ListOptions semantics).
   Result<std::vector<std::uint64_t>> collect(const Pattern& pattern, const ListOptions& options);
 
@@ -41,6 +47,8 @@ class Query {
     bool has_context = false;
   };
   Result<Bound> resolve(const Pattern& pattern);
+  // How many records the index lists for `term` (0 when none).
+  Result<std::size_t> index_count(MDB_dbi index, std::uint64_t term);
   Result<bool> metadata_matches(const Pattern& pattern, const Bound& bound, const RecordRow& row);
   Result<const ItemRow*> item(std::uint64_t id);
   Result<void> cascade_from(std::uint64_t object, unsigned depth, std::vector<std::uint64_t>& out,

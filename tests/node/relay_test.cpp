@@ -170,6 +170,50 @@ TEST(Replace, RemovesAndStoresInOneTransactionOrDoesNothing) {
   EXPECT_EQ(empty.error().code, Errc::invalid_argument);
 }
 
+// A reasoner retracts conclusions as patterns giving s, p, o and its own source; those of one
+// subject are found in one walk of its records (Query::collect_exact), and a subject with many
+// more records than patterns pattern by pattern. Either way exactly the named records of that
+// source go: not another writer's same triple, not a neighbour's.
+TEST(Replace, ManyExactRemovalsTakeExactlyTheNamedRecordsOfTheirSource) {
+  TempDir dir;
+  Node node = make_node(dir.path());
+  Agent reasoner = node.agent("reasoner").value();
+  Agent other = node.agent("other").value();
+  const Term reaches = ex("reaches");
+  auto x = [](int i) { return ex("x" + std::to_string(i)); };
+  Item closure, same;
+  for (int i = 0; i < 40; ++i)
+    for (int j = i + 1; j < 40; ++j) closure.add(x(i), reaches, x(j));
+  for (int j = 1; j < 40; ++j) same.add(x(0), reaches, x(j));
+  ASSERT_TRUE(reasoner.store(closure));
+  ASSERT_TRUE(other.store(same));
+  Item hub;  // x39 has 200 records: two patterns of it are looked up one by one
+  for (int k = 0; k < 200; ++k) hub.add(x(39), ex("value"), Term::integer(k));
+  ASSERT_TRUE(reasoner.store(hub));
+
+  std::vector<Pattern> gone;
+  std::set<std::pair<std::string, std::string>> expected_gone;
+  for (int i = 0; i < 20; ++i)
+    for (int j = 20; j < 40; ++j) {
+      gone.push_back({.s = x(i), .p = reaches, .o = x(j), .source = reasoner.iri()});
+      expected_gone.insert({x(i).value, x(j).value});
+    }
+  gone.push_back({.s = x(5), .p = reaches, .o = x(99), .source = reasoner.iri()});  // no such record
+  gone.push_back({.s = x(39), .p = ex("value"), .o = Term::integer(7), .source = reasoner.iri()});
+  gone.push_back({.s = x(39), .p = ex("value"), .o = Term::integer(8), .source = reasoner.iri()});
+  ASSERT_TRUE(reasoner.replace(gone, {}).has_value());
+
+  auto snap = node.snapshot().value();
+  auto left = snap.list({.p = reaches, .source = reasoner.iri()}).value();
+  EXPECT_EQ(left.size(), 40u * 39 / 2 - expected_gone.size());
+  for (const Record& r : left)
+    EXPECT_FALSE(expected_gone.count({r.triple.s.value, r.triple.o.value})) << r.triple.s.value << " " << r.triple.o.value;
+  EXPECT_EQ(snap.list({.p = reaches, .source = other.iri()}).value().size(), 39u);
+  auto values = snap.list({.s = x(39), .p = ex("value")}).value();
+  EXPECT_EQ(values.size(), 198u);
+  for (const Record& r : values) EXPECT_TRUE(r.triple.o.value != "7" && r.triple.o.value != "8") << r.triple.o.value;
+}
+
 TEST(Context, ItemAddressedToAnAgentLandsInItsInputBufferWithoutSubscription) {
   TempDir dir;
   Node node = make_node(dir.path());
