@@ -47,7 +47,9 @@ Term exact_decimal(double value) {
   return decimal_literal(std::string(buf, end));
 }
 
-Term text(const std::string& value) { return Term::literal(value); }
+// A header's units and lead names may be in another encoding (Latin-1 "\xB5V"): the store takes
+// only UTF-8, so such bytes become U+FFFD rather than the recording going unrecorded.
+Term text(const std::string& value) { return Term::literal(node::with_replacement_characters(value)); }
 
 // "%.6g" for a time in seconds inside an IRI ("300", "150.5").
 std::string seconds_label(double s) {

@@ -61,6 +61,9 @@ class In {
     std::uint32_t n = u32(field);
     if (!need(n, field)) return {};
     std::string s(bytes_.substr(pos_, n));
+    // Every string on the wire is text (IRIs, literals, messages): a store refuses the rest.
+    if (const std::size_t at = node::ill_formed_utf8_at(s); at != std::string::npos)
+      fail(field, "not UTF-8 (byte " + std::to_string(at) + " of " + std::to_string(n) + ")");
     pos_ += n;
     return s;
   }

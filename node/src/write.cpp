@@ -4,6 +4,7 @@
 #include <unistd.h>
 
 #include <algorithm>
+#include <cstdio>
 #include <optional>
 #include <unordered_map>
 
@@ -302,8 +303,24 @@ std::optional<std::vector<Subscription>> subscriptions_declared_by(
 
 }  // namespace
 
+namespace {
+
+// ": not UTF-8: ..." naming the first ill-formed byte of `text` (`of_what` after its offset), or
+// "" when `text` is well-formed.
+std::string not_utf8(std::string_view text, std::string_view of_what) {
+  const std::size_t at = ill_formed_utf8_at(text);
+  if (at == std::string_view::npos) return {};
+  char byte[8];
+  std::snprintf(byte, sizeof byte, "0x%02X", static_cast<unsigned char>(text[at]));
+  return ": not UTF-8: byte " + std::string(byte) + " at offset " + std::to_string(at) + std::string(of_what) +
+         " does not begin a well-formed sequence";
+}
+
+}  // namespace
+
 Result<void> validate_item(const Item& item, const Settings& settings) {
   if (item.triples.empty()) return fail(Errc::invalid_argument, "an item needs at least one triple");
+  if (auto bad = not_utf8(item.context, ""); !bad.empty()) return fail(Errc::invalid_argument, "context" + bad);
   for (std::size_t i = 0; i < item.triples.size(); ++i) {
     const Triple& t = item.triples[i];
     const Term* terms[] = {&t.s, &t.p, &t.o};
@@ -316,6 +333,10 @@ Result<void> validate_item(const Item& item, const Settings& settings) {
         return fail(Errc::invalid_iri, where(pos) + ": empty IRI");
       if (term.kind == TermKind::blank && term.value.empty())
         return fail(Errc::invalid_argument, where(pos) + ": empty blank-node label");
+      if (auto bad = not_utf8(term.value, ""); !bad.empty()) return fail(Errc::invalid_argument, where(pos) + bad);
+      if (auto bad = not_utf8(term.datatype, " of the datatype"); !bad.empty()) return fail(Errc::invalid_argument, where(pos) + bad);
+      if (auto bad = not_utf8(term.language, " of the language tag"); !bad.empty())
+        return fail(Errc::invalid_argument, where(pos) + bad);
       if (term.kind != TermKind::literal) continue;
       if (term.value.size() > settings.max_literal_bytes)
         return fail(Errc::literal_too_large, where(pos) + ": literal of " + std::to_string(term.value.size()) +

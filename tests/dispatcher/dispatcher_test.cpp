@@ -190,6 +190,29 @@ TEST_F(DispatcherTest, AnOutputLineOverTheLiteralLimitIsRecordedCut) {
   EXPECT_EQ(line.substr(line.size() - 3), "\u2026");
 }
 
+// A behaviour file whose name cannot end an IRI ("a%zz") started, and its end could never be
+// written: it and every run after it stayed "running". It is refused; a later run is recorded.
+// A line of output in Latin-1 was stored as is, and a dump of the node could not be loaded.
+TEST_F(DispatcherTest, ANameThatCannotEndAnIriIsRefusedAndOutputThatIsNotUtf8IsRecordedReplaced) {
+  script("a%zz", "echo hi\n");
+  script("latin1", "printf 'caf\\351 latin1\\n'\n");
+  ta::Supervisor supervisor([](std::string_view) {});
+  auto d = ta::Dispatcher::open(root_ / "node", {.folder = root_ / "behaviours"}, supervisor);
+  ASSERT_TRUE(d.has_value());
+  put({{n("me"), n("behavior"), tn::Term::literal("a%zz")}}, d->iri());
+  put({{n("me"), n("behavior"), tn::Term::literal("latin1")}}, d->iri());
+  auto ended = [&] { return holds(n("latin1"), kNs + "result", tn::Term::literal("caf\xEF\xBF\xBD latin1")); };
+  poll_until(*d, ended);
+  EXPECT_TRUE(ended());
+  EXPECT_EQ(d->running(), 0u);
+  auto snap = node_->snapshot();
+  auto refused = snap->list({.p = tn::Term::iri(kTv + "state"), .o = tn::Term::literal("refused")});
+  ASSERT_EQ(refused->size(), 1u);
+  auto why = snap->list({.s = refused->at(0).triple.s, .p = tn::Term::iri(kTv + "output")});
+  ASSERT_EQ(why->size(), 1u);
+  EXPECT_NE(why->at(0).triple.o.value.find("'a%zz' cannot end the IRI"), std::string::npos) << why->at(0).triple.o.value;
+}
+
 // `tahvel up` stopping: its behaviours are stopped and recorded so. A dispatcher that died
 // with runs in progress has them recorded "interrupted" when it next opens, not left running.
 TEST_F(DispatcherTest, RunsInProgressAtStopAreRecordedStoppedOrInterrupted) {

@@ -915,12 +915,19 @@ TEST(Link, MalformedFramesAreDroppedWithAReasonAndTheLinkKeepsWorking) {
   bad_body.to = kHospital;
   bad_body.body = "\x01\x02";
   tree.bus.inject_raw(kHospital, encode_frame(bad_body));
+  // A peer's text that is not UTF-8 would be refused by the store it is relayed into.
+  Frame latin1 = bad_body;
+  latin1.body = wire::encode_error({"refused", "caf\xE9", ""});
+  latin1.kind = FrameKind::error;
+  EXPECT_FALSE(wire::decode_error(latin1.body));
+  tree.bus.inject_raw(kHospital, encode_frame(latin1));
   tree.home1 = tree.start_home(tree.home1_dir, kHome1, tree.home1_log);
   auto hrv = node::Node::open(tree.home1_dir).value().agent("hrv").value();
   ASSERT_TRUE(hrv.store(hrv_item(1)));
   EXPECT_TRUE(eventually([&] { return count(tree.hospital_dir, {.p = Term::iri(kEx + "n")}) == 1; }));
   EXPECT_TRUE(tree.hospital_log.has("undecodable"));
   EXPECT_TRUE(tree.hospital_log.has("protocol version"));
+  EXPECT_TRUE(tree.hospital_log.has("not UTF-8"));
 }
 
 // home1's kEx:samples records as the hospital's remote query returns them (P13), and as home1's

@@ -245,6 +245,32 @@ TEST(Store, InvalidIriIsRefusedAndNothingIsStored) {
   EXPECT_EQ(node.stats()->terms, 4u);  // only the subscription vocabulary
 }
 
+// RDF terms are Unicode: a literal in Latin-1 stored through the API ("caf\xE9") was kept, then
+// `dump` wrote it out and `load` refused the dump. The store refuses it, naming the byte.
+TEST(Store, ATermThatIsNotUtf8IsRefusedNamingTheByteAndNothingIsStored) {
+  TempDir dir;
+  Node node = make_node(dir.path());
+  auto agent = node.agent("w");
+  Item item;
+  item.add(ex("a"), ex("b"), Term::literal("caf\xE9 au lait"));
+  auto id = agent->store(item);
+  ASSERT_FALSE(id);
+  EXPECT_EQ(id.error().code, Errc::invalid_argument);
+  EXPECT_EQ(id.error().message, "triple 1, object: not UTF-8: byte 0xE9 at offset 3 does not begin a well-formed sequence");
+  Item surrogate, in_datatype;
+  surrogate.add(ex("a"), ex("b"), Term::literal("\xED\xA0\x80"));  // U+D800 as if it were a character
+  in_datatype.add(ex("a"), ex("b"), Term::literal("1", "http://example.org/t\xFF"));
+  EXPECT_FALSE(agent->store(surrogate));
+  auto dt = agent->store(in_datatype);
+  ASSERT_FALSE(dt);
+  EXPECT_NE(dt.error().message.find("of the datatype"), std::string::npos) << dt.error().message;
+  EXPECT_EQ(node.stats()->records, 0u);
+  Item fine;
+  fine.add(ex("a"), ex("b"), Term::literal(with_replacement_characters("caf\xE9")));
+  ASSERT_TRUE(agent->store(fine));
+  EXPECT_EQ(node.snapshot()->list({.s = ex("a")})->at(0).triple.o.value, "caf\xEF\xBF\xBD");
+}
+
 TEST(Store, LiteralOverLimitIsRefusedAndNothingIsStored) {
   TempDir dir;
   InitOptions options;

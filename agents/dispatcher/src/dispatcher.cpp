@@ -12,6 +12,7 @@
 #include <sstream>
 
 #include "tahvel/node/node.h"
+#include "tahvel/uri/iri.h"
 
 namespace tahvel::agents {
 
@@ -38,7 +39,8 @@ bool is_word(const std::string& s) {
 }
 
 // The output recorded of a run: its log's last non-empty line, at most `max` bytes (cut at a
-// UTF-8 character boundary, "…" appended). Only the log's tail is read: a behaviour may log
+// UTF-8 character boundary, "…" appended; bytes that are not UTF-8 as U+FFFD, which a store
+// takes). Only the log's tail is read: a behaviour may log
 // for days. A line longer than the store's literal limit would make the end unrecordable.
 constexpr std::size_t kOutputMax = 4096;
 constexpr std::streamoff kTailRead = 64 * 1024;
@@ -54,7 +56,7 @@ std::string last_line(const std::filesystem::path& file, std::size_t max) {
   tail.resize(static_cast<std::size_t>(in.gcount()));
   while (!tail.empty() && (tail.back() == '\n' || tail.back() == '\r')) tail.pop_back();
   std::size_t start = tail.rfind('\n');
-  std::string line = tail.substr(start == std::string::npos ? 0 : start + 1);
+  std::string line = node::with_replacement_characters(tail.substr(start == std::string::npos ? 0 : start + 1));
   if (line.size() > max) {
     std::size_t cut = max - std::min<std::size_t>(max, 3);  // room for the 3 bytes of "…"
     while (cut > 0 && (static_cast<unsigned char>(line[cut]) & 0xC0) == 0x80) --cut;
@@ -155,6 +157,10 @@ Result<void> Dispatcher::Impl::command(std::uint64_t item, const std::string& te
                         t(run, kTv + "output", node::Term::literal(why))});
   };
   if (argv.empty() || !plain_file_name(argv[0])) return refuse("not a behaviour name: '" + text + "'");
+  // Its result is written about <ns + name>: a name that cannot end an IRI ("a%zz", "a b")
+  // could never have its end recorded.
+  if (!uri::is_valid(ns + argv[0]))
+    return refuse("not a behaviour name: '" + argv[0] + "' cannot end the IRI <" + ns + argv[0] + "> its result is written about");
   std::filesystem::path exe = options.folder / argv[0];
   if (access(exe.c_str(), X_OK) != 0) return refuse(exe.string() + ": no such executable behaviour");
   ProgramSpec spec;
@@ -175,6 +181,7 @@ Result<void> Dispatcher::Impl::command(std::uint64_t item, const std::string& te
 
 Result<void> Dispatcher::Impl::reap(std::vector<DispatchEvent>& events) {
   supervisor.poll();
+  Result<void> failed;
   for (auto it = runs.begin(); it != runs.end();) {
     auto state = supervisor.state(it->first);
     if (state && state->running) { ++it; continue; }
@@ -189,11 +196,17 @@ Result<void> Dispatcher::Impl::reap(std::vector<DispatchEvent>& events) {
       triples.push_back(t(ns + r.name, ns + "result", is_word(output) ? node::Term::iri(ns + output) : node::Term::literal(output)));
       replaced.push_back({.s = node::Term::iri(ns + r.name), .p = node::Term::iri(ns + "result")});
     }
-    if (auto w = record(std::move(triples), std::move(replaced)); !w) return w;
+    // A run whose end cannot be written (a full store) stays to be tried again at the next
+    // poll; the others' ends are written meanwhile.
+    if (auto w = record(std::move(triples), std::move(replaced)); !w) {
+      if (failed) failed = std::move(w);  // the first error is the one returned
+      ++it;
+      continue;
+    }
     events.push_back({DispatchEvent::ended, r.iri, r.command, state ? state->last_exit : how});
     it = runs.erase(it);
   }
-  return {};
+  return failed;
 }
 
 Result<Dispatcher> Dispatcher::open(const std::filesystem::path& dir, DispatcherOptions options,

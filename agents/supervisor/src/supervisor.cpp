@@ -56,33 +56,6 @@ std::string utf8_prefix(std::string_view text, std::size_t bytes) {
   return std::string(text.substr(0, end));
 }
 
-// `text` with each byte that does not begin a well-formed UTF-8 sequence (RFC 3629: no
-// overlong forms, surrogates or code points past U+10FFFF) as U+FFFD: a program's log may hold
-// any bytes, and its last line goes on the board as a literal and onto an operator's terminal.
-std::string valid_utf8(std::string_view text) {
-  std::string out;
-  out.reserve(text.size());
-  for (std::size_t i = 0; i < text.size();) {
-    const auto b = static_cast<unsigned char>(text[i]);
-    std::size_t length = b < 0x80 ? 1 : b >= 0xC2 && b <= 0xDF ? 2 : b >= 0xE0 && b <= 0xEF ? 3 : b >= 0xF0 && b <= 0xF4 ? 4 : 0;
-    bool ok = length != 0 && i + length <= text.size();
-    for (std::size_t k = 1; ok && k < length; ++k) ok = (static_cast<unsigned char>(text[i + k]) & 0xC0) == 0x80;
-    if (ok && length > 2) {
-      const auto second = static_cast<unsigned char>(text[i + 1]);
-      ok = !(b == 0xE0 && second < 0xA0) && !(b == 0xED && second >= 0xA0) && !(b == 0xF0 && second < 0x90) &&
-           !(b == 0xF4 && second >= 0x90);
-    }
-    if (!ok) {
-      out += "\xEF\xBF\xBD";
-      ++i;
-      continue;
-    }
-    out.append(text.substr(i, length));
-    i += length;
-  }
-  return out;
-}
-
 // The last line the run that began at `from` wrote to `log_file` (cut to kLastLineBytes,
 // control characters as spaces, bytes that are not UTF-8 as U+FFFD), or "" when it wrote none.
 std::string last_line_of(const std::filesystem::path& log_file, off_t from) {
@@ -98,7 +71,7 @@ std::string last_line_of(const std::filesystem::path& log_file, off_t from) {
   std::string_view text(tail, static_cast<std::size_t>(n));
   while (!text.empty() && std::isspace(static_cast<unsigned char>(text.back()))) text.remove_suffix(1);
   if (const std::size_t newline = text.rfind('\n'); newline != std::string_view::npos) text.remove_prefix(newline + 1);
-  std::string line = valid_utf8(utf8_prefix(text, kLastLineBytes));
+  std::string line = node::with_replacement_characters(utf8_prefix(text, kLastLineBytes));
   if (utf8_prefix(text, kLastLineBytes).size() < text.size()) line += "...";
   for (char& c : line)
     if (static_cast<unsigned char>(c) < 0x20 || c == 0x7F) c = ' ';

@@ -54,6 +54,14 @@ struct Term {
   friend bool operator==(const Term&, const Term&) = default;
 };
 
+// RDF terms are Unicode strings, stored as UTF-8. The offset of the first byte of `text` that
+// does not begin a well-formed UTF-8 sequence (RFC 3629: no overlong forms, surrogates or code
+// points past U+10FFFF), or npos when there is none. A store refuses terms with one.
+std::size_t ill_formed_utf8_at(std::string_view text) noexcept;
+// `text` with each such byte as U+FFFD: for text from outside (a program's output, a peer's
+// message) that is to be stored or printed.
+std::string with_replacement_characters(std::string_view text);
+
 struct Triple {
   Term s, p, o;
   friend bool operator==(const Triple&, const Triple&) = default;
