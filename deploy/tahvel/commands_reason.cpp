@@ -105,7 +105,11 @@ int run_reason(const Args& args) {
   reasoner::ReasonerOptions options;
   options.rules = args.positional(1);
   options.agent_id = agent_id(args, "reasoner");
-  options.interval = std::chrono::milliseconds(args.get_u64("--interval", 100));
+  const std::uint64_t interval_ms = args.get_u64("--interval", 100);
+  if (interval_ms > static_cast<std::uint64_t>(reasoner::kMaxInterval.count()))
+    usage_error("--interval: " + std::to_string(interval_ms) + " ms is more than a day (at most " +
+                std::to_string(reasoner::kMaxInterval.count()) + ")");
+  options.interval = std::chrono::milliseconds(interval_ms);
   std::string dir = args.positional(0);
   node::Node node = open_node(dir);
   uri::PrefixMap prefixes = prefixes_with_flags(node.prefixes(), args);

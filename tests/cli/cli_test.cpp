@@ -389,6 +389,19 @@ TEST_F(Cli, QueryCascadeBeyondThirtyTwoBitsIsDeepNotNone) {
   }
 }
 
+// --interval past 2^63 ms wrapped to a negative wait, and past a few years overflowed in ns: a
+// session ran at every change. More than a day is refused, naming the value.
+TEST_F(Cli, ReasonIntervalOfMoreThanADayIsAUsageError) {
+  init();
+  spit(tmp_ / "r.rules", "x(S) :- fact(S, rdf:type, _).\n");
+  for (const char* ms : {"86400001", "18446744073709551615"}) {
+    Outcome r = run({"reason", node_, (tmp_ / "r.rules").string(), "--once", "--interval", ms});
+    EXPECT_EQ(r.status, 2) << ms;
+    EXPECT_EQ(r.err, "tahvel: --interval: " + std::string(ms) + " ms is more than a day (at most 86400000)\n");
+  }
+  EXPECT_EQ(run({"reason", node_, (tmp_ / "r.rules").string(), "--once", "--interval", "86400000"}).status, 0);
+}
+
 TEST_F(Cli, RemoveItemPrintsTheRecordCountAndTheRecordsAreGone) {
   init();
   std::string id = put(kObservation);

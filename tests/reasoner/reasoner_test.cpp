@@ -406,4 +406,108 @@ TEST_F(ReasonerTest, RunStartsASessionWhenARelevantRecordArrives) {
   EXPECT_EQ(board().count(nt("x", "p", "y")), 1u);
 }
 
+// RS15: new rules are evaluated on the board. A new rule that reads a predicate the old rules did
+// not read derives from the facts of it already there, as a restart would.
+TEST_F(ReasonerTest, AReloadWithANewRuleDerivesFromFactsOnTheBoard) {
+  put({t("a", "p", "b"), t("a", "q", "c")});
+  auto file = rules("new.rules", "r1(X, Y) :- p(X, Y).\n");
+  auto r = open(file);
+  ASSERT_TRUE(r.session().has_value());
+  rules("new.rules", "r1(X, Y) :- p(X, Y).\nr2(X, Y) :- q(X, Y).\n");
+  auto s = r.session();
+  ASSERT_TRUE(s.has_value()) << s.error().message;
+  EXPECT_TRUE(s->rules_reloaded);
+  EXPECT_FALSE(s->resynced);
+  EXPECT_EQ(board(), (std::map<std::string, int>{{nt("a", "r1", "b"), 1}, {nt("a", "r2", "c"), 1}}));
+  s = r.session();  // and nothing again
+  ASSERT_TRUE(s.has_value());
+  EXPECT_TRUE(s->added.empty());
+  EXPECT_TRUE(s->removed.empty());
+}
+
+// A rule file briefly empty (an editor truncating it before writing) retracts the conclusions;
+// the same rules back give them back.
+TEST_F(ReasonerTest, ARuleFileEmptiedAndRestoredGetsItsConclusionsBack) {
+  put({t("a", "e", "b"), t("b", "e", "c")});
+  const std::string text = "tc(X, Y) :- e(X, Y).\ntc(X, Z) :- e(X, Y), tc(Y, Z).\n";
+  auto file = rules("tc.rules", text);
+  auto r = open(file);
+  ASSERT_TRUE(r.session().has_value());
+  const std::map<std::string, int> closure = {{nt("a", "tc", "b"), 1}, {nt("a", "tc", "c"), 1}, {nt("b", "tc", "c"), 1}};
+  EXPECT_EQ(board(), closure);
+  rules("tc.rules", "");
+  auto s = r.session();
+  ASSERT_TRUE(s.has_value());
+  EXPECT_TRUE(s->rules_reloaded);
+  EXPECT_TRUE(board().empty());
+  rules("tc.rules", text);
+  s = r.session();
+  ASSERT_TRUE(s.has_value());
+  EXPECT_TRUE(s->rules_reloaded);
+  EXPECT_EQ(s->added.size(), 3u);
+  EXPECT_EQ(board(), closure);
+}
+
+// A rule file replaced by one whose expression would overflow the parser's stack is reported
+// (RS15) and the previous rules keep running: the process does not die.
+TEST_F(ReasonerTest, ADeeplyNestedExpressionOnReloadIsReportedWhileThePreviousRulesRun) {
+  auto file = rules("deep.rules", "r(X, W) :- v(X, V), W is V + 1.\n");
+  auto r = open(file);
+  ASSERT_TRUE(r.session().has_value());
+  rules("deep.rules", "r(X, W) :- v(X, V), W is " + std::string(100000, '(') + "V" + std::string(100000, ')') + ".\n");
+  put({{n("a"), n("v"), tn::Term::integer(1)}});
+  auto s = r.session();
+  ASSERT_TRUE(s.has_value());
+  ASSERT_TRUE(s->rules_error.has_value());
+  EXPECT_EQ(s->rules_error->rfind((root_ / "deep.rules").string() + ":1:", 0), 0u) << *s->rules_error;
+  EXPECT_NE(s->rules_error->find("nested deeper than 1000"), std::string::npos) << *s->rules_error;
+  ASSERT_EQ(s->added.size(), 1u);  // the previous rules ran
+  EXPECT_EQ(s->added[0].args[1], tn::Term::integer(2));
+}
+
+// One bulk change (one item, more changes than one watch batch) gives one session: the loop
+// does not go on reading the batches the session already covered, starting a session with
+// nothing to do for each. stop() is asked once per loop turn, and each turn after the bulk
+// session with a leftover batch would run one at once (interval 0); twelve turns with no session
+// cover the eight batches of the reasoner's own conclusions, which do not count.
+TEST_F(ReasonerTest, ABulkChangeGivesOneSessionNotOnePerWatchBatch) {
+  tr::ReasonerOptions o;
+  o.rules = rules("bulk.rules", "r(X, Y) :- e(X, Y).\n");
+  o.interval = std::chrono::milliseconds(0);
+  auto r = tr::Reasoner::open(root_ / "node", o);
+  ASSERT_TRUE(r.has_value()) << r.error().message;
+  tn::Item bulk;
+  for (int i = 0; i < 30000; ++i) bulk.add(n("x" + std::to_string(i)), n("e"), n("y" + std::to_string(i)));
+  std::vector<tr::SessionReport> reports;
+  int turns_after_bulk = 0;
+  auto ran = r->run(
+      [&](const tr::SessionReport& report) {
+        reports.push_back(report);
+        if (reports.size() == 1) {
+          EXPECT_TRUE(init_->store(bulk).has_value());  // while running
+        }
+        return reports.size() < 5;
+      },
+      [&] { return reports.size() >= 2 && ++turns_after_bulk > 12; });
+  ASSERT_TRUE(ran.has_value()) << ran.error().message;
+  ASSERT_EQ(reports.size(), 2u);
+  EXPECT_EQ(reports[1].added.size(), 30000u);
+}
+
+// An interval beyond one day would overflow run()'s arithmetic in nanoseconds (and a negative
+// one is what a wrapped-around unsigned flag gives): refused at open, naming the option.
+TEST_F(ReasonerTest, AnIntervalAboveOneDayIsRefused) {
+  tr::ReasonerOptions o;
+  o.rules = rules("i.rules", "r(X, Y) :- e(X, Y).\n");
+  for (auto bad : {std::chrono::milliseconds(10'000'000'000'000), std::chrono::milliseconds(-1),
+                   tr::kMaxInterval + std::chrono::milliseconds(1)}) {
+    o.interval = bad;
+    auto r = tr::Reasoner::open(root_ / "node", o);
+    ASSERT_FALSE(r.has_value()) << bad.count();
+    EXPECT_EQ(r.error().message, "the interval between sessions (--interval) must be 0 to 86400000 ms (one day)");
+  }
+  o.interval = tr::kMaxInterval;
+  EXPECT_TRUE(tr::Reasoner::open(root_ / "node", o).has_value());
+}
+
 }  // namespace

@@ -534,4 +534,76 @@ TEST(Rules, CompactDropsRowsOfGoneFactsAndKeepsConclusions) {
   EXPECT_EQ(before.size(), 15u);  // a chain of 5 edges: 5 + 4 + 3 + 2 + 1
 }
 
+// RS6: a named variable under a negation is bound by the literals written before it. Bound only
+// by a later literal it is an error naming the negation, not a negation reordered after that
+// literal (SWI-Prolog gives nothing for r on these facts: \+ c(a, Z) fails, as a has a c).
+TEST(Rules, ANamedVariableUnderANegationBoundOnlyLaterIsAnError) {
+  auto p = tr::parse_rules("r(X, Y) :- b(X, Y), \\+ c(X, Z), d(Z, Y).\n", options("neg.rules"));
+  ASSERT_FALSE(p.has_value());
+  EXPECT_EQ(p.error().message, "neg.rules:1:24: variable Z is not bound by any positive literal before it "
+                               "(unsafe; for 'any value' write _ there)");
+  auto later = parse("r(X, Y) :- b(X, Y), d(Z, Y), \\+ c(X, Z).\n");  // bound before it: fine
+  ASSERT_TRUE(later);
+  tr::Engine engine(later);
+  auto u = engine.apply(triples({t("a", "b", "y"), t("a", "c", "z1"), t("z2", "d", "y")}), {}, 0);
+  EXPECT_EQ(strings(u.added), strings({a2("r", "a", "y")}));
+}
+
+// The rule files we ship (and the benchmark's concatenation of two) compile.
+TEST(Rules, ShippedRuleFilesCompile) {
+  for (const char* name : {"robot.rules", "spo2.rules", "heart_rate.rules"}) EXPECT_TRUE(parse(read_rules(name), name));
+  EXPECT_TRUE(parse(read_rules("spo2.rules") + read_rules("heart_rate.rules")));
+}
+
+// RS8: only head variables that no body literal binds come from the callers; L here is bound by
+// `is` once A is known, as in Prolog.
+TEST(Rules, AHeadVariableThatIsBindsOnceTheCallersAreKnownIsNotDemanded) {
+  auto program = parse("limit(A, L) :- L is 130 - A.\nx(P, L) :- age(P, A), limit(A, L).\n");
+  ASSERT_TRUE(program);
+  tr::Engine engine(program);
+  auto u = engine.apply(triples({tl("p1", "age", tn::Term::integer(40)), tl("p2", "age", tn::Term::integer(70))}), {}, 0);
+  std::set<std::string> xs;
+  for (const auto& a : u.added) if (a.predicate == kNs + "x") xs.insert(a.to_string());
+  EXPECT_EQ(xs, strings({tr::Atom{kNs + "x", {n("p1"), tn::Term::integer(90)}},
+                         tr::Atom{kNs + "x", {n("p2"), tn::Term::integer(60)}}}));
+}
+
+// A parser that recurses per level must stop at a bound, with the position, before the stack
+// does: parentheses, signs and long sums or products (the tree is as deep as the sum is long).
+TEST(Rules, DeeplyNestedExpressionsAreAnErrorWithAPosition) {
+  const std::string deep = std::string(100000, '(') + "V" + std::string(100000, ')');
+  std::string sum = "V";
+  for (int i = 0; i < 100000; ++i) sum += " + 1";
+  const std::string signs = std::string(100000, '-') + "V";
+  for (const std::string& e : {deep, sum, signs}) {
+    auto p = tr::parse_rules("r(X, W) :- v(X, V),\n  W is " + e + ".\n", options("deep.rules"));
+    ASSERT_FALSE(p.has_value());
+    EXPECT_EQ(p.error().message.rfind("deep.rules:2:", 0), 0u) << p.error().message;
+    EXPECT_NE(p.error().message.find("expression nested deeper than 1000 levels"), std::string::npos)
+        << p.error().message;
+  }
+  const std::string within = std::string(999, '(') + "V + 1" + std::string(999, ')');
+  EXPECT_EQ(only_conclusion("r(X, W) :- v(X, V), W is " + within + ".\n", {tl("a", "v", tn::Term::integer(1))}),
+            (tr::Atom{kNs + "r", {n("a"), tn::Term::integer(2)}}));
+}
+
+// RS9: a head variable bound by nothing that no rule calls for (a typo) is an error, as is
+// `ranked` naming a predicate no rule defines with that arity.
+TEST(Rules, AHeadVariableNoCallerBindsIsAnError) {
+  auto p = tr::parse_rules("alarm(X, Levl) :- level(X, Level), Level > 5.\n", options("typo.rules"));
+  ASSERT_FALSE(p.has_value());
+  EXPECT_EQ(p.error().message, "typo.rules:1:1: head variable Levl is bound by no literal, and no rule calls " +
+                                   kNs + "alarm/2 to bind it (unsafe)");
+}
+
+TEST(Rules, ARankedDeclarationOfAPredicateNoRuleDefinesIsAnError) {
+  auto p = tr::parse_rules("p(X, Y) :- q(X, Y).\n:- ranked(nope/2).\n", options("r.rules"));
+  ASSERT_FALSE(p.has_value());
+  EXPECT_EQ(p.error().message, "r.rules:2:11: ranked: no rule defines " + kNs + "nope/2");
+  p = tr::parse_rules(":- ranked(p/1).\np(X, Y) :- q(X, Y).\n", options("r.rules"));
+  ASSERT_FALSE(p.has_value());
+  EXPECT_EQ(p.error().message, "r.rules:1:11: ranked: no rule defines " + kNs + "p/1; its rules have arity 2");
+  EXPECT_TRUE(parse(":- ranked(p/2).\np(X, Y) :- q(X, Y).\n"));
+}
+
 }  // namespace

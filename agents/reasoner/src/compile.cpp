@@ -168,6 +168,12 @@ int boundness(const Literal& l, const VarSet& bound, const std::vector<RangeCand
   return (vars + consts == total ? 1000 : 0) + 10 * vars + 3 * ranged + consts;
 }
 
+Unexpected<Error> unbound_before(const Program& program, const Literal& l, const std::string& variable) {
+  return unexpected(Error{where(program, l.pos) + ": variable " + variable +
+                          " is not bound by any positive literal before it (unsafe" +
+                          (l.kind == Literal::negation ? std::string("; for 'any value' write _ there") : "") + ")"});
+}
+
 // An evaluation order of `body` following `preference`: filters (built-ins, negations) as soon
 // as their variables are bound, atoms in preference order. Error names the literal that can
 // never run and its unbound variable.
@@ -201,9 +207,7 @@ Result<std::vector<std::uint32_t>> plan(const Program& program, const Rule& rule
       needs_and_binds(l, bound, needs, binds);
       std::string name = "?";
       for (std::uint32_t v : needs) if (!bound[v]) { name = rule.var_names[v]; break; }
-      return unexpected(Error{where(program, l.pos) + ": variable " + name +
-                              " is not bound by any positive literal before it (unsafe" +
-                              (l.kind == Literal::negation ? std::string("; for 'any value' write _ there") : "") + ")"});
+      return unbound_before(program, l, name);
     }
     bind_vars(rule.body[*pick], bound);
     order.push_back(*pick);
@@ -212,12 +216,13 @@ Result<std::vector<std::uint32_t>> plan(const Program& program, const Rule& rule
   return order;
 }
 
-// Variables bound by running every runnable literal to a fixpoint (order-free).
-VarSet reachable_bindings(const Rule& rule) {
-  VarSet bound(rule.vars, false);
+// Variables bound, starting from `bound`, by running every runnable literal among the body's
+// first `count` to a fixpoint (order-free).
+VarSet reachable_bindings(const Rule& rule, std::size_t count, VarSet bound) {
   for (bool changed = true; changed;) {
     changed = false;
-    for (const Literal& l : rule.body) {
+    for (std::size_t i = 0; i < count; ++i) {
+      const Literal& l = rule.body[i];
       if (l.kind == Literal::cut || !runnable(l, bound)) continue;
       VarSet before = bound;
       bind_vars(l, bound);
@@ -225,6 +230,10 @@ VarSet reachable_bindings(const Rule& rule) {
     }
   }
   return bound;
+}
+
+VarSet reachable_bindings(const Rule& rule) {
+  return reachable_bindings(rule, rule.body.size(), VarSet(rule.vars, false));
 }
 
 std::uint32_t add_pred(Program& program, std::string name, std::uint32_t arity) {
@@ -312,23 +321,52 @@ void add_existential_negations(Program& program, std::vector<int>& cuts) {
 struct Demand {
   std::vector<std::uint32_t> positions;  // head argument positions the callers bind
   std::uint32_t pred = 0;
+  Pos pos;               // the first rule that needs it, and
+  std::string variable;  // its first head variable from the callers, for the error when none calls
 };
+
+// Head argument positions a rule needs from its callers (RS8): those of the head variables that
+// no body literal binds; then, if the body with those known still leaves head variables unbound
+// (both sides of X = Y), theirs too. A variable that a literal binds once the callers' are known
+// (L in `limit(A, L) :- L is 130 - A.`) is not one.
+std::vector<std::uint32_t> demand_positions(const Rule& rule) {
+  VarSet bindable(rule.vars, false);
+  for (const Literal& l : rule.body) {
+    std::vector<std::uint32_t> needs, binds;
+    needs_and_binds(l, VarSet(rule.vars, false), needs, binds);
+    for (std::uint32_t v : binds) bindable[v] = true;
+  }
+  std::vector<std::uint32_t> positions;
+  VarSet from_callers(rule.vars, false);
+  for (std::size_t i = 0; i < rule.head_args.size(); ++i) {
+    const Arg& a = rule.head_args[i];
+    if (!a.is_var || bindable[a.index]) continue;
+    positions.push_back(static_cast<std::uint32_t>(i));
+    from_callers[a.index] = true;
+  }
+  const VarSet bound = reachable_bindings(rule, rule.body.size(), from_callers);
+  for (std::size_t i = 0; i < rule.head_args.size(); ++i) {
+    const Arg& a = rule.head_args[i];
+    const auto at = static_cast<std::uint32_t>(i);
+    if (a.is_var && !bound[a.index] && std::find(positions.begin(), positions.end(), at) == positions.end())
+      positions.push_back(at);
+  }
+  std::sort(positions.begin(), positions.end());
+  return positions;
+}
 
 // Step 1: demand literals for rules with unbound head variables.
 Result<std::map<std::uint32_t, Demand>> add_demand_literals(Program& program, std::vector<int>& cuts) {
   std::map<std::uint32_t, Demand> demands;  // by predicate
   for (std::size_t r = 0; r < program.rules.size(); ++r) {
     Rule& rule = program.rules[r];
-    VarSet bound = reachable_bindings(rule);
-    std::vector<std::uint32_t> positions;
-    for (std::size_t i = 0; i < rule.head_args.size(); ++i) {
-      const Arg& a = rule.head_args[i];
-      if (a.is_var && !bound[a.index]) positions.push_back(static_cast<std::uint32_t>(i));
-    }
+    std::vector<std::uint32_t> positions = demand_positions(rule);
     if (positions.empty()) continue;
     auto [it, fresh] = demands.try_emplace(rule.head);
     if (fresh) {
       it->second.positions = positions;
+      it->second.pos = rule.pos;
+      it->second.variable = rule.var_names[rule.head_args[positions.front()].index];
       const Pred& p = program.preds[rule.head];
       it->second.pred = add_pred(program, "demand for " + p.iri + "/" + std::to_string(p.arity),
                                  static_cast<std::uint32_t>(positions.size()));
@@ -383,8 +421,11 @@ void add_ranking(Program& program, const std::vector<int>& cuts) {
   }
 }
 
-// Step 1b: for every call of a predicate with demand, a rule deriving the demand.
+// Step 1b: for every call of a predicate with demand, a rule deriving the demand. A predicate
+// with demand that no other rule calls could never hold (RS9: its head variable is bound by
+// nothing; most likely a typo, as in `alarm(X, Levl) :- level(X, Level), ...`).
 Result<void> add_demand_rules(Program& program, const std::map<std::uint32_t, Demand>& demands) {
+  std::set<std::uint32_t> called;
   for (std::size_t r = 0; r < program.rules.size(); ++r) {
     for (std::size_t i = 0; i < program.rules[r].body.size(); ++i) {
       const Rule& rule = program.rules[r];
@@ -408,8 +449,16 @@ Result<void> add_demand_rules(Program& program, const std::map<std::uint32_t, De
                                   " leaves " + rule.var_names[a.index] +
                                   " unbound, and an alternative of it binds that argument from its caller only"});
       }
+      if (rule.head != call.pred) called.insert(call.pred);
       program.rules.push_back(std::move(d));
     }
+  }
+  for (const auto& [pred, demand] : demands) {
+    if (called.count(pred)) continue;
+    const Pred& p = program.preds[pred];
+    return unexpected(Error{where(program, demand.pos) + ": head variable " + demand.variable +
+                            " is bound by no literal, and no rule calls " + p.iri + "/" + std::to_string(p.arity) +
+                            " to bind it (unsafe)"});
   }
   return {};
 }
@@ -526,8 +575,24 @@ std::uint32_t ready_step(const Rule& rule, const std::vector<std::uint32_t>& ord
   return static_cast<std::uint32_t>(order.size());
 }
 
+// RS6: a negation's variables are bound by the literals written before it, as in Prolog, where
+// `\+ c(X, Z)` before the literal that binds Z asks whether X has any c at all. (Plans may still
+// move the negation. The rewritten rules keep the property: what comes before their negations is
+// a prefix of a written body, after the demand literal, or the whole body.)
+Result<void> check_negations_follow_their_bindings(const Program& program, const Rule& rule) {
+  for (std::size_t k = 0; k < rule.body.size(); ++k) {
+    const Literal& l = rule.body[k];
+    if (l.kind != Literal::negation) continue;
+    const VarSet bound = reachable_bindings(rule, k, VarSet(rule.vars, false));
+    for (const Arg& a : l.args)
+      if (a.is_var && !bound[a.index]) return unbound_before(program, l, rule.var_names[a.index]);
+  }
+  return {};
+}
+
 Result<void> make_plans(Program& program) {
   for (Rule& rule : program.rules) {
+    if (auto c = check_negations_follow_their_bindings(program, rule); !c) return c;
     std::vector<std::uint32_t> written(rule.body.size());
     for (std::uint32_t i = 0; i < written.size(); ++i) written[i] = i;
     auto full = plan(program, rule, written, VarSet(rule.vars, false), true);
@@ -664,9 +729,27 @@ void collect_reads(Program& program) {
   program.read_binary.assign(binary.begin(), binary.end());
 }
 
+// `:- ranked(p/N).` names a predicate that rules define, with that arity (else a typo).
+Result<void> check_ranked_declarations(const Program& program) {
+  for (const auto& [pred, pos] : program.ranked_declarations) {
+    const Pred& p = program.preds[pred];
+    auto defines = [&](const Rule& rule) { return rule.head == pred; };
+    if (std::any_of(program.rules.begin(), program.rules.end(), defines)) continue;
+    std::set<std::uint32_t> arities;
+    for (const Rule& rule : program.rules)
+      if (program.preds[rule.head].iri == p.iri) arities.insert(program.preds[rule.head].arity);
+    std::string others;
+    for (std::uint32_t n : arities) others += (others.empty() ? "; its rules have arity " : " and ") + std::to_string(n);
+    return unexpected(Error{where(program, pos) + ": ranked: no rule defines " + p.iri + "/" +
+                            std::to_string(p.arity) + others});
+  }
+  return {};
+}
+
 }  // namespace
 
 Result<void> compile_program(Program& program) {
+  if (auto r = check_ranked_declarations(program); !r) return r;
   auto cuts = take_cuts(program);
   if (!cuts) return unexpected(cuts.error());
   add_existential_negations(program, *cuts);

@@ -1,8 +1,10 @@
 // The rule file parser: a hand-written lexer and recursive-descent parser for the thesis'
 // Prolog-like rules (a small grammar, no RDF inside, so no serd). Produces rules as written;
 // compile.cpp rewrites ranking and demand and checks safety. Every error names file:line:col.
+#include <algorithm>
 #include <cctype>
 #include <charconv>
+#include <functional>
 #include <map>
 #include <optional>
 
@@ -18,6 +20,10 @@ std::string where(const Program& program, Pos pos) {
 namespace {
 
 constexpr std::size_t kMaxArity = 15;  // the engine's rows hold at most 15 arguments
+// Parsing, evaluating and freeing an expression recurse once per level (parenthesis, sign or
+// operator): a bound keeps a hostile or generated rule file from overflowing the stack, which
+// on a reload would end the running reasoner rather than report the file.
+constexpr std::uint32_t kMaxExpressionDepth = 1000;
 
 enum class Tok { var, name, iri, literal, punct, end };
 
@@ -310,6 +316,8 @@ class Parser {
   Result<Expr> expression();
   Result<Expr> product();
   Result<Expr> unary();
+  Result<Expr> nested(Pos pos, const std::function<Result<Expr>()>& parse_inner);
+  Result<Expr> combine(Expr::Kind kind, Pos pos, Expr a, std::optional<Expr> b);
   Result<Arg> term(bool allow_now);
   Arg constant(const node::Term& term);
   Arg variable(const std::string& name);
@@ -324,6 +332,7 @@ class Parser {
   Program& program_;
   Token tok_;
   Rule* rule_ = nullptr;  // the clause being parsed
+  std::uint32_t nesting_ = 0;  // parentheses and signs open around the expression being parsed
   std::map<std::string, std::uint32_t> var_index_;
   std::map<std::string, std::uint32_t> const_index_;
   std::map<std::pair<std::string, std::uint32_t>, std::uint32_t> pred_index_;
@@ -382,19 +391,43 @@ Result<Arg> Parser::term(bool allow_now) {
   return expected("a term (variable, IRI, atom, string or number)");
 }
 
+Unexpected<Error> too_deep(const Program& program, Pos pos) {
+  return unexpected(Error{where(program, pos) + ": expression nested deeper than " +
+                          std::to_string(kMaxExpressionDepth) +
+                          " levels (each parenthesis, sign and operator is one)"});
+}
+
+// The inner expression of a parenthesis or a sign at `pos`, one level deeper.
+Result<Expr> Parser::nested(Pos pos, const std::function<Result<Expr>()>& parse_inner) {
+  if (nesting_ >= kMaxExpressionDepth) return too_deep(program_, pos);
+  ++nesting_;
+  auto inner = parse_inner();
+  --nesting_;
+  return inner;
+}
+
+// The node `kind` over `a` (and `b`), unless the tree grows deeper than the bound.
+Result<Expr> Parser::combine(Expr::Kind kind, Pos pos, Expr a, std::optional<Expr> b) {
+  Expr e;
+  e.kind = kind;
+  e.depth = 1 + std::max(a.depth, b ? b->depth : 0);
+  if (e.depth > kMaxExpressionDepth) return too_deep(program_, pos);
+  e.a = std::make_shared<Expr>(std::move(a));
+  if (b) e.b = std::make_shared<Expr>(std::move(*b));
+  return e;
+}
+
 Result<Expr> Parser::unary() {
+  const Pos pos = tok_.pos;
   if (is("-")) {
     if (auto a = advance(); !a) return unexpected(a.error());
-    auto inner = unary();
+    auto inner = nested(pos, [&] { return unary(); });
     if (!inner) return inner;
-    Expr e;
-    e.kind = Expr::neg;
-    e.a = std::make_shared<Expr>(std::move(*inner));
-    return e;
+    return combine(Expr::neg, pos, std::move(*inner), std::nullopt);
   }
   if (is("(")) {
     if (auto a = advance(); !a) return unexpected(a.error());
-    auto inner = expression();
+    auto inner = nested(pos, [&] { return expression(); });
     if (!inner) return inner;
     if (auto c = expect(")", "')' closing the expression"); !c) return unexpected(c.error());
     return inner;
@@ -417,14 +450,13 @@ Result<Expr> Parser::product() {
   auto left = unary();
   if (!left) return left;
   while (is("*") || is("/")) {
-    Expr e;
-    e.kind = is("*") ? Expr::mul : Expr::div;
+    const Pos pos = tok_.pos;
+    const Expr::Kind kind = is("*") ? Expr::mul : Expr::div;
     if (auto a = advance(); !a) return unexpected(a.error());
     auto right = unary();
     if (!right) return right;
-    e.a = std::make_shared<Expr>(std::move(*left));
-    e.b = std::make_shared<Expr>(std::move(*right));
-    left = std::move(e);
+    left = combine(kind, pos, std::move(*left), std::move(*right));
+    if (!left) return left;
   }
   return left;
 }
@@ -433,14 +465,13 @@ Result<Expr> Parser::expression() {
   auto left = product();
   if (!left) return left;
   while (is("+") || is("-")) {
-    Expr e;
-    e.kind = is("+") ? Expr::add : Expr::sub;
+    const Pos pos = tok_.pos;
+    const Expr::Kind kind = is("+") ? Expr::add : Expr::sub;
     if (auto a = advance(); !a) return unexpected(a.error());
     auto right = product();
     if (!right) return right;
-    e.a = std::make_shared<Expr>(std::move(*left));
-    e.b = std::make_shared<Expr>(std::move(*right));
-    left = std::move(e);
+    left = combine(kind, pos, std::move(*left), std::move(*right));
+    if (!left) return left;
   }
   return left;
 }
@@ -642,7 +673,9 @@ Result<void> Parser::directive() {
     if (ec != std::errc() || arity > kMaxArity)
       return error(tok_.pos, "arity " + tok_.term.value + " is out of range (at most " + std::to_string(kMaxArity) + ")");
     std::string iri = name.kind == Tok::iri ? name.text : options_.default_ns + name.text;
-    program_.preds[pred(iri, arity)].ranked = true;
+    const std::uint32_t ranked = pred(iri, arity);
+    program_.preds[ranked].ranked = true;
+    program_.ranked_declarations.emplace_back(ranked, name.pos);
     if (auto a = advance(); !a) return a;
   } else {
     return error(start, "unknown directive '" + which + "' (known: prefix, ranked)");

@@ -28,6 +28,7 @@ struct Expr {
   enum Kind { arg, now, add, sub, mul, div, neg } kind = arg;
   Arg leaf;
   std::shared_ptr<Expr> a, b;
+  std::uint32_t depth = 1;  // levels of the tree; the parser bounds it, as evaluation recurses
 };
 
 // Predicate index kAnyBinary: fact(S, P, O) with a variable P (args = S, P, O).
@@ -133,6 +134,7 @@ class Program {
   std::vector<Stratum> strata;  // in evaluation order
   std::vector<std::uint32_t> read_binary;  // binary predicates some rule reads
   bool reads_any_binary = false;           // some rule reads fact(S, P, O) with a variable P
+  std::vector<std::pair<std::uint32_t, Pos>> ranked_declarations;  // :- ranked(p/N): pred, position of p
   std::size_t written_rules = 0;
 };
 

@@ -71,6 +71,9 @@ struct Reasoner::Impl {
   // read its own conclusions back; the gap check still accounts for them.
   std::uint64_t own_first = 0, own_last = 0;
   std::uint64_t reclaimed = 0;
+  // The rule file changed and parsed, and no session has yet evaluated `program` on the board
+  // (the engine runs the previous rules until one succeeds).
+  bool rules_pending = false;
 
   Impl(node::Node n, node::Agent a, ReasonerOptions o, ParseOptions p, std::shared_ptr<const Program> prog)
       : node(std::move(n)), agent(std::move(a)), options(std::move(o)), parse(std::move(p)),
@@ -86,7 +89,7 @@ struct Reasoner::Impl {
   }
   bool own(const node::Record& r) const { return r.meta.source == agent.iri(); }
 
-  void maybe_reload(SessionReport& report, Engine::Update& update, std::int64_t now);
+  void maybe_reload(SessionReport& report);
   Result<void> read_changes(const node::Snapshot& snap, std::vector<node::Triple>& in,
                             std::vector<node::Triple>& out, bool& gap);
   Result<Engine::Update> first_session(const node::Snapshot& snap, std::int64_t now, SessionReport& report,
@@ -97,7 +100,10 @@ struct Reasoner::Impl {
   Result<SessionReport> session();
 };
 
-void Reasoner::Impl::maybe_reload(SessionReport& report, Engine::Update& update, std::int64_t now) {
+// When the rule file changed and parses, `program` is the new one, which the session evaluates
+// on the whole board (RS15): the engine holds only the facts the old rules read (a new rule may
+// read others; a file that was briefly empty read none).
+void Reasoner::Impl::maybe_reload(SessionReport& report) {
   auto m = mtime(options.rules);
   if (m == rules_mtime) return;
   rules_mtime = m;
@@ -107,8 +113,8 @@ void Reasoner::Impl::maybe_reload(SessionReport& report, Engine::Update& update,
     return;
   }
   program = *loaded;
-  compose(update, engine.reload(program, now));
   report.rules_reloaded = true;
+  rules_pending = true;
 }
 
 // Insertions after the bookmark from the snapshot; removals up to its last seq from the log.
@@ -178,25 +184,26 @@ Result<Engine::Update> Reasoner::Impl::first_session(const node::Snapshot& snap,
   return u;
 }
 
-// From scratch, after a gap or a reclaim: the conclusions that changed, and also the board
-// checked against them, since a ring or TTL may have reclaimed this reasoner's own records (a
-// conclusion that still holds is written again) or left part of an n-ary one.
+// From scratch under `program`, after a gap, a reclaim or a reload: the conclusions that changed,
+// and also the board checked against them, since a ring or TTL may have reclaimed this
+// reasoner's own records (a conclusion that still holds is written again) or left part of an
+// n-ary one. The board is read for the facts `program` reads, which after a reload are not
+// only those the engine held.
 Result<Engine::Update> Reasoner::Impl::resync(const node::Snapshot& snap, std::int64_t now, SessionReport& report,
                                               std::vector<node::Triple>& extra_removals) {
   const auto read_start = Clock::now();
+  Engine fresh(program);
   std::vector<node::Triple> base;
   std::map<std::string, node::Triple> mine;
   auto walked = snap.for_each({}, [&](const node::Record& r) {
     if (own(r)) mine.emplace(key_of(r.triple), r.triple);
-    else if (r.triple.p.is_iri() && engine.relevant(r.triple.p.value)) base.push_back(r.triple);
+    else if (r.triple.p.is_iri() && fresh.relevant(r.triple.p.value)) base.push_back(r.triple);
     return true;
   });
   if (!walked) return unexpected(node_error(walked.error()));
   report.read_ms += ms_since(read_start);
-  report.resynced = true;
   report.facts_in = base.size();
   std::vector<Atom> before = engine.conclusions();
-  Engine fresh(program);
   fresh.apply(base, {}, now);
   engine = std::move(fresh);
   std::vector<Atom> after = engine.conclusions();
@@ -260,9 +267,14 @@ Result<SessionReport> Reasoner::Impl::session() {
   SessionReport report;
   const std::int64_t now = wall_ns();
   Engine::Update update;
-  maybe_reload(report, update, now);
-  // Rows of facts that went accumulate (a ring store): rebuild when they dominate.
-  if (started) {
+  maybe_reload(report);
+  if (rules_pending && !started) {  // the first session reads the whole board anyway
+    engine = Engine(program);
+    rules_pending = false;
+  }
+  // Rows of facts that went accumulate (a ring store): rebuild when they dominate (new rules
+  // get a new engine anyway).
+  if (started && !rules_pending) {
     EngineStats es = engine.stats();
     if (es.rows > 4 * (es.base_facts + es.conclusions) + 65536) compose(update, engine.compact(now));
   }
@@ -283,9 +295,12 @@ Result<SessionReport> Reasoner::Impl::session() {
     if (!u) return unexpected(u.error());
     compose(update, std::move(*u));
   } else {
-    if (auto r = read_changes(*snap, in, out, gap); !r) return unexpected(r.error());
-    report.read_ms = ms_since(t1);
-    if (gap || stats->reclaimed_records != reclaimed) {
+    if (!rules_pending) {
+      if (auto r = read_changes(*snap, in, out, gap); !r) return unexpected(r.error());
+      report.read_ms = ms_since(t1);
+      report.resynced = gap || stats->reclaimed_records != reclaimed;
+    }
+    if (rules_pending || report.resynced) {
       auto u = resync(*snap, now, report, extra_removals);
       if (!u) return unexpected(u.error());
       compose(update, std::move(*u));
@@ -307,10 +322,12 @@ Result<SessionReport> Reasoner::Impl::session() {
     // writes the difference between the board and the rules.
     started = false;
     engine = Engine(program);
+    rules_pending = false;
     return unexpected(w.error());
   }
   report.write_ms = ms_since(t2);
   started = true;
+  rules_pending = false;
   bookmark = report.seq;
   reclaimed = stats->reclaimed_records;
   report.added = std::move(update.added);
@@ -320,6 +337,11 @@ Result<SessionReport> Reasoner::Impl::session() {
 }
 
 Result<Reasoner> Reasoner::open(const std::filesystem::path& dir, ReasonerOptions options) {
+  // run() computes with the interval in nanoseconds: a larger one would overflow (and a
+  // session a day apart is already no longer a reaction to changes).
+  if (options.interval < std::chrono::milliseconds(0) || options.interval > kMaxInterval)
+    return unexpected(Error{"the interval between sessions (--interval) must be 0 to " +
+                            std::to_string(kMaxInterval.count()) + " ms (one day)"});
   auto node = node::Node::open(dir);
   if (!node) return unexpected(node_error(node.error()));
   auto agent = node->agent(options.agent_id);
@@ -370,6 +392,9 @@ Result<void> Reasoner::run(const std::function<bool(const SessionReport&)>& on_s
     pending = false;
     auto next = session();
     if (!next) return unexpected(next.error());
+    // The session read every change up to its snapshot: those the watch has not returned yet
+    // (a bulk change comes back in batches) must not start sessions with nothing to do.
+    watched = std::max(watched, next->seq);
     if (!on_session(*next)) return {};
   }
   return {};

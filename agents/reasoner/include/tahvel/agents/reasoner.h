@@ -27,11 +27,15 @@
 
 namespace tahvel::reasoner {
 
+// The longest interval between sessions that Reasoner::open accepts: one day.
+inline constexpr std::chrono::milliseconds kMaxInterval{86'400'000};
+
 struct ReasonerOptions {
   std::filesystem::path rules;        // the rule file (required); reloaded when it changes
   std::string agent_id = "reasoner";  // IRI = node IRI + "/" + agent_id: the conclusions' source
   std::string default_ns;             // #name and bare atoms; empty: node IRI + "#"
-  std::chrono::milliseconds interval{100};  // run(): at most one session per interval
+  std::chrono::milliseconds interval{100};  // run(): at most one session per interval;
+                                            // 0 to kMaxInterval
   bool persistent = false;            // write conclusions as persistent items (ring/TTL-proof)
 };
 
@@ -56,7 +60,8 @@ struct SessionReport {
 class Reasoner {
  public:
   // Opens the node in `dir` and loads the rules. Errors: the node cannot be opened, the rule
-  // file cannot be read or does not parse (message file:line:col), a bad agent id.
+  // file cannot be read or does not parse (message file:line:col), a bad agent id, an
+  // interval below 0 or above kMaxInterval.
   static Result<Reasoner> open(const std::filesystem::path& dir, ReasonerOptions options);
 
   Reasoner(Reasoner&&) noexcept;
@@ -65,7 +70,8 @@ class Reasoner {
 
   const std::string& iri() const;  // the agent IRI, source of the conclusions
 
-  // One session now (reloading the rule file first when it changed). Errors: the store's
+  // One session now (reloading the rule file first when it changed: new rules are evaluated
+  // on the whole board, as at start, and the difference written). Errors: the store's
   // (reading the snapshot, writing or removing conclusions); a failed write leaves the
   // reasoner's state as before the session, so the next session retries it.
   Result<SessionReport> session();

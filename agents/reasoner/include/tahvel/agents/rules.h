@@ -119,7 +119,9 @@ class Engine {
                std::int64_t now_ns);
 
   // Replaces the rules, keeps the base facts, recomputes everything; the update is the
-  // difference between the old program's conclusions and the new one's.
+  // difference between the old program's conclusions and the new one's. The engine holds only
+  // the facts the old rules read: facts of a predicate only the new rules read are not there
+  // (the reasoner agent reads its board again on a reload instead).
   Update reload(std::shared_ptr<const Program> program, std::int64_t now_ns);
 
   // Derives everything again from the base facts held, as a first session does (all strata
