@@ -1356,12 +1356,21 @@ int run_up(const Args& args) {
       // the uplink's own subscriptions are the file's. Those the parent sent down stay.
       auto snap = check(node.snapshot());
       const std::string subscriber = std::string(federation::vocab::kTv) + "subscriber";
+      bool narrowed = false;
       for (const auto& r : check(snap.list({.p = node::Term::iri(subscriber), .o = node::Term::iri(uplink.iri())}))) {
         if (r.meta.source != uplink.iri() || kept.count(r.meta.item)) continue;
         const std::string pattern = pattern_text(snap, r.meta.item, node.prefixes());
         check(uplink.unsubscribe(r.meta.item));
+        narrowed = true;
         std::cout << "up: " << spec.id << ": removed the forwarding pattern '" << pattern
                   << "', no longer in the file (item " << r.meta.item << ")\n";
+      }
+      // What the removed patterns queued while the parent was away stays home too: a policy
+      // narrowed to keep raw ECG at home must not still send the backlog.
+      if (narrowed) {
+        if (const std::uint64_t withdrawn = check(uplink.withdraw_unrouted()); withdrawn > 0)
+          std::cout << "up: " << spec.id << ": " << withdrawn << (withdrawn == 1 ? " item" : " items")
+                    << " queued for '" << spec.parent << "' under the removed patterns stay on the node (out of the outbox)\n";
       }
     }
   }

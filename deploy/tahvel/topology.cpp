@@ -12,7 +12,9 @@
 #include <set>
 #include <toml++/toml.h>
 
+#include "tahvel/agents/dispatcher.h"
 #include "tahvel/federation/transport.h"
+#include "tahvel/spatial/area_subscriptions.h"
 #include "tahvel/uri/iri.h"
 
 namespace tahvel::cli {
@@ -201,6 +203,10 @@ const char* agent_id_in_use(const std::string& id) {
   if (id == "deploy") return "the one `up` loads files as";
   if (id == "cli") return "the one `tahvel put` and `tahvel store` write as";
   if (id.starts_with("query-")) return "one of `tahvel query`'s";
+  // The area keeper and the dispatcher take every item in their input buffers, which on the
+  // parent are a child's down queue: configuration for such a child would be eaten.
+  if (id == spatial::kAreaKeeperId) return "the node's area keeper, which takes every item addressed to it";
+  if (id == agents::DispatcherOptions{}.agent_id) return "the node's dispatcher, which takes every item addressed to it";
   return nullptr;
 }
 
@@ -368,9 +374,11 @@ node::Result<Topology> load_topology(const std::filesystem::path& file) {
           return Unexpected<node::Error>{ok.error()};
         if (auto ok = uri::check_id(agent.id); !ok)
           return node::fail(Errc::invalid_argument, where(*at, file) + ": node '" + spec.id + "': agent id '" + agent.id + "': " + ok.error().message);
-        // link and uplink are the link's agents; supervisor writes the node's programs (up).
-        if (!seen.insert(agent.id).second || agent.id == "link" || agent.id == "uplink" || agent.id == "supervisor")
+        if (!seen.insert(agent.id).second)
           return node::fail(Errc::invalid_argument, where(*at, file) + ": node '" + spec.id + "': agent id '" + agent.id + "' is taken");
+        if (const char* owner = agent_id_in_use(agent.id))
+          return node::fail(Errc::invalid_argument, where(*at, file) + ": node '" + spec.id + "': agent id '" + agent.id +
+                                                        "' is taken: it is " + owner);
         auto run = strings((*at)["run"].node(), file, "agent '" + agent.id + "': run");
         if (!run) return Unexpected<node::Error>{run.error()};
         if (run->empty()) return node::fail(Errc::invalid_argument, where(*at, file) + ": agent '" + agent.id + "' needs run = [command, args...]");

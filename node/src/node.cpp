@@ -745,6 +745,21 @@ Result<void> Agent::unsubscribe(std::uint64_t subscription) {
   });
 }
 
+Result<std::uint64_t> Agent::withdraw_unrouted() {
+  std::uint64_t withdrawn = 0;
+  auto done = impl_->env->write([&](Txn& txn) -> Result<void> {
+    auto self = impl_->self_id(txn.raw());
+    if (!self) return unexpected(self.error());
+    if (*self == 0) return {};
+    auto n = detail::withdraw_unrouted(txn, *self, impl_->iri);
+    if (!n) return unexpected(n.error());
+    withdrawn = *n;
+    return {};
+  });
+  if (!done) return unexpected(done.error());
+  return withdrawn;
+}
+
 Result<std::vector<std::uint64_t>> Agent::written(std::uint64_t after, std::size_t limit) const {
   ReadTxn read(*impl_->env);
   if (auto r = read.begin(); !r) return unexpected(r.error());

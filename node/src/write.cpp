@@ -154,15 +154,18 @@ bool source_matches(const Subscription& sub, std::uint64_t source, std::string_v
   return source_iri.starts_with(sub.source_iri) && uri::is_under(source_iri, sub.source_iri);
 }
 
+bool routes(const Subscription& sub, std::uint64_t item_id, const ItemRow& item,
+            const std::vector<std::array<std::uint64_t, 3>>& triples, std::string_view source_iri) {
+  if (sub.item == item_id) return false;  // a subscription does not receive itself
+  if (!source_matches(sub, item.source, source_iri)) return false;
+  return std::any_of(triples.begin(), triples.end(), [&](const auto& t) { return triple_matches(sub, t[0], t[1], t[2]); });
+}
+
 Result<void> route_to(Txn& txn, const Subscription& sub, std::uint64_t item_id, ItemRow& item,
                       const std::vector<std::array<std::uint64_t, 3>>& triples,
                       std::string_view source_iri) {
-  if (sub.item == item_id) return {};  // a subscription does not receive itself
-  if (!source_matches(sub, item.source, source_iri)) return {};
-  for (const auto& t : triples) {
-    if (triple_matches(sub, t[0], t[1], t[2])) return deliver(txn, sub.agent, sub.slot, item_id, item);
-  }
-  return {};
+  if (!routes(sub, item_id, item, triples, source_iri)) return {};
+  return deliver(txn, sub.agent, sub.slot, item_id, item);
 }
 
 // Subscriptions that require a context are looked up by the item's context: a parent with a
@@ -507,6 +510,59 @@ Result<std::uint64_t> apply_retention(Txn& txn) {
   auto ttl = apply_ttl(txn, rules);
   if (!ttl) return ttl;
   return *ring + *ttl;
+}
+
+Result<std::uint64_t> withdraw_unrouted(Txn& txn, std::uint64_t agent, const std::string& agent_iri) {
+  if (auto r = refresh_caches(txn); !r) return unexpected(r.error());
+  std::vector<std::uint64_t> waiting;
+  {
+    MDB_cursor* cursor = nullptr;
+    int rc = mdb_cursor_open(txn.raw(), txn.env().inbox, &cursor);
+    if (rc != 0) return lmdb_fail(rc, "opening the input buffers");
+    MDB_val k = val(agent), v;
+    for (rc = mdb_cursor_get(cursor, &k, &v, MDB_SET); rc == 0; rc = mdb_cursor_get(cursor, &k, &v, MDB_NEXT_DUP))
+      waiting.push_back(u64(v));
+    mdb_cursor_close(cursor);
+    if (rc != MDB_NOTFOUND) return lmdb_fail(rc, "reading an input buffer");
+  }
+  std::vector<Subscription> own;
+  {
+    std::lock_guard lock(txn.env().cache_mutex);
+    for (const Subscription& sub : txn.env().subs)
+      if (sub.agent == agent) own.push_back(sub);
+  }
+  TermReader terms(txn.raw(), txn.env());
+  std::uint64_t withdrawn = 0;
+  for (const std::uint64_t item_id : waiting) {
+    auto row = get_item(txn.raw(), txn.env(), item_id);
+    if (!row) return unexpected(row.error());
+    if (!*row) continue;  // removed; the buffer entry goes when it is taken
+    ItemRow item = **row;
+    if (item.context) {  // addressed to the agent, or to something under it (R18)
+      auto context = terms.iri(item.context);
+      if (!context) return unexpected(context.error());
+      if (*context == agent_iri || uri::is_under(*context, agent_iri)) continue;
+    }
+    std::vector<std::array<std::uint64_t, 3>> triples;
+    for (std::uint64_t id = item_id; id < item_id + item.count; ++id) {
+      auto record = get_record(txn.raw(), txn.env(), id);
+      if (!record) return unexpected(record.error());
+      if (*record) triples.push_back({(*record)->s, (*record)->p, (*record)->o});
+    }
+    auto source = terms.iri(item.source);
+    if (!source) return unexpected(source.error());
+    const bool routed = std::any_of(own.begin(), own.end(), [&](const Subscription& sub) {
+      return (!sub.context || sub.context == item.context) && routes(sub, item_id, item, triples, *source);
+    });
+    if (routed) continue;
+    MDB_val k = val(agent), v = val(item_id);
+    if (int rc = mdb_del(txn.raw(), txn.env().inbox, &k, &v); rc != 0) return lmdb_fail(rc, "withdrawing from an input buffer");
+    if (txn.counters.pending > 0) --txn.counters.pending;
+    if (item.pending > 0) --item.pending;
+    if (auto put = put_item(txn, item_id, item); !put) return unexpected(put.error());
+    ++withdrawn;
+  }
+  return withdrawn;
 }
 
 }  // namespace tahvel::node::detail

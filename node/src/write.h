@@ -33,6 +33,10 @@ Result<std::uint64_t> insert_item(Txn& txn, const Item& item, const std::string&
 // writes, since with a memory-mapped file a page with no disk block behind it is SIGBUS.
 std::uint64_t write_bound(const Item& item);
 
+// Takes out of the input buffer of `agent` (a term id; IRI `agent_iri`) the items that none of
+// its subscriptions routes to it now and that are not addressed to it (R18); returns how many.
+Result<std::uint64_t> withdraw_unrouted(Txn& txn, std::uint64_t agent, const std::string& agent_iri);
+
 // Applies ring and TTL retention; returns the number of records reclaimed.
 Result<std::uint64_t> apply_retention(Txn& txn);
 

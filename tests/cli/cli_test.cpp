@@ -996,6 +996,12 @@ TEST_F(Cli, UpRefusesATopologyThatCouldNotRunAsWrittenNamingWhatAndWhere) {
       {listening + "[[node]]\nid = \"link\"\nparent = \"hospital\"\n", "node id 'link' is taken on its parent 'hospital'"},
       {listening + "[[node]]\nid = \"cli\"\nparent = \"hospital\"\n", "node id 'cli' is taken on its parent 'hospital'"},
       {listening + "[[node]]\nid = \"query-7\"\nparent = \"hospital\"\n", "node id 'query-7' is taken on its parent 'hospital'"},
+      // The area keeper and the dispatcher take what is addressed to them: a child under either
+      // id lost the configuration sent to it while it was away.
+      {listening + "[[node]]\nid = \"areas\"\nparent = \"hospital\"\n",
+       "node id 'areas' is taken on its parent 'hospital': a child node is agent 'areas' of its parent, and that agent is the node's area keeper"},
+      {listening + "[[node]]\nid = \"dispatcher\"\nparent = \"hospital\"\n", "node id 'dispatcher' is taken on its parent 'hospital'"},
+      {hospital + "  [[node.agent]]\n  id = \"areas\"\n  run = [\"true\"]\n", "node 'hospital': agent id 'areas' is taken"},
       // A misspelt behaviours folder would run nothing, silently.
       {hospital + "behaviours = \"behavours\"\n", "t.toml:4:14: node 'hospital': behaviours: "},
       // A node listening on both kinds: each child says which it links over.

@@ -252,8 +252,14 @@ class Agent {
   // supervisor) returns the existing subscription instead of adding another.
   Result<std::uint64_t> subscribe(const Pattern& pattern);
 
-  // Removes one of this agent's subscriptions (by the id subscribe returned).
+  // Removes one of this agent's subscriptions (by the id subscribe returned). Items it routed
+  // that wait in the input buffer stay there (see withdraw_unrouted).
   Result<void> unsubscribe(std::uint64_t subscription);
+  // Takes out of the input buffer the items that none of this agent's subscriptions would route
+  // to it now and that are not addressed to it (R18): after unsubscribing, what the old
+  // subscriptions alone brought and the agent has not taken. Returns how many. (A link's outbox
+  // when its forwarding policy is narrowed: what was queued under the old policy stays home.)
+  Result<std::uint64_t> withdraw_unrouted();
 
   // Item ids in this agent's output buffer after `after`, oldest first (audit of its writes).
   Result<std::vector<std::uint64_t>> written(std::uint64_t after = 0, std::size_t limit = 0) const;
