@@ -1257,7 +1257,7 @@ int run_up(const Args& args) {
   fs::path pid_file = state / pid_file_name(only);
   // The supervisor of this selection already running is asked to apply the file as it is now,
   // once it is checked (below): `up` again after an edit adds a node, restarts what changed.
-  const pid_t running = supervisor_holding(pid_file);
+  pid_t running = supervisor_holding(pid_file);
   if (running < 0) fail("a supervisor is starting (" + pid_file.string() + "); try again in a moment");
   // A supervisor stopped with SIGSTOP (or hung) would never answer, and one stopped inside a
   // write to a store would hold up this `up` at its own writes: said before anything is touched.
@@ -1318,6 +1318,14 @@ int run_up(const Args& args) {
   if (ec) fail(state.string() + ": " + ec.message());
   // A mistyped --state would start a second, empty deployment beside the first: said.
   if (new_state) std::cout << "up: created the state directory " << state.string() << "\n";
+  // Two `up`s of one state directory at once (a service unit and an operator) each made the same
+  // new store, and one removed what the other had just made. They take turns from here until the
+  // supervisor holds its pid file; the second then finds it running and applies the file to it.
+  const fs::path turn_file = state / ".up.lock";
+  const int turn = ::open(turn_file.c_str(), O_RDWR | O_CREAT | O_CLOEXEC, 0644);
+  if (turn < 0 || flock(turn, LOCK_EX) != 0) fail(turn_file.string() + ": " + std::strerror(errno));
+  running = supervisor_holding(pid_file);
+  if (running < 0) fail("a supervisor is starting (" + pid_file.string() + "); try again in a moment");
   for (const NodeSpec* node_spec : mine) {
     const NodeSpec& spec = *node_spec;
     fs::path store = state / spec.id;
@@ -1426,6 +1434,7 @@ int run_up(const Args& args) {
   } else if (!hold_pid_file(pid_file)) {
     fail(pid_file.string() + " is held by another supervisor (or cannot be written)");
   }
+  close(turn);  // the supervisor runs: the next `up` applies its file to it
   install_stop_handlers();
   struct sigaction on_hup {};
   on_hup.sa_handler = on_apply_signal;

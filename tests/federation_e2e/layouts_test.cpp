@@ -221,6 +221,32 @@ TEST_F(Deployment, StatusOnEachMachineShowsWhatThatMachineKnowsOfTheLinkBetweenT
   tahvel("down --state " + ward_machine.string());
 }
 
+// Two `up`s of one new state directory at once (a service unit and an operator): one removed
+// the store the other had just made, and both said all was well. They take turns: both succeed,
+// every store is there, and one supervisor runs.
+TEST_F(Deployment, TwoUpsAtOnceOnANewStateDirectoryTakeTurnsAndEveryStoreIsMade) {
+  write_topology("[[node]]\nid = \"ward\"\niri = \"" + kWard + "\"\nlisten = { kind = \"dds\", domain = 8, " + kDdsConfig +
+                 " }\n\n[[node]]\nid = \"gateway\"\nparent = \"ward\"\n\n[[node]]\nid = \"bed\"\nparent = \"ward\"\n");
+  const std::string up_cmd = kBin + "/tahvel up " + (root_ / "topology.toml").string() + " --state " + state_.string();
+  const auto both = run("(" + up_cmd + " > " + (root_ / "up1.out").string() + " 2>&1; echo $? > " + (root_ / "up1.rc").string() + ") & (" +
+                        up_cmd + " > " + (root_ / "up2.out").string() + " 2>&1; echo $? > " + (root_ / "up2.rc").string() + ") & wait");
+  for (const char* which : {"up1", "up2"}) {
+    std::ifstream rc(root_ / (std::string(which) + ".rc")), out(root_ / (std::string(which) + ".out"));
+    const std::string said((std::istreambuf_iterator<char>(out)), std::istreambuf_iterator<char>());
+    int status = -1;
+    rc >> status;
+    EXPECT_EQ(status, 0) << which << ": " << said;
+  }
+  for (const char* node : {"ward", "gateway", "bed"}) EXPECT_TRUE(fs::exists(state_ / node / "data.mdb")) << node;
+  std::string shown;
+  EXPECT_TRUE(eventually([&] {
+    shown = status();
+    return shown.find("gateway  <" + kWard + "/gateway>  link up") != std::string::npos &&
+           shown.find("bed  <" + kWard + "/bed>  link up") != std::string::npos;
+  })) << shown;
+  EXPECT_EQ(run("pgrep -fc '[t]ahvel up " + (root_ / "topology.toml").string() + "'").out, "1\n");
+}
+
 // Three machines, one node each (`up --node`). On the ward's machine `status` shows the whole
 // tree: the gateway, known from the state the ward's link keeps of it, and, asked through the
 // link, the sensor below the gateway and the programs of both, as their supervisors wrote them
