@@ -17,6 +17,7 @@
 #include <atomic>
 #include <cerrno>
 #include <condition_variable>
+#include <charconv>
 #include <cstring>
 #include <deque>
 #include <iostream>
@@ -306,7 +307,8 @@ struct Link::Impl {
     std::string id, iri;
     std::string store_id;  // from its hello: names its up stream (P6a); under mu
     bool connected = false;
-    bool ever = false;
+    bool ever = false;          // connected in this run
+    bool ever_before = false;   // connected in an earlier run (its state on the board said so)
     Clock::time_point last_seen{};
     std::int64_t last_seen_ns = 0;
     std::string version;
@@ -1512,7 +1514,8 @@ struct Link::Impl {
       } else if (!it->second->connected) {
         out.error(via, opt.parent_iri, f.seq,
                   {"unreachable", "<" + child_iri + "> (on the way to <" + q->target + ">) is " +
-                                      (it->second->ever ? "down" : "never connected") + " at <" + self + ">",  // as remote_query says it
+                                      (it->second->ever || it->second->ever_before ? "down" : "never connected") + " at <" + self +
+                                      ">",  // as remote_query says it
                    q->origin});
       } else {
         Frame down = f;
@@ -2579,7 +2582,8 @@ struct Link::Impl {
     item.persistent = true;
     const node::Term c = node::Term::iri(child.iri);
     item.add(c, node::Term::iri(vocab::kParent), node::Term::iri(self));
-    item.add(c, node::Term::iri(vocab::kLinkState), node::Term::literal(child.connected ? "up" : (child.ever ? "down" : "never connected")));
+    item.add(c, node::Term::iri(vocab::kLinkState),
+             node::Term::literal(child.connected ? "up" : (child.ever || child.ever_before ? "down" : "never connected")));
     if (child.last_seen_ns) item.add(c, node::Term::iri(vocab::kLastSeen), node::Term::integer(child.last_seen_ns));
     item.add(c, node::Term::iri(vocab::kOutboxDepth), node::Term::integer(static_cast<std::int64_t>(child.outbox_depth)));
     if (!child.version.empty()) item.add(c, node::Term::iri(vocab::kSoftwareVersion), node::Term::literal(child.version));
@@ -2690,7 +2694,21 @@ Result<std::unique_ptr<Link>> Link::start(LinkOptions options) {
       auto states = snap->list({.p = node::Term::iri(vocab::kLinkState), .source = link_agent->iri()});
       if (!states) return Unexpected<Error>{states.error()};
       for (const auto& r : *states) {
-        if (s.children.count(r.triple.s.value)) continue;
+        if (auto known = s.children.find(r.triple.s.value); known != s.children.end()) {
+          // A child an earlier run had connected is "down" until it says hello again, with the
+          // time it was last seen, not "never connected" (a restarted gateway's children).
+          if (r.triple.o.value == "up" || r.triple.o.value == "down") {
+            known->second->ever_before = true;
+            auto seen = snap->list({.s = r.triple.s, .p = node::Term::iri(vocab::kLastSeen), .source = link_agent->iri()});
+            if (seen && !seen->empty()) {
+              std::int64_t ns = 0;
+              const std::string& text = seen->back().triple.o.value;
+              std::from_chars(text.data(), text.data() + text.size(), ns);
+              known->second->last_seen_ns = ns;
+            }
+          }
+          continue;
+        }
         if (auto gone = node->remove_item(r.meta.item); !gone) return Unexpected<Error>{gone.error()};
       }
     }

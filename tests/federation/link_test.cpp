@@ -581,6 +581,26 @@ TEST(Link, EachChildHasOneStateItemThatFollowsItsLinkAcrossARestartOfTheParent) 
   tree.home1.reset();  // silent for child_silence: down
   EXPECT_TRUE(eventually([&] { return state_of(kHome1) == States{"down"}; })) << state_of(kHome1).size() << " state records";
   EXPECT_EQ(count(tree.hospital_dir, {.s = Term::iri(kHome1), .p = Term::iri(vocab::kParent)}), 1u);
+  // The parent restarts while home1 is away: home1 was connected before, so it is "down" with
+  // the time it was last seen, not "never connected" and never seen (a restarted gateway's
+  // children said so until they were back).
+  auto last_seen = [&] {
+    return node::Node::open(tree.hospital_dir).value().snapshot().value().list({.s = Term::iri(kHome1), .p = Term::iri(vocab::kLastSeen)}).value();
+  };
+  ASSERT_EQ(last_seen().size(), 1u);
+  const std::string seen_before = last_seen()[0].triple.o.value;
+  const std::uint64_t item_before = last_seen()[0].meta.item;
+  auto state_item = [&] {
+    auto records = node::Node::open(tree.hospital_dir).value().snapshot().value().list({.s = Term::iri(kHome1), .p = Term::iri(vocab::kLinkState)}).value();
+    return records.empty() ? 0 : records[0].meta.item;
+  };
+  tree.hospital.reset();
+  tree.hospital = tree.start_hospital();
+  ASSERT_TRUE(eventually([&] { return state_item() != item_before; })) << "the new run wrote no state of home1";
+  EXPECT_EQ(state_of(kHome1), States{"down"});
+  ASSERT_EQ(last_seen().size(), 1u);
+  EXPECT_EQ(last_seen()[0].triple.o.value, seen_before);
+  EXPECT_EQ(state_of(kHome2), States{"never connected"});
 }
 
 // P12a: a child keeps its own view of its uplink on its board (what `tahvel status` shows on a
