@@ -249,6 +249,47 @@ TEST_F(ReasonerTest, AConclusionTheRingReclaimedIsWrittenAgainWhileItHolds) {
   EXPECT_TRUE(s->removed.empty());
 }
 
+// The ring reclaims without a change in the stream (R17): a running reasoner waiting for a
+// relevant change never saw that readings had pushed its conclusions out, and the board stayed
+// without them until some premise changed.
+TEST_F(ReasonerTest, RunWritesAgainTheConclusionsOtherWritersPushedOutOfTheRing) {
+  auto ring = tn::Node::init(root_ / "ring", {.iri = kIri, .ring = 40});
+  ASSERT_TRUE(ring.has_value()) << ring.error().message;
+  auto writer = ring->agent("init");
+  tn::Item premises;
+  premises.persistent = true;
+  premises.triples = {t("a", "parent", "b"), t("b", "parent", "c")};
+  ASSERT_TRUE(writer->store(premises).has_value());
+  tr::ReasonerOptions o;
+  o.rules = rules("anc.rules", "anc(X, Y) :- parent(X, Y).\nanc(X, Z) :- parent(X, Y), anc(Y, Z).\n");
+  o.interval = std::chrono::milliseconds(0);
+  auto r = tr::Reasoner::open(root_ / "ring", o);
+  ASSERT_TRUE(r.has_value()) << r.error().message;
+  auto anc = [&] { return *ring->snapshot()->count({.p = n("anc"), .source = kIri + "/reasoner"}); };
+  std::vector<tr::SessionReport> reports;
+  std::uint64_t after_readings = 99;
+  int turns = 0;
+  auto ran = r->run(
+      [&](const tr::SessionReport& report) {
+        reports.push_back(report);
+        if (reports.size() == 1) {
+          for (int i = 0; i < 60; ++i) {  // irrelevant to the rules: no session of their own
+            tn::Item reading;
+            reading.add(n("sensor"), n("value"), tn::Term::integer(i));
+            EXPECT_TRUE(writer->store(reading).has_value());
+          }
+          after_readings = anc();
+        }
+        return reports.size() < 2;
+      },
+      [&] { return ++turns > 30; });
+  ASSERT_TRUE(ran.has_value()) << ran.error().message;
+  ASSERT_EQ(after_readings, 0u) << "the ring did not reclaim the conclusions: the test proves nothing";
+  ASSERT_EQ(reports.size(), 2u);
+  EXPECT_TRUE(reports[1].resynced);
+  EXPECT_EQ(anc(), 3u);
+}
+
 // A directory opens as an empty stream; read as a rule file without rules it retracted every
 // conclusion of the agent.
 TEST_F(ReasonerTest, ADirectoryIsNotARuleFile) {

@@ -71,6 +71,9 @@ struct Reasoner::Impl {
   // read its own conclusions back; the gap check still accounts for them.
   std::uint64_t own_first = 0, own_last = 0;
   std::uint64_t reclaimed = 0;
+  // The store's reclaim count once the last session's write was done: a count that moves after
+  // it is another writer's records pushing facts or conclusions out of a ring (run()).
+  std::uint64_t reclaimed_after_write = 0;
   // The rule file changed and parsed, and no session has yet evaluated `program` on the board
   // (the engine runs the previous rules until one succeeds).
   bool rules_pending = false;
@@ -326,6 +329,7 @@ Result<SessionReport> Reasoner::Impl::session() {
     return unexpected(w.error());
   }
   report.write_ms = ms_since(t2);
+  if (auto after = node.stats(); after) reclaimed_after_write = after->reclaimed_records;
   started = true;
   rules_pending = false;
   bookmark = report.seq;
@@ -387,6 +391,11 @@ Result<void> Reasoner::run(const std::function<bool(const SessionReport&)>& on_s
       if (!impl_->own(r) && r.triple.p.is_iri() && impl_->engine.relevant(r.triple.p.value)) pending = true;
     }
     if (mtime(impl_->options.rules) != impl_->rules_mtime) pending = true;
+    // A ring or a TTL reclaims without a change in the stream (R17): conclusions pushed out by
+    // other writers' records are written again (and facts that went are retracted from) at
+    // once, not at the next relevant change. Reclaims by this reasoner's own write do not start
+    // a session: a ring too small for the conclusions would have it write for ever.
+    if (auto st = impl_->node.stats(); st && st->reclaimed_records != impl_->reclaimed_after_write) pending = true;
     if (!pending || Clock::now() - last < impl_->options.interval) continue;
     last = Clock::now();
     pending = false;
