@@ -34,7 +34,6 @@ constexpr std::array kTerms = {
     std::string_view("areaSubscriber"),
     std::string_view("areaSubscription"),
     std::string_view("baseline"),
-    std::string_view("behavior"),
     std::string_view("command"),
     std::string_view("computedAt"),
     std::string_view("context"),
