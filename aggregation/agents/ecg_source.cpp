@@ -49,12 +49,32 @@ agg::Result<Signal> record_signal(const std::string& path) {
   Signal s;
   s.name = h.name;
   s.info.fs = h.fs;
-  s.info.gain = h.signals.empty() ? 200 : h.signals[0].gain;
-  s.info.baseline = h.signals.empty() ? 0 : h.signals[0].baseline;
-  s.info.unit = h.signals.empty() ? "mV" : h.signals[0].units;
-  for (const auto& sig : h.signals) s.info.leads.push_back(sig.description);
   s.info.source = std::filesystem::path(h.directory).filename().string() + "/" + h.name;
-  s.read = [shared](std::size_t n, Frames& out) { return shared->read(n, out); };
+  if (h.signals.empty()) {
+    s.info.gain = 200;
+    s.read = [shared](std::size_t n, Frames& out) { return shared->read(n, out); };
+    return s;
+  }
+  // The chunks carry the record's ECG lead first, whatever its place in the record (a record
+  // may begin with respiration or blood pressure), with its gain per millivolt: the R-peak
+  // agent reads the first lead at the recording's gain (agg::ecg_signal, as `tahvel hrv`).
+  const std::size_t ecg = agg::ecg_signal(h);
+  std::vector<std::size_t> order{ecg};
+  for (std::size_t i = 0; i < h.signals.size(); ++i)
+    if (i != ecg) order.push_back(i);
+  s.info.gain = agg::gain_per_mv(h.signals[ecg]);
+  s.info.baseline = h.signals[ecg].baseline;
+  s.info.unit = h.signals[ecg].units;
+  if (s.info.gain != h.signals[ecg].gain) s.info.unit = "mV";  // converted from uV or V
+  for (std::size_t i : order) s.info.leads.push_back(h.signals[i].description);
+  s.read = [shared, order, in_record = Frames()](std::size_t n, Frames& out) mutable -> agg::Result<std::size_t> {
+    in_record.assign(order.size(), {});
+    auto got = shared->read(n, in_record);
+    if (!got) return got;
+    out.resize(order.size());
+    for (std::size_t k = 0; k < order.size(); ++k) out[k].insert(out[k].end(), in_record[order[k]].begin(), in_record[order[k]].end());
+    return got;
+  };
   return s;
 }
 

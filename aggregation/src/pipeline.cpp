@@ -29,11 +29,16 @@ Result<HrvReport> hrv_from_record(const std::string& record_path, const ChainOpt
                                   std::size_t channel) {
   auto signals = read_signals(record_path);
   if (!signals) return unexpected(signals.error());
+  if (channel == kEcgSignal) channel = ecg_signal(signals->header);
   if (channel >= signals->samples.size())
     return fail(record_path + ".hea: no signal " + std::to_string(channel) + " (the record has " +
                 std::to_string(signals->samples.size()) + ")");
   const SignalInfo& info = signals->header.signals[channel];
-  return hrv_from_samples(signals->samples[channel], signals->header.fs, info.gain, options);
+  auto report = hrv_from_samples(signals->samples[channel], signals->header.fs, gain_per_mv(info), options);
+  if (!report) return fail(record_path + ": " + report.error().message);
+  report->signal = channel;
+  report->warnings = checksum_mismatches(*signals);
+  return report;
 }
 
 }  // namespace tahvel::aggregation

@@ -146,6 +146,7 @@ class RPeakDetector::Impl {
   void seed_noise();
   void accept(const Peak& p, std::vector<std::int64_t>& out);
   bool tick(std::int64_t now);
+  void learn(std::int64_t seconds);
   bool baseline_shift(std::int64_t at) const;
   struct Gap {
     bool empty = false;   // nothing QRS-like between the beats
@@ -649,7 +650,13 @@ bool RPeakDetector::Impl::tick(std::int64_t now) {
   second_peak_ = 0;
   if (++seconds_ < relearn_) return false;
   seconds_ = 0;
-  for (std::size_t i = 0; i < 8; ++i) qrs_[i] = second_max_[i % static_cast<std::size_t>(relearn_)];
+  learn(relearn_);
+  return true;
+}
+
+// The thresholds from the per-second maxima of the first `seconds` entries of second_max_.
+void RPeakDetector::Impl::learn(std::int64_t seconds) {
+  for (std::size_t i = 0; i < 8; ++i) qrs_[i] = second_max_[i % static_cast<std::size_t>(seconds)];
   qrs_med_ = median8(qrs_);
   noise_.fill(0);
   noise_at_.fill(-1);
@@ -657,7 +664,6 @@ bool RPeakDetector::Impl::tick(std::int64_t now) {
   rr_.fill(static_cast<double>(second_));
   rr_med_ = static_cast<double>(second_);
   have_sb_ = false;
-  return true;
 }
 
 // The noise level at the end of learning: the median height of the learning candidates below
@@ -681,6 +687,16 @@ void RPeakDetector::Impl::finish(std::vector<std::int64_t>& out) {
   if (finished_) return;
   if (fmax_ > 0) on_fpeak(fmax_, fmax_at_);
   if (holding_) release_held(out);
+  if (!learned_ && !learning_.empty()) {
+    // A stream shorter than the learning period (a record of a few seconds): the thresholds
+    // come from the seconds it has, and its candidates are classified, not dropped.
+    second_max_[static_cast<std::size_t>(seconds_)] = second_peak_;
+    learn(seconds_ + 1);
+    learned_ = true;
+    seed_noise();
+    for (const Peak& p : learning_) classify(p, out);
+    learning_.clear();
+  }
   finished_ = true;
 }
 

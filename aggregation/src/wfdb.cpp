@@ -3,6 +3,8 @@
 // work on whole byte blocks so a 30-minute MIT-BIH record decodes in one pass.
 #include "tahvel/aggregation/wfdb.h"
 
+#include <algorithm>
+#include <cctype>
 #include <charconv>
 #include <cmath>
 #include <filesystem>
@@ -386,6 +388,68 @@ Result<Signals> read_signals(const std::string& record_path) {
 double to_physical(std::int32_t adu, const SignalInfo& info) {
   double gain = info.gain == 0 ? 200.0 : info.gain;
   return (static_cast<double>(adu) - info.baseline) / gain;
+}
+
+namespace {
+
+std::string lower(std::string_view text) {
+  std::string out(text);
+  for (char& c : out) c = static_cast<char>(std::tolower(static_cast<unsigned char>(c)));
+  return out;
+}
+
+// Units of a voltage, as millivolts per unit; 0 for anything else.
+double millivolts_per_unit(std::string_view units) {
+  const std::string u = lower(units);
+  if (u == "mv") return 1;
+  if (u == "uv" || u == "\xc2\xb5v" || u == "\xce\xbcv") return 1e-3;  // µ as MICRO SIGN or GREEK MU
+  if (u == "v") return 1e3;
+  return 0;
+}
+
+// Whether a signal's description names an ECG lead: "ECG", "EKG", "ECG1", "ECG lead II",
+// "MLII", "ML II", "V1".."V6", "I", "II", "III", "aVR", "aVL", "aVF", "D1".."D3".
+bool names_ecg_lead(std::string_view description) {
+  std::string d = lower(description);
+  std::erase(d, ' ');
+  if (d.find("ecg") != std::string::npos || d.find("ekg") != std::string::npos) return true;
+  for (const char* lead : {"mli", "mlii", "mliii", "i", "ii", "iii", "avr", "avl", "avf", "d1", "d2", "d3", "v1", "v2", "v3", "v4",
+                           "v5", "v6", "mv1", "mv2", "mv3", "mv4", "mv5", "mv6", "cm5", "modv1", "modv5"})
+    if (d == lead) return true;
+  return false;
+}
+
+}  // namespace
+
+std::vector<std::string> checksum_mismatches(const Signals& signals) {
+  std::vector<std::string> out;
+  for (std::size_t i = 0; i < signals.samples.size() && i < signals.header.signals.size(); ++i) {
+    const SignalInfo& info = signals.header.signals[i];
+    if (!info.has_checksum) continue;
+    std::uint16_t sum = 0;
+    for (std::int32_t v : signals.samples[i]) sum = static_cast<std::uint16_t>(sum + static_cast<std::uint16_t>(v));
+    const auto said = static_cast<std::uint16_t>(info.checksum);
+    if (sum != said)
+      out.push_back(signals.header.directory + "/" + signals.header.name + ".hea: signal " + std::to_string(i) + " (" +
+                    info.description + "): its samples add up to " + std::to_string(static_cast<std::int16_t>(sum)) +
+                    ", the header's checksum is " + std::to_string(static_cast<std::int16_t>(said)) +
+                    " (is " + info.file + " in format " + std::to_string(info.format) + "?)");
+  }
+  return out;
+}
+
+double gain_per_mv(const SignalInfo& info) {
+  const double gain = info.gain == 0 ? 200 : info.gain;
+  const double mv = millivolts_per_unit(info.units);
+  return mv > 0 ? gain / mv : gain;
+}
+
+std::size_t ecg_signal(const RecordHeader& header) {
+  for (std::size_t i = 0; i < header.signals.size(); ++i)
+    if (names_ecg_lead(header.signals[i].description)) return i;
+  for (std::size_t i = 0; i < header.signals.size(); ++i)
+    if (millivolts_per_unit(header.signals[i].units) > 0) return i;
+  return 0;
 }
 
 }  // namespace tahvel::aggregation

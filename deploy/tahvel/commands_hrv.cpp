@@ -1,6 +1,7 @@
 // `tahvel hrv`: the HRV chain over a WFDB record (R peaks, RR/NN, HRV for the record and per
 // window), and with --eval the beat-by-beat score of the detector against the record's
 // reference annotations.
+#include <algorithm>
 #include <cmath>
 #include <cstdio>
 #include <iostream>
@@ -41,8 +42,8 @@ std::string metrics_json(const agg::HrvMetrics& m) {
 
 void print_report_json(const std::string& record, const agg::HrvReport& report) {
   std::ostringstream out;
-  out << "{\"record\":\"" << node::json_escape(record) << "\",\"fs\":" << json_number(report.fs)
-      << ",\"beats\":[";
+  out << "{\"record\":\"" << node::json_escape(record) << "\",\"signal\":" << report.signal
+      << ",\"fs\":" << json_number(report.fs) << ",\"beats\":[";
   for (std::size_t i = 0; i < report.beats.size(); ++i) out << (i ? "," : "") << report.beats[i];
   out << "],\"metrics\":" << metrics_json(report.metrics) << ",\"windows\":[";
   for (std::size_t i = 0; i < report.windows.size(); ++i) {
@@ -64,7 +65,8 @@ void print_metrics_line(const char* label, const agg::HrvMetrics& m) {
 }
 
 void print_report_text(const std::string& record, const agg::HrvReport& report) {
-  std::cout << "record " << record << ": " << report.beats.size() << " beats at " << report.fs << " Hz\n";
+  std::cout << "record " << record << ": " << report.beats.size() << " beats at " << report.fs << " Hz (signal "
+            << report.signal << ")\n";
   print_metrics_line("whole record", report.metrics);
   for (const auto& w : report.windows) {
     char label[64];
@@ -73,21 +75,23 @@ void print_report_text(const std::string& record, const agg::HrvReport& report) 
   }
 }
 
-std::string percent(double fraction) {
-  if (!std::isfinite(fraction)) return "-";
+// A percentage for text ("-" when nothing was scored) or JSON (null then).
+std::string percent(double fraction, bool json = false) {
+  if (!std::isfinite(fraction)) return json ? "null" : "-";
   char buf[32];
   std::snprintf(buf, sizeof buf, "%.2f", 100 * fraction);
   return buf;
 }
 
 // Scores each record and prints one line per record and the gross totals.
-int run_eval(const Args& args, const agg::ChainOptions& options) {
+int run_eval(const Args& args, const agg::ChainOptions& options, std::size_t signal) {
   const bool json = args.has("--json");
   agg::BeatScore gross;
   std::ostringstream rows;
   for (const std::string& record : args.positional()) {
-    auto report = agg::hrv_from_record(record, options);
+    auto report = agg::hrv_from_record(record, options, signal);
     if (!report) fail(report.error().message);
+    for (const std::string& warning : report->warnings) std::cerr << "tahvel: warning: " << warning << "\n";
     auto reference = agg::read_annotations(record, "atr");
     if (!reference) fail(reference.error().message);
     agg::BeatScore score = agg::score_beats(*reference, report->beats, report->fs);
@@ -95,8 +99,8 @@ int run_eval(const Args& args, const agg::ChainOptions& options) {
     if (json) {
       rows << (rows.tellp() > 0 ? "," : "") << "{\"record\":\"" << node::json_escape(record)
            << "\",\"tp\":" << score.tp << ",\"fn\":" << score.fn << ",\"fp\":" << score.fp
-           << ",\"sensitivity_pct\":" << percent(score.sensitivity())
-           << ",\"positive_predictivity_pct\":" << percent(score.positive_predictivity()) << "}";
+           << ",\"sensitivity_pct\":" << percent(score.sensitivity(), true)
+           << ",\"positive_predictivity_pct\":" << percent(score.positive_predictivity(), true) << "}";
     } else {
       std::printf("%-24s TP %7lld  FN %5lld  FP %5lld  Se %6s %%  +P %6s %%\n", record.c_str(),
                   static_cast<long long>(score.tp), static_cast<long long>(score.fn),
@@ -106,8 +110,8 @@ int run_eval(const Args& args, const agg::ChainOptions& options) {
   }
   if (json) {
     std::cout << "{\"records\":[" << rows.str() << "],\"tp\":" << gross.tp << ",\"fn\":" << gross.fn
-              << ",\"fp\":" << gross.fp << ",\"sensitivity_pct\":" << percent(gross.sensitivity())
-              << ",\"positive_predictivity_pct\":" << percent(gross.positive_predictivity()) << "}\n";
+              << ",\"fp\":" << gross.fp << ",\"sensitivity_pct\":" << percent(gross.sensitivity(), true)
+              << ",\"positive_predictivity_pct\":" << percent(gross.positive_predictivity(), true) << "}\n";
   } else if (args.positional().size() > 1) {
     std::printf("%-24s TP %7lld  FN %5lld  FP %5lld  Se %6s %%  +P %6s %%\n", "gross",
                 static_cast<long long>(gross.tp), static_cast<long long>(gross.fn),
@@ -132,13 +136,15 @@ double seconds_flag(const Args& args, std::string_view flag, double fallback) {
 
 const Command kHrvCommand{
     "hrv",
-    "RECORD [--window S] [--step S] [--json] | RECORD... --eval [--json]",
+    "RECORD [--signal N] [--window S] [--step S] [--json] | RECORD... --eval [--signal N] [--json]",
     "Run the HRV chain over a WFDB record, or score its beat detection.",
     "RECORD is a WFDB record path without extension (…/mitdb/100): its header (.hea) and signal\n"
-    "file are read, and the first signal goes through the chain: R-peak detection, RR intervals\n"
+    "files are read, and its ECG lead goes through the chain (the first signal named as an ECG\n"
+    "lead, MLII, V1, II, ECG, ...; else the first in volts; else the first; --signal N names\n"
+    "another, 0 the first): R-peak detection, RR intervals\n"
     "with the NN mask (docs/hrv.md), HRV for the whole record and for windows of --window\n"
     "seconds (default 300) every --step seconds (default: the window). --json prints one object:\n"
-    "{record, fs, beats: [sample indices], metrics: {...}, windows: [{start_s, end_s, metrics}]};\n"
+    "{record, signal, fs, beats: [sample indices], metrics: {...}, windows: [{start_s, end_s, metrics}]};\n"
     "a metric whose minimum-length guard fails is null.\n"
     "\n"
     "With --eval, each RECORD's detected beats are scored against its reference annotations\n"
@@ -147,6 +153,7 @@ const Command kHrvCommand{
     "and, for several records, the gross totals.",
     {{"--window", "", "S", "HRV window length in seconds (default 300)"},
      {"--step", "", "S", "start of one window to the next, seconds (default: the window)"},
+     {"--signal", "", "N", "the record's signal to read, 0 the first (default: its ECG lead)"},
      {"--eval", "", "", "score the detected beats against RECORD.atr"},
      {"--json", "", "", "print JSON instead of text"}},
     1, SIZE_MAX};
@@ -155,11 +162,13 @@ int run_hrv(const Args& args) {
   agg::ChainOptions options;
   options.window_s = seconds_flag(args, "--window", 300);
   options.step_s = seconds_flag(args, "--step", options.window_s);
-  if (args.has("--eval")) return run_eval(args, options);
+  const std::size_t signal = args.has("--signal") ? static_cast<std::size_t>(std::min<std::uint64_t>(args.get_u64("--signal", 0), 1u << 20)) : agg::kEcgSignal;
+  if (args.has("--eval")) return run_eval(args, options, signal);
   if (args.positional().size() != 1) usage_error("hrv: one RECORD at a time (several only with --eval)");
   const std::string& record = args.positional(0);
-  auto report = agg::hrv_from_record(record, options);
+  auto report = agg::hrv_from_record(record, options, signal);
   if (!report) fail(report.error().message);
+  for (const std::string& warning : report->warnings) std::cerr << "tahvel: warning: " << warning << "\n";
   if (args.has("--json")) {
     print_report_json(record, *report);
   } else {

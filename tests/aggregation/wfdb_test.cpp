@@ -4,6 +4,8 @@
 #include "tahvel/aggregation/wfdb.h"
 
 #include <gtest/gtest.h>
+
+#include <tuple>
 #include <unistd.h>
 
 #include <cstdint>
@@ -185,6 +187,46 @@ TEST_F(WfdbTemp, Format212DecodesNegativeTwelveBitValuesAndOddSignalCounts) {
   ASSERT_TRUE(end);
   EXPECT_EQ(*end, 0u);
   EXPECT_EQ(out[0], (std::vector<std::int32_t>{-2047, 2047, -1}));
+}
+
+// A record may start with respiration or blood pressure (the HRV chain read it as the ECG and
+// gave 0 beats, or the pulse as beats), and a header may give its gain per microvolt or volt
+// (read as per millivolt, the thresholds were off by a thousand).
+TEST_F(WfdbTemp, TheEcgLeadIsTheFirstNamedOneElseTheFirstInVoltsAndGainIsPerMillivolt) {
+  write("a.hea", "a 3 250 0\na.dat 16 1000/l 16 0 0 0 0 RESP\na.dat 16 100/mmHg 16 0 0 0 0 ABP\na.dat 16 200/mV 16 0 0 0 0 ECG II\n");
+  write("b.hea", "b 2 250 0\nb.dat 16 1000/l 16 0 0 0 0 resp\nb.dat 16 1/uV 16 0 0 0 0\n");
+  write("c.hea", "c 2 250 0\nc.dat 16 10/l 16 0 0 0 0 flow\nc.dat 16 10/mmHg 16 0 0 0 0 pressure\n");
+  write("d.hea", "d 2 360 0\nd.dat 212 200 11 1024 995 -22131 0 V5\nd.dat 212 200 11 1024 1011 20052 0 MLII\n");
+  const std::pair<const char*, std::size_t> cases[] = {{"a", 2}, {"b", 1}, {"c", 0}, {"d", 0}};
+  for (const auto& [name, lead] : cases) {
+    auto h = read_header(record(name));
+    ASSERT_TRUE(h) << h.error().message;
+    EXPECT_EQ(ecg_signal(*h), lead) << name;
+  }
+  SignalInfo info;
+  for (const auto& [units, gain, per_mv] : {std::tuple{"mV", 200.0, 200.0}, std::tuple{"uV", 1.0, 1000.0},
+                                            std::tuple{"\xC2\xB5V", 0.2, 200.0}, std::tuple{"V", 1e6, 1000.0},
+                                            std::tuple{"mmHg", 100.0, 100.0}, std::tuple{"mV", 0.0, 200.0}}) {
+    info.units = units;
+    info.gain = gain;
+    EXPECT_DOUBLE_EQ(gain_per_mv(info), per_mv) << units << " " << gain;
+  }
+}
+
+// A signal file in another format than its header says reads as numbers all the same; its
+// checksum is how WFDB's tools notice (they warn and read on).
+TEST_F(WfdbTemp, ASignalWhoseSamplesDoNotAddUpToTheChecksumIsNamed) {
+  write("r.dat", bytes_of({0x01, 0x00, 0xFF, 0xFF, 0x00, 0x01}));  // 1, -1, 256 in format 16
+  write("r.hea", "r 1 100 3\nr.dat 16 200 16 0 1 256 0 II\n");
+  auto s = read_signals(record("r"));
+  ASSERT_TRUE(s) << s.error().message;
+  EXPECT_TRUE(checksum_mismatches(*s).empty());
+  write("r.hea", "r 1 100 3\nr.dat 16 200 16 0 1 257 0 II\n");
+  s = read_signals(record("r"));
+  ASSERT_TRUE(s) << s.error().message;
+  const auto said = checksum_mismatches(*s);
+  ASSERT_EQ(said.size(), 1u);
+  EXPECT_NE(said[0].find("r.hea: signal 0 (II): its samples add up to 256, the header's checksum is 257"), std::string::npos) << said[0];
 }
 
 TEST_F(WfdbTemp, DefaultsApplyWhenOptionalFieldsAreAbsent) {

@@ -527,6 +527,22 @@ TEST_F(Cli, HrvEvalScoresAgainstTheReferenceAnnotations) {
   EXPECT_NE(r.out.find("+P"), std::string::npos);
 }
 
+// A record of 5 minutes or less has nothing scored: the JSON said "-" where a number goes.
+TEST_F(Cli, HrvEvalJsonWithNothingScoredIsValidJsonWithNulls) {
+  Outcome r = run({"hrv", mitdb_record("100"), "--eval", "--json"});
+  ASSERT_EQ(r.status, 0) << r.err;
+  EXPECT_NE(r.out.find("\"sensitivity_pct\":"), std::string::npos);
+  const std::string dir = (tmp_ / "short").string();
+  fs::create_directories(dir);
+  spit(tmp_ / "short" / "s.hea", "s 1 360 2\ns.dat 16 200 16 0 0 0 0 II\n");
+  spit(tmp_ / "short" / "s.dat", std::string(4, '\0'));
+  spit(tmp_ / "short" / "s.atr", std::string(2, '\0'));  // no annotations: the end word only
+  r = run({"hrv", dir + "/s", "--eval", "--json"});
+  ASSERT_EQ(r.status, 0) << r.err;
+  EXPECT_NE(r.out.find("\"sensitivity_pct\":null,\"positive_predictivity_pct\":null}"), std::string::npos) << r.out;
+  EXPECT_EQ(r.out.find(":-"), std::string::npos) << r.out;
+}
+
 TEST_F(Cli, HrvOnAMissingRecordNamesTheFile) {
   Outcome r = run({"hrv", (tmp_ / "nothing").string()});
   EXPECT_EQ(r.status, 1);

@@ -24,6 +24,8 @@ struct ChainOptions {
 
 struct HrvReport {
   double fs = 0;
+  std::size_t signal = 0;            // hrv_from_record: the record's signal that was read
+  std::vector<std::string> warnings; // hrv_from_record: checksum_mismatches of the record
   std::vector<std::int64_t> beats;   // detected R peaks, sample indices
   std::vector<Interval> intervals;   // consecutive beats, NN-marked
   HrvMetrics metrics;                // the whole series
@@ -35,9 +37,14 @@ struct HrvReport {
 Result<HrvReport> hrv_from_samples(const std::vector<std::int32_t>& samples, double fs,
                                    double gain, const ChainOptions& options = {});
 
-// The chain over signal `channel` (0: the first, MLII in MIT-BIH) of a WFDB record given
-// without extension. Errors: those of read_signals, and a channel the record does not have.
+// `channel` of hrv_from_record: the record's ECG lead (ecg_signal in wfdb.h).
+inline constexpr std::size_t kEcgSignal = static_cast<std::size_t>(-1);
+
+// The chain over signal `channel` of a WFDB record given without extension: by default the
+// record's ECG lead (MLII in MIT-BIH, signal 0), its gain taken per millivolt whatever its
+// units. Errors: those of read_signals, a channel the record does not have, and a sampling
+// rate the detector cannot work at (naming the header).
 Result<HrvReport> hrv_from_record(const std::string& record_path, const ChainOptions& options = {},
-                                  std::size_t channel = 0);
+                                  std::size_t channel = kEcgSignal);
 
 }  // namespace tahvel::aggregation

@@ -74,6 +74,12 @@ struct Signals {
 // expected N samples per signal, found M"). Bytes after the last announced sample are ignored.
 Result<Signals> read_signals(const std::string& record_path);
 
+// One line per signal whose samples do not add up to the header's checksum (16-bit sum): the
+// file is not in the format the header says, or it changed after the header was written.
+// WFDB's tools warn so and read on; so does `tahvel hrv`. Empty when all agree or the header
+// gives no checksums.
+std::vector<std::string> checksum_mismatches(const Signals& signals);
+
 // Streaming reader: frame by frame, for agents that replay a record in chunks. Move-only; owns
 // its open files and closes them in its destructor. Not thread-safe: one reader per thread.
 class SignalReader {
@@ -113,5 +119,15 @@ class SignalReader {
 // Physical value of a raw sample: (adu - baseline) / gain, in info.units. A gain of 0 is read
 // as 200, the WFDB default.
 double to_physical(std::int32_t adu, const SignalInfo& info);
+
+// ADC units per millivolt: the header's gain is per its own unit ("1000(0)/mV" and "1(0)/uV"
+// are one signal). Units other than V, mV, uV and µV are taken as they are.
+double gain_per_mv(const SignalInfo& info);
+
+// The signal the HRV chain reads when none is named: the first whose description names an ECG
+// lead (ECG, EKG, MLII, V1 to V6, I, II, III, aVR, aVL, aVF, …), else the first in volts
+// (V, mV, µV), else the first. In MIT-BIH it is MLII, signal 0; in a record that starts with
+// respiration or blood pressure it is the ECG after it.
+std::size_t ecg_signal(const RecordHeader& header);
 
 }  // namespace tahvel::aggregation
