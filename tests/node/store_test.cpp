@@ -512,49 +512,47 @@ TEST(Store, ManualAckRedeliversUntilAcknowledged) {
   EXPECT_FALSE(*none);
 }
 
-TEST(Store, UnsubscribeStopsDelivery) {
-  TempDir dir;
-  Node node = make_node(dir.path());
-  auto reader = node.agent("reader");
-  auto writer = node.agent("writer");
-  auto sub = reader->subscribe(Pattern{.p = ex("hr")});
-  ASSERT_TRUE(sub);
-  ASSERT_TRUE(writer->store(Item{}.add(ex("o"), ex("hr"), Term::integer(70))));
-  ASSERT_TRUE(reader->unsubscribe(*sub));
-  ASSERT_TRUE(writer->store(Item{}.add(ex("o"), ex("hr"), Term::integer(71))));
-  EXPECT_EQ(*reader->pending(), 1u);
-  auto other = node.agent("other");
-  EXPECT_FALSE(other->unsubscribe(*sub));
+// Agent "reader" subscribed to ex:hr and agent "writer": what unsubscribing leaves behind.
+class HeartRateReader : public ::testing::Test {
+ protected:
+  TempDir dir_;
+  Node node_ = make_node(dir_.path());
+  Agent reader_ = node_.agent("reader").value();
+  Agent writer_ = node_.agent("writer").value();
+  std::uint64_t hr_ = reader_.subscribe(Pattern{.p = ex("hr")}).value();
+};
+
+TEST_F(HeartRateReader, UnsubscribeStopsDelivery) {
+  ASSERT_TRUE(writer_.store(Item{}.add(ex("o"), ex("hr"), Term::integer(70))));
+  ASSERT_TRUE(reader_.unsubscribe(hr_));
+  ASSERT_TRUE(writer_.store(Item{}.add(ex("o"), ex("hr"), Term::integer(71))));
+  EXPECT_EQ(*reader_.pending(), 1u);
+  auto other = node_.agent("other");
+  EXPECT_FALSE(other->unsubscribe(hr_));
 }
 
 // A narrowed forwarding policy: the uplink unsubscribes a pattern, and what that pattern alone
 // queued must not go up after all. Items another subscription routes, or addressed to the
 // agent, stay.
-TEST(Store, WithdrawUnroutedTakesOutOnlyWhatNoSubscriptionRoutesAnyMore) {
-  TempDir dir;
-  Node node = make_node(dir.path());
-  auto reader = node.agent("reader");
-  auto writer = node.agent("writer");
-  auto hr = reader->subscribe(Pattern{.p = ex("hr")});
-  ASSERT_TRUE(hr);
-  ASSERT_TRUE(reader->subscribe(Pattern{.p = ex("spo2")}));
-  const std::uint64_t hr_only = writer->store(Item{}.add(ex("o1"), ex("hr"), Term::integer(70))).value();
-  const std::uint64_t spo2 = writer->store(Item{}.add(ex("o2"), ex("spo2"), Term::integer(97))).value();
+TEST_F(HeartRateReader, WithdrawUnroutedTakesOutOnlyWhatNoSubscriptionRoutesAnyMore) {
+  ASSERT_TRUE(reader_.subscribe(Pattern{.p = ex("spo2")}));
+  const std::uint64_t hr_only = writer_.store(Item{}.add(ex("o1"), ex("hr"), Term::integer(70))).value();
+  const std::uint64_t spo2 = writer_.store(Item{}.add(ex("o2"), ex("spo2"), Term::integer(97))).value();
   const std::uint64_t both =
-      writer->store(Item{}.add(ex("o3"), ex("hr"), Term::integer(71)).add(ex("o3"), ex("spo2"), Term::integer(98))).value();
+      writer_.store(Item{}.add(ex("o3"), ex("hr"), Term::integer(71)).add(ex("o3"), ex("spo2"), Term::integer(98))).value();
   Item addressed;
   addressed.add(ex("o4"), ex("hr"), Term::integer(72));
-  addressed.context = reader->iri();
-  const std::uint64_t to_reader = writer->store(addressed).value();
-  ASSERT_EQ(*reader->pending(), 4u);
-  EXPECT_EQ(*reader->withdraw_unrouted(), 0u);  // every one still routed
-  ASSERT_TRUE(reader->unsubscribe(*hr));
-  EXPECT_EQ(*reader->pending(), 4u);  // unsubscribing alone leaves them
-  EXPECT_EQ(*reader->withdraw_unrouted(), 1u);
+  addressed.context = reader_.iri();
+  const std::uint64_t to_reader = writer_.store(addressed).value();
+  ASSERT_EQ(*reader_.pending(), 4u);
+  EXPECT_EQ(*reader_.withdraw_unrouted(), 0u);  // every one still routed
+  ASSERT_TRUE(reader_.unsubscribe(hr_));
+  EXPECT_EQ(*reader_.pending(), 4u);  // unsubscribing alone leaves them
+  EXPECT_EQ(*reader_.withdraw_unrouted(), 1u);
   std::vector<std::uint64_t> taken;
-  while (auto d = reader->take(std::chrono::milliseconds(0)).value()) taken.push_back(d->item);
+  while (auto d = reader_.take(std::chrono::milliseconds(0)).value()) taken.push_back(d->item);
   EXPECT_EQ(taken, (std::vector<std::uint64_t>{spo2, both, to_reader}));
-  EXPECT_EQ(node.snapshot()->list({.s = ex("o1")})->size(), 1u) << "the item stays in the store, item " << hr_only;
+  EXPECT_EQ(node_.snapshot()->list({.s = ex("o1")})->size(), 1u) << "the item stays in the store, item " << hr_only;
 }
 
 TEST(Store, RemovedUnreadItemLeavesInputBuffer) {
