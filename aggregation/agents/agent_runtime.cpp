@@ -120,7 +120,8 @@ bool subscribe_predicates(Session& session, const std::vector<std::string>& pred
   for (const std::string& p : predicate_iris) {
     node::Pattern pattern;
     pattern.p = node::Term::iri(p);
-    if (auto s = session.agent.subscribe(pattern); !s) {
+    // earlier: a stage started after its input was written (a replay run first) gets it all.
+    if (auto s = session.agent.subscribe(pattern, {.earlier = true}); !s) {
       log_line(session.program, "subscribe <" + p + ">: " + node_error(s.error()));
       return false;
     }

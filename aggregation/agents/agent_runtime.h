@@ -75,7 +75,8 @@ struct Session {
 std::optional<Session> open_session(const std::string& program, const std::string& dir,
                                     const std::string& agent_id);
 
-// Subscribes to each predicate (idempotent). False after printing the error.
+// Subscribes to each predicate (idempotent). A new subscription also brings the matching items
+// already on the board (SubscribeOptions::earlier). False after printing the error.
 bool subscribe_predicates(Session& session, const std::vector<std::string>& predicate_iris);
 
 // What the handler of one delivered item decided. fatal: the item is not acknowledged (it is

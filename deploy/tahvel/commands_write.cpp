@@ -214,17 +214,20 @@ int run_remove(const Args& args) {
 
 const Command kSubscribeCommand{
     "subscribe",
-    "DIR --agent ID [-s S] [-p P] [-o O] [--area IRI|WKT [--floor N]]",
+    "DIR --agent ID [-s S] [-p P] [-o O] [--earlier] [--area IRI|WKT [--floor N]]",
     "Subscribe an agent to a triple pattern, or to the records of an area; print the subscription id.",
     "From now on every item with at least one triple matching the pattern lands once in the\n"
     "agent's input buffer (see 'tahvel take'). The subscription is itself stored as persistent\n"
-    "triples on the whiteboard.\n"
+    "triples on the whiteboard. With --earlier a new subscription also brings the matching items\n"
+    "already on the board into the buffer, oldest first (an agent started after its input).\n"
     "With --area (a room's IRI or CURIE, or a (MULTI)POLYGON in WKT) the agent gets what 'tahvel\n"
     "list --area' selects: matching items whose subject is a feature located in the area or whose\n"
     "source is a sensor there. The printed id is the area subscription's declaration; the node's\n"
     "area keeper ('tahvel up', or 'tahvel areas DIR') keeps it current as sensors are added or\n"
     "moved. 'tahvel remove --item ID' ends it.",
-    {{"--agent", "", "ID", "the subscribing agent (required)"}, kFlagS, kFlagP, kFlagO, kFlagArea, kFlagFloor},
+    {{"--agent", "", "ID", "the subscribing agent (required)"}, kFlagS, kFlagP, kFlagO,
+     {"--earlier", "", "", "also deliver the matching items already on the board (a new subscription only)"},
+     kFlagArea, kFlagFloor},
     1, 1};
 
 int run_subscribe(const Args& args) {
@@ -235,9 +238,10 @@ int run_subscribe(const Args& args) {
   node::Agent agent = check(node.agent(agent_id(args, "")));
   if (!args.has("--area")) {
     if (args.has("--floor")) usage_error("--floor: only with a WKT --area");
-    print_number(check(agent.subscribe(pattern)));
+    print_number(check(agent.subscribe(pattern, {.earlier = args.has("--earlier")})));
     return kExitOk;
   }
+  if (args.has("--earlier")) usage_error("--earlier: not with --area (an area subscription follows sensors as they move)");
   spatial::AreaSpec area = area_flag(args, prefixes);
   {
     // A room that is not on the board is refused, as 'list --area' refuses it: a typo would

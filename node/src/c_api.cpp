@@ -504,19 +504,30 @@ extern "C" tahvel_status tahvel_store(tahvel_agent* agent, const char* rdf, size
   });
 }
 
-extern "C" tahvel_status tahvel_subscribe(tahvel_agent* agent, const char* s, const char* p,
-                                          const char* o, uint64_t* subscription_out) {
-  static constexpr const char* fn = "tahvel_subscribe";
+namespace {
+tahvel_status subscribe_as(const char* fn, tahvel_agent* agent, const char* s, const char* p, const char* o,
+                           bool earlier, uint64_t* subscription_out) {
   return guarded(fn, [&] {
     clear(subscription_out);
     if (!registry().contains(agent)) return bad_handle(fn, "agent");
     auto pattern = parse_pattern(s, p, o);
     if (!pattern) return set_error(fn, pattern.error());
-    auto subscription = agent->agent.subscribe(*pattern);
+    auto subscription = agent->agent.subscribe(*pattern, {.earlier = earlier});
     if (!subscription) return set_error(fn, subscription.error());
     if (subscription_out != nullptr) *subscription_out = *subscription;
     return TAHVEL_OK;
   });
+}
+}  // namespace
+
+extern "C" tahvel_status tahvel_subscribe(tahvel_agent* agent, const char* s, const char* p,
+                                          const char* o, uint64_t* subscription_out) {
+  return subscribe_as("tahvel_subscribe", agent, s, p, o, false, subscription_out);
+}
+
+extern "C" tahvel_status tahvel_subscribe_earlier(tahvel_agent* agent, const char* s, const char* p,
+                                                  const char* o, uint64_t* subscription_out) {
+  return subscribe_as("tahvel_subscribe_earlier", agent, s, p, o, true, subscription_out);
 }
 
 extern "C" tahvel_status tahvel_take(tahvel_agent* agent, int timeout_ms, uint64_t* item_out,

@@ -688,7 +688,7 @@ Result<std::uint64_t> Agent::relay_mark(std::string_view stream) const noexcept 
   }
 }
 
-Result<std::uint64_t> Agent::subscribe(const Pattern& given) {
+Result<std::uint64_t> Agent::subscribe(const Pattern& given, const SubscribeOptions& options) {
   Pattern pattern = given;
   if (pattern.source && !pattern.source->empty()) {
     // Kept in normal form: routing compares sources by dictionary id first.
@@ -725,6 +725,12 @@ Result<std::uint64_t> Agent::subscribe(const Pattern& given) {
     auto stored = insert_item(txn, item, impl_->iri);
     if (!stored) return unexpected(stored.error());
     id = *stored;
+    if (!options.earlier) return {};
+    // Interned by the subscription item in this transaction (not remembered: it may abort).
+    auto self = find_term(txn.raw(), txn.env(), Term::iri(impl_->iri));
+    if (!self) return unexpected(self.error());
+    auto delivered = detail::deliver_earlier(txn, *self, impl_->iri, pattern, id);
+    if (!delivered) return unexpected(delivered.error());
     return {};
   });
   if (!written) return unexpected(written.error());

@@ -9,7 +9,9 @@
 #include <unordered_map>
 
 #include "dictionary.h"
+#include "query.h"
 #include "rows.h"
+#include "wake.h"
 #include "tahvel/uri/iri.h"
 
 namespace tahvel::node::detail {
@@ -563,6 +565,38 @@ Result<std::uint64_t> withdraw_unrouted(Txn& txn, std::uint64_t agent, const std
     ++withdrawn;
   }
   return withdrawn;
+}
+
+Result<std::uint64_t> deliver_earlier(Txn& txn, std::uint64_t agent, const std::string& agent_iri,
+                                      const Pattern& pattern, std::uint64_t before) {
+  if (auto f = flush_index(txn); !f) return unexpected(f.error());
+  // Ids first, then the buffer: Query reads the indexes the deliveries would write beside.
+  std::vector<std::uint64_t> items;
+  {
+    Query query(txn.raw(), txn.env());
+    auto walked = query.for_each(pattern, [&](std::uint64_t id, const RecordRow& row) {
+      if (id >= before) return false;  // ascending ids: nothing earlier follows
+      if (items.empty() || items.back() != row.item) items.push_back(row.item);
+      return true;
+    });
+    if (!walked) return unexpected(walked.error());
+  }
+  std::sort(items.begin(), items.end());
+  items.erase(std::unique(items.begin(), items.end()), items.end());
+  const std::uint32_t slot = WakeBoard::slot_for(agent_iri);
+  std::uint64_t delivered = 0;
+  for (const std::uint64_t item_id : items) {
+    auto row = get_item(txn.raw(), txn.env(), item_id);
+    if (!row) return unexpected(row.error());
+    if (!*row) continue;
+    ItemRow item = **row;
+    const std::uint64_t pending = item.pending;
+    if (auto d = deliver(txn, agent, slot, item_id, item); !d) return unexpected(d.error());
+    if (item.pending == pending) continue;  // in the buffer already
+    if (auto put = put_item(txn, item_id, item); !put) return unexpected(put.error());
+    ++delivered;
+  }
+  return delivered;
 }
 
 }  // namespace tahvel::node::detail

@@ -37,6 +37,13 @@ std::uint64_t write_bound(const Item& item);
 // its subscriptions routes to it now and that are not addressed to it (R18); returns how many.
 Result<std::uint64_t> withdraw_unrouted(Txn& txn, std::uint64_t agent, const std::string& agent_iri);
 
+// Puts into the input buffer of `agent` (a term id; IRI `agent_iri`) every item with id below
+// `before` that has a record matching `pattern` (s, p, o, context, source: what a subscription
+// routes), oldest first, unless it is there already: a new subscription's earlier items
+// (SubscribeOptions::earlier). Returns how many it put.
+Result<std::uint64_t> deliver_earlier(Txn& txn, std::uint64_t agent, const std::string& agent_iri,
+                                      const Pattern& pattern, std::uint64_t before);
+
 // Applies ring and TTL retention; returns the number of records reclaimed.
 Result<std::uint64_t> apply_retention(Txn& txn);
 

@@ -295,6 +295,25 @@ TEST_F(PipelineTest, CrashAndRestartChangeNothing) {
   }
 }
 
+// The whole record replayed before any processing agent was started: each stage's new
+// subscription brings the items already on the board (R10a), so the windows are all there.
+TEST_F(PipelineTest, AgentsStartedAfterTheRecordingEndedProcessAllOfIt) {
+  auto expected = agg::hrv_from_record(record_);
+  ASSERT_TRUE(expected) << expected.error().message;
+  Process source({bin("tahvel-ecg-source"), dir_, "--record", record_, "--speed", "0"});
+  ASSERT_EQ(source.wait(120s), 0);
+  tn::Pattern ends;
+  ends.s = tn::Term::iri(kRecording);
+  ends.p = agg::tv_term("endSample");
+  ASSERT_EQ(*node_->snapshot()->count(ends), 1u) << "the replay had not ended";
+  start_agents();
+  wait_until(std::to_string(expected->windows.size()) + " HRV items",
+             [&] { return *node_->snapshot()->count(hrv_items()) >= expected->windows.size(); });
+  ASSERT_FALSE(HasFatalFailure());
+  for (auto& a : agents_) EXPECT_EQ(a->stop(), 0);
+  expect_windows(*expected);
+}
+
 // prov:wasDerivedFrom leads from every HRV item, through RR and R-peak items, to ECG chunks.
 TEST_F(PipelineTest, ProvenanceLeadsBackToChunks) {
   auto expected = agg::hrv_from_record(record_);

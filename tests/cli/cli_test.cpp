@@ -297,6 +297,19 @@ TEST_F(Cli, TakePrintsASubscribedItemOnceThenTimesOutWithExit3) {
   EXPECT_EQ(second.err, "");
 }
 
+TEST_F(Cli, SubscribeEarlierBringsWhatIsAlreadyOnTheBoardAndRefusesAnArea) {
+  init();
+  put(kObservation);
+  Outcome s = run({"subscribe", node_, "--agent", "late", "-p", "sosa:observedProperty", "--earlier"});
+  ASSERT_EQ(s.status, 0) << s.err;
+  Outcome taken = run({"take", node_, "--agent", "late", "--timeout", "0"});
+  ASSERT_EQ(taken.status, 0) << taken.err;
+  EXPECT_EQ(lines_of(taken.out).size(), 3u) << taken.out;
+  Outcome area = run({"subscribe", node_, "--agent", "ui", "--earlier", "--area", "POLYGON((0 0,1 0,1 1,0 0))"});
+  EXPECT_EQ(area.status, 2);
+  EXPECT_NE(area.err.find("--earlier: not with --area"), std::string::npos) << area.err;
+}
+
 TEST_F(Cli, TakeThatCannotWriteItsOutputLeavesTheItemForTheNextTake) {
   if (!fs::exists("/dev/full")) GTEST_SKIP() << "no /dev/full";
   init();

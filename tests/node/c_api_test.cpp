@@ -102,6 +102,24 @@ TEST_F(CApiTest, StoreTakeAckRoundtrip) {
   tahvel_agent_close(reader);
 }
 
+TEST_F(CApiTest, SubscribeEarlierBringsWhatWasStoredBeforeTheAgentStarted) {
+  tahvel_agent* writer = open_agent("writer");
+  const uint64_t before = store_nt(writer, observation(2, 64));
+  tahvel_agent* late = open_agent("late");
+  ASSERT_EQ(tahvel_subscribe_earlier(late, nullptr, kHeartRate, nullptr, nullptr), TAHVEL_OK)
+      << tahvel_last_error();
+  tahvel_agent* plain = open_agent("plain");
+  ASSERT_EQ(tahvel_subscribe(plain, nullptr, kHeartRate, nullptr, nullptr), TAHVEL_OK);
+  uint64_t item = 0;
+  EXPECT_EQ(tahvel_take(late, 0, &item, nullptr, nullptr), TAHVEL_OK) << tahvel_last_error();
+  EXPECT_EQ(item, before);
+  EXPECT_EQ(tahvel_take(plain, 0, &item, nullptr, nullptr), TAHVEL_TIMEOUT);
+  EXPECT_EQ(tahvel_subscribe_earlier(nullptr, nullptr, kHeartRate, nullptr, nullptr), TAHVEL_INVALID_ARGUMENT);
+  tahvel_agent_close(plain);
+  tahvel_agent_close(late);
+  tahvel_agent_close(writer);
+}
+
 TEST_F(CApiTest, TurtleUsesTheNodePrefixesAndListCascades) {
   tahvel_agent* writer = open_agent("writer");
   store_nt(writer, observation(7, 120));

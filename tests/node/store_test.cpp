@@ -818,5 +818,39 @@ TEST(Store, SubscribingAgainWithTheSamePatternKeepsOneSubscription) {
   EXPECT_EQ(*node.agent("reader")->pending(), 1u);
 }
 
+// R10a: a new subscription with `earlier` brings what it would have routed had it been there
+// from the start: oldest first, once, with its source and context conditions, and the items
+// wait in the buffer like any other (a ring does not reclaim them, the count says so).
+TEST(Store, SubscribingWithEarlierDeliversTheMatchingItemsAlreadyOnTheBoardOldestFirst) {
+  TempDir dir;
+  Node node = make_node(dir.path(), {.ring = 8});
+  auto sensor = node.agent("sensor");
+  auto other = node.agent("other");
+  auto reader = node.agent("reader");
+  ASSERT_TRUE(sensor && other && reader);
+  const std::uint64_t first = sensor->store(Item{}.add(ex("o1"), ex("hr"), Term::integer(70))).value();
+  ASSERT_TRUE(sensor->store(Item{}.add(ex("o2"), ex("spo2"), Term::integer(97))));
+  ASSERT_TRUE(other->store(Item{}.add(ex("o3"), ex("hr"), Term::integer(50))));  // another source
+  const std::uint64_t both =
+      sensor->store(Item{}.add(ex("o4"), ex("hr"), Term::integer(71)).add(ex("o4"), ex("hr"), Term::integer(72))).value();
+  const Pattern hr_of_sensor{.p = ex("hr"), .source = sensor->iri()};
+  const std::uint64_t sub = reader->subscribe(hr_of_sensor, {.earlier = true}).value();
+  EXPECT_EQ(*reader->pending(), 2u);
+  EXPECT_EQ(node.stats()->pending_deliveries, 2u);
+  // Subscribing again finds the subscription and brings nothing more.
+  EXPECT_EQ(reader->subscribe(hr_of_sensor, {.earlier = true}).value(), sub);
+  EXPECT_EQ(*reader->pending(), 2u);
+  const std::uint64_t later = sensor->store(Item{}.add(ex("o5"), ex("hr"), Term::integer(73))).value();
+  // Ring of 8 records: the unread items are kept, what nobody waits for goes.
+  for (int i = 0; i < 6; ++i) ASSERT_TRUE(other->store(Item{}.add(ex("x"), ex("noise"), Term::integer(i))));
+  std::vector<std::uint64_t> taken;
+  while (auto d = reader->take(0ms).value()) taken.push_back(d->item);
+  EXPECT_EQ(taken, (std::vector<std::uint64_t>{first, both, later}));
+  // Without `earlier`, only what comes after.
+  auto plain = node.agent("plain");
+  ASSERT_TRUE(plain->subscribe(Pattern{.p = ex("hr")}));
+  EXPECT_EQ(*plain->pending(), 0u);
+}
+
 }  // namespace
 }  // namespace tahvel::node

@@ -130,6 +130,14 @@ class Snapshot {
   std::unique_ptr<Impl> impl_;
 };
 
+struct SubscribeOptions {
+  // A new subscription also puts into the input buffer, in the same transaction, every item
+  // already on the board that it would have routed, oldest first (R10a): an agent started after
+  // its input was written (a stage of a pipeline started after a recording was replayed) still
+  // gets all of it, and a crash cannot leave the subscription without its earlier items.
+  bool earlier = false;
+};
+
 // ---------------------------------------------------------------------------------------------
 // Agent: a handle that fixes an agent's IRI (= node IRI + "/" + id) and so the `source` of what
 // it writes. Owns the agent's output buffer (what it wrote, for audit) and input buffer
@@ -249,8 +257,9 @@ class Agent {
   // is set, whose source is that IRI or lies under it) lands in this agent's input buffer.
   // since, until and after_id must be unset. Returns the
   // subscription's item id. Subscribing again with the same pattern (an agent restarted by its
-  // supervisor) returns the existing subscription instead of adding another.
-  Result<std::uint64_t> subscribe(const Pattern& pattern);
+  // supervisor) returns the existing subscription instead of adding another, and delivers
+  // nothing more.
+  Result<std::uint64_t> subscribe(const Pattern& pattern, const SubscribeOptions& options = {});
 
   // Removes one of this agent's subscriptions (by the id subscribe returned). Items it routed
   // that wait in the input buffer stay there (see withdraw_unrouted).

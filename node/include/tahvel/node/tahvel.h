@@ -238,6 +238,13 @@ tahvel_status tahvel_store(tahvel_agent* agent, const char* rdf, size_t len, int
 tahvel_status tahvel_subscribe(tahvel_agent* agent, const char* s, const char* p, const char* o,
                                uint64_t* subscription_out);
 
+/* As tahvel_subscribe; a new subscription also puts into the input buffer, in the same
+ * transaction, every item already on the node that it would have routed, oldest first: an
+ * agent started after its input was written still gets all of it. Calling it again (the
+ * subscription exists) delivers nothing more. Errors: as tahvel_subscribe. */
+tahvel_status tahvel_subscribe_earlier(tahvel_agent* agent, const char* s, const char* p, const char* o,
+                                       uint64_t* subscription_out);
+
 /* Takes the oldest item from the agent's input buffer, waiting up to `timeout_ms` milliseconds
  * for one to arrive (woken by the writer's commit, no polling). timeout_ms 0 does not wait;
  * a negative timeout_ms waits without limit.
