@@ -8,10 +8,14 @@
 #include <thread>
 
 #include <fcntl.h>
+#include <signal.h>
+#include <stdio.h>
 #include <unistd.h>
 
 #include <cerrno>
 #include <cstdio>
+#include <cstdlib>
+#include <cstring>
 #include <map>
 #include <random>
 #include <utility>
@@ -166,7 +170,75 @@ Result<std::shared_ptr<Env>> Env::open(const std::filesystem::path& dir_in, cons
   bool exists = std::filesystem::exists(dir / "data.mdb");
   if (init && exists) return fail(Errc::exists, dir.string() + " already holds a store");
   if (!init && !exists) return fail(Errc::not_found, "no store in " + dir.string() + " (run tahvel init)");
+  if (init) {
+    if (auto made = make_store(dir, *init); !made) return unexpected(made.error());
+  }
+  return open_at(dir, nullptr);
+}
 
+namespace {
+
+constexpr std::string_view kInitDirPrefix = ".init-";
+
+// Directories that inits killed before they finished left in `dir` (their process is gone).
+void remove_abandoned_inits(const std::filesystem::path& dir) {
+  std::error_code ec;
+  for (const auto& entry : std::filesystem::directory_iterator(dir, ec)) {
+    const std::string name = entry.path().filename().string();
+    if (!name.starts_with(kInitDirPrefix)) continue;
+    const long pid = std::strtol(name.c_str() + kInitDirPrefix.size(), nullptr, 10);
+    if (pid > 0 && (kill(static_cast<pid_t>(pid), 0) == 0 || errno != ESRCH)) continue;
+    std::filesystem::remove_all(entry.path(), ec);
+  }
+}
+
+// Moves `from` to `to` unless `to` exists (atomically: of two movers one gets EEXIST).
+int move_unless_there(const std::filesystem::path& from, const std::filesystem::path& to) {
+  if (renameat2(AT_FDCWD, from.c_str(), AT_FDCWD, to.c_str(), RENAME_NOREPLACE) == 0) return 0;
+  if (errno != EINVAL && errno != ENOSYS) return errno;
+  // A filesystem without RENAME_NOREPLACE: link() fails on an existing name just as atomically.
+  if (link(from.c_str(), to.c_str()) != 0) return errno;
+  unlink(from.c_str());
+  return 0;
+}
+
+}  // namespace
+
+Result<void> Env::make_store(const std::filesystem::path& dir, const InitOptions& init) {
+  remove_abandoned_inits(dir);
+  std::random_device random;
+  const std::filesystem::path building =
+      dir / (std::string(kInitDirPrefix) + std::to_string(getpid()) + "-" + std::to_string(random()));
+  std::error_code ec;
+  std::filesystem::create_directory(building, ec);
+  if (ec) return fail(Errc::io, "making " + building.string() + ": " + ec.message());
+  auto cleanup = [&] {
+    std::lock_guard lock(registry_mutex);
+    registry.erase({getpid(), building.string()});
+    std::filesystem::remove_all(building, ec);
+  };
+  {
+    auto made = open_at(building, &init);
+    if (!made) {
+      cleanup();
+      return unexpected(made.error());
+    }
+  }  // closed: its data file is complete (and synced when durable)
+  const int moved = move_unless_there(building / "data.mdb", dir / "data.mdb");
+  cleanup();
+  if (moved == EEXIST) return fail(Errc::exists, dir.string() + " already holds a store");
+  if (moved != 0) return fail(Errc::io, "moving the new store into " + dir.string() + ": " + std::strerror(moved));
+  if (init.durability == Durability::durable) {
+    const int fd = ::open(dir.c_str(), O_RDONLY | O_DIRECTORY);
+    if (fd >= 0) {
+      fsync(fd);
+      close(fd);
+    }
+  }
+  return {};
+}
+
+Result<std::shared_ptr<Env>> Env::open_at(const std::filesystem::path& dir, const InitOptions* init) {
   std::lock_guard lock(registry_mutex);
   auto reg_key = std::make_pair(getpid(), dir.string());
   if (auto it = registry.find(reg_key); it != registry.end()) {

@@ -142,7 +142,10 @@ struct IndexEntry {
 
 class Env {
  public:
-  // Opens (or with `init` creates) the environment of `dir`; shared per process.
+  // Opens (or with `init` creates) the environment of `dir`; shared per process. A new store is
+  // made in a directory of its own inside `dir` and its data file moved into place only once
+  // complete, without replacing one there: of two inits at once one gets `exists`, and an init
+  // killed half-way leaves no store that can neither be opened nor made again.
   static Result<std::shared_ptr<Env>> open(const std::filesystem::path& dir, const InitOptions* init);
   ~Env();
 
@@ -200,6 +203,11 @@ class Env {
 
  private:
   Env() = default;
+  // Opens the environment of the directory `dir` (canonical), making its tables and settings
+  // with `init`. open() calls it on the finished store, and with `init` on the new one.
+  static Result<std::shared_ptr<Env>> open_at(const std::filesystem::path& dir, const InitOptions* init);
+  // Makes a new store in a directory of its own in `dir`, then moves its data file into `dir`.
+  static Result<void> make_store(const std::filesystem::path& dir, const InitOptions& init);
   Result<void> open_tables(MDB_txn* txn, bool create);
   Result<void> grow(WriteKind kind);
   Result<void> begin(MDB_txn** txn, unsigned flags);

@@ -8,6 +8,7 @@
 #include <unistd.h>
 
 #include <atomic>
+#include <fstream>
 #include <functional>
 #include <set>
 #include <thread>
@@ -727,6 +728,63 @@ TEST(Store, ReopenKeepsEverything) {
   ASSERT_TRUE(node);
   EXPECT_EQ(node->iri(), testing::kNodeIri);
   EXPECT_EQ(node->snapshot()->item(id)->size(), 1u);
+}
+
+// Agents commonly "open, else init": processes racing so must end with one store, one set of
+// settings and every other init refused, and none of them may reset what the winner wrote.
+TEST(Store, OfInitsRacingOnOneDirectoryExactlyOneMakesTheStoreAndTheRestGetExists) {
+  for (int round = 0; round < 5; ++round) {
+    TempDir dir;
+    const auto store_dir = dir / "node";
+    constexpr int kProcesses = 6;
+    std::vector<pid_t> children;
+    for (int i = 0; i < kProcesses; ++i) {
+      const pid_t pid = fork();
+      ASSERT_GE(pid, 0);
+      if (pid == 0) {
+        auto node = Node::init(store_dir, InitOptions{.iri = testing::kNodeIri, .ring = 100u + static_cast<unsigned>(i)});
+        if (!node) _exit(node.error().code == Errc::exists ? 3 : 1);
+        auto agent = node->agent("a" + std::to_string(i));
+        _exit(agent && agent->store(Item{}.add(ex("o"), ex("by"), Term::integer(i))) ? 0 : 1);
+      }
+      children.push_back(pid);
+    }
+    int made = 0, refused = 0;
+    for (pid_t pid : children) {
+      int status = 0;
+      ASSERT_EQ(waitpid(pid, &status, 0), pid);
+      ASSERT_TRUE(WIFEXITED(status));
+      if (WEXITSTATUS(status) == 0) ++made;
+      else if (WEXITSTATUS(status) == 3) ++refused;
+    }
+    EXPECT_EQ(made, 1) << "round " << round;
+    EXPECT_EQ(refused, kProcesses - 1) << "round " << round;
+    auto node = Node::open(store_dir);
+    ASSERT_TRUE(node) << node.error().message;
+    const auto records = node->snapshot()->list({.p = ex("by")});
+    ASSERT_TRUE(records);
+    ASSERT_EQ(records->size(), 1u);
+    EXPECT_EQ(node->stats()->ring, 100u + std::stoul(records->front().triple.o.value)) << "the winner's settings";
+    EXPECT_TRUE(node->agent("later")->store(Item{}.add(ex("o"), ex("by"), Term::integer(99))));
+  }
+}
+
+// An init killed before it finished leaves only its own directory, which the next init clears.
+TEST(Store, AnInitKilledHalfWayLeavesNothingThatStopsTheNextOne) {
+  TempDir dir;
+  const pid_t gone = fork();
+  ASSERT_GE(gone, 0);
+  if (gone == 0) _exit(0);
+  ASSERT_EQ(waitpid(gone, nullptr, 0), gone);
+  const auto abandoned = dir / (".init-" + std::to_string(gone) + "-1");
+  std::filesystem::create_directories(abandoned);
+  std::ofstream(abandoned / "data.mdb") << "half a store";
+  EXPECT_FALSE(Node::open(dir.path()));
+  auto node = Node::init(dir.path(), InitOptions{.iri = testing::kNodeIri});
+  ASSERT_TRUE(node) << node.error().message;
+  EXPECT_FALSE(std::filesystem::exists(abandoned));
+  for (const auto& entry : std::filesystem::directory_iterator(dir.path()))
+    EXPECT_FALSE(entry.path().filename().string().starts_with(".init-")) << entry.path();
 }
 
 TEST(Store, InitRefusesExistingStoreAndOpenRefusesMissingOne) {
