@@ -261,6 +261,15 @@ Result<std::uint64_t> apply_ttl(Txn& txn, const std::vector<TtlRule>& rules) {
   return removed;
 }
 
+// Whether `subscriber` names an agent of this node (node IRI + "/" + id). A subscription for
+// anyone else (one of another node's agents, brought in by `tahvel load` of that node's dump)
+// routes nothing: no handle here could ever take what it would hold, and items waiting in an
+// input buffer are never reclaimed.
+bool subscriber_of_this_node(const Env& env, std::string_view subscriber) {
+  const std::string& node = env.settings().iri;
+  return subscriber.starts_with(node) && uri::child_id(subscriber, node).has_value();
+}
+
 // Caller holds env.cache_mutex.
 void add_to_cache(Env& env, Subscription sub) {
   const auto index = static_cast<std::uint32_t>(env.subs.size());
@@ -285,6 +294,7 @@ std::optional<std::vector<Subscription>> subscriptions_declared_by(
     if (rows[i][1] != env.vocab.subscriber) continue;
     const Triple& declared = item.triples[i];
     if (declared.s.kind != TermKind::blank || declared.o.kind != TermKind::iri) return std::nullopt;
+    if (!subscriber_of_this_node(env, declared.o.value)) continue;
     Subscription sub{item_id, rows[i][2], 0, 0, 0};
     sub.slot = WakeBoard::slot_for(declared.o.value);
     for (std::size_t k = 0; k < rows.size(); ++k) {
@@ -363,20 +373,23 @@ Result<void> refresh_caches(Txn& txn) {
     auto subs = load_subscriptions(txn);
     if (!subs) return unexpected(subs.error());
     TermReader reader(txn.raw(), env);
+    std::vector<Subscription> routing;
     for (auto& sub : *subs) {
       auto iri = reader.iri(sub.agent);
       if (!iri) return unexpected(iri.error());
+      if (!subscriber_of_this_node(env, *iri)) continue;
       sub.slot = WakeBoard::slot_for(*iri);
       if (sub.source) {
         auto source = reader.iri(sub.source);
         if (!source) return unexpected(source.error());
         sub.source_iri = std::move(*source);
       }
+      routing.push_back(std::move(sub));
     }
     env.subs.clear();
     env.subs_any_context.clear();
     env.subs_by_context.clear();
-    for (Subscription& sub : *subs) add_to_cache(env, std::move(sub));
+    for (Subscription& sub : routing) add_to_cache(env, std::move(sub));
     env.subs_gen = txn.counters.sub_gen;
   }
   if (env.ttl_gen != txn.counters.ttl_gen) {

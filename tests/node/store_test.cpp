@@ -9,6 +9,7 @@
 
 #include <atomic>
 #include <fstream>
+#include <optional>
 #include <functional>
 #include <set>
 #include <thread>
@@ -852,6 +853,31 @@ TEST(Store, SubscriptionWrittenByAnotherAgentRoutesToTheNamedSubscriber) {
   auto got = reader->take(std::chrono::milliseconds(0));
   ASSERT_TRUE(got && *got);
   EXPECT_EQ((*got)->item, *sent);
+}
+
+// A subscription naming another node's agent (what loading that node's dump brings) must not
+// hold items in a buffer nobody here can take: they would never be reclaimed. Checked both
+// ways the cache learns of it: as it is stored, and reloaded by a process that opens the store.
+TEST(Store, ASubscriptionForAnAgentOfAnotherNodeRoutesNothingAndKeepsNothingFromTheRing) {
+  TempDir dir;
+  for (const bool reopen : {false, true}) {
+    const auto where = dir / (reopen ? "reopened" : "as-stored");
+    std::optional<Node> node = make_node(where, {.ring = 4});
+    auto loader = node->agent("loader");
+    Item sub;
+    sub.persistent = true;
+    sub.add(Term::blank("s"), Term::iri(std::string(uri::kTahvelNs) + "subscriber"), Term::iri("http://example.org/other/m"))
+        .add(Term::blank("s"), Term::iri(std::string(uri::kTahvelNs) + "predicate"), ex("hr"));
+    ASSERT_TRUE(loader->store(sub));
+    if (reopen) {
+      node.reset();
+      node.emplace(Node::open(where).value());
+    }
+    auto sensor = node->agent("sensor");
+    for (int i = 0; i < 10; ++i) ASSERT_TRUE(sensor->store(Item{}.add(ex("o" + std::to_string(i)), ex("hr"), Term::integer(i))));
+    EXPECT_EQ(node->stats()->pending_deliveries, 0u) << (reopen ? "reopened" : "as stored");
+    EXPECT_EQ(node->snapshot()->list({.p = ex("hr")})->size(), 4u) << "the ring keeps the newest 4";
+  }
 }
 
 }  // namespace
