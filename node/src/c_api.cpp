@@ -26,7 +26,9 @@
 #include <sstream>
 #include <string>
 #include <string_view>
-#include <unordered_set>
+#include <typeindex>
+#include <typeinfo>
+#include <unordered_map>
 #include <utility>
 #include <vector>
 
@@ -106,26 +108,35 @@ tahvel_status guarded(const char* fn, Body&& body) noexcept {
 
 // --- Handle registry ----------------------------------------------------------------------
 
+// Handles by address and kind: in an FFI every handle is a bare pointer (ctypes' c_void_p), and
+// a node handle passed where an agent's goes must be refused, not used as one.
 class Registry {
  public:
-  void add(const void* handle) {
+  template <class Handle>
+  void add(const Handle* handle) {
     std::lock_guard lock(mutex_);
-    live_.insert(handle);
+    live_.insert_or_assign(handle, std::type_index(typeid(Handle)));
   }
-  // True when `handle` was live and is now removed.
-  bool remove(const void* handle) noexcept {
+  // True when `handle` was live as a Handle and is now removed.
+  template <class Handle>
+  bool remove(const Handle* handle) noexcept {
     std::lock_guard lock(mutex_);
-    return live_.erase(handle) != 0;
+    auto it = live_.find(handle);
+    if (it == live_.end() || it->second != std::type_index(typeid(Handle))) return false;
+    live_.erase(it);
+    return true;
   }
-  bool contains(const void* handle) const noexcept {
+  template <class Handle>
+  bool contains(const Handle* handle) const noexcept {
     if (handle == nullptr) return false;
     std::lock_guard lock(mutex_);
-    return live_.count(handle) != 0;
+    auto it = live_.find(handle);
+    return it != live_.end() && it->second == std::type_index(typeid(Handle));
   }
 
  private:
   mutable std::mutex mutex_;
-  std::unordered_set<const void*> live_;
+  std::unordered_map<const void*, std::type_index> live_;
 };
 
 // Never destroyed, so that handles closed from other static destructors or atexit handlers

@@ -266,6 +266,27 @@ TEST_F(CApiTest, NullHandlesAreInvalidArguments) {
   tahvel_free(nullptr);
 }
 
+// Through an FFI every handle is a bare pointer: one kind passed where the other goes is
+// refused, and closing it as the wrong kind leaves it open.
+TEST_F(CApiTest, ANodeHandleWhereAnAgentGoesAndTheReverseAreInvalidArguments) {
+  tahvel_agent* agent = open_agent("a");
+  auto* agent_as_node = reinterpret_cast<tahvel_node*>(agent);
+  auto* node_as_agent = reinterpret_cast<tahvel_agent*>(node_);
+  tahvel_agent* opened = nullptr;
+  EXPECT_EQ(tahvel_agent_open(agent_as_node, "b", &opened), TAHVEL_INVALID_ARGUMENT);
+  EXPECT_EQ(opened, nullptr);
+  const char nt[] = "<http://a/s> <http://a/p> <http://a/o> .";
+  EXPECT_EQ(tahvel_store(node_as_agent, nt, sizeof nt - 1, TAHVEL_FORMAT_NTRIPLES, nullptr, 0, nullptr),
+            TAHVEL_INVALID_ARGUMENT);
+  EXPECT_EQ(tahvel_node_iri(agent_as_node), nullptr);
+  EXPECT_EQ(tahvel_agent_iri(node_as_agent), nullptr);
+  tahvel_node_close(agent_as_node);
+  tahvel_agent_close(node_as_agent);
+  EXPECT_STREQ(tahvel_agent_iri(agent), "http://example.org/home1/a") << "still open";
+  EXPECT_STREQ(tahvel_node_iri(node_), kNodeIri) << "still open";
+  tahvel_agent_close(agent);
+}
+
 TEST_F(CApiTest, ClosedHandlesAreInvalidArguments) {
   tahvel_node* other = nullptr;
   ASSERT_EQ(tahvel_node_open(dir_.c_str(), &other), TAHVEL_OK) << tahvel_last_error();
