@@ -95,6 +95,16 @@ TEST(Wkt, RefusesMalformedTextNamingTheColumn) {
       {"POLYGON((0 0, 4 0, 4 4, 0 4, 0 0), (5 5, 6 5, 6 6, 5 5))", 36, "outside the outer ring"},
       {"MULTIPOLYGON(((0 0, 1 0, 1 1, 0 0)), ((0 0, 1 0, 1 1, 0 1)))", 39, "not closed"},
       {"<http://x/crs POINT(1 2)", 1, "without '>'"},
+      // A typo is not two numbers: "1.5.5" is not (1.5 .5), "4-0" not (4 -0).
+      {"POINT(1.5.5)", 7, "malformed number '1.5.5'"},
+      {"POINT(2e1.5)", 7, "malformed number '2e1.5'"},
+      {"POLYGON((0 0,4-0,4 4,0 4,0 0))", 14, "malformed number '4-0'"},
+      {"POINT(1)", 8, "expected white space and a second coordinate, found ')'"},
+      // Beyond this the exact geometry overflows (1e154 crashed CGAL; 1e308 the grid).
+      {"POLYGON((-1e308 10, 1e308 10, 1e308 11, -1e308 11, -1e308 10))", 10, "beyond +/-1e15"},
+      {"POLYGONZ((0 0 0, 4 0 0, 4 4 0, 0 0 0))", 8, "Z and M coordinates are not supported"},
+      {"POINTZM(1 1 1 1)", 6, "Z and M coordinates are not supported"},
+      {"SRID=4326;POINT(1 1)", 1, "EWKT's 'SRID=...;' is not WKT"},
   };
   for (const Refusal& c : cases) {
     Error e = error_of(c.text);

@@ -248,6 +248,11 @@ TEST_F(BoardTest, LooksLikeWkt) {
   EXPECT_FALSE(looks_like_wkt("room/kitchen"));
   EXPECT_TRUE(looks_like_wkt("MultiPolygon(((0 0, 1 0, 1 1, 0 0)))"));
   EXPECT_TRUE(looks_like_wkt("LINESTRING(0 0, 1 1)"));  // WKT, refused by the parser as a type
+  // Refused by the parser with the reason, not taken for an IRI with white space in it.
+  EXPECT_TRUE(looks_like_wkt("POLYGONZ((0 0 0, 1 0 0, 1 1 0, 0 0 0))"));
+  EXPECT_TRUE(looks_like_wkt("PointM(1 2 3)"));
+  EXPECT_TRUE(looks_like_wkt("SRID=4326;POINT(1 2)"));
+  EXPECT_FALSE(looks_like_wkt("srid:x"));
 }
 
 // The test: moving a sensor from one room to another changes which area subscription

@@ -7,6 +7,7 @@
 #include <cctype>
 #include <charconv>
 #include <iterator>
+#include <cstring>
 #include <set>
 
 #include "tahvel/spatial/wkt.h"
@@ -154,7 +155,12 @@ bool looks_like_wkt(std::string_view text) {
       "POINT", "LINESTRING", "POLYGON", "MULTIPOINT", "MULTILINESTRING", "MULTIPOLYGON",
       "GEOMETRYCOLLECTION", "TRIANGLE", "TIN", "POLYHEDRALSURFACE", "CIRCULARSTRING",
       "COMPOUNDCURVE", "CURVEPOLYGON", "MULTICURVE", "MULTISURFACE"};
-  return kTypes.count(word) > 0;
+  if (kTypes.count(word) > 0) return true;
+  // A dimension written against the type ("POLYGONZ"), or EWKT's "SRID=4326;POLYGON(...)": WKT
+  // that the parser refuses with the reason, not an IRI with white space in it.
+  for (const char* suffix : {"ZM", "Z", "M"})
+    if (word.ends_with(suffix) && kTypes.count(word.substr(0, word.size() - std::strlen(suffix))) > 0) return true;
+  return word == "SRID" && i < text.size() && text[i] == '=';
 }
 
 Result<Area> resolve_area(const BoardPlan& board, const AreaSpec& spec) {

@@ -26,16 +26,27 @@ bool is_space(char c) { return c == ' ' || c == '\t' || c == '\n' || c == '\r'; 
 bool is_alpha(char c) { return std::isalpha(static_cast<unsigned char>(c)) != 0; }
 bool is_digit(char c) { return c >= '0' && c <= '9'; }
 
+constexpr double kMaxCoordinate = 1e15;
+
 class Parser {
  public:
   explicit Parser(std::string_view text) : text_(text) {}
 
   Result<Geometry> parse() {
     skip_space();
+    if (text_.substr(pos_, 5) == "SRID=" || text_.substr(pos_, 5) == "srid=")
+      return error(pos_, "EWKT's 'SRID=...;' is not WKT: give the CRS as an IRI before the geometry (<http://www.opengis.net/def/crs/...>)");
     if (auto crs = skip_crs(); !crs) return unexpected(crs.error());
     std::size_t at = pos_;
     auto word = keyword();
     if (!word) return unexpected(word.error());
+    // "POLYGONZ" and the like: a known type with its dimension written against it.
+    for (const char* type : {"POINT", "POLYGON", "MULTIPOLYGON"}) {
+      const std::string_view stem(type);
+      const std::string_view rest = std::string_view(*word).substr(std::min(word->size(), stem.size()));
+      if (word->starts_with(stem) && (rest == "Z" || rest == "M" || rest == "ZM"))
+        return error(at + stem.size(), "Z and M coordinates are not supported (the floor is tv:floor)");
+    }
     Result<Geometry> geometry = fail("");
     if (*word == "POINT") {
       geometry = point_text();
@@ -155,11 +166,23 @@ class Parser {
       i = e;
     }
     std::size_t from = text_[start] == '+' ? start + 1 : start;  // from_chars refuses '+'
+    // A number ends at white space, ',' or ')': "1.5.5" or "4-0" is a typo, not two numbers.
+    if (i < text_.size() && !is_space(text_[i]) && text_[i] != ',' && text_[i] != ')') {
+      std::size_t end = i;
+      while (end < text_.size() && !is_space(text_[end]) && text_[end] != ',' && text_[end] != ')') ++end;
+      return error(start, "malformed number '" + std::string(text_.substr(start, end - start)) + "'");
+    }
     double value = 0;
     auto [end, ec] = std::from_chars(text_.data() + from, text_.data() + i, value);
     if (ec != std::errc() || end != text_.data() + i || !std::isfinite(value)) {
       return error(start, "number '" + std::string(text_.substr(start, i - start)) +
                               "' is out of range");
+    }
+    // Beyond this the exact geometry's products overflow a double (and no floor plan, in metres
+    // or in degrees, comes near it).
+    if (std::abs(value) > kMaxCoordinate) {
+      return error(start, "coordinate '" + std::string(text_.substr(start, i - start)) +
+                              "' is beyond +/-1e15, the range a floor plan may use");
     }
     pos_ = i;
     return value;
@@ -169,6 +192,8 @@ class Parser {
   Result<Point> coordinates() {
     auto x = number();
     if (!x) return unexpected(x.error());
+    if (pos_ < text_.size() && !is_space(text_[pos_]))
+      return error(pos_, "expected white space and a second coordinate, found " + found());
     auto y = number();
     if (!y) return unexpected(y.error());
     skip_space();
