@@ -4,10 +4,12 @@
 // itself or by the node's keeper.
 #include "tahvel/spatial/board.h"
 #include "tahvel/spatial/area_subscriptions.h"
+#include "tahvel/spatial/environment_board.h"
 
 #include <stdlib.h>
 
 #include <filesystem>
+#include <limits>
 #include <set>
 
 #include <gtest/gtest.h>
@@ -234,6 +236,38 @@ TEST_F(BoardTest, NamingARoomWithMalformedGeometryOrASensorSaysSo) {
   auto sensor = list_in_area(*snapshot, {}, {kMote, std::nullopt, std::nullopt});
   ASSERT_FALSE(sensor.has_value());
   EXPECT_EQ(sensor.error().message, kMote + " is a sensor (its geo:asWKT is a POINT), not a room");
+}
+
+// NaN and infinite periods are refused with a reason; a period of centuries is "rarely" and a
+// duration of centuries ends at the end of time, neither an overflow into the past.
+TEST_F(BoardTest, SensingSubscriptionsRefuseNonFiniteAgesAndSaturateHugeOnes) {
+  auto subscription = [&](const std::string& id, const std::string& max_age, const std::string& duration) {
+    const Term self = Term::iri(kHome + "/sensing/" + id);
+    const auto tv = [](const char* local) { return Term::iri(std::string(uri::kTahvelNs) + local); };
+    node::Item item;
+    item.persistent = true;
+    item.add(self, Term::iri(std::string(node::kRdfType)), tv("SensingSubscription"))
+        .add(self, tv("quantity"), tv("temperature"))
+        .add(self, tv("area"), Term::iri(kBedroom))
+        .add(self, tv("maxAgeS"), Term::literal(max_age, std::string(node::xsd::kDouble)));
+    if (!duration.empty()) item.add(self, tv("durationS"), Term::literal(duration, std::string(node::xsd::kDouble)));
+    put(item);
+  };
+  subscription("nan", "NaN", "");
+  subscription("inf", "INF", "");
+  subscription("nan-duration", "600", "NaN");
+  subscription("centuries", "1e10", "1e10");
+  auto read = read_sensing_subscriptions(*node_->snapshot());
+  ASSERT_TRUE(read.has_value());
+  ASSERT_EQ(read->problems.size(), 3u);
+  std::set<std::string> refused(read->problems.begin(), read->problems.end());
+  EXPECT_TRUE(refused.count(kHome + "/sensing/nan: tv:maxAgeS must be a positive finite number of seconds"));
+  EXPECT_TRUE(refused.count(kHome + "/sensing/inf: tv:maxAgeS must be a positive finite number of seconds"));
+  EXPECT_TRUE(refused.count(kHome + "/sensing/nan-duration: tv:durationS must be a positive number of seconds (absent: no end)"));
+  ASSERT_EQ(read->subscriptions.size(), 1u);
+  EXPECT_EQ(read->subscriptions[0].until_ns, std::numeric_limits<std::int64_t>::max());
+  EXPECT_EQ(saturating_ns(1e10), std::numeric_limits<std::int64_t>::max());
+  EXPECT_EQ(saturating_ns(1.5), 1'500'000'000);
 }
 
 TEST_F(BoardTest, LooksLikeWkt) {

@@ -190,7 +190,7 @@ class Simulator {
 
   bool is_due(const std::pair<std::string, sp::Quantity>& key, double period_s, std::int64_t now_ns) const {
     auto last = last_time_.find(key);
-    return last == last_time_.end() || now_ns - last->second >= static_cast<std::int64_t>(period_s * 1e9);
+    return last == last_time_.end() || now_ns - last->second >= sp::saturating_ns(period_s);
   }
 
   tn::Node& node_;

@@ -4,6 +4,8 @@
 
 #include <algorithm>
 #include <charconv>
+#include <cmath>
+#include <limits>
 #include <cstdio>
 
 #include "tahvel/spatial/board.h"
@@ -98,9 +100,12 @@ Result<SensingSubscriptions> read_sensing_subscriptions(const node::Snapshot& sn
     std::string problem;
     if (!quantity) problem = "no tv:quantity among " + std::string("temperature humidity light movement");
     else if (s.area.empty()) problem = "no tv:area (a room IRI)";
-    else if (!max_age || *max_age <= 0) problem = "tv:maxAgeS must be a positive number";
-    else if (above.has_value() != period.has_value() || (period && *period <= 0))
-      problem = "a threshold rule needs tv:thresholdAbove and a positive tv:thresholdPeriodS";
+    else if (!max_age || !(*max_age > 0) || std::isinf(*max_age))
+      problem = "tv:maxAgeS must be a positive finite number of seconds";
+    else if (duration && (std::isnan(*duration) || *duration < 0))
+      problem = "tv:durationS must be a positive number of seconds (absent: no end)";
+    else if (above.has_value() != period.has_value() || (period && !(*period > 0)) || (above && std::isnan(*above)))
+      problem = "a threshold rule needs a number tv:thresholdAbove and a positive tv:thresholdPeriodS";
     if (!problem.empty()) {
       out.problems.push_back(s.iri + ": " + problem);
       continue;
@@ -108,7 +113,10 @@ Result<SensingSubscriptions> read_sensing_subscriptions(const node::Snapshot& sn
     s.quantity = *quantity;
     s.max_age_s = *max_age;
     if (duration && *duration > 0) {
-      s.until_ns = head.meta.asserted_at + static_cast<std::int64_t>(*duration * 1e9);
+      const std::int64_t length = saturating_ns(*duration);
+      s.until_ns = length > std::numeric_limits<std::int64_t>::max() - head.meta.asserted_at
+                       ? std::numeric_limits<std::int64_t>::max()
+                       : head.meta.asserted_at + length;
     }
     if (above) s.rule = ThresholdRule{*above, *period};
     out.subscriptions.push_back(std::move(s));

@@ -3,6 +3,8 @@
 // since now - valid time), so the vectors stay short.
 #include "tahvel/spatial/environment.h"
 
+#include <limits>
+
 #include <algorithm>
 
 namespace tahvel::spatial {
@@ -29,6 +31,13 @@ double sensing_period_s(const SensingSubscription& s, std::optional<double> last
     return std::min(s.rule->period_s, s.max_age_s);
   }
   return s.max_age_s;
+}
+
+std::int64_t saturating_ns(double seconds) {
+  constexpr double kMax = 9.2e18;  // below INT64_MAX (9.22e18), exactly representable
+  const double ns = seconds * 1e9;
+  if (!(ns < kMax)) return std::numeric_limits<std::int64_t>::max();
+  return ns <= 0 ? 0 : static_cast<std::int64_t>(ns);
 }
 
 void EnvironmentAggregator::add(const std::string& room, const Reading& reading) {

@@ -46,6 +46,10 @@ struct SensingSubscription {
 // a rule can only make sensing more frequent, so the freshness promise always holds.
 double sensing_period_s(const SensingSubscription& s, std::optional<double> last_value);
 
+// `seconds` (>= 0) in nanoseconds, saturating at INT64_MAX: a period of centuries is "rarely",
+// not an overflow into a negative period that makes every step due.
+std::int64_t saturating_ns(double seconds);
+
 struct Reading {
   Quantity quantity = Quantity::temperature;
   double value = 0;          // movement: 1 movement detected, 0 none
