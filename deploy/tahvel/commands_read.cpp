@@ -116,8 +116,11 @@ int run_list(const Args& args) {
   }
   node::Snapshot snapshot = check(node.snapshot());
   if (area) {
-    auto records = spatial::list_in_area(snapshot, pattern, *area, options);
+    std::vector<std::string> skipped;
+    auto records = spatial::list_in_area(snapshot, pattern, *area, options, &skipped);
     if (!records) fail("--area: " + records.error().message);
+    // A feature whose place cannot be read is in no area: say so, or it is silently missing.
+    for (const std::string& problem : skipped) std::cerr << "list: --area: feature skipped: " << problem << '\n';
     write_records(std::cout, format, prefixes, *records);
   } else {
     write_records(std::cout, format, prefixes, check(snapshot.list(pattern, options)));

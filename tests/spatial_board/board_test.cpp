@@ -232,10 +232,16 @@ TEST_F(BoardTest, NamingARoomWithMalformedGeometryOrASensorSaysSo) {
   ASSERT_TRUE(snapshot.has_value());
   auto records = list_in_area(*snapshot, {}, {bowtie, std::nullopt, std::nullopt});
   ASSERT_FALSE(records.has_value());
-  EXPECT_EQ(records.error().message.rfind("room " + bowtie + " cannot be used: WKT column", 0), 0u) << records.error().message;
+  EXPECT_EQ(records.error().message.rfind(bowtie + " cannot be used as an area (its place cannot be read): WKT column", 0), 0u) << records.error().message;
   auto sensor = list_in_area(*snapshot, {}, {kMote, std::nullopt, std::nullopt});
   ASSERT_FALSE(sensor.has_value());
   EXPECT_EQ(sensor.error().message, kMote + " is a sensor (its geo:asWKT is a POINT), not a room");
+  // Listing another area names the skipped feature too: it is in no area, whatever its place.
+  std::vector<std::string> skipped;
+  auto hall = list_in_area(*snapshot, {}, {kHall, std::nullopt, std::nullopt}, {}, &skipped);
+  ASSERT_TRUE(hall.has_value());
+  ASSERT_EQ(skipped.size(), 1u);
+  EXPECT_EQ(skipped[0].rfind(bowtie + ": WKT column", 0), 0u) << skipped[0];
 }
 
 // NaN and infinite periods are refused with a reason; a period of centuries is "rarely" and a

@@ -15,6 +15,7 @@
 
 #include <gtest/gtest.h>
 
+#include "tahvel/spatial/board.h"
 #include "tahvel/spatial/environment_board.h"
 #include "agent_process.h"
 #include "temp_dir.h"
@@ -178,6 +179,35 @@ TEST_F(EnvironmentAgents, ARoomWithNoFreshReadingShowsUnknown) {
   EXPECT_EQ(environment("bedroom", "temperature"), "unknown");
   EXPECT_NE(environment("kitchen", "humidity"), "unknown");     // still sensed every 600 s
   EXPECT_NE(environment("living", "movementLevel"), "unknown");
+}
+
+// A mote carried from the bedroom to the hall: what it sensed in the bedroom must not become
+// the hall's value. It counts for no room (the plan keeps no past places); what it senses in
+// the hall counts for the hall.
+TEST_F(EnvironmentAgents, AReadingFromBeforeAMoteWasMovedIsNotCreditedToItsNewRoom) {
+  subscribe("bed-temp", Quantity::temperature, "bedroom", 300, 0);
+  ASSERT_EQ(run(bin("tahvel-env-motes") + " " + store_ + " --seed 7 --steps 10 --step-s 10 --start-ns " +
+                std::to_string(kT0) + " 2> /dev/null"),
+            0);
+  aggregate_at(kT0 + 100 * kS);
+  ASSERT_NE(environment("bedroom", "temperature"), "unknown");
+  ASSERT_EQ(environment("hall", "temperature"), "unknown");
+  {
+    auto node = node::Node::open(store_);
+    ASSERT_TRUE(node.has_value());
+    auto carer = node->agent("carer");
+    ASSERT_TRUE(carer.has_value());
+    ASSERT_TRUE(carer->store(located_feature_item(kHome + "/mote-bed", "POINT(6 4)", 0)).has_value());  // in the hall
+  }
+  aggregate_at(kT0 + 110 * kS);
+  EXPECT_EQ(environment("hall", "temperature"), "unknown") << "the bedroom's reading, credited to the hall";
+  EXPECT_EQ(environment("bedroom", "temperature"), "unknown");
+  subscribe("hall-temp", Quantity::temperature, "hall", 300, 0);
+  ASSERT_EQ(run(bin("tahvel-env-motes") + " " + store_ + " --seed 7 --steps 1 --step-s 10 --start-ns " +
+                std::to_string(kT0 + 120 * kS) + " 2> /dev/null"),
+            0);
+  aggregate_at(kT0 + 130 * kS);
+  EXPECT_NE(environment("hall", "temperature"), "unknown");
 }
 
 // Both programs run under the supervisor, which sends SIGTERM and kills what has not ended 5 s

@@ -61,6 +61,7 @@ class Simulator {
     auto capabilities = sp::read_capabilities(*snapshot);
     if (!capabilities) return error(capabilities.error().message);
     for (const std::string& problem : subscriptions->problems) warn_once(problem);
+    for (const std::string& problem : board->problems) warn_once("feature skipped: " + problem);
     // Which motes answer is the network's decision (Paper 3 §5: "the actual nodes that are going
     // to provide the requested data are determined in the WSN"). Movement: every PIR mote of the
     // room, each watching its own part of it (the movement level counts their detections). The

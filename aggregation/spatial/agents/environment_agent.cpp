@@ -16,6 +16,7 @@
 // environment items (all rooms in one transaction: a reader never sees a room without one).
 #include <chrono>
 #include <map>
+#include <set>
 
 #include "agent_runtime.h"
 #include "tahvel/spatial/board.h"
@@ -50,11 +51,18 @@ std::optional<std::string> update(rt::Session& session, std::int64_t now_ns, dou
     readings = std::move(*recent);
   }
   const std::vector<std::string> rooms = board->plan.room_ids();
+  static std::set<std::string> told;  // each skipped feature once per run, not every update
+  for (const std::string& problem : board->problems)
+    if (told.insert(problem).second) rt::log_line(kProgram, "feature skipped: " + problem);
 
   sp::EnvironmentAggregator aggregator;
   for (const sp::MoteReading& r : readings) {
     const sp::Sensor* mote = board->plan.sensor(r.mote);
     if (!mote) continue;  // a reading of a mote that is not on the plan
+    // Stored before the mote was put where it stands now: it was sensed elsewhere, in a room
+    // this plan no longer says. Counted for none rather than for the room it stands in now.
+    if (auto placed = board->placed_by.find(r.mote); placed != board->placed_by.end() && r.record < placed->second)
+      continue;
     for (const std::string& room : board->plan.rooms_at(mote->at, mote->floor)) aggregator.add(room, r.reading);
   }
   // Every room's state replaced in one transaction: a reader sees the previous states or the

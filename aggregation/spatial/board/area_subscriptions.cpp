@@ -268,6 +268,7 @@ Result<AreaSyncReport> sync_area_subscriptions(node::Node& node,
     if (removed) ++report.removed;
     else if (removed.error().code != node::Errc::not_found) return store_error(removed.error());
   }
+  for (const std::string& problem : board->problems) report.problems.push_back("feature skipped: " + problem);
   return report;
 }
 

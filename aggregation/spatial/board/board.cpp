@@ -51,8 +51,8 @@ std::optional<int> parse_floor(const node::Term& term) {
   return value;
 }
 
-// The latest geo:asWKT literal of geometry `g`, or nullopt.
-Result<std::optional<std::string>> latest_wkt(const node::Snapshot& snapshot, const node::Term& g) {
+// The latest geo:asWKT literal of geometry `g`, or nullopt; `*id` gets its record's id.
+Result<std::optional<std::string>> latest_wkt(const node::Snapshot& snapshot, const node::Term& g, std::uint64_t* id) {
   node::Pattern pattern;
   pattern.s = g;
   pattern.p = node::Term::iri(kGeoAsWkt);
@@ -66,6 +66,7 @@ Result<std::optional<std::string>> latest_wkt(const node::Snapshot& snapshot, co
     return true;
   });
   if (!read) return store_error(read.error());
+  *id = best;
   return wkt;
 }
 
@@ -91,7 +92,9 @@ Result<BoardPlan> load_plan(const node::Snapshot& snapshot) {
   BoardPlan out;
   for (const auto& [feature, geometry] : *geometries) {
     int floor = 0;
+    std::uint64_t placed_by = geometry.id;
     if (auto it = floors->find(feature); it != floors->end()) {
+      placed_by = std::max(placed_by, it->second.id);
       auto parsed = parse_floor(it->second.value);
       if (!parsed) {
         out.problems.push_back(feature + ": tv:floor '" + it->second.value.value + "' is not an integer");
@@ -103,9 +106,11 @@ Result<BoardPlan> load_plan(const node::Snapshot& snapshot) {
       out.problems.push_back(feature + ": geo:hasGeometry must name a geometry, not a literal");
       continue;
     }
-    auto wkt = latest_wkt(snapshot, geometry.value);
+    std::uint64_t wkt_id = 0;
+    auto wkt = latest_wkt(snapshot, geometry.value, &wkt_id);
     if (!wkt) return unexpected(wkt.error());
     if (!*wkt) continue;  // a geometry without WKT (yet): not located
+    out.placed_by[feature] = std::max(placed_by, wkt_id);
     auto parsed = parse_wkt(**wkt);
     if (!parsed) {
       out.problems.push_back(feature + ": " + parsed.error().message);
@@ -170,7 +175,7 @@ Result<Area> resolve_area(const BoardPlan& board, const AreaSpec& spec) {
       // On the board but skipped by the plan (a malformed WKT or floor): say why.
       const std::string prefix = spec.room_iri + ": ";
       for (const std::string& problem : board.problems)
-        if (problem.rfind(prefix, 0) == 0) return fail("room " + spec.room_iri + " cannot be used: " + problem.substr(prefix.size()));
+        if (problem.rfind(prefix, 0) == 0) return fail(spec.room_iri + " cannot be used as an area (its place cannot be read): " + problem.substr(prefix.size()));
       if (board.plan.sensor(spec.room_iri))
         return fail(spec.room_iri + " is a sensor (its geo:asWKT is a POINT), not a room");
       return fail("no room " + spec.room_iri +
@@ -199,9 +204,11 @@ std::vector<std::string> features_in(const Plan& plan, const AreaSpec& spec, con
 
 Result<std::vector<node::Record>> list_in_area(const node::Snapshot& snapshot,
                                                const node::Pattern& pattern, const AreaSpec& spec,
-                                               const node::ListOptions& options) {
+                                               const node::ListOptions& options,
+                                               std::vector<std::string>* skipped) {
   auto board = load_plan(snapshot);
   if (!board) return unexpected(board.error());
+  if (skipped) *skipped = board->problems;
   auto area = resolve_area(*board, spec);
   if (!area) return unexpected(area.error());
   const std::vector<std::string> located = features_in(board->plan, spec, *area);

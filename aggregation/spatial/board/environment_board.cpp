@@ -175,7 +175,7 @@ Result<std::vector<MoteReading>> readings_since(const node::Snapshot& snapshot, 
       if (r.triple.p.value == kSosa + "hasSimpleResult") value = number(r.triple.o);
     }
     if (!quantity || !value) continue;
-    out.push_back({head.triple.o.value, Reading{*quantity, *value, head.meta.asserted_at}});
+    out.push_back({head.triple.o.value, Reading{*quantity, *value, head.meta.asserted_at}, head.meta.id});
   }
   return out;
 }

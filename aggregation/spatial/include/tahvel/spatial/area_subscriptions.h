@@ -53,7 +53,8 @@ struct AreaSyncReport {
   std::size_t added = 0;         // expansions stored
   std::size_t removed = 0;       // expansions removed (stale, duplicate, or declaration gone)
   // One line per declaration that could not be expanded (its room is not on the board, its WKT
-  // is malformed, ...): it has no expansions until the cause is fixed.
+  // is malformed, ...): it has no expansions until the cause is fixed. Then one per located
+  // feature the plan skipped ("feature skipped: <iri>: WKT column ..."): in no area.
   std::vector<std::string> problems;
 };
 

@@ -42,6 +42,9 @@ struct BoardPlan {
   // Features skipped because their WKT is malformed or their tv:floor is not an integer, one
   // line each ("<iri>: WKT column 9: ring is not closed ..."). The rest of the plan stands.
   std::vector<std::string> problems;
+  // Per located feature, the id of the newest record that states its place (geo:hasGeometry,
+  // geo:asWKT, tv:floor): what was stored before it was stored while the feature stood elsewhere.
+  std::map<std::string, std::uint64_t> placed_by;
 };
 
 // Reads every located feature of `snapshot`. Errors: only the store's (reading failed).
@@ -77,9 +80,11 @@ std::vector<std::string> features_in(const Plan& plan, const AreaSpec& spec, con
 
 // The records matching `pattern` whose subject is a feature located in the area or whose source
 // is a sensor located there (or a writer under one: uri::is_under), in id order, with the cascade and limit of `options` applied to
-// those matches (as Snapshot::list does). Errors: the store's, or resolve_area's.
+// those matches (as Snapshot::list does). Errors: the store's, or resolve_area's. Features the
+// plan skipped (BoardPlan::problems: in no area, whatever their place) go to `*skipped` if given.
 Result<std::vector<node::Record>> list_in_area(const node::Snapshot& snapshot,
                                                const node::Pattern& pattern, const AreaSpec& spec,
-                                               const node::ListOptions& options = {});
+                                               const node::ListOptions& options = {},
+                                               std::vector<std::string>* skipped = nullptr);
 
 }  // namespace tahvel::spatial

@@ -52,6 +52,7 @@ node::Item reading_item(const std::string& mote_iri, const Reading& r);
 struct MoteReading {
   std::string mote;
   Reading reading;
+  std::uint64_t record = 0;  // the id of its sosa:madeBySensor record: when it was stored
 };
 
 // Readings asserted at or after `since_ns`, in record order. Items without a known quantity
