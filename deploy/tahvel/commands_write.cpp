@@ -209,6 +209,14 @@ int run_remove(const Args& args) {
   } else {
     print_number(check(node.remove(pattern, cascade)));
   }
+  // An area subscription's declaration removed: its expansions (ordinary subscriptions) would
+  // route on until a keeper ran, and none runs without 'tahvel up'. They go now.
+  node::Pattern expansions;
+  expansions.p = node::Term::iri(spatial::kTvAreaSubscription);
+  if (check(check(node.snapshot()).count(expansions)) > 0) {
+    auto synced = spatial::sync_area_subscriptions(node);
+    if (!synced) fail("removed, but the area subscriptions could not follow: " + synced.error().message);
+  }
   return kExitOk;
 }
 

@@ -1469,6 +1469,21 @@ TEST_F(Cli, SubscribeByAreaFollowsASensorMovedToAnotherRoom) {
   EXPECT_EQ(taken("hall-ui"), 1u);
 }
 
+// cli.md: "'tahvel remove --item ID' ends it" -- with no keeper running as well.
+TEST_F(Cli, RemovingAnAreaSubscriptionsDeclarationEndsItWithoutAKeeper) {
+  init();
+  put(kPlan, {"--persistent", "--format", "ttl"});
+  Outcome sub = run({"subscribe", node_, "--agent", "ui", "--area", kNodeIri + "/room/bedroom", "-p", "sosa:hasSimpleResult"});
+  ASSERT_EQ(sub.status, 0) << sub.err;
+  Outcome removed = run({"remove", node_, "--item", lines_of(sub.out).at(0)});
+  ASSERT_EQ(removed.status, 0) << removed.err;
+  put(kReading, {"--agent", "mote1", "--format", "ttl"});
+  Outcome taken = run({"take", node_, "--agent", "ui", "--timeout", "0"});
+  EXPECT_EQ(taken.status, 3) << taken.out;
+  Outcome left = run({"list", node_, "-p", "tv:areaSubscription"});
+  EXPECT_TRUE(left.out.empty()) << left.out;
+}
+
 TEST_F(Cli, SubscribeByAnUnknownRoomExits1NamingItAndByRoomWithFloorExits2) {
   init();
   put(kPlan, {"--persistent", "--format", "ttl"});
