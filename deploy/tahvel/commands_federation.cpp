@@ -1606,9 +1606,11 @@ std::string store_warning(const node::Node& node, const fs::path& dir) {
   std::ostringstream said;
   said.precision(1);
   said << std::fixed;
-  if (auto st = node.stats(); st && st->max_map_bytes > 0 && st->used_bytes * 10 >= st->max_map_bytes * 9)
-    said << st->used_bytes / kMB << " MB of its maximum " << st->max_map_bytes / kMB
-         << " MB used: writes that do not fit are refused";
+  // By the file's high-water mark, not the pages holding data: copy on write needs fresh pages
+  // beyond what the last write freed, so a store refuses writes with a third of its pages free.
+  if (auto st = node.stats(); st && st->max_map_bytes > 0 && st->high_water_bytes * 10 >= st->max_map_bytes * 9)
+    said << st->high_water_bytes / kMB << " MB of its maximum " << st->max_map_bytes / kMB << " MB used ("
+         << st->used_bytes / kMB << " MB holding data): writes that do not fit are refused";
   struct statvfs disk {};
   if (statvfs(dir.c_str(), &disk) == 0) {
     const double free_mb = static_cast<double>(disk.f_bavail) * static_cast<double>(disk.f_frsize) / kMB;

@@ -65,6 +65,7 @@ std::vector<std::pair<const char*, std::uint64_t>> stats_figures(const node::Sta
           {"last_seq", s.last_seq},
           {"reclaimed_records", s.reclaimed_records},
           {"used_bytes", s.used_bytes},
+          {"high_water_bytes", s.high_water_bytes},
           {"map_bytes", s.map_bytes},
           {"max_map_bytes", s.max_map_bytes}};
 }

@@ -26,6 +26,11 @@ namespace tahvel::node::detail {
 namespace {
 
 constexpr std::uint64_t kInitialMapBytes = 64ull << 20;
+
+// What removals may use beyond a store's maximum `max`: a sixteenth of it and up to 1 MB more
+// (an eighth, in a store of less than 8 MB).
+std::uint64_t removal_reserve(std::uint64_t max) { return max / 16 + std::min<std::uint64_t>(1u << 20, max / 8); }
+
 // How far beyond the last page in use the data file's blocks are allocated (reserve_disk): more
 // than a write transaction of the store's usual size dirties in new pages.
 constexpr std::uint64_t kDiskAhead = 16ull << 20;
@@ -426,7 +431,7 @@ Result<void> Env::grow(WriteKind kind) {
   // Removal needs pages too (LMDB copies on write): a reserve beyond the maximum is kept for
   // it, so that a full store can always be emptied.
   std::uint64_t limit = settings_.max_map_bytes;
-  if (kind == WriteKind::removal) limit += limit / 16 + (1u << 20);
+  if (kind == WriteKind::removal) limit += removal_reserve(limit);
   if (current >= limit)
     return fail(Errc::store_full, "store full: " + dir_.string() + " reached its maximum of " +
                                       std::to_string(settings_.max_map_bytes) + " bytes");
@@ -437,6 +442,40 @@ Result<void> Env::grow(WriteKind kind) {
   int rc = mdb_env_set_mapsize(env_, next);
   if (rc != 0) return lmdb_fail(rc, "growing the store map of " + dir_.string());
   return {};
+}
+
+std::uint64_t pages_in_use_bytes(MDB_env* env, MDB_txn* txn) {
+  MDB_envinfo info;
+  MDB_stat stat;
+  if (mdb_env_info(env, &info) != 0 || mdb_env_stat(env, &stat) != 0) return 0;
+  std::uint64_t free_pages = 0;
+  MDB_cursor* cursor = nullptr;
+  if (mdb_cursor_open(txn, 0, &cursor) == 0) {  // LMDB's free-page table (FREE_DBI)
+    MDB_val k, v;
+    // Each entry is a list of page numbers; its first word is the count (LMDB's IDL).
+    for (int rc = mdb_cursor_get(cursor, &k, &v, MDB_FIRST); rc == 0; rc = mdb_cursor_get(cursor, &k, &v, MDB_NEXT))
+      if (v.mv_size >= sizeof(std::size_t)) free_pages += *static_cast<const std::size_t*>(v.mv_data);
+    mdb_cursor_close(cursor);
+  }
+  const std::uint64_t pages = info.me_last_pgno + 1;
+  return (pages - std::min<std::uint64_t>(free_pages, pages)) * stat.ms_psize;
+}
+
+Result<void> Env::check_reserve_untouched(std::uint64_t new_bytes) {
+  MDB_envinfo info;
+  if (mdb_env_info(env_, &info) != 0 || info.me_mapsize <= settings_.max_map_bytes) return {};
+  // LMDB's free-page table can be read in a read transaction only.
+  MDB_txn* read = nullptr;
+  if (mdb_txn_begin(env_, nullptr, MDB_RDONLY, &read) != 0) return {};
+  const std::uint64_t in_use = pages_in_use_bytes(env_, read);
+  mdb_txn_abort(read);
+  // Copy on write needs pages besides those the data takes, and pages the last write freed are
+  // not reusable by the next: as much as the reserve is left free for the removals' copies.
+  const std::uint64_t reserve = removal_reserve(settings_.max_map_bytes);
+  const std::uint64_t room = settings_.max_map_bytes > reserve ? settings_.max_map_bytes - reserve : 0;
+  if (in_use + new_bytes <= room) return {};
+  return fail(Errc::store_full, "store full: " + dir_.string() + " reached its maximum of " +
+                                    std::to_string(settings_.max_map_bytes) + " bytes");
 }
 
 Result<void> Env::reserve_disk(WriteKind kind, std::uint64_t new_bytes) {
@@ -488,6 +527,9 @@ Result<void> Env::reserve_disk(WriteKind kind, std::uint64_t new_bytes) {
 Result<void> Env::write(const std::function<Result<void>(Txn&)>& body, WriteKind kind, std::uint64_t new_bytes) {
   for (;;) {
     if (auto r = reserve_disk(kind, new_bytes); !r) return r;
+    if (kind != WriteKind::removal) {
+      if (auto r = check_reserve_untouched(new_bytes); !r) return r;
+    }
     MDB_txn* raw = nullptr;
     if (auto r = begin(&raw, 0); !r) return r;
     Txn txn(*this, raw);

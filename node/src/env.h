@@ -140,6 +140,11 @@ struct IndexEntry {
   std::uint64_t key, value;
 };
 
+// Bytes of the store's file that hold data: its pages up to the last in use, less the free ones
+// LMDB will reuse (read in `txn`, a read transaction: LMDB lets no write transaction read its
+// free-page table). What a store "uses" of its maximum.
+std::uint64_t pages_in_use_bytes(MDB_env* env, MDB_txn* txn);
+
 class Env {
  public:
   // Opens (or with `init` creates) the environment of `dir`; shared per process. A new store is
@@ -210,6 +215,10 @@ class Env {
   static Result<void> make_store(const std::filesystem::path& dir, const InitOptions& init);
   Result<void> open_tables(MDB_txn* txn, bool create);
   Result<void> grow(WriteKind kind);
+  // A data write in a map that a removal grew beyond the maximum (into the removals' reserve):
+  // store_full when the pages in use, free ones not counted, and `new_bytes` would exceed the
+  // maximum. Without it data filled the reserve, and then even removals were refused.
+  Result<void> check_reserve_untouched(std::uint64_t new_bytes);
   Result<void> begin(MDB_txn** txn, unsigned flags);
   // With MDB_WRITEMAP the data file is as large as the map but sparse: a page written where the
   // file has no block yet takes one from the filesystem, and on a full disk that is SIGBUS in

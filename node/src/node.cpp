@@ -1113,16 +1113,14 @@ Result<Stats> Node::stats() const {
   st.last_seq = c->next_seq - 1;
   st.reclaimed_records = c->reclaimed;
   const Env& env = *impl_->env;
-  MDB_stat ms;
-  std::uint64_t pages = 0;
-  if (mdb_stat(read.txn, 1, &ms) == 0) pages += ms.ms_branch_pages + ms.ms_leaf_pages + ms.ms_overflow_pages;  // main DB
-  for (MDB_dbi dbi : {env.meta, env.terms, env.term_hash, env.records, env.items, env.idx_s, env.idx_p, env.idx_o,
-                      env.inbox, env.outbox, env.removals}) {
-    if (mdb_stat(read.txn, dbi, &ms) == 0) pages += ms.ms_branch_pages + ms.ms_leaf_pages + ms.ms_overflow_pages;
-  }
-  st.used_bytes = pages * ms.ms_psize;
+  // Every page up to the last in use that is not free: the tables' pages, LMDB's own (its free
+  // list, the meta pages) and those copies on write have not yet released. The sum of the tables'
+  // pages left those out and showed a full store at 40-70% of its maximum.
+  st.used_bytes = pages_in_use_bytes(env.raw(), read.txn);
   MDB_envinfo info;
   mdb_env_info(env.raw(), &info);
+  MDB_stat ms;
+  if (mdb_env_stat(env.raw(), &ms) == 0) st.high_water_bytes = (info.me_last_pgno + 1) * ms.ms_psize;
   st.map_bytes = info.me_mapsize;
   st.max_map_bytes = s.max_map_bytes;
   return st;

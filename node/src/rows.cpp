@@ -12,7 +12,12 @@
 namespace tahvel::node::detail {
 namespace {
 
-constexpr std::uint64_t kRemovalLogLimit = 65536;  // watchers further behind miss removals
+// Watchers further behind miss removals. A removal is logged with its terms (150 bytes and up):
+// a store whose maximum is small keeps fewer, one per 8 KB of it, or emptying a full store would
+// fill it with the log of what was removed.
+std::uint64_t removal_log_limit(const Settings& settings) {
+  return std::clamp<std::uint64_t>(settings.max_map_bytes / 8192, 16, 65536);
+}
 constexpr std::uint8_t kItemPersistent = 1;
 constexpr std::uint8_t kItemRelayed = 2;  // the writer's term id follows (ItemRow::writer)
 
@@ -85,7 +90,7 @@ Result<void> log_removal(Txn& txn, std::uint64_t id, const RecordRow& row, const
   MDB_val k = val(seq), v = val(bytes);
   int rc = mdb_put(txn.raw(), txn.env().removals, &k, &v, MDB_APPEND);
   if (rc != 0) return lmdb_fail(rc, "logging a removal");
-  if (++txn.counters.removals > kRemovalLogLimit) {
+  if (++txn.counters.removals > removal_log_limit(txn.env().settings())) {
     MDB_cursor* cursor = nullptr;
     if ((rc = mdb_cursor_open(txn.raw(), txn.env().removals, &cursor)) != 0) return lmdb_fail(rc, "trimming the removal log");
     MDB_val fk, fv;

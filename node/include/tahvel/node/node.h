@@ -311,7 +311,9 @@ struct Stats {
   std::uint64_t pending_deliveries = 0;  // items waiting in input buffers, over all agents
   std::uint64_t last_seq = 0;
   std::uint64_t reclaimed_records = 0;   // removed by ring or TTL since init
-  std::uint64_t used_bytes = 0;          // pages in use * page size
+  std::uint64_t used_bytes = 0;          // pages holding data (up to the last in use, less free ones)
+  std::uint64_t high_water_bytes = 0;    // up to the last page in use, free ones included: a write
+                                         // that needs pages beyond max_map_bytes is refused
   std::uint64_t map_bytes = 0;           // current LMDB map size
   std::uint64_t max_map_bytes = 0;
 };
