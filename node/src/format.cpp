@@ -150,6 +150,13 @@ class Parser {
     // serd takes a NUL byte for the end of its input and would silently stop there.
     if (const auto nul = text_.find('\0'); nul != std::string_view::npos)
       return fail(Errc::syntax, located(nul, "NUL byte in input"));
+    // Before serd, whose own check names the byte after the bad one, at the next column (R1a).
+    if (const auto bad = ill_formed_utf8_at(text_); bad != std::string_view::npos) {
+      char byte[8];
+      std::snprintf(byte, sizeof byte, "0x%02X", static_cast<unsigned char>(text_[bad]));
+      return fail(Errc::syntax, located(bad, std::string("not UTF-8: byte ") + byte +
+                                                 " does not begin a well-formed sequence (the input must be UTF-8)"));
+    }
 
     base_ = options_.base_iri;
     env_.reset(serd_env_new(nullptr));

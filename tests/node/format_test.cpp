@@ -432,9 +432,13 @@ TEST(Format, NulByteInInputIsSyntaxError) {
   EXPECT_EQ(error.message.rfind("<input>:2:1: ", 0), 0u) << error.message;
 }
 
-TEST(Format, InvalidUtf8InInputIsSyntaxError) {
+TEST(Format, InvalidUtf8InInputIsSyntaxErrorNamingTheByteAndItsColumn) {
   auto error = parse_error("<http://x/a> <http://x/b> \"bad \xFF byte\" .");
   EXPECT_EQ(error.code, tn::Errc::syntax);
+  EXPECT_EQ(error.message, "<input>:1:32: not UTF-8: byte 0xFF does not begin a well-formed sequence (the input must be UTF-8)");
+  // Latin-1 "café": the é (0xE9) is column 31, not the space after it that serd names.
+  auto latin1 = parse_error("<http://x/a> <http://x/b> \"caf\xE9 au lait\" .");
+  EXPECT_EQ(latin1.message.rfind("<input>:1:31: not UTF-8: byte 0xE9 ", 0), 0u) << latin1.message;
 }
 
 TEST(Format, ErrorAfterValidStatementsYieldsNoTriples) {
