@@ -16,9 +16,12 @@
 // resume_after), so windows open at a crash come out as they would have (with the
 // configuration in force now), and none overlaps one already written.
 #include <algorithm>
+#include <charconv>
+#include <cmath>
 #include <deque>
 #include <map>
 #include <optional>
+#include <set>
 
 #include <iostream>
 
@@ -32,6 +35,14 @@ namespace rt = tahvel::agents::hrv;
 namespace tn = tahvel::node;
 
 constexpr const char* kProgram = "tahvel-hrv";
+constexpr double kMinSeconds = 1e-3;  // the least window or step, as --window takes it
+
+// `v` as an xsd:decimal lexical form ("120", "0.5").
+std::string number_text(double v) {
+  char buf[64];
+  auto [end, ec] = std::to_chars(buf, buf + sizeof buf, v, std::chars_format::fixed);
+  return ec == std::errc() ? std::string(buf, end) : std::to_string(v);
+}
 
 struct WindowConfig {
   double window_s = 300, step_s = 0;  // step 0: the window length
@@ -64,16 +75,40 @@ class HrvStage {
     auto records = snapshot->list(pattern);
     if (!records) return rt::log_line(kProgram, "read configuration: " + records.error().message);
     WindowConfig next = config_;
+    bool evictable = false;  // the value in force came from a record a ring or TTL may reclaim
     for (const tn::Record& r : *records) {  // id order: later values win
+      const bool window = r.triple.p.value == std::string(agg::kTv) + "windowSeconds";
+      if (!window && r.triple.p.value != std::string(agg::kTv) + "stepSeconds") continue;
       char* end = nullptr;
       const double v = std::strtod(r.triple.o.value.c_str(), &end);
-      const bool number = r.triple.o.is_literal() && *end == '\0' && v > 0;
-      if (r.triple.p.value == std::string(agg::kTv) + "windowSeconds" && number) next.window_s = v;
-      if (r.triple.p.value == std::string(agg::kTv) + "stepSeconds" && number) next.step_s = v;
+      // As --window and --step take them: a window shorter than a millisecond would make
+      // millions of windows out of one RR item (memory without bound, no stop between items).
+      if (!r.triple.o.is_literal() || *end != '\0' || r.triple.o.value.empty() || !std::isfinite(v) || v < kMinSeconds) {
+        if (warned_.insert(r.meta.id).second)
+          rt::log_line(kProgram, "configuration <" + r.triple.s.value + "> " + r.triple.p.value + " '" + r.triple.o.value +
+                                     "' (record " + std::to_string(r.meta.id) + ") is not a number of seconds >= " +
+                                     std::to_string(kMinSeconds) + "; ignored, the value before it stands");
+        continue;
+      }
+      (window ? next.window_s : next.step_s) = v;
+      evictable = !r.meta.persistent;
     }
     if (next.window_s != config_.window_s || next.step() != config_.step())
       rt::log_line(kProgram, "window " + std::to_string(next.window_s) + " s, step " + std::to_string(next.step()) + " s");
     config_ = next;
+    // A setting relayed from the hospital keeps its flag: on a home with a ring it would be
+    // reclaimed, and after a restart the agent would go back to --window without a word. The
+    // setting in force is kept as a persistent item of the agent's own (the latest wins).
+    if (evictable) {
+      tn::Item kept;
+      kept.persistent = true;
+      const tn::Term self = tn::Term::iri(session_.agent.iri());
+      kept.add(self, agg::tv_term("windowSeconds"), tn::Term::literal(number_text(config_.window_s), std::string(tn::xsd::kDecimal)));
+      if (config_.step_s > 0)
+        kept.add(self, agg::tv_term("stepSeconds"), tn::Term::literal(number_text(config_.step_s), std::string(tn::xsd::kDecimal)));
+      if (auto stored = session_.agent.store(kept); !stored)
+        rt::log_line(kProgram, "keep the configuration: " + stored.error().message);
+    }
     for (auto& [iri, s] : streams_) s.windower.set_window(config_.window_s, config_.step());
   }
 
@@ -171,6 +206,7 @@ class HrvStage {
 
   rt::Session& session_;
   WindowConfig config_;
+  std::set<std::uint64_t> warned_;  // configuration records already logged as ignored
   std::map<std::string, Stream> streams_;
 };
 

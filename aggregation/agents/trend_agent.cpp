@@ -98,15 +98,18 @@ class TrendStage {
       u.window_start_s = start;
       u.window_iri = window.iri;
       u.windows = points.size();
-      u.latest = summary.latest;
+      // A window without the metric (no beats: lead off, asystole) has no latest value and no
+      // alert of its own; the series' last value is an earlier window's, not this one's.
+      const bool window_has_it = !points.empty() && points.back().time_s == window.metrics.end_s;
+      if (window_has_it) u.latest = summary.latest;
       u.baseline = summary.baseline;
       u.robust_sd = summary.robust_sd;
       u.slope_per_hour = summary.slope_per_hour;
-      u.alert = summary.alerting;
+      u.alert = window_has_it && summary.alerting;
       if (u.alert && !summary.alerts.empty()) u.alert_direction = summary.alerts.back().direction;
       // Across patients: only for the recording's latest window (the others' latest values are
       // those known now) and when this window has the metric itself.
-      if (latest && !points.empty() && points.back().time_s == window.metrics.end_s) {
+      if (latest && window_has_it) {
         std::vector<double> others;
         for (const auto& [other, other_series] : recordings_) {
           if (other == recording) continue;

@@ -51,11 +51,18 @@ Term exact_decimal(double value) {
 // only UTF-8, so such bytes become U+FFFD rather than the recording going unrecorded.
 Term text(const std::string& value) { return Term::literal(node::with_replacement_characters(value)); }
 
-// "%.6g" for a time in seconds inside an IRI ("300", "150.5").
+// A time in seconds inside an IRI, to the microsecond, without trailing zeros ("300", "150.5",
+// "10000080"). Six significant digits ("%.6g") named two windows a minute apart alike after
+// 1e6 s (11.6 days): the later one was taken for a repeat and never written.
 std::string seconds_label(double s) {
-  char buf[48];
-  std::snprintf(buf, sizeof buf, "%.6g", s);
-  return buf;
+  char buf[400];  // "%.6f" of the largest double: 309 digits, the point and six decimals
+  std::snprintf(buf, sizeof buf, "%.6f", s);
+  std::string label(buf);
+  if (const auto point = label.find('.'); point != std::string::npos) {
+    label.erase(label.find_last_not_of('0') + 1);
+    if (label.back() == '.') label.pop_back();
+  }
+  return label == "-0" ? "0" : label;
 }
 
 // RFC 4648 base64 of raw bytes.

@@ -20,6 +20,7 @@
 #include <sstream>
 #include <set>
 #include <string>
+#include <thread>
 #include <vector>
 
 #include "tahvel/aggregation/items.h"
@@ -564,6 +565,53 @@ TEST(AgentPrograms, HelpPrintsTheUsageOnStandardOutputAndExitsZero) {
     EXPECT_EQ(status, 0) << name;
     EXPECT_EQ(text.rfind("usage: " + name + " DIR", 0), 0u) << name << ": " << text;
   }
+}
+
+// The configuration of tahvel-hrv as an operator at the hospital sends it: a setting that is
+// not a number of seconds (or under a millisecond, which made millions of windows out of one
+// RR item) is logged and ignored; a valid one that a ring may reclaim (relayed items keep their
+// flag) is kept by the agent as a persistent item of its own, so a restart still has it.
+TEST(AgentPrograms, TheHrvConfigurationIsCheckedLoggedAndKeptPastTheRing) {
+  char pattern[] = "/tmp/tahvel-agents-hrv-config-XXXXXX";
+  ASSERT_NE(mkdtemp(pattern), nullptr);
+  const std::string tmp = pattern, dir = tmp + "/home1", log = tmp + "/hrv.log";
+  auto made = tn::Node::init(dir, tn::InitOptions{.iri = kNodeIri, .ring = 50});
+  ASSERT_TRUE(made) << made.error().message;
+  std::optional<tn::Node> node(std::move(*made));
+  auto op = node->agent("operator");
+  ASSERT_TRUE(op);
+  const tn::Term hrv = tn::Term::iri(kNodeIri + "/hrv");
+  const auto setting = [&](const char* value) {
+    return tn::Item{}.add(hrv, agg::tv_term("windowSeconds"), tn::Term::literal(value));
+  };
+  ASSERT_TRUE(op->store(setting("120")));
+  for (const char* bad : {"0", "-120", "2 minutes", "1e-7"}) ASSERT_TRUE(op->store(setting(bad)));
+  auto kept = [&] {
+    auto records = node->snapshot()->list({.s = hrv, .p = agg::tv_term("windowSeconds")});
+    for (const auto& r : *records)
+      if (r.meta.persistent) return r.triple.o.value;
+    return std::string();
+  };
+  {
+    Process agent({bin("tahvel-hrv"), dir, "--idle", "30"}, log);
+    const auto deadline = std::chrono::steady_clock::now() + 60s;
+    while (kept().empty() && std::chrono::steady_clock::now() < deadline) std::this_thread::sleep_for(50ms);
+    EXPECT_EQ(agent.stop(), 0);
+  }
+  EXPECT_EQ(kept(), "120") << "the setting in force, kept";
+  // The ring reclaims the operator's settings; the kept one stays.
+  auto noise = node->agent("noise");
+  for (int i = 0; i < 100; ++i) ASSERT_TRUE(noise->store(tn::Item{}.add(tn::Term::iri(kNodeIri + "/x"), agg::tv_term("n"), tn::Term::integer(i))));
+  EXPECT_EQ(node->snapshot()->list({.s = hrv, .p = agg::tv_term("windowSeconds")})->size(), 1u);
+  EXPECT_EQ(kept(), "120");
+  std::ifstream in(log);
+  std::ostringstream text;
+  text << in.rdbuf();
+  for (const char* bad : {"'0'", "'-120'", "'2 minutes'", "'1e-7'"})
+    EXPECT_NE(text.str().find(std::string("windowSeconds ") + bad), std::string::npos) << bad << " not logged:\n" << text.str();
+  EXPECT_NE(text.str().find("window 120.000000 s"), std::string::npos) << text.str();
+  node.reset();
+  fs::remove_all(tmp);
 }
 
 }  // namespace

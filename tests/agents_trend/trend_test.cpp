@@ -226,4 +226,40 @@ TEST_F(TrendAgentTest, BaselineSlopeAlertZAndNoDoublesAfterRestart) {
   EXPECT_EQ(trends().size(), 12u * 3 * 3 + 3);
 }
 
+// A window with no beats (lead off) has no value: its trend items must not show the window
+// before's as "the metric in this window", nor carry on that window's alert.
+TEST_F(TrendAgentTest, AWindowWithoutTheMetricHasNoLatestValueAndNoAlert) {
+  for (std::size_t k = 0; k < 11; ++k) store_window(kRecA, k, kSdnnA[k]);
+  agg::RecordingInfo info;
+  info.iri = kRecA;
+  agg::WindowMetrics empty;  // window 11: no beats, no metrics
+  empty.start_s = 3300;
+  empty.end_s = 3600;
+  ASSERT_TRUE(hrv_->store(agg::hrv_window_item(info, empty, hrv_->iri())));
+  start_agent("2");
+  wait_for_trends(12 * 3);
+  ASSERT_FALSE(HasFatalFailure());
+  EXPECT_EQ(agent_->wait(30s), 0);
+  const auto all = trends();
+  const auto alerting = all.at(agg::trend_iri(kRecA, agg::HrvMetric::sdnn, 3000));
+  ASSERT_TRUE(alerting.alert) << "the step at window 8 alerts by window 10";
+  const auto lead_off = all.at(agg::trend_iri(kRecA, agg::HrvMetric::sdnn, 3300));
+  EXPECT_FALSE(lead_off.latest.has_value()) << *lead_off.latest;
+  EXPECT_FALSE(lead_off.alert);
+  EXPECT_EQ(lead_off.windows, 11u);
+  EXPECT_TRUE(lead_off.baseline.has_value());
+}
+
+// Windows a minute apart after 115 days (1.00001e+07 s with six significant digits) were
+// named alike, and the later one was taken for a repeat and never written.
+TEST(ItemNames, WindowAndTrendNamesTellApartStartsOnLongRecordingsAndKeepShortOnesShort) {
+  EXPECT_NE(agg::hrv_iri(kRecA, 10000080), agg::hrv_iri(kRecA, 10000140));
+  EXPECT_EQ(agg::hrv_iri(kRecA, 10000080), kRecA + "/hrv/10000080");
+  EXPECT_NE(agg::trend_iri(kRecA, agg::HrvMetric::sdnn, 10000080), agg::trend_iri(kRecA, agg::HrvMetric::sdnn, 10000140));
+  EXPECT_EQ(agg::hrv_iri(kRecA, 300), kRecA + "/hrv/300");
+  EXPECT_EQ(agg::hrv_iri(kRecA, 150.5), kRecA + "/hrv/150.5");
+  EXPECT_EQ(agg::hrv_iri(kRecA, 0), kRecA + "/hrv/0");
+  EXPECT_EQ(agg::hrv_iri(kRecA, 0.1 + 0.2), kRecA + "/hrv/0.3");
+}
+
 }  // namespace
