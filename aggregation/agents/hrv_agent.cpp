@@ -163,11 +163,11 @@ class HrvStage {
                      .source = session_.agent.iri()};
     auto written = rt::items_matching(session_.node, mine);
     if (!written) return rt::Outcome::error("catch up <" + s.info.iri + ">: " + written.error().message);
-    std::optional<double> last_written_end;
+    std::optional<agg::WindowMetrics> last_written;
     for (const auto& records : *written)
-      if (auto window = agg::read_hrv_window(records))
-        last_written_end = std::max(last_written_end.value_or(window->window.end_s), window->window.end_s);
-    if (last_written_end) s.windower.resume_after(*last_written_end);
+      if (auto window = agg::read_hrv_window(records); window && (!last_written || window->window.end_s > last_written->end_s))
+        last_written = window->window;
+    if (last_written) s.windower.resume_after(last_written->end_s, last_written->end_s - last_written->start_s);
     if (earlier.empty()) return rt::Outcome::ok();
     for (const auto& [start, rr] : earlier)
       if (auto o = process(s, rr, true); o.fatal) return o;

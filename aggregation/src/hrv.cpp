@@ -203,8 +203,9 @@ void HrvWindower::set_window(double window_s, double step_s) {
   step_s_ = step_s;
 }
 
-void HrvWindower::resume_after(double end_s) {
-  origin_s_ = std::max(0.0, end_s - window_s_ + step_s_);
+void HrvWindower::resume_after(double end_s, double length_s) {
+  const bool same_length = std::abs(length_s - window_s_) <= 1e-9 * std::max(1.0, window_s_);
+  origin_s_ = same_length ? std::max(0.0, end_s - window_s_ + step_s_) : end_s;
   next_ = 0;
 }
 

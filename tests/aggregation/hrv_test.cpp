@@ -268,9 +268,9 @@ TEST(Windows, StreamingEmitsAWindowWhenAnIntervalPassesItsEnd) {
 // ones of the same setting continue their grid).
 TEST(Windows, ResumingAfterAWrittenWindowProducesNoWindowOverlappingIt) {
   const auto series = chain(std::vector<std::int64_t>(10, 1000), {});  // interval ends at 1, 2, ... 10 s
-  auto windows_of = [&](double window, double step, double written_end) {
+  auto windows_of = [&](double window, double step, double written_end, double written_length) {
     HrvWindower w(1000, window, step);
-    w.resume_after(written_end);
+    w.resume_after(written_end, written_length);
     std::vector<WindowMetrics> done;
     for (const auto& interval : series) w.push(interval, done);
     std::vector<std::pair<double, double>> out;
@@ -278,9 +278,13 @@ TEST(Windows, ResumingAfterAWrittenWindowProducesNoWindowOverlappingIt) {
     return out;
   };
   using Spans = std::vector<std::pair<double, double>>;
-  EXPECT_EQ(windows_of(2, 2, 6), (Spans{{6, 8}, {8, 10}}));   // was 6 s windows up to 6 s
-  EXPECT_EQ(windows_of(4, 2, 6), (Spans{{4, 8}, {6, 10}}));   // overlapping: the grid goes on
-  EXPECT_EQ(windows_of(3, 3, 0.5), (Spans{{0.5, 3.5}, {3.5, 6.5}, {6.5, 9.5}}));
+  EXPECT_EQ(windows_of(2, 2, 6, 6), (Spans{{6, 8}, {8, 10}}));   // was 6 s windows up to 6 s
+  EXPECT_EQ(windows_of(4, 2, 6, 4), (Spans{{4, 8}, {6, 10}}));   // overlapping: the grid goes on
+  EXPECT_EQ(windows_of(3, 3, 0.5, 0.5), (Spans{{0.5, 3.5}, {3.5, 6.5}, {6.5, 9.5}}));
+  // Longer, overlapping windows after shorter ones (2 s up to 4 s, then 5 s every 1 s): they
+  // start where the written ones ended; the grid of the new setting from there would reach back
+  // over them ([0, 5) overlaps [2, 4), and would take the name of the window written at 0).
+  EXPECT_EQ(windows_of(5, 1, 4, 2), (Spans{{4, 9}, {5, 10}}));
 }
 
 }  // namespace

@@ -89,10 +89,12 @@ class HrvWindower {
   // New window length and step, from the next window on (window k keeps counting from the
   // first window start not yet produced). Non-positive values are ignored.
   void set_window(double window_s, double step_s);
-  // After a restart: the window that ended at `end_s` was produced before, under whatever
-  // setting held then. The next window ends one step after it (so with step = window, it starts
-  // there), and no window ending at or before it is produced again.
-  void resume_after(double end_s);
+  // After a restart: the window that ended at `end_s`, `length_s` long, was produced before,
+  // under whatever setting held then. With the same window length the next window ends one step
+  // after it (so with step = window, it starts there); with another length (the setting changed
+  // while the agent was down) the next one starts at `end_s`, so that none overlaps a window
+  // produced before. No window ending at or before it is produced again.
+  void resume_after(double end_s, double length_s);
   void finish(std::vector<WindowMetrics>& completed);
 
  private:
