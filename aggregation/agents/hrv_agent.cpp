@@ -201,7 +201,30 @@ class HrvStage {
     // Later windows start later: RR items that ended before this one are no longer needed.
     while (!s.refs.empty() && static_cast<double>(s.refs.front().last_end) / s.info.fs < window.start_s)
       s.refs.pop_front();
-    return rt::store_output(session_, agg::hrv_window_item(s.info, window, session_.agent.iri(), from), catching_up);
+    const tn::Item item = agg::hrv_window_item(s.info, window, session_.agent.iri(), from);
+    // Windows are named by recording and start: a window of that start already on the board
+    // that ends elsewhere was written by another HRV agent (or setting) on this recording. It
+    // stands, and this one is not written: said, not silently dropped.
+    if (auto taken = taken_by_other(item.triples.front().s.value, window.end_s)) {
+      rt::log_line(kProgram, "window <" + item.triples.front().s.value + "> [" + number_text(window.start_s) + ", " +
+                                 number_text(window.end_s) + ") s not written: the board has a window of that name ending at " +
+                                 *taken + " s (another agent or setting on this recording; one tahvel-hrv per recording)");
+      return rt::Outcome::ok();
+    }
+    return rt::store_output(session_, item, catching_up);
+  }
+
+  // The tv:windowEndS of a window named `iri` already on the board when it is not `end_s`.
+  std::optional<std::string> taken_by_other(const std::string& iri, double end_s) {
+    auto snapshot = session_.node.snapshot();
+    if (!snapshot) return std::nullopt;
+    auto ends = snapshot->list({.s = tn::Term::iri(iri), .p = agg::tv_term("windowEndS")});
+    if (!ends || ends->empty()) return std::nullopt;
+    const std::string& text = ends->front().triple.o.value;
+    char* stop = nullptr;
+    const double there = std::strtod(text.c_str(), &stop);
+    if (std::abs(there - end_s) <= 1e-6) return std::nullopt;
+    return text;
   }
 
   rt::Session& session_;
