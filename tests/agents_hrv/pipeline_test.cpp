@@ -614,4 +614,49 @@ TEST(AgentPrograms, TheHrvConfigurationIsCheckedLoggedAndKeptPastTheRing) {
   fs::remove_all(tmp);
 }
 
+// Windows are named by recording and start: a window of another length already holding the name
+// (a second HRV agent on the recording) stands, and the one that cannot be written is said.
+TEST(AgentPrograms, AWindowWhoseNameAnotherWindowHoldsIsLoggedNotSilentlyDropped) {
+  char pattern[] = "/tmp/tahvel-agents-hrv-taken-XXXXXX";
+  ASSERT_NE(mkdtemp(pattern), nullptr);
+  const std::string tmp = pattern, dir = tmp + "/home1", log = tmp + "/hrv.log";
+  auto made = tn::Node::init(dir, tn::InitOptions{.iri = kNodeIri});
+  ASSERT_TRUE(made) << made.error().message;
+  std::optional<tn::Node> node(std::move(*made));
+  agg::RecordingInfo info;
+  info.iri = kRecording;
+  info.sensor_iri = kNodeIri + "/ecg";
+  info.fs = 1000;
+  auto source = node->agent("ecg");
+  auto other = node->agent("hrv60");
+  ASSERT_TRUE(source && other);
+  ASSERT_TRUE(source->store(agg::recording_item(info)));
+  agg::WindowMetrics sixty;  // another agent's 60 s window at 0
+  sixty.start_s = 0;
+  sixty.end_s = 60;
+  ASSERT_TRUE(other->store(agg::hrv_window_item(info, sixty, other->iri())));
+  agg::RrSeries rr;  // 400 s of beats a second apart, then the end
+  rr.recording = kRecording;
+  for (std::int64_t k = 0; k < 400; ++k) rr.intervals.push_back({k * 1000, (k + 1) * 1000, true});
+  rr.end_sample = 400'000;
+  ASSERT_TRUE(source->store(agg::rr_item(rr)));
+  {
+    Process agent({bin("tahvel-hrv"), dir, "--idle", "3", "--window", "300"}, log);
+    EXPECT_EQ(agent.wait(60s), 0);
+  }
+  std::ifstream in(log);
+  std::ostringstream text;
+  text << in.rdbuf();
+  EXPECT_NE(text.str().find("window <" + agg::hrv_iri(kRecording, 0) + "> [0, 300) s not written: the board has a window of that name ending at 60"),
+            std::string::npos)
+      << text.str();
+  auto ends = node->snapshot()->list({.s = tn::Term::iri(agg::hrv_iri(kRecording, 0)), .p = agg::tv_term("windowEndS")});
+  ASSERT_EQ(ends->size(), 1u);
+  EXPECT_EQ(ends->front().triple.o.value, "60.0") << "the window that held the name stands";
+  EXPECT_EQ(node->snapshot()->count({.s = tn::Term::iri(agg::hrv_iri(kRecording, 300))}).value() > 0, true)
+      << "the next window, whose name is free, is written";
+  node.reset();
+  fs::remove_all(tmp);
+}
+
 }  // namespace
