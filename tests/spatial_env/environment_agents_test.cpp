@@ -159,6 +159,23 @@ TEST_F(EnvironmentAgents, OneMoteAtATimeAnswersForARoomAndTheMotesTakeTurns) {
   for (std::size_t i = 1; i < one.size(); ++i) EXPECT_EQ(one[i].at_ns - one[i - 1].at_ns, 600 * kS);
 }
 
+// The supervisor restarts a crashed simulator: it picks the schedule and the turns up from the
+// readings on the board. Restarted every 150 s, the hour is the one an uninterrupted run gives
+// (it sensed everything at once at each start, and the first mote always answered).
+TEST_F(EnvironmentAgents, ARestartedSimulatorKeepsTheScheduleAndTheTurns) {
+  subscribe("living-light", Quantity::light, "living", 300, 0);
+  for (int part = 0; part < 24; ++part)
+    ASSERT_EQ(run(bin("tahvel-env-motes") + " " + store_ + " --seed 7 --steps 15 --step-s 10 --start-ns " +
+                  std::to_string(kT0 + part * 150 * kS) + " 2> /dev/null"),
+              0);
+  auto all = readings();
+  const auto& one = all[{"mote-living-1", Quantity::light}];
+  const auto& two = all[{"mote-living-2", Quantity::light}];
+  EXPECT_EQ(one.size(), 6u);
+  EXPECT_EQ(two.size(), 6u);
+  for (std::size_t i = 1; i < one.size(); ++i) EXPECT_EQ(one[i].at_ns - one[i - 1].at_ns, 600 * kS);
+}
+
 TEST_F(EnvironmentAgents, ARoomWithNoFreshReadingShowsUnknown) {
   subscribe("bed-temp", Quantity::temperature, "bedroom", 300, 1800);  // ends after 30 min
   subscribe("living-move", Quantity::movement, "living", 60, 0, ThresholdRule{0.5, 10});

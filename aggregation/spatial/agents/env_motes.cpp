@@ -50,6 +50,44 @@ class Simulator {
  public:
   Simulator(tn::Node& node, std::uint32_t seed) : node_(node), rng_(seed) {}
 
+  // After a (re)start: when each mote and room was last sensed, and by whom, from the readings
+  // on the board of the last day before `now_ns`. Without it a restart (the supervisor's, after
+  // a crash) sensed everything at once and always asked the same mote first.
+  bool resume(std::int64_t now_ns) {
+    constexpr std::int64_t kDay = 86'400'000'000'000;
+    auto snapshot = node_.snapshot();
+    if (!snapshot) return error(snapshot.error().message);
+    auto board = sp::load_plan(*snapshot);
+    if (!board) return error(board.error().message);
+    auto readings = sp::readings_since(*snapshot, now_ns - kDay);
+    if (!readings) return error(readings.error().message);
+    std::size_t used = 0;
+    for (const sp::MoteReading& r : *readings) {  // record order: the latest last
+      if (r.reading.at_ns > now_ns) continue;
+      const sp::Quantity q = r.reading.quantity;
+      auto note = [&](const std::pair<std::string, sp::Quantity>& key) {
+        if (auto it = last_time_.find(key); it != last_time_.end() && it->second > r.reading.at_ns) return;
+        last_time_[key] = r.reading.at_ns;
+        last_value_[key] = r.reading.value;
+      };
+      if (q == sp::Quantity::movement) {
+        note({r.mote, q});
+      } else {
+        const sp::Sensor* mote = board->plan.sensor(r.mote);
+        if (!mote) continue;
+        // Sensed before the mote was last moved: not for the room it stands in now (S12).
+        const auto placed = board->placed_by.find(r.mote);
+        if (placed == board->placed_by.end() || r.record >= placed->second)
+          for (const std::string& room : board->plan.rooms_at(mote->at, mote->floor)) note({room, q});
+        std::int64_t& answered = last_answered_.try_emplace({r.mote, q}, r.reading.at_ns).first->second;
+        answered = std::max(answered, r.reading.at_ns);
+      }
+      ++used;
+    }
+    if (used > 0) rt::log_line(kProgram, "resumed the schedule from " + std::to_string(used) + " reading(s) on the board");
+    return true;
+  }
+
   // One step at time `now_ns`: the readings due, written. False after printing an error.
   bool step(std::int64_t now_ns) {
     auto snapshot = node_.snapshot();
@@ -225,6 +263,7 @@ int run(int argc, char** argv) {
     return rt::kExitError;
   }
   Simulator simulator(*opened, seed);
+  if (!simulator.resume(now)) return rt::kExitError;
   const auto step_ns = static_cast<std::int64_t>(step_s * 1e9);
   for (std::uint64_t i = 0; !rt::stop_requested() && (!virtual_time || i < steps); ++i) {
     if (!simulator.step(now)) return rt::kExitError;
