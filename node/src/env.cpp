@@ -435,9 +435,9 @@ Result<void> Env::grow(WriteKind kind) {
   if (current >= limit)
     return fail(Errc::store_full, "store full: " + dir_.string() + " reached its maximum of " +
                                       std::to_string(settings_.max_map_bytes) + " bytes");
-  if (!quiesce_locked())
-    return fail(Errc::store_full, "store full: " + dir_.string() +
-                                      " cannot grow while this process holds a snapshot");
+  if (!quiesce_locked())  // not full: growing waits for this process's own snapshots
+    return fail(Errc::io, "the store in " + dir_.string() +
+                              " must grow, and cannot while this process holds a snapshot; release the snapshot and retry");
   std::uint64_t next = std::min(limit, std::max(current * 2, current + kInitialMapBytes));
   int rc = mdb_env_set_mapsize(env_, next);
   if (rc != 0) return lmdb_fail(rc, "growing the store map of " + dir_.string());

@@ -365,6 +365,25 @@ TEST(Store, AFullStoreCanAlwaysBeEmptiedAndDataNeverTakesTheRemovalsReserve) {
                      << node.stats()->used_bytes << ")";
 }
 
+// A snapshot held in the writing process keeps the map from growing (LMDB may not remap under
+// an open transaction of the process): the write that needs a larger map fails with an io error
+// that says so, not with store_full (the store is not full), and succeeds once it is released.
+TEST(Store, AWriteThatMustGrowTheMapWhileTheProcessHoldsASnapshotSaysSoAndSucceedsAfter) {
+  TempDir dir;
+  Node node = make_node(dir.path());
+  auto agent = node.agent("w");
+  const std::string big(1 << 19, 'x');  // 0.5 MB literals, each its own: the 64 MB first map fills soon
+  std::optional<Snapshot> held(node.snapshot().value());
+  Result<std::uint64_t> stored = std::uint64_t{0};
+  int i = 0;
+  for (; i < 400 && stored; ++i) stored = agent->store(Item{}.add(ex("s" + std::to_string(i)), ex("p"), Term::literal(big + std::to_string(i))));
+  ASSERT_FALSE(stored) << "200 MB went into the first map";
+  EXPECT_EQ(stored.error().code, Errc::io) << stored.error().message;
+  EXPECT_NE(stored.error().message.find("release the snapshot and retry"), std::string::npos) << stored.error().message;
+  held.reset();
+  EXPECT_TRUE(agent->store(Item{}.add(ex("s" + std::to_string(i)), ex("p"), Term::literal(big + std::to_string(i)))));
+}
+
 // Runs `body` in a child process with its own mount namespace and a tmpfs of `size` mounted on
 // `dir`, with a new store at dir/store and its agent "w". The child ends through
 // `say(text, status)`; a child that cannot mount ends with 77.

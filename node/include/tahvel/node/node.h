@@ -84,8 +84,10 @@ struct Change {
 // ---------------------------------------------------------------------------------------------
 // Snapshot: a consistent, read-only view of the whole whiteboard (an LMDB read transaction).
 // Holding one does not block writers, but keeps the pages it sees from reuse: release it soon.
-// While a process holds a snapshot it cannot adopt a map that another process grew: a new
-// snapshot or write in that process then fails (Errc::io, "release the snapshot and retry").
+// While a process holds a snapshot it cannot adopt a map that another process grew, nor grow the
+// map itself: a new snapshot, or a write that needs a larger map, in that process waits up to
+// 1 s for its snapshots to end and then fails (Errc::io, "release the snapshot and retry").
+// Release snapshots before writing, above all in a thread that writes.
 
 struct PredicateSummary {
   std::string predicate;  // IRI
