@@ -105,6 +105,9 @@ TEST(Wkt, RefusesMalformedTextNamingTheColumn) {
       {"POLYGONZ((0 0 0, 4 0 0, 4 4 0, 0 0 0))", 8, "Z and M coordinates are not supported"},
       {"POINTZM(1 1 1 1)", 6, "Z and M coordinates are not supported"},
       {"SRID=4326;POINT(1 1)", 1, "EWKT's 'SRID=...;' is not WKT"},
+      // A hole in an L-shaped ring's notch: its vertices lie on the ring, its edges only touch it.
+      {"POLYGON((0 0, 4 0, 4 2, 2 2, 2 4, 0 4, 0 0), (2 2, 4 2, 2 4, 2 2))", 46, "the hole reaches outside the outer ring"},
+      {"POLYGON((0 0, 4 0, 4 2, 2 2, 2 4, 0 4, 0 0), (3 1, 4 2, 2 4, 1 3, 3 1))", 46, "the hole reaches outside the outer ring"},
   };
   for (const Refusal& c : cases) {
     Error e = error_of(c.text);
@@ -113,6 +116,16 @@ TEST(Wkt, RefusesMalformedTextNamingTheColumn) {
         << c.text << ": " << e.message;
     EXPECT_NE(e.message.find(c.says), std::string::npos) << c.text << ": " << e.message;
   }
+}
+
+// Holes are checked exactly: one courtyard drawn twice (overlapping holes, which S2 leaves
+// unchecked) still leaves floor, and a courtyard room at 1e-200 m is still a room.
+TEST(Wkt, OverlappingHolesAndTinyCoordinatesAreNotTakenForAPolygonWithoutArea) {
+  for (const char* text : {"POLYGON((0 0, 10 0, 10 10, 0 10, 0 0), (1 1, 9 1, 9 9, 1 9, 1 1), (1 1, 9 1, 9 9, 1 9, 1 1))",
+                           "POLYGON((0 0, 10 0, 10 10, 0 10, 0 0), (1 1, 8 1, 8 8, 1 8, 1 1), (2 2, 9 2, 9 9, 2 9, 2 2))",
+                           "POLYGON((0 0, 4e-200 0, 4e-200 4e-200, 0 4e-200, 0 0), (1e-200 1e-200, 3e-200 1e-200, "
+                           "3e-200 3e-200, 1e-200 3e-200, 1e-200 1e-200))"})
+    EXPECT_TRUE(parse_wkt(text).has_value()) << text << ": " << parse_wkt(text).error().message;
 }
 
 // Exporters (QGIS, some CAD tools) repeat a vertex; OGC allows it. It is kept once.

@@ -46,6 +46,22 @@ ExactSet exact_region(const Shape& shape) {
   return out;
 }
 
+}  // namespace
+
+bool ring_within(const Ring& outer, const Ring& hole) {
+  ExactSet outside(exact_ring(hole));
+  outside.difference(exact_ring(outer));
+  return outside.is_empty();
+}
+
+bool holes_cover_all(const Polygon& polygon) {
+  ExactSet left(exact_ring(polygon.outer));
+  for (const Ring& hole : polygon.holes) left.difference(exact_ring(hole));
+  return left.is_empty();
+}
+
+namespace {
+
 // The same vertices in the same order, ring by ring: a shape lies in itself (the room named as
 // the area), decided without building exact regions.
 bool same_shape(const Shape& a, const Shape& b) {

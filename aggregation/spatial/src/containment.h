@@ -9,6 +9,14 @@
 
 namespace tahvel::spatial::detail {
 
+// Exact (CGAL Boolean set operations on the exact kernel), for the checks of a polygon's holes
+// (geometry.cpp), where sums of rounded areas and vertex tests went wrong: overlapping holes,
+// coordinates near 1e-200, a hole in a concave ring's notch whose vertices lie on the ring.
+// Both rings simple. True when the closed region of `hole` lies in that of `outer`.
+bool ring_within(const Ring& outer, const Ring& hole);
+// True when `polygon`'s outer ring minus its holes (overlapping or not) leaves no area.
+bool holes_cover_all(const Polygon& polygon);
+
 // An area prepared for many "does this shape lie in it" questions. The exact region (CGAL
 // Polygon_set_2 on the exact kernel) is built on the first question that needs it, so a query
 // whose candidates are all rejected by the cheap tests never builds it.
