@@ -453,8 +453,11 @@ std::uint64_t pages_in_use_bytes(MDB_env* env, MDB_txn* txn) {
   if (mdb_cursor_open(txn, 0, &cursor) == 0) {  // LMDB's free-page table (FREE_DBI)
     MDB_val k, v;
     // Each entry is a list of page numbers; its first word is the count (LMDB's IDL).
-    for (int rc = mdb_cursor_get(cursor, &k, &v, MDB_FIRST); rc == 0; rc = mdb_cursor_get(cursor, &k, &v, MDB_NEXT))
-      if (v.mv_size >= sizeof(std::size_t)) free_pages += *static_cast<const std::size_t*>(v.mv_data);
+    for (int rc = mdb_cursor_get(cursor, &k, &v, MDB_FIRST); rc == 0; rc = mdb_cursor_get(cursor, &k, &v, MDB_NEXT)) {
+      std::size_t count = 0;  // copied: LMDB aligns values to 2 bytes only
+      if (v.mv_size >= sizeof count) std::memcpy(&count, v.mv_data, sizeof count);
+      free_pages += count;
+    }
     mdb_cursor_close(cursor);
   }
   const std::uint64_t pages = info.me_last_pgno + 1;
