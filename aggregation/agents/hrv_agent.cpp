@@ -99,7 +99,7 @@ class HrvStage {
     // A setting relayed from the hospital keeps its flag: on a home with a ring it would be
     // reclaimed, and after a restart the agent would go back to --window without a word. The
     // setting in force is kept as a persistent item of the agent's own (the latest wins).
-    if (evictable) {
+    if (evictable && reclaims_configuration()) {
       tn::Item kept;
       kept.persistent = true;
       const tn::Term self = tn::Term::iri(session_.agent.iri());
@@ -212,6 +212,18 @@ class HrvStage {
       return rt::Outcome::ok();
     }
     return rt::store_output(session_, item, catching_up);
+  }
+
+  // Whether this store's retention could take a configuration record: a ring, or a TTL on
+  // tv:windowSeconds or tv:stepSeconds.
+  bool reclaims_configuration() {
+    auto stats = session_.node.stats();
+    if (stats && stats->ring > 0) return true;
+    auto ttls = session_.node.ttls();
+    if (!ttls) return false;
+    for (const auto& [predicate, ttl] : *ttls)
+      if (predicate == std::string(agg::kTv) + "windowSeconds" || predicate == std::string(agg::kTv) + "stepSeconds") return true;
+    return false;
   }
 
   // The tv:windowEndS of a window named `iri` already on the board when it is not `end_s`.
