@@ -91,7 +91,9 @@ class TrendStage {
       const std::string iri = agg::trend_iri(recording, metric, start);
       if (rt::on_board(session_.node, iri)) continue;
       const auto points = agg::trend_points(upto, metric);
-      const agg::TrendSummary summary = agg::analyse_trend(points, options_);
+      agg::TrendOptions options = options_;
+      options.min_robust_sd = std::max(options.min_robust_sd, agg::metric_resolution(metric));
+      const agg::TrendSummary summary = agg::analyse_trend(points, options);
       agg::TrendUpdate u;
       u.recording = recording;
       u.metric = metric;

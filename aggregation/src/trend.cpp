@@ -57,6 +57,17 @@ std::vector<TrendPoint> trend_points(const std::vector<WindowMetrics>& windows, 
   return out;
 }
 
+double metric_resolution(HrvMetric which) noexcept {
+  switch (which) {
+    case HrvMetric::mean_hr: return 1.0;   // bpm
+    case HrvMetric::pnn50: return 1.0;     // %
+    case HrvMetric::lf:
+    case HrvMetric::hf: return 1.0;        // ms²
+    case HrvMetric::lf_hf: return 0.05;
+    default: return 1.0;                   // ms
+  }
+}
+
 TrendSummary analyse_trend(const std::vector<TrendPoint>& points, const TrendOptions& o) {
   TrendSummary s;
   if (points.empty()) return s;

@@ -250,6 +250,22 @@ TEST_F(TrendAgentTest, AWindowWithoutTheMetricHasNoLatestValueAndNoAlert) {
   EXPECT_TRUE(lead_off.baseline.has_value());
 }
 
+// Six equal baseline values have a MAD of 0: without a floor any change at all was an alert.
+// The robust SD is floored at the metric's resolution (1 ms for SDNN): 1.5 ms off is no alert,
+// 10 ms off three times is.
+TEST_F(TrendAgentTest, AFlatBaselineAlertsOnAChangeThatMattersNotOnAnyChange) {
+  const std::vector<double> sdnn = {50, 50, 50, 50, 50, 50, 51.5, 51.5, 51.5, 60, 60, 60};
+  for (std::size_t k = 0; k < sdnn.size(); ++k) store_window(kRecA, k, sdnn[k]);
+  start_agent("2");
+  wait_for_trends(sdnn.size() * 3);
+  ASSERT_FALSE(HasFatalFailure());
+  EXPECT_EQ(agent_->wait(30s), 0);
+  const auto all = trends();
+  EXPECT_FALSE(all.at(agg::trend_iri(kRecA, agg::HrvMetric::sdnn, 300.0 * 8)).alert);
+  EXPECT_EQ(*all.at(agg::trend_iri(kRecA, agg::HrvMetric::sdnn, 300.0 * 8)).robust_sd, 1.0);
+  EXPECT_TRUE(all.at(agg::trend_iri(kRecA, agg::HrvMetric::sdnn, 300.0 * 11)).alert);
+}
+
 // Windows a minute apart after 115 days (1.00001e+07 s with six significant digits) were
 // named alike, and the later one was taken for a repeat and never written.
 TEST(ItemNames, WindowAndTrendNamesTellApartStartsOnLongRecordingsAndKeepShortOnesShort) {

@@ -16,6 +16,12 @@ enum class HrvMetric { mean_nn, sdnn, rmssd, pnn50, mean_hr, lf, hf, lf_hf, sd1,
 // The value of one metric (nullopt when its guard failed).
 std::optional<double> metric_value(const HrvMetrics& metrics, HrvMetric which) noexcept;
 
+// The least change of a metric worth an alert's scale, in its unit: 1 ms (mean NN, SDNN, RMSSD,
+// SD1, SD2), 1 bpm, 1 % (pNN50), 1 ms² (LF, HF), 0.05 (LF/HF). The trend agent floors the robust
+// SD with it: a baseline of six equal values (a pNN50 of 0) has a MAD of 0, and then any change
+// at all, one successive difference over 50 ms, was three robust SDs away.
+double metric_resolution(HrvMetric which) noexcept;
+
 // One point of a trend: time in seconds (any origin, ascending) and the metric's value.
 struct TrendPoint {
   double time_s = 0;
