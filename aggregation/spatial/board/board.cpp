@@ -7,6 +7,8 @@
 #include <cctype>
 #include <charconv>
 #include <iterator>
+#include <mutex>
+#include <unordered_map>
 #include <cstring>
 #include <set>
 
@@ -39,6 +41,30 @@ Result<std::map<std::string, Latest>> latest_objects(const node::Snapshot& snaps
   });
   if (!read) return store_error(read.error());
   return out;
+}
+
+// parse_wkt, remembered per process by the text: the keeper, the simulator and the
+// environment agent read the whole plan again at every step, and checking a ring (simple, its
+// holes inside) is most of that: a self-intersecting ring of 40,000 vertices took 2.5 s to
+// refuse, at each read. Bounded: forgotten all at once past kMaxRemembered texts or bytes.
+Result<Geometry> parse_wkt_remembered(const std::string& text) {
+  constexpr std::size_t kMaxRemembered = 4096, kMaxBytes = 64u << 20;
+  static std::mutex mutex;
+  static std::unordered_map<std::string, Result<Geometry>> remembered;
+  static std::size_t bytes = 0;
+  {
+    std::lock_guard lock(mutex);
+    if (auto it = remembered.find(text); it != remembered.end()) return it->second;
+  }
+  Result<Geometry> parsed = parse_wkt(text);
+  std::lock_guard lock(mutex);
+  if (remembered.size() >= kMaxRemembered || bytes + text.size() > kMaxBytes) {
+    remembered.clear();
+    bytes = 0;
+  }
+  bytes += 2 * text.size();  // the text and, roughly, its coordinates
+  remembered.emplace(text, parsed);
+  return parsed;
 }
 
 std::optional<int> parse_floor(const node::Term& term) {
@@ -111,7 +137,7 @@ Result<BoardPlan> load_plan(const node::Snapshot& snapshot) {
     if (!wkt) return unexpected(wkt.error());
     if (!*wkt) continue;  // a geometry without WKT (yet): not located
     out.placed_by[feature] = std::max(placed_by, wkt_id);
-    auto parsed = parse_wkt(**wkt);
+    auto parsed = parse_wkt_remembered(**wkt);
     if (!parsed) {
       out.problems.push_back(feature + ": " + parsed.error().message);
       continue;

@@ -51,29 +51,54 @@ std::string coordinates(Point p) {
 
 namespace {
 
-// The first two edges (i < j; edge k runs from vertex k to k + 1) that meet other than at the
-// vertex adjacent edges share: crossing, touching, or folding back along each other.
+// Whether edges i < j (edge k runs from vertex k to k + 1) meet other than at the vertex
+// adjacent edges share: crossing, touching, or folding back along each other.
+bool edges_meet(const std::vector<CgalPoint>& v, std::size_t i, std::size_t j) {
+  const std::size_t n = v.size();
+  const CgalPoint& a = v[i];
+  const CgalPoint& b = v[(i + 1) % n];
+  const bool follows = i + 1 == j, wraps = i == 0 && j == n - 1;
+  if (follows || wraps) {
+    // Adjacent: sharing their common vertex is fine; overlapping beyond it is not.
+    const CgalPoint& shared = follows ? b : a;
+    const CgalPoint& mine = follows ? a : b;
+    const CgalPoint& theirs = follows ? v[(j + 1) % n] : v[j];
+    return CGAL::collinear(mine, shared, theirs) && !CGAL::collinear_are_strictly_ordered_along_line(mine, shared, theirs);
+  }
+  return CGAL::do_intersect(Kernel::Segment_2(a, b), Kernel::Segment_2(v[j], v[(j + 1) % n]));
+}
+
+// The first two edges that meet, first by the later edge j, then by i (the later of the two is
+// the one an error names the column of). Only edges whose bounding boxes overlap are tested, in
+// a sweep over x: testing every pair took 2.5 s for a ring of 40,000 vertices.
 std::optional<std::pair<std::size_t, std::size_t>> meeting_edges(const std::vector<CgalPoint>& v) {
   const std::size_t n = v.size();
-  for (std::size_t j = 1; j < n; ++j) {
-    const Kernel::Segment_2 later(v[j], v[(j + 1) % n]);
-    for (std::size_t i = 0; i < j; ++i) {
-      const CgalPoint& a = v[i];
-      const CgalPoint& b = v[(i + 1) % n];
-      const bool follows = i + 1 == j, wraps = i == 0 && j == n - 1;
-      if (follows || wraps) {
-        // Adjacent: sharing their common vertex is fine; overlapping beyond it is not.
-        const CgalPoint& shared = follows ? b : a;
-        const CgalPoint& mine = follows ? a : b;
-        const CgalPoint& theirs = follows ? v[(j + 1) % n] : v[j];
-        if (CGAL::collinear(mine, shared, theirs) && !CGAL::collinear_are_strictly_ordered_along_line(mine, shared, theirs))
-          return std::pair{i, j};
-      } else if (CGAL::do_intersect(Kernel::Segment_2(a, b), later)) {
-        return std::pair{i, j};
-      }
-    }
+  struct Box {
+    double x0, x1, y0, y1;
+  };
+  std::vector<Box> boxes(n);
+  for (std::size_t k = 0; k < n; ++k) {
+    const CgalPoint& a = v[k];
+    const CgalPoint& b = v[(k + 1) % n];
+    boxes[k] = {std::min(a.x(), b.x()), std::max(a.x(), b.x()), std::min(a.y(), b.y()), std::max(a.y(), b.y())};
   }
-  return std::nullopt;
+  std::vector<std::size_t> order(n);
+  for (std::size_t k = 0; k < n; ++k) order[k] = k;
+  std::sort(order.begin(), order.end(), [&](std::size_t p, std::size_t q) { return boxes[p].x0 < boxes[q].x0; });
+  std::optional<std::pair<std::size_t, std::size_t>> best;
+  std::vector<std::size_t> active;  // edges whose x range reaches the sweep's position
+  for (const std::size_t k : order) {
+    const Box& box = boxes[k];
+    std::erase_if(active, [&](std::size_t e) { return boxes[e].x1 < box.x0; });
+    for (const std::size_t e : active) {
+      if (boxes[e].y1 < box.y0 || box.y1 < boxes[e].y0) continue;
+      const std::pair<std::size_t, std::size_t> pair{std::min(e, k), std::max(e, k)};
+      const bool earlier = !best || pair.second < best->second || (pair.second == best->second && pair.first < best->first);
+      if (earlier && edges_meet(v, pair.first, pair.second)) best = pair;
+    }
+    active.push_back(k);
+  }
+  return best;
 }
 
 }  // namespace
