@@ -88,7 +88,7 @@ void print_stats_json(const node::Stats& s) {
 
 const Command kListCommand{
     "list",
-    "DIR [-s S] [-p P] [-o O] [--area IRI|WKT [--floor N]] [--cascade N] [--limit N] [--format nt|ttl|json]",
+    "DIR [-s S] [-p P] [-o O] [--context IRI] [--source IRI] [--area IRI|WKT [--floor N]] [--cascade N] [--limit N] [--format nt|ttl|json]",
     "Print the records matching a pattern (all when none is given).",
     "Matches come in id order; with --cascade N each is followed by its sub-tree: the records\n"
     "whose subject is the match's object (an IRI or blank node), N levels deep. JSON output has\n"
@@ -183,7 +183,7 @@ int run_take(const Args& args) {
 
 const Command kTailCommand{
     "tail",
-    "DIR [-s S] [-p P] [-o O] [--format nt|ttl|json] [--count N]",
+    "DIR [-s S] [-p P] [-o O] [--context IRI] [--source IRI] [--format nt|ttl|json] [--count N]",
     "Print records as they are stored from now on, until interrupted.",
     "Starts after the last record present when it starts and follows the node's change stream.\n"
     "Removals are printed as '# removed ID' (N-Triples, Turtle) or as the record's JSON object\n"

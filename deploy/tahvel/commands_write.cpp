@@ -92,7 +92,7 @@ std::uint64_t store_in_batches(node::Agent& agent, std::vector<node::Item> items
 
 const Command kInitCommand{
     "init",
-    "DIR --iri IRI [--durable] [--ring N] [--max-literal BYTES]",
+    "DIR --iri IRI [--durable] [--ring N] [--max-literal BYTES] [--max-map BYTES]",
     "Create a new whiteboard (node store) in DIR.",
     "DIR is created if missing and must not already hold a store. The node's IRI is its name in\n"
     "the network; agents get IRI/ID. Prefixes given with --prefix are stored in the node and\n"
