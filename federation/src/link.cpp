@@ -1636,8 +1636,10 @@ struct Link::Impl {
       r.chunk = {};
       r.chunk_bytes = 0;
     };
-    // False when `room` chunks are full and the record must wait for the next call.
-    auto take = [&](node::Record record) {
+    // Makes room for `record` in the chunk being filled; false when `room` chunks are full and
+    // the record must wait for the next call (it is then left as it was: a record moved into a
+    // refused call was lost, and the next call sent it empty).
+    auto room_for = [&](const node::Record& record) {
       const std::size_t size = record.triple.s.value.size() + record.triple.p.value.size() +
                                record.triple.o.value.size() + record.meta.source.size() + record.meta.context.size() + 64;
       if (r.chunk_bytes > 0 && r.chunk_bytes + size > kAnswerChunkBytes) {
@@ -1645,17 +1647,17 @@ struct Link::Impl {
         seal(false);
       }
       r.chunk_bytes += size;
-      r.chunk.records.push_back(std::move(record));
       ++r.taken;
       return true;
     };
     bool exhausted = true;
     if (whole) {
       while (r.next_of_whole < r.whole.size()) {
-        if (!take(std::move(r.whole[r.next_of_whole]))) {
+        if (!room_for(r.whole[r.next_of_whole])) {
           exhausted = false;
           break;
         }
+        r.chunk.records.push_back(std::move(r.whole[r.next_of_whole]));
         ++r.next_of_whole;
       }
     } else {
@@ -1663,10 +1665,11 @@ struct Link::Impl {
       auto walked = snap->for_each(pattern, [&](const node::Record& record) {
         if (record.meta.id > r.horizon) return false;     // stored after the query arrived
         if (q.limit && r.taken >= q.limit) return false;
-        if (!take(record)) {
+        if (!room_for(record)) {
           exhausted = false;
           return false;
         }
+        r.chunk.records.push_back(record);
         r.cursor = record.meta.id;
         return true;
       });

@@ -1005,6 +1005,34 @@ TEST(Link, RemoteQueryReturnsExactlyTheRecordsHeldBelowAndNamesItsErrors) {
   EXPECT_EQ(below_home.error().code, Errc::not_found) << below_home.error().message;
 }
 
+// A cascade answer is read whole at the target and sent a window of chunks at a time: the
+// record that did not fit in a full window must go in the next one, not be lost (it was sent
+// emptied, and N-Triples output dropped it).
+TEST(Link, ACascadeAnswerLargerThanTheChunkWindowReturnsEveryRecord) {
+  Tree tree;
+  ASSERT_TRUE(tree.start_hospital_and_home1());
+  auto sensor = node::Node::open(tree.home1_dir).value().agent("ecg").value();
+  const std::string big(20000, 'x');
+  for (int i = 0; i < 80; ++i) {  // 1.6 MB: more than 16 chunks in flight
+    node::Item item;
+    item.add(Term::iri(kHome1 + "/rec/chunk/" + std::to_string(i)), Term::iri(kEx + "samples"), Term::literal(big + std::to_string(i)));
+    ASSERT_TRUE(sensor.store(item));
+  }
+  const node::Pattern samples{.p = Term::iri(kEx + "samples")};
+  auto hospital = node::Node::open(tree.hospital_dir).value();
+  std::vector<node::Record> got;
+  auto n = remote_query(hospital, {.target = kHome1, .pattern = samples, .cascade = 1}, 30s,
+                        [&](const node::Record& r) { got.push_back(r); });
+  ASSERT_TRUE(n) << n.error().message;
+  const auto expected = node::Node::open(tree.home1_dir).value().snapshot().value().list(samples, {.cascade = 1}).value();
+  ASSERT_EQ(got.size(), expected.size());
+  for (std::size_t i = 0; i < got.size(); ++i) {
+    EXPECT_EQ(got[i].meta.id, expected[i].meta.id);
+    EXPECT_EQ(got[i].triple.s.value, expected[i].triple.s.value);
+    EXPECT_EQ(got[i].triple.o.value, expected[i].triple.o.value);
+  }
+}
+
 // The answer crosses the asking node's board (P14), whose literal limit the target's largest
 // record may come close to: a record as large as the target allows must still come back whole.
 TEST(Link, ARemoteQueryReturnsARecordAsLargeAsTheTargetAllows) {
