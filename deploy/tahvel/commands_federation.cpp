@@ -3,6 +3,7 @@
 // a topology file under a supervisor) and `tahvel status` (the tree of nodes and agents).
 #include <fcntl.h>
 #include <sys/statvfs.h>
+#include <sys/sysmacros.h>
 #include <signal.h>
 #include <sys/file.h>
 #include <sys/stat.h>
@@ -13,6 +14,7 @@
 #include <algorithm>
 #include <atomic>
 #include <cerrno>
+#include <cstdio>
 #include <charconv>
 #include <chrono>
 #include <cstring>
@@ -543,12 +545,6 @@ int print_predicates(node::Node& node, const Args& args) {
 
 namespace {
 
-fs::path self_bin_dir() {
-  std::error_code ec;
-  fs::path exe = fs::read_symlink("/proc/self/exe", ec);
-  return ec ? fs::path() : exe.parent_path();
-}
-
 // The argv of a node's link process.
 std::vector<std::string> link_argv(const Topology& topo, const NodeSpec& spec, const fs::path& store, const fs::path& bin) {
   std::vector<std::string> argv{(bin / "tahvel").string(), "link", store.string()};
@@ -642,6 +638,35 @@ bool hold_pid_file(const fs::path& pid_file) {
     return false;
   }
   return true;  // fd deliberately left open (close-on-exec: the programs do not inherit it)
+}
+
+// The process holding a flock on `path` (from /proc/locks, by device and inode), or 0.
+pid_t flock_holder(const fs::path& path) {
+  struct stat st {};
+  if (::stat(path.c_str(), &st) != 0) return 0;
+  std::ifstream locks("/proc/locks");
+  for (std::string line; std::getline(locks, line);) {
+    // "1: FLOCK  ADVISORY  WRITE 4711 fd:00:1234567 0 EOF"
+    std::istringstream fields(line);
+    std::string number, kind, mode, access, pid, where;
+    if (!(fields >> number >> kind >> mode >> access >> pid >> where) || kind != "FLOCK") continue;
+    unsigned major = 0, minor = 0;
+    unsigned long long inode = 0;
+    if (std::sscanf(where.c_str(), "%x:%x:%llu", &major, &minor, &inode) != 3) continue;
+    if (inode == st.st_ino && major == ::major(st.st_dev) && minor == ::minor(st.st_dev)) return std::atoi(pid.c_str());
+  }
+  return 0;
+}
+
+// The supervisor that holds node store `store` (Deployment::lock_node): its pid, -1 when it is
+// held by a process /proc/locks does not name, 0 when none holds it.
+pid_t supervisor_of_store(const fs::path& store) {
+  const int fd = ::open(store.c_str(), O_RDONLY | O_DIRECTORY | O_CLOEXEC);
+  if (fd < 0) return 0;
+  pid_t holder = 0;
+  if (flock(fd, LOCK_SH | LOCK_NB) != 0 && (holder = flock_holder(store)) == 0) holder = -1;  // held, by whom not known
+  ::close(fd);
+  return holder;
 }
 
 struct ProgramRow {
@@ -923,20 +948,23 @@ std::string dds_config_digest(const std::vector<std::string>& argv) {
 constexpr std::chrono::milliseconds kLinkMaxBackOff{2000};
 
 std::vector<agents::ProgramSpec> programs_of(const Topology& topo, const std::vector<const NodeSpec*>& mine,
-                                             const fs::path& state, const fs::path& bin) {
+                                             const fs::path& state, const CommandContext& context) {
   std::vector<agents::ProgramSpec> programs;
   for (const NodeSpec* spec : mine) {
     const fs::path store = state / spec->id;
+    // What a program starts inherits the mark: found and killed when a supervisor killed with
+    // SIGKILL left it running (agents::kill_leftovers).
+    const std::pair<std::string, std::string> mark{std::string(agents::kLeftoverMark), fs::absolute(store).string()};
     if (!spec->parent.empty() || !topo.children(spec->id).empty()) {
-      auto argv = link_argv(topo, *spec, store, bin);
-      std::vector<std::pair<std::string, std::string>> env;
+      auto argv = link_argv(topo, *spec, store, context.bin);
+      std::vector<std::pair<std::string, std::string>> env{mark};
       if (auto digest = dds_config_digest(argv); !digest.empty()) env.emplace_back("TAHVEL_DDS_CONFIG_DIGEST", digest);
       programs.push_back({spec->id + "/link", std::move(argv), state / "logs" / spec->id / "link.log", std::move(env),
                           agents::Restart::always, kLinkMaxBackOff});
     }
     for (const AgentSpec& agent : spec->agents)
-      programs.push_back({spec->id + "/" + agent.id, check(expand_agent_command(agent, *spec, store, bin)),
-                          state / "logs" / spec->id / (agent.id + ".log"), {}, agent.restart});
+      programs.push_back({spec->id + "/" + agent.id, check(expand_agent_command(agent, *spec, store, context)),
+                          state / "logs" / spec->id / (agent.id + ".log"), {mark}, agent.restart});
   }
   return programs;
 }
@@ -957,25 +985,39 @@ class Deployment {
  public:
   Deployment(agents::Supervisor& supervisor, fs::path state, std::optional<std::string> only)
       : supervisor_(supervisor), state_(std::move(state)), only_(std::move(only)) {}
+  ~Deployment() {
+    for (const auto& [id, fd] : locks_) ::close(fd);
+  }
+  Deployment(const Deployment&) = delete;
+  Deployment& operator=(const Deployment&) = delete;
 
-  // One line per change made, for the log and for the `up` that asked.
-  std::vector<std::string> apply(const Topology& topo) {
+  // One line per change made, for the log and for the `up` that asked. `context`: the
+  // environment of the `up` that asked (CommandContext).
+  std::vector<std::string> apply(const Topology& topo, const CommandContext& context) {
     std::vector<std::string> changes;
     // Another file taking over a running deployment is most often the wrong file: said first.
     const fs::path file = fs::absolute(topo.file).lexically_normal();
     if (!file_.empty() && file != file_)
       changes.push_back("the deployment ran " + file_.string() + " until now and runs " + file.string() + " from now on");
     file_ = file;
-    const auto mine = nodes_brought_up(topo, only_);
-    const std::vector<agents::ProgramSpec> in_order = programs_of(topo, mine, state_, self_bin_dir());  // parents first
+    std::vector<const NodeSpec*> mine;
+    for (const NodeSpec* spec : nodes_brought_up(topo, only_))
+      if (lock_node(*spec, changes)) mine.push_back(spec);
+    const std::vector<agents::ProgramSpec> in_order = programs_of(topo, mine, state_, context);  // parents first
     std::map<std::string, const agents::ProgramSpec*> wanted;
     for (const auto& program : in_order) wanted[program.name] = &program;
+    // What left the file and what changed stop together: each may take its 5 s of grace.
+    std::vector<std::string> leaving;
+    for (const auto& [name, spec] : applied_) {
+      auto w = wanted.find(name);
+      if (w == wanted.end() || !same_program(spec, *w->second)) leaving.push_back(name);
+    }
+    supervisor_.remove(leaving);
     for (auto it = applied_.begin(); it != applied_.end();) {
       if (wanted.count(it->first)) {
         ++it;
         continue;
       }
-      (void)supervisor_.remove(it->first);
       changes.push_back("stopped " + it->first + " (no longer in the file)");
       it = applied_.erase(it);
     }
@@ -984,7 +1026,6 @@ class Deployment {
       auto it = applied_.find(name);
       if (it != applied_.end() && same_program(it->second, program)) continue;
       const bool changed = it != applied_.end();
-      if (changed) (void)supervisor_.remove(name);
       if (auto started = supervisor_.start(program); !started) {
         changes.push_back("cannot start " + name + ": " + started.error().message);
         if (changed) applied_.erase(it);
@@ -1018,6 +1059,11 @@ class Deployment {
     }
     std::erase_if(keepers_, [&](const auto& entry) { return !ids.count(entry.first); });
     std::erase_if(published_, [&](const auto& entry) { return !ids.count(entry.first); });
+    std::erase_if(locks_, [&](const auto& entry) {  // its programs stopped above
+      if (ids.count(entry.first)) return false;
+      ::close(entry.second);
+      return true;
+    });
     node_ids_ = ids;
     for (const NodeSpec* spec : mine) {
       if (!spec->behaviours.empty() && !dispatchers_.count(spec->id)) {
@@ -1132,6 +1178,35 @@ class Deployment {
     return {};
   }
 
+  // One supervisor per node: it holds an exclusive lock (flock) on the node's store directory,
+  // which outlives a deleted pid file (a second `up` after 'rm state/*.pid' found no supervisor
+  // and ran every agent twice). Once held, what programs of a supervisor killed earlier left
+  // running is killed. False (and why, in `changes`) when the node cannot run here.
+  bool lock_node(const NodeSpec& spec, std::vector<std::string>& changes) {
+    if (locks_.count(spec.id)) return true;
+    const fs::path store = fs::absolute(state_ / spec.id);
+    const int fd = ::open(store.c_str(), O_RDONLY | O_DIRECTORY | O_CLOEXEC);
+    if (fd < 0) {
+      changes.push_back("node '" + spec.id + "' not started: " + store.string() + ": " + std::strerror(errno) +
+                        " ('tahvel up' of the file makes its store)");
+      return false;
+    }
+    if (flock(fd, LOCK_EX | LOCK_NB) != 0) {
+      ::close(fd);
+      changes.push_back("node '" + spec.id + "' not started: another supervisor runs it (it holds " + store.string() +
+                        "); 'tahvel status' shows which");
+      return false;
+    }
+    locks_[spec.id] = fd;
+    if (const auto killed = agents::kill_leftovers(store.string()); !killed.empty()) {
+      std::string list;
+      for (const auto& k : killed) list += (list.empty() ? "" : ", ") + k;
+      changes.push_back("killed " + std::to_string(killed.size()) + " process(es) that programs of node '" + spec.id +
+                        "' had started and left running when their supervisor was killed: " + list);
+    }
+    return true;
+  }
+
   static bool same_program(const agents::ProgramSpec& a, const agents::ProgramSpec& b) {
     return a.argv == b.argv && a.env == b.env && a.log_file == b.log_file && a.restart == b.restart;
   }
@@ -1156,6 +1231,7 @@ class Deployment {
   std::optional<std::string> only_;
   fs::path file_;  // the topology file applied last (absolute)
   std::map<std::string, agents::ProgramSpec> applied_;
+  std::map<std::string, int> locks_;  // by node id: the store directory's descriptor, locked
   std::map<std::string, Dispatching> dispatchers_;
   std::map<std::string, spatial::AreaKeeper> keepers_;
   std::set<std::string> node_ids_;                // the nodes this supervisor runs
@@ -1173,9 +1249,24 @@ fs::path apply_answer_file(const fs::path& pid_file) { return fs::path(pid_file)
 // next in turn must not take it for stopped.
 void apply_requested(Deployment& deployment, const fs::path& pid_file, const agents::Supervisor::Log& log,
                      const std::function<void()>& before_answer) {
-  std::ifstream in(apply_request_file(pid_file));
-  std::string id, file;
-  if (!std::getline(in, id) || !std::getline(in, file)) return log("up: SIGHUP without a request to apply a file: ignored");
+  // The request is taken (moved aside) before it is read: a SIGHUP from anything else later
+  // (a closed terminal, logrotate) finds none, instead of applying the file as it is on disk
+  // then, which nobody asked for.
+  const fs::path request = apply_request_file(pid_file);
+  fs::path taken = request;
+  taken += ".taken";
+  std::error_code moved;
+  fs::rename(request, taken, moved);
+  if (moved) return log("up: SIGHUP without a request to apply a file: ignored ('tahvel up FILE' applies a file)");
+  std::ifstream in(taken);
+  std::string id, file, mitdb, path, bin;
+  const bool complete = std::getline(in, id) && std::getline(in, file) && std::getline(in, mitdb) &&
+                        std::getline(in, path) && std::getline(in, bin);
+  in.close();
+  fs::remove(taken, moved);
+  if (!complete || !mitdb.starts_with("mitdb=") || !path.starts_with("path=") || !bin.starts_with("bin="))
+    return log("up: an incomplete request to apply a file (from another version of tahvel?): ignored");
+  const CommandContext context{bin.substr(4), mitdb.substr(6), path.substr(5)};
   std::string answer = id + "\n";
   auto topo = load_topology(file);
   if (!topo) {
@@ -1183,7 +1274,7 @@ void apply_requested(Deployment& deployment, const fs::path& pid_file, const age
     log("up: cannot apply " + file + ": " + topo.error().message);
   } else {
     try {
-      auto changes = deployment.apply(*topo);
+      auto changes = deployment.apply(*topo, context);
       log("up: applied " + file + ": " + (changes.empty() ? "nothing to change" : std::to_string(changes.size()) + " change(s)"));
       for (const auto& change : changes) {
         log("up: " + change);
@@ -1217,7 +1308,15 @@ int ask_to_apply(pid_t supervisor, const fs::path& pid_file, const fs::path& fil
     fail(fs::path(pid_file).replace_extension(".apply.lock").string() + ": " + std::strerror(errno));
   const std::string id = std::to_string(getpid()) + "-" +
                          std::to_string(std::chrono::steady_clock::now().time_since_epoch().count());
-  write_whole(apply_request_file(pid_file), id + "\n" + fs::absolute(file).string() + "\n");
+  // With this process's environment: the supervisor expands the agents' commands with it, as
+  // this `up` checked them (TAHVEL_MITDB switches to run_with_mitdb).
+  const CommandContext here = CommandContext::of_this_process();
+  const std::string request = id + "\n" + fs::absolute(file).string() + "\nmitdb=" + here.mitdb + "\npath=" + here.path +
+                              "\nbin=" + here.bin.string() + "\n";
+  if (std::count(request.begin(), request.end(), '\n') != 5)
+    fail("the topology file's path, TAHVEL_MITDB, PATH or this program's directory has a line break: the running supervisor "
+         "cannot be asked to apply it");
+  write_whole(apply_request_file(pid_file), request);
   if (kill(supervisor, SIGHUP) != 0) fail("cannot signal the supervisor " + std::to_string(supervisor) + ": " + std::strerror(errno));
   // Stopping a changed program may take its 5 s of grace, several in turn.
   const auto deadline = std::chrono::steady_clock::now() + 60s;
@@ -1306,10 +1405,10 @@ int run_up(const Args& args) {
       for (const fs::path& file : spec->load) (void)load_file_triples(*spec, file, prefixes, topo);
     }
   }
-  const fs::path bin = self_bin_dir();
+  const CommandContext here = CommandContext::of_this_process();
   for (const NodeSpec* spec : mine)
     for (const AgentSpec& agent : spec->agents)
-      if (auto argv = expand_agent_command(agent, *spec, state / spec->id, bin); !argv)
+      if (auto argv = expand_agent_command(agent, *spec, state / spec->id, here); !argv)
         fail(topo.file.string() + ": " + argv.error().message);
   // Only now, with everything checked: a refused file leaves no state directory behind.
   std::error_code ec;
@@ -1326,6 +1425,16 @@ int run_up(const Args& args) {
   if (turn < 0 || flock(turn, LOCK_EX) != 0) fail(turn_file.string() + ": " + std::strerror(errno));
   running = supervisor_holding(pid_file);
   if (running < 0) fail("a supervisor is starting (" + pid_file.string() + "); try again in a moment");
+  // A supervisor runs each node it holds (Deployment::lock_node); one that holds a node here
+  // without a pid file saying so (the file was deleted) would be a second writer beside the one
+  // this `up` would start.
+  if (running == 0) {
+    for (const NodeSpec* spec : mine)
+      if (const pid_t holder = supervisor_of_store(state / spec->id); holder != 0)
+        fail("node '" + spec->id + "' is run by " + (holder > 0 ? "supervisor " + std::to_string(holder) : std::string("another supervisor")) +
+             ", which holds its store " + (state / spec->id).string() + " though no pid file under " + state.string() +
+             " says so (was it deleted?): 'tahvel down --state " + state.string() + "' stops it");
+  }
   for (const NodeSpec* node_spec : mine) {
     const NodeSpec& spec = *node_spec;
     fs::path store = state / spec.id;
@@ -1383,7 +1492,7 @@ int run_up(const Args& args) {
     }
   }
   if (running > 0) return ask_to_apply(running, pid_file, topo.file);
-  const std::size_t program_count = programs_of(topo, mine, state, bin).size();
+  const std::size_t program_count = programs_of(topo, mine, state, here).size();
   const bool foreground = args.has("--foreground");
   if (!foreground) {
     // The supervisor lives on in a daemon; this process returns once it has started.
@@ -1415,12 +1524,18 @@ int run_up(const Args& args) {
     close(ready[0]);
     setsid();
     if (fork() > 0) _exit(0);  // not a session leader: never gets a controlling terminal
-    int log = ::open((state / "logs" / "supervisor.log").c_str(), O_WRONLY | O_CREAT | O_APPEND, 0644);
-    int null = ::open("/dev/null", O_RDONLY);
-    if (null >= 0) dup2(null, 0);
+    // Close-on-exec, and closed once duplicated: the programs get 0, 1 and 2 of their own and
+    // must not hold the supervisor's log open.
+    int log = ::open((state / "logs" / "supervisor.log").c_str(), O_WRONLY | O_CREAT | O_APPEND | O_CLOEXEC, 0644);
+    int null = ::open("/dev/null", O_RDONLY | O_CLOEXEC);
+    if (null >= 0) {
+      dup2(null, 0);
+      if (null > 2) ::close(null);
+    }
     if (log >= 0) {
       dup2(log, 1);
       dup2(log, 2);
+      if (log > 2) ::close(log);
     }
     if (!hold_pid_file(pid_file)) {
       const std::string why = pid_file.string() + " is held by another supervisor (or cannot be written)";
@@ -1443,11 +1558,16 @@ int run_up(const Args& args) {
   signal(SIGPIPE, SIG_IGN);
   const agents::Supervisor::Log log = [](std::string_view line) { std::cerr << node::log_stamp() << " " << line << std::endl; };
   agents::Supervisor supervisor(log);
-  Deployment deployment(supervisor, state, only);
-  for (const auto& change : deployment.apply(topo))
-    if (change.rfind("started ", 0) != 0) log("up: " + change);  // the supervisor logs each start
   fs::path state_file = state / pid_file_name(only);
   state_file.replace_extension(".state");
+  // Stopping programs (a changed command, `down`) may take their grace: the state file stays
+  // current meanwhile, or `status` and the next `up` would take this supervisor for hung.
+  supervisor.while_waiting([&] { write_state_file(state_file, supervisor); });
+  log("up: supervisor " + std::to_string(getpid()) + " runs " + fs::absolute(topo.file).lexically_normal().string() +
+      (only ? " (node " + *only + ")" : std::string()));
+  Deployment deployment(supervisor, state, only);
+  for (const auto& change : deployment.apply(topo, CommandContext::of_this_process()))
+    if (change.rfind("started ", 0) != 0) log("up: " + change);  // the supervisor logs each start
   while (!g_stop) {
     supervisor.poll();
     if (g_apply) {
@@ -1459,10 +1579,12 @@ int run_up(const Args& args) {
     write_state_file(state_file, supervisor);
     std::this_thread::sleep_for(100ms);
   }
+  log("up: supervisor " + std::to_string(getpid()) + " stopping its programs");
   deployment.stop(log);
   write_state_file(state_file, supervisor);
   std::error_code removed;
   fs::remove(pid_file, removed);
+  log("up: supervisor " + std::to_string(getpid()) + " stopped");
   return kExitOk;
 }
 
@@ -1523,6 +1645,23 @@ int run_down(const Args& args) {
       supervisor_holding(state / pid_file_name(std::nullopt)) != 0)
     fail("--node '" + *only + "': it runs under the supervisor of the whole file (" +
          (state / pid_file_name(std::nullopt)).string() + "), which 'tahvel down --state " + state.string() + "' stops");
+  // An `up` still making the stores holds .up.lock until its supervisor runs: waited for, or
+  // this `down` would find nothing to stop and the deployment would start after it.
+  if (const int turn = ::open((state / ".up.lock").c_str(), O_RDWR | O_CLOEXEC); turn >= 0) {
+    bool said = false;
+    const auto until = std::chrono::steady_clock::now() + 120s;
+    while (flock(turn, LOCK_EX | LOCK_NB) != 0) {
+      if (!said) std::cout << "down: an 'up' is starting the deployment under " << state.string() << "; waiting for it\n" << std::flush;
+      said = true;
+      if (std::chrono::steady_clock::now() >= until) {
+        ::close(turn);
+        fail("the 'up' starting the deployment under " + state.string() + " did not finish within 120 s (it holds " +
+             (state / ".up.lock").string() + "); try again when it has");
+      }
+      std::this_thread::sleep_for(100ms);
+    }
+    ::close(turn);  // and the lock: the supervisor, if that `up` started one, holds its pid file now
+  }
   std::error_code ec;
   int stopped = 0;
   for (const auto& entry : fs::directory_iterator(state, ec)) {
@@ -1553,7 +1692,36 @@ int run_down(const Args& args) {
     std::cout << "down: stopped supervisor " << pid << " (" << name << ")\n";
   }
   if (ec) fail(state.string() + ": " + ec.message());
-  if (stopped == 0) std::cout << "down: nothing was running under " << state.string() << "\n";
+  // What programs of a supervisor killed with SIGKILL started lives on (agents::kill_leftovers);
+  // a node no supervisor holds now has nothing that should run.
+  int leftovers = 0;
+  for (const auto& entry : fs::directory_iterator(state, ec)) {
+    if (only && entry.path().filename() != *only) continue;
+    if (!fs::exists(entry.path() / "data.mdb") || store_being_made(entry.path())) continue;
+    const fs::path store = fs::absolute(entry.path());
+    // A supervisor still holding the store had no pid file (deleted): stopped as the others.
+    if (const pid_t holder = supervisor_of_store(store); holder > 0) {
+      kill(holder, SIGTERM);
+      kill(holder, SIGCONT);
+      const auto deadline = std::chrono::steady_clock::now() + 20s;
+      while (supervisor_of_store(store) != 0 && std::chrono::steady_clock::now() < deadline) std::this_thread::sleep_for(50ms);
+      if (supervisor_of_store(store) != 0) fail(not_stopped_because(holder, state));
+      ++stopped;
+      std::cout << "down: stopped supervisor " << holder << " (it ran node '" << entry.path().filename().string()
+                << "' without a pid file)\n";
+    }
+    const int fd = ::open(store.c_str(), O_RDONLY | O_DIRECTORY | O_CLOEXEC);
+    if (fd < 0) continue;
+    if (flock(fd, LOCK_EX | LOCK_NB) == 0) {
+      for (const auto& killed : agents::kill_leftovers(store.string())) {
+        std::cout << "down: killed " << killed << ", left running by a program of node '" << entry.path().filename().string()
+                  << "' when its supervisor was killed\n";
+        ++leftovers;
+      }
+    }
+    ::close(fd);
+  }
+  if (stopped == 0 && leftovers == 0) std::cout << "down: nothing was running under " << state.string() << "\n";
   return kExitOk;
 }
 

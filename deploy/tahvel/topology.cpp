@@ -493,17 +493,17 @@ node::Result<Topology> load_topology(const std::filesystem::path& file) {
 
 namespace {
 
-bool on_path(const std::string& name) {
-  const char* path = std::getenv("PATH");
-  if (!path) return false;
-  std::string_view rest(path);
+// The executable `name` found on `path` (a PATH value), or "" when there is none.
+std::string find_on_path(const std::string& name, std::string_view path) {
+  if (path.empty()) return {};
   while (true) {
-    const std::size_t colon = rest.find(':');
-    const std::string dir(rest.substr(0, colon));
+    const std::size_t colon = path.find(':');
+    const std::string dir(path.substr(0, colon));
     const std::string candidate = (dir.empty() ? std::string(".") : dir) + "/" + name;
-    if (access(candidate.c_str(), X_OK) == 0 && !std::filesystem::is_directory(candidate)) return true;
-    if (colon == std::string_view::npos) return false;
-    rest.remove_prefix(colon + 1);
+    if (access(candidate.c_str(), X_OK) == 0 && !std::filesystem::is_directory(candidate))
+      return std::filesystem::absolute(candidate).lexically_normal().string();
+    if (colon == std::string_view::npos) return {};
+    path.remove_prefix(colon + 1);
   }
 }
 
@@ -511,9 +511,9 @@ bool on_path(const std::string& name) {
 
 node::Result<std::vector<std::string>> expand_agent_command(const AgentSpec& agent, const NodeSpec& node,
                                                             const std::filesystem::path& store,
-                                                            const std::filesystem::path& bin) {
-  const char* env = std::getenv("TAHVEL_MITDB");
-  const std::string mitdb = env ? env : "";
+                                                            const CommandContext& context) {
+  const std::string& mitdb = context.mitdb;
+  const std::filesystem::path& bin = context.bin;
   const bool use_mitdb = !mitdb.empty() && !agent.run_with_mitdb.empty();
   std::vector<std::string> argv = use_mitdb ? agent.run_with_mitdb : agent.run;
   const std::string what = "node '" + node.id + "': agent '" + agent.id + "': ";
@@ -549,17 +549,31 @@ node::Result<std::vector<std::string>> expand_agent_command(const AgentSpec& age
   }
   // The program itself: a path that is not an executable file, or a bare name not on PATH,
   // would only show as "exited with status 127; restarting" in the supervisor's log.
-  const std::string& program = argv.front();
+  std::string& program = argv.front();
   if (program.find('/') != std::string::npos) {
     if (access(program.c_str(), X_OK) != 0 || std::filesystem::is_directory(program))
       return node::fail(Errc::invalid_argument, what + "cannot run '" + program + "': " +
                                                      (std::filesystem::exists(program) ? "not an executable file" : "no such file") +
                                                      " (programs of this build: {bin}/tahvel-...)");
-  } else if (!on_path(program)) {
-    return node::fail(Errc::invalid_argument, what + "cannot run '" + program + "': not found on PATH (programs of this build: {bin}/" +
-                                                   program + ")");
+  } else if (std::string found = program.empty() ? std::string() : find_on_path(program, context.path); !found.empty()) {
+    program = found;  // the supervisor runs what this PATH finds, whatever its own PATH is
+  } else {
+    return node::fail(Errc::invalid_argument, what + "cannot run '" + program + "': " +
+                                                   (program.empty() ? "an empty program name" : "not found on PATH") +
+                                                   " (programs of this build: {bin}/tahvel-...)");
   }
   return argv;
+}
+
+CommandContext CommandContext::of_this_process() {
+  CommandContext context;
+  std::error_code ec;
+  context.bin = std::filesystem::read_symlink("/proc/self/exe", ec).parent_path();
+  const char* mitdb = std::getenv("TAHVEL_MITDB");
+  const char* path = std::getenv("PATH");
+  context.mitdb = mitdb ? mitdb : "";
+  context.path = path ? path : "";
+  return context;
 }
 
 }  // namespace tahvel::cli

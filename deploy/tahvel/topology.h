@@ -68,12 +68,22 @@ struct Topology {
 // on several says which with `up`; kinds are lcm or dds; agent ids are valid and unique per node.
 node::Result<Topology> load_topology(const std::filesystem::path& file);
 
+// What an agent's command is expanded with: the environment of the `tahvel up` that asked, not
+// the running supervisor's (which may have been started from another shell days before).
+struct CommandContext {
+  std::filesystem::path bin;  // {bin}: the directory of the tahvel binary that ran `up`
+  std::string mitdb;          // {mitdb} and run_with_mitdb: TAHVEL_MITDB ("" when unset)
+  std::string path;           // PATH, where a bare program name is looked up
+  // This process's: its own binary's directory, TAHVEL_MITDB and PATH.
+  static CommandContext of_this_process();
+};
+
 // An agent's argv with placeholders expanded: {store} (the node's store directory), {iri} (the
-// node IRI), {bin} (the directory of the running tahvel binary), {mitdb} (TAHVEL_MITDB).
+// node IRI), {bin}, {mitdb}; a bare program name becomes the path found on the context's PATH.
 // Errors (invalid_argument, naming node and agent): {mitdb} used while TAHVEL_MITDB is unset
-// or not a directory.
+// or not a directory; a program that is not an executable file or not on PATH.
 node::Result<std::vector<std::string>> expand_agent_command(const AgentSpec& agent, const NodeSpec& node,
                                                             const std::filesystem::path& store,
-                                                            const std::filesystem::path& bin);
+                                                            const CommandContext& context);
 
 }  // namespace tahvel::cli

@@ -4,6 +4,7 @@
 #include <fcntl.h>
 #include <gtest/gtest.h>
 #include <signal.h>
+#include <sys/file.h>
 #include <sys/wait.h>
 #include <unistd.h>
 
@@ -18,6 +19,7 @@
 #include <string>
 #include <thread>
 #include <vector>
+#include "tahvel/node/process.h"
 #include "temp_dir.h"
 
 namespace {
@@ -684,6 +686,131 @@ TEST_F(Cli, StatusDoesNotCallProgramsRunningOnceTheirSupervisorIsGone) {
   EXPECT_NE(after.out.find("idle  stopped (its supervisor is not running)"), std::string::npos) << after.out;
   Outcome down = run({"down", "--state", state});
   EXPECT_EQ(down.status, 0) << down.err;
+}
+
+// An agent that is a shell wrapper: what it starts goes with it, on `down`, and when its
+// supervisor was SIGKILLed (the wrapper dies with it; its child used to run on, out of reach of
+// `down`, beside the next `up`'s copy), at the next `down` or `up`.
+TEST_F(Cli, DownAndTheNextUpStopWhatAProgramStartedEvenAfterItsSupervisorWasKilled) {
+  const std::string file = (tmp_ / "wrap.toml").string(), state = (tmp_ / "state").string();
+  const fs::path child_file = tmp_ / "child";
+  spit(file, "[[node]]\nid = \"solo\"\niri = \"http://example.org/solo\"\n  [[node.agent]]\n  id = \"wrap\"\n"
+             "  run = [\"/bin/sh\", \"-c\", \"sleep 1005 & echo $! > " + child_file.string() + "; wait\"]\n");
+  auto child_of_this_run = [&] {
+    pid_t pid = 0;
+    eventually([&] { return fs::exists(child_file) && (pid = std::atoi(slurp(child_file).c_str())) > 0; });
+    fs::remove(child_file);
+    return pid;
+  };
+  auto gone = [](pid_t pid) {
+    const auto now = tahvel::node::process_state(pid);
+    return !now || *now == 'Z';
+  };
+  ASSERT_EQ(run({"up", file, "--state", state}).status, 0);
+  pid_t child = child_of_this_run();
+  ASSERT_GT(child, 0);
+  EXPECT_EQ(run({"down", "--state", state}).status, 0);
+  EXPECT_TRUE(gone(child)) << "down left the wrapper's child running";
+
+  ASSERT_EQ(run({"up", file, "--state", state}).status, 0);
+  child = child_of_this_run();
+  ASSERT_GT(child, 0);
+  ASSERT_EQ(kill(std::atoi(slurp(tmp_ / "state" / "supervisor-all.pid").c_str()), SIGKILL), 0);
+  ASSERT_TRUE(eventually([&] { return run({"status", "--state", state}).out.find("wrap  stopped") != std::string::npos; }));
+  EXPECT_FALSE(gone(child));  // nothing stops it until a `down` or `up`
+  Outcome down = run({"down", "--state", state});
+  EXPECT_EQ(down.status, 0) << down.err;
+  EXPECT_NE(down.out.find("down: killed " + std::to_string(child) + " (sleep), left running by a program of node 'solo'"),
+            std::string::npos) << down.out;
+  EXPECT_TRUE(eventually([&] { return gone(child); }));  // SIGKILL is delivered, not awaited
+
+  ASSERT_EQ(run({"up", file, "--state", state}).status, 0);
+  child = child_of_this_run();
+  ASSERT_EQ(kill(std::atoi(slurp(tmp_ / "state" / "supervisor-all.pid").c_str()), SIGKILL), 0);
+  ASSERT_TRUE(eventually([&] { return run({"status", "--state", state}).out.find("wrap  stopped") != std::string::npos; }));
+  ASSERT_EQ(run({"up", file, "--state", state}).status, 0);
+  EXPECT_TRUE(eventually([&] { return gone(child); })) << "the next up left the last run's child beside its own";
+  EXPECT_TRUE(eventually([&] {
+    return slurp(tmp_ / "state" / "logs" / "supervisor.log").find("killed 1 process(es) that programs of node 'solo'") != std::string::npos;
+  }));
+  EXPECT_EQ(run({"down", "--state", state}).status, 0);
+}
+
+// SIGHUP is how `up` asks the running supervisor to apply a file; one sent by anything else
+// (a closed terminal, logrotate) applied the file as it was on disk then, half-edited.
+TEST_F(Cli, ASighupThatNoUpSentAppliesNothing) {
+  const std::string file = (tmp_ / "node.toml").string(), state = (tmp_ / "state").string();
+  spit(file, kIdleNodeToml);
+  ASSERT_EQ(run({"up", file, "--state", state}).status, 0);
+  ASSERT_EQ(run({"up", file, "--state", state}).status, 0);  // a request, answered
+  spit(file, std::string(kIdleNodeToml) + "  [[node.agent]]\n  id = \"half\"\n  run = [\"/bin/sleep\", \"603\"]\n");
+  const pid_t supervisor = std::atoi(slurp(tmp_ / "state" / "supervisor-all.pid").c_str());
+  ASSERT_EQ(kill(supervisor, SIGHUP), 0);
+  const fs::path log = tmp_ / "state" / "logs" / "supervisor.log";
+  ASSERT_TRUE(eventually([&] { return slurp(log).find("SIGHUP without a request to apply a file: ignored") != std::string::npos; }))
+      << slurp(log);
+  EXPECT_EQ(run({"status", "--state", state}).out.find("half"), std::string::npos);
+  EXPECT_EQ(run({"down", "--state", state}).status, 0);
+}
+
+// The supervisor expands commands with the environment of the `up` that asked, not its own
+// (started days before from another shell): TAHVEL_MITDB set now switches to run_with_mitdb.
+TEST_F(Cli, UpAgainExpandsCommandsWithTheCallersTahvelMitdb) {
+  const std::string file = (tmp_ / "node.toml").string(), state = (tmp_ / "state").string();
+  fs::create_directories(tmp_ / "mitdb");
+  spit(file, "[[node]]\nid = \"solo\"\niri = \"http://example.org/solo\"\n  [[node.agent]]\n  id = \"source\"\n"
+             "  run = [\"/bin/sleep\", \"604\"]\n  run_with_mitdb = [\"/bin/sleep\", \"605\", \"{mitdb}\"]\n");
+  unsetenv("TAHVEL_MITDB");
+  ASSERT_EQ(run({"up", file, "--state", state}).status, 0);
+  setenv("TAHVEL_MITDB", (tmp_ / "mitdb").c_str(), 1);
+  Outcome again = run({"up", file, "--state", state});
+  unsetenv("TAHVEL_MITDB");
+  EXPECT_EQ(again.status, 0) << again.err;
+  EXPECT_NE(again.out.find("up:   restarted solo/source (its command changed)"), std::string::npos) << again.out;
+  Outcome back = run({"up", file, "--state", state});
+  EXPECT_NE(back.out.find("up:   restarted solo/source (its command changed)"), std::string::npos) << back.out;
+  EXPECT_EQ(run({"down", "--state", state}).status, 0);
+}
+
+// The supervisor holds its nodes' stores: with its pid file deleted (a "stale files" clean-up),
+// a second `up` used to start a second supervisor running every agent twice.
+TEST_F(Cli, UpRefusesANodeThatASupervisorWithoutItsPidFileRunsAndDownStopsThatSupervisor) {
+  const std::string file = (tmp_ / "node.toml").string(), state = (tmp_ / "state").string();
+  spit(file, kIdleNodeToml);
+  ASSERT_EQ(run({"up", file, "--state", state}).status, 0);
+  const pid_t first = std::atoi(slurp(tmp_ / "state" / "supervisor-all.pid").c_str());
+  ASSERT_GT(first, 0);
+  fs::remove(tmp_ / "state" / "supervisor-all.pid");
+  Outcome second = run({"up", file, "--state", state});
+  EXPECT_EQ(second.status, 1);
+  EXPECT_NE(second.err.find("node 'solo' is run by supervisor " + std::to_string(first) + ", which holds its store"), std::string::npos)
+      << second.err;
+  Outcome down = run({"down", "--state", state});
+  EXPECT_EQ(down.status, 0) << down.err;
+  EXPECT_NE(down.out.find("down: stopped supervisor " + std::to_string(first) + " (it ran node 'solo' without a pid file)"),
+            std::string::npos) << down.out;
+  EXPECT_TRUE(eventually([&] {
+    const auto now = tahvel::node::process_state(first);
+    return !now || *now == 'Z';
+  }));
+}
+
+// `up` holds .up.lock while it makes the stores (a large `load` takes a while): a `down` then
+// waits for it instead of finding nothing to stop, after which the deployment started anyway.
+TEST_F(Cli, DownWaitsForAnUpThatIsStillStartingTheDeployment) {
+  const std::string state = (tmp_ / "state").string();
+  fs::create_directories(tmp_ / "state");
+  const int turn = ::open((tmp_ / "state" / ".up.lock").c_str(), O_RDWR | O_CREAT | O_CLOEXEC, 0644);
+  ASSERT_GE(turn, 0);
+  ASSERT_EQ(flock(turn, LOCK_EX), 0);  // as an `up` making the stores does
+  const pid_t down = spawn({"down", "--state", state}, "", 900);
+  std::this_thread::sleep_for(std::chrono::milliseconds(1000));
+  EXPECT_EQ(waitpid(down, nullptr, WNOHANG), 0) << "down did not wait for the up";
+  ::close(turn);
+  Outcome waited = finish(down, 900);
+  EXPECT_EQ(waited.status, 0) << waited.err;
+  EXPECT_NE(waited.out.find("down: an 'up' is starting the deployment under " + state + "; waiting for it"), std::string::npos)
+      << waited.out;
 }
 
 // A program that died and waits out its back-off is about to run again: `status` says so, and

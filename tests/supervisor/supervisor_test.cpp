@@ -15,6 +15,8 @@
 #include <vector>
 
 #include "tahvel/agents/supervisor.h"
+#include "tahvel/node/process.h"
+#include "temp_dir.h"
 
 namespace tahvel::agents {
 namespace {
@@ -393,6 +395,107 @@ TEST(ProgramsOnTheBoard, HoldingsAreOneNodePerPredicateWithItsRecordsAndTimeRang
     EXPECT_EQ(h[vocab::kLastAssertedAt], "20");
   }
   EXPECT_TRUE(samples);
+}
+
+
+// ---- what a program starts, and how it starts ----------------------------------------------
+
+// The pid a program's script wrote to `file`, once it has.
+pid_t pid_written_to(const std::filesystem::path& file) {
+  std::ifstream in(file);
+  pid_t pid = 0;
+  in >> pid;
+  return pid;
+}
+
+// No process `pid` runs now (gone, or a zombie waiting for whoever adopted it to reap it).
+bool gone(pid_t pid) {
+  const auto state = node::process_state(pid);
+  return !state || *state == 'Z';
+}
+
+TEST_F(SupervisorTest, StoppingAProgramStopsWhatItStartedToo) {
+  test_support::TempDir dir("tahvel-sup-group");
+  start("wrapper", "sleep 1001 & echo $! > " + (dir / "child").string() + "; wait", Restart::on_failure);
+  pid_t child = 0;
+  ASSERT_TRUE(poll_until([&] { return (child = pid_written_to(dir / "child")) > 0; }));
+  ASSERT_TRUE(supervisor_.stop("wrapper").has_value());
+  EXPECT_TRUE(gone(child)) << "the wrapper's child " << child << " outlived the stop";
+}
+
+TEST_F(SupervisorTest, WhatAProgramLeftRunningWhenItDiedIsStoppedAndDoesNotRunBesideItsNextRun) {
+  test_support::TempDir dir("tahvel-sup-left");
+  // Each run leaves a child behind and fails; the next run must not find the last one's child.
+  start("leaver", "sleep 1002 & echo $! >> " + (dir / "children").string() + "; exit 1", Restart::on_failure);
+  ASSERT_TRUE(poll_until([&] { return supervisor_.state("leaver")->restarts >= 2; }));
+  std::ifstream in(dir / "children");
+  std::vector<pid_t> children;
+  for (pid_t pid; in >> pid;) children.push_back(pid);
+  ASSERT_GE(children.size(), 2u);
+  for (std::size_t k = 0; k + 1 < children.size(); ++k)
+    EXPECT_TRUE(poll_until([&] { return gone(children[k]); }, 1000ms)) << "run " << k << " left " << children[k] << " running";
+  ASSERT_TRUE(supervisor_.stop("leaver").has_value());
+  EXPECT_TRUE(gone(children.back()));
+}
+
+TEST_F(SupervisorTest, ProgramsStartWithSigpipeAtItsDefaultWhateverTheSupervisorIgnores) {
+  test_support::TempDir dir("tahvel-sup-sigpipe");
+  struct sigaction ignore {}, before {};
+  ignore.sa_handler = SIG_IGN;
+  sigaction(SIGPIPE, &ignore, &before);  // as `tahvel up` does
+  start("reader", "grep SigIgn /proc/self/status > " + (dir / "sigign").string(), Restart::never);
+  sigaction(SIGPIPE, &before, nullptr);
+  ASSERT_TRUE(poll_until([&] { return !supervisor_.state("reader")->running; }));
+  std::ifstream in(dir / "sigign");
+  std::string label, mask;
+  ASSERT_TRUE(in >> label >> mask);
+  EXPECT_EQ(std::stoull(mask, nullptr, 16) & (1ull << (SIGPIPE - 1)), 0u) << "SigIgn " << mask;
+}
+
+TEST_F(SupervisorTest, WaitingForProgramsToStopCallsTheWaitingHook) {
+  int ticks = 0;
+  supervisor_.while_waiting([&] { ++ticks; });
+  start("stubborn1", "trap '' TERM; sleep 1003", Restart::on_failure);
+  start("stubborn2", "trap '' TERM; sleep 1003", Restart::on_failure);
+  poll_until([] { return false; }, 200ms);  // the traps are set
+  supervisor_.remove(std::vector<std::string>{"stubborn1", "stubborn2"}, 600ms);
+  EXPECT_FALSE(supervisor_.state("stubborn1"));
+  EXPECT_FALSE(supervisor_.state("stubborn2"));
+  EXPECT_GE(ticks, 2) << "the hook was not called while the grace ran";
+}
+
+TEST(KillLeftovers, KillsTheProcessesCarryingTheMarkAndNoOther) {
+  auto spawn_marked = [](const std::string& mark) {
+    pid_t pid = fork();
+    if (pid == 0) {
+      setenv(std::string(kLeftoverMark).c_str(), mark.c_str(), 1);
+      execl("/bin/sleep", "sleep", "1004", static_cast<char*>(nullptr));
+      _exit(127);
+    }
+    return pid;
+  };
+  const std::string mine = "/tmp/tahvel-leftover-test-" + std::to_string(getpid());
+  const pid_t marked = spawn_marked(mine), other = spawn_marked(mine + "-other");
+  ASSERT_GT(marked, 0);
+  ASSERT_GT(other, 0);
+  // Until the child has exec'd, /proc shows the test's environment.
+  for (int k = 0; k < 200; ++k) {
+    std::ifstream comm("/proc/" + std::to_string(marked) + "/comm"), comm2("/proc/" + std::to_string(other) + "/comm");
+    std::string a, b;
+    std::getline(comm, a);
+    std::getline(comm2, b);
+    if (a == "sleep" && b == "sleep") break;
+    std::this_thread::sleep_for(10ms);
+  }
+  const auto killed = kill_leftovers(mine);
+  ASSERT_EQ(killed.size(), 1u);
+  EXPECT_EQ(killed[0], std::to_string(marked) + " (sleep)");
+  int status = 0;
+  ASSERT_EQ(waitpid(marked, &status, 0), marked);
+  EXPECT_TRUE(WIFSIGNALED(status) && WTERMSIG(status) == SIGKILL);
+  EXPECT_EQ(waitpid(other, &status, WNOHANG), 0) << "a process with another mark was killed";
+  kill(other, SIGKILL);
+  waitpid(other, &status, 0);
 }
 
 }  // namespace

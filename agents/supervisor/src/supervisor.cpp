@@ -12,6 +12,8 @@
 #include <cstring>
 #include <fstream>
 #include <iostream>
+#include <set>
+#include <sstream>
 #include <thread>
 
 #include "tahvel/node/process.h"
@@ -31,6 +33,10 @@ struct Supervisor::Program {
   std::chrono::milliseconds delay{0};
   bool stopping = false;
   off_t log_start = 0;  // where this run's output begins in the log file
+  // The process group of the last run, while what it left there may still run; SIGKILL goes to
+  // it at group_kill_at (or at the next launch).
+  pid_t group = 0;
+  std::optional<Clock::time_point> group_kill_at;
 };
 
 namespace {
@@ -78,11 +84,43 @@ std::string last_line_of(const std::filesystem::path& log_file, off_t from) {
   return line;
 }
 
+// How long what a program left running in its group gets after SIGTERM, when the program ended
+// by itself.
+constexpr std::chrono::seconds kGroupGrace{5};
+
+// `sig` to the process group `group` (a program's pid: it leads its own group); to the process
+// alone when the group is not there yet (the child has not reached setpgid).
+void signal_group(pid_t group, int sig) {
+  if (kill(-group, sig) != 0) kill(group, sig);
+}
+
 // SIGTERM, then SIGCONT: a program stopped with SIGSTOP would otherwise keep the SIGTERM
 // pending until SIGKILL came at the end of the grace (systemd stops services the same way).
-void term_and_cont(pid_t pid) {
-  kill(pid, SIGTERM);
-  kill(pid, SIGCONT);
+void term_and_cont(pid_t group) {
+  signal_group(group, SIGTERM);
+  signal_group(group, SIGCONT);
+}
+
+// Whether process group `group` has a member that is not a zombie. Zombies are left out: a
+// program's orphaned children are reaped by whoever adopts them (init, or a namespace's first
+// process that may never reap), and a zombie runs nothing.
+bool group_has_live_members(pid_t group) {
+  std::error_code ec;
+  for (const auto& entry : std::filesystem::directory_iterator("/proc", ec)) {
+    const std::string name = entry.path().filename().string();
+    if (name.empty() || !std::all_of(name.begin(), name.end(), [](char c) { return c >= '0' && c <= '9'; })) continue;
+    std::ifstream in(entry.path() / "stat");
+    std::string stat;
+    if (!std::getline(in, stat)) continue;
+    // "PID (COMM) S PPID PGRP ...": COMM may hold spaces and parentheses.
+    const std::size_t close = stat.rfind(')');
+    if (close == std::string::npos) continue;
+    std::istringstream fields(stat.substr(close + 1));
+    char state = 0;
+    long ppid = 0, pgrp = 0;
+    if (fields >> state >> ppid >> pgrp && pgrp == group && state != 'Z') return true;
+  }
+  return false;
 }
 
 std::string describe(int status) {
@@ -149,6 +187,12 @@ void Supervisor::launch(Program& program) {
   const std::string exec_failed = "tahvel supervisor: " + program.spec.name + ": cannot run " + argv[0] + "\n";
   const pid_t supervisor = getpid();
   program.log_start = size_of(program.spec.log_file);
+  // What the last run left in its group must not run beside the new run (two writers).
+  if (program.group != 0) {
+    kill(-program.group, SIGKILL);
+    program.group = 0;
+    program.group_kill_at.reset();
+  }
   pid_t pid = fork();
   if (pid < 0) {
     log_("cannot start " + program.spec.name + ": fork: " + std::strerror(errno));
@@ -158,6 +202,15 @@ void Supervisor::launch(Program& program) {
   if (pid == 0) {
     // In the child: only async-signal-safe calls until exec.
     setpgid(0, 0);
+    // A clean start: `tahvel up` ignores SIGPIPE and blocks nothing a program should inherit
+    // (a pipeline inside an agent would otherwise see EPIPE where it expects to die quietly).
+    struct sigaction default_action {};
+    default_action.sa_handler = SIG_DFL;
+    sigemptyset(&default_action.sa_mask);
+    sigaction(SIGPIPE, &default_action, nullptr);
+    sigset_t none;
+    sigemptyset(&none);
+    sigprocmask(SIG_SETMASK, &none, nullptr);
     // A program does not outlive its supervisor: SIGKILLed with it, it would run on unsupervised,
     // `tahvel down` (which signals supervisors) would not stop it, and the supervisor started
     // again would run a second copy beside it (two links of one node, two writers). The signal
@@ -179,6 +232,8 @@ void Supervisor::launch(Program& program) {
     (void)!write(2, exec_failed.data(), exec_failed.size());
     _exit(127);
   }
+  setpgid(pid, pid);  // here too, so that a stop right after the fork reaches the group
+  program.group = pid;
   program.state.pid = pid;
   program.state.running = true;
   program.started = Clock::now();
@@ -195,6 +250,12 @@ void Supervisor::reaped(Program& program, int status) {
       program.state.last_exit += " (its log ends: " + said + ")";
   }
   program.state.exit_status = WIFEXITED(status) ? std::optional<int>(WEXITSTATUS(status)) : std::nullopt;
+  if (program.group != 0 && group_has_live_members(program.group)) {
+    term_and_cont(program.group);
+    program.group_kill_at = Clock::now() + kGroupGrace;
+  } else {
+    program.group = 0;
+  }
   const bool finished = WIFEXITED(status) && WEXITSTATUS(status) == 0;
   const Restart policy = program.spec.restart;
   if (program.stopping || policy == Restart::never || (policy == Restart::on_failure && finished)) {
@@ -229,6 +290,12 @@ void Supervisor::poll() {
   }
   const auto now = Clock::now();
   for (Program* p : programs_) {
+    if (p->state.running || p->group == 0 || !p->group_kill_at || now < *p->group_kill_at) continue;
+    if (group_has_live_members(p->group)) kill(-p->group, SIGKILL);
+    p->group = 0;
+    p->group_kill_at.reset();
+  }
+  for (Program* p : programs_) {
     if (!p->state.running && !p->stopping && p->restart_at && now >= *p->restart_at) {
       ++p->state.restarts;
       launch(*p);
@@ -236,70 +303,85 @@ void Supervisor::poll() {
   }
 }
 
+void Supervisor::stop_programs(const std::vector<Program*>& programs, std::chrono::milliseconds grace) {
+  for (Program* p : programs) {
+    p->stopping = true;
+    p->restart_at.reset();
+    if (p->state.running) term_and_cont(p->state.pid);
+    else if (p->group != 0) term_and_cont(p->group);
+  }
+  const auto deadline = Clock::now() + grace;
+  auto ticked = Clock::now();
+  for (;;) {
+    bool all_ended = true;
+    for (Program* p : programs) {
+      if (p->state.running) {
+        int status = 0;
+        if (waitpid(p->state.pid, &status, WNOHANG) == p->state.pid) reaped(*p, status);
+        else all_ended = false;
+      }
+      if (!p->state.running && p->group != 0) {
+        if (group_has_live_members(p->group)) {
+          all_ended = false;
+        } else {
+          p->group = 0;
+          p->group_kill_at.reset();
+        }
+      }
+    }
+    if (all_ended) return;
+    if (Clock::now() >= deadline) break;
+    if (while_waiting_ && Clock::now() - ticked >= std::chrono::milliseconds(100)) {
+      while_waiting_();
+      ticked = Clock::now();
+    }
+    std::this_thread::sleep_for(std::chrono::milliseconds(10));
+  }
+  for (Program* p : programs) {  // the grace is over
+    if (p->state.running) {
+      signal_group(p->state.pid, SIGKILL);
+      int status = 0;
+      waitpid(p->state.pid, &status, 0);
+      reaped(*p, status);
+    }
+    if (p->group != 0) kill(-p->group, SIGKILL);
+    p->group = 0;
+    p->group_kill_at.reset();
+  }
+}
+
 Result<void> Supervisor::stop(std::string_view name, std::chrono::milliseconds grace) {
   for (Program* p : programs_) {
     if (p->spec.name != name) continue;
-    p->stopping = true;
-    p->restart_at.reset();
-    if (!p->state.running) return {};
-    term_and_cont(p->state.pid);
-    const auto deadline = Clock::now() + grace;
-    for (;;) {
-      int status = 0;
-      pid_t r = waitpid(p->state.pid, &status, WNOHANG);
-      if (r == p->state.pid) {
-        reaped(*p, status);
-        return {};
-      }
-      if (Clock::now() >= deadline) {
-        kill(p->state.pid, SIGKILL);
-        waitpid(p->state.pid, &status, 0);
-        reaped(*p, status);
-        return {};
-      }
-      std::this_thread::sleep_for(std::chrono::milliseconds(10));
-    }
+    stop_programs({p}, grace);
+    return {};
   }
   return fail(Errc::not_found, "no program named '" + std::string(name) + "'");
 }
 
 Result<void> Supervisor::remove(std::string_view name, std::chrono::milliseconds grace) {
   if (auto stopped = stop(name, grace); !stopped) return stopped;
-  for (auto it = programs_.begin(); it != programs_.end(); ++it) {
-    if ((*it)->spec.name != name) continue;
-    vacated_[std::string(name)] = std::next(it) == programs_.end() ? std::string() : (*std::next(it))->spec.name;
-    delete *it;
-    programs_.erase(it);
-    break;
-  }
+  remove(std::vector<std::string>{std::string(name)}, std::chrono::milliseconds(0));
   return {};
 }
 
-void Supervisor::stop_all(std::chrono::milliseconds grace) {
-  for (Program* p : programs_) {
-    p->stopping = true;
-    p->restart_at.reset();
-    if (p->state.running) term_and_cont(p->state.pid);
-  }
-  const auto deadline = Clock::now() + grace;
-  for (Program* p : programs_) {
-    while (p->state.running) {
-      int status = 0;
-      pid_t r = waitpid(p->state.pid, &status, WNOHANG);
-      if (r == p->state.pid) {
-        reaped(*p, status);
-        break;
-      }
-      if (Clock::now() >= deadline) {
-        kill(p->state.pid, SIGKILL);
-        waitpid(p->state.pid, &status, 0);
-        reaped(*p, status);
-        break;
-      }
-      std::this_thread::sleep_for(std::chrono::milliseconds(10));
-    }
+void Supervisor::remove(const std::vector<std::string>& names, std::chrono::milliseconds grace) {
+  std::vector<Program*> leaving;
+  for (Program* p : programs_)
+    if (std::find(names.begin(), names.end(), p->spec.name) != names.end()) leaving.push_back(p);
+  stop_programs(leaving, grace);
+  for (Program* gone : leaving) {
+    auto it = std::find(programs_.begin(), programs_.end(), gone);
+    // Its place goes to the first program after it that stays.
+    auto next = std::find_if(std::next(it), programs_.end(),
+                             [&](const Program* p) { return std::find(leaving.begin(), leaving.end(), p) == leaving.end(); });
+    vacated_[gone->spec.name] = next == programs_.end() ? std::string() : (*next)->spec.name;
+    programs_.erase(it);
+    delete gone;
   }
 }
+
+void Supervisor::stop_all(std::chrono::milliseconds grace) { stop_programs(programs_, grace); }
 
 std::vector<ProgramState> Supervisor::states() const {
   std::vector<ProgramState> out;
@@ -323,6 +405,36 @@ std::optional<ProgramState> Supervisor::state(std::string_view name) const {
 }  // namespace tahvel::agents
 
 namespace tahvel::agents {
+
+std::vector<std::string> kill_leftovers(std::string_view mark) {
+  const std::string wanted = std::string(kLeftoverMark) + "=" + std::string(mark);
+  std::vector<std::string> killed;
+  std::set<pid_t> signalled;
+  // Twice: a leftover shell loop may fork again while the first pass reads /proc.
+  for (int pass = 0; pass < 2; ++pass) {
+    std::error_code ec;
+    for (const auto& entry : std::filesystem::directory_iterator("/proc", ec)) {
+      const std::string name = entry.path().filename().string();
+      if (name.empty() || !std::all_of(name.begin(), name.end(), [](char c) { return c >= '0' && c <= '9'; })) continue;
+      const pid_t pid = static_cast<pid_t>(std::stol(name));
+      if (pid == getpid() || signalled.count(pid)) continue;
+      std::ifstream in(entry.path() / "environ", std::ios::binary);  // unreadable for other users' processes
+      bool marked = false;
+      for (std::string variable; std::getline(in, variable, '\0');)
+        if (variable == wanted) {
+          marked = true;
+          break;
+        }
+      if (!marked || node::process_state(pid) == 'Z' || kill(pid, SIGKILL) != 0) continue;
+      signalled.insert(pid);
+      std::ifstream comm(entry.path() / "comm");
+      std::string command;
+      std::getline(comm, command);
+      killed.push_back(std::to_string(pid) + " (" + command + ")");
+    }
+  }
+  return killed;
+}
 
 std::string_view program_state_name(const ProgramState& state) {
   if (state.running) return state.suspended == Suspension::none ? "running" : "suspended";

@@ -97,15 +97,28 @@ class Supervisor {
   // them from one thread that lives as long as the supervisor).
   Result<void> start(ProgramSpec spec);
 
-  // Stops a program: SIGTERM and SIGCONT (a suspended program then handles the SIGTERM, as
-  // under systemd), then SIGKILL after `grace`; it is not restarted. not_found when no program
-  // has that name.
+  // Each program runs in a process group of its own, and what it started (a shell's children)
+  // is stopped with it: signals go to the whole group. When a program ends by itself, what it
+  // left running in its group gets SIGTERM and SIGCONT, then SIGKILL after 5 s or when the
+  // program is started again, whichever comes first.
+
+  // Stops a program: SIGTERM and SIGCONT to its group (a suspended program then handles the
+  // SIGTERM, as under systemd), then SIGKILL after `grace` to what is left of the group; it is
+  // not restarted. not_found when no program has that name.
   Result<void> stop(std::string_view name, std::chrono::milliseconds grace = std::chrono::seconds(5));
   // Stops a program as stop() does and forgets it: it leaves states(), and a program of that
   // name may be started again (a changed command), which takes its place in states() again.
   // not_found when no program has that name.
   Result<void> remove(std::string_view name, std::chrono::milliseconds grace = std::chrono::seconds(5));
+  // Removes several at once: all are signalled together and share one `grace` (ten programs
+  // that ignore SIGTERM take 5 s, not 50). Names no program has are skipped.
+  void remove(const std::vector<std::string>& names, std::chrono::milliseconds grace = std::chrono::seconds(5));
   void stop_all(std::chrono::milliseconds grace = std::chrono::seconds(5));
+
+  // Called about every 100 ms while stop(), remove() and stop_all() wait for programs to end
+  // (`tahvel up` rewrites its state file there, so that a stop taking its grace does not look
+  // like a hung supervisor).
+  void while_waiting(std::function<void()> tick) { while_waiting_ = std::move(tick); }
 
   // Reaps programs that died (logging why), restarts those due, and notes which running ones
   // are suspended (ProgramState::suspended). Call it regularly.
@@ -119,11 +132,23 @@ class Supervisor {
   struct Program;
   void launch(Program& program);
   void reaped(Program& program, int status);
+  void stop_programs(const std::vector<Program*>& programs, std::chrono::milliseconds grace);
   Log log_;
+  std::function<void()> while_waiting_;
   BackOff back_off_;
   std::vector<Program*> programs_;                  // in the order of states()
   std::map<std::string, std::string> vacated_;      // a removed program's successor, by name
 };
+
+// Programs that outlived a supervisor killed with SIGKILL. Its programs die with it
+// (PR_SET_PDEATHSIG), but not what they started: a shell wrapper's children run on, out of reach
+// of `tahvel down`, beside the next supervisor's copies. A program spec can carry a mark in its
+// environment (`up` sets kLeftoverMark to the node's store directory), which what it starts
+// inherits; once nothing supervises that mark any more (the caller holds the node's lock),
+// kill_leftovers SIGKILLs every process of this user whose environment has kLeftoverMark=`mark`
+// and returns them as "PID (COMMAND)". A process that cleared its environment is not found.
+inline constexpr std::string_view kLeftoverMark = "TAHVEL_SUPERVISED_NODE";
+std::vector<std::string> kill_leftovers(std::string_view mark);
 
 // ---- on the board ------------------------------------------------------------------------
 // What a supervisor runs for one node, as one persistent item on that node's board written by
