@@ -18,6 +18,18 @@ namespace {
 std::uint64_t removal_log_limit(const Settings& settings) {
   return std::clamp<std::uint64_t>(settings.max_map_bytes / 8192, 16, 65536);
 }
+// And by size: a removed record may be large (a remote query's answer chunks, up to the literal
+// limit each, are removed from the asking board as they are read), and 65,536 of them kept every
+// answer of the last hundreds of queries, raw ECG included, in the hospital's store.
+std::uint64_t removal_log_bytes_limit(const Settings& settings) {
+  return std::clamp<std::uint64_t>(settings.max_map_bytes / 1024, 256 << 10, 64 << 20);
+}
+
+std::uint64_t table_bytes(MDB_txn* txn, MDB_dbi dbi) {
+  MDB_stat st{};
+  if (mdb_stat(txn, dbi, &st) != 0) return 0;
+  return (st.ms_branch_pages + st.ms_leaf_pages + st.ms_overflow_pages) * static_cast<std::uint64_t>(st.ms_psize);
+}
 constexpr std::uint8_t kItemPersistent = 1;
 constexpr std::uint8_t kItemRelayed = 2;  // the writer's term id follows (ItemRow::writer)
 
@@ -90,12 +102,19 @@ Result<void> log_removal(Txn& txn, std::uint64_t id, const RecordRow& row, const
   MDB_val k = val(seq), v = val(bytes);
   int rc = mdb_put(txn.raw(), txn.env().removals, &k, &v, MDB_APPEND);
   if (rc != 0) return lmdb_fail(rc, "logging a removal");
-  if (++txn.counters.removals > removal_log_limit(txn.env().settings())) {
+  ++txn.counters.removals;
+  const Settings& settings = txn.env().settings();
+  const std::uint64_t byte_limit = removal_log_bytes_limit(settings);
+  // The oldest go; the newest entry always stays, however large.
+  while (txn.counters.removals > 1 && (txn.counters.removals > removal_log_limit(settings) ||
+                                       table_bytes(txn.raw(), txn.env().removals) > byte_limit)) {
     MDB_cursor* cursor = nullptr;
     if ((rc = mdb_cursor_open(txn.raw(), txn.env().removals, &cursor)) != 0) return lmdb_fail(rc, "trimming the removal log");
     MDB_val fk, fv;
-    if (mdb_cursor_get(cursor, &fk, &fv, MDB_FIRST) == 0 && mdb_cursor_del(cursor, 0) == 0) --txn.counters.removals;
+    const bool trimmed = mdb_cursor_get(cursor, &fk, &fv, MDB_FIRST) == 0 && mdb_cursor_del(cursor, 0) == 0;
     mdb_cursor_close(cursor);
+    if (!trimmed) break;
+    --txn.counters.removals;
   }
   return {};
 }

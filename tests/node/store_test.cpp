@@ -325,6 +325,34 @@ TEST(Store, FullStoreIsRefusedWithClearErrorAndNothingHalfWritten) {
                      << node.stats()->high_water_bytes << ", map " << node.stats()->map_bytes << ")";
 }
 
+// The removal log is bounded by size too: removed records can be large (a remote query's
+// answer chunks, removed from the asking board as they are read), and a count alone let it keep
+// hundreds of MB of them. Watchers still see the newest removals, with their terms.
+TEST(Store, TheRemovalLogOfLargeRecordsStaysWithinItsSizeAndKeepsTheNewest) {
+  TempDir dir;
+  Node node = make_node(dir.path(), {.max_map_bytes = std::uint64_t{1} << 30});  // log: 1 MB
+  auto agent = node.agent("w");
+  std::vector<std::uint64_t> items;
+  for (int i = 0; i < 200; ++i) {
+    Item item;
+    item.add(ex("chunk" + std::to_string(i)), ex("bytes"), Term::literal(std::string(50'000, static_cast<char>('a' + i % 26))));
+    auto stored = agent->store(item);
+    ASSERT_TRUE(stored) << stored.error().message;
+    items.push_back(*stored);
+  }
+  const std::uint64_t before_removals = node.snapshot()->last_seq();
+  for (std::uint64_t item : items) ASSERT_TRUE(node.remove_item(item));
+  auto changes = node.watch(before_removals, std::chrono::milliseconds(0));
+  ASSERT_TRUE(changes) << changes.error().message;
+  ASSERT_FALSE(changes->empty());
+  EXPECT_LE(changes->size(), 21u) << "1 MB of 50-KB removals";
+  EXPECT_TRUE(changes->back().removed);
+  EXPECT_EQ(changes->back().record.triple.s, ex("chunk199"));
+  EXPECT_EQ(changes->back().record.triple.o.value, std::string(50'000, static_cast<char>('a' + 199 % 26)));
+  // 10 MB were removed; the store does not keep them.
+  EXPECT_LT(node.stats()->used_bytes, std::uint64_t{4} << 20);
+}
+
 // The removals' reserve beyond the maximum is theirs: data written after a removal grew the map
 // into it must not fill it (it did: the file grew past the maximum and then even removals were
 // refused). Full and emptied again, over and over: every removal goes through, the file stays
