@@ -18,11 +18,11 @@ namespace {
 std::uint64_t removal_log_limit(const Settings& settings) {
   return std::clamp<std::uint64_t>(settings.max_map_bytes / 8192, 16, 65536);
 }
-// And by size: a removed record may be large (a remote query's answer chunks, up to the literal
+// And by size (16 MB at most): a removed record may be large (a remote query's answer chunks, up to the literal
 // limit each, are removed from the asking board as they are read), and 65,536 of them kept every
 // answer of the last hundreds of queries, raw ECG included, in the hospital's store.
 std::uint64_t removal_log_bytes_limit(const Settings& settings) {
-  return std::clamp<std::uint64_t>(settings.max_map_bytes / 1024, 256 << 10, 64 << 20);
+  return std::clamp<std::uint64_t>(settings.max_map_bytes / 4096, 256 << 10, 16 << 20);
 }
 
 std::uint64_t table_bytes(MDB_txn* txn, MDB_dbi dbi) {

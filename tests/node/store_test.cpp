@@ -330,7 +330,7 @@ TEST(Store, FullStoreIsRefusedWithClearErrorAndNothingHalfWritten) {
 // hundreds of MB of them. Watchers still see the newest removals, with their terms.
 TEST(Store, TheRemovalLogOfLargeRecordsStaysWithinItsSizeAndKeepsTheNewest) {
   TempDir dir;
-  Node node = make_node(dir.path(), {.max_map_bytes = std::uint64_t{1} << 30});  // log: 1 MB
+  Node node = make_node(dir.path(), {.max_map_bytes = std::uint64_t{1} << 32});  // log: 1 MB
   auto agent = node.agent("w");
   std::vector<std::uint64_t> items;
   for (int i = 0; i < 200; ++i) {
