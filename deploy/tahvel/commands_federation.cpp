@@ -145,6 +145,14 @@ std::int64_t time_flag(std::string_view flag, const std::string& text) {
     auto n = parse_u64(text);
     if (!n || *n > static_cast<std::uint64_t>(std::numeric_limits<std::int64_t>::max()))
       usage_error(what + "out of range (ns since the epoch, at most " + std::to_string(std::numeric_limits<std::int64_t>::max()) + ")");
+    // Seconds, milliseconds or microseconds since the epoch (a shell's `date +%s`) read as ns are
+    // a time in 1970, before every record: the answer is empty with no word why.
+    if (*n >= 100'000'000 && *n < 10'000'000'000'000'000) {
+      const char* unit = *n < 10'000'000'000 ? "seconds" : *n < 10'000'000'000'000 ? "milliseconds" : "microseconds";
+      const std::uint64_t scale = *n < 10'000'000'000 ? 1'000'000'000 : *n < 10'000'000'000'000 ? 1'000'000 : 1'000;
+      std::cerr << "tahvel: warning: " << what << "is read as ns since the epoch, a time in 1970; if it is " << unit
+                << ", give " << text << std::string(scale == 1'000'000'000 ? 9 : scale == 1'000'000 ? 6 : 3, '0') << "\n";
+    }
     return static_cast<std::int64_t>(*n);
   }
   const std::string form = "give ns since the epoch or an RFC 3339 time like 2026-11-21T10:00:00Z";
@@ -207,6 +215,8 @@ std::int64_t time_flag(std::string_view flag, const std::string& text) {
   const std::int64_t utc_s = static_cast<std::int64_t>(seconds) - offset_s;
   if (utc_s < 0 || utc_s > std::numeric_limits<std::int64_t>::max() / 1'000'000'000 - 1)
     usage_error(what + "outside the times a record can have (1970 to 2262)");
+  // Leap seconds are inserted at the end of a UTC day only: second 60 elsewhere is a typo.
+  if (leap && utc_s % 86400 != 0) usage_error(what + "second 60 exists only as a leap second, at 23:59:60 UTC");
   return utc_s * 1'000'000'000 + fraction;
 }
 

@@ -951,6 +951,16 @@ TEST_F(Cli, QueryTimesAreCheckedAndHonourTheirOffset) {
   EXPECT_EQ(r.status, 2);
   EXPECT_NE(r.err.find("is not after --since"), std::string::npos) << r.err;
   EXPECT_EQ(query("--since", "2016-12-31T23:59:61Z").status, 2);
+  // Second 60 at any other minute is a typo, not the next minute.
+  r = query("--since", "2024-06-30T12:30:60Z");
+  EXPECT_EQ(r.status, 2);
+  EXPECT_NE(r.err.find("second 60 exists only as a leap second, at 23:59:60 UTC"), std::string::npos) << r.err;
+  EXPECT_EQ(query("--since", "2017-01-01T01:59:60+02:00").status, 0);  // 23:59:60 UTC
+  // `date +%s` read as ns is a time in 1970: the answer would be everything, without a word.
+  r = query("--since", "1795946529");
+  EXPECT_EQ(r.status, 0);
+  EXPECT_NE(r.err.find("warning: --since '1795946529': is read as ns since the epoch, a time in 1970; if it is seconds, give "
+                       "1795946529000000000"), std::string::npos) << r.err;
   // A script's standard error stays empty on success (the count is for a terminal).
   EXPECT_EQ(query("--since", "0").err, "");
 }
