@@ -13,6 +13,7 @@
 
 #include <algorithm>
 #include <atomic>
+#include <cctype>
 #include <cerrno>
 #include <cstdio>
 #include <charconv>
@@ -248,6 +249,22 @@ const Flag kFlagListenLcmUrl{"--listen-lcm-url", "", "URL", "LCM URL children re
 const Flag kFlagListenDdsDomain{"--listen-dds-domain", "", "N", "DDS domain children reach this node on (default: --dds-domain)"};
 const Flag kFlagListenDdsConfig{"--listen-dds-config", "", "FILE", "Cyclone DDS configuration for the children's side (default: --dds-config)"};
 const Flag kFlagState{"--state", "", "DIR", "the deployment's state directory (default ./state)"};
+
+// `path` as one word of a shell command the operator may paste: as it is when it has only
+// characters no shell treats specially, else in double quotes ("/srv/my state").
+std::string shell_word(const fs::path& path) {
+  const std::string text = path.string();
+  const bool plain = !text.empty() && std::all_of(text.begin(), text.end(), [](char c) {
+    return std::isalnum(static_cast<unsigned char>(c)) || std::string_view("/._-+,:@%=").find(c) != std::string_view::npos;
+  });
+  if (plain) return text;
+  std::string quoted = "\"";
+  for (char c : text) {
+    if (c == '"' || c == '\\' || c == '$' || c == '`') quoted += '\\';
+    quoted += c;
+  }
+  return quoted + "\"";
+}
 
 fs::path state_dir(const Args& args) { return args.get("--state").value_or("state"); }
 
@@ -1361,7 +1378,7 @@ int run_up(const Args& args) {
   if (only && !topo.node(*only)) {
     const bool runs = supervisor_holding(state / pid_file_name(only)) != 0;
     fail("--node '" + *only + "': no such node in " + topo.file.string() +
-         (runs ? " (it still runs from an earlier file: 'tahvel down --state " + state.string() + " --node " + *only + "' stops it)" : ""));
+         (runs ? " (it still runs from an earlier file: 'tahvel down --state " + shell_word(state) + " --node " + *only + "' stops it)" : ""));
   }
   fs::path pid_file = state / pid_file_name(only);
   // The supervisor of this selection already running is asked to apply the file as it is now,
@@ -1379,14 +1396,14 @@ int run_up(const Args& args) {
   if (only) {
     if (pid_t whole = supervisor_holding(state / pid_file_name(std::nullopt)); whole != 0)
       fail("the supervisor of the whole file runs under " + state.string() + " (pid " + std::to_string(whole) + "), node '" +
-           *only + "' with it: 'tahvel up " + topo.file.string() + " --state " + state.string() +
-           "' applies the file to it (it starts what is new), 'tahvel down --state " + state.string() + "' stops it");
+           *only + "' with it: 'tahvel up " + shell_word(topo.file) + " --state " + shell_word(state) +
+           "' applies the file to it (it starts what is new), 'tahvel down --state " + shell_word(state) + "' stops it");
   }
   if (!only) {
     for (const NodeSpec& spec : topo.nodes)
       if (supervisor_holding(state / pid_file_name(spec.id)) != 0)
         fail("node '" + spec.id + "' already runs under its own supervisor (" + (state / pid_file_name(spec.id)).string() +
-             "); 'tahvel down --state " + state.string() + " --node " + spec.id + "' first");
+             "); 'tahvel down --state " + shell_word(state) + " --node " + spec.id + "' first");
   }
   // Everything is checked before anything is created: a store that exists must be the node's,
   // and the files and patterns a new one gets must read.
@@ -1443,7 +1460,7 @@ int run_up(const Args& args) {
       if (const pid_t holder = supervisor_of_store(state / spec->id); holder != 0)
         fail("node '" + spec->id + "' is run by " + (holder > 0 ? "supervisor " + std::to_string(holder) : std::string("another supervisor")) +
              ", which holds its store " + (state / spec->id).string() + " though no pid file under " + state.string() +
-             " says so (was it deleted?): 'tahvel down --state " + state.string() + "' stops it");
+             " says so (was it deleted?): 'tahvel down --state " + shell_word(state) + "' stops it");
   }
   for (const NodeSpec* node_spec : mine) {
     const NodeSpec& spec = *node_spec;
@@ -1527,8 +1544,8 @@ int run_up(const Args& args) {
              (state / "logs" / "supervisor.log").string());
       std::cout << "up: " << topo.name << ": " << program_count << " programs under supervisor (pid file "
                 << pid_file.string() << "); logs in " << (state / "logs").string() << "\n"
-                << "up: 'tahvel status --state " << state.string() << "' shows the tree, 'tahvel down --state "
-                << state.string() << "' stops it\n";
+                << "up: 'tahvel status --state " << shell_word(state) << "' shows the tree, 'tahvel down --state "
+                << shell_word(state) << "' stops it\n";
       return kExitOk;
     }
     close(ready[0]);
@@ -1654,7 +1671,7 @@ int run_down(const Args& args) {
   if (only && supervisor_holding(state / pid_file_name(only)) == 0 &&
       supervisor_holding(state / pid_file_name(std::nullopt)) != 0)
     fail("--node '" + *only + "': it runs under the supervisor of the whole file (" +
-         (state / pid_file_name(std::nullopt)).string() + "), which 'tahvel down --state " + state.string() + "' stops");
+         (state / pid_file_name(std::nullopt)).string() + "), which 'tahvel down --state " + shell_word(state) + "' stops");
   // An `up` still making the stores holds .up.lock until its supervisor runs: waited for, or
   // this `down` would find nothing to stop and the deployment would start after it.
   if (const int turn = ::open((state / ".up.lock").c_str(), O_RDWR | O_CLOEXEC); turn >= 0) {

@@ -795,6 +795,17 @@ TEST_F(Cli, UpRefusesANodeThatASupervisorWithoutItsPidFileRunsAndDownStopsThatSu
   }));
 }
 
+// The commands `up` suggests can be pasted as they are, also with a space in the path.
+TEST_F(Cli, UpQuotesAStateDirectoryWithASpaceInTheCommandsItSuggests) {
+  const std::string file = (tmp_ / "node.toml").string(), state = (tmp_ / "my state").string();
+  spit(file, kIdleNodeToml);
+  Outcome up = run({"up", file, "--state", state});
+  ASSERT_EQ(up.status, 0) << up.err;
+  EXPECT_NE(up.out.find("'tahvel status --state \"" + state + "\"' shows the tree, 'tahvel down --state \"" + state + "\"' stops it"),
+            std::string::npos) << up.out;
+  EXPECT_EQ(run({"down", "--state", state}).status, 0);
+}
+
 // `up` holds .up.lock while it makes the stores (a large `load` takes a while): a `down` then
 // waits for it instead of finding nothing to stop, after which the deployment started anyway.
 TEST_F(Cli, DownWaitsForAnUpThatIsStillStartingTheDeployment) {
