@@ -85,20 +85,23 @@ void print_text(const reasoner::SessionReport& r, const uri::PrefixMap& prefixes
 
 const Command kReasonCommand{
     "reason",
-    "DIR RULES [--once] [--json] [--default-ns IRI] [--agent ID] [--interval MS]",
+    "DIR RULES [--once] [--json] [--default-ns IRI] [--agent ID] [--interval MS] [--persistent]",
     "Apply a rule file to the whiteboard in incremental sessions (the reasoner agent).",
     "Runs a session now and then one whenever records that some rule reads change (at most one\n"
     "per --interval), until interrupted; with --once, one session. Each session derives from\n"
     "what changed since the previous one, writes each new conclusion once (source: the node\n"
     "IRI/ID of --agent, default 'reasoner') and removes those that lost all support. The rule\n"
     "file is reloaded when it changes; a broken file is reported (file:line:col) and the\n"
-    "previous rules keep running. #name and bare atoms are IRIs in --default-ns (default: the\n"
+    "previous rules keep running. On a ring store give --persistent: a conclusion the ring\n"
+    "reclaims while it holds is written again, a new item each time (sent up again by a\n"
+    "forwarding policy, a command it states run again). #name and bare atoms are IRIs in --default-ns (default: the\n"
     "node IRI followed by '#'); 'me' is the node IRI. Language: docs/reasoner.md.",
     {{"--once", "", "", "one session, then exit"},
      {"--json", "", "", "one JSON object per session instead of text"},
      {"--default-ns", "", "IRI", "namespace of #name and bare atoms (default: node IRI + '#')"},
      {"--agent", "", "ID", "write as agent ID (IRI: node IRI/ID); default \"reasoner\""},
-     {"--interval", "", "MS", "at most one session per MS milliseconds (default 100)"}},
+     {"--interval", "", "MS", "at most one session per MS milliseconds (default 100)"},
+     {"--persistent", "", "", "conclusions as persistent items: a ring does not reclaim them; they go when they lose support"}},
     2, 2};
 
 int run_reason(const Args& args) {
@@ -110,8 +113,16 @@ int run_reason(const Args& args) {
     usage_error("--interval: " + std::to_string(interval_ms) + " ms is more than a day (at most " +
                 std::to_string(reasoner::kMaxInterval.count()) + ")");
   options.interval = std::chrono::milliseconds(interval_ms);
+  options.persistent = args.has("--persistent");
   std::string dir = args.positional(0);
   node::Node node = open_node(dir);
+  // Rewritten after each reclaim, a conclusion that holds all along is a new item each time: a
+  // forwarding policy sends it up again (an alert repeated at the hospital), and a behaviour it
+  // commands runs again.
+  if (const auto stats = node.stats(); stats && stats->ring > 0 && !options.persistent)
+    std::cerr << "tahvel: warning: " << dir << " is a ring of " << stats->ring
+              << " items: conclusions it reclaims are written again while they hold (and sent up again, commands run "
+                 "again); --persistent keeps them until they lose support\n";
   uri::PrefixMap prefixes = prefixes_with_flags(node.prefixes(), args);
   if (auto ns = args.get("--default-ns")) options.default_ns = parse_iri(*ns, prefixes, "--default-ns");
   // Printing: the default namespace as the empty prefix (":stateIdle"), unless one is set.

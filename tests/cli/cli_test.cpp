@@ -417,6 +417,25 @@ TEST_F(Cli, ReasonIntervalOfMoreThanADayIsAUsageError) {
   EXPECT_EQ(run({"reason", node_, (tmp_ / "r.rules").string(), "--once", "--interval", "86400000"}).status, 0);
 }
 
+// On a ring store a conclusion reclaimed while it holds is written again, a new item each time
+// (sent up again, a command run again): `reason` says so, and --persistent writes conclusions
+// the ring does not take.
+TEST_F(Cli, ReasonWarnsOnARingStoreAndPersistentConclusionsAreNotTheRings) {
+  ASSERT_EQ(run({"init", node_, "--iri", kNodeIri, "--ring", "40"}).status, 0);
+  ASSERT_EQ(run({"put", node_, "--format", "ttl"}, "<http://example.org/s1> <http://example.org/hr> 120 .\n").status, 0);
+  spit(tmp_ / "r.rules", "hi(S) :- fact(S, <http://example.org/hr>, V), V > 100.\n");
+  Outcome plain = run({"reason", node_, (tmp_ / "r.rules").string(), "--once"});
+  ASSERT_EQ(plain.status, 0) << plain.err;
+  EXPECT_NE(plain.err.find("is a ring of 40 items: conclusions it reclaims are written again while they hold"), std::string::npos)
+      << plain.err;
+  Outcome kept = run({"reason", node_, (tmp_ / "r.rules").string(), "--once", "--persistent", "--agent", "r2"});
+  ASSERT_EQ(kept.status, 0) << kept.err;
+  EXPECT_EQ(kept.err, "");
+  Outcome listed = run({"list", node_, "--format", "json", "--source", kNodeIri + "/r2"});
+  ASSERT_FALSE(lines_of(listed.out).empty()) << listed.err;
+  for (const auto& line : lines_of(listed.out)) EXPECT_NE(line.find("\"persistent\":true"), std::string::npos) << line;
+}
+
 TEST_F(Cli, RemoveItemPrintsTheRecordCountAndTheRecordsAreGone) {
   init();
   std::string id = put(kObservation);

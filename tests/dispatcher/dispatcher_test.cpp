@@ -141,6 +141,17 @@ TEST_F(DispatcherTest, StopCommandEndsARunningBehaviourAndUnknownNamesAreRefused
   EXPECT_FALSE(holds(n("goAhead"), kNs + "result", n("ok")));
 }
 
+// A command sent down from a node above is addressed to the node (its context is the node's
+// IRI, as configuration is): it was taken and acknowledged without running, and no trace left.
+TEST_F(DispatcherTest, ACommandAddressedToTheNodeRunsAsOneAddressedToTheDispatcher) {
+  ta::Supervisor supervisor([](std::string_view) {});
+  auto d = ta::Dispatcher::open(root_ / "node", {.folder = root_ / "behaviours"}, supervisor);
+  ASSERT_TRUE(d.has_value());
+  put({{n("me"), n("behavior"), tn::Term::literal("goAhead 7")}}, kIri);
+  poll_until(*d, [&] { return holds(n("goAhead"), kNs + "result", n("ok")); });
+  EXPECT_TRUE(holds(n("goAhead"), kNs + "result", n("ok")));
+}
+
 // Each run has one state at a time, and each behaviour one result: its latest run's. (A rule
 // reading result(solveObstacle, R) must not see an old failure beside the new success.)
 TEST_F(DispatcherTest, ARunHasOneStateAndABehaviourOnlyItsLatestResult) {

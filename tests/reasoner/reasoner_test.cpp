@@ -127,6 +127,43 @@ TEST_F(ReasonerTest, RobotSessionIsWrittenOnceWithTheReasonersSourceAndSessionTi
   EXPECT_EQ(board(), want);
 }
 
+// A reasoner owns its agent's conclusions and removes, at its first session, those it did not
+// derive: a second reasoner as the same agent deleted the first one's live conclusions.
+TEST_F(ReasonerTest, ASecondReasonerAsTheSameAgentIsRefusedAndAnotherAgentIsNot) {
+  auto first = open(rules("a.rules", "hot(X, true) :- temp(X, T), T > 30.\n"));
+  tr::ReasonerOptions o;
+  o.rules = rules("b.rules", "cold(X, true) :- temp(X, T), T < 10.\n");
+  auto second = tr::Reasoner::open(root_ / "node", o);
+  ASSERT_FALSE(second.has_value());
+  EXPECT_NE(second.error().message.find("agent <" + kIri + "/reasoner> already runs a reasoner on this node (pid " +
+                                        std::to_string(getpid()) + "): give each reasoner its own --agent"),
+            std::string::npos) << second.error().message;
+  o.agent_id = "cold-reasoner";
+  EXPECT_TRUE(tr::Reasoner::open(root_ / "node", o).has_value());
+}
+
+// A forwarding policy routes whole items (P5): the conclusions of one session go in one item per
+// predicate, so that a policy for the alert does not send up what else the session concluded.
+TEST_F(ReasonerTest, EachPredicatesConclusionsOfASessionAreAnItemOfTheirOwn) {
+  auto r = open(rules("two.rules", "alert(X, high) :- hr(X, V), V > 100.\nnote(X, seen) :- hr(X, _).\n"));
+  put({{n("s1"), n("hr"), tn::Term::integer(120)}});
+  auto s = r.session();
+  ASSERT_TRUE(s.has_value()) << s.error().message;
+  ASSERT_EQ(s->added.size(), 2u);
+  auto snap = node_->snapshot();
+  auto alert = snap->list({.p = n("alert")}), note = snap->list({.p = n("note")});
+  ASSERT_EQ(alert->size(), 1u);
+  ASSERT_EQ(note->size(), 1u);
+  EXPECT_NE(alert->front().meta.item, note->front().meta.item);
+  EXPECT_EQ(alert->front().meta.asserted_at, note->front().meta.asserted_at);  // one session
+  // And the next session reads what is new only: nothing is derived twice.
+  put({{n("s2"), n("hr"), tn::Term::integer(50)}});
+  auto next = r.session();
+  ASSERT_TRUE(next.has_value());
+  EXPECT_EQ(next->added.size(), 1u);
+  EXPECT_EQ(board().size(), 3u);
+}
+
 TEST_F(ReasonerTest, NoConclusionIsWrittenTwiceAcrossSessionsAndRestarts) {
   put({t("me", "state", "stateIdle"), t("me", "myNameIs", "robot3"), t("robot3", "receivedTask", "clean")});
   {

@@ -2,10 +2,17 @@
 // session's sequence number (from the snapshot itself, so a session never sees half an item)
 // and the logged removals up to the snapshot's sequence number (Node::watch); a check that
 // every sequence number in between is accounted for, else a resync; Engine::apply; one item of
-// new conclusions; one removal per retracted conclusion.
+// new conclusions per predicate; one removal per retracted conclusion.
 #include "tahvel/agents/reasoner.h"
 
+#include <fcntl.h>
+#include <sys/file.h>
+#include <unistd.h>
+
 #include <algorithm>
+#include <cerrno>
+#include <cstdlib>
+#include <cstring>
 #include <chrono>
 #include <map>
 #include <set>
@@ -78,9 +85,17 @@ struct Reasoner::Impl {
   // (the engine runs the previous rules until one succeeds).
   bool rules_pending = false;
 
+  // Held (flock) while this reasoner runs: see Reasoner::open.
+  int agent_lock = -1;
+
   Impl(node::Node n, node::Agent a, ReasonerOptions o, ParseOptions p, std::shared_ptr<const Program> prog)
       : node(std::move(n)), agent(std::move(a)), options(std::move(o)), parse(std::move(p)),
         program(prog), rules_mtime(mtime(options.rules)), engine(prog) {}
+  ~Impl() {
+    if (agent_lock >= 0) ::close(agent_lock);
+  }
+  Impl(const Impl&) = delete;
+  Impl& operator=(const Impl&) = delete;
 
   std::string genid(const node::Term& t) const {
     return node.iri() + "/.well-known/genid/" + t.value;
@@ -231,14 +246,19 @@ Result<Engine::Update> Reasoner::Impl::resync(const node::Snapshot& snap, std::i
 Result<void> Reasoner::Impl::write(const Engine::Update& update, const std::vector<node::Triple>& extra_removals,
                                    std::int64_t now) {
   own_first = own_last = 0;
+  // One item per predicate: a node's forwarding policy routes whole items (P5), and one item of
+  // everything a session concluded sent a home-only conclusion (a helper relation, a private
+  // note) up with the alert that matched the policy.
   std::vector<node::Item> items;
-  if (!update.added.empty()) {
-    node::Item item;
-    item.asserted_at = now;
-    item.persistent = options.persistent;
-    for (const Atom& a : update.added)
-      for (node::Triple& t : stored(a)) item.triples.push_back(std::move(t));
-    items.push_back(std::move(item));
+  std::map<std::string, std::size_t> item_of;
+  for (const Atom& a : update.added) {
+    auto [at, is_new] = item_of.emplace(a.predicate, items.size());
+    if (is_new) {
+      items.emplace_back();
+      items.back().asserted_at = now;
+      items.back().persistent = options.persistent;
+    }
+    for (node::Triple& t : stored(a)) items[at->second].triples.push_back(std::move(t));
   }
   std::vector<node::Triple> gone = extra_removals;
   for (const Atom& a : update.removed) {
@@ -258,7 +278,9 @@ Result<void> Reasoner::Impl::write(const Engine::Update& update, const std::vect
   if (items.empty() && removals.empty()) return {};
   auto ids = agent.replace(removals, items);
   if (!ids) return unexpected(node_error(ids.error()));
-  if (!ids->empty()) {
+  // One item's records have consecutive ids, which the next session need not read back. With
+  // several items a ring's reclaim may log removals between them: those are read.
+  if (ids->size() == 1) {
     own_first = ids->front();
     own_last = ids->front() + items.front().triples.size() - 1;
   }
@@ -356,8 +378,25 @@ Result<Reasoner> Reasoner::open(const std::filesystem::path& dir, ReasonerOption
   parse.prefixes = node->prefixes();
   auto program = load_rules(options.rules, parse);
   if (!program) return unexpected(program.error());
-  return Reasoner(std::make_unique<Impl>(std::move(*node), std::move(*agent), std::move(options),
-                                         std::move(parse), std::move(*program)));
+  // One reasoner per agent: a reasoner owns every conclusion of its agent, and at its first
+  // session removes those it did not derive, so a second one writing as the same agent (two
+  // `tahvel reason` with the default --agent) deleted the first one's live conclusions.
+  const std::filesystem::path lock_file = dir / (".reasoner-" + options.agent_id + ".lock");
+  const int lock = ::open(lock_file.c_str(), O_RDWR | O_CREAT | O_CLOEXEC, 0644);
+  if (lock < 0) return unexpected(Error{lock_file.string() + ": " + std::strerror(errno)});
+  if (flock(lock, LOCK_EX | LOCK_NB) != 0) {
+    char text[32] = {};
+    const ssize_t n = pread(lock, text, sizeof text - 1, 0);
+    ::close(lock);
+    return unexpected(Error{"agent <" + agent->iri() + "> already runs a reasoner on this node" +
+                            (n > 0 && std::atoi(text) > 0 ? " (pid " + std::to_string(std::atoi(text)) + ")" : std::string()) +
+                            ": give each reasoner its own --agent, or each deletes the other's conclusions"});
+  }
+  const std::string pid = std::to_string(getpid()) + "\n";
+  if (ftruncate(lock, 0) == 0) (void)!pwrite(lock, pid.data(), pid.size(), 0);  // for the message above only
+  auto impl = std::make_unique<Impl>(std::move(*node), std::move(*agent), std::move(options), std::move(parse), std::move(*program));
+  impl->agent_lock = lock;
+  return Reasoner(std::move(impl));
 }
 
 Reasoner::Reasoner(std::unique_ptr<Impl> impl) : impl_(std::move(impl)) {}
