@@ -142,6 +142,24 @@ TEST_F(ReasonerTest, ASecondReasonerAsTheSameAgentIsRefusedAndAnotherAgentIsNot)
   EXPECT_TRUE(tr::Reasoner::open(root_ / "node", o).has_value());
 }
 
+// A session reports the removed facts that some rule reads, as it does the new ones: removals of
+// anything else were counted ("24 removed facts" after a ring reclaimed readings no rule reads).
+TEST_F(ReasonerTest, RemovedFactsThatNoRuleReadsAreNotCountedAsRemovedFacts) {
+  auto r = open(rules("hot.rules", "hot(X, true) :- temp(X, T), T > 30.\n"));
+  const std::uint64_t unrelated = put({{n("s1"), n("humidity"), tn::Term::integer(40)}});
+  const std::uint64_t premise = put({{n("s1"), n("temp"), tn::Term::integer(35)}});
+  ASSERT_TRUE(r.session().has_value());
+  ASSERT_TRUE(node_->remove_item(unrelated).has_value());
+  auto s = r.session();
+  ASSERT_TRUE(s.has_value());
+  EXPECT_EQ(s->facts_out, 0u);
+  ASSERT_TRUE(node_->remove_item(premise).has_value());
+  s = r.session();
+  ASSERT_TRUE(s.has_value());
+  EXPECT_EQ(s->facts_out, 1u);
+  EXPECT_EQ(s->removed.size(), 1u);
+}
+
 // A forwarding policy routes whole items (P5): the conclusions of one session go in one item per
 // predicate, so that a policy for the alert does not send up what else the session concluded.
 TEST_F(ReasonerTest, EachPredicatesConclusionsOfASessionAreAnItemOfTheirOwn) {

@@ -168,7 +168,8 @@ Result<void> Reasoner::Impl::read_changes(const node::Snapshot& snap, std::vecto
       if (!c.removed || c.seq > last) continue;
       ++removals;
       if (c.record.meta.id > bookmark) { ++removed_new; continue; }  // never seen
-      if (!own(c.record)) out.push_back(c.record.triple);
+      if (!own(c.record) && c.record.triple.p.is_iri() && engine.relevant(c.record.triple.p.value))
+        out.push_back(c.record.triple);  // as insertions are read: only what some rule reads
     }
   }
   gap = last - bookmark != present + removals + removed_new;
