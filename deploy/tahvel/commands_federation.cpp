@@ -975,7 +975,9 @@ std::string dds_config_digest(const std::vector<std::string>& argv) {
 constexpr std::chrono::milliseconds kLinkMaxBackOff{2000};
 
 std::vector<agents::ProgramSpec> programs_of(const Topology& topo, const std::vector<const NodeSpec*>& mine,
-                                             const fs::path& state, const CommandContext& context) {
+                                             const fs::path& state, const CommandContext& caller) {
+  CommandContext context = caller;
+  context.dir = fs::absolute(topo.file).lexically_normal().parent_path();
   std::vector<agents::ProgramSpec> programs;
   for (const NodeSpec* spec : mine) {
     const fs::path store = state / spec->id;
@@ -1433,9 +1435,11 @@ int run_up(const Args& args) {
     }
   }
   const CommandContext here = CommandContext::of_this_process();
+  CommandContext here_for_file = here;
+  here_for_file.dir = fs::absolute(topo.file).lexically_normal().parent_path();
   for (const NodeSpec* spec : mine)
     for (const AgentSpec& agent : spec->agents)
-      if (auto argv = expand_agent_command(agent, *spec, state / spec->id, here); !argv)
+      if (auto argv = expand_agent_command(agent, *spec, state / spec->id, here_for_file); !argv)
         fail(topo.file.string() + ": " + argv.error().message);
   // Only now, with everything checked: a refused file leaves no state directory behind.
   std::error_code ec;

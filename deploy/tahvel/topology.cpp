@@ -526,7 +526,8 @@ node::Result<std::vector<std::string>> expand_agent_command(const AgentSpec& age
   if (wants_mitdb && !std::filesystem::is_directory(mitdb))
     return node::fail(Errc::invalid_argument, what + "TAHVEL_MITDB=" + mitdb + " is not a directory");
   const std::pair<std::string, std::string> vars[] = {
-      {"{store}", store.string()}, {"{iri}", node.iri}, {"{bin}", bin.string()}, {"{mitdb}", mitdb}};
+      {"{store}", store.string()}, {"{iri}", node.iri}, {"{bin}", bin.string()}, {"{mitdb}", mitdb},
+      {"{dir}", context.dir.string()}};
   for (auto& arg : argv) {
     // A misspelt placeholder ("{stor}") would be passed on literally, and the agent would fail
     // and be restarted for ever, far from its cause. (A shell's "${x}" is not one.)
@@ -540,7 +541,7 @@ node::Result<std::vector<std::string>> expand_agent_command(const AgentSpec& age
       if (!word || (open > 0 && arg[open - 1] == '$')) continue;
       if (std::none_of(std::begin(vars), std::end(vars), [&](const auto& v) { return v.first == name; }))
         return node::fail(Errc::invalid_argument, what + "unknown placeholder " + name + " in '" + arg +
-                                                       "' (known: {store}, {iri}, {bin}, {mitdb})");
+                                                       "' (known: {store}, {iri}, {bin}, {mitdb}, {dir})");
     }
     for (const auto& [key, value] : vars) {
       for (std::size_t at = arg.find(key); at != std::string::npos; at = arg.find(key, at + value.size()))

@@ -74,12 +74,14 @@ struct CommandContext {
   std::filesystem::path bin;  // {bin}: the directory of the tahvel binary that ran `up`
   std::string mitdb;          // {mitdb} and run_with_mitdb: TAHVEL_MITDB ("" when unset)
   std::string path;           // PATH, where a bare program name is looked up
+  std::filesystem::path dir;  // {dir}: the directory of the topology file (absolute)
   // This process's: its own binary's directory, TAHVEL_MITDB and PATH.
   static CommandContext of_this_process();
 };
 
 // An agent's argv with placeholders expanded: {store} (the node's store directory), {iri} (the
-// node IRI), {bin}, {mitdb}; a bare program name becomes the path found on the context's PATH.
+// node IRI), {bin}, {mitdb}, {dir}; a bare program name becomes the path found on the context's
+// PATH.
 // Errors (invalid_argument, naming node and agent): {mitdb} used while TAHVEL_MITDB is unset
 // or not a directory; a program that is not an executable file or not on PATH.
 node::Result<std::vector<std::string>> expand_agent_command(const AgentSpec& agent, const NodeSpec& node,

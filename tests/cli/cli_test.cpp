@@ -814,6 +814,22 @@ TEST_F(Cli, UpRefusesANodeThatASupervisorWithoutItsPidFileRunsAndDownStopsThatSu
   }));
 }
 
+// {dir} is the topology file's directory, where a rule file or script beside it is found
+// whatever directory `up` is run from.
+TEST_F(Cli, TheDirPlaceholderIsTheTopologyFilesDirectory) {
+  fs::create_directories(tmp_ / "deploy");
+  const std::string file = (tmp_ / "deploy" / "node.toml").string(), state = (tmp_ / "state").string();
+  spit(tmp_ / "deploy" / "agent.sh", "echo \"$1\" > \"$2/../said\"\nexec sleep 600\n");
+  spit(file, "[[node]]\nid = \"solo\"\niri = \"http://example.org/solo\"\n  [[node.agent]]\n  id = \"beside\"\n"
+             "  run = [\"/bin/sh\", \"{dir}/agent.sh\", \"{dir}\", \"{store}\"]\n");
+  Outcome up = run({"up", file, "--state", state});
+  ASSERT_EQ(up.status, 0) << up.err;
+  ASSERT_TRUE(eventually([&] { return fs::exists(tmp_ / "state" / "said"); }));
+  EXPECT_TRUE(eventually([&] { return slurp(tmp_ / "state" / "said") == (tmp_ / "deploy").string() + "\n"; }))
+      << slurp(tmp_ / "state" / "said");
+  EXPECT_EQ(run({"down", "--state", state}).status, 0);
+}
+
 // The commands `up` suggests can be pasted as they are, also with a space in the path.
 TEST_F(Cli, UpQuotesAStateDirectoryWithASpaceInTheCommandsItSuggests) {
   const std::string file = (tmp_ / "node.toml").string(), state = (tmp_ / "my state").string();
