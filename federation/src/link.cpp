@@ -282,6 +282,9 @@ struct Link::Impl {
 
   // Child role (P5-P8).
   bool welcomed = false;
+  // P6c: a welcome whose mark is 0; the up loop puts the persistent items its policy routes into
+  // the outbox again. Under mu.
+  bool resend_persistent = false;
   std::string parent_store_id;  // from the welcome: names the down stream (P6a); under mu
   std::uint64_t up_mark = 0;       // the parent's mark of our stream: applied there
   std::uint64_t up_last_sent = 0;  // the seq of the last up frame sent
@@ -1388,6 +1391,9 @@ struct Link::Impl {
         }
         welcomed = ever_welcomed = true;
         refused_by_parent.clear();
+        // The parent holds nothing of this store's stream: a first welcome, or a parent store
+        // made again (a replaced gateway) that never got what the one before it applied.
+        if (f.ack == 0) resend_persistent = true;
         up_mark = f.ack;
         up_last_sent = f.ack;
         up_in_flight.clear();
@@ -1906,12 +1912,14 @@ struct Link::Impl {
     while (!stopping) {
       std::uint64_t after = 0, mark = 0;
       std::size_t room = 0;
+      bool resend = false;
       {
         std::unique_lock lock(mu);
         if (!welcomed) {
           changed.wait_for(lock, 100ms);
           continue;
         }
+        resend = std::exchange(resend_persistent, false);
         while (!up_in_flight.empty() && up_in_flight.front() <= up_mark) up_in_flight.pop_front();
         if (up_go_back || (!up_in_flight.empty() && Clock::now() - up_progress > opt.resend_after)) {
           up_last_sent = up_mark;  // P8: go back to the parent's mark
@@ -1926,6 +1934,17 @@ struct Link::Impl {
         if (room == 0) {
           changed.wait_for(lock, 20ms);
           continue;
+        }
+      }
+      if (resend) {
+        // P6c: what the parent's agents need for everything after (an ECG recording's
+        // description, sent once) was applied by the store before; this one gets it too.
+        if (auto again = uplink->deliver_persistent_again(); !again) {
+          log("cannot queue the persistent items for the parent again: " + again.error().message);
+        } else if (*again > 0) {
+          log("the parent <" + opt.parent_iri + "> holds nothing of this store's stream (a new store in its place): " +
+              std::to_string(*again) + " persistent item(s) its policy routes go up again");
+          acked_locally = 0;  // they have ids below what the store before acknowledged
         }
       }
       auto ready = uplink->peek(after, room, 50ms);

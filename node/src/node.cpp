@@ -766,6 +766,21 @@ Result<std::uint64_t> Agent::withdraw_unrouted() {
   return withdrawn;
 }
 
+Result<std::uint64_t> Agent::deliver_persistent_again() {
+  std::uint64_t delivered = 0;
+  auto done = impl_->env->write([&](Txn& txn) -> Result<void> {
+    auto self = impl_->self_id(txn.raw());
+    if (!self) return unexpected(self.error());
+    if (*self == 0) return {};
+    auto n = detail::deliver_persistent_again(txn, *self, impl_->iri);
+    if (!n) return unexpected(n.error());
+    delivered = *n;
+    return {};
+  });
+  if (!done) return unexpected(done.error());
+  return delivered;
+}
+
 Result<std::vector<std::uint64_t>> Agent::written(std::uint64_t after, std::size_t limit) const {
   ReadTxn read(*impl_->env);
   if (auto r = read.begin(); !r) return unexpected(r.error());

@@ -4,6 +4,7 @@
 #include <unistd.h>
 
 #include <algorithm>
+#include <limits>
 #include <cstdio>
 #include <optional>
 #include <unordered_map>
@@ -581,7 +582,7 @@ Result<std::uint64_t> withdraw_unrouted(Txn& txn, std::uint64_t agent, const std
 }
 
 Result<std::uint64_t> deliver_earlier(Txn& txn, std::uint64_t agent, const std::string& agent_iri,
-                                      const Pattern& pattern, std::uint64_t before) {
+                                      const Pattern& pattern, std::uint64_t before, bool persistent_only) {
   if (auto f = flush_index(txn); !f) return unexpected(f.error());
   // Ids first, then the buffer: Query reads the indexes the deliveries would write beside.
   std::vector<std::uint64_t> items;
@@ -601,13 +602,42 @@ Result<std::uint64_t> deliver_earlier(Txn& txn, std::uint64_t agent, const std::
   for (const std::uint64_t item_id : items) {
     auto row = get_item(txn.raw(), txn.env(), item_id);
     if (!row) return unexpected(row.error());
-    if (!*row) continue;
+    if (!*row || (persistent_only && !(*row)->persistent)) continue;
     ItemRow item = **row;
     const std::uint64_t pending = item.pending;
     if (auto d = deliver(txn, agent, slot, item_id, item); !d) return unexpected(d.error());
     if (item.pending == pending) continue;  // in the buffer already
     if (auto put = put_item(txn, item_id, item); !put) return unexpected(put.error());
     ++delivered;
+  }
+  return delivered;
+}
+
+Result<std::uint64_t> deliver_persistent_again(Txn& txn, std::uint64_t agent, const std::string& agent_iri) {
+  auto subs = load_subscriptions(txn);
+  if (!subs) return unexpected(subs.error());
+  TermReader reader(txn.raw(), txn.env());
+  std::uint64_t delivered = 0;
+  for (const Subscription& sub : *subs) {
+    if (sub.agent != agent) continue;
+    Pattern pattern;
+    std::optional<Term>* positions[] = {&pattern.s, &pattern.p, &pattern.o};
+    const std::uint64_t ids[] = {sub.s, sub.p, sub.o};
+    for (int k = 0; k < 3; ++k) {
+      if (ids[k] == 0) continue;
+      auto term = reader.get(ids[k]);
+      if (!term) return unexpected(term.error());
+      *positions[k] = std::move(*term);
+    }
+    if (sub.context) {
+      auto context = reader.iri(sub.context);
+      if (!context) return unexpected(context.error());
+      pattern.context = *context;
+    }
+    if (sub.source) pattern.source = sub.source_iri;
+    auto n = deliver_earlier(txn, agent, agent_iri, pattern, std::numeric_limits<std::uint64_t>::max(), true);
+    if (!n) return unexpected(n.error());
+    delivered += *n;
   }
   return delivered;
 }

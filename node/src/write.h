@@ -42,7 +42,11 @@ Result<std::uint64_t> withdraw_unrouted(Txn& txn, std::uint64_t agent, const std
 // routes), oldest first, unless it is there already: a new subscription's earlier items
 // (SubscribeOptions::earlier). Returns how many it put.
 Result<std::uint64_t> deliver_earlier(Txn& txn, std::uint64_t agent, const std::string& agent_iri,
-                                      const Pattern& pattern, std::uint64_t before);
+                                      const Pattern& pattern, std::uint64_t before, bool persistent_only = false);
+
+// deliver_earlier for each of the subscriptions of `agent`, persistent items only
+// (Agent::deliver_persistent_again).
+Result<std::uint64_t> deliver_persistent_again(Txn& txn, std::uint64_t agent, const std::string& agent_iri);
 
 // Applies ring and TTL retention; returns the number of records reclaimed.
 Result<std::uint64_t> apply_retention(Txn& txn);

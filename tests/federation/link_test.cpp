@@ -311,6 +311,36 @@ TEST(Link, AChildRestoredFromABackupHasItsNewItemsArrive) {
   EXPECT_TRUE(tree.home1_log.has("this store takes a new id"));
 }
 
+// P6c: a parent whose store is made again (a replaced gateway) holds nothing of what the store
+// before it applied. What the child wrote once and keeps (persistent: a recording's description,
+// which the parent's agents need for every chunk after it) goes up again; the rest does not.
+TEST(Link, APersistentItemGoesUpAgainToAParentWhoseStoreIsMadeAgain) {
+  Tree tree;
+  tree.hospital = tree.start_hospital();
+  tree.home1 = tree.start_home(tree.home1_dir, kHome1, tree.home1_log);
+  node::Item description = hrv_item(7);
+  description.persistent = true;
+  ASSERT_TRUE(node::Node::open(tree.home1_dir).value().agent("hrv").value().store(description));
+  ASSERT_TRUE(home1_sends(tree, 0, 5, 6));
+  tree.hospital.reset();
+  std::filesystem::remove_all(tree.hospital_dir);
+  ASSERT_TRUE(node::Node::init(tree.hospital_dir, {.iri = kHospital}));
+  tree.hospital = tree.start_hospital();
+  store_hrv_items(tree.home1_dir, 100, 2);
+  EXPECT_TRUE(eventually([&] { return count(tree.hospital_dir, {.p = Term::iri(kEx + "n")}) == 3; }))
+      << count(tree.hospital_dir, {.p = Term::iri(kEx + "n")});
+  EXPECT_EQ(count(tree.hospital_dir, {.p = Term::iri(kEx + "n"), .o = Term::integer(7)}), 1u);
+  EXPECT_TRUE(eventually([&] { return outbox(tree.home1_dir) == 0; })) << "the new store's acknowledgements empty the outbox";
+  EXPECT_TRUE(tree.home1_log.has("1 persistent item(s) its policy routes go up again"));
+  // A restart of either link is not a new store: nothing goes up twice.
+  tree.home1.reset();
+  tree.home1 = tree.start_home(tree.home1_dir, kHome1, tree.home1_log);
+  store_hrv_items(tree.home1_dir, 200, 1);
+  EXPECT_TRUE(eventually([&] { return count(tree.hospital_dir, {.p = Term::iri(kEx + "n")}) == 4; }));
+  std::this_thread::sleep_for(300ms);
+  EXPECT_EQ(count(tree.hospital_dir, {.p = Term::iri(kEx + "n"), .o = Term::integer(7)}), 1u);
+}
+
 // P6a: the same downwards. A hospital whose store is made again issues configuration with ids
 // that a home has applied already from the old store; the home still gets it.
 TEST(Link, ConfigurationFromAParentWhoseStoreIsMadeAgainArrives) {

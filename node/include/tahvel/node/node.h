@@ -271,6 +271,11 @@ class Agent {
   // subscriptions alone brought and the agent has not taken. Returns how many. (A link's outbox
   // when its forwarding policy is narrowed: what was queued under the old policy stays home.)
   Result<std::uint64_t> withdraw_unrouted();
+  // Puts into the input buffer again every persistent item that one of this agent's
+  // subscriptions matches and that is not there, oldest first; returns how many. (A link whose
+  // parent has a new store, a replaced gateway: the descriptions it sent the store before, a
+  // recording's, which the parent's agents need for everything after, go to the new one.)
+  Result<std::uint64_t> deliver_persistent_again();
 
   // Item ids in this agent's output buffer after `after`, oldest first (audit of its writes).
   Result<std::vector<std::uint64_t>> written(std::uint64_t after = 0, std::size_t limit = 0) const;
