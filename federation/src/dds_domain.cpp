@@ -54,8 +54,26 @@ std::string rejected_topic(std::string_view message) {
   return std::string(message.substr(begin, slash - begin));
 }
 
+// Cyclone's last error or fatal message (its reason for a failed dds_create_domain or
+// participant: "eth0: does not match an available interface.").
+std::mutex& last_error_mutex() {
+  static auto* m = new std::mutex;
+  return *m;
+}
+
+std::string& last_error_text() {
+  static auto* text = new std::string;
+  return *text;
+}
+
 void log_sink(void*, const dds_log_data_t* data) {
   std::string_view message(data->message, data->size);
+  if (data->priority & (DDS_LC_ERROR | DDS_LC_FATAL)) {
+    std::string_view text = message;
+    while (!text.empty() && (text.back() == '\n' || text.back() == '\r' || text.back() == ' ')) text.remove_suffix(1);
+    std::lock_guard lock(last_error_mutex());
+    last_error_text() = std::string(text);
+  }
   const std::string topic = rejected_topic(message);
   bool delivered = false;
   if (!topic.empty()) {
@@ -72,13 +90,27 @@ void log_sink(void*, const dds_log_data_t* data) {
   if (!delivered) std::fwrite(data->message, 1, data->size, stderr);
 }
 
-}  // namespace
-
-int watch_rejections(const std::string& topic, std::function<void(std::string line)> sink) {
-  // Installed once and never removed: dds_set_log_sink waits for Cyclone's threads, so it must
-  // not run while a sink call might be waiting for watches_mutex.
+// Installed once and never removed: dds_set_log_sink waits for Cyclone's threads, so it must
+// not run while a sink call might be waiting for watches_mutex.
+void install_log_sink() {
   static std::once_flag installed;
   std::call_once(installed, [] { dds_set_log_sink(&log_sink, nullptr); });
+}
+
+void clear_last_error() {
+  std::lock_guard lock(last_error_mutex());
+  last_error_text().clear();
+}
+
+}  // namespace
+
+std::string cyclone_said() {
+  std::lock_guard lock(last_error_mutex());
+  return last_error_text().empty() ? std::string() : " (Cyclone DDS: " + last_error_text() + ")";
+}
+
+int watch_rejections(const std::string& topic, std::function<void(std::string line)> sink) {
+  install_log_sink();
   static int next = 0;
   std::lock_guard lock(watches_mutex());
   const int token = ++next;
@@ -109,12 +141,14 @@ node::Result<void> acquire(dds_domainid_t id, const std::string& config) {
   }
   Use use;
   use.config = config;
+  install_log_sink();  // Cyclone's reason for a failure below goes into the error
+  clear_last_error();
   if (!config.empty()) {
     use.domain = dds_create_domain(id, config.c_str());
     if (use.domain < 0) {
       return node::fail(node::Errc::invalid_argument,
                         "dds_create_domain " + std::to_string(id) +
-                            " with the given configuration failed: " + retcode(use.domain));
+                            " with the given configuration failed: " + retcode(use.domain) + cyclone_said());
     }
   }
   use.users = 1;

@@ -30,4 +30,9 @@ void unwatch_rejections(int token);
 // Cyclone's name and number for a return code: "Timeout (-10)".
 std::string retcode(dds_return_t rc);
 
+// " (Cyclone DDS: <its last error message>)" for the failure of a call made after acquire()
+// (which forgets earlier messages), or "" when Cyclone logged no error: its reasons ("eth0: does
+// not match an available interface.") go to its log, and a bare return code says nothing.
+std::string cyclone_said();
+
 }  // namespace tahvel::federation::dds_domain

@@ -119,7 +119,7 @@ class DdsTransport final : public Transport {
     const std::string where = "open_dds <" + self_ + ">: ";
     participant_ = dds_create_participant(domain_, nullptr, nullptr);
     if (participant_ < 0)
-      return node::fail(Errc::io, where + "participant: " + retcode(participant_));
+      return node::fail(Errc::io, where + "participant: " + retcode(participant_) + dds_domain::cyclone_said());
     dds_entity_t topic =
         dds_create_topic(participant_, &tahvel_Frame_desc, topic_name_.c_str(), nullptr, nullptr);
     if (topic < 0)

@@ -195,6 +195,24 @@ TEST(WireOpen, DdsWithAnInvalidConfigurationFails) {
   EXPECT_TRUE(good) << (good ? "" : good.error().message);
 }
 
+// The reason Cyclone logs (an interface the machine does not have: the multi-host template's
+// eth0 on a machine with ens3) goes with the error, which is what `status` shows of the link;
+// "Error (-1)" alone sent the operator to the link's log.
+TEST(WireOpen, DdsWithAnInterfaceThatIsNotThereSaysSo) {
+  require_netns();
+  DdsSettings settings;
+  settings.domain = 78;
+  settings.config = conformance::test_dds_settings().config;
+  const std::string lo = "<NetworkInterface name=\"lo\"";
+  const auto at = settings.config.find(lo);
+  ASSERT_NE(at, std::string::npos);
+  settings.config.replace(at, lo.size(), "<NetworkInterface name=\"eth9\"");
+  auto t = open_dds(settings, "tahvel://wire-open/dds/eth9");
+  ASSERT_FALSE(t);
+  EXPECT_NE(t.error().message.find("(Cyclone DDS: eth9: does not match an available interface"), std::string::npos)
+      << t.error().message;
+}
+
 // What liblcm refuses only with "lcm_create failed" (a link configured so dies at each
 // restart), or takes for something else than written, said part by part; the forms LCM takes
 // as written pass.
