@@ -1795,6 +1795,9 @@ struct StatusNode {
   std::int64_t programs_at = 0;
   bool programs_current = true;  // a remote node's: read now, and rewritten recently
   std::string store_warning;     // a local store near its maximum, or its disk near full
+  // A local store with a forwarding policy (`up` subscribes its uplink only on a node with a
+  // parent): without an uplink state it is a child whose link has not run, not a root.
+  bool has_parent = false;
 };
 
 // What an operator must know of a store here before anything else: writes to it are refused
@@ -1993,6 +1996,9 @@ int run_status(const Args& args) {
     std::map<std::string, Fields> own;
     read_state_items(*snap, federation::vocab::kUplinkState, own);
     if (auto it = own.find(node->iri()); it != own.end()) own_state[node->iri()] = it->second;
+    auto policy = snap->count({.p = node::Term::iri(std::string(federation::vocab::kTv) + "subscriber"),
+                               .o = node::Term::iri(node->iri() + "/uplink")});
+    nodes.back().has_parent = policy && *policy > 0;
   }
   if (ec) fail(state.string() + ": " + ec.message());
   if (nodes.empty())
@@ -2174,7 +2180,7 @@ int run_status(const Args& args) {
       else
         print_link_json(n.link["parent"], n.link["linkState"], unknown_because, "last_seen_ns", seen, n.link["outboxDepth"],
                         "software_version", n.link["softwareVersion"], n.link["linkConflict"]);
-      std::cout << ",\"uplink\":";
+      std::cout << ",\"has_parent\":" << (n.has_parent || !n.uplink.empty() || n.remote ? "true" : "false") << ",\"uplink\":";
       if (n.uplink.empty()) std::cout << "null";
       else
         print_link_json(n.uplink["parent"], n.uplink["uplinkState"], uplink_unknown_because, "parent_last_heard_ns", heard,
@@ -2213,6 +2219,8 @@ int run_status(const Args& args) {
       std::cout << "  uplink state unknown: " << uplink_unknown_because << " (it last said: " << uplink_said << ")";
     else if (!n.uplink.empty())
       std::cout << "  " << uplink_said;
+    else if (n.has_parent && !left)
+      std::cout << "  uplink never started (its link has not run: see the link's last exit)";
     else if (depth == 0 && !left)
       std::cout << "  (root)";
     std::cout << "\n";

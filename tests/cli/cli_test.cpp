@@ -830,6 +830,27 @@ TEST_F(Cli, TheDirPlaceholderIsTheTopologyFilesDirectory) {
   EXPECT_EQ(run({"down", "--state", state}).status, 0);
 }
 
+// A home whose link cannot start (its DDS configuration names an interface this machine does
+// not have) was shown as "(root)": it is a child whose uplink never started, and the link's
+// last exit says Cyclone's reason. (The link fails before it sends anything.)
+TEST_F(Cli, StatusShowsAChildWhoseLinkNeverStartedAsSuchNotAsARoot) {
+  std::string config = slurp(fs::path(TAHVEL_SOURCE_DIR) / "deploy" / "cyclonedds-loopback.xml");
+  const std::string lo = "<NetworkInterface name=\"lo\"";
+  ASSERT_NE(config.find(lo), std::string::npos);
+  config.replace(config.find(lo), lo.size(), "<NetworkInterface name=\"eth9\"");
+  spit(tmp_ / "eth9.xml", config);
+  const std::string file = (tmp_ / "t.toml").string(), state = (tmp_ / "state").string();
+  spit(file, "[[node]]\nid = \"hospital\"\niri = \"http://example.org/hospital\"\nlisten = { kind = \"dds\", config = \"eth9.xml\" }\n"
+             "[[node]]\nid = \"home1\"\nparent = \"hospital\"\n");
+  Outcome up = run({"up", file, "--state", state, "--node", "home1"});
+  ASSERT_EQ(up.status, 0) << up.err;
+  Outcome shown = status_until(state, "Cyclone DDS: eth9: does not match an available interface");
+  EXPECT_NE(shown.out.find("home1  <http://example.org/hospital/home1>  uplink never started"), std::string::npos) << shown.out;
+  EXPECT_EQ(shown.out.find("(root)"), std::string::npos) << shown.out;
+  EXPECT_NE(run({"status", "--state", state, "--json"}).out.find("\"has_parent\":true,\"uplink\":null"), std::string::npos);
+  EXPECT_EQ(run({"down", "--state", state}).status, 0);
+}
+
 // The commands `up` suggests can be pasted as they are, also with a space in the path.
 TEST_F(Cli, UpQuotesAStateDirectoryWithASpaceInTheCommandsItSuggests) {
   const std::string file = (tmp_ / "node.toml").string(), state = (tmp_ / "my state").string();
@@ -877,7 +898,7 @@ TEST_F(Cli, StatusJsonHasEachNodesLinkAndPrograms) {
   Outcome json = run({"status", "--state", state, "--json"});
   EXPECT_EQ(json.status, 0) << json.err;
   EXPECT_EQ(json.out.rfind("{\"state\":\"" + state + "\",\"nodes\":[{\"id\":\"solo\",\"iri\":\"http://example.org/solo\",\"depth\":0,"
-                           "\"remote\":false,\"in_deployment\":true,\"link\":null,\"uplink\":null,\"programs\":[",
+                           "\"remote\":false,\"in_deployment\":true,\"link\":null,\"has_parent\":false,\"uplink\":null,\"programs\":[",
                            0),
             0u)
       << json.out;
