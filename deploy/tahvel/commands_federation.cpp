@@ -1393,6 +1393,12 @@ int run_up(const Args& args) {
     fail("the supervisor " + std::to_string(running) + " has not written its state for " + seconds_text(silent) +
          " (stopped, hung or held up): nothing applied. If it was stopped, 'kill -CONT " + std::to_string(running) +
          "'; its log is " + (pid_file.parent_path() / "logs" / "supervisor.log").string());
+  // Under a service manager `up --foreground` is the supervisor: applying the file to another
+  // one and returning would end the service while the node runs outside it.
+  if (running > 0 && args.has("--foreground"))
+    fail("a supervisor already runs this selection (pid " + std::to_string(running) + ", " + pid_file.string() +
+         "): --foreground would not be it. 'tahvel down --state " + shell_word(state) +
+         "' first, or 'tahvel up' without --foreground applies the file to it");
   // One supervisor per node: `up --node X` beside `up` of the whole file would run X's link and
   // agents twice (two ECG sources writing every chunk twice).
   if (only) {

@@ -851,6 +851,18 @@ TEST_F(Cli, StatusShowsAChildWhoseLinkNeverStartedAsSuchNotAsARoot) {
   EXPECT_EQ(run({"down", "--state", state}).status, 0);
 }
 
+// Under systemd `up --foreground` is the service: beside a running supervisor it applied the
+// file to that one and returned 0, and the unit ended while the node ran outside it.
+TEST_F(Cli, UpInTheForegroundBesideARunningSupervisorIsRefused) {
+  const std::string file = (tmp_ / "node.toml").string(), state = (tmp_ / "state").string();
+  spit(file, kIdleNodeToml);
+  ASSERT_EQ(run({"up", file, "--state", state}).status, 0);
+  Outcome foreground = run({"up", file, "--state", state, "--foreground"});
+  EXPECT_EQ(foreground.status, 1);
+  EXPECT_NE(foreground.err.find("a supervisor already runs this selection (pid "), std::string::npos) << foreground.err;
+  EXPECT_EQ(run({"down", "--state", state}).status, 0);
+}
+
 // The commands `up` suggests can be pasted as they are, also with a space in the path.
 TEST_F(Cli, UpQuotesAStateDirectoryWithASpaceInTheCommandsItSuggests) {
   const std::string file = (tmp_ / "node.toml").string(), state = (tmp_ / "my state").string();
