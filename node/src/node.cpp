@@ -206,6 +206,25 @@ struct Agent::Impl {
   }
   mutable std::uint64_t pinned_self = 0;
 
+  // Runs `change` (detail::withdraw_unrouted, detail::deliver_persistent_again: a change of this
+  // agent's input buffer that returns a count) in one write transaction with the agent's term
+  // id; 0 without running it when the store has never seen the agent (it has no buffer).
+  template <class Change>
+  Result<std::uint64_t> change_own_buffer(Change change) {
+    std::uint64_t count = 0;
+    auto done = env->write([&](Txn& txn) -> Result<void> {
+      auto self = self_id(txn.raw());
+      if (!self) return unexpected(self.error());
+      if (*self == 0) return {};
+      auto n = change(txn, *self, iri);
+      if (!n) return unexpected(n.error());
+      count = *n;
+      return {};
+    });
+    if (!done) return unexpected(done.error());
+    return count;
+  }
+
   // Reads (and with `remove`, takes) the head of the input buffer. Skips items removed since.
   Result<std::optional<Delivery>> head(bool remove);
 
@@ -751,34 +770,10 @@ Result<void> Agent::unsubscribe(std::uint64_t subscription) {
   });
 }
 
-Result<std::uint64_t> Agent::withdraw_unrouted() {
-  std::uint64_t withdrawn = 0;
-  auto done = impl_->env->write([&](Txn& txn) -> Result<void> {
-    auto self = impl_->self_id(txn.raw());
-    if (!self) return unexpected(self.error());
-    if (*self == 0) return {};
-    auto n = detail::withdraw_unrouted(txn, *self, impl_->iri);
-    if (!n) return unexpected(n.error());
-    withdrawn = *n;
-    return {};
-  });
-  if (!done) return unexpected(done.error());
-  return withdrawn;
-}
+Result<std::uint64_t> Agent::withdraw_unrouted() { return impl_->change_own_buffer(detail::withdraw_unrouted); }
 
 Result<std::uint64_t> Agent::deliver_persistent_again() {
-  std::uint64_t delivered = 0;
-  auto done = impl_->env->write([&](Txn& txn) -> Result<void> {
-    auto self = impl_->self_id(txn.raw());
-    if (!self) return unexpected(self.error());
-    if (*self == 0) return {};
-    auto n = detail::deliver_persistent_again(txn, *self, impl_->iri);
-    if (!n) return unexpected(n.error());
-    delivered = *n;
-    return {};
-  });
-  if (!done) return unexpected(done.error());
-  return delivered;
+  return impl_->change_own_buffer(detail::deliver_persistent_again);
 }
 
 Result<std::vector<std::uint64_t>> Agent::written(std::uint64_t after, std::size_t limit) const {
