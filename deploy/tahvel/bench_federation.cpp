@@ -649,6 +649,8 @@ LinkFigures measure_link(Kind kind, const Config& cfg, const ScratchDir& scratch
   const std::string what = std::string(name_of(kind)) + " link: ";
 
   std::vector<double> us, raw_us;
+  std::FILE* rounds_out = nullptr;
+  if (const char* path = std::getenv("TAHVEL_BENCH_ROUNDS")) rounds_out = std::fopen(path, "a");
   for (int block = 0; block < kLatencyBlocks; ++block) {
     const fed::LatencyFloor raw = floor_to_far_end(far, kind, per_block);
     raw_us.insert(raw_us.end(), raw.one_way_us.begin(), raw.one_way_us.end());
@@ -660,11 +662,14 @@ LinkFigures measure_link(Kind kind, const Config& cfg, const ScratchDir& scratch
       if (auto s = sensor->store(item); !s) throw std::runtime_error(what + "store: " + s.error().message);
       if (!watcher.wait_for(n, 10s)) throw std::runtime_error(what + "item " + std::to_string(n) + " not at the hospital after 10 s" + p.diag.summary());
       if (i >= warmup) us.push_back(micros(Clock::now() - t0));
+      if (rounds_out && i >= warmup)
+        std::fprintf(rounds_out, "%s %d %d %.6f %.1f\n", name_of(kind), block, i, std::chrono::duration<double>(t0.time_since_epoch()).count(), us.back());
     }
     if (std::getenv("TAHVEL_BENCH_TIMES"))
       std::fprintf(stderr, "tahvel: bench federation: %s latency block %d timed from %.6f to %.6f (CLOCK_MONOTONIC)\n",
                    name_of(kind), block + 1, block_from, cpu_of(CLOCK_MONOTONIC));
   }
+  if (rounds_out) std::fclose(rounds_out);
   LinkFigures f;
   f.up = percentiles(std::move(us));
   f.raw = percentiles(std::move(raw_us));

@@ -974,6 +974,11 @@ std::string dds_config_digest(const std::vector<std::string>& argv) {
 // configuration and queries to it wait for it (other programs back off up to 30 s).
 constexpr std::chrono::milliseconds kLinkMaxBackOff{2000};
 
+// Each program's log and the supervisor's own are kept within this, with the one before as
+// `<log>.1` (agents::rotate_log): a deployment that runs for months, or a program that
+// crash-loops, does not fill the disk with logs.
+constexpr std::uint64_t kLogLimit = 16ull << 20;
+
 std::vector<agents::ProgramSpec> programs_of(const Topology& topo, const std::vector<const NodeSpec*>& mine,
                                              const fs::path& state, const CommandContext& caller) {
   CommandContext context = caller;
@@ -989,11 +994,11 @@ std::vector<agents::ProgramSpec> programs_of(const Topology& topo, const std::ve
       std::vector<std::pair<std::string, std::string>> env{mark};
       if (auto digest = dds_config_digest(argv); !digest.empty()) env.emplace_back("TAHVEL_DDS_CONFIG_DIGEST", digest);
       programs.push_back({spec->id + "/link", std::move(argv), state / "logs" / spec->id / "link.log", std::move(env),
-                          agents::Restart::always, kLinkMaxBackOff});
+                          agents::Restart::always, kLinkMaxBackOff, kLogLimit});
     }
     for (const AgentSpec& agent : spec->agents)
       programs.push_back({spec->id + "/" + agent.id, check(expand_agent_command(agent, *spec, store, context)),
-                          state / "logs" / spec->id / (agent.id + ".log"), {mark}, agent.restart});
+                          state / "logs" / spec->id / (agent.id + ".log"), {mark}, agent.restart, {}, kLogLimit});
   }
   return programs;
 }
@@ -1605,8 +1610,17 @@ int run_up(const Args& args) {
   Deployment deployment(supervisor, state, only);
   for (const auto& change : deployment.apply(topo, CommandContext::of_this_process()))
     if (change.rfind("started ", 0) != 0) log("up: " + change);  // the supervisor logs each start
+  auto log_checked = std::chrono::steady_clock::now();
   while (!g_stop) {
     supervisor.poll();
+    // Its own log too (in the foreground it writes to the terminal: nothing to keep).
+    if (!foreground && std::chrono::steady_clock::now() - log_checked >= 5s) {
+      log_checked = std::chrono::steady_clock::now();
+      if (auto rotated = agents::rotate_log(state / "logs" / "supervisor.log", kLogLimit); !rotated)
+        log("up: " + rotated.error().message);
+      else if (*rotated)
+        log("up: the supervisor's log passed " + std::to_string(kLogLimit) + " bytes; what it held is in supervisor.log.1");
+    }
     if (g_apply) {
       g_apply = 0;
       apply_requested(deployment, pid_file, log, [&] { write_state_file(state_file, supervisor); });

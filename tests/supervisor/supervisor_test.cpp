@@ -1,5 +1,6 @@
 // The supervisor (agents/supervisor): which programs it starts again, with what back-off, and
 // what it logs about each end. The programs are /bin/sh one-liners.
+#include <fcntl.h>
 #include <gtest/gtest.h>
 #include <signal.h>
 #include <sys/wait.h>
@@ -496,6 +497,57 @@ TEST(KillLeftovers, KillsTheProcessesCarryingTheMarkAndNoOther) {
   EXPECT_EQ(waitpid(other, &status, WNOHANG), 0) << "a process with another mark was killed";
   kill(other, SIGKILL);
   waitpid(other, &status, 0);
+}
+
+std::string contents(const std::filesystem::path& file) {
+  std::ifstream in(file, std::ios::binary);
+  return std::string(std::istreambuf_iterator<char>(in), std::istreambuf_iterator<char>());
+}
+
+// A log over its limit moves to `.1` whole and starts again empty, and a writer that holds it
+// open (with O_APPEND, as a program's stdout) writes on at its start, not at its old end.
+TEST(RotateLog, ALogOverItsLimitMovesToDotOneAndItsWriterWritesOnAtTheStart) {
+  test_support::TempDir dir("tahvel-rotate");
+  const auto log = dir / "hrv.log";
+  const int fd = ::open(log.c_str(), O_WRONLY | O_CREAT | O_APPEND, 0644);
+  ASSERT_GE(fd, 0);
+  const std::string first(3000, 'a');
+  ASSERT_EQ(write(fd, first.data(), first.size()), static_cast<ssize_t>(first.size()));
+  EXPECT_FALSE(*rotate_log(log, 4096)) << "rotated a log under its limit";
+  EXPECT_EQ(contents(log), first);
+  ASSERT_EQ(write(fd, first.data(), first.size()), static_cast<ssize_t>(first.size()));
+  ASSERT_TRUE(*rotate_log(log, 4096));
+  EXPECT_EQ(contents(dir / "hrv.log.1"), first + first);
+  EXPECT_EQ(contents(log), "");
+  ASSERT_EQ(write(fd, "after\n", 6), 6);
+  EXPECT_EQ(contents(log), "after\n") << "the writer did not go on at the start";
+  // The next rotation replaces the .1 of the one before.
+  const std::string second(5000, 'b');
+  ASSERT_EQ(write(fd, second.data(), second.size()), static_cast<ssize_t>(second.size()));
+  ASSERT_TRUE(*rotate_log(log, 4096));
+  EXPECT_EQ(contents(dir / "hrv.log.1"), "after\n" + second);
+  ::close(fd);
+  EXPECT_FALSE(*rotate_log(dir / "none.log", 4096)) << "a log not there is nothing to rotate";
+  EXPECT_FALSE(std::filesystem::exists(dir / "hrv.log.1.tmp"));
+}
+
+// A program that writes without end (a crash loop's messages, a chatty agent over months) keeps
+// its log within the limit the supervisor was given, and the supervisor says when it rotated.
+TEST_F(SupervisorTest, AProgramsLogIsKeptWithinItsLimit) {
+  test_support::TempDir dir("tahvel-sup-log");
+  const auto log = dir / "chatty.log";
+  ASSERT_TRUE(supervisor_.start({.name = "chatty", .argv = {"/bin/sh", "-c", "while :; do echo 0123456789abcdef; done"},
+                                 .log_file = log, .restart = Restart::never, .log_limit = 64 * 1024}).has_value());
+  EXPECT_TRUE(poll_until([&] { return std::filesystem::exists(dir / "chatty.log.1"); }, 10s)) << "never rotated";
+  poll_until([] { return false; }, 2500ms);  // more checks while it writes on
+  ASSERT_TRUE(supervisor_.stop("chatty").has_value());
+  // Checked once a second: what it wrote in a second past the limit, at most.
+  EXPECT_GE(std::filesystem::file_size(dir / "chatty.log.1"), 64u * 1024);
+  std::size_t rotations = 0;
+  for (const auto& line : log_) rotations += line.find("chatty: its log passed 65536 bytes") != std::string::npos;
+  EXPECT_GE(rotations, 2u) << "the supervisor did not rotate it again, or did not say so";
+  const std::string rest = contents(log);
+  EXPECT_EQ(rest.find_first_not_of("0123456789abcdef\n"), std::string::npos) << "the log holds something else";
 }
 
 }  // namespace

@@ -3,6 +3,7 @@
 #include <fcntl.h>
 #include <signal.h>
 #include <sys/prctl.h>
+#include <sys/stat.h>
 #include <sys/wait.h>
 #include <unistd.h>
 
@@ -37,6 +38,7 @@ struct Supervisor::Program {
   // it at group_kill_at (or at the next launch).
   pid_t group = 0;
   std::optional<Clock::time_point> group_kill_at;
+  Clock::time_point log_checked{};
 };
 
 namespace {
@@ -83,6 +85,10 @@ std::string last_line_of(const std::filesystem::path& log_file, off_t from) {
     if (static_cast<unsigned char>(c) < 0x20 || c == 0x7F) c = ' ';
   return line;
 }
+
+// How often poll() compares a program's log with its limit: a log grows by at most what a
+// program writes in this time past it.
+constexpr std::chrono::seconds kLogCheckEvery{1};
 
 // How long what a program left running in its group gets after SIGTERM, when the program ended
 // by itself.
@@ -145,6 +151,71 @@ std::string_view restart_name(Restart restart) {
 
 Supervisor::Supervisor(Log log, BackOff back_off) : log_(std::move(log)), back_off_(back_off) {
   if (!log_) log_ = [](std::string_view line) { std::cerr << "tahvel supervisor: " << line << "\n"; };
+}
+
+Result<bool> rotate_log(const std::filesystem::path& file, std::uint64_t limit) {
+  const int fd = ::open(file.c_str(), O_RDWR | O_CLOEXEC);
+  if (fd < 0) {
+    if (errno == ENOENT) return false;
+    return fail(Errc::io, "cannot open the log " + file.string() + ": " + std::strerror(errno));
+  }
+  struct stat st {};
+  if (fstat(fd, &st) != 0 || static_cast<std::uint64_t>(st.st_size) <= limit) {
+    ::close(fd);
+    return false;
+  }
+  std::filesystem::path kept = file;
+  kept += ".1";
+  std::filesystem::path tmp = file;
+  tmp += ".1.tmp";
+  const int out = ::open(tmp.c_str(), O_WRONLY | O_CREAT | O_TRUNC | O_CLOEXEC, 0644);
+  if (out < 0) {
+    const int err = errno;
+    ::close(fd);
+    return fail(Errc::io, "cannot write " + tmp.string() + ": " + std::strerror(err));
+  }
+  // Copy until the end of the file, again while it grew meanwhile (a busy writer), at most a
+  // few times; then empty it. A write that lands after the last look is the one that is lost.
+  off_t copied = 0;
+  std::string failed;
+  char buffer[1 << 16];
+  for (int round = 0; round < 4 && failed.empty(); ++round) {
+    const off_t end = lseek(fd, 0, SEEK_END);
+    if (end <= copied) break;
+    while (copied < end) {
+      const ssize_t n = pread(fd, buffer, static_cast<std::size_t>(std::min<off_t>(end - copied, sizeof buffer)), copied);
+      if (n < 0 && errno == EINTR) continue;
+      if (n <= 0) {
+        failed = "cannot read " + file.string() + (n < 0 ? std::string(": ") + std::strerror(errno) : std::string());
+        break;
+      }
+      for (ssize_t done = 0; done < n;) {
+        const ssize_t w = write(out, buffer + done, static_cast<std::size_t>(n - done));
+        if (w < 0 && errno == EINTR) continue;
+        if (w < 0) {
+          failed = "cannot write " + tmp.string() + ": " + std::strerror(errno);
+          break;
+        }
+        done += w;
+      }
+      if (!failed.empty()) break;
+      copied += n;
+    }
+  }
+  if (::close(out) != 0 && failed.empty()) failed = "cannot write " + tmp.string() + ": " + std::strerror(errno);
+  // Emptied only once the copy is whole and in its place: a full disk keeps the log as it was.
+  std::error_code ec;
+  if (failed.empty()) {
+    std::filesystem::rename(tmp, kept, ec);
+    if (ec) failed = "cannot rename " + tmp.string() + " to " + kept.string() + ": " + ec.message();
+  }
+  if (failed.empty() && ftruncate(fd, 0) != 0) failed = "cannot empty " + file.string() + ": " + std::strerror(errno);
+  ::close(fd);
+  if (!failed.empty()) {
+    std::filesystem::remove(tmp, ec);
+    return fail(Errc::io, failed);
+  }
+  return true;
 }
 
 Supervisor::~Supervisor() {
@@ -294,6 +365,18 @@ void Supervisor::poll() {
     if (group_has_live_members(p->group)) kill(-p->group, SIGKILL);
     p->group = 0;
     p->group_kill_at.reset();
+  }
+  for (Program* p : programs_) {
+    if (p->spec.log_limit == 0 || p->spec.log_file.empty() || now - p->log_checked < kLogCheckEvery) continue;
+    p->log_checked = now;
+    auto rotated = rotate_log(p->spec.log_file, p->spec.log_limit);
+    if (!rotated) {
+      log_(p->spec.name + ": " + rotated.error().message);
+    } else if (*rotated) {
+      p->log_start = 0;  // what the run wrote before is in the .1 file now
+      log_(p->spec.name + ": its log passed " + std::to_string(p->spec.log_limit) + " bytes; what it held is " +
+           p->spec.log_file.string() + ".1 now");
+    }
   }
   for (Program* p : programs_) {
     if (!p->state.running && !p->stopping && p->restart_at && now >= *p->restart_at) {

@@ -50,6 +50,11 @@ struct ProgramSpec {
   // Caps this program's back-off below the supervisor's BackOff::max (zero: no cap of its own).
   // A node's link is what all else on it waits for: it is not left down for 30 s.
   std::chrono::milliseconds max_delay{0};
+  // The log file's size past which poll() moves what it holds to `<log_file>.1` and empties it
+  // (rotate_log), so that a program that runs for months, or crash-loops, does not fill the
+  // disk: about twice this on disk per program, plus what it writes in the second between two
+  // checks. Zero: no limit.
+  std::uint64_t log_limit = 0;
 };
 
 // Why a running program does not run (proc(5), the state letter of /proc/PID/stat).
@@ -139,6 +144,13 @@ class Supervisor {
   std::vector<Program*> programs_;                  // in the order of states()
   std::map<std::string, std::string> vacated_;      // a removed program's successor, by name
 };
+
+// Keeps a log that programs append to (O_APPEND) within `limit` bytes: when `file` is larger,
+// its content goes to `<file>.1` (replacing the one before) and `file` is emptied in place, so
+// the programs holding it open write on from its start. As with logrotate's copytruncate, a line
+// written in the few microseconds between the last copy and the emptying is lost; the copy is
+// repeated while the file grew during it. True when it rotated; errors: io (naming the file).
+Result<bool> rotate_log(const std::filesystem::path& file, std::uint64_t limit);
 
 // Programs that outlived a supervisor killed with SIGKILL. Its programs die with it
 // (PR_SET_PDEATHSIG), but not what they started: a shell wrapper's children run on, out of reach
