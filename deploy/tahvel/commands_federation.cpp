@@ -1044,7 +1044,7 @@ class Deployment {
     std::vector<std::string> leaving;
     for (const auto& [name, spec] : applied_) {
       auto w = wanted.find(name);
-      if (w == wanted.end() || !same_program(spec, *w->second)) leaving.push_back(name);
+      if (w == wanted.end() || !(same_program(spec, *w->second) || only_restart_differs(spec, *w->second))) leaving.push_back(name);
     }
     supervisor_.remove(leaving);
     for (auto it = applied_.begin(); it != applied_.end();) {
@@ -1059,6 +1059,16 @@ class Deployment {
       const std::string& name = program.name;
       auto it = applied_.find(name);
       if (it != applied_.end() && same_program(it->second, program)) continue;
+      // A new restart policy alone is no reason to stop a program that runs.
+      if (it != applied_.end() && only_restart_differs(it->second, program)) {
+        if (auto set = supervisor_.set_restart(name, program.restart); !set) {
+          changes.push_back("cannot change " + name + ": " + set.error().message);
+          continue;
+        }
+        changes.push_back("changed " + name + " (" + what_changed(it->second, program) + "; it was not restarted)");
+        it->second = program;
+        continue;
+      }
       const bool changed = it != applied_.end();
       if (auto started = supervisor_.start(program); !started) {
         changes.push_back("cannot start " + name + ": " + started.error().message);
@@ -1243,6 +1253,9 @@ class Deployment {
 
   static bool same_program(const agents::ProgramSpec& a, const agents::ProgramSpec& b) {
     return a.argv == b.argv && a.env == b.env && a.log_file == b.log_file && a.restart == b.restart;
+  }
+  static bool only_restart_differs(const agents::ProgramSpec& a, const agents::ProgramSpec& b) {
+    return a.argv == b.argv && a.env == b.env && a.log_file == b.log_file && a.restart != b.restart;
   }
   static std::string what_changed(const agents::ProgramSpec& was, const agents::ProgramSpec& now) {
     std::vector<std::string> what;

@@ -1453,12 +1453,15 @@ TEST_F(Cli, UpAgainAppliesAnEditedFileToTheRunningSupervisor) {
   ASSERT_EQ(changed.status, 0) << changed.err;
   EXPECT_NE(changed.out.find("up:   stopped solo/second (no longer in the file)"), std::string::npos) << changed.out;
   EXPECT_NE(changed.out.find("up:   restarted solo/idle (its command changed)"), std::string::npos) << changed.out;
+  std::string new_pid;
+  EXPECT_TRUE(eventually([&] { return !(new_pid = pid_of("idle")).empty() && new_pid != idle_pid; }));
+  // A new restart policy alone applies to the running program, which goes on running.
   spit(file, "[[node]]\nid = \"solo\"\niri = \"http://example.org/solo\"\n"
              "  [[node.agent]]\n  id = \"idle\"\n  run = [\"/bin/sleep\", \"602\"]\n  restart = \"always\"\n");
   Outcome policy = run({"up", file, "--state", state});
-  EXPECT_NE(policy.out.find("up:   restarted solo/idle (restart \"on-failure\" -> \"always\")"), std::string::npos) << policy.out;
-  std::string new_pid;
-  EXPECT_TRUE(eventually([&] { return !(new_pid = pid_of("idle")).empty() && new_pid != idle_pid; }));
+  EXPECT_NE(policy.out.find("up:   changed solo/idle (restart \"on-failure\" -> \"always\"; it was not restarted)"),
+            std::string::npos) << policy.out;
+  EXPECT_EQ(pid_of("idle"), new_pid) << "a new restart policy restarted the program";
   EXPECT_EQ(run({"status", "--state", state}).out.find("second"), std::string::npos);
 
   // Three edits at once are each applied, in turn (they used to overwrite each other's request,

@@ -504,6 +504,29 @@ std::string contents(const std::filesystem::path& file) {
   return std::string(std::istreambuf_iterator<char>(in), std::istreambuf_iterator<char>());
 }
 
+// A new restart policy takes effect without a stop: a program that finished starts under
+// "always", and one waiting out its back-off stays stopped under "never".
+TEST_F(SupervisorTest, ANewRestartPolicyAppliesWithoutStoppingTheProgram) {
+  start("runs", "sleep 1001", Restart::on_failure);
+  const pid_t pid = supervisor_.state("runs")->pid;
+  ASSERT_TRUE(supervisor_.set_restart("runs", Restart::always).has_value());
+  EXPECT_EQ(after("runs", 100ms).pid, pid) << "the running program was stopped";
+
+  start("done", "exit 0", Restart::on_failure);
+  ASSERT_TRUE(poll_until([&] { return !supervisor_.state("done")->running; }));
+  EXPECT_EQ(after("done", 100ms).restarts, 0u);
+  ASSERT_TRUE(supervisor_.set_restart("done", Restart::always).has_value());
+  EXPECT_TRUE(poll_until([&] { return supervisor_.state("done")->restarts >= 1; })) << "a finished program did not start under always";
+
+  start("fails", "exit 3", Restart::on_failure);
+  ASSERT_TRUE(poll_until([&] { return supervisor_.state("fails")->restart_at.has_value(); }));
+  ASSERT_TRUE(supervisor_.set_restart("fails", Restart::never).has_value());
+  const ProgramState left = after("fails", 300ms);
+  EXPECT_FALSE(left.running);
+  EXPECT_FALSE(left.restart_at) << "still waiting to start again under never";
+  EXPECT_FALSE(supervisor_.set_restart("nothing", Restart::never).has_value());
+}
+
 // A log over its limit moves to `.1` whole and starts again empty, and a writer that holds it
 // open (with O_APPEND, as a program's stdout) writes on at its start, not at its old end.
 TEST(RotateLog, ALogOverItsLimitMovesToDotOneAndItsWriterWritesOnAtTheStart) {

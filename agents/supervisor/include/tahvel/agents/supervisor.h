@@ -120,6 +120,13 @@ class Supervisor {
   void remove(const std::vector<std::string>& names, std::chrono::milliseconds grace = std::chrono::seconds(5));
   void stop_all(std::chrono::milliseconds grace = std::chrono::seconds(5));
 
+  // Changes when a program is started again, without stopping it: it applies from the program's
+  // next end. A program waiting out its back-off that `restart` would leave stopped stays
+  // stopped; one that finished (or failed under `never`) starts now when `restart` would have
+  // started it again. A program stopped on request stays stopped. not_found when no program has
+  // that name.
+  Result<void> set_restart(std::string_view name, Restart restart);
+
   // Called about every 100 ms while stop(), remove() and stop_all() wait for programs to end
   // (`tahvel up` rewrites its state file there, so that a stop taking its grace does not look
   // like a hung supervisor).
