@@ -266,6 +266,19 @@ struct Link::Impl {
     auto stats = own->stats();
     return stats ? stats->last_seq : ~0ull;
   }
+  // P6a: what a peer can have applied of this store's streams: items this store had issued
+  // when this link started (earlier runs sent no more) and those this run has sent since. A
+  // peer's mark above it knows a store that was here before: this one was restored from a
+  // backup. Compared with the store's last seq instead, the agents' writes between the start
+  // and the peer's welcome (seconds, with DDS discovery) could pass the mark and hide the
+  // restore, and the peer would drop their items as duplicates.
+  std::uint64_t seq_at_start = ~0ull;  // ~0 when it could not be read: nothing looks restored
+  std::atomic<std::uint64_t> highest_sent{0};
+  void note_sent(std::uint64_t seq) {
+    for (std::uint64_t now = highest_sent.load(); seq > now && !highest_sent.compare_exchange_weak(now, seq);) {
+    }
+  }
+  std::uint64_t issued_to_peers() const { return std::max(seq_at_start, highest_sent.load()); }
   // P6a: a peer has applied more of this store's stream than the store has issued, so this
   // store was restored from a backup (its ids go back in time). It takes a new id, so that its
   // streams start again at the peers, and every peer registers again to learn it.
@@ -1092,6 +1105,9 @@ struct Link::Impl {
         log("refused item " + std::to_string(r.seq) + " from <" + head.from + "> (it stays in the sender's store): " + r.why.message);
         send_error(via, head.from, r.seq, {std::string(kItemRefused), r.why.message, ""});
       }
+      if (outcome->already_held > 0)
+        log("dropped " + std::to_string(outcome->already_held) + " persistent item(s) from <" + head.from +
+            "> that this store holds already (sent again on a new stream: P6c)");
       std::lock_guard lock(mu);
       counters.items_refused += outcome->refused.size();
       if (up) {
@@ -1102,6 +1118,7 @@ struct Link::Impl {
         counters.down_applied += outcome->stored.size();
       }
       counters.duplicates_in += outcome->duplicates;
+      counters.already_held_in += outcome->already_held;
     }
     // At once what the sender must act on: a refusal, a gap, a resend (duplicates), a run that
     // applied nothing, or its window half full (P8).
@@ -1161,7 +1178,7 @@ struct Link::Impl {
           log("child <" + child->iri + ">: its down mark " + std::to_string(f.ack) +
               " is for another store of this node; its queue is sent from the start");
           down_from = 0;
-        } else if (f.ack != 0 && f.ack > last_seq_here()) {
+        } else if (f.ack != 0 && f.ack > issued_to_peers()) {
           renew_store_id("child <" + child->iri + "> has applied up to " + std::to_string(f.ack) +
                          " of this store, which has issued less");
           down_from = 0;
@@ -1349,7 +1366,7 @@ struct Link::Impl {
         // P6a: a parent that has applied more of this store's stream than the store has issued
         // knows a store that was here before (this one was restored from a backup): this store
         // takes a new id, and says hello with it.
-        if (f.ack > last_seq_here()) {
+        if (f.ack > issued_to_peers()) {
           renew_store_id("the parent <" + opt.parent_iri + "> has applied up to " + std::to_string(f.ack) +
                          " of this store, which has issued less");
           return;
@@ -1980,6 +1997,7 @@ struct Link::Impl {
         if (up_in_flight.empty()) up_progress = Clock::now();
         up_in_flight.push_back(d.item);
         up_last_sent = d.item;
+        note_sent(d.item);
         ++counters.up_sent;
       }
       for (std::size_t k = 0; k + 1 < frames.size(); ++k) frames[k].ack |= kMoreFollow;  // P9b
@@ -2161,6 +2179,7 @@ struct Link::Impl {
         if (child.down_in_flight.empty()) child.down_progress = Clock::now();
         child.down_in_flight.push_back(d.item);
         child.down_last_sent = d.item;
+        note_sent(d.item);
       }
       auto last = std::find_if(frames.rbegin(), frames.rend(), [](const Frame& f) { return f.kind == FrameKind::down; });
       for (auto f = frames.rbegin(); f != frames.rend(); ++f)
@@ -2668,6 +2687,7 @@ Result<std::unique_ptr<Link>> Link::start(LinkOptions options) {
   auto own = node::Node::open(options.dir);
   if (!own) return Unexpected<Error>{own.error()};
   impl->own.emplace(std::move(*own));
+  impl->seq_at_start = impl->last_seq_here();
   if (options.up) {
     auto uplink = node->agent(kUplinkAgent);
     if (!uplink) return Unexpected<Error>{uplink.error()};

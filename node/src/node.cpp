@@ -663,6 +663,10 @@ Result<RelayOutcome> Agent::relay(std::string_view stream, const std::vector<Rel
           }
           if (!refusal.empty() && refusal[i]) {
             outcome.refused.push_back({relayed.seq, *refusal[i]});
+          } else if (auto twin = held_persistent_twin(txn.raw(), *impl_->env, relayed.item, relayed.source); !twin) {
+            return unexpected(with_context(twin.error(), about(i)));
+          } else if (*twin != 0) {
+            ++outcome.already_held;
           } else {
             auto id = insert_item(txn, relayed.item, impl_->iri, &relayed.source);
             if (!id) {

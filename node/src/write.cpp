@@ -613,6 +613,86 @@ Result<std::uint64_t> deliver_earlier(Txn& txn, std::uint64_t agent, const std::
   return delivered;
 }
 
+Result<std::uint64_t> held_persistent_twin(MDB_txn* txn, const Env& env, const Item& item, const std::string& source) {
+  if (!item.persistent || !item.asserted_at || item.triples.empty()) return std::uint64_t{0};
+  // The candidates are the items with a record about the first subject that is not a blank
+  // node (a blank subject's label is the store's own): its subject index entries.
+  const Triple* anchor = nullptr;
+  for (const Triple& t : item.triples)
+    if (!t.s.is_blank()) {
+      anchor = &t;
+      break;
+    }
+  if (!anchor) return std::uint64_t{0};
+  auto source_id = find_term(txn, env, Term::iri(source));
+  if (!source_id || *source_id == 0) return source_id;
+  std::uint64_t context_id = 0;
+  if (!item.context.empty()) {
+    auto c = find_term(txn, env, Term::iri(item.context));
+    if (!c || *c == 0) return c;
+    context_id = *c;
+  }
+  // The item's terms as ids; 0 for a blank node, and a term the store has never seen means no twin.
+  std::vector<std::array<std::uint64_t, 3>> wanted;
+  wanted.reserve(item.triples.size());
+  for (const Triple& t : item.triples) {
+    std::array<std::uint64_t, 3> row{};
+    const Term* terms[] = {&t.s, &t.p, &t.o};
+    for (int pos = 0; pos < 3; ++pos) {
+      if (terms[pos]->is_blank()) continue;
+      auto id = find_term(txn, env, *terms[pos]);
+      if (!id || *id == 0) return id;
+      row[static_cast<std::size_t>(pos)] = *id;
+    }
+    wanted.push_back(row);
+  }
+  const std::uint64_t subject = wanted[static_cast<std::size_t>(anchor - item.triples.data())][0];
+  MDB_cursor* cursor = nullptr;
+  if (int rc = mdb_cursor_open(txn, env.idx_s, &cursor); rc != 0) return lmdb_fail(rc, "opening the subject index");
+  std::vector<std::uint64_t> records;
+  MDB_val k = val(subject), v;
+  int rc = mdb_cursor_get(cursor, &k, &v, MDB_SET);
+  for (; rc == 0; rc = mdb_cursor_get(cursor, &k, &v, MDB_NEXT_DUP)) records.push_back(u64(v));
+  mdb_cursor_close(cursor);
+  if (rc != MDB_NOTFOUND) return lmdb_fail(rc, "walking the subject index");
+  TermReader terms(txn, env);
+  std::uint64_t last_item = 0;
+  for (std::uint64_t record : records) {
+    auto head = get_record(txn, env, record);
+    if (!head) return unexpected(head.error());
+    if (!*head || (*head)->item == last_item) continue;
+    const std::uint64_t candidate = last_item = (*head)->item;
+    auto row = get_item(txn, env, candidate);
+    if (!row) return unexpected(row.error());
+    if (!*row) continue;
+    const ItemRow& it = **row;
+    if (!it.persistent || it.source != *source_id || it.asserted_at != *item.asserted_at || it.context != context_id ||
+        it.count != wanted.size() || it.live != it.count)
+      continue;
+    bool same = true;
+    for (std::size_t i = 0; i < wanted.size() && same; ++i) {
+      auto r = get_record(txn, env, candidate + i);
+      if (!r) return unexpected(r.error());
+      if (!*r) {
+        same = false;
+        break;
+      }
+      const std::uint64_t have[] = {(*r)->s, (*r)->p, (*r)->o};
+      for (std::size_t pos = 0; pos < 3 && same; ++pos) {
+        if (wanted[i][pos] != 0) {
+          same = have[pos] == wanted[i][pos];
+        } else {
+          auto term = terms.get(have[pos]);
+          if (!term) return unexpected(term.error());
+          same = term->is_blank();
+        }
+      }
+    }
+    if (same) return candidate;
+  }
+  return std::uint64_t{0};
+}
+
 Result<std::uint64_t> deliver_persistent_again(Txn& txn, std::uint64_t agent, const std::string& agent_iri) {
   auto subs = load_subscriptions(txn);
   if (!subs) return unexpected(subs.error());

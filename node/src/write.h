@@ -27,6 +27,14 @@ inline constexpr std::string_view kSubscriptionSource = "https://w3id.org/tahvel
 Result<std::uint64_t> insert_item(Txn& txn, const Item& item, const std::string& agent_iri,
                                   const std::string* relayed_source = nullptr);
 
+// The id of a persistent item this store holds that `item`, relayed from `source`, repeats:
+// persistent too, the same source, asserted-at time and context, and the same triples in the
+// same order (blank nodes match blank nodes, as they are renamed on the way). 0 when none. A
+// node sends its persistent items again to a parent that says it holds nothing of its stream
+// (docs/protocol.md P6c), and a parent made again, or a child restored from a backup, passes
+// them on to nodes above that have them already on the stream before.
+Result<std::uint64_t> held_persistent_twin(MDB_txn* txn, const Env& env, const Item& item, const std::string& source);
+
 // An upper bound on the bytes of new pages that inserting `item` may add to the data file: its
 // terms (a large literal takes overflow pages of its own) and a generous share of the record,
 // index and item rows per triple. Env::write reserves the disk for it before the transaction

@@ -341,6 +341,36 @@ TEST(Link, APersistentItemGoesUpAgainToAParentWhoseStoreIsMadeAgain) {
   EXPECT_EQ(count(tree.hospital_dir, {.p = Term::iri(kEx + "n"), .o = Term::integer(7)}), 1u);
 }
 
+// P6c with P6a: a home's store restored from a backup takes a new store id, and the hospital,
+// whose mark is past it, holds nothing of the new stream; the home's persistent items go up
+// again, and the hospital, which has them from the stream before, keeps one of each.
+TEST(Link, APersistentItemOfAStoreRestoredFromABackupIsNotDoubledAtTheParent) {
+  Tree tree;
+  tree.hospital = tree.start_hospital();
+  tree.home1 = tree.start_home(tree.home1_dir, kHome1, tree.home1_log);
+  node::Item description = hrv_item(7);
+  description.persistent = true;
+  ASSERT_TRUE(node::Node::open(tree.home1_dir).value().agent("hrv").value().store(description));
+  ASSERT_TRUE(home1_sends(tree, 0, 5, 6));
+  tree.home1.reset();
+  const std::filesystem::path backup = tree.home1_dir + "-backup";
+  std::filesystem::copy(tree.home1_dir, backup, std::filesystem::copy_options::recursive);
+  tree.home1 = tree.start_home(tree.home1_dir, kHome1, tree.home1_log);
+  ASSERT_TRUE(home1_sends(tree, 100, 5, 11));
+  tree.home1.reset();
+  std::filesystem::remove_all(tree.home1_dir);
+  std::filesystem::rename(backup, tree.home1_dir);
+  tree.home1 = tree.start_home(tree.home1_dir, kHome1, tree.home1_log);
+  store_hrv_items(tree.home1_dir, 200, 2);
+  const node::Pattern numbered{.p = Term::iri(kEx + "n")};
+  EXPECT_TRUE(eventually([&] { return count(tree.hospital_dir, numbered) == 13; })) << count(tree.hospital_dir, numbered);
+  EXPECT_TRUE(tree.home1_log.has("persistent item(s) its policy routes go up again")) << "the case under test did not happen: " << tree.home1_log.text();
+  EXPECT_TRUE(eventually([&] { return outbox(tree.home1_dir) == 0; }));
+  std::this_thread::sleep_for(300ms);
+  EXPECT_EQ(count(tree.hospital_dir, {.p = Term::iri(kEx + "n"), .o = Term::integer(7)}), 1u) << "the description is doubled";
+  EXPECT_EQ(count(tree.hospital_dir, numbered), 13u);
+}
+
 // P6a: the same downwards. A hospital whose store is made again issues configuration with ids
 // that a home has applied already from the old store; the home still gets it.
 TEST(Link, ConfigurationFromAParentWhoseStoreIsMadeAgainArrives) {

@@ -376,6 +376,47 @@ TEST(Relay, StoresEachSequenceOnceKeepsTheSourceAndStopsAtAGap) {
   for (const auto& r : records) EXPECT_EQ(r.meta.source, source);
 }
 
+// A node's persistent items go up again on a new stream when a store on the way was made again
+// or restored from a backup (docs/protocol.md P6c). A node above that holds them from the stream
+// before drops them; anything that differs in what makes an item the same is stored.
+TEST(Relay, APersistentItemHeldAlreadyFromTheSameSourceIsDroppedOnAnotherStream) {
+  TempDir dir;
+  Node node = make_node(dir.path());
+  Agent child = node.agent("child").value();
+  const std::string source = kNodeIri + "/child/ecg";
+  auto description = [&](std::int64_t at, int n) {
+    RelayedItem r = relayed(0, 0, source, n);
+    r.item.persistent = true;
+    r.item.asserted_at = at;
+    // A blank node is renamed on the way, on each store: it matches any blank node.
+    r.item.add(Term::blank("lead"), ex("name"), Term::literal("MLII"));
+    r.item.add(Term::iri(kNodeIri + "/obs/" + std::to_string(n)), ex("lead"), Term::blank("lead"));
+    return r;
+  };
+  auto on = [](RelayedItem r, std::uint64_t seq, std::uint64_t prev) {
+    r.seq = seq;
+    r.prev = prev;
+    return r;
+  };
+  auto first = child.relay("child#old", {on(description(1000, 1), 1, 0), on(description(2000, 2), 2, 1)}).value();
+  ASSERT_EQ(first.stored.size(), 2u);
+  RelayedItem other_time = description(1001, 1), not_persistent = description(1000, 1), other_source = description(1000, 1);
+  not_persistent.item.persistent = false;
+  other_source.source = kNodeIri + "/child/other";
+  auto again = child.relay("child#new", {on(description(1000, 1), 1, 0), on(description(2000, 2), 2, 1),
+                                         on(other_time, 3, 2), on(not_persistent, 4, 3), on(other_source, 5, 4)}).value();
+  EXPECT_EQ(again.already_held, 2u);
+  EXPECT_EQ(again.duplicates, 0u);
+  EXPECT_EQ(again.stored.size(), 3u) << "another time, a non-persistent item and another source are other items";
+  EXPECT_EQ(again.mark, 5u) << "the mark moves past what was dropped";
+  EXPECT_EQ(node.snapshot().value().list({.p = ex("value"), .o = Term::integer(2)}).value().size(), 1u);
+  EXPECT_EQ(node.snapshot().value().list({.p = ex("value"), .o = Term::integer(1)}).value().size(), 4u);
+  // One triple more or less is another item.
+  RelayedItem longer = description(2000, 2);
+  longer.item.add(Term::iri(kNodeIri + "/obs/2"), ex("note"), Term::literal("x"));
+  EXPECT_EQ(child.relay("child#third", {on(longer, 1, 0)}).value().stored.size(), 1u);
+}
+
 // A relayed item is in the output buffer of the link agent that relayed it, though its source is
 // the writer below. When retention takes the item, its entry must go from that buffer too: an
 // entry left behind would name an item that is gone, and a ring-bounded node's buffers would grow

@@ -168,6 +168,9 @@ struct RelayOutcome {
   std::uint64_t mark = 0;             // the stream's mark afterwards: last seq applied in order
   std::vector<std::uint64_t> stored;  // ids of the items stored, in order
   std::size_t duplicates = 0;         // items at or below the mark, dropped
+  std::size_t already_held = 0;       // persistent items this store holds already, the same
+                                      // from the same source (sent again on another stream:
+                                      // docs/protocol.md P6c): dropped, the mark moved past them
   bool gap = false;                   // an item's prev was not the mark: it and those after it
                                       // were not applied (the sender resends from the mark)
   std::vector<RefusedItem> refused;   // items in order that this node can never store; the
@@ -248,6 +251,11 @@ class Agent {
   // stored, listed in `refused`, and the mark moves past it as if applied, so that one bad item
   // does not hold up the rest of the stream for ever (it stays in the sender's store). An error
   // that may pass (a full store, I/O) fails the call instead, and nothing of it is stored.
+  // A persistent item that repeats one this store holds — persistent, from the same source, at
+  // the same asserted-at time, with the same context and triples — is dropped as already held
+  // (RelayOutcome::already_held): a node's persistent items go up again on a new stream when a
+  // store on the way was made again or restored (docs/protocol.md P6c), and the nodes above
+  // that store have them from the stream before.
   Result<RelayOutcome> relay(std::string_view stream, const std::vector<RelayedItem>& items) noexcept;
 
   // The stream's mark (0 when nothing was relayed on it).
