@@ -2055,13 +2055,35 @@ int run_status(const Args& args) {
       if (auto child = uri::child_id(iri, parent->second)) id = *child;
     nodes.push_back({.id = id, .iri = iri, .remote = true, .link = fields});
   };
+  // A node this machine runs whose store is gone (deleted while its programs run): shown here,
+  // with its programs failing and why, not as a node on another machine with nothing known.
+  const std::vector<ProgramRow> program_rows = read_state_files(state);
+  std::set<std::string> storeless;
+  for (const ProgramRow& p : program_rows) {
+    const auto slash = p.name.find('/');
+    if (slash == std::string::npos || p.state == "stopped") continue;
+    const std::string id = p.name.substr(0, slash);
+    if (std::none_of(nodes.begin(), nodes.end(), [&](const StatusNode& n) { return n.id == id; })) storeless.insert(id);
+  }
+  for (const std::string& id : storeless) {
+    std::string iri;  // from its parent's state of it, when its parent's store is here
+    for (const auto& [child_iri, fields] : child_state) {
+      auto parent = fields.find("parent");
+      if (parent == fields.end() || local_id(parent->second).empty()) continue;
+      if (auto child = uri::child_id(child_iri, parent->second); child && *child == id) iri = child_iri;
+    }
+    nodes.push_back({.id = id, .iri = iri});
+    nodes.back().store_warning = "its store " + (state / id).string() +
+                                 " is missing (deleted while the node runs?): its programs fail until 'tahvel down' and "
+                                 "'tahvel up' make it again";
+  }
   for (const auto& [iri, fields] : child_state)
     if (!find(iri)) add_remote(iri, fields);
   for (StatusNode& n : nodes) {
     if (auto it = child_state.find(n.iri); it != child_state.end()) n.link = it->second;
     if (auto it = own_state.find(n.iri); it != own_state.end() && !n.remote) n.uplink = it->second;
   }
-  for (ProgramRow& p : read_state_files(state)) {
+  for (ProgramRow p : program_rows) {
     const auto slash = p.name.find('/');
     if (slash == std::string::npos) continue;
     for (StatusNode& n : nodes)

@@ -851,6 +851,37 @@ TEST_F(Cli, StatusShowsAChildWhoseLinkNeverStartedAsSuchNotAsARoot) {
   EXPECT_EQ(run({"down", "--state", state}).status, 0);
 }
 
+// A node of this machine whose store was deleted while it runs: its link fails at every start.
+// `status` showed it as a node on another machine, with nothing known of its programs.
+TEST_F(Cli, StatusShowsANodeWhoseStoreWasDeletedAsLocalWithItsFailingLink) {
+  const std::string file = (tmp_ / "t.toml").string(), state = (tmp_ / "state").string();
+  spit(file, "[[node]]\nid = \"hospital\"\niri = \"http://example.org/hospital\"\n"
+             "listen = { kind = \"dds\", config = \"" + (fs::path(TAHVEL_SOURCE_DIR) / "deploy" / "cyclonedds-loopback.xml").string() + "\" }\n"
+             "[[node]]\nid = \"home1\"\nparent = \"hospital\"\n");
+  ASSERT_EQ(run({"up", file, "--state", state}).status, 0);
+  ASSERT_TRUE(eventually([&] { return run({"status", "--state", state, "--local"}).out.find("link up") != std::string::npos; }))
+      << run({"status", "--state", state, "--local"}).out;
+  fs::remove_all(fs::path(state) / "home1");
+  // Its link dies (here by SIGKILL) and cannot start again without its store.
+  pid_t link = 0;
+  {
+    std::ifstream in(fs::path(state) / "supervisor-all.state");
+    for (std::string line; std::getline(in, line);)
+      if (line.starts_with("home1/link\t")) link = static_cast<pid_t>(std::stol(line.substr(11)));
+  }
+  ASSERT_GT(link, 0);
+  kill(link, SIGKILL);
+  Outcome shown = status_until(state, "restarts");
+  EXPECT_NE(shown.out.find("home1  <http://example.org/hospital/home1>"), std::string::npos) << shown.out;
+  EXPECT_NE(shown.out.find("STORE its store " + state + "/home1 is missing (deleted while the node runs?)"), std::string::npos)
+      << shown.out;
+  EXPECT_EQ(shown.out.find("on another machine"), std::string::npos) << shown.out;
+  Outcome json = run({"status", "--state", state, "--local", "--json"});
+  EXPECT_NE(json.out.find("\"id\":\"home1\",\"iri\":\"http://example.org/hospital/home1\",\"depth\":1,\"remote\":false"), std::string::npos)
+      << json.out;
+  EXPECT_EQ(run({"down", "--state", state}).status, 0);
+}
+
 // Under systemd `up --foreground` is the service: beside a running supervisor it applied the
 // file to that one and returned 0, and the unit ended while the node ran outside it.
 TEST_F(Cli, UpInTheForegroundBesideARunningSupervisorIsRefused) {
