@@ -435,6 +435,11 @@ node::Result<Topology> load_topology(const std::filesystem::path& file) {
                                                         parent.id + "' listens on " + parent.listen.front().kind + " only");
         auto derived = uri::child_node_iri(parent.iri, spec.id);
         if (!derived) return node::fail(Errc::invalid_iri, spec.at + ": node '" + spec.id + "': " + derived.error().message);
+        // An id that its IRI writes otherwise (a percent-escape of a letter: "%41" is "A") would
+        // be two names: the parent's link knows the child by the id, the child says hello as its IRI.
+        if (auto named = uri::child_id(*derived, parent.iri); named && *named != spec.id)
+          return node::fail(Errc::invalid_argument, spec.at + ": node id '" + spec.id + "': its IRI <" + *derived + "> writes it '" +
+                                                        *named + "'; write id = \"" + *named + "\"");
         if (!spec.iri.empty()) {
           auto given = uri::normalize(spec.iri);
           if (!given || *given != *derived)

@@ -1268,6 +1268,10 @@ TEST_F(Cli, UpRefusesATopologyThatCouldNotRunAsWrittenNamingWhatAndWhere) {
       // 'supervisor' had what its parent relayed from it replaced away every 5 s.
       {listening + "[[node]]\nid = \"supervisor\"\nparent = \"hospital\"\n",
        "t.toml:5:1: node id 'supervisor' is taken on its parent 'hospital': a child node is agent 'supervisor' of its parent, and that agent is the supervisor"},
+      // An id its IRI writes otherwise: the parent's link knew the child as '%41', the child said
+      // hello as <…/A>, and was refused for ever.
+      {listening + "[[node]]\nid = \"%41\"\nparent = \"hospital\"\n",
+       "t.toml:5:1: node id '%41': its IRI <http://example.org/hospital/A> writes it 'A'; write id = \"A\""},
       {listening + "[[node]]\nid = \"uplink\"\nparent = \"hospital\"\n", "node id 'uplink' is taken on its parent 'hospital'"},
       {listening + "[[node]]\nid = \"link\"\nparent = \"hospital\"\n", "node id 'link' is taken on its parent 'hospital'"},
       {listening + "[[node]]\nid = \"cli\"\nparent = \"hospital\"\n", "node id 'cli' is taken on its parent 'hospital'"},
