@@ -195,6 +195,11 @@ int replay(rt::Session& session, Signal& signal, double speed) {
   }
   if (signal.info.iri != base_iri)
     rt::log_line(kProgram, "<" + base_iri + "> was ended by an earlier run; recording anew as <" + signal.info.iri + ">");
+  // A chunk holds when its first sample was taken: the replay's start plus the sample's offset
+  // on the recording's own clock (at --speed N that clock runs N times faster than the wall's).
+  const std::int64_t start_ns = earlier.start_ns.value_or(std::chrono::duration_cast<std::chrono::nanoseconds>(
+                                    std::chrono::system_clock::now().time_since_epoch()).count());
+  signal.info.started_at = start_ns;
   if (!earlier.recording) {
     if (auto s = agent.store(agg::recording_item(signal.info)); !s) {
       rt::log_line(kProgram, "store recording item: " + s.error().message);
@@ -217,10 +222,6 @@ int replay(rt::Session& session, Signal& signal, double speed) {
   const auto t0 = std::chrono::steady_clock::now() -
                   std::chrono::duration_cast<std::chrono::steady_clock::duration>(
                       std::chrono::duration<double>(static_cast<double>(position) / signal.info.fs / (speed > 0 ? speed : 1)));
-  // A chunk holds when its first sample was taken: the replay's start plus the sample's offset
-  // on the recording's own clock (at --speed N that clock runs N times faster than the wall's).
-  const std::int64_t start_ns = earlier.start_ns.value_or(std::chrono::duration_cast<std::chrono::nanoseconds>(
-                                    std::chrono::system_clock::now().time_since_epoch()).count());
   Frames frames;
   while (!rt::stop_requested()) {
     for (auto& lead : frames) lead.clear();

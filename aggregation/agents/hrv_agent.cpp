@@ -201,7 +201,10 @@ class HrvStage {
     // Later windows start later: RR items that ended before this one are no longer needed.
     while (!s.refs.empty() && static_cast<double>(s.refs.front().last_end) / s.info.fs < window.start_s)
       s.refs.pop_front();
-    const tn::Item item = agg::hrv_window_item(s.info, window, session_.agent.iri(), from);
+    tn::Item item = agg::hrv_window_item(s.info, window, session_.agent.iri(), from);
+    // At the signal time of the window's start, as its chunks: an operator asks for the raw
+    // ECG behind a window with --since and --until from its time and length.
+    item.asserted_at = agg::signal_time_ns(s.info, window.start_s);
     // Windows are named by recording and start: a window of that start already on the board
     // that ends elsewhere was written by another HRV agent (or setting) on this recording. It
     // stands, and this one is not written: said, not silently dropped.

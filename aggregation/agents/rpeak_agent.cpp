@@ -116,7 +116,9 @@ class RPeakStage {
     for (auto p : p_waves) out.p_wave_gap_ends.push_back(p + s.offset);
     s.next = out.to_sample = chunk.start_sample + static_cast<std::int64_t>(chunk.frames);
     out.derived_from = chunk.iri;
-    return rt::store_output(session_, agg::rpeak_item(out), catching_up);
+    tn::Item item = agg::rpeak_item(out);
+    item.asserted_at = agg::signal_time_ns(s.info, static_cast<double>(out.from_sample) / s.info.fs);
+    return rt::store_output(session_, item, catching_up);
   }
 
   rt::Outcome on_chunk(const std::vector<tn::Record>& records) {
@@ -156,7 +158,9 @@ class RPeakStage {
       for (auto& p : out.p_wave_gap_ends) p += s->offset;
       out.derived_from = recording;
       out.end_sample = *end;
-      if (auto o = rt::store_output(session_, agg::rpeak_item(out), false); o.fatal) return o;
+      tn::Item item = agg::rpeak_item(out);
+      item.asserted_at = agg::signal_time_ns(s->info, static_cast<double>(out.from_sample) / s->info.fs);
+      if (auto o = rt::store_output(session_, item, false); o.fatal) return o;
       streams_.erase(recording);
     }
     return rt::Outcome::ok();

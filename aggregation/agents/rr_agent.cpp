@@ -32,6 +32,7 @@ struct Stream {
   agg::NnClassifier classifier;
   std::int64_t next = 0;                // tv:fromSample expected next
   std::vector<std::string> read_since;  // R-peak items read since the last RR item
+  agg::RecordingInfo info{};            // for the signal time its items are asserted at
 };
 
 class RrStage {
@@ -62,7 +63,7 @@ class RrStage {
       rt::log_line(kProgram, info.error().message + "; skipped");
       return nullptr;
     }
-    Stream& s = streams_.emplace(recording, Stream{recording, agg::NnClassifier(info->fs), 0, {}}).first->second;
+    Stream& s = streams_.emplace(recording, Stream{recording, agg::NnClassifier(info->fs), 0, {}, *info}).first->second;
     if (upto > 0) outcome = catch_up(s, upto);
     return &s;
   }
@@ -112,8 +113,11 @@ class RrStage {
     if (out.intervals.empty() && !out.end_sample) return rt::Outcome::ok();
     out.derived_from = std::move(s.read_since);
     s.read_since.clear();
+    tn::Item item = agg::rr_item(out);
+    const std::int64_t first = out.intervals.empty() ? p.from_sample : out.intervals.front().start;
+    item.asserted_at = agg::signal_time_ns(s.info, static_cast<double>(first) / s.info.fs);
     if (p.end_sample) streams_.erase(p.recording);  // s is gone from here on
-    return rt::store_output(session_, agg::rr_item(out), catching_up);
+    return rt::store_output(session_, item, catching_up);
   }
 
   rt::Session& session_;

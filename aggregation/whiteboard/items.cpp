@@ -216,7 +216,13 @@ Item recording_item(const RecordingInfo& info) {
   if (!info.model.empty()) item.add(rec, tv("sensorModel"), text(info.model));
   if (!info.filters.empty()) item.add(rec, tv("filters"), text(info.filters));
   if (!info.source.empty()) item.add(rec, tv("replayedFrom"), text(info.source));
+  if (info.started_at) item.add(rec, tv("startedAt"), Term::integer(*info.started_at));
   return item;
+}
+
+std::optional<std::int64_t> signal_time_ns(const RecordingInfo& info, double seconds) {
+  if (!info.started_at || !std::isfinite(seconds)) return std::nullopt;
+  return *info.started_at + static_cast<std::int64_t>(std::llround(seconds * 1e9));
 }
 
 Result<RecordingInfo> read_recording(const std::vector<Record>& records, const std::string& iri) {
@@ -245,6 +251,7 @@ Result<RecordingInfo> read_recording(const std::vector<Record>& records, const s
   if (const Term* t = object(records, iri, "sensorModel")) info.model = t->value;
   if (const Term* t = object(records, iri, "filters")) info.filters = t->value;
   if (const Term* t = object(records, iri, "replayedFrom")) info.source = t->value;
+  if (const Term* t = object(records, iri, "startedAt")) info.started_at = to_int(t->value);
   return info;
 }
 

@@ -78,6 +78,9 @@ Result<std::uint64_t> remote_query(node::Node& node, const RemoteQuery& query,
   auto target = uri::normalize(query.target);
   if (!target) return node::fail(Errc::invalid_iri, "--at: " + target.error().message);
   const std::string& self = node.iri();
+  // A node's IRI never ends in '/' below the root (a child's is its parent's + "/" + id):
+  // "<…/home1/>", as a browser writes it, means <…/home1>.
+  while (target->size() > self.size() && target->back() == '/') target->pop_back();
   node::Pattern pattern = query.pattern;
   if (*target == self) {  // asked here: the local store answers
     auto snap = node.snapshot();

@@ -351,6 +351,40 @@ TEST_F(PipelineTest, ProvenanceLeadsBackToChunks) {
   }
 }
 
+
+// Every item of the chain is asserted at the signal time it describes, as the chunks are: the
+// recording's tv:startedAt plus the offset of its first sample (a window: its start). So the
+// time of an HRV window at the hospital finds its raw ECG (`tahvel query --since`); asserted
+// when computed, it named a stretch of ECG tens of seconds away.
+TEST_F(PipelineTest, EachItemIsAssertedAtTheSignalTimeItDescribes) {
+  auto expected = agg::hrv_from_record(record_);
+  ASSERT_TRUE(expected) << expected.error().message;
+  run_pipeline(expected->windows.size());
+  ASSERT_FALSE(HasFatalFailure());
+  std::optional<std::int64_t> started;
+  double fs = 0;
+  for (const auto& r : about(kRecording)) {
+    if (r.triple.p == agg::tv_term("startedAt")) started = std::stoll(r.triple.o.value);
+    if (r.triple.p == agg::tv_term("samplingRate")) fs = std::stod(r.triple.o.value);
+  }
+  ASSERT_TRUE(started) << "the recording has no tv:startedAt";
+  ASSERT_GT(fs, 0);
+  auto asserted_at = [&](const std::string& iri) { return about(iri).at(0).meta.asserted_at; };
+  auto at_sample = [&](std::int64_t sample) { return *started + std::llround(static_cast<double>(sample) * 1e9 / fs); };
+  for (const auto& window : expected->windows) {
+    const std::string hrv = agg::hrv_iri(kRecording, window.start_s);
+    EXPECT_EQ(asserted_at(hrv), *started + std::llround(window.start_s * 1e9)) << hrv;
+  }
+  const auto chunk = kRecording + "/chunk/" + std::to_string(static_cast<std::int64_t>(std::round(fs)) * 10);
+  EXPECT_EQ(asserted_at(chunk), at_sample(static_cast<std::int64_t>(std::round(fs)) * 10));
+  std::size_t checked = 0;
+  for (const auto& r : *node_->snapshot()->list({.p = agg::tv_term("fromSample")})) {
+    if (r.triple.s.value.find("/rpeaks/") == std::string::npos) continue;
+    EXPECT_EQ(r.meta.asserted_at, at_sample(std::stoll(r.triple.o.value))) << r.triple.s.value;
+    ++checked;
+  }
+  EXPECT_GT(checked, 0u) << "no R-peak item checked";
+}
 }  // namespace
 
 namespace {

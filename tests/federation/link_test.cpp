@@ -1052,6 +1052,12 @@ TEST(Link, RemoteQueryReturnsExactlyTheRecordsHeldBelowAndNamesItsErrors) {
   }
   // Nothing of the raw data was stored at the hospital by asking.
   EXPECT_EQ(count(tree.hospital_dir, {.p = Term::iri(kEx + "samples")}), 0u);
+  // The node's IRI as a browser writes it, with a trailing slash, is the node.
+  std::size_t with_slash = 0;
+  auto slashed = remote_query(hospital, {.target = kHome1 + "/", .pattern = {.p = Term::iri(kEx + "samples")}}, 10s,
+                              [&](const node::Record&) { ++with_slash; });
+  ASSERT_TRUE(slashed) << slashed.error().message;
+  EXPECT_EQ(with_slash, expected.size());
 
   auto unknown = remote_query(hospital, {.target = kHospital + "/home9"}, 2s, [](const node::Record&) {});
   ASSERT_FALSE(unknown);

@@ -51,7 +51,15 @@ struct RecordingInfo {
   std::string maker, model;   // sensor maker and model
   std::string filters;        // filters applied before digitising, as the source states them
   std::string source;         // where the samples come from ("mitdb/100", "ecgsyn seed 7")
+  // When sample 0 was taken, ns since the Unix epoch (tv:startedAt): chunks are asserted at
+  // started_at + sample / fs, and what is derived from them (R-peaks, RR intervals, HRV
+  // windows) at the signal time it describes, so that an operator can ask for the raw ECG
+  // behind an HRV window by its time. Absent on recordings written before it was kept.
+  std::optional<std::int64_t> started_at;
 };
+
+// started_at + `seconds` of the recording's own clock, when started_at is known.
+std::optional<std::int64_t> signal_time_ns(const RecordingInfo& info, double seconds);
 
 // The recording item. fs and gain are written with as many digits as it takes to read back
 // the same double (so that agents downstream compute with exactly the source's values).
