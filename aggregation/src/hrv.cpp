@@ -161,6 +161,16 @@ HrvMetrics compute_hrv(const std::vector<Interval>& intervals, double fs, const 
   HrvMetrics out;
   out.rr_count = intervals.size();
   if (!(fs > 0)) return out;
+  std::size_t pairs = 0, irregular = 0;
+  for (std::size_t i = 0; i + 1 < intervals.size(); ++i) {
+    const Interval& a = intervals[i];
+    const Interval& b = intervals[i + 1];
+    if (a.end != b.start || a.end <= a.start || b.end <= b.start) continue;
+    ++pairs;
+    const double first = static_cast<double>(a.end - a.start), second = static_cast<double>(b.end - b.start);
+    if (std::abs(second - first) > 0.2 * first) ++irregular;
+  }
+  if (pairs > 0) out.irregular_pct = 100.0 * static_cast<double>(irregular) / static_cast<double>(pairs);
   const NnSeries s = collect(intervals, fs);
   out.nn_count = s.nn_ms.size();
   time_domain(s, fs, out);

@@ -1,4 +1,6 @@
 // The HRV chain; see pipeline.h.
+#include <cstdio>
+
 #include "tahvel/aggregation/pipeline.h"
 
 #include "tahvel/aggregation/wfdb.h"
@@ -25,6 +27,19 @@ Result<HrvReport> hrv_from_samples(const std::vector<std::int32_t>& samples, dou
   return report;
 }
 
+std::optional<std::string> irregular_rhythm_warning(const HrvMetrics& m) {
+  const double not_nn = m.rr_count > 0 ? 100.0 * static_cast<double>(m.rr_count - m.nn_count) / static_cast<double>(m.rr_count) : 0;
+  const double irregular = m.irregular_pct.value_or(0);
+  if (irregular <= kIrregularPct && not_nn <= kIrregularPct) return std::nullopt;
+  char text[400];
+  std::snprintf(text, sizeof text,
+                "an irregular rhythm (%.0f %% of successive intervals differ by more than 20 %%; %.0f %% of intervals are "
+                "not NN): frequent ectopic beats or atrial fibrillation, which the RR-only NN rule cannot tell apart; "
+                "HRV of this record may be several times off (docs/hrv.md, \"Where the rule fails\")",
+                irregular, not_nn);
+  return std::string(text);
+}
+
 Result<HrvReport> hrv_from_record(const std::string& record_path, const ChainOptions& options,
                                   std::size_t channel) {
   auto signals = read_signals(record_path);
@@ -38,6 +53,7 @@ Result<HrvReport> hrv_from_record(const std::string& record_path, const ChainOpt
   if (!report) return fail(record_path + ": " + report.error().message);
   report->signal = channel;
   report->warnings = checksum_mismatches(*signals);
+  if (auto irregular = irregular_rhythm_warning(report->metrics)) report->warnings.push_back(*irregular);
   return report;
 }
 

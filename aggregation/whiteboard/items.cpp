@@ -459,7 +459,7 @@ Item hrv_window_item(const RecordingInfo& info, const WindowMetrics& window,
       {"meanNnMs", &m.mean_nn_ms}, {"sdnnMs", &m.sdnn_ms},     {"rmssdMs", &m.rmssd_ms},
       {"pnn50Pct", &m.pnn50_pct},  {"meanHrBpm", &m.mean_hr_bpm}, {"lfMs2", &m.lf_ms2},
       {"hfMs2", &m.hf_ms2},        {"lfHf", &m.lf_hf},         {"sd1Ms", &m.sd1_ms},
-      {"sd2Ms", &m.sd2_ms}};
+      {"sd2Ms", &m.sd2_ms}, {"irregularPct", &m.irregular_pct}};
   for (const auto& [name, value] : results)
     if (*value && std::isfinite(**value)) item.add(obs, tv(name), decimal(**value));
   item.add(obs, tv("nnCount"), Term::integer(static_cast<std::int64_t>(m.nn_count)))
@@ -547,6 +547,9 @@ Result<HrvWindowItem> read_hrv_window(const std::vector<Record>& records) {
     if (!v) return unexpected(v.error());
     w.window.metrics.*m.field = *v;
   }
+  auto irregular = optional_double(records, w.iri, "irregularPct");
+  if (!irregular) return unexpected(irregular.error());
+  w.window.metrics.irregular_pct = *irregular;
   if (object(records, w.iri, "nnCount")) {
     auto n = int_of(records, w.iri, "nnCount");
     if (!n) return unexpected(n.error());

@@ -42,6 +42,23 @@ TEST(Hrv, TimeDomainByHand) {
   EXPECT_FALSE(m.lf_hf);
 }
 
+// Irregularity counts every adjacent pair, NN or not: bigeminy (short, long, short, ...) is
+// irregular whatever the rule made of its intervals; a steady rhythm is not.
+TEST(Hrv, IrregularPctCountsAdjacentPairsDifferingByMoreThanAFifth) {
+  const HrvMetrics steady = compute_hrv(chain({800, 810, 790, 830, 800}, {}), 1000);
+  ASSERT_TRUE(steady.irregular_pct);
+  EXPECT_DOUBLE_EQ(*steady.irregular_pct, 0.0);
+  const HrvMetrics bigeminy = compute_hrv(chain({500, 1100, 500, 1100, 500}, {true, true, true, true, true}), 1000);
+  EXPECT_DOUBLE_EQ(*bigeminy.irregular_pct, 100.0);
+  // 800 -> 1000 is 25 % longer (counted); 1000 -> 850 is 15 % shorter (not); 850 -> 850 not.
+  const HrvMetrics some = compute_hrv(chain({800, 1000, 850, 850}, {false, false, false, false}), 1000);
+  EXPECT_NEAR(*some.irregular_pct, 100.0 / 3, 1e-9);
+  auto cut = chain({800, 1200}, {});
+  cut[1].start += 5;
+  cut[1].end += 5;
+  EXPECT_FALSE(compute_hrv(cut, 1000).irregular_pct) << "intervals that share no beat are not a pair";
+}
+
 TEST(Hrv, RmssdOnlyOverAdjacentNn) {
   // The 300 between 810 and 790 is not NN: the difference 790 - 810 is not taken.
   const HrvMetrics m = compute_hrv(chain({800, 810, 300, 790, 830}, {true, true, false, true, true}), 1000);

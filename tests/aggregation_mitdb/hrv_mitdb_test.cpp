@@ -76,6 +76,20 @@ TEST_P(HrvMitdb, DetectedBeatsAgreeWithReference) {
               sdnn_dev, *want.rmssd_ms, *got.rmssd_ms, rmssd_dev, " qualifies");
   EXPECT_LE(std::abs(sdnn_dev), 2.0) << GetParam();
   EXPECT_LE(std::abs(rmssd_dev), 4.0) << GetParam();
+  // Where HRV agrees, `tahvel hrv` does not say it may be off.
+  EXPECT_FALSE(irregular_rhythm_warning(got)) << GetParam() << ": " << *irregular_rhythm_warning(got);
+}
+
+// Frequent ectopic beats (200: bigeminy; 106, 233: ventricular beats in runs and trigeminy)
+// fool the RR-only rule, and HRV comes out several times off: `tahvel hrv` says so.
+TEST(HrvMitdbWarning, RecordsWithFrequentEctopicBeatsAreWarnedOf) {
+  for (const char* name : {"200", "106", "233"}) {
+    auto report = hrv_from_record(mitdb_record(name));
+    ASSERT_TRUE(report) << report.error().message;
+    bool warned = false;
+    for (const std::string& w : report->warnings) warned |= w.find("an irregular rhythm") != std::string::npos;
+    EXPECT_TRUE(warned) << name << ": irregular " << report->metrics.irregular_pct.value_or(-1) << " %";
+  }
 }
 
 std::string record_name(const ::testing::TestParamInfo<std::string>& info) { return "r" + info.param; }

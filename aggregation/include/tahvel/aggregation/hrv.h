@@ -28,7 +28,17 @@ struct HrvMetrics {
   std::optional<double> mean_nn_ms, sdnn_ms, rmssd_ms, pnn50_pct, mean_hr_bpm, lf_ms2, hf_ms2,
       lf_hf, sd1_ms, sd2_ms;
   std::size_t nn_count = 0, rr_count = 0;
+  // How irregular the rhythm is, NN or not: the share (%) of adjacent RR pairs whose second
+  // differs from the first by more than 20 % of it (nullopt without a pair). Above
+  // kIrregularPct the RR-only NN rule is not to be trusted: frequent ectopic beats in bigeminy
+  // or trigeminy and atrial fibrillation look alike to it, and HRV can be off several times
+  // (docs/hrv.md, "Where the rule fails"). A paced rhythm is regular and does not show here.
+  std::optional<double> irregular_pct;
 };
+
+// Above this irregular_pct (or this share of intervals not NN) `tahvel hrv` warns that HRV of
+// the record is unreliable; normal-rhythm records of the MIT-BIH set stay below 14 %.
+inline constexpr double kIrregularPct = 15.0;
 
 // Options of the frequency domain, with the Task Force (1996) bands.
 struct HrvOptions {

@@ -4,6 +4,7 @@
 #pragma once
 
 #include <cstdint>
+#include <optional>
 #include <string>
 #include <vector>
 
@@ -25,12 +26,17 @@ struct ChainOptions {
 struct HrvReport {
   double fs = 0;
   std::size_t signal = 0;            // hrv_from_record: the record's signal that was read
-  std::vector<std::string> warnings; // hrv_from_record: checksum_mismatches of the record
+  std::vector<std::string> warnings; // hrv_from_record: checksum_mismatches of the record, and
+                                     // irregular_rhythm_warning of the whole record
   std::vector<std::int64_t> beats;   // detected R peaks, sample indices
   std::vector<Interval> intervals;   // consecutive beats, NN-marked
   HrvMetrics metrics;                // the whole series
   std::vector<WindowMetrics> windows;
 };
+
+// Why HRV of a series with these metrics may be far off (HrvMetrics::irregular_pct or the
+// share of intervals not NN above kIrregularPct), or nullopt.
+std::optional<std::string> irregular_rhythm_warning(const HrvMetrics& metrics);
 
 // The chain over one lead sampled at fs Hz with `gain` ADC units per mV. Errors: invalid
 // detector options or window settings (the message names the option).
