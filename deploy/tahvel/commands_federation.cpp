@@ -1464,7 +1464,7 @@ int run_up(const Args& args) {
   for (const NodeSpec* spec : mine)
     for (const AgentSpec& agent : spec->agents)
       if (auto argv = expand_agent_command(agent, *spec, state / spec->id, here_for_file); !argv)
-        fail(topo.file.string() + ": " + argv.error().message);
+        fail(argv.error().message);  // it starts with the file, line and column of the agent
   // Only now, with everything checked: a refused file leaves no state directory behind.
   std::error_code ec;
   const bool new_state = !fs::exists(state, ec);

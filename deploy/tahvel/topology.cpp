@@ -370,6 +370,7 @@ node::Result<Topology> load_topology(const std::filesystem::path& file) {
         AgentSpec agent;
         TAHVEL_TRY(agent_id, typed<std::string>(*at, "id", file, what + "agent: ", "a string"));
         agent.id = agent_id.value_or("");
+        agent.at = where(*at, file);
         if (auto ok = only_keys(*at, {"id", "run", "run_with_mitdb", "restart"}, file, what + "agent '" + agent.id + "': "); !ok)
           return Unexpected<node::Error>{ok.error()};
         if (auto ok = uri::check_id(agent.id); !ok)
@@ -434,7 +435,13 @@ node::Result<Topology> load_topology(const std::filesystem::path& file) {
           return node::fail(Errc::invalid_argument, spec.up_at + ": node '" + spec.id + "': up = \"" + spec.up + "\", but its parent '" +
                                                         parent.id + "' listens on " + parent.listen.front().kind + " only");
         auto derived = uri::child_node_iri(parent.iri, spec.id);
-        if (!derived) return node::fail(Errc::invalid_iri, spec.at + ": node '" + spec.id + "': " + derived.error().message);
+        if (!derived) {
+          // The parent's IRI cannot have children (a query or fragment): its line says so.
+          if (derived.error().message.starts_with("invalid parent IRI"))
+            return node::fail(Errc::invalid_iri, (parent.iri_at.empty() ? parent.at : parent.iri_at) + ": node '" + parent.id +
+                                                     "' has children (node '" + spec.id + "'), but " + derived.error().message);
+          return node::fail(Errc::invalid_iri, spec.at + ": node '" + spec.id + "': " + derived.error().message);
+        }
         // An id that its IRI writes otherwise (a percent-escape of a letter: "%41" is "A") would
         // be two names: the parent's link knows the child by the id, the child says hello as its IRI.
         if (auto named = uri::child_id(*derived, parent.iri); named && *named != spec.id)
@@ -521,7 +528,7 @@ node::Result<std::vector<std::string>> expand_agent_command(const AgentSpec& age
   const std::filesystem::path& bin = context.bin;
   const bool use_mitdb = !mitdb.empty() && !agent.run_with_mitdb.empty();
   std::vector<std::string> argv = use_mitdb ? agent.run_with_mitdb : agent.run;
-  const std::string what = "node '" + node.id + "': agent '" + agent.id + "': ";
+  const std::string what = (agent.at.empty() ? std::string() : agent.at + ": ") + "node '" + node.id + "': agent '" + agent.id + "': ";
   // An empty {mitdb} would make "/100" of "{mitdb}/100": a replay of a file that is not there,
   // failing and restarted for ever, far from its cause.
   const bool wants_mitdb = std::any_of(argv.begin(), argv.end(), [](const std::string& a) { return a.find("{mitdb}") != std::string::npos; });

@@ -28,6 +28,7 @@ struct AgentSpec {
   std::vector<std::string> run;             // argv; placeholders below
   std::vector<std::string> run_with_mitdb;  // used instead of `run` when TAHVEL_MITDB is set
   agents::Restart restart = agents::Restart::on_failure;
+  std::string at;                           // "FILE:LINE:COL" of its table, for errors
 };
 
 struct NodeSpec {

@@ -1249,7 +1249,7 @@ TEST_F(Cli, UpRefusesATopologyThatCouldNotRunAsWrittenNamingWhatAndWhere) {
       {hospital + "  [[node.agent]]\n  id = \"supervisor\"\n  run = [\"true\"]\n", "node 'hospital': agent id 'supervisor' is taken"},
       // What used to start and then fail for ever in the supervisor's log ("status 127").
       {hospital + "  [[node.agent]]\n  id = \"trend\"\n  run = [\"true\", \"{stor}\"]\n",
-       "node 'hospital': agent 'trend': unknown placeholder {stor} in '{stor}'"},
+       "t.toml:4:3: node 'hospital': agent 'trend': unknown placeholder {stor} in '{stor}'"},
       {hospital + "  [[node.agent]]\n  id = \"x\"\n  run = [\"/nonexistent/prog\"]\n",
        "node 'hospital': agent 'x': cannot run '/nonexistent/prog': no such file"},
       {hospital + "  [[node.agent]]\n  id = \"x\"\n  run = [\"tahvel-no-such-agent\"]\n",
@@ -1268,6 +1268,10 @@ TEST_F(Cli, UpRefusesATopologyThatCouldNotRunAsWrittenNamingWhatAndWhere) {
       // 'supervisor' had what its parent relayed from it replaced away every 5 s.
       {listening + "[[node]]\nid = \"supervisor\"\nparent = \"hospital\"\n",
        "t.toml:5:1: node id 'supervisor' is taken on its parent 'hospital': a child node is agent 'supervisor' of its parent, and that agent is the supervisor"},
+      // A root whose IRI cannot have children is named at its own line, not its child's.
+      {"[[node]]\nid = \"hospital\"\niri = \"http://example.org/hospital?x=1\"\nlisten = { kind = \"dds\" }\n"
+       "[[node]]\nid = \"home1\"\nparent = \"hospital\"\n",
+       "t.toml:3:7: node 'hospital' has children (node 'home1'), but invalid parent IRI"},
       // An id its IRI writes otherwise: the parent's link knew the child as '%41', the child said
       // hello as <…/A>, and was refused for ever.
       {listening + "[[node]]\nid = \"%41\"\nparent = \"hospital\"\n",
