@@ -288,21 +288,28 @@ TEST(Link, AChildWhoseStoreIsMadeAgainHasAllOfItsNewItemsArrive) {
   EXPECT_TRUE(tree.hospital_log.has("has another store"));
 }
 
+// Takes a backup of home1's store (its link stopped), lets it send `n` items more (numbered
+// from `first`; `total` at the hospital then) and puts the backup back in its place: home1's
+// link is stopped, and its store has gone back in time.
+void restore_home1_after_sending_more(Tree& tree, int first, int n, std::uint64_t total) {
+  tree.home1.reset();
+  const std::string backup = (tree.tmp / "home1-backup").string();
+  std::filesystem::copy(tree.home1_dir, backup, std::filesystem::copy_options::recursive);
+  tree.home1 = tree.start_home(tree.home1_dir, kHome1, tree.home1_log);
+  ASSERT_TRUE(home1_sends(tree, first, n, total));
+  tree.home1.reset();
+  std::filesystem::remove_all(tree.home1_dir);
+  std::filesystem::rename(backup, tree.home1_dir);
+}
+
 // P6a: a home's store restored from a backup goes back in time: its next ids are ones the
 // hospital has applied already. The home takes a new store id and its new items arrive.
 TEST(Link, AChildRestoredFromABackupHasItsNewItemsArrive) {
   Tree tree;
-  const std::string backup = (tree.tmp / "home1-backup").string();
   tree.hospital = tree.start_hospital();
   tree.home1 = tree.start_home(tree.home1_dir, kHome1, tree.home1_log);
   ASSERT_TRUE(home1_sends(tree, 0, 10, 10));
-  tree.home1.reset();
-  std::filesystem::copy(tree.home1_dir, backup, std::filesystem::copy_options::recursive);
-  tree.home1 = tree.start_home(tree.home1_dir, kHome1, tree.home1_log);
-  ASSERT_TRUE(home1_sends(tree, 100, 40, 50));
-  tree.home1.reset();
-  std::filesystem::remove_all(tree.home1_dir);
-  std::filesystem::rename(backup, tree.home1_dir);
+  ASSERT_NO_FATAL_FAILURE(restore_home1_after_sending_more(tree, 100, 40, 50));
   store_hrv_items(tree.home1_dir, 1000, 5);
   tree.home1 = tree.start_home(tree.home1_dir, kHome1, tree.home1_log);
   EXPECT_TRUE(eventually([&] { return count(tree.hospital_dir, {.p = Term::iri(kEx + "n")}) >= 55; }));
@@ -311,17 +318,23 @@ TEST(Link, AChildRestoredFromABackupHasItsNewItemsArrive) {
   EXPECT_TRUE(tree.home1_log.has("this store takes a new id"));
 }
 
-// P6c: a parent whose store is made again (a replaced gateway) holds nothing of what the store
-// before it applied. What the child wrote once and keeps (persistent: a recording's description,
-// which the parent's agents need for every chunk after it) goes up again; the rest does not.
-TEST(Link, APersistentItemGoesUpAgainToAParentWhoseStoreIsMadeAgain) {
-  Tree tree;
+// Both ends running, and at the hospital: a persistent item of home1 (its description, n = 7)
+// and five others (n = 0..4).
+void home1_sends_a_description_and_five_items(Tree& tree) {
   tree.hospital = tree.start_hospital();
   tree.home1 = tree.start_home(tree.home1_dir, kHome1, tree.home1_log);
   node::Item description = hrv_item(7);
   description.persistent = true;
   ASSERT_TRUE(node::Node::open(tree.home1_dir).value().agent("hrv").value().store(description));
   ASSERT_TRUE(home1_sends(tree, 0, 5, 6));
+}
+
+// P6c: a parent whose store is made again (a replaced gateway) holds nothing of what the store
+// before it applied. What the child wrote once and keeps (persistent: a recording's description,
+// which the parent's agents need for every chunk after it) goes up again; the rest does not.
+TEST(Link, APersistentItemGoesUpAgainToAParentWhoseStoreIsMadeAgain) {
+  Tree tree;
+  ASSERT_NO_FATAL_FAILURE(home1_sends_a_description_and_five_items(tree));
   tree.hospital.reset();
   std::filesystem::remove_all(tree.hospital_dir);
   ASSERT_TRUE(node::Node::init(tree.hospital_dir, {.iri = kHospital}));
@@ -346,20 +359,8 @@ TEST(Link, APersistentItemGoesUpAgainToAParentWhoseStoreIsMadeAgain) {
 // again, and the hospital, which has them from the stream before, keeps one of each.
 TEST(Link, APersistentItemOfAStoreRestoredFromABackupIsNotDoubledAtTheParent) {
   Tree tree;
-  tree.hospital = tree.start_hospital();
-  tree.home1 = tree.start_home(tree.home1_dir, kHome1, tree.home1_log);
-  node::Item description = hrv_item(7);
-  description.persistent = true;
-  ASSERT_TRUE(node::Node::open(tree.home1_dir).value().agent("hrv").value().store(description));
-  ASSERT_TRUE(home1_sends(tree, 0, 5, 6));
-  tree.home1.reset();
-  const std::filesystem::path backup = tree.home1_dir + "-backup";
-  std::filesystem::copy(tree.home1_dir, backup, std::filesystem::copy_options::recursive);
-  tree.home1 = tree.start_home(tree.home1_dir, kHome1, tree.home1_log);
-  ASSERT_TRUE(home1_sends(tree, 100, 5, 11));
-  tree.home1.reset();
-  std::filesystem::remove_all(tree.home1_dir);
-  std::filesystem::rename(backup, tree.home1_dir);
+  ASSERT_NO_FATAL_FAILURE(home1_sends_a_description_and_five_items(tree));
+  ASSERT_NO_FATAL_FAILURE(restore_home1_after_sending_more(tree, 100, 5, 11));
   tree.home1 = tree.start_home(tree.home1_dir, kHome1, tree.home1_log);
   store_hrv_items(tree.home1_dir, 200, 2);
   const node::Pattern numbered{.p = Term::iri(kEx + "n")};
