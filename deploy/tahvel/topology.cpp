@@ -417,9 +417,6 @@ node::Result<Topology> load_topology(const std::filesystem::path& file) {
         auto n = uri::node_iri(spec.iri);
         if (!n) return node::fail(Errc::invalid_iri, spec.iri_at + ": node '" + spec.id + "': iri: " + n.error().message);
         spec.iri = *n;
-        if (spec.iri.ends_with("/"))
-          return node::fail(Errc::invalid_iri, spec.iri_at + ": node '" + spec.id + "': iri <" + spec.iri +
-                                                   "> ends in '/': its children are its IRI + \"/\" + their id, so write it without the '/'");
       } else {
         const NodeSpec& parent = specs[by_id[spec.parent]];
         if (const char* owner = agent_id_in_use(spec.id))
@@ -435,13 +432,7 @@ node::Result<Topology> load_topology(const std::filesystem::path& file) {
           return node::fail(Errc::invalid_argument, spec.up_at + ": node '" + spec.id + "': up = \"" + spec.up + "\", but its parent '" +
                                                         parent.id + "' listens on " + parent.listen.front().kind + " only");
         auto derived = uri::child_node_iri(parent.iri, spec.id);
-        if (!derived) {
-          // The parent's IRI cannot have children (a query or fragment): its line says so.
-          if (derived.error().message.starts_with("invalid parent IRI"))
-            return node::fail(Errc::invalid_iri, (parent.iri_at.empty() ? parent.at : parent.iri_at) + ": node '" + parent.id +
-                                                     "' has children (node '" + spec.id + "'), but " + derived.error().message);
-          return node::fail(Errc::invalid_iri, spec.at + ": node '" + spec.id + "': " + derived.error().message);
-        }
+        if (!derived) return node::fail(Errc::invalid_iri, spec.at + ": node '" + spec.id + "': " + derived.error().message);
         // An id that its IRI writes otherwise (a percent-escape of a letter: "%41" is "A") would
         // be two names: the parent's link knows the child by the id, the child says hello as its IRI.
         if (auto named = uri::child_id(*derived, parent.iri); named && *named != spec.id)

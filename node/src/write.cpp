@@ -134,11 +134,12 @@ Result<void> deliver(Txn& txn, std::uint64_t agent, std::uint32_t slot, std::uin
 // addresses a whole subtree, see docs/protocol.md).
 Result<void> route_to_addressee(Txn& txn, std::uint64_t item_id, ItemRow& item,
                                 const std::string& context, const std::string& writer) {
+  // Agent IRI = node IRI + "/" + id, the '/' not doubled after a node IRI that ends in one
+  // (uri::agent_iri).
   const std::string& node_iri = txn.env().settings().iri;
-  if (context.size() <= node_iri.size() + 1 || context.compare(0, node_iri.size(), node_iri) != 0 ||
-      context[node_iri.size()] != '/')
+  const std::size_t begin = node_iri.ends_with('/') ? node_iri.size() : node_iri.size() + 1;
+  if (context.size() <= begin || context.compare(0, node_iri.size(), node_iri) != 0 || context[begin - 1] != '/')
     return {};
-  std::size_t begin = node_iri.size() + 1;
   std::size_t end = context.find_first_of("/#?", begin);
   std::string addressee = context.substr(0, end);
   if (addressee.size() == begin || addressee.compare(begin, std::string::npos, "*") == 0 ||

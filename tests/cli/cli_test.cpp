@@ -1234,7 +1234,7 @@ TEST_F(Cli, UpRefusesATopologyThatCouldNotRunAsWrittenNamingWhatAndWhere) {
        "broken.xml: Cyclone DDS configuration, line 3: open/close tag mismatch (General)"},
       {hospital + "forwrd = [\"_ a tv:EcgChunk\"]\n", "node 'hospital': unknown key 'forwrd'"},
       {hospital + "[[node]]\nid = \"home1\"\nparent = 5\n", "t.toml:6:10: node 'home1': parent must be a string"},
-      {"[[node]]\nid = \"hospital\"\niri = \"http://example.org/hospital/\"\n", "t.toml:3:7: node 'hospital': iri <http://example.org/hospital/> ends in '/'"},
+      {"[[node]]\nid = \"hospital\"\niri = \"http://example.org/hospital/\"\n", "t.toml:3:7: node 'hospital': iri: invalid IRI 'http://example.org/hospital/' at position 27: a node IRI cannot end in '/'"},
       {listening + "[[node]]\nid = \"a\"\nparent = \"b\"\n[[node]]\nid = \"b\"\nparent = \"a\"\n", "t.toml:10:10: node 'b': parent: the parents form a cycle (b -> a -> b)"},
       {"[[node]]\nid = \"logs\"\niri = \"http://example.org/logs\"\n", "node id 'logs' is taken by the state directory"},
       // Where `up` makes a node's store (status passes such a store over: it is not a node).
@@ -1271,7 +1271,7 @@ TEST_F(Cli, UpRefusesATopologyThatCouldNotRunAsWrittenNamingWhatAndWhere) {
       // A root whose IRI cannot have children is named at its own line, not its child's.
       {"[[node]]\nid = \"hospital\"\niri = \"http://example.org/hospital?x=1\"\nlisten = { kind = \"dds\" }\n"
        "[[node]]\nid = \"home1\"\nparent = \"hospital\"\n",
-       "t.toml:3:7: node 'hospital' has children (node 'home1'), but invalid parent IRI"},
+       "t.toml:3:7: node 'hospital': iri: invalid IRI 'http://example.org/hospital?x=1' at position 27: a node IRI cannot have a query or fragment"},
       // An id its IRI writes otherwise: the parent's link knew the child as '%41', the child said
       // hello as <…/A>, and was refused for ever.
       {listening + "[[node]]\nid = \"%41\"\nparent = \"hospital\"\n",

@@ -383,6 +383,19 @@ TEST(Iri, ANodeIriNotInNfcIsRefusedAndOneInNfcIsNormalised) {
   EXPECT_TRUE(contains(err(node_iri("kodu")).message, "invalid IRI 'kodu'"));
 }
 
+// A node's agents are its IRI + "/" + id: an IRI that cannot have them made a store that
+// could hold nothing (a query or fragment), or one whose addressed items never arrived ('/').
+TEST(Iri, ANodeIriWithAQueryAFragmentOrATrailingSlashIsRefused) {
+  IriError query = err(node_iri("http://example.org/n?x=1"));
+  EXPECT_EQ(query.position, 20u);
+  EXPECT_TRUE(contains(query.message, "a node IRI cannot have a query or fragment")) << query.message;
+  EXPECT_TRUE(contains(err(node_iri("http://example.org/n#me")).message, "query or fragment"));
+  IriError slash = err(node_iri("http://example.org/home1/"));
+  EXPECT_TRUE(contains(slash.message, "a node IRI cannot end in '/'")) << slash.message;
+  EXPECT_TRUE(contains(err(node_iri("http://example.org/")).message, "cannot end in '/'"));
+  EXPECT_EQ(ok(node_iri("http://example.org")), "http://example.org");
+}
+
 // --- agent_iri and child_node_iri -----------------------------------------------------------
 
 TEST(Iri, AgentIriAppendsSlashAndId) {

@@ -234,6 +234,15 @@ IriResult<std::string> node_iri(std::string_view text) {
   auto normal = normal_form(text);
   if (!normal) return unexpected(make_error(kInvalidIri, text, normal.error()));
   if (auto failure = nfc_failure(text, "a node IRI", "node IRIs")) return unexpected(make_error(kInvalidIri, text, *failure));
+  // Its agents' and children's IRIs are the node's + "/" + id: a store under an IRI that cannot
+  // have them could hold nothing.
+  if (auto cut = text.find_first_of("?#"); cut != std::string_view::npos)
+    return unexpected(make_error(kInvalidIri, text, {cut, "a node IRI cannot have a query or fragment: its agents' IRIs are "
+                                                         "the node's + \"/\" + their id"}));
+  if (normal->ends_with('/'))
+    return unexpected(make_error(kInvalidIri, text, {text.size() - 1, "a node IRI cannot end in '/': its agents' and "
+                                                                      "children's IRIs are the node's + \"/\" + their id; "
+                                                                      "write it without the '/'"}));
   return std::move(*normal);
 }
 
