@@ -458,7 +458,10 @@ Result<std::uint64_t> insert_item(Txn& txn, const Item& item, const std::string&
     ids.push_back(row);
   }
   const std::int64_t now = now_ns();
-  ItemRow meta{ids.size(), ids.size(), 0, now, item.asserted_at.value_or(now), *source, context, item.persistent,
+  // A subscription is kept as long as it is not removed: written as plain data on a ring store,
+  // the ring would reclaim it and the agent would stop receiving, silently (R9).
+  const bool persistent = item.persistent || declares_subscription;
+  ItemRow meta{ids.size(), ids.size(), 0, now, item.asserted_at.value_or(now), *source, context, persistent,
                *writer != *source ? *writer : 0};
   if (auto r = refresh_caches(txn); !r) return unexpected(r.error());
   if (auto r = route(txn, item_id, meta, ids, relayed_source ? *relayed_source : agent_iri); !r)
@@ -471,7 +474,7 @@ Result<std::uint64_t> insert_item(Txn& txn, const Item& item, const std::string&
   }
   if (auto r = put_item(txn, item_id, meta, MDB_APPEND); !r) return unexpected(r.error());
   txn.unflushed_index.push_back({env.outbox, *writer, item_id});
-  if (!item.persistent) {
+  if (!persistent) {
     txn.counters.ring_records += ids.size();
   } else {
     txn.counters.persistent_records += ids.size();

@@ -254,6 +254,25 @@ TEST(Window, PeekLeavesItemsAndAckThroughRemovesUpToAnId) {
   EXPECT_TRUE(uplink.peek(ids[4], 0, 10ms).value().empty());  // nothing after the last: timeout
 }
 
+// A subscription written as plain data (R9: any agent may write one on the subscriber's behalf)
+// is kept on a ring store: reclaimed, the subscriber stopped receiving, and nothing said so.
+TEST(Subscribe, ASubscriptionWrittenAsPlainDataIsNotReclaimedByTheRing) {
+  TempDir dir;
+  Node node = make_node(dir.path(), {.ring = 5});
+  Agent configurator = node.agent("configurator").value();
+  Agent monitor = node.agent("monitor").value();
+  Agent writer = node.agent("writer").value();
+  Item subscription;
+  subscription.add(Term::blank("sub"), Term::iri("https://w3id.org/tahvel#subscriber"), Term::iri(monitor.iri()))
+      .add(Term::blank("sub"), Term::iri("https://w3id.org/tahvel#predicate"), ex("value"));
+  ASSERT_TRUE(configurator.store(subscription));  // not marked persistent
+  for (int i = 0; i < 20; ++i) {
+    ASSERT_TRUE(writer.store(reading(i)));
+    ASSERT_TRUE(monitor.take(0ms).value()) << "reading " << i << " did not reach the monitor";
+  }
+  EXPECT_EQ(node.snapshot().value().list({.p = Term::iri("https://w3id.org/tahvel#subscriber")}).value().size(), 1u);
+}
+
 // A link trims its outbox a run at a time: the whole buffer may go, while the buffers of other
 // agents (stored beside it) keep theirs, and an item acknowledged by every buffer that held it
 // is no longer kept from the ring.
