@@ -305,11 +305,8 @@ tahvel::node::Result<std::string> parse_context(const char* context) {
 tahvel::node::Result<std::optional<tahvel::node::Delivery>> take_waiting(
     tahvel::node::Agent& agent, int timeout_ms) {
   using namespace std::chrono;
-  if (timeout_ms >= 0) return agent.take(milliseconds(timeout_ms), tahvel::node::Ack::manual);
-  for (;;) {  // no limit: wait in long slices until something arrives or an error
-    auto taken = agent.take(hours(1), tahvel::node::Ack::manual);
-    if (!taken || *taken) return taken;
-  }
+  // No limit: a wait until something arrives, an error, or a signal handler (Agent::take).
+  return agent.take(timeout_ms >= 0 ? milliseconds(timeout_ms) : milliseconds::max(), tahvel::node::Ack::manual);
 }
 
 }  // namespace
@@ -555,10 +552,15 @@ extern "C" tahvel_status tahvel_take_as(tahvel_agent* agent, int timeout_ms, int
     clear(len_out);
     if (!registry().contains(agent)) return bad_handle(fn, "agent");
     if (format != TAHVEL_FORMAT_NTRIPLES && format != TAHVEL_FORMAT_JSON) return bad_format(fn, format);
+    const auto asked = std::chrono::steady_clock::now();
     auto taken = take_waiting(agent->agent, timeout_ms);
     if (!taken) return set_error(fn, taken.error());
-    if (!*taken)
+    if (!*taken) {
+      const auto waited = std::chrono::duration_cast<std::chrono::milliseconds>(std::chrono::steady_clock::now() - asked);
+      if (timeout_ms < 0 || waited.count() < timeout_ms)
+        return set_error(TAHVEL_TIMEOUT, fn, "the wait was ended by a signal after " + std::to_string(waited.count()) + " ms");
       return set_error(TAHVEL_TIMEOUT, fn, "no item within " + std::to_string(timeout_ms) + " ms");
+    }
     const tahvel::node::Delivery& delivery = **taken;
     tahvel_status status = copy_out(fn, *render(delivery.records, format), text_out, len_out);
     if (status == TAHVEL_OK && item_out != nullptr) *item_out = delivery.item;

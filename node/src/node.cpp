@@ -448,9 +448,24 @@ Result<std::vector<std::uint64_t>> Agent::Impl::write_items(std::span<const Patt
   }
 }
 
+namespace {
+// `timeout` from now, as a deadline: none (the clock's end) for one too long to add to now
+// (milliseconds::max(), "wait forever"), which would otherwise wrap to a time in the past and
+// return at once, a waiting loop turned into a spin. A negative timeout is a deadline passed.
+template <class Rep, class Period>
+std::chrono::steady_clock::time_point deadline_after(std::chrono::duration<Rep, Period> timeout) {
+  using Clock = std::chrono::steady_clock;
+  const auto now = Clock::now();
+  if (timeout.count() <= 0) return now;
+  const auto room = std::chrono::duration_cast<std::chrono::duration<Rep, Period>>(Clock::time_point::max() - now);
+  if (timeout >= room) return Clock::time_point::max();
+  return now + std::chrono::duration_cast<Clock::duration>(timeout);
+}
+}  // namespace
+
 Result<std::optional<Delivery>> Agent::take(std::chrono::milliseconds timeout, Ack ack) noexcept {
   try {
-    const auto deadline = std::chrono::steady_clock::now() + timeout;
+    const auto deadline = deadline_after(timeout);
     WakeBoard& board = impl_->env->wake();
     for (;;) {
       const std::uint32_t token = board.version(impl_->slot);
@@ -458,7 +473,10 @@ Result<std::optional<Delivery>> Agent::take(std::chrono::milliseconds timeout, A
       if (!got || *got) return got;
       auto left = deadline - std::chrono::steady_clock::now();
       if (left <= std::chrono::nanoseconds::zero()) return std::optional<Delivery>();
-      board.sleep(impl_->slot, token, std::chrono::duration_cast<std::chrono::nanoseconds>(left));
+      // A signal handler ran (one installed without SA_RESTART): returned as a timeout, so that
+      // the program sees the stop flag its handler set.
+      if (board.sleep(impl_->slot, token, std::chrono::duration_cast<std::chrono::nanoseconds>(left)))
+        return std::optional<Delivery>();
     }
   } catch (const std::bad_alloc&) {
     return fail(Errc::io, "out of memory while taking");
@@ -492,7 +510,7 @@ Result<std::uint64_t> Agent::pending() const noexcept {
 Result<std::vector<Delivery>> Agent::peek(std::uint64_t after, std::size_t limit,
                                           std::chrono::milliseconds timeout) noexcept {
   try {
-    const auto deadline = std::chrono::steady_clock::now() + timeout;
+    const auto deadline = deadline_after(timeout);
     WakeBoard& board = impl_->env->wake();
     for (;;) {
       const std::uint32_t token = board.version(impl_->slot);
@@ -523,7 +541,7 @@ Result<std::vector<Delivery>> Agent::peek(std::uint64_t after, std::size_t limit
       }
       auto left = deadline - std::chrono::steady_clock::now();
       if (!out.empty() || left <= std::chrono::nanoseconds::zero()) return out;
-      board.sleep(impl_->slot, token, std::chrono::duration_cast<std::chrono::nanoseconds>(left));
+      if (board.sleep(impl_->slot, token, std::chrono::duration_cast<std::chrono::nanoseconds>(left))) return out;
     }
   } catch (const std::bad_alloc&) {
     return fail(Errc::io, "out of memory while peeking");
@@ -944,7 +962,7 @@ Result<std::uint64_t> Node::remove_items(const std::vector<std::uint64_t>& item_
 }
 
 bool Node::wait_for_commit(const std::function<bool()>& ready, std::chrono::nanoseconds timeout) const {
-  const auto deadline = std::chrono::steady_clock::now() + timeout;
+  const auto deadline = deadline_after(timeout);
   WakeBoard& board = impl_->env->wake();
   for (;;) {
     // A commit bumps the slots of the input buffers it changed before the commit slot: a
@@ -953,7 +971,7 @@ bool Node::wait_for_commit(const std::function<bool()>& ready, std::chrono::nano
     if (ready()) return true;
     auto left = deadline - std::chrono::steady_clock::now();
     if (left <= std::chrono::nanoseconds::zero()) return false;
-    board.sleep_buffers(token, std::chrono::duration_cast<std::chrono::nanoseconds>(left));
+    if (board.sleep_buffers(token, std::chrono::duration_cast<std::chrono::nanoseconds>(left))) return ready();
   }
 }
 
@@ -966,7 +984,7 @@ std::chrono::microseconds wait_spin() {
 }
 
 Result<std::vector<Change>> Node::watch(std::uint64_t bookmark, std::chrono::milliseconds timeout, std::size_t limit) const {
-  const auto deadline = std::chrono::steady_clock::now() + timeout;
+  const auto deadline = deadline_after(timeout);
   WakeBoard& board = impl_->env->wake();
   for (;;) {
     const std::uint32_t token = board.version(WakeBoard::kAnyCommit);
@@ -1002,7 +1020,7 @@ Result<std::vector<Change>> Node::watch(std::uint64_t bookmark, std::chrono::mil
     }
     auto left = deadline - std::chrono::steady_clock::now();
     if (left <= std::chrono::nanoseconds::zero()) return changes;
-    board.sleep(WakeBoard::kAnyCommit, token, std::chrono::duration_cast<std::chrono::nanoseconds>(left));
+    if (board.sleep(WakeBoard::kAnyCommit, token, std::chrono::duration_cast<std::chrono::nanoseconds>(left))) return changes;
   }
 }
 

@@ -112,8 +112,8 @@ void WakeBoard::set_spin_budget(std::chrono::nanoseconds budget) {
   g_spin_ns.store(std::max<std::int64_t>(budget.count(), 0), std::memory_order_relaxed);
 }
 
-void WakeBoard::sleep(std::uint32_t slot, std::uint32_t token, std::chrono::nanoseconds timeout) {
-  if (timeout.count() <= 0) return;
+bool WakeBoard::sleep(std::uint32_t slot, std::uint32_t token, std::chrono::nanoseconds timeout) {
+  if (timeout.count() <= 0) return false;
   std::atomic<std::uint32_t>& word = shared_->seq[slot];
   const std::chrono::nanoseconds budget = std::min(spin_budget(), timeout);
   SpinRecord& record = t_spin;
@@ -121,22 +121,25 @@ void WakeBoard::sleep(std::uint32_t slot, std::uint32_t token, std::chrono::nano
   if (budget.count() > 0 && (record.misses < kQuietAfter || record.sleeps % kProbeEvery == 0)) {
     if (spin_until_moved(word, token, budget)) {
       record.misses = 0;
-      return;
+      return false;
     }
     ++record.misses;
     timeout -= budget;
-    if (timeout.count() <= 0) return;
+    if (timeout.count() <= 0) return false;
   }
   // Counted a waiter before the word is read again (both sequentially consistent): either the
   // writer sees the count and wakes this thread, or this thread sees the word moved.
   shared_->waiters[slot].fetch_add(1, std::memory_order_seq_cst);
+  bool interrupted = false;
   if (word.load(std::memory_order_seq_cst) == token) {
     timespec ts{static_cast<time_t>(timeout.count() / 1'000'000'000),
                 static_cast<long>(timeout.count() % 1'000'000'000)};
     // Not FUTEX_PRIVATE: the word lives in a file mapping shared between processes.
-    syscall(SYS_futex, reinterpret_cast<std::uint32_t*>(&word), FUTEX_WAIT, token, &ts, nullptr, 0);
+    interrupted = syscall(SYS_futex, reinterpret_cast<std::uint32_t*>(&word), FUTEX_WAIT, token, &ts, nullptr, 0) != 0 &&
+                  errno == EINTR;
   }
   shared_->waiters[slot].fetch_sub(1, std::memory_order_seq_cst);
+  return interrupted;
 }
 
 namespace {
@@ -158,21 +161,23 @@ void WakeBoard::bump_commit(bool buffers_changed) {
   }
 }
 
-void WakeBoard::sleep_buffers(std::uint32_t token, std::chrono::nanoseconds timeout) {
-  if (timeout.count() <= 0) return;
+bool WakeBoard::sleep_buffers(std::uint32_t token, std::chrono::nanoseconds timeout) {
+  if (timeout.count() <= 0) return false;
   shared_->waiters[kAnyCommit].fetch_add(kBufferWaiter, std::memory_order_seq_cst);
   if (shared_->seq[kAnyCommit].load(std::memory_order_seq_cst) != token) {
     shared_->waiters[kAnyCommit].fetch_sub(kBufferWaiter, std::memory_order_seq_cst);
-    return;
+    return false;
   }
   // FUTEX_WAIT_BITSET takes an absolute CLOCK_MONOTONIC deadline.
   timespec now{};
   clock_gettime(CLOCK_MONOTONIC, &now);
   const std::int64_t end = static_cast<std::int64_t>(now.tv_sec) * 1'000'000'000 + now.tv_nsec + timeout.count();
   timespec deadline{static_cast<time_t>(end / 1'000'000'000), static_cast<long>(end % 1'000'000'000)};
-  syscall(SYS_futex, reinterpret_cast<std::uint32_t*>(&shared_->seq[kAnyCommit]), FUTEX_WAIT_BITSET, token,
-          &deadline, nullptr, kBuffersBit);
+  const bool interrupted = syscall(SYS_futex, reinterpret_cast<std::uint32_t*>(&shared_->seq[kAnyCommit]), FUTEX_WAIT_BITSET,
+                                  token, &deadline, nullptr, kBuffersBit) != 0 &&
+                          errno == EINTR;
   shared_->waiters[kAnyCommit].fetch_sub(kBufferWaiter, std::memory_order_seq_cst);
+  return interrupted;
 }
 
 std::uint32_t WakeBoard::version(std::uint32_t slot) const {

@@ -43,7 +43,11 @@ class WakeBoard {
   // thread whose waits run long (a quiet buffer) goes straight to the futex, bar an occasional
   // probe, and costs no CPU. Only then does it count itself a waiter, so a writer whose readers
   // are all spinning makes no system call.
-  void sleep(std::uint32_t slot, std::uint32_t token, std::chrono::nanoseconds timeout);
+  //
+  // Returns true when a signal handler ran during the sleep (EINTR: one installed without
+  // SA_RESTART): the caller returns as on a timeout, so that a program whose handler set a stop
+  // flag sees it instead of waiting on.
+  bool sleep(std::uint32_t slot, std::uint32_t token, std::chrono::nanoseconds timeout);
 
   // Writer side, after commit.
   void bump(std::uint32_t slot);
@@ -60,7 +64,7 @@ class WakeBoard {
   // As sleep(kAnyCommit, ...), but woken only by commits that changed an input buffer (or a
   // change of the word before the sleep began). It never spins: the word moves at every commit,
   // and its one user (a parent's down pump) would spin through a hospital's whole ingest.
-  void sleep_buffers(std::uint32_t token, std::chrono::nanoseconds timeout);
+  bool sleep_buffers(std::uint32_t token, std::chrono::nanoseconds timeout);
 
   // The slot's sequence word now (it changes at every bump).
   std::uint32_t version(std::uint32_t slot) const;

@@ -4,6 +4,10 @@
 #include "tahvel/node/tahvel.h"
 
 #include <gtest/gtest.h>
+#include <chrono>
+#include <atomic>
+#include <pthread.h>
+#include <signal.h>
 #include <stdlib.h>
 
 #include <algorithm>
@@ -385,6 +389,35 @@ TEST_F(CApiTest, TakeWakesOnAStoreFromAnotherThread) {
   thread.join();
   EXPECT_NE(item, 0u);
   tahvel_agent_close(writer);
+  tahvel_agent_close(reader);
+}
+
+extern "C" void note_signal(int) {}
+
+// A wait without limit ends when a signal handler (installed without SA_RESTART) runs, as a
+// timeout that says so: an agent's SIGTERM handler sets a stop flag, and the agent sees it.
+TEST_F(CApiTest, AWaitWithoutLimitEndsWhenASignalHandlerRuns) {
+  tahvel_agent* reader = open_agent("reader");
+  ASSERT_EQ(tahvel_subscribe(reader, nullptr, kHeartRate, nullptr, nullptr), TAHVEL_OK);
+  struct sigaction action {}, before {};
+  action.sa_handler = note_signal;
+  sigemptyset(&action.sa_mask);
+  ASSERT_EQ(sigaction(SIGUSR2, &action, &before), 0);
+  const pthread_t waiting = pthread_self();
+  std::atomic<bool> done{false};
+  std::thread signaller([&] {
+    for (int i = 0; i < 100 && !done; ++i) {
+      std::this_thread::sleep_for(std::chrono::milliseconds(50));
+      pthread_kill(waiting, SIGUSR2);
+    }
+  });
+  uint64_t item = 0;
+  const tahvel_status status = tahvel_take(reader, -1, &item, nullptr, nullptr);
+  done = true;
+  signaller.join();
+  sigaction(SIGUSR2, &before, nullptr);
+  EXPECT_EQ(status, TAHVEL_TIMEOUT);
+  EXPECT_NE(std::string(tahvel_last_error()).find("ended by a signal"), std::string::npos) << tahvel_last_error();
   tahvel_agent_close(reader);
 }
 

@@ -5,6 +5,10 @@
 // out into a sleep, and the quiet mode all meet a writer.
 #include <gtest/gtest.h>
 
+#include <pthread.h>
+#include <signal.h>
+
+#include <atomic>
 #include <chrono>
 #include <random>
 #include <thread>
@@ -123,6 +127,64 @@ TEST(WaitSpin, IsSetForTheWholeProcessAndNeverNegative) {
   EXPECT_EQ(wait_spin(), 50us);
   set_wait_spin(-5us);
   EXPECT_EQ(wait_spin(), 0us);
+}
+
+// "Wait forever" as a C++ caller writes it: milliseconds::max() used to wrap to a deadline in the
+// past, and take returned at once, turning an agent's loop into a busy spin.
+TEST(Wait, ATakeWithTheLongestTimeoutWaitsForTheItem) {
+  TempDir dir;
+  Node node = make_node(dir.path());
+  Agent reader = node.agent("reader").value();
+  ASSERT_TRUE(reader.subscribe({.p = ex("value")}));
+  std::thread writer([&] {
+    std::this_thread::sleep_for(200ms);
+    Item item;
+    item.add(ex("s"), ex("value"), Term::integer(1));
+    ASSERT_TRUE(node.agent("writer").value().store(item));
+  });
+  for (auto timeout : {std::chrono::milliseconds::max(), std::chrono::milliseconds(std::chrono::hours(24 * 365 * 300))}) {
+    auto got = reader.take(timeout, Ack::manual);
+    ASSERT_TRUE(got);
+    EXPECT_TRUE(*got) << "returned without an item";
+  }
+  writer.join();
+  ASSERT_TRUE(reader.take(0ms, Ack::automatic).value());  // the item, acknowledged
+  const auto asked = std::chrono::steady_clock::now();
+  EXPECT_FALSE(reader.take(-1ms).value()) << "nothing is there";
+  EXPECT_LT(std::chrono::steady_clock::now() - asked, 1s) << "a negative timeout waited";
+}
+
+extern "C" void ignore_signal(int) {}
+
+// An agent stops on SIGTERM by a flag its handler sets; a handler installed without SA_RESTART
+// ends a wait, so the agent sees the flag instead of waiting on for an item that may never come.
+TEST(Wait, ASignalHandlerEndsAWaitAsATimeout) {
+  TempDir dir;
+  Node node = make_node(dir.path());
+  Agent reader = node.agent("reader").value();
+  ASSERT_TRUE(reader.subscribe({.p = ex("value")}));
+  struct sigaction action {}, before {};
+  action.sa_handler = ignore_signal;
+  sigemptyset(&action.sa_mask);
+  action.sa_flags = 0;  // no SA_RESTART
+  ASSERT_EQ(sigaction(SIGUSR1, &action, &before), 0);
+  const pthread_t waiting = pthread_self();
+  std::atomic<bool> done{false};
+  std::thread signaller([&] {
+    // Until the wait ends: a signal sent before the thread sleeps only cuts its spin short.
+    for (int i = 0; i < 100 && !done; ++i) {
+      std::this_thread::sleep_for(50ms);
+      pthread_kill(waiting, SIGUSR1);
+    }
+  });
+  const auto asked = std::chrono::steady_clock::now();
+  auto got = reader.take(std::chrono::milliseconds::max());
+  done = true;
+  signaller.join();
+  sigaction(SIGUSR1, &before, nullptr);
+  ASSERT_TRUE(got);
+  EXPECT_FALSE(*got);
+  EXPECT_LT(std::chrono::steady_clock::now() - asked, 5s) << "the wait went on after the signal";
 }
 
 }  // namespace

@@ -260,7 +260,11 @@ tahvel_status tahvel_subscribe_earlier(tahvel_agent* agent, const char* s, const
  * effect checks for it (e.g. by the prov:wasDerivedFrom link it wrote) before acting again.
  * An item removed from the store before it was taken is skipped.
  *
- * Returns TAHVEL_TIMEOUT when no item arrived in time (out-parameters set to NULL/0).
+ * Returns TAHVEL_TIMEOUT when no item arrived in time (out-parameters set to NULL/0), and also
+ * when a signal handler installed without SA_RESTART ran during the wait (tahvel_last_error
+ * says "ended by a signal"): an agent whose SIGTERM handler sets a stop flag sees it at once,
+ * even in a wait without limit. (With SA_RESTART, as signal() installs handlers, the wait goes
+ * on, as read() does.)
  * Errors: TAHVEL_INVALID_ARGUMENT, TAHVEL_IO, TAHVEL_CORRUPT, TAHVEL_NO_MEMORY. */
 tahvel_status tahvel_take(tahvel_agent* agent, int timeout_ms, uint64_t* item_out,
                           char** ntriples_out, size_t* len_out);
