@@ -95,6 +95,8 @@ std::string read_input(const std::string& path);
 // Flushes `out` and fails (naming standard output) when anything could not be written; quietly
 // (status 1, no message) when standard output is a pipe whose reader has gone.
 void finish_output(std::ostream& out);
+// Set by main when standard output was closed at start (it is /dev/full then: output fails).
+extern bool g_stdout_was_closed;
 // True when standard output is a pipe whose reader has gone (`tahvel … | head`).
 bool stdout_reader_gone();
 // `stats DIR --predicates [--at IRI] [--timeout S] [--json]` (the stats command is in

@@ -325,6 +325,8 @@ bool stdout_reader_gone() {
   return ::poll(&p, 1, 0) == 1 && (p.revents & POLLERR) != 0;
 }
 
+bool g_stdout_was_closed = false;
+
 void finish_output(std::ostream& out) {
   out.flush();
   if (out) return;
@@ -332,7 +334,7 @@ void finish_output(std::ostream& out) {
   // A reader that went away (`tahvel tail | head`) is not worth a message; exit 1 quietly.
   if (error == EPIPE || stdout_reader_gone()) throw Failure{kExitFailure, ""};
   fail(std::string("cannot write to standard output: ") +
-       (error ? std::strerror(error) : "write failed"));
+       (g_stdout_was_closed ? "it was closed when tahvel started" : error ? std::strerror(error) : "write failed"));
 }
 
 uri::PrefixMap used_prefixes(const uri::PrefixMap& prefixes,

@@ -1,6 +1,10 @@
 // `tahvel`: the command-line tool over a node's whiteboard (docs/cli.md). A thin layer: each
 // subcommand parses its flags (args.h), calls the node library once or twice and prints the
 // result. This file dispatches and turns failures into "tahvel: <cause>" and an exit status.
+#include <fcntl.h>
+#include <unistd.h>
+
+#include <cerrno>
 #include <csignal>
 #include <exception>
 #include <iostream>
@@ -134,6 +138,15 @@ int main(int argc, char** argv) {
   using namespace tahvel::cli;
   // A closed pipe becomes a write error that each command checks (take must not ack then).
   std::signal(SIGPIPE, SIG_IGN);
+  // Run with standard output closed, output is a write error too, as on a full disk: /dev/full
+  // takes its number (else a store's file would, and the output would go into it), and take
+  // keeps its item. A closed standard input or error is /dev/null.
+  for (int fd = 0; fd <= 2; ++fd) {
+    if (fcntl(fd, F_GETFD) != -1 || errno != EBADF) continue;
+    const int opened = ::open(fd == 1 ? "/dev/full" : "/dev/null", fd == 0 ? O_RDONLY : O_WRONLY);
+    if (opened >= 0 && opened != fd) ::close(opened);
+    if (fd == 1) g_stdout_was_closed = true;
+  }
   std::vector<std::string> args(argv + 1, argv + argc);
   try {
     int status = dispatch(args);

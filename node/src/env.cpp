@@ -17,12 +17,32 @@
 #include <cstdlib>
 #include <cstring>
 #include <map>
+#include <mutex>
 #include <random>
 #include <utility>
 
 #include "codec.h"
 
 namespace tahvel::node::detail {
+namespace {
+
+// A process started with 0, 1 or 2 closed (by a supervisor, or `cmd >&-`) would have LMDB's
+// files, or the wake board, opened as those numbers: its output, or a library's message to
+// stderr, would then be written into lock.mdb or data.mdb. Before the first file of a store is
+// opened, each closed one of them is opened on /dev/null.
+void keep_standard_fds_taken() {
+  static std::once_flag once;
+  std::call_once(once, [] {
+    for (int fd = 0; fd <= 2; ++fd) {
+      if (fcntl(fd, F_GETFD) != -1 || errno != EBADF) continue;
+      const int opened = ::open("/dev/null", fd == 0 ? O_RDONLY : O_WRONLY);
+      if (opened >= 0 && opened != fd) ::close(opened);  // another thread took the number first
+    }
+  });
+}
+
+}  // namespace
+
 namespace {
 
 constexpr std::uint64_t kInitialMapBytes = 64ull << 20;
@@ -250,6 +270,7 @@ Result<std::shared_ptr<Env>> Env::open_at(const std::filesystem::path& dir, cons
     if (auto shared = it->second.lock()) return shared;
   }
 
+  keep_standard_fds_taken();
   std::shared_ptr<Env> env(new Env());
   env->dir_ = dir;
   int rc = mdb_env_create(&env->env_);

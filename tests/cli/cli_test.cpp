@@ -157,12 +157,14 @@ class Cli : public ::testing::Test {
   const fs::path tmp_ = dir_.path();
   std::string node_;
 
- private:
+  // In a forked child: `fd` on `path`.
   static void redirect(const fs::path& path, int fd, int flags) {
     int f = open(path.c_str(), flags, 0600);
     if (f < 0 || dup2(f, fd) < 0) _exit(126);
     close(f);
   }
+
+ private:
   int runs_ = 0;
 };
 
@@ -321,6 +323,30 @@ TEST_F(Cli, TakeThatCannotWriteItsOutputLeavesTheItemForTheNextTake) {
   Outcome failed = finish(pid, 998);  // no out998: its output went to /dev/full
   EXPECT_EQ(failed.status, 1);
   EXPECT_NE(failed.err.find("standard output"), std::string::npos) << failed.err;
+  Outcome again = run({"take", node_, "--agent", "reader"});
+  EXPECT_EQ(again.status, 0) << again.err;
+  EXPECT_EQ(lines_of(again.out).size(), 3u) << again.out;
+}
+
+// Started with standard output closed (by a supervisor, or `>&-`), take opened the store's lock
+// file as descriptor 1, wrote the item into it, acknowledged it and exited 0.
+TEST_F(Cli, TakeWithStandardOutputClosedFailsAndLeavesTheItem) {
+  init();
+  ASSERT_EQ(run({"subscribe", node_, "--agent", "reader", "-p", "sosa:hasSimpleResult"}).status, 0);
+  put(kObservation);
+  const fs::path err = tmp_ / "err-closed";
+  pid_t pid = fork();
+  if (pid == 0) {
+    redirect(err, 2, O_WRONLY | O_CREAT | O_TRUNC);
+    ::close(1);
+    execl(kBin.c_str(), kBin.c_str(), "take", node_.c_str(), "--agent", "reader", static_cast<char*>(nullptr));
+    _exit(127);
+  }
+  int status = 0;
+  waitpid(pid, &status, 0);
+  EXPECT_EQ(WEXITSTATUS(status), 1);
+  EXPECT_NE(slurp(err).find("cannot write to standard output: it was closed when tahvel started"), std::string::npos) << slurp(err);
+  EXPECT_EQ(slurp(fs::path(node_) / "lock.mdb").find("hasSimpleResult"), std::string::npos) << "the item went into the lock file";
   Outcome again = run({"take", node_, "--agent", "reader"});
   EXPECT_EQ(again.status, 0) << again.err;
   EXPECT_EQ(lines_of(again.out).size(), 3u) << again.out;
