@@ -227,6 +227,25 @@ TEST_F(EnvironmentAgents, AReadingFromBeforeAMoteWasMovedIsNotCreditedToItsNewRo
   EXPECT_NE(environment("hall", "temperature"), "unknown");
 }
 
+// A room taken off the floor plan has no state any more. Its last one stayed, read as current
+// for ever (a rule on tv:environment kept firing on it).
+TEST_F(EnvironmentAgents, ARoomTakenOffThePlanLosesItsEnvironment) {
+  subscribe("kitchen-humidity", Quantity::humidity, "kitchen", 600, 0);
+  simulate_one_hour();
+  aggregate_at(kT0 + 3600 * kS);
+  ASSERT_NE(environment("kitchen", "humidity"), "unknown");
+  ASSERT_EQ(run(bin("tahvel") + " remove " + store_ + " -s '<" + kHome + "/room/kitchen>' > /dev/null"), 0);
+  aggregate_at(kT0 + 3610 * kS);
+  auto node = node::Node::open(store_);
+  ASSERT_TRUE(node.has_value());
+  auto snapshot = node->snapshot();
+  ASSERT_TRUE(snapshot.has_value());
+  EXPECT_TRUE(snapshot->list({.s = node::Term::iri(environment_iri(kHome + "/room/kitchen"))})->empty())
+      << "the kitchen's last state is still on the board";
+  EXPECT_TRUE(snapshot->list({.s = node::Term::iri(kHome + "/room/kitchen"), .p = node::Term::iri(kTv + "environment")})->empty());
+  EXPECT_EQ(environment("bedroom", "humidity"), "unknown");  // the other rooms keep theirs
+}
+
 // Both programs run under the supervisor, which sends SIGTERM and kills what has not ended 5 s
 // later (every `down` took 5 s per home, the environment agent waiting out its 60 s interval).
 TEST_F(EnvironmentAgents, BothProgramsEndCleanlyOnSigtermWhileWaiting) {

@@ -30,6 +30,7 @@ namespace tn = tahvel::node;
 
 constexpr const char* kProgram = "tahvel-environment";
 const std::string kTvEnvironment = "https://w3id.org/tahvel#environment";
+const std::string kTvRoom = "https://w3id.org/tahvel#room";
 
 std::int64_t wall_ns() {
   return std::chrono::duration_cast<std::chrono::nanoseconds>(
@@ -40,6 +41,7 @@ std::int64_t wall_ns() {
 std::optional<std::string> update(rt::Session& session, std::int64_t now_ns, double valid_s) {
   std::optional<sp::BoardPlan> board;
   std::vector<sp::MoteReading> readings;
+  std::set<std::string> with_state;  // rooms this agent wrote a state of
   {  // the snapshot is released before writing (node.h: a held snapshot blocks map growth)
     auto snapshot = session.node.snapshot();
     if (!snapshot) return snapshot.error().message;
@@ -47,6 +49,10 @@ std::optional<std::string> update(rt::Session& session, std::int64_t now_ns, dou
     if (!plan) return plan.error().message;
     auto recent = sp::readings_since(*snapshot, now_ns - static_cast<std::int64_t>(valid_s * 1e9));
     if (!recent) return recent.error().message;
+    // By the states' own tv:room: a room's tv:environment link goes with the room's records.
+    auto written = snapshot->list({.p = tn::Term::iri(kTvRoom), .source = session.agent.iri()});
+    if (!written) return written.error().message;
+    for (const tn::Record& r : *written) with_state.insert(r.triple.o.value);
     board = std::move(*plan);
     readings = std::move(*recent);
   }
@@ -78,6 +84,19 @@ std::optional<std::string> update(rt::Session& session, std::int64_t now_ns, dou
     old_states.push_back(std::move(old_item));
     old_states.push_back(std::move(old_link));
     new_states.push_back(sp::environment_item(room, env, now_ns, valid_s));
+  }
+  // A room that left the plan (taken out, or its geometry now refused) has no state any more:
+  // its last one, kept, read as current for ever (and rules fired on it).
+  const std::set<std::string> in_plan(rooms.begin(), rooms.end());
+  for (const std::string& room : with_state) {
+    if (in_plan.count(room)) continue;
+    rt::log_line(kProgram, "room <" + room + "> is no longer on the floor plan: its environment is removed");
+    tn::Pattern old_item, old_link;
+    old_item.s = tn::Term::iri(sp::environment_iri(room));
+    old_link.s = tn::Term::iri(room);
+    old_link.p = tn::Term::iri(kTvEnvironment);
+    old_states.push_back(std::move(old_item));
+    old_states.push_back(std::move(old_link));
   }
   if (auto stored = session.agent.replace(old_states, new_states); !stored) {
     return "room environments: " + stored.error().message;
