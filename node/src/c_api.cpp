@@ -380,23 +380,18 @@ extern "C" const char* tahvel_node_iri(const tahvel_node* node) {
   return node->node.iri().c_str();
 }
 
-extern "C" tahvel_status tahvel_list(tahvel_node* node, const char* s, const char* p,
-                                     const char* o, unsigned cascade, size_t limit,
-                                     char** ntriples_out, size_t* len_out) {
-  return tahvel_list_as(node, s, p, o, cascade, limit, TAHVEL_FORMAT_NTRIPLES, ntriples_out,
-                        len_out);
-}
+namespace {
 
-extern "C" tahvel_status tahvel_list_as(tahvel_node* node, const char* s, const char* p,
-                                        const char* o, unsigned cascade, size_t limit, int format,
-                                        char** text_out, size_t* len_out) {
-  static constexpr const char* fn = "tahvel_list";
+// tahvel_list and tahvel_list_as; `fn` names the one called in errors.
+tahvel_status list_as(const char* fn, tahvel_node* node, const char* s, const char* p, const char* o, unsigned cascade,
+                      size_t limit, int format, char** text_out, size_t* len_out) {
   return guarded(fn, [&] {
     clear(text_out);
     clear(len_out);
     if (!registry().contains(node)) return bad_handle(fn, "node");
     if (text_out == nullptr)
-      return set_error(TAHVEL_INVALID_ARGUMENT, fn, "ntriples_out must not be NULL");
+      return set_error(TAHVEL_INVALID_ARGUMENT, fn, std::string(fn == std::string_view("tahvel_list") ? "ntriples_out" : "text_out") +
+                                                        " must not be NULL");
     if (format != TAHVEL_FORMAT_NTRIPLES && format != TAHVEL_FORMAT_JSON) return bad_format(fn, format);
     auto pattern = parse_pattern(s, p, o);
     if (!pattern) return set_error(fn, pattern.error());
@@ -409,6 +404,20 @@ extern "C" tahvel_status tahvel_list_as(tahvel_node* node, const char* s, const 
     if (!records) return set_error(fn, records.error());
     return copy_out(fn, *render(*records, format), text_out, len_out);
   });
+}
+
+}  // namespace
+
+extern "C" tahvel_status tahvel_list(tahvel_node* node, const char* s, const char* p,
+                                     const char* o, unsigned cascade, size_t limit,
+                                     char** ntriples_out, size_t* len_out) {
+  return list_as("tahvel_list", node, s, p, o, cascade, limit, TAHVEL_FORMAT_NTRIPLES, ntriples_out, len_out);
+}
+
+extern "C" tahvel_status tahvel_list_as(tahvel_node* node, const char* s, const char* p,
+                                        const char* o, unsigned cascade, size_t limit, int format,
+                                        char** text_out, size_t* len_out) {
+  return list_as("tahvel_list_as", node, s, p, o, cascade, limit, format, text_out, len_out);
 }
 
 extern "C" tahvel_status tahvel_watch(tahvel_node* node, uint64_t bookmark, int timeout_ms,

@@ -4,7 +4,7 @@
 //   auto node = Node::open("state/home1");            // every process opens the same directory
 //   auto hrv = node->agent("hrv");                    // IRI = node IRI + "/hrv"; fixes `source`
 //   hrv->subscribe({.p = Term::iri(tv + "rr")});      // a subscription is triples on the board
-//   while (auto d = hrv->take(1000ms)) { ... }        // deliver-once input buffer, woken by futex
+//   for (;;) if (auto d = hrv->take(1000ms); d && *d) { ... }   // input buffer, woken by futex
 //   hrv->store(item);                                 // atomic item, routed to subscribers
 //
 // Workload: many small items (measurements, 1-10 triples) from a few local writers, a few

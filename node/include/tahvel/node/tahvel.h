@@ -154,8 +154,8 @@ const char* tahvel_node_iri(const tahvel_node* node);
  *   limit:   at most this many triples in all; 0 for no limit.
  * A pattern with a bound s, p or o is answered through an index; all NULL scans every record.
  * Errors: TAHVEL_INVALID_ARGUMENT (handle or ntriples_out NULL, a literal as s, a non-IRI as p),
- * TAHVEL_SYNTAX (a term that does not parse), TAHVEL_INVALID_IRI, TAHVEL_IO, TAHVEL_CORRUPT,
- * TAHVEL_NO_MEMORY. */
+ * TAHVEL_SYNTAX (a term that does not parse, a relative IRI among them), TAHVEL_INVALID_IRI,
+ * TAHVEL_IO, TAHVEL_CORRUPT, TAHVEL_NO_MEMORY. Errors of tahvel_list_as name it. */
 tahvel_status tahvel_list(tahvel_node* node, const char* s, const char* p, const char* o,
                           unsigned cascade, size_t limit, char** ntriples_out, size_t* len_out);
 
@@ -190,7 +190,10 @@ tahvel_status tahvel_remove_item(tahvel_node* node, uint64_t item, unsigned casc
 
 /* Sets *out to a handle for agent `id` of the node: its IRI is the node IRI + "/" + id, and it
  * is the `source` of everything the handle stores (the store sets it; an agent cannot forge
- * it). The id must be non-empty and contain no '/', '?', '#', whitespace or control characters.
+ * it). The id is one IRI path segment: non-empty, not "." or ".." (nor a percent-escaped
+ * form of them), in Unicode NFC, and without '/', '?', '#', whitespace, control characters or
+ * the characters an IRI may not hold ('<', '>', '"', '{', '}', '|', '\\', '^', '`', '[', ']').
+ * Spellings that name one IRI ("%41" and "A") are one agent.
  * Opening a handle with the same id again (for example after a restart) gives the same input
  * buffer: items taken but not acknowledged by the previous handle are delivered again.
  * Close the handle with tahvel_agent_close(); it may outlive `node`.
@@ -218,8 +221,10 @@ const char* tahvel_agent_iri(const tahvel_agent* agent);
  * Blank nodes are local to the item and renamed. Sets *item_out (may be NULL) to the new item
  * id (monotonic per node). On any error nothing of the item is stored.
  * Errors: TAHVEL_INVALID_ARGUMENT (NULL handle, rdf NULL with len > 0, bad format, no triples),
- * TAHVEL_SYNTAX (message "<input>:LINE:COL: reason"), TAHVEL_INVALID_IRI,
- * TAHVEL_LITERAL_TOO_LARGE, TAHVEL_STORE_FULL, TAHVEL_IO, TAHVEL_NO_MEMORY. */
+ * TAHVEL_SYNTAX (message "<input>:LINE:COL: reason": also a relative IRI in the text, and bytes
+ * that are not UTF-8, which the parser meets first), TAHVEL_INVALID_IRI (an IRI that parses as
+ * RDF but breaks RFC 3987, or a bad context), TAHVEL_LITERAL_TOO_LARGE, TAHVEL_STORE_FULL,
+ * TAHVEL_IO, TAHVEL_NO_MEMORY. */
 tahvel_status tahvel_store(tahvel_agent* agent, const char* rdf, size_t len, int format,
                            const char* context, int persistent, uint64_t* item_out);
 
@@ -258,6 +263,9 @@ tahvel_status tahvel_subscribe_earlier(tahvel_agent* agent, const char* s, const
  * derive from it), then acknowledge it: if the agent crashes in between, the item is delivered
  * again when it restarts. So delivery is at least once; an agent that must not repeat an
  * effect checks for it (e.g. by the prov:wasDerivedFrom link it wrote) before acting again.
+ * Two processes that take as one agent id share one buffer: with manual acks both may take the
+ * same head item before either acknowledges it. Run one process per agent id, or give each
+ * worker an id of its own.
  * An item removed from the store before it was taken is skipped.
  *
  * Returns TAHVEL_TIMEOUT when no item arrived in time (out-parameters set to NULL/0), and also
