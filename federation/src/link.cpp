@@ -1208,7 +1208,8 @@ struct Link::Impl {
                          : "another store (id " + child->store_id + ") is registered as <" + child->iri + "> and was heard " +
                                seconds_text(now - child->last_seen) + " ago; this one (id " + child_store +
                                ") registers once that one has been silent " + seconds_text(opt.child_silence) +
-                               " (a second node with this IRI on this network?)";
+                               " (the node's store made again or restored from a backup, which is then "
+                               "expected; else a second node with this IRI on this network)";
           }
         }
         if (!refuse.empty()) {
