@@ -75,15 +75,14 @@ std::optional<std::string> update(rt::Session& session, std::int64_t now_ns, dou
   // new ones, never a room without its state.
   std::vector<tn::Pattern> old_states;
   std::vector<tn::Item> new_states;
+  // A room's state as the board has it: its item, and the room's link to it.
+  auto drop_state = [&](const std::string& room) {
+    old_states.push_back({.s = tn::Term::iri(sp::environment_iri(room))});
+    old_states.push_back({.s = tn::Term::iri(room), .p = tn::Term::iri(kTvEnvironment)});
+  };
   for (const std::string& room : rooms) {
-    sp::RoomEnvironment env = aggregator.environment(room, now_ns, valid_s);
-    tn::Pattern old_item, old_link;
-    old_item.s = tn::Term::iri(sp::environment_iri(room));
-    old_link.s = tn::Term::iri(room);
-    old_link.p = tn::Term::iri(kTvEnvironment);
-    old_states.push_back(std::move(old_item));
-    old_states.push_back(std::move(old_link));
-    new_states.push_back(sp::environment_item(room, env, now_ns, valid_s));
+    drop_state(room);
+    new_states.push_back(sp::environment_item(room, aggregator.environment(room, now_ns, valid_s), now_ns, valid_s));
   }
   // A room that left the plan (taken out, or its geometry now refused) has no state any more:
   // its last one, kept, read as current for ever (and rules fired on it).
@@ -91,12 +90,7 @@ std::optional<std::string> update(rt::Session& session, std::int64_t now_ns, dou
   for (const std::string& room : with_state) {
     if (in_plan.count(room)) continue;
     rt::log_line(kProgram, "room <" + room + "> is no longer on the floor plan: its environment is removed");
-    tn::Pattern old_item, old_link;
-    old_item.s = tn::Term::iri(sp::environment_iri(room));
-    old_link.s = tn::Term::iri(room);
-    old_link.p = tn::Term::iri(kTvEnvironment);
-    old_states.push_back(std::move(old_item));
-    old_states.push_back(std::move(old_link));
+    drop_state(room);
   }
   if (auto stored = session.agent.replace(old_states, new_states); !stored) {
     return "room environments: " + stored.error().message;
