@@ -352,6 +352,26 @@ TEST_F(Cli, TakeWithStandardOutputClosedFailsAndLeavesTheItem) {
   EXPECT_EQ(lines_of(again.out).size(), 3u) << again.out;
 }
 
+// A floor plan's geometry that will not read is skipped when the plan is read, and was said
+// only there (an agent's log, `list --area`): `put` and `load` say it too, and store as given.
+TEST_F(Cli, PutAndLoadWarnOfAGeometryThatWillNotReadAndStoreIt) {
+  init();
+  const std::string plan =
+      "@prefix geo: <http://www.opengis.net/ont/geosparql#> .\n"
+      "<http://example.org/home1/room/a/geometry> geo:asWKT \"POLYGON((0 0, 3 0, 3 3, 0 3))\"^^geo:wktLiteral .\n"
+      "<http://example.org/home1/room/b/geometry> geo:asWKT \"POLYGON((0 0, 3 0, 3 3, 0 3, 0 0))\"^^geo:wktLiteral .\n";
+  spit(tmp_ / "plan.ttl", plan);
+  for (const char* command : {"put", "load"}) {
+    Outcome stored = run({command, node_, (tmp_ / "plan.ttl").string()});
+    EXPECT_EQ(stored.status, 0) << command << ": " << stored.err;
+    EXPECT_NE(stored.err.find("warning: " + (tmp_ / "plan.ttl").string() + ": <http://example.org/home1/room/a/geometry> geo:asWKT: "
+                              "WKT column 9: ring is not closed"),
+              std::string::npos) << command << ": " << stored.err;
+    EXPECT_EQ(stored.err.find("room/b"), std::string::npos) << "a good geometry warned of: " << stored.err;
+  }
+  EXPECT_EQ(lines_of(run({"list", node_, "-p", "<http://www.opengis.net/ont/geosparql#asWKT>"}).out).size(), 4u);
+}
+
 TEST_F(Cli, DumpOfOneNodeLoadsIntoAnotherWithTheSameTriples) {
   init();
   put(kObservation);
