@@ -126,6 +126,25 @@ TEST_F(BoardTest, LatestGeometryWinsAndMalformedWktIsReportedNotFatal) {
       << board.problems[0];
 }
 
+// A floor is a whole number however it is written: "2" was one and "1.0" was refused.
+TEST_F(BoardTest, AFloorWrittenAsAWholeDecimalIsThatFloorAndAFractionIsReported) {
+  auto with_floor = [](const std::string& feature, Term floor) {
+    node::Item item = located_feature_item(feature, "POINT(4 1)", 0);
+    std::erase_if(item.triples, [](const node::Triple& t) { return t.p.value == kTvFloor; });
+    item.add(Term::iri(feature), Term::iri(kTvFloor), std::move(floor));
+    return item;
+  };
+  put(with_floor(kHome + "/m-decimal", Term::literal("1.0", "http://www.w3.org/2001/XMLSchema#decimal")));
+  put(with_floor(kHome + "/m-double", Term::literal("1e0", "http://www.w3.org/2001/XMLSchema#double")));
+  put(with_floor(kHome + "/m-half", Term::literal("1.5", "http://www.w3.org/2001/XMLSchema#decimal")));
+  BoardPlan board = plan();
+  EXPECT_EQ(board.plan.sensor(kHome + "/m-decimal")->floor, 1);
+  EXPECT_EQ(board.plan.sensor(kHome + "/m-double")->floor, 1);
+  EXPECT_EQ(board.plan.sensor(kHome + "/m-half"), nullptr);
+  ASSERT_EQ(board.problems.size(), 1u);
+  EXPECT_NE(board.problems[0].find("tv:floor '1.5' is not an integer"), std::string::npos) << board.problems[0];
+}
+
 TEST_F(BoardTest, ListByRoomSelectsTheRoomItsSensorsAndTheirReadings) {
   reading("mote1", 21.5);
   reading("mote2", 18.0);

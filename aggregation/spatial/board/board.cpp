@@ -6,6 +6,7 @@
 #include <algorithm>
 #include <cctype>
 #include <charconv>
+#include <cmath>
 #include <iterator>
 #include <mutex>
 #include <unordered_map>
@@ -73,8 +74,14 @@ std::optional<int> parse_floor(const node::Term& term) {
   int value = 0;
   const char* begin = text.data() + (!text.empty() && text[0] == '+' ? 1 : 0);
   auto [end, ec] = std::from_chars(begin, text.data() + text.size(), value);
-  if (ec != std::errc() || end != text.data() + text.size() || begin == end) return std::nullopt;
-  return value;
+  if (ec == std::errc() && end == text.data() + text.size() && begin != end) return value;
+  // A whole number written as a decimal or double ("1.0", "2e0") is that floor, as "1" is.
+  double number = 0;
+  auto [stop, error] = std::from_chars(begin, text.data() + text.size(), number);
+  if (error != std::errc() || stop != text.data() + text.size() || begin == stop || !std::isfinite(number) ||
+      number != std::floor(number) || std::abs(number) > 1e9)
+    return std::nullopt;
+  return static_cast<int>(number);
 }
 
 // The latest geo:asWKT literal of geometry `g`, or nullopt; `*id` gets its record's id.
