@@ -160,7 +160,8 @@ const Command kTakeCommand{
     "Waits up to MS milliseconds (default 0: do not wait) for an item to arrive. Each item is\n"
     "delivered once: it is acknowledged only after it was written to standard output, so a\n"
     "failed write leaves it in the buffer for the next take. Exit status 3, with nothing\n"
-    "printed, when the timeout passes without an item.",
+    "printed, when the timeout passes without an item. A removal notice (which only agents that\n"
+    "asked for them get: a link's) prints as tail prints removals.",
     {{"--agent", "", "ID", "the agent whose input buffer to read (required)"},
      {"--timeout", "", "MS", "wait up to MS milliseconds for an item (default 0)"}, kFlagFormat},
     1, 1};
@@ -175,7 +176,13 @@ int run_take(const Args& args) {
   node::Agent agent = check(node.agent(id));
   std::optional<node::Delivery> delivery = check(agent.take(timeout, node::Ack::manual));
   if (!delivery) return kExitTimeout;
-  write_records(std::cout, format, prefixes, delivery->records);
+  if (delivery->removal) {
+    // A removal notice (a link's agents receive them): printed as tail prints removals.
+    node::RecordWriter writer(std::cout, format, {});
+    for (const node::Record& record : delivery->records) writer.write(node::Change{delivery->item, true, record});
+  } else {
+    write_records(std::cout, format, prefixes, delivery->records);
+  }
   finish_output(std::cout);
   check(agent.ack(delivery->item));
   return kExitOk;

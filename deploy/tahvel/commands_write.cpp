@@ -210,7 +210,9 @@ const Command kRemoveCommand{
     "DIR (--item ID | [-s S] [-p P] [-o O]) [--cascade N]",
     "Remove an item or the records matching a pattern; print the count.",
     "With --cascade N the sub-trees of the removed records go too (objects that are IRIs or blank\n"
-    "nodes, followed N levels). Removed items also leave the input buffers that held them.",
+    "nodes, followed N levels). Removed items also leave the input buffers that held them.\n"
+    "Copies the node's link sent up (its forwarding policy) or down (configuration) are removed\n"
+    "there too, hop by hop, as the link runs.",
     {{"--item", "", "ID", "remove every record of item ID (as printed by put)"},
      kFlagS, kFlagP, kFlagO, kFlagCascade},
     1, 1};

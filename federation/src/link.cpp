@@ -113,6 +113,7 @@ wire::ItemBody item_of(const node::Delivery& delivery) {
   body.item.context = meta.context;
   body.item.persistent = meta.persistent;
   body.item.asserted_at = meta.asserted_at;
+  body.removal = delivery.removal;
   for (const auto& r : delivery.records) body.item.triples.push_back(r.triple);
   return body;
 }
@@ -1032,7 +1033,7 @@ struct Link::Impl {
         break;  // the rest follows it in the sender's sequence: they come again after a resend
       }
       if (!up) body->item.context = subtree_for(body->item.context, self);  // P11
-      items.push_back({f.seq, f.prev, std::move(body->source), std::move(body->item)});
+      items.push_back({f.seq, f.prev, std::move(body->source), std::move(body->item), body->removal});
     }
     if (!foreign.empty()) other_store_sent(up ? child.get() : nullptr, foreign);
     if (items.empty() && !foreign.empty()) return;
@@ -1070,7 +1071,7 @@ struct Link::Impl {
       run.push_back(std::move(it->second));
       buffer.by_prev.erase(it);
     }
-    node::Result<node::RelayOutcome> outcome = node::RelayOutcome{*buffer.mark, {}, 0, false};
+    node::Result<node::RelayOutcome> outcome = node::RelayOutcome{.mark = *buffer.mark};
     const std::size_t relayed = run.size();
     if (!run.empty()) outcome = relayer->relay(stream, run);
     applied.push_back(std::move(run));  // freed by the taker, with the rest of the batch
@@ -1110,6 +1111,8 @@ struct Link::Impl {
             "> that this store holds already (sent again on a new stream: P6c)");
       std::lock_guard lock(mu);
       counters.items_refused += outcome->refused.size();
+      counters.removals_applied += outcome->removals;
+      counters.records_removed_in += outcome->records_removed;
       if (up) {
         counters.relayed_in += outcome->stored.size();
         if (!outcome->stored.empty()) ++counters.relay_writes;
@@ -1188,6 +1191,7 @@ struct Link::Impl {
         node::Pattern subtree;
         subtree.context = self + "/*";
         if (auto sub = link->subscribe(subtree); !sub) log("cannot subscribe <" + child->iri + "> to subtree items: " + sub.error().message);
+        if (auto r = link->receive_removals(); !r) log("cannot have removals sent to <" + child->iri + ">: " + r.error().message);
         std::string refuse;
         {
           std::lock_guard lock(mu);
@@ -2160,6 +2164,11 @@ struct Link::Impl {
           continue;
         }
         if (object_of(d.records, vocab::kQueryTarget)) {
+          // A query item's removal (answered, cancelled) is the query's own business (P18).
+          if (d.removal) {
+            local_acks.push_back(d.item);
+            continue;
+          }
           frames.push_back(start_query(child, d));
           local_acks.push_back(d.item);
           continue;
@@ -2704,6 +2713,8 @@ Result<std::unique_ptr<Link>> Link::start(LinkOptions options) {
     for (const auto& pattern : policy) {
       if (auto s = uplink->subscribe(pattern); !s) return Unexpected<Error>{s.error()};
     }
+    // P7a: a removal follows what went up.
+    if (auto r = uplink->receive_removals(); !r) return Unexpected<Error>{r.error()};
   }
   Link::Impl& s = *impl;
   s.opt = std::move(options);
@@ -2721,6 +2732,7 @@ Result<std::unique_ptr<Link>> Link::start(LinkOptions options) {
       node::Pattern subtree;
       subtree.context = s.self + "/*";
       if (auto sub = agent->subscribe(subtree); !sub) return Unexpected<Error>{sub.error()};
+      if (auto r = agent->receive_removals(); !r) return Unexpected<Error>{r.error()};  // P10a
       auto child = std::make_shared<Impl::Child>();
       child->flips.set_hold(s.opt.conflict_hold);
       child->id = id;

@@ -95,6 +95,13 @@ class In {
     return ok() ? n : 0;
   }
 
+  // Remembers the first failure: what was wrong with `field`, and where.
+  void fail(const char* field, const std::string& why) {
+    if (!error_)
+      error_ = Error{Errc::syntax, std::string(what_) + " body: " + why + " in field '" + field +
+                                       "' at byte " + std::to_string(pos_)};
+  }
+
   bool ok() const { return !error_; }
   bool at_end() const { return pos_ == bytes_.size(); }
   template <class T>
@@ -114,11 +121,6 @@ class In {
     }
     return true;
   }
-  void fail(const char* field, const std::string& why) {
-    if (!error_)
-      error_ = Error{Errc::syntax, std::string(what_) + " body: " + why + " in field '" + field +
-                                       "' at byte " + std::to_string(pos_)};
-  }
 
   std::string_view bytes_;
   const char* what_;
@@ -131,9 +133,13 @@ constexpr std::size_t kMinRecordBytes = kMinTripleBytes + 8 * 4 + 4 + 4 + 1;
 
 }  // namespace
 
+// The item body's flags byte (docs/protocol.md, "Bodies").
+constexpr std::uint8_t kItemPersistent = 1;
+constexpr std::uint8_t kItemRemoval = 2;
+
 std::string encode_item(const ItemBody& body) {
   Out out;
-  out.str(body.source).str(body.item.context).u8(body.item.persistent ? 1 : 0);
+  out.str(body.source).str(body.item.context).u8((body.item.persistent ? kItemPersistent : 0) | (body.removal ? kItemRemoval : 0));
   out.opt_i64(body.item.asserted_at);
   out.u32(static_cast<std::uint32_t>(body.item.triples.size()));
   for (const auto& t : body.item.triples) out.term(t.s).term(t.p).term(t.o);
@@ -145,7 +151,10 @@ Result<ItemBody> decode_item(std::string_view bytes) {
   ItemBody body;
   body.source = in.str("source");
   body.item.context = in.str("context");
-  body.item.persistent = in.u8("persistent") != 0;
+  const std::uint8_t flags = in.u8("flags");
+  if (flags & ~(kItemPersistent | kItemRemoval)) in.fail("flags", "unknown flag bits " + std::to_string(flags));
+  body.item.persistent = (flags & kItemPersistent) != 0;
+  body.removal = (flags & kItemRemoval) != 0;
   body.item.asserted_at = in.opt_i64("asserted_at");
   std::uint32_t n = in.count("triples", kMinTripleBytes);
   body.item.triples.reserve(n);

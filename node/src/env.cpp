@@ -3,6 +3,7 @@
 #include "env.h"
 
 #include "rows.h"
+#include "write.h"
 
 #include <chrono>
 #include <thread>
@@ -187,6 +188,15 @@ Result<void> Env::open_tables(MDB_txn* txn, bool create) {
   return {};
 }
 
+Result<bool> Env::open_later_tables(MDB_txn* txn, bool create) {
+  // Tables added after format 2: a store made before has none until its first open that may
+  // write (open() then runs this again in a write transaction).
+  int rc = mdb_dbi_open(txn, "notices", MDB_INTEGERKEY | (create ? MDB_CREATE : 0), &notices);
+  if (rc == MDB_NOTFOUND && !create) return false;
+  if (rc != 0) return lmdb_fail(rc, "opening table notices in " + dir_.string());
+  return true;
+}
+
 Result<std::shared_ptr<Env>> Env::open(const std::filesystem::path& dir_in, const InitOptions* init) {
   std::error_code ec;
   if (init) std::filesystem::create_directories(dir_in, ec);
@@ -295,7 +305,7 @@ Result<std::shared_ptr<Env>> Env::open_at(const std::filesystem::path& dir, cons
   // inside its transaction (stopped, stuck) must not hang every process that opens the store,
   // `tahvel status` among them. Only a store made before store ids needs a write, once.
   const unsigned first_flags = init ? 0 : MDB_RDONLY;
-  bool needs_store_id = false;
+  bool needs_store_id = false, needs_tables = false;
   MDB_txn* txn = nullptr;
   rc = mdb_txn_begin(env->env_, nullptr, first_flags, &txn);
   if (rc == MDB_MAP_RESIZED) {
@@ -305,6 +315,9 @@ Result<std::shared_ptr<Env>> Env::open_at(const std::filesystem::path& dir, cons
   if (rc != 0) return lmdb_fail(rc, "starting the first transaction in " + dir.string());
   auto body = [&]() -> Result<void> {
     if (auto t = env->open_tables(txn, init != nullptr); !t) return t;
+    auto later = env->open_later_tables(txn, init != nullptr);
+    if (!later) return unexpected(later.error());
+    needs_tables = !*later;
     if (init) {
       Settings s{init->iri, init->durability, init->ring, init->max_literal_bytes, init->max_map_bytes};
       std::uint32_t version = kFormatVersion;
@@ -352,17 +365,20 @@ Result<std::shared_ptr<Env>> Env::open_at(const std::filesystem::path& dir, cons
   }
   rc = mdb_txn_commit(txn);  // also for a read transaction: the table handles outlive it
   if (rc != 0) return lmdb_fail(rc, "committing the first transaction in " + dir.string());
-  if (needs_store_id) {
+  if (needs_store_id || needs_tables) {
     rc = mdb_txn_begin(env->env_, nullptr, 0, &txn);
     if (rc != 0) return lmdb_fail(rc, "starting a transaction in " + dir.string());
     Result<void> r;
     if (!get_meta(txn, env->meta, kStoreIdKey)) r = put_meta(txn, env->meta, kStoreIdKey, new_store_id());
+    if (r && needs_tables) {
+      if (auto made = env->open_later_tables(txn, true); !made) r = unexpected(made.error());
+    }
     if (!r) {
       mdb_txn_abort(txn);
       return unexpected(r.error());
     }
     rc = mdb_txn_commit(txn);
-    if (rc != 0) return lmdb_fail(rc, "giving " + dir.string() + " a store id");
+    if (rc != 0) return lmdb_fail(rc, "bringing " + dir.string() + " up to this build's tables");
   }
   if (env->settings_.durability == Durability::durable) {
     mdb_env_set_flags(env->env_, MDB_NOSYNC | MDB_NOMETASYNC, 0);
@@ -565,6 +581,7 @@ Result<void> Env::write(const std::function<Result<void>(Txn&)>& body, WriteKind
       txn.counters = *counters;
       first_seq = counters->next_seq;
       if (auto r = body(txn); !r) return r;
+      if (auto r = deliver_removals(txn); !r) return r;
       if (auto r = flush_index(txn); !r) return r;
       return save_counters(raw, main, txn.counters);
     };

@@ -6,6 +6,7 @@
 
 #include <lmdb.h>
 
+#include <array>
 #include <atomic>
 #include <cstdint>
 #include <cstring>
@@ -13,6 +14,7 @@
 #include <functional>
 #include <memory>
 #include <mutex>
+#include <optional>
 #include <shared_mutex>
 #include <string>
 #include <string_view>
@@ -164,6 +166,9 @@ class Env {
   // tables' roots): the counters live there, so they cost no extra page per write.
   MDB_dbi main = 0, meta = 0, terms = 0, term_hash = 0, records = 0, items = 0;
   MDB_dbi idx_s = 0, idx_p = 0, idx_o = 0, inbox = 0, outbox = 0, removals = 0;
+  // Removal notices waiting in input buffers (R21): id -> varint(buffers holding it), then the
+  // removed records. Stores made before the table existed get it at their first open.
+  MDB_dbi notices = 0;
 
   // Runs `body` in a write transaction and commits it. When the map fills, aborts, grows the
   // map (up to max_map_bytes) and runs `body` again from the start; past the maximum returns
@@ -188,6 +193,9 @@ class Env {
   std::unordered_map<std::uint64_t, std::vector<std::uint32_t>> subs_by_context;
   std::uint64_t ttl_gen = ~0ull;
   std::vector<TtlRule> ttl_rules;
+  // Agents that receive removal notices (R21, Agent::receive_removals): term ids of their IRIs.
+  // Kept in the meta table beside the TTL rules, and reloaded with them (ttl_gen).
+  std::vector<std::uint64_t> removal_receivers;
   // Dictionary ids of the subscription vocabulary: interned and pinned at init, so fixed.
   struct Vocabulary {
     std::uint64_t subscriber = 0, subject = 0, predicate = 0, object = 0;
@@ -214,6 +222,9 @@ class Env {
   // Makes a new store in a directory of its own in `dir`, then moves its data file into `dir`.
   static Result<void> make_store(const std::filesystem::path& dir, const InitOptions& init);
   Result<void> open_tables(MDB_txn* txn, bool create);
+  // Opens the tables added since format 2; false (and nothing opened) when the store has not
+  // got them yet and `create` is false.
+  Result<bool> open_later_tables(MDB_txn* txn, bool create);
   Result<void> grow(WriteKind kind);
   // A data write in a map that a removal grew beyond the maximum (into the removals' reserve):
   // store_full when the pages in use, free ones not counted, and `new_bytes` would exceed the
@@ -283,6 +294,23 @@ class Txn {
   // commit, the cache is marked stale, for its generation may be reached again by a different
   // change that does.
   bool touched_caches = false;
+  // Records removed explicitly in this transaction, as they were, while some agent of the store
+  // receives removal notices (R21): deliver_removals (write.h) turns them into notices before
+  // the commit. Their terms are read at removal, before the dictionary may collect them.
+  struct RemovedRecord {
+    Record record;
+    std::array<std::uint64_t, 3> terms{};  // s, p, o term ids
+    // Of its item, as it was: term ids of source, context (0: none) and the agent whose output
+    // buffer holds it, and the number of records it was written with.
+    std::uint64_t source = 0, context = 0, writer = 0, count = 0;
+    // The id its item's notice will have: taken from the sequence when the item's first record
+    // goes, so that a notice comes before the items the same transaction stores after the
+    // removal (Agent::replace), as the removal did.
+    std::uint64_t notice = 0;
+  };
+  std::vector<RemovedRecord> removed;
+  std::unordered_map<std::uint64_t, std::uint64_t> notice_ids;  // item id -> its notice's id
+  std::optional<bool> removals_noticed;  // whether any agent receives notices (asked once)
  private:
   Env& env_;
   MDB_txn* txn_;

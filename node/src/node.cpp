@@ -81,6 +81,18 @@ Result<std::vector<Record>> item_records(MDB_txn* txn, const Env& env, std::uint
 
 Error with_context(const Error& e, std::string_view what) { return Error{e.code, std::string(what) + ": " + e.message}; }
 
+// Entry `id` of an input buffer as it is delivered: an item's records, or a removal notice's
+// (R21); nullopt when neither is there any more (the item was removed since).
+Result<std::optional<Delivery>> buffered(MDB_txn* txn, const Env& env, std::uint64_t id) {
+  auto records = item_records(txn, env, id);
+  if (records) return std::optional<Delivery>(Delivery{id, std::move(*records)});
+  if (records.error().code != Errc::not_found) return unexpected(records.error());
+  auto notice = get_notice(txn, env, id);
+  if (!notice) return unexpected(notice.error());
+  if (!*notice) return std::optional<Delivery>();
+  return std::optional<Delivery>(Delivery{id, std::move(**notice), true});
+}
+
 }  // namespace
 
 // ---------------------------------------------------------------------------------------------
@@ -278,7 +290,7 @@ Result<void> Agent::Impl::drop(std::uint64_t item_id) {
     if (txn.counters.pending > 0) --txn.counters.pending;
     auto item = get_item(txn.raw(), txn.env(), item_id);
     if (!item) return unexpected(item.error());
-    if (!*item) return {};
+    if (!*item) return release_notice(txn, item_id);
     ItemRow row = **item;
     if (row.pending > 0) --row.pending;
     return put_item(txn, item_id, row);
@@ -303,14 +315,16 @@ Result<std::optional<Delivery>> Agent::Impl::head(bool remove) {
       mdb_cursor_close(cursor);
       if (rc == MDB_NOTFOUND) return {};
       if (rc != 0) return lmdb_fail(rc, "reading the input buffer of " + iri);
-      auto records = item_records(txn, *env, item_id);
-      bool gone = !records && records.error().code == Errc::not_found;
-      if (!records && !gone) return unexpected(records.error());
+      auto found = buffered(txn, *env, item_id);
+      if (!found) return unexpected(found.error());
+      const bool gone = !*found;
       if (writer) {
         MDB_val dk = val(*self), dv = val(item_id);
         if ((rc = mdb_del(txn, env->inbox, &dk, &dv)) != 0) return lmdb_fail(rc, "taking from the input buffer of " + iri);
         if (writer->counters.pending > 0) --writer->counters.pending;
-        if (!gone) {
+        if (!gone && (*found)->removal) {
+          if (auto r = release_notice(*writer, item_id); !r) return r;
+        } else if (!gone) {
           auto item = get_item(txn, *env, item_id);
           if (!item) return unexpected(item.error());
           ItemRow row = **item;
@@ -325,7 +339,7 @@ Result<std::optional<Delivery>> Agent::Impl::head(bool remove) {
         }
         continue;
       }
-      delivery = Delivery{item_id, std::move(*records)};
+      delivery = std::move(*found);
       return {};
     }
   };
@@ -533,10 +547,9 @@ Result<std::vector<Delivery>> Agent::peek(std::uint64_t after, std::size_t limit
           mdb_cursor_close(cursor);
         }
         for (std::uint64_t id : ids) {
-          auto records = item_records(read.txn, *impl_->env, id);
-          if (!records && records.error().code == Errc::not_found) continue;  // removed since
-          if (!records) return unexpected(records.error());
-          out.push_back(Delivery{id, std::move(*records)});
+          auto found = buffered(read.txn, *impl_->env, id);
+          if (!found) return unexpected(found.error());
+          if (*found) out.push_back(std::move(**found));  // else removed since
         }
       }
       auto left = deadline - std::chrono::steady_clock::now();
@@ -545,6 +558,14 @@ Result<std::vector<Delivery>> Agent::peek(std::uint64_t after, std::size_t limit
     }
   } catch (const std::bad_alloc&) {
     return fail(Errc::io, "out of memory while peeking");
+  }
+}
+
+Result<void> Agent::receive_removals() noexcept {
+  try {
+    return impl_->env->write([&](Txn& txn) { return detail::receive_removals(txn, impl_->iri); });
+  } catch (const std::bad_alloc&) {
+    return fail(Errc::io, "out of memory while writing a setting");
   }
 }
 
@@ -575,7 +596,11 @@ Result<std::uint64_t> Agent::ack_through(std::uint64_t through) noexcept {
         if ((rc = mdb_cursor_del(inbox.c, 0)) != 0) return lmdb_fail(rc, "acknowledging item " + std::to_string(id));
         if (txn.counters.pending > 0) --txn.counters.pending;
         ++acked;
-        if (auto r = release_item(items.c, id); !r) return r;
+        auto released = release_item(items.c, id);
+        if (!released) return unexpected(released.error());
+        if (!*released) {
+          if (auto r = release_notice(txn, id); !r) return r;
+        }
         if (left <= 1) break;
         rc = mdb_cursor_get(inbox.c, &k, &v, MDB_GET_CURRENT);
       }
@@ -681,6 +706,13 @@ Result<RelayOutcome> Agent::relay(std::string_view stream, const std::vector<Rel
           }
           if (!refusal.empty() && refusal[i]) {
             outcome.refused.push_back({relayed.seq, *refusal[i]});
+          } else if (relayed.removal) {
+            auto copies = held_copies(txn.raw(), *impl_->env, relayed.item, relayed.source);
+            if (!copies) return unexpected(with_context(copies.error(), about(i)));
+            for (std::uint64_t id : *copies)
+              if (auto d = delete_record(txn, id, Removal::explicit_removal); !d) return unexpected(with_context(d.error(), about(i)));
+            ++outcome.removals;
+            outcome.records_removed += copies->size();
           } else if (auto twin = held_persistent_twin(txn.raw(), *impl_->env, relayed.item, relayed.source); !twin) {
             return unexpected(with_context(twin.error(), about(i)));
           } else if (*twin != 0) {

@@ -8,6 +8,7 @@
 
 #include "codec.h"
 #include "dictionary.h"
+#include "write.h"
 
 namespace tahvel::node::detail {
 namespace {
@@ -89,7 +90,7 @@ Result<std::uint64_t> drop_from_inboxes(Txn& txn, std::uint64_t item) {
   return dropped;
 }
 
-Result<void> log_removal(Txn& txn, std::uint64_t id, const RecordRow& row, const ItemRow& item) {
+Result<Record> log_removal(Txn& txn, std::uint64_t id, const RecordRow& row, const ItemRow& item) {
   TermReader reader(txn.raw(), txn.env());
   Record record;
   auto s = reader.get(row.s), p = reader.get(row.p), o = reader.get(row.o);
@@ -116,7 +117,7 @@ Result<void> log_removal(Txn& txn, std::uint64_t id, const RecordRow& row, const
     if (!trimmed) break;
     --txn.counters.removals;
   }
-  return {};
+  return record;
 }
 
 Result<void> retire_item(Txn& txn, std::uint64_t item_id, const ItemRow& item) {
@@ -223,20 +224,20 @@ Result<void> put_item(Txn& txn, std::uint64_t id, const ItemRow& row, unsigned f
   return {};
 }
 
-Result<void> release_item(MDB_cursor* items, std::uint64_t id) {
+Result<bool> release_item(MDB_cursor* items, std::uint64_t id) {
   MDB_val k = val(id), v;
   int rc = mdb_cursor_get(items, &k, &v, MDB_SET_KEY);
-  if (rc == MDB_NOTFOUND) return {};
+  if (rc == MDB_NOTFOUND) return false;
   if (rc != 0) return lmdb_fail(rc, "reading item " + std::to_string(id));
   ItemRow row;
   if (!decode_item(view(v), row)) return fail(Errc::corrupt, "item " + std::to_string(id) + " is truncated");
-  if (row.pending == 0) return {};
+  if (row.pending == 0) return true;
   --row.pending;
   const std::string bytes = encode_item(row);
   MDB_val key = val(id), value = val(bytes);
   if ((rc = mdb_cursor_put(items, &key, &value, MDB_CURRENT)) != 0)
     return lmdb_fail(rc, "writing item " + std::to_string(id));
-  return {};
+  return true;
 }
 
 Result<void> flush_index(Txn& txn) {
@@ -296,7 +297,16 @@ Result<void> delete_record(Txn& txn, std::uint64_t id, Removal why) {
   if (!*item) return fail(Errc::corrupt, "record " + std::to_string(id) + " has no item");
   ItemRow it = **item;
   if (why == Removal::explicit_removal) {
-    if (auto l = log_removal(txn, id, r, it); !l) return l;
+    auto logged = log_removal(txn, id, r, it);
+    if (!logged) return unexpected(logged.error());
+    auto noticed = removals_noticed(txn);
+    if (!noticed) return unexpected(noticed.error());
+    if (*noticed) {
+      auto [notice, fresh] = txn.notice_ids.try_emplace(r.item, 0);
+      if (fresh) notice->second = txn.counters.next_seq++;
+      txn.removed.push_back({std::move(*logged), {r.s, r.p, r.o}, it.source, it.context, it.output_buffer(), it.count,
+                             notice->second});
+    }
   }
   if (auto d = del_dup(raw, env.idx_s, r.s, id, "unindexing a subject"); !d) return d;
   if (auto d = del_dup(raw, env.idx_p, r.p, id, "unindexing a predicate"); !d) return d;
@@ -335,6 +345,68 @@ Result<std::uint64_t> delete_item(Txn& txn, std::uint64_t id, Removal why) {
     ++removed;
   }
   return removed;
+}
+
+std::string encode_notice(std::uint64_t pending, const std::vector<Record>& records) {
+  std::string out;
+  codec::put_varint(out, pending);
+  codec::put_varint(out, records.size());
+  for (const Record& record : records) put_string(out, encode_removed(record));
+  return out;
+}
+
+bool decode_notice(std::string_view in, std::uint64_t& pending, std::vector<Record>* records) {
+  std::size_t pos = 0;
+  std::uint64_t n = 0;
+  if (!codec::get_varint(in, pos, pending) || !codec::get_varint(in, pos, n)) return false;
+  if (!records) return true;
+  records->clear();
+  for (std::uint64_t i = 0; i < n; ++i) {
+    std::string bytes;
+    Record record;
+    if (!get_string(in, pos, bytes) || !decode_removed(bytes, record)) return false;
+    records->push_back(std::move(record));
+  }
+  return pos == in.size();
+}
+
+Result<std::optional<std::vector<Record>>> get_notice(MDB_txn* txn, const Env& env, std::uint64_t id) {
+  MDB_val k = val(id), v;
+  int rc = mdb_get(txn, env.notices, &k, &v);
+  if (rc == MDB_NOTFOUND) return std::optional<std::vector<Record>>();
+  if (rc != 0) return lmdb_fail(rc, "reading removal notice " + std::to_string(id));
+  std::uint64_t pending = 0;
+  std::vector<Record> records;
+  if (!decode_notice(view(v), pending, &records))
+    return fail(Errc::corrupt, "removal notice " + std::to_string(id) + " is truncated");
+  return std::optional<std::vector<Record>>(std::move(records));
+}
+
+Result<void> release_notice(Txn& txn, std::uint64_t id) {
+  MDB_val k = val(id), v;
+  int rc = mdb_get(txn.raw(), txn.env().notices, &k, &v);
+  if (rc == MDB_NOTFOUND) return {};
+  if (rc != 0) return lmdb_fail(rc, "reading removal notice " + std::to_string(id));
+  std::uint64_t pending = 0;
+  if (!decode_notice(view(v), pending, nullptr))
+    return fail(Errc::corrupt, "removal notice " + std::to_string(id) + " is truncated");
+  if (pending <= 1) {
+    if ((rc = mdb_del(txn.raw(), txn.env().notices, &k, nullptr)) != 0)
+      return lmdb_fail(rc, "removing removal notice " + std::to_string(id));
+    return {};
+  }
+  // The count is the row's first varint: rewritten with the rest as it is.
+  std::string bytes(view(v));
+  std::size_t pos = 0;
+  std::uint64_t old = 0;
+  codec::get_varint(bytes, pos, old);
+  std::string out;
+  codec::put_varint(out, pending - 1);
+  out.append(bytes, pos, std::string::npos);
+  MDB_val nv = val(out);
+  if ((rc = mdb_put(txn.raw(), txn.env().notices, &k, &nv, 0)) != 0)
+    return lmdb_fail(rc, "writing removal notice " + std::to_string(id));
+  return {};
 }
 
 std::string encode_removed(const Record& record) {

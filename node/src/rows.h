@@ -12,6 +12,7 @@
 #include <cstdint>
 #include <optional>
 #include <string>
+#include <vector>
 
 #include "env.h"
 #include "tahvel/node/node.h"
@@ -48,9 +49,9 @@ Result<void> put_item(Txn& txn, std::uint64_t id, const ItemRow& row, unsigned f
 
 // One input buffer fewer holds item `id`: its pending count goes down, rewritten in place through
 // `items`, a cursor on the items table. A cursor already near `id` finds it without a search from
-// the root, so a caller releasing a run of items in id order keeps one cursor for them all. An
-// item no longer in the store is passed over.
-Result<void> release_item(MDB_cursor* items, std::uint64_t id);
+// the root, so a caller releasing a run of items in id order keeps one cursor for them all.
+// False when no such item is in the store (removed since, or the id of a removal notice).
+Result<bool> release_item(MDB_cursor* items, std::uint64_t id);
 
 // Puts the entries in txn.unflushed_index into their tables and empties it. Values only grow
 // (record and item ids), so each entry is the last of its key: appended, no search among the
@@ -71,6 +72,16 @@ Result<std::uint64_t> delete_item(Txn& txn, std::uint64_t id, Removal why);
 // The removal log entry for Node::watch: the record as it was.
 std::string encode_removed(const Record& record);
 bool decode_removed(std::string_view bytes, Record& record);
+
+// Removal notices (R21): a row holds how many input buffers hold the notice, and the records
+// removed, as encode_removed writes them.
+std::string encode_notice(std::uint64_t pending, const std::vector<Record>& records);
+// `records` may be null: only the count is read.
+bool decode_notice(std::string_view bytes, std::uint64_t& pending, std::vector<Record>* records);
+// The records of notice `id`; nullopt when there is no such notice.
+Result<std::optional<std::vector<Record>>> get_notice(MDB_txn* txn, const Env& env, std::uint64_t id);
+// One input buffer fewer holds notice `id`: the row goes with the last. Absent is no error.
+Result<void> release_notice(Txn& txn, std::uint64_t id);
 
 // Current time, ns since the Unix epoch.
 std::int64_t now_ns();

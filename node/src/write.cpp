@@ -111,6 +111,28 @@ Result<std::vector<TtlRule>> load_ttl_rules(Txn& txn) {
   return rules;
 }
 
+Result<std::vector<std::uint64_t>> load_removal_receivers(Txn& txn) {
+  std::vector<std::uint64_t> agents;
+  MDB_cursor* cursor = nullptr;
+  int rc = mdb_cursor_open(txn.raw(), txn.env().meta, &cursor);
+  if (rc != 0) return lmdb_fail(rc, "opening settings");
+  const std::string_view prefix = kRemovalReceiverKey;
+  MDB_val k = val(prefix), v;
+  std::vector<std::string> found;
+  for (rc = mdb_cursor_get(cursor, &k, &v, MDB_SET_RANGE); rc == 0; rc = mdb_cursor_get(cursor, &k, &v, MDB_NEXT)) {
+    std::string_view key = view(k);
+    if (!key.starts_with(prefix)) break;
+    found.emplace_back(key.substr(prefix.size()));
+  }
+  mdb_cursor_close(cursor);
+  for (const std::string& iri : found) {
+    auto id = find_term(txn.raw(), txn.env(), Term::iri(iri));
+    if (!id) return unexpected(id.error());
+    if (*id) agents.push_back(*id);
+  }
+  return agents;
+}
+
 bool triple_matches(const Subscription& sub, std::uint64_t s, std::uint64_t p, std::uint64_t o) {
   return (!sub.s || sub.s == s) && (!sub.p || sub.p == p) && (!sub.o || sub.o == o);
 }
@@ -132,22 +154,26 @@ Result<void> deliver(Txn& txn, std::uint64_t agent, std::uint32_t slot, std::uin
 // context's first segment below the node (a local agent, or the link agent of a child node),
 // which gets it in its input buffer without subscribing. The segment "*" names no agent (it
 // addresses a whole subtree, see docs/protocol.md).
-Result<void> route_to_addressee(Txn& txn, std::uint64_t item_id, ItemRow& item,
-                                const std::string& context, const std::string& writer) {
+std::optional<std::string> addressee_of(const std::string& node_iri, std::string_view context, std::string_view writer) {
   // Agent IRI = node IRI + "/" + id, the '/' not doubled after a node IRI that ends in one
   // (uri::agent_iri).
-  const std::string& node_iri = txn.env().settings().iri;
   const std::size_t begin = node_iri.ends_with('/') ? node_iri.size() : node_iri.size() + 1;
   if (context.size() <= begin || context.compare(0, node_iri.size(), node_iri) != 0 || context[begin - 1] != '/')
-    return {};
+    return std::nullopt;
   std::size_t end = context.find_first_of("/#?", begin);
-  std::string addressee = context.substr(0, end);
-  if (addressee.size() == begin || addressee.compare(begin, std::string::npos, "*") == 0 ||
-      addressee == writer)
-    return {};
-  auto agent = intern_term(txn, Term::iri(addressee), true);  // keys an input buffer: pinned
+  std::string addressee(context.substr(0, end));
+  if (addressee.size() == begin || addressee.compare(begin, std::string::npos, "*") == 0 || addressee == writer)
+    return std::nullopt;
+  return addressee;
+}
+
+Result<void> route_to_addressee(Txn& txn, std::uint64_t item_id, ItemRow& item,
+                                const std::string& context, const std::string& writer) {
+  auto addressee = addressee_of(txn.env().settings().iri, context, writer);
+  if (!addressee) return {};
+  auto agent = intern_term(txn, Term::iri(*addressee), true);  // keys an input buffer: pinned
   if (!agent) return unexpected(agent.error());
-  return deliver(txn, *agent, WakeBoard::slot_for(addressee), item_id, item);
+  return deliver(txn, *agent, WakeBoard::slot_for(*addressee), item_id, item);
 }
 
 // A subscription's source condition: the item's source is the subscription's source IRI or
@@ -398,8 +424,109 @@ Result<void> refresh_caches(Txn& txn) {
     txn.touched_caches = true;
     auto rules = load_ttl_rules(txn);
     if (!rules) return unexpected(rules.error());
+    auto receivers = load_removal_receivers(txn);
+    if (!receivers) return unexpected(receivers.error());
     env.ttl_rules = std::move(*rules);
+    env.removal_receivers = std::move(*receivers);
     env.ttl_gen = txn.counters.ttl_gen;
+  }
+  return {};
+}
+
+Result<bool> removals_noticed(Txn& txn) {
+  if (!txn.removals_noticed) {
+    if (auto r = refresh_caches(txn); !r) return unexpected(r.error());
+    std::lock_guard lock(txn.env().cache_mutex);
+    txn.removals_noticed = !txn.env().removal_receivers.empty();
+  }
+  return *txn.removals_noticed;
+}
+
+Result<void> receive_removals(Txn& txn, const std::string& agent_iri) {
+  // The agent's IRI keys its input buffer: pinned, so the cached id stays valid.
+  auto id = intern_term(txn, Term::iri(agent_iri), true);
+  if (!id) return unexpected(id.error());
+  std::string key = std::string(kRemovalReceiverKey) + agent_iri;
+  MDB_val k = val(key), v;
+  int rc = mdb_get(txn.raw(), txn.env().meta, &k, &v);
+  if (rc == 0) return {};
+  if (rc != MDB_NOTFOUND) return lmdb_fail(rc, "reading the removal notice setting of " + agent_iri);
+  MDB_val empty = val(std::string_view());
+  if ((rc = mdb_put(txn.raw(), txn.env().meta, &k, &empty, 0)) != 0)
+    return lmdb_fail(rc, "writing the removal notice setting of " + agent_iri);
+  ++txn.counters.ttl_gen;
+  return {};
+}
+
+Result<void> deliver_removals(Txn& txn) {
+  if (txn.removed.empty()) return {};
+  std::vector<Txn::RemovedRecord> removed;
+  removed.swap(txn.removed);
+  txn.notice_ids.clear();
+  if (auto f = flush_index(txn); !f) return f;
+  Env& env = txn.env();
+  MDB_txn* raw = txn.raw();
+  // The records of one item go in one notice, whatever order they were removed in.
+  std::stable_sort(removed.begin(), removed.end(), [](const Txn::RemovedRecord& a, const Txn::RemovedRecord& b) {
+    return a.record.meta.item < b.record.meta.item;
+  });
+  TermReader terms(raw, env);
+  for (std::size_t first = 0, end = 0; first < removed.size(); first = end) {
+    const std::uint64_t item_id = removed[first].record.meta.item;
+    for (end = first; end < removed.size() && removed[end].record.meta.item == item_id;) ++end;
+    const Txn::RemovedRecord& head = removed[first];
+    // Routed as the item was (R10, R18): a subscription routes an item by any of its triples,
+    // so those of its records that stay count too.
+    std::vector<std::array<std::uint64_t, 3>> triples;
+    for (std::size_t i = first; i < end; ++i) triples.push_back(removed[i].terms);
+    for (std::uint64_t id = item_id; id < item_id + head.count; ++id) {
+      auto left = get_record(raw, env, id);
+      if (!left) return unexpected(left.error());
+      if (*left) triples.push_back({(*left)->s, (*left)->p, (*left)->o});
+    }
+    ItemRow item;
+    item.source = head.source;
+    item.context = head.context;
+    std::vector<std::pair<std::uint64_t, std::uint32_t>> to;  // agent term id, wake slot
+    {
+      std::lock_guard lock(env.cache_mutex);
+      auto receives = [&](std::uint64_t agent) {
+        return std::find(env.removal_receivers.begin(), env.removal_receivers.end(), agent) != env.removal_receivers.end();
+      };
+      auto consider = [&](const Subscription& sub) {
+        if (receives(sub.agent) && routes(sub, item_id, item, triples, head.record.meta.source))
+          to.emplace_back(sub.agent, sub.slot);
+      };
+      for (std::uint32_t i : env.subs_any_context) consider(env.subs[i]);
+      if (item.context) {
+        if (auto found = env.subs_by_context.find(item.context); found != env.subs_by_context.end())
+          for (std::uint32_t i : found->second) consider(env.subs[i]);
+      }
+      if (!head.record.meta.context.empty()) {
+        auto writer = terms.iri(head.writer);
+        if (!writer) return unexpected(writer.error());
+        if (auto addressee = addressee_of(env.settings().iri, head.record.meta.context, *writer)) {
+          auto agent = find_term(raw, env, Term::iri(*addressee));
+          if (!agent) return unexpected(agent.error());
+          if (*agent && receives(*agent)) to.emplace_back(*agent, WakeBoard::slot_for(*addressee));
+        }
+      }
+    }
+    std::sort(to.begin(), to.end());
+    to.erase(std::unique(to.begin(), to.end()), to.end());
+    if (to.empty()) continue;
+    std::vector<Record> records;
+    for (std::size_t i = first; i < end; ++i) records.push_back(removed[i].record);
+    const std::uint64_t notice = head.notice;
+    std::string bytes = encode_notice(to.size(), records);
+    MDB_val k = val(notice), v = val(bytes);
+    if (int rc = mdb_put(raw, env.notices, &k, &v, 0); rc != 0) return lmdb_fail(rc, "writing a removal notice");
+    for (const auto& [agent, slot] : to) {
+      MDB_val ak = val(agent), nv = val(notice);
+      if (int rc = mdb_put(raw, env.inbox, &ak, &nv, 0); rc != 0) return lmdb_fail(rc, "putting a removal notice into an input buffer");
+      ++txn.counters.pending;
+      txn.wake_slots.push_back(slot);
+    }
   }
   return {};
 }
@@ -617,6 +744,59 @@ Result<std::uint64_t> deliver_earlier(Txn& txn, std::uint64_t agent, const std::
   return delivered;
 }
 
+namespace {
+
+// The term ids of `triples`, 0 for a blank node (a blank node's label is the sending store's
+// own); nullopt when a term is one this store has never seen, so that nothing can match.
+Result<std::optional<std::vector<std::array<std::uint64_t, 3>>>> ids_of(MDB_txn* txn, const Env& env,
+                                                                          const std::vector<Triple>& triples) {
+  std::vector<std::array<std::uint64_t, 3>> wanted;
+  wanted.reserve(triples.size());
+  for (const Triple& t : triples) {
+    std::array<std::uint64_t, 3> row{};
+    const Term* terms[] = {&t.s, &t.p, &t.o};
+    for (int pos = 0; pos < 3; ++pos) {
+      if (terms[pos]->is_blank()) continue;
+      auto id = find_term(txn, env, *terms[pos]);
+      if (!id) return unexpected(id.error());
+      if (*id == 0) return std::optional<std::vector<std::array<std::uint64_t, 3>>>();
+      row[static_cast<std::size_t>(pos)] = *id;
+    }
+    wanted.push_back(row);
+  }
+  return std::optional<std::vector<std::array<std::uint64_t, 3>>>(std::move(wanted));
+}
+
+// Whether a record's terms are `wanted` (ids_of), a 0 matching any blank node.
+Result<bool> same_triple(TermReader& terms, const RecordRow& have, const std::array<std::uint64_t, 3>& wanted) {
+  const std::uint64_t ids[] = {have.s, have.p, have.o};
+  for (std::size_t pos = 0; pos < 3; ++pos) {
+    if (wanted[pos] != 0) {
+      if (ids[pos] != wanted[pos]) return false;
+      continue;
+    }
+    auto term = terms.get(ids[pos]);
+    if (!term) return unexpected(term.error());
+    if (!term->is_blank()) return false;
+  }
+  return true;
+}
+
+// Record ids under `key` in index `dbi`.
+Result<std::vector<std::uint64_t>> indexed(MDB_txn* txn, MDB_dbi dbi, std::uint64_t key) {
+  MDB_cursor* cursor = nullptr;
+  if (int rc = mdb_cursor_open(txn, dbi, &cursor); rc != 0) return lmdb_fail(rc, "opening an index");
+  std::vector<std::uint64_t> records;
+  MDB_val k = val(key), v;
+  int rc = mdb_cursor_get(cursor, &k, &v, MDB_SET);
+  for (; rc == 0; rc = mdb_cursor_get(cursor, &k, &v, MDB_NEXT_DUP)) records.push_back(u64(v));
+  mdb_cursor_close(cursor);
+  if (rc != MDB_NOTFOUND) return lmdb_fail(rc, "walking an index");
+  return records;
+}
+
+}  // namespace
+
 Result<std::uint64_t> held_persistent_twin(MDB_txn* txn, const Env& env, const Item& item, const std::string& source) {
   if (!item.persistent || !item.asserted_at || item.triples.empty()) return std::uint64_t{0};
   // The candidates are the items with a record about the first subject that is not a blank
@@ -636,32 +816,16 @@ Result<std::uint64_t> held_persistent_twin(MDB_txn* txn, const Env& env, const I
     if (!c || *c == 0) return c;
     context_id = *c;
   }
-  // The item's terms as ids; 0 for a blank node, and a term the store has never seen means no twin.
-  std::vector<std::array<std::uint64_t, 3>> wanted;
-  wanted.reserve(item.triples.size());
-  for (const Triple& t : item.triples) {
-    std::array<std::uint64_t, 3> row{};
-    const Term* terms[] = {&t.s, &t.p, &t.o};
-    for (int pos = 0; pos < 3; ++pos) {
-      if (terms[pos]->is_blank()) continue;
-      auto id = find_term(txn, env, *terms[pos]);
-      if (!id || *id == 0) return id;
-      row[static_cast<std::size_t>(pos)] = *id;
-    }
-    wanted.push_back(row);
-  }
+  auto found = ids_of(txn, env, item.triples);
+  if (!found) return unexpected(found.error());
+  if (!*found) return std::uint64_t{0};
+  const auto& wanted = **found;
   const std::uint64_t subject = wanted[static_cast<std::size_t>(anchor - item.triples.data())][0];
-  MDB_cursor* cursor = nullptr;
-  if (int rc = mdb_cursor_open(txn, env.idx_s, &cursor); rc != 0) return lmdb_fail(rc, "opening the subject index");
-  std::vector<std::uint64_t> records;
-  MDB_val k = val(subject), v;
-  int rc = mdb_cursor_get(cursor, &k, &v, MDB_SET);
-  for (; rc == 0; rc = mdb_cursor_get(cursor, &k, &v, MDB_NEXT_DUP)) records.push_back(u64(v));
-  mdb_cursor_close(cursor);
-  if (rc != MDB_NOTFOUND) return lmdb_fail(rc, "walking the subject index");
+  auto records = indexed(txn, env.idx_s, subject);
+  if (!records) return unexpected(records.error());
   TermReader terms(txn, env);
   std::uint64_t last_item = 0;
-  for (std::uint64_t record : records) {
+  for (std::uint64_t record : *records) {
     auto head = get_record(txn, env, record);
     if (!head) return unexpected(head.error());
     if (!*head || (*head)->item == last_item) continue;
@@ -681,20 +845,56 @@ Result<std::uint64_t> held_persistent_twin(MDB_txn* txn, const Env& env, const I
         same = false;
         break;
       }
-      const std::uint64_t have[] = {(*r)->s, (*r)->p, (*r)->o};
-      for (std::size_t pos = 0; pos < 3 && same; ++pos) {
-        if (wanted[i][pos] != 0) {
-          same = have[pos] == wanted[i][pos];
-        } else {
-          auto term = terms.get(have[pos]);
-          if (!term) return unexpected(term.error());
-          same = term->is_blank();
-        }
-      }
+      auto matches = same_triple(terms, **r, wanted[i]);
+      if (!matches) return unexpected(matches.error());
+      same = *matches;
     }
     if (same) return candidate;
   }
   return std::uint64_t{0};
+}
+
+Result<std::vector<std::uint64_t>> held_copies(MDB_txn* txn, const Env& env, const Item& item, const std::string& source) {
+  std::vector<std::uint64_t> out;
+  if (!item.asserted_at) return out;
+  auto source_id = find_term(txn, env, Term::iri(source));
+  if (!source_id) return unexpected(source_id.error());
+  if (*source_id == 0) return out;
+  std::uint64_t context_id = 0;
+  if (!item.context.empty()) {
+    auto c = find_term(txn, env, Term::iri(item.context));
+    if (!c) return unexpected(c.error());
+    if (*c == 0) return out;
+    context_id = *c;
+  }
+  TermReader terms(txn, env);
+  for (const Triple& triple : item.triples) {
+    auto found = ids_of(txn, env, {triple});
+    if (!found) return unexpected(found.error());
+    if (!*found) continue;
+    const std::array<std::uint64_t, 3> wanted = (**found)[0];
+    // Through the index of a position that is not a blank node: the subject's, else the
+    // object's, else the predicate's.
+    const MDB_dbi dbi = wanted[0] ? env.idx_s : wanted[2] ? env.idx_o : env.idx_p;
+    auto records = indexed(txn, dbi, wanted[0] ? wanted[0] : wanted[2] ? wanted[2] : wanted[1]);
+    if (!records) return unexpected(records.error());
+    for (std::uint64_t record : *records) {
+      auto row = get_record(txn, env, record);
+      if (!row) return unexpected(row.error());
+      if (!*row) continue;
+      auto matches = same_triple(terms, **row, wanted);
+      if (!matches) return unexpected(matches.error());
+      if (!*matches) continue;
+      auto it = get_item(txn, env, (*row)->item);
+      if (!it) return unexpected(it.error());
+      if (!*it || (*it)->source != *source_id || (*it)->asserted_at != *item.asserted_at || (*it)->context != context_id)
+        continue;
+      out.push_back(record);
+    }
+  }
+  std::sort(out.begin(), out.end());
+  out.erase(std::unique(out.begin(), out.end()), out.end());
+  return out;
 }
 
 Result<std::uint64_t> deliver_persistent_again(Txn& txn, std::uint64_t agent, const std::string& agent_iri) {

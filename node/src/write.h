@@ -3,6 +3,7 @@
 #pragma once
 
 #include <cstdint>
+#include <optional>
 #include <string>
 #include <vector>
 
@@ -35,6 +36,11 @@ Result<std::uint64_t> insert_item(Txn& txn, const Item& item, const std::string&
 // them on to nodes above that have them already on the stream before.
 Result<std::uint64_t> held_persistent_twin(MDB_txn* txn, const Env& env, const Item& item, const std::string& source);
 
+// The records this store holds, relayed from `source`, that a relayed removal notice `item`
+// names (RelayedItem::removal): the same source, asserted-at time and context, and one of the
+// notice's triples (blank nodes match blank nodes). In id order.
+Result<std::vector<std::uint64_t>> held_copies(MDB_txn* txn, const Env& env, const Item& item, const std::string& source);
+
 // An upper bound on the bytes of new pages that inserting `item` may add to the data file: its
 // terms (a large literal takes overflow pages of its own) and a generous share of the record,
 // index and item rows per triple. Env::write reserves the disk for it before the transaction
@@ -61,5 +67,19 @@ Result<std::uint64_t> apply_retention(Txn& txn);
 
 // Reloads the per-process subscription and TTL caches when their generation changed.
 Result<void> refresh_caches(Txn& txn);
+
+// Removal notices (docs/record-model.md R21). The meta key that says an agent receives them is
+// this prefix and the agent's IRI.
+inline constexpr std::string_view kRemovalReceiverKey = "removal-notices:";
+// Whether any agent of the store receives removal notices (asked once per transaction): only
+// then does an explicit removal keep the records it removes for deliver_removals.
+Result<bool> removals_noticed(Txn& txn);
+// Makes agent `agent_iri` receive removal notices from now on (idempotent).
+Result<void> receive_removals(Txn& txn, const std::string& agent_iri);
+// Turns the records removed explicitly in this transaction (Txn::removed) into removal notices:
+// one per item, put into the input buffer of every agent that receives notices and to which the
+// item was routed, by its subscriptions or as its addressee (R10, R18). Env::write runs it
+// before the commit.
+Result<void> deliver_removals(Txn& txn);
 
 }  // namespace tahvel::node::detail

@@ -1980,5 +1980,93 @@ TEST(Link, QueryByAreaIsResolvedAtTheTargetThroughItsAreaQuery) {
   EXPECT_NE(refused.error().message.find("area"), std::string::npos) << refused.error().message;
 }
 
+// P7a: a removal follows the copies the links sent, hop by hop: a whole item, part of one, one
+// removed before it went up, one removed while the link was cut, all through a lossy bus.
+TEST(Link, WhatIsRemovedBelowIsRemovedAtEveryNodeAboveThatGotIt) {
+  Tree tree;
+  tree.bus.set_faults({.seed = 5, .drop = 0.2, .duplicate = 0.1, .reorder = 0.1});
+  const std::string sensor_dir = (tree.tmp / "ecg1").string();
+  auto sensor_link = tree.start_three_tiers(sensor_dir);
+  auto sensor = node::Node::open(sensor_dir).value();
+  auto hrv = sensor.agent("hrv").value();
+  std::vector<std::uint64_t> ids;
+  for (int i = 0; i < 20; ++i) ids.push_back(hrv.store(hrv_item(i)).value());
+  const node::Pattern numbered{.p = Term::iri(kEx + "n")};
+  ASSERT_TRUE(eventually([&] { return count(tree.hospital_dir, numbered) == 20 && count(tree.home1_dir, numbered) == 20; }));
+  // Whole items 3 and 4, and the number of item 7 only.
+  ASSERT_TRUE(sensor.remove_item(ids[3]));
+  ASSERT_TRUE(sensor.remove_item(ids[4]));
+  ASSERT_EQ(sensor.remove({.s = Term::iri(kHome1 + "/rec/hrv/7"), .p = Term::iri(kEx + "n")}).value(), 1u);
+  // Cut: the sensor's link stops, an item goes, the link comes back.
+  sensor_link.reset();
+  ASSERT_TRUE(sensor.remove_item(ids[10]));
+  sensor_link = Link::start({.dir = sensor_dir, .parent_iri = kHome1,
+                             .up = std::shared_ptr<Transport>(tree.bus.open(kHome1 + "/ecg1", tree.home2_log.sink())),
+                             .resend_after = 100ms, .heartbeat_every = 200ms, .log = tree.home2_log.sink()})
+                    .value();
+  // One stored and removed at once, before it could go up.
+  ASSERT_TRUE(sensor.remove_item(hrv.store(hrv_item(99)).value()));
+  const node::Pattern hrv_windows{.p = kObservedProperty, .o = kHrvProperty};
+  for (const std::string& dir : {tree.hospital_dir, tree.home1_dir}) {
+    EXPECT_TRUE(eventually([&] { return count(dir, numbered) == 16 && count(dir, hrv_windows) == 17; }))
+        << dir << ": " << count(dir, numbered) << " numbers, " << count(dir, hrv_windows) << " windows";
+    for (int gone : {3, 4, 7, 10, 99})
+      EXPECT_EQ(count(dir, {.s = Term::iri(kHome1 + "/rec/hrv/" + std::to_string(gone)), .p = Term::iri(kEx + "n")}), 0u) << gone;
+  }
+  EXPECT_GE(tree.hospital->counters().removals_applied, 4u);
+  // The sensor keeps what it was not asked to remove.
+  EXPECT_EQ(count(sensor_dir, hrv_windows), 17u);
+}
+
+// P10a: configuration removed where it was written is removed where it went, and the settings
+// sent to a whole subtree with it.
+TEST(Link, ConfigurationRemovedAtTheHospitalIsRemovedBelowHopByHop) {
+  Tree tree;
+  const std::string sensor_iri = kHome1 + "/ecg1";
+  const std::string sensor_dir = (tree.tmp / "ecg1").string();
+  auto sensor_link = tree.start_three_tiers(sensor_dir);
+  tree.home2 = tree.start_home(tree.home2_dir, kHome2, tree.home2_log);
+  ASSERT_TRUE(eventually([&] { return tree.home2->connected(); }));
+  auto hospital = node::Node::open(tree.hospital_dir).value();
+  auto operator_ = hospital.agent("operator").value();
+  node::Item rate;
+  rate.context = sensor_iri + "/source";
+  rate.add(Term::iri(sensor_iri + "/source"), Term::iri(kEx + "rateHz"), Term::integer(250));
+  const std::uint64_t rate_id = operator_.store(rate).value();
+  node::Item all;
+  all.context = kHospital + "/*";
+  all.add(Term::iri(kHospital), Term::iri(kEx + "notice"), Term::literal("maintenance"));
+  const std::uint64_t all_id = operator_.store(all).value();
+  const node::Pattern rates{.p = Term::iri(kEx + "rateHz")}, notices{.p = Term::iri(kEx + "notice")};
+  ASSERT_TRUE(eventually([&] {
+    return count(sensor_dir, rates) == 1 && count(tree.home1_dir, rates) == 1 && count(sensor_dir, notices) == 1 &&
+           count(tree.home2_dir, notices) == 1;
+  }));
+  // A setting written at home1 for the sensor stays: the removal names the hospital's only.
+  auto local = node::Node::open(tree.home1_dir).value().agent("operator").value();
+  node::Item own = rate;
+  own.triples[0].o = Term::integer(125);
+  ASSERT_TRUE(local.store(own));
+  ASSERT_TRUE(eventually([&] { return count(sensor_dir, rates) == 2; }));
+  ASSERT_TRUE(hospital.remove_item(rate_id));
+  ASSERT_TRUE(hospital.remove_item(all_id));
+  EXPECT_TRUE(eventually([&] {
+    return count(sensor_dir, rates) == 1 && count(tree.home1_dir, rates) == 1 && count(sensor_dir, notices) == 0 &&
+           count(tree.home1_dir, notices) == 0 && count(tree.home2_dir, notices) == 0;
+  }));
+  auto left = node::Node::open(sensor_dir).value().snapshot().value().list(rates).value();
+  ASSERT_EQ(left.size(), 1u);
+  EXPECT_EQ(left[0].triple.o.value, "125");
+  // The agent it addressed never sees a removal notice: the setting it had not taken left its
+  // input buffer with the store, and the one that stays is there.
+  auto source = node::Node::open(sensor_dir).value().agent("source").value();
+  std::vector<std::string> taken;
+  while (auto d = source.take(0ms).value()) {
+    EXPECT_FALSE(d->removal);
+    taken.push_back(d->records.at(0).triple.o.value);
+  }
+  EXPECT_EQ(taken, std::vector<std::string>{"125"});
+}
+
 }  // namespace
 }  // namespace tahvel::federation

@@ -21,6 +21,9 @@ namespace tahvel::federation::wire {
 struct ItemBody {
   std::string source;
   node::Item item;
+  // A removal notice (P7a): `item` holds the records removed on the sender, with the context and
+  // asserted-at time of the item they were in; the receiver removes its copies of them.
+  bool removal = false;
 };
 std::string encode_item(const ItemBody& body);
 Result<ItemBody> decode_item(std::string_view bytes);

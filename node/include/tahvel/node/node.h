@@ -146,8 +146,11 @@ struct SubscribeOptions {
 // (deliver-once queue of items routed to it by its subscriptions).
 
 struct Delivery {
-  std::uint64_t item = 0;
-  std::vector<Record> records;  // the whole item as it is now
+  std::uint64_t item = 0;       // the item's id, or the removal notice's
+  std::vector<Record> records;  // the whole item as it is now; for a notice, the records removed
+  // A removal notice (Agent::receive_removals): records of an item routed to this agent were
+  // removed explicitly. `records` are those records as they were (their metadata included).
+  bool removal = false;
 };
 
 // An item that a link agent stores on behalf of a writer on another node (docs/protocol.md).
@@ -156,6 +159,9 @@ struct RelayedItem {
   std::uint64_t prev = 0;  // the sequence number the sender sent just before it on the stream
   std::string source;      // the original writer's IRI, kept as the records' source
   Item item;
+  // A removal notice relayed: `item` holds the records removed on the sender (their context and
+  // asserted-at time), and relay removes this store's copies of them instead of storing it.
+  bool removal = false;
 };
 
 // An item that Agent::relay refused for good: what it breaks is in `why`.
@@ -175,6 +181,8 @@ struct RelayOutcome {
                                       // were not applied (the sender resends from the mark)
   std::vector<RefusedItem> refused;   // items in order that this node can never store; the
                                       // mark moved past them
+  std::size_t removals = 0;           // removal notices applied (RelayedItem::removal)
+  std::uint64_t records_removed = 0;  // records they removed (0 for a copy no longer held)
 };
 
 enum class Ack {
@@ -235,6 +243,16 @@ class Agent {
   // Acknowledges every item of the input buffer with id <= `through`; returns how many.
   Result<std::uint64_t> ack_through(std::uint64_t through) noexcept;
 
+  // From now on (idempotent, kept in the store) this agent's input buffer also gets a removal
+  // notice (Delivery::removal) whenever records of an item that was routed to it are removed
+  // explicitly (Node::remove, remove_item, Agent::replace, unsubscribe, a relayed removal;
+  // not the ring or a time-to-live): one notice per item and transaction, with the records
+  // removed, routed as the item was (by this agent's subscriptions, matched against the item's
+  // records, or as the addressee of its context). A link's agents ask for them, so that a
+  // removal follows the copies the link sent (docs/protocol.md P7a). Other agents never see
+  // notices.
+  Result<void> receive_removals() noexcept;
+
   // A number that changes whenever a commit puts an item into this agent's input buffer, for a
   // thread that serves many agents' buffers and sleeps in Node::wait_for_commit (a parent's
   // link sending down to a thousand children). It may also change for items of other agents
@@ -254,6 +272,11 @@ class Agent {
   // stored, listed in `refused`, and the mark moves past it as if applied, so that one bad item
   // does not hold up the rest of the stream for ever (it stays in the sender's store). An error
   // that may pass (a full store, I/O) fails the call instead, and nothing of it is stored.
+  // A removal notice (RelayedItem::removal) takes the place of an item in the stream: it removes
+  // the records of this store, relayed from the same source, that have the notice's context and
+  // asserted-at time and one of its triples (a blank node matches any blank node: they are
+  // renamed on the way), in the same transaction; none held is no error (the copy was never
+  // sent, or is gone). A removal here notifies this node's agents in turn (receive_removals).
   // A persistent item that repeats one this store holds — persistent, from the same source, at
   // the same asserted-at time, with the same context and triples — is dropped as already held
   // (RelayOutcome::already_held): a node's persistent items go up again on a new stream when a

@@ -1,0 +1,246 @@
+// Removal notices (docs/record-model.md R21): an agent that asks for them gets, in its input
+// buffer, the records removed from items that were routed to it, so that a link can take a
+// removal where it sent the item; and a relayed notice removes the copies it names (R19).
+#include <gtest/gtest.h>
+#include <lmdb.h>
+#include <sys/wait.h>
+#include <unistd.h>
+
+#include "test_support.h"
+
+namespace tahvel::node::testing {
+namespace {
+
+using namespace std::chrono_literals;
+
+Item hrv_window(int n, std::int64_t at, std::string context = {}) {
+  Item item;
+  const Term window = Term::iri(kNodeIri + "/hrv/" + std::to_string(n));
+  item.add(window, ex("property"), ex("HRV"));
+  item.add(window, ex("rmssd"), Term::integer(40 + n));
+  item.asserted_at = at;
+  item.context = std::move(context);
+  return item;
+}
+
+std::vector<Delivery> drain(Agent& agent) {
+  std::vector<Delivery> out;
+  while (auto d = agent.take(0ms).value()) out.push_back(std::move(*d));
+  return out;
+}
+
+TEST(RemovalNotice, AnAgentThatAskedGetsTheRecordsRemovedFromAnItemRoutedToIt) {
+  TempDir dir;
+  Node node = make_node(dir.path());
+  Agent uplink = node.agent("uplink").value();
+  Agent plain = node.agent("plain").value();
+  Agent writer = node.agent("hrv").value();
+  ASSERT_TRUE(uplink.subscribe({.p = ex("property"), .o = ex("HRV")}));
+  ASSERT_TRUE(plain.subscribe({.p = ex("property"), .o = ex("HRV")}));
+  ASSERT_TRUE(uplink.receive_removals());
+  ASSERT_TRUE(uplink.receive_removals());  // idempotent
+  const std::uint64_t item = writer.store(hrv_window(1, 1'000)).value();
+  ASSERT_EQ(drain(uplink).size(), 1u);
+  ASSERT_EQ(drain(plain).size(), 1u);
+
+  // The record removed is not the one the subscription matched: the item was routed by another.
+  Pattern rmssd{.p = ex("rmssd")};
+  ASSERT_EQ(node.remove(rmssd).value(), 1u);
+  auto notices = drain(uplink);
+  ASSERT_EQ(notices.size(), 1u);
+  EXPECT_TRUE(notices[0].removal);
+  EXPECT_GT(notices[0].item, item);
+  ASSERT_EQ(notices[0].records.size(), 1u);
+  const Record& removed = notices[0].records[0];
+  EXPECT_EQ(removed.triple.p, ex("rmssd"));
+  EXPECT_EQ(removed.triple.o, Term::integer(41));
+  EXPECT_EQ(removed.meta.source, writer.iri());
+  EXPECT_EQ(removed.meta.asserted_at, 1'000);
+  EXPECT_EQ(removed.meta.item, item);
+  // An agent that did not ask sees nothing of it.
+  EXPECT_TRUE(drain(plain).empty());
+
+  // The rest of the item, in one notice.
+  ASSERT_EQ(node.remove_item(item).value(), 1u);
+  notices = drain(uplink);
+  ASSERT_EQ(notices.size(), 1u);
+  EXPECT_EQ(notices[0].records.size(), 1u);
+  EXPECT_EQ(notices[0].records[0].triple.p, ex("property"));
+}
+
+TEST(RemovalNotice, NothingIsNoticedForAnItemNeverRoutedToTheAgentNorForRetention) {
+  TempDir dir;
+  Node node = make_node(dir.path(), {.ring = 4});
+  Agent uplink = node.agent("uplink").value();
+  Agent writer = node.agent("ecg").value();
+  ASSERT_TRUE(uplink.subscribe({.p = ex("property"), .o = ex("HRV")}));
+  ASSERT_TRUE(uplink.receive_removals());
+  Item raw;
+  raw.add(Term::iri(kNodeIri + "/ecg/1"), ex("samples"), Term::literal("AAAA"));
+  const std::uint64_t raw_id = writer.store(raw).value();
+  ASSERT_TRUE(node.remove_item(raw_id));
+  EXPECT_EQ(uplink.pending().value(), 0u);
+  // The ring reclaims routed items once they have left the buffer: no notice (each node keeps
+  // its own retention).
+  for (int n = 0; n < 6; ++n) ASSERT_TRUE(writer.store(hrv_window(n, 1'000 + n)));
+  ASSERT_EQ(drain(uplink).size(), 6u);
+  for (int n = 6; n < 10; ++n) ASSERT_TRUE(writer.store(hrv_window(n, 1'000 + n)));
+  EXPECT_GT(node.stats().value().reclaimed_records, 0u);
+  for (const Delivery& d : drain(uplink)) EXPECT_FALSE(d.removal);
+}
+
+TEST(RemovalNotice, AReplaceNoticesTheOldRecordsBeforeTheNewItem) {
+  TempDir dir;
+  Node node = make_node(dir.path());
+  Agent uplink = node.agent("uplink").value();
+  Agent reasoner = node.agent("reasoner").value();
+  ASSERT_TRUE(uplink.subscribe({.p = ex("property")}));
+  ASSERT_TRUE(uplink.receive_removals());
+  ASSERT_TRUE(reasoner.store(hrv_window(1, 1'000)));
+  drain(uplink);
+  auto ids = reasoner.replace({Pattern{.s = Term::iri(kNodeIri + "/hrv/1")}}, {hrv_window(2, 2'000)}).value();
+  auto got = drain(uplink);
+  ASSERT_EQ(got.size(), 2u);
+  EXPECT_TRUE(got[0].removal);
+  EXPECT_EQ(got[0].records.size(), 2u);
+  EXPECT_FALSE(got[1].removal);
+  EXPECT_EQ(got[1].item, ids[0]);
+}
+
+TEST(RemovalNotice, TheAddresseeOfAnItemsContextIsNoticedWhenItAsked) {
+  TempDir dir;
+  Node node = make_node(dir.path());
+  Agent child = node.agent("home1").value();  // a child's link agent: items addressed below it
+  Agent operator_ = node.agent("operator").value();
+  ASSERT_TRUE(child.receive_removals());
+  const std::uint64_t setting = operator_.store(hrv_window(1, 5'000, kNodeIri + "/home1/hrv")).value();
+  ASSERT_EQ(drain(child).size(), 1u);
+  ASSERT_TRUE(node.remove_item(setting));
+  auto got = drain(child);
+  ASSERT_EQ(got.size(), 1u);
+  EXPECT_TRUE(got[0].removal);
+  EXPECT_EQ(got[0].records[0].meta.context, kNodeIri + "/home1/hrv");
+}
+
+TEST(RemovalNotice, ANoticeLeavesTheStoreWithTheLastBufferThatHeldIt) {
+  TempDir dir;
+  Node node = make_node(dir.path());
+  Agent a = node.agent("a").value();
+  Agent b = node.agent("b").value();
+  Agent writer = node.agent("w").value();
+  for (Agent* agent : {&a, &b}) {
+    ASSERT_TRUE(agent->subscribe({.p = ex("rmssd")}));
+    ASSERT_TRUE(agent->receive_removals());
+  }
+  const std::uint64_t item = writer.store(hrv_window(1, 1)).value();
+  ASSERT_TRUE(a.ack_through(item));
+  ASSERT_TRUE(b.ack_through(item));
+  ASSERT_TRUE(node.remove_item(item));
+  // Peeked (a link's window), then acknowledged through, by one; taken by the other.
+  auto peeked = a.peek(item, 10, 0ms).value();
+  ASSERT_EQ(peeked.size(), 1u);
+  EXPECT_TRUE(peeked[0].removal);
+  EXPECT_EQ(a.ack_through(peeked[0].item).value(), 1u);
+  EXPECT_EQ(a.pending().value(), 0u);
+  // Still there for b.
+  auto taken = b.take(0ms).value();
+  ASSERT_TRUE(taken);
+  EXPECT_TRUE(taken->removal);
+  EXPECT_EQ(taken->records.size(), 2u);
+  EXPECT_EQ(node.stats().value().pending_deliveries, 0u);
+}
+
+TEST(RemovalNotice, ARelayedNoticeRemovesTheCopiesOfThatSourceAndNoOthers) {
+  TempDir dir;
+  Node node = make_node(dir.path());
+  Agent child = node.agent("child").value();
+  const std::string source = kNodeIri + "/child/hrv";
+  // Two copies from the child: windows 1 and 2; and the same triples written here by another
+  // agent, and by the child's source at another time: neither is the copy named.
+  auto relayed = child.relay("child#s", {{1, 0, source, hrv_window(1, 1'000)}, {2, 1, source, hrv_window(2, 2'000)},
+                                         {3, 2, source, hrv_window(1, 3'000)}});
+  ASSERT_TRUE(relayed.has_value()) << relayed.error().message;
+  Agent local = node.agent("local").value();
+  ASSERT_TRUE(local.store(hrv_window(1, 1'000)));
+  Item removal = hrv_window(1, 1'000);
+  removal.triples.pop_back();  // only the rmssd record was removed below
+  removal.triples.erase(removal.triples.begin());
+  removal.add(Term::iri(kNodeIri + "/hrv/1"), ex("rmssd"), Term::integer(41));
+  RelayedItem notice{4, 3, source, removal};
+  notice.removal = true;
+  auto applied = child.relay("child#s", {notice});
+  ASSERT_TRUE(applied.has_value()) << applied.error().message;
+  EXPECT_EQ(applied->mark, 4u);
+  EXPECT_EQ(applied->removals, 1u);
+  EXPECT_EQ(applied->records_removed, 1u);
+  EXPECT_TRUE(applied->stored.empty());
+  auto snap = node.snapshot().value();
+  EXPECT_EQ(snap.count({.p = ex("rmssd"), .source = source}).value(), 2u);
+  EXPECT_EQ(snap.count({.p = ex("rmssd"), .source = local.iri()}).value(), 1u);
+  EXPECT_EQ(snap.count({.p = ex("rmssd"), .source = source, .since = 1'000, .until = 1'001}).value(), 0u);
+  // Sent again (a resend): a duplicate, dropped by the mark; a notice of a copy no longer held
+  // is no error.
+  EXPECT_EQ(child.relay("child#s", {notice}).value().duplicates, 1u);
+  RelayedItem again{5, 4, source, removal};
+  again.removal = true;
+  auto none = child.relay("child#s", {again});
+  ASSERT_TRUE(none.has_value());
+  EXPECT_EQ(none->records_removed, 0u);
+  EXPECT_EQ(none->mark, 5u);
+}
+
+TEST(RemovalNotice, ARelayedRemovalIsNoticedOnwardAsTheCopyWasRouted) {
+  // A gateway: what its child's removal takes away from it goes on to its own parent.
+  TempDir dir;
+  Node node = make_node(dir.path());
+  Agent child = node.agent("child").value();
+  Agent uplink = node.agent("uplink").value();
+  ASSERT_TRUE(uplink.subscribe({.p = ex("property"), .o = ex("HRV")}));
+  ASSERT_TRUE(uplink.receive_removals());
+  const std::string source = kNodeIri + "/child/hrv";
+  ASSERT_TRUE(child.relay("child#s", {{1, 0, source, hrv_window(1, 1'000)}}));
+  ASSERT_EQ(drain(uplink).size(), 1u);
+  RelayedItem notice{2, 1, source, hrv_window(1, 1'000)};
+  notice.removal = true;
+  ASSERT_EQ(child.relay("child#s", {notice}).value().records_removed, 2u);
+  auto got = drain(uplink);
+  ASSERT_EQ(got.size(), 1u);
+  EXPECT_TRUE(got[0].removal);
+  EXPECT_EQ(got[0].records.size(), 2u);
+  EXPECT_EQ(got[0].records[0].meta.source, source);
+}
+
+TEST(RemovalNotice, AStoreMadeBeforeNoticesGetsTheirTableAtItsFirstOpen) {
+  TempDir dir;
+  { make_node(dir.path() / "n"); }
+  pid_t pid = fork();  // LMDB's own handle on the store, in a process of its own
+  if (pid == 0) {
+    // Drop the table, as a store made by an earlier build has none.
+    MDB_env* env = nullptr;
+    MDB_txn* txn = nullptr;
+    MDB_dbi notices = 0;
+    const bool ok = mdb_env_create(&env) == 0 && mdb_env_set_maxdbs(env, 32) == 0 &&
+                    mdb_env_open(env, (dir.path() / "n").c_str(), 0, 0644) == 0 && mdb_txn_begin(env, nullptr, 0, &txn) == 0 &&
+                    mdb_dbi_open(txn, "notices", 0, &notices) == 0 && mdb_drop(txn, notices, 1) == 0 && mdb_txn_commit(txn) == 0;
+    _exit(ok ? 0 : 1);
+  }
+  int status = 0;
+  waitpid(pid, &status, 0);
+  ASSERT_TRUE(WIFEXITED(status) && WEXITSTATUS(status) == 0) << "could not take the table away";
+  auto node = Node::open(dir.path() / "n");
+  ASSERT_TRUE(node.has_value()) << node.error().message;
+  Agent uplink = node->agent("uplink").value();
+  Agent writer = node->agent("w").value();
+  ASSERT_TRUE(uplink.subscribe({.p = ex("rmssd")}));
+  ASSERT_TRUE(uplink.receive_removals());
+  const std::uint64_t item = writer.store(hrv_window(1, 1)).value();
+  ASSERT_TRUE(node->remove_item(item));
+  // The item left the buffer with the store; its notice took its place.
+  auto got = uplink.take(0ms).value();
+  ASSERT_TRUE(got);
+  EXPECT_TRUE(got->removal);
+  EXPECT_EQ(uplink.pending().value(), 0u);
+}
+
+}  // namespace
+}  // namespace tahvel::node::testing
