@@ -191,6 +191,22 @@ TEST(Hierarchy, WindowChangeWrittenAtTheHospitalTakesEffectAtThatHomeOnly) {
   EXPECT_EQ(window_lengths(d.store("hospital"), kHome2).count(30.0), 0u);
   EXPECT_EQ(list(d.store("home2"), {.p = Term::iri(kTv + "windowSeconds")}).size(), 0u);
   EXPECT_EQ(list(d.store("home1"), {.p = Term::iri(kTv + "windowSeconds")}).size(), 1u);
+
+  // The setting removed at the hospital goes from the home's board too (P10a), over DDS.
+  d.tahvel("remove " + d.store("hospital").string() + " -p tv:windowSeconds", &status);
+  ASSERT_EQ(status, 0);
+  EXPECT_TRUE(eventually([&] { return list(d.store("home1"), {.p = Term::iri(kTv + "windowSeconds")}).empty(); }))
+      << "the window setting removed at the hospital stays at home1";
+  // An HRV window removed at a home goes from the hospital's board (P7a).
+  auto windows = list(d.store("home1"), kHrvWindows);
+  ASSERT_FALSE(windows.empty());
+  const Term window = windows.front().triple.s;
+  ASSERT_FALSE(list(d.store("hospital"), {.s = window}).empty());
+  d.tahvel("remove " + d.store("home1").string() + " -s '" + window.to_ntriples() + "'", &status);
+  ASSERT_EQ(status, 0);
+  EXPECT_TRUE(eventually([&] { return list(d.store("hospital"), {.s = window}).empty(); }))
+      << window.value << " removed at home1 stays at the hospital";
+  EXPECT_FALSE(list(d.store("hospital"), kHrvWindows).empty()) << "the other windows should stay";
 }
 
 TEST(Hierarchy, RemoteQueryOfHomeTwoRawEcgForATimeRangeReturnsExactlyTheStoredBytes) {
