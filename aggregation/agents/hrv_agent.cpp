@@ -185,7 +185,7 @@ class HrvStage {
       s.last_end = rr.intervals.back().end;
       s.refs.push_back({rr.iri, rr.intervals.front().end, rr.intervals.back().end});
     }
-    if (rr.end_sample) s.windower.finish(completed);
+    if (rr.end_sample) s.windower.finish(completed, static_cast<double>(*rr.end_sample) / s.info.fs);
     for (const auto& window : completed)
       if (auto o = store_window(s, window, catching_up); o.fatal) return o;
     if (rr.end_sample) streams_.erase(rr.recording);  // s is gone from here on

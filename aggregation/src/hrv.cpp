@@ -182,8 +182,16 @@ HrvMetrics compute_hrv(const std::vector<Interval>& intervals, double fs, const 
   return out;
 }
 
+// A window's end, or the record's when the record ends first (never before the window's start:
+// a record end given wrongly short does not make a window of negative length).
+double ended_by_record(double start, double end, std::optional<double> record_end_s) {
+  if (!record_end_s || *record_end_s >= end) return end;
+  return std::max(start, *record_end_s);
+}
+
 std::vector<WindowMetrics> windowed_hrv(const std::vector<Interval>& intervals, double fs,
-                                        double window_s, double step_s, const HrvOptions& o) {
+                                        double window_s, double step_s, const HrvOptions& o,
+                                        std::optional<double> record_end_s) {
   std::vector<WindowMetrics> out;
   if (!(window_s > 0) || !(step_s > 0) || !(fs > 0) || intervals.empty()) return out;
   const double last = static_cast<double>(intervals.back().end) / fs;
@@ -197,7 +205,7 @@ std::vector<WindowMetrics> windowed_hrv(const std::vector<Interval>& intervals, 
       if (t >= end) break;
       in.push_back(intervals[i]);
     }
-    out.push_back({start, end, compute_hrv(in, fs, o)});
+    out.push_back({start, ended_by_record(start, end, record_end_s), compute_hrv(in, fs, o)});
   }
   return out;
 }
@@ -219,7 +227,7 @@ void HrvWindower::resume_after(double end_s, double length_s) {
   next_ = 0;
 }
 
-void HrvWindower::emit_front(std::vector<WindowMetrics>& completed) {
+void HrvWindower::emit_front(std::vector<WindowMetrics>& completed, std::optional<double> record_end_s) {
   const double start = origin_s_ + static_cast<double>(next_) * step_s_, end = start + window_s_;
   std::vector<Interval> in;
   for (const Interval& iv : buffer_) {
@@ -227,7 +235,7 @@ void HrvWindower::emit_front(std::vector<WindowMetrics>& completed) {
     if (t >= end) break;
     if (t >= start) in.push_back(iv);
   }
-  completed.push_back({start, end, compute_hrv(in, fs_, options_)});
+  completed.push_back({start, ended_by_record(start, end, record_end_s), compute_hrv(in, fs_, options_)});
   ++next_;
   const double next_start = origin_s_ + static_cast<double>(next_) * step_s_;
   while (!buffer_.empty() && static_cast<double>(buffer_.front().end) / fs_ < next_start) buffer_.pop_front();
@@ -241,9 +249,9 @@ void HrvWindower::push(const Interval& interval, std::vector<WindowMetrics>& com
   last_end_s_ = t;
 }
 
-void HrvWindower::finish(std::vector<WindowMetrics>& completed) {
+void HrvWindower::finish(std::vector<WindowMetrics>& completed, std::optional<double> record_end_s) {
   if (last_end_s_ >= 0) {
-    while (origin_s_ + static_cast<double>(next_) * step_s_ <= last_end_s_) emit_front(completed);
+    while (origin_s_ + static_cast<double>(next_) * step_s_ <= last_end_s_) emit_front(completed, record_end_s);
   }
   origin_s_ = 0;
   next_ = 0;

@@ -17,13 +17,14 @@ Result<HrvReport> hrv_from_samples(const std::vector<std::int32_t>& samples, dou
   if (auto valid = validate(detector); !valid) return unexpected(valid.error());
   HrvReport report;
   report.fs = fs;
+  report.duration_s = static_cast<double>(samples.size()) / fs;
   Detection detection = detect_beats(samples, detector);
   report.beats = std::move(detection.peaks);
   report.intervals = intervals_from_peaks(report.beats, detection.empty_gap_ends,
                                           detection.p_wave_gap_ends, fs, options.nn);
   report.metrics = compute_hrv(report.intervals, fs, options.hrv);
   const double step = options.step_s > 0 ? options.step_s : options.window_s;
-  report.windows = windowed_hrv(report.intervals, fs, options.window_s, step, options.hrv);
+  report.windows = windowed_hrv(report.intervals, fs, options.window_s, step, options.hrv, report.duration_s);
   return report;
 }
 

@@ -251,6 +251,26 @@ TEST(Windows, StreamingEqualsBatch) {
   }
 }
 
+// A record that ends inside a window: that window, and every later one still open, ends with
+// the record, streamed or not; the windows before keep their length.
+TEST(Windows, TheLastWindowsEndWhereTheRecordEnds) {
+  const auto series = chain(std::vector<std::int64_t>(10, 1000), {});  // interval ends at 1 .. 10 s
+  const auto batch = windowed_hrv(series, 1000, 4.0, 2.0, {}, 10.5);
+  std::vector<std::pair<double, double>> spans;
+  for (const auto& m : batch) spans.emplace_back(m.start_s, m.end_s);
+  using Spans = std::vector<std::pair<double, double>>;
+  EXPECT_EQ(spans, (Spans{{0, 4}, {2, 6}, {4, 8}, {6, 10}, {8, 10.5}, {10, 10.5}}));
+  EXPECT_EQ(batch.back().metrics.rr_count, 1u);  // the interval ending at 10 s
+  HrvWindower w(1000, 4.0, 2.0);
+  std::vector<WindowMetrics> streamed;
+  for (const auto& iv : series) w.push(iv, streamed);
+  w.finish(streamed, 10.5);
+  expect_same(batch, streamed);
+  // Without the record's end, the nominal length; with one past every window, no change.
+  EXPECT_DOUBLE_EQ(windowed_hrv(series, 1000, 4.0, 2.0).back().end_s, 14.0);
+  EXPECT_DOUBLE_EQ(windowed_hrv(series, 1000, 4.0, 2.0, {}, 20.0).back().end_s, 14.0);
+}
+
 TEST(Windows, IntervalBelongsToTheWindowOfItsEndBeat) {
   // fs 1000: intervals end at 0.9, 1.8 (window 1 s) and 2.7 s.
   const auto w = windowed_hrv(chain({900, 900, 900}, {}), 1000, 1.0, 1.0);

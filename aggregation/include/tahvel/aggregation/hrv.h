@@ -83,10 +83,13 @@ struct WindowMetrics {
 // window whose [start_s, end_s) contains its end beat (end / fs). Windows are produced from
 // k = 0 up to the last one starting at or before the end of the last interval, empty ones
 // included (nn_count 0). window_s > 0 and step_s > 0, else the result is empty. Intervals must
-// be in order of end.
+// be in order of end. Given the record's end (`record_end_s`, s from sample 0), a window that
+// would run past it ends there: the last windows of a record cover only what was recorded, and
+// say so by their length.
 std::vector<WindowMetrics> windowed_hrv(const std::vector<Interval>& intervals, double fs,
                                         double window_s, double step_s,
-                                        const HrvOptions& options = {});
+                                        const HrvOptions& options = {},
+                                        std::optional<double> record_end_s = std::nullopt);
 
 // The streaming form of windowed_hrv: push intervals in order of end; each push appends to
 // completed the windows that the interval's end time closes (end_s <= its end time). finish()
@@ -105,10 +108,11 @@ class HrvWindower {
   // while the agent was down) the next one starts at `end_s`, so that none overlaps a window
   // produced before. No window ending at or before it is produced again.
   void resume_after(double end_s, double length_s);
-  void finish(std::vector<WindowMetrics>& completed);
+  // `record_end_s`: the record's end, where the windows still open end (as windowed_hrv).
+  void finish(std::vector<WindowMetrics>& completed, std::optional<double> record_end_s = std::nullopt);
 
  private:
-  void emit_front(std::vector<WindowMetrics>& completed);
+  void emit_front(std::vector<WindowMetrics>& completed, std::optional<double> record_end_s = std::nullopt);
   double fs_, window_s_, step_s_;
   HrvOptions options_;
   double origin_s_ = 0;      // start of window 0 of the current setting

@@ -25,6 +25,7 @@ struct ChainOptions {
 
 struct HrvReport {
   double fs = 0;
+  double duration_s = 0;             // the signal's length: where its last windows end
   std::size_t signal = 0;            // hrv_from_record: the record's signal that was read
   std::vector<std::string> warnings; // hrv_from_record: checksum_mismatches of the record, and
                                      // irregular_rhythm_warning of the whole record
