@@ -470,7 +470,6 @@ Result<void> deliver_removals(Txn& txn) {
   std::stable_sort(removed.begin(), removed.end(), [](const Txn::RemovedRecord& a, const Txn::RemovedRecord& b) {
     return a.record.meta.item < b.record.meta.item;
   });
-  TermReader terms(raw, env);
   for (std::size_t first = 0, end = 0; first < removed.size(); first = end) {
     const std::uint64_t item_id = removed[first].record.meta.item;
     for (end = first; end < removed.size() && removed[end].record.meta.item == item_id;) ++end;
@@ -502,14 +501,11 @@ Result<void> deliver_removals(Txn& txn) {
         if (auto found = env.subs_by_context.find(item.context); found != env.subs_by_context.end())
           for (std::uint32_t i : found->second) consider(env.subs[i]);
       }
-      if (!head.record.meta.context.empty()) {
-        auto writer = terms.iri(head.writer);
-        if (!writer) return unexpected(writer.error());
-        if (auto addressee = addressee_of(env.settings().iri, head.record.meta.context, *writer)) {
-          auto agent = find_term(raw, env, Term::iri(*addressee));
-          if (!agent) return unexpected(agent.error());
-          if (*agent && receives(*agent)) to.emplace_back(*agent, WakeBoard::slot_for(*addressee));
-        }
+      // The writer is compared by id: its term may have gone with the item's last record.
+      if (auto addressee = addressee_of(env.settings().iri, head.record.meta.context, {})) {
+        auto agent = find_term(raw, env, Term::iri(*addressee));
+        if (!agent) return unexpected(agent.error());
+        if (*agent && *agent != head.writer && receives(*agent)) to.emplace_back(*agent, WakeBoard::slot_for(*addressee));
       }
     }
     std::sort(to.begin(), to.end());
