@@ -114,7 +114,10 @@ wire::ItemBody item_of(const node::Delivery& delivery) {
   body.item.persistent = meta.persistent;
   body.item.asserted_at = meta.asserted_at;
   body.removal = delivery.removal;
-  for (const auto& r : delivery.records) body.item.triples.push_back(r.triple);
+  for (const auto& r : delivery.records) {
+    body.item.triples.push_back(r.triple);
+    if (delivery.removal) body.positions.push_back(static_cast<std::uint32_t>(r.meta.id - r.meta.item));
+  }
   return body;
 }
 
@@ -1033,7 +1036,7 @@ struct Link::Impl {
         break;  // the rest follows it in the sender's sequence: they come again after a resend
       }
       if (!up) body->item.context = subtree_for(body->item.context, self);  // P11
-      items.push_back({f.seq, f.prev, std::move(body->source), std::move(body->item), body->removal});
+      items.push_back({f.seq, f.prev, std::move(body->source), std::move(body->item), body->removal, std::move(body->positions)});
     }
     if (!foreign.empty()) other_store_sent(up ? child.get() : nullptr, foreign);
     if (items.empty() && !foreign.empty()) return;

@@ -143,6 +143,9 @@ std::string encode_item(const ItemBody& body) {
   out.opt_i64(body.item.asserted_at);
   out.u32(static_cast<std::uint32_t>(body.item.triples.size()));
   for (const auto& t : body.item.triples) out.term(t.s).term(t.p).term(t.o);
+  if (body.removal) {
+    for (std::size_t i = 0; i < body.item.triples.size(); ++i) out.u32(i < body.positions.size() ? body.positions[i] : 0);
+  }
   return out.take();
 }
 
@@ -164,6 +167,9 @@ Result<ItemBody> decode_item(std::string_view bytes) {
     t.p = in.term("predicate");
     t.o = in.term("object");
     body.item.triples.push_back(std::move(t));
+  }
+  if (body.removal) {
+    for (std::uint32_t i = 0; i < n && in.ok(); ++i) body.positions.push_back(in.u32("position"));
   }
   return in.finish(std::move(body));
 }

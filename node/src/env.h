@@ -294,22 +294,22 @@ class Txn {
   // commit, the cache is marked stale, for its generation may be reached again by a different
   // change that does.
   bool touched_caches = false;
-  // Records removed explicitly in this transaction, as they were, while some agent of the store
-  // receives removal notices (R21): deliver_removals (write.h) turns them into notices before
-  // the commit. Their terms are read at removal, before the dictionary may collect them.
-  struct RemovedRecord {
-    Record record;
-    std::array<std::uint64_t, 3> terms{};  // s, p, o term ids
-    // Of its item, as it was: term ids of source, context (0: none) and the agent whose output
-    // buffer holds it, and the number of records it was written with.
-    std::uint64_t source = 0, context = 0, writer = 0, count = 0;
-    // The id its item's notice will have: taken from the sequence when the item's first record
-    // goes, so that a notice comes before the items the same transaction stores after the
-    // removal (Agent::replace), as the removal did.
-    std::uint64_t notice = 0;
+  // Removal notices this transaction makes (R21), one per item that loses records and was
+  // routed to an agent that receives notices; deliver_removals (write.h) writes them before the
+  // commit. The plan is made when the item's first record goes, while the item is whole: whom it
+  // goes to, and its id, taken from the sequence then, so that a notice comes before the items
+  // the same transaction stores after the removal (Agent::replace), as the removal did. Only the
+  // records of planned notices are kept, with their terms read at removal (before the dictionary
+  // may collect them).
+  struct NoticePlan {
+    std::uint64_t id = 0;
+    std::vector<std::pair<std::uint64_t, std::uint32_t>> to;  // agent term ids and wake slots
+    std::vector<Record> records;
   };
-  std::vector<RemovedRecord> removed;
-  std::unordered_map<std::uint64_t, std::uint64_t> notice_ids;  // item id -> its notice's id
+  std::vector<NoticePlan> notice_plans;
+  // Item id -> its plan's index in notice_plans, or kNoNotice when the item goes to nobody.
+  static constexpr std::size_t kNoNotice = ~std::size_t{0};
+  std::unordered_map<std::uint64_t, std::size_t> notice_plan_of;
   std::optional<bool> removals_noticed;  // whether any agent receives notices (asked once)
  private:
   Env& env_;

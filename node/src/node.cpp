@@ -675,6 +675,12 @@ Result<RelayOutcome> Agent::relay(std::string_view stream, const std::vector<Rel
         if (checked_sources.size() >= 16) checked_sources.erase(checked_sources.begin());
         checked_sources.push_back(source);
       }
+      if (items[i].removal && items[i].positions.size() != items[i].item.triples.size()) {
+        refuse(i, Error{Errc::invalid_argument, about(i) + ": a removal notice of " + std::to_string(items[i].item.triples.size()) +
+                                                     " triple(s) gives " + std::to_string(items[i].positions.size()) +
+                                                     " position(s); one per triple"});
+        continue;
+      }
       if (auto v = validate_item(items[i].item, impl_->env->settings()); !v) {
         if (!refuses_the_item(v.error().code)) return unexpected(with_context(v.error(), about(i)));
         refuse(i, with_context(v.error(), about(i)));
@@ -707,12 +713,14 @@ Result<RelayOutcome> Agent::relay(std::string_view stream, const std::vector<Rel
           if (!refusal.empty() && refusal[i]) {
             outcome.refused.push_back({relayed.seq, *refusal[i]});
           } else if (relayed.removal) {
-            auto copies = held_copies(txn.raw(), *impl_->env, relayed.item, relayed.source);
+            auto copies = held_copies(txn.raw(), *impl_->env, relayed.item, relayed.positions, relayed.source);
             if (!copies) return unexpected(with_context(copies.error(), about(i)));
-            for (std::uint64_t id : *copies)
-              if (auto d = delete_record(txn, id, Removal::explicit_removal); !d) return unexpected(with_context(d.error(), about(i)));
+            for (std::uint64_t id : copies->records)
+              if (auto d = delete_record(txn, id, Removal::relayed_removal); !d) return unexpected(with_context(d.error(), about(i)));
+            if (auto on = pass_notice_on(txn, relayed.item, relayed.positions, relayed.source, impl_->iri, copies->items); !on)
+              return unexpected(with_context(on.error(), about(i)));
             ++outcome.removals;
-            outcome.records_removed += copies->size();
+            outcome.records_removed += copies->records.size();
           } else if (auto twin = held_persistent_twin(txn.raw(), *impl_->env, relayed.item, relayed.source); !twin) {
             return unexpected(with_context(twin.error(), about(i)));
           } else if (*twin != 0) {

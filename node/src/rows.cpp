@@ -296,16 +296,13 @@ Result<void> delete_record(Txn& txn, std::uint64_t id, Removal why) {
   if (!item) return unexpected(item.error());
   if (!*item) return fail(Errc::corrupt, "record " + std::to_string(id) + " has no item");
   ItemRow it = **item;
-  if (why == Removal::explicit_removal) {
+  if (why != Removal::retention) {
     auto logged = log_removal(txn, id, r, it);
     if (!logged) return unexpected(logged.error());
-    auto noticed = removals_noticed(txn);
-    if (!noticed) return unexpected(noticed.error());
-    if (*noticed) {
-      auto [notice, fresh] = txn.notice_ids.try_emplace(r.item, 0);
-      if (fresh) notice->second = txn.counters.next_seq++;
-      txn.removed.push_back({std::move(*logged), {r.s, r.p, r.o}, it.source, it.context, it.output_buffer(), it.count,
-                             notice->second});
+    if (why == Removal::explicit_removal) {
+      auto plan = notice_plan(txn, r.item, it, logged->meta);
+      if (!plan) return unexpected(plan.error());
+      if (*plan) (*plan)->records.push_back(std::move(*logged));
     }
   }
   if (auto d = del_dup(raw, env.idx_s, r.s, id, "unindexing a subject"); !d) return d;
@@ -371,6 +368,7 @@ bool decode_notice(std::string_view in, std::uint64_t& pending, std::vector<Reco
 }
 
 Result<std::optional<std::vector<Record>>> get_notice(MDB_txn* txn, const Env& env, std::uint64_t id) {
+  if (env.notices == 0) return std::optional<std::vector<Record>>();  // a store that has none yet
   MDB_val k = val(id), v;
   int rc = mdb_get(txn, env.notices, &k, &v);
   if (rc == MDB_NOTFOUND) return std::optional<std::vector<Record>>();
@@ -383,6 +381,7 @@ Result<std::optional<std::vector<Record>>> get_notice(MDB_txn* txn, const Env& e
 }
 
 Result<void> release_notice(Txn& txn, std::uint64_t id) {
+  if (txn.env().notices == 0) return {};
   MDB_val k = val(id), v;
   int rc = mdb_get(txn.raw(), txn.env().notices, &k, &v);
   if (rc == MDB_NOTFOUND) return {};

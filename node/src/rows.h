@@ -59,8 +59,10 @@ Result<bool> release_item(MDB_cursor* items, std::uint64_t id);
 // that inserted items flushes first; Env::write flushes before it commits.
 Result<void> flush_index(Txn& txn);
 
-// Why a record goes: explicit removal is logged for watchers; retention is not.
-enum class Removal { explicit_removal, retention };
+// Why a record goes: explicit removal is logged for watchers and notifies the agents that receive
+// removal notices (R21); a relayed removal is logged, and Agent::relay passes the notice on
+// itself; retention is neither.
+enum class Removal { explicit_removal, relayed_removal, retention };
 
 // Deletes record `id` (and its item once the last record goes), keeping counters, indexes,
 // buffers and the dictionary consistent.

@@ -458,67 +458,159 @@ Result<void> receive_removals(Txn& txn, const std::string& agent_iri) {
   return {};
 }
 
-Result<void> deliver_removals(Txn& txn) {
-  if (txn.removed.empty()) return {};
-  std::vector<Txn::RemovedRecord> removed;
-  removed.swap(txn.removed);
-  txn.notice_ids.clear();
-  if (auto f = flush_index(txn); !f) return f;
+namespace {
+
+// The agents that receive removal notices (R21) to which an item of these records, source and
+// context is routed (R10, R18): its plan's recipients. The writer (the agent whose output buffer
+// holds it) is never its own addressee, as at insert.
+Result<std::vector<std::pair<std::uint64_t, std::uint32_t>>> notice_recipients(
+    Txn& txn, std::uint64_t item_id, std::uint64_t source, std::string_view source_iri, std::uint64_t context,
+    std::string_view context_iri, std::uint64_t writer, const std::vector<std::array<std::uint64_t, 3>>& triples) {
   Env& env = txn.env();
+  std::vector<std::pair<std::uint64_t, std::uint32_t>> to;
+  // Addressed as at insert: by the context in normal form.
+  std::optional<std::string> addressee;
+  if (!context_iri.empty()) {
+    if (auto normal = uri::normalize(context_iri)) addressee = addressee_of(env.settings().iri, *normal, {});
+  }
+  std::uint64_t addressee_id = 0;
+  if (addressee) {
+    auto found = find_term(txn.raw(), env, Term::iri(*addressee));
+    if (!found) return unexpected(found.error());
+    addressee_id = *found;
+  }
+  ItemRow item;
+  item.source = source;
+  item.context = context;
+  std::lock_guard lock(env.cache_mutex);
+  auto receives = [&](std::uint64_t agent) {
+    return std::find(env.removal_receivers.begin(), env.removal_receivers.end(), agent) != env.removal_receivers.end();
+  };
+  auto consider = [&](const Subscription& sub) {
+    if (receives(sub.agent) && routes(sub, item_id, item, triples, source_iri)) to.emplace_back(sub.agent, sub.slot);
+  };
+  for (std::uint32_t i : env.subs_any_context) consider(env.subs[i]);
+  if (context) {
+    if (auto found = env.subs_by_context.find(context); found != env.subs_by_context.end())
+      for (std::uint32_t i : found->second) consider(env.subs[i]);
+  }
+  if (addressee_id && addressee_id != writer && receives(addressee_id))
+    to.emplace_back(addressee_id, WakeBoard::slot_for(*addressee));
+  std::sort(to.begin(), to.end());
+  to.erase(std::unique(to.begin(), to.end()), to.end());
+  return to;
+}
+
+// The terms of the records of item `item_id` that are still in the store.
+Result<std::vector<std::array<std::uint64_t, 3>>> records_left(MDB_txn* txn, const Env& env, std::uint64_t item_id,
+                                                               std::uint64_t count) {
+  std::vector<std::array<std::uint64_t, 3>> triples;
+  for (std::uint64_t id = item_id; id < item_id + count; ++id) {
+    auto left = get_record(txn, env, id);
+    if (!left) return unexpected(left.error());
+    if (*left) triples.push_back({(*left)->s, (*left)->p, (*left)->o});
+  }
+  return triples;
+}
+
+}  // namespace
+
+Result<Txn::NoticePlan*> notice_plan(Txn& txn, std::uint64_t item_id, const ItemRow& item, const RecordMeta& meta) {
+  if (auto planned = txn.notice_plan_of.find(item_id); planned != txn.notice_plan_of.end())
+    return planned->second == Txn::kNoNotice ? nullptr : &txn.notice_plans[planned->second];
+  auto noticed = removals_noticed(txn);
+  if (!noticed) return unexpected(noticed.error());
+  if (!*noticed) return nullptr;
+  // The item is whole here (its first record in this transaction has not gone yet): routed by
+  // all of its records, as when it was stored.
+  auto triples = records_left(txn.raw(), txn.env(), item_id, item.count);
+  if (!triples) return unexpected(triples.error());
+  auto to = notice_recipients(txn, item_id, item.source, meta.source, item.context, meta.context, item.output_buffer(), *triples);
+  if (!to) return unexpected(to.error());
+  if (to->empty()) {
+    txn.notice_plan_of.emplace(item_id, Txn::kNoNotice);
+    return nullptr;
+  }
+  txn.notice_plans.push_back({txn.counters.next_seq++, std::move(*to), {}});
+  txn.notice_plan_of.emplace(item_id, txn.notice_plans.size() - 1);
+  return &txn.notice_plans.back();
+}
+
+Result<void> pass_notice_on(Txn& txn, const Item& notice, const std::vector<std::uint32_t>& positions,
+                            const std::string& source, const std::string& writer_iri,
+                            const std::vector<std::uint64_t>& held_items) {
+  auto noticed = removals_noticed(txn);
+  if (!noticed) return unexpected(noticed.error());
+  if (!*noticed) return {};
   MDB_txn* raw = txn.raw();
-  // The records of one item go in one notice, whatever order they were removed in.
-  std::stable_sort(removed.begin(), removed.end(), [](const Txn::RemovedRecord& a, const Txn::RemovedRecord& b) {
-    return a.record.meta.item < b.record.meta.item;
-  });
-  for (std::size_t first = 0, end = 0; first < removed.size(); first = end) {
-    const std::uint64_t item_id = removed[first].record.meta.item;
-    for (end = first; end < removed.size() && removed[end].record.meta.item == item_id;) ++end;
-    const Txn::RemovedRecord& head = removed[first];
-    // Routed as the item was (R10, R18): a subscription routes an item by any of its triples,
-    // so those of its records that stay count too.
-    std::vector<std::array<std::uint64_t, 3>> triples;
-    for (std::size_t i = first; i < end; ++i) triples.push_back(removed[i].terms);
-    for (std::uint64_t id = item_id; id < item_id + head.count; ++id) {
-      auto left = get_record(raw, env, id);
-      if (!left) return unexpected(left.error());
-      if (*left) triples.push_back({(*left)->s, (*left)->p, (*left)->o});
+  const Env& env = txn.env();
+  // Routed by the notice's triples (a term this store has never seen matches only an open
+  // position) and what is left of the items its copies were in.
+  std::vector<std::array<std::uint64_t, 3>> triples;
+  for (const Triple& t : notice.triples) {
+    std::array<std::uint64_t, 3> row{};
+    const Term* terms[] = {&t.s, &t.p, &t.o};
+    for (std::size_t pos = 0; pos < 3; ++pos) {
+      if (terms[pos]->is_blank()) continue;
+      auto id = find_term(raw, env, *terms[pos]);
+      if (!id) return unexpected(id.error());
+      row[pos] = *id;
     }
-    ItemRow item;
-    item.source = head.source;
-    item.context = head.context;
-    std::vector<std::pair<std::uint64_t, std::uint32_t>> to;  // agent term id, wake slot
-    {
-      std::lock_guard lock(env.cache_mutex);
-      auto receives = [&](std::uint64_t agent) {
-        return std::find(env.removal_receivers.begin(), env.removal_receivers.end(), agent) != env.removal_receivers.end();
-      };
-      auto consider = [&](const Subscription& sub) {
-        if (receives(sub.agent) && routes(sub, item_id, item, triples, head.record.meta.source))
-          to.emplace_back(sub.agent, sub.slot);
-      };
-      for (std::uint32_t i : env.subs_any_context) consider(env.subs[i]);
-      if (item.context) {
-        if (auto found = env.subs_by_context.find(item.context); found != env.subs_by_context.end())
-          for (std::uint32_t i : found->second) consider(env.subs[i]);
-      }
-      // The writer is compared by id: its term may have gone with the item's last record.
-      if (auto addressee = addressee_of(env.settings().iri, head.record.meta.context, {})) {
-        auto agent = find_term(raw, env, Term::iri(*addressee));
-        if (!agent) return unexpected(agent.error());
-        if (*agent && *agent != head.writer && receives(*agent)) to.emplace_back(*agent, WakeBoard::slot_for(*addressee));
-      }
-    }
-    std::sort(to.begin(), to.end());
-    to.erase(std::unique(to.begin(), to.end()), to.end());
-    if (to.empty()) continue;
-    std::vector<Record> records;
-    for (std::size_t i = first; i < end; ++i) records.push_back(removed[i].record);
-    const std::uint64_t notice = head.notice;
-    std::string bytes = encode_notice(to.size(), records);
-    MDB_val k = val(notice), v = val(bytes);
+    triples.push_back(row);
+  }
+  for (std::uint64_t item_id : held_items) {
+    auto row = get_item(raw, env, item_id);
+    if (!row) return unexpected(row.error());
+    if (!*row) continue;
+    auto left = records_left(raw, env, item_id, (*row)->count);
+    if (!left) return unexpected(left.error());
+    triples.insert(triples.end(), left->begin(), left->end());
+  }
+  std::uint64_t ids[3] = {};
+  const std::string* iris[] = {&source, &notice.context, &writer_iri};
+  for (int k = 0; k < 3; ++k) {
+    if (iris[k]->empty()) continue;
+    auto id = find_term(raw, env, Term::iri(*iris[k]));
+    if (!id) return unexpected(id.error());
+    ids[k] = *id;
+  }
+  auto to = notice_recipients(txn, 0, ids[0], source, ids[1], notice.context, ids[2], triples);
+  if (!to) return unexpected(to.error());
+  if (to->empty()) return {};
+  Txn::NoticePlan plan{txn.counters.next_seq++, std::move(*to), {}};
+  // As the sender's records: meta.id - meta.item is each one's position in its item.
+  for (std::size_t i = 0; i < notice.triples.size(); ++i) {
+    Record record;
+    record.triple = notice.triples[i];
+    record.meta.id = positions[i];
+    record.meta.item = 0;
+    record.meta.asserted_at = notice.asserted_at.value_or(0);
+    record.meta.stored_at = record.meta.asserted_at;
+    record.meta.source = source;
+    record.meta.context = notice.context;
+    record.meta.persistent = notice.persistent;
+    plan.records.push_back(std::move(record));
+  }
+  txn.notice_plans.push_back(std::move(plan));
+  return {};
+}
+
+Result<void> deliver_removals(Txn& txn) {
+  if (txn.notice_plans.empty()) return {};
+  std::vector<Txn::NoticePlan> plans;
+  plans.swap(txn.notice_plans);
+  txn.notice_plan_of.clear();
+  Env& env = txn.env();
+  if (env.notices == 0)
+    return fail(Errc::io, "the store in " + env.dir().string() + " has no table of removal notices yet: open it once with write access");
+  MDB_txn* raw = txn.raw();
+  for (const Txn::NoticePlan& plan : plans) {
+    if (plan.records.empty()) continue;
+    std::string bytes = encode_notice(plan.to.size(), plan.records);
+    MDB_val k = val(plan.id), v = val(bytes);
     if (int rc = mdb_put(raw, env.notices, &k, &v, 0); rc != 0) return lmdb_fail(rc, "writing a removal notice");
-    for (const auto& [agent, slot] : to) {
-      MDB_val ak = val(agent), nv = val(notice);
+    for (const auto& [agent, slot] : plan.to) {
+      MDB_val ak = val(agent), nv = val(plan.id);
       if (int rc = mdb_put(raw, env.inbox, &ak, &nv, 0); rc != 0) return lmdb_fail(rc, "putting a removal notice into an input buffer");
       ++txn.counters.pending;
       txn.wake_slots.push_back(slot);
@@ -850,46 +942,85 @@ Result<std::uint64_t> held_persistent_twin(MDB_txn* txn, const Env& env, const I
   return std::uint64_t{0};
 }
 
-Result<std::vector<std::uint64_t>> held_copies(MDB_txn* txn, const Env& env, const Item& item, const std::string& source) {
-  std::vector<std::uint64_t> out;
-  if (!item.asserted_at) return out;
+Result<HeldCopies> held_copies(MDB_txn* txn, const Env& env, const Item& notice, const std::vector<std::uint32_t>& positions,
+                               const std::string& source) {
+  HeldCopies out;
+  if (!notice.asserted_at || positions.size() != notice.triples.size()) return out;
   auto source_id = find_term(txn, env, Term::iri(source));
   if (!source_id) return unexpected(source_id.error());
   if (*source_id == 0) return out;
   std::uint64_t context_id = 0;
-  if (!item.context.empty()) {
-    auto c = find_term(txn, env, Term::iri(item.context));
+  if (!notice.context.empty()) {
+    auto c = find_term(txn, env, Term::iri(notice.context));
     if (!c) return unexpected(c.error());
     if (*c == 0) return out;
     context_id = *c;
   }
-  TermReader terms(txn, env);
-  for (const Triple& triple : item.triples) {
+  // Each triple's term ids; a triple with a term this store has never seen is held nowhere here.
+  std::vector<std::optional<std::array<std::uint64_t, 3>>> wanted;
+  for (const Triple& triple : notice.triples) {
     auto found = ids_of(txn, env, {triple});
     if (!found) return unexpected(found.error());
-    if (!*found) continue;
-    const std::array<std::uint64_t, 3> wanted = (**found)[0];
-    // Through the index of a position that is not a blank node: the subject's, else the
-    // object's, else the predicate's.
-    const MDB_dbi dbi = wanted[0] ? env.idx_s : wanted[2] ? env.idx_o : env.idx_p;
-    auto records = indexed(txn, dbi, wanted[0] ? wanted[0] : wanted[2] ? wanted[2] : wanted[1]);
-    if (!records) return unexpected(records.error());
-    for (std::uint64_t record : *records) {
-      auto row = get_record(txn, env, record);
-      if (!row) return unexpected(row.error());
-      if (!*row) continue;
-      auto matches = same_triple(terms, **row, wanted);
-      if (!matches) return unexpected(matches.error());
-      if (!*matches) continue;
-      auto it = get_item(txn, env, (*row)->item);
-      if (!it) return unexpected(it.error());
-      if (!*it || (*it)->source != *source_id || (*it)->asserted_at != *item.asserted_at || (*it)->context != context_id)
-        continue;
-      out.push_back(record);
+    wanted.push_back(*found ? std::optional((**found)[0]) : std::nullopt);
+  }
+  // The copies are found through the shortest index list of any of the notice's terms that is
+  // not a blank node (a record about a common class or predicate is one of millions), at the
+  // triple's position in its item (relaying keeps the order of an item's triples; so a blank
+  // node names the same node in every triple of the notice that has it).
+  MDB_cursor* cursor[3] = {};
+  const MDB_dbi dbis[3] = {env.idx_s, env.idx_p, env.idx_o};
+  for (int pos = 0; pos < 3; ++pos)
+    if (int rc = mdb_cursor_open(txn, dbis[pos], &cursor[pos]); rc != 0) {
+      for (MDB_cursor* c : cursor)
+        if (c) mdb_cursor_close(c);
+      return lmdb_fail(rc, "opening an index");
+    }
+  std::size_t anchor = 0, anchor_pos = 0, fewest = SIZE_MAX;
+  for (std::size_t i = 0; i < wanted.size(); ++i) {
+    if (!wanted[i]) continue;
+    for (std::size_t pos = 0; pos < 3; ++pos) {
+      if ((*wanted[i])[pos] == 0) continue;
+      MDB_val k = val((*wanted[i])[pos]), v;
+      std::size_t n = 0;
+      if (mdb_cursor_get(cursor[pos], &k, &v, MDB_SET) == 0) mdb_cursor_count(cursor[pos], &n);
+      if (n < fewest) {
+        fewest = n;
+        anchor = i;
+        anchor_pos = pos;
+      }
     }
   }
-  std::sort(out.begin(), out.end());
-  out.erase(std::unique(out.begin(), out.end()), out.end());
+  for (MDB_cursor* c : cursor) mdb_cursor_close(c);
+  if (fewest == SIZE_MAX || fewest == 0) return out;
+  auto candidates = indexed(txn, dbis[anchor_pos], (*wanted[anchor])[anchor_pos]);
+  if (!candidates) return unexpected(candidates.error());
+  TermReader terms(txn, env);
+  for (std::uint64_t record : *candidates) {
+    auto row = get_record(txn, env, record);
+    if (!row) return unexpected(row.error());
+    if (!*row || record - (*row)->item != positions[anchor]) continue;
+    const std::uint64_t item_id = (*row)->item;
+    if (std::find(out.items.begin(), out.items.end(), item_id) != out.items.end()) continue;
+    auto it = get_item(txn, env, item_id);
+    if (!it) return unexpected(it.error());
+    if (!*it || (*it)->source != *source_id || (*it)->asserted_at != *notice.asserted_at || (*it)->context != context_id)
+      continue;
+    std::vector<std::uint64_t> found;
+    for (std::size_t i = 0; i < wanted.size(); ++i) {
+      if (!wanted[i] || positions[i] >= (*it)->count) continue;
+      auto copy = get_record(txn, env, item_id + positions[i]);
+      if (!copy) return unexpected(copy.error());
+      if (!*copy) continue;
+      auto same = same_triple(terms, **copy, *wanted[i]);
+      if (!same) return unexpected(same.error());
+      if (*same) found.push_back(item_id + positions[i]);
+    }
+    if (found.empty()) continue;
+    out.items.push_back(item_id);
+    out.records.insert(out.records.end(), found.begin(), found.end());
+  }
+  std::sort(out.records.begin(), out.records.end());
+  out.records.erase(std::unique(out.records.begin(), out.records.end()), out.records.end());
   return out;
 }
 

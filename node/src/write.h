@@ -8,6 +8,7 @@
 #include <vector>
 
 #include "env.h"
+#include "rows.h"
 #include "tahvel/node/node.h"
 
 namespace tahvel::node::detail {
@@ -36,10 +37,16 @@ Result<std::uint64_t> insert_item(Txn& txn, const Item& item, const std::string&
 // them on to nodes above that have them already on the stream before.
 Result<std::uint64_t> held_persistent_twin(MDB_txn* txn, const Env& env, const Item& item, const std::string& source);
 
-// The records this store holds, relayed from `source`, that a relayed removal notice `item`
-// names (RelayedItem::removal): the same source, asserted-at time and context, and one of the
-// notice's triples (blank nodes match blank nodes). In id order.
-Result<std::vector<std::uint64_t>> held_copies(MDB_txn* txn, const Env& env, const Item& item, const std::string& source);
+// The copies this store holds of the records a relayed removal notice names
+// (RelayedItem::removal): records of items relayed from `source` with the notice's asserted-at
+// time and context, at each triple's position in its item (`positions`), with that triple (a
+// blank node matches a blank node: they are renamed on the way). Record ids in order, and the
+// items they are in.
+struct HeldCopies {
+  std::vector<std::uint64_t> records, items;
+};
+Result<HeldCopies> held_copies(MDB_txn* txn, const Env& env, const Item& notice, const std::vector<std::uint32_t>& positions,
+                               const std::string& source);
 
 // An upper bound on the bytes of new pages that inserting `item` may add to the data file: its
 // terms (a large literal takes overflow pages of its own) and a generous share of the record,
@@ -71,15 +78,23 @@ Result<void> refresh_caches(Txn& txn);
 // Removal notices (docs/record-model.md R21). The meta key that says an agent receives them is
 // this prefix and the agent's IRI.
 inline constexpr std::string_view kRemovalReceiverKey = "removal-notices:";
-// Whether any agent of the store receives removal notices (asked once per transaction): only
-// then does an explicit removal keep the records it removes for deliver_removals.
+// Whether any agent of the store receives removal notices (asked once per transaction).
 Result<bool> removals_noticed(Txn& txn);
 // Makes agent `agent_iri` receive removal notices from now on (idempotent).
 Result<void> receive_removals(Txn& txn, const std::string& agent_iri);
-// Turns the records removed explicitly in this transaction (Txn::removed) into removal notices:
-// one per item, put into the input buffer of every agent that receives notices and to which the
-// item was routed, by its subscriptions or as its addressee (R10, R18). Env::write runs it
-// before the commit.
+// The notice of item `item_id` (`item` its row, `meta` a record's metadata as read) in this
+// transaction, planned at its first record's removal: routed to every agent that receives
+// notices and to which the item goes, by its subscriptions or as its addressee (R10, R18).
+// Null when it goes to none. The caller adds the records it removes.
+Result<Txn::NoticePlan*> notice_plan(Txn& txn, std::uint64_t item_id, const ItemRow& item, const RecordMeta& meta);
+// Plans the notice that a relayed removal notice (Agent::relay) becomes on this node, whether or
+// not it held copies (`held_items`: the items its copies were in): routed by the notice's
+// triples and what is left of those items, from `writer_iri`, the relaying agent.
+Result<void> pass_notice_on(Txn& txn, const Item& notice, const std::vector<std::uint32_t>& positions,
+                            const std::string& source, const std::string& writer_iri,
+                            const std::vector<std::uint64_t>& held_items);
+// Writes the notices planned in this transaction and puts them into their agents' input
+// buffers. Env::write runs it before the commit.
 Result<void> deliver_removals(Txn& txn);
 
 }  // namespace tahvel::node::detail

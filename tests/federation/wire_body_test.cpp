@@ -34,6 +34,22 @@ TEST(ItemBody, PersistenceAndRemovalSurviveTheWireInEveryCombination) {
     }
 }
 
+TEST(ItemBody, ANoticeCarriesEachTriplesPositionInItsItem) {
+  wire::ItemBody notice = window(false, true);
+  notice.item.add(Term::blank("b"), Term::iri("http://example.org/ns#n"), Term::integer(7));
+  notice.positions = {3, 9};
+  auto decoded = wire::decode_item(wire::encode_item(notice));
+  ASSERT_TRUE(decoded) << decoded.error().message;
+  EXPECT_EQ(decoded->positions, (std::vector<std::uint32_t>{3, 9}));
+  // An item carries none; a notice cut short of its positions is refused.
+  EXPECT_TRUE(wire::decode_item(wire::encode_item(window(false, false)))->positions.empty());
+  std::string bytes = wire::encode_item(notice);
+  bytes.resize(bytes.size() - 2);
+  auto cut = wire::decode_item(bytes);
+  ASSERT_FALSE(cut);
+  EXPECT_NE(cut.error().message.find("'position'"), std::string::npos) << cut.error().message;
+}
+
 TEST(ItemBody, AFlagThisBuildDoesNotKnowIsRefusedNamingTheField) {
   std::string bytes = wire::encode_item(window(false, false));
   // The flags byte follows the source and the context (u32 length + bytes each).

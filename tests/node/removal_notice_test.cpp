@@ -168,6 +168,7 @@ TEST(RemovalNotice, ARelayedNoticeRemovesTheCopiesOfThatSourceAndNoOthers) {
   removal.add(Term::iri(kNodeIri + "/hrv/1"), ex("rmssd"), Term::integer(41));
   RelayedItem notice{4, 3, source, removal};
   notice.removal = true;
+  notice.positions = {1};  // the rmssd record is its item's second
   auto applied = child.relay("child#s", {notice});
   ASSERT_TRUE(applied.has_value()) << applied.error().message;
   EXPECT_EQ(applied->mark, 4u);
@@ -183,6 +184,7 @@ TEST(RemovalNotice, ARelayedNoticeRemovesTheCopiesOfThatSourceAndNoOthers) {
   EXPECT_EQ(child.relay("child#s", {notice}).value().duplicates, 1u);
   RelayedItem again{5, 4, source, removal};
   again.removal = true;
+  again.positions = {1};
   auto none = child.relay("child#s", {again});
   ASSERT_TRUE(none.has_value());
   EXPECT_EQ(none->records_removed, 0u);
@@ -202,12 +204,91 @@ TEST(RemovalNotice, ARelayedRemovalIsNoticedOnwardAsTheCopyWasRouted) {
   ASSERT_EQ(drain(uplink).size(), 1u);
   RelayedItem notice{2, 1, source, hrv_window(1, 1'000)};
   notice.removal = true;
+  notice.positions = {0, 1};
   ASSERT_EQ(child.relay("child#s", {notice}).value().records_removed, 2u);
   auto got = drain(uplink);
   ASSERT_EQ(got.size(), 1u);
   EXPECT_TRUE(got[0].removal);
   EXPECT_EQ(got[0].records.size(), 2u);
   EXPECT_EQ(got[0].records[0].meta.source, source);
+}
+
+RelayedItem notice_of(std::uint64_t seq, const std::string& source, Item item, std::vector<std::uint32_t> positions) {
+  RelayedItem notice{seq, seq - 1, source, std::move(item)};
+  notice.removal = true;
+  notice.positions = std::move(positions);
+  return notice;
+}
+
+// A gateway whose ring took its copy still passes the removal on: the hospital has one.
+TEST(RemovalNotice, ARelayedNoticeGoesOnWhereNoCopyIsHeld) {
+  TempDir dir;
+  Node node = make_node(dir.path());
+  Agent child = node.agent("child").value();
+  Agent uplink = node.agent("uplink").value();
+  ASSERT_TRUE(uplink.subscribe({.p = ex("property"), .o = ex("HRV")}));
+  ASSERT_TRUE(uplink.receive_removals());
+  const std::string source = kNodeIri + "/child/hrv";
+  auto applied = child.relay("child#s", {notice_of(1, source, hrv_window(1, 1'000), {0, 1})});
+  ASSERT_TRUE(applied.has_value()) << applied.error().message;
+  EXPECT_EQ(applied->records_removed, 0u);
+  auto got = drain(uplink);
+  ASSERT_EQ(got.size(), 1u);
+  EXPECT_TRUE(got[0].removal);
+  ASSERT_EQ(got[0].records.size(), 2u);
+  EXPECT_EQ(got[0].records[1].meta.id - got[0].records[1].meta.item, 1u);  // its position, kept
+  EXPECT_EQ(got[0].records[0].meta.source, source);
+  EXPECT_EQ(got[0].records[0].meta.asserted_at, 1'000);
+  // A notice that matches nothing here is not passed on.
+  Item other;
+  other.add(Term::iri(kNodeIri + "/x"), ex("note"), Term::literal("n"));
+  other.asserted_at = 5;
+  ASSERT_TRUE(child.relay("child#s", {notice_of(2, source, other, {0})}));
+  EXPECT_TRUE(drain(uplink).empty());
+  // One position per triple, or the notice is refused.
+  auto refused = child.relay("child#s", {notice_of(3, source, hrv_window(2, 2'000), {0})});
+  ASSERT_TRUE(refused.has_value());
+  ASSERT_EQ(refused->refused.size(), 1u);
+  EXPECT_NE(refused->refused[0].why.message.find("position"), std::string::npos);
+}
+
+// Blank nodes are renamed on the way; a notice names records by their place in the item, so a
+// removal of one blank node's records leaves another's with the same triples.
+TEST(RemovalNotice, ARelayedNoticeRemovesTheRecordsOfOneBlankNodeAndNotAnothers) {
+  TempDir dir;
+  Node node = make_node(dir.path());
+  Agent child = node.agent("child").value();
+  const std::string source = kNodeIri + "/child/ward";
+  Item two;
+  two.add(Term::blank("o1"), ex("type"), ex("Observation")).add(Term::blank("o1"), ex("result"), Term::integer(72));
+  two.add(Term::blank("o2"), ex("type"), ex("Observation")).add(Term::blank("o2"), ex("result"), Term::integer(80));
+  two.asserted_at = 7;
+  ASSERT_TRUE(child.relay("child#s", {{1, 0, source, two}}));
+  Item gone;
+  gone.add(Term::blank("b"), ex("type"), ex("Observation")).add(Term::blank("b"), ex("result"), Term::integer(72));
+  gone.asserted_at = 7;
+  EXPECT_EQ(child.relay("child#s", {notice_of(2, source, gone, {0, 1})}).value().records_removed, 2u);
+  auto left = node.snapshot().value().list({.source = source}).value();
+  ASSERT_EQ(left.size(), 2u);
+  EXPECT_EQ(left[0].triple.p, ex("type"));
+  EXPECT_EQ(left[1].triple.o, Term::integer(80));
+  EXPECT_EQ(left[0].triple.s, left[1].triple.s);
+}
+
+// Items are addressed by their context in normal form; so are their notices.
+TEST(RemovalNotice, AnItemAddressedByAContextNotInNormalFormIsNoticedToItsAddressee) {
+  TempDir dir;
+  Node node = make_node(dir.path());
+  Agent child = node.agent("home1").value();
+  Agent operator_ = node.agent("operator").value();
+  ASSERT_TRUE(child.receive_removals());
+  const std::string written = "http://EXAMPLE.org/home1/x/../home1/hrv";
+  const std::uint64_t setting = operator_.store(hrv_window(1, 5'000, written)).value();
+  ASSERT_EQ(drain(child).size(), 1u);
+  ASSERT_TRUE(node.remove_item(setting));
+  auto got = drain(child);
+  ASSERT_EQ(got.size(), 1u);
+  EXPECT_TRUE(got[0].removal);
 }
 
 TEST(RemovalNotice, AStoreMadeBeforeNoticesGetsTheirTableAtItsFirstOpen) {

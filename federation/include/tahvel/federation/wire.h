@@ -24,6 +24,7 @@ struct ItemBody {
   // A removal notice (P7a): `item` holds the records removed on the sender, with the context and
   // asserted-at time of the item they were in; the receiver removes its copies of them.
   bool removal = false;
+  std::vector<std::uint32_t> positions;  // a notice's: each triple's position in its item
 };
 std::string encode_item(const ItemBody& body);
 Result<ItemBody> decode_item(std::string_view bytes);

@@ -148,6 +148,7 @@ struct SubscribeOptions {
 struct Delivery {
   std::uint64_t item = 0;       // the item's id, or the removal notice's
   std::vector<Record> records;  // the whole item as it is now; for a notice, the records removed
+                                // (meta.id - meta.item: each one's position in its item)
   // A removal notice (Agent::receive_removals): records of an item routed to this agent were
   // removed explicitly. `records` are those records as they were (their metadata included).
   bool removal = false;
@@ -162,6 +163,10 @@ struct RelayedItem {
   // A removal notice relayed: `item` holds the records removed on the sender (their context and
   // asserted-at time), and relay removes this store's copies of them instead of storing it.
   bool removal = false;
+  // For a notice: each triple's position in its item (a notice's Record has it as
+  // meta.id - meta.item). Relaying keeps the order of an item's triples, so a copy's record is
+  // at the same position; a notice without one for each triple is refused.
+  std::vector<std::uint32_t> positions;
 };
 
 // An item that Agent::relay refused for good: what it breaks is in `why`.
@@ -274,9 +279,11 @@ class Agent {
   // that may pass (a full store, I/O) fails the call instead, and nothing of it is stored.
   // A removal notice (RelayedItem::removal) takes the place of an item in the stream: it removes
   // the records of this store, relayed from the same source, that have the notice's context and
-  // asserted-at time and one of its triples (a blank node matches any blank node: they are
-  // renamed on the way), in the same transaction; none held is no error (the copy was never
-  // sent, or is gone). A removal here notifies this node's agents in turn (receive_removals).
+  // asserted-at time and its triples at their positions in their item (a blank node matches a
+  // blank node: they are renamed on the way), in the same transaction; none held is no error
+  // (the copy was never sent, or is gone: the ring took it). The notice goes on to this node's
+  // agents that receive notices as an item of those triples would (receive_removals), whether
+  // or not a copy was held, so that it reaches nodes beyond a copy gone here.
   // A persistent item that repeats one this store holds — persistent, from the same source, at
   // the same asserted-at time, with the same context and triples — is dropped as already held
   // (RelayOutcome::already_held): a node's persistent items go up again on a new stream when a
