@@ -207,14 +207,15 @@ int run_load(const Args& args) {
 
 const Command kRemoveCommand{
     "remove",
-    "DIR (--item ID | [-s S] [-p P] [-o O]) [--cascade N]",
+    "DIR (--item ID | [-s S] [-p P] [-o O]) [--cascade N] [--local]",
     "Remove an item or the records matching a pattern; print the count.",
     "With --cascade N the sub-trees of the removed records go too (objects that are IRIs or blank\n"
     "nodes, followed N levels). Removed items also leave the input buffers that held them.\n"
     "Copies the node's link sent up (its forwarding policy) or down (configuration) are removed\n"
-    "there too, hop by hop, as the link runs.",
+    "there too, hop by hop, as the link runs; with --local they stay (pruning this node only).",
     {{"--item", "", "ID", "remove every record of item ID (as printed by put)"},
-     kFlagS, kFlagP, kFlagO, kFlagCascade},
+     kFlagS, kFlagP, kFlagO, kFlagCascade,
+     {"--local", "", "", "remove on this node only: copies sent up or down stay where they are"}},
     1, 1};
 
 int run_remove(const Args& args) {
@@ -225,10 +226,11 @@ int run_remove(const Args& args) {
   if (args.has("--item") == pattern_has_triple(pattern)) {
     usage_error("remove: give either --item ID or a pattern (-s, -p, -o)");
   }
+  const node::Reach reach = args.has("--local") ? node::Reach::this_node : node::Reach::copies_too;
   if (args.has("--item")) {
-    print_number(check(node.remove_item(args.get_u64("--item", 0), cascade)));
+    print_number(check(node.remove_item(args.get_u64("--item", 0), cascade, reach)));
   } else {
-    print_number(check(node.remove(pattern, cascade)));
+    print_number(check(node.remove(pattern, cascade, reach)));
   }
   // An area subscription's declaration removed: its expansions (ordinary subscriptions) would
   // route on until a keeper ran, and none runs without 'tahvel up'. They go now.

@@ -716,7 +716,7 @@ Result<RelayOutcome> Agent::relay(std::string_view stream, const std::vector<Rel
             auto copies = held_copies(txn.raw(), *impl_->env, relayed.item, relayed.positions, relayed.source);
             if (!copies) return unexpected(with_context(copies.error(), about(i)));
             for (std::uint64_t id : copies->records)
-              if (auto d = delete_record(txn, id, Removal::relayed_removal); !d) return unexpected(with_context(d.error(), about(i)));
+              if (auto d = delete_record(txn, id, Removal::quiet_removal); !d) return unexpected(with_context(d.error(), about(i)));
             if (auto on = pass_notice_on(txn, relayed.item, relayed.positions, relayed.source, impl_->iri, copies->items); !on)
               return unexpected(with_context(on.error(), about(i)));
             ++outcome.removals;
@@ -926,7 +926,9 @@ namespace {
 
 // Removes, in one transaction, the records that `collect` names (skipping any already gone,
 // as sub-trees may overlap); returns how many went.
-Result<std::uint64_t> remove_records(Env& env, const std::function<Result<std::vector<std::uint64_t>>(Txn&)>& collect) {
+Result<std::uint64_t> remove_records(Env& env, Reach reach,
+                                     const std::function<Result<std::vector<std::uint64_t>>(Txn&)>& collect) {
+  const Removal why = reach == Reach::this_node ? Removal::quiet_removal : Removal::explicit_removal;
   std::uint64_t removed = 0;
   auto written = env.write([&](Txn& txn) -> Result<void> {
     removed = 0;
@@ -936,7 +938,7 @@ Result<std::uint64_t> remove_records(Env& env, const std::function<Result<std::v
       auto exists = get_record(txn.raw(), txn.env(), id);
       if (!exists) return unexpected(exists.error());
       if (!*exists) continue;
-      if (auto d = delete_record(txn, id, Removal::explicit_removal); !d) return d;
+      if (auto d = delete_record(txn, id, why); !d) return d;
       ++removed;
     }
     return {};
@@ -975,21 +977,21 @@ Result<std::vector<std::uint64_t>> item_with_subtrees(Txn& txn, std::uint64_t it
 
 }  // namespace
 
-Result<std::uint64_t> Node::remove(const Pattern& pattern, unsigned cascade) {
+Result<std::uint64_t> Node::remove(const Pattern& pattern, unsigned cascade, Reach reach) {
   if (!pattern.s && !pattern.p && !pattern.o && !pattern.context && !pattern.source)
     return fail(Errc::invalid_argument, "refusing to remove with an empty pattern; name a subject, predicate, object, context or source");
-  return remove_records(*impl_->env, [&](Txn& txn) {
+  return remove_records(*impl_->env, reach, [&](Txn& txn) {
     return Query(txn.raw(), txn.env()).collect(pattern, ListOptions{cascade, 0});
   });
 }
 
-Result<std::uint64_t> Node::remove_item(std::uint64_t item_id, unsigned cascade) {
-  return remove_records(*impl_->env, [&](Txn& txn) { return item_with_subtrees(txn, item_id, cascade); });
+Result<std::uint64_t> Node::remove_item(std::uint64_t item_id, unsigned cascade, Reach reach) {
+  return remove_records(*impl_->env, reach, [&](Txn& txn) { return item_with_subtrees(txn, item_id, cascade); });
 }
 
-Result<std::uint64_t> Node::remove_items(const std::vector<std::uint64_t>& item_ids) {
+Result<std::uint64_t> Node::remove_items(const std::vector<std::uint64_t>& item_ids, Reach reach) {
   if (item_ids.empty()) return std::uint64_t{0};
-  return remove_records(*impl_->env, [&](Txn& txn) -> Result<std::vector<std::uint64_t>> {
+  return remove_records(*impl_->env, reach, [&](Txn& txn) -> Result<std::vector<std::uint64_t>> {
     std::vector<std::uint64_t> ids;
     for (std::uint64_t item : item_ids) {
       auto records = item_with_subtrees(txn, item, 0);

@@ -60,9 +60,10 @@ Result<bool> release_item(MDB_cursor* items, std::uint64_t id);
 Result<void> flush_index(Txn& txn);
 
 // Why a record goes: explicit removal is logged for watchers and notifies the agents that receive
-// removal notices (R21); a relayed removal is logged, and Agent::relay passes the notice on
-// itself; retention is neither.
-enum class Removal { explicit_removal, relayed_removal, retention };
+// removal notices (R21); a quiet one is logged only (a relayed removal, whose notice
+// Agent::relay passes on itself, or one meant for this node only, Reach::this_node); retention
+// is neither.
+enum class Removal { explicit_removal, quiet_removal, retention };
 
 // Deletes record `id` (and its item once the last record goes), keeping counters, indexes,
 // buffers and the dictionary consistent.

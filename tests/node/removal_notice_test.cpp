@@ -291,6 +291,26 @@ TEST(RemovalNotice, AnItemAddressedByAContextNotInNormalFormIsNoticedToItsAddres
   EXPECT_TRUE(got[0].removal);
 }
 
+// An operator pruning this node only (tahvel remove --local): the copies sent stay.
+TEST(RemovalNotice, ARemovalOfThisNodeOnlyNoticesNobodyButIsInTheChangeStream) {
+  TempDir dir;
+  Node node = make_node(dir.path());
+  Agent uplink = node.agent("uplink").value();
+  Agent writer = node.agent("hrv").value();
+  ASSERT_TRUE(uplink.subscribe({.p = ex("property")}));
+  ASSERT_TRUE(uplink.receive_removals());
+  const std::uint64_t one = writer.store(hrv_window(1, 1)).value();
+  ASSERT_TRUE(writer.store(hrv_window(2, 2)));
+  const std::uint64_t three = writer.store(hrv_window(3, 3)).value();
+  drain(uplink);
+  const std::uint64_t bookmark = node.snapshot().value().last_seq();
+  EXPECT_EQ(node.remove_item(one, 0, Reach::this_node).value(), 2u);
+  EXPECT_EQ(node.remove({.s = Term::iri(kNodeIri + "/hrv/2")}, 0, Reach::this_node).value(), 2u);
+  EXPECT_EQ(node.remove_items({three}, Reach::this_node).value(), 2u);
+  EXPECT_TRUE(drain(uplink).empty());
+  EXPECT_EQ(node.watch(bookmark, 0ms).value().size(), 6u);  // watchers still see them go
+}
+
 TEST(RemovalNotice, AStoreMadeBeforeNoticesGetsTheirTableAtItsFirstOpen) {
   TempDir dir;
   { make_node(dir.path() / "n"); }

@@ -51,6 +51,12 @@ struct Record {
   RecordMeta meta;
 };
 
+// How far an explicit removal goes: also to the copies this node's link sent up or down, which
+// the agents that receive removal notices are told of (Agent::receive_removals,
+// docs/protocol.md P7a, P10a), or only this node's records (an operator pruning a gateway's
+// store, whose parent keeps what it was sent).
+enum class Reach { copies_too, this_node };
+
 // A triple pattern with optional metadata filters. An unset position matches anything.
 // A pattern with a bound subject, predicate or object is answered through an index; a pattern
 // with none bound scans the records in id order.
@@ -390,16 +396,17 @@ class Node {
 
   // Removes the records matching `pattern` and, with cascade N, their sub-trees (as in
   // ListOptions). A pattern with nothing bound is refused (invalid_argument). Items waiting in
-  // input buffers are removed from them too. Returns the number of records removed.
-  Result<std::uint64_t> remove(const Pattern& pattern, unsigned cascade = 0);
+  // input buffers are removed from them too. Returns the number of records removed. By default
+  // the removal follows the copies this node's link sent up or down (Reach).
+  Result<std::uint64_t> remove(const Pattern& pattern, unsigned cascade = 0, Reach reach = Reach::copies_too);
 
   // Removes every record of an item, and with cascade N their sub-trees. Error not_found.
-  Result<std::uint64_t> remove_item(std::uint64_t item_id, unsigned cascade = 0);
+  Result<std::uint64_t> remove_item(std::uint64_t item_id, unsigned cascade = 0, Reach reach = Reach::copies_too);
 
   // Removes every record of each item of `item_ids` in one transaction (one commit: one sync on
   // a durable store, where remove_item per item syncs each); items already gone are skipped.
   // Returns the number of records removed.
-  Result<std::uint64_t> remove_items(const std::vector<std::uint64_t>& item_ids);
+  Result<std::uint64_t> remove_items(const std::vector<std::uint64_t>& item_ids, Reach reach = Reach::copies_too);
 
   // Changes after `bookmark` (a seq), oldest first, at most `limit` (0: no limit). Waits up to
   // `timeout` for the first one when there is none yet; an empty vector means timeout.
