@@ -2,9 +2,6 @@
 // buffer, the records removed from items that were routed to it, so that a link can take a
 // removal where it sent the item; and a relayed notice removes the copies it names (R19).
 #include <gtest/gtest.h>
-#include <lmdb.h>
-#include <sys/wait.h>
-#include <unistd.h>
 
 #include "test_support.h"
 
@@ -28,6 +25,27 @@ std::vector<Delivery> drain(Agent& agent) {
   while (auto d = agent.take(0ms).value()) out.push_back(std::move(*d));
   return out;
 }
+
+RelayedItem notice_of(std::uint64_t seq, const std::string& source, Item item, std::vector<std::uint32_t> positions) {
+  RelayedItem notice{seq, seq - 1, source, std::move(item)};
+  notice.removal = true;
+  notice.positions = std::move(positions);
+  return notice;
+}
+
+// A gateway's store: agent `child` relays its child's items, agent `uplink` forwards HRV
+// windows to its parent and receives removal notices, as the link sets them up.
+struct Gateway {
+  TempDir dir;
+  Node node = make_node(dir.path());
+  Agent child = node.agent("child").value();
+  Agent uplink = node.agent("uplink").value();
+  const std::string source = kNodeIri + "/child/hrv";
+  Gateway() {
+    EXPECT_TRUE(uplink.subscribe({.p = ex("property"), .o = ex("HRV")}));
+    EXPECT_TRUE(uplink.receive_removals());
+  }
+};
 
 TEST(RemovalNotice, AnAgentThatAskedGetsTheRecordsRemovedFromAnItemRoutedToIt) {
   TempDir dir;
@@ -90,12 +108,9 @@ TEST(RemovalNotice, NothingIsNoticedForAnItemNeverRoutedToTheAgentNorForRetentio
 }
 
 TEST(RemovalNotice, AReplaceNoticesTheOldRecordsBeforeTheNewItem) {
-  TempDir dir;
-  Node node = make_node(dir.path());
-  Agent uplink = node.agent("uplink").value();
-  Agent reasoner = node.agent("reasoner").value();
-  ASSERT_TRUE(uplink.subscribe({.p = ex("property")}));
-  ASSERT_TRUE(uplink.receive_removals());
+  Gateway g;
+  Agent& uplink = g.uplink;
+  Agent reasoner = g.node.agent("reasoner").value();
   ASSERT_TRUE(reasoner.store(hrv_window(1, 1'000)));
   drain(uplink);
   auto ids = reasoner.replace({Pattern{.s = Term::iri(kNodeIri + "/hrv/1")}}, {hrv_window(2, 2'000)}).value();
@@ -166,9 +181,7 @@ TEST(RemovalNotice, ARelayedNoticeRemovesTheCopiesOfThatSourceAndNoOthers) {
   removal.triples.pop_back();  // only the rmssd record was removed below
   removal.triples.erase(removal.triples.begin());
   removal.add(Term::iri(kNodeIri + "/hrv/1"), ex("rmssd"), Term::integer(41));
-  RelayedItem notice{4, 3, source, removal};
-  notice.removal = true;
-  notice.positions = {1};  // the rmssd record is its item's second
+  const RelayedItem notice = notice_of(4, source, removal, {1});  // the rmssd record is its item's second
   auto applied = child.relay("child#s", {notice});
   ASSERT_TRUE(applied.has_value()) << applied.error().message;
   EXPECT_EQ(applied->mark, 4u);
@@ -182,30 +195,19 @@ TEST(RemovalNotice, ARelayedNoticeRemovesTheCopiesOfThatSourceAndNoOthers) {
   // Sent again (a resend): a duplicate, dropped by the mark; a notice of a copy no longer held
   // is no error.
   EXPECT_EQ(child.relay("child#s", {notice}).value().duplicates, 1u);
-  RelayedItem again{5, 4, source, removal};
-  again.removal = true;
-  again.positions = {1};
-  auto none = child.relay("child#s", {again});
+  auto none = child.relay("child#s", {notice_of(5, source, removal, {1})});
   ASSERT_TRUE(none.has_value());
   EXPECT_EQ(none->records_removed, 0u);
   EXPECT_EQ(none->mark, 5u);
 }
 
+// What a child's removal takes away from a gateway goes on to the gateway's parent.
 TEST(RemovalNotice, ARelayedRemovalIsNoticedOnwardAsTheCopyWasRouted) {
-  // A gateway: what its child's removal takes away from it goes on to its own parent.
-  TempDir dir;
-  Node node = make_node(dir.path());
-  Agent child = node.agent("child").value();
-  Agent uplink = node.agent("uplink").value();
-  ASSERT_TRUE(uplink.subscribe({.p = ex("property"), .o = ex("HRV")}));
-  ASSERT_TRUE(uplink.receive_removals());
-  const std::string source = kNodeIri + "/child/hrv";
+  Gateway g;
+  auto& [dir, node, child, uplink, source] = g;
   ASSERT_TRUE(child.relay("child#s", {{1, 0, source, hrv_window(1, 1'000)}}));
   ASSERT_EQ(drain(uplink).size(), 1u);
-  RelayedItem notice{2, 1, source, hrv_window(1, 1'000)};
-  notice.removal = true;
-  notice.positions = {0, 1};
-  ASSERT_EQ(child.relay("child#s", {notice}).value().records_removed, 2u);
+  ASSERT_EQ(child.relay("child#s", {notice_of(2, source, hrv_window(1, 1'000), {0, 1})}).value().records_removed, 2u);
   auto got = drain(uplink);
   ASSERT_EQ(got.size(), 1u);
   EXPECT_TRUE(got[0].removal);
@@ -213,22 +215,10 @@ TEST(RemovalNotice, ARelayedRemovalIsNoticedOnwardAsTheCopyWasRouted) {
   EXPECT_EQ(got[0].records[0].meta.source, source);
 }
 
-RelayedItem notice_of(std::uint64_t seq, const std::string& source, Item item, std::vector<std::uint32_t> positions) {
-  RelayedItem notice{seq, seq - 1, source, std::move(item)};
-  notice.removal = true;
-  notice.positions = std::move(positions);
-  return notice;
-}
-
 // A gateway whose ring took its copy still passes the removal on: the hospital has one.
 TEST(RemovalNotice, ARelayedNoticeGoesOnWhereNoCopyIsHeld) {
-  TempDir dir;
-  Node node = make_node(dir.path());
-  Agent child = node.agent("child").value();
-  Agent uplink = node.agent("uplink").value();
-  ASSERT_TRUE(uplink.subscribe({.p = ex("property"), .o = ex("HRV")}));
-  ASSERT_TRUE(uplink.receive_removals());
-  const std::string source = kNodeIri + "/child/hrv";
+  Gateway g;
+  auto& [dir, node, child, uplink, source] = g;
   auto applied = child.relay("child#s", {notice_of(1, source, hrv_window(1, 1'000), {0, 1})});
   ASSERT_TRUE(applied.has_value()) << applied.error().message;
   EXPECT_EQ(applied->records_removed, 0u);
@@ -293,12 +283,10 @@ TEST(RemovalNotice, AnItemAddressedByAContextNotInNormalFormIsNoticedToItsAddres
 
 // An operator pruning this node only (tahvel remove --local): the copies sent stay.
 TEST(RemovalNotice, ARemovalOfThisNodeOnlyNoticesNobodyButIsInTheChangeStream) {
-  TempDir dir;
-  Node node = make_node(dir.path());
-  Agent uplink = node.agent("uplink").value();
+  Gateway g;
+  Node& node = g.node;
+  Agent& uplink = g.uplink;
   Agent writer = node.agent("hrv").value();
-  ASSERT_TRUE(uplink.subscribe({.p = ex("property")}));
-  ASSERT_TRUE(uplink.receive_removals());
   const std::uint64_t one = writer.store(hrv_window(1, 1)).value();
   ASSERT_TRUE(writer.store(hrv_window(2, 2)));
   const std::uint64_t three = writer.store(hrv_window(3, 3)).value();
@@ -314,20 +302,11 @@ TEST(RemovalNotice, ARemovalOfThisNodeOnlyNoticesNobodyButIsInTheChangeStream) {
 TEST(RemovalNotice, AStoreMadeBeforeNoticesGetsTheirTableAtItsFirstOpen) {
   TempDir dir;
   { make_node(dir.path() / "n"); }
-  pid_t pid = fork();  // LMDB's own handle on the store, in a process of its own
-  if (pid == 0) {
-    // Drop the table, as a store made by an earlier build has none.
-    MDB_env* env = nullptr;
-    MDB_txn* txn = nullptr;
+  // Drop the table, as a store made by an earlier build has none.
+  ASSERT_TRUE(change_with_lmdb(dir.path() / "n", [](MDB_txn* txn) {
     MDB_dbi notices = 0;
-    const bool ok = mdb_env_create(&env) == 0 && mdb_env_set_maxdbs(env, 32) == 0 &&
-                    mdb_env_open(env, (dir.path() / "n").c_str(), 0, 0644) == 0 && mdb_txn_begin(env, nullptr, 0, &txn) == 0 &&
-                    mdb_dbi_open(txn, "notices", 0, &notices) == 0 && mdb_drop(txn, notices, 1) == 0 && mdb_txn_commit(txn) == 0;
-    _exit(ok ? 0 : 1);
-  }
-  int status = 0;
-  waitpid(pid, &status, 0);
-  ASSERT_TRUE(WIFEXITED(status) && WEXITSTATUS(status) == 0) << "could not take the table away";
+    return mdb_dbi_open(txn, "notices", 0, &notices) == 0 && mdb_drop(txn, notices, 1) == 0;
+  })) << "could not take the table away";
   auto node = Node::open(dir.path() / "n");
   ASSERT_TRUE(node.has_value()) << node.error().message;
   Agent uplink = node->agent("uplink").value();

@@ -23,6 +23,7 @@ namespace {
 
 using namespace std::chrono_literals;
 using testing::ex;
+using testing::change_with_lmdb;
 using testing::make_node;
 using testing::TempDir;
 
@@ -175,20 +176,11 @@ TEST(Store, AStoreKeepsItsIdAcrossOpensAndAStoreMadeAgainInItsPlaceHasAnother) {
 TEST(Store, AStoreMadeBeforeStoreIdsGetsOneAtItsFirstOpenAndKeepsIt) {
   TempDir dir;
   { make_node(dir.path() / "n"); }
-  pid_t pid = fork();  // LMDB's own handle on the store, in a process of its own
-  if (pid == 0) {
-    MDB_env* env = nullptr;
-    MDB_txn* txn = nullptr;
+  ASSERT_TRUE(change_with_lmdb(dir.path() / "n", [](MDB_txn* txn) {
     MDB_dbi meta = 0;
     MDB_val key{8, const_cast<char*>("store_id")};
-    const bool ok = mdb_env_create(&env) == 0 && mdb_env_set_maxdbs(env, 32) == 0 &&
-                    mdb_env_open(env, (dir.path() / "n").c_str(), 0, 0644) == 0 && mdb_txn_begin(env, nullptr, 0, &txn) == 0 &&
-                    mdb_dbi_open(txn, "meta", 0, &meta) == 0 && mdb_del(txn, meta, &key, nullptr) == 0 && mdb_txn_commit(txn) == 0;
-    _exit(ok ? 0 : 1);
-  }
-  int status = 0;
-  waitpid(pid, &status, 0);
-  ASSERT_TRUE(WIFEXITED(status) && WEXITSTATUS(status) == 0) << "could not take the store id away";
+    return mdb_dbi_open(txn, "meta", 0, &meta) == 0 && mdb_del(txn, meta, &key, nullptr) == 0;
+  })) << "could not take the store id away";
   std::string given;
   {
     auto opened = Node::open(dir.path() / "n");
