@@ -178,7 +178,8 @@ tahvel_status tahvel_watch(tahvel_node* node, uint64_t bookmark, int timeout_ms,
                            char** json_out, size_t* len_out, uint64_t* bookmark_out);
 
 /* Removes every record of item `item` and, with cascade N, their sub-trees (as in tahvel_list).
- * The item is also removed from every input buffer it waits in. Sets *removed_out (may be NULL)
+ * The item is also removed from every input buffer it waits in, and from the nodes this node's
+ * link sent it to, up or down (docs/protocol.md P7a, P10a). Sets *removed_out (may be NULL)
  * to the number of records removed.
  * Errors: TAHVEL_INVALID_ARGUMENT, TAHVEL_NOT_FOUND (no record of that item remains), TAHVEL_IO,
  * TAHVEL_STORE_FULL, TAHVEL_NO_MEMORY. */
