@@ -713,6 +713,8 @@ Result<RelayOutcome> Agent::relay(std::string_view stream, const std::vector<Rel
           if (!refusal.empty() && refusal[i]) {
             outcome.refused.push_back({relayed.seq, *refusal[i]});
           } else if (relayed.removal) {
+            // The items of this run stored before it are in the index only once it is flushed.
+            if (auto f = flush_index(txn); !f) return unexpected(f.error());
             auto copies = held_copies(txn.raw(), *impl_->env, relayed.item, relayed.positions, relayed.source);
             if (!copies) return unexpected(with_context(copies.error(), about(i)));
             for (std::uint64_t id : copies->records)

@@ -215,6 +215,18 @@ TEST(RemovalNotice, ARelayedRemovalIsNoticedOnwardAsTheCopyWasRouted) {
   EXPECT_EQ(got[0].records[0].meta.source, source);
 }
 
+// An item and its notice in one run (a parent that was paused while both were sent): the
+// notice removes the copy the same transaction stored.
+TEST(RemovalNotice, ANoticeInTheSameRunAsItsItemRemovesTheCopyJustStored) {
+  Gateway g;
+  auto& [dir, node, child, uplink, source] = g;
+  auto applied = child.relay("child#s", {{1, 0, source, hrv_window(1, 1'000)}, notice_of(2, source, hrv_window(1, 1'000), {0, 1})});
+  ASSERT_TRUE(applied.has_value()) << applied.error().message;
+  EXPECT_EQ(applied->stored.size(), 1u);
+  EXPECT_EQ(applied->records_removed, 2u);
+  EXPECT_EQ(node.snapshot().value().count({.source = source}).value(), 0u);
+}
+
 // A gateway whose ring took its copy still passes the removal on: the hospital has one.
 TEST(RemovalNotice, ARelayedNoticeGoesOnWhereNoCopyIsHeld) {
   Gateway g;
