@@ -2018,6 +2018,28 @@ TEST(Link, WhatIsRemovedBelowIsRemovedAtEveryNodeAboveThatGotIt) {
   EXPECT_EQ(count(sensor_dir, hrv_windows), 17u);
 }
 
+// A state replaced while the parent is stopped: when it is back, each replaced state comes up
+// with its removal in one run, and the parent ends with the last state only.
+TEST(Link, AStateReplacedWhileTheParentIsStoppedEndsAsTheLastStateThere) {
+  Tree tree;
+  ASSERT_TRUE(tree.start_hospital_and_home1());
+  auto home = node::Node::open(tree.home1_dir).value();
+  auto hrv = home.agent("hrv").value();
+  ASSERT_TRUE(hrv.store(hrv_item(0)));
+  const node::Pattern numbered{.p = Term::iri(kEx + "n")};
+  ASSERT_TRUE(eventually([&] { return count(tree.hospital_dir, numbered) == 1; }));
+  tree.hospital.reset();
+  for (int i = 1; i <= 6; ++i)
+    ASSERT_TRUE(hrv.replace({{.p = Term::iri(kEx + "n")}}, {hrv_item(i)}));
+  tree.hospital = tree.start_hospital();
+  EXPECT_TRUE(eventually([&] {
+    auto states = node::Node::open(tree.hospital_dir).value().snapshot().value().list(numbered).value();
+    return states.size() == 1 && states[0].triple.o == Term::integer(6) && outbox(tree.home1_dir) == 0;
+  })) << count(tree.hospital_dir, numbered) << " states at the hospital";
+  // Only the number went each time: the windows' other record stays, one per replaced state.
+  EXPECT_EQ(count(tree.hospital_dir, {.p = kObservedProperty}), 7u);
+}
+
 // P10a: configuration removed where it was written is removed where it went, and the settings
 // sent to a whole subtree with it.
 TEST(Link, ConfigurationRemovedAtTheHospitalIsRemovedBelowHopByHop) {
