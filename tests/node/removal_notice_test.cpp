@@ -48,15 +48,13 @@ struct Gateway {
 };
 
 TEST(RemovalNotice, AnAgentThatAskedGetsTheRecordsRemovedFromAnItemRoutedToIt) {
-  TempDir dir;
-  Node node = make_node(dir.path());
-  Agent uplink = node.agent("uplink").value();
-  Agent plain = node.agent("plain").value();
-  Agent writer = node.agent("hrv").value();
-  ASSERT_TRUE(uplink.subscribe({.p = ex("property"), .o = ex("HRV")}));
+  Gateway g;  // its uplink asked already
+  Node& node = g.node;
+  Agent& uplink = g.uplink;
+  ASSERT_TRUE(uplink.receive_removals());  // asking again changes nothing
+  Agent plain = node.agent("plain").value();  // subscribed alike, never asked
   ASSERT_TRUE(plain.subscribe({.p = ex("property"), .o = ex("HRV")}));
-  ASSERT_TRUE(uplink.receive_removals());
-  ASSERT_TRUE(uplink.receive_removals());  // idempotent
+  Agent writer = node.agent("hrv").value();
   const std::uint64_t item = writer.store(hrv_window(1, 1'000)).value();
   ASSERT_EQ(drain(uplink).size(), 1u);
   ASSERT_EQ(drain(plain).size(), 1u);
@@ -137,21 +135,20 @@ TEST(RemovalNotice, TheAddresseeOfAnItemsContextIsNoticedWhenItAsked) {
   EXPECT_EQ(got[0].records[0].meta.context, kNodeIri + "/home1/hrv");
 }
 
+// Two agents get one notice: the uplink (a link's window) and a second one that takes.
 TEST(RemovalNotice, ANoticeLeavesTheStoreWithTheLastBufferThatHeldIt) {
-  TempDir dir;
-  Node node = make_node(dir.path());
-  Agent a = node.agent("a").value();
+  Gateway g;
+  Node& node = g.node;
+  Agent& a = g.uplink;
   Agent b = node.agent("b").value();
+  ASSERT_TRUE(b.subscribe({.p = ex("rmssd")}));
+  ASSERT_TRUE(b.receive_removals());
   Agent writer = node.agent("w").value();
-  for (Agent* agent : {&a, &b}) {
-    ASSERT_TRUE(agent->subscribe({.p = ex("rmssd")}));
-    ASSERT_TRUE(agent->receive_removals());
-  }
   const std::uint64_t item = writer.store(hrv_window(1, 1)).value();
   ASSERT_TRUE(a.ack_through(item));
   ASSERT_TRUE(b.ack_through(item));
   ASSERT_TRUE(node.remove_item(item));
-  // Peeked (a link's window), then acknowledged through, by one; taken by the other.
+  // Peeked, then acknowledged through, by the uplink; taken by the other.
   auto peeked = a.peek(item, 10, 0ms).value();
   ASSERT_EQ(peeked.size(), 1u);
   EXPECT_TRUE(peeked[0].removal);
