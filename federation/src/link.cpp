@@ -251,7 +251,11 @@ struct Link::Impl {
   const Clock::time_point run_started = Clock::now();
 
   mutable std::mutex mu;
+  // With mu. `changed`: the up sender's session or window moved (a welcome, an ack). `board_due`:
+  // the timer thread has board writes to make. Apart, so that the parent's acks (every 20 ms
+  // under a stream) do not wake the timer thread for nothing on the path of the next item.
   std::condition_variable changed;
+  std::condition_variable board_due;
   LinkCounters counters;
 
   // This node's store id (P6a): it names the streams of this store's items at the peers.
@@ -1846,7 +1850,7 @@ struct Link::Impl {
       if (stream.unacked.empty() && !stream.reading && !stream.relaying) out_answers.erase(key);
     } else if (next) {
       board_writes.push_back({key, in.reply_to, f});
-      changed.notify_all();
+      board_due.notify_all();
     }
     out.add(via, answer_ack_to_child(in, f.seq, body->origin));
     lock.unlock();
@@ -1876,7 +1880,7 @@ struct Link::Impl {
       } else {
         f.to = self;
         board_writes.push_back({key, in.reply_to, std::move(f)});
-        changed.notify_all();
+        board_due.notify_all();
       }
     }
   }
@@ -1908,7 +1912,7 @@ struct Link::Impl {
       answers_due.notify_all();
     } else {
       board_writes.push_back({key, it->second.reply_to, f});
-      changed.notify_all();
+      board_due.notify_all();
     }
   }
 
@@ -2271,7 +2275,7 @@ struct Link::Impl {
         std::unique_lock lock(mu);
         // While answer chunks wait on the board, look often for the asker having taken them.
         const bool unread = std::any_of(in_answers.begin(), in_answers.end(), [](const auto& e) { return !e.second.unread.empty(); });
-        changed.wait_for(lock, unread ? 5ms : 50ms, [&] { return !board_writes.empty() || stopping.load(); });
+        board_due.wait_for(lock, unread ? 5ms : 50ms, [&] { return !board_writes.empty() || stopping.load(); });
         writes.assign(std::make_move_iterator(board_writes.begin()), std::make_move_iterator(board_writes.end()));
         board_writes.clear();
         const auto now = Clock::now();
@@ -2654,6 +2658,7 @@ Link::~Link() { stop(); }
 void Link::stop() {
   if (!impl_ || impl_->stopping.exchange(true)) return;
   impl_->changed.notify_all();
+  impl_->board_due.notify_all();
   impl_->answers_due.notify_all();
   if (impl_->waker) impl_->waker->wake_waiters();  // the down pump
   for (auto& t : impl_->threads) t.join();

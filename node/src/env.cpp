@@ -9,6 +9,10 @@
 #include <thread>
 
 #include <fcntl.h>
+#include <pthread.h>
+#include <sys/mman.h>
+#include <sys/resource.h>
+#include <sys/stat.h>
 #include <signal.h>
 #include <stdio.h>
 #include <unistd.h>
@@ -26,6 +30,34 @@
 
 namespace tahvel::node::detail {
 namespace {
+
+// <sys/mman.h> names it from glibc 2.35 on; the kernel has it from 5.14.
+#ifdef MADV_POPULATE_WRITE
+constexpr int kMadvPopulateWrite = MADV_POPULATE_WRITE;
+#else
+constexpr int kMadvPopulateWrite = 23;
+#endif
+
+// Where LMDB mapped the data file open as `fd` (`size` bytes) in this process, from
+// /proc/self/maps: LMDB tells the address of a fixed map only. Null when not found.
+char* find_map(int fd, std::uint64_t size) {
+  struct stat st;
+  if (fstat(fd, &st) != 0) return nullptr;
+  FILE* maps = std::fopen("/proc/self/maps", "re");
+  if (!maps) return nullptr;
+  char* found = nullptr;
+  char line[512];
+  while (!found && std::fgets(line, sizeof line, maps)) {
+    unsigned long start = 0, end = 0, offset = 0, inode = 0;
+    unsigned major = 0, minor = 0;
+    char perms[5] = {};
+    if (std::sscanf(line, "%lx-%lx %4s %lx %x:%x %lu", &start, &end, perms, &offset, &major, &minor, &inode) != 7)
+      continue;  // also the rest of a line longer than the buffer
+    if (inode == st.st_ino && offset == 0 && end - start == size && perms[1] == 'w') found = reinterpret_cast<char*>(start);
+  }
+  std::fclose(maps);
+  return found;
+}
 
 // A process started with 0, 1 or 2 closed (by a supervisor, or `cmd >&-`) would have LMDB's
 // files, or the wake board, opened as those numbers: its output, or a library's message to
@@ -159,6 +191,15 @@ void DecodedTerms::add(std::uint64_t id, const Term& term) {
 }
 
 Env::~Env() {
+  if (prefaulter_.joinable()) {
+    {
+      std::lock_guard lock(prefault_mutex_);
+      prefault_stop_ = true;
+    }
+    prefault_cv_.notify_all();
+    if (prefaulter_pid_ == getpid()) prefaulter_.join();
+    else prefaulter_.detach();
+  }
   for (MDB_txn* txn : idle_readers_) mdb_txn_abort(txn);
   if (env_) mdb_env_close(env_);
 }
@@ -417,6 +458,7 @@ Result<void> Env::begin(MDB_txn** txn, unsigned flags) {
                                   " grew in another process while this process holds a snapshot;"
                                   " release the snapshot and retry");
       mdb_env_set_mapsize(env_, 0);
+      map_moves_.fetch_add(1);
       continue;
     }
     return lmdb_fail(rc, flags & MDB_RDONLY ? "starting a snapshot" : "starting a write");
@@ -477,6 +519,7 @@ Result<void> Env::grow(WriteKind kind) {
                               " must grow, and cannot while this process holds a snapshot; release the snapshot and retry");
   std::uint64_t next = std::min(limit, std::max(current * 2, current + kInitialMapBytes));
   int rc = mdb_env_set_mapsize(env_, next);
+  map_moves_.fetch_add(1);
   if (rc != 0) return lmdb_fail(rc, "growing the store map of " + dir_.string());
   return {};
 }
@@ -625,7 +668,73 @@ Result<void> Env::write(const std::function<Result<void>(Txn&)>& body, WriteKind
     // Threads waiting for input buffers (a link's pump) wake only when one changed.
     if (txn.counters.next_seq != first_seq) wake_.bump_commit(!txn.wake_slots.empty());
     term_cache.publish(txn.staged_pinned, txn.staged_unpinned, TermCache::generation(txn.counters));
+    prefault_ahead();
     return {};
+  }
+}
+
+void Env::prefault_ahead() {
+  if (prefault_off_.load(std::memory_order_relaxed) || settings_.durability == Durability::durable) return;
+  MDB_envinfo info;
+  MDB_stat stat;
+  if (mdb_env_info(env_, &info) != 0 || mdb_env_stat(env_, &stat) != 0) return;
+  const std::uint64_t in_use = (info.me_last_pgno + 1) * stat.ms_psize;
+  if (in_use + kPrefaultAhead / 2 <= prefault_ready_.load(std::memory_order_relaxed)) return;
+  {
+    std::lock_guard lock(prefault_mutex_);
+    // Never the pages in use: the writer faulted them in already, or another process wrote them
+    // and this one may never read them.
+    if (prefault_ready_.load() < in_use) prefault_ready_.store(in_use);
+    // Within the blocks reserve_disk() allocated: a page of a hole would take one of the disk.
+    prefault_wanted_ = std::min({static_cast<std::uint64_t>(info.me_mapsize), disk_reserved_.load(), in_use + kPrefaultAhead});
+    if (!prefaulter_.joinable()) {
+      prefaulter_pid_ = getpid();
+      prefaulter_ = std::thread([this] { prefault_loop(); });
+    }
+  }
+  prefault_cv_.notify_one();
+}
+
+void Env::prefault_loop() {
+  pthread_setname_np(pthread_self(), "tv-prefault");
+  setpriority(PRIO_PROCESS, static_cast<id_t>(gettid()), 19);  // Linux: this thread only
+  constexpr std::uint64_t kChunk = 64 << 10;  // a short hold of growth_mutex_ at a time
+  char* map_base = nullptr;
+  std::uint64_t map_size = 0, map_seen_moves = ~0ull;
+  std::unique_lock lock(prefault_mutex_);
+  while (!prefault_stop_) {
+    const std::uint64_t from = prefault_ready_.load();
+    if (from >= prefault_wanted_) {
+      prefault_cv_.wait(lock);
+      continue;
+    }
+    const std::uint64_t to = std::min(prefault_wanted_, from + kChunk);
+    lock.unlock();
+    int err = 0;
+    {
+      // Shared, as a transaction: the map is not moved meanwhile (grow() holds it exclusively).
+      std::shared_lock map_lock(growth_mutex_);
+      MDB_envinfo info;
+      int fd = -1;
+      if (mdb_env_info(env_, &info) == 0 && to <= info.me_mapsize && mdb_env_get_fd(env_, &fd) == 0) {
+        if (map_seen_moves != map_moves_.load() || map_size != info.me_mapsize) {
+          map_base = find_map(fd, info.me_mapsize);
+          map_size = info.me_mapsize;
+          map_seen_moves = map_moves_.load();
+        }
+        if (!map_base) err = ENOSYS;
+        else
+          while (madvise(map_base + from, to - from, kMadvPopulateWrite) != 0 && (err = errno) == EINTR) err = 0;
+      }
+    }
+    lock.lock();
+    if (err == EINVAL || err == ENOSYS || err == EPERM) {
+      prefault_off_.store(true);  // this kernel cannot: the writer faults its pages in as before
+      return;
+    }
+    // Done, or failed at that range (beyond the file, no memory): not tried again until the
+    // writer goes past it.
+    prefault_ready_.store(to);
   }
 }
 
