@@ -688,7 +688,13 @@ struct Link::Impl {
     };
 
     std::mutex queue_mu;
+    // With queue_mu. `queue_cv`: the applier (a batch queued) and takers waiting for room.
+    // `taker_cv`: the taker thread in push mode (frames left for it, sends deferred to it, room).
+    // Apart, so that a held ack sent from the transport's thread wakes the taker that sends it
+    // and not the applier as well: two wake-ups on the path of the next item (docs/bench.md,
+    // session 32).
     std::condition_variable queue_cv;
+    std::condition_variable taker_cv;
     std::deque<ReceivedBatch> queue;
     bool applying = false;  // a thread is applying a batch (under queue_mu)
     // Push mode: the transport's thread left frames in the transport, because the queue was full
@@ -802,7 +808,7 @@ struct Link::Impl {
     // take `again`. On the transport's thread every send waits for the taker (DeferredSends).
     std::atomic<bool> taking{false}, again{false};
     std::vector<std::pair<Transport*, Frame>> deferred_sends;  // under queue_mu
-    DeferredSends defer{queue_mu, queue_cv, deferred_sends};
+    DeferredSends defer{queue_mu, taker_cv, deferred_sends};
     auto take_all = [&](bool on_transport_thread) {
       again = true;
       bool took = false;
@@ -847,7 +853,7 @@ struct Link::Impl {
         if (applying || !queue.empty()) {
           if (!deferred) {  // one wake-up for the taker, not one per sample
             deferred = true;
-            queue_cv.notify_all();
+            taker_cv.notify_all();
           }
           return;
         }
@@ -872,7 +878,7 @@ struct Link::Impl {
           wait = std::min(wait, std::max(at_least, std::chrono::ceil<std::chrono::milliseconds>(kRunWait - held)));
         }
         std::unique_lock lock(queue_mu);
-        queue_cv.wait_for(lock, wait, [&] {
+        taker_cv.wait_for(lock, wait, [&] {
           return stopping || !deferred_sends.empty() || (deferred && queue.size() < kQueuedBatches);
         });
         deferred = false;
@@ -896,7 +902,10 @@ struct Link::Impl {
         batch = std::move(queue.front());
         queue.pop_front();
         applying = true;
-        if (room_awaited) queue_cv.notify_all();
+        if (room_awaited) {
+          queue_cv.notify_all();
+          taker_cv.notify_all();
+        }
       }
       apply(batch);
       std::lock_guard lock(queue_mu);
