@@ -13,6 +13,7 @@
 #include <toml++/toml.h>
 
 #include "tahvel/agents/dispatcher.h"
+#include "tahvel/aggregation/wfdb.h"
 #include "tahvel/federation/transport.h"
 #include "tahvel/spatial/area_subscriptions.h"
 #include "tahvel/uri/iri.h"
@@ -565,6 +566,16 @@ node::Result<std::vector<std::string>> expand_agent_command(const AgentSpec& age
     return node::fail(Errc::invalid_argument, what + "cannot run '" + program + "': " +
                                                    (program.empty() ? "an empty program name" : "not found on PATH") +
                                                    " (programs of this build: {bin}/tahvel-...)");
+  }
+  // An ECG replay of a record that is not there, or not readable, would only show as the
+  // source failing and restarted for ever in its log: its header and signal files are opened
+  // here, as the source opens them.
+  if (std::filesystem::path(program).filename() == "tahvel-ecg-source") {
+    for (std::size_t i = 1; i + 1 < argv.size(); ++i) {
+      if (argv[i] != "--record") continue;
+      if (auto record = aggregation::SignalReader::open(argv[i + 1]); !record)
+        return node::fail(Errc::invalid_argument, what + "--record " + argv[i + 1] + ": " + record.error().message);
+    }
   }
   return argv;
 }

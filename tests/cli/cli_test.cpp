@@ -1000,6 +1000,28 @@ TEST_F(Cli, StatusJsonHasEachNodesLinkAndPrograms) {
   EXPECT_EQ(run({"down", "--state", state}).status, 0);
 }
 
+// An ECG source given a record that is not there failed and was restarted for ever, the cause
+// only in its log. `up` opens the record as the source would, and refuses to start, naming the
+// node, the agent and the file; once the record is there the same topology runs.
+TEST_F(Cli, UpRefusesAnEcgRecordItCannotRead) {
+  const std::string record = (tmp_ / "rec" / "s").string();
+  spit(tmp_ / "node.toml",
+       "[[node]]\nid = \"bed\"\niri = \"http://example.org/bed\"\n"
+       "  [[node.agent]]\n  id = \"source\"\n  run = [\"{bin}/tahvel-ecg-source\", \"{store}\", \"--record\", \"" +
+           record + "\", \"--speed\", \"1\"]\n");
+  const std::string state = (tmp_ / "state").string();
+  Outcome up = run({"up", (tmp_ / "node.toml").string(), "--state", state});
+  EXPECT_EQ(up.status, 1);
+  EXPECT_NE(up.err.find("node 'bed': agent 'source': --record " + record + ": " + record + ".hea"), std::string::npos) << up.err;
+  EXPECT_FALSE(fs::exists(tmp_ / "state" / "bed"));
+  fs::create_directories(tmp_ / "rec");
+  spit(tmp_ / "rec" / "s.hea", "s 1 360 2\ns.dat 16 200 16 0 0 0 0 II\n");
+  spit(tmp_ / "rec" / "s.dat", std::string(4, '\0'));
+  up = run({"up", (tmp_ / "node.toml").string(), "--state", state});
+  EXPECT_EQ(up.status, 0) << up.err;
+  EXPECT_EQ(run({"down", "--state", state}).status, 0);
+}
+
 // `{mitdb}` in a command while TAHVEL_MITDB is unset used to become "" ("/100": a replay of a
 // file that is not there, failing and restarted for ever). `up` refuses it before making the
 // store, naming the node and the agent; the same with TAHVEL_MITDB set to a directory runs.
