@@ -1,4 +1,4 @@
-// Raw LCM and Cyclone DDS ping-pong latency (floors.h): the library alone, a one-int64 message.
+// Raw LCM and Cyclone DDS ping-pong latency (floors.h): the library alone, a two-int64 message.
 // The echo side answers every ping; the ping side sends one ping at a time and waits for its
 // pong. Both sides run in one process (raw_*_pingpong: two threads) or in two (the halves).
 #include "tahvel/federation/floors.h"
@@ -26,15 +26,41 @@ using clock = std::chrono::steady_clock;
 
 double micros(clock::duration d) { return std::chrono::duration<double, std::micro>(d).count(); }
 
-LatencyFloor summarise(std::vector<double> one_way_us) {
+// The q-quantile of `sorted` (ascending, not empty): the nearest rank.
+double quantile(const std::vector<double>& sorted, double q) {
+  const std::size_t n = sorted.size();
+  std::size_t i = static_cast<std::size_t>(std::ceil(q * static_cast<double>(n)));
+  return sorted[std::min(n - 1, i == 0 ? 0 : i - 1)];
+}
+
+LatencyFloor summarise(std::vector<double> one_way_us, std::vector<double> legs_us = {}) {
   std::sort(one_way_us.begin(), one_way_us.end());
-  const std::size_t n = one_way_us.size();
-  auto at = [&](double q) {
-    std::size_t i = static_cast<std::size_t>(std::ceil(q * static_cast<double>(n)));
-    return one_way_us[std::min(n - 1, i == 0 ? 0 : i - 1)];
-  };
-  const double p50 = at(0.50), p99 = at(0.99);
-  return LatencyFloor{p50, p99, static_cast<int>(n), std::move(one_way_us)};
+  LatencyFloor f;
+  f.rounds = static_cast<int>(one_way_us.size());
+  f.p50_us = quantile(one_way_us, 0.50);
+  f.p99_us = quantile(one_way_us, 0.99);
+  f.one_way_us = std::move(one_way_us);
+  // Both legs of every round, or none: a round whose stamp fell outside it leaves them all out.
+  if (legs_us.size() == 2 * f.one_way_us.size()) {
+    std::sort(legs_us.begin(), legs_us.end());
+    f.leg_p50_us = quantile(legs_us, 0.50);
+    f.leg_p99_us = quantile(legs_us, 0.99);
+    f.legs_us = std::move(legs_us);
+  }
+  return f;
+}
+
+std::int64_t stamp_ns(clock::time_point t) {
+  return std::chrono::duration_cast<std::chrono::nanoseconds>(t.time_since_epoch()).count();
+}
+
+// Adds the two legs of a round sent at `t0` and answered at `t3`, split at the echo's `taken_ns`,
+// when the stamp lies within the round (the echo on this machine's clock).
+void add_legs(std::vector<double>& legs, clock::time_point t0, clock::time_point t3, std::int64_t taken_ns) {
+  if (taken_ns < stamp_ns(t0) || taken_ns > stamp_ns(t3)) return;
+  const clock::time_point taken{std::chrono::nanoseconds(taken_ns)};
+  legs.push_back(micros(taken - t0));
+  legs.push_back(micros(t3 - taken));
 }
 
 // Names no other run on this host uses at the same time.
@@ -66,17 +92,22 @@ void lcm_echo_one(const lcm_recv_buf_t*, const char*, const tahvel_ping_t* msg, 
     echo->stop = true;
     return;
   }
-  tahvel_ping_t_publish(echo->lcm, echo->pong_channel.c_str(), msg);
+  tahvel_ping_t pong = *msg;
+  pong.taken_ns = stamp_ns(clock::now());
+  tahvel_ping_t_publish(echo->lcm, echo->pong_channel.c_str(), &pong);
 }
 
 struct LcmWait {
   int64_t want = -1;
   bool got = false;
+  int64_t taken_ns = 0;
 };
 
 void lcm_pong(const lcm_recv_buf_t*, const char*, const tahvel_ping_t* msg, void* user) {
   auto* wait = static_cast<LcmWait*>(user);
-  if (msg->seq == wait->want) wait->got = true;
+  if (msg->seq != wait->want) return;
+  wait->got = true;
+  wait->taken_ns = msg->taken_ns;
 }
 
 std::string lcm_ping_channel(const std::string& name) { return "TVFLOOR_PING_" + name; }
@@ -110,12 +141,12 @@ Result<LatencyFloor> lcm_ping(const LcmSettings& settings, const std::string& na
       tahvel_ping_t_subscribe(a.lcm, lcm_pong_channel(name).c_str(), &lcm_pong, &wait);
   const int warmup = warmup_of(rounds), max_losses = rounds / 10 + 10;
   int losses = 0;
-  std::vector<double> samples;
+  std::vector<double> samples, legs;
   samples.reserve(static_cast<std::size_t>(rounds));
   for (int64_t seq = 0; static_cast<int>(samples.size()) < rounds && losses <= max_losses; ++seq) {
     wait.want = seq;
     wait.got = false;
-    tahvel_ping_t msg{seq};
+    tahvel_ping_t msg{seq, 0};
     const auto t0 = clock::now();
     const auto deadline = t0 + std::chrono::seconds(1);
     tahvel_ping_t_publish(a.lcm, ping.c_str(), &msg);
@@ -127,17 +158,21 @@ Result<LatencyFloor> lcm_ping(const LcmSettings& settings, const std::string& na
       ++losses;
       continue;
     }
-    if (seq >= warmup) samples.push_back(micros(clock::now() - t0) / 2);
+    const auto t3 = clock::now();
+    if (seq >= warmup) {
+      samples.push_back(micros(t3 - t0) / 2);
+      add_legs(legs, t0, t3, wait.taken_ns);
+    }
   }
   // The echo stops at this ping (or after its idle time if LCM drops all three).
-  tahvel_ping_t stop{-1};
+  tahvel_ping_t stop{-1, 0};
   for (int i = 0; i < 3; ++i) tahvel_ping_t_publish(a.lcm, ping.c_str(), &stop);
   tahvel_ping_t_unsubscribe(a.lcm, pong_sub);
   if (static_cast<int>(samples.size()) < rounds) {
     return node::fail(Errc::timeout, "lcm ping-pong on " + settings.url + ": " + std::to_string(losses) +
                                          " pings without a pong within 1 s");
   }
-  return summarise(std::move(samples));
+  return summarise(std::move(samples), std::move(legs));
 }
 
 Result<LatencyFloor> raw_lcm_pingpong(const LcmSettings& settings, int rounds) {
@@ -275,6 +310,7 @@ Result<void> dds_echo(const DdsSettings& settings, const std::string& name,
     }
     last = clock::now();
     if (msg.seq < 0) break;
+    msg.taken_ns = stamp_ns(last);
     dds_write(pong_w, &msg);
     dds_write_flush(pong_w);  // sent now also under Internal/WriteBatch (our configurations)
   }
@@ -294,11 +330,11 @@ Result<LatencyFloor> dds_ping(const DdsSettings& settings, const std::string& na
   dds_entity_t ws = dds_create_waitset(a.pp);
   dds_waitset_attach(ws, dds_create_readcondition(pong_r, DDS_ANY_STATE), 0);
   const int warmup = warmup_of(rounds);
-  std::vector<double> samples;
+  std::vector<double> samples, legs;
   samples.reserve(static_cast<std::size_t>(rounds));
   bool lost = false;
   for (int64_t seq = 0; static_cast<int>(samples.size()) < rounds && !lost; ++seq) {
-    tahvel_Ping msg{seq}, answer{-1};
+    tahvel_Ping msg{seq, 0}, answer{-1, 0};
     const auto t0 = clock::now();
     const auto deadline = t0 + std::chrono::seconds(5);
     if (dds_write(ping_w, &msg) < 0) lost = true;
@@ -306,13 +342,17 @@ Result<LatencyFloor> dds_ping(const DdsSettings& settings, const std::string& na
     while (!lost && answer.seq != seq) {
       if (!take_one(pong_r, ws, deadline, &answer)) lost = true;
     }
-    if (!lost && seq >= warmup) samples.push_back(micros(clock::now() - t0) / 2);
+    const auto t3 = clock::now();
+    if (!lost && seq >= warmup) {
+      samples.push_back(micros(t3 - t0) / 2);
+      add_legs(legs, t0, t3, answer.taken_ns);
+    }
   }
-  tahvel_Ping stop{-1};
+  tahvel_Ping stop{-1, 0};
   dds_write(ping_w, &stop);
   dds_write_flush(ping_w);
   if (lost) return node::fail(Errc::timeout, "dds ping-pong: no pong within 5 s");
-  return summarise(std::move(samples));
+  return summarise(std::move(samples), std::move(legs));
 }
 
 Result<LatencyFloor> raw_dds_pingpong(const DdsSettings& settings, int rounds) {

@@ -21,7 +21,8 @@ value() {  # the number after "key": in the flat JSON object, or nothing
 }
 status=0
 for key in dds_up_p50_us dds_up_p99_us lcm_up_p50_us lcm_up_p99_us dds_raw_p50_us lcm_raw_p50_us \
-           dds_raw_p99_us lcm_raw_p99_us dds_binding_p50_us lcm_binding_p50_us dds_link_items_per_s lcm_link_items_per_s dds_query_records_per_s dds_query_mb_per_s lcm_query_records_per_s lcm_query_mb_per_s \
+           dds_raw_p99_us lcm_raw_p99_us dds_raw_half_rtt_p50_us lcm_raw_half_rtt_p50_us dds_raw_half_rtt_p99_us lcm_raw_half_rtt_p99_us \
+           dds_binding_p50_us lcm_binding_p50_us dds_link_items_per_s lcm_link_items_per_s dds_query_records_per_s dds_query_mb_per_s lcm_query_records_per_s lcm_query_mb_per_s \
            hospital_ingest_items_per_s hospital_ingest_in_process_items_per_s homes lost duplicated items_checked; do
   v=$(value "$key")
   if [[ -z $v ]]; then echo "FAIL: missing or not a number: $key"; status=1; fi
@@ -29,4 +30,8 @@ done
 [[ $(value lost) == 0 ]] || { echo "FAIL: lost = $(value lost)"; status=1; }
 [[ $(value duplicated) == 0 ]] || { echo "FAIL: duplicated = $(value duplicated)"; status=1; }
 [[ $(value items_checked) != 0 ]] || { echo "FAIL: no items were checked"; status=1; }
+# The floors' legs are timed with the echo's clock, this machine's: every round gives two.
+for k in dds lcm; do
+  [[ $(value ${k}_raw_legs) != 0 && -n $(value ${k}_raw_legs) ]] || { echo "FAIL: no one-way legs of the $k floor"; status=1; }
+done
 exit $status

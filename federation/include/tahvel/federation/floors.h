@@ -8,7 +8,8 @@
 // (one Cyclone domain per process: the two participants talk through Cyclone's in-process
 // delivery, not the network). The halves (*_echo, *_ping) measure it between two processes,
 // as a link's two ends are deployed; for DDS that is the network path (about 30 us one-way on
-// the development VM against 8-20 us in-process). One-way latency is half a round trip.
+// the development VM against 8-20 us in-process). One-way latency is half a round trip, and
+// each leg of it apart (LatencyFloor::legs_us).
 // Packets: run inside a network namespace (tests/tools/netns-run) like everything else that
 // sends.
 #pragma once
@@ -23,18 +24,27 @@
 namespace tahvel::federation {
 
 struct LatencyFloor {
-  double p50_us = 0;  // median one-way latency, microseconds
-  double p99_us = 0;  // 99th percentile one-way latency, microseconds
+  double p50_us = 0;  // median one-way latency (half a round trip), microseconds
+  double p99_us = 0;  // 99th percentile of the same
   int rounds = 0;     // round trips measured (after warm-up; lost ones are not counted)
   std::vector<double> one_way_us;  // every sample, ascending (to pool several measurements)
+  // The two legs of each round apart, split where the echo took the ping (its clock is this
+  // one: CLOCK_MONOTONIC of the same machine): ping to taken, and taken to the pong taken back
+  // (the echo's turn-around included), so that each round's legs add up to its round trip.
+  // Half a round trip averages a slow leg with a fast one; a one-way latency measured with one
+  // clock (a link's, store to visible) is a single leg, and its tail is the legs' tail. Empty
+  // when the echo's stamps do not fall within the rounds (another machine's clock), and for
+  // the bindings' floor.
+  double leg_p50_us = 0, leg_p99_us = 0;
+  std::vector<double> legs_us;  // ascending
 };
 
-// `rounds` ping-pongs of a tahvel_ping_t (one int64) over LCM at settings.url, after a warm-up
+// `rounds` ping-pongs of a tahvel_ping_t (two int64s: a sequence number, the echo's stamp) over LCM at settings.url, after a warm-up
 // of rounds/10 (at least 10). A ping or pong lost by LCM (no answer within 1 s) is retried; more
 // than rounds/10 + 10 losses fail with Errc::timeout. rounds must be > 0.
 Result<LatencyFloor> raw_lcm_pingpong(const LcmSettings& settings, int rounds);
 
-// The same with a tahvel::Ping (one int64) written and taken on two RELIABLE/KEEP_ALL topics of
+// The same with a tahvel::Ping (the same two int64s) written and taken on two RELIABLE/KEEP_ALL topics of
 // settings.domain (configured with settings.config as open_dds would). Fails with Errc::timeout
 // if the two participants do not match within 5 s or an answer takes more than 5 s.
 Result<LatencyFloor> raw_dds_pingpong(const DdsSettings& settings, int rounds);
