@@ -733,8 +733,8 @@ void Env::prefault_loop() {
       return;
     }
     // Done, or failed at that range (beyond the file, no memory): not tried again until the
-    // writer goes past it.
-    prefault_ready_.store(to);
+    // writer goes past it. (A writer that overtook this thread moved the mark beyond `to`.)
+    if (prefault_ready_.load() < to) prefault_ready_.store(to);
   }
 }
 
