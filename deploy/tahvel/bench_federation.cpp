@@ -9,7 +9,8 @@
 //               then wait until the relayed item is in the hospital's change stream (Node::watch,
 //               from this process: an agent of the hospital's store); the time between is one
 //               sample. In kLatencyBlocks blocks, each after a block of the raw floor, dds_ping /
-//               lcm_ping against the far end: the libraries alone, one-way = RTT/2.
+//               lcm_ping against the far end: the libraries alone, one-way = each leg of a round
+//               trip (the echo stamps the moment it took the ping), and RTT/2 beside it.
 //   link rate   the same pair: a burst of items stored at home (store_all, 500 per call), time
 //               from the first store until the hospital's change stream holds them all.
 //   ingest      a hospital Link over DDS accepting any child, and K simulated homes in this
@@ -1337,8 +1338,8 @@ void print_table(const Figures& f, const Config& cfg) {
     if (key.starts_with("ingest_cpu_s_")) std::printf(" %s %.2f", key.c_str() + 13, value);
   std::printf("\n");
   if (!cfg.ingest_only)
-    std::printf("raw floors: the libraries alone, ping-pong between two processes, one-way = RTT/2 (within one process:\n"
-                "  DDS %.1f us, LCM %.1f us p50). The link's two ends are two processes too.\n",
+    std::printf("raw floors: the libraries alone, ping-pong between two processes, one-way = each leg of a round trip\n"
+                "  (within one process, RTT/2: DDS %.1f us, LCM %.1f us p50). The link's two ends are two processes too.\n",
                 f.get("dds_raw_in_process_p50_us"), f.get("lcm_raw_in_process_p50_us"));
 }
 
