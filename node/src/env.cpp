@@ -21,9 +21,11 @@
 #include <cstdio>
 #include <cstdlib>
 #include <cstring>
+#include <fstream>
 #include <map>
 #include <mutex>
 #include <random>
+#include <system_error>
 #include <utility>
 
 #include "codec.h"
@@ -38,25 +40,27 @@ constexpr int kMadvPopulateWrite = MADV_POPULATE_WRITE;
 constexpr int kMadvPopulateWrite = 23;
 #endif
 
-// Where LMDB mapped the data file open as `fd` (`size` bytes) in this process, from
-// /proc/self/maps: LMDB tells the address of a fixed map only. Null when not found.
-char* find_map(int fd, std::uint64_t size) {
+// Where LMDB mapped `file` (open as `fd`, `size` bytes) in this process, from /proc/self/maps:
+// LMDB tells the address of a fixed map only. The mapping of that inode and that path, at
+// offset 0, writable, of that size. Null when not found.
+char* find_map(int fd, const std::filesystem::path& file, std::uint64_t size) {
   struct stat st;
-  if (fstat(fd, &st) != 0) return nullptr;
-  FILE* maps = std::fopen("/proc/self/maps", "re");
-  if (!maps) return nullptr;
-  char* found = nullptr;
-  char line[512];
-  while (!found && std::fgets(line, sizeof line, maps)) {
+  if (fd < 0 || fstat(fd, &st) != 0) return nullptr;
+  std::ifstream maps("/proc/self/maps");
+  const std::string path = file.string();
+  for (std::string line; std::getline(maps, line);) {
     unsigned long start = 0, end = 0, offset = 0, inode = 0;
     unsigned major = 0, minor = 0;
     char perms[5] = {};
-    if (std::sscanf(line, "%lx-%lx %4s %lx %x:%x %lu", &start, &end, perms, &offset, &major, &minor, &inode) != 7)
-      continue;  // also the rest of a line longer than the buffer
-    if (inode == st.st_ino && offset == 0 && end - start == size && perms[1] == 'w') found = reinterpret_cast<char*>(start);
+    int name_at = 0;
+    if (std::sscanf(line.c_str(), "%lx-%lx %4s %lx %x:%x %lu %n", &start, &end, perms, &offset, &major, &minor, &inode,
+                    &name_at) != 7)
+      continue;
+    if (inode == st.st_ino && offset == 0 && end - start == size && perms[1] == 'w' &&
+        line.compare(static_cast<std::size_t>(name_at), std::string::npos, path) == 0)
+      return reinterpret_cast<char*>(start);
   }
-  std::fclose(maps);
-  return found;
+  return nullptr;
 }
 
 // A process started with 0, 1 or 2 closed (by a supervisor, or `cmd >&-`) would have LMDB's
@@ -190,15 +194,28 @@ void DecodedTerms::add(std::uint64_t id, const Term& term) {
   terms_.emplace(id, term);
 }
 
+// The prefault thread's state (env.h): one per Env and process.
+struct Env::Prefaulter {
+  pid_t pid = getpid();  // the process the thread runs in
+  std::mutex mu;
+  std::condition_variable cv;
+  std::uint64_t wanted = 0;              // under mu: map offsets
+  std::atomic<std::uint64_t> ready{0};   // faulted in up to here
+  std::uint64_t moves_seen = 0;          // under mu: map_moves_ when `ready` was last valid
+  bool stop = false;                     // under mu
+  std::thread thread;
+};
+
 Env::~Env() {
-  if (prefaulter_.joinable()) {
+  // In a child forked after the thread started, its copy is left alone (env.h).
+  if (Prefaulter* p = prefaulter_.load(); p && p->pid == getpid()) {
     {
-      std::lock_guard lock(prefault_mutex_);
-      prefault_stop_ = true;
+      std::lock_guard lock(p->mu);
+      p->stop = true;
     }
-    prefault_cv_.notify_all();
-    if (prefaulter_pid_ == getpid()) prefaulter_.join();
-    else prefaulter_.detach();
+    p->cv.notify_all();
+    p->thread.join();
+    delete p;
   }
   for (MDB_txn* txn : idle_readers_) mdb_txn_abort(txn);
   if (env_) mdb_env_close(env_);
@@ -677,48 +694,67 @@ void Env::prefault_ahead() {
   if (prefault_off_.load(std::memory_order_relaxed) || settings_.durability == Durability::durable) return;
   MDB_envinfo info;
   MDB_stat stat;
-  if (mdb_env_info(env_, &info) != 0 || mdb_env_stat(env_, &stat) != 0) return;
-  const std::uint64_t in_use = (info.me_last_pgno + 1) * stat.ms_psize;
-  if (in_use + kPrefaultAhead / 2 <= prefault_ready_.load(std::memory_order_relaxed)) return;
-  {
-    std::lock_guard lock(prefault_mutex_);
-    // Never the pages in use: the writer faulted them in already, or another process wrote them
-    // and this one may never read them.
-    if (prefault_ready_.load() < in_use) prefault_ready_.store(in_use);
-    // Within the blocks reserve_disk() allocated: a page of a hole would take one of the disk.
-    prefault_wanted_ = std::min({static_cast<std::uint64_t>(info.me_mapsize), disk_reserved_.load(), in_use + kPrefaultAhead});
-    if (!prefaulter_.joinable()) {
-      prefaulter_pid_ = getpid();
-      prefaulter_ = std::thread([this] { prefault_loop(); });
+  if (mdb_env_info(env_, &info) != 0 || mdb_env_stat(env_, &stat) != 0 || stat.ms_psize == 0) return;
+  const std::uint64_t page = stat.ms_psize;
+  const std::uint64_t in_use = (info.me_last_pgno + 1) * page;
+  const std::uint64_t moves = map_moves_.load();
+  Prefaulter* p = prefaulter_.load();
+  if (!p) {
+    std::lock_guard start(prefaulter_start_mutex_);
+    if (!(p = prefaulter_.load())) {
+      auto made = std::make_unique<Prefaulter>();
+      try {
+        made->thread = std::thread([this, q = made.get()] { prefault_loop(*q); });
+      } catch (const std::system_error&) {
+        prefault_off_.store(true);  // no thread to be had (a task limit): the writer faults as before
+        return;
+      }
+      p = made.release();
+      prefaulter_.store(p);
     }
   }
-  prefault_cv_.notify_one();
+  if (p->pid != getpid()) return;  // a forked child's copy
+  {
+    std::lock_guard lock(p->mu);
+    if (p->moves_seen == moves && in_use + kPrefaultAhead / 2 <= p->ready.load()) return;
+    // Never the pages in use: the writer faulted them in already, or another process wrote them
+    // and this one may never read them. After the map moved, what was faulted in is gone.
+    if (p->moves_seen != moves || p->ready.load() < in_use) p->ready.store(in_use);
+    p->moves_seen = moves;
+    // Within the blocks reserve_disk() allocated, where the filesystem can: a page of a hole
+    // would take one of the disk. In whole pages: madvise takes nothing else.
+    const std::uint64_t wanted = std::min({static_cast<std::uint64_t>(info.me_mapsize), disk_reserved_.load(), in_use + kPrefaultAhead});
+    p->wanted = wanted / page * page;
+  }
+  p->cv.notify_one();
 }
 
-void Env::prefault_loop() {
+void Env::prefault_loop(Prefaulter& p) {
   pthread_setname_np(pthread_self(), "tv-prefault");
   setpriority(PRIO_PROCESS, static_cast<id_t>(gettid()), 19);  // Linux: this thread only
   constexpr std::uint64_t kChunk = 64 << 10;  // a short hold of growth_mutex_ at a time
   char* map_base = nullptr;
   std::uint64_t map_size = 0, map_seen_moves = ~0ull;
-  std::unique_lock lock(prefault_mutex_);
-  while (!prefault_stop_) {
-    const std::uint64_t from = prefault_ready_.load();
-    if (from >= prefault_wanted_) {
-      prefault_cv_.wait(lock);
+  int fd = -1;
+  mdb_env_get_fd(env_, &fd);
+  const std::filesystem::path data_file = dir_ / "data.mdb";
+  std::unique_lock lock(p.mu);
+  while (!p.stop) {
+    const std::uint64_t from = p.ready.load();
+    if (from >= p.wanted) {
+      p.cv.wait(lock);
       continue;
     }
-    const std::uint64_t to = std::min(prefault_wanted_, from + kChunk);
+    const std::uint64_t to = std::min(p.wanted, from + kChunk);
     lock.unlock();
     int err = 0;
     {
       // Shared, as a transaction: the map is not moved meanwhile (grow() holds it exclusively).
       std::shared_lock map_lock(growth_mutex_);
       MDB_envinfo info;
-      int fd = -1;
-      if (mdb_env_info(env_, &info) == 0 && to <= info.me_mapsize && mdb_env_get_fd(env_, &fd) == 0) {
+      if (mdb_env_info(env_, &info) == 0 && to <= info.me_mapsize) {
         if (map_seen_moves != map_moves_.load() || map_size != info.me_mapsize) {
-          map_base = find_map(fd, info.me_mapsize);
+          map_base = find_map(fd, data_file, info.me_mapsize);
           map_size = info.me_mapsize;
           map_seen_moves = map_moves_.load();
         }
@@ -729,12 +765,12 @@ void Env::prefault_loop() {
     }
     lock.lock();
     if (err == EINVAL || err == ENOSYS || err == EPERM) {
-      prefault_off_.store(true);  // this kernel cannot: the writer faults its pages in as before
+      prefault_off_.store(true);  // this kernel cannot, or the map is not found: as before
       return;
     }
     // Done, or failed at that range (beyond the file, no memory): not tried again until the
     // writer goes past it. (A writer that overtook this thread moved the mark beyond `to`.)
-    if (prefault_ready_.load() < to) prefault_ready_.store(to);
+    if (p.ready.load() < to) p.ready.store(to);
   }
 }
 

@@ -251,18 +251,18 @@ class Env {
   // kPrefaultAhead beyond the last page in use once less than half of that is ready. Started at
   // the first write; not for durable stores (every commit syncs the map, and a page faulted in
   // ahead would be written twice); off for good where the kernel has no MADV_POPULATE_WRITE
-  // (before Linux 5.14).
+  // (before Linux 5.14), where the map is not found, or where the thread cannot be started (a
+  // task limit): it only saves time, and a write never fails for it.
   static constexpr std::uint64_t kPrefaultAhead = 1 << 20;
+  struct Prefaulter;
   void prefault_ahead();
-  void prefault_loop();
-  std::mutex prefault_mutex_;
-  std::condition_variable prefault_cv_;
-  std::uint64_t prefault_wanted_ = 0;               // under prefault_mutex_: map offsets
-  std::atomic<std::uint64_t> prefault_ready_{0};   // faulted in up to here
+  void prefault_loop(Prefaulter& p);
+  // On the heap, and left alone by a child forked after the thread started: the child has no
+  // such thread, and its condition variable and mutexes still count it (destroying them there
+  // waited for ever).
+  std::atomic<Prefaulter*> prefaulter_{nullptr};  // owned; set once, under prefaulter_start_mutex_
+  std::mutex prefaulter_start_mutex_;
   std::atomic<bool> prefault_off_{false};
-  bool prefault_stop_ = false;                      // under prefault_mutex_
-  std::thread prefaulter_;
-  pid_t prefaulter_pid_ = 0;  // a child forked after it started has no such thread to join
   std::atomic<std::uint64_t> map_moves_{0};  // mdb_env_set_mapsize calls: LMDB may remap
 
   // Read transactions reset after use, renewed by the next begin_read (a handful: one per

@@ -3,8 +3,13 @@
 // race here crashed a hospital's link process with 1,000 children: tahvel bench federation).
 #include <gtest/gtest.h>
 
+#include <signal.h>
+#include <sys/wait.h>
+#include <unistd.h>
+
 #include <atomic>
 #include <chrono>
+#include <optional>
 #include <fstream>
 #include <thread>
 
@@ -90,6 +95,31 @@ TEST(Growth, PagesAheadOfTheWriterAreMappedBeforeItReachesThem) {
          std::chrono::steady_clock::now() < deadline)
     std::this_thread::sleep_for(std::chrono::milliseconds(10));
   EXPECT_GE(mapped, in_use + (512 << 10)) << in_use << " bytes in use";
+}
+
+// A process that forks after writing (its prefault thread idle) leaves the child a copy of the
+// thread's state but not the thread: a child closing the store it inherited waited for ever in
+// the destructor of a condition variable that counted the parent's thread.
+TEST(Growth, AChildForkedAfterAWriteClosesTheStoreItInherited) {
+  TempDir dir;
+  std::optional<Node> node(make_node(dir.path()));
+  std::optional<Agent> writer(node->agent("writer").value());
+  Item item;
+  item.add(Term::iri(kNodeIri + "/obs/1"), ex("value"), Term::literal("1"));
+  ASSERT_TRUE(writer->store(item));
+  std::this_thread::sleep_for(std::chrono::milliseconds(100));  // the thread waits for work again
+  const pid_t pid = fork();
+  ASSERT_GE(pid, 0);
+  if (pid == 0) {
+    alarm(10);  // a hang ends as SIGALRM
+    writer.reset();
+    node.reset();
+    _exit(0);
+  }
+  int status = 0;
+  ASSERT_EQ(waitpid(pid, &status, 0), pid);
+  EXPECT_TRUE(WIFEXITED(status) && WEXITSTATUS(status) == 0)
+      << (WIFSIGNALED(status) ? "child killed by signal " + std::to_string(WTERMSIG(status)) : "child exited with " + std::to_string(WEXITSTATUS(status)));
 }
 
 }  // namespace
