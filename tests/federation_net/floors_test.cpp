@@ -32,20 +32,39 @@ void expect_sane(const char* name, const Result<LatencyFloor>& floor, int rounds
   EXPECT_GE(floor->p99_us, floor->p50_us);
 }
 
+// Each round trip split in two legs at the echo's stamp (one machine, one clock): two legs per
+// round, and together they are the round trips (twice the halves).
+void expect_legs_add_up(const Result<LatencyFloor>& floor) {
+  ASSERT_TRUE(floor) << floor.error().message;
+  ASSERT_EQ(floor->legs_us.size(), 2 * floor->one_way_us.size());
+  double legs = 0, halves = 0;
+  for (double us : floor->legs_us) legs += us;
+  for (double us : floor->one_way_us) halves += us;
+  EXPECT_NEAR(legs, 2 * halves, 1e-6 * legs);
+  EXPECT_GE(floor->legs_us.front(), 0.0);
+  EXPECT_GT(floor->leg_p50_us, 0.0);
+  EXPECT_GE(floor->leg_p99_us, floor->leg_p50_us);
+}
+
 TEST(Floors, RawLcmPingPongGivesSaneFigures) {
   require_netns();
-  expect_sane("lcm", raw_lcm_pingpong(conformance::test_lcm_settings(), 500), 500);
+  const auto floor = raw_lcm_pingpong(conformance::test_lcm_settings(), 500);
+  expect_sane("lcm", floor, 500);
+  expect_legs_add_up(floor);
 }
 
 TEST(Floors, RawDdsPingPongGivesSaneFigures) {
   require_netns();
-  expect_sane("dds", raw_dds_pingpong(conformance::test_dds_settings(), 500), 500);
+  const auto floor = raw_dds_pingpong(conformance::test_dds_settings(), 500);
+  expect_sane("dds", floor, 500);
+  expect_legs_add_up(floor);
 }
 
 // The halves in two processes, as the bench measures them: a forked echo (before this process
 // touches LCM or DDS), its readiness through a pipe.
+// `legs`: the raw floors split their round trips; the bindings' floor does not.
 template <class Echo, class Ping>
-void across_processes(const char* name, Echo echo, Ping ping) {
+void across_processes(const char* name, Echo echo, Ping ping, bool legs = true) {
   int ready[2];
   ASSERT_EQ(pipe(ready), 0);
   const std::string channel = std::string(name) + "_" + std::to_string(getpid());
@@ -61,7 +80,9 @@ void across_processes(const char* name, Echo echo, Ping ping) {
   char c = 0;
   ASSERT_EQ(read(ready[0], &c, 1), 1) << "the echo process never listened";
   close(ready[0]);
-  expect_sane(name, ping(channel), 300);
+  const auto floor = ping(channel);
+  expect_sane(name, floor, 300);
+  if (legs) expect_legs_add_up(floor);
   int status = 0;
   ASSERT_EQ(waitpid(child, &status, 0), child);
   EXPECT_TRUE(WIFEXITED(status) && WEXITSTATUS(status) == 0) << "the echo process failed";
@@ -102,7 +123,8 @@ TEST(Floors, DdsBindingPingPongBetweenTwoProcessesGivesSaneFigures) {
         auto ping = open_dds(settings, iri(n, "ping"), {});
         if (!ping) return node::fail(ping.error().code, ping.error().message);
         return binding_ping(**ping, iri(n, "echo"), 300, 568);
-      });
+      },
+      false);
 }
 
 TEST(Floors, BindingPingPongSendsAgainPastLostFramesAndStopsTheEcho) {
