@@ -1157,6 +1157,10 @@ struct Link::Impl {
       auto child = accepted_child(f.from, &why);
       if (child) return from_child_frame(via, f, child, agent);
     } else {
+      // A node whose LCM URL for its children is one port above its parent's has both ends
+      // listening on one port (LcmEnd): its children's frames reach its end up too, and its end
+      // down takes them. Not refused here: "not the parent" misled whoever read the log.
+      if ((opt.down || !opt.also_down.empty()) && f.from != self && uri::is_under(f.from, self)) return;
       why = "<" + f.from + "> is not the parent <" + opt.parent_iri + "> of <" + self + ">";
     }
     bool say = false;
