@@ -197,7 +197,7 @@ class Env {
   std::vector<TtlRule> ttl_rules;
   // Agents that receive removal notices (R21, Agent::receive_removals): term ids of their IRIs.
   // Kept in the meta table beside the TTL rules, and reloaded with them (ttl_gen).
-  std::vector<std::uint64_t> removal_receivers;
+  std::vector<std::uint64_t> removal_receivers;  // sorted
   // Dictionary ids of the subscription vocabulary: interned and pinned at init, so fixed.
   struct Vocabulary {
     std::uint64_t subscriber = 0, subject = 0, predicate = 0, object = 0;
@@ -335,6 +335,10 @@ class Txn {
   static constexpr std::size_t kNoNotice = ~std::size_t{0};
   std::unordered_map<std::uint64_t, std::size_t> notice_plan_of;
   std::optional<bool> removals_noticed;  // whether any agent receives notices (asked once)
+  // When removals_noticed is set: the agents that receive them (Env::removal_receivers, sorted),
+  // read with it, so that routing records which of them got an item (ItemRow::noticed) without
+  // taking the cache lock again.
+  std::vector<std::uint64_t> removal_receivers;
  private:
   Env& env_;
   MDB_txn* txn_;

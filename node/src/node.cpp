@@ -717,9 +717,16 @@ Result<RelayOutcome> Agent::relay(std::string_view stream, const std::vector<Rel
             if (auto f = flush_index(txn); !f) return unexpected(f.error());
             auto copies = held_copies(txn.raw(), *impl_->env, relayed.item, relayed.positions, relayed.source);
             if (!copies) return unexpected(with_context(copies.error(), about(i)));
+            // Whom the copies went to, read before they go (the last record takes the row).
+            std::vector<std::uint64_t> remembered;
+            for (std::uint64_t item_id : copies->items) {
+              auto row = get_item(txn.raw(), *impl_->env, item_id);
+              if (!row) return unexpected(with_context(row.error(), about(i)));
+              if (*row) remembered.insert(remembered.end(), (*row)->noticed.begin(), (*row)->noticed.end());
+            }
             for (std::uint64_t id : copies->records)
               if (auto d = delete_record(txn, id, Removal::quiet_removal); !d) return unexpected(with_context(d.error(), about(i)));
-            if (auto on = pass_notice_on(txn, relayed.item, relayed.positions, relayed.source, impl_->iri, copies->items); !on)
+            if (auto on = pass_notice_on(txn, relayed.item, relayed.positions, relayed.source, impl_->iri, copies->items, remembered); !on)
               return unexpected(with_context(on.error(), about(i)));
             ++outcome.removals;
             outcome.records_removed += copies->records.size();

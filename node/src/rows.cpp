@@ -33,6 +33,7 @@ std::uint64_t table_bytes(MDB_txn* txn, MDB_dbi dbi) {
 }
 constexpr std::uint8_t kItemPersistent = 1;
 constexpr std::uint8_t kItemRelayed = 2;  // the writer's term id follows (ItemRow::writer)
+constexpr std::uint8_t kItemNoticed = 4;  // a count and that many agent term ids follow (ItemRow::noticed)
 
 void put_string(std::string& out, std::string_view s) {
   codec::put_varint(out, s.size());
@@ -174,8 +175,13 @@ std::string encode_item(const ItemRow& row) {
   codec::put_varint(out, codec::zigzag(row.asserted_at - row.stored_at));
   codec::put_varint(out, row.source);
   codec::put_varint(out, row.context);
-  out.push_back(static_cast<char>((row.persistent ? kItemPersistent : 0) | (row.writer ? kItemRelayed : 0)));
+  out.push_back(static_cast<char>((row.persistent ? kItemPersistent : 0) | (row.writer ? kItemRelayed : 0) |
+                                  (row.noticed.empty() ? 0 : kItemNoticed)));
   if (row.writer) codec::put_varint(out, row.writer);
+  if (!row.noticed.empty()) {
+    codec::put_varint(out, row.noticed.size());
+    for (std::uint64_t agent : row.noticed) codec::put_varint(out, agent);
+  }
   return out;
 }
 
@@ -193,6 +199,15 @@ bool decode_item(std::string_view bytes, ItemRow& row) {
   row.persistent = flags & kItemPersistent;
   row.writer = 0;
   if ((flags & kItemRelayed) && !codec::get_varint(bytes, pos, row.writer)) return false;
+  row.noticed.clear();
+  if (flags & kItemNoticed) {
+    std::uint64_t n = 0;
+    // Each id takes at least a byte: a count beyond what is left is a damaged row.
+    if (!codec::get_varint(bytes, pos, n) || n == 0 || n > bytes.size() - pos) return false;
+    row.noticed.resize(n);
+    for (std::uint64_t& agent : row.noticed)
+      if (!codec::get_varint(bytes, pos, agent)) return false;
+  }
   return true;
 }
 

@@ -35,6 +35,10 @@ struct ItemRow {
   std::uint64_t writer = 0;   // term id of the agent whose output buffer holds the item, when
                               // not the source (a link agent relaying from below); 0: the source
   std::uint64_t output_buffer() const { return writer ? writer : source; }
+  // The agents that receive removal notices (R21) whose input buffers the item was put into:
+  // a removal notices them whatever their subscriptions are by then (a forwarding policy
+  // narrowed after the item went up). Empty in rows written before it was kept.
+  std::vector<std::uint64_t> noticed;
 };
 
 std::string encode_record(std::uint64_t id, const RecordRow& row);

@@ -130,6 +130,7 @@ Result<std::vector<std::uint64_t>> load_removal_receivers(Txn& txn) {
     if (!id) return unexpected(id.error());
     if (*id) agents.push_back(*id);
   }
+  std::sort(agents.begin(), agents.end());  // searched by deliver (Txn::removal_receivers)
   return agents;
 }
 
@@ -147,6 +148,12 @@ Result<void> deliver(Txn& txn, std::uint64_t agent, std::uint32_t slot, std::uin
   ++item.pending;
   ++txn.counters.pending;
   txn.wake_slots.push_back(slot);
+  // Remembered for R21: a removal reaches this agent even once its subscriptions no longer
+  // route the item. txn.removal_receivers is read by removals_noticed, which every caller has
+  // asked before routing.
+  if (std::binary_search(txn.removal_receivers.begin(), txn.removal_receivers.end(), agent) &&
+      std::find(item.noticed.begin(), item.noticed.end(), agent) == item.noticed.end())
+    item.noticed.push_back(agent);
   return {};
 }
 
@@ -429,6 +436,7 @@ Result<void> refresh_caches(Txn& txn) {
     env.ttl_rules = std::move(*rules);
     env.removal_receivers = std::move(*receivers);
     env.ttl_gen = txn.counters.ttl_gen;
+    txn.removals_noticed.reset();  // read again with the receivers (removals_noticed)
   }
   return {};
 }
@@ -437,7 +445,8 @@ Result<bool> removals_noticed(Txn& txn) {
   if (!txn.removals_noticed) {
     if (auto r = refresh_caches(txn); !r) return unexpected(r.error());
     std::lock_guard lock(txn.env().cache_mutex);
-    txn.removals_noticed = !txn.env().removal_receivers.empty();
+    txn.removal_receivers = txn.env().removal_receivers;  // sorted
+    txn.removals_noticed = !txn.removal_receivers.empty();
   }
   return *txn.removals_noticed;
 }
@@ -484,7 +493,7 @@ Result<std::vector<std::pair<std::uint64_t, std::uint32_t>>> notice_recipients(
   item.context = context;
   std::lock_guard lock(env.cache_mutex);
   auto receives = [&](std::uint64_t agent) {
-    return std::find(env.removal_receivers.begin(), env.removal_receivers.end(), agent) != env.removal_receivers.end();
+    return std::binary_search(env.removal_receivers.begin(), env.removal_receivers.end(), agent);
   };
   auto consider = [&](const Subscription& sub) {
     if (receives(sub.agent) && routes(sub, item_id, item, triples, source_iri)) to.emplace_back(sub.agent, sub.slot);
@@ -513,6 +522,23 @@ Result<std::vector<std::array<std::uint64_t, 3>>> records_left(MDB_txn* txn, con
   return triples;
 }
 
+// Adds to `to` (agent ids and wake slots, sorted) the agents of `remembered` (ItemRow::noticed)
+// that still receive notices: they got the item, whatever routes it now.
+Result<void> add_remembered(Txn& txn, const std::vector<std::uint64_t>& remembered,
+                            std::vector<std::pair<std::uint64_t, std::uint32_t>>& to) {
+  if (remembered.empty()) return {};
+  TermReader terms(txn.raw(), txn.env());
+  for (std::uint64_t agent : remembered) {
+    if (!std::binary_search(txn.removal_receivers.begin(), txn.removal_receivers.end(), agent)) continue;
+    if (std::any_of(to.begin(), to.end(), [&](const auto& r) { return r.first == agent; })) continue;
+    auto iri = terms.iri(agent);
+    if (!iri) return unexpected(iri.error());
+    to.emplace_back(agent, WakeBoard::slot_for(*iri));
+  }
+  std::sort(to.begin(), to.end());
+  return {};
+}
+
 }  // namespace
 
 Result<Txn::NoticePlan*> notice_plan(Txn& txn, std::uint64_t item_id, const ItemRow& item, const RecordMeta& meta) {
@@ -527,6 +553,7 @@ Result<Txn::NoticePlan*> notice_plan(Txn& txn, std::uint64_t item_id, const Item
   if (!triples) return unexpected(triples.error());
   auto to = notice_recipients(txn, item_id, item.source, meta.source, item.context, meta.context, item.output_buffer(), *triples);
   if (!to) return unexpected(to.error());
+  if (auto r = add_remembered(txn, item.noticed, *to); !r) return unexpected(r.error());
   if (to->empty()) {
     txn.notice_plan_of.emplace(item_id, Txn::kNoNotice);
     return nullptr;
@@ -538,7 +565,7 @@ Result<Txn::NoticePlan*> notice_plan(Txn& txn, std::uint64_t item_id, const Item
 
 Result<void> pass_notice_on(Txn& txn, const Item& notice, const std::vector<std::uint32_t>& positions,
                             const std::string& source, const std::string& writer_iri,
-                            const std::vector<std::uint64_t>& held_items) {
+                            const std::vector<std::uint64_t>& held_items, const std::vector<std::uint64_t>& remembered) {
   auto noticed = removals_noticed(txn);
   if (!noticed) return unexpected(noticed.error());
   if (!*noticed) return {};
@@ -576,6 +603,7 @@ Result<void> pass_notice_on(Txn& txn, const Item& notice, const std::vector<std:
   }
   auto to = notice_recipients(txn, 0, ids[0], source, ids[1], notice.context, ids[2], triples);
   if (!to) return unexpected(to.error());
+  if (auto r = add_remembered(txn, remembered, *to); !r) return unexpected(r.error());
   if (to->empty()) return {};
   Txn::NoticePlan plan{txn.counters.next_seq++, std::move(*to), {}};
   // As the sender's records: meta.id - meta.item is each one's position in its item.
@@ -679,6 +707,7 @@ Result<std::uint64_t> insert_item(Txn& txn, const Item& item, const std::string&
   ItemRow meta{ids.size(), ids.size(), 0, now, item.asserted_at.value_or(now), *source, context, persistent,
                *writer != *source ? *writer : 0};
   if (auto r = refresh_caches(txn); !r) return unexpected(r.error());
+  if (auto r = removals_noticed(txn); !r) return unexpected(r.error());
   if (auto r = route(txn, item_id, meta, ids, relayed_source ? *relayed_source : agent_iri); !r)
     return unexpected(r.error());
   if (context) {
@@ -816,6 +845,7 @@ Result<std::uint64_t> deliver_earlier(Txn& txn, std::uint64_t agent, const std::
   }
   std::sort(items.begin(), items.end());
   items.erase(std::unique(items.begin(), items.end()), items.end());
+  if (auto r = removals_noticed(txn); !r) return unexpected(r.error());  // read by deliver
   const std::uint32_t slot = WakeBoard::slot_for(agent_iri);
   std::uint64_t delivered = 0;
   for (const std::uint64_t item_id : items) {

@@ -84,15 +84,16 @@ Result<bool> removals_noticed(Txn& txn);
 Result<void> receive_removals(Txn& txn, const std::string& agent_iri);
 // The notice of item `item_id` (`item` its row, `meta` a record's metadata as read) in this
 // transaction, planned at its first record's removal: routed to every agent that receives
-// notices and to which the item goes, by its subscriptions or as its addressee (R10, R18).
-// Null when it goes to none. The caller adds the records it removes.
+// notices and to which the item goes, by its subscriptions or as its addressee (R10, R18), and
+// to those it went to when stored (ItemRow::noticed). Null when it goes to none. The caller adds the records it removes.
 Result<Txn::NoticePlan*> notice_plan(Txn& txn, std::uint64_t item_id, const ItemRow& item, const RecordMeta& meta);
 // Plans the notice that a relayed removal notice (Agent::relay) becomes on this node, whether or
 // not it held copies (`held_items`: the items its copies were in): routed by the notice's
-// triples and what is left of those items, from `writer_iri`, the relaying agent.
+// triples and what is left of those items, from `writer_iri`, the relaying agent, and to the
+// agents in `remembered` (the ItemRow::noticed of the copies removed) that still receive notices.
 Result<void> pass_notice_on(Txn& txn, const Item& notice, const std::vector<std::uint32_t>& positions,
                             const std::string& source, const std::string& writer_iri,
-                            const std::vector<std::uint64_t>& held_items);
+                            const std::vector<std::uint64_t>& held_items, const std::vector<std::uint64_t>& remembered);
 // Writes the notices planned in this transaction and puts them into their agents' input
 // buffers. Env::write runs it before the commit.
 Result<void> deliver_removals(Txn& txn);

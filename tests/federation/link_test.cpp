@@ -1249,6 +1249,37 @@ TEST(Link, ParentChangesAChildsForwardingPolicyBySendingASubscriptionDown) {
   EXPECT_EQ(records[0].meta.source, kHome1 + "/ecg");
 }
 
+// P7a: a chunk that went up while the hospital's wider policy held is removed at the hospital
+// when the home removes it, after the hospital has narrowed the policy again.
+TEST(Link, ACopySentUnderAPolicyNarrowedSinceGoesWhenTheHomeRemovesIt) {
+  Tree tree;
+  tree.hospital = tree.start_hospital();
+  tree.home1 = tree.start_home(tree.home1_dir, kHome1, tree.home1_log);
+  ASSERT_TRUE(eventually([&] { return tree.home1->connected(); }));
+  auto home = node::Node::open(tree.home1_dir).value();
+  auto sensor = home.agent("ecg").value();
+  auto hospital = node::Node::open(tree.hospital_dir).value();
+  auto operator_ = hospital.agent("operator").value();
+  node::Item policy;
+  policy.context = kHome1;
+  policy.persistent = true;
+  const Term sub = Term::blank("sub");
+  policy.add(sub, Term::iri(std::string(vocab::kTv) + "subscriber"), Term::iri(kHome1 + "/uplink"))
+      .add(sub, Term::iri(std::string(vocab::kTv) + "predicate"), Term::iri(kEx + "samples"));
+  const std::uint64_t policy_id = operator_.store(policy).value();
+  const node::Pattern uplink_subscriptions{.p = Term::iri(std::string(vocab::kTv) + "subscriber"), .o = Term::iri(kHome1 + "/uplink")};
+  ASSERT_TRUE(eventually([&] { return count(tree.home1_dir, uplink_subscriptions) == 2; }));
+  const std::uint64_t chunk = sensor.store(raw_item(2)).value();
+  const node::Pattern samples{.p = Term::iri(kEx + "samples")};
+  ASSERT_TRUE(eventually([&] { return count(tree.hospital_dir, samples) == 1; }));
+  // Narrowed again: the policy's removal at the hospital takes the subscription at home (P10a).
+  ASSERT_TRUE(hospital.remove_item(policy_id));
+  ASSERT_TRUE(eventually([&] { return count(tree.home1_dir, uplink_subscriptions) == 1; }));
+  ASSERT_TRUE(home.remove_item(chunk));
+  EXPECT_TRUE(eventually([&] { return count(tree.hospital_dir, samples) == 0; }))
+      << count(tree.hospital_dir, samples) << " chunk(s) left at the hospital";
+}
+
 TEST(Link, ConfigurationTravelsTwoHopsDownToAnAgentOfASensorNode) {
   Tree tree;
   const std::string sensor_iri = kHome1 + "/ecg1";

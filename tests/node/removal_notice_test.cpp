@@ -308,6 +308,60 @@ TEST(RemovalNotice, ARemovalOfThisNodeOnlyNoticesNobodyButIsInTheChangeStream) {
   EXPECT_EQ(node.watch(bookmark, 0ms).value().size(), 6u);  // watchers still see them go
 }
 
+// A forwarding policy narrowed after an item went up: the item's removal still reaches the
+// agent that got it (its copy above is still there), and an item it never got is not noticed.
+TEST(RemovalNotice, AnAgentWhosePolicyNarrowedAfterItGotAnItemIsStillNoticedOfItsRemoval) {
+  TempDir dir;
+  Node node = make_node(dir.path());
+  Agent uplink = node.agent("uplink").value();
+  Agent writer = node.agent("hrv").value();
+  const std::uint64_t wide = uplink.subscribe({.p = ex("property"), .o = ex("HRV")}).value();
+  ASSERT_TRUE(uplink.receive_removals());
+  const std::uint64_t sent = writer.store(hrv_window(1, 1'000)).value();
+  ASSERT_EQ(drain(uplink).size(), 1u);
+  // Narrowed: from now on only windows with an rmssd of 99.
+  ASSERT_TRUE(uplink.unsubscribe(wide));
+  ASSERT_TRUE(uplink.subscribe({.p = ex("rmssd"), .o = Term::integer(99)}));
+  const std::uint64_t kept = writer.store(hrv_window(2, 2'000)).value();
+  drain(uplink);  // whatever the unsubscription itself noticed
+  ASSERT_TRUE(node.remove_item(sent));
+  ASSERT_TRUE(node.remove_item(kept));
+  auto got = drain(uplink);
+  ASSERT_EQ(got.size(), 1u);
+  EXPECT_TRUE(got[0].removal);
+  ASSERT_EQ(got[0].records.size(), 2u);
+  EXPECT_EQ(got[0].records[0].meta.item, sent);
+  // An agent that stopped receiving notices gets none, remembered or not.
+  const std::uint64_t third = writer.store(hrv_window(99 - 40, 3'000)).value();
+  ASSERT_EQ(drain(uplink).size(), 1u);
+  Agent other = node.agent("other").value();
+  ASSERT_TRUE(other.subscribe({.p = ex("rmssd")}));
+  ASSERT_TRUE(node.remove_item(third));
+  EXPECT_TRUE(drain(other).empty());
+}
+
+// The same at a gateway: a copy relayed from below went to the uplink under the old policy; the
+// child's removal of it goes on to the uplink, and so to the parent's copy.
+TEST(RemovalNotice, ARelayedRemovalGoesOnToTheAgentThatGotTheCopyUnderAPolicyNarrowedSince) {
+  TempDir dir;
+  Node node = make_node(dir.path());
+  Agent child = node.agent("child").value();
+  Agent uplink = node.agent("uplink").value();
+  const std::string source = kNodeIri + "/child/hrv";
+  const std::uint64_t wide = uplink.subscribe({.p = ex("property"), .o = ex("HRV")}).value();
+  ASSERT_TRUE(uplink.receive_removals());
+  ASSERT_TRUE(child.relay("child#s", {{1, 0, source, hrv_window(1, 1'000)}}));
+  ASSERT_EQ(drain(uplink).size(), 1u);
+  ASSERT_TRUE(uplink.unsubscribe(wide));
+  drain(uplink);
+  ASSERT_EQ(child.relay("child#s", {notice_of(2, source, hrv_window(1, 1'000), {0, 1})}).value().records_removed, 2u);
+  auto got = drain(uplink);
+  ASSERT_EQ(got.size(), 1u);
+  EXPECT_TRUE(got[0].removal);
+  EXPECT_EQ(got[0].records.size(), 2u);
+  EXPECT_EQ(got[0].records[0].meta.source, source);
+}
+
 TEST(RemovalNotice, AStoreMadeBeforeNoticesGetsTheirTableAtItsFirstOpen) {
   TempDir dir;
   { make_node(dir.path() / "n"); }
