@@ -30,6 +30,7 @@
 
 #include "commands.h"
 #include "tahvel/agents/dispatcher.h"
+#include "tahvel/agents/reasoner.h"
 #include "tahvel/spatial/area_subscriptions.h"
 #include "tahvel/agents/supervisor.h"
 #include "tahvel/federation/link.h"
@@ -698,6 +699,7 @@ pid_t supervisor_of_store(const fs::path& store) {
 
 struct ProgramRow {
   std::string name, pid, state, restarts, last_exit;
+  std::string problem;  // what the program says on its board it cannot do (reasoner::kProblem)
 };
 
 // A running supervisor rewrites its state file every 100 ms; one that has not for this long is
@@ -1831,7 +1833,27 @@ struct StatusNode {
   // A local store with a forwarding policy (`up` subscribes its uplink only on a node with a
   // parent): without an uplink state it is a child whose link has not run, not a root.
   bool has_parent = false;
+  // Problems the node's programs report on its board (reasoner::kProblem), by agent IRI.
+  std::map<std::string, std::string> problems;
 };
+
+// The problems on a board: records of reasoner::kProblem that an agent of `node_iri` wrote
+// about itself, by agent IRI.
+void read_problems(const std::vector<node::Record>& records, const std::string& node_iri,
+                   std::map<std::string, std::string>& problems) {
+  for (const node::Record& r : records)
+    if (r.triple.s.value == r.meta.source && uri::is_under(r.meta.source, node_iri)) problems[r.meta.source] = r.triple.o.value;
+}
+
+// Each program's problem, from those of its node.
+void attach_problems(std::vector<ProgramRow>& programs, const std::string& node_iri,
+                     const std::map<std::string, std::string>& problems) {
+  for (ProgramRow& p : programs) {
+    auto iri = uri::agent_iri(node_iri, p.name);
+    if (!iri) continue;
+    if (auto it = problems.find(*iri); it != problems.end()) p.problem = it->second;
+  }
+}
 
 // What an operator must know of a store here before anything else: writes to it are refused
 // or soon will be (at 90% of its maximum, or under 64 MB free on its disk; its programs then
@@ -1885,7 +1907,8 @@ RemoteBoard ask_board(node::Node& from, const std::string& target, std::chrono::
     board.children_error = board.programs_error = "<" + target + "> cannot have agents: " + (link ? supervisor : link).error().message;
     return board;
   }
-  // Asks for every record of predicate `p` (about `subject` when given) that `writer` wrote.
+  // Asks for every record of predicate `p` (about `subject` when given) that `writer` wrote
+  // (empty: that its subject wrote about itself).
   // A query's pattern names no source, and a state item has no one triple that leads to the
   // rest, so each field is asked for by its predicate.
   auto ask = [&](const std::string& p, const std::string& subject, const std::string& writer,
@@ -1896,7 +1919,7 @@ RemoteBoard ask_board(node::Node& from, const std::string& target, std::chrono::
     if (!subject.empty()) pattern.s = node::Term::iri(subject);
     // A node whose link restarts is shown as it is now, not waited for: status asks many nodes.
     auto answered = federation::remote_query(from, {.target = target, .pattern = std::move(pattern), .restart_grace = {}}, left, [&](const node::Record& r) {
-      if (r.meta.source == writer) each(r);
+      if (r.meta.source == (writer.empty() ? r.triple.s.value : writer)) each(r);
     });
     if (answered) return {};
     if (answered.error().code == node::Errc::timeout) return "no answer within " + seconds_text(static_cast<double>(budget.count()) / 1e3);
@@ -1928,10 +1951,16 @@ RemoteBoard ask_board(node::Node& from, const std::string& target, std::chrono::
       if (auto at = parse_u64(r.triple.o.value)) board.programs_at = static_cast<std::int64_t>(*at);
     });
   if (!board.programs_error.empty()) return board;
+  std::map<std::string, std::string> problems;
+  std::vector<node::Record> problem_records;
+  // A node whose programs were read but not their problems is shown without them.
+  (void)ask(reasoner::kProblem, "", "", [&](const node::Record& r) { problem_records.push_back(r); });
+  read_problems(problem_records, target, problems);
   for (auto& [iri, f] : programs) {
     auto name = uri::child_id(iri, target);
     if (!name) continue;
     board.programs.push_back({*name, f["pid"], f["programState"], f["restarts"].empty() ? "0" : f["restarts"], f["lastExit"]});
+    if (auto it = problems.find(iri); it != problems.end()) board.programs.back().problem = it->second;
   }
   return board;
 }
@@ -2032,6 +2061,8 @@ int run_status(const Args& args) {
     auto policy = snap->count({.p = node::Term::iri(std::string(federation::vocab::kTv) + "subscriber"),
                                .o = node::Term::iri(node->iri() + "/uplink")});
     nodes.back().has_parent = policy && *policy > 0;
+    if (auto problems = snap->list({.p = node::Term::iri(reasoner::kProblem)}))
+      read_problems(*problems, node->iri(), nodes.back().problems);
   }
   if (ec) fail(state.string() + ": " + ec.message());
   if (nodes.empty())
@@ -2092,6 +2123,8 @@ int run_status(const Args& args) {
         n.programs.back().name.erase(0, slash + 1);
       }
   }
+  for (StatusNode& n : nodes)
+    if (!n.remote) attach_problems(n.programs, n.iri, n.problems);
   const std::optional<std::set<std::string>> deployed = nodes_supervised(state);
   auto in_deployment = [&](const std::string& id) { return !deployed || deployed->count(id) > 0; };
   // What a store left behind by a node taken out of the file kept of its children is not news.
@@ -2248,6 +2281,8 @@ int run_status(const Args& args) {
                   << (alive(p) && parse_u64(p.pid) ? std::to_string(*parse_u64(p.pid)) : "null")
                   << ",\"restarts\":" << parse_u64(p.restarts).value_or(0) << ",\"last_exit\":";
         print_json_string_or_null(p.last_exit);
+        std::cout << ",\"problem\":";
+        print_json_string_or_null(p.problem);
         std::cout << "}";
         first_program = false;
       }
@@ -2295,6 +2330,7 @@ int run_status(const Args& args) {
       if (p.state == "running" || p.state == "suspended") std::cout << " (pid " << p.pid << ")";
       if (p.restarts != "0") std::cout << ", " << p.restarts << " restarts";
       if (!p.last_exit.empty()) std::cout << ", last: " << p.last_exit;
+      if (!p.problem.empty()) std::cout << "\n" << indent << "      PROBLEM " << p.problem;
       std::cout << "\n";
     }
   }

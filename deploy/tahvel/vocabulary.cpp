@@ -91,6 +91,7 @@ constexpr std::array kTerms = {
     std::string_view("pid"),
     std::string_view("pnn50Pct"),
     std::string_view("predicate"),
+    std::string_view("problem"),
     std::string_view("program"),
     std::string_view("programState"),
     std::string_view("programsAt"),

@@ -980,6 +980,32 @@ TEST_F(Cli, StatusShowsAProgramWaitingOutItsBackOffAsRestarting) {
   EXPECT_EQ(run({"down", "--state", state}).status, 0);
 }
 
+// A reasoner whose rule file was edited into one that does not parse runs on with its previous
+// rules, and says so on its board: `status` shows it under the program until the file parses.
+TEST_F(Cli, StatusShowsAReasonersRuleFileThatNoLongerParsesUntilItDoes) {
+  spit(tmp_ / "alerts.rules", "alert(X) :- hot(X).\n");
+  spit(tmp_ / "node.toml",
+       "[[node]]\nid = \"solo\"\niri = \"http://example.org/solo\"\n"
+       "  [[node.agent]]\n  id = \"reasoner\"\n  run = [\"{bin}/tahvel\", \"reason\", \"{store}\", \"{dir}/alerts.rules\"]\n");
+  const std::string state = (tmp_ / "state").string();
+  ASSERT_EQ(run({"up", (tmp_ / "node.toml").string(), "--state", state}).status, 0);
+  ASSERT_NE(status_until(state, "reasoner  running").out.find("reasoner  running"), std::string::npos);
+  EXPECT_EQ(run({"status", "--state", state}).out.find("PROBLEM"), std::string::npos);
+  spit(tmp_ / "alerts.rules", "alert(X) :- hot(X).\nalert(X :- cold(X).\n");
+  const std::string said = "PROBLEM rules not reloaded (the previous rules run): " + (tmp_ / "alerts.rules").string() + ":2:";
+  Outcome broken = status_until(state, said);
+  EXPECT_NE(broken.out.find("  - reasoner  running"), std::string::npos) << broken.out;
+  EXPECT_NE(broken.out.find(said), std::string::npos) << broken.out;
+  Outcome json = run({"status", "--state", state, "--json"});
+  EXPECT_NE(json.out.find("\"problem\":\"rules not reloaded (the previous rules run): " + (tmp_ / "alerts.rules").string() + ":2:"),
+            std::string::npos)
+      << json.out;
+  spit(tmp_ / "alerts.rules", "alert(X) :- cold(X).\n");
+  Outcome fixed = status_until(state, "PROBLEM", false);
+  EXPECT_EQ(fixed.out.find("PROBLEM"), std::string::npos) << fixed.out;
+  EXPECT_EQ(run({"down", "--state", state}).status, 0);
+}
+
 // For monitoring scripts: the same tree as one JSON object.
 TEST_F(Cli, StatusJsonHasEachNodesLinkAndPrograms) {
   const std::string state = up_a_node_with_a_flaky_agent();
@@ -992,7 +1018,8 @@ TEST_F(Cli, StatusJsonHasEachNodesLinkAndPrograms) {
             0u)
       << json.out;
   EXPECT_NE(json.out.find("{\"name\":\"flaky\",\"state\":\""), std::string::npos) << json.out;
-  EXPECT_NE(json.out.find("\"last_exit\":\"exited with status 3 (its log ends: flaky: no widget)\"}"), std::string::npos) << json.out;
+  EXPECT_NE(json.out.find("\"last_exit\":\"exited with status 3 (its log ends: flaky: no widget)\",\"problem\":null}"), std::string::npos)
+      << json.out;
   // A local node's programs come from its supervisor's state file: known, and written nowhere.
   EXPECT_TRUE(json.out.ends_with("}],\"programs_known\":true,\"programs_unknown_because\":null,\"programs_written_ns\":null,"
                                   "\"children_unknown_because\":null,\"store_warning\":null}]}\n"))

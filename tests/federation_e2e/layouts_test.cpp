@@ -262,11 +262,17 @@ TEST_F(Deployment, TwoUpsAtOnceOnANewStateDirectoryTakeTurnsAndEveryStoreIsMade)
 // link, the sensor below the gateway and the programs of both, as their supervisors wrote them
 // on their boards (a program that keeps failing shows its restarts and its last exit there).
 // With --local nothing is asked; programs a frozen supervisor no longer rewrites are not shown
-// as current; a machine that went down is shown as such, its programs unknown.
+// as current; a machine that went down is shown as such, its programs unknown. A problem a
+// program reports on its board (the gateway's reasoner, whose rule file no longer parses) is
+// shown under it.
 TEST_F(Deployment, StatusOnTheRootsMachineShowsTheNodesAndProgramsOfTheMachinesBelowIt) {
+  const fs::path rule_file = root_ / "gateway.rules";
+  std::ofstream(rule_file) << "alert(X) :- hot(X).\n";
   write_topology("[[node]]\nid = \"ward\"\niri = \"" + kWard + "\"\nlisten = { kind = \"dds\", domain = 6, " + kDdsConfig +
                  " }\n\n[[node]]\nid = \"gateway\"\nparent = \"ward\"\n"
-                 "listen = { kind = \"lcm\", url = \"udpm://239.255.76.68:7712?ttl=0\" }\n\n[[node]]\nid = \"sensor\"\nparent = \"gateway\"\n\n  [[node.agent]]\n  id = \"flaky\"\n"
+                 "listen = { kind = \"lcm\", url = \"udpm://239.255.76.68:7712?ttl=0\" }\n\n"
+                 "  [[node.agent]]\n  id = \"reasoner\"\n  run = [\"{bin}/tahvel\", \"reason\", \"{store}\", \"{dir}/gateway.rules\"]\n\n"
+                 "[[node]]\nid = \"sensor\"\nparent = \"gateway\"\n\n  [[node.agent]]\n  id = \"flaky\"\n"
                  "  run = [\"sh\", \"-c\", \"exit 3\"]\n");
   const std::string file = (root_ / "topology.toml").string();
   std::map<std::string, fs::path> machine;
@@ -288,6 +294,15 @@ TEST_F(Deployment, StatusOnTheRootsMachineShowsTheNodesAndProgramsOfTheMachinesB
   EXPECT_NE(shown.find("\n    - link  running (pid "), std::string::npos) << shown;  // the gateway's, under it
   EXPECT_NE(shown.find("      - link  running (pid "), std::string::npos) << shown;  // the sensor's
   EXPECT_NE(shown.find("      - flaky  "), std::string::npos) << shown;
+  EXPECT_NE(shown.find("\n    - reasoner  running (pid "), std::string::npos) << shown;
+  EXPECT_EQ(shown.find("PROBLEM"), std::string::npos) << shown;
+  std::ofstream(rule_file) << "alert(X :- hot(X).\n";
+  const std::string problem = "rules not reloaded (the previous rules run): " + rule_file.string() + ":1:";
+  EXPECT_TRUE(eventually([&] { return (shown = status_of("ward")).find("\n        PROBLEM " + problem) != std::string::npos; }))
+      << shown;
+  EXPECT_NE(status_of("ward", " --json").find("\"problem\":\"" + problem), std::string::npos);
+  std::ofstream(rule_file) << "alert(X) :- hot(X).\n";
+  EXPECT_TRUE(eventually([&] { return (shown = status_of("ward")).find("PROBLEM") == std::string::npos; })) << shown;
   const std::string json = status_of("ward", " --json");
   EXPECT_NE(json.find("{\"id\":\"sensor\",\"iri\":\"" + kWard + "/gateway/sensor\",\"depth\":2,\"remote\":true,"), std::string::npos) << json;
   EXPECT_NE(json.find("\"programs_known\":true,\"programs_unknown_because\":null,\"programs_written_ns\":1"), std::string::npos) << json;

@@ -376,6 +376,44 @@ TEST_F(ReasonerTest, RulesReloadAndABrokenFileIsReportedWhileThePreviousRulesRun
   EXPECT_EQ(board().count(nt("u", "q", "v")), 1u);  // the previous rules ran
 }
 
+// `tahvel status` shows what the board says: a rule file that does not parse is the reasoner's
+// problem there until a rule file parses, or the reasoner starts again (with rules that parse).
+TEST_F(ReasonerTest, ABrokenRuleFileIsTheReasonersProblemOnTheBoardUntilRulesParse) {
+  auto file = rules("live.rules", "p(X, Y) :- a(X, Y).\n");
+  put({t("x", "a", "y")});
+  auto problems = [&] { return node_->snapshot().value().list({.p = tn::Term::iri(tr::kProblem)}).value(); };
+  {
+    auto r = open(file);
+    ASSERT_TRUE(r.session().has_value());
+    EXPECT_TRUE(problems().empty());
+    rules("live.rules", "p(X, Y) :- a(X, Y).\nbroken(X :- a(X, Y).\n");
+    ASSERT_TRUE(r.session().value().rules_error.has_value());
+    auto said = problems();
+    ASSERT_EQ(said.size(), 1u);
+    EXPECT_EQ(said[0].triple.s, tn::Term::iri(r.iri()));
+    EXPECT_EQ(said[0].meta.source, r.iri());
+    EXPECT_EQ(said[0].triple.o.value.rfind("rules not reloaded (the previous rules run): " + file.string() + ":2:10:", 0), 0u)
+        << said[0].triple.o.value;
+    // Not a conclusion: a session leaves it, and the conclusions, as they are.
+    put({t("u", "a", "v")});
+    ASSERT_TRUE(r.session().has_value());
+    EXPECT_EQ(problems().size(), 1u);
+    EXPECT_EQ(board().count(nt("u", "p", "v")), 1u);
+    rules("live.rules", "p(X, Y) :- a(X, Y).\n");
+    ASSERT_TRUE(r.session().value().rules_reloaded);
+    EXPECT_TRUE(problems().empty());
+    EXPECT_EQ(board().count(nt("x", "p", "y")), 1u);
+    rules("live.rules", "broken(\n");
+    ASSERT_TRUE(r.session().has_value());
+    ASSERT_EQ(problems().size(), 1u);
+  }
+  rules("live.rules", "p(X, Y) :- a(X, Y).\n");
+  auto again = open(file);
+  EXPECT_TRUE(problems().empty());
+  ASSERT_TRUE(again.session().has_value());
+  EXPECT_EQ(board(), (std::map<std::string, int>{{nt("x", "p", "y"), 1}, {nt("u", "p", "v"), 1}}));
+}
+
 // The board after random sessions of insertions and removals holds exactly the conclusions of
 // a from-scratch evaluation of the board's other records.
 TEST_F(ReasonerTest, BoardEqualsFromScratchEvaluationOnRandomData) {

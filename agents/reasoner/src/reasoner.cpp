@@ -105,7 +105,13 @@ struct Reasoner::Impl {
     for (node::Term& t : a.args) if (t.is_blank()) t = node::Term::iri(genid(t));
     return store_form(a, agent.iri() + "/c/");
   }
-  bool own(const node::Record& r) const { return r.meta.source == agent.iri(); }
+  // The reasoner's conclusions: its records, bar the problem it reports (kProblem).
+  bool own(const node::Record& r) const {
+    return r.meta.source == agent.iri() && !(r.triple.p.is_iri() && r.triple.p.value == kProblem);
+  }
+  // The problem on the board now, as this reasoner last wrote it (empty: none).
+  std::string problem;
+  Result<void> report_problem(const std::string& text);
 
   void maybe_reload(SessionReport& report);
   Result<void> read_changes(const node::Snapshot& snap, std::vector<node::Triple>& in,
@@ -133,6 +139,22 @@ void Reasoner::Impl::maybe_reload(SessionReport& report) {
   program = *loaded;
   report.rules_reloaded = true;
   rules_pending = true;
+}
+
+// Writes `text` as this reasoner's problem in place of the one before (empty: removes it).
+Result<void> Reasoner::Impl::report_problem(const std::string& text) {
+  node::Pattern old{.s = node::Term::iri(agent.iri()), .p = node::Term::iri(kProblem), .source = agent.iri()};
+  std::vector<node::Item> items;
+  if (!text.empty()) {
+    node::Item item;
+    item.persistent = true;  // a ring must not take it while the rule file is still broken
+    item.add(node::Term::iri(agent.iri()), node::Term::iri(kProblem), node::Term::literal(text));
+    items.push_back(std::move(item));
+  }
+  auto written = agent.replace({old}, items);
+  if (!written) return unexpected(node_error(written.error()));
+  problem = text;
+  return {};
 }
 
 // Insertions after the bookmark from the snapshot; removals up to its last seq from the log.
@@ -294,6 +316,13 @@ Result<SessionReport> Reasoner::Impl::session() {
   const std::int64_t now = wall_ns();
   Engine::Update update;
   maybe_reload(report);
+  if (report.rules_error) {
+    const std::string said = "rules not reloaded (the previous rules run): " + *report.rules_error;
+    if (said != problem)
+      if (auto r = report_problem(said); !r) return unexpected(r.error());
+  } else if (report.rules_reloaded && !problem.empty()) {
+    if (auto r = report_problem(""); !r) return unexpected(r.error());
+  }
   if (rules_pending && !started) {  // the first session reads the whole board anyway
     engine = Engine(program);
     rules_pending = false;
@@ -397,6 +426,17 @@ Result<Reasoner> Reasoner::open(const std::filesystem::path& dir, ReasonerOption
   if (ftruncate(lock, 0) == 0) (void)!pwrite(lock, pid.data(), pid.size(), 0);  // for the message above only
   auto impl = std::make_unique<Impl>(std::move(*node), std::move(*agent), std::move(options), std::move(parse), std::move(*program));
   impl->agent_lock = lock;
+  // A problem an earlier run reported is over: this one's rules parse.
+  Result<std::uint64_t> left = [&]() -> Result<std::uint64_t> {
+    auto snap = impl->node.snapshot();
+    if (!snap) return unexpected(node_error(snap.error()));
+    auto n = snap->count({.s = node::Term::iri(impl->agent.iri()), .p = node::Term::iri(kProblem), .source = impl->agent.iri()});
+    if (!n) return unexpected(node_error(n.error()));
+    return *n;
+  }();
+  if (!left) return unexpected(left.error());
+  if (*left > 0)
+    if (auto r = impl->report_problem(""); !r) return unexpected(r.error());
   return Reasoner(std::move(impl));
 }
 

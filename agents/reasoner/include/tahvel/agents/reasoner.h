@@ -24,8 +24,15 @@
 #include <vector>
 
 #include "tahvel/agents/rules.h"
+#include "tahvel/uri/iri.h"
 
 namespace tahvel::reasoner {
+
+// What a running reasoner cannot do as asked, on its board for `tahvel status` (docs/vocabulary.md,
+// "Problems"): `<reasoner agent IRI> tv:problem "text"`, written by the reasoner itself when a
+// changed rule file does not parse (the previous rules run on), removed once a rule file parses
+// and when it starts (it starts only with rules that parse).
+inline const std::string kProblem = std::string(uri::kTahvelNs) + "problem";
 
 // The longest interval between sessions that Reasoner::open accepts: one day.
 inline constexpr std::chrono::milliseconds kMaxInterval{86'400'000};
