@@ -604,6 +604,28 @@ TEST(Format, WriterSinkSeesOutputOnlyAfterFinishForPendingTurtle) {
   EXPECT_EQ(parsed->size(), 1u);
 }
 
+// The check reads ASCII eight bytes at a time: a bad byte is found at whatever offset it has
+// within or across those words, and a good multi-byte character across one is passed.
+TEST(Format, TheFirstIllFormedUtf8ByteIsFoundAtEveryOffset) {
+  for (std::size_t length : {1u, 7u, 8u, 9u, 16u, 23u, 40u}) {
+    for (std::size_t at = 0; at < length; ++at) {
+      std::string text(length, 'a');
+      text[at] = '\xFF';
+      EXPECT_EQ(tn::ill_formed_utf8_at(text), at) << length << " " << at;
+      text[at] = 'a';
+      EXPECT_EQ(tn::ill_formed_utf8_at(text), std::string_view::npos) << length;
+      if (at + 3 <= length) {
+        text.replace(at, 3, "\xE2\x82\xAC");  // the euro sign
+        EXPECT_EQ(tn::ill_formed_utf8_at(text), std::string_view::npos) << length << " " << at;
+        text.resize(at + 2);  // cut inside it
+        EXPECT_EQ(tn::ill_formed_utf8_at(text), at) << length << " " << at;
+      }
+    }
+  }
+  EXPECT_EQ(tn::ill_formed_utf8_at(""), std::string_view::npos);
+  EXPECT_EQ(tn::ill_formed_utf8_at("abcdefgh\xC0\x80"), 8u);  // an overlong NUL
+}
+
 TEST(Format, IllFormedUtf8IsWrittenAsReplacementCharacters) {
   const std::vector<Triple> triples = {
       {Term::iri(kEx + "a"), Term::iri(kEx + "p"), Term::literal("bad \xFF\xC0 end")}};
