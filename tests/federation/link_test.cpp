@@ -78,6 +78,21 @@ node::Item raw_item(int n) {
   return item;
 }
 
+// A forwarding policy for home1 written at the hospital: home1's agent "uplink" subscribes to raw
+// samples too (context = home1's IRI, so it goes down to home1).
+node::Item raw_samples_go_up() {
+  node::Item policy;
+  policy.context = kHome1;
+  policy.persistent = true;
+  const Term sub = Term::blank("sub");
+  policy.add(sub, Term::iri(std::string(vocab::kTv) + "subscriber"), Term::iri(kHome1 + "/uplink"))
+      .add(sub, Term::iri(std::string(vocab::kTv) + "predicate"), Term::iri(kEx + "samples"));
+  return policy;
+}
+// home1's uplink's subscriptions: the default policy's one, and one per policy written since.
+const node::Pattern kHome1UplinkSubscriptions{.p = Term::iri(std::string(vocab::kTv) + "subscriber"),
+                                              .o = Term::iri(kHome1 + "/uplink")};
+
 std::uint64_t count(const std::string& dir, node::Pattern pattern) {
   auto node = node::Node::open(dir);
   if (!node) return 0;
@@ -1230,16 +1245,8 @@ TEST(Link, ParentChangesAChildsForwardingPolicyBySendingASubscriptionDown) {
   // The policy is subscriptions of home1's agent "uplink": the hospital writes one more, for
   // home1 (context = home1's IRI), and raw samples start to go up.
   auto operator_ = node::Node::open(tree.hospital_dir).value().agent("operator").value();
-  node::Item policy;
-  policy.context = kHome1;
-  policy.persistent = true;
-  const Term sub = Term::blank("sub");
-  policy.add(sub, Term::iri(std::string(vocab::kTv) + "subscriber"), Term::iri(kHome1 + "/uplink"))
-      .add(sub, Term::iri(std::string(vocab::kTv) + "predicate"), Term::iri(kEx + "samples"));
-  ASSERT_TRUE(operator_.store(policy));
-  ASSERT_TRUE(eventually([&] {
-    return count(tree.home1_dir, {.p = Term::iri(std::string(vocab::kTv) + "subscriber"), .o = Term::iri(kHome1 + "/uplink")}) == 2;
-  }));
+  ASSERT_TRUE(operator_.store(raw_samples_go_up()));
+  ASSERT_TRUE(eventually([&] { return count(tree.home1_dir, kHome1UplinkSubscriptions) == 2; }));
   ASSERT_TRUE(sensor.store(raw_item(2)));
   ASSERT_TRUE(eventually([&] { return count(tree.hospital_dir, {.p = Term::iri(kEx + "samples")}) == 1; }));
   // Only what was written after the policy changed.
@@ -1260,21 +1267,14 @@ TEST(Link, ACopySentUnderAPolicyNarrowedSinceGoesWhenTheHomeRemovesIt) {
   auto sensor = home.agent("ecg").value();
   auto hospital = node::Node::open(tree.hospital_dir).value();
   auto operator_ = hospital.agent("operator").value();
-  node::Item policy;
-  policy.context = kHome1;
-  policy.persistent = true;
-  const Term sub = Term::blank("sub");
-  policy.add(sub, Term::iri(std::string(vocab::kTv) + "subscriber"), Term::iri(kHome1 + "/uplink"))
-      .add(sub, Term::iri(std::string(vocab::kTv) + "predicate"), Term::iri(kEx + "samples"));
-  const std::uint64_t policy_id = operator_.store(policy).value();
-  const node::Pattern uplink_subscriptions{.p = Term::iri(std::string(vocab::kTv) + "subscriber"), .o = Term::iri(kHome1 + "/uplink")};
-  ASSERT_TRUE(eventually([&] { return count(tree.home1_dir, uplink_subscriptions) == 2; }));
+  const std::uint64_t policy_id = operator_.store(raw_samples_go_up()).value();
+  ASSERT_TRUE(eventually([&] { return count(tree.home1_dir, kHome1UplinkSubscriptions) == 2; }));
   const std::uint64_t chunk = sensor.store(raw_item(2)).value();
   const node::Pattern samples{.p = Term::iri(kEx + "samples")};
   ASSERT_TRUE(eventually([&] { return count(tree.hospital_dir, samples) == 1; }));
   // Narrowed again: the policy's removal at the hospital takes the subscription at home (P10a).
   ASSERT_TRUE(hospital.remove_item(policy_id));
-  ASSERT_TRUE(eventually([&] { return count(tree.home1_dir, uplink_subscriptions) == 1; }));
+  ASSERT_TRUE(eventually([&] { return count(tree.home1_dir, kHome1UplinkSubscriptions) == 1; }));
   ASSERT_TRUE(home.remove_item(chunk));
   EXPECT_TRUE(eventually([&] { return count(tree.hospital_dir, samples) == 0; }))
       << count(tree.hospital_dir, samples) << " chunk(s) left at the hospital";
