@@ -1816,6 +1816,11 @@ constexpr double kProgramsStaleAfterS = 15.0;
 
 using Fields = std::map<std::string, std::string>;  // by the local name of each predicate
 
+// What a program says on its board it cannot do (reasoner::kProblem), and its process.
+struct Problem {
+  std::string text, pid;
+};
+
 // One node of the tree `status` prints: a store under DIR, or a node on another machine known
 // from the state its parent keeps of it (a store here, or a node on another machine asked).
 struct StatusNode {
@@ -1834,24 +1839,32 @@ struct StatusNode {
   // parent): without an uplink state it is a child whose link has not run, not a root.
   bool has_parent = false;
   // Problems the node's programs report on its board (reasoner::kProblem), by agent IRI.
-  std::map<std::string, std::string> problems;
+  std::map<std::string, Problem> problems;
 };
 
-// The problems on a board: records of reasoner::kProblem that an agent of `node_iri` wrote
-// about itself, by agent IRI.
+// The problems on a board: records of reasoner::kProblem and reasoner::kPid that an agent of
+// `node_iri` wrote about itself, into `problems` by agent IRI.
 void read_problems(const std::vector<node::Record>& records, const std::string& node_iri,
-                   std::map<std::string, std::string>& problems) {
-  for (const node::Record& r : records)
-    if (r.triple.s.value == r.meta.source && uri::is_under(r.meta.source, node_iri)) problems[r.meta.source] = r.triple.o.value;
+                   std::map<std::string, Problem>& problems) {
+  for (const node::Record& r : records) {
+    if (r.triple.s.value != r.meta.source || !uri::is_under(r.meta.source, node_iri)) continue;
+    if (r.triple.p.value == reasoner::kProblem) problems[r.meta.source].text = r.triple.o.value;
+    else if (r.triple.p.value == reasoner::kPid) problems[r.meta.source].pid = r.triple.o.value;
+  }
 }
 
-// Each program's problem, from those of its node.
+// Each program's problem, from those of its node: the program whose agent IRI wrote it, or else
+// the one whose process did (an agent whose IRI is not its program's: `reason --agent`).
 void attach_problems(std::vector<ProgramRow>& programs, const std::string& node_iri,
-                     const std::map<std::string, std::string>& problems) {
-  for (ProgramRow& p : programs) {
-    auto iri = uri::agent_iri(node_iri, p.name);
-    if (!iri) continue;
-    if (auto it = problems.find(*iri); it != problems.end()) p.problem = it->second;
+                     const std::map<std::string, Problem>& problems) {
+  for (const auto& [agent, problem] : problems) {
+    if (problem.text.empty()) continue;
+    ProgramRow* to = nullptr;
+    for (ProgramRow& p : programs) {
+      if (auto iri = uri::agent_iri(node_iri, p.name); iri && *iri == agent) to = &p;
+      else if (!to && !problem.pid.empty() && p.pid == problem.pid) to = &p;
+    }
+    if (to) to->problem = problem.text;
   }
 }
 
@@ -1951,17 +1964,18 @@ RemoteBoard ask_board(node::Node& from, const std::string& target, std::chrono::
       if (auto at = parse_u64(r.triple.o.value)) board.programs_at = static_cast<std::int64_t>(*at);
     });
   if (!board.programs_error.empty()) return board;
-  std::map<std::string, std::string> problems;
   std::vector<node::Record> problem_records;
   // A node whose programs were read but not their problems is shown without them.
-  (void)ask(reasoner::kProblem, "", "", [&](const node::Record& r) { problem_records.push_back(r); });
+  for (const std::string& p : {reasoner::kProblem, reasoner::kPid})
+    (void)ask(p, "", "", [&](const node::Record& r) { problem_records.push_back(r); });
+  std::map<std::string, Problem> problems;
   read_problems(problem_records, target, problems);
   for (auto& [iri, f] : programs) {
     auto name = uri::child_id(iri, target);
     if (!name) continue;
     board.programs.push_back({*name, f["pid"], f["programState"], f["restarts"].empty() ? "0" : f["restarts"], f["lastExit"]});
-    if (auto it = problems.find(iri); it != problems.end()) board.programs.back().problem = it->second;
   }
+  attach_problems(board.programs, target, problems);
   return board;
 }
 
@@ -2061,8 +2075,8 @@ int run_status(const Args& args) {
     auto policy = snap->count({.p = node::Term::iri(std::string(federation::vocab::kTv) + "subscriber"),
                                .o = node::Term::iri(node->iri() + "/uplink")});
     nodes.back().has_parent = policy && *policy > 0;
-    if (auto problems = snap->list({.p = node::Term::iri(reasoner::kProblem)}))
-      read_problems(*problems, node->iri(), nodes.back().problems);
+    for (const std::string& p : {reasoner::kProblem, reasoner::kPid})
+      if (auto records = snap->list({.p = node::Term::iri(p)})) read_problems(*records, node->iri(), nodes.back().problems);
   }
   if (ec) fail(state.string() + ": " + ec.message());
   if (nodes.empty())

@@ -133,6 +133,7 @@ int run_reason(const Args& args) {
   auto print = [&](reasoner::SessionReport r) {
     std::sort(r.added.begin(), r.added.end());
     std::sort(r.removed.begin(), r.removed.end());
+    if (r.problem_not_written) std::cerr << "tahvel: the rules' problem is not on the board: " << *r.problem_not_written << "\n";
     if (json) print_json(r); else print_text(r, prefixes);
     return static_cast<bool>(std::cout);
   };

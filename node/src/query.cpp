@@ -42,7 +42,7 @@ Result<const ItemRow*> Query::item(std::uint64_t id) {
     auto row = get_item(txn_, env_, id);
     if (!row) return unexpected(row.error());
     if (!*row) return fail(Errc::corrupt, "item " + std::to_string(id) + " is missing");
-    cached_item_ = **row;
+    cached_item_ = std::move(**row);
     cached_item_id_ = id;
   }
   return &cached_item_;
@@ -241,7 +241,7 @@ Result<std::vector<std::uint64_t>> Query::collect(const Pattern& pattern, const 
 Result<Record> Query::materialize(std::uint64_t id, const RecordRow& row) {
   auto it = item(row.item);
   if (!it) return unexpected(it.error());
-  const ItemRow meta = **it;
+  const ItemRow& meta = **it;  // the query's cached row: the term reads below leave it be
   auto s = terms_.get(row.s);
   if (!s) return unexpected(s.error());
   auto p = terms_.get(row.p, true);

@@ -228,7 +228,7 @@ Result<std::optional<ItemRow>> get_item(MDB_txn* txn, const Env& env, std::uint6
   if (rc != 0) return lmdb_fail(rc, "reading item " + std::to_string(id));
   ItemRow row;
   if (!decode_item(view(v), row)) return fail(Errc::corrupt, "item " + std::to_string(id) + " is truncated");
-  return std::optional<ItemRow>(row);
+  return std::optional<ItemRow>(std::move(row));
 }
 
 Result<void> put_item(Txn& txn, std::uint64_t id, const ItemRow& row, unsigned flags) {

@@ -823,6 +823,10 @@ Result<std::uint64_t> withdraw_unrouted(Txn& txn, std::uint64_t agent, const std
     if (int rc = mdb_del(txn.raw(), txn.env().inbox, &k, &v); rc != 0) return lmdb_fail(rc, "withdrawing from an input buffer");
     if (txn.counters.pending > 0) --txn.counters.pending;
     if (item.pending > 0) --item.pending;
+    // Nor does its removal go to the agent: a notice carries the records, which the narrowed
+    // policy keeps here. (One the parent had not acknowledged may have gone up: its copy there
+    // stays when the item is removed here.)
+    std::erase(item.noticed, agent);
     if (auto put = put_item(txn, item_id, item); !put) return unexpected(put.error());
     ++withdrawn;
   }

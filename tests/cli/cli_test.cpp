@@ -982,19 +982,21 @@ TEST_F(Cli, StatusShowsAProgramWaitingOutItsBackOffAsRestarting) {
 
 // A reasoner whose rule file was edited into one that does not parse runs on with its previous
 // rules, and says so on its board: `status` shows it under the program until the file parses.
+// The program's id ("alerts") is not the reasoner's agent's ("reasoner", the default): found by
+// its process.
 TEST_F(Cli, StatusShowsAReasonersRuleFileThatNoLongerParsesUntilItDoes) {
   spit(tmp_ / "alerts.rules", "alert(X) :- hot(X).\n");
   spit(tmp_ / "node.toml",
        "[[node]]\nid = \"solo\"\niri = \"http://example.org/solo\"\n"
-       "  [[node.agent]]\n  id = \"reasoner\"\n  run = [\"{bin}/tahvel\", \"reason\", \"{store}\", \"{dir}/alerts.rules\"]\n");
+       "  [[node.agent]]\n  id = \"alerts\"\n  run = [\"{bin}/tahvel\", \"reason\", \"{store}\", \"{dir}/alerts.rules\"]\n");
   const std::string state = (tmp_ / "state").string();
   ASSERT_EQ(run({"up", (tmp_ / "node.toml").string(), "--state", state}).status, 0);
-  ASSERT_NE(status_until(state, "reasoner  running").out.find("reasoner  running"), std::string::npos);
+  ASSERT_NE(status_until(state, "alerts  running").out.find("alerts  running"), std::string::npos);
   EXPECT_EQ(run({"status", "--state", state}).out.find("PROBLEM"), std::string::npos);
   spit(tmp_ / "alerts.rules", "alert(X) :- hot(X).\nalert(X :- cold(X).\n");
   const std::string said = "PROBLEM rules not reloaded (the previous rules run): " + (tmp_ / "alerts.rules").string() + ":2:";
   Outcome broken = status_until(state, said);
-  EXPECT_NE(broken.out.find("  - reasoner  running"), std::string::npos) << broken.out;
+  EXPECT_NE(broken.out.find("  - alerts  running (pid "), std::string::npos) << broken.out;
   EXPECT_NE(broken.out.find(said), std::string::npos) << broken.out;
   Outcome json = run({"status", "--state", state, "--json"});
   EXPECT_NE(json.out.find("\"problem\":\"rules not reloaded (the previous rules run): " + (tmp_ / "alerts.rules").string() + ":2:"),

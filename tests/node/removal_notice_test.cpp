@@ -331,6 +331,21 @@ TEST(RemovalNotice, AnAgentWhosePolicyNarrowedAfterItGotAnItemIsStillNoticedOfIt
   EXPECT_EQ(got[0].records[0].meta.item, sent);
 }
 
+// `tahvel up` withdraws from the uplink what a narrowed policy no longer forwards: such an item's
+// removal is not noticed there, for a notice carries its records up.
+TEST(RemovalNotice, AnItemWithdrawnFromABufferByANarrowedPolicyIsNotNoticedThere) {
+  Gateway g;
+  auto& [dir, node, child, uplink, source, forwarding] = g;
+  Agent writer = node.agent("hrv").value();
+  const std::uint64_t queued = writer.store(hrv_window(1, 1'000)).value();
+  ASSERT_EQ(uplink.pending().value(), 1u);
+  ASSERT_TRUE(uplink.unsubscribe(forwarding));
+  ASSERT_EQ(uplink.withdraw_unrouted().value(), 1u);
+  drain(uplink);
+  ASSERT_TRUE(node.remove_item(queued));
+  EXPECT_TRUE(drain(uplink).empty());
+}
+
 // The same at a gateway: a copy relayed from below went to the uplink under the old policy; the
 // child's removal of it goes on to the uplink, and so to the parent's copy.
 TEST(RemovalNotice, ARelayedRemovalGoesOnToTheAgentThatGotTheCopyUnderAPolicyNarrowedSince) {

@@ -4,6 +4,7 @@
 // previous rules run), the board against a from-scratch evaluation (differential), and a
 // concurrent writer whose items a session never sees half of.
 #include <gtest/gtest.h>
+#include <unistd.h>
 #include <stdlib.h>
 
 #include <atomic>
@@ -403,13 +404,24 @@ TEST_F(ReasonerTest, ABrokenRuleFileIsTheReasonersProblemOnTheBoardUntilRulesPar
     ASSERT_TRUE(r.session().value().rules_reloaded);
     EXPECT_TRUE(problems().empty());
     EXPECT_EQ(board().count(nt("x", "p", "y")), 1u);
-    rules("live.rules", "broken(\n");
-    ASSERT_TRUE(r.session().has_value());
-    ASSERT_EQ(problems().size(), 1u);
+    // A file that is not UTF-8 (Latin-1 here): the error quotes its bytes; the problem says
+    // them as replacement characters, and the session goes on.
+    rules("live.rules", "caf\xE9(X :- a(X, Y).\n");
+    auto latin1 = r.session();
+    ASSERT_TRUE(latin1.has_value()) << latin1.error().message;
+    EXPECT_FALSE(latin1->problem_not_written) << *latin1->problem_not_written;
+    said = problems();
+    ASSERT_EQ(said.size(), 1u);
+    EXPECT_EQ(tn::ill_formed_utf8_at(said[0].triple.o.value), std::string_view::npos);
+    // With the process that runs it, for `status` to find its program by.
+    auto pid = node_->snapshot().value().list({.s = tn::Term::iri(r.iri()), .p = tn::Term::iri(tr::kPid)}).value();
+    ASSERT_EQ(pid.size(), 1u);
+    EXPECT_EQ(pid[0].triple.o, tn::Term::integer(getpid()));
   }
   rules("live.rules", "p(X, Y) :- a(X, Y).\n");
   auto again = open(file);
   EXPECT_TRUE(problems().empty());
+  EXPECT_EQ(node_->snapshot().value().count({.p = tn::Term::iri(tr::kPid)}).value(), 0u);
   ASSERT_TRUE(again.session().has_value());
   EXPECT_EQ(board(), (std::map<std::string, int>{{nt("x", "p", "y"), 1}, {nt("u", "p", "v"), 1}}));
 }

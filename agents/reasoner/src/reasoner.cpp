@@ -107,11 +107,18 @@ struct Reasoner::Impl {
   }
   // The reasoner's conclusions: its records, bar the problem it reports (kProblem).
   bool own(const node::Record& r) const {
-    return r.meta.source == agent.iri() && !(r.triple.p.is_iri() && r.triple.p.value == kProblem);
+    return r.meta.source == agent.iri() &&
+           !(r.triple.s.is_iri() && r.triple.s.value == agent.iri() && r.triple.p.is_iri() &&
+             (r.triple.p.value == kProblem || r.triple.p.value == kPid));
   }
   // The problem on the board now, as this reasoner last wrote it (empty: none).
   std::string problem;
   Result<void> report_problem(const std::string& text);
+  // report_problem in a session: a problem that cannot be written (a full store) is told in the
+  // report, and the session goes on with the previous rules, as it would without it.
+  void try_report_problem(const std::string& text, SessionReport& report) {
+    if (auto r = report_problem(text); !r) report.problem_not_written = r.error().message;
+  }
 
   void maybe_reload(SessionReport& report);
   Result<void> read_changes(const node::Snapshot& snap, std::vector<node::Triple>& in,
@@ -143,15 +150,19 @@ void Reasoner::Impl::maybe_reload(SessionReport& report) {
 
 // Writes `text` as this reasoner's problem in place of the one before (empty: removes it).
 Result<void> Reasoner::Impl::report_problem(const std::string& text) {
-  node::Pattern old{.s = node::Term::iri(agent.iri()), .p = node::Term::iri(kProblem), .source = agent.iri()};
+  const node::Term self = node::Term::iri(agent.iri());
+  std::vector<node::Pattern> old = {{.s = self, .p = node::Term::iri(kProblem), .source = agent.iri()},
+                                    {.s = self, .p = node::Term::iri(kPid), .source = agent.iri()}};
   std::vector<node::Item> items;
   if (!text.empty()) {
     node::Item item;
     item.persistent = true;  // a ring must not take it while the rule file is still broken
-    item.add(node::Term::iri(agent.iri()), node::Term::iri(kProblem), node::Term::literal(text));
+    // A parse error quotes the file's bytes, which need not be UTF-8: a store takes only text.
+    item.add(self, node::Term::iri(kProblem), node::Term::literal(node::with_replacement_characters(text)))
+        .add(self, node::Term::iri(kPid), node::Term::integer(getpid()));
     items.push_back(std::move(item));
   }
-  auto written = agent.replace({old}, items);
+  auto written = agent.replace(old, items);
   if (!written) return unexpected(node_error(written.error()));
   problem = text;
   return {};
@@ -318,10 +329,9 @@ Result<SessionReport> Reasoner::Impl::session() {
   maybe_reload(report);
   if (report.rules_error) {
     const std::string said = "rules not reloaded (the previous rules run): " + *report.rules_error;
-    if (said != problem)
-      if (auto r = report_problem(said); !r) return unexpected(r.error());
+    if (said != problem) try_report_problem(said, report);
   } else if (report.rules_reloaded && !problem.empty()) {
-    if (auto r = report_problem(""); !r) return unexpected(r.error());
+    try_report_problem("", report);
   }
   if (rules_pending && !started) {  // the first session reads the whole board anyway
     engine = Engine(program);
@@ -435,8 +445,12 @@ Result<Reasoner> Reasoner::open(const std::filesystem::path& dir, ReasonerOption
     return *n;
   }();
   if (!left) return unexpected(left.error());
-  if (*left > 0)
-    if (auto r = impl->report_problem(""); !r) return unexpected(r.error());
+  if (*left > 0) {
+    // One that cannot go now (a full store) goes once a changed rule file parses.
+    impl->problem = "(left by an earlier run)";
+    SessionReport ignored;
+    impl->try_report_problem("", ignored);
+  }
   return Reasoner(std::move(impl));
 }
 

@@ -29,10 +29,12 @@
 namespace tahvel::reasoner {
 
 // What a running reasoner cannot do as asked, on its board for `tahvel status` (docs/vocabulary.md,
-// "Problems"): `<reasoner agent IRI> tv:problem "text"`, written by the reasoner itself when a
-// changed rule file does not parse (the previous rules run on), removed once a rule file parses
-// and when it starts (it starts only with rules that parse).
+// "Problems"): `<reasoner agent IRI> tv:problem "text"; tv:pid N`, written by the reasoner itself
+// when a changed rule file does not parse (the previous rules run on), removed once a rule file
+// parses and when it starts (it starts only with rules that parse). The process id names the
+// program that runs it when its id is not the agent's (`tahvel reason --agent`).
 inline const std::string kProblem = std::string(uri::kTahvelNs) + "problem";
+inline const std::string kPid = std::string(uri::kTahvelNs) + "pid";
 
 // The longest interval between sessions that Reasoner::open accepts: one day.
 inline constexpr std::chrono::milliseconds kMaxInterval{86'400'000};
@@ -60,6 +62,8 @@ struct SessionReport {
   std::optional<std::string> rules_error;  // the rule file changed but does not parse: the
                                            // message (file:line:col); the previous rules ran
   bool rules_reloaded = false;
+  std::optional<std::string> problem_not_written;  // why the rules' problem could not be put on
+                                                   // the board (or taken off it)
   double read_ms = 0, derive_ms = 0, write_ms = 0, total_ms = 0;
   EngineStats engine;
 };
