@@ -1260,9 +1260,7 @@ TEST(Link, ParentChangesAChildsForwardingPolicyBySendingASubscriptionDown) {
 // when the home removes it, after the hospital has narrowed the policy again.
 TEST(Link, ACopySentUnderAPolicyNarrowedSinceGoesWhenTheHomeRemovesIt) {
   Tree tree;
-  tree.hospital = tree.start_hospital();
-  tree.home1 = tree.start_home(tree.home1_dir, kHome1, tree.home1_log);
-  ASSERT_TRUE(eventually([&] { return tree.home1->connected(); }));
+  ASSERT_TRUE(tree.start_hospital_and_home1());
   auto home = node::Node::open(tree.home1_dir).value();
   auto sensor = home.agent("ecg").value();
   auto hospital = node::Node::open(tree.hospital_dir).value();
