@@ -235,8 +235,8 @@ int replay(rt::Session& session, Signal& signal, double speed) {
       wait_until(t0 + std::chrono::duration_cast<std::chrono::steady_clock::duration>(std::chrono::duration<double>(
                           static_cast<double>(position + static_cast<std::int64_t>(*got)) / signal.info.fs / speed)));
     if (rt::stop_requested()) break;  // stopped while waiting: this chunk's time has not come
-    tahvel::node::Item item = agg::ecg_chunk_item(signal.info, position, frames, 0, *got);
-    item.asserted_at = start_ns + std::llround(static_cast<double>(position) * 1e9 / signal.info.fs);
+    // Asserted at its frames' time from signal.info.started_at (= start_ns), with their span.
+    const tahvel::node::Item item = agg::ecg_chunk_item(signal.info, position, frames, 0, *got);
     if (auto s = agent.store(item); !s) {
       rt::log_line(kProgram, "store chunk " + std::to_string(position) + ": " + s.error().message);
       return rt::kExitError;

@@ -281,6 +281,16 @@ Item ecg_chunk_item(const RecordingInfo& info, std::int64_t start_sample,
       .add(chunk, tv("startSample"), Term::integer(start_sample))
       .add(chunk, tv("frameCount"), Term::integer(static_cast<std::int64_t>(frames)))
       .add(chunk, tv("samples"), Term::literal(base64(bytes), std::string(node::xsd::kBase64Binary)));
+  if (info.started_at) {
+    const auto frame_time = [&](std::int64_t sample) {
+      return *info.started_at + std::llround(static_cast<double>(sample) * 1e9 / info.fs);
+    };
+    // Up to the next chunk's first frame, to the ns: adjacent chunks neither overlap nor leave
+    // a gap, so a range from one chunk's start does not take the chunk before.
+    const std::int64_t end_sample = start_sample + static_cast<std::int64_t>(frames);
+    item.asserted_at = frame_time(start_sample);
+    item.span = frame_time(end_sample) - *item.asserted_at;
+  }
   return item;
 }
 

@@ -373,7 +373,8 @@ const Command kQueryCommand{
     "Ask a node below this one for its records; the answer streams back.",
     "Run against the node at DIR (e.g. the hospital): the query travels down the tree to the node\n"
     "at --at, is answered from its store and comes back in chunks, printed as they arrive. Times\n"
-    "(--since, --until; by asserted-at) are ns since the epoch or RFC 3339 times: 2026-11-21T10:00:00Z, …T12:00:00.5+02:00.\n"
+    "(--since, --until; by asserted-at) are ns since the epoch or RFC 3339 times: 2026-11-21T10:00:00Z, …T12:00:00.5+02:00;\n"
+    "a record that holds for a span of time (an ECG chunk, its second) is in a range it overlaps.\n"
     "With --area the node that answers keeps the records located in a room or WKT area of its own\n"
     "floor plan (as 'tahvel list --area' does there; docs/spatial.md).\n"
     "Exit status: 0 answered, 3 timeout, 4 unknown node, 5 unreachable node, 1 other failure.",
@@ -381,7 +382,7 @@ const Command kQueryCommand{
      kFlagS, kFlagP, kFlagO,
      {"--area", "", "IRI|WKT", "only records located in this room or (MULTI)POLYGON, resolved at the target"},
      {"--floor", "", "N", "with a WKT --area: only that floor"},
-     {"--since", "", "T", "records asserted at or after T"},
+     {"--since", "", "T", "records asserted at or after T (or whose span reaches past T)"},
      {"--until", "", "T", "records asserted before T"},
      kFlagCascade,
      {"--limit", "", "N", "at most N records (0: no limit)"},
@@ -426,7 +427,7 @@ int run_query(const Args& args) {
   if (auto until = args.get("--until")) query.pattern.until = time_flag("--until", *until);
   if (query.pattern.since && query.pattern.until && *query.pattern.until <= *query.pattern.since)
     usage_error("--until " + *args.get("--until") + " is not after --since " + *args.get("--since") +
-                " (records asserted at or after --since and before --until)");
+                " (records that held at some time at or after --since and before --until)");
   query.cascade = cascade_flag(args);
   query.limit = args.get_u64("--limit", 0);
   if (auto area = args.get("--area")) {

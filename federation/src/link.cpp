@@ -113,6 +113,7 @@ wire::ItemBody item_of(const node::Delivery& delivery) {
   body.item.context = meta.context;
   body.item.persistent = meta.persistent;
   body.item.asserted_at = meta.asserted_at;
+  body.item.span = meta.span;
   body.removal = delivery.removal;
   for (const auto& r : delivery.records) {
     body.item.triples.push_back(r.triple);

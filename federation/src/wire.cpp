@@ -129,18 +129,22 @@ class In {
 };
 
 constexpr std::size_t kMinTripleBytes = 3 * 5;
-constexpr std::size_t kMinRecordBytes = kMinTripleBytes + 8 * 4 + 4 + 4 + 1;
+constexpr std::size_t kMinRecordBytes = kMinTripleBytes + 8 * 5 + 4 + 4 + 1;
 
 }  // namespace
 
 // The item body's flags byte (docs/protocol.md, "Bodies").
 constexpr std::uint8_t kItemPersistent = 1;
 constexpr std::uint8_t kItemRemoval = 2;
+constexpr std::uint8_t kItemSpan = 4;  // i64 span follows asserted_at (node::Item::span)
 
 std::string encode_item(const ItemBody& body) {
   Out out;
-  out.str(body.source).str(body.item.context).u8((body.item.persistent ? kItemPersistent : 0) | (body.removal ? kItemRemoval : 0));
+  out.str(body.source).str(body.item.context);
+  out.u8((body.item.persistent ? kItemPersistent : 0) | (body.removal ? kItemRemoval : 0) |
+         (body.item.span != 0 ? kItemSpan : 0));
   out.opt_i64(body.item.asserted_at);
+  if (body.item.span != 0) out.i64(body.item.span);
   out.u32(static_cast<std::uint32_t>(body.item.triples.size()));
   for (const auto& t : body.item.triples) out.term(t.s).term(t.p).term(t.o);
   if (body.removal) {
@@ -155,10 +159,16 @@ Result<ItemBody> decode_item(std::string_view bytes) {
   body.source = in.str("source");
   body.item.context = in.str("context");
   const std::uint8_t flags = in.u8("flags");
-  if (flags & ~(kItemPersistent | kItemRemoval)) in.fail("flags", "unknown flag bits " + std::to_string(flags));
+  if (flags & ~(kItemPersistent | kItemRemoval | kItemSpan))
+    in.fail("flags", "unknown flag bits " + std::to_string(flags));
   body.item.persistent = (flags & kItemPersistent) != 0;
   body.removal = (flags & kItemRemoval) != 0;
   body.item.asserted_at = in.opt_i64("asserted_at");
+  if (flags & kItemSpan) {
+    body.item.span = in.i64("span");
+    // The store refuses these too; said here with the field's place, as a malformed body.
+    if (in.ok() && body.item.span <= 0) in.fail("span", "not positive: " + std::to_string(body.item.span));
+  }
   std::uint32_t n = in.count("triples", kMinTripleBytes);
   body.item.triples.reserve(n);
   for (std::uint32_t i = 0; i < n && in.ok(); ++i) {
@@ -204,7 +214,7 @@ std::string encode_answer(const AnswerBody& body) {
   out.str(body.origin).u8(body.last ? 1 : 0).u32(static_cast<std::uint32_t>(body.records.size()));
   for (const auto& r : body.records) {
     out.term(r.triple.s).term(r.triple.p).term(r.triple.o);
-    out.u64(r.meta.id).u64(r.meta.item).i64(r.meta.stored_at).i64(r.meta.asserted_at);
+    out.u64(r.meta.id).u64(r.meta.item).i64(r.meta.stored_at).i64(r.meta.asserted_at).i64(r.meta.span);
     out.str(r.meta.source).str(r.meta.context).u8(r.meta.persistent ? 1 : 0);
   }
   return out.take();
@@ -226,6 +236,7 @@ Result<AnswerBody> decode_answer(std::string_view bytes) {
     r.meta.item = in.u64("item");
     r.meta.stored_at = in.i64("stored_at");
     r.meta.asserted_at = in.i64("asserted_at");
+    r.meta.span = in.i64("span");
     r.meta.source = in.str("source");
     r.meta.context = in.str("context");
     r.meta.persistent = in.u8("persistent") != 0;

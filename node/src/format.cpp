@@ -597,6 +597,8 @@ struct RecordWriter::Impl {
     if (meta != nullptr) {
       line += ",\"stored_at\":" + std::to_string(meta->stored_at);
       line += ",\"asserted_at\":" + std::to_string(meta->asserted_at);
+      // Only on records that hold for a time (RecordMeta::span): other lines stay as they were.
+      if (meta->span != 0) line += ",\"span\":" + std::to_string(meta->span);
       line += ",\"source\":";
       append_json_string(line, meta->source);
       line += ",\"context\":";

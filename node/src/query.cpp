@@ -12,6 +12,14 @@ bool has_metadata_filter(const Pattern& p) {
   return p.context || p.source || p.since || p.until;
 }
 
+// Whether an item's facts still held at `since` or after: an instant at or after it, a span
+// ending after it (ends past the largest time count as after).
+bool holds_at_or_after(const ItemRow& meta, std::int64_t since) {
+  if (meta.span == 0) return meta.asserted_at >= since;
+  std::int64_t end = 0;
+  return __builtin_add_overflow(meta.asserted_at, meta.span, &end) || end > since;
+}
+
 }  // namespace
 
 Result<Query::Bound> Query::resolve(const Pattern& pattern) {
@@ -54,8 +62,8 @@ Result<bool> Query::metadata_matches(const Pattern& pattern, const Bound& bound,
   if (!it) return unexpected(it.error());
   const ItemRow& meta = **it;
   if (bound.has_context && meta.context != bound.context) return false;
-  if (pattern.since && meta.asserted_at < *pattern.since) return false;
   if (pattern.until && meta.asserted_at >= *pattern.until) return false;
+  if (pattern.since && !holds_at_or_after(meta, *pattern.since)) return false;
   if (pattern.source) {
     auto cached = source_under_.find(meta.source);
     if (cached == source_under_.end()) {
@@ -254,7 +262,7 @@ Result<Record> Query::materialize(std::uint64_t id, const RecordRow& row) {
   if (!context) return unexpected(context.error());
   Record record;
   record.triple = {std::move(*s), std::move(*p), std::move(*o)};
-  record.meta = {id, row.item, meta.stored_at, meta.asserted_at, std::move(*source), std::move(*context), meta.persistent};
+  record.meta = {id, row.item, meta.stored_at, meta.asserted_at, std::move(*source), std::move(*context), meta.persistent, meta.span};
   return record;
 }
 

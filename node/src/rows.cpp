@@ -2,7 +2,7 @@
 #include "rows.h"
 
 #include <algorithm>
-
+#include <cstdint>
 #include <ctime>
 #include <vector>
 
@@ -34,6 +34,7 @@ std::uint64_t table_bytes(MDB_txn* txn, MDB_dbi dbi) {
 constexpr std::uint8_t kItemPersistent = 1;
 constexpr std::uint8_t kItemRelayed = 2;  // the writer's term id follows (ItemRow::writer)
 constexpr std::uint8_t kItemNoticed = 4;  // a count and that many agent term ids follow (ItemRow::noticed)
+constexpr std::uint8_t kItemSpan = 8;     // the span follows (ItemRow::span)
 
 void put_string(std::string& out, std::string_view s) {
   codec::put_varint(out, s.size());
@@ -98,7 +99,7 @@ Result<Record> log_removal(Txn& txn, std::uint64_t id, const RecordRow& row, con
   auto source = reader.iri(item.source), context = reader.iri(item.context);
   if (!s || !p || !o || !source || !context) return fail(Errc::corrupt, "record " + std::to_string(id) + " refers to a missing term");
   record.triple = {std::move(*s), std::move(*p), std::move(*o)};
-  record.meta = {id, row.item, item.stored_at, item.asserted_at, *source, *context, item.persistent};
+  record.meta = {id, row.item, item.stored_at, item.asserted_at, *source, *context, item.persistent, item.span};
   std::string bytes = encode_removed(record);
   std::uint64_t seq = txn.counters.next_seq++;
   MDB_val k = val(seq), v = val(bytes);
@@ -176,12 +177,13 @@ std::string encode_item(const ItemRow& row) {
   codec::put_varint(out, row.source);
   codec::put_varint(out, row.context);
   out.push_back(static_cast<char>((row.persistent ? kItemPersistent : 0) | (row.writer ? kItemRelayed : 0) |
-                                  (row.noticed.empty() ? 0 : kItemNoticed)));
+                                  (row.noticed.empty() ? 0 : kItemNoticed) | (row.span != 0 ? kItemSpan : 0)));
   if (row.writer) codec::put_varint(out, row.writer);
   if (!row.noticed.empty()) {
     codec::put_varint(out, row.noticed.size());
     for (std::uint64_t agent : row.noticed) codec::put_varint(out, agent);
   }
+  if (row.span != 0) codec::put_varint(out, static_cast<std::uint64_t>(row.span));
   return out;
 }
 
@@ -207,6 +209,12 @@ bool decode_item(std::string_view bytes, ItemRow& row) {
     row.noticed.resize(n);
     for (std::uint64_t& agent : row.noticed)
       if (!codec::get_varint(bytes, pos, agent)) return false;
+  }
+  row.span = 0;
+  if (flags & kItemSpan) {
+    std::uint64_t span = 0;
+    if (!codec::get_varint(bytes, pos, span) || span > static_cast<std::uint64_t>(INT64_MAX)) return false;
+    row.span = static_cast<std::int64_t>(span);
   }
   return true;
 }
@@ -431,7 +439,8 @@ std::string encode_removed(const Record& record) {
   codec::put_varint(out, codec::zigzag(record.meta.asserted_at));
   put_string(out, record.meta.source);
   put_string(out, record.meta.context);
-  out.push_back(record.meta.persistent ? 1 : 0);
+  out.push_back(static_cast<char>((record.meta.persistent ? 1 : 0) | (record.meta.span != 0 ? 2 : 0)));
+  if (record.meta.span != 0) codec::put_varint(out, static_cast<std::uint64_t>(record.meta.span));
   put_term(out, record.triple.s);
   put_term(out, record.triple.p);
   put_term(out, record.triple.o);
@@ -447,7 +456,14 @@ bool decode_removed(std::string_view in, Record& record) {
     return false;
   record.meta.stored_at = codec::unzigzag(stored);
   record.meta.asserted_at = codec::unzigzag(asserted);
-  record.meta.persistent = in[pos++] != 0;
+  const auto flags = static_cast<std::uint8_t>(in[pos++]);
+  record.meta.persistent = (flags & 1) != 0;
+  record.meta.span = 0;
+  if (flags & 2) {
+    std::uint64_t span = 0;
+    if (!codec::get_varint(in, pos, span) || span > static_cast<std::uint64_t>(INT64_MAX)) return false;
+    record.meta.span = static_cast<std::int64_t>(span);
+  }
   return get_term(in, pos, record.triple.s) && get_term(in, pos, record.triple.p) &&
          get_term(in, pos, record.triple.o);
 }

@@ -5,6 +5,8 @@
 // items:   id -> varint(count) varint(live) varint(pending) zigzag(stored_at)
 //                zigzag(asserted_at - stored_at) varint(source) varint(context) flags
 //                [varint(writer) when flags has the relayed bit]
+//                [varint(count) count × varint(agent) when flags has the noticed bit]
+//                [varint(span) when flags has the span bit]
 // Metadata is per record in the model (DESIGN §2) and per item on disk: every record of an
 // item shares it, and storing it once keeps a triple near 30 bytes.
 #pragma once
@@ -29,6 +31,7 @@ struct ItemRow {
   std::uint64_t pending = 0;  // input buffers holding the item
   std::int64_t stored_at = 0;
   std::int64_t asserted_at = 0;
+  std::int64_t span = 0;      // ns, >= 0 (Item::span)
   std::uint64_t source = 0;   // term id
   std::uint64_t context = 0;  // term id, 0 for none
   bool persistent = false;

@@ -370,6 +370,11 @@ std::string not_utf8(std::string_view text, std::string_view of_what) {
 
 Result<void> validate_item(const Item& item, const Settings& settings) {
   if (item.triples.empty()) return fail(Errc::invalid_argument, "an item needs at least one triple");
+  if (item.span < 0) return fail(Errc::invalid_argument, "span " + std::to_string(item.span) + " ns is negative");
+  std::int64_t end = 0;
+  if (item.span > 0 && item.asserted_at && __builtin_add_overflow(*item.asserted_at, item.span, &end))
+    return fail(Errc::invalid_argument, "asserted-at " + std::to_string(*item.asserted_at) + " plus span " +
+                                            std::to_string(item.span) + " ns is past the largest time");
   if (auto bad = not_utf8(item.context, ""); !bad.empty()) return fail(Errc::invalid_argument, "context" + bad);
   for (std::size_t i = 0; i < item.triples.size(); ++i) {
     const Triple& t = item.triples[i];
@@ -704,8 +709,8 @@ Result<std::uint64_t> insert_item(Txn& txn, const Item& item, const std::string&
   // A subscription is kept as long as it is not removed: written as plain data on a ring store,
   // the ring would reclaim it and the agent would stop receiving, silently (R9).
   const bool persistent = item.persistent || declares_subscription;
-  ItemRow meta{ids.size(), ids.size(), 0, now, item.asserted_at.value_or(now), *source, context, persistent,
-               *writer != *source ? *writer : 0};
+  ItemRow meta{ids.size(), ids.size(), 0, now, item.asserted_at.value_or(now), item.span, *source, context,
+               persistent, *writer != *source ? *writer : 0};
   if (auto r = refresh_caches(txn); !r) return unexpected(r.error());
   if (auto r = removals_noticed(txn); !r) return unexpected(r.error());
   if (auto r = route(txn, item_id, meta, ids, relayed_source ? *relayed_source : agent_iri); !r)

@@ -48,10 +48,11 @@ class EcgSourceTest : public ::testing::Test {
   }
 
   // Each chunk of `recording` on the board: start sample -> the samples literal, and how many
-  // chunk items name that start.
+  // chunk items name that start, and the time its samples record says it covers.
   struct Chunks {
     std::map<std::int64_t, std::string> samples;
     std::map<std::int64_t, int> copies;
+    std::map<std::int64_t, std::pair<std::int64_t, std::int64_t>> time;  // asserted-at, span
   };
   static Chunks chunks(const std::string& dir, const std::string& recording) {
     Chunks out;
@@ -73,6 +74,7 @@ class EcgSourceTest : public ::testing::Test {
         if (f.triple.p == agg::tv_term("startSample")) start = std::stoll(f.triple.o.value);
         if (f.triple.p == agg::tv_term("samples")) samples = f.triple.o.value;
       }
+      out.time[start] = {r.meta.asserted_at, r.meta.span};
       out.samples[start] = samples;
       ++out.copies[start];
     }
@@ -86,6 +88,14 @@ class EcgSourceTest : public ::testing::Test {
     std::vector<std::string> out;
     for (const auto& r : *records) out.push_back(r.triple.o.value);
     return out;
+  }
+
+  static void expect_each_chunk_ends_where_the_next_begins(const Chunks& chunks) {
+    for (auto it = chunks.time.begin(); std::next(it) != chunks.time.end(); ++it) {
+      const auto [asserted_at, span] = it->second;
+      EXPECT_GT(span, 0) << "chunk at " << it->first;
+      EXPECT_EQ(asserted_at + span, std::next(it)->second.first) << "chunk at " << it->first;
+    }
   }
 
   tahvel::test_support::TempDir tmp_{"tahvel-ecg-source"};
@@ -115,6 +125,30 @@ TEST_F(EcgSourceTest, ARestartAfterAKillGoesOnAfterTheLastChunkAndWritesEachSeco
             std::vector<std::string>{std::to_string(kFrames)});
   EXPECT_EQ(objects(crashed, kRecording, std::string(agg::kTv) + "samplingRate").size(), 1u)
       << "one recording item";
+  // The run after the kill goes on at the signal time where the first left off.
+  expect_each_chunk_ends_where_the_next_begins(after);
+}
+
+// Each chunk is asserted at its first frame and spans to the next chunk's first frame, to the
+// ns: a time range from inside a second gets that second's chunk, and one from a chunk's start
+// not the chunk before.
+TEST_F(EcgSourceTest, EachChunkSpansItsSecondSoATimeRangeFromInsideItGetsIt) {
+  const std::string dir = new_node("home1");
+  ASSERT_EQ(run_source(dir), 0);
+  const Chunks written = chunks(dir, kRecording);
+  ASSERT_EQ(written.time.size(), 60u);
+  expect_each_chunk_ends_where_the_next_begins(written);
+  const auto [tenth, span] = written.time.at(10 * 360);
+  EXPECT_NEAR(static_cast<double>(span), 1e9, 1.0);
+  auto node = tn::Node::open(dir);
+  ASSERT_TRUE(node);
+  auto from_inside = node->snapshot()->list(tn::Pattern{.p = agg::tv_term("startSample"),
+                                                        .since = tenth + span / 2,
+                                                        .until = written.time.at(12 * 360).first});
+  ASSERT_TRUE(from_inside);
+  std::vector<std::string> starts;
+  for (const auto& r : *from_inside) starts.push_back(r.triple.o.value);
+  EXPECT_EQ(starts, (std::vector<std::string>{"3600", "3960"}));
 }
 
 TEST_F(EcgSourceTest, ARecordingThatWasEndedIsNotWrittenAgainTheNextRunRecordsAnew) {

@@ -56,11 +56,47 @@ TEST(ItemBody, AFlagThisBuildDoesNotKnowIsRefusedNamingTheField) {
   const std::size_t at = 4 + std::string("http://example.org/hospital/home1/hrv").size() + 4 +
                          std::string("http://example.org/hospital/home1/*").size();
   ASSERT_EQ(bytes[at], 0);
-  bytes[at] = 4;
+  bytes[at] = 8;
   auto decoded = wire::decode_item(bytes);
   ASSERT_FALSE(decoded);
   EXPECT_NE(decoded.error().message.find("'flags'"), std::string::npos) << decoded.error().message;
-  EXPECT_NE(decoded.error().message.find("unknown flag bits 4"), std::string::npos) << decoded.error().message;
+  EXPECT_NE(decoded.error().message.find("unknown flag bits 8"), std::string::npos) << decoded.error().message;
+}
+
+// A chunk of signal goes up (or answers a query) with the time it covers, so that the parent's
+// copy is in the same time ranges as the child's.
+TEST(ItemBody, AnItemsSpanSurvivesTheWireAndAnInstantIsEncodedAsBefore) {
+  wire::ItemBody chunk = window(false, false);
+  chunk.item.span = 1'000'000'000;
+  auto decoded = wire::decode_item(wire::encode_item(chunk));
+  ASSERT_TRUE(decoded) << decoded.error().message;
+  EXPECT_EQ(decoded->item.span, 1'000'000'000);
+  EXPECT_EQ(decoded->item.asserted_at, 1'700'000'000'000'000'000);
+  // An instant sets no flag and carries no span: 8 bytes less.
+  EXPECT_EQ(wire::encode_item(window(false, false)).size() + 8, wire::encode_item(chunk).size());
+  EXPECT_EQ(wire::decode_item(wire::encode_item(window(false, false)))->item.span, 0);
+  // A span that is not positive is a malformed body, refused naming its field.
+  chunk.item.span = -3;
+  auto negative = wire::decode_item(wire::encode_item(chunk));
+  ASSERT_FALSE(negative);
+  EXPECT_NE(negative.error().message.find("'span'"), std::string::npos) << negative.error().message;
+}
+
+TEST(AnswerBody, EachRecordsSpanSurvivesTheWire) {
+  wire::AnswerBody answer;
+  answer.origin = "http://example.org/hospital";
+  node::Record chunk, instant;
+  chunk.triple = {Term::iri("http://example.org/c/0"), Term::iri("http://example.org/ns#samples"), Term::literal("AAA=")};
+  chunk.meta.asserted_at = 1'700'000'000'000'000'000;
+  chunk.meta.span = 2'777'778;
+  instant.triple = {Term::iri("http://example.org/w/1"), Term::iri("http://example.org/ns#rmssd"), Term::integer(42)};
+  answer.records = {chunk, instant};
+  auto decoded = wire::decode_answer(wire::encode_answer(answer));
+  ASSERT_TRUE(decoded) << decoded.error().message;
+  ASSERT_EQ(decoded->records.size(), 2u);
+  EXPECT_EQ(decoded->records[0].meta.span, 2'777'778);
+  EXPECT_EQ(decoded->records[0].meta.asserted_at, 1'700'000'000'000'000'000);
+  EXPECT_EQ(decoded->records[1].meta.span, 0);
 }
 
 }  // namespace

@@ -230,6 +230,18 @@ TEST(Hierarchy, RemoteQueryOfHomeTwoRawEcgForATimeRangeReturnsExactlyTheStoredBy
                              &status);
   ASSERT_EQ(status, 0);
   EXPECT_EQ(got, expected.str());
+  // Chunks 10..39: chunk 9 ends where the range starts and is not in it.
+  EXPECT_EQ(std::count(got.begin(), got.end(), '\n'), 30);
+  // An operator asking from the middle of chunk 10's second gets chunk 10 as well: each chunk
+  // holds for its second (RecordMeta::span), which home2's copies, relayed from its sensor
+  // node over LCM, keep.
+  ASSERT_GT(samples[10].meta.span, 0);
+  const std::int64_t inside = since + samples[10].meta.span / 2;
+  EXPECT_EQ(d.tahvel("query " + d.store("hospital").string() + " --at " + kHome2 + " -p tv:samples --since " +
+                         std::to_string(inside) + " --until " + std::to_string(until),
+                     &status),
+            expected.str());
+  EXPECT_EQ(status, 0);
   // And the sensor node below home2, two hops down, answers too.
   auto sensor = list(d.store("ecg2"), range);
   std::string from_sensor = d.tahvel("query " + d.store("hospital").string() + " --at " + kHome2 + "/ecg2 -p tv:samples --since " +

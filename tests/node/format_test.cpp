@@ -661,6 +661,7 @@ TEST(Format, JsonOutputHasMetadataKeys) {
     record.meta.persistent = true;
     record.meta.context = "http://x/group";
     record.triple.o = Term::lang_literal("tere", "et");
+    record.meta.span = 1'000'000'000;  // a record that held for a second says so
     writer.write(record);
   }
   EXPECT_EQ(
@@ -674,7 +675,7 @@ TEST(Format, JsonOutputHasMetadataKeys) {
       "{\"id\":8,\"item\":7,\"s\":{\"type\":\"uri\",\"value\":\"http://x/a\"},"
       "\"p\":{\"type\":\"uri\",\"value\":\"http://x/p\"},"
       "\"o\":{\"type\":\"literal\",\"value\":\"tere\",\"xml:lang\":\"et\"},"
-      "\"stored_at\":1763719200000000000,\"asserted_at\":1763719100000000000,"
+      "\"stored_at\":1763719200000000000,\"asserted_at\":1763719100000000000,\"span\":1000000000,"
       "\"source\":\"http://x/node/cli\",\"context\":\"http://x/group\",\"persistent\":true}\n");
 }
 

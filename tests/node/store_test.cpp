@@ -11,6 +11,7 @@
 #include <fstream>
 #include <optional>
 #include <functional>
+#include <limits>
 #include <set>
 #include <thread>
 
@@ -150,6 +151,69 @@ TEST(Store, RecordMetadataCarriesSourceContextAndTimes) {
     EXPECT_GT(r.meta.stored_at, 1'600'000'000'000'000'000);
     EXPECT_EQ(r.meta.item, *id);
   }
+}
+
+// A time range takes an item that held for a span of time (a second of ECG) when the span
+// overlaps the range: an operator asking from the middle of a second gets that second's chunk.
+TEST(Store, ATimeRangeTakesTheItemsWhoseSpanOverlapsItAndTheInstantsInIt) {
+  TempDir dir;
+  auto stored = [](Node& node, const std::string& name, std::int64_t at, std::int64_t span) {
+    Item item;
+    item.add(Term::iri("http://example.org/" + name), Term::iri("http://example.org/ns#at"), Term::integer(at));
+    item.asserted_at = at;
+    item.span = span;
+    ASSERT_TRUE(node.agent("source")->store(item));
+  };
+  auto names_in = [](const Node& node, std::int64_t since, std::int64_t until) {
+    std::set<std::string> names;
+    auto records = node.snapshot()->list({.since = since, .until = until});
+    EXPECT_TRUE(records) << records.error().message;
+    for (const auto& r : *records) names.insert(r.triple.s.value.substr(std::string("http://example.org/").size()));
+    return names;
+  };
+  {
+    Node node = make_node(dir.path());
+    stored(node, "ends-at-since", 50, 50);        // [50, 100)
+    stored(node, "holds-at-since", 60, 41);       // [60, 101)
+    stored(node, "instant-before", 99, 0);
+    stored(node, "instant-at-since", 100, 0);
+    stored(node, "starts-inside", 150, 1000);     // [150, 1150)
+    stored(node, "starts-at-until", 200, 10);     // [200, 210)
+    stored(node, "covers-the-range", 0, 10'000);  // [0, 10000)
+    const std::set<std::string> expected{"holds-at-since", "instant-at-since", "starts-inside", "covers-the-range"};
+    EXPECT_EQ(names_in(node, 100, 200), expected);
+    // The span is metadata of each record, kept with its item.
+    auto chunk = node.snapshot()->list({.s = Term::iri("http://example.org/starts-inside")});
+    ASSERT_TRUE(chunk && chunk->size() == 1u);
+    EXPECT_EQ(chunk->front().meta.span, 1000);
+    EXPECT_EQ(chunk->front().meta.asserted_at, 150);
+  }
+  // As stored: the same after the store is opened again.
+  auto again = Node::open(dir.path());
+  ASSERT_TRUE(again) << again.error().message;
+  EXPECT_EQ(names_in(*again, 100, 200),
+            (std::set<std::string>{"holds-at-since", "instant-at-since", "starts-inside", "covers-the-range"}));
+  EXPECT_EQ(names_in(*again, 1150, 2000), (std::set<std::string>{"covers-the-range"}));
+}
+
+TEST(Store, ANegativeSpanOrOneEndingPastTheLargestTimeIsRefusedAndNothingIsWritten) {
+  TempDir dir;
+  Node node = make_node(dir.path());
+  auto agent = node.agent("source");
+  Item item;
+  item.add(Term::iri("http://example.org/a"), Term::iri("http://example.org/ns#p"), Term::integer(1));
+  item.asserted_at = 1'000;
+  item.span = -1;
+  auto negative = agent->store(item);
+  ASSERT_FALSE(negative);
+  EXPECT_EQ(negative.error().code, Errc::invalid_argument);
+  EXPECT_NE(negative.error().message.find("span -1 ns is negative"), std::string::npos) << negative.error().message;
+  item.asserted_at = std::numeric_limits<std::int64_t>::max() - 5;
+  item.span = 6;
+  auto past = agent->store(item);
+  ASSERT_FALSE(past);
+  EXPECT_NE(past.error().message.find("past the largest time"), std::string::npos) << past.error().message;
+  EXPECT_EQ(node.stats()->records, 0u);
 }
 
 // A link tells a replaced store from the one it knew by this id (docs/protocol.md P6a).

@@ -84,6 +84,8 @@ std::string hrv_iri(const std::string& recording_iri, double start_s);
 // One chunk of samples (usually one second): frames of all leads interleaved, each sample a
 // 16-bit little-endian two's-complement integer, as an xsd:base64Binary literal. The chunk is
 // named chunk_iri(info.iri, start_sample). leads[i][offset .. offset + frames) are written.
+// When info.started_at is known the chunk is asserted at its first frame's time and spans to
+// the next chunk's (node::Item::span), so that a time-range query starting inside it gets it.
 node::Item ecg_chunk_item(const RecordingInfo& info, std::int64_t start_sample,
                           const std::vector<std::vector<std::int32_t>>& leads,
                           std::size_t offset, std::size_t frames);

@@ -29,7 +29,7 @@ using node::Result;
 
 // The protocol version this build speaks; frames of another version are dropped (P-statements in
 // docs/protocol.md).
-inline constexpr std::uint16_t kProtocolVersion = 2;
+inline constexpr std::uint16_t kProtocolVersion = 3;
 
 enum class FrameKind : std::uint8_t {
   hello = 1,      // child -> parent: registration (child IRI, software version, last ack seen)

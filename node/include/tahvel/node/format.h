@@ -40,6 +40,7 @@ Result<std::vector<Triple>> parse_rdf(std::string_view text, const ParseOptions&
 //      "o":{"type":"literal","value":"72","datatype":"http://www.w3.org/2001/XMLSchema#integer"},
 //      "stored_at":1763719200000000000,"asserted_at":...,"source":"http://x/node/cli",
 //      "context":"","persistent":false}
+//     and "span" (ns, after asserted_at) on a record that holds for a time (RecordMeta::span).
 //     Term objects follow SPARQL 1.1 JSON results: type uri|bnode|literal, "xml:lang" for tags.
 class RecordWriter {
  public:

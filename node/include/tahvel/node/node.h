@@ -44,6 +44,7 @@ struct RecordMeta {
   std::string source;             // IRI of the writing agent, set by the store, not forgeable
   std::string context;            // addressee or data group IRI, empty for none
   bool persistent = false;        // never expires by ring or time-to-live
+  std::int64_t span = 0;          // ns the fact held from asserted_at (Item::span); 0: an instant
 };
 
 struct Record {
@@ -64,8 +65,12 @@ struct Pattern {
   std::optional<Term> s, p, o;
   std::optional<std::string> context;    // exact context IRI ("" matches records without one)
   std::optional<std::string> source;     // source IRI, or any IRI under it (uri::is_under)
-  std::optional<std::int64_t> since;     // asserted_at >= since (ns)
-  std::optional<std::int64_t> until;     // asserted_at <  until (ns)
+  // A time range, ns: a record whose fact held at some time in [since, until). An instant
+  // (span 0) when since <= asserted_at < until; a record with a span when [asserted_at,
+  // asserted_at + span) overlaps the range, so that a range starting inside a chunk of signal
+  // gets that chunk.
+  std::optional<std::int64_t> since;
+  std::optional<std::int64_t> until;
   std::optional<std::uint64_t> after_id; // record id > after_id
 };
 

@@ -78,6 +78,9 @@ struct Item {
   bool persistent = false;                  // never expires by ring or time-to-live
   std::optional<std::int64_t> asserted_at;  // ns since the epoch when the facts held;
                                             // default: the stored-at time
+  // How long the facts held from asserted_at, ns: a second of ECG covers a second. 0: an
+  // instant. A time-range query takes an item whose span overlaps the range (Pattern::since).
+  std::int64_t span = 0;
 
   Item& add(Term s, Term p, Term o) {
     triples.push_back({std::move(s), std::move(p), std::move(o)});
