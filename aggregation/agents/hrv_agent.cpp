@@ -76,6 +76,9 @@ class HrvStage {
     if (!records) return rt::log_line(kProgram, "read configuration: " + records.error().message);
     WindowConfig next = config_;
     bool evictable = false;  // the value in force came from a record a ring or TTL may reclaim
+    // The latest setting of the window and of the step when the agent cannot use it: its
+    // problem, for `tahvel status` here and at the hospital that wrote it.
+    std::string unusable[2];
     for (const tn::Record& r : *records) {  // id order: later values win
       const bool window = r.triple.p.value == std::string(agg::kTv) + "windowSeconds";
       if (!window && r.triple.p.value != std::string(agg::kTv) + "stepSeconds") continue;
@@ -84,15 +87,19 @@ class HrvStage {
       // As --window and --step take them: a window shorter than a millisecond would make
       // millions of windows out of one RR item (memory without bound, no stop between items).
       if (!r.triple.o.is_literal() || *end != '\0' || r.triple.o.value.empty() || !std::isfinite(v) || v < kMinSeconds) {
-        if (warned_.insert(r.meta.id).second)
-          rt::log_line(kProgram, "configuration <" + r.triple.s.value + "> " + r.triple.p.value + " '" + r.triple.o.value +
-                                     "' (record " + std::to_string(r.meta.id) + ") is not a number of seconds >= " +
-                                     std::to_string(kMinSeconds) + "; ignored, the value before it stands");
+        unusable[window] = "configuration <" + r.triple.s.value + "> " + r.triple.p.value + " '" + r.triple.o.value +
+                           "' (record " + std::to_string(r.meta.id) + ") is not a number of seconds >= " +
+                           number_text(kMinSeconds) + "; ignored, the value before it stands";
+        if (warned_.insert(r.meta.id).second) rt::log_line(kProgram, unusable[window]);
         continue;
       }
+      unusable[window].clear();
       (window ? next.window_s : next.step_s) = v;
       evictable = !r.meta.persistent;
     }
+    const std::string problem = unusable[1] + (!unusable[1].empty() && !unusable[0].empty() ? "; " : "") + unusable[0];
+    if (auto said = session_.agent.report_problem(problem); !said)
+      rt::log_line(kProgram, "report the configuration's problem on the board: " + said.error().message);
     if (next.window_s != config_.window_s || next.step() != config_.step())
       rt::log_line(kProgram, "window " + std::to_string(next.window_s) + " s, step " + std::to_string(next.step()) + " s");
     config_ = next;

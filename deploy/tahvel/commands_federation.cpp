@@ -30,7 +30,6 @@
 
 #include "commands.h"
 #include "tahvel/agents/dispatcher.h"
-#include "tahvel/agents/reasoner.h"
 #include "tahvel/spatial/area_subscriptions.h"
 #include "tahvel/agents/supervisor.h"
 #include "tahvel/federation/link.h"
@@ -700,7 +699,7 @@ pid_t supervisor_of_store(const fs::path& store) {
 
 struct ProgramRow {
   std::string name, pid, state, restarts, last_exit;
-  std::string problem;  // what the program says on its board it cannot do (reasoner::kProblem)
+  std::string problem;  // what the program says on its board it cannot do (node::kProblem)
 };
 
 // A running supervisor rewrites its state file every 100 ms; one that has not for this long is
@@ -1817,7 +1816,7 @@ constexpr double kProgramsStaleAfterS = 15.0;
 
 using Fields = std::map<std::string, std::string>;  // by the local name of each predicate
 
-// What a program says on its board it cannot do (reasoner::kProblem), and its process.
+// What a program says on its board it cannot do (node::kProblem), and its process.
 struct Problem {
   std::string text, pid;
 };
@@ -1839,18 +1838,18 @@ struct StatusNode {
   // A local store with a forwarding policy (`up` subscribes its uplink only on a node with a
   // parent): without an uplink state it is a child whose link has not run, not a root.
   bool has_parent = false;
-  // Problems the node's programs report on its board (reasoner::kProblem), by agent IRI.
+  // Problems the node's programs report on its board (node::kProblem), by agent IRI.
   std::map<std::string, Problem> problems;
 };
 
-// The problems on a board: records of reasoner::kProblem and reasoner::kPid that an agent of
+// The problems on a board: records of node::kProblem and node::kProblemPid that an agent of
 // `node_iri` wrote about itself, into `problems` by agent IRI.
 void read_problems(const std::vector<node::Record>& records, const std::string& node_iri,
                    std::map<std::string, Problem>& problems) {
   for (const node::Record& r : records) {
     if (r.triple.s.value != r.meta.source || !uri::is_under(r.meta.source, node_iri)) continue;
-    if (r.triple.p.value == reasoner::kProblem) problems[r.meta.source].text = r.triple.o.value;
-    else if (r.triple.p.value == reasoner::kPid) problems[r.meta.source].pid = r.triple.o.value;
+    if (r.triple.p.value == node::kProblem) problems[r.meta.source].text = r.triple.o.value;
+    else if (r.triple.p.value == node::kProblemPid) problems[r.meta.source].pid = r.triple.o.value;
   }
 }
 
@@ -1967,7 +1966,7 @@ RemoteBoard ask_board(node::Node& from, const std::string& target, std::chrono::
   if (!board.programs_error.empty()) return board;
   std::vector<node::Record> problem_records;
   // A node whose programs were read but not their problems is shown without them.
-  for (const std::string& p : {reasoner::kProblem, reasoner::kPid})
+  for (const std::string& p : {node::kProblem, node::kProblemPid})
     (void)ask(p, "", "", [&](const node::Record& r) { problem_records.push_back(r); });
   std::map<std::string, Problem> problems;
   read_problems(problem_records, target, problems);
@@ -2076,7 +2075,7 @@ int run_status(const Args& args) {
     auto policy = snap->count({.p = node::Term::iri(std::string(federation::vocab::kTv) + "subscriber"),
                                .o = node::Term::iri(node->iri() + "/uplink")});
     nodes.back().has_parent = policy && *policy > 0;
-    for (const std::string& p : {reasoner::kProblem, reasoner::kPid})
+    for (const std::string& p : {node::kProblem, node::kProblemPid})
       if (auto records = snap->list({.p = node::Term::iri(p)})) read_problems(*records, node->iri(), nodes.back().problems);
   }
   if (ec) fail(state.string() + ": " + ec.message());

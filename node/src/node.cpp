@@ -2,6 +2,8 @@
 // write path.
 #include "tahvel/node/node.h"
 
+#include <unistd.h>
+
 #include <algorithm>
 #include <cstring>
 #include <map>
@@ -103,9 +105,24 @@ struct Snapshot::Impl {
   MDB_txn* txn = nullptr;
   std::uint64_t last_seq = 0;
   ~Impl() { if (txn) env->end_read(txn); }
+
+  // A snapshot of the store as of now (Node::snapshot).
+  static Result<Snapshot> open(const std::shared_ptr<Env>& env);
 };
 
 Snapshot::Snapshot(std::unique_ptr<Impl> impl) : impl_(std::move(impl)) {}
+
+Result<Snapshot> Snapshot::Impl::open(const std::shared_ptr<Env>& env) {
+  auto impl = std::make_unique<Snapshot::Impl>();
+  impl->env = env;
+  auto txn = env->begin_read();
+  if (!txn) return unexpected(txn.error());
+  impl->txn = *txn;
+  auto counters = load_counters(impl->txn, env->main);
+  if (!counters) return unexpected(counters.error());
+  impl->last_seq = counters->next_seq - 1;
+  return Snapshot(std::move(impl));
+}
 Snapshot::Snapshot(Snapshot&&) noexcept = default;
 Snapshot& Snapshot::operator=(Snapshot&&) noexcept = default;
 Snapshot::~Snapshot() = default;
@@ -388,6 +405,38 @@ Result<std::vector<std::uint64_t>> Agent::store_all(const std::vector<Item>& ite
 Result<std::vector<std::uint64_t>> Agent::replace(const std::vector<Pattern>& removals,
                                                   const std::vector<Item>& items) noexcept {
   return impl_->write_items(removals, items);
+}
+
+Result<void> Agent::report_problem(std::string_view text) noexcept {
+  try {
+    const std::string said = with_replacement_characters(text);
+    const Term self = Term::iri(impl_->iri);
+    const std::vector<Pattern> old = {{.s = self, .p = Term::iri(kProblem), .source = impl_->iri},
+                                      {.s = self, .p = Term::iri(kProblemPid), .source = impl_->iri}};
+    auto snapshot = Snapshot::Impl::open(impl_->env);
+    if (!snapshot) return unexpected(snapshot.error());
+    auto problem = snapshot->list(old[0]);
+    if (!problem) return unexpected(problem.error());
+    auto pid = snapshot->list(old[1]);
+    if (!pid) return unexpected(pid.error());
+    const bool said_already =
+        said.empty() ? problem->empty() && pid->empty()
+                     : problem->size() == 1 && problem->front().triple.o.value == said && pid->size() == 1 &&
+                           pid->front().triple.o.value == std::to_string(getpid());
+    if (said_already) return {};
+    std::vector<Item> items;
+    if (!said.empty()) {
+      Item item;
+      item.persistent = true;  // a ring must not take it while the problem lasts
+      item.add(self, Term::iri(kProblem), Term::literal(said)).add(self, Term::iri(kProblemPid), Term::integer(getpid()));
+      items.push_back(std::move(item));
+    }
+    auto written = impl_->write_items(old, items);
+    if (!written) return unexpected(written.error());
+    return {};
+  } catch (const std::bad_alloc&) {
+    return fail(Errc::io, "out of memory while reporting a problem");
+  }
 }
 
 namespace {
@@ -919,17 +968,7 @@ Result<Agent> Node::agent(std::string_view id) const {
   return Agent(std::move(impl));
 }
 
-Result<Snapshot> Node::snapshot() const {
-  auto impl = std::make_unique<Snapshot::Impl>();
-  impl->env = impl_->env;
-  auto txn = impl_->env->begin_read();
-  if (!txn) return unexpected(txn.error());
-  impl->txn = *txn;
-  auto counters = load_counters(impl->txn, impl_->env->main);
-  if (!counters) return unexpected(counters.error());
-  impl->last_seq = counters->next_seq - 1;
-  return Snapshot(std::move(impl));
-}
+Result<Snapshot> Node::snapshot() const { return Snapshot::Impl::open(impl_->env); }
 
 namespace {
 

@@ -16,6 +16,7 @@
 #include <cstdlib>
 #include <filesystem>
 #include <fstream>
+#include <functional>
 #include <map>
 #include <sstream>
 #include <set>
@@ -650,6 +651,43 @@ TEST(AgentPrograms, TheHrvConfigurationIsCheckedLoggedAndKeptPastTheRing) {
   for (const char* bad : {"'0'", "'-120'", "'2 minutes'", "'1e-7'"})
     EXPECT_NE(text.str().find(std::string("windowSeconds ") + bad), std::string::npos) << bad << " not logged:\n" << text.str();
   EXPECT_NE(text.str().find("window 120.000000 s"), std::string::npos) << text.str();
+  node.reset();
+  fs::remove_all(tmp);
+}
+
+// A setting the agent cannot use is its problem on its board (for `tahvel status`, here and at
+// the hospital that sent it) until a usable one follows; the problem is over then.
+TEST(AgentPrograms, AnHrvSettingItCannotUseIsItsProblemOnTheBoardUntilAUsableOneFollows) {
+  char pattern[] = "/tmp/tahvel-agents-hrv-problem-XXXXXX";
+  ASSERT_NE(mkdtemp(pattern), nullptr);
+  const std::string tmp = pattern, dir = tmp + "/home1";
+  auto made = tn::Node::init(dir, tn::InitOptions{.iri = kNodeIri});
+  ASSERT_TRUE(made) << made.error().message;
+  std::optional<tn::Node> node(std::move(*made));
+  auto op = node->agent("operator");
+  ASSERT_TRUE(op);
+  const tn::Term hrv = tn::Term::iri(kNodeIri + "/hrv");
+  ASSERT_TRUE(op->store(tn::Item{}.add(hrv, agg::tv_term("windowSeconds"), tn::Term::literal("2 minutes"))));
+  auto problem = [&] {
+    auto records = node->snapshot()->list({.s = hrv, .p = tn::Term::iri(tn::kProblem), .source = hrv.value});
+    return records->empty() ? std::string() : records->front().triple.o.value;
+  };
+  auto eventually = [](const std::function<bool()>& holds) {
+    const auto deadline = std::chrono::steady_clock::now() + 60s;
+    while (!holds() && std::chrono::steady_clock::now() < deadline) std::this_thread::sleep_for(20ms);
+    return holds();
+  };
+  {
+    Process agent({bin("tahvel-hrv"), dir, "--idle", "30"}, tmp + "/hrv.log");
+    ASSERT_TRUE(eventually([&] { return !problem().empty(); })) << "no problem on the board";
+    EXPECT_NE(problem().find("windowSeconds '2 minutes'"), std::string::npos) << problem();
+    EXPECT_NE(problem().find("the value before it stands"), std::string::npos) << problem();
+    EXPECT_EQ(node->snapshot()->count({.s = hrv, .p = tn::Term::iri(tn::kProblemPid)}).value(), 1u);
+    ASSERT_TRUE(op->store(tn::Item{}.add(hrv, agg::tv_term("windowSeconds"), tn::Term::integer(120))));
+    EXPECT_TRUE(eventually([&] { return problem().empty(); })) << "still: " << problem();
+    EXPECT_EQ(agent.stop(), 0);
+  }
+  EXPECT_EQ(node->snapshot()->count({.s = hrv, .p = tn::Term::iri(tn::kProblemPid)}).value(), 0u);
   node.reset();
   fs::remove_all(tmp);
 }

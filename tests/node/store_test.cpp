@@ -12,6 +12,7 @@
 #include <optional>
 #include <functional>
 #include <limits>
+#include <map>
 #include <set>
 #include <thread>
 
@@ -214,6 +215,42 @@ TEST(Store, ANegativeSpanOrOneEndingPastTheLargestTimeIsRefusedAndNothingIsWritt
   ASSERT_FALSE(past);
   EXPECT_NE(past.error().message.find("past the largest time"), std::string::npos) << past.error().message;
   EXPECT_EQ(node.stats()->records, 0u);
+}
+
+// An agent's problem (docs/vocabulary.md, "Problems"): one persistent item of its own, replaced
+// when the problem changes, written only when the board says otherwise, gone when it is over.
+TEST(Store, AnAgentsProblemIsOneItemOfItsOwnReplacedWhenItChangesAndRemovedWhenOver) {
+  TempDir dir;
+  Node node = make_node(dir.path());
+  auto hrv = node.agent("hrv");
+  const Term self = Term::iri(hrv->iri());
+  auto said = [&] {
+    auto records = node.snapshot()->list({.s = self, .source = hrv->iri()});
+    std::map<std::string, std::string> by_predicate;
+    for (const auto& r : *records) {
+      EXPECT_TRUE(r.meta.persistent);
+      by_predicate[r.triple.p.value] = r.triple.o.value;
+    }
+    return by_predicate;
+  };
+  ASSERT_TRUE(hrv->report_problem("window 'abc' is not a number"));
+  EXPECT_EQ(said(), (std::map<std::string, std::string>{{kProblem, "window 'abc' is not a number"},
+                                                        {kProblemPid, std::to_string(getpid())}}));
+  const std::uint64_t before = node.snapshot()->last_seq();
+  ASSERT_TRUE(hrv->report_problem("window 'abc' is not a number"));
+  EXPECT_EQ(node.snapshot()->last_seq(), before) << "the same problem again wrote to the board";
+  // A byte that is not UTF-8 (a Latin-1 file quoted) is written as U+FFFD.
+  ASSERT_TRUE(hrv->report_problem("step 'f\xF6\xF6'"));
+  EXPECT_EQ(said().at(kProblem), "step 'f\uFFFD\uFFFD'");
+  EXPECT_EQ(node.snapshot()->count({.p = Term::iri(kProblem)}).value(), 1u);
+  // Another agent's records about this one are not its problem and stay.
+  ASSERT_TRUE(node.agent("operator")->store(Item{}.add(self, Term::iri(kProblem), Term::literal("seen from outside"))));
+  ASSERT_TRUE(hrv->report_problem(""));
+  EXPECT_TRUE(said().empty());
+  EXPECT_EQ(node.snapshot()->count({.p = Term::iri(kProblem)}).value(), 1u);
+  const std::uint64_t over = node.snapshot()->last_seq();
+  ASSERT_TRUE(hrv->report_problem(""));
+  EXPECT_EQ(node.snapshot()->last_seq(), over);
 }
 
 // A link tells a replaced store from the one it knew by this id (docs/protocol.md P6a).

@@ -382,7 +382,7 @@ TEST_F(ReasonerTest, RulesReloadAndABrokenFileIsReportedWhileThePreviousRulesRun
 TEST_F(ReasonerTest, ABrokenRuleFileIsTheReasonersProblemOnTheBoardUntilRulesParse) {
   auto file = rules("live.rules", "p(X, Y) :- a(X, Y).\n");
   put({t("x", "a", "y")});
-  auto problems = [&] { return node_->snapshot().value().list({.p = tn::Term::iri(tr::kProblem)}).value(); };
+  auto problems = [&] { return node_->snapshot().value().list({.p = tn::Term::iri(tn::kProblem)}).value(); };
   {
     auto r = open(file);
     ASSERT_TRUE(r.session().has_value());
@@ -414,14 +414,14 @@ TEST_F(ReasonerTest, ABrokenRuleFileIsTheReasonersProblemOnTheBoardUntilRulesPar
     ASSERT_EQ(said.size(), 1u);
     EXPECT_EQ(tn::ill_formed_utf8_at(said[0].triple.o.value), std::string_view::npos);
     // With the process that runs it, for `status` to find its program by.
-    auto pid = node_->snapshot().value().list({.s = tn::Term::iri(r.iri()), .p = tn::Term::iri(tr::kPid)}).value();
+    auto pid = node_->snapshot().value().list({.s = tn::Term::iri(r.iri()), .p = tn::Term::iri(tn::kProblemPid)}).value();
     ASSERT_EQ(pid.size(), 1u);
     EXPECT_EQ(pid[0].triple.o, tn::Term::integer(getpid()));
   }
   rules("live.rules", "p(X, Y) :- a(X, Y).\n");
   auto again = open(file);
   EXPECT_TRUE(problems().empty());
-  EXPECT_EQ(node_->snapshot().value().count({.p = tn::Term::iri(tr::kPid)}).value(), 0u);
+  EXPECT_EQ(node_->snapshot().value().count({.p = tn::Term::iri(tn::kProblemPid)}).value(), 0u);
   ASSERT_TRUE(again.session().has_value());
   EXPECT_EQ(board(), (std::map<std::string, int>{{nt("x", "p", "y"), 1}, {nt("u", "p", "v"), 1}}));
 }

@@ -105,11 +105,11 @@ struct Reasoner::Impl {
     for (node::Term& t : a.args) if (t.is_blank()) t = node::Term::iri(genid(t));
     return store_form(a, agent.iri() + "/c/");
   }
-  // The reasoner's conclusions: its records, bar the problem it reports (kProblem).
+  // The reasoner's conclusions: its records, bar the problem it reports (node::kProblem).
   bool own(const node::Record& r) const {
     return r.meta.source == agent.iri() &&
            !(r.triple.s.is_iri() && r.triple.s.value == agent.iri() && r.triple.p.is_iri() &&
-             (r.triple.p.value == kProblem || r.triple.p.value == kPid));
+             (r.triple.p.value == node::kProblem || r.triple.p.value == node::kProblemPid));
   }
   // The problem on the board now, as this reasoner last wrote it (empty: none).
   std::string problem;
@@ -148,22 +148,10 @@ void Reasoner::Impl::maybe_reload(SessionReport& report) {
   rules_pending = true;
 }
 
-// Writes `text` as this reasoner's problem in place of the one before (empty: removes it).
+// Writes `text` as this reasoner's problem in place of the one before (empty: removes it). A
+// parse error quotes the file's bytes, which need not be UTF-8: report_problem makes them text.
 Result<void> Reasoner::Impl::report_problem(const std::string& text) {
-  const node::Term self = node::Term::iri(agent.iri());
-  std::vector<node::Pattern> old = {{.s = self, .p = node::Term::iri(kProblem), .source = agent.iri()},
-                                    {.s = self, .p = node::Term::iri(kPid), .source = agent.iri()}};
-  std::vector<node::Item> items;
-  if (!text.empty()) {
-    node::Item item;
-    item.persistent = true;  // a ring must not take it while the rule file is still broken
-    // A parse error quotes the file's bytes, which need not be UTF-8: a store takes only text.
-    item.add(self, node::Term::iri(kProblem), node::Term::literal(node::with_replacement_characters(text)))
-        .add(self, node::Term::iri(kPid), node::Term::integer(getpid()));
-    items.push_back(std::move(item));
-  }
-  auto written = agent.replace(old, items);
-  if (!written) return unexpected(node_error(written.error()));
+  if (auto written = agent.report_problem(text); !written) return unexpected(node_error(written.error()));
   problem = text;
   return {};
 }
@@ -436,21 +424,9 @@ Result<Reasoner> Reasoner::open(const std::filesystem::path& dir, ReasonerOption
   if (ftruncate(lock, 0) == 0) (void)!pwrite(lock, pid.data(), pid.size(), 0);  // for the message above only
   auto impl = std::make_unique<Impl>(std::move(*node), std::move(*agent), std::move(options), std::move(parse), std::move(*program));
   impl->agent_lock = lock;
-  // A problem an earlier run reported is over: this one's rules parse.
-  Result<std::uint64_t> left = [&]() -> Result<std::uint64_t> {
-    auto snap = impl->node.snapshot();
-    if (!snap) return unexpected(node_error(snap.error()));
-    auto n = snap->count({.s = node::Term::iri(impl->agent.iri()), .p = node::Term::iri(kProblem), .source = impl->agent.iri()});
-    if (!n) return unexpected(node_error(n.error()));
-    return *n;
-  }();
-  if (!left) return unexpected(left.error());
-  if (*left > 0) {
-    // One that cannot go now (a full store) goes once a changed rule file parses.
-    impl->problem = "(left by an earlier run)";
-    SessionReport ignored;
-    impl->try_report_problem("", ignored);
-  }
+  // A problem an earlier run reported is over: this one's rules parse. One that cannot go now
+  // (a full store) goes once a changed rule file parses.
+  if (!impl->agent.report_problem("")) impl->problem = "(left by an earlier run)";
   return Reasoner(std::move(impl));
 }
 

@@ -207,6 +207,10 @@ enum class Ack {
               // crash in between delivers it again after restart
 };
 
+// The records of Agent::report_problem.
+inline const std::string kProblem = std::string(uri::kTahvelNs) + "problem";
+inline const std::string kProblemPid = std::string(uri::kTahvelNs) + "pid";
+
 class Agent {
  public:
   Agent(Agent&&) noexcept;
@@ -233,6 +237,14 @@ class Agent {
   // pattern with nothing bound. On error nothing is removed or stored.
   Result<std::vector<std::uint64_t>> replace(const std::vector<Pattern>& removals,
                                              const std::vector<Item>& items) noexcept;
+
+  // Says on the board what this agent cannot do as asked, for `tahvel status` here and on the
+  // nodes above (docs/vocabulary.md, "Problems"): `<agent> tv:problem "text"; tv:pid <this
+  // process>`, one persistent item in place of the problem it said before; empty `text` says
+  // the problem is over (removes it). Writes nothing when the board already says so, so an
+  // agent may report its state each time it looks. Bytes of `text` that are not UTF-8 are
+  // written as U+FFFD. Errors: those of replace.
+  Result<void> report_problem(std::string_view text) noexcept;
 
   // The oldest item in this agent's input buffer, waiting up to `timeout` for one to arrive
   // (woken by the writer's commit, no polling). Returns nullopt on timeout. An item removed from

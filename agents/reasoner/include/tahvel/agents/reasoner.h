@@ -28,13 +28,9 @@
 
 namespace tahvel::reasoner {
 
-// What a running reasoner cannot do as asked, on its board for `tahvel status` (docs/vocabulary.md,
-// "Problems"): `<reasoner agent IRI> tv:problem "text"; tv:pid N`, written by the reasoner itself
-// when a changed rule file does not parse (the previous rules run on), removed once a rule file
-// parses and when it starts (it starts only with rules that parse). The process id names the
-// program that runs it when its id is not the agent's (`tahvel reason --agent`).
-inline const std::string kProblem = std::string(uri::kTahvelNs) + "problem";
-inline const std::string kPid = std::string(uri::kTahvelNs) + "pid";
+// A running reasoner reports a changed rule file that does not parse (the previous rules run
+// on) as its problem on its board (node::Agent::report_problem, for `tahvel status`), and
+// removes it once a rule file parses and when it starts (it starts only with rules that parse).
 
 // The longest interval between sessions that Reasoner::open accepts: one day.
 inline constexpr std::chrono::milliseconds kMaxInterval{86'400'000};
