@@ -87,7 +87,9 @@ class HrvStage {
       // As --window and --step take them: a window shorter than a millisecond would make
       // millions of windows out of one RR item (memory without bound, no stop between items).
       if (!r.triple.o.is_literal() || *end != '\0' || r.triple.o.value.empty() || !std::isfinite(v) || v < kMinSeconds) {
-        unusable[window] = "configuration <" + r.triple.s.value + "> " + r.triple.p.value + " '" + r.triple.o.value +
+        // The value quoted as far as a line shows it: a problem is a literal within the node's limit.
+        const std::string value = r.triple.o.value.size() > 80 ? r.triple.o.value.substr(0, 80) + "..." : r.triple.o.value;
+        unusable[window] = "configuration <" + r.triple.s.value + "> " + r.triple.p.value + " '" + value +
                            "' (record " + std::to_string(r.meta.id) + ") is not a number of seconds >= " +
                            number_text(kMinSeconds) + "; ignored, the value before it stands";
         if (warned_.insert(r.meta.id).second) rt::log_line(kProgram, unusable[window]);

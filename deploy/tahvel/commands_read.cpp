@@ -92,8 +92,8 @@ const Command kListCommand{
     "Print the records matching a pattern (all when none is given).",
     "Matches come in id order; with --cascade N each is followed by its sub-tree: the records\n"
     "whose subject is the match's object (an IRI or blank node), N levels deep. JSON output has\n"
-    "one object per line with the record's metadata (id, item, stored_at, asserted_at, source,\n"
-    "context, persistent). With --area only matches whose subject is a feature located in the\n"
+    "one object per line with the record's metadata (id, item, stored_at, asserted_at, span when\n"
+    "the record holds for a time, source, context, persistent). With --area only matches whose subject is a feature located in the\n"
     "area (a sensor inside it, or the room itself) or whose source is a sensor inside it are\n"
     "kept; sensors are placed by geo:hasGeometry/geo:asWKT as the board says when the command\n"
     "runs (docs/spatial.md).",

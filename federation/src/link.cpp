@@ -1690,7 +1690,8 @@ struct Link::Impl {
     // refused call was lost, and the next call sent it empty).
     auto room_for = [&](const node::Record& record) {
       const std::size_t size = record.triple.s.value.size() + record.triple.p.value.size() +
-                               record.triple.o.value.size() + record.meta.source.size() + record.meta.context.size() + 64;
+                               record.triple.o.value.size() + record.triple.o.datatype.size() + record.triple.o.language.size() +
+                               record.meta.source.size() + record.meta.context.size() + 72;
       if (r.chunk_bytes > 0 && r.chunk_bytes + size > kAnswerChunkBytes) {
         if (chunks.size() >= room) return false;
         seal(false);

@@ -237,6 +237,7 @@ Result<AnswerBody> decode_answer(std::string_view bytes) {
     r.meta.stored_at = in.i64("stored_at");
     r.meta.asserted_at = in.i64("asserted_at");
     r.meta.span = in.i64("span");
+    if (in.ok() && r.meta.span < 0) in.fail("span", "negative: " + std::to_string(r.meta.span));
     r.meta.source = in.str("source");
     r.meta.context = in.str("context");
     r.meta.persistent = in.u8("persistent") != 0;

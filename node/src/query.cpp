@@ -42,6 +42,9 @@ Result<Query::Bound> Query::resolve(const Pattern& pattern) {
     b.context = *found;
   }
   b.has_context = pattern.context.has_value();
+  // An empty range holds nothing, not even what held for long (a query from the wire is not
+  // checked as the command line checks it).
+  if (pattern.since && pattern.until && *pattern.until <= *pattern.since) b.empty = true;
   return b;
 }
 

@@ -371,9 +371,11 @@ std::string not_utf8(std::string_view text, std::string_view of_what) {
 Result<void> validate_item(const Item& item, const Settings& settings) {
   if (item.triples.empty()) return fail(Errc::invalid_argument, "an item needs at least one triple");
   if (item.span < 0) return fail(Errc::invalid_argument, "span " + std::to_string(item.span) + " ns is negative");
+  // Without an asserted-at the item is asserted when stored: about now.
+  const std::int64_t start = item.asserted_at.value_or(now_ns());
   std::int64_t end = 0;
-  if (item.span > 0 && item.asserted_at && __builtin_add_overflow(*item.asserted_at, item.span, &end))
-    return fail(Errc::invalid_argument, "asserted-at " + std::to_string(*item.asserted_at) + " plus span " +
+  if (item.span > 0 && __builtin_add_overflow(start, item.span, &end))
+    return fail(Errc::invalid_argument, "asserted-at " + std::to_string(start) + " plus span " +
                                             std::to_string(item.span) + " ns is past the largest time");
   if (auto bad = not_utf8(item.context, ""); !bad.empty()) return fail(Errc::invalid_argument, "context" + bad);
   for (std::size_t i = 0; i < item.triples.size(); ++i) {
@@ -622,6 +624,7 @@ Result<void> pass_notice_on(Txn& txn, const Item& notice, const std::vector<std:
     record.meta.source = source;
     record.meta.context = notice.context;
     record.meta.persistent = notice.persistent;
+    record.meta.span = notice.span;
     plan.records.push_back(std::move(record));
   }
   txn.notice_plans.push_back(std::move(plan));

@@ -97,6 +97,10 @@ TEST(AnswerBody, EachRecordsSpanSurvivesTheWire) {
   EXPECT_EQ(decoded->records[0].meta.span, 2'777'778);
   EXPECT_EQ(decoded->records[0].meta.asserted_at, 1'700'000'000'000'000'000);
   EXPECT_EQ(decoded->records[1].meta.span, 0);
+  answer.records[0].meta.span = -1;
+  auto negative = wire::decode_answer(wire::encode_answer(answer));
+  ASSERT_FALSE(negative);
+  EXPECT_NE(negative.error().message.find("'span'"), std::string::npos) << negative.error().message;
 }
 
 }  // namespace

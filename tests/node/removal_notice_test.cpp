@@ -213,17 +213,20 @@ TEST(RemovalNotice, ARelayedRemovalIsNoticedOnwardWhereTheCopyWent) {
     SCOPED_TRACE(narrowed ? "the policy narrowed since" : "the policy as it was");
     Gateway g;
     auto& [dir, node, child, uplink, source, forwarding] = g;
-    ASSERT_TRUE(child.relay("child#s", {{1, 0, source, hrv_window(1, 1'000)}}));
+    Item window = hrv_window(1, 1'000);
+    window.span = 300;  // what the removed records held for goes on with them
+    ASSERT_TRUE(child.relay("child#s", {{1, 0, source, window}}));
     ASSERT_EQ(drain(uplink).size(), 1u);
     if (narrowed) {
       ASSERT_TRUE(uplink.unsubscribe(forwarding));
       drain(uplink);
     }
-    ASSERT_EQ(child.relay("child#s", {notice_of(2, source, hrv_window(1, 1'000), {0, 1})}).value().records_removed, 2u);
+    ASSERT_EQ(child.relay("child#s", {notice_of(2, source, window, {0, 1})}).value().records_removed, 2u);
     auto got = one_notice(uplink);
     ASSERT_TRUE(got);
     EXPECT_EQ(got->records.size(), 2u);
     EXPECT_EQ(got->records[0].meta.source, source);
+    EXPECT_EQ(got->records[0].meta.span, 300);
   }
 }
 

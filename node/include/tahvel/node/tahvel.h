@@ -91,7 +91,8 @@ typedef enum tahvel_status {
 
 /* Formats: input of tahvel_store() (N-Triples, Turtle); output of the *_as() reads
  * (N-Triples, or JSON: one object per line per record with its metadata — id, item, stored_at,
- * asserted_at, source, context, persistent — as `tahvel list --format json` prints it). */
+ * asserted_at, span when not 0, source, context, persistent — as `tahvel list --format json`
+ * prints it). */
 #define TAHVEL_FORMAT_NTRIPLES 1
 #define TAHVEL_FORMAT_TURTLE 2
 #define TAHVEL_FORMAT_JSON 3
