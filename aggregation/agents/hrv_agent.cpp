@@ -127,7 +127,9 @@ class HrvStage {
         load_config();
         break;
       }
-    if (!rt::has_predicate(delivery.records, "intervals")) return rt::Outcome::ok();
+    // A removal (a setting taken back, so the problem it was may be over; or RR records removed,
+    // whose windows stand) has nothing more to process.
+    if (delivery.removal || !rt::has_predicate(delivery.records, "intervals")) return rt::Outcome::ok();
     auto rr = agg::read_rr(delivery.records);
     if (!rr) {
       rt::log_line(kProgram, rr.error().message + "; skipped");
@@ -288,6 +290,12 @@ int main(int argc, char** argv) {
     config.s = tn::Term::iri(session->agent.iri());
     if (auto s = session->agent.subscribe(config); !s) {
       rt::log_line(kProgram, "subscribe to the configuration: " + s.error().message);
+      return rt::kExitError;
+    }
+    // A setting removed is read as the configuration changing: an unusable one taken back is no
+    // longer the agent's problem.
+    if (auto r = session->agent.receive_removals(); !r) {
+      rt::log_line(kProgram, "receive removals of the configuration: " + r.error().message);
       return rt::kExitError;
     }
     state_loinc_codes(*session);

@@ -685,6 +685,11 @@ TEST(AgentPrograms, AnHrvSettingItCannotUseIsItsProblemOnTheBoardUntilAUsableOne
     EXPECT_EQ(node->snapshot()->count({.s = hrv, .p = tn::Term::iri(tn::kProblemPid)}).value(), 1u);
     ASSERT_TRUE(op->store(tn::Item{}.add(hrv, agg::tv_term("windowSeconds"), tn::Term::integer(120))));
     EXPECT_TRUE(eventually([&] { return problem().empty(); })) << "still: " << problem();
+    // Another unusable setting, then taken back: the problem comes and goes with it.
+    ASSERT_TRUE(op->store(tn::Item{}.add(hrv, agg::tv_term("stepSeconds"), tn::Term::literal("-1"))));
+    ASSERT_TRUE(eventually([&] { return problem().find("stepSeconds '-1'") != std::string::npos; })) << problem();
+    ASSERT_TRUE(node->remove({.s = hrv, .p = agg::tv_term("stepSeconds")}));
+    EXPECT_TRUE(eventually([&] { return problem().empty(); })) << "still: " << problem();
     EXPECT_EQ(agent.stop(), 0);
   }
   EXPECT_EQ(node->snapshot()->count({.s = hrv, .p = tn::Term::iri(tn::kProblemPid)}).value(), 0u);
