@@ -74,10 +74,11 @@ wait_for 120 thirty_from_home1
 echo "   home1 now sends 30 s windows; the configuration is on home1's board only:"
 echo "   tv:windowSeconds at home1: $(count "$state/home1" -p tv:windowSeconds), at home2: $(count "$state/home2" -p tv:windowSeconds)."
 
-say "4. From the hospital, ask home2 for 10 s of its raw ECG (by the samples' time): the query travels down and back."
+say "4. From the hospital, ask home2 for 10 s of its raw ECG, from 20.5 s into its recording (by the samples' time):
+   the query travels down and back with the 11 one-second chunks that cover those 10 s."
 first=$(quiet list "$state/home2" -p tv:samples --limit 1 --format json | sed 's/.*"asserted_at":\([0-9]*\).*/\1/')
-since=$((first + 20000000000))
-until=$((first + 30000000000))
+since=$((first + 20500000000))
+until=$((first + 30500000000))
 show query "$state/hospital" --at "$H/home2" -p tv:samples --since "$since" --until "$until"
 quiet query "$state/hospital" --at "$H/home2" -p tv:samples --since "$since" --until "$until" >"$work/remote.nt"
 # The same range read on home2's own store (a query at the node itself is answered locally).
