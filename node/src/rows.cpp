@@ -198,6 +198,8 @@ bool decode_item(std::string_view bytes, ItemRow& row) {
   row.stored_at = codec::unzigzag(stored);
   row.asserted_at = row.stored_at + codec::unzigzag(asserted_delta);
   const std::uint8_t flags = static_cast<std::uint8_t>(bytes[pos++]);
+  // A flag this build does not know is a row of a later build, which it would misread.
+  if (flags & ~(kItemPersistent | kItemRelayed | kItemNoticed | kItemSpan)) return false;
   row.persistent = flags & kItemPersistent;
   row.writer = 0;
   if ((flags & kItemRelayed) && !codec::get_varint(bytes, pos, row.writer)) return false;
@@ -229,13 +231,19 @@ Result<std::optional<RecordRow>> get_record(MDB_txn* txn, const Env& env, std::u
   return std::optional<RecordRow>(row);
 }
 
+namespace {
+auto item_unreadable(std::uint64_t id) {
+  return fail(Errc::corrupt, "item " + std::to_string(id) + " cannot be read: its row is truncated, or written by a later build");
+}
+}  // namespace
+
 Result<std::optional<ItemRow>> get_item(MDB_txn* txn, const Env& env, std::uint64_t id) {
   MDB_val k = val(id), v;
   int rc = mdb_get(txn, env.items, &k, &v);
   if (rc == MDB_NOTFOUND) return std::optional<ItemRow>();
   if (rc != 0) return lmdb_fail(rc, "reading item " + std::to_string(id));
   ItemRow row;
-  if (!decode_item(view(v), row)) return fail(Errc::corrupt, "item " + std::to_string(id) + " is truncated");
+  if (!decode_item(view(v), row)) return item_unreadable(id);
   return std::optional<ItemRow>(std::move(row));
 }
 
@@ -253,7 +261,7 @@ Result<bool> release_item(MDB_cursor* items, std::uint64_t id) {
   if (rc == MDB_NOTFOUND) return false;
   if (rc != 0) return lmdb_fail(rc, "reading item " + std::to_string(id));
   ItemRow row;
-  if (!decode_item(view(v), row)) return fail(Errc::corrupt, "item " + std::to_string(id) + " is truncated");
+  if (!decode_item(view(v), row)) return item_unreadable(id);
   if (row.pending == 0) return true;
   --row.pending;
   const std::string bytes = encode_item(row);
@@ -457,6 +465,7 @@ bool decode_removed(std::string_view in, Record& record) {
   record.meta.stored_at = codec::unzigzag(stored);
   record.meta.asserted_at = codec::unzigzag(asserted);
   const auto flags = static_cast<std::uint8_t>(in[pos++]);
+  if (flags & ~3) return false;  // a later build's entry, which this one would misread
   record.meta.persistent = (flags & 1) != 0;
   record.meta.span = 0;
   if (flags & 2) {

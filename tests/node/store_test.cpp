@@ -220,6 +220,40 @@ TEST(Store, ANegativeSpanOrOneEndingPastTheLargestTimeIsRefusedAndNothingIsWritt
   EXPECT_EQ(node.stats()->records, 0u);
 }
 
+// A row with a flag this build does not know (a later build wrote it, and the store was taken
+// back to this one) is said to be unreadable, not read without what the flag adds.
+TEST(Store, AnItemRowWithAFlagOfALaterBuildIsReportedUnreadableNotMisread) {
+  TempDir dir;
+  std::uint64_t id = 0;
+  {
+    Node node = make_node(dir.path());
+    Item item;
+    item.add(ex("a"), ex("p"), Term::integer(1));
+    id = node.agent("writer")->store(item).value();
+  }
+  ASSERT_TRUE(change_with_lmdb(dir.path(), [&](MDB_txn* txn) {
+    MDB_dbi items;
+    if (mdb_dbi_open(txn, "items", MDB_INTEGERKEY, &items) != 0) return false;
+    MDB_val k{sizeof id, &id}, v;
+    if (mdb_get(txn, items, &k, &v) != 0) return false;
+    std::string row(static_cast<const char*>(v.mv_data), v.mv_size);
+    // The flags byte follows seven varints (count, live, pending, times, source, context).
+    std::size_t pos = 0;
+    for (int field = 0; field < 7; ++field)
+      while (static_cast<unsigned char>(row.at(pos++)) & 0x80) {
+      }
+    row.at(pos) = static_cast<char>(row.at(pos) | 0x40);
+    MDB_val changed{row.size(), row.data()};
+    return mdb_put(txn, items, &k, &changed, 0) == 0;
+  }));
+  auto node = Node::open(dir.path());
+  ASSERT_TRUE(node) << node.error().message;
+  auto records = node->snapshot()->list({.s = ex("a")});
+  ASSERT_FALSE(records);
+  EXPECT_EQ(records.error().code, Errc::corrupt);
+  EXPECT_NE(records.error().message.find("written by a later build"), std::string::npos) << records.error().message;
+}
+
 // An agent's problem (docs/vocabulary.md, "Problems"): one persistent item of its own, replaced
 // when the problem changes, written only when the board says otherwise, gone when it is over.
 TEST(Store, AnAgentsProblemIsOneItemOfItsOwnReplacedWhenItChangesAndRemovedWhenOver) {
