@@ -131,9 +131,10 @@ Result<Frame> decode_frame(std::string_view bytes) {
 }
 
 std::optional<std::string> frame_refusal(const Frame& frame, std::string_view self_iri) {
-  if (frame.version != kProtocolVersion)
-    return "protocol version " + std::to_string(frame.version) + " from <" + frame.from +
-           ">, this node speaks " + std::to_string(kProtocolVersion);
+  if (frame.version < kOldestProtocolVersion || frame.version > kProtocolVersion)
+    return "protocol version " + std::to_string(frame.version) + " from <" + frame.from + ">, this node speaks " +
+           std::to_string(kProtocolVersion) + " and hears " + std::to_string(kOldestProtocolVersion) + " to " +
+           std::to_string(kProtocolVersion);
   if (frame.fingerprint != message_fingerprint())
     return "message-type fingerprint mismatch from <" + frame.from + "> (other build's types differ)";
   if (frame.to != self_iri) return "frame for <" + frame.to + ">, not for this endpoint <" +

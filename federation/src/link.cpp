@@ -495,6 +495,41 @@ struct Link::Impl {
     else std::cerr << "tahvel link <" << self << ">: " << line << "\n";
   }
 
+  // Children heard speaking an earlier protocol version (P3), by IRI, and whether there are any:
+  // they are spoken to in their version. Its own lock: send() runs without `mu`.
+  std::mutex older_children_mu;
+  std::unordered_map<std::string, std::uint16_t> older_children;
+  std::atomic<bool> older_children_heard{false};
+
+  void note_child_version(const std::string& iri, std::uint16_t version) {
+    if (version == kProtocolVersion && !older_children_heard.load(std::memory_order_relaxed)) return;
+    std::lock_guard lock(older_children_mu);
+    if (version == kProtocolVersion) {
+      older_children.erase(iri);
+    } else if (older_children.emplace(iri, version).second) {
+      log("child <" + iri + "> speaks protocol version " + std::to_string(version) + ", this node " +
+          std::to_string(kProtocolVersion) + ": spoken to in " + std::to_string(version) +
+          " (items sent down go without their span)");
+    }
+    older_children_heard = !older_children.empty();
+  }
+
+  // `frame`, for a child of an earlier version, in that version: an item sent down without its
+  // span (version 2 has none, and would refuse the flag).
+  void speak_as_older_child(Frame& frame) {
+    {
+      std::lock_guard lock(older_children_mu);
+      auto it = older_children.find(frame.to);
+      if (it == older_children.end()) return;
+      frame.version = it->second;
+    }
+    if (frame.kind != FrameKind::down) return;
+    if (auto item = wire::decode_item(frame.body); item && item->item.span != 0) {
+      item->item.span = 0;
+      frame.body = wire::encode_item(*item);
+    }
+  }
+
   // Whether frames arriving on `via` come from children (a transport this node listens on).
   bool is_down(const Transport* via) const {
     if (!via) return false;
@@ -515,6 +550,7 @@ struct Link::Impl {
   bool send(Transport* via, Frame frame) {
     if (!via) return false;
     frame.from = self;
+    if (older_children_heard.load(std::memory_order_relaxed)) speak_as_older_child(frame);
     if (DeferredSends* later = t_deferred_sends) {
       std::lock_guard lock(later->mu);
       later->frames.emplace_back(via, std::move(frame));
@@ -1156,7 +1192,11 @@ struct Link::Impl {
     std::string why;
     if (is_down(via)) {
       auto child = accepted_child(f.from, &why);
-      if (child) return from_child_frame(via, f, child, agent);
+      if (child) {
+        note_child_version(f.from, f.version);
+        if (f.version != kProtocolVersion && f.kind == FrameKind::answer) return answer_of_older_child(via, f, child, agent);
+        return from_child_frame(via, f, child, agent);
+      }
     } else {
       // A node whose LCM URL for its children is one port above its parent's has both ends
       // listening on one port (LcmEnd): its children's frames reach its end up too, and its end
@@ -1181,6 +1221,22 @@ struct Link::Impl {
     if (is_down(via) &&
         (f.kind == FrameKind::hello || f.kind == FrameKind::heartbeat || f.kind == FrameKind::up))
       send_error(via, f.from, 0, {"refused", why, ""});
+  }
+
+  // An answer in an earlier version's layout, read on as this version's: it goes on the board
+  // and up as it is, and its readers read this version.
+  template <class AgentFn>
+  void answer_of_older_child(Transport* via, const Frame& f, const std::shared_ptr<Child>& child, AgentFn& agent) {
+    auto body = wire::decode_answer(f.body, f.version);
+    if (!body) {
+      log("dropped a malformed answer (protocol version " + std::to_string(f.version) + ") from <" + f.from +
+          ">: " + body.error().message);
+      return;
+    }
+    Frame upgraded = f;
+    upgraded.version = kProtocolVersion;
+    upgraded.body = wire::encode_answer(*body);
+    from_child_frame(via, upgraded, child, agent);
   }
 
   template <class AgentFn>

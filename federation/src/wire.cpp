@@ -209,23 +209,24 @@ Result<QueryBody> decode_query(std::string_view bytes) {
   return in.finish(std::move(body));
 }
 
-std::string encode_answer(const AnswerBody& body) {
+std::string encode_answer(const AnswerBody& body, std::uint16_t version) {
   Out out;
   out.str(body.origin).u8(body.last ? 1 : 0).u32(static_cast<std::uint32_t>(body.records.size()));
   for (const auto& r : body.records) {
     out.term(r.triple.s).term(r.triple.p).term(r.triple.o);
-    out.u64(r.meta.id).u64(r.meta.item).i64(r.meta.stored_at).i64(r.meta.asserted_at).i64(r.meta.span);
+    out.u64(r.meta.id).u64(r.meta.item).i64(r.meta.stored_at).i64(r.meta.asserted_at);
+    if (version >= 3) out.i64(r.meta.span);
     out.str(r.meta.source).str(r.meta.context).u8(r.meta.persistent ? 1 : 0);
   }
   return out.take();
 }
 
-Result<AnswerBody> decode_answer(std::string_view bytes) {
+Result<AnswerBody> decode_answer(std::string_view bytes, std::uint16_t version) {
   In in(bytes, "answer");
   AnswerBody body;
   body.origin = in.str("origin");
   body.last = in.u8("last") != 0;
-  std::uint32_t n = in.count("records", kMinRecordBytes);
+  std::uint32_t n = in.count("records", kMinRecordBytes - (version >= 3 ? 0 : 8));
   body.records.reserve(n);
   for (std::uint32_t i = 0; i < n && in.ok(); ++i) {
     node::Record r;
@@ -236,7 +237,7 @@ Result<AnswerBody> decode_answer(std::string_view bytes) {
     r.meta.item = in.u64("item");
     r.meta.stored_at = in.i64("stored_at");
     r.meta.asserted_at = in.i64("asserted_at");
-    r.meta.span = in.i64("span");
+    if (version >= 3) r.meta.span = in.i64("span");
     if (in.ok() && r.meta.span < 0) in.fail("span", "negative: " + std::to_string(r.meta.span));
     r.meta.source = in.str("source");
     r.meta.context = in.str("context");

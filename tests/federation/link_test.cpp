@@ -1026,6 +1026,41 @@ TEST(Link, MalformedFramesAreDroppedWithAReasonAndTheLinkKeepsWorking) {
   EXPECT_TRUE(tree.hospital_log.has("not UTF-8"));
 }
 
+// A node of protocol version 2 as the link sees it: what it sends is in version 2 (answers in
+// that layout, no item spans, which it does not have), and what reaches it is checked to be
+// version 2, which it would refuse else (P3, P4).
+class VersionTwo : public Transport {
+ public:
+  explicit VersionTwo(std::unique_ptr<Transport> inner) : inner_(std::move(inner)) {}
+  const std::string& self() const override { return inner_->self(); }
+  Result<void> send(const Frame& frame) override {
+    Frame old = frame;
+    old.version = 2;
+    if (old.kind == FrameKind::answer) old.body = wire::encode_answer(wire::decode_answer(frame.body).value(), 2);
+    return inner_->send(old);
+  }
+  Result<std::optional<Frame>> receive(std::chrono::milliseconds timeout) override {
+    auto got = inner_->receive(timeout);
+    if (got && *got) {
+      const Frame& f = **got;
+      std::lock_guard lock(mu_);
+      if (f.version != 2) refused_.push_back("version " + std::to_string(f.version));
+      if (f.kind == FrameKind::up || f.kind == FrameKind::down)
+        if (auto item = wire::decode_item(f.body); !item || item->item.span != 0) refused_.push_back("an item with a span");
+    }
+    return got;
+  }
+  std::vector<std::string> refused() const {
+    std::lock_guard lock(mu_);
+    return refused_;
+  }
+
+ private:
+  std::unique_ptr<Transport> inner_;
+  mutable std::mutex mu_;
+  std::vector<std::string> refused_;
+};
+
 // home1's kEx:samples records as the hospital's remote query returns them (P13), and as home1's
 // own store holds them.
 struct SamplesAnswer {
@@ -1040,6 +1075,46 @@ SamplesAnswer ask_home1_for_samples(const Tree& tree, std::chrono::seconds timeo
                             [&](const node::Record& r) { a.got.push_back(r); });
   a.expected = node::Node::open(tree.home1_dir).value().snapshot().value().list(samples).value();
   return a;
+}
+
+// A hospital upgraded before its homes (docs/deploy.md, "Upgrading"): a home of the version
+// before is registered, its items go up, configuration goes down to it in its version (without
+// the span it would refuse) and its answers are read in its layout.
+TEST(Link, AParentSpeaksToAChildOfTheVersionBeforeInThatVersion) {
+  Tree tree;
+  tree.hospital = tree.start_hospital();
+  auto old_home = std::make_shared<VersionTwo>(tree.bus.open(kHome1, tree.home1_log.sink()));
+  tree.home1 = Link::start({.dir = tree.home1_dir, .parent_iri = kHospital, .up = old_home, .resend_after = 100ms,
+                            .heartbeat_every = 200ms, .log = tree.home1_log.sink()})
+                   .value();
+  ASSERT_TRUE(eventually([&] { return tree.home1->connected(); })) << tree.hospital_log.text();
+  EXPECT_TRUE(tree.hospital_log.has("speaks protocol version 2")) << tree.hospital_log.text();
+  store_hrv_items(tree.home1_dir, 0, 3);
+  EXPECT_TRUE(eventually([&] { return count(tree.hospital_dir, {.p = Term::iri(kEx + "n")}) == 3; }));
+
+  node::Item config;
+  config.context = kHome1 + "/hrv";
+  config.asserted_at = 1'000'000;
+  config.span = 60'000'000'000;
+  config.add(Term::iri(kHome1 + "/hrv"), Term::iri(kEx + "windowS"), Term::integer(60));
+  ASSERT_TRUE(node::Node::open(tree.hospital_dir).value().agent("operator").value().store(config));
+  ASSERT_TRUE(eventually([&] { return count(tree.home1_dir, {.p = Term::iri(kEx + "windowS")}) == 1; }));
+  const auto arrived = node::Node::open(tree.home1_dir).value().snapshot().value().list({.p = Term::iri(kEx + "windowS")}).value();
+  EXPECT_EQ(arrived.front().meta.asserted_at, 1'000'000);
+  EXPECT_EQ(arrived.front().meta.span, 0) << "version 2 has no spans";
+
+  auto sensor = node::Node::open(tree.home1_dir).value().agent("ecg").value();
+  for (int i = 0; i < 3; ++i)
+    ASSERT_TRUE(sensor.store(node::Item{}.add(Term::iri(kHome1 + "/rec/chunk/" + std::to_string(i)),
+                                              Term::iri(kEx + "samples"), Term::literal("s" + std::to_string(i)))));
+  const SamplesAnswer a = ask_home1_for_samples(tree, 10s);
+  ASSERT_TRUE(a.answered) << a.answered.error().message;
+  ASSERT_EQ(a.got.size(), a.expected.size());
+  for (std::size_t i = 0; i < a.got.size(); ++i) {
+    EXPECT_EQ(a.got[i].triple, a.expected[i].triple);
+    EXPECT_EQ(a.got[i].meta.asserted_at, a.expected[i].meta.asserted_at);
+  }
+  EXPECT_EQ(old_home->refused(), std::vector<std::string>{}) << "frames the old home would have refused";
 }
 
 TEST(Link, RemoteQueryReturnsExactlyTheRecordsHeldBelowAndNamesItsErrors) {

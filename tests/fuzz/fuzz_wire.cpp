@@ -7,6 +7,7 @@
 #include <cstdint>
 #include <string>
 #include <string_view>
+#include <utility>
 #include <vector>
 
 #include "tahvel/federation/transport.h"
@@ -37,10 +38,24 @@ void round_trip(std::string_view bytes, Decode decode, Encode encode) {
 extern "C" int LLVMFuzzerTestOneInput(const std::uint8_t* data, std::size_t size) {
   if (size == 0) return 0;
   const std::string_view bytes(reinterpret_cast<const char*>(data) + 1, size - 1);
-  switch (data[0] % 6) {
+  // An answer in each version a parent hears (P3).
+  const auto answer_in = [](std::uint16_t version) {
+    return std::pair{[version](std::string_view b) { return wire::decode_answer(b, version); },
+                     [version](const wire::AnswerBody& a) { return wire::encode_answer(a, version); }};
+  };
+  switch (data[0] % 7) {
     case 0: round_trip(bytes, wire::decode_item, wire::encode_item); break;
     case 1: round_trip(bytes, wire::decode_query, wire::encode_query); break;
-    case 2: round_trip(bytes, wire::decode_answer, wire::encode_answer); break;
+    case 2: {
+      auto [decode, encode] = answer_in(kProtocolVersion);
+      round_trip(bytes, decode, encode);
+      break;
+    }
+    case 6: {
+      auto [decode, encode] = answer_in(kOldestProtocolVersion);
+      round_trip(bytes, decode, encode);
+      break;
+    }
     case 3: round_trip(bytes, wire::decode_error, wire::encode_error); break;
     case 4: round_trip(bytes, wire::decode_state, wire::encode_state); break;
     default: {

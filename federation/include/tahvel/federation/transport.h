@@ -27,9 +27,11 @@ using node::Error;
 using node::Errc;
 using node::Result;
 
-// The protocol version this build speaks; frames of another version are dropped (P-statements in
-// docs/protocol.md).
+// The protocol version this build speaks, and the oldest it still hears: a parent speaks to a
+// child of an earlier version in that version (P3 in docs/protocol.md). Frames of other
+// versions are dropped.
 inline constexpr std::uint16_t kProtocolVersion = 3;
+inline constexpr std::uint16_t kOldestProtocolVersion = 2;
 
 enum class FrameKind : std::uint8_t {
   hello = 1,      // child -> parent: registration (child IRI, software version, last ack seen)

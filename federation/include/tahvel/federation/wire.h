@@ -50,8 +50,9 @@ struct AnswerBody {
   bool last = false;
   std::vector<node::Record> records;
 };
-std::string encode_answer(const AnswerBody& body);
-Result<AnswerBody> decode_answer(std::string_view bytes);
+// `version`: the frame's protocol version; before 3 a record has no span.
+std::string encode_answer(const AnswerBody& body, std::uint16_t version = kProtocolVersion);
+Result<AnswerBody> decode_answer(std::string_view bytes, std::uint16_t version = kProtocolVersion);
 
 // A refusal or failure (frame kind error): a stable code and a message. For a query, frame.seq
 // is the query id and the body also names the origin.
