@@ -501,12 +501,18 @@ struct Link::Impl {
   std::unordered_map<std::string, std::uint16_t> older_children;
   std::atomic<bool> older_children_heard{false};
 
+  // From a child's own frames (hello, heartbeat, up; not what it relays from below), also of
+  // one not accepted, which is told why in its version; at most kOlderChildrenKept of those.
+  static constexpr std::size_t kOlderChildrenKept = 4096;
   void note_child_version(const std::string& iri, std::uint16_t version) {
     if (version == kProtocolVersion && !older_children_heard.load(std::memory_order_relaxed)) return;
     std::lock_guard lock(older_children_mu);
     if (version == kProtocolVersion) {
       older_children.erase(iri);
-    } else if (older_children.emplace(iri, version).second) {
+    } else if (auto it = older_children.find(iri); it != older_children.end()) {
+      it->second = version;
+    } else if (older_children.size() < kOlderChildrenKept) {
+      older_children.emplace(iri, version);
       log("child <" + iri + "> speaks protocol version " + std::to_string(version) + ", this node " +
           std::to_string(kProtocolVersion) + ": spoken to in " + std::to_string(version) +
           " (items sent down go without their span)");
@@ -550,13 +556,16 @@ struct Link::Impl {
   bool send(Transport* via, Frame frame) {
     if (!via) return false;
     frame.from = self;
-    if (older_children_heard.load(std::memory_order_relaxed)) speak_as_older_child(frame);
     if (DeferredSends* later = t_deferred_sends) {
       std::lock_guard lock(later->mu);
       later->frames.emplace_back(via, std::move(frame));
       later->ready.notify_all();
       return true;
     }
+    // In this node's version, or in an older child's (P3), decided as it leaves: a frame relayed
+    // from below (an error, an answer) keeps no version of its sender's.
+    frame.version = kProtocolVersion;
+    if (older_children_heard.load(std::memory_order_relaxed)) speak_as_older_child(frame);
     if (auto sent = via->send(frame); !sent) {
       log("send " + frame.to + " failed: " + sent.error().message);
       return false;
@@ -1027,6 +1036,9 @@ struct Link::Impl {
     const bool up = head.kind == FrameKind::up;
     std::shared_ptr<Child> child;
     std::string conflict;  // P6b: why a known child is not linked with
+    // A child's items may come before its hello (this node restarted): what it is told then
+    // ("unregistered") must be in its version.
+    if (up) note_child_version(head.from, head.version);
     if (up) {
       std::lock_guard lock(mu);
       auto it = children.find(head.from);
@@ -1191,9 +1203,9 @@ struct Link::Impl {
     }
     std::string why;
     if (is_down(via)) {
+      if (f.kind == FrameKind::hello || f.kind == FrameKind::heartbeat) note_child_version(f.from, f.version);
       auto child = accepted_child(f.from, &why);
       if (child) {
-        note_child_version(f.from, f.version);
         if (f.version != kProtocolVersion && f.kind == FrameKind::answer) return answer_of_older_child(via, f, child, agent);
         return from_child_frame(via, f, child, agent);
       }

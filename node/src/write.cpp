@@ -242,7 +242,8 @@ Result<std::uint64_t> apply_ring(Txn& txn) {
     ItemRow item;
     if (!decode_item(view(v), item)) {
       mdb_cursor_close(cursor);
-      return fail(Errc::corrupt, "item " + std::to_string(u64(k)) + " is truncated");
+      return fail(Errc::corrupt, "item " + std::to_string(u64(k)) +
+                                     " cannot be read: its row is truncated, or written by a later build");
     }
     scanned_to = u64(k) + 1;
     if (item.persistent) continue;

@@ -1114,6 +1114,13 @@ TEST(Link, AParentSpeaksToAChildOfTheVersionBeforeInThatVersion) {
     EXPECT_EQ(a.got[i].triple, a.expected[i].triple);
     EXPECT_EQ(a.got[i].meta.asserted_at, a.expected[i].meta.asserted_at);
   }
+  // The hospital's link restarts: the home's next items come before its hello, and what it is
+  // told then ("unregistered") is in its version too, so it says hello again.
+  tree.hospital.reset();
+  store_hrv_items(tree.home1_dir, 3, 3);
+  tree.hospital = tree.start_hospital();
+  EXPECT_TRUE(eventually([&] { return count(tree.hospital_dir, {.p = Term::iri(kEx + "n")}) == 6; }, 15s))
+      << tree.hospital_log.text();
   EXPECT_EQ(old_home->refused(), std::vector<std::string>{}) << "frames the old home would have refused";
 }
 
