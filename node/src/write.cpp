@@ -372,8 +372,9 @@ std::string not_utf8(std::string_view text, std::string_view of_what) {
 Result<void> validate_item(const Item& item, const Settings& settings) {
   if (item.triples.empty()) return fail(Errc::invalid_argument, "an item needs at least one triple");
   if (item.span < 0) return fail(Errc::invalid_argument, "span " + std::to_string(item.span) + " ns is negative");
-  // Without an asserted-at the item is asserted when stored: about now.
-  const std::int64_t start = item.asserted_at.value_or(now_ns());
+  // Without an asserted-at the item is asserted when stored: about now (the clock is read only
+  // for an item with a span: this runs for every item a hospital takes).
+  const std::int64_t start = item.span > 0 ? item.asserted_at.value_or(now_ns()) : 0;
   std::int64_t end = 0;
   if (item.span > 0 && __builtin_add_overflow(start, item.span, &end))
     return fail(Errc::invalid_argument, "asserted-at " + std::to_string(start) + " plus span " +
