@@ -9,7 +9,7 @@ cd "$(dirname "$0")"
 PACKAGES=(
   build-essential cmake ninja-build pkg-config
   liblmdb-dev lmdb-utils libserd-dev serdi liburiparser-dev libunistring-dev
-  libsord-dev libsqlite3-dev
+  libsord-dev libsqlite3-dev libjemalloc-dev
   liblcm-dev liblcm-bin cyclonedds-dev cyclonedds-tools libcgal-dev libtomlplusplus-dev
   swi-prolog-nox
   libgtest-dev libgmock-dev libbenchmark-dev
