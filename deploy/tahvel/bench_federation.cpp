@@ -714,6 +714,8 @@ struct SimHome {
   bool go_back = false;
   std::uint64_t last_sent = 0;
   Clock::time_point progress{}, last_hello{};
+  std::chrono::nanoseconds hello_base{0};  // P6: the last hello's gap before its random move; 0: none yet
+  std::chrono::nanoseconds hello_wait{0};  // how long after the last hello the next one goes
   bool ready = false;  // in the sender's ready list (under SimHomes::wake_mu_)
 };
 
@@ -868,8 +870,11 @@ class SimHomes {
     std::lock_guard lock(h.mu);
     const auto now = Clock::now();
     if (!h.welcomed) {
-      if (now - h.last_hello >= 250ms) {
+      if (now - h.last_hello >= h.hello_wait) {  // at the pace of a home's Link (P6)
         h.last_hello = now;
+        const fed::HelloGap gap = fed::next_hello_gap(h.hello_base, 1s);
+        h.hello_base = gap.base;
+        h.hello_wait = gap.wait;
         (void)h.transport->send(fed::sim::hello_frame(h.iri, parent_, {}));
       }
       return false;
@@ -936,11 +941,12 @@ class SimHomes {
   void take_frame(SimHome& h, const fed::Frame& f) {
     std::lock_guard lock(h.mu);
     if (f.kind == fed::FrameKind::welcome) {  // P6: resume from the parent's mark
-      // A home says hello every 250 ms until welcomed, so more than one welcome may come, the
+      // A home says hello until welcomed, so more than one welcome may come, the
       // later ones after items were sent and acknowledged: the parent's mark never goes back,
       // so neither does this one (a welcome that set it back, followed by an ack, left the
       // mark above the last frame sent, and the home waiting for ever).
       h.welcomed = true;
+      h.hello_base = h.hello_wait = {};  // a hello after a later error is the first again
       h.mark = std::max<std::uint64_t>(h.mark, f.ack);
       h.last_sent = h.mark;
       h.progress = Clock::now();

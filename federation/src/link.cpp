@@ -23,6 +23,7 @@
 #include <iostream>
 #include <map>
 #include <mutex>
+#include <random>
 #include <span>
 #include <thread>
 #include <unordered_map>
@@ -55,6 +56,9 @@ constexpr std::chrono::seconds kAnswerKeepalive{2};
 // belongs to an asker that died without removing it (SIGKILL): the link clears it (P18).
 constexpr std::chrono::seconds kAskerGrace{2};
 constexpr std::chrono::milliseconds kIdlePumpWait{250};  // the down pump with nothing to pace
+// P6: an unanswered hello's gap doubles up to this, so that a parent slow to answer (its
+// thousand children saying hello at once after it restarted) is not asked ever more often.
+constexpr std::chrono::seconds kHelloGapMax{4};
 // A batch of at most this many frames, taken while the applier is idle, is applied by the taker
 // itself (one thread hand-off less on a quiet link); larger ones go to the applier, so that
 // under load taking overlaps with the store transaction of the batch before.
@@ -181,6 +185,16 @@ std::string subtree_for(const std::string& context, const std::string& node) {
 }
 
 }  // namespace
+
+HelloGap next_hello_gap(std::chrono::nanoseconds before, std::chrono::nanoseconds heartbeat_every) {
+  const std::chrono::nanoseconds first = std::min<std::chrono::nanoseconds>(heartbeat_every, 250ms);
+  HelloGap gap;
+  gap.base = before.count() <= 0 ? first : std::min<std::chrono::nanoseconds>(before * 2, std::max<std::chrono::nanoseconds>(first, kHelloGapMax));
+  thread_local std::minstd_rand random(std::random_device{}());
+  const std::int64_t quarter = gap.base.count() / 4;
+  gap.wait = gap.base + std::chrono::nanoseconds(std::uniform_int_distribution<std::int64_t>(-quarter, quarter)(random));
+  return gap;
+}
 
 std::vector<node::Pattern> default_forward_policy() {
   return {node::Pattern{.p = node::Term::iri("http://www.w3.org/ns/sosa/observedProperty"),
@@ -354,6 +368,7 @@ struct Link::Impl {
     Clock::time_point pending_since{};
     std::string conflict_written;  // what its state item on the board says of a conflict
     bool pumped = false;      // handed to the down pump (at its first hello)
+    bool board_set = false;   // its agent takes subtree items and removal notices (first hello)
     bool pump_dirty = false;  // the pump reads its queue again: a hello or an ack came
     bool state_dirty = true;
     std::int64_t state_written_ns = 0;
@@ -717,9 +732,24 @@ struct Link::Impl {
       }
       return &it->second;
     };
+    // P6: of several hellos alike from one sender in a batch only the last is answered (a
+    // child asks again while its answer is on the way); hellos that differ (two stores under
+    // one IRI, P6b) are each answered.
+    std::unordered_map<std::string_view, std::size_t> last_hello;
     auto apply = [&](ReceivedBatch& batch) {
+      last_hello.clear();
+      if (std::count_if(batch.frames.begin(), batch.frames.end(), [](const Frame& f) { return f.kind == FrameKind::hello; }) > 1)
+        for (std::size_t i = 0; i < batch.frames.size(); ++i)
+          if (batch.frames[i].kind == FrameKind::hello) last_hello[batch.frames[i].from] = i;
       for (std::size_t i = 0; i < batch.frames.size();) {
         const Frame& f = batch.frames[i];
+        if (f.kind == FrameKind::hello && !last_hello.empty()) {
+          const Frame& last = batch.frames[last_hello[f.from]];
+          if (&last != &f && last.body == f.body && last.ack == f.ack && last.version == f.version) {
+            ++i;
+            continue;
+          }
+        }
         if (f.kind == FrameKind::up || f.kind == FrameKind::down) {
           std::size_t j = i + 1;
           while (j < batch.frames.size() && batch.frames[j].kind == f.kind && batch.frames[j].from == f.from) ++j;
@@ -1275,12 +1305,25 @@ struct Link::Impl {
                          " of this store, which has issued less");
           down_from = 0;
         }
-        // P11: its down queue also takes whole-subtree items (idempotent; configured children
-        // were subscribed at start).
-        node::Pattern subtree;
-        subtree.context = self + "/*";
-        if (auto sub = link->subscribe(subtree); !sub) log("cannot subscribe <" + child->iri + "> to subtree items: " + sub.error().message);
-        if (auto r = link->receive_removals(); !r) log("cannot have removals sent to <" + child->iri + ">: " + r.error().message);
+        // P11: its down queue also takes whole-subtree items (configured children were
+        // subscribed at start). Once per child and run: two store transactions that change
+        // nothing, for every hello of a thousand children after this node restarted, were
+        // most of what answering them cost.
+        bool board_set = false;
+        {
+          std::lock_guard lock(mu);
+          board_set = child->board_set;
+        }
+        if (!board_set) {
+          node::Pattern subtree;
+          subtree.context = self + "/*";
+          auto sub = link->subscribe(subtree);
+          if (!sub) log("cannot subscribe <" + child->iri + "> to subtree items: " + sub.error().message);
+          auto removals = link->receive_removals();
+          if (!removals) log("cannot have removals sent to <" + child->iri + ">: " + removals.error().message);
+          std::lock_guard lock(mu);
+          child->board_set = sub && removals;
+        }
         std::string refuse;
         {
           std::lock_guard lock(mu);
@@ -2348,6 +2391,7 @@ struct Link::Impl {
     if (auto st = node->stats(); st && st->max_literal_bytes > 0)
       answer_part = std::max<std::size_t>(4, std::min<std::size_t>(answer_part, st->max_literal_bytes) / 4 * 4);
     Clock::time_point next_beat{};
+    std::chrono::nanoseconds hello_gap{0};  // after the last hello, before the random move; 0 while welcomed (P6)
     Clock::time_point last_round = Clock::now();
     while (!stopping) {
       std::vector<BoardWrite> writes;
@@ -2365,8 +2409,14 @@ struct Link::Impl {
         if (now >= next_beat) {
           beat = true;
           // A refused node asks again at the heartbeat's pace, not four times a second.
-          next_beat = now + (welcomed || !refused_by_parent.empty() ? opt.heartbeat_every
-                                                                    : std::min(opt.heartbeat_every, std::chrono::milliseconds(250)));
+          if (welcomed || !refused_by_parent.empty()) {
+            next_beat = now + opt.heartbeat_every;
+            hello_gap = {};
+          } else {
+            const HelloGap gap = next_hello_gap(hello_gap, opt.heartbeat_every);
+            hello_gap = gap.base;
+            next_beat = now + std::chrono::duration_cast<Clock::duration>(gap.wait);
+          }
         }
         const std::int64_t wall = now_ns();
         // A round comes at least every 50 ms. A longer gap is this process not running (stopped

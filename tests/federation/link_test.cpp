@@ -730,6 +730,47 @@ TEST(Link, AWelcomedChildThatItsParentNoLongerAcceptsIsRefusedNotLeftDown) {
             1u);
 }
 
+// P6: a thousand homes whose hospital restarted all say hello; a hospital slow to answer them
+// must not be asked ever more often (at a fixed 250 ms it fell behind, its children's heartbeats
+// came too late, it called them down and they said hello again: docs/bench.md, session 35).
+TEST(HelloGap, StartsAtAQuarterSecondDoublesUpToFourSecondsEachWaitWithinAQuarterOfIt) {
+  using std::chrono::nanoseconds;
+  std::vector<nanoseconds> bases;
+  nanoseconds before{0};
+  for (int i = 0; i < 8; ++i) {
+    const HelloGap gap = next_hello_gap(before, 1s);
+    bases.push_back(gap.base);
+    EXPECT_GE(gap.wait, gap.base - gap.base / 4) << "hello " << i + 1;
+    EXPECT_LE(gap.wait, gap.base + gap.base / 4) << "hello " << i + 1;
+    before = gap.base;
+  }
+  EXPECT_EQ(bases, (std::vector<nanoseconds>{250ms, 500ms, 1s, 2s, 4s, 4s, 4s, 4s}));
+  // A faster heartbeat starts faster; the ceiling stays.
+  EXPECT_EQ(next_hello_gap(nanoseconds{0}, 100ms).base, 100ms);
+  EXPECT_EQ(next_hello_gap(3s, 100ms).base, 4s);
+  // The waits differ: children that lost their parent together do not ask together.
+  std::set<nanoseconds::rep> waits;
+  for (int i = 0; i < 20; ++i) waits.insert(next_hello_gap(2s, 1s).wait.count());
+  EXPECT_GT(waits.size(), 10u);
+}
+
+TEST(Link, AChildWhoseParentDoesNotAnswerSaysHelloLessAndLessOften) {
+  Tree tree;
+  auto parent = std::unique_ptr<Transport>(tree.bus.open(kHospital, tree.hospital_log.sink()));
+  tree.home1 = tree.start_home(tree.home1_dir, kHome1, tree.home1_log);
+  // Hellos at about 0, 0.2, 0.6, 1.4 and 3 s (heartbeat_every 200 ms): five in 3.5 s, where a
+  // fixed gap said eighteen.
+  int hellos = 0;
+  const auto end = std::chrono::steady_clock::now() + 3500ms;
+  while (std::chrono::steady_clock::now() < end) {
+    auto frame = parent->receive(50ms);
+    ASSERT_TRUE(frame) << frame.error().message;
+    if (*frame && (*frame)->kind == FrameKind::hello) ++hellos;
+  }
+  EXPECT_GE(hellos, 2);
+  EXPECT_LE(hellos, 7);
+}
+
 // `tahvel status` prints the age of tv:lastSeen: while a child is heard it must never look
 // older than child_silence (3.5 s), the age at which the parent would call it down.
 TEST(Link, AChildThatIsHeardNeverLooksSilentLongerThanChildSilenceInItsState) {

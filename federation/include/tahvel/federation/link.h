@@ -196,4 +196,15 @@ Result<std::uint64_t> remote_query(node::Node& node, const RemoteQuery& query,
 // The default forwarding policy (HRV windows: sosa:observedProperty tv:HeartRateVariability).
 std::vector<node::Pattern> default_forward_policy();
 
+// P6: how long a child that is not welcomed waits after a hello before the next, given the
+// wait before it (zero: the hello is the first) and its LinkOptions::heartbeat_every:
+// min(heartbeat_every, 250 ms) at first, then twice the wait before, up to 4 s; each moved by up
+// to a quarter at random (the children of a restarted parent then do not ask together). For
+// programs that speak the child role themselves (load generators), as the Link does.
+struct HelloGap {
+  std::chrono::nanoseconds base{0};  // before the random move; the next gap doubles this
+  std::chrono::nanoseconds wait{0};  // the wait to use
+};
+HelloGap next_hello_gap(std::chrono::nanoseconds before, std::chrono::nanoseconds heartbeat_every);
+
 }  // namespace tahvel::federation
