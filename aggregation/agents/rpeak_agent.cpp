@@ -8,6 +8,8 @@
 //
 // Chunks must follow each other (tv:startSample = the previous chunk's end): an earlier one is
 // a repeat (skipped), a later one a gap (logged; the detector restarts at the new chunk).
+// A recording it cannot use (no recording item, an unusable fs or gain) has its chunks logged
+// and skipped, and is the agent's problem on the board while they are (docs/agents.md).
 // (Re)start: the first chunk of a recording that does not start at sample 0 makes the agent
 // replay the recording's earlier chunks from the board through a new detector, writing only
 // the R-peak items that are not on the board yet, so its peaks are those an uninterrupted run
@@ -61,11 +63,11 @@ class RPeakStage {
     if (auto it = streams_.find(recording); it != streams_.end()) return &it->second;
     auto info = rt::load_recording(session_.node, recording);
     if (!info) {
-      rt::log_line(kProgram, info.error().message + "; skipped");
+      unusable(recording, info.error().message);
       return nullptr;
     }
     if (auto valid = agg::validate(detector_options(*info)); !valid) {
-      rt::log_line(kProgram, "<" + recording + ">: " + valid.error().message + "; skipped");
+      unusable(recording, "<" + recording + ">: " + valid.error().message);
       return nullptr;
     }
     Stream& s = streams_.emplace(recording, Stream{*info, agg::RPeakDetector(detector_options(*info))}).first->second;
@@ -121,6 +123,33 @@ class RPeakStage {
     return rt::store_output(session_, item, catching_up);
   }
 
+  // A recording whose chunks cannot be used (no recording item, a sampling rate or gain the
+  // detector cannot take) yields no R-peaks, so no RR and no HRV at home or at the hospital: an
+  // operator must see why in `tahvel status` (the agent's problem on the board), not only in
+  // this agent's log. The problem names the latest such recording while any is being skipped.
+  void unusable(const std::string& recording, const std::string& why) {
+    rt::log_line(kProgram, why + "; skipped");
+    unusable_[recording] = why;
+    latest_unusable_ = recording;
+    report();
+  }
+  // The recording is used now (its item came or changed) or has ended: its chunks are no
+  // longer being skipped.
+  void usable_again(const std::string& recording) {
+    if (unusable_.erase(recording) == 0) return;
+    if (latest_unusable_ == recording) latest_unusable_ = unusable_.empty() ? std::string() : unusable_.begin()->first;
+    report();
+  }
+  void report() {
+    std::string text;
+    if (!unusable_.empty()) {
+      text = unusable_[latest_unusable_] + "; its ECG chunks are skipped";
+      if (unusable_.size() > 1) text += " (and those of " + std::to_string(unusable_.size() - 1) + " other recording(s))";
+    }
+    if (auto said = session_.agent.report_problem(text); !said)
+      rt::log_line(kProgram, "report the problem on the board: " + said.error().message);
+  }
+
   rt::Outcome on_chunk(const std::vector<tn::Record>& records) {
     auto chunk = agg::read_chunk(records);
     if (!chunk) {
@@ -130,6 +159,7 @@ class RPeakStage {
     rt::Outcome outcome;
     Stream* s = stream_for(chunk->recording, chunk->start_sample, outcome);
     if (!s || outcome.fatal) return outcome;
+    usable_again(chunk->recording);
     if (chunk->start_sample < s->next) {
       rt::log_line(kProgram, "<" + chunk->iri + ">: already processed; skipped");
       return rt::Outcome::ok();
@@ -148,6 +178,7 @@ class RPeakStage {
       }
       rt::Outcome outcome;
       Stream* s = stream_for(recording, *end, outcome);
+      usable_again(recording);  // used, or over: its chunks are not being skipped any more
       if (!s || outcome.fatal) return outcome;
       agg::RPeaks out;
       out.recording = recording;
@@ -168,6 +199,8 @@ class RPeakStage {
 
   rt::Session& session_;
   std::map<std::string, Stream> streams_;
+  std::map<std::string, std::string> unusable_;  // recording -> why its chunks are skipped
+  std::string latest_unusable_;
 };
 
 }  // namespace

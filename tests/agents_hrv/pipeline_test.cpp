@@ -697,6 +697,64 @@ TEST(AgentPrograms, AnHrvSettingItCannotUseIsItsProblemOnTheBoardUntilAUsableOne
   fs::remove_all(tmp);
 }
 
+// A recording whose chunks tahvel-rpeak cannot use gives no HRV anywhere: the agent says why on
+// its board (for `tahvel status`) while it skips them, and the problem is over once a chunk of
+// the recording is used, or its end comes.
+TEST(AgentPrograms, ARecordingTheRPeakAgentCannotUseIsItsProblemWhileItsChunksAreSkipped) {
+  char pattern[] = "/tmp/tahvel-agents-rpeak-problem-XXXXXX";
+  ASSERT_NE(mkdtemp(pattern), nullptr);
+  const std::string tmp = pattern, dir = tmp + "/home1";
+  auto made = tn::Node::init(dir, tn::InitOptions{.iri = kNodeIri});
+  ASSERT_TRUE(made) << made.error().message;
+  std::optional<tn::Node> node(std::move(*made));
+  auto ecg = node->agent("ecg");
+  ASSERT_TRUE(ecg);
+  const tn::Term rpeak = tn::Term::iri(kNodeIri + "/rpeak");
+  auto problem = [&] {
+    auto records = node->snapshot()->list({.s = rpeak, .p = tn::Term::iri(tn::kProblem), .source = rpeak.value});
+    return records->empty() ? std::string() : records->front().triple.o.value;
+  };
+  auto eventually = [](const std::function<bool()>& holds) {
+    const auto deadline = std::chrono::steady_clock::now() + 60s;
+    while (!holds() && std::chrono::steady_clock::now() < deadline) std::this_thread::sleep_for(20ms);
+    return holds();
+  };
+  agg::RecordingInfo info;
+  info.iri = kRecording;
+  info.sensor_iri = kNodeIri + "/ecg";
+  info.fs = 250;
+  info.gain = 200;
+  const std::vector<std::vector<std::int32_t>> flat(1, std::vector<std::int32_t>(250 * 4, 0));
+  auto chunk = [&](int second) { return agg::ecg_chunk_item(info, second * 250, flat, static_cast<std::size_t>(second * 250), 250); };
+  {
+    Process agent({bin("tahvel-rpeak"), dir, "--idle", "30"}, tmp + "/rpeak.log");
+    // Chunks come before their recording's description: nothing says what their samples are.
+    ASSERT_TRUE(ecg->store(chunk(0)));
+    ASSERT_TRUE(eventually([&] { return !problem().empty(); })) << "no problem on the board";
+    EXPECT_NE(problem().find("no recording item <" + kRecording + ">"), std::string::npos) << problem();
+    EXPECT_NE(problem().find("its ECG chunks are skipped"), std::string::npos) << problem();
+    // The description comes; the next chunk is used and the problem is over.
+    ASSERT_TRUE(ecg->store(agg::recording_item(info)));
+    ASSERT_TRUE(ecg->store(chunk(1)));
+    EXPECT_TRUE(eventually([&] { return problem().empty(); })) << "still: " << problem();
+    EXPECT_TRUE(eventually([&] { return node->snapshot()->count({.s = tn::Term::iri(agg::rpeaks_iri(kRecording, 250))}).value() > 0; }))
+        << "the chunk after the description was used";
+    // A second recording with a gain the detector cannot take: a problem until its end.
+    agg::RecordingInfo zero_gain = info;
+    zero_gain.iri = kRecording + "-b";
+    zero_gain.gain = -1;
+    ASSERT_TRUE(ecg->store(agg::recording_item(zero_gain)));
+    ASSERT_TRUE(ecg->store(agg::ecg_chunk_item(zero_gain, 0, flat, 0, 250)));
+    ASSERT_TRUE(eventually([&] { return problem().find("<" + zero_gain.iri + ">") != std::string::npos; })) << problem();
+    EXPECT_NE(problem().find("gain"), std::string::npos) << problem();
+    ASSERT_TRUE(ecg->store(agg::recording_end_item(zero_gain.iri, 250)));
+    EXPECT_TRUE(eventually([&] { return problem().empty(); })) << "still: " << problem();
+    EXPECT_EQ(agent.stop(), 0);
+  }
+  node.reset();
+  fs::remove_all(tmp);
+}
+
 // Windows are named by recording and start: a window of another length already holding the name
 // (a second HRV agent on the recording) stands, and the one that cannot be written is said.
 TEST(AgentPrograms, AWindowWhoseNameAnotherWindowHoldsIsLoggedNotSilentlyDropped) {
