@@ -655,28 +655,49 @@ TEST(AgentPrograms, TheHrvConfigurationIsCheckedLoggedAndKeptPastTheRing) {
   fs::remove_all(tmp);
 }
 
+// What the agent `agent` says on the board of `node` is its problem ("": none).
+std::string problem_of(tn::Node& node, const tn::Term& agent) {
+  auto records = node.snapshot()->list({.s = agent, .p = tn::Term::iri(tn::kProblem), .source = agent.value});
+  return records->empty() ? std::string() : records->front().triple.o.value;
+}
+
+// Whether `holds` comes true within a minute (an agent process answers in milliseconds).
+bool within_a_minute(const std::function<bool()>& holds) {
+  const auto deadline = std::chrono::steady_clock::now() + 60s;
+  while (!holds() && std::chrono::steady_clock::now() < deadline) std::this_thread::sleep_for(20ms);
+  return holds();
+}
+
+// A store of its own in a new temporary directory, for one agent program's test.
+struct ScratchNode {
+  std::string tmp, dir;
+  std::optional<tn::Node> node;
+  explicit ScratchNode(const std::string& name) {
+    std::string pattern = "/tmp/tahvel-agents-" + name + "-XXXXXX";
+    if (mkdtemp(pattern.data()) == nullptr) return;
+    tmp = pattern;
+    dir = tmp + "/home1";
+    if (auto made = tn::Node::init(dir, tn::InitOptions{.iri = kNodeIri})) node.emplace(std::move(*made));
+  }
+  ~ScratchNode() {
+    node.reset();
+    if (!tmp.empty()) fs::remove_all(tmp);
+  }
+};
+
 // A setting the agent cannot use is its problem on its board (for `tahvel status`, here and at
 // the hospital that sent it) until a usable one follows; the problem is over then.
 TEST(AgentPrograms, AnHrvSettingItCannotUseIsItsProblemOnTheBoardUntilAUsableOneFollows) {
-  char pattern[] = "/tmp/tahvel-agents-hrv-problem-XXXXXX";
-  ASSERT_NE(mkdtemp(pattern), nullptr);
-  const std::string tmp = pattern, dir = tmp + "/home1";
-  auto made = tn::Node::init(dir, tn::InitOptions{.iri = kNodeIri});
-  ASSERT_TRUE(made) << made.error().message;
-  std::optional<tn::Node> node(std::move(*made));
+  ScratchNode scratch("hrv-problem");
+  ASSERT_TRUE(scratch.node) << "cannot make a store under /tmp";
+  const std::string &tmp = scratch.tmp, &dir = scratch.dir;
+  std::optional<tn::Node>& node = scratch.node;
   auto op = node->agent("operator");
   ASSERT_TRUE(op);
   const tn::Term hrv = tn::Term::iri(kNodeIri + "/hrv");
   ASSERT_TRUE(op->store(tn::Item{}.add(hrv, agg::tv_term("windowSeconds"), tn::Term::literal("2 minutes"))));
-  auto problem = [&] {
-    auto records = node->snapshot()->list({.s = hrv, .p = tn::Term::iri(tn::kProblem), .source = hrv.value});
-    return records->empty() ? std::string() : records->front().triple.o.value;
-  };
-  auto eventually = [](const std::function<bool()>& holds) {
-    const auto deadline = std::chrono::steady_clock::now() + 60s;
-    while (!holds() && std::chrono::steady_clock::now() < deadline) std::this_thread::sleep_for(20ms);
-    return holds();
-  };
+  auto problem = [&] { return problem_of(*node, hrv); };
+  const auto& eventually = within_a_minute;
   {
     Process agent({bin("tahvel-hrv"), dir, "--idle", "30"}, tmp + "/hrv.log");
     ASSERT_TRUE(eventually([&] { return !problem().empty(); })) << "no problem on the board";
@@ -693,32 +714,20 @@ TEST(AgentPrograms, AnHrvSettingItCannotUseIsItsProblemOnTheBoardUntilAUsableOne
     EXPECT_EQ(agent.stop(), 0);
   }
   EXPECT_EQ(node->snapshot()->count({.s = hrv, .p = tn::Term::iri(tn::kProblemPid)}).value(), 0u);
-  node.reset();
-  fs::remove_all(tmp);
 }
 
 // A recording whose chunks tahvel-rpeak cannot use gives no HRV anywhere: the agent says why on
 // its board (for `tahvel status`) while it skips them, and the problem is over once a chunk of
 // the recording is used, or its end comes.
 TEST(AgentPrograms, ARecordingTheRPeakAgentCannotUseIsItsProblemWhileItsChunksAreSkipped) {
-  char pattern[] = "/tmp/tahvel-agents-rpeak-problem-XXXXXX";
-  ASSERT_NE(mkdtemp(pattern), nullptr);
-  const std::string tmp = pattern, dir = tmp + "/home1";
-  auto made = tn::Node::init(dir, tn::InitOptions{.iri = kNodeIri});
-  ASSERT_TRUE(made) << made.error().message;
-  std::optional<tn::Node> node(std::move(*made));
+  ScratchNode scratch("rpeak-problem");
+  ASSERT_TRUE(scratch.node) << "cannot make a store under /tmp";
+  std::optional<tn::Node>& node = scratch.node;
   auto ecg = node->agent("ecg");
   ASSERT_TRUE(ecg);
   const tn::Term rpeak = tn::Term::iri(kNodeIri + "/rpeak");
-  auto problem = [&] {
-    auto records = node->snapshot()->list({.s = rpeak, .p = tn::Term::iri(tn::kProblem), .source = rpeak.value});
-    return records->empty() ? std::string() : records->front().triple.o.value;
-  };
-  auto eventually = [](const std::function<bool()>& holds) {
-    const auto deadline = std::chrono::steady_clock::now() + 60s;
-    while (!holds() && std::chrono::steady_clock::now() < deadline) std::this_thread::sleep_for(20ms);
-    return holds();
-  };
+  auto problem = [&] { return problem_of(*node, rpeak); };
+  const auto& eventually = within_a_minute;
   agg::RecordingInfo info;
   info.iri = kRecording;
   info.sensor_iri = kNodeIri + "/ecg";
@@ -727,7 +736,7 @@ TEST(AgentPrograms, ARecordingTheRPeakAgentCannotUseIsItsProblemWhileItsChunksAr
   const std::vector<std::vector<std::int32_t>> flat(1, std::vector<std::int32_t>(250 * 4, 0));
   auto chunk = [&](int second) { return agg::ecg_chunk_item(info, second * 250, flat, static_cast<std::size_t>(second * 250), 250); };
   {
-    Process agent({bin("tahvel-rpeak"), dir, "--idle", "30"}, tmp + "/rpeak.log");
+    Process agent({bin("tahvel-rpeak"), scratch.dir, "--idle", "30"}, scratch.tmp + "/rpeak.log");
     // Chunks come before their recording's description: nothing says what their samples are.
     ASSERT_TRUE(ecg->store(chunk(0)));
     ASSERT_TRUE(eventually([&] { return !problem().empty(); })) << "no problem on the board";
@@ -751,8 +760,6 @@ TEST(AgentPrograms, ARecordingTheRPeakAgentCannotUseIsItsProblemWhileItsChunksAr
     EXPECT_TRUE(eventually([&] { return problem().empty(); })) << "still: " << problem();
     EXPECT_EQ(agent.stop(), 0);
   }
-  node.reset();
-  fs::remove_all(tmp);
 }
 
 // Windows are named by recording and start: a window of another length already holding the name
