@@ -39,7 +39,8 @@ struct Stream {
 
 class RPeakStage {
  public:
-  explicit RPeakStage(rt::Session& session) : session_(session) {}
+  // A problem left on the board by an earlier run is over until a recording is skipped again.
+  explicit RPeakStage(rt::Session& session) : session_(session) { report(); }
 
   rt::Outcome handle(const tn::Delivery& delivery) {
     const auto& records = delivery.records;
