@@ -232,6 +232,35 @@ bool has_predicate(const std::vector<node::Record>& records, const char* local) 
   return false;
 }
 
+SkippedInputs::SkippedInputs(Session& session, std::string others) : session_(session), others_(std::move(others)) {
+  report();
+}
+
+void SkippedInputs::skip(const std::string& key, const std::string& why, const std::string& what) {
+  log_line(session_.program, why + "; skipped");
+  std::string cause = why + "; " + what + " are skipped";
+  if (latest_ == key && causes_[key] == cause) return;  // said already: one write per change
+  causes_[key] = std::move(cause);
+  latest_ = key;
+  report();
+}
+
+void SkippedInputs::resume(const std::string& key) {
+  if (causes_.erase(key) == 0) return;
+  if (latest_ == key) latest_ = causes_.empty() ? std::string() : causes_.begin()->first;
+  report();
+}
+
+void SkippedInputs::report() {
+  std::string text;
+  if (!causes_.empty()) {
+    text = causes_[latest_];
+    if (causes_.size() > 1) text += " (and those of " + std::to_string(causes_.size() - 1) + " other " + others_ + ")";
+  }
+  if (auto said = session_.agent.report_problem(text); !said)
+    log_line(session_.program, "report the problem on the board: " + said.error().message);
+}
+
 int guarded_main(const char* program, const char* usage, const std::function<int()>& body) {
   try {
     return body();

@@ -122,4 +122,27 @@ Outcome store_output(Session& session, const node::Item& item, bool catching_up)
 // True when one of the records has predicate tv:<local>.
 bool has_predicate(const std::vector<node::Record>& records, const char* local);
 
+// Input an agent skips because it cannot use it (a recording without a usable description, an
+// item it cannot read), kept as the agent's problem on the board (node::Agent::report_problem)
+// while it is being skipped. Without it an operator sees only that no HRV comes; with it
+// `tahvel status` says why, under the program, at the node and at the hospital. A key groups
+// what one cause skips (a recording, a writer); the problem names the latest key's cause and
+// counts the others. Made at the agent's start, it clears a problem an earlier run left.
+class SkippedInputs {
+ public:
+  // `others` names the keys in the count ("recording(s)"): "... (and those of 2 other recording(s))".
+  SkippedInputs(Session& session, std::string others);
+  // Logs "<why>; skipped" and makes `key` a cause: "<why>; <what> are skipped".
+  void skip(const std::string& key, const std::string& why, const std::string& what);
+  // What `key` skipped is used again, or over (a recording ended): no longer a cause.
+  void resume(const std::string& key);
+
+ private:
+  void report();
+  Session& session_;
+  std::string others_;
+  std::map<std::string, std::string> causes_;  // key -> "<why>; <what> are skipped"
+  std::string latest_;
+};
+
 }  // namespace tahvel::agents::hrv

@@ -39,8 +39,7 @@ struct Stream {
 
 class RPeakStage {
  public:
-  // A problem left on the board by an earlier run is over until a recording is skipped again.
-  explicit RPeakStage(rt::Session& session) : session_(session) { report(); }
+  explicit RPeakStage(rt::Session& session) : session_(session), skipped_(session, "recording(s)") {}
 
   rt::Outcome handle(const tn::Delivery& delivery) {
     const auto& records = delivery.records;
@@ -125,30 +124,10 @@ class RPeakStage {
   }
 
   // A recording whose chunks cannot be used (no recording item, a sampling rate or gain the
-  // detector cannot take) yields no R-peaks, so no RR and no HRV at home or at the hospital: an
-  // operator must see why in `tahvel status` (the agent's problem on the board), not only in
-  // this agent's log. The problem names the latest such recording while any is being skipped.
+  // detector cannot take) yields no R-peaks, so no RR and no HRV at home or at the hospital:
+  // the agent's problem while they are skipped, until a chunk of it is used or it ends.
   void unusable(const std::string& recording, const std::string& why) {
-    rt::log_line(kProgram, why + "; skipped");
-    unusable_[recording] = why;
-    latest_unusable_ = recording;
-    report();
-  }
-  // The recording is used now (its item came or changed) or has ended: its chunks are no
-  // longer being skipped.
-  void usable_again(const std::string& recording) {
-    if (unusable_.erase(recording) == 0) return;
-    if (latest_unusable_ == recording) latest_unusable_ = unusable_.empty() ? std::string() : unusable_.begin()->first;
-    report();
-  }
-  void report() {
-    std::string text;
-    if (!unusable_.empty()) {
-      text = unusable_[latest_unusable_] + "; its ECG chunks are skipped";
-      if (unusable_.size() > 1) text += " (and those of " + std::to_string(unusable_.size() - 1) + " other recording(s))";
-    }
-    if (auto said = session_.agent.report_problem(text); !said)
-      rt::log_line(kProgram, "report the problem on the board: " + said.error().message);
+    skipped_.skip(recording, why, "its ECG chunks");
   }
 
   rt::Outcome on_chunk(const std::vector<tn::Record>& records) {
@@ -160,7 +139,7 @@ class RPeakStage {
     rt::Outcome outcome;
     Stream* s = stream_for(chunk->recording, chunk->start_sample, outcome);
     if (!s || outcome.fatal) return outcome;
-    usable_again(chunk->recording);
+    skipped_.resume(chunk->recording);
     if (chunk->start_sample < s->next) {
       rt::log_line(kProgram, "<" + chunk->iri + ">: already processed; skipped");
       return rt::Outcome::ok();
@@ -179,7 +158,7 @@ class RPeakStage {
       }
       rt::Outcome outcome;
       Stream* s = stream_for(recording, *end, outcome);
-      usable_again(recording);  // used, or over: its chunks are not being skipped any more
+      skipped_.resume(recording);  // used, or over: its chunks are not being skipped any more
       if (!s || outcome.fatal) return outcome;
       agg::RPeaks out;
       out.recording = recording;
@@ -200,8 +179,7 @@ class RPeakStage {
 
   rt::Session& session_;
   std::map<std::string, Stream> streams_;
-  std::map<std::string, std::string> unusable_;  // recording -> why its chunks are skipped
-  std::string latest_unusable_;
+  rt::SkippedInputs skipped_;
 };
 
 }  // namespace

@@ -9,6 +9,8 @@
 //
 // R-peak items must follow each other (tv:fromSample = the previous tv:toSample): an earlier
 // one is a repeat (skipped), a later one a gap (logged; the classifier restarts).
+// An R-peak item it cannot read, or of a recording without a recording item, is logged and
+// skipped, and is the agent's problem on the board while such items are (docs/agents.md).
 // (Re)start: the first R-peak item of a recording that does not start at sample 0 makes the
 // agent replay the recording's earlier R-peak items from the board through a new classifier,
 // writing only the RR items that are not on the board yet.
@@ -37,16 +39,22 @@ struct Stream {
 
 class RrStage {
  public:
-  explicit RrStage(rt::Session& session) : session_(session) {}
+  explicit RrStage(rt::Session& session) : session_(session), skipped_(session, "recording(s) or writer(s)") {}
 
   rt::Outcome handle(const tn::Delivery& delivery) {
+    // Unreadable items are a cause per writer: a detector of another version writes them all so.
+    const std::string writer = delivery.records.empty() ? std::string() : delivery.records.front().meta.source;
     auto peaks = agg::read_rpeaks(delivery.records);
     if (!peaks) {
-      rt::log_line(kProgram, peaks.error().message + "; skipped");
+      skipped_.skip("writer " + writer, peaks.error().message, "the R-peak items of <" + writer + "> it cannot read");
       return rt::Outcome::ok();
     }
+    skipped_.resume("writer " + writer);
     rt::Outcome outcome;
     Stream* s = stream_for(peaks->recording, peaks->from_sample, outcome);
+    // Without its description a recording's intervals cannot be timed: a cause until it is
+    // used or ends.
+    if (s || peaks->end_sample) skipped_.resume("recording " + peaks->recording);
     if (!s || outcome.fatal) return outcome;
     if (peaks->from_sample < s->next) {
       rt::log_line(kProgram, "<" + peaks->iri + ">: already processed; skipped");
@@ -60,7 +68,7 @@ class RrStage {
     if (auto it = streams_.find(recording); it != streams_.end()) return &it->second;
     auto info = rt::load_recording(session_.node, recording);
     if (!info) {
-      rt::log_line(kProgram, info.error().message + "; skipped");
+      skipped_.skip("recording " + recording, info.error().message, "its R-peak items");
       return nullptr;
     }
     Stream& s = streams_.emplace(recording, Stream{recording, agg::NnClassifier(info->fs), 0, {}, *info}).first->second;
@@ -122,6 +130,7 @@ class RrStage {
 
   rt::Session& session_;
   std::map<std::string, Stream> streams_;
+  rt::SkippedInputs skipped_;
 };
 
 }  // namespace

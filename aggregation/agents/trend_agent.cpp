@@ -11,6 +11,8 @@
 // hfMs2, lfHf, sd1Ms, sd2Ms); default sdnnMs rmssdMs meanHrBpm. Items are immutable: every
 // update is a new item named by its window, written only if not on the board yet.
 // (Re)start: reads every HRV window on the board and writes the trend items that are missing.
+// A window it cannot read is logged and skipped, and is the agent's problem on the board while
+// the windows of its writer are (docs/agents.md).
 #include <cstring>
 #include <iostream>
 #include <map>
@@ -46,37 +48,48 @@ using Series = std::map<double, Window>;
 class TrendStage {
  public:
   TrendStage(rt::Session& session, std::vector<agg::HrvMetric> metrics)
-      : session_(session), metrics_(std::move(metrics)) {}
+      : session_(session), metrics_(std::move(metrics)), skipped_(session, "writer(s)") {}
 
   // Reads every HRV window on the board and writes the trend items that are missing.
   rt::Outcome catch_up() {
     auto items = rt::items_matching(session_.node, hrv_windows());
     if (!items) return rt::Outcome::error("catch up: " + items.error().message);
-    std::size_t read = 0;
+    std::size_t windows = 0;
     for (const auto& records : *items)
-      if (auto w = agg::read_hrv_window(records)) {
+      if (auto w = read_window(records)) {
         recordings_[w->recording][w->window.start_s] = {w->iri, w->window};
-        ++read;
+        ++windows;
       }
     for (const auto& [recording, series] : recordings_)
       for (const auto& [start, window] : series)
         if (auto o = write_updates(recording, start, true); o.fatal) return o;
-    if (read) rt::log_line(kProgram, "read " + std::to_string(read) + " HRV window(s) of " +
+    if (windows) rt::log_line(kProgram, "read " + std::to_string(windows) + " HRV window(s) of " +
                                          std::to_string(recordings_.size()) + " recording(s) from the board");
     return rt::Outcome::ok();
   }
 
   rt::Outcome handle(const tn::Delivery& delivery) {
-    auto w = agg::read_hrv_window(delivery.records);
-    if (!w) {
-      rt::log_line(kProgram, w.error().message + "; skipped");
-      return rt::Outcome::ok();
-    }
+    auto w = read_window(delivery.records);
+    if (!w) return rt::Outcome::ok();
     recordings_[w->recording][w->window.start_s] = {w->iri, w->window};
     return write_updates(w->recording, w->window.start_s, false);
   }
 
  private:
+  // The window in `records`; nullopt when it cannot be read. Unreadable windows are a cause per
+  // writer (a home whose HRV agent writes another version's windows has no trend here): the
+  // agent's problem until a window of that writer is read.
+  std::optional<agg::HrvWindowItem> read_window(const std::vector<tn::Record>& records) {
+    const std::string writer = records.empty() ? std::string() : records.front().meta.source;
+    auto w = agg::read_hrv_window(records);
+    if (!w) {
+      skipped_.skip(writer, w.error().message, "the HRV windows of <" + writer + "> it cannot read");
+      return std::nullopt;
+    }
+    skipped_.resume(writer);
+    return std::move(*w);
+  }
+
   // The trend items of the window starting at `start` of `recording`, over the windows up to it.
   rt::Outcome write_updates(const std::string& recording, double start, bool catching_up) {
     const Series& series = recordings_.at(recording);
@@ -134,6 +147,7 @@ class TrendStage {
   std::vector<agg::HrvMetric> metrics_;
   agg::TrendOptions options_;
   std::map<std::string, Series> recordings_;
+  rt::SkippedInputs skipped_;
 };
 
 }  // namespace

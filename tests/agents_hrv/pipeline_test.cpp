@@ -765,6 +765,113 @@ TEST(AgentPrograms, ARecordingTheRPeakAgentCannotUseIsItsProblemWhileItsChunksAr
   }
 }
 
+// R-peak items tahvel-rr cannot use give no RR and no HRV: a recording without its description,
+// or items it cannot read (a detector of another version). Each is its problem on the board
+// while such items are skipped: the recording's until it is used, the writer's until an item
+// of that writer is read.
+TEST(AgentPrograms, RPeakItemsTheRrAgentCannotUseAreItsProblemWhileTheyAreSkipped) {
+  ScratchNode scratch("rr-problem");
+  ASSERT_TRUE(scratch.node) << "cannot make a store under /tmp";
+  std::optional<tn::Node>& node = scratch.node;
+  auto rpeak = node->agent("rpeak");
+  auto other_detector = node->agent("detector2");
+  ASSERT_TRUE(rpeak && other_detector);
+  const tn::Term rr = tn::Term::iri(kNodeIri + "/rr");
+  auto problem = [&] { return problem_of(*node, rr); };
+  const auto& eventually = within_a_minute;
+  agg::RecordingInfo info;
+  info.iri = kRecording;
+  info.sensor_iri = kNodeIri + "/ecg";
+  info.fs = 250;
+  // Beats a second apart over [from, to), the last item of the recording when `end`.
+  auto peaks = [](const std::string& recording, std::int64_t from, std::int64_t to, bool end) {
+    agg::RPeaks p;
+    p.recording = recording;
+    p.from_sample = from;
+    p.to_sample = to;
+    for (std::int64_t at = from + 100; at < to; at += 250) p.peaks.push_back(at);
+    p.derived_from = recording;
+    if (end) p.end_sample = to;
+    return agg::rpeak_item(p);
+  };
+  auto intervals_of = [&](const std::string& recording) {  // an RR item of the recording
+    for (const auto& r : node->snapshot()->list({.p = agg::tv_term("intervals"), .source = rr.value}).value())
+      if (r.triple.s.value.rfind(recording + "/rr/", 0) == 0) return true;
+    return false;
+  };
+  {
+    ASSERT_TRUE(node->agent("rr")->report_problem("left by an earlier run"));
+    Process agent({bin("tahvel-rr"), scratch.dir, "--idle", "30"}, scratch.tmp + "/rr.log");
+    ASSERT_TRUE(eventually([&] { return problem().empty(); })) << "still: " << problem();
+    // R-peaks before their recording's description: nothing says the sampling rate.
+    ASSERT_TRUE(rpeak->store(peaks(kRecording, 0, 2500, false)));
+    ASSERT_TRUE(eventually([&] { return !problem().empty(); })) << "no problem on the board";
+    EXPECT_NE(problem().find("no recording item <" + kRecording + ">"), std::string::npos) << problem();
+    EXPECT_NE(problem().find("its R-peak items are skipped"), std::string::npos) << problem();
+    // The description comes; the next item is used (the first replayed from the board) and
+    // the problem is over.
+    ASSERT_TRUE(rpeak->store(agg::recording_item(info)));
+    ASSERT_TRUE(rpeak->store(peaks(kRecording, 2500, 5000, true)));
+    EXPECT_TRUE(eventually([&] { return problem().empty(); })) << "still: " << problem();
+    EXPECT_TRUE(eventually([&] { return intervals_of(kRecording); })) << "no RR item of the recording";
+    // An item another detector writes that this one cannot read names that writer.
+    const tn::Term odd = tn::Term::iri(kRecording + "/rpeaks/odd");
+    ASSERT_TRUE(other_detector->store(tn::Item{}
+                                          .add(odd, agg::tv_term("peaks"), tn::Term::literal("100 350 six hundred"))
+                                          .add(odd, agg::tv_term("recording"), tn::Term::iri(kRecording))));
+    ASSERT_TRUE(eventually([&] { return problem().find("<" + other_detector->iri() + ">") != std::string::npos; })) << problem();
+    EXPECT_NE(problem().find("cannot read"), std::string::npos) << problem();
+    // A readable item of that writer: the problem is over.
+    agg::RecordingInfo second = info;
+    second.iri = kRecording + "-b";
+    ASSERT_TRUE(other_detector->store(agg::recording_item(second)));
+    ASSERT_TRUE(other_detector->store(peaks(second.iri, 0, 2500, true)));
+    EXPECT_TRUE(eventually([&] { return problem().empty(); })) << "still: " << problem();
+    EXPECT_TRUE(eventually([&] { return intervals_of(second.iri); })) << "no RR item of the second recording";
+    EXPECT_EQ(agent.stop(), 0);
+  }
+}
+
+// An HRV window tahvel-trend cannot read (a home whose HRV agent is of another version) gives
+// no trend of that patient at the hospital: the writer is named in the agent's problem on the
+// board until a window of that writer is read.
+TEST(AgentPrograms, HrvWindowsTheTrendAgentCannotReadAreItsProblemUntilTheirWriterSendsOneItCan) {
+  ScratchNode scratch("trend-problem");
+  ASSERT_TRUE(scratch.node) << "cannot make a store under /tmp";
+  std::optional<tn::Node>& node = scratch.node;
+  auto home_hrv = node->agent("hrv");
+  ASSERT_TRUE(home_hrv);
+  const tn::Term trend = tn::Term::iri(kNodeIri + "/trend");
+  auto problem = [&] { return problem_of(*node, trend); };
+  const auto& eventually = within_a_minute;
+  agg::RecordingInfo info;
+  info.iri = kRecording;
+  info.sensor_iri = kNodeIri + "/ecg";
+  info.fs = 250;
+  agg::WindowMetrics window;
+  window.start_s = 0;
+  window.end_s = 60;
+  window.metrics.sdnn_ms = 42;
+  tn::Item unreadable = agg::hrv_window_item(info, window, home_hrv->iri());
+  std::erase_if(unreadable.triples, [](const tn::Triple& t) { return t.p.value == std::string(agg::kTv) + "windowStartS"; });
+  // Stored before the agent starts: its catch-up reads it from the board.
+  ASSERT_TRUE(home_hrv->store(unreadable));
+  {
+    Process agent({bin("tahvel-trend"), scratch.dir, "--idle", "30"}, scratch.tmp + "/trend.log");
+    ASSERT_TRUE(eventually([&] { return problem().find("<" + home_hrv->iri() + ">") != std::string::npos; })) << problem();
+    EXPECT_NE(problem().find("windowStartS"), std::string::npos) << problem();
+    EXPECT_NE(problem().find("cannot read"), std::string::npos) << problem();
+    window.start_s = 60;
+    window.end_s = 120;
+    ASSERT_TRUE(home_hrv->store(agg::hrv_window_item(info, window, home_hrv->iri())));
+    EXPECT_TRUE(eventually([&] { return problem().empty(); })) << "still: " << problem();
+    const tn::Term trend_of_it = tn::Term::iri(agg::trend_iri(kRecording, agg::HrvMetric::sdnn, 60));
+    EXPECT_TRUE(eventually([&] { return node->snapshot()->count({.s = trend_of_it}).value() > 0; }))
+        << "no trend of the readable window";
+    EXPECT_EQ(agent.stop(), 0);
+  }
+}
+
 // Windows are named by recording and start: a window of another length already holding the name
 // (a second HRV agent on the recording) stands, and the one that cannot be written is said.
 TEST(AgentPrograms, AWindowWhoseNameAnotherWindowHoldsIsLoggedNotSilentlyDropped) {
