@@ -60,6 +60,8 @@ echo "   HRV windows at the hospital: $(hrv_from home1) from home1, $(hrv_from h
 quiet list "$state/hospital" -p tv:rmssdMs | head -n 2
 echo "   Raw ECG chunks: $(count "$state/home1" -p a -o tv:EcgChunk) at home1, $(count "$state/home2" -p a -o tv:EcgChunk) at home2," \
      "$(count "$state/hospital" -p a -o tv:EcgChunk) at the hospital: raw signals stay home."
+echo "   The operator's view at the hospital: each patient's latest HRV window and trends (tahvel-trend runs there):"
+tahvel patients "$state/hospital"
 
 say "3. From the hospital, change home1's HRV window to 30 s: a configuration item addressed to <$H/home1/hrv>."
 ttl=$work/window.ttl

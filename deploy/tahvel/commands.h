@@ -126,6 +126,7 @@ extern const Command kTakeCommand;
 extern const Command kTailCommand;
 extern const Command kStatsCommand;
 extern const Command kHrvCommand;
+extern const Command kPatientsCommand;
 
 int run_init(const Args& args);
 int run_put(const Args& args);
@@ -139,6 +140,7 @@ int run_take(const Args& args);
 int run_tail(const Args& args);
 int run_stats(const Args& args);
 int run_hrv(const Args& args);
+int run_patients(const Args& args);
 
 // The reasoner (commands_reason.cpp).
 extern const Command kReasonCommand;

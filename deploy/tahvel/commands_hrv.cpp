@@ -1,6 +1,6 @@
 // `tahvel hrv`: the HRV chain over a WFDB record (R peaks, RR/NN, HRV for the record and per
 // window), and with --eval the beat-by-beat score of the detector against the record's
-// reference annotations.
+// reference annotations. `tahvel patients`: what a node's board says of each patient's HRV.
 #include <algorithm>
 #include <cmath>
 #include <cstdio>
@@ -11,6 +11,7 @@
 
 #include "commands.h"
 #include "tahvel/aggregation/annotations.h"
+#include "tahvel/aggregation/patients.h"
 #include "tahvel/aggregation/pipeline.h"
 #include "tahvel/aggregation/score.h"
 #include "tahvel/aggregation/wfdb.h"
@@ -133,6 +134,89 @@ double seconds_flag(const Args& args, std::string_view flag, double fallback) {
   return value;
 }
 
+// ---- tahvel patients ----------------------------------------------------------------------
+
+// Where an alert's values lie from the baseline; nullptr when the trend does not say.
+const char* direction_name(int direction) { return direction > 0 ? "above" : direction < 0 ? "below" : nullptr; }
+// The same for text: "above its baseline", or "off its baseline" when the trend does not say.
+std::string off_baseline(int direction) {
+  const char* name = direction_name(direction);
+  return std::string(name ? name : "off") + " its baseline";
+}
+
+std::string trend_json(const agg::TrendUpdate& t) {
+  std::ostringstream out;
+  const char* direction = t.alert ? direction_name(t.alert_direction) : nullptr;
+  out << "{\"metric\":\"" << agg::metric_local_name(t.metric) << "\",\"window_start_s\":" << json_number(t.window_start_s)
+      << ",\"windows\":" << t.windows << ",\"latest\":" << json_number(t.latest) << ",\"baseline\":" << json_number(t.baseline)
+      << ",\"robust_sd\":" << json_number(t.robust_sd) << ",\"slope_per_hour\":" << json_number(t.slope_per_hour)
+      << ",\"alert\":" << (t.alert ? "true" : "false") << ",\"direction\":"
+      << (direction ? std::string("\"") + direction + "\"" : std::string("null"))
+      << ",\"z_against_others\":" << json_number(t.z_against_others) << ",\"others\":" << t.others << "}";
+  return out.str();
+}
+
+void print_patients_json(const std::string& node_iri, const agg::PatientsOnBoard& board,
+                         const std::vector<const agg::PatientView*>& shown) {
+  std::ostringstream out;
+  out << "{\"node\":\"" << node::json_escape(node_iri) << "\",\"patients\":[";
+  for (std::size_t i = 0; i < shown.size(); ++i) {
+    const agg::PatientView& p = *shown[i];
+    out << (i ? "," : "") << "{\"recording\":\"" << node::json_escape(p.recording) << "\",\"source\":\""
+        << node::json_escape(p.source) << "\",\"windows\":" << p.windows << ",\"alerting\":" << (p.alerting() ? "true" : "false")
+        << ",\"irregular\":" << (p.irregular() ? "true" : "false") << ",\"latest\":{\"iri\":\"" << node::json_escape(p.latest.iri)
+        << "\",\"start_s\":" << json_number(p.latest.window.start_s) << ",\"end_s\":" << json_number(p.latest.window.end_s)
+        << ",\"stored_ns\":" << p.latest_stored_ns << ",\"metrics\":" << metrics_json(p.latest.window.metrics) << "},\"trends\":[";
+    for (std::size_t k = 0; k < p.trends.size(); ++k) out << (k ? "," : "") << trend_json(p.trends[k]);
+    out << "]}";
+  }
+  out << "],\"unreadable\":[";
+  for (std::size_t i = 0; i < board.unreadable.size(); ++i) {
+    const agg::UnreadableItems& u = board.unreadable[i];
+    out << (i ? "," : "") << "{\"source\":\"" << node::json_escape(u.source) << "\",\"count\":" << u.count
+        << ",\"first_error\":\"" << node::json_escape(u.first_error) << "\"}";
+  }
+  out << "]}\n";
+  std::cout << out.str();
+}
+
+// A value for text: up to 4 significant digits, "-" when absent.
+std::string text_number(std::optional<double> value, const char* format = "%.4g") {
+  if (!value || !std::isfinite(*value)) return "-";
+  char buf[32];
+  std::snprintf(buf, sizeof buf, format, *value);
+  return buf;
+}
+
+void print_patient_text(const agg::PatientView& p) {
+  std::cout << "\n<" << p.recording << ">";
+  for (const agg::TrendUpdate& t : p.trends)
+    if (t.alert) std::cout << "  ALERT: " << agg::metric_local_name(t.metric) << " " << off_baseline(t.alert_direction);
+  std::cout << "\n  " << p.windows << " HRV window(s) from <" << p.source << ">; the latest "
+            << text_number(p.latest.window.start_s, "%.0f") << "-" << text_number(p.latest.window.end_s, "%.0f")
+            << " s into the recording, stored " << node::utc_text(p.latest_stored_ns) << "\n";
+  const agg::HrvMetrics& m = p.latest.window.metrics;
+  std::cout << "  latest window: SDNN " << text_number(m.sdnn_ms) << " ms, RMSSD " << text_number(m.rmssd_ms)
+            << " ms, mean HR " << text_number(m.mean_hr_bpm) << " bpm, " << m.nn_count << " NN of " << m.rr_count
+            << " RR intervals\n";
+  if (p.irregular())
+    std::cout << "  irregular rhythm: " << text_number(m.irregular_pct, "%.0f")
+              << " % of successive RR intervals differ by more than 20 %: its HRV may be off (docs/hrv.md)\n";
+  if (p.trends.empty()) std::cout << "  no trend of it on this node (tahvel-trend writes them)\n";
+  for (const agg::TrendUpdate& t : p.trends) {
+    char line[256];
+    std::snprintf(line, sizeof line, "  trend %-10s latest %-7s baseline %-7s", agg::metric_local_name(t.metric),
+                  text_number(t.latest).c_str(), text_number(t.baseline).c_str());
+    std::cout << line;
+    if (t.slope_per_hour) std::cout << " slope " << text_number(t.slope_per_hour, "%+.3g") << "/h";
+    std::cout << " over " << t.windows << " window(s)";
+    if (t.alert) std::cout << ", ALERT " << off_baseline(t.alert_direction);
+    if (t.z_against_others)
+      std::cout << ", z " << text_number(t.z_against_others, "%+.2f") << " against " << t.others << " other patient(s)";
+    std::cout << "\n";
+  }
+}
+
 }  // namespace
 
 const Command kHrvCommand{
@@ -174,6 +258,49 @@ int run_hrv(const Args& args) {
     print_report_json(record, *report);
   } else {
     print_report_text(record, *report);
+  }
+  finish_output(std::cout);
+  return kExitOk;
+}
+
+const Command kPatientsCommand{
+    "patients",
+    "DIR [--alerts] [--json]",
+    "Print each patient whose HRV reached this node: latest window, trends, alerts.",
+    "The operator's view of the patients on a node's board (at the hospital: every home's): per\n"
+    "recording whose HRV windows are on the board, who sent them and how many, the latest\n"
+    "window's SDNN, RMSSD and mean heart rate (with a warning when the rhythm is too irregular\n"
+    "for its HRV to be trusted) and, where tahvel-trend runs, each metric's latest trend:\n"
+    "baseline, slope per hour, change alert and z-score against the other patients. Patients\n"
+    "with an alert come first. Windows or trends that cannot be read are counted per writer.\n"
+    "--json prints one object: {node, patients: [{recording, source, windows, alerting,\n"
+    "irregular, latest: {iri, start_s, end_s, stored_ns, metrics}, trends: [{metric,\n"
+    "window_start_s, windows, latest, baseline, robust_sd, slope_per_hour, alert, direction,\n"
+    "z_against_others, others}]}], unreadable: [{source, count, first_error}]}.",
+    {{"--alerts", "", "", "only the patients with an alert"},
+     {"--json", "", "", "print JSON instead of text"}},
+    1, 1};
+
+int run_patients(const Args& args) {
+  node::Node node = open_node(args.positional(0));
+  auto snapshot = check(node.snapshot());
+  auto board = agg::patients_on_board(snapshot);
+  if (!board) fail(board.error().message);
+  std::vector<const agg::PatientView*> shown;
+  std::size_t alerting = 0;
+  for (const agg::PatientView& p : board->patients) {
+    if (p.alerting()) ++alerting;
+    if (!args.has("--alerts") || p.alerting()) shown.push_back(&p);
+  }
+  if (args.has("--json")) {
+    print_patients_json(node.iri(), *board, shown);
+  } else {
+    std::cout << board->patients.size() << " patient(s) with HRV on <" << node.iri() << ">, " << alerting
+              << " with an alert\n";
+    for (const agg::PatientView* p : shown) print_patient_text(*p);
+    for (const agg::UnreadableItems& u : board->unreadable)
+      std::cout << "\n" << u.count << " HRV window or trend item(s) from <" << u.source
+                << "> could not be read; the first: " << u.first_error << "\n";
   }
   finish_output(std::cout);
   return kExitOk;

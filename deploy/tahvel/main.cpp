@@ -123,7 +123,7 @@ std::span<const Subcommand> subcommands() {
       {&kTakeCommand, run_take},
       {&kTailCommand, run_tail},   {&kDumpCommand, run_dump},
       {&kLoadCommand, run_load},   {&kStatsCommand, run_stats},
-      {&kHrvCommand, run_hrv},
+      {&kHrvCommand, run_hrv},     {&kPatientsCommand, run_patients},
       {&kReasonCommand, run_reason},
       {&kUpCommand, run_up},       {&kDownCommand, run_down},
       {&kStatusCommand, run_status}, {&kQueryCommand, run_query},

@@ -252,7 +252,7 @@ TEST_F(Cli, ANumberFlagBeyondItsRangeSaysTooLargeAndAWordSaysNotAnInteger) {
 
 TEST_F(Cli, EverySubcommandHelpExits0WithItsUsageLine) {
   for (std::string name : {"init", "put", "list", "remove", "subscribe", "areas", "take", "tail", "dump",
-                           "load", "stats", "bench"}) {
+                           "load", "stats", "patients", "bench"}) {
     Outcome r = run({name, "--help"});
     EXPECT_EQ(r.status, 0) << name << ": " << r.err;
     EXPECT_EQ(r.out.rfind("usage: tahvel " + name + " ", 0), 0u) << r.out;
@@ -621,6 +621,62 @@ TEST_F(Cli, HrvEvalJsonWithNothingScoredIsValidJsonWithNulls) {
   ASSERT_EQ(r.status, 0) << r.err;
   EXPECT_NE(r.out.find("\"sensitivity_pct\":null,\"positive_predictivity_pct\":null}"), std::string::npos) << r.out;
   EXPECT_EQ(r.out.find(":-"), std::string::npos) << r.out;
+}
+
+// HRV windows and trends as tahvel-hrv and tahvel-trend write them (docs/vocabulary.md), put by
+// hand: recordings a and c alert, b does not.
+const char* kPatientsTurtle =
+    "@prefix tv: <https://w3id.org/tahvel#> .\n"
+    "@prefix sosa: <http://www.w3.org/ns/sosa/> .\n"
+    "@prefix prov: <http://www.w3.org/ns/prov#> .\n"
+    "@prefix rec: <http://example.org/home1/ecg/recording/> .\n"
+    "<http://example.org/home1/ecg/recording/b/hrv/0> sosa:observedProperty tv:HeartRateVariability ;\n"
+    "  prov:wasDerivedFrom rec:b ; tv:windowStartS 0.0 ; tv:windowEndS 60.0 ; tv:sdnnMs 40.0 ;\n"
+    "  tv:rmssdMs 20.0 ; tv:meanHrBpm 80.0 ; tv:nnCount 80 ; tv:rrCount 80 .\n"
+    "<http://example.org/home1/ecg/recording/a/hrv/0> sosa:observedProperty tv:HeartRateVariability ;\n"
+    "  prov:wasDerivedFrom rec:a ; tv:windowStartS 0.0 ; tv:windowEndS 60.0 ; tv:sdnnMs 50.0 ;\n"
+    "  tv:rmssdMs 25.0 ; tv:meanHrBpm 70.0 ; tv:nnCount 70 ; tv:rrCount 70 .\n"
+    "<http://example.org/home1/ecg/recording/a/hrv/60> sosa:observedProperty tv:HeartRateVariability ;\n"
+    "  prov:wasDerivedFrom rec:a ; tv:windowStartS 60.0 ; tv:windowEndS 120.0 ; tv:sdnnMs 90.0 ;\n"
+    "  tv:rmssdMs 45.0 ; tv:meanHrBpm 71.0 ; tv:nnCount 70 ; tv:rrCount 70 .\n"
+    "<http://example.org/home1/ecg/recording/a/trend/sdnnMs/60> a tv:HrvTrend ; tv:recording rec:a ;\n"
+    "  tv:metric tv:sdnnMs ; tv:windowStartS 60.0 ; tv:windows 2 ; tv:latest 90.0 ; tv:baseline 50.0 ;\n"
+    "  tv:alert true ; tv:alertDirection \"above\" .\n"
+    // A trend of another writer that alerts without saying on which side.
+    "<http://example.org/home1/ecg/recording/c/hrv/0> sosa:observedProperty tv:HeartRateVariability ;\n"
+    "  prov:wasDerivedFrom rec:c ; tv:windowStartS 0.0 ; tv:windowEndS 60.0 ; tv:sdnnMs 30.0 .\n"
+    "<http://example.org/home1/ecg/recording/c/trend/rmssdMs/0> a tv:HrvTrend ; tv:recording rec:c ;\n"
+    "  tv:metric tv:rmssdMs ; tv:windowStartS 0.0 ; tv:windows 1 ; tv:alert true .\n";
+
+TEST_F(Cli, PatientsShowsEachRecordingsLatestWindowWithAlertingPatientsFirst) {
+  init();
+  put(kPatientsTurtle, {"--agent", "hrv", "--format", "ttl"});
+  Outcome text = run({"patients", node_});
+  ASSERT_EQ(text.status, 0) << text.err;
+  EXPECT_NE(text.out.find("3 patient(s) with HRV on <http://example.org/home1>, 2 with an alert"), std::string::npos) << text.out;
+  EXPECT_NE(text.out.find("<http://example.org/home1/ecg/recording/c>  ALERT: rmssdMs off its baseline"), std::string::npos) << text.out;
+  const auto a = text.out.find("<http://example.org/home1/ecg/recording/a>  ALERT: sdnnMs above its baseline");
+  const auto b = text.out.find("<http://example.org/home1/ecg/recording/b>");
+  ASSERT_NE(a, std::string::npos) << text.out;
+  ASSERT_NE(b, std::string::npos) << text.out;
+  EXPECT_LT(a, b) << "the alerting patient first:\n" << text.out;
+  EXPECT_NE(text.out.find("2 HRV window(s) from <http://example.org/home1/hrv>; the latest 60-120 s"), std::string::npos) << text.out;
+  EXPECT_NE(text.out.find("SDNN 90 ms"), std::string::npos) << text.out;
+  EXPECT_NE(text.out.find("no trend of it on this node"), std::string::npos) << text.out;
+
+  Outcome alerts = run({"patients", node_, "--alerts", "--json"});
+  ASSERT_EQ(alerts.status, 0) << alerts.err;
+  EXPECT_NE(alerts.out.find("\"recording\":\"http://example.org/home1/ecg/recording/a\""), std::string::npos) << alerts.out;
+  EXPECT_NE(alerts.out.find("\"recording\":\"http://example.org/home1/ecg/recording/c\""), std::string::npos) << alerts.out;
+  EXPECT_EQ(alerts.out.find("recording/b\""), std::string::npos) << "only the alerting patients:\n" << alerts.out;
+  for (const char* key : {"\"node\":", "\"source\":", "\"windows\":2", "\"alerting\":true", "\"irregular\":false",
+                          "\"latest\":{", "\"stored_ns\":", "\"sdnn_ms\":90", "\"trends\":[{\"metric\":\"sdnnMs\"",
+                          "\"direction\":\"above\"", "\"unreadable\":[]"})
+    EXPECT_NE(alerts.out.find(key), std::string::npos) << key << " in " << alerts.out;
+
+  Outcome missing = run({"patients", (tmp_ / "nowhere").string()});
+  EXPECT_EQ(missing.status, 1);
+  EXPECT_NE(missing.err.find("nowhere"), std::string::npos) << missing.err;
 }
 
 TEST_F(Cli, HrvOnAMissingRecordNamesTheFile) {

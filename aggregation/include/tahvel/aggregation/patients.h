@@ -1,0 +1,53 @@
+// The patients a node's board knows of, as an operator at the hospital wants them at a glance
+// (`tahvel patients`, docs/cli.md): per recording whose HRV windows reached the node, its
+// latest window and, where tahvel-trend runs, the latest trend of each metric with its alert.
+// Read from one snapshot; nothing is written.
+#pragma once
+
+#include <cstddef>
+#include <cstdint>
+#include <string>
+#include <vector>
+
+#include "tahvel/aggregation/error.h"
+#include "tahvel/aggregation/items.h"
+#include "tahvel/node/node.h"
+
+namespace tahvel::aggregation {
+
+struct PatientView {
+  std::string recording;             // the recording's IRI: one patient's ECG
+  std::string source;                // the writer of its latest window (a home's <node>/hrv)
+  std::size_t windows = 0;           // its HRV windows on the board
+  HrvWindowItem latest;              // the readable window with the latest start
+  std::int64_t latest_stored_ns = 0; // when that window was stored on this board
+  // Per metric, the trend update of the latest window that has one (tahvel-trend's items), in
+  // the order of HrvMetric; empty where no trend agent runs.
+  std::vector<TrendUpdate> trends;
+
+  // A trend's change alert runs to its latest update.
+  bool alerting() const;
+  // The latest window's rhythm is too irregular for the RR-only NN rule (kIrregularPct): its
+  // HRV may be off (docs/hrv.md, "Where the rule fails").
+  bool irregular() const;
+};
+
+// Items of one writer that look like HRV windows or trends but cannot be read (a home of
+// another version): counted, with the first reason, rather than left out unsaid.
+struct UnreadableItems {
+  std::string source;
+  std::size_t count = 0;
+  std::string first_error;
+};
+
+struct PatientsOnBoard {
+  std::vector<PatientView> patients;       // alerting first, then by recording IRI
+  std::vector<UnreadableItems> unreadable; // by writer IRI
+};
+
+// Every window's start and recording and every trend's recording, metric and start are read
+// through the indexes; only each patient's latest window and latest trend per metric are read
+// whole. Errors: those of the store.
+Result<PatientsOnBoard> patients_on_board(const node::Snapshot& snapshot);
+
+}  // namespace tahvel::aggregation

@@ -1,0 +1,249 @@
+// The patients on a board; see patients.h.
+#include "tahvel/aggregation/patients.h"
+
+#include <algorithm>
+#include <charconv>
+#include <cmath>
+#include <map>
+#include <optional>
+#include <set>
+#include <utility>
+
+namespace tahvel::aggregation {
+
+bool PatientView::alerting() const {
+  return std::any_of(trends.begin(), trends.end(), [](const TrendUpdate& t) { return t.alert; });
+}
+
+bool PatientView::irregular() const {
+  const auto& pct = latest.window.metrics.irregular_pct;
+  return pct && *pct > kIrregularPct;
+}
+
+namespace {
+
+using node::Pattern;
+using node::Record;
+using node::Snapshot;
+using node::Term;
+
+Error store_error(const node::Error& e) { return Error{"reading the board: " + e.message}; }
+
+// The object of the first record <subject> tv:<local> ?o on the board.
+Result<std::optional<Term>> object_on_board(const Snapshot& snapshot, const std::string& subject, const char* local) {
+  Pattern pattern;
+  pattern.s = Term::iri(subject);
+  pattern.p = tv_term(local);
+  std::optional<Term> found;
+  auto walked = snapshot.for_each(pattern, [&](const Record& r) {
+    found = r.triple.o;
+    return false;
+  });
+  if (!walked) return unexpected(store_error(walked.error()));
+  return found;
+}
+
+std::optional<double> number_in(const std::optional<Term>& term) {
+  if (!term || !term->is_literal()) return std::nullopt;
+  double v = 0;
+  const std::string& s = term->value;
+  auto [end, ec] = std::from_chars(s.data(), s.data() + s.size(), v);
+  if (ec != std::errc() || end != s.data() + s.size() || !std::isfinite(v)) return std::nullopt;
+  return v;
+}
+
+std::optional<std::string> iri_in(const std::optional<Term>& term) {
+  if (!term || !term->is_iri()) return std::nullopt;
+  return term->value;
+}
+
+// The recording of window `iri` as read_hrv_window finds it: its tv:recording, else the
+// recording its IRI <rec>/hrv/<start> extends, when the window is derived from it (one exact
+// lookup: a window is also derived from each of its RR items, hundreds of them). nullopt when
+// neither holds: the caller reads the item whole.
+Result<std::optional<std::string>> recording_of_window(const Snapshot& snapshot, const std::string& iri) {
+  auto named = object_on_board(snapshot, iri, "recording");
+  if (!named) return unexpected(named.error());
+  if (auto rec = iri_in(*named)) return rec;
+  const std::size_t at = iri.rfind("/hrv/");
+  if (at == std::string::npos || at == 0) return std::optional<std::string>();
+  Pattern derived;
+  derived.s = Term::iri(iri);
+  derived.p = Term::iri(kProvDerivedFrom);
+  derived.o = Term::iri(iri.substr(0, at));
+  auto n = snapshot.count(derived);
+  if (!n) return unexpected(store_error(n.error()));
+  if (*n == 0) return std::optional<std::string>();
+  return std::optional<std::string>(iri.substr(0, at));
+}
+
+// Items that cannot be read, per writer.
+class Unreadable {
+ public:
+  void add(const std::string& source, const std::string& error) {
+    UnreadableItems& u = by_source_[source];
+    if (u.count++ == 0) {
+      u.source = source;
+      u.first_error = error;
+    }
+  }
+  std::vector<UnreadableItems> list() const {
+    std::vector<UnreadableItems> out;
+    for (const auto& [source, u] : by_source_) out.push_back(u);
+    return out;
+  }
+
+ private:
+  std::map<std::string, UnreadableItems> by_source_;
+};
+
+// One window or trend item as the indexes give it: where it lies in its series.
+struct Entry {
+  std::string iri;  // the window's or the trend update's
+  double start_s = 0;
+  std::uint64_t item = 0;
+  std::string source;
+  std::int64_t stored_ns = 0;
+};
+
+// The records about `subject` in item `id` (an item may hold several windows: `tahvel put`
+// of a file); nullopt when the item was removed since the listing.
+Result<std::optional<std::vector<Record>>> whole_item(const Snapshot& snapshot, std::uint64_t id,
+                                                      const std::string& subject) {
+  auto records = snapshot.item(id);
+  if (!records) {
+    if (records.error().code == node::Errc::not_found) return std::optional<std::vector<Record>>();
+    return unexpected(store_error(records.error()));
+  }
+  std::erase_if(*records, [&](const Record& r) { return r.triple.s.value != subject; });
+  return std::optional<std::vector<Record>>(std::move(*records));
+}
+
+}  // namespace
+
+Result<PatientsOnBoard> patients_on_board(const Snapshot& snapshot) {
+  Unreadable unreadable;
+
+  // Every window: its recording and start through the indexes; an item without them is read
+  // whole (a window may name its recording only by provenance, docs/vocabulary.md).
+  std::map<std::string, std::map<std::string, Entry>> windows;  // recording -> window IRI -> entry
+  Pattern hrv;
+  hrv.p = Term::iri("http://www.w3.org/ns/sosa/observedProperty");
+  hrv.o = tv_term("HeartRateVariability");
+  auto listed = snapshot.list(hrv);
+  if (!listed) return unexpected(store_error(listed.error()));
+  for (const Record& r : *listed) {
+    if (!r.triple.s.is_iri()) continue;
+    const std::string& iri = r.triple.s.value;
+    auto start = object_on_board(snapshot, iri, "windowStartS");
+    if (!start) return unexpected(start.error());
+    auto recording = recording_of_window(snapshot, iri);
+    if (!recording) return unexpected(recording.error());
+    Entry entry{iri, 0, r.meta.item, r.meta.source, r.meta.stored_at};
+    std::string rec;
+    const std::optional<double> s = number_in(*start);
+    const std::optional<std::string>& name = *recording;
+    if (s && name) {
+      entry.start_s = *s;
+      rec = *name;
+    } else {
+      auto records = whole_item(snapshot, r.meta.item, iri);
+      if (!records) return unexpected(records.error());
+      if (!*records) continue;
+      auto w = read_hrv_window(**records);
+      if (!w) {
+        unreadable.add(r.meta.source, w.error().message);
+        continue;
+      }
+      entry.start_s = w->window.start_s;
+      rec = w->recording;
+    }
+    windows[rec].emplace(iri, std::move(entry));
+  }
+
+  std::map<std::string, PatientView> patients;
+  for (auto& [recording, by_iri] : windows) {
+    std::vector<const Entry*> newest_first;
+    for (const auto& [iri, entry] : by_iri) newest_first.push_back(&entry);
+    std::sort(newest_first.begin(), newest_first.end(),
+              [](const Entry* a, const Entry* b) { return a->start_s > b->start_s; });
+    for (const Entry* entry : newest_first) {
+      auto records = whole_item(snapshot, entry->item, entry->iri);
+      if (!records) return unexpected(records.error());
+      if (!*records) continue;
+      auto w = read_hrv_window(**records);
+      if (!w) {
+        unreadable.add(entry->source, w.error().message);
+        continue;
+      }
+      PatientView& p = patients[recording];
+      p.recording = recording;
+      p.source = entry->source;
+      p.windows = by_iri.size();
+      p.latest = std::move(*w);
+      p.latest_stored_ns = entry->stored_ns;
+      break;
+    }
+  }
+
+  // Trends: the latest update per recording and metric, found through the indexes.
+  std::map<std::pair<std::string, std::string>, Entry> latest_trend;  // (recording, metric IRI)
+  Pattern trends;
+  trends.p = Term::iri(std::string(node::kRdfType));
+  trends.o = tv_term("HrvTrend");
+  listed = snapshot.list(trends);
+  if (!listed) return unexpected(store_error(listed.error()));
+  for (const Record& r : *listed) {
+    if (!r.triple.s.is_iri()) continue;
+    const std::string& iri = r.triple.s.value;
+    auto recording = object_on_board(snapshot, iri, "recording");
+    if (!recording) return unexpected(recording.error());
+    auto metric = object_on_board(snapshot, iri, "metric");
+    if (!metric) return unexpected(metric.error());
+    auto start = object_on_board(snapshot, iri, "windowStartS");
+    if (!start) return unexpected(start.error());
+    auto rec = iri_in(*recording), which = iri_in(*metric);
+    auto s = number_in(*start);
+    if (!rec || !which || !s) {
+      auto records = whole_item(snapshot, r.meta.item, iri);
+      if (!records) return unexpected(records.error());
+      if (!*records) continue;
+      auto t = read_trend(**records);
+      if (!t) {
+        unreadable.add(r.meta.source, t.error().message);
+        continue;
+      }
+      rec = t->recording;
+      which = std::string(kTv) + metric_local_name(t->metric);
+      s = t->window_start_s;
+    }
+    if (!patients.count(*rec)) continue;  // its windows are gone (removed) or unreadable
+    Entry entry{iri, *s, r.meta.item, r.meta.source, r.meta.stored_at};
+    auto [it, fresh] = latest_trend.emplace(std::make_pair(*rec, *which), entry);
+    if (!fresh && it->second.start_s < *s) it->second = entry;
+  }
+  for (const auto& [key, entry] : latest_trend) {
+    auto records = whole_item(snapshot, entry.item, entry.iri);
+    if (!records) return unexpected(records.error());
+    if (!*records) continue;
+    auto t = read_trend(**records);
+    if (!t) {
+      unreadable.add(entry.source, t.error().message);
+      continue;
+    }
+    patients[key.first].trends.push_back(std::move(*t));
+  }
+
+  PatientsOnBoard out;
+  for (auto& [recording, p] : patients) {
+    std::sort(p.trends.begin(), p.trends.end(),
+              [](const TrendUpdate& a, const TrendUpdate& b) { return a.metric < b.metric; });
+    out.patients.push_back(std::move(p));
+  }
+  std::stable_sort(out.patients.begin(), out.patients.end(),
+                   [](const PatientView& a, const PatientView& b) { return a.alerting() && !b.alerting(); });
+  out.unreadable = unreadable.list();
+  return out;
+}
+
+}  // namespace tahvel::aggregation

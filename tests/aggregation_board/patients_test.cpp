@@ -1,0 +1,175 @@
+// patients_on_board (tahvel/aggregation/patients.h): the hospital's view of its patients, read
+// from HRV window and trend items as tahvel-hrv and tahvel-trend write them.
+#include "tahvel/aggregation/patients.h"
+
+#include <gtest/gtest.h>
+
+#include <algorithm>
+#include <optional>
+#include <string>
+
+#include "temp_dir.h"
+
+namespace {
+
+namespace agg = tahvel::aggregation;
+namespace tn = tahvel::node;
+
+const std::string kHospital = "http://example.org/hospital";
+const std::string kRecA = kHospital + "/home1/ecg/recording/a";
+const std::string kRecB = kHospital + "/home2/ecg/recording/b";
+
+class PatientsOnBoard : public ::testing::Test {
+ protected:
+  void SetUp() override {
+    auto made = tn::Node::init(dir_.path() / "hospital", {.iri = kHospital});
+    ASSERT_TRUE(made) << made.error().message;
+    node_.emplace(std::move(*made));
+  }
+
+  // The window [start, start + 60) of `recording` with SDNN `sdnn`, written by `writer`.
+  void window(const std::string& writer, const std::string& recording, double start, double sdnn,
+              std::optional<double> irregular_pct = std::nullopt) {
+    agg::RecordingInfo info;
+    info.iri = recording;
+    agg::WindowMetrics w;
+    w.start_s = start;
+    w.end_s = start + 60;
+    w.metrics.sdnn_ms = sdnn;
+    w.metrics.rmssd_ms = sdnn / 2;
+    w.metrics.mean_hr_bpm = 70;
+    w.metrics.nn_count = w.metrics.rr_count = 70;
+    w.metrics.irregular_pct = irregular_pct;
+    store(writer, agg::hrv_window_item(info, w, kHospital + "/" + writer));
+  }
+
+  void trend(const std::string& recording, agg::HrvMetric metric, double start, bool alert) {
+    agg::TrendUpdate u;
+    u.recording = recording;
+    u.metric = metric;
+    u.window_start_s = start;
+    u.window_iri = agg::hrv_iri(recording, start);
+    u.windows = static_cast<std::size_t>(start / 60) + 1;
+    u.latest = 50 + start;
+    u.alert = alert;
+    u.alert_direction = alert ? 1 : 0;
+    store("trend", agg::trend_item(u, kHospital + "/trend"));
+  }
+
+  void store(const std::string& writer, const tn::Item& item) {
+    auto agent = node_->agent(writer);
+    ASSERT_TRUE(agent) << agent.error().message;
+    ASSERT_TRUE(agent->store(item));
+  }
+
+  agg::PatientsOnBoard read() {
+    auto snapshot = node_->snapshot();
+    EXPECT_TRUE(snapshot);
+    auto board = agg::patients_on_board(*snapshot);
+    EXPECT_TRUE(board) << board.error().message;
+    return board ? *board : agg::PatientsOnBoard{};
+  }
+
+  tahvel::test_support::TempDir dir_{"tahvel-patients"};
+  std::optional<tn::Node> node_;
+};
+
+TEST_F(PatientsOnBoard, EachRecordingIsOnePatientWithItsLatestWindowAndItsLatestTrendPerMetric) {
+  // Windows arrive out of order (a link that went back): the latest is the latest start.
+  window("home2-hrv", kRecB, 0, 40);
+  window("home1-hrv", kRecA, 120, 80);
+  window("home1-hrv", kRecA, 0, 50);
+  window("home1-hrv", kRecA, 60, 52);
+  window("home2-hrv", kRecB, 60, 41);
+  trend(kRecA, agg::HrvMetric::sdnn, 120, true);
+  trend(kRecA, agg::HrvMetric::sdnn, 0, false);
+  trend(kRecA, agg::HrvMetric::sdnn, 60, false);
+  trend(kRecA, agg::HrvMetric::rmssd, 0, false);
+
+  const agg::PatientsOnBoard board = read();
+  ASSERT_EQ(board.patients.size(), 2u);
+  EXPECT_TRUE(board.unreadable.empty());
+  // B sorts first by IRI; A comes first because its SDNN trend alerts.
+  const agg::PatientView& a = board.patients[0];
+  EXPECT_EQ(a.recording, kRecA);
+  EXPECT_TRUE(a.alerting());
+  EXPECT_EQ(a.windows, 3u);
+  EXPECT_EQ(a.source, kHospital + "/home1-hrv");
+  EXPECT_EQ(a.latest.window.start_s, 120);
+  EXPECT_EQ(a.latest.window.metrics.sdnn_ms, 80);
+  EXPECT_GT(a.latest_stored_ns, 0);
+  ASSERT_EQ(a.trends.size(), 2u);
+  EXPECT_EQ(a.trends[0].metric, agg::HrvMetric::sdnn);
+  EXPECT_EQ(a.trends[0].window_start_s, 120);
+  EXPECT_TRUE(a.trends[0].alert);
+  EXPECT_EQ(a.trends[1].metric, agg::HrvMetric::rmssd);
+  EXPECT_EQ(a.trends[1].window_start_s, 0);
+
+  const agg::PatientView& b = board.patients[1];
+  EXPECT_EQ(b.recording, kRecB);
+  EXPECT_FALSE(b.alerting());
+  EXPECT_EQ(b.windows, 2u);
+  EXPECT_EQ(b.source, kHospital + "/home2-hrv");
+  EXPECT_EQ(b.latest.window.start_s, 60);
+  EXPECT_TRUE(b.trends.empty());
+}
+
+// A home of another version writes windows this node cannot read: they are counted for that
+// writer, with the reason, and the patient's latest readable window stands.
+TEST_F(PatientsOnBoard, AWindowThatCannotBeReadIsCountedForItsWriterAndTheLatestReadableOneStands) {
+  window("home1-hrv", kRecA, 0, 50);
+  agg::RecordingInfo info;
+  info.iri = kRecA;
+  agg::WindowMetrics w;
+  w.start_s = 60;
+  w.end_s = 120;
+  w.metrics.sdnn_ms = 51;
+  tn::Item odd = agg::hrv_window_item(info, w, kHospital + "/home1-hrv");
+  for (tn::Triple& t : odd.triples)
+    if (t.p.value == std::string(agg::kTv) + "sdnnMs") t.o = tn::Term::literal("fifty-one");
+  store("home1-hrv", odd);
+
+  const agg::PatientsOnBoard board = read();
+  ASSERT_EQ(board.patients.size(), 1u);
+  EXPECT_EQ(board.patients[0].latest.window.start_s, 0);
+  EXPECT_EQ(board.patients[0].windows, 2u);
+  ASSERT_EQ(board.unreadable.size(), 1u);
+  EXPECT_EQ(board.unreadable[0].source, kHospital + "/home1-hrv");
+  EXPECT_EQ(board.unreadable[0].count, 1u);
+  EXPECT_NE(board.unreadable[0].first_error.find("sdnnMs"), std::string::npos) << board.unreadable[0].first_error;
+}
+
+// tahvel-hrv names a window's recording by provenance (<rec>/hrv/<start> derived from <rec>);
+// another writer may say tv:recording with an IRI of its own: both are the patient's windows.
+// A rhythm too irregular for the NN rule is flagged.
+TEST_F(PatientsOnBoard, AWindowIsItsRecordingsByProvenanceOrByTvRecordingAndAnIrregularRhythmIsFlagged) {
+  window("home1-hrv", kRecA, 0, 50);
+  const tn::Term other = tn::Term::iri("http://example.org/elsewhere/window/7");
+  tn::Item named;
+  named.add(other, tn::Term::iri("http://www.w3.org/ns/sosa/observedProperty"), agg::tv_term("HeartRateVariability"))
+      .add(other, agg::tv_term("recording"), tn::Term::iri(kRecA))
+      .add(other, agg::tv_term("windowStartS"), tn::Term::literal("60.0", std::string(tn::xsd::kDecimal)))
+      .add(other, agg::tv_term("windowEndS"), tn::Term::literal("120.0", std::string(tn::xsd::kDecimal)))
+      .add(other, agg::tv_term("sdnnMs"), tn::Term::literal("90.0", std::string(tn::xsd::kDecimal)))
+      .add(other, agg::tv_term("irregularPct"), tn::Term::literal("40.0", std::string(tn::xsd::kDecimal)));
+  store("other-hrv", named);
+
+  const agg::PatientsOnBoard board = read();
+  ASSERT_EQ(board.patients.size(), 1u);
+  const agg::PatientView& a = board.patients[0];
+  EXPECT_EQ(a.recording, kRecA);
+  EXPECT_EQ(a.windows, 2u);
+  EXPECT_EQ(a.latest.iri, other.value);
+  EXPECT_EQ(a.source, kHospital + "/other-hrv");
+  EXPECT_TRUE(a.irregular());
+  EXPECT_TRUE(board.unreadable.empty());
+}
+
+TEST_F(PatientsOnBoard, ABoardWithoutHrvHasNoPatients) {
+  store("cli", tn::Item{}.add(tn::Term::iri(kHospital + "/x"), agg::tv_term("note"), tn::Term::literal("hello")));
+  const agg::PatientsOnBoard board = read();
+  EXPECT_TRUE(board.patients.empty());
+  EXPECT_TRUE(board.unreadable.empty());
+}
+
+}  // namespace
