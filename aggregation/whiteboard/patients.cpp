@@ -106,17 +106,24 @@ struct Entry {
   std::int64_t stored_ns = 0;
 };
 
-// The records about `subject` in item `id` (an item may hold several windows: `tahvel put`
-// of a file); nullopt when the item was removed since the listing.
-Result<std::optional<std::vector<Record>>> whole_item(const Snapshot& snapshot, std::uint64_t id,
-                                                      const std::string& subject) {
-  auto records = snapshot.item(id);
+// The item of `entry`, its records about entry.iri (an item may hold several windows: `tahvel
+// put` of a file) read by `reader`; nullopt when the item was removed since the listing or
+// cannot be read (then counted for its writer).
+template <class T>
+Result<std::optional<T>> read_whole(const Snapshot& snapshot, const Entry& entry,
+                                    Result<T> (*reader)(const std::vector<Record>&), Unreadable& unreadable) {
+  auto records = snapshot.item(entry.item);
   if (!records) {
-    if (records.error().code == node::Errc::not_found) return std::optional<std::vector<Record>>();
+    if (records.error().code == node::Errc::not_found) return std::optional<T>();
     return unexpected(store_error(records.error()));
   }
-  std::erase_if(*records, [&](const Record& r) { return r.triple.s.value != subject; });
-  return std::optional<std::vector<Record>>(std::move(*records));
+  std::erase_if(*records, [&](const Record& r) { return r.triple.s.value != entry.iri; });
+  auto value = reader(*records);
+  if (!value) {
+    unreadable.add(entry.source, value.error().message);
+    return std::optional<T>();
+  }
+  return std::optional<T>(std::move(*value));
 }
 
 }  // namespace
@@ -147,16 +154,11 @@ Result<PatientsOnBoard> patients_on_board(const Snapshot& snapshot) {
       entry.start_s = *s;
       rec = *name;
     } else {
-      auto records = whole_item(snapshot, r.meta.item, iri);
-      if (!records) return unexpected(records.error());
-      if (!*records) continue;
-      auto w = read_hrv_window(**records);
-      if (!w) {
-        unreadable.add(r.meta.source, w.error().message);
-        continue;
-      }
-      entry.start_s = w->window.start_s;
-      rec = w->recording;
+      auto w = read_whole(snapshot, entry, read_hrv_window, unreadable);
+      if (!w) return unexpected(w.error());
+      if (!*w) continue;
+      entry.start_s = (*w)->window.start_s;
+      rec = (*w)->recording;
     }
     windows[rec].emplace(iri, std::move(entry));
   }
@@ -168,19 +170,14 @@ Result<PatientsOnBoard> patients_on_board(const Snapshot& snapshot) {
     std::sort(newest_first.begin(), newest_first.end(),
               [](const Entry* a, const Entry* b) { return a->start_s > b->start_s; });
     for (const Entry* entry : newest_first) {
-      auto records = whole_item(snapshot, entry->item, entry->iri);
-      if (!records) return unexpected(records.error());
-      if (!*records) continue;
-      auto w = read_hrv_window(**records);
-      if (!w) {
-        unreadable.add(entry->source, w.error().message);
-        continue;
-      }
+      auto w = read_whole(snapshot, *entry, read_hrv_window, unreadable);
+      if (!w) return unexpected(w.error());
+      if (!*w) continue;
       PatientView& p = patients[recording];
       p.recording = recording;
       p.source = entry->source;
       p.windows = by_iri.size();
-      p.latest = std::move(*w);
+      p.latest = std::move(**w);
       p.latest_stored_ns = entry->stored_ns;
       break;
     }
@@ -204,34 +201,24 @@ Result<PatientsOnBoard> patients_on_board(const Snapshot& snapshot) {
     if (!start) return unexpected(start.error());
     auto rec = iri_in(*recording), which = iri_in(*metric);
     auto s = number_in(*start);
+    Entry entry{iri, 0, r.meta.item, r.meta.source, r.meta.stored_at};
     if (!rec || !which || !s) {
-      auto records = whole_item(snapshot, r.meta.item, iri);
-      if (!records) return unexpected(records.error());
-      if (!*records) continue;
-      auto t = read_trend(**records);
-      if (!t) {
-        unreadable.add(r.meta.source, t.error().message);
-        continue;
-      }
-      rec = t->recording;
-      which = std::string(kTv) + metric_local_name(t->metric);
-      s = t->window_start_s;
+      auto t = read_whole(snapshot, entry, read_trend, unreadable);
+      if (!t) return unexpected(t.error());
+      if (!*t) continue;
+      rec = (*t)->recording;
+      which = std::string(kTv) + metric_local_name((*t)->metric);
+      s = (*t)->window_start_s;
     }
     if (!patients.count(*rec)) continue;  // its windows are gone (removed) or unreadable
-    Entry entry{iri, *s, r.meta.item, r.meta.source, r.meta.stored_at};
+    entry.start_s = *s;
     auto [it, fresh] = latest_trend.emplace(std::make_pair(*rec, *which), entry);
     if (!fresh && it->second.start_s < *s) it->second = entry;
   }
   for (const auto& [key, entry] : latest_trend) {
-    auto records = whole_item(snapshot, entry.item, entry.iri);
-    if (!records) return unexpected(records.error());
-    if (!*records) continue;
-    auto t = read_trend(**records);
-    if (!t) {
-      unreadable.add(entry.source, t.error().message);
-      continue;
-    }
-    patients[key.first].trends.push_back(std::move(*t));
+    auto t = read_whole(snapshot, entry, read_trend, unreadable);
+    if (!t) return unexpected(t.error());
+    if (*t) patients[key.first].trends.push_back(std::move(**t));
   }
 
   PatientsOnBoard out;

@@ -683,7 +683,18 @@ struct ScratchNode {
     node.reset();
     if (!tmp.empty()) fs::remove_all(tmp);
   }
+  // What the agent `agent_id` of this node says is its problem ("": none).
+  std::string problem(const std::string& agent_id) { return problem_of(*node, tn::Term::iri(kNodeIri + "/" + agent_id)); }
 };
+
+// kRecording's description at 250 Hz, as the problem tests' ECG source states it.
+agg::RecordingInfo recording_at_250_hz() {
+  agg::RecordingInfo info;
+  info.iri = kRecording;
+  info.sensor_iri = kNodeIri + "/ecg";
+  info.fs = 250;
+  return info;
+}
 
 // A setting the agent cannot use is its problem on its board (for `tahvel status`, here and at
 // the hospital that sent it) until a usable one follows; the problem is over then.
@@ -725,13 +736,9 @@ TEST(AgentPrograms, ARecordingTheRPeakAgentCannotUseIsItsProblemWhileItsChunksAr
   std::optional<tn::Node>& node = scratch.node;
   auto ecg = node->agent("ecg");
   ASSERT_TRUE(ecg);
-  const tn::Term rpeak = tn::Term::iri(kNodeIri + "/rpeak");
-  auto problem = [&] { return problem_of(*node, rpeak); };
+  auto problem = [&] { return scratch.problem("rpeak"); };
   const auto& eventually = within_a_minute;
-  agg::RecordingInfo info;
-  info.iri = kRecording;
-  info.sensor_iri = kNodeIri + "/ecg";
-  info.fs = 250;
+  agg::RecordingInfo info = recording_at_250_hz();
   info.gain = 200;
   const std::vector<std::vector<std::int32_t>> flat(1, std::vector<std::int32_t>(250 * 4, 0));
   auto chunk = [&](int second) { return agg::ecg_chunk_item(info, second * 250, flat, static_cast<std::size_t>(second * 250), 250); };
@@ -777,12 +784,9 @@ TEST(AgentPrograms, RPeakItemsTheRrAgentCannotUseAreItsProblemWhileTheyAreSkippe
   auto other_detector = node->agent("detector2");
   ASSERT_TRUE(rpeak && other_detector);
   const tn::Term rr = tn::Term::iri(kNodeIri + "/rr");
-  auto problem = [&] { return problem_of(*node, rr); };
+  auto problem = [&] { return scratch.problem("rr"); };
   const auto& eventually = within_a_minute;
-  agg::RecordingInfo info;
-  info.iri = kRecording;
-  info.sensor_iri = kNodeIri + "/ecg";
-  info.fs = 250;
+  agg::RecordingInfo info = recording_at_250_hz();
   // Beats a second apart over [from, to), the last item of the recording when `end`.
   auto peaks = [](const std::string& recording, std::int64_t from, std::int64_t to, bool end) {
     agg::RPeaks p;
@@ -841,13 +845,9 @@ TEST(AgentPrograms, HrvWindowsTheTrendAgentCannotReadAreItsProblemUntilTheirWrit
   std::optional<tn::Node>& node = scratch.node;
   auto home_hrv = node->agent("hrv");
   ASSERT_TRUE(home_hrv);
-  const tn::Term trend = tn::Term::iri(kNodeIri + "/trend");
-  auto problem = [&] { return problem_of(*node, trend); };
+  auto problem = [&] { return scratch.problem("trend"); };
   const auto& eventually = within_a_minute;
-  agg::RecordingInfo info;
-  info.iri = kRecording;
-  info.sensor_iri = kNodeIri + "/ecg";
-  info.fs = 250;
+  agg::RecordingInfo info = recording_at_250_hz();
   agg::WindowMetrics window;
   window.start_s = 0;
   window.end_s = 60;
