@@ -15,6 +15,13 @@ bool PatientView::alerting() const {
   return std::any_of(trends.begin(), trends.end(), [](const TrendUpdate& t) { return t.alert; });
 }
 
+std::string PatientView::source_node() const {
+  const std::size_t slash = source.rfind('/');
+  const std::size_t authority = source.find("://");
+  if (slash == std::string::npos || authority == std::string::npos || slash <= authority + 2) return {};
+  return source.substr(0, slash);
+}
+
 bool PatientView::irregular() const {
   const auto& pct = latest.window.metrics.irregular_pct;
   return pct && *pct > kIrregularPct;
@@ -104,6 +111,7 @@ struct Entry {
   std::uint64_t item = 0;
   std::string source;
   std::int64_t stored_ns = 0;
+  std::int64_t asserted_ns = 0;
 };
 
 // The item of `entry`, its records about entry.iri (an item may hold several windows: `tahvel
@@ -146,7 +154,7 @@ Result<PatientsOnBoard> patients_on_board(const Snapshot& snapshot) {
     if (!start) return unexpected(start.error());
     auto recording = recording_of_window(snapshot, iri);
     if (!recording) return unexpected(recording.error());
-    Entry entry{iri, 0, r.meta.item, r.meta.source, r.meta.stored_at};
+    Entry entry{iri, 0, r.meta.item, r.meta.source, r.meta.stored_at, r.meta.asserted_at};
     std::string rec;
     const std::optional<double> s = number_in(*start);
     const std::optional<std::string>& name = *recording;
@@ -179,6 +187,7 @@ Result<PatientsOnBoard> patients_on_board(const Snapshot& snapshot) {
       p.windows = by_iri.size();
       p.latest = std::move(**w);
       p.latest_stored_ns = entry->stored_ns;
+      p.latest_asserted_ns = entry->asserted_ns;
       break;
     }
   }
@@ -201,7 +210,7 @@ Result<PatientsOnBoard> patients_on_board(const Snapshot& snapshot) {
     if (!start) return unexpected(start.error());
     auto rec = iri_in(*recording), which = iri_in(*metric);
     auto s = number_in(*start);
-    Entry entry{iri, 0, r.meta.item, r.meta.source, r.meta.stored_at};
+    Entry entry{iri, 0, r.meta.item, r.meta.source, r.meta.stored_at, r.meta.asserted_at};
     if (!rec || !which || !s) {
       auto t = read_whole(snapshot, entry, read_trend, unreadable);
       if (!t) return unexpected(t.error());

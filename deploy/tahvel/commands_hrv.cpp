@@ -166,7 +166,7 @@ void print_patients_json(const std::string& node_iri, const agg::PatientsOnBoard
         << node::json_escape(p.source) << "\",\"windows\":" << p.windows << ",\"alerting\":" << (p.alerting() ? "true" : "false")
         << ",\"irregular\":" << (p.irregular() ? "true" : "false") << ",\"latest\":{\"iri\":\"" << node::json_escape(p.latest.iri)
         << "\",\"start_s\":" << json_number(p.latest.window.start_s) << ",\"end_s\":" << json_number(p.latest.window.end_s)
-        << ",\"stored_ns\":" << p.latest_stored_ns << ",\"metrics\":" << metrics_json(p.latest.window.metrics) << "},\"trends\":[";
+        << ",\"stored_ns\":" << p.latest_stored_ns << ",\"asserted_ns\":" << p.latest_asserted_ns << ",\"metrics\":" << metrics_json(p.latest.window.metrics) << "},\"trends\":[";
     for (std::size_t k = 0; k < p.trends.size(); ++k) out << (k ? "," : "") << trend_json(p.trends[k]);
     out << "]}";
   }
@@ -188,7 +188,13 @@ std::string text_number(std::optional<double> value, const char* format = "%.4g"
   return buf;
 }
 
-void print_patient_text(const agg::PatientView& p) {
+// The window's signal time as a query range: from its start for its length.
+std::pair<std::int64_t, std::int64_t> signal_range_ns(const agg::PatientView& p) {
+  const double length_s = std::max(0.0, p.latest.window.end_s - p.latest.window.start_s);
+  return {p.latest_asserted_ns, p.latest_asserted_ns + static_cast<std::int64_t>(std::llround(length_s * 1e9))};
+}
+
+void print_patient_text(const std::string& dir, const agg::PatientView& p) {
   std::cout << "\n<" << p.recording << ">";
   for (const agg::TrendUpdate& t : p.trends)
     if (t.alert) std::cout << "  ALERT: " << agg::metric_local_name(t.metric) << " " << off_baseline(t.alert_direction);
@@ -199,6 +205,14 @@ void print_patient_text(const agg::PatientView& p) {
   std::cout << "  latest window: SDNN " << text_number(m.sdnn_ms) << " ms, RMSSD " << text_number(m.rmssd_ms)
             << " ms, mean HR " << text_number(m.mean_hr_bpm) << " bpm, " << m.nn_count << " NN of " << m.rr_count
             << " RR intervals\n";
+  // The chunks of that window's time at the node that computed it. A node with two sensors
+  // holds another patient's chunks of the same time: a chunk's subject is <recording>/chunk/N.
+  if (const std::string node = p.source_node(); !node.empty()) {
+    const auto [since, until] = signal_range_ns(p);
+    std::cout << "  its raw ECG, at <" << node << ">: tahvel query " << dir << " --at " << node
+              << " -p tv:samples --since " << since << " --until " << until << " | grep -F '<" << p.recording
+              << "/'\n";
+  }
   if (p.irregular())
     std::cout << "  irregular rhythm: " << text_number(m.irregular_pct, "%.0f")
               << " % of successive RR intervals differ by more than 20 %: its HRV may be off (docs/hrv.md)\n";
@@ -270,11 +284,12 @@ const Command kPatientsCommand{
     "The operator's view of the patients on a node's board (at the hospital: every home's): per\n"
     "recording whose HRV windows are on the board, who sent them and how many, the latest\n"
     "window's SDNN, RMSSD and mean heart rate (with a warning when the rhythm is too irregular\n"
-    "for its HRV to be trusted) and, where tahvel-trend runs, each metric's latest trend:\n"
-    "baseline, slope per hour, change alert and z-score against the other patients. Patients\n"
+    "for its HRV to be trusted), the query that brings the raw ECG behind it and, where\n"
+    "tahvel-trend runs, each metric's latest trend: baseline, slope per hour, change alert and\n"
+    "z-score against the other patients. Patients\n"
     "with an alert come first. Windows or trends that cannot be read are counted per writer.\n"
     "--json prints one object: {node, patients: [{recording, source, windows, alerting,\n"
-    "irregular, latest: {iri, start_s, end_s, stored_ns, metrics}, trends: [{metric,\n"
+    "irregular, latest: {iri, start_s, end_s, stored_ns, asserted_ns, metrics}, trends: [{metric,\n"
     "window_start_s, windows, latest, baseline, robust_sd, slope_per_hour, alert, direction,\n"
     "z_against_others, others}]}], unreadable: [{source, count, first_error}]}.",
     {{"--alerts", "", "", "only the patients with an alert"},
@@ -297,7 +312,7 @@ int run_patients(const Args& args) {
   } else {
     std::cout << board->patients.size() << " patient(s) with HRV on <" << node.iri() << ">, " << alerting
               << " with an alert\n";
-    for (const agg::PatientView* p : shown) print_patient_text(*p);
+    for (const agg::PatientView* p : shown) print_patient_text(args.positional(0), *p);
     for (const agg::UnreadableItems& u : board->unreadable)
       std::cout << "\n" << u.count << " HRV window or trend item(s) from <" << u.source
                 << "> could not be read; the first: " << u.first_error << "\n";

@@ -663,6 +663,10 @@ TEST_F(Cli, PatientsShowsEachRecordingsLatestWindowWithAlertingPatientsFirst) {
   EXPECT_NE(text.out.find("2 HRV window(s) from <http://example.org/home1/hrv>; the latest 60-120 s"), std::string::npos) << text.out;
   EXPECT_NE(text.out.find("SDNN 90 ms"), std::string::npos) << text.out;
   EXPECT_NE(text.out.find("no trend of it on this node"), std::string::npos) << text.out;
+  // Where the raw ECG behind the latest window lies, and the query that brings it.
+  EXPECT_NE(text.out.find("its raw ECG, at <http://example.org/home1>: tahvel query " + node_ +
+                          " --at http://example.org/home1 -p tv:samples --since "),
+            std::string::npos) << text.out;
 
   Outcome alerts = run({"patients", node_, "--alerts", "--json"});
   ASSERT_EQ(alerts.status, 0) << alerts.err;
@@ -670,7 +674,7 @@ TEST_F(Cli, PatientsShowsEachRecordingsLatestWindowWithAlertingPatientsFirst) {
   EXPECT_NE(alerts.out.find("\"recording\":\"http://example.org/home1/ecg/recording/c\""), std::string::npos) << alerts.out;
   EXPECT_EQ(alerts.out.find("recording/b\""), std::string::npos) << "only the alerting patients:\n" << alerts.out;
   for (const char* key : {"\"node\":", "\"source\":", "\"windows\":2", "\"alerting\":true", "\"irregular\":false",
-                          "\"latest\":{", "\"stored_ns\":", "\"sdnn_ms\":90", "\"trends\":[{\"metric\":\"sdnnMs\"",
+                          "\"latest\":{", "\"stored_ns\":", "\"asserted_ns\":", "\"sdnn_ms\":90", "\"trends\":[{\"metric\":\"sdnnMs\"",
                           "\"direction\":\"above\"", "\"unreadable\":[]"})
     EXPECT_NE(alerts.out.find(key), std::string::npos) << key << " in " << alerts.out;
 

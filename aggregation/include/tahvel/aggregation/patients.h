@@ -21,6 +21,12 @@ struct PatientView {
   std::size_t windows = 0;           // its HRV windows on the board
   HrvWindowItem latest;              // the readable window with the latest start
   std::int64_t latest_stored_ns = 0; // when that window was stored on this board
+  // The signal time of its start (its records' asserted-at, ns since the epoch): with the
+  // window's length, the --since and --until of a query for the raw ECG behind it.
+  std::int64_t latest_asserted_ns = 0;
+  // The node that computed it, where the raw ECG behind it lies: the writer's node (an agent's
+  // IRI is its node's IRI + "/" + id). Empty when the writer's IRI has no path to strip.
+  std::string source_node() const;
   // Per metric, the trend update of the latest window that has one (tahvel-trend's items), in
   // the order of HrvMetric; empty where no trend agent runs.
   std::vector<TrendUpdate> trends;
