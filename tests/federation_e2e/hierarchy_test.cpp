@@ -11,6 +11,7 @@
 #include <filesystem>
 #include <fstream>
 #include <map>
+#include <regex>
 #include <set>
 #include <sstream>
 #include <thread>
@@ -169,6 +170,33 @@ TEST(Hierarchy, HrvFromBothHomesReachesTheHospitalWithTheirSourcesAndRawEcgStays
   EXPECT_EQ(status, 0);
   EXPECT_NE(tree.find("home1  <" + kHome1 + ">  link up"), std::string::npos) << tree;
   EXPECT_NE(tree.find("ecg2  <" + kHome2 + "/ecg2>  link up"), std::string::npos) << tree;
+
+  // The operator's view at the hospital: one patient per home, and the query it prints for the
+  // raw ECG behind home2's latest window brings that window's chunks from home2.
+  const std::string hospital = d.store("hospital").string();
+  std::string patients = d.tahvel("patients " + hospital, &status);
+  EXPECT_EQ(status, 0);
+  EXPECT_NE(patients.find("2 patient(s) with HRV on <" + kHospital + ">"), std::string::npos) << patients;
+  EXPECT_NE(patients.find(" HRV window(s) from <" + kHome1 + "/hrv>"), std::string::npos) << patients;
+  std::smatch m;
+  ASSERT_TRUE(std::regex_search(patients, m, std::regex("\\n<(" + kHome2 + "/[^>]*)>[^<]*<" + kHome2 +
+                                                      "/hrv>; the latest ([0-9]+)-([0-9]+) s[^\\n]*\\n[^\\n]*\\n"
+                                                      "  its raw ECG, at <" + kHome2 + ">: tahvel query [^ ]+ --at " + kHome2 +
+                                                      " -p tv:samples --since ([0-9]+) --until ([0-9]+)")))
+      << patients;
+  const std::string recording = m[1];
+  const double seconds = std::stod(m[3]) - std::stod(m[2]);
+  const std::string raw = d.tahvel("query " + hospital + " --at " + kHome2 + " -p tv:samples --since " + m[4].str() +
+                                   " --until " + m[5].str(), &status);
+  EXPECT_EQ(status, 0);
+  std::size_t chunks = 0, others = 0;
+  std::istringstream lines(raw);
+  for (std::string line; std::getline(lines, line);) (line.rfind("<" + recording + "/", 0) == 0 ? chunks : others)++;
+  // One-second chunks covering the window: as many as its seconds, one more when the window
+  // does not start on a chunk's start.
+  EXPECT_GE(chunks, static_cast<std::size_t>(seconds)) << raw.substr(0, 600);
+  EXPECT_LE(chunks, static_cast<std::size_t>(seconds) + 1);
+  EXPECT_EQ(others, 0u) << "home2 has one sensor";
 }
 
 TEST(Hierarchy, WindowChangeWrittenAtTheHospitalTakesEffectAtThatHomeOnly) {
