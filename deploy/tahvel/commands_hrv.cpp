@@ -2,12 +2,15 @@
 // window), and with --eval the beat-by-beat score of the detector against the record's
 // reference annotations. `tahvel patients`: what a node's board says of each patient's HRV.
 #include <algorithm>
+#include <cctype>
 #include <cmath>
 #include <cstdio>
+#include <cstring>
 #include <iostream>
 #include <optional>
 #include <sstream>
 #include <string>
+#include <utility>
 
 #include "commands.h"
 #include "tahvel/aggregation/annotations.h"
@@ -188,6 +191,18 @@ std::string text_number(std::optional<double> value, const char* format = "%.4g"
   return buf;
 }
 
+// `text` as one word for a POSIX shell: as it is when it holds nothing the shell would read,
+// else in single quotes (a quote inside as '\'').
+std::string shell_word(const std::string& text) {
+  const bool plain = !text.empty() && std::all_of(text.begin(), text.end(), [](unsigned char c) {
+    return std::isalnum(c) || (c != 0 && std::strchr("_./:@%+=,-", c) != nullptr);
+  });
+  if (plain) return text;
+  std::string out = "'";
+  for (char c : text) out += c == '\'' ? std::string("'\\''") : std::string(1, c);
+  return out + "'";
+}
+
 // The window's signal time as a query range: from its start for its length.
 std::pair<std::int64_t, std::int64_t> signal_range_ns(const agg::PatientView& p) {
   const double length_s = std::max(0.0, p.latest.window.end_s - p.latest.window.start_s);
@@ -209,9 +224,9 @@ void print_patient_text(const std::string& dir, const agg::PatientView& p) {
   // holds another patient's chunks of the same time: a chunk's subject is <recording>/chunk/N.
   if (const std::string node = p.source_node(); !node.empty()) {
     const auto [since, until] = signal_range_ns(p);
-    std::cout << "  its raw ECG, at <" << node << ">: tahvel query " << dir << " --at " << node
-              << " -p tv:samples --since " << since << " --until " << until << " | grep -F '<" << p.recording
-              << "/'\n";
+    std::cout << "  its raw ECG, at <" << node << ">: tahvel query " << shell_word(dir) << " --at "
+              << shell_word(node) << " -p tv:samples --since " << since << " --until " << until << " | grep -F "
+              << shell_word("<" + p.recording + "/") << "\n";
   }
   if (p.irregular())
     std::cout << "  irregular rhythm: " << text_number(m.irregular_pct, "%.0f")
