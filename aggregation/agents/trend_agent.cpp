@@ -40,7 +40,15 @@ tn::Pattern hrv_windows() {
 struct Window {
   std::string iri;
   agg::WindowMetrics metrics;
+  std::int64_t asserted_ns = 0;  // the window's signal time, which its trend items are asserted at
 };
+
+// When the window `iri` of `records` is asserted (tahvel-hrv: at the signal time of its start).
+std::int64_t asserted_at(const std::vector<tn::Record>& records, const std::string& iri) {
+  for (const tn::Record& r : records)
+    if (r.triple.s.value == iri) return r.meta.asserted_at;
+  return 0;
+}
 
 // A recording's windows by start time.
 using Series = std::map<double, Window>;
@@ -57,7 +65,7 @@ class TrendStage {
     std::size_t windows = 0;
     for (const auto& records : *items)
       if (auto w = read_window(records)) {
-        recordings_[w->recording][w->window.start_s] = {w->iri, w->window};
+        recordings_[w->recording][w->window.start_s] = {w->iri, w->window, asserted_at(records, w->iri)};
         ++windows;
       }
     for (const auto& [recording, series] : recordings_)
@@ -71,7 +79,7 @@ class TrendStage {
   rt::Outcome handle(const tn::Delivery& delivery) {
     auto w = read_window(delivery.records);
     if (!w) return rt::Outcome::ok();
-    recordings_[w->recording][w->window.start_s] = {w->iri, w->window};
+    recordings_[w->recording][w->window.start_s] = {w->iri, w->window, asserted_at(delivery.records, w->iri)};
     return write_updates(w->recording, w->window.start_s, false);
   }
 
@@ -137,7 +145,11 @@ class TrendStage {
         u.z_against_others = agg::cross_patient_z(points.back().value, others);
         if (u.z_against_others) u.others = others.size();
       }
-      if (auto o = rt::store_output(session_, agg::trend_item(u, session_.agent.iri()), catching_up); o.fatal)
+      // At the window's signal time, as everything the chain derives: a time range selects a
+      // window and the trend after it together (tahvel patients --since).
+      tn::Item item = agg::trend_item(u, session_.agent.iri());
+      if (window.asserted_ns != 0) item.asserted_at = window.asserted_ns;
+      if (auto o = rt::store_output(session_, item, catching_up); o.fatal)
         return o;
     }
     return rt::Outcome::ok();

@@ -136,7 +136,7 @@ Result<std::optional<T>> read_whole(const Snapshot& snapshot, const Entry& entry
 
 }  // namespace
 
-Result<PatientsOnBoard> patients_on_board(const Snapshot& snapshot) {
+Result<PatientsOnBoard> patients_on_board(const Snapshot& snapshot, std::optional<std::int64_t> since) {
   Unreadable unreadable;
 
   // Every window: its recording and start through the indexes; an item without them is read
@@ -145,6 +145,7 @@ Result<PatientsOnBoard> patients_on_board(const Snapshot& snapshot) {
   Pattern hrv;
   hrv.p = Term::iri("http://www.w3.org/ns/sosa/observedProperty");
   hrv.o = tv_term("HeartRateVariability");
+  hrv.since = since;
   auto listed = snapshot.list(hrv);
   if (!listed) return unexpected(store_error(listed.error()));
   for (const Record& r : *listed) {
@@ -197,6 +198,7 @@ Result<PatientsOnBoard> patients_on_board(const Snapshot& snapshot) {
   Pattern trends;
   trends.p = Term::iri(std::string(node::kRdfType));
   trends.o = tv_term("HrvTrend");
+  trends.since = since;
   listed = snapshot.list(trends);
   if (!listed) return unexpected(store_error(listed.error()));
   for (const Record& r : *listed) {

@@ -78,6 +78,11 @@ std::string parse_iri(std::string_view text, const uri::PrefixMap& prefixes,
 node::Pattern pattern_from_args(const Args& args, const uri::PrefixMap& prefixes);
 // --cascade N; depths beyond 2^20 (deeper than any store's sub-trees) are taken as 2^20.
 unsigned cascade_flag(const Args& args);
+// The time `text` given to `flag` (--since, --until), ns since the epoch: an integer (ns) or an
+// RFC 3339 time "2026-11-21T10:00:00Z" (optional fractional seconds; Z or an offset ±HH:MM; 't'
+// and 'z' in either case). Out-of-range numbers and dates that do not exist (February 30) are
+// usage errors naming the flag, not times moved elsewhere.
+std::int64_t time_flag(std::string_view flag, const std::string& text);
 
 // The area of --area (and --floor): WKT when it reads as WKT, else a room's IRI or CURIE.
 spatial::AreaSpec area_flag(const Args& args, const uri::PrefixMap& prefixes);

@@ -4,6 +4,8 @@
 #include <charconv>
 #include <cerrno>
 #include <cstring>
+#include <ctime>
+#include <limits>
 #include <poll.h>
 #include <unistd.h>
 #include <fstream>
@@ -385,6 +387,87 @@ spatial::AreaSpec area_flag(const Args& args, const uri::PrefixMap& prefixes) {
     spec.floor = value;
   }
   return spec;
+}
+
+std::int64_t time_flag(std::string_view flag, const std::string& text) {
+  const std::string what = std::string(flag) + " '" + text + "': ";
+  if (!text.empty() && std::all_of(text.begin(), text.end(), [](char c) { return c >= '0' && c <= '9'; })) {
+    auto n = parse_u64(text);
+    if (!n || *n > static_cast<std::uint64_t>(std::numeric_limits<std::int64_t>::max()))
+      usage_error(what + "out of range (ns since the epoch, at most " + std::to_string(std::numeric_limits<std::int64_t>::max()) + ")");
+    // Seconds, milliseconds or microseconds since the epoch (a shell's `date +%s`) read as ns are
+    // a time in 1970, before every record: the answer is empty with no word why.
+    if (*n >= 100'000'000 && *n < 10'000'000'000'000'000) {
+      const char* unit = *n < 10'000'000'000 ? "seconds" : *n < 10'000'000'000'000 ? "milliseconds" : "microseconds";
+      const std::uint64_t scale = *n < 10'000'000'000 ? 1'000'000'000 : *n < 10'000'000'000'000 ? 1'000'000 : 1'000;
+      std::cerr << "tahvel: warning: " << what << "is read as ns since the epoch, a time in 1970; if it is " << unit
+                << ", give " << text << std::string(scale == 1'000'000'000 ? 9 : scale == 1'000'000 ? 6 : 3, '0') << "\n";
+    }
+    return static_cast<std::int64_t>(*n);
+  }
+  const std::string form = "give ns since the epoch or an RFC 3339 time like 2026-11-21T10:00:00Z";
+  std::size_t at = 0;
+  auto digits = [&](std::size_t count) -> int {
+    int value = 0;
+    for (std::size_t i = 0; i < count; ++i, ++at) {
+      if (at >= text.size() || text[at] < '0' || text[at] > '9') usage_error(what + form);
+      value = value * 10 + (text[at] - '0');
+    }
+    return value;
+  };
+  auto expect = [&](std::string_view one_of) {
+    if (at >= text.size() || one_of.find(text[at]) == std::string_view::npos) usage_error(what + form);
+    ++at;
+  };
+  struct tm tm {};
+  tm.tm_year = digits(4) - 1900;
+  expect("-");
+  tm.tm_mon = digits(2) - 1;
+  expect("-");
+  tm.tm_mday = digits(2);
+  expect("Tt");
+  tm.tm_hour = digits(2);
+  expect(":");
+  tm.tm_min = digits(2);
+  expect(":");
+  tm.tm_sec = digits(2);
+  // A leap second (23:59:60Z; RFC 3339 allows second 60) is the second after :59, as POSIX time,
+  // which has no leap seconds, counts it.
+  const int leap = tm.tm_sec == 60 ? 1 : 0;
+  tm.tm_sec -= leap;
+  const struct tm asked = tm;
+  const time_t seconds = timegm(&tm) + leap;
+  if (tm.tm_year != asked.tm_year || tm.tm_mon != asked.tm_mon || tm.tm_mday != asked.tm_mday ||
+      tm.tm_hour != asked.tm_hour || tm.tm_min != asked.tm_min || tm.tm_sec != asked.tm_sec)
+    usage_error(what + "no such date or time");
+  std::int64_t fraction = 0;
+  if (at < text.size() && text[at] == '.') {
+    ++at;
+    std::int64_t scale = 100'000'000;
+    const std::size_t first = at;
+    for (; at < text.size() && text[at] >= '0' && text[at] <= '9'; ++at, scale /= 10) fraction += (text[at] - '0') * scale;
+    if (at == first) usage_error(what + "a '.' needs digits after it");
+  }
+  std::int64_t offset_s = 0;
+  if (at < text.size() && (text[at] == 'Z' || text[at] == 'z')) {
+    ++at;
+  } else if (at < text.size() && (text[at] == '+' || text[at] == '-')) {
+    const int sign = text[at++] == '+' ? 1 : -1;
+    const int hours = digits(2);
+    expect(":");
+    const int minutes = digits(2);
+    if (hours > 23 || minutes > 59) usage_error(what + "no such offset");
+    offset_s = sign * (hours * 3600 + minutes * 60);
+  } else {
+    usage_error(what + "give the offset: Z for UTC, or ±HH:MM");
+  }
+  if (at != text.size()) usage_error(what + form);
+  const std::int64_t utc_s = static_cast<std::int64_t>(seconds) - offset_s;
+  if (utc_s < 0 || utc_s > std::numeric_limits<std::int64_t>::max() / 1'000'000'000 - 1)
+    usage_error(what + "outside the times a record can have (1970 to 2262)");
+  // Leap seconds are inserted at the end of a UTC day only: second 60 elsewhere is a typo.
+  if (leap && utc_s % 86400 != 0) usage_error(what + "second 60 exists only as a leap second, at 23:59:60 UTC");
+  return utc_s * 1'000'000'000 + fraction;
 }
 
 }  // namespace tahvel::cli

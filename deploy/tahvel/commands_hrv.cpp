@@ -294,7 +294,7 @@ int run_hrv(const Args& args) {
 
 const Command kPatientsCommand{
     "patients",
-    "DIR [--alerts] [--json]",
+    "DIR [--since T] [--alerts] [--json]",
     "Print each patient whose HRV reached this node: latest window, trends, alerts.",
     "The operator's view of the patients on a node's board (at the hospital: every home's): per\n"
     "recording whose HRV windows are on the board, who sent them and how many, the latest\n"
@@ -303,18 +303,23 @@ const Command kPatientsCommand{
     "tahvel-trend runs, each metric's latest trend: baseline, slope per hour, change alert and\n"
     "z-score against the other patients. Patients\n"
     "with an alert come first. Windows or trends that cannot be read are counted per writer.\n"
+    "--since T counts only the windows (and trends) of signal time T or later: ns since the\n"
+    "epoch or an RFC 3339 time such as 2026-11-21T10:00:00Z, as tahvel query takes it.\n"
     "--json prints one object: {node, patients: [{recording, source, windows, alerting,\n"
     "irregular, latest: {iri, start_s, end_s, stored_ns, asserted_ns, metrics}, trends: [{metric,\n"
     "window_start_s, windows, latest, baseline, robust_sd, slope_per_hour, alert, direction,\n"
     "z_against_others, others}]}], unreadable: [{source, count, first_error}]}.",
-    {{"--alerts", "", "", "only the patients with an alert"},
+    {{"--since", "", "T", "only windows and trends of signal time T or later"},
+     {"--alerts", "", "", "only the patients with an alert"},
      {"--json", "", "", "print JSON instead of text"}},
     1, 1};
 
 int run_patients(const Args& args) {
   node::Node node = open_node(args.positional(0));
   auto snapshot = check(node.snapshot());
-  auto board = agg::patients_on_board(snapshot);
+  std::optional<std::int64_t> since;
+  if (auto text = args.get("--since")) since = time_flag("--since", *text);
+  auto board = agg::patients_on_board(snapshot, since);
   if (!board) fail(board.error().message);
   std::vector<const agg::PatientView*> shown;
   std::size_t alerting = 0;
@@ -325,8 +330,8 @@ int run_patients(const Args& args) {
   if (args.has("--json")) {
     print_patients_json(node.iri(), *board, shown);
   } else {
-    std::cout << board->patients.size() << " patient(s) with HRV on <" << node.iri() << ">, " << alerting
-              << " with an alert\n";
+    std::cout << board->patients.size() << " patient(s) with HRV on <" << node.iri() << ">"
+              << (since ? " since " + node::utc_text(*since) : std::string()) << ", " << alerting << " with an alert\n";
     for (const agg::PatientView* p : shown) print_patient_text(args.positional(0), *p);
     for (const agg::UnreadableItems& u : board->unreadable)
       std::cout << "\n" << u.count << " HRV window or trend item(s) from <" << u.source

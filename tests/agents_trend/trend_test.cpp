@@ -75,7 +75,9 @@ class TrendAgentTest : public ::testing::Test {
   }
 
   // Window k (300 s) of a recording with the given SDNN; RMSSD and mean HR vary a little.
-  void store_window(const std::string& recording, std::size_t k, double sdnn) {
+  // Asserted at `asserted_ns` when given (tahvel-hrv: the signal time of the window's start).
+  void store_window(const std::string& recording, std::size_t k, double sdnn,
+                    std::optional<std::int64_t> asserted_ns = std::nullopt) {
     agg::RecordingInfo info;
     info.iri = recording;
     agg::WindowMetrics w;
@@ -85,7 +87,9 @@ class TrendAgentTest : public ::testing::Test {
     w.metrics.rmssd_ms = 30 + static_cast<double>(k % 3);
     w.metrics.mean_hr_bpm = 70 + static_cast<double>(k % 2);
     w.metrics.nn_count = w.metrics.rr_count = 350;
-    ASSERT_TRUE(hrv_->store(agg::hrv_window_item(info, w, hrv_->iri())));
+    tn::Item item = agg::hrv_window_item(info, w, hrv_->iri());
+    item.asserted_at = asserted_ns;
+    ASSERT_TRUE(hrv_->store(item));
   }
 
   std::size_t count_trends() {
@@ -228,6 +232,27 @@ TEST_F(TrendAgentTest, BaselineSlopeAlertZAndNoDoublesAfterRestart) {
 
 // A window with no beats (lead off) has no value: its trend items must not show the window
 // before's as "the metric in this window", nor carry on that window's alert.
+// A trend update describes the patient at its window's time: it is asserted at the window's
+// signal time, as everything the chain derives, so that a time range takes both together.
+TEST_F(TrendAgentTest, TrendItemsAreAssertedAtTheirWindowsSignalTime) {
+  const std::int64_t signal_start = 1'700'000'000'000'000'000;  // a recording of 2023, replayed now
+  for (std::size_t k = 0; k < 2; ++k)
+    store_window(kRecA, k, kSdnnA[k], signal_start + static_cast<std::int64_t>(k) * 300'000'000'000);
+  start_agent("120");
+  wait_for_trends(6);  // three metrics after each of two windows
+  auto records = node_->snapshot()->list(trend_items());
+  ASSERT_TRUE(records);
+  ASSERT_EQ(records->size(), 6u);
+  for (const auto& r : *records) {
+    auto item = node_->snapshot()->item(r.meta.item);
+    ASSERT_TRUE(item);
+    auto t = agg::read_trend(*item);
+    ASSERT_TRUE(t) << t.error().message;
+    EXPECT_EQ(r.meta.asserted_at, signal_start + static_cast<std::int64_t>(t->window_start_s) * 1'000'000'000) << t->iri;
+  }
+  EXPECT_EQ(agent_->stop(), 0);
+}
+
 TEST_F(TrendAgentTest, AWindowWithoutTheMetricHasNoLatestValueAndNoAlert) {
   for (std::size_t k = 0; k < 11; ++k) store_window(kRecA, k, kSdnnA[k]);
   agg::RecordingInfo info;

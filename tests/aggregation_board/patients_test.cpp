@@ -29,7 +29,7 @@ class PatientsOnBoard : public ::testing::Test {
 
   // The window [start, start + 60) of `recording` with SDNN `sdnn`, written by `writer`.
   void window(const std::string& writer, const std::string& recording, double start, double sdnn,
-              std::optional<double> irregular_pct = std::nullopt) {
+              std::optional<double> irregular_pct = std::nullopt, std::optional<std::int64_t> asserted_ns = std::nullopt) {
     agg::RecordingInfo info;
     info.iri = recording;
     agg::WindowMetrics w;
@@ -40,10 +40,13 @@ class PatientsOnBoard : public ::testing::Test {
     w.metrics.mean_hr_bpm = 70;
     w.metrics.nn_count = w.metrics.rr_count = 70;
     w.metrics.irregular_pct = irregular_pct;
-    store(writer, agg::hrv_window_item(info, w, kHospital + "/" + writer));
+    tn::Item item = agg::hrv_window_item(info, w, kHospital + "/" + writer);
+    item.asserted_at = asserted_ns;
+    store(writer, item);
   }
 
-  void trend(const std::string& recording, agg::HrvMetric metric, double start, bool alert) {
+  void trend(const std::string& recording, agg::HrvMetric metric, double start, bool alert,
+             std::optional<std::int64_t> asserted_ns = std::nullopt) {
     agg::TrendUpdate u;
     u.recording = recording;
     u.metric = metric;
@@ -53,7 +56,9 @@ class PatientsOnBoard : public ::testing::Test {
     u.latest = 50 + start;
     u.alert = alert;
     u.alert_direction = alert ? 1 : 0;
-    store("trend", agg::trend_item(u, kHospital + "/trend"));
+    tn::Item item = agg::trend_item(u, kHospital + "/trend");
+    item.asserted_at = asserted_ns;
+    store("trend", item);
   }
 
   void store(const std::string& writer, const tn::Item& item) {
@@ -62,10 +67,10 @@ class PatientsOnBoard : public ::testing::Test {
     ASSERT_TRUE(agent->store(item));
   }
 
-  agg::PatientsOnBoard read() {
+  agg::PatientsOnBoard read(std::optional<std::int64_t> since = std::nullopt) {
     auto snapshot = node_->snapshot();
     EXPECT_TRUE(snapshot);
-    auto board = agg::patients_on_board(*snapshot);
+    auto board = agg::patients_on_board(*snapshot, since);
     EXPECT_TRUE(board) << board.error().message;
     return board ? *board : agg::PatientsOnBoard{};
   }
@@ -163,6 +168,30 @@ TEST_F(PatientsOnBoard, AWindowIsItsRecordingsByProvenanceOrByTvRecordingAndAnIr
   EXPECT_EQ(a.source, kHospital + "/other-hrv");
   EXPECT_TRUE(a.irregular());
   EXPECT_TRUE(board.unreadable.empty());
+}
+
+// The chain asserts a window and the trend after it at the window's signal time: --since keeps
+// the patients with a window since then, and of each only what is that recent.
+TEST_F(PatientsOnBoard, SinceKeepsOnlyWindowsAndTrendsOfSignalTimeSinceThen) {
+  const std::int64_t t0 = 1'700'000'000'000'000'000, minute = 60'000'000'000;
+  window("home1-hrv", kRecA, 0, 50, std::nullopt, t0);
+  window("home1-hrv", kRecA, 60, 52, std::nullopt, t0 + minute);
+  window("home2-hrv", kRecB, 0, 40, std::nullopt, t0);
+  trend(kRecA, agg::HrvMetric::sdnn, 0, true, t0);
+  trend(kRecA, agg::HrvMetric::sdnn, 60, false, t0 + minute);
+  trend(kRecA, agg::HrvMetric::rmssd, 0, false, t0);
+
+  const agg::PatientsOnBoard all = read();
+  ASSERT_EQ(all.patients.size(), 2u);
+  const agg::PatientsOnBoard recent = read(t0 + minute / 2);
+  ASSERT_EQ(recent.patients.size(), 1u) << "B has no window since then";
+  const agg::PatientView& a = recent.patients[0];
+  EXPECT_EQ(a.recording, kRecA);
+  EXPECT_EQ(a.windows, 1u);
+  EXPECT_EQ(a.latest.window.start_s, 60);
+  EXPECT_EQ(a.latest_asserted_ns, t0 + minute);
+  ASSERT_EQ(a.trends.size(), 1u) << "the RMSSD trend is of the earlier window";
+  EXPECT_EQ(a.trends[0].window_start_s, 60);
 }
 
 TEST_F(PatientsOnBoard, ABoardWithoutHrvHasNoPatients) {

@@ -678,6 +678,14 @@ TEST_F(Cli, PatientsShowsEachRecordingsLatestWindowWithAlertingPatientsFirst) {
                           "\"direction\":\"above\"", "\"unreadable\":[]"})
     EXPECT_NE(alerts.out.find(key), std::string::npos) << key << " in " << alerts.out;
 
+  // Windows put now are asserted now: none since tomorrow; a time that is no time is refused.
+  Outcome later = run({"patients", node_, "--since", "2262-01-01T00:00:00Z"});
+  EXPECT_EQ(later.status, 0) << later.err;
+  EXPECT_NE(later.out.find("0 patient(s) with HRV on <http://example.org/home1> since 2262-01-01T00:00:00"), std::string::npos) << later.out;
+  Outcome bad = run({"patients", node_, "--since", "yesterday"});
+  EXPECT_EQ(bad.status, 2);
+  EXPECT_NE(bad.err.find("--since 'yesterday'"), std::string::npos) << bad.err;
+
   Outcome missing = run({"patients", (tmp_ / "nowhere").string()});
   EXPECT_EQ(missing.status, 1);
   EXPECT_NE(missing.err.find("nowhere"), std::string::npos) << missing.err;

@@ -6,6 +6,7 @@
 
 #include <cstddef>
 #include <cstdint>
+#include <optional>
 #include <string>
 #include <vector>
 
@@ -53,7 +54,10 @@ struct PatientsOnBoard {
 
 // Every window's start and recording and every trend's recording, metric and start are read
 // through the indexes; only each patient's latest window and latest trend per metric are read
-// whole. Errors: those of the store.
-Result<PatientsOnBoard> patients_on_board(const node::Snapshot& snapshot);
+// whole. With `since` (ns since the epoch), only windows and trend updates asserted then or
+// later count: the chain asserts both at the signal time of the window (tahvel-hrv,
+// tahvel-trend), so a patient is one with a window since then. Errors: those of the store.
+Result<PatientsOnBoard> patients_on_board(const node::Snapshot& snapshot,
+                                          std::optional<std::int64_t> since = std::nullopt);
 
 }  // namespace tahvel::aggregation
