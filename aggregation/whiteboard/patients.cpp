@@ -6,7 +6,6 @@
 #include <cmath>
 #include <map>
 #include <optional>
-#include <set>
 #include <utility>
 
 namespace tahvel::aggregation {
@@ -139,8 +138,8 @@ Result<std::optional<T>> read_whole(const Snapshot& snapshot, const Entry& entry
 Result<PatientsOnBoard> patients_on_board(const Snapshot& snapshot, std::optional<std::int64_t> since) {
   Unreadable unreadable;
 
-  // Every window: its recording and start through the indexes; an item without them is read
-  // whole (a window may name its recording only by provenance, docs/vocabulary.md).
+  // Every window: its recording and start through the indexes (recording_of_window); a window
+  // whose recording or start cannot be found so is read whole.
   std::map<std::string, std::map<std::string, Entry>> windows;  // recording -> window IRI -> entry
   Pattern hrv;
   hrv.p = Term::iri("http://www.w3.org/ns/sosa/observedProperty");

@@ -83,6 +83,14 @@ unsigned cascade_flag(const Args& args);
 // and 'z' in either case). Out-of-range numbers and dates that do not exist (February 30) are
 // usage errors naming the flag, not times moved elsewhere.
 std::int64_t time_flag(std::string_view flag, const std::string& text);
+// "4.2 s"
+std::string seconds_text(double seconds);
+// Now, ns since the epoch (the clock records are stamped with).
+std::int64_t unix_now_ns();
+double seconds_since(std::int64_t unix_ns);
+// "4.2 s ago", "0.3 s ahead of this machine's clock" (a time written on another machine), or
+// "never" for 0.
+std::string age_of(std::int64_t unix_ns);
 
 // The area of --area (and --floor): WKT when it reads as WKT, else a room's IRI or CURIE.
 spatial::AreaSpec area_flag(const Args& args, const uri::PrefixMap& prefixes);

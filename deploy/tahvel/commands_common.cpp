@@ -2,6 +2,7 @@
 // prefix table, input and output. Everything here runs once per invocation (not hot).
 #include <algorithm>
 #include <charconv>
+#include <chrono>
 #include <cerrno>
 #include <cstring>
 #include <ctime>
@@ -468,6 +469,26 @@ std::int64_t time_flag(std::string_view flag, const std::string& text) {
   // Leap seconds are inserted at the end of a UTC day only: second 60 elsewhere is a typo.
   if (leap && utc_s % 86400 != 0) usage_error(what + "second 60 exists only as a leap second, at 23:59:60 UTC");
   return utc_s * 1'000'000'000 + fraction;
+}
+
+std::string seconds_text(double seconds) {
+  std::ostringstream out;
+  out.precision(1);
+  out << std::fixed << seconds << " s";
+  return out.str();
+}
+
+std::int64_t unix_now_ns() {
+  return std::chrono::duration_cast<std::chrono::nanoseconds>(std::chrono::system_clock::now().time_since_epoch()).count();
+}
+
+double seconds_since(std::int64_t unix_ns) { return static_cast<double>(unix_now_ns() - unix_ns) / 1e9; }
+
+std::string age_of(std::int64_t unix_ns) {
+  if (unix_ns <= 0) return "never";
+  const double age = seconds_since(unix_ns);
+  // A time written on another machine may be ahead of this one's clock: said so, not as "-0.4 s ago".
+  return age < -0.05 ? seconds_text(-age) + " ahead of this machine's clock" : seconds_text(std::max(age, 0.0)) + " ago";
 }
 
 }  // namespace tahvel::cli

@@ -137,26 +137,6 @@ void install_stop_handlers() {
 
 // --- times ----------------------------------------------------------------------------------
 
-// "4.2 s"
-std::string seconds_text(double seconds) {
-  std::ostringstream out;
-  out.precision(1);
-  out << std::fixed << seconds << " s";
-  return out.str();
-}
-
-std::int64_t unix_now_ns() {
-  return std::chrono::duration_cast<std::chrono::nanoseconds>(std::chrono::system_clock::now().time_since_epoch()).count();
-}
-
-double seconds_since(std::int64_t unix_ns) { return static_cast<double>(unix_now_ns() - unix_ns) / 1e9; }
-
-// A time written on another machine may be ahead of this one's clock: said so, not as "-0.4 s ago".
-std::string age_of(std::int64_t unix_ns) {
-  if (unix_ns <= 0) return "never";
-  const double age = seconds_since(unix_ns);
-  return age < -0.05 ? seconds_text(-age) + " ahead of this machine's clock" : seconds_text(std::max(age, 0.0)) + " ago";
-}
 
 const Flag kFlagLcmUrl{"--lcm-url", "", "URL", "LCM URL of the link to the parent: frames up on its PORT, down on PORT + 1 (default udpm://239.255.76.67:7667?ttl=0)"};
 const Flag kFlagDdsDomain{"--dds-domain", "", "N", "Cyclone DDS domain id (default 0)"};

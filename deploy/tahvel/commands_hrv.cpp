@@ -215,7 +215,8 @@ void print_patient_text(const std::string& dir, const agg::PatientView& p) {
     if (t.alert) std::cout << "  ALERT: " << agg::metric_local_name(t.metric) << " " << off_baseline(t.alert_direction);
   std::cout << "\n  " << p.windows << " HRV window(s) from <" << p.source << ">; the latest "
             << text_number(p.latest.window.start_s, "%.0f") << "-" << text_number(p.latest.window.end_s, "%.0f")
-            << " s into the recording, stored " << node::utc_text(p.latest_stored_ns) << "\n";
+            << " s into the recording, stored " << node::utc_text(p.latest_stored_ns) << " ("
+            << age_of(p.latest_stored_ns) << ")\n";
   const agg::HrvMetrics& m = p.latest.window.metrics;
   std::cout << "  latest window: SDNN " << text_number(m.sdnn_ms) << " ms, RMSSD " << text_number(m.rmssd_ms)
             << " ms, mean HR " << text_number(m.mean_hr_bpm) << " bpm, " << m.nn_count << " NN of " << m.rr_count

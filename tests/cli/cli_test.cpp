@@ -661,6 +661,8 @@ TEST_F(Cli, PatientsShowsEachRecordingsLatestWindowWithAlertingPatientsFirst) {
   ASSERT_NE(b, std::string::npos) << text.out;
   EXPECT_LT(a, b) << "the alerting patient first:\n" << text.out;
   EXPECT_NE(text.out.find("2 HRV window(s) from <http://example.org/home1/hrv>; the latest 60-120 s"), std::string::npos) << text.out;
+  EXPECT_TRUE(std::regex_search(text.out, std::regex("into the recording, stored [0-9T:.-]+Z \\([0-9.]+ s ago\\)\\n")))
+      << "when it came, and how long ago:\n" << text.out;
   EXPECT_NE(text.out.find("SDNN 90 ms"), std::string::npos) << text.out;
   EXPECT_NE(text.out.find("no trend of it on this node"), std::string::npos) << text.out;
   // Where the raw ECG behind the latest window lies, and the query that brings it.
