@@ -34,6 +34,9 @@ inline const Flag kFlagS{"-s", "--subject", "TERM", "match this subject: <iri>, 
 inline const Flag kFlagP{"-p", "--predicate", "TERM", "match this predicate: <iri>, IRI, CURIE or 'a'"};
 inline const Flag kFlagO{"-o", "--object", "TERM",
                          "match this object: IRI, CURIE, _:b, \"x\", \"x\"@en, \"x\"^^type, 72"};
+inline const Flag kFlagSource{"--source", "", "IRI", "only records written by this agent or node (or below it)"};
+inline const Flag kFlagUnder{"--under", "", "IRI",
+                             "only records whose subject is this IRI or below it (a recording's chunks: <rec>/chunk/N)"};
 inline const Flag kFlagArea{"--area", "", "IRI|WKT",
                             "only records of features located in a room (IRI) or (MULTI)POLYGON, or from its sensors"};
 inline const Flag kFlagFloor{"--floor", "", "N", "with a WKT --area: only that floor (default: every floor)"};

@@ -280,6 +280,9 @@ node::Pattern pattern_from_args(const Args& args, const uri::PrefixMap& prefixes
   if (has_flag_spec(args, "--source")) {
     if (auto src = args.get("--source")) pattern.source = parse_iri(*src, prefixes, "--source");
   }
+  if (has_flag_spec(args, "--under")) {
+    if (auto under = args.get("--under")) pattern.under = parse_iri(*under, prefixes, "--under");
+  }
   return pattern;
 }
 
@@ -294,6 +297,7 @@ bool matches(const node::Pattern& pattern, const node::Record& record) {
   if (pattern.o && *pattern.o != t.o) return false;
   if (pattern.context && *pattern.context != record.meta.context) return false;
   if (pattern.source && !uri::is_under(record.meta.source, *pattern.source)) return false;
+  if (pattern.under && !(t.s.is_iri() && uri::is_under(t.s.value, *pattern.under))) return false;
   return true;
 }
 

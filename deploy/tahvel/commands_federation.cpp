@@ -264,17 +264,18 @@ int run_link(const Args& args) {
 
 const Command kQueryCommand{
     "query",
-    "DIR --at NODE-IRI [-s S] [-p P] [-o O] [--area IRI|WKT [--floor N]] [--since T] [--until T] [--cascade N] [--limit N] [--format nt|ttl|json] [--timeout S]",
+    "DIR --at NODE-IRI [-s S] [-p P] [-o O] [--source IRI] [--under IRI] [--area IRI|WKT [--floor N]] [--since T] [--until T] [--cascade N] [--limit N] [--format nt|ttl|json] [--timeout S]",
     "Ask a node below this one for its records; the answer streams back.",
     "Run against the node at DIR (e.g. the hospital): the query travels down the tree to the node\n"
     "at --at, is answered from its store and comes back in chunks, printed as they arrive. Times\n"
     "(--since, --until; by asserted-at) are ns since the epoch or RFC 3339 times: 2026-11-21T10:00:00Z, …T12:00:00.5+02:00;\n"
     "a record that holds for a span of time (an ECG chunk, its second) is in a range it overlaps.\n"
     "With --area the node that answers keeps the records located in a room or WKT area of its own\n"
-    "floor plan (as 'tahvel list --area' does there; docs/spatial.md).\n"
+    "floor plan (as 'tahvel list --area' does there; docs/spatial.md). --under names one\n"
+    "recording's chunks where a node holds several patients' ('tahvel patients' prints it).\n"
     "Exit status: 0 answered, 3 timeout, 4 unknown node, 5 unreachable node, 1 other failure.",
     {{"--at", "", "NODE-IRI", "the node that answers (this node or any node below it)"},
-     kFlagS, kFlagP, kFlagO,
+     kFlagS, kFlagP, kFlagO, kFlagSource, kFlagUnder,
      {"--area", "", "IRI|WKT", "only records located in this room or (MULTI)POLYGON, resolved at the target"},
      {"--floor", "", "N", "with a WKT --area: only that floor"},
      {"--since", "", "T", "records asserted at or after T (or whose span reaches past T)"},

@@ -221,13 +221,14 @@ void print_patient_text(const std::string& dir, const agg::PatientView& p) {
   std::cout << "  latest window: SDNN " << text_number(m.sdnn_ms) << " ms, RMSSD " << text_number(m.rmssd_ms)
             << " ms, mean HR " << text_number(m.mean_hr_bpm) << " bpm, " << m.nn_count << " NN of " << m.rr_count
             << " RR intervals\n";
-  // The chunks of that window's time at the node that computed it. A node with two sensors
-  // holds another patient's chunks of the same time: a chunk's subject is <recording>/chunk/N.
+  // The chunks of that window's time at the node that computed it, of this recording only (a
+  // node with two sensors holds another patient's chunks of the same time; a chunk's subject is
+  // <recording>/chunk/N).
   if (const std::string node = p.source_node(); !node.empty()) {
     const auto [since, until] = signal_range_ns(p);
     std::cout << "  its raw ECG, at <" << node << ">: tahvel query " << shell_word(dir) << " --at "
-              << shell_word(node) << " -p tv:samples --since " << since << " --until " << until << " | grep -F "
-              << shell_word("<" + p.recording + "/") << "\n";
+              << shell_word(node) << " --under " << shell_word(p.recording) << " -p tv:samples --since " << since
+              << " --until " << until << "\n";
   }
   if (p.irregular())
     std::cout << "  irregular rhythm: " << text_number(m.irregular_pct, "%.0f")

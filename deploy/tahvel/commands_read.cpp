@@ -17,7 +17,6 @@ namespace {
 using std::chrono::milliseconds;
 
 const Flag kFlagListContext{"--context", "", "IRI", "only records with this context ('' for none)"};
-const Flag kFlagSource{"--source", "", "IRI", "only records written by this agent or node (or below it)"};
 // One year: longer waits are refused rather than overflowing a deadline in the library.
 milliseconds timeout_flag(const Args& args) {
   constexpr std::uint64_t kMax = 365ull * 24 * 3600 * 1000;
@@ -88,7 +87,7 @@ void print_stats_json(const node::Stats& s) {
 
 const Command kListCommand{
     "list",
-    "DIR [-s S] [-p P] [-o O] [--context IRI] [--source IRI] [--area IRI|WKT [--floor N]] [--cascade N] [--limit N] [--format nt|ttl|json]",
+    "DIR [-s S] [-p P] [-o O] [--context IRI] [--source IRI] [--under IRI] [--area IRI|WKT [--floor N]] [--cascade N] [--limit N] [--format nt|ttl|json]",
     "Print the records matching a pattern (all when none is given).",
     "Matches come in id order; with --cascade N each is followed by its sub-tree: the records\n"
     "whose subject is the match's object (an IRI or blank node), N levels deep. JSON output has\n"
@@ -97,7 +96,7 @@ const Command kListCommand{
     "area (a sensor inside it, or the room itself) or whose source is a sensor inside it are\n"
     "kept; sensors are placed by geo:hasGeometry/geo:asWKT as the board says when the command\n"
     "runs (docs/spatial.md).",
-    {kFlagS, kFlagP, kFlagO, kFlagListContext, kFlagSource, kFlagArea, kFlagFloor, kFlagCascade,
+    {kFlagS, kFlagP, kFlagO, kFlagListContext, kFlagSource, kFlagUnder, kFlagArea, kFlagFloor, kFlagCascade,
      {"--limit", "", "N", "print at most N records in all (0: no limit)"}, kFlagFormat},
     1, 1};
 
@@ -190,13 +189,13 @@ int run_take(const Args& args) {
 
 const Command kTailCommand{
     "tail",
-    "DIR [-s S] [-p P] [-o O] [--context IRI] [--source IRI] [--format nt|ttl|json] [--count N]",
+    "DIR [-s S] [-p P] [-o O] [--context IRI] [--source IRI] [--under IRI] [--format nt|ttl|json] [--count N]",
     "Print records as they are stored from now on, until interrupted.",
     "Starts after the last record present when it starts and follows the node's change stream.\n"
     "Removals are printed as '# removed ID' (N-Triples, Turtle) or as the record's JSON object\n"
     "with \"removed\":true and the change's \"seq\". With --count N it exits 0 after N records\n"
     "(removals are not counted).",
-    {kFlagS, kFlagP, kFlagO, kFlagListContext, kFlagSource, kFlagFormat,
+    {kFlagS, kFlagP, kFlagO, kFlagListContext, kFlagSource, kFlagUnder, kFlagFormat,
      {"--count", "", "N", "exit after printing N records (default 0: run until interrupted)"}},
     1, 1};
 

@@ -544,11 +544,37 @@ struct Link::Impl {
       if (it == older_children.end()) return;
       frame.version = it->second;
     }
+    if (frame.kind == FrameKind::query) {
+      // Before version 4 a query has no source nor under: one with either never comes here
+      // (unservable_by), so the layout is all that changes.
+      if (auto q = wire::decode_query(frame.body))
+        if (auto older = wire::encode_query(*q, frame.version)) frame.body = std::move(*older);
+      return;
+    }
     if (frame.kind != FrameKind::down) return;
     if (auto item = wire::decode_item(frame.body); item && item->item.span != 0) {
       item->item.span = 0;
       frame.body = wire::encode_item(*item);
     }
+  }
+
+  // The protocol version the child `iri` is spoken to in.
+  std::uint16_t version_of_child(const std::string& iri) {
+    if (!older_children_heard.load(std::memory_order_relaxed)) return kProtocolVersion;
+    std::lock_guard lock(older_children_mu);
+    auto it = older_children.find(iri);
+    return it == older_children.end() ? kProtocolVersion : it->second;
+  }
+
+  // Why the child `iri` on the way to a query's target cannot carry it (P3), if it cannot: a
+  // query by source or by subject to a child of a version without them would come back as a
+  // query without them, and the asker would take the whole node's records for the ones asked.
+  std::optional<std::string> unservable_by(const std::string& iri, const wire::QueryBody& q) {
+    if (q.source.empty() && q.under.empty()) return std::nullopt;
+    const std::uint16_t version = version_of_child(iri);
+    if (version >= 4) return std::nullopt;
+    return "<" + iri + "> (on the way to <" + q.target + ">) speaks protocol version " + std::to_string(version) +
+           ", which has no query by source or by subject (--source, --under): upgrade it, or ask without them";
   }
 
   // Whether frames arriving on `via` come from children (a transport this node listens on).
@@ -1635,7 +1661,7 @@ struct Link::Impl {
   // ---- queries ------------------------------------------------------------------------------
 
   void query_from_parent(Transport* via, const Frame& f) {
-    auto q = wire::decode_query(f.body);
+    auto q = wire::decode_query(f.body, f.version);
     if (!q) {
       log("dropped a malformed query from the parent: " + q.error().message);
       return;
@@ -1677,9 +1703,12 @@ struct Link::Impl {
                                       (it->second->ever || it->second->ever_before ? "down" : "never connected") + " at <" + self +
                                       ">",  // as remote_query says it
                    q->origin});
+      } else if (auto why = unservable_by(child_iri, *q)) {
+        out.error(via, opt.parent_iri, f.seq, {"query_failed", *why, q->origin});
       } else {
         Frame down = f;
         down.to = child_iri;
+        down.body = wire::encode_query(*q).value();  // in this node's version, as send() says
         InStream& in = in_answers[key];
         in.forward_up = true;
         in.child = child_iri;
@@ -1775,6 +1804,8 @@ struct Link::Impl {
     if (!snap) return tahvel::unexpected(snap.error());
     const wire::QueryBody& q = r.q;
     node::Pattern pattern{.s = q.s, .p = q.p, .o = q.o, .since = q.since, .until = q.until};
+    if (!q.source.empty()) pattern.source = q.source;
+    if (!q.under.empty()) pattern.under = q.under;
     const bool whole = q.cascade > 0 || !q.area.empty();
     if (!r.started) {
       r.started = true;
@@ -2302,7 +2333,7 @@ struct Link::Impl {
             local_acks.push_back(d.item);
             continue;
           }
-          frames.push_back(start_query(child, d));
+          if (auto query = start_query(child, d)) frames.push_back(std::move(*query));
           local_acks.push_back(d.item);
           continue;
         }
@@ -2342,8 +2373,9 @@ struct Link::Impl {
   }
 
   // A query item written on this board (the origin) for a node below `child` (P13): the query
-  // frame to send, now kept for resends. Caller holds mu.
-  Frame start_query(const Child& child, const node::Delivery& d) {
+  // frame to send, now kept for resends; none when `child` cannot carry it, which the asker is
+  // told on the board. Caller holds mu.
+  std::optional<Frame> start_query(const Child& child, const node::Delivery& d) {
     wire::QueryBody q;
     q.origin = self;
     const node::Term* target = object_of(d.records, vocab::kQueryTarget);
@@ -2361,13 +2393,28 @@ struct Link::Impl {
     q.limit = static_cast<std::uint64_t>(integer_of(d.records, vocab::kQueryLimit).value_or(0));
     if (auto t = object_of(d.records, vocab::kQueryArea)) q.area = t->value;
     q.floor = integer_of(d.records, vocab::kQueryFloor);
+    if (auto t = object_of(d.records, vocab::kQuerySource)) q.source = t->value;
+    if (auto t = object_of(d.records, vocab::kQueryUnder)) q.under = t->value;
     Frame f;
     f.kind = FrameKind::query;
     f.to = child.iri;
     f.seq = d.item;
-    f.body = wire::encode_query(q);
-    InStream& in = in_answers[query_key(self, d.item)];
+    f.body = wire::encode_query(q).value();  // in this node's version, which has every field
+    const std::string key = query_key(self, d.item);
+    InStream& in = in_answers[key];
     in.reply_to = reply_to ? reply_to->value : std::string();
+    if (auto why = unservable_by(child.iri, q)) {
+      in.done = true;
+      Frame error;
+      error.kind = FrameKind::error;
+      error.from = child.iri;
+      error.to = self;
+      error.seq = d.item;
+      error.body = wire::encode_error({"query_failed", *why, self});
+      board_writes.push_back({key, in.reply_to, std::move(error)});
+      board_due.notify_all();
+      return std::nullopt;
+    }
     in.child = child.iri;
     in.query_frame = f;
     in.sent = Clock::now();

@@ -82,6 +82,15 @@ Result<std::uint64_t> remote_query(node::Node& node, const RemoteQuery& query,
   // "<…/home1/>", as a browser writes it, means <…/home1>.
   while (target->size() > self.size() && target->back() == '/') target->pop_back();
   node::Pattern pattern = query.pattern;
+  // What the query frame carries (P13); anything else would be left out below without a word.
+  if (pattern.context || pattern.after_id)
+    return node::fail(Errc::invalid_argument, "a remote query takes no context nor after_id in its pattern");
+  for (std::optional<std::string>* iri : {&pattern.source, &pattern.under}) {
+    if (!*iri) continue;
+    auto normal = uri::normalize(**iri);
+    if (!normal) return node::fail(Errc::invalid_iri, std::string(iri == &pattern.source ? "source" : "under") + ": " + normal.error().message);
+    *iri = std::move(*normal);
+  }
   if (*target == self) {  // asked here: the local store answers
     auto snap = node.snapshot();
     if (!snap) return Unexpected<Error>{snap.error()};
@@ -147,6 +156,8 @@ Result<std::uint64_t> remote_query(node::Node& node, const RemoteQuery& query,
   if (pattern.s) ask.add(q, Term::iri(vocab::kQuerySubject), as_written(*pattern.s));
   if (pattern.p) ask.add(q, Term::iri(vocab::kQueryPredicate), *pattern.p);
   if (pattern.o) ask.add(q, Term::iri(vocab::kQueryObject), as_written(*pattern.o));
+  if (pattern.source) ask.add(q, Term::iri(vocab::kQuerySource), Term::iri(*pattern.source));
+  if (pattern.under) ask.add(q, Term::iri(vocab::kQueryUnder), Term::iri(*pattern.under));
   if (pattern.since) ask.add(q, Term::iri(vocab::kQuerySince), Term::integer(*pattern.since));
   if (pattern.until) ask.add(q, Term::iri(vocab::kQueryUntil), Term::integer(*pattern.until));
   if (query.cascade) ask.add(q, Term::iri(vocab::kQueryCascade), Term::integer(query.cascade));

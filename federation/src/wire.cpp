@@ -184,15 +184,19 @@ Result<ItemBody> decode_item(std::string_view bytes) {
   return in.finish(std::move(body));
 }
 
-std::string encode_query(const QueryBody& body) {
+Result<std::string> encode_query(const QueryBody& body, std::uint16_t version) {
+  if (version < 4 && (!body.source.empty() || !body.under.empty()))
+    return node::fail(Errc::invalid_argument, "a query by source or by subject (--source, --under) needs protocol version 4, not " +
+                                                  std::to_string(version));
   Out out;
   out.str(body.origin).str(body.target).opt_term(body.s).opt_term(body.p).opt_term(body.o);
   out.opt_i64(body.since).opt_i64(body.until).u32(body.cascade).u64(body.limit);
   out.str(body.area).opt_i64(body.floor);
+  if (version >= 4) out.str(body.source).str(body.under);
   return out.take();
 }
 
-Result<QueryBody> decode_query(std::string_view bytes) {
+Result<QueryBody> decode_query(std::string_view bytes, std::uint16_t version) {
   In in(bytes, "query");
   QueryBody body;
   body.origin = in.str("origin");
@@ -206,6 +210,10 @@ Result<QueryBody> decode_query(std::string_view bytes) {
   body.limit = in.u64("limit");
   body.area = in.str("area");
   body.floor = in.opt_i64("floor");
+  if (version >= 4) {
+    body.source = in.str("source");
+    body.under = in.str("under");
+  }
   return in.finish(std::move(body));
 }
 

@@ -835,7 +835,7 @@ Result<std::uint64_t> Agent::subscribe(const Pattern& given, const SubscribeOpti
     if (!normal) return fail(Errc::invalid_iri, "subscription source: " + normal.error().message);
     pattern.source = std::move(*normal);
   }
-  if (pattern.since || pattern.until || pattern.after_id)
+  if (pattern.since || pattern.until || pattern.after_id || pattern.under)
     return fail(Errc::invalid_argument, "a subscription pattern takes subject, predicate, object, context and source only");
   if (pattern.context && pattern.context->empty())
     return fail(Errc::invalid_argument, "a subscription's context must be an IRI");
@@ -1026,8 +1026,8 @@ Result<std::vector<std::uint64_t>> item_with_subtrees(Txn& txn, std::uint64_t it
 }  // namespace
 
 Result<std::uint64_t> Node::remove(const Pattern& pattern, unsigned cascade, Reach reach) {
-  if (!pattern.s && !pattern.p && !pattern.o && !pattern.context && !pattern.source)
-    return fail(Errc::invalid_argument, "refusing to remove with an empty pattern; name a subject, predicate, object, context or source");
+  if (!pattern.s && !pattern.p && !pattern.o && !pattern.context && !pattern.source && !pattern.under)
+    return fail(Errc::invalid_argument, "refusing to remove with an empty pattern; name a subject, predicate, object, context, source or subject prefix");
   return remove_records(*impl_->env, reach, [&](Txn& txn) {
     return Query(txn.raw(), txn.env()).collect(pattern, ListOptions{cascade, 0});
   });

@@ -79,6 +79,18 @@ Result<bool> Query::metadata_matches(const Pattern& pattern, const Bound& bound,
   return true;
 }
 
+Result<bool> Query::subject_under(const std::string& ancestor, std::uint64_t subject) {
+  // A subject's records come one after another (an item's, a chunk's): one check for them all.
+  if (auto cached = subject_under_.find(subject); cached != subject_under_.end()) return cached->second;
+  auto term = terms_.get(subject);
+  if (!term) return unexpected(term.error());
+  const bool under = term->is_iri() && uri::is_under(term->value, ancestor);
+  // Bounded: a scan of a large store meets a new subject at every item.
+  if (subject_under_.size() >= kSubjectsKept) subject_under_.clear();
+  subject_under_.emplace(subject, under);
+  return under;
+}
+
 Result<std::size_t> Query::index_count(MDB_dbi index, std::uint64_t term) {
   Cursor probe;
   int rc = mdb_cursor_open(txn_, index, &probe.c);
@@ -158,6 +170,11 @@ Result<void> Query::for_each(const Pattern& pattern,
 
   auto check = [&](std::uint64_t id, const RecordRow& row) -> Result<bool> {
     if ((b.s && row.s != b.s) || (b.p && row.p != b.p) || (b.o && row.o != b.o)) return true;
+    if (pattern.under) {
+      auto under = subject_under(*pattern.under, row.s);
+      if (!under) return unexpected(under.error());
+      if (!*under) return true;
+    }
     auto meta_ok = metadata_matches(pattern, b, row);
     if (!meta_ok) return unexpected(meta_ok.error());
     if (!*meta_ok) return true;

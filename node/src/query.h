@@ -51,6 +51,8 @@ class Query {
   Result<std::size_t> index_count(MDB_dbi index, std::uint64_t term);
   Result<bool> metadata_matches(const Pattern& pattern, const Bound& bound, const RecordRow& row);
   Result<const ItemRow*> item(std::uint64_t id);
+  // Whether the record subject `subject` (a term id) is `ancestor` or an IRI under it.
+  Result<bool> subject_under(const std::string& ancestor, std::uint64_t subject);
   Result<void> cascade_from(std::uint64_t object, unsigned depth, std::vector<std::uint64_t>& out,
                             std::unordered_map<std::uint64_t, bool>& seen, std::size_t limit);
 
@@ -60,6 +62,8 @@ class Query {
   std::uint64_t cached_item_id_ = 0;
   ItemRow cached_item_;
   std::unordered_map<std::uint64_t, bool> source_under_;
+  static constexpr std::size_t kSubjectsKept = 4096;
+  std::unordered_map<std::uint64_t, bool> subject_under_;  // Pattern::under, by subject id
 };
 
 }  // namespace tahvel::node::detail

@@ -438,6 +438,53 @@ TEST_F(Cli, ListCascadeFollowsBlankNodeObjects) {
   EXPECT_EQ(lines_of(deep.out).size(), 2u) << deep.out;
 }
 
+// Two patients' chunks on one board: `--under` a recording lists that recording's records only,
+// in `list`, `query` (here asked of the node itself; tests/federation has it over links) and
+// `tail`, and `--source` names the writer in `query` as in `list`. Not an IRI: usage error.
+TEST_F(Cli, UnderARecordingSelectsItsChunksInListQueryAndTail) {
+  init();
+  put("<http://example.org/rec/100> <http://example.org/rate> 360 .\n"
+      "<http://example.org/rec/100/chunk/0> <http://example.org/samples> \"a0\" .\n"
+      "<http://example.org/rec/100/chunk/1> <http://example.org/samples> \"a1\" .\n",
+      {"--agent", "bed1"});
+  put("<http://example.org/rec/1000/chunk/0> <http://example.org/samples> \"b0\" .\n", {"--agent", "bed2"});
+  for (const std::vector<std::string>& ask :
+       {std::vector<std::string>{"list", node_}, std::vector<std::string>{"query", node_, "--at", kNodeIri}}) {
+    auto with = [&](std::vector<std::string> flags) {
+      std::vector<std::string> args = ask;
+      args.insert(args.end(), flags.begin(), flags.end());
+      return run(args);
+    };
+    Outcome r = with({"--under", "http://example.org/rec/100"});
+    ASSERT_EQ(r.status, 0) << ask[0] << ": " << r.err;
+    EXPECT_EQ(lines_of(r.out).size(), 3u) << ask[0] << ": " << r.out;
+    EXPECT_EQ(r.out.find("\"b0\""), std::string::npos) << ask[0] << ": " << r.out;
+    r = with({"--under", "http://example.org/rec/100", "-p", "http://example.org/samples"});
+    EXPECT_EQ(lines_of(r.out).size(), 2u) << ask[0] << ": " << r.out;
+    r = with({"--source", kNodeIri + "/bed2"});
+    ASSERT_EQ(r.status, 0) << ask[0] << ": " << r.err;
+    EXPECT_EQ(lines_of(r.out).size(), 1u) << ask[0] << ": " << r.out;
+    EXPECT_NE(r.out.find("\"b0\""), std::string::npos) << ask[0] << ": " << r.out;
+    r = with({"--under", "not an iri"});
+    EXPECT_EQ(r.status, 2) << ask[0] << ": " << r.out;
+    EXPECT_NE(r.err.find("--under"), std::string::npos) << ask[0] << ": " << r.err;
+  }
+  // Tail starts at the last record present when it starts: keep putting, a chunk of recording
+  // 100 before each of 1000's (it must not count), until it has printed one.
+  pid_t tail = spawn({"tail", node_, "--under", "http://example.org/rec/1000", "--count", "1"}, "", 998);
+  auto deadline = std::chrono::steady_clock::now() + std::chrono::seconds(30);
+  int status = 0;
+  while (waitpid(tail, &status, WNOHANG) == 0) {
+    ASSERT_LT(std::chrono::steady_clock::now(), deadline) << "tail did not finish";
+    put("<http://example.org/rec/100/chunk/9> <http://example.org/samples> \"a9\" .\n", {"--agent", "bed1"});
+    put("<http://example.org/rec/1000/chunk/9> <http://example.org/samples> \"b9\" .\n", {"--agent", "bed2"});
+    std::this_thread::sleep_for(std::chrono::milliseconds(50));
+  }
+  ASSERT_TRUE(WIFEXITED(status));
+  EXPECT_EQ(WEXITSTATUS(status), 0);
+  EXPECT_EQ(slurp(tmp_ / "out998"), "<http://example.org/rec/1000/chunk/9> <http://example.org/samples> \"b9\" .\n");
+}
+
 // `query --cascade 4294967296` was cut to 32 bits: depth 0, the matches without their sub-trees,
 // while `list` took the same number as deep.
 TEST_F(Cli, QueryCascadeBeyondThirtyTwoBitsIsDeepNotNone) {
@@ -667,7 +714,7 @@ TEST_F(Cli, PatientsShowsEachRecordingsLatestWindowWithAlertingPatientsFirst) {
   EXPECT_NE(text.out.find("no trend of it on this node"), std::string::npos) << text.out;
   // Where the raw ECG behind the latest window lies, and the query that brings it.
   EXPECT_NE(text.out.find("its raw ECG, at <http://example.org/home1>: tahvel query " + node_ +
-                          " --at http://example.org/home1 -p tv:samples --since "),
+                          " --at http://example.org/home1 --under http://example.org/home1/ecg/recording/a -p tv:samples --since "),
             std::string::npos) << text.out;
 
   Outcome alerts = run({"patients", node_, "--alerts", "--json"});

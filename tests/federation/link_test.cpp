@@ -1088,6 +1088,7 @@ class VersionTwo : public Transport {
       if (f.version != 2) refused_.push_back("version " + std::to_string(f.version));
       if (f.kind == FrameKind::up || f.kind == FrameKind::down)
         if (auto item = wire::decode_item(f.body); !item || item->item.span != 0) refused_.push_back("an item with a span");
+      if (f.kind == FrameKind::query && !wire::decode_query(f.body, 2)) refused_.push_back("a query not in its layout");
     }
     return got;
   }
@@ -1163,6 +1164,87 @@ TEST(Link, AParentSpeaksToAChildOfTheVersionBeforeInThatVersion) {
   EXPECT_TRUE(eventually([&] { return count(tree.hospital_dir, {.p = Term::iri(kEx + "n")}) == 6; }, 15s))
       << tree.hospital_log.text();
   EXPECT_EQ(old_home->refused(), std::vector<std::string>{}) << "frames the old home would have refused";
+}
+
+// Two patients' recordings on one sensor node, written by two agents: a query two hops down by
+// subject (--under a recording) or by writer (--source) returns exactly what the sensor's own
+// store holds for that pattern (P13, protocol version 4).
+TEST(Link, AQueryBySubjectOrBySourceTwoHopsDownReturnsExactlyWhatTheTargetHoldsUnderThem) {
+  Tree tree;
+  const std::string sensor_iri = kHome1 + "/ecg1";
+  const std::string sensor_dir = (tree.tmp / "ecg1").string();
+  auto sensor_link = tree.start_three_tiers(sensor_dir);
+  auto sensor = node::Node::open(sensor_dir).value();
+  const Term samples = Term::iri(kEx + "samples");
+  for (const std::string writer : {"bed1", "bed2"}) {
+    auto agent = sensor.agent(writer).value();
+    // bed2's recording 1000 starts with the characters of bed1's 100, and is not under it.
+    for (const std::string rec : {writer == "bed1" ? "100" : "1000", writer == "bed1" ? "101" : "102"})
+      for (int second = 0; second < 4; ++second)
+        ASSERT_TRUE(agent.store(node::Item{}.add(Term::iri(agent.iri() + "/recording/" + rec + "/chunk/" + std::to_string(second)),
+                                                 samples, Term::literal(writer + rec + "s" + std::to_string(second)))));
+  }
+  auto hospital = node::Node::open(tree.hospital_dir).value();
+  ASSERT_TRUE(eventually([&] { return state_says_up(tree.hospital_dir, kHome1); }));
+  auto asked_and_held = [&](const node::Pattern& pattern) {
+    std::vector<std::string> got, held;
+    auto answered = remote_query(hospital, {.target = sensor_iri, .pattern = pattern}, 10s,
+                                 [&](const node::Record& r) { got.push_back(r.triple.o.value); });
+    EXPECT_TRUE(answered) << answered.error().message;
+    for (const auto& r : sensor.snapshot().value().list(pattern).value()) held.push_back(r.triple.o.value);
+    EXPECT_EQ(got, held);
+    return got;
+  };
+  EXPECT_EQ(asked_and_held({.p = samples, .under = sensor_iri + "/bed1/recording/100"}),
+            (std::vector<std::string>{"bed1100s0", "bed1100s1", "bed1100s2", "bed1100s3"}));
+  EXPECT_EQ(asked_and_held({.under = sensor_iri + "/bed2/recording/102/chunk/3"}), std::vector<std::string>{"bed2102s3"});
+  EXPECT_EQ(asked_and_held({.p = samples, .source = sensor_iri + "/bed2"}).size(), 8u);
+  EXPECT_EQ(asked_and_held({.source = sensor_iri + "/bed1", .under = sensor_iri + "/bed2"}).size(), 0u);
+  // Not IRIs: said before anything is asked.
+  auto bad = remote_query(hospital, {.target = sensor_iri, .pattern = {.under = "not an iri"}}, 10s, [](const node::Record&) {});
+  ASSERT_FALSE(bad);
+  EXPECT_EQ(bad.error().code, Errc::invalid_iri) << bad.error().message;
+}
+
+// P3: a child of a version before 4 would pass a query on without its source and subject, and
+// the asker would take the whole node's records for the ones asked. The node above that child
+// refuses such a query, naming the child and its version: as the origin (home1 asking its own
+// sensor) and on the way (the hospital asking through home1). Without them the query is answered
+// in the child's layout.
+TEST(Link, AQueryBySubjectOrSourceIsRefusedNamingTheChildOfAnEarlierVersionOnTheWay) {
+  Tree tree;
+  const std::string sensor_iri = kHome1 + "/ecg1";
+  const std::string sensor_dir = (tree.tmp / "ecg1").string();
+  ASSERT_TRUE(node::Node::init(sensor_dir, {.iri = sensor_iri}));
+  tree.hospital = tree.start_hospital();
+  std::shared_ptr<Transport> gateway(tree.bus.open(kHome1, tree.home1_log.sink()));
+  tree.home1 = Link::start({.dir = tree.home1_dir, .parent_iri = kHospital, .up = gateway, .down = gateway,
+                            .resend_after = 100ms, .heartbeat_every = 200ms, .log = tree.home1_log.sink()})
+                   .value();
+  auto old_sensor = std::make_shared<VersionTwo>(tree.bus.open(sensor_iri, tree.home2_log.sink()));
+  auto sensor_link = Link::start({.dir = sensor_dir, .parent_iri = kHome1, .up = old_sensor, .resend_after = 100ms,
+                                  .heartbeat_every = 200ms, .log = tree.home2_log.sink()})
+                         .value();
+  ASSERT_TRUE(eventually([&] { return tree.home1->connected() && sensor_link->connected(); }));
+  ASSERT_TRUE(eventually([&] { return state_says_up(tree.hospital_dir, kHome1) && state_says_up(tree.home1_dir, sensor_iri); }));
+  ASSERT_TRUE(node::Node::open(sensor_dir).value().agent("ecg").value().store(raw_item(1)));
+  const node::Pattern by_subject{.under = kHome1 + "/rec"};
+  for (const std::string& asker : {tree.home1_dir, tree.hospital_dir}) {
+    auto origin = node::Node::open(asker).value();
+    auto refused = remote_query(origin, {.target = sensor_iri, .pattern = by_subject}, 10s, [](const node::Record&) {});
+    ASSERT_FALSE(refused) << asker;
+    EXPECT_EQ(refused.error().message,
+              "query_failed: <" + sensor_iri + "> (on the way to <" + sensor_iri +
+                  ">) speaks protocol version 2, which has no query by source or by subject (--source, --under): "
+                  "upgrade it, or ask without them")
+        << asker;
+    std::size_t got = 0;
+    auto answered = remote_query(origin, {.target = sensor_iri, .pattern = {.p = Term::iri(kEx + "samples")}}, 10s,
+                                 [&](const node::Record&) { ++got; });
+    ASSERT_TRUE(answered) << asker << ": " << answered.error().message;
+    EXPECT_EQ(got, 1u) << asker;
+  }
+  EXPECT_EQ(old_sensor->refused(), std::vector<std::string>{}) << "frames the old sensor would have refused";
 }
 
 TEST(Link, RemoteQueryReturnsExactlyTheRecordsHeldBelowAndNamesItsErrors) {

@@ -1,5 +1,5 @@
-// The item body (docs/protocol.md, "Bodies"): what an up or down frame carries, a removal notice
-// (P7a) told from an item by its flags.
+// The bodies (docs/protocol.md, "Bodies"): what an up or down frame carries, a removal notice
+// (P7a) told from an item by its flags; an answer's records; a query in each version's layout.
 #include <gtest/gtest.h>
 
 #include "tahvel/federation/wire.h"
@@ -101,6 +101,34 @@ TEST(AnswerBody, EachRecordsSpanSurvivesTheWire) {
   auto negative = wire::decode_answer(wire::encode_answer(answer));
   ASSERT_FALSE(negative);
   EXPECT_NE(negative.error().message.find("'span'"), std::string::npos) << negative.error().message;
+}
+
+// Version 4 added a query's source and subject (--source, --under) at the end of its body: a
+// body of version 3 reads as before, and a query with either cannot be put in version 3's
+// layout (the link then tells the asker, P3).
+TEST(QueryBody, SourceAndUnderSurviveVersion4AndVersion3HasNeither) {
+  wire::QueryBody query;
+  query.origin = "http://example.org/hospital";
+  query.target = "http://example.org/hospital/home1";
+  query.p = Term::iri("https://w3id.org/tahvel#samples");
+  query.since = 5;
+  query.source = "http://example.org/hospital/home1/ecg1";
+  query.under = "http://example.org/hospital/home1/ecg1/source/recording/100";
+  auto decoded = wire::decode_query(wire::encode_query(query).value());
+  ASSERT_TRUE(decoded) << decoded.error().message;
+  EXPECT_EQ(decoded->source, query.source);
+  EXPECT_EQ(decoded->under, query.under);
+  EXPECT_EQ(decoded->since, 5);
+  auto in_version_3 = wire::encode_query(query, 3);
+  ASSERT_FALSE(in_version_3);
+  EXPECT_NE(in_version_3.error().message.find("protocol version 4"), std::string::npos) << in_version_3.error().message;
+  query.source.clear();
+  query.under.clear();
+  const std::string old = wire::encode_query(query, 3).value();
+  EXPECT_EQ(old.size() + 8, wire::encode_query(query).value().size()) << "two empty strings more";
+  ASSERT_TRUE(wire::decode_query(old, 3));
+  EXPECT_FALSE(wire::decode_query(old)) << "a version 3 body read as version 4 is short";
+  EXPECT_FALSE(wire::decode_query(wire::encode_query(query).value(), 3)) << "trailing bytes";
 }
 
 }  // namespace

@@ -182,12 +182,13 @@ TEST(Hierarchy, HrvFromBothHomesReachesTheHospitalWithTheirSourcesAndRawEcgStays
   ASSERT_TRUE(std::regex_search(patients, m, std::regex("\\n<(" + kHome2 + "/[^>]*)>[^<]*<" + kHome2 +
                                                       "/hrv>; the latest ([0-9]+)-([0-9]+) s[^\\n]*\\n[^\\n]*\\n"
                                                       "  its raw ECG, at <" + kHome2 + ">: tahvel query [^ ]+ --at " + kHome2 +
-                                                      " -p tv:samples --since ([0-9]+) --until ([0-9]+)")))
+                                                      " --under ([^ ]+) -p tv:samples --since ([0-9]+) --until ([0-9]+)")))
       << patients;
   const std::string recording = m[1];
+  EXPECT_EQ(m[4].str(), recording);
   const double seconds = std::stod(m[3]) - std::stod(m[2]);
-  const std::string raw = d.tahvel("query " + hospital + " --at " + kHome2 + " -p tv:samples --since " + m[4].str() +
-                                   " --until " + m[5].str(), &status);
+  const std::string raw = d.tahvel("query " + hospital + " --at " + kHome2 + " --under " + recording +
+                                   " -p tv:samples --since " + m[5].str() + " --until " + m[6].str(), &status);
   EXPECT_EQ(status, 0);
   std::size_t chunks = 0, others = 0;
   std::istringstream lines(raw);

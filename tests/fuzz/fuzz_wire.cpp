@@ -43,9 +43,23 @@ extern "C" int LLVMFuzzerTestOneInput(const std::uint8_t* data, std::size_t size
     return std::pair{[version](std::string_view b) { return wire::decode_answer(b, version); },
                      [version](const wire::AnswerBody& a) { return wire::encode_answer(a, version); }};
   };
-  switch (data[0] % 7) {
+  // A query in each layout (P3): version 4 added source and under.
+  const auto query_in = [](std::uint16_t version) {
+    return std::pair{[version](std::string_view b) { return wire::decode_query(b, version); },
+                     [version](const wire::QueryBody& q) { return wire::encode_query(q, version).value(); }};
+  };
+  switch (data[0] % 8) {
     case 0: round_trip(bytes, wire::decode_item, wire::encode_item); break;
-    case 1: round_trip(bytes, wire::decode_query, wire::encode_query); break;
+    case 1: {
+      auto [decode, encode] = query_in(kProtocolVersion);
+      round_trip(bytes, decode, encode);
+      break;
+    }
+    case 7: {
+      auto [decode, encode] = query_in(3);
+      round_trip(bytes, decode, encode);
+      break;
+    }
     case 2: {
       auto [decode, encode] = answer_in(kProtocolVersion);
       round_trip(bytes, decode, encode);
@@ -92,6 +106,9 @@ std::vector<std::string> fuzz_seeds() {
   query.limit = 10;
   query.area = "POLYGON((0 0, 1 0, 1 1, 0 0))";
   query.floor = 0;
+  wire::QueryBody by_subject = query;
+  by_subject.source = "http://example.org/hospital/home1/ecg1";
+  by_subject.under = "http://example.org/hospital/home1/ecg1/source/recording/100";
   wire::AnswerBody answer;
   answer.origin = "http://example.org/hospital";
   answer.last = true;
@@ -109,7 +126,9 @@ std::vector<std::string> fuzz_seeds() {
   frame.body = wire::encode_item(item);
   auto with = [](char selector, std::string body) { return std::string(1, selector) + body; };
   return {with(0, wire::encode_item(item)),
-          with(1, wire::encode_query(query)),
+          with(1, wire::encode_query(query).value()),
+          with(7, wire::encode_query(query, 3).value()),
+          with(1, wire::encode_query(by_subject).value()),
           with(2, wire::encode_answer(answer)),
           with(3, wire::encode_error({"item_refused", "literal of 300 bytes exceeds the node's limit of 200", ""})),
           with(4, wire::encode_state({"0.1.0", 3})),

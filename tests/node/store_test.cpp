@@ -154,6 +154,51 @@ TEST(Store, RecordMetadataCarriesSourceContextAndTimes) {
   }
 }
 
+// Two recordings on one home board, as two bed sensors leave them: asking for what lies under
+// one recording's IRI gets its description and its chunks, not the other's nor a recording
+// whose IRI only starts with the same characters; a blank subject is under nothing.
+TEST(Store, APatternUnderAnIriTakesTheRecordsOfThatSubjectAndOfTheSubjectsBelowIt) {
+  TempDir dir;
+  Node node = make_node(dir.path());
+  const std::string base = "http://example.org/home1/ecg1/source/recording/";
+  const Term samples = Term::iri("http://example.org/ns#samples");
+  for (const std::string name : {"100", "101", "1000"}) {
+    Item description;
+    description.add(Term::iri(base + name), Term::iri("http://example.org/ns#rate"), Term::integer(360));
+    ASSERT_TRUE(node.agent("source")->store(description));
+    for (int second = 0; second < 3; ++second) {
+      Item chunk;
+      chunk.add(Term::iri(base + name + "/chunk/" + std::to_string(second)), samples, Term::literal(name));
+      chunk.asserted_at = 1'000 + second;
+      ASSERT_TRUE(node.agent("source")->store(chunk));
+    }
+  }
+  Item blank;
+  blank.add(Term::blank("b"), samples, Term::literal("100"));
+  ASSERT_TRUE(node.agent("source")->store(blank));
+  auto subjects = [&](const Pattern& pattern) {
+    std::vector<std::string> out;
+    auto records = node.snapshot()->list(pattern);
+    EXPECT_TRUE(records) << records.error().message;
+    if (records)
+      for (const auto& r : *records) out.push_back(r.triple.s.value.substr(base.size()));
+    return out;
+  };
+  EXPECT_EQ(subjects({.under = base + "100"}),
+            (std::vector<std::string>{"100", "100/chunk/0", "100/chunk/1", "100/chunk/2"}));
+  EXPECT_EQ(subjects({.p = samples, .under = base + "101", .since = 1'001}),
+            (std::vector<std::string>{"101/chunk/1", "101/chunk/2"}));
+  EXPECT_EQ(subjects({.under = base + "1000/chunk/2"}), (std::vector<std::string>{"1000/chunk/2"}));
+  EXPECT_TRUE(subjects({.under = base + "999"}).empty());
+  auto chunks = node.snapshot()->count({.p = samples, .under = base});
+  ASSERT_TRUE(chunks);
+  EXPECT_EQ(*chunks, 9u);
+  // Not a subscription's: routing does not look at subjects' IRIs.
+  auto refused = node.agent("reader")->subscribe({.under = base + "100"});
+  ASSERT_FALSE(refused);
+  EXPECT_EQ(refused.error().code, Errc::invalid_argument);
+}
+
 // A time range takes an item that held for a span of time (a second of ECG) when the span
 // overlaps the range: an operator asking from the middle of a second gets that second's chunk.
 TEST(Store, ATimeRangeTakesTheItemsWhoseSpanOverlapsItAndTheInstantsInIt) {

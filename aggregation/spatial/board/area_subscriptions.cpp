@@ -178,7 +178,7 @@ bool same_term(const std::optional<Term>& a, const std::optional<Term>& b) {
 Result<std::uint64_t> declare_area_subscription(const node::Node& node, node::Agent& agent,
                                                 const AreaSpec& spec,
                                                 const node::Pattern& pattern) {
-  if (pattern.source || pattern.since || pattern.until || pattern.after_id)
+  if (pattern.source || pattern.under || pattern.since || pattern.until || pattern.after_id)
     return fail("an area subscription's pattern takes subject, predicate, object and context only");
   if (spec.room_iri.empty() && !spec.shape) return fail("an area needs a room IRI or a shape");
   Declaration wanted;

@@ -61,6 +61,9 @@ inline const std::string kQueryCascade = std::string(kTv) + "queryCascade";
 inline const std::string kQueryLimit = std::string(kTv) + "queryLimit";
 inline const std::string kQueryArea = std::string(kTv) + "queryArea";
 inline const std::string kQueryFloor = std::string(kTv) + "queryFloor";
+// node::Pattern::source and ::under (protocol version 4).
+inline const std::string kQuerySource = std::string(kTv) + "querySource";
+inline const std::string kQueryUnder = std::string(kTv) + "queryUnder";
 // The asker's timeout in ms: its link clears a query still on the board 2 s after (P18).
 inline const std::string kQueryTimeout = std::string(kTv) + "queryTimeout";
 inline const std::string kAnswerTo = std::string(kTv) + "answerTo";
@@ -175,7 +178,7 @@ inline constexpr const char* kServingLockFile = "link.lock";
 
 struct RemoteQuery {
   std::string target;
-  node::Pattern pattern;  // s, p, o, since, until
+  node::Pattern pattern;  // s, p, o, source, under, since, until (context and after_id: refused)
   unsigned cascade = 0;
   std::size_t limit = 0;
   std::string area;       // a room IRI (absolute) or WKT; the target resolves it (AreaQuery)

@@ -39,9 +39,14 @@ struct QueryBody {
   std::uint64_t limit = 0;
   std::string area;                // a room IRI or WKT; empty: no area (link.h AreaQuery)
   std::optional<std::int64_t> floor;
+  // Since version 4 (node::Pattern::source, ::under); empty: none.
+  std::string source;  // written by this agent or node, or one below it
+  std::string under;   // subject is this IRI or one below it
 };
-std::string encode_query(const QueryBody& body);
-Result<QueryBody> decode_query(std::string_view bytes);
+// `version`: the frame's protocol version; before 4 a query has no source nor under, and
+// encoding one that has either is refused (the caller tells the asker instead).
+Result<std::string> encode_query(const QueryBody& body, std::uint16_t version = kProtocolVersion);
+Result<QueryBody> decode_query(std::string_view bytes, std::uint16_t version = kProtocolVersion);
 
 // One chunk of an answer (frame kind answer): the origin, records with their metadata, and
 // whether it is the last chunk.

@@ -65,6 +65,9 @@ struct Pattern {
   std::optional<Term> s, p, o;
   std::optional<std::string> context;    // exact context IRI ("" matches records without one)
   std::optional<std::string> source;     // source IRI, or any IRI under it (uri::is_under)
+  // Subject IRI, or any IRI under it (uri::is_under): a recording's chunks, <rec>/chunk/N, are
+  // under <rec>. A blank subject is under nothing. Not for subscriptions.
+  std::optional<std::string> under;
   // A time range, ns: a record whose fact held at some time in [since, until). An instant
   // (span 0) when since <= asserted_at < until; a record with a span when [asserted_at,
   // asserted_at + span) overlaps the range, so that a range starting inside a chunk of signal
