@@ -573,7 +573,8 @@ struct Link::Impl {
     if (q.source.empty() && q.under.empty()) return std::nullopt;
     const std::uint16_t version = version_of_child(iri);
     if (version >= 4) return std::nullopt;
-    return "<" + iri + "> (on the way to <" + q.target + ">) speaks protocol version " + std::to_string(version) +
+    const std::string who = iri == q.target ? "<" + iri + ">" : "<" + iri + "> (on the way to <" + q.target + ">)";
+    return who + " speaks protocol version " + std::to_string(version) +
            ", which has no query by source or by subject (--source, --under): upgrade it, or ask without them";
   }
 
