@@ -86,7 +86,7 @@ unsigned cascade_flag(const Args& args);
 // and 'z' in either case). Out-of-range numbers and dates that do not exist (February 30) are
 // usage errors naming the flag, not times moved elsewhere.
 std::int64_t time_flag(std::string_view flag, const std::string& text);
-// "4.2 s"
+// "4.2 s" below a minute, then "12 min 5 s", "3 h 12 min", "2 d 3 h" (a NaN as a long time).
 std::string seconds_text(double seconds);
 // Now, ns since the epoch (the clock records are stamped with).
 std::int64_t unix_now_ns();

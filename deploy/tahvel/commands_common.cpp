@@ -477,6 +477,14 @@ std::int64_t time_flag(std::string_view flag, const std::string& text) {
 
 std::string seconds_text(double seconds) {
   std::ostringstream out;
+  if (!(seconds < 60)) {  // a home silent since yesterday reads as such, not as "93784.2 s"
+    const auto whole = seconds < 1e15 ? static_cast<std::int64_t>(seconds) : std::int64_t{1'000'000'000'000'000};
+    const std::int64_t days = whole / 86400, hours = whole % 86400 / 3600, minutes = whole % 3600 / 60;
+    if (days > 0) out << days << " d " << hours << " h";
+    else if (hours > 0) out << hours << " h " << minutes << " min";
+    else out << minutes << " min " << whole % 60 << " s";
+    return out.str();
+  }
   out.precision(1);
   out << std::fixed << seconds << " s";
   return out.str();

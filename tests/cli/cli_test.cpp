@@ -870,6 +870,26 @@ TEST_F(Cli, StatusDoesNotCallProgramsRunningOnceTheirSupervisorIsGone) {
   EXPECT_EQ(down.status, 0) << down.err;
 }
 
+// A supervisor stopped (SIGSTOP) long ago leaves what its programs do unknown, and how long it
+// has been silent is said in hours and minutes, not as thousands of seconds.
+TEST_F(Cli, StatusSaysHowLongAStoppedSupervisorHasBeenSilentInHoursAndMinutes) {
+  spit(tmp_ / "node.toml", kIdleNodeToml);
+  const std::string state = (tmp_ / "state").string();
+  ASSERT_EQ(run({"up", (tmp_ / "node.toml").string(), "--state", state}).status, 0);
+  ASSERT_NE(status_until(state, "idle  running").out.find("idle  running"), std::string::npos);
+  const pid_t supervisor = std::atoi(slurp(tmp_ / "state" / "supervisor-all.pid").c_str());
+  ASSERT_GT(supervisor, 0);
+  ASSERT_EQ(kill(supervisor, SIGSTOP), 0);
+  ASSERT_TRUE(eventually([&] { return tahvel::node::is_stopped(tahvel::node::process_state(supervisor)); }));
+  fs::last_write_time(tmp_ / "state" / "supervisor-all.state",
+                      fs::file_time_type::clock::now() - std::chrono::hours(2) - std::chrono::minutes(3) - std::chrono::seconds(20));
+  Outcome r = run({"status", "--state", state});
+  kill(supervisor, SIGCONT);
+  EXPECT_NE(r.out.find("idle  unknown: its supervisor has not written its state for 2 h 3 min (stopped, hung or held up)"),
+            std::string::npos) << r.out;
+  EXPECT_EQ(run({"down", "--state", state}).status, 0);
+}
+
 // An agent that is a shell wrapper: what it starts goes with it, on `down`, and when its
 // supervisor was SIGKILLed (the wrapper dies with it; its child used to run on, out of reach of
 // `down`, beside the next `up`'s copy), at the next `down` or `up`.
