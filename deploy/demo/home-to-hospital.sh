@@ -2,7 +2,7 @@
 # The home-to-hospital hierarchy of deploy/home-to-hospital.toml on this machine, in a private
 # network namespace (loopback only): ECG on the sensor nodes -> HRV at each home -> HRV at the
 # hospital; a window change from the hospital for one home; a query from the hospital for a time
-# range of home 2's raw ECG, which never left the home; a query by area for one room's
+# range of home 2's raw ECG, which never left the home (as records, then as numbers); a query by area for one room's
 # environment readings; an area subscription that follows a moved mote. Says what happens at
 # each step.
 #
@@ -88,6 +88,12 @@ quiet query "$state/home2" --at "$H/home2" -p tv:samples --since "$since" --unti
 echo "   $(wc -l <"$work/remote.nt") chunk records, $(wc -c <"$work/remote.nt") bytes from the hospital's query;" \
      "the same range read on home2 itself is $(cmp -s "$work/remote.nt" "$work/local.nt" && echo identical || echo DIFFERENT)."
 echo "   Nothing of it was stored at the hospital: $(count "$state/hospital" -p tv:samples) raw records there."
+echo "   The same 10 s as numbers, one row per frame, each lead in mV (the recording's own description says how):"
+rec=$(quiet list "$state/home2" -p a -o tv:EcgRecording --limit 1 | sed 's/^<\([^>]*\)>.*/\1/')
+show ecg "$state/hospital" --at "$H/home2" --recording "$rec" --since "$since" --until "$until"
+quiet ecg "$state/hospital" --at "$H/home2" --recording "$rec" --since "$since" --until "$until" >"$work/ecg.csv"
+echo "   $(($(wc -l <"$work/ecg.csv") - 1)) frames; the first three:"
+head -n 4 "$work/ecg.csv" | sed 's/^/   /'
 
 say "5. From the hospital, ask home1 what its motes sensed in the bedroom: a query by area, resolved on home1's floor plan."
 has_bedroom_readings() { [ "$(quiet list "$state/home1" --area "$H/home1/room/bedroom" | wc -l)" -gt 0 ]; }

@@ -5,7 +5,9 @@
 // Args to an exit status. Helpers report errors by throwing Failure (caught in main()).
 #pragma once
 
+#include <chrono>
 #include <cstdint>
+#include <functional>
 #include <iosfwd>
 #include <optional>
 #include <span>
@@ -14,6 +16,7 @@
 #include <vector>
 
 #include "args.h"
+#include "tahvel/federation/link.h"
 #include "tahvel/node/format.h"
 #include "tahvel/node/node.h"
 #include "tahvel/spatial/board.h"
@@ -143,6 +146,7 @@ extern const Command kTailCommand;
 extern const Command kStatsCommand;
 extern const Command kHrvCommand;
 extern const Command kPatientsCommand;
+extern const Command kEcgCommand;  // commands_ecg.cpp
 
 int run_init(const Args& args);
 int run_put(const Args& args);
@@ -157,6 +161,7 @@ int run_tail(const Args& args);
 int run_stats(const Args& args);
 int run_hrv(const Args& args);
 int run_patients(const Args& args);
+int run_ecg(const Args& args);
 
 // The reasoner (commands_reason.cpp).
 extern const Command kReasonCommand;
@@ -173,6 +178,19 @@ int run_query(const Args& args);
 int run_up(const Args& args);
 int run_down(const Args& args);
 int run_status(const Args& args);
+
+// `query` of the node at --at below `node` (or `node` itself) as `tahvel query` asks it: Ctrl-C,
+// SIGTERM and a closed standard output cancel it (P18). Calls `each` per record and `answered`
+// once the answer has ended, whichever way; returns the number of records. On failure exits,
+// the message prefixed with `command`: 3 timeout, 4 unknown node, 5 unreachable, 130 when
+// interrupted, 1 anything else.
+std::uint64_t ask_below(std::string_view command, node::Node& node, const federation::RemoteQuery& query,
+                        std::chrono::milliseconds timeout, const std::function<void(const node::Record&)>& each,
+                        const std::function<void()>& answered = {});
+// --timeout S of `command`: seconds, a fraction allowed ("2.5"), at least 1 ms and at most
+// `at_most`; `fallback` when the flag is not given.
+std::chrono::milliseconds seconds_flag(const Args& args, std::string_view command, std::chrono::milliseconds fallback,
+                                       std::chrono::seconds at_most);
 
 // Groups triples into items for `load`: one item per subject group (see docs/cli.md).
 std::vector<std::vector<node::Triple>> group_by_subject(std::vector<node::Triple> triples);

@@ -286,8 +286,6 @@ const Command kQueryCommand{
      kFlagFormat},
     1, 1};
 
-// --timeout S of `command`: seconds, a fraction allowed ("2.5"), at least 1 ms and at most
-// `at_most`; `fallback` when the flag is not given.
 std::chrono::milliseconds seconds_flag(const Args& args, std::string_view command, std::chrono::milliseconds fallback,
                                        std::chrono::seconds at_most) {
   auto text = args.get("--timeout");
@@ -351,31 +349,39 @@ int run_query(const Args& args) {
   // Printed as the records come, Turtle too (with all of DIR's prefixes, as `dump` does: the
   // prefixes a long answer uses are known only at its end, and it must not wait in memory).
   std::optional<node::RecordWriter> writer;
-  // Ctrl-C, SIGTERM or a reader that went away (`| head`) cancels the query below (P18) instead
-  // of leaving its answer to run on into this node's store.
-  install_stop_handlers();
-  auto cancelled = [] { return g_stop != 0 || !std::cout.good(); };
-  auto answered = federation::remote_query(node, query, timeout, [&](const node::Record& r) {
+  const std::uint64_t answered = ask_below("query", node, query, timeout, [&](const node::Record& r) {
     if (!writer) writer.emplace(std::cout, format, prefixes);
     writer->write(r);
-  }, area_answer, cancelled);
-  if (writer) writer->finish();
-  if (!answered && g_stop) throw Failure{kExitInterrupted, "query: interrupted; " + answered.error().message};
-  if (!answered && !std::cout.good()) {
-    // A reader that went away (`tahvel query … | head`) is not worth a message, as for every
-    // command; a write that failed otherwise (a full disk) is.
-    if (stdout_reader_gone()) throw Failure{kExitFailure, ""};
-    throw Failure{kExitFailure, "query: cannot write the answer to standard output; " + answered.error().message};
-  }
-  if (!answered) fail_remote("query", answered.error());
+  }, [&] { if (writer) writer->finish(); });
   finish_output(std::cout);
   // A count for the operator at a terminal; a script's standard error stays empty on success.
   if (isatty(STDERR_FILENO)) {
     auto target = uri::normalize(query.target);
-    std::cerr << "tahvel: query: " << *answered << (*answered == 1 ? " record" : " records") << " from <"
+    std::cerr << "tahvel: query: " << answered << (answered == 1 ? " record" : " records") << " from <"
               << (target ? *target : query.target) << ">\n";
   }
   return kExitOk;
+}
+
+std::uint64_t ask_below(std::string_view command, node::Node& node, const federation::RemoteQuery& query,
+                        std::chrono::milliseconds timeout, const std::function<void(const node::Record&)>& each,
+                        const std::function<void()>& answered) {
+  // Ctrl-C, SIGTERM or a reader that went away (`| head`) cancels the query below (P18) instead
+  // of leaving its answer to run on into this node's store.
+  install_stop_handlers();
+  auto cancelled = [] { return g_stop != 0 || !std::cout.good(); };
+  auto got = federation::remote_query(node, query, timeout, each, area_answer, cancelled);
+  if (answered) answered();
+  const std::string name(command);
+  if (!got && g_stop) throw Failure{kExitInterrupted, name + ": interrupted; " + got.error().message};
+  if (!got && !std::cout.good()) {
+    // A reader that went away (`tahvel query … | head`) is not worth a message, as for every
+    // command; a write that failed otherwise (a full disk) is.
+    if (stdout_reader_gone()) throw Failure{kExitFailure, ""};
+    throw Failure{kExitFailure, name + ": cannot write the answer to standard output; " + got.error().message};
+  }
+  if (!got) fail_remote(command, got.error());
+  return *got;
 }
 
 // --- tahvel stats --predicates [--at IRI] -------------------------------------------------------

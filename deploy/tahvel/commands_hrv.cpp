@@ -229,6 +229,8 @@ void print_patient_text(const std::string& dir, const agg::PatientView& p) {
     std::cout << "  its raw ECG, at <" << node << ">: tahvel query " << shell_word(dir) << " --at "
               << shell_word(node) << " --under " << shell_word(p.recording) << " -p tv:samples --since " << since
               << " --until " << until << "\n";
+    std::cout << "  as numbers (CSV): tahvel ecg " << shell_word(dir) << " --at " << shell_word(node) << " --recording "
+              << shell_word(p.recording) << " --since " << since << " --until " << until << "\n";
   }
   if (p.irregular())
     std::cout << "  irregular rhythm: " << text_number(m.irregular_pct, "%.0f")

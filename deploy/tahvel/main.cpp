@@ -124,6 +124,7 @@ std::span<const Subcommand> subcommands() {
       {&kTailCommand, run_tail},   {&kDumpCommand, run_dump},
       {&kLoadCommand, run_load},   {&kStatsCommand, run_stats},
       {&kHrvCommand, run_hrv},     {&kPatientsCommand, run_patients},
+      {&kEcgCommand, run_ecg},
       {&kReasonCommand, run_reason},
       {&kUpCommand, run_up},       {&kDownCommand, run_down},
       {&kStatusCommand, run_status}, {&kQueryCommand, run_query},

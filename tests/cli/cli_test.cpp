@@ -19,6 +19,7 @@
 #include <string>
 #include <thread>
 #include <vector>
+#include "tahvel/node/node.h"
 #include "tahvel/node/process.h"
 #include "temp_dir.h"
 
@@ -668,6 +669,100 @@ TEST_F(Cli, HrvEvalJsonWithNothingScoredIsValidJsonWithNulls) {
   ASSERT_EQ(r.status, 0) << r.err;
   EXPECT_NE(r.out.find("\"sensitivity_pct\":null,\"positive_predictivity_pct\":null}"), std::string::npos) << r.out;
   EXPECT_EQ(r.out.find(":-"), std::string::npos) << r.out;
+}
+
+// `bytes` in base64 (RFC 4648, with padding).
+std::string base64(const std::string& bytes) {
+  static const char* digits = "ABCDEFGHIJKLMNOPQRSTUVWXYZabcdefghijklmnopqrstuvwxyz0123456789+/";
+  std::string out;
+  for (std::size_t i = 0; i < bytes.size(); i += 3) {
+    std::uint32_t n = static_cast<unsigned char>(bytes[i]) << 16;
+    if (i + 1 < bytes.size()) n |= static_cast<unsigned char>(bytes[i + 1]) << 8;
+    if (i + 2 < bytes.size()) n |= static_cast<unsigned char>(bytes[i + 2]);
+    out += digits[n >> 18 & 63];
+    out += digits[n >> 12 & 63];
+    out += i + 1 < bytes.size() ? digits[n >> 6 & 63] : '=';
+    out += i + 2 < bytes.size() ? digits[n & 63] : '=';
+  }
+  return out;
+}
+
+// A recording of two leads at 4 Hz (gain 2 ADC units per mV, baseline 10) and its chunks of one
+// second, written as the ECG source writes them (docs/vocabulary.md): each asserted at its first
+// frame's time and spanning a second. The chunk of samples 8-11 is not there (a ring took it);
+// the one of 16-19 has one lead only.
+void store_recording(const std::string& dir, const std::string& rec, std::int64_t t0) {
+  using tahvel::node::Term;
+  auto node = tahvel::node::Node::open(dir).value();
+  auto source = node.agent("source").value();
+  const std::string tv = "https://w3id.org/tahvel#", xsd = "http://www.w3.org/2001/XMLSchema#";
+  tahvel::node::Item description;
+  description.persistent = true;
+  const Term r = Term::iri(rec);
+  description.add(r, Term::iri("http://www.w3.org/1999/02/22-rdf-syntax-ns#type"), Term::iri(tv + "EcgRecording"));
+  description.add(r, Term::iri(tv + "samplingRate"), Term::literal("4.0", xsd + "double"));
+  description.add(r, Term::iri(tv + "gain"), Term::literal("2.0", xsd + "double"));
+  description.add(r, Term::iri(tv + "baseline"), Term::integer(10));
+  description.add(r, Term::iri(tv + "lead"), Term::literal("0 MLII"));
+  description.add(r, Term::iri(tv + "lead"), Term::literal("1 V5"));
+  description.add(r, Term::iri(tv + "startedAt"), Term::integer(t0));
+  ASSERT_TRUE(source.store(description));
+  auto chunk = [&](int start, const std::vector<std::vector<int>>& leads) {
+    std::string bytes;
+    for (std::size_t f = 0; f < leads[0].size(); ++f)
+      for (const auto& lead : leads) bytes += {static_cast<char>(lead[f] & 0xff), static_cast<char>(lead[f] >> 8 & 0xff)};
+    tahvel::node::Item item;
+    const Term c = Term::iri(rec + "/chunk/" + std::to_string(start));
+    item.add(c, Term::iri("http://www.w3.org/1999/02/22-rdf-syntax-ns#type"), Term::iri(tv + "EcgChunk"));
+    item.add(c, Term::iri(tv + "recording"), r);
+    item.add(c, Term::iri(tv + "startSample"), Term::integer(start));
+    item.add(c, Term::iri(tv + "frameCount"), Term::integer(4));
+    item.add(c, Term::iri(tv + "samples"), Term::literal(base64(bytes), xsd + "base64Binary"));
+    item.asserted_at = t0 + start * 250'000'000ll;
+    item.span = 1'000'000'000;
+    ASSERT_TRUE(source.store(item));
+  };
+  chunk(0, {{10, 12, 14, 16}, {8, 10, 12, 14}});
+  chunk(4, {{18, 20, 22, 24}, {16, 18, 20, 22}});
+  chunk(12, {{11, 10, 10, 10}, {10, 10, 10, 9}});
+  chunk(16, {{10, 10, 10, 10}});
+}
+
+// `tahvel ecg`: each frame of the range asked, with its time and each lead in mV; the samples no
+// chunk holds and a chunk it cannot use named on standard error; a recording the node does not
+// hold is an error naming it.
+TEST_F(Cli, EcgPrintsEachFrameOfTheRangeInMillivoltsAndNamesWhatIsMissing) {
+  init();
+  const std::string rec = kNodeIri + "/source/recording/r1";
+  const std::int64_t t0 = 1'800'000'000'000'000'000;
+  store_recording(node_, rec, t0);
+  Outcome all = run({"ecg", node_, "--recording", rec});
+  ASSERT_EQ(all.status, 0) << all.err;
+  EXPECT_EQ(all.out,
+            "sample,unix_ns,MLII,V5\n"
+            "0,1800000000000000000,0,-1\n1,1800000000250000000,1,0\n2,1800000000500000000,2,1\n3,1800000000750000000,3,2\n"
+            "4,1800000001000000000,4,3\n5,1800000001250000000,5,4\n6,1800000001500000000,6,5\n7,1800000001750000000,7,6\n"
+            "12,1800000003000000000,0.5,0\n13,1800000003250000000,0,0\n14,1800000003500000000,0,0\n"
+            "15,1800000003750000000,0,-0.5\n");
+  EXPECT_NE(all.err.find("tahvel: ecg: samples 8 to 11 (1.0 s) are not at <" + kNodeIri + ">"), std::string::npos) << all.err;
+  EXPECT_NE(all.err.find("1 chunk(s) could not be read, left out; the first: <" + rec + "/chunk/16>: holds 1 lead(s), the recording names 2"),
+            std::string::npos) << all.err;
+  // From inside a frame's chunk to the next chunk's start: the frames taken in that time only,
+  // asked of this node through the query path too (--at itself).
+  Outcome part = run({"ecg", node_, "--at", kNodeIri, "--recording", rec, "--since", std::to_string(t0 + 1'100'000'000),
+                      "--until", std::to_string(t0 + 2'000'000'000)});
+  ASSERT_EQ(part.status, 0) << part.err;
+  EXPECT_EQ(part.out, "sample,unix_ns,MLII,V5\n5,1800000001250000000,5,4\n6,1800000001500000000,6,5\n7,1800000001750000000,7,6\n");
+  EXPECT_EQ(part.err, "");
+  Outcome none = run({"ecg", node_, "--recording", rec, "--since", std::to_string(t0 + 2'000'000'000), "--until",
+                      std::to_string(t0 + 3'000'000'000)});
+  EXPECT_EQ(none.status, 0) << none.err;
+  EXPECT_EQ(none.out, "sample,unix_ns,MLII,V5\n");
+  EXPECT_NE(none.err.find("holds no sample of <" + rec + "> in that range"), std::string::npos) << none.err;
+  Outcome unknown = run({"ecg", node_, "--recording", rec + "0"});
+  EXPECT_EQ(unknown.status, 1);
+  EXPECT_EQ(unknown.err, "tahvel: ecg: <" + kNodeIri + "> holds no recording <" + rec + "0> (nothing has it as subject)\n");
+  EXPECT_EQ(run({"ecg", node_}).status, 2) << "--recording is required";
 }
 
 // HRV windows and trends as tahvel-hrv and tahvel-trend write them (docs/vocabulary.md), put by

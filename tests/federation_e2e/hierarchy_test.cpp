@@ -198,6 +198,19 @@ TEST(Hierarchy, HrvFromBothHomesReachesTheHospitalWithTheirSourcesAndRawEcgStays
   EXPECT_GE(chunks, static_cast<std::size_t>(seconds)) << raw.substr(0, 600);
   EXPECT_LE(chunks, static_cast<std::size_t>(seconds) + 1);
   EXPECT_EQ(others, 0u) << "home2 has one sensor";
+  // The same samples as numbers (`tahvel ecg`, the line patients prints after the query): from
+  // the hospital, byte for byte what home2's own store gives, a row per frame of the window.
+  const std::string range = " --recording " + recording + " --since " + m[5].str() + " --until " + m[6].str();
+  EXPECT_NE(patients.find("  as numbers (CSV): tahvel ecg " + hospital + " --at " + kHome2 + range + "\n"), std::string::npos)
+      << patients;
+  const std::string remote = d.tahvel("ecg " + hospital + " --at " + kHome2 + range, &status);
+  EXPECT_EQ(status, 0);
+  const std::string local = d.tahvel("ecg " + d.store("home2").string() + range, &status);
+  EXPECT_EQ(status, 0);
+  EXPECT_EQ(remote, local);
+  const auto rows = static_cast<double>(std::count(remote.begin(), remote.end(), '\n') - 1);
+  EXPECT_GE(rows, seconds * 100) << remote.substr(0, 300);  // at least 100 Hz
+  EXPECT_EQ(remote.rfind("sample,unix_ns,", 0), 0u) << remote.substr(0, 300);
 }
 
 TEST(Hierarchy, WindowChangeWrittenAtTheHospitalTakesEffectAtThatHomeOnly) {

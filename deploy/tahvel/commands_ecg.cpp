@@ -1,0 +1,169 @@
+// `tahvel ecg`: a recording's raw ECG for a time range, as numbers (CSV, one row per frame, each
+// lead in its unit), from this node or any node below it. The samples travel as `tahvel query`
+// brings them (the node that holds them answers, P13-P16): the recording's description, then its
+// chunks in the range, decoded and written out as they come.
+#include <unistd.h>
+
+#include <cmath>
+#include <cstdio>
+#include <iostream>
+#include <optional>
+#include <string>
+#include <vector>
+
+#include "commands.h"
+#include "tahvel/aggregation/items.h"
+
+namespace tahvel::cli {
+namespace {
+
+namespace agg = tahvel::aggregation;
+
+// `text` as one CSV field (RFC 4180: quoted when it holds a comma, a quote or a line break).
+std::string csv_field(const std::string& text) {
+  if (text.find_first_of(",\"\r\n") == std::string::npos) return text;
+  std::string out = "\"";
+  for (char c : text) out += c == '"' ? std::string("\"\"") : std::string(1, c);
+  return out + "\"";
+}
+
+// Writes each frame of the chunks given to it that falls in [since, until) (its time is the
+// recording's start plus its sample over the rate), and keeps count of the frames written and
+// of the samples missing between chunks.
+class FrameWriter {
+ public:
+  FrameWriter(const agg::RecordingInfo& info, std::optional<std::int64_t> since, std::optional<std::int64_t> until)
+      : info_(info), since_(since), until_(until) {}
+
+  void header() const {
+    std::cout << "sample,unix_ns";
+    for (std::size_t lead = 0; lead < info_.leads.size(); ++lead)
+      std::cout << ',' << csv_field(info_.leads[lead].empty() ? "lead " + std::to_string(lead) : info_.leads[lead]);
+    std::cout << '\n';
+  }
+
+  void write(const agg::EcgChunk& chunk) {
+    char value[32];
+    for (std::size_t i = 0; i < chunk.frames; ++i) {
+      const std::int64_t sample = chunk.start_sample + static_cast<std::int64_t>(i);
+      const std::optional<std::int64_t> at = agg::signal_time_ns(info_, static_cast<double>(sample) / info_.fs);
+      if (at && ((since_ && *at < *since_) || (until_ && *at >= *until_))) continue;
+      if (next_ && sample > *next_) gaps_.push_back({*next_, sample});
+      if (!first_) first_ = sample;
+      next_ = sample + 1;
+      std::cout << sample << ',';
+      if (at) std::cout << *at;
+      for (const auto& lead : chunk.leads) {
+        std::snprintf(value, sizeof value, ",%.6g", (lead[i] - info_.baseline) / info_.gain);
+        std::cout << value;
+      }
+      std::cout << '\n';
+      ++frames_;
+    }
+  }
+
+  std::uint64_t frames() const { return frames_; }
+  std::optional<std::int64_t> first() const { return first_; }
+  std::optional<std::int64_t> next() const { return next_; }
+  // [from, to) sample ranges no chunk held, between the first frame written and the last.
+  const std::vector<std::pair<std::int64_t, std::int64_t>>& gaps() const { return gaps_; }
+
+ private:
+  const agg::RecordingInfo& info_;
+  std::optional<std::int64_t> since_, until_;
+  std::optional<std::int64_t> first_, next_;
+  std::uint64_t frames_ = 0;
+  std::vector<std::pair<std::int64_t, std::int64_t>> gaps_;
+};
+
+}  // namespace
+
+const Command kEcgCommand{
+    "ecg",
+    "DIR --recording IRI [--at NODE-IRI] [--since T] [--until T] [--timeout S]",
+    "Print a recording's raw ECG as CSV: one row per frame, each lead in its unit.",
+    "Asks the node at --at (default: DIR's own node; any node below it, as 'tahvel query' does)\n"
+    "for the recording's description and its chunks of signal in [--since, --until), decodes\n"
+    "them and prints, per frame: its sample number in the recording, its time (ns since the\n"
+    "epoch, from the recording's tv:startedAt; empty when the recording does not say it) and\n"
+    "each lead's value, (ADC - baseline) / gain, in the recording's unit (mV). Samples no chunk\n"
+    "holds inside the range (a ring reclaimed them) are named on standard error. Times as\n"
+    "'tahvel query' takes them. 'tahvel patients' prints the command for each patient's latest\n"
+    "HRV window. Exit status as 'tahvel query' (3 timeout, 4 unknown node, 5 unreachable), and 1\n"
+    "when the node holds no such recording.",
+    {{"--recording", "", "IRI", "the recording (its IRI: <sensor agent>/recording/<name>)"},
+     {"--at", "", "NODE-IRI", "the node that holds the samples (default: DIR's node)"},
+     {"--since", "", "T", "frames taken at or after T"},
+     {"--until", "", "T", "frames taken before T"},
+     {"--timeout", "", "S", "give up after S seconds (default 30; a fraction allowed: 2.5)"}},
+    1, 1};
+
+int run_ecg(const Args& args) {
+  node::Node node = open_node(args.positional(0));
+  uri::PrefixMap prefixes = prefixes_with_flags(node.prefixes(), args);
+  const std::string recording = parse_iri(args.required("--recording"), prefixes, "--recording");
+  federation::RemoteQuery ask;
+  ask.target = args.has("--at") ? parse_iri(*args.get("--at"), prefixes, "--at") : node.iri();
+  std::optional<std::int64_t> since, until;
+  if (auto text = args.get("--since")) since = time_flag("--since", *text);
+  if (auto text = args.get("--until")) until = time_flag("--until", *text);
+  if (since && until && *until <= *since)
+    usage_error("--until " + *args.get("--until") + " is not after --since " + *args.get("--since"));
+  const std::chrono::milliseconds timeout = seconds_flag(args, "ecg", std::chrono::seconds(30), std::chrono::hours(24));
+  const auto deadline = std::chrono::steady_clock::now() + timeout;
+  auto left = [&] {
+    return std::max(std::chrono::milliseconds(1),
+                    std::chrono::duration_cast<std::chrono::milliseconds>(deadline - std::chrono::steady_clock::now()));
+  };
+
+  // The description: rate, gain, baseline, leads, start (docs/vocabulary.md).
+  ask.pattern = {.s = node::Term::iri(recording)};
+  std::vector<node::Record> description;
+  ask_below("ecg", node, ask, left(), [&](const node::Record& r) { description.push_back(r); });
+  const std::string where = "<" + ask.target + ">";
+  if (description.empty()) fail("ecg: " + where + " holds no recording <" + recording + "> (nothing has it as subject)");
+  auto info = agg::read_recording(description, recording);
+  if (!info) fail("ecg: the description of <" + recording + "> at " + where + ": " + info.error().message);
+  if (info->leads.empty()) fail("ecg: the description of <" + recording + "> at " + where + " names no tv:lead");
+
+  // Its chunks (<recording>/chunk/<first sample>) that held in the range, in the order stored:
+  // a chunk's records come together, and a chunk is written out when the next one begins.
+  ask.pattern = {.under = recording + "/chunk", .since = since, .until = until};  // as agg::chunk_iri names them
+  FrameWriter frames(*info, since, until);
+  frames.header();
+  std::vector<node::Record> chunk;
+  std::uint64_t unreadable = 0;
+  std::string first_error;
+  auto flush = [&] {
+    if (chunk.empty()) return;
+    auto read = agg::read_chunk(chunk);
+    std::string why = read ? "" : read.error().message;
+    if (read && read->leads.size() != info->leads.size())
+      why = "holds " + std::to_string(read->leads.size()) + " lead(s), the recording names " + std::to_string(info->leads.size());
+    if (why.empty()) frames.write(*read);
+    else if (unreadable++ == 0) first_error = "<" + chunk.front().triple.s.value + ">: " + why;
+    chunk.clear();
+  };
+  ask_below("ecg", node, ask, left(), [&](const node::Record& r) {
+    if (!chunk.empty() && chunk.front().triple.s != r.triple.s) flush();
+    chunk.push_back(r);
+  }, flush);
+  finish_output(std::cout);
+
+  for (const auto& [from, to] : frames.gaps())
+    std::cerr << "tahvel: ecg: samples " << from << " to " << to - 1 << " (" << seconds_text((to - from) / info->fs)
+              << ") are not at " << where << ": no chunk holds them (its ring may have reclaimed them)\n";
+  if (unreadable > 0)
+    std::cerr << "tahvel: ecg: " << unreadable << " chunk(s) could not be read, left out; the first: " << first_error << "\n";
+  if (frames.frames() == 0) {
+    std::cerr << "tahvel: ecg: " << where << " holds no sample of <" << recording << ">"
+              << (since || until ? " in that range" : "") << "\n";
+  } else if (isatty(STDERR_FILENO)) {  // what came, for the operator at a terminal
+    std::cerr << "tahvel: ecg: " << frames.frames() << " frame(s) of " << info->leads.size() << " lead(s) at "
+              << info->fs << " Hz from " << where << ", samples " << *frames.first() << " to " << *frames.next() - 1
+              << "\n";
+  }
+  return kExitOk;
+}
+
+}  // namespace tahvel::cli
