@@ -159,6 +159,12 @@ std::string trend_json(const agg::TrendUpdate& t) {
   return out.str();
 }
 
+// The window's signal time as a query range: from its start for its length.
+std::pair<std::int64_t, std::int64_t> signal_range_ns(const agg::PatientView& p) {
+  const double length_s = std::max(0.0, p.latest.window.end_s - p.latest.window.start_s);
+  return {p.latest_asserted_ns, p.latest_asserted_ns + static_cast<std::int64_t>(std::llround(length_s * 1e9))};
+}
+
 void print_patients_json(const std::string& node_iri, const agg::PatientsOnBoard& board,
                          const std::vector<const agg::PatientView*>& shown) {
   std::ostringstream out;
@@ -169,7 +175,15 @@ void print_patients_json(const std::string& node_iri, const agg::PatientsOnBoard
         << node::json_escape(p.source) << "\",\"windows\":" << p.windows << ",\"alerting\":" << (p.alerting() ? "true" : "false")
         << ",\"irregular\":" << (p.irregular() ? "true" : "false") << ",\"latest\":{\"iri\":\"" << node::json_escape(p.latest.iri)
         << "\",\"start_s\":" << json_number(p.latest.window.start_s) << ",\"end_s\":" << json_number(p.latest.window.end_s)
-        << ",\"stored_ns\":" << p.latest_stored_ns << ",\"asserted_ns\":" << p.latest_asserted_ns << ",\"metrics\":" << metrics_json(p.latest.window.metrics) << "},\"trends\":[";
+        << ",\"stored_ns\":" << p.latest_stored_ns << ",\"asserted_ns\":" << p.latest_asserted_ns << ",\"metrics\":" << metrics_json(p.latest.window.metrics) << "}";
+    // Where the raw ECG behind the latest window is, for `tahvel ecg` or `tahvel query`.
+    if (const std::string at = p.source_node(); !at.empty()) {
+      const auto [since, until] = signal_range_ns(p);
+      out << ",\"raw_ecg\":{\"node\":\"" << node::json_escape(at) << "\",\"since_ns\":" << since << ",\"until_ns\":" << until << "}";
+    } else {
+      out << ",\"raw_ecg\":null";
+    }
+    out << ",\"trends\":[";
     for (std::size_t k = 0; k < p.trends.size(); ++k) out << (k ? "," : "") << trend_json(p.trends[k]);
     out << "]}";
   }
@@ -201,12 +215,6 @@ std::string shell_word(const std::string& text) {
   std::string out = "'";
   for (char c : text) out += c == '\'' ? std::string("'\\''") : std::string(1, c);
   return out + "'";
-}
-
-// The window's signal time as a query range: from its start for its length.
-std::pair<std::int64_t, std::int64_t> signal_range_ns(const agg::PatientView& p) {
-  const double length_s = std::max(0.0, p.latest.window.end_s - p.latest.window.start_s);
-  return {p.latest_asserted_ns, p.latest_asserted_ns + static_cast<std::int64_t>(std::llround(length_s * 1e9))};
 }
 
 void print_patient_text(const std::string& dir, const agg::PatientView& p) {
