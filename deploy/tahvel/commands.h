@@ -80,7 +80,7 @@ node::Term parse_term(std::string_view text, const uri::PrefixMap& prefixes,
 // An IRI (absolute, <iri> or CURIE) given to `flag`.
 std::string parse_iri(std::string_view text, const uri::PrefixMap& prefixes,
                       std::string_view flag);
-// The pattern of -s, -p, -o (and --context, --source when the command has them).
+// The pattern of -s, -p, -o (and --context, --source, --under when the command has them).
 node::Pattern pattern_from_args(const Args& args, const uri::PrefixMap& prefixes);
 // --cascade N; depths beyond 2^20 (deeper than any store's sub-trees) are taken as 2^20.
 unsigned cascade_flag(const Args& args);
@@ -101,7 +101,7 @@ std::string age_of(std::int64_t unix_ns);
 // The area of --area (and --floor): WKT when it reads as WKT, else a room's IRI or CURIE.
 spatial::AreaSpec area_flag(const Args& args, const uri::PrefixMap& prefixes);
 bool pattern_has_triple(const node::Pattern& pattern);
-// True when `record` matches every bound field of `pattern` (s, p, o, context, source).
+// True when `record` matches every bound field of `pattern` (s, p, o, context, source, under).
 bool matches(const node::Pattern& pattern, const node::Record& record);
 
 // --- input and output -----------------------------------------------------------------------

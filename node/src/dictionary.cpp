@@ -263,7 +263,7 @@ Result<void> collect_term_if_unused(Txn& txn, std::uint64_t id) {
   return {};
 }
 
-Result<Term> TermReader::get(std::uint64_t id, bool repeating) {
+Result<Term> TermReader::get(std::uint64_t id, bool repeating, bool remember) {
   if (is_inline(id)) {
     std::uint64_t kind = (id >> kInlineKindShift) & 7;
     std::uint64_t bits = id & kInlinePayloadMask;
@@ -296,7 +296,7 @@ Result<Term> TermReader::get(std::uint64_t id, bool repeating) {
   std::size_t pos = 2;
   if (kind != TermKind::literal) {
     Term term{kind, std::string(bytes.substr(pos)), {}, {}};
-    memo_.emplace(id, term);
+    if (remember) memo_.emplace(id, term);
     return term;
   }
   std::uint64_t datatype_id = 0;

@@ -82,7 +82,9 @@ class TermReader {
   TermReader(MDB_txn* txn, const Env& env) : txn_(txn), env_(env) {}
   // `repeating`: a term that comes back in record after record (a predicate, source, context or
   // datatype): looked up in, and added to, the process's cache of decoded terms (Env::decoded).
-  Result<Term> get(std::uint64_t id, bool repeating = false);
+  // `remember` false: not kept for this reader's later calls either (a term read once to filter
+  // on, which a scan meets for every item).
+  Result<Term> get(std::uint64_t id, bool repeating = false, bool remember = true);
   Result<std::string> iri(std::uint64_t id);  // "" for id 0; repeating
 
  private:

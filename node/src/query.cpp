@@ -82,7 +82,7 @@ Result<bool> Query::metadata_matches(const Pattern& pattern, const Bound& bound,
 Result<bool> Query::subject_under(const std::string& ancestor, std::uint64_t subject) {
   // A subject's records come one after another (an item's, a chunk's): one check for them all.
   if (auto cached = subject_under_.find(subject); cached != subject_under_.end()) return cached->second;
-  auto term = terms_.get(subject);
+  auto term = terms_.get(subject, false, /*remember=*/false);
   if (!term) return unexpected(term.error());
   const bool under = term->is_iri() && uri::is_under(term->value, ancestor);
   // Bounded: a scan of a large store meets a new subject at every item.
