@@ -439,10 +439,10 @@ TEST_F(Cli, ListCascadeFollowsBlankNodeObjects) {
   EXPECT_EQ(lines_of(deep.out).size(), 2u) << deep.out;
 }
 
-// Two patients' chunks on one board: `--under` a recording lists that recording's records only,
-// in `list`, `query` (here asked of the node itself; tests/federation has it over links) and
-// `tail`, and `--source` names the writer in `query` as in `list`. Not an IRI: usage error.
-TEST_F(Cli, UnderARecordingSelectsItsChunksInListQueryAndTail) {
+// Two patients' chunks on one board: `--under` a recording selects that recording's records only,
+// in `list`, `query` (here asked of the node itself; tests/federation has it over links), `tail`
+// and `remove`, and `--source` names the writer in `query` as in `list`. Not an IRI: usage error.
+TEST_F(Cli, UnderARecordingSelectsItsChunksInListQueryTailAndRemove) {
   init();
   put("<http://example.org/rec/100> <http://example.org/rate> 360 .\n"
       "<http://example.org/rec/100/chunk/0> <http://example.org/samples> \"a0\" .\n"
@@ -484,6 +484,15 @@ TEST_F(Cli, UnderARecordingSelectsItsChunksInListQueryAndTail) {
   ASSERT_TRUE(WIFEXITED(status));
   EXPECT_EQ(WEXITSTATUS(status), 0);
   EXPECT_EQ(slurp(tmp_ / "out998"), "<http://example.org/rec/1000/chunk/9> <http://example.org/samples> \"b9\" .\n");
+  // And a recording with its chunks goes in one removal; the other's stay.
+  const std::size_t held = lines_of(run({"list", node_, "--under", "http://example.org/rec/100"}).out).size();
+  const std::size_t other = lines_of(run({"list", node_, "--under", "http://example.org/rec/1000"}).out).size();
+  ASSERT_GE(held, 4u);
+  Outcome removed = run({"remove", node_, "--under", "http://example.org/rec/100"});
+  ASSERT_EQ(removed.status, 0) << removed.err;
+  EXPECT_EQ(removed.out, std::to_string(held) + "\n");
+  EXPECT_EQ(run({"list", node_, "--under", "http://example.org/rec/100"}).out, "");
+  EXPECT_EQ(lines_of(run({"list", node_, "--under", "http://example.org/rec/1000"}).out).size(), other);
 }
 
 // `query --cascade 4294967296` was cut to 32 bits: depth 0, the matches without their sub-trees,
