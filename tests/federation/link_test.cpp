@@ -1200,10 +1200,13 @@ TEST(Link, AQueryBySubjectOrBySourceTwoHopsDownReturnsExactlyWhatTheTargetHoldsU
   EXPECT_EQ(asked_and_held({.under = sensor_iri + "/bed2/recording/102/chunk/3"}), std::vector<std::string>{"bed2102s3"});
   EXPECT_EQ(asked_and_held({.p = samples, .source = sensor_iri + "/bed2"}).size(), 8u);
   EXPECT_EQ(asked_and_held({.source = sensor_iri + "/bed1", .under = sensor_iri + "/bed2"}).size(), 0u);
-  // Not IRIs: said before anything is asked.
+  // Not IRIs, or what a query frame cannot carry: said before anything is asked.
   auto bad = remote_query(hospital, {.target = sensor_iri, .pattern = {.under = "not an iri"}}, 10s, [](const node::Record&) {});
   ASSERT_FALSE(bad);
   EXPECT_EQ(bad.error().code, Errc::invalid_iri) << bad.error().message;
+  auto by_context = remote_query(hospital, {.target = sensor_iri, .pattern = {.context = kHome1}}, 10s, [](const node::Record&) {});
+  ASSERT_FALSE(by_context);
+  EXPECT_EQ(by_context.error().code, Errc::invalid_argument) << by_context.error().message;
 }
 
 // P3: a child of a version before 4 would pass a query on without its source and subject, and
