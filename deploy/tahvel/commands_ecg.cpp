@@ -4,6 +4,8 @@
 // chunks in the range, decoded and written out as they come.
 #include <unistd.h>
 
+#include <algorithm>
+#include <charconv>
 #include <cmath>
 #include <cstdio>
 #include <iostream>
@@ -29,7 +31,7 @@ std::string csv_field(const std::string& text) {
 
 // Writes each frame of the chunks given to it that falls in [since, until) (its time is the
 // recording's start plus its sample over the rate), and keeps count of the frames written and
-// of the samples missing between chunks.
+// of the samples of the range that no chunk held.
 class FrameWriter {
  public:
   FrameWriter(const agg::RecordingInfo& info, std::optional<std::int64_t> since, std::optional<std::int64_t> until)
@@ -62,13 +64,36 @@ class FrameWriter {
     }
   }
 
+  // After the last chunk: the samples of the range before the first frame written, and, when
+  // the recording's end is known (`end_sample`, tv:endSample), after the last, are missing too.
+  // (Without its end, samples after the last chunk may not have been taken yet.)
+  void finish(std::optional<std::int64_t> end_sample) {
+    if (!first_) return;
+    if (since_ && info_.started_at) {
+      const std::int64_t from = first_at_or_after(*since_);
+      if (from < *first_) gaps_.insert(gaps_.begin(), {from, *first_});
+    }
+    if (end_sample) {
+      const std::int64_t to = until_ && info_.started_at ? std::min(*end_sample, first_at_or_after(*until_)) : *end_sample;
+      if (*next_ < to) gaps_.push_back({*next_, to});
+    }
+  }
+
   std::uint64_t frames() const { return frames_; }
   std::optional<std::int64_t> first() const { return first_; }
   std::optional<std::int64_t> next() const { return next_; }
-  // [from, to) sample ranges no chunk held, between the first frame written and the last.
+  // [from, to) sample ranges of the range asked that no chunk held (after finish()).
   const std::vector<std::pair<std::int64_t, std::int64_t>>& gaps() const { return gaps_; }
 
  private:
+  // The first sample (0 or later) taken at or after `time`, as write() times samples.
+  std::int64_t first_at_or_after(std::int64_t time) const {
+    const double estimate = std::ceil(static_cast<double>(time - *info_.started_at) * info_.fs / 1e9);
+    std::int64_t sample = std::max<std::int64_t>(0, static_cast<std::int64_t>(estimate) - 1);
+    while (*agg::signal_time_ns(info_, static_cast<double>(sample) / info_.fs) < time) ++sample;
+    return sample;
+  }
+
   const agg::RecordingInfo& info_;
   std::optional<std::int64_t> since_, until_;
   std::optional<std::int64_t> first_, next_;
@@ -149,10 +174,18 @@ int run_ecg(const Args& args) {
     chunk.push_back(r);
   }, flush);
   finish_output(std::cout);
+  std::optional<std::int64_t> end_sample;
+  for (const node::Record& r : description)
+    if (r.triple.p.value == agg::tv_term("endSample").value) {
+      std::int64_t n = 0;
+      const std::string& text = r.triple.o.value;
+      if (std::from_chars(text.data(), text.data() + text.size(), n).ec == std::errc()) end_sample = n;
+    }
+  frames.finish(end_sample);
 
   for (const auto& [from, to] : frames.gaps())
     std::cerr << "tahvel: ecg: samples " << from << " to " << to - 1 << " (" << seconds_text((to - from) / info->fs)
-              << ") are not at " << where << ": no chunk holds them (its ring may have reclaimed them)\n";
+              << ") are not at " << where << ": no readable chunk holds them (its ring may have reclaimed them)\n";
   if (unreadable > 0)
     std::cerr << "tahvel: ecg: " << unreadable << " chunk(s) could not be read, left out; the first: " << first_error << "\n";
   if (frames.frames() == 0) {

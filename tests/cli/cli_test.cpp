@@ -696,10 +696,10 @@ std::string base64(const std::string& bytes) {
   return out;
 }
 
-// A recording of two leads at 4 Hz (gain 2 ADC units per mV, baseline 10) and its chunks of one
-// second, written as the ECG source writes them (docs/vocabulary.md): each asserted at its first
-// frame's time and spanning a second. The chunk of samples 8-11 is not there (a ring took it);
-// the one of 16-19 has one lead only.
+// A recording of two leads at 4 Hz (gain 2 ADC units per mV, baseline 10) that ended after 20
+// frames, and its chunks of one second, written as the ECG source writes them
+// (docs/vocabulary.md): each asserted at its first frame's time and spanning a second. The chunk
+// of samples 8-11 is not there (a ring took it); the one of 16-19 has one lead only.
 void store_recording(const std::string& dir, const std::string& rec, std::int64_t t0) {
   using tahvel::node::Term;
   auto node = tahvel::node::Node::open(dir).value();
@@ -715,6 +715,7 @@ void store_recording(const std::string& dir, const std::string& rec, std::int64_
   description.add(r, Term::iri(tv + "lead"), Term::literal("0 MLII"));
   description.add(r, Term::iri(tv + "lead"), Term::literal("1 V5"));
   description.add(r, Term::iri(tv + "startedAt"), Term::integer(t0));
+  description.add(r, Term::iri(tv + "endSample"), Term::integer(20));  // the recording has ended
   ASSERT_TRUE(source.store(description));
   auto chunk = [&](int start, const std::vector<std::vector<int>>& leads) {
     std::string bytes;
@@ -756,6 +757,7 @@ TEST_F(Cli, EcgPrintsEachFrameOfTheRangeInMillivoltsAndNamesWhatIsMissing) {
   EXPECT_NE(all.err.find("tahvel: ecg: samples 8 to 11 (1.0 s) are not at <" + kNodeIri + ">"), std::string::npos) << all.err;
   EXPECT_NE(all.err.find("1 chunk(s) could not be read, left out; the first: <" + rec + "/chunk/16>: holds 1 lead(s), the recording names 2"),
             std::string::npos) << all.err;
+  EXPECT_NE(all.err.find("tahvel: ecg: samples 16 to 19 (1.0 s) are not at <"), std::string::npos) << "up to its end:\n" << all.err;
   // From inside a frame's chunk to the next chunk's start: the frames taken in that time only,
   // asked of this node through the query path too (--at itself).
   Outcome part = run({"ecg", node_, "--at", kNodeIri, "--recording", rec, "--since", std::to_string(t0 + 1'100'000'000),
@@ -763,6 +765,13 @@ TEST_F(Cli, EcgPrintsEachFrameOfTheRangeInMillivoltsAndNamesWhatIsMissing) {
   ASSERT_EQ(part.status, 0) << part.err;
   EXPECT_EQ(part.out, "sample,unix_ns,MLII,V5\n5,1800000001250000000,5,4\n6,1800000001500000000,6,5\n7,1800000001750000000,7,6\n");
   EXPECT_EQ(part.err, "");
+  // A range that starts in the missing chunk: its samples before the first frame are named too.
+  Outcome late = run({"ecg", node_, "--recording", rec, "--since", std::to_string(t0 + 2'100'000'000), "--until",
+                      std::to_string(t0 + 3'600'000'000)});
+  ASSERT_EQ(late.status, 0) << late.err;
+  EXPECT_EQ(late.out, "sample,unix_ns,MLII,V5\n12,1800000003000000000,0.5,0\n13,1800000003250000000,0,0\n"
+                      "14,1800000003500000000,0,0\n");
+  EXPECT_NE(late.err.find("tahvel: ecg: samples 9 to 11 (0.8 s) are not at <"), std::string::npos) << late.err;
   Outcome none = run({"ecg", node_, "--recording", rec, "--since", std::to_string(t0 + 2'000'000'000), "--until",
                       std::to_string(t0 + 3'000'000'000)});
   EXPECT_EQ(none.status, 0) << none.err;
