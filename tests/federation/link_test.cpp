@@ -1191,7 +1191,8 @@ TEST(Link, AQueryBySubjectOrBySourceTwoHopsDownReturnsExactlyWhatTheTargetHoldsU
     auto answered = remote_query(hospital, {.target = sensor_iri, .pattern = pattern}, 10s,
                                  [&](const node::Record& r) { got.push_back(r.triple.o.value); });
     EXPECT_TRUE(answered) << answered.error().message;
-    for (const auto& r : sensor.snapshot().value().list(pattern).value()) held.push_back(r.triple.o.value);
+    const std::vector<node::Record> records = sensor.snapshot().value().list(pattern).value();
+    for (const auto& r : records) held.push_back(r.triple.o.value);
     EXPECT_EQ(got, held);
     return got;
   };
