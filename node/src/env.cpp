@@ -18,6 +18,7 @@
 #include <unistd.h>
 
 #include <cerrno>
+#include <cstddef>
 #include <cstdio>
 #include <cstdlib>
 #include <cstring>
@@ -122,6 +123,53 @@ std::uint64_t bytes_u64(std::string_view s) {
   return x;
 }
 
+// The store format in `meta`; 0 when it says none.
+std::uint32_t format_of(MDB_txn* txn, MDB_dbi meta) {
+  auto version = get_meta(txn, meta, "version");
+  if (!version) return 0;
+  std::uint32_t v = 0;
+  std::memcpy(&v, version->data(), std::min<std::size_t>(version->size(), sizeof v));
+  return v;
+}
+
+Result<void> put_format(MDB_txn* txn, MDB_dbi meta, std::uint32_t version) {
+  return put_meta(txn, meta, "version", std::string(reinterpret_cast<const char*>(&version), sizeof version));
+}
+
+// Format 2 to 3: every item into the new (empty) time index, the longest span into the counters.
+Result<void> upgrade_to_format_3(MDB_txn* txn, const Env& env) {
+  std::vector<std::pair<std::uint64_t, std::uint64_t>> entries;  // (time key, item id)
+  std::uint64_t max_span = 0;
+  MDB_cursor* cursor = nullptr;
+  int rc = mdb_cursor_open(txn, env.items, &cursor);
+  if (rc != 0) return lmdb_fail(rc, "opening items");
+  MDB_val k, v;
+  for (rc = mdb_cursor_get(cursor, &k, &v, MDB_FIRST); rc == 0; rc = mdb_cursor_get(cursor, &k, &v, MDB_NEXT)) {
+    ItemRow item;
+    if (!decode_item(view(v), item)) {
+      mdb_cursor_close(cursor);
+      return fail(Errc::corrupt, "item " + std::to_string(u64(k)) + " cannot be read: its row is truncated");
+    }
+    entries.emplace_back(time_key(item.asserted_at), u64(k));
+    max_span = std::max(max_span, static_cast<std::uint64_t>(item.span));
+  }
+  mdb_cursor_close(cursor);
+  if (rc != MDB_NOTFOUND) return lmdb_fail(rc, "reading items");
+  std::sort(entries.begin(), entries.end());
+  if ((rc = mdb_cursor_open(txn, env.by_time, &cursor)) != 0) return lmdb_fail(rc, "opening the time index");
+  for (const auto& [time, item] : entries) {
+    MDB_val tk = val(time), iv = val(item);
+    if ((rc = mdb_cursor_put(cursor, &tk, &iv, 0)) != 0) break;
+  }
+  mdb_cursor_close(cursor);
+  if (rc != 0) return lmdb_fail(rc, "filling the time index with " + std::to_string(entries.size()) + " items");
+  auto counters = load_counters(txn, env.main);
+  if (!counters) return unexpected(counters.error());
+  counters->max_span = std::max(counters->max_span, max_span);
+  if (auto r = save_counters(txn, env.main, *counters); !r) return r;
+  return put_format(txn, env.meta, kFormatVersion);
+}
+
 }  // namespace
 
 std::string new_store_id() {
@@ -145,8 +193,10 @@ Result<Counters> load_counters(MDB_txn* txn, MDB_dbi meta) {
   int rc = mdb_get(txn, meta, &k, &v);
   if (rc != 0) return lmdb_fail(rc, "reading counters");
   Counters c;
-  if (v.mv_size != sizeof c) return fail(Errc::corrupt, "counters record has the wrong size");
-  std::memcpy(&c, v.mv_data, sizeof c);
+  // Format 2 wrote them without max_span, the last field.
+  constexpr std::size_t kFormat2Size = offsetof(Counters, max_span);
+  if (v.mv_size != sizeof c && v.mv_size != kFormat2Size) return fail(Errc::corrupt, "counters record has the wrong size");
+  std::memcpy(&c, v.mv_data, v.mv_size);
   return c;
 }
 
@@ -247,12 +297,23 @@ Result<void> Env::open_tables(MDB_txn* txn, bool create) {
 }
 
 Result<bool> Env::open_later_tables(MDB_txn* txn, bool create) {
-  // Tables added after format 2: a store made before has none until its first open that may
-  // write (open() then runs this again in a write transaction).
-  int rc = mdb_dbi_open(txn, "notices", MDB_INTEGERKEY | (create ? MDB_CREATE : 0), &notices);
-  if (rc == MDB_NOTFOUND && !create) return false;
-  if (rc != 0) return lmdb_fail(rc, "opening table notices in " + dir_.string());
-  return true;
+  // Tables added to format 2 (notices) and in format 3 (by_time): a store made before has them
+  // not until its first open, which makes them in a write transaction (open_at).
+  const unsigned dupfixed = MDB_DUPSORT | MDB_DUPFIXED | MDB_INTEGERDUP;
+  const std::pair<const char*, std::pair<MDB_dbi*, unsigned>> later[] = {
+      {"notices", {&notices, MDB_INTEGERKEY}},
+      {"by_time", {&by_time, MDB_INTEGERKEY | dupfixed}},
+  };
+  bool all = true;
+  for (const auto& [name, table] : later) {
+    int rc = mdb_dbi_open(txn, name, table.second | (create ? MDB_CREATE : 0), table.first);
+    if (rc == MDB_NOTFOUND && !create) {
+      all = false;
+      continue;
+    }
+    if (rc != 0) return lmdb_fail(rc, std::string("opening table ") + name + " in " + dir_.string());
+  }
+  return all;
 }
 
 Result<std::shared_ptr<Env>> Env::open(const std::filesystem::path& dir_in, const InitOptions* init) {
@@ -378,9 +439,8 @@ Result<std::shared_ptr<Env>> Env::open_at(const std::filesystem::path& dir, cons
     needs_tables = !*later;
     if (init) {
       Settings s{init->iri, init->durability, init->ring, init->max_literal_bytes, init->max_map_bytes};
-      std::uint32_t version = kFormatVersion;
+      if (auto r = put_format(txn, env->meta, kFormatVersion); !r) return r;
       const std::pair<std::string_view, std::string> values[] = {
-          {"version", std::string(reinterpret_cast<const char*>(&version), sizeof version)},
           {"iri", s.iri},
           {"durability", s.durability == Durability::durable ? "durable" : "fast"},
           {"ring", u64_bytes(s.ring)},
@@ -394,13 +454,14 @@ Result<std::shared_ptr<Env>> Env::open_at(const std::filesystem::path& dir, cons
         if (auto r = put_meta(txn, env->meta, "prefix:" + prefix, ns); !r) return r;
       if (auto r = save_counters(txn, env->main, Counters{}); !r) return r;
     }
-    auto version = get_meta(txn, env->meta, "version");
-    if (!version) return fail(Errc::corrupt, dir.string() + " holds no Tahvel store settings");
-    std::uint32_t v = 0;
-    std::memcpy(&v, version->data(), std::min<std::size_t>(version->size(), sizeof v));
-    if (v != kFormatVersion)
-      return fail(Errc::version, dir.string() + " has store format " + std::to_string(v) +
-                                     ", this build reads " + std::to_string(kFormatVersion));
+    const std::uint32_t v = format_of(txn, env->meta);
+    if (v == 0) return fail(Errc::corrupt, dir.string() + " holds no Tahvel store settings");
+    if (v == kUpgradedFormatVersion && (first_flags & MDB_RDONLY)) {
+      needs_tables = true;  // and its time index filled: open_later_tables found it missing
+    } else if (v != kFormatVersion) {
+      return fail(Errc::version, dir.string() + " has store format " + std::to_string(v) + ", this build reads " +
+                                     std::to_string(kUpgradedFormatVersion) + " and " + std::to_string(kFormatVersion));
+    }
     auto iri = get_meta(txn, env->meta, "iri");
     auto durability = get_meta(txn, env->meta, "durability");
     auto ring = get_meta(txn, env->meta, "ring");
@@ -431,6 +492,8 @@ Result<std::shared_ptr<Env>> Env::open_at(const std::filesystem::path& dir, cons
     if (r && needs_tables) {
       if (auto made = env->open_later_tables(txn, true); !made) r = unexpected(made.error());
     }
+    // Read again in this transaction: another process may have upgraded the store meanwhile.
+    if (r && format_of(txn, env->meta) == kUpgradedFormatVersion) r = upgrade_to_format_3(txn, *env);
     if (!r) {
       mdb_txn_abort(txn);
       return unexpected(r.error());

@@ -29,7 +29,11 @@
 
 namespace tahvel::node::detail {
 
-inline constexpr std::uint32_t kFormatVersion = 2;
+inline constexpr std::uint32_t kFormatVersion = 3;
+// A store of format 2 has no time index (and may lack the notices table): this build brings it
+// up to format 3 at its first open, in one write transaction (Env::open), after which builds
+// that read format 2 refuse it (they would write items the time index does not list).
+inline constexpr std::uint32_t kUpgradedFormatVersion = 2;
 
 // Counters kept in one meta value so that a write touches one key for all of them.
 struct Counters {
@@ -49,6 +53,9 @@ struct Counters {
   std::uint64_t subscriptions = 0;
   std::uint64_t ring_head = 0;     // items below this id are gone or persistent: the ring's scan
                                    // starts here
+  // Added in format 3 (a format-2 store's counters end before it; load_counters reads them).
+  std::uint64_t max_span = 0;      // ns: the longest Item::span ever stored, never lowered: a
+                                   // time-range walk of by_time starts this much before its range
 };
 
 // Settings fixed at init.
@@ -171,6 +178,10 @@ class Env {
   // Removal notices waiting in input buffers (R21): id -> varint(buffers holding it), then the
   // removed records. Stores made before the table existed get it at their first open.
   MDB_dbi notices = 0;
+  // The time index: time_key(asserted_at) -> item ids ascending (rows.h). Every item is in it,
+  // removed with its item (retire_item). Format 3; a format-2 store gets it, filled, at its first
+  // open.
+  MDB_dbi by_time = 0;
 
   // Runs `body` in a write transaction and commits it. When the map fills, aborts, grows the
   // map (up to max_map_bytes) and runs `body` again from the start; past the maximum returns

@@ -1,6 +1,8 @@
 // Pattern matching; see query.h.
 #include "query.h"
 
+#include <algorithm>
+#include <climits>
 #include <unordered_set>
 
 #include "tahvel/uri/iri.h"
@@ -77,6 +79,31 @@ Result<bool> Query::metadata_matches(const Pattern& pattern, const Bound& bound,
     if (!cached->second) return false;
   }
   return true;
+}
+
+Result<std::optional<std::vector<std::uint64_t>>> Query::items_in_range(const Pattern& pattern, std::size_t most) {
+  using Items = std::optional<std::vector<std::uint64_t>>;
+  auto counters = load_counters(txn_, env_.main);
+  if (!counters) return unexpected(counters.error());
+  std::int64_t from = INT64_MIN;
+  if (pattern.since) {
+    const std::uint64_t span = std::min<std::uint64_t>(counters->max_span, INT64_MAX);
+    if (__builtin_sub_overflow(*pattern.since, static_cast<std::int64_t>(span), &from)) from = INT64_MIN;
+  }
+  std::vector<std::uint64_t> items;
+  Cursor cur;
+  int rc = mdb_cursor_open(txn_, env_.by_time, &cur.c);
+  if (rc != 0) return lmdb_fail(rc, "opening the time index");
+  const std::uint64_t first_key = time_key(from);
+  MDB_val k = val(first_key), v;
+  for (rc = mdb_cursor_get(cur.c, &k, &v, MDB_SET_RANGE); rc == 0; rc = mdb_cursor_get(cur.c, &k, &v, MDB_NEXT)) {
+    if (pattern.until && time_of_key(u64(k)) >= *pattern.until) break;
+    if (items.size() == most) return Items();
+    items.push_back(u64(v));
+  }
+  if (rc != 0 && rc != MDB_NOTFOUND) return lmdb_fail(rc, "walking the time index");
+  std::sort(items.begin(), items.end());
+  return Items(std::move(items));
 }
 
 Result<bool> Query::subject_under(const std::string& ancestor, std::uint64_t subject) {
@@ -180,6 +207,37 @@ Result<void> Query::for_each(const Pattern& pattern,
     if (!*meta_ok) return true;
     return visit(id, row);
   };
+
+  // A time range: the items of the range, when they are fewer than the records the walk below
+  // would read (an item has at least one record). Each item's records are checked in turn.
+  constexpr std::size_t kRangeItemsMost = std::size_t{1} << 20;
+  if ((pattern.since || pattern.until) && env_.by_time) {
+    auto items = items_in_range(pattern, std::min(best, kRangeItemsMost));
+    if (!items) return unexpected(items.error());
+    if (*items) {
+      Cursor records;
+      int rc = mdb_cursor_open(txn_, env_.records, &records.c);
+      if (rc != 0) return lmdb_fail(rc, "opening records");
+      for (const std::uint64_t item_id : **items) {
+        auto row = item(item_id);  // kept for check's metadata test
+        if (!row) return unexpected(row.error());
+        const std::uint64_t end = item_id + (*row)->count;
+        if (end <= first) continue;
+        MDB_val k = val(std::max(item_id, first)), v;
+        for (rc = mdb_cursor_get(records.c, &k, &v, MDB_SET_RANGE); rc == 0 && u64(k) < end;
+             rc = mdb_cursor_get(records.c, &k, &v, MDB_NEXT)) {
+          const std::uint64_t id = u64(k);
+          RecordRow record;
+          if (!decode_record(id, view(v), record)) return fail(Errc::corrupt, "record " + std::to_string(id) + " is truncated");
+          auto go_on = check(id, record);
+          if (!go_on) return unexpected(go_on.error());
+          if (!*go_on) return {};
+        }
+        if (rc != 0 && rc != MDB_NOTFOUND) return lmdb_fail(rc, "reading the records of item " + std::to_string(item_id));
+      }
+      return {};
+    }
+  }
 
   Cursor cur;
   if (key == 0) {  // nothing bound: scan records in id order

@@ -1,7 +1,9 @@
 // Pattern matching over one transaction (read-only snapshot or the write path's own).
 // A pattern with a bound position walks the index of the bound term with the fewest records
 // (idx_s, idx_p or idx_o, each term id -> record ids ascending); a pattern with none bound
-// scans the records table. Other positions and metadata filters are checked per record.
+// scans the records table. A pattern with a time range reads the items of that range from the
+// time index (by_time) instead, when they are fewer than that walk would read. Other positions
+// and metadata filters are checked per record.
 #pragma once
 
 #include <cstdint>
@@ -50,6 +52,9 @@ class Query {
   // How many records the index lists for `term` (0 when none).
   Result<std::size_t> index_count(MDB_dbi index, std::uint64_t term);
   Result<bool> metadata_matches(const Pattern& pattern, const Bound& bound, const RecordRow& row);
+  // The ids, ascending, of the items whose asserted_at is where a match of the pattern's time
+  // range may be: in [since - the longest span, until). nullopt when there are more than `most`.
+  Result<std::optional<std::vector<std::uint64_t>>> items_in_range(const Pattern& pattern, std::size_t most);
   Result<const ItemRow*> item(std::uint64_t id);
   // Whether the record subject `subject` (a term id) is `ancestor` or an IRI under it.
   Result<bool> subject_under(const std::string& ancestor, std::uint64_t subject);

@@ -129,6 +129,7 @@ Result<void> retire_item(Txn& txn, std::uint64_t item_id, const ItemRow& item) {
   int rc = mdb_del(raw, env.items, &k, nullptr);
   if (rc != 0) return lmdb_fail(rc, "removing item " + std::to_string(item_id));
   if (auto r = del_dup(raw, env.outbox, item.output_buffer(), item_id, "removing an item from an output buffer"); !r) return r;
+  if (auto r = del_dup(raw, env.by_time, time_key(item.asserted_at), item_id, "removing an item from the time index"); !r) return r;
   if (item.pending > 0) {
     auto dropped = drop_from_inboxes(txn, item_id);
     if (!dropped) return unexpected(dropped.error());

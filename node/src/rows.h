@@ -21,6 +21,11 @@
 
 namespace tahvel::node::detail {
 
+// The time index's key for an item asserted at `ns`: the sign bit flipped, so that unsigned
+// integer order (MDB_INTEGERKEY) is time order, before the epoch included.
+inline std::uint64_t time_key(std::int64_t ns) { return static_cast<std::uint64_t>(ns) ^ (std::uint64_t{1} << 63); }
+inline std::int64_t time_of_key(std::uint64_t key) { return static_cast<std::int64_t>(key ^ (std::uint64_t{1} << 63)); }
+
 struct RecordRow {
   std::uint64_t s = 0, p = 0, o = 0, item = 0;
 };

@@ -728,6 +728,8 @@ Result<std::uint64_t> insert_item(Txn& txn, const Item& item, const std::string&
   }
   if (auto r = put_item(txn, item_id, meta, MDB_APPEND); !r) return unexpected(r.error());
   txn.unflushed_index.push_back({env.outbox, *writer, item_id});
+  txn.unflushed_index.push_back({env.by_time, time_key(meta.asserted_at), item_id});
+  txn.counters.max_span = std::max(txn.counters.max_span, static_cast<std::uint64_t>(meta.span));
   if (!persistent) {
     txn.counters.ring_records += ids.size();
   } else {

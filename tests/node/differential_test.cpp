@@ -19,7 +19,34 @@ struct ModelRecord {
   std::uint64_t id;
   Triple triple;
   std::string source, context;
+  std::int64_t asserted_at = 0, span = 0;
 };
+
+// Times around the epoch (before it too), a few shared by many items; now and then a span,
+// once in a while a long one (the time index is walked from `since` less the longest span).
+void random_time(std::mt19937& rng, Item& item) {
+  item.asserted_at = static_cast<std::int64_t>(rng() % 200) * 1'000 - 50'000;
+  const int pick = rng() % 20;
+  item.span = pick < 14 ? 0 : pick < 19 ? static_cast<std::int64_t>(rng() % 5'000) : static_cast<std::int64_t>(rng() % 80'000);
+}
+
+void random_range(std::mt19937& rng, Pattern& p) {
+  const int pick = rng() % 8;
+  if (pick >= 3) return;
+  const std::int64_t a = static_cast<std::int64_t>(rng() % 220) * 1'000 - 60'000 + static_cast<std::int64_t>(rng() % 3) * 500;
+  const std::int64_t b = a + static_cast<std::int64_t>(rng() % 30) * 1'000;  // may be empty (b == a)
+  if (pick != 1) p.since = a;
+  if (pick != 2) p.until = b;
+}
+
+// The time filter as Pattern::since documents it: an instant in [since, until), a span
+// overlapping it.
+bool model_in_range(const ModelRecord& r, const Pattern& p) {
+  if (p.since && p.until && *p.until <= *p.since) return false;
+  if (p.until && r.asserted_at >= *p.until) return false;
+  if (p.since && (r.span == 0 ? r.asserted_at < *p.since : r.asserted_at + r.span <= *p.since)) return false;
+  return true;
+}
 
 Term random_term(std::mt19937& rng, int position) {
   int pick = rng() % 10;
@@ -37,7 +64,7 @@ std::optional<Term> maybe(std::mt19937& rng, int position) {
 
 bool model_matches(const ModelRecord& r, const Pattern& p) {
   return (!p.s || *p.s == r.triple.s) && (!p.p || *p.p == r.triple.p) && (!p.o || *p.o == r.triple.o) &&
-         (!p.context || *p.context == r.context) && (!p.source || *p.source == r.source);
+         (!p.context || *p.context == r.context) && (!p.source || *p.source == r.source) && model_in_range(r, p);
 }
 
 std::vector<std::uint64_t> ids(const std::vector<Record>& records) {
@@ -61,6 +88,7 @@ void check_queries_against_plain_scan(bool batched) {
     std::vector<Item> items(batched ? 1 + rng() % 40 : 1);
     for (Item& item : items) {
       item.context = contexts[rng() % 3];
+      random_time(rng, item);
       int n = 1 + rng() % 4;
       for (int k = 0; k < n; ++k) item.add(random_term(rng, 0), random_term(rng, 1), random_term(rng, 2));
     }
@@ -68,12 +96,14 @@ void check_queries_against_plain_scan(bool batched) {
     ASSERT_TRUE(ids) << ids.error().message;
     for (std::size_t j = 0; j < items.size(); ++j)
       for (std::size_t k = 0; k < items[j].triples.size(); ++k)
-        model.push_back({(*ids)[j] + k, items[j].triples[k], agent->iri(), items[j].context});
-    // Now and then a removal by a random pattern.
+        model.push_back({(*ids)[j] + k, items[j].triples[k], agent->iri(), items[j].context, *items[j].asserted_at, items[j].span});
+    // Now and then a removal by a random pattern, some by a time range (whole items go: their
+    // time index entries with them).
     if (i % removal_every == removal_every - 1) {
       Pattern gone;
       gone.s = random_term(rng, 0);
-      gone.p = random_term(rng, 1);
+      if (rng() % 3 == 0) random_range(rng, gone);
+      else gone.p = random_term(rng, 1);
       auto removed = node.remove(gone);
       ASSERT_TRUE(removed);
       auto before = model.size();
@@ -92,6 +122,7 @@ void check_queries_against_plain_scan(bool batched) {
     p.o = maybe(rng, 2);
     if (rng() % 4 == 0) p.context = contexts[rng() % 3];
     if (rng() % 6 == 0) p.source = testing::kNodeIri + "/a" + std::to_string(rng() % 3);
+    random_range(rng, p);
     std::vector<std::uint64_t> expected;
     for (const auto& r : model)
       if (model_matches(r, p)) expected.push_back(r.id);
@@ -108,6 +139,8 @@ void check_queries_against_plain_scan(bool batched) {
       EXPECT_EQ(got.triple, it->second->triple);
       EXPECT_EQ(got.meta.source, it->second->source);
       EXPECT_EQ(got.meta.context, it->second->context);
+      EXPECT_EQ(got.meta.asserted_at, it->second->asserted_at);
+      EXPECT_EQ(got.meta.span, it->second->span);
     }
   }
   EXPECT_EQ(node.stats()->records, model.size());

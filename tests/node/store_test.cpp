@@ -8,6 +8,7 @@
 #include <unistd.h>
 
 #include <atomic>
+#include <cstring>
 #include <fstream>
 #include <optional>
 #include <functional>
@@ -243,6 +244,112 @@ TEST(Store, ATimeRangeTakesTheItemsWhoseSpanOverlapsItAndTheInstantsInIt) {
   EXPECT_EQ(names_in(*again, 100, 200),
             (std::set<std::string>{"holds-at-since", "instant-at-since", "starts-inside", "covers-the-range"}));
   EXPECT_EQ(names_in(*again, 1150, 2000), (std::set<std::string>{"covers-the-range"}));
+}
+
+// A time range is read from the time index: the items of the range and no other, so an
+// operator's query for ten seconds of a month of ECG reads ten seconds' worth. Shown with an
+// item outside the range whose row is damaged: the range never reads it, a scan does.
+TEST(Store, ATimeRangeReadsOnlyTheItemsOfItsRange) {
+  TempDir dir;
+  std::vector<std::uint64_t> items;
+  {
+    Node node = make_node(dir.path());
+    for (std::int64_t second = 0; second < 10; ++second) {
+      Item item;
+      item.add(Term::iri("http://example.org/chunk/" + std::to_string(second)), ex("samples"), Term::literal("AAAA"));
+      item.asserted_at = second * 1'000'000'000;
+      item.span = 1'000'000'000;
+      items.push_back(node.agent("ecg")->store(item).value());
+    }
+  }
+  const std::uint64_t damaged = items[8];
+  ASSERT_TRUE(change_with_lmdb(dir.path(), [&](MDB_txn* txn) {
+    MDB_dbi table = 0;
+    MDB_val key{sizeof damaged, const_cast<std::uint64_t*>(&damaged)}, row{1, const_cast<char*>("\x80")};
+    return mdb_dbi_open(txn, "items", MDB_INTEGERKEY, &table) == 0 && mdb_put(txn, table, &key, &row, 0) == 0;
+  })) << "could not damage the item";
+  Node node = Node::open(dir.path()).value();
+  // From the middle of second 2 to the start of second 5: the chunks of seconds 2, 3 and 4.
+  auto range = node.snapshot()->list({.since = 2'500'000'000, .until = 5'000'000'000});
+  ASSERT_TRUE(range) << range.error().message;
+  std::vector<std::string> subjects;
+  for (const auto& r : *range) subjects.push_back(r.triple.s.value);
+  EXPECT_EQ(subjects, (std::vector<std::string>{"http://example.org/chunk/2", "http://example.org/chunk/3",
+                                                "http://example.org/chunk/4"}));
+  // The same with a bound predicate (its index lists every chunk: the range lists fewer).
+  auto samples = node.snapshot()->count({.p = ex("samples"), .since = 2'500'000'000, .until = 5'000'000'000});
+  ASSERT_TRUE(samples) << samples.error().message;
+  EXPECT_EQ(*samples, 3u);
+  // A scan without a range meets the damaged row and says so.
+  auto all = node.snapshot()->list({});
+  ASSERT_FALSE(all);
+  EXPECT_EQ(all.error().code, Errc::corrupt);
+  EXPECT_NE(all.error().message.find("item " + std::to_string(damaged)), std::string::npos) << all.error().message;
+}
+
+// A store of format 2, as the builds before the time index left it, gets the index, filled, at
+// its first open (and format 3 written: those builds would add items the index does not list,
+// and refuse it). A format this build does not know is refused, naming both.
+TEST(Store, AStoreOfFormat2GetsItsTimeIndexAtItsFirstOpenAndAnUnknownFormatIsRefused) {
+  TempDir dir;
+  // In a process of its own (change_with_lmdb), which commits nothing it changed.
+  auto format_is = [&](std::uint32_t expected) {
+    return change_with_lmdb(dir.path(), [&](MDB_txn* txn) {
+      MDB_dbi meta = 0;
+      MDB_val key{7, const_cast<char*>("version")}, value;
+      if (mdb_dbi_open(txn, "meta", 0, &meta) != 0 || mdb_get(txn, meta, &key, &value) != 0 || value.mv_size != 4) return false;
+      std::uint32_t format = 0;
+      std::memcpy(&format, value.mv_data, 4);
+      return format == expected;
+    });
+  };
+  auto set_format = [&](std::uint32_t format) {
+    return change_with_lmdb(dir.path(), [&](MDB_txn* txn) {
+      MDB_dbi meta = 0;
+      MDB_val key{7, const_cast<char*>("version")}, value{4, &format};
+      return mdb_dbi_open(txn, "meta", 0, &meta) == 0 && mdb_put(txn, meta, &key, &value, 0) == 0;
+    });
+  };
+  {
+    Node node = make_node(dir.path());
+    for (std::int64_t i = 0; i < 50; ++i) {
+      Item item;
+      item.add(ex("w" + std::to_string(i)), ex("at"), Term::integer(i));
+      item.asserted_at = (49 - i) * 100;  // not in the order of the ids
+      item.span = i == 7 ? 2'000 : 0;     // item 7: [4200, 6200)
+      ASSERT_TRUE(node.agent("w")->store(item));
+    }
+  }
+  ASSERT_TRUE(format_is(3));
+  // Back to format 2: no time index, counters without the longest span.
+  ASSERT_TRUE(change_with_lmdb(dir.path(), [](MDB_txn* txn) {
+    MDB_dbi by_time = 0, main = 0;
+    MDB_val key{8, const_cast<char*>("counters")}, value;
+    if (mdb_dbi_open(txn, "by_time", 0, &by_time) != 0 || mdb_drop(txn, by_time, 1) != 0) return false;
+    if (mdb_dbi_open(txn, nullptr, 0, &main) != 0 || mdb_get(txn, main, &key, &value) != 0) return false;
+    std::string format2(static_cast<const char*>(value.mv_data), 15 * 8);  // 15 counters in format 2
+    MDB_val shorter{format2.size(), format2.data()};
+    return mdb_put(txn, main, &key, &shorter, 0) == 0;
+  })) << "could not take the index away";
+  ASSERT_TRUE(set_format(2));
+  {
+    auto node = Node::open(dir.path());
+    ASSERT_TRUE(node) << node.error().message;
+    auto range = node->snapshot()->list({.since = 4'500, .until = 4'800});
+    ASSERT_TRUE(range) << range.error().message;
+    std::set<std::string> subjects;
+    for (const auto& r : *range) subjects.insert(r.triple.s.value.substr(testing::kEx.size()));
+    // Instants at 4500, 4600, 4700 (w4, w3, w2), and w7's span.
+    EXPECT_EQ(subjects, (std::set<std::string>{"w2", "w3", "w4", "w7"}));
+    ASSERT_TRUE(node->agent("w")->store(Item{}.add(ex("later"), ex("at"), Term::integer(1))));
+  }
+  EXPECT_TRUE(format_is(3));
+  ASSERT_TRUE(set_format(9));
+  auto refused = Node::open(dir.path());
+  ASSERT_FALSE(refused);
+  EXPECT_EQ(refused.error().code, Errc::version);
+  EXPECT_NE(refused.error().message.find("has store format 9, this build reads 2 and 3"), std::string::npos)
+      << refused.error().message;
 }
 
 TEST(Store, ANegativeSpanOrOneEndingPastTheLargestTimeIsRefusedAndNothingIsWritten) {
