@@ -40,6 +40,9 @@ inline const Flag kFlagO{"-o", "--object", "TERM",
 inline const Flag kFlagSource{"--source", "", "IRI", "only records written by this agent or node (or below it)"};
 inline const Flag kFlagUnder{"--under", "", "IRI",
                              "only records whose subject is this IRI or below it (a recording's chunks: <rec>/chunk/N)"};
+// A time range by asserted-at (Pattern::since, until): ns since the epoch or RFC 3339 times.
+inline const Flag kFlagSince{"--since", "", "T", "records asserted at or after T (or whose span reaches past T)"};
+inline const Flag kFlagUntil{"--until", "", "T", "records asserted before T"};
 inline const Flag kFlagArea{"--area", "", "IRI|WKT",
                             "only records of features located in a room (IRI) or (MULTI)POLYGON, or from its sensors"};
 inline const Flag kFlagFloor{"--floor", "", "N", "with a WKT --area: only that floor (default: every floor)"};

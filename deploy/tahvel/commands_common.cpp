@@ -283,6 +283,13 @@ node::Pattern pattern_from_args(const Args& args, const uri::PrefixMap& prefixes
   if (has_flag_spec(args, "--under")) {
     if (auto under = args.get("--under")) pattern.under = parse_iri(*under, prefixes, "--under");
   }
+  if (has_flag_spec(args, "--since")) {
+    if (auto since = args.get("--since")) pattern.since = time_flag("--since", *since);
+    if (auto until = args.get("--until")) pattern.until = time_flag("--until", *until);
+    if (pattern.since && pattern.until && *pattern.until <= *pattern.since)
+      usage_error("--until " + *args.get("--until") + " is not after --since " + *args.get("--since") +
+                  " (records that held at some time at or after --since and before --until)");
+  }
   return pattern;
 }
 

@@ -278,9 +278,7 @@ const Command kQueryCommand{
      kFlagS, kFlagP, kFlagO, kFlagSource, kFlagUnder,
      {"--area", "", "IRI|WKT", "only records located in this room or (MULTI)POLYGON, resolved at the target"},
      {"--floor", "", "N", "with a WKT --area: only that floor"},
-     {"--since", "", "T", "records asserted at or after T (or whose span reaches past T)"},
-     {"--until", "", "T", "records asserted before T"},
-     kFlagCascade,
+     kFlagSince, kFlagUntil, kFlagCascade,
      {"--limit", "", "N", "at most N records (0: no limit)"},
      {"--timeout", "", "S", "give up after S seconds (default 30; a fraction allowed: 2.5)"},
      kFlagFormat},
@@ -317,11 +315,6 @@ int run_query(const Args& args) {
   federation::RemoteQuery query;
   query.target = parse_iri(args.required("--at"), prefixes, "--at");
   query.pattern = pattern_from_args(args, prefixes);
-  if (auto since = args.get("--since")) query.pattern.since = time_flag("--since", *since);
-  if (auto until = args.get("--until")) query.pattern.until = time_flag("--until", *until);
-  if (query.pattern.since && query.pattern.until && *query.pattern.until <= *query.pattern.since)
-    usage_error("--until " + *args.get("--until") + " is not after --since " + *args.get("--since") +
-                " (records that held at some time at or after --since and before --until)");
   query.cascade = cascade_flag(args);
   query.limit = args.get_u64("--limit", 0);
   if (auto area = args.get("--area")) {

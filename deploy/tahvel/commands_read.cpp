@@ -87,8 +87,12 @@ void print_stats_json(const node::Stats& s) {
 
 const Command kListCommand{
     "list",
-    "DIR [-s S] [-p P] [-o O] [--context IRI] [--source IRI] [--under IRI] [--area IRI|WKT [--floor N]] [--cascade N] [--limit N] [--format nt|ttl|json]",
+    "DIR [-s S] [-p P] [-o O] [--context IRI] [--source IRI] [--under IRI] [--since T] [--until T] [--area IRI|WKT [--floor N]] [--cascade N] [--limit N] [--format nt|ttl|json]",
     "Print the records matching a pattern (all when none is given).",
+    "Times (--since, --until; by asserted-at) are ns since the epoch or RFC 3339 times:\n"
+    "2026-11-21T10:00:00Z, …T12:00:00.5+02:00; a record that holds for a span of time (an ECG\n"
+    "chunk, its second) is in a range it overlaps. A range is read through the store's time\n"
+    "index: ten seconds of a month of ECG reads ten seconds' worth.\n"
     "Matches come in id order; with --cascade N each is followed by its sub-tree: the records\n"
     "whose subject is the match's object (an IRI or blank node), N levels deep. JSON output has\n"
     "one object per line with the record's metadata (id, item, stored_at, asserted_at, span when\n"
@@ -96,7 +100,7 @@ const Command kListCommand{
     "area (a sensor inside it, or the room itself) or whose source is a sensor inside it are\n"
     "kept; sensors are placed by geo:hasGeometry/geo:asWKT as the board says when the command\n"
     "runs (docs/spatial.md).",
-    {kFlagS, kFlagP, kFlagO, kFlagListContext, kFlagSource, kFlagUnder, kFlagArea, kFlagFloor, kFlagCascade,
+    {kFlagS, kFlagP, kFlagO, kFlagListContext, kFlagSource, kFlagUnder, kFlagSince, kFlagUntil, kFlagArea, kFlagFloor, kFlagCascade,
      {"--limit", "", "N", "print at most N records in all (0: no limit)"}, kFlagFormat},
     1, 1};
 

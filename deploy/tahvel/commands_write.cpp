@@ -207,15 +207,18 @@ int run_load(const Args& args) {
 
 const Command kRemoveCommand{
     "remove",
-    "DIR (--item ID | [-s S] [-p P] [-o O] [--under IRI]) [--cascade N] [--local]",
+    "DIR (--item ID | [-s S] [-p P] [-o O] [--under IRI] [--since T] [--until T]) [--cascade N] [--local]",
     "Remove an item or the records matching a pattern; print the count.",
     "With --cascade N the sub-trees of the removed records go too (objects that are IRIs or blank\n"
     "nodes, followed N levels). --under IRI alone removes a recording and its chunks (every record\n"
-    "whose subject is IRI or below it). Removed items also leave the input buffers that held them.\n"
+    "whose subject is IRI or below it). --since and --until narrow a pattern to a time range (as\n"
+    "in 'tahvel list'): -p tv:samples --until T prunes the raw ECG before T; a range alone is\n"
+    "not a pattern (it would take subscriptions and configuration with it).\n"
+    "Removed items also leave the input buffers that held them.\n"
     "Copies the node's link sent up (its forwarding policy) or down (configuration) are removed\n"
     "there too, hop by hop, as the link runs; with --local they stay (pruning this node only).",
     {{"--item", "", "ID", "remove every record of item ID (as printed by put)"},
-     kFlagS, kFlagP, kFlagO, kFlagUnder, kFlagCascade,
+     kFlagS, kFlagP, kFlagO, kFlagUnder, kFlagSince, kFlagUntil, kFlagCascade,
      {"--local", "", "", "remove on this node only: copies sent up or down stay where they are"}},
     1, 1};
 
@@ -225,8 +228,9 @@ int run_remove(const Args& args) {
   node::Pattern pattern = pattern_from_args(args, prefixes);
   const unsigned cascade = cascade_flag(args);
   if (args.has("--item") == (pattern_has_triple(pattern) || pattern.under.has_value())) {
-    usage_error("remove: give either --item ID or a pattern (-s, -p, -o, --under)");
+    usage_error("remove: give either --item ID or a pattern (-s, -p, -o, --under), which --since and --until may narrow");
   }
+  if (args.has("--item") && (pattern.since || pattern.until)) usage_error("remove: --since and --until narrow a pattern, not --item");
   const node::Reach reach = args.has("--local") ? node::Reach::this_node : node::Reach::copies_too;
   if (args.has("--item")) {
     print_number(check(node.remove_item(args.get_u64("--item", 0), cascade, reach)));

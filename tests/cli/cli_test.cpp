@@ -495,6 +495,52 @@ TEST_F(Cli, UnderARecordingSelectsItsChunksInListQueryTailAndRemove) {
   EXPECT_EQ(lines_of(run({"list", node_, "--under", "http://example.org/rec/1000"}).out).size(), other);
 }
 
+// An operator pruning raw data, or reading one stretch of it, names a time range: list and
+// remove take --since and --until as query does (ns since the epoch or RFC 3339).
+TEST_F(Cli, SinceAndUntilSelectAStretchOfTimeInListAndNarrowRemove) {
+  init();
+  auto now_ns = [] {
+    std::this_thread::sleep_for(std::chrono::milliseconds(5));
+    const auto t = std::chrono::duration_cast<std::chrono::nanoseconds>(std::chrono::system_clock::now().time_since_epoch()).count();
+    std::this_thread::sleep_for(std::chrono::milliseconds(5));
+    return std::to_string(t);
+  };
+  put("<http://example.org/rec/1/chunk/0> <http://example.org/samples> \"a\" .\n");
+  const std::string t1 = now_ns();
+  put("<http://example.org/rec/1/chunk/1> <http://example.org/samples> \"b\" .\n");
+  const std::string t2 = now_ns();
+  put("<http://example.org/rec/1/chunk/2> <http://example.org/samples> \"c\" .\n"
+      "<http://example.org/rec/1> <http://example.org/rate> 360 .\n");
+  auto objects = [&](std::vector<std::string> flags) {
+    std::vector<std::string> args{"list", node_, "-p", "http://example.org/samples"};
+    args.insert(args.end(), flags.begin(), flags.end());
+    Outcome r = run(args);
+    EXPECT_EQ(r.status, 0) << r.err;
+    std::string out;
+    for (const std::string& line : lines_of(r.out)) out += line.substr(line.find('"') + 1, 1);
+    return out;
+  };
+  EXPECT_EQ(objects({"--since", t1}), "bc");
+  EXPECT_EQ(objects({"--since", t1, "--until", t2}), "b");
+  EXPECT_EQ(objects({"--until", t1}), "a");
+  EXPECT_EQ(lines_of(run({"list", node_, "--since", t2}).out).size(), 2u);  // nothing bound: c and the rate
+  Outcome backwards = run({"list", node_, "--since", t2, "--until", t1});
+  EXPECT_EQ(backwards.status, 2);
+  EXPECT_NE(backwards.err.find("--until " + t1 + " is not after --since " + t2), std::string::npos) << backwards.err;
+  // Removal: a range narrows a pattern; alone, or with --item, it is refused.
+  Outcome alone = run({"remove", node_, "--until", t2});
+  EXPECT_EQ(alone.status, 2);
+  EXPECT_NE(alone.err.find("give either --item ID or a pattern"), std::string::npos) << alone.err;
+  Outcome with_item = run({"remove", node_, "--item", "1", "--until", t2});
+  EXPECT_EQ(with_item.status, 2);
+  EXPECT_NE(with_item.err.find("not --item"), std::string::npos) << with_item.err;
+  Outcome pruned = run({"remove", node_, "-p", "http://example.org/samples", "--until", t2});
+  ASSERT_EQ(pruned.status, 0) << pruned.err;
+  EXPECT_EQ(pruned.out, "2\n");
+  EXPECT_EQ(objects({}), "c");
+  EXPECT_EQ(lines_of(run({"list", node_, "-s", "http://example.org/rec/1"}).out).size(), 1u);
+}
+
 // `query --cascade 4294967296` was cut to 32 bits: depth 0, the matches without their sub-trees,
 // while `list` took the same number as deep.
 TEST_F(Cli, QueryCascadeBeyondThirtyTwoBitsIsDeepNotNone) {

@@ -60,7 +60,9 @@ enum class Reach { copies_too, this_node };
 
 // A triple pattern with optional metadata filters. An unset position matches anything.
 // A pattern with a bound subject, predicate or object is answered through an index; a pattern
-// with none bound scans the records in id order.
+// with none bound scans the records in id order. A time range (since, until) is answered
+// through the time index when its items are fewer than the bound term's records: its cost
+// follows the range, not the store. Matches come in id order either way.
 struct Pattern {
   std::optional<Term> s, p, o;
   std::optional<std::string> context;    // exact context IRI ("" matches records without one)
