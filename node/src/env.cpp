@@ -484,7 +484,10 @@ Result<std::shared_ptr<Env>> Env::open_at(const std::filesystem::path& dir, cons
   }
   rc = mdb_txn_commit(txn);  // also for a read transaction: the table handles outlive it
   if (rc != 0) return lmdb_fail(rc, "committing the first transaction in " + dir.string());
-  if (needs_store_id || needs_tables) {
+  // A format-2 store's time index needs room (tens of bytes an item): when the map is full the
+  // transaction is tried again in a larger one, into the reserve kept for removals if need be
+  // (a store that cannot be opened could not be emptied either).
+  for (int attempt = 0; needs_store_id || needs_tables; ++attempt) {
     rc = mdb_txn_begin(env->env_, nullptr, 0, &txn);
     if (rc != 0) return lmdb_fail(rc, "starting a transaction in " + dir.string());
     Result<void> r;
@@ -494,12 +497,15 @@ Result<std::shared_ptr<Env>> Env::open_at(const std::filesystem::path& dir, cons
     }
     // Read again in this transaction: another process may have upgraded the store meanwhile.
     if (r && format_of(txn, env->meta) == kUpgradedFormatVersion) r = upgrade_to_format_3(txn, *env);
-    if (!r) {
+    if (r) {
+      rc = mdb_txn_commit(txn);
+      if (rc == 0) break;
+      r = lmdb_fail(rc, "bringing " + dir.string() + " up to this build's tables");
+    } else {
       mdb_txn_abort(txn);
-      return unexpected(r.error());
     }
-    rc = mdb_txn_commit(txn);
-    if (rc != 0) return lmdb_fail(rc, "bringing " + dir.string() + " up to this build's tables");
+    if (r.error().code != Errc::store_full || attempt == 16) return unexpected(r.error());
+    if (auto grown = env->grow(WriteKind::removal); !grown) return unexpected(grown.error());
   }
   if (env->settings_.durability == Durability::durable) {
     mdb_env_set_flags(env->env_, MDB_NOSYNC | MDB_NOMETASYNC, 0);
