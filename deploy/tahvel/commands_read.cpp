@@ -42,10 +42,11 @@ void print_changes(std::ostream& out, const std::vector<node::Change>& changes,
   std::optional<node::RecordWriter> writer;
   for (const node::Change& change : changes) {
     if (count != 0 && printed >= count) break;
-    if (!matches(pattern, change.record)) continue;
+    // One that cannot be read may or may not have matched: said, not counted.
+    if (change.unreadable.empty() && !matches(pattern, change.record)) continue;
     if (!writer) writer.emplace(out, format, prefixes);
     writer->write(change);
-    if (!change.removed) ++printed;
+    if (!change.removed && change.unreadable.empty()) ++printed;
   }
   writer.reset();
   finish_output(out);

@@ -654,6 +654,19 @@ void RecordWriter::write(const Triple& triple) {
 }
 
 void RecordWriter::write(const Change& change) {
+  if (!change.unreadable.empty()) {
+    if (impl_->format == Format::json) {
+      impl_->out << "{\"seq\":" << change.seq << ",\"removed\":" << (change.removed ? "true" : "false")
+                 << ",\"unreadable\":\"" << json_escape(change.unreadable) << "\"}\n";
+    } else {
+      impl_->finish();
+      // One line: the reason is the store's message, which names what and where.
+      std::string why = change.unreadable;
+      std::replace(why.begin(), why.end(), '\n', ' ');
+      impl_->out << "# unreadable " << (change.removed ? "removal " : "record ") << change.seq << ": " << why << "\n";
+    }
+    return;
+  }
   if (!change.removed) return write(change.record);
   if (impl_->format == Format::json) {
     impl_->write_json(change.record.triple, &change.record.meta,

@@ -1088,7 +1088,13 @@ Result<std::vector<Change>> Node::watch(std::uint64_t bookmark, std::chrono::mil
       after.after_id = bookmark;
       auto walked = query.for_each(after, [&](std::uint64_t id, const RecordRow& row) {
         auto rec = query.materialize(id, row);
-        if (rec) changes.push_back(Change{id, false, std::move(*rec)});
+        if (rec) {
+          changes.push_back(Change{id, false, std::move(*rec), {}});
+        } else {
+          Change unreadable{id, false, {}, "record " + std::to_string(id) + ": " + rec.error().message};
+          unreadable.record.meta.id = id;
+          changes.push_back(std::move(unreadable));
+        }
         return !(limit && changes.size() >= limit);
       });
       if (!walked) return unexpected(walked.error());
@@ -1097,8 +1103,13 @@ Result<std::vector<Change>> Node::watch(std::uint64_t bookmark, std::chrono::mil
         std::uint64_t from = bookmark + 1;
         MDB_val k = val(from), v;
         for (int rc = mdb_cursor_get(cursor, &k, &v, MDB_SET_RANGE); rc == 0; rc = mdb_cursor_get(cursor, &k, &v, MDB_NEXT)) {
-          Change change{u64(k), true, {}};
-          if (decode_removed(view(v), change.record)) changes.push_back(std::move(change));
+          Change change{u64(k), true, {}, {}};
+          if (!decode_removed(view(v), change.record)) {
+            change.record = Record{};
+            change.unreadable = "removal log entry " + std::to_string(change.seq) +
+                                " cannot be read: truncated, or written by a later build";
+          }
+          changes.push_back(std::move(change));
         }
         mdb_cursor_close(cursor);
       }

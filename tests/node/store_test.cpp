@@ -15,6 +15,7 @@
 #include <limits>
 #include <map>
 #include <set>
+#include <sstream>
 #include <thread>
 
 #include "tahvel/node/format.h"
@@ -1092,6 +1093,63 @@ TEST(Store, WatchReturnsInsertionsAndRemovalsAfterBookmark) {
   auto none = node.watch((*changes)[0].seq, 10ms);
   ASSERT_TRUE(none);
   EXPECT_TRUE(none->empty());
+}
+
+// A change the store cannot read (an item row or removal-log entry damaged, or written by a
+// later build) stays in the stream, saying why: tail, the reasoner and the area keeper would
+// otherwise miss it without a word.
+TEST(Store, WatchReportsAChangeItCannotReadInsteadOfSkippingIt) {
+  TempDir dir;
+  std::uint64_t a = 0, b = 0, removal = 0;
+  {
+    Node node = make_node(dir.path());
+    auto writer = node.agent("writer");
+    a = writer->store(Item{}.add(ex("a"), ex("p"), Term::integer(1))).value();
+    b = writer->store(Item{}.add(ex("b"), ex("p"), Term::integer(2))).value();
+    const std::uint64_t c = writer->store(Item{}.add(ex("c"), ex("p"), Term::integer(3))).value();
+    ASSERT_TRUE(node.remove_item(c));
+    removal = node.snapshot()->last_seq();
+  }
+  ASSERT_TRUE(change_with_lmdb(dir.path(), [&](MDB_txn* txn) {
+    MDB_dbi items = 0, removals = 0;
+    MDB_val item_key{sizeof b, &b}, removal_key{sizeof removal, &removal}, junk{1, const_cast<char*>("\x80")};
+    return mdb_dbi_open(txn, "items", MDB_INTEGERKEY, &items) == 0 && mdb_put(txn, items, &item_key, &junk, 0) == 0 &&
+           mdb_dbi_open(txn, "removals", MDB_INTEGERKEY, &removals) == 0 &&
+           mdb_put(txn, removals, &removal_key, &junk, 0) == 0;
+  })) << "could not damage the store";
+  Node node = Node::open(dir.path()).value();
+  auto changes = node.watch(0, 0ms);
+  ASSERT_TRUE(changes) << changes.error().message;
+  ASSERT_EQ(changes->size(), 3u);
+  EXPECT_EQ((*changes)[0].seq, a);
+  EXPECT_TRUE((*changes)[0].unreadable.empty());
+  EXPECT_EQ((*changes)[0].record.triple.o, Term::integer(1));
+  EXPECT_EQ((*changes)[1].seq, b);
+  EXPECT_FALSE((*changes)[1].removed);
+  EXPECT_EQ((*changes)[1].record.meta.id, b);
+  EXPECT_NE((*changes)[1].unreadable.find("record " + std::to_string(b) + ": item " + std::to_string(b) + " cannot be read"),
+            std::string::npos)
+      << (*changes)[1].unreadable;
+  EXPECT_EQ((*changes)[2].seq, removal);
+  EXPECT_TRUE((*changes)[2].removed);
+  EXPECT_NE((*changes)[2].unreadable.find("removal log entry " + std::to_string(removal) + " cannot be read"), std::string::npos)
+      << (*changes)[2].unreadable;
+  // As tail prints them.
+  std::ostringstream text, json;
+  {
+    RecordWriter nt(text, Format::ntriples), js(json, Format::json);
+    for (const Change& change : *changes) {
+      nt.write(change);
+      js.write(change);
+    }
+  }
+  EXPECT_NE(text.str().find("# unreadable record " + std::to_string(b) + ": record " + std::to_string(b)), std::string::npos)
+      << text.str();
+  EXPECT_NE(text.str().find("# unreadable removal " + std::to_string(removal) + ": removal log entry"), std::string::npos)
+      << text.str();
+  EXPECT_NE(json.str().find("{\"seq\":" + std::to_string(removal) + ",\"removed\":true,\"unreadable\":\"removal log entry"),
+            std::string::npos)
+      << json.str();
 }
 
 TEST(Store, ReopenKeepsEverything) {

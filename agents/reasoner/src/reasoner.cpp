@@ -187,6 +187,7 @@ Result<void> Reasoner::Impl::read_changes(const node::Snapshot& snap, std::vecto
     if (!changes) return unexpected(node_error(changes.error()));
     for (const node::Change& c : *changes) {
       if (!c.removed || c.seq > last) continue;
+      if (!c.unreadable.empty()) continue;  // not counted: the gap below has the board read again
       ++removals;
       if (c.record.meta.id > bookmark) { ++removed_new; continue; }  // never seen
       if (!own(c.record) && c.record.triple.p.is_iri() && engine.relevant(c.record.triple.p.value))
@@ -458,7 +459,9 @@ Result<void> Reasoner::run(const std::function<bool(const SessionReport&)>& on_s
     for (const node::Change& c : *changes) {
       watched = std::max(watched, c.seq);
       const node::Record& r = c.record;
-      if (!impl_->own(r) && r.triple.p.is_iri() && impl_->engine.relevant(r.triple.p.value)) pending = true;
+      // A change that cannot be read may be relevant: a session reads the board as it is.
+      if (!c.unreadable.empty() || (!impl_->own(r) && r.triple.p.is_iri() && impl_->engine.relevant(r.triple.p.value)))
+        pending = true;
     }
     if (mtime(impl_->options.rules) != impl_->rules_mtime) pending = true;
     // A ring or a TTL reclaims without a change in the stream (R17): conclusions pushed out by

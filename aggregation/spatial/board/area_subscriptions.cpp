@@ -286,6 +286,7 @@ Result<AreaExpansion> area_expansion(const node::Snapshot& snapshot, std::uint64
 namespace {
 
 bool changes_the_plan(const node::Change& change) {
+  if (!change.unreadable.empty()) return true;  // it may have: the plan is read again
   const std::string& p = change.record.triple.p.value;
   if (p == kGeoAsWkt || p == kGeoHasGeometry || p == kTvFloor) return true;
   // A declaration removed: its expansions go. (A new one arrives through the keeper's input

@@ -52,7 +52,9 @@ class RecordWriter {
   void write(const Record& record);
   void write(const Triple& triple);  // json: metadata keys omitted
   // A change of Node::watch: an insertion as its record; a removal as "# removed ID" in
-  // N-Triples and Turtle, and in JSON as the record's object led by "removed":true,"seq":N.
+  // N-Triples and Turtle, and in JSON as the record's object led by "removed":true,"seq":N; one
+  // that cannot be read (Change::unreadable) as "# unreadable record|removal SEQ: why", and in
+  // JSON as {"seq":N,"removed":…,"unreadable":"why"}.
   void write(const Change& change);
   void finish();                     // flushes serd's pending abbreviations (Turtle)
 

@@ -95,6 +95,11 @@ struct Change {
   std::uint64_t seq = 0;
   bool removed = false;
   Record record;
+  // Why this change cannot be read (a damaged record or removal-log entry, or one written by a
+  // later build); empty when it can. Such a change stays in the stream, its record empty but
+  // for meta.id (an insertion's record id), so that a reader knows what it did not see instead
+  // of missing it without a word.
+  std::string unreadable;
 };
 
 // ---------------------------------------------------------------------------------------------

@@ -169,7 +169,8 @@ tahvel_status tahvel_list_as(tahvel_node* node, const char* s, const char* p, co
 /* Changes on the whiteboard after `bookmark` (0: from the beginning), oldest first, at most
  * `limit` (0: no limit), as JSON lines: an insertion is its record's object (its "id" is its
  * sequence number); a removal is the removed record's object led by "removed":true and its
- * "seq". Waits up to `timeout_ms` (negative: without limit) for the first change when there is
+ * "seq"; a change that cannot be read (a damaged record or log entry) is
+ * {"seq":N,"removed":false|true,"unreadable":"why"}. Waits up to `timeout_ms` (negative: without limit) for the first change when there is
  * none yet (woken by the writer's commit). Sets *bookmark_out (may be NULL) to the last sequence
  * number returned, or to `bookmark` when none: pass it to the next call to resume exactly.
  * The text (empty on timeout: TAHVEL_OK, not TAHVEL_TIMEOUT) is freed with tahvel_free().
