@@ -91,11 +91,11 @@ namespace tahvel::cli::bench {
 
 // Calls `query(key)` once per key, timing each call; returns the latency percentiles and adds
 // the rows each call reports to `rows`.
-template <class Query>
-Percentiles time_each(const std::vector<std::string>& keys, std::uint64_t& rows, Query&& query) {
+template <class Key, class Query>
+Percentiles time_each(const std::vector<Key>& keys, std::uint64_t& rows, Query&& query) {
   std::vector<double> us;
   us.reserve(keys.size());
-  for (const std::string& key : keys) {
+  for (const Key& key : keys) {
     auto t0 = Clock::now();
     rows += query(key);
     us.push_back(micros(Clock::now() - t0));

@@ -97,6 +97,7 @@ node::Item observation(std::uint64_t k) {
   const Property& prop = kProperties[r % 6];
   const Term obs = Term::iri(observation_iri(k));
   node::Item item;
+  item.asserted_at = observation_time(k);
   item.triples.reserve(kTriplesPerObservation);
   item.add(obs, Term::iri(kRdfType), Term::iri(kSosa + "Observation"))
       .add(obs, Term::iri(kSosa + "madeBySensor"), Term::iri(home("sensor/") + kSensors[r / 7 % 8]))

@@ -6,6 +6,7 @@
 // sensor, observed property, feature of interest, result (integer or decimal), result time
 // (xsd:dateTime), the observation it was derived from, the agent it is attributed to, a
 // sequence number and one of a unit IRI, a short label or a quality string: 12 predicates in all.
+// Observation k is asserted at observation_time(k), a millisecond after observation k - 1.
 // Triple i of the whole stream is triple i % 10 of observation i / 10.
 #pragma once
 
@@ -23,6 +24,11 @@ inline constexpr const char* kNodeIri = "http://example.org/home1";
 
 // The subject IRI of observation k.
 std::string observation_iri(std::uint64_t k);
+
+// When observation k held (Item::asserted_at), ns since the epoch: 2026-11-18T00:00:00Z + k ms.
+inline constexpr std::int64_t observation_time(std::uint64_t k) {
+  return 1'795'046'400'000'000'000 + static_cast<std::int64_t>(k) * 1'000'000;
+}
 
 // Observation k as one item of kTriplesPerObservation triples.
 node::Item observation(std::uint64_t k);

@@ -72,11 +72,11 @@ SqlitePeer::SqlitePeer(const std::filesystem::path& file, SqliteMode mode) {
   }
   exec(
       "CREATE TABLE triples(id INTEGER PRIMARY KEY, s TEXT, p TEXT, o TEXT, item INT,"
-      " stored_at INT, source TEXT)");
+      " stored_at INT, source TEXT, asserted_at INT)");
   exec("CREATE INDEX triples_s ON triples(s)");
   exec("CREATE INDEX triples_p ON triples(p)");
   exec("CREATE INDEX triples_o ON triples(o)");
-  insert_ = prepare("INSERT INTO triples VALUES(?1, ?2, ?3, ?4, ?5, ?6, ?7)");
+  insert_ = prepare("INSERT INTO triples VALUES(?1, ?2, ?3, ?4, ?5, ?6, ?7, ?8)");
   begin_ = prepare("BEGIN");
   commit_ = prepare("COMMIT");
   by_s_ = prepare(
@@ -85,10 +85,13 @@ SqlitePeer::SqlitePeer(const std::filesystem::path& file, SqliteMode mode) {
   by_p_ = prepare(
       "SELECT id, s, p, o, item, stored_at, source FROM triples WHERE p = ?1"
       " ORDER BY id LIMIT ?2");
+  by_range_ = prepare(
+      "SELECT id, s, p, o, item, stored_at, source FROM triples WHERE asserted_at >= ?1 AND asserted_at < ?2"
+      " ORDER BY id");
 }
 
 SqlitePeer::~SqlitePeer() {
-  for (sqlite3_stmt* s : {insert_, begin_, commit_, by_s_, by_p_}) sqlite3_finalize(s);
+  for (sqlite3_stmt* s : {insert_, begin_, commit_, by_s_, by_p_, by_range_}) sqlite3_finalize(s);
   sqlite3_close(db_);
 }
 
@@ -128,6 +131,7 @@ void SqlitePeer::insert(const node::Item& item, std::int64_t stored_at) {
     sqlite3_bind_int64(insert_, 5, item_id);
     sqlite3_bind_int64(insert_, 6, stored_at);
     sqlite3_bind_text(insert_, 7, kSource, -1, SQLITE_STATIC);
+    sqlite3_bind_int64(insert_, 8, item.asserted_at.value_or(stored_at));
     step_done(insert_);
   }
 }
@@ -166,6 +170,14 @@ std::vector<SqliteRow> SqlitePeer::rows_of(sqlite3_stmt* stmt) {
 std::vector<SqliteRow> SqlitePeer::list_subject(const std::string& s) {
   sqlite3_bind_text(by_s_, 1, s.data(), static_cast<int>(s.size()), SQLITE_STATIC);
   return rows_of(by_s_);
+}
+
+void SqlitePeer::index_time() { exec("CREATE INDEX triples_asserted_at ON triples(asserted_at)"); }
+
+std::vector<SqliteRow> SqlitePeer::list_range(std::int64_t since, std::int64_t until) {
+  sqlite3_bind_int64(by_range_, 1, since);
+  sqlite3_bind_int64(by_range_, 2, until);
+  return rows_of(by_range_);
 }
 
 std::vector<SqliteRow> SqlitePeer::list_predicate(const std::string& p, std::size_t limit) {

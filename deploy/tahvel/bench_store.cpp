@@ -11,7 +11,11 @@
 //   queries          over the bulk-loaded records: a bound subject (one observation: 10 matches)
 //                    and a bound predicate limited to its first 100 matches (ListOptions.limit;
 //                    SQLite LIMIT 100; Sord stops its iterator at 100), each query with a fresh
-//                    snapshot (SQLite: its own read transaction), results copied out.
+//                    snapshot (SQLite: its own read transaction), results copied out. Then
+//                    time ranges of 100 observations (1,000 records; Pattern::since/until),
+//                    up to 1,000 of them; SQLite: WHERE asserted_at in the range, with an index
+//                    on asserted_at made after the load (not in its write figures). Sord has no
+//                    time.
 //   wake             Agent::store() here to Agent::take() returning in a forked subscriber
 //                    (bench_tahvel.h); the floor is a UNIX socketpair ping-pong (RTT / 2),
 //                    back to back and with the same pause as the wake probes.
@@ -180,7 +184,11 @@ Rate load_records(const Config& c, Load&& load) {
 struct QueryPlan {
   std::vector<std::string> subjects, predicates;
   std::size_t limit = 100;
+  // Time ranges of kRangeObservations observations each (observation_time): [since, until).
+  std::vector<std::pair<std::int64_t, std::int64_t>> ranges;
 };
+
+constexpr std::uint64_t kRangeObservations = 100;
 
 QueryPlan make_plan(const Config& c) {
   QueryPlan plan;
@@ -190,6 +198,12 @@ QueryPlan make_plan(const Config& c) {
   for (std::size_t i = 0; i < c.queries; ++i) {
     plan.subjects.push_back(observation_iri(rng.below(c.records / kTriplesPerObservation)));
     plan.predicates.push_back(preds[rng.below(preds.size())]);
+  }
+  const std::uint64_t total = c.records / kTriplesPerObservation;
+  // At most 1,000: each returns a thousand records.
+  for (std::size_t i = 0; i < std::min<std::size_t>(c.queries, 1'000) && total > kRangeObservations; ++i) {
+    const std::uint64_t first = rng.below(total - kRangeObservations);
+    plan.ranges.emplace_back(observation_time(first), observation_time(first + kRangeObservations));
   }
   return plan;
 }
@@ -210,6 +224,16 @@ void time_queries(Figures& f, const std::string& prefix, const QueryPlan& plan, 
                   }));
   f.set(prefix + "query_s_rows", static_cast<double>(rows_s));
   f.set(prefix + "query_p_rows", static_cast<double>(rows_p));
+}
+
+// Runs the time ranges through `list_range(since, until)`, which returns a row count.
+template <class ListRange>
+void time_ranges(Figures& f, const std::string& prefix, const QueryPlan& plan, ListRange&& list_range) {
+  std::uint64_t rows = 0;
+  set_percentiles(f, prefix + "query_range", time_each(plan.ranges, rows, [&](const auto& range) {
+                    return list_range(range.first, range.second);
+                  }));
+  f.set(prefix + "query_range_rows", static_cast<double>(rows));
 }
 
 // ---------------------------------------------------------------------------------------------
@@ -334,6 +358,9 @@ void measure_tahvel_bulk(const Config& c, const ScratchDir& tmp, const QueryPlan
         by_p.p = node::Term::iri(p);
         return list(by_p, limit);
       });
+  time_ranges(f, "", plan, [&](std::int64_t since, std::int64_t until) {
+    return list({.since = since, .until = until}, 0);
+  });
 }
 
 void measure_sord_bulk(const Config& c, const QueryPlan& plan, Figures& f, const Progress& say) {
@@ -359,10 +386,15 @@ void measure_sqlite_bulk(const Config& c, const ScratchDir& tmp, const QueryPlan
   time_queries(
       f, "sqlite_", plan, [&](const std::string& s) { return db.list_subject(s).size(); },
       [&](const std::string& p, std::size_t limit) { return db.list_predicate(p, limit).size(); });
+  db.index_time();
+  time_ranges(f, "sqlite_", plan, [&](std::int64_t since, std::int64_t until) { return db.list_range(since, until).size(); });
 }
 
 // The systems must have answered the same queries with the same number of rows.
 void check_rows(const Figures& f) {
+  if (f.get("query_range_rows") != f.get("sqlite_query_range_rows"))
+    std::cerr << "bench: warning: query_range_rows differ: Tahvel " << f.get("query_range_rows") << ", SQLite "
+              << f.get("sqlite_query_range_rows") << "\n";
   for (const char* q : {"query_s_rows", "query_p_rows"}) {
     double t = f.get(q), s = f.get(std::string("sqlite_") + q), o = f.get(std::string("sord_") + q);
     if (t != s || t != o) {
