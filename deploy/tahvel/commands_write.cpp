@@ -212,8 +212,9 @@ const Command kRemoveCommand{
     "With --cascade N the sub-trees of the removed records go too (objects that are IRIs or blank\n"
     "nodes, followed N levels). --under IRI alone removes a recording and its chunks (every record\n"
     "whose subject is IRI or below it). --since and --until narrow a pattern to a time range (as\n"
-    "in 'tahvel list'): -p tv:samples --until T prunes the raw ECG before T; a range alone is\n"
-    "not a pattern (it would take subscriptions and configuration with it).\n"
+    "in 'tahvel list'): --under <recording>/chunk --until T prunes a recording's raw ECG before\n"
+    "T, whole chunks; a range alone is not a pattern (it would take subscriptions and\n"
+    "configuration with it).\n"
     "Removed items also leave the input buffers that held them.\n"
     "Copies the node's link sent up (its forwarding policy) or down (configuration) are removed\n"
     "there too, hop by hop, as the link runs; with --local they stay (pruning this node only).",
