@@ -151,9 +151,9 @@ UdpmReassembler::Taken UdpmReassembler::take_fragment(std::uint64_t sender, std:
       partial_.emplace(sender, std::move(skip));
       return {};
     }
-    if (size > kMaxHeldBytes)
+    if (size > max_held_)
       return {{}, where + ": a message of " + std::to_string(size) + " bytes, more than the " +
-                      std::to_string(kMaxHeldBytes) + " held for messages being reassembled"};
+                      std::to_string(max_held_) + " held for messages being reassembled"};
     if (!make_room(size, sender)) return {{}, where + ": no room to reassemble it"};
     Partial p;
     p.seqno = seqno, p.size = size, p.fragments = fragments, p.started = takes_;
@@ -187,7 +187,7 @@ void UdpmReassembler::drop(std::unordered_map<std::uint64_t, Partial>::iterator 
 }
 
 bool UdpmReassembler::make_room(std::size_t bytes, std::uint64_t keep) {
-  while (held_bytes_ + bytes > kMaxHeldBytes) {
+  while (held_bytes_ + bytes > max_held_) {
     auto oldest = partial_.end();
     for (auto it = partial_.begin(); it != partial_.end(); ++it)
       if (it->first != keep && !it->second.other_channel && (oldest == partial_.end() || it->second.started < oldest->second.started))

@@ -1,6 +1,10 @@
 // What the LCM and DDS bindings promise beyond the conformance suite: wire names, what send()
 // refuses, and how opening fails (transport.h, wire_names.h, docs/transports.md).
+#include <arpa/inet.h>
 #include <gtest/gtest.h>
+#include <netinet/in.h>
+#include <sys/socket.h>
+#include <unistd.h>
 
 #include <cstdlib>
 #include <fstream>
@@ -320,6 +324,105 @@ TEST(WireOpen, LcmWithAUnicastGroupIsRefusedBeforeLcmIsAsked) {
   ASSERT_FALSE(t);
   EXPECT_EQ(t.error().code, Errc::invalid_argument);
   EXPECT_NE(t.error().message.find("10.0.0.1 is not a multicast address"), std::string::npos) << t.error().message;
+}
+
+// The LCM endpoint reads LCM's datagrams itself (lcm_udpm.h); liblcm sends them. Frames of every
+// size liblcm's publish makes (short messages up to its 1,400-byte bound, fragments of 65,423
+// bytes beyond), on the edges of both, arrive whole.
+TEST(WireUdpm, EverySizeLiblcmPublishesArrivesWhole) {
+  require_netns();
+  const LcmSettings settings{.url = "udpm://239.255.76.67:7751?ttl=0"};
+  auto receiver = open_lcm(settings, "tahvel://wire-udpm/receiver");
+  auto sender = open_lcm(settings, "tahvel://wire-udpm/sender");
+  ASSERT_TRUE(receiver && sender);
+  const std::size_t sizes[] = {0, 1, 1200, 1300, 1320, 1400, 1500, 65000, 65423, 65424, 130846, 200000, 2u << 20};
+  std::uint64_t seq = 0;
+  for (std::size_t size : sizes) {
+    Frame f;
+    f.kind = FrameKind::answer;
+    f.from = (*sender)->self();
+    f.to = (*receiver)->self();
+    f.seq = ++seq;
+    f.body.resize(size);
+    for (std::size_t i = 0; i < size; ++i) f.body[i] = static_cast<char>((i * 7 + size) & 0xFF);
+    ASSERT_TRUE((*sender)->send(f)) << size;
+    auto got = (*receiver)->receive(5s);
+    ASSERT_TRUE(got) << got.error().message;
+    ASSERT_TRUE(*got) << "nothing arrived of a body of " << size << " bytes";
+    EXPECT_EQ((*got)->seq, seq);
+    EXPECT_TRUE((*got)->body == f.body) << "the body of " << size << " bytes came back changed";
+  }
+}
+
+// Whatever else reaches the group's port (a program that is not LCM, a broken fragment) is
+// dropped with its sender and what is wrong, and the endpoint goes on receiving.
+TEST(WireUdpm, DatagramsThatAreNotLcmAreDroppedNamingTheirSenderAndTheEndpointGoesOn) {
+  require_netns();
+  const LcmSettings settings{.url = "udpm://239.255.76.67:7752?ttl=0"};
+  std::vector<std::string> drops;
+  std::mutex mu;
+  auto receiver = open_lcm(settings, "tahvel://wire-udpm/receiver", [&](std::string_view line) {
+    std::lock_guard lock(mu);
+    drops.emplace_back(line);
+  });
+  auto sender = open_lcm(settings, "tahvel://wire-udpm/sender");
+  ASSERT_TRUE(receiver && sender);
+  const int fd = ::socket(AF_INET, SOCK_DGRAM, 0);
+  ASSERT_GE(fd, 0);
+  sockaddr_in group{};
+  group.sin_family = AF_INET;
+  group.sin_port = htons(7752);
+  inet_pton(AF_INET, "239.255.76.67", &group.sin_addr);
+  auto send_raw = [&](const std::string& bytes) {
+    ASSERT_EQ(::sendto(fd, bytes.data(), bytes.size(), 0, reinterpret_cast<sockaddr*>(&group), sizeof group),
+              static_cast<ssize_t>(bytes.size()));
+  };
+  send_raw("hello");
+  send_raw(std::string("LC03\0\0\0\1", 8));
+  send_raw(std::string("LC03\0\0\0\1\0\0\0\4\0\0\0\0\0\2\0\1", 20));  // fragment 2 of 1
+  sockaddr_in bound{};
+  socklen_t bound_size = sizeof bound;
+  ASSERT_EQ(::getsockname(fd, reinterpret_cast<sockaddr*>(&bound), &bound_size), 0);
+  ::close(fd);
+  Frame f;
+  f.kind = FrameKind::heartbeat;
+  f.from = (*sender)->self();
+  f.to = (*receiver)->self();
+  f.seq = 42;
+  ASSERT_TRUE((*sender)->send(f));
+  auto got = (*receiver)->receive(5s);
+  ASSERT_TRUE(got && *got) << "the good frame after the bad datagrams did not arrive";
+  EXPECT_EQ((*got)->seq, 42u);
+  std::lock_guard lock(mu);
+  ASSERT_EQ(drops.size(), 3u);
+  // The source address is the namespace's (0.0.0.0 on a loopback without routes); the port is the socket's.
+  const std::string from = ":" + std::to_string(ntohs(bound.sin_port)) + ": ";
+  EXPECT_EQ(drops[0].rfind("lcm <tahvel://wire-udpm/receiver>: dropped a datagram of 5 bytes from ", 0), 0u) << drops[0];
+  EXPECT_NE(drops[0].find(from + "not an LCM datagram (magic 0x68656c6c, LCM's are LC02 and LC03)"), std::string::npos)
+      << drops[0];
+  EXPECT_NE(drops[1].find(from + "an LCM fragment cut inside its header"), std::string::npos) << drops[1];
+  EXPECT_NE(drops[2].find(from + "LCM fragment 2 of 1 of message 1: no such fragment"), std::string::npos) << drops[2];
+}
+
+// Linux hands a socket bound to a port the datagrams of every group any socket of the host joined
+// on it; an endpoint hears only its URL's group.
+TEST(WireUdpm, AnEndpointDoesNotHearAnotherGroupOnItsPort) {
+  require_netns();
+  const std::string iri = "tahvel://wire-udpm/one-group";
+  auto here = open_lcm(LcmSettings{.url = "udpm://239.255.76.67:7753?ttl=0"}, iri);
+  auto elsewhere = open_lcm(LcmSettings{.url = "udpm://239.255.76.68:7753?ttl=0"}, iri);
+  auto sender = open_lcm(LcmSettings{.url = "udpm://239.255.76.68:7753?ttl=0"}, "tahvel://wire-udpm/sender");
+  ASSERT_TRUE(here && elsewhere && sender);
+  Frame f;
+  f.from = (*sender)->self();
+  f.to = iri;
+  f.seq = 7;
+  ASSERT_TRUE((*sender)->send(f));
+  auto there = (*elsewhere)->receive(5s);
+  ASSERT_TRUE(there && *there) << "the frame did not reach its own group";
+  auto got = (*here)->receive(300ms);
+  ASSERT_TRUE(got);
+  EXPECT_FALSE(*got) << "a frame sent to 239.255.76.68 reached the endpoint of 239.255.76.67";
 }
 
 // The configurations we ship parse; what is not XML, or not well-formed, is said with its line

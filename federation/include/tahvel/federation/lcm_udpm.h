@@ -42,12 +42,14 @@ node::Result<UdpmAddress> parse_udpm_url(std::string_view url);
 // does for channels nobody subscribed to; what is malformed is refused with the reason.
 class UdpmReassembler {
  public:
-  // The most payload bytes held for messages not yet whole, over all senders; a fragment that
-  // would pass it drops the oldest partial messages first. A message larger than this alone is
-  // refused at its first fragment.
+  // The most payload bytes held by default for messages not yet whole, over all senders: the
+  // largest frame body a binding sends (wire.h's kMaxBody) and its envelope.
   static constexpr std::size_t kMaxHeldBytes = (64u << 20) + (1u << 20);
 
-  explicit UdpmReassembler(std::string channel) : channel_(std::move(channel)) {}
+  // A fragment that would take the bytes held past `max_held` drops the oldest partial messages
+  // first; a message larger than `max_held` alone is refused at its first fragment.
+  explicit UdpmReassembler(std::string channel, std::size_t max_held = kMaxHeldBytes)
+      : channel_(std::move(channel)), max_held_(max_held) {}
 
   struct Taken {
     // A whole message on the channel: a view into the datagram (short message) or into this
@@ -74,6 +76,7 @@ class UdpmReassembler {
   bool make_room(std::size_t bytes, std::uint64_t keep);
 
   std::string channel_;
+  std::size_t max_held_;
   std::unordered_map<std::uint64_t, Partial> partial_;
   std::size_t held_bytes_ = 0;
   std::uint64_t takes_ = 0;
