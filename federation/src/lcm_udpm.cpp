@@ -213,7 +213,11 @@ node::Result<std::unique_ptr<UdpmSocket>> UdpmSocket::open(const UdpmAddress& ad
   const int one = 1;
   if (setsockopt(fd, SOL_SOCKET, SO_REUSEADDR, &one, sizeof one) != 0) return failed("SO_REUSEADDR");
   const int asked = static_cast<int>(std::min<std::uint64_t>(address.recv_buf_size.value_or(default_recv_buf), 1u << 30));
-  if (setsockopt(fd, SOL_SOCKET, SO_RCVBUF, &asked, sizeof asked) != 0) return failed("SO_RCVBUF");
+  // Past net.core.rmem_max where the process may (CAP_NET_ADMIN); else up to it. The buffer is
+  // what holds a burst while the thread that reads the socket applies the batch before it.
+  if (setsockopt(fd, SOL_SOCKET, SO_RCVBUFFORCE, &asked, sizeof asked) != 0 &&
+      setsockopt(fd, SOL_SOCKET, SO_RCVBUF, &asked, sizeof asked) != 0)
+    return failed("SO_RCVBUF");
   int got = 0;
   socklen_t got_size = sizeof got;
   if (getsockopt(fd, SOL_SOCKET, SO_RCVBUF, &got, &got_size) != 0) return failed("SO_RCVBUF");
