@@ -79,8 +79,16 @@ std::string Term::to_ntriples() const {
 
 std::size_t ill_formed_utf8_at(std::string_view text) noexcept {
   for (std::size_t i = 0; i < text.size();) {
-    // Eight ASCII bytes at a time: IRIs and most literals are ASCII, and every string of every
-    // frame a hospital takes is checked here (a byte at a time it was ~5% of its CPU).
+    // ASCII 32 and then 8 bytes at a time: IRIs and most literals are ASCII, and every string
+    // of every frame a hospital takes is checked here (a byte at a time it was ~5% of its CPU).
+    if (text.size() - i >= 32) {
+      std::uint64_t words[4];
+      std::memcpy(words, text.data() + i, 32);
+      if (((words[0] | words[1] | words[2] | words[3]) & 0x8080808080808080ull) == 0) {
+        i += 32;
+        continue;
+      }
+    }
     if (text.size() - i >= 8) {
       std::uint64_t word;
       std::memcpy(&word, text.data() + i, 8);

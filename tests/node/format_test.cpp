@@ -604,10 +604,11 @@ TEST(Format, WriterSinkSeesOutputOnlyAfterFinishForPendingTurtle) {
   EXPECT_EQ(parsed->size(), 1u);
 }
 
-// The check reads ASCII eight bytes at a time: a bad byte is found at whatever offset it has
-// within or across those words, and a good multi-byte character across one is passed.
+// The check reads ASCII 32 and then eight bytes at a time: a bad byte is found at whatever
+// offset it has within or across those blocks, and a good multi-byte character across one is
+// passed.
 TEST(Format, TheFirstIllFormedUtf8ByteIsFoundAtEveryOffset) {
-  for (std::size_t length : {1u, 7u, 8u, 9u, 16u, 23u, 40u}) {
+  for (std::size_t length : {1u, 7u, 8u, 9u, 16u, 23u, 31u, 32u, 33u, 40u, 64u, 71u, 100u}) {
     for (std::size_t at = 0; at < length; ++at) {
       std::string text(length, 'a');
       text[at] = '\xFF';
