@@ -101,6 +101,8 @@ node::Result<UdpmAddress> parse_udpm_url(std::string_view url) {
 
 UdpmReassembler::Taken UdpmReassembler::take(std::uint64_t sender, std::string_view datagram) {
   ++takes_;
+  // The message returned last is the caller's no longer: its buffer (up to max_held_) goes.
+  if (!whole_.empty()) std::string().swap(whole_);
   if (datagram.size() < 4) return {{}, "shorter than an LCM header (" + std::to_string(datagram.size()) + " bytes)"};
   const std::uint32_t magic = be32(datagram, 0);
   if (magic == kMagicLong) return take_fragment(sender, datagram);
