@@ -65,11 +65,14 @@ constexpr std::uint64_t kSenderA = 1, kSenderB = 2;
 
 TEST(UdpmReassembler, AShortMessageOnItsChannelIsItsPayloadAndOtherChannelsPassUnsaid) {
   UdpmReassembler r("TVchannel");
-  auto mine = r.take(kSenderA, short_message(7, "TVchannel", "payload bytes"));
+  // A short message's payload is a view into the datagram, which the caller keeps.
+  const std::string datagram = short_message(7, "TVchannel", "payload bytes");
+  auto mine = r.take(kSenderA, datagram);
   ASSERT_TRUE(mine.payload);
   EXPECT_EQ(*mine.payload, "payload bytes");
   EXPECT_TRUE(mine.refused.empty());
-  auto empty = r.take(kSenderA, short_message(8, "TVchannel", ""));
+  const std::string empty_datagram = short_message(8, "TVchannel", "");
+  auto empty = r.take(kSenderA, empty_datagram);
   ASSERT_TRUE(empty.payload);
   EXPECT_TRUE(empty.payload->empty());
   auto other = r.take(kSenderA, short_message(9, "TVother", "not for us"));
