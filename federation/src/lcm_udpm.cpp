@@ -125,6 +125,8 @@ UdpmReassembler::Taken UdpmReassembler::take_fragment(std::uint64_t sender, std:
   const std::string where = "LCM fragment " + std::to_string(number) + " of " + std::to_string(fragments) +
                             " of message " + std::to_string(seqno);
   if (fragments == 0 || number >= fragments) return {{}, where + ": no such fragment"};
+  // liblcm puts at least a byte of the message in every fragment.
+  if (fragments > size) return {{}, where + ": more fragments than the message's " + std::to_string(size) + " bytes"};
   std::string_view part = d.substr(kLongHeader);
   std::optional<std::string_view> channel;
   if (number == 0) {
@@ -148,20 +150,22 @@ UdpmReassembler::Taken UdpmReassembler::take_fragment(std::uint64_t sender, std:
       // Other channels' senders come and go (a new port at each restart): their marks are
       // forgotten before they pile up.
       if (partial_.size() >= kMaxSenders) std::erase_if(partial_, [](const auto& e) { return e.second.other_channel; });
+      if (partial_.size() >= kMaxSenders) return {};
       Partial skip;
       skip.seqno = seqno, skip.size = size, skip.fragments = fragments, skip.other_channel = true;
       partial_.emplace(sender, std::move(skip));
       return {};
     }
-    if (size > max_held_)
+    if (held_size(size, fragments) > max_held_)
       return {{}, where + ": a message of " + std::to_string(size) + " bytes, more than the " +
                       std::to_string(max_held_) + " held for messages being reassembled"};
-    if (!make_room(size, sender)) return {{}, where + ": no room to reassemble it"};
+    if (partial_.size() >= kMaxSenders) std::erase_if(partial_, [](const auto& e) { return e.second.other_channel; });
+    if (!make_room(held_size(size, fragments), sender)) return {{}, where + ": no room to reassemble it"};
     Partial p;
     p.seqno = seqno, p.size = size, p.fragments = fragments, p.started = takes_;
     p.have.assign(fragments, '\0');
     p.data.resize(size);
-    held_bytes_ += size;
+    held_bytes_ += held_size(size, fragments);
     it = partial_.emplace(sender, std::move(p)).first;
   }
   Partial& p = it->second;
@@ -184,12 +188,14 @@ UdpmReassembler::Taken UdpmReassembler::take_fragment(std::uint64_t sender, std:
 }
 
 void UdpmReassembler::drop(std::unordered_map<std::uint64_t, Partial>::iterator it) {
-  if (!it->second.other_channel) held_bytes_ -= it->second.size;
+  if (!it->second.other_channel) held_bytes_ -= held_size(it->second.size, it->second.fragments);
   partial_.erase(it);
 }
 
 bool UdpmReassembler::make_room(std::size_t bytes, std::uint64_t keep) {
-  while (held_bytes_ + bytes > max_held_) {
+  // Also a sender's mark at most: a host has only so many sending sockets, and senders that
+  // vanish mid-message (restarted on another port) leave theirs.
+  while (held_bytes_ + bytes > max_held_ || partial_.size() >= kMaxSenders) {
     auto oldest = partial_.end();
     for (auto it = partial_.begin(); it != partial_.end(); ++it)
       if (it->first != keep && !it->second.other_channel && (oldest == partial_.end() || it->second.started < oldest->second.started))

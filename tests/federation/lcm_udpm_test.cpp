@@ -92,7 +92,7 @@ TEST(UdpmReassembler, FragmentsInAnyOrderMakeTheWholeMessageOnce) {
     EXPECT_TRUE(t.refused.empty()) << t.refused;
     if (i == 1) EXPECT_FALSE(r.take(kSenderA, parts[i]).payload) << "a duplicate fragment counts once";
   }
-  EXPECT_EQ(r.held_bytes(), payload.size());
+  EXPECT_EQ(r.held_bytes(), payload.size() + parts.size()) << "its bytes and a byte per fragment";
   auto whole = r.take(kSenderA, parts.back());
   ASSERT_TRUE(whole.payload);
   EXPECT_TRUE(*whole.payload == payload);
@@ -119,7 +119,7 @@ TEST(UdpmReassembler, SendersAreReassembledApartAndANewMessageEndsTheSendersUnfi
   EXPECT_EQ(r.held_bytes(), 0u) << "message 1's buffer is not kept";
   // A late fragment of message 1 starts it again; it is dropped when message 3 comes.
   EXPECT_FALSE(r.take(kSenderA, from_a.back()).payload);
-  EXPECT_EQ(r.held_bytes(), a.size());
+  EXPECT_EQ(r.held_bytes(), a.size() + from_a.size());
   EXPECT_TRUE(r.take(kSenderA, short_message(3, "TVchannel", "x")).payload);
 }
 
@@ -179,7 +179,25 @@ TEST(UdpmReassembler, HeldBytesStayBoundedOverSendersThatNeverFinish) {
     EXPECT_TRUE(r.take(sender, first_fragment(20u << 20)).refused.empty());
     EXPECT_LE(r.held_bytes(), UdpmReassembler::kMaxHeldBytes);
   }
-  EXPECT_EQ(r.held_bytes(), 3u * (20u << 20));
+  EXPECT_EQ(r.held_bytes(), 3u * ((20u << 20) + 2)) << "three messages of 20 MB and two fragments each";
+}
+
+TEST(UdpmReassembler, SendersThatVanishMidMessageLeaveAtMost4096MarksAndAMessageTakesABytePerFragment) {
+  UdpmReassembler r("TVchannel");
+  auto first_of = [](std::uint32_t size, std::uint16_t count) {
+    std::string d;
+    put32(d, 0x4c433033);
+    put32(d, 1);
+    put32(d, size);
+    put32(d, 0);
+    put16(d, 0);
+    put16(d, count);
+    return d + "TVchannel" + std::string(1, '\0') + "x";
+  };
+  EXPECT_EQ(r.take(kSenderA, first_of(100, 101)).refused,
+            "LCM fragment 0 of 101 of message 1: more fragments than the message's 100 bytes");
+  for (std::uint64_t sender = 100; sender < 100 + 5000; ++sender) EXPECT_TRUE(r.take(sender, first_of(1000, 2)).refused.empty());
+  EXPECT_EQ(r.held_bytes(), 4096u * 1002u) << "the oldest went to make room for the newest";
 }
 
 TEST(UdpmUrl, GivesGroupPortAndBufferWithLcmsDefaults) {

@@ -42,8 +42,9 @@ node::Result<UdpmAddress> parse_udpm_url(std::string_view url);
 // does for channels nobody subscribed to; what is malformed is refused with the reason.
 class UdpmReassembler {
  public:
-  // The most payload bytes held by default for messages not yet whole, over all senders: the
-  // largest frame body a binding sends (wire.h's kMaxBody) and its envelope.
+  // The most bytes held by default for messages not yet whole, over all senders: the largest
+  // frame body a binding sends (wire.h's kMaxBody) and its envelope. Senders with a message
+  // under way are at most 4,096; beyond, the oldest message is dropped.
   static constexpr std::size_t kMaxHeldBytes = (64u << 20) + (1u << 20);
 
   // A fragment that would take the bytes held past `max_held` drops the oldest partial messages
@@ -60,6 +61,7 @@ class UdpmReassembler {
   // `sender` tells sending sockets apart (each has its own sequence of messages).
   Taken take(std::uint64_t sender, std::string_view datagram);
 
+  // The bytes held for messages not yet whole: theirs and one per fragment.
   std::size_t held_bytes() const noexcept { return held_bytes_; }
 
  private:
@@ -72,6 +74,8 @@ class UdpmReassembler {
     std::uint64_t started = 0;   // take() count when it began, to drop the oldest first
   };
   Taken take_fragment(std::uint64_t sender, std::string_view datagram);
+  // What a partial message holds: its bytes and its record of the fragments that came.
+  static std::size_t held_size(std::uint32_t size, std::uint16_t fragments) { return std::size_t{size} + fragments; }
   void drop(std::unordered_map<std::uint64_t, Partial>::iterator it);
   bool make_room(std::size_t bytes, std::uint64_t keep);
 
