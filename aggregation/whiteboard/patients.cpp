@@ -2,6 +2,7 @@
 #include "tahvel/aggregation/patients.h"
 
 #include <algorithm>
+#include <array>
 #include <charconv>
 #include <cmath>
 #include <map>
@@ -35,20 +36,6 @@ using node::Term;
 
 Error store_error(const node::Error& e) { return Error{"reading the board: " + e.message}; }
 
-// The object of the first record <subject> tv:<local> ?o on the board.
-Result<std::optional<Term>> object_on_board(const Snapshot& snapshot, const std::string& subject, const char* local) {
-  Pattern pattern;
-  pattern.s = Term::iri(subject);
-  pattern.p = tv_term(local);
-  std::optional<Term> found;
-  auto walked = snapshot.for_each(pattern, [&](const Record& r) {
-    found = r.triple.o;
-    return false;
-  });
-  if (!walked) return unexpected(store_error(walked.error()));
-  return found;
-}
-
 std::optional<double> number_in(const std::optional<Term>& term) {
   if (!term || !term->is_literal()) return std::nullopt;
   double v = 0;
@@ -63,24 +50,61 @@ std::optional<std::string> iri_in(const std::optional<Term>& term) {
   return term->value;
 }
 
-// The recording of window `iri` as read_hrv_window finds it: its tv:recording, else the
-// recording its IRI <rec>/hrv/<start> extends, when the window is derived from it (one exact
-// lookup: a window is also derived from each of its RR items, hundreds of them). nullopt when
-// neither holds: the caller reads the item whole.
-Result<std::optional<std::string>> recording_of_window(const Snapshot& snapshot, const std::string& iri) {
-  auto named = object_on_board(snapshot, iri, "recording");
-  if (!named) return unexpected(named.error());
-  if (auto rec = iri_in(*named)) return rec;
+// The objects of the first records <subject> tv:<local> ?o (in record order), for each of
+// `locals`, in one walk of the subject's records that stops once it has them all.
+template <std::size_t N>
+Result<std::array<std::optional<Term>, N>> objects_on_board(const Snapshot& snapshot, const std::string& subject,
+                                                            const std::array<const char*, N>& locals) {
+  std::array<std::string, N> predicates;
+  for (std::size_t i = 0; i < N; ++i) predicates[i] = std::string(kTv) + locals[i];
+  std::array<std::optional<Term>, N> found;
+  std::size_t left = N;
+  Pattern pattern;
+  pattern.s = Term::iri(subject);
+  auto walked = snapshot.for_each(pattern, [&](const Record& r) {
+    for (std::size_t i = 0; i < N; ++i)
+      if (!found[i] && r.triple.p.value == predicates[i]) {
+        found[i] = r.triple.o;
+        --left;
+      }
+    return left > 0;
+  });
+  if (!walked) return unexpected(store_error(walked.error()));
+  return found;
+}
+
+// What the windows are grouped and ordered by: a window's start and its recording.
+struct WindowFacts {
+  std::optional<double> start_s;
+  std::optional<std::string> recording;
+};
+
+// The facts of window `iri`, in one walk of its records: its first tv:windowStartS, and as its
+// recording the one its IRI <rec>/hrv/<start> extends when the window is derived from it
+// (tahvel-hrv's windows: the walk stops at the item's fifth record), else its tv:recording. A
+// window is also derived from each of its RR items, hundreds of them: looking up each fact apart,
+// for every window on the board, made `tahvel patients` take seconds per day of a hundred
+// patients' windows. read_hrv_window, which reads the latest window of each recording whole,
+// puts a tv:recording first; the two differ only for a window that names a recording in both
+// ways and a different one in each.
+Result<WindowFacts> window_facts(const Snapshot& snapshot, const std::string& iri) {
   const std::size_t at = iri.rfind("/hrv/");
-  if (at == std::string::npos || at == 0) return std::optional<std::string>();
-  Pattern derived;
-  derived.s = Term::iri(iri);
-  derived.p = Term::iri(kProvDerivedFrom);
-  derived.o = Term::iri(iri.substr(0, at));
-  auto n = snapshot.count(derived);
-  if (!n) return unexpected(store_error(n.error()));
-  if (*n == 0) return std::optional<std::string>();
-  return std::optional<std::string>(iri.substr(0, at));
+  const std::string extended = at != std::string::npos && at != 0 ? iri.substr(0, at) : std::string();
+  const std::string start_p = std::string(kTv) + "windowStartS", recording_p = std::string(kTv) + "recording";
+  std::optional<Term> start, named;
+  bool derived = false;
+  Pattern pattern;
+  pattern.s = Term::iri(iri);
+  auto walked = snapshot.for_each(pattern, [&](const Record& r) {
+    const std::string& p = r.triple.p.value;
+    if (!start && p == start_p) start = r.triple.o;
+    else if (!named && p == recording_p) named = r.triple.o;
+    else if (!derived && !extended.empty() && p == kProvDerivedFrom && r.triple.o.is_iri() && r.triple.o.value == extended)
+      derived = true;
+    return !(start && derived);
+  });
+  if (!walked) return unexpected(store_error(walked.error()));
+  return WindowFacts{number_in(start), derived ? std::optional<std::string>(extended) : iri_in(named)};
 }
 
 // Items that cannot be read, per writer.
@@ -138,7 +162,7 @@ Result<std::optional<T>> read_whole(const Snapshot& snapshot, const Entry& entry
 Result<PatientsOnBoard> patients_on_board(const Snapshot& snapshot, std::optional<std::int64_t> since) {
   Unreadable unreadable;
 
-  // Every window: its recording and start through the indexes (recording_of_window); a window
+  // Every window: its recording and start through the indexes (window_facts); a window
   // whose recording or start cannot be found so is read whole.
   std::map<std::string, std::map<std::string, Entry>> windows;  // recording -> window IRI -> entry
   Pattern hrv;
@@ -150,14 +174,12 @@ Result<PatientsOnBoard> patients_on_board(const Snapshot& snapshot, std::optiona
   for (const Record& r : *listed) {
     if (!r.triple.s.is_iri()) continue;
     const std::string& iri = r.triple.s.value;
-    auto start = object_on_board(snapshot, iri, "windowStartS");
-    if (!start) return unexpected(start.error());
-    auto recording = recording_of_window(snapshot, iri);
-    if (!recording) return unexpected(recording.error());
+    auto facts = window_facts(snapshot, iri);
+    if (!facts) return unexpected(facts.error());
     Entry entry{iri, 0, r.meta.item, r.meta.source, r.meta.stored_at, r.meta.asserted_at};
     std::string rec;
-    const std::optional<double> s = number_in(*start);
-    const std::optional<std::string>& name = *recording;
+    const std::optional<double>& s = facts->start_s;
+    const std::optional<std::string>& name = facts->recording;
     if (s && name) {
       entry.start_s = *s;
       rec = *name;
@@ -203,14 +225,11 @@ Result<PatientsOnBoard> patients_on_board(const Snapshot& snapshot, std::optiona
   for (const Record& r : *listed) {
     if (!r.triple.s.is_iri()) continue;
     const std::string& iri = r.triple.s.value;
-    auto recording = object_on_board(snapshot, iri, "recording");
-    if (!recording) return unexpected(recording.error());
-    auto metric = object_on_board(snapshot, iri, "metric");
-    if (!metric) return unexpected(metric.error());
-    auto start = object_on_board(snapshot, iri, "windowStartS");
-    if (!start) return unexpected(start.error());
-    auto rec = iri_in(*recording), which = iri_in(*metric);
-    auto s = number_in(*start);
+    auto facts = objects_on_board(snapshot, iri, std::array{"recording", "metric", "windowStartS"});
+    if (!facts) return unexpected(facts.error());
+    const auto& [recording, metric, start] = *facts;
+    auto rec = iri_in(recording), which = iri_in(metric);
+    auto s = number_in(start);
     Entry entry{iri, 0, r.meta.item, r.meta.source, r.meta.stored_at, r.meta.asserted_at};
     if (!rec || !which || !s) {
       auto t = read_whole(snapshot, entry, read_trend, unreadable);

@@ -1,7 +1,9 @@
 // `tahvel bench hrv`: speed of the detector and of the whole chain (samples -> HRV) as a
 // multiple of real time on one core, over real MIT-BIH records; and what stays home against
 // what goes up: bytes of raw ECG kept in a node store per patient-hour, against bytes of HRV
-// items (N-Triples, as on the wire) sent up per patient-hour.
+// items (N-Triples, as on the wire) sent up per patient-hour; and the hospital operator's view
+// (`tahvel patients`) over a board of many patients' windows and trend updates, against a plain
+// listing of the same windows and updates.
 #include <unistd.h>
 
 #include <chrono>
@@ -16,6 +18,7 @@
 #include "args.h"
 #include "bench.h"
 #include "tahvel/aggregation/items.h"
+#include "tahvel/aggregation/patients.h"
 #include "tahvel/aggregation/pipeline.h"
 #include "tahvel/aggregation/wfdb.h"
 #include "tahvel/node/format.h"
@@ -31,13 +34,16 @@ using Clock = std::chrono::steady_clock;
 const char* kUsage =
     "usage: tahvel bench hrv [--json] [--quick] [--records N]\n"
     "  --json       print one JSON object instead of the table\n"
-    "  --quick      three records, for smoke tests\n"
+    "  --quick      three records and a smaller operator's board, for smoke tests\n"
     "  --records N  the first N records of $TAHVEL_MITDB/RECORDS (default: all)\n"
     "Records are read from $TAHVEL_MITDB (default ../shared/data/mitdb).\n";
 
 struct Options {
   bool json = false;
   std::size_t records = 0;  // 0: all
+  // The operator's board: patients, each with this many 60 s windows (each derived from 60 RR
+  // items, as tahvel-hrv writes them) and three trend updates per window (as tahvel-trend).
+  std::size_t board_patients = 100, board_windows = 120;
 };
 
 fs::path mitdb_dir() {
@@ -137,6 +143,83 @@ double up_bytes_per_hour(const agg::Signals& r, const agg::RecordingInfo& info) 
   return static_cast<double>(wire.str().size()) / hours;
 }
 
+struct OperatorView {
+  std::size_t patients = 0, windows = 0, trend_updates = 0;
+  double view_s = 0, listing_s = 0;  // best of three each
+};
+
+// `tahvel patients` on a hospital board of o.board_patients patients, each with o.board_windows
+// windows and their trend updates; the peer is listing the same windows and updates, which the
+// view cannot do without.
+OperatorView measure_operator_view(const Options& o) {
+  char pattern[] = "/tmp/tahvel-bench-patients-XXXXXX";
+  if (!mkdtemp(pattern)) fail("bench hrv: cannot make a scratch directory");
+  const std::string hospital = "http://example.org/hospital";
+  OperatorView v;
+  {
+    auto node = node::Node::init(fs::path(pattern) / "hospital", node::InitOptions{.iri = hospital});
+    if (!node) fail(node.error().message);
+    auto trend = node->agent("trend");
+    if (!trend) fail(trend.error().message);
+    const agg::HrvMetric metrics[] = {agg::HrvMetric::sdnn, agg::HrvMetric::rmssd, agg::HrvMetric::mean_hr};
+    for (std::size_t p = 0; p < o.board_patients; ++p) {
+      const std::string home = "home" + std::to_string(p + 1);
+      auto hrv = node->agent(home + "-hrv");
+      if (!hrv) fail(hrv.error().message);
+      agg::RecordingInfo info;
+      info.iri = hospital + "/" + home + "/ecg/recording/r";
+      for (std::size_t w = 0; w < o.board_windows; ++w) {
+        agg::WindowMetrics window;
+        window.start_s = 60.0 * static_cast<double>(w);
+        window.end_s = window.start_s + 60;
+        window.metrics.sdnn_ms = 40 + static_cast<double>((p + w) % 11);
+        window.metrics.rmssd_ms = 30 + static_cast<double>((p * 3 + w) % 7);
+        window.metrics.mean_hr_bpm = 60 + static_cast<double>(p % 30);
+        window.metrics.nn_count = window.metrics.rr_count = 70;
+        std::vector<std::string> from;
+        for (std::size_t k = 0; k < 60; ++k) from.push_back(info.iri + "/rr/" + std::to_string(w * 60 + k));
+        if (auto s = hrv->store(agg::hrv_window_item(info, window, hrv->iri(), from)); !s) fail(s.error().message);
+        for (agg::HrvMetric metric : metrics) {
+          agg::TrendUpdate u;
+          u.recording = info.iri;
+          u.metric = metric;
+          u.window_start_s = window.start_s;
+          u.window_iri = agg::hrv_iri(info.iri, window.start_s);
+          u.windows = w + 1;
+          u.latest = window.metrics.sdnn_ms;
+          if (auto s = trend->store(agg::trend_item(u, trend->iri())); !s) fail(s.error().message);
+          ++v.trend_updates;
+        }
+        ++v.windows;
+      }
+    }
+    v.patients = o.board_patients;
+    node::Pattern windows, updates;
+    windows.p = node::Term::iri("http://www.w3.org/ns/sosa/observedProperty");
+    windows.o = node::Term::iri("https://w3id.org/tahvel#HeartRateVariability");
+    updates.p = node::Term::iri(std::string(node::kRdfType));
+    updates.o = node::Term::iri("https://w3id.org/tahvel#HrvTrend");
+    v.view_s = v.listing_s = 1e30;
+    for (int round = 0; round < 3; ++round) {
+      auto snapshot = node->snapshot();
+      if (!snapshot) fail(snapshot.error().message);
+      auto start = Clock::now();
+      auto board = agg::patients_on_board(*snapshot, std::nullopt);
+      v.view_s = std::min(v.view_s, seconds_since(start));
+      if (!board) fail(board.error().message);
+      if (board->patients.size() != o.board_patients) fail("bench hrv: the operator's view lost patients");
+      start = Clock::now();
+      auto listed_windows = snapshot->list(windows);
+      auto listed_updates = snapshot->list(updates);
+      v.listing_s = std::min(v.listing_s, seconds_since(start));
+      if (!listed_windows || !listed_updates || listed_windows->size() != v.windows || listed_updates->size() != v.trend_updates)
+        fail("bench hrv: listing the operator's board did not find what was stored");
+    }
+  }
+  fs::remove_all(pattern);
+  return v;
+}
+
 }  // namespace
 
 int bench_hrv_main(const std::vector<std::string>& args) {
@@ -149,6 +232,8 @@ int bench_hrv_main(const std::vector<std::string>& args) {
       options.json = true;
     } else if (args[i] == "--quick") {
       options.records = 3;
+      options.board_patients = 10;
+      options.board_windows = 20;
     } else if (args[i] == "--records" && i + 1 < args.size()) {
       auto n = parse_u64(args[++i]);
       if (!n || *n == 0) usage_error("bench hrv: --records: expected a positive integer");
@@ -172,13 +257,17 @@ int bench_hrv_main(const std::vector<std::string>& args) {
   const double up = up_bytes_per_hour(records.front(), info);
   const double detector_x = speed.signal_s / speed.detector_s, chain_x = speed.signal_s / speed.chain_s;
   const double samples_per_s = speed.signal_s * records.front().header.fs / speed.chain_s;
+  const OperatorView view = measure_operator_view(options);
   if (options.json) {
     std::printf(
         "{\"records\":%zu,\"signal_hours\":%.4f,\"detector_x_realtime\":%.0f,\"chain_x_realtime\":%.0f,"
         "\"chain_samples_per_s\":%.0f,\"raw_bytes_per_patient_hour\":%.0f,\"up_bytes_per_patient_hour\":%.0f,"
-        "\"reduction_ratio\":%.1f,\"target_chain_x_realtime\":20000,\"target_chain_met\":%d}\n",
+        "\"reduction_ratio\":%.1f,\"target_chain_x_realtime\":20000,\"target_chain_met\":%d,"
+        "\"patients_view_patients\":%zu,\"patients_view_windows\":%zu,\"patients_view_trend_updates\":%zu,"
+        "\"patients_view_s\":%.4f,\"patients_view_listing_s\":%.4f,\"ratio_patients_view_vs_listing\":%.2f}\n",
         records.size(), speed.signal_s / 3600, detector_x, chain_x, samples_per_s, raw, up, raw / up,
-        chain_x >= 20000 ? 1 : 0);
+        chain_x >= 20000 ? 1 : 0, view.patients, view.windows, view.trend_updates, view.view_s, view.listing_s,
+        view.view_s / view.listing_s);
   } else {
     std::printf("tahvel bench hrv: %zu records, %.2f hours of ECG (first lead), one core\n\n", records.size(),
                 speed.signal_s / 3600);
@@ -189,6 +278,9 @@ int bench_hrv_main(const std::vector<std::string>& args) {
                 names.front().c_str());
     std::printf("HRV items sent up   %10.0f bytes per patient-hour (5-min windows, N-Triples)\n", up);
     std::printf("reduction           %10.1f x\n", raw / up);
+    std::printf("operator's view     %10.3f s for %zu patients, %zu windows, %zu trend updates (tahvel patients)\n",
+                view.view_s, view.patients, view.windows, view.trend_updates);
+    std::printf("  listing them      %10.3f s (%.2f x)\n", view.listing_s, view.view_s / view.listing_s);
   }
   return kExitOk;
 }

@@ -918,7 +918,8 @@ TEST_F(Cli, BenchHrvQuickJsonHasEveryFigure) {
   Outcome r = run({"bench", "hrv", "--quick", "--json"});
   ASSERT_EQ(r.status, 0) << r.err;
   for (const char* key : {"\"detector_x_realtime\":", "\"chain_x_realtime\":", "\"raw_bytes_per_patient_hour\":",
-                          "\"up_bytes_per_patient_hour\":", "\"reduction_ratio\":"})
+                          "\"up_bytes_per_patient_hour\":", "\"reduction_ratio\":", "\"patients_view_s\":",
+                          "\"patients_view_listing_s\":", "\"ratio_patients_view_vs_listing\":"})
     EXPECT_NE(r.out.find(key), std::string::npos) << key << " in " << r.out;
 }
 
