@@ -86,7 +86,7 @@ constexpr double kIngestTarget = 100'000;      // hospital items/s
 
 struct Config {
   bool json = false;
-  int rounds = 2'000;            // latency samples per transport (plus a tenth as warm-up)
+  int rounds = 8'000;            // latency samples per transport (plus a tenth as warm-up)
   std::size_t burst = 20'000;    // items per link-rate burst
   std::size_t homes = 1'000;
   bool homes_set = false;
@@ -629,8 +629,10 @@ QueryFigures measure_query(LinkPair& p, node::Node& home, const std::string& wha
 double cpu_of(clockid_t clock);
 fed::LatencyFloor floor_to_far_end(FarEnd& far, Kind kind, int rounds);
 
-// The latency phase alternates blocks of the raw floor and of the link (measure_link).
-constexpr int kLatencyBlocks = 4;
+// The latency phase alternates blocks of the raw floor and of the link (measure_link). Sixteen
+// blocks of 500: one stall of the machine of 10-20 ms slows some 25 rounds, which moved the p99
+// of 2,000 rounds in four blocks (0.2 s of the machine's time) by itself.
+constexpr int kLatencyBlocks = 16;
 
 LinkFigures measure_link(Kind kind, const Config& cfg, const ScratchDir& scratch, std::uint64_t& next_number, FarEnd& far) {
   // Latency: one item at a time, in blocks, each after a block of the raw floor of the same
