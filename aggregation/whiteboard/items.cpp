@@ -457,6 +457,8 @@ Item hrv_window_item(const RecordingInfo& info, const WindowMetrics& window,
                      const std::string& agent_iri, const std::vector<std::string>& from) {
   Item item;
   const Term obs = Term::iri(hrv_iri(info.iri, window.start_s));
+  // In this order: patients_on_board finds a window's start and recording in its first five
+  // records, before the RR items it is derived from (patients.cpp, window_facts).
   item.add(obs, rdf_type(), Term::iri(kSosa + "Observation"))
       .add(obs, Term::iri(kSosa + "observedProperty"), tv("HeartRateVariability"))
       .add(obs, derived_from(), Term::iri(info.iri))
@@ -537,14 +539,14 @@ Result<HrvWindowItem> read_hrv_window(const std::vector<Record>& records) {
       break;
     }
   if (w.iri.empty()) return fail("no sosa:observedProperty tv:HeartRateVariability in the item (not an HRV window)");
-  if (const Term* rec = object(records, w.iri, "recording"); rec && rec->is_iri()) {
+  // The recording the IRI extends first, as patients_on_board groups windows by it without
+  // reading past the derivation (patients.cpp, window_facts).
+  for (const std::string& from : derivations(records, w.iri))
+    if (w.iri.size() > from.size() + 5 && w.iri.compare(0, from.size(), from) == 0 &&
+        w.iri.compare(from.size(), 5, "/hrv/") == 0)
+      w.recording = from;
+  if (const Term* rec = object(records, w.iri, "recording"); w.recording.empty() && rec && rec->is_iri())
     w.recording = rec->value;
-  } else {
-    for (const std::string& from : derivations(records, w.iri))
-      if (w.iri.size() > from.size() + 5 && w.iri.compare(0, from.size(), from) == 0 &&
-          w.iri.compare(from.size(), 5, "/hrv/") == 0)
-        w.recording = from;
-  }
   if (w.recording.empty()) return missing(w.iri, "recording", "missing (nor prov:wasDerivedFrom the recording)");
   auto start = double_of(records, w.iri, "windowStartS");
   if (!start) return unexpected(start.error());

@@ -80,13 +80,11 @@ struct WindowFacts {
 };
 
 // The facts of window `iri`, in one walk of its records: its first tv:windowStartS, and as its
-// recording the one its IRI <rec>/hrv/<start> extends when the window is derived from it
-// (tahvel-hrv's windows: the walk stops at the item's fifth record), else its tv:recording. A
-// window is also derived from each of its RR items, hundreds of them: looking up each fact apart,
-// for every window on the board, made `tahvel patients` take seconds per day of a hundred
-// patients' windows. read_hrv_window, which reads the latest window of each recording whole,
-// puts a tv:recording first; the two differ only for a window that names a recording in both
-// ways and a different one in each.
+// recording the one its IRI <rec>/hrv/<start> extends when the window is derived from it, else
+// its tv:recording (read_hrv_window's rule). For tahvel-hrv's windows the walk stops at the
+// item's fifth record: a window is also derived from each of its RR items, sixty a minute, and
+// looking each fact up apart, with tv:recording first (a walk of all of a window's records),
+// took 0.91 s for 100 patients of 120 windows each against 0.50 s now (`tahvel bench hrv`).
 Result<WindowFacts> window_facts(const Snapshot& snapshot, const std::string& iri) {
   const std::size_t at = iri.rfind("/hrv/");
   const std::string extended = at != std::string::npos && at != 0 ? iri.substr(0, at) : std::string();

@@ -86,7 +86,9 @@ constexpr double kIngestTarget = 100'000;      // hospital items/s
 
 struct Config {
   bool json = false;
-  int rounds = 8'000;            // latency samples per transport (plus a tenth as warm-up)
+  // Latency samples per transport, in kLatencyBlocks blocks (each after a warm-up); also the
+  // rounds of the bindings', the in-process and the store-to-watch floors.
+  int rounds = 8'000;
   std::size_t burst = 20'000;    // items per link-rate burst
   std::size_t homes = 1'000;
   bool homes_set = false;
@@ -121,7 +123,7 @@ std::optional<Config> parse(const std::vector<std::string>& args) {
     }
   }
   if (quick) {
-    c.rounds = 200;
+    c.rounds = 320;  // 20 per block
     c.burst = 2'000;
     c.per_home = 100;
     if (!c.homes_set) c.homes = 50;

@@ -6,6 +6,7 @@
 // listing of the same windows and updates.
 #include <unistd.h>
 
+#include <algorithm>
 #include <chrono>
 #include <cstdio>
 #include <cstdlib>
@@ -17,6 +18,7 @@
 
 #include "args.h"
 #include "bench.h"
+#include "bench_measure.h"
 #include "tahvel/aggregation/items.h"
 #include "tahvel/aggregation/patients.h"
 #include "tahvel/aggregation/pipeline.h"
@@ -32,10 +34,12 @@ namespace fs = std::filesystem;
 using Clock = std::chrono::steady_clock;
 
 const char* kUsage =
-    "usage: tahvel bench hrv [--json] [--quick] [--records N]\n"
-    "  --json       print one JSON object instead of the table\n"
-    "  --quick      three records and a smaller operator's board, for smoke tests\n"
-    "  --records N  the first N records of $TAHVEL_MITDB/RECORDS (default: all)\n"
+    "usage: tahvel bench hrv [--json] [--quick] [--records N] [--board-patients N] [--board-windows N]\n"
+    "  --json              print one JSON object instead of the table\n"
+    "  --quick             three records and a board of 10 patients x 20 windows, for smoke tests\n"
+    "  --records N         the first N records of $TAHVEL_MITDB/RECORDS (default: all)\n"
+    "  --board-patients N  patients on the operator's board (default 100)\n"
+    "  --board-windows N   60 s windows per patient on it, each with three trend updates (default 120)\n"
     "Records are read from $TAHVEL_MITDB (default ../shared/data/mitdb).\n";
 
 struct Options {
@@ -148,75 +152,80 @@ struct OperatorView {
   double view_s = 0, listing_s = 0;  // best of three each
 };
 
-// `tahvel patients` on a hospital board of o.board_patients patients, each with o.board_windows
-// windows and their trend updates; the peer is listing the same windows and updates, which the
-// view cannot do without.
-OperatorView measure_operator_view(const Options& o) {
-  char pattern[] = "/tmp/tahvel-bench-patients-XXXXXX";
-  if (!mkdtemp(pattern)) fail("bench hrv: cannot make a scratch directory");
-  const std::string hospital = "http://example.org/hospital";
-  OperatorView v;
-  {
-    auto node = node::Node::init(fs::path(pattern) / "hospital", node::InitOptions{.iri = hospital});
-    if (!node) fail(node.error().message);
-    auto trend = node->agent("trend");
-    if (!trend) fail(trend.error().message);
-    const agg::HrvMetric metrics[] = {agg::HrvMetric::sdnn, agg::HrvMetric::rmssd, agg::HrvMetric::mean_hr};
-    for (std::size_t p = 0; p < o.board_patients; ++p) {
-      const std::string home = "home" + std::to_string(p + 1);
-      auto hrv = node->agent(home + "-hrv");
-      if (!hrv) fail(hrv.error().message);
-      agg::RecordingInfo info;
-      info.iri = hospital + "/" + home + "/ecg/recording/r";
-      for (std::size_t w = 0; w < o.board_windows; ++w) {
-        agg::WindowMetrics window;
-        window.start_s = 60.0 * static_cast<double>(w);
-        window.end_s = window.start_s + 60;
-        window.metrics.sdnn_ms = 40 + static_cast<double>((p + w) % 11);
-        window.metrics.rmssd_ms = 30 + static_cast<double>((p * 3 + w) % 7);
-        window.metrics.mean_hr_bpm = 60 + static_cast<double>(p % 30);
-        window.metrics.nn_count = window.metrics.rr_count = 70;
-        std::vector<std::string> from;
-        for (std::size_t k = 0; k < 60; ++k) from.push_back(info.iri + "/rr/" + std::to_string(w * 60 + k));
-        if (auto s = hrv->store(agg::hrv_window_item(info, window, hrv->iri(), from)); !s) fail(s.error().message);
-        for (agg::HrvMetric metric : metrics) {
-          agg::TrendUpdate u;
-          u.recording = info.iri;
-          u.metric = metric;
-          u.window_start_s = window.start_s;
-          u.window_iri = agg::hrv_iri(info.iri, window.start_s);
-          u.windows = w + 1;
-          u.latest = window.metrics.sdnn_ms;
-          if (auto s = trend->store(agg::trend_item(u, trend->iri())); !s) fail(s.error().message);
-          ++v.trend_updates;
-        }
-        ++v.windows;
+// Fills the hospital store `node` with o.board_patients patients' windows, each derived from 60
+// RR items as tahvel-hrv writes them, and three trend updates per window as tahvel-trend writes
+// them (each with its metric's value); counts them into `v`.
+void build_operator_board(node::Node& node, const std::string& hospital, const Options& o, OperatorView& v) {
+  auto trend = node.agent("trend");
+  if (!trend) fail(trend.error().message);
+  const agg::HrvMetric metrics[] = {agg::HrvMetric::sdnn, agg::HrvMetric::rmssd, agg::HrvMetric::mean_hr};
+  for (std::size_t p = 0; p < o.board_patients; ++p) {
+    const std::string home = "home" + std::to_string(p + 1);
+    auto hrv = node.agent(home + "-hrv");
+    if (!hrv) fail(hrv.error().message);
+    agg::RecordingInfo info;
+    info.iri = hospital + "/" + home + "/ecg/recording/r";
+    for (std::size_t w = 0; w < o.board_windows; ++w) {
+      agg::WindowMetrics window;
+      window.start_s = 60.0 * static_cast<double>(w);
+      window.end_s = window.start_s + 60;
+      window.metrics.sdnn_ms = 40 + static_cast<double>((p + w) % 11);
+      window.metrics.rmssd_ms = 30 + static_cast<double>((p * 3 + w) % 7);
+      window.metrics.mean_hr_bpm = 60 + static_cast<double>(p % 30);
+      window.metrics.nn_count = window.metrics.rr_count = 70;
+      std::vector<std::string> from;
+      for (std::size_t k = 0; k < 60; ++k) from.push_back(info.iri + "/rr/" + std::to_string(w * 60 + k));
+      if (auto s = hrv->store(agg::hrv_window_item(info, window, hrv->iri(), from)); !s) fail(s.error().message);
+      ++v.windows;
+      for (agg::HrvMetric metric : metrics) {
+        agg::TrendUpdate u;
+        u.recording = info.iri;
+        u.metric = metric;
+        u.window_start_s = window.start_s;
+        u.window_iri = agg::hrv_iri(info.iri, window.start_s);
+        u.windows = w + 1;
+        u.latest = agg::metric_value(window.metrics, metric);
+        if (auto s = trend->store(agg::trend_item(u, trend->iri())); !s) fail(s.error().message);
+        ++v.trend_updates;
       }
     }
-    v.patients = o.board_patients;
-    node::Pattern windows, updates;
-    windows.p = node::Term::iri("http://www.w3.org/ns/sosa/observedProperty");
-    windows.o = node::Term::iri("https://w3id.org/tahvel#HeartRateVariability");
-    updates.p = node::Term::iri(std::string(node::kRdfType));
-    updates.o = node::Term::iri("https://w3id.org/tahvel#HrvTrend");
-    v.view_s = v.listing_s = 1e30;
-    for (int round = 0; round < 3; ++round) {
-      auto snapshot = node->snapshot();
-      if (!snapshot) fail(snapshot.error().message);
-      auto start = Clock::now();
-      auto board = agg::patients_on_board(*snapshot, std::nullopt);
-      v.view_s = std::min(v.view_s, seconds_since(start));
-      if (!board) fail(board.error().message);
-      if (board->patients.size() != o.board_patients) fail("bench hrv: the operator's view lost patients");
-      start = Clock::now();
-      auto listed_windows = snapshot->list(windows);
-      auto listed_updates = snapshot->list(updates);
-      v.listing_s = std::min(v.listing_s, seconds_since(start));
-      if (!listed_windows || !listed_updates || listed_windows->size() != v.windows || listed_updates->size() != v.trend_updates)
-        fail("bench hrv: listing the operator's board did not find what was stored");
-    }
   }
-  fs::remove_all(pattern);
+  v.patients = o.board_patients;
+}
+
+// `tahvel patients` on a hospital board (build_operator_board); the peer is listing the same
+// windows and updates, which the view cannot do without.
+OperatorView measure_operator_view(const Options& o) {
+  bench::ScratchDir scratch{fs::path{}};
+  const std::string hospital = "http://example.org/hospital";
+  auto node = node::Node::init(scratch.sub("hospital"), node::InitOptions{.iri = hospital});
+  if (!node) fail(node.error().message);
+  OperatorView v;
+  build_operator_board(*node, hospital, o, v);
+  node::Pattern windows, updates;
+  windows.p = node::Term::iri("http://www.w3.org/ns/sosa/observedProperty");
+  windows.o = agg::tv_term("HeartRateVariability");
+  updates.p = node::Term::iri(std::string(node::kRdfType));
+  updates.o = agg::tv_term("HrvTrend");
+  v.view_s = v.listing_s = 1e30;
+  for (int round = 0; round < 3; ++round) {
+    auto snapshot = node->snapshot();
+    if (!snapshot) fail(snapshot.error().message);
+    auto start = Clock::now();
+    auto board = agg::patients_on_board(*snapshot, std::nullopt);
+    v.view_s = std::min(v.view_s, seconds_since(start));
+    if (!board) fail(board.error().message);
+    if (board->patients.size() != o.board_patients) fail("bench hrv: the operator's view lost patients");
+    for (const agg::PatientView& p : board->patients)
+      if (p.windows != o.board_windows || p.trends.size() != 3 || p.latest.window.start_s != 60.0 * static_cast<double>(o.board_windows - 1))
+        fail("bench hrv: the operator's view of <" + p.recording + "> lost windows or trends");
+    start = Clock::now();
+    auto listed_windows = snapshot->list(windows);
+    auto listed_updates = snapshot->list(updates);
+    v.listing_s = std::min(v.listing_s, seconds_since(start));
+    if (!listed_windows || !listed_updates || listed_windows->size() != v.windows || listed_updates->size() != v.trend_updates)
+      fail("bench hrv: listing the operator's board did not find what was stored");
+  }
   return v;
 }
 
@@ -224,6 +233,8 @@ OperatorView measure_operator_view(const Options& o) {
 
 int bench_hrv_main(const std::vector<std::string>& args) {
   Options options;
+  bool quick = false;
+  std::optional<std::uint64_t> board_patients, board_windows;  // given on the command line
   for (std::size_t i = 0; i < args.size(); ++i) {
     if (args[i] == "--help" || args[i] == "-h") {
       std::fputs(kUsage, stdout);
@@ -231,17 +242,27 @@ int bench_hrv_main(const std::vector<std::string>& args) {
     } else if (args[i] == "--json") {
       options.json = true;
     } else if (args[i] == "--quick") {
-      options.records = 3;
-      options.board_patients = 10;
-      options.board_windows = 20;
+      quick = true;
     } else if (args[i] == "--records" && i + 1 < args.size()) {
       auto n = parse_u64(args[++i]);
       if (!n || *n == 0) usage_error("bench hrv: --records: expected a positive integer");
       options.records = *n;
+    } else if ((args[i] == "--board-patients" || args[i] == "--board-windows") && i + 1 < args.size()) {
+      const std::string& flag = args[i];
+      auto n = parse_u64(args[++i]);
+      if (!n || *n == 0 || *n > 1'000'000) usage_error("bench hrv: " + flag + ": expected an integer 1..1000000");
+      (flag == "--board-patients" ? board_patients : board_windows) = *n;
     } else {
       usage_error("bench hrv: unknown argument '" + args[i] + "'\n" + kUsage);
     }
   }
+  if (quick) {
+    if (options.records == 0) options.records = 3;
+    options.board_patients = 10;
+    options.board_windows = 20;
+  }
+  if (board_patients) options.board_patients = *board_patients;
+  if (board_windows) options.board_windows = *board_windows;
   const fs::path dir = mitdb_dir();
   const auto names = record_names(dir, options.records);
   std::vector<agg::Signals> records;

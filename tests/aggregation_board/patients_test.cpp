@@ -170,6 +170,35 @@ TEST_F(PatientsOnBoard, AWindowIsItsRecordingsByProvenanceOrByTvRecordingAndAnIr
   EXPECT_TRUE(board.unreadable.empty());
 }
 
+// A window that names a recording both ways, differently (its IRI extends <A> and it is derived
+// from <A>; its tv:recording says <B>), is <A>'s, as read_hrv_window reads it whole, whatever
+// order its triples come in: the count, the latest window and the trend all go to one patient.
+TEST_F(PatientsOnBoard, AWindowThatNamesTwoRecordingsIsTheOneItsIriExtendsWhenDerivedFromIt) {
+  window("home1-hrv", kRecA, 0, 50);
+  const tn::Term both = tn::Term::iri(agg::hrv_iri(kRecA, 60));
+  tn::Item named;
+  named.add(both, agg::tv_term("sdnnMs"), tn::Term::literal("70.0", std::string(tn::xsd::kDecimal)))
+      .add(both, agg::tv_term("recording"), tn::Term::iri(kRecB))
+      .add(both, agg::tv_term("windowEndS"), tn::Term::literal("120.0", std::string(tn::xsd::kDecimal)))
+      .add(both, tn::Term::iri("http://www.w3.org/ns/sosa/observedProperty"), agg::tv_term("HeartRateVariability"))
+      .add(both, tn::Term::iri("http://www.w3.org/ns/prov#wasDerivedFrom"), tn::Term::iri(kRecA + "/rr/1"))
+      .add(both, tn::Term::iri("http://www.w3.org/ns/prov#wasDerivedFrom"), tn::Term::iri(kRecA))
+      .add(both, agg::tv_term("windowStartS"), tn::Term::literal("60.0", std::string(tn::xsd::kDecimal)));
+  store("other-hrv", named);
+  trend(kRecA, agg::HrvMetric::sdnn, 60, false);
+
+  const agg::PatientsOnBoard board = read();
+  ASSERT_EQ(board.patients.size(), 1u) << "no patient for <B>";
+  const agg::PatientView& a = board.patients[0];
+  EXPECT_EQ(a.recording, kRecA);
+  EXPECT_EQ(a.windows, 2u);
+  EXPECT_EQ(a.latest.iri, both.value);
+  EXPECT_EQ(a.latest.recording, kRecA);
+  EXPECT_EQ(a.latest.window.start_s, 60);
+  ASSERT_EQ(a.trends.size(), 1u);
+  EXPECT_EQ(a.trends[0].window_start_s, 60);
+}
+
 // The chain asserts a window and the trend after it at the window's signal time: --since keeps
 // the patients with a window since then, and of each only what is that recent.
 TEST_F(PatientsOnBoard, SinceKeepsOnlyWindowsAndTrendsOfSignalTimeSinceThen) {

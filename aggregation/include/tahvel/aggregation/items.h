@@ -166,8 +166,8 @@ node::Item hrv_window_item(const RecordingInfo& info, const WindowMetrics& windo
 
 namespace tahvel::aggregation {
 
-// An HRV window item read back. recording: its tv:recording if present, else the
-// prov:wasDerivedFrom that the window's IRI extends (<rec>/hrv/<start_s>).
+// An HRV window item read back. recording: the prov:wasDerivedFrom that the window's IRI
+// extends (<rec>/hrv/<start_s>), else its tv:recording.
 struct HrvWindowItem {
   std::string iri;
   std::string recording;
