@@ -188,7 +188,8 @@ void print_help(std::ostream& out, const Command& command) {
   if (!command.description.empty()) out << "\n" << command.description << "\n";
   out << "\noptions:\n";
   print_flags(out, command.flags);
-  print_flags(out, common_flags());
+  for (const Flag& f : common_flags())
+    if (command.takes_prefix || f.name != "--prefix") print_flags(out, {f});
 }
 
 }  // namespace tahvel::cli

@@ -51,6 +51,8 @@ struct Command {
   std::vector<Flag> flags;
   std::size_t min_positional = 0;
   std::size_t max_positional = 0;
+  // Whether the common --prefix applies (false for `bench`, whose runs parse their own flags).
+  bool takes_prefix = true;
 };
 
 // The result of parsing: flag values by canonical name (Flag::name) and the positionals.

@@ -27,8 +27,9 @@ const Command kBenchCommand{
     "or 'federation' (link latency, ingest).",
     "'store' measures Tahvel's store against SQLite and sord on the same records in the same run\n"
     "and prints ratios. 'hrv' measures the R-peak detector and the whole HRV chain as multiples\n"
-    "of real time on one core over MIT-BIH records, and raw bytes kept at home against HRV bytes\n"
-    "sent up per patient-hour. 'spatial' measures which-sensors-in-a-room queries with 10,000\n"
+    "of real time on one core over MIT-BIH records, raw bytes kept at home against HRV bytes\n"
+    "sent up per patient-hour, and the operator's view (tahvel patients) of a hospital board\n"
+    "against listing what it reads. 'spatial' measures which-sensors-in-a-room queries with 10,000\n"
     "sensors and 1,000 rooms against testing every sensor. 'reason' measures reasoner sessions and\n"
     "a closure with SWI-Prolog on the same rules and facts. 'federation' measures store-to-hospital\n"
     "latency over DDS and LCM against the raw transports, items/s per link and hospital ingest\n"
@@ -37,7 +38,7 @@ const Command kBenchCommand{
     "federation) lists its flags.",
     {{"--json", "", "", "(after 'store') print one JSON object instead of the table"},
      {"--quick", "", "", "(after 'store') a small run of seconds, for smoke tests"}},
-    1, 64};
+    1, 64, false};
 
 void print_global_help(std::ostream& out) {
   out << "usage: tahvel SUBCOMMAND DIR [options]\n\n"
@@ -55,8 +56,8 @@ void print_global_help(std::ostream& out) {
          "sosa:Observation (the node's prefixes and --prefix P=IRI), _:label, \"text\",\n"
          "\"text\"@en, \"72\"^^xsd:integer, 72 (xsd:integer), 72.5 (xsd:decimal), 7e2 (xsd:double),\n"
          "true/false (xsd:boolean), and 'a' for rdf:type.\n\n"
-         "exit status: 0 success, 1 failure, 2 bad command line, 3 timed out (take, query),\n"
-         "4 unknown node, 5 unreachable node (query).\n";
+         "exit status: 0 success, 1 failure, 2 bad command line, 3 timed out (take, query, ecg,\n"
+         "stats --at), 4 unknown node, 5 unreachable node, 130 interrupted (query, ecg, stats --at).\n";
 }
 
 const Command* find_command(std::string_view name) {
@@ -67,7 +68,7 @@ const Command* find_command(std::string_view name) {
 }
 
 int run_help(const std::vector<std::string>& rest) {
-  if (rest.empty()) {
+  if (rest.empty() || rest[0] == "--help" || rest[0] == "-h" || rest[0] == "help") {
     print_global_help(std::cout);
   } else if (const Command* c = find_command(rest[0])) {
     print_help(std::cout, *c);

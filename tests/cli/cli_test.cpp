@@ -259,11 +259,15 @@ TEST_F(Cli, EverySubcommandHelpExits0WithItsUsageLine) {
     EXPECT_EQ(r.out.rfind("usage: tahvel " + name + " ", 0), 0u) << r.out;
     EXPECT_NE(r.out.find("--help"), std::string::npos) << r.out;
   }
-  for (std::vector<std::string> args : {std::vector<std::string>{"--help"}, {"help"}, {"help", "put"}}) {
+  for (std::vector<std::string> args :
+       {std::vector<std::string>{"--help"}, {"help"}, {"help", "put"}, {"help", "--help"}, {"help", "-h"}}) {
     Outcome r = run(args);
     EXPECT_EQ(r.status, 0) << r.err;
     EXPECT_NE(r.out.find("usage: tahvel"), std::string::npos) << r.out;
   }
+  // The bench runs parse their own flags: bench's help does not offer --prefix.
+  Outcome bench = run({"bench", "--help"});
+  EXPECT_EQ(bench.out.find("--prefix"), std::string::npos) << bench.out;
 }
 
 // A flag's value is a value, whatever it looks like. `up` runs a parent's link with `--child ID`,
