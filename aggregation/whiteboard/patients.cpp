@@ -6,7 +6,9 @@
 #include <charconv>
 #include <cmath>
 #include <map>
+#include <limits>
 #include <optional>
+#include <set>
 #include <utility>
 
 namespace tahvel::aggregation {
@@ -33,6 +35,10 @@ using node::Pattern;
 using node::Record;
 using node::Snapshot;
 using node::Term;
+
+// How far behind its windows a trend agent may be, in signal time: the first pass over trend
+// updates reaches back this much before the earliest of the patients' latest windows.
+constexpr std::int64_t kTrendLagNs = 15ll * 60 * 1'000'000'000;
 
 Error store_error(const node::Error& e) { return Error{"reading the board: " + e.message}; }
 
@@ -212,35 +218,84 @@ Result<PatientsOnBoard> patients_on_board(const Snapshot& snapshot, std::optiona
     }
   }
 
-  // Trends: the latest update per recording and metric, found through the indexes.
+  // Trends: the latest update per recording and metric, found through the indexes. The chain
+  // asserts a trend update at its window's signal time, so the updates since the earliest of
+  // the patients' latest windows (less kTrendLagNs) hold each patient's latest ones: the first
+  // pass reads only those, and the older ones are read only for a patient that lacks there a
+  // metric some update on the board has (a trend agent that stopped, or no longer writes that
+  // metric). Updates are three times the windows at the hospital: reading all of them took the
+  // view of 100 patients of 720 windows 3.8 s, against 1.2 s now (`tahvel bench hrv`).
   std::map<std::pair<std::string, std::string>, Entry> latest_trend;  // (recording, metric IRI)
-  Pattern trends;
-  trends.p = Term::iri(std::string(node::kRdfType));
-  trends.o = tv_term("HrvTrend");
-  trends.since = since;
-  listed = snapshot.list(trends);
-  if (!listed) return unexpected(store_error(listed.error()));
-  for (const Record& r : *listed) {
-    if (!r.triple.s.is_iri()) continue;
-    const std::string& iri = r.triple.s.value;
-    auto facts = objects_on_board(snapshot, iri, std::array{"recording", "metric", "windowStartS"});
-    if (!facts) return unexpected(facts.error());
-    const auto& [recording, metric, start] = *facts;
-    auto rec = iri_in(recording), which = iri_in(metric);
-    auto s = number_in(start);
-    Entry entry{iri, 0, r.meta.item, r.meta.source, r.meta.stored_at, r.meta.asserted_at};
-    if (!rec || !which || !s) {
-      auto t = read_whole(snapshot, entry, read_trend, unreadable);
-      if (!t) return unexpected(t.error());
-      if (!*t) continue;
-      rec = (*t)->recording;
-      which = std::string(kTv) + metric_local_name((*t)->metric);
-      s = (*t)->window_start_s;
+  std::int64_t recent_from = std::numeric_limits<std::int64_t>::max();
+  for (const auto& [recording, p] : patients) recent_from = std::min(recent_from, p.latest_asserted_ns);
+  recent_from = recent_from < std::numeric_limits<std::int64_t>::min() + kTrendLagNs ? std::numeric_limits<std::int64_t>::min()
+                                                                                       : recent_from - kTrendLagNs;
+  if (since) recent_from = std::max(recent_from, *since);
+  // Reads the trend updates asserted in [from, until) and keeps, per recording and metric, the
+  // one of the largest start that `wanted` accepts.
+  auto read_trends = [&](std::optional<std::int64_t> from, std::optional<std::int64_t> until,
+                         const auto& wanted) -> Result<void> {
+    Pattern trends;
+    trends.p = Term::iri(std::string(node::kRdfType));
+    trends.o = tv_term("HrvTrend");
+    trends.since = from;
+    trends.until = until;
+    auto listed = snapshot.list(trends);
+    if (!listed) return unexpected(store_error(listed.error()));
+    for (const Record& r : *listed) {
+      if (!r.triple.s.is_iri()) continue;
+      const std::string& iri = r.triple.s.value;
+      auto facts = objects_on_board(snapshot, iri, std::array{"recording", "metric", "windowStartS"});
+      if (!facts) return unexpected(facts.error());
+      const auto& [recording, metric, start] = *facts;
+      auto rec = iri_in(recording), which = iri_in(metric);
+      auto s = number_in(start);
+      Entry entry{iri, 0, r.meta.item, r.meta.source, r.meta.stored_at, r.meta.asserted_at};
+      if (!rec || !which || !s) {
+        auto t = read_whole(snapshot, entry, read_trend, unreadable);
+        if (!t) return unexpected(t.error());
+        if (!*t) continue;
+        rec = (*t)->recording;
+        which = std::string(kTv) + metric_local_name((*t)->metric);
+        s = (*t)->window_start_s;
+      }
+      if (!patients.count(*rec)) continue;  // its windows are gone (removed) or unreadable
+      if (!wanted(*rec, *which)) continue;
+      entry.start_s = *s;
+      auto [it, fresh] = latest_trend.emplace(std::make_pair(*rec, *which), entry);
+      if (!fresh && it->second.start_s < *s) it->second = entry;
     }
-    if (!patients.count(*rec)) continue;  // its windows are gone (removed) or unreadable
-    entry.start_s = *s;
-    auto [it, fresh] = latest_trend.emplace(std::make_pair(*rec, *which), entry);
-    if (!fresh && it->second.start_s < *s) it->second = entry;
+    return {};
+  };
+  if (!patients.empty()) {
+    const auto from = recent_from > std::numeric_limits<std::int64_t>::min() ? std::optional(recent_from) : std::nullopt;
+    auto recent = read_trends(from, std::nullopt, [](const std::string&, const std::string&) { return true; });
+    if (!recent) return unexpected(recent.error());
+  }
+  // Before that, only what the recent updates leave out: per patient, a metric that some update
+  // on the board has (a trend agent that stopped, or that no longer writes that metric).
+  std::set<std::string> board_metrics;
+  for (int m = 0; m <= static_cast<int>(HrvMetric::sd2); ++m) {
+    Pattern named;
+    named.p = tv_term("metric");
+    named.o = Term::iri(std::string(kTv) + metric_local_name(static_cast<HrvMetric>(m)));
+    bool any = false;
+    auto walked = snapshot.for_each(named, [&](const Record&) { return !(any = true); });
+    if (!walked) return unexpected(store_error(walked.error()));
+    if (any) board_metrics.insert(named.o->value);
+  }
+  std::set<std::pair<std::string, std::string>> recent_found;
+  for (const auto& [key, entry] : latest_trend) recent_found.insert(key);
+  auto lacks = [&](const std::string& recording, const std::string& metric) {
+    return board_metrics.count(metric) > 0 && recent_found.count({recording, metric}) == 0;
+  };
+  const bool some_lack = std::any_of(patients.begin(), patients.end(), [&](const auto& p) {
+    return std::any_of(board_metrics.begin(), board_metrics.end(), [&](const std::string& m) { return lacks(p.first, m); });
+  });
+  const bool older_exist = since ? recent_from > *since : recent_from > std::numeric_limits<std::int64_t>::min();
+  if (!patients.empty() && some_lack && older_exist) {
+    auto older = read_trends(since, recent_from, lacks);
+    if (!older) return unexpected(older.error());
   }
   for (const auto& [key, entry] : latest_trend) {
     auto t = read_whole(snapshot, entry, read_trend, unreadable);

@@ -154,17 +154,22 @@ struct OperatorView {
 
 // Fills the hospital store `node` with o.board_patients patients' windows, each derived from 60
 // RR items as tahvel-hrv writes them, and three trend updates per window as tahvel-trend writes
-// them (each with its metric's value); counts them into `v`.
+// them (each with its metric's value); counts them into `v`. As the chain does, each window and
+// its updates are asserted at the window's signal time: the recordings began board_windows
+// minutes ago, a second apart.
 void build_operator_board(node::Node& node, const std::string& hospital, const Options& o, OperatorView& v) {
   auto trend = node.agent("trend");
   if (!trend) fail(trend.error().message);
   const agg::HrvMetric metrics[] = {agg::HrvMetric::sdnn, agg::HrvMetric::rmssd, agg::HrvMetric::mean_hr};
+  const std::int64_t began = std::chrono::duration_cast<std::chrono::nanoseconds>(std::chrono::system_clock::now().time_since_epoch()).count() -
+                             static_cast<std::int64_t>(o.board_windows) * 60'000'000'000;
   for (std::size_t p = 0; p < o.board_patients; ++p) {
     const std::string home = "home" + std::to_string(p + 1);
     auto hrv = node.agent(home + "-hrv");
     if (!hrv) fail(hrv.error().message);
     agg::RecordingInfo info;
     info.iri = hospital + "/" + home + "/ecg/recording/r";
+    info.started_at = began + static_cast<std::int64_t>(p) * 1'000'000'000;
     for (std::size_t w = 0; w < o.board_windows; ++w) {
       agg::WindowMetrics window;
       window.start_s = 60.0 * static_cast<double>(w);
@@ -175,7 +180,9 @@ void build_operator_board(node::Node& node, const std::string& hospital, const O
       window.metrics.nn_count = window.metrics.rr_count = 70;
       std::vector<std::string> from;
       for (std::size_t k = 0; k < 60; ++k) from.push_back(info.iri + "/rr/" + std::to_string(w * 60 + k));
-      if (auto s = hrv->store(agg::hrv_window_item(info, window, hrv->iri(), from)); !s) fail(s.error().message);
+      node::Item window_item = agg::hrv_window_item(info, window, hrv->iri(), from);
+      window_item.asserted_at = agg::signal_time_ns(info, window.start_s);
+      if (auto s = hrv->store(window_item); !s) fail(s.error().message);
       ++v.windows;
       for (agg::HrvMetric metric : metrics) {
         agg::TrendUpdate u;
@@ -185,7 +192,9 @@ void build_operator_board(node::Node& node, const std::string& hospital, const O
         u.window_iri = agg::hrv_iri(info.iri, window.start_s);
         u.windows = w + 1;
         u.latest = agg::metric_value(window.metrics, metric);
-        if (auto s = trend->store(agg::trend_item(u, trend->iri())); !s) fail(s.error().message);
+        node::Item update = agg::trend_item(u, trend->iri());
+        update.asserted_at = window_item.asserted_at;
+        if (auto s = trend->store(update); !s) fail(s.error().message);
         ++v.trend_updates;
       }
     }

@@ -223,6 +223,68 @@ TEST_F(PatientsOnBoard, SinceKeepsOnlyWindowsAndTrendsOfSignalTimeSinceThen) {
   EXPECT_EQ(a.trends[0].window_start_s, 60);
 }
 
+// The view reads the trend updates of the last windows first (those since the earliest of the
+// patients' latest windows, less a quarter of an hour) and the older ones only for what those
+// leave out; the answer is the latest update per metric either way.
+TEST_F(PatientsOnBoard, ATrendOlderThanThePatientsLatestWindowsIsStillTheirLatest) {
+  const std::int64_t t0 = 1'700'000'000'000'000'000, hour = 3'600'000'000'000;
+  // A: the trend agent stopped two hours before A's latest window.
+  window("home1-hrv", kRecA, 0, 50, std::nullopt, t0);
+  window("home1-hrv", kRecA, 7200, 52, std::nullopt, t0 + 2 * hour);
+  trend(kRecA, agg::HrvMetric::sdnn, 0, true, t0);
+  trend(kRecA, agg::HrvMetric::rmssd, 0, false, t0);
+  // B: its RMSSD was last updated an hour before its latest window, its SDNN at it.
+  window("home2-hrv", kRecB, 0, 40, std::nullopt, t0 + hour);
+  window("home2-hrv", kRecB, 3600, 41, std::nullopt, t0 + 2 * hour);
+  trend(kRecB, agg::HrvMetric::rmssd, 0, false, t0 + hour);
+  trend(kRecB, agg::HrvMetric::sdnn, 0, false, t0 + hour);
+  trend(kRecB, agg::HrvMetric::sdnn, 3600, false, t0 + 2 * hour);
+
+  const agg::PatientsOnBoard board = read();
+  ASSERT_EQ(board.patients.size(), 2u);
+  const agg::PatientView& a = board.patients[0];
+  ASSERT_EQ(a.recording, kRecA);
+  ASSERT_EQ(a.trends.size(), 2u);
+  EXPECT_EQ(a.trends[0].metric, agg::HrvMetric::sdnn);
+  EXPECT_EQ(a.trends[0].window_start_s, 0);
+  EXPECT_TRUE(a.alerting());
+  EXPECT_EQ(a.trends[1].metric, agg::HrvMetric::rmssd);
+  const agg::PatientView& b = board.patients[1];
+  ASSERT_EQ(b.recording, kRecB);
+  ASSERT_EQ(b.trends.size(), 2u);
+  EXPECT_EQ(b.trends[0].metric, agg::HrvMetric::sdnn);
+  EXPECT_EQ(b.trends[0].window_start_s, 3600);
+  EXPECT_EQ(b.trends[1].metric, agg::HrvMetric::rmssd);
+  EXPECT_EQ(b.trends[1].window_start_s, 0);
+
+  // With --since, the older updates are looked for only since then.
+  const agg::PatientsOnBoard since = read(t0 + hour);
+  ASSERT_EQ(since.patients.size(), 2u);
+  EXPECT_TRUE(since.patients[0].trends.empty()) << "A has no update since then";
+  EXPECT_EQ(since.patients[1].trends.size(), 2u);
+}
+
+// A metric the trend agent no longer writes (--metric changed) still shows its latest update:
+// the older updates are read for it.
+TEST_F(PatientsOnBoard, AMetricNoLongerWrittenStillShowsItsLatestUpdate) {
+  const std::int64_t t0 = 1'700'000'000'000'000'000, hour = 3'600'000'000'000;
+  for (const std::string& rec : {kRecA, kRecB}) {
+    window(rec == kRecA ? "home1-hrv" : "home2-hrv", rec, 0, 50, std::nullopt, t0);
+    window(rec == kRecA ? "home1-hrv" : "home2-hrv", rec, 3600, 50, std::nullopt, t0 + hour);
+    trend(rec, agg::HrvMetric::pnn50, 0, false, t0);
+    trend(rec, agg::HrvMetric::sdnn, 3600, false, t0 + hour);
+  }
+  const agg::PatientsOnBoard board = read();
+  ASSERT_EQ(board.patients.size(), 2u);
+  for (const agg::PatientView& p : board.patients) {
+    ASSERT_EQ(p.trends.size(), 2u) << p.recording;
+    EXPECT_EQ(p.trends[0].metric, agg::HrvMetric::sdnn);
+    EXPECT_EQ(p.trends[0].window_start_s, 3600);
+    EXPECT_EQ(p.trends[1].metric, agg::HrvMetric::pnn50);
+    EXPECT_EQ(p.trends[1].window_start_s, 0);
+  }
+}
+
 TEST_F(PatientsOnBoard, ABoardWithoutHrvHasNoPatients) {
   store("cli", tn::Item{}.add(tn::Term::iri(kHospital + "/x"), agg::tv_term("note"), tn::Term::literal("hello")));
   const agg::PatientsOnBoard board = read();
