@@ -157,6 +157,7 @@ void NnClassifier::reset() {
   finishing_ = false;
   seed_pending_ = true;
   skip_next_ = false;
+  after_couplet_ = false;
   prev_ok_ = false;
   prev_rr_ = 0;
   prev_pause_ = false;
@@ -172,9 +173,21 @@ void NnClassifier::advance(std::vector<Interval>& decided) {
   while (!pending_.empty()) {
     if (skip_next_) {
       skip_next_ = false;
-      const bool short_too = pending_.front().rr < short_limit_;
+      const double r = pending_.front().rr;
+      const bool short_too = r < short_limit_;
+      // The pair of a short interval that is short itself is a premature beat too (the second
+      // of a couplet, N V V N): a pause after it is its compensatory pause, not NN either.
+      after_couplet_ = short_too && r > 0;
       decide(false, decided, short_too ? Track::short_interval : Track::other);
       continue;
+    }
+    if (after_couplet_) {
+      after_couplet_ = false;
+      const double r = pending_.front().rr;
+      if (!hist_.empty() && r > median_of(hist_) + steady_tol_ && r <= max_rr_) {
+        decide(false, decided);
+        continue;
+      }
     }
     if (seed_pending_ && !seed()) return;
     if (!step(decided)) return;

@@ -57,6 +57,30 @@ TEST(DetectedRule, PrematureBeatExcludesBothIntervals) {
   for (std::size_t i = 0; i < iv.size(); ++i) EXPECT_EQ(iv[i].nn, i != 20 && i != 21) << i;
 }
 
+// N V V N: the first short interval and its pair (V-V, short too) are rejected by the pair
+// rule; the pause after the couplet is its compensatory pause (MIT-BIH 116 at 1551 s: 1042 ms
+// against a reference of 735, below the long limit) and is not NN either.
+TEST(DetectedRule, PauseAfterACoupletIsNotNn) {
+  std::vector<int> rr(40, 265);
+  rr[20] = 150;  // N-V
+  rr[21] = 145;  // V-V
+  rr[22] = 375;  // V-N: the pause, 1.42 x the reference
+  const auto iv = intervals_from_peaks(peaks_from_rr(rr), 360);
+  for (std::size_t i = 0; i < iv.size(); ++i) EXPECT_EQ(iv[i].nn, i < 20 || i > 22) << i;
+}
+
+// A split interval (two short halves) followed by an interval at the reference keeps that one.
+TEST(DetectedRule, AnIntervalAtTheReferenceAfterTwoShortOnesIsNn) {
+  std::vector<int> rr(40, 300);
+  rr[15] = 140;
+  rr[16] = 160;
+  rr[17] = 305;
+  const auto iv = intervals_from_peaks(peaks_from_rr(rr), 360);
+  EXPECT_FALSE(iv[15].nn);
+  EXPECT_FALSE(iv[16].nn);
+  EXPECT_TRUE(iv[17].nn);
+}
+
 TEST(DetectedRule, SlightlyPrematureBeatWithPauseIsCaught) {
   std::vector<int> rr(40, 300);
   rr[20] = 275;  // 8 % early: below short_fraction, but followed by a pause

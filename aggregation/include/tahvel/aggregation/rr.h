@@ -222,6 +222,7 @@ class NnClassifier {
   bool finishing_ = false;       // inside finish(): look-ahead stops at the last peak
   bool seed_pending_ = true;     // the reference restarts at the front interval
   bool skip_next_ = false;       // the next interval is the pair of a short one: not NN
+  bool after_couplet_ = false;   // that pair was short too: a pause after it is not NN
   bool prev_ok_ = false;         // the decision and RR of the interval before the front
   double prev_rr_ = 0;
   bool prev_pause_ = false;      // the interval before the front was a confirmed pause
