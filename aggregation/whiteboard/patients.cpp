@@ -18,9 +18,15 @@ bool PatientView::alerting() const {
 }
 
 std::string PatientView::source_node() const {
+  // The last path segment goes: "http://h/home1/hrv" -> "http://h/home1", and an IRI without
+  // an authority as well ("urn:tahvel:h/home1/hrv" -> "urn:tahvel:h/home1"). Nothing is left of
+  // "http://hrv" or "urn:hrv" once the segment goes.
+  const std::size_t colon = source.find(':');
   const std::size_t slash = source.rfind('/');
-  const std::size_t authority = source.find("://");
-  if (slash == std::string::npos || authority == std::string::npos || slash <= authority + 2) return {};
+  if (colon == std::string::npos || slash == std::string::npos || slash < colon) return {};
+  const bool authority = source.compare(colon, 3, "://") == 0;
+  if (authority && slash <= colon + 2) return {};
+  if (source.compare(colon + 1, slash - colon - 1, std::string(slash - colon - 1, '/')) == 0) return {};
   return source.substr(0, slash);
 }
 

@@ -477,7 +477,7 @@ std::vector<std::string> link_argv(const Topology& topo, const NodeSpec& spec, c
     if (l.kind == "lcm") argv.insert(argv.end(), {prefix + "lcm-url", l.lcm_url});
     if (l.kind == "dds") {
       argv.insert(argv.end(), {prefix + "dds-domain", std::to_string(l.dds_domain)});
-      if (!l.dds_config.empty()) argv.insert(argv.end(), {prefix + "dds-config", fs::absolute(l.dds_config).string()});
+      if (!l.dds_config.empty()) argv.insert(argv.end(), {prefix + "dds-config", fs::absolute(l.dds_config).lexically_normal().string()});
     }
   };
   if (const LinkSpec* uplink = topo.uplink(spec)) {
@@ -1256,7 +1256,7 @@ int ask_to_apply(pid_t supervisor, const fs::path& pid_file, const fs::path& fil
   // With this process's environment: the supervisor expands the agents' commands with it, as
   // this `up` checked them (TAHVEL_MITDB switches to run_with_mitdb).
   const CommandContext here = CommandContext::of_this_process();
-  const std::string request = id + "\n" + fs::absolute(file).string() + "\nmitdb=" + here.mitdb + "\npath=" + here.path +
+  const std::string request = id + "\n" + fs::absolute(file).lexically_normal().string() + "\nmitdb=" + here.mitdb + "\npath=" + here.path +
                               "\nbin=" + here.bin.string() + "\n";
   if (std::count(request.begin(), request.end(), '\n') != 5)
     fail("the topology file's path, TAHVEL_MITDB, PATH or this program's directory has a line break: the running supervisor "
@@ -2126,7 +2126,14 @@ int run_status(const Args& args) {
       n.programs_unknown_because = "its supervisor has not refreshed them for " + seconds_text(seconds_since(n.programs_at));
     n.programs_current = n.programs_unknown_because.empty();
   }
-  std::sort(nodes.begin(), nodes.end(), [](const StatusNode& a, const StatusNode& b) { return a.iri < b.iri; });
+  // Depth first: each node right after its parent and before the parent's next sibling. '/'
+  // sorts before every other character here, as in plain order "home1-annex" and "home1.0"
+  // came between "home1" and "home1/bed-a".
+  std::sort(nodes.begin(), nodes.end(), [](const StatusNode& a, const StatusNode& b) {
+    auto rank = [](char c) { return c == '/' ? -1 : static_cast<int>(static_cast<unsigned char>(c)); };
+    return std::lexicographical_compare(a.iri.begin(), a.iri.end(), b.iri.begin(), b.iri.end(),
+                                        [&](char x, char y) { return rank(x) < rank(y); });
+  });
   const bool json = args.has("--json");
   if (json) std::cout << "{\"state\":\"" << node::json_escape(state.string()) << "\",\"nodes\":[";
   bool first_node = true;
@@ -2137,8 +2144,12 @@ int run_status(const Args& args) {
       n.uplink.clear();
     }
     int depth = 0;
+    const StatusNode* parent = nullptr;  // the nearest node above it here
     for (const StatusNode& other : nodes)
-      if (other.iri != n.iri && uri::is_under(n.iri, other.iri)) ++depth;
+      if (other.iri != n.iri && uri::is_under(n.iri, other.iri)) {
+        ++depth;
+        if (!parent || other.iri.size() > parent->iri.size()) parent = &other;
+      }
     // What the parent keeps of this node's link (written by the parent's link: shown as that
     // program's name when the parent is here), and whether it can be believed.
     std::string said, unknown_because;
@@ -2170,7 +2181,9 @@ int run_status(const Args& args) {
     const std::string& programs_unknown_because = n.programs_unknown_because;
     if (json) {
       std::cout << (first_node ? "" : ",") << "{\"id\":\"" << node::json_escape(n.id) << "\",\"iri\":\""
-                << node::json_escape(n.iri) << "\",\"depth\":" << depth << ",\"remote\":" << (n.remote ? "true" : "false")
+                << node::json_escape(n.iri) << "\",\"depth\":" << depth << ",\"parent\":";
+      print_json_string_or_null(parent ? parent->iri : std::string());
+      std::cout << ",\"remote\":" << (n.remote ? "true" : "false")
                 << ",\"in_deployment\":" << (left ? "false" : "true")
                 << ",\"link\":";
       first_node = false;

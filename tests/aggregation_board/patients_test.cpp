@@ -285,6 +285,24 @@ TEST_F(PatientsOnBoard, AMetricNoLongerWrittenStillShowsItsLatestUpdate) {
   }
 }
 
+// Where the raw ECG behind a window is: the writer's node, its IRI less the agent's id, for an
+// IRI with an authority or without one (a deployment rooted at a URN).
+TEST(PatientView, TheSourceNodeIsTheWritersIriLessItsLastSegment) {
+  agg::PatientView p;
+  auto node_of = [&](const std::string& source) {
+    p.source = source;
+    return p.source_node();
+  };
+  EXPECT_EQ(node_of("http://example.org/hospital/home1/hrv"), "http://example.org/hospital/home1");
+  EXPECT_EQ(node_of("urn:tahvel:h/home1/hrv"), "urn:tahvel:h/home1");
+  EXPECT_EQ(node_of("https://h.example:8443/care/north/hrv"), "https://h.example:8443/care/north");
+  EXPECT_EQ(node_of("http://example.org/hrv"), "http://example.org");
+  EXPECT_EQ(node_of("http://hrv"), "");
+  EXPECT_EQ(node_of("urn:hrv"), "");
+  EXPECT_EQ(node_of("urn:/hrv"), "");
+  EXPECT_EQ(node_of("hrv"), "");
+}
+
 TEST_F(PatientsOnBoard, ABoardWithoutHrvHasNoPatients) {
   store("cli", tn::Item{}.add(tn::Term::iri(kHospital + "/x"), agg::tv_term("note"), tn::Term::literal("hello")));
   const agg::PatientsOnBoard board = read();

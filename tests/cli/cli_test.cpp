@@ -63,11 +63,12 @@ class Cli : public ::testing::Test {
   // Starts `tahvel ARGS` with `input` on standard input; returns its pid. Standard output goes
   // to tmp/outN, or to `stdout_path` when given.
   pid_t spawn(const std::vector<std::string>& args, const std::string& input, int n,
-              const fs::path& stdout_path = {}) {
+              const fs::path& stdout_path = {}, const fs::path& cwd = {}) {
     spit(tmp_ / ("in" + std::to_string(n)), input);
     fs::path out = stdout_path.empty() ? tmp_ / ("out" + std::to_string(n)) : stdout_path;
     pid_t pid = fork();
     if (pid == 0) {
+      if (!cwd.empty() && chdir(cwd.c_str()) != 0) _exit(126);
       redirect(tmp_ / ("in" + std::to_string(n)), 0, O_RDONLY);
       redirect(out, 1, O_WRONLY | O_CREAT | O_TRUNC);
       redirect(tmp_ / ("err" + std::to_string(n)), 2, O_WRONLY | O_CREAT | O_TRUNC);
@@ -93,6 +94,12 @@ class Cli : public ::testing::Test {
   Outcome run(const std::vector<std::string>& args, const std::string& input = "") {
     int n = ++runs_;
     return finish(spawn(args, input, n), n);
+  }
+
+  // The same, run in the directory `cwd` (for relative paths as a user gives them).
+  Outcome run_in(const fs::path& cwd, const std::vector<std::string>& args) {
+    int n = ++runs_;
+    return finish(spawn(args, "", n, {}, cwd), n);
   }
 
   // Up to 5 s, every 50 ms, until `condition` holds.
@@ -1199,6 +1206,65 @@ TEST_F(Cli, StatusShowsAChildWhoseLinkNeverStartedAsSuchNotAsARoot) {
   EXPECT_EQ(run({"down", "--state", state}).status, 0);
 }
 
+// Each node under its own parent, when a sibling's id is another's and more ("home1-annex"
+// sorted between "home1" and "home1/bed-a" as plain strings: bed-a was shown under the annex).
+TEST_F(Cli, StatusShowsEachNodeUnderItsOwnParentWhenSiblingIdsShareAPrefix) {
+  std::string config = slurp(fs::path(TAHVEL_SOURCE_DIR) / "deploy" / "cyclonedds-loopback.xml");
+  const std::string lo = "<NetworkInterface name=\"lo\"";
+  ASSERT_NE(config.find(lo), std::string::npos);
+  config.replace(config.find(lo), lo.size(), "<NetworkInterface name=\"eth9\"");  // links fail, no packets
+  spit(tmp_ / "eth9.xml", config);
+  const std::string file = (tmp_ / "t.toml").string(), state = (tmp_ / "state").string();
+  const std::string listen = "listen = { kind = \"dds\", config = \"eth9.xml\" }\n";
+  spit(file, "[[node]]\nid = \"hospital\"\niri = \"http://example.org/icu\"\n" + listen +
+                 "[[node]]\nid = \"home1\"\nparent = \"hospital\"\n" + listen +
+                 "[[node]]\nid = \"home1-annex\"\nparent = \"hospital\"\n" + listen +
+                 "[[node]]\nid = \"bed-a\"\nparent = \"home1\"\n"
+                 "[[node]]\nid = \"bed-b\"\nparent = \"home1-annex\"\n");
+  Outcome up = run({"up", file, "--state", state});
+  ASSERT_EQ(up.status, 0) << up.err;
+  Outcome shown = status_until(state, "bed-b  <");
+  const std::size_t home1 = shown.out.find("\n  home1  <"), bed_a = shown.out.find("\n    bed-a  <"),
+                    annex = shown.out.find("\n  home1-annex  <"), bed_b = shown.out.find("\n    bed-b  <");
+  ASSERT_NE(home1, std::string::npos) << shown.out;
+  ASSERT_NE(bed_a, std::string::npos) << shown.out;
+  ASSERT_NE(annex, std::string::npos) << shown.out;
+  ASSERT_NE(bed_b, std::string::npos) << shown.out;
+  EXPECT_LT(home1, bed_a) << shown.out;
+  EXPECT_LT(bed_a, annex) << shown.out;
+  EXPECT_LT(annex, bed_b) << shown.out;
+  const std::string json = run({"status", "--state", state, "--json"}).out;
+  EXPECT_NE(json.find("\"iri\":\"http://example.org/icu/home1/bed-a\",\"depth\":2,\"parent\":\"http://example.org/icu/home1\","),
+            std::string::npos)
+      << json;
+  EXPECT_NE(json.find("\"iri\":\"http://example.org/icu/home1-annex\",\"depth\":1,\"parent\":\"http://example.org/icu\","),
+            std::string::npos)
+      << json;
+  EXPECT_EQ(run({"down", "--state", state}).status, 0);
+}
+
+// A topology file named with ".." (up ../t.toml): the links were started with the DDS file's
+// path as "sub/../eth9.xml" and the next, unchanged, `up` found it written "eth9.xml" and
+// restarted every DDS link.
+TEST_F(Cli, UpAgainWithAFileNamedThroughDotDotChangesNothing) {
+  std::string config = slurp(fs::path(TAHVEL_SOURCE_DIR) / "deploy" / "cyclonedds-loopback.xml");
+  const std::string lo = "<NetworkInterface name=\"lo\"";
+  ASSERT_NE(config.find(lo), std::string::npos);
+  config.replace(config.find(lo), lo.size(), "<NetworkInterface name=\"eth9\"");  // links fail, no packets
+  spit(tmp_ / "eth9.xml", config);
+  spit(tmp_ / "t.toml", "[[node]]\nid = \"hospital\"\niri = \"http://example.org/hospital\"\n"
+                        "listen = { kind = \"dds\", config = \"eth9.xml\" }\n"
+                        "[[node]]\nid = \"home1\"\nparent = \"hospital\"\n");
+  fs::create_directories(tmp_ / "sub");
+  Outcome up = run_in(tmp_ / "sub", {"up", "../t.toml", "--state", "../state"});
+  ASSERT_EQ(up.status, 0) << up.err;
+  Outcome again = run_in(tmp_ / "sub", {"up", "../t.toml", "--state", "../state"});
+  EXPECT_EQ(again.status, 0) << again.err;
+  EXPECT_NE(again.out.find("nothing to change"), std::string::npos) << again.out;
+  EXPECT_EQ(again.out.find("restarted"), std::string::npos) << again.out;
+  EXPECT_EQ(run({"down", "--state", (tmp_ / "state").string()}).status, 0);
+}
+
 // A node of this machine whose store was deleted while it runs: its link fails at every start.
 // `status` showed it as a node on another machine, with nothing known of its programs.
 TEST_F(Cli, StatusShowsANodeWhoseStoreWasDeletedAsLocalWithItsFailingLink) {
@@ -1225,7 +1291,7 @@ TEST_F(Cli, StatusShowsANodeWhoseStoreWasDeletedAsLocalWithItsFailingLink) {
       << shown.out;
   EXPECT_EQ(shown.out.find("on another machine"), std::string::npos) << shown.out;
   Outcome json = run({"status", "--state", state, "--local", "--json"});
-  EXPECT_NE(json.out.find("\"id\":\"home1\",\"iri\":\"http://example.org/hospital/home1\",\"depth\":1,\"remote\":false"), std::string::npos)
+  EXPECT_NE(json.out.find("\"id\":\"home1\",\"iri\":\"http://example.org/hospital/home1\",\"depth\":1,\"parent\":\"http://example.org/hospital\",\"remote\":false"), std::string::npos)
       << json.out;
   EXPECT_EQ(run({"down", "--state", state}).status, 0);
 }
@@ -1317,7 +1383,7 @@ TEST_F(Cli, StatusJsonHasEachNodesLinkAndPrograms) {
   Outcome json = run({"status", "--state", state, "--json"});
   EXPECT_EQ(json.status, 0) << json.err;
   EXPECT_EQ(json.out.rfind("{\"state\":\"" + state + "\",\"nodes\":[{\"id\":\"solo\",\"iri\":\"http://example.org/solo\",\"depth\":0,"
-                           "\"remote\":false,\"in_deployment\":true,\"link\":null,\"has_parent\":false,\"uplink\":null,\"programs\":[",
+                           "\"parent\":null,\"remote\":false,\"in_deployment\":true,\"link\":null,\"has_parent\":false,\"uplink\":null,\"programs\":[",
                            0),
             0u)
       << json.out;

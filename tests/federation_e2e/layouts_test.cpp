@@ -150,7 +150,7 @@ TEST_F(Deployment, StatusDoesNotShowAStoppedParentsLastWordAsTheLinksState) {
   std::string shown;
   ASSERT_TRUE(eventually([&] { return (shown = status()).find("gateway  <" + kWard + "/gateway>  link up, last seen") != std::string::npos; }))
       << shown;
-  const std::string gateway_json = "{\"id\":\"gateway\",\"iri\":\"" + kWard + "/gateway\",\"depth\":1,\"remote\":false,\"in_deployment\":true,\"link\":{\"parent\":\"" + kWard +
+  const std::string gateway_json = "{\"id\":\"gateway\",\"iri\":\"" + kWard + "/gateway\",\"depth\":1,\"parent\":\"" + kWard + "\",\"remote\":false,\"in_deployment\":true,\"link\":{\"parent\":\"" + kWard +
                                    "\",\"state\":\"up\",";
   shown = tahvel("status --json --state " + state_.string());
   EXPECT_NE(shown.find(gateway_json + "\"known\":true,\"unknown_because\":null,\"last_seen_ns\":"), std::string::npos) << shown;
@@ -304,7 +304,7 @@ TEST_F(Deployment, StatusOnTheRootsMachineShowsTheNodesAndProgramsOfTheMachinesB
   std::ofstream(rule_file) << "alert(X) :- hot(X).\n";
   EXPECT_TRUE(eventually([&] { return (shown = status_of("ward")).find("PROBLEM") == std::string::npos; })) << shown;
   const std::string json = status_of("ward", " --json");
-  EXPECT_NE(json.find("{\"id\":\"sensor\",\"iri\":\"" + kWard + "/gateway/sensor\",\"depth\":2,\"remote\":true,"), std::string::npos) << json;
+  EXPECT_NE(json.find("{\"id\":\"sensor\",\"iri\":\"" + kWard + "/gateway/sensor\",\"depth\":2,\"parent\":\"" + kWard + "/gateway\",\"remote\":true,"), std::string::npos) << json;
   EXPECT_NE(json.find("\"programs_known\":true,\"programs_unknown_because\":null,\"programs_written_ns\":1"), std::string::npos) << json;
 
   // What the nodes below hold, without fetching it (`stats --predicates --at`), one and two hops
