@@ -189,15 +189,29 @@ double ended_by_record(double start, double end, std::optional<double> record_en
   return std::max(start, *record_end_s);
 }
 
+// Window k is [origin + k·step, origin + (k + windows_per_step)·step): its end is computed as the
+// start of window k + window/step when that is a whole number (window = step: the next window's
+// start), so that an interval ending exactly on the boundary falls in one window. As start +
+// window, with a step of 1.1 s, k·1.1 + 1.1 and (k + 1)·1.1 differ in the last bit, and such an
+// interval fell in neither window or in both.
+namespace {
+double steps_per_window(double window_s, double step_s) {
+  const double ratio = window_s / step_s;
+  const double whole = std::round(ratio);
+  return whole >= 1 && std::abs(ratio - whole) <= 1e-9 * whole ? whole : ratio;
+}
+}  // namespace
+
 std::vector<WindowMetrics> windowed_hrv(const std::vector<Interval>& intervals, double fs,
                                         double window_s, double step_s, const HrvOptions& o,
                                         std::optional<double> record_end_s) {
   std::vector<WindowMetrics> out;
   if (!(window_s > 0) || !(step_s > 0) || !(fs > 0) || intervals.empty()) return out;
   const double last = static_cast<double>(intervals.back().end) / fs;
+  const double span = steps_per_window(window_s, step_s);
   std::size_t first = 0;  // first interval that can belong to window k or later
   for (std::size_t k = 0; static_cast<double>(k) * step_s <= last; ++k) {
-    const double start = static_cast<double>(k) * step_s, end = start + window_s;
+    const double start = static_cast<double>(k) * step_s, end = (static_cast<double>(k) + span) * step_s;
     while (first < intervals.size() && static_cast<double>(intervals[first].end) / fs < start) ++first;
     std::vector<Interval> in;
     for (std::size_t i = first; i < intervals.size(); ++i) {
@@ -227,8 +241,12 @@ void HrvWindower::resume_after(double end_s, double length_s) {
   next_ = 0;
 }
 
+double HrvWindower::front_end() const {
+  return origin_s_ + (static_cast<double>(next_) + steps_per_window(window_s_, step_s_)) * step_s_;
+}
+
 void HrvWindower::emit_front(std::vector<WindowMetrics>& completed, std::optional<double> record_end_s) {
-  const double start = origin_s_ + static_cast<double>(next_) * step_s_, end = start + window_s_;
+  const double start = origin_s_ + static_cast<double>(next_) * step_s_, end = front_end();
   std::vector<Interval> in;
   for (const Interval& iv : buffer_) {
     const double t = static_cast<double>(iv.end) / fs_;
@@ -244,7 +262,7 @@ void HrvWindower::emit_front(std::vector<WindowMetrics>& completed, std::optiona
 void HrvWindower::push(const Interval& interval, std::vector<WindowMetrics>& completed) {
   if (!(fs_ > 0) || !(window_s_ > 0) || !(step_s_ > 0)) return;
   const double t = static_cast<double>(interval.end) / fs_;
-  while (origin_s_ + static_cast<double>(next_) * step_s_ + window_s_ <= t) emit_front(completed);
+  while (front_end() <= t) emit_front(completed);
   buffer_.push_back(interval);
   last_end_s_ = t;
 }

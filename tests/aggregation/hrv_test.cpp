@@ -282,6 +282,26 @@ TEST(Windows, IntervalBelongsToTheWindowOfItsEndBeat) {
   EXPECT_TRUE(windowed_hrv(chain({900}, {}), 1000, 0, 1).empty());
 }
 
+// Windows of a length that is not a whole number of seconds, one after the other: an interval
+// ending exactly on a boundary is in one window. With the end taken as start + length, 434.2 s
+// (MIT-BIH 116, --window 0.2) was in no window, and with 1.1 s windows intervals were in two.
+TEST(Windows, AnIntervalEndingOnABoundaryIsInExactlyOneWindow) {
+  for (auto [length, samples] : {std::pair{1.1, std::int64_t{396}}, std::pair{0.2, std::int64_t{72}},
+                                 std::pair{0.7, std::int64_t{252}}, std::pair{0.3, std::int64_t{108}}}) {
+    const auto series = chain(std::vector<std::int64_t>(2000, samples), {});  // ends on every boundary at 360 Hz
+    std::size_t counted = 0;
+    for (const auto& m : windowed_hrv(series, 360, length, length)) counted += m.metrics.rr_count;
+    EXPECT_EQ(counted, series.size()) << length;
+    HrvWindower w(360, length, length);
+    std::vector<WindowMetrics> streamed;
+    for (const auto& iv : series) w.push(iv, streamed);
+    w.finish(streamed);
+    std::size_t streamed_count = 0;
+    for (const auto& m : streamed) streamed_count += m.metrics.rr_count;
+    EXPECT_EQ(streamed_count, series.size()) << length;
+  }
+}
+
 TEST(Windows, StreamingEmitsAWindowWhenAnIntervalPassesItsEnd) {
   HrvWindower w(1000, 1.0, 1.0);
   std::vector<WindowMetrics> done;

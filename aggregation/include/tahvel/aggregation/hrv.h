@@ -113,6 +113,7 @@ class HrvWindower {
 
  private:
   void emit_front(std::vector<WindowMetrics>& completed, std::optional<double> record_end_s = std::nullopt);
+  double front_end() const;  // where the next window to complete ends
   double fs_, window_s_, step_s_;
   HrvOptions options_;
   double origin_s_ = 0;      // start of window 0 of the current setting
