@@ -257,6 +257,7 @@ Result<RecordHeader> read_header(const std::string& record_path) {
   if (!in) return fail(file + ": cannot open header");
   RecordHeader h;
   h.directory = parent_dir(file);
+  h.path = file;
   bool have_record_line = false;
   int line_no = 0;
   for (std::string raw; std::getline(in, raw);) {
@@ -430,7 +431,7 @@ std::vector<std::string> checksum_mismatches(const Signals& signals) {
     for (std::int32_t v : signals.samples[i]) sum = static_cast<std::uint16_t>(sum + static_cast<std::uint16_t>(v));
     const auto said = static_cast<std::uint16_t>(info.checksum);
     if (sum != said)
-      out.push_back(signals.header.directory + "/" + signals.header.name + ".hea: signal " + std::to_string(i) + " (" +
+      out.push_back(signals.header.path + ": signal " + std::to_string(i) + " (" +
                     info.description + "): its samples add up to " + std::to_string(static_cast<std::int16_t>(sum)) +
                     ", the header's checksum is " + std::to_string(static_cast<std::int16_t>(said)) +
                     " (is " + info.file + " in format " + std::to_string(info.format) + "?)");

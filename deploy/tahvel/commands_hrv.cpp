@@ -96,7 +96,9 @@ int run_eval(const Args& args, const agg::ChainOptions& options, std::size_t sig
   for (const std::string& record : args.positional()) {
     auto report = agg::hrv_from_record(record, options, signal);
     if (!report) fail(report.error().message);
-    for (const std::string& warning : report->warnings) std::cerr << "tahvel: warning: " << warning << "\n";
+    // Several records: each warning says whose it is (a checksum's names its header already).
+    for (const std::string& warning : report->warnings)
+      std::cerr << "tahvel: warning: " << (warning.starts_with(record) ? "" : record + ": ") << warning << "\n";
     auto reference = agg::read_annotations(record, "atr");
     if (!reference) fail(reference.error().message);
     agg::BeatScore score = agg::score_beats(*reference, report->beats, report->fs);

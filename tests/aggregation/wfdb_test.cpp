@@ -227,6 +227,12 @@ TEST_F(WfdbTemp, ASignalWhoseSamplesDoNotAddUpToTheChecksumIsNamed) {
   const auto said = checksum_mismatches(*s);
   ASSERT_EQ(said.size(), 1u);
   EXPECT_NE(said[0].find("r.hea: signal 0 (II): its samples add up to 256, the header's checksum is 257"), std::string::npos) << said[0];
+  // The file read is named, not the record line's name for it.
+  write("small.hea", "100 1 100 3\nr.dat 16 200 16 0 1 257 0 II\n");
+  s = read_signals(record("small"));
+  ASSERT_TRUE(s) << s.error().message;
+  ASSERT_EQ(checksum_mismatches(*s).size(), 1u);
+  EXPECT_EQ(checksum_mismatches(*s)[0].rfind(record("small") + ".hea: signal 0 (II)", 0), 0u) << checksum_mismatches(*s)[0];
 }
 
 TEST_F(WfdbTemp, DefaultsApplyWhenOptionalFieldsAreAbsent) {

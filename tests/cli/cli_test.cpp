@@ -721,6 +721,14 @@ TEST_F(Cli, HrvEvalScoresAgainstTheReferenceAnnotations) {
   EXPECT_NE(r.out.find("+P"), std::string::npos);
 }
 
+// Several records scored at once: a warning says which record it is about.
+TEST_F(Cli, HrvEvalOfSeveralRecordsNamesTheRecordOfEachWarning) {
+  Outcome r = run({"hrv", mitdb_record("100"), mitdb_record("200"), "--eval"});
+  ASSERT_EQ(r.status, 0) << r.err;
+  EXPECT_NE(r.err.find("tahvel: warning: " + mitdb_record("200") + ": an irregular rhythm"), std::string::npos) << r.err;
+  EXPECT_EQ(r.err.find(mitdb_record("100")), std::string::npos) << r.err;
+}
+
 // A record of 5 minutes or less has nothing scored: the JSON said "-" where a number goes.
 TEST_F(Cli, HrvEvalJsonWithNothingScoredIsValidJsonWithNulls) {
   Outcome r = run({"hrv", mitdb_record("100"), "--eval", "--json"});

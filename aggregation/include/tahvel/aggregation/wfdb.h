@@ -51,6 +51,7 @@ struct RecordHeader {
   std::int64_t samples_per_signal = 0;
   std::vector<SignalInfo> signals;
   std::string directory;   // directory of the .hea file; signal files are opened relative to it
+  std::string path;        // the .hea file read ("<record_path>.hea"), for messages
   std::vector<std::string> comments;  // '#' lines, without the '#' and surrounding blanks
 };
 
