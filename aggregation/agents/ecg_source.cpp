@@ -13,11 +13,10 @@
 #include <cmath>
 #include <filesystem>
 #include <memory>
-#include <optional>
 #include <cstdlib>
-#include <thread>
-
 #include <iostream>
+#include <optional>
+#include <thread>
 
 #include "agent_runtime.h"
 #include "tahvel/aggregation/ecgsyn.h"
@@ -46,6 +45,7 @@ agg::Result<Signal> record_signal(const std::string& path) {
   if (!reader) return tahvel::unexpected(reader.error());
   auto shared = std::make_shared<agg::SignalReader>(std::move(*reader));
   const agg::RecordHeader& h = shared->header();
+  if (auto rate = agg::default_rate_warning(h)) std::cerr << "tahvel-ecg-source: warning: " << *rate << "\n";
   Signal s;
   s.name = h.name;
   s.info.fs = h.fs;

@@ -54,6 +54,7 @@ Result<HrvReport> hrv_from_record(const std::string& record_path, const ChainOpt
   if (!report) return fail(record_path + ": " + report.error().message);
   report->signal = channel;
   report->warnings = checksum_mismatches(*signals);
+  if (auto rate = default_rate_warning(signals->header)) report->warnings.insert(report->warnings.begin(), *rate);
   if (auto irregular = irregular_rhythm_warning(report->metrics)) report->warnings.push_back(*irregular);
   return report;
 }

@@ -92,6 +92,7 @@ Result<bool> parse_record_line(std::string_view line, const Where& at, RecordHea
     fs = fs.substr(0, fs.find_first_of("/("));  // counter frequency and base counter ignored
     if (!parse_double(fs, h.fs) || h.fs <= 0)
       return fail(at.field_error("sampling frequency", t.items[2], "not a positive number"));
+    h.fs_given = true;
   }
   if (t.items.size() > 3) {
     if (!parse_int(t.items[3], h.samples_per_signal) || h.samples_per_signal < 0)
@@ -437,6 +438,13 @@ std::vector<std::string> checksum_mismatches(const Signals& signals) {
                     " (is " + info.file + " in format " + std::to_string(info.format) + "?)");
   }
   return out;
+}
+
+std::optional<std::string> default_rate_warning(const RecordHeader& header) {
+  if (header.fs_given) return std::nullopt;
+  return header.path + ": the record line gives no sampling frequency: WFDB's default of 250 Hz is taken (a signal "
+                       "sampled at another rate gives heart rates and HRV off by the ratio; give the rate after the "
+                       "number of signals)";
 }
 
 double gain_per_mv(const SignalInfo& info) {

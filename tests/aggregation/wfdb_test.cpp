@@ -235,6 +235,23 @@ TEST_F(WfdbTemp, ASignalWhoseSamplesDoNotAddUpToTheChecksumIsNamed) {
   EXPECT_EQ(checksum_mismatches(*s)[0].rfind(record("small") + ".hea: signal 0 (II)", 0), 0u) << checksum_mismatches(*s)[0];
 }
 
+// A record line without a sampling frequency is read at WFDB's 250 Hz, and said so: a record
+// of another rate gives heart rates off by the ratio.
+TEST_F(WfdbTemp, AHeaderWithoutASamplingFrequencyIsWarnedOf) {
+  write("r.dat", bytes_of({0x01, 0x00, 0xFF, 0xFF, 0x00, 0x01}));
+  write("r.hea", "r 1\nr.dat 16 200 16 0 1 256 0 II\n");
+  auto h = read_header(record("r"));
+  ASSERT_TRUE(h) << h.error().message;
+  EXPECT_DOUBLE_EQ(h->fs, 250);
+  const auto said = default_rate_warning(*h);
+  ASSERT_TRUE(said);
+  EXPECT_EQ(said->rfind(record("r") + ".hea: the record line gives no sampling frequency: WFDB's default of 250 Hz", 0), 0u) << *said;
+  write("r.hea", "r 1 360\nr.dat 16 200 16 0 1 256 0 II\n");
+  h = read_header(record("r"));
+  ASSERT_TRUE(h) << h.error().message;
+  EXPECT_FALSE(default_rate_warning(*h));
+}
+
 TEST_F(WfdbTemp, DefaultsApplyWhenOptionalFieldsAreAbsent) {
   write("r.hea", "# leading comment\n\nr 1\nr.dat 16\n");
   write("r.dat", bytes_of({0x05, 0x00}));

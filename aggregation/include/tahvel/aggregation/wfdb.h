@@ -17,6 +17,7 @@
 #include <cstddef>
 #include <cstdint>
 #include <memory>
+#include <optional>
 #include <string>
 #include <vector>
 
@@ -48,6 +49,7 @@ struct RecordHeader {
   std::string name;        // record name from the record line ("100")
   int signal_count = 0;
   double fs = 250;         // samples per second per signal; absent means 250 (the WFDB default)
+  bool fs_given = false;   // whether the record line gives it
   std::int64_t samples_per_signal = 0;
   std::vector<SignalInfo> signals;
   std::string directory;   // directory of the .hea file; signal files are opened relative to it
@@ -80,6 +82,11 @@ Result<Signals> read_signals(const std::string& record_path);
 // WFDB's tools warn so and read on; so does `tahvel hrv`. Empty when all agree or the header
 // gives no checksums.
 std::vector<std::string> checksum_mismatches(const Signals& signals);
+
+// A header without a sampling frequency is read at WFDB's default of 250 Hz, as WFDB's tools
+// read it; a record sampled at another rate then gives heart rates and HRV off by the ratio
+// (MIT-BIH 100 at 360 Hz: 52 bpm instead of 75). Said, naming the file; nullopt when given.
+std::optional<std::string> default_rate_warning(const RecordHeader& header);
 
 // Streaming reader: frame by frame, for agents that replay a record in chunks. Move-only; owns
 // its open files and closes them in its destructor. Not thread-safe: one reader per thread.
