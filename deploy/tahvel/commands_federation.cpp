@@ -504,9 +504,13 @@ std::string pid_file_name(const std::optional<std::string>& only) {
   return "supervisor-" + only.value_or("all") + ".pid";
 }
 
-void write_state_file(const fs::path& file, const agents::Supervisor& sup) {
+// Writes the programs' states to `file` through a temporary file renamed over it, so that a
+// reader sees one whole write. Empty when written; else why not (a full disk), and the file
+// keeps what it held: an emptied one made `status` show the node without its programs.
+std::string write_state_file(const fs::path& file, const agents::Supervisor& sup) {
   fs::path tmp = file;
   tmp += ".tmp";
+  std::string failed;
   {
     std::ofstream out(tmp);
     const auto now = std::chrono::steady_clock::now();
@@ -522,8 +526,19 @@ void write_state_file(const fs::path& file, const agents::Supervisor& sup) {
       }
       out << s.name << '\t' << s.pid << '\t' << state << '\t' << s.restarts << '\t' << s.last_exit << '\n';
     }
+    out.flush();
+    if (!out) failed = std::strerror(errno);
+    out.close();
+    if (failed.empty() && !out) failed = std::strerror(errno);
   }
-  fs::rename(tmp, file);
+  std::error_code ec;
+  if (failed.empty()) {
+    fs::rename(tmp, file, ec);
+    if (!ec) return {};
+    failed = ec.message();
+  }
+  fs::remove(tmp, ec);
+  return "cannot write " + file.string() + " (" + failed + "); it keeps the programs' states as last written";
 }
 
 
@@ -1515,7 +1530,16 @@ int run_up(const Args& args) {
   state_file.replace_extension(".state");
   // Stopping programs (a changed command, `down`) may take their grace: the state file stays
   // current meanwhile, or `status` and the next `up` would take this supervisor for hung.
-  supervisor.while_waiting([&] { write_state_file(state_file, supervisor); });
+  // Said once when it cannot be written, and once when it can again (it is written ten times a
+  // second).
+  std::string state_file_trouble;
+  auto keep_state_file = [&] {
+    std::string why = write_state_file(state_file, supervisor);
+    if (why == state_file_trouble) return;
+    log(why.empty() ? "up: " + state_file.string() + " written again" : "up: " + why);
+    state_file_trouble = std::move(why);
+  };
+  supervisor.while_waiting(keep_state_file);
   log("up: supervisor " + std::to_string(getpid()) + " runs " + fs::absolute(topo.file).lexically_normal().string() +
       (only ? " (node " + *only + ")" : std::string()));
   Deployment deployment(supervisor, state, only);
@@ -1534,16 +1558,16 @@ int run_up(const Args& args) {
     }
     if (g_apply) {
       g_apply = 0;
-      apply_requested(deployment, pid_file, log, [&] { write_state_file(state_file, supervisor); });
+      apply_requested(deployment, pid_file, log, keep_state_file);
     }
     deployment.poll(log);
     deployment.publish_programs(log);
-    write_state_file(state_file, supervisor);
+    keep_state_file();
     std::this_thread::sleep_for(100ms);
   }
   log("up: supervisor " + std::to_string(getpid()) + " stopping its programs");
   deployment.stop(log);
-  write_state_file(state_file, supervisor);
+  keep_state_file();
   std::error_code removed;
   fs::remove(pid_file, removed);
   log("up: supervisor " + std::to_string(getpid()) + " stopped");

@@ -1050,6 +1050,31 @@ TEST_F(Cli, StatusDoesNotCallProgramsRunningOnceTheirSupervisorIsGone) {
   EXPECT_EQ(down.status, 0) << down.err;
 }
 
+// A supervisor that cannot write its state file (a full disk; here its temporary file's name is
+// taken by a directory) keeps the file as it was and says so once in its log: on a full disk it
+// emptied the file, and `status` showed the node without its programs.
+TEST_F(Cli, AStateFileThatCannotBeWrittenKeepsWhatItHeld) {
+  spit(tmp_ / "node.toml", kIdleNodeToml);
+  const std::string state = (tmp_ / "state").string();
+  ASSERT_EQ(run({"up", (tmp_ / "node.toml").string(), "--state", state}).status, 0);
+  ASSERT_NE(status_until(state, "idle  running").out.find("idle  running"), std::string::npos);
+  const fs::path blocker = tmp_ / "state" / "supervisor-all.state.tmp";
+  fs::create_directories(blocker / "inside");
+  const fs::path log = tmp_ / "state" / "logs" / "supervisor.log";
+  ASSERT_TRUE(eventually([&] { return slurp(log).find("cannot write " + state + "/supervisor-all.state (") != std::string::npos; }))
+      << slurp(log);
+  EXPECT_NE(slurp(tmp_ / "state" / "supervisor-all.state").find("idle\t"), std::string::npos);
+  EXPECT_NE(run({"status", "--state", state}).out.find("idle  running"), std::string::npos);
+  std::this_thread::sleep_for(std::chrono::milliseconds(300));
+  const std::string said = slurp(log);
+  const std::string line = "cannot write " + state + "/supervisor-all.state (";
+  EXPECT_EQ(said.find(line), said.rfind(line)) << "said once, not at every write: " << said;
+  fs::remove_all(blocker);
+  EXPECT_TRUE(eventually([&] { return slurp(log).find(state + "/supervisor-all.state written again") != std::string::npos; }))
+      << slurp(log);
+  EXPECT_EQ(run({"down", "--state", state}).status, 0);
+}
+
 // A supervisor stopped (SIGSTOP) long ago leaves what its programs do unknown, and how long it
 // has been silent is said in hours and minutes, not as thousands of seconds.
 TEST_F(Cli, StatusSaysHowLongAStoppedSupervisorHasBeenSilentInHoursAndMinutes) {
