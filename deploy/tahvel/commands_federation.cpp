@@ -847,7 +847,15 @@ void create_store(const NodeSpec& spec, const fs::path& store, const Topology& t
   }
   fs::remove_all(store, ec);  // an empty folder, or one a failed creation left
   fs::rename(making, store, ec);
-  if (ec) fail(store.string() + ": " + ec.message());
+  if (ec) {
+    const std::string why = ec.message();
+    const bool mounted = ec == std::errc::device_or_resource_busy || ec == std::errc::cross_device_link;
+    fs::remove_all(making, ec);
+    fail("cannot make the store of node '" + spec.id + "' at " + store.string() + " (" + why + ")" +
+         (mounted ? ": a node's store is made beside its directory and renamed into place, which a mount point "
+                    "refuses; mount the volume on the state directory (--state) instead, or on a directory above it"
+                  : std::string()));
+  }
   std::cout << "up: created the store of " << spec.id << " <" << spec.iri << "> at " << store.string() << "\n";
 }
 
