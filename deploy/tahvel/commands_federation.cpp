@@ -246,7 +246,18 @@ int run_link(const Args& args) {
   for (const auto& text : args.all("--forward")) options.forward.push_back(forward_pattern(text, prefixes));
   options.default_forward = !args.has("--no-default-forward");
   install_stop_handlers();
-  auto link = check(federation::Link::start(std::move(options)));
+  auto started = federation::Link::start(std::move(options));
+  if (!started) {
+    // Restarted by its supervisor, a link says this at every start: which store, and for a
+    // damaged one what can be done (an LMDB code alone named neither).
+    const node::Error& e = started.error();
+    fail("link <" + node.iri() + ">, store " + args.positional(0) + ": " + e.message +
+         (e.code == node::Errc::corrupt
+              ? "; the store is damaged and cannot be read: stop the node, move its directory aside, and 'tahvel up' "
+                "makes a new one (its parent takes it as a new stream; what was only in the damaged store is lost)"
+              : std::string()));
+  }
+  auto link = std::move(*started);
   std::cerr << node::log_stamp() << " tahvel link <" << node.iri() << ">: running"
             << (parent ? " (parent <" + *parent + "> over " + *up + ")" : "")
             << (listens.empty() ? "" : " (children over " + (listens.size() == 1 ? listens[0] : listens[0] + " and " + listens[1]) + ")") << std::endl;
