@@ -1379,10 +1379,12 @@ struct Link::Impl {
           send_error(via, f.from, 0, {"refused", refuse, ""});
           return;
         }
+        bool store_made_again = false;
         {
           std::lock_guard lock(mu);
           if (child->store_id != child_store) child->pending_store.clear();
-          if (child->store_id != child_store && !child->store_id.empty())
+          store_made_again = child->store_id != child_store && !child->store_id.empty();
+          if (store_made_again)
             log("child <" + child->iri + "> has another store (id " + child_store + ", was " + child->store_id +
                 "): its items are a new stream, from its start");
           if (child->flips.saw(child->store_id, child_store, "the child <" + child->iri + ">"))
@@ -1399,6 +1401,15 @@ struct Link::Impl {
         if (!refuse.empty()) {
           send_error(via, f.from, 0, {"refused", refuse, ""});
           return;
+        }
+        if (store_made_again && down_from == 0) {
+          // P10b: the new store holds nothing of what came down; what was written for it to
+          // keep (a setting put --persistent) goes down again, as P6c sends it up again.
+          if (auto again = link->deliver_persistent_again(); !again)
+            log("cannot queue the persistent items for <" + child->iri + "> again: " + again.error().message);
+          else if (*again > 0)
+            log("child <" + child->iri + ">'s new store holds nothing of what came down: " + std::to_string(*again) +
+                " persistent item(s) for it go down again");
         }
         {
           std::lock_guard lock(mu);

@@ -845,6 +845,31 @@ Result<std::uint64_t> withdraw_unrouted(Txn& txn, std::uint64_t agent, const std
   return withdrawn;
 }
 
+namespace {
+
+// Puts the items `ids` (ascending) into the agent's input buffer, but those there already (and,
+// with persistent_only, those not persistent); returns how many went in.
+Result<std::uint64_t> deliver_items(Txn& txn, std::uint64_t agent, const std::string& agent_iri,
+                                    const std::vector<std::uint64_t>& ids, bool persistent_only) {
+  if (auto r = removals_noticed(txn); !r) return unexpected(r.error());  // read by deliver
+  const std::uint32_t slot = WakeBoard::slot_for(agent_iri);
+  std::uint64_t delivered = 0;
+  for (const std::uint64_t item_id : ids) {
+    auto row = get_item(txn.raw(), txn.env(), item_id);
+    if (!row) return unexpected(row.error());
+    if (!*row || (persistent_only && !(*row)->persistent)) continue;
+    ItemRow item = **row;
+    const std::uint64_t pending = item.pending;
+    if (auto d = deliver(txn, agent, slot, item_id, item); !d) return unexpected(d.error());
+    if (item.pending == pending) continue;  // in the buffer already
+    if (auto put = put_item(txn, item_id, item); !put) return unexpected(put.error());
+    ++delivered;
+  }
+  return delivered;
+}
+
+}  // namespace
+
 Result<std::uint64_t> deliver_earlier(Txn& txn, std::uint64_t agent, const std::string& agent_iri,
                                       const Pattern& pattern, std::uint64_t before, bool persistent_only) {
   if (auto f = flush_index(txn); !f) return unexpected(f.error());
@@ -861,21 +886,7 @@ Result<std::uint64_t> deliver_earlier(Txn& txn, std::uint64_t agent, const std::
   }
   std::sort(items.begin(), items.end());
   items.erase(std::unique(items.begin(), items.end()), items.end());
-  if (auto r = removals_noticed(txn); !r) return unexpected(r.error());  // read by deliver
-  const std::uint32_t slot = WakeBoard::slot_for(agent_iri);
-  std::uint64_t delivered = 0;
-  for (const std::uint64_t item_id : items) {
-    auto row = get_item(txn.raw(), txn.env(), item_id);
-    if (!row) return unexpected(row.error());
-    if (!*row || (persistent_only && !(*row)->persistent)) continue;
-    ItemRow item = **row;
-    const std::uint64_t pending = item.pending;
-    if (auto d = deliver(txn, agent, slot, item_id, item); !d) return unexpected(d.error());
-    if (item.pending == pending) continue;  // in the buffer already
-    if (auto put = put_item(txn, item_id, item); !put) return unexpected(put.error());
-    ++delivered;
-  }
-  return delivered;
+  return deliver_items(txn, agent, agent_iri, items, persistent_only);
 }
 
 namespace {
@@ -1096,7 +1107,41 @@ Result<std::uint64_t> deliver_persistent_again(Txn& txn, std::uint64_t agent, co
     if (!n) return unexpected(n.error());
     delivered += *n;
   }
-  return delivered;
+  // And those addressed to it (R18: a context under its IRI), which no subscription names: the
+  // settings written on a parent for a child's node, which its link agent there carries down.
+  // Items carry no context index, so this reads every item's row once; it is done when a
+  // store was made again in a peer's place, not in the course of things.
+  if (auto f = flush_index(txn); !f) return unexpected(f.error());
+  const std::string& node_iri = txn.env().settings().iri;
+  std::vector<std::uint64_t> addressed;
+  {
+    MDB_cursor* cursor = nullptr;
+    int rc = mdb_cursor_open(txn.raw(), txn.env().items, &cursor);
+    if (rc != 0) return lmdb_fail(rc, "opening the items");
+    MDB_val k, v;
+    for (rc = mdb_cursor_get(cursor, &k, &v, MDB_FIRST); rc == 0; rc = mdb_cursor_get(cursor, &k, &v, MDB_NEXT)) {
+      ItemRow row;
+      if (!decode_item(view(v), row) || !row.persistent || !row.context || row.live == 0) continue;
+      auto context = reader.iri(row.context);
+      if (!context) {
+        mdb_cursor_close(cursor);
+        return unexpected(context.error());
+      }
+      if (!context->starts_with(agent_iri)) continue;  // most items: no IRI parsed
+      auto source = reader.iri(row.source);
+      if (!source) {
+        mdb_cursor_close(cursor);
+        return unexpected(source.error());
+      }
+      if (addressee_of(node_iri, *context, *source) == agent_iri) addressed.push_back(u64(k));
+    }
+    mdb_cursor_close(cursor);
+    if (rc != MDB_NOTFOUND) return lmdb_fail(rc, "reading the items");
+  }
+  if (addressed.empty()) return delivered;
+  auto n = deliver_items(txn, agent, agent_iri, addressed, true);
+  if (!n) return unexpected(n.error());
+  return delivered + *n;
 }
 
 }  // namespace tahvel::node::detail

@@ -415,6 +415,37 @@ TEST(Link, ConfigurationFromAParentWhoseStoreIsMadeAgainArrives) {
   EXPECT_EQ(count(tree.home1_dir, settings), 35u);
 }
 
+// P10b: a child whose store is made again (a replaced disk) holds nothing of what came down.
+// What was written for it to keep (a setting put --persistent) goes down again; the rest does
+// not, as P6c upwards.
+TEST(Link, APersistentSettingGoesDownAgainToAChildWhoseStoreIsMadeAgain) {
+  Tree tree;
+  tree.hospital = tree.start_hospital();
+  tree.home1 = tree.start_home(tree.home1_dir, kHome1, tree.home1_log);
+  auto operator_ = node::Node::open(tree.hospital_dir).value().agent("operator").value();
+  for (int i = 0; i < 6; ++i) {
+    node::Item config;
+    config.context = kHome1 + "/hrv";
+    config.add(Term::iri(kHome1 + "/hrv"), Term::iri(kEx + "setting"), Term::integer(i));
+    config.persistent = i == 5;
+    ASSERT_TRUE(operator_.store(config));
+  }
+  const node::Pattern settings{.p = Term::iri(kEx + "setting")};
+  ASSERT_TRUE(eventually([&] { return count(tree.home1_dir, settings) == 6; }));
+  tree.home1.reset();
+  std::filesystem::remove_all(tree.home1_dir);
+  ASSERT_TRUE(node::Node::init(tree.home1_dir, {.iri = kHome1}));
+  tree.home1 = tree.start_home(tree.home1_dir, kHome1, tree.home1_log);
+  EXPECT_TRUE(eventually([&] { return count(tree.home1_dir, settings) == 1; })) << count(tree.home1_dir, settings);
+  EXPECT_EQ(count(tree.home1_dir, {.p = Term::iri(kEx + "setting"), .o = Term::integer(5)}), 1u);
+  EXPECT_TRUE(tree.hospital_log.has("1 persistent item(s) for it go down again")) << tree.hospital_log.text();
+  // A restart of either link is not a new store: nothing comes down twice.
+  tree.home1.reset();
+  tree.home1 = tree.start_home(tree.home1_dir, kHome1, tree.home1_log);
+  std::this_thread::sleep_for(500ms);
+  EXPECT_EQ(count(tree.home1_dir, settings), 1u);
+}
+
 // P9a: the home's store allows longer literals than the hospital's. Resending the long one
 // could never succeed; it is passed over (and stays at home), and the items after it go up.
 TEST(Link, AnItemTheParentCanNeverStoreIsPassedOverAndTheItemsAfterItStillGoUp) {

@@ -232,6 +232,32 @@ TEST(Context, ItemAddressedToAnAgentLandsInItsInputBufferWithoutSubscription) {
   EXPECT_TRUE(taken_ids(operator_).empty());
 }
 
+// A child node's store made again (a replaced disk) holds nothing of what came down: its link
+// agent on the parent gets again the persistent items addressed to it (a setting written
+// --persistent for the child's hrv), as it gets those its subscriptions match.
+TEST(Context, PersistentItemsAddressedToAnAgentAreDeliveredAgainOnceTaken) {
+  TempDir dir;
+  Node node = make_node(dir.path());
+  Agent child = node.agent("home1").value();
+  Agent operator_ = node.agent("operator").value();
+  Item setting = reading(1, kNodeIri + "/home1/hrv");
+  setting.persistent = true;
+  const std::uint64_t kept = operator_.store(setting).value();
+  ASSERT_TRUE(operator_.store(reading(2, kNodeIri + "/home1/hrv")));  // not persistent
+  Item elsewhere = reading(3, kNodeIri + "/home2/hrv");
+  elsewhere.persistent = true;
+  ASSERT_TRUE(operator_.store(elsewhere));
+  Item subtree = reading(4, kNodeIri + "/*");
+  subtree.persistent = true;
+  ASSERT_TRUE(operator_.store(subtree));
+  EXPECT_EQ(taken_ids(child).size(), 2u);
+  EXPECT_EQ(child.deliver_persistent_again().value(), 1u);
+  EXPECT_EQ(taken_ids(child), std::vector<std::uint64_t>{kept});
+  // Not twice: one in the buffer is not put there again.
+  EXPECT_EQ(child.deliver_persistent_again().value(), 1u);
+  EXPECT_EQ(child.deliver_persistent_again().value(), 0u);
+}
+
 TEST(Window, PeekLeavesItemsAndAckThroughRemovesUpToAnId) {
   TempDir dir;
   Node node = make_node(dir.path());

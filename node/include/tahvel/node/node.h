@@ -346,9 +346,12 @@ class Agent {
   // when its forwarding policy is narrowed: what was queued under the old policy stays home.)
   Result<std::uint64_t> withdraw_unrouted();
   // Puts into the input buffer again every persistent item that one of this agent's
-  // subscriptions matches and that is not there, oldest first; returns how many. (A link whose
-  // parent has a new store, a replaced gateway: the descriptions it sent the store before, a
-  // recording's, which the parent's agents need for everything after, go to the new one.)
+  // subscriptions matches, or that is addressed to it by its context (R18), and that is not
+  // there, oldest first; returns how many. (A link whose parent has a new store, a replaced
+  // gateway: the descriptions it sent the store before, a recording's, which the parent's agents
+  // need for everything after, go to the new one; and a child's link agent on the parent, when
+  // the child's store was made again: the settings kept for it.) The addressed items are found
+  // by reading every item's row once.
   Result<std::uint64_t> deliver_persistent_again();
 
   // Item ids in this agent's output buffer after `after`, oldest first (audit of its writes).
