@@ -200,6 +200,21 @@ double steps_per_window(double window_s, double step_s) {
   const double whole = std::round(ratio);
   return whole >= 1 && std::abs(ratio - whole) <= 1e-9 * whole ? whole : ratio;
 }
+
+// The first window, of those starting at origin + k·step, that ends after `t`: the windows
+// before it end at or before the first interval and hold nothing. A recording's start that a
+// node never received (a gateway whose store was made again gets the sensor's chunks from
+// where it is) gave a window of no intervals for each minute of it, named as the windows the
+// hospital had from the store before.
+std::size_t first_window_after(double origin, double window_s, double step_s, double t) {
+  const double span = steps_per_window(window_s, step_s);
+  auto end_of = [&](std::size_t k) { return origin + (static_cast<double>(k) + span) * step_s; };
+  const double estimate = std::floor((t - origin) / step_s - span);
+  std::size_t k = estimate > 0 && estimate < 1e15 ? static_cast<std::size_t>(estimate) : 0;
+  while (k > 0 && end_of(k - 1) > t) --k;
+  while (end_of(k) <= t) ++k;
+  return k;
+}
 }  // namespace
 
 std::vector<WindowMetrics> windowed_hrv(const std::vector<Interval>& intervals, double fs,
@@ -210,7 +225,8 @@ std::vector<WindowMetrics> windowed_hrv(const std::vector<Interval>& intervals, 
   const double last = static_cast<double>(intervals.back().end) / fs;
   const double span = steps_per_window(window_s, step_s);
   std::size_t first = 0;  // first interval that can belong to window k or later
-  for (std::size_t k = 0; static_cast<double>(k) * step_s <= last; ++k) {
+  const double first_end = static_cast<double>(intervals.front().end) / fs;
+  for (std::size_t k = first_window_after(0, window_s, step_s, first_end); static_cast<double>(k) * step_s <= last; ++k) {
     const double start = static_cast<double>(k) * step_s, end = (static_cast<double>(k) + span) * step_s;
     while (first < intervals.size() && static_cast<double>(intervals[first].end) / fs < start) ++first;
     std::vector<Interval> in;
@@ -262,6 +278,7 @@ void HrvWindower::emit_front(std::vector<WindowMetrics>& completed, std::optiona
 void HrvWindower::push(const Interval& interval, std::vector<WindowMetrics>& completed) {
   if (!(fs_ > 0) || !(window_s_ > 0) || !(step_s_ > 0)) return;
   const double t = static_cast<double>(interval.end) / fs_;
+  if (last_end_s_ < 0 && buffer_.empty()) next_ = std::max(next_, first_window_after(origin_s_, window_s_, step_s_, t));
   while (front_end() <= t) emit_front(completed);
   buffer_.push_back(interval);
   last_end_s_ = t;

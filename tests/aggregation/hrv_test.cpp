@@ -302,6 +302,25 @@ TEST(Windows, AnIntervalEndingOnABoundaryIsInExactlyOneWindow) {
   }
 }
 
+// Intervals that begin well into the recording (a gateway whose store was made again gets the
+// sensor's chunks from where it is): no window for the minutes before the first one, which hold
+// nothing and would be named as the windows the hospital has from the store before.
+TEST(Windows, NoWindowEndsBeforeTheFirstInterval) {
+  const auto series = chain(std::vector<std::int64_t>(200, 1000), {}, 319'500);  // ends at 320.5 s on, fs 1000
+  for (auto [window, step, first_start] : {std::tuple{60.0, 60.0, 300.0}, std::tuple{300.0, 60.0, 60.0},
+                                           std::tuple{1.1, 1.1, 320.1}}) {
+    const auto batch = windowed_hrv(series, 1000, window, step);
+    ASSERT_FALSE(batch.empty());
+    EXPECT_NEAR(batch.front().start_s, first_start, 1e-9) << window << " " << step;
+    EXPECT_GT(batch.front().metrics.rr_count, 0u) << window;
+    HrvWindower w(1000, window, step);
+    std::vector<WindowMetrics> streamed;
+    for (const auto& iv : series) w.push(iv, streamed);
+    w.finish(streamed);
+    expect_same(batch, streamed);
+  }
+}
+
 TEST(Windows, StreamingEmitsAWindowWhenAnIntervalPassesItsEnd) {
   HrvWindower w(1000, 1.0, 1.0);
   std::vector<WindowMetrics> done;
