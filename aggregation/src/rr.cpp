@@ -177,7 +177,7 @@ void NnClassifier::advance(std::vector<Interval>& decided) {
       const bool short_too = r < short_limit_;
       // The pair of a short interval that is short itself is a premature beat too (the second
       // of a couplet, N V V N): a pause after it is its compensatory pause, not NN either.
-      after_couplet_ = short_too && r > 0;
+      after_couplet_ = rule_.pause_after_couplet && short_too && r > 0;
       decide(false, decided, short_too ? Track::short_interval : Track::other);
       continue;
     }

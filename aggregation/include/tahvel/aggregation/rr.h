@@ -61,6 +61,8 @@ std::vector<Interval> reference_intervals(const std::vector<Beat>& beats,
 // change). Otherwise:
 //  - shorter than (1 - tol_short) * ref: premature beat or spurious detection; it and the next
 //    interval (the compensatory pause, or the other half of a split interval) are not NN;
+//    when that next one is short too (a couplet, N V V N: pause_after_couplet), the one after
+//    it is not NN either if longer than (1 + tol_prem) * ref (the couplet's pause);
 //    after rebase_beats consecutive short intervals within tol_short * ref of each other the
 //    reference restarts from them (a sustained rate change);
 //  - longer than (1 + tol_long) * ref: a missed beat or pause, not NN, unless the next
@@ -109,6 +111,7 @@ struct NnRule {
   bool keep_confirmed_pauses = true;    // a long interval over an empty gap is NN (above)
   bool return_to_prior_rhythm = true;   // the end of a blocked run is NN (above)
   bool hold_after_ectopic_run = true;   // early intervals after an ectopic run are not NN (above)
+  bool pause_after_couplet = true;      // the pause after two short intervals is not NN (above)
   int ectopic_run_beats = 3;            // consecutive short intervals that make a run
   double regular_spread = 0.03;         // a rhythm is regular below this spread / ref
   int sinus_return_beats = 4;           // steady intervals that end the ectopic rhythm
