@@ -96,6 +96,16 @@ class Cli : public ::testing::Test {
     return finish(spawn(args, input, n), n);
   }
 
+  // tmp_/eth9.xml: the loopback Cyclone DDS file on an interface that does not exist, so that
+  // the links of a deployment fail at their start and send nothing.
+  void write_eth9_dds_config() {
+    std::string config = slurp(fs::path(TAHVEL_SOURCE_DIR) / "deploy" / "cyclonedds-loopback.xml");
+    const std::string lo = "<NetworkInterface name=\"lo\"";
+    ASSERT_NE(config.find(lo), std::string::npos);
+    config.replace(config.find(lo), lo.size(), "<NetworkInterface name=\"eth9\"");
+    spit(tmp_ / "eth9.xml", config);
+  }
+
   // The same, run in the directory `cwd` (for relative paths as a user gives them).
   Outcome run_in(const fs::path& cwd, const std::vector<std::string>& args) {
     int n = ++runs_;
@@ -1222,11 +1232,7 @@ TEST_F(Cli, TheDirPlaceholderIsTheTopologyFilesDirectory) {
 // not have) was shown as "(root)": it is a child whose uplink never started, and the link's
 // last exit says Cyclone's reason. (The link fails before it sends anything.)
 TEST_F(Cli, StatusShowsAChildWhoseLinkNeverStartedAsSuchNotAsARoot) {
-  std::string config = slurp(fs::path(TAHVEL_SOURCE_DIR) / "deploy" / "cyclonedds-loopback.xml");
-  const std::string lo = "<NetworkInterface name=\"lo\"";
-  ASSERT_NE(config.find(lo), std::string::npos);
-  config.replace(config.find(lo), lo.size(), "<NetworkInterface name=\"eth9\"");
-  spit(tmp_ / "eth9.xml", config);
+  ASSERT_NO_FATAL_FAILURE(write_eth9_dds_config());
   const std::string file = (tmp_ / "t.toml").string(), state = (tmp_ / "state").string();
   spit(file, "[[node]]\nid = \"hospital\"\niri = \"http://example.org/hospital\"\nlisten = { kind = \"dds\", config = \"eth9.xml\" }\n"
              "[[node]]\nid = \"home1\"\nparent = \"hospital\"\n");
@@ -1242,11 +1248,7 @@ TEST_F(Cli, StatusShowsAChildWhoseLinkNeverStartedAsSuchNotAsARoot) {
 // Each node under its own parent, when a sibling's id is another's and more ("home1-annex"
 // sorted between "home1" and "home1/bed-a" as plain strings: bed-a was shown under the annex).
 TEST_F(Cli, StatusShowsEachNodeUnderItsOwnParentWhenSiblingIdsShareAPrefix) {
-  std::string config = slurp(fs::path(TAHVEL_SOURCE_DIR) / "deploy" / "cyclonedds-loopback.xml");
-  const std::string lo = "<NetworkInterface name=\"lo\"";
-  ASSERT_NE(config.find(lo), std::string::npos);
-  config.replace(config.find(lo), lo.size(), "<NetworkInterface name=\"eth9\"");  // links fail, no packets
-  spit(tmp_ / "eth9.xml", config);
+  ASSERT_NO_FATAL_FAILURE(write_eth9_dds_config());
   const std::string file = (tmp_ / "t.toml").string(), state = (tmp_ / "state").string();
   const std::string listen = "listen = { kind = \"dds\", config = \"eth9.xml\" }\n";
   spit(file, "[[node]]\nid = \"hospital\"\niri = \"http://example.org/icu\"\n" + listen +
@@ -1280,11 +1282,7 @@ TEST_F(Cli, StatusShowsEachNodeUnderItsOwnParentWhenSiblingIdsShareAPrefix) {
 // path as "sub/../eth9.xml" and the next, unchanged, `up` found it written "eth9.xml" and
 // restarted every DDS link.
 TEST_F(Cli, UpAgainWithAFileNamedThroughDotDotChangesNothing) {
-  std::string config = slurp(fs::path(TAHVEL_SOURCE_DIR) / "deploy" / "cyclonedds-loopback.xml");
-  const std::string lo = "<NetworkInterface name=\"lo\"";
-  ASSERT_NE(config.find(lo), std::string::npos);
-  config.replace(config.find(lo), lo.size(), "<NetworkInterface name=\"eth9\"");  // links fail, no packets
-  spit(tmp_ / "eth9.xml", config);
+  ASSERT_NO_FATAL_FAILURE(write_eth9_dds_config());
   spit(tmp_ / "t.toml", "[[node]]\nid = \"hospital\"\niri = \"http://example.org/hospital\"\n"
                         "listen = { kind = \"dds\", config = \"eth9.xml\" }\n"
                         "[[node]]\nid = \"home1\"\nparent = \"hospital\"\n");
