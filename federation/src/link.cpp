@@ -1405,7 +1405,7 @@ struct Link::Impl {
         if (store_made_again && down_from == 0) {
           // P10b: the new store holds nothing of what came down; what was written for it to
           // keep (a setting put --persistent) goes down again, as P6c sends it up again.
-          if (auto again = link->deliver_persistent_again(); !again)
+          if (auto again = link->deliver_persistent_again(node::Redelivery::addressed_too); !again)
             log("cannot queue the persistent items for <" + child->iri + "> again: " + again.error().message);
           else if (*again > 0)
             log("child <" + child->iri + ">'s new store holds nothing of what came down: " + std::to_string(*again) +
@@ -2307,6 +2307,9 @@ struct Link::Impl {
         p.read = true;
       }
       const auto resend = child.down_in_flight.empty() ? kNever : child.down_progress + opt.resend_after;
+      // A child's new store (P10b) applies from 0 again: what goes down again, with ids below
+      // the old store's mark, is acknowledged here as the new one applies it.
+      if (child.down_mark < p.acked_locally) p.acked_locally = child.down_mark;
       mark = child.down_mark;
       after = child.down_last_sent;
       room = opt.window > child.down_in_flight.size() ? opt.window - child.down_in_flight.size() : 0;

@@ -892,8 +892,10 @@ Result<void> Agent::unsubscribe(std::uint64_t subscription) {
 
 Result<std::uint64_t> Agent::withdraw_unrouted() { return impl_->change_own_buffer(detail::withdraw_unrouted); }
 
-Result<std::uint64_t> Agent::deliver_persistent_again() {
-  return impl_->change_own_buffer(detail::deliver_persistent_again);
+Result<std::uint64_t> Agent::deliver_persistent_again(Redelivery which) {
+  return impl_->change_own_buffer([which](detail::Txn& txn, std::uint64_t agent, const std::string& agent_iri) {
+    return detail::deliver_persistent_again(txn, agent, agent_iri, which == Redelivery::addressed_too);
+  });
 }
 
 Result<std::vector<std::uint64_t>> Agent::written(std::uint64_t after, std::size_t limit) const {

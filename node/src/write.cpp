@@ -1081,7 +1081,8 @@ Result<HeldCopies> held_copies(MDB_txn* txn, const Env& env, const Item& notice,
   return out;
 }
 
-Result<std::uint64_t> deliver_persistent_again(Txn& txn, std::uint64_t agent, const std::string& agent_iri) {
+Result<std::uint64_t> deliver_persistent_again(Txn& txn, std::uint64_t agent, const std::string& agent_iri,
+                                               bool addressed_too) {
   auto subs = load_subscriptions(txn);
   if (!subs) return unexpected(subs.error());
   TermReader reader(txn.raw(), txn.env());
@@ -1107,10 +1108,12 @@ Result<std::uint64_t> deliver_persistent_again(Txn& txn, std::uint64_t agent, co
     if (!n) return unexpected(n.error());
     delivered += *n;
   }
+  if (!addressed_too) return delivered;
   // And those addressed to it (R18: a context under its IRI), which no subscription names: the
   // settings written on a parent for a child's node, which its link agent there carries down.
-  // Items carry no context index, so this reads every item's row once; it is done when a
-  // store was made again in a peer's place, not in the course of things.
+  // Items carry no context index, so this reads every item's row once: when a child's store was
+  // made again, not in the course of things. The context is taken in normal form and the
+  // writer is the item's output buffer, as when the item was stored and routed.
   if (auto f = flush_index(txn); !f) return unexpected(f.error());
   const std::string& node_iri = txn.env().settings().iri;
   std::vector<std::uint64_t> addressed;
@@ -1118,22 +1121,20 @@ Result<std::uint64_t> deliver_persistent_again(Txn& txn, std::uint64_t agent, co
     MDB_cursor* cursor = nullptr;
     int rc = mdb_cursor_open(txn.raw(), txn.env().items, &cursor);
     if (rc != 0) return lmdb_fail(rc, "opening the items");
+    auto fail_with = [&](const Error& e) {
+      mdb_cursor_close(cursor);
+      return unexpected(e);
+    };
     MDB_val k, v;
     for (rc = mdb_cursor_get(cursor, &k, &v, MDB_FIRST); rc == 0; rc = mdb_cursor_get(cursor, &k, &v, MDB_NEXT)) {
       ItemRow row;
       if (!decode_item(view(v), row) || !row.persistent || !row.context || row.live == 0) continue;
       auto context = reader.iri(row.context);
-      if (!context) {
-        mdb_cursor_close(cursor);
-        return unexpected(context.error());
-      }
-      if (!context->starts_with(agent_iri)) continue;  // most items: no IRI parsed
-      auto source = reader.iri(row.source);
-      if (!source) {
-        mdb_cursor_close(cursor);
-        return unexpected(source.error());
-      }
-      if (addressee_of(node_iri, *context, *source) == agent_iri) addressed.push_back(u64(k));
+      if (!context) return fail_with(context.error());
+      auto normal = uri::normalize(*context);
+      auto writer = reader.iri(row.output_buffer());
+      if (!writer) return fail_with(writer.error());
+      if (addressee_of(node_iri, normal ? *normal : *context, *writer) == agent_iri) addressed.push_back(u64(k));
     }
     mdb_cursor_close(cursor);
     if (rc != MDB_NOTFOUND) return lmdb_fail(rc, "reading the items");

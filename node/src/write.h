@@ -65,9 +65,11 @@ Result<std::uint64_t> withdraw_unrouted(Txn& txn, std::uint64_t agent, const std
 Result<std::uint64_t> deliver_earlier(Txn& txn, std::uint64_t agent, const std::string& agent_iri,
                                       const Pattern& pattern, std::uint64_t before, bool persistent_only = false);
 
-// deliver_earlier for each of the subscriptions of `agent`, persistent items only
-// (Agent::deliver_persistent_again).
-Result<std::uint64_t> deliver_persistent_again(Txn& txn, std::uint64_t agent, const std::string& agent_iri);
+// deliver_earlier for each of the subscriptions of `agent`, persistent items only, and with
+// `addressed_too` the persistent items addressed to it by their context (R18), found by reading
+// every item's row (Agent::deliver_persistent_again).
+Result<std::uint64_t> deliver_persistent_again(Txn& txn, std::uint64_t agent, const std::string& agent_iri,
+                                               bool addressed_too);
 
 // Applies ring and TTL retention; returns the number of records reclaimed.
 Result<std::uint64_t> apply_retention(Txn& txn);

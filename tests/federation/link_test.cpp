@@ -439,6 +439,8 @@ TEST(Link, APersistentSettingGoesDownAgainToAChildWhoseStoreIsMadeAgain) {
   EXPECT_TRUE(eventually([&] { return count(tree.home1_dir, settings) == 1; })) << count(tree.home1_dir, settings);
   EXPECT_EQ(count(tree.home1_dir, {.p = Term::iri(kEx + "setting"), .o = Term::integer(5)}), 1u);
   EXPECT_TRUE(tree.hospital_log.has("1 persistent item(s) for it go down again")) << tree.hospital_log.text();
+  // Applied by the new store, it leaves home1's down queue at the hospital.
+  EXPECT_TRUE(eventually([&] { return node::Node::open(tree.hospital_dir).value().agent("home1").value().pending().value() == 0; }));
   // A restart of either link is not a new store: nothing comes down twice.
   tree.home1.reset();
   tree.home1 = tree.start_home(tree.home1_dir, kHome1, tree.home1_log);

@@ -58,6 +58,10 @@ struct Record {
 // store, whose parent keeps what it was sent).
 enum class Reach { copies_too, this_node };
 
+// What Agent::deliver_persistent_again puts into the buffer again: the persistent items the
+// agent's subscriptions match, or those and the ones addressed to it by their context (R18).
+enum class Redelivery { subscribed, addressed_too };
+
 // A triple pattern with optional metadata filters. An unset position matches anything.
 // A pattern with a bound subject, predicate or object is answered through an index; a pattern
 // with none bound scans the records in id order. A time range (since, until) is answered
@@ -346,13 +350,13 @@ class Agent {
   // when its forwarding policy is narrowed: what was queued under the old policy stays home.)
   Result<std::uint64_t> withdraw_unrouted();
   // Puts into the input buffer again every persistent item that one of this agent's
-  // subscriptions matches, or that is addressed to it by its context (R18), and that is not
-  // there, oldest first; returns how many. (A link whose parent has a new store, a replaced
-  // gateway: the descriptions it sent the store before, a recording's, which the parent's agents
-  // need for everything after, go to the new one; and a child's link agent on the parent, when
-  // the child's store was made again: the settings kept for it.) The addressed items are found
-  // by reading every item's row once.
-  Result<std::uint64_t> deliver_persistent_again();
+  // subscriptions matches (with Redelivery::addressed_too, also those addressed to it by their
+  // context, R18) and that is not there, oldest first; returns how many. (A link whose parent
+  // has a new store, a replaced gateway: the descriptions it sent the store before, a
+  // recording's, which the parent's agents need for everything after, go to the new one; and,
+  // addressed too, a child's link agent on the parent when the child's store was made again:
+  // the settings kept for it.) The addressed items are found by reading every item's row once.
+  Result<std::uint64_t> deliver_persistent_again(Redelivery which = Redelivery::subscribed);
 
   // Item ids in this agent's output buffer after `after`, oldest first (audit of its writes).
   Result<std::vector<std::uint64_t>> written(std::uint64_t after = 0, std::size_t limit = 0) const;
