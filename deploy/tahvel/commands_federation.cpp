@@ -845,6 +845,23 @@ bool store_being_made(const fs::path& dir) { return dir.filename().string().ends
 // whole, so a failure leaves no store that `up` would then take as made and never load.
 void create_store(const NodeSpec& spec, const fs::path& store, const Topology& topo) {
   const fs::path making = store.string() + std::string(kMakingSuffix);
+  // What may be at `store` without a data.mdb: nothing, an empty folder, or what is left of a
+  // store whose data file is gone. Anything else is not this command's to delete, and a mount
+  // point cannot take the rename (remove_all had emptied the volume before the rename failed).
+  if (fs::exists(store)) {
+    if (!fs::is_directory(store)) fail("node '" + spec.id + "': " + store.string() + " is not a directory");
+    struct stat here {}, above {};
+    if (stat(store.c_str(), &here) == 0 && stat(store.parent_path().c_str(), &above) == 0 && here.st_dev != above.st_dev)
+      fail("node '" + spec.id + "': " + store.string() +
+           " is a mount point: a node's store is made beside its directory and renamed into place, which a mount "
+           "point refuses; mount the volume on the state directory (--state) instead, or on a directory above it");
+    for (const auto& entry : fs::directory_iterator(store)) {
+      const std::string name = entry.path().filename().string();
+      if (name != "lock.mdb" && name != "wake")
+        fail("node '" + spec.id + "': " + store.string() + " holds " + name +
+             " but no store (no data.mdb); move it aside, and 'tahvel up' makes the node's store there");
+    }
+  }
   std::error_code ec;
   fs::remove_all(making, ec);
   {
@@ -856,16 +873,12 @@ void create_store(const NodeSpec& spec, const fs::path& store, const Topology& t
     node::Agent loader = check(created.agent("deploy"));
     for (const fs::path& file : spec.load) load_onto(loader, spec, file, created.prefixes(), topo);
   }
-  fs::remove_all(store, ec);  // an empty folder, or one a failed creation left
+  fs::remove_all(store, ec);  // an empty folder, or the rest of a store without its data file
   fs::rename(making, store, ec);
   if (ec) {
     const std::string why = ec.message();
-    const bool mounted = ec == std::errc::device_or_resource_busy || ec == std::errc::cross_device_link;
     fs::remove_all(making, ec);
-    fail("cannot make the store of node '" + spec.id + "' at " + store.string() + " (" + why + ")" +
-         (mounted ? ": a node's store is made beside its directory and renamed into place, which a mount point "
-                    "refuses; mount the volume on the state directory (--state) instead, or on a directory above it"
-                  : std::string()));
+    fail("cannot make the store of node '" + spec.id + "' at " + store.string() + " (" + why + ")");
   }
   std::cout << "up: created the store of " << spec.id << " <" << spec.iri << "> at " << store.string() << "\n";
 }

@@ -1296,6 +1296,21 @@ TEST_F(Cli, UpAgainWithAFileNamedThroughDotDotChangesNothing) {
   EXPECT_EQ(run({"down", "--state", (tmp_ / "state").string()}).status, 0);
 }
 
+// A node's directory that holds something other than a store is not emptied to make one: `up`
+// refuses, naming what is there, and starts nothing.
+TEST_F(Cli, UpDoesNotDeleteWhatANodesDirectoryHoldsBesideNoStore) {
+  spit(tmp_ / "node.toml", kIdleNodeToml);
+  fs::create_directories(tmp_ / "state" / "solo");
+  spit(tmp_ / "state" / "solo" / "notes.txt", "mine\n");
+  Outcome up = run({"up", (tmp_ / "node.toml").string(), "--state", (tmp_ / "state").string()});
+  EXPECT_EQ(up.status, 1) << up.out;
+  EXPECT_NE(up.err.find("node 'solo': " + (tmp_ / "state" / "solo").string() + " holds notes.txt but no store (no data.mdb)"),
+            std::string::npos)
+      << up.err;
+  EXPECT_EQ(slurp(tmp_ / "state" / "solo" / "notes.txt"), "mine\n");
+  EXPECT_FALSE(fs::exists(tmp_ / "state" / "supervisor-all.pid"));
+}
+
 // A node of this machine whose store was deleted while it runs: its link fails at every start.
 // `status` showed it as a node on another machine, with nothing known of its programs.
 TEST_F(Cli, StatusShowsANodeWhoseStoreWasDeletedAsLocalWithItsFailingLink) {
