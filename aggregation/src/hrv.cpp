@@ -189,7 +189,7 @@ double ended_by_record(double start, double end, std::optional<double> record_en
   return std::max(start, *record_end_s);
 }
 
-// Window k is [origin + k·step, origin + (k + windows_per_step)·step): its end is computed as the
+// Window k is [origin + k·step, origin + (k + steps_per_window)·step): its end is computed as the
 // start of window k + window/step when that is a whole number (window = step: the next window's
 // start), so that an interval ending exactly on the boundary falls in one window. As start +
 // window, with a step of 1.1 s, k·1.1 + 1.1 and (k + 1)·1.1 differ in the last bit, and such an
@@ -210,7 +210,8 @@ std::size_t first_window_after(double origin, double window_s, double step_s, do
   const double span = steps_per_window(window_s, step_s);
   auto end_of = [&](std::size_t k) { return origin + (static_cast<double>(k) + span) * step_s; };
   const double estimate = std::floor((t - origin) / step_s - span);
-  std::size_t k = estimate > 0 && estimate < 1e15 ? static_cast<std::size_t>(estimate) : 0;
+  if (!(estimate < 0x1p52)) return estimate > 0 ? static_cast<std::size_t>(std::min(estimate, 0x1p62)) : 0;  // past exact steps
+  std::size_t k = estimate > 0 ? static_cast<std::size_t>(estimate) : 0;
   while (k > 0 && end_of(k - 1) > t) --k;
   while (end_of(k) <= t) ++k;
   return k;

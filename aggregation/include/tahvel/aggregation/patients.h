@@ -54,8 +54,9 @@ struct PatientsOnBoard {
 
 // Every window's start and recording and every trend's recording, metric and start are read
 // through the indexes; only each patient's latest window and latest trend per metric are read
-// whole. Trend updates older than the earliest of the patients' latest windows (less 15 min)
-// are read only for a patient that lacks a more recent one of a metric the board has. With `since` (ns since the epoch), only windows and trend updates asserted then or
+// whole. Trend updates asserted before the earliest of the patients' latest windows (less
+// 15 min) are read only for a patient that lacks a later one of a metric the board has (an
+// update's asserted-at is taken to rise with its window's start, as tahvel-trend asserts it). With `since` (ns since the epoch), only windows and trend updates asserted then or
 // later count: the chain asserts both at the signal time of the window (tahvel-hrv,
 // tahvel-trend), so a patient is one with a window since then. Errors: those of the store.
 Result<PatientsOnBoard> patients_on_board(const node::Snapshot& snapshot,
