@@ -82,10 +82,10 @@ struct WindowMetrics {
 // Windows k = 0, 1, ... start at k * step_s and last window_s; an interval belongs to every
 // window whose [start_s, end_s) contains its end beat (end / fs). Windows are produced from the
 // first one that ends after the first interval's end up to the last one starting at or before
-// the end of the last interval, empty ones between included (nn_count 0). window_s > 0 and step_s > 0, else the result is empty. Intervals must
-// be in order of end. Given the record's end (`record_end_s`, s from sample 0), a window that
-// would run past it ends there: the last windows of a record cover only what was recorded, and
-// say so by their length.
+// the end of the last interval, empty ones between included (nn_count 0). window_s > 0 and
+// step_s > 0, else the result is empty. Intervals must be in order of end. Given the record's
+// end (`record_end_s`, s from sample 0), a window that would run past it ends there: the last
+// windows of a record cover only what was recorded, and say so by their length.
 std::vector<WindowMetrics> windowed_hrv(const std::vector<Interval>& intervals, double fs,
                                         double window_s, double step_s,
                                         const HrvOptions& options = {},

@@ -56,9 +56,10 @@ struct PatientsOnBoard {
 // through the indexes; only each patient's latest window and latest trend per metric are read
 // whole. Trend updates asserted before the earliest of the patients' latest windows (less
 // 15 min) are read only for a patient that lacks a later one of a metric the board has (an
-// update's asserted-at is taken to rise with its window's start, as tahvel-trend asserts it). With `since` (ns since the epoch), only windows and trend updates asserted then or
-// later count: the chain asserts both at the signal time of the window (tahvel-hrv,
-// tahvel-trend), so a patient is one with a window since then. Errors: those of the store.
+// update's asserted-at is taken to rise with its window's start, as tahvel-trend asserts it).
+// With `since` (ns since the epoch), only windows and trend updates asserted then or later
+// count: the chain asserts both at the signal time of the window (tahvel-hrv, tahvel-trend), so
+// a patient is one with a window since then. Errors: those of the store.
 Result<PatientsOnBoard> patients_on_board(const node::Snapshot& snapshot,
                                           std::optional<std::int64_t> since = std::nullopt);
 
