@@ -34,6 +34,7 @@ constexpr std::array kTerms = {
     std::string_view("areaSubscriber"),
     std::string_view("areaSubscription"),
     std::string_view("baseline"),
+    std::string_view("childStoreId"),
     std::string_view("command"),
     std::string_view("computedAt"),
     std::string_view("context"),

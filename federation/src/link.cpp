@@ -345,6 +345,9 @@ struct Link::Impl {
   struct Child {
     std::string id, iri;
     std::string store_id;  // from its hello: names its up stream (P6a); under mu
+    // The store it registered with in an earlier run, from its state on the board, until its
+    // first hello in this run (P10b); under mu.
+    std::string store_before;
     bool connected = false;
     bool ever = false;          // connected in this run
     bool ever_before = false;   // connected in an earlier run (its state on the board said so)
@@ -374,6 +377,8 @@ struct Link::Impl {
     std::int64_t state_written_ns = 0;
   };
   std::map<std::string, std::shared_ptr<Child>> children;  // by IRI
+  // Child IRI -> the store it registered with, as the board said at start (P10b); read-only after.
+  std::map<std::string, std::string> stores_before;
   std::map<std::string, std::pair<std::string, Clock::time_point>> refusals_logged;  // sender -> last reason logged
 
   // Stream names (P6a): a child's items by its IRI and store id; what comes down by the parent's
@@ -1071,6 +1076,7 @@ struct Link::Impl {
       child->flips.set_hold(opt.conflict_hold);
       child->id = *id;
       child->iri = iri;
+      if (auto before = stores_before.find(iri); before != stores_before.end()) child->store_before = before->second;
     }
     return child;
   }
@@ -1383,10 +1389,13 @@ struct Link::Impl {
         {
           std::lock_guard lock(mu);
           if (child->store_id != child_store) child->pending_store.clear();
-          store_made_again = child->store_id != child_store && !child->store_id.empty();
+          // The store registered before: in this run, or in an earlier one (the board's state).
+          const std::string known = child->store_id.empty() ? child->store_before : child->store_id;
+          store_made_again = known != child_store && !known.empty();
           if (store_made_again)
-            log("child <" + child->iri + "> has another store (id " + child_store + ", was " + child->store_id +
+            log("child <" + child->iri + "> has another store (id " + child_store + ", was " + known +
                 "): its items are a new stream, from its start");
+          child->store_before.clear();
           if (child->flips.saw(child->store_id, child_store, "the child <" + child->iri + ">"))
             log("conflict: " + child->flips.said());
           child->store_id = child_store;
@@ -2840,6 +2849,8 @@ struct Link::Impl {
     if (child.last_seen_ns) item.add(c, node::Term::iri(vocab::kLastSeen), node::Term::integer(child.last_seen_ns));
     item.add(c, node::Term::iri(vocab::kOutboxDepth), node::Term::integer(static_cast<std::int64_t>(child.outbox_depth)));
     if (!child.version.empty()) item.add(c, node::Term::iri(vocab::kSoftwareVersion), node::Term::literal(child.version));
+    if (const std::string& store = child.store_id.empty() ? child.store_before : child.store_id; !store.empty())
+      item.add(c, node::Term::iri(vocab::kChildStoreId), node::Term::literal(store));
     if (const std::string conflict = child.flips.said(); !conflict.empty())
       item.add(c, node::Term::iri(vocab::kLinkConflict), node::Term::literal(conflict));
     return item;
@@ -2923,6 +2934,17 @@ Result<std::unique_ptr<Link>> Link::start(LinkOptions options) {
   s.opt = std::move(options);
   s.parent_flips.set_hold(s.opt.conflict_hold);
   if (s.opt.down) {
+    // P10b: the stores children registered with in earlier runs, so that one made again while
+    // this link was down is known for what it is at its first hello.
+    {
+      auto link_agent = node->agent(kLinkAgent);
+      if (!link_agent) return Unexpected<Error>{link_agent.error()};
+      auto snap = node->snapshot();
+      if (!snap) return Unexpected<Error>{snap.error()};
+      auto stores = snap->list({.p = node::Term::iri(vocab::kChildStoreId), .source = link_agent->iri()});
+      if (!stores) return Unexpected<Error>{stores.error()};
+      for (const auto& r : *stores) s.stores_before[r.triple.s.value] = r.triple.o.value;
+    }
     // Configured children: their down queues also take whole-subtree items (P11), and their state
     // is on the board from the start ("never connected").
     for (const auto& id : s.opt.children) {
@@ -2940,6 +2962,7 @@ Result<std::unique_ptr<Link>> Link::start(LinkOptions options) {
       child->flips.set_hold(s.opt.conflict_hold);
       child->id = id;
       child->iri = *iri;
+      if (auto before = s.stores_before.find(*iri); before != s.stores_before.end()) child->store_before = before->second;
       s.children[*iri] = child;
     }
     // The state an earlier run kept of a child that is no longer configured (taken out of the

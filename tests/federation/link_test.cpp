@@ -448,6 +448,51 @@ TEST(Link, APersistentSettingGoesDownAgainToAChildWhoseStoreIsMadeAgain) {
   EXPECT_EQ(count(tree.home1_dir, settings), 1u);
 }
 
+// P10b: the store a child registered with is on the parent's board, so a store made again
+// while the parent's link was down is still known for a new one at its first hello, by a parent
+// with configured children and by one that accepts any child.
+TEST(Link, APersistentSettingGoesDownAgainToAChildWhoseStoreIsMadeAgainWhileTheParentWasDown) {
+  for (const bool configured : {true, false}) {
+    SCOPED_TRACE(configured ? "configured children" : "any child");
+    Tree tree;
+    auto start_hospital = [&] {
+      if (configured) return tree.start_hospital();
+      return Link::start({.dir = tree.hospital_dir, .down = std::shared_ptr<Transport>(tree.bus.open(kHospital, tree.hospital_log.sink())),
+                          .resend_after = 100ms, .log = tree.hospital_log.sink()})
+          .value();
+    };
+    tree.hospital = start_hospital();
+    tree.home1 = tree.start_home(tree.home1_dir, kHome1, tree.home1_log);
+    auto operator_ = node::Node::open(tree.hospital_dir).value().agent("operator").value();
+    node::Item config;
+    config.context = kHome1 + "/hrv";
+    config.add(Term::iri(kHome1 + "/hrv"), Term::iri(kEx + "setting"), Term::integer(7));
+    config.persistent = true;
+    ASSERT_TRUE(operator_.store(config));
+    const node::Pattern settings{.p = Term::iri(kEx + "setting")};
+    ASSERT_TRUE(eventually([&] { return count(tree.home1_dir, settings) == 1; }));
+    ASSERT_TRUE(eventually([&] { return count(tree.hospital_dir, {.s = Term::iri(kHome1), .p = Term::iri(vocab::kChildStoreId)}) == 1; }));
+
+    tree.hospital.reset();
+    tree.home1.reset();
+    std::filesystem::remove_all(tree.home1_dir);
+    ASSERT_TRUE(node::Node::init(tree.home1_dir, {.iri = kHome1}));
+    tree.hospital = start_hospital();
+    tree.home1 = tree.start_home(tree.home1_dir, kHome1, tree.home1_log);
+    EXPECT_TRUE(eventually([&] { return count(tree.home1_dir, settings) == 1; })) << tree.hospital_log.text();
+    EXPECT_TRUE(tree.hospital_log.has("1 persistent item(s) for it go down again")) << tree.hospital_log.text();
+
+    // Both restarted with the stores they have: the same store, nothing comes down twice.
+    tree.hospital.reset();
+    tree.home1.reset();
+    tree.hospital = start_hospital();
+    tree.home1 = tree.start_home(tree.home1_dir, kHome1, tree.home1_log);
+    ASSERT_TRUE(eventually([&] { return tree.home1->connected(); }));
+    std::this_thread::sleep_for(500ms);
+    EXPECT_EQ(count(tree.home1_dir, settings), 1u);
+  }
+}
+
 // P9a: the home's store allows longer literals than the hospital's. Resending the long one
 // could never succeed; it is passed over (and stays at home), and the items after it go up.
 TEST(Link, AnItemTheParentCanNeverStoreIsPassedOverAndTheItemsAfterItStillGoUp) {

@@ -396,6 +396,19 @@ TEST(Iri, ANodeIriWithAQueryAFragmentOrATrailingSlashIsRefused) {
   EXPECT_EQ(ok(node_iri("http://example.org")), "http://example.org");
 }
 
+// `http:///x` parses (an empty host), but no machine can be named by it: a node under it could
+// not be told apart from another deployment's, so it is refused where node IRIs are given.
+TEST(Iri, AnHttpNodeIriWithoutAHostIsRefused) {
+  for (const char* text : {"http:///home1", "https:///h/home1", "http://:8080/home1", "http://user@/home1"}) {
+    IriError e = err(node_iri(text));
+    EXPECT_TRUE(contains(e.message, "needs a host")) << text << ": " << e.message;
+    EXPECT_EQ(e.position, std::string_view(text).find("//") + 2) << text;
+  }
+  EXPECT_EQ(ok(node_iri("http://[::1]:8080/home1")), "http://[::1]:8080/home1");
+  EXPECT_EQ(ok(node_iri("urn:tahvel:h/home1")), "urn:tahvel:h/home1");
+  EXPECT_EQ(ok(node_iri("file:///var/home1")), "file:///var/home1");
+}
+
 // --- agent_iri and child_node_iri -----------------------------------------------------------
 
 TEST(Iri, AgentIriAppendsSlashAndId) {

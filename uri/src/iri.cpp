@@ -239,6 +239,17 @@ IriResult<std::string> node_iri(std::string_view text) {
   if (auto cut = text.find_first_of("?#"); cut != std::string_view::npos)
     return unexpected(make_error(kInvalidIri, text, {cut, "a node IRI cannot have a query or fragment: its agents' IRIs are "
                                                          "the node's + \"/\" + their id"}));
+  // RFC 9110 §4.2: an http(s) IRI names a host. Without one, `http:///x` would be a node that
+  // nothing on a network can name the same way.
+  for (std::string_view scheme : {"http://", "https://"}) {
+    if (!normal->starts_with(scheme)) continue;
+    std::string_view authority = std::string_view(*normal).substr(scheme.size());
+    authority = authority.substr(0, authority.find('/'));
+    if (auto at = authority.rfind('@'); at != std::string_view::npos) authority.remove_prefix(at + 1);
+    if (!authority.starts_with('[')) authority = authority.substr(0, authority.find(':'));
+    if (authority.empty())
+      return unexpected(make_error(kInvalidIri, text, {text.find("//") + 2, "an http(s) node IRI needs a host after \"//\""}));
+  }
   if (normal->ends_with('/'))
     return unexpected(make_error(kInvalidIri, text, {text.size() - 1, "a node IRI cannot end in '/': its agents' and "
                                                                       "children's IRIs are the node's + \"/\" + their id; "

@@ -40,6 +40,9 @@ inline const std::string kLinkState = std::string(kTv) + "linkState";
 inline const std::string kOutboxDepth = std::string(kTv) + "outboxDepth";
 inline const std::string kSoftwareVersion = std::string(kTv) + "softwareVersion";
 inline const std::string kParent = std::string(kTv) + "parent";
+// The store a child registered with (P6a), kept so that a store made again while this node's
+// link was down is still told apart from the one before (P10b).
+inline const std::string kChildStoreId = std::string(kTv) + "childStoreId";
 // A node's own view of its uplink (P12a): "up", "down", "never connected" or "refused".
 inline const std::string kUplinkState = std::string(kTv) + "uplinkState";
 inline const std::string kParentLastHeard = std::string(kTv) + "parentLastHeard";

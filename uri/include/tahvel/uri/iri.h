@@ -46,7 +46,7 @@ IriResult<std::string> check_id(std::string_view id);
 // normalised as by `normalize`, and in Unicode normalization form C as ids are (check_id), so
 // that two node IRIs that look alike are one. The error names the code points that differ.
 // A node IRI has no query or fragment and does not end in '/': its agents' and children's IRIs
-// are the node's + "/" + id.
+// are the node's + "/" + id. An http(s) node IRI names a host (`http:///x` is refused).
 IriResult<std::string> node_iri(std::string_view text);
 
 // Agent IRI = node IRI + "/" + id (DESIGN §2). A trailing '/' on the node IRI is not doubled.
