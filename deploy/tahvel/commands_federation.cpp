@@ -39,6 +39,7 @@
 #include "tahvel/spatial/board.h"
 #include "tahvel/spatial/wkt.h"
 #include "tahvel/uri/iri.h"
+#include "dataflow.h"
 #include "topology.h"
 #include "vocabulary.h"
 
@@ -750,6 +751,26 @@ void warn_of_unknown_terms(const NodeSpec& spec, const std::string& text, const 
   }
 }
 
+// Warns about an agent of the shipped chain whose input nothing in the file writes or passes up
+// (dataflow.h): it would run, report nothing wrong and write nothing.
+void warn_of_inputs_nothing_gives(const Topology& topo, const std::vector<const NodeSpec*>& mine) {
+  ForwardPolicies policies;
+  for (const NodeSpec& spec : topo.nodes) {
+    if (!spec.forward_given) {
+      policies[spec.id] = federation::default_forward_policy();
+      continue;
+    }
+    std::vector<node::Pattern> patterns;
+    try {
+      for (const auto& f : spec.forward) patterns.push_back(forward_pattern(f, uri::PrefixMap::standard(), "pattern"));
+      policies[spec.id] = std::move(patterns);
+    } catch (const Failure&) {
+      policies[spec.id] = std::nullopt;  // said where that node is brought up
+    }
+  }
+  for (const std::string& line : inputs_nothing_gives(topo, policies, mine)) std::cerr << "up: warning: " << line << "\n";
+}
+
 // The triples of a `load` file as the node's new board reads them: relative IRIs against the
 // node's IRI + "/", as `tahvel put` reads.
 std::vector<node::Triple> load_file_triples(const NodeSpec& spec, const fs::path& file, const uri::PrefixMap& prefixes,
@@ -1410,6 +1431,7 @@ int run_up(const Args& args) {
     for (const AgentSpec& agent : spec->agents)
       if (auto argv = expand_agent_command(agent, *spec, state / spec->id, here_for_file); !argv)
         fail(argv.error().message);  // it starts with the file, line and column of the agent
+  warn_of_inputs_nothing_gives(topo, mine);
   // Only now, with everything checked: a refused file leaves no state directory behind.
   std::error_code ec;
   const bool new_state = !fs::exists(state, ec);

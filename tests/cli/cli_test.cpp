@@ -1854,6 +1854,59 @@ TEST_F(Cli, UpWarnsOfAForwardTermOutsideTheVocabularyAndSaysOnceWhenTheDefaultPo
   EXPECT_EQ(run({"down", "--state", state}).status, 0);
 }
 
+// A node whose chain lacks a stage runs, reports nothing wrong and writes no HRV: `up` says which
+// agent waits for what, once per cause (the agents after it named with it), and says nothing of
+// a node that runs a program of the deployment's own, which may write anything.
+TEST_F(Cli, UpWarnsOfAnAgentWhoseInputNothingInTheFileWritesOrForwards) {
+  const std::string file = (tmp_ / "t.toml").string(), state = (tmp_ / "state").string();
+  auto agent = [](const std::string& id, const std::string& program) {
+    return "  [[node.agent]]\n  id = \"" + id + "\"\n  run = [\"{bin}/" + program + "\", \"{store}\"]\n";
+  };
+  const std::string hospital = "[[node]]\nid = \"hospital\"\niri = \"http://example.org/hospital\"\n"
+                               "listen = { kind = \"lcm\", url = \"udpm://239.255.76.67:7723?ttl=0\" }\n" +
+                               agent("trend", "tahvel-trend");
+  // home1: hrv without rr, under a sensor that forwards its chunks; home2: the chain without a
+  // sensor. Neither sends windows up, so the hospital's trend gets none either.
+  spit(file, hospital +
+                 "[[node]]\nid = \"home1\"\nparent = \"hospital\"\n"
+                 "listen = { kind = \"lcm\", url = \"udpm://239.255.76.67:7724?ttl=0\" }\n" +
+                 agent("rpeak", "tahvel-rpeak") + agent("hrv", "tahvel-hrv") +
+                 "[[node]]\nid = \"ecg1\"\nparent = \"home1\"\nforward = [\"_ a tv:EcgRecording\", \"_ a tv:EcgChunk\"]\n"
+                 "  [[node.agent]]\n  id = \"ecg\"\n"
+                 "  run = [\"{bin}/tahvel-ecg-source\", \"{store}\", \"--synthetic\", \"--seconds\", \"2\", \"--speed\", \"0\"]\n" +
+                 "[[node]]\nid = \"home2\"\nparent = \"hospital\"\n" + agent("rpeak", "tahvel-rpeak") + agent("rr", "tahvel-rr") +
+                 agent("hrv", "tahvel-hrv"));
+  auto warned = [](const Outcome& up, const std::string& line) {
+    const std::size_t at = up.err.find(line);
+    // Each warning names the agent's table in the file: "up: warning: DIR/t.toml:LINE:3: ...".
+    return at != std::string::npos && up.err.rfind("t.toml:", at) != std::string::npos &&
+           up.err.compare(at - 4, 4, ":3: ") == 0;
+  };
+  Outcome up = run({"up", file, "--state", state});
+  ASSERT_EQ(up.status, 0) << up.err;
+  EXPECT_TRUE(warned(up, "node 'home1': agent 'hrv' (tahvel-hrv) takes RR intervals (tv:intervals), which no agent of 'home1' "
+                         "writes (tahvel-rr) and no child of it forwards: it will write nothing\n"))
+      << up.err;
+  EXPECT_TRUE(warned(up, "node 'home2': agent 'rpeak' (tahvel-rpeak) takes recordings' descriptions (a tv:EcgRecording) and ECG "
+                         "chunks (tv:samples), which no agent of 'home2' writes (tahvel-ecg-source) and no child of it forwards: "
+                         "it will write nothing, nor will 'rr' and 'hrv'\n"))
+      << up.err;
+  EXPECT_TRUE(warned(up, "node 'hospital': agent 'trend' (tahvel-trend) takes HRV windows (sosa:observedProperty "
+                         "tv:HeartRateVariability), which no agent of 'hospital' writes (tahvel-hrv) and no child of it "
+                         "forwards: it will write nothing\n"))
+      << up.err;
+  EXPECT_EQ(up.err.find("node 'home1': agent 'rpeak'"), std::string::npos) << "home1's rpeak has its sensor's chunks: " << up.err;
+  // home2 also runs a program of its own, which may write anything: nothing is said of it, nor
+  // of the hospital above it.
+  spit(file, slurp(file) + "  [[node.agent]]\n  id = \"own\"\n  run = [\"/bin/sleep\", \"600\"]\n");
+  Outcome again = run({"up", file, "--state", state});
+  ASSERT_EQ(again.status, 0) << again.err;
+  EXPECT_TRUE(warned(again, "node 'home1': agent 'hrv' (tahvel-hrv) takes RR intervals")) << again.err;
+  EXPECT_EQ(again.err.find("node 'home2'"), std::string::npos) << again.err;
+  EXPECT_EQ(again.err.find("node 'hospital'"), std::string::npos) << again.err;
+  EXPECT_EQ(run({"down", "--state", state}).status, 0);
+}
+
 // A supervisor stopped with SIGSTOP (or hung) still holds its lock, and its state file still
 // says "running" of programs that may have died: status says what it knows is old, and `up`
 // says at once that nothing will answer instead of waiting a minute for it.

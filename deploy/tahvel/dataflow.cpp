@@ -1,0 +1,215 @@
+#include "dataflow.h"
+
+#include <algorithm>
+#include <bitset>
+#include <filesystem>
+
+namespace tahvel::cli {
+namespace {
+
+const std::string kTv = "https://w3id.org/tahvel#";
+const std::string kRdfType = "http://www.w3.org/1999/02/22-rdf-syntax-ns#type";
+const std::string kSosa = "http://www.w3.org/ns/sosa/";
+const std::string kProv = "http://www.w3.org/ns/prov#";
+
+// The kinds of item the chain writes and takes, with their triples as aggregation/whiteboard/
+// items.cpp writes them.
+enum Kind { recording, chunk, recording_end, rpeaks, rr_series, hrv_window, kKinds };
+using Kinds = std::bitset<kKinds>;
+
+// A triple an item of a kind has: its predicate, and its object when that is always the same.
+struct Shape {
+  std::string p, o;  // o empty: any object
+};
+
+const std::vector<Shape>& shapes_of(Kind kind) {
+  static const std::vector<Shape> shapes[kKinds] = {
+      {{kRdfType, kTv + "EcgRecording"}, {kSosa + "madeBySensor", ""}, {kTv + "samplingRate", ""}, {kTv + "gain", ""},
+       {kTv + "baseline", ""}, {kTv + "unit", ""}, {kTv + "sampleFormat", ""}, {kTv + "lead", ""}, {kTv + "sensorMaker", ""},
+       {kTv + "sensorModel", ""}, {kTv + "filters", ""}, {kTv + "replayedFrom", ""}, {kTv + "startedAt", ""}},
+      {{kRdfType, kTv + "EcgChunk"}, {kTv + "recording", ""}, {kTv + "startSample", ""}, {kTv + "frameCount", ""},
+       {kTv + "samples", ""}},
+      {{kTv + "endSample", ""}},
+      {{kRdfType, kTv + "RPeaks"}, {kTv + "recording", ""}, {kTv + "fromSample", ""}, {kTv + "toSample", ""},
+       {kTv + "peaks", ""}, {kTv + "emptyGapEnds", ""}, {kTv + "pWaveGapEnds", ""}, {kProv + "wasDerivedFrom", ""}},
+      {{kRdfType, kTv + "RrSeries"}, {kTv + "recording", ""}, {kTv + "intervals", ""}, {kProv + "wasDerivedFrom", ""},
+       {kTv + "endSample", ""}},
+      {{kRdfType, kSosa + "Observation"}, {kSosa + "observedProperty", kTv + "HeartRateVariability"},
+       {kProv + "wasDerivedFrom", ""}, {kProv + "wasAttributedTo", ""}, {kTv + "windowStartS", ""}, {kTv + "windowEndS", ""},
+       {kTv + "meanNnMs", ""}, {kTv + "sdnnMs", ""}, {kTv + "rmssdMs", ""}, {kTv + "pnn50Pct", ""}, {kTv + "meanHrBpm", ""},
+       {kTv + "lfMs2", ""}, {kTv + "hfMs2", ""}, {kTv + "lfHf", ""}, {kTv + "sd1Ms", ""}, {kTv + "sd2Ms", ""},
+       {kTv + "irregularPct", ""}, {kTv + "nnCount", ""}, {kTv + "rrCount", ""}},
+  };
+  return shapes[kind];
+}
+
+// How the file and a warning name what an agent waits for.
+const char* what_kind(Kind kind) {
+  switch (kind) {
+    case recording: return "recordings' descriptions (a tv:EcgRecording)";
+    case chunk: return "ECG chunks (tv:samples)";
+    case recording_end: return "recordings' ends (tv:endSample)";
+    case rpeaks: return "R-peaks (tv:peaks)";
+    case rr_series: return "RR intervals (tv:intervals)";
+    case hrv_window: return "HRV windows (sosa:observedProperty tv:HeartRateVariability)";
+    case kKinds: break;
+  }
+  return "";
+}
+const char* writer_of(Kind kind) {
+  switch (kind) {
+    case recording: case chunk: case recording_end: return "tahvel-ecg-source";
+    case rpeaks: return "tahvel-rpeak";
+    case rr_series: return "tahvel-rr";
+    case hrv_window: return "tahvel-hrv";
+    case kKinds: break;
+  }
+  return "";
+}
+
+struct Program {
+  Kinds takes, writes;
+};
+
+// The shipped programs; nullopt for any other (it may write anything).
+std::optional<Program> program_of(const AgentSpec& agent) {
+  if (agent.run.empty()) return std::nullopt;
+  const std::string name = std::filesystem::path(agent.run.front()).filename().string();
+  Program p;
+  if (name == "tahvel-ecg-source") {
+    p.writes.set(recording).set(chunk).set(recording_end);
+  } else if (name == "tahvel-rpeak") {
+    p.takes.set(chunk).set(recording);
+    p.writes.set(rpeaks);
+  } else if (name == "tahvel-rr") {
+    p.takes.set(rpeaks).set(recording);
+    p.writes.set(rr_series);
+  } else if (name == "tahvel-hrv") {
+    p.takes.set(rr_series).set(recording);
+    p.writes.set(hrv_window);
+  } else if (name == "tahvel-trend") {
+    p.takes.set(hrv_window);
+  } else if (name != "tahvel-env-motes" && name != "tahvel-environment") {
+    return std::nullopt;
+  }
+  return p;
+}
+
+// Whether an uplink subscribed to `pattern` may take an item of `kind`: some triple of the kind
+// can match it. A subject, or an object the kind does not fix, may match.
+bool passes(const node::Pattern& pattern, Kind kind) {
+  return std::any_of(shapes_of(kind).begin(), shapes_of(kind).end(), [&](const Shape& shape) {
+    if (pattern.p && (!pattern.p->is_iri() || pattern.p->value != shape.p)) return false;
+    if (pattern.o && !shape.o.empty() && (!pattern.o->is_iri() || pattern.o->value != shape.o)) return false;
+    return true;
+  });
+}
+
+// What a node holds: kinds, or anything (a program of the deployment's own, here or below), and
+// its agents of the chain that get no input of a kind they take.
+struct Holds {
+  Kinds kinds;
+  bool anything = false;
+  std::vector<const AgentSpec*> dry;
+};
+
+class Flow {
+ public:
+  Flow(const Topology& topo, const ForwardPolicies& policies) : topo_(topo), policies_(policies) {}
+
+  const Holds& holds(const NodeSpec& spec) {
+    if (auto known = memo_.find(spec.id); known != memo_.end()) return known->second;
+    Holds h;
+    for (const NodeSpec* child : topo_.children(spec.id)) {
+      const Holds& below = holds(*child);
+      auto policy = policies_.find(child->id);
+      if (policy == policies_.end() || !policy->second) {
+        h.anything |= below.anything || below.kinds.any();
+        continue;
+      }
+      for (int k = 0; k < kKinds; ++k) {
+        if (!below.anything && !below.kinds.test(k)) continue;
+        for (const node::Pattern& pattern : *policy->second)
+          if (passes(pattern, static_cast<Kind>(k))) h.kinds.set(k);
+      }
+    }
+    std::vector<std::pair<const AgentSpec*, Program>> waiting;
+    for (const AgentSpec& agent : spec.agents) {
+      if (auto program = program_of(agent)) waiting.emplace_back(&agent, *program);
+      else h.anything = true;
+    }
+    // An agent writes once everything it takes is here: in the order of the chain, whatever the
+    // order of the file.
+    for (bool more = true; more && !h.anything;) {
+      more = false;
+      for (auto it = waiting.begin(); it != waiting.end();) {
+        if ((it->second.takes & ~h.kinds).none()) {
+          h.kinds |= it->second.writes;
+          it = waiting.erase(it);
+          more = true;
+        } else {
+          ++it;
+        }
+      }
+    }
+    if (!h.anything)
+      for (const auto& [agent, program] : waiting) h.dry.push_back(agent);
+    return memo_.emplace(spec.id, std::move(h)).first->second;
+  }
+
+ private:
+  const Topology& topo_;
+  const ForwardPolicies& policies_;
+  std::map<std::string, Holds> memo_;
+};
+
+std::string program_name(const AgentSpec& agent) { return std::filesystem::path(agent.run.front()).filename().string(); }
+
+}  // namespace
+
+std::vector<std::string> inputs_nothing_gives(const Topology& topo, const ForwardPolicies& policies,
+                                              const std::vector<const NodeSpec*>& judged) {
+  Flow flow(topo, policies);
+  std::vector<std::string> warnings;
+  for (const NodeSpec* spec : judged) {
+    const Holds& here = flow.holds(*spec);
+    // What would be here if the dry agents wrote: an input missing even then is a cause. An
+    // agent that waits only on dry agents, or on what a cause already lacks, is named after it.
+    Kinds would = here.kinds;
+    for (const AgentSpec* agent : here.dry) would |= program_of(*agent)->writes;
+    Kinds named;
+    std::vector<std::pair<const AgentSpec*, Kinds>> causes;
+    std::vector<std::string> after;
+    for (const AgentSpec* agent : here.dry) {
+      const Kinds missing = program_of(*agent)->takes & ~would;
+      if ((missing & ~named).any()) {
+        causes.emplace_back(agent, missing);
+        named |= missing;
+      } else {
+        after.push_back("'" + agent->id + "'");
+      }
+    }
+    for (std::size_t c = 0; c < causes.size(); ++c) {
+      const auto& [agent, missing] = causes[c];
+      std::string what, writers;
+      for (int k = 0; k < kKinds; ++k) {
+        if (!missing.test(k)) continue;
+        const Kind kind = static_cast<Kind>(k);
+        what += (what.empty() ? "" : " and ") + std::string(what_kind(kind));
+        if (writers.find(writer_of(kind)) == std::string::npos) writers += (writers.empty() ? "" : ", ") + std::string(writer_of(kind));
+      }
+      std::string line = agent->at + ": node '" + spec->id + "': agent '" + agent->id + "' (" + program_name(*agent) + ") takes " +
+                         what + ", which no agent of '" + spec->id + "' writes (" + writers +
+                         ") and no child of it forwards: it will write nothing";
+      if (c + 1 == causes.size() && !after.empty()) {
+        std::string names;
+        for (std::size_t i = 0; i < after.size(); ++i) names += (i == 0 ? "" : i + 1 == after.size() ? " and " : ", ") + after[i];
+        line += ", nor will " + names;
+      }
+      warnings.push_back(std::move(line));
+    }
+  }
+  return warnings;
+}
+
+}  // namespace tahvel::cli
