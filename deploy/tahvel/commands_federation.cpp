@@ -751,9 +751,9 @@ void warn_of_unknown_terms(const NodeSpec& spec, const std::string& text, const 
   }
 }
 
-// Warns about an agent of the shipped chain whose input nothing in the file writes or passes up
-// (dataflow.h): it would run, report nothing wrong and write nothing.
-void warn_of_inputs_nothing_gives(const Topology& topo, const std::vector<const NodeSpec*>& mine) {
+// Warns about an agent of the shipped chain whose input nothing in the file writes or passes up,
+// or whose results a child sends up as well (dataflow.h).
+void warn_of_dataflow(const Topology& topo, const std::vector<const NodeSpec*>& mine) {
   ForwardPolicies policies;
   for (const NodeSpec& spec : topo.nodes) {
     if (!spec.forward_given) {
@@ -768,7 +768,7 @@ void warn_of_inputs_nothing_gives(const Topology& topo, const std::vector<const 
       policies[spec.id] = std::nullopt;  // said where that node is brought up
     }
   }
-  for (const std::string& line : inputs_nothing_gives(topo, policies, mine)) std::cerr << "up: warning: " << line << "\n";
+  for (const std::string& line : dataflow_warnings(topo, policies, mine)) std::cerr << "up: warning: " << line << "\n";
 }
 
 // The triples of a `load` file as the node's new board reads them: relative IRIs against the
@@ -1431,7 +1431,7 @@ int run_up(const Args& args) {
     for (const AgentSpec& agent : spec->agents)
       if (auto argv = expand_agent_command(agent, *spec, state / spec->id, here_for_file); !argv)
         fail(argv.error().message);  // it starts with the file, line and column of the agent
-  warn_of_inputs_nothing_gives(topo, mine);
+  warn_of_dataflow(topo, mine);
   // Only now, with everything checked: a refused file leaves no state directory behind.
   std::error_code ec;
   const bool new_state = !fs::exists(state, ec);

@@ -111,6 +111,7 @@ struct Holds {
   Kinds kinds;
   bool anything = false;
   std::vector<const AgentSpec*> dry;
+  std::vector<std::pair<const NodeSpec*, Kinds>> passed_up;  // by each child (known kinds only)
 };
 
 class Flow {
@@ -127,11 +128,14 @@ class Flow {
         h.anything |= below.anything || below.kinds.any();
         continue;
       }
+      Kinds passed;
       for (int k = 0; k < kKinds; ++k) {
         if (!below.anything && !below.kinds.test(k)) continue;
         for (const node::Pattern& pattern : *policy->second)
-          if (passes(pattern, static_cast<Kind>(k))) h.kinds.set(k);
+          if (passes(pattern, static_cast<Kind>(k))) passed.set(k);
       }
+      h.kinds |= passed;
+      if (!below.anything) h.passed_up.emplace_back(child, passed);
     }
     std::vector<std::pair<const AgentSpec*, Program>> waiting;
     for (const AgentSpec& agent : spec.agents) {
@@ -167,12 +171,30 @@ std::string program_name(const AgentSpec& agent) { return std::filesystem::path(
 
 }  // namespace
 
-std::vector<std::string> inputs_nothing_gives(const Topology& topo, const ForwardPolicies& policies,
-                                              const std::vector<const NodeSpec*>& judged) {
+std::vector<std::string> dataflow_warnings(const Topology& topo, const ForwardPolicies& policies,
+                                           const std::vector<const NodeSpec*>& judged) {
   Flow flow(topo, policies);
   std::vector<std::string> warnings;
   for (const NodeSpec* spec : judged) {
     const Holds& here = flow.holds(*spec);
+    // A stage here whose input and output both come up from one child: the child's stage and this
+    // one write the same items (named by recording) from one input.
+    for (const AgentSpec& agent : spec->agents) {
+      auto program = program_of(agent);
+      if (!program || program->writes.none() || program->takes.none()) continue;
+      const Kinds input = program->takes & ~Kinds().set(recording);
+      for (const auto& [child, passed] : here.passed_up) {
+        if ((input & ~passed).any() || (program->writes & ~passed).any()) continue;
+        std::string writes;
+        for (int k = 0; k < kKinds; ++k)
+          if (program->writes.test(k)) writes = what_kind(static_cast<Kind>(k));
+        warnings.push_back(agent.at + ": node '" + spec->id + "': agent '" + agent.id + "' (" + program_name(agent) + ") writes " +
+                           writes + " from what '" + child->id + "' forwards, and '" + child->id +
+                           "' forwards its own as well: two writers of one recording's items under the same names "
+                           "(forward the input or the results, not both)");
+      }
+    }
+    if (here.anything) continue;
     // What would be here if the dry agents wrote: an input missing even then is a cause. An
     // agent that waits only on dry agents, or on what a cause already lacks, is named after it.
     Kinds would = here.kinds;

@@ -1,6 +1,8 @@
-// Which agents of a topology would wait for input that nothing in the file gives them: a home
-// that runs tahvel-hrv without tahvel-rr, or a gateway without the sensor its rpeak reads, comes
-// up, reports nothing wrong and writes no HRV. `tahvel up` says so before it starts anything.
+// Which agents of a topology would wait for input that nothing in the file gives them, or write
+// what a child already sends up: a home that runs tahvel-hrv without tahvel-rr, or a gateway
+// without the sensor its rpeak reads, comes up, reports nothing wrong and writes no HRV; a
+// hospital that computes HRV from RR intervals a home forwards along with the home's own windows
+// holds two windows under each name. `tahvel up` says so before it starts anything.
 //
 // The shipped programs' items are known: tahvel-ecg-source writes recordings and ECG chunks,
 // tahvel-rpeak takes the chunks and writes R-peaks, tahvel-rr takes those and writes RR series,
@@ -25,9 +27,12 @@ namespace tahvel::cli {
 // anything may go up).
 using ForwardPolicies = std::map<std::string, std::optional<std::vector<node::Pattern>>>;
 
-// One warning per input of an agent of `judged` (ids of `topo`'s nodes) that no agent of its node
-// writes and no child passes up, naming where the agent is in the file.
-std::vector<std::string> inputs_nothing_gives(const Topology& topo, const ForwardPolicies& policies,
-                                              const std::vector<const NodeSpec*>& judged);
+// Warnings about the agents of `judged`, each naming where the agent is in the file:
+// - an input that no agent of its node writes and no child passes up (once per cause; the agents
+//   that wait on it are named with it);
+// - a stage whose input and results both come up from one child, so that the child's stage and
+//   this one write one recording's items under the same names.
+std::vector<std::string> dataflow_warnings(const Topology& topo, const ForwardPolicies& policies,
+                                           const std::vector<const NodeSpec*>& judged);
 
 }  // namespace tahvel::cli

@@ -1905,6 +1905,26 @@ TEST_F(Cli, UpWarnsOfAnAgentWhoseInputNothingInTheFileWritesOrForwards) {
   EXPECT_EQ(again.err.find("node 'home2'"), std::string::npos) << again.err;
   EXPECT_EQ(again.err.find("node 'hospital'"), std::string::npos) << again.err;
   EXPECT_EQ(run({"down", "--state", state}).status, 0);
+
+  // HRV computed at the hospital from the RR intervals a home forwards along with its own
+  // windows: two windows under each name.
+  const std::string both = (tmp_ / "both.toml").string(), state2 = (tmp_ / "state2").string();
+  spit(both, "[[node]]\nid = \"hospital\"\niri = \"http://example.org/hospital\"\n"
+             "listen = { kind = \"lcm\", url = \"udpm://239.255.76.67:7723?ttl=0\" }\n" +
+                 agent("hrv", "tahvel-hrv") +
+                 "[[node]]\nid = \"home1\"\nparent = \"hospital\"\n"
+                 "forward = [\"_ sosa:observedProperty tv:HeartRateVariability\", \"_ a tv:EcgRecording\", \"_ tv:intervals _\"]\n" +
+                 agent("ecg", "tahvel-ecg-source") + agent("rpeak", "tahvel-rpeak") + agent("rr", "tahvel-rr") +
+                 agent("hrv", "tahvel-hrv"));
+  Outcome twice = run({"up", both, "--state", state2});
+  ASSERT_EQ(twice.status, 0) << twice.err;
+  EXPECT_NE(twice.err.find("both.toml:5:3: node 'hospital': agent 'hrv' (tahvel-hrv) writes HRV windows (sosa:observedProperty "
+                           "tv:HeartRateVariability) from what 'home1' forwards, and 'home1' forwards its own as well: two "
+                           "writers of one recording's items under the same names (forward the input or the results, not both)\n"),
+            std::string::npos)
+      << twice.err;
+  EXPECT_EQ(twice.err.find("takes"), std::string::npos) << twice.err;
+  EXPECT_EQ(run({"down", "--state", state2}).status, 0);
 }
 
 // A supervisor stopped with SIGSTOP (or hung) still holds its lock, and its state file still
