@@ -17,10 +17,12 @@ bool PatientView::alerting() const {
   return std::any_of(trends.begin(), trends.end(), [](const TrendUpdate& t) { return t.alert; });
 }
 
-std::string PatientView::source_node() const {
-  // The last path segment goes: "http://h/home1/hrv" -> "http://h/home1", and an IRI without
-  // an authority as well ("urn:tahvel:h/home1/hrv" -> "urn:tahvel:h/home1"). Nothing is left of
-  // "http://hrv" or "urn:hrv" once the segment goes.
+namespace {
+
+// The node of an agent's IRI: the last path segment goes: "http://h/home1/hrv" ->
+// "http://h/home1", and an IRI without an authority as well ("urn:tahvel:h/home1/hrv" ->
+// "urn:tahvel:h/home1"). Nothing is left of "http://hrv" or "urn:hrv" once the segment goes.
+std::string node_of(const std::string& source) {
   const std::size_t colon = source.find(':');
   const std::size_t slash = source.rfind('/');
   if (colon == std::string::npos || slash == std::string::npos || slash < colon) return {};
@@ -29,6 +31,20 @@ std::string PatientView::source_node() const {
   if (source.compare(colon + 1, slash - colon - 1, std::string(slash - colon - 1, '/')) == 0) return {};
   return source.substr(0, slash);
 }
+
+// How near the node of writer `source` is to `recording`: the length of its IRI when the
+// recording lies below it (a sensor of that node or below), else -1.
+long nearness(const std::string& source, const std::string& recording) {
+  const std::string node = node_of(source);
+  if (node.empty() || recording.size() <= node.size() || recording.compare(0, node.size(), node) != 0 ||
+      recording[node.size()] != '/')
+    return -1;
+  return static_cast<long>(node.size());
+}
+
+}  // namespace
+
+std::string PatientView::source_node() const { return node_of(source); }
 
 bool PatientView::irregular() const {
   const auto& pct = latest.window.metrics.irregular_pct;
@@ -174,7 +190,8 @@ Result<PatientsOnBoard> patients_on_board(const Snapshot& snapshot, std::optiona
 
   // Every window: its recording and start through the indexes (window_facts); a window
   // whose recording or start cannot be found so is read whole.
-  std::map<std::string, std::map<std::string, Entry>> windows;  // recording -> window IRI -> entry
+  // recording -> writer -> window IRI -> entry
+  std::map<std::string, std::map<std::string, std::map<std::string, Entry>>> windows;
   Pattern hrv;
   hrv.p = Term::iri("http://www.w3.org/ns/sosa/observedProperty");
   hrv.o = tv_term("HeartRateVariability");
@@ -200,11 +217,35 @@ Result<PatientsOnBoard> patients_on_board(const Snapshot& snapshot, std::optiona
       entry.start_s = (*w)->window.start_s;
       rec = (*w)->recording;
     }
-    windows[rec].emplace(iri, std::move(entry));
+    windows[rec][entry.source].emplace(iri, std::move(entry));
   }
 
   std::map<std::string, PatientView> patients;
-  for (auto& [recording, by_iri] : windows) {
+  for (auto& [recording, by_writer] : windows) {
+    // One tahvel-hrv per recording (docs/agents.md). Writers that wrote windows under the same
+    // names (a hospital computing HRV from a home's RR intervals beside the home's own windows)
+    // are two agents on one recording: of those, the writer nearest the recording stands, whose
+    // node holds its raw ECG, then the one with more windows; the others are named, not mixed
+    // in. Writers that share no name (an agent renamed, one after the other) are one series.
+    std::set<std::string> clashing;
+    std::map<std::string, std::string> named_by;  // window IRI -> its first writer
+    for (const auto& [writer, its] : by_writer)
+      for (const auto& [iri, entry] : its)
+        if (auto [at, fresh] = named_by.emplace(iri, writer); !fresh) clashing.insert({at->second, writer});
+    std::string chosen;
+    for (const std::string& writer : clashing) {
+      const long near = nearness(writer, recording), best = chosen.empty() ? -2 : nearness(chosen, recording);
+      if (near > best || (near == best && by_writer[writer].size() > by_writer[chosen].size())) chosen = writer;
+    }
+    std::map<std::string, Entry> by_iri;
+    std::vector<std::pair<std::string, std::size_t>> others;
+    for (auto& [writer, its] : by_writer) {
+      if (clashing.count(writer) && writer != chosen) {
+        others.emplace_back(writer, its.size());
+        continue;
+      }
+      by_iri.merge(its);
+    }
     std::vector<const Entry*> newest_first;
     for (const auto& [iri, entry] : by_iri) newest_first.push_back(&entry);
     std::sort(newest_first.begin(), newest_first.end(),
@@ -220,6 +261,7 @@ Result<PatientsOnBoard> patients_on_board(const Snapshot& snapshot, std::optiona
       p.latest = std::move(**w);
       p.latest_stored_ns = entry->stored_ns;
       p.latest_asserted_ns = entry->asserted_ns;
+      p.other_writers = std::move(others);
       break;
     }
   }

@@ -175,7 +175,11 @@ void print_patients_json(const std::string& node_iri, const agg::PatientsOnBoard
     const agg::PatientView& p = *shown[i];
     out << (i ? "," : "") << "{\"recording\":\"" << node::json_escape(p.recording) << "\",\"source\":\""
         << node::json_escape(p.source) << "\",\"windows\":" << p.windows << ",\"alerting\":" << (p.alerting() ? "true" : "false")
-        << ",\"irregular\":" << (p.irregular() ? "true" : "false") << ",\"latest\":{\"iri\":\"" << node::json_escape(p.latest.iri)
+        << ",\"irregular\":" << (p.irregular() ? "true" : "false") << ",\"other_writers\":[";
+    for (std::size_t k = 0; k < p.other_writers.size(); ++k)
+      out << (k ? "," : "") << "{\"source\":\"" << node::json_escape(p.other_writers[k].first)
+          << "\",\"windows\":" << p.other_writers[k].second << "}";
+    out << "],\"latest\":{\"iri\":\"" << node::json_escape(p.latest.iri)
         << "\",\"start_s\":" << json_number(p.latest.window.start_s) << ",\"end_s\":" << json_number(p.latest.window.end_s)
         << ",\"stored_ns\":" << p.latest_stored_ns << ",\"asserted_ns\":" << p.latest_asserted_ns << ",\"metrics\":" << metrics_json(p.latest.window.metrics) << "}";
     // Where the raw ECG behind the latest window is, for `tahvel ecg` or `tahvel query`.
@@ -227,6 +231,9 @@ void print_patient_text(const std::string& dir, const agg::PatientView& p) {
             << text_number(p.latest.window.start_s, "%.0f") << "-" << text_number(p.latest.window.end_s, "%.0f")
             << " s into the recording, stored " << node::utc_text(p.latest_stored_ns) << " ("
             << age_of(p.latest_stored_ns) << ")\n";
+  for (const auto& [writer, count] : p.other_writers)
+    std::cout << "  also " << count << " window(s) of it from <" << writer
+              << ">, not shown: two HRV agents on one recording (run one tahvel-hrv per recording)\n";
   const agg::HrvMetrics& m = p.latest.window.metrics;
   std::cout << "  latest window: SDNN " << text_number(m.sdnn_ms) << " ms, RMSSD " << text_number(m.rmssd_ms)
             << " ms, mean HR " << text_number(m.mean_hr_bpm) << " bpm, " << m.nn_count << " NN of " << m.rr_count

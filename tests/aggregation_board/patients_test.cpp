@@ -287,6 +287,44 @@ TEST_F(PatientsOnBoard, AMetricNoLongerWrittenStillShowsItsLatestUpdate) {
 
 // Where the raw ECG behind a window is: the writer's node, its IRI less the agent's id, for an
 // IRI with an authority or without one (a deployment rooted at a URN).
+// Two HRV agents on one recording: the hospital's own from a home's RR intervals, and the
+// home's, relayed, under the same window names. The patient is the home's windows (its node
+// holds the raw ECG), and the hospital's are named with their count, not mixed in.
+TEST_F(PatientsOnBoard, WindowsOfTwoWritersShowTheWriterNearestTheRecordingAndNameTheOther) {
+  const std::string home_hrv = kHospital + "/home1/hrv";
+  std::vector<tn::RelayedItem> relayed;
+  for (int k = 0; k < 3; ++k) {
+    agg::RecordingInfo info;
+    info.iri = kRecA;
+    agg::WindowMetrics w;
+    w.start_s = 60.0 * k;
+    w.end_s = w.start_s + 60;
+    w.metrics.sdnn_ms = 40 + k;
+    w.metrics.nn_count = w.metrics.rr_count = 70;
+    relayed.push_back({.seq = static_cast<std::uint64_t>(k + 1), .prev = static_cast<std::uint64_t>(k), .source = home_hrv,
+                       .item = agg::hrv_window_item(info, w, home_hrv)});
+  }
+  window("hrv", kRecA, 0, 90);
+  window("hrv", kRecA, 60, 91);
+  auto home1 = node_->agent("home1");
+  ASSERT_TRUE(home1);
+  ASSERT_TRUE(home1->relay("up", relayed));
+  window("hrv", kRecA, 120, 92);  // the hospital's latest, stored last
+  window("hrv", kRecA, 180, 93);  // and one the home has not
+
+  const agg::PatientsOnBoard board = read();
+  ASSERT_EQ(board.patients.size(), 1u);
+  const agg::PatientView& a = board.patients[0];
+  EXPECT_EQ(a.source, home_hrv);
+  EXPECT_EQ(a.source_node(), kHospital + "/home1");
+  EXPECT_EQ(a.windows, 3u);
+  EXPECT_EQ(a.latest.window.start_s, 120);
+  EXPECT_EQ(a.latest.window.metrics.sdnn_ms, 42);
+  ASSERT_EQ(a.other_writers.size(), 1u);
+  EXPECT_EQ(a.other_writers[0].first, kHospital + "/hrv");
+  EXPECT_EQ(a.other_writers[0].second, 4u);
+}
+
 TEST(PatientView, TheSourceNodeIsTheWritersIriLessItsLastSegment) {
   agg::PatientView p;
   auto node_of = [&](const std::string& source) {

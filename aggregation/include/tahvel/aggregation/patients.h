@@ -8,6 +8,7 @@
 #include <cstdint>
 #include <optional>
 #include <string>
+#include <utility>
 #include <vector>
 
 #include "tahvel/aggregation/error.h"
@@ -19,7 +20,12 @@ namespace tahvel::aggregation {
 struct PatientView {
   std::string recording;             // the recording's IRI: one patient's ECG
   std::string source;                // the writer of its latest window (a home's <node>/hrv)
-  std::size_t windows = 0;           // its HRV windows on the board
+  std::size_t windows = 0;           // its HRV windows on the board, by that writer
+  // Other agents that wrote windows of this recording under the same names as `source`, with
+  // how many: there should be none (one tahvel-hrv per recording). Of writers that clash so, the
+  // one whose node is nearest the recording (its IRI lies below that node) is shown, then the one
+  // with more windows. Writers whose windows share no name (an agent renamed) are one series.
+  std::vector<std::pair<std::string, std::size_t>> other_writers;
   HrvWindowItem latest;              // the readable window with the latest start
   std::int64_t latest_stored_ns = 0; // when that window was stored on this board
   // The signal time of its start (its records' asserted-at, ns since the epoch): with the
