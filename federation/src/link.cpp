@@ -2934,17 +2934,15 @@ Result<std::unique_ptr<Link>> Link::start(LinkOptions options) {
   s.opt = std::move(options);
   s.parent_flips.set_hold(s.opt.conflict_hold);
   if (s.opt.down) {
+    auto link_agent = node->agent(kLinkAgent);
+    if (!link_agent) return Unexpected<Error>{link_agent.error()};
+    auto snap = node->snapshot();
+    if (!snap) return Unexpected<Error>{snap.error()};
     // P10b: the stores children registered with in earlier runs, so that one made again while
     // this link was down is known for what it is at its first hello.
-    {
-      auto link_agent = node->agent(kLinkAgent);
-      if (!link_agent) return Unexpected<Error>{link_agent.error()};
-      auto snap = node->snapshot();
-      if (!snap) return Unexpected<Error>{snap.error()};
-      auto stores = snap->list({.p = node::Term::iri(vocab::kChildStoreId), .source = link_agent->iri()});
-      if (!stores) return Unexpected<Error>{stores.error()};
-      for (const auto& r : *stores) s.stores_before[r.triple.s.value] = r.triple.o.value;
-    }
+    auto stores = snap->list({.p = node::Term::iri(vocab::kChildStoreId), .source = link_agent->iri()});
+    if (!stores) return Unexpected<Error>{stores.error()};
+    for (const auto& r : *stores) s.stores_before[r.triple.s.value] = r.triple.o.value;
     // Configured children: their down queues also take whole-subtree items (P11), and their state
     // is on the board from the start ("never connected").
     for (const auto& id : s.opt.children) {
@@ -2968,10 +2966,6 @@ Result<std::unique_ptr<Link>> Link::start(LinkOptions options) {
     // The state an earlier run kept of a child that is no longer configured (taken out of the
     // file) would stay "up" on the board for ever: it goes (P12).
     if (!s.opt.children.empty()) {
-      auto link_agent = node->agent(kLinkAgent);
-      if (!link_agent) return Unexpected<Error>{link_agent.error()};
-      auto snap = node->snapshot();
-      if (!snap) return Unexpected<Error>{snap.error()};
       auto states = snap->list({.p = node::Term::iri(vocab::kLinkState), .source = link_agent->iri()});
       if (!states) return Unexpected<Error>{states.error()};
       for (const auto& r : *states) {
