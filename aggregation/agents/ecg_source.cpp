@@ -1,6 +1,8 @@
 // tahvel-ecg-source: an ECG sensor on the whiteboard. Replays a WFDB record (MIT-BIH) or
 // generates a synthetic ECG (ECGSYN), and writes the recording item (persistent), one chunk
-// item per second of signal (all leads), and at the end `<recording> tv:endSample N`.
+// item per second of signal (all leads), and at the end `<recording> tv:endSample N`. A
+// recording is named by its agent, record and start: <agent>/recording/<name>-<UTC start>,
+// e.g. http://example.org/home1/ecg/recording/100-20261130T174900Z.
 //
 //   tahvel-ecg-source DIR --record PATH | --synthetic [--seed N] [--hr BPM] [--seconds S]
 //                     [--speed X] [--agent ID]
@@ -9,13 +11,16 @@
 // possible. Pacing follows a monotonic clock from the start (chunk k is written at
 // t0 + (k + 1) s / X), so time does not drift however long the run. SIGINT/SIGTERM end the
 // recording after the current chunk (the end item is still written).
+#include <algorithm>
 #include <chrono>
 #include <cmath>
+#include <ctime>
 #include <filesystem>
 #include <memory>
 #include <cstdlib>
 #include <iostream>
 #include <optional>
+#include <string_view>
 #include <thread>
 
 #include "agent_runtime.h"
@@ -175,26 +180,87 @@ agg::Result<bool> skip(Signal& signal, std::int64_t frames) {
   return true;
 }
 
+// Whether `iri` is a take of the recording `base` (take_iri), or `base` itself, as sources named
+// a first take before takes had a start.
+bool is_take_of(const std::string& iri, const std::string& base) {
+  if (iri == base) return true;
+  if (iri.size() <= base.size() + 1 || iri.compare(0, base.size(), base) != 0 || iri[base.size()] != '-') return false;
+  const std::string_view rest = std::string_view(iri).substr(base.size() + 1);
+  auto digits = [](std::string_view t) {
+    return !t.empty() && std::all_of(t.begin(), t.end(), [](char c) { return c >= '0' && c <= '9'; });
+  };
+  // YYYYMMDDTHHMMSSZ, then -N for a second take in the same second.
+  if (rest.size() < 16 || !digits(rest.substr(0, 8)) || rest[8] != 'T' || !digits(rest.substr(9, 6)) || rest[15] != 'Z')
+    return false;
+  return rest.size() == 16 || (rest[16] == '-' && digits(rest.substr(17)));
+}
+
+// A take's IRI: the recording's base IRI and the UTC second it starts, <base>-20261130T174900Z.
+std::string take_iri(const std::string& base, std::int64_t start_ns) {
+  const std::time_t seconds = static_cast<std::time_t>(start_ns / 1'000'000'000);
+  std::tm utc{};
+  gmtime_r(&seconds, &utc);
+  char stamp[32];
+  std::strftime(stamp, sizeof stamp, "%Y%m%dT%H%M%SZ", &utc);
+  return base + "-" + stamp;
+}
+
+// This source's takes of the recording `base` on the board, in the order they were written.
+tahvel::node::Result<std::vector<std::string>> takes_on_board(const rt::Session& session, const std::string& base) {
+  using tahvel::node::Term;
+  auto snapshot = session.node.snapshot();
+  if (!snapshot) return tahvel::unexpected(snapshot.error());
+  tahvel::node::Pattern recordings;
+  recordings.p = Term::iri("http://www.w3.org/1999/02/22-rdf-syntax-ns#type");
+  recordings.o = agg::tv_term("EcgRecording");
+  recordings.source = session.agent.iri();
+  auto records = snapshot->list(recordings);
+  if (!records) return tahvel::unexpected(records.error());
+  std::vector<std::pair<std::uint64_t, std::string>> found;
+  for (const auto& r : *records)
+    if (is_take_of(r.triple.s.value, base)) found.emplace_back(r.meta.item, r.triple.s.value);
+  std::sort(found.begin(), found.end());
+  std::vector<std::string> takes;
+  for (auto& [item, iri] : found)
+    if (std::find(takes.begin(), takes.end(), iri) == takes.end()) takes.push_back(std::move(iri));
+  return takes;
+}
+
 int replay(rt::Session& session, Signal& signal, double speed) {
   auto& agent = session.agent;
-  // A restart must not write the same seconds twice. A recording an earlier run ended (its
-  // tv:endSample is there: it reached its end or was stopped) is over; this run records anew
-  // as <name>-2, -3, ... A recording left without an end (the source was killed) goes on after
-  // its last chunk, on the same time axis.
+  // Each take of a recording has an IRI of its own, from its start: a source whose store was
+  // made again (a sensor replaced) records under a name its parent has not seen, rather than
+  // under the old take's, whose chunks the home holds and its R-peak agent has done. A restart
+  // must not write the same seconds twice: a take an earlier run left without an end (the
+  // source was killed) goes on after its last chunk, on the same time axis; one it ended (its
+  // tv:endSample is there: it reached its end or was stopped) is over, and this run takes anew.
   const std::string base_iri = signal.info.iri;
+  auto takes = takes_on_board(session, base_iri);
+  if (!takes) {
+    rt::log_line(kProgram, "reading the board: " + takes.error().message);
+    return rt::kExitError;
+  }
   EarlierRun earlier;
-  for (int take = 2;; ++take) {
-    auto found = earlier_run(session, signal.info.iri, signal.info.fs);
+  if (!takes->empty()) {
+    auto found = earlier_run(session, takes->back(), signal.info.fs);
     if (!found) {
       rt::log_line(kProgram, "reading the board: " + found.error().message);
       return rt::kExitError;
     }
     earlier = *found;
-    if (!earlier.end) break;
-    signal.info.iri = base_iri + "-" + std::to_string(take);
+    if (!earlier.end) signal.info.iri = takes->back();
   }
-  if (signal.info.iri != base_iri)
-    rt::log_line(kProgram, "<" + base_iri + "> was ended by an earlier run; recording anew as <" + signal.info.iri + ">");
+  if (takes->empty() || earlier.end) {
+    const std::string ended = takes->empty() ? std::string() : takes->back();
+    earlier = {};
+    const std::string fresh = take_iri(base_iri, std::chrono::duration_cast<std::chrono::nanoseconds>(
+                                                     std::chrono::system_clock::now().time_since_epoch()).count());
+    signal.info.iri = fresh;
+    for (int again = 2; std::find(takes->begin(), takes->end(), signal.info.iri) != takes->end(); ++again)
+      signal.info.iri = fresh + "-" + std::to_string(again);
+    if (!ended.empty())
+      rt::log_line(kProgram, "<" + ended + "> was ended by an earlier run; recording anew as <" + signal.info.iri + ">");
+  }
   // A chunk holds when its first sample was taken: the replay's start plus the sample's offset
   // on the recording's own clock (at --speed N that clock runs N times faster than the wall's).
   const std::int64_t start_ns = earlier.start_ns.value_or(std::chrono::duration_cast<std::chrono::nanoseconds>(

@@ -64,16 +64,17 @@ start tahvel-hrv "$board"
 if [ -f "$record.hea" ]; then
   say "3. Replay MIT-BIH record 100 (30 minutes) at 200x real time: one chunk item per second."
   source_args=(--record "$record" --speed 200)
-  recording=http://example.org/home1/ecg/recording/100
   windows=$("$BIN/tahvel" hrv "$record" --json | grep -o '"start_s"' | wc -l)
 else
   say "3. No MIT-BIH record at $record: a synthetic ECG of 15 minutes at 100x real time instead."
   source_args=(--synthetic --seed 7 --seconds 900 --speed 100)
-  recording=http://example.org/home1/ecg/recording/synthetic-7
   windows=3
 fi
 show "$BIN/tahvel-ecg-source" "$board" "${source_args[@]}"
 "$BIN/tahvel-ecg-source" "$board" "${source_args[@]}"
+# The source names the recording by its record and start: .../recording/100-20261130T174900Z.
+recording=$("$BIN/tahvel" list "$board" -p rdf:type -o tv:EcgRecording | sed -n 's/^<\([^>]*\)>.*/\1/p' | head -n 1)
+echo "   The recording: <$recording>"
 
 say "4. Wait until the $windows HRV windows are on the board (each new record wakes the wait)."
 deadline=$((SECONDS + 300))

@@ -3,6 +3,8 @@
 // same as an uninterrupted run wrote it; a recording that was ended is not written again.
 #include <gtest/gtest.h>
 
+#include <algorithm>
+#include <cctype>
 #include <chrono>
 #include <cstdlib>
 #include <filesystem>
@@ -24,7 +26,14 @@ namespace tn = tahvel::node;
 using namespace std::chrono_literals;
 
 const std::string kNodeIri = "http://example.org/home1";
-const std::string kRecording = kNodeIri + "/ecg/recording/synthetic-5";
+// A take of it is named <this>-<UTC start>: kBase-20261130T174900Z.
+const std::string kBase = kNodeIri + "/ecg/recording/synthetic-5";
+// `iri` is kBase-YYYYMMDDTHHMMSSZ.
+bool is_take(const std::string& iri) {
+  const std::string stamp = iri.starts_with(kBase + "-") ? iri.substr(kBase.size() + 1) : "";
+  return stamp.size() == 16 && stamp[8] == 'T' && stamp[15] == 'Z' &&
+         std::all_of(stamp.begin(), stamp.begin() + 8, ::isdigit) && std::all_of(stamp.begin() + 9, stamp.begin() + 15, ::isdigit);
+}
 constexpr std::int64_t kFrames = 60 * 360;  // --seconds 60 at the generator's 360 Hz
 
 // The source on `dir`: 60 s of ECGSYN seed 5, paced at `speed` times real time (0: at once).
@@ -81,6 +90,23 @@ class EcgSourceTest : public ::testing::Test {
     return out;
   }
 
+  // The recordings on the board, in the order they were written.
+  static std::vector<std::string> recordings(const std::string& dir) {
+    auto node = tn::Node::open(dir);
+    EXPECT_TRUE(node) << node.error().message;
+    auto records = node->snapshot()->list(
+        tn::Pattern{.p = tn::Term::iri("http://www.w3.org/1999/02/22-rdf-syntax-ns#type"), .o = agg::tv_term("EcgRecording")});
+    EXPECT_TRUE(records);
+    std::vector<std::string> out;
+    for (const auto& r : *records) out.push_back(r.triple.s.value);
+    return out;
+  }
+  static std::string the_recording(const std::string& dir) {
+    const auto all = recordings(dir);
+    EXPECT_EQ(all.size(), 1u);
+    return all.empty() ? std::string() : all.front();
+  }
+
   static std::vector<std::string> objects(const std::string& dir, const std::string& s, const std::string& p) {
     auto node = tn::Node::open(dir);
     auto snapshot = node->snapshot();
@@ -104,26 +130,29 @@ class EcgSourceTest : public ::testing::Test {
 TEST_F(EcgSourceTest, ARestartAfterAKillGoesOnAfterTheLastChunkAndWritesEachSecondOnce) {
   const std::string whole = new_node("whole");
   ASSERT_EQ(run_source(whole), 0);
-  const Chunks reference = chunks(whole, kRecording);
+  const Chunks reference = chunks(whole, the_recording(whole));
   ASSERT_EQ(reference.samples.size(), 60u);
 
   const std::string crashed = new_node("crashed");
   tahvel::test_support::AgentProcess first(source_argv(crashed, "20"));  // 3 s of wall time for the 60 s
   const auto deadline = std::chrono::steady_clock::now() + 20s;
-  while (chunks(crashed, kRecording).samples.size() < 10 && std::chrono::steady_clock::now() < deadline)
-    std::this_thread::sleep_for(20ms);
+  auto written = [&] { return recordings(crashed).empty() ? 0 : chunks(crashed, recordings(crashed).front()).samples.size(); };
+  while (written() < 10 && std::chrono::steady_clock::now() < deadline) std::this_thread::sleep_for(20ms);
   first.crash();
-  const std::size_t before = chunks(crashed, kRecording).samples.size();
+  const std::size_t before = written();
   ASSERT_GE(before, 10u);
   ASSERT_LT(before, 60u) << "the source ended before it was killed";
+  const std::string recording = the_recording(crashed);
+  EXPECT_TRUE(is_take(recording)) << recording;
 
   ASSERT_EQ(run_source(crashed), 0);
-  const Chunks after = chunks(crashed, kRecording);
+  EXPECT_EQ(recordings(crashed), std::vector<std::string>{recording}) << "the take the kill left goes on";
+  const Chunks after = chunks(crashed, recording);
   for (const auto& [start, n] : after.copies) EXPECT_EQ(n, 1) << "chunk at " << start;
   EXPECT_EQ(after.samples, reference.samples);
-  EXPECT_EQ(objects(crashed, kRecording, std::string(agg::kTv) + "endSample"),
+  EXPECT_EQ(objects(crashed, recording, std::string(agg::kTv) + "endSample"),
             std::vector<std::string>{std::to_string(kFrames)});
-  EXPECT_EQ(objects(crashed, kRecording, std::string(agg::kTv) + "samplingRate").size(), 1u)
+  EXPECT_EQ(objects(crashed, recording, std::string(agg::kTv) + "samplingRate").size(), 1u)
       << "one recording item";
   // The run after the kill goes on at the signal time where the first left off.
   expect_each_chunk_ends_where_the_next_begins(after);
@@ -135,7 +164,7 @@ TEST_F(EcgSourceTest, ARestartAfterAKillGoesOnAfterTheLastChunkAndWritesEachSeco
 TEST_F(EcgSourceTest, EachChunkSpansItsSecondSoATimeRangeFromInsideItGetsIt) {
   const std::string dir = new_node("home1");
   ASSERT_EQ(run_source(dir), 0);
-  const Chunks written = chunks(dir, kRecording);
+  const Chunks written = chunks(dir, the_recording(dir));
   ASSERT_EQ(written.time.size(), 60u);
   expect_each_chunk_ends_where_the_next_begins(written);
   const auto [tenth, span] = written.time.at(10 * 360);
@@ -154,15 +183,35 @@ TEST_F(EcgSourceTest, EachChunkSpansItsSecondSoATimeRangeFromInsideItGetsIt) {
 TEST_F(EcgSourceTest, ARecordingThatWasEndedIsNotWrittenAgainTheNextRunRecordsAnew) {
   const std::string dir = new_node("home1");
   ASSERT_EQ(run_source(dir), 0);
-  ASSERT_EQ(run_source(dir), 0);
-  const Chunks first = chunks(dir, kRecording);
+  ASSERT_EQ(run_source(dir), 0);  // most likely in the same second: the take gets "-2"
+  const std::vector<std::string> takes = recordings(dir);
+  ASSERT_EQ(takes.size(), 2u);
+  EXPECT_NE(takes[0], takes[1]);
+  const Chunks first = chunks(dir, takes[0]);
   EXPECT_EQ(first.samples.size(), 60u);
   for (const auto& [start, n] : first.copies) EXPECT_EQ(n, 1) << "chunk at " << start;
-  EXPECT_EQ(objects(dir, kRecording, std::string(agg::kTv) + "endSample").size(), 1u);
-  const Chunks second = chunks(dir, kRecording + "-2");
+  EXPECT_EQ(objects(dir, takes[0], std::string(agg::kTv) + "endSample").size(), 1u);
+  const Chunks second = chunks(dir, takes[1]);
   EXPECT_EQ(second.samples, first.samples);  // the same seed: the same signal, under a new name
-  EXPECT_EQ(objects(dir, kRecording + "-2", std::string(agg::kTv) + "endSample"),
-            std::vector<std::string>{std::to_string(kFrames)});
+  EXPECT_EQ(objects(dir, takes[1], std::string(agg::kTv) + "endSample"), std::vector<std::string>{std::to_string(kFrames)});
+}
+
+// A sensor whose store is made again (replaced) remembers nothing of its takes, while its home
+// holds the old take's chunks and has run R-peaks on them. Each take is named by its start, so
+// the new one is not the old one's name again: the home would have taken its chunks for done.
+TEST_F(EcgSourceTest, ASourceOnAStoreMadeAgainRecordsUnderANameOfItsOwn) {
+  const std::string dir = new_node("sensor");
+  ASSERT_EQ(run_source(dir), 0);
+  const std::string before = the_recording(dir);
+  // A take is named to the second; a sensor replaced takes longer than that.
+  const auto second = std::chrono::floor<std::chrono::seconds>(std::chrono::system_clock::now());
+  std::this_thread::sleep_until(second + 1100ms);
+  fs::remove_all(dir);
+  new_node("sensor");
+  ASSERT_EQ(run_source(dir), 0);
+  const std::string after = the_recording(dir);
+  EXPECT_NE(after, before);
+  EXPECT_TRUE(is_take(before) && is_take(after)) << before << " " << after;
 }
 
 }  // namespace

@@ -39,6 +39,8 @@ namespace tn = tahvel::node;
 using namespace std::chrono_literals;
 
 const std::string kNodeIri = "http://example.org/home1";
+// Record 100's recording as items written by a test name it; the source names its take
+// <this>-<UTC start> (PipelineTest::recording).
 const std::string kRecording = kNodeIri + "/ecg/recording/100";
 const std::string kSosa = "http://www.w3.org/ns/sosa/";
 
@@ -178,19 +180,28 @@ class PipelineTest : public ::testing::Test {
     return records ? *records : std::vector<tn::Record>{};
   }
 
+  // The recording on the board: the take the source wrote (<kRecording>-<UTC start>), or
+  // kRecording for the items a test writes itself.
+  std::string recording() const {
+    auto records = node_->snapshot()->list({.p = tn::Term::iri(std::string(tn::kRdfType)), .o = agg::tv_term("EcgRecording")});
+    EXPECT_TRUE(records);
+    return records && records->size() == 1 ? records->front().triple.s.value : kRecording;
+  }
+
   // Every item whose subject lies under <recording>/<kind>/, read with `read`.
   template <class T, class Read>
   std::vector<T> derived(const char* kind, Read read) {
+    const std::string rec = recording();
     tn::Pattern p;
     p.p = agg::tv_term("recording");
-    p.o = tn::Term::iri(kRecording);
+    p.o = tn::Term::iri(rec);
     std::vector<T> out;
     std::set<std::uint64_t> seen;
     auto snapshot = node_->snapshot();
     auto records = snapshot->list(p);  // kept: a range-for over *temporary would dangle
     EXPECT_TRUE(records);
     for (const auto& r : *records) {
-      if (!r.triple.s.value.starts_with(kRecording + "/" + kind + "/") || !seen.insert(r.meta.item).second) continue;
+      if (!r.triple.s.value.starts_with(rec + "/" + kind + "/") || !seen.insert(r.meta.item).second) continue;
       auto item = snapshot->item(r.meta.item);
       EXPECT_TRUE(item);
       if (!item) continue;
@@ -204,11 +215,12 @@ class PipelineTest : public ::testing::Test {
   // Compares each window's metrics, as decimal strings, with the item builder's for `expected`.
   void expect_windows(const agg::HrvReport& expected) { expect_windows(expected.windows); }
   void expect_windows(const std::vector<agg::WindowMetrics>& windows) {
-    auto info = agg::read_recording(about(kRecording), kRecording);
+    const std::string rec = recording();
+    auto info = agg::read_recording(about(rec), rec);
     ASSERT_TRUE(info) << info.error().message;
     ASSERT_FALSE(windows.empty());
     for (const auto& window : windows) {
-      const std::string iri = agg::hrv_iri(kRecording, window.start_s);
+      const std::string iri = agg::hrv_iri(rec, window.start_s);
       std::multiset<std::string> want, got;
       for (const auto& t : agg::hrv_window_item(*info, window, kNodeIri + "/hrv").triples)
         if (t.p.value.starts_with(agg::kTv)) want.insert(t.p.value + " " + t.o.to_ntriples());
@@ -309,7 +321,7 @@ TEST_F(PipelineTest, AgentsStartedAfterTheRecordingEndedProcessAllOfIt) {
   Process source({bin("tahvel-ecg-source"), dir_, "--record", record_, "--speed", "0"});
   ASSERT_EQ(source.wait(120s), 0);
   tn::Pattern ends;
-  ends.s = tn::Term::iri(kRecording);
+  ends.s = tn::Term::iri(recording());
   ends.p = agg::tv_term("endSample");
   ASSERT_EQ(*node_->snapshot()->count(ends), 1u) << "the replay had not ended";
   start_agents();
@@ -332,17 +344,18 @@ TEST_F(PipelineTest, ProvenanceLeadsBackToChunks) {
       if (r.triple.p.value == agg::kProvDerivedFrom) out.push_back(r.triple.o.value);
     return out;
   };
+  const std::string rec = recording();
   for (const auto& window : expected->windows) {
-    const std::string hrv = agg::hrv_iri(kRecording, window.start_s);
+    const std::string hrv = agg::hrv_iri(rec, window.start_s);
     std::set<std::string> chunks;
     bool names_recording = false;
     for (const auto& rr : from(hrv)) {
-      if (rr == kRecording) names_recording = true;
-      if (!rr.starts_with(kRecording + "/rr/")) continue;
+      if (rr == rec) names_recording = true;
+      if (!rr.starts_with(rec + "/rr/")) continue;
       for (const auto& rpeaks : from(rr)) {
-        EXPECT_TRUE(rpeaks.starts_with(kRecording + "/rpeaks/")) << rr << " derived from " << rpeaks;
+        EXPECT_TRUE(rpeaks.starts_with(rec + "/rpeaks/")) << rr << " derived from " << rpeaks;
         for (const auto& chunk : from(rpeaks))
-          if (chunk.starts_with(kRecording + "/chunk/")) chunks.insert(chunk);
+          if (chunk.starts_with(rec + "/chunk/")) chunks.insert(chunk);
       }
     }
     EXPECT_TRUE(names_recording) << hrv;
@@ -368,7 +381,7 @@ TEST_F(PipelineTest, EachItemIsAssertedAtTheSignalTimeItDescribes) {
   ASSERT_FALSE(HasFatalFailure());
   std::optional<std::int64_t> started;
   double fs = 0;
-  for (const auto& r : about(kRecording)) {
+  for (const auto& r : about(recording())) {
     if (r.triple.p == agg::tv_term("startedAt")) started = std::stoll(r.triple.o.value);
     if (r.triple.p == agg::tv_term("samplingRate")) fs = std::stod(r.triple.o.value);
   }
@@ -377,10 +390,10 @@ TEST_F(PipelineTest, EachItemIsAssertedAtTheSignalTimeItDescribes) {
   auto asserted_at = [&](const std::string& iri) { return about(iri).at(0).meta.asserted_at; };
   auto at_sample = [&](std::int64_t sample) { return *started + std::llround(static_cast<double>(sample) * 1e9 / fs); };
   for (const auto& window : expected->windows) {
-    const std::string hrv = agg::hrv_iri(kRecording, window.start_s);
+    const std::string hrv = agg::hrv_iri(recording(), window.start_s);
     EXPECT_EQ(asserted_at(hrv), *started + std::llround(window.start_s * 1e9)) << hrv;
   }
-  const auto chunk = kRecording + "/chunk/" + std::to_string(static_cast<std::int64_t>(std::round(fs)) * 10);
+  const auto chunk = recording() + "/chunk/" + std::to_string(static_cast<std::int64_t>(std::round(fs)) * 10);
   EXPECT_EQ(asserted_at(chunk), at_sample(static_cast<std::int64_t>(std::round(fs)) * 10));
   std::size_t checked = 0;
   for (const auto& r : *node_->snapshot()->list({.p = agg::tv_term("fromSample")})) {
