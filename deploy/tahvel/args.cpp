@@ -67,6 +67,10 @@ std::size_t take_flag(const Command& command, std::span<const std::string> argv,
     usage_error(prefix_of(command) + "flag '" + std::string(flag->name) + "' needs a value (" +
                 std::string(flag->value) + ")");
   }
+  // A value is a value, whatever it looks like (a child named "-h"); one that is also a flag of
+  // the command is remembered, so that what it leaves over is explained (check_positional_count).
+  if (const std::string_view next = argv[i + 1]; looks_like_flag(next) && find_flag(command, next.substr(0, next.find('='))))
+    args.note_flag_as_value(flag->name, next);
   args.add(flag->name, argv[i + 1]);
   return i + 1;
 }
@@ -78,8 +82,9 @@ void check_positional_count(const Command& command, const Args& args) {
                 std::string(command.name) + " " + std::string(command.usage) + ")");
   }
   if (n > command.max_positional) {
-    usage_error(prefix_of(command) + "unexpected argument '" +
-                args.positional()[command.max_positional] + "'");
+    // `--limit --format json`: --limit took "--format" for its value, and "json" is left over.
+    const std::string hint = args.flag_as_value().empty() ? "" : " (" + args.flag_as_value() + ")";
+    usage_error(prefix_of(command) + "unexpected argument '" + args.positional()[command.max_positional] + "'" + hint);
   }
 }
 
@@ -142,6 +147,12 @@ std::uint64_t Args::get_u64(std::string_view flag, std::uint64_t fallback) const
 
 void Args::add(std::string_view flag, std::string value) {
   values_.emplace_back(std::string(flag), std::move(value));
+}
+
+void Args::note_flag_as_value(std::string_view flag, std::string_view value) {
+  if (flag_as_value_.empty())
+    flag_as_value_ = "'" + std::string(flag) + "' took '" + std::string(value) + "' as its value; did you leave out " +
+                     std::string(flag) + "'s value?";
 }
 
 std::optional<std::uint64_t> parse_u64(std::string_view text) {

@@ -77,9 +77,14 @@ class Args {
 
   void add(std::string_view flag, std::string value);
   void add_positional(std::string value) { positional_.push_back(std::move(value)); }
+  // A flag that took another of the command's flags for its value: said with an error it may
+  // have caused ("'--limit' took '--format' as its value; give '--limit N'").
+  void note_flag_as_value(std::string_view flag, std::string_view value);
+  const std::string& flag_as_value() const { return flag_as_value_; }
 
  private:
   const Command* command_;
+  std::string flag_as_value_;
   std::vector<std::pair<std::string, std::string>> values_;
   std::vector<std::string> positional_;
 };

@@ -83,6 +83,9 @@ node::Term parse_term(std::string_view text, const uri::PrefixMap& prefixes,
 // An IRI (absolute, <iri> or CURIE) given to `flag`.
 std::string parse_iri(std::string_view text, const uri::PrefixMap& prefixes,
                       std::string_view flag);
+// As parse_iri, for a node's IRI (--at): one with a query, a fragment or a trailing '/' is a
+// usage error naming `flag`.
+std::string parse_node_iri(std::string_view text, const uri::PrefixMap& prefixes, std::string_view flag);
 // The pattern of -s, -p, -o (and --context, --source, --under when the command has them).
 node::Pattern pattern_from_args(const Args& args, const uri::PrefixMap& prefixes);
 // --cascade N; depths beyond 2^20 (deeper than any store's sub-trees) are taken as 2^20.

@@ -237,6 +237,14 @@ std::string parse_iri(std::string_view text, const uri::PrefixMap& prefixes,
                       "> for an absolute IRI)");
 }
 
+std::string parse_node_iri(std::string_view text, const uri::PrefixMap& prefixes, std::string_view flag) {
+  std::string iri = parse_iri(text, prefixes, flag);
+  // A node IRI has no query or fragment and no trailing '/' (uri::node_iri): asked of the tree,
+  // `…/home1?x=1` came back "unknown node" and `…/home1/` was taken for home1.
+  if (auto node = uri::node_iri(iri); !node) bad_value(flag, "not a node IRI: " + node.error().message);
+  return iri;
+}
+
 node::Term parse_term(std::string_view text, const uri::PrefixMap& prefixes,
                       std::string_view flag, Position position) {
   if (text.empty()) bad_value(flag, "empty term");
@@ -477,8 +485,23 @@ std::int64_t time_flag(std::string_view flag, const std::string& text) {
   const std::int64_t utc_s = static_cast<std::int64_t>(seconds) - offset_s;
   if (utc_s < 0 || utc_s > std::numeric_limits<std::int64_t>::max() / 1'000'000'000 - 1)
     usage_error(what + "outside the times a record can have (1970 to 2262)");
-  // Leap seconds are inserted at the end of a UTC day only: second 60 elsewhere is a typo.
-  if (leap && utc_s % 86400 != 0) usage_error(what + "second 60 exists only as a leap second, at 23:59:60 UTC");
+  // Second 60 exists only as a leap second: one of the 27 inserted until this was written (IERS
+  // Bulletin C; none since 2016), or one yet to be announced at the end of a June or December.
+  if (leap) {
+    // The midnights (UTC) that followed each leap second, in POSIX seconds.
+    static constexpr std::int64_t kAfterLeapSeconds[] = {78796800, 94694400, 126230400, 157766400, 189302400, 220924800, 252460800, 283996800, 315532800, 362793600, 394329600, 425865600, 489024000, 567993600, 631152000, 662688000, 709948800, 741484800, 773020800, 820454400, 867715200, 915148800, 1136073600, 1230768000, 1341100800, 1435708800, 1483228800};
+    constexpr std::int64_t kAnnouncedUntil = 1798761600;  // 2027-01-01T00:00:00Z
+    const bool known = std::find(std::begin(kAfterLeapSeconds), std::end(kAfterLeapSeconds), utc_s) != std::end(kAfterLeapSeconds);
+    bool possible = false;
+    if (utc_s > kAnnouncedUntil && utc_s % 86400 == 0) {
+      const time_t midnight = static_cast<time_t>(utc_s);
+      std::tm next{};
+      gmtime_r(&midnight, &next);
+      possible = next.tm_mday == 1 && (next.tm_mon == 0 || next.tm_mon == 6);
+    }
+    if (!known && !possible)
+      usage_error(what + "second 60 exists only as a leap second (23:59:60 UTC on a day one was inserted, such as 2016-12-31)");
+  }
   return utc_s * 1'000'000'000 + fraction;
 }
 

@@ -128,7 +128,7 @@ int run_ecg(const Args& args) {
   uri::PrefixMap prefixes = prefixes_with_flags(node.prefixes(), args);
   const std::string recording = parse_iri(args.required("--recording"), prefixes, "--recording");
   federation::RemoteQuery ask;
-  ask.target = args.has("--at") ? parse_iri(*args.get("--at"), prefixes, "--at") : node.iri();
+  ask.target = args.has("--at") ? parse_node_iri(*args.get("--at"), prefixes, "--at") : node.iri();
   std::optional<std::int64_t> since, until;
   if (auto text = args.get("--since")) since = time_flag("--since", *text);
   if (auto text = args.get("--until")) until = time_flag("--until", *text);

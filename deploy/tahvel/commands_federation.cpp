@@ -325,7 +325,7 @@ int run_query(const Args& args) {
   node::Node node = open_node(args.positional(0));
   uri::PrefixMap prefixes = prefixes_with_flags(node.prefixes(), args);
   federation::RemoteQuery query;
-  query.target = parse_iri(args.required("--at"), prefixes, "--at");
+  query.target = parse_node_iri(args.required("--at"), prefixes, "--at");
   query.pattern = pattern_from_args(args, prefixes);
   query.cascade = cascade_flag(args);
   query.limit = args.get_u64("--limit", 0);
@@ -435,7 +435,7 @@ int print_predicates(node::Node& node, const Args& args) {
   const uri::PrefixMap prefixes = node.prefixes();
   std::vector<node::PredicateSummary> held;
   std::optional<std::string> target;
-  if (auto at = args.get("--at")) target = parse_iri(*at, prefixes, "--at");
+  if (auto at = args.get("--at")) target = parse_node_iri(*at, prefixes, "--at");
   std::int64_t written = 0;  // 0: read here and now
   if (target && *target != node.iri()) {
     written = remote_predicates(node, *target, seconds_flag(args, "stats", std::chrono::seconds(10), std::chrono::seconds(600)), held);

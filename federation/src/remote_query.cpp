@@ -133,8 +133,8 @@ Result<std::uint64_t> remote_query(node::Node& node, const RemoteQuery& query,
       continue;
     }
     if (child_state != "up")
-      return node::fail(Errc::io, "unreachable: <" + child + "> (on the way to <" + *target + ">) is " + child_state +
-                                      " at <" + self + ">");
+      return node::fail(Errc::io, "unreachable: <" + child + ">" + (child == *target ? "" : " (on the way to <" + *target + ">)") +
+                                      " is " + child_state + " at <" + self + ">");
     return node::fail(Errc::io, "unreachable: no link runs for <" + self + "> (nothing holds " +
                                     (node.dir() / kServingLockFile).string() + "), so nothing reaches <" + child +
                                     ">; if 'tahvel status' shows the link restarting, ask again once it runs, "

@@ -254,6 +254,25 @@ TEST_F(Cli, UnknownFlagExits2NamingTheFlag) {
   Outcome m = run({"list", node_, "--limit"});
   EXPECT_EQ(m.status, 2);
   EXPECT_NE(m.err.find("--limit"), std::string::npos) << m.err;
+  // A value left out before the next flag: what is left over is explained by the flag that took it.
+  Outcome left = run({"list", node_, "--limit", "--format", "json"});
+  EXPECT_EQ(left.status, 2);
+  EXPECT_NE(left.err.find("unexpected argument 'json' ('--limit' took '--format' as its value; did you leave out --limit's value?)"),
+            std::string::npos)
+      << left.err;
+}
+
+// `--at` names a node: an IRI with a query, a fragment or a trailing '/' names none, and is a
+// usage error (exit 2), not an unknown node (exit 4) or another spelling of the node.
+TEST_F(Cli, AnAtThatIsNoNodeIriIsAUsageError) {
+  init();
+  for (const std::string at : {kNodeIri + "?x=1", kNodeIri + "#me", kNodeIri + "/"}) {
+    Outcome r = run({"query", node_, "--at", at});
+    EXPECT_EQ(r.status, 2) << at << ": " << r.err;
+    EXPECT_EQ(r.err.rfind("tahvel: --at: not a node IRI: ", 0), 0u) << r.err;
+    EXPECT_EQ(r.out, "");
+  }
+  EXPECT_EQ(run({"query", node_, "--at", kNodeIri}).status, 0);
 }
 
 // A number past 2^64 - 1 is a number, too large: "not a non-negative integer" sent the reader
@@ -1575,8 +1594,12 @@ TEST_F(Cli, QueryTimesAreCheckedAndHonourTheirOffset) {
   // Second 60 at any other minute is a typo, not the next minute.
   r = query("--since", "2024-06-30T12:30:60Z");
   EXPECT_EQ(r.status, 2);
-  EXPECT_NE(r.err.find("second 60 exists only as a leap second, at 23:59:60 UTC"), std::string::npos) << r.err;
+  EXPECT_NE(r.err.find("second 60 exists only as a leap second (23:59:60 UTC on a day one was inserted"), std::string::npos) << r.err;
   EXPECT_EQ(query("--since", "2017-01-01T01:59:60+02:00").status, 0);  // 23:59:60 UTC
+  // Nor is it at the end of a day without one; a leap second may yet come at the end of a June.
+  EXPECT_EQ(query("--since", "2016-12-30T23:59:60Z").status, 2);
+  EXPECT_EQ(query("--since", "2024-06-30T23:59:60Z").status, 2);
+  EXPECT_EQ(query("--since", "2030-06-30T23:59:60Z").status, 0);
   // `date +%s` read as ns is a time in 1970: the answer would be everything, without a word.
   r = query("--since", "1795946529");
   EXPECT_EQ(r.status, 0);
