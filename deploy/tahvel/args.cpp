@@ -46,7 +46,11 @@ std::size_t take_flag(const Command& command, std::span<const std::string> argv,
   }
   const Flag* flag = find_flag(command, arg);
   if (!flag) {
-    usage_error(prefix_of(command) + "unknown flag '" + std::string(arg) + "' (see 'tahvel " +
+    // Some commands print JSON with --json, those that have other formats with --format json.
+    std::string instead;
+    if (arg == "--json" && find_flag(command, "--format")) instead = "; give --format json";
+    if (arg == "--format" && find_flag(command, "--json")) instead = "; give --json";
+    usage_error(prefix_of(command) + "unknown flag '" + std::string(arg) + "'" + instead + " (see 'tahvel " +
                 std::string(command.name) + " --help')");
   }
   if (!flag->repeatable && args.has(flag->name)) {

@@ -254,6 +254,9 @@ TEST_F(Cli, UnknownFlagExits2NamingTheFlag) {
   Outcome m = run({"list", node_, "--limit"});
   EXPECT_EQ(m.status, 2);
   EXPECT_NE(m.err.find("--limit"), std::string::npos) << m.err;
+  // --json where the command says --format json, and the other way round.
+  EXPECT_NE(run({"list", node_, "--json"}).err.find("unknown flag '--json'; give --format json"), std::string::npos);
+  EXPECT_NE(run({"stats", node_, "--format", "json"}).err.find("unknown flag '--format'; give --json"), std::string::npos);
   // A value left out before the next flag: what is left over is explained by the flag that took it.
   Outcome left = run({"list", node_, "--limit", "--format", "json"});
   EXPECT_EQ(left.status, 2);
