@@ -64,7 +64,7 @@ struct Stream {
 
 class HrvStage {
  public:
-  HrvStage(rt::Session& session, WindowConfig defaults) : session_(session), config_(defaults) {}
+  HrvStage(rt::Session& session, WindowConfig defaults) : session_(session), defaults_(defaults), config_(defaults) {}
 
   // Reads the agent's configuration triples from the board; the latest of each wins.
   void load_config() {
@@ -74,7 +74,9 @@ class HrvStage {
     pattern.s = tn::Term::iri(session_.agent.iri());
     auto records = snapshot->list(pattern);
     if (!records) return rt::log_line(kProgram, "read configuration: " + records.error().message);
-    WindowConfig next = config_;
+    // From --window and --step: a setting taken back (removed) leaves what the board still says,
+    // or those, not the value it had set.
+    WindowConfig next = defaults_;
     bool evictable = false;  // the value in force came from a record a ring or TTL may reclaim
     // The latest setting of the window and of the step when the agent cannot use it: its
     // problem, for `tahvel status` here and at the hospital that wrote it.
@@ -124,6 +126,7 @@ class HrvStage {
   rt::Outcome handle(const tn::Delivery& delivery) {
     for (const tn::Record& r : delivery.records)
       if (r.triple.s.value == session_.agent.iri()) {
+        if (delivery.removal) forget_kept_settings(delivery.records);
         load_config();
         break;
       }
@@ -228,6 +231,18 @@ class HrvStage {
     return rt::store_output(session_, item, catching_up);
   }
 
+  // A setting removed by its writer takes with it the copy this agent kept of it (load_config),
+  // which would otherwise stand for it.
+  void forget_kept_settings(const std::vector<tn::Record>& removed) {
+    for (const tn::Record& r : removed) {
+      if (r.meta.source == session_.agent.iri()) continue;
+      if (r.triple.p != agg::tv_term("windowSeconds") && r.triple.p != agg::tv_term("stepSeconds")) continue;
+      if (auto gone = session_.node.remove({.s = tn::Term::iri(session_.agent.iri()), .p = r.triple.p, .source = session_.agent.iri()}, 0, tn::Reach::this_node);
+          !gone)
+        rt::log_line(kProgram, "remove the kept copy of a removed setting: " + gone.error().message);
+    }
+  }
+
   // Whether this store's retention could take a configuration record: a ring, or a TTL on
   // tv:windowSeconds or tv:stepSeconds.
   bool reclaims_configuration() {
@@ -254,6 +269,7 @@ class HrvStage {
   }
 
   rt::Session& session_;
+  const WindowConfig defaults_;  // --window, --step
   WindowConfig config_;
   std::set<std::uint64_t> warned_;  // configuration records already logged as ignored
   std::map<std::string, Stream> streams_;

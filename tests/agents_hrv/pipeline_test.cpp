@@ -709,6 +709,38 @@ agg::RecordingInfo recording_at_250_hz() {
   return info;
 }
 
+// A setting taken back (removed) leaves --window in force again at once, not the value it had
+// set until the next restart; on a store with a ring, the copy the agent kept of it goes too.
+TEST(AgentPrograms, AnHrvSettingRemovedGivesBackTheCommandLinesWindow) {
+  for (const std::uint64_t ring : {std::uint64_t{0}, std::uint64_t{50}}) {
+    SCOPED_TRACE("ring " + std::to_string(ring));
+    char pattern[] = "/tmp/tahvel-agents-hrv-removed-XXXXXX";
+    ASSERT_NE(mkdtemp(pattern), nullptr);
+    const std::string tmp = pattern, dir = tmp + "/home1", log = tmp + "/hrv.log";
+    auto made = tn::Node::init(dir, tn::InitOptions{.iri = kNodeIri, .ring = ring});
+    ASSERT_TRUE(made) << made.error().message;
+    std::optional<tn::Node> node(std::move(*made));
+    const tn::Term hrv = tn::Term::iri(kNodeIri + "/hrv");
+    auto logged = [&](const std::string& line) {
+      std::ifstream in(log);
+      std::ostringstream text;
+      text << in.rdbuf();
+      return text.str().find(line) != std::string::npos;
+    };
+    {
+      Process agent({bin("tahvel-hrv"), dir, "--window", "30", "--idle", "30"}, log);
+      ASSERT_TRUE(node->agent("operator")->store(tn::Item{}.add(hrv, agg::tv_term("windowSeconds"), tn::Term::integer(60))));
+      ASSERT_TRUE(within_a_minute([&] { return logged("window 60.000000 s"); }));
+      ASSERT_TRUE(node->remove({.s = hrv, .p = agg::tv_term("windowSeconds"), .source = kNodeIri + "/operator"}));
+      EXPECT_TRUE(within_a_minute([&] { return logged("window 30.000000 s"); })) << "the removed setting still stands";
+      EXPECT_EQ(node->snapshot()->count({.s = hrv, .p = agg::tv_term("windowSeconds")}).value(), 0u) << "a kept copy is left";
+      EXPECT_EQ(agent.stop(), 0);
+    }
+    node.reset();
+    fs::remove_all(tmp);
+  }
+}
+
 // A setting the agent cannot use is its problem on its board (for `tahvel status`, here and at
 // the hospital that sent it) until a usable one follows; the problem is over then.
 TEST(AgentPrograms, AnHrvSettingItCannotUseIsItsProblemOnTheBoardUntilAUsableOneFollows) {
