@@ -339,6 +339,7 @@ struct Link::Impl {
   std::string pending_parent_store;        // P6b: a welcome from another store while it lived
   Clock::time_point pending_parent_since{};
   std::string own_state_said;     // what the item on the board says now (rewritten on change)
+  std::string own_state_logged;   // the uplink state the log last had ("up", "down", ...)
   std::int64_t own_state_written_ns = 0;
 
   // Parent role (P10-P12).
@@ -2809,14 +2810,23 @@ struct Link::Impl {
     node::Item item;
     item.persistent = true;
     const node::Term me = node::Term::iri(self);
-    std::string said;
+    std::string said, went;  // went: the link going down or up again, for the log
     {
       std::lock_guard lock(mu);
-      const bool silent = welcomed && Clock::now() - parent_heard > opt.child_silence;
+      const auto silence = Clock::now() - parent_heard;
+      const bool silent = welcomed && silence > opt.child_silence;
       const std::string state = !refused_by_parent.empty() ? "refused"
                                 : welcomed && !silent      ? "up"
                                 : ever_welcomed            ? "down"
                                                            : "never connected";
+      // The parent logs a silent child; the child logs its silent parent, which it sees only as
+      // frames that stop coming.
+      if (state == "down" && own_state_logged == "up")
+        went = "the parent <" + opt.parent_iri + "> has not been heard for " + seconds_text(silence) +
+               ": link down; items wait in the outbox (" + std::to_string(outbox_depth) + ") until it is heard again";
+      else if (state == "up" && own_state_logged == "down" && !silent)
+        went = "the parent <" + opt.parent_iri + "> is heard again: link up";
+      own_state_logged = state;
       const std::string conflict = parent_flips.said();
       said = state + " " + std::to_string(outbox_depth) + " " + refused_by_parent + " " + conflict;
       const std::int64_t wall = now_ns();
@@ -2831,6 +2841,7 @@ struct Link::Impl {
         item.add(me, node::Term::iri(vocab::kUplinkRefusal), node::Term::literal(refused_by_parent));
       if (!conflict.empty()) item.add(me, node::Term::iri(vocab::kLinkConflict), node::Term::literal(conflict));
     }
+    if (!went.empty()) log(went);
     if (auto stored = link.replace({{.s = node::Term::iri(self), .source = link.iri()}}, {item}); !stored) {
       log("cannot write this node's uplink state: " + stored.error().message);
       std::lock_guard lock(mu);

@@ -776,8 +776,13 @@ TEST(Link, AChildKeepsItsOwnViewOfItsUplinkThatFollowsItsParent) {
   EXPECT_EQ(count(tree.home1_dir, {.s = Term::iri(kHome1), .p = Term::iri(vocab::kParentLastHeard)}), 1u);
   tree.hospital.reset();
   EXPECT_TRUE(eventually([&] { return own_state(tree.home1_dir, kHome1) == States{"down"}; }));
+  // Its log says so too, as the parent's log says a child went silent.
+  EXPECT_TRUE(tree.home1_log.has("the parent <" + kHospital + "> has not been heard for ")) << tree.home1_log.text();
+  EXPECT_TRUE(tree.home1_log.has(": link down; items wait in the outbox (0) until it is heard again")) << tree.home1_log.text();
   tree.hospital = tree.start_hospital();
   EXPECT_TRUE(eventually([&] { return own_state(tree.home1_dir, kHome1) == States{"up"}; }));
+  EXPECT_TRUE(eventually([&] { return tree.home1_log.has("the parent <" + kHospital + "> is heard again: link up"); }))
+      << tree.home1_log.text();
 
   const std::string home3 = kHospital + "/home3", home3_dir = (tree.tmp / "home3").string();  // not configured
   ASSERT_TRUE(node::Node::init(home3_dir, {.iri = home3}));
