@@ -235,6 +235,8 @@ int replay(rt::Session& session, Signal& signal, double speed) {
   // source was killed) goes on after its last chunk, on the same time axis; one it ended (its
   // tv:endSample is there: it reached its end or was stopped) is over, and this run takes anew.
   const std::string base_iri = signal.info.iri;
+  const std::int64_t now_ns =
+      std::chrono::duration_cast<std::chrono::nanoseconds>(std::chrono::system_clock::now().time_since_epoch()).count();
   auto takes = takes_on_board(session, base_iri);
   if (!takes) {
     rt::log_line(kProgram, "reading the board: " + takes.error().message);
@@ -253,8 +255,7 @@ int replay(rt::Session& session, Signal& signal, double speed) {
   if (takes->empty() || earlier.end) {
     const std::string ended = takes->empty() ? std::string() : takes->back();
     earlier = {};
-    const std::string fresh = take_iri(base_iri, std::chrono::duration_cast<std::chrono::nanoseconds>(
-                                                     std::chrono::system_clock::now().time_since_epoch()).count());
+    const std::string fresh = take_iri(base_iri, now_ns);  // the second of its tv:startedAt
     signal.info.iri = fresh;
     for (int again = 2; std::find(takes->begin(), takes->end(), signal.info.iri) != takes->end(); ++again)
       signal.info.iri = fresh + "-" + std::to_string(again);
@@ -263,8 +264,7 @@ int replay(rt::Session& session, Signal& signal, double speed) {
   }
   // A chunk holds when its first sample was taken: the replay's start plus the sample's offset
   // on the recording's own clock (at --speed N that clock runs N times faster than the wall's).
-  const std::int64_t start_ns = earlier.start_ns.value_or(std::chrono::duration_cast<std::chrono::nanoseconds>(
-                                    std::chrono::system_clock::now().time_since_epoch()).count());
+  const std::int64_t start_ns = earlier.start_ns.value_or(now_ns);
   signal.info.started_at = start_ns;
   if (!earlier.recording) {
     if (auto s = agent.store(agg::recording_item(signal.info)); !s) {
