@@ -18,6 +18,8 @@
 namespace tahvel::aggregation {
 namespace {
 
+constexpr double kMaxDetectorHz = 100'000;  // as wfdb.h's kMaxSamplingHz
+
 // Transposed direct form II biquad, in double: the input carries the ADC offset (~1000 adu)
 // and float would lose the QRS detail of a 5 Hz high-pass under it.
 struct Biquad {
@@ -79,6 +81,12 @@ std::int64_t samples(double ms, double fs) {
 Result<void> validate(const DetectorOptions& o) {
   auto positive = [](double x) { return std::isfinite(x) && x > 0; };
   if (!positive(o.fs)) return fail("rpeak: fs must be positive, got " + std::to_string(o.fs));
+  // Its buffers hold seconds of signal: a rate of 1e9 took all the memory there is.
+  if (o.fs > kMaxDetectorHz)
+    return fail("rpeak: a sampling rate of " + std::to_string(o.fs) + " Hz is more than the detector takes (100000 Hz)");
+  if (!(o.fs > 2 * o.lowpass_hz))
+    return fail("rpeak: a sampling rate of " + std::to_string(o.fs) + " Hz is too low for R-peak detection: the QRS band it "
+                "keeps ends at " + std::to_string(o.lowpass_hz) + " Hz, which needs more than twice that");
   if (!positive(o.gain)) return fail("rpeak: gain must be positive, got " + std::to_string(o.gain));
   if (!positive(o.highpass_hz) || !(o.highpass_hz < o.lowpass_hz) || !(o.lowpass_hz < o.fs / 2))
     return fail("rpeak: need 0 < highpass_hz < lowpass_hz < fs/2, got " +

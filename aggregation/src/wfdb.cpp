@@ -92,6 +92,8 @@ Result<bool> parse_record_line(std::string_view line, const Where& at, RecordHea
     fs = fs.substr(0, fs.find_first_of("/("));  // counter frequency and base counter ignored
     if (!parse_double(fs, h.fs) || h.fs <= 0)
       return fail(at.field_error("sampling frequency", t.items[2], "not a positive number"));
+    if (h.fs > kMaxSamplingHz)
+      return fail(at.field_error("sampling frequency", t.items[2], "more than 100000 Hz, the most this reader takes"));
     h.fs_given = true;
   }
   if (t.items.size() > 3) {

@@ -179,7 +179,7 @@ struct SortedIndex {
   std::vector<Entry> entries;
 };
 
-constexpr std::uint8_t kTouched = 0x80, kWasAlive = 1, kWasDerived = 2;
+constexpr std::uint8_t kTouched = 0x80, kWasAlive = 1, kWasDerived = 2, kWasBase = 4;
 
 // Rows under the bound arguments up to which a chain is walked rather than a range searched.
 constexpr int kShortChain = 16;
@@ -270,7 +270,7 @@ struct Relation {
   }
   void touch(std::uint32_t r) {
     if (mark[r]) return;
-    mark[r] = kTouched | (alive(r) ? kWasAlive : 0) | (derived[r] ? kWasDerived : 0);
+    mark[r] = kTouched | (alive(r) ? kWasAlive : 0) | (derived[r] ? kWasDerived : 0) | (base[r] > 0 ? kWasBase : 0);
     touched.push_back(r);
   }
   bool was_alive(std::uint32_t r) const { return mark[r] ? (mark[r] & kWasAlive) != 0 : alive(r); }
@@ -867,7 +867,18 @@ void RuleRun<E>::step_literal(std::size_t k) {
 
 bool Engine::Impl::needs_recompute(const Stratum& stratum) {
   if (first || stratum.volatile_) return true;
-  auto changed = [&](std::uint32_t rel, bool plus) { return rel_is_touched[rel] && !delta(rel, plus).empty(); };
+  // A row that lost its last record but is still derived stays alive, so it is in no delta. In a
+  // recursive stratum that derivation may rest on the row itself (knows(Y,X) :- knows(X,Y), the
+  // record of knows(a,b) removed): only recomputing the stratum tells.
+  auto lost_base = [&](std::uint32_t rel) {
+    if (!stratum.recursive || !rel_is_touched[rel]) return false;
+    const Relation& R = rels[rel];
+    return std::any_of(R.touched.begin(), R.touched.end(),
+                       [&](std::uint32_t r) { return (R.mark[r] & kWasBase) != 0 && R.base[r] == 0 && R.derived[r]; });
+  };
+  auto changed = [&](std::uint32_t rel, bool plus) {
+    return rel_is_touched[rel] && (!delta(rel, plus).empty() || (!plus && lost_base(rel)));
+  };
   for (std::uint32_t ri : stratum.rules) {
     for (const Literal& l : program->rules[ri].body) {
       if (l.kind != Literal::atom && l.kind != Literal::negation) continue;

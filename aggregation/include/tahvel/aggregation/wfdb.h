@@ -43,6 +43,11 @@ struct SignalInfo {
   std::string description;   // rest of the line ("MLII"); may be empty or contain spaces
 };
 
+// The highest sampling frequency a header may give: readers and the R-peak detector size
+// buffers by seconds of signal, and a rate of 1e9 in a header took all the memory there is.
+// High-resolution ECG is sampled at up to tens of kHz.
+inline constexpr double kMaxSamplingHz = 100'000;
+
 // A parsed header. samples_per_signal is 0 when the header does not give it (then the signal
 // files are read to their end).
 struct RecordHeader {
