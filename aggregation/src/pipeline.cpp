@@ -56,6 +56,13 @@ Result<HrvReport> hrv_from_record(const std::string& record_path, const ChainOpt
   report->warnings = checksum_mismatches(*signals);
   if (auto rate = default_rate_warning(signals->header)) report->warnings.insert(report->warnings.begin(), *rate);
   if (auto irregular = irregular_rhythm_warning(report->metrics)) report->warnings.push_back(*irregular);
+  // A flat signal (a lead off, a channel of zeros) gives no beat, and every metric null: said,
+  // so that it is not read as a record without HRV for another reason.
+  if (report->beats.size() < 2 && report->duration_s >= 10)
+    report->warnings.push_back(std::to_string(report->beats.size()) + " beat(s) found in " +
+                               std::to_string(static_cast<long long>(report->duration_s)) + " s of signal " +
+                               std::to_string(channel) + " (" + info.description +
+                               "): a flat or lead-off signal, or not an ECG; no HRV");
   return report;
 }
 

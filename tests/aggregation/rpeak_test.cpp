@@ -470,6 +470,13 @@ TEST(RPeak, ValidateRejectsUnusableOptions) {
   o = options(360);
   o.own_pwave_ms = -1;
   EXPECT_FALSE(validate(o).has_value());
+  // Rates a header may give but the detector cannot serve, said in words.
+  o = options(1e9);
+  ASSERT_FALSE(validate(o).has_value());
+  EXPECT_NE(validate(o).error().message.find("is more than the detector takes (100000 Hz)"), std::string::npos);
+  o = options(10);
+  ASSERT_FALSE(validate(o).has_value());
+  EXPECT_NE(validate(o).error().message.find("is too low for R-peak detection"), std::string::npos);
 }
 
 }  // namespace

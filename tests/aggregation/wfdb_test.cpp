@@ -2,6 +2,7 @@
 // against values decoded by hand from its first bytes and against the header's checksums; and
 // malformed records written to a temporary directory.
 #include "tahvel/aggregation/wfdb.h"
+#include "tahvel/aggregation/pipeline.h"
 
 #include <gtest/gtest.h>
 
@@ -252,6 +253,18 @@ TEST_F(WfdbTemp, AHeaderWithoutASamplingFrequencyIsWarnedOf) {
   EXPECT_FALSE(default_rate_warning(*h));
 }
 
+// A lead off for the whole record (a channel of zeros) gives no beat and every metric null; the
+// report says why, rather than leaving a record "without HRV" unexplained.
+TEST_F(WfdbTemp, AFlatRecordGivesNoBeatsAndSaysSo) {
+  write("r.dat", std::string(360 * 60 * 2, '\0'));
+  write("r.hea", "r 1 360 21600\nr.dat 16 200 11 1024 0 0 0 MLII\n");
+  auto report = hrv_from_record(record("r"));
+  ASSERT_TRUE(report) << report.error().message;
+  EXPECT_TRUE(report->beats.empty());
+  ASSERT_FALSE(report->warnings.empty());
+  EXPECT_EQ(report->warnings.back(), "0 beat(s) found in 60 s of signal 0 (MLII): a flat or lead-off signal, or not an ECG; no HRV");
+}
+
 TEST_F(WfdbTemp, DefaultsApplyWhenOptionalFieldsAreAbsent) {
   write("r.hea", "# leading comment\n\nr 1\nr.dat 16\n");
   write("r.dat", bytes_of({0x05, 0x00}));
@@ -291,6 +304,12 @@ TEST_F(WfdbTemp, BadSamplingFrequencyIsAnErrorNamingTheField) {
   auto h = read_header(record("r"));
   ASSERT_FALSE(h);
   EXPECT_NE(h.error().message.find("r.hea:1: field 'sampling frequency'"), std::string::npos)
+      << h.error().message;
+  // Readers and the detector hold seconds of signal: a rate of 1e9 took all the memory there is.
+  write("r.hea", "r 1 1e9 2\nr.dat 16\n");
+  h = read_header(record("r"));
+  ASSERT_FALSE(h);
+  EXPECT_NE(h.error().message.find("r.hea:1: field 'sampling frequency' ('1e9'): more than 100000 Hz"), std::string::npos)
       << h.error().message;
 }
 
