@@ -317,6 +317,28 @@ TEST(Rules, ConclusionsThatOnlySupportEachOtherGoWithTheirLastRecord) {
   EXPECT_EQ(held, strings(scratch.apply(left, {}, 0).added));
 }
 
+// A conclusion that gives itself new values never reaches a fixpoint; it took all the memory
+// there was. The session stops with the rule's place in the file.
+TEST(Rules, RulesThatDeriveWithoutEndStopWithTheRulesPlace) {
+  auto program = parse("count(X, 0) :- start(X, yes).\ncount(X, N1) :- count(X, N), N1 is N + 1.\n");
+  ASSERT_TRUE(program);
+  tr::Engine engine(program);
+  engine.set_conclusion_limit(10'000);
+  try {
+    engine.apply(std::vector<tn::Triple>{t("a", "start", "yes")}, {}, 0);
+    ADD_FAILURE() << "no end";
+  } catch (const tr::RunawayDerivation& e) {
+    EXPECT_EQ(std::string(e.what()).rfind("test.rules:2:1: the rules derive without end: more than 10000 conclusions in one session", 0),
+              0u)
+        << e.what();
+  }
+  // A closure over a cycle ends, well within the limit.
+  auto closure = parse("anc(X, Y) :- parent(X, Y).\nanc(X, Z) :- anc(X, Y), parent(Y, Z).\n");
+  tr::Engine ends(closure);
+  ends.set_conclusion_limit(10);
+  EXPECT_EQ(ends.apply(std::vector<tn::Triple>{t("a", "parent", "b"), t("b", "parent", "a")}, {}, 0).added.size(), 4u);
+}
+
 // Differential: the same random insertions and removals applied incrementally, session by
 // session, and from scratch on the final base facts, give the same conclusions.
 TEST(Rules, IncrementalEqualsFromScratchOnRandomData) {

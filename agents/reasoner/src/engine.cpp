@@ -180,6 +180,10 @@ struct SortedIndex {
 };
 
 constexpr std::uint8_t kTouched = 0x80, kWasAlive = 1, kWasDerived = 2, kWasBase = 4;
+// Conclusions one session may derive before it is taken for rules that never stop
+// (RunawayDerivation). Shipped rule sets derive a few per fact; a thousand rules over ten
+// thousand facts, half a million from scratch. Two million of the runaway counter took 0.3 GB.
+constexpr std::size_t kMaxSessionConclusions = 2'000'000;
 
 // Rows under the bound arguments up to which a chain is walked rather than a range searched.
 constexpr int kShortChain = 16;
@@ -293,6 +297,8 @@ struct Engine::Impl {
   std::unordered_set<std::string> read_iris;  // binary predicates some rule reads
   bool first = true;
   std::size_t current_stratum = 0;
+  std::size_t session_new_rows = 0;  // conclusions derived in this apply
+  std::size_t conclusion_limit = kMaxSessionConclusions;
   EngineStats st;
 
   explicit Impl(std::shared_ptr<const Program> p) : program(std::move(p)) {
@@ -493,6 +499,15 @@ void RuleRun<E>::emit() {
   bool was_visible = R.alive(r);
   R.derived[r] = 1;
   if (!was_visible) out_[rel].push_back(r);
+  // A rule whose conclusion feeds itself new values (count(X, N1) :- count(X, N), N1 is N + 1)
+  // never reaches a fixpoint: it took all the memory there is. Stopped with where it is.
+  if (++e_.session_new_rows > e_.conclusion_limit) {
+    const Pred& head = e_.program->preds[rule_.head];
+    throw RunawayDerivation(e_.program->file + ":" + std::to_string(rule_.pos.line) + ":" + std::to_string(rule_.pos.col) +
+                            ": the rules derive without end: more than " + std::to_string(e_.conclusion_limit) +
+                            " conclusions in one session, the last of " + (head.internal ? "a helper of this rule" : "<" + head.iri + ">") +
+                            " by this rule; a rule whose conclusion gives itself new values (N1 is N + 1, a new node) never stops");
+  }
 }
 
 // Binds the unbound arguments of one literal to `row`; false (and nothing bound) on mismatch.
@@ -1098,6 +1113,7 @@ Engine::Update Engine::Impl::finish() {
 Engine::Update Engine::Impl::apply(std::span<const node::Triple> inserted,
                                    std::span<const node::Triple> removed, std::int64_t now_ns) {
   now = now_ns;
+  session_new_rows = 0;
   st.derivations = st.strata_run = st.strata_recomputed = 0;
   for (const node::Triple& t : inserted) base_change(t, true);
   for (const node::Triple& t : removed) base_change(t, false);
@@ -1156,6 +1172,8 @@ std::vector<Atom> Engine::conclusions() const {
 }
 
 bool Engine::relevant(std::string_view predicate_iri) const { return impl_->relevant(predicate_iri); }
+
+void Engine::set_conclusion_limit(std::size_t limit) { impl_->conclusion_limit = limit; }
 
 EngineStats Engine::stats() const {
   EngineStats s = impl_->st;

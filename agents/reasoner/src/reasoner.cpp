@@ -344,6 +344,7 @@ Result<SessionReport> Reasoner::Impl::session() {
   std::vector<node::Triple> in, out, extra_removals;
   bool gap = false;
   const auto t1 = Clock::now();
+  try {
   if (!started) {
     auto u = first_session(*snap, now, report, extra_removals);
     if (!u) return unexpected(u.error());
@@ -363,6 +364,15 @@ Result<SessionReport> Reasoner::Impl::session() {
       report.facts_out = out.size();
       compose(update, engine.apply(in, out, now));
     }
+  }
+  } catch (const RunawayDerivation& runaway) {
+    // Nothing of the session is written; the rules say why on the board, and the reasoner ends
+    // (under `tahvel up` its supervisor starts it again after a back-off, to the same end until
+    // the rule file is mended).
+    started = false;
+    engine = Engine(program);
+    try_report_problem(runaway.what(), report);
+    return unexpected(Error{runaway.what()});
   }
   report.derive_ms = ms_since(t1) - report.read_ms;
   report.engine = engine.stats();

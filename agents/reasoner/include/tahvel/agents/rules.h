@@ -29,6 +29,7 @@
 #include <filesystem>
 #include <memory>
 #include <span>
+#include <stdexcept>
 #include <string>
 #include <string_view>
 #include <vector>
@@ -96,6 +97,14 @@ struct EngineStats {
   std::size_t terms = 0;            // terms interned
 };
 
+// Thrown by Engine::apply (and recompute, reload) when one call derives more than two million
+// conclusions: rules whose conclusion gives itself new values never stop, and took all the
+// memory there is. The message names the rule file, line and column of the rule that was
+// deriving. The engine is then unusable: make a new one.
+struct RunawayDerivation : std::runtime_error {
+  using std::runtime_error::runtime_error;
+};
+
 // Incremental evaluator. Holds the base facts it was given (only those whose predicate some
 // rule reads, see relevant()) and all conclusions. Not thread-safe; one thread at a time.
 class Engine {
@@ -142,6 +151,10 @@ class Engine {
   bool relevant(std::string_view predicate_iri) const;
 
   EngineStats stats() const;
+
+  // The conclusions one apply may derive before it throws RunawayDerivation (default two
+  // million).
+  void set_conclusion_limit(std::size_t limit);
 
  private:
   struct Impl;
