@@ -52,6 +52,7 @@ std::string json_atoms(const std::vector<reasoner::Atom>& atoms) {
 }
 
 void print_json(const reasoner::SessionReport& r) {
+  if (r.clocked && r.added.empty() && r.removed.empty() && !r.rules_error && !r.problem_not_written) return;  // as print_text
   std::ostringstream out;
   out << "{\"seq\":" << r.seq << ",\"time_ns\":" << r.time_ns << ",\"facts_in\":" << r.facts_in
       << ",\"facts_out\":" << r.facts_out << ",\"resynced\":" << (r.resynced ? "true" : "false")
@@ -65,6 +66,8 @@ void print_json(const reasoner::SessionReport& r) {
 }
 
 void print_text(const reasoner::SessionReport& r, const uri::PrefixMap& prefixes) {
+  // Rules on `now` are evaluated every second on a quiet board: only what changed is told.
+  if (r.clocked && r.added.empty() && r.removed.empty() && !r.rules_error && !r.problem_not_written) return;
   if (r.rules_error) std::cerr << "tahvel: rules not reloaded (the previous rules run): " << *r.rules_error << "\n";
   std::cout << "session at seq " << r.seq << ": " << r.facts_in << " new and " << r.facts_out
             << " removed facts" << (r.resynced ? " (resynchronised)" : "")

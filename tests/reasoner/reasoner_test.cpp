@@ -552,6 +552,46 @@ TEST_F(ReasonerTest, RunStartsASessionWhenARelevantRecordArrives) {
   EXPECT_EQ(board().count(nt("x", "p", "y")), 1u);
 }
 
+// RS16: rules on `now` change their conclusions as time passes, with nothing on the board
+// changing: "no reading for 2 s" comes to hold 2 s after the last reading, on a quiet board.
+TEST_F(ReasonerTest, ARuleOnNowComesToHoldAsTimePassesOnAQuietBoard) {
+  auto file = rules("quiet.rules", "recent(P) :- last(P, T), now(N), T >= N - 2.\nstale(P) :- patient(P, yes), \\+ recent(P).\n");
+  const auto seconds_now = std::chrono::duration_cast<std::chrono::seconds>(std::chrono::system_clock::now().time_since_epoch()).count();
+  put({t("x", "patient", "yes"), {n("x"), n("last"), tn::Term::integer(seconds_now)}});
+  auto r = open(file);
+  std::mutex m;
+  std::condition_variable cv;
+  std::vector<tr::SessionReport> reports;
+  std::atomic<bool> stop{false};
+  std::thread runner([&] {
+    auto ran = r.run(
+        [&](const tr::SessionReport& report) {
+          std::lock_guard lock(m);
+          reports.push_back(report);
+          cv.notify_all();
+          return true;
+        },
+        [&] { return stop.load(); });
+    EXPECT_TRUE(ran.has_value());
+  });
+  {
+    std::unique_lock lock(m);
+    ASSERT_TRUE(cv.wait_for(lock, std::chrono::seconds(20), [&] { return !reports.empty(); }));
+    for (const auto& a : reports.front().added) EXPECT_NE(a.predicate, kNs + "stale") << "stale at once";
+    EXPECT_TRUE(cv.wait_for(lock, std::chrono::seconds(20), [&] {
+      for (const auto& report : reports)
+        for (const auto& a : report.added)
+          if (a.predicate == kNs + "stale") return report.clocked;
+      return false;
+    })) << "not stale after 20 s of quiet";
+  }
+  stop = true;
+  runner.join();
+  bool written = false;
+  for (const auto& [triple, records] : board()) written |= triple.find(kNs + "stale") != std::string::npos;
+  EXPECT_TRUE(written) << "stale(x) is not on the board";
+}
+
 // RS15: new rules are evaluated on the board. A new rule that reads a predicate the old rules did
 // not read derives from the facts of it already there, as a restart would.
 TEST_F(ReasonerTest, AReloadWithANewRuleDerivesFromFactsOnTheBoard) {

@@ -19,12 +19,16 @@
 #include <thread>
 
 #include "tahvel/node/node.h"
+#include "program.h"
 
 namespace tahvel::reasoner {
 
 namespace {
 
 using Clock = std::chrono::steady_clock;
+
+// How often rules that use `now` are evaluated on a board where nothing else changes.
+constexpr auto kNowTick = std::chrono::seconds(1);
 
 double ms_since(Clock::time_point t) {
   return std::chrono::duration<double, std::milli>(Clock::now() - t).count();
@@ -70,6 +74,9 @@ struct Reasoner::Impl {
   ReasonerOptions options;
   ParseOptions parse;
   std::shared_ptr<const Program> program;
+  bool uses_now() const {
+    return std::any_of(program->strata.begin(), program->strata.end(), [](const Stratum& s) { return s.volatile_; });
+  }
   std::optional<std::filesystem::file_time_type> rules_mtime;
   Engine engine;
   bool started = false;
@@ -479,11 +486,17 @@ Result<void> Reasoner::run(const std::function<bool(const SessionReport&)>& on_s
     // once, not at the next relevant change. Reclaims by this reasoner's own write do not start
     // a session: a ring too small for the conclusions would have it write for ever.
     if (auto st = impl_->node.stats(); st && st->reclaimed_records != impl_->reclaimed_after_write) pending = true;
+    // Rules on `now` change their conclusions as time passes: "no reading for 5 minutes" holds
+    // once the 5 minutes are over, with nothing on the board changing. They are evaluated again
+    // every kNowTick when nothing else starts a session.
+    const bool clocked = !pending && impl_->uses_now() && Clock::now() - last >= kNowTick;
+    if (clocked) pending = true;
     if (!pending || Clock::now() - last < impl_->options.interval) continue;
     last = Clock::now();
     pending = false;
     auto next = session();
     if (!next) return unexpected(next.error());
+    next->clocked = clocked;
     // The session read every change up to its snapshot: those the watch has not returned yet
     // (a bulk change comes back in batches) must not start sessions with nothing to do.
     watched = std::max(watched, next->seq);

@@ -58,6 +58,9 @@ struct SessionReport {
   std::optional<std::string> rules_error;  // the rule file changed but does not parse: the
                                            // message (file:line:col); the previous rules ran
   bool rules_reloaded = false;
+  // Started by the clock alone (rules that use `now`, on a quiet board): a session that then
+  // changes nothing is not worth a line of the log.
+  bool clocked = false;
   std::optional<std::string> problem_not_written;  // why the rules' problem could not be put on
                                                    // the board (or taken off it)
   double read_ms = 0, derive_ms = 0, write_ms = 0, total_ms = 0;
