@@ -7,6 +7,7 @@
 #include <cctype>
 #include <charconv>
 #include <cmath>
+#include <cstring>
 #include <filesystem>
 #include <fstream>
 #include <sstream>
@@ -412,14 +413,19 @@ double millivolts_per_unit(std::string_view units) {
 }
 
 // Whether a signal's description names an ECG lead: "ECG", "EKG", "ECG1", "ECG lead II",
-// "MLII", "ML II", "V1".."V6", "I", "II", "III", "aVR", "aVL", "aVF", "D1".."D3".
+// "Lead II", "MLII", "ML II", "V1".."V6", "I", "II", "III", "aVR", "aVL", "aVF", "D1".."D3", and
+// the bipolar chest leads of Holter records ("MCL1", "CM2", "CC5").
 bool names_ecg_lead(std::string_view description) {
   std::string d = lower(description);
   std::erase(d, ' ');
   if (d.find("ecg") != std::string::npos || d.find("ekg") != std::string::npos) return true;
+  if (d.starts_with("lead")) d.erase(0, 4);
   for (const char* lead : {"mli", "mlii", "mliii", "i", "ii", "iii", "avr", "avl", "avf", "d1", "d2", "d3", "v1", "v2", "v3", "v4",
-                           "v5", "v6", "mv1", "mv2", "mv3", "mv4", "mv5", "mv6", "cm5", "modv1", "modv5"})
+                           "v5", "v6", "mv1", "mv2", "mv3", "mv4", "mv5", "mv6", "modv1", "modv5"})
     if (d == lead) return true;
+  // MCLn, CMn, CCn (n a chest position 1-6).
+  for (const char* chest : {"mcl", "cm", "cc"})
+    if (d.size() == std::strlen(chest) + 1 && d.starts_with(chest) && d.back() >= '1' && d.back() <= '6') return true;
   return false;
 }
 

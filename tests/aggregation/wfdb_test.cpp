@@ -198,7 +198,11 @@ TEST_F(WfdbTemp, TheEcgLeadIsTheFirstNamedOneElseTheFirstInVoltsAndGainIsPerMill
   write("b.hea", "b 2 250 0\nb.dat 16 1000/l 16 0 0 0 0 resp\nb.dat 16 1/uV 16 0 0 0 0\n");
   write("c.hea", "c 2 250 0\nc.dat 16 10/l 16 0 0 0 0 flow\nc.dat 16 10/mmHg 16 0 0 0 0 pressure\n");
   write("d.hea", "d 2 360 0\nd.dat 212 200 11 1024 995 -22131 0 V5\nd.dat 212 200 11 1024 1011 20052 0 MLII\n");
-  const std::pair<const char*, std::size_t> cases[] = {{"a", 2}, {"b", 1}, {"c", 0}, {"d", 0}};
+  // Named in the ways Holter and monitor records name them, after a signal in volts that is none.
+  write("e.hea", "e 2 250 0\ne.dat 16 200/V 16 0 0 0 0 Pleth\ne.dat 16 200/mmHg 16 0 0 0 0 Lead II\n");
+  write("f.hea", "f 2 250 0\nf.dat 16 200/V 16 0 0 0 0 Pleth\nf.dat 16 200 16 0 0 0 0 MCL1\n");
+  write("g.hea", "g 2 250 0\ng.dat 16 200/V 16 0 0 0 0 Pleth\ng.dat 16 200 16 0 0 0 0 CM2\n");
+  const std::pair<const char*, std::size_t> cases[] = {{"a", 2}, {"b", 1}, {"c", 0}, {"d", 0}, {"e", 1}, {"f", 1}, {"g", 1}};
   for (const auto& [name, lead] : cases) {
     auto h = read_header(record(name));
     ASSERT_TRUE(h) << h.error().message;
