@@ -9,6 +9,7 @@
 
 #include <atomic>
 #include <condition_variable>
+#include <functional>
 #include <mutex>
 #include <filesystem>
 #include <fstream>
@@ -514,39 +515,59 @@ TEST_F(ReasonerTest, ASessionNeverSeesAHalfWrittenItem) {
   EXPECT_EQ(half, 0u);
 }
 
+// A reasoner's run() on a thread of its own, its session reports collected, until stopped (also
+// when a test ends early).
+class Running {
+ public:
+  explicit Running(tr::Reasoner& r)
+      : thread_([this, &r] {
+          auto ran = r.run(
+              [this](const tr::SessionReport& report) {
+                std::lock_guard lock(mu_);
+                reports_.push_back(report);
+                cv_.notify_all();
+                return true;
+              },
+              [this] { return stop_.load(); });
+          EXPECT_TRUE(ran.has_value()) << ran.error().message;
+        }) {}
+  ~Running() { stop(); }
+  void stop() {
+    stop_ = true;
+    if (thread_.joinable()) thread_.join();
+  }
+  // Whether `holds` comes true of the reports within 20 s.
+  bool wait(const std::function<bool(const std::vector<tr::SessionReport>&)>& holds) {
+    std::unique_lock lock(mu_);
+    return cv_.wait_for(lock, std::chrono::seconds(20), [&] { return holds(reports_); });
+  }
+  std::vector<tr::SessionReport> reports() {
+    std::lock_guard lock(mu_);
+    return reports_;
+  }
+
+ private:
+  std::mutex mu_;
+  std::condition_variable cv_;
+  std::vector<tr::SessionReport> reports_;
+  std::atomic<bool> stop_{false};
+  std::thread thread_;  // last: started once the rest is made
+};
+
 // RS16: run() starts a session when a record that some rule reads arrives (not for records no
 // rule reads), and stops when asked.
 TEST_F(ReasonerTest, RunStartsASessionWhenARelevantRecordArrives) {
   auto file = rules("w.rules", "p(X, Y) :- a(X, Y).\n");
   auto r = open(file);
-  std::mutex m;
-  std::condition_variable cv;
-  std::vector<tr::SessionReport> reports;
-  std::atomic<bool> stop{false};
-  std::thread runner([&] {
-    auto ran = r.run(
-        [&](const tr::SessionReport& report) {
-          std::lock_guard lock(m);
-          reports.push_back(report);
-          cv.notify_all();
-          return true;
-        },
-        [&] { return stop.load(); });
-    EXPECT_TRUE(ran.has_value());
-  });
-  auto wait_for = [&](std::size_t n) {
-    std::unique_lock lock(m);
-    return cv.wait_for(lock, std::chrono::seconds(20), [&] { return reports.size() >= n; });
-  };
-  ASSERT_TRUE(wait_for(1));  // the first session, at start
+  Running running(r);
+  auto sessions = [&](std::size_t n) { return running.wait([&](const auto& reports) { return reports.size() >= n; }); };
+  ASSERT_TRUE(sessions(1));  // the first session, at start
   put({t("noise", "unread", "x")});
   put({t("x", "a", "y")});
-  ASSERT_TRUE(wait_for(2));
-  stop = true;
-  runner.join();
-  std::lock_guard lock(m);
+  ASSERT_TRUE(sessions(2));
+  running.stop();
   bool derived = false;
-  for (const auto& report : reports)
+  for (const auto& report : running.reports())
     for (const auto& a : report.added) derived |= a.predicate == kNs + "p";
   EXPECT_TRUE(derived);
   EXPECT_EQ(board().count(nt("x", "p", "y")), 1u);
@@ -559,34 +580,16 @@ TEST_F(ReasonerTest, ARuleOnNowComesToHoldAsTimePassesOnAQuietBoard) {
   const auto seconds_now = std::chrono::duration_cast<std::chrono::seconds>(std::chrono::system_clock::now().time_since_epoch()).count();
   put({t("x", "patient", "yes"), {n("x"), n("last"), tn::Term::integer(seconds_now)}});
   auto r = open(file);
-  std::mutex m;
-  std::condition_variable cv;
-  std::vector<tr::SessionReport> reports;
-  std::atomic<bool> stop{false};
-  std::thread runner([&] {
-    auto ran = r.run(
-        [&](const tr::SessionReport& report) {
-          std::lock_guard lock(m);
-          reports.push_back(report);
-          cv.notify_all();
-          return true;
-        },
-        [&] { return stop.load(); });
-    EXPECT_TRUE(ran.has_value());
-  });
-  {
-    std::unique_lock lock(m);
-    ASSERT_TRUE(cv.wait_for(lock, std::chrono::seconds(20), [&] { return !reports.empty(); }));
-    for (const auto& a : reports.front().added) EXPECT_NE(a.predicate, kNs + "stale") << "stale at once";
-    EXPECT_TRUE(cv.wait_for(lock, std::chrono::seconds(20), [&] {
-      for (const auto& report : reports)
-        for (const auto& a : report.added)
-          if (a.predicate == kNs + "stale") return report.clocked;
-      return false;
-    })) << "not stale after 20 s of quiet";
-  }
-  stop = true;
-  runner.join();
+  Running running(r);
+  ASSERT_TRUE(running.wait([](const auto& reports) { return !reports.empty(); }));
+  for (const auto& a : running.reports().front().added) EXPECT_NE(a.predicate, kNs + "stale") << "stale at once";
+  EXPECT_TRUE(running.wait([](const auto& reports) {
+    for (const auto& report : reports)
+      for (const auto& a : report.added)
+        if (a.predicate == kNs + "stale") return report.clocked;
+    return false;
+  })) << "not stale after 20 s of quiet";
+  running.stop();
   bool written = false;
   for (const auto& [triple, records] : board()) written |= triple.find(kNs + "stale") != std::string::npos;
   EXPECT_TRUE(written) << "stale(x) is not on the board";
