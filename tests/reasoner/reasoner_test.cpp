@@ -582,7 +582,8 @@ TEST_F(ReasonerTest, ARuleOnNowComesToHoldAsTimePassesOnAQuietBoard) {
   auto r = open(file);
   Running running(r);
   ASSERT_TRUE(running.wait([](const auto& reports) { return !reports.empty(); }));
-  for (const auto& a : running.reports().front().added) EXPECT_NE(a.predicate, kNs + "stale") << "stale at once";
+  const std::vector<tr::SessionReport> first = running.reports();  // kept: a range-for over a temporary's member dangles
+  for (const auto& a : first.front().added) EXPECT_NE(a.predicate, kNs + "stale") << "stale at once";
   EXPECT_TRUE(running.wait([](const auto& reports) {
     for (const auto& report : reports)
       for (const auto& a : report.added)
