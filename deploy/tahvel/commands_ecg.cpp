@@ -136,15 +136,24 @@ int run_ecg(const Args& args) {
     usage_error("--until " + *args.get("--until") + " is not after --since " + *args.get("--since"));
   const std::chrono::milliseconds timeout = seconds_flag(args, "ecg", std::chrono::seconds(30), std::chrono::hours(24));
   const auto deadline = std::chrono::steady_clock::now() + timeout;
-  auto left = [&] {
-    return std::max(std::chrono::milliseconds(1),
-                    std::chrono::duration_cast<std::chrono::milliseconds>(deadline - std::chrono::steady_clock::now()));
+  // The two queries (the description, then the chunks) share the one --timeout: the second
+  // gets what the first left, and a timeout names the whole, not what was left of it.
+  auto ask_in_time = [&](const std::function<void(const node::Record&)>& each, const std::function<void()>& answered) {
+    const auto left = std::max(std::chrono::milliseconds(1),
+                               std::chrono::duration_cast<std::chrono::milliseconds>(deadline - std::chrono::steady_clock::now()));
+    try {
+      ask_below("ecg", node, ask, left, each, answered);
+    } catch (Failure& f) {
+      if (f.status == kExitTimeout && left < timeout)
+        f.message += "; the description and the chunks share --timeout " + seconds_text(static_cast<double>(timeout.count()) / 1000);
+      throw;
+    }
   };
 
   // The description: rate, gain, baseline, leads, start (docs/vocabulary.md).
   ask.pattern = {.s = node::Term::iri(recording)};
   std::vector<node::Record> description;
-  ask_below("ecg", node, ask, left(), [&](const node::Record& r) { description.push_back(r); });
+  ask_in_time([&](const node::Record& r) { description.push_back(r); }, {});
   const std::string where = "<" + ask.target + ">";
   if (description.empty()) fail("ecg: " + where + " holds no recording <" + recording + "> (nothing has it as subject)");
   auto info = agg::read_recording(description, recording);
@@ -169,7 +178,7 @@ int run_ecg(const Args& args) {
     else if (unreadable++ == 0) first_error = "<" + chunk.front().triple.s.value + ">: " + why;
     chunk.clear();
   };
-  ask_below("ecg", node, ask, left(), [&](const node::Record& r) {
+  ask_in_time([&](const node::Record& r) {
     if (!chunk.empty() && chunk.front().triple.s != r.triple.s) flush();
     chunk.push_back(r);
   }, flush);
