@@ -1,7 +1,7 @@
 // R-peak detector: a per-sample state machine after Hamilton & Tompkins (IEEE TBME 33(12),
 // 1986) and Hamilton's open-source OSEA detector, re-derived for any sampling rate. Workload:
 // long single-lead streams (a 30-minute MIT-BIH record is 650,000 samples) pushed in chunks
-// of any size; the per-sample path is two biquads, a running sum and a few comparisons, and
+// of any size; the per-sample path is four biquads, a running sum and a few comparisons, and
 // everything heavier (medians, refinement scans) runs once per candidate peak (a few per
 // second). docs/rpeak.md explains the choices and gives the MIT-BIH scores.
 #include "tahvel/aggregation/rpeak.h"
@@ -32,6 +32,12 @@ struct Biquad {
     z2 = b2 * x - a2 * y;
     return y;
   }
+  // The state of a filter that has had input x for ever and so puts out y (its DC gain · x):
+  // started so, a filter does not ring with a signal's offset.
+  void settle(double x, double y) {
+    z1 = y - b0 * x;
+    z2 = b2 * x - a2 * y;
+  }
   std::complex<double> response(double w) const {
     const std::complex<double> z1i = std::polar(1.0, -w), z2i = std::polar(1.0, -2 * w);
     return (b0 + b1 * z1i + b2 * z2i) / (1.0 + a1 * z1i + a2 * z2i);
@@ -49,6 +55,17 @@ Biquad butterworth(double fc, double fs, bool highpass) {
   q.a1 = -2 * c / a0;
   q.a2 = (1 - alpha) / a0;
   return q;
+}
+
+// A notch at f0 (RBJ cookbook), `q` = f0 / its -3 dB width; gain 1 away from it.
+Biquad notch(double f0, double fs, double q) {
+  const double w = 2 * std::numbers::pi * f0 / fs, cos_w = std::cos(w);
+  const double alpha = std::sin(w) / (2 * q), a0 = 1 + alpha;
+  Biquad n;
+  n.b0 = n.b2 = 1 / a0;
+  n.b1 = n.a1 = -2 * cos_w / a0;
+  n.a2 = (1 - alpha) / a0;
+  return n;
 }
 
 // Group delay in samples of the cascade at frequency f (numerical phase derivative).
@@ -168,7 +185,7 @@ class RPeakDetector::Impl {
   std::int64_t locate(std::int64_t qrs) const;
   void note_hum(std::int64_t qrs);
   bool dominant_positive(double up, double down) const;
-  // The largest positive and negative deviations of `signal` (a ring: raw_ or calm_) over
+  // The largest positive and negative deviations of `signal` (a ring: raw_ or notched_) over
   // [qrs - before, qrs + after], measured from the mean of the window's ends; nullopt when the
   // window is too short or flat.
   struct Deflections {
@@ -178,10 +195,11 @@ class RPeakDetector::Impl {
   std::optional<Deflections> deflections(std::int64_t qrs, std::int64_t before, std::int64_t after,
                                         const std::vector<double>& signal) const;
   double threshold() const { return noise_med_ + frac_ * (qrs_med_ - noise_med_); }
-  double bp(std::int64_t i) const { return bp_[static_cast<std::size_t>(i & mask_)]; }
-  double slope(std::int64_t i) const { return d_[static_cast<std::size_t>(i & mask_)]; }
-  double raw(std::int64_t i) const { return raw_[static_cast<std::size_t>(i & mask_)]; }
-  double calm(std::int64_t i) const { return calm_[static_cast<std::size_t>(i & mask_)]; }  // notched
+  // Sample i of one of the rings (bp_, d_, raw_, notched_).
+  double at(const std::vector<double>& ring, std::int64_t i) const { return ring[static_cast<std::size_t>(i & mask_)]; }
+  double bp(std::int64_t i) const { return at(bp_, i); }
+  double slope(std::int64_t i) const { return at(d_, i); }
+  double raw(std::int64_t i) const { return at(raw_, i); }
 
   // Parameters in samples / adu.
   DetectorOptions o_;
@@ -195,22 +213,23 @@ class RPeakDetector::Impl {
   std::int64_t n_ = 0;
   double last_bp_ = 0, sum_ = 0, last_f_ = 0;
   // History rings of at least 4 s (power of two; allocated once): the longest look-back is
-  // the integration window plus the 95 ms peak timeout plus the hold, well under 2 s.
+  // the integration window plus the 95 ms peak timeout plus the hold, and from the candidate's
+  // QRS note_hum()'s 250 ms, well under 2 s.
   std::int64_t mask_;
   std::vector<double> bp_, d_, raw_;
 
-  // The original signal through notches at 50 and 60 Hz (those below 0.45 fs), for locate()
-  // while the signal carries mains hum (hum_, note_hum()). Hum moved the centroid of the QRS
-  // with its phase: 0.3 mV of 50 Hz added to MIT-BIH took the RR error of normal beats from
-  // 1.6 to 3.3 samples rms, 1 mV to 7.6. Q = 10 (5 Hz wide at 50 Hz) also takes out hum a
+  // The original signal through notches at 50 and 60 Hz (those below fs / 2), for locate()
+  // while the signal carries mains hum (hum_present_, note_hum()). Hum moved the centroid of
+  // the QRS with its phase: 0.3 mV of 50 Hz added to MIT-BIH took the RR error of normal beats
+  // from 1.6 to 3.3 samples rms, 1 mV to 7.6. Q = 10 (5 Hz wide at 50 Hz) also takes out hum a
   // percent off its nominal frequency; a narrower notch let 49.5 Hz through. On a clean signal
   // the notches cost precision (their ringing spreads the QRS: records at the floor of 0.4
   // samples rms went to 0.6), hence the switch (docs/rpeak.md).
   std::vector<Biquad> notches_;
-  std::vector<double> calm_;
+  std::vector<double> notched_;
   std::array<double, 8> hum_levels_{};  // note_hum()'s last levels, mV
   std::size_t hum_n_ = 0;
-  bool hum_ = false;
+  bool hum_present_ = false;
 
   // Local-maximum finder of the integrated slope (Hamilton's Peak()).
   double fmax_ = 0;
@@ -283,16 +302,8 @@ RPeakDetector::Impl::Impl(const DetectorOptions& o)
       p_search_(samples(80, o.fs)),
       p_step_(std::max<std::int64_t>(1, std::llround(o.fs / 120))),
       own_p_(std::llround(o.own_pwave_ms * o.fs / 1000)) {
-  for (double f0 : {50.0, 60.0}) {
-    if (!(f0 < 0.45 * o.fs)) continue;
-    constexpr double q = 10;
-    const double w = 2 * std::numbers::pi * f0 / o.fs, c = std::cos(w), alpha = std::sin(w) / (2 * q), a0 = 1 + alpha;
-    Biquad nq;  // RBJ cookbook notch
-    nq.b0 = nq.b2 = 1 / a0;
-    nq.b1 = nq.a1 = -2 * c / a0;
-    nq.a2 = (1 - alpha) / a0;
-    notches_.push_back(nq);
-  }
+  for (double mains_hz : {50.0, 60.0})
+    if (mains_hz < o.fs / 2) notches_.push_back(notch(mains_hz, o.fs, 10));
   bp_delay_ = group_delay(hp_, lp_, std::sqrt(o.highpass_hz * o.lowpass_hz), o.fs);
   std::int64_t ring = 1024;
   while (ring < 4 * second_) ring *= 2;
@@ -300,7 +311,7 @@ RPeakDetector::Impl::Impl(const DetectorOptions& o)
   bp_.assign(static_cast<std::size_t>(ring), 0.0);
   d_.assign(static_cast<std::size_t>(ring), 0.0);
   raw_.assign(static_cast<std::size_t>(ring), 0.0);
-  calm_.assign(static_cast<std::size_t>(ring), 0.0);
+  notched_.assign(static_cast<std::size_t>(ring), 0.0);
   next_second_ = second_;
   learning_.reserve(128);
   p_mean_.assign(static_cast<std::size_t>(2 * p_half_ + 1), 0.0);
@@ -318,20 +329,14 @@ void RPeakDetector::Impl::step(std::int32_t x, std::vector<std::int64_t>& out) {
   if (n == 0) {
     // Start the high-pass in its steady state for a constant input equal to the first sample
     // (output 0), so the ADC offset does not ring through the filters as a fake first beat.
-    hp_.z1 = -hp_.b0 * x;
-    hp_.z2 = hp_.b2 * x;
+    hp_.settle(x, 0);
+    for (Biquad& n50_60 : notches_) n50_60.settle(x, x);
   }
   const auto slot = static_cast<std::size_t>(n & mask_);
   raw_[slot] = x;
-  double c = x;
-  for (Biquad& nq : notches_) {
-    if (n == 0) {  // steady state for a constant input (a notch passes it unchanged)
-      nq.z1 = c - nq.b0 * c;
-      nq.z2 = nq.b2 * c - nq.a2 * c;
-    }
-    c = nq.step(c);
-  }
-  calm_[slot] = c;
+  double notched = x;
+  for (Biquad& n50_60 : notches_) notched = n50_60.step(notched);
+  notched_[slot] = notched;
   const double b = lp_.step(hp_.step(x));
   bp_[slot] = b;
   const double d = std::fabs(b - last_bp_);
@@ -407,14 +412,13 @@ void RPeakDetector::Impl::on_fpeak(double height, std::int64_t at) {
 // `balance` gets (R − S) / (R + S) of this complex; accept() folds it into the polarity.
 auto RPeakDetector::Impl::deflections(std::int64_t qrs, std::int64_t before, std::int64_t after,
                                       const std::vector<double>& signal) const -> std::optional<Deflections> {
-  auto at = [&](std::int64_t i) { return signal[static_cast<std::size_t>(i & mask_)]; };
   const std::int64_t lo = std::max<std::int64_t>(0, qrs - before);
   const std::int64_t hi = std::min<std::int64_t>(n_ - 1, qrs + after);
   if (hi - lo < 2) return std::nullopt;
-  const double base = (at(lo) + at(hi)) / 2;
+  const double base = (at(signal, lo) + at(signal, hi)) / 2;
   Deflections d{0, 0, qrs, qrs};
   for (std::int64_t i = lo; i <= hi; ++i) {
-    const double v = at(i) - base;
+    const double v = at(signal, i) - base;
     if (v > d.up) d.up = v, d.up_at = i;
     if (-v > d.down) d.down = -v, d.down_at = i;
   }
@@ -441,7 +445,7 @@ bool RPeakDetector::Impl::dominant_positive(double up, double down) const {
 // detection point fiducial() is not good enough for that (its window is cut 30 ms after the
 // band-passed point, so it sometimes takes a Q wave or the downslope instead of the R peak, and
 // the arg max of a flat-topped R wave jitters by a sample with noise). Two steps, on the original
-// signal (with mains hum notched out while there is hum, calm_):
+// signal (with mains hum notched out while there is hum, notched_):
 //  1. the dominant extremum within ±60 ms of the band-passed point,
 //     measured from the mean of the window ends, chosen by the lead's polarity as fiducial()
 //     does: the main deflection of the QRS;
@@ -455,8 +459,7 @@ bool RPeakDetector::Impl::dominant_positive(double up, double down) const {
 // normal beat to the next falls from 2.0 to 1.6 samples rms over all 45 records — 0.4–0.5 in
 // most, the floor set by the annotations' own rounding to whole samples (docs/rpeak.md).
 std::int64_t RPeakDetector::Impl::locate(std::int64_t qrs) const {
-  const std::vector<double>& signal = hum_ ? calm_ : raw_;
-  auto at = [&](std::int64_t i) { return signal[static_cast<std::size_t>(i & mask_)]; };
+  const std::vector<double>& signal = hum_present_ ? notched_ : raw_;
   auto d = deflections(qrs, locate_half_, locate_half_, signal);
   if (!d) return qrs;
   const std::int64_t peak = dominant_positive(d->up, d->down) ? d->up_at : d->down_at;
@@ -465,10 +468,10 @@ std::int64_t RPeakDetector::Impl::locate(std::int64_t qrs) const {
     const std::int64_t mid = std::llround(centre);
     const std::int64_t a = std::max<std::int64_t>(0, mid - centroid_half_);
     const std::int64_t b = std::min<std::int64_t>(n_ - 1, mid + centroid_half_);
-    const double level = (at(a) + at(b)) / 2;
+    const double level = (at(signal, a) + at(signal, b)) / 2;
     double weight = 0, moment = 0;
     for (std::int64_t i = a; i <= b; ++i) {
-      const double e = (at(i) - level) * (at(i) - level);
+      const double e = (at(signal, i) - level) * (at(signal, i) - level);
       weight += e;
       moment += e * static_cast<double>(i);
     }
@@ -481,11 +484,14 @@ std::int64_t RPeakDetector::Impl::locate(std::int64_t qrs) const {
                                   peak + centroid_half_);
 }
 
-// What the notches take out of the signal from 250 to 100 ms before a QRS (the PR segment and
-// the P wave, where an ECG has nothing near 50 or 60 Hz), rms in mV, as a median over the last
-// 8 candidates; locate() works on the notched signal from 0.02 mV on, and on the original
-// again below 0.015. On clean MIT-BIH records that level is 0.009 mV at the median candidate;
-// 0.03 mV of hum (amplitude) gives 0.023.
+// What the notches take out of the signal from 250 to 100 ms before a candidate (before a beat,
+// the PR segment and the P wave, where an ECG has nothing near 50 or 60 Hz; at a fast rate, or
+// before a T wave or noise, also the tail of the complex before, which a median discounts),
+// rms in mV, as a median over the last 8 candidates (those there are from the third on, so
+// that the first seconds of a stream with hum are not located on the original); locate()
+// works on the notched signal from 0.02 mV on, and on the original again below 0.015. On
+// clean MIT-BIH records that level is 0.009 mV at the median candidate; 0.03 mV of hum
+// (amplitude) gives 0.023.
 void RPeakDetector::Impl::note_hum(std::int64_t qrs) {
   constexpr double kHumOnMv = 0.02, kHumOffMv = 0.015;
   const std::int64_t a = std::max<std::int64_t>(0, qrs - samples(250, o_.fs));
@@ -493,13 +499,16 @@ void RPeakDetector::Impl::note_hum(std::int64_t qrs) {
   if (b - a < 4 || notches_.empty()) return;
   double e = 0;
   for (std::int64_t i = a; i < b; ++i) {
-    const double h = raw(i) - calm(i);
+    const double h = raw(i) - at(notched_, i);
     e += h * h;
   }
   hum_levels_[hum_n_++ % hum_levels_.size()] = std::sqrt(e / static_cast<double>(b - a)) / o_.gain;
-  if (hum_n_ < hum_levels_.size()) return;
-  const double level = median8(hum_levels_);
-  hum_ = hum_ ? level > kHumOffMv : level > kHumOnMv;
+  if (hum_n_ < 3) return;
+  const std::size_t have = std::min(hum_n_, hum_levels_.size());
+  std::array<double, 8> sorted = hum_levels_;
+  std::sort(sorted.begin(), sorted.begin() + static_cast<std::ptrdiff_t>(have));
+  const double level = have % 2 ? sorted[have / 2] : (sorted[have / 2 - 1] + sorted[have / 2]) / 2;
+  hum_present_ = hum_present_ ? level > kHumOffMv : level > kHumOnMv;
 }
 
 // The hold is over: the held candidate is decided now.

@@ -71,6 +71,13 @@ TEST(RPeakMitdb, GrossSensitivityAndPositivePredictivityAtLeast99_7Percent) {
   EXPECT_GE(ppv, 99.7) << "gross positive predictivity";
 }
 
+// Adds `mv` of mains hum at `hz` to the record's lead.
+void add_hum(Record& r, double hz, double mv) {
+  for (std::size_t i = 0; i < r.lead.size(); ++i)
+    r.lead[i] += static_cast<std::int32_t>(
+        std::lround(mv * r.gain * std::sin(2 * std::numbers::pi * hz * static_cast<double>(i) / r.fs + 0.7)));
+}
+
 // Detected RR interval minus the reference one, between consecutive reference beats that are
 // both normal (N L R e j) and both detected (each within 150 ms of its own detection).
 struct RrError {
@@ -110,7 +117,7 @@ RrError rr_error(const Record& r, const std::vector<Annotation>& reference) {
 // records' own figures. Records with no two normal beats in a row (107: paced) are left out.
 struct RrErrors {
   RrError all;
-  std::size_t scored = 0, within_one_sample = 0;
+  std::size_t scored = 0, within_one_sample = 0, within_half_a_sample = 0;
 };
 
 template <class Change>
@@ -130,6 +137,7 @@ RrErrors rr_errors(const std::vector<std::string>& names, const char* what, Chan
     std::printf("%s%s  RR error %.2f samples rms over %lld normal pairs\n", name.c_str(), what, e.rms(),
                 static_cast<long long>(e.pairs));
     out.within_one_sample += e.rms() <= 1.0 ? 1 : 0;
+    out.within_half_a_sample += e.rms() <= 0.5 ? 1 : 0;
     out.all.sum_sq += e.sum_sq;
     out.all.pairs += e.pairs;
   }
@@ -149,6 +157,9 @@ TEST(RPeakMitdb, RrIntervalsOfNormalBeatsMatchTheReferenceToAboutASample) {
   const RrErrors e = rr_errors(names, "", [](Record&) {});
   EXPECT_LE(e.all.rms(), 1.7);
   EXPECT_GE(static_cast<double>(e.within_one_sample), 0.8 * static_cast<double>(e.scored));
+  // The cleanest records stay at the floor (5: 100, 201, 213, 233, 234). The notches against
+  // mains hum spread the QRS; used on clean records too, they left 2 there (docs/rpeak.md).
+  EXPECT_GE(e.within_half_a_sample, 4u);
 }
 
 // Mains hum is the commonest artefact of an ECG taken at home. 0.3 mV of it, at 50 Hz or at
@@ -160,24 +171,23 @@ TEST(RPeakMitdb, MainsHumDoesNotMoveTheBeats) {
   if (names.empty()) GTEST_SKIP() << "MIT-BIH records not found (set TAHVEL_MITDB)";
   for (const double hz : {50.0, 60.0}) {
     const std::string what = " + 0.3 mV at " + std::to_string(static_cast<int>(hz)) + " Hz";
-    const RrErrors e = rr_errors(names, what.c_str(), [&](Record& r) {
-      for (std::size_t i = 0; i < r.lead.size(); ++i)
-        r.lead[i] += static_cast<std::int32_t>(
-            std::lround(0.3 * r.gain * std::sin(2 * std::numbers::pi * hz * static_cast<double>(i) / r.fs + 0.7)));
-    });
+    const RrErrors e = rr_errors(names, what.c_str(), [&](Record& r) { add_hum(r, hz, 0.3); });
     EXPECT_LE(e.all.rms(), 1.7) << what;
     EXPECT_GE(static_cast<double>(e.within_one_sample), 0.8 * static_cast<double>(e.scored)) << what;
   }
 }
 
-// Two records with many ectopic beats, noise and search-backs: the peaks are the same whether
-// an agent pushes one sample, 7, one second, 4096 or the whole record at a time.
+// Two records with many ectopic beats, noise and search-backs, and one with mains hum (the
+// notched copy in use): the peaks are the same whether an agent pushes one sample, 7, one
+// second, 4096 or the whole record at a time.
 TEST(RPeakMitdb, OutputIsIdenticalWhateverTheChunking) {
   const std::vector<std::string> names = mitdb_records();
-  for (const std::string name : {"105", "207"}) {
-    if (std::find(names.begin(), names.end(), name) == names.end()) continue;
-    const Record r = load(name);
+  for (const std::string name : {"105", "207", "100 + hum"}) {
+    const std::string record = name.substr(0, 3);
+    if (std::find(names.begin(), names.end(), record) == names.end()) continue;
+    Record r = load(record);
     ASSERT_FALSE(r.lead.empty()) << name;
+    if (name != record) add_hum(r, 50, 0.3);
     const DetectorOptions o = options_for(r);
     const std::vector<std::int64_t> whole = detect_r_peaks(r.lead, o);
     ASSERT_GT(whole.size(), 1000u) << name;
