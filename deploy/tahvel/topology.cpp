@@ -279,11 +279,19 @@ node::Result<Topology> load_topology(const std::filesystem::path& file) {
     if (auto ok = uri::check_id(*id); !ok) return node::fail(Errc::invalid_argument, where(*t, file) + ": node id '" + *id + "': " + ok.error().message);
     spec.id = *id;
     if (by_id.count(spec.id)) return node::fail(Errc::invalid_argument, where(*t, file) + ": node id '" + spec.id + "' appears twice");
-    // STATE/<id> is the node's store, beside the supervisors' files in STATE and the stores
+    // STATE/<id> is the node's store, beside the supervisors' files in STATE (the whole file's
+    // is supervisor-all.*, one node's supervisor-<id>.*), `up`'s turn (.up.lock) and the stores
     // `up` is making (STATE/<id>.making, which `status` does not take for nodes).
-    if (spec.id == "logs" || spec.id.starts_with("supervisor-") || spec.id.ends_with(".making"))
-      return node::fail(Errc::invalid_argument, where(*t, file) + ": node id '" + spec.id +
-                                                    "' is taken by the state directory's own files (logs/, supervisor-*, *.making)");
+    if (spec.id == "logs" || spec.id == "all" || spec.id.starts_with(".") || spec.id.starts_with("supervisor-") ||
+        spec.id.ends_with(".making"))
+      return node::fail(Errc::invalid_argument,
+                        where(*t, file) + ": node id '" + spec.id +
+                            "' is taken by the state directory's own files (logs/, all, .*, supervisor-*, *.making)");
+    // The longest name made of an id, supervisor-<id>.apply.lock, must fit a file name (255 bytes).
+    if (spec.id.size() > kMaxNodeIdBytes)
+      return node::fail(Errc::invalid_argument, where(*t, file) + ": node id '" + spec.id.substr(0, 40) + "...' is " +
+                                                    std::to_string(spec.id.size()) + " bytes long; at most " +
+                                                    std::to_string(kMaxNodeIdBytes) + " are allowed (the state directory names files after it)");
     const std::string what = "node '" + spec.id + "': ";
     if (auto ok = only_keys(*t, {"id", "iri", "tier", "parent", "up", "listen", "store", "forward", "behaviours", "load", "agent"}, file, what); !ok)
       return Unexpected<node::Error>{ok.error()};

@@ -31,6 +31,10 @@ struct AgentSpec {
   std::string at;                           // "FILE:LINE:COL" of its table, for errors
 };
 
+// A node id's most bytes: the state directory names files after it, the longest being
+// supervisor-<id>.apply.lock, and a file name has at most 255 bytes.
+inline constexpr std::size_t kMaxNodeIdBytes = 200;
+
 struct NodeSpec {
   std::string id;
   std::string iri;

@@ -1776,6 +1776,14 @@ TEST_F(Cli, UpRefusesATopologyThatCouldNotRunAsWrittenNamingWhatAndWhere) {
       {"[[node]]\nid = \"logs\"\niri = \"http://example.org/logs\"\n", "node id 'logs' is taken by the state directory"},
       // Where `up` makes a node's store (status passes such a store over: it is not a node).
       {"[[node]]\nid = \"hq.making\"\niri = \"http://example.org/hq\"\n", "node id 'hq.making' is taken by the state directory"},
+      // The whole file's supervisor is supervisor-all.pid: a node 'all' on the machine of another
+      // node was refused at `up --node` as "the supervisor of the whole file runs".
+      {"[[node]]\nid = \"all\"\niri = \"http://example.org/all\"\n", "t.toml:1:1: node id 'all' is taken by the state directory"},
+      // `up`'s turn, STATE/.up.lock: such a node failed half-way, its parent's store made.
+      {"[[node]]\nid = \".up.lock\"\niri = \"http://example.org/x\"\n", "node id '.up.lock' is taken by the state directory"},
+      // A longer id failed after its parent's store was made ("File name too long").
+      {"[[node]]\nid = \"" + std::string(201, 'n') + "\"\niri = \"http://example.org/x\"\n",
+       "t.toml:1:1: node id '" + std::string(40, 'n') + "...' is 201 bytes long; at most 200 are allowed"},
       // "café" with a combining accent: the same on screen as the precomposed one, other bytes.
       {"[[node]]\nid = \"hospital\"\niri = \"http://example.org/cafe\xCC\x81\"\n",
        "t.toml:3:7: node 'hospital': iri: invalid IRI 'http://example.org/cafe\xCC\x81' at position 22: not in Unicode normalization form C (NFC)"},
