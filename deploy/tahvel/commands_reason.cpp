@@ -88,7 +88,7 @@ void print_text(const reasoner::SessionReport& r, const uri::PrefixMap& prefixes
 
 const Command kReasonCommand{
     "reason",
-    "DIR RULES [--once] [--json] [--default-ns IRI] [--agent ID] [--interval MS] [--persistent]",
+    "DIR RULES [--once] [--json] [--default-ns IRI] [--agent ID] [--interval MS] [--persistent] [--max-conclusions N]",
     "Apply a rule file to the whiteboard in incremental sessions (the reasoner agent).",
     "Runs a session now and then one whenever records that some rule reads change (at most one\n"
     "per --interval), until interrupted; with --once, one session. Each session derives from\n"
@@ -104,7 +104,8 @@ const Command kReasonCommand{
      {"--default-ns", "", "IRI", "namespace of #name and bare atoms (default: node IRI + '#')"},
      {"--agent", "", "ID", "write as agent ID (IRI: node IRI/ID); default \"reasoner\""},
      {"--interval", "", "MS", "at most one session per MS milliseconds (default 100)"},
-     {"--persistent", "", "", "conclusions as persistent items: a ring does not reclaim them; they go when they lose support"}},
+     {"--persistent", "", "", "conclusions as persistent items: a ring does not reclaim them; they go when they lose support"},
+     {"--max-conclusions", "", "N", "conclusions one session may derive before the rules are taken to derive without end (default 2000000)"}},
     2, 2};
 
 int run_reason(const Args& args) {
@@ -117,6 +118,8 @@ int run_reason(const Args& args) {
                 std::to_string(reasoner::kMaxInterval.count()) + ")");
   options.interval = std::chrono::milliseconds(interval_ms);
   options.persistent = args.has("--persistent");
+  options.max_conclusions = args.get_u64("--max-conclusions", reasoner::kDefaultMaxConclusions);
+  if (options.max_conclusions == 0) usage_error("--max-conclusions: must be at least 1");
   std::string dir = args.positional(0);
   node::Node node = open_node(dir);
   // Rewritten after each reclaim, a conclusion that holds all along is a new item each time: a

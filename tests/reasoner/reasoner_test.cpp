@@ -573,6 +573,68 @@ TEST_F(ReasonerTest, RunStartsASessionWhenARelevantRecordArrives) {
   EXPECT_EQ(board().count(nt("x", "p", "y")), 1u);
 }
 
+// `tahvel remove -s -p -o` removes every matching record, the reasoner's copy of a fact that is
+// also derived among them. Such a conclusion stayed off the board until a restart (or, by
+// chance, a gap in the change stream) although it still held.
+TEST_F(ReasonerTest, AConclusionRemovedByHandIsWrittenAgainWhileItHolds) {
+  auto file = rules("sym.rules", "f(Y, X) :- f(X, Y).\n");
+  put({t("a", "f", "b")});
+  put({t("b", "f", "a")});
+  auto r = open(file);
+  Running running(r);
+  auto sessions = [&](std::size_t n) { return running.wait([&](const auto& reports) { return reports.size() >= n; }); };
+  ASSERT_TRUE(sessions(1));
+  ASSERT_EQ(board().count(nt("a", "f", "b")), 1u);
+  ASSERT_EQ(board().count(nt("b", "f", "a")), 1u);
+  const auto pattern = [](const std::string& s, const std::string& o) {
+    tn::Pattern p;
+    p.s = n(s);
+    p.p = n("f");
+    p.o = n(o);
+    return p;
+  };
+  // Only the reasoner's record: nothing any rule reads changed, and yet a session must run.
+  tn::Pattern mine = pattern("a", "b");
+  mine.source = kIri + "/reasoner";
+  auto removed = node_->remove(mine);
+  ASSERT_TRUE(removed.has_value());
+  ASSERT_EQ(*removed, 1u);
+  ASSERT_TRUE(sessions(2));
+  EXPECT_TRUE(running.wait([&](const auto&) { return board().count(nt("a", "f", "b")) == 1; }));
+  // Every record of b f a, the fact and the conclusion, which a f b still gives.
+  removed = node_->remove(pattern("b", "a"));
+  ASSERT_TRUE(removed.has_value());
+  ASSERT_EQ(*removed, 2u);
+  ASSERT_TRUE(sessions(3));
+  running.stop();
+  std::map<std::string, int> both = {{nt("a", "f", "b"), 1}, {nt("b", "f", "a"), 1}};
+  EXPECT_EQ(board(), both);
+}
+
+// A finite closure larger than the default limit on a session's conclusions (a restart derives
+// all of it in one session) runs with a larger --max-conclusions; below it, the error says so.
+TEST_F(ReasonerTest, TheLimitOnASessionsConclusionsIsTheReasonersSetting) {
+  auto file = rules("anc.rules", "anc(X, Y) :- parent(X, Y).\nanc(X, Z) :- anc(X, Y), parent(Y, Z).\n");
+  for (int i = 0; i < 10; ++i) put({t("p" + std::to_string(i), "parent", "p" + std::to_string(i + 1))});  // 55 conclusions
+  tr::ReasonerOptions o;
+  o.rules = file;
+  o.max_conclusions = 50;
+  {
+    auto r = tr::Reasoner::open(root_ / "node", o);
+    ASSERT_TRUE(r.has_value()) << r.error().message;
+    auto s = r->session();
+    ASSERT_FALSE(s.has_value());
+    EXPECT_NE(s.error().message.find("more than 50 conclusions in one session"), std::string::npos) << s.error().message;
+    EXPECT_NE(s.error().message.find("--max-conclusions"), std::string::npos) << s.error().message;
+  }
+  o.max_conclusions = 55;
+  auto r = tr::Reasoner::open(root_ / "node", o);
+  ASSERT_TRUE(r.has_value()) << r.error().message;
+  auto s = r->session();
+  ASSERT_TRUE(s.has_value()) << s.error().message;
+  EXPECT_EQ(s->added.size(), 55u);
+}
+
 // RS16: rules on `now` change their conclusions as time passes, with nothing on the board
 // changing: "no reading for 2 s" comes to hold 2 s after the last reading, on a quiet board.
 TEST_F(ReasonerTest, ARuleOnNowComesToHoldAsTimePassesOnAQuietBoard) {

@@ -658,3 +658,86 @@ TEST(Rules, ARankedDeclarationOfAPredicateNoRuleDefinesIsAnError) {
 }
 
 }  // namespace
+
+// Atoms that share no variable with the rest of a rule are one run whose solutions are kept
+// once the rule has reached it 8 times. Such a run exports no variable: it was kept as no
+// bindings at all, and every outer match from the 8th on derived nothing (7 alerts of 12).
+TEST(Rules, AnUnconnectedPartOfARuleHoldsForEveryMatchOfTheRest) {
+  auto program = parse("alert(P, H) :- hr(P, H), H > 100, alarms(S, on), mode(S, ward).\n");
+  ASSERT_TRUE(program);
+  std::vector<tn::Triple> in = {t("sys", "alarms", "on"), t("sys", "mode", "ward")};
+  for (int i = 0; i < 12; ++i) in.push_back(tl("p" + std::to_string(i), "hr", tn::Term::integer(110 + i)));
+  tr::Engine engine(program);
+  EXPECT_EQ(engine.apply(in, {}, 0).added.size(), 12u);
+  // And when the unconnected part has no solution, nothing.
+  auto none = parse("alert(P, H) :- hr(P, H), H > 100, alarms(S, on), mode(S, icu).\n");
+  tr::Engine engine2(none);
+  EXPECT_EQ(engine2.apply(in, {}, 0).added.size(), 0u);
+}
+
+// `M is N * 1.0` with M bound compared values (5 = 5.0) while an unbound M was bound to the term
+// 5.0 and then joined by term: which atom a session met first decided the conclusion.
+TEST(Rules, IsGivesTheSameConclusionsWhicheverAtomArrivesFirst) {
+  auto program = parse("r(X, yes) :- w(X, M), v(X, N), M is N * 1.0.\nq(X, yes) :- w(X, M), v(X, N), M is N + 0.\n");
+  ASSERT_TRUE(program);
+  const auto w = [](const std::string& x) { return tl(x, "w", tn::Term::integer(5)); };
+  const auto v = [](const std::string& x) { return tl(x, "v", tn::Term::integer(5)); };
+  tr::Engine in_order(program);
+  std::set<std::string> got = strings(in_order.apply(std::vector<tn::Triple>{w("y")}, {}, 0).added);
+  for (const auto& a : in_order.apply(std::vector<tn::Triple>{v("y")}, {}, 0).added) got.insert(a.to_string());
+  for (const auto& a : in_order.apply(std::vector<tn::Triple>{v("z")}, {}, 0).added) got.insert(a.to_string());
+  for (const auto& a : in_order.apply(std::vector<tn::Triple>{w("z")}, {}, 0).added) got.insert(a.to_string());
+  tr::Engine at_once(program);
+  EXPECT_EQ(got, strings(at_once.apply(std::vector<tn::Triple>{w("y"), v("y"), w("z"), v("z")}, {}, 0).added));
+  // As in Prolog: 5 is 5 * 1.0 (the double 5.0) fails; 5 is 5 + 0 holds.
+  EXPECT_EQ(got, (std::set<std::string>{tr::Atom{kNs + "q", {n("y"), n("yes")}}.to_string(),
+                                        tr::Atom{kNs + "q", {n("z"), n("yes")}}.to_string()}));
+}
+
+// Dates that do not exist are not times (2026-02-30 was read as 2 March), and the infinities of
+// xsd:double compare with numbers.
+TEST(Rules, ImpossibleDatesAreNotTimesAndInfinitiesCompare) {
+  auto program = parse("t(X, yes) :- d(X, T), T > 0.\nbig(X, yes) :- n(X, V), V > 1000000.\nsmall(X, yes) :- n(X, V), V < 0.\n");
+  ASSERT_TRUE(program);
+  auto dt = [](const char* s) { return tn::Term::literal(s, std::string(tn::xsd::kDateTime)); };
+  auto dbl = [](const char* s) { return tn::Term::literal(s, std::string(tn::xsd::kDouble)); };
+  tr::Engine engine(program);
+  std::set<std::string> got = strings(engine.apply(
+      std::vector<tn::Triple>{tl("feb30", "d", dt("2026-02-30T00:00:00Z")), tl("feb29", "d", dt("2026-02-29T00:00:00Z")),
+       tl("leap", "d", dt("2024-02-29T00:00:00Z")), tl("sec60", "d", dt("2026-01-01T00:00:60Z")),
+       tl("h24", "d", dt("2026-01-01T24:00:00Z")), tl("h24m", "d", dt("2026-01-01T24:30:00Z")),
+       tl("apr31", "d", dt("2026-04-31T00:00:00Z")), tl("inf", "n", dbl("INF")), tl("minf", "n", dbl("-INF"))},
+      {}, 0).added);
+  EXPECT_EQ(got, (std::set<std::string>{tr::Atom{kNs + "t", {n("leap"), n("yes")}}.to_string(),
+                                        tr::Atom{kNs + "t", {n("h24"), n("yes")}}.to_string(),
+                                        tr::Atom{kNs + "big", {n("inf"), n("yes")}}.to_string(),
+                                        tr::Atom{kNs + "small", {n("minf"), n("yes")}}.to_string()}));
+}
+
+// What an editor shows is what the parser reads: a byte-order mark at the start is skipped, a
+// no-break space is an error where it stands (it made a name of its own), columns count
+// characters, text that is not UTF-8 is named where it is, and `N<T,ex:a(T)` is a comparison.
+TEST(Rules, InvisibleCharactersBadUtf8AndCompactComparisonsAreReadAsAnEditorShowsThem) {
+  EXPECT_EQ(only_conclusion("\xEF\xBB\xBFp(X, yes) :- q(X, yes).\n", {t("a", "q", "yes")}).predicate, kNs + "p");
+  struct Case { std::string text, message; };
+  const Case cases[] = {
+      {"p(X, yes) :-\xC2\xA0q(X, yes).\n", "bad.rules:1:13: unexpected no-break space (U+00A0)"},
+      {"p(X, yes) :- q(X, yes), r\xC2\xA0s(X).\n", "bad.rules:1:26: unexpected no-break space (U+00A0)"},
+      {"p(X, \"\xC3\xA4\xC3\xB6\xC3\xBC\", Y) :- q(X, Y), ?.\n", "bad.rules:1:28:"},
+      {"ok(a, b).\np(X, \"a\xFF\") :- q(X, Y).\n", "bad.rules:2:8: not UTF-8: byte 0xFF"},
+  };
+  for (const Case& c : cases) {
+    auto p = tr::parse_rules(c.text, options("bad.rules"));
+    ASSERT_FALSE(p.has_value()) << c.text;
+    EXPECT_EQ(p.error().message.rfind(c.message, 0), 0u) << p.error().message;
+  }
+  auto compact = parse("@prefix ex: <http://ex.org/> .\np(X, Z) :- q(X, N), r(X, T), N<T,ex:a(T, Z),Z>3.\n");
+  ASSERT_TRUE(compact);
+  tr::Engine engine(compact);
+  EXPECT_EQ(engine
+                .apply(std::vector<tn::Triple>{tl("x", "q", tn::Term::integer(1)), tl("x", "r", tn::Term::integer(2)),
+                        {tn::Term::integer(2), tn::Term::iri("http://ex.org/a"), tn::Term::integer(7)}},
+                       {}, 0)
+                .added.size(),
+            1u);
+}

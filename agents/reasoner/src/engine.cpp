@@ -435,6 +435,9 @@ class RuleRun {
     std::uint32_t reaches = 0;
     bool built = false;
     std::vector<Id> rows;  // exported.size() ids per binding
+    // Bindings in `rows`; a run that exports no variable (its atoms share none with the rest of
+    // the rule) holds rows of no width: at most one binding, present when the run has a solution.
+    std::size_t bindings = 0;
     std::vector<std::pair<double, std::uint32_t>> by_key;  // (sort_key, binding) with a range
   };
   const std::vector<Memo>* memos_ = nullptr;
@@ -506,7 +509,8 @@ void RuleRun<E>::emit() {
     throw RunawayDerivation(e_.program->file + ":" + std::to_string(rule_.pos.line) + ":" + std::to_string(rule_.pos.col) +
                             ": the rules derive without end: more than " + std::to_string(e_.conclusion_limit) +
                             " conclusions in one session, the last of " + (head.internal ? "a helper of this rule" : "<" + head.iri + ">") +
-                            " by this rule; a rule whose conclusion gives itself new values (N1 is N + 1, a new node) never stops");
+                            " by this rule; a rule whose conclusion gives itself new values (N1 is N + 1, a new node) never stops"
+                            " (rules whose closure is finite but larger: raise the limit, tahvel reason --max-conclusions)");
   }
 }
 
@@ -734,7 +738,12 @@ bool RuleRun<E>::holds(const Literal& l) {
 template <class E>
 void RuleRun<E>::step(std::size_t k) {
   if (k == collect_at_) {  // enumerating an independent run: keep its bindings
+    if (collecting_spec_->exported.empty()) {
+      collecting_->bindings = 1;
+      return;
+    }
     for (std::uint32_t v : collecting_spec_->exported) collecting_->rows.push_back(bind_[v]);
+    ++collecting_->bindings;
     return;
   }
   if (k == plan_.size()) {
@@ -791,7 +800,7 @@ void RuleRun<E>::memo_build(std::size_t k) {
   m.built = true;
   if (spec.range.position < 0) return;
   const std::size_t width = spec.exported.size();
-  for (std::size_t i = 0; i * width < m.rows.size(); ++i) {
+  for (std::size_t i = 0; i < m.bindings; ++i) {
     double key;
     if (sort_key(e_.dict.value(m.rows[i * width + static_cast<std::size_t>(spec.range.position)]), key))
       m.by_key.emplace_back(key, static_cast<std::uint32_t>(i));
@@ -816,7 +825,7 @@ void RuleRun<E>::memo_replay(std::size_t k) {
     if (cut_inside) cut_ = false;
   };
   if (spec.range.position < 0) {
-    for (std::size_t i = 0; i * width < m.rows.size() && !cut_; ++i) visit(i);
+    for (std::size_t i = 0; i < m.bindings && !cut_; ++i) visit(i);
     return;
   }
   double lo, hi;
@@ -835,12 +844,16 @@ void RuleRun<E>::step_literal(std::size_t k) {
       Value v = eval(l.rhs);
       if (v.kind == Value::none) return;
       Id target = arg(l.lhs.leaf);
+      const Id result = e_.dict.intern(term_of(v));
+      // Bound or not, the target must be the very term the expression gives: an unbound one is
+      // bound to it and later joins compare terms, so comparing values here (5 with 5.0, or a
+      // time written in another zone) made what a rule derives depend on which of its atoms
+      // came first — a session's order, not the rule.
       if (target) {
-        auto c = compare_values(e_.dict.value(target), v);
-        if (c && *c == 0) step(k + 1);
+        if (target == result) step(k + 1);
         return;
       }
-      bind_[l.lhs.leaf.index] = e_.dict.intern(term_of(v));
+      bind_[l.lhs.leaf.index] = result;
       step(k + 1);
       bind_[l.lhs.leaf.index] = 0;
       return;

@@ -4,6 +4,7 @@
 #include <algorithm>
 #include <cctype>
 #include <charconv>
+#include <cstdio>
 #include <functional>
 #include <map>
 #include <optional>
@@ -39,12 +40,46 @@ bool is_name_char(char c) {
   return std::isalnum(static_cast<unsigned char>(c)) || c == '_' || static_cast<unsigned char>(c) >= 0x80;
 }
 
-bool is_local_char(char c) { return is_name_char(c) || c == '-' || c == '.'; }
+
+// The code point of the UTF-8 sequence at `i` with its length, or {0, 1} for a byte that does
+// not start one (a name takes such bytes as it always has: the store checks UTF-8).
+std::pair<char32_t, std::size_t> code_point_at(std::string_view text, std::size_t i) {
+  const auto b = [&](std::size_t k) { return i + k < text.size() ? static_cast<unsigned char>(text[i + k]) : 0u; };
+  const unsigned lead = b(0);
+  const auto cont = [&](std::size_t k) { return (b(k) & 0xC0u) == 0x80u; };
+  if (lead >= 0xC2 && lead < 0xE0 && cont(1)) return {((lead & 0x1Fu) << 6) | (b(1) & 0x3Fu), 2};
+  if (lead >= 0xE0 && lead < 0xF0 && cont(1) && cont(2))
+    return {((lead & 0x0Fu) << 12) | ((b(1) & 0x3Fu) << 6) | (b(2) & 0x3Fu), 3};
+  if (lead >= 0xF0 && lead < 0xF5 && cont(1) && cont(2) && cont(3))
+    return {((lead & 0x07u) << 18) | ((b(1) & 0x3Fu) << 12) | ((b(2) & 0x3Fu) << 6) | (b(3) & 0x3Fu), 4};
+  return {0, 1};
+}
+
+// Spaces and invisible marks outside ASCII: in a name they made a different IRI that looks
+// the same (a no-break space, a byte-order mark), so a name ends at one and it is an error.
+const char* invisible_name(char32_t c) {
+  switch (c) {
+    case 0x00A0: return "no-break space";
+    case 0x1680: return "Ogham space mark";
+    case 0x180E: return "Mongolian vowel separator";
+    case 0x2028: return "line separator";
+    case 0x2029: return "paragraph separator";
+    case 0x202F: return "narrow no-break space";
+    case 0x205F: return "medium mathematical space";
+    case 0x2060: return "word joiner";
+    case 0x3000: return "ideographic space";
+    case 0xFEFF: return "byte-order mark (zero-width no-break space)";
+    default: return c >= 0x2000 && c <= 0x200F ? "space or zero-width mark" : nullptr;
+  }
+}
 
 class Lexer {
  public:
   Lexer(std::string_view text, const ParseOptions& options, uri::PrefixMap& prefixes)
-      : text_(text), options_(options), prefixes_(prefixes) {}
+      : text_(text), options_(options), prefixes_(prefixes) {
+    // A byte-order mark some editors write at the start is not part of the first name.
+    if (text_.starts_with("\xEF\xBB\xBF")) i_ = 3;
+  }
 
   Result<Token> next();
   Pos pos() const { return {line_, col_}; }
@@ -56,7 +91,7 @@ class Lexer {
     if (auto s = skip_space(); !s) return unexpected(s.error());
     Pos start = pos();
     std::string name;
-    while (is_name_char(at())) { name += at(); advance(); }
+    while (name_char()) { name += at(); advance(); }
     if (at() != ':') return error(start, "expected a prefix name followed by ':' after @prefix");
     advance();
     return name;
@@ -64,9 +99,17 @@ class Lexer {
 
  private:
   char at(std::size_t k = 0) const { return i_ + k < text_.size() ? text_[i_ + k] : '\0'; }
+  // is_name_char / is_local_char of the byte at i_ + k, but not the first byte of an invisible
+  // character (invisible_name).
+  bool name_char(std::size_t k = 0) const {
+    return is_name_char(at(k)) && !(static_cast<unsigned char>(at(k)) >= 0x80 && invisible_name(code_point_at(text_, i_ + k).first));
+  }
+  bool local_char() const { return at() == '-' || at() == '.' || name_char(); }
+  // Columns count characters, as editors show them: a UTF-8 continuation byte adds none.
   void advance(std::size_t n = 1) {
     for (; n > 0 && i_ < text_.size(); --n, ++i_) {
-      if (text_[i_] == '\n') { ++line_; col_ = 1; } else { ++col_; }
+      if (text_[i_] == '\n') { ++line_; col_ = 1; }
+      else if ((static_cast<unsigned char>(text_[i_]) & 0xC0) != 0x80) { ++col_; }
     }
   }
   Unexpected<Error> error(Pos pos, const std::string& what) const {
@@ -109,7 +152,7 @@ Result<void> Lexer::skip_space() {
 Result<std::string> Lexer::curie(Pos start, std::string prefix) {
   advance();  // ':'
   std::string local;
-  while (is_local_char(at())) { local += at(); advance(); }
+  while (local_char()) { local += at(); advance(); }
   while (!local.empty() && local.back() == '.') {  // the clause's full stop, not the name's
     local.pop_back();
     --i_;
@@ -122,8 +165,8 @@ Result<std::string> Lexer::curie(Pos start, std::string prefix) {
 
 Result<Token> Lexer::identifier(Pos start) {
   std::string id;
-  while (is_name_char(at())) { id += at(); advance(); }
-  if (at() == ':' && (is_name_char(at(1)))) {
+  while (name_char()) { id += at(); advance(); }
+  if (at() == ':' && (name_char(1))) {
     auto iri = curie(start, id);
     if (!iri) return unexpected(iri.error());
     return Token{Tok::iri, *iri, {}, start};
@@ -221,7 +264,7 @@ Result<Token> Lexer::string_literal(Pos start, char quote) {
   } else if (at() == '@') {
     advance();
     std::string lang;
-    while (is_name_char(at()) || at() == '-') { lang += static_cast<char>(std::tolower(at())); advance(); }
+    while (name_char() || at() == '-') { lang += static_cast<char>(std::tolower(at())); advance(); }
     if (lang.empty()) return error(pos(), "expected a language tag after @");
     term = node::Term::lang_literal(value, lang);
   }
@@ -233,26 +276,25 @@ Result<Token> Lexer::next() {
   Pos start = pos();
   char c = at();
   if (!c) return Token{Tok::end, {}, {}, start};
-  if (is_name_char(c) && !std::isdigit(static_cast<unsigned char>(c))) return identifier(start);
+  if (name_char() && !std::isdigit(static_cast<unsigned char>(c))) return identifier(start);
   if (std::isdigit(static_cast<unsigned char>(c))) return number(start);
   if (c == '"' || c == '\'') return string_literal(start, c);
   if (c == '<') {
-    // An IRI reference when a scheme-like run without spaces reaches '>'; else "less than".
+    // An IRI reference when a scheme (RFC 3986: a letter, then letters, digits, + - .) and ':'
+    // start a run without spaces that reaches '>'; else "less than", as in N<T,ex:a(T,Z),Z>3.
     std::size_t k = 1;
-    bool colon = false;
-    while (at(k) && at(k) != '>' && !std::isspace(static_cast<unsigned char>(at(k))) && at(k) != '<') {
-      colon |= at(k) == ':';
-      ++k;
-    }
-    if (at(k) == '>' && colon && std::isalpha(static_cast<unsigned char>(at(1)))) return iri_ref(start);
+    while (std::isalnum(static_cast<unsigned char>(at(k))) || at(k) == '+' || at(k) == '-' || at(k) == '.') ++k;
+    const bool scheme = k > 1 && std::isalpha(static_cast<unsigned char>(at(1))) && at(k) == ':';
+    while (at(k) && at(k) != '>' && !std::isspace(static_cast<unsigned char>(at(k))) && at(k) != '<') ++k;
+    if (at(k) == '>' && scheme) return iri_ref(start);
   }
-  if (c == '#' && is_name_char(at(1))) {
+  if (c == '#' && name_char(1)) {
     advance();
     std::string local;
-    while (is_name_char(at()) || at() == '-') { local += at(); advance(); }
+    while (name_char() || at() == '-') { local += at(); advance(); }
     return Token{Tok::iri, options_.default_ns + local, {}, start};
   }
-  if (c == ':' && is_name_char(at(1))) {
+  if (c == ':' && name_char(1)) {
     auto iri = curie(start, "");
     if (!iri) return unexpected(iri.error());
     return Token{Tok::iri, *iri, {}, start};
@@ -260,7 +302,7 @@ Result<Token> Lexer::next() {
   if (c == '@' && std::isalpha(static_cast<unsigned char>(at(1)))) {
     advance();
     std::string kw = "@";
-    while (is_name_char(at())) { kw += at(); advance(); }
+    while (name_char()) { kw += at(); advance(); }
     return Token{Tok::punct, kw, {}, start};
   }
   static const char* kSymbols[] = {"=:=", "=\\=", "\\==", ":-", "\\+", "=<", ">=", "\\=", "==",
@@ -271,6 +313,15 @@ Result<Token> Lexer::next() {
       advance(sym.size());
       return Token{Tok::punct, std::string(sym), {}, start};
     }
+  }
+  if (static_cast<unsigned char>(c) >= 0x80) {
+    const char32_t cp = code_point_at(text_, i_).first;
+    char hex[16];
+    std::snprintf(hex, sizeof hex, "U+%04X", static_cast<unsigned>(cp));
+    if (const char* name = invisible_name(cp))
+      return error(start, std::string("unexpected ") + name + " (" + hex + "): write a plain space, or nothing");
+    if (cp != 0) return error(start, std::string("unexpected character ") + hex);
+    return error(start, "invalid UTF-8 (byte 0x" + [&] { char b[4]; std::snprintf(b, sizeof b, "%02X", static_cast<unsigned char>(c)); return std::string(b); }() + ")");
   }
   return error(start, std::string("unexpected character '") + c + "'");
 }
@@ -717,6 +768,19 @@ Result<std::shared_ptr<Program>> parse_program(std::string_view text, const Pars
   program->me = options.me;
   if (!uri::normalize(options.default_ns)) return unexpected(Error{options.file + ": the default namespace '" + options.default_ns + "' is not an absolute IRI"});
   if (!uri::normalize(options.me)) return unexpected(Error{options.file + ": the node IRI '" + options.me + "' (me) is not an absolute IRI"});
+  // The store refuses a term that is not UTF-8 only when a conclusion is written: a running
+  // reasoner given such a file ended there, instead of naming the place and keeping its rules.
+  if (const std::size_t bad = node::ill_formed_utf8_at(text); bad != std::string_view::npos) {
+    const std::string_view before = text.substr(0, bad);
+    const std::size_t line_start = before.rfind('\n') == std::string_view::npos ? 0 : before.rfind('\n') + 1;
+    std::size_t col = 1;
+    for (std::size_t k = line_start; k < bad; ++k)
+      if ((static_cast<unsigned char>(text[k]) & 0xC0) != 0x80) ++col;
+    char byte[8];
+    std::snprintf(byte, sizeof byte, "0x%02X", static_cast<unsigned char>(text[bad]));
+    return unexpected(Error{options.file + ":" + std::to_string(std::count(before.begin(), before.end(), '\n') + 1) + ":" +
+                            std::to_string(col) + ": not UTF-8: byte " + byte + " begins no UTF-8 character"});
+  }
   Parser parser(text, options, *program);
   if (auto r = parser.run(); !r) return unexpected(r.error());
   return program;

@@ -84,6 +84,11 @@ struct Reasoner::Impl {
   // Ids of the item the previous session wrote (after its snapshot): the next session need not
   // read its own conclusions back; the gap check still accounts for them.
   std::uint64_t own_first = 0, own_last = 0;
+  // key_of of the own records the previous session's write removed: any other removal of an own
+  // record is someone else's (`tahvel remove` by pattern takes the reasoner's copy of a fact
+  // that is also derived), and the session runs from scratch so that what still holds is
+  // written again.
+  std::set<std::string> removing;
   std::uint64_t reclaimed = 0;
   // The store's reclaim count once the last session's write was done: a count that moves after
   // it is another writer's records pushing facts or conclusions out of a ring (run()).
@@ -97,7 +102,13 @@ struct Reasoner::Impl {
 
   Impl(node::Node n, node::Agent a, ReasonerOptions o, ParseOptions p, std::shared_ptr<const Program> prog)
       : node(std::move(n)), agent(std::move(a)), options(std::move(o)), parse(std::move(p)),
-        program(prog), rules_mtime(mtime(options.rules)), engine(prog) {}
+        program(prog), rules_mtime(mtime(options.rules)), engine(new_engine()) {}
+  // An engine of the current rules, with this reasoner's limit on a session's conclusions.
+  Engine new_engine() const {
+    Engine e(program);
+    e.set_conclusion_limit(options.max_conclusions);
+    return e;
+  }
   ~Impl() {
     if (agent_lock >= 0) ::close(agent_lock);
   }
@@ -169,6 +180,7 @@ Result<void> Reasoner::Impl::read_changes(const node::Snapshot& snap, std::vecto
                                           std::vector<node::Triple>& out, bool& gap) {
   const std::uint64_t last = snap.last_seq();
   std::uint64_t present = 0, removals = 0, removed_new = 0;
+  bool removed_by_others = false;
   const bool skip_own = own_first > bookmark && own_last >= own_first && own_last <= last;
   auto read_from = [&](std::uint64_t after, std::uint64_t stop_at) -> Result<void> {
     node::Pattern pattern;
@@ -195,13 +207,15 @@ Result<void> Reasoner::Impl::read_changes(const node::Snapshot& snap, std::vecto
     for (const node::Change& c : *changes) {
       if (!c.removed || c.seq > last) continue;
       if (!c.unreadable.empty()) continue;  // not counted: the gap below has the board read again
+      if (own(c.record) && !removing.count(key_of(c.record.triple))) removed_by_others = true;
       ++removals;
       if (c.record.meta.id > bookmark) { ++removed_new; continue; }  // never seen
       if (!own(c.record) && c.record.triple.p.is_iri() && engine.relevant(c.record.triple.p.value))
         out.push_back(c.record.triple);  // as insertions are read: only what some rule reads
     }
   }
-  gap = last - bookmark != present + removals + removed_new;
+  gap = last - bookmark != present + removals + removed_new || removed_by_others;
+  removing.clear();
   return {};
 }
 
@@ -240,7 +254,7 @@ Result<Engine::Update> Reasoner::Impl::first_session(const node::Snapshot& snap,
 Result<Engine::Update> Reasoner::Impl::resync(const node::Snapshot& snap, std::int64_t now, SessionReport& report,
                                               std::vector<node::Triple>& extra_removals) {
   const auto read_start = Clock::now();
-  Engine fresh(program);
+  Engine fresh = new_engine();
   std::vector<node::Triple> base;
   std::map<std::string, node::Triple> mine;
   auto walked = snap.for_each({}, [&](const node::Record& r) {
@@ -297,7 +311,9 @@ Result<void> Reasoner::Impl::write(const Engine::Update& update, const std::vect
   }
   std::vector<node::Pattern> removals;
   removals.reserve(gone.size());
+  removing.clear();
   for (const node::Triple& t : gone) {
+    removing.insert(key_of(t));
     node::Pattern p;
     p.s = t.s;
     p.p = t.p;
@@ -330,7 +346,7 @@ Result<SessionReport> Reasoner::Impl::session() {
     try_report_problem("", report);
   }
   if (rules_pending && !started) {  // the first session reads the whole board anyway
-    engine = Engine(program);
+    engine = new_engine();
     rules_pending = false;
   }
   // Rows of facts that went accumulate (a ring store): rebuild when they dominate (new rules
@@ -377,7 +393,7 @@ Result<SessionReport> Reasoner::Impl::session() {
     // (under `tahvel up` its supervisor starts it again after a back-off, to the same end until
     // the rule file is mended).
     started = false;
-    engine = Engine(program);
+    engine = new_engine();
     try_report_problem(runaway.what(), report);
     return unexpected(Error{runaway.what()});
   }
@@ -392,7 +408,7 @@ Result<SessionReport> Reasoner::Impl::session() {
     // The engine moved on but the board did not: the next session starts from scratch and
     // writes the difference between the board and the rules.
     started = false;
-    engine = Engine(program);
+    engine = new_engine();
     rules_pending = false;
     return unexpected(w.error());
   }
@@ -479,6 +495,8 @@ Result<void> Reasoner::run(const std::function<bool(const SessionReport&)>& on_s
       // A change that cannot be read may be relevant: a session reads the board as it is.
       if (!c.unreadable.empty() || (!impl_->own(r) && r.triple.p.is_iri() && impl_->engine.relevant(r.triple.p.value)))
         pending = true;
+      // A conclusion someone else removed is written again if it still holds (read_changes).
+      if (c.removed && impl_->own(r) && !impl_->removing.count(key_of(r.triple))) pending = true;
     }
     if (mtime(impl_->options.rules) != impl_->rules_mtime) pending = true;
     // A ring or a TTL reclaims without a change in the stream (R17): conclusions pushed out by

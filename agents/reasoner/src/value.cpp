@@ -48,7 +48,13 @@ std::optional<std::int64_t> parse_datetime(std::string_view s) {
       !digits(s, 8, 2, d) || s[10] != 'T' || !digits(s, 11, 2, h) || s[13] != ':' ||
       !digits(s, 14, 2, mi) || s[16] != ':' || !digits(s, 17, 2, se))
     return std::nullopt;
-  if (mo < 1 || mo > 12 || d < 1 || d > 31 || h > 24 || mi > 59 || se > 60) return std::nullopt;
+  // XSD's dateTime: a day of its month (29 February in leap years only), seconds below 60, and
+  // 24:00:00 only, the end of the day. "2026-02-30" was read as 2 March.
+  static constexpr int kDays[] = {31, 28, 31, 30, 31, 30, 31, 31, 30, 31, 30, 31};
+  const bool leap = (y % 4 == 0 && y % 100 != 0) || y % 400 == 0;
+  if (mo < 1 || mo > 12 || d < 1 || d > kDays[mo - 1] + (mo == 2 && leap) || h > 24 || mi > 59 || se > 59 ||
+      (h == 24 && (mi != 0 || se != 0)))
+    return std::nullopt;
   std::size_t k = 19;
   std::int64_t frac = 0;
   if (k < s.size() && s[k] == '.') {
@@ -58,6 +64,7 @@ std::optional<std::int64_t> parse_datetime(std::string_view s) {
       scale /= 10;
     }
   }
+  if (h == 24 && frac != 0) return std::nullopt;
   std::int64_t offset = 0;
   if (k < s.size()) {
     if (s[k] == 'Z') {
@@ -129,7 +136,9 @@ Value value_of(const node::Term& term) {
     return integer(i);
   }
   if (local == "decimal" || local == "double" || local == "float") {
-    if (lex == "INF") return real(INFINITY);
+    // xsd:double's infinities compare with every number; arithmetic on them gives none (real()).
+    if (lex == "INF" || lex == "+INF") return Value{Value::real, 0, INFINITY};
+    if (lex == "-INF") return Value{Value::real, 0, -INFINITY};
     double d = 0;
     if (!lex.empty() && lex[0] == '+') lex.remove_prefix(1);
     auto [end, ec] = std::from_chars(lex.data(), lex.data() + lex.size(), d);

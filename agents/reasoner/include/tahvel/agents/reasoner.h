@@ -35,6 +35,8 @@ namespace tahvel::reasoner {
 // The longest interval between sessions that Reasoner::open accepts: one day.
 inline constexpr std::chrono::milliseconds kMaxInterval{86'400'000};
 
+inline constexpr std::size_t kDefaultMaxConclusions = 2'000'000;
+
 struct ReasonerOptions {
   std::filesystem::path rules;        // the rule file (required); reloaded when it changes
   std::string agent_id = "reasoner";  // IRI = node IRI + "/" + agent_id: the conclusions' source
@@ -42,6 +44,10 @@ struct ReasonerOptions {
   std::chrono::milliseconds interval{100};  // run(): at most one session per interval;
                                             // 0 to kMaxInterval
   bool persistent = false;            // write conclusions as persistent items (ring/TTL-proof)
+  // Conclusions one session may derive before the rules are taken to derive without end (the
+  // session is written off and the reasoner ends, RS10). A finite closure may need more, and a
+  // restart derives everything in its first session.
+  std::size_t max_conclusions = kDefaultMaxConclusions;
 };
 
 struct SessionReport {
