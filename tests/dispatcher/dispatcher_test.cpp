@@ -172,6 +172,30 @@ TEST_F(DispatcherTest, ARunHasOneStateAndABehaviourOnlyItsLatestResult) {
   for (const auto& r : *states) EXPECT_EQ(r.triple.o, tn::Term::literal("exited")) << r.triple.s.value;
 }
 
+// The result is what the latest run printed on standard output: a warning on standard error
+// after it was taken for the result, and a run that printed nothing left an older run's result
+// standing for rules to fire on.
+TEST_F(DispatcherTest, AResultIsTheLatestRunsStandardOutputOrNone) {
+  script("say", "[ -n \"$1\" ] && echo \"$1\"\necho 'warning: something' >&2\nexit 0\n");
+  ta::Supervisor supervisor([](std::string_view) {});
+  auto d = ta::Dispatcher::open(root_ / "node", {.folder = root_ / "behaviours"}, supervisor);
+  ASSERT_TRUE(d.has_value());
+  auto has_result = [&] {
+    auto snap = node_->snapshot();
+    return *snap->count({.s = n("say"), .p = tn::Term::iri(kNs + "result")}) > 0;
+  };
+  auto runs_ended = [&](std::size_t count) {
+    auto snap = node_->snapshot();
+    return *snap->count({.p = tn::Term::iri(kTv + "state"), .o = tn::Term::literal("exited")}) >= count;
+  };
+  put({{n("me"), n("behavior"), tn::Term::literal("say ok")}}, d->iri());
+  poll_until(*d, [&] { return runs_ended(1); });
+  EXPECT_TRUE(holds(n("say"), kNs + "result", n("ok")));
+  put({{n("me"), n("behavior"), tn::Term::literal("say")}}, d->iri());
+  poll_until(*d, [&] { return runs_ended(2); });
+  EXPECT_FALSE(has_result());
+}
+
 // A behaviour's last line longer than the node's literal limit is recorded cut, and the run's
 // end is recorded (it used to fail on every poll and the run stayed "running").
 TEST_F(DispatcherTest, AnOutputLineOverTheLiteralLimitIsRecordedCut) {

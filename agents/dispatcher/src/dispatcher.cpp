@@ -38,7 +38,7 @@ bool is_word(const std::string& s) {
   return true;
 }
 
-// The output recorded of a run: its log's last non-empty line, at most `max` bytes (cut at a
+// The output recorded of a run: its standard output's last non-empty line, at most `max` bytes (cut at a
 // UTF-8 character boundary, "…" appended; bytes that are not UTF-8 as U+FFFD, which a store
 // takes). Only the log's tail is read: a behaviour may log
 // for days. A line longer than the store's literal limit would make the end unrecordable.
@@ -75,7 +75,7 @@ struct Dispatcher::Impl {
   std::string ns;
   struct Run {
     std::string iri, name, command, program;
-    std::filesystem::path log;
+    std::filesystem::path output;  // its standard output
     bool stop_requested = false;
   };
   std::map<std::string, Run> runs;  // by supervisor program name
@@ -171,10 +171,13 @@ Result<void> Dispatcher::Impl::command(std::uint64_t item, const std::string& te
   spec.argv = argv;
   spec.argv[0] = exe.string();
   spec.log_file = options.log_dir / (std::to_string(item) + "-" + argv[0] + ".log");
+  // The result is the last line of standard output: a warning on standard error after it
+  // became the result.
+  spec.out_file = options.log_dir / (std::to_string(item) + "-" + argv[0] + ".out");
   spec.restart = Restart::never;
   spec.env = {{"TAHVEL_NODE", node.dir().string()}, {"TAHVEL_RUN", run}};
   if (auto s = supervisor.start(spec); !s) return refuse(s.error().message);
-  runs[spec.name] = Run{run, argv[0], text, spec.name, spec.log_file, false};
+  runs[spec.name] = Run{run, argv[0], text, spec.name, spec.out_file, false};
   events.push_back({DispatchEvent::started, run, text, ""});
   auto state = supervisor.state(spec.name);
   return record({t(run, kTv + "command", node::Term::literal(text)),
@@ -189,16 +192,17 @@ Result<void> Dispatcher::Impl::reap(std::vector<DispatchEvent>& events) {
     auto state = supervisor.state(it->first);
     if (state && state->running) { ++it; continue; }
     const Run& r = it->second;
-    std::string output = last_line(r.log, output_max);
+    std::string output = last_line(r.output, output_max);
     std::string how = !state ? "gone" : r.stop_requested ? "stopped" : state->exit_status ? "exited" : "killed";
     std::vector<node::Triple> triples = {t(r.iri, kTv + "state", node::Term::literal(how)),
                                          t(r.iri, kTv + "output", node::Term::literal(output))};
-    std::vector<node::Pattern> replaced = {state_of(r.iri)};
+    // The latest run's result replaces the one before, also when it has none: a run that printed
+    // nothing, or did not end by itself (stopped, killed, gone), left the old result standing for
+    // rules to fire on as if it were this run's.
+    std::vector<node::Pattern> replaced = {state_of(r.iri), {.s = node::Term::iri(ns + r.name), .p = node::Term::iri(ns + "result")}};
     if (state && state->exit_status) triples.push_back(t(r.iri, kTv + "exitStatus", node::Term::integer(*state->exit_status)));
-    if (!output.empty()) {
+    if (!output.empty() && how == "exited")
       triples.push_back(t(ns + r.name, ns + "result", is_word(output) ? node::Term::iri(ns + output) : node::Term::literal(output)));
-      replaced.push_back({.s = node::Term::iri(ns + r.name), .p = node::Term::iri(ns + "result")});
-    }
     // A run whose end cannot be written (a full store) stays to be tried again at the next
     // poll; the others' ends are written meanwhile.
     if (auto w = record(std::move(triples), std::move(replaced)); !w) {

@@ -298,6 +298,13 @@ void Supervisor::launch(Program& program) {
         if (fd > 2) ::close(fd);
       }
     }
+    if (!program.spec.out_file.empty()) {
+      int fd = ::open(program.spec.out_file.c_str(), O_WRONLY | O_CREAT | O_APPEND, 0644);
+      if (fd >= 0) {
+        dup2(fd, 1);
+        if (fd > 2) ::close(fd);
+      }
+    }
     for (auto& [k, v] : program.spec.env) setenv(k.c_str(), v.c_str(), 1);
     execvp(args[0], args.data());
     (void)!write(2, exec_failed.data(), exec_failed.size());

@@ -55,6 +55,9 @@ struct ProgramSpec {
   // disk: about twice this on disk per program, plus what it writes in the second between two
   // checks. Zero: no limit.
   std::uint64_t log_limit = 0;
+  // When given, stdout is appended here instead (stderr stays in log_file): a program whose
+  // output is its answer. Not rotated.
+  std::filesystem::path out_file;
 };
 
 // Why a running program does not run (proc(5), the state letter of /proc/PID/stat).
