@@ -35,7 +35,6 @@ namespace rt = tahvel::agents::hrv;
 namespace tn = tahvel::node;
 
 constexpr const char* kProgram = "tahvel-hrv";
-constexpr double kMinSeconds = 1e-3;  // the least window or step, as --window takes it
 
 // `v` as an xsd:decimal lexical form ("120", "0.5").
 std::string number_text(double v) {
@@ -86,14 +85,16 @@ class HrvStage {
       if (!window && r.triple.p.value != std::string(agg::kTv) + "stepSeconds") continue;
       char* end = nullptr;
       const double v = std::strtod(r.triple.o.value.c_str(), &end);
-      // As --window and --step take them: a window shorter than a millisecond would make
-      // millions of windows out of one RR item (memory without bound, no stop between items).
-      if (!r.triple.o.is_literal() || *end != '\0' || r.triple.o.value.empty() || !std::isfinite(v) || v < kMinSeconds) {
+      // As --window and --step take them (agg::window_setting_problem): a window of a
+      // millisecond made millions of windows out of one RR item (memory without bound, no stop
+      // between items), and a setting may come from the hospital, where no one sees this log.
+      const bool number = r.triple.o.is_literal() && *end == '\0' && !r.triple.o.value.empty();
+      if (auto problem = agg::window_setting_problem(number ? v : std::nan(""), !window)) {
         // The value quoted as far as a line shows it: a problem is a literal within the node's limit.
         const std::string value = r.triple.o.value.size() > 80 ? r.triple.o.value.substr(0, 80) + "..." : r.triple.o.value;
         unusable[window] = "configuration <" + r.triple.s.value + "> " + r.triple.p.value + " '" + value +
-                           "' (record " + std::to_string(r.meta.id) + ") is not a number of seconds >= " +
-                           number_text(kMinSeconds) + "; ignored, the value before it stands";
+                           "' (record " + std::to_string(r.meta.id) + ") " + *problem +
+                           "; ignored, the value before it stands";
         if (warned_.insert(r.meta.id).second) rt::log_line(kProgram, unusable[window]);
         continue;
       }
@@ -297,7 +298,13 @@ int main(int argc, char** argv) {
   return rt::guarded_main(kProgram, "usage: tahvel-hrv DIR [--agent ID] [--idle S] [--window S] [--step S]", [&]() -> int {
     const rt::Args args(argc, argv, {"--agent", "--idle", "--window", "--step"}, {});
     const double idle = args.number("--idle", 0);
-    WindowConfig defaults{args.number("--window", 300, 1e-3), args.number("--step", 0)};
+    WindowConfig defaults{args.number("--window", 300), args.number("--step", 0)};
+    // As the board's settings and `tahvel hrv` take them; --step 0 is the window.
+    if (auto problem = agg::window_setting_problem(defaults.window_s, false))
+      throw rt::UsageError("--window: " + *problem + ", got " + number_text(defaults.window_s));
+    if (defaults.step_s != 0)
+      if (auto problem = agg::window_setting_problem(defaults.step_s, true))
+        throw rt::UsageError("--step: " + *problem + ", got " + number_text(defaults.step_s));
     rt::install_stop_handlers();
     auto session = rt::open_session(kProgram, args.dir(), args.text("--agent", "hrv"));
     if (!session) return rt::kExitError;

@@ -7,6 +7,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <cstdio>
 
 namespace tahvel::aggregation {
 
@@ -217,6 +218,15 @@ std::size_t first_window_after(double origin, double window_s, double step_s, do
   return k;
 }
 }  // namespace
+
+std::optional<std::string> window_setting_problem(double seconds, bool is_step) {
+  const double least = is_step ? kMinStepS : kMinWindowS;
+  if (std::isfinite(seconds) && seconds >= least && seconds <= kMaxWindowS) return std::nullopt;
+  char text[240];
+  std::snprintf(text, sizeof text, "must be a number of seconds in [%g, %g] (%s)", least, kMaxWindowS,
+                is_step ? "at most one window per second of signal" : "an HRV window needs at least 10 s of beats");
+  return std::string(text);
+}
 
 std::vector<WindowMetrics> windowed_hrv(const std::vector<Interval>& intervals, double fs,
                                         double window_s, double step_s, const HrvOptions& o,

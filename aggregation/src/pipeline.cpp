@@ -1,4 +1,5 @@
 // The HRV chain; see pipeline.h.
+#include <algorithm>
 #include <cstdio>
 
 #include "tahvel/aggregation/pipeline.h"
@@ -9,8 +10,10 @@ namespace tahvel::aggregation {
 
 Result<HrvReport> hrv_from_samples(const std::vector<std::int32_t>& samples, double fs,
                                    double gain, const ChainOptions& options) {
-  if (!(options.window_s > 0)) return fail("window: must be a positive number of seconds");
+  if (auto problem = window_setting_problem(options.window_s, false)) return fail("window: " + *problem);
   if (options.step_s < 0) return fail("step: must not be negative");
+  if (options.step_s > 0)
+    if (auto problem = window_setting_problem(options.step_s, true)) return fail("step: " + *problem);
   DetectorOptions detector = options.detector;
   detector.fs = fs;
   detector.gain = gain;
@@ -28,17 +31,46 @@ Result<HrvReport> hrv_from_samples(const std::vector<std::int32_t>& samples, dou
   return report;
 }
 
-std::optional<std::string> irregular_rhythm_warning(const HrvMetrics& m) {
-  const double not_nn = m.rr_count > 0 ? 100.0 * static_cast<double>(m.rr_count - m.nn_count) / static_cast<double>(m.rr_count) : 0;
+std::size_t gap_count(const std::vector<Interval>& intervals, double fs, const NnRule& rule) {
+  const double limit = rule.max_interval_s * fs;
+  return static_cast<std::size_t>(std::count_if(intervals.begin(), intervals.end(), [&](const Interval& i) {
+    return static_cast<double>(i.end - i.start) > limit;
+  }));
+}
+
+std::optional<std::string> irregular_rhythm_warning(const HrvMetrics& m, std::size_t gaps, double max_interval_s) {
+  const auto pct = [&](std::size_t n) {
+    return m.rr_count > 0 ? 100.0 * static_cast<double>(n) / static_cast<double>(m.rr_count) : 0;
+  };
+  const std::size_t rejected = m.rr_count - std::min(m.nn_count, m.rr_count);
+  const double not_nn = pct(rejected);
   const double irregular = m.irregular_pct.value_or(0);
   if (irregular <= kIrregularPct && not_nn <= kIrregularPct) return std::nullopt;
-  char text[400];
+  gaps = std::min(gaps, rejected);
+  char text[600];
+  // Intervals rejected for their length alone are no sign of ectopy: a rhythm slower than
+  // 60 / max_interval_s bpm, pauses, or signal lost between two beats. Said as such when they
+  // are most of what was rejected and the rhythm is otherwise regular.
+  if (irregular <= kIrregularPct && 2 * gaps >= rejected) {
+    std::snprintf(text, sizeof text,
+                  "%zu of %zu intervals (%.0f %%) are longer than %g s and are not NN: pauses, signal lost between two "
+                  "beats (a lead off, missed beats), or a heart rate below %.0f bpm; %.0f %% of intervals are not NN in "
+                  "all, and HRV covers only the rest (docs/hrv.md, \"Gaps\")",
+                  gaps, m.rr_count, pct(gaps), max_interval_s, 60 / max_interval_s, not_nn);
+    return std::string(text);
+  }
   std::snprintf(text, sizeof text,
                 "an irregular rhythm (%.0f %% of successive intervals differ by more than 20 %%; %.0f %% of intervals are "
                 "not NN): frequent ectopic beats or atrial fibrillation, which the RR-only NN rule cannot tell apart; "
                 "HRV of this record may be several times off (docs/hrv.md, \"Where the rule fails\")",
                 irregular, not_nn);
-  return std::string(text);
+  std::string out = text;
+  if (gaps > 0) {
+    std::snprintf(text, sizeof text, "; %zu of the intervals not NN are longer than %g s (pauses or lost signal)", gaps,
+                  max_interval_s);
+    out += text;
+  }
+  return out;
 }
 
 Result<HrvReport> hrv_from_record(const std::string& record_path, const ChainOptions& options,
@@ -55,7 +87,9 @@ Result<HrvReport> hrv_from_record(const std::string& record_path, const ChainOpt
   report->signal = channel;
   report->warnings = checksum_mismatches(*signals);
   if (auto rate = default_rate_warning(signals->header)) report->warnings.insert(report->warnings.begin(), *rate);
-  if (auto irregular = irregular_rhythm_warning(report->metrics)) report->warnings.push_back(*irregular);
+  if (auto irregular = irregular_rhythm_warning(report->metrics, gap_count(report->intervals, report->fs, options.nn),
+                                                options.nn.max_interval_s))
+    report->warnings.push_back(*irregular);
   // A flat signal (a lead off, a channel of zeros) gives no beat, and every metric null: said,
   // so that it is not read as a record without HRV for another reason.
   if (report->beats.size() < 2 && report->duration_s >= 10)

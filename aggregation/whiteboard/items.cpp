@@ -65,6 +65,13 @@ std::string seconds_label(double s) {
   return label == "-0" ? "0" : label;
 }
 
+// A time in seconds as an xsd:decimal, to the microsecond as seconds_label names it: window
+// and trend times. 6 significant digits wrote 100093.5 s as 100094 and a 100,100 s record's
+// last window as [100100, 100100). Not the shortest round trip: a start of 1636 steps of 1.1 s
+// is 1799.6000000000001 as a double, and its window is named .../hrv/1799.6. Fixed, never an
+// exponent (xsd:decimal has none).
+Term seconds_decimal(double s) { return decimal_literal(seconds_label(s)); }
+
 // RFC 4648 base64 of raw bytes.
 std::string base64(const std::string& bytes) {
   static constexpr char kAlphabet[] = "ABCDEFGHIJKLMNOPQRSTUVWXYZabcdefghijklmnopqrstuvwxyz0123456789+/";
@@ -463,8 +470,8 @@ Item hrv_window_item(const RecordingInfo& info, const WindowMetrics& window,
       .add(obs, Term::iri(kSosa + "observedProperty"), tv("HeartRateVariability"))
       .add(obs, derived_from(), Term::iri(info.iri))
       .add(obs, Term::iri("http://www.w3.org/ns/prov#wasAttributedTo"), Term::iri(agent_iri))
-      .add(obs, tv("windowStartS"), decimal(window.start_s))
-      .add(obs, tv("windowEndS"), decimal(window.end_s));
+      .add(obs, tv("windowStartS"), seconds_decimal(window.start_s))
+      .add(obs, tv("windowEndS"), seconds_decimal(window.end_s));
   for (const std::string& iri : from) item.add(obs, derived_from(), Term::iri(iri));
   const HrvMetrics& m = window.metrics;
   const std::pair<const char*, const std::optional<double>*> results[] = {
@@ -585,7 +592,7 @@ Item trend_item(const TrendUpdate& u, const std::string& agent_iri) {
   item.add(s, rdf_type(), tv("HrvTrend"))
       .add(s, tv("recording"), Term::iri(u.recording))
       .add(s, tv("metric"), tv(metric_local_name(u.metric)))
-      .add(s, tv("windowStartS"), decimal(u.window_start_s))
+      .add(s, tv("windowStartS"), seconds_decimal(u.window_start_s))
       .add(s, tv("windows"), Term::integer(static_cast<std::int64_t>(u.windows)))
       .add(s, tv("alert"), Term::literal(u.alert ? "true" : "false", std::string(node::xsd::kBoolean)));
   if (!u.window_iri.empty()) item.add(s, derived_from(), Term::iri(u.window_iri));

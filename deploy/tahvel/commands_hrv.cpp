@@ -3,6 +3,7 @@
 // reference annotations. `tahvel patients`: what a node's board says of each patient's HRV.
 #include <algorithm>
 #include <cctype>
+#include <charconv>
 #include <cmath>
 #include <cstdio>
 #include <cstring>
@@ -10,6 +11,7 @@
 #include <optional>
 #include <sstream>
 #include <string>
+#include <system_error>
 #include <utility>
 
 #include "commands.h"
@@ -33,6 +35,27 @@ std::string json_number(std::optional<double> value) {
   return buf;
 }
 
+// A rate exactly: the shortest text that reads back as the same double.
+std::string exact_number(double value) {
+  if (!std::isfinite(value)) return "null";
+  char buf[400];
+  auto [end, ec] = std::to_chars(buf, buf + sizeof buf, value);
+  return ec == std::errc() ? std::string(buf, end) : json_number(value);
+}
+
+// A time in seconds to the microsecond, without trailing zeros, as the board writes window
+// times and names windows ("100093.5", "1799.6"): 6 significant digits made 100093.5 s
+// "100094", and a 100,100 s record's last window (100100, 100100).
+std::string seconds_number(double s) {
+  if (!std::isfinite(s)) return "null";
+  char buf[400];  // "%.6f" of the largest double: 309 digits, the point and six decimals
+  std::snprintf(buf, sizeof buf, "%.6f", s);
+  std::string text(buf);
+  text.erase(text.find_last_not_of('0') + 1);
+  if (text.back() == '.') text.pop_back();
+  return text == "-0" ? "0" : text;
+}
+
 std::string metrics_json(const agg::HrvMetrics& m) {
   std::ostringstream out;
   out << "{\"mean_nn_ms\":" << json_number(m.mean_nn_ms) << ",\"sdnn_ms\":" << json_number(m.sdnn_ms)
@@ -48,13 +71,13 @@ std::string metrics_json(const agg::HrvMetrics& m) {
 void print_report_json(const std::string& record, const agg::HrvReport& report) {
   std::ostringstream out;
   out << "{\"record\":\"" << node::json_escape(record) << "\",\"signal\":" << report.signal
-      << ",\"fs\":" << json_number(report.fs) << ",\"beats\":[";
+      << ",\"fs\":" << exact_number(report.fs) << ",\"beats\":[";
   for (std::size_t i = 0; i < report.beats.size(); ++i) out << (i ? "," : "") << report.beats[i];
   out << "],\"metrics\":" << metrics_json(report.metrics) << ",\"windows\":[";
   for (std::size_t i = 0; i < report.windows.size(); ++i) {
     const auto& w = report.windows[i];
-    out << (i ? "," : "") << "{\"start_s\":" << json_number(w.start_s)
-        << ",\"end_s\":" << json_number(w.end_s) << ",\"metrics\":" << metrics_json(w.metrics) << "}";
+    out << (i ? "," : "") << "{\"start_s\":" << seconds_number(w.start_s)
+        << ",\"end_s\":" << seconds_number(w.end_s) << ",\"metrics\":" << metrics_json(w.metrics) << "}";
   }
   out << "]}\n";
   std::cout << out.str();
@@ -74,8 +97,8 @@ void print_report_text(const std::string& record, const agg::HrvReport& report) 
             << report.signal << ")\n";
   print_metrics_line("whole record", report.metrics);
   for (const auto& w : report.windows) {
-    char label[64];
-    std::snprintf(label, sizeof label, "%7.0f-%-7.0f s", w.start_s, w.end_s);
+    char label[900];
+    std::snprintf(label, sizeof label, "%7s-%-7s s", seconds_number(w.start_s).c_str(), seconds_number(w.end_s).c_str());
     print_metrics_line(label, w.metrics);
   }
 }
@@ -88,20 +111,49 @@ std::string percent(double fraction, bool json = false) {
   return buf;
 }
 
+// The signal the user named, checked against the record's header, so that an error names the
+// number typed (kEcgSignal, the largest size_t, is also "the ECG lead" to hrv_from_record).
+std::size_t checked_signal(const std::string& record, std::size_t signal) {
+  if (signal == agg::kEcgSignal) return signal;
+  auto header = agg::read_header(record);
+  if (!header) fail(header.error().message);
+  if (signal >= header->signals.size())
+    fail(record + ".hea: no signal " + std::to_string(signal) + " (the record has " +
+         std::to_string(header->signals.size()) + ")");
+  return signal;
+}
+
+// Why a record scored nothing with scoring from `from_s` on, or nullopt: shorter than the start
+// (bxb's learning period is 5 minutes), or no reference beat after it.
+std::optional<std::string> nothing_scored(const agg::BeatScore& score, double duration_s, double from_s) {
+  if (score.tp + score.fn > 0) return std::nullopt;
+  const std::string length = seconds_number(std::round(duration_s * 10) / 10), from = seconds_number(from_s);
+  if (duration_s <= from_s)
+    return "the record is " + length + " s long, no longer than the scoring start (" + from +
+           " s, bxb's learning period): nothing scored; --eval-from 0 scores it from its start";
+  return "no reference beat from " + from + " s on (the record is " + length + " s long): nothing scored";
+}
+
 // Scores each record and prints one line per record and the gross totals.
-int run_eval(const Args& args, const agg::ChainOptions& options, std::size_t signal) {
+int run_eval(const Args& args, const agg::ChainOptions& options, std::size_t signal, double from_s) {
   const bool json = args.has("--json");
+  agg::ScoreOptions scoring;
+  scoring.start_s = from_s;
   agg::BeatScore gross;
   std::ostringstream rows;
   for (const std::string& record : args.positional()) {
-    auto report = agg::hrv_from_record(record, options, signal);
+    auto report = agg::hrv_from_record(record, options, checked_signal(record, signal));
     if (!report) fail(report.error().message);
     // Several records: each warning says whose it is (a checksum's names its header already).
     for (const std::string& warning : report->warnings)
       std::cerr << "tahvel: warning: " << (warning.starts_with(record) ? "" : record + ": ") << warning << "\n";
     auto reference = agg::read_annotations(record, "atr");
     if (!reference) fail(reference.error().message);
-    agg::BeatScore score = agg::score_beats(*reference, report->beats, report->fs);
+    // To the record's end, as bxb: a reference file that goes on past the signal (a header cut
+    // short) does not count the beats after it as missed.
+    scoring.end_s = report->duration_s;
+    agg::BeatScore score = agg::score_beats(*reference, report->beats, report->fs, scoring);
+    if (auto why = nothing_scored(score, report->duration_s, from_s)) std::cerr << "tahvel: warning: " << record << ": " << *why << "\n";
     gross += score;
     if (json) {
       rows << (rows.tellp() > 0 ? "," : "") << "{\"record\":\"" << node::json_escape(record)
@@ -116,7 +168,7 @@ int run_eval(const Args& args, const agg::ChainOptions& options, std::size_t sig
     }
   }
   if (json) {
-    std::cout << "{\"records\":[" << rows.str() << "],\"tp\":" << gross.tp << ",\"fn\":" << gross.fn
+    std::cout << "{\"eval_from_s\":" << seconds_number(from_s) << ",\"records\":[" << rows.str() << "],\"tp\":" << gross.tp << ",\"fn\":" << gross.fn
               << ",\"fp\":" << gross.fp << ",\"sensitivity_pct\":" << percent(gross.sensitivity(), true)
               << ",\"positive_predictivity_pct\":" << percent(gross.positive_predictivity(), true) << "}\n";
   } else if (args.positional().size() > 1) {
@@ -129,13 +181,29 @@ int run_eval(const Args& args, const agg::ChainOptions& options, std::size_t sig
   return kExitOk;
 }
 
-double seconds_flag(const Args& args, std::string_view flag, double fallback) {
+// --window (is_step false) or --step: seconds within the chain's bounds
+// (agg::window_setting_problem), else a usage error naming the flag and the bounds.
+double seconds_flag(const Args& args, std::string_view flag, double fallback, bool is_step) {
   auto text = args.get(flag);
   if (!text) return fallback;
   char* end = nullptr;
   double value = std::strtod(text->c_str(), &end);
-  if (end == text->c_str() || *end != '\0' || !(value > 0) || value > 86400)
-    usage_error(std::string(flag) + ": expected seconds, a number in (0, 86400], got '" + *text + "'");
+  if (end == text->c_str() || *end != '\0')
+    usage_error(std::string(flag) + ": expected seconds, a number, got '" + *text + "'");
+  if (auto problem = agg::window_setting_problem(value, is_step))
+    usage_error(std::string(flag) + ": " + *problem + ", got '" + *text + "'");
+  return value;
+}
+
+// --eval-from: seconds from the record's start, 0 allowed (default 300, bxb's).
+double eval_from_flag(const Args& args) {
+  auto text = args.get("--eval-from");
+  if (!text) return agg::ScoreOptions{}.start_s;
+  if (!args.has("--eval")) usage_error("--eval-from: only with --eval");
+  char* end = nullptr;
+  double value = std::strtod(text->c_str(), &end);
+  if (end == text->c_str() || *end != '\0' || !(value >= 0) || value > 1e9)
+    usage_error("--eval-from: expected seconds from the record's start, a number >= 0, got '" + *text + "'");
   return value;
 }
 
@@ -152,7 +220,7 @@ std::string off_baseline(int direction) {
 std::string trend_json(const agg::TrendUpdate& t) {
   std::ostringstream out;
   const char* direction = t.alert ? direction_name(t.alert_direction) : nullptr;
-  out << "{\"metric\":\"" << agg::metric_local_name(t.metric) << "\",\"window_start_s\":" << json_number(t.window_start_s)
+  out << "{\"metric\":\"" << agg::metric_local_name(t.metric) << "\",\"window_start_s\":" << seconds_number(t.window_start_s)
       << ",\"windows\":" << t.windows << ",\"latest\":" << json_number(t.latest) << ",\"baseline\":" << json_number(t.baseline)
       << ",\"robust_sd\":" << json_number(t.robust_sd) << ",\"slope_per_hour\":" << json_number(t.slope_per_hour)
       << ",\"alert\":" << (t.alert ? "true" : "false") << ",\"direction\":"
@@ -180,7 +248,7 @@ void print_patients_json(const std::string& node_iri, const agg::PatientsOnBoard
       out << (k ? "," : "") << "{\"source\":\"" << node::json_escape(p.other_writers[k].first)
           << "\",\"windows\":" << p.other_writers[k].second << "}";
     out << "],\"latest\":{\"iri\":\"" << node::json_escape(p.latest.iri)
-        << "\",\"start_s\":" << json_number(p.latest.window.start_s) << ",\"end_s\":" << json_number(p.latest.window.end_s)
+        << "\",\"start_s\":" << seconds_number(p.latest.window.start_s) << ",\"end_s\":" << seconds_number(p.latest.window.end_s)
         << ",\"stored_ns\":" << p.latest_stored_ns << ",\"asserted_ns\":" << p.latest_asserted_ns << ",\"metrics\":" << metrics_json(p.latest.window.metrics) << "}";
     // Where the raw ECG behind the latest window is, for `tahvel ecg` or `tahvel query`.
     if (const std::string at = p.source_node(); !at.empty()) {
@@ -228,7 +296,7 @@ void print_patient_text(const std::string& dir, const agg::PatientView& p) {
   for (const agg::TrendUpdate& t : p.trends)
     if (t.alert) std::cout << "  ALERT: " << agg::metric_local_name(t.metric) << " " << off_baseline(t.alert_direction);
   std::cout << "\n  " << p.windows << " HRV window(s) from <" << p.source << ">; the latest "
-            << text_number(p.latest.window.start_s, "%.0f") << "-" << text_number(p.latest.window.end_s, "%.0f")
+            << seconds_number(p.latest.window.start_s) << "-" << seconds_number(p.latest.window.end_s)
             << " s into the recording, stored " << node::utc_text(p.latest_stored_ns) << " ("
             << age_of(p.latest_stored_ns) << ")\n";
   for (const auto& [writer, count] : p.other_writers)
@@ -271,37 +339,51 @@ void print_patient_text(const std::string& dir, const agg::PatientView& p) {
 
 const Command kHrvCommand{
     "hrv",
-    "RECORD [--signal N] [--window S] [--step S] [--json] | RECORD... --eval [--signal N] [--json]",
+    "RECORD [--signal N] [--window S] [--step S] [--json] | RECORD... --eval [--eval-from S] [--signal N] [--json]",
     "Run the HRV chain over a WFDB record, or score its beat detection.",
     "RECORD is a WFDB record path without extension (…/mitdb/100): its header (.hea) and signal\n"
     "files are read, and its ECG lead goes through the chain (the first signal named as an ECG\n"
     "lead, MLII, V1, II, ECG, ...; else the first in volts; else the first; --signal N names\n"
     "another, 0 the first): R-peak detection, RR intervals\n"
     "with the NN mask (docs/hrv.md), HRV for the whole record and for windows of --window\n"
-    "seconds (default 300) every --step seconds (default: the window). --json prints one object:\n"
+    "seconds (default 300, at least 10) every --step seconds (default: the window, at least 1).\n"
+    "--json prints one object:\n"
     "{record, signal, fs, beats: [sample indices], metrics: {...}, windows: [{start_s, end_s, metrics}]};\n"
     "a metric whose minimum-length guard fails is null.\n"
     "\n"
     "With --eval, each RECORD's detected beats are scored against its reference annotations\n"
-    "(.atr) as WFDB's bxb does: 150 ms match window, from 5 minutes in, unreadable intervals\n"
+    "(.atr) as WFDB's bxb does: 150 ms match window, from 5 minutes in (--eval-from S: from S\n"
+    "seconds; a record no longer than that scores nothing, with a warning), unreadable intervals\n"
     "skipped (docs/wfdb.md). Prints TP, FN, FP, sensitivity and positive predictivity per record\n"
     "and, for several records, the gross totals.",
-    {{"--window", "", "S", "HRV window length in seconds (default 300)"},
-     {"--step", "", "S", "start of one window to the next, seconds (default: the window)"},
+    {{"--window", "", "S", "HRV window length in seconds, 10 to 86400 (default 300)"},
+     {"--step", "", "S", "start of one window to the next, seconds, 1 to 86400 (default: the window)"},
      {"--signal", "", "N", "the record's signal to read, 0 the first (default: its ECG lead)"},
      {"--eval", "", "", "score the detected beats against RECORD.atr"},
+     {"--eval-from", "", "S", "with --eval: score from S seconds in (default 300, bxb's; 0: the whole record)"},
      {"--json", "", "", "print JSON instead of text"}},
     1, SIZE_MAX};
 
 int run_hrv(const Args& args) {
   agg::ChainOptions options;
-  options.window_s = seconds_flag(args, "--window", 300);
-  options.step_s = seconds_flag(args, "--step", options.window_s);
-  const std::size_t signal = args.has("--signal") ? static_cast<std::size_t>(std::min<std::uint64_t>(args.get_u64("--signal", 0), 1u << 20)) : agg::kEcgSignal;
-  if (args.has("--eval")) return run_eval(args, options, signal);
+  options.window_s = seconds_flag(args, "--window", 300, false);
+  options.step_s = seconds_flag(args, "--step", options.window_s, true);
+  // Any number: checked_signal names it as typed when the record lacks it.
+  std::optional<std::uint64_t> typed;
+  if (args.has("--signal")) typed = args.get_u64("--signal", 0);
+  const double from_s = eval_from_flag(args);
+  if (typed && *typed >= agg::kEcgSignal) {  // only on a machine whose size_t is narrower, or the largest value
+    const std::string& record = args.positional(0);
+    auto header = agg::read_header(record);
+    if (!header) fail(header.error().message);
+    fail(record + ".hea: no signal " + std::to_string(*typed) + " (the record has " +
+         std::to_string(header->signals.size()) + ")");
+  }
+  const std::size_t signal = typed ? static_cast<std::size_t>(*typed) : agg::kEcgSignal;
+  if (args.has("--eval")) return run_eval(args, options, signal, from_s);
   if (args.positional().size() != 1) usage_error("hrv: one RECORD at a time (several only with --eval)");
   const std::string& record = args.positional(0);
-  auto report = agg::hrv_from_record(record, options, signal);
+  auto report = agg::hrv_from_record(record, options, checked_signal(record, signal));
   if (!report) fail(report.error().message);
   for (const std::string& warning : report->warnings) std::cerr << "tahvel: warning: " << warning << "\n";
   if (args.has("--json")) {

@@ -772,6 +772,43 @@ TEST(AgentPrograms, AnHrvSettingItCannotUseIsItsProblemOnTheBoardUntilAUsableOne
   EXPECT_EQ(node->snapshot()->count({.s = hrv, .p = tn::Term::iri(tn::kProblemPid)}).value(), 0u);
 }
 
+// A window or step from the board (the hospital may send it) that is too short for HRV is
+// refused with its reason and the bounds, on the board and in the log, and the agent runs on
+// with the setting before it: a window of 0.5 s or a step of 0.01 s was taken, and made a
+// window item per step out of every RR item.
+TEST(AgentPrograms, AnHrvWindowOrStepTooShortForHrvIsRefusedWithTheBoundsAndTheAgentRunsOn) {
+  ScratchNode scratch("hrv-short");
+  ASSERT_TRUE(scratch.node) << "cannot make a store under /tmp";
+  std::optional<tn::Node>& node = scratch.node;
+  auto op = node->agent("operator");
+  ASSERT_TRUE(op);
+  const tn::Term hrv = tn::Term::iri(kNodeIri + "/hrv");
+  ASSERT_TRUE(op->store(tn::Item{}.add(hrv, agg::tv_term("windowSeconds"), tn::Term::literal("0.5"))
+                            .add(hrv, agg::tv_term("stepSeconds"), tn::Term::literal("0.01"))));
+  auto problem = [&] { return problem_of(*node, hrv); };
+  const std::string log = scratch.tmp + "/hrv.log";
+  {
+    Process agent({bin("tahvel-hrv"), scratch.dir, "--idle", "30", "--window", "60"}, log);
+    ASSERT_TRUE(within_a_minute([&] { return problem().find("windowSeconds '0.5'") != std::string::npos; })) << problem();
+    EXPECT_NE(problem().find("must be a number of seconds in [10, 86400]"), std::string::npos) << problem();
+    EXPECT_NE(problem().find("stepSeconds '0.01'"), std::string::npos) << problem();
+    EXPECT_NE(problem().find("must be a number of seconds in [1, 86400]"), std::string::npos) << problem();
+    EXPECT_EQ(agent.stop(), 0) << "the agent did not run on";
+  }
+  std::ifstream in(log);
+  std::ostringstream text;
+  text << in.rdbuf();
+  EXPECT_NE(text.str().find("windowSeconds '0.5'"), std::string::npos) << text.str();
+  // The same bounds on its command line.
+  Process flag({bin("tahvel-hrv"), scratch.dir, "--window", "5"}, scratch.tmp + "/flag.log");
+  ASSERT_TRUE(within_a_minute([&] { return flag.poll() >= 0; })) << "--window 5 was taken";
+  EXPECT_NE(flag.poll(), 0);
+  std::ifstream said(scratch.tmp + "/flag.log");
+  std::ostringstream flag_text;
+  flag_text << said.rdbuf();
+  EXPECT_NE(flag_text.str().find("--window: must be a number of seconds in [10, 86400]"), std::string::npos) << flag_text.str();
+}
+
 // A recording whose chunks tahvel-rpeak cannot use gives no HRV anywhere: the agent says why on
 // its board (for `tahvel status`) while it skips them, and the problem is over once a chunk of
 // the recording is used, or its end comes.

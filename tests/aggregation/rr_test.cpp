@@ -1,6 +1,8 @@
 // RR/NN rules (rr.h): the reference rule on annotated beats and the RR-only rule on peaks.
 #include <gtest/gtest.h>
 
+#include <cmath>
+
 #include "tahvel/aggregation/rr.h"
 
 namespace tahvel::aggregation {
@@ -93,13 +95,38 @@ TEST(DetectedRule, SlightlyPrematureBeatWithPauseIsCaught) {
 
 TEST(DetectedRule, MissedBeatAndGapAreNotNn) {
   std::vector<int> rr(40, 300);
-  rr[10] = 600;  // a missed beat
-  rr[25] = 900;  // 2.5 s at 360 Hz: a gap
+  rr[10] = 600;   // a missed beat
+  rr[25] = 1440;  // 4 s at 360 Hz: a gap (NnRule::max_interval_s 3.5 s)
   const auto iv = intervals_from_peaks(peaks_from_rr(rr), 360);
   EXPECT_FALSE(iv[10].nn);
   EXPECT_FALSE(iv[25].nn);
   EXPECT_TRUE(iv[11].nn);
   EXPECT_TRUE(iv[26].nn);
+}
+
+// Bradycardia down to 20 bpm (complete AV block, sick sinus) is a rhythm, not a series of
+// gaps: with max_interval_s 2 s every interval of a regular 28 bpm rhythm was a gap and none NN,
+// and at 30 bpm those above 2 s, half of them (SDNN 6.1 ms against 35.1).
+TEST(DetectedRule, ARegularRhythmDownTo20BpmIsNnNotGaps) {
+  for (const double bpm : {20.0, 25.0, 28.0, 30.0}) {
+    const int mean = static_cast<int>(360 * 60 / bpm);
+    std::vector<int> rr;
+    // Sinus arrhythmia of +-4 %: the 20 bpm intervals reach 3.1 s.
+    for (int i = 0; i < 120; ++i) rr.push_back(mean + static_cast<int>(mean * 0.04 * std::sin(i * 0.9)));
+    const auto iv = intervals_from_peaks(peaks_from_rr(rr), 360);
+    EXPECT_DOUBLE_EQ(nn_fraction(iv), 1.0) << bpm << " bpm";
+  }
+}
+
+// Beyond the bound an interval is a gap whatever the rhythm: a pause of 4 s in a 60 bpm rhythm,
+// and every interval of a rhythm of 15 bpm (below what the bound keeps).
+TEST(DetectedRule, IntervalsLongerThanTheBoundAreGaps) {
+  std::vector<int> rr(40, 360);
+  rr[20] = 4 * 360;
+  auto iv = intervals_from_peaks(peaks_from_rr(rr), 360);
+  for (std::size_t i = 0; i < iv.size(); ++i) EXPECT_EQ(iv[i].nn, i != 20) << i;
+  iv = intervals_from_peaks(peaks_from_rr(std::vector<int>(40, 4 * 360)), 360);
+  EXPECT_DOUBLE_EQ(nn_fraction(iv), 0.0);
 }
 
 TEST(DetectedRule, SpuriousDetectionSplitsAnInterval) {

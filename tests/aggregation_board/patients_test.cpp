@@ -119,6 +119,44 @@ TEST_F(PatientsOnBoard, EachRecordingIsOnePatientWithItsLatestWindowAndItsLatest
   EXPECT_TRUE(b.trends.empty());
 }
 
+// Window times of a long recording keep their fraction on the board, as xsd:decimal (fixed, no
+// exponent): with 6 significant digits a window at 100093.5 s of a 100,100 s record was written
+// as 100094, and the last one, [100098.5, 100100), as (100099, 100100) — the one before as
+// (100098, 100100): a patient's latest window and its trend were a second off.
+TEST_F(PatientsOnBoard, WindowTimesOfALongRecordingKeepTheirFractionOnTheBoard) {
+  agg::RecordingInfo info;
+  info.iri = kRecA;
+  agg::WindowMetrics w;
+  w.start_s = 100093.5;
+  w.end_s = 100096.5;
+  w.metrics.nn_count = w.metrics.rr_count = 3;
+  const tn::Item item = agg::hrv_window_item(info, w, kHospital + "/home1-hrv");
+  for (const tn::Triple& t : item.triples) {
+    if (t.p.value == std::string(agg::kTv) + "windowStartS") {
+      EXPECT_EQ(t.o.value, "100093.5");
+    } else if (t.p.value == std::string(agg::kTv) + "windowEndS") {
+      EXPECT_EQ(t.o.value, "100096.5");
+    }
+  }
+  store("home1-hrv", item);
+  // 1636 steps of 1.1 s: 1799.6000000000001 as a double; written as the window is named.
+  window("home1-hrv", kRecB, 1636 * 1.1, 40);
+  trend(kRecA, agg::HrvMetric::sdnn, 100093.5, false);
+  const agg::PatientsOnBoard board = read();
+  ASSERT_EQ(board.patients.size(), 2u);
+  const agg::PatientView& a = board.patients[0];
+  EXPECT_EQ(a.latest.window.start_s, 100093.5);
+  EXPECT_EQ(a.latest.window.end_s, 100096.5);
+  ASSERT_EQ(a.trends.size(), 1u);
+  EXPECT_EQ(a.trends[0].window_start_s, 100093.5);
+  EXPECT_EQ(board.patients[1].latest.window.start_s, 1799.6);
+  EXPECT_EQ(board.patients[1].latest.iri, kRecB + "/hrv/1799.6");
+  auto starts = node_->snapshot()->list({.s = tn::Term::iri(kRecB + "/hrv/1799.6"), .p = agg::tv_term("windowStartS")});
+  ASSERT_EQ(starts->size(), 1u);
+  EXPECT_EQ(starts->front().triple.o.value, "1799.6");
+  EXPECT_EQ(starts->front().triple.o.datatype, std::string(tn::xsd::kDecimal));
+}
+
 // A home of another version writes windows this node cannot read: they are counted for that
 // writer, with the reason, and the patient's latest readable window stands.
 TEST_F(PatientsOnBoard, AWindowThatCannotBeReadIsCountedForItsWriterAndTheLatestReadableOneStands) {

@@ -777,6 +777,73 @@ TEST_F(Cli, HrvEvalJsonWithNothingScoredIsValidJsonWithNulls) {
   EXPECT_EQ(r.out.find(":-"), std::string::npos) << r.out;
 }
 
+// A record shorter than the scoring start (bxb's 5 minutes) scored nothing without a word (TP 0
+// FN 0 FP 0, Se "-"): it says so, naming its length and the start, and --eval-from 0 scores it.
+TEST_F(Cli, HrvEvalOfARecordShorterThanTheScoringStartSaysSoAndEvalFromScoresIt) {
+  // MIT-BIH 100's first minute: its header with 21600 samples, its signal and annotations.
+  fs::create_directories(tmp_ / "cut");
+  fs::create_symlink(mitdb_record("100") + ".dat", tmp_ / "cut" / "100.dat");
+  fs::create_symlink(mitdb_record("100") + ".atr", tmp_ / "cut" / "100.atr");
+  spit(tmp_ / "cut" / "100.hea",
+       "100 2 360 21600\n100.dat 212 200 11 1024 995 0 0 MLII\n100.dat 212 200 11 1024 1011 0 0 V5\n");
+  const std::string record = (tmp_ / "cut" / "100").string();
+  Outcome r = run({"hrv", record, "--eval"});
+  ASSERT_EQ(r.status, 0) << r.err;
+  EXPECT_NE(r.err.find("tahvel: warning: " + record + ": the record is 60 s long, no longer than the scoring start (300 s"),
+            std::string::npos) << r.err;
+  EXPECT_NE(r.err.find("--eval-from 0"), std::string::npos) << r.err;
+  r = run({"hrv", record, "--eval", "--eval-from", "0", "--json"});
+  ASSERT_EQ(r.status, 0) << r.err;
+  EXPECT_EQ(r.err.find("nothing scored"), std::string::npos) << r.err;
+  // 100 has 74 beats in its first minute, all found; none counted past the record's end.
+  EXPECT_NE(r.out.find("{\"eval_from_s\":0,"), std::string::npos) << r.out;
+  EXPECT_NE(r.out.find("\"tp\":74,\"fn\":0,\"fp\":0,\"sensitivity_pct\":100.00"), std::string::npos) << r.out;
+  Outcome bad = run({"hrv", record, "--eval-from", "0"});
+  EXPECT_EQ(bad.status, 2);
+  EXPECT_NE(bad.err.find("--eval-from: only with --eval"), std::string::npos) << bad.err;
+  bad = run({"hrv", record, "--eval", "--eval-from", "-1"});
+  EXPECT_EQ(bad.status, 2);
+  EXPECT_NE(bad.err.find("--eval-from"), std::string::npos) << bad.err;
+}
+
+// A window or step too short for HRV is a usage error naming the flag and its bounds (a window of
+// 0.0001 s made 18 million windows of 100 and std::bad_alloc).
+TEST_F(Cli, HrvRefusesAWindowOrStepTooShortForHrvNamingTheFlagAndTheBounds) {
+  for (const char* window : {"5", "0.0001", "1e9", "nan"}) {
+    Outcome r = run({"hrv", mitdb_record("100"), "--window", window});
+    EXPECT_EQ(r.status, 2) << window;
+    EXPECT_NE(r.err.find("--window: must be a number of seconds in [10, 86400]"), std::string::npos) << r.err;
+    EXPECT_NE(r.err.find(std::string("got '") + window + "'"), std::string::npos) << r.err;
+  }
+  Outcome r = run({"hrv", mitdb_record("100"), "--window", "10", "--step", "0.5"});
+  EXPECT_EQ(r.status, 2);
+  EXPECT_NE(r.err.find("--step: must be a number of seconds in [1, 86400]"), std::string::npos) << r.err;
+}
+
+// Window times in the text are exact: "%7.0f" printed a window from 1.5 s as "2-12".
+TEST_F(Cli, HrvWindowTimesKeepTheirFractionInTextAndJson) {
+  Outcome r = run({"hrv", mitdb_record("100"), "--window", "10", "--step", "1.5"});
+  ASSERT_EQ(r.status, 0) << r.err;
+  EXPECT_NE(r.out.find("    1.5-11.5    s"), std::string::npos) << r.out.substr(0, 600);
+  r = run({"hrv", mitdb_record("100"), "--window", "10", "--step", "1.5", "--json"});
+  ASSERT_EQ(r.status, 0) << r.err;
+  EXPECT_NE(r.out.find("{\"start_s\":1.5,\"end_s\":11.5,"), std::string::npos);
+  EXPECT_NE(r.out.find("{\"start_s\":1797,\"end_s\":1805.555556"), std::string::npos);
+}
+
+// A signal the record lacks is named as typed: the value was clamped to 2^20 ("no signal 1048576").
+TEST_F(Cli, HrvWithASignalTheRecordLacksNamesTheNumberTyped) {
+  for (const char* n : {"18446744073709551615", "1048577", "2"}) {
+    for (const bool eval : {false, true}) {
+      std::vector<std::string> argv{"hrv", mitdb_record("100"), "--signal", n};
+      if (eval) argv.push_back("--eval");
+      Outcome r = run(argv);
+      EXPECT_EQ(r.status, 1) << n;
+      EXPECT_NE(r.err.find(std::string("no signal ") + n + " (the record has 2)"), std::string::npos) << r.err;
+    }
+  }
+}
+
 // `bytes` in base64 (RFC 4648, with padding).
 std::string base64(const std::string& bytes) {
   static const char* digits = "ABCDEFGHIJKLMNOPQRSTUVWXYZabcdefghijklmnopqrstuvwxyz0123456789+/";

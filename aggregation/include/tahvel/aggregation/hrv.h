@@ -7,6 +7,7 @@
 #include <cstddef>
 #include <deque>
 #include <optional>
+#include <string>
 #include <vector>
 
 #include "tahvel/aggregation/rr.h"
@@ -78,6 +79,21 @@ struct WindowMetrics {
   double start_s = 0, end_s = 0;
   HrvMetrics metrics;
 };
+
+// The window settings the chain takes from outside: `tahvel hrv --window/--step`, tahvel-hrv's
+// --window/--step and its tv:windowSeconds/tv:stepSeconds configuration, hrv_from_samples. A
+// window shorter than 10 s holds a handful of beats (ultra-short RMSSD is studied from 10 s
+// on; SDNN and the spectrum need minutes); a step below 1 s makes windows that differ by no
+// beat at resting rates, and more than one per second of signal (a step of 0.0001 s made 18
+// million windows of MIT-BIH 100 and ran out of memory). windowed_hrv and HrvWindower
+// themselves take any positive values.
+inline constexpr double kMinWindowS = 10;
+inline constexpr double kMinStepS = 1;
+inline constexpr double kMaxWindowS = 86400;  // the longest window or step: a day
+
+// Why `seconds` cannot be the window length (is_step false) or the step (true): the text
+// names the bounds ("must be a number of seconds in [10, 86400] (...)"); nullopt when it can.
+std::optional<std::string> window_setting_problem(double seconds, bool is_step);
 
 // Windows k = 0, 1, ... start at k * step_s and last window_s; an interval belongs to every
 // window whose [start_s, end_s) contains its end beat (end / fs). Windows are produced from the

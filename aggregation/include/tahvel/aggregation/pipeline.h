@@ -35,9 +35,18 @@ struct HrvReport {
   std::vector<WindowMetrics> windows;
 };
 
+// How many intervals of a series are longer than rule.max_interval_s at fs Hz: the gaps that
+// intervals_from_peaks never takes as NN, whatever the rhythm.
+std::size_t gap_count(const std::vector<Interval>& intervals, double fs, const NnRule& rule = {});
+
 // Why HRV of a series with these metrics may be far off (HrvMetrics::irregular_pct or the
-// share of intervals not NN above kIrregularPct), or nullopt.
-std::optional<std::string> irregular_rhythm_warning(const HrvMetrics& metrics);
+// share of intervals not NN above kIrregularPct), or nullopt. `gaps` of the intervals not NN
+// were rejected for being longer than max_interval_s (gap_count): when they are at least half
+// of those rejected and the rhythm is regular (irregular_pct not above kIrregularPct), the
+// warning names them (pauses, lost signal, a heart rate below 60 / max_interval_s bpm) rather
+// than ectopic beats or atrial fibrillation, which the irregular-rhythm warning names.
+std::optional<std::string> irregular_rhythm_warning(const HrvMetrics& metrics, std::size_t gaps = 0,
+                                                    double max_interval_s = NnRule{}.max_interval_s);
 
 // The chain over one lead sampled at fs Hz with `gain` ADC units per mV. Errors: invalid
 // detector options or window settings (the message names the option).

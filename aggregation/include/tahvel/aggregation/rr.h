@@ -96,8 +96,14 @@ std::vector<Interval> reference_intervals(const std::vector<Beat>& beats,
 //    the one before (a steady new rhythm), ends this; so does a gap.
 // Whatever the comparison, an interval longer than max_interval_s or overlapping an excluded
 // range is not NN, and the reference restarts after a gap longer than max_interval_s.
+// max_interval_s is 3.5 s, not the 2 s of filters tuned for adults in sinus rhythm (PhysioNet's
+// HRV toolkit, the 200-2000 ms "physiological range" of Wessel et al.'s adaptive filter):
+// bradycardia in complete AV block or sick sinus syndrome goes down to 20 bpm (RR 3 s), and
+// with 2 s every interval of a regular 28 bpm rhythm was a gap (no HRV) and at 30 bpm half of
+// them (SDNN 6.1 ms against 35.1). 3.5 s keeps a rhythm of 20 bpm with its variability; what
+// is longer is a pause of clinical size (Holter reports pauses of 3 s and more) or lost signal.
 struct NnRule {
-  double max_interval_s = 2.0;          // longer intervals are gaps (missed beats, lost signal)
+  double max_interval_s = 3.5;          // longer intervals are gaps (lost signal, long pauses)
   int reference_beats = 9;              // accepted intervals in the reference median
   double short_fraction = 0.12;         // a beat more than 12 % early is premature
   double long_fraction = 0.45;          // an interval more than 45 % long is a missed beat
