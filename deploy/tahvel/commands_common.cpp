@@ -9,6 +9,7 @@
 #include <limits>
 #include <poll.h>
 #include <unistd.h>
+#include <filesystem>
 #include <fstream>
 #include <iostream>
 #include <iterator>
@@ -333,10 +334,14 @@ std::string read_input(const std::string& path) {
     if (std::cin.bad()) fail(std::string("cannot read standard input: ") + std::strerror(errno));
     return text;
   }
+  // A directory opens as a stream that reads nothing: `load DIR /tmp` loaded 0 triples, status 0.
+  std::error_code ec;
+  if (std::filesystem::is_directory(path, ec)) fail("cannot read '" + path + "': it is a directory");
   std::ifstream in(path, std::ios::binary);
   if (!in) fail("cannot open '" + path + "': " + std::strerror(errno));
   std::ostringstream text;
-  text << in.rdbuf();
+  // A read that fails part-way sets the failbit of `text` (operator<< of a streambuf), not of `in`.
+  if (in.peek() != std::char_traits<char>::eof() && !(text << in.rdbuf())) fail("cannot read '" + path + "': " + std::strerror(errno));
   if (in.bad()) fail("cannot read '" + path + "': " + std::strerror(errno));
   return std::move(text).str();
 }

@@ -1,7 +1,13 @@
 // `tahvel` subcommands that read a whiteboard: list, dump, take, tail, stats.
 // `tail` is the only long-running one: it blocks in Node::watch (woken by commits, no polling)
 // and writes each batch as soon as it arrives.
+#include <fcntl.h>
+#include <sys/file.h>
+#include <unistd.h>
+
 #include <algorithm>
+#include <cerrno>
+#include <cstring>
 #include <charconv>
 #include <chrono>
 #include <iostream>
@@ -178,8 +184,24 @@ int run_take(const Args& args) {
   node::Node node = open_node(args.positional(0));
   uri::PrefixMap prefixes = prefixes_with_flags(node.prefixes(), args);
   node::Agent agent = check(node.agent(id));
-  std::optional<node::Delivery> delivery = check(agent.take(timeout, node::Ack::manual));
-  if (!delivery) return kExitTimeout;
+  // Takes of one agent by several processes (a pool of workers) each read the buffer's head and
+  // acknowledge it once printed: between the two, another read the same item and printed it too.
+  // A take holds the agent's take lock from reading the head again to acknowledging it; the wait
+  // for an item happens outside it, so that a waiting take does not hold the others up.
+  const std::string lock_path = (std::filesystem::path(args.positional(0)) / (".take-" + id + ".lock")).string();
+  const int lock = ::open(lock_path.c_str(), O_RDWR | O_CREAT | O_CLOEXEC, 0644);
+  if (lock < 0) fail(lock_path + ": " + std::strerror(errno));
+  const auto deadline = std::chrono::steady_clock::now() + timeout;
+  std::optional<node::Delivery> delivery;
+  for (;;) {
+    const auto left = std::max(milliseconds(0), std::chrono::duration_cast<milliseconds>(deadline - std::chrono::steady_clock::now()));
+    if (!check(agent.take(left, node::Ack::manual))) return kExitTimeout;
+    while (flock(lock, LOCK_EX) != 0)
+      if (errno != EINTR) fail(lock_path + ": " + std::strerror(errno));
+    delivery = check(agent.take(milliseconds(0), node::Ack::manual));
+    if (delivery) break;
+    flock(lock, LOCK_UN);  // another take had it: wait for the next one
+  }
   if (delivery->removal) {
     // A removal notice (a link's agents receive them): printed as tail prints removals.
     node::RecordWriter writer(std::cout, format, {});
@@ -189,6 +211,7 @@ int run_take(const Args& args) {
   }
   finish_output(std::cout);
   check(agent.ack(delivery->item));
+  ::close(lock);
   return kExitOk;
 }
 

@@ -215,7 +215,9 @@ const Command kRemoveCommand{
     "in 'tahvel list'): --under <recording>/chunk --until T prunes a recording's raw ECG before\n"
     "T, whole chunks; a range alone is not a pattern (it would take subscriptions and\n"
     "configuration with it).\n"
-    "Removed items also leave the input buffers that held them.\n"
+    "Removed items also leave the input buffers that held them. A pattern leaves subscriptions\n"
+    "whole (taking one of their records would change what they match): remove one with --item\n"
+    "ID, the id subscribe printed.\n"
     "Copies the node's link sent up (its forwarding policy) or down (configuration) are removed\n"
     "there too, hop by hop, as the link runs; with --local they stay (pruning this node only).",
     {{"--item", "", "ID", "remove every record of item ID (as printed by put)"},

@@ -709,9 +709,14 @@ Result<void> Env::write(const std::function<Result<void>(Txn&)>& body, WriteKind
       if (!counters) return unexpected(counters.error());
       txn.counters = *counters;
       first_seq = counters->next_seq;
+      txn.first_new_id = first_seq;
       if (auto r = body(txn); !r) return r;
       if (auto r = deliver_removals(txn); !r) return r;
       if (auto r = flush_index(txn); !r) return r;
+      if (txn.removals_trimmed_through != 0) {
+        MDB_val k = val(kRemovalsTrimmedKey), v = val(txn.removals_trimmed_through);
+        if (int rc = mdb_put(raw, meta, &k, &v, 0); rc != 0) return lmdb_fail(rc, "noting the removal log's trimmed end");
+      }
       return save_counters(raw, main, txn.counters);
     };
     writing.store(raw);

@@ -62,6 +62,9 @@ struct Counters {
 // The store's identity in its meta table: random, made when the store is created (or first
 // opened by a build that has ids), renewed by Node::renew_store_id.
 inline constexpr std::string_view kStoreIdKey = "store_id";
+// The last sequence number trimmed from the removal log (a u64), absent until the log is first
+// trimmed. A key of its own, not a counter: builds that check the counters' size still open it.
+inline constexpr std::string_view kRemovalsTrimmedKey = "removals_trimmed_through";
 std::string new_store_id();
 
 struct Settings {
@@ -206,6 +209,10 @@ class Env {
   std::unordered_map<std::uint64_t, std::vector<std::uint32_t>> subs_by_context;
   std::uint64_t ttl_gen = ~0ull;
   std::vector<TtlRule> ttl_rules;
+  // Per TTL predicate (term id), the record id its scan starts from: the records before it are
+  // persistent or gone, which stays so (an item's persistence never changes, ids ascend), so a
+  // scan need not pass them again. Written by the writer only (apply_ttl).
+  std::unordered_map<std::uint64_t, std::uint64_t> ttl_scan_from;
   // Agents that receive removal notices (R21, Agent::receive_removals): term ids of their IRIs.
   // Kept in the meta table beside the TTL rules, and reloaded with them (ttl_gen).
   std::vector<std::uint64_t> removal_receivers;  // sorted
@@ -308,6 +315,11 @@ class Txn {
   Env& env() { return env_; }
   MDB_txn* raw() { return txn_; }
   Counters counters;             // loaded before `body`, saved after it
+  std::uint64_t first_new_id = 0;  // the first record id this transaction may hand out
+  // The last sequence number this transaction trimmed from the removal log (0: none), kept in
+  // `meta` (kRemovalsTrimmedKey) at the end of the transaction: Node::watch tells a reader whose
+  // bookmark is older that it missed removals.
+  std::uint64_t removals_trimmed_through = 0;
   std::vector<std::uint32_t> wake_slots;  // woken after commit
   // Term ids looked up or created in this transaction (write.cpp), and whether the term is
   // known to be pinned (then a caller that pins it needs nothing more: the writer and source of

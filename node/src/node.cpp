@@ -6,6 +6,7 @@
 
 #include <algorithm>
 #include <cstring>
+#include <limits>
 #include <map>
 #include <span>
 #include <type_traits>
@@ -976,25 +977,53 @@ namespace {
 
 // Removes, in one transaction, the records that `collect` names (skipping any already gone,
 // as sub-trees may overlap); returns how many went.
+// Removes what `collect` names in one transaction. When that does not fit a full store (the
+// removal reserve holds one transaction's new pages: a removal of tens of thousands of scattered
+// records touches more), it removes in parts instead, each a transaction of its own that frees
+// pages for the next, halving a part that does not fit, so that a full store can be emptied.
+// What a part removed stays removed if a later one fails.
 Result<std::uint64_t> remove_records(Env& env, Reach reach,
                                      const std::function<Result<std::vector<std::uint64_t>>(Txn&)>& collect) {
   const Removal why = reach == Reach::this_node ? Removal::quiet_removal : Removal::explicit_removal;
   std::uint64_t removed = 0;
-  auto written = env.write([&](Txn& txn) -> Result<void> {
-    removed = 0;
-    auto ids = collect(txn);
-    if (!ids) return unexpected(ids.error());
-    for (std::uint64_t id : *ids) {
-      auto exists = get_record(txn.raw(), txn.env(), id);
-      if (!exists) return unexpected(exists.error());
-      if (!*exists) continue;
-      if (auto d = delete_record(txn, id, why); !d) return d;
-      ++removed;
+  bool more = false;
+  auto remove_up_to = [&](std::size_t most) {
+    return env.write([&](Txn& txn) -> Result<void> {
+      removed = 0;
+      more = false;
+      auto ids = collect(txn);
+      if (!ids) return unexpected(ids.error());
+      for (std::uint64_t id : *ids) {
+        auto exists = get_record(txn.raw(), txn.env(), id);
+        if (!exists) return unexpected(exists.error());
+        if (!*exists) continue;
+        if (removed == most) {
+          more = true;
+          break;
+        }
+        if (auto d = delete_record(txn, id, why); !d) return d;
+        ++removed;
+      }
+      return {};
+    }, WriteKind::removal);
+  };
+  auto written = remove_up_to(std::numeric_limits<std::size_t>::max());
+  if (written) return removed;
+  if (written.error().code != Errc::store_full) return unexpected(written.error());
+  std::uint64_t total = 0;
+  std::size_t part = 4096;
+  for (;;) {
+    auto done = remove_up_to(part);
+    if (!done) {
+      // An item removed whole by earlier parts is no longer there to name.
+      if (done.error().code == Errc::not_found && total > 0) return total;
+      if (done.error().code != Errc::store_full || part == 1) return unexpected(done.error());
+      part /= 2;
+      continue;
     }
-    return {};
-  }, WriteKind::removal);
-  if (!written) return unexpected(written.error());
-  return removed;
+    total += removed;
+    if (!more) return total;
+  }
 }
 
 // The records of an item and, with cascade N, the sub-trees (depth N) of their objects.
@@ -1027,11 +1056,52 @@ Result<std::vector<std::uint64_t>> item_with_subtrees(Txn& txn, std::uint64_t it
 
 }  // namespace
 
+namespace {
+
+// The items that declare a subscription (a tv:subscriber record, R9).
+Result<std::vector<std::uint64_t>> subscription_items(Txn& txn) {
+  std::vector<std::uint64_t> items;
+  const std::uint64_t subscriber = txn.env().vocab.subscriber;
+  if (subscriber == 0) return items;
+  MDB_cursor* cursor = nullptr;
+  if (int rc = mdb_cursor_open(txn.raw(), txn.env().idx_p, &cursor); rc != 0) return lmdb_fail(rc, "opening the predicate index");
+  MDB_val k = val(subscriber), v;
+  std::vector<std::uint64_t> records;
+  int rc = mdb_cursor_get(cursor, &k, &v, MDB_SET);
+  for (; rc == 0; rc = mdb_cursor_get(cursor, &k, &v, MDB_NEXT_DUP)) records.push_back(u64(v));
+  mdb_cursor_close(cursor);
+  if (rc != MDB_NOTFOUND) return lmdb_fail(rc, "reading subscriptions");
+  for (std::uint64_t id : records) {
+    auto row = get_record(txn.raw(), txn.env(), id);
+    if (!row) return unexpected(row.error());
+    if (*row) items.push_back((*row)->item);
+  }
+  std::sort(items.begin(), items.end());
+  return items;
+}
+
+}  // namespace
+
 Result<std::uint64_t> Node::remove(const Pattern& pattern, unsigned cascade, Reach reach) {
   if (!pattern.s && !pattern.p && !pattern.o && !pattern.context && !pattern.source && !pattern.under)
     return fail(Errc::invalid_argument, "refusing to remove with an empty pattern; name a subject, predicate, object, context, source or subject prefix");
-  return remove_records(*impl_->env, reach, [&](Txn& txn) {
-    return Query(txn.raw(), txn.env()).collect(pattern, ListOptions{cascade, 0});
+  return remove_records(*impl_->env, reach, [&](Txn& txn) -> Result<std::vector<std::uint64_t>> {
+    auto ids = Query(txn.raw(), txn.env()).collect(pattern, ListOptions{cascade, 0});
+    if (!ids) return ids;
+    // A subscription's records are data like any other, and `remove -o ex:heartRate` took the
+    // `_:sub tv:object ex:heartRate` of one: the subscription went on, matching any object.
+    // Removing by pattern leaves subscriptions whole; removing the item ends one (R9).
+    auto subscriptions = subscription_items(txn);
+    if (!subscriptions) return unexpected(subscriptions.error());
+    if (subscriptions->empty()) return ids;
+    std::vector<std::uint64_t> kept;
+    for (std::uint64_t id : *ids) {
+      auto row = get_record(txn.raw(), txn.env(), id);
+      if (!row) return unexpected(row.error());
+      if (*row && std::binary_search(subscriptions->begin(), subscriptions->end(), (*row)->item)) continue;
+      kept.push_back(id);
+    }
+    return kept;
   });
 }
 
@@ -1114,6 +1184,18 @@ Result<std::vector<Change>> Node::watch(std::uint64_t bookmark, std::chrono::mil
           changes.push_back(std::move(change));
         }
         mdb_cursor_close(cursor);
+      }
+      // Removals after the bookmark that left the log before this read: said, not skipped.
+      MDB_val tk = val(kRemovalsTrimmedKey), tv;
+      if (mdb_get(read.txn, impl_->env->meta, &tk, &tv) == 0 && tv.mv_size == sizeof(std::uint64_t)) {
+        const std::uint64_t trimmed = u64(tv);
+        if (trimmed > bookmark) {
+          Change gap{trimmed, true, {}, {}};
+          gap.unreadable = "removals with sequence numbers " + std::to_string(bookmark + 1) + " to " + std::to_string(trimmed) +
+                           " left the removal log before they were read (it keeps the latest, R17): records removed "
+                           "then are not listed here; read the board again";
+          changes.push_back(std::move(gap));
+        }
       }
     }
     if (!changes.empty()) {

@@ -275,8 +275,12 @@ Result<void> Query::for_each(const Pattern& pattern,
 }
 
 Result<void> Query::cascade_from(std::uint64_t object, unsigned depth, std::vector<std::uint64_t>& out,
-                                 std::unordered_map<std::uint64_t, bool>& seen, std::size_t limit) {
+                                 std::unordered_map<std::uint64_t, unsigned>& reach, std::size_t limit) {
   if (depth == 0 || (limit && out.size() >= limit)) return {};
+  const auto walked_deep_enough = [&](std::uint64_t id) {
+    auto it = reach.find(id);
+    return it != reach.end() && it->second >= depth - 1;
+  };
   std::vector<std::pair<std::uint64_t, std::uint64_t>> children;  // (record id, its object)
   Cursor cur;
   int rc = mdb_cursor_open(txn_, env_.idx_s, &cur.c);
@@ -284,7 +288,7 @@ Result<void> Query::cascade_from(std::uint64_t object, unsigned depth, std::vect
   MDB_val k = val(object), v;
   for (rc = mdb_cursor_get(cur.c, &k, &v, MDB_SET); rc == 0; rc = mdb_cursor_get(cur.c, &k, &v, MDB_NEXT_DUP)) {
     std::uint64_t id = u64(v);
-    if (seen.count(id)) continue;
+    if (walked_deep_enough(id)) continue;
     auto row = get_record(txn_, env_, id);
     if (!row) return unexpected(row.error());
     if (!*row) continue;
@@ -293,10 +297,10 @@ Result<void> Query::cascade_from(std::uint64_t object, unsigned depth, std::vect
   if (rc != MDB_NOTFOUND) return lmdb_fail(rc, "walking the subject index");
   for (const auto& [id, child_object] : children) {
     if (limit && out.size() >= limit) return {};
-    if (seen.count(id)) continue;
-    seen[id] = true;
-    out.push_back(id);
-    if (auto r = cascade_from(child_object, depth - 1, out, seen, limit); !r) return r;
+    if (walked_deep_enough(id)) continue;
+    if (reach.emplace(id, depth - 1).second) out.push_back(id);
+    else reach[id] = depth - 1;
+    if (auto r = cascade_from(child_object, depth - 1, out, reach, limit); !r) return r;
   }
   return {};
 }
@@ -313,13 +317,13 @@ Result<std::vector<std::uint64_t>> Query::collect(const Pattern& pattern, const 
     for (const auto& m : matches) out.push_back(m.first);
     return out;
   }
-  std::unordered_map<std::uint64_t, bool> seen;
-  for (const auto& m : matches) seen[m.first] = true;
+  std::unordered_map<std::uint64_t, unsigned> reach;
+  for (const auto& m : matches) reach[m.first] = options.cascade;
   for (const auto& [id, object] : matches) {
     if (options.limit && out.size() >= options.limit) break;
     out.push_back(id);
     // Literals have no sub-tree; IRIs and blank nodes may.
-    if (auto r = cascade_from(object, options.cascade, out, seen, options.limit); !r) return unexpected(r.error());
+    if (auto r = cascade_from(object, options.cascade, out, reach, options.limit); !r) return unexpected(r.error());
   }
   return out;
 }

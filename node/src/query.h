@@ -58,8 +58,11 @@ class Query {
   Result<const ItemRow*> item(std::uint64_t id);
   // Whether the record subject `subject` (a term id) is `ancestor` or an IRI under it.
   Result<bool> subject_under(const std::string& ancestor, std::uint64_t subject);
+  // Adds the records below `object`, `depth` levels deep. `reach` holds, per record already
+  // taken, how many levels below its object were walked: a record met again on a shorter path
+  // (more levels left) is walked again, not passed over, or what lies deeper below it was lost.
   Result<void> cascade_from(std::uint64_t object, unsigned depth, std::vector<std::uint64_t>& out,
-                            std::unordered_map<std::uint64_t, bool>& seen, std::size_t limit);
+                            std::unordered_map<std::uint64_t, unsigned>& reach, std::size_t limit);
 
   MDB_txn* txn_;
   const Env& env_;

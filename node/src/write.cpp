@@ -19,6 +19,7 @@ namespace tahvel::node::detail {
 namespace {
 
 constexpr std::size_t kTtlScanBudget = 64;  // records examined per rule per write
+constexpr std::size_t kTtlPassBudget = 4096;  // persistent records passed for good, per rule per write
 
 const char* position_name(int i) { return i == 0 ? "subject" : i == 1 ? "predicate" : "object"; }
 
@@ -274,17 +275,32 @@ Result<std::uint64_t> apply_ttl(Txn& txn, const std::vector<TtlRule>& rules) {
     MDB_cursor* cursor = nullptr;
     int rc = mdb_cursor_open(txn.raw(), txn.env().idx_p, &cursor);
     if (rc != 0) return lmdb_fail(rc, "opening the predicate index");
-    MDB_val k = val(rule.predicate), v;
-    std::size_t examined = 0;
-    for (rc = mdb_cursor_get(cursor, &k, &v, MDB_SET); rc == 0 && examined < kTtlScanBudget;
-         rc = mdb_cursor_get(cursor, &k, &v, MDB_NEXT_DUP), ++examined) {
+    // Persistent records of the predicate are never reclaimed: 64 of them at its head held every
+    // later record back for good, each scan stopping at the budget. The scan starts past them.
+    std::uint64_t& scan_from = txn.env().ttl_scan_from[rule.predicate];
+    bool at_head = true;  // only persistent (or gone) records so far
+    MDB_val k = val(rule.predicate), v = val(scan_from);
+    std::size_t examined = 0, passed = 0;
+    for (rc = mdb_cursor_get(cursor, &k, &v, MDB_GET_BOTH_RANGE); rc == 0 && examined < kTtlScanBudget && passed < kTtlPassBudget;
+         rc = mdb_cursor_get(cursor, &k, &v, MDB_NEXT_DUP)) {
       std::uint64_t id = u64(v);
       auto row = get_record(txn.raw(), txn.env(), id);
       if (!row || !*row) continue;
       auto item = get_item(txn.raw(), txn.env(), (*row)->item);
       if (!item || !*item) continue;
       const ItemRow& it = **item;
-      if (it.stored_at + rule.ttl_ns > now) break;  // ids ascend with time: the rest is younger
+      // Only committed records: an abort hands this transaction's ids out again.
+      if (at_head && it.persistent && id < txn.first_new_id) {
+        scan_from = id + 1;
+        ++passed;
+        continue;
+      }
+      at_head = false;
+      ++examined;
+      // ids ascend with time: the rest is younger. Saturating: a TTL of centuries (or
+      // nanoseconds::max, "for ever") overflowed and reclaimed everything at once.
+      std::int64_t expires = 0;
+      if (__builtin_add_overflow(it.stored_at, rule.ttl_ns, &expires) || expires > now) break;
       if (it.persistent || it.pending > 0) continue;
       expired.push_back(id);
     }

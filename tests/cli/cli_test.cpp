@@ -10,6 +10,7 @@
 
 #include <chrono>
 #include <cstdlib>
+#include <map>
 #include <filesystem>
 #include <functional>
 #include <fstream>
@@ -345,6 +346,32 @@ TEST_F(Cli, TakePrintsASubscribedItemOnceThenTimesOutWithExit3) {
   EXPECT_EQ(second.err, "");
 }
 
+// A pool of workers taking from one agent: each take read the buffer's head and acknowledged it
+// once printed, and between the two another take read and printed the same item (4 of 200
+// items twice with 3 workers).
+TEST_F(Cli, TakesOfOneAgentAtOnceEachGetADifferentItem) {
+  init();
+  ASSERT_EQ(run({"subscribe", node_, "--agent", "pool", "-p", kEx + "n"}).status, 0);
+  constexpr int kItems = 300;
+  std::string nt;
+  for (int i = 0; i < kItems; ++i)
+    nt += "<" + kEx + "item" + std::to_string(i) + "> <" + kEx + "n> \"" + std::to_string(i) + "\" .\n";
+  spit(tmp_ / "items.nt", nt);
+  ASSERT_EQ(run({"load", node_, (tmp_ / "items.nt").string(), "--batch", "1"}).status, 0);
+  std::string script;
+  for (int w = 0; w < 3; ++w)
+    script += "(while '" + kBin + "' take '" + node_ + "' --agent pool >> '" + (tmp_ / ("worker" + std::to_string(w))).string() +
+              "'; do :; done) &\n";
+  script += "wait\n";
+  spit(tmp_ / "pool.sh", script);
+  ASSERT_EQ(std::system(("bash " + (tmp_ / "pool.sh").string()).c_str()), 0);
+  std::map<std::string, int> taken;
+  for (int w = 0; w < 3; ++w)
+    for (const std::string& line : lines_of(slurp(tmp_ / ("worker" + std::to_string(w))))) ++taken[line];
+  EXPECT_EQ(taken.size(), static_cast<std::size_t>(kItems));
+  for (const auto& [line, times] : taken) EXPECT_EQ(times, 1) << line;
+}
+
 TEST_F(Cli, SubscribeEarlierBringsWhatIsAlreadyOnTheBoardAndRefusesAnArea) {
   init();
   put(kObservation);
@@ -638,6 +665,16 @@ TEST_F(Cli, RemoveItemPrintsTheRecordCountAndTheRecordsAreGone) {
   EXPECT_EQ(run({"list", node_}).out, "");
   Outcome neither = run({"remove", node_});
   EXPECT_EQ(neither.status, 2);
+}
+
+// A directory opened as a stream that read nothing: `load DIR /tmp` printed 0 and exited 0.
+TEST_F(Cli, LoadOrPutOfADirectoryIsAnErrorNamingIt) {
+  init();
+  for (const char* command : {"load", "put"}) {
+    Outcome r = run({command, node_, tmp_.string()});
+    EXPECT_EQ(r.status, 1) << command << ": " << r.out;
+    EXPECT_NE(r.err.find("cannot read '" + tmp_.string() + "': it is a directory"), std::string::npos) << r.err;
+  }
 }
 
 TEST_F(Cli, LoadStoresOneItemPerSubjectGroupAndPrintsTheTripleCount) {

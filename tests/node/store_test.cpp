@@ -112,6 +112,32 @@ TEST_F(TwoObservations, CascadeListFromItemRootReturnsExactlyItsSubtree) {
   EXPECT_EQ(shallow->size(), 3u);
 }
 
+// A record first met deep in one match's sub-tree and then nearer another's is walked again
+// from the nearer place: `ex:deep ex:z 1`, 2 levels below `m q2 k`, was left out of a cascade 2
+// read of m because it was first met 3 levels below `m q1 n`.
+TEST(Store, ACascadeTakesWhatLiesWithinItsDepthOfAnyMatchWhateverTheOrder) {
+  TempDir dir;
+  Node node = make_node(dir.path());
+  auto writer = node.agent("writer");
+  ASSERT_TRUE(writer->store(Item{}
+                                .add(ex("m"), ex("q1"), ex("n"))
+                                .add(ex("n"), ex("q1"), ex("k"))
+                                .add(ex("k"), ex("q1"), ex("deep"))
+                                .add(ex("deep"), ex("z"), Term::integer(1))
+                                .add(ex("m"), ex("q2"), ex("k"))));
+  Pattern from_m;
+  from_m.s = ex("m");
+  auto snap = node.snapshot();
+  auto listed = snap->list(from_m, ListOptions{2, 0});
+  ASSERT_TRUE(listed);
+  std::set<std::string> got;
+  for (const Record& r : *listed) got.insert(r.triple.s.value + " " + r.triple.p.value);
+  EXPECT_EQ(listed->size(), got.size());  // each record once
+  EXPECT_EQ(got, (std::set<std::string>{ex("m").value + " " + ex("q1").value, ex("m").value + " " + ex("q2").value,
+                                        ex("n").value + " " + ex("q1").value, ex("k").value + " " + ex("q1").value,
+                                        ex("deep").value + " " + ex("z").value}));
+}
+
 TEST_F(TwoObservations, CascadeRemoveRemovesExactlyTheSubtree) {
   std::vector<Record> first_records, second_records;
   {
@@ -676,6 +702,40 @@ TEST(Store, AFullStoreCanAlwaysBeEmptiedAndDataNeverTakesTheRemovalsReserve) {
                      << node.stats()->used_bytes << ")";
 }
 
+// One pattern naming tens of thousands of scattered records touches more pages in one
+// transaction than the removal reserve holds: `remove -p` of a full store failed with store_full
+// however often it was tried. It goes in parts now, and the store takes data again.
+TEST(Store, AFullStoreIsEmptiedByOneLargeRemovalByPattern) {
+  TempDir dir;
+  constexpr std::uint64_t kMax = 8 << 20;
+  Node node = make_node(dir.path(), {.max_map_bytes = kMax});
+  auto agent = node.agent("w");
+  std::uint64_t stored = 0;
+  for (bool full = false; !full;) {
+    std::vector<Item> batch;
+    for (int j = 0; j < 200; ++j, ++stored)
+      batch.push_back(Item{}
+                          .add(ex("s" + std::to_string(stored)), ex("p" + std::to_string(stored % 3)), Term::literal("v" + std::to_string(stored)))
+                          .add(ex("s" + std::to_string(stored)), ex("q"), Term::integer(static_cast<std::int64_t>(stored))));
+    auto written = agent->store_all(batch);
+    if (!written) {
+      ASSERT_EQ(written.error().code, Errc::store_full) << written.error().message;
+      full = true;
+      stored -= 200;
+    }
+  }
+  ASSERT_GT(stored, 10'000u);
+  auto removed = node.remove({.p = ex("q")});
+  ASSERT_TRUE(removed) << removed.error().message;
+  EXPECT_EQ(*removed, stored);
+  EXPECT_EQ(*node.snapshot()->count({.p = ex("q")}), 0u);
+  EXPECT_EQ(*node.snapshot()->count({}), stored);  // the other record of each item stays
+  for (const char* p : {"p0", "p1", "p2"}) ASSERT_TRUE(node.remove({.p = ex(p)}));
+  EXPECT_EQ(*node.snapshot()->count({}), 0u);
+  auto after = agent->store(Item{}.add(ex("x"), ex("y"), Term::integer(1)));
+  EXPECT_TRUE(after) << after.error().message;
+}
+
 // A snapshot held in the writing process keeps the map from growing (LMDB may not remap under
 // an open transaction of the process): the write that needs a larger map fails with an io error
 // that says so, not with store_full (the store is not full), and succeeds once it is released.
@@ -1072,6 +1132,54 @@ TEST(Store, TimeToLiveReclaimsOldRecordsOfThatPredicateOnly) {
   ASSERT_EQ(ttls->size(), 1u);
 }
 
+// 64 persistent records at the head of a TTL predicate's records used up every scan's budget:
+// nothing after them was ever reclaimed. And a TTL of centuries overflowed and reclaimed all.
+TEST(Store, TimeToLiveReachesPastPersistentRecordsAndAVeryLongOneKeepsEverything) {
+  TempDir dir;
+  Node node = make_node(dir.path());
+  auto writer = node.agent("writer");
+  for (int i = 0; i < 70; ++i) {
+    Item kept;
+    kept.persistent = true;
+    kept.add(ex("kept" + std::to_string(i)), ex("ecg"), Term::integer(i));
+    ASSERT_TRUE(writer->store(kept));
+  }
+  for (int i = 0; i < 10; ++i) ASSERT_TRUE(writer->store(Item{}.add(ex("plain" + std::to_string(i)), ex("ecg"), Term::integer(i))));
+  ASSERT_TRUE(node.set_ttl(testing::kEx + std::string("ecg"), std::chrono::nanoseconds::max()));
+  ASSERT_TRUE(node.reclaim());
+  EXPECT_EQ(*node.snapshot()->count(Pattern{.p = ex("ecg")}), 80u) << "a TTL of 292 years reclaimed";
+  ASSERT_TRUE(node.set_ttl(testing::kEx + std::string("ecg"), std::chrono::nanoseconds(1)));
+  ASSERT_TRUE(node.reclaim());
+  EXPECT_EQ(*node.snapshot()->count(Pattern{.p = ex("ecg")}), 70u);  // the persistent ones only
+}
+
+// A watcher further behind than the removal log reaches was given what was left of the log and
+// nothing else: `tahvel tail` printed 65,536 of 100,000 removals without a word.
+TEST(Store, AWatcherBehindTheRemovalLogIsToldWhatItMissed) {
+  TempDir dir;
+  Node node = make_node(dir.path(), {.max_map_bytes = 1 << 20});  // a log of 128 removals
+  auto writer = node.agent("writer");
+  std::vector<Item> items;
+  for (int i = 0; i < 300; ++i) items.push_back(Item{}.add(ex("s" + std::to_string(i)), ex("p"), Term::integer(i)));
+  ASSERT_TRUE(writer->store_all(items));
+  const std::uint64_t bookmark = node.snapshot()->last_seq();
+  ASSERT_EQ(*node.remove({.p = ex("p")}), 300u);
+  auto changes = node.watch(bookmark, 0ms);
+  ASSERT_TRUE(changes);
+  ASSERT_FALSE(changes->empty());
+  const Change& first = changes->front();
+  EXPECT_TRUE(first.removed);
+  EXPECT_NE(first.unreadable.find("removals with sequence numbers " + std::to_string(bookmark + 1) + " to "), std::string::npos)
+      << first.unreadable;
+  std::size_t listed = 0;
+  for (const Change& c : *changes) listed += c.removed && c.unreadable.empty();
+  EXPECT_LT(listed, 300u);
+  // From past the gap on, nothing is said of it again.
+  auto later = node.watch(first.seq, 0ms);
+  ASSERT_TRUE(later);
+  for (const Change& c : *later) EXPECT_TRUE(c.unreadable.empty()) << c.unreadable;
+}
+
 TEST(Store, WatchReturnsInsertionsAndRemovalsAfterBookmark) {
   TempDir dir;
   Node node = make_node(dir.path());
@@ -1319,6 +1427,35 @@ TEST(Store, ASubscriptionForAnAgentOfAnotherNodeRoutesNothingAndKeepsNothingFrom
 
 namespace tahvel::node {
 namespace {
+
+// `remove -o ex:heartRate` took the `tv:object ex:heartRate` record of a subscription on it along
+// with the data: the subscription went on matching any object.
+TEST(Store, ARemovalByPatternLeavesSubscriptionsWholeAndRemovingTheItemEndsOne) {
+  TempDir dir;
+  Node node = make_node(dir.path());
+  auto monitor = node.agent("monitor");
+  auto writer = node.agent("writer");
+  Pattern heart;
+  heart.p = ex("observedProperty");
+  heart.o = ex("heartRate");
+  auto subscription = monitor->subscribe(heart);
+  ASSERT_TRUE(subscription);
+  ASSERT_TRUE(writer->store(Item{}.add(ex("o1"), ex("observedProperty"), ex("heartRate"))));
+  Pattern by_object;
+  by_object.o = ex("heartRate");
+  EXPECT_EQ(*node.remove(by_object), 1u);  // the observation, not the subscription's record
+  ASSERT_TRUE(writer->store(Item{}.add(ex("o2"), ex("observedProperty"), ex("temperature"))));
+  ASSERT_TRUE(writer->store(Item{}.add(ex("o3"), ex("observedProperty"), ex("heartRate"))));
+  std::vector<Term> taken;
+  while (auto d = monitor->take(0ms)) {
+    if (!*d) break;
+    taken.push_back((*d)->records.front().triple.s);
+  }
+  EXPECT_EQ(taken, (std::vector<Term>{ex("o3")}));  // o1 left the buffer with its removal
+  ASSERT_TRUE(node.remove_item(*subscription));
+  ASSERT_TRUE(writer->store(Item{}.add(ex("o4"), ex("observedProperty"), ex("heartRate"))));
+  EXPECT_EQ(*monitor->pending(), 0u);
+}
 
 TEST(Store, SubscribingAgainWithTheSamePatternKeepsOneSubscription) {
   TempDir dir;
