@@ -113,12 +113,14 @@ Result<void> validate(const DetectorOptions& o) {
       !positive(o.relearn_s) || !positive(o.searchback_rr))
     return fail("rpeak: integration_ms, hold_ms, twave_ms, relearn_s, searchback_rr must be > 0");
   if (!(o.threshold_fraction > 0 && o.threshold_fraction < 1) || !(o.searchback_fraction > 0) ||
-      !(o.twave_slope_ratio >= 0) || !(o.min_qrs_mv >= 0) || !(o.empty_gap_fraction >= 0) ||
+      !(o.twave_slope_ratio >= 0) || !(o.min_qrs_mv >= 0) ||
+      !(o.min_qrs_fraction >= 0) || !(o.min_qrs_baseline >= 0) || !(o.empty_gap_fraction >= 0) ||
       !(o.pwave_fraction >= 0) || !std::isfinite(o.pwave_correlation) ||
       !(o.twave_qtc >= 0 && o.twave_qtc <= 1) ||
       !(o.own_pwave_ms >= 0 && o.own_pwave_ms <= 1000))
     return fail("rpeak: threshold_fraction must be in (0,1); searchback_fraction > 0; "
-                "twave_slope_ratio, min_qrs_mv, empty_gap_fraction, pwave_fraction >= 0; "
+                "twave_slope_ratio, min_qrs_mv, min_qrs_fraction, min_qrs_baseline, empty_gap_fraction, "
+                "pwave_fraction >= 0; "
                 "pwave_correlation finite; twave_qtc in [0, 1]; own_pwave_ms in [0, 1000]");
   // The history rings hold 2 s; longer windows would overrun them.
   if (!(o.relearn_s >= 1 && o.relearn_s <= 8))
@@ -157,12 +159,14 @@ class RPeakDetector::Impl {
     std::int64_t beat = 0;     // the point reported for the beat (locate()), set with the hold
     std::int64_t decided = 0;  // sample at which the hold ended
     double balance = 0;        // (R − S) / (R + S) on the original signal, for the polarity
+    double p2p = 0;            // peak-to-peak of the band-passed signal in the QRS window (adu)
     bool baseline_shift = false;  // fails the baseline-shift test (decided with the hold)
   };
 
   void step(std::int32_t x, std::vector<std::int64_t>& out);
   void release_held(std::vector<std::int64_t>& out);
   void on_fpeak(double height, std::int64_t at);
+  void note_ripple(double p2p);
   void on_candidate(const Peak& p, std::vector<std::int64_t>& out);
   void classify(const Peak& p, std::vector<std::int64_t>& out);
   void searchback(std::int64_t now, std::vector<std::int64_t>& out);
@@ -195,6 +199,7 @@ class RPeakDetector::Impl {
   std::optional<Deflections> deflections(std::int64_t qrs, std::int64_t before, std::int64_t after,
                                         const std::vector<double>& signal) const;
   double threshold() const { return noise_med_ + frac_ * (qrs_med_ - noise_med_); }
+  double floor() const;
   // Sample i of one of the rings (bp_, d_, raw_, notched_).
   double at(const std::vector<double>& ring, std::int64_t i) const { return ring[static_cast<std::size_t>(i & mask_)]; }
   double bp(std::int64_t i) const { return at(bp_, i); }
@@ -247,6 +252,15 @@ class RPeakDetector::Impl {
   std::array<std::int64_t, 8> noise_at_{};  // R wave of each noise_ entry (-1: none)
   double qrs_med_ = 0, noise_med_ = 0, rr_med_ = 0;
   std::array<double, 8> second_max_{};  // background per-second maxima (relearning)
+  // The band-passed peak-to-peak of the candidates behind second_max_ and of the last 8 QRS,
+  // whose median scales the floor (floor()); second_p2p_ goes with second_peak_.
+  std::array<double, 8> second_max_p2p_{}, qrs_p2p_{};
+  double qrs_p2p_med_ = 0, second_p2p_ = 0;
+  // The band-passed peak-to-peak of the last 32 local maxima of the integrated slope (all of
+  // them, below the floor too) and its median: the ripple of the lead's baseline (floor()).
+  std::array<double, 32> ripple_{};
+  std::size_t ripple_n_ = 0;
+  double ripple_med_ = 0;
   std::int64_t seconds_ = 0, next_second_ = 0;
   double second_peak_ = 0;
   bool have_qrs_ = false;
@@ -371,6 +385,34 @@ void RPeakDetector::Impl::step(std::int32_t x, std::vector<std::int64_t>& out) {
   ++n_;
 }
 
+// The least band-passed peak-to-peak amplitude of a candidate (DetectorOptions::min_qrs_mv,
+// min_qrs_fraction, min_qrs_baseline): the ripple of the lead's own baseline (the median
+// peak-to-peak of its last 32 local maxima, most of which are neither QRS nor T wave) decides
+// what is too small to be a beat, so the floor scales with the lead. It never exceeds a
+// fraction of the lead's QRS (where most maxima are waves: fast rates, noise), and never
+// falls below an absolute floor under which only amplifier noise lies. While no QRS is known
+// (the learning seconds, or after relearning found nothing) the floor is the absolute one.
+// The floor used to be 0.15 mV: MIT-BIH 101's V1, whose QRS is 0.1-0.3 mV band-passed, then
+// gave 3 beats of 1523, and the whole database at a fifth of its gain 87 % of its beats.
+// A floor in proportion to the QRS alone did not do: MIT-BIH 108's quiet baseline holds
+// bumps of 0.2-0.4 of its QRS (in integrated slope), which then filled the noise median and
+// let its tall P waves through as beats (docs/rpeak.md, step 3).
+double RPeakDetector::Impl::floor() const {
+  return std::max(min_p2p_, std::min(o_.min_qrs_fraction * qrs_p2p_med_,
+                                     o_.min_qrs_baseline * ripple_med_));
+}
+
+// Folds a local maximum's band-passed peak-to-peak into the ripple median (upper median of
+// the last 32, or of those there are). A few a second: the partial sort is nothing per sample.
+void RPeakDetector::Impl::note_ripple(double p2p) {
+  ripple_[ripple_n_++ % ripple_.size()] = p2p;
+  const std::size_t have = std::min(ripple_n_, ripple_.size());
+  std::array<double, 32> sorted = ripple_;
+  const auto mid = sorted.begin() + static_cast<std::ptrdiff_t>(have / 2);
+  std::nth_element(sorted.begin(), mid, sorted.begin() + static_cast<std::ptrdiff_t>(have));
+  ripple_med_ = *mid;
+}
+
 void RPeakDetector::Impl::on_fpeak(double height, std::int64_t at) {
   // The QRS that made this peak of the integrated slope lies in the window before it.
   const std::int64_t lo = std::max<std::int64_t>(0, at - win_ - margin_);
@@ -387,9 +429,11 @@ void RPeakDetector::Impl::on_fpeak(double height, std::int64_t at) {
   // missed QRS often lies there.
   events_[events_n_++ % events_.size()] = {
       std::max<std::int64_t>(0, best_at - std::llround(bp_delay_)), height};
-  if (hi_v - lo_v < min_p2p_) return;  // below the noise floor: never a beat
+  note_ripple(hi_v - lo_v);
+  if (hi_v - lo_v < floor()) return;  // below the floor: never a beat
   Peak p;
   p.height = height;
+  p.p2p = hi_v - lo_v;
   p.max_slope = max_slope;
   p.qrs = std::max<std::int64_t>(0, best_at - std::llround(bp_delay_));
   p.at = fiducial(p.qrs, p.balance);
@@ -522,7 +566,7 @@ void RPeakDetector::Impl::release_held(std::vector<std::int64_t>& out) {
 }
 
 void RPeakDetector::Impl::on_candidate(const Peak& p, std::vector<std::int64_t>& out) {
-  second_peak_ = std::max(second_peak_, p.height);
+  if (p.height > second_peak_) second_peak_ = p.height, second_p2p_ = p.p2p;
   if (!learned_) {
     learning_.push_back(p);
     return;
@@ -548,6 +592,9 @@ bool RPeakDetector::Impl::baseline_shift(std::int64_t at) const {
 void RPeakDetector::Impl::classify(const Peak& p, std::vector<std::int64_t>& out) {
   searchback(p.at, out);
   if (p.baseline_shift) return;
+  // The candidates of the learning seconds passed only the noise floor (no QRS was known
+  // then); from the first classification on, the floor of the learned QRS applies to them.
+  if (p.p2p < floor()) return;
   const bool twave = have_qrs_ && p.at - last_qrs_ < twave_ &&
                      p.max_slope < o_.twave_slope_ratio * last_slope_;
   if (p.height > threshold() && !twave) {
@@ -700,6 +747,8 @@ void RPeakDetector::Impl::accept(const Peak& p, std::vector<std::int64_t>& out) 
   learn_pwave(p.beat);
   shift_in(qrs_, p.height);
   qrs_med_ = median8(qrs_);
+  shift_in(qrs_p2p_, p.p2p);
+  qrs_p2p_med_ = median8(qrs_p2p_);
   if (have_qrs_) {
     shift_in(rr_, static_cast<double>(p.at - last_qrs_));
     rr_med_ = median8(rr_);
@@ -711,6 +760,7 @@ void RPeakDetector::Impl::accept(const Peak& p, std::vector<std::int64_t>& out) 
   have_sb_ = false;
   seconds_ = 0;
   second_peak_ = 0;
+  second_p2p_ = 0;
   if (p.beat > last_out_) {
     out.push_back(p.beat);
     if (gap.empty && empty_gap_out_) empty_gap_out_->push_back(p.beat);
@@ -726,7 +776,9 @@ bool RPeakDetector::Impl::tick(std::int64_t now) {
   if (now < next_second_) return false;
   next_second_ = now + second_;
   second_max_[static_cast<std::size_t>(seconds_)] = second_peak_;
+  second_max_p2p_[static_cast<std::size_t>(seconds_)] = second_p2p_;
   second_peak_ = 0;
+  second_p2p_ = 0;
   if (++seconds_ < relearn_) return false;
   seconds_ = 0;
   learn(relearn_);
@@ -735,8 +787,12 @@ bool RPeakDetector::Impl::tick(std::int64_t now) {
 
 // The thresholds from the per-second maxima of the first `seconds` entries of second_max_.
 void RPeakDetector::Impl::learn(std::int64_t seconds) {
-  for (std::size_t i = 0; i < 8; ++i) qrs_[i] = second_max_[i % static_cast<std::size_t>(seconds)];
+  for (std::size_t i = 0; i < 8; ++i) {
+    qrs_[i] = second_max_[i % static_cast<std::size_t>(seconds)];
+    qrs_p2p_[i] = second_max_p2p_[i % static_cast<std::size_t>(seconds)];
+  }
   qrs_med_ = median8(qrs_);
+  qrs_p2p_med_ = median8(qrs_p2p_);
   noise_.fill(0);
   noise_at_.fill(-1);
   noise_med_ = 0;
@@ -754,7 +810,7 @@ void RPeakDetector::Impl::seed_noise() {
   std::array<double, 8> quiet{};
   std::size_t count = 0;
   for (auto it = learning_.rbegin(); it != learning_.rend() && count < quiet.size(); ++it)
-    if (it->height < qrs_med_ / 2) quiet[count++] = it->height;
+    if (it->height < qrs_med_ / 2 && it->p2p >= floor()) quiet[count++] = it->height;
   if (count == 0) return;
   std::sort(quiet.begin(), quiet.begin() + static_cast<std::ptrdiff_t>(count));
   const double level = (quiet[(count - 1) / 2] + quiet[count / 2]) / 2;
@@ -770,6 +826,7 @@ void RPeakDetector::Impl::finish(std::vector<std::int64_t>& out) {
     // A stream shorter than the learning period (a record of a few seconds): the thresholds
     // come from the seconds it has, and its candidates are classified, not dropped.
     second_max_[static_cast<std::size_t>(seconds_)] = second_peak_;
+    second_max_p2p_[static_cast<std::size_t>(seconds_)] = second_p2p_;
     learn(seconds_ + 1);
     learned_ = true;
     seed_noise();

@@ -189,6 +189,38 @@ TEST(RPeak, EcgsynBeatsAreFoundWithoutExtras) {
   }
 }
 
+// The floor under which a peak is never a beat follows the lead (DetectorOptions::min_qrs_mv,
+// min_qrs_fraction, min_qrs_baseline): the same ECGSYN record read as if its amplitude were a
+// tenth (the detector told ten times the gain: QRS of about 0.1-0.2 mV, as on a V1 lead or a
+// low-voltage ECG) or a quarter gives exactly the beats it gives at its own, and at five times
+// the same beats within a sample (there the ECG's own content near 50 Hz passes the hum
+// switch's level in mV, so the point is located on the notched copy). With the fixed 0.15 mV
+// floor before, the tenth lost most beats.
+TEST(RPeak, SameBeatsFromATenthToFiveTimesTheAmplitude) {
+  SyntheticEcgOptions so;
+  so.fs = 360;
+  so.mean_hr_bpm = 75;
+  so.noise_mv = 0.02;
+  so.baseline_wander_mv = 0.2;
+  so.ectopic_rate = 0.1;
+  auto generator = SyntheticEcg::create(so);
+  ASSERT_TRUE(generator.has_value()) << generator.error().message;
+  std::vector<std::int32_t> x;
+  generator->generate(static_cast<std::size_t>(120 * so.fs), x);
+  const std::vector<std::int64_t> truth = generator->take_beats().samples;
+  DetectorOptions o = options(so.fs);
+  o.gain = so.gain;
+  const std::vector<std::int64_t> normal = detect_r_peaks(x, o);
+  ASSERT_EQ(normal.size(), truth.size());
+  for (double scale : {0.1, 0.25}) {
+    SCOPED_TRACE(scale);
+    o.gain = so.gain / scale;
+    EXPECT_EQ(detect_r_peaks(x, o), normal);
+  }
+  o.gain = so.gain / 5;
+  expect_one_per_beat(detect_r_peaks(x, o), normal, 1);
+}
+
 TEST(RPeak, FlatSignalGivesNoPeaks) {
   for (std::int32_t level : {0, 1024, -300}) {
     const std::vector<std::int32_t> flat(360 * 30, level);

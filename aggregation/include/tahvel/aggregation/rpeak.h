@@ -38,7 +38,7 @@ namespace tahvel::aggregation {
 // record.
 struct DetectorOptions {
   double fs = 360;     // sampling frequency, Hz (> 0; filters are designed for 100–1000 Hz)
-  double gain = 200;   // ADC units per mV (> 0); only scales `min_qrs_mv`
+  double gain = 200;   // ADC units per mV (> 0); scales `min_qrs_mv` and the hum level
 
   // Band-pass of the QRS energy: 2nd-order Butterworth high-pass then low-pass (Hz). The band
   // keeps the QRS (most energy 5–20 Hz) and drops baseline wander, P and T waves (< 5 Hz) and
@@ -63,8 +63,19 @@ struct DetectorOptions {
   // threshold is taken for a missed QRS.
   double searchback_rr = 1.5;
   double searchback_fraction = 0.5;
-  // Peaks whose band-passed amplitude is below this are never beats (flat line, noise floor).
-  double min_qrs_mv = 0.15;
+  // The floor: a peak whose band-passed peak-to-peak amplitude is below it is never a beat.
+  // It follows the lead, so that a small lead (V1, a low-voltage ECG, a wrong gain: QRS of
+  // 0.1-0.5 mV) keeps its beats and a large one does not count its baseline's ripple:
+  //   max(min_qrs_mv, min(min_qrs_fraction × QRS, min_qrs_baseline × ripple))
+  // where QRS is the median peak-to-peak of the last 8 beats and ripple that of the last 32
+  // local maxima of the integrated slope (mostly the baseline's own bumps). min_qrs_mv is the
+  // absolute floor, above amplifier noise (tens of µV rms), under which a flat line or a lead
+  // off gives nothing whatever its gain; it alone applies while no QRS is known (the learning
+  // seconds). On MIT-BIH this scores the same from a fifth to five times the recorded
+  // amplitude (docs/rpeak.md, step 3). The floor was a fixed 0.15 mV (OSEA's) before.
+  double min_qrs_mv = 0.055;
+  double min_qrs_fraction = 0.5;
+  double min_qrs_baseline = 0.9;
   // The first `relearn_s` seconds (whole seconds, 1–8) teach the thresholds (the peaks seen
   // meanwhile are classified afterwards, so the first beats are not lost); after as long
   // without a QRS, the thresholds are relearned from the per-second maxima.
@@ -72,7 +83,7 @@ struct DetectorOptions {
   // Empty-gap evidence for the NN rule (docs/hrv.md, "Confirmed pauses"): a beat is reported
   // as ending a confirmed empty gap when, between the end of the previous beat's T wave
   // (`twave_ms` after it, or later at slow rates: `twave_qtc`) and `hold_ms` before this one,
-  // no local maximum of the integrated slope (counting those below `min_qrs_mv`, which never
+  // no local maximum of the integrated slope (counting those below the floor, which never
   // become candidates) reached this fraction of the median QRS height (a P wave aside:
   // `pwave_fraction`). A long interval whose gap holds nothing QRS-like is a pause (sinus pause, blocked
   // P wave), not a missed beat. 0 disables the evidence. On MIT-BIH the missed beats left
