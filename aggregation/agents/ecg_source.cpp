@@ -72,6 +72,17 @@ agg::Result<Signal> record_signal(const std::string& path) {
   s.info.unit = h.signals[ecg].units;
   if (s.info.gain != h.signals[ecg].gain) s.info.unit = "mV";  // converted from uV or V
   for (std::size_t i : order) s.info.leads.push_back(h.signals[i].description);
+  // Each lead's own calibration: beside the ECG a record may hold blood pressure (10 per mmHg)
+  // or respiration, which the ECG lead's gain made wrong numbers of.
+  for (std::size_t i : order) {
+    const agg::SignalInfo& sig = h.signals[i];
+    agg::RecordingInfo::LeadCalibration c{sig.gain == 0 ? 200 : sig.gain, sig.baseline, sig.units.empty() ? "mV" : sig.units};
+    if (agg::gain_per_mv(sig) != c.gain) {  // uV or V: in mV, as the ECG lead
+      c.gain = agg::gain_per_mv(sig);
+      c.unit = "mV";
+    }
+    s.info.calibration.push_back(c);
+  }
   s.read = [shared, order, in_record = Frames()](std::size_t n, Frames& out) mutable -> agg::Result<std::size_t> {
     in_record.assign(order.size(), {});
     auto got = shared->read(n, in_record);

@@ -6,6 +6,7 @@
 #include <cmath>
 #include <cstdio>
 #include <map>
+#include <sstream>
 #include <system_error>
 
 namespace tahvel::aggregation {
@@ -219,6 +220,12 @@ Item recording_item(const RecordingInfo& info) {
       .add(rec, tv("sampleFormat"), text("int16le interleaved"));
   for (std::size_t i = 0; i < info.leads.size(); ++i)
     item.add(rec, tv("lead"), text(std::to_string(i) + " " + info.leads[i]));
+  // "<lead> <gain> <baseline> <unit>": the gain as exactly as tv:gain.
+  for (std::size_t i = 0; i < info.calibration.size(); ++i) {
+    const auto& c = info.calibration[i];
+    item.add(rec, tv("leadCalibration"),
+             text(std::to_string(i) + " " + exact_decimal(c.gain).value + " " + std::to_string(c.baseline) + " " + c.unit));
+  }
   if (!info.maker.empty()) item.add(rec, tv("sensorMaker"), text(info.maker));
   if (!info.model.empty()) item.add(rec, tv("sensorModel"), text(info.model));
   if (!info.filters.empty()) item.add(rec, tv("filters"), text(info.filters));
@@ -252,6 +259,23 @@ Result<RecordingInfo> read_recording(const std::vector<Record>& records, const s
     if (index) leads[static_cast<long>(*index)] = space == std::string::npos ? "" : t->value.substr(space + 1);
   }
   for (auto& [index, name] : leads) info.leads.push_back(name);
+  std::map<long, RecordingInfo::LeadCalibration> calibrations;
+  for (const Term* t : objects(records, iri, "leadCalibration")) {
+    std::istringstream in(t->value);
+    long index = -1;
+    std::string gain;
+    RecordingInfo::LeadCalibration c;
+    if (!(in >> index >> gain >> c.baseline) || index < 0)
+      return missing(iri, "leadCalibration", ("is not '<lead> <gain> <baseline> <unit>': '" + t->value + "'").c_str());
+    auto g = to_double(gain);
+    if (!g || !(*g > 0)) return missing(iri, "leadCalibration", ("has a gain that is not a positive number: '" + t->value + "'").c_str());
+    c.gain = *g;
+    std::getline(in >> std::ws, c.unit);
+    calibrations[index] = c;
+  }
+  // Only a whole set, one per lead from 0: anything else is read as no calibration of its own.
+  if (!calibrations.empty() && calibrations.rbegin()->first + 1 == static_cast<long>(calibrations.size()))
+    for (auto& [index, c] : calibrations) info.calibration.push_back(c);
   for (const Record& r : records)
     if (r.triple.s.value == iri && r.triple.p.value == kSosa + "madeBySensor") info.sensor_iri = r.triple.o.value;
   if (const Term* t = object(records, iri, "sensorMaker")) info.maker = t->value;

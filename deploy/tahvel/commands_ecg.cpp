@@ -55,8 +55,9 @@ class FrameWriter {
       next_ = sample + 1;
       std::cout << sample << ',';
       if (at) std::cout << *at;
-      for (const auto& lead : chunk.leads) {
-        std::snprintf(value, sizeof value, ",%.6g", (lead[i] - info_.baseline) / info_.gain);
+      for (std::size_t l = 0; l < chunk.leads.size(); ++l) {
+        const auto c = info_.calibration_of(l);
+        std::snprintf(value, sizeof value, ",%.6g", (chunk.leads[l][i] - c.baseline) / c.gain);
         std::cout << value;
       }
       std::cout << '\n';
@@ -111,7 +112,8 @@ const Command kEcgCommand{
     "for the recording's description and its chunks of signal in [--since, --until), decodes\n"
     "them and prints, per frame: its sample number in the recording, its time (ns since the\n"
     "epoch, from the recording's tv:startedAt; empty when the recording does not say it) and\n"
-    "each lead's value, (ADC - baseline) / gain, in the recording's unit (mV). Samples no chunk\n"
+    "each lead's value, (ADC - baseline) / gain, in its unit (tv:leadCalibration per lead; else\n"
+    "the recording's gain, baseline and unit). Samples no chunk\n"
     "holds inside the range (a ring reclaimed them) are named on standard error. Times as\n"
     "'tahvel query' takes them. 'tahvel patients' prints the command for each patient's latest\n"
     "HRV window. Exit status as 'tahvel query' (3 timeout, 4 unknown node, 5 unreachable), and 1\n"

@@ -4,6 +4,7 @@
 #include <gtest/gtest.h>
 
 #include <algorithm>
+#include <fstream>
 #include <cctype>
 #include <chrono>
 #include <cstdlib>
@@ -126,6 +127,36 @@ class EcgSourceTest : public ::testing::Test {
 
   tahvel::test_support::TempDir tmp_{"tahvel-ecg-source"};
 };
+
+// A record whose leads are calibrated apart (blood pressure at 10 per mmHg beside the ECG at 200
+// per mV from 1024): the recording said only the ECG lead's gain, and every lead was read by it.
+TEST_F(EcgSourceTest, EachLeadOfARecordKeepsItsOwnCalibration) {
+  const std::string dir = new_node("calibrated");
+  const fs::path record = tmp_ / "mix";
+  std::ofstream(record.string() + ".hea") << "mix 2 360 720\nmix.dat 16 10(0)/mmHg 16 0 0 0 0 ABP\n"
+                                             "mix.dat 16 200(1024)/mV 16 0 1024 0 0 MLII\n";
+  {
+    std::ofstream dat(record.string() + ".dat", std::ios::binary);
+    for (int f = 0; f < 720; ++f)
+      for (const int v : {900, 1024 + 100}) dat.put(static_cast<char>(v & 0xff)).put(static_cast<char>(v >> 8 & 0xff));
+  }
+  tahvel::test_support::AgentProcess source({std::string(TAHVEL_BIN_DIR) + "/tahvel-ecg-source", dir, "--record", record.string(), "--speed", "0"});
+  ASSERT_EQ(source.wait(std::chrono::seconds(60)), 0);
+  const std::string rec = the_recording(dir);
+  auto node = tn::Node::open(dir);
+  auto about = node->snapshot()->list(tn::Pattern{.s = tn::Term::iri(rec)});
+  ASSERT_TRUE(about);
+  auto info = agg::read_recording(*about, rec);
+  ASSERT_TRUE(info) << info.error().message;
+  ASSERT_EQ(info->leads, (std::vector<std::string>{"MLII", "ABP"}));  // the ECG lead first
+  ASSERT_EQ(info->calibration.size(), 2u);
+  EXPECT_EQ(info->calibration[0].gain, 200);
+  EXPECT_EQ(info->calibration[0].baseline, 1024);
+  EXPECT_EQ(info->calibration[0].unit, "mV");
+  EXPECT_EQ(info->calibration[1].gain, 10);
+  EXPECT_EQ(info->calibration[1].baseline, 0);
+  EXPECT_EQ(info->calibration[1].unit, "mmHg");
+}
 
 TEST_F(EcgSourceTest, ARestartAfterAKillGoesOnAfterTheLastChunkAndWritesEachSecondOnce) {
   const std::string whole = new_node("whole");

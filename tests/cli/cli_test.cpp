@@ -901,7 +901,9 @@ std::string base64(const std::string& bytes) {
 // frames, and its chunks of one second, written as the ECG source writes them
 // (docs/vocabulary.md): each asserted at its first frame's time and spanning a second. The chunk
 // of samples 8-11 is not there (a ring took it); the one of 16-19 has one lead only.
-void store_recording(const std::string& dir, const std::string& rec, std::int64_t t0) {
+// With `second_in_mmhg`, the second lead is blood pressure at 10 ADC units per mmHg from 0, as
+// tv:leadCalibration says (docs/vocabulary.md).
+void store_recording(const std::string& dir, const std::string& rec, std::int64_t t0, bool second_in_mmhg = false) {
   using tahvel::node::Term;
   auto node = tahvel::node::Node::open(dir).value();
   auto source = node.agent("source").value();
@@ -917,6 +919,10 @@ void store_recording(const std::string& dir, const std::string& rec, std::int64_
   description.add(r, Term::iri(tv + "lead"), Term::literal("1 V5"));
   description.add(r, Term::iri(tv + "startedAt"), Term::integer(t0));
   description.add(r, Term::iri(tv + "endSample"), Term::integer(20));  // the recording has ended
+  if (second_in_mmhg) {
+    description.add(r, Term::iri(tv + "leadCalibration"), Term::literal("0 2.0 10 mV"));
+    description.add(r, Term::iri(tv + "leadCalibration"), Term::literal("1 10 0 mmHg"));
+  }
   ASSERT_TRUE(source.store(description));
   auto chunk = [&](int start, const std::vector<std::vector<int>>& leads) {
     std::string bytes;
@@ -982,6 +988,19 @@ TEST_F(Cli, EcgPrintsEachFrameOfTheRangeInMillivoltsAndNamesWhatIsMissing) {
   EXPECT_EQ(unknown.status, 1);
   EXPECT_EQ(unknown.err, "tahvel: ecg: <" + kNodeIri + "> holds no recording <" + rec + "0> (nothing has it as subject)\n");
   EXPECT_EQ(run({"ecg", node_}).status, 2) << "--recording is required";
+}
+
+// A lead calibrated otherwise than the ECG (blood pressure in mmHg at 10 per mmHg from 0) was
+// printed at the ECG lead's gain and baseline: (900 - 1024) / 200 = -0.62 for 90 mmHg.
+TEST_F(Cli, EcgPrintsEachLeadByItsOwnCalibration) {
+  init();
+  const std::string rec = kNodeIri + "/source/recording/r2";
+  const std::int64_t t0 = 1'800'000'000'000'000'000;
+  store_recording(node_, rec, t0, /*second_in_mmhg=*/true);
+  Outcome first = run({"ecg", node_, "--recording", rec, "--until", std::to_string(t0 + 1'000'000'000)});
+  ASSERT_EQ(first.status, 0) << first.err;
+  EXPECT_EQ(first.out, "sample,unix_ns,MLII,V5\n0,1800000000000000000,0,0.8\n1,1800000000250000000,1,1\n"
+                       "2,1800000000500000000,2,1.2\n3,1800000000750000000,3,1.4\n");
 }
 
 // HRV windows and trends as tahvel-hrv and tahvel-trend write them (docs/vocabulary.md), put by

@@ -48,6 +48,19 @@ struct RecordingInfo {
   int baseline = 0;           // ADC units at 0 mV
   std::string unit = "mV";
   std::vector<std::string> leads;  // lead names in sample order ("MLII", "V1")
+  // Per lead, in sample order, its own ADC units per `unit` and zero (tv:leadCalibration): a
+  // record may hold blood pressure in mmHg beside the ECG in mV. Empty (recordings written
+  // before it was kept): every lead at gain, baseline and unit.
+  struct LeadCalibration {
+    double gain = 200;
+    int baseline = 0;
+    std::string unit = "mV";
+  };
+  std::vector<LeadCalibration> calibration;
+  // Lead `lead`'s calibration: its own, or the recording's.
+  LeadCalibration calibration_of(std::size_t lead) const {
+    return lead < calibration.size() ? calibration[lead] : LeadCalibration{gain, baseline, unit};
+  }
   std::string maker, model;   // sensor maker and model
   std::string filters;        // filters applied before digitising, as the source states them
   std::string source;         // where the samples come from ("mitdb/100", "ecgsyn seed 7")
