@@ -166,6 +166,23 @@ TEST_F(BoardTest, ListByRoomSelectsTheRoomItsSensorsAndTheirReadings) {
   EXPECT_EQ(readings, 2u);
 }
 
+// A mote carried from the bedroom into the hall: the hall listed the reading it took in the
+// bedroom, since the plan says only where it stands now. As the environment agent counts it
+// (S12), what it wrote before its place was last stated is in no area.
+TEST_F(BoardTest, AReadingTakenBeforeASensorWasMovedIsNotListedWhereItStandsNow) {
+  reading("mote1", 21.0);
+  EXPECT_EQ(in_area({kBedroom, std::nullopt, std::nullopt}, readings()).size(), 1u);
+  put(located_feature_item(kMote, "POINT(6 1)", 0));  // carried into the hall
+  EXPECT_EQ(in_area({kHall, std::nullopt, std::nullopt}, readings()).size(), 0u);
+  EXPECT_EQ(in_area({kBedroom, std::nullopt, std::nullopt}, readings()).size(), 0u);
+  reading("mote1", 22.0);
+  auto hall = in_area({kHall, std::nullopt, std::nullopt}, readings());
+  ASSERT_EQ(hall.size(), 1u);
+  EXPECT_EQ(hall.front().triple.o.value, std::to_string(22.0));
+  // The mote's own triples (its place) are still listed with it: they are not readings.
+  EXPECT_FALSE(in_area({kHall, std::nullopt, std::nullopt}, node::Pattern{.s = Term::iri(kMote)}).empty());
+}
+
 TEST_F(BoardTest, ListByWktOnEveryFloorOrOne) {
   auto shape = parse_shape("POLYGON((0 0, 2 0, 2 2, 0 2, 0 0))");
   ASSERT_TRUE(shape.has_value());

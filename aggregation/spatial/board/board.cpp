@@ -106,13 +106,14 @@ Result<std::optional<std::string>> latest_wkt(const node::Snapshot& snapshot, co
 // True when `source` is one of `sensors` or lies under one (a sensor that is a node of its own,
 // whose agents write under its IRI): the ancestors of an IRI are its prefixes ending before a
 // '/', '#' or '?', so each is looked up rather than every sensor tested.
-bool from_sensor_in(const std::set<std::string>& sensors, const std::string& source) {
-  if (sensors.count(source)) return true;
+// Returns that sensor, or null.
+const std::string* sensor_of(const std::set<std::string>& sensors, const std::string& source) {
+  if (auto it = sensors.find(source); it != sensors.end()) return &*it;
   for (std::size_t i = source.find_first_of("/#?"); i != std::string::npos; i = source.find_first_of("/#?", i + 1)) {
     auto it = sensors.find(source.substr(0, i));
-    if (it != sensors.end() && uri::is_under(source, *it)) return true;
+    if (it != sensors.end() && uri::is_under(source, *it)) return &*it;
   }
-  return false;
+  return nullptr;
 }
 
 }  // namespace
@@ -251,8 +252,14 @@ Result<std::vector<node::Record>> list_in_area(const node::Snapshot& snapshot,
 
   std::vector<node::Record> matches;
   auto read = snapshot.for_each(pattern, [&](const node::Record& r) {
-    if ((r.triple.s.is_iri() && features.count(r.triple.s.value)) || from_sensor_in(sensors, r.meta.source)) {
+    if (r.triple.s.is_iri() && features.count(r.triple.s.value)) {
       matches.push_back(r);
+    } else if (const std::string* sensor = sensor_of(sensors, r.meta.source)) {
+      // What a sensor wrote before its place was last stated, it wrote standing elsewhere (it
+      // was carried here since): listed in no area, as the environment agent counts it (S12),
+      // or a room would list another room's readings.
+      const auto placed = board->placed_by.find(*sensor);
+      if (placed == board->placed_by.end() || r.meta.id > placed->second) matches.push_back(r);
     }
     return true;
   });
