@@ -1,4 +1,5 @@
 // `tahvel` subcommands that change a whiteboard: init, put, load, remove, subscribe.
+#include <charconv>
 #include <iostream>
 #include <unordered_map>
 
@@ -70,14 +71,30 @@ class Groups {
 std::uint64_t store_in_batches(node::Agent& agent, std::vector<node::Item> items,
                                std::uint64_t batch) {
   std::uint64_t loaded = 0, pending_triples = 0;
+  std::size_t items_before = 0;  // items of the file stored by earlier batches
   std::vector<node::Item> pending;
   auto flush = [&] {
     auto stored = agent.store_all(pending);
     if (!stored) {
-      fail(stored.error().message + " (" + std::to_string(loaded) +
-           " triples were loaded by earlier batches)");
+      // store_all counts items within the batch ("item 101: ..."): named in the file's terms.
+      std::string message = stored.error().message;
+      std::size_t end = 0;
+      if (message.starts_with("item ")) {
+        std::size_t n = 0;
+        auto [at, ec] = std::from_chars(message.data() + 5, message.data() + message.size(), n);
+        end = ec == std::errc() && at < message.data() + message.size() && *at == ':' && n >= 1 && n <= pending.size()
+                  ? static_cast<std::size_t>(at - message.data())
+                  : 0;
+        if (end) {
+          const node::Item& bad = pending[n - 1];
+          message = "item " + std::to_string(items_before + n) + " of the file (subject " +
+                    (bad.triples.empty() ? std::string("-") : bad.triples.front().s.to_ntriples()) + ")" + message.substr(end);
+        }
+      }
+      fail(message + " (" + std::to_string(loaded) + " triples were loaded by earlier batches)");
     }
     loaded += pending_triples;
+    items_before += pending.size();
     pending.clear();
     pending_triples = 0;
   };

@@ -677,6 +677,20 @@ TEST_F(Cli, LoadOrPutOfADirectoryIsAnErrorNamingIt) {
   }
 }
 
+// A literal over the limit in a later batch was "item 101" (its place in that batch) with no
+// word of which subject: item 1001 of the file.
+TEST_F(Cli, LoadNamesAnItemItCannotStoreByItsPlaceInTheFileAndItsSubject) {
+  ASSERT_EQ(run({"init", node_, "--iri", kNodeIri, "--max-literal", "100"}).status, 0);
+  std::string nt;
+  for (int i = 0; i < 1200; ++i)
+    nt += "<" + kEx + "s" + std::to_string(i) + "> <" + kEx + "p> \"" + (i == 1000 ? std::string(200, 'x') : "v") + "\" .\n";
+  spit(tmp_ / "big.nt", nt);
+  Outcome r = run({"load", node_, (tmp_ / "big.nt").string(), "--batch", "100"});
+  EXPECT_EQ(r.status, 1);
+  EXPECT_NE(r.err.find("item 1001 of the file (subject <" + kEx + "s1000>): "), std::string::npos) << r.err;
+  EXPECT_NE(r.err.find("(1000 triples were loaded by earlier batches)"), std::string::npos) << r.err;
+}
+
 TEST_F(Cli, LoadStoresOneItemPerSubjectGroupAndPrintsTheTripleCount) {
   init();
   fs::path file = tmp_ / "data.nt";
