@@ -420,6 +420,9 @@ Result<void> validate_item(const Item& item, const Settings& settings) {
       if (term.language.size() > 255) return fail(Errc::invalid_argument, where(pos) + ": language tag too long");
       if (!term.language.empty() && !term.datatype.empty() && term.datatype != kRdfLangString)
         return fail(Errc::invalid_argument, where(pos) + ": a literal has a language tag or a datatype, not both");
+      // RDF 1.1: rdf:langString is the datatype of the literals with a language tag, and of no other.
+      if (term.language.empty() && term.datatype == kRdfLangString)
+        return fail(Errc::invalid_argument, where(pos) + ": a literal of datatype rdf:langString needs a language tag");
     }
   }
   return {};

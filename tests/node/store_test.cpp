@@ -527,6 +527,20 @@ TEST(Store, LiteralsKeepDatatypeAndLanguage) {
   for (std::size_t i = 0; i < item.triples.size(); ++i) EXPECT_EQ((*records)[i].triple, item.triples[i]);
 }
 
+// RDF 1.1: rdf:langString is the datatype of language-tagged literals only. "x"^^rdf:langString
+// without a tag was stored and dumped, and no RDF tool reads it back.
+TEST(Store, ALangStringWithoutALanguageTagIsRefused) {
+  TempDir dir;
+  Node node = make_node(dir.path());
+  auto agent = node.agent("w");
+  auto stored = agent->store(
+      Item{}.add(ex("a"), ex("label"), Term::literal("x", "http://www.w3.org/1999/02/22-rdf-syntax-ns#langString")));
+  ASSERT_FALSE(stored);
+  EXPECT_EQ(stored.error().code, Errc::invalid_argument);
+  EXPECT_NE(stored.error().message.find("rdf:langString needs a language tag"), std::string::npos) << stored.error().message;
+  EXPECT_TRUE(agent->store(Item{}.add(ex("a"), ex("label"), Term::lang_literal("x", "en"))));
+}
+
 TEST(Store, PatternWithBoundObjectFindsLiteral) {
   TempDir dir;
   Node node = make_node(dir.path());
