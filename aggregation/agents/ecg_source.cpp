@@ -77,7 +77,7 @@ agg::Result<Signal> record_signal(const std::string& path) {
   for (std::size_t i : order) {
     const agg::SignalInfo& sig = h.signals[i];
     agg::RecordingInfo::LeadCalibration c{sig.gain == 0 ? 200 : sig.gain, sig.baseline, sig.units.empty() ? "mV" : sig.units};
-    if (agg::gain_per_mv(sig) != c.gain) {  // uV or V: in mV, as the ECG lead
+    if (agg::gain_per_mv(sig) != c.gain) {  // uV or V: in mV, as the ECG lead (a negative gain kept)
       c.gain = agg::gain_per_mv(sig);
       c.unit = "mV";
     }

@@ -259,22 +259,27 @@ Result<RecordingInfo> read_recording(const std::vector<Record>& records, const s
     if (index) leads[static_cast<long>(*index)] = space == std::string::npos ? "" : t->value.substr(space + 1);
   }
   for (auto& [index, name] : leads) info.leads.push_back(name);
+  // Per-lead calibrations matter to `tahvel ecg` only, not to the agents reading the ECG lead at
+  // tv:gain: a set that is not whole and readable (one per lead from 0, each "<lead> <gain>
+  // <baseline> <unit>" with a gain that is a number other than 0; WFDB allows a negative one)
+  // is read as none, every lead at tv:gain, rather than making the recording unreadable.
   std::map<long, RecordingInfo::LeadCalibration> calibrations;
+  bool readable = true;
   for (const Term* t : objects(records, iri, "leadCalibration")) {
     std::istringstream in(t->value);
     long index = -1;
     std::string gain;
     RecordingInfo::LeadCalibration c;
-    if (!(in >> index >> gain >> c.baseline) || index < 0)
-      return missing(iri, "leadCalibration", ("is not '<lead> <gain> <baseline> <unit>': '" + t->value + "'").c_str());
-    auto g = to_double(gain);
-    if (!g || !(*g > 0)) return missing(iri, "leadCalibration", ("has a gain that is not a positive number: '" + t->value + "'").c_str());
+    auto g = (in >> index >> gain >> c.baseline) ? to_double(gain) : std::nullopt;
+    if (index < 0 || !g || *g == 0 || !std::isfinite(*g) || calibrations.count(index)) {
+      readable = false;
+      break;
+    }
     c.gain = *g;
     std::getline(in >> std::ws, c.unit);
     calibrations[index] = c;
   }
-  // Only a whole set, one per lead from 0: anything else is read as no calibration of its own.
-  if (!calibrations.empty() && calibrations.rbegin()->first + 1 == static_cast<long>(calibrations.size()))
+  if (readable && !calibrations.empty() && calibrations.rbegin()->first + 1 == static_cast<long>(calibrations.size()))
     for (auto& [index, c] : calibrations) info.calibration.push_back(c);
   for (const Record& r : records)
     if (r.triple.s.value == iri && r.triple.p.value == kSosa + "madeBySensor") info.sensor_iri = r.triple.o.value;

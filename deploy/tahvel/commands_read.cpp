@@ -12,6 +12,7 @@
 #include <chrono>
 #include <iostream>
 #include <sstream>
+#include <thread>
 
 #include "commands.h"
 #include "tahvel/spatial/board.h"
@@ -188,19 +189,31 @@ int run_take(const Args& args) {
   // acknowledge it once printed: between the two, another read the same item and printed it too.
   // A take holds the agent's take lock from reading the head again to acknowledging it; the wait
   // for an item happens outside it, so that a waiting take does not hold the others up.
+  // The lock is waited for within --timeout too: a take whose output goes to a slow reader (or
+  // one stopped by Ctrl-Z) holds it, and the others time out rather than hang.
   const std::string lock_path = (std::filesystem::path(args.positional(0)) / (".take-" + id + ".lock")).string();
-  const int lock = ::open(lock_path.c_str(), O_RDWR | O_CREAT | O_CLOEXEC, 0644);
-  if (lock < 0) fail(lock_path + ": " + std::strerror(errno));
+  struct Lock {
+    int fd = -1;
+    ~Lock() {
+      if (fd >= 0) ::close(fd);
+    }
+  } lock{::open(lock_path.c_str(), O_RDWR | O_CREAT | O_CLOEXEC, 0644)};
+  if (lock.fd < 0) fail(lock_path + ": " + std::strerror(errno));
   const auto deadline = std::chrono::steady_clock::now() + timeout;
+  const auto left = [&] {
+    return std::max(milliseconds(0), std::chrono::duration_cast<milliseconds>(deadline - std::chrono::steady_clock::now()));
+  };
   std::optional<node::Delivery> delivery;
   for (;;) {
-    const auto left = std::max(milliseconds(0), std::chrono::duration_cast<milliseconds>(deadline - std::chrono::steady_clock::now()));
-    if (!check(agent.take(left, node::Ack::manual))) return kExitTimeout;
-    while (flock(lock, LOCK_EX) != 0)
-      if (errno != EINTR) fail(lock_path + ": " + std::strerror(errno));
+    if (!check(agent.take(left(), node::Ack::manual))) return kExitTimeout;
+    while (flock(lock.fd, LOCK_EX | LOCK_NB) != 0) {
+      if (errno != EWOULDBLOCK && errno != EINTR) fail(lock_path + ": " + std::strerror(errno));
+      if (left() == milliseconds(0)) return kExitTimeout;
+      std::this_thread::sleep_for(std::chrono::milliseconds(1));
+    }
     delivery = check(agent.take(milliseconds(0), node::Ack::manual));
     if (delivery) break;
-    flock(lock, LOCK_UN);  // another take had it: wait for the next one
+    flock(lock.fd, LOCK_UN);  // another take had it: wait for the next one
   }
   if (delivery->removal) {
     // A removal notice (a link's agents receive them): printed as tail prints removals.
@@ -211,7 +224,6 @@ int run_take(const Args& args) {
   }
   finish_output(std::cout);
   check(agent.ack(delivery->item));
-  ::close(lock);
   return kExitOk;
 }
 

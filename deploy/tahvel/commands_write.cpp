@@ -256,6 +256,10 @@ int run_remove(const Args& args) {
     print_number(check(node.remove_item(args.get_u64("--item", 0), cascade, reach)));
   } else {
     print_number(check(node.remove(pattern, cascade, reach)));
+    // Subscriptions are left whole (R9): `remove -p tv:subscriber` printing 0 said nothing why.
+    if (const std::uint64_t kept = check(check(node.snapshot()).count(pattern)); kept > 0)
+      std::cerr << "tahvel: remove: " << kept << " matching record(s) kept: they belong to subscriptions, which a "
+                << "pattern leaves whole; remove a subscription with --item ID (the id 'subscribe' printed)\n";
   }
   // An area subscription's declaration removed: its expansions (ordinary subscriptions) would
   // route on until a keeper ran, and none runs without 'tahvel up'. They go now.

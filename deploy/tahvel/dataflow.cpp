@@ -25,7 +25,7 @@ struct Shape {
 const std::vector<Shape>& shapes_of(Kind kind) {
   static const std::vector<Shape> shapes[kKinds] = {
       {{kRdfType, kTv + "EcgRecording"}, {kSosa + "madeBySensor", ""}, {kTv + "samplingRate", ""}, {kTv + "gain", ""},
-       {kTv + "baseline", ""}, {kTv + "unit", ""}, {kTv + "sampleFormat", ""}, {kTv + "lead", ""}, {kTv + "sensorMaker", ""},
+       {kTv + "baseline", ""}, {kTv + "unit", ""}, {kTv + "sampleFormat", ""}, {kTv + "lead", ""}, {kTv + "leadCalibration", ""}, {kTv + "sensorMaker", ""},
        {kTv + "sensorModel", ""}, {kTv + "filters", ""}, {kTv + "replayedFrom", ""}, {kTv + "startedAt", ""}},
       {{kRdfType, kTv + "EcgChunk"}, {kTv + "recording", ""}, {kTv + "startSample", ""}, {kTv + "frameCount", ""},
        {kTv + "samples", ""}},

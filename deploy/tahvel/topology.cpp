@@ -169,6 +169,13 @@ std::optional<std::uint32_t> lcm_udp_port(const std::string& url) {
 // so such a file is refused.
 constexpr std::uint32_t kDdsPortBase = 7400, kDdsDomainGain = 250;
 
+// At most `bytes` of `text`, not cutting a UTF-8 character in two (for messages).
+std::string utf8_prefix(const std::string& text, std::size_t bytes) {
+  if (text.size() <= bytes) return text;
+  while (bytes > 0 && (static_cast<unsigned char>(text[bytes]) & 0xC0) == 0x80) --bytes;
+  return text.substr(0, bytes);
+}
+
 node::Result<void> check_lcm_ports_clear_of_dds(const Topology& topo) {
   std::map<std::uint32_t, std::string> dds_domains;  // domain -> a node listening on it
   for (const auto& n : topo.nodes)
@@ -289,7 +296,7 @@ node::Result<Topology> load_topology(const std::filesystem::path& file) {
                             "' is taken by the state directory's own files (logs/, all, .*, supervisor-*, *.making)");
     // The longest name made of an id, supervisor-<id>.apply.lock, must fit a file name (255 bytes).
     if (spec.id.size() > kMaxNodeIdBytes)
-      return node::fail(Errc::invalid_argument, where(*t, file) + ": node id '" + spec.id.substr(0, 40) + "...' is " +
+      return node::fail(Errc::invalid_argument, where(*t, file) + ": node id '" + utf8_prefix(spec.id, 40) + "...' is " +
                                                     std::to_string(spec.id.size()) + " bytes long; at most " +
                                                     std::to_string(kMaxNodeIdBytes) + " are allowed (the state directory names files after it)");
     const std::string what = "node '" + spec.id + "': ";

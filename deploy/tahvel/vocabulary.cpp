@@ -66,6 +66,7 @@ constexpr std::array kTerms = {
     std::string_view("lastSeen"),
     std::string_view("latest"),
     std::string_view("lead"),
+    std::string_view("leadCalibration"),
     std::string_view("lfHf"),
     std::string_view("lfMs2"),
     std::string_view("light"),

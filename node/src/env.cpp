@@ -709,7 +709,6 @@ Result<void> Env::write(const std::function<Result<void>(Txn&)>& body, WriteKind
       if (!counters) return unexpected(counters.error());
       txn.counters = *counters;
       first_seq = counters->next_seq;
-      txn.first_new_id = first_seq;
       if (auto r = body(txn); !r) return r;
       if (auto r = deliver_removals(txn); !r) return r;
       if (auto r = flush_index(txn); !r) return r;

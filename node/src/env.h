@@ -209,10 +209,6 @@ class Env {
   std::unordered_map<std::uint64_t, std::vector<std::uint32_t>> subs_by_context;
   std::uint64_t ttl_gen = ~0ull;
   std::vector<TtlRule> ttl_rules;
-  // Per TTL predicate (term id), the record id its scan starts from: the records before it are
-  // persistent or gone, which stays so (an item's persistence never changes, ids ascend), so a
-  // scan need not pass them again. Written by the writer only (apply_ttl).
-  std::unordered_map<std::uint64_t, std::uint64_t> ttl_scan_from;
   // Agents that receive removal notices (R21, Agent::receive_removals): term ids of their IRIs.
   // Kept in the meta table beside the TTL rules, and reloaded with them (ttl_gen).
   std::vector<std::uint64_t> removal_receivers;  // sorted
@@ -315,7 +311,6 @@ class Txn {
   Env& env() { return env_; }
   MDB_txn* raw() { return txn_; }
   Counters counters;             // loaded before `body`, saved after it
-  std::uint64_t first_new_id = 0;  // the first record id this transaction may hand out
   // The last sequence number this transaction trimmed from the removal log (0: none), kept in
   // `meta` (kRemovalsTrimmedKey) at the end of the transaction: Node::watch tells a reader whose
   // bookmark is older that it missed removals.

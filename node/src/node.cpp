@@ -975,55 +975,58 @@ Result<Snapshot> Node::snapshot() const { return Snapshot::Impl::open(impl_->env
 
 namespace {
 
-// Removes, in one transaction, the records that `collect` names (skipping any already gone,
-// as sub-trees may overlap); returns how many went.
-// Removes what `collect` names in one transaction. When that does not fit a full store (the
+// Removes the records that `collect` names (skipping any already gone, as sub-trees may
+// overlap) in one transaction; returns how many went. When that does not fit a full store (the
 // removal reserve holds one transaction's new pages: a removal of tens of thousands of scattered
-// records touches more), it removes in parts instead, each a transaction of its own that frees
-// pages for the next, halving a part that does not fit, so that a full store can be emptied.
-// What a part removed stays removed if a later one fails.
+// records touches more), it lists what to remove once and removes it in parts, each a
+// transaction of its own that frees pages for the next, halving a part that does not fit, so
+// that a full store can be emptied. The list is taken whole first: collected again per part, a
+// match removed in one part took its sub-tree (cascade) out of the next part's list. What a
+// part removed stays removed if a later one fails.
 Result<std::uint64_t> remove_records(Env& env, Reach reach,
                                      const std::function<Result<std::vector<std::uint64_t>>(Txn&)>& collect) {
   const Removal why = reach == Reach::this_node ? Removal::quiet_removal : Removal::explicit_removal;
   std::uint64_t removed = 0;
-  bool more = false;
-  auto remove_up_to = [&](std::size_t most) {
-    return env.write([&](Txn& txn) -> Result<void> {
-      removed = 0;
-      more = false;
-      auto ids = collect(txn);
-      if (!ids) return unexpected(ids.error());
-      for (std::uint64_t id : *ids) {
-        auto exists = get_record(txn.raw(), txn.env(), id);
-        if (!exists) return unexpected(exists.error());
-        if (!*exists) continue;
-        if (removed == most) {
-          more = true;
-          break;
-        }
-        if (auto d = delete_record(txn, id, why); !d) return d;
-        ++removed;
-      }
-      return {};
-    }, WriteKind::removal);
+  auto remove_ids = [&](Txn& txn, std::span<const std::uint64_t> ids) -> Result<void> {
+    removed = 0;
+    for (std::uint64_t id : ids) {
+      auto exists = get_record(txn.raw(), txn.env(), id);
+      if (!exists) return unexpected(exists.error());
+      if (!*exists) continue;
+      if (auto d = delete_record(txn, id, why); !d) return d;
+      ++removed;
+    }
+    return {};
   };
-  auto written = remove_up_to(std::numeric_limits<std::size_t>::max());
+  auto written = env.write([&](Txn& txn) -> Result<void> {
+    auto ids = collect(txn);
+    if (!ids) return unexpected(ids.error());
+    return remove_ids(txn, *ids);
+  }, WriteKind::removal);
   if (written) return removed;
   if (written.error().code != Errc::store_full) return unexpected(written.error());
+  std::vector<std::uint64_t> ids;
+  auto listed = env.write([&](Txn& txn) -> Result<void> {
+    auto all = collect(txn);
+    if (!all) return unexpected(all.error());
+    ids = std::move(*all);
+    return {};
+  }, WriteKind::removal);
+  if (!listed) return unexpected(listed.error());
   std::uint64_t total = 0;
   std::size_t part = 4096;
-  for (;;) {
-    auto done = remove_up_to(part);
+  for (std::size_t at = 0; at < ids.size();) {
+    const std::span<const std::uint64_t> slice(ids.data() + at, std::min(part, ids.size() - at));
+    auto done = env.write([&](Txn& txn) { return remove_ids(txn, slice); }, WriteKind::removal);
     if (!done) {
-      // An item removed whole by earlier parts is no longer there to name.
-      if (done.error().code == Errc::not_found && total > 0) return total;
       if (done.error().code != Errc::store_full || part == 1) return unexpected(done.error());
       part /= 2;
       continue;
     }
     total += removed;
-    if (!more) return total;
+    at += slice.size();
   }
+  return total;
 }
 
 // The records of an item and, with cascade N, the sub-trees (depth N) of their objects.
@@ -1189,7 +1192,8 @@ Result<std::vector<Change>> Node::watch(std::uint64_t bookmark, std::chrono::mil
       MDB_val tk = val(kRemovalsTrimmedKey), tv;
       if (mdb_get(read.txn, impl_->env->meta, &tk, &tv) == 0 && tv.mv_size == sizeof(std::uint64_t)) {
         const std::uint64_t trimmed = u64(tv);
-        if (trimmed > bookmark) {
+        // From 0 a watcher reads every record as new: it saw none of those removed.
+        if (bookmark != 0 && trimmed > bookmark) {
           Change gap{trimmed, true, {}, {}};
           gap.unreadable = "removals with sequence numbers " + std::to_string(bookmark + 1) + " to " + std::to_string(trimmed) +
                            " left the removal log before they were read (it keeps the latest, R17): records removed "

@@ -19,7 +19,7 @@ namespace tahvel::node::detail {
 namespace {
 
 constexpr std::size_t kTtlScanBudget = 64;  // records examined per rule per write
-constexpr std::size_t kTtlPassBudget = 4096;  // persistent records passed for good, per rule per write
+constexpr std::size_t kTtlPassBudget = 4096;  // persistent or waiting records passed, per rule per write
 
 const char* position_name(int i) { return i == 0 ? "subject" : i == 1 ? "predicate" : "object"; }
 
@@ -276,8 +276,14 @@ Result<std::uint64_t> apply_ttl(Txn& txn, const std::vector<TtlRule>& rules) {
     int rc = mdb_cursor_open(txn.raw(), txn.env().idx_p, &cursor);
     if (rc != 0) return lmdb_fail(rc, "opening the predicate index");
     // Persistent records of the predicate are never reclaimed: 64 of them at its head held every
-    // later record back for good, each scan stopping at the budget. The scan starts past them.
-    std::uint64_t& scan_from = txn.env().ttl_scan_from[rule.predicate];
+    // later record back for good, each scan stopping at the budget. The scan starts past them,
+    // where the store notes it (meta "ttl_from:<predicate id>": in the transaction, so an abort
+    // forgets it with the records, and every process starts there).
+    const std::string from_key = "ttl_from:" + std::to_string(rule.predicate);
+    MDB_val fk = val(from_key), fv;
+    std::uint64_t scan_from = 0;
+    if (mdb_get(txn.raw(), txn.env().meta, &fk, &fv) == 0 && fv.mv_size == sizeof scan_from) scan_from = u64(fv);
+    const std::uint64_t noted = scan_from;
     bool at_head = true;  // only persistent (or gone) records so far
     MDB_val k = val(rule.predicate), v = val(scan_from);
     std::size_t examined = 0, passed = 0;
@@ -285,26 +291,36 @@ Result<std::uint64_t> apply_ttl(Txn& txn, const std::vector<TtlRule>& rules) {
          rc = mdb_cursor_get(cursor, &k, &v, MDB_NEXT_DUP)) {
       std::uint64_t id = u64(v);
       auto row = get_record(txn.raw(), txn.env(), id);
-      if (!row || !*row) continue;
-      auto item = get_item(txn.raw(), txn.env(), (*row)->item);
-      if (!item || !*item) continue;
+      auto item = row && *row ? get_item(txn.raw(), txn.env(), (*row)->item) : Result<std::optional<ItemRow>>(std::nullopt);
+      if (!item || !*item) {
+        ++examined;  // unreadable: each costs the budget, or a damaged index made the scan unbounded
+        continue;
+      }
       const ItemRow& it = **item;
-      // Only committed records: an abort hands this transaction's ids out again.
-      if (at_head && it.persistent && id < txn.first_new_id) {
-        scan_from = id + 1;
+      if (it.persistent) {
+        if (at_head) scan_from = id + 1;
         ++passed;
         continue;
       }
       at_head = false;
-      ++examined;
       // ids ascend with time: the rest is younger. Saturating: a TTL of centuries (or
       // nanoseconds::max, "for ever") overflowed and reclaimed everything at once.
       std::int64_t expires = 0;
       if (__builtin_add_overflow(it.stored_at, rule.ttl_ns, &expires) || expires > now) break;
-      if (it.persistent || it.pending > 0) continue;
+      // Waiting in an input buffer: reclaimable once taken, so passed, not examined (64 in a
+      // slow subscriber's buffer held the rest back as the persistent ones did).
+      if (it.pending > 0) {
+        ++passed;
+        continue;
+      }
+      ++examined;
       expired.push_back(id);
     }
     mdb_cursor_close(cursor);
+    if (scan_from != noted) {
+      MDB_val nv = val(scan_from);
+      if (int put = mdb_put(txn.raw(), txn.env().meta, &fk, &nv, 0); put != 0) return lmdb_fail(put, "noting where a time-to-live scan starts");
+    }
     for (std::uint64_t id : expired) {
       if (auto d = delete_record(txn, id, Removal::retention); !d) return unexpected(d.error());
       ++removed;

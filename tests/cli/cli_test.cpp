@@ -372,6 +372,43 @@ TEST_F(Cli, TakesOfOneAgentAtOnceEachGetADifferentItem) {
   for (const auto& [line, times] : taken) EXPECT_EQ(times, 1) << line;
 }
 
+// While another take holds the agent's take lock (printing the head to a slow reader), a take
+// neither prints that item nor waits past its --timeout.
+TEST_F(Cli, ATakeWhileAnotherHoldsTheAgentsItemTimesOutAndLeavesTheItem) {
+  init();
+  ASSERT_EQ(run({"subscribe", node_, "--agent", "pool", "-p", "sosa:observedProperty"}).status, 0);
+  put(kObservation);
+  const std::string lock_path = node_ + "/.take-pool.lock";
+  const int held = ::open(lock_path.c_str(), O_RDWR | O_CREAT | O_CLOEXEC, 0644);
+  ASSERT_GE(held, 0);
+  ASSERT_EQ(flock(held, LOCK_EX), 0);
+  const auto start = std::chrono::steady_clock::now();
+  Outcome waiting = run({"take", node_, "--agent", "pool", "--timeout", "300"});
+  const auto waited = std::chrono::steady_clock::now() - start;
+  EXPECT_EQ(waiting.status, 3) << waiting.err;
+  EXPECT_EQ(waiting.out, "");
+  EXPECT_LT(waited, std::chrono::seconds(20)) << "it waited for the lock past its timeout";
+  ::close(held);
+  Outcome taken = run({"take", node_, "--agent", "pool"});
+  EXPECT_EQ(taken.status, 0) << taken.err;
+  EXPECT_EQ(lines_of(taken.out).size(), 3u) << taken.out;
+}
+
+// A removal by pattern leaves subscriptions whole and says so: `remove -o ex:heartRate` took the
+// subscription's `tv:object ex:heartRate`, and it then matched any object.
+TEST_F(Cli, RemoveByPatternKeepsSubscriptionsAndSaysSo) {
+  init();
+  Outcome s = run({"subscribe", node_, "--agent", "monitor", "-p", "sosa:observedProperty", "-o", "ex:heartRate", "--prefix", "ex=" + kEx});
+  ASSERT_EQ(s.status, 0) << s.err;
+  put(kObservation);
+  Outcome removed = run({"remove", node_, "-o", "ex:heartRate", "--prefix", "ex=" + kEx});
+  ASSERT_EQ(removed.status, 0) << removed.err;
+  EXPECT_EQ(removed.out, "1\n");
+  EXPECT_NE(removed.err.find("1 matching record(s) kept: they belong to subscriptions"), std::string::npos) << removed.err;
+  Outcome gone = run({"remove", node_, "--item", s.out.substr(0, s.out.size() - 1)});
+  EXPECT_EQ(gone.status, 0) << gone.err;
+}
+
 TEST_F(Cli, SubscribeEarlierBringsWhatIsAlreadyOnTheBoardAndRefusesAnArea) {
   init();
   put(kObservation);

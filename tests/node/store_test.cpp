@@ -750,6 +750,33 @@ TEST(Store, AFullStoreIsEmptiedByOneLargeRemovalByPattern) {
   EXPECT_TRUE(after) << after.error().message;
 }
 
+// The same with --cascade: each part removed matches whose sub-trees a list collected again
+// per part no longer reached, and those stayed behind.
+TEST(Store, AFullStoreRemovalInPartsTakesEachMatchsSubTreeToo) {
+  TempDir dir;
+  Node node = make_node(dir.path(), {.max_map_bytes = 8 << 20});
+  auto agent = node.agent("w");
+  std::uint64_t stored = 0;
+  for (bool full = false; !full;) {
+    std::vector<Item> batch;
+    for (int j = 0; j < 200; ++j, ++stored) {
+      const std::string n = std::to_string(stored);
+      batch.push_back(Item{}.add(ex("s" + n), ex("has"), ex("o" + n)).add(ex("o" + n), ex("v"), Term::literal("value " + n)));
+    }
+    auto written = agent->store_all(batch);
+    if (!written) {
+      ASSERT_EQ(written.error().code, Errc::store_full) << written.error().message;
+      full = true;
+      stored -= 200;
+    }
+  }
+  ASSERT_GT(stored, 5'000u);
+  auto removed = node.remove({.p = ex("has")}, /*cascade=*/1);
+  ASSERT_TRUE(removed) << removed.error().message;
+  EXPECT_EQ(*removed, 2 * stored);
+  EXPECT_EQ(*node.snapshot()->count({}), 0u);
+}
+
 // A snapshot held in the writing process keeps the map from growing (LMDB may not remap under
 // an open transaction of the process): the write that needs a larger map fails with an io error
 // that says so, not with store_full (the store is not full), and succeeds once it is released.
@@ -1165,6 +1192,27 @@ TEST(Store, TimeToLiveReachesPastPersistentRecordsAndAVeryLongOneKeepsEverything
   ASSERT_TRUE(node.set_ttl(testing::kEx + std::string("ecg"), std::chrono::nanoseconds(1)));
   ASSERT_TRUE(node.reclaim());
   EXPECT_EQ(*node.snapshot()->count(Pattern{.p = ex("ecg")}), 70u);  // the persistent ones only
+}
+
+// The same for 70 items waiting in a subscriber's buffer at the head: the later records no buffer
+// holds are reclaimed, and the waiting ones once taken.
+TEST(Store, TimeToLiveReachesPastItemsWaitingInABuffer) {
+  TempDir dir;
+  Node node = make_node(dir.path());
+  auto reader = node.agent("reader");
+  auto writer = node.agent("writer");
+  auto other = node.agent("other");
+  ASSERT_TRUE(reader->subscribe(Pattern{.p = ex("ecg"), .source = writer->iri()}));
+  for (int i = 0; i < 70; ++i) ASSERT_TRUE(writer->store(Item{}.add(ex("held" + std::to_string(i)), ex("ecg"), Term::integer(i))));
+  for (int i = 0; i < 10; ++i) ASSERT_TRUE(other->store(Item{}.add(ex("free" + std::to_string(i)), ex("ecg"), Term::integer(i))));
+  ASSERT_TRUE(node.set_ttl(testing::kEx + std::string("ecg"), std::chrono::nanoseconds(1)));
+  ASSERT_TRUE(node.reclaim());
+  EXPECT_EQ(*node.snapshot()->count(Pattern{.p = ex("ecg")}), 70u);  // the waiting ones only
+  while (auto d = reader->take(0ms)) {
+    if (!*d) break;
+  }
+  for (int pass = 0; pass < 2; ++pass) ASSERT_TRUE(node.reclaim());  // 64 examined per pass
+  EXPECT_EQ(*node.snapshot()->count(Pattern{.p = ex("ecg")}), 0u);
 }
 
 // A watcher further behind than the removal log reaches was given what was left of the log and

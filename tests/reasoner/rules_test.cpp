@@ -619,6 +619,22 @@ TEST(Rules, AHeadVariableThatIsBindsOnceTheCallersAreKnownIsNotDemanded) {
                          tr::Atom{kNs + "x", {n("p2"), tn::Term::integer(60)}}}));
 }
 
+// `=` between two head variables: the leftmost comes from the callers and the other follows.
+// Both were demanded, and the call id(A, Y), which leaves Y to the rule, was refused, as was
+// Prolog's `f(N, F) :- N < 2, F = N.`
+TEST(Rules, AHeadVariableThatEqualsOneFromTheCallersIsNotDemanded) {
+  auto program = parse("id(X, Y) :- Y = X.\nr(P, Y) :- age(P, A), id(A, Y).\n"
+                       "f(N, F) :- N < 2, F = N.\nf(N, big) :- N >= 2.\ns(P, F) :- age(P, A), f(A, F).\n");
+  ASSERT_TRUE(program);
+  tr::Engine engine(program);
+  auto u = engine.apply(triples({tl("p1", "age", tn::Term::integer(40)), tl("p2", "age", tn::Term::integer(1))}), {}, 0);
+  std::set<std::string> got;
+  for (const auto& a : u.added)
+    if (a.predicate == kNs + "r" || a.predicate == kNs + "s") got.insert(a.to_string());
+  EXPECT_EQ(got, strings({tr::Atom{kNs + "r", {n("p1"), tn::Term::integer(40)}}, tr::Atom{kNs + "r", {n("p2"), tn::Term::integer(1)}},
+                          tr::Atom{kNs + "s", {n("p1"), n("big")}}, tr::Atom{kNs + "s", {n("p2"), tn::Term::integer(1)}}}));
+}
+
 // A parser that recurses per level must stop at a bound, with the position, before the stack
 // does: parentheses, signs and long sums or products (the tree is as deep as the sum is long).
 TEST(Rules, DeeplyNestedExpressionsAreAnErrorWithAPosition) {

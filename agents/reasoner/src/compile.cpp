@@ -326,9 +326,9 @@ struct Demand {
 };
 
 // Head argument positions a rule needs from its callers (RS8): those of the head variables that
-// no body literal binds; then, if the body with those known still leaves head variables unbound
-// (both sides of X = Y), theirs too. A variable that a literal binds once the callers' are known
-// (L in `limit(A, L) :- L is 130 - A.`) is not one.
+// no body literal binds; then, while the body with those known still leaves head variables
+// unbound (both sides of X = Y), the leftmost of them. A variable that a literal binds once the
+// callers' are known (L in `limit(A, L) :- L is 130 - A.`, Y in `id(X, Y) :- Y = X.`) is not one.
 std::vector<std::uint32_t> demand_positions(const Rule& rule) {
   VarSet bindable(rule.vars, false);
   for (const Literal& l : rule.body) {
@@ -344,14 +344,22 @@ std::vector<std::uint32_t> demand_positions(const Rule& rule) {
     positions.push_back(static_cast<std::uint32_t>(i));
     from_callers[a.index] = true;
   }
-  const VarSet bound = reachable_bindings(rule, rule.body.size(), from_callers);
-  for (std::size_t i = 0; i < rule.head_args.size(); ++i) {
-    const Arg& a = rule.head_args[i];
-    const auto at = static_cast<std::uint32_t>(i);
-    if (a.is_var && !bound[a.index] && std::find(positions.begin(), positions.end(), at) == positions.end())
-      positions.push_back(at);
+  // One at a time, leftmost first: `id(X, Y) :- Y = X.` needs X from its callers, and then Y
+  // follows. Taking every head variable still unbound at once demanded Y too, and refused the
+  // call id(A, Y) that leaves Y to the rule, as Prolog's `fib(N, F) :- N < 2, F = N.` does.
+  for (;;) {
+    const VarSet bound = reachable_bindings(rule, rule.body.size(), from_callers);
+    std::optional<std::uint32_t> next;
+    for (std::size_t i = 0; i < rule.head_args.size() && !next; ++i) {
+      const Arg& a = rule.head_args[i];
+      if (a.is_var && !bound[a.index]) next = static_cast<std::uint32_t>(i);
+    }
+    if (!next) break;
+    positions.push_back(*next);
+    from_callers[rule.head_args[*next].index] = true;
   }
   std::sort(positions.begin(), positions.end());
+  positions.erase(std::unique(positions.begin(), positions.end()), positions.end());
   return positions;
 }
 

@@ -844,16 +844,16 @@ void RuleRun<E>::step_literal(std::size_t k) {
       Value v = eval(l.rhs);
       if (v.kind == Value::none) return;
       Id target = arg(l.lhs.leaf);
-      const Id result = e_.dict.intern(term_of(v));
       // Bound or not, the target must be the very term the expression gives: an unbound one is
       // bound to it and later joins compare terms, so comparing values here (5 with 5.0, or a
       // time written in another zone) made what a rule derives depend on which of its atoms
-      // came first — a session's order, not the rule.
+      // came first — a session's order, not the rule. (A term the dictionary lacks is no bound
+      // target's: looked up, not added, or each session's `now` arithmetic would grow it.)
       if (target) {
-        if (target == result) step(k + 1);
+        if (target == e_.dict.find(term_of(v))) step(k + 1);
         return;
       }
-      bind_[l.lhs.leaf.index] = result;
+      bind_[l.lhs.leaf.index] = e_.dict.intern(term_of(v));
       step(k + 1);
       bind_[l.lhs.leaf.index] = 0;
       return;

@@ -428,8 +428,13 @@ class Node {
 
   Result<Snapshot> snapshot() const;
 
+  // Removals are one transaction each, bar one case: a removal too large for a full store's
+  // removal reserve is done in parts (each a transaction; what was listed at the start is
+  // removed; parts done stay done if a later one fails), so that a full store can be emptied.
+
   // Removes the records matching `pattern` and, with cascade N, their sub-trees (as in
-  // ListOptions). A pattern with nothing bound is refused (invalid_argument). Items waiting in
+  // ListOptions). A pattern with nothing bound is refused (invalid_argument). Records of
+  // subscription items (R9) are left: remove a subscription by its item. Items waiting in
   // input buffers are removed from them too. Returns the number of records removed. By default
   // the removal follows the copies this node's link sent up or down (Reach).
   Result<std::uint64_t> remove(const Pattern& pattern, unsigned cascade = 0, Reach reach = Reach::copies_too);
@@ -437,13 +442,16 @@ class Node {
   // Removes every record of an item, and with cascade N their sub-trees. Error not_found.
   Result<std::uint64_t> remove_item(std::uint64_t item_id, unsigned cascade = 0, Reach reach = Reach::copies_too);
 
-  // Removes every record of each item of `item_ids` in one transaction (one commit: one sync on
-  // a durable store, where remove_item per item syncs each); items already gone are skipped.
-  // Returns the number of records removed.
+  // Removes every record of each item of `item_ids` together (one commit: one sync on a durable
+  // store, where remove_item per item syncs each); items already gone are skipped. Returns the
+  // number of records removed.
   Result<std::uint64_t> remove_items(const std::vector<std::uint64_t>& item_ids, Reach reach = Reach::copies_too);
 
   // Changes after `bookmark` (a seq), oldest first, at most `limit` (0: no limit). Waits up to
-  // `timeout` for the first one when there is none yet; an empty vector means timeout.
+  // `timeout` for the first one when there is none yet; an empty vector means timeout. Removals
+  // after a non-zero bookmark that already left the removal log (it keeps the latest, R17) come
+  // as one change: removed, seq = the last trimmed, `unreadable` naming the range (read the
+  // board again).
   Result<std::vector<Change>> watch(std::uint64_t bookmark, std::chrono::milliseconds timeout,
                                     std::size_t limit = 0) const;
 
