@@ -795,18 +795,19 @@ TEST(AgentPrograms, AnHrvWindowOrStepTooShortForHrvIsRefusedWithTheBoundsAndTheA
     EXPECT_NE(problem().find("must be a number of seconds in [1, 86400]"), std::string::npos) << problem();
     EXPECT_EQ(agent.stop(), 0) << "the agent did not run on";
   }
-  std::ifstream in(log);
-  std::ostringstream text;
-  text << in.rdbuf();
-  EXPECT_NE(text.str().find("windowSeconds '0.5'"), std::string::npos) << text.str();
+  const auto text_of = [](const std::string& path) {
+    std::ifstream in(path);
+    std::ostringstream text;
+    text << in.rdbuf();
+    return text.str();
+  };
+  EXPECT_NE(text_of(log).find("windowSeconds '0.5'"), std::string::npos) << text_of(log);
   // The same bounds on its command line.
   Process flag({bin("tahvel-hrv"), scratch.dir, "--window", "5"}, scratch.tmp + "/flag.log");
   ASSERT_TRUE(within_a_minute([&] { return flag.poll() >= 0; })) << "--window 5 was taken";
   EXPECT_NE(flag.poll(), 0);
-  std::ifstream said(scratch.tmp + "/flag.log");
-  std::ostringstream flag_text;
-  flag_text << said.rdbuf();
-  EXPECT_NE(flag_text.str().find("--window: must be a number of seconds in [10, 86400]"), std::string::npos) << flag_text.str();
+  const std::string said = text_of(scratch.tmp + "/flag.log");
+  EXPECT_NE(said.find("--window: must be a number of seconds in [10, 86400]"), std::string::npos) << said;
 }
 
 // A recording whose chunks tahvel-rpeak cannot use gives no HRV anywhere: the agent says why on

@@ -716,6 +716,20 @@ TEST(Store, AFullStoreCanAlwaysBeEmptiedAndDataNeverTakesTheRemovalsReserve) {
                      << node.stats()->used_bytes << ")";
 }
 
+// Stores item_of(0), item_of(1), ... in transactions of 200 until the store is full; returns how
+// many were stored (0 after a failure other than store_full).
+std::uint64_t fill_until_full(Agent& agent, const std::function<Item(std::uint64_t)>& item_of) {
+  for (std::uint64_t stored = 0;; stored += 200) {
+    std::vector<Item> batch;
+    for (std::uint64_t n = stored; n < stored + 200; ++n) batch.push_back(item_of(n));
+    auto written = agent.store_all(batch);
+    if (!written) {
+      EXPECT_EQ(written.error().code, Errc::store_full) << written.error().message;
+      return written.error().code == Errc::store_full ? stored : 0;
+    }
+  }
+}
+
 // One pattern naming tens of thousands of scattered records touches more pages in one
 // transaction than the removal reserve holds: `remove -p` of a full store failed with store_full
 // however often it was tried. It goes in parts now, and the store takes data again.
@@ -724,20 +738,10 @@ TEST(Store, AFullStoreIsEmptiedByOneLargeRemovalByPattern) {
   constexpr std::uint64_t kMax = 8 << 20;
   Node node = make_node(dir.path(), {.max_map_bytes = kMax});
   auto agent = node.agent("w");
-  std::uint64_t stored = 0;
-  for (bool full = false; !full;) {
-    std::vector<Item> batch;
-    for (int j = 0; j < 200; ++j, ++stored)
-      batch.push_back(Item{}
-                          .add(ex("s" + std::to_string(stored)), ex("p" + std::to_string(stored % 3)), Term::literal("v" + std::to_string(stored)))
-                          .add(ex("s" + std::to_string(stored)), ex("q"), Term::integer(static_cast<std::int64_t>(stored))));
-    auto written = agent->store_all(batch);
-    if (!written) {
-      ASSERT_EQ(written.error().code, Errc::store_full) << written.error().message;
-      full = true;
-      stored -= 200;
-    }
-  }
+  const std::uint64_t stored = fill_until_full(*agent, [](std::uint64_t n) {
+    const std::string i = std::to_string(n);
+    return Item{}.add(ex("s" + i), ex("p" + std::to_string(n % 3)), Term::literal("v" + i)).add(ex("s" + i), ex("q"), Term::integer(static_cast<std::int64_t>(n)));
+  });
   ASSERT_GT(stored, 10'000u);
   auto removed = node.remove({.p = ex("q")});
   ASSERT_TRUE(removed) << removed.error().message;
@@ -756,20 +760,10 @@ TEST(Store, AFullStoreRemovalInPartsTakesEachMatchsSubTreeToo) {
   TempDir dir;
   Node node = make_node(dir.path(), {.max_map_bytes = 8 << 20});
   auto agent = node.agent("w");
-  std::uint64_t stored = 0;
-  for (bool full = false; !full;) {
-    std::vector<Item> batch;
-    for (int j = 0; j < 200; ++j, ++stored) {
-      const std::string n = std::to_string(stored);
-      batch.push_back(Item{}.add(ex("s" + n), ex("has"), ex("o" + n)).add(ex("o" + n), ex("v"), Term::literal("value " + n)));
-    }
-    auto written = agent->store_all(batch);
-    if (!written) {
-      ASSERT_EQ(written.error().code, Errc::store_full) << written.error().message;
-      full = true;
-      stored -= 200;
-    }
-  }
+  const std::uint64_t stored = fill_until_full(*agent, [](std::uint64_t n) {
+    const std::string i = std::to_string(n);
+    return Item{}.add(ex("s" + i), ex("has"), ex("o" + i)).add(ex("o" + i), ex("v"), Term::literal("value " + i));
+  });
   ASSERT_GT(stored, 5'000u);
   auto removed = node.remove({.p = ex("has")}, /*cascade=*/1);
   ASSERT_TRUE(removed) << removed.error().message;
