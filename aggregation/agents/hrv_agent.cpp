@@ -182,7 +182,7 @@ class HrvStage {
     for (const auto& records : *written)
       if (auto window = agg::read_hrv_window(records); window && (!last_written || window->window.end_s > last_written->end_s))
         last_written = window->window;
-    if (last_written) s.windower.resume_after(last_written->end_s, last_written->end_s - last_written->start_s);
+    if (last_written) s.windower.resume_after(last_written->end_s, last_written->length_s);
     if (earlier.empty()) return rt::Outcome::ok();
     for (const auto& [start, rr] : earlier)
       if (auto o = process(s, rr, true); o.fatal) return o;

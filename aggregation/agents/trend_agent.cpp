@@ -13,6 +13,7 @@
 // (Re)start: reads every HRV window on the board and writes the trend items that are missing.
 // A window it cannot read is logged and skipped, and is the agent's problem on the board while
 // the windows of its writer are (docs/agents.md).
+#include <cmath>
 #include <cstring>
 #include <iostream>
 #include <map>
@@ -52,6 +53,14 @@ std::int64_t asserted_at(const std::vector<tn::Record>& records, const std::stri
 
 // A recording's windows by start time.
 using Series = std::map<double, Window>;
+
+// Windows of one length are one series: SDNN and the spectrum grow with the window, so after a
+// length change (tv:windowSeconds from the hospital) the longer windows are not judged by the
+// shorter ones' baseline, nor one patient's against others' of another length. Lengths are
+// written to the microsecond; a millisecond apart is another setting.
+bool same_length(const agg::WindowMetrics& a, const agg::WindowMetrics& b) {
+  return std::abs(a.length_s - b.length_s) < 1e-3;
+}
 
 class TrendStage {
  public:
@@ -98,7 +107,8 @@ class TrendStage {
     return std::move(*w);
   }
 
-  // The trend items of the window starting at `start` of `recording`, over the windows up to it.
+  // The trend items of the window starting at `start` of `recording`, over the windows of its
+  // length up to it.
   rt::Outcome write_updates(const std::string& recording, double start, bool catching_up) {
     const Series& series = recordings_.at(recording);
     const Window& window = series.at(start);
@@ -106,7 +116,7 @@ class TrendStage {
     std::vector<agg::WindowMetrics> upto;
     for (const auto& [s, w] : series) {
       if (s > start) break;
-      upto.push_back(w.metrics);
+      if (same_length(w.metrics, window.metrics)) upto.push_back(w.metrics);
     }
     for (agg::HrvMetric metric : metrics_) {
       const std::string iri = agg::trend_iri(recording, metric, start);
@@ -131,14 +141,15 @@ class TrendStage {
       u.alert = window_has_it && summary.alerting;
       if (u.alert && !summary.alerts.empty()) u.alert_direction = summary.alerts.back().direction;
       // Across patients: only for the recording's latest window (the others' latest values are
-      // those known now) and when this window has the metric itself.
+      // those known now) and when this window has the metric itself; another recording counts
+      // when its latest window with the metric is of this window's length.
       if (latest && window_has_it) {
         std::vector<double> others;
         for (const auto& [other, other_series] : recordings_) {
           if (other == recording) continue;
           for (auto it = other_series.rbegin(); it != other_series.rend(); ++it)
             if (auto v = agg::metric_value(it->second.metrics.metrics, metric)) {
-              others.push_back(*v);
+              if (same_length(it->second.metrics, window.metrics)) others.push_back(*v);
               break;
             }
         }

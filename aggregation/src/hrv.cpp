@@ -246,7 +246,7 @@ std::vector<WindowMetrics> windowed_hrv(const std::vector<Interval>& intervals, 
       if (t >= end) break;
       in.push_back(intervals[i]);
     }
-    out.push_back({start, ended_by_record(start, end, record_end_s), compute_hrv(in, fs, o)});
+    out.push_back({start, ended_by_record(start, end, record_end_s), compute_hrv(in, fs, o), end - start});
   }
   return out;
 }
@@ -280,7 +280,7 @@ void HrvWindower::emit_front(std::vector<WindowMetrics>& completed, std::optiona
     if (t >= end) break;
     if (t >= start) in.push_back(iv);
   }
-  completed.push_back({start, ended_by_record(start, end, record_end_s), compute_hrv(in, fs_, options_)});
+  completed.push_back({start, ended_by_record(start, end, record_end_s), compute_hrv(in, fs_, options_), end - start});
   ++next_;
   const double next_start = origin_s_ + static_cast<double>(next_) * step_s_;
   while (!buffer_.empty() && static_cast<double>(buffer_.front().end) / fs_ < next_start) buffer_.pop_front();

@@ -501,6 +501,7 @@ Item hrv_window_item(const RecordingInfo& info, const WindowMetrics& window,
       .add(obs, Term::iri("http://www.w3.org/ns/prov#wasAttributedTo"), Term::iri(agent_iri))
       .add(obs, tv("windowStartS"), seconds_decimal(window.start_s))
       .add(obs, tv("windowEndS"), seconds_decimal(window.end_s));
+  if (window.length_s > 0) item.add(obs, tv("windowLengthS"), seconds_decimal(window.length_s));
   for (const std::string& iri : from) item.add(obs, derived_from(), Term::iri(iri));
   const HrvMetrics& m = window.metrics;
   const std::pair<const char*, const std::optional<double>*> results[] = {
@@ -590,6 +591,10 @@ Result<HrvWindowItem> read_hrv_window(const std::vector<Record>& records) {
   if (!end) return unexpected(end.error());
   w.window.start_s = *start;
   w.window.end_s = *end;
+  // Windows written before tv:windowLengthS: their length, cut short by the record's end or not.
+  auto length = optional_double(records, w.iri, "windowLengthS");
+  if (!length) return unexpected(length.error());
+  w.window.length_s = length->value_or(*end - *start);
   for (const auto& m : kMetricNames) {
     auto v = optional_double(records, w.iri, m.local);
     if (!v) return unexpected(v.error());

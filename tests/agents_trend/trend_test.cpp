@@ -78,11 +78,17 @@ class TrendAgentTest : public ::testing::Test {
   // Asserted at `asserted_ns` when given (tahvel-hrv: the signal time of the window's start).
   void store_window(const std::string& recording, std::size_t k, double sdnn,
                     std::optional<std::int64_t> asserted_ns = std::nullopt) {
+    store_window_at(recording, 300.0 * static_cast<double>(k), 300, k, sdnn, asserted_ns);
+  }
+  // A window of `length_s` from `start_s`, as tahvel-hrv writes it under that window setting.
+  void store_window_at(const std::string& recording, double start_s, double length_s, std::size_t k, double sdnn,
+                       std::optional<std::int64_t> asserted_ns = std::nullopt) {
     agg::RecordingInfo info;
     info.iri = recording;
     agg::WindowMetrics w;
-    w.start_s = 300.0 * static_cast<double>(k);
-    w.end_s = w.start_s + 300;
+    w.start_s = start_s;
+    w.end_s = start_s + length_s;
+    w.length_s = length_s;
     w.metrics.sdnn_ms = sdnn;
     w.metrics.rmssd_ms = 30 + static_cast<double>(k % 3);
     w.metrics.mean_hr_bpm = 70 + static_cast<double>(k % 2);
@@ -289,6 +295,34 @@ TEST_F(TrendAgentTest, AFlatBaselineAlertsOnAChangeThatMattersNotOnAnyChange) {
   EXPECT_FALSE(all.at(agg::trend_iri(kRecA, agg::HrvMetric::sdnn, 300.0 * 8)).alert);
   EXPECT_EQ(*all.at(agg::trend_iri(kRecA, agg::HrvMetric::sdnn, 300.0 * 8)).robust_sd, 1.0);
   EXPECT_TRUE(all.at(agg::trend_iri(kRecA, agg::HrvMetric::sdnn, 300.0 * 11)).alert);
+}
+
+// The hospital lengthens a home's windows from 5 to 10 minutes: SDNN grows with the window
+// (50 ms to 65 here), and judged by the 5-minute baseline every longer window was an alert
+// "above". Windows of another length start a series of their own: no baseline before six of
+// them, no alert, and no z-score against patients whose windows are still 5 minutes long.
+TEST_F(TrendAgentTest, AChangeOfWindowLengthStartsASeriesOfItsOwnAndRaisesNoAlert) {
+  for (std::size_t k = 0; k < 8; ++k) store_window(kRecA, k, kSdnnA[k]);
+  for (std::size_t k = 0; k < 8; ++k) store_window(kRecB, k, kSdnnB[k]);
+  for (std::size_t k = 0; k < 8; ++k) store_window(kRecC, k, kSdnnC[k]);
+  const std::vector<double> longer = {65, 66, 64, 65};
+  for (std::size_t i = 0; i < longer.size(); ++i)
+    store_window_at(kRecA, 2400 + 600.0 * static_cast<double>(i), 600, 8 + i, longer[i]);
+  start_agent("2");
+  wait_for_trends((8 * 3 + longer.size()) * 3);
+  ASSERT_FALSE(HasFatalFailure());
+  EXPECT_EQ(agent_->wait(30s), 0);
+  const auto all = trends();
+  const auto last_short = all.at(agg::trend_iri(kRecA, agg::HrvMetric::sdnn, 2100));
+  EXPECT_EQ(last_short.windows, 8u);
+  ASSERT_TRUE(last_short.baseline.has_value());
+  for (std::size_t i = 0; i < longer.size(); ++i) {
+    const auto t = all.at(agg::trend_iri(kRecA, agg::HrvMetric::sdnn, 2400 + 600.0 * static_cast<double>(i)));
+    EXPECT_EQ(t.windows, i + 1) << t.iri;
+    EXPECT_FALSE(t.baseline.has_value()) << t.iri << ": " << *t.baseline;
+    EXPECT_FALSE(t.alert) << t.iri;
+    EXPECT_FALSE(t.z_against_others.has_value()) << t.iri;
+  }
 }
 
 // Windows a minute apart after 115 days (1.00001e+07 s with six significant digits) were

@@ -78,6 +78,9 @@ std::vector<double> lomb_scargle_density(const std::vector<double>& t_s,
 struct WindowMetrics {
   double start_s = 0, end_s = 0;
   HrvMetrics metrics;
+  // The length of the setting the window was made under: end_s - start_s unless the record's
+  // end cut the window short. Windows of one length are one series to a trend (0: not known).
+  double length_s = 0;
 };
 
 // The window settings the chain takes from outside: `tahvel hrv --window/--step`, tahvel-hrv's
