@@ -147,6 +147,7 @@ constexpr std::array kTerms = {
     std::string_view("uplinkState"),
     std::string_view("validTimeS"),
     std::string_view("windowEndS"),
+    std::string_view("windowLengthS"),
     std::string_view("windowSeconds"),
     std::string_view("windowStartS"),
     std::string_view("windows"),

@@ -430,9 +430,9 @@ extern "C" tahvel_status tahvel_watch(tahvel_node* node, uint64_t bookmark, int 
     if (bookmark_out != nullptr) *bookmark_out = bookmark;
     if (!registry().contains(node)) return bad_handle(fn, "node");
     using namespace std::chrono;
-    // Negative: no limit, in long slices (a deadline must not overflow).
-    auto changes = node->node.watch(bookmark, timeout_ms >= 0 ? milliseconds(timeout_ms) : hours(1), limit);
-    while (changes && changes->empty() && timeout_ms < 0) changes = node->node.watch(bookmark, hours(1), limit);
+    // Negative: no limit (Node::watch takes milliseconds::max() so). One call: a signal that
+    // ends the wait must reach the caller, whose handler set a stop flag.
+    auto changes = node->node.watch(bookmark, timeout_ms >= 0 ? milliseconds(timeout_ms) : milliseconds::max(), limit);
     if (!changes) return set_error(fn, changes.error());
     std::ostringstream out;
     {

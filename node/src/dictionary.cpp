@@ -24,6 +24,13 @@ bool is_canonical_integer(std::string_view s) {
   return true;
 }
 
+// Language tags in lower case: they are case-insensitive (BCP 47), RDF 1.1 gives their value
+// space in lower case, and the RDF parser lowers them; `en-US` from the C++ API is `en-us`, in a
+// record as in a pattern.
+void append_language(std::string& out, std::string_view language) {
+  for (char c : language) out.push_back(c >= 'A' && c <= 'Z' ? static_cast<char>(c - 'A' + 'a') : c);
+}
+
 std::string payload(const Term& term, std::uint64_t datatype_id) {
   std::string out;
   out.reserve(term.value.size() + term.language.size() + 4);
@@ -31,7 +38,7 @@ std::string payload(const Term& term, std::uint64_t datatype_id) {
   if (term.kind == TermKind::literal) {
     codec::put_varint(out, datatype_id);
     out.push_back(static_cast<char>(term.language.size()));
-    out += term.language;
+    append_language(out, term.language);
   }
   out += term.value;
   return out;
@@ -145,7 +152,7 @@ void term_key(const Term& term, TermKey& out) {
   key.push_back('\0');
   key += term.datatype;
   key.push_back('\0');
-  key += term.language;
+  append_language(key, term.language);
   out.hash = std::hash<std::string_view>{}(key);
 }
 
@@ -195,7 +202,10 @@ Result<std::uint64_t> intern_keyed(Txn& txn, const Term& term, const TermKey& ke
   }
   std::uint64_t datatype_id = 0;
   if (has_explicit_datatype(term)) {
-    auto dt = intern_term(txn, Term::iri(term.datatype), true);
+    const Term datatype = Term::iri(term.datatype);
+    TermKey datatype_key;
+    term_key(datatype, datatype_key);
+    auto dt = intern_keyed(txn, datatype, datatype_key, {.pin = true, .check_iri = options.check_iri});
     if (!dt) return dt;
     datatype_id = *dt;
   }

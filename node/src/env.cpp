@@ -124,6 +124,11 @@ std::uint64_t bytes_u64(std::string_view s) {
 }
 
 // The store format in `meta`; 0 when it says none.
+Error other_format(const std::filesystem::path& dir, std::uint32_t v) {
+  return Error{Errc::version, dir.string() + " has store format " + std::to_string(v) + ", this build reads " +
+                                  std::to_string(kUpgradedFormatVersion) + " and " + std::to_string(kFormatVersion)};
+}
+
 std::uint32_t format_of(MDB_txn* txn, MDB_dbi meta) {
   auto version = get_meta(txn, meta, "version");
   if (!version) return 0;
@@ -291,6 +296,13 @@ Result<void> Env::open_tables(MDB_txn* txn, bool create) {
   if (rc != 0) return lmdb_fail(rc, "opening the main table in " + dir_.string());
   for (const auto& t : tables) {
     rc = mdb_dbi_open(txn, t.name, t.flags | (create ? MDB_CREATE : 0), t.dbi);
+    if (rc == MDB_NOTFOUND && !create) {
+      // A store of a format this build does not read may lack a table this one has.
+      if (const std::uint32_t v = t.dbi != &meta ? format_of(txn, meta) : 0; v != 0 && v != kFormatVersion && v != kUpgradedFormatVersion)
+        return unexpected(other_format(dir_, v));
+      return fail(Errc::corrupt, dir_.string() + " is not a Tahvel store: its LMDB file has no table " + t.name +
+                                     " (another program's database, or a damaged store)");
+    }
     if (rc != 0) return lmdb_fail(rc, std::string("opening table ") + t.name + " in " + dir_.string());
   }
   return {};
@@ -317,13 +329,22 @@ Result<bool> Env::open_later_tables(MDB_txn* txn, bool create) {
 }
 
 Result<std::shared_ptr<Env>> Env::open(const std::filesystem::path& dir_in, const InitOptions* init) {
+  // An empty path is no directory: LMDB would make "/data.mdb" of it, and the store files the
+  // current directory.
+  if (dir_in.empty()) return fail(Errc::invalid_argument, "no store directory given (an empty path)");
   std::error_code ec;
   if (init) std::filesystem::create_directories(dir_in, ec);
   auto dir = std::filesystem::weakly_canonical(dir_in, ec);
   if (ec) dir = dir_in;
-  bool exists = std::filesystem::exists(dir / "data.mdb");
+  const bool exists = std::filesystem::exists(dir / "data.mdb", ec);
+  if (ec && ec != std::errc::no_such_file_or_directory)
+    return fail(Errc::io, "cannot look for a store in " + dir.string() + ": " + ec.message());
   if (init && exists) return fail(Errc::exists, dir.string() + " already holds a store");
   if (!init && !exists) return fail(Errc::not_found, "no store in " + dir.string() + " (run tahvel init)");
+  // A store's file is made whole elsewhere and renamed into place (make_store): an empty one is
+  // not a store, and opening it would make it an empty LMDB file.
+  if (!init && std::filesystem::file_size(dir / "data.mdb", ec) == 0 && !ec)
+    return fail(Errc::corrupt, (dir / "data.mdb").string() + " is empty: not a store");
   if (init) {
     if (auto made = make_store(dir, *init); !made) return unexpected(made.error());
   }
@@ -459,8 +480,7 @@ Result<std::shared_ptr<Env>> Env::open_at(const std::filesystem::path& dir, cons
     if (v == kUpgradedFormatVersion && (first_flags & MDB_RDONLY)) {
       needs_tables = true;  // and its time index filled: open_later_tables found it missing
     } else if (v != kFormatVersion) {
-      return fail(Errc::version, dir.string() + " has store format " + std::to_string(v) + ", this build reads " +
-                                     std::to_string(kUpgradedFormatVersion) + " and " + std::to_string(kFormatVersion));
+      return unexpected(other_format(dir, v));
     }
     auto iri = get_meta(txn, env->meta, "iri");
     auto durability = get_meta(txn, env->meta, "durability");
@@ -630,14 +650,21 @@ std::uint64_t pages_in_use_bytes(MDB_env* env, MDB_txn* txn) {
   return (pages - std::min<std::uint64_t>(free_pages, pages)) * stat.ms_psize;
 }
 
+bool Env::map_info(MDB_envinfo& info, MDB_stat& stat) {
+  std::shared_lock lock(growth_mutex_);
+  return mdb_env_info(env_, &info) == 0 && mdb_env_stat(env_, &stat) == 0;
+}
+
 Result<void> Env::check_reserve_untouched(std::uint64_t new_bytes) {
   MDB_envinfo info;
-  if (mdb_env_info(env_, &info) != 0 || info.me_mapsize <= settings_.max_map_bytes) return {};
-  // LMDB's free-page table can be read in a read transaction only.
-  MDB_txn* read = nullptr;
-  if (mdb_txn_begin(env_, nullptr, MDB_RDONLY, &read) != 0) return {};
-  const std::uint64_t in_use = pages_in_use_bytes(env_, read);
-  mdb_txn_abort(read);
+  MDB_stat stat;
+  if (!map_info(info, stat) || info.me_mapsize <= settings_.max_map_bytes) return {};
+  // LMDB's free-page table can be read in a read transaction only (which also holds the map
+  // in place while pages_in_use_bytes reads LMDB's meta pages).
+  auto read = begin_read();
+  if (!read) return {};
+  const std::uint64_t in_use = pages_in_use_bytes(env_, *read);
+  end_read(*read);
   // Copy on write needs pages besides those the data takes, and pages the last write freed are
   // not reusable by the next: as much as the reserve is left free for the removals' copies.
   const std::uint64_t reserve = removal_reserve(settings_.max_map_bytes);
@@ -650,7 +677,7 @@ Result<void> Env::check_reserve_untouched(std::uint64_t new_bytes) {
 Result<void> Env::reserve_disk(WriteKind kind, std::uint64_t new_bytes) {
   MDB_envinfo info;
   MDB_stat stat;
-  if (mdb_env_info(env_, &info) != 0 || mdb_env_stat(env_, &stat) != 0) return {};
+  if (!map_info(info, stat)) return {};
   const std::uint64_t page = stat.ms_psize;
   const std::uint64_t in_use = (info.me_last_pgno + 1) * page;
   const std::uint64_t reserved = disk_reserved_.load();
@@ -767,7 +794,7 @@ void Env::prefault_ahead() {
   if (prefault_off_.load(std::memory_order_relaxed) || settings_.durability == Durability::durable) return;
   MDB_envinfo info;
   MDB_stat stat;
-  if (mdb_env_info(env_, &info) != 0 || mdb_env_stat(env_, &stat) != 0 || stat.ms_psize == 0) return;
+  if (!map_info(info, stat) || stat.ms_psize == 0) return;
   const std::uint64_t page = stat.ms_psize;
   const std::uint64_t in_use = (info.me_last_pgno + 1) * page;
   const std::uint64_t moves = map_moves_.load();

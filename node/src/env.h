@@ -242,6 +242,10 @@ class Env {
   // got them yet and `create` is false.
   Result<bool> open_later_tables(MDB_txn* txn, bool create);
   Result<void> grow(WriteKind kind);
+  // mdb_env_info and mdb_env_stat under growth_mutex_ held shared: they read LMDB's meta pages,
+  // inside the map, which another thread's grow() may be moving. (Within a transaction of this
+  // process the map cannot move, and they may be called directly.)
+  bool map_info(MDB_envinfo& info, MDB_stat& stat);
   // A data write in a map that a removal grew beyond the maximum (into the removals' reserve):
   // store_full when the pages in use, free ones not counted, and `new_bytes` would exceed the
   // maximum. Without it data filled the reserve, and then even removals were refused.

@@ -388,6 +388,26 @@ std::optional<std::vector<Subscription>> subscriptions_declared_by(
 
 namespace {
 
+// Turtle's and N-Triples' LANGTAG: [a-zA-Z]+ ('-' [a-zA-Z0-9]+)*. A tag outside it would be
+// written out as text that is no longer one literal.
+bool is_language_tag(std::string_view tag) {
+  auto alpha = [](char c) { return (c >= 'a' && c <= 'z') || (c >= 'A' && c <= 'Z'); };
+  auto digit = [](char c) { return c >= '0' && c <= '9'; };
+  bool first = true, empty = true;
+  for (char c : tag) {
+    if (c == '-') {
+      if (empty) return false;
+      first = false;
+      empty = true;
+    } else if (alpha(c) || (!first && digit(c))) {
+      empty = false;
+    } else {
+      return false;
+    }
+  }
+  return !empty;
+}
+
 // ": not UTF-8: ..." naming the first ill-formed byte of `text` (`of_what` after its offset), or
 // "" when `text` is well-formed.
 std::string not_utf8(std::string_view text, std::string_view of_what) {
@@ -434,6 +454,9 @@ Result<void> validate_item(const Item& item, const Settings& settings) {
                                                  " bytes exceeds the node's limit of " +
                                                  std::to_string(settings.max_literal_bytes));
       if (term.language.size() > 255) return fail(Errc::invalid_argument, where(pos) + ": language tag too long");
+      if (!term.language.empty() && !is_language_tag(term.language))
+        return fail(Errc::invalid_argument, where(pos) + ": language tag '" + term.language +
+                                                "' is not letters, then '-' and letters or digits (en, et-EE)");
       if (!term.language.empty() && !term.datatype.empty() && term.datatype != kRdfLangString)
         return fail(Errc::invalid_argument, where(pos) + ": a literal has a language tag or a datatype, not both");
       // RDF 1.1: rdf:langString is the datatype of the literals with a language tag, and of no other.

@@ -394,31 +394,69 @@ TEST_F(CApiTest, TakeWakesOnAStoreFromAnotherThread) {
 
 extern "C" void note_signal(int) {}
 
+// While it lives, SIGUSR2 goes to the thread that made it every 50 ms (for up to 5 s), with a
+// handler installed without SA_RESTART, as an agent's stop handler is.
+class SignalsToThisThread {
+ public:
+  SignalsToThisThread() {
+    struct sigaction action {};
+    action.sa_handler = note_signal;
+    sigemptyset(&action.sa_mask);
+    installed_ = sigaction(SIGUSR2, &action, &before_) == 0;
+    signaller_ = std::thread([this, waiting = pthread_self()] {
+      for (int i = 0; i < 100 && !done_; ++i) {
+        std::this_thread::sleep_for(std::chrono::milliseconds(50));
+        pthread_kill(waiting, SIGUSR2);
+      }
+    });
+  }
+  ~SignalsToThisThread() {
+    done_ = true;
+    signaller_.join();
+    sigaction(SIGUSR2, &before_, nullptr);
+  }
+  bool installed() const { return installed_; }
+
+ private:
+  struct sigaction before_ {};
+  bool installed_ = false;
+  std::atomic<bool> done_{false};
+  std::thread signaller_;
+};
+
 // A wait without limit ends when a signal handler (installed without SA_RESTART) runs, as a
 // timeout that says so: an agent's SIGTERM handler sets a stop flag, and the agent sees it.
 TEST_F(CApiTest, AWaitWithoutLimitEndsWhenASignalHandlerRuns) {
   tahvel_agent* reader = open_agent("reader");
   ASSERT_EQ(tahvel_subscribe(reader, nullptr, kHeartRate, nullptr, nullptr), TAHVEL_OK);
-  struct sigaction action {}, before {};
-  action.sa_handler = note_signal;
-  sigemptyset(&action.sa_mask);
-  ASSERT_EQ(sigaction(SIGUSR2, &action, &before), 0);
-  const pthread_t waiting = pthread_self();
-  std::atomic<bool> done{false};
-  std::thread signaller([&] {
-    for (int i = 0; i < 100 && !done; ++i) {
-      std::this_thread::sleep_for(std::chrono::milliseconds(50));
-      pthread_kill(waiting, SIGUSR2);
-    }
-  });
   uint64_t item = 0;
-  const tahvel_status status = tahvel_take(reader, -1, &item, nullptr, nullptr);
-  done = true;
-  signaller.join();
-  sigaction(SIGUSR2, &before, nullptr);
+  tahvel_status status = TAHVEL_OK;
+  {
+    SignalsToThisThread signals;
+    ASSERT_TRUE(signals.installed());
+    status = tahvel_take(reader, -1, &item, nullptr, nullptr);
+  }
   EXPECT_EQ(status, TAHVEL_TIMEOUT);
   EXPECT_NE(std::string(tahvel_last_error()).find("ended by a signal"), std::string::npos) << tahvel_last_error();
   tahvel_agent_close(reader);
+}
+
+// So does a watch without limit on a quiet board: it returned only when a write came (after the
+// signal it went back to sleep), and a watcher with a stop flag could not stop.
+TEST_F(CApiTest, AWatchWithoutLimitEndsWhenASignalHandlerRuns) {
+  char* json = nullptr;
+  size_t len = 0;
+  uint64_t bookmark = 0;
+  tahvel_status status = TAHVEL_TIMEOUT;
+  {
+    SignalsToThisThread signals;
+    ASSERT_TRUE(signals.installed());
+    status = tahvel_watch(node_, 0, -1, 0, &json, &len, &bookmark);
+  }
+  EXPECT_EQ(status, TAHVEL_OK) << tahvel_last_error();
+  EXPECT_EQ(len, 0u);
+  EXPECT_EQ(bookmark, 0u);
+  tahvel_free(json);
 }
 
 TEST_F(CApiTest, UnackedItemIsDeliveredAgainAfterRestartAckedIsNot) {

@@ -541,6 +541,32 @@ TEST(Store, ALangStringWithoutALanguageTagIsRefused) {
   EXPECT_TRUE(agent->store(Item{}.add(ex("a"), ex("label"), Term::lang_literal("x", "en"))));
 }
 
+// Through the C++ API a tag with a quote in it was stored as given, and N-Triples out of the store
+// (tahvel_take, tahvel list) then held other triples than the item's; a relative datatype was
+// stored too. Tags are compared without regard to case, as the RDF parser lowers them.
+TEST(Store, ALanguageTagOrDatatypeThatRdfCannotWriteIsRefusedAndTagsIgnoreCase) {
+  TempDir dir;
+  Node node = make_node(dir.path());
+  auto agent = node.agent("w");
+  auto injected = agent->store(Item{}.add(ex("a"), ex("label"), Term::lang_literal("v", "en\" . <http://evil/s> <http://evil/p> \"x")));
+  ASSERT_FALSE(injected);
+  EXPECT_EQ(injected.error().code, Errc::invalid_argument);
+  EXPECT_NE(injected.error().message.find("triple 1, object: language tag"), std::string::npos) << injected.error().message;
+  for (const char* bad : {"-en", "en-", "en--us", "1en", "en_US", "en us"})
+    EXPECT_FALSE(agent->store(Item{}.add(ex("a"), ex("label"), Term::lang_literal("v", bad)))) << bad;
+  auto relative = agent->store(Item{}.add(ex("a"), ex("label"), Term::literal("v", "relative-datatype")));
+  ASSERT_FALSE(relative);
+  EXPECT_EQ(relative.error().code, Errc::invalid_iri) << relative.error().message;
+  EXPECT_EQ(node.stats()->records, 0u);
+
+  ASSERT_TRUE(agent->store(Item{}.add(ex("a"), ex("label"), Term::lang_literal("süda", "ET-ee"))));
+  auto found = node.snapshot()->list({.o = Term::lang_literal("süda", "et-EE")});
+  ASSERT_TRUE(found);
+  ASSERT_EQ(found->size(), 1u);
+  EXPECT_EQ(found->front().triple.o.language, "et-ee");
+  EXPECT_TRUE(agent->store(Item{}.add(ex("a"), ex("label"), Term::lang_literal("v", "zh-Hant-TW-x-private1"))));
+}
+
 TEST(Store, PatternWithBoundObjectFindsLiteral) {
   TempDir dir;
   Node node = make_node(dir.path());
@@ -1404,6 +1430,48 @@ TEST(Store, InitRefusesExistingStoreAndOpenRefusesMissingOne) {
   EXPECT_EQ(decomposed.error().code, Errc::invalid_iri);
   EXPECT_NE(decomposed.error().message.find("NFC"), std::string::npos) << decomposed.error().message;
   EXPECT_FALSE(std::filesystem::exists(dir / "decomposed" / "data.mdb"));
+}
+
+// What is not a store is an error value naming the place, never an exception, never a store made
+// of it: an empty path (LMDB made "/data.mdb" of it, and the store files in the current
+// directory), a name too long, another program's LMDB database, an empty data.mdb.
+TEST(Store, APathThatHoldsNoStoreIsAnErrorNamingItAndIsLeftAsItWas) {
+  TempDir dir;
+  auto refused = [](const Result<Node>& r) { return r ? Error{} : r.error(); };
+  for (const Error& e : {refused(Node::open("")), refused(Node::init("", InitOptions{.iri = testing::kNodeIri}))})
+    EXPECT_EQ(e.code, Errc::invalid_argument) << e.message;
+  EXPECT_FALSE(std::filesystem::exists("data.mdb"));
+  EXPECT_FALSE(std::filesystem::exists("wake"));
+
+  const std::filesystem::path too_long = dir / std::string(300, 'n');
+  for (const Error& e : {refused(Node::open(too_long)), refused(Node::init(too_long, InitOptions{.iri = testing::kNodeIri}))})
+    EXPECT_NE(e.message.find(std::string(300, 'n')), std::string::npos) << e.message;
+
+  const std::filesystem::path foreign = dir / "foreign";
+  std::filesystem::create_directories(foreign);
+  MDB_env* env = nullptr;
+  ASSERT_EQ(mdb_env_create(&env), 0);
+  mdb_env_set_maxdbs(env, 2);
+  ASSERT_EQ(mdb_env_open(env, foreign.c_str(), 0, 0644), 0);
+  MDB_txn* txn = nullptr;
+  MDB_dbi other = 0;
+  ASSERT_EQ(mdb_txn_begin(env, nullptr, 0, &txn), 0);
+  ASSERT_EQ(mdb_dbi_open(txn, "accounts", MDB_CREATE, &other), 0);
+  ASSERT_EQ(mdb_txn_commit(txn), 0);
+  mdb_env_close(env);
+  auto opened = Node::open(foreign);
+  ASSERT_FALSE(opened);
+  EXPECT_EQ(opened.error().code, Errc::corrupt);
+  EXPECT_NE(opened.error().message.find("not a Tahvel store"), std::string::npos) << opened.error().message;
+
+  const std::filesystem::path empty = dir / "empty";
+  std::filesystem::create_directories(empty);
+  std::ofstream(empty / "data.mdb").close();
+  auto from_empty = Node::open(empty);
+  ASSERT_FALSE(from_empty);
+  EXPECT_EQ(from_empty.error().code, Errc::corrupt);
+  EXPECT_NE(from_empty.error().message.find((empty / "data.mdb").string()), std::string::npos) << from_empty.error().message;
+  EXPECT_EQ(std::filesystem::file_size(empty / "data.mdb"), 0u);
 }
 
 TEST(Store, AgentIriIsNodeIriSlashId) {

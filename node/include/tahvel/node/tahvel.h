@@ -171,7 +171,8 @@ tahvel_status tahvel_list_as(tahvel_node* node, const char* s, const char* p, co
  * sequence number); a removal is the removed record's object led by "removed":true and its
  * "seq"; a change that cannot be read (a damaged record or log entry) is
  * {"seq":N,"removed":false|true,"unreadable":"why"}. Waits up to `timeout_ms` (negative: without limit) for the first change when there is
- * none yet (woken by the writer's commit). Sets *bookmark_out (may be NULL) to the last sequence
+ * none yet (woken by the writer's commit); a signal handler installed without SA_RESTART ends
+ * the wait as a timeout does, so that a watcher sees its stop flag. Sets *bookmark_out (may be NULL) to the last sequence
  * number returned, or to `bookmark` when none: pass it to the next call to resume exactly.
  * The text (empty on timeout: TAHVEL_OK, not TAHVEL_TIMEOUT) is freed with tahvel_free().
  * Removals older than the last 65,536 are no longer reported.
