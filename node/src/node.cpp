@@ -1253,15 +1253,21 @@ Result<std::vector<std::pair<std::string, std::chrono::nanoseconds>>> Node::ttls
 }
 
 Result<std::uint64_t> Node::reclaim() {
+  // A pass reclaims at most kTtlScanBudget records per TTL rule (a write's retention must stay
+  // short): passes, each its own transaction, until one reclaims nothing.
   std::uint64_t reclaimed = 0;
-  auto written = impl_->env->write([&](Txn& txn) -> Result<void> {
-    auto n = apply_retention(txn);
-    if (!n) return unexpected(n.error());
-    reclaimed = *n;
-    return {};
-  }, WriteKind::removal);
-  if (!written) return unexpected(written.error());
-  return reclaimed;
+  for (;;) {
+    std::uint64_t pass = 0;
+    auto written = impl_->env->write([&](Txn& txn) -> Result<void> {
+      auto n = apply_retention(txn);
+      if (!n) return unexpected(n.error());
+      pass = *n;
+      return {};
+    }, WriteKind::removal);
+    if (!written) return unexpected(written.error());
+    if (pass == 0) return reclaimed;
+    reclaimed += pass;
+  }
 }
 
 Result<void> Node::set_prefix(std::string_view prefix, std::string_view namespace_iri) {

@@ -474,8 +474,9 @@ class Node {
   Result<void> set_ttl(std::string_view predicate_iri, std::chrono::nanoseconds ttl);
   Result<std::vector<std::pair<std::string, std::chrono::nanoseconds>>> ttls() const;
 
-  // Runs retention now (ring and TTL); returns the number of records reclaimed. Retention also
-  // runs after each write. It never reclaims persistent records nor items waiting in an input
+  // Runs retention now (ring and TTL) until nothing more is due, in transactions of at most 64
+  // records per TTL rule; returns the number of records reclaimed. Retention also runs after each
+  // write (one such step). It never reclaims persistent records nor items waiting in an input
   // buffer.
   Result<std::uint64_t> reclaim();
 
