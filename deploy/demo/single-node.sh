@@ -3,7 +3,9 @@
 # heart-rate observations, an ECG agent writes observations (Turtle with blank nodes), the
 # monitor takes each one exactly once, and we list, remove and count what is on the board.
 #
-#   deploy/demo/single-node.sh build/bin/tahvel      (what `./run.sh demo` runs)
+#   deploy/demo/single-node.sh build/bin/tahvel
+#
+# (`./run.sh demo` runs deploy/demo/home-to-hospital.sh instead: the whole hierarchy.)
 #
 # Everything happens in a temporary directory that is removed at the end.
 set -euo pipefail
