@@ -183,6 +183,31 @@ TEST_F(BoardTest, AReadingTakenBeforeASensorWasMovedIsNotListedWhereItStandsNow)
   EXPECT_FALSE(in_area({kHall, std::nullopt, std::nullopt}, node::Pattern{.s = Term::iri(kMote)}).empty());
 }
 
+// The plan put again, or a mote announcing where it stands (a new blank geometry, the same point
+// written otherwise, its floor stated again): no move. Each such restatement took every earlier
+// reading out of the room, and the environment agent called the room unknown.
+TEST_F(BoardTest, APlaceStatedAgainUnchangedKeepsTheReadingsTakenThere) {
+  reading("mote1", 21.0);
+  put(located_feature_item(kMote, "POINT(1 1)", 0));
+  node::Item announced;
+  const Term geometry = Term::blank("g");
+  announced.add(Term::iri(kMote), Term::iri(kGeoHasGeometry), geometry)
+      .add(geometry, Term::iri(kGeoAsWkt), Term::literal("Point (1.0 1.0)", kGeoWktLiteral))
+      .add(Term::iri(kMote), Term::iri(kTvFloor), Term::literal("0.0", "http://www.w3.org/2001/XMLSchema#decimal"));
+  put(announced);
+  EXPECT_EQ(in_area({kBedroom, std::nullopt, std::nullopt}, readings()).size(), 1u);
+  // Carried into the hall and back: what it wrote before is still not the bedroom's.
+  put(located_feature_item(kMote, "POINT(6 1)", 0));
+  put(located_feature_item(kMote, "POINT(1 1)", 0));
+  EXPECT_EQ(in_area({kBedroom, std::nullopt, std::nullopt}, readings()).size(), 0u);
+  reading("mote1", 22.0);
+  put(located_feature_item(kMote, "POINT(1 1)", 0));
+  EXPECT_EQ(in_area({kBedroom, std::nullopt, std::nullopt}, readings()).size(), 1u);
+  // Upstairs at the same x and y is another place.
+  put(located_feature_item(kMote, "POINT(1 1)", 1));
+  EXPECT_EQ(in_area({kBedroom, std::nullopt, std::nullopt}, readings()).size(), 0u);
+}
+
 TEST_F(BoardTest, ListByWktOnEveryFloorOrOne) {
   auto shape = parse_shape("POLYGON((0 0, 2 0, 2 2, 0 2, 0 0))");
   ASSERT_TRUE(shape.has_value());

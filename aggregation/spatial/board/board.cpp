@@ -10,6 +10,7 @@
 #include <iterator>
 #include <mutex>
 #include <unordered_map>
+#include <cstdio>
 #include <cstring>
 #include <set>
 
@@ -26,6 +27,7 @@ Unexpected<Error> store_error(const node::Error& e) { return fail(e.message); }
 struct Latest {
   std::uint64_t id = 0;
   node::Term value;
+  std::uint64_t item = 0;  // histories() only
 };
 
 // For every IRI subject of `predicate`: the object of its record with the highest id.
@@ -103,6 +105,81 @@ Result<std::optional<std::string>> latest_wkt(const node::Snapshot& snapshot, co
   return wkt;
 }
 
+// A term as a map key: blank nodes apart from IRIs of the same text.
+std::string key_of(const node::Term& t) { return (t.is_blank() ? "_:" : "<") + t.value; }
+
+// Every record of `predicate` whose subject is not a literal, by subject (key_of), oldest first.
+Result<std::map<std::string, std::vector<Latest>>> histories(const node::Snapshot& snapshot, const char* predicate) {
+  std::map<std::string, std::vector<Latest>> out;
+  node::Pattern pattern;
+  pattern.p = node::Term::iri(predicate);
+  auto read = snapshot.for_each(pattern, [&](const node::Record& r) {
+    if (!r.triple.s.is_literal()) out[key_of(r.triple.s)].push_back({r.meta.id, r.triple.o, r.meta.item});
+    return true;
+  });
+  if (!read) return store_error(read.error());
+  for (auto& [subject, records] : out)
+    std::sort(records.begin(), records.end(), [](const Latest& a, const Latest& b) { return a.id < b.id; });
+  return out;
+}
+
+// A place as compared between statements: a point by its coordinates ("POINT(1 2)" and
+// "Point (1.0 2.0)" are one place), any other WKT by its text.
+std::string place_key(const std::string& wkt) {
+  if (auto parsed = parse_wkt_remembered(wkt); parsed && std::holds_alternative<Point>(*parsed)) {
+    char text[64];
+    std::snprintf(text, sizeof text, "POINT %a %a", std::get<Point>(*parsed).x, std::get<Point>(*parsed).y);
+    return text;
+  }
+  return "WKT " + wkt;
+}
+
+// Since when a feature has stood where it stands now: the first of the records stating its place
+// (its geo:hasGeometry, those geometries' geo:asWKT, its tv:floor) after which the place they
+// give together is today's. A restatement of the same place (a plan put again, a mote announcing
+// its position, a new blank geometry with the same WKT) is no move: what the sensor wrote before
+// it was written there.
+std::uint64_t placed_since(const std::vector<Latest>& geometry_records, const std::vector<Latest>* floor_records,
+                           const std::map<std::string, std::vector<Latest>>& wkt_records) {
+  enum class Kind { geometry, wkt, floor };
+  struct Event {
+    std::uint64_t id;
+    Kind kind;
+    const Latest* record;
+    std::string geometry;  // wkt: whose
+  };
+  std::vector<Event> events;
+  std::set<std::string> geometries;
+  for (const Latest& g : geometry_records) {
+    events.push_back({g.id, Kind::geometry, &g, {}});
+    if (!g.value.is_literal() && geometries.insert(key_of(g.value)).second)
+      if (auto it = wkt_records.find(key_of(g.value)); it != wkt_records.end())
+        for (const Latest& w : it->second) events.push_back({w.id, Kind::wkt, &w, it->first});
+  }
+  if (floor_records)
+    for (const Latest& f : *floor_records) events.push_back({f.id, Kind::floor, &f, {}});
+  std::sort(events.begin(), events.end(), [](const Event& a, const Event& b) { return a.id < b.id; });
+  std::string geometry, floor = "0";
+  std::map<std::string, std::string> text_of;  // geometry -> its latest WKT so far
+  std::vector<std::string> places;
+  for (const Event& e : events) {
+    if (e.kind == Kind::geometry) geometry = e.record->value.is_literal() ? std::string() : key_of(e.record->value);
+    if (e.kind == Kind::wkt && e.record->value.is_literal()) text_of[e.geometry] = e.record->value.value;
+    if (e.kind == Kind::floor) {
+      const auto parsed = parse_floor(e.record->value);
+      floor = parsed ? std::to_string(*parsed) : "?" + e.record->value.value;
+    }
+    // The place an item states, after all of its records: a new geometry and its WKT come in one.
+    const auto text = text_of.find(geometry);
+    places.push_back((text == text_of.end() ? std::string("none") : place_key(text->second)) + "\n" + floor);
+  }
+  std::size_t first = places.size();
+  while (first > 0 && (places[first - 1] == places.back() ||
+                       (first < places.size() && events[first - 1].record->item == events[first].record->item)))
+    --first;
+  return first < events.size() ? events[first].id : 0;
+}
+
 // True when `source` is one of `sensors` or lies under one (a sensor that is a node of its own,
 // whose agents write under its IRI): the ancestors of an IRI are its prefixes ending before a
 // '/', '#' or '?', so each is looked up rather than every sensor tested.
@@ -123,12 +200,16 @@ Result<BoardPlan> load_plan(const node::Snapshot& snapshot) {
   if (!geometries) return unexpected(geometries.error());
   auto floors = latest_objects(snapshot, kTvFloor);
   if (!floors) return unexpected(floors.error());
+  auto geometry_history = histories(snapshot, kGeoHasGeometry);
+  if (!geometry_history) return unexpected(geometry_history.error());
+  auto floor_history = histories(snapshot, kTvFloor);
+  if (!floor_history) return unexpected(floor_history.error());
+  auto wkt_history = histories(snapshot, kGeoAsWkt);
+  if (!wkt_history) return unexpected(wkt_history.error());
   BoardPlan out;
   for (const auto& [feature, geometry] : *geometries) {
     int floor = 0;
-    std::uint64_t placed_by = geometry.id;
     if (auto it = floors->find(feature); it != floors->end()) {
-      placed_by = std::max(placed_by, it->second.id);
       auto parsed = parse_floor(it->second.value);
       if (!parsed) {
         out.problems.push_back(feature + ": tv:floor '" + it->second.value.value + "' is not an integer");
@@ -144,7 +225,9 @@ Result<BoardPlan> load_plan(const node::Snapshot& snapshot) {
     auto wkt = latest_wkt(snapshot, geometry.value, &wkt_id);
     if (!wkt) return unexpected(wkt.error());
     if (!*wkt) continue;  // a geometry without WKT (yet): not located
-    out.placed_by[feature] = std::max(placed_by, wkt_id);
+    const auto floor_records = floor_history->find("<" + feature);
+    out.placed_by[feature] = placed_since(geometry_history->at("<" + feature),
+                                          floor_records == floor_history->end() ? nullptr : &floor_records->second, *wkt_history);
     auto parsed = parse_wkt_remembered(**wkt);
     if (!parsed) {
       out.problems.push_back(feature + ": " + parsed.error().message);

@@ -42,8 +42,10 @@ struct BoardPlan {
   // Features skipped because their WKT is malformed or their tv:floor is not an integer, one
   // line each ("<iri>: WKT column 9: ring is not closed ..."). The rest of the plan stands.
   std::vector<std::string> problems;
-  // Per located feature, the id of the newest record that states its place (geo:hasGeometry,
-  // geo:asWKT, tv:floor): what was stored before it was stored while the feature stood elsewhere.
+  // Per located feature, the id of the record from which on the records stating its place
+  // (geo:hasGeometry, those geometries' geo:asWKT, tv:floor) have given the place it has now:
+  // what was stored before it was stored while the feature stood elsewhere. A place stated again
+  // unchanged (a point however written, a new geometry with the same WKT) does not move it.
   std::map<std::string, std::uint64_t> placed_by;
 };
 
