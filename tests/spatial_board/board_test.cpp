@@ -562,6 +562,36 @@ TEST_F(BoardTest, EachDeclarationInAnItemIsKeptAndItsProblemsAreItsOwn) {
   EXPECT_EQ(pending(*bad), 0u);
 }
 
+// tv:areaFloor is a floor as tv:floor is (S5): "1.0" was refused as not an integer, and
+// 4294967296 was cut to an int and read as floor 0.
+TEST_F(BoardTest, AnAreaFloorIsReadAsAFeatureFloorIs) {
+  const std::string kTv = "https://w3id.org/tahvel#";
+  const std::string xsd_decimal = "http://www.w3.org/2001/XMLSchema#decimal";
+  node::Item item;
+  item.persistent = true;
+  item.add(Term::blank("a"), Term::iri(kTv + "areaSubscriber"), Term::iri(kHome + "/ui-up"))
+      .add(Term::blank("a"), Term::iri(kTv + "area"), Term::literal("POLYGON((0 0, 2 0, 2 2, 0 2, 0 0))", kGeoWktLiteral))
+      .add(Term::blank("a"), Term::iri(kTv + "areaFloor"), Term::literal("1.0", xsd_decimal))
+      .add(Term::blank("b"), Term::iri(kTv + "areaSubscriber"), Term::iri(kHome + "/ui-far"))
+      .add(Term::blank("b"), Term::iri(kTv + "area"), Term::literal("POLYGON((0 0, 2 0, 2 2, 0 2, 0 0))", kGeoWktLiteral))
+      .add(Term::blank("b"), Term::iri(kTv + "areaFloor"), Term::integer(4294967296));
+  auto writer = node_->agent("operator");
+  ASSERT_TRUE(writer.has_value());
+  ASSERT_TRUE(writer->store(item).has_value());
+  AreaSyncReport first;
+  auto keeper = AreaKeeper::open(dir_ / "store", &first);
+  ASSERT_TRUE(keeper.has_value()) << keeper.error().message;
+  ASSERT_EQ(first.problems.size(), 1u);
+  EXPECT_NE(first.problems[0].find("of <" + kHome + "/ui-far>: tv:areaFloor '4294967296' is not a whole number"), std::string::npos)
+      << first.problems[0];
+  reading("mote1", 21.0);
+  reading("mote2", 19.0);
+  auto up = node_->agent("ui-up"), far = node_->agent("ui-far");
+  ASSERT_TRUE(up && far);
+  EXPECT_EQ(pending(*up), 1u);  // mote2's, upstairs
+  EXPECT_EQ(pending(*far), 0u);
+}
+
 TEST_F(BoardTest, ADeclarationForARoomNotYetDrawnIsReportedThenExpandedWhenItIs) {
   auto ui = node_->agent("ui");
   ASSERT_TRUE(ui.has_value());

@@ -69,9 +69,9 @@ Declaration parse_declaration(std::uint64_t id, const Term& subject, const std::
       if (shape) d.spec.shape = std::move(*shape);
       else d.problem = "tv:area: " + shape.error().message;
     } else if (p == kTvAreaFloor) {
-      auto floor = parse_integer(o);
-      if (floor) d.spec.floor = static_cast<int>(*floor);
-      else d.problem = "tv:areaFloor '" + o.value + "' is not an integer";
+      auto floor = parse_floor(o);
+      if (floor) d.spec.floor = *floor;
+      else d.problem = "tv:areaFloor '" + o.value + "' is not a whole number within ±1e9";
     }
   }
   if (d.problem.empty() && subscribers > 1) d.problem = "more than one tv:areaSubscriber";

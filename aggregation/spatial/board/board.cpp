@@ -70,21 +70,6 @@ Result<Geometry> parse_wkt_remembered(const std::string& text) {
   return parsed;
 }
 
-std::optional<int> parse_floor(const node::Term& term) {
-  if (!term.is_literal()) return std::nullopt;
-  const std::string& text = term.value;
-  int value = 0;
-  const char* begin = text.data() + (!text.empty() && text[0] == '+' ? 1 : 0);
-  auto [end, ec] = std::from_chars(begin, text.data() + text.size(), value);
-  if (ec == std::errc() && end == text.data() + text.size() && begin != end) return value;
-  // A whole number written as a decimal or double ("1.0", "2e0") is that floor, as "1" is.
-  double number = 0;
-  auto [stop, error] = std::from_chars(begin, text.data() + text.size(), number);
-  if (error != std::errc() || stop != text.data() + text.size() || begin == stop || !std::isfinite(number) ||
-      number != std::floor(number) || std::abs(number) > 1e9)
-    return std::nullopt;
-  return static_cast<int>(number);
-}
 
 // The latest geo:asWKT literal of geometry `g`, or nullopt; `*id` gets its record's id.
 Result<std::optional<std::string>> latest_wkt(const node::Snapshot& snapshot, const node::Term& g, std::uint64_t* id) {
@@ -194,6 +179,22 @@ const std::string* sensor_of(const std::set<std::string>& sensors, const std::st
 }
 
 }  // namespace
+
+std::optional<int> parse_floor(const node::Term& term) {
+  if (!term.is_literal()) return std::nullopt;
+  const std::string& text = term.value;
+  int value = 0;
+  const char* begin = text.data() + (!text.empty() && text[0] == '+' ? 1 : 0);
+  auto [end, ec] = std::from_chars(begin, text.data() + text.size(), value);
+  if (ec == std::errc() && end == text.data() + text.size() && begin != end) return value;
+  // A whole number written as a decimal or double ("1.0", "2e0") is that floor, as "1" is.
+  double number = 0;
+  auto [stop, error] = std::from_chars(begin, text.data() + text.size(), number);
+  if (error != std::errc() || stop != text.data() + text.size() || begin == stop || !std::isfinite(number) ||
+      number != std::floor(number) || std::abs(number) > 1e9)
+    return std::nullopt;
+  return static_cast<int>(number);
+}
 
 Result<BoardPlan> load_plan(const node::Snapshot& snapshot) {
   auto geometries = latest_objects(snapshot, kGeoHasGeometry);

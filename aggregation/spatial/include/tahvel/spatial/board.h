@@ -49,6 +49,11 @@ struct BoardPlan {
   std::map<std::string, std::uint64_t> placed_by;
 };
 
+// A floor as written on the board (tv:floor, tv:areaFloor): a whole number however written ("1",
+// "+1", "1.0", "2e0") within ±1e9; nullopt for anything else (a fraction, text, a value that
+// would not fit).
+std::optional<int> parse_floor(const node::Term& term);
+
 // Reads every located feature of `snapshot`. Errors: only the store's (reading failed).
 Result<BoardPlan> load_plan(const node::Snapshot& snapshot);
 
