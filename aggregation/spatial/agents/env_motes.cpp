@@ -125,9 +125,11 @@ class Simulator {
         warn_once(s.iri + ": no mote in " + s.area + " senses " + sp::quantity_name(s.quantity));
         continue;
       }
-      auto ask = [&](auto& due, const std::pair<std::string, sp::Quantity>& key) -> double& {
-        std::optional<double> last;
-        if (auto it = last_value_.find(key); it != last_value_.end()) last = it->second;
+      auto last_of = [&](const std::pair<std::string, sp::Quantity>& key) -> std::optional<double> {
+        if (auto it = last_value_.find(key); it != last_value_.end()) return it->second;
+        return std::nullopt;
+      };
+      auto ask = [&](auto& due, const std::pair<std::string, sp::Quantity>& key, std::optional<double> last) -> double& {
         double period = sp::sensing_period_s(s, last);
         auto [it, inserted] = due.try_emplace(key);
         auto& slot = period_of(it->second);
@@ -135,10 +137,15 @@ class Simulator {
         return slot;
       };
       if (s.quantity == sp::Quantity::movement) {
-        for (const std::string& mote : capable) ask(each_due, {mote, s.quantity});
+        // The threshold rule asks about the room: movement that one PIR mote saw speeds up every
+        // mote of the room (the highest of their last readings is the room's).
+        std::optional<double> room_last;
+        for (const std::string& mote : capable)
+          if (auto v = last_of({mote, s.quantity})) room_last = std::max(room_last.value_or(*v), *v);
+        for (const std::string& mote : capable) ask(each_due, {mote, s.quantity}, room_last);
       } else {
         std::pair<std::string, sp::Quantity> key{s.area, s.quantity};
-        ask(room_due, key);
+        ask(room_due, key, last_of(key));
         room_due[key].motes = std::move(capable);
       }
     }
