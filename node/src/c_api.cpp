@@ -183,20 +183,28 @@ std::string_view trim(std::string_view text) {
 // blank nodes and every form of literal; the position checks come after.
 constexpr std::string_view kTermPrefix = "<urn:tahvel:c-api:s> <urn:tahvel:c-api:p> ";
 
-// Rewrites parse_rdf's "term:1:COL: reason" into "at column N: reason", N counted in the
-// caller's term rather than in the snippet it was wrapped in.
+// Rewrites parse_rdf's "term:LINE:COL: reason" into "at column N: reason" (or "at line L,
+// column N" for a term of several lines), counted in the caller's term rather than in the
+// snippet it was wrapped in.
 std::string term_error(std::string_view message) {
-  constexpr std::string_view head = "term:1:";
-  std::size_t digits_end = head.size();
-  while (digits_end < message.size() && message[digits_end] >= '0' && message[digits_end] <= '9')
-    ++digits_end;
-  if (message.substr(0, head.size()) != head || digits_end == head.size() ||
-      message.substr(digits_end, 2) != ": ")
-    return std::string(message);
-  const long column = std::stol(std::string(message.substr(head.size(), digits_end - head.size())));
-  const long in_term = column - static_cast<long>(kTermPrefix.size());
-  return "at column " + std::to_string(in_term < 1 ? 1 : in_term) + ": " +
-         std::string(message.substr(digits_end + 2));
+  constexpr std::string_view head = "term:";
+  auto number_at = [&](std::size_t& at) -> std::optional<long> {
+    const std::size_t from = at;
+    while (at < message.size() && message[at] >= '0' && message[at] <= '9') ++at;
+    if (at == from || at - from > 9) return std::nullopt;
+    return std::stol(std::string(message.substr(from, at - from)));
+  };
+  if (message.substr(0, head.size()) != head) return std::string(message);
+  std::size_t at = head.size();
+  const auto line = number_at(at);
+  if (!line || message.substr(at, 1) != ":") return std::string(message);
+  ++at;
+  const auto column = number_at(at);
+  if (!column || message.substr(at, 2) != ": ") return std::string(message);
+  const std::string reason(message.substr(at + 2));
+  if (*line > 1) return "at line " + std::to_string(*line) + ", column " + std::to_string(*column) + ": " + reason;
+  const long in_term = *column - static_cast<long>(kTermPrefix.size());
+  return "at column " + std::to_string(in_term < 1 ? 1 : in_term) + ": " + reason;
 }
 
 // Parses one N-Triples term for `position`; NULL or blank text means "any" (nullopt).
@@ -219,6 +227,12 @@ tahvel::node::Result<std::optional<Term>> parse_term(const char* text, Position 
   if (triples->size() != 1)
     return fail(Errc::invalid_argument, quoted + " is not exactly one term");
   Term parsed = std::move(triples->front().o);
+  // Checked here, not where the term is first stored: a pattern's terms are stored in the
+  // subscription's own item, whose error named its triple ("triple 2, object").
+  if (parsed.is_iri() && !tahvel::uri::is_valid(parsed.value))
+    return fail(Errc::invalid_iri, "invalid " + quoted + ": not an absolute IRI");
+  if (parsed.is_literal() && !parsed.datatype.empty() && !tahvel::uri::is_valid(parsed.datatype))
+    return fail(Errc::invalid_iri, "invalid " + quoted + ": its datatype is not an absolute IRI");
   if (position == Position::subject && parsed.is_literal())
     return fail(Errc::invalid_argument, quoted + ": a subject cannot be a literal");
   if (position == Position::predicate && !parsed.is_iri())

@@ -342,6 +342,14 @@ TEST_F(CApiTest, BadTermsAndArguments) {
   EXPECT_EQ(tahvel_subscribe(agent, "\"literal\"", nullptr, nullptr, nullptr),
             TAHVEL_INVALID_ARGUMENT);
   EXPECT_EQ(tahvel_subscribe(agent, nullptr, "_:b1", nullptr, nullptr), TAHVEL_INVALID_ARGUMENT);
+  // An IRI the syntax lets through but that is not one: named as the term it is, not as the
+  // subscription record it would have become ("triple 2, object").
+  EXPECT_EQ(tahvel_subscribe(agent, nullptr, "<http://[::1>", nullptr, nullptr), TAHVEL_INVALID_IRI);
+  EXPECT_NE(std::string(tahvel_last_error()).find("predicate term '<http://[::1>'"), std::string::npos)
+      << tahvel_last_error();
+  // A term of two lines: its own line and column, not the wrapper's.
+  EXPECT_EQ(tahvel_subscribe(agent, nullptr, nullptr, "\"x\"\n  ^^", nullptr), TAHVEL_SYNTAX);
+  EXPECT_NE(std::string(tahvel_last_error()).find("at line 2, column"), std::string::npos) << tahvel_last_error();
   const char* two = "<http://a/o> . <http://a/s> <http://a/p> <http://a/o2>";
   EXPECT_EQ(tahvel_subscribe(agent, nullptr, nullptr, two, nullptr),
             TAHVEL_INVALID_ARGUMENT)
