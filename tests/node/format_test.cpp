@@ -441,6 +441,18 @@ TEST(Format, InvalidUtf8InInputIsSyntaxErrorNamingTheByteAndItsColumn) {
   EXPECT_EQ(latin1.message.rfind("<input>:1:31: not UTF-8: byte 0xE9 ", 0), 0u) << latin1.message;
 }
 
+// serd turns "\uD800" into the bytes of a surrogate, which are not UTF-8: the store refused them
+// naming only "triple 2, object". The statement's line is named, as for any syntax error.
+TEST(Format, AnEscapedSurrogateIsASyntaxErrorOnItsLine) {
+  auto error = parse_error("<http://x/a> <http://x/b> \"ok\" .\n<http://x/a> <http://x/b> \"a\\uD800b\" .\n");
+  EXPECT_EQ(error.code, tn::Errc::syntax);
+  EXPECT_EQ(error.message.rfind("<input>:2:", 0), 0u) << error.message;
+  EXPECT_NE(error.message.find("surrogate"), std::string::npos) << error.message;
+  auto pair = tn::parse_rdf("<http://x/a> <http://x/b> \"\\U0001F600\" .", {});
+  ASSERT_TRUE(pair) << pair.error().message;
+  EXPECT_EQ(pair->front().o.value, "\xF0\x9F\x98\x80");
+}
+
 TEST(Format, ErrorAfterValidStatementsYieldsNoTriples) {
   auto result = tn::parse_rdf("<http://x/a> <http://x/b> <http://x/c> .\n<http://x/a> <b> .", {});
   ASSERT_FALSE(result.has_value());
