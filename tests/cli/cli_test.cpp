@@ -682,7 +682,7 @@ TEST_F(Cli, ReasonWarnsOnARingStoreAndPersistentConclusionsAreNotTheRings) {
   spit(tmp_ / "r.rules", "hi(S) :- fact(S, <http://example.org/hr>, V), V > 100.\n");
   Outcome plain = run({"reason", node_, (tmp_ / "r.rules").string(), "--once"});
   ASSERT_EQ(plain.status, 0) << plain.err;
-  EXPECT_NE(plain.err.find("is a ring of 40 items: conclusions it reclaims are written again while they hold"), std::string::npos)
+  EXPECT_NE(plain.err.find("is a ring of 40 records: conclusions it reclaims are written again while they hold"), std::string::npos)
       << plain.err;
   Outcome kept = run({"reason", node_, (tmp_ / "r.rules").string(), "--once", "--persistent", "--agent", "r2"});
   ASSERT_EQ(kept.status, 0) << kept.err;
