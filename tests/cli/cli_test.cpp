@@ -241,6 +241,18 @@ TEST_F(Cli, InvalidIriOnTheCommandLineIsAUsageErrorNamingTheFlag) {
   EXPECT_FALSE(fs::exists(tmp_ / "other"));
 }
 
+// A --max-map below the smallest store is a bad value of a flag, as `--max-map abc` is: a usage
+// error (exit 2) naming the command, the flag and the minimum, and nothing is created. It was a
+// failure (exit 1) saying only "max_map_bytes must be at least 1 MiB".
+TEST_F(Cli, InitMaxMapBelowOneMebibyteIsAUsageErrorNamingTheFlagAndTheMinimum) {
+  Outcome r = run({"init", node_, "--iri", kNodeIri, "--max-map", "1000000"});
+  EXPECT_EQ(r.status, 2) << r.err;
+  EXPECT_EQ(r.err, "tahvel: init: --max-map: 1000000 bytes is less than the smallest store, 1048576 bytes (1 MiB)\n");
+  EXPECT_FALSE(fs::exists(fs::path(node_) / "data.mdb"));
+  Outcome least = run({"init", node_, "--iri", kNodeIri, "--max-map", "1048576"});
+  EXPECT_EQ(least.status, 0) << least.err;
+}
+
 TEST_F(Cli, UnknownSubcommandExits2) {
   Outcome r = run({"frobnicate"});
   EXPECT_EQ(r.status, 2);
