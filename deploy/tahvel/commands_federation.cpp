@@ -1460,7 +1460,8 @@ int run_up(const Args& args) {
   for (const NodeSpec* node_spec : mine) {
     const NodeSpec& spec = *node_spec;
     fs::path store = state / spec.id;
-    if (!fs::exists(store / "data.mdb")) {
+    const bool new_store = !fs::exists(store / "data.mdb");
+    if (new_store) {
       create_store(spec, store, topo);
     } else {
       node::Node existing = check(node::Node::open(store));
@@ -1488,7 +1489,9 @@ int run_up(const Args& args) {
       for (std::size_t k = 0; k < policy.size(); ++k) {
         const std::uint64_t item = check(uplink.subscribe(policy[k]));
         kept.insert(item);
-        if (!had.count(item) && k < spec.forward.size() && !had.empty())  // not at a new store's first policy
+        // Not at a new store's first policy, which is the file's as it is. A store whose policy
+        // was empty (`forward = []`) has no subscription to tell it from a new one by.
+        if (!had.count(item) && k < spec.forward.size() && !new_store)
           std::cout << "up: " << spec.id << ": added the forwarding pattern '" << spec.forward[k] << "' (item " << item << ")\n";
       }
       // A pattern taken out of the file stops going up (a narrowed policy keeps raw data home):

@@ -2074,6 +2074,26 @@ TEST_F(Cli, UpWarnsOfAForwardTermOutsideTheVocabularyAndSaysOnceWhenTheDefaultPo
   EXPECT_EQ(run({"down", "--state", state}).status, 0);
 }
 
+// docs/deploy.md: a pattern added to `forward` is printed. One added to an empty policy
+// (`forward = []`) was not: with no subscription before it, `up` took it for a new store's
+// first policy, which goes unsaid.
+TEST_F(Cli, UpSaysAPatternAddedToAnEmptyForwardPolicy) {
+  const std::string file = (tmp_ / "t.toml").string(), state = (tmp_ / "state").string();
+  const std::string top = "[[node]]\nid = \"hospital\"\niri = \"http://example.org/hospital\"\n"
+                          "listen = { kind = \"lcm\", url = \"udpm://239.255.76.67:7725?ttl=0\" }\n"
+                          "[[node]]\nid = \"home1\"\nparent = \"hospital\"\n";
+  spit(file, top + "forward = []\n");
+  Outcome first = run({"up", file, "--state", state});
+  ASSERT_EQ(first.status, 0) << first.err;
+  EXPECT_EQ(first.out.find("forwarding pattern"), std::string::npos) << first.out;
+  spit(file, top + "forward = [\"_ a tv:EcgChunk\"]\n");
+  Outcome added = run({"up", file, "--state", state});
+  EXPECT_EQ(added.status, 0) << added.err;
+  EXPECT_TRUE(std::regex_search(added.out, std::regex("up: home1: added the forwarding pattern '_ a tv:EcgChunk' \\(item [0-9]+\\)\n")))
+      << added.out;
+  EXPECT_EQ(run({"down", "--state", state}).status, 0);
+}
+
 // A node whose chain lacks a stage runs, reports nothing wrong and writes no HRV: `up` says which
 // agent waits for what, once per cause (the agents after it named with it), and says nothing of
 // a node that runs a program of the deployment's own, which may write anything.
