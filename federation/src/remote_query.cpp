@@ -132,13 +132,16 @@ Result<std::uint64_t> remote_query(node::Node& node, const RemoteQuery& query,
       std::this_thread::sleep_for(std::chrono::milliseconds(50));
       continue;
     }
-    if (child_state != "up")
-      return node::fail(Errc::io, "unreachable: <" + child + ">" + (child == *target ? "" : " (on the way to <" + *target + ">)") +
-                                      " is " + child_state + " at <" + self + ">");
-    return node::fail(Errc::io, "unreachable: no link runs for <" + self + "> (nothing holds " +
-                                    (node.dir() / kServingLockFile).string() + "), so nothing reaches <" + child +
-                                    ">; if 'tahvel status' shows the link restarting, ask again once it runs, "
-                                    "else start it ('tahvel up')");
+    // With no link running here, that is the reason for every child: the states on the board
+    // are what its last run left ("up" for one that was connected, "never connected" for one
+    // it had not heard from yet), and none of them says why nothing reaches the child now.
+    if (!serving)
+      return node::fail(Errc::io, "unreachable: no link runs for <" + self + "> (nothing holds " +
+                                      (node.dir() / kServingLockFile).string() + "), so nothing reaches <" + child +
+                                      ">; if 'tahvel status' shows the link restarting, ask again once it runs, "
+                                      "else start it ('tahvel up')");
+    return node::fail(Errc::io, "unreachable: <" + child + ">" + (child == *target ? "" : " (on the way to <" + *target + ">)") +
+                                    " is " + child_state + " at <" + self + ">");
   }
   static std::atomic<int> counter{0};
   auto agent = node.agent("query-" + std::to_string(getpid()) + "-" + std::to_string(++counter));

@@ -1504,6 +1504,22 @@ TEST(Link, AQueryAskedWhereNoLinkRunsIsUnreachableWithoutWaitingForItsTimeout) {
   EXPECT_LT(std::chrono::steady_clock::now() - before, 30s) << "waited for the timeout";
 }
 
+// Where no link runs, that is why every child cannot be reached, whatever state the link's last
+// run left for it: `tahvel status` (no restart grace) said of a child that run had not heard
+// from "<…/home2> is never connected at <…/hospital>", and of one it had, "no link runs".
+TEST(Link, WhereNoLinkRunsEveryChildIsUnreachableBecauseNoLinkRunsNotForItsLastState) {
+  Tree tree;
+  ASSERT_TRUE(tree.start_hospital_and_home1());
+  tree.hospital.reset();
+  auto hospital = node::Node::open(tree.hospital_dir).value();
+  for (const std::string& child : {kHome1, kHome2}) {
+    auto asked = remote_query(hospital, {.target = child, .restart_grace = {}}, 10s, [](const node::Record&) {});
+    ASSERT_FALSE(asked) << child;
+    EXPECT_EQ(asked.error().code, Errc::io) << child;
+    EXPECT_EQ(asked.error().message.rfind("unreachable: no link runs for <" + kHospital + ">", 0), 0u) << asked.error().message;
+  }
+}
+
 // A link that its supervisor starts again (within a second) leaves for that while no link
 // serving the node and then, in its new run, its children "never connected" until their hello:
 // an operator's query asked then waits for it (RemoteQuery::restart_grace) instead of failing.
