@@ -100,8 +100,14 @@ Result<std::uint64_t> remote_query(node::Node& node, const RemoteQuery& query,
     else if (area_query) records = area_query(*snap, pattern, query.area, query.floor, options);
     else return node::fail(Errc::invalid_argument, "no area resolver for a query by area");
     if (!records) return Unexpected<Error>{records.error()};
-    for (const auto& r : *records) each(r);
-    return records->size();
+    std::uint64_t delivered = 0;
+    for (const auto& r : *records) {
+      if (cancelled && cancelled())
+        return node::fail(Errc::io, "cancelled after " + std::to_string(delivered) + " records from <" + *target + ">");
+      each(r);
+      ++delivered;
+    }
+    return delivered;
   }
   if (!uri::is_under(*target, self))
     return node::fail(Errc::not_found, "unknown node <" + *target + ">: not below <" + self + ">, where the query was asked");
@@ -257,6 +263,10 @@ Result<std::uint64_t> remote_query(node::Node& node, const RemoteQuery& query,
       // is not lost to the caller.
       for (auto it = early.find(next_chunk); it != early.end(); it = early.find(next_chunk)) {
         for (const auto& r : it->second) {
+          // Asked before each record, not only between chunks: one that comes after the caller
+          // stopped taking them would be counted as delivered.
+          if (cancelled && cancelled())
+            return node::fail(Errc::io, "cancelled after " + std::to_string(delivered) + " records from <" + *target + ">");
           each(r);
           ++delivered;
         }

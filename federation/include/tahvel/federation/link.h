@@ -175,8 +175,8 @@ inline constexpr const char* kServingLockFile = "link.lock";
 // unreachable (errc io, message starts "unreachable:"; also when no link serves this node's
 // children: no process holds its kServingLockFile, or the one that does is stopped by a
 // signal or a debugger; when no link serves, the message says so whatever state the board
-// keeps for the child), timeout. `cancelled`, when given, is
-// asked at least every 100 ms and between chunks: once it says true, the query ends (errc io,
+// keeps for the child), timeout. `cancelled`, when given, is asked at least every 100 ms and
+// before each record is handed to `each`: once it says true, the query ends (errc io,
 // message starts "cancelled"), its items leave the board, and the link tells the nodes below
 // to stop answering (docs/protocol.md P18). A timeout cancels the same way.
 
