@@ -9,6 +9,7 @@
 #include <cstdint>
 #include <functional>
 #include <iosfwd>
+#include <memory>
 #include <optional>
 #include <span>
 #include <string>
@@ -124,6 +125,49 @@ void finish_output(std::ostream& out);
 extern bool g_stdout_was_closed;
 // True when standard output is a pipe whose reader has gone (`tahvel … | head`).
 bool stdout_reader_gone();
+// True once SIGINT or SIGTERM came to a command that cancels on them (install_stop_handlers in
+// commands_federation.cpp: `query`, `ecg`, `up --foreground`, `link`).
+bool stop_requested();
+
+// Standard output in whole pieces (a record, a CSV row), for the commands that print an answer
+// as it comes (`query`, `ecg`). A stop (SIGINT, SIGTERM) ends the output at the end of a piece,
+// never inside one, and written() counts the pieces that went out: what the command says it
+// printed. Through std::cout, a signal that interrupted a write to a full pipe left the last
+// line cut at the edge of stdio's buffer, and the count took in what was still in the buffer.
+//
+// Pieces are gathered and written out 8 KiB at a time (each one at once on a terminal). Once
+// stopped, a piece cut by the interrupted write is finished (the reader must take those few
+// bytes), and the pieces not yet written go out only as far as standard output takes them
+// without waiting; the rest are dropped. A write that fails (EPIPE: the reader went away) ends
+// the output too; check() then says so.
+class PieceOutput {
+ public:
+  PieceOutput();
+  ~PieceOutput();
+  PieceOutput(const PieceOutput&) = delete;
+  PieceOutput& operator=(const PieceOutput&) = delete;
+
+  // Where the text of the piece being made goes.
+  std::ostream& stream();
+  // The text made since the last end_piece() is one piece; `counted`: one that written()
+  // counts (not a CSV header). May write out what was gathered.
+  void end_piece(bool counted = true);
+  // Writes out every piece, and then any text after the last one (what RecordWriter::finish
+  // closes a Turtle document with); once stopped, only what goes out without waiting.
+  void finish();
+  // The counted pieces written out whole.
+  std::uint64_t written() const;
+  // True while everything made so far has been written out or may still be.
+  bool good() const;
+  // errno of the write that failed (EPIPE: the reader went away), 0 when none did.
+  int error() const;
+  // Fails, as finish_output does, when a write failed (quietly when the reader went away).
+  void check() const;
+
+ private:
+  struct Impl;
+  std::unique_ptr<Impl> impl_;
+};
 // `stats DIR --predicates [--at IRI] [--timeout S] [--json]` (the stats command is in
 // commands_read.cpp; this, in commands_federation.cpp): what the store, or the node at IRI below
 // it (from its board, through the link), holds per predicate.
@@ -186,13 +230,14 @@ int run_down(const Args& args);
 int run_status(const Args& args);
 
 // `query` of the node at --at below `node` (or `node` itself) as `tahvel query` asks it: Ctrl-C,
-// SIGTERM and a closed standard output cancel it (P18). Calls `each` per record and `answered`
-// once the answer has ended, whichever way; returns the number of records. On failure exits,
-// the message prefixed with `command`: 3 timeout, 4 unknown node, 5 unreachable, 130 when
-// interrupted, 1 anything else.
+// SIGTERM and a closed standard output cancel it (P18). Calls `each` per record, which writes
+// to `out` (or keeps the record), and `answered` once the answer has ended, whichever way (it
+// writes out the rest: PieceOutput::finish); returns the number of records. On failure exits,
+// the message prefixed with `command`: 3 timeout, 4 unknown node, 5 unreachable, 1 anything
+// else, 130 when interrupted, with the number of `piece`s ("record", "frame") written out.
 std::uint64_t ask_below(std::string_view command, node::Node& node, const federation::RemoteQuery& query,
-                        std::chrono::milliseconds timeout, const std::function<void(const node::Record&)>& each,
-                        const std::function<void()>& answered = {});
+                        std::chrono::milliseconds timeout, PieceOutput& out, const std::function<void(const node::Record&)>& each,
+                        const std::function<void()>& answered, std::string_view piece);
 // --timeout S of `command`: seconds, a fraction allowed ("2.5"), at least 1 ms and at most
 // `at_most`; `fallback` when the flag is not given.
 std::chrono::milliseconds seconds_flag(const Args& args, std::string_view command, std::chrono::milliseconds fallback,

@@ -6,6 +6,8 @@
 #include <cerrno>
 #include <cstring>
 #include <ctime>
+#include <climits>
+#include <deque>
 #include <limits>
 #include <poll.h>
 #include <unistd.h>
@@ -14,6 +16,7 @@
 #include <iostream>
 #include <iterator>
 #include <sstream>
+#include <streambuf>
 
 #include "commands.h"
 #include "tahvel/spatial/wkt.h"
@@ -354,14 +357,147 @@ bool stdout_reader_gone() {
 
 bool g_stdout_was_closed = false;
 
-void finish_output(std::ostream& out) {
-  out.flush();
-  if (out) return;
-  int error = errno;  // may be stale: the stream could have failed on an earlier write
+namespace {
+// `error` (errno of a failed write to standard output, 0 when not known) as the command's failure.
+[[noreturn]] void fail_output(int error) {
   // A reader that went away (`tahvel tail | head`) is not worth a message; exit 1 quietly.
   if (error == EPIPE || stdout_reader_gone()) throw Failure{kExitFailure, ""};
   fail(std::string("cannot write to standard output: ") +
        (g_stdout_was_closed ? "it was closed when tahvel started" : error ? std::strerror(error) : "write failed"));
+}
+}  // namespace
+
+void finish_output(std::ostream& out) {
+  out.flush();
+  if (out) return;
+  fail_output(errno);  // may be stale: the stream could have failed on an earlier write
+}
+
+// --- PieceOutput ----------------------------------------------------------------------------
+
+struct PieceOutput::Impl {
+  // The stream's text, appended to `text` a put area at a time (a CSV row is many small puts).
+  struct Gather : std::streambuf {
+    explicit Gather(std::string& to) : text(to) { setp(area, area + sizeof area); }
+    int_type overflow(int_type c) override {
+      sync();
+      if (!traits_type::eq_int_type(c, traits_type::eof())) {
+        *pptr() = traits_type::to_char_type(c);
+        pbump(1);
+      }
+      return traits_type::not_eof(c);
+    }
+    int sync() override {
+      text.append(pbase(), pptr());
+      setp(area, area + sizeof area);
+      return 0;
+    }
+    std::string& text;
+    char area[4096];
+  };
+
+  static constexpr std::size_t kGather = 8192;  // written out when this much is gathered
+
+  std::string text;                // gathered, from `sent` on not yet written out
+  Gather gather{text};
+  std::ostream stream{&gather};
+  std::size_t sent = 0;            // bytes of `text` written out
+  std::deque<std::pair<std::size_t, bool>> ends;  // the unwritten pieces' ends in `text`, counted
+  std::size_t piece_start = 0;     // where the piece being written out begins in `text`
+  std::uint64_t written = 0;
+  bool at_once = isatty(STDOUT_FILENO) != 0;  // a terminal shows each record as it comes
+  bool stopped = false;
+  bool dropped = false;            // some text made was not written out, and will not be
+  int error = 0;                   // errno of a failed write
+
+  // Whether a write of up to PIPE_BUF bytes goes out now: a pipe with room for them, a file.
+  static bool takes_now() {
+    pollfd p{STDOUT_FILENO, POLLOUT, 0};
+    return ::poll(&p, 1, 0) == 1 && (p.revents & POLLOUT) != 0;
+  }
+
+  // Writes out `text` up to `to`, the end of a piece. A signal that interrupts a write stops
+  // the output, at the end of the piece it cut; once stopped, whole pieces go out only as far as
+  // standard output takes them at once, and the rest are dropped.
+  void write_out(std::size_t to) {
+    while (error == 0 && sent < to) {
+      if (!stopped && stop_requested()) stopped = true;
+      std::size_t n = to - sent;
+      if (stopped && sent == piece_start) {
+        if (!takes_now()) break;
+        // Whole pieces that fit in one write a pipe with room takes whole (PIPE_BUF), or the
+        // first piece alone when it is longer.
+        n = ends.front().first - sent;
+        for (const auto& piece : ends)
+          if (piece.first <= to && piece.first - sent <= PIPE_BUF) n = piece.first - sent;
+      } else if (stopped) {
+        n = ends.front().first - sent;  // the rest of the piece the signal cut, however long it waits
+      }
+      const ssize_t put = ::write(STDOUT_FILENO, text.data() + sent, n);
+      if (put < 0 && errno == EINTR) continue;  // the stop it brought is seen at the loop's top
+      if (put < 0) {
+        error = errno;
+        break;
+      }
+      sent += static_cast<std::size_t>(put);
+      for (; !ends.empty() && ends.front().first <= sent; ends.pop_front()) {
+        piece_start = ends.front().first;
+        if (ends.front().second) ++written;
+      }
+    }
+    if (stopped || error != 0) {  // what has not gone out never will
+      dropped = dropped || sent < text.size();
+      ends.clear();
+      text.clear();
+      sent = piece_start = 0;
+    } else if (sent == piece_start && sent > 0) {  // between pieces: what went out is forgotten
+      text.erase(0, sent);
+      for (auto& end : ends) end.first -= sent;
+      sent = piece_start = 0;
+    }
+  }
+};
+
+PieceOutput::PieceOutput() : impl_(std::make_unique<Impl>()) {}
+PieceOutput::~PieceOutput() = default;
+
+std::ostream& PieceOutput::stream() { return impl_->stream; }
+
+void PieceOutput::end_piece(bool counted) {
+  Impl& o = *impl_;
+  o.gather.pubsync();
+  if (o.stopped || o.error != 0) {  // made after the output ended: never written
+    o.dropped = o.dropped || !o.text.empty();
+    o.text.clear();
+    return;
+  }
+  const std::size_t end = o.text.size();
+  if (end == (o.ends.empty() ? o.piece_start : o.ends.back().first)) return;  // nothing made
+  o.ends.emplace_back(end, counted);
+  if (o.at_once || end - o.sent >= Impl::kGather) o.write_out(end);
+}
+
+void PieceOutput::finish() {
+  Impl& o = *impl_;
+  o.gather.pubsync();
+  if (o.error != 0) return;
+  // The text after the last piece (what closes a Turtle document) goes out after the pieces,
+  // uncounted; once stopped, it is all there is (the pieces were dropped), and closes the last
+  // piece that went out, if one did.
+  if (o.stopped && o.written == 0) o.text.clear();
+  const std::size_t end = o.text.size();
+  if (end > (o.ends.empty() ? o.piece_start : o.ends.back().first)) o.ends.emplace_back(end, false);
+  if (!o.ends.empty()) o.write_out(end);
+}
+
+std::uint64_t PieceOutput::written() const { return impl_->written; }
+
+bool PieceOutput::good() const { return !impl_->dropped && impl_->error == 0; }
+
+int PieceOutput::error() const { return impl_->error; }
+
+void PieceOutput::check() const {
+  if (impl_->error != 0) fail_output(impl_->error);
 }
 
 uri::PrefixMap used_prefixes(const uri::PrefixMap& prefixes,

@@ -30,18 +30,21 @@ std::string csv_field(const std::string& text) {
 }
 
 // Writes each frame of the chunks given to it that falls in [since, until) (its time is the
-// recording's start plus its sample over the rate), and keeps count of the frames written and
-// of the samples of the range that no chunk held.
+// recording's start plus its sample over the rate), one row a piece of `out` (a Ctrl-C ends the
+// output after a whole row), and keeps count of the frames made and of the samples of the range
+// that no chunk held.
 class FrameWriter {
  public:
-  FrameWriter(const agg::RecordingInfo& info, std::optional<std::int64_t> since, std::optional<std::int64_t> until)
-      : info_(info), since_(since), until_(until) {}
+  FrameWriter(const agg::RecordingInfo& info, std::optional<std::int64_t> since, std::optional<std::int64_t> until,
+              PieceOutput& out)
+      : info_(info), since_(since), until_(until), piece_(out), out_(out.stream()) {}
 
-  void header() const {
-    std::cout << "sample,unix_ns";
+  void header() {
+    out_ << "sample,unix_ns";
     for (std::size_t lead = 0; lead < info_.leads.size(); ++lead)
-      std::cout << ',' << csv_field(info_.leads[lead].empty() ? "lead " + std::to_string(lead) : info_.leads[lead]);
-    std::cout << '\n';
+      out_ << ',' << csv_field(info_.leads[lead].empty() ? "lead " + std::to_string(lead) : info_.leads[lead]);
+    out_ << '\n';
+    piece_.end_piece(false);
   }
 
   void write(const agg::EcgChunk& chunk) {
@@ -53,14 +56,15 @@ class FrameWriter {
       if (next_ && sample > *next_) gaps_.push_back({*next_, sample});
       if (!first_) first_ = sample;
       next_ = sample + 1;
-      std::cout << sample << ',';
-      if (at) std::cout << *at;
+      out_ << sample << ',';
+      if (at) out_ << *at;
       for (std::size_t l = 0; l < chunk.leads.size(); ++l) {
         const auto c = info_.calibration_of(l);
         std::snprintf(value, sizeof value, ",%.6g", (chunk.leads[l][i] - c.baseline) / c.gain);
-        std::cout << value;
+        out_ << value;
       }
-      std::cout << '\n';
+      out_ << '\n';
+      piece_.end_piece();
       ++frames_;
     }
   }
@@ -97,6 +101,8 @@ class FrameWriter {
 
   const agg::RecordingInfo& info_;
   std::optional<std::int64_t> since_, until_;
+  PieceOutput& piece_;
+  std::ostream& out_;
   std::optional<std::int64_t> first_, next_;
   std::uint64_t frames_ = 0;
   std::vector<std::pair<std::int64_t, std::int64_t>> gaps_;
@@ -140,11 +146,12 @@ int run_ecg(const Args& args) {
   const auto deadline = std::chrono::steady_clock::now() + timeout;
   // The two queries (the description, then the chunks) share the one --timeout: the second
   // gets what the first left, and a timeout names the whole, not what was left of it.
+  PieceOutput out;
   auto ask_in_time = [&](const std::function<void(const node::Record&)>& each, const std::function<void()>& answered) {
     const auto left = std::max(std::chrono::milliseconds(1),
                                std::chrono::duration_cast<std::chrono::milliseconds>(deadline - std::chrono::steady_clock::now()));
     try {
-      ask_below("ecg", node, ask, left, each, answered);
+      ask_below("ecg", node, ask, left, out, each, answered, "frame");
     } catch (Failure& f) {
       if (f.status == kExitTimeout && left < timeout)
         f.message += "; the description and the chunks share --timeout " + seconds_text(static_cast<double>(timeout.count()) / 1000);
@@ -165,7 +172,7 @@ int run_ecg(const Args& args) {
   // Its chunks (<recording>/chunk/<first sample>) that held in the range, in the order stored:
   // a chunk's records come together, and a chunk is written out when the next one begins.
   ask.pattern = {.under = recording + "/chunk", .since = since, .until = until};  // as agg::chunk_iri names them
-  FrameWriter frames(*info, since, until);
+  FrameWriter frames(*info, since, until, out);
   frames.header();
   std::vector<node::Record> chunk;
   std::uint64_t unreadable = 0;
@@ -183,8 +190,11 @@ int run_ecg(const Args& args) {
   ask_in_time([&](const node::Record& r) {
     if (!chunk.empty() && chunk.front().triple.s != r.triple.s) flush();
     chunk.push_back(r);
-  }, flush);
-  finish_output(std::cout);
+  }, [&] {
+    flush();
+    out.finish();
+  });
+  out.check();
   std::optional<std::int64_t> end_sample;
   for (const node::Record& r : description)
     if (r.triple.p.value == agg::tv_term("endSample").value) {

@@ -128,6 +128,14 @@ void on_stop_signal(int) { g_stop = 1; }
 volatile sig_atomic_t g_apply = 0;
 void on_apply_signal(int) { g_apply = 1; }
 
+}  // namespace
+
+bool stop_requested() { return g_stop != 0; }
+
+namespace {
+
+// Without SA_RESTART: a write blocked on a full pipe returns at the signal (EINTR), and
+// PieceOutput ends the output there, at the end of a piece.
 void install_stop_handlers() {
   struct sigaction action {};
   action.sa_handler = on_stop_signal;
@@ -353,12 +361,18 @@ int run_query(const Args& args) {
   node::Format format = format_flag(args, node::Format::ntriples);
   // Printed as the records come, Turtle too (with all of DIR's prefixes, as `dump` does: the
   // prefixes a long answer uses are known only at its end, and it must not wait in memory).
+  // Each record is one piece of the output: a Ctrl-C ends it after a whole record.
+  PieceOutput out;
   std::optional<node::RecordWriter> writer;
-  const std::uint64_t answered = ask_below("query", node, query, timeout, [&](const node::Record& r) {
-    if (!writer) writer.emplace(std::cout, format, prefixes);
+  const std::uint64_t answered = ask_below("query", node, query, timeout, out, [&](const node::Record& r) {
+    if (!writer) writer.emplace(out.stream(), format, prefixes);
     writer->write(r);
-  }, [&] { if (writer) writer->finish(); });
-  finish_output(std::cout);
+    out.end_piece();
+  }, [&] {
+    if (writer) writer->finish();
+    out.finish();
+  }, "record");
+  out.check();
   // A count for the operator at a terminal; a script's standard error stays empty on success.
   if (isatty(STDERR_FILENO)) {
     auto target = uri::normalize(query.target);
@@ -369,21 +383,30 @@ int run_query(const Args& args) {
 }
 
 std::uint64_t ask_below(std::string_view command, node::Node& node, const federation::RemoteQuery& query,
-                        std::chrono::milliseconds timeout, const std::function<void(const node::Record&)>& each,
-                        const std::function<void()>& answered) {
+                        std::chrono::milliseconds timeout, PieceOutput& out, const std::function<void(const node::Record&)>& each,
+                        const std::function<void()>& answered, std::string_view piece) {
   // Ctrl-C, SIGTERM or a reader that went away (`| head`) cancels the query below (P18) instead
   // of leaving its answer to run on into this node's store.
   install_stop_handlers();
-  auto cancelled = [] { return g_stop != 0 || !std::cout.good(); };
+  auto cancelled = [&out] { return g_stop != 0 || !out.good(); };
   auto got = federation::remote_query(node, query, timeout, each, area_answer, cancelled);
   if (answered) answered();
   const std::string name(command);
-  if (!got && g_stop) throw Failure{kExitInterrupted, name + ": interrupted; " + got.error().message};
-  if (!got && !std::cout.good()) {
+  // Interrupted while the answer came, or while the last of it was written out: what was
+  // written out is counted (not what came: the rest never reached the reader).
+  if (g_stop && (!got || !out.good())) {
+    const auto target = uri::normalize(query.target);
+    const std::uint64_t n = out.written();
+    throw Failure{kExitInterrupted, name + ": interrupted; " + (got ? "stopped writing the answer out" : "cancelled") +
+                                        " after " + std::to_string(n) + " " + std::string(piece) + (n == 1 ? "" : "s") +
+                                        " from <" + (target ? *target : query.target) + ">"};
+  }
+  if (!got && !out.good()) {
     // A reader that went away (`tahvel query … | head`) is not worth a message, as for every
     // command; a write that failed otherwise (a full disk) is.
-    if (stdout_reader_gone()) throw Failure{kExitFailure, ""};
-    throw Failure{kExitFailure, name + ": cannot write the answer to standard output; " + got.error().message};
+    if (out.error() == EPIPE || stdout_reader_gone()) throw Failure{kExitFailure, ""};
+    throw Failure{kExitFailure, name + ": cannot write the answer to standard output (" + std::strerror(out.error()) + "); " +
+                                    got.error().message};
   }
   if (!got) fail_remote(command, got.error());
   return *got;
@@ -1460,7 +1483,8 @@ int run_up(const Args& args) {
   for (const NodeSpec* node_spec : mine) {
     const NodeSpec& spec = *node_spec;
     fs::path store = state / spec.id;
-    if (!fs::exists(store / "data.mdb")) {
+    const bool new_store = !fs::exists(store / "data.mdb");
+    if (new_store) {
       create_store(spec, store, topo);
     } else {
       node::Node existing = check(node::Node::open(store));
@@ -1488,7 +1512,9 @@ int run_up(const Args& args) {
       for (std::size_t k = 0; k < policy.size(); ++k) {
         const std::uint64_t item = check(uplink.subscribe(policy[k]));
         kept.insert(item);
-        if (!had.count(item) && k < spec.forward.size() && !had.empty())  // not at a new store's first policy
+        // Not at a new store's first policy, which is the file's as it is. A store whose policy
+        // was empty (`forward = []`) has no subscription to tell it from a new one by.
+        if (!had.count(item) && k < spec.forward.size() && !new_store)
           std::cout << "up: " << spec.id << ": added the forwarding pattern '" << spec.forward[k] << "' (item " << item << ")\n";
       }
       // A pattern taken out of the file stops going up (a narrowed policy keeps raw data home):

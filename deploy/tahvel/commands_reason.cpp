@@ -127,7 +127,7 @@ int run_reason(const Args& args) {
   // commands runs again.
   if (const auto stats = node.stats(); stats && stats->ring > 0 && !options.persistent)
     std::cerr << "tahvel: warning: " << dir << " is a ring of " << stats->ring
-              << " items: conclusions it reclaims are written again while they hold (and sent up again, commands run "
+              << " records: conclusions it reclaims are written again while they hold (and sent up again, commands run "
                  "again); --persistent keeps them until they lose support\n";
   uri::PrefixMap prefixes = prefixes_with_flags(node.prefixes(), args);
   if (auto ns = args.get("--default-ns")) options.default_ns = parse_iri(*ns, prefixes, "--default-ns");

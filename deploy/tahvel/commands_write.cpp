@@ -120,7 +120,7 @@ const Command kInitCommand{
      {"--durable", "", "", "sync every commit to disk (default: fast, no fsync)"},
      {"--ring", "", "N", "keep at most N non-persistent records, dropping the oldest (0: no ring)"},
      {"--max-literal", "", "BYTES", "refuse literals larger than BYTES (default 1048576)"},
-     {"--max-map", "", "BYTES", "let the store grow to BYTES, then refuse writes (default 64 GiB)"}},
+     {"--max-map", "", "BYTES", "let the store grow to BYTES, then refuse writes (default 64 GiB; at least 1048576)"}},
     1, 1};
 
 int run_init(const Args& args) {
@@ -131,6 +131,11 @@ int run_init(const Args& args) {
   options.ring = args.get_u64("--ring", options.ring);
   options.max_literal_bytes = args.get_u64("--max-literal", options.max_literal_bytes);
   options.max_map_bytes = args.get_u64("--max-map", options.max_map_bytes);
+  // Checked here, as every other flag's value is, so that it is a usage error naming the flag
+  // (Node::init's own refusal names neither the command nor the flag).
+  if (options.max_map_bytes < node::kMinMaxMapBytes)
+    usage_error("init: --max-map: " + std::to_string(options.max_map_bytes) + " bytes is less than the smallest store, " +
+                std::to_string(node::kMinMaxMapBytes) + " bytes (1 MiB)");
   uri::PrefixMap extra = prefixes_with_flags({}, args);  // checked before anything is created
   node::Node node = check(node::Node::init(args.positional(0), options));
   for (const auto& [prefix, ns] : extra.entries()) check(node.set_prefix(prefix, ns));

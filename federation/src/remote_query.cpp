@@ -100,8 +100,14 @@ Result<std::uint64_t> remote_query(node::Node& node, const RemoteQuery& query,
     else if (area_query) records = area_query(*snap, pattern, query.area, query.floor, options);
     else return node::fail(Errc::invalid_argument, "no area resolver for a query by area");
     if (!records) return Unexpected<Error>{records.error()};
-    for (const auto& r : *records) each(r);
-    return records->size();
+    std::uint64_t delivered = 0;
+    for (const auto& r : *records) {
+      if (cancelled && cancelled())
+        return node::fail(Errc::io, "cancelled after " + std::to_string(delivered) + " records from <" + *target + ">");
+      each(r);
+      ++delivered;
+    }
+    return delivered;
   }
   if (!uri::is_under(*target, self))
     return node::fail(Errc::not_found, "unknown node <" + *target + ">: not below <" + self + ">, where the query was asked");
@@ -132,13 +138,16 @@ Result<std::uint64_t> remote_query(node::Node& node, const RemoteQuery& query,
       std::this_thread::sleep_for(std::chrono::milliseconds(50));
       continue;
     }
-    if (child_state != "up")
-      return node::fail(Errc::io, "unreachable: <" + child + ">" + (child == *target ? "" : " (on the way to <" + *target + ">)") +
-                                      " is " + child_state + " at <" + self + ">");
-    return node::fail(Errc::io, "unreachable: no link runs for <" + self + "> (nothing holds " +
-                                    (node.dir() / kServingLockFile).string() + "), so nothing reaches <" + child +
-                                    ">; if 'tahvel status' shows the link restarting, ask again once it runs, "
-                                    "else start it ('tahvel up')");
+    // With no link running here, that is the reason for every child: the states on the board
+    // are what its last run left ("up" for one that was connected, "never connected" for one
+    // it had not heard from yet), and none of them says why nothing reaches the child now.
+    if (!serving)
+      return node::fail(Errc::io, "unreachable: no link runs for <" + self + "> (nothing holds " +
+                                      (node.dir() / kServingLockFile).string() + "), so nothing reaches <" + child +
+                                      ">; if 'tahvel status' shows the link restarting, ask again once it runs, "
+                                      "else start it ('tahvel up')");
+    return node::fail(Errc::io, "unreachable: <" + child + ">" + (child == *target ? "" : " (on the way to <" + *target + ">)") +
+                                    " is " + child_state + " at <" + self + ">");
   }
   static std::atomic<int> counter{0};
   auto agent = node.agent("query-" + std::to_string(getpid()) + "-" + std::to_string(++counter));
@@ -254,6 +263,10 @@ Result<std::uint64_t> remote_query(node::Node& node, const RemoteQuery& query,
       // is not lost to the caller.
       for (auto it = early.find(next_chunk); it != early.end(); it = early.find(next_chunk)) {
         for (const auto& r : it->second) {
+          // Asked before each record, not only between chunks: one that comes after the caller
+          // stopped taking them would be counted as delivered.
+          if (cancelled && cancelled())
+            return node::fail(Errc::io, "cancelled after " + std::to_string(delivered) + " records from <" + *target + ">");
           each(r);
           ++delivered;
         }

@@ -933,7 +933,7 @@ Node::~Node() = default;
 Result<Node> Node::init(const std::filesystem::path& dir, const InitOptions& options) {
   auto iri = uri::node_iri(options.iri);
   if (!iri) return fail(Errc::invalid_iri, "node IRI: " + iri.error().message);
-  if (options.max_map_bytes < (1u << 20)) return fail(Errc::invalid_argument, "max_map_bytes must be at least 1 MiB");
+  if (options.max_map_bytes < kMinMaxMapBytes) return fail(Errc::invalid_argument, "max_map_bytes must be at least 1 MiB");
   InitOptions normalized = options;
   normalized.iri = *iri;
   auto env = Env::open(dir, &normalized);

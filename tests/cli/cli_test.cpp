@@ -5,6 +5,8 @@
 #include <gtest/gtest.h>
 #include <signal.h>
 #include <sys/file.h>
+#include <sys/stat.h>
+#include <sys/syscall.h>
 #include <sys/wait.h>
 #include <unistd.h>
 
@@ -172,6 +174,32 @@ class Cli : public ::testing::Test {
     return r.out;
   }
 
+  // `tahvel ARGS` with its standard output a pipe that nothing reads until the pipe is full and
+  // the command has been sent SIGINT (as Ctrl-C does to `tahvel query … | less`); then all it
+  // wrote, its exit status and its standard error.
+  Outcome interrupted_while_its_pipe_is_full(const std::vector<std::string>& args) {
+    const fs::path fifo = tmp_ / "pipe";
+    EXPECT_EQ(mkfifo(fifo.c_str(), 0600), 0);
+    const int reader = open(fifo.c_str(), O_RDONLY | O_NONBLOCK | O_CLOEXEC);  // before the writer, so its open returns
+    EXPECT_GE(reader, 0);
+    const int n = ++runs_;
+    const pid_t pid = spawn(args, "", n, fifo);
+    // Full when the command waits in write(1, …): the pipe's room is counted in pages, so how
+    // many bytes fill it depends on how the writes fell.
+    const std::string waiting = std::to_string(SYS_write) + " 0x1 ";
+    auto blocked = [&] { return slurp("/proc/" + std::to_string(pid) + "/syscall").rfind(waiting, 0) == 0; };
+    EXPECT_TRUE(eventually(blocked)) << "not waiting to write: " << slurp("/proc/" + std::to_string(pid) + "/syscall");
+    kill(pid, SIGINT);
+    fcntl(reader, F_SETFL, 0);  // read to the end, waiting for what comes
+    std::string out;
+    char buffer[65536];
+    for (ssize_t got; (got = read(reader, buffer, sizeof buffer)) > 0;) out.append(buffer, static_cast<std::size_t>(got));
+    close(reader);
+    Outcome r = finish(pid, n);
+    r.out = std::move(out);
+    return r;
+  }
+
   tahvel::test_support::TempDir dir_{"tahvel-cli"};
   const fs::path tmp_ = dir_.path();
   std::string node_;
@@ -239,6 +267,18 @@ TEST_F(Cli, InvalidIriOnTheCommandLineIsAUsageErrorNamingTheFlag) {
   EXPECT_EQ(i.status, 2);
   EXPECT_NE(i.err.find("--iri"), std::string::npos) << i.err;
   EXPECT_FALSE(fs::exists(tmp_ / "other"));
+}
+
+// A --max-map below the smallest store is a bad value of a flag, as `--max-map abc` is: a usage
+// error (exit 2) naming the command, the flag and the minimum, and nothing is created. It was a
+// failure (exit 1) saying only "max_map_bytes must be at least 1 MiB".
+TEST_F(Cli, InitMaxMapBelowOneMebibyteIsAUsageErrorNamingTheFlagAndTheMinimum) {
+  Outcome r = run({"init", node_, "--iri", kNodeIri, "--max-map", "1000000"});
+  EXPECT_EQ(r.status, 2) << r.err;
+  EXPECT_EQ(r.err, "tahvel: init: --max-map: 1000000 bytes is less than the smallest store, 1048576 bytes (1 MiB)\n");
+  EXPECT_FALSE(fs::exists(fs::path(node_) / "data.mdb"));
+  Outcome least = run({"init", node_, "--iri", kNodeIri, "--max-map", "1048576"});
+  EXPECT_EQ(least.status, 0) << least.err;
 }
 
 TEST_F(Cli, UnknownSubcommandExits2) {
@@ -650,6 +690,32 @@ TEST_F(Cli, SinceAndUntilSelectAStretchOfTimeInListAndNarrowRemove) {
 
 // `query --cascade 4294967296` was cut to 32 bits: depth 0, the matches without their sub-trees,
 // while `list` took the same number as deep.
+// docs/cli.md: the records that came before a cancellation have been printed. Ctrl-C while
+// standard output was a full pipe cut the output at the edge of a buffer, inside a record, and
+// said (or, asked at DIR's own node, failed: "cannot write to standard output") nothing of
+// which records had gone out. The output ends after a whole record, and exit 130 names how many
+// were written out.
+TEST_F(Cli, QueryInterruptedWhileItsPipeIsFullWritesWholeRecordsAndCountsThoseWrittenOut) {
+  init();
+  std::string nt;  // about 600 KB of N-Triples: many times what a pipe holds
+  for (int i = 0; i < 3000; ++i)
+    nt += "<http://example.org/s" + std::to_string(i) + "> <http://example.org/v#value> \"" + std::string(160, 'x') +
+          std::to_string(i) + "\" .\n";
+  put(nt);
+  Outcome r = interrupted_while_its_pipe_is_full({"query", node_, "--at", kNodeIri, "-p", "http://example.org/v#value"});
+  EXPECT_EQ(r.status, 130) << r.err;
+  std::smatch m;
+  ASSERT_TRUE(std::regex_search(r.err, m, std::regex("^tahvel: query: interrupted; cancelled after ([0-9]+) records from <" +
+                                                     kNodeIri + ">\n$")))
+      << r.err;
+  ASSERT_FALSE(r.out.empty());
+  EXPECT_EQ(r.out.back(), '\n') << "the last record is cut: ..." << r.out.substr(r.out.size() - std::min<std::size_t>(80, r.out.size()));
+  const auto lines = lines_of(r.out);
+  const std::regex whole("<http://example\\.org/s[0-9]+> <http://example\\.org/v#value> \"x{160}[0-9]+\" \\.");
+  for (const std::string& line : lines) EXPECT_TRUE(std::regex_match(line, whole)) << line;
+  EXPECT_EQ(std::stoul(m[1]), lines.size()) << "records said written out";
+}
+
 TEST_F(Cli, QueryCascadeBeyondThirtyTwoBitsIsDeepNotNone) {
   init();
   put("<http://example.org/p1> <http://example.org/made> [ <http://example.org/hr> 72 ] .\n");
@@ -682,7 +748,7 @@ TEST_F(Cli, ReasonWarnsOnARingStoreAndPersistentConclusionsAreNotTheRings) {
   spit(tmp_ / "r.rules", "hi(S) :- fact(S, <http://example.org/hr>, V), V > 100.\n");
   Outcome plain = run({"reason", node_, (tmp_ / "r.rules").string(), "--once"});
   ASSERT_EQ(plain.status, 0) << plain.err;
-  EXPECT_NE(plain.err.find("is a ring of 40 items: conclusions it reclaims are written again while they hold"), std::string::npos)
+  EXPECT_NE(plain.err.find("is a ring of 40 records: conclusions it reclaims are written again while they hold"), std::string::npos)
       << plain.err;
   Outcome kept = run({"reason", node_, (tmp_ / "r.rules").string(), "--once", "--persistent", "--agent", "r2"});
   ASSERT_EQ(kept.status, 0) << kept.err;
@@ -994,6 +1060,58 @@ void store_recording(const std::string& dir, const std::string& rec, std::int64_
   chunk(4, {{18, 20, 22, 24}, {16, 18, 20, 22}});
   chunk(12, {{11, 10, 10, 10}, {10, 10, 10, 9}});
   chunk(16, {{10, 10, 10, 10}});
+}
+
+// As `query` (QueryInterruptedWhileItsPipeIsFull…), `tahvel ecg`: the output ends after a whole
+// row, and the count is of the frames written out.
+TEST_F(Cli, EcgInterruptedWhileItsPipeIsFullWritesWholeRowsAndCountsTheFramesWrittenOut) {
+  init();
+  using tahvel::node::Term;
+  const std::string rec = kNodeIri + "/source/recording/long", tv = "https://w3id.org/tahvel#",
+                    xsd = "http://www.w3.org/2001/XMLSchema#";
+  const std::int64_t t0 = 1'800'000'000'000'000'000;
+  {
+    auto source = tahvel::node::Node::open(node_).value().agent("source").value();
+    tahvel::node::Item description;
+    description.persistent = true;
+    const Term r = Term::iri(rec);
+    description.add(r, Term::iri("http://www.w3.org/1999/02/22-rdf-syntax-ns#type"), Term::iri(tv + "EcgRecording"));
+    description.add(r, Term::iri(tv + "samplingRate"), Term::literal("250.0", xsd + "double"));
+    description.add(r, Term::iri(tv + "gain"), Term::literal("200.0", xsd + "double"));
+    description.add(r, Term::iri(tv + "baseline"), Term::integer(0));
+    description.add(r, Term::iri(tv + "lead"), Term::literal("0 MLII"));
+    description.add(r, Term::iri(tv + "startedAt"), Term::integer(t0));
+    ASSERT_TRUE(source.store(description));
+    for (int second = 0; second < 40; ++second) {  // 10,000 rows of about 35 bytes
+      std::string bytes;
+      for (int f = 0; f < 250; ++f) bytes += {static_cast<char>(f + 1), static_cast<char>(1)};
+      tahvel::node::Item item;
+      const Term c = Term::iri(rec + "/chunk/" + std::to_string(second * 250));
+      item.add(c, Term::iri("http://www.w3.org/1999/02/22-rdf-syntax-ns#type"), Term::iri(tv + "EcgChunk"));
+      item.add(c, Term::iri(tv + "recording"), r);
+      item.add(c, Term::iri(tv + "startSample"), Term::integer(second * 250));
+      item.add(c, Term::iri(tv + "frameCount"), Term::integer(250));
+      item.add(c, Term::iri(tv + "samples"), Term::literal(base64(bytes), xsd + "base64Binary"));
+      item.asserted_at = t0 + second * 1'000'000'000ll;
+      item.span = 1'000'000'000;
+      ASSERT_TRUE(source.store(item));
+    }
+  }
+  Outcome r = interrupted_while_its_pipe_is_full({"ecg", node_, "--recording", rec});
+  EXPECT_EQ(r.status, 130) << r.err;
+  std::smatch m;
+  ASSERT_TRUE(std::regex_search(r.err, m, std::regex("^tahvel: ecg: interrupted; cancelled after ([0-9]+) frames from <" +
+                                                     kNodeIri + ">\n$")))
+      << r.err;
+  ASSERT_FALSE(r.out.empty());
+  EXPECT_EQ(r.out.back(), '\n') << "the last row is cut: ..." << r.out.substr(r.out.size() - std::min<std::size_t>(80, r.out.size()));
+  auto lines = lines_of(r.out);
+  ASSERT_FALSE(lines.empty());
+  EXPECT_EQ(lines.front(), "sample,unix_ns,MLII");
+  lines.erase(lines.begin());
+  const std::regex whole("[0-9]+,18[0-9]{17},[0-9.]+");
+  for (const std::string& line : lines) EXPECT_TRUE(std::regex_match(line, whole)) << line;
+  EXPECT_EQ(std::stoul(m[1]), lines.size()) << "frames said written out";
 }
 
 // `tahvel ecg`: each frame of the range asked, with its time and each lead in mV; the samples no
@@ -2059,6 +2177,26 @@ TEST_F(Cli, UpWarnsOfAForwardTermOutsideTheVocabularyAndSaysOnceWhenTheDefaultPo
   EXPECT_EQ(first.out.find("home1: no forward"), std::string::npos) << first.out;
   Outcome again = run({"up", file, "--state", state});
   EXPECT_EQ(again.out.find("no forward"), std::string::npos) << again.out;
+  EXPECT_EQ(run({"down", "--state", state}).status, 0);
+}
+
+// docs/deploy.md: a pattern added to `forward` is printed. One added to an empty policy
+// (`forward = []`) was not: with no subscription before it, `up` took it for a new store's
+// first policy, which goes unsaid.
+TEST_F(Cli, UpSaysAPatternAddedToAnEmptyForwardPolicy) {
+  const std::string file = (tmp_ / "t.toml").string(), state = (tmp_ / "state").string();
+  const std::string top = "[[node]]\nid = \"hospital\"\niri = \"http://example.org/hospital\"\n"
+                          "listen = { kind = \"lcm\", url = \"udpm://239.255.76.67:7725?ttl=0\" }\n"
+                          "[[node]]\nid = \"home1\"\nparent = \"hospital\"\n";
+  spit(file, top + "forward = []\n");
+  Outcome first = run({"up", file, "--state", state});
+  ASSERT_EQ(first.status, 0) << first.err;
+  EXPECT_EQ(first.out.find("forwarding pattern"), std::string::npos) << first.out;
+  spit(file, top + "forward = [\"_ a tv:EcgChunk\"]\n");
+  Outcome added = run({"up", file, "--state", state});
+  EXPECT_EQ(added.status, 0) << added.err;
+  EXPECT_TRUE(std::regex_search(added.out, std::regex("up: home1: added the forwarding pattern '_ a tv:EcgChunk' \\(item [0-9]+\\)\n")))
+      << added.out;
   EXPECT_EQ(run({"down", "--state", state}).status, 0);
 }
 

@@ -1457,6 +1457,30 @@ TEST(Link, ARemoteQueryAnswersWholeThroughAnAskingBoardWithASmallLiteralLimit) {
   for (std::size_t i = 0; i < got.size(); ++i) EXPECT_EQ(got[i].triple.o.value, expected[i].triple.o.value);
 }
 
+// `cancelled` is asked before each record is handed over: a caller that stops taking records
+// (`tahvel query` at Ctrl-C, its output ended) gets none after, and the count in the error is of
+// those handed over. It was asked between chunks only (and, asked at the node itself, never):
+// the rest of the chunk was handed over and counted.
+TEST(Link, ARemoteQueryCancelledPartWayThroughAChunkHandsOverNoMoreRecords) {
+  Tree tree;
+  ASSERT_TRUE(tree.start_hospital_and_home1());
+  auto sensor = node::Node::open(tree.home1_dir).value().agent("ecg").value();
+  for (int i = 0; i < 40; ++i) {
+    node::Item item;
+    item.add(Term::iri(kHome1 + "/rec/chunk/" + std::to_string(i)), Term::iri(kEx + "samples"), Term::integer(i));
+    ASSERT_TRUE(sensor.store(item));
+  }
+  for (const std::string& dir : {tree.hospital_dir, tree.home1_dir}) {  // through the link, and at the node itself
+    auto asking = node::Node::open(dir).value();
+    std::size_t handed = 0;
+    auto n = remote_query(asking, {.target = kHome1, .pattern = {.p = Term::iri(kEx + "samples")}}, 10s,
+                          [&](const node::Record&) { ++handed; }, {}, [&] { return handed >= 10; });
+    ASSERT_FALSE(n) << "asked at " << asking.iri();
+    EXPECT_EQ(n.error().message, "cancelled after 10 records from <" + kHome1 + ">") << "asked at " << asking.iri();
+    EXPECT_EQ(handed, 10u) << "asked at " << asking.iri();
+  }
+}
+
 // A blank node in the pattern is the node of that label in the target's store, as `tahvel list
 // -s _:b1` there means. Written on the asking board as a blank node it was renamed (as every
 // item's blank nodes are) and matched nothing.
@@ -1502,6 +1526,22 @@ TEST(Link, AQueryAskedWhereNoLinkRunsIsUnreachableWithoutWaitingForItsTimeout) {
   EXPECT_EQ(asked.error().code, Errc::io);
   EXPECT_EQ(asked.error().message.rfind("unreachable: no link runs for <" + kHospital + ">", 0), 0u) << asked.error().message;
   EXPECT_LT(std::chrono::steady_clock::now() - before, 30s) << "waited for the timeout";
+}
+
+// Where no link runs, that is why every child cannot be reached, whatever state the link's last
+// run left for it: `tahvel status` (no restart grace) said of a child that run had not heard
+// from "<…/home2> is never connected at <…/hospital>", and of one it had, "no link runs".
+TEST(Link, WhereNoLinkRunsEveryChildIsUnreachableBecauseNoLinkRunsNotForItsLastState) {
+  Tree tree;
+  ASSERT_TRUE(tree.start_hospital_and_home1());
+  tree.hospital.reset();
+  auto hospital = node::Node::open(tree.hospital_dir).value();
+  for (const std::string& child : {kHome1, kHome2}) {
+    auto asked = remote_query(hospital, {.target = child, .restart_grace = {}}, 10s, [](const node::Record&) {});
+    ASSERT_FALSE(asked) << child;
+    EXPECT_EQ(asked.error().code, Errc::io) << child;
+    EXPECT_EQ(asked.error().message.rfind("unreachable: no link runs for <" + kHospital + ">", 0), 0u) << asked.error().message;
+  }
 }
 
 // A link that its supervisor starts again (within a second) leaves for that while no link

@@ -174,8 +174,9 @@ inline constexpr const char* kServingLockFile = "link.lock";
 // as chunks arrive. Errors: not_found "unknown node" (not under this node, or no such child),
 // unreachable (errc io, message starts "unreachable:"; also when no link serves this node's
 // children: no process holds its kServingLockFile, or the one that does is stopped by a
-// signal or a debugger), timeout. `cancelled`, when given, is
-// asked at least every 100 ms and between chunks: once it says true, the query ends (errc io,
+// signal or a debugger; when no link serves, the message says so whatever state the board
+// keeps for the child), timeout. `cancelled`, when given, is asked at least every 100 ms and
+// before each record is handed to `each`: once it says true, the query ends (errc io,
 // message starts "cancelled"), its items leave the board, and the link tells the nodes below
 // to stop answering (docs/protocol.md P18). A timeout cancels the same way.
 

@@ -383,8 +383,12 @@ struct InitOptions {
                                              // 0: no ring (explicit removal and TTL only)
   std::uint64_t max_literal_bytes = 1 << 20; // larger literals are refused
   std::uint64_t max_map_bytes = 1ull << 36;  // the store may grow to this size (64 GiB), then
-                                             // refuses writes with store_full
+                                             // refuses writes with store_full; at least
+                                             // kMinMaxMapBytes
 };
+
+// The smallest InitOptions::max_map_bytes; Node::init refuses less (invalid_argument).
+inline constexpr std::uint64_t kMinMaxMapBytes = 1ull << 20;  // 1 MiB
 
 struct Stats {
   std::string iri;
@@ -409,7 +413,7 @@ struct Stats {
 class Node {
  public:
   // Creates a new store in `dir` (created if missing; must not already hold a store).
-  // Errors: exists, invalid_iri, io.
+  // Errors: exists, invalid_iri, io, invalid_argument (max_map_bytes below kMinMaxMapBytes).
   static Result<Node> init(const std::filesystem::path& dir, const InitOptions& options);
 
   // Opens an existing store. Clears reader slots left by dead processes. Errors: not_found, io,
