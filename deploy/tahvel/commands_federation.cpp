@@ -1103,6 +1103,8 @@ class Deployment {
         agents::DispatcherOptions options;
         options.folder = spec->behaviours;
         options.log_dir = state_ / "logs" / spec->id / "behaviours";
+        options.program_prefix = spec->id + "/";
+        options.env = {{std::string(agents::kLeftoverMark), fs::absolute(state_ / spec->id).string()}};
         auto dispatcher = agents::Dispatcher::open(state_ / spec->id, options, supervisor_);
         if (!dispatcher) {
           changes.push_back("dispatcher of " + spec->id + ": " + dispatcher.error().message);

@@ -102,7 +102,7 @@ node::Result<LinkSpec> link_spec(const toml::table& t, const std::filesystem::pa
   }
   if (config) {
     std::filesystem::path p = *config;
-    if (p.is_relative()) p = file.parent_path() / p;
+    if (p.is_relative()) p = std::filesystem::absolute(file).parent_path() / p;
     std::error_code ec;
     std::ifstream in;
     if (std::filesystem::is_regular_file(p, ec)) in.open(p, std::ios::binary);  // not a FIFO, which would block
@@ -361,7 +361,7 @@ node::Result<Topology> load_topology(const std::filesystem::path& file) {
     TAHVEL_TRY(behaviours, typed<std::string>(*t, "behaviours", file, what, "a string (a folder)"));
     if (behaviours) {
       std::filesystem::path p = *behaviours;
-      if (p.is_relative()) p = file.parent_path() / p;
+      if (p.is_relative()) p = std::filesystem::absolute(file).parent_path() / p;
       spec.behaviours = p.lexically_normal();
       // A misspelt folder would run no behaviour, and say so nowhere.
       if (std::error_code ec; !std::filesystem::is_directory(spec.behaviours, ec))
@@ -373,7 +373,7 @@ node::Result<Topology> load_topology(const std::filesystem::path& file) {
     if (!load) return Unexpected<node::Error>{load.error()};
     for (const auto& l : *load) {
       std::filesystem::path p = l;
-      if (p.is_relative()) p = file.parent_path() / p;
+      if (p.is_relative()) p = std::filesystem::absolute(file).parent_path() / p;
       spec.load.push_back(p.lexically_normal());
     }
     if (t->get("agent") && !t->get("agent")->is_array_of_tables())

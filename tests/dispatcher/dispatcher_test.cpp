@@ -250,6 +250,49 @@ TEST_F(DispatcherTest, ANameThatCannotEndAnIriIsRefusedAndOutputThatIsNotUtf8IsR
 
 // `tahvel up` stopping: its behaviours are stopped and recorded so. A dispatcher that died
 // with runs in progress has them recorded "interrupted" when it next opens, not left running.
+// One supervisor runs the dispatchers of several nodes (`tahvel up` of a whole file). Runs were
+// named by their command's item id, which is a store's own: a command on one node was refused as
+// "already supervised" when another node's finished run had that id, and every run stayed in the
+// supervisor for good. Each node's runs carry its prefix, a run leaves once its end is written,
+// and a run's environment carries what `up` asks of every program it starts.
+TEST_F(DispatcherTest, DispatchersOfTwoNodesUnderOneSupervisorKeepTheirRunsApart) {
+  script("mark", "echo \"$TAHVEL_SUPERVISED_NODE\"\n");
+  const std::string kOther = "http://example.org/robot4";
+  ASSERT_TRUE(tn::Node::init(root_ / "other", {.iri = kOther}).has_value());
+  ta::Supervisor supervisor([](std::string_view) {});
+  auto here = ta::Dispatcher::open(root_ / "node", {.folder = root_ / "behaviours", .program_prefix = "robot3/",
+                                                    .env = {{"TAHVEL_SUPERVISED_NODE", "/state/robot3"}}},
+                                   supervisor);
+  auto there = ta::Dispatcher::open(root_ / "other", {.folder = root_ / "behaviours", .program_prefix = "robot4/"}, supervisor);
+  ASSERT_TRUE(here.has_value() && there.has_value());
+  auto other = tn::Node::open(root_ / "other");
+  ASSERT_TRUE(other.has_value());
+  auto operator_there = other->agent("sensors");
+  ASSERT_TRUE(operator_there.has_value());
+  auto ended_on = [&](tn::Node& node) {
+    auto snap = node.snapshot();
+    return *snap->count({.p = tn::Term::iri(kTv + "state"), .o = tn::Term::literal("exited")});
+  };
+  for (std::uint64_t round = 1; round <= 3; ++round) {
+    put({{n("me"), n("behavior"), tn::Term::literal("mark")}}, here->iri());
+    tn::Item item;
+    item.add(tn::Term::iri(kOther), tn::Term::iri(kOther + "#behavior"), tn::Term::literal("goAhead 1"));
+    item.context = there->iri();
+    ASSERT_TRUE(operator_there->store(item).has_value());
+    auto deadline = std::chrono::steady_clock::now() + 30s;
+    while ((ended_on(*node_) < round || ended_on(*other) < round) && std::chrono::steady_clock::now() < deadline) {
+      ASSERT_TRUE(here->poll(10ms).has_value());
+      ASSERT_TRUE(there->poll(10ms).has_value());
+    }
+    ASSERT_EQ(ended_on(*node_), round);
+    ASSERT_EQ(ended_on(*other), round);
+  }
+  auto snap = other->snapshot();
+  EXPECT_EQ(*snap->count({.p = tn::Term::iri(kTv + "state"), .o = tn::Term::literal("refused")}), 0u);
+  EXPECT_TRUE(holds(n("mark"), kNs + "result", tn::Term::literal("/state/robot3")));
+  EXPECT_TRUE(supervisor.states().empty()) << supervisor.states().size() << " finished runs kept";
+}
+
 TEST_F(DispatcherTest, RunsInProgressAtStopAreRecordedStoppedOrInterrupted) {
   auto state_of = [&](const std::string& run) {
     auto snap = node_->snapshot();

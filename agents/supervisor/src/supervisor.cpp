@@ -462,6 +462,13 @@ Result<void> Supervisor::stop(std::string_view name, std::chrono::milliseconds g
   return fail(Errc::not_found, "no program named '" + std::string(name) + "'");
 }
 
+void Supervisor::stop(const std::vector<std::string>& names, std::chrono::milliseconds grace) {
+  std::vector<Program*> stopping;
+  for (Program* p : programs_)
+    if (std::find(names.begin(), names.end(), p->spec.name) != names.end()) stopping.push_back(p);
+  stop_programs(stopping, grace);
+}
+
 Result<void> Supervisor::remove(std::string_view name, std::chrono::milliseconds grace) {
   if (auto stopped = stop(name, grace); !stopped) return stopped;
   remove(std::vector<std::string>{std::string(name)}, std::chrono::milliseconds(0));

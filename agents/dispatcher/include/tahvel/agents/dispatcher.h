@@ -38,6 +38,13 @@ struct DispatcherOptions {
   std::string agent_id = "dispatcher";   // IRI = node IRI + "/" + agent_id
   std::string default_ns;                // of `behavior` and `result`; empty: node IRI + "#"
   std::filesystem::path log_dir;         // behaviours' output; empty: folder/../dispatcher-log
+  // Runs are the supervisor's programs `program_prefix` + "behavior/" + the command's item id.
+  // Item ids are a store's own: where one supervisor runs several nodes (`tahvel up`), the
+  // prefix ("<node id>/") keeps their runs apart, and `tahvel status` shows them under their node.
+  std::string program_prefix;
+  // Added to each run's environment (`tahvel up`: agents::kLeftoverMark, so that what a run left
+  // behind a killed supervisor is found and stopped by the next `up` or `down`, as an agent's is).
+  std::vector<std::pair<std::string, std::string>> env;
 };
 
 struct DispatchEvent {

@@ -114,6 +114,9 @@ class Supervisor {
   // SIGTERM, as under systemd), then SIGKILL after `grace` to what is left of the group; it is
   // not restarted. not_found when no program has that name.
   Result<void> stop(std::string_view name, std::chrono::milliseconds grace = std::chrono::seconds(5));
+  // Stops several at once, signalled together, sharing one `grace`. Names no program has are
+  // skipped.
+  void stop(const std::vector<std::string>& names, std::chrono::milliseconds grace = std::chrono::seconds(5));
   // Stops a program as stop() does and forgets it: it leaves states(), and a program of that
   // name may be started again (a changed command), which takes its place in states() again.
   // not_found when no program has that name.
