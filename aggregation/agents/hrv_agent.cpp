@@ -73,6 +73,11 @@ class HrvStage {
     pattern.s = tn::Term::iri(session_.agent.iri());
     auto records = snapshot->list(pattern);
     if (!records) return rt::log_line(kProgram, "read configuration: " + records.error().message);
+    // The latest written wins, wherever it was written: by asserted-at (when the writer stored
+    // it, kept as the item travels down), then by arrival. By arrival alone, a hospital's
+    // setting held back by a cut link undid the home's newer one when the link came back.
+    std::stable_sort(records->begin(), records->end(),
+                     [](const tn::Record& a, const tn::Record& b) { return a.meta.asserted_at < b.meta.asserted_at; });
     // From --window and --step: a setting taken back (removed) leaves what the board still says,
     // or those, not the value it had set.
     WindowConfig next = defaults_;
@@ -80,15 +85,20 @@ class HrvStage {
     // The latest setting of the window and of the step when the agent cannot use it: its
     // problem, for `tahvel status` here and at the hospital that wrote it.
     std::string unusable[2];
-    for (const tn::Record& r : *records) {  // id order: later values win
+    for (const tn::Record& r : *records) {  // later values win
       const bool window = r.triple.p.value == std::string(agg::kTv) + "windowSeconds";
       if (!window && r.triple.p.value != std::string(agg::kTv) + "stepSeconds") continue;
-      char* end = nullptr;
-      const double v = std::strtod(r.triple.o.value.c_str(), &end);
+      // A decimal number as written in RDF ("120", "120.5", "1.2e2"), not what strtod also
+      // takes ("0x78", " 120", "inf").
+      const std::string& text = r.triple.o.value;
+      const char* begin = text.data() + (text.starts_with('+') ? 1 : 0);
+      double v = 0;
+      const auto [end, ec] = std::from_chars(begin, text.data() + text.size(), v);
       // As --window and --step take them (agg::window_setting_problem): a window of a
       // millisecond made millions of windows out of one RR item (memory without bound, no stop
       // between items), and a setting may come from the hospital, where no one sees this log.
-      const bool number = r.triple.o.is_literal() && *end == '\0' && !r.triple.o.value.empty();
+      const bool number = r.triple.o.is_literal() && ec == std::errc() && end == text.data() + text.size() &&
+                          begin != end && std::isfinite(v);
       if (auto problem = agg::window_setting_problem(number ? v : std::nan(""), !window)) {
         // The value quoted as far as a line shows it: a problem is a literal within the node's limit.
         const std::string value = r.triple.o.value.size() > 80 ? r.triple.o.value.substr(0, 80) + "..." : r.triple.o.value;

@@ -639,7 +639,7 @@ TEST(AgentPrograms, TheHrvConfigurationIsCheckedLoggedAndKeptPastTheRing) {
     return tn::Item{}.add(hrv, agg::tv_term("windowSeconds"), tn::Term::literal(value));
   };
   ASSERT_TRUE(op->store(setting("120")));
-  for (const char* bad : {"0", "-120", "2 minutes", "1e-7"}) ASSERT_TRUE(op->store(setting(bad)));
+  for (const char* bad : {"0", "-120", "2 minutes", "1e-7", "0x78", " 120"}) ASSERT_TRUE(op->store(setting(bad)));
   auto kept = [&] {
     auto records = node->snapshot()->list({.s = hrv, .p = agg::tv_term("windowSeconds")});
     for (const auto& r : *records)
@@ -661,7 +661,7 @@ TEST(AgentPrograms, TheHrvConfigurationIsCheckedLoggedAndKeptPastTheRing) {
   std::ifstream in(log);
   std::ostringstream text;
   text << in.rdbuf();
-  for (const char* bad : {"'0'", "'-120'", "'2 minutes'", "'1e-7'"})
+  for (const char* bad : {"'0'", "'-120'", "'2 minutes'", "'1e-7'", "'0x78'", "' 120'"})
     EXPECT_NE(text.str().find(std::string("windowSeconds ") + bad), std::string::npos) << bad << " not logged:\n" << text.str();
   EXPECT_NE(text.str().find("window 120.000000 s"), std::string::npos) << text.str();
   node.reset();
@@ -739,6 +739,37 @@ TEST(AgentPrograms, AnHrvSettingRemovedGivesBackTheCommandLinesWindow) {
     node.reset();
     fs::remove_all(tmp);
   }
+}
+
+// The setting written last holds, wherever it was written and whenever it arrives: a hospital's
+// setting held back by a cut link (asserted before the home's own, arriving after it) undid the
+// home's newer one when the link came back.
+TEST(AgentPrograms, TheHrvSettingWrittenLastHoldsWhicheverArrivesLast) {
+  ScratchNode scratch("hrv-latest");
+  ASSERT_TRUE(scratch.node) << "cannot make a store under /tmp";
+  const tn::Term hrv = tn::Term::iri(kNodeIri + "/hrv");
+  const std::string log = scratch.tmp + "/hrv.log";
+  auto logged = [&](const std::string& line) {
+    std::ifstream in(log);
+    std::ostringstream text;
+    text << in.rdbuf();
+    return text.str().find(line) != std::string::npos;
+  };
+  const std::int64_t now = std::chrono::duration_cast<std::chrono::nanoseconds>(std::chrono::system_clock::now().time_since_epoch()).count();
+  Process agent({bin("tahvel-hrv"), scratch.dir, "--idle", "30"}, log);
+  tn::Item home = tn::Item{}.add(hrv, agg::tv_term("windowSeconds"), tn::Term::integer(200));
+  home.asserted_at = now;
+  ASSERT_TRUE(scratch.node->agent("operator")->store(home));
+  ASSERT_TRUE(within_a_minute([&] { return logged("window 200.000000 s"); }));
+  tn::Item hospital = tn::Item{}.add(hrv, agg::tv_term("windowSeconds"), tn::Term::integer(100));
+  hospital.asserted_at = now - 1'000'000'000;
+  hospital.context = hrv.value;
+  ASSERT_TRUE(scratch.node->agent("uplink")->store(hospital));
+  tn::Item marker = tn::Item{}.add(hrv, agg::tv_term("stepSeconds"), tn::Term::integer(50));
+  ASSERT_TRUE(scratch.node->agent("operator")->store(marker));
+  ASSERT_TRUE(within_a_minute([&] { return logged("step 50.000000 s"); })) << "the agent did not read its settings again";
+  EXPECT_FALSE(logged("window 100.000000 s")) << "the older setting, arriving later, took over";
+  EXPECT_EQ(agent.stop(), 0);
 }
 
 // A setting the agent cannot use is its problem on its board (for `tahvel status`, here and at
