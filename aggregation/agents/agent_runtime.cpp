@@ -1,7 +1,13 @@
 // Shared plumbing of the HRV pipeline agents; see agent_runtime.h.
 #include "agent_runtime.h"
 
+#include <fcntl.h>
+#include <sys/file.h>
+#include <unistd.h>
+
+#include <cerrno>
 #include <charconv>
+#include <cstring>
 #include <cmath>
 #include <csignal>
 #include <cstdlib>
@@ -101,6 +107,18 @@ void log_line(const std::string& program, const std::string& message) {
   std::cerr << (node::log_stamp() + " " + program + ": " + message + "\n") << std::flush;
 }
 
+HeldLock& HeldLock::operator=(HeldLock&& other) noexcept {
+  if (this != &other) {
+    if (fd_ >= 0) ::close(fd_);
+    fd_ = std::exchange(other.fd_, -1);
+  }
+  return *this;
+}
+
+HeldLock::~HeldLock() {
+  if (fd_ >= 0) ::close(fd_);
+}
+
 std::optional<Session> open_session(const std::string& program, const std::string& dir,
                                     const std::string& agent_id) {
   auto node = node::Node::open(dir);
@@ -113,7 +131,24 @@ std::optional<Session> open_session(const std::string& program, const std::strin
     log_line(program, "agent '" + agent_id + "': " + node_error(agent.error()));
     return std::nullopt;
   }
-  return Session{program, std::move(*node), std::move(*agent)};
+  const std::string lock_path = (node->dir() / (".agent-" + agent_id + ".lock")).string();
+  const int fd = ::open(lock_path.c_str(), O_RDWR | O_CREAT | O_CLOEXEC, 0644);
+  if (fd < 0) {
+    log_line(program, "open " + lock_path + ": " + std::strerror(errno));
+    return std::nullopt;
+  }
+  HeldLock running(fd);
+  int rc = 0;
+  while ((rc = ::flock(fd, LOCK_EX | LOCK_NB)) != 0 && errno == EINTR) {
+  }
+  if (rc != 0) {
+    log_line(program, errno == EWOULDBLOCK
+                          ? "another process runs as agent <" + agent->iri() + "> (" + lock_path +
+                                " is locked): one process per agent id, as each keeps its recordings' state; this one stops"
+                          : "lock " + lock_path + ": " + std::strerror(errno));
+    return std::nullopt;
+  }
+  return Session{program, std::move(*node), std::move(*agent), std::move(running)};
 }
 
 bool subscribe_predicates(Session& session, const std::vector<std::string>& predicate_iris) {

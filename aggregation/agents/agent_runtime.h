@@ -13,6 +13,7 @@
 #include <optional>
 #include <stdexcept>
 #include <string>
+#include <utility>
 #include <vector>
 
 #include "tahvel/aggregation/items.h"
@@ -65,13 +66,33 @@ node::Result<std::optional<node::Delivery>> take_unless_stopped(node::Agent& age
 void log_line(const std::string& program, const std::string& message);
 
 // An opened node with one agent handle.
+// An exclusive flock held while the object lives (moved, not copied).
+class HeldLock {
+ public:
+  HeldLock() = default;
+  explicit HeldLock(int fd) : fd_(fd) {}
+  HeldLock(HeldLock&& other) noexcept : fd_(std::exchange(other.fd_, -1)) {}
+  HeldLock& operator=(HeldLock&& other) noexcept;
+  HeldLock(const HeldLock&) = delete;
+  HeldLock& operator=(const HeldLock&) = delete;
+  ~HeldLock();
+
+ private:
+  int fd_ = -1;
+};
+
 struct Session {
   std::string program;
   node::Node node;
   node::Agent agent;
+  HeldLock running;  // DIR/.agent-<id>.lock: one process per agent id
 };
 
 // Opens DIR and makes the handle for `agent_id`. On error prints one line and returns nullopt.
+// One process at a time runs as an agent id (a flock on DIR/.agent-<id>.lock, held until the
+// process ends): each stage keeps its recordings' state in memory, and a second process of the
+// same id took every other item (a pool of takers) and wrote wrong R-peaks, intervals and
+// windows, some twice. A second is refused, naming the agent.
 std::optional<Session> open_session(const std::string& program, const std::string& dir,
                                     const std::string& agent_id);
 

@@ -7,7 +7,9 @@
 // intervals and, per window, the decimal strings of every metric as the item builder writes them.
 // The record is found through $TAHVEL_MITDB or TAHVEL_SOURCE_DIR/../shared/data/mitdb; without
 // it the cases are skipped.
+#include <fcntl.h>
 #include <gtest/gtest.h>
+#include <sys/file.h>
 #include <unistd.h>
 
 #include <algorithm>
@@ -739,6 +741,37 @@ TEST(AgentPrograms, AnHrvSettingRemovedGivesBackTheCommandLinesWindow) {
     node.reset();
     fs::remove_all(tmp);
   }
+}
+
+// Two processes of one stage under one agent id shared its input as a pool of takers: each saw
+// half of every recording and wrote wrong R-peaks, intervals and windows, some twice. The second
+// is refused, naming the agent; once the first has ended, the id is free again.
+TEST(AgentPrograms, ASecondProcessOfAnAgentIdIsRefusedWhileTheFirstRuns) {
+  ScratchNode scratch("one-per-id");
+  ASSERT_TRUE(scratch.node) << "cannot make a store under /tmp";
+  const std::string lock = scratch.dir + "/.agent-rpeak.lock";
+  auto held = [&] {
+    const int fd = ::open(lock.c_str(), O_RDWR | O_CLOEXEC);
+    if (fd < 0) return false;
+    const bool locked = ::flock(fd, LOCK_EX | LOCK_NB) != 0;
+    ::close(fd);
+    return locked;
+  };
+  Process first({bin("tahvel-rpeak"), scratch.dir, "--idle", "60"}, scratch.tmp + "/first.log");
+  ASSERT_TRUE(within_a_minute(held)) << "the first never held " << lock;
+  {
+    Process second({bin("tahvel-rpeak"), scratch.dir, "--idle", "60"}, scratch.tmp + "/second.log");
+    EXPECT_NE(second.wait(60s), 0);
+  }
+  std::ifstream in(scratch.tmp + "/second.log");
+  std::ostringstream text;
+  text << in.rdbuf();
+  EXPECT_NE(text.str().find("another process runs as agent <" + kNodeIri + "/rpeak>"), std::string::npos) << text.str();
+  EXPECT_EQ(first.poll(), -1) << "the first stopped";
+  EXPECT_EQ(first.stop(), 0);
+  Process again({bin("tahvel-rpeak"), scratch.dir, "--idle", "60"}, scratch.tmp + "/again.log");
+  EXPECT_TRUE(within_a_minute(held)) << "the id stayed taken after the first ended";
+  EXPECT_EQ(again.stop(), 0);
 }
 
 // The setting written last holds, wherever it was written and whenever it arrives: a hospital's
