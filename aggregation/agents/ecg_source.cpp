@@ -55,11 +55,8 @@ agg::Result<Signal> record_signal(const std::string& path) {
   s.name = h.name;
   s.info.fs = h.fs;
   s.info.source = std::filesystem::path(h.directory).filename().string() + "/" + h.name;
-  if (h.signals.empty()) {
-    s.info.gain = 200;
-    s.read = [shared](std::size_t n, Frames& out) { return shared->read(n, out); };
-    return s;
-  }
+  // As `tahvel hrv`: a header without signals has no ECG (it wrote an empty recording, exit 0).
+  if (h.signals.empty()) return agg::fail(h.path + ": the record has no signals, so no ECG");
   // The chunks carry the record's ECG lead first, whatever its place in the record (a record
   // may begin with respiration or blood pressure), with its gain per millivolt: the R-peak
   // agent reads the first lead at the recording's gain (agg::ecg_signal, as `tahvel hrv`).
@@ -68,6 +65,7 @@ agg::Result<Signal> record_signal(const std::string& path) {
   for (std::size_t i = 0; i < h.signals.size(); ++i)
     if (i != ecg) order.push_back(i);
   s.info.gain = agg::gain_per_mv(h.signals[ecg]);
+  s.info.invalid_sample = agg::invalid_sample(h.signals[ecg]);
   s.info.baseline = h.signals[ecg].baseline;
   s.info.unit = h.signals[ecg].units;
   if (s.info.gain != h.signals[ecg].gain) s.info.unit = "mV";  // converted from uV or V
@@ -83,10 +81,29 @@ agg::Result<Signal> record_signal(const std::string& path) {
     }
     s.info.calibration.push_back(c);
   }
-  s.read = [shared, order, in_record = Frames()](std::size_t n, Frames& out) mutable -> agg::Result<std::size_t> {
+  // What `tahvel hrv` warns of, said as the record streams: samples holding WFDB's no-value in
+  // the ECG lead (the R-peak agent reads them as no signal: tv:invalidSample), and, at the end
+  // of a record read from its start, checksums that do not add up.
+  s.read = [shared, order, in_record = Frames(), sums = std::vector<std::uint16_t>(h.signals.size()),
+            whole = shared->position() == 0, invalid_said = false](std::size_t n, Frames& out) mutable -> agg::Result<std::size_t> {
+    const agg::RecordHeader& header = shared->header();
     in_record.assign(order.size(), {});
     auto got = shared->read(n, in_record);
     if (!got) return got;
+    for (std::size_t i = 0; i < sums.size() && i < in_record.size(); ++i)
+      for (std::int32_t v : in_record[i]) sums[i] = static_cast<std::uint16_t>(sums[i] + static_cast<std::uint16_t>(v));
+    const std::vector<std::int32_t>& ecg_lead = in_record[order[0]];
+    const std::int32_t invalid = agg::invalid_sample(header.signals[order[0]]);
+    if (auto at = std::find(ecg_lead.begin(), ecg_lead.end(), invalid); !invalid_said && at != ecg_lead.end()) {
+      invalid_said = true;
+      const std::int64_t sample = shared->position() - static_cast<std::int64_t>(ecg_lead.size()) + (at - ecg_lead.begin());
+      std::cerr << "tahvel-ecg-source: warning: " << header.path << ": signal " << order[0] << " ("
+                << header.signals[order[0]].description << ") holds WFDB's no-value " << invalid << " from sample " << sample
+                << " on: the R-peak agent reads such samples as no signal (the last valid sample held)\n";
+    }
+    if (*got == 0 && whole)
+      for (const std::string& mismatch : agg::checksum_mismatches(header, sums))
+        std::cerr << "tahvel-ecg-source: warning: " << mismatch << "\n";
     out.resize(order.size());
     for (std::size_t k = 0; k < order.size(); ++k) out[k].insert(out[k].end(), in_record[order[k]].begin(), in_record[order[k]].end());
     return got;

@@ -55,6 +55,7 @@ class RPeakStage {
     agg::DetectorOptions options;
     options.fs = info.fs;
     options.gain = info.gain;
+    options.invalid_sample = info.invalid_sample;
     return options;
   }
 

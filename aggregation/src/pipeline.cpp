@@ -73,6 +73,20 @@ std::optional<std::string> irregular_rhythm_warning(const HrvMetrics& m, std::si
   return out;
 }
 
+std::optional<std::string> invalid_samples_warning(const std::vector<std::int32_t>& samples, const SignalInfo& info,
+                                                   std::size_t channel, double fs) {
+  const std::int32_t invalid = invalid_sample(info);
+  const auto count = static_cast<std::size_t>(std::count(samples.begin(), samples.end(), invalid));
+  if (count == 0) return std::nullopt;
+  const auto first = static_cast<std::size_t>(std::find(samples.begin(), samples.end(), invalid) - samples.begin());
+  char text[320];
+  std::snprintf(text, sizeof text,
+                "%zu sample(s) of signal %zu (%s) hold WFDB's no-value %d, the first at %.3f s: read as no signal "
+                "(the last valid sample held, as over a lead off), not as a step to the least value",
+                count, channel, info.description.c_str(), invalid, static_cast<double>(first) / fs);
+  return std::string(text);
+}
+
 Result<HrvReport> hrv_from_record(const std::string& record_path, const ChainOptions& options,
                                   std::size_t channel) {
   auto signals = read_signals(record_path);
@@ -82,10 +96,14 @@ Result<HrvReport> hrv_from_record(const std::string& record_path, const ChainOpt
     return fail(record_path + ".hea: no signal " + std::to_string(channel) + " (the record has " +
                 std::to_string(signals->samples.size()) + ")");
   const SignalInfo& info = signals->header.signals[channel];
-  auto report = hrv_from_samples(signals->samples[channel], signals->header.fs, gain_per_mv(info), options);
+  ChainOptions chain = options;
+  chain.detector.invalid_sample = invalid_sample(info);
+  auto report = hrv_from_samples(signals->samples[channel], signals->header.fs, gain_per_mv(info), chain);
   if (!report) return fail(record_path + ": " + report.error().message);
   report->signal = channel;
   report->warnings = checksum_mismatches(*signals);
+  if (auto invalid = invalid_samples_warning(signals->samples[channel], info, channel, signals->header.fs))
+    report->warnings.push_back(*invalid);
   if (auto rate = default_rate_warning(signals->header)) report->warnings.insert(report->warnings.begin(), *rate);
   if (auto irregular = irregular_rhythm_warning(report->metrics, gap_count(report->intervals, report->fs, options.nn),
                                                 options.nn.max_interval_s))

@@ -216,6 +216,8 @@ class RPeakDetector::Impl {
   // Filters and the integration.
   Biquad hp_, lp_;
   std::int64_t n_ = 0;
+  std::optional<std::int32_t> last_valid_;  // DetectorOptions::invalid_sample: the value held
+  std::int64_t last_invalid_ = -1;          // and the index of the latest sample without a value
   double last_bp_ = 0, sum_ = 0, last_f_ = 0;
   // History rings of at least 4 s (power of two; allocated once): the longest look-back is
   // the integration window plus the 95 ms peak timeout plus the hold, and from the candidate's
@@ -340,6 +342,22 @@ void RPeakDetector::Impl::push(const std::int32_t* s, std::size_t n,
 
 void RPeakDetector::Impl::step(std::int32_t x, std::vector<std::int64_t>& out) {
   const std::int64_t n = n_;
+  if (o_.invalid_sample) {
+    if (x == *o_.invalid_sample) {
+      last_invalid_ = n;
+      x = last_valid_.value_or(0);
+    } else {
+      // The signal comes back at another level than the one held: the filters start again in
+      // their steady state for it, as at the first sample, or the step rang through the band
+      // as a beat just after the run.
+      if (n > 0 && last_invalid_ == n - 1) {
+        hp_.settle(x, 0);
+        lp_.settle(0, 0);
+        for (Biquad& n50_60 : notches_) n50_60.settle(x, x);
+      }
+      last_valid_ = x;
+    }
+  }
   if (n == 0) {
     // Start the high-pass in its steady state for a constant input equal to the first sample
     // (output 0), so the ADC offset does not ring through the filters as a fake first beat.
@@ -660,6 +678,9 @@ void RPeakDetector::Impl::unfile_noise(std::int64_t at) {
 auto RPeakDetector::Impl::gap_before(std::int64_t at) const -> Gap {
   Gap gap;
   if (!have_qrs_ || !(o_.empty_gap_fraction > 0) || !(qrs_med_ > 0)) return gap;
+  // Samples without a value (DetectorOptions::invalid_sample) in the gap: held flat, they would
+  // confirm as empty a gap whose beat was simply not recorded.
+  if (last_invalid_ > last_qrs_) return gap;
   const std::int64_t qt = std::llround(o_.twave_qtc * std::sqrt(rr_[0] / o_.fs) * o_.fs);
   const std::int64_t from = last_qrs_ + std::max(twave_, qt), to = at - hold_;
   const std::int64_t own_p = at - own_p_;

@@ -432,15 +432,24 @@ bool names_ecg_lead(std::string_view description) {
 }  // namespace
 
 std::vector<std::string> checksum_mismatches(const Signals& signals) {
-  std::vector<std::string> out;
-  for (std::size_t i = 0; i < signals.samples.size() && i < signals.header.signals.size(); ++i) {
-    const SignalInfo& info = signals.header.signals[i];
-    if (!info.has_checksum) continue;
+  std::vector<std::uint16_t> sums;
+  for (const auto& samples : signals.samples) {
     std::uint16_t sum = 0;
-    for (std::int32_t v : signals.samples[i]) sum = static_cast<std::uint16_t>(sum + static_cast<std::uint16_t>(v));
+    for (std::int32_t v : samples) sum = static_cast<std::uint16_t>(sum + static_cast<std::uint16_t>(v));
+    sums.push_back(sum);
+  }
+  return checksum_mismatches(signals.header, sums);
+}
+
+std::vector<std::string> checksum_mismatches(const RecordHeader& header, const std::vector<std::uint16_t>& sums) {
+  std::vector<std::string> out;
+  for (std::size_t i = 0; i < sums.size() && i < header.signals.size(); ++i) {
+    const SignalInfo& info = header.signals[i];
+    if (!info.has_checksum) continue;
+    const std::uint16_t sum = sums[i];
     const auto said = static_cast<std::uint16_t>(info.checksum);
     if (sum != said)
-      out.push_back(signals.header.path + ": signal " + std::to_string(i) + " (" +
+      out.push_back(header.path + ": signal " + std::to_string(i) + " (" +
                     info.description + "): its samples add up to " + std::to_string(static_cast<std::int16_t>(sum)) +
                     ", the header's checksum is " + std::to_string(static_cast<std::int16_t>(said)) +
                     " (is " + info.file + " in format " + std::to_string(info.format) + "?)");
@@ -454,6 +463,8 @@ std::optional<std::string> default_rate_warning(const RecordHeader& header) {
                        "sampled at another rate gives heart rates and HRV off by the ratio; give the rate after the "
                        "number of signals)";
 }
+
+std::int32_t invalid_sample(const SignalInfo& info) { return info.format == 212 ? -2048 : -32768; }
 
 double gain_per_mv(const SignalInfo& info) {
   const double gain = info.gain == 0 ? 200 : info.gain;

@@ -218,6 +218,7 @@ Item recording_item(const RecordingInfo& info) {
       .add(rec, tv("baseline"), Term::integer(info.baseline))
       .add(rec, tv("unit"), text(info.unit))
       .add(rec, tv("sampleFormat"), text("int16le interleaved"));
+  if (info.invalid_sample) item.add(rec, tv("invalidSample"), Term::integer(*info.invalid_sample));
   for (std::size_t i = 0; i < info.leads.size(); ++i)
     item.add(rec, tv("lead"), text(std::to_string(i) + " " + info.leads[i]));
   // "<lead> <gain> <baseline> <unit>": the gain as exactly as tv:gain.
@@ -252,6 +253,8 @@ Result<RecordingInfo> read_recording(const std::vector<Record>& records, const s
   if (const Term* t = object(records, iri, "baseline"))
     info.baseline = static_cast<int>(to_int(t->value).value_or(0));
   if (const Term* t = object(records, iri, "unit")) info.unit = t->value;
+  if (const Term* t = object(records, iri, "invalidSample"))
+    if (auto v = to_int(t->value)) info.invalid_sample = static_cast<std::int32_t>(*v);
   std::map<long, std::string> leads;
   for (const Term* t : objects(records, iri, "lead")) {
     const auto space = t->value.find(' ');

@@ -60,6 +60,7 @@ constexpr std::array kTerms = {
     std::string_view("holds"),
     std::string_view("humidity"),
     std::string_view("intervals"),
+    std::string_view("invalidSample"),
     std::string_view("irregularPct"),
     std::string_view("lastAssertedAt"),
     std::string_view("lastExit"),

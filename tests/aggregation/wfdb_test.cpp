@@ -3,12 +3,14 @@
 // malformed records written to a temporary directory.
 #include "tahvel/aggregation/wfdb.h"
 #include "tahvel/aggregation/pipeline.h"
+#include "tahvel/aggregation/ecgsyn.h"
 
 #include <gtest/gtest.h>
 
 #include <tuple>
 #include <unistd.h>
 
+#include <algorithm>
 #include <cstdint>
 #include <filesystem>
 #include <fstream>
@@ -267,6 +269,42 @@ TEST_F(WfdbTemp, AFlatRecordGivesNoBeatsAndSaysSo) {
   EXPECT_TRUE(report->beats.empty());
   ASSERT_FALSE(report->warnings.empty());
   EXPECT_EQ(report->warnings.back(), "0 beat(s) found in 60 s of signal 0 (MLII): a flat or lead-off signal, or not an ECG; no HRV");
+}
+
+// WFDB writes its no-value (-32768 in format 16, -2048 in 212) where a signal has none. Read
+// as a voltage, each run was a step of -160 mV into the QRS band: 0.5 s of it every minute of a
+// synthetic ECG moved beats to the run's edges and raised SDNN by 18 %, without a word. It is
+// read as no signal now, and said.
+TEST_F(WfdbTemp, WfdbsNoValueIsReadAsNoSignalAndSaid) {
+  auto ecg = synthetic_ecg(300, SyntheticEcgOptions{});
+  ASSERT_TRUE(ecg) << ecg.error().message;
+  auto write_record = [&](const std::string& name, const std::vector<std::int32_t>& samples) {
+    std::string bytes;
+    for (std::int32_t v : samples) {
+      const auto u = static_cast<std::uint16_t>(static_cast<std::int16_t>(v));
+      bytes.push_back(static_cast<char>(u & 0xFF));
+      bytes.push_back(static_cast<char>(u >> 8));
+    }
+    std::uint16_t sum = 0;
+    for (std::int32_t v : samples) sum = static_cast<std::uint16_t>(sum + static_cast<std::uint16_t>(v));
+    write(name + ".dat", bytes);
+    write(name + ".hea", name + " 1 360 " + std::to_string(samples.size()) + "\n" + name + ".dat 16 200 16 1024 " +
+                             std::to_string(samples.front()) + " " + std::to_string(static_cast<std::int16_t>(sum)) + " 0 ECG\n");
+  };
+  std::vector<std::int32_t> gaps = *ecg;
+  for (std::size_t start = 30 * 360; start + 180 <= gaps.size(); start += 60 * 360)
+    std::fill(gaps.begin() + static_cast<std::ptrdiff_t>(start), gaps.begin() + static_cast<std::ptrdiff_t>(start + 180), -32768);
+  write_record("clean", *ecg);
+  write_record("gaps", gaps);
+  auto clean = hrv_from_record(record("clean"));
+  auto with_gaps = hrv_from_record(record("gaps"));
+  ASSERT_TRUE(clean && with_gaps);
+  ASSERT_TRUE(clean->metrics.sdnn_ms && with_gaps->metrics.sdnn_ms);
+  EXPECT_NEAR(*with_gaps->metrics.sdnn_ms, *clean->metrics.sdnn_ms, 0.02 * *clean->metrics.sdnn_ms);
+  EXPECT_TRUE(clean->warnings.empty());
+  ASSERT_FALSE(with_gaps->warnings.empty());
+  EXPECT_EQ(with_gaps->warnings[0].rfind("900 sample(s) of signal 0 (ECG) hold WFDB's no-value -32768, the first at 30.000 s", 0), 0u)
+      << with_gaps->warnings[0];
 }
 
 TEST_F(WfdbTemp, DefaultsApplyWhenOptionalFieldsAreAbsent) {

@@ -46,6 +46,9 @@ struct RecordingInfo {
   double fs = 360;            // samples per second per lead
   double gain = 200;          // ADC units per mV
   int baseline = 0;           // ADC units at 0 mV
+  // The ECG lead's no-value sample (tv:invalidSample; WFDB's, wfdb.h invalid_sample): the
+  // R-peak agent reads a run of it as no signal. nullopt: every value is signal.
+  std::optional<std::int32_t> invalid_sample;
   std::string unit = "mV";
   std::vector<std::string> leads;  // lead names in sample order ("MLII", "V1")
   // Per lead, in sample order, its own ADC units per `unit` and zero (tv:leadCalibration): a

@@ -12,6 +12,7 @@
 #include "tahvel/aggregation/hrv.h"
 #include "tahvel/aggregation/rpeak.h"
 #include "tahvel/aggregation/rr.h"
+#include "tahvel/aggregation/wfdb.h"
 
 namespace tahvel::aggregation {
 
@@ -47,6 +48,11 @@ std::size_t gap_count(const std::vector<Interval>& intervals, double fs, const N
 // than ectopic beats or atrial fibrillation, which the irregular-rhythm warning names.
 std::optional<std::string> irregular_rhythm_warning(const HrvMetrics& metrics, std::size_t gaps = 0,
                                                     double max_interval_s = NnRule{}.max_interval_s);
+
+// Samples of signal `channel` that hold WFDB's no-value (invalid_sample, wfdb.h): how many and
+// where the first is, and that the detector read them as no signal. nullopt when none.
+std::optional<std::string> invalid_samples_warning(const std::vector<std::int32_t>& samples, const SignalInfo& info,
+                                                   std::size_t channel, double fs);
 
 // The chain over one lead sampled at fs Hz with `gain` ADC units per mV. Errors: invalid
 // detector options or window settings (the message names the option).

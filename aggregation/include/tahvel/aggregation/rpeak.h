@@ -25,6 +25,7 @@
 
 #include <cstddef>
 #include <cstdint>
+#include <optional>
 #include <memory>
 #include <vector>
 
@@ -39,6 +40,10 @@ namespace tahvel::aggregation {
 struct DetectorOptions {
   double fs = 360;     // sampling frequency, Hz (> 0; filters are designed for 100–1000 Hz)
   double gain = 200;   // ADC units per mV (> 0); scales `min_qrs_mv` and the hum level
+  // The record's "no value" sample (WFDB: -32768 in format 16, -2048 in 212; wfdb.h
+  // invalid_sample): the detector holds the last valid sample over a run of them, as a flat
+  // lead, rather than read a step of -160 mV into the QRS band. nullopt: every value is signal.
+  std::optional<std::int32_t> invalid_sample;
 
   // Band-pass of the QRS energy: 2nd-order Butterworth high-pass then low-pass (Hz). The band
   // keeps the QRS (most energy 5–20 Hz) and drops baseline wander, P and T waves (< 5 Hz) and

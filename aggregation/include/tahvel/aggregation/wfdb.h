@@ -87,6 +87,9 @@ Result<Signals> read_signals(const std::string& record_path);
 // WFDB's tools warn so and read on; so does `tahvel hrv`. Empty when all agree or the header
 // gives no checksums.
 std::vector<std::string> checksum_mismatches(const Signals& signals);
+// The same from each signal's 16-bit sum of samples (`sums`, in header order), for a reader
+// that streams the record (the ECG source) and keeps sums as it goes.
+std::vector<std::string> checksum_mismatches(const RecordHeader& header, const std::vector<std::uint16_t>& sums);
 
 // A header without a sampling frequency is read at WFDB's default of 250 Hz, as WFDB's tools
 // read it; a record sampled at another rate then gives heart rates and HRV off by the ratio
@@ -132,6 +135,10 @@ class SignalReader {
 // Physical value of a raw sample: (adu - baseline) / gain, in info.units. A gain of 0 is read
 // as 200, the WFDB default.
 double to_physical(std::int32_t adu, const SignalInfo& info);
+
+// The sample value that WFDB writes where a signal has no value (a lead off, a gap in
+// digitising): -32768 in format 16, -2048 in format 212, the least value of each.
+std::int32_t invalid_sample(const SignalInfo& info);
 
 // ADC units per millivolt: the header's gain is per its own unit ("1000(0)/mV" and "1(0)/uV"
 // are one signal). Units other than V, mV, uV and µV are taken as they are.
