@@ -62,6 +62,12 @@ bool same_length(const agg::WindowMetrics& a, const agg::WindowMetrics& b) {
   return std::abs(a.length_s - b.length_s) < 1e-3;
 }
 
+// A window the record's end cut short (the last ones of a recording) measured less time than
+// its series' windows: it is no point of the series (its items have no tv:latest and no alert),
+// nor another patient's latest value to compare with. Three such windows below the baseline
+// at the end of every recording with overlapping windows made an alert of the record's end.
+bool cut_short(const agg::WindowMetrics& w) { return w.end_s - w.start_s < w.length_s - 1e-3; }
+
 class TrendStage {
  public:
   TrendStage(rt::Session& session, std::vector<agg::HrvMetric> metrics)
@@ -116,7 +122,7 @@ class TrendStage {
     std::vector<agg::WindowMetrics> upto;
     for (const auto& [s, w] : series) {
       if (s > start) break;
-      if (same_length(w.metrics, window.metrics)) upto.push_back(w.metrics);
+      if (same_length(w.metrics, window.metrics) && !cut_short(w.metrics)) upto.push_back(w.metrics);
     }
     for (agg::HrvMetric metric : metrics_) {
       const std::string iri = agg::trend_iri(recording, metric, start);
@@ -148,7 +154,7 @@ class TrendStage {
         for (const auto& [other, other_series] : recordings_) {
           if (other == recording) continue;
           for (auto it = other_series.rbegin(); it != other_series.rend(); ++it)
-            if (auto v = agg::metric_value(it->second.metrics.metrics, metric)) {
+            if (auto v = agg::metric_value(it->second.metrics.metrics, metric); v && !cut_short(it->second.metrics)) {
               if (same_length(it->second.metrics, window.metrics)) others.push_back(*v);
               break;
             }

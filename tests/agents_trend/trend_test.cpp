@@ -325,6 +325,39 @@ TEST_F(TrendAgentTest, AChangeOfWindowLengthStartsASeriesOfItsOwnAndRaisesNoAler
   }
 }
 
+// The last windows of a recording end with it, shorter than their length: they measured less
+// (SDNN grows with the window), and three of them below the baseline, as overlapping windows
+// give at every recording's end, made an alert of the end itself. They are no points of the
+// series: no latest value, no alert, and the series' baseline and count as before them.
+TEST_F(TrendAgentTest, WindowsCutShortByTheRecordsEndAreNoPointsOfTheSeries) {
+  for (std::size_t k = 0; k < 8; ++k) store_window(kRecA, k, kSdnnA[k]);
+  for (std::size_t i = 0; i < 3; ++i) {
+    agg::RecordingInfo info;
+    info.iri = kRecA;
+    agg::WindowMetrics cut;
+    cut.start_s = 2400 + 60.0 * static_cast<double>(i);
+    cut.end_s = 2580;  // the record ends here
+    cut.length_s = 300;
+    cut.metrics.sdnn_ms = 30;
+    cut.metrics.rmssd_ms = 30;
+    cut.metrics.mean_hr_bpm = 70;
+    cut.metrics.nn_count = cut.metrics.rr_count = 100;
+    ASSERT_TRUE(hrv_->store(agg::hrv_window_item(info, cut, hrv_->iri())));
+  }
+  start_agent("2");
+  wait_for_trends((8 + 3) * 3);
+  ASSERT_FALSE(HasFatalFailure());
+  EXPECT_EQ(agent_->wait(30s), 0);
+  const auto all = trends();
+  for (std::size_t i = 0; i < 3; ++i) {
+    const auto t = all.at(agg::trend_iri(kRecA, agg::HrvMetric::sdnn, 2400 + 60.0 * static_cast<double>(i)));
+    EXPECT_FALSE(t.alert) << t.iri;
+    EXPECT_FALSE(t.latest.has_value()) << t.iri;
+    EXPECT_EQ(t.windows, 8u) << t.iri;
+    EXPECT_TRUE(t.baseline.has_value()) << t.iri;
+  }
+}
+
 // Windows a minute apart after 115 days (1.00001e+07 s with six significant digits) were
 // named alike, and the later one was taken for a repeat and never written.
 TEST(ItemNames, WindowAndTrendNamesTellApartStartsOnLongRecordingsAndKeepShortOnesShort) {
