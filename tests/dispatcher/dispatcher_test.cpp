@@ -150,6 +150,10 @@ TEST_F(DispatcherTest, ACommandAddressedToTheNodeRunsAsOneAddressedToTheDispatch
   put({{n("me"), n("behavior"), tn::Term::literal("goAhead 7")}}, kIri);
   poll_until(*d, [&] { return holds(n("goAhead"), kNs + "result", n("ok")); });
   EXPECT_TRUE(holds(n("goAhead"), kNs + "result", n("ok")));
+  // Sent to a whole subtree from above, it reaches this node addressed to its own subtree.
+  put({{n("me"), n("behavior"), tn::Term::literal("handleFailState")}}, kIri + "/*");
+  poll_until(*d, [&] { return holds(n("handleFailState"), kNs + "result", tn::Term::literal("stopped motors")); });
+  EXPECT_TRUE(holds(n("handleFailState"), kNs + "result", tn::Term::literal("stopped motors")));
 }
 
 // Each run has one state at a time, and each behaviour one result: its latest run's. (A rule

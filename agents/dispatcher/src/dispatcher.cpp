@@ -104,12 +104,15 @@ struct Dispatcher::Impl {
     return {node::Term::iri(s), node::Term::iri(p), std::move(o)};
   }
 
-  // A command for this node: no context, the dispatcher's, or the node's own (configuration
-  // and commands sent down from a node above are addressed to the node: P10).
+  // A command for this node: no context, the dispatcher's, the node's own (configuration and
+  // commands sent down from a node above are addressed to the node: P10), or the node's subtree
+  // (`<node>/*`: sent to every node below one, it reaches each so; it was taken and dropped
+  // without a trace).
   bool is_command(const node::Record& r) const {
     return r.triple.s.is_iri() && r.triple.s.value == node.iri() && r.triple.p.value == ns + "behavior" &&
            r.triple.o.is_literal() &&
-           (r.meta.context.empty() || r.meta.context == agent.iri() || r.meta.context == node.iri());
+           (r.meta.context.empty() || r.meta.context == agent.iri() || r.meta.context == node.iri() ||
+            r.meta.context == node.iri() + "/*");
   }
 
   Result<void> command(std::uint64_t item, const std::string& text, std::vector<DispatchEvent>& events);
