@@ -159,6 +159,9 @@ class PieceOutput {
   std::uint64_t written() const;
   // True while everything made so far has been written out or may still be.
   bool good() const;
+  // True when, after a stop, standard output took nothing for 2 s while a piece was half
+  // written: the output ends inside it (a reader stopped or stalled; a stopped command ends).
+  bool cut() const;
   // errno of the write that failed (EPIPE: the reader went away), 0 when none did.
   int error() const;
   // Fails, as finish_output does, when a write failed (quietly when the reader went away).

@@ -407,13 +407,20 @@ struct PieceOutput::Impl {
   std::uint64_t written = 0;
   bool at_once = isatty(STDOUT_FILENO) != 0;  // a terminal shows each record as it comes
   bool stopped = false;
+  bool cut = false;                // the output ends inside a piece: its reader took nothing for kCutAfter
   bool dropped = false;            // some text made was not written out, and will not be
+  // Once stopped, how long the rest of a piece the stop cut may wait for standard output: a
+  // reader that is there but not reading (stopped with Ctrl-Z, a stalled connection) must not
+  // keep a stopped command from ending.
+  static constexpr std::chrono::seconds kCutAfter{2};
+  std::chrono::steady_clock::time_point stopped_at{};
   int error = 0;                   // errno of a failed write
 
-  // Whether a write of up to PIPE_BUF bytes goes out now: a pipe with room for them, a file.
-  static bool takes_now() {
+  // Whether a write of up to PIPE_BUF bytes goes out within `wait_ms` (0: now): a pipe with
+  // room for them, a file.
+  static bool takes_now(int wait_ms = 0) {
     pollfd p{STDOUT_FILENO, POLLOUT, 0};
-    return ::poll(&p, 1, 0) == 1 && (p.revents & POLLOUT) != 0;
+    return ::poll(&p, 1, wait_ms) == 1 && (p.revents & POLLOUT) != 0;
   }
 
   // Writes out `text` up to `to`, the end of a piece. A signal that interrupts a write stops
@@ -421,7 +428,10 @@ struct PieceOutput::Impl {
   // standard output takes them at once, and the rest are dropped.
   void write_out(std::size_t to) {
     while (error == 0 && sent < to) {
-      if (!stopped && stop_requested()) stopped = true;
+      if (!stopped && stop_requested()) {
+        stopped = true;
+        stopped_at = std::chrono::steady_clock::now();
+      }
       std::size_t n = to - sent;
       if (stopped && sent == piece_start) {
         if (!takes_now()) break;
@@ -431,7 +441,14 @@ struct PieceOutput::Impl {
         for (const auto& piece : ends)
           if (piece.first <= to && piece.first - sent <= PIPE_BUF) n = piece.first - sent;
       } else if (stopped) {
-        n = ends.front().first - sent;  // the rest of the piece the signal cut, however long it waits
+        // The rest of the piece the signal cut, PIPE_BUF at a time as standard output takes
+        // them (a write that fits the room poll saw does not block), for at most kCutAfter.
+        const auto left = std::chrono::duration_cast<std::chrono::milliseconds>(stopped_at + kCutAfter - std::chrono::steady_clock::now());
+        if (!takes_now(static_cast<int>(std::max<std::int64_t>(0, left.count())))) {
+          cut = true;
+          break;
+        }
+        n = std::min<std::size_t>(ends.front().first - sent, PIPE_BUF);
       }
       const ssize_t put = ::write(STDOUT_FILENO, text.data() + sent, n);
       if (put < 0 && errno == EINTR) continue;  // the stop it brought is seen at the loop's top
@@ -483,16 +500,21 @@ void PieceOutput::finish() {
   if (o.error != 0) return;
   // The text after the last piece (what closes a Turtle document) goes out after the pieces,
   // uncounted; once stopped, it is all there is (the pieces were dropped), and closes the last
-  // piece that went out, if one did.
-  if (o.stopped && o.written == 0) o.text.clear();
+  // piece that went out, if one did: a few bytes, waited for as the rest of a cut piece is
+  // (taken as a piece of its own, it went out only if standard output had room at once, and
+  // Turtle cut on a full pipe ended without its " .").
+  if (o.stopped && (o.written == 0 || o.cut)) o.text.clear();
   const std::size_t end = o.text.size();
   if (end > (o.ends.empty() ? o.piece_start : o.ends.back().first)) o.ends.emplace_back(end, false);
+  if (o.stopped && !o.ends.empty() && o.sent == o.piece_start) o.piece_start = o.sent + 1;  // "inside" it: waited for
   if (!o.ends.empty()) o.write_out(end);
 }
 
 std::uint64_t PieceOutput::written() const { return impl_->written; }
 
 bool PieceOutput::good() const { return !impl_->dropped && impl_->error == 0; }
+
+bool PieceOutput::cut() const { return impl_->cut; }
 
 int PieceOutput::error() const { return impl_->error; }
 

@@ -399,7 +399,8 @@ std::uint64_t ask_below(std::string_view command, node::Node& node, const federa
     const std::uint64_t n = out.written();
     throw Failure{kExitInterrupted, name + ": interrupted; " + (got ? "stopped writing the answer out" : "cancelled") +
                                         " after " + std::to_string(n) + " " + std::string(piece) + (n == 1 ? "" : "s") +
-                                        " from <" + (target ? *target : query.target) + ">"};
+                                        " from <" + (target ? *target : query.target) + ">" +
+                                        (out.cut() ? "; the next is cut short (standard output took nothing for 2 s)" : "")};
   }
   if (!got && !out.good()) {
     // A reader that went away (`tahvel query … | head`) is not worth a message, as for every

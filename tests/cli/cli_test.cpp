@@ -179,6 +179,7 @@ class Cli : public ::testing::Test {
   // wrote, its exit status and its standard error.
   Outcome interrupted_while_its_pipe_is_full(const std::vector<std::string>& args) {
     const fs::path fifo = tmp_ / "pipe";
+    fs::remove(fifo);  // the one of an earlier call
     EXPECT_EQ(mkfifo(fifo.c_str(), 0600), 0);
     const int reader = open(fifo.c_str(), O_RDONLY | O_NONBLOCK | O_CLOEXEC);  // before the writer, so its open returns
     EXPECT_GE(reader, 0);
@@ -714,6 +715,13 @@ TEST_F(Cli, QueryInterruptedWhileItsPipeIsFullWritesWholeRecordsAndCountsThoseWr
   const std::regex whole("<http://example\\.org/s[0-9]+> <http://example\\.org/v#value> \"x{160}[0-9]+\" \\.");
   for (const std::string& line : lines) EXPECT_TRUE(std::regex_match(line, whole)) << line;
   EXPECT_EQ(std::stoul(m[1]), lines.size()) << "records said written out";
+  // Turtle ends each statement at the start of the next: cut so, its closing " ." went out only
+  // if the pipe had room at once, and the document ended without it.
+  Outcome ttl = interrupted_while_its_pipe_is_full({"query", node_, "--at", kNodeIri, "-p", "http://example.org/v#value", "--format", "ttl"});
+  EXPECT_EQ(ttl.status, 130) << ttl.err;
+  const std::string ttl_end = ttl.out.substr(0, ttl.out.find_last_not_of(" \n") + 1);
+  ASSERT_GE(ttl_end.size(), 2u);
+  EXPECT_EQ(ttl_end.substr(ttl_end.size() - 2), " .") << ttl_end.substr(ttl_end.size() - std::min<std::size_t>(80, ttl_end.size()));
 }
 
 TEST_F(Cli, QueryCascadeBeyondThirtyTwoBitsIsDeepNotNone) {
