@@ -131,16 +131,19 @@ std::optional<Session> open_session(const std::string& program, const std::strin
     log_line(program, "agent '" + agent_id + "': " + node_error(agent.error()));
     return std::nullopt;
   }
-  const std::string lock_path = (node->dir() / (".agent-" + agent_id + ".lock")).string();
+  // Named by the id as the agent's IRI has it (`r%70eak` is agent `rpeak`).
+  const std::string lock_path = (node->dir() / (".agent-" + agent->iri().substr(node->iri().size() + 1) + ".lock")).string();
   const int fd = ::open(lock_path.c_str(), O_RDWR | O_CREAT | O_CLOEXEC, 0644);
   if (fd < 0) {
     log_line(program, "open " + lock_path + ": " + std::strerror(errno));
     return std::nullopt;
   }
   HeldLock running(fd);
+  // A predecessor killed a moment ago (a SIGKILLed supervisor's leftovers, killed by the next
+  // `up` without waiting) may not have let go yet: tried for up to 3 s.
   int rc = 0;
-  while ((rc = ::flock(fd, LOCK_EX | LOCK_NB)) != 0 && errno == EINTR) {
-  }
+  for (int attempt = 0; (rc = ::flock(fd, LOCK_EX | LOCK_NB)) != 0 && (errno == EINTR || errno == EWOULDBLOCK) && attempt < 60; ++attempt)
+    if (errno == EWOULDBLOCK) std::this_thread::sleep_for(std::chrono::milliseconds(50));
   if (rc != 0) {
     log_line(program, errno == EWOULDBLOCK
                           ? "another process runs as agent <" + agent->iri() + "> (" + lock_path +

@@ -439,8 +439,6 @@ Result<std::shared_ptr<Env>> Env::open_at(const std::filesystem::path& dir, cons
   int dead = 0;
   mdb_reader_check(env->env_, &dead);  // reader slots of dead processes
 
-  if (auto w = env->wake_.open(dir / "wake"); !w) return unexpected(w.error());
-
   // An existing store is opened in a read transaction: a writer of another process that hangs
   // inside its transaction (stopped, stuck) must not hang every process that opens the store,
   // `tahvel status` among them. Only a store made before store ids needs a write, once.
@@ -504,6 +502,9 @@ Result<std::shared_ptr<Env>> Env::open_at(const std::filesystem::path& dir, cons
   }
   rc = mdb_txn_commit(txn);  // also for a read transaction: the table handles outlive it
   if (rc != 0) return lmdb_fail(rc, "committing the first transaction in " + dir.string());
+  // After the tables are found: a directory that holds another program's LMDB file gets no
+  // file of ours.
+  if (auto w = env->wake_.open(dir / "wake"); !w) return unexpected(w.error());
   // A format-2 store's time index needs room (tens of bytes an item): when the map is full the
   // transaction is tried again in a larger one, into the reserve kept for removals if need be
   // (a store that cannot be opened could not be emptied either).

@@ -320,7 +320,7 @@ class Parser {
     // (\uD800) as the bytes of one, which are not UTF-8: refused here, where the statement is
     // known, rather than by the store without a place (R1a).
     for (const Term* t : {&*subject, &*predicate, &*object})
-      if (ill_formed_utf8_at(t->value) != std::string_view::npos)
+      if (ill_formed_utf8_at(t->value) != std::string_view::npos || ill_formed_utf8_at(t->datatype) != std::string_view::npos)
         return stop("an escape gives a surrogate code point (U+D800 to U+DFFF), which is not a character "
                     "(write the character itself, or one \\U escape of its code point)");
     triples_.push_back({std::move(*subject), std::move(*predicate), std::move(*object)});

@@ -1254,9 +1254,13 @@ Result<std::vector<std::pair<std::string, std::chrono::nanoseconds>>> Node::ttls
 
 Result<std::uint64_t> Node::reclaim() {
   // A pass reclaims at most kTtlScanBudget records per TTL rule (a write's retention must stay
-  // short): passes, each its own transaction, until one reclaims nothing.
+  // short): passes, each its own transaction, until one reclaims nothing, or as many records as
+  // the store held at the start are reclaimed (writers storing records already due would keep
+  // the loop going; their own writes reclaim too).
+  auto held = stats();
+  const std::uint64_t at_most = held ? held->records : ~0ull;
   std::uint64_t reclaimed = 0;
-  for (;;) {
+  while (reclaimed < at_most) {
     std::uint64_t pass = 0;
     auto written = impl_->env->write([&](Txn& txn) -> Result<void> {
       auto n = apply_retention(txn);
@@ -1265,9 +1269,10 @@ Result<std::uint64_t> Node::reclaim() {
       return {};
     }, WriteKind::removal);
     if (!written) return unexpected(written.error());
-    if (pass == 0) return reclaimed;
+    if (pass == 0) break;
     reclaimed += pass;
   }
+  return reclaimed;
 }
 
 Result<void> Node::set_prefix(std::string_view prefix, std::string_view namespace_iri) {

@@ -156,6 +156,8 @@ TEST_F(EcgSourceTest, EachLeadOfARecordKeepsItsOwnCalibration) {
   EXPECT_EQ(info->calibration[1].gain, 10);
   EXPECT_EQ(info->calibration[1].baseline, 0);
   EXPECT_EQ(info->calibration[1].unit, "mmHg");
+  // The ECG lead's no-value (format 16), for the R-peak agent to read as no signal.
+  EXPECT_EQ(info->invalid_sample, -32768);
 }
 
 TEST_F(EcgSourceTest, ARestartAfterAKillGoesOnAfterTheLastChunkAndWritesEachSecondOnce) {

@@ -689,8 +689,6 @@ TEST_F(Cli, SinceAndUntilSelectAStretchOfTimeInListAndNarrowRemove) {
   EXPECT_EQ(lines_of(run({"list", node_, "-s", "http://example.org/rec/1"}).out).size(), 1u);
 }
 
-// `query --cascade 4294967296` was cut to 32 bits: depth 0, the matches without their sub-trees,
-// while `list` took the same number as deep.
 // docs/cli.md: the records that came before a cancellation have been printed. Ctrl-C while
 // standard output was a full pipe cut the output at the edge of a buffer, inside a record, and
 // said (or, asked at DIR's own node, failed: "cannot write to standard output") nothing of
@@ -724,6 +722,8 @@ TEST_F(Cli, QueryInterruptedWhileItsPipeIsFullWritesWholeRecordsAndCountsThoseWr
   EXPECT_EQ(ttl_end.substr(ttl_end.size() - 2), " .") << ttl_end.substr(ttl_end.size() - std::min<std::size_t>(80, ttl_end.size()));
 }
 
+// `query --cascade 4294967296` was cut to 32 bits: depth 0, the matches without their sub-trees,
+// while `list` took the same number as deep.
 TEST_F(Cli, QueryCascadeBeyondThirtyTwoBitsIsDeepNotNone) {
   init();
   put("<http://example.org/p1> <http://example.org/made> [ <http://example.org/hr> 72 ] .\n");

@@ -252,8 +252,6 @@ TEST_F(DispatcherTest, ANameThatCannotEndAnIriIsRefusedAndOutputThatIsNotUtf8IsR
   EXPECT_NE(why->at(0).triple.o.value.find("'a%zz' cannot end the IRI"), std::string::npos) << why->at(0).triple.o.value;
 }
 
-// `tahvel up` stopping: its behaviours are stopped and recorded so. A dispatcher that died
-// with runs in progress has them recorded "interrupted" when it next opens, not left running.
 // One supervisor runs the dispatchers of several nodes (`tahvel up` of a whole file). Runs were
 // named by their command's item id, which is a store's own: a command on one node was refused as
 // "already supervised" when another node's finished run had that id, and every run stayed in the
@@ -297,6 +295,8 @@ TEST_F(DispatcherTest, DispatchersOfTwoNodesUnderOneSupervisorKeepTheirRunsApart
   EXPECT_TRUE(supervisor.states().empty()) << supervisor.states().size() << " finished runs kept";
 }
 
+// `tahvel up` stopping: its behaviours are stopped and recorded so. A dispatcher that died
+// with runs in progress has them recorded "interrupted" when it next opens, not left running.
 TEST_F(DispatcherTest, RunsInProgressAtStopAreRecordedStoppedOrInterrupted) {
   auto state_of = [&](const std::string& run) {
     auto snap = node_->snapshot();

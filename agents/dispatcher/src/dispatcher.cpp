@@ -219,7 +219,7 @@ Result<void> Dispatcher::Impl::reap(std::vector<DispatchEvent>& events) {
     events.push_back({DispatchEvent::ended, r.iri, r.command, state ? state->last_exit : how});
     // Its end is on the board: the supervisor forgets it (every run stayed in its states, and in
     // `tahvel up`'s state file rewritten every 100 ms).
-    (void)supervisor.remove(it->first, std::chrono::milliseconds(0));
+    (void)supervisor.forget(it->first);
     it = runs.erase(it);
   }
   return failed;

@@ -491,6 +491,12 @@ void Supervisor::remove(const std::vector<std::string>& names, std::chrono::mill
   }
 }
 
+Result<void> Supervisor::forget(std::string_view name) {
+  if (auto removed = remove(name, std::chrono::milliseconds(0)); !removed) return removed;
+  vacated_.erase(std::string(name));
+  return {};
+}
+
 void Supervisor::stop_all(std::chrono::milliseconds grace) { stop_programs(programs_, grace); }
 
 std::vector<ProgramState> Supervisor::states() const {

@@ -186,7 +186,10 @@ std::optional<int> parse_floor(const node::Term& term) {
   int value = 0;
   const char* begin = text.data() + (!text.empty() && text[0] == '+' ? 1 : 0);
   auto [end, ec] = std::from_chars(begin, text.data() + text.size(), value);
-  if (ec == std::errc() && end == text.data() + text.size() && begin != end) return value;
+  if (ec == std::errc() && end == text.data() + text.size() && begin != end) {
+    if (std::abs(value) > 1'000'000'000) return std::nullopt;
+    return value;
+  }
   // A whole number written as a decimal or double ("1.0", "2e0") is that floor, as "1" is.
   double number = 0;
   auto [stop, error] = std::from_chars(begin, text.data() + text.size(), number);

@@ -124,6 +124,10 @@ class Supervisor {
   // Removes several at once: all are signalled together and share one `grace` (ten programs
   // that ignore SIGTERM take 5 s, not 50). Names no program has are skipped.
   void remove(const std::vector<std::string>& names, std::chrono::milliseconds grace = std::chrono::seconds(5));
+  // Removes a program that will not be started again (a dispatcher's run, once recorded): as
+  // remove(name, 0), without keeping its place for a successor of its name, which a supervisor
+  // running for months would keep for every run. not_found when no program has that name.
+  Result<void> forget(std::string_view name);
   void stop_all(std::chrono::milliseconds grace = std::chrono::seconds(5));
 
   // Changes when a program is started again, without stopping it: it applies from the program's
