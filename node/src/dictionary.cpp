@@ -1,6 +1,7 @@
 // Term dictionary; see dictionary.h.
 #include "dictionary.h"
 
+#include <algorithm>
 #include <charconv>
 
 #include "codec.h"
@@ -140,7 +141,15 @@ Result<std::uint64_t> find_term(MDB_txn* txn, const Env& env, const Term& term) 
     datatype_id = *dt;
   }
   std::string bytes = payload(term, datatype_id);
-  return lookup_payload(txn, env, bytes, codec::hash64(bytes));
+  auto found = lookup_payload(txn, env, bytes, codec::hash64(bytes));
+  // A literal stored through the C++ API before tags were kept in lower case has its tag as
+  // given: found so when the lowered form is not there (a pattern of either case finds it).
+  if (found && *found == 0 && std::any_of(term.language.begin(), term.language.end(), [](char c) { return c >= 'A' && c <= 'Z'; })) {
+    std::string as_given = bytes;
+    as_given.replace(as_given.size() - term.value.size() - term.language.size(), term.language.size(), term.language);
+    return lookup_payload(txn, env, as_given, codec::hash64(as_given));
+  }
+  return found;
 }
 
 void term_key(const Term& term, TermKey& out) {
