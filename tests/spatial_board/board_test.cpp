@@ -52,6 +52,15 @@ class BoardTest : public testing::Test {
     node_.reset();
   }
 
+  // Stores `declarations` as an operator's file is put, then opens the area keeper on the store;
+  // `first` gets the report of its first sync.
+  Result<AreaKeeper> keep(const node::Item& declarations, AreaSyncReport& first) {
+    auto writer = node_->agent("operator");
+    EXPECT_TRUE(writer.has_value());
+    EXPECT_TRUE(writer->store(declarations).has_value());
+    return AreaKeeper::open(dir_ / "store", &first);
+  }
+
   void put(const node::Item& item) {
     auto stored = plan_->store(item);
     ASSERT_TRUE(stored.has_value()) << stored.error().message;
@@ -542,11 +551,8 @@ TEST_F(BoardTest, EachDeclarationInAnItemIsKeptAndItsProblemsAreItsOwn) {
       .add(Term::blank("c"), Term::iri(kTv + "areaSubscriber"), Term::iri(kHome + "/ui-bad"))
       .add(Term::blank("c"), Term::iri(kTv + "area"), Term::iri(kHall))
       .add(Term::blank("c"), Term::iri(kTv + "areaFloor"), Term::integer(1));
-  auto writer = node_->agent("operator");
-  ASSERT_TRUE(writer.has_value());
-  ASSERT_TRUE(writer->store(item).has_value());
   AreaSyncReport first;
-  auto keeper = AreaKeeper::open(dir_ / "store", &first);
+  auto keeper = keep(item, first);
   ASSERT_TRUE(keeper.has_value()) << keeper.error().message;
   EXPECT_EQ(first.declarations, 3u);
   EXPECT_EQ(first.added, 6u);  // per room: its mote as a source and as a subject, and the room
@@ -575,11 +581,8 @@ TEST_F(BoardTest, AnAreaFloorIsReadAsAFeatureFloorIs) {
       .add(Term::blank("b"), Term::iri(kTv + "areaSubscriber"), Term::iri(kHome + "/ui-far"))
       .add(Term::blank("b"), Term::iri(kTv + "area"), Term::literal("POLYGON((0 0, 2 0, 2 2, 0 2, 0 0))", kGeoWktLiteral))
       .add(Term::blank("b"), Term::iri(kTv + "areaFloor"), Term::integer(4294967296));
-  auto writer = node_->agent("operator");
-  ASSERT_TRUE(writer.has_value());
-  ASSERT_TRUE(writer->store(item).has_value());
   AreaSyncReport first;
-  auto keeper = AreaKeeper::open(dir_ / "store", &first);
+  auto keeper = keep(item, first);
   ASSERT_TRUE(keeper.has_value()) << keeper.error().message;
   ASSERT_EQ(first.problems.size(), 1u);
   EXPECT_NE(first.problems[0].find("of <" + kHome + "/ui-far>: tv:areaFloor '4294967296' is not a whole number"), std::string::npos)
