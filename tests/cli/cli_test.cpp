@@ -1022,6 +1022,40 @@ std::string base64(const std::string& bytes) {
   return out;
 }
 
+// A recording's description as the ECG source writes it (docs/vocabulary.md), persistent.
+tahvel::node::Item recording_description(const std::string& rec, const std::string& fs, const std::string& gain, int baseline,
+                                         const std::vector<std::string>& leads, std::int64_t t0) {
+  using tahvel::node::Term;
+  const std::string tv = "https://w3id.org/tahvel#", xsd = "http://www.w3.org/2001/XMLSchema#";
+  tahvel::node::Item description;
+  description.persistent = true;
+  const Term r = Term::iri(rec);
+  description.add(r, Term::iri("http://www.w3.org/1999/02/22-rdf-syntax-ns#type"), Term::iri(tv + "EcgRecording"));
+  description.add(r, Term::iri(tv + "samplingRate"), Term::literal(fs, xsd + "double"));
+  description.add(r, Term::iri(tv + "gain"), Term::literal(gain, xsd + "double"));
+  description.add(r, Term::iri(tv + "baseline"), Term::integer(baseline));
+  for (std::size_t i = 0; i < leads.size(); ++i) description.add(r, Term::iri(tv + "lead"), Term::literal(std::to_string(i) + " " + leads[i]));
+  description.add(r, Term::iri(tv + "startedAt"), Term::integer(t0));
+  return description;
+}
+
+// A chunk of `frames` frames of `rec` from `start`, its samples `bytes` (int16le interleaved),
+// asserted at `asserted_at` and spanning a second, as the ECG source writes it.
+tahvel::node::Item ecg_chunk(const std::string& rec, int start, int frames, const std::string& bytes, std::int64_t asserted_at) {
+  using tahvel::node::Term;
+  const std::string tv = "https://w3id.org/tahvel#", xsd = "http://www.w3.org/2001/XMLSchema#";
+  tahvel::node::Item item;
+  const Term c = Term::iri(rec + "/chunk/" + std::to_string(start));
+  item.add(c, Term::iri("http://www.w3.org/1999/02/22-rdf-syntax-ns#type"), Term::iri(tv + "EcgChunk"));
+  item.add(c, Term::iri(tv + "recording"), Term::iri(rec));
+  item.add(c, Term::iri(tv + "startSample"), Term::integer(start));
+  item.add(c, Term::iri(tv + "frameCount"), Term::integer(frames));
+  item.add(c, Term::iri(tv + "samples"), Term::literal(base64(bytes), xsd + "base64Binary"));
+  item.asserted_at = asserted_at;
+  item.span = 1'000'000'000;
+  return item;
+}
+
 // A recording of two leads at 4 Hz (gain 2 ADC units per mV, baseline 10) that ended after 20
 // frames, and its chunks of one second, written as the ECG source writes them
 // (docs/vocabulary.md): each asserted at its first frame's time and spanning a second. The chunk
@@ -1032,17 +1066,9 @@ void store_recording(const std::string& dir, const std::string& rec, std::int64_
   using tahvel::node::Term;
   auto node = tahvel::node::Node::open(dir).value();
   auto source = node.agent("source").value();
-  const std::string tv = "https://w3id.org/tahvel#", xsd = "http://www.w3.org/2001/XMLSchema#";
-  tahvel::node::Item description;
-  description.persistent = true;
+  const std::string tv = "https://w3id.org/tahvel#";
   const Term r = Term::iri(rec);
-  description.add(r, Term::iri("http://www.w3.org/1999/02/22-rdf-syntax-ns#type"), Term::iri(tv + "EcgRecording"));
-  description.add(r, Term::iri(tv + "samplingRate"), Term::literal("4.0", xsd + "double"));
-  description.add(r, Term::iri(tv + "gain"), Term::literal("2.0", xsd + "double"));
-  description.add(r, Term::iri(tv + "baseline"), Term::integer(10));
-  description.add(r, Term::iri(tv + "lead"), Term::literal("0 MLII"));
-  description.add(r, Term::iri(tv + "lead"), Term::literal("1 V5"));
-  description.add(r, Term::iri(tv + "startedAt"), Term::integer(t0));
+  tahvel::node::Item description = recording_description(rec, "4.0", "2.0", 10, {"MLII", "V5"}, t0);
   description.add(r, Term::iri(tv + "endSample"), Term::integer(20));  // the recording has ended
   if (second_in_mmhg) {
     description.add(r, Term::iri(tv + "leadCalibration"), Term::literal("0 2.0 10 mV"));
@@ -1053,16 +1079,7 @@ void store_recording(const std::string& dir, const std::string& rec, std::int64_
     std::string bytes;
     for (std::size_t f = 0; f < leads[0].size(); ++f)
       for (const auto& lead : leads) bytes += {static_cast<char>(lead[f] & 0xff), static_cast<char>(lead[f] >> 8 & 0xff)};
-    tahvel::node::Item item;
-    const Term c = Term::iri(rec + "/chunk/" + std::to_string(start));
-    item.add(c, Term::iri("http://www.w3.org/1999/02/22-rdf-syntax-ns#type"), Term::iri(tv + "EcgChunk"));
-    item.add(c, Term::iri(tv + "recording"), r);
-    item.add(c, Term::iri(tv + "startSample"), Term::integer(start));
-    item.add(c, Term::iri(tv + "frameCount"), Term::integer(4));
-    item.add(c, Term::iri(tv + "samples"), Term::literal(base64(bytes), xsd + "base64Binary"));
-    item.asserted_at = t0 + start * 250'000'000ll;
-    item.span = 1'000'000'000;
-    ASSERT_TRUE(source.store(item));
+    ASSERT_TRUE(source.store(ecg_chunk(rec, start, 4, bytes, t0 + start * 250'000'000ll)));
   };
   chunk(0, {{10, 12, 14, 16}, {8, 10, 12, 14}});
   chunk(4, {{18, 20, 22, 24}, {16, 18, 20, 22}});
@@ -1074,35 +1091,15 @@ void store_recording(const std::string& dir, const std::string& rec, std::int64_
 // row, and the count is of the frames written out.
 TEST_F(Cli, EcgInterruptedWhileItsPipeIsFullWritesWholeRowsAndCountsTheFramesWrittenOut) {
   init();
-  using tahvel::node::Term;
-  const std::string rec = kNodeIri + "/source/recording/long", tv = "https://w3id.org/tahvel#",
-                    xsd = "http://www.w3.org/2001/XMLSchema#";
+  const std::string rec = kNodeIri + "/source/recording/long";
   const std::int64_t t0 = 1'800'000'000'000'000'000;
   {
     auto source = tahvel::node::Node::open(node_).value().agent("source").value();
-    tahvel::node::Item description;
-    description.persistent = true;
-    const Term r = Term::iri(rec);
-    description.add(r, Term::iri("http://www.w3.org/1999/02/22-rdf-syntax-ns#type"), Term::iri(tv + "EcgRecording"));
-    description.add(r, Term::iri(tv + "samplingRate"), Term::literal("250.0", xsd + "double"));
-    description.add(r, Term::iri(tv + "gain"), Term::literal("200.0", xsd + "double"));
-    description.add(r, Term::iri(tv + "baseline"), Term::integer(0));
-    description.add(r, Term::iri(tv + "lead"), Term::literal("0 MLII"));
-    description.add(r, Term::iri(tv + "startedAt"), Term::integer(t0));
-    ASSERT_TRUE(source.store(description));
+    ASSERT_TRUE(source.store(recording_description(rec, "250.0", "200.0", 0, {"MLII"}, t0)));
     for (int second = 0; second < 40; ++second) {  // 10,000 rows of about 35 bytes
       std::string bytes;
       for (int f = 0; f < 250; ++f) bytes += {static_cast<char>(f + 1), static_cast<char>(1)};
-      tahvel::node::Item item;
-      const Term c = Term::iri(rec + "/chunk/" + std::to_string(second * 250));
-      item.add(c, Term::iri("http://www.w3.org/1999/02/22-rdf-syntax-ns#type"), Term::iri(tv + "EcgChunk"));
-      item.add(c, Term::iri(tv + "recording"), r);
-      item.add(c, Term::iri(tv + "startSample"), Term::integer(second * 250));
-      item.add(c, Term::iri(tv + "frameCount"), Term::integer(250));
-      item.add(c, Term::iri(tv + "samples"), Term::literal(base64(bytes), xsd + "base64Binary"));
-      item.asserted_at = t0 + second * 1'000'000'000ll;
-      item.span = 1'000'000'000;
-      ASSERT_TRUE(source.store(item));
+      ASSERT_TRUE(source.store(ecg_chunk(rec, second * 250, 250, bytes, t0 + second * 1'000'000'000ll)));
     }
   }
   Outcome r = interrupted_while_its_pipe_is_full({"ecg", node_, "--recording", rec});
