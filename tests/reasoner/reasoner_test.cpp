@@ -700,6 +700,40 @@ TEST_F(ReasonerTest, ARuleFileEmptiedAndRestoredGetsItsConclusionsBack) {
   EXPECT_EQ(board(), closure);
 }
 
+// The same, when the truncating save is read in between and its write lands within the file
+// system's timestamp resolution (mtime and ctime unchanged): the rules as written are read,
+// not the empty file for good. The file here is at least read back once written.
+TEST_F(ReasonerTest, ARuleFileReadWhileHalfWrittenIsReadAgainOnceWritten) {
+  put({t("a", "e", "b")});
+  auto file = rules("half.rules", "p(X, Y) :- e(X, Y).\n");
+  auto r = open(file);
+  ASSERT_TRUE(r.session().has_value());
+  std::ofstream save(file, std::ios::trunc);
+  ASSERT_TRUE(r.session().value().rules_reloaded);
+  EXPECT_TRUE(board().empty());
+  save << "q(X, Y) :- e(X, Y).\n";
+  save.close();
+  auto s = r.session();
+  ASSERT_TRUE(s.has_value());
+  EXPECT_TRUE(s->rules_reloaded);
+  EXPECT_EQ(board(), (std::map<std::string, int>{{nt("a", "q", "b"), 1}}));
+}
+
+// A rule file copied over with its old mtime kept (`cp -p`, `rsync -t`) is a new rule file.
+TEST_F(ReasonerTest, ARuleFileChangedUnderItsOldMtimeIsReloaded) {
+  put({t("a", "e", "b")});
+  auto file = rules("kept.rules", "p(X, Y) :- e(X, Y).\n");
+  const auto old_mtime = fs::last_write_time(file);
+  auto r = open(file);
+  ASSERT_TRUE(r.session().has_value());
+  std::ofstream(file, std::ios::trunc) << "q(X, Y) :- e(X, Y).\n";
+  fs::last_write_time(file, old_mtime);
+  auto s = r.session();
+  ASSERT_TRUE(s.has_value());
+  EXPECT_TRUE(s->rules_reloaded);
+  EXPECT_EQ(board(), (std::map<std::string, int>{{nt("a", "q", "b"), 1}}));
+}
+
 // A rule file replaced by one whose expression would overflow the parser's stack is reported
 // (RS15) and the previous rules keep running: the process does not die.
 TEST_F(ReasonerTest, ADeeplyNestedExpressionOnReloadIsReportedWhileThePreviousRulesRun) {

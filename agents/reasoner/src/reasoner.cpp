@@ -7,6 +7,7 @@
 
 #include <fcntl.h>
 #include <sys/file.h>
+#include <sys/stat.h>
 #include <unistd.h>
 
 #include <algorithm>
@@ -43,11 +44,67 @@ std::string key_of(const node::Triple& t) {
   return t.s.to_ntriples() + " " + t.p.to_ntriples() + " " + t.o.to_ntriples();
 }
 
-std::optional<std::filesystem::file_time_type> mtime(const std::filesystem::path& p) {
-  std::error_code ec;
-  auto t = std::filesystem::last_write_time(p, ec);
-  if (ec) return std::nullopt;
-  return t;
+// The rule file as the reasoner last read it, to tell when it changed. Its stat fields tell most
+// changes, but not one written again within the file system's timestamp resolution of a read:
+// that keeps mtime and ctime (a save that truncates and then writes, read in between, left the
+// reasoner on an empty file for good). So while the read is less than kRacyRead after the
+// file's mtime, the bytes are compared too, as git does for "racily clean" index entries.
+class RuleFile {
+ public:
+  explicit RuleFile(std::filesystem::path path) : path_(std::move(path)) {}
+
+  // The file's bytes now. The stamp is taken before them: a write during the read is a change.
+  Result<std::string> read() {
+    stamp_ = stamp_now();
+    auto text = read_rule_file(path_);
+    bytes_ = text ? *text : std::string();
+    racy_ = stamp_ && wall_ns() - stamp_->mtime_ns < kRacyRead.count();
+    return text;
+  }
+
+  // Whether the file differs from what read() last returned.
+  bool changed() {
+    const std::optional<Stamp> now = stamp_now();
+    if (now != stamp_) return true;
+    if (!racy_) return false;
+    const std::int64_t checked_at = wall_ns();
+    auto text = read_rule_file(path_);
+    if (!text || *text != bytes_) return true;
+    // Read again a resolution after its mtime and unchanged: a later write moves the stamp.
+    if (checked_at - now->mtime_ns >= kRacyRead.count()) racy_ = false;
+    return false;
+  }
+
+ private:
+  // FAT's is 2 s; ext4 with small inodes, 1 s; others, a clock tick.
+  static constexpr std::chrono::nanoseconds kRacyRead = std::chrono::seconds(2);
+
+  struct Stamp {
+    dev_t dev;
+    ino_t ino;
+    off_t size;
+    std::int64_t mtime_ns, ctime_ns;
+    bool operator==(const Stamp&) const = default;
+  };
+  std::optional<Stamp> stamp_now() const {
+    struct stat st;
+    if (::stat(path_.c_str(), &st) != 0) return std::nullopt;
+    auto ns = [](const timespec& t) { return std::int64_t{t.tv_sec} * 1000000000 + t.tv_nsec; };
+    return Stamp{st.st_dev, st.st_ino, st.st_size, ns(st.st_mtim), ns(st.st_ctim)};
+  }
+
+  std::filesystem::path path_;
+  std::optional<Stamp> stamp_;
+  std::string bytes_;
+  bool racy_ = false;
+};
+
+// Reads `file` (at `path`) and parses it as load_rules does.
+Result<std::shared_ptr<const Program>> parse_rule_file(RuleFile& file, const std::filesystem::path& path, ParseOptions options) {
+  auto text = file.read();
+  if (!text) return unexpected(text.error());
+  options.file = path.string();
+  return parse_rules(*text, options);
 }
 
 // Net effect of two updates in sequence.
@@ -77,7 +134,7 @@ struct Reasoner::Impl {
   bool uses_now() const {
     return std::any_of(program->strata.begin(), program->strata.end(), [](const Stratum& s) { return s.volatile_; });
   }
-  std::optional<std::filesystem::file_time_type> rules_mtime;
+  RuleFile rule_file;
   Engine engine;
   bool started = false;
   std::uint64_t bookmark = 0;  // last seq of the previous session's snapshot
@@ -100,9 +157,9 @@ struct Reasoner::Impl {
   // Held (flock) while this reasoner runs: see Reasoner::open.
   int agent_lock = -1;
 
-  Impl(node::Node n, node::Agent a, ReasonerOptions o, ParseOptions p, std::shared_ptr<const Program> prog)
+  Impl(node::Node n, node::Agent a, ReasonerOptions o, ParseOptions p, std::shared_ptr<const Program> prog, RuleFile f)
       : node(std::move(n)), agent(std::move(a)), options(std::move(o)), parse(std::move(p)),
-        program(prog), rules_mtime(mtime(options.rules)), engine(new_engine()) {}
+        program(prog), rule_file(std::move(f)), engine(new_engine()) {}
   // An engine of the current rules, with this reasoner's limit on a session's conclusions.
   Engine new_engine() const {
     Engine e(program);
@@ -153,10 +210,8 @@ struct Reasoner::Impl {
 // on the whole board (RS15): the engine holds only the facts the old rules read (a new rule may
 // read others; a file that was briefly empty read none).
 void Reasoner::Impl::maybe_reload(SessionReport& report) {
-  auto m = mtime(options.rules);
-  if (m == rules_mtime) return;
-  rules_mtime = m;
-  auto loaded = load_rules(options.rules, parse);
+  if (!rule_file.changed()) return;
+  auto loaded = parse_rule_file(rule_file, options.rules, parse);
   if (!loaded) {
     report.rules_error = loaded.error().message;
     return;
@@ -438,7 +493,8 @@ Result<Reasoner> Reasoner::open(const std::filesystem::path& dir, ReasonerOption
   parse.me = node->iri();
   parse.default_ns = options.default_ns.empty() ? node->iri() + "#" : options.default_ns;
   parse.prefixes = node->prefixes();
-  auto program = load_rules(options.rules, parse);
+  RuleFile rule_file(options.rules);
+  auto program = parse_rule_file(rule_file, options.rules, parse);
   if (!program) return unexpected(program.error());
   // One reasoner per agent: a reasoner owns every conclusion of its agent, and at its first
   // session removes those it did not derive, so a second one writing as the same agent (two
@@ -456,7 +512,8 @@ Result<Reasoner> Reasoner::open(const std::filesystem::path& dir, ReasonerOption
   }
   const std::string pid = std::to_string(getpid()) + "\n";
   if (ftruncate(lock, 0) == 0) (void)!pwrite(lock, pid.data(), pid.size(), 0);  // for the message above only
-  auto impl = std::make_unique<Impl>(std::move(*node), std::move(*agent), std::move(options), std::move(parse), std::move(*program));
+  auto impl = std::make_unique<Impl>(std::move(*node), std::move(*agent), std::move(options), std::move(parse), std::move(*program),
+                                     std::move(rule_file));
   impl->agent_lock = lock;
   // A problem an earlier run reported is over: this one's rules parse. One that cannot go now
   // (a full store) goes once a changed rule file parses.
@@ -498,7 +555,7 @@ Result<void> Reasoner::run(const std::function<bool(const SessionReport&)>& on_s
       // A conclusion someone else removed is written again if it still holds (read_changes).
       if (c.removed && impl_->own(r) && !impl_->removing.count(key_of(r.triple))) pending = true;
     }
-    if (mtime(impl_->options.rules) != impl_->rules_mtime) pending = true;
+    if (impl_->rule_file.changed()) pending = true;
     // A ring or a TTL reclaims without a change in the stream (R17): conclusions pushed out by
     // other writers' records are written again (and facts that went are retracted from) at
     // once, not at the next relevant change. Reclaims by this reasoner's own write do not start

@@ -13,7 +13,7 @@ Result<std::shared_ptr<const Program>> parse_rules(std::string_view text, const 
   return std::shared_ptr<const Program>(std::move(*program));
 }
 
-Result<std::shared_ptr<const Program>> load_rules(const std::filesystem::path& path, ParseOptions options) {
+Result<std::string> read_rule_file(const std::filesystem::path& path) {
   // A directory opens as an empty stream: read as no rules, it would retract every conclusion.
   if (std::error_code ec; std::filesystem::is_directory(path, ec))
     return unexpected(Error{path.string() + ": cannot read the rule file: it is a directory"});
@@ -22,8 +22,14 @@ Result<std::shared_ptr<const Program>> load_rules(const std::filesystem::path& p
   std::ostringstream text;
   text << in.rdbuf();
   if (in.bad()) return unexpected(Error{path.string() + ": error while reading the rule file"});
+  return text.str();
+}
+
+Result<std::shared_ptr<const Program>> load_rules(const std::filesystem::path& path, ParseOptions options) {
+  auto text = read_rule_file(path);
+  if (!text) return unexpected(text.error());
   options.file = path.string();
-  return parse_rules(text.str(), options);
+  return parse_rules(*text, options);
 }
 
 std::size_t rule_count(const Program& program) { return program.written_rules; }

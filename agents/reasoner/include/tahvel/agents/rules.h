@@ -65,6 +65,9 @@ class Program;
 // predicate, a cut inside a negation.
 Result<std::shared_ptr<const Program>> parse_rules(std::string_view text, const ParseOptions& options);
 
+// The bytes of the rule file at `path`. Error when it cannot be read, or is a directory.
+Result<std::string> read_rule_file(const std::filesystem::path& path);
+
 // Reads `path` and parses it with options.file = path. Error when the file cannot be read.
 Result<std::shared_ptr<const Program>> load_rules(const std::filesystem::path& path, ParseOptions options);
 
