@@ -8,6 +8,7 @@
 
 #include <stdlib.h>
 
+#include <chrono>
 #include <filesystem>
 #include <limits>
 #include <set>
@@ -215,6 +216,27 @@ TEST_F(BoardTest, APlaceStatedAgainUnchangedKeepsTheReadingsTakenThere) {
   // Upstairs at the same x and y is another place.
   put(located_feature_item(kMote, "POINT(1 1)", 1));
   EXPECT_EQ(in_area({kBedroom, std::nullopt, std::nullopt}, readings()).size(), 0u);
+}
+
+// A plan statement is ordered by when it was asserted: one sent down from the hospital while the
+// link was cut, and so stored after the home's newer one, does not move the sensor back.
+TEST_F(BoardTest, APlaceAssertedEarlierButStoredLaterDoesNotUndoANewerOne) {
+  const std::string mote = kHome + "/mote3";
+  const std::int64_t now = std::chrono::duration_cast<std::chrono::nanoseconds>(
+                              std::chrono::system_clock::now().time_since_epoch()).count();
+  const std::int64_t hour = 3600'000'000'000;
+  node::Item sent_down = located_feature_item(mote, "POINT(6 1)", 0);  // the hall
+  sent_down.asserted_at = now - 2 * hour;
+  node::Item put_at_home = located_feature_item(mote, "POINT(1 1)", 0);  // the bedroom
+  put_at_home.asserted_at = now - hour;
+  put(put_at_home);
+  reading("mote3", 21.0);
+  put(sent_down);
+  EXPECT_EQ(plan().plan.sensors_in_room(kBedroom), (Ids{kMote, mote}));
+  // The late statement of another place is no move: the reading stays the bedroom's.
+  node::Pattern of_mote3 = readings();
+  of_mote3.source = mote;
+  EXPECT_EQ(in_area({kBedroom, std::nullopt, std::nullopt}, of_mote3).size(), 1u);
 }
 
 TEST_F(BoardTest, ListByWktOnEveryFloorOrOne) {

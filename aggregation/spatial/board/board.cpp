@@ -26,11 +26,20 @@ Unexpected<Error> store_error(const node::Error& e) { return fail(e.message); }
 
 struct Latest {
   std::uint64_t id = 0;
+  std::int64_t asserted_at = 0;
   node::Term value;
   std::uint64_t item = 0;  // histories() only
 };
 
-// For every IRI subject of `predicate`: the object of its record with the highest id.
+// The order of a plan's statements: by when they were asserted, then by arrival. A plan sent
+// down from the hospital while the link was cut arrives after the home's newer one, and must
+// not undo it (docs/spatial.md S6).
+bool stated_before(std::int64_t asserted_a, std::uint64_t id_a, std::int64_t asserted_b, std::uint64_t id_b) {
+  return asserted_a != asserted_b ? asserted_a < asserted_b : id_a < id_b;
+}
+bool stated_before(const Latest& a, const Latest& b) { return stated_before(a.asserted_at, a.id, b.asserted_at, b.id); }
+
+// For every IRI subject of `predicate`: the object of its record stated last.
 Result<std::map<std::string, Latest>> latest_objects(const node::Snapshot& snapshot,
                                                      const char* predicate) {
   std::map<std::string, Latest> out;
@@ -39,7 +48,8 @@ Result<std::map<std::string, Latest>> latest_objects(const node::Snapshot& snaps
   auto read = snapshot.for_each(pattern, [&](const node::Record& r) {
     if (!r.triple.s.is_iri()) return true;
     Latest& latest = out[r.triple.s.value];
-    if (r.meta.id > latest.id) latest = {r.meta.id, r.triple.o};
+    if (latest.id == 0 || stated_before(latest.asserted_at, latest.id, r.meta.asserted_at, r.meta.id))
+      latest = {r.meta.id, r.meta.asserted_at, r.triple.o};
     return true;
   });
   if (!read) return store_error(read.error());
@@ -71,16 +81,18 @@ Result<Geometry> parse_wkt_remembered(const std::string& text) {
 }
 
 
-// The latest geo:asWKT literal of geometry `g`, or nullopt; `*id` gets its record's id.
+// The geo:asWKT literal of geometry `g` stated last, or nullopt; `*id` gets its record's id.
 Result<std::optional<std::string>> latest_wkt(const node::Snapshot& snapshot, const node::Term& g, std::uint64_t* id) {
   node::Pattern pattern;
   pattern.s = g;
   pattern.p = node::Term::iri(kGeoAsWkt);
   std::optional<std::string> wkt;
   std::uint64_t best = 0;
+  std::int64_t best_asserted = 0;
   auto read = snapshot.for_each(pattern, [&](const node::Record& r) {
-    if (r.triple.o.is_literal() && r.meta.id > best) {
+    if (r.triple.o.is_literal() && (best == 0 || stated_before(best_asserted, best, r.meta.asserted_at, r.meta.id))) {
       best = r.meta.id;
+      best_asserted = r.meta.asserted_at;
       wkt = r.triple.o.value;
     }
     return true;
@@ -93,18 +105,19 @@ Result<std::optional<std::string>> latest_wkt(const node::Snapshot& snapshot, co
 // A term as a map key: blank nodes apart from IRIs of the same text.
 std::string key_of(const node::Term& t) { return (t.is_blank() ? "_:" : "<") + t.value; }
 
-// Every record of `predicate` whose subject is not a literal, by subject (key_of), oldest first.
+// Every record of `predicate` whose subject is not a literal, by subject (key_of), in the order
+// they were stated.
 Result<std::map<std::string, std::vector<Latest>>> histories(const node::Snapshot& snapshot, const char* predicate) {
   std::map<std::string, std::vector<Latest>> out;
   node::Pattern pattern;
   pattern.p = node::Term::iri(predicate);
   auto read = snapshot.for_each(pattern, [&](const node::Record& r) {
-    if (!r.triple.s.is_literal()) out[key_of(r.triple.s)].push_back({r.meta.id, r.triple.o, r.meta.item});
+    if (!r.triple.s.is_literal()) out[key_of(r.triple.s)].push_back({r.meta.id, r.meta.asserted_at, r.triple.o, r.meta.item});
     return true;
   });
   if (!read) return store_error(read.error());
   for (auto& [subject, records] : out)
-    std::sort(records.begin(), records.end(), [](const Latest& a, const Latest& b) { return a.id < b.id; });
+    std::sort(records.begin(), records.end(), [](const Latest& a, const Latest& b) { return stated_before(a, b); });
   return out;
 }
 
@@ -129,6 +142,7 @@ std::uint64_t placed_since(const std::vector<Latest>& geometry_records, const st
   enum class Kind { geometry, wkt, floor };
   struct Event {
     std::uint64_t id;
+    std::int64_t asserted_at;
     Kind kind;
     const Latest* record;
     std::string geometry;  // wkt: whose
@@ -136,14 +150,15 @@ std::uint64_t placed_since(const std::vector<Latest>& geometry_records, const st
   std::vector<Event> events;
   std::set<std::string> geometries;
   for (const Latest& g : geometry_records) {
-    events.push_back({g.id, Kind::geometry, &g, {}});
+    events.push_back({g.id, g.asserted_at, Kind::geometry, &g, {}});
     if (!g.value.is_literal() && geometries.insert(key_of(g.value)).second)
       if (auto it = wkt_records.find(key_of(g.value)); it != wkt_records.end())
-        for (const Latest& w : it->second) events.push_back({w.id, Kind::wkt, &w, it->first});
+        for (const Latest& w : it->second) events.push_back({w.id, w.asserted_at, Kind::wkt, &w, it->first});
   }
   if (floor_records)
-    for (const Latest& f : *floor_records) events.push_back({f.id, Kind::floor, &f, {}});
-  std::sort(events.begin(), events.end(), [](const Event& a, const Event& b) { return a.id < b.id; });
+    for (const Latest& f : *floor_records) events.push_back({f.id, f.asserted_at, Kind::floor, &f, {}});
+  std::sort(events.begin(), events.end(),
+            [](const Event& a, const Event& b) { return stated_before(a.asserted_at, a.id, b.asserted_at, b.id); });
   std::string geometry, floor = "0";
   std::map<std::string, std::string> text_of;  // geometry -> its latest WKT so far
   std::vector<std::string> places;
@@ -162,7 +177,11 @@ std::uint64_t placed_since(const std::vector<Latest>& geometry_records, const st
   while (first > 0 && (places[first - 1] == places.back() ||
                        (first < places.size() && events[first - 1].record->item == events[first].record->item)))
     --first;
-  return first < events.size() ? events[first].id : 0;
+  // Readings are ordered by arrival: those after the first record (by id) that stated today's
+  // place were taken there.
+  std::uint64_t since = 0;
+  for (std::size_t i = first; i < events.size(); ++i) since = since ? std::min(since, events[i].id) : events[i].id;
+  return since;
 }
 
 // True when `source` is one of `sensors` or lies under one (a sensor that is a node of its own,
