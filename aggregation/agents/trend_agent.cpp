@@ -62,11 +62,11 @@ bool same_length(const agg::WindowMetrics& a, const agg::WindowMetrics& b) {
   return std::abs(a.length_s - b.length_s) < 1e-3;
 }
 
-// A window the record's end cut short (the last ones of a recording) measured less time than
-// its series' windows: it is no point of the series (its items have no tv:latest and no alert),
-// nor another patient's latest value to compare with. Three such windows below the baseline
-// at the end of every recording with overlapping windows made an alert of the record's end.
-bool cut_short(const agg::WindowMetrics& w) { return w.end_s - w.start_s < w.length_s - 1e-3; }
+// A window the record's end cut short (agg::cut_short) is no point of the series (its items
+// have no tv:latest and no alert), nor another patient's latest value to compare with. Three
+// such windows below the baseline at the end of every recording with overlapping windows made
+// an alert of the record's end.
+using agg::cut_short;
 
 class TrendStage {
  public:

@@ -250,19 +250,26 @@ Result<PatientsOnBoard> patients_on_board(const Snapshot& snapshot, std::optiona
     for (const auto& [iri, entry] : by_iri) newest_first.push_back(&entry);
     std::sort(newest_first.begin(), newest_first.end(),
               [](const Entry* a, const Entry* b) { return a->start_s > b->start_s; });
+    // The latest window is the newest the record's end did not cut short (1800-1805.6 s with 8
+    // NN is no patient's state), or the newest of all when every one is.
+    std::optional<std::pair<const Entry*, HrvWindowItem>> shown;
     for (const Entry* entry : newest_first) {
       auto w = read_whole(snapshot, *entry, read_hrv_window, unreadable);
       if (!w) return unexpected(w.error());
       if (!*w) continue;
+      const bool whole = !cut_short((*w)->window);
+      if (whole || !shown) shown.emplace(entry, std::move(**w));
+      if (whole) break;
+    }
+    if (shown) {
       PatientView& p = patients[recording];
       p.recording = recording;
-      p.source = entry->source;
+      p.source = shown->first->source;
       p.windows = by_iri.size();
-      p.latest = std::move(**w);
-      p.latest_stored_ns = entry->stored_ns;
-      p.latest_asserted_ns = entry->asserted_ns;
+      p.latest = std::move(shown->second);
+      p.latest_stored_ns = shown->first->stored_ns;
+      p.latest_asserted_ns = shown->first->asserted_ns;
       p.other_writers = std::move(others);
-      break;
     }
   }
 

@@ -119,6 +119,40 @@ TEST_F(PatientsOnBoard, EachRecordingIsOnePatientWithItsLatestWindowAndItsLatest
   EXPECT_TRUE(b.trends.empty());
 }
 
+// The last windows of a recording end where the record ends: [1800, 1805.6) of a 300 s setting
+// holds a handful of beats, and is no patient's state. The newest whole window is the latest;
+// a recording with only a cut-short window still shows that one.
+TEST_F(PatientsOnBoard, AWindowTheRecordsEndCutShortIsNotThePatientsLatest) {
+  auto window_of = [&](const std::string& recording, double start, double end, double sdnn) {
+    agg::RecordingInfo info;
+    info.iri = recording;
+    agg::WindowMetrics w;
+    w.start_s = start;
+    w.end_s = end;
+    w.length_s = 300;
+    w.metrics.sdnn_ms = sdnn;
+    w.metrics.mean_hr_bpm = 70;
+    w.metrics.nn_count = w.metrics.rr_count = 8;
+    store("home1-hrv", agg::hrv_window_item(info, w, kHospital + "/home1-hrv"));
+  };
+  window_of(kRecA, 1200, 1500, 50);
+  window_of(kRecA, 1500, 1800, 52);
+  window_of(kRecA, 1800, 1805.6, 9);
+  window_of(kRecB, 0, 20, 30);  // a record of 20 s
+  const agg::PatientsOnBoard board = read();
+  ASSERT_EQ(board.patients.size(), 2u);
+  for (const agg::PatientView& p : board.patients) {
+    if (p.recording == kRecA) {
+      EXPECT_EQ(p.windows, 3u);
+      EXPECT_EQ(p.latest.window.start_s, 1500);
+      EXPECT_EQ(p.latest.window.metrics.sdnn_ms, 52);
+    } else {
+      EXPECT_EQ(p.latest.window.start_s, 0);
+      EXPECT_EQ(p.latest.window.end_s, 20);
+    }
+  }
+}
+
 // Window times of a long recording keep their fraction on the board, as xsd:decimal (fixed, no
 // exponent): with 6 significant digits a window at 100093.5 s of a 100,100 s record was written
 // as 100094, and the last one, [100098.5, 100100), as (100099, 100100) — the one before as

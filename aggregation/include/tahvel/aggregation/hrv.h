@@ -83,6 +83,11 @@ struct WindowMetrics {
   double length_s = 0;
 };
 
+// Whether the record's end cut the window short (the last windows of a recording): it measured
+// less time than its setting's length, so it is no point of a series for a trend, nor a
+// patient's latest window (`tahvel patients`). A window of unknown length (0) is not.
+inline bool cut_short(const WindowMetrics& w) { return w.length_s > 0 && w.end_s - w.start_s < w.length_s - 1e-3; }
+
 // The window settings the chain takes from outside: `tahvel hrv --window/--step`, tahvel-hrv's
 // --window/--step and its tv:windowSeconds/tv:stepSeconds configuration, hrv_from_samples. A
 // window shorter than 10 s holds a handful of beats (ultra-short RMSSD is studied from 10 s

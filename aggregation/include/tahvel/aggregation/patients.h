@@ -26,7 +26,9 @@ struct PatientView {
   // one whose node is nearest the recording (its IRI lies below that node) is shown, then the one
   // with more windows. Writers whose windows share no name (an agent renamed) are one series.
   std::vector<std::pair<std::string, std::size_t>> other_writers;
-  HrvWindowItem latest;              // the readable window with the latest start
+  // The readable window with the latest start that the record's end did not cut short
+  // (cut_short); the latest of all when every one was.
+  HrvWindowItem latest;
   std::int64_t latest_stored_ns = 0; // when that window was stored on this board
   // The signal time of its start (its records' asserted-at, ns since the epoch): with the
   // window's length, the --since and --until of a query for the raw ECG behind it.
