@@ -26,12 +26,14 @@
 #include <thread>
 #include <vector>
 
+#include "tahvel/aggregation/ecgsyn.h"
 #include "tahvel/aggregation/items.h"
 #include "tahvel/aggregation/pipeline.h"
 #include "tahvel/aggregation/rpeak.h"
 #include "tahvel/aggregation/wfdb.h"
 #include "tahvel/node/node.h"
 #include "agent_process.h"
+#include "wfdb_record.h"
 
 namespace {
 
@@ -279,6 +281,28 @@ TEST_F(PipelineTest, WindowsEqualTahvelHrv) {
     EXPECT_EQ(intervals[i].end, expected->intervals[i].end) << i;
     EXPECT_EQ(intervals[i].nn, expected->intervals[i].nn) << i;
   }
+}
+
+// WFDB's no-value samples (-32768 in format 16) where the lead had no signal: the agents read
+// them as the batch chain does (tv:invalidSample on the recording, the R-peak agent holding the
+// last valid sample over them), not as -160 mV steps that move beats.
+TEST_F(PipelineTest, AgentsReadWfdbsNoValueSamplesAsTheBatchChainDoes) {
+  auto ecg = agg::synthetic_ecg(600, agg::SyntheticEcgOptions{});
+  ASSERT_TRUE(ecg) << ecg.error().message;
+  for (std::size_t start = 30 * 360; start + 180 <= ecg->size(); start += 60 * 360)
+    std::fill(ecg->begin() + static_cast<std::ptrdiff_t>(start), ecg->begin() + static_cast<std::ptrdiff_t>(start + 180), -32768);
+  record_ = tahvel::test_support::write_format16_record(tmp_, "gaps", *ecg);
+  auto expected = agg::hrv_from_record(record_);
+  ASSERT_TRUE(expected) << expected.error().message;
+  ASSERT_FALSE(expected->warnings.empty());  // the batch chain saw them as no-value samples
+  run_pipeline(expected->windows.size());
+  ASSERT_FALSE(HasFatalFailure());
+  expect_windows(*expected);
+  auto peaks = derived<agg::RPeaks>("rpeaks", agg::read_rpeaks);
+  std::vector<std::int64_t> beats;
+  for (const auto& p : peaks) beats.insert(beats.end(), p.peaks.begin(), p.peaks.end());
+  std::sort(beats.begin(), beats.end());
+  EXPECT_EQ(beats, expected->beats);
 }
 
 TEST_F(PipelineTest, ConfiguredWindowGivesThoseWindows) {

@@ -19,6 +19,7 @@
 #include <vector>
 
 #include "mitdb_support.h"
+#include "wfdb_record.h"
 
 namespace tahvel::aggregation {
 namespace {
@@ -278,24 +279,11 @@ TEST_F(WfdbTemp, AFlatRecordGivesNoBeatsAndSaysSo) {
 TEST_F(WfdbTemp, WfdbsNoValueIsReadAsNoSignalAndSaid) {
   auto ecg = synthetic_ecg(300, SyntheticEcgOptions{});
   ASSERT_TRUE(ecg) << ecg.error().message;
-  auto write_record = [&](const std::string& name, const std::vector<std::int32_t>& samples) {
-    std::string bytes;
-    for (std::int32_t v : samples) {
-      const auto u = static_cast<std::uint16_t>(static_cast<std::int16_t>(v));
-      bytes.push_back(static_cast<char>(u & 0xFF));
-      bytes.push_back(static_cast<char>(u >> 8));
-    }
-    std::uint16_t sum = 0;
-    for (std::int32_t v : samples) sum = static_cast<std::uint16_t>(sum + static_cast<std::uint16_t>(v));
-    write(name + ".dat", bytes);
-    write(name + ".hea", name + " 1 360 " + std::to_string(samples.size()) + "\n" + name + ".dat 16 200 16 1024 " +
-                             std::to_string(samples.front()) + " " + std::to_string(static_cast<std::int16_t>(sum)) + " 0 ECG\n");
-  };
   std::vector<std::int32_t> gaps = *ecg;
   for (std::size_t start = 30 * 360; start + 180 <= gaps.size(); start += 60 * 360)
     std::fill(gaps.begin() + static_cast<std::ptrdiff_t>(start), gaps.begin() + static_cast<std::ptrdiff_t>(start + 180), -32768);
-  write_record("clean", *ecg);
-  write_record("gaps", gaps);
+  tahvel::test_support::write_format16_record(dir_, "clean", *ecg);
+  tahvel::test_support::write_format16_record(dir_, "gaps", gaps);
   auto clean = hrv_from_record(record("clean"));
   auto with_gaps = hrv_from_record(record("gaps"));
   ASSERT_TRUE(clean && with_gaps);
