@@ -1545,16 +1545,21 @@ int run_up(const Args& args) {
   if (running > 0) return ask_to_apply(running, pid_file, topo.file);
   const std::size_t program_count = programs_of(topo, mine, state, here).size();
   const bool foreground = args.has("--foreground");
+  int ready_fd = -1;  // the daemon's end of the pipe `up` waits on
   if (!foreground) {
     // The supervisor lives on in a daemon; this process returns once it has started.
     std::cout.flush();  // or the daemon would write this process's buffered lines again, into its log
+    // Close-on-exec: a program the supervisor starts must not hold the pipe open, or this
+    // process would wait for that program's end.
     int ready[2];
-    if (pipe(ready) != 0) fail(std::string("pipe: ") + std::strerror(errno));
+    if (pipe2(ready, O_CLOEXEC) != 0) fail(std::string("pipe: ") + std::strerror(errno));
     pid_t pid = fork();
     if (pid < 0) fail(std::string("fork: ") + std::strerror(errno));
     if (pid > 0) {
       close(ready[1]);
-      // "1" once the supervisor holds its pid file; otherwise why not (or nothing: it died).
+      // "1" once the supervisor holds its pid file and has applied the file, then a line for
+      // each change that is not a program's start; otherwise "0" and why not (or nothing: it
+      // died).
       std::string answer;
       char buffer[512];
       for (ssize_t n; (n = read(ready[0], buffer, sizeof buffer)) != 0;) {
@@ -1563,9 +1568,11 @@ int run_up(const Args& args) {
         answer.append(buffer, static_cast<std::size_t>(n));
       }
       close(ready[0]);
-      if (answer != "1")
+      if (answer.empty() || answer[0] != '1')
         fail("the supervisor did not start" + (answer.size() > 1 ? ": " + answer.substr(1) : std::string()) + "; see " +
              (state / "logs" / "supervisor.log").string());
+      std::istringstream said(answer.substr(1));
+      for (std::string line; std::getline(said, line);) std::cout << "up: " << line << "\n";
       std::cout << "up: " << topo.name << ": " << program_count << " programs under supervisor (pid file "
                 << pid_file.string() << "); logs in " << (state / "logs").string() << "\n"
                 << "up: 'tahvel status --state " << shell_word(state) << "' shows the tree, 'tahvel down --state "
@@ -1595,8 +1602,7 @@ int run_up(const Args& args) {
       (void)!write(ready[1], answer.data(), answer.size());
       _exit(1);  // `up` says why the supervisor did not start
     }
-    (void)!write(ready[1], "1", 1);
-    close(ready[1]);
+    ready_fd = ready[1];
   } else if (!hold_pid_file(pid_file)) {
     fail(pid_file.string() + " is held by another supervisor (or cannot be written)");
   }
@@ -1626,8 +1632,18 @@ int run_up(const Args& args) {
   log("up: supervisor " + std::to_string(getpid()) + " runs " + fs::absolute(topo.file).lexically_normal().string() +
       (only ? " (node " + *only + ")" : std::string()));
   Deployment deployment(supervisor, state, only);
-  for (const auto& change : deployment.apply(topo, CommandContext::of_this_process()))
-    if (change.rfind("started ", 0) != 0) log("up: " + change);  // the supervisor logs each start
+  // What `up` says: a node not started (another supervisor runs it), leftovers of a killed
+  // supervisor killed, a program that cannot start. Logged only, they went unseen.
+  std::string said = "1";
+  for (const auto& change : deployment.apply(topo, CommandContext::of_this_process())) {
+    if (change.rfind("started ", 0) == 0) continue;  // the supervisor logs each start
+    log("up: " + change);
+    said += change + "\n";
+  }
+  if (ready_fd >= 0) {
+    (void)!write(ready_fd, said.data(), said.size());
+    ::close(ready_fd);
+  }
   auto log_checked = std::chrono::steady_clock::now();
   while (!g_stop) {
     supervisor.poll();

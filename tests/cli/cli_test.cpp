@@ -1464,8 +1464,13 @@ TEST_F(Cli, DownAndTheNextUpStopWhatAProgramStartedEvenAfterItsSupervisorWasKill
   child = child_of_this_run();
   ASSERT_EQ(kill(std::atoi(slurp(tmp_ / "state" / "supervisor-all.pid").c_str()), SIGKILL), 0);
   ASSERT_TRUE(eventually([&] { return run({"status", "--state", state}).out.find("wrap  stopped") != std::string::npos; }));
-  ASSERT_EQ(run({"up", file, "--state", state}).status, 0);
+  Outcome again = run({"up", file, "--state", state});
+  ASSERT_EQ(again.status, 0) << again.err;
   EXPECT_TRUE(eventually([&] { return gone(child); })) << "the next up left the last run's child beside its own";
+  // Said by `up` itself, not only in the supervisor's log.
+  EXPECT_NE(again.out.find("up: killed 1 process(es) that programs of node 'solo' had started and left running when their "
+                           "supervisor was killed: " + std::to_string(child) + " (sleep)"),
+            std::string::npos) << again.out;
   EXPECT_TRUE(eventually([&] {
     return slurp(tmp_ / "state" / "logs" / "supervisor.log").find("killed 1 process(es) that programs of node 'solo'") != std::string::npos;
   }));
