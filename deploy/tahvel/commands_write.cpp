@@ -167,6 +167,36 @@ void warn_of_unreadable_geometry(const std::vector<node::Triple>& triples, const
   if (warned > 20) std::cerr << "tahvel: warning: " << warned - 20 << " more geometries that will not read\n";
 }
 
+// An item addressed (R18) to an agent nothing on this node knows waits in that agent's input
+// buffer for ever: `--context H/home9/hrv` at a hospital of home1 and home2 (a typo, or a home
+// not yet deployed) was stored without a word. Known: a child node that registered (its state
+// is about it), a program supervised as it, anything said about it (a problem), or a
+// subscription of it. A warning, not a refusal: the agent may start later.
+void warn_of_unknown_addressee(const node::Node& node, const node::Item& item) {
+  if (item.context.empty()) return;
+  const std::optional<std::string> agent = node.addressee(item.context);
+  if (!agent) return;
+  auto snapshot = node.snapshot();
+  if (!snapshot) return;  // the store itself will say what is wrong
+  const node::Term who = node::Term::iri(*agent);
+  auto any = [&](node::Pattern pattern) {
+    auto n = snapshot->count(pattern);
+    return !n || *n > 0;  // a read error is not the user's mistake
+  };
+  const std::string tv(uri::kTahvelNs);
+  if (any({.s = who}) || any({.p = node::Term::iri(tv + "subscriber"), .o = who})) return;
+  std::string children;
+  auto listed = snapshot->list({.p = node::Term::iri(tv + "linkState")});
+  if (listed)
+    for (const node::Record& r : *listed)
+      if (r.triple.s.is_iri() && r.triple.s.value.rfind(node.iri(), 0) == 0)
+        children += (children.empty() ? "" : ", ") + r.triple.s.value.substr(node.iri().size() + (node.iri().ends_with('/') ? 0 : 1));
+  std::cerr << "tahvel: warning: --context <" << item.context << "> addresses <" << *agent
+            << ">, which nothing on this node knows (no child node of that IRI has registered, and no agent of it runs, "
+               "subscribes or has said anything): the item waits in its input buffer until one takes it"
+            << (children.empty() ? std::string() : "; child nodes known here: " + children) << "\n";
+}
+
 int run_put(const Args& args) {
   node::Node node = open_node(args.positional(0));
   uri::PrefixMap prefixes = prefixes_with_flags(node.prefixes(), args);
@@ -175,6 +205,7 @@ int run_put(const Args& args) {
   node::Agent agent = check(node.agent(agent_id(args, "cli")));
   item.triples = parse_input(node, path, input_format(args, path), prefixes);
   warn_of_unreadable_geometry(item.triples, path);
+  warn_of_unknown_addressee(node, item);
   print_number(check(agent.store(item)));
   return kExitOk;
 }
@@ -219,6 +250,7 @@ int run_load(const Args& args) {
   std::vector<node::Item> items;
   std::vector<node::Triple> triples = parse_input(node, path, input_format(args, path), prefixes);
   warn_of_unreadable_geometry(triples, path);
+  warn_of_unknown_addressee(node, frame);
   for (auto& group : group_by_subject(std::move(triples))) {
     items.push_back(frame);
     items.back().triples = std::move(group);

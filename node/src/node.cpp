@@ -971,6 +971,12 @@ Result<Agent> Node::agent(std::string_view id) const {
   return Agent(std::move(impl));
 }
 
+std::optional<std::string> Node::addressee(std::string_view context) const {
+  auto normal = uri::normalize(context);  // as the store keeps an item's context
+  if (!normal) return std::nullopt;
+  return detail::addressee_of(iri(), *normal, {});
+}
+
 Result<Snapshot> Node::snapshot() const { return Snapshot::Impl::open(impl_->env); }
 
 namespace {

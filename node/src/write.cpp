@@ -158,22 +158,6 @@ Result<void> deliver(Txn& txn, std::uint64_t agent, std::uint32_t slot, std::uin
   return {};
 }
 
-// R18: an item whose context lies under this node's IRI is addressed to the agent named by the
-// context's first segment below the node (a local agent, or the link agent of a child node),
-// which gets it in its input buffer without subscribing. The segment "*" names no agent (it
-// addresses a whole subtree, see docs/protocol.md).
-std::optional<std::string> addressee_of(const std::string& node_iri, std::string_view context, std::string_view writer) {
-  // Agent IRI = node IRI + "/" + id, the '/' not doubled after a node IRI that ends in one
-  // (uri::agent_iri).
-  const std::size_t begin = node_iri.ends_with('/') ? node_iri.size() : node_iri.size() + 1;
-  if (context.size() <= begin || context.compare(0, node_iri.size(), node_iri) != 0 || context[begin - 1] != '/')
-    return std::nullopt;
-  std::size_t end = context.find_first_of("/#?", begin);
-  std::string addressee(context.substr(0, end));
-  if (addressee.size() == begin || addressee.compare(begin, std::string::npos, "*") == 0 || addressee == writer)
-    return std::nullopt;
-  return addressee;
-}
 
 Result<void> route_to_addressee(Txn& txn, std::uint64_t item_id, ItemRow& item,
                                 const std::string& context, const std::string& writer) {
@@ -385,6 +369,23 @@ std::optional<std::vector<Subscription>> subscriptions_declared_by(
 }
 
 }  // namespace
+
+// R18: an item whose context lies under this node's IRI is addressed to the agent named by the
+// context's first segment below the node (a local agent, or the link agent of a child node),
+// which gets it in its input buffer without subscribing. The segment "*" names no agent (it
+// addresses a whole subtree, see docs/protocol.md).
+std::optional<std::string> addressee_of(const std::string& node_iri, std::string_view context, std::string_view writer) {
+  // Agent IRI = node IRI + "/" + id, the '/' not doubled after a node IRI that ends in one
+  // (uri::agent_iri).
+  const std::size_t begin = node_iri.ends_with('/') ? node_iri.size() : node_iri.size() + 1;
+  if (context.size() <= begin || context.compare(0, node_iri.size(), node_iri) != 0 || context[begin - 1] != '/')
+    return std::nullopt;
+  std::size_t end = context.find_first_of("/#?", begin);
+  std::string addressee(context.substr(0, end));
+  if (addressee.size() == begin || addressee.compare(begin, std::string::npos, "*") == 0 || addressee == writer)
+    return std::nullopt;
+  return addressee;
+}
 
 namespace {
 

@@ -23,6 +23,10 @@ inline constexpr std::string_view kSubscriptionContext = "https://w3id.org/tahve
 // IRI above it.
 inline constexpr std::string_view kSubscriptionSource = "https://w3id.org/tahvel#source";
 
+// R18: the agent an item of context `context` (in normal form) written by `writer` is addressed
+// to on the node of IRI `node_iri`; nullopt for none.
+std::optional<std::string> addressee_of(const std::string& node_iri, std::string_view context, std::string_view writer);
+
 // Inserts one validated item written by `agent_iri` (its output buffer), routes it, and returns
 // its id. Its records' source is `agent_iri`, or `*relayed_source` for an item relayed by a link
 // agent (the caller has checked that the agent may relay that source).

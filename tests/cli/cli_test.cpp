@@ -521,6 +521,32 @@ TEST_F(Cli, PutAndLoadWarnOfAGeometryThatWillNotReadAndStoreIt) {
   EXPECT_EQ(lines_of(run({"list", node_, "-p", "<http://www.opengis.net/ont/geosparql#asWKT>"}).out).size(), 4u);
 }
 
+// An item addressed (R18) to an agent nothing on the node knows waits in its input buffer for
+// ever: `put` and `load` say so, naming the child nodes known, and store it all the same.
+TEST_F(Cli, PutAndLoadWarnOfAContextAddressingAnAgentNothingOnTheNodeKnows) {
+  init();
+  put("<" + kNodeIri + "/gw1> <https://w3id.org/tahvel#linkState> \"up\" .\n", {"--agent", "link"});
+  ASSERT_EQ(run({"subscribe", node_, "--agent", "hrv", "-p", "<http://example.org/p>"}).status, 0);
+  spit(tmp_ / "setting.ttl", "<" + kNodeIri + "/s> <http://example.org/windowSeconds> 600 .\n");
+  const std::string file = (tmp_ / "setting.ttl").string();
+  for (const char* command : {"put", "load"}) {
+    Outcome typo = run({command, node_, file, "--context", kNodeIri + "/gw9/hrv"});
+    EXPECT_EQ(typo.status, 0) << command << ": " << typo.err;
+    EXPECT_NE(typo.err.find("tahvel: warning: --context <" + kNodeIri + "/gw9/hrv> addresses <" + kNodeIri +
+                            "/gw9>, which nothing on this node knows"),
+              std::string::npos) << command << ": " << typo.err;
+    EXPECT_NE(typo.err.find("; child nodes known here: gw1"), std::string::npos) << typo.err;
+    // A registered child, a subscriber, the whole subtree and a data group outside the node.
+    for (const std::string context : {kNodeIri + "/gw1/hrv", kNodeIri + "/hrv", kNodeIri + "/*", std::string("http://example.org/ward7")}) {
+      Outcome known = run({command, node_, file, "--context", context});
+      EXPECT_EQ(known.status, 0) << known.err;
+      EXPECT_EQ(known.err.find("warning"), std::string::npos) << command << " " << context << ": " << known.err;
+    }
+  }
+  Outcome waiting = run({"list", node_, "-p", "<http://example.org/windowSeconds>", "--context", kNodeIri + "/gw9/hrv"});
+  EXPECT_EQ(lines_of(waiting.out).size(), 2u) << waiting.out;
+}
+
 TEST_F(Cli, DumpOfOneNodeLoadsIntoAnotherWithTheSameTriples) {
   init();
   put(kObservation);

@@ -430,6 +430,11 @@ class Node {
   // A handle for agent `id` (IRI = iri() + "/" + id). Errors: invalid_iri for a bad id.
   Result<Agent> agent(std::string_view id) const;
 
+  // R18: the IRI of the agent on this node (a local one, or the link agent of a child node) that
+  // an item of context `context` is addressed to, or nullopt when it names none (a context
+  // outside this node, the node itself, `<node>/*`, or not an IRI).
+  std::optional<std::string> addressee(std::string_view context) const;
+
   Result<Snapshot> snapshot() const;
 
   // Removals are one transaction each, bar one case: a removal too large for a full store's
