@@ -251,14 +251,16 @@ Result<PatientsOnBoard> patients_on_board(const Snapshot& snapshot, std::optiona
     std::sort(newest_first.begin(), newest_first.end(),
               [](const Entry* a, const Entry* b) { return a->start_s > b->start_s; });
     // The latest window is the newest the record's end did not cut short (1800-1805.6 s with 8
-    // NN is no patient's state), or the newest of all when every one is.
+    // NN is no patient's state); when every one is (a record shorter than a window), the one
+    // that measured the longest, the newest of those.
     std::optional<std::pair<const Entry*, HrvWindowItem>> shown;
+    auto measured = [](const HrvWindowItem& w) { return w.window.end_s - w.window.start_s; };
     for (const Entry* entry : newest_first) {
       auto w = read_whole(snapshot, *entry, read_hrv_window, unreadable);
       if (!w) return unexpected(w.error());
       if (!*w) continue;
       const bool whole = !cut_short((*w)->window);
-      if (whole || !shown) shown.emplace(entry, std::move(**w));
+      if (whole || !shown || measured(**w) > measured(shown->second)) shown.emplace(entry, std::move(**w));
       if (whole) break;
     }
     if (shown) {

@@ -1557,9 +1557,9 @@ int run_up(const Args& args) {
     if (pid < 0) fail(std::string("fork: ") + std::strerror(errno));
     if (pid > 0) {
       close(ready[1]);
-      // "1" once the supervisor holds its pid file and has applied the file, then a line for
-      // each change that is not a program's start; otherwise "0" and why not (or nothing: it
-      // died).
+      // "1" once the supervisor holds its pid file and has applied the file, the number of
+      // programs it started, then a line for each change that is not a program's start;
+      // otherwise "0" and why not (or nothing: it died).
       std::string answer;
       char buffer[512];
       for (ssize_t n; (n = read(ready[0], buffer, sizeof buffer)) != 0;) {
@@ -1572,8 +1572,14 @@ int run_up(const Args& args) {
         fail("the supervisor did not start" + (answer.size() > 1 ? ": " + answer.substr(1) : std::string()) + "; see " +
              (state / "logs" / "supervisor.log").string());
       std::istringstream said(answer.substr(1));
+      std::string count;
+      std::getline(said, count);
+      const std::size_t started = count.empty() ? program_count : std::strtoull(count.c_str(), nullptr, 10);
       for (std::string line; std::getline(said, line);) std::cout << "up: " << line << "\n";
-      std::cout << "up: " << topo.name << ": " << program_count << " programs under supervisor (pid file "
+      std::cout << "up: " << topo.name << ": " << started << " programs under supervisor"
+                << (started == program_count ? std::string()
+                                             : " (of " + std::to_string(program_count) + " in the file for this machine; see above)")
+                << " (pid file "
                 << pid_file.string() << "); logs in " << (state / "logs").string() << "\n"
                 << "up: 'tahvel status --state " << shell_word(state) << "' shows the tree, 'tahvel down --state "
                 << shell_word(state) << "' stops it\n";
@@ -1634,12 +1640,17 @@ int run_up(const Args& args) {
   Deployment deployment(supervisor, state, only);
   // What `up` says: a node not started (another supervisor runs it), leftovers of a killed
   // supervisor killed, a program that cannot start. Logged only, they went unseen.
-  std::string said = "1";
+  std::string said;
+  std::size_t started = 0;
   for (const auto& change : deployment.apply(topo, CommandContext::of_this_process())) {
-    if (change.rfind("started ", 0) == 0) continue;  // the supervisor logs each start
+    if (change.rfind("started ", 0) == 0) {  // the supervisor logs each start
+      ++started;
+      continue;
+    }
     log("up: " + change);
     said += change + "\n";
   }
+  said = "1" + std::to_string(started) + "\n" + said;
   if (ready_fd >= 0) {
     (void)!write(ready_fd, said.data(), said.size());
     ::close(ready_fd);

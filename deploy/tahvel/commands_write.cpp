@@ -1,6 +1,7 @@
 // `tahvel` subcommands that change a whiteboard: init, put, load, remove, subscribe.
 #include <charconv>
 #include <iostream>
+#include <set>
 #include <unordered_map>
 
 #include "commands.h"
@@ -172,29 +173,32 @@ void warn_of_unreadable_geometry(const std::vector<node::Triple>& triples, const
 // not yet deployed) was stored without a word. Known: a child node that registered (its state
 // is about it), a program supervised as it, anything said about it (a problem), or a
 // subscription of it. A warning, not a refusal: the agent may start later.
-void warn_of_unknown_addressee(const node::Node& node, const node::Item& item) {
+void warn_of_unknown_addressee(const node::Node& node, const node::Item& item, const node::Agent& writer) {
   if (item.context.empty()) return;
   const std::optional<std::string> agent = node.addressee(item.context);
-  if (!agent) return;
+  if (!agent || *agent == writer.iri()) return;  // R18: never its own item's addressee
   auto snapshot = node.snapshot();
   if (!snapshot) return;  // the store itself will say what is wrong
   const node::Term who = node::Term::iri(*agent);
-  auto any = [&](node::Pattern pattern) {
-    auto n = snapshot->count(pattern);
-    return !n || *n > 0;  // a read error is not the user's mistake
+  auto any = [&](const node::Pattern& pattern) {  // stops at the first: an index lookup
+    bool found = false;
+    auto read = snapshot->for_each(pattern, [&](const node::Record&) { return !(found = true); });
+    return found || !read;  // a read error is not the user's mistake
   };
   const std::string tv(uri::kTahvelNs);
   if (any({.s = who}) || any({.p = node::Term::iri(tv + "subscriber"), .o = who})) return;
-  std::string children;
+  std::set<std::string> children;  // the child nodes' states name them (docs/protocol.md P12)
   auto listed = snapshot->list({.p = node::Term::iri(tv + "linkState")});
   if (listed)
     for (const node::Record& r : *listed)
-      if (r.triple.s.is_iri() && r.triple.s.value.rfind(node.iri(), 0) == 0)
-        children += (children.empty() ? "" : ", ") + r.triple.s.value.substr(node.iri().size() + (node.iri().ends_with('/') ? 0 : 1));
+      if (r.triple.s.is_iri() && node.addressee(r.triple.s.value) == r.triple.s.value)
+        children.insert(r.triple.s.value.substr(node.iri().size() + (node.iri().ends_with('/') ? 0 : 1)));
+  std::string known;
+  for (const std::string& child : children) known += (known.empty() ? "" : ", ") + child;
   std::cerr << "tahvel: warning: --context <" << item.context << "> addresses <" << *agent
             << ">, which nothing on this node knows (no child node of that IRI has registered, and no agent of it runs, "
                "subscribes or has said anything): the item waits in its input buffer until one takes it"
-            << (children.empty() ? std::string() : "; child nodes known here: " + children) << "\n";
+            << (known.empty() ? std::string() : "; child nodes known here: " + known) << "\n";
 }
 
 int run_put(const Args& args) {
@@ -205,7 +209,7 @@ int run_put(const Args& args) {
   node::Agent agent = check(node.agent(agent_id(args, "cli")));
   item.triples = parse_input(node, path, input_format(args, path), prefixes);
   warn_of_unreadable_geometry(item.triples, path);
-  warn_of_unknown_addressee(node, item);
+  warn_of_unknown_addressee(node, item, agent);
   print_number(check(agent.store(item)));
   return kExitOk;
 }
@@ -250,7 +254,7 @@ int run_load(const Args& args) {
   std::vector<node::Item> items;
   std::vector<node::Triple> triples = parse_input(node, path, input_format(args, path), prefixes);
   warn_of_unreadable_geometry(triples, path);
-  warn_of_unknown_addressee(node, frame);
+  warn_of_unknown_addressee(node, frame, agent);
   for (auto& group : group_by_subject(std::move(triples))) {
     items.push_back(frame);
     items.back().triples = std::move(group);

@@ -239,6 +239,18 @@ TEST_F(BoardTest, APlaceAssertedEarlierButStoredLaterDoesNotUndoANewerOne) {
   EXPECT_EQ(in_area({kBedroom, std::nullopt, std::nullopt}, of_mote3).size(), 1u);
 }
 
+// A writer whose clock runs an hour ahead does not win over every later statement until that
+// hour has passed: a statement counts as asserted no later than it arrived.
+TEST_F(BoardTest, APlaceAssertedAheadOfItsArrivalCountsAsAssertedOnArrival) {
+  const std::string mote = kHome + "/mote4";
+  node::Item ahead = located_feature_item(mote, "POINT(6 1)", 0);  // the hall
+  ahead.asserted_at = std::chrono::duration_cast<std::chrono::nanoseconds>(
+                          (std::chrono::system_clock::now() + std::chrono::hours(1)).time_since_epoch()).count();
+  put(ahead);
+  put(located_feature_item(mote, "POINT(1 1)", 0));  // then the bedroom, asserted now
+  EXPECT_EQ(plan().plan.sensors_in_room(kBedroom), (Ids{kMote, mote}));
+}
+
 TEST_F(BoardTest, ListByWktOnEveryFloorOrOne) {
   auto shape = parse_shape("POLYGON((0 0, 2 0, 2 2, 0 2, 0 0))");
   ASSERT_TRUE(shape.has_value());

@@ -7,7 +7,6 @@
 
 #include <fcntl.h>
 #include <sys/file.h>
-#include <sys/stat.h>
 #include <unistd.h>
 
 #include <algorithm>
@@ -19,6 +18,7 @@
 #include <set>
 #include <thread>
 
+#include "tahvel/agents/rule_file.h"
 #include "tahvel/node/node.h"
 #include "program.h"
 
@@ -44,66 +44,11 @@ std::string key_of(const node::Triple& t) {
   return t.s.to_ntriples() + " " + t.p.to_ntriples() + " " + t.o.to_ntriples();
 }
 
-// The rule file as the reasoner last read it, to tell when it changed. Its stat fields tell most
-// changes, but not one written again within the file system's timestamp resolution of a read:
-// that keeps mtime and ctime (a save that truncates and then writes, read in between, left the
-// reasoner on an empty file for good). So while the read is less than kRacyRead after the
-// file's mtime, the bytes are compared too, as git does for "racily clean" index entries.
-class RuleFile {
- public:
-  explicit RuleFile(std::filesystem::path path) : path_(std::move(path)) {}
-
-  // The file's bytes now. The stamp is taken before them: a write during the read is a change.
-  Result<std::string> read() {
-    stamp_ = stamp_now();
-    auto text = read_rule_file(path_);
-    bytes_ = text ? *text : std::string();
-    racy_ = stamp_ && wall_ns() - stamp_->mtime_ns < kRacyRead.count();
-    return text;
-  }
-
-  // Whether the file differs from what read() last returned.
-  bool changed() {
-    const std::optional<Stamp> now = stamp_now();
-    if (now != stamp_) return true;
-    if (!racy_) return false;
-    const std::int64_t checked_at = wall_ns();
-    auto text = read_rule_file(path_);
-    if (!text || *text != bytes_) return true;
-    // Read again a resolution after its mtime and unchanged: a later write moves the stamp.
-    if (checked_at - now->mtime_ns >= kRacyRead.count()) racy_ = false;
-    return false;
-  }
-
- private:
-  // FAT's is 2 s; ext4 with small inodes, 1 s; others, a clock tick.
-  static constexpr std::chrono::nanoseconds kRacyRead = std::chrono::seconds(2);
-
-  struct Stamp {
-    dev_t dev;
-    ino_t ino;
-    off_t size;
-    std::int64_t mtime_ns, ctime_ns;
-    bool operator==(const Stamp&) const = default;
-  };
-  std::optional<Stamp> stamp_now() const {
-    struct stat st;
-    if (::stat(path_.c_str(), &st) != 0) return std::nullopt;
-    auto ns = [](const timespec& t) { return std::int64_t{t.tv_sec} * 1000000000 + t.tv_nsec; };
-    return Stamp{st.st_dev, st.st_ino, st.st_size, ns(st.st_mtim), ns(st.st_ctim)};
-  }
-
-  std::filesystem::path path_;
-  std::optional<Stamp> stamp_;
-  std::string bytes_;
-  bool racy_ = false;
-};
-
-// Reads `file` (at `path`) and parses it as load_rules does.
-Result<std::shared_ptr<const Program>> parse_rule_file(RuleFile& file, const std::filesystem::path& path, ParseOptions options) {
+// Reads `file` and parses it as load_rules does.
+Result<std::shared_ptr<const Program>> parse_rule_file(RuleFile& file, ParseOptions options) {
   auto text = file.read();
   if (!text) return unexpected(text.error());
-  options.file = path.string();
+  options.file = file.path().string();
   return parse_rules(*text, options);
 }
 
@@ -211,7 +156,7 @@ struct Reasoner::Impl {
 // read others; a file that was briefly empty read none).
 void Reasoner::Impl::maybe_reload(SessionReport& report) {
   if (!rule_file.changed()) return;
-  auto loaded = parse_rule_file(rule_file, options.rules, parse);
+  auto loaded = parse_rule_file(rule_file, parse);
   if (!loaded) {
     report.rules_error = loaded.error().message;
     return;
@@ -494,7 +439,7 @@ Result<Reasoner> Reasoner::open(const std::filesystem::path& dir, ReasonerOption
   parse.default_ns = options.default_ns.empty() ? node->iri() + "#" : options.default_ns;
   parse.prefixes = node->prefixes();
   RuleFile rule_file(options.rules);
-  auto program = parse_rule_file(rule_file, options.rules, parse);
+  auto program = parse_rule_file(rule_file, parse);
   if (!program) return unexpected(program.error());
   // One reasoner per agent: a reasoner owns every conclusion of its agent, and at its first
   // session removes those it did not derive, so a second one writing as the same agent (two

@@ -39,6 +39,10 @@ bool stated_before(std::int64_t asserted_a, std::uint64_t id_a, std::int64_t ass
 }
 bool stated_before(const Latest& a, const Latest& b) { return stated_before(a.asserted_at, a.id, b.asserted_at, b.id); }
 
+// A statement's asserted-at, but never later than its arrival here: a writer whose clock runs
+// ahead (a mote, a gateway) would otherwise win over every statement until real time caught up.
+std::int64_t stated_at(const node::RecordMeta& meta) { return std::min(meta.asserted_at, meta.stored_at); }
+
 // For every IRI subject of `predicate`: the object of its record stated last.
 Result<std::map<std::string, Latest>> latest_objects(const node::Snapshot& snapshot,
                                                      const char* predicate) {
@@ -48,8 +52,8 @@ Result<std::map<std::string, Latest>> latest_objects(const node::Snapshot& snaps
   auto read = snapshot.for_each(pattern, [&](const node::Record& r) {
     if (!r.triple.s.is_iri()) return true;
     Latest& latest = out[r.triple.s.value];
-    if (latest.id == 0 || stated_before(latest.asserted_at, latest.id, r.meta.asserted_at, r.meta.id))
-      latest = {r.meta.id, r.meta.asserted_at, r.triple.o};
+    if (latest.id == 0 || stated_before(latest.asserted_at, latest.id, stated_at(r.meta), r.meta.id))
+      latest = {r.meta.id, stated_at(r.meta), r.triple.o};
     return true;
   });
   if (!read) return store_error(read.error());
@@ -90,9 +94,9 @@ Result<std::optional<std::string>> latest_wkt(const node::Snapshot& snapshot, co
   std::uint64_t best = 0;
   std::int64_t best_asserted = 0;
   auto read = snapshot.for_each(pattern, [&](const node::Record& r) {
-    if (r.triple.o.is_literal() && (best == 0 || stated_before(best_asserted, best, r.meta.asserted_at, r.meta.id))) {
+    if (r.triple.o.is_literal() && (best == 0 || stated_before(best_asserted, best, stated_at(r.meta), r.meta.id))) {
       best = r.meta.id;
-      best_asserted = r.meta.asserted_at;
+      best_asserted = stated_at(r.meta);
       wkt = r.triple.o.value;
     }
     return true;
@@ -112,7 +116,7 @@ Result<std::map<std::string, std::vector<Latest>>> histories(const node::Snapsho
   node::Pattern pattern;
   pattern.p = node::Term::iri(predicate);
   auto read = snapshot.for_each(pattern, [&](const node::Record& r) {
-    if (!r.triple.s.is_literal()) out[key_of(r.triple.s)].push_back({r.meta.id, r.meta.asserted_at, r.triple.o, r.meta.item});
+    if (!r.triple.s.is_literal()) out[key_of(r.triple.s)].push_back({r.meta.id, stated_at(r.meta), r.triple.o, r.meta.item});
     return true;
   });
   if (!read) return store_error(read.error());

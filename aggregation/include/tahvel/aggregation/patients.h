@@ -27,7 +27,7 @@ struct PatientView {
   // with more windows. Writers whose windows share no name (an agent renamed) are one series.
   std::vector<std::pair<std::string, std::size_t>> other_writers;
   // The readable window with the latest start that the record's end did not cut short
-  // (cut_short); the latest of all when every one was.
+  // (cut_short); when every one was, the one that measured the longest.
   HrvWindowItem latest;
   std::int64_t latest_stored_ns = 0; // when that window was stored on this board
   // The signal time of its start (its records' asserted-at, ns since the epoch): with the

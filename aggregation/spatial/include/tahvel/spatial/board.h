@@ -8,8 +8,9 @@
 //   <feature> tv:floor 1 .            (xsd:integer; absent: floor 0)
 // A feature whose geometry is a POLYGON or MULTIPOLYGON is a room (an area); one whose geometry
 // is a POINT is a sensor (a located thing). When a feature has several geo:hasGeometry records,
-// or a geometry several geo:asWKT records, or a feature several tv:floor records, the one with
-// the highest record id wins: moving a sensor is writing its new geometry.
+// or a geometry several geo:asWKT records, or a feature several tv:floor records, the one stated
+// last wins (the latest asserted-at, taken as no later than its arrival; then the highest record
+// id): moving a sensor is writing its new geometry.
 //
 // Errors name the feature or the text and, for WKT, the column.
 #pragma once
