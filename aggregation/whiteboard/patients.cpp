@@ -317,7 +317,11 @@ Result<PatientsOnBoard> patients_on_board(const Snapshot& snapshot, std::optiona
         which = std::string(kTv) + metric_local_name((*t)->metric);
         s = (*t)->window_start_s;
       }
-      if (!patients.count(*rec)) continue;  // its windows are gone (removed) or unreadable
+      const auto patient = patients.find(*rec);
+      if (patient == patients.end()) continue;  // its windows are gone (removed) or unreadable
+      // Of a window after the one shown, which the record's end cut short: such an update has
+      // no latest value and no alert (trend_agent.cpp), and would hide the shown window's.
+      if (*s > patient->second.latest.window.start_s) continue;
       if (!wanted(*rec, *which)) continue;
       entry.start_s = *s;
       auto [it, fresh] = latest_trend.emplace(std::make_pair(*rec, *which), entry);

@@ -139,6 +139,10 @@ TEST_F(PatientsOnBoard, AWindowTheRecordsEndCutShortIsNotThePatientsLatest) {
   window_of(kRecA, 1500, 1800, 52);
   window_of(kRecA, 1800, 1805.6, 9);
   window_of(kRecB, 0, 20, 30);  // a record of 20 s
+  // The trend's update of the cut-short window has no latest value and no alert: the one shown
+  // is the update of the window shown, with its alert.
+  trend(kRecA, agg::HrvMetric::sdnn, 1500, true);
+  trend(kRecA, agg::HrvMetric::sdnn, 1800, false);
   const agg::PatientsOnBoard board = read();
   ASSERT_EQ(board.patients.size(), 2u);
   for (const agg::PatientView& p : board.patients) {
@@ -146,6 +150,9 @@ TEST_F(PatientsOnBoard, AWindowTheRecordsEndCutShortIsNotThePatientsLatest) {
       EXPECT_EQ(p.windows, 3u);
       EXPECT_EQ(p.latest.window.start_s, 1500);
       EXPECT_EQ(p.latest.window.metrics.sdnn_ms, 52);
+      ASSERT_EQ(p.trends.size(), 1u);
+      EXPECT_EQ(p.trends[0].window_start_s, 1500);
+      EXPECT_TRUE(p.alerting());
     } else {
       EXPECT_EQ(p.latest.window.start_s, 0);
       EXPECT_EQ(p.latest.window.end_s, 20);

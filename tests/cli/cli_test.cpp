@@ -1762,6 +1762,11 @@ TEST_F(Cli, StatusShowsAReasonersRuleFileThatNoLongerParsesUntilItDoes) {
   const std::string state = (tmp_ / "state").string();
   ASSERT_EQ(run({"up", (tmp_ / "node.toml").string(), "--state", state}).status, 0);
   ASSERT_NE(status_until(state, "alerts  running").out.find("alerts  running"), std::string::npos);
+  // "running" is shown from the fork on; the reasoner reads its rules once it has opened the
+  // store. Its first session's report says it has them: broken before that, the file is what it
+  // starts with, and it exits (and restarts) instead of running on with the rules before.
+  const fs::path log = tmp_ / "state" / "logs" / "solo" / "alerts.log";
+  ASSERT_TRUE(eventually([&] { return slurp(log).find("session at seq ") != std::string::npos; })) << slurp(log);
   EXPECT_EQ(run({"status", "--state", state}).out.find("PROBLEM"), std::string::npos);
   spit(tmp_ / "alerts.rules", "alert(X) :- hot(X).\nalert(X :- cold(X).\n");
   const std::string said = "PROBLEM rules not reloaded (the previous rules run): " + (tmp_ / "alerts.rules").string() + ":2:";

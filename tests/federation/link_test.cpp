@@ -472,6 +472,9 @@ TEST(Link, APersistentSettingGoesDownAgainToAChildWhoseStoreIsMadeAgainWhileTheP
     const node::Pattern settings{.p = Term::iri(kEx + "setting")};
     ASSERT_TRUE(eventually([&] { return count(tree.home1_dir, settings) == 1; }));
     ASSERT_TRUE(eventually([&] { return count(tree.hospital_dir, {.s = Term::iri(kHome1), .p = Term::iri(vocab::kChildStoreId)}) == 1; }));
+    // Acknowledged by home1 and so out of its down queue here: a setting still queued when the
+    // hospital stops goes down from the queue to the new store, and is not "again".
+    ASSERT_TRUE(eventually([&] { return node::Node::open(tree.hospital_dir).value().agent("home1").value().pending().value() == 0; }));
 
     tree.hospital.reset();
     tree.home1.reset();

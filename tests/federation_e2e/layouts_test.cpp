@@ -9,6 +9,7 @@
 #include <chrono>
 #include <filesystem>
 #include <fstream>
+#include <iterator>
 #include <iostream>
 #include <map>
 #include <regex>
@@ -296,6 +297,14 @@ TEST_F(Deployment, StatusOnTheRootsMachineShowsTheNodesAndProgramsOfTheMachinesB
   EXPECT_NE(shown.find("      - flaky  "), std::string::npos) << shown;
   EXPECT_NE(shown.find("\n    - reasoner  running (pid "), std::string::npos) << shown;
   EXPECT_EQ(shown.find("PROBLEM"), std::string::npos) << shown;
+  // The reasoner has read its rules once its first session is in its log ("running" is shown
+  // from the fork on): a file broken before that is what it starts with, and it exits.
+  const fs::path log = machine["gateway"] / "logs" / "gateway" / "reasoner.log";
+  auto log_text = [&] {
+    std::ifstream in(log);
+    return std::string(std::istreambuf_iterator<char>(in), {});
+  };
+  ASSERT_TRUE(eventually([&] { return log_text().find("session at seq ") != std::string::npos; })) << log_text();
   std::ofstream(rule_file) << "alert(X :- hot(X).\n";
   const std::string problem = "rules not reloaded (the previous rules run): " + rule_file.string() + ":1:";
   EXPECT_TRUE(eventually([&] { return (shown = status_of("ward")).find("\n        PROBLEM " + problem) != std::string::npos; }))
