@@ -177,6 +177,22 @@ class Cli : public ::testing::Test {
   // `tahvel ARGS` with its standard output a pipe that nothing reads until the pipe is full and
   // the command has been sent SIGINT (as Ctrl-C does to `tahvel query … | less`); then all it
   // wrote, its exit status and its standard error.
+  // Checks what a command interrupted (Ctrl-C) while its output pipe was full says and wrote:
+  // exit 130, "interrupted; cancelled after N <what> from <node>", output ending after a whole
+  // line. Returns N (0 when the message is not there: the checks have failed).
+  std::size_t said_written_out(const Outcome& r, const std::string& command, const std::string& what) {
+    EXPECT_EQ(r.status, 130) << r.err;
+    std::smatch m;
+    const bool said = std::regex_search(
+        r.err, m, std::regex("^tahvel: " + command + ": interrupted; cancelled after ([0-9]+) " + what + " from <" + kNodeIri + ">\n$"));
+    EXPECT_TRUE(said) << r.err;
+    EXPECT_FALSE(r.out.empty());
+    if (!r.out.empty()) {
+      EXPECT_EQ(r.out.back(), '\n') << "the last line is cut: ..." << r.out.substr(r.out.size() - std::min<std::size_t>(80, r.out.size()));
+    }
+    return said ? std::stoul(m[1]) : 0;
+  }
+
   Outcome interrupted_while_its_pipe_is_full(const std::vector<std::string>& args) {
     const fs::path fifo = tmp_ / "pipe";
     fs::remove(fifo);  // the one of an earlier call
@@ -734,17 +750,11 @@ TEST_F(Cli, QueryInterruptedWhileItsPipeIsFullWritesWholeRecordsAndCountsThoseWr
           std::to_string(i) + "\" .\n";
   put(nt);
   Outcome r = interrupted_while_its_pipe_is_full({"query", node_, "--at", kNodeIri, "-p", "http://example.org/v#value"});
-  EXPECT_EQ(r.status, 130) << r.err;
-  std::smatch m;
-  ASSERT_TRUE(std::regex_search(r.err, m, std::regex("^tahvel: query: interrupted; cancelled after ([0-9]+) records from <" +
-                                                     kNodeIri + ">\n$")))
-      << r.err;
-  ASSERT_FALSE(r.out.empty());
-  EXPECT_EQ(r.out.back(), '\n') << "the last record is cut: ..." << r.out.substr(r.out.size() - std::min<std::size_t>(80, r.out.size()));
+  const std::size_t written = said_written_out(r, "query", "records");
   const auto lines = lines_of(r.out);
   const std::regex whole("<http://example\\.org/s[0-9]+> <http://example\\.org/v#value> \"x{160}[0-9]+\" \\.");
   for (const std::string& line : lines) EXPECT_TRUE(std::regex_match(line, whole)) << line;
-  EXPECT_EQ(std::stoul(m[1]), lines.size()) << "records said written out";
+  EXPECT_EQ(written, lines.size()) << "records said written out";
   // Turtle ends each statement at the start of the next: cut so, its closing " ." went out only
   // if the pipe had room at once, and the document ended without it.
   Outcome ttl = interrupted_while_its_pipe_is_full({"query", node_, "--at", kNodeIri, "-p", "http://example.org/v#value", "--format", "ttl"});
@@ -1135,20 +1145,14 @@ TEST_F(Cli, EcgInterruptedWhileItsPipeIsFullWritesWholeRowsAndCountsTheFramesWri
     }
   }
   Outcome r = interrupted_while_its_pipe_is_full({"ecg", node_, "--recording", rec});
-  EXPECT_EQ(r.status, 130) << r.err;
-  std::smatch m;
-  ASSERT_TRUE(std::regex_search(r.err, m, std::regex("^tahvel: ecg: interrupted; cancelled after ([0-9]+) frames from <" +
-                                                     kNodeIri + ">\n$")))
-      << r.err;
-  ASSERT_FALSE(r.out.empty());
-  EXPECT_EQ(r.out.back(), '\n') << "the last row is cut: ..." << r.out.substr(r.out.size() - std::min<std::size_t>(80, r.out.size()));
+  const std::size_t written = said_written_out(r, "ecg", "frames");
   auto lines = lines_of(r.out);
   ASSERT_FALSE(lines.empty());
   EXPECT_EQ(lines.front(), "sample,unix_ns,MLII");
   lines.erase(lines.begin());
   const std::regex whole("[0-9]+,18[0-9]{17},[0-9.]+");
   for (const std::string& line : lines) EXPECT_TRUE(std::regex_match(line, whole)) << line;
-  EXPECT_EQ(std::stoul(m[1]), lines.size()) << "frames said written out";
+  EXPECT_EQ(written, lines.size()) << "frames said written out";
 }
 
 // `tahvel ecg`: each frame of the range asked, with its time and each lead in mV; the samples no
