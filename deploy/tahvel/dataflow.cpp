@@ -112,6 +112,9 @@ struct Holds {
   bool anything = false;
   std::vector<const AgentSpec*> dry;
   std::vector<std::pair<const NodeSpec*, Kinds>> passed_up;  // by each child (known kinds only)
+  // What each such child's forward would pass, had it any: a kind missing here that a child would
+  // pass is missing below it, and the warning says so.
+  std::vector<std::pair<const NodeSpec*, Kinds>> passable_up;
 };
 
 class Flow {
@@ -128,14 +131,16 @@ class Flow {
         h.anything |= below.anything || below.kinds.any();
         continue;
       }
-      Kinds passed;
-      for (int k = 0; k < kKinds; ++k) {
-        if (!below.anything && !below.kinds.test(k)) continue;
+      Kinds passable;
+      for (int k = 0; k < kKinds; ++k)
         for (const node::Pattern& pattern : *policy->second)
-          if (passes(pattern, static_cast<Kind>(k))) passed.set(k);
-      }
+          if (passes(pattern, static_cast<Kind>(k))) passable.set(k);
+      const Kinds passed = below.anything ? passable : passable & below.kinds;
       h.kinds |= passed;
-      if (!below.anything) h.passed_up.emplace_back(child, passed);
+      if (!below.anything) {
+        h.passed_up.emplace_back(child, passed);
+        h.passable_up.emplace_back(child, passable);
+      }
     }
     std::vector<std::pair<const AgentSpec*, Program>> waiting;
     for (const AgentSpec& agent : spec.agents) {
@@ -166,6 +171,13 @@ class Flow {
   const ForwardPolicies& policies_;
   std::map<std::string, Holds> memo_;
 };
+
+// "a", "a and b", "a, b and c".
+std::string list_of(const std::vector<std::string>& names) {
+  std::string list;
+  for (std::size_t i = 0; i < names.size(); ++i) list += (i == 0 ? "" : i + 1 == names.size() ? " and " : ", ") + names[i];
+  return list;
+}
 
 std::string program_name(const AgentSpec& agent) { return std::filesystem::path(agent.run.front()).filename().string(); }
 
@@ -220,14 +232,16 @@ std::vector<std::string> dataflow_warnings(const Topology& topo, const ForwardPo
         what += (what.empty() ? "" : " and ") + std::string(what_kind(kind));
         if (writers.find(writer_of(kind)) == std::string::npos) writers += (writers.empty() ? "" : ", ") + std::string(writer_of(kind));
       }
+      std::vector<std::string> empty_children;
+      for (const auto& [child, passable] : here.passable_up)
+        if ((passable & missing).any()) empty_children.push_back("'" + child->id + "'");
+      const std::string children = empty_children.empty() ? "no child of it forwards"
+                                   : list_of(empty_children) + ", whose forward passes them, " +
+                                         (empty_children.size() == 1 ? "has" : "have") + " none to forward";
       std::string line = agent->at + ": node '" + spec->id + "': agent '" + agent->id + "' (" + program_name(*agent) + ") takes " +
-                         what + ", which no agent of '" + spec->id + "' writes (" + writers +
-                         ") and no child of it forwards: it will write nothing";
-      if (c + 1 == causes.size() && !after.empty()) {
-        std::string names;
-        for (std::size_t i = 0; i < after.size(); ++i) names += (i == 0 ? "" : i + 1 == after.size() ? " and " : ", ") + after[i];
-        line += ", nor will " + names;
-      }
+                         what + ", which no agent of '" + spec->id + "' writes (" + writers + ") and " + children +
+                         ": it will write nothing";
+      if (c + 1 == causes.size() && !after.empty()) line += ", nor will " + list_of(after);
       warnings.push_back(std::move(line));
     }
   }

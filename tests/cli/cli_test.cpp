@@ -2288,9 +2288,11 @@ TEST_F(Cli, UpWarnsOfAnAgentWhoseInputNothingInTheFileWritesOrForwards) {
                          "chunks (tv:samples), which no agent of 'home2' writes (tahvel-ecg-source) and no child of it forwards: "
                          "it will write nothing, nor will 'rr' and 'hrv'\n"))
       << up.err;
+  // The homes would send windows up (the default forward) but have none: the hospital's warning
+  // names them, so that one looks below rather than at the hospital's own file.
   EXPECT_TRUE(warned(up, "node 'hospital': agent 'trend' (tahvel-trend) takes HRV windows (sosa:observedProperty "
-                         "tv:HeartRateVariability), which no agent of 'hospital' writes (tahvel-hrv) and no child of it "
-                         "forwards: it will write nothing\n"))
+                         "tv:HeartRateVariability), which no agent of 'hospital' writes (tahvel-hrv) and 'home1' and "
+                         "'home2', whose forward passes them, have none to forward: it will write nothing\n"))
       << up.err;
   EXPECT_EQ(up.err.find("node 'home1': agent 'rpeak'"), std::string::npos) << "home1's rpeak has its sensor's chunks: " << up.err;
   // home2 also runs a program of its own, which may write anything: nothing is said of it, nor
