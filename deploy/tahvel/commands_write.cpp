@@ -150,7 +150,9 @@ const Command kPutCommand{
     "The whole input is one item: written atomically, or not at all when any of it is wrong (a\n"
     "syntax error names FILE:LINE:COL). Blank nodes are local to the item. Relative IRIs resolve\n"
     "against the node IRI + \"/\"; the node's prefixes (and --prefix) may be used in Turtle\n"
-    "without @prefix lines.",
+    "without @prefix lines. A --context below the node addresses the agent its first segment\n"
+    "names (NODE/home1/hrv: agent home1, the link of child node home1); when nothing on the node\n"
+    "knows that agent, put warns, names the child nodes it knows, and stores the item anyway.",
     {kFlagAgentWriter, kFlagContext, kFlagPersistent, kFlagInputFormat},
     1, 2};
 
@@ -239,7 +241,8 @@ const Command kLoadCommand{
     "into items, one per subject group: a subject with the blank nodes it points to, merged with\n"
     "any other subject sharing one of those blank nodes (blank nodes are local to an item, so a\n"
     "group is never split). Items are stored through store_all in transactions of about N\n"
-    "triples (--batch, default 10000); if a later transaction fails, earlier ones stay stored.",
+    "triples (--batch, default 10000); if a later transaction fails, earlier ones stay stored.\n"
+    "A --context addressing an agent nothing on the node knows is warned of, as by put.",
     {kFlagAgentWriter, kFlagInputFormat, kFlagContext, kFlagPersistent,
      {"--batch", "", "N", "triples per transaction (default 10000)"}},
     2, 2};
