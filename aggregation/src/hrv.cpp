@@ -7,6 +7,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <cstdint>
 #include <cstdio>
 
 namespace tahvel::aggregation {
@@ -18,18 +19,19 @@ constexpr double kTwoPi = 6.283185307179586476925286766559;
 struct NnSeries {
   std::vector<double> t_s, nn_ms;   // NN intervals timed at their end beat
   std::vector<double> diffs_samples;  // differences of adjacent NN intervals, in samples
-  double nn_seconds = 0;
+  double nn_seconds = 0;  // summed in samples, then divided: 21,600 samples at 360 Hz are 60 s
 };
 
 NnSeries collect(const std::vector<Interval>& intervals, double fs) {
   NnSeries s;
+  std::uint64_t nn_samples = 0;
   for (std::size_t i = 0; i < intervals.size(); ++i) {
     const Interval& iv = intervals[i];
     if (!iv.nn || iv.end <= iv.start) continue;
     const double len = static_cast<double>(iv.end - iv.start);
     s.t_s.push_back(static_cast<double>(iv.end) / fs);
     s.nn_ms.push_back(len * 1000.0 / fs);
-    s.nn_seconds += len / fs;
+    nn_samples += static_cast<std::uint64_t>(iv.end - iv.start);
     if (i > 0) {
       const Interval& prev = intervals[i - 1];
       if (prev.nn && prev.end == iv.start && prev.end > prev.start) {
@@ -37,6 +39,7 @@ NnSeries collect(const std::vector<Interval>& intervals, double fs) {
       }
     }
   }
+  s.nn_seconds = static_cast<double>(nn_samples) / fs;
   return s;
 }
 
@@ -195,7 +198,16 @@ double ended_by_record(double start, double end, std::optional<double> record_en
 // start), so that an interval ending exactly on the boundary falls in one window. As start +
 // window, with a step of 1.1 s, k·1.1 + 1.1 and (k + 1)·1.1 differ in the last bit, and such an
 // interval fell in neither window or in both.
+//
+// A beat at a window's boundary, computed in seconds two ways (its sample over fs; the window's
+// start times the step), may differ in the last bits: 609408 / 360 and (1256 + 60 / 1.3) · 1.3
+// are both 1692.8. `reached` takes times within a few parts in 10^12 as equal, everywhere a
+// time is compared with a boundary, so that such a beat ends the window before it and is in the
+// one it starts, in the batch and the streaming windows alike. Distinct beats are at least a
+// sample apart, far more than that.
 namespace {
+bool reached(double t, double boundary) { return t >= boundary - 1e-12 * std::max(1.0, std::abs(boundary)); }
+
 double steps_per_window(double window_s, double step_s) {
   const double ratio = window_s / step_s;
   const double whole = std::round(ratio);
@@ -213,8 +225,8 @@ std::size_t first_window_after(double origin, double window_s, double step_s, do
   const double estimate = std::floor((t - origin) / step_s - span);
   if (!(estimate < 0x1p52)) return estimate > 0 ? static_cast<std::size_t>(std::min(estimate, 0x1p62)) : 0;  // past exact steps
   std::size_t k = estimate > 0 ? static_cast<std::size_t>(estimate) : 0;
-  while (k > 0 && end_of(k - 1) > t) --k;
-  while (end_of(k) <= t) ++k;
+  while (k > 0 && !reached(t, end_of(k - 1))) --k;
+  while (reached(t, end_of(k))) ++k;
   return k;
 }
 }  // namespace
@@ -237,13 +249,12 @@ std::vector<WindowMetrics> windowed_hrv(const std::vector<Interval>& intervals, 
   const double span = steps_per_window(window_s, step_s);
   std::size_t first = 0;  // first interval that can belong to window k or later
   const double first_end = static_cast<double>(intervals.front().end) / fs;
-  for (std::size_t k = first_window_after(0, window_s, step_s, first_end); static_cast<double>(k) * step_s <= last; ++k) {
+  for (std::size_t k = first_window_after(0, window_s, step_s, first_end); reached(last, static_cast<double>(k) * step_s); ++k) {
     const double start = static_cast<double>(k) * step_s, end = (static_cast<double>(k) + span) * step_s;
-    while (first < intervals.size() && static_cast<double>(intervals[first].end) / fs < start) ++first;
+    while (first < intervals.size() && !reached(static_cast<double>(intervals[first].end) / fs, start)) ++first;
     std::vector<Interval> in;
     for (std::size_t i = first; i < intervals.size(); ++i) {
-      const double t = static_cast<double>(intervals[i].end) / fs;
-      if (t >= end) break;
+      if (reached(static_cast<double>(intervals[i].end) / fs, end)) break;
       in.push_back(intervals[i]);
     }
     out.push_back({start, ended_by_record(start, end, record_end_s), compute_hrv(in, fs, o), end - start});
@@ -277,27 +288,27 @@ void HrvWindower::emit_front(std::vector<WindowMetrics>& completed, std::optiona
   std::vector<Interval> in;
   for (const Interval& iv : buffer_) {
     const double t = static_cast<double>(iv.end) / fs_;
-    if (t >= end) break;
-    if (t >= start) in.push_back(iv);
+    if (reached(t, end)) break;
+    if (reached(t, start)) in.push_back(iv);
   }
   completed.push_back({start, ended_by_record(start, end, record_end_s), compute_hrv(in, fs_, options_), end - start});
   ++next_;
   const double next_start = origin_s_ + static_cast<double>(next_) * step_s_;
-  while (!buffer_.empty() && static_cast<double>(buffer_.front().end) / fs_ < next_start) buffer_.pop_front();
+  while (!buffer_.empty() && !reached(static_cast<double>(buffer_.front().end) / fs_, next_start)) buffer_.pop_front();
 }
 
 void HrvWindower::push(const Interval& interval, std::vector<WindowMetrics>& completed) {
   if (!(fs_ > 0) || !(window_s_ > 0) || !(step_s_ > 0)) return;
   const double t = static_cast<double>(interval.end) / fs_;
   if (last_end_s_ < 0 && buffer_.empty()) next_ = std::max(next_, first_window_after(origin_s_, window_s_, step_s_, t));
-  while (front_end() <= t) emit_front(completed);
+  while (reached(t, front_end())) emit_front(completed);
   buffer_.push_back(interval);
   last_end_s_ = t;
 }
 
 void HrvWindower::finish(std::vector<WindowMetrics>& completed, std::optional<double> record_end_s) {
   if (last_end_s_ >= 0) {
-    while (origin_s_ + static_cast<double>(next_) * step_s_ <= last_end_s_) emit_front(completed, record_end_s);
+    while (reached(last_end_s_, origin_s_ + static_cast<double>(next_) * step_s_)) emit_front(completed, record_end_s);
   }
   origin_s_ = 0;
   next_ = 0;

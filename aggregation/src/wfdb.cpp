@@ -280,8 +280,15 @@ Result<RecordHeader> read_header(const std::string& record_path) {
       auto s = parse_signal_line(line, at);
       if (!s) return fail(s.error().message);
       h.signals.push_back(std::move(*s));
+    } else if (auto s = parse_signal_line(line, at);
+               s && std::any_of(h.signals.begin(), h.signals.end(), [&](const SignalInfo& x) { return x.file == s->file; })) {
+      // One more signal of a file the header's signals are in: the record line undercounts the
+      // file's interleaved signals, and every frame would be read at the wrong width.
+      return fail(file + ":" + std::to_string(line_no) + ": record line announces " + std::to_string(h.signal_count) +
+                  " signal" + (h.signal_count == 1 ? "" : "s") + ", but this line is one more signal of " + s->file +
+                  " (fix the number of signals on the record line)");
     }
-    // Lines after the last signal line (info strings without '#') are ignored, as WFDB does.
+    // Other lines after the last signal line (info strings without '#') are ignored, as WFDB does.
   }
   if (in.bad()) return fail(file + ": read error");
   if (!have_record_line) return fail(file + ": no record line");

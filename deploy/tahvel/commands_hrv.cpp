@@ -7,12 +7,14 @@
 #include <cmath>
 #include <cstdio>
 #include <cstring>
+#include <filesystem>
 #include <iostream>
 #include <optional>
 #include <sstream>
 #include <string>
 #include <system_error>
 #include <utility>
+#include <vector>
 
 #include "commands.h"
 #include "tahvel/aggregation/annotations.h"
@@ -124,14 +126,34 @@ std::size_t checked_signal(const std::string& record, std::size_t signal) {
 }
 
 // Why a record scored nothing with scoring from `from_s` on, or nullopt: shorter than the start
-// (bxb's learning period is 5 minutes), or no reference beat after it.
-std::optional<std::string> nothing_scored(const agg::BeatScore& score, double duration_s, double from_s) {
+// (by default bxb's learning period, 5 minutes; `from_given`: --eval-from's), or no reference
+// beat after it.
+std::optional<std::string> nothing_scored(const agg::BeatScore& score, double duration_s, double from_s, bool from_given) {
   if (score.tp + score.fn > 0) return std::nullopt;
   const std::string length = seconds_number(std::round(duration_s * 10) / 10), from = seconds_number(from_s);
   if (duration_s <= from_s)
     return "the record is " + length + " s long, no longer than the scoring start (" + from +
-           " s, bxb's learning period): nothing scored; --eval-from 0 scores it from its start";
+           (from_given ? " s, --eval-from" : " s, bxb's learning period") + "): nothing scored; --eval-from 0 scores it from its start";
   return "no reference beat from " + from + " s on (the record is " + length + " s long): nothing scored";
+}
+
+// A RECORD argument as WFDB names records: without extension. A path to one of its files
+// (…/100.hea, as a shell completes it) names the record, when there is no record of that name.
+std::string record_path(const std::string& arg) {
+  if (arg.empty()) usage_error("hrv: RECORD is empty: a WFDB record path without extension, as …/mitdb/100");
+  for (const char* extension : {".hea", ".dat", ".atr"}) {
+    if (!arg.ends_with(extension)) continue;
+    const std::string stem = arg.substr(0, arg.size() - 4);
+    std::error_code ec;
+    if (!std::filesystem::exists(arg + ".hea", ec) && std::filesystem::exists(stem + ".hea", ec)) return stem;
+  }
+  return arg;
+}
+
+std::vector<std::string> record_paths(const Args& args) {
+  std::vector<std::string> records;
+  for (const std::string& arg : args.positional()) records.push_back(record_path(arg));
+  return records;
 }
 
 // Scores each record and prints one line per record and the gross totals.
@@ -141,7 +163,8 @@ int run_eval(const Args& args, const agg::ChainOptions& options, std::size_t sig
   scoring.start_s = from_s;
   agg::BeatScore gross;
   std::ostringstream rows;
-  for (const std::string& record : args.positional()) {
+  const std::vector<std::string> records = record_paths(args);
+  for (const std::string& record : records) {
     auto report = agg::hrv_from_record(record, options, checked_signal(record, signal));
     if (!report) fail(report.error().message);
     // Several records: each warning says whose it is (a checksum's names its header already).
@@ -153,7 +176,7 @@ int run_eval(const Args& args, const agg::ChainOptions& options, std::size_t sig
     // short) does not count the beats after it as missed.
     scoring.end_s = report->duration_s;
     agg::BeatScore score = agg::score_beats(*reference, report->beats, report->fs, scoring);
-    if (auto why = nothing_scored(score, report->duration_s, from_s)) std::cerr << "tahvel: warning: " << record << ": " << *why << "\n";
+    if (auto why = nothing_scored(score, report->duration_s, from_s, args.has("--eval-from"))) std::cerr << "tahvel: warning: " << record << ": " << *why << "\n";
     gross += score;
     if (json) {
       rows << (rows.tellp() > 0 ? "," : "") << "{\"record\":\"" << node::json_escape(record)
@@ -171,7 +194,7 @@ int run_eval(const Args& args, const agg::ChainOptions& options, std::size_t sig
     std::cout << "{\"eval_from_s\":" << seconds_number(from_s) << ",\"records\":[" << rows.str() << "],\"tp\":" << gross.tp << ",\"fn\":" << gross.fn
               << ",\"fp\":" << gross.fp << ",\"sensitivity_pct\":" << percent(gross.sensitivity(), true)
               << ",\"positive_predictivity_pct\":" << percent(gross.positive_predictivity(), true) << "}\n";
-  } else if (args.positional().size() > 1) {
+  } else if (records.size() > 1) {
     std::printf("%-24s TP %7lld  FN %5lld  FP %5lld  Se %6s %%  +P %6s %%\n", "gross",
                 static_cast<long long>(gross.tp), static_cast<long long>(gross.fn),
                 static_cast<long long>(gross.fp), percent(gross.sensitivity()).c_str(),
@@ -181,15 +204,26 @@ int run_eval(const Args& args, const agg::ChainOptions& options, std::size_t sig
   return kExitOk;
 }
 
+// A number of seconds as a person writes one: decimal digits, a point, an exponent. strtod also
+// takes hexadecimal ("0x10" is 16), "inf" and "nan", which no one means as seconds.
+std::optional<double> decimal_seconds(const std::string& text) {
+  if (text.empty() || text.find_first_not_of("0123456789.+-eE") != std::string::npos) return std::nullopt;
+  char* end = nullptr;
+  const double value = std::strtod(text.c_str(), &end);
+  if (end == text.c_str() || *end != '\0') return std::nullopt;
+  return value;
+}
+
 // --window (is_step false) or --step: seconds within the chain's bounds
 // (agg::window_setting_problem), else a usage error naming the flag and the bounds.
 double seconds_flag(const Args& args, std::string_view flag, double fallback, bool is_step) {
   auto text = args.get(flag);
   if (!text) return fallback;
-  char* end = nullptr;
-  double value = std::strtod(text->c_str(), &end);
-  if (end == text->c_str() || *end != '\0')
-    usage_error(std::string(flag) + ": expected seconds, a number, got '" + *text + "'");
+  if (args.has("--eval"))
+    usage_error(std::string(flag) + ": not with --eval (scoring the beats uses no HRV windows)");
+  const std::optional<double> parsed = decimal_seconds(*text);
+  if (!parsed) usage_error(std::string(flag) + ": expected seconds, a decimal number, got '" + *text + "'");
+  const double value = *parsed;
   if (auto problem = agg::window_setting_problem(value, is_step))
     usage_error(std::string(flag) + ": " + *problem + ", got '" + *text + "'");
   return value;
@@ -200,9 +234,9 @@ double eval_from_flag(const Args& args) {
   auto text = args.get("--eval-from");
   if (!text) return agg::ScoreOptions{}.start_s;
   if (!args.has("--eval")) usage_error("--eval-from: only with --eval");
-  char* end = nullptr;
-  double value = std::strtod(text->c_str(), &end);
-  if (end == text->c_str() || *end != '\0' || !(value >= 0) || value > 1e9)
+  const std::optional<double> parsed = decimal_seconds(*text);
+  const double value = parsed.value_or(-1);
+  if (!(value >= 0) || value > 1e9)
     usage_error("--eval-from: expected seconds from the record's start, a number >= 0, got '" + *text + "'");
   return value;
 }
@@ -373,7 +407,7 @@ int run_hrv(const Args& args) {
   if (args.has("--signal")) typed = args.get_u64("--signal", 0);
   const double from_s = eval_from_flag(args);
   if (typed && *typed >= agg::kEcgSignal) {  // only on a machine whose size_t is narrower, or the largest value
-    const std::string& record = args.positional(0);
+    const std::string record = record_path(args.positional(0));
     auto header = agg::read_header(record);
     if (!header) fail(header.error().message);
     fail(record + ".hea: no signal " + std::to_string(*typed) + " (the record has " +
@@ -382,10 +416,12 @@ int run_hrv(const Args& args) {
   const std::size_t signal = typed ? static_cast<std::size_t>(*typed) : agg::kEcgSignal;
   if (args.has("--eval")) return run_eval(args, options, signal, from_s);
   if (args.positional().size() != 1) usage_error("hrv: one RECORD at a time (several only with --eval)");
-  const std::string& record = args.positional(0);
+  const std::string record = record_path(args.positional(0));
   auto report = agg::hrv_from_record(record, options, checked_signal(record, signal));
   if (!report) fail(report.error().message);
-  for (const std::string& warning : report->warnings) std::cerr << "tahvel: warning: " << warning << "\n";
+  // Said as with --eval: whose warning it is, when the warning does not name the file itself.
+  for (const std::string& warning : report->warnings)
+    std::cerr << "tahvel: warning: " << (warning.starts_with(record) ? "" : record + ": ") << warning << "\n";
   if (args.has("--json")) {
     print_report_json(record, *report);
   } else {

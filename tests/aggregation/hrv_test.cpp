@@ -23,6 +23,19 @@ std::vector<Interval> chain(const std::vector<std::int64_t>& rr, const std::vect
   return v;
 }
 
+// HF needs 60 s of NN data (HrvOptions::min_hf_s): 45 pairs of 230 and 250 samples at 360 Hz
+// are exactly 21,600 samples, 60 s. Summed as seconds one interval at a time they came to
+// 59.99999999999989, and a window of MIT-BIH 122 with 60.000 s of NN had no HF while another
+// had it.
+TEST(Hrv, ExactlyTheNnDataHfNeedsIsEnough) {
+  std::vector<std::int64_t> rr;
+  for (int i = 0; i < 45; ++i) rr.insert(rr.end(), {230, 250});
+  const HrvMetrics m = compute_hrv(chain(rr, {}), 360);
+  EXPECT_TRUE(m.hf_ms2.has_value());
+  rr.back() -= 1;  // a sample short of 60 s
+  EXPECT_FALSE(compute_hrv(chain(rr, {}), 360).hf_ms2.has_value());
+}
+
 TEST(Hrv, TimeDomainByHand) {
   // fs 1000: samples are ms. NN 800 810 790 830; mean 807.5; deviations -7.5 2.5 -17.5 22.5,
   // squares sum 875, / (n - 1) = 291.667; differences 10 -20 40, squares sum 2100, / 3 = 700.
@@ -300,6 +313,35 @@ TEST(Windows, AnIntervalEndingOnABoundaryIsInExactlyOneWindow) {
     for (const auto& m : streamed) streamed_count += m.metrics.rr_count;
     EXPECT_EQ(streamed_count, series.size()) << length;
   }
+}
+
+// A window's end that is not a multiple of the step (60 s windows every 1.3 s) and a beat
+// exactly on it (MIT-BIH 122: sample 609408 at 360 Hz is 1692.8 s, the end of the window from
+// 1632.8 s): the beat is not in that window, as [start, end) says, streamed or not. Computed in
+// seconds, the end came out a hair above 1692.8 and the beat was in it. Checked against exact
+// arithmetic: window k is [1.3·k, 1.3·k + 60) s, so a beat at sample e is in it when
+// 4680·k <= 10·e < 4680·k + 216000.
+TEST(Windows, ABeatOnAWindowsEndIsNotInThatWindowWhateverTheStep) {
+  const std::int64_t on_the_end = 609'408;
+  const auto series = chain(std::vector<std::int64_t>(400, 432), {}, on_the_end - 200 * 432);
+  auto expect_exact = [&](const std::vector<WindowMetrics>& windows, const char* how) {
+    ASSERT_FALSE(windows.empty()) << how;
+    bool saw_the_window = false;
+    for (const WindowMetrics& m : windows) {
+      const auto k = static_cast<std::int64_t>(std::llround(m.start_s / 1.3));
+      std::size_t in = 0;
+      for (const Interval& iv : series) in += 4680 * k <= 10 * iv.end && 10 * iv.end < 4680 * k + 216'000;
+      EXPECT_EQ(m.metrics.rr_count, in) << how << ": window from " << m.start_s << " s";
+      saw_the_window |= k == 1256;
+    }
+    EXPECT_TRUE(saw_the_window) << how;
+  };
+  expect_exact(windowed_hrv(series, 360, 60, 1.3), "batch");
+  HrvWindower w(360, 60, 1.3);
+  std::vector<WindowMetrics> streamed;
+  for (const auto& iv : series) w.push(iv, streamed);
+  w.finish(streamed);
+  expect_exact(streamed, "streamed");
 }
 
 // Intervals that begin well into the recording (a gateway whose store was made again gets the

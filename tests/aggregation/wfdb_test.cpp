@@ -361,6 +361,21 @@ TEST_F(WfdbTemp, MissingSignalLinesAreAnError) {
       << h.error().message;
 }
 
+// A record line that undercounts the signals of an interleaved file: read as one signal, every
+// frame of two would be read at half its width (a heart rate of half the truth, no error). One
+// more signal line of a file the header's signals are in is refused; an info string without
+// '#' after the signal lines is still ignored, as WFDB does.
+TEST_F(WfdbTemp, ARecordLineThatUndercountsAFilesSignalsIsAnError) {
+  write("r.hea", "r 1 360 2\nr.dat 16 200 16 0 0 0 0 MLII\nr.dat 16 200 16 0 0 0 0 V1\n");
+  auto h = read_header(record("r"));
+  ASSERT_FALSE(h);
+  EXPECT_NE(h.error().message.find("r.hea:3: record line announces 1 signal, but this line is one more signal of r.dat"),
+            std::string::npos)
+      << h.error().message;
+  write("r.hea", "r 1 360 2\nr.dat 16 200 16 0 0 0 0 MLII\nrecorded at the bedside\nother.dat 16\n");
+  EXPECT_TRUE(read_header(record("r"))) << "an info string, and a line of another file, are not signals of r.dat";
+}
+
 TEST_F(WfdbTemp, MissingHeaderIsAnErrorNamingTheFile) {
   auto h = read_header(record("nothere"));
   ASSERT_FALSE(h);

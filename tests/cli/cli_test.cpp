@@ -1002,6 +1002,10 @@ TEST_F(Cli, HrvEvalOfARecordShorterThanTheScoringStartSaysSoAndEvalFromScoresIt)
   // 100 has 74 beats in its first minute, all found; none counted past the record's end.
   EXPECT_NE(r.out.find("{\"eval_from_s\":0,"), std::string::npos) << r.out;
   EXPECT_NE(r.out.find("\"tp\":74,\"fn\":0,\"fp\":0,\"sensitivity_pct\":100.00"), std::string::npos) << r.out;
+  // A start the user gave is not called bxb's.
+  r = run({"hrv", record, "--eval", "--eval-from", "400"});
+  ASSERT_EQ(r.status, 0) << r.err;
+  EXPECT_NE(r.err.find("no longer than the scoring start (400 s, --eval-from)"), std::string::npos) << r.err;
   Outcome bad = run({"hrv", record, "--eval-from", "0"});
   EXPECT_EQ(bad.status, 2);
   EXPECT_NE(bad.err.find("--eval-from: only with --eval"), std::string::npos) << bad.err;
@@ -1013,7 +1017,7 @@ TEST_F(Cli, HrvEvalOfARecordShorterThanTheScoringStartSaysSoAndEvalFromScoresIt)
 // A window or step too short for HRV is a usage error naming the flag and its bounds (a window of
 // 0.0001 s made 18 million windows of 100 and std::bad_alloc).
 TEST_F(Cli, HrvRefusesAWindowOrStepTooShortForHrvNamingTheFlagAndTheBounds) {
-  for (const char* window : {"5", "0.0001", "1e9", "nan"}) {
+  for (const char* window : {"5", "0.0001", "1e9"}) {
     Outcome r = run({"hrv", mitdb_record("100"), "--window", window});
     EXPECT_EQ(r.status, 2) << window;
     EXPECT_NE(r.err.find("--window: must be a number of seconds in [10, 86400]"), std::string::npos) << r.err;
@@ -1022,6 +1026,35 @@ TEST_F(Cli, HrvRefusesAWindowOrStepTooShortForHrvNamingTheFlagAndTheBounds) {
   Outcome r = run({"hrv", mitdb_record("100"), "--window", "10", "--step", "0.5"});
   EXPECT_EQ(r.status, 2);
   EXPECT_NE(r.err.find("--step: must be a number of seconds in [1, 86400]"), std::string::npos) << r.err;
+  // Seconds are written in decimal: strtod's hexadecimal ("0x10" was taken as 16 s), infinity and
+  // not-a-number are no one's seconds.
+  for (const char* window : {"0x10", "inf", "nan", "60s"}) {
+    r = run({"hrv", mitdb_record("100"), "--window", window});
+    EXPECT_EQ(r.status, 2) << window;
+    EXPECT_NE(r.err.find(std::string("--window: expected seconds, a decimal number, got '") + window + "'"), std::string::npos)
+        << r.err;
+  }
+  // Scoring uses no windows: a --window given with --eval was ignored without a word.
+  r = run({"hrv", mitdb_record("100"), "--eval", "--window", "60"});
+  EXPECT_EQ(r.status, 2);
+  EXPECT_NE(r.err.find("--window: not with --eval"), std::string::npos) << r.err;
+}
+
+// A shell completes a record's path to one of its files: "…/100.hea" read "…/100.hea.hea". A
+// path to the header, signal or annotation file names the record; an empty RECORD is a usage
+// error, not ".hea: cannot open header". A warning of one record names it, as with --eval.
+TEST_F(Cli, HrvTakesARecordNamedByOneOfItsFilesAndNamesItInItsWarnings) {
+  const Outcome plain = run({"hrv", mitdb_record("200"), "--json"});
+  ASSERT_EQ(plain.status, 0) << plain.err;
+  EXPECT_NE(plain.err.find("tahvel: warning: " + mitdb_record("200") + ": an irregular rhythm"), std::string::npos) << plain.err;
+  for (const char* extension : {".hea", ".dat", ".atr"}) {
+    const Outcome r = run({"hrv", mitdb_record("200") + extension, "--json"});
+    ASSERT_EQ(r.status, 0) << extension << ": " << r.err;
+    EXPECT_EQ(r.out, plain.out) << extension;
+  }
+  const Outcome empty = run({"hrv", ""});
+  EXPECT_EQ(empty.status, 2);
+  EXPECT_NE(empty.err.find("hrv: RECORD is empty"), std::string::npos) << empty.err;
 }
 
 // Window times in the text are exact: "%7.0f" printed a window from 1.5 s as "2-12".
