@@ -375,10 +375,10 @@ const Command kHrvCommand{
     "hrv",
     "RECORD [--signal N] [--window S] [--step S] [--json] | RECORD... --eval [--eval-from S] [--signal N] [--json]",
     "Run the HRV chain over a WFDB record, or score its beat detection.",
-    "RECORD is a WFDB record path without extension (…/mitdb/100): its header (.hea) and signal\n"
-    "files are read, and its ECG lead goes through the chain (the first signal named as an ECG\n"
-    "lead, MLII, V1, II, ECG, ...; else the first in volts; else the first; --signal N names\n"
-    "another, 0 the first): R-peak detection, RR intervals\n"
+    "RECORD is a WFDB record path without extension (…/mitdb/100; or …/100.hea): its header\n"
+    "(.hea) and signal files are read, and its ECG lead goes through the chain (the first signal\n"
+    "named as an ECG lead, MLII, V1, II, ECG, ...; else the first in volts; else the first;\n"
+    "--signal N names another, 0 the first): R-peak detection, RR intervals\n"
     "with the NN mask (docs/hrv.md), HRV for the whole record and for windows of --window\n"
     "seconds (default 300, at least 10) every --step seconds (default: the window, at least 1).\n"
     "--json prints one object:\n"
