@@ -188,7 +188,9 @@ node::Result<std::vector<node::Record>> area_answer(const node::Snapshot& snapsh
     spec.room_iri = area;
   }
   auto records = spatial::list_in_area(snapshot, pattern, spec, options);
-  if (!records) return node::fail(node::Errc::not_found, records.error().message);
+  // Not not_found: that is an unknown node to query (exit 4); a room the plan lacks is the
+  // query's own mistake, as `list --area` and a target below say it (exit 1).
+  if (!records) return node::fail(node::Errc::invalid_argument, records.error().message);
   return std::move(*records);
 }
 

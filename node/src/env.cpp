@@ -21,6 +21,7 @@
 #include <cstddef>
 #include <cstdio>
 #include <cstdlib>
+#include <algorithm>
 #include <cstring>
 #include <fstream>
 #include <map>
@@ -328,6 +329,27 @@ Result<bool> Env::open_later_tables(MDB_txn* txn, bool create) {
   return all;
 }
 
+namespace {
+// The names of `dir`'s subdirectories that hold a store, sorted, at most five and "…" after
+// them; empty when none (or `dir` cannot be read).
+std::string stores_in_subdirectories(const std::filesystem::path& dir) {
+  std::error_code ec;
+  std::vector<std::string> names;
+  for (std::filesystem::directory_iterator it(dir, ec), end; !ec && it != end; it.increment(ec)) {
+    std::error_code ignored;
+    // Not the dot directories an init makes its store in before it renames it into place.
+    if (!it->path().filename().string().starts_with('.') && it->is_directory(ignored) &&
+        std::filesystem::exists(it->path() / "data.mdb", ignored))
+      names.push_back(it->path().filename().string());
+  }
+  std::sort(names.begin(), names.end());
+  std::string list;
+  for (std::size_t i = 0; i < names.size() && i < 5; ++i) list += (i == 0 ? "" : ", ") + names[i];
+  if (names.size() > 5) list += ", …";
+  return list;
+}
+}  // namespace
+
 Result<std::shared_ptr<Env>> Env::open(const std::filesystem::path& dir_in, const InitOptions* init) {
   // An empty path is no directory: LMDB would make "/data.mdb" of it, and the store files the
   // current directory.
@@ -340,6 +362,17 @@ Result<std::shared_ptr<Env>> Env::open(const std::filesystem::path& dir_in, cons
   if (ec && ec != std::errc::no_such_file_or_directory)
     return fail(Errc::io, "cannot look for a store in " + dir.string() + ": " + ec.message());
   if (init && exists) return fail(Errc::exists, dir.string() + " already holds a store");
+  // A directory of node stores (tahvel up's state directory) given for one of them: the usual
+  // slip, and "run tahvel init" made an empty store beside them that answered every question.
+  if (const std::string below = init || !exists ? stores_in_subdirectories(dir) : ""; !below.empty()) {
+    if (init)
+      return fail(Errc::exists, dir.string() + " holds node stores in its subdirectories (" + below +
+                                    "): not a place for another store");
+    if (!exists)
+      return fail(Errc::not_found, "no store in " + dir.string() + ": it holds node stores in its subdirectories (" + below +
+                                       "); give one of them, as " + (dir / below.substr(0, below.find(',')))
+                                       .string());
+  }
   if (!init && !exists) return fail(Errc::not_found, "no store in " + dir.string() + " (run tahvel init)");
   // A store's file is made whole elsewhere and renamed into place (make_store): an empty one is
   // not a store, and opening it would make it an empty LMDB file.

@@ -2715,6 +2715,16 @@ TEST_F(Cli, ListByAreaSelectsTheRoomsSensorReadings) {
   Outcome hall = run({"list", node_, "--area", "POLYGON((4 0, 8 0, 8 4, 4 4, 4 0))", "-p", "sosa:hasSimpleResult"});
   EXPECT_EQ(hall.status, 0) << hall.err;
   EXPECT_TRUE(hall.out.empty()) << hall.out;
+  // A room the plan lacks is the query's mistake, exit 1, by list and by query of the node's own
+  // store alike; a query answered here exited 4, which says "unknown node".
+  for (const std::vector<std::string>& command :
+       {std::vector<std::string>{"list", node_}, std::vector<std::string>{"query", node_, "--at", kNodeIri}}) {
+    std::vector<std::string> args = command;
+    args.insert(args.end(), {"--area", kNodeIri + "/room/nope"});
+    Outcome nope = run(args);
+    EXPECT_EQ(nope.status, 1) << command[0] << ": " << nope.err;
+    EXPECT_NE(nope.err.find("no room " + kNodeIri + "/room/nope on the board"), std::string::npos) << nope.err;
+  }
 }
 
 // The point, from the command line: moving a sensor from one room to another changes

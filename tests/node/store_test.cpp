@@ -1413,6 +1413,29 @@ TEST(Store, AnInitKilledHalfWayLeavesNothingThatStopsTheNextOne) {
     EXPECT_FALSE(entry.path().filename().string().starts_with(".init-")) << entry.path();
 }
 
+// `tahvel up`'s state directory given where a node's store goes (DIR for DIR/hospital): opening
+// it said "no store (run tahvel init)", and doing so made an empty store beside the nodes' that
+// answered every question with nothing. Open names the stores below; init refuses.
+TEST(Store, ADirectoryOfNodeStoresIsNamedAsSuchAndGetsNoStoreOfItsOwn) {
+  TempDir dir;
+  make_node(dir / "hospital");
+  make_node(dir / "home1");
+  auto opened = Node::open(dir.path());
+  ASSERT_FALSE(opened);
+  EXPECT_EQ(opened.error().code, Errc::not_found);
+  EXPECT_NE(opened.error().message.find("it holds node stores in its subdirectories (home1, hospital); give one of them, as " +
+                                        (dir / "home1").string()),
+            std::string::npos)
+      << opened.error().message;
+  auto made = Node::init(dir.path(), InitOptions{.iri = testing::kNodeIri});
+  ASSERT_FALSE(made);
+  EXPECT_EQ(made.error().code, Errc::exists);
+  EXPECT_NE(made.error().message.find("holds node stores in its subdirectories (home1, hospital)"), std::string::npos)
+      << made.error().message;
+  EXPECT_FALSE(std::filesystem::exists(dir / "data.mdb"));
+  EXPECT_TRUE(Node::open(dir / "hospital")) << "the stores below are untouched";
+}
+
 TEST(Store, InitRefusesExistingStoreAndOpenRefusesMissingOne) {
   TempDir dir;
   make_node(dir.path());
