@@ -28,6 +28,7 @@ const Flag* find_in(const std::vector<Flag>& flags, std::string_view name) {
 
 const Flag* find_flag(const Command& command, std::string_view name) {
   if (const Flag* f = find_in(command.flags, name)) return f;
+  if (name == "--prefix" && !command.takes_prefix) return nullptr;
   return find_in(common_flags(), name);
 }
 
@@ -45,6 +46,12 @@ std::size_t take_flag(const Command& command, std::span<const std::string> argv,
     arg = arg.substr(0, eq);
   }
   const Flag* flag = find_flag(command, arg);
+  if (!flag && arg == "--prefix")
+    usage_error(prefix_of(command) + "--prefix: not taken by " + std::string(command.name) +
+                ", which reads no CURIEs from its command line" +
+                (command.name == "up" ? " (a topology file's forward patterns and load files use the node's prefixes, "
+                                        "a load file's own @prefix lines, or <full IRIs>)"
+                                      : ""));
   if (!flag) {
     // Some commands print JSON with --json, those that have other formats with --format json.
     std::string instead;

@@ -235,10 +235,16 @@ std::string parse_iri(std::string_view text, const uri::PrefixMap& prefixes,
     if (!normal) bad_value(flag, normal.error().message);
     return std::string(text);
   }
-  // A command line can add the prefix; a topology file's pattern uses the node's own prefixes.
-  const std::string add = flag.starts_with("-") ? "add --prefix " + prefix + "=IRI, or " : "";
-  bad_value(flag, "unknown prefix '" + prefix + "' in '" + std::string(text) + "' (" + add + "write <" + std::string(text) +
-                      "> for an absolute IRI)");
+  // A command line can add the prefix; a topology file's pattern uses the node's own prefixes,
+  // and there the full IRI is what was meant.
+  if (!flag.starts_with("-")) {
+    std::string known;
+    for (const auto& [name, ns] : prefixes.entries()) known += (known.empty() ? "" : " ") + name;
+    bad_value(flag, "unknown prefix '" + prefix + "' in '" + std::string(text) + "' (known: " + known +
+                        "; write the full IRI in <…> for any other)");
+  }
+  bad_value(flag, "unknown prefix '" + prefix + "' in '" + std::string(text) + "' (add --prefix " + prefix + "=IRI, or write <" +
+                      std::string(text) + "> for an absolute IRI)");
 }
 
 std::string parse_node_iri(std::string_view text, const uri::PrefixMap& prefixes, std::string_view flag) {

@@ -458,7 +458,7 @@ std::int64_t remote_predicates(node::Node& node, const std::string& target, std:
 }  // namespace
 
 int print_predicates(node::Node& node, const Args& args) {
-  const uri::PrefixMap prefixes = node.prefixes();
+  const uri::PrefixMap prefixes = prefixes_with_flags(node.prefixes(), args);
   std::vector<node::PredicateSummary> held;
   std::optional<std::string> target;
   if (auto at = args.get("--at")) target = parse_node_iri(*at, prefixes, "--at");
@@ -724,7 +724,7 @@ const Command kUpCommand{
     "--foreground it stays attached until SIGINT/SIGTERM. The file format is docs/deploy.md.",
     {kFlagState, {"--node", "", "ID", "bring up only this node"},
      {"--foreground", "", "", "run the supervisor in this process"}},
-    1, 1};
+    1, 1, false};
 
 namespace {
 
@@ -1695,7 +1695,7 @@ const Command kDownCommand{
     "after 5 s), and waits up to 20 s for them to end. The stores stay. With --node only the\n"
     "supervisor that 'tahvel up FILE --node ID' started.",
     {kFlagState, {"--node", "", "ID", "stop only the node brought up with 'up --node ID'"}},
-    0, 0};
+    0, 0, false};
 
 namespace {
 
@@ -1835,7 +1835,7 @@ const Command kStatusCommand{
     {kFlagState, {"--json", "", "", "print one JSON object instead of the tree"},
      {"--local", "", "", "only what this machine's stores hold: ask no node on another machine"},
      {"--timeout", "", "S", "how long to wait for each node on another machine (default 3; a fraction allowed)"}},
-    0, 0};
+    0, 0, false};
 
 namespace {
 

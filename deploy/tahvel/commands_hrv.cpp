@@ -396,7 +396,7 @@ const Command kHrvCommand{
      {"--eval", "", "", "score the detected beats against RECORD.atr"},
      {"--eval-from", "", "S", "with --eval: score from S seconds in (default 300, bxb's; 0: the whole record)"},
      {"--json", "", "", "print JSON instead of text"}},
-    1, SIZE_MAX};
+    1, SIZE_MAX, false};
 
 int run_hrv(const Args& args) {
   agg::ChainOptions options;
@@ -451,7 +451,7 @@ const Command kPatientsCommand{
     {{"--since", "", "T", "only windows and trends of signal time T or later"},
      {"--alerts", "", "", "only the patients with an alert"},
      {"--json", "", "", "print JSON instead of text"}},
-    1, 1};
+    1, 1, false};
 
 int run_patients(const Args& args) {
   node::Node node = open_node(args.positional(0));

@@ -378,7 +378,7 @@ const Command kAreasCommand{
     "by located feature, and again whenever a geometry, a floor or an area subscription is\n"
     "stored or removed. Prints one line per change. Runs until stopped; --once syncs and exits.",
     {{"--once", "", "", "sync once and exit"}},
-    1, 1};
+    1, 1, false};
 
 int run_areas(const Args& args) {
   spatial::AreaSyncReport first;

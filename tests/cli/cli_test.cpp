@@ -1040,6 +1040,23 @@ TEST_F(Cli, HrvRefusesAWindowOrStepTooShortForHrvNamingTheFlagAndTheBounds) {
   EXPECT_NE(r.err.find("--window: not with --eval"), std::string::npos) << r.err;
 }
 
+// `up --prefix ex=…` was accepted and ignored (a load file's ex: terms then failed): the
+// commands that read no CURIEs from their command line refuse it, naming the command; those that
+// do take it (stats --at among them).
+TEST_F(Cli, CommandsThatReadNoCuriesRefusePrefixAndTheOthersUseIt) {
+  for (const std::vector<std::string>& command : {std::vector<std::string>{"up", "t.toml"}, {"down"}, {"status"},
+                                                  {"hrv", "x"}, {"patients", "x"}, {"areas", "x"}}) {
+    std::vector<std::string> args = command;
+    args.insert(args.end(), {"--prefix", "ex=http://example.org/ex#"});
+    const Outcome r = run(args);
+    EXPECT_EQ(r.status, 2) << command[0];
+    EXPECT_NE(r.err.find(command[0] + ": --prefix: not taken by " + command[0]), std::string::npos) << r.err;
+  }
+  init();
+  const Outcome stats = run({"stats", node_, "--predicates", "--at", "here:", "--prefix", "here=" + kNodeIri});
+  EXPECT_EQ(stats.status, 0) << stats.err;
+}
+
 // A shell completes a record's path to one of its files: "…/100.hea" read "…/100.hea.hea". A
 // path to the header, signal or annotation file names the record; an empty RECORD is a usage
 // error, not ".hea: cannot open header". A warning of one record names it, as with --eval.
@@ -2184,7 +2201,8 @@ TEST_F(Cli, UpRefusesATopologyThatCouldNotRunAsWrittenNamingWhatAndWhere) {
        "t.toml:1:1: node 'hospital' has children (node 'home1') but no listen"},
       // A pattern of the file is named as the file writes it, not as a command-line flag.
       {listening + "[[node]]\nid = \"home1\"\nparent = \"hospital\"\nforward = [\"_ zz:foo _\"]\n",
-       "t.toml:8:11: node 'home1': forward: pattern '_ zz:foo _': unknown prefix 'zz' in 'zz:foo' (write <zz:foo> for an absolute IRI)"},
+       "t.toml:8:11: node 'home1': forward: pattern '_ zz:foo _': unknown prefix 'zz' in 'zz:foo' (known: geo owl prov rdf "
+       "rdfs sosa ssn tv xsd; write the full IRI in <…> for any other)"},
       // A child node is agent <id> of its parent: the agents every node has are not free. A child
       // 'supervisor' had what its parent relayed from it replaced away every 5 s.
       {listening + "[[node]]\nid = \"supervisor\"\nparent = \"hospital\"\n",
