@@ -2368,6 +2368,12 @@ int run_status(const Args& args) {
       std::cout << "  uplink state unknown: " << uplink_unknown_because << " (it last said: " << uplink_said << ")";
     else if (!n.uplink.empty())
       std::cout << "  " << uplink_said;
+    else if (n.has_parent && !left && std::any_of(n.programs.begin(), n.programs.end(), [](const auto& p) {
+               return p.name == "link" && p.state == "running" && p.restarts == "0" && p.last_exit.empty();
+             }))
+      // Just brought up: the link runs, has not failed, and has not yet written how its parent
+      // is. One that failed and runs again is still "never started": its last exit says why.
+      std::cout << "  uplink starting (its link runs and has not yet said how its parent is)";
     else if (n.has_parent && !left)
       std::cout << "  uplink never started (its link has not run: see the link's last exit)";
     else if (depth == 0 && !left)

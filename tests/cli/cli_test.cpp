@@ -1655,6 +1655,24 @@ TEST_F(Cli, StatusShowsAChildWhoseLinkNeverStartedAsSuchNotAsARoot) {
   EXPECT_EQ(run({"down", "--state", state}).status, 0);
 }
 
+// In the seconds after `up` a home's link runs and has not yet written how its parent is: that
+// was shown as "uplink never started (its link has not run: see the link's last exit)" right
+// above "- link  running", with no last exit to see. The parent here is never up.
+TEST_F(Cli, StatusRightAfterUpSaysAChildsLinkIsStartingNotThatItNeverStarted) {
+  const std::string file = (tmp_ / "t.toml").string(), state = (tmp_ / "state").string();
+  spit(file, "[[node]]\nid = \"hospital\"\niri = \"http://example.org/hospital\"\nlisten = { kind = \"dds\", domain = 7 }\n"
+             "[[node]]\nid = \"home1\"\nparent = \"hospital\"\n");
+  Outcome up = run({"up", file, "--state", state, "--node", "home1"});
+  ASSERT_EQ(up.status, 0) << up.err;
+  const Outcome shown = status_until(state, "- link  running (pid");
+  ASSERT_NE(shown.out.find("- link  running (pid"), std::string::npos) << shown.out;
+  EXPECT_EQ(shown.out.find("uplink never started"), std::string::npos) << shown.out;
+  EXPECT_TRUE(shown.out.find("home1  <http://example.org/hospital/home1>  uplink starting") != std::string::npos ||
+              shown.out.find("home1  <http://example.org/hospital/home1>  never connected") != std::string::npos)
+      << shown.out;
+  EXPECT_EQ(run({"down", "--state", state}).status, 0);
+}
+
 // Each node under its own parent, when a sibling's id is another's and more ("home1-annex"
 // sorted between "home1" and "home1/bed-a" as plain strings: bed-a was shown under the annex).
 TEST_F(Cli, StatusShowsEachNodeUnderItsOwnParentWhenSiblingIdsShareAPrefix) {
