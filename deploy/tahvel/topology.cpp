@@ -501,10 +501,15 @@ node::Result<Topology> load_topology(const std::filesystem::path& file) {
   for (const auto& n : topo.nodes) {
     for (const NodeSpec* child : topo.children(n.id))
       for (const auto& agent : n.agents)
-        if (agent.id == child->id)
-          return node::fail(Errc::invalid_argument, n.at + ": node '" + n.id + "': agent id '" + agent.id +
-                                                        "' is also its child node's id (a child node is agent '" + child->id +
-                                                        "' of its parent)");
+        if (agent.id == child->id) {
+          // The child's line, out of its "FILE:LINE:COL".
+          const std::size_t col = child->at.rfind(':'), line = col == 0 || col == std::string::npos ? col : child->at.rfind(':', col - 1);
+          const std::string child_line =
+              line == std::string::npos ? child->at : "line " + child->at.substr(line + 1, col - line - 1);
+          return node::fail(Errc::invalid_argument, agent.at + ": node '" + n.id + "': agent id '" + agent.id +
+                                                        "' is also its child node's id (the node of " + child_line +
+                                                        "; a child node is agent '" + child->id + "' of its parent)");
+        }
   }
   if (auto clear = check_lcm_ports_clear_of_dds(topo); !clear) return Unexpected<node::Error>{clear.error()};
   return topo;

@@ -1721,9 +1721,9 @@ struct Link::Impl {
         out.error(via, opt.parent_iri, f.seq, {"unknown_node", "no node <" + q->target + "> below <" + self + ">", q->origin});
       } else if (!it->second->connected) {
         out.error(via, opt.parent_iri, f.seq,
-                  {"unreachable", "<" + child_iri + ">" + (child_iri == q->target ? "" : " (on the way to <" + q->target + ">)") + " is " +
-                                      (it->second->ever || it->second->ever_before ? "down" : "never connected") + " at <" + self +
-                                      ">",  // as remote_query says it
+                  {"unreachable", "<" + child_iri + ">" + (child_iri == q->target ? "" : " (on the way to <" + q->target + ">)") +
+                                      (it->second->ever || it->second->ever_before ? " is down at <" : " has never connected to <") +
+                                      self + ">",  // as remote_query says it
                    q->origin});
       } else if (auto why = unservable_by(child_iri, *q)) {
         out.error(via, opt.parent_iri, f.seq, {"query_failed", *why, q->origin});

@@ -147,7 +147,8 @@ Result<std::uint64_t> remote_query(node::Node& node, const RemoteQuery& query,
                                       ">; if 'tahvel status' shows the link restarting, ask again once it runs, "
                                       "else start it ('tahvel up')");
     return node::fail(Errc::io, "unreachable: <" + child + ">" + (child == *target ? "" : " (on the way to <" + *target + ">)") +
-                                    " is " + child_state + " at <" + self + ">");
+                                    (child_state == "never connected" ? " has never connected to <" + self + ">"
+                                                                      : " is " + child_state + " at <" + self + ">"));
   }
   static std::atomic<int> counter{0};
   auto agent = node.agent("query-" + std::to_string(getpid()) + "-" + std::to_string(++counter));

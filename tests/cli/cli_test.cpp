@@ -2199,7 +2199,8 @@ TEST_F(Cli, UpRefusesATopologyThatCouldNotRunAsWrittenNamingWhatAndWhere) {
       {"[[node]]\nid = \"hospital\"\niri = \"http://example.org/cafe\xCC\x81\"\n",
        "t.toml:3:7: node 'hospital': iri: invalid IRI 'http://example.org/cafe\xCC\x81' at position 22: not in Unicode normalization form C (NFC)"},
       {listening + "  [[node.agent]]\n  id = \"home1\"\n  run = [\"true\"]\n[[node]]\nid = \"home1\"\nparent = \"hospital\"\n",
-       "node 'hospital': agent id 'home1' is also its child node's id"},
+       "t.toml:5:3: node 'hospital': agent id 'home1' is also its child node's id (the node of line 8; a child node is "
+       "agent 'home1' of its parent)"},
       {hospital + "  [[node.agent]]\n  id = \"hrv\"\n  run = [\"true\"]\n  restrat = \"never\"\n", "agent 'hrv': unknown key 'restrat'"},
       // The supervisor writes the node's programs as agent `supervisor` (replacing what it wrote).
       {hospital + "  [[node.agent]]\n  id = \"supervisor\"\n  run = [\"true\"]\n", "node 'hospital': agent id 'supervisor' is taken"},

@@ -1533,7 +1533,7 @@ TEST(Link, AQueryAskedWhereNoLinkRunsIsUnreachableWithoutWaitingForItsTimeout) {
 
 // Where no link runs, that is why every child cannot be reached, whatever state the link's last
 // run left for it: `tahvel status` (no restart grace) said of a child that run had not heard
-// from "<…/home2> is never connected at <…/hospital>", and of one it had, "no link runs".
+// from "<…/home2> has never connected to <…/hospital>", and of one it had, "no link runs".
 TEST(Link, WhereNoLinkRunsEveryChildIsUnreachableBecauseNoLinkRunsNotForItsLastState) {
   Tree tree;
   ASSERT_TRUE(tree.start_hospital_and_home1());
