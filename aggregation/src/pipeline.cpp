@@ -102,7 +102,8 @@ Result<HrvReport> hrv_from_record(const std::string& record_path, const ChainOpt
   auto report = hrv_from_samples(signals->samples[channel], signals->header.fs, gain_per_mv(info), chain);
   if (!report) return fail(record_path + ": " + report.error().message);
   report->signal = channel;
-  report->warnings = checksum_mismatches(*signals);
+  report->warnings = unread_samples(signals->header);
+  for (std::string& mismatch : checksum_mismatches(*signals)) report->warnings.push_back(std::move(mismatch));
   if (auto invalid = invalid_samples_warning(signals->samples[channel], info, channel, signals->header.fs))
     report->warnings.push_back(*invalid);
   if (auto rate = default_rate_warning(signals->header)) report->warnings.insert(report->warnings.begin(), *rate);

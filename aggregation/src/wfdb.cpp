@@ -438,6 +438,31 @@ bool names_ecg_lead(std::string_view description) {
 
 }  // namespace
 
+std::vector<std::string> unread_samples(const RecordHeader& header) {
+  std::vector<std::string> out;
+  const std::int64_t expected = header.samples_per_signal;
+  if (expected <= 0) return out;
+  for (std::size_t i = 0; i < header.signals.size();) {
+    std::size_t j = i + 1;
+    while (j < header.signals.size() && header.signals[j].file == header.signals[i].file) ++j;
+    const SignalInfo& first = header.signals[i];
+    const std::string path = (std::filesystem::path(header.directory) / first.file).string();
+    std::error_code ec;
+    const auto size = static_cast<std::int64_t>(std::filesystem::file_size(path, ec));
+    if (!ec && (first.format == 16 || first.format == 212)) {
+      const std::int64_t found = values_in_bytes(first.format, std::max<std::int64_t>(0, size - first.byte_offset)) /
+                                 static_cast<std::int64_t>(j - i);
+      // One more is format 212's padding of an odd number of values.
+      if (found > expected + 1)
+        out.push_back(path + " holds " + std::to_string(found) + " samples per signal, the header " + header.path + " says " +
+                      std::to_string(expected) + ": the last " + std::to_string(found - expected) +
+                      " are not read (is the header's sample count right?)");
+    }
+    i = j;
+  }
+  return out;
+}
+
 std::vector<std::string> checksum_mismatches(const Signals& signals) {
   std::vector<std::uint16_t> sums;
   for (const auto& samples : signals.samples) {

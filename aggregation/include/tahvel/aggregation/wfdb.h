@@ -79,7 +79,8 @@ struct Signals {
 
 // Reads the header and every signal file of a record. Errors: those of read_header(); a signal
 // file that cannot be opened; a signal file shorter than the header says ("<file>: truncated:
-// expected N samples per signal, found M"). Bytes after the last announced sample are ignored.
+// expected N samples per signal, found M"). Bytes after the last announced sample are not read
+// (unread_samples names them).
 Result<Signals> read_signals(const std::string& record_path);
 
 // One line per signal whose samples do not add up to the header's checksum (16-bit sum): the
@@ -90,6 +91,12 @@ std::vector<std::string> checksum_mismatches(const Signals& signals);
 // The same from each signal's 16-bit sum of samples (`sums`, in header order), for a reader
 // that streams the record (the ECG source) and keeps sums as it goes.
 std::vector<std::string> checksum_mismatches(const RecordHeader& header, const std::vector<std::uint16_t>& sums);
+
+// One line per signal file that holds more samples per signal than the header says: they are
+// not read (as WFDB's tools do not), and a header whose sample count was cut short otherwise
+// shows only as checksum mismatches, which read as a wrong format. Empty when none does, or
+// the header gives no sample count.
+std::vector<std::string> unread_samples(const RecordHeader& header);
 
 // A header without a sampling frequency is read at WFDB's default of 250 Hz, as WFDB's tools
 // read it; a record sampled at another rate then gives heart rates and HRV off by the ratio
