@@ -104,7 +104,7 @@ node::Result<std::optional<node::Delivery>> take_unless_stopped(node::Agent& age
 }
 
 void log_line(const std::string& program, const std::string& message) {
-  std::cerr << (node::log_stamp() + " " + program + ": " + message + "\n") << std::flush;
+  node::write_log_line(program + ": " + message);
 }
 
 HeldLock& HeldLock::operator=(HeldLock&& other) noexcept {

@@ -221,7 +221,7 @@ int run_link(const Args& args) {
   federation::LinkOptions options;
   options.dir = args.positional(0);
   auto log = [iri = node.iri()](std::string_view line) {
-    std::cerr << node::log_stamp() << " tahvel link <" << iri << ">: " << line << std::endl;
+    node::write_log_line("tahvel link <" + iri + ">: " + std::string(line));
   };
   options.log = log;
   auto parent = args.get("--parent");
@@ -269,16 +269,15 @@ int run_link(const Args& args) {
               : std::string()));
   }
   auto link = std::move(*started);
-  std::cerr << node::log_stamp() << " tahvel link <" << node.iri() << ">: running"
-            << (parent ? " (parent <" + *parent + "> over " + *up + ")" : "")
-            << (listens.empty() ? "" : " (children over " + (listens.size() == 1 ? listens[0] : listens[0] + " and " + listens[1]) + ")") << std::endl;
+  log(std::string("running") + (parent ? " (parent <" + *parent + "> over " + *up + ")" : "") +
+      (listens.empty() ? "" : " (children over " + (listens.size() == 1 ? listens[0] : listens[0] + " and " + listens[1]) + ")"));
   while (!g_stop) std::this_thread::sleep_for(100ms);
   link->stop();
   auto c = link->counters();
-  std::cerr << node::log_stamp() << " tahvel link <" << node.iri() << ">: stopped; sent up " << c.up_sent << ", relayed in " << c.relayed_in
-            << ", duplicates dropped " << c.duplicates_in << ", applied from above " << c.down_applied
-            << ", items refused " << c.items_refused << ", refused by the other end " << c.items_refused_by_peer
-            << ", frames taken on the transport's thread " << c.taken_pushed << std::endl;
+  log("stopped; sent up " + std::to_string(c.up_sent) + ", relayed in " + std::to_string(c.relayed_in) + ", duplicates dropped " +
+      std::to_string(c.duplicates_in) + ", applied from above " + std::to_string(c.down_applied) + ", items refused " +
+      std::to_string(c.items_refused) + ", refused by the other end " + std::to_string(c.items_refused_by_peer) +
+      ", frames taken on the transport's thread " + std::to_string(c.taken_pushed));
   return kExitOk;
 }
 
@@ -1621,7 +1620,7 @@ int run_up(const Args& args) {
   sigemptyset(&on_hup.sa_mask);
   sigaction(SIGHUP, &on_hup, nullptr);
   signal(SIGPIPE, SIG_IGN);
-  const agents::Supervisor::Log log = [](std::string_view line) { std::cerr << node::log_stamp() << " " << line << std::endl; };
+  const agents::Supervisor::Log log = [](std::string_view line) { node::write_log_line(line); };
   agents::Supervisor supervisor(log);
   fs::path state_file = state / pid_file_name(only);
   state_file.replace_extension(".state");

@@ -140,6 +140,10 @@ int run_reason(const Args& args) {
     std::sort(r.added.begin(), r.added.end());
     std::sort(r.removed.begin(), r.removed.end());
     if (r.problem_not_written) std::cerr << "tahvel: the rules' problem is not on the board: " << *r.problem_not_written << "\n";
+    // A write that failed once (a full disk under the log) leaves a stream failed, and it would
+    // say nothing more for the rest of the run: each session's report tries again.
+    std::cout.clear();
+    std::cerr.clear();
     if (json) print_json(r); else print_text(r, prefixes);
     return static_cast<bool>(std::cout);
   };

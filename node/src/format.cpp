@@ -31,13 +31,18 @@
 
 #include <serd/serd.h>
 
+#include <unistd.h>
+
 #include <algorithm>
+#include <atomic>
+#include <cerrno>
 #include <chrono>
 #include <cstdarg>
 #include <cstdio>
 #include <cstring>
 #include <ctime>
 #include <exception>
+#include <iostream>
 #include <map>
 #include <memory>
 #include <optional>
@@ -486,6 +491,25 @@ std::string utc_text(std::int64_t ns) {
 std::string log_stamp() {
   const auto now = std::chrono::system_clock::now();
   return utc_text(std::chrono::duration_cast<std::chrono::nanoseconds>(now.time_since_epoch()).count());
+}
+
+void write_log_line(std::string_view line) noexcept {
+  static std::atomic<bool> last_cut{false};
+  try {
+    std::string text = (last_cut.load() ? "\n" : "") + log_stamp() + " ";
+    text.append(line);
+    text += '\n';
+    std::size_t done = 0;
+    while (done < text.size()) {
+      const ssize_t n = ::write(STDERR_FILENO, text.data() + done, text.size() - done);
+      if (n < 0 && errno == EINTR) continue;
+      if (n <= 0) break;
+      done += static_cast<std::size_t>(n);
+    }
+    last_cut = done > 0 && done < text.size() ? true : done == text.size() ? false : last_cut.load();
+  } catch (...) {  // out of memory: the line is lost, the process goes on
+  }
+  if (!std::cerr) std::cerr.clear();
 }
 
 std::string json_escape(std::string_view text) {

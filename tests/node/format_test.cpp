@@ -5,7 +5,13 @@
 
 #include <gtest/gtest.h>
 
+#include <fcntl.h>
+#include <unistd.h>
+
 #include <algorithm>
+#include <cstdio>
+#include <fstream>
+#include <iostream>
 #include <chrono>
 #include <random>
 #include <regex>
@@ -758,4 +764,50 @@ TEST(Format, JsonOutputIsAsciiSafeForAwkwardLiterals) {
     for (char c : line) EXPECT_GE(static_cast<unsigned char>(c), 0x20u) << line;
   }
   EXPECT_EQ(count, awkward_triples().size());
+}
+
+namespace {
+
+// Standard error pointed at `path` (opened for appending, or /dev/full) until the end of scope.
+class StderrTo {
+ public:
+  explicit StderrTo(const char* path) : saved_(::dup(STDERR_FILENO)) {
+    const int fd = ::open(path, O_WRONLY | O_CREAT | O_APPEND, 0644);
+    ::dup2(fd, STDERR_FILENO);
+    ::close(fd);
+  }
+  ~StderrTo() {
+    ::dup2(saved_, STDERR_FILENO);
+    ::close(saved_);
+  }
+
+ private:
+  int saved_;
+};
+
+}  // namespace
+
+// A long-running process's log on a disk that filled up once: std::cerr, failed once, dropped
+// every later line (a supervisor logged nothing more after its first "No space left on device").
+// Lines written after the disk has room again are there, and std::cerr works again.
+TEST(LogLine, LinesAfterAWriteThatFailedAreWrittenAndStdCerrIsClearedToo) {
+  const std::string path = testing::TempDir() + "log_line_test.log";
+  std::remove(path.c_str());
+  {
+    StderrTo full("/dev/full");
+    std::cerr << "lost" << std::endl;
+    tn::write_log_line("lost too");
+  }
+  EXPECT_TRUE(std::cerr.good());
+  {
+    StderrTo file(path.c_str());
+    tn::write_log_line("up: started hrv");
+    std::cerr << "said through std::cerr\n";
+  }
+  std::ifstream in(path);
+  std::stringstream all;
+  all << in.rdbuf();
+  EXPECT_TRUE(std::regex_match(all.str(), std::regex(R"(\d{4}-\d\d-\d\dT\d\d:\d\d:\d\d\.\d{3}Z up: started hrv\nsaid through std::cerr\n)")))
+      << all.str();
+  std::remove(path.c_str());
 }

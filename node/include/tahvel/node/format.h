@@ -70,6 +70,12 @@ std::string json_escape(std::string_view text);
 // long-running process (agents, links, the supervisor), so that the logs of several processes
 // and machines can be read side by side.
 std::string log_stamp();
+// Writes "<log_stamp()> <line>\n" to standard error with one write(2), the way the long-running
+// processes log. Not through std::cerr: a stream whose write failed once (a full disk under the
+// log) drops every later line until it is cleared, and such a process logged nothing more for
+// the rest of its life. A line after one that could not be written whole starts on a line of its
+// own. std::cerr is cleared too, for the messages written through it.
+void write_log_line(std::string_view line) noexcept;
 // `ns` since the Unix epoch as an RFC 3339 UTC time with milliseconds ("2026-11-27T20:40:00.123Z"),
 // the form `--since` and `--until` take.
 std::string utc_text(std::int64_t ns);
