@@ -2138,7 +2138,12 @@ struct Link::Impl {
         }
         mark = up_mark;
         after = up_last_sent;
-        room = opt.window > up_in_flight.size() ? opt.window - up_in_flight.size() : 0;
+        // P8: a parent not heard for child_silence (stopped, or cut off) gets one frame per
+        // go-back, a probe, not the window: a sensor resent 512 items every resend_after onto
+        // its LAN for as long as its gateway was down. Heard again, the window opens at once.
+        const bool parent_silent = Clock::now() - parent_heard > opt.child_silence;
+        const std::size_t window = parent_silent ? 1 : opt.window;
+        room = window > up_in_flight.size() ? window - up_in_flight.size() : 0;
         if (room == 0) {
           changed.wait_for(lock, 20ms);
           continue;

@@ -286,6 +286,29 @@ TEST(Link, AnItemWrittenWhileTheLinkIsCutArrivesOnceAfterItIsRestored) {
   EXPECT_EQ(count(tree.hospital_dir, numbered), 300u);
 }
 
+// P8: while its parent is down (not heard for child_silence) a home resent its whole window every
+// resend_after, for as long as the outage lasted: 300 items every 100 ms here, over a LAN or a
+// sensor's radio to no one. It sends one frame per go-back instead, a probe, and once the parent
+// is back everything arrives, once.
+TEST(Link, AHomeWhoseParentIsDownProbesWithOneFrameInsteadOfResendingItsWindow) {
+  Tree tree;
+  tree.hospital = tree.start_hospital();
+  tree.home1 = tree.start_home(tree.home1_dir, kHome1, tree.home1_log);
+  ASSERT_TRUE(eventually([&] { return tree.home1->connected(); }));
+  tree.hospital.reset();
+  store_hrv_items(tree.home1_dir, 0, 300);
+  ASSERT_TRUE(eventually([&] { return uplink_states(tree.home1_dir, kHome1) == std::vector<std::string>{"down"}; }, 10s));
+  const std::uint64_t before = tree.home1->counters().up_sent;
+  std::this_thread::sleep_for(1s);
+  const std::uint64_t sent = tree.home1->counters().up_sent - before;
+  EXPECT_LE(sent, 20u) << "frames sent in one second to a parent that is down (resend_after 100 ms)";
+  EXPECT_GE(sent, 3u) << "the home stopped probing";
+  tree.hospital = tree.start_hospital();
+  const node::Pattern numbered{.p = Term::iri(kEx + "n")};
+  ASSERT_TRUE(eventually([&] { return count(tree.hospital_dir, numbered) >= 300 && outbox(tree.home1_dir) == 0; }, 10s));
+  EXPECT_EQ(count(tree.hospital_dir, numbered), 300u);
+}
+
 // P6a: a home whose store is made again (a replaced disk or gateway) issues item ids from the
 // start. The hospital's mark of the old store's stream must not swallow them as duplicates.
 TEST(Link, AChildWhoseStoreIsMadeAgainHasAllOfItsNewItemsArrive) {
