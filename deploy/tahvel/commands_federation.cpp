@@ -663,6 +663,15 @@ double state_file_silent_for(const fs::path& pid_file) {
   return std::chrono::duration<double>(fs::file_time_type::clock::now() - written).count();
 }
 
+// Why a supervisor may not have written its state file in `dir` for a while: a full disk under
+// it, which is then the likely cause, and otherwise "stopped, hung or held up".
+std::string why_state_not_written(const fs::path& dir) {
+  struct statvfs disk {};
+  if (statvfs(dir.c_str(), &disk) == 0 && static_cast<double>(disk.f_bavail) * static_cast<double>(disk.f_frsize) < 64 * 1024)
+    return "the disk holding " + dir.string() + " is full: it cannot write its state file";
+  return "stopped, hung or held up";
+}
+
 // The programs' rows of every supervisor's state file in `dir`. A supervisor rewrites its file
 // every 100 ms while it runs; one that was killed leaves its last rows behind, and its programs
 // died with it (PR_SET_PDEATHSIG), so those rows say so instead of "running". A node brought up
@@ -702,8 +711,8 @@ std::vector<ProgramRow> read_state_files(const fs::path& dir) {
       if (!shown.insert(f[0]).second) continue;
       if (!file.supervised && f[2].rfind("stopped", 0) != 0) f[2] = "stopped (its supervisor is not running)";
       if (file.supervised && file.silent_s > kSupervisorSilentS)
-        f[2] = "unknown: its supervisor has not written its state for " + seconds_text(file.silent_s) +
-               " (stopped, hung or held up); it last said " + f[2];
+        f[2] = "unknown: its supervisor has not written its state for " + seconds_text(file.silent_s) + " (" +
+               why_state_not_written(dir) + "); it last said " + f[2];
       rows.push_back({f[0], f[1], f[2], f[3], f[4]});
     }
   }
@@ -1401,8 +1410,8 @@ int run_up(const Args& args) {
   // A supervisor stopped with SIGSTOP (or hung) would never answer, and one stopped inside a
   // write to a store would hold up this `up` at its own writes: said before anything is touched.
   if (const double silent = running > 0 ? state_file_silent_for(pid_file) : 0; silent > kSupervisorSilentS)
-    fail("the supervisor " + std::to_string(running) + " has not written its state for " + seconds_text(silent) +
-         " (stopped, hung or held up): nothing applied. If it was stopped, 'kill -CONT " + std::to_string(running) +
+    fail("the supervisor " + std::to_string(running) + " has not written its state for " + seconds_text(silent) + " (" +
+         why_state_not_written(pid_file.parent_path()) + "): nothing applied. If it was stopped, 'kill -CONT " + std::to_string(running) +
          "'; its log is " + (pid_file.parent_path() / "logs" / "supervisor.log").string());
   // Under a service manager `up --foreground` is the supervisor: applying the file to another
   // one and returning would end the service while the node runs outside it.
