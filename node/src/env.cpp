@@ -330,6 +330,43 @@ Result<bool> Env::open_later_tables(MDB_txn* txn, bool create) {
 }
 
 namespace {
+// Why the LMDB data file `file` is cut short (a copy that stopped half way, a disk that filled
+// while copying), or nullopt: its newest meta page names its last page, and the file ends
+// before it. Such a file opened, and reads of its lost pages said "holds no Tahvel store
+// settings" or MDB_CORRUPTED. The meta page as LMDB 0.9 writes it on a 64-bit machine: a 16-byte
+// page header, then MDB_meta {uint32 magic, version; void* address; size_t mapsize; MDB_db
+// dbs[2] (48 bytes each; the first's md_pad is the page size); pgno_t last_pg; txnid_t txnid}.
+// Anything else (another layout, a file too short for its metas) is left to LMDB to judge.
+std::optional<std::string> cut_short(const std::filesystem::path& file) {
+  if constexpr (sizeof(void*) != 8 || sizeof(std::size_t) != 8) return std::nullopt;
+  constexpr std::uint32_t kMagic = 0xBEEFC0DE;
+  constexpr std::size_t kMagicAt = 16, kPageSizeAt = 40, kLastPageAt = 136, kTxnAt = 144, kMetaBytes = 152;
+  std::ifstream in(file, std::ios::binary);
+  if (!in) return std::nullopt;
+  auto meta_at = [&](std::uint64_t offset, std::uint32_t& page_size, std::uint64_t& last, std::uint64_t& txn) {
+    char bytes[kMetaBytes];
+    in.clear();
+    in.seekg(static_cast<std::streamoff>(offset));
+    if (!in.read(bytes, sizeof bytes)) return false;
+    std::uint32_t magic = 0;
+    std::memcpy(&magic, bytes + kMagicAt, 4);
+    std::memcpy(&page_size, bytes + kPageSizeAt, 4);
+    std::memcpy(&last, bytes + kLastPageAt, 8);
+    std::memcpy(&txn, bytes + kTxnAt, 8);
+    return magic == kMagic && page_size >= 512 && (page_size & (page_size - 1)) == 0;
+  };
+  std::uint32_t page_size = 0, second_size = 0;
+  std::uint64_t last = 0, txn = 0, second_last = 0, second_txn = 0;
+  if (!meta_at(0, page_size, last, txn)) return std::nullopt;
+  if (meta_at(page_size, second_size, second_last, second_txn) && second_size == page_size && second_txn > txn) last = second_last;
+  std::error_code ec;
+  const std::uint64_t size = std::filesystem::file_size(file, ec);
+  const std::uint64_t reach = (last + 1) * page_size;
+  if (ec || size >= reach) return std::nullopt;
+  return file.string() + " is cut short: its pages reach " + std::to_string(reach) + " bytes, the file holds " +
+         std::to_string(size) + " (restore the store from a backup, or move its directory aside to make a new one)";
+}
+
 // The names of `dir`'s subdirectories that hold a store, sorted, at most five and "…" after
 // them; empty when none (or `dir` cannot be read).
 std::string stores_in_subdirectories(const std::filesystem::path& dir) {
@@ -467,6 +504,9 @@ Result<std::shared_ptr<Env>> Env::open_at(const std::filesystem::path& dir, cons
   // NOTLS: snapshots are not tied to threads. WRITEMAP: writes go straight to the shared map
   // (fewer copies); LMDB stays copy-on-write, so a killed writer leaves no trace.
   unsigned flags = MDB_NOTLS | MDB_WRITEMAP | MDB_NOSYNC | MDB_NOMETASYNC;
+  // Before mdb_env_open, which with MDB_WRITEMAP grows a short file to the map's size with zeros.
+  if (!init)
+    if (auto cut = cut_short(dir / "data.mdb")) return fail(Errc::corrupt, *cut);
   rc = mdb_env_open(env->env_, dir.c_str(), flags, 0644);
   if (rc != 0) return lmdb_fail(rc, "opening store " + dir.string());
   int dead = 0;

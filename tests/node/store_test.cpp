@@ -1416,6 +1416,37 @@ TEST(Store, AnInitKilledHalfWayLeavesNothingThatStopsTheNextOne) {
 // `tahvel up`'s state directory given where a node's store goes (DIR for DIR/hospital): opening
 // it said "no store (run tahvel init)", and doing so made an empty store beside the nodes' that
 // answered every question with nothing. Open names the stores below; init refuses.
+// A data.mdb cut short (a copy that stopped half way) opened, and a read that missed the lost
+// pages said "holds no Tahvel store settings"; one that did not would be SIGBUS. It is refused,
+// naming how far its pages reach and how much the file holds.
+TEST(Store, AStoreFileCutShortIsRefusedNamingWhatItLacks) {
+  TempDir dir;
+  {
+    Node node = make_node(dir.path());
+    auto agent = node.agent("w").value();
+    std::vector<Item> batch;
+    for (int i = 0; i < 2000; ++i) batch.push_back({.triples = {{ex("s" + std::to_string(i)), ex("p"), Term::integer(i)}}});
+    ASSERT_TRUE(agent.store_all(batch));
+  }
+  MDB_env* env = nullptr;
+  MDB_envinfo info{};
+  MDB_stat st{};
+  ASSERT_EQ(mdb_env_create(&env), 0);
+  ASSERT_EQ(mdb_env_open(env, dir.path().c_str(), MDB_RDONLY, 0644), 0);
+  ASSERT_EQ(mdb_env_info(env, &info), 0);
+  ASSERT_EQ(mdb_env_stat(env, &st), 0);
+  mdb_env_close(env);
+  const std::uint64_t used = (info.me_last_pgno + 1) * st.ms_psize;
+  std::filesystem::resize_file(dir / "data.mdb", used / 2);
+  auto opened = Node::open(dir.path());
+  ASSERT_FALSE(opened);
+  EXPECT_EQ(opened.error().code, Errc::corrupt);
+  EXPECT_NE(opened.error().message.find("data.mdb is cut short: its pages reach " + std::to_string(used) + " bytes, the file holds " +
+                                        std::to_string(used / 2)),
+            std::string::npos)
+      << opened.error().message;
+}
+
 TEST(Store, ADirectoryOfNodeStoresIsNamedAsSuchAndGetsNoStoreOfItsOwn) {
   TempDir dir;
   make_node(dir / "hospital");
