@@ -2090,6 +2090,7 @@ int run_status(const Args& args) {
   std::map<std::string, Fields> child_state, own_state;  // by node IRI
   std::map<std::string, fs::path> store_of;               // the stores here, by node IRI
   std::string unfinished;                                 // stores an interrupted first `up` left
+  std::map<std::string, std::string> unopened;            // why, by the store's directory name
   std::error_code ec;
   for (const auto& entry : fs::directory_iterator(state, ec)) {
     if (!entry.is_directory() || !fs::exists(entry.path() / "data.mdb")) continue;
@@ -2099,8 +2100,8 @@ int run_status(const Args& args) {
       continue;
     }
     auto node = node::Node::open(entry.path());
-    if (!node) {
-      std::cerr << "tahvel: " << entry.path().string() << ": " << node.error().message << "\n";
+    if (!node) {  // shown in the tree as the node's, below, not as a node on another machine
+      unopened[entry.path().filename().string()] = node.error().message;
       continue;
     }
     nodes.push_back({.id = entry.path().filename().string(), .iri = node->iri()});
@@ -2119,7 +2120,7 @@ int run_status(const Args& args) {
       if (auto records = snap->list({.p = node::Term::iri(p)})) read_problems(*records, node->iri(), nodes.back().problems);
   }
   if (ec) fail(state.string() + ": " + ec.message());
-  if (nodes.empty())
+  if (nodes.empty() && unopened.empty())
     fail("no node stores under " + state.string() +
          (unfinished.empty() ? " (did 'tahvel up' run with this --state?)"
                              : " (only " + unfinished + ", left unfinished by an interrupted 'tahvel up': the next 'up' makes it anew)"));
@@ -2150,17 +2151,27 @@ int run_status(const Args& args) {
     const std::string id = p.name.substr(0, slash);
     if (std::none_of(nodes.begin(), nodes.end(), [&](const StatusNode& n) { return n.id == id; })) storeless.insert(id);
   }
-  for (const std::string& id : storeless) {
-    std::string iri;  // from its parent's state of it, when its parent's store is here
+  auto iri_from_parent = [&](const std::string& id) {  // from its parent's state of it, when that store is here
+    std::string iri;
     for (const auto& [child_iri, fields] : child_state) {
       auto parent = fields.find("parent");
       if (parent == fields.end() || local_id(parent->second).empty()) continue;
       if (auto child = uri::child_id(child_iri, parent->second); child && *child == id) iri = child_iri;
     }
-    nodes.push_back({.id = id, .iri = iri});
+    return iri;
+  };
+  for (const std::string& id : storeless) {
+    if (unopened.count(id)) continue;  // there, and cannot be opened: said below
+    nodes.push_back({.id = id, .iri = iri_from_parent(id)});
     nodes.back().store_warning = "its store " + (state / id).string() +
                                  " is missing (deleted while the node runs?): its programs fail until 'tahvel down' and "
                                  "'tahvel up' make it again";
+  }
+  // A store here that cannot be opened (damaged, cut short, on a read-only disk): the node is
+  // this machine's, with its programs, not "on another machine" by its parent's state of it.
+  for (const auto& [id, why] : unopened) {
+    nodes.push_back({.id = id, .iri = iri_from_parent(id)});
+    nodes.back().store_warning = "its store " + (state / id).string() + " cannot be opened: " + why;
   }
   for (const auto& [iri, fields] : child_state)
     if (!find(iri)) add_remote(iri, fields);

@@ -1447,6 +1447,27 @@ TEST_F(Cli, StatusAndDownNameAStateDirectoryThatDoesNotExist) {
   EXPECT_NE(down.out.find("nothing was running under " + missing), std::string::npos) << down.out;
 }
 
+// A store of the state directory that cannot be opened (emptied here; cut short, damaged, on a
+// read-only disk alike) was left out of the tree with a line on standard error, then shown as a
+// node "on another machine" by its parent's state of it; with no other store, status said "no
+// node stores under …" right after naming it. It is shown as this machine's node, saying why.
+TEST_F(Cli, StatusShowsANodeWhoseStoreCannotBeOpenedAsThisMachinesSayingWhy) {
+  const std::string state = (tmp_ / "state").string();
+  ASSERT_EQ(run({"init", state + "/hospital", "--iri", "http://example.org/hospital"}).status, 0);
+  ASSERT_EQ(run({"init", state + "/home1", "--iri", "http://example.org/hospital/home1"}).status, 0);
+  fs::resize_file(state + "/home1/data.mdb", 0);
+  for (bool alone : {false, true}) {
+    if (alone) fs::remove_all(state + "/hospital");
+    const Outcome shown = run({"status", "--state", state, "--local"});
+    EXPECT_EQ(shown.status, 0) << shown.err;
+    EXPECT_NE(shown.out.find("STORE its store " + state + "/home1 cannot be opened: " + fs::canonical(state).string() +
+                             "/home1/data.mdb is empty: not a store"),
+              std::string::npos)
+        << shown.out;
+    EXPECT_EQ(shown.out.find("on another machine"), std::string::npos) << shown.out;
+  }
+}
+
 TEST_F(Cli, StatusDoesNotCallProgramsRunningOnceTheirSupervisorIsGone) {
   spit(tmp_ / "node.toml", kIdleNodeToml);
   const std::string state = (tmp_ / "state").string();
