@@ -51,7 +51,8 @@ struct Command {
   std::vector<Flag> flags;
   std::size_t min_positional = 0;
   std::size_t max_positional = 0;
-  // Whether the common --prefix applies (false for `bench`, whose runs parse their own flags).
+  // Whether the common --prefix applies: false for `bench` (its runs parse their own flags) and
+  // for the commands that read no CURIEs from their command line, which refuse it.
   bool takes_prefix = true;
 };
 

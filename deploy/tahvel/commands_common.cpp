@@ -239,9 +239,9 @@ std::string parse_iri(std::string_view text, const uri::PrefixMap& prefixes,
   // and there the full IRI is what was meant.
   if (!flag.starts_with("-")) {
     std::string known;
-    for (const auto& [name, ns] : prefixes.entries()) known += (known.empty() ? "" : " ") + name;
-    bad_value(flag, "unknown prefix '" + prefix + "' in '" + std::string(text) + "' (known: " + known +
-                        "; write the full IRI in <…> for any other)");
+    for (const auto& [name, ns] : prefixes.entries()) known += (known.empty() ? "" : ", ") + (name.empty() ? "':'" : name);
+    bad_value(flag, "unknown prefix '" + prefix + "' in '" + std::string(text) + "' (" +
+                        (known.empty() ? "no prefix is known" : "known: " + known) + "; write the full IRI in <…> for any other)");
   }
   bad_value(flag, "unknown prefix '" + prefix + "' in '" + std::string(text) + "' (add --prefix " + prefix + "=IRI, or write <" +
                       std::string(text) + "> for an absolute IRI)");

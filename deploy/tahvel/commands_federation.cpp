@@ -663,11 +663,34 @@ double state_file_silent_for(const fs::path& pid_file) {
   return std::chrono::duration<double>(fs::file_time_type::clock::now() - written).count();
 }
 
+// How long the process `pid` (a decimal number) has run, from /proc; nullopt when not known.
+std::optional<double> seconds_running(const std::string& pid) {
+  if (pid.empty() || pid.find_first_not_of("0123456789") != std::string::npos) return std::nullopt;
+  std::ifstream stat_file("/proc/" + pid + "/stat");
+  std::string text;
+  std::getline(stat_file, text);
+  const std::size_t name_end = text.rfind(')');  // the command name may hold spaces and ')'
+  if (name_end == std::string::npos || name_end + 2 > text.size()) return std::nullopt;
+  std::istringstream fields(text.substr(name_end + 2));  // from field 3, the state
+  std::string skipped;
+  for (int field = 3; field < 22; ++field) fields >> skipped;
+  double start_ticks = 0, uptime_s = 0;
+  std::ifstream uptime_file("/proc/uptime");
+  const long ticks_per_s = sysconf(_SC_CLK_TCK);
+  if (!(fields >> start_ticks) || !(uptime_file >> uptime_s) || ticks_per_s <= 0) return std::nullopt;
+  return std::max(0.0, uptime_s - start_ticks / static_cast<double>(ticks_per_s));
+}
+
+// A link that runs and has not yet written its uplink's state is starting for this long.
+constexpr double kLinkStartingS = 10;
+
 // Why a supervisor may not have written its state file in `dir` for a while: a full disk under
 // it, which is then the likely cause, and otherwise "stopped, hung or held up".
 std::string why_state_not_written(const fs::path& dir) {
   struct statvfs disk {};
-  if (statvfs(dir.c_str(), &disk) == 0 && static_cast<double>(disk.f_bavail) * static_cast<double>(disk.f_frsize) < 64 * 1024)
+  // The state file is written anew and renamed into place: it needs a block and an inode.
+  if (statvfs(dir.c_str(), &disk) == 0 &&
+      (static_cast<double>(disk.f_bavail) * static_cast<double>(disk.f_frsize) < 64 * 1024 || disk.f_favail == 0))
     return "the disk holding " + dir.string() + " is full: it cannot write its state file";
   return "stopped, hung or held up";
 }
@@ -1409,10 +1432,13 @@ int run_up(const Args& args) {
   if (running < 0) fail("a supervisor is starting (" + pid_file.string() + "); try again in a moment");
   // A supervisor stopped with SIGSTOP (or hung) would never answer, and one stopped inside a
   // write to a store would hold up this `up` at its own writes: said before anything is touched.
-  if (const double silent = running > 0 ? state_file_silent_for(pid_file) : 0; silent > kSupervisorSilentS)
-    fail("the supervisor " + std::to_string(running) + " has not written its state for " + seconds_text(silent) + " (" +
-         why_state_not_written(pid_file.parent_path()) + "): nothing applied. If it was stopped, 'kill -CONT " + std::to_string(running) +
-         "'; its log is " + (pid_file.parent_path() / "logs" / "supervisor.log").string());
+  if (const double silent = running > 0 ? state_file_silent_for(pid_file) : 0; silent > kSupervisorSilentS) {
+    const std::string why = why_state_not_written(pid_file.parent_path());
+    fail("the supervisor " + std::to_string(running) + " has not written its state for " + seconds_text(silent) + " (" + why +
+         "): nothing applied. " +
+         (why.ends_with("state file") ? "Free some space there" : "If it was stopped, 'kill -CONT " + std::to_string(running) + "'") +
+         "; its log is " + (pid_file.parent_path() / "logs" / "supervisor.log").string());
+  }
   // Under a service manager `up --foreground` is the supervisor: applying the file to another
   // one and returning would end the service while the node runs outside it.
   if (running > 0 && args.has("--foreground"))
@@ -2387,13 +2413,19 @@ int run_status(const Args& args) {
       std::cout << "  uplink state unknown: " << uplink_unknown_because << " (it last said: " << uplink_said << ")";
     else if (!n.uplink.empty())
       std::cout << "  " << uplink_said;
-    else if (n.has_parent && !left && std::any_of(n.programs.begin(), n.programs.end(), [](const auto& p) {
-               return p.name == "link" && p.state == "running" && p.restarts == "0" && p.last_exit.empty();
-             }))
-      // Just brought up: the link runs, has not failed, and has not yet written how its parent
-      // is. One that failed and runs again is still "never started": its last exit says why.
-      std::cout << "  uplink starting (its link runs and has not yet said how its parent is)";
-    else if (n.has_parent && !left)
+    else if (const auto link = std::find_if(n.programs.begin(), n.programs.end(),
+                                            [](const auto& p) { return p.name == "link" && p.state == "running"; });
+             n.has_parent && !left && link != n.programs.end() && link->restarts == "0" && link->last_exit.empty()) {
+      // The link runs, has not failed, and has not yet written how its parent is: in its first
+      // seconds, starting; later, something holds it up. One that failed and runs again is
+      // "never started" below: its last exit says why.
+      const std::optional<double> age = seconds_running(link->pid);
+      if (age && *age < kLinkStartingS)
+        std::cout << "  uplink starting (its link runs and has not yet said how its parent is)";
+      else
+        std::cout << "  uplink state not written (its link has run " << (age ? seconds_text(*age) : "a while")
+                  << " without saying how its parent is: see its log)";
+    } else if (n.has_parent && !left)
       std::cout << "  uplink never started (its link has not run: see the link's last exit)";
     else if (depth == 0 && !left)
       std::cout << "  (root)";

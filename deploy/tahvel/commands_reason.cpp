@@ -139,11 +139,12 @@ int run_reason(const Args& args) {
   auto print = [&](reasoner::SessionReport r) {
     std::sort(r.added.begin(), r.added.end());
     std::sort(r.removed.begin(), r.removed.end());
-    if (r.problem_not_written) std::cerr << "tahvel: the rules' problem is not on the board: " << *r.problem_not_written << "\n";
-    // A write that failed once (a full disk under the log) leaves a stream failed, and it would
-    // say nothing more for the rest of the run: each session's report tries again.
-    std::cout.clear();
+    // A write to standard error that failed once (a full disk under the log) leaves std::cerr
+    // failed, and every later line was dropped: cleared before each report. A report that cannot
+    // be written to standard output ends the run (false), as a closed pipe does; the supervisor
+    // starts it again.
     std::cerr.clear();
+    if (r.problem_not_written) std::cerr << "tahvel: the rules' problem is not on the board: " << *r.problem_not_written << "\n";
     if (json) print_json(r); else print_text(r, prefixes);
     return static_cast<bool>(std::cout);
   };

@@ -233,11 +233,15 @@ std::vector<std::string> dataflow_warnings(const Topology& topo, const ForwardPo
         if (writers.find(writer_of(kind)) == std::string::npos) writers += (writers.empty() ? "" : ", ") + std::string(writer_of(kind));
       }
       std::vector<std::string> empty_children;
+      bool all_passed = true;  // by each child named
       for (const auto& [child, passable] : here.passable_up)
-        if ((passable & missing).any()) empty_children.push_back("'" + child->id + "'");
+        if ((passable & missing).any()) {
+          empty_children.push_back("'" + child->id + "'");
+          all_passed = all_passed && (missing & ~passable).none();
+        }
       const std::string children = empty_children.empty() ? "no child of it forwards"
-                                   : list_of(empty_children) + ", whose forward passes them, " +
-                                         (empty_children.size() == 1 ? "has" : "have") + " none to forward";
+                                   : list_of(empty_children) + ", whose forward passes " + (all_passed ? "them" : "some of them") +
+                                         ", " + (empty_children.size() == 1 ? "has" : "have") + " none to forward";
       std::string line = agent->at + ": node '" + spec->id + "': agent '" + agent->id + "' (" + program_name(*agent) + ") takes " +
                          what + ", which no agent of '" + spec->id + "' writes (" + writers + ") and " + children +
                          ": it will write nothing";

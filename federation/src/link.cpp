@@ -2140,7 +2140,7 @@ struct Link::Impl {
         after = up_last_sent;
         // P8: a parent not heard for child_silence (stopped, or cut off) gets one frame per
         // go-back, a probe, not the window: a sensor resent 512 items every resend_after onto
-        // its LAN for as long as its gateway was down. Heard again, the window opens at once.
+        // its LAN for as long as its gateway was down. Any frame from it opens the window again.
         const bool parent_silent = Clock::now() - parent_heard > opt.child_silence;
         const std::size_t window = parent_silent ? 1 : opt.window;
         room = window > up_in_flight.size() ? window - up_in_flight.size() : 0;

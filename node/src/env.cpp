@@ -331,40 +331,56 @@ Result<bool> Env::open_later_tables(MDB_txn* txn, bool create) {
 
 namespace {
 // Why the LMDB data file `file` is cut short (a copy that stopped half way, a disk that filled
-// while copying), or nullopt: its newest meta page names its last page, and the file ends
-// before it. Such a file opened, and reads of its lost pages said "holds no Tahvel store
-// settings" or MDB_CORRUPTED. The meta page as LMDB 0.9 writes it on a 64-bit machine: a 16-byte
-// page header, then MDB_meta {uint32 magic, version; void* address; size_t mapsize; MDB_db
-// dbs[2] (48 bytes each; the first's md_pad is the page size); pgno_t last_pg; txnid_t txnid}.
-// Anything else (another layout, a file too short for its metas) is left to LMDB to judge.
+// while copying), or nullopt: the file ends before a root page its newest meta page names. Such
+// a file opened, and reads of its lost pages said "holds no Tahvel store settings" or
+// MDB_CORRUPTED. Not the meta's last page: LMDB allows a file shorter than that when its free
+// list holds the final pages (a store written without MDB_WRITEMAP, by mdb_load say), and the
+// roots are pages every commit writes anew. The meta page as LMDB 0.9 writes it on a 64-bit
+// machine: a 16-byte page header, then MDB_meta {uint32 magic, version; void* address; size_t
+// mapsize; MDB_db dbs[2]; pgno_t last_pg; txnid_t txnid}, an MDB_db being 48 bytes that start
+// with md_pad (the first's is the page size) and end with md_root. Anything else (another
+// layout, a file too short for its metas) is left to LMDB to judge.
 std::optional<std::string> cut_short(const std::filesystem::path& file) {
   if constexpr (sizeof(void*) != 8 || sizeof(std::size_t) != 8) return std::nullopt;
   constexpr std::uint32_t kMagic = 0xBEEFC0DE;
-  constexpr std::size_t kMagicAt = 16, kPageSizeAt = 40, kLastPageAt = 136, kTxnAt = 144, kMetaBytes = 152;
-  std::ifstream in(file, std::ios::binary);
+  constexpr std::uint64_t kNoPage = ~std::uint64_t{0};  // P_INVALID: an empty tree's root
+  constexpr std::size_t kMagicAt = 16, kPageSizeAt = 40, kFreeRootAt = 80, kMainRootAt = 128, kTxnAt = 144, kMetaBytes = 152;
+  std::ifstream in(file, std::ios::binary | std::ios::ate);  // one handle for the metas and the size
   if (!in) return std::nullopt;
-  auto meta_at = [&](std::uint64_t offset, std::uint32_t& page_size, std::uint64_t& last, std::uint64_t& txn) {
+  const std::streamoff end = in.tellg();
+  if (end < 0) return std::nullopt;
+  const auto size = static_cast<std::uint64_t>(end);
+  struct Meta {
+    std::uint32_t page_size = 0;
+    std::uint64_t highest_root = 0, txn = 0;
+  };
+  auto meta_at = [&](std::uint64_t offset) -> std::optional<Meta> {
     char bytes[kMetaBytes];
     in.clear();
     in.seekg(static_cast<std::streamoff>(offset));
-    if (!in.read(bytes, sizeof bytes)) return false;
+    if (!in.read(bytes, sizeof bytes)) return std::nullopt;
     std::uint32_t magic = 0;
+    Meta m;
+    std::uint64_t roots[2] = {};
     std::memcpy(&magic, bytes + kMagicAt, 4);
-    std::memcpy(&page_size, bytes + kPageSizeAt, 4);
-    std::memcpy(&last, bytes + kLastPageAt, 8);
-    std::memcpy(&txn, bytes + kTxnAt, 8);
-    return magic == kMagic && page_size >= 512 && (page_size & (page_size - 1)) == 0;
+    std::memcpy(&m.page_size, bytes + kPageSizeAt, 4);
+    std::memcpy(&roots[0], bytes + kFreeRootAt, 8);
+    std::memcpy(&roots[1], bytes + kMainRootAt, 8);
+    std::memcpy(&m.txn, bytes + kTxnAt, 8);
+    if (magic != kMagic || m.page_size < 512 || (m.page_size & (m.page_size - 1)) != 0) return std::nullopt;
+    for (std::uint64_t root : roots)
+      if (root != kNoPage) m.highest_root = std::max(m.highest_root, root);
+    return m;
   };
-  std::uint32_t page_size = 0, second_size = 0;
-  std::uint64_t last = 0, txn = 0, second_last = 0, second_txn = 0;
-  if (!meta_at(0, page_size, last, txn)) return std::nullopt;
-  if (meta_at(page_size, second_size, second_last, second_txn) && second_size == page_size && second_txn > txn) last = second_last;
-  std::error_code ec;
-  const std::uint64_t size = std::filesystem::file_size(file, ec);
-  const std::uint64_t reach = (last + 1) * page_size;
-  if (ec || size >= reach) return std::nullopt;
-  return file.string() + " is cut short: its pages reach " + std::to_string(reach) + " bytes, the file holds " +
-         std::to_string(size) + " (restore the store from a backup, or move its directory aside to make a new one)";
+  std::optional<Meta> meta = meta_at(0);
+  if (!meta) return std::nullopt;
+  if (auto second = meta_at(meta->page_size); second && second->page_size == meta->page_size && second->txn > meta->txn) meta = second;
+  if (meta->highest_root >= size / meta->page_size) {
+    const std::uint64_t reach = (meta->highest_root + 1) * meta->page_size;
+    return file.string() + " is cut short: its root page ends at byte " + std::to_string(reach) + ", the file holds " +
+           std::to_string(size) + " (restore the store from a backup, or move its directory aside to make a new one)";
+  }
+  return std::nullopt;
 }
 
 // The names of `dir`'s subdirectories that hold a store, sorted, at most five and "…" after
@@ -374,8 +390,10 @@ std::string stores_in_subdirectories(const std::filesystem::path& dir) {
   std::vector<std::string> names;
   for (std::filesystem::directory_iterator it(dir, ec), end; !ec && it != end; it.increment(ec)) {
     std::error_code ignored;
-    // Not the dot directories an init makes its store in before it renames it into place.
-    if (!it->path().filename().string().starts_with('.') && it->is_directory(ignored) &&
+    // Not the directories a store is made in before it is renamed into place: an init's dot
+    // directories, `up`'s <id>.making.
+    const std::string name = it->path().filename().string();
+    if (!name.starts_with('.') && !name.ends_with(".making") && it->is_directory(ignored) &&
         std::filesystem::exists(it->path() / "data.mdb", ignored))
       names.push_back(it->path().filename().string());
   }

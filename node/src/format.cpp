@@ -45,6 +45,7 @@
 #include <iostream>
 #include <map>
 #include <memory>
+#include <mutex>
 #include <optional>
 #include <string>
 #include <string_view>
@@ -509,6 +510,8 @@ void write_log_line(std::string_view line) noexcept {
     last_cut = done > 0 && done < text.size() ? true : done == text.size() ? false : last_cut.load();
   } catch (...) {  // out of memory: the line is lost, the process goes on
   }
+  static std::mutex clearing;  // the link logs from several threads
+  std::lock_guard lock(clearing);
   if (!std::cerr) std::cerr.clear();
 }
 

@@ -2241,8 +2241,8 @@ TEST_F(Cli, UpRefusesATopologyThatCouldNotRunAsWrittenNamingWhatAndWhere) {
        "t.toml:1:1: node 'hospital' has children (node 'home1') but no listen"},
       // A pattern of the file is named as the file writes it, not as a command-line flag.
       {listening + "[[node]]\nid = \"home1\"\nparent = \"hospital\"\nforward = [\"_ zz:foo _\"]\n",
-       "t.toml:8:11: node 'home1': forward: pattern '_ zz:foo _': unknown prefix 'zz' in 'zz:foo' (known: geo owl prov rdf "
-       "rdfs sosa ssn tv xsd; write the full IRI in <…> for any other)"},
+       "t.toml:8:11: node 'home1': forward: pattern '_ zz:foo _': unknown prefix 'zz' in 'zz:foo' (known: geo, owl, prov, "
+       "rdf, rdfs, sosa, ssn, tv, xsd; write the full IRI in <…> for any other)"},
       // A child node is agent <id> of its parent: the agents every node has are not free. A child
       // 'supervisor' had what its parent relayed from it replaced away every 5 s.
       {listening + "[[node]]\nid = \"supervisor\"\nparent = \"hospital\"\n",
