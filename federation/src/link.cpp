@@ -24,6 +24,7 @@
 #include <map>
 #include <mutex>
 #include <random>
+#include <set>
 #include <span>
 #include <thread>
 #include <unordered_map>
@@ -334,6 +335,8 @@ struct Link::Impl {
   Clock::time_point parent_heard{};
   std::int64_t parent_heard_ns = 0;
   std::string refused_by_parent;  // the parent's refusal, until a welcome
+  // P11a: the contexts of items applied from above, for the timer to see whom they address.
+  std::vector<std::string> down_contexts;
   StoreFlips parent_flips;        // welcomes from two parents' stores in turn; under mu
   Clock::time_point parent_store_heard{};  // last frame naming the welcoming parent's store
   std::string pending_parent_store;        // P6b: a welcome from another store while it lived
@@ -1248,6 +1251,8 @@ struct Link::Impl {
         child->last_seen = Clock::now();
       } else {
         counters.down_applied += outcome->stored.size();
+        for (const node::RelayedItem& r : applied.back())
+          if (!r.removal && !r.item.context.empty()) down_contexts.push_back(r.item.context);
       }
       counters.duplicates_in += outcome->duplicates;
       counters.already_held_in += outcome->already_held;
@@ -2469,6 +2474,11 @@ struct Link::Impl {
       answer_part = std::max<std::size_t>(4, std::min<std::size_t>(answer_part, st->max_literal_bytes) / 4 * 4);
     Clock::time_point next_beat{};
     std::chrono::nanoseconds hello_gap{0};  // after the last hello, before the random move; 0 while welcomed (P6)
+    // P11a: agents of this node that items from above address and nothing here knows. An earlier
+    // run's problem is not this run's to keep: it would stay on the board, said by no one.
+    std::set<std::string> unknown_addressees;
+    Clock::time_point next_addressee_check{};
+    if (opt.up) (void)link->report_problem("");
     Clock::time_point last_round = Clock::now();
     while (!stopping) {
       std::vector<BoardWrite> writes;
@@ -2584,7 +2594,55 @@ struct Link::Impl {
       send_all(acks);
       for (std::uint64_t item : abandoned) (void)node->remove_item(item);
       write_child_states(*link, dirty);
+      if (opt.up) look_at_addressees(*node, *link, unknown_addressees, next_addressee_check);
     }
+  }
+
+  // P11a: an item from above addressed (R18) to an agent of this node that nothing here knows —
+  // no program runs as it, it subscribes to nothing and no agent of this node has written about
+  // it — waits in that agent's input buffer for ever: a typo in the --context at the hospital,
+  // two hops up, was stored without a word anywhere. Said as the link's problem, which `status`
+  // shows on this node and on the machines above, until each such agent is known; looked at
+  // again every second while any is not. What items from above say about the agent does not make
+  // it known: such an item is usually about its own addressee.
+  void look_at_addressees(node::Node& node, node::Agent& link, std::set<std::string>& unknown, Clock::time_point& next_check) {
+    std::vector<std::string> contexts;
+    {
+      std::lock_guard lock(mu);
+      contexts.swap(down_contexts);
+    }
+    const auto now = Clock::now();
+    if (contexts.empty() && (unknown.empty() || now < next_check)) return;
+    next_check = now + 1s;
+    std::set<std::string> candidates = unknown, still_unknown;
+    for (const std::string& context : contexts)
+      if (auto agent = node.addressee(context)) candidates.insert(*agent);
+    {  // released before the problem is written
+      auto snap = node.snapshot();
+      if (!snap) return;
+      auto any = [&](const node::Pattern& pattern) {
+        bool found = false;
+        auto read = snap->for_each(pattern, [&](const node::Record&) { return !(found = true); });
+        return found || !read;  // a read error is no reason to complain
+      };
+      const node::Term subscriber = node::Term::iri(std::string(vocab::kTv) + "subscriber");
+      for (const std::string& agent : candidates) {
+        const node::Term who = node::Term::iri(agent);
+        if (!any({.s = who, .source = self}) && !any({.p = subscriber, .o = who, .source = self})) still_unknown.insert(agent);
+      }
+    }
+    if (still_unknown == unknown) return;
+    std::string names;
+    for (const std::string& agent : still_unknown) names += (names.empty() ? "<" : ", <") + agent + ">";
+    const std::string problem =
+        still_unknown.empty() ? std::string()
+                              : "configuration from above addresses " + names + ", which nothing on <" + self +
+                                    "> knows (no program runs as it, it subscribes to nothing, and nothing here has said "
+                                    "anything of it): it waits in that agent's input buffer until one takes it (a typo in "
+                                    "the item's context, or an agent not deployed here?)";
+    if (auto said = link.report_problem(problem); !said) return log("cannot write the link's problem: " + said.error().message);
+    log(problem.empty() ? "every agent that configuration from above addresses is known here now" : problem);
+    unknown = std::move(still_unknown);
   }
 
   // P13: queries asked on this board that an earlier run of the link had sent down. Their answer

@@ -584,6 +584,46 @@ TEST(Link, ConfigurationAChildCanNeverStoreIsPassedOverAndTheConfigurationAfterI
   EXPECT_EQ(tree.home1->counters().items_refused, 1u);
 }
 
+// P11a: configuration addressed to an agent the home does not have (a typo in the context at
+// the hospital, "hrvv") waited in that agent's input buffer for ever, and no node said a word.
+// The home's link says it as its problem, on the home's board (status shows it there and above),
+// and takes it back once the agent is known there (here: it subscribes). What the item itself
+// says of the agent does not make it known. An item for an agent the home knows raises nothing.
+TEST(Link, ConfigurationForAnAgentTheHomeDoesNotKnowIsItsLinksProblemUntilTheAgentIsKnown) {
+  Tree tree;
+  ASSERT_TRUE(tree.start_hospital_and_home1());
+  auto home1 = node::Node::open(tree.home1_dir).value();
+  auto hrv = home1.agent("hrv").value();
+  ASSERT_TRUE(hrv.subscribe({.p = Term::iri(kEx + "n")}));
+  auto operator_ = node::Node::open(tree.hospital_dir).value().agent("operator").value();
+  auto configure = [&](const std::string& agent) {
+    node::Item config;
+    config.context = kHome1 + "/" + agent;
+    config.add(Term::iri(kHome1 + "/" + agent), Term::iri(kEx + "windowS"), Term::integer(120));
+    return static_cast<bool>(operator_.store(config));
+  };
+  const node::Pattern problem{.s = Term::iri(kHome1 + "/link"), .p = Term::iri(node::kProblem)};
+  auto problems = [&] {
+    std::vector<std::string> said;
+    const std::vector<node::Record> records = home1.snapshot().value().list(problem).value();
+    for (const auto& r : records) said.push_back(r.triple.o.value);
+    return said;
+  };
+  ASSERT_TRUE(configure("hrv"));
+  ASSERT_TRUE(eventually([&] { return count(tree.home1_dir, {.p = Term::iri(kEx + "windowS")}) == 1; }));
+  std::this_thread::sleep_for(300ms);
+  EXPECT_TRUE(problems().empty()) << problems().front();
+  ASSERT_TRUE(configure("hrvv"));
+  ASSERT_TRUE(eventually([&] { return problems().size() == 1; }));
+  EXPECT_NE(problems().front().find("configuration from above addresses <" + kHome1 + "/hrvv>, which nothing on <" + kHome1 +
+                                    "> knows"),
+            std::string::npos)
+      << problems().front();
+  EXPECT_NE(tree.home1_log.text().find("addresses <" + kHome1 + "/hrvv>"), std::string::npos) << tree.home1_log.text();
+  ASSERT_TRUE(home1.agent("hrvv").value().subscribe({.p = Term::iri(kEx + "n")}));
+  EXPECT_TRUE(eventually([&] { return problems().empty(); }, 5s));
+}
+
 TEST(Link, ConfigurationForOneHomeReachesThatHomeAndTheAddressedAgentOnly) {
   Tree tree;
   tree.hospital = tree.start_hospital();
