@@ -2625,10 +2625,15 @@ struct Link::Impl {
         auto read = snap->for_each(pattern, [&](const node::Record&) { return !(found = true); });
         return found || !read;  // a read error is no reason to complain
       };
+      // Index lookups only (by subject, by predicate and object): this runs every second while
+      // an agent is unknown, on stores of millions of records.
       const node::Term subscriber = node::Term::iri(std::string(vocab::kTv) + "subscriber");
+      const node::Term area_subscriber = node::Term::iri(std::string(vocab::kTv) + "areaSubscriber");  // docs/spatial.md
       for (const std::string& agent : candidates) {
         const node::Term who = node::Term::iri(agent);
-        if (!any({.s = who, .source = self}) && !any({.p = subscriber, .o = who, .source = self})) still_unknown.insert(agent);
+        if (!any({.s = who, .source = self}) && !any({.p = subscriber, .o = who, .source = self}) &&
+            !any({.p = area_subscriber, .o = who, .source = self}))
+          still_unknown.insert(agent);
       }
     }
     if (still_unknown == unknown) return;
@@ -2637,8 +2642,8 @@ struct Link::Impl {
     const std::string problem =
         still_unknown.empty() ? std::string()
                               : "configuration from above addresses " + names + ", which nothing on <" + self +
-                                    "> knows (no program runs as it, it subscribes to nothing, and nothing here has said "
-                                    "anything of it): it waits in that agent's input buffer until one takes it (a typo in "
+                                    "> knows (no program of that id runs here, it subscribes to nothing, and nothing here "
+                                    "has written of it): it waits in that agent's input buffer until one takes it (a typo in "
                                     "the item's context, or an agent not deployed here?)";
     if (auto said = link.report_problem(problem); !said) return log("cannot write the link's problem: " + said.error().message);
     log(problem.empty() ? "every agent that configuration from above addresses is known here now" : problem);

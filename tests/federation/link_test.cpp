@@ -613,10 +613,17 @@ TEST(Link, ConfigurationForAnAgentTheHomeDoesNotKnowIsItsLinksProblemUntilTheAge
   ASSERT_TRUE(eventually([&] { return count(tree.home1_dir, {.p = Term::iri(kEx + "windowS")}) == 1; }));
   std::this_thread::sleep_for(300ms);
   EXPECT_TRUE(problems().empty()) << problems().front();
+  // An area subscription (docs/spatial.md) makes its agent known too, whether or not a sensor
+  // stands in the area now.
+  node::Item area;
+  area.add(Term::blank("a"), Term::iri(std::string(vocab::kTv) + "areaSubscriber"), Term::iri(kHome1 + "/ui"));
+  ASSERT_TRUE(home1.agent("carer").value().store(area));
+  ASSERT_TRUE(configure("ui"));
   ASSERT_TRUE(configure("hrvv"));
   ASSERT_TRUE(eventually([&] { return problems().size() == 1; }));
+  EXPECT_EQ(problems().front().find("/ui>"), std::string::npos) << problems().front();
   EXPECT_NE(problems().front().find("configuration from above addresses <" + kHome1 + "/hrvv>, which nothing on <" + kHome1 +
-                                    "> knows"),
+                                    "> knows (no program of that id runs here"),
             std::string::npos)
       << problems().front();
   EXPECT_NE(tree.home1_log.text().find("addresses <" + kHome1 + "/hrvv>"), std::string::npos) << tree.home1_log.text();
