@@ -27,6 +27,7 @@
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
+#include <time.h>
 
 #include "tahvel/node/tahvel.h"
 
@@ -133,24 +134,30 @@ static tahvel_status process(tahvel_agent* agent, char* ntriples) {
   return TAHVEL_OK;
 }
 
+static double monotonic_seconds(void) {
+  struct timespec now;
+  clock_gettime(CLOCK_MONOTONIC, &now);
+  return (double)now.tv_sec + (double)now.tv_nsec / 1e9;
+}
+
 /* Takes, derives and acknowledges until asked to stop. Returns the exit status. */
 static int run(tahvel_agent* agent, const struct options* options) {
   long done = 0;
-  long idle_ms = 0;
+  /* Measured, not counted in timeouts: a signal ends a wait early as a timeout does. */
+  double last_input = monotonic_seconds();
   while (!g_stop && (options->count == 0 || done < options->count)) {
     uint64_t item;
     char* text;
     tahvel_status status = tahvel_take(agent, TAKE_TIMEOUT_MS, &item, &text, NULL);
-    if (status == TAHVEL_TIMEOUT) {
-      idle_ms += TAKE_TIMEOUT_MS;
-      if (idle_ms >= options->idle_seconds * 1000) {
+    if (status == TAHVEL_TIMEOUT) { /* nothing yet (or a signal): look again */
+      if (monotonic_seconds() - last_input >= (double)options->idle_seconds) {
         fprintf(stderr, "example_agent: no input for %ld s, stopping\n", options->idle_seconds);
         break;
       }
       continue;
     }
     if (status != TAHVEL_OK) return report("tahvel_take", status);
-    idle_ms = 0;
+    last_input = monotonic_seconds();
     status = process(agent, text);
     tahvel_free(text);
     if (status != TAHVEL_OK) return report("tahvel_store", status); /* not acked: redelivered */

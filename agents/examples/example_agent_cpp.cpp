@@ -16,6 +16,7 @@
 //
 // Stops after N items, after SECONDS without input (default 10), or on SIGINT/SIGTERM.
 // Exit status: 0 done, 1 Tahvel error, 2 usage.
+#include <chrono>
 #include <csignal>
 #include <cstdlib>
 #include <iostream>
@@ -102,19 +103,19 @@ tn::Result<void> process(tn::Agent& agent, const tn::Delivery& delivery) {
 
 int run(tn::Agent& agent, const Options& options) {
   long done = 0;
-  long idle_ms = 0;
+  // Measured, not counted in timeouts: a signal ends a wait early as a timeout does.
+  auto last_input = std::chrono::steady_clock::now();
   while (!g_stop && (options.count == 0 || done < options.count)) {
     auto taken = agent.take(1000ms, tn::Ack::manual);
     if (!taken) return report("take", taken.error());
-    if (!*taken) {  // timeout
-      idle_ms += 1000;
-      if (idle_ms >= options.idle_seconds * 1000) {
+    if (!*taken) {  // timeout (or a signal): look again
+      if (std::chrono::steady_clock::now() - last_input >= std::chrono::seconds(options.idle_seconds)) {
         std::cerr << "example_agent_cpp: no input for " << options.idle_seconds << " s, stopping\n";
         break;
       }
       continue;
     }
-    idle_ms = 0;
+    last_input = std::chrono::steady_clock::now();
     const tn::Delivery& delivery = **taken;
     if (auto processed = process(agent, delivery); !processed)
       return report("store", processed.error());  // not acknowledged: delivered again

@@ -844,6 +844,10 @@ Result<std::uint64_t> Agent::subscribe(const Pattern& given, const SubscribeOpti
     return fail(Errc::invalid_argument, "a subscription's source must be an IRI");
   for (const auto* t : {&pattern.s, &pattern.p, &pattern.o})
     if (*t && (*t)->is_blank()) return fail(Errc::invalid_argument, "a subscription pattern cannot name a blank node");
+  // No record has such a subject or predicate: the subscription would never match (as the C
+  // API refuses it).
+  if (pattern.s && pattern.s->is_literal()) return fail(Errc::invalid_argument, "a subscription's subject cannot be a literal");
+  if (pattern.p && !pattern.p->is_iri()) return fail(Errc::invalid_argument, "a subscription's predicate must be an IRI");
   Item item;
   item.persistent = true;
   const Term node = Term::blank("subscription");

@@ -1636,6 +1636,21 @@ TEST(Store, ARemovalByPatternLeavesSubscriptionsWholeAndRemovingTheItemEndsOne) 
   EXPECT_EQ(*monitor->pending(), 0u);
 }
 
+// A literal subject or predicate matches no record: Agent::subscribe stored such a subscription,
+// persistent and never matching, where the C API refuses it (an API probe).
+TEST(Store, ASubscriptionWithALiteralSubjectOrPredicateIsRefusedAsTheCApiRefusesIt) {
+  TempDir dir;
+  Node node = make_node(dir.path());
+  auto agent = node.agent("a").value();
+  for (const Pattern& pattern : {Pattern{.s = Term::literal("x")}, Pattern{.p = Term::literal("x")}}) {
+    auto subscribed = agent.subscribe(pattern);
+    ASSERT_FALSE(subscribed);
+    EXPECT_EQ(subscribed.error().code, Errc::invalid_argument) << subscribed.error().message;
+  }
+  EXPECT_EQ(node.snapshot().value().count({.p = Term::iri("https://w3id.org/tahvel#subscriber")}).value(), 0u);
+  EXPECT_TRUE(agent.subscribe({.o = Term::literal("x")})) << "an object may be a literal";
+}
+
 TEST(Store, SubscribingAgainWithTheSamePatternKeepsOneSubscription) {
   TempDir dir;
   Node node = make_node(dir.path());

@@ -9,7 +9,7 @@
 namespace tahvel::node {
 
 enum class Errc {
-  invalid_argument = 1,  // a bad parameter (empty id, unbound pattern where one is required, ...)
+  invalid_argument = 1,  // a bad parameter (a literal subject, unbound pattern where one is required, ...)
   invalid_iri,           // an IRI that does not parse; message names the position
   syntax,                // N-Triples/Turtle/JSON input error; message names line and column
   literal_too_large,     // a literal over the node's limit; message names the triple and sizes

@@ -263,9 +263,11 @@ class Agent {
   // The oldest item in this agent's input buffer, waiting up to `timeout` for one to arrive
   // (woken by the writer's commit, no polling). Returns nullopt on timeout. An item removed from
   // the store before it was taken is skipped. milliseconds::max() (or any timeout too long to
-  // add to now) waits without limit; zero or a negative one does not wait. A signal handler
-  // installed without SA_RESTART ends the wait as a timeout does, so that a program sees the
-  // stop flag its handler set; so do peek, Node::watch and Node::wait_for_commit.
+  // add to now) waits without limit; zero or a negative one does not wait. A signal that runs a
+  // handler ends the wait as a timeout does, SA_RESTART or not (the kernel does not restart a
+  // wait with a time limit), so that a program sees the stop flag its handler set; so do peek,
+  // Node::watch and Node::wait_for_commit. A loop that waits for items takes nullopt as "look
+  // again".
   Result<std::optional<Delivery>> take(std::chrono::milliseconds timeout,
                                        Ack ack = Ack::automatic) noexcept;
 

@@ -11,7 +11,10 @@
  *     tahvel_node_open("state/home1", &node);
  *     tahvel_agent_open(node, "classifier", &agent);          IRI = node IRI + "/classifier"
  *     tahvel_subscribe(agent, NULL, "<https://w3id.org/tahvel#heartRate>", NULL, &sub);
- *     while (tahvel_take(agent, 1000, &item, &text, &len) == TAHVEL_OK) {
+ *     for (;;) {
+ *         tahvel_status st = tahvel_take(agent, 1000, &item, &text, &len);
+ *         if (st == TAHVEL_TIMEOUT) continue;                  nothing yet (or a signal): look again
+ *         if (st != TAHVEL_OK) break;                          tahvel_last_error() says why
  *         ... read `text` (N-Triples), tahvel_store(agent, ...) what you derive ...
  *         tahvel_free(text);
  *         tahvel_ack(agent, item);                             only now is it gone for good
@@ -115,7 +118,8 @@ const char* tahvel_strerror(tahvel_status status);
  * TAHVEL_TIMEOUT from tahvel_take() counts as a failure here and sets a message too. */
 const char* tahvel_last_error(void);
 
-/* Frees a string returned by tahvel_take() or tahvel_list(). NULL is ignored. */
+/* Frees a string the library returned (tahvel_take(), tahvel_take_as(), tahvel_list(),
+ * tahvel_list_as(), tahvel_watch()). NULL is ignored. */
 void tahvel_free(void* ptr);
 
 /* ------------------------------------------------------------------------------------------ */
@@ -171,8 +175,8 @@ tahvel_status tahvel_list_as(tahvel_node* node, const char* s, const char* p, co
  * sequence number); a removal is the removed record's object led by "removed":true and its
  * "seq"; a change that cannot be read (a damaged record or log entry) is
  * {"seq":N,"removed":false|true,"unreadable":"why"}. Waits up to `timeout_ms` (negative: without limit) for the first change when there is
- * none yet (woken by the writer's commit); a signal handler installed without SA_RESTART ends
- * the wait as a timeout does, so that a watcher sees its stop flag. Sets *bookmark_out (may be NULL) to the last sequence
+ * none yet (woken by the writer's commit); a signal that runs a handler ends the wait as a
+ * timeout does, so that a watcher sees its stop flag. Sets *bookmark_out (may be NULL) to the last sequence
  * number returned, or to `bookmark` when none: pass it to the next call to resume exactly.
  * The text (empty on timeout: TAHVEL_OK, not TAHVEL_TIMEOUT) is freed with tahvel_free().
  * Removals older than the last 65,536 are no longer reported.
@@ -240,7 +244,7 @@ tahvel_status tahvel_store(tahvel_agent* agent, const char* rdf, size_t len, int
  *     _:x tv:subscriber <agent IRI> ; tv:subject S ; tv:predicate P ; tv:object O .
  * (only the bound positions), so it survives restarts of the agent. Calling tahvel_subscribe
  * again with the same pattern (an agent that restarts) adds nothing and gives back the existing
- * subscription's id. Remove one with tahvel_remove_item().
+ * subscription's id. End one with tahvel_unsubscribe() (or tahvel_remove_item() of its id).
  * Sets *subscription_out (may be NULL) to the subscription's item id.
  * Errors: TAHVEL_INVALID_ARGUMENT (NULL handle, a literal as s, a non-IRI as p, a blank node
  * anywhere), TAHVEL_SYNTAX, TAHVEL_INVALID_IRI, TAHVEL_STORE_FULL, TAHVEL_IO, TAHVEL_NO_MEMORY. */
@@ -273,10 +277,10 @@ tahvel_status tahvel_subscribe_earlier(tahvel_agent* agent, const char* s, const
  * An item removed from the store before it was taken is skipped.
  *
  * Returns TAHVEL_TIMEOUT when no item arrived in time (out-parameters set to NULL/0), and also
- * when a signal handler installed without SA_RESTART ran during the wait (tahvel_last_error
- * says "ended by a signal"): an agent whose SIGTERM handler sets a stop flag sees it at once,
- * even in a wait without limit. (With SA_RESTART, as signal() installs handlers, the wait goes
- * on, as read() does.)
+ * when a signal that runs a handler arrived during the wait, SA_RESTART or not (tahvel_last_error
+ * says "ended by a signal"; the kernel does not restart a wait with a time limit): an agent
+ * whose SIGTERM handler sets a stop flag sees it at once, even in a wait without limit. A loop
+ * that waits for items takes TAHVEL_TIMEOUT as "look again".
  * Errors: TAHVEL_INVALID_ARGUMENT, TAHVEL_IO, TAHVEL_CORRUPT, TAHVEL_NO_MEMORY. */
 tahvel_status tahvel_take(tahvel_agent* agent, int timeout_ms, uint64_t* item_out,
                           char** ntriples_out, size_t* len_out);
