@@ -190,7 +190,7 @@ class RPeakDetector::Impl {
   void note_hum(std::int64_t qrs);
   bool dominant_positive(double up, double down) const;
   // The largest positive and negative deviations of `signal` (a ring: raw_ or notched_) over
-  // [qrs - before, qrs + after], measured from the mean of the window's ends; nullopt when the
+  // [qrs - before, qrs + after], measured from the local baseline (Baseline); nullopt when the
   // window is too short or flat.
   struct Deflections {
     double up = 0, down = 0;  // both >= 0
@@ -202,6 +202,26 @@ class RPeakDetector::Impl {
   double floor() const;
   // Sample i of one of the rings (bp_, d_, raw_, notched_).
   double at(const std::vector<double>& ring, std::int64_t i) const { return ring[static_cast<std::size_t>(i & mask_)]; }
+  // The local baseline under the window [lo, hi] of a ring (raw_ or notched_): the line through
+  // the mean of the window's ends with the slope of the signal from slope_half_ before to
+  // slope_half_ after the window's centre, outside the QRS. A constant level (the ends' mean
+  // alone) left the slope of baseline wander in the window, and the extremum and centroid
+  // moved towards its higher end: up to 30 samples at 10-15 mV/s. The ends of the window
+  // itself gave a worse slope: on wide complexes they lie on the QRS.
+  class Baseline {
+   public:
+    Baseline(const std::vector<double>& ring, std::int64_t lo, std::int64_t hi, const Impl& impl)
+        : centre_(static_cast<double>(lo + hi) / 2), level_((impl.at(ring, lo) + impl.at(ring, hi)) / 2) {
+      const std::int64_t c = (lo + hi) / 2;
+      const std::int64_t a = std::max<std::int64_t>(0, c - impl.slope_half_);
+      const std::int64_t b = std::min<std::int64_t>(impl.n_ - 1, c + impl.slope_half_);
+      slope_ = b > a ? (impl.at(ring, b) - impl.at(ring, a)) / static_cast<double>(b - a) : 0;
+    }
+    double operator()(std::int64_t i) const { return level_ + slope_ * (static_cast<double>(i) - centre_); }
+
+   private:
+    double centre_, level_, slope_ = 0;
+  };
   double bp(std::int64_t i) const { return at(bp_, i); }
   double slope(std::int64_t i) const { return at(d_, i); }
   double raw(std::int64_t i) const { return at(raw_, i); }
@@ -211,7 +231,7 @@ class RPeakDetector::Impl {
   std::int64_t win_, hold_, fpeak_timeout_, twave_, second_, relearn_, margin_, deriv_,
       bls_half_, bls_pair_;
   double bp_delay_, min_p2p_, frac_;
-  std::int64_t refine_before_, refine_after_, locate_half_, centroid_half_;
+  std::int64_t refine_before_, refine_after_, locate_half_, centroid_half_, slope_half_;
 
   // Filters and the integration.
   Biquad hp_, lp_;
@@ -311,6 +331,7 @@ RPeakDetector::Impl::Impl(const DetectorOptions& o)
       refine_after_(samples(30, o.fs)),
       locate_half_(samples(60, o.fs)),
       centroid_half_(samples(42, o.fs)),
+      slope_half_(samples(100, o.fs)),
       hp_(butterworth(o.highpass_hz, o.fs, true)),
       lp_(butterworth(o.lowpass_hz, o.fs, false)),
       p_half_(samples(80, o.fs)),
@@ -463,7 +484,7 @@ void RPeakDetector::Impl::on_fpeak(double height, std::int64_t at) {
 }
 
 // The R wave on the original signal: the dominant extremum from 50 ms before to 30 ms after the
-// band-passed QRS, measured from the mean of the two window ends (a local baseline). The window
+// band-passed QRS, measured from the local baseline (Baseline: wander does not move it). The window
 // looks further back than forward because the band-passed point is, if anything, late: wide
 // complexes carry more energy at low frequencies, which the band-pass delays more than its
 // centre (on paced or V2 leads a symmetric ±50 ms pushed some points past the 150 ms match).
@@ -477,10 +498,10 @@ auto RPeakDetector::Impl::deflections(std::int64_t qrs, std::int64_t before, std
   const std::int64_t lo = std::max<std::int64_t>(0, qrs - before);
   const std::int64_t hi = std::min<std::int64_t>(n_ - 1, qrs + after);
   if (hi - lo < 2) return std::nullopt;
-  const double base = (at(signal, lo) + at(signal, hi)) / 2;
+  const Baseline base(signal, lo, hi, *this);
   Deflections d{0, 0, qrs, qrs};
   for (std::int64_t i = lo; i <= hi; ++i) {
-    const double v = at(signal, i) - base;
+    const double v = at(signal, i) - base(i);
     if (v > d.up) d.up = v, d.up_at = i;
     if (-v > d.down) d.down = -v, d.down_at = i;
   }
@@ -509,9 +530,9 @@ bool RPeakDetector::Impl::dominant_positive(double up, double down) const {
 // the arg max of a flat-topped R wave jitters by a sample with noise). Two steps, on the original
 // signal (with mains hum notched out while there is hum, notched_):
 //  1. the dominant extremum within ±60 ms of the band-passed point,
-//     measured from the mean of the window ends, chosen by the lead's polarity as fiducial()
+//     measured from the local baseline (Baseline), chosen by the lead's polarity as fiducial()
 //     does: the main deflection of the QRS;
-//  2. the centroid of the squared deviation from the local baseline (mean of the window ends)
+//  2. the centroid of the squared deviation from the local baseline (Baseline of its window)
 //     over ±42 ms around that extremum, recentred twice: the centre of the QRS's main energy.
 //     The centroid averages over the whole deflection, so it does not jitter with noise on the
 //     peak or with a change of polarity between near-equal R and S waves, and it stays on the
@@ -530,10 +551,10 @@ std::int64_t RPeakDetector::Impl::locate(std::int64_t qrs) const {
     const std::int64_t mid = std::llround(centre);
     const std::int64_t a = std::max<std::int64_t>(0, mid - centroid_half_);
     const std::int64_t b = std::min<std::int64_t>(n_ - 1, mid + centroid_half_);
-    const double level = (at(signal, a) + at(signal, b)) / 2;
+    const Baseline level(signal, a, b, *this);
     double weight = 0, moment = 0;
     for (std::int64_t i = a; i <= b; ++i) {
-      const double e = (at(signal, i) - level) * (at(signal, i) - level);
+      const double e = (at(signal, i) - level(i)) * (at(signal, i) - level(i));
       weight += e;
       moment += e * static_cast<double>(i);
     }

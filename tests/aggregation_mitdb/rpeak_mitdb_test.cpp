@@ -134,8 +134,8 @@ TEST(RPeakMitdb, TheSmallSecondLeadKeepsItsBeats) {
   EXPECT_GE(100 * s.positive_predictivity(), 97.5);
 }
 
-// Adds `mv` of mains hum at `hz` to the record's lead.
-void add_hum(Record& r, double hz, double mv) {
+// A sine of `mv` at `hz` added to the lead: mains hum, or (below a few Hz) baseline wander.
+void add_sine(Record& r, double hz, double mv) {
   for (std::size_t i = 0; i < r.lead.size(); ++i)
     r.lead[i] += static_cast<std::int32_t>(
         std::lround(mv * r.gain * std::sin(2 * std::numbers::pi * hz * static_cast<double>(i) / r.fs + 0.7)));
@@ -232,11 +232,30 @@ TEST(RPeakMitdb, RrIntervalsOfNormalBeatsMatchTheReferenceToAboutASample) {
 TEST(RPeakMitdb, MainsHumDoesNotMoveTheBeats) {
   const std::vector<std::string> names = mitdb_records();
   if (names.empty()) GTEST_SKIP() << "MIT-BIH records not found (set TAHVEL_MITDB)";
+  const RrErrors clean = rr_errors(names, "", [](Record&) {});
   for (const double hz : {50.0, 60.0}) {
     const std::string what = " + 0.3 mV at " + std::to_string(static_cast<int>(hz)) + " Hz";
-    const RrErrors e = rr_errors(names, what.c_str(), [&](Record& r) { add_hum(r, hz, 0.3); });
+    const RrErrors e = rr_errors(names, what.c_str(), [&](Record& r) { add_sine(r, hz, 0.3); });
     EXPECT_LE(e.all.rms(), 1.7) << what;
-    EXPECT_GE(static_cast<double>(e.within_one_sample), 0.8 * static_cast<double>(e.scored)) << what;
+    EXPECT_GE(e.within_one_sample + 2, clean.within_one_sample) << what;
+  }
+}
+
+// Baseline wander (breathing, movement, electrodes shifting on the skin) puts a slope under the
+// QRS. Measured from the mean of its window's ends, the reported point moved towards the
+// window's higher end: 1 mV at 0.3 Hz took the RR error to 2.0 samples rms, 2 mV at 1 Hz to 5.8
+// and 5 mV at 0.5 Hz to 10.5 (6 records within a sample; RMSSD of 100 +48 %), with no beat
+// missed or added, so nothing warned. The baseline now follows the slope around the QRS.
+TEST(RPeakMitdb, BaselineWanderDoesNotMoveTheBeats) {
+  const std::vector<std::string> names = mitdb_records();
+  if (names.empty()) GTEST_SKIP() << "MIT-BIH records not found (set TAHVEL_MITDB)";
+  const RrErrors clean = rr_errors(names, "", [](Record&) {});
+  for (const auto& [hz, mv] : {std::pair{0.3, 1.0}, std::pair{1.0, 2.0}, std::pair{0.5, 5.0}}) {
+    char what[64];
+    std::snprintf(what, sizeof what, " + %.0f mV of wander at %.1f Hz", mv, hz);
+    const RrErrors e = rr_errors(names, what, [&](Record& r) { add_sine(r, hz, mv); });
+    EXPECT_LE(e.all.rms(), clean.all.rms() + 0.4) << what;
+    EXPECT_GE(e.within_one_sample + 4, clean.within_one_sample) << what;
   }
 }
 
@@ -250,7 +269,7 @@ TEST(RPeakMitdb, OutputIsIdenticalWhateverTheChunking) {
     if (std::find(names.begin(), names.end(), record) == names.end()) continue;
     Record r = load(record);
     ASSERT_FALSE(r.lead.empty()) << name;
-    if (name != record) add_hum(r, 50, 0.3);
+    if (name != record) add_sine(r, 50, 0.3);
     const DetectorOptions o = options_for(r);
     const std::vector<std::int64_t> whole = detect_r_peaks(r.lead, o);
     ASSERT_GT(whole.size(), 1000u) << name;
