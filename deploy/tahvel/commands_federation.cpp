@@ -1612,7 +1612,7 @@ int run_up(const Args& args) {
       std::getline(said, count);
       const std::size_t started = count.empty() ? program_count : std::strtoull(count.c_str(), nullptr, 10);
       for (std::string line; std::getline(said, line);) std::cout << "up: " << line << "\n";
-      std::cout << "up: " << topo.name << ": " << started << " programs under supervisor"
+      std::cout << "up: " << topo.name << ": " << started << (started == 1 ? " program" : " programs") << " under supervisor"
                 << (started == program_count ? std::string()
                                              : " (of " + std::to_string(program_count) + " in the file for this machine; see above)")
                 << " (pid file "

@@ -41,9 +41,9 @@ const Command kBenchCommand{
     1, 64, false};
 
 void print_global_help(std::ostream& out) {
-  out << "usage: tahvel SUBCOMMAND DIR [options]\n\n"
+  out << "usage: tahvel SUBCOMMAND DIR [options]   (up FILE, down and status --state DIR, hrv RECORD)\n\n"
          "Tahvel's command line: create a node's whiteboard and put, list, take and follow its\n"
-         "records. DIR is the node's store directory.\n\nsubcommands:\n";
+         "records; bring deployments up and down. DIR is the node's store directory.\n\nsubcommands:\n";
   auto row = [&](const Command& c) {
     std::string name(c.name);
     out << "  " << name << std::string(name.size() < 12 ? 12 - name.size() : 1, ' ') << c.summary

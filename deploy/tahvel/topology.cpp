@@ -209,7 +209,7 @@ const char* agent_id_in_use(const std::string& id) {
   if (id == "link" || id == "uplink") return "the node's link (its communication agent)";
   if (id == "supervisor") return "the supervisor, which replaces what it wrote every few seconds";
   if (id == "deploy") return "the one `up` loads files as";
-  if (id == "cli") return "the one `tahvel put` and `tahvel store` write as";
+  if (id == "cli") return "the one `tahvel put` and `tahvel load` write as";
   if (id.starts_with("query-")) return "one of `tahvel query`'s";
   // The area keeper and the dispatcher take every item in their input buffers, which on the
   // parent are a child's down queue: configuration for such a child would be eaten.
@@ -283,7 +283,8 @@ node::Result<Topology> load_topology(const std::filesystem::path& file) {
     NodeSpec spec;
     TAHVEL_TRY(id, typed<std::string>(*t, "id", file, "node: ", "a string"));
     if (!id) return node::fail(Errc::invalid_argument, where(*t, file) + ": a node needs an id");
-    if (auto ok = uri::check_id(*id); !ok) return node::fail(Errc::invalid_argument, where(*t, file) + ": node id '" + *id + "': " + ok.error().message);
+    // check_id's message shows the id with its control characters escaped: not quoted raw here too.
+    if (auto ok = uri::check_id(*id); !ok) return node::fail(Errc::invalid_argument, where(*t, file) + ": node id: " + ok.error().message);
     spec.id = *id;
     if (by_id.count(spec.id)) return node::fail(Errc::invalid_argument, where(*t, file) + ": node id '" + spec.id + "' appears twice");
     // STATE/<id> is the node's store, beside the supervisors' files in STATE (the whole file's
@@ -379,7 +380,7 @@ node::Result<Topology> load_topology(const std::filesystem::path& file) {
     if (t->get("agent") && !t->get("agent")->is_array_of_tables())
       return node::fail(Errc::invalid_argument, where(*t->get("agent"), file) + ": " + what + "agent must be [[node.agent]] tables");
     if (const toml::array* agents = (*t)["agent"].as_array()) {
-      std::set<std::string> seen;
+      std::map<std::string, std::uint32_t> seen;  // agent id -> the line of its table
       for (const auto& a : *agents) {
         const toml::table* at = a.as_table();
         if (!at) return node::fail(Errc::invalid_argument, where(a, file) + ": [[node.agent]] must be a table");
@@ -387,12 +388,13 @@ node::Result<Topology> load_topology(const std::filesystem::path& file) {
         TAHVEL_TRY(agent_id, typed<std::string>(*at, "id", file, what + "agent: ", "a string"));
         agent.id = agent_id.value_or("");
         agent.at = where(*at, file);
+        if (auto ok = uri::check_id(agent.id); !ok)
+          return node::fail(Errc::invalid_argument, where(*at, file) + ": node '" + spec.id + "': agent id: " + ok.error().message);
         if (auto ok = only_keys(*at, {"id", "run", "run_with_mitdb", "restart"}, file, what + "agent '" + agent.id + "': "); !ok)
           return Unexpected<node::Error>{ok.error()};
-        if (auto ok = uri::check_id(agent.id); !ok)
-          return node::fail(Errc::invalid_argument, where(*at, file) + ": node '" + spec.id + "': agent id '" + agent.id + "': " + ok.error().message);
-        if (!seen.insert(agent.id).second)
-          return node::fail(Errc::invalid_argument, where(*at, file) + ": node '" + spec.id + "': agent id '" + agent.id + "' is taken");
+        if (auto [earlier, added] = seen.emplace(agent.id, at->source().begin.line); !added)
+          return node::fail(Errc::invalid_argument, where(*at, file) + ": node '" + spec.id + "': agent id '" + agent.id +
+                                                        "' is taken: the node's agent on line " + std::to_string(earlier->second) + " has it");
         if (const char* owner = agent_id_in_use(agent.id))
           return node::fail(Errc::invalid_argument, where(*at, file) + ": node '" + spec.id + "': agent id '" + agent.id +
                                                         "' is taken: it is " + owner);

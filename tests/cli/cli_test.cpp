@@ -2247,6 +2247,8 @@ TEST_F(Cli, UpRefusesATopologyThatCouldNotRunAsWrittenNamingWhatAndWhere) {
       // 'supervisor' had what its parent relayed from it replaced away every 5 s.
       {listening + "[[node]]\nid = \"supervisor\"\nparent = \"hospital\"\n",
        "t.toml:5:1: node id 'supervisor' is taken on its parent 'hospital': a child node is agent 'supervisor' of its parent, and that agent is the supervisor"},
+      {listening + "[[node]]\nid = \"cli\"\nparent = \"hospital\"\n",
+       "a child node is agent 'cli' of its parent, and that agent is the one `tahvel put` and `tahvel load` write as"},
       // A root whose IRI cannot have children is named at its own line, not its child's.
       {"[[node]]\nid = \"hospital\"\niri = \"http://example.org/hospital?x=1\"\nlisten = { kind = \"dds\" }\n"
        "[[node]]\nid = \"home1\"\nparent = \"hospital\"\n",
@@ -2265,6 +2267,14 @@ TEST_F(Cli, UpRefusesATopologyThatCouldNotRunAsWrittenNamingWhatAndWhere) {
        "node id 'areas' is taken on its parent 'hospital': a child node is agent 'areas' of its parent, and that agent is the node's area keeper"},
       {listening + "[[node]]\nid = \"dispatcher\"\nparent = \"hospital\"\n", "node id 'dispatcher' is taken on its parent 'hospital'"},
       {hospital + "  [[node.agent]]\n  id = \"areas\"\n  run = [\"true\"]\n", "node 'hospital': agent id 'areas' is taken"},
+      // Which agent has the id, not only that it is taken.
+      {hospital + "  [[node.agent]]\n  id = \"x\"\n  run = [\"true\"]\n  [[node.agent]]\n  id = \"x\"\n  run = [\"true\"]\n",
+       "t.toml:7:3: node 'hospital': agent id 'x' is taken: the node's agent on line 4 has it"},
+      // A control character in an id is shown escaped, the error on one line.
+      {"[[node]]\nid = \"home\\n1\"\niri = \"http://example.org/h\"\n",
+       "t.toml:1:1: node id: invalid id 'home\\x0A1' at position 4: unexpected control character 0x0A in an id\n"},
+      {hospital + "  [[node.agent]]\n  id = \"a\\tb\"\n  run = [\"true\"]\n  restrat = 1\n",
+       "t.toml:4:3: node 'hospital': agent id: invalid id 'a\\x09b' at position 1: unexpected control character 0x09 in an id\n"},
       // A misspelt behaviours folder would run nothing, silently.
       {hospital + "behaviours = \"behavours\"\n", "t.toml:4:14: node 'hospital': behaviours: "},
       // A node listening on both kinds: each child says which it links over.
