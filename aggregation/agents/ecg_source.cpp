@@ -35,7 +35,7 @@ using Frames = std::vector<std::vector<std::int32_t>>;
 
 constexpr const char* kProgram = "tahvel-ecg-source";
 constexpr const char* kUsage =
-    "usage: tahvel-ecg-source DIR (--record PATH | --synthetic [--seed N] [--hr BPM] [--seconds S])\n"
+    "usage: tahvel-ecg-source DIR (--record PATH [--signal N] | --synthetic [--seed N] [--hr BPM] [--seconds S])\n"
     "                         [--speed X] [--agent ID]";
 
 // Where the frames come from: fills `out` (one vector per lead) with up to n frames; 0 at end.
@@ -45,7 +45,9 @@ struct Signal {
   std::function<agg::Result<std::size_t>(std::size_t n, Frames& out)> read;
 };
 
-agg::Result<Signal> record_signal(const std::string& path) {
+// `signal`: the record's signal that is the ECG (0 the first), or nullopt for the one
+// agg::ecg_signal chooses.
+agg::Result<Signal> record_signal(const std::string& path, std::optional<std::size_t> signal) {
   auto reader = agg::SignalReader::open(path);
   if (!reader) return tahvel::unexpected(reader.error());
   auto shared = std::make_shared<agg::SignalReader>(std::move(*reader));
@@ -60,7 +62,10 @@ agg::Result<Signal> record_signal(const std::string& path) {
   // The chunks carry the record's ECG lead first, whatever its place in the record (a record
   // may begin with respiration or blood pressure), with its gain per millivolt: the R-peak
   // agent reads the first lead at the recording's gain (agg::ecg_signal, as `tahvel hrv`).
-  const std::size_t ecg = agg::ecg_signal(h);
+  if (signal && *signal >= h.signals.size())
+    return agg::fail(h.path + ": no signal " + std::to_string(*signal) + " (the record has " +
+                     std::to_string(h.signals.size()) + "; --signal counts from 0)");
+  const std::size_t ecg = signal ? *signal : agg::ecg_signal(h);
   std::vector<std::size_t> order{ecg};
   for (std::size_t i = 0; i < h.signals.size(); ++i)
     if (i != ecg) order.push_back(i);
@@ -350,12 +355,19 @@ int replay(rt::Session& session, Signal& signal, double speed) {
 
 int main(int argc, char** argv) {
   return rt::guarded_main(kProgram, kUsage, [&]() -> int {
-    const rt::Args args(argc, argv, {"--record", "--seed", "--hr", "--seconds", "--speed", "--agent"},
+    const rt::Args args(argc, argv, {"--record", "--signal", "--seed", "--hr", "--seconds", "--speed", "--agent"},
                         {"--synthetic"});
     if (args.has("--record") == args.has("--synthetic")) throw rt::UsageError("give --record PATH or --synthetic");
+    if (args.has("--signal") && !args.has("--record")) throw rt::UsageError("--signal is for --record");
+    std::optional<std::size_t> ecg_lead;
+    if (args.has("--signal")) {
+      const double n = args.number("--signal", 0);
+      if (n != std::floor(n) || n > 1e6) throw rt::UsageError("--signal must be a whole number (0 the first signal)");
+      ecg_lead = static_cast<std::size_t>(n);
+    }
     const double speed = args.number("--speed", 1);
     rt::install_stop_handlers();
-    auto signal = args.has("--record") ? record_signal(args.text("--record", "")) : synthetic_signal(args);
+    auto signal = args.has("--record") ? record_signal(args.text("--record", ""), ecg_lead) : synthetic_signal(args);
     if (!signal) {
       rt::log_line(kProgram, signal.error().message);
       return rt::kExitError;

@@ -92,6 +92,7 @@ Result<HrvReport> hrv_from_record(const std::string& record_path, const ChainOpt
                                   std::size_t channel) {
   auto signals = read_signals(record_path);
   if (!signals) return unexpected(signals.error());
+  if (signals->samples.empty()) return fail(record_path + ".hea: the record has no signals, so no ECG");
   if (channel == kEcgSignal) channel = ecg_signal(signals->header);
   if (channel >= signals->samples.size())
     return fail(record_path + ".hea: no signal " + std::to_string(channel) + " (the record has " +
@@ -112,11 +113,24 @@ Result<HrvReport> hrv_from_record(const std::string& record_path, const ChainOpt
     report->warnings.push_back(*irregular);
   // A flat signal (a lead off, a channel of zeros) gives no beat, and every metric null: said,
   // so that it is not read as a record without HRV for another reason.
+  // With other signals in the record, the lead chosen may be the wrong one (an unnamed ECG after
+  // a respiration signal): the caller can name another (`tahvel hrv --signal`).
+  const std::size_t signal_count = signals->samples.size();
+  const std::string others =
+      signal_count > 1 ? " (the record has " + std::to_string(signal_count) + " signals: another may be the ECG: --signal N reads it)" : "";
   if (report->beats.size() < 2 && report->duration_s >= 10)
     report->warnings.push_back(std::to_string(report->beats.size()) + " beat(s) found in " +
                                std::to_string(static_cast<long long>(report->duration_s)) + " s of signal " +
                                std::to_string(channel) + " (" + info.description +
-                               "): a flat or lead-off signal, or not an ECG; no HRV");
+                               "): a flat or lead-off signal, or not an ECG; no HRV" + others);
+  else if (signals->samples[channel].empty())
+    report->warnings.push_back("the record holds no samples; no HRV");
+  else if (report->beats.size() < 2) {
+    char seconds[32];
+    std::snprintf(seconds, sizeof seconds, "%.3g", report->duration_s);
+    report->warnings.push_back(std::to_string(report->beats.size()) + " beat(s) found in " + seconds +
+                               " s: too short a record for HRV");
+  }
   return report;
 }
 

@@ -76,6 +76,46 @@ struct Where {
 
 // ---- record line: name[/nseg] nsig [fs[/counterfreq][(base)]] [nsamp] [time] [date] ----
 
+// A whole number of at most `digits` digits, at most `max`.
+bool is_number_up_to(std::string_view s, std::size_t digits, int max) {
+  if (s.empty() || s.size() > digits) return false;
+  int v = 0;
+  for (char c : s) {
+    if (c < '0' || c > '9') return false;
+    v = v * 10 + (c - '0');
+  }
+  return v <= max;
+}
+
+// WFDB's base time: [[HH:]MM:]SS[.sss], hours as many as the recording began after midnight.
+bool is_base_time(std::string_view s) {
+  std::vector<std::string_view> parts;
+  for (std::size_t from = 0;;) {
+    const std::size_t colon = s.find(':', from);
+    parts.push_back(s.substr(from, colon == std::string_view::npos ? colon : colon - from));
+    if (colon == std::string_view::npos) break;
+    from = colon + 1;
+  }
+  if (parts.size() > 3) return false;
+  std::string_view seconds = parts.back();
+  if (const std::size_t dot = seconds.find('.'); dot != std::string_view::npos) {
+    if (!is_number_up_to(seconds.substr(dot + 1), 9, 999'999'999)) return false;
+    seconds = seconds.substr(0, dot);
+  }
+  if (!is_number_up_to(seconds, 2, 60)) return false;
+  if (parts.size() >= 2 && !is_number_up_to(parts[parts.size() - 2], 2, 59)) return false;
+  return parts.size() < 3 || is_number_up_to(parts[0], 4, 9999);
+}
+
+// WFDB's base date: DD/MM/YYYY.
+bool is_base_date(std::string_view s) {
+  const std::size_t a = s.find('/'), b = a == std::string_view::npos ? a : s.find('/', a + 1);
+  if (b == std::string_view::npos) return false;
+  std::string_view day = s.substr(0, a), month = s.substr(a + 1, b - a - 1), year = s.substr(b + 1);
+  return is_number_up_to(day, 2, 31) && day != "0" && day != "00" && is_number_up_to(month, 2, 12) &&
+         month != "0" && month != "00" && is_number_up_to(year, 4, 9999);
+}
+
 Result<bool> parse_record_line(std::string_view line, const Where& at, RecordHeader& h) {
   Tokens t = tokenize(line);
   if (t.items.size() < 2)
@@ -90,7 +130,22 @@ Result<bool> parse_record_line(std::string_view line, const Where& at, RecordHea
     return fail(at.field_error("number of signals", t.items[1], "not a non-negative integer"));
   if (t.items.size() > 2) {
     std::string_view fs = t.items[2];
-    fs = fs.substr(0, fs.find_first_of("/("));  // counter frequency and base counter ignored
+    // The counter frequency and base counter are not used, but a field that does not parse is
+    // refused as any other (a header mangled there may be mangled elsewhere).
+    if (const std::size_t cut = fs.find_first_of("/("); cut != std::string_view::npos) {
+      std::string_view counter = fs.substr(cut);
+      double v = 0;
+      if (counter.front() == '/') {
+        const std::size_t paren = counter.find('(');
+        if (!parse_double(counter.substr(1, paren == std::string_view::npos ? paren : paren - 1), v) || v <= 0)
+          return fail(at.field_error("sampling frequency", t.items[2], "the counter frequency after '/' is not a positive number"));
+        counter.remove_prefix(paren == std::string_view::npos ? counter.size() : paren);
+      }
+      if (!counter.empty() &&
+          (counter.front() != '(' || counter.back() != ')' || !parse_double(counter.substr(1, counter.size() - 2), v)))
+        return fail(at.field_error("sampling frequency", t.items[2], "the base counter is not a number in parentheses"));
+      fs = fs.substr(0, cut);
+    }
     if (!parse_double(fs, h.fs) || h.fs <= 0)
       return fail(at.field_error("sampling frequency", t.items[2], "not a positive number"));
     if (h.fs > kMaxSamplingHz)
@@ -102,6 +157,13 @@ Result<bool> parse_record_line(std::string_view line, const Where& at, RecordHea
       return fail(at.field_error("number of samples per signal", t.items[3],
                                  "not a non-negative integer"));
   }
+  // The base time and date are not used; checked so that a mangled record line is not read.
+  if (t.items.size() > 4 && !is_base_time(t.items[4]))
+    return fail(at.field_error("base time", t.items[4], "not a time of day [[HH:]MM:]SS[.s]"));
+  if (t.items.size() > 5 && !is_base_date(t.items[5]))
+    return fail(at.field_error("base date", t.items[5], "not a date DD/MM/YYYY"));
+  if (t.items.size() > 6)
+    return fail(at.field_error("record line", t.items[6], "more fields than name, signals, frequency, samples, time and date"));
   return true;
 }
 
@@ -430,9 +492,12 @@ bool names_ecg_lead(std::string_view description) {
   for (const char* lead : {"mli", "mlii", "mliii", "i", "ii", "iii", "avr", "avl", "avf", "d1", "d2", "d3", "v1", "v2", "v3", "v4",
                            "v5", "v6", "mv1", "mv2", "mv3", "mv4", "mv5", "mv6", "modv1", "modv5"})
     if (d == lead) return true;
-  // MCLn, CMn, CCn (n a chest position 1-6).
-  for (const char* chest : {"mcl", "cm", "cc"})
+  // MCLn, CMn, CCn, MLn (n a chest position 1-6; ML2 and ML5 in Holter records).
+  for (const char* chest : {"mcl", "cm", "cc", "ml"})
     if (d.size() == std::strlen(chest) + 1 && d.starts_with(chest) && d.back() >= '1' && d.back() <= '6') return true;
+  // Chest leads beyond V6 and the right-sided ones: V7-V9, V1R-V9R. (Frank's X, Y, Z and EASI's
+  // ES, AS, AI are left out: an accelerometer's or any device's channels are named so too.)
+  if ((d.size() == 2 || (d.size() == 3 && d.back() == 'r')) && d[0] == 'v' && d[1] >= '1' && d[1] <= '9') return true;
   return false;
 }
 

@@ -160,6 +160,34 @@ TEST_F(EcgSourceTest, EachLeadOfARecordKeepsItsOwnCalibration) {
   EXPECT_EQ(info->invalid_sample, -32768);
 }
 
+// A record whose ECG is not the lead the source would choose (an unnamed signal after a named
+// respiration signal): `tahvel hrv --signal 1` read it, but the streaming chain could not.
+TEST_F(EcgSourceTest, SignalNamesTheRecordsEcgLeadWhenItIsNotTheOneChosen) {
+  const std::string dir = new_node("chosen");
+  const fs::path record = tmp_ / "resp";
+  std::ofstream(record.string() + ".hea") << "resp 2 360 720\nresp.dat 16 100(0)/mV 16 0 0 0 0 resp\n"
+                                             "resp.dat 16 200(0)/mV 16 0 0 0 0\n";
+  {
+    std::ofstream dat(record.string() + ".dat", std::ios::binary);
+    for (int f = 0; f < 720; ++f)
+      for (const int v : {5, 7}) dat.put(static_cast<char>(v & 0xff)).put(static_cast<char>(v >> 8 & 0xff));
+  }
+  const std::string bin = std::string(TAHVEL_BIN_DIR) + "/tahvel-ecg-source";
+  tahvel::test_support::AgentProcess beyond({bin, dir, "--record", record.string(), "--signal", "2", "--speed", "0"});
+  EXPECT_EQ(beyond.wait(std::chrono::seconds(60)), 1);
+  EXPECT_TRUE(recordings(dir).empty());
+  tahvel::test_support::AgentProcess source({bin, dir, "--record", record.string(), "--signal", "1", "--speed", "0"});
+  ASSERT_EQ(source.wait(std::chrono::seconds(60)), 0);
+  const std::string rec = the_recording(dir);
+  auto node = tn::Node::open(dir);
+  auto about = node->snapshot()->list(tn::Pattern{.s = tn::Term::iri(rec)});
+  ASSERT_TRUE(about);
+  auto info = agg::read_recording(*about, rec);
+  ASSERT_TRUE(info) << info.error().message;
+  ASSERT_EQ(info->leads, (std::vector<std::string>{"", "resp"}));  // signal 1 first: the R-peak agent reads it
+  EXPECT_EQ(info->gain, 200);
+}
+
 TEST_F(EcgSourceTest, ARestartAfterAKillGoesOnAfterTheLastChunkAndWritesEachSecondOnce) {
   const std::string whole = new_node("whole");
   ASSERT_EQ(run_source(whole), 0);

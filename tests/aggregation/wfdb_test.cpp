@@ -205,7 +205,12 @@ TEST_F(WfdbTemp, TheEcgLeadIsTheFirstNamedOneElseTheFirstInVoltsAndGainIsPerMill
   write("e.hea", "e 2 250 0\ne.dat 16 200/V 16 0 0 0 0 Pleth\ne.dat 16 200/mmHg 16 0 0 0 0 Lead II\n");
   write("f.hea", "f 2 250 0\nf.dat 16 200/V 16 0 0 0 0 Pleth\nf.dat 16 200 16 0 0 0 0 MCL1\n");
   write("g.hea", "g 2 250 0\ng.dat 16 200/V 16 0 0 0 0 Pleth\ng.dat 16 200 16 0 0 0 0 CM2\n");
-  const std::pair<const char*, std::size_t> cases[] = {{"a", 2}, {"b", 1}, {"c", 0}, {"d", 0}, {"e", 1}, {"f", 1}, {"g", 1}};
+  write("h.hea", "h 2 250 0\nh.dat 16 200/V 16 0 0 0 0 Pleth\nh.dat 16 200 16 0 0 0 0 ML2\n");
+  write("i.hea", "i 2 250 0\ni.dat 16 200/V 16 0 0 0 0 Pleth\ni.dat 16 200 16 0 0 0 0 V4R\n");
+  // An accelerometer's axes are not taken for Frank leads: the first signal in volts is.
+  write("j.hea", "j 3 250 0\nj.dat 16 200/g 16 0 0 0 0 X\nj.dat 16 200/g 16 0 0 0 0 Y\nj.dat 16 200/mV 16 0 0 0 0 chest\n");
+  const std::pair<const char*, std::size_t> cases[] = {{"a", 2}, {"b", 1}, {"c", 0}, {"d", 0}, {"e", 1}, {"f", 1},
+                                                       {"g", 1}, {"h", 1}, {"i", 1}, {"j", 2}};
   for (const auto& [name, lead] : cases) {
     auto h = read_header(record(name));
     ASSERT_TRUE(h) << h.error().message;
@@ -270,6 +275,31 @@ TEST_F(WfdbTemp, AFlatRecordGivesNoBeatsAndSaysSo) {
   EXPECT_TRUE(report->beats.empty());
   ASSERT_FALSE(report->warnings.empty());
   EXPECT_EQ(report->warnings.back(), "0 beat(s) found in 60 s of signal 0 (MLII): a flat or lead-off signal, or not an ECG; no HRV");
+}
+
+// A record with nothing to read is said so, not reported as HRV that happens to be null: no
+// signals (it read "no signal 0 (the record has 0)", as if --signal were wrong), no samples (exit
+// 0 without a word), a lead that is not the ECG among others (which --signal can name).
+TEST_F(WfdbTemp, ARecordWithNoSignalNoSamplesOrTheWrongLeadIsSaidSo) {
+  write("none.hea", "none 0 360 0\n");
+  auto none = hrv_from_record(record("none"));
+  ASSERT_FALSE(none);
+  EXPECT_EQ(none.error().message, record("none") + ".hea: the record has no signals, so no ECG");
+
+  write("empty.hea", "empty 1 360 0\nempty.dat 16 200 16 0 0 0 0 MLII\n");
+  write("empty.dat", "");
+  auto empty = hrv_from_record(record("empty"));
+  ASSERT_TRUE(empty) << empty.error().message;
+  ASSERT_FALSE(empty->warnings.empty());
+  EXPECT_EQ(empty->warnings.back(), "the record holds no samples; no HRV");
+
+  write("two.hea", "two 2 360 21600\ntwo.dat 16 200 16 0 0 0 0 resp\ntwo.dat 16 200 16 0 0 0 0\n");
+  write("two.dat", std::string(360 * 60 * 4, '\0'));
+  auto two = hrv_from_record(record("two"));
+  ASSERT_TRUE(two) << two.error().message;
+  ASSERT_FALSE(two->warnings.empty());
+  EXPECT_EQ(two->warnings.back(), "0 beat(s) found in 60 s of signal 0 (resp): a flat or lead-off signal, or not an ECG; "
+                                  "no HRV (the record has 2 signals: another may be the ECG: --signal N reads it)");
 }
 
 // WFDB writes its no-value (-32768 in format 16, -2048 in 212) where a signal has none. Read
@@ -341,6 +371,33 @@ TEST_F(WfdbTemp, BadSamplingFrequencyIsAnErrorNamingTheField) {
   ASSERT_FALSE(h);
   EXPECT_NE(h.error().message.find("r.hea:1: field 'sampling frequency' ('1e9'): more than 100000 Hz"), std::string::npos)
       << h.error().message;
+}
+
+// The counter frequency, base counter, base time and date are not used, but a record line that
+// does not parse there is refused, as any other field is (docs/wfdb.md): "hello" as a time and
+// "360/0" were read without a word.
+TEST_F(WfdbTemp, RecordLineFieldsThatDoNotParseAreRefusedNamingTheField) {
+  write("r.dat", bytes_of({0x05, 0x00}));
+  for (const char* line : {"r 1 360/10(0) 1 13:5:0 24/12/2003", "r 1 360/10 1 0:00:00.250", "r 1 360(-3) 1 59.5",
+                           "r 1 360 1 10:30:15"}) {
+    write("r.hea", std::string(line) + "\nr.dat 16\n");
+    auto h = read_header(record("r"));
+    EXPECT_TRUE(h) << line << ": " << h.error().message;
+  }
+  const std::pair<const char*, const char*> refused[] = {
+      {"r 1 360 1 hello", "r.hea:1: field 'base time' ('hello')"},
+      {"r 1 360 1 99:99:99 1/1/2000", "r.hea:1: field 'base time' ('99:99:99')"},
+      {"r 1 360 1 10:00:00 45/13/2003", "r.hea:1: field 'base date' ('45/13/2003')"},
+      {"r 1 360/0 1", "r.hea:1: field 'sampling frequency' ('360/0'): the counter frequency"},
+      {"r 1 360() 1", "r.hea:1: field 'sampling frequency' ('360()'): the base counter"},
+      {"r 1 360 1 10:00:00 1/1/2000 extra", "r.hea:1: field 'record line' ('extra')"},
+  };
+  for (const auto& [line, expected] : refused) {
+    write("r.hea", std::string(line) + "\nr.dat 16\n");
+    auto h = read_header(record("r"));
+    ASSERT_FALSE(h) << line;
+    EXPECT_NE(h.error().message.find(expected), std::string::npos) << h.error().message;
+  }
 }
 
 TEST_F(WfdbTemp, UnsupportedFormatIsAnErrorNamingFileLineFieldAndFormat) {
