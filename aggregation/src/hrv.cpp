@@ -170,6 +170,8 @@ HrvMetrics compute_hrv(const std::vector<Interval>& intervals, double fs, const 
     const Interval& a = intervals[i];
     const Interval& b = intervals[i + 1];
     if (a.end != b.start || a.end <= a.start || b.end <= b.start) continue;
+    const double gap = o.gap_s * fs;
+    if (static_cast<double>(a.end - a.start) > gap || static_cast<double>(b.end - b.start) > gap) continue;
     ++pairs;
     const double first = static_cast<double>(a.end - a.start), second = static_cast<double>(b.end - b.start);
     if (std::abs(second - first) > 0.2 * first) ++irregular;

@@ -156,6 +156,20 @@ TEST_F(AnnotTemp, SkipIntervalIsHighWordFirst) {
   EXPECT_EQ((*a)[0].sample, 0x12345);
 }
 
+// A negative SKIP that takes the time back before the last annotation: read, it scored the
+// detector against a reference out of order (TP 1, FP 150) without a word.
+TEST_F(AnnotTemp, AnnotationsOutOfTimeOrderAreRefusedNamingWhere) {
+  AtrWriter w;
+  w.ann(1, 500).skip(-100).ann(1, 0).end();
+  auto a = read_annotations(write(w.bytes));
+  ASSERT_FALSE(a);
+  EXPECT_NE(a.error().message.find("r.atr: byte 8: annotation at sample 400 comes after one at sample 500"), std::string::npos)
+      << a.error().message;
+  AtrWriter ties;  // annotations at one sample (on several channels) are in order
+  ties.ann(1, 500).ann(1, 0).end();
+  EXPECT_TRUE(read_annotations(write(ties.bytes)));
+}
+
 TEST_F(AnnotTemp, OtherAnnotatorNameSelectsTheExtension) {
   AtrWriter w;
   w.ann(1, 42).end();

@@ -72,6 +72,19 @@ TEST(Hrv, IrregularPctCountsAdjacentPairsDifferingByMoreThanAFifth) {
   EXPECT_FALSE(compute_hrv(cut, 1000).irregular_pct) << "intervals that share no beat are not a pair";
 }
 
+// A gap (an interval longer than gap_s: a lead off between two beats, a pause) is no irregular
+// rhythm: each isolated one made two irregular pairs, and a regular record whose lead came off
+// in 8 % of its intervals was warned of as ectopic beats or atrial fibrillation.
+TEST(Hrv, PairsWithAGapAreNotCountedAsIrregular) {
+  const HrvMetrics gapped = compute_hrv(chain({800, 810, 5000, 790, 800, 6000, 810, 800}, {}), 1000);
+  ASSERT_TRUE(gapped.irregular_pct);
+  EXPECT_DOUBLE_EQ(*gapped.irregular_pct, 0.0);  // 3 pairs without a gap, all regular
+  HrvOptions longer;
+  longer.gap_s = 10;  // the gaps are rhythm now: 4 of 7 pairs
+  EXPECT_NEAR(*compute_hrv(chain({800, 810, 5000, 790, 800, 6000, 810, 800}, {}), 1000, longer).irregular_pct,
+              100.0 * 4 / 7, 1e-9);
+}
+
 TEST(Hrv, RmssdOnlyOverAdjacentNn) {
   // The 300 between 810 and 790 is not NN: the difference 790 - 810 is not taken.
   const HrvMetrics m = compute_hrv(chain({800, 810, 300, 790, 830}, {true, true, false, true, true}), 1000);

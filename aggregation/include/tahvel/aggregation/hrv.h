@@ -30,7 +30,10 @@ struct HrvMetrics {
       lf_hf, sd1_ms, sd2_ms;
   std::size_t nn_count = 0, rr_count = 0;
   // How irregular the rhythm is, NN or not: the share (%) of adjacent RR pairs whose second
-  // differs from the first by more than 20 % of it (nullopt without a pair). Above
+  // differs from the first by more than 20 % of it (nullopt without a pair). Pairs with an
+  // interval longer than HrvOptions::gap_s are not counted: a gap (signal lost between two
+  // beats, a pause) is no irregular rhythm, and each isolated one made two irregular pairs, so
+  // that a regular record with a lead coming off was warned of as ectopy or AF. Above
   // kIrregularPct the RR-only NN rule is not to be trusted: frequent ectopic beats in bigeminy
   // or trigeminy and atrial fibrillation look alike to it, and HRV can be off several times
   // (docs/hrv.md, "Where the rule fails"). A paced rhythm is regular and does not show here.
@@ -49,6 +52,7 @@ struct HrvOptions {
   double min_lf_s = 120.0;                      // NN data needed for LF (Task Force: 2 min)
   double oversampling = 4.0;                    // frequency step = 1 / (oversampling * span)
   std::size_t max_frequencies = 1024;           // cap on the grid over [lf_low, hf_high]
+  double gap_s = NnRule{}.max_interval_s;       // longer intervals are gaps, not rhythm (irregular_pct)
 };
 
 // Metrics of a series. fs is the sampling frequency of the sample indices in Hz (> 0;
