@@ -69,6 +69,7 @@ agg::Result<Signal> record_signal(const std::string& path, std::optional<std::si
   std::vector<std::size_t> order{ecg};
   for (std::size_t i = 0; i < h.signals.size(); ++i)
     if (i != ecg) order.push_back(i);
+  if (auto units = agg::non_voltage_warning(h, ecg)) std::cerr << "tahvel-ecg-source: warning: " << *units << "\n";
   s.info.gain = agg::gain_per_mv(h.signals[ecg]);
   s.info.invalid_sample = agg::invalid_sample(h.signals[ecg]);
   s.info.baseline = h.signals[ecg].baseline;

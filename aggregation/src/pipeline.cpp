@@ -108,6 +108,7 @@ Result<HrvReport> hrv_from_record(const std::string& record_path, const ChainOpt
   if (auto invalid = invalid_samples_warning(signals->samples[channel], info, channel, signals->header.fs))
     report->warnings.push_back(*invalid);
   if (auto rate = default_rate_warning(signals->header)) report->warnings.insert(report->warnings.begin(), *rate);
+  if (auto units = non_voltage_warning(signals->header, channel)) report->warnings.push_back(*units);
   if (auto irregular = irregular_rhythm_warning(report->metrics, gap_count(report->intervals, report->fs, options.nn),
                                                 options.nn.max_interval_s))
     report->warnings.push_back(*irregular);

@@ -540,6 +540,10 @@ std::vector<std::string> checksum_mismatches(const Signals& signals) {
 
 std::vector<std::string> checksum_mismatches(const RecordHeader& header, const std::vector<std::uint16_t>& sums) {
   std::vector<std::string> out;
+  // Without a sample count the header was written before the samples were known (a recorder
+  // that did not know how long it would run), and its checksum field with it: often 0, which
+  // warned of a file in another format.
+  if (header.samples_per_signal == 0) return out;
   for (std::size_t i = 0; i < sums.size() && i < header.signals.size(); ++i) {
     const SignalInfo& info = header.signals[i];
     if (!info.has_checksum) continue;
@@ -559,6 +563,14 @@ std::optional<std::string> default_rate_warning(const RecordHeader& header) {
   return header.path + ": the record line gives no sampling frequency: WFDB's default of 250 Hz is taken (a signal "
                        "sampled at another rate gives heart rates and HRV off by the ratio; give the rate after the "
                        "number of signals)";
+}
+
+std::optional<std::string> non_voltage_warning(const RecordHeader& header, std::size_t signal) {
+  if (signal >= header.signals.size()) return std::nullopt;
+  const SignalInfo& info = header.signals[signal];
+  if (millivolts_per_unit(info.units) > 0) return std::nullopt;
+  return header.path + ": signal " + std::to_string(signal) + " (" + info.description + "), read as the ECG, is in '" +
+         info.units + "', not a voltage: its samples are read as millivolts at the header's gain (is the header right?)";
 }
 
 std::int32_t invalid_sample(const SignalInfo& info) { return info.format == 212 ? -2048 : -32768; }

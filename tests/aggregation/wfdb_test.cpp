@@ -246,6 +246,13 @@ TEST_F(WfdbTemp, ASignalWhoseSamplesDoNotAddUpToTheChecksumIsNamed) {
   ASSERT_TRUE(s) << s.error().message;
   ASSERT_EQ(checksum_mismatches(*s).size(), 1u);
   EXPECT_EQ(checksum_mismatches(*s)[0].rfind(record("small") + ".hea: signal 0 (II)", 0), 0u) << checksum_mismatches(*s)[0];
+  // A header without a sample count was written before the samples were known, its checksum
+  // field too (0 here): not compared, so not said to be a file in another format.
+  write("r.hea", "r 1 100 0\nr.dat 16 200 16 0 1 0 0 II\n");
+  s = read_signals(record("r"));
+  ASSERT_TRUE(s) << s.error().message;
+  EXPECT_EQ(s->samples[0].size(), 3u);
+  EXPECT_TRUE(checksum_mismatches(*s).empty());
 }
 
 // A record line without a sampling frequency is read at WFDB's 250 Hz, and said so: a record
@@ -300,6 +307,20 @@ TEST_F(WfdbTemp, ARecordWithNoSignalNoSamplesOrTheWrongLeadIsSaidSo) {
   ASSERT_FALSE(two->warnings.empty());
   EXPECT_EQ(two->warnings.back(), "0 beat(s) found in 60 s of signal 0 (resp): a flat or lead-off signal, or not an ECG; "
                                   "no HRV (the record has 2 signals: another may be the ECG: --signal N reads it)");
+}
+
+// An ECG lead whose units are no voltage is read as millivolts all the same: said, as a wrong
+// header otherwise went on without a word ("200/furlongs" on an MLII lead).
+TEST_F(WfdbTemp, AnEcgLeadInUnitsThatAreNoVoltageIsWarnedOf) {
+  write("r.hea", "r 2 360 1\nr.dat 16 200/furlongs 16 0 0 0 0 MLII\nr.dat 16 100/mmHg 16 0 0 0 0 ABP\n");
+  auto h = read_header(record("r"));
+  ASSERT_TRUE(h) << h.error().message;
+  EXPECT_EQ(non_voltage_warning(*h, 0), record("r") + ".hea: signal 0 (MLII), read as the ECG, is in 'furlongs', not a "
+                                                      "voltage: its samples are read as millivolts at the header's gain (is the header right?)");
+  write("v.hea", "v 3 360 1\nv.dat 16 200 16 0 0 0 0 MLII\nv.dat 16 1/uV 16 0 0 0 0 V1\nv.dat 16 1/V 16 0 0 0 0 V2\n");
+  auto v = read_header(record("v"));
+  ASSERT_TRUE(v) << v.error().message;
+  for (std::size_t i = 0; i < 3; ++i) EXPECT_FALSE(non_voltage_warning(*v, i)) << i;  // mV by default, uV, V
 }
 
 // WFDB writes its no-value (-32768 in format 16, -2048 in 212) where a signal has none. Read

@@ -103,6 +103,11 @@ std::vector<std::string> unread_samples(const RecordHeader& header);
 // (MIT-BIH 100 at 360 Hz: 52 bpm instead of 75). Said, naming the file; nullopt when given.
 std::optional<std::string> default_rate_warning(const RecordHeader& header);
 
+// The ECG lead `signal` is read as a voltage whatever its header says: a lead whose units are
+// no voltage (mmHg, a typo) is read as millivolts at its gain, so a wrong header goes on
+// silently. Said, naming the file, the signal and the units; nullopt for mV, uV, µV and V.
+std::optional<std::string> non_voltage_warning(const RecordHeader& header, std::size_t signal);
+
 // Streaming reader: frame by frame, for agents that replay a record in chunks. Move-only; owns
 // its open files and closes them in its destructor. Not thread-safe: one reader per thread.
 class SignalReader {
