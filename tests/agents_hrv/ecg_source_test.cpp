@@ -125,6 +125,28 @@ class EcgSourceTest : public ::testing::Test {
     }
   }
 
+  // A record of two signals in one format-16 file, `frames` frames of the values `first` and
+  // `second`, under `header_lines` (the record line and both signal lines); its path.
+  fs::path two_signal_record(const std::string& name, const std::string& header_lines, int frames, int first, int second) {
+    const fs::path record = tmp_ / name;
+    std::ofstream(record.string() + ".hea") << header_lines;
+    std::ofstream dat(record.string() + ".dat", std::ios::binary);
+    for (int f = 0; f < frames; ++f)
+      for (const int v : {first, second}) dat.put(static_cast<char>(v & 0xff)).put(static_cast<char>(v >> 8 & 0xff));
+    return record;
+  }
+
+  // What the one recording on `dir` says of itself.
+  static agg::RecordingInfo recording_info(const std::string& dir) {
+    const std::string rec = the_recording(dir);
+    auto node = tn::Node::open(dir);
+    auto about = node->snapshot()->list(tn::Pattern{.s = tn::Term::iri(rec)});
+    EXPECT_TRUE(about);
+    auto info = agg::read_recording(*about, rec);
+    EXPECT_TRUE(info) << info.error().message;
+    return info ? *info : agg::RecordingInfo{};
+  }
+
   tahvel::test_support::TempDir tmp_{"tahvel-ecg-source"};
 };
 
@@ -132,60 +154,38 @@ class EcgSourceTest : public ::testing::Test {
 // per mV from 1024): the recording said only the ECG lead's gain, and every lead was read by it.
 TEST_F(EcgSourceTest, EachLeadOfARecordKeepsItsOwnCalibration) {
   const std::string dir = new_node("calibrated");
-  const fs::path record = tmp_ / "mix";
-  std::ofstream(record.string() + ".hea") << "mix 2 360 720\nmix.dat 16 10(0)/mmHg 16 0 0 0 0 ABP\n"
-                                             "mix.dat 16 200(1024)/mV 16 0 1024 0 0 MLII\n";
-  {
-    std::ofstream dat(record.string() + ".dat", std::ios::binary);
-    for (int f = 0; f < 720; ++f)
-      for (const int v : {900, 1024 + 100}) dat.put(static_cast<char>(v & 0xff)).put(static_cast<char>(v >> 8 & 0xff));
-  }
+  const fs::path record = two_signal_record("mix", "mix 2 360 720\nmix.dat 16 10(0)/mmHg 16 0 0 0 0 ABP\n"
+                                                   "mix.dat 16 200(1024)/mV 16 0 1024 0 0 MLII\n", 720, 900, 1024 + 100);
   tahvel::test_support::AgentProcess source({std::string(TAHVEL_BIN_DIR) + "/tahvel-ecg-source", dir, "--record", record.string(), "--speed", "0"});
   ASSERT_EQ(source.wait(std::chrono::seconds(60)), 0);
-  const std::string rec = the_recording(dir);
-  auto node = tn::Node::open(dir);
-  auto about = node->snapshot()->list(tn::Pattern{.s = tn::Term::iri(rec)});
-  ASSERT_TRUE(about);
-  auto info = agg::read_recording(*about, rec);
-  ASSERT_TRUE(info) << info.error().message;
-  ASSERT_EQ(info->leads, (std::vector<std::string>{"MLII", "ABP"}));  // the ECG lead first
-  ASSERT_EQ(info->calibration.size(), 2u);
-  EXPECT_EQ(info->calibration[0].gain, 200);
-  EXPECT_EQ(info->calibration[0].baseline, 1024);
-  EXPECT_EQ(info->calibration[0].unit, "mV");
-  EXPECT_EQ(info->calibration[1].gain, 10);
-  EXPECT_EQ(info->calibration[1].baseline, 0);
-  EXPECT_EQ(info->calibration[1].unit, "mmHg");
+  const agg::RecordingInfo info = recording_info(dir);
+  ASSERT_EQ(info.leads, (std::vector<std::string>{"MLII", "ABP"}));  // the ECG lead first
+  ASSERT_EQ(info.calibration.size(), 2u);
+  EXPECT_EQ(info.calibration[0].gain, 200);
+  EXPECT_EQ(info.calibration[0].baseline, 1024);
+  EXPECT_EQ(info.calibration[0].unit, "mV");
+  EXPECT_EQ(info.calibration[1].gain, 10);
+  EXPECT_EQ(info.calibration[1].baseline, 0);
+  EXPECT_EQ(info.calibration[1].unit, "mmHg");
   // The ECG lead's no-value (format 16), for the R-peak agent to read as no signal.
-  EXPECT_EQ(info->invalid_sample, -32768);
+  EXPECT_EQ(info.invalid_sample, -32768);
 }
 
 // A record whose ECG is not the lead the source would choose (an unnamed signal after a named
 // respiration signal): `tahvel hrv --signal 1` read it, but the streaming chain could not.
 TEST_F(EcgSourceTest, SignalNamesTheRecordsEcgLeadWhenItIsNotTheOneChosen) {
   const std::string dir = new_node("chosen");
-  const fs::path record = tmp_ / "resp";
-  std::ofstream(record.string() + ".hea") << "resp 2 360 720\nresp.dat 16 100(0)/mV 16 0 0 0 0 resp\n"
-                                             "resp.dat 16 200(0)/mV 16 0 0 0 0\n";
-  {
-    std::ofstream dat(record.string() + ".dat", std::ios::binary);
-    for (int f = 0; f < 720; ++f)
-      for (const int v : {5, 7}) dat.put(static_cast<char>(v & 0xff)).put(static_cast<char>(v >> 8 & 0xff));
-  }
+  const fs::path record = two_signal_record("resp", "resp 2 360 720\nresp.dat 16 100(0)/mV 16 0 0 0 0 resp\n"
+                                                    "resp.dat 16 200(0)/mV 16 0 0 0 0\n", 720, 5, 7);
   const std::string bin = std::string(TAHVEL_BIN_DIR) + "/tahvel-ecg-source";
   tahvel::test_support::AgentProcess beyond({bin, dir, "--record", record.string(), "--signal", "2", "--speed", "0"});
   EXPECT_EQ(beyond.wait(std::chrono::seconds(60)), 1);
   EXPECT_TRUE(recordings(dir).empty());
   tahvel::test_support::AgentProcess source({bin, dir, "--record", record.string(), "--signal", "1", "--speed", "0"});
   ASSERT_EQ(source.wait(std::chrono::seconds(60)), 0);
-  const std::string rec = the_recording(dir);
-  auto node = tn::Node::open(dir);
-  auto about = node->snapshot()->list(tn::Pattern{.s = tn::Term::iri(rec)});
-  ASSERT_TRUE(about);
-  auto info = agg::read_recording(*about, rec);
-  ASSERT_TRUE(info) << info.error().message;
-  ASSERT_EQ(info->leads, (std::vector<std::string>{"", "resp"}));  // signal 1 first: the R-peak agent reads it
-  EXPECT_EQ(info->gain, 200);
+  const agg::RecordingInfo info = recording_info(dir);
+  ASSERT_EQ(info.leads, (std::vector<std::string>{"", "resp"}));  // signal 1 first: the R-peak agent reads it
+  EXPECT_EQ(info.gain, 200);
 }
 
 TEST_F(EcgSourceTest, ARestartAfterAKillGoesOnAfterTheLastChunkAndWritesEachSecondOnce) {
