@@ -23,6 +23,7 @@
 #include <iostream>
 #include <limits>
 #include <map>
+#include <memory>
 #include <optional>
 #include <sstream>
 #include <set>
@@ -40,6 +41,7 @@
 #include "tahvel/spatial/wkt.h"
 #include "tahvel/uri/iri.h"
 #include "dataflow.h"
+#include "program_board.h"
 #include "topology.h"
 #include "vocabulary.h"
 
@@ -1190,10 +1192,13 @@ class Deployment {
     // The board then says they stopped, not how they last ran: for `status` on a machine above
     // once this node's link runs again (until then that machine cannot ask).
     publish_programs(log, true);
+    finish_boards(log, std::chrono::seconds(2));
   }
 
   // Each node's programs on its board (agents/supervisor.h, "on the board"), when they change
   // and every kProgramsRefresh: a machine above knows them only from there (`tahvel status`).
+  // Written by each node's ProgramBoard thread: a store whose writer lock another process holds
+  // is said once it has held the write up for kBoardHeldUpSaid, and holds up nothing else.
   void publish_programs(const agents::Supervisor::Log& log, bool now_all = false) {
     const auto now = std::chrono::steady_clock::now();
     const std::vector<agents::ProgramState> states = supervisor_.states();
@@ -1208,44 +1213,47 @@ class Deployment {
         programs.push_back(std::move(s));
       }
       Published& board = published_[id];
+      if (!board.writer) board.writer = std::make_unique<ProgramBoard>(state_ / id, id, log);
+      const auto waited = board.writer->waiting();
+      if (waited >= kBoardHeldUpSaid && !board.held_up_said) {
+        board.held_up_said = true;
+        log("up: the programs of " + id + " have waited " +
+            std::to_string(std::chrono::duration_cast<std::chrono::seconds>(waited).count()) + " s to be written on its board: "
+            "another process holds the writer lock of " + (state_ / id).string() +
+            " (a long `tahvel load`, or a writer stopped inside its transaction); restarts and the other nodes go on");
+      } else if (waited == std::chrono::steady_clock::duration::zero() && board.held_up_said) {
+        board.held_up_said = false;
+        log("up: the programs of " + id + " are written on its board again");
+      }
       if (!now_all && said == board.said && now - board.at < agents::kProgramsRefresh) continue;
       board.said = said;
       board.at = now;
-      auto written = write_programs(board, state_ / id, programs);
-      if (!written && written.error().message != board.failure)
-        log("up: cannot write the programs of " + id + " on its board: " + written.error().message);
-      board.failure = written ? std::string() : written.error().message;
+      board.writer->post(std::move(programs));
+    }
+  }
+
+  // Waits up to `limit` in all for the boards' last writes (after stop()).
+  void finish_boards(const agents::Supervisor::Log& log, std::chrono::milliseconds limit) {
+    const auto deadline = std::chrono::steady_clock::now() + limit;
+    for (auto& [id, board] : published_) {
+      if (!board.writer) continue;
+      const auto left = std::chrono::duration_cast<std::chrono::milliseconds>(deadline - std::chrono::steady_clock::now());
+      if (!board.writer->finish(std::max(left, std::chrono::milliseconds(0))))
+        log("up: the programs of " + id + " as they stopped are not on its board: another process holds the writer lock of " +
+            (state_ / id).string());
     }
   }
 
  private:
+  // How long a board's write waits before the supervisor says which store holds it up.
+  static constexpr std::chrono::seconds kBoardHeldUpSaid{5};
+
   struct Published {
-    std::optional<node::Node> node;  // opened at the first write
-    std::string said, failure;       // what the last write said; its error, once logged
+    std::unique_ptr<ProgramBoard> writer;  // made at the first publish
+    std::string said;                      // what was last posted
     std::chrono::steady_clock::time_point at{};
+    bool held_up_said = false;
   };
-  static node::Result<void> write_programs(Published& board, const fs::path& dir, const std::vector<agents::ProgramState>& programs) {
-    if (!board.node) {
-      auto opened = node::Node::open(dir);
-      if (!opened) return Unexpected<node::Error>{opened.error()};
-      board.node.emplace(std::move(*opened));
-    }
-    const std::int64_t now = unix_now_ns();
-    auto item = agents::programs_item(board.node->iri(), programs, now);
-    if (!item) return Unexpected<node::Error>{item.error()};
-    node::Result<std::vector<node::PredicateSummary>> held = std::vector<node::PredicateSummary>{};
-    {  // released before the write: a snapshot held here would keep the store from growing
-      auto snap = board.node->snapshot();
-      if (!snap) return Unexpected<node::Error>{snap.error()};
-      held = snap->predicates();
-      if (!held) return Unexpected<node::Error>{held.error()};
-    }
-    auto agent = board.node->agent("supervisor");
-    if (!agent) return Unexpected<node::Error>{agent.error()};
-    auto stored = agent->replace({{.source = agent->iri()}}, {*item, agents::holdings_item(board.node->iri(), *held, now)});
-    if (!stored) return Unexpected<node::Error>{stored.error()};
-    return {};
-  }
 
   // One supervisor per node: it holds an exclusive lock (flock) on the node's store directory,
   // which outlives a deleted pid file (a second `up` after 'rm state/*.pid' found no supervisor

@@ -3,6 +3,7 @@
 // input, output and error redirected to files, and checks exit status and output.
 #include <fcntl.h>
 #include <gtest/gtest.h>
+#include <lmdb.h>
 #include <signal.h>
 #include <sys/file.h>
 #include <sys/stat.h>
@@ -2518,6 +2519,76 @@ TEST_F(Cli, StatusShowsAProgramStoppedWithSigstopAsSuspended) {
   ASSERT_EQ(kill(idle, SIGCONT), 0);
   shown = status_until(state, "- idle  running (pid " + pid + ")");
   EXPECT_NE(shown.out.find("- idle  running (pid " + pid + ")"), std::string::npos) << shown.out;
+  EXPECT_EQ(run({"down", "--state", state}).status, 0);
+}
+
+// Holds the writer lock of the store in `dir`, as a bulk `tahvel load` holds it for its whole
+// batch, or a writer stopped inside its transaction for ever: the store's other writers wait.
+class HeldWriterLock {
+ public:
+  explicit HeldWriterLock(const fs::path& dir) {
+    EXPECT_EQ(mdb_env_create(&env_), 0);
+    mdb_env_set_maxdbs(env_, 64);
+    // Without MDB_WRITEMAP: the map is the size the store's meta page says, the file untouched.
+    EXPECT_EQ(mdb_env_open(env_, dir.c_str(), MDB_NOTLS | MDB_NOSYNC, 0644), 0) << dir;
+    EXPECT_EQ(mdb_txn_begin(env_, nullptr, 0, &txn_), 0) << dir;
+  }
+  ~HeldWriterLock() {
+    if (txn_) mdb_txn_abort(txn_);
+    mdb_env_close(env_);
+  }
+  HeldWriterLock(const HeldWriterLock&) = delete;
+  HeldWriterLock& operator=(const HeldWriterLock&) = delete;
+
+ private:
+  MDB_env* env_ = nullptr;
+  MDB_txn* txn_ = nullptr;
+};
+
+// The supervisor writes each node's programs on its board. That write waited for the store's
+// writer lock in the supervisor's own loop: while one node's store was held (an operator's bulk
+// load, a writer stopped with Ctrl-Z), no program of any node was restarted, the state file went
+// stale (every program "unknown") and `down` said it was stopping when it was not. Only that
+// node's board waits now, and the supervisor says which store holds it up.
+TEST_F(Cli, AStoreHeldByAnotherWriterHoldsUpOnlyThatNodesBoardNotTheSupervisor) {
+  const std::string state = (tmp_ / "state").string();
+  spit(tmp_ / "node.toml",
+       "[[node]]\nid = \"a\"\niri = \"http://example.org/a\"\n"
+       "  [[node.agent]]\n  id = \"a-idle\"\n  run = [\"/bin/sleep\", \"600\"]\n"
+       "[[node]]\nid = \"b\"\niri = \"http://example.org/b\"\n"
+       "  [[node.agent]]\n  id = \"b-idle\"\n  run = [\"/bin/sleep\", \"600\"]\n");
+  ASSERT_EQ(run({"up", (tmp_ / "node.toml").string(), "--state", state}).status, 0);
+  std::smatch m;
+  const std::string shown = status_until(state, "b-idle  running (pid").out;
+  ASSERT_TRUE(std::regex_search(shown, m, std::regex("- a-idle  running \\(pid ([0-9]+)\\)"))) << shown;
+  const auto a_idle = static_cast<pid_t>(std::stol(m[1]));
+  ASSERT_TRUE(std::regex_search(shown, m, std::regex("- b-idle  running \\(pid ([0-9]+)\\)"))) << shown;
+  const auto b_idle = static_cast<pid_t>(std::stol(m[1]));
+  {
+    HeldWriterLock held(tmp_ / "state" / "a");
+    ASSERT_EQ(kill(a_idle, SIGKILL), 0);  // a's programs change: the supervisor writes them on a's board
+    std::this_thread::sleep_for(std::chrono::milliseconds(500));
+    ASSERT_EQ(kill(b_idle, SIGKILL), 0);
+    const std::regex restarted("- b-idle  running \\(pid ([0-9]+)\\)");
+    bool again = false;
+    Outcome now;
+    for (int i = 0; i < 100 && !again; ++i) {
+      now = run({"status", "--state", state});
+      again = std::regex_search(now.out, m, restarted) && std::stol(m[1]) != b_idle;
+      if (!again) std::this_thread::sleep_for(std::chrono::milliseconds(50));
+    }
+    EXPECT_TRUE(again) << now.out;
+    EXPECT_EQ(now.out.find("unknown"), std::string::npos) << now.out;
+    const fs::path log = tmp_ / "state" / "logs" / "supervisor.log";
+    for (int i = 0; i < 200 && slurp(log).find("the programs of a have waited") == std::string::npos; ++i)
+      std::this_thread::sleep_for(std::chrono::milliseconds(50));  // said after 5 s of waiting
+    EXPECT_NE(slurp(log).find("the programs of a have waited"), std::string::npos) << slurp(log);
+    EXPECT_NE(slurp(log).find("another process holds the writer lock of " + (tmp_ / "state" / "a").string()), std::string::npos);
+  }
+  EXPECT_TRUE(eventually([&] {
+    return slurp(tmp_ / "state" / "logs" / "supervisor.log").find("the programs of a are written on its board again") !=
+           std::string::npos;
+  }));
   EXPECT_EQ(run({"down", "--state", state}).status, 0);
 }
 
