@@ -184,6 +184,22 @@ TEST_F(ReasonerTest, EachPredicatesConclusionsOfASessionAreAnItemOfTheirOwn) {
   EXPECT_EQ(board().size(), 3u);
 }
 
+// Every class shares rdf:type: one item per predicate put a home-only class (a marker on each
+// low window) in the item of the alert class the policy forwards, and both went up.
+TEST_F(ReasonerTest, EachClassesConclusionsOfASessionAreAnItemOfTheirOwn) {
+  auto r = open(rules("classes.rules", "rdf:type(X, alert) :- hr(X, V), V > 100.\nrdf:type(X, seen) :- hr(X, _).\n"));
+  put({{n("s1"), n("hr"), tn::Term::integer(120)}});
+  auto s = r.session();
+  ASSERT_TRUE(s.has_value()) << s.error().message;
+  ASSERT_EQ(s->added.size(), 2u);
+  auto snap = node_->snapshot();
+  const tn::Term type = tn::Term::iri(std::string(tn::kRdfType));
+  auto alert = snap->list({.p = type, .o = n("alert")}), seen = snap->list({.p = type, .o = n("seen")});
+  ASSERT_EQ(alert->size(), 1u);
+  ASSERT_EQ(seen->size(), 1u);
+  EXPECT_NE(alert->front().meta.item, seen->front().meta.item);
+}
+
 TEST_F(ReasonerTest, NoConclusionIsWrittenTwiceAcrossSessionsAndRestarts) {
   put({t("me", "state", "stateIdle"), t("me", "myNameIs", "robot3"), t("robot3", "receivedTask", "clean")});
   {

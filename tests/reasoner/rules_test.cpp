@@ -225,7 +225,7 @@ TEST(Rules, ArithmeticBeyondTheRangeOfIntegersAndTimesDerivesNothing) {
       tr::Atom{kNs + "product", {n("small"), tn::Term::integer(9)}}.to_string(),
       tr::Atom{kNs + "negated", {n("small"), tn::Term::integer(-4)}}.to_string(),
       tr::Atom{kNs + "negated", {n("big"), tn::Term::integer(INT64_MIN)}}.to_string(),
-      tr::Atom{kNs + "dated", {n("now"), n("true")}}.to_string()};
+      tr::Atom{kNs + "dated", {n("now"), tn::Term::literal("true", std::string(tn::xsd::kBoolean))}}.to_string()};
   EXPECT_EQ(got, want);  // none of big + big, big * big, -min, min / -1, a time past 2262
 }
 
@@ -233,25 +233,39 @@ std::vector<tn::Triple> triples(std::initializer_list<tn::Triple> list) { return
 
 // `_` (or `_Name`) under a negation means any value, as in Prolog, and the conclusion follows
 // the negated facts as they come and go.
+// `true` and `false` are booleans, as in Turtle and on the command line: the trend agent writes
+// `tv:alert true`, and `alert(T, true)` read as the IRI <…#true> matched nothing, silently.
+TEST(Rules, TrueAndFalseAreBooleans) {
+  auto program = parse("raised(T) :- alert(T, true).\ncalm(T) :- alert(T, false).\n");
+  ASSERT_TRUE(program);
+  tr::Engine engine(program);
+  const std::string boolean(tn::xsd::kBoolean);
+  const std::vector<tn::Triple> in = {tl("t1", "alert", tn::Term::literal("true", boolean)),
+                                      tl("t2", "alert", tn::Term::literal("false", boolean)), t("t3", "alert", "true")};
+  auto u = engine.apply(in, {}, 0);
+  EXPECT_EQ(strings(u.added), (std::set<std::string>{tr::Atom{kNs + "raised", {n("t1")}}.to_string(),
+                                                      tr::Atom{kNs + "calm", {n("t2")}}.to_string()}));
+}
+
 TEST(Rules, AnAnonymousVariableUnderANegationMeansAnyValue) {
   auto program = parse(
-      "lonely(X, true) :- person(X, _), \\+ knows(X, _).\n"
-      "unasked(X, true) :- person(X, _), \\+ fact(_Who, asked, X).\n"
-      "calm(me, true) :- person(_, _), \\+ alarm(_, _).\n");
+      "lonely(X, yes) :- person(X, _), \\+ knows(X, _).\n"
+      "unasked(X, yes) :- person(X, _), \\+ fact(_Who, asked, X).\n"
+      "calm(me, yes) :- person(_, _), \\+ alarm(_, _).\n");
   ASSERT_TRUE(program);
   tr::Engine engine(program);
   auto u = engine.apply(triples({t("a", "person", "yes"), t("b", "person", "yes"), t("a", "knows", "b")}), {}, 0);
-  EXPECT_EQ(strings(u.added), (std::set<std::string>{a2("lonely", "b", "true").to_string(),
-                                                      a2("unasked", "a", "true").to_string(),
-                                                      a2("unasked", "b", "true").to_string(),
-                                                      a2("calm", "me", "true").to_string()}));
+  EXPECT_EQ(strings(u.added), (std::set<std::string>{a2("lonely", "b", "yes").to_string(),
+                                                      a2("unasked", "a", "yes").to_string(),
+                                                      a2("unasked", "b", "yes").to_string(),
+                                                      a2("calm", "me", "yes").to_string()}));
   auto v = engine.apply(triples({t("b", "knows", "c"), t("c", "asked", "a"), t("z", "alarm", "on")}), {}, 0);
   EXPECT_TRUE(v.added.empty());
-  EXPECT_EQ(strings(v.removed), (std::set<std::string>{a2("lonely", "b", "true").to_string(),
-                                                        a2("unasked", "a", "true").to_string(),
-                                                        a2("calm", "me", "true").to_string()}));
+  EXPECT_EQ(strings(v.removed), (std::set<std::string>{a2("lonely", "b", "yes").to_string(),
+                                                        a2("unasked", "a", "yes").to_string(),
+                                                        a2("calm", "me", "yes").to_string()}));
   auto w = engine.apply({}, triples({t("z", "alarm", "on")}), 0);
-  EXPECT_EQ(strings(w.added), std::set<std::string>{a2("calm", "me", "true").to_string()});
+  EXPECT_EQ(strings(w.added), std::set<std::string>{a2("calm", "me", "yes").to_string()});
 }
 
 TEST(Rules, NonBinaryConclusionsHaveTheDocumentedStoredForm) {

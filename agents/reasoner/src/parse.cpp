@@ -423,6 +423,13 @@ Result<Arg> Parser::term(bool allow_now) {
     if (auto a = advance(); !a) return unexpected(a.error());
     return constant(t.term);
   }
+  if (t.kind == Tok::name && (t.text == "true" || t.text == "false")) {
+    // As Turtle and the command line read them: the trend agent's `tv:alert true` is a boolean,
+    // and `tv:alert(T, true)` read as the IRI <default-ns#true> matched nothing, silently.
+    if (auto a = advance(); !a) return unexpected(a.error());
+    if (is("(")) return error(t.pos, "a compound term such as " + t.text + "(...) cannot be an argument");
+    return constant(node::Term::literal(t.text, std::string(node::xsd::kBoolean)));
+  }
   if (t.kind == Tok::iri || (t.kind == Tok::name && (allow_now || t.text != "now"))) {
     if (auto a = advance(); !a) return unexpected(a.error());
     if (is("(")) return error(t.pos, "a compound term such as " + t.text + "(...) cannot be an argument");

@@ -290,13 +290,16 @@ Result<Engine::Update> Reasoner::Impl::resync(const node::Snapshot& snap, std::i
 Result<void> Reasoner::Impl::write(const Engine::Update& update, const std::vector<node::Triple>& extra_removals,
                                    std::int64_t now) {
   own_first = own_last = 0;
-  // One item per predicate: a node's forwarding policy routes whole items (P5), and one item of
-  // everything a session concluded sent a home-only conclusion (a helper relation, a private
-  // note) up with the alert that matched the policy.
+  // One item per predicate, and per class for rdf:type: a node's forwarding policy routes whole
+  // items (P5), and one item of everything a session concluded sent a home-only conclusion (a
+  // helper relation, a private note) up with the alert that matched the policy; every class
+  // shares rdf:type, and a policy forwarding one class sent the session's other classes too.
   std::vector<node::Item> items;
   std::map<std::string, std::size_t> item_of;
   for (const Atom& a : update.added) {
-    auto [at, is_new] = item_of.emplace(a.predicate, items.size());
+    std::string key = a.predicate;
+    if (a.predicate == node::kRdfType && a.args.size() == 2) key += ' ' + a.args[1].value;
+    auto [at, is_new] = item_of.emplace(key, items.size());
     if (is_new) {
       items.emplace_back();
       items.back().asserted_at = now;
