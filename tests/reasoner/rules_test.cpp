@@ -156,6 +156,26 @@ TEST(Rules, ParseErrorsNameFileLineAndColumn) {
   }
 }
 
+// A negation inside recursion names the chain of rules that closes the loop: here through
+// rdf:type, which the file also derives (every class pattern depends on such a rule), where
+// "negation of later depends on latest itself" named no rule that makes it so.
+TEST(Rules, ANegationInsideRecursionNamesTheChainThatClosesTheLoop) {
+  auto p = tr::parse_rules(
+      "win(R, S) :- start(W, S), of(W, R), rdf:type(R, recording).\n"
+      "later(R, S) :- win(R, S), win(R, S2), S2 > S.\n"
+      "latest(R, S) :- win(R, S), \\+ later(R, S).\n"
+      "rdf:type(R, alerted) :- latest(R, _).\n",
+      options("loop.rules"));
+  ASSERT_FALSE(p.has_value());
+  EXPECT_NE(p.error().message.find("loop.rules:3:31: negation of " + kNs + "later depends on " + kNs + "latest itself"),
+            std::string::npos)
+      << p.error().message;
+  EXPECT_NE(p.error().message.find(kNs + "later <- " + kNs + "win <- http://www.w3.org/1999/02/22-rdf-syntax-ns#type <- " + kNs +
+                                   "latest (each derived from the next)"),
+            std::string::npos)
+      << p.error().message;
+}
+
 TEST(Rules, PrefixesIrisHashNamesLiteralsAndMe) {
   const tr::Atom got = only_conclusion(
       "@prefix ex: <http://ex.org/> .\n"

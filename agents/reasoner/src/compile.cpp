@@ -11,6 +11,7 @@
 //  4. strata: strongly connected components of the predicate graph in dependency order; a
 //     negation inside a component is an error.
 #include <algorithm>
+#include <deque>
 #include <functional>
 #include <map>
 #include <optional>
@@ -652,6 +653,31 @@ Result<void> make_plans(Program& program) {
   return {};
 }
 
+// The shortest chain of rules by which `from` depends on `to` (both in one component), as
+// "a <- b <- c": a rule that derives any rdf:type makes every class pattern depend on it, and
+// "later depends on latest" alone named no rule that closes the loop.
+std::string dependency_path(const Program& program, const std::vector<std::vector<std::pair<std::uint32_t, bool>>>& edges,
+                            const std::vector<int>& comp, std::uint32_t from, std::uint32_t to) {
+  std::vector<std::int64_t> came_from(program.preds.size(), -1);
+  std::deque<std::uint32_t> queue{from};
+  came_from[from] = from;
+  while (!queue.empty() && came_from[to] < 0) {
+    const std::uint32_t v = queue.front();
+    queue.pop_front();
+    for (auto [w, neg] : edges[v]) {
+      if (comp[w] != comp[from] || came_from[w] >= 0) continue;
+      came_from[w] = v;
+      queue.push_back(w);
+    }
+  }
+  if (came_from[to] < 0) return program.preds[from].iri + " <- " + program.preds[to].iri;
+  std::vector<std::uint32_t> chain{to};
+  while (chain.back() != from) chain.push_back(static_cast<std::uint32_t>(came_from[chain.back()]));
+  std::string out;
+  for (auto it = chain.rbegin(); it != chain.rend(); ++it) out += (out.empty() ? "" : " <- ") + program.preds[*it].iri;
+  return out + " (each derived from the next)";
+}
+
 // Step 4: Tarjan's strongly connected components; emitted dependencies first.
 Result<void> stratify(Program& program) {
   const std::size_t n = program.preds.size();
@@ -703,7 +729,8 @@ Result<void> stratify(Program& program) {
         if (neg && comp[w] == comp[rule.head] && (l.pred == w || l.pred == kAnyBinary))
           return unexpected(Error{where(program, l.pos) + ": negation of " + program.preds[w].iri +
                                   " depends on " + program.preds[rule.head].iri +
-                                  " itself (not stratified; ranking and \\+ cannot go through recursion)"});
+                                  " itself (not stratified; ranking and \\+ cannot go through recursion): " +
+                                  dependency_path(program, edges, comp, w, rule.head)});
       }
     }
   }
