@@ -1584,7 +1584,8 @@ struct Link::Impl {
         if (state && state->store_id != parent_store_id) {
           if (!parent_store_id.empty())
             log("the parent <" + opt.parent_iri + "> has another store (id " + state->store_id + ", was " +
-                parent_store_id + "): what comes down is a new stream, from its start");
+                parent_store_id + "): what comes down is a new stream, from its start; of what went up to the store "
+                "before, only persistent items are sent again (P6c): the others it had are not in this one");
           if (parent_flips.saw(parent_store_id, state->store_id, "the parent <" + opt.parent_iri + ">"))
             log("conflict: " + parent_flips.said());
           parent_store_id = state->store_id;

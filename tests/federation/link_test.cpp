@@ -383,6 +383,8 @@ TEST(Link, APersistentItemGoesUpAgainToAParentWhoseStoreIsMadeAgain) {
   EXPECT_EQ(count(tree.hospital_dir, {.p = Term::iri(kEx + "n"), .o = Term::integer(7)}), 1u);
   EXPECT_TRUE(eventually([&] { return outbox(tree.home1_dir) == 0; })) << "the new store's acknowledgements empty the outbox";
   EXPECT_TRUE(tree.home1_log.has("1 persistent item(s) its policy routes go up again"));
+  // The home's log says what the new store lacks (an operator saw only "a new stream").
+  EXPECT_TRUE(tree.home1_log.has("of what went up to the store before, only persistent items are sent again (P6c)"));
   // A restart of either link is not a new store: nothing goes up twice.
   tree.home1.reset();
   tree.home1 = tree.start_home(tree.home1_dir, kHome1, tree.home1_log);
