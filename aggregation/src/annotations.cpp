@@ -123,8 +123,9 @@ Result<std::vector<Annotation>> read_annotations(const std::string& record_path,
       default: {
         if (a >= 50) return fail(at(file, here) + "reserved annotation type " + std::to_string(a));
         time += i;
-        // WFDB keeps annotations in time order (its writer refuses others); a negative SKIP
-        // that goes back would make beats match nothing, scored as misses and false ones.
+        // An annotation file is in time order (WFDB's writer sorts what it was given when it
+        // closes the file); a negative SKIP that goes back would make beats match nothing,
+        // scored as misses and false ones.
         if (!out.empty() && time < out.back().sample)
           return fail(at(file, here) + "annotation at sample " + std::to_string(time) + " comes after one at sample " +
                       std::to_string(out.back().sample) + ": annotations must be in time order");

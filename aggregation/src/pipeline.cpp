@@ -25,9 +25,12 @@ Result<HrvReport> hrv_from_samples(const std::vector<std::int32_t>& samples, dou
   report.beats = std::move(detection.peaks);
   report.intervals = intervals_from_peaks(report.beats, detection.empty_gap_ends,
                                           detection.p_wave_gap_ends, fs, options.nn);
-  report.metrics = compute_hrv(report.intervals, fs, options.hrv);
+  // A gap is what the NN rule takes for one: irregular_pct and the gaps warning agree.
+  HrvOptions hrv = options.hrv;
+  hrv.gap_s = options.nn.max_interval_s;
+  report.metrics = compute_hrv(report.intervals, fs, hrv);
   const double step = options.step_s > 0 ? options.step_s : options.window_s;
-  report.windows = windowed_hrv(report.intervals, fs, options.window_s, step, options.hrv, report.duration_s);
+  report.windows = windowed_hrv(report.intervals, fs, options.window_s, step, hrv, report.duration_s);
   return report;
 }
 

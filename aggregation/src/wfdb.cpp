@@ -137,8 +137,9 @@ Result<bool> parse_record_line(std::string_view line, const Where& at, RecordHea
       double v = 0;
       if (counter.front() == '/') {
         const std::size_t paren = counter.find('(');
-        if (!parse_double(counter.substr(1, paren == std::string_view::npos ? paren : paren - 1), v) || v <= 0)
-          return fail(at.field_error("sampling frequency", t.items[2], "the counter frequency after '/' is not a positive number"));
+        // Not positive is allowed: WFDB then takes the sampling frequency.
+        if (!parse_double(counter.substr(1, paren == std::string_view::npos ? paren : paren - 1), v))
+          return fail(at.field_error("sampling frequency", t.items[2], "the counter frequency after '/' is not a number"));
         counter.remove_prefix(paren == std::string_view::npos ? counter.size() : paren);
       }
       if (!counter.empty() &&
@@ -162,9 +163,7 @@ Result<bool> parse_record_line(std::string_view line, const Where& at, RecordHea
     return fail(at.field_error("base time", t.items[4], "not a time of day [[HH:]MM:]SS[.s]"));
   if (t.items.size() > 5 && !is_base_date(t.items[5]))
     return fail(at.field_error("base date", t.items[5], "not a date DD/MM/YYYY"));
-  if (t.items.size() > 6)
-    return fail(at.field_error("record line", t.items[6], "more fields than name, signals, frequency, samples, time and date"));
-  return true;
+  return true;  // WFDB reads nothing after the date, and neither does this reader
 }
 
 // ---- signal line: file format[xsamp][:skew][+offset] gain[(baseline)][/units] adcres adczero

@@ -1163,9 +1163,12 @@ class Deployment {
     return changes;
   }
 
-  // Keepers and dispatchers: their work of the moment, logged.
+  // Keepers and dispatchers: their work of the moment, logged. Not on a node whose board write
+  // waits for the store's writer lock: their writes would wait in this loop (and a snapshot
+  // after another process grew the store would wait for that board write to begin).
   void poll(const agents::Supervisor::Log& log) {
     for (auto& [id, keeper] : keepers_) {
+      if (board_held_up(id)) continue;
       auto synced = keeper.poll(std::chrono::milliseconds(0));
       if (!synced) {
         log("up: area keeper <" + keeper.iri() + ">: " + synced.error().message);
@@ -1176,6 +1179,7 @@ class Deployment {
       }
     }
     for (auto& [id, d] : dispatchers_) {
+      if (board_held_up(id)) continue;
       auto events = d.dispatcher.poll(std::chrono::milliseconds(0));
       if (!events) log("up: dispatcher <" + d.dispatcher.iri() + ">: " + events.error().message);
       else
@@ -1192,8 +1196,11 @@ class Deployment {
     // The board then says they stopped, not how they last ran: for `status` on a machine above
     // once this node's link runs again (until then that machine cannot ask).
     publish_programs(log, true);
-    finish_boards(log, std::chrono::seconds(2));
+    boards_finished_ = finish_boards(log, std::chrono::seconds(2));
   }
+
+  // After stop(): false when a board's thread still waits for its store.
+  bool boards_finished() const { return boards_finished_; }
 
   // Each node's programs on its board (agents/supervisor.h, "on the board"), when they change
   // and every kProgramsRefresh: a machine above knows them only from there (`tahvel status`).
@@ -1218,10 +1225,11 @@ class Deployment {
       if (waited >= kBoardHeldUpSaid && !board.held_up_said) {
         board.held_up_said = true;
         log("up: the programs of " + id + " have waited " +
-            std::to_string(std::chrono::duration_cast<std::chrono::seconds>(waited).count()) + " s to be written on its board: "
-            "another process holds the writer lock of " + (state_ / id).string() +
-            " (a long `tahvel load`, or a writer stopped inside its transaction); restarts and the other nodes go on");
-      } else if (waited == std::chrono::steady_clock::duration::zero() && board.held_up_said) {
+            std::to_string(std::chrono::duration_cast<std::chrono::seconds>(waited).count()) + " s to be written on its board, "
+            "most likely for the writer lock of " + (state_ / id).string() +
+            ", which another process holds (a long `tahvel load`, or a writer stopped inside its transaction); "
+            "restarts and the other nodes go on, and the node's area keeper and dispatcher wait");
+      } else if (board.held_up_said && board.writer->last_write_succeeded()) {
         board.held_up_said = false;
         log("up: the programs of " + id + " are written on its board again");
       }
@@ -1232,19 +1240,31 @@ class Deployment {
     }
   }
 
-  // Waits up to `limit` in all for the boards' last writes (after stop()).
-  void finish_boards(const agents::Supervisor::Log& log, std::chrono::milliseconds limit) {
+  // Waits up to `limit` in all for the boards' last writes (after stop()); false when one still
+  // waits for its store (its thread is left to the process's end).
+  bool finish_boards(const agents::Supervisor::Log& log, std::chrono::milliseconds limit) {
     const auto deadline = std::chrono::steady_clock::now() + limit;
+    bool all = true;
     for (auto& [id, board] : published_) {
       if (!board.writer) continue;
       const auto left = std::chrono::duration_cast<std::chrono::milliseconds>(deadline - std::chrono::steady_clock::now());
-      if (!board.writer->finish(std::max(left, std::chrono::milliseconds(0))))
-        log("up: the programs of " + id + " as they stopped are not on its board: another process holds the writer lock of " +
-            (state_ / id).string());
+      if (board.writer->finish(std::max(left, std::chrono::milliseconds(0)))) continue;
+      all = false;
+      log("up: the programs of " + id + " as they stopped are not on its board: its write still waits, most likely for "
+          "the writer lock of " + (state_ / id).string() + ", which another process holds");
     }
+    return all;
+  }
+
+  // Whether the write of `id`'s board has waited long enough to say its store is held.
+  bool board_held_up(const std::string& id) const {
+    auto it = published_.find(id);
+    return it != published_.end() && it->second.writer && it->second.writer->waiting() >= kBoardWaitHoldsUpOthers;
   }
 
  private:
+  // A board write that waits this long holds up the node's keeper and dispatcher (poll()).
+  static constexpr std::chrono::milliseconds kBoardWaitHoldsUpOthers{200};
   // How long a board's write waits before the supervisor says which store holds it up.
   static constexpr std::chrono::seconds kBoardHeldUpSaid{5};
 
@@ -1316,6 +1336,7 @@ class Deployment {
   std::map<std::string, spatial::AreaKeeper> keepers_;
   std::set<std::string> node_ids_;                // the nodes this supervisor runs
   std::map<std::string, Published> published_;    // by node id
+  bool boards_finished_ = true;
 };
 
 // The request `up` leaves for a running supervisor before SIGHUP (its id, then the topology
@@ -1725,6 +1746,9 @@ int run_up(const Args& args) {
   std::error_code removed;
   fs::remove(pid_file, removed);
   log("up: supervisor " + std::to_string(getpid()) + " stopped");
+  // A board's thread still waiting in the store would run on while static destructors do
+  // (the log's mutex among them) should the lock be freed meanwhile: end without them.
+  if (!deployment.boards_finished()) _exit(kExitOk);
   return kExitOk;
 }
 

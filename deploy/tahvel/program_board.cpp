@@ -17,6 +17,7 @@ struct ProgramBoard::Shared {
   std::optional<std::vector<agents::ProgramState>> pending;
   bool finishing = false;
   bool writing = false;
+  bool succeeded = false;  // the last write ended, and wrote
   std::chrono::steady_clock::time_point write_began{};
 };
 
@@ -72,19 +73,31 @@ ProgramBoard::ProgramBoard(std::filesystem::path store, std::string node_id, Log
       failure = written ? std::string() : written.error().message;
       lock.lock();
       shared->writing = false;
+      shared->succeeded = written.has_value();
       shared->changed.notify_all();
     }
   });
 }
 
 ProgramBoard::~ProgramBoard() {
-  if (thread_.joinable()) finish(std::chrono::milliseconds(0));
+  if (!thread_.joinable()) return;
+  {
+    std::lock_guard lock(shared_->mutex);
+    shared_->pending.reset();
+  }
+  finish(std::chrono::milliseconds(0));
 }
 
 void ProgramBoard::post(std::vector<agents::ProgramState> programs) {
   std::lock_guard lock(shared_->mutex);
   shared_->pending = std::move(programs);
+  shared_->succeeded = false;
   shared_->changed.notify_all();
+}
+
+bool ProgramBoard::last_write_succeeded() const {
+  std::lock_guard lock(shared_->mutex);
+  return shared_->succeeded && !shared_->writing;
 }
 
 std::chrono::steady_clock::duration ProgramBoard::waiting() const {

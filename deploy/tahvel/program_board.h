@@ -23,7 +23,9 @@ class ProgramBoard {
   // Writes to the store in `store` (opened at the first write) as its agent `supervisor`; a
   // failure is logged once, until the next write succeeds.
   ProgramBoard(std::filesystem::path store, std::string node_id, Log log);
-  // finish(0): a write that still waits is left to its thread, which ends with the process.
+  // Drops what waits to be posted (a node taken out of the deployment: its programs were
+  // stopped, and another supervisor may run it next) and finishes without waiting; a write
+  // under way is left to its thread, which ends with the process.
   ~ProgramBoard();
   ProgramBoard(const ProgramBoard&) = delete;
   ProgramBoard& operator=(const ProgramBoard&) = delete;
@@ -32,6 +34,8 @@ class ProgramBoard {
   void post(std::vector<agents::ProgramState> programs);
   // How long the write under way has waited so far; zero when none is under way.
   std::chrono::steady_clock::duration waiting() const;
+  // Whether a write has ended since the last post or the thread began, and succeeded.
+  bool last_write_succeeded() const;
   // Waits up to `limit` for what was posted to be written, then ends the thread; false when a
   // write still waits (its thread is left to finish on its own).
   bool finish(std::chrono::milliseconds limit);

@@ -2530,8 +2530,9 @@ class HeldWriterLock {
     EXPECT_EQ(mdb_env_create(&env_), 0);
     mdb_env_set_maxdbs(env_, 64);
     // Without MDB_WRITEMAP: the map is the size the store's meta page says, the file untouched.
-    EXPECT_EQ(mdb_env_open(env_, dir.c_str(), MDB_NOTLS | MDB_NOSYNC, 0644), 0) << dir;
-    EXPECT_EQ(mdb_txn_begin(env_, nullptr, 0, &txn_), 0) << dir;
+    const int opened = mdb_env_open(env_, dir.c_str(), MDB_NOTLS | MDB_NOSYNC, 0644);
+    EXPECT_EQ(opened, 0) << dir;
+    if (opened == 0) EXPECT_EQ(mdb_txn_begin(env_, nullptr, 0, &txn_), 0) << dir;
   }
   ~HeldWriterLock() {
     if (txn_) mdb_txn_abort(txn_);
@@ -2583,7 +2584,8 @@ TEST_F(Cli, AStoreHeldByAnotherWriterHoldsUpOnlyThatNodesBoardNotTheSupervisor) 
     for (int i = 0; i < 200 && slurp(log).find("the programs of a have waited") == std::string::npos; ++i)
       std::this_thread::sleep_for(std::chrono::milliseconds(50));  // said after 5 s of waiting
     EXPECT_NE(slurp(log).find("the programs of a have waited"), std::string::npos) << slurp(log);
-    EXPECT_NE(slurp(log).find("another process holds the writer lock of " + (tmp_ / "state" / "a").string()), std::string::npos);
+    EXPECT_NE(slurp(log).find("most likely for the writer lock of " + (tmp_ / "state" / "a").string() + ", which another process holds"),
+              std::string::npos);
   }
   EXPECT_TRUE(eventually([&] {
     return slurp(tmp_ / "state" / "logs" / "supervisor.log").find("the programs of a are written on its board again") !=

@@ -176,6 +176,18 @@ TEST(Rules, ANegationInsideRecursionNamesTheChainThatClosesTheLoop) {
       << p.error().message;
 }
 
+// An IRI with a space (or no scheme) is no IRI in a rule file, and '<' alone is "less than": the
+// error said only "found '<'".
+TEST(Rules, AnIriThatIsNoneSaysWhatAnIriIs) {
+  for (const char* text : {"p(X, Y) :- q(X, <http://ex.org/a b>).\n", "p(X, Y) :- q(X, <not an iri>).\n"}) {
+    auto p = tr::parse_rules(text, options("bad.rules"));
+    ASSERT_FALSE(p.has_value()) << text;
+    EXPECT_NE(p.error().message.find("bad.rules:1:17: expected a term, found '<' that starts no IRI: an IRI is <scheme:...>"),
+              std::string::npos)
+        << p.error().message;
+  }
+}
+
 TEST(Rules, PrefixesIrisHashNamesLiteralsAndMe) {
   const tr::Atom got = only_conclusion(
       "@prefix ex: <http://ex.org/> .\n"
@@ -251,8 +263,6 @@ TEST(Rules, ArithmeticBeyondTheRangeOfIntegersAndTimesDerivesNothing) {
 
 std::vector<tn::Triple> triples(std::initializer_list<tn::Triple> list) { return list; }
 
-// `_` (or `_Name`) under a negation means any value, as in Prolog, and the conclusion follows
-// the negated facts as they come and go.
 // `true` and `false` are booleans, as in Turtle and on the command line: the trend agent writes
 // `tv:alert true`, and `alert(T, true)` read as the IRI <…#true> matched nothing, silently.
 TEST(Rules, TrueAndFalseAreBooleans) {
@@ -267,6 +277,8 @@ TEST(Rules, TrueAndFalseAreBooleans) {
                                                       tr::Atom{kNs + "calm", {n("t2")}}.to_string()}));
 }
 
+// `_` (or `_Name`) under a negation means any value, as in Prolog, and the conclusion follows
+// the negated facts as they come and go.
 TEST(Rules, AnAnonymousVariableUnderANegationMeansAnyValue) {
   auto program = parse(
       "lonely(X, yes) :- person(X, _), \\+ knows(X, _).\n"

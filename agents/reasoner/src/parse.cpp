@@ -446,6 +446,11 @@ Result<Arg> Parser::term(bool allow_now) {
     if (auto a = advance(); !a) return unexpected(a.error());
     return constant(neg);
   }
+  // '<' is read as an IRI only when a scheme and ':' start a run without spaces up to '>'; an
+  // IRI with a space or no scheme was "found '<'" and nothing more.
+  if (is("<"))
+    return error(tok_.pos, "expected a term, found '<' that starts no IRI: an IRI is <scheme:...> up to '>' without "
+                           "spaces (escape a space as %20), and '<' alone is 'less than'");
   return expected("a term (variable, IRI, atom, string or number)");
 }
 
