@@ -745,6 +745,7 @@ Result<std::uint64_t> insert_item(Txn& txn, const Item& item, const std::string&
   std::vector<std::array<std::uint64_t, 3>> ids;
   ids.reserve(item.triples.size());
   bool declares_subscription = false;
+  bool states_a_pattern = false;  // tv:subject, tv:predicate or tv:object: a subscription's pattern
   for (std::size_t i = 0; i < item.triples.size(); ++i) {
     const Triple& t = item.triples[i];
     std::array<std::uint64_t, 3> row{};
@@ -767,12 +768,16 @@ Result<std::uint64_t> insert_item(Txn& txn, const Item& item, const std::string&
       // The subscriber's IRI keys its input buffer: pinned, so its id never changes.
       if (auto p = pin_term(txn, row[2]); !p) return unexpected(p.error());
     }
+    states_a_pattern = states_a_pattern || row[1] == env.vocab.subject || row[1] == env.vocab.predicate ||
+                       row[1] == env.vocab.object;
     ids.push_back(row);
   }
   const std::int64_t now = now_ns();
   // A subscription is kept as long as it is not removed: written as plain data on a ring store,
-  // the ring would reclaim it and the agent would stop receiving, silently (R9).
-  const bool persistent = item.persistent || declares_subscription;
+  // the ring would reclaim it and the agent would stop receiving, silently (R9). Its pattern
+  // too when written apart (one item per predicate, as a reasoner writes): reclaimed, it left a
+  // subscription that matches every item.
+  const bool persistent = item.persistent || declares_subscription || states_a_pattern;
   ItemRow meta{ids.size(), ids.size(), 0, now, item.asserted_at.value_or(now), item.span, *source, context,
                persistent, *writer != *source ? *writer : 0};
   if (auto r = refresh_caches(txn); !r) return unexpected(r.error());

@@ -300,6 +300,34 @@ TEST(Subscribe, ASubscriptionWrittenAsPlainDataIsNotReclaimedByTheRing) {
   EXPECT_EQ(node.snapshot().value().list({.p = Term::iri("https://w3id.org/tahvel#subscriber")}).value().size(), 1u);
 }
 
+// A subscription whose pattern comes in an item of its own (a reasoner writes one item per
+// predicate, RS12): that item is kept as the tv:subscriber one is. Reclaimed by the ring, it left
+// a subscription without a pattern, which matches every item: an uplink then forwarded all.
+TEST(Subscribe, ASubscriptionsPatternWrittenApartIsNotReclaimedByTheRing) {
+  TempDir dir;
+  Node node = make_node(dir.path(), {.ring = 5});
+  Agent configurator = node.agent("configurator").value();
+  Agent monitor = node.agent("monitor").value();
+  Agent writer = node.agent("writer").value();
+  const Term sub = Term::iri("http://example.org/subscriptions/1");
+  Item who, what;
+  who.add(sub, Term::iri("https://w3id.org/tahvel#subscriber"), Term::iri(monitor.iri()));
+  what.add(sub, Term::iri("https://w3id.org/tahvel#predicate"), ex("value"));
+  ASSERT_TRUE(configurator.store(what));  // the pattern first, then who it is for
+  ASSERT_TRUE(configurator.store(who));
+  for (int i = 0; i < 20; ++i) {
+    ASSERT_TRUE(writer.store(reading(i)));
+    Item other;
+    other.add(ex("note" + std::to_string(i)), ex("private"), Term::literal("not for the monitor"));
+    ASSERT_TRUE(writer.store(other));
+    auto got = monitor.take(0ms).value();
+    ASSERT_TRUE(got) << "reading " << i << " did not reach the monitor";
+    EXPECT_EQ(got->records.front().triple.p, ex("value")) << "at reading " << i;
+    EXPECT_FALSE(monitor.take(0ms).value()) << "the monitor got the private note " << i;
+  }
+  EXPECT_EQ(node.snapshot().value().list({.p = Term::iri("https://w3id.org/tahvel#predicate")}).value().size(), 1u);
+}
+
 // A link trims its outbox a run at a time: the whole buffer may go, while the buffers of other
 // agents (stored beside it) keep theirs, and an item acknowledged by every buffer that held it
 // is no longer kept from the ring.
