@@ -501,6 +501,18 @@ Result<void> Env::make_store(const std::filesystem::path& dir, const InitOptions
   return {};
 }
 
+namespace {
+
+// The size of the store's data file in `dir`, 0 when it cannot be told. A map is never made
+// smaller than it: with MDB_WRITEMAP, mapping shrinks the file to the map.
+std::uint64_t data_file_bytes(const std::filesystem::path& dir) {
+  struct stat st {};
+  if (::stat((dir / "data.mdb").c_str(), &st) != 0 || st.st_size <= 0) return 0;
+  return static_cast<std::uint64_t>(st.st_size);
+}
+
+}  // namespace
+
 Result<std::shared_ptr<Env>> Env::open_at(const std::filesystem::path& dir, const InitOptions* init) {
   std::lock_guard lock(registry_mutex);
   auto reg_key = std::make_pair(getpid(), dir.string());
@@ -515,10 +527,13 @@ Result<std::shared_ptr<Env>> Env::open_at(const std::filesystem::path& dir, cons
   if (rc != 0) return lmdb_fail(rc, "creating LMDB environment");
   mdb_env_set_maxdbs(env->env_, kMaxTables);
   mdb_env_set_maxreaders(env->env_, kMaxReaders);
-  // Only a new store gets a map size here. An existing one is mapped at the size its meta page
-  // records (the largest any process grew it to): with MDB_WRITEMAP, LMDB sizes the file to the
-  // map, so opening with a smaller size would shrink the file under other processes' maps.
+  // A new store gets the initial map size. An existing one is mapped at the size of its data
+  // file: with MDB_WRITEMAP, LMDB sizes the file to the map, and the size its meta page records
+  // is the last committed one, short of a file that a writer's transaction in progress grew (a
+  // long `tahvel load`). Opened at that size, the file shrank under the writer, which died of
+  // SIGBUS with its whole transaction.
   if (init) mdb_env_set_mapsize(env->env_, std::min<std::uint64_t>(kInitialMapBytes, init->max_map_bytes));
+  else if (const std::uint64_t bytes = data_file_bytes(dir); bytes > 0) mdb_env_set_mapsize(env->env_, bytes);
   // NOTLS: snapshots are not tied to threads. WRITEMAP: writes go straight to the shared map
   // (fewer copies); LMDB stays copy-on-write, so a killed writer leaves no trace.
   unsigned flags = MDB_NOTLS | MDB_WRITEMAP | MDB_NOSYNC | MDB_NOMETASYNC;
@@ -538,7 +553,7 @@ Result<std::shared_ptr<Env>> Env::open_at(const std::filesystem::path& dir, cons
   MDB_txn* txn = nullptr;
   rc = mdb_txn_begin(env->env_, nullptr, first_flags, &txn);
   if (rc == MDB_MAP_RESIZED) {
-    mdb_env_set_mapsize(env->env_, 0);
+    mdb_env_set_mapsize(env->env_, data_file_bytes(dir));  // 0 (unknown): the committed size
     rc = mdb_txn_begin(env->env_, nullptr, first_flags, &txn);
   }
   if (rc != 0) return lmdb_fail(rc, "starting the first transaction in " + dir.string());
@@ -655,7 +670,7 @@ Result<void> Env::begin(MDB_txn** txn, unsigned flags) {
         return fail(Errc::io, "the store in " + dir_.string() +
                                   " grew in another process while this process holds a snapshot;"
                                   " release the snapshot and retry");
-      mdb_env_set_mapsize(env_, 0);
+      mdb_env_set_mapsize(env_, data_file_bytes(dir_));  // not below the file: see open_at
       map_moves_.fetch_add(1);
       continue;
     }
@@ -716,6 +731,8 @@ Result<void> Env::grow(WriteKind kind) {
     return fail(Errc::io, "the store in " + dir_.string() +
                               " must grow, and cannot while this process holds a snapshot; release the snapshot and retry");
   std::uint64_t next = std::min(limit, std::max(current * 2, current + kInitialMapBytes));
+  // Not below the file, which another process's transaction in progress may have grown.
+  next = std::max(next, data_file_bytes(dir_));
   int rc = mdb_env_set_mapsize(env_, next);
   map_moves_.fetch_add(1);
   if (rc != 0) return lmdb_fail(rc, "growing the store map of " + dir_.string());

@@ -1416,6 +1416,32 @@ TEST(Store, AnInitKilledHalfWayLeavesNothingThatStopsTheNextOne) {
 // A data.mdb cut short (a copy that stopped half way) opened, and reads of the lost pages said
 // "holds no Tahvel store settings" or MDB_CORRUPTED. It is refused, naming where its root page
 // ends and how much the file holds.
+// A writer's transaction that outgrows the map grows the data file at once, and its meta page
+// records the size only at its commit (a bulk `tahvel load` runs for seconds so). Any process
+// that opened the store meanwhile mapped it at the recorded size, which with MDB_WRITEMAP
+// truncates the file: the writer died of SIGBUS, its whole load lost. The map now covers the file.
+TEST(Store, OpeningAStoreNeverShrinksItsDataFile) {
+  TempDir dir;
+  { make_node(dir.path()); }
+  const std::filesystem::path data = dir.path() / "data.mdb";
+  const std::uintmax_t committed = std::filesystem::file_size(data);
+  std::filesystem::resize_file(data, committed * 2);  // as the writer's growth leaves it
+  {
+    auto node = Node::open(dir.path());
+    ASSERT_TRUE(node) << node.error().message;
+    EXPECT_EQ(std::filesystem::file_size(data), committed * 2);
+    auto writer = node->agent("writer");
+    ASSERT_TRUE(writer);
+    Item item;
+    item.add(Term::iri("http://example.org/s"), Term::iri("http://example.org/p"), Term::literal("o"));
+    EXPECT_TRUE(writer->store(item));
+  }
+  EXPECT_GE(std::filesystem::file_size(data), committed * 2);
+  auto again = Node::open(dir.path());
+  ASSERT_TRUE(again) << again.error().message;
+  EXPECT_EQ(again->snapshot().value().list({.p = Term::iri("http://example.org/p")}).value().size(), 1u);
+}
+
 TEST(Store, AStoreFileCutShortIsRefusedNamingWhatItLacks) {
   TempDir dir;
   {
