@@ -363,7 +363,8 @@ int main(int argc, char** argv) {
     std::optional<std::size_t> ecg_lead;
     if (args.has("--signal")) {
       const double n = args.number("--signal", 0);
-      if (n != std::floor(n) || n > 1e6) throw rt::UsageError("--signal must be a whole number (0 the first signal)");
+      if (n != std::floor(n) || n > 1e6)
+        throw rt::UsageError("--signal must be a whole number from 0 (the first signal) to 1000000");
       ecg_lead = static_cast<std::size_t>(n);
     }
     const double speed = args.number("--speed", 1);

@@ -137,8 +137,9 @@ Result<bool> parse_record_line(std::string_view line, const Where& at, RecordHea
       double v = 0;
       if (counter.front() == '/') {
         const std::size_t paren = counter.find('(');
-        // Not positive is allowed: WFDB then takes the sampling frequency.
-        if (!parse_double(counter.substr(1, paren == std::string_view::npos ? paren : paren - 1), v))
+        // Empty or not positive is allowed: WFDB then takes the sampling frequency.
+        const std::string_view frequency = counter.substr(1, paren == std::string_view::npos ? paren : paren - 1);
+        if (!frequency.empty() && !parse_double(frequency, v))
           return fail(at.field_error("sampling frequency", t.items[2], "the counter frequency after '/' is not a number"));
         counter.remove_prefix(paren == std::string_view::npos ? counter.size() : paren);
       }
@@ -477,6 +478,7 @@ double millivolts_per_unit(std::string_view units) {
   if (u == "mv") return 1;
   if (u == "uv" || u == "\xc2\xb5v" || u == "\xce\xbcv") return 1e-3;  // µ as MICRO SIGN or GREEK MU
   if (u == "v") return 1e3;
+  if (u == "nv") return 1e-6;
   return 0;
 }
 

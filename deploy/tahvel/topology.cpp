@@ -269,6 +269,9 @@ node::Result<Topology> load_topology(const std::filesystem::path& file) {
   if (deployment) {
     if (auto ok = only_keys(*deployment, {"name"}, file, "", "deployment."); !ok) return Unexpected<node::Error>{ok.error()};
     TAHVEL_TRY(name, typed<std::string>(*deployment, "name", file, "deployment.", "a string"));
+    // Printed by `up` and `status`: a control character there would act on the terminal.
+    if (name && std::any_of(name->begin(), name->end(), [](char c) { return static_cast<unsigned char>(c) < 0x20 || c == 0x7f; }))
+      return node::fail(Errc::invalid_argument, where(*deployment->get("name"), file) + ": deployment.name: a control character in a name");
     if (name) topo.name = *name;
   }
   if (root.get("node") && !root.get("node")->is_array_of_tables())
@@ -419,8 +422,12 @@ node::Result<Topology> load_topology(const std::filesystem::path& file) {
     bool progress = false;
     for (auto& spec : specs) {
       if (placed.count(spec.id)) continue;
-      if (!spec.parent.empty() && !by_id.count(spec.parent))
+      if (!spec.parent.empty() && !by_id.count(spec.parent)) {
+        // No node has an id that is not one: check_id's message shows it escaped.
+        if (auto ok = uri::check_id(spec.parent); !ok)
+          return node::fail(Errc::invalid_argument, spec.parent_at + ": node '" + spec.id + "': parent: " + ok.error().message);
         return node::fail(Errc::invalid_argument, spec.parent_at + ": node '" + spec.id + "': parent '" + spec.parent + "' is not a node of this file");
+      }
       if (!spec.parent.empty() && !placed.count(spec.parent)) continue;
       if (spec.parent.empty()) {
         if (!spec.up.empty())

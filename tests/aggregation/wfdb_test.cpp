@@ -317,10 +317,12 @@ TEST_F(WfdbTemp, AnEcgLeadInUnitsThatAreNoVoltageIsWarnedOf) {
   ASSERT_TRUE(h) << h.error().message;
   EXPECT_EQ(non_voltage_warning(*h, 0), record("r") + ".hea: signal 0 (MLII), read as the ECG, is in 'furlongs', not a "
                                                       "voltage: its samples are read as millivolts at the header's gain (is the header right?)");
-  write("v.hea", "v 3 360 1\nv.dat 16 200 16 0 0 0 0 MLII\nv.dat 16 1/uV 16 0 0 0 0 V1\nv.dat 16 1/V 16 0 0 0 0 V2\n");
+  write("v.hea", "v 4 360 1\nv.dat 16 200 16 0 0 0 0 MLII\nv.dat 16 1/uV 16 0 0 0 0 V1\nv.dat 16 1/V 16 0 0 0 0 V2\n"
+                 "v.dat 16 1000/nV 16 0 0 0 0 V3\n");
   auto v = read_header(record("v"));
   ASSERT_TRUE(v) << v.error().message;
-  for (std::size_t i = 0; i < 3; ++i) EXPECT_FALSE(non_voltage_warning(*v, i)) << i;  // mV by default, uV, V
+  for (std::size_t i = 0; i < 4; ++i) EXPECT_FALSE(non_voltage_warning(*v, i)) << i;  // mV by default, uV, V, nV
+  EXPECT_DOUBLE_EQ(gain_per_mv(v->signals[3]), 1e9);
 }
 
 // WFDB writes its no-value (-32768 in format 16, -2048 in 212) where a signal has none. Read
@@ -401,7 +403,7 @@ TEST_F(WfdbTemp, RecordLineFieldsThatDoNotParseAreRefusedNamingTheField) {
   write("r.dat", bytes_of({0x05, 0x00}));
   // A counter frequency that is not positive is the sampling frequency (WFDB's header(5)).
   for (const char* line : {"r 1 360/10(0) 1 13:5:0 24/12/2003", "r 1 360/10 1 0:00:00.250", "r 1 360(-3) 1 59.5",
-                           "r 1 360 1 10:30:15", "r 1 360/0 1", "r 1 360 1 10:00:00 1/1/2000 more text"}) {
+                           "r 1 360 1 10:30:15", "r 1 360/0 1", "r 1 360/ 1", "r 1 360 1 10:00:00 1/1/2000 more text"}) {
     write("r.hea", std::string(line) + "\nr.dat 16\n");
     auto h = read_header(record("r"));
     EXPECT_TRUE(h) << line << ": " << h.error().message;

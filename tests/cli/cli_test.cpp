@@ -2274,6 +2274,9 @@ TEST_F(Cli, UpRefusesATopologyThatCouldNotRunAsWrittenNamingWhatAndWhere) {
       // A control character in an id is shown escaped, the error on one line.
       {"[[node]]\nid = \"home\\n1\"\niri = \"http://example.org/h\"\n",
        "t.toml:1:1: node id: invalid id 'home\\x0A1' at position 4: unexpected control character 0x0A in an id\n"},
+      {hospital + "[[node]]\nid = \"home1\"\nparent = \"a\\u0007x\"\n",
+       "t.toml:6:10: node 'home1': parent: invalid id 'a\\x07x' at position 1: unexpected control character 0x07 in an id\n"},
+      {"[deployment]\nname = \"d\\u001b[2J\"\n" + hospital, "t.toml:2:8: deployment.name: a control character in a name\n"},
       {hospital + "  [[node.agent]]\n  id = \"a\\tb\"\n  run = [\"true\"]\n  restrat = 1\n",
        "t.toml:4:3: node 'hospital': agent id: invalid id 'a\\x09b' at position 1: unexpected control character 0x09 in an id\n"},
       // A misspelt behaviours folder would run nothing, silently.

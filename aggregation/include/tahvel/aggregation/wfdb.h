@@ -105,7 +105,7 @@ std::optional<std::string> default_rate_warning(const RecordHeader& header);
 
 // The ECG lead `signal` is read as a voltage whatever its header says: a lead whose units are
 // no voltage (mmHg, a typo) is read as millivolts at its gain, so a wrong header goes on
-// silently. Said, naming the file, the signal and the units; nullopt for mV, uV, µV and V.
+// silently. Said, naming the file, the signal and the units; nullopt for mV, uV, µV, nV and V.
 std::optional<std::string> non_voltage_warning(const RecordHeader& header, std::size_t signal);
 
 // Streaming reader: frame by frame, for agents that replay a record in chunks. Move-only; owns
