@@ -283,12 +283,19 @@ TEST(Window, PeekLeavesItemsAndAckThroughRemovesUpToAnId) {
 
 // A subscription written as plain data (R9: any agent may write one on the subscriber's behalf)
 // is kept on a ring store: reclaimed, the subscriber stopped receiving, and nothing said so.
-TEST(Subscribe, ASubscriptionWrittenAsPlainDataIsNotReclaimedByTheRing) {
+// A ring store of 5 records: a configurator writes subscriptions as plain data for a monitor,
+// and a writer writes readings.
+struct RingWithMonitor {
   TempDir dir;
   Node node = make_node(dir.path(), {.ring = 5});
   Agent configurator = node.agent("configurator").value();
   Agent monitor = node.agent("monitor").value();
   Agent writer = node.agent("writer").value();
+};
+
+TEST(Subscribe, ASubscriptionWrittenAsPlainDataIsNotReclaimedByTheRing) {
+  RingWithMonitor ring;
+  auto& [dir, node, configurator, monitor, writer] = ring;
   Item subscription;
   subscription.add(Term::blank("sub"), Term::iri("https://w3id.org/tahvel#subscriber"), Term::iri(monitor.iri()))
       .add(Term::blank("sub"), Term::iri("https://w3id.org/tahvel#predicate"), ex("value"));
@@ -304,11 +311,8 @@ TEST(Subscribe, ASubscriptionWrittenAsPlainDataIsNotReclaimedByTheRing) {
 // predicate, RS12): that item is kept as the tv:subscriber one is. Reclaimed by the ring, it left
 // a subscription without a pattern, which matches every item: an uplink then forwarded all.
 TEST(Subscribe, ASubscriptionsPatternWrittenApartIsNotReclaimedByTheRing) {
-  TempDir dir;
-  Node node = make_node(dir.path(), {.ring = 5});
-  Agent configurator = node.agent("configurator").value();
-  Agent monitor = node.agent("monitor").value();
-  Agent writer = node.agent("writer").value();
+  RingWithMonitor ring;
+  auto& [dir, node, configurator, monitor, writer] = ring;
   const Term sub = Term::iri("http://example.org/subscriptions/1");
   Item who, what;
   who.add(sub, Term::iri("https://w3id.org/tahvel#subscriber"), Term::iri(monitor.iri()));

@@ -88,6 +88,24 @@ class ReasonerTest : public ::testing::Test {
     EXPECT_TRUE(walked.has_value());
     return out;
   }
+  // One session of `rules_text` on s1's heart rate of 120: two conclusions, found by `first`
+  // and `second`, each a record of an item of its own, asserted at the session's time. Returns
+  // the reasoner, for what the test does next.
+  tr::Reasoner two_items_of_one_session(const std::string& rules_text, const tn::Pattern& first, const tn::Pattern& second) {
+    auto r = open(rules("two.rules", rules_text));
+    put({{n("s1"), n("hr"), tn::Term::integer(120)}});
+    auto s = r.session();
+    EXPECT_TRUE(s.has_value()) << (s ? "" : s.error().message);
+    if (s) EXPECT_EQ(s->added.size(), 2u);
+    auto snap = node_->snapshot();
+    auto a = snap->list(first), b = snap->list(second);
+    EXPECT_TRUE(a && a->size() == 1u && b && b->size() == 1u);
+    if (a && a->size() == 1u && b && b->size() == 1u) {
+      EXPECT_NE(a->front().meta.item, b->front().meta.item);
+      EXPECT_EQ(a->front().meta.asserted_at, b->front().meta.asserted_at);  // one session
+    }
+    return r;
+  }
   static std::string nt(const std::string& s, const std::string& p, const std::string& o) {
     return n(s).to_ntriples() + " " + n(p).to_ntriples() + " " + n(o).to_ntriples();
   }
@@ -165,17 +183,8 @@ TEST_F(ReasonerTest, RemovedFactsThatNoRuleReadsAreNotCountedAsRemovedFacts) {
 // A forwarding policy routes whole items (P5): the conclusions of one session go in one item per
 // predicate, so that a policy for the alert does not send up what else the session concluded.
 TEST_F(ReasonerTest, EachPredicatesConclusionsOfASessionAreAnItemOfTheirOwn) {
-  auto r = open(rules("two.rules", "alert(X, high) :- hr(X, V), V > 100.\nnote(X, seen) :- hr(X, _).\n"));
-  put({{n("s1"), n("hr"), tn::Term::integer(120)}});
-  auto s = r.session();
-  ASSERT_TRUE(s.has_value()) << s.error().message;
-  ASSERT_EQ(s->added.size(), 2u);
-  auto snap = node_->snapshot();
-  auto alert = snap->list({.p = n("alert")}), note = snap->list({.p = n("note")});
-  ASSERT_EQ(alert->size(), 1u);
-  ASSERT_EQ(note->size(), 1u);
-  EXPECT_NE(alert->front().meta.item, note->front().meta.item);
-  EXPECT_EQ(alert->front().meta.asserted_at, note->front().meta.asserted_at);  // one session
+  auto r = two_items_of_one_session("alert(X, high) :- hr(X, V), V > 100.\nnote(X, seen) :- hr(X, _).\n",
+                                    {.p = n("alert")}, {.p = n("note")});
   // And the next session reads what is new only: nothing is derived twice.
   put({{n("s2"), n("hr"), tn::Term::integer(50)}});
   auto next = r.session();
@@ -187,17 +196,9 @@ TEST_F(ReasonerTest, EachPredicatesConclusionsOfASessionAreAnItemOfTheirOwn) {
 // Every class shares rdf:type: one item per predicate put a home-only class (a marker on each
 // low window) in the item of the alert class the policy forwards, and both went up.
 TEST_F(ReasonerTest, EachClassesConclusionsOfASessionAreAnItemOfTheirOwn) {
-  auto r = open(rules("classes.rules", "rdf:type(X, alert) :- hr(X, V), V > 100.\nrdf:type(X, seen) :- hr(X, _).\n"));
-  put({{n("s1"), n("hr"), tn::Term::integer(120)}});
-  auto s = r.session();
-  ASSERT_TRUE(s.has_value()) << s.error().message;
-  ASSERT_EQ(s->added.size(), 2u);
-  auto snap = node_->snapshot();
   const tn::Term type = tn::Term::iri(std::string(tn::kRdfType));
-  auto alert = snap->list({.p = type, .o = n("alert")}), seen = snap->list({.p = type, .o = n("seen")});
-  ASSERT_EQ(alert->size(), 1u);
-  ASSERT_EQ(seen->size(), 1u);
-  EXPECT_NE(alert->front().meta.item, seen->front().meta.item);
+  two_items_of_one_session("rdf:type(X, alert) :- hr(X, V), V > 100.\nrdf:type(X, seen) :- hr(X, _).\n",
+                           {.p = type, .o = n("alert")}, {.p = type, .o = n("seen")});
 }
 
 TEST_F(ReasonerTest, NoConclusionIsWrittenTwiceAcrossSessionsAndRestarts) {
