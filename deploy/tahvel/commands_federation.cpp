@@ -41,6 +41,7 @@
 #include "tahvel/spatial/wkt.h"
 #include "tahvel/uri/iri.h"
 #include "dataflow.h"
+#include "opening.h"
 #include "program_board.h"
 #include "topology.h"
 #include "vocabulary.h"
@@ -1126,7 +1127,12 @@ class Deployment {
       changes.push_back("stopped the dispatcher of " + it->first);
       it = dispatchers_.erase(it);
     }
+    std::erase_if(opening_dispatchers_, [&](const auto& entry) {  // left to their threads
+      const NodeSpec* spec = topo.node(entry.first);
+      return !ids.count(entry.first) || spec->behaviours != entry.second.folder;
+    });
     std::erase_if(keepers_, [&](const auto& entry) { return !ids.count(entry.first); });
+    std::erase_if(opening_keepers_, [&](const auto& entry) { return !ids.count(entry.first); });
     std::erase_if(published_, [&](const auto& entry) { return !ids.count(entry.first); });
     std::erase_if(locks_, [&](const auto& entry) {  // its programs stopped above
       if (ids.count(entry.first)) return false;
@@ -1134,32 +1140,44 @@ class Deployment {
       return true;
     });
     node_ids_ = ids;
+    // Opened on threads of their own (opening.h); what opens within a moment is said by this
+    // apply, what waits for its store is said when it opens (poll()).
     for (const NodeSpec* spec : mine) {
-      if (!spec->behaviours.empty() && !dispatchers_.count(spec->id)) {
+      const fs::path store = state_ / spec->id;
+      if (!spec->behaviours.empty() && !dispatchers_.count(spec->id) && !opening_dispatchers_.count(spec->id)) {
         agents::DispatcherOptions options;
         options.folder = spec->behaviours;
         options.log_dir = state_ / "logs" / spec->id / "behaviours";
         options.program_prefix = spec->id + "/";
-        options.env = {{std::string(agents::kLeftoverMark), fs::absolute(state_ / spec->id).string()}};
-        auto dispatcher = agents::Dispatcher::open(state_ / spec->id, options, supervisor_);
-        if (!dispatcher) {
-          changes.push_back("dispatcher of " + spec->id + ": " + dispatcher.error().message);
-        } else {
-          changes.push_back("dispatcher <" + dispatcher->iri() + "> runs behaviours from " + spec->behaviours.string());
-          dispatchers_.emplace(spec->id, Dispatching{spec->behaviours, std::move(*dispatcher)});
-        }
+        options.env = {{std::string(agents::kLeftoverMark), fs::absolute(store).string()}};
+        opening_dispatchers_.emplace(
+            spec->id, OpeningDispatcher{spec->behaviours, std::make_unique<Opening<node::Result<agents::Dispatcher>>>(
+                                                              [store, options, &supervisor = supervisor_] {
+                                                                return agents::Dispatcher::open(store, options, supervisor);
+                                                              })});
       }
-      if (!keepers_.count(spec->id)) {
-        spatial::AreaSyncReport first;
-        auto keeper = spatial::AreaKeeper::open(state_ / spec->id, &first);
-        if (!keeper) {
-          changes.push_back("area keeper of " + spec->id + ": " + keeper.error().message);
-          continue;
-        }
-        for (const auto& problem : first.problems) changes.push_back("area keeper <" + keeper->iri() + ">: " + problem);
-        keepers_.emplace(spec->id, std::move(*keeper));
-      }
+      if (!keepers_.count(spec->id) && !opening_keepers_.count(spec->id))
+        opening_keepers_.emplace(spec->id, std::make_unique<Opening<spatial::Result<OpenedKeeper>>>([store]() -> spatial::Result<OpenedKeeper> {
+                                   spatial::AreaSyncReport first;
+                                   auto keeper = spatial::AreaKeeper::open(store, &first);
+                                   if (!keeper) return Unexpected<spatial::Error>{keeper.error()};
+                                   return OpenedKeeper{std::move(*keeper), std::move(first)};
+                                 }));
     }
+    const auto deadline = std::chrono::steady_clock::now() + kOpeningSaidByApply;
+    auto left = [&] {
+      return std::max(std::chrono::duration_cast<std::chrono::milliseconds>(deadline - std::chrono::steady_clock::now()),
+                      std::chrono::milliseconds(0));
+    };
+    for (auto& [id, d] : opening_dispatchers_) d.opening->wait(left());
+    for (auto& [id, k] : opening_keepers_) k->wait(left());
+    take_opened(changes);
+    for (const auto& [id, d] : opening_dispatchers_)
+      changes.push_back("the dispatcher of " + id + " waits to open, most likely for the writer lock of " +
+                        (state_ / id).string() + ", which another process holds; it runs once the lock is free");
+    for (const auto& [id, k] : opening_keepers_)
+      changes.push_back("the area keeper of " + id + " waits to open, most likely for the writer lock of " +
+                        (state_ / id).string() + ", which another process holds; it runs once the lock is free");
     return changes;
   }
 
@@ -1167,6 +1185,9 @@ class Deployment {
   // waits for the store's writer lock: their writes would wait in this loop (and a snapshot
   // after another process grew the store would wait for that board write to begin).
   void poll(const agents::Supervisor::Log& log) {
+    std::vector<std::string> opened;
+    take_opened(opened);
+    for (const auto& line : opened) log("up: " + line);
     for (auto& [id, keeper] : keepers_) {
       if (board_held_up(id)) continue;
       auto synced = keeper.poll(std::chrono::milliseconds(0));
@@ -1197,9 +1218,14 @@ class Deployment {
     // once this node's link runs again (until then that machine cannot ask).
     publish_programs(log, true);
     boards_finished_ = finish_boards(log, std::chrono::seconds(2));
+    for (const auto& [id, d] : opening_dispatchers_)
+      if (!d.opening->ended()) boards_finished_ = false;
+    for (const auto& [id, k] : opening_keepers_)
+      if (!k->ended()) boards_finished_ = false;
   }
 
-  // After stop(): false when a board's thread still waits for its store.
+  // After stop(): false when a thread (a board's write, a keeper or dispatcher opening) still
+  // waits for its store.
   bool boards_finished() const { return boards_finished_; }
 
   // Each node's programs on its board (agents/supervisor.h, "on the board"), when they change
@@ -1265,6 +1291,50 @@ class Deployment {
  private:
   // A board write that waits this long holds up the node's keeper and dispatcher (poll()).
   static constexpr std::chrono::milliseconds kBoardWaitHoldsUpOthers{200};
+  // How long apply() waits for keepers and dispatchers to open, to say so itself.
+  static constexpr std::chrono::milliseconds kOpeningSaidByApply{2000};
+
+  struct OpenedKeeper {
+    spatial::AreaKeeper keeper;
+    spatial::AreaSyncReport first;
+  };
+  struct OpeningDispatcher {
+    fs::path folder;
+    std::unique_ptr<Opening<node::Result<agents::Dispatcher>>> opening;
+  };
+
+  // Keepers and dispatchers that have opened (or failed to) since the last call, as lines.
+  void take_opened(std::vector<std::string>& changes) {
+    for (auto it = opening_dispatchers_.begin(); it != opening_dispatchers_.end();) {
+      auto dispatcher = it->second.opening->take();
+      if (!dispatcher) {
+        ++it;
+        continue;
+      }
+      if (!*dispatcher) {
+        changes.push_back("dispatcher of " + it->first + ": " + dispatcher->error().message);
+      } else {
+        changes.push_back("dispatcher <" + (*dispatcher)->iri() + "> runs behaviours from " + it->second.folder.string());
+        dispatchers_.emplace(it->first, Dispatching{it->second.folder, std::move(**dispatcher)});
+      }
+      it = opening_dispatchers_.erase(it);
+    }
+    for (auto it = opening_keepers_.begin(); it != opening_keepers_.end();) {
+      auto keeper = it->second->take();
+      if (!keeper) {
+        ++it;
+        continue;
+      }
+      if (!*keeper) {
+        changes.push_back("area keeper of " + it->first + ": " + keeper->error().message);
+      } else {
+        for (const auto& problem : (*keeper)->first.problems)
+          changes.push_back("area keeper <" + (*keeper)->keeper.iri() + ">: " + problem);
+        keepers_.emplace(it->first, std::move((*keeper)->keeper));
+      }
+      it = opening_keepers_.erase(it);
+    }
+  }
   // How long a board's write waits before the supervisor says which store holds it up.
   static constexpr std::chrono::seconds kBoardHeldUpSaid{5};
 
@@ -1334,6 +1404,8 @@ class Deployment {
   std::map<std::string, int> locks_;  // by node id: the store directory's descriptor, locked
   std::map<std::string, Dispatching> dispatchers_;
   std::map<std::string, spatial::AreaKeeper> keepers_;
+  std::map<std::string, OpeningDispatcher> opening_dispatchers_;
+  std::map<std::string, std::unique_ptr<Opening<spatial::Result<OpenedKeeper>>>> opening_keepers_;
   std::set<std::string> node_ids_;                // the nodes this supervisor runs
   std::map<std::string, Published> published_;    // by node id
   bool boards_finished_ = true;

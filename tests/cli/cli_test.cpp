@@ -2535,7 +2535,9 @@ class HeldWriterLock {
     // Without MDB_WRITEMAP: the map is the size the store's meta page says, the file untouched.
     const int opened = mdb_env_open(env_, dir.c_str(), MDB_NOTLS | MDB_NOSYNC, 0644);
     EXPECT_EQ(opened, 0) << dir;
-    if (opened == 0) EXPECT_EQ(mdb_txn_begin(env_, nullptr, 0, &txn_), 0) << dir;
+    if (opened == 0) {
+      EXPECT_EQ(mdb_txn_begin(env_, nullptr, 0, &txn_), 0) << dir;
+    }
   }
   ~HeldWriterLock() {
     if (txn_) mdb_txn_abort(txn_);
@@ -2594,6 +2596,45 @@ TEST_F(Cli, AStoreHeldByAnotherWriterHoldsUpOnlyThatNodesBoardNotTheSupervisor) 
     return slurp(tmp_ / "state" / "logs" / "supervisor.log").find("the programs of a are written on its board again") !=
            std::string::npos;
   }));
+  EXPECT_EQ(run({"down", "--state", state}).status, 0);
+}
+
+// A node added to a running deployment has its area keeper and dispatcher opened, and opening
+// subscribes their agents: a write. Opened in the supervisor's loop, a node whose store another
+// process held (a bulk `tahvel load`) froze the whole supervisor: the `up` that added it
+// waited, and no program of any node was restarted. They open on threads of their own now.
+TEST_F(Cli, ANodeAddedWhileItsStoreIsHeldWaitsAloneAndRunsOnceTheStoreIsFree) {
+  const std::string state = (tmp_ / "state").string();
+  fs::create_directories(tmp_ / "behaviours");
+  const std::string b = "[[node]]\nid = \"b\"\niri = \"http://example.org/b\"\n"
+                        "  [[node.agent]]\n  id = \"b-idle\"\n  run = [\"/bin/sleep\", \"600\"]\n";
+  spit(tmp_ / "node.toml", b);
+  ASSERT_EQ(run({"up", (tmp_ / "node.toml").string(), "--state", state}).status, 0);
+  std::smatch m;
+  const std::regex b_running("- b-idle  running \\(pid ([0-9]+)\\)");
+  std::string shown = status_until(state, "b-idle  running (pid").out;
+  ASSERT_TRUE(std::regex_search(shown, m, b_running)) << shown;
+  const auto b_idle = static_cast<pid_t>(std::stol(m[1]));
+  ASSERT_EQ(run({"init", state + "/c", "--iri", "http://example.org/c"}).status, 0);
+  {
+    HeldWriterLock held(tmp_ / "state" / "c");
+    spit(tmp_ / "node.toml", b + "[[node]]\nid = \"c\"\niri = \"http://example.org/c\"\nbehaviours = \"behaviours\"\n");
+    Outcome added = run({"up", (tmp_ / "node.toml").string(), "--state", state});
+    EXPECT_EQ(added.status, 0) << added.out << added.err;
+    EXPECT_NE(added.out.find("the dispatcher of c waits to open, most likely for the writer lock of " + state + "/c"),
+              std::string::npos) << added.out << added.err;
+    ASSERT_EQ(kill(b_idle, SIGKILL), 0);
+    bool again = false;
+    for (int i = 0; i < 100 && !again; ++i) {
+      shown = run({"status", "--state", state}).out;
+      again = std::regex_search(shown, m, b_running) && std::stol(m[1]) != b_idle;
+      if (!again) std::this_thread::sleep_for(std::chrono::milliseconds(50));
+    }
+    EXPECT_TRUE(again) << shown;
+  }
+  EXPECT_TRUE(eventually([&] {
+    return slurp(tmp_ / "state" / "logs" / "supervisor.log").find("up: dispatcher <http://example.org/c/") != std::string::npos;
+  })) << slurp(tmp_ / "state" / "logs" / "supervisor.log");
   EXPECT_EQ(run({"down", "--state", state}).status, 0);
 }
 
