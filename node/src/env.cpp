@@ -809,6 +809,7 @@ Result<void> Env::reserve_disk(WriteKind kind, std::uint64_t new_bytes) {
   const int rc = allocate(reserved, want);
   if (rc == 0) {
     disk_reserved_.store(want);
+    disk_tight_.store(false);
     return {};
   }
   // Near a full disk the store goes on as long as a write's worth is there (kDiskLeast; a
@@ -817,7 +818,11 @@ Result<void> Env::reserve_disk(WriteKind kind, std::uint64_t new_bytes) {
   if (rc == ENOSPC) {
     const std::uint64_t least = (kind == WriteKind::removal ? (1u << 20) : kDiskLeast) + new_bytes;
     const std::uint64_t enough = std::min<std::uint64_t>(info.me_mapsize, in_use + least);
-    if (enough <= reserved || allocate(0, enough) == 0) return {};
+    if (enough <= reserved || allocate(0, enough) == 0) {
+      disk_backed_.store(std::max(reserved, enough));
+      disk_tight_.store(true);
+      return {};
+    }
   }
   if (rc == ENOSPC)
     return fail(Errc::store_full, "store full: the disk holding " + dir_.string() + " has no room left for the store to grow (" +
@@ -827,6 +832,20 @@ Result<void> Env::reserve_disk(WriteKind kind, std::uint64_t new_bytes) {
     return {};
   }
   return fail(Errc::io, "reserving disk space for " + dir_.string() + ": " + std::strerror(rc));
+}
+
+Result<std::optional<std::uint64_t>> Env::disk_room_for_removal() {
+  if (auto r = reserve_disk(WriteKind::removal, 0); !r) return unexpected(r.error());
+  if (!disk_tight_.load()) return std::optional<std::uint64_t>{};
+  const std::uint64_t end = pages_end_bytes(), backed = disk_backed_.load();
+  return std::optional<std::uint64_t>{backed > end ? backed - end : 0};
+}
+
+std::uint64_t Env::pages_end_bytes() {
+  MDB_envinfo info;
+  MDB_stat stat;
+  if (!map_info(info, stat)) return 0;
+  return (info.me_last_pgno + 1) * stat.ms_psize;
 }
 
 Result<void> Env::write(const std::function<Result<void>(Txn&)>& body, WriteKind kind, std::uint64_t new_bytes) {

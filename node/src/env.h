@@ -195,6 +195,15 @@ class Env {
   Result<void> write(const std::function<Result<void>(Txn&)>& body, WriteKind kind = WriteKind::data,
                      std::uint64_t new_bytes = 0);
 
+  // On a disk that has filled (reserve_disk could not allocate its usual kDiskAhead ahead), the
+  // bytes the data file has allocated beyond its last page in use: a removal must not take more
+  // new pages than that, since a page beyond is SIGBUS, not an error. nullopt while the disk has
+  // room, and where the filesystem cannot allocate ahead. Errors: store_full (not even a
+  // removal's least is left), io.
+  Result<std::optional<std::uint64_t>> disk_room_for_removal();
+  // The data file's high-water mark: bytes up to its last page in use.
+  std::uint64_t pages_end_bytes();
+
   // Begins a read-only transaction (a snapshot), renewing an idle one when there is one. The
   // caller ends it with end_read().
   Result<MDB_txn*> begin_read();
@@ -260,6 +269,10 @@ class Env {
   // were.
   Result<void> reserve_disk(WriteKind kind, std::uint64_t new_bytes);
   std::atomic<std::uint64_t> disk_reserved_{0};  // bytes of the file allocated by this process
+  // Whether the last reserve_disk found the disk full (and went on within `disk_backed_`, the
+  // bytes of the file known to have blocks).
+  std::atomic<bool> disk_tight_{false};
+  std::atomic<std::uint64_t> disk_backed_{0};
 
   // The pages a writer takes as the store grows are new to the process: the first write to each
   // is a page fault (4-5 us on a virtual machine, in runs of several per commit), on the thread

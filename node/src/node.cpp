@@ -1008,13 +1008,19 @@ Result<std::uint64_t> remove_records(Env& env, Reach reach,
     }
     return {};
   };
-  auto written = env.write([&](Txn& txn) -> Result<void> {
-    auto ids = collect(txn);
-    if (!ids) return unexpected(ids.error());
-    return remove_ids(txn, *ids);
-  }, WriteKind::removal);
-  if (written) return removed;
-  if (written.error().code != Errc::store_full) return unexpected(written.error());
+  // On a disk that has filled, a page beyond what the data file has allocated is SIGBUS, not
+  // MDB_MAP_FULL: the removal goes in parts from the start, each sized to what is allocated.
+  auto room = env.disk_room_for_removal();
+  if (!room) return unexpected(room.error());
+  if (!*room) {
+    auto written = env.write([&](Txn& txn) -> Result<void> {
+      auto ids = collect(txn);
+      if (!ids) return unexpected(ids.error());
+      return remove_ids(txn, *ids);
+    }, WriteKind::removal);
+    if (written) return removed;
+    if (written.error().code != Errc::store_full) return unexpected(written.error());
+  }
   std::vector<std::uint64_t> ids;
   auto listed = env.write([&](Txn& txn) -> Result<void> {
     auto all = collect(txn);
@@ -1024,17 +1030,44 @@ Result<std::uint64_t> remove_records(Env& env, Reach reach,
   }, WriteKind::removal);
   if (!listed) return unexpected(listed.error());
   std::uint64_t total = 0;
+  auto failed = [&](Error error) -> Result<std::uint64_t> {
+    if (total > 0)
+      error.message += " (" + std::to_string(total) + " of the records were removed before it; the same removal again takes the rest)";
+    return unexpected(std::move(error));
+  };
   std::size_t part = 4096;
+  bool advanced = true;         // since the last part that went
+  std::optional<std::uint64_t> per_record;  // on a full disk: how far the last part moved the high-water mark, per record
   for (std::size_t at = 0; at < ids.size();) {
+    room = env.disk_room_for_removal();
+    if (!room) return failed(room.error());
+    if (*room) {
+      // Half of what is allocated ahead, at what the last part took per record (a page at
+      // least); the first part is one record.
+      constexpr std::uint64_t kPage = 4096;
+      part = !per_record ? 1 : static_cast<std::size_t>(std::clamp<std::uint64_t>(**room / 2 / std::max(*per_record, kPage), 1, 4096));
+    }
+    const std::uint64_t end_before = env.pages_end_bytes();
     const std::span<const std::uint64_t> slice(ids.data() + at, std::min(part, ids.size() - at));
     auto done = env.write([&](Txn& txn) { return remove_ids(txn, slice); }, WriteKind::removal);
+    if (!done && done.error().code == Errc::store_full && !advanced) {
+      // LMDB reuses the pages a transaction freed from the second transaction after it on: a
+      // full store's next part found none, and every smaller one was the same first transaction
+      // again. A small write in between makes them free.
+      advanced = true;
+      if (env.write([](Txn&) -> Result<void> { return {}; }, WriteKind::removal)) continue;
+    }
     if (!done) {
-      if (done.error().code != Errc::store_full || part == 1) return unexpected(done.error());
+      if (done.error().code != Errc::store_full || part == 1) return failed(done.error());
       part /= 2;
       continue;
     }
+    const std::uint64_t end_after = env.pages_end_bytes();
+    const std::uint64_t took = (end_after > end_before ? end_after - end_before : 0) / slice.size();
+    per_record = std::max(per_record.value_or(0) / 2, took);
     total += removed;
     at += slice.size();
+    advanced = false;
   }
   return total;
 }

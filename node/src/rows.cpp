@@ -114,11 +114,14 @@ Result<Record> log_removal(Txn& txn, std::uint64_t id, const RecordRow& row, con
     MDB_cursor* cursor = nullptr;
     if ((rc = mdb_cursor_open(txn.raw(), txn.env().removals, &cursor)) != 0) return lmdb_fail(rc, "trimming the removal log");
     MDB_val fk, fv;
-    const bool found = mdb_cursor_get(cursor, &fk, &fv, MDB_FIRST) == 0;
-    const std::uint64_t first = found ? u64(fk) : 0;
-    const bool trimmed = found && mdb_cursor_del(cursor, 0) == 0;
+    rc = mdb_cursor_get(cursor, &fk, &fv, MDB_FIRST);
+    const std::uint64_t first = rc == 0 ? u64(fk) : 0;
+    if (rc == 0) rc = mdb_cursor_del(cursor, 0);
     mdb_cursor_close(cursor);
-    if (!trimmed) break;
+    if (rc == MDB_NOTFOUND) break;
+    // A failed delete (MDB_MAP_FULL: deleting copies pages too) leaves the transaction unusable:
+    // said as what it is, not as the next call's MDB_BAD_TXN.
+    if (rc != 0) return lmdb_fail(rc, "trimming the removal log");
     txn.removals_trimmed_through = std::max(txn.removals_trimmed_through, first);
     --txn.counters.removals;
   }
