@@ -602,21 +602,29 @@ pid_t supervisor_holding(const fs::path& pid_file) {
 }
 
 // Takes `pid_file` for this process (the running supervisor) and writes its pid there; the
-// descriptor stays open, and so the lock held, until the process ends. False if another
+// descriptor (returned) stays open, and so the lock held, until the process ends. -1 if another
 // supervisor holds it.
-bool hold_pid_file(const fs::path& pid_file) {
+int hold_pid_file(const fs::path& pid_file) {
   const int fd = ::open(pid_file.c_str(), O_RDWR | O_CREAT | O_CLOEXEC, 0644);
-  if (fd < 0) return false;
+  if (fd < 0) return -1;
   if (flock(fd, LOCK_EX | LOCK_NB) != 0) {
     ::close(fd);
-    return false;
+    return -1;
   }
   const std::string text = std::to_string(getpid()) + "\n";
   if (ftruncate(fd, 0) != 0 || pwrite(fd, text.data(), text.size(), 0) != static_cast<ssize_t>(text.size())) {
     ::close(fd);
-    return false;
+    return -1;
   }
-  return true;  // fd deliberately left open (close-on-exec: the programs do not inherit it)
+  return fd;  // deliberately left open (close-on-exec: the programs do not inherit it)
+}
+
+// Whether `pid_file` is still the file `held` (hold_pid_file) is open on: not when the state
+// directory was removed, or made again by another `up` since.
+bool still_holds(int held, const fs::path& pid_file) {
+  struct stat mine {}, there {};
+  return fstat(held, &mine) == 0 && mine.st_nlink > 0 && ::stat(pid_file.c_str(), &there) == 0 &&
+         there.st_ino == mine.st_ino && there.st_dev == mine.st_dev;
 }
 
 // The process holding a flock on `path` (from /proc/locks, by device and inode), or 0.
@@ -1208,7 +1216,9 @@ class Deployment {
     }
   }
 
-  void stop(const agents::Supervisor::Log& log) {
+  // `boards`: false when the state directory is no longer this supervisor's (removed, and
+  // perhaps made again by another `up`): nothing is written there.
+  void stop(const agents::Supervisor::Log& log, bool boards) {
     for (auto& [id, d] : dispatchers_) {  // its behaviours first, recorded as stopped
       auto events = d.dispatcher.stop_all(std::chrono::seconds(2));
       if (!events) log("up: dispatcher <" + d.dispatcher.iri() + ">: " + events.error().message);
@@ -1216,7 +1226,7 @@ class Deployment {
     supervisor_.stop_all();
     // The board then says they stopped, not how they last ran: for `status` on a machine above
     // once this node's link runs again (until then that machine cannot ask).
-    publish_programs(log, true);
+    if (boards) publish_programs(log, true);
     boards_finished_ = finish_boards(log, std::chrono::seconds(2));
     for (const auto& [id, d] : opening_dispatchers_)
       if (!d.opening->ended()) boards_finished_ = false;
@@ -1280,6 +1290,21 @@ class Deployment {
           "the writer lock of " + (state_ / id).string() + ", which another process holds");
     }
     return all;
+  }
+
+  // The nodes whose store directory is no longer where this supervisor started them (`rm -rf`
+  // of the state directory, or a move): their programs write into files nobody else opens, and
+  // an `up` of that directory would start every program of the node a second time.
+  std::vector<std::string> stores_gone() const {
+    std::vector<std::string> gone;
+    for (const auto& [id, fd] : locks_) {
+      struct stat held {}, there {};
+      if (fstat(fd, &held) != 0) continue;
+      if (held.st_nlink == 0 || ::stat((state_ / id).c_str(), &there) != 0 || there.st_ino != held.st_ino ||
+          there.st_dev != held.st_dev)
+        gone.push_back(id);
+    }
+    return gone;
   }
 
   // Whether the write of `id`'s board has waited long enough to say its store is held.
@@ -1683,6 +1708,7 @@ int run_up(const Args& args) {
   const std::size_t program_count = programs_of(topo, mine, state, here).size();
   const bool foreground = args.has("--foreground");
   int ready_fd = -1;  // the daemon's end of the pipe `up` waits on
+  int pid_fd = -1;    // the pid file, held
   if (!foreground) {
     // The supervisor lives on in a daemon; this process returns once it has started.
     std::cout.flush();  // or the daemon would write this process's buffered lines again, into its log
@@ -1738,7 +1764,7 @@ int run_up(const Args& args) {
       dup2(log, 2);
       if (log > 2) ::close(log);
     }
-    if (!hold_pid_file(pid_file)) {
+    if ((pid_fd = hold_pid_file(pid_file)) < 0) {
       const std::string why = pid_file.string() + " is held by another supervisor (or cannot be written)";
       std::cerr << "up: " << why << std::endl;
       const std::string answer = "0" + why;
@@ -1746,7 +1772,7 @@ int run_up(const Args& args) {
       _exit(1);  // `up` says why the supervisor did not start
     }
     ready_fd = ready[1];
-  } else if (!hold_pid_file(pid_file)) {
+  } else if ((pid_fd = hold_pid_file(pid_file)) < 0) {
     fail(pid_file.string() + " is held by another supervisor (or cannot be written)");
   }
   close(turn);  // the supervisor runs: the next `up` applies its file to it
@@ -1766,6 +1792,8 @@ int run_up(const Args& args) {
   // second).
   std::string state_file_trouble;
   auto keep_state_file = [&] {
+    // Not into a state directory that another `up` made again after this one's was removed.
+    if (!still_holds(pid_fd, pid_file)) return;
     std::string why = write_state_file(state_file, supervisor);
     if (why == state_file_trouble) return;
     log(why.empty() ? "up: " + state_file.string() + " written again" : "up: " + why);
@@ -1792,7 +1820,7 @@ int run_up(const Args& args) {
     (void)!write(ready_fd, said.data(), said.size());
     ::close(ready_fd);
   }
-  auto log_checked = std::chrono::steady_clock::now();
+  auto log_checked = std::chrono::steady_clock::now(), stores_checked = log_checked;
   while (!g_stop) {
     supervisor.poll();
     // Its own log too (in the foreground it writes to the terminal: nothing to keep).
@@ -1810,13 +1838,25 @@ int run_up(const Args& args) {
     deployment.poll(log);
     deployment.publish_programs(log);
     keep_state_file();
+    if (std::chrono::steady_clock::now() - stores_checked >= 1s) {
+      stores_checked = std::chrono::steady_clock::now();
+      if (const auto gone = deployment.stores_gone(); !gone.empty()) {
+        std::string ids;
+        for (const auto& id : gone) ids += (ids.empty() ? "'" : ", '") + id + "'";
+        log("up: the store of node " + ids + " is no longer in " + state.string() +
+            " (removed or moved while it ran); stopping, since its programs would write where no one reads and an "
+            "'up' of that directory would run them twice");
+        break;
+      }
+    }
     std::this_thread::sleep_for(100ms);
   }
   log("up: supervisor " + std::to_string(getpid()) + " stopping its programs");
-  deployment.stop(log);
+  const bool state_here = still_holds(pid_fd, pid_file);
+  deployment.stop(log, state_here);
   keep_state_file();
   std::error_code removed;
-  fs::remove(pid_file, removed);
+  if (state_here) fs::remove(pid_file, removed);
   log("up: supervisor " + std::to_string(getpid()) + " stopped");
   // A board's thread still waiting in the store would run on while static destructors do
   // (the log's mutex among them) should the lock be freed meanwhile: end without them.

@@ -2638,6 +2638,52 @@ TEST_F(Cli, ANodeAddedWhileItsStoreIsHeldWaitsAloneAndRunsOnceTheStoreIsFree) {
   EXPECT_EQ(run({"down", "--state", state}).status, 0);
 }
 
+// `rm -rf` of a running deployment's state directory (starting afresh without `down`) left its
+// supervisor running the node from the removed store; the next `up` of the directory took that
+// supervisor's programs for leftovers and killed them, it started them again, and both ran every
+// program, writing duplicates, while `down` stopped only the new one. The next `up` asks the old
+// supervisor to stop, and a supervisor whose store is gone stops by itself.
+TEST_F(Cli, RemovingARunningDeploymentsStateDirectoryStopsItsSupervisor) {
+  const fs::path state = tmp_ / "state";
+  spit(tmp_ / "node.toml", "[[node]]\nid = \"a\"\niri = \"http://example.org/a\"\n"
+                          "  [[node.agent]]\n  id = \"a-idle\"\n  run = [\"/bin/sleep\", \"600\"]\n");
+  const std::string mark = "TAHVEL_SUPERVISED_NODE=" + fs::absolute(state / "a").string();
+  auto marked = [&] {  // the processes that run programs of node a
+    int count = 0;
+    for (const auto& entry : fs::directory_iterator("/proc")) {
+      std::ifstream in(entry.path() / "environ", std::ios::binary);
+      for (std::string variable; std::getline(in, variable, '\0');)
+        if (variable == mark) {
+          ++count;
+          break;
+        }
+    }
+    return count;
+  };
+  auto alive = [](pid_t pid) {
+    std::ifstream stat("/proc/" + std::to_string(pid) + "/stat");
+    std::string text;
+    std::getline(stat, text);
+    const auto close = text.rfind(')');
+    return close != std::string::npos && close + 2 < text.size() && text[close + 2] != 'Z';
+  };
+  auto supervisor = [&] { return static_cast<pid_t>(std::stol(slurp(state / "supervisor-all.pid"))); };
+  ASSERT_EQ(run({"up", (tmp_ / "node.toml").string(), "--state", state.string()}).status, 0);
+  status_until(state.string(), "a-idle  running (pid");
+  const pid_t first = supervisor();
+  fs::remove_all(state);
+  Outcome again = run({"up", (tmp_ / "node.toml").string(), "--state", state.string()});
+  ASSERT_EQ(again.status, 0) << again.out << again.err;
+  status_until(state.string(), "a-idle  running (pid");
+  EXPECT_TRUE(eventually([&] { return !alive(first); })) << "the first supervisor runs on";
+  std::this_thread::sleep_for(std::chrono::seconds(2));  // a restart of the first's program would show
+  EXPECT_EQ(marked(), 1) << again.out;
+  const pid_t second = supervisor();
+  fs::remove_all(state);
+  EXPECT_TRUE(eventually([&] { return !alive(second); })) << "a supervisor whose store was removed runs on";
+  EXPECT_TRUE(eventually([&] { return marked() == 0; }));
+}
+
 // A store at its maximum refuses writes; its programs then fail and its link cannot write its
 // children's state, which `status` showed as a frozen link. It says the store is full first.
 TEST_F(Cli, StatusSaysWhenAStoreIsFull) {

@@ -522,6 +522,33 @@ std::optional<ProgramState> Supervisor::state(std::string_view name) const {
 
 namespace tahvel::agents {
 
+namespace {
+
+// The parent of `pid` (/proc/PID/stat's fourth field), or 0.
+pid_t parent_of(pid_t pid) {
+  std::ifstream in("/proc/" + std::to_string(pid) + "/stat");
+  std::string stat;
+  std::getline(in, stat);
+  const auto close = stat.rfind(')');  // the command may hold spaces and parentheses
+  if (close == std::string::npos) return 0;
+  std::istringstream rest(stat.substr(close + 1));
+  char state = 0;
+  long parent = 0;
+  rest >> state >> parent;
+  return static_cast<pid_t>(parent);
+}
+
+// Whether `pid` runs `tahvel up` (its first two arguments).
+bool is_supervisor(pid_t pid) {
+  std::ifstream in("/proc/" + std::to_string(pid) + "/cmdline", std::ios::binary);
+  std::string program, command;
+  std::getline(in, program, '\0');
+  std::getline(in, command, '\0');
+  return std::filesystem::path(program).filename() == "tahvel" && command == "up";
+}
+
+}  // namespace
+
 std::vector<std::string> kill_leftovers(std::string_view mark) {
   const std::string wanted = std::string(kLeftoverMark) + "=" + std::string(mark);
   std::vector<std::string> killed;
@@ -541,7 +568,17 @@ std::vector<std::string> kill_leftovers(std::string_view mark) {
           marked = true;
           break;
         }
-      if (!marked || node::process_state(pid) == 'Z' || kill(pid, SIGKILL) != 0) continue;
+      if (!marked || node::process_state(pid) == 'Z') continue;
+      // A parent that is another supervisor, alive (`tahvel up`: its programs die with it, and
+      // this one holds the node's lock): it runs the node from a store directory removed or
+      // moved since, and would start the program again. It stops itself within a second of
+      // noticing; asked now, so that the node does not run twice meanwhile.
+      if (const pid_t parent = parent_of(pid); parent > 1 && parent != getpid() && !signalled.count(parent) &&
+                                              is_supervisor(parent) && kill(parent, SIGTERM) == 0) {
+        signalled.insert(parent);
+        killed.push_back(std::to_string(parent) + " (tahvel up, a supervisor still running them: asked to stop)");
+      }
+      if (kill(pid, SIGKILL) != 0) continue;
       signalled.insert(pid);
       std::ifstream comm(entry.path() / "comm");
       std::string command;

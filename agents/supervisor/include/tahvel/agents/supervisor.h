@@ -175,7 +175,9 @@ Result<bool> rotate_log(const std::filesystem::path& file, std::uint64_t limit);
 // environment (`up` sets kLeftoverMark to the node's store directory), which what it starts
 // inherits; once nothing supervises that mark any more (the caller holds the node's lock),
 // kill_leftovers SIGKILLs every process of this user whose environment has kLeftoverMark=`mark`
-// and returns them as "PID (COMMAND)". A process that cleared its environment is not found.
+// and returns them as "PID (COMMAND)". A process that cleared its environment is not found. A
+// marked process whose parent is another `tahvel up` still running (it runs the node from a
+// store directory removed or moved since) has that supervisor sent SIGTERM, listed too.
 inline constexpr std::string_view kLeftoverMark = "TAHVEL_SUPERVISED_NODE";
 std::vector<std::string> kill_leftovers(std::string_view mark);
 
