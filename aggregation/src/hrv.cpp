@@ -83,12 +83,12 @@ void time_domain(const NnSeries& s, double fs, HrvMetrics& out) {
 
 // Band power by the midpoint rule on a grid that divides the band exactly.
 double band_power(const std::vector<double>& t, const std::vector<double>& y, double lo,
-                  double hi, double df_target, std::size_t max_count) {
+                  double hi, double df_target, std::size_t max_count, double hole_s) {
   if (!(hi > lo)) return 0;
   auto count = static_cast<std::size_t>(std::ceil((hi - lo) / df_target));
   count = std::clamp<std::size_t>(count, 1, std::max<std::size_t>(max_count, 1));
   const double df = (hi - lo) / static_cast<double>(count);
-  const std::vector<double> psd = lomb_scargle_density(t, y, lo + df / 2, df, count);
+  const std::vector<double> psd = lomb_scargle_density(t, y, lo + df / 2, df, count, hole_s);
   double sum = 0;
   for (double p : psd) sum += p;
   return sum * df;
@@ -98,11 +98,20 @@ double band_power(const std::vector<double>& t, const std::vector<double>& y, do
 
 std::vector<double> lomb_scargle_density(const std::vector<double>& t_s,
                                          const std::vector<double>& nn_ms, double f0_hz,
-                                         double df_hz, std::size_t count) {
+                                         double df_hz, std::size_t count, double hole_s) {
   std::vector<double> psd(count, 0.0);
   const std::size_t n = std::min(t_s.size(), nn_ms.size());
   if (n < 3 || count == 0) return psd;
-  const double span = (t_s[n - 1] - t_s[0]) * static_cast<double>(n) / static_cast<double>(n - 1);
+  double covered = 0;
+  std::size_t spacings = 0;
+  for (std::size_t j = 1; j < n; ++j) {
+    const double d = t_s[j] - t_s[j - 1];
+    if (d > hole_s) continue;
+    covered += d;
+    ++spacings;
+  }
+  if (spacings == 0) return psd;
+  const double span = covered * static_cast<double>(n) / static_cast<double>(spacings);
   if (!(span > 0)) return psd;
   const double ym = mean(std::vector<double>(nn_ms.begin(), nn_ms.begin() + static_cast<std::ptrdiff_t>(n)));
   // Times relative to the first sample keep the recurrence's angles small.
@@ -156,8 +165,8 @@ BandPowers lomb_scargle_bands(const std::vector<double>& t_s, const std::vector<
   const auto share = [&](double w) {
     return static_cast<std::size_t>(std::max(1.0, static_cast<double>(o.max_frequencies) * w / width));
   };
-  out.lf_ms2 = band_power(t_s, nn_ms, o.lf_low_hz, o.lf_high_hz, df, share(o.lf_high_hz - o.lf_low_hz));
-  out.hf_ms2 = band_power(t_s, nn_ms, o.hf_low_hz, o.hf_high_hz, df, share(o.hf_high_hz - o.hf_low_hz));
+  out.lf_ms2 = band_power(t_s, nn_ms, o.lf_low_hz, o.lf_high_hz, df, share(o.lf_high_hz - o.lf_low_hz), o.gap_s);
+  out.hf_ms2 = band_power(t_s, nn_ms, o.hf_low_hz, o.hf_high_hz, df, share(o.hf_high_hz - o.hf_low_hz), o.gap_s);
   return out;
 }
 

@@ -8,6 +8,7 @@
 #include <deque>
 #include <optional>
 #include <string>
+#include <limits>
 #include <vector>
 
 #include "tahvel/aggregation/rr.h"
@@ -73,10 +74,14 @@ BandPowers lomb_scargle_bands(const std::vector<double>& t_s, const std::vector<
                               const HrvOptions& options = {});
 
 // The one-sided Lomb-Scargle density (ms^2/Hz) at the given frequencies (Hz), same scaling as
-// lomb_scargle_bands; O(N * F) with trigonometric recurrences when freqs is an even grid.
+// lomb_scargle_bands; O(N * F) with trigonometric recurrences when freqs is an even grid. The
+// scale is N times the mean spacing of the times, gaps longer than `hole_s` (signal lost, not
+// rhythm) left out: scaled by the span, a series with a hole integrated to its variance times
+// span / time covered (a 150 s lead-off in a 300 s window doubled LF and HF).
 std::vector<double> lomb_scargle_density(const std::vector<double>& t_s,
                                          const std::vector<double>& nn_ms, double f0_hz,
-                                         double df_hz, std::size_t count);
+                                         double df_hz, std::size_t count,
+                                         double hole_s = std::numeric_limits<double>::infinity());
 
 // A window [start_s, end_s) of the record (times from sample 0) and its metrics.
 struct WindowMetrics {
