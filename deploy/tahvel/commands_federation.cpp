@@ -932,6 +932,24 @@ bool store_being_made(const fs::path& dir) { return dir.filename().string().ends
 // A node's new store with the files the topology puts on its board (a floor plan, sensing
 // subscriptions: one persistent item each). Made beside `store` and renamed into place once
 // whole, so a failure leaves no store that `up` would then take as made and never load.
+// A new store for `spec` beside one that already has its IRI: the file renamed a node (its
+// id), and the node would start afresh, its history left in the other store, which `status`
+// then showed beside it as a second node of that IRI.
+void refuse_a_second_store_of(const NodeSpec& spec, const fs::path& state) {
+  std::error_code ec;
+  for (const auto& entry : fs::directory_iterator(state, ec)) {
+    const fs::path dir = entry.path();
+    if (dir.filename() == spec.id || store_being_made(dir) || !fs::exists(dir / "data.mdb")) continue;
+    auto other = node::Node::open(dir);
+    if (!other || other->iri() != spec.iri) continue;
+    const std::string old_id = dir.filename().string();
+    fail("node '" + spec.id + "' would get a new store, but " + dir.string() + " (node '" + old_id +
+         "') already holds <" + spec.iri + ">: was the node renamed in the file? To keep its data under the new id, " +
+         "'tahvel down --state " + shell_word(state) + "', rename " + dir.string() + " to " + (state / spec.id).string() +
+         " and 'up' again; to start it afresh, remove " + dir.string() + " first");
+  }
+}
+
 void create_store(const NodeSpec& spec, const fs::path& store, const Topology& topo) {
   const fs::path making = store.string() + std::string(kMakingSuffix);
   // What may be at `store` without a data.mdb: nothing, an empty folder, or what is left of a
@@ -1650,6 +1668,7 @@ int run_up(const Args& args) {
     fs::path store = state / spec.id;
     const bool new_store = !fs::exists(store / "data.mdb");
     if (new_store) {
+      refuse_a_second_store_of(spec, state);
       create_store(spec, store, topo);
     } else {
       node::Node existing = check(node::Node::open(store));

@@ -2684,6 +2684,23 @@ TEST_F(Cli, RemovingARunningDeploymentsStateDirectoryStopsItsSupervisor) {
   EXPECT_TRUE(eventually([&] { return marked() == 0; }));
 }
 
+// A root renamed in the file (its id; its IRI is the file's) got a new, empty store beside the one
+// holding its history, without a word: the earlier HRV windows and trend baselines were gone
+// from the hospital, and `status` showed two nodes of one IRI. `up` says what to do instead.
+TEST_F(Cli, UpRefusesANewStoreForAnIriThatAnotherStoreOfTheDirectoryHolds) {
+  const std::string state = (tmp_ / "state").string();
+  spit(tmp_ / "a.toml", "[[node]]\nid = \"hospital\"\niri = \"http://example.org/r1\"\n");
+  ASSERT_EQ(run({"up", (tmp_ / "a.toml").string(), "--state", state}).status, 0);
+  spit(tmp_ / "b.toml", "[[node]]\nid = \"hq\"\niri = \"http://example.org/r1\"\n");
+  Outcome renamed = run({"up", (tmp_ / "b.toml").string(), "--state", state});
+  EXPECT_NE(renamed.status, 0);
+  EXPECT_NE(renamed.err.find("node 'hq' would get a new store, but " + state + "/hospital (node 'hospital') already holds "
+                             "<http://example.org/r1>: was the node renamed in the file?"),
+            std::string::npos) << renamed.err;
+  EXPECT_FALSE(fs::exists(tmp_ / "state" / "hq" / "data.mdb"));
+  EXPECT_EQ(run({"down", "--state", state}).status, 0);
+}
+
 // A store at its maximum refuses writes; its programs then fail and its link cannot write its
 // children's state, which `status` showed as a frozen link. It says the store is full first.
 TEST_F(Cli, StatusSaysWhenAStoreIsFull) {
