@@ -1625,6 +1625,7 @@ int run_up(const Args& args) {
                   << made_durability << ", ring " << made.ring << "; the file's durability " << spec->durability << ", ring "
                   << spec->ring << " apply only to a new store (move this one away to make it so)\n";
     } else {
+      if (fs::is_directory(state)) refuse_a_second_store_of(*spec, state);
       const uri::PrefixMap prefixes = uri::PrefixMap::standard();
       for (const auto& f : spec->forward) warn_of_unknown_terms(*spec, f, forward_pattern_of(*spec, f, prefixes));
       for (const fs::path& file : spec->load) (void)load_file_triples(*spec, file, prefixes, topo);
@@ -1668,7 +1669,6 @@ int run_up(const Args& args) {
     fs::path store = state / spec.id;
     const bool new_store = !fs::exists(store / "data.mdb");
     if (new_store) {
-      refuse_a_second_store_of(spec, state);
       create_store(spec, store, topo);
     } else {
       node::Node existing = check(node::Node::open(store));
