@@ -82,6 +82,9 @@ constexpr std::int64_t kStateRefreshNs = 2'000'000'000;
 constexpr std::chrono::seconds kOwnStall{1};
 // The error code of P9a: an item passed over for good (frame seq = the item's seq).
 constexpr std::string_view kItemRefused = "item_refused";
+// P9b: the receiver could not store a run it was sent (its store full, an I/O error): nothing
+// of it was applied, and the sender slows to a probe until the receiver's mark moves again.
+constexpr std::string_view kCannotStore = "cannot_store";
 constexpr std::string_view kUplinkAgent = "uplink";
 constexpr std::string_view kLinkAgent = "link";
 constexpr std::string_view kDownStream = "down";
@@ -335,6 +338,17 @@ struct Link::Impl {
   Clock::time_point parent_heard{};
   std::int64_t parent_heard_ns = 0;
   std::string refused_by_parent;  // the parent's refusal, until a welcome
+  // P9b: why the parent could not store what this node sent, until its mark moves again.
+  std::string parent_cannot_store;
+  // P9b, at the receiving end: the last failure to store a sender's run, by sender, as logged.
+  struct RelayFailure {
+    std::string why;
+    Clock::time_point said_at{};
+    std::uint64_t since_said = 0;
+  };
+  std::map<std::string, RelayFailure> relay_failures;
+  std::map<std::string, std::string> child_cannot_store;  // P9b from children, as last logged
+  static constexpr auto kRelayFailureSaidEvery = std::chrono::seconds(10);
   // P11a: the contexts of items applied from above, for the timer to see whom they address.
   std::vector<std::string> down_contexts;
   StoreFlips parent_flips;        // welcomes from two parents' stores in turn; under mu
@@ -1222,14 +1236,28 @@ struct Link::Impl {
       ack = stream_ack(head.from, up ? child->store_id : parent_store_id);
     }
     if (!outcome) {
-      // A refused source (P9) or a full store: nothing was applied; the sender keeps resending,
-      // which is right for a full store and visible in the log for a misbehaving child.
-      log("relay from <" + head.from + "> refused: " + outcome.error().message);
+      // A refused source (P9) or a full store: nothing was applied. The sender is told why (P9b)
+      // and probes with one frame at a time until the mark moves: a home resent its window
+      // every resend_after, and this log took a line for each, for as long as the store was full.
+      const std::string why = outcome.error().message;
+      send_error(via, head.from, 0, {std::string(kCannotStore), why, ""});
       std::lock_guard lock(mu);
+      RelayFailure& failure = relay_failures[head.from];
+      if (why != failure.why || Clock::now() - failure.said_at >= kRelayFailureSaidEvery) {
+        log("relay from <" + head.from + "> refused: " + why +
+            (failure.since_said > 0 && why == failure.why ? " (and " + std::to_string(failure.since_said) + " times more since it was last said)" : ""));
+        failure = {why, Clock::now(), 0};
+      } else {
+        ++failure.since_said;
+      }
       ++counters.refused;
       auto mark = relayer->relay_mark(stream);
       ack.ack = mark ? *mark : 0;
     } else {
+      if (!outcome->stored.empty()) {  // stored again: a failure after is said again
+        std::lock_guard lock(mu);
+        relay_failures.erase(head.from);
+      }
       ack.ack = outcome->mark;
       ack.prev = outcome->gap ? 1 : 0;
       // P9a: an item this node can never store is passed over, not resent for ever; the sender
@@ -1641,6 +1669,10 @@ struct Link::Impl {
         if (f.ack > up_mark) {
           up_mark = f.ack;
           up_progress = Clock::now();
+          if (!parent_cannot_store.empty()) {
+            log("the parent <" + opt.parent_iri + "> stores what this node sends again");
+            parent_cannot_store.clear();
+          }
         }
         if (f.prev == 1 && (f.ack != up_went_back_to || Clock::now() - up_went_back_at > opt.resend_after)) {
           up_go_back = true;  // P8: once per mark and interval, not on every gap ack
@@ -1659,6 +1691,14 @@ struct Link::Impl {
         if (code == kItemRefused) {
           ++counters.items_refused_by_peer;
           log("the parent refused item " + std::to_string(f.seq) + " (it stays in this node's store): " + body->message);
+          return;
+        }
+        if (code == kCannotStore) {
+          const std::string why = body ? body->message : std::string("no reason given");
+          if (why != parent_cannot_store)
+            log("the parent <" + opt.parent_iri + "> cannot store what this node sends: " + why +
+                "; items wait in the outbox, sent one at a time until it can");
+          parent_cannot_store = why;
           return;
         }
         if (code == "cancelled" && f.seq != 0) {
@@ -2082,6 +2122,12 @@ struct Link::Impl {
       log("child <" + f.from + "> refused item " + std::to_string(f.seq) + " sent down (it stays in this node's store): " + body->message);
       return;
     }
+    if (body->code == kCannotStore) {  // P9b: once per reason; the child acknowledges nothing meanwhile
+      std::string& said = child_cannot_store[f.from];
+      if (said != body->message) log("child <" + f.from + "> cannot store what this node sends down: " + body->message);
+      said = body->message;
+      return;
+    }
     if (f.seq == 0) {
       log("error from child <" + f.from + ">: " + body->code + ": " + body->message);
       return;
@@ -2148,7 +2194,7 @@ struct Link::Impl {
         // go-back, a probe, not the window: a sensor resent 512 items every resend_after onto
         // its LAN for as long as its gateway was down. Any frame from it opens the window again.
         const bool parent_silent = Clock::now() - parent_heard > opt.child_silence;
-        const std::size_t window = parent_silent ? 1 : opt.window;
+        const std::size_t window = parent_silent || !parent_cannot_store.empty() ? 1 : opt.window;
         room = window > up_in_flight.size() ? window - up_in_flight.size() : 0;
         if (room == 0) {
           changed.wait_for(lock, 20ms);
@@ -2897,7 +2943,10 @@ struct Link::Impl {
         went = "the parent <" + opt.parent_iri + "> is heard again: link up";
       own_state_logged = state;
       const std::string conflict = parent_flips.said();
-      said = state + " " + std::to_string(outbox_depth) + " " + refused_by_parent + " " + conflict;
+      const std::string refusal = !refused_by_parent.empty()     ? refused_by_parent
+                                  : !parent_cannot_store.empty() ? "the parent cannot store what this node sends: " + parent_cannot_store
+                                                                 : std::string();
+      said = state + " " + std::to_string(outbox_depth) + " " + refusal + " " + conflict;
       const std::int64_t wall = now_ns();
       if (said == own_state_said && !(state == "up" && wall - own_state_written_ns > kStateRefreshNs)) return;
       own_state_said = said;
@@ -2906,8 +2955,7 @@ struct Link::Impl {
       item.add(me, node::Term::iri(vocab::kUplinkState), node::Term::literal(state));
       if (parent_heard_ns) item.add(me, node::Term::iri(vocab::kParentLastHeard), node::Term::integer(parent_heard_ns));
       item.add(me, node::Term::iri(vocab::kOutboxDepth), node::Term::integer(static_cast<std::int64_t>(outbox_depth)));
-      if (!refused_by_parent.empty())
-        item.add(me, node::Term::iri(vocab::kUplinkRefusal), node::Term::literal(refused_by_parent));
+      if (!refusal.empty()) item.add(me, node::Term::iri(vocab::kUplinkRefusal), node::Term::literal(refusal));
       if (!conflict.empty()) item.add(me, node::Term::iri(vocab::kLinkConflict), node::Term::literal(conflict));
     }
     if (!went.empty()) log(went);

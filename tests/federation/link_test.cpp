@@ -1497,6 +1497,47 @@ TEST(Link, ARemoteQueryReturnsARecordAsLargeAsTheTargetAllows) {
   EXPECT_EQ(got[0].triple.o.value.size(), largest);
 }
 
+// P9b: a parent whose store is full could not store what a child sent; the child resent its
+// whole window every resend_after for as long as that lasted (660,000 frames in 225 s in a
+// probe), the parent logged a line for each, and the child's own state said "up". The child
+// now probes with one frame at a time, its state says why, and once the parent has room again
+// everything arrives once.
+TEST(Link, AChildWhoseParentCannotStoreSendsOneFrameAtATimeAndSaysWhy) {
+  Tree tree({.max_map_bytes = 1 << 20});
+  ASSERT_TRUE(tree.start_hospital_and_home1());
+  {
+    auto filler = node::Node::open(tree.hospital_dir).value().agent("filler").value();
+    int i = 0;
+    for (std::size_t size : {2000, 200, 20})  // to the last page
+      while (filler.store(node::Item{}.add(Term::iri(kHospital + "/f" + std::to_string(i)), Term::iri(kEx + "fill"),
+                                           Term::literal(std::string(size, 'f') + std::to_string(i)))))
+        ++i;
+  }
+  store_hrv_items(tree.home1_dir, 0, 40);
+  const std::string why = "the parent cannot store what this node sends: store full";
+  auto refusal = [&] {
+    auto records = node::Node::open(tree.home1_dir).value().snapshot().value().list(
+        {.s = Term::iri(kHome1), .p = Term::iri(vocab::kUplinkRefusal)}).value();
+    return records.empty() ? std::string() : records.front().triple.o.value;
+  };
+  ASSERT_TRUE(eventually([&] { return refusal().rfind(why, 0) == 0; })) << refusal() << tree.hospital_log.text() << tree.home1_log.text();
+  const std::uint64_t sent_before = tree.home1->counters().up_sent;
+  std::this_thread::sleep_for(1s);  // ten resend intervals
+  EXPECT_LE(tree.home1->counters().up_sent - sent_before, 15u) << "frames sent in a second to a parent that cannot store them";
+  EXPECT_EQ(outbox(tree.home1_dir), 40u);
+  {
+    std::lock_guard lock(tree.hospital_log.mu);
+    const auto said = std::count_if(tree.hospital_log.lines.begin(), tree.hospital_log.lines.end(), [](const std::string& l) {
+      return l.find("relay from <" + kHome1 + "> refused: store full") != std::string::npos;
+    });
+    EXPECT_EQ(said, 1) << "the parent's log said the same failure again and again";
+  }
+  ASSERT_TRUE(node::Node::open(tree.hospital_dir).value().remove({.p = Term::iri(kEx + "fill")}));
+  EXPECT_TRUE(eventually([&] { return count(tree.hospital_dir, {.p = Term::iri(kEx + "n")}) == 40 && outbox(tree.home1_dir) == 0; }));
+  EXPECT_TRUE(eventually([&] { return refusal().empty(); })) << refusal();
+  EXPECT_TRUE(tree.home1_log.has("stores what this node sends again")) << tree.home1_log.text();
+}
+
 // A chunk the asking node cannot write on its board (here its store is full) ends the query
 // with that reason at once, rather than at the asker's timeout with a chunk missing.
 TEST(Link, AnAnswerChunkTheAskingBoardCannotHoldEndsTheQueryWithTheReason) {
