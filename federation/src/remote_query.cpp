@@ -3,11 +3,13 @@
 // answer chunks taken from the asking agent's input buffer (P13-P16).
 #include <fcntl.h>
 #include <sys/file.h>
+#include <sys/stat.h>
 #include <unistd.h>
 
 #include <atomic>
 #include <cerrno>
 #include <charconv>
+#include <ctime>
 #include <filesystem>
 #include <map>
 #include <thread>
@@ -45,6 +47,8 @@ const Term* object_of(const std::vector<node::Record>& records, const std::strin
 struct LinkSeen {
   bool serving = false;
   std::optional<pid_t> stopped_pid;
+  // How long the serving run has run: it writes its pid into the lock file at its start.
+  std::optional<std::chrono::nanoseconds> run_age;
 };
 
 LinkSeen link_serving(const std::filesystem::path& dir) {
@@ -58,6 +62,10 @@ LinkSeen link_serving(const std::filesystem::path& dir) {
     pid_t pid = 0;
     const auto [end, ec] = std::from_chars(text, text + std::max<ssize_t>(got, 0), pid);
     if (ec == std::errc() && pid > 0 && node::is_stopped(node::process_state(pid))) seen.stopped_pid = pid;
+    struct stat st {};
+    timespec now {};
+    if (fstat(fd, &st) == 0 && clock_gettime(CLOCK_REALTIME, &now) == 0)
+      seen.run_age = std::chrono::seconds(now.tv_sec - st.st_mtim.tv_sec) + std::chrono::nanoseconds(now.tv_nsec - st.st_mtim.tv_nsec);
   }
   ::close(fd);
   return seen;
@@ -133,7 +141,10 @@ Result<std::uint64_t> remote_query(node::Node& node, const RemoteQuery& query,
       return node::fail(Errc::io, "unreachable: nothing reaches <" + child + ">: " + stopped_link(self, *link.stopped_pid));
     const bool serving = link.serving;
     if (child_state == "up" && serving) break;
-    const bool restarting = !serving || child_state == "never connected";
+    // A run younger than child_silence has not heard its children's hello yet: "down" is what
+    // the run before left (it says its children down as it stops), not that the child is.
+    const bool young = serving && link.run_age && *link.run_age < LinkOptions{}.child_silence;
+    const bool restarting = !serving || child_state == "never connected" || (young && child_state == "down");
     if (restarting && std::chrono::steady_clock::now() < grace_end) {
       std::this_thread::sleep_for(std::chrono::milliseconds(50));
       continue;

@@ -1683,6 +1683,28 @@ TEST(Link, AQueryAskedWhileTheOriginsLinkRestartsWaitsForIt) {
   EXPECT_EQ(at_once.error().message.rfind("unreachable: no link runs for <" + kHospital + ">", 0), 0u) << at_once.error().message;
 }
 
+// A new run of the origin's link has its children as the run before left them until their hello,
+// a heartbeat later: "down" when it stopped saying so. A query asked in that moment failed at
+// once, "unreachable: <home1> is down at <hospital>" of a healthy home (a probe killed the
+// hospital's link: every query failed so for 1.4 s). It waits for the hello now.
+TEST(Link, AQueryAskedBeforeTheChildrenGreetANewRunOfTheOriginsLinkWaitsForThem) {
+  Tree tree;
+  ASSERT_TRUE(tree.start_hospital_and_home1());
+  auto hospital = node::Node::open(tree.hospital_dir).value();
+  tree.hospital.reset();
+  auto home1_state = [&] {
+    auto records = hospital.snapshot().value().list({.s = Term::iri(kHome1), .p = Term::iri(vocab::kLinkState)}).value();
+    return records.empty() ? std::string() : records.back().triple.o.value;
+  };
+  node::Agent link = hospital.agent("link").value();
+  ASSERT_TRUE(link.replace({{.s = Term::iri(kHome1), .p = Term::iri(vocab::kLinkState)}},
+                           {node::Item{}.add(Term::iri(kHome1), Term::iri(vocab::kLinkState), Term::literal("down"))}));
+  ASSERT_EQ(home1_state(), "down");
+  tree.hospital = tree.start_hospital();
+  auto asked = remote_query(hospital, {.target = kHome1}, 30s, [](const node::Record&) {});
+  EXPECT_TRUE(asked) << asked.error().message;
+}
+
 TEST(Link, ParentChangesAChildsForwardingPolicyBySendingASubscriptionDown) {
   Tree tree;
   tree.hospital = tree.start_hospital();

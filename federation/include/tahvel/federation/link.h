@@ -188,10 +188,12 @@ struct RemoteQuery {
   std::string area;       // a room IRI (absolute) or WKT; the target resolves it (AreaQuery)
   std::optional<std::int64_t> floor;
   // How long (within the timeout) a link that is restarting is waited for: no link serving this
-  // node, or the child on the way "never connected" (a new run of the parent's link, before the
-  // child's hello). Its supervisor starts a dead link again within a second; an operator's query
-  // in that second should not fail. 0: fail at once (`tahvel status`, which asks many nodes).
-  std::chrono::milliseconds restart_grace{2000};
+  // node, or the child on the way "never connected", or "down" in a run younger than
+  // child_silence (a new run of the parent's link, before the child's hello). Its supervisor
+  // starts a dead link again within a second, or after its back-off (up to 2 s for a link that
+  // died three times in a minute); an operator's query meanwhile should not fail. 0: fail at
+  // once (`tahvel status`, which asks many nodes).
+  std::chrono::milliseconds restart_grace{5000};
 };
 
 // `area_query` answers a query with an area when the target is this node itself.
