@@ -815,6 +815,7 @@ void warn_of_unknown_terms(const NodeSpec& spec, const std::string& text, const 
     std::cerr << "up: warning: " << spec.forward_at << ": node '" << spec.id << "': forward: pattern '" << text << "': tv:" << local
               << " is not a term of the tv: vocabulary (docs/vocabulary.md)";
     if (auto near = nearest_tahvel_term(local)) std::cerr << "; did you mean tv:" << *near << "?";
+    else std::cerr << ".";
     std::cerr << " Only items that an agent of the deployment's own writes with it will go up\n";
   }
 }

@@ -2,13 +2,16 @@
 // subcommand parses its flags (args.h), calls the node library once or twice and prints the
 // result. This file dispatches and turns failures into "tahvel: <cause>" and an exit status.
 #include <fcntl.h>
+#include <sys/resource.h>
 #include <unistd.h>
 
+#include <algorithm>
 #include <cerrno>
 #include <csignal>
 #include <exception>
 #include <iostream>
 #include <string>
+#include <system_error>
 #include <vector>
 
 #include "args.h"
@@ -149,6 +152,14 @@ int main(int argc, char** argv) {
     if (opened >= 0 && opened != fd) ::close(opened);
     if (fd == 1) g_stdout_was_closed = true;
   }
+  // A soft limit on open files below 1,024 (`ulimit -n 12`) made a link's Cyclone DDS domain fail
+  // to start and crash in its own clean-up, restarted for ever: raised to what the hard limit
+  // allows, up to 1,024 (no higher: liblcm waits with select(), which takes descriptors below
+  // FD_SETSIZE only).
+  if (rlimit files{}; getrlimit(RLIMIT_NOFILE, &files) == 0 && files.rlim_cur < 1024 && files.rlim_max > files.rlim_cur) {
+    files.rlim_cur = std::min<rlim_t>(files.rlim_max, 1024);
+    setrlimit(RLIMIT_NOFILE, &files);
+  }
   std::vector<std::string> args(argv + 1, argv + argc);
   try {
     int status = dispatch(args);
@@ -157,6 +168,14 @@ int main(int argc, char** argv) {
   } catch (const Failure& failure) {
     if (!failure.message.empty()) std::cerr << "tahvel: " << failure.message << "\n";
     return failure.status;
+  } catch (const std::system_error& e) {
+    // std::thread's way of saying the user's task limit (`ulimit -u`) is reached.
+    if (e.code() == std::errc::resource_unavailable_try_again)
+      std::cerr << "tahvel: cannot start a thread: " << e.what() << " (the limit on the user's processes and threads, "
+                << "'ulimit -u', may be reached)\n";
+    else
+      std::cerr << "tahvel: internal error: " << e.what() << "\n";
+    return kExitFailure;
   } catch (const std::exception& e) {
     std::cerr << "tahvel: internal error: " << e.what() << "\n";
     return kExitFailure;
