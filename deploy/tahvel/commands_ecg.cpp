@@ -160,7 +160,8 @@ int run_ecg(const Args& args) {
       ask_below("ecg", node, ask, left, out, each, answered, "frame");
     } catch (Failure& f) {
       if (f.status == kExitTimeout && left < timeout)
-        f.message += "; the description and the chunks share --timeout " + seconds_text(static_cast<double>(timeout.count()) / 1000);
+        f.message += "; the description and the chunks share --timeout " +
+                     (args.get("--timeout") ? *args.get("--timeout") : std::string("30 (the default)"));
       throw;
     }
   };
@@ -212,7 +213,7 @@ int run_ecg(const Args& args) {
 
   for (const auto& [from, to] : frames.gaps())
     std::cerr << "tahvel: ecg: samples " << from << " to " << to - 1 << " (" << seconds_text((to - from) / info->fs)
-              << ") are not at " << where << ": no readable chunk holds them (its ring may have reclaimed them)\n";
+              << ") are not at " << where << ": no readable chunk holds them (removed, or reclaimed by a ring)\n";
   if (unreadable > 0)
     std::cerr << "tahvel: ecg: " << unreadable << " chunk(s) could not be read, left out; the first: " << first_error << "\n";
   if (frames.frames() == 0) {
