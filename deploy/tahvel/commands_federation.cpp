@@ -619,11 +619,11 @@ int hold_pid_file(const fs::path& pid_file) {
   return fd;  // deliberately left open (close-on-exec: the programs do not inherit it)
 }
 
-// Whether `pid_file` is still the file `held` (hold_pid_file) is open on: not when the state
-// directory was removed, or made again by another `up` since.
-bool still_holds(int held, const fs::path& pid_file) {
+// Whether `path` is still the file or directory `held` is open on: not when it was removed (the
+// state directory by `rm -rf`), or made again by another `up` since.
+bool still_holds(int held, const fs::path& path) {
   struct stat mine {}, there {};
-  return fstat(held, &mine) == 0 && mine.st_nlink > 0 && ::stat(pid_file.c_str(), &there) == 0 &&
+  return held >= 0 && fstat(held, &mine) == 0 && mine.st_nlink > 0 && ::stat(path.c_str(), &there) == 0 &&
          there.st_ino == mine.st_ino && there.st_dev == mine.st_dev;
 }
 
@@ -930,9 +930,6 @@ constexpr std::string_view kMakingSuffix = ".making";
 
 bool store_being_made(const fs::path& dir) { return dir.filename().string().ends_with(kMakingSuffix); }
 
-// A node's new store with the files the topology puts on its board (a floor plan, sensing
-// subscriptions: one persistent item each). Made beside `store` and renamed into place once
-// whole, so a failure leaves no store that `up` would then take as made and never load.
 // A new store for `spec` beside one that already has its IRI: the file renamed a node (its
 // id), and the node would start afresh, its history left in the other store, which `status`
 // then showed beside it as a second node of that IRI.
@@ -951,6 +948,9 @@ void refuse_a_second_store_of(const NodeSpec& spec, const fs::path& state) {
   }
 }
 
+// A node's new store with the files the topology puts on its board (a floor plan, sensing
+// subscriptions: one persistent item each). Made beside `store` and renamed into place once
+// whole, so a failure leaves no store that `up` would then take as made and never load.
 void create_store(const NodeSpec& spec, const fs::path& store, const Topology& topo) {
   const fs::path making = store.string() + std::string(kMakingSuffix);
   // What may be at `store` without a data.mdb: nothing, an empty folder, or what is left of a
@@ -1082,6 +1082,16 @@ class Deployment {
   // environment of the `up` that asked (CommandContext).
   std::vector<std::string> apply(const Topology& topo, const CommandContext& context) {
     std::vector<std::string> changes;
+    // A store removed (or moved) since this supervisor locked it, and made again by the `up`
+    // that asks: this supervisor's programs of it write where nobody reads, and it stops
+    // within a second (stores_gone); the file is not applied, and `up` says to ask again.
+    if (const auto gone = stores_gone(); !gone.empty()) {
+      std::string ids;
+      for (const auto& id : gone) ids += (ids.empty() ? "'" : ", '") + id + "'";
+      changes.push_back("not applied: the store of node " + ids + " was removed or moved while this supervisor ran it, so "
+                        "it stops; run the same 'tahvel up' again once it has (a second)");
+      return changes;
+    }
     // Another file taking over a running deployment is most often the wrong file: said first.
     const fs::path file = fs::absolute(topo.file).lexically_normal();
     if (!file_.empty() && file != file_)
@@ -1154,12 +1164,25 @@ class Deployment {
       changes.push_back("stopped the dispatcher of " + it->first);
       it = dispatchers_.erase(it);
     }
-    std::erase_if(opening_dispatchers_, [&](const auto& entry) {  // left to their threads
-      const NodeSpec* spec = topo.node(entry.first);
-      return !ids.count(entry.first) || spec->behaviours != entry.second.folder;
-    });
+    // Left to their threads, and still counted at stop() while they wait.
+    for (auto it = opening_dispatchers_.begin(); it != opening_dispatchers_.end();) {
+      const NodeSpec* spec = topo.node(it->first);
+      if (ids.count(it->first) && spec->behaviours == it->second.folder) {
+        ++it;
+        continue;
+      }
+      abandoned_dispatchers_.push_back(std::move(it->second.opening));
+      it = opening_dispatchers_.erase(it);
+    }
     std::erase_if(keepers_, [&](const auto& entry) { return !ids.count(entry.first); });
-    std::erase_if(opening_keepers_, [&](const auto& entry) { return !ids.count(entry.first); });
+    for (auto it = opening_keepers_.begin(); it != opening_keepers_.end();) {
+      if (ids.count(it->first)) {
+        ++it;
+        continue;
+      }
+      abandoned_keepers_.push_back(std::move(it->second));
+      it = opening_keepers_.erase(it);
+    }
     std::erase_if(published_, [&](const auto& entry) { return !ids.count(entry.first); });
     std::erase_if(locks_, [&](const auto& entry) {  // its programs stopped above
       if (ids.count(entry.first)) return false;
@@ -1250,6 +1273,10 @@ class Deployment {
     for (const auto& [id, d] : opening_dispatchers_)
       if (!d.opening->ended()) boards_finished_ = false;
     for (const auto& [id, k] : opening_keepers_)
+      if (!k->ended()) boards_finished_ = false;
+    for (const auto& d : abandoned_dispatchers_)
+      if (!d->ended()) boards_finished_ = false;
+    for (const auto& k : abandoned_keepers_)
       if (!k->ended()) boards_finished_ = false;
   }
 
@@ -1450,6 +1477,9 @@ class Deployment {
   std::map<std::string, spatial::AreaKeeper> keepers_;
   std::map<std::string, OpeningDispatcher> opening_dispatchers_;
   std::map<std::string, std::unique_ptr<Opening<spatial::Result<OpenedKeeper>>>> opening_keepers_;
+  // Of nodes that left the file (or changed their behaviours) while they opened.
+  std::vector<std::unique_ptr<Opening<node::Result<agents::Dispatcher>>>> abandoned_dispatchers_;
+  std::vector<std::unique_ptr<Opening<spatial::Result<OpenedKeeper>>>> abandoned_keepers_;
   std::set<std::string> node_ids_;                // the nodes this supervisor runs
   std::map<std::string, Published> published_;    // by node id
   bool boards_finished_ = true;
@@ -1811,9 +1841,11 @@ int run_up(const Args& args) {
   // Said once when it cannot be written, and once when it can again (it is written ten times a
   // second).
   std::string state_file_trouble;
+  // The state directory as it was when this supervisor started: nothing is written into one
+  // that another `up` made again after this one was removed.
+  const int state_fd = ::open(state.c_str(), O_RDONLY | O_DIRECTORY | O_CLOEXEC);
   auto keep_state_file = [&] {
-    // Not into a state directory that another `up` made again after this one's was removed.
-    if (!still_holds(pid_fd, pid_file)) return;
+    if (!still_holds(state_fd, state)) return;
     std::string why = write_state_file(state_file, supervisor);
     if (why == state_file_trouble) return;
     log(why.empty() ? "up: " + state_file.string() + " written again" : "up: " + why);
@@ -1872,11 +1904,10 @@ int run_up(const Args& args) {
     std::this_thread::sleep_for(100ms);
   }
   log("up: supervisor " + std::to_string(getpid()) + " stopping its programs");
-  const bool state_here = still_holds(pid_fd, pid_file);
-  deployment.stop(log, state_here);
+  deployment.stop(log, still_holds(state_fd, state));
   keep_state_file();
   std::error_code removed;
-  if (state_here) fs::remove(pid_file, removed);
+  if (still_holds(pid_fd, pid_file)) fs::remove(pid_file, removed);  // not another supervisor's
   log("up: supervisor " + std::to_string(getpid()) + " stopped");
   // A board's thread still waiting in the store would run on while static destructors do
   // (the log's mutex among them) should the lock be freed meanwhile: end without them.
@@ -2215,8 +2246,13 @@ RemoteBoard ask_board(node::Node& from, const std::string& target, std::chrono::
 std::string unbelieved_because(const StatusNode* keeper, const std::string& writer, const std::string& state,
                                std::int64_t heard_ns) {
   if (keeper && keeper->programs_current)
-    for (const auto& p : keeper->programs)
-      if (p.name == "link" && p.state != "running") return writer + " is " + p.state;
+    for (const auto& p : keeper->programs) {
+      if (p.name != "link" || p.state == "running") continue;
+      // "unknown": only its supervisor is late (frozen, stopped). An "up" the link refreshed
+      // within kStateStaleAfterS is its own word that it runs, as the machine above sees it.
+      if (p.state.starts_with("unknown") && state == "up" && seconds_since(heard_ns) <= kStateStaleAfterS) continue;
+      return writer + " is " + p.state;
+    }
   if (state == "up" && seconds_since(heard_ns) > kStateStaleAfterS)
     return writer + " has not refreshed it for " + seconds_text(seconds_since(heard_ns));
   return {};

@@ -10,6 +10,7 @@
 #include <memory>
 #include <mutex>
 #include <optional>
+#include <system_error>
 #include <thread>
 #include <utility>
 
@@ -20,14 +21,19 @@ template <class R>
 class Opening {
  public:
   // Runs `open` at once on a new thread; it must own what it uses (the thread may outlive this
-  // object).
+  // object). Where no thread can be had (a task limit), it runs here.
   explicit Opening(std::function<R()> open) : shared_(std::make_shared<Shared>()) {
-    thread_ = std::thread([shared = shared_, open = std::move(open)]() mutable {
+    auto run = [shared = shared_, open]() mutable {
       auto result = open();
       open = nullptr;  // its captures go with this thread, not with the last owner of `shared`
       std::lock_guard lock(shared->mutex);
       shared->result.emplace(std::move(result));
-    });
+    };
+    try {
+      thread_ = std::thread(run);
+    } catch (const std::system_error&) {
+      run();
+    }
   }
   // One still opening is left to its thread, which ends with the process or drops what it
   // opened.

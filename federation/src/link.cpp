@@ -343,7 +343,7 @@ struct Link::Impl {
   // P9b, at the receiving end: the last failure to store a sender's run, by sender, as logged.
   struct RelayFailure {
     std::string why;
-    Clock::time_point said_at{};
+    Clock::time_point said_at{}, sent_at{};
     std::uint64_t since_said = 0;
   };
   std::map<std::string, RelayFailure> relay_failures;
@@ -1240,13 +1240,21 @@ struct Link::Impl {
       // and probes with one frame at a time until the mark moves: a home resent its window
       // every resend_after, and this log took a line for each, for as long as the store was full.
       const std::string why = outcome.error().message;
-      send_error(via, head.from, 0, {std::string(kCannotStore), why, ""});
-      std::lock_guard lock(mu);
+      std::unique_lock lock(mu);
       RelayFailure& failure = relay_failures[head.from];
+      // Once a second at most: a sender of a build before P9b logs each one.
+      if (why != failure.why || Clock::now() - failure.sent_at >= std::chrono::seconds(1)) {
+        failure.sent_at = Clock::now();
+        lock.unlock();
+        send_error(via, head.from, 0, {std::string(kCannotStore), why, ""});
+        lock.lock();
+      }
       if (why != failure.why || Clock::now() - failure.said_at >= kRelayFailureSaidEvery) {
         log("relay from <" + head.from + "> refused: " + why +
             (failure.since_said > 0 && why == failure.why ? " (and " + std::to_string(failure.since_said) + " times more since it was last said)" : ""));
-        failure = {why, Clock::now(), 0};
+        failure.why = why;
+        failure.said_at = Clock::now();
+        failure.since_said = 0;
       } else {
         ++failure.since_said;
       }
@@ -1627,6 +1635,7 @@ struct Link::Impl {
         }
         welcomed = ever_welcomed = true;
         refused_by_parent.clear();
+        parent_cannot_store.clear();  // said again by a parent that still cannot (P9b)
         // The parent holds nothing of this store's stream: a first welcome, or a parent store
         // made again (a replaced gateway) that never got what the one before it applied.
         if (f.ack == 0) resend_persistent = true;

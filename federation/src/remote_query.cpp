@@ -143,7 +143,8 @@ Result<std::uint64_t> remote_query(node::Node& node, const RemoteQuery& query,
     if (child_state == "up" && serving) break;
     // A run younger than child_silence has not heard its children's hello yet: "down" is what
     // the run before left (it says its children down as it stops), not that the child is.
-    const bool young = serving && link.run_age && *link.run_age < LinkOptions{}.child_silence;
+    const bool young = serving && link.run_age && *link.run_age >= std::chrono::nanoseconds::zero() &&
+                       *link.run_age < LinkOptions{}.child_silence;  // negative: the clock was set back
     const bool restarting = !serving || child_state == "never connected" || (young && child_state == "down");
     if (restarting && std::chrono::steady_clock::now() < grace_end) {
       std::this_thread::sleep_for(std::chrono::milliseconds(50));

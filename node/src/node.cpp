@@ -1036,6 +1036,7 @@ Result<std::uint64_t> remove_records(Env& env, Reach reach,
     return unexpected(std::move(error));
   };
   std::size_t part = 4096;
+  std::size_t cap = 4096;        // halved by each part that did not fit: a bound on the parts after
   bool advanced = true;         // since the last part that went
   std::optional<std::uint64_t> per_record;  // on a full disk: how far the last part moved the high-water mark, per record
   for (std::size_t at = 0; at < ids.size();) {
@@ -1047,6 +1048,7 @@ Result<std::uint64_t> remove_records(Env& env, Reach reach,
       constexpr std::uint64_t kPage = 4096;
       part = !per_record ? 1 : static_cast<std::size_t>(std::clamp<std::uint64_t>(**room / 2 / std::max(*per_record, kPage), 1, 4096));
     }
+    part = std::min(part, cap);
     const std::uint64_t end_before = env.pages_end_bytes();
     const std::span<const std::uint64_t> slice(ids.data() + at, std::min(part, ids.size() - at));
     auto done = env.write([&](Txn& txn) { return remove_ids(txn, slice); }, WriteKind::removal);
@@ -1059,7 +1061,8 @@ Result<std::uint64_t> remove_records(Env& env, Reach reach,
     }
     if (!done) {
       if (done.error().code != Errc::store_full || part == 1) return failed(done.error());
-      part /= 2;
+      cap = part / 2;
+      part = cap;
       continue;
     }
     const std::uint64_t end_after = env.pages_end_bytes();
