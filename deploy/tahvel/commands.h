@@ -93,7 +93,7 @@ node::Pattern pattern_from_args(const Args& args, const uri::PrefixMap& prefixes
 unsigned cascade_flag(const Args& args);
 // The time `text` given to `flag` (--since, --until), ns since the epoch: an integer (ns) or an
 // RFC 3339 time "2026-11-21T10:00:00Z" (optional fractional seconds; Z or an offset ±HH:MM; 't'
-// and 'z' in either case). Out-of-range numbers and dates that do not exist (February 30) are
+// and 'z' in either case, or a space for the 't'). Out-of-range numbers and dates that do not exist (February 30) are
 // usage errors naming the flag, not times moved elsewhere.
 std::int64_t time_flag(std::string_view flag, const std::string& text);
 // "4.2 s" below a minute, then "12 min 5 s", "3 h 12 min", "2 d 3 h" (a NaN as a long time).

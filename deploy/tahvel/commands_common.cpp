@@ -614,7 +614,8 @@ std::int64_t time_flag(std::string_view flag, const std::string& text) {
   tm.tm_mon = digits(2) - 1;
   expect("-");
   tm.tm_mday = digits(2);
-  expect("Tt");
+  // RFC 3339 (5.6, NOTE) lets a space stand for the 'T', as `date --rfc-3339=s` prints it.
+  expect("Tt ");
   tm.tm_hour = digits(2);
   expect(":");
   tm.tm_min = digits(2);

@@ -1560,6 +1560,9 @@ struct Link::Impl {
           child->down_mark = f.ack;
           child->down_progress = Clock::now();
           news = true;
+          // It stored again: a later P9b of the same reason is a new episode, logged as such.
+          if (child_cannot_store.erase(child->iri))
+            log("child <" + child->iri + "> stores what this node sends down again");
         }
         if (f.prev == 1 && (f.ack != child->went_back_to || Clock::now() - child->went_back_at > opt.resend_after)) {
           child->down_go_back = true;  // P8: once per mark and interval, not on every gap ack

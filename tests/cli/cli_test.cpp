@@ -2019,6 +2019,9 @@ TEST_F(Cli, QueryTimesAreCheckedAndHonourTheirOffset) {
   EXPECT_EQ(lines_of(query("--since", rfc3339(std::chrono::minutes(-30), 1)).out).size(), 1u);
   EXPECT_EQ(lines_of(query("--since", rfc3339(std::chrono::minutes(30), 0).replace(19, 6, "z")).out).size(), 0u);
   EXPECT_EQ(lines_of(query("--since", rfc3339(std::chrono::minutes(-30), 0).replace(19, 6, "z")).out).size(), 1u);
+  // `date --rfc-3339=s` writes a space for the 'T', which RFC 3339 allows.
+  EXPECT_EQ(lines_of(query("--since", rfc3339(std::chrono::minutes(-30), 1).replace(10, 1, " ")).out).size(), 1u);
+  EXPECT_EQ(lines_of(query("--since", rfc3339(std::chrono::minutes(30), 1).replace(10, 1, " ")).out).size(), 0u);
   // A leap second is the second after :59, which POSIX time calls the next minute's :00.
   r = query("--since", "2016-12-31T23:59:60Z");
   EXPECT_EQ(r.status, 0) << r.err;

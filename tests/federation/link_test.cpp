@@ -1538,6 +1538,46 @@ TEST(Link, AChildWhoseParentCannotStoreSendsOneFrameAtATimeAndSaysWhy) {
   EXPECT_TRUE(tree.home1_log.has("stores what this node sends again")) << tree.home1_log.text();
 }
 
+// P9b downwards: a parent logs a child that cannot store what it sends down once per reason; it
+// remembered the reason for ever, so when the child's store filled a second time, after it had
+// stored again, the parent's log said nothing of it.
+TEST(Link, AParentLogsEachEpisodeOfAChildThatCannotStoreWhatItSendsDown) {
+  Tree tree({}, {.max_map_bytes = 1 << 20});
+  ASSERT_TRUE(tree.start_hospital_and_home1());
+  auto fill_home1 = [&] {
+    auto filler = node::Node::open(tree.home1_dir).value().agent("filler").value();
+    int i = 0;
+    for (std::size_t size : {2000, 200, 20})  // to the last page
+      while (filler.store(node::Item{}.add(Term::iri(kHome1 + "/f" + std::to_string(i)), Term::iri(kEx + "fill"),
+                                           Term::literal(std::string(size, 'f') + std::to_string(i)))))
+        ++i;
+  };
+  auto operator_ = node::Node::open(tree.hospital_dir).value().agent("operator").value();
+  auto configure = [&](const std::string& value) {
+    node::Item config;
+    config.context = kHome1 + "/hrv";
+    config.add(Term::iri(kHome1 + "/hrv"), Term::iri(kEx + "label"), Term::literal(value));
+    return static_cast<bool>(operator_.store(config));
+  };
+  auto episodes = [&] {
+    std::lock_guard lock(tree.hospital_log.mu);
+    return std::count_if(tree.hospital_log.lines.begin(), tree.hospital_log.lines.end(), [](const std::string& l) {
+      return l.find("child <" + kHome1 + "> cannot store what this node sends down") != std::string::npos;
+    });
+  };
+  auto home1_labels = [&] { return count(tree.home1_dir, {.p = Term::iri(kEx + "label")}); };
+  for (int episode = 1; episode <= 2; ++episode) {
+    fill_home1();
+    ASSERT_TRUE(configure("first of episode " + std::to_string(episode)));
+    ASSERT_TRUE(eventually([&] { return episodes() == episode; })) << tree.hospital_log.text();
+    ASSERT_TRUE(node::Node::open(tree.home1_dir).value().remove({.p = Term::iri(kEx + "fill")}));
+    ASSERT_TRUE(eventually([&] { return home1_labels() == static_cast<std::uint64_t>(episode); }))
+        << home1_labels() << tree.home1_log.text();
+    EXPECT_TRUE(eventually([&] { return tree.hospital_log.has("child <" + kHome1 + "> stores what this node sends down again"); }))
+        << tree.hospital_log.text();
+  }
+}
+
 // A chunk the asking node cannot write on its board (here its store is full) ends the query
 // with that reason at once, rather than at the asker's timeout with a chunk missing.
 TEST(Link, AnAnswerChunkTheAskingBoardCannotHoldEndsTheQueryWithTheReason) {
