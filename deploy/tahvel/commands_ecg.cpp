@@ -171,7 +171,25 @@ int run_ecg(const Args& args) {
   std::vector<node::Record> description;
   ask_in_time([&](const node::Record& r) { description.push_back(r); }, {});
   const std::string where = "<" + ask.target + ">";
-  if (description.empty()) fail("ecg: " + where + " holds no recording <" + recording + "> (nothing has it as subject)");
+  if (description.empty()) {
+    // Which recordings the node does hold, for the operator who mistyped one or asked the wrong
+    // node (the raw ECG stays where HRV is computed, usually a home).
+    ask.pattern = {.p = node::Term::iri(std::string(node::kRdfType)), .o = agg::tv_term("EcgRecording")};
+    constexpr std::size_t kNamed = 5;
+    ask.limit = kNamed + 1;
+    std::vector<std::string> held;
+    ask_in_time([&](const node::Record& r) { held.push_back(r.triple.s.value); }, {});
+    std::string hint;
+    if (held.empty()) {
+      hint = "; it holds no recording at all: the raw ECG stays on the node that computes its HRV (`tahvel patients` "
+             "at the hospital prints it for each recording, as --at)";
+    } else {
+      hint = "; it holds ";
+      for (std::size_t i = 0; i < held.size() && i < kNamed; ++i) hint += (i ? ", <" : "<") + held[i] + ">";
+      if (held.size() > kNamed) hint += " and more (`tahvel query` -p rdf:type -o tv:EcgRecording lists them)";
+    }
+    fail("ecg: " + where + " holds no recording <" + recording + "> (nothing has it as subject)" + hint);
+  }
   auto info = agg::read_recording(description, recording);
   if (!info) fail("ecg: the description of <" + recording + "> at " + where + ": " + info.error().message);
   if (info->leads.empty()) fail("ecg: the description of <" + recording + "> at " + where + " names no tv:lead");

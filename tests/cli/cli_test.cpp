@@ -1247,8 +1247,25 @@ TEST_F(Cli, EcgPrintsEachFrameOfTheRangeInMillivoltsAndNamesWhatIsMissing) {
   EXPECT_NE(none.err.find("holds no sample of <" + rec + "> in that range"), std::string::npos) << none.err;
   Outcome unknown = run({"ecg", node_, "--recording", rec + "0"});
   EXPECT_EQ(unknown.status, 1);
-  EXPECT_EQ(unknown.err, "tahvel: ecg: <" + kNodeIri + "> holds no recording <" + rec + "0> (nothing has it as subject)\n");
+  EXPECT_EQ(unknown.err, "tahvel: ecg: <" + kNodeIri + "> holds no recording <" + rec + "0> (nothing has it as subject); it holds <" +
+                            rec + ">\n");
   EXPECT_EQ(run({"ecg", node_}).status, 2) << "--recording is required";
+}
+
+// An operator who asks a node without the recording (a typo, or the hospital instead of the
+// home that keeps the raw ECG) was told only that it is not there; now also what is.
+TEST_F(Cli, EcgOfARecordingTheNodeDoesNotHoldSaysWhichRecordingsItHolds) {
+  init();
+  Outcome none = run({"ecg", node_, "--recording", kNodeIri + "/source/recording/r1"});
+  EXPECT_EQ(none.status, 1);
+  EXPECT_NE(none.err.find("; it holds no recording at all: the raw ECG stays on the node that computes its HRV"), std::string::npos)
+      << none.err;
+  const std::int64_t t0 = 1'800'000'000'000'000'000;
+  for (int i = 0; i < 7; ++i) store_recording(node_, kNodeIri + "/source/recording/r" + std::to_string(i), t0);
+  Outcome many = run({"ecg", node_, "--recording", kNodeIri + "/source/recording/x"});
+  EXPECT_EQ(many.status, 1);
+  EXPECT_NE(many.err.find("; it holds <" + kNodeIri + "/source/recording/r"), std::string::npos) << many.err;
+  EXPECT_NE(many.err.find(" and more (`tahvel query` -p rdf:type -o tv:EcgRecording lists them)"), std::string::npos) << many.err;
 }
 
 // A lead calibrated otherwise than the ECG (blood pressure in mmHg at 10 per mmHg from 0) was
