@@ -22,6 +22,7 @@
 #include "tahvel/aggregation/pipeline.h"
 #include "tahvel/aggregation/score.h"
 #include "tahvel/aggregation/wfdb.h"
+#include "tahvel/federation/link.h"
 
 namespace tahvel::cli {
 namespace {
@@ -269,8 +270,44 @@ std::pair<std::int64_t, std::int64_t> signal_range_ns(const agg::PatientView& p)
   return {p.latest_asserted_ns, p.latest_asserted_ns + static_cast<std::int64_t>(std::llround(length_s * 1e9))};
 }
 
+// What this node's link says (P12) of the child a patient's windows come through, when they
+// come from below: an operator reading a home's latest window must know that the home is down
+// here, and the windows computed there since have not come.
+struct LinkOnTheWay {
+  std::string child;  // this node's child on the way to the node that computed the windows
+  std::string state;  // tv:linkState: "up", "down" or "never connected"
+  std::optional<std::int64_t> last_seen_ns;
+  // The link refreshes an "up" state every 2 s (P12): one much older was left by a link that
+  // no longer runs, and says nothing of the child now.
+  bool stale() const { return state == "up" && last_seen_ns && seconds_since(*last_seen_ns) > 15; }
+  bool worth_saying() const { return state != "up" || stale(); }
+};
+
+std::optional<LinkOnTheWay> link_on_the_way(const node::Snapshot& snap, const std::string& node_iri,
+                                            const std::string& computed_at) {
+  if (computed_at.size() <= node_iri.size() + 1 || computed_at.compare(0, node_iri.size(), node_iri) != 0 ||
+      computed_at[node_iri.size()] != '/')
+    return std::nullopt;
+  LinkOnTheWay link;
+  link.child = computed_at.substr(0, computed_at.find('/', node_iri.size() + 1));
+  auto field = [&](const std::string& predicate) -> std::optional<std::string> {
+    auto records = snap.list({.s = node::Term::iri(link.child), .p = node::Term::iri(predicate)});
+    if (!records || records->empty()) return std::nullopt;
+    return records->front().triple.o.value;
+  };
+  auto state = field(federation::vocab::kLinkState);
+  if (!state) return std::nullopt;
+  link.state = *state;
+  if (auto seen = field(federation::vocab::kLastSeen)) {
+    std::int64_t ns = 0;
+    if (std::from_chars(seen->data(), seen->data() + seen->size(), ns).ec == std::errc()) link.last_seen_ns = ns;
+  }
+  return link;
+}
+
 void print_patients_json(const std::string& node_iri, const agg::PatientsOnBoard& board,
-                         const std::vector<const agg::PatientView*>& shown) {
+                         const std::vector<const agg::PatientView*>& shown,
+                         const std::vector<std::optional<LinkOnTheWay>>& links) {
   std::ostringstream out;
   out << "{\"node\":\"" << node::json_escape(node_iri) << "\",\"patients\":[";
   for (std::size_t i = 0; i < shown.size(); ++i) {
@@ -290,6 +327,13 @@ void print_patients_json(const std::string& node_iri, const agg::PatientsOnBoard
       out << ",\"raw_ecg\":{\"node\":\"" << node::json_escape(at) << "\",\"since_ns\":" << since << ",\"until_ns\":" << until << "}";
     } else {
       out << ",\"raw_ecg\":null";
+    }
+    if (const auto& link = links[i]) {
+      out << ",\"link\":{\"child\":\"" << node::json_escape(link->child) << "\",\"state\":\"" << node::json_escape(link->state)
+          << "\",\"last_seen_ns\":" << (link->last_seen_ns ? std::to_string(*link->last_seen_ns) : "null")
+          << ",\"stale\":" << (link->stale() ? "true" : "false") << "}";
+    } else {
+      out << ",\"link\":null";
     }
     out << ",\"trends\":[";
     for (std::size_t k = 0; k < p.trends.size(); ++k) out << (k ? "," : "") << trend_json(p.trends[k]);
@@ -325,7 +369,8 @@ std::string shell_word(const std::string& text) {
   return out + "'";
 }
 
-void print_patient_text(const std::string& dir, const agg::PatientView& p) {
+void print_patient_text(const std::string& dir, const std::string& node_iri, const agg::PatientView& p,
+                        const std::optional<LinkOnTheWay>& link) {
   std::cout << "\n<" << p.recording << ">";
   for (const agg::TrendUpdate& t : p.trends)
     if (t.alert) std::cout << "  ALERT: " << agg::metric_local_name(t.metric) << " " << off_baseline(t.alert_direction);
@@ -333,6 +378,15 @@ void print_patient_text(const std::string& dir, const agg::PatientView& p) {
             << seconds_number(p.latest.window.start_s) << "-" << seconds_number(p.latest.window.end_s)
             << " s into the recording, stored " << node::utc_text(p.latest_stored_ns) << " ("
             << age_of(p.latest_stored_ns) << ")\n";
+  if (link && link->worth_saying()) {
+    const std::string heard = link->last_seen_ns ? "last heard " + age_of(*link->last_seen_ns) : "never heard";
+    if (link->stale())
+      std::cout << "  its windows come through <" << link->child << ">, " << heard << " at <" << node_iri
+                << "> though its state says up (kept every 2 s by this node's link): is that link running? (tahvel status)\n";
+    else
+      std::cout << "  its windows come through <" << link->child << ">, " << link->state << " at <" << node_iri << "> ("
+                << heard << "): windows computed since have not come\n";
+  }
   for (const auto& [writer, count] : p.other_writers)
     std::cout << "  also " << count << " window(s) of it from <" << writer
               << ">, not shown: two HRV agents on one recording (run one tahvel-hrv per recording)\n";
@@ -466,12 +520,14 @@ int run_patients(const Args& args) {
     if (p.alerting()) ++alerting;
     if (!args.has("--alerts") || p.alerting()) shown.push_back(&p);
   }
+  std::vector<std::optional<LinkOnTheWay>> links;
+  for (const agg::PatientView* p : shown) links.push_back(link_on_the_way(snapshot, node.iri(), p->source_node()));
   if (args.has("--json")) {
-    print_patients_json(node.iri(), *board, shown);
+    print_patients_json(node.iri(), *board, shown, links);
   } else {
     std::cout << board->patients.size() << " patient(s) with HRV on <" << node.iri() << ">"
               << (since ? " since " + node::utc_text(*since) : std::string()) << ", " << alerting << " with an alert\n";
-    for (const agg::PatientView* p : shown) print_patient_text(args.positional(0), *p);
+    for (std::size_t i = 0; i < shown.size(); ++i) print_patient_text(args.positional(0), node.iri(), *shown[i], links[i]);
     for (const agg::UnreadableItems& u : board->unreadable)
       std::cout << "\n" << u.count << " HRV window or trend item(s) from <" << u.source
                 << "> could not be read; the first: " << u.first_error << "\n";

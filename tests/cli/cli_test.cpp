@@ -1352,6 +1352,48 @@ TEST_F(Cli, PatientsShowsEachRecordingsLatestWindowWithAlertingPatientsFirst) {
   EXPECT_NE(missing.err.find("nowhere"), std::string::npos) << missing.err;
 }
 
+// A home that is down at the hospital holds the windows computed since, which the hospital has
+// not had: `patients` showed its latest window there without a word that the home was not heard.
+TEST_F(Cli, PatientsSaysWhenTheChildTheirWindowsComeThroughIsDownOrNotRefreshed) {
+  using tahvel::node::Term;
+  const std::string dir = (tmp_ / "hospital").string(), hospital = "http://example.org/hospital", home = hospital + "/home1";
+  ASSERT_TRUE(tahvel::node::Node::init(dir, {.iri = hospital}));
+  auto node = tahvel::node::Node::open(dir).value();
+  const std::string tv = "https://w3id.org/tahvel#", rec = home + "/ecg/recording/a";
+  tahvel::node::Item window;
+  window.add(Term::iri(rec + "/hrv/0"), Term::iri("http://www.w3.org/ns/sosa/observedProperty"), Term::iri(tv + "HeartRateVariability"))
+      .add(Term::iri(rec + "/hrv/0"), Term::iri("http://www.w3.org/ns/prov#wasDerivedFrom"), Term::iri(rec))
+      .add(Term::iri(rec + "/hrv/0"), Term::iri(tv + "windowStartS"), Term::literal("0.0", "http://www.w3.org/2001/XMLSchema#decimal"))
+      .add(Term::iri(rec + "/hrv/0"), Term::iri(tv + "windowEndS"), Term::literal("60.0", "http://www.w3.org/2001/XMLSchema#decimal"))
+      .add(Term::iri(rec + "/hrv/0"), Term::iri(tv + "sdnnMs"), Term::literal("40.0", "http://www.w3.org/2001/XMLSchema#decimal"));
+  ASSERT_TRUE(node.agent("home1").value().relay("up", {{.seq = 1, .source = home + "/hrv", .item = window}}));
+  auto link = node.agent("link").value();
+  const std::int64_t now = std::chrono::duration_cast<std::chrono::nanoseconds>(std::chrono::system_clock::now().time_since_epoch()).count();
+  auto link_says = [&](const std::string& state, std::int64_t seen_ns) {
+    tahvel::node::Item item;
+    item.persistent = true;
+    item.add(Term::iri(home), Term::iri(tv + "linkState"), Term::literal(state)).add(Term::iri(home), Term::iri(tv + "lastSeen"), Term::integer(seen_ns));
+    ASSERT_TRUE(link.replace({{.s = Term::iri(home)}}, {item}));
+  };
+  link_says("down", now - 200'000'000'000);
+  Outcome down = run({"patients", dir});
+  ASSERT_EQ(down.status, 0) << down.err;
+  EXPECT_NE(down.out.find("its windows come through <" + home + ">, down at <" + hospital + "> (last heard 3 min 2"), std::string::npos)
+      << down.out;
+  Outcome json = run({"patients", dir, "--json"});
+  EXPECT_NE(json.out.find("\"link\":{\"child\":\"" + home + "\",\"state\":\"down\",\"last_seen_ns\":" + std::to_string(now - 200'000'000'000) +
+                          ",\"stale\":false}"),
+            std::string::npos) << json.out;
+  link_says("up", now);
+  Outcome up = run({"patients", dir});
+  EXPECT_EQ(up.out.find("its windows come through"), std::string::npos) << "a home that is up is not worth a line:\n" << up.out;
+  // An "up" the link no longer refreshes (every 2 s) was left by a link that does not run.
+  link_says("up", now - 60'000'000'000);
+  Outcome stale = run({"patients", dir});
+  EXPECT_NE(stale.out.find("though its state says up (kept every 2 s by this node's link): is that link running?"), std::string::npos)
+      << stale.out;
+}
+
 TEST_F(Cli, HrvOnAMissingRecordNamesTheFile) {
   Outcome r = run({"hrv", (tmp_ / "nothing").string()});
   EXPECT_EQ(r.status, 1);
