@@ -42,6 +42,7 @@ constexpr const char* kUsage =
 struct Signal {
   agg::RecordingInfo info;  // iri and sensor_iri are filled by the caller
   std::string name;         // recording name
+  std::optional<std::int64_t> frames;  // how many the signal holds, when its source says
   std::function<agg::Result<std::size_t>(std::size_t n, Frames& out)> read;
 };
 
@@ -56,6 +57,7 @@ agg::Result<Signal> record_signal(const std::string& path, std::optional<std::si
   Signal s;
   s.name = h.name;
   s.info.fs = h.fs;
+  if (h.samples_per_signal > 0) s.frames = h.samples_per_signal;
   s.info.source = std::filesystem::path(h.directory).filename().string() + "/" + h.name;
   // As `tahvel hrv`: a header without signals has no ECG (it wrote an empty recording, exit 0).
   if (h.signals.empty()) return agg::fail(h.path + ": the record has no signals, so no ECG");
@@ -128,6 +130,7 @@ agg::Result<Signal> synthetic_signal(const rt::Args& args) {
   auto shared = std::make_shared<agg::SyntheticEcg>(std::move(*generator));
   Signal s;
   s.name = "synthetic-" + std::to_string(options.seed);
+  if (total >= 0) s.frames = total;
   s.info.fs = options.fs;
   s.info.gain = options.gain;
   s.info.baseline = options.adc_zero;
@@ -267,7 +270,8 @@ int replay(rt::Session& session, Signal& signal, double speed) {
   // under the old take's, whose chunks the home holds and its R-peak agent has done. A restart
   // must not write the same seconds twice: a take an earlier run left without an end (the
   // source was killed) goes on after its last chunk, on the same time axis; one it ended (its
-  // tv:endSample is there: it reached its end or was stopped) is over, and this run takes anew.
+  // tv:endSample is there: it was stopped) is over, and this run takes anew; one that holds the
+  // whole signal is left as it is, and this run has nothing to do.
   const std::string base_iri = signal.info.iri;
   const std::int64_t now_ns =
       std::chrono::duration_cast<std::chrono::nanoseconds>(std::chrono::system_clock::now().time_since_epoch()).count();
@@ -285,6 +289,15 @@ int replay(rt::Session& session, Signal& signal, double speed) {
     }
     earlier = *found;
     if (!earlier.end) signal.info.iri = takes->back();
+    // An earlier run replayed the whole signal (under an earlier supervisor, before a reboot or
+    // a down and up): replaying it again would give the node above the same patient twice,
+    // under a second take.
+    if (earlier.end && signal.frames && *earlier.end >= *signal.frames) {
+      rt::log_line(kProgram, "<" + takes->back() + "> holds the whole of " + signal.name + " (" + std::to_string(*signal.frames) +
+                                 " frames), replayed by an earlier run: nothing more to replay (remove that take, "
+                                 "tahvel remove --under its IRI, to replay it again)");
+      return rt::kExitOk;
+    }
   }
   if (takes->empty() || earlier.end) {
     const std::string ended = takes->empty() ? std::string() : takes->back();
