@@ -276,31 +276,53 @@ Result<void> Query::for_each(const Pattern& pattern,
 
 Result<void> Query::cascade_from(std::uint64_t object, unsigned depth, std::vector<std::uint64_t>& out,
                                  std::unordered_map<std::uint64_t, unsigned>& reach, std::size_t limit) {
-  if (depth == 0 || (limit && out.size() >= limit)) return {};
-  const auto walked_deep_enough = [&](std::uint64_t id) {
-    auto it = reach.find(id);
-    return it != reach.end() && it->second >= depth - 1;
+  // Depth first, each record before its object's sub-tree, on a stack of our own: a chain of
+  // records (an RDF list, a linked log) can be as deep as --cascade lets it, and a frame of
+  // recursion per level overflowed the thread's stack at about 21,000 levels.
+  struct Level {
+    std::vector<std::pair<std::uint64_t, std::uint64_t>> children;  // (record id, its object)
+    std::size_t next = 0;
+    unsigned depth = 0;  // the depth the children were reached with
   };
-  std::vector<std::pair<std::uint64_t, std::uint64_t>> children;  // (record id, its object)
-  Cursor cur;
-  int rc = mdb_cursor_open(txn_, env_.idx_s, &cur.c);
-  if (rc != 0) return lmdb_fail(rc, "opening the subject index");
-  MDB_val k = val(object), v;
-  for (rc = mdb_cursor_get(cur.c, &k, &v, MDB_SET); rc == 0; rc = mdb_cursor_get(cur.c, &k, &v, MDB_NEXT_DUP)) {
-    std::uint64_t id = u64(v);
-    if (walked_deep_enough(id)) continue;
-    auto row = get_record(txn_, env_, id);
-    if (!row) return unexpected(row.error());
-    if (!*row) continue;
-    children.emplace_back(id, (*row)->o);
-  }
-  if (rc != MDB_NOTFOUND) return lmdb_fail(rc, "walking the subject index");
-  for (const auto& [id, child_object] : children) {
+  const auto walked_deep_enough = [&](std::uint64_t id, unsigned at_depth) {
+    auto it = reach.find(id);
+    return it != reach.end() && it->second >= at_depth - 1;
+  };
+  std::vector<Level> stack;
+  const auto expand = [&](std::uint64_t subject, unsigned at_depth) -> Result<void> {
+    if (at_depth == 0) return {};
+    Level level{.depth = at_depth};
+    Cursor cur;
+    int rc = mdb_cursor_open(txn_, env_.idx_s, &cur.c);
+    if (rc != 0) return lmdb_fail(rc, "opening the subject index");
+    MDB_val k = val(subject), v;
+    for (rc = mdb_cursor_get(cur.c, &k, &v, MDB_SET); rc == 0; rc = mdb_cursor_get(cur.c, &k, &v, MDB_NEXT_DUP)) {
+      std::uint64_t id = u64(v);
+      if (walked_deep_enough(id, at_depth)) continue;
+      auto row = get_record(txn_, env_, id);
+      if (!row) return unexpected(row.error());
+      if (!*row) continue;
+      level.children.emplace_back(id, (*row)->o);
+    }
+    if (rc != MDB_NOTFOUND) return lmdb_fail(rc, "walking the subject index");
+    if (!level.children.empty()) stack.push_back(std::move(level));
+    return {};
+  };
+  if (limit && out.size() >= limit) return {};
+  if (auto r = expand(object, depth); !r) return r;
+  while (!stack.empty()) {
     if (limit && out.size() >= limit) return {};
-    if (walked_deep_enough(id)) continue;
-    if (reach.emplace(id, depth - 1).second) out.push_back(id);
-    else reach[id] = depth - 1;
-    if (auto r = cascade_from(child_object, depth - 1, out, reach, limit); !r) return r;
+    Level& top = stack.back();
+    if (top.next == top.children.size()) {
+      stack.pop_back();
+      continue;
+    }
+    const auto [id, child_object] = top.children[top.next++];
+    const unsigned at_depth = top.depth;  // `top` may move when expand pushes
+    if (walked_deep_enough(id, at_depth)) continue;
+    if (reach.emplace(id, at_depth - 1).second) out.push_back(id);
+    else reach[id] = at_depth - 1;
+    if (auto r = expand(child_object, at_depth - 1); !r) return r;
   }
   return {};
 }

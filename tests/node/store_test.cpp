@@ -138,6 +138,32 @@ TEST(Store, ACascadeTakesWhatLiesWithinItsDepthOfAnyMatchWhateverTheOrder) {
                                         ex("deep").value + " " + ex("z").value}));
 }
 
+// A chain of records (an RDF list, a linked log) read or removed with a cascade as deep as it
+// is: the walk took a frame of recursion per level and overflowed the stack at about 21,000.
+TEST(Store, ACascadeThroughAChainOfFiftyThousandRecordsReadsAndRemovesItWhole) {
+  TempDir dir;
+  Node node = make_node(dir.path());
+  constexpr int kLinks = 50'000;
+  Item chain;
+  for (int i = 0; i < kLinks; ++i) chain.add(ex("n" + std::to_string(i)), ex("next"), ex("n" + std::to_string(i + 1)));
+  ASSERT_TRUE(node.agent("writer")->store(chain));
+  Pattern head;
+  head.s = ex("n0");
+  {
+    auto snap = node.snapshot();
+    auto listed = snap->list(head, ListOptions{kLinks + 10, 0});
+    ASSERT_TRUE(listed) << listed.error().message;
+    ASSERT_EQ(listed->size(), static_cast<std::size_t>(kLinks));
+    EXPECT_EQ(listed->back().triple.s, ex("n" + std::to_string(kLinks - 1)));  // in the chain's order
+    auto part = snap->list(head, ListOptions{99, 0});
+    ASSERT_TRUE(part);
+    EXPECT_EQ(part->size(), 100u);  // the match and 99 levels below it
+  }
+  auto removed = node.remove(head, kLinks);
+  ASSERT_TRUE(removed) << removed.error().message;
+  EXPECT_EQ(*removed, static_cast<std::uint64_t>(kLinks));
+}
+
 TEST_F(TwoObservations, CascadeRemoveRemovesExactlyTheSubtree) {
   std::vector<Record> first_records, second_records;
   {
