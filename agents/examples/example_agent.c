@@ -23,6 +23,9 @@
  * SIGINT/SIGTERM. Exit status: 0 when it stopped as asked, 1 on a Tahvel error (printed on
  * stderr), 2 on a usage error.
  */
+/* The C API is C99; clock_gettime and sigaction are POSIX, which strict C99 leaves out. */
+#define _POSIX_C_SOURCE 200809L
+
 #include <signal.h>
 #include <stdio.h>
 #include <stdlib.h>

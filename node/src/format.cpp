@@ -140,6 +140,45 @@ struct WriterDeleter {
 // ---------------------------------------------------------------------------------------------
 // Reading
 
+// How deep blank node property lists `[ … ]` and collections `( … )` may nest in Turtle. serd
+// reads each level with a frame of recursion, and 20,000 levels overflowed the stack of the
+// process (put, load, an agent's store); real data nests a handful deep.
+constexpr std::size_t kMaxTurtleNesting = 1000;
+
+// The offset of the bracket that opens level kMaxTurtleNesting + 1 of `text` (Turtle), or npos.
+// Brackets inside IRIs, strings and comments are not structure and are not counted; the scan
+// need not check the syntax, which serd does after it.
+std::size_t too_deep_at(std::string_view text) {
+  std::size_t depth = 0;
+  for (std::size_t i = 0; i < text.size(); ++i) {
+    const char c = text[i];
+    if (c == '[' || c == '(') {
+      if (++depth > kMaxTurtleNesting) return i;
+    } else if (c == ']' || c == ')') {
+      if (depth > 0) --depth;
+    } else if (c == '#') {
+      while (i < text.size() && text[i] != '\n' && text[i] != '\r') ++i;
+    } else if (c == '<') {
+      while (i + 1 < text.size() && text[i + 1] != '>' && text[i + 1] != '\n') ++i;
+      ++i;
+    } else if (c == '"' || c == '\'') {
+      const bool long_quote = i + 2 < text.size() && text[i + 1] == c && text[i + 2] == c;
+      i += long_quote ? 3 : 1;
+      for (; i < text.size(); ++i) {
+        if (text[i] == '\\') {
+          ++i;
+        } else if (text[i] == c && (!long_quote || (i + 2 < text.size() && text[i + 1] == c && text[i + 2] == c))) {
+          if (long_quote) i += 2;
+          break;
+        } else if (!long_quote && (text[i] == '\n' || text[i] == '\r')) {
+          break;  // a short string ends at its line (serd says so, later)
+        }
+      }
+    }
+  }
+  return std::string_view::npos;
+}
+
 class Parser {
  public:
   enum class Pass { fast, locate };  // locate: byte by byte, to know where an error is
@@ -163,6 +202,11 @@ class Parser {
       return fail(Errc::syntax, located(bad, std::string("not UTF-8: byte ") + byte +
                                                  " does not begin a well-formed sequence (the input must be UTF-8)"));
     }
+
+    if (options_.format == Format::turtle)
+      if (const auto deep = too_deep_at(text_); deep != std::string_view::npos)
+        return fail(Errc::syntax, located(deep, "[ ] and ( ) nested more than " + std::to_string(kMaxTurtleNesting) +
+                                                    " levels deep (the parser's limit)"));
 
     base_ = options_.base_iri;
     env_.reset(serd_env_new(nullptr));

@@ -132,6 +132,32 @@ std::vector<Triple> awkward_triples() {
 // ---------------------------------------------------------------------------------------------
 // parse_format, errc_name, Term
 
+// serd reads nested `[ … ]` and `( … )` by recursion: 20,000 levels crashed put, load and an
+// agent's store with a stack overflow. Deeper than the limit is a syntax error at the bracket;
+// brackets inside IRIs, strings and comments are not nesting.
+TEST(Format, TurtleNestedDeeperThanTheLimitIsAnErrorAtTheBracketNotACrash) {
+  ParseOptions turtle;
+  turtle.format = Format::turtle;
+  auto nested = [](std::size_t levels, char open, char close) {
+    std::string text = "<" + kEx + "s> <" + kEx + "p> ";
+    for (std::size_t i = 0; i < levels; ++i) text += open == '[' ? std::string("[ <" + kEx + "p> ") : std::string("( ");
+    text += "1";
+    for (std::size_t i = 0; i < levels; ++i) text += open == '[' ? std::string(" ]") : std::string(1, ' ') + close;
+    return text + " .\n";
+  };
+  tn::Error blank = parse_error(nested(20'000, '[', ']'), turtle);
+  EXPECT_EQ(blank.code, tn::Errc::syntax);
+  EXPECT_NE(blank.message.find("[ ] and ( ) nested more than 1000 levels deep (the parser's limit)"), std::string::npos) << blank.message;
+  EXPECT_NE(blank.message.find(":1:"), std::string::npos) << "names the line: " << blank.message;
+  EXPECT_EQ(parse_error(nested(100'000, '(', ')'), turtle).code, tn::Errc::syntax);
+  EXPECT_EQ(parse_ok(nested(500, '[', ']'), turtle).size(), 501u);
+  EXPECT_FALSE(parse_ok(nested(500, '(', ')'), turtle).empty());
+  const std::string brackets(5000, '[');
+  const std::string quiet = "# " + brackets + "\n<" + kEx + "s> <" + kEx + "p> \"" + brackets + "\" , '" + brackets + "' , \"\"\"" +
+                            brackets + "\n\"\"\" , <" + kEx + "a" + std::string(5000, '(') + "> .\n";
+  EXPECT_EQ(parse_ok(quiet, turtle).size(), 4u);
+}
+
 TEST(Format, ParseFormatAcceptsShortAndLongNames) {
   EXPECT_EQ(*tn::parse_format("nt"), Format::ntriples);
   EXPECT_EQ(*tn::parse_format("ntriples"), Format::ntriples);

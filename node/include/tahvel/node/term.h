@@ -70,7 +70,7 @@ struct Triple {
 // An item: triples written together, atomically (DESIGN §2). Blank nodes are local to the item
 // and are renamed on write so that two items never share one. Also the item builder:
 //   Item item;
-//   item.add(Term::blank("o"), Term::iri(kRdfType), Term::iri(sosa + "Observation"))
+//   item.add(Term::blank("o"), Term::iri(std::string(kRdfType)), Term::iri(sosa + "Observation"))
 //       .add(Term::blank("o"), Term::iri(sosa + "hasSimpleResult"), Term::integer(72));
 struct Item {
   std::vector<Triple> triples;
