@@ -19,6 +19,7 @@
 #include <charconv>
 #include <cmath>
 #include <deque>
+#include <limits>
 #include <map>
 #include <optional>
 #include <set>
@@ -169,7 +170,13 @@ class HrvStage {
     }
     Stream s{*info, agg::HrvWindower(info->fs, config_.window_s, config_.step()), -1, {}};
     Stream& stream = streams_.emplace(rr.recording, std::move(s)).first->second;
-    if (!rr.intervals.empty()) outcome = catch_up(stream, rr.intervals.front().start);
+    // An item without intervals (the recording's end, tv:endSample) first after a restart: the
+    // recording's open windows are those of every RR item before it, which the run before read
+    // and a new windower has not; without them the end finished an empty windower, and the
+    // recording's last window was lost.
+    const std::int64_t upto = !rr.intervals.empty() ? rr.intervals.front().start
+                                                    : rr.end_sample.value_or(std::numeric_limits<std::int64_t>::max());
+    outcome = catch_up(stream, upto);
     return &stream;
   }
 

@@ -339,6 +339,64 @@ TEST_F(PipelineTest, CrashAndRestartChangeNothing) {
   }
 }
 
+// tahvel-hrv restarted between the recording's last RR item and its end (the RR item with
+// tv:endSample and no interval; a `down` stops hrv before the source) lost the recording's
+// last window: the end, the first item the new run saw, finished an empty windower.
+TEST_F(PipelineTest, AnHrvAgentRestartedJustBeforeTheRecordingsEndStillWritesItsLastWindow) {
+  auto expected = agg::hrv_from_record(record_);
+  ASSERT_TRUE(expected) << expected.error().message;
+  ASSERT_GE(expected->windows.size(), 2u);
+  {
+    Process source({bin("tahvel-ecg-source"), dir_, "--record", record_, "--speed", "0"});
+    ASSERT_EQ(source.wait(120s), 0);
+  }
+  const std::string rec = recording();
+  // The RR item that carries the recording's end (and, here, its last intervals).
+  auto end_of_rr = [&]() -> std::optional<tn::Record> {
+    auto ends = node_->snapshot()->list({.p = agg::tv_term("endSample")});
+    if (ends)
+      for (const tn::Record& r : *ends)
+        if (r.triple.s.value.starts_with(rec + "/rr/")) return r;
+    return std::nullopt;
+  };
+  {
+    std::vector<std::unique_ptr<Process>> stages;
+    for (const char* name : {"tahvel-rpeak", "tahvel-rr"})
+      stages.push_back(std::make_unique<Process>(std::vector<std::string>{bin(name), dir_, "--idle", "300"}));
+    agents_.clear();
+    wait_until("the RR item with the recording's end", [&] { return end_of_rr().has_value(); });
+    ASSERT_FALSE(HasFatalFailure());
+    for (auto& stage : stages) EXPECT_EQ(stage->stop(), 0);
+  }
+  // That item split as tahvel-rr writes it when the end brings no interval: its intervals, then
+  // an item of the end alone (<rec>/rr/end), which comes once the first hrv run has done the rest.
+  const tn::Record last = *end_of_rr();
+  auto last_item = node_->snapshot()->item(last.meta.item);
+  ASSERT_TRUE(last_item);
+  auto series = agg::read_rr(*last_item);
+  ASSERT_TRUE(series) << series.error().message;
+  ASSERT_TRUE(node_->remove_item(last.meta.item));
+  agg::RrSeries intervals = *series, end_alone = *series;
+  intervals.end_sample.reset();
+  end_alone.intervals.clear();
+  auto rr = node_->agent("rr");
+  ASSERT_TRUE(rr);
+  if (!intervals.intervals.empty()) ASSERT_TRUE(rr->store(agg::rr_item(intervals)));
+  auto hrv = [&] { return std::make_unique<Process>(std::vector<std::string>{bin("tahvel-hrv"), dir_, "--idle", "300"}); };
+  agents_.push_back(hrv());
+  wait_until("all windows but the last", [&] { return *node_->snapshot()->count(hrv_items()) >= expected->windows.size() - 1; });
+  ASSERT_FALSE(HasFatalFailure());
+  EXPECT_EQ(agents_.back()->stop(), 0);
+  agents_.clear();
+  ASSERT_TRUE(rr->store(agg::rr_item(end_alone)));
+  agents_.push_back(hrv());
+  const auto deadline = std::chrono::steady_clock::now() + 30s;
+  while (*node_->snapshot()->count(hrv_items()) < expected->windows.size() && std::chrono::steady_clock::now() < deadline)
+    std::this_thread::sleep_for(50ms);
+  EXPECT_EQ(agents_.back()->stop(), 0);
+  expect_windows(*expected);
+}
+
 // The whole record replayed before any processing agent was started: each stage's new
 // subscription brings the items already on the board (R10a), so the windows are all there.
 TEST_F(PipelineTest, AgentsStartedAfterTheRecordingEndedProcessAllOfIt) {
