@@ -238,6 +238,9 @@ class RPeakDetector::Impl {
   std::int64_t n_ = 0;
   std::optional<std::int32_t> last_valid_;  // DetectorOptions::invalid_sample: the value held
   std::int64_t last_invalid_ = -1;          // and the index of the latest sample without a value
+  // DetectorOptions::flat_run_ms in samples (0: off), the length of the run of equal samples
+  // that ends at the latest one, and the index of the latest sample that ended a run that long.
+  std::int64_t flat_run_, same_run_ = 0, last_flat_ = -1;
   double last_bp_ = 0, sum_ = 0, last_f_ = 0;
   // History rings of at least 4 s (power of two; allocated once): the longest look-back is
   // the integration window plus the 95 ms peak timeout plus the hold, and from the candidate's
@@ -338,7 +341,8 @@ RPeakDetector::Impl::Impl(const DetectorOptions& o)
       p_lead_(samples(170, o.fs)),
       p_search_(samples(80, o.fs)),
       p_step_(std::max<std::int64_t>(1, std::llround(o.fs / 120))),
-      own_p_(std::llround(o.own_pwave_ms * o.fs / 1000)) {
+      own_p_(std::llround(o.own_pwave_ms * o.fs / 1000)),
+      flat_run_(o.flat_run_ms > 0 ? std::max<std::int64_t>(2, std::llround(o.flat_run_ms * o.fs / 1000)) : 0) {
   for (double mains_hz : {50.0, 60.0})
     if (mains_hz < o.fs / 2) notches_.push_back(notch(mains_hz, o.fs, 10));
   bp_delay_ = group_delay(hp_, lp_, std::sqrt(o.highpass_hz * o.lowpass_hz), o.fs);
@@ -386,6 +390,10 @@ void RPeakDetector::Impl::step(std::int32_t x, std::vector<std::int64_t>& out) {
     for (Biquad& n50_60 : notches_) n50_60.settle(x, x);
   }
   const auto slot = static_cast<std::size_t>(n & mask_);
+  if (flat_run_ > 0) {
+    same_run_ = n > 0 && raw_[static_cast<std::size_t>((n - 1) & mask_)] == x ? same_run_ + 1 : 1;
+    if (same_run_ >= flat_run_) last_flat_ = n;
+  }
   raw_[slot] = x;
   double notched = x;
   for (Biquad& n50_60 : notches_) notched = n50_60.step(notched);
@@ -702,6 +710,8 @@ auto RPeakDetector::Impl::gap_before(std::int64_t at) const -> Gap {
   // Samples without a value (DetectorOptions::invalid_sample) in the gap: held flat, they would
   // confirm as empty a gap whose beat was simply not recorded.
   if (last_invalid_ > last_qrs_) return gap;
+  // Nor can a gap with a run of one value repeated (DetectorOptions::flat_run_ms): no signal.
+  if (last_flat_ > last_qrs_) return gap;
   const std::int64_t qt = std::llround(o_.twave_qtc * std::sqrt(rr_[0] / o_.fs) * o_.fs);
   const std::int64_t from = last_qrs_ + std::max(twave_, qt), to = at - hold_;
   const std::int64_t own_p = at - own_p_;

@@ -62,6 +62,15 @@ Synthetic ecg(double fs, double seconds, double noise_mv = 0, double wander_mv =
   return s;
 }
 
+// Recorded ECG is never flat: each sample a step of the ADC up or down, or none, at random (a
+// few µV of noise). Without it, what a test clears between beats is a run of one value, which
+// the detector takes for no signal (DetectorOptions::flat_run_ms).
+void add_adc_noise(std::vector<std::int32_t>& samples) {
+  std::mt19937 rng(777);
+  std::uniform_int_distribution<int> step(-1, 1);
+  for (std::int32_t& x : samples) x += step(rng);
+}
+
 DetectorOptions options(double fs) {
   DetectorOptions o;
   o.fs = fs;
@@ -286,6 +295,7 @@ TEST(RPeak, EmptyGapsAreReportedAndGapsHidingAQrsAreNot) {
   // The beat is removed from midway between its neighbours' T waves and their P waves.
   zero((at(dropped - 1) + at(dropped)) / 2, (at(dropped) + at(dropped + 1)) / 2, 0);
   zero(at(small) - static_cast<std::int64_t>(0.08 * fs), at(small) + static_cast<std::int64_t>(0.08 * fs), 0.1);
+  add_adc_noise(s.samples);
   Detection d;
   RPeakDetector det(options(fs));
   det.push(s.samples.data(), s.samples.size(), d.peaks, d.empty_gap_ends);
@@ -316,6 +326,34 @@ TEST(RPeak, EmptyGapsAreReportedAndGapsHidingAQrsAreNot) {
   EXPECT_EQ(c.empty_gap_ends, d.empty_gap_ends);
 }
 
+// A value held over lost samples, or a dropout written as zeros, looks like a gap with nothing
+// QRS-like in it; the beat it hides was confirmed as a pause and its two intervals counted as
+// one NN interval (SDNN x4 with ten 0.1 s holds in five minutes). A run of one value of
+// flat_run_ms or more is no signal: the gap is not empty. A shorter run does not matter.
+TEST(RPeak, AGapHoldingARunOfOneValueIsNotEmpty) {
+  const double fs = 360;
+  const auto empty_gap = [&](double held_ms, const DetectorOptions& o) {
+    Synthetic s = ecg(fs, 60);
+    add_adc_noise(s.samples);
+    const std::size_t lost = 40;
+    // The beat's QRS replaced by the value before it, held.
+    const std::int64_t from = s.r_waves[lost] - std::llround(held_ms / 2 * fs / 1000);
+    const std::int64_t to = s.r_waves[lost] + std::llround(held_ms / 2 * fs / 1000);
+    for (std::int64_t i = from; i < to; ++i) s.samples[static_cast<std::size_t>(i)] = s.samples[static_cast<std::size_t>(from - 1)];
+    const Detection d = detect_beats(s.samples, o);
+    const auto near = [&](const std::vector<std::int64_t>& v, std::int64_t want) {
+      return std::any_of(v.begin(), v.end(), [&](std::int64_t p) { return std::llabs(p - want) <= 5; });
+    };
+    EXPECT_FALSE(near(d.peaks, s.r_waves[lost])) << "held " << held_ms << " ms";
+    return near(d.empty_gap_ends, s.r_waves[lost + 1]);
+  };
+  EXPECT_FALSE(empty_gap(100, options(fs))) << "a gap with a 100 ms hold was confirmed empty";
+  EXPECT_FALSE(empty_gap(300, options(fs)));
+  DetectorOptions off = options(fs);
+  off.flat_run_ms = 0;
+  EXPECT_TRUE(empty_gap(100, off)) << "without the check the hold looks like a pause";
+}
+
 // A blocked beat (second-degree AV block): its QRS and T wave are gone, its P wave is still
 // there. The P wave reaches about 8 % of the QRS height in the integrated slope (as the blocked
 // P waves of MIT-BIH 231 do), more than empty_gap_fraction, so without the P-wave cue the gap
@@ -339,6 +377,7 @@ TEST(RPeak, BlockedPWaveLeavesTheGapEmptyAndASmallQrsDoesNot) {
   // the next beat removed. The small QRS: 8 % of the others, its P and T waves left alone.
   scale(at(blocked) - ms(80), (at(blocked) + at(blocked + 1)) / 2, 0);
   scale(at(small) - ms(60), at(small) + ms(60), 0.08);
+  add_adc_noise(s.samples);
   const auto run = [&](const DetectorOptions& o) {
     Detection d;
     RPeakDetector det(o);
@@ -400,6 +439,7 @@ TEST(RPeak, EmptyGapStartsAfterTheTWaveOfASlowRhythm) {
   }
   std::vector<std::int32_t> x;
   for (double v : mv) x.push_back(kZero + static_cast<std::int32_t>(std::lround(v * kGain)));
+  add_adc_noise(x);
   const auto empty_after = [&](double qtc) {
     DetectorOptions o = options(fs);
     o.pwave_fraction = 0;
@@ -451,6 +491,7 @@ TEST(RPeak, TheBeatsOwnPWaveBeforeTheHoldLeavesItsGapEmpty) {
     mv[i] += biphasic(static_cast<double>(i) / fs, after_other - 0.66);
   std::vector<std::int32_t> x;
   for (double v : mv) x.push_back(kZero + static_cast<std::int32_t>(std::lround(v * kGain)));
+  add_adc_noise(x);
   const auto empty = [&](const DetectorOptions& o, std::size_t k) {
     const Detection d = detect_beats(x, o);
     EXPECT_EQ(d.peaks.size(), r_waves.size() - 2);  // the biphasic waves are no beats

@@ -126,6 +126,14 @@ struct DetectorOptions {
   // before a detected one; above pwave_fraction it still counts. At or below hold_ms (or with
   // pwave_fraction 0) nothing changes. docs/rpeak.md step 8.
   double own_pwave_ms = 300;
+  // A run of this many ms of one value repeated (a value held over lost samples, a dropout
+  // written as zeros, a lead off or at its rail) is no signal: a gap that holds one is not
+  // confirmed empty (`empty_gap_fraction`), as a gap with invalid samples is not, since a beat
+  // may have been lost in it. Recorded ECG, even at a coarse ADC step, changes within a few
+  // samples; an interval kept as a pause across such a run counted a lost beat's two
+  // intervals as one NN interval (SDNN x4, RMSSD x8 with ten 0.1 s holds in five minutes).
+  // 0 disables the check.
+  double flat_run_ms = 80;
 };
 
 // Checks that the options are usable (fs and gain positive, band 0 < highpass < lowpass <
