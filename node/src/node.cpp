@@ -1022,13 +1022,30 @@ Result<std::uint64_t> remove_records(Env& env, Reach reach,
     if (written.error().code != Errc::store_full) return unexpected(written.error());
   }
   std::vector<std::uint64_t> ids;
+  // Per record, what its removal adds at most beyond its table paths: its copy in the removal
+  // log (R17: its terms, for watchers), whole pages (a large literal's copy is pages of its own).
+  std::vector<std::uint64_t> copies;
+  constexpr std::uint64_t kPage = 4096;
   auto listed = env.write([&](Txn& txn) -> Result<void> {
     auto all = collect(txn);
     if (!all) return unexpected(all.error());
     ids = std::move(*all);
+    TermReader reader(txn.raw(), txn.env());
+    for (std::uint64_t id : ids) {
+      std::uint64_t bytes = 256;  // the record's meta, source and context, and the entry's own
+      auto row = get_record(txn.raw(), txn.env(), id);
+      if (!row) return unexpected(row.error());
+      if (*row)
+        for (std::uint64_t term : {(*row)->s, (*row)->p, (*row)->o})
+          if (auto t = reader.get(term, false, false)) bytes += t->value.size() + t->datatype.size() + t->language.size();
+      copies.push_back((bytes + kPage - 1) / kPage * kPage);
+    }
     return {};
   }, WriteKind::removal);
   if (!listed) return unexpected(listed.error());
+  // The pages a part's transaction copies along the paths of the tables it touches (about ten,
+  // a few levels deep each), whatever its size.
+  constexpr std::uint64_t kPathPages = 64 * kPage;
   std::uint64_t total = 0;
   auto failed = [&](Error error) -> Result<std::uint64_t> {
     if (total > 0)
@@ -1045,10 +1062,33 @@ Result<std::uint64_t> remove_records(Env& env, Reach reach,
     if (*room) {
       // Half of what is allocated ahead, at what the last part took per record (a page at
       // least); the first part is one record.
-      constexpr std::uint64_t kPage = 4096;
       part = !per_record ? 1 : static_cast<std::size_t>(std::clamp<std::uint64_t>(**room / 2 / std::max(*per_record, kPage), 1, 4096));
     }
     part = std::min(part, cap);
+    if (*room) {
+      // And no more than what is allocated could take if no freed page were reused: a page
+      // written beyond it is SIGBUS. The copies of records with large literals made a part of
+      // one record take 500 KB (a probe: a bus error after the first few of 300 KB each).
+      const auto need = [&](std::size_t n) {
+        std::uint64_t sum = kPathPages;
+        for (std::size_t i = at; i < at + n && i < ids.size(); ++i) sum += copies[i];
+        return sum;
+      };
+      while (part > 1 && need(part) > **room) part /= 2;
+      if (need(part) > **room && !advanced) {
+        // The pages earlier parts freed become reusable after two more transactions; their
+        // reuse is not counted above, but the room the next check finds may be.
+        advanced = true;
+        if (env.write([](Txn&) -> Result<void> { return {}; }, WriteKind::removal) &&
+            env.write([](Txn&) -> Result<void> { return {}; }, WriteKind::removal))
+          continue;
+      }
+      if (need(part) > **room)
+        return failed(Error{Errc::store_full, "store full: removing record " + std::to_string(ids[at]) + " copies " +
+                                                  std::to_string(copies[at] / 1024) + " KB into the removal log (R17), and the disk holding the store has " +
+                                                  std::to_string(**room / 1024) + " KB allocated for it beyond its last page; free " +
+                                                  std::to_string((need(part) - **room) / (1 << 20) + 1) + " MB on that disk and remove again"});
+    }
     const std::uint64_t end_before = env.pages_end_bytes();
     const std::span<const std::uint64_t> slice(ids.data() + at, std::min(part, ids.size() - at));
     auto done = env.write([&](Txn& txn) { return remove_ids(txn, slice); }, WriteKind::removal);
