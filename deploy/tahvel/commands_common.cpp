@@ -653,8 +653,9 @@ std::int64_t time_flag(std::string_view flag, const std::string& text) {
   }
   if (at != text.size()) usage_error(what + form);
   const std::int64_t utc_s = static_cast<std::int64_t>(seconds) - offset_s;
-  if (utc_s < 0 || utc_s > std::numeric_limits<std::int64_t>::max() / 1'000'000'000 - 1)
-    usage_error(what + "outside the times a record can have (1970 to 2262)");
+  constexpr std::int64_t kLast = std::numeric_limits<std::int64_t>::max();  // 2262-04-11T23:47:16.854775807Z
+  if (utc_s < 0 || utc_s > kLast / 1'000'000'000 || (utc_s == kLast / 1'000'000'000 && fraction > kLast % 1'000'000'000))
+    usage_error(what + "outside the times a record can have (1970 to 2262-04-11T23:47:16.854775807Z)");
   // Second 60 exists only as a leap second: one of the 27 inserted until this was written (IERS
   // Bulletin C; none since 2016), or one yet to be announced at the end of a June or December.
   if (leap) {

@@ -75,13 +75,15 @@ class FrameWriter {
     }
   }
 
-  // After the last chunk: the samples of the range before the first frame written, and, when
-  // the recording's end is known (`end_sample`, tv:endSample), after the last, are missing too.
-  // (Without its end, samples after the last chunk may not have been taken yet.)
+  // After the last chunk: the samples of the range before the first frame written (from the
+  // recording's first sample when no --since was given: a ring reclaims the oldest chunks, and
+  // minutes of them missing went unsaid), and, when the recording's end is known (`end_sample`,
+  // tv:endSample), after the last, are missing too. (Without its end, samples after the last
+  // chunk may not have been taken yet.)
   void finish(std::optional<std::int64_t> end_sample) {
     if (!first_) return;
-    if (since_ && info_.started_at) {
-      const std::int64_t from = first_at_or_after(*since_);
+    if (!since_ || info_.started_at) {
+      const std::int64_t from = since_ ? first_at_or_after(*since_) : 0;
       if (from < *first_) gaps_.insert(gaps_.begin(), {from, *first_});
     }
     if (end_sample) {

@@ -1245,6 +1245,13 @@ TEST_F(Cli, EcgPrintsEachFrameOfTheRangeInMillivoltsAndNamesWhatIsMissing) {
   EXPECT_EQ(none.status, 0) << none.err;
   EXPECT_EQ(none.out, "sample,unix_ns,MLII,V5\n");
   EXPECT_NE(none.err.find("holds no sample of <" + rec + "> in that range"), std::string::npos) << none.err;
+  // Without --since, the samples missing before the first frame are named from the recording's
+  // first (a ring takes the oldest chunks; minutes of them went unsaid).
+  ASSERT_TRUE(tahvel::node::Node::open(node_).value().remove({.s = tahvel::node::Term::iri(rec + "/chunk/0")}));
+  Outcome reclaimed = run({"ecg", node_, "--recording", rec});
+  ASSERT_EQ(reclaimed.status, 0) << reclaimed.err;
+  EXPECT_EQ(lines_of(reclaimed.out)[1], "4,1800000001000000000,4,3") << reclaimed.out;
+  EXPECT_NE(reclaimed.err.find("tahvel: ecg: samples 0 to 3 (1.0 s) are not at <"), std::string::npos) << reclaimed.err;
   Outcome unknown = run({"ecg", node_, "--recording", rec + "0"});
   EXPECT_EQ(unknown.status, 1);
   EXPECT_EQ(unknown.err, "tahvel: ecg: <" + kNodeIri + "> holds no recording <" + rec + "0> (nothing has it as subject); it holds <" +
@@ -2078,6 +2085,11 @@ TEST_F(Cli, QueryTimesAreCheckedAndHonourTheirOffset) {
   EXPECT_EQ(lines_of(query("--since", rfc3339(std::chrono::minutes(-30), 1)).out).size(), 1u);
   EXPECT_EQ(lines_of(query("--since", rfc3339(std::chrono::minutes(30), 0).replace(19, 6, "z")).out).size(), 0u);
   EXPECT_EQ(lines_of(query("--since", rfc3339(std::chrono::minutes(-30), 0).replace(19, 6, "z")).out).size(), 1u);
+  // The last time an int64 of ns holds is a time; a nanosecond after it is not.
+  EXPECT_EQ(query("--since", "2262-04-11T23:47:16.854775807Z").status, 0);
+  r = query("--since", "2262-04-11T23:47:16.854775808Z");
+  EXPECT_EQ(r.status, 2);
+  EXPECT_NE(r.err.find("outside the times a record can have"), std::string::npos) << r.err;
   // `date --rfc-3339=s` writes a space for the 'T', which RFC 3339 allows.
   EXPECT_EQ(lines_of(query("--since", rfc3339(std::chrono::minutes(-30), 1).replace(10, 1, " ")).out).size(), 1u);
   EXPECT_EQ(lines_of(query("--since", rfc3339(std::chrono::minutes(30), 1).replace(10, 1, " ")).out).size(), 0u);
