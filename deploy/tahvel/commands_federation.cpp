@@ -1453,7 +1453,19 @@ class Deployment {
   }
   static std::string what_changed(const agents::ProgramSpec& was, const agents::ProgramSpec& now) {
     std::vector<std::string> what;
-    if (was.argv != now.argv) what.push_back("its command changed");
+    if (was.argv != now.argv) {
+      // Where: a file unchanged but TAHVEL_MITDB unset (or set) changes a source's --record to
+      // --synthetic, which "its command changed" alone did not tell.
+      std::size_t at = 0;
+      while (at < was.argv.size() && at < now.argv.size() && was.argv[at] == now.argv[at]) ++at;
+      auto words = [&](const std::vector<std::string>& argv) {
+        std::string text;
+        for (std::size_t i = at; i < argv.size() && i < at + 2; ++i) text += (text.empty() ? "'" : " '") + argv[i] + "'";
+        return text.empty() ? std::string("nothing") : text + (argv.size() > at + 2 ? " ..." : "");
+      };
+      what.push_back("its command changed from argument " + std::to_string(at) + ": " + words(was.argv) + " became " +
+                     words(now.argv));
+    }
     else if (was.env != now.env) what.push_back("a file it reads at start changed");
     if (was.restart != now.restart)
       what.push_back("restart \"" + std::string(agents::restart_name(was.restart)) + "\" -> \"" +
