@@ -29,6 +29,13 @@ namespace rt = tahvel::agents::hrv;
 namespace tn = tahvel::node;
 
 constexpr const char* kProgram = "tahvel-trend";
+
+// The sensor agent a recording comes from (its IRI is <sensor agent>/recording/<name>, as
+// tahvel-ecg-source names it), or the recording itself when it is not named so.
+std::string_view sensor_of(std::string_view recording) {
+  const std::size_t at = recording.rfind("/recording/");
+  return at == std::string_view::npos ? recording : recording.substr(0, at);
+}
 const std::string kSosa = "http://www.w3.org/ns/sosa/";
 
 tn::Pattern hrv_windows() {
@@ -152,7 +159,10 @@ class TrendStage {
       if (latest && window_has_it) {
         std::vector<double> others;
         for (const auto& [other, other_series] : recordings_) {
-          if (other == recording) continue;
+          // Another take of the same sensor (<sensor agent>/recording/<name>-<start>, after a
+          // restart) is the same patient: against their own earlier values the z-score said
+          // "other patients" of one (a probe: 3 of the 7 "others" were the patient's own).
+          if (other == recording || sensor_of(other) == sensor_of(recording)) continue;
           for (auto it = other_series.rbegin(); it != other_series.rend(); ++it)
             if (auto v = agg::metric_value(it->second.metrics.metrics, metric); v && !cut_short(it->second.metrics)) {
               if (same_length(it->second.metrics, window.metrics)) others.push_back(*v);

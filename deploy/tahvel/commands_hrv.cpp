@@ -418,7 +418,7 @@ void print_patient_text(const std::string& dir, const std::string& node_iri, con
     std::cout << " over " << t.windows << " window(s)";
     if (t.alert) std::cout << ", ALERT " << off_baseline(t.alert_direction);
     if (t.z_against_others)
-      std::cout << ", z " << text_number(t.z_against_others, "%+.2f") << " against " << t.others << " other patient(s)";
+      std::cout << ", z " << text_number(t.z_against_others, "%+.2f") << " against " << t.others << " other patient(s) (other sensors' recordings)";
     std::cout << "\n";
   }
 }
