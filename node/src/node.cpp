@@ -311,7 +311,9 @@ Result<void> Agent::Impl::drop(std::uint64_t item_id) {
     if (!*item) return release_notice(txn, item_id);
     ItemRow row = **item;
     if (row.pending > 0) --row.pending;
-    return put_item(txn, item_id, row);
+    if (auto put = put_item(txn, item_id, row); !put) return put;
+    if (row.pending == 0 && !row.persistent) return note_released(txn, item_id);
+    return {};
   });
 }
 
@@ -348,6 +350,8 @@ Result<std::optional<Delivery>> Agent::Impl::head(bool remove) {
           ItemRow row = **item;
           if (row.pending > 0) --row.pending;
           if (auto p = put_item(*writer, item_id, row); !p) return p;
+          if (row.pending == 0 && !row.persistent)
+            if (auto noted = note_released(*writer, item_id); !noted) return noted;
         }
       }
       if (gone) {
@@ -646,7 +650,7 @@ Result<std::uint64_t> Agent::ack_through(std::uint64_t through) noexcept {
         if ((rc = mdb_cursor_del(inbox.c, 0)) != 0) return lmdb_fail(rc, "acknowledging item " + std::to_string(id));
         if (txn.counters.pending > 0) --txn.counters.pending;
         ++acked;
-        auto released = release_item(items.c, id);
+        auto released = release_item(txn, items.c, id);
         if (!released) return unexpected(released.error());
         if (!*released) {
           if (auto r = release_notice(txn, id); !r) return r;

@@ -262,7 +262,7 @@ Result<void> put_item(Txn& txn, std::uint64_t id, const ItemRow& row, unsigned f
   return {};
 }
 
-Result<bool> release_item(MDB_cursor* items, std::uint64_t id) {
+Result<bool> release_item(Txn& txn, MDB_cursor* items, std::uint64_t id) {
   MDB_val k = val(id), v;
   int rc = mdb_cursor_get(items, &k, &v, MDB_SET_KEY);
   if (rc == MDB_NOTFOUND) return false;
@@ -275,7 +275,31 @@ Result<bool> release_item(MDB_cursor* items, std::uint64_t id) {
   MDB_val key = val(id), value = val(bytes);
   if ((rc = mdb_cursor_put(items, &key, &value, MDB_CURRENT)) != 0)
     return lmdb_fail(rc, "writing item " + std::to_string(id));
+  if (row.pending == 0 && !row.persistent)
+    if (auto noted = note_released(txn, id); !noted) return unexpected(noted.error());
   return true;
+}
+
+std::optional<std::uint64_t> meta_u64(MDB_txn* txn, const Env& env, std::string_view key) {
+  MDB_val k{key.size(), const_cast<char*>(key.data())}, v;
+  if (mdb_get(txn, env.meta, &k, &v) != 0 || v.mv_size != sizeof(std::uint64_t)) return std::nullopt;
+  return u64(v);
+}
+
+Result<void> put_meta_u64(MDB_txn* txn, const Env& env, std::string_view key, std::uint64_t value) {
+  MDB_val k{key.size(), const_cast<char*>(key.data())}, v = val(value);
+  if (int rc = mdb_put(txn, env.meta, &k, &v, 0); rc != 0) return lmdb_fail(rc, "noting the ring's scan");
+  return {};
+}
+
+Result<void> note_released(Txn& txn, std::uint64_t id) {
+  if (txn.env().settings().ring == 0) return {};
+  const auto resume = meta_u64(txn.raw(), txn.env(), kRingResume);
+  if (!resume || id >= *resume) return {};  // the scan has not passed it yet
+  const std::uint64_t low = meta_u64(txn.raw(), txn.env(), kRingReleasedLow).value_or(id);
+  const std::uint64_t n = meta_u64(txn.raw(), txn.env(), kRingReleasedN).value_or(0);
+  if (auto r = put_meta_u64(txn.raw(), txn.env(), kRingReleasedLow, std::min(low, id)); !r) return r;
+  return put_meta_u64(txn.raw(), txn.env(), kRingReleasedN, n + 1);
 }
 
 Result<void> flush_index(Txn& txn) {

@@ -210,18 +210,27 @@ Result<void> route(Txn& txn, std::uint64_t item_id, ItemRow& item,
 
 // Evicts the oldest non-persistent items not waiting in an input buffer until the ring fits.
 // The scan walks the items table from counters.ring_head, which then moves past the leading
-// run of items that are persistent or evicted, so persistent items are passed over once.
+// run of items that are persistent or evicted, so persistent items are passed over once; and
+// items waiting in input buffers are passed over once too: the scan resumes where it stopped
+// (kRingResume), going back only for those released since (kRingReleasedLow, kRingReleasedN).
 Result<std::uint64_t> apply_ring(Txn& txn) {
   const std::uint64_t bound = txn.env().settings().ring;
   if (bound == 0 || txn.counters.ring_records <= bound) return std::uint64_t{0};
+  MDB_txn* raw = txn.raw();
+  const Env& env = txn.env();
+  const std::uint64_t head = txn.counters.ring_head;
+  std::uint64_t resume = std::max(head, meta_u64(raw, env, kRingResume).value_or(head));
+  std::uint64_t released_n = meta_u64(raw, env, kRingReleasedN).value_or(0);
+  const std::uint64_t released_low = std::max(head, meta_u64(raw, env, kRingReleasedLow).value_or(resume));
+  const std::uint64_t start = released_n > 0 ? std::min(released_low, resume) : resume;
   std::vector<std::uint64_t> victims;
   std::uint64_t excess = txn.counters.ring_records - bound, freed = 0;
   std::optional<std::uint64_t> first_survivor;  // first non-persistent item kept
-  std::uint64_t scanned_to = txn.counters.ring_head;
+  std::uint64_t scanned_to = start;
   MDB_cursor* cursor = nullptr;
-  int rc = mdb_cursor_open(txn.raw(), txn.env().items, &cursor);
+  int rc = mdb_cursor_open(raw, env.items, &cursor);
   if (rc != 0) return lmdb_fail(rc, "opening items");
-  MDB_val k = val(txn.counters.ring_head), v;
+  MDB_val k = val(start), v;
   for (rc = mdb_cursor_get(cursor, &k, &v, MDB_SET_RANGE); rc == 0 && freed < excess;
        rc = mdb_cursor_get(cursor, &k, &v, MDB_NEXT)) {
     ItemRow item;
@@ -237,10 +246,21 @@ Result<std::uint64_t> apply_ring(Txn& txn) {
       continue;
     }
     victims.push_back(u64(k));
+    if (u64(k) < resume && released_n > 0) --released_n;  // one the scan came back for
     freed += item.live;
   }
   mdb_cursor_close(cursor);
-  txn.counters.ring_head = first_survivor.value_or(scanned_to);
+  if (rc == MDB_NOTFOUND) scanned_to = std::max(scanned_to, txn.counters.next_seq);  // to the end
+  if (start == head) txn.counters.ring_head = first_survivor.value_or(scanned_to);
+  // What lies in [start, scanned_to) is kept (persistent, waiting) or evicted now.
+  if (scanned_to >= resume) {
+    resume = scanned_to;
+    released_n = 0;  // every one released below the old resume was met
+  }
+  if (auto r = put_meta_u64(raw, env, kRingResume, std::max(resume, txn.counters.ring_head)); !r) return unexpected(r.error());
+  if (auto r = put_meta_u64(raw, env, kRingReleasedN, released_n); !r) return unexpected(r.error());
+  if (released_n > 0)
+    if (auto r = put_meta_u64(raw, env, kRingReleasedLow, std::max(scanned_to, released_low)); !r) return unexpected(r.error());
   std::uint64_t removed = 0;
   for (std::uint64_t id : victims) {
     auto n = delete_item(txn, id, Removal::retention);
@@ -904,6 +924,8 @@ Result<std::uint64_t> withdraw_unrouted(Txn& txn, std::uint64_t agent, const std
     // stays when the item is removed here.)
     std::erase(item.noticed, agent);
     if (auto put = put_item(txn, item_id, item); !put) return unexpected(put.error());
+    if (item.pending == 0 && !item.persistent)
+      if (auto noted = note_released(txn, item_id); !noted) return unexpected(noted.error());
     ++withdrawn;
   }
   return withdrawn;

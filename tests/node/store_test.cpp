@@ -1296,6 +1296,47 @@ TEST(Store, RingKeepsStoreWithinBoundAndKeepsPersistentAndUnreadItems) {
   EXPECT_LT(node.stats()->terms, 400u);
 }
 
+// The ring's scan resumes past the items waiting in input buffers (a subscriber that does not
+// take made every write walk all of them) and comes back for those taken since: taken, they
+// are the oldest the ring may reclaim, and go first.
+TEST(Store, TheRingReclaimsItemsTakenLongAfterTheyWereStoredAndKeepsThoseStillWaiting) {
+  TempDir dir;
+  InitOptions options;
+  options.ring = 10;
+  Node node = make_node(dir.path(), options);
+  auto writer = node.agent("writer");
+  auto reader = node.agent("reader");
+  ASSERT_TRUE(reader->subscribe(Pattern{.p = ex("hr")}));
+  std::vector<std::uint64_t> ids;
+  for (int i = 0; i < 300; ++i) {
+    auto id = writer->store(Item{}.add(ex("obs" + std::to_string(i)), ex("hr"), Term::integer(i)));
+    ASSERT_TRUE(id);
+    ids.push_back(*id);
+  }
+  auto ring_records = [&] { return node.stats()->records - node.stats()->persistent_records; };
+  EXPECT_EQ(ring_records(), 300u) << "items waiting in a buffer are kept";
+  for (int i = 0; i < 100; ++i) {
+    auto d = reader->take(0ms);
+    ASSERT_TRUE(d && *d);
+  }
+  // Items nobody waits for, then one more: the ring takes the 100 taken and the unwatched ones
+  // beyond its bound, and keeps the 200 still waiting.
+  for (int i = 0; i < 20; ++i) ASSERT_TRUE(writer->store(Item{}.add(ex("other" + std::to_string(i)), ex("t"), Term::integer(i))));
+  auto snap = node.snapshot();
+  for (int i = 0; i < 100; ++i) EXPECT_FALSE(snap->item(ids[i])) << "taken item " << i << " was kept";
+  for (int i = 100; i < 300; ++i) EXPECT_TRUE(snap->item(ids[i])) << "waiting item " << i << " was reclaimed";
+  EXPECT_LE(ring_records(), 200u + 10u);
+  // Taken in two more rounds, with writes between: each round's taken items go too.
+  for (int round = 0; round < 2; ++round) {
+    for (int i = 0; i < 50; ++i) ASSERT_TRUE(reader->take(0ms).value().has_value());
+    ASSERT_TRUE(writer->store(Item{}.add(ex("late" + std::to_string(round)), ex("t"), Term::integer(round))));
+  }
+  snap = node.snapshot();
+  for (int i = 100; i < 200; ++i) EXPECT_FALSE(snap->item(ids[i])) << "taken item " << i << " was kept";
+  for (int i = 200; i < 300; ++i) EXPECT_TRUE(snap->item(ids[i])) << "waiting item " << i << " was reclaimed";
+  EXPECT_LE(ring_records(), 100u + 10u);
+}
+
 TEST(Store, TimeToLiveReclaimsOldRecordsOfThatPredicateOnly) {
   TempDir dir;
   Node node = make_node(dir.path());
