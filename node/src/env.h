@@ -332,6 +332,9 @@ class Txn {
   // `meta` (kRemovalsTrimmedKey) at the end of the transaction: Node::watch tells a reader whose
   // bookmark is older that it missed removals.
   std::uint64_t removals_trimmed_through = 0;
+  // A time-to-live scan stopped at its budget with records left to look at (apply_ttl):
+  // Node::reclaim goes on with another pass even when this one reclaimed nothing.
+  bool retention_unfinished = false;
   std::vector<std::uint32_t> wake_slots;  // woken after commit
   // Term ids looked up or created in this transaction (write.cpp), and whether the term is
   // known to be pinned (then a caller that pins it needs nothing more: the writer and source of

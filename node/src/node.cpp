@@ -1347,19 +1347,23 @@ Result<std::uint64_t> Node::reclaim() {
   // short): passes, each its own transaction, until one reclaims nothing, or as many records as
   // the store held at the start are reclaimed (writers storing records already due would keep
   // the loop going; their own writes reclaim too).
+  // A pass that reclaimed nothing but stopped at its budget among records waiting in input
+  // buffers has more to look at: it goes on, as many passes as the records could fill.
   auto held = stats();
   const std::uint64_t at_most = held ? held->records : ~0ull;
-  std::uint64_t reclaimed = 0;
+  std::uint64_t reclaimed = 0, empty_passes = 0;
   while (reclaimed < at_most) {
     std::uint64_t pass = 0;
+    bool unfinished = false;
     auto written = impl_->env->write([&](Txn& txn) -> Result<void> {
       auto n = apply_retention(txn);
       if (!n) return unexpected(n.error());
       pass = *n;
+      unfinished = txn.retention_unfinished;
       return {};
     }, WriteKind::removal);
     if (!written) return unexpected(written.error());
-    if (pass == 0) break;
+    if (pass == 0 && (!unfinished || ++empty_passes > at_most / 4096 + 2)) break;
     reclaimed += pass;
   }
   return reclaimed;

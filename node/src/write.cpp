@@ -288,12 +288,23 @@ Result<std::uint64_t> apply_ttl(Txn& txn, const std::vector<TtlRule>& rules) {
     std::uint64_t scan_from = 0;
     if (mdb_get(txn.raw(), txn.env().meta, &fk, &fv) == 0 && fv.mv_size == sizeof scan_from) scan_from = u64(fv);
     const std::uint64_t noted = scan_from;
-    bool at_head = true;  // only persistent (or gone) records so far
-    MDB_val k = val(rule.predicate), v = val(scan_from);
+    // More than a budget of records waiting in input buffers held back every expired record
+    // behind them: each write's scan stopped among them, at the same place. A scan stopped by
+    // a budget notes where (meta "ttl_resume:<predicate id>") and the next goes on from there;
+    // one that reaches a record not yet due, or the end, starts the next from the head again,
+    // where records waiting then may have been taken since.
+    const std::string resume_key = "ttl_resume:" + std::to_string(rule.predicate);
+    const std::optional<std::uint64_t> resume = meta_u64(txn.raw(), txn.env(), resume_key);
+    const std::uint64_t start = resume && *resume > scan_from ? *resume : scan_from;
+    bool at_head = start == scan_from;  // only persistent (or gone) records so far
+    MDB_val k = val(rule.predicate), v = val(start);
     std::size_t examined = 0, passed = 0;
+    std::uint64_t next = start;  // the record the next scan would look at
+    bool not_due = false;        // stopped at a record not yet due: the rest is younger
     for (rc = mdb_cursor_get(cursor, &k, &v, MDB_GET_BOTH_RANGE); rc == 0 && examined < kTtlScanBudget && passed < kTtlPassBudget;
          rc = mdb_cursor_get(cursor, &k, &v, MDB_NEXT_DUP)) {
       std::uint64_t id = u64(v);
+      next = id + 1;
       auto row = get_record(txn.raw(), txn.env(), id);
       auto item = row && *row ? get_item(txn.raw(), txn.env(), (*row)->item) : Result<std::optional<ItemRow>>(std::nullopt);
       if (!item || !*item) {
@@ -310,7 +321,10 @@ Result<std::uint64_t> apply_ttl(Txn& txn, const std::vector<TtlRule>& rules) {
       // ids ascend with time: the rest is younger. Saturating: a TTL of centuries (or
       // nanoseconds::max, "for ever") overflowed and reclaimed everything at once.
       std::int64_t expires = 0;
-      if (__builtin_add_overflow(it.stored_at, rule.ttl_ns, &expires) || expires > now) break;
+      if (__builtin_add_overflow(it.stored_at, rule.ttl_ns, &expires) || expires > now) {
+        not_due = true;
+        break;
+      }
       // Waiting in an input buffer: reclaimable once taken, so passed, not examined (64 in a
       // slow subscriber's buffer held the rest back as the persistent ones did).
       if (it.pending > 0) {
@@ -321,9 +335,19 @@ Result<std::uint64_t> apply_ttl(Txn& txn, const std::vector<TtlRule>& rules) {
       expired.push_back(id);
     }
     mdb_cursor_close(cursor);
+    if (rc != 0 && rc != MDB_NOTFOUND) return lmdb_fail(rc, "walking the predicate index");
     if (scan_from != noted) {
       MDB_val nv = val(scan_from);
       if (int put = mdb_put(txn.raw(), txn.env().meta, &fk, &nv, 0); put != 0) return lmdb_fail(put, "noting where a time-to-live scan starts");
+    }
+    const bool stopped_by_budget = rc == 0 && !not_due;
+    if (stopped_by_budget) {
+      if (auto r = put_meta_u64(txn.raw(), txn.env(), resume_key, next); !r) return unexpected(r.error());
+      txn.retention_unfinished = true;
+    } else if (resume) {
+      MDB_val rk = val(resume_key);
+      if (int del = mdb_del(txn.raw(), txn.env().meta, &rk, nullptr); del != 0 && del != MDB_NOTFOUND)
+        return lmdb_fail(del, "noting where a time-to-live scan starts");
     }
     for (std::uint64_t id : expired) {
       if (auto d = delete_record(txn, id, Removal::retention); !d) return unexpected(d.error());

@@ -1337,6 +1337,31 @@ TEST(Store, TheRingReclaimsItemsTakenLongAfterTheyWereStoredAndKeepsThoseStillWa
   EXPECT_LE(ring_records(), 100u + 10u);
 }
 
+// More than a scan's budget (4,096) of records waiting in an input buffer at the head of a
+// predicate held every expired record behind them: each write's scan stopped among them, at
+// the same place, and reclaim() returned 0 with 100 records due. The scan goes on from where
+// it stopped, and reclaim() passes until it has looked at them all.
+TEST(Store, TimeToLiveReachesExpiredRecordsBehindManyWaitingOnes) {
+  TempDir dir;
+  Node node = make_node(dir.path());
+  auto writer = node.agent("writer");
+  auto reader = node.agent("reader");
+  ASSERT_TRUE(reader->subscribe(Pattern{.p = ex("ecg"), .o = Term::literal("waiting")}));
+  std::vector<Item> waiting(5000, Item{}.add(ex("c"), ex("ecg"), Term::literal("waiting")));
+  ASSERT_TRUE(writer->store_all(waiting));
+  for (int i = 0; i < 100; ++i) ASSERT_TRUE(writer->store(Item{}.add(ex("d" + std::to_string(i)), ex("ecg"), Term::literal("due"))));
+  ASSERT_TRUE(node.set_ttl(testing::kEx + std::string("ecg"), std::chrono::nanoseconds(1)));
+  auto reclaimed = node.reclaim();
+  ASSERT_TRUE(reclaimed) << reclaimed.error().message;
+  EXPECT_EQ(*reclaimed, 100u);
+  EXPECT_EQ(*node.snapshot()->count({.p = ex("ecg"), .o = Term::literal("due")}), 0u);
+  EXPECT_EQ(*node.snapshot()->count({.p = ex("ecg"), .o = Term::literal("waiting")}), 5000u) << "waiting records are kept";
+  // And by writes alone, a budget at a time.
+  for (int i = 0; i < 100; ++i) ASSERT_TRUE(writer->store(Item{}.add(ex("e" + std::to_string(i)), ex("ecg"), Term::literal("due"))));
+  for (int i = 0; i < 5; ++i) ASSERT_TRUE(writer->store(Item{}.add(ex("x"), ex("other"), Term::integer(i))));
+  EXPECT_EQ(*node.snapshot()->count({.p = ex("ecg"), .o = Term::literal("due")}), 0u);
+}
+
 TEST(Store, TimeToLiveReclaimsOldRecordsOfThatPredicateOnly) {
   TempDir dir;
   Node node = make_node(dir.path());
