@@ -177,7 +177,10 @@ class HrvStage {
     const std::int64_t upto = !rr.intervals.empty() ? rr.intervals.front().start
                                                     : rr.end_sample.value_or(std::numeric_limits<std::int64_t>::max());
     outcome = catch_up(stream, upto);
-    return &stream;
+    // The catch-up may have met the recording's end on the board (an end item written twice,
+    // after a crash of tahvel-rr) and closed the stream: nothing is left to go on with.
+    auto it = streams_.find(rr.recording);
+    return it == streams_.end() ? nullptr : &it->second;
   }
 
   // After a (re)start: feeds the intervals of the recording's RR items on the board that end by

@@ -13,6 +13,7 @@
 // (Re)start: reads every HRV window on the board and writes the trend items that are missing.
 // A window it cannot read is logged and skipped, and is the agent's problem on the board while
 // the windows of its writer are (docs/agents.md).
+#include <algorithm>
 #include <cmath>
 #include <cstring>
 #include <iostream>
@@ -30,11 +31,23 @@ namespace tn = tahvel::node;
 
 constexpr const char* kProgram = "tahvel-trend";
 
-// The sensor agent a recording comes from (its IRI is <sensor agent>/recording/<name>, as
-// tahvel-ecg-source names it), or the recording itself when it is not named so.
-std::string_view sensor_of(std::string_view recording) {
-  const std::size_t at = recording.rfind("/recording/");
-  return at == std::string_view::npos ? recording : recording.substr(0, at);
+// The recording a take is of: tahvel-ecg-source names each take <recording>-<UTC start>
+// (-YYYYMMDDTHHMMSSZ, then -N for a second take in the same second); two takes of one
+// recording are one sensor's, one patient's. Another IRI is its own.
+std::string_view take_of(std::string_view iri) {
+  auto digits = [](std::string_view t) {
+    return !t.empty() && std::all_of(t.begin(), t.end(), [](char c) { return c >= '0' && c <= '9'; });
+  };
+  std::string_view rest = iri;
+  if (const std::size_t dash = rest.rfind('-'); dash != std::string_view::npos && digits(rest.substr(dash + 1)) &&
+                                                 dash >= 17 && rest[dash - 1] == 'Z')
+    rest = rest.substr(0, dash);  // -N
+  if (rest.size() < 17) return iri;
+  const std::string_view stamp = rest.substr(rest.size() - 16);
+  if (rest[rest.size() - 17] != '-' || !digits(stamp.substr(0, 8)) || stamp[8] != 'T' || !digits(stamp.substr(9, 6)) ||
+      stamp[15] != 'Z')
+    return iri;
+  return rest.substr(0, rest.size() - 17);
 }
 const std::string kSosa = "http://www.w3.org/ns/sosa/";
 
@@ -159,10 +172,10 @@ class TrendStage {
       if (latest && window_has_it) {
         std::vector<double> others;
         for (const auto& [other, other_series] : recordings_) {
-          // Another take of the same sensor (<sensor agent>/recording/<name>-<start>, after a
-          // restart) is the same patient: against their own earlier values the z-score said
-          // "other patients" of one (a probe: 3 of the 7 "others" were the patient's own).
-          if (other == recording || sensor_of(other) == sensor_of(recording)) continue;
+          // Another take of the same recording (<recording>-<start>, its source restarted) is
+          // the same patient: against their own earlier values the z-score said "other
+          // patients" of one (a probe: 3 of the 7 "others" were the patient's own).
+          if (other == recording || take_of(other) == take_of(recording)) continue;
           for (auto it = other_series.rbegin(); it != other_series.rend(); ++it)
             if (auto v = agg::metric_value(it->second.metrics.metrics, metric); v && !cut_short(it->second.metrics)) {
               if (same_length(it->second.metrics, window.metrics)) others.push_back(*v);

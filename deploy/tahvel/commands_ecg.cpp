@@ -180,15 +180,23 @@ int run_ecg(const Args& args) {
     constexpr std::size_t kNamed = 5;
     ask.limit = kNamed + 1;
     std::vector<std::string> held;
-    ask_in_time([&](const node::Record& r) { held.push_back(r.triple.s.value); }, {});
+    bool listed = true;
+    try {  // a hint only: the answer stays "no such recording" (exit 1) if it cannot be had
+      ask_in_time([&](const node::Record& r) { held.push_back(r.triple.s.value); }, {});
+    } catch (const Failure&) {
+      listed = false;
+    }
     std::string hint;
-    if (held.empty()) {
+    if (!listed) {
+    } else if (held.empty()) {
       hint = "; it holds no recording at all: the raw ECG stays on the node that computes its HRV (`tahvel patients` "
              "at the hospital prints it for each recording, as --at)";
     } else {
       hint = "; it holds ";
       for (std::size_t i = 0; i < held.size() && i < kNamed; ++i) hint += (i ? ", <" : "<") + held[i] + ">";
-      if (held.size() > kNamed) hint += " and more (`tahvel query` -p rdf:type -o tv:EcgRecording lists them)";
+      if (held.size() > kNamed)
+        hint += " and more (tahvel query " + args.positional(0) + " --at " + ask.target +
+                " -p rdf:type -o tv:EcgRecording lists them)";
     }
     fail("ecg: " + where + " holds no recording <" + recording + "> (nothing has it as subject)" + hint);
   }

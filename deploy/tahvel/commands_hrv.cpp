@@ -277,9 +277,10 @@ struct LinkOnTheWay {
   std::string child;  // this node's child on the way to the node that computed the windows
   std::string state;  // tv:linkState: "up", "down" or "never connected"
   std::optional<std::int64_t> last_seen_ns;
-  // The link refreshes an "up" state every 2 s (P12): one much older was left by a link that
+  std::int64_t written_ns = 0;  // when the link wrote the state (its record's asserted-at)
+  // The link rewrites an "up" state every 2 s (P12): one much older was left by a link that
   // no longer runs, and says nothing of the child now.
-  bool stale() const { return state == "up" && last_seen_ns && seconds_since(*last_seen_ns) > 15; }
+  bool stale() const { return state == "up" && written_ns > 0 && seconds_since(written_ns) > 15; }
   bool worth_saying() const { return state != "up" || stale(); }
 };
 
@@ -293,6 +294,7 @@ std::optional<LinkOnTheWay> link_on_the_way(const node::Snapshot& snap, const st
   auto field = [&](const std::string& predicate) -> std::optional<std::string> {
     auto records = snap.list({.s = node::Term::iri(link.child), .p = node::Term::iri(predicate)});
     if (!records || records->empty()) return std::nullopt;
+    if (predicate == federation::vocab::kLinkState) link.written_ns = records->front().meta.asserted_at;
     return records->front().triple.o.value;
   };
   auto state = field(federation::vocab::kLinkState);
@@ -381,8 +383,8 @@ void print_patient_text(const std::string& dir, const std::string& node_iri, con
   if (link && link->worth_saying()) {
     const std::string heard = link->last_seen_ns ? "last heard " + age_of(*link->last_seen_ns) : "never heard";
     if (link->stale())
-      std::cout << "  its windows come through <" << link->child << ">, " << heard << " at <" << node_iri
-                << "> though its state says up (kept every 2 s by this node's link): is that link running? (tahvel status)\n";
+      std::cout << "  its windows come through <" << link->child << ">, up at <" << node_iri << "> as this node's link said "
+                << age_of(link->written_ns) << " (it says so every 2 s while it runs): is that link running? (tahvel status)\n";
     else
       std::cout << "  its windows come through <" << link->child << ">, " << link->state << " at <" << node_iri << "> ("
                 << heard << "): windows computed since have not come\n";
@@ -418,7 +420,7 @@ void print_patient_text(const std::string& dir, const std::string& node_iri, con
     std::cout << " over " << t.windows << " window(s)";
     if (t.alert) std::cout << ", ALERT " << off_baseline(t.alert_direction);
     if (t.z_against_others)
-      std::cout << ", z " << text_number(t.z_against_others, "%+.2f") << " against " << t.others << " other patient(s) (other sensors' recordings)";
+      std::cout << ", z " << text_number(t.z_against_others, "%+.2f") << " against " << t.others << " other patient(s)";
     std::cout << "\n";
   }
 }

@@ -152,7 +152,9 @@ std::size_t too_deep_at(std::string_view text) {
   std::size_t depth = 0;
   for (std::size_t i = 0; i < text.size(); ++i) {
     const char c = text[i];
-    if (c == '[' || c == '(') {
+    if (c == '\\') {  // an escape in a prefixed name (ex:a\#b, ex:f\(): the next character is a name's
+      ++i;
+    } else if (c == '[' || c == '(') {
       if (++depth > kMaxTurtleNesting) return i;
     } else if (c == ']' || c == ')') {
       if (depth > 0) --depth;

@@ -30,10 +30,9 @@ namespace tn = tahvel::node;
 using namespace std::chrono_literals;
 
 const std::string kNodeIri = "http://example.org/hospital";
-// Three patients: three sensors (another take of one sensor is the same patient).
-const std::string kRecA = kNodeIri + "/ecg-a/recording/a";
-const std::string kRecB = kNodeIri + "/ecg-b/recording/b";
-const std::string kRecC = kNodeIri + "/ecg-c/recording/c";
+const std::string kRecA = kNodeIri + "/ecg/recording/a";
+const std::string kRecB = kNodeIri + "/ecg/recording/b";
+const std::string kRecC = kNodeIri + "/ecg/recording/c";
 
 // SDNN per 5-minute window: A stable then a step at window 8; B and C stable.
 const std::vector<double> kSdnnA = {50, 52, 48, 51, 49, 50, 53, 47, 80, 81, 79, 82, 80};
@@ -237,12 +236,13 @@ TEST_F(TrendAgentTest, BaselineSlopeAlertZAndNoDoublesAfterRestart) {
   EXPECT_EQ(trends().size(), 12u * 3 * 3 + 3);
 }
 
-// A sensor's second take (its source restarted) is the same patient: its z-score counted the
+// A recording's second take (its source restarted) is the same patient: its z-score counted the
 // patient's own first take among the "other patients".
-TEST_F(TrendAgentTest, AnotherTakeOfTheSameSensorIsNotAnotherPatientForTheZScore) {
-  const std::string take2 = kNodeIri + "/ecg-a/recording/a-2";
+TEST_F(TrendAgentTest, AnotherTakeOfTheSameRecordingIsNotAnotherPatientForTheZScore) {
+  // Two takes of recording d, as tahvel-ecg-source names them (the second after a restart).
+  const std::string take1 = kNodeIri + "/ecg/recording/d-20261201T101500Z", take2 = kNodeIri + "/ecg/recording/d-20261201T113000Z-2";
   for (std::size_t k = 0; k < 2; ++k) {
-    store_window(kRecA, k, 50);
+    store_window(take1, k, 50);
     store_window(kRecB, k, 40);
     store_window(kRecC, k, 60);
   }
@@ -254,7 +254,7 @@ TEST_F(TrendAgentTest, AnotherTakeOfTheSameSensorIsNotAnotherPatientForTheZScore
   const auto all = trends();
   const agg::TrendUpdate& t = all.at(agg::trend_iri(take2, agg::HrvMetric::sdnn, 0));
   ASSERT_TRUE(t.z_against_others);
-  EXPECT_EQ(t.others, 2u) << "B and C; not A, the same sensor's first take";
+  EXPECT_EQ(t.others, 2u) << "B and C; not d's first take";
 }
 
 // A window with no beats (lead off) has no value: its trend items must not show the window

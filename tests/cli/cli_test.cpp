@@ -1272,7 +1272,8 @@ TEST_F(Cli, EcgOfARecordingTheNodeDoesNotHoldSaysWhichRecordingsItHolds) {
   Outcome many = run({"ecg", node_, "--recording", kNodeIri + "/source/recording/x"});
   EXPECT_EQ(many.status, 1);
   EXPECT_NE(many.err.find("; it holds <" + kNodeIri + "/source/recording/r"), std::string::npos) << many.err;
-  EXPECT_NE(many.err.find(" and more (`tahvel query` -p rdf:type -o tv:EcgRecording lists them)"), std::string::npos) << many.err;
+  EXPECT_NE(many.err.find(" and more (tahvel query " + node_ + " --at " + kNodeIri + " -p rdf:type -o tv:EcgRecording lists them)"),
+            std::string::npos) << many.err;
 }
 
 // A lead calibrated otherwise than the ECG (blood pressure in mmHg at 10 per mmHg from 0) was
@@ -1376,9 +1377,10 @@ TEST_F(Cli, PatientsSaysWhenTheChildTheirWindowsComeThroughIsDownOrNotRefreshed)
   ASSERT_TRUE(node.agent("home1").value().relay("up", {{.seq = 1, .source = home + "/hrv", .item = window}}));
   auto link = node.agent("link").value();
   const std::int64_t now = std::chrono::duration_cast<std::chrono::nanoseconds>(std::chrono::system_clock::now().time_since_epoch()).count();
-  auto link_says = [&](const std::string& state, std::int64_t seen_ns) {
+  auto link_says = [&](const std::string& state, std::int64_t seen_ns, std::int64_t written_ns = 0) {
     tahvel::node::Item item;
     item.persistent = true;
+    if (written_ns) item.asserted_at = written_ns;
     item.add(Term::iri(home), Term::iri(tv + "linkState"), Term::literal(state)).add(Term::iri(home), Term::iri(tv + "lastSeen"), Term::integer(seen_ns));
     ASSERT_TRUE(link.replace({{.s = Term::iri(home)}}, {item}));
   };
@@ -1394,11 +1396,15 @@ TEST_F(Cli, PatientsSaysWhenTheChildTheirWindowsComeThroughIsDownOrNotRefreshed)
   link_says("up", now);
   Outcome up = run({"patients", dir});
   EXPECT_EQ(up.out.find("its windows come through"), std::string::npos) << "a home that is up is not worth a line:\n" << up.out;
-  // An "up" the link no longer refreshes (every 2 s) was left by a link that does not run.
+  // A child heard a while ago in a state the link wrote just now (a slow heartbeat) is up.
   link_says("up", now - 60'000'000'000);
+  EXPECT_EQ(run({"patients", dir}).out.find("its windows come through"), std::string::npos);
+  // An "up" the link no longer rewrites (every 2 s) was left by a link that does not run.
+  link_says("up", now - 60'000'000'000, now - 60'000'000'000);
   Outcome stale = run({"patients", dir});
-  EXPECT_NE(stale.out.find("though its state says up (kept every 2 s by this node's link): is that link running?"), std::string::npos)
-      << stale.out;
+  EXPECT_NE(stale.out.find("up at <" + hospital + "> as this node's link said 1 min 0 s ago (it says so every 2 s while it runs): "
+                           "is that link running?"),
+            std::string::npos) << stale.out;
 }
 
 TEST_F(Cli, HrvOnAMissingRecordNamesTheFile) {

@@ -156,6 +156,10 @@ TEST(Format, TurtleNestedDeeperThanTheLimitIsAnErrorAtTheBracketNotACrash) {
   const std::string quiet = "# " + brackets + "\n<" + kEx + "s> <" + kEx + "p> \"" + brackets + "\" , '" + brackets + "' , \"\"\"" +
                             brackets + "\n\"\"\" , <" + kEx + "a" + std::string(5000, '(') + "> .\n";
   EXPECT_EQ(parse_ok(quiet, turtle).size(), 4u);
+  // Nor are escaped characters of prefixed names (ex:a\#b, ex:f\().
+  std::string escaped = "@prefix ex: <" + kEx + "> .\n";
+  for (int i = 0; i < 1200; ++i) escaped += "ex:s" + std::to_string(i) + " ex:p ex:a\\#b , ex:f\\( , ex:it\\'s .\n";
+  EXPECT_EQ(parse_ok(escaped, turtle).size(), 3600u);
 }
 
 TEST(Format, ParseFormatAcceptsShortAndLongNames) {
