@@ -117,11 +117,11 @@ Result<void> validate(const DetectorOptions& o) {
       !(o.min_qrs_fraction >= 0) || !(o.min_qrs_baseline >= 0) || !(o.empty_gap_fraction >= 0) ||
       !(o.pwave_fraction >= 0) || !std::isfinite(o.pwave_correlation) ||
       !(o.twave_qtc >= 0 && o.twave_qtc <= 1) ||
-      !(o.own_pwave_ms >= 0 && o.own_pwave_ms <= 1000))
+      !(o.own_pwave_ms >= 0 && o.own_pwave_ms <= 1000) || !(o.flat_run_ms >= 0 && o.flat_run_ms <= 10000))
     return fail("rpeak: threshold_fraction must be in (0,1); searchback_fraction > 0; "
                 "twave_slope_ratio, min_qrs_mv, min_qrs_fraction, min_qrs_baseline, empty_gap_fraction, "
                 "pwave_fraction >= 0; "
-                "pwave_correlation finite; twave_qtc in [0, 1]; own_pwave_ms in [0, 1000]");
+                "pwave_correlation finite; twave_qtc in [0, 1]; own_pwave_ms in [0, 1000]; flat_run_ms in [0, 10000]");
   // The history rings hold 2 s; longer windows would overrun them.
   if (!(o.relearn_s >= 1 && o.relearn_s <= 8))
     return fail("rpeak: relearn_s must be in [1, 8], got " + std::to_string(o.relearn_s));
@@ -239,8 +239,12 @@ class RPeakDetector::Impl {
   std::optional<std::int32_t> last_valid_;  // DetectorOptions::invalid_sample: the value held
   std::int64_t last_invalid_ = -1;          // and the index of the latest sample without a value
   // DetectorOptions::flat_run_ms in samples (0: off), the length of the run of equal samples
-  // that ends at the latest one, and the index of the latest sample that ended a run that long.
-  std::int64_t flat_run_, same_run_ = 0, last_flat_ = -1;
+  // that ends at the latest one, and the latest runs at least that long ([first, last] sample;
+  // a few, since a beat is accepted a while after it, and a run after it must not hide one in
+  // the gap before it).
+  std::int64_t flat_run_, same_run_ = 0;
+  std::array<std::pair<std::int64_t, std::int64_t>, 4> flat_runs_{};
+  std::size_t flat_runs_n_ = 0;
   double last_bp_ = 0, sum_ = 0, last_f_ = 0;
   // History rings of at least 4 s (power of two; allocated once): the longest look-back is
   // the integration window plus the 95 ms peak timeout plus the hold, and from the candidate's
@@ -392,7 +396,8 @@ void RPeakDetector::Impl::step(std::int32_t x, std::vector<std::int64_t>& out) {
   const auto slot = static_cast<std::size_t>(n & mask_);
   if (flat_run_ > 0) {
     same_run_ = n > 0 && raw_[static_cast<std::size_t>((n - 1) & mask_)] == x ? same_run_ + 1 : 1;
-    if (same_run_ >= flat_run_) last_flat_ = n;
+    if (same_run_ == flat_run_) flat_runs_[flat_runs_n_++ % flat_runs_.size()] = {n - flat_run_ + 1, n};
+    else if (same_run_ > flat_run_) flat_runs_[(flat_runs_n_ - 1) % flat_runs_.size()].second = n;
   }
   raw_[slot] = x;
   double notched = x;
@@ -711,7 +716,8 @@ auto RPeakDetector::Impl::gap_before(std::int64_t at) const -> Gap {
   // confirm as empty a gap whose beat was simply not recorded.
   if (last_invalid_ > last_qrs_) return gap;
   // Nor can a gap with a run of one value repeated (DetectorOptions::flat_run_ms): no signal.
-  if (last_flat_ > last_qrs_) return gap;
+  for (std::size_t k = 0; k < std::min(flat_runs_n_, flat_runs_.size()); ++k)
+    if (flat_runs_[k].second > last_qrs_ && flat_runs_[k].first < at) return gap;
   const std::int64_t qt = std::llround(o_.twave_qtc * std::sqrt(rr_[0] / o_.fs) * o_.fs);
   const std::int64_t from = last_qrs_ + std::max(twave_, qt), to = at - hold_;
   const std::int64_t own_p = at - own_p_;

@@ -834,8 +834,12 @@ Result<void> Env::reserve_disk(WriteKind kind, std::uint64_t new_bytes) {
   return fail(Errc::io, "reserving disk space for " + dir_.string() + ": " + std::strerror(rc));
 }
 
-Result<std::optional<std::uint64_t>> Env::disk_room_for_removal() {
-  if (auto r = reserve_disk(WriteKind::removal, 0); !r) return unexpected(r.error());
+Result<std::optional<std::uint64_t>> Env::disk_room_for_removal(std::uint64_t need) {
+  if (auto r = reserve_disk(WriteKind::removal, need); !r) {
+    // Not even that: what is allocated already is the room there is.
+    if (r.error().code != Errc::store_full || need == 0) return unexpected(r.error());
+    if (auto least = reserve_disk(WriteKind::removal, 0); !least) return unexpected(least.error());
+  }
   if (!disk_tight_.load()) return std::optional<std::uint64_t>{};
   const std::uint64_t end = pages_end_bytes(), backed = disk_backed_.load();
   return std::optional<std::uint64_t>{backed > end ? backed - end : 0};

@@ -200,7 +200,9 @@ class Env {
   // new pages than that, since a page beyond is SIGBUS, not an error. nullopt while the disk has
   // room, and where the filesystem cannot allocate ahead. Errors: store_full (not even a
   // removal's least is left), io.
-  Result<std::optional<std::uint64_t>> disk_room_for_removal();
+  // `need`: what the next part may take beyond the last page in use; the file is allocated for
+  // it, past the removal's usual 1 MB, when the disk has that much free (space freed since).
+  Result<std::optional<std::uint64_t>> disk_room_for_removal(std::uint64_t need = 0);
   // The data file's high-water mark: bytes up to its last page in use.
   std::uint64_t pages_end_bytes();
 

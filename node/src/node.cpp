@@ -1079,19 +1079,16 @@ Result<std::uint64_t> remove_records(Env& env, Reach reach,
         return sum;
       };
       while (part > 1 && need(part) > **room) part /= 2;
-      if (need(part) > **room && !advanced) {
-        // The pages earlier parts freed become reusable after two more transactions; their
-        // reuse is not counted above, but the room the next check finds may be.
-        advanced = true;
-        if (env.write([](Txn&) -> Result<void> { return {}; }, WriteKind::removal) &&
-            env.write([](Txn&) -> Result<void> { return {}; }, WriteKind::removal))
-          continue;
+      if (need(part) > **room) {
+        // The disk may have room again (space freed since): allocated for this part, if so.
+        room = env.disk_room_for_removal(need(part));
+        if (!room) return failed(room.error());
       }
-      if (need(part) > **room)
+      if (*room && need(part) > **room)
         return failed(Error{Errc::store_full, "store full: removing record " + std::to_string(ids[at]) + " copies " +
                                                   std::to_string(copies[at] / 1024) + " KB into the removal log (R17), and the disk holding the store has " +
                                                   std::to_string(**room / 1024) + " KB allocated for it beyond its last page; free " +
-                                                  std::to_string((need(part) - **room) / (1 << 20) + 1) + " MB on that disk and remove again"});
+                                                  std::to_string((need(part) + (1 << 20)) / (1 << 20) + 1) + " MB on that disk and remove again"});
     }
     const std::uint64_t end_before = env.pages_end_bytes();
     const std::span<const std::uint64_t> slice(ids.data() + at, std::min(part, ids.size() - at));
@@ -1115,6 +1112,11 @@ Result<std::uint64_t> remove_records(Env& env, Reach reach,
     total += removed;
     at += slice.size();
     advanced = false;
+    // On a full disk, a small write after each part, so that the next part can reuse the pages
+    // this one freed (LMDB reuses them from the second transaction on) instead of taking more
+    // of the little that is allocated.
+    if (*room && at < ids.size())
+      advanced = static_cast<bool>(env.write([](Txn&) -> Result<void> { return {}; }, WriteKind::removal));
   }
   return total;
 }

@@ -329,7 +329,7 @@ TEST(RPeak, EmptyGapsAreReportedAndGapsHidingAQrsAreNot) {
 // A value held over lost samples, or a dropout written as zeros, looks like a gap with nothing
 // QRS-like in it; the beat it hides was confirmed as a pause and its two intervals counted as
 // one NN interval (SDNN x4 with ten 0.1 s holds in five minutes). A run of one value of
-// flat_run_ms or more is no signal: the gap is not empty. A shorter run does not matter.
+// flat_run_ms or more is no signal: the gap is not empty.
 TEST(RPeak, AGapHoldingARunOfOneValueIsNotEmpty) {
   const double fs = 360;
   const auto empty_gap = [&](double held_ms, const DetectorOptions& o) {

@@ -132,7 +132,8 @@ struct DetectorOptions {
   // may have been lost in it. Recorded ECG, even at a coarse ADC step, changes within a few
   // samples; an interval kept as a pause across such a run counted a lost beat's two
   // intervals as one NN interval (SDNN x4, RMSSD x8 with ten 0.1 s holds in five minutes).
-  // 0 disables the check.
+  // A run counts against the gap it overlaps, between the beat before and the beat after.
+  // 0 disables the check; at most 10000.
   double flat_run_ms = 80;
 };
 
