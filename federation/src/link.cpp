@@ -347,7 +347,14 @@ struct Link::Impl {
     std::uint64_t since_said = 0;
   };
   std::map<std::string, RelayFailure> relay_failures;
-  std::map<std::string, std::string> child_cannot_store;  // P9b from children, as last logged
+  // P9b from children: what was last logged of each and when, and whether that episode is
+  // still open (the child has not stored since).
+  struct CannotStore {
+    std::string said;
+    Clock::time_point at{};
+    bool open = false;
+  };
+  std::map<std::string, CannotStore> child_cannot_store;
   static constexpr auto kRelayFailureSaidEvery = std::chrono::seconds(10);
   // P11a: the contexts of items applied from above, for the timer to see whom they address.
   std::vector<std::string> down_contexts;
@@ -1560,9 +1567,12 @@ struct Link::Impl {
           child->down_mark = f.ack;
           child->down_progress = Clock::now();
           news = true;
-          // It stored again: a later P9b of the same reason is a new episode, logged as such.
-          if (child_cannot_store.erase(child->iri))
+          // It stored again: a later P9b of the same reason is a new episode, logged as such
+          // (once per 10 s, so a child hovering at full is not a line per cycle).
+          if (auto it = child_cannot_store.find(child->iri); it != child_cannot_store.end() && it->second.open) {
+            it->second.open = false;
             log("child <" + child->iri + "> stores what this node sends down again");
+          }
         }
         if (f.prev == 1 && (f.ack != child->went_back_to || Clock::now() - child->went_back_at > opt.resend_after)) {
           child->down_go_back = true;  // P8: once per mark and interval, not on every gap ack
@@ -2135,9 +2145,14 @@ struct Link::Impl {
       return;
     }
     if (body->code == kCannotStore) {  // P9b: once per reason; the child acknowledges nothing meanwhile
-      std::string& said = child_cannot_store[f.from];
-      if (said != body->message) log("child <" + f.from + "> cannot store what this node sends down: " + body->message);
-      said = body->message;
+      CannotStore& episode = child_cannot_store[f.from];
+      const auto now = Clock::now();
+      if (episode.said != body->message || (!episode.open && now - episode.at >= std::chrono::seconds(10))) {
+        log("child <" + f.from + "> cannot store what this node sends down: " + body->message);
+        episode.said = body->message;
+        episode.at = now;
+        episode.open = true;
+      }
       return;
     }
     if (f.seq == 0) {
