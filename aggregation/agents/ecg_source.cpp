@@ -162,6 +162,7 @@ struct EarlierRun {
   std::optional<std::int64_t> end;       // its tv:endSample: that run ended it
   std::int64_t next = 0;                 // the frame after its last chunk
   std::optional<std::int64_t> start_ns;  // asserted-at of its frame 0 (from a chunk's time)
+  std::string replayed_from;             // its tv:replayedFrom (the record, or the generator's settings)
 };
 
 tahvel::node::Result<EarlierRun> earlier_run(const rt::Session& session, const std::string& iri, double fs) {
@@ -178,6 +179,7 @@ tahvel::node::Result<EarlierRun> earlier_run(const rt::Session& session, const s
   for (const auto& r : *records) {
     if (r.triple.p.value == tv + "endSample") run.end = std::strtoll(r.triple.o.value.c_str(), nullptr, 10);
     if (r.triple.p.value == tv + "samplingRate") run.recording = true;
+    if (r.triple.p.value == tv + "replayedFrom") run.replayed_from = r.triple.o.value;
   }
   // Chunks name the recording (tv:recording) and say where they start and how many frames they
   // hold; the last one (by start) is where this run goes on.
@@ -271,7 +273,8 @@ int replay(rt::Session& session, Signal& signal, double speed) {
   // must not write the same seconds twice: a take an earlier run left without an end (the
   // source was killed) goes on after its last chunk, on the same time axis; one it ended (its
   // tv:endSample is there: it was stopped) is over, and this run takes anew; one that holds the
-  // whole signal is left as it is, and this run has nothing to do.
+  // whole of this signal (the same tv:replayedFrom: another --hr is another signal) is left as
+  // it is, and this run has nothing to do.
   const std::string base_iri = signal.info.iri;
   const std::int64_t now_ns =
       std::chrono::duration_cast<std::chrono::nanoseconds>(std::chrono::system_clock::now().time_since_epoch()).count();
@@ -292,7 +295,7 @@ int replay(rt::Session& session, Signal& signal, double speed) {
     // An earlier run replayed the whole signal (under an earlier supervisor, before a reboot or
     // a down and up): replaying it again would give the node above the same patient twice,
     // under a second take.
-    if (earlier.end && signal.frames && *earlier.end >= *signal.frames) {
+    if (earlier.end && signal.frames && *earlier.end >= *signal.frames && earlier.replayed_from == signal.info.source) {
       rt::log_line(kProgram, "<" + takes->back() + "> holds the whole of " + signal.name + " (" + std::to_string(*signal.frames) +
                                  " frames), replayed by an earlier run: nothing more to replay (remove that take, "
                                  "tahvel remove --under its IRI, to replay it again)");

@@ -244,7 +244,7 @@ TEST_F(EcgSourceTest, EachChunkSpansItsSecondSoATimeRangeFromInsideItGetsIt) {
 TEST_F(EcgSourceTest, ARecordingThatWasStoppedIsNotWrittenAgainTheNextRunRecordsAnew) {
   const std::string dir = new_node("home1");
   {
-    tahvel::test_support::AgentProcess first(source_argv(dir, "20"));  // 3 s of wall time for the 60 s
+    tahvel::test_support::AgentProcess first(source_argv(dir, "10"));  // 6 s of wall time for the 60 s
     const auto deadline = std::chrono::steady_clock::now() + 20s;
     while ((recordings(dir).empty() || chunks(dir, recordings(dir).front()).samples.size() < 5) &&
            std::chrono::steady_clock::now() < deadline)
@@ -284,6 +284,12 @@ TEST_F(EcgSourceTest, ASignalAnEarlierRunReplayedWholeIsNotReplayedAgain) {
   const std::string said((std::istreambuf_iterator<char>(in)), std::istreambuf_iterator<char>());
   EXPECT_NE(said.find("holds the whole of synthetic-5 (21600 frames), replayed by an earlier run: nothing more to replay"),
             std::string::npos) << said;
+  // Another signal under the same name (the generator at another heart rate) is a new take.
+  std::vector<std::string> argv = source_argv(dir, "0");
+  argv.insert(argv.end(), {"--hr", "90"});
+  tahvel::test_support::AgentProcess other(argv);
+  EXPECT_EQ(other.wait(60s), 0);
+  EXPECT_EQ(recordings(dir).size(), 2u);
 }
 
 // A sensor whose store is made again (replaced) remembers nothing of its takes, while its home
