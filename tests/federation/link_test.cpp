@@ -178,6 +178,17 @@ std::uint64_t outbox(const std::string& dir) {
   return node::Node::open(dir).value().agent("uplink").value().pending().value();
 }
 
+// Fills the store at `dir` (of the node `iri`) to its last page with ex:fill records, smaller
+// ones once larger ones no longer fit; they go with a removal of -p ex:fill.
+void fill_to_the_last_page(const std::string& dir, const std::string& iri) {
+  auto filler = node::Node::open(dir).value().agent("filler").value();
+  int i = 0;
+  for (std::size_t size : {2000, 200, 20})
+    while (filler.store(node::Item{}.add(Term::iri(iri + "/f" + std::to_string(i)), Term::iri(kEx + "fill"),
+                                         Term::literal(std::string(size, 'f') + std::to_string(i)))))
+      ++i;
+}
+
 // Stores hrv_item(first) .. hrv_item(first + n - 1) on home1, each in its own transaction.
 void store_hrv_items(const std::string& home_dir, int first, int n) {
   auto hrv = node::Node::open(home_dir).value().agent("hrv").value();
@@ -1505,14 +1516,7 @@ TEST(Link, ARemoteQueryReturnsARecordAsLargeAsTheTargetAllows) {
 TEST(Link, AChildWhoseParentCannotStoreSendsOneFrameAtATimeAndSaysWhy) {
   Tree tree({.max_map_bytes = 1 << 20});
   ASSERT_TRUE(tree.start_hospital_and_home1());
-  {
-    auto filler = node::Node::open(tree.hospital_dir).value().agent("filler").value();
-    int i = 0;
-    for (std::size_t size : {2000, 200, 20})  // to the last page
-      while (filler.store(node::Item{}.add(Term::iri(kHospital + "/f" + std::to_string(i)), Term::iri(kEx + "fill"),
-                                           Term::literal(std::string(size, 'f') + std::to_string(i)))))
-        ++i;
-  }
+  fill_to_the_last_page(tree.hospital_dir, kHospital);
   store_hrv_items(tree.home1_dir, 0, 40);
   const std::string why = "the parent cannot store what this node sends: store full";
   auto refusal = [&] {
@@ -1545,14 +1549,6 @@ TEST(Link, AChildWhoseParentCannotStoreSendsOneFrameAtATimeAndSaysWhy) {
 TEST(Link, AParentLogsEachEpisodeOfAChildThatCannotStoreWhatItSendsDown) {
   Tree tree({}, {.max_map_bytes = 1 << 20});
   ASSERT_TRUE(tree.start_hospital_and_home1());
-  auto fill_home1 = [&] {
-    auto filler = node::Node::open(tree.home1_dir).value().agent("filler").value();
-    int i = 0;
-    for (std::size_t size : {2000, 200, 20})  // to the last page
-      while (filler.store(node::Item{}.add(Term::iri(kHome1 + "/f" + std::to_string(i)), Term::iri(kEx + "fill"),
-                                           Term::literal(std::string(size, 'f') + std::to_string(i)))))
-        ++i;
-  };
   auto operator_ = node::Node::open(tree.hospital_dir).value().agent("operator").value();
   auto configure = [&](const std::string& value) {
     node::Item config;
@@ -1568,7 +1564,7 @@ TEST(Link, AParentLogsEachEpisodeOfAChildThatCannotStoreWhatItSendsDown) {
   };
   auto home1_labels = [&] { return count(tree.home1_dir, {.p = Term::iri(kEx + "label")}); };
   for (int episode = 1; episode <= 2; ++episode) {
-    fill_home1();
+    fill_to_the_last_page(tree.home1_dir, kHome1);
     ASSERT_TRUE(configure("first of episode " + std::to_string(episode)));
     ASSERT_TRUE(eventually([&] { return episodes() == episode; })) << tree.hospital_log.text();
     ASSERT_TRUE(node::Node::open(tree.home1_dir).value().remove({.p = Term::iri(kEx + "fill")}));
