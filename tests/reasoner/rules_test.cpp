@@ -709,6 +709,15 @@ TEST(Rules, AHeadVariableNoCallerBindsIsAnError) {
                                    kNs + "alarm/2 to bind it (unsafe)");
 }
 
+// A head variable that an `is` would bind but for a variable nothing binds: the error names that
+// variable where it is used, not the head variable as if no literal bound it.
+TEST(Rules, AHeadVariableAnIsWouldBindButForAnUnboundVariableNamesThatVariable) {
+  auto p = tr::parse_rules("a(X, Y) :- b(X, _), Y is Z + 1.\n", options("is.rules"));
+  ASSERT_FALSE(p.has_value());
+  EXPECT_EQ(p.error().message, "is.rules:1:21: variable Z is bound by no literal, so head variable Y is not either, "
+                               "and no rule calls " + kNs + "a/2 to bind it (unsafe)");
+}
+
 TEST(Rules, ARankedDeclarationOfAPredicateNoRuleDefinesIsAnError) {
   auto p = tr::parse_rules("p(X, Y) :- q(X, Y).\n:- ranked(nope/2).\n", options("r.rules"));
   ASSERT_FALSE(p.has_value());

@@ -602,6 +602,34 @@ TEST_F(BoardTest, EachDeclarationInAnItemIsKeptAndItsProblemsAreItsOwn) {
   EXPECT_EQ(pending(*bad), 0u);
 }
 
+// Each move of a sensor syncs the keeper; a feature the plan skips was reported again at each
+// sync, and a log of `tahvel up` or `tahvel areas` repeated it at every move.
+TEST_F(BoardTest, TheKeeperReportsAProblemOnceHoweverOftenItSyncs) {
+  put(located_feature_item(kHome + "/broken", "POLYGON((0 0, 1 0, 1 1))", 0));
+  auto ui = node_->agent("ui");
+  ASSERT_TRUE(ui.has_value());
+  ASSERT_TRUE(declare_area_subscription(*node_, *ui, {kBedroom, std::nullopt, std::nullopt}, readings()).has_value());
+  AreaSyncReport first;
+  auto keeper = AreaKeeper::open(dir_ / "store", &first);
+  ASSERT_TRUE(keeper.has_value()) << keeper.error().message;
+  ASSERT_EQ(first.problems.size(), 1u);
+  EXPECT_NE(first.problems[0].find(kHome + "/broken: WKT column 9"), std::string::npos) << first.problems[0];
+
+  for (const char* where : {"POINT(6 1)", "POINT(1 3)"}) {
+    put(located_feature_item(kMote, where, 0));
+    auto synced = keeper->poll();
+    ASSERT_TRUE(synced.has_value()) << synced.error().message;
+    ASSERT_TRUE(synced->has_value()) << "a move syncs";
+    EXPECT_TRUE((*synced)->problems.empty()) << (*synced)->problems[0];
+  }
+  // A problem not met before is reported when it appears.
+  put(located_feature_item(kHome + "/broken2", "POLYGON((0 0, 2 0, 2 2))", 0));
+  auto synced = keeper->poll();
+  ASSERT_TRUE(synced.has_value() && synced->has_value());
+  ASSERT_EQ((*synced)->problems.size(), 1u);
+  EXPECT_NE((*synced)->problems[0].find(kHome + "/broken2"), std::string::npos) << (*synced)->problems[0];
+}
+
 // tv:areaFloor is a floor as tv:floor is (S5): "1.0" was refused as not an integer, and
 // 4294967296 was cut to an int and read as floor 0.
 TEST_F(BoardTest, AnAreaFloorIsReadAsAFeatureFloorIs) {

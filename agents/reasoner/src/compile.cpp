@@ -324,7 +324,25 @@ struct Demand {
   std::uint32_t pred = 0;
   Pos pos;               // the first rule that needs it, and
   std::string variable;  // its first head variable from the callers, for the error when none calls
+  // When a literal would bind `variable` but needs a variable that nothing binds (Z in
+  // `a(X, Y) :- b(X), Y is Z + 1.`): that variable and the literal, which the error names instead.
+  std::string unbound_need;
+  Pos unbound_need_pos;
 };
+
+// The variable that keeps a literal of `rule` from binding head variable `head_var`, when one
+// would bind it once its needs were bound and one of those is bound by nothing.
+std::optional<std::pair<std::uint32_t, Pos>> unbound_need_of(const Rule& rule, std::uint32_t head_var) {
+  const VarSet bound = reachable_bindings(rule);
+  for (const Literal& l : rule.body) {
+    std::vector<std::uint32_t> needs, binds;
+    needs_and_binds(l, bound, needs, binds);
+    if (std::find(binds.begin(), binds.end(), head_var) == binds.end()) continue;
+    for (std::uint32_t v : needs)
+      if (v != head_var && !bound[v]) return std::make_pair(v, l.pos);
+  }
+  return std::nullopt;
+}
 
 // Head argument positions a rule needs from its callers (RS8): those of the head variables that
 // no body literal binds; then, while the body with those known still leaves head variables
@@ -375,7 +393,12 @@ Result<std::map<std::uint32_t, Demand>> add_demand_literals(Program& program, st
     if (fresh) {
       it->second.positions = positions;
       it->second.pos = rule.pos;
-      it->second.variable = rule.var_names[rule.head_args[positions.front()].index];
+      const std::uint32_t head_var = rule.head_args[positions.front()].index;
+      it->second.variable = rule.var_names[head_var];
+      if (auto need = unbound_need_of(rule, head_var)) {
+        it->second.unbound_need = rule.var_names[need->first];
+        it->second.unbound_need_pos = need->second;
+      }
       const Pred& p = program.preds[rule.head];
       it->second.pred = add_pred(program, "demand for " + p.iri + "/" + std::to_string(p.arity),
                                  static_cast<std::uint32_t>(positions.size()));
@@ -465,6 +488,11 @@ Result<void> add_demand_rules(Program& program, const std::map<std::uint32_t, De
   for (const auto& [pred, demand] : demands) {
     if (called.count(pred)) continue;
     const Pred& p = program.preds[pred];
+    if (!demand.unbound_need.empty())
+      return unexpected(Error{where(program, demand.unbound_need_pos) + ": variable " + demand.unbound_need +
+                              " is bound by no literal, so head variable " + demand.variable +
+                              " is not either, and no rule calls " + p.iri + "/" + std::to_string(p.arity) +
+                              " to bind it (unsafe)"});
     return unexpected(Error{where(program, demand.pos) + ": head variable " + demand.variable +
                             " is bound by no literal, and no rule calls " + p.iri + "/" + std::to_string(p.arity) +
                             " to bind it (unsafe)"});

@@ -325,6 +325,7 @@ Result<AreaSyncReport> AreaKeeper::sync() {
   if (!report) return report;
   declarations_ = report->declarations;
   bookmark_ = std::max(bookmark_, seen);
+  std::erase_if(report->problems, [&](const std::string& problem) { return !told_.insert(problem).second; });
   return report;
 }
 

@@ -24,6 +24,7 @@
 #include <cstdint>
 #include <map>
 #include <optional>
+#include <set>
 #include <string>
 #include <vector>
 
@@ -79,7 +80,9 @@ class AreaKeeper {
   // `*first` when given. Errors: the store's.
   static Result<AreaKeeper> open(const std::filesystem::path& store_dir, AreaSyncReport* first = nullptr);
 
-  // Waits up to `wait` for a change; returns the sync's report when it synced.
+  // Waits up to `wait` for a change; returns the sync's report when it synced. A keeper's
+  // reports give each problem once: a later sync that meets it again leaves it out (moving a
+  // sensor syncs, and a skipped feature repeated at every move filled the log).
   Result<std::optional<AreaSyncReport>> poll(std::chrono::milliseconds wait = std::chrono::milliseconds(0));
 
   // Syncs now, whatever changed.
@@ -94,6 +97,7 @@ class AreaKeeper {
   node::Agent agent_;
   std::uint64_t bookmark_ = 0;
   std::size_t declarations_ = 0;
+  std::set<std::string> told_;  // problems reported already
 };
 
 // An agent's own area subscription: declares it, syncs it, and follows the plan when the agent
