@@ -126,7 +126,12 @@ agg::Result<Signal> synthetic_signal(const rt::Args& args) {
   auto generator = agg::SyntheticEcg::create(options);
   if (!generator) return tahvel::unexpected(generator.error());
   const double seconds = args.number("--seconds", 0);
-  const std::int64_t total = seconds > 0 ? std::llround(seconds * options.fs) : -1;
+  const std::int64_t total = args.has("--seconds") ? std::llround(seconds * options.fs) : -1;
+  // 0 read as "no limit" generated without end, and is no number of seconds to generate.
+  if (args.has("--seconds") && total < 1)
+    throw rt::UsageError("--seconds: '" + args.text("--seconds", "") +
+                         "' is less than one sample; give the seconds to generate, or leave --seconds out to "
+                         "generate until stopped");
   auto shared = std::make_shared<agg::SyntheticEcg>(std::move(*generator));
   Signal s;
   s.name = "synthetic-" + std::to_string(options.seed);
@@ -163,7 +168,15 @@ struct EarlierRun {
   std::int64_t next = 0;                 // the frame after its last chunk
   std::optional<std::int64_t> start_ns;  // asserted-at of its frame 0 (from a chunk's time)
   std::string replayed_from;             // its tv:replayedFrom (the record, or the generator's settings)
+  std::optional<double> fs, gain;        // its tv:samplingRate and tv:gain
 };
+
+// Whether a take with these settings holds `signal`: the same record or generator settings,
+// read at the same rate and gain. A header corrected in place names the same record.
+bool same_signal(const EarlierRun& run, const Signal& signal) {
+  const auto same = [](std::optional<double> a, double b) { return a && std::abs(*a - b) <= 1e-9 * std::abs(b); };
+  return run.replayed_from == signal.info.source && same(run.fs, signal.info.fs) && same(run.gain, signal.info.gain);
+}
 
 tahvel::node::Result<EarlierRun> earlier_run(const rt::Session& session, const std::string& iri, double fs) {
   using tahvel::node::Term;
@@ -178,7 +191,11 @@ tahvel::node::Result<EarlierRun> earlier_run(const rt::Session& session, const s
   if (!records) return tahvel::unexpected(records.error());
   for (const auto& r : *records) {
     if (r.triple.p.value == tv + "endSample") run.end = std::strtoll(r.triple.o.value.c_str(), nullptr, 10);
-    if (r.triple.p.value == tv + "samplingRate") run.recording = true;
+    if (r.triple.p.value == tv + "samplingRate") {
+      run.recording = true;
+      run.fs = std::strtod(r.triple.o.value.c_str(), nullptr);
+    }
+    if (r.triple.p.value == tv + "gain") run.gain = std::strtod(r.triple.o.value.c_str(), nullptr);
     if (r.triple.p.value == tv + "replayedFrom") run.replayed_from = r.triple.o.value;
   }
   // Chunks name the recording (tv:recording) and say where they start and how many frames they
@@ -273,8 +290,8 @@ int replay(rt::Session& session, Signal& signal, double speed) {
   // must not write the same seconds twice: a take an earlier run left without an end (the
   // source was killed) goes on after its last chunk, on the same time axis; one it ended (its
   // tv:endSample is there: it was stopped) is over, and this run takes anew; one that holds the
-  // whole of this signal (the same tv:replayedFrom: another --hr is another signal) is left as
-  // it is, and this run has nothing to do.
+  // whole of this signal (the same tv:replayedFrom, rate and gain: another --hr or a corrected
+  // header is another signal) is left as it is, and this run has nothing to do.
   const std::string base_iri = signal.info.iri;
   const std::int64_t now_ns =
       std::chrono::duration_cast<std::chrono::nanoseconds>(std::chrono::system_clock::now().time_since_epoch()).count();
@@ -291,11 +308,24 @@ int replay(rt::Session& session, Signal& signal, double speed) {
       return rt::kExitError;
     }
     earlier = *found;
+    // A take an earlier run left unended, of another signal (another record or lead, a
+    // corrected header's rate or gain, other generator settings), is not this one's to go on
+    // with: its frames would follow another signal's under the other's rate. It is ended where
+    // it stops, and this run takes anew.
+    if (!earlier.end && earlier.recording && !same_signal(earlier, signal)) {
+      if (auto s = session.agent.store(agg::recording_end_item(takes->back(), earlier.next)); !s) {
+        rt::log_line(kProgram, "store end item: " + s.error().message);
+        return rt::kExitError;
+      }
+      rt::log_line(kProgram, "<" + takes->back() + ">, left unended by an earlier run, holds another signal (" +
+                                 earlier.replayed_from + "): ended at frame " + std::to_string(earlier.next));
+      earlier.end = earlier.next;
+    }
     if (!earlier.end) signal.info.iri = takes->back();
     // An earlier run replayed the whole signal (under an earlier supervisor, before a reboot or
     // a down and up): replaying it again would give the node above the same patient twice,
     // under a second take.
-    if (earlier.end && signal.frames && *earlier.end >= *signal.frames && earlier.replayed_from == signal.info.source) {
+    if (earlier.end && signal.frames && *earlier.end >= *signal.frames && same_signal(earlier, signal)) {
       rt::log_line(kProgram, "<" + takes->back() + "> holds the whole of " + signal.name + " (" + std::to_string(*signal.frames) +
                                  " frames), replayed by an earlier run: nothing more to replay (remove that take, "
                                  "tahvel remove --under its IRI, to replay it again)");

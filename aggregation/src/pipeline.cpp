@@ -1,5 +1,6 @@
 // The HRV chain; see pipeline.h.
 #include <algorithm>
+#include <cmath>
 #include <cstdio>
 
 #include "tahvel/aggregation/pipeline.h"
@@ -91,6 +92,32 @@ std::optional<std::string> invalid_samples_warning(const std::vector<std::int32_
   return std::string(text);
 }
 
+std::optional<std::string> flat_runs_warning(const std::vector<std::int32_t>& samples, const SignalInfo& info,
+                                             std::size_t channel, double fs, double at_least_s) {
+  if (!(fs > 0) || samples.empty()) return std::nullopt;
+  const auto least = std::max<std::size_t>(2, static_cast<std::size_t>(std::ceil(at_least_s * fs)));
+  const std::int32_t invalid = invalid_sample(info);
+  std::size_t held = 0, runs = 0, first = 0;
+  for (std::size_t start = 0; start < samples.size();) {
+    std::size_t end = start + 1;
+    while (end < samples.size() && samples[end] == samples[start]) ++end;
+    if (end - start >= least && samples[start] != invalid) {
+      if (runs == 0) first = start;
+      held += end - start;
+      ++runs;
+    }
+    start = end;
+  }
+  if (runs == 0) return std::nullopt;
+  char text[400];
+  std::snprintf(text, sizeof text,
+                "%.1f s of signal %zu (%s) hold one value for %g s or more at a time (%zu run(s), the first at %.3f s): "
+                "a lead off or a dropout shown as a flat line, read as no signal; windows over it have fewer intervals",
+                static_cast<double>(held) / fs, channel, info.description.c_str(), at_least_s, runs,
+                static_cast<double>(first) / fs);
+  return std::string(text);
+}
+
 Result<HrvReport> hrv_from_record(const std::string& record_path, const ChainOptions& options,
                                   std::size_t channel) {
   auto signals = read_signals(record_path);
@@ -110,6 +137,8 @@ Result<HrvReport> hrv_from_record(const std::string& record_path, const ChainOpt
   for (std::string& mismatch : checksum_mismatches(*signals)) report->warnings.push_back(std::move(mismatch));
   if (auto invalid = invalid_samples_warning(signals->samples[channel], info, channel, signals->header.fs))
     report->warnings.push_back(*invalid);
+  if (auto flat = flat_runs_warning(signals->samples[channel], info, channel, signals->header.fs))
+    report->warnings.push_back(*flat);
   if (auto rate = default_rate_warning(signals->header)) report->warnings.insert(report->warnings.begin(), *rate);
   if (auto units = non_voltage_warning(signals->header, channel)) report->warnings.push_back(*units);
   if (auto irregular = irregular_rhythm_warning(report->metrics, gap_count(report->intervals, report->fs, options.nn),

@@ -292,6 +292,53 @@ TEST_F(EcgSourceTest, ASignalAnEarlierRunReplayedWholeIsNotReplayedAgain) {
   EXPECT_EQ(recordings(dir).size(), 2u);
 }
 
+// A header corrected in place of a wrong one (its sampling rate) names the same record: the
+// take the wrong one gave was said to hold "the whole" of the corrected signal, and nothing
+// more was replayed.
+TEST_F(EcgSourceTest, ARecordReadAtAnotherRateIsAnotherSignalAndIsReplayed) {
+  const std::string dir = new_node("rates");
+  const fs::path wrong = two_signal_record("r", "r 2 36 720\nr.dat 16 200/mV 16 0 0 0 0 MLII\nr.dat 16 200/mV 16 0 0 0 0 V1\n",
+                                           720, 5, 7);
+  const fs::path right = tmp_ / "fixed";
+  std::ofstream(right.string() + ".hea") << "r 2 360 720\nr.dat 16 200/mV 16 0 0 0 0 MLII\nr.dat 16 200/mV 16 0 0 0 0 V1\n";
+  const std::string bin = std::string(TAHVEL_BIN_DIR) + "/tahvel-ecg-source";
+  tahvel::test_support::AgentProcess first({bin, dir, "--record", wrong.string(), "--speed", "0"});
+  ASSERT_EQ(first.wait(std::chrono::seconds(60)), 0);
+  ASSERT_EQ(recordings(dir).size(), 1u);
+  tahvel::test_support::AgentProcess again({bin, dir, "--record", right.string(), "--speed", "0"});
+  ASSERT_EQ(again.wait(std::chrono::seconds(60)), 0);
+  const auto takes = recordings(dir);
+  ASSERT_EQ(takes.size(), 2u) << "the corrected header was not replayed";
+  EXPECT_EQ(objects(dir, takes[1], std::string(agg::kTv) + "samplingRate"), std::vector<std::string>{"360.0"});
+}
+
+// A take an earlier run left unended (the source killed) goes on only with the same signal: the
+// generator at another heart rate went on with the killed take, its frames after the other's.
+TEST_F(EcgSourceTest, ATakeLeftUnendedIsEndedNotContinuedByAnotherSignal) {
+  const std::string dir = new_node("other");
+  tahvel::test_support::AgentProcess first(source_argv(dir, "20"));
+  const auto deadline = std::chrono::steady_clock::now() + 20s;
+  auto written = [&] { return recordings(dir).empty() ? 0 : chunks(dir, recordings(dir).front()).samples.size(); };
+  while (written() < 10 && std::chrono::steady_clock::now() < deadline) std::this_thread::sleep_for(20ms);
+  first.crash();
+  const std::size_t before = written();
+  ASSERT_GE(before, 10u);
+  ASSERT_LT(before, 60u) << "the source ended before it was killed";
+  const std::string killed = the_recording(dir);
+
+  std::vector<std::string> argv = source_argv(dir, "0");
+  argv.insert(argv.end(), {"--hr", "90"});
+  tahvel::test_support::AgentProcess other(argv);
+  ASSERT_EQ(other.wait(60s), 0);
+  const auto takes = recordings(dir);
+  ASSERT_EQ(takes.size(), 2u);
+  EXPECT_EQ(takes[0], killed);
+  EXPECT_EQ(chunks(dir, killed).samples.size(), before) << "the killed take was continued";
+  EXPECT_EQ(objects(dir, killed, std::string(agg::kTv) + "endSample"),
+            std::vector<std::string>{std::to_string(before * 360)});
+  EXPECT_EQ(chunks(dir, takes[1]).samples.size(), 60u);
+}
+
 // A sensor whose store is made again (replaced) remembers nothing of its takes, while its home
 // holds the old take's chunks and has run R-peaks on them. Each take is named by its start, so
 // the new one is not the old one's name again: the home would have taken its chunks for done.

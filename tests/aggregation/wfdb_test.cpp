@@ -348,6 +348,41 @@ TEST_F(WfdbTemp, WfdbsNoValueIsReadAsNoSignalAndSaid) {
       << with_gaps->warnings[0];
 }
 
+// A lead off that the recorder wrote as its last value held, or as zeros, is no signal to the
+// detector as WFDB's no-value is, and leaves the windows over it with fewer intervals; it went
+// unsaid where the no-value was said. Flat stretches shorter than a beat at 40 bpm (a noise-free
+// synthetic signal between its beats) are not.
+TEST_F(WfdbTemp, ALeadOffWrittenAsAFlatLineIsSaidAsNoSignal) {
+  auto ecg = synthetic_ecg(300, SyntheticEcgOptions{});
+  ASSERT_TRUE(ecg) << ecg.error().message;
+  std::vector<std::int32_t> held = *ecg, zeros = *ecg;
+  const auto at = [](double s) { return static_cast<std::ptrdiff_t>(s * 360); };
+  std::fill(held.begin() + at(100), held.begin() + at(120), held[static_cast<std::size_t>(at(100)) - 1]);
+  std::fill(zeros.begin() + at(100), zeros.begin() + at(110), 0);
+  std::fill(zeros.begin() + at(200), zeros.begin() + at(205), 0);
+  tahvel::test_support::write_format16_record(dir_, "clean", *ecg);
+  tahvel::test_support::write_format16_record(dir_, "held", held);
+  tahvel::test_support::write_format16_record(dir_, "zeros", zeros);
+  auto clean = hrv_from_record(record("clean"));
+  auto with_held = hrv_from_record(record("held"));
+  auto with_zeros = hrv_from_record(record("zeros"));
+  ASSERT_TRUE(clean && with_held && with_zeros);
+  EXPECT_TRUE(clean->warnings.empty()) << clean->warnings[0];
+  ASSERT_EQ(with_held->warnings.size(), 1u);
+  // The run starts at the sample whose value is held (99.997 s).
+  EXPECT_EQ(with_held->warnings[0].rfind("20.0 s of signal 0 (ECG) hold one value for 1.5 s or more at a time (1 run(s), "
+                                         "the first at 99.997 s): a lead off",
+                                         0),
+            0u)
+      << with_held->warnings[0];
+  ASSERT_FALSE(with_zeros->warnings.empty());
+  EXPECT_EQ(with_zeros->warnings[0].rfind("15.0 s of signal 0 (ECG) hold one value for 1.5 s or more at a time (2 run(s), "
+                                          "the first at 100.000 s)",
+                                          0),
+            0u)
+      << with_zeros->warnings[0];
+}
+
 TEST_F(WfdbTemp, DefaultsApplyWhenOptionalFieldsAreAbsent) {
   write("r.hea", "# leading comment\n\nr 1\nr.dat 16\n");
   write("r.dat", bytes_of({0x05, 0x00}));

@@ -54,6 +54,15 @@ std::optional<std::string> irregular_rhythm_warning(const HrvMetrics& metrics, s
 std::optional<std::string> invalid_samples_warning(const std::vector<std::int32_t>& samples, const SignalInfo& info,
                                                    std::size_t channel, double fs);
 
+// Runs of one value held longer than `at_least_s` in signal `channel`, other than WFDB's
+// no-value (invalid_samples_warning says those): how long in all, in how many runs, and where
+// the first starts. The detector reads a run of DetectorOptions::flat_run_ms as no signal, as it
+// does no-value samples, so a lead off or a dropout shown as a flat line or zeros leaves windows
+// with fewer intervals. Only runs longer than a beat at 40 bpm are said: a noise-free signal
+// (a synthetic one) is flat between its beats. nullopt when there is none.
+std::optional<std::string> flat_runs_warning(const std::vector<std::int32_t>& samples, const SignalInfo& info,
+                                             std::size_t channel, double fs, double at_least_s = 1.5);
+
 // The chain over one lead sampled at fs Hz with `gain` ADC units per mV. Errors: invalid
 // detector options or window settings (the message names the option).
 Result<HrvReport> hrv_from_samples(const std::vector<std::int32_t>& samples, double fs,
