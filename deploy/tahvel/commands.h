@@ -100,10 +100,11 @@ std::int64_t time_flag(std::string_view flag, const std::string& text);
 std::string seconds_text(double seconds);
 // Now, ns since the epoch (the clock records are stamped with).
 std::int64_t unix_now_ns();
-double seconds_since(std::int64_t unix_ns);
+// Seconds from `unix_ns` to `at_ns` (0: now).
+double seconds_since(std::int64_t unix_ns, std::int64_t at_ns = 0);
 // "4.2 s ago", "0.3 s ahead of this machine's clock" (a time written on another machine), or
-// "never" for 0.
-std::string age_of(std::int64_t unix_ns);
+// "never" for 0; as of `at_ns` (0: now), the moment it was read.
+std::string age_of(std::int64_t unix_ns, std::int64_t at_ns = 0);
 
 // The area of --area (and --floor): WKT when it reads as WKT, else a room's IRI or CURIE.
 spatial::AreaSpec area_flag(const Args& args, const uri::PrefixMap& prefixes);

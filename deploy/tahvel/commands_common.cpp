@@ -695,11 +695,13 @@ std::int64_t unix_now_ns() {
   return std::chrono::duration_cast<std::chrono::nanoseconds>(std::chrono::system_clock::now().time_since_epoch()).count();
 }
 
-double seconds_since(std::int64_t unix_ns) { return static_cast<double>(unix_now_ns() - unix_ns) / 1e9; }
+double seconds_since(std::int64_t unix_ns, std::int64_t at_ns) {
+  return static_cast<double>((at_ns > 0 ? at_ns : unix_now_ns()) - unix_ns) / 1e9;
+}
 
-std::string age_of(std::int64_t unix_ns) {
+std::string age_of(std::int64_t unix_ns, std::int64_t at_ns) {
   if (unix_ns <= 0) return "never";
-  const double age = seconds_since(unix_ns);
+  const double age = seconds_since(unix_ns, at_ns);
   // A time written on another machine may be ahead of this one's clock: said so, not as "-0.4 s ago".
   return age < -0.05 ? seconds_text(-age) + " ahead of this machine's clock" : seconds_text(std::max(age, 0.0)) + " ago";
 }

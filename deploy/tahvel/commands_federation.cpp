@@ -2088,6 +2088,11 @@ constexpr double kStateStaleAfterS = 6.0;
 constexpr double kProgramsStaleAfterS = 15.0;
 
 using Fields = std::map<std::string, std::string>;  // by the local name of each predicate
+// The field of a link state that holds when it was read here (ns since the epoch), no
+// predicate's local name: its age is judged as of then. `status` asks the nodes on other
+// machines level by level, for seconds, and a state read before that and judged after it was
+// called "not refreshed" of a child that is up.
+constexpr const char* kReadAtField = "@read_ns";
 
 // What a program says on its board it cannot do (node::kProblem), and its process.
 struct Problem {
@@ -2169,8 +2174,12 @@ void read_state_items(const node::Snapshot& snap, const std::string& predicate, 
   for (const auto& r : *records) {
     auto item = snap.item(r.meta.item);
     if (!item) continue;
-    for (const auto& f : *item)
-      by_subject[f.triple.s.value][f.triple.p.value.substr(f.triple.p.value.find('#') + 1)] = f.triple.o.value;
+    Fields* fields = nullptr;
+    for (const auto& f : *item) {
+      fields = &by_subject[f.triple.s.value];
+      (*fields)[f.triple.p.value.substr(f.triple.p.value.find('#') + 1)] = f.triple.o.value;
+    }
+    if (fields) (*fields)[kReadAtField] = std::to_string(unix_now_ns());
   }
 }
 
@@ -2215,7 +2224,10 @@ RemoteBoard ask_board(node::Node& from, const std::string& target, std::chrono::
   for (const std::string& p : {federation::vocab::kLinkState, federation::vocab::kParent, federation::vocab::kLastSeen,
                                federation::vocab::kOutboxDepth, federation::vocab::kSoftwareVersion, federation::vocab::kLinkConflict}) {
     board.children_error = ask(p, "", *link, [&](const node::Record& r) {
-      if (r.triple.s.value != target) board.children[r.triple.s.value][local_name(p)] = r.triple.o.value;
+      if (r.triple.s.value == target) return;
+      Fields& fields = board.children[r.triple.s.value];
+      fields[local_name(p)] = r.triple.o.value;
+      if (p == federation::vocab::kLastSeen) fields[kReadAtField] = std::to_string(unix_now_ns());
     });
     if (!board.children_error.empty()) break;
   }
@@ -2256,7 +2268,8 @@ RemoteBoard ask_board(node::Node& from, const std::string& target, std::chrono::
 // (`writer`, the program "link" of `keeper` when known) is not running (a stopped hospital left
 // every home "up"), or an "up" has not been rewritten.
 std::string unbelieved_because(const StatusNode* keeper, const std::string& writer, const std::string& state,
-                               std::int64_t heard_ns) {
+                               std::int64_t heard_ns, std::int64_t read_ns) {
+  const auto seconds_since = [read_ns](std::int64_t unix_ns) { return cli::seconds_since(unix_ns, read_ns); };
   if (keeper && keeper->programs_current)
     for (const auto& p : keeper->programs) {
       if (p.name != "link" || p.state == "running") continue;
@@ -2554,10 +2567,11 @@ int run_status(const Args& args) {
       const std::string writer = keeper && !keeper->remote ? keeper->id + "/link"
                                  : keeper                  ? "the link of <" + keeper->iri + ">"
                                                            : "the parent's link";
-      said = "link " + f["linkState"] + ", last seen " + age_of(seen) + ", outbox " + f["outboxDepth"];
+      const std::int64_t read_ns = static_cast<std::int64_t>(parse_u64(f[kReadAtField]).value_or(0));
+      said = "link " + f["linkState"] + ", last seen " + age_of(seen, read_ns) + ", outbox " + f["outboxDepth"];
       if (!f["softwareVersion"].empty()) said += ", " + f["softwareVersion"];
       if (!f["linkConflict"].empty()) said += "; CONFLICT: " + f["linkConflict"];
-      unknown_because = unbelieved_because(keeper, writer, f["linkState"], seen);
+      unknown_because = unbelieved_because(keeper, writer, f["linkState"], seen, read_ns);
     }
     // This node's own view of its uplink, shown when its parent is not here to say more.
     std::string uplink_said, uplink_unknown_because;
@@ -2567,9 +2581,10 @@ int run_status(const Args& args) {
       if (auto p = parse_u64(f["parentLastHeard"])) heard = static_cast<std::int64_t>(*p);
       uplink_said = "uplink to <" + f["parent"] + "> " + f["uplinkState"];
       if (!f["uplinkRefusal"].empty()) uplink_said += " (" + f["uplinkRefusal"] + ")";
-      uplink_said += ", parent last heard " + age_of(heard) + ", outbox " + f["outboxDepth"];
+      const std::int64_t read_ns = static_cast<std::int64_t>(parse_u64(f[kReadAtField]).value_or(0));
+      uplink_said += ", parent last heard " + age_of(heard, read_ns) + ", outbox " + f["outboxDepth"];
       if (!f["linkConflict"].empty()) uplink_said += "; CONFLICT: " + f["linkConflict"];
-      uplink_unknown_because = unbelieved_because(&n, n.id + "/link", f["uplinkState"], heard);
+      uplink_unknown_because = unbelieved_because(&n, n.id + "/link", f["uplinkState"], heard, read_ns);
     }
     const std::string& programs_unknown_because = n.programs_unknown_because;
     if (json) {
