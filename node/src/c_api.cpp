@@ -443,6 +443,8 @@ extern "C" tahvel_status tahvel_watch(tahvel_node* node, uint64_t bookmark, int 
     clear(len_out);
     if (bookmark_out != nullptr) *bookmark_out = bookmark;
     if (!registry().contains(node)) return bad_handle(fn, "node");
+    // Without somewhere to put the changes the bookmark would move past changes nobody saw.
+    if (json_out == nullptr) return set_error(TAHVEL_INVALID_ARGUMENT, fn, "json_out must not be NULL");
     using namespace std::chrono;
     // Negative: no limit (Node::watch takes milliseconds::max() so). One call: a signal that
     // ends the wait must reach the caller, whose handler set a stop flag.

@@ -194,6 +194,9 @@ class Parser {
                   "cannot parse format json: parse_rdf reads ntriples or turtle");
     if (!options_.base_iri.empty() && !has_scheme(options_.base_iri))
       return fail(Errc::invalid_iri, "base IRI '" + options_.base_iri + "' is not an absolute IRI");
+    // Nothing to read; serd would look past the end of an empty string (the copy below is
+    // then the string's own buffer, whose bytes after the NUL are not set).
+    if (text_.empty()) return std::vector<Triple>{};
     // serd takes a NUL byte for the end of its input and would silently stop there.
     if (const auto nul = text_.find('\0'); nul != std::string_view::npos)
       return fail(Errc::syntax, located(nul, "NUL byte in input"));

@@ -576,6 +576,14 @@ TEST_F(CApiTest, WatchResumesFromItsBookmarkAndReportsRemovals) {
   ASSERT_EQ(tahvel_watch(node_, after, 10, 0, &none.data, &none.len, &same), TAHVEL_OK);
   EXPECT_EQ(none.str(), "");
   EXPECT_EQ(same, after);
+  // Without json_out the changes have nowhere to go: refused, the bookmark where it was (it
+  // moved past changes the caller never saw).
+  store_nt(writer, observation(2, 80));
+  uint64_t unseen = 0;
+  size_t len = 0;
+  EXPECT_EQ(tahvel_watch(node_, after, kWaitMs, 0, nullptr, &len, &unseen), TAHVEL_INVALID_ARGUMENT);
+  EXPECT_EQ(unseen, after);
+  EXPECT_NE(std::string(tahvel_last_error()).find("json_out must not be NULL"), std::string::npos) << tahvel_last_error();
   tahvel_agent_close(writer);
 }
 
