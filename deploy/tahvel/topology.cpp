@@ -71,6 +71,29 @@ node::Result<const toml::table*> table_at(const toml::table& t, std::string_view
   if (!var##_result) return Unexpected<node::Error>{var##_result.error()}; \
   auto var = std::move(*var##_result)
 
+// A DDS link without listen.config takes Cyclone's configuration from CYCLONEDDS_URI: a file
+// it names that cannot be read is a link that dies at each restart. The first such file, or
+// nullopt. The variable is a comma-separated list of files (`file://` optional) and inline XML
+// (from '<', which may hold commas: not looked into).
+std::optional<std::string> unreadable_cyclone_uri_file() {
+  const char* uri = std::getenv("CYCLONEDDS_URI");
+  if (!uri) return std::nullopt;
+  std::string_view rest(uri);
+  while (!rest.empty()) {
+    while (!rest.empty() && (rest.front() == ' ' || rest.front() == ',')) rest.remove_prefix(1);
+    if (rest.empty() || rest.front() == '<') break;
+    const std::string_view part = rest.substr(0, rest.find(','));
+    rest.remove_prefix(part.size());
+    std::string path(part);
+    while (!path.empty() && path.back() == ' ') path.pop_back();
+    if (path.starts_with("file://")) path.erase(0, 7);
+    std::error_code ec;
+    // A FIFO would block the open: only a regular file is opened.
+    if (!std::filesystem::is_regular_file(path, ec) || !std::ifstream(path)) return std::string(part);
+  }
+  return std::nullopt;
+}
+
 node::Result<LinkSpec> link_spec(const toml::table& t, const std::filesystem::path& file, const std::string& node_id) {
   const std::string what = "node '" + node_id + "': listen.";
   if (auto ok = only_keys(t, {"kind", "url", "domain", "config"}, file, "node '" + node_id + "': ", "listen."); !ok)
@@ -115,6 +138,12 @@ node::Result<LinkSpec> link_spec(const toml::table& t, const std::filesystem::pa
                                                     p.lexically_normal().string() + ": " + ok.error().message);
     spec.dds_config = p.lexically_normal().string();
   }
+  if (spec.kind == "dds" && !config)
+    if (auto unreadable = unreadable_cyclone_uri_file())
+      return node::fail(Errc::not_found, where(t, file) + ": " + what +
+                                             "kind = \"dds\" without config: Cyclone DDS reads CYCLONEDDS_URI, which "
+                                             "names " + *unreadable + ", and that cannot be read (install it, give "
+                                             "listen.config, or unset CYCLONEDDS_URI)");
   return spec;
 }
 

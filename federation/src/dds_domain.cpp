@@ -87,7 +87,12 @@ void log_sink(void*, const dds_log_data_t* data) {
       }
     }
   }
-  if (!delivered) std::fwrite(data->message, 1, data->size, stderr);
+  if (!delivered) {
+    // Cyclone ends some messages without a newline ("can't open configuration file …"): the
+    // next line of the log ran on after it, and a log's last line, which status shows, was two.
+    std::fwrite(data->message, 1, data->size, stderr);
+    if (data->size == 0 || data->message[data->size - 1] != '\n') std::fputc('\n', stderr);
+  }
 }
 
 // Installed once and never removed: dds_set_log_sink waits for Cyclone's threads, so it must

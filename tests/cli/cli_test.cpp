@@ -2390,6 +2390,46 @@ TEST_F(Cli, UpRefusesATopologyThatCouldNotRunAsWrittenNamingWhatAndWhere) {
   }
 }
 
+// A DDS link without listen.config reads Cyclone's configuration from CYCLONEDDS_URI (the unit
+// file shipped set it to a file nothing installed): a file it names that cannot be read is
+// refused at `up`, as listen.config is; the link died at every restart, `up` returning 0.
+TEST_F(Cli, UpRefusesADdsLinkWhoseCycloneddsUriNamesAFileThatCannotBeRead) {
+  spit(tmp_ / "dds.xml", "<CycloneDDS/>\n");
+  spit(tmp_ / "t.toml", "[[node]]\nid = \"hospital\"\niri = \"http://example.org/hospital\"\n"
+                        "listen = { kind = \"dds\", domain = 5 }\n");
+  const char* before = std::getenv("CYCLONEDDS_URI");
+  const std::string saved = before ? before : "";
+  setenv("CYCLONEDDS_URI", ("file://" + (tmp_ / "dds.xml").string() + ",file://" + (tmp_ / "missing.xml").string()).c_str(), 1);
+  Outcome up = run({"up", (tmp_ / "t.toml").string(), "--state", (tmp_ / "state").string()});
+  EXPECT_EQ(up.status, 1);
+  EXPECT_NE(up.err.find("t.toml:4:10: node 'hospital': listen.kind = \"dds\" without config: Cyclone DDS reads "
+                        "CYCLONEDDS_URI, which names file://" + (tmp_ / "missing.xml").string() +
+                        ", and that cannot be read"),
+            std::string::npos)
+      << up.err;
+  EXPECT_FALSE(fs::exists(tmp_ / "state"));
+  // A file that is there passes, and inline XML is Cyclone's to read (the file is then refused
+  // for its agent, checked after the links).
+  spit(tmp_ / "t.toml", "[[node]]\nid = \"hospital\"\niri = \"http://example.org/hospital\"\n"
+                        "listen = { kind = \"dds\", domain = 5 }\n"
+                        "  [[node.agent]]\n  id = \"x\"\n  run = [\"/nonexistent/prog\"]\n");
+  for (const std::string& uri : {"file://" + (tmp_ / "dds.xml").string(), (tmp_ / "dds.xml").string() + ", <CycloneDDS/>"}) {
+    setenv("CYCLONEDDS_URI", uri.c_str(), 1);
+    up = run({"up", (tmp_ / "t.toml").string(), "--state", (tmp_ / "state").string()});
+    EXPECT_EQ(up.status, 1);
+    EXPECT_NE(up.err.find("agent 'x': cannot run '/nonexistent/prog'"), std::string::npos) << uri << ": " << up.err;
+  }
+  // listen.config is read instead of the variable.
+  setenv("CYCLONEDDS_URI", ("file://" + (tmp_ / "missing.xml").string()).c_str(), 1);
+  spit(tmp_ / "t.toml", "[[node]]\nid = \"hospital\"\niri = \"http://example.org/hospital\"\n"
+                        "listen = { kind = \"dds\", config = \"dds.xml\" }\n"
+                        "  [[node.agent]]\n  id = \"x\"\n  run = [\"/nonexistent/prog\"]\n");
+  up = run({"up", (tmp_ / "t.toml").string(), "--state", (tmp_ / "state").string()});
+  EXPECT_NE(up.err.find("agent 'x': cannot run '/nonexistent/prog'"), std::string::npos) << up.err;
+  if (before) setenv("CYCLONEDDS_URI", saved.c_str(), 1);
+  else unsetenv("CYCLONEDDS_URI");
+}
+
 // `up` again with an edited file, while its supervisor runs, applies the edit: what is new
 // starts, what left the file stops, a program whose command changed restarts, the rest runs on
 // with the same pid. A file that does not check is refused and changes nothing.
