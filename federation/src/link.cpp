@@ -2710,6 +2710,15 @@ struct Link::Impl {
           still_unknown.insert(agent);
       }
     }
+    // The problem is what waits for such an agent: once nothing does (the item removed above,
+    // P10a, and so from the buffer; or taken), there is nothing to say, though the agent stays
+    // unknown. It stayed said until the link restarted.
+    std::erase_if(still_unknown, [&](const std::string& agent) {
+      auto id = uri::child_id(agent, self);
+      auto handle = id ? node.agent(*id) : node::Result<node::Agent>(unexpected(node::Error{}));
+      auto waiting = handle ? handle->pending() : node::Result<std::uint64_t>(unexpected(handle.error()));
+      return waiting && *waiting == 0;
+    });
     if (still_unknown == unknown) return;
     std::string names;
     for (const std::string& agent : still_unknown) names += (names.empty() ? "<" : ", <") + agent + ">";

@@ -600,7 +600,8 @@ TEST(Link, ConfigurationAChildCanNeverStoreIsPassedOverAndTheConfigurationAfterI
 // P11a: configuration addressed to an agent the home does not have (a typo in the context at
 // the hospital, "hrvv") waited in that agent's input buffer for ever, and no node said a word.
 // The home's link says it as its problem, on the home's board (status shows it there and above),
-// and takes it back once the agent is known there (here: it subscribes). What the item itself
+// and takes it back once the agent is known there (here: it subscribes) or nothing waits for it
+// any more (the item removed at the hospital). What the item itself
 // says of the agent does not make it known. An item for an agent the home knows raises nothing.
 TEST(Link, ConfigurationForAnAgentTheHomeDoesNotKnowIsItsLinksProblemUntilTheAgentIsKnown) {
   Tree tree;
@@ -609,11 +610,14 @@ TEST(Link, ConfigurationForAnAgentTheHomeDoesNotKnowIsItsLinksProblemUntilTheAge
   auto hrv = home1.agent("hrv").value();
   ASSERT_TRUE(hrv.subscribe({.p = Term::iri(kEx + "n")}));
   auto operator_ = node::Node::open(tree.hospital_dir).value().agent("operator").value();
+  std::uint64_t last_configured = 0;
   auto configure = [&](const std::string& agent) {
     node::Item config;
     config.context = kHome1 + "/" + agent;
     config.add(Term::iri(kHome1 + "/" + agent), Term::iri(kEx + "windowS"), Term::integer(120));
-    return static_cast<bool>(operator_.store(config));
+    auto stored = operator_.store(config);
+    last_configured = stored ? *stored : 0;
+    return static_cast<bool>(stored);
   };
   const node::Pattern problem{.s = Term::iri(kHome1 + "/link"), .p = Term::iri(node::kProblem)};
   auto problems = [&] {
@@ -640,6 +644,14 @@ TEST(Link, ConfigurationForAnAgentTheHomeDoesNotKnowIsItsLinksProblemUntilTheAge
             std::string::npos)
       << problems().front();
   EXPECT_NE(tree.home1_log.text().find("addresses <" + kHome1 + "/hrvv>"), std::string::npos) << tree.home1_log.text();
+  // The operator removes the misaddressed item at the hospital: it leaves the home too (P10a),
+  // nothing waits for the unknown agent, and the problem goes (it stayed until the link restarted).
+  ASSERT_TRUE(node::Node::open(tree.hospital_dir).value().remove_item(last_configured));
+  EXPECT_TRUE(eventually([&] { return problems().empty(); }, 5s)) << problems().front();
+  EXPECT_EQ(home1.agent("hrvv").value().pending().value(), 0u);
+  // Misaddressed again: said again, and the agent made known takes it back.
+  ASSERT_TRUE(configure("hrvv"));
+  ASSERT_TRUE(eventually([&] { return problems().size() == 1; }));
   ASSERT_TRUE(home1.agent("hrvv").value().subscribe({.p = Term::iri(kEx + "n")}));
   EXPECT_TRUE(eventually([&] { return problems().empty(); }, 5s));
 }
