@@ -203,6 +203,24 @@ void warn_of_unknown_addressee(const node::Node& node, const node::Item& item, c
             << (known.empty() ? std::string() : "; child nodes known here: " + known) << "\n";
 }
 
+// A ring keeps at most N non-persistent records, the oldest going first (R13): an item of more
+// than N that no agent's input buffer holds is reclaimed by its own write. `put` printed its id
+// and exited 0 over nothing stored; it says so.
+void warn_if_the_ring_took(const node::Node& node, const node::Item& item, std::uint64_t id) {
+  if (item.persistent) return;
+  auto stats = node.stats();
+  if (!stats || stats->ring == 0 || item.triples.size() <= stats->ring) return;
+  auto snapshot = node.snapshot();
+  if (!snapshot) return;
+  auto records = snapshot->item(id);
+  const bool gone = records ? records->empty() : records.error().code == node::Errc::not_found;
+  if (!gone) return;
+  std::cerr << "tahvel: warning: item " << id << " of " << item.triples.size()
+            << " records is gone already: the store's ring keeps at most " << stats->ring
+            << " non-persistent records, and reclaimed it as it was written (put it --persistent, or make the store "
+               "with a larger --ring)\n";
+}
+
 int run_put(const Args& args) {
   node::Node node = open_node(args.positional(0));
   uri::PrefixMap prefixes = prefixes_with_flags(node.prefixes(), args);
@@ -212,7 +230,9 @@ int run_put(const Args& args) {
   item.triples = parse_input(node, path, input_format(args, path), prefixes);
   warn_of_unreadable_geometry(item.triples, path);
   warn_of_unknown_addressee(node, item, agent);
-  print_number(check(agent.store(item)));
+  const std::uint64_t id = check(agent.store(item));
+  print_number(id);
+  warn_if_the_ring_took(node, item, id);
   return kExitOk;
 }
 

@@ -538,6 +538,28 @@ TEST_F(Cli, PutAndLoadWarnOfAGeometryThatWillNotReadAndStoreIt) {
   EXPECT_EQ(lines_of(run({"list", node_, "-p", "<http://www.opengis.net/ont/geosparql#asWKT>"}).out).size(), 4u);
 }
 
+// On a store with a ring of N records, an item of more than N that no input buffer holds is
+// reclaimed by its own write (R13): `put` printed its id and exited 0, and nothing was stored.
+TEST_F(Cli, PutSaysWhenTheRingReclaimedTheItemAsItWasWritten) {
+  ASSERT_EQ(run({"init", node_, "--iri", kNodeIri, "--ring", "4"}).status, 0);
+  const std::string five = "<http://e.org/s> <http://e.org/p> 1 , 2 , 3 , 4 , 5 .\n";
+  Outcome put = run({"put", node_, "-"}, five);
+  EXPECT_EQ(put.status, 0);
+  EXPECT_NE(put.err.find("warning: item " + lines_of(put.out).at(0) + " of 5 records is gone already: the store's ring keeps at most 4 "
+                         "non-persistent records"),
+            std::string::npos)
+      << put.err;
+  EXPECT_TRUE(lines_of(run({"list", node_}).out).empty());
+  // What the ring keeps, and a persistent item, are not warned of.
+  for (const std::vector<std::string>& args : {std::vector<std::string>{"put", node_, "-", "--persistent"},
+                                               std::vector<std::string>{"put", node_, "-"}}) {
+    put = run(args, args.size() == 4 ? five : "<http://e.org/s> <http://e.org/p> 6 .\n");
+    EXPECT_EQ(put.status, 0);
+    EXPECT_EQ(put.err.find("gone already"), std::string::npos) << put.err;
+  }
+  EXPECT_EQ(lines_of(run({"list", node_}).out).size(), 6u);
+}
+
 // An item addressed (R18) to an agent nothing on the node knows waits in its input buffer for
 // ever: `put` and `load` say so, naming the child nodes known, and store it all the same.
 TEST_F(Cli, PutAndLoadWarnOfAContextAddressingAnAgentNothingOnTheNodeKnows) {
