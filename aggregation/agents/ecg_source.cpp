@@ -16,6 +16,7 @@
 #include <cmath>
 #include <ctime>
 #include <filesystem>
+#include <map>
 #include <memory>
 #include <cstdlib>
 #include <iostream>
@@ -169,13 +170,20 @@ struct EarlierRun {
   std::optional<std::int64_t> start_ns;  // asserted-at of its frame 0 (from a chunk's time)
   std::string replayed_from;             // its tv:replayedFrom (the record, or the generator's settings)
   std::optional<double> fs, gain;        // its tv:samplingRate and tv:gain
+  std::map<long, std::string> leads;     // its tv:lead values ("0 MLII"), by index
+  bool ended_here = false;               // this run wrote its tv:endSample (another signal's take)
 };
 
 // Whether a take with these settings holds `signal`: the same record or generator settings,
 // read at the same rate and gain. A header corrected in place names the same record.
 bool same_signal(const EarlierRun& run, const Signal& signal) {
   const auto same = [](std::optional<double> a, double b) { return a && std::abs(*a - b) <= 1e-9 * std::abs(b); };
-  return run.replayed_from == signal.info.source && same(run.fs, signal.info.fs) && same(run.gain, signal.info.gain);
+  // The leads in their order: MIT-BIH leads share a gain, and `--signal 1` of a record is
+  // another signal than its lead 0 under the same name.
+  std::vector<std::string> leads;
+  for (const auto& [index, name] : run.leads) leads.push_back(name);
+  return run.replayed_from == signal.info.source && same(run.fs, signal.info.fs) && same(run.gain, signal.info.gain) &&
+         leads == signal.info.leads;
 }
 
 tahvel::node::Result<EarlierRun> earlier_run(const rt::Session& session, const std::string& iri, double fs) {
@@ -196,6 +204,11 @@ tahvel::node::Result<EarlierRun> earlier_run(const rt::Session& session, const s
       run.fs = std::strtod(r.triple.o.value.c_str(), nullptr);
     }
     if (r.triple.p.value == tv + "gain") run.gain = std::strtod(r.triple.o.value.c_str(), nullptr);
+    if (r.triple.p.value == tv + "lead") {
+      const std::string& text = r.triple.o.value;
+      const auto space = text.find(' ');
+      run.leads[std::strtol(text.c_str(), nullptr, 10)] = space == std::string::npos ? "" : text.substr(space + 1);
+    }
     if (r.triple.p.value == tv + "replayedFrom") run.replayed_from = r.triple.o.value;
   }
   // Chunks name the recording (tv:recording) and say where they start and how many frames they
@@ -318,8 +331,10 @@ int replay(rt::Session& session, Signal& signal, double speed) {
         return rt::kExitError;
       }
       rt::log_line(kProgram, "<" + takes->back() + ">, left unended by an earlier run, holds another signal (" +
-                                 earlier.replayed_from + "): ended at frame " + std::to_string(earlier.next));
+                                 earlier.replayed_from + "): ended at frame " + std::to_string(earlier.next) +
+                                 "; recording anew");
       earlier.end = earlier.next;
+      earlier.ended_here = true;
     }
     if (!earlier.end) signal.info.iri = takes->back();
     // An earlier run replayed the whole signal (under an earlier supervisor, before a reboot or
@@ -333,7 +348,7 @@ int replay(rt::Session& session, Signal& signal, double speed) {
     }
   }
   if (takes->empty() || earlier.end) {
-    const std::string ended = takes->empty() ? std::string() : takes->back();
+    const std::string ended = takes->empty() || earlier.ended_here ? std::string() : takes->back();
     earlier = {};
     const std::string fresh = take_iri(base_iri, now_ns);  // the second of its tv:startedAt
     signal.info.iri = fresh;

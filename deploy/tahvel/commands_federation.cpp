@@ -852,10 +852,10 @@ std::vector<node::Triple> load_file_triples(const NodeSpec& spec, const fs::path
   try {
     text = read_input(file.string());
   } catch (const Failure& f) {
-    fail(topo.file.string() + ": node '" + spec.id + "': load: " + f.message);
+    fail((spec.load_at.empty() ? topo.file.string() : spec.load_at) + ": node '" + spec.id + "': load: " + f.message);
   }
   auto triples = node::parse_rdf(text, parse);
-  if (!triples) fail(topo.file.string() + ": node '" + spec.id + "': load: " + triples.error().message);
+  if (!triples) fail((spec.load_at.empty() ? topo.file.string() : spec.load_at) + ": node '" + spec.id + "': load: " + triples.error().message);
   return std::move(*triples);
 }
 
@@ -1649,13 +1649,16 @@ int run_up(const Args& args) {
   // Everything is checked before anything is created: a store that exists must be the node's,
   // and the files and patterns a new one gets must read.
   const std::vector<const NodeSpec*> mine = nodes_brought_up(topo, only);
+  if (auto ok = check_cyclone_uri(topo, mine); !ok) fail(ok.error().message);
   const std::string in_file = topo.file.string() + ": node '";
   for (const NodeSpec* spec : mine) {
     const fs::path store = state / spec->id;
     if (fs::exists(store / "data.mdb")) {
       node::Node existing = check(node::Node::open(store));
+      // Named where the file says it: the `iri`, or for a child that derives it, its `parent`.
+      const std::string& changed_at = !spec->parent.empty() && spec->iri_at == spec->at ? spec->parent_at : spec->iri_at;
       if (existing.iri() != spec->iri)
-        fail(in_file + spec->id + "': the store at " + store.string() + " is the node <" + existing.iri() + ">, the file says <" +
+        fail((changed_at.empty() ? topo.file.string() : changed_at) + ": node '" + spec->id + "': the store at " + store.string() + " is the node <" + existing.iri() + ">, the file says <" +
              spec->iri + "> (a changed iri or parent); move that store away, or give the node another id");
       for (const auto& f : spec->forward) warn_of_unknown_terms(*spec, f, forward_pattern_of(*spec, f, existing.prefixes()));
       for (const fs::path& file : spec->load) (void)load_file_triples(*spec, file, existing.prefixes(), topo);
@@ -2110,7 +2113,7 @@ struct StatusNode {
   // A node on another machine: why its programs or its children are not known (empty: they
   // are), and when its supervisor last wrote its programs on its board.
   std::string programs_unknown_because, children_unknown_because;
-  std::int64_t programs_at = 0;
+  std::int64_t programs_at = 0, programs_read_ns = 0;  // as for RemoteBoard
   bool programs_current = true;  // a remote node's: read now, and rewritten recently
   std::string store_warning;     // a local store near its maximum, or its disk near full
   // A local store with a forwarding policy (`up` subscribes its uplink only on a node with a
@@ -2190,7 +2193,7 @@ void read_state_items(const node::Snapshot& snap, const std::string& predicate, 
 struct RemoteBoard {
   std::map<std::string, Fields> children;  // by child IRI
   std::vector<ProgramRow> programs;
-  std::int64_t programs_at = 0;
+  std::int64_t programs_at = 0, programs_read_ns = 0;  // when written there, when read here
   std::string children_error, programs_error;
 };
 
@@ -2247,6 +2250,7 @@ RemoteBoard ask_board(node::Node& from, const std::string& target, std::chrono::
   if (board.programs_error.empty())
     board.programs_error = ask(agents::vocab::kProgramsAt, target, *supervisor, [&](const node::Record& r) {
       if (auto at = parse_u64(r.triple.o.value)) board.programs_at = static_cast<std::int64_t>(*at);
+      board.programs_read_ns = unix_now_ns();
     });
   if (!board.programs_error.empty()) return board;
   std::vector<node::Record> problem_records;
@@ -2511,6 +2515,7 @@ int run_status(const Args& args) {
         n.children_unknown_because = board.children_error;
         n.programs = std::move(board.programs);
         n.programs_at = board.programs_at;
+        n.programs_read_ns = board.programs_read_ns;
         const std::string target = n.iri;  // `nodes` grows below: no reference into it past here
         for (auto& [iri, fields] : board.children) {
           if (find(iri) || !uri::is_under(iri, target)) continue;
@@ -2522,14 +2527,15 @@ int run_status(const Args& args) {
     }
   }
   // A remote node's programs are what its supervisor last wrote on its board: believed when
-  // read now and rewritten within kProgramsStaleAfterS (by the clock of that machine: the
-  // machines' clocks are taken to agree, as the link's times are).
+  // rewritten within kProgramsStaleAfterS of when they were read here (by the clock of that
+  // machine: the machines' clocks are taken to agree, as the link's times are).
   for (StatusNode& n : nodes) {
     if (!n.remote) continue;
     if (n.programs_unknown_because.empty() && n.programs_at == 0)
       n.programs_unknown_because = "its board has none (no supervisor writes them there)";
-    else if (n.programs_unknown_because.empty() && seconds_since(n.programs_at) > kProgramsStaleAfterS)
-      n.programs_unknown_because = "its supervisor has not refreshed them for " + seconds_text(seconds_since(n.programs_at));
+    else if (n.programs_unknown_because.empty() && seconds_since(n.programs_at, n.programs_read_ns) > kProgramsStaleAfterS)
+      n.programs_unknown_because =
+          "its supervisor has not refreshed them for " + seconds_text(seconds_since(n.programs_at, n.programs_read_ns));
     n.programs_current = n.programs_unknown_because.empty();
   }
   // Depth first: each node right after its parent and before the parent's next sibling. '/'

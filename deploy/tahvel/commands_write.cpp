@@ -203,13 +203,14 @@ void warn_of_unknown_addressee(const node::Node& node, const node::Item& item, c
             << (known.empty() ? std::string() : "; child nodes known here: " + known) << "\n";
 }
 
-// A ring keeps at most N non-persistent records, the oldest going first (R13): an item of more
-// than N that no agent's input buffer holds is reclaimed by its own write. `put` printed its id
+// A ring keeps at most N non-persistent records, the oldest going first (R13), and records held
+// in input buffers count towards N: an item of more than N, or one written while held records
+// fill the ring, that no input buffer holds is reclaimed by its own write. `put` printed its id
 // and exited 0 over nothing stored; it says so.
 void warn_if_the_ring_took(const node::Node& node, const node::Item& item, std::uint64_t id) {
   if (item.persistent) return;
   auto stats = node.stats();
-  if (!stats || stats->ring == 0 || item.triples.size() <= stats->ring) return;
+  if (!stats || stats->ring == 0) return;
   auto snapshot = node.snapshot();
   if (!snapshot) return;
   auto records = snapshot->item(id);
@@ -217,8 +218,8 @@ void warn_if_the_ring_took(const node::Node& node, const node::Item& item, std::
   if (!gone) return;
   std::cerr << "tahvel: warning: item " << id << " of " << item.triples.size()
             << " records is gone already: the store's ring keeps at most " << stats->ring
-            << " non-persistent records, and reclaimed it as it was written (put it --persistent, or make the store "
-               "with a larger --ring)\n";
+            << " non-persistent records (those waiting in input buffers among them), and reclaimed it as it was "
+               "written (put it --persistent, or make the store with a larger --ring)\n";
 }
 
 int run_put(const Args& args) {

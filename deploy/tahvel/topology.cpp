@@ -74,18 +74,21 @@ node::Result<const toml::table*> table_at(const toml::table& t, std::string_view
 // A DDS link without listen.config takes Cyclone's configuration from CYCLONEDDS_URI: a file
 // it names that cannot be read is a link that dies at each restart. The first such file, or
 // nullopt. The variable is a comma-separated list of files (`file://` optional) and inline XML
-// (from '<', which may hold commas: not looked into).
+// (from '<', which may hold commas: not looked into). Each file is taken as written, as Cyclone
+// takes it (a space before or after the comma is part of the name).
 std::optional<std::string> unreadable_cyclone_uri_file() {
   const char* uri = std::getenv("CYCLONEDDS_URI");
   if (!uri) return std::nullopt;
   std::string_view rest(uri);
   while (!rest.empty()) {
-    while (!rest.empty() && (rest.front() == ' ' || rest.front() == ',')) rest.remove_prefix(1);
-    if (rest.empty() || rest.front() == '<') break;
+    if (rest.front() == ',') {
+      rest.remove_prefix(1);
+      continue;
+    }
+    if (const auto first = rest.find_first_not_of(" \t\n\r"); first != std::string_view::npos && rest[first] == '<') break;
     const std::string_view part = rest.substr(0, rest.find(','));
     rest.remove_prefix(part.size());
     std::string path(part);
-    while (!path.empty() && path.back() == ' ') path.pop_back();
     if (path.starts_with("file://")) path.erase(0, 7);
     std::error_code ec;
     // A FIFO would block the open: only a regular file is opened.
@@ -138,12 +141,6 @@ node::Result<LinkSpec> link_spec(const toml::table& t, const std::filesystem::pa
                                                     p.lexically_normal().string() + ": " + ok.error().message);
     spec.dds_config = p.lexically_normal().string();
   }
-  if (spec.kind == "dds" && !config)
-    if (auto unreadable = unreadable_cyclone_uri_file())
-      return node::fail(Errc::not_found, where(t, file) + ": " + what +
-                                             "kind = \"dds\" without config: Cyclone DDS reads CYCLONEDDS_URI, which "
-                                             "names " + *unreadable + ", and that cannot be read (install it, give "
-                                             "listen.config, or unset CYCLONEDDS_URI)");
   return spec;
 }
 
@@ -344,6 +341,7 @@ node::Result<Topology> load_topology(const std::filesystem::path& file) {
     spec.at = where(*t, file);
     spec.parent_at = t->get("parent") ? where(*t->get("parent"), file) : spec.at;
     spec.iri_at = t->get("iri") ? where(*t->get("iri"), file) : spec.at;
+    spec.load_at = t->get("load") ? where(*t->get("load"), file) : spec.at;
     TAHVEL_TRY(up, typed<std::string>(*t, "up", file, what, "\"lcm\" or \"dds\" (which of its parent's listen it links over)"));
     spec.up = up.value_or("");
     spec.up_at = t->get("up") ? where(*t->get("up"), file) : spec.at;
@@ -418,7 +416,8 @@ node::Result<Topology> load_topology(const std::filesystem::path& file) {
         if (!at) return node::fail(Errc::invalid_argument, where(a, file) + ": [[node.agent]] must be a table");
         AgentSpec agent;
         TAHVEL_TRY(agent_id, typed<std::string>(*at, "id", file, what + "agent: ", "a string"));
-        agent.id = agent_id.value_or("");
+        if (!agent_id) return node::fail(Errc::invalid_argument, where(*at, file) + ": node '" + spec.id + "': an agent needs an id");
+        agent.id = *agent_id;
         agent.at = where(*at, file);
         if (auto ok = uri::check_id(agent.id); !ok)
           return node::fail(Errc::invalid_argument, where(*at, file) + ": node '" + spec.id + "': agent id: " + ok.error().message);
@@ -647,6 +646,23 @@ CommandContext CommandContext::of_this_process() {
   context.mitdb = mitdb ? mitdb : "";
   context.path = path ? path : "";
   return context;
+}
+
+node::Result<void> check_cyclone_uri(const Topology& topo, const std::vector<const NodeSpec*>& here) {
+  for (const NodeSpec* spec : here) {
+    std::vector<std::pair<const LinkSpec*, std::string>> links;  // the link, and whose listen it is
+    for (const LinkSpec& l : spec->listen) links.emplace_back(&l, spec->id);
+    if (const LinkSpec* up = topo.uplink(*spec)) links.emplace_back(up, spec->parent);
+    for (const auto& [link, owner] : links) {
+      if (link->kind != "dds" || !link->dds_config.empty()) continue;
+      if (auto unreadable = unreadable_cyclone_uri_file())
+        return node::fail(Errc::not_found, link->url_at + ": node '" + owner +
+                                               "': listen.kind = \"dds\" without config: Cyclone DDS reads CYCLONEDDS_URI, "
+                                               "which names " + *unreadable + ", and that cannot be read (install it, give "
+                                               "listen.config, or unset CYCLONEDDS_URI)");
+    }
+  }
+  return {};
 }
 
 }  // namespace tahvel::cli

@@ -52,8 +52,8 @@ struct NodeSpec {
   std::filesystem::path behaviours;    // the dispatcher's folder of behaviours; empty: none
   std::vector<AgentSpec> agents;
   // Where the file says it ("FILE:LINE:COL"), for errors found once all nodes are read: the
-  // node's table, its `parent` and its `iri` (the table's when the key is absent).
-  std::string at, parent_at, iri_at;
+  // node's table, its `parent`, its `iri` and its `load` (the table's when the key is absent).
+  std::string at, parent_at, iri_at, load_at;
 };
 
 struct Topology {
@@ -72,6 +72,12 @@ struct Topology {
 // `listen` (one table, or an array with at most one per kind), and a child whose parent listens
 // on several says which with `up`; kinds are lcm or dds; agent ids are valid and unique per node.
 node::Result<Topology> load_topology(const std::filesystem::path& file);
+
+// A DDS link without listen.config reads Cyclone's configuration from CYCLONEDDS_URI: for the
+// links of the nodes `here` (those brought up on this machine: their own listens and uplinks),
+// an error naming the listen when a file the variable names cannot be read (the link would die
+// at each restart).
+node::Result<void> check_cyclone_uri(const Topology& topo, const std::vector<const NodeSpec*>& here);
 
 // What an agent's command is expanded with: the environment of the `tahvel up` that asked, not
 // the running supervisor's (which may have been started from another shell days before).

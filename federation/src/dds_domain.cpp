@@ -88,8 +88,8 @@ void log_sink(void*, const dds_log_data_t* data) {
     }
   }
   if (!delivered) {
-    // Cyclone ends some messages without a newline ("can't open configuration file …"): the
-    // next line of the log ran on after it, and a log's last line, which status shows, was two.
+    // Cyclone hands its messages over without their newline (vlog1's size leaves it out): the
+    // next line of the log ran on after one, and a log's last line, which status shows, was two.
     std::fwrite(data->message, 1, data->size, stderr);
     if (data->size == 0 || data->message[data->size - 1] != '\n') std::fputc('\n', stderr);
   }

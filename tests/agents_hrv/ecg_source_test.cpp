@@ -295,7 +295,7 @@ TEST_F(EcgSourceTest, ASignalAnEarlierRunReplayedWholeIsNotReplayedAgain) {
 // A header corrected in place of a wrong one (its sampling rate) names the same record: the
 // take the wrong one gave was said to hold "the whole" of the corrected signal, and nothing
 // more was replayed.
-TEST_F(EcgSourceTest, ARecordReadAtAnotherRateIsAnotherSignalAndIsReplayed) {
+TEST_F(EcgSourceTest, ARecordReadAtAnotherRateOrLeadIsAnotherSignalAndIsReplayed) {
   const std::string dir = new_node("rates");
   const fs::path wrong = two_signal_record("r", "r 2 36 720\nr.dat 16 200/mV 16 0 0 0 0 MLII\nr.dat 16 200/mV 16 0 0 0 0 V1\n",
                                            720, 5, 7);
@@ -310,6 +310,12 @@ TEST_F(EcgSourceTest, ARecordReadAtAnotherRateIsAnotherSignalAndIsReplayed) {
   const auto takes = recordings(dir);
   ASSERT_EQ(takes.size(), 2u) << "the corrected header was not replayed";
   EXPECT_EQ(objects(dir, takes[1], std::string(agg::kTv) + "samplingRate"), std::vector<std::string>{"360.0"});
+  // The record's other lead first (`--signal 1`): the leads share a gain, and it was taken for
+  // the signal replayed whole.
+  tahvel::test_support::AgentProcess lead({bin, dir, "--record", right.string(), "--signal", "1", "--speed", "0"});
+  ASSERT_EQ(lead.wait(std::chrono::seconds(60)), 0);
+  ASSERT_EQ(recordings(dir).size(), 3u) << "the other lead was not replayed";
+  EXPECT_EQ(objects(dir, recordings(dir)[2], std::string(agg::kTv) + "lead"), (std::vector<std::string>{"0 V1", "1 MLII"}));
 }
 
 // A take an earlier run left unended (the source killed) goes on only with the same signal: the

@@ -2331,6 +2331,8 @@ TEST_F(Cli, UpRefusesATopologyThatCouldNotRunAsWrittenNamingWhatAndWhere) {
        "t.toml:5:3: node 'hospital': agent id 'home1' is also its child node's id (the node of line 8; a child node is "
        "agent 'home1' of its parent)"},
       {hospital + "  [[node.agent]]\n  id = \"hrv\"\n  run = [\"true\"]\n  restrat = \"never\"\n", "agent 'hrv': unknown key 'restrat'"},
+      // Not "invalid id ''", an empty string the file does not write.
+      {hospital + "  [[node.agent]]\n  run = [\"true\"]\n", "t.toml:4:3: node 'hospital': an agent needs an id"},
       // The supervisor writes the node's programs as agent `supervisor` (replacing what it wrote).
       {hospital + "  [[node.agent]]\n  id = \"supervisor\"\n  run = [\"true\"]\n", "node 'hospital': agent id 'supervisor' is taken"},
       // What used to start and then fail for ever in the supervisor's log ("status 127").
@@ -3024,7 +3026,8 @@ TEST_F(Cli, UpRefusesAStoreThatBelongsToAnotherIri) {
   spit(tmp_ / "moved.toml", moved);
   Outcome up = run({"up", (tmp_ / "moved.toml").string(), "--state", state});
   EXPECT_EQ(up.status, 1);
-  EXPECT_NE(up.err.find("the store at " + state + "/solo is the node <http://example.org/solo>, the file says "
+  // Named at the file's line of the iri.
+  EXPECT_NE(up.err.find("moved.toml:3:7: node 'solo': the store at " + state + "/solo is the node <http://example.org/solo>, the file says "
                         "<http://example.org/other>"), std::string::npos) << up.err;
   EXPECT_FALSE(fs::exists(tmp_ / "state" / "supervisor-all.pid"));
 }
@@ -3037,12 +3040,12 @@ TEST_F(Cli, UpMakesNoStoreWhenALoadFileIsMissingAndLoadsItOnceItIsThere) {
   const std::string state = (tmp_ / "state").string();
   Outcome up = run({"up", (tmp_ / "node.toml").string(), "--state", state});
   EXPECT_EQ(up.status, 1);
-  EXPECT_NE(up.err.find("node.toml: node 'solo': load: cannot open"), std::string::npos) << up.err;
+  EXPECT_NE(up.err.find("node.toml:4:8: node 'solo': load: cannot open"), std::string::npos) << up.err;
   EXPECT_FALSE(fs::exists(tmp_ / "state" / "solo"));
   spit(tmp_ / "plan.ttl", "<room/bedroom> a\n");  // malformed: named once, with the line
   up = run({"up", (tmp_ / "node.toml").string(), "--state", state});
   EXPECT_EQ(up.status, 1);
-  EXPECT_NE(up.err.find("node.toml: node 'solo': load: " + (tmp_ / "plan.ttl").string() + ":2:"), std::string::npos) << up.err;
+  EXPECT_NE(up.err.find("node.toml:4:8: node 'solo': load: " + (tmp_ / "plan.ttl").string() + ":2:"), std::string::npos) << up.err;
   EXPECT_EQ(up.err.find("load: " + (tmp_ / "node.toml").string()), std::string::npos) << up.err;
   EXPECT_FALSE(fs::exists(tmp_ / "state" / "solo"));
   spit(tmp_ / "plan.ttl", "<room/bedroom> a <https://w3id.org/tahvel#Room> .\n");

@@ -716,6 +716,14 @@ TEST(Rules, AHeadVariableAnIsWouldBindButForAnUnboundVariableNamesThatVariable) 
   ASSERT_FALSE(p.has_value());
   EXPECT_EQ(p.error().message, "is.rules:1:21: variable Z is bound by no literal, so head variable Y is not either, "
                                "and no rule calls " + kNs + "a/2 to bind it (unsafe)");
+  // Through a chain of them, the variable at its end; a loop names the head variable.
+  p = tr::parse_rules("a(X, Y) :- b(X, _), Y is W + 1, W is V * 2.\n", options("is.rules"));
+  ASSERT_FALSE(p.has_value());
+  EXPECT_EQ(p.error().message.rfind("is.rules:1:33: variable V is bound by no literal, so head variable Y is not either", 0), 0u)
+      << p.error().message;
+  p = tr::parse_rules("a(X, Y) :- b(X, _), Y is W + 1, W is Y - 1.\n", options("is.rules"));
+  ASSERT_FALSE(p.has_value());
+  EXPECT_EQ(p.error().message.rfind("is.rules:1:1: head variable Y is bound by no literal", 0), 0u) << p.error().message;
 }
 
 TEST(Rules, ARankedDeclarationOfAPredicateNoRuleDefinesIsAnError) {

@@ -628,6 +628,16 @@ TEST_F(BoardTest, TheKeeperReportsAProblemOnceHoweverOftenItSyncs) {
   ASSERT_TRUE(synced.has_value() && synced->has_value());
   ASSERT_EQ((*synced)->problems.size(), 1u);
   EXPECT_NE((*synced)->problems[0].find(kHome + "/broken2"), std::string::npos) << (*synced)->problems[0];
+  // Fixed, then broken again: said again.
+  put(located_feature_item(kHome + "/broken2", "POLYGON((0 0, 2 0, 2 2, 0 0))", 0));
+  synced = keeper->poll();
+  ASSERT_TRUE(synced.has_value() && synced->has_value());
+  EXPECT_TRUE((*synced)->problems.empty()) << (*synced)->problems[0];
+  put(located_feature_item(kHome + "/broken2", "POLYGON((0 0, 2 0, 2 2))", 0));
+  synced = keeper->poll();
+  ASSERT_TRUE(synced.has_value() && synced->has_value());
+  ASSERT_EQ((*synced)->problems.size(), 1u);
+  EXPECT_NE((*synced)->problems[0].find(kHome + "/broken2"), std::string::npos) << (*synced)->problems[0];
 }
 
 // tv:areaFloor is a floor as tv:floor is (S5): "1.0" was refused as not an integer, and

@@ -330,16 +330,34 @@ struct Demand {
   Pos unbound_need_pos;
 };
 
-// The variable that keeps a literal of `rule` from binding head variable `head_var`, when one
-// would bind it once its needs were bound and one of those is bound by nothing.
+// The variable that keeps `rule` from binding head variable `head_var`, and the literal that
+// needs it: following what a literal that would bind a variable needs (Y in `Y is W + 1`, then W
+// in `W is V * 2`), the first variable no literal binds at all (V). nullopt when there is none
+// (the chain loops: `Y is W + 1, W is Y - 1`).
 std::optional<std::pair<std::uint32_t, Pos>> unbound_need_of(const Rule& rule, std::uint32_t head_var) {
   const VarSet bound = reachable_bindings(rule);
+  VarSet bindable(rule.vars, false), visited(rule.vars, false);
   for (const Literal& l : rule.body) {
     std::vector<std::uint32_t> needs, binds;
     needs_and_binds(l, bound, needs, binds);
-    if (std::find(binds.begin(), binds.end(), head_var) == binds.end()) continue;
-    for (std::uint32_t v : needs)
-      if (v != head_var && !bound[v]) return std::make_pair(v, l.pos);
+    for (std::uint32_t v : binds) bindable[v] = true;
+  }
+  std::vector<std::uint32_t> todo{head_var};
+  while (!todo.empty()) {
+    const std::uint32_t var = todo.back();
+    todo.pop_back();
+    if (visited[var]) continue;
+    visited[var] = true;
+    for (const Literal& l : rule.body) {
+      std::vector<std::uint32_t> needs, binds;
+      needs_and_binds(l, bound, needs, binds);
+      if (std::find(binds.begin(), binds.end(), var) == binds.end()) continue;
+      for (std::uint32_t v : needs) {
+        if (bound[v] || visited[v]) continue;
+        if (!bindable[v]) return std::make_pair(v, l.pos);
+        todo.push_back(v);
+      }
+    }
   }
   return std::nullopt;
 }

@@ -325,7 +325,11 @@ Result<AreaSyncReport> AreaKeeper::sync() {
   if (!report) return report;
   declarations_ = report->declarations;
   bookmark_ = std::max(bookmark_, seen);
-  std::erase_if(report->problems, [&](const std::string& problem) { return !told_.insert(problem).second; });
+  // Said when it appears: a problem the previous sync reported is left out, one that went away
+  // and came back is said again.
+  std::set<std::string> now(report->problems.begin(), report->problems.end());
+  std::erase_if(report->problems, [&](const std::string& problem) { return told_.count(problem) > 0; });
+  told_ = std::move(now);
   return report;
 }
 

@@ -180,7 +180,8 @@ tahvel_status tahvel_list_as(tahvel_node* node, const char* s, const char* p, co
  * number returned, or to `bookmark` when none: pass it to the next call to resume exactly.
  * The text (empty on timeout: TAHVEL_OK, not TAHVEL_TIMEOUT) is freed with tahvel_free().
  * Removals older than the last 65,536 are no longer reported.
- * Errors: TAHVEL_INVALID_ARGUMENT, TAHVEL_IO, TAHVEL_CORRUPT, TAHVEL_NO_MEMORY. */
+ * Errors: TAHVEL_INVALID_ARGUMENT (a bad handle, or json_out NULL: the bookmark would move past
+ * changes nobody saw), TAHVEL_IO, TAHVEL_CORRUPT, TAHVEL_NO_MEMORY. */
 tahvel_status tahvel_watch(tahvel_node* node, uint64_t bookmark, int timeout_ms, size_t limit,
                            char** json_out, size_t* len_out, uint64_t* bookmark_out);
 

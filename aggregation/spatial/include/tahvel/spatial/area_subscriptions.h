@@ -81,8 +81,9 @@ class AreaKeeper {
   static Result<AreaKeeper> open(const std::filesystem::path& store_dir, AreaSyncReport* first = nullptr);
 
   // Waits up to `wait` for a change; returns the sync's report when it synced. A keeper's
-  // reports give each problem once: a later sync that meets it again leaves it out (moving a
-  // sensor syncs, and a skipped feature repeated at every move filled the log).
+  // reports give a problem when it appears: a sync that meets again what the one before it
+  // reported leaves it out (moving a sensor syncs, and a skipped feature repeated at every move
+  // filled the log); one fixed and come back is given again.
   Result<std::optional<AreaSyncReport>> poll(std::chrono::milliseconds wait = std::chrono::milliseconds(0));
 
   // Syncs now, whatever changed.
@@ -97,7 +98,7 @@ class AreaKeeper {
   node::Agent agent_;
   std::uint64_t bookmark_ = 0;
   std::size_t declarations_ = 0;
-  std::set<std::string> told_;  // problems reported already
+  std::set<std::string> told_;  // the problems of the last sync
 };
 
 // An agent's own area subscription: declares it, syncs it, and follows the plan when the agent
