@@ -136,6 +136,17 @@ class EcgSourceTest : public ::testing::Test {
     return record;
   }
 
+  // Runs the source on `dir` at 20 times real time (3 s of wall time for the 60 s), kills it
+  // with SIGKILL once it has written 10 chunks; the chunks it wrote.
+  std::size_t kill_the_source_after_ten_chunks(const std::string& dir) {
+    tahvel::test_support::AgentProcess source(source_argv(dir, "20"));
+    const auto deadline = std::chrono::steady_clock::now() + 20s;
+    auto written = [&] { return recordings(dir).empty() ? 0 : chunks(dir, recordings(dir).front()).samples.size(); };
+    while (written() < 10 && std::chrono::steady_clock::now() < deadline) std::this_thread::sleep_for(20ms);
+    source.crash();
+    return written();
+  }
+
   // What the one recording on `dir` says of itself.
   static agg::RecordingInfo recording_info(const std::string& dir) {
     const std::string rec = the_recording(dir);
@@ -195,12 +206,7 @@ TEST_F(EcgSourceTest, ARestartAfterAKillGoesOnAfterTheLastChunkAndWritesEachSeco
   ASSERT_EQ(reference.samples.size(), 60u);
 
   const std::string crashed = new_node("crashed");
-  tahvel::test_support::AgentProcess first(source_argv(crashed, "20"));  // 3 s of wall time for the 60 s
-  const auto deadline = std::chrono::steady_clock::now() + 20s;
-  auto written = [&] { return recordings(crashed).empty() ? 0 : chunks(crashed, recordings(crashed).front()).samples.size(); };
-  while (written() < 10 && std::chrono::steady_clock::now() < deadline) std::this_thread::sleep_for(20ms);
-  first.crash();
-  const std::size_t before = written();
+  const std::size_t before = kill_the_source_after_ten_chunks(crashed);
   ASSERT_GE(before, 10u);
   ASSERT_LT(before, 60u) << "the source ended before it was killed";
   const std::string recording = the_recording(crashed);
@@ -322,12 +328,7 @@ TEST_F(EcgSourceTest, ARecordReadAtAnotherRateOrLeadIsAnotherSignalAndIsReplayed
 // generator at another heart rate went on with the killed take, its frames after the other's.
 TEST_F(EcgSourceTest, ATakeLeftUnendedIsEndedNotContinuedByAnotherSignal) {
   const std::string dir = new_node("other");
-  tahvel::test_support::AgentProcess first(source_argv(dir, "20"));
-  const auto deadline = std::chrono::steady_clock::now() + 20s;
-  auto written = [&] { return recordings(dir).empty() ? 0 : chunks(dir, recordings(dir).front()).samples.size(); };
-  while (written() < 10 && std::chrono::steady_clock::now() < deadline) std::this_thread::sleep_for(20ms);
-  first.crash();
-  const std::size_t before = written();
+  const std::size_t before = kill_the_source_after_ten_chunks(dir);
   ASSERT_GE(before, 10u);
   ASSERT_LT(before, 60u) << "the source ended before it was killed";
   const std::string killed = the_recording(dir);
