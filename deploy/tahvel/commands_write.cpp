@@ -22,16 +22,36 @@ node::Format input_format(const Args& args, const std::string& path) {
   return format_flag(args, guess, /*allow_json=*/false);
 }
 
-// Reads and parses FILE (or standard input): nothing is stored if this fails.
+// FILE (or standard input) as read, and how it was parsed.
+struct Input {
+  std::string text;
+  node::ParseOptions options;
+};
+
+// Reads and parses FILE (or standard input): nothing is stored if this fails. `*read` gets the
+// text and the options, to name where a triple the store refuses is written (named_where).
 std::vector<node::Triple> parse_input(const node::Node& node, const std::string& path,
-                                      node::Format format, const uri::PrefixMap& prefixes) {
+                                      node::Format format, const uri::PrefixMap& prefixes, Input* read = nullptr) {
   node::ParseOptions options;
   options.format = format;
   options.base_iri = base_iri_of(node);
   options.source_name = path == "-" ? "<stdin>" : path;
   options.prefixes = prefixes;
   std::string text = read_input(path);
-  return check(node::parse_rdf(text, options));
+  std::vector<node::Triple> triples = check(node::parse_rdf(text, options));
+  if (read) *read = {std::move(text), std::move(options)};
+  return triples;
+}
+
+// The store names a triple it refuses by its place in the item ("triple 1501, object: invalid
+// IRI ..."): `message` led by where the input writes it ("FILE:LINE:COL: "), as a syntax error
+// is, when it names one.
+std::string named_where(const Input& input, const std::string& message) {
+  if (!message.starts_with("triple ")) return message;
+  const std::uint64_t n = std::strtoull(message.c_str() + 7, nullptr, 10);
+  if (n == 0) return message;
+  const std::string at = node::locate_triple(input.text, input.options, n - 1);
+  return at.empty() ? message : at + ": " + message;
 }
 
 // The item fields --context and --persistent set.
@@ -228,10 +248,13 @@ int run_put(const Args& args) {
   std::string path = args.positional().size() > 1 ? args.positional(1) : "-";
   node::Item item = item_frame(args, prefixes);
   node::Agent agent = check(node.agent(agent_id(args, "cli")));
-  item.triples = parse_input(node, path, input_format(args, path), prefixes);
+  Input input;
+  item.triples = parse_input(node, path, input_format(args, path), prefixes, &input);
   warn_of_unreadable_geometry(item.triples, path);
   warn_of_unknown_addressee(node, item, agent);
-  const std::uint64_t id = check(agent.store(item));
+  auto stored = agent.store(item);
+  if (!stored) fail(named_where(input, stored.error().message));
+  const std::uint64_t id = *stored;
   print_number(id);
   warn_if_the_ring_took(node, item, id);
   return kExitOk;

@@ -779,8 +779,14 @@ Result<void> Env::check_reserve_untouched(std::uint64_t new_bytes) {
   const std::uint64_t reserve = removal_reserve(settings_.max_map_bytes);
   const std::uint64_t room = settings_.max_map_bytes > reserve ? settings_.max_map_bytes - reserve : 0;
   if (in_use + new_bytes <= room) return {};
-  return fail(Errc::store_full, "store full: " + dir_.string() + " reached its maximum of " +
-                                    std::to_string(settings_.max_map_bytes) + " bytes");
+  // Not "reached its maximum": the store may be nearly empty (a removal grew it into the reserve,
+  // and what it freed is kept free for the next), and a smaller write may still fit.
+  return fail(Errc::store_full, "store full: " + dir_.string() + ": this write may take up to " +
+                                    std::to_string(new_bytes) + " bytes, and " + std::to_string(in_use) +
+                                    " are in use of the " + std::to_string(room) + " that writes may fill (of its maximum of " +
+                                    std::to_string(settings_.max_map_bytes) +
+                                    " bytes, as much as a removal may need is kept free after one); write less at a "
+                                    "time, remove records, or make the store with a larger --max-map");
 }
 
 Result<void> Env::reserve_disk(WriteKind kind, std::uint64_t new_bytes) {

@@ -188,6 +188,16 @@ class Parser {
   Parser(std::string_view text, const ParseOptions& options, Pass pass)
       : text_(text), options_(options), pass_(pass) {}
 
+  // Pass::locate: where serd was when each triple came, in `*ends` (just past its object).
+  void record_ends(std::vector<std::size_t>* ends) { ends_ = ends; }
+
+  // "<source>:LINE:COL" of byte `at`.
+  std::string position(std::size_t at) const {
+    std::string out = located(at, "");
+    out.resize(out.size() - 2);  // the ": " before a reason
+    return out;
+  }
+
   Result<std::vector<Triple>> run() {
     if (options_.format == Format::json)
       return fail(Errc::invalid_argument,
@@ -379,6 +389,7 @@ class Parser {
         return stop("an escape gives a surrogate code point (U+D800 to U+DFFF), which is not a character "
                     "(write the character itself, or one \\U escape of its code point)");
     triples_.push_back({std::move(*subject), std::move(*predicate), std::move(*object)});
+    if (ends_) ends_->push_back(offset());
     return SERD_SUCCESS;
   }
 
@@ -438,6 +449,7 @@ class Parser {
   std::string base_;           // current base IRI (absolute) or empty
   std::unique_ptr<SerdEnv, EnvDeleter> env_;
   std::vector<Triple> triples_;
+  std::vector<std::size_t>* ends_ = nullptr;
   std::optional<Error> error_;
   std::exception_ptr pending_;  // thrown inside a sink, rethrown once serd has returned
 };
@@ -522,6 +534,15 @@ Result<std::vector<Triple>> parse_rdf(std::string_view text, const ParseOptions&
   auto triples = Parser(text, options, Parser::Pass::fast).run();
   if (triples || triples.error().code != Errc::syntax) return triples;
   return Parser(text, options, Parser::Pass::locate).run();  // same input: fails at the same place
+}
+
+std::string locate_triple(std::string_view text, const ParseOptions& options, std::size_t index) {
+  Parser parser(text, options, Parser::Pass::locate);
+  std::vector<std::size_t> ends;
+  parser.record_ends(&ends);
+  auto triples = parser.run();
+  if (!triples || index >= ends.size()) return {};
+  return parser.position(ends[index]);
 }
 
 std::string utc_text(std::int64_t ns) {

@@ -538,6 +538,30 @@ TEST_F(Cli, PutAndLoadWarnOfAGeometryThatWillNotReadAndStoreIt) {
   EXPECT_EQ(lines_of(run({"list", node_, "-p", "<http://www.opengis.net/ont/geosparql#asWKT>"}).out).size(), 4u);
 }
 
+// What the store refuses after parsing (an IRI uriparser refuses, a literal over the node's
+// limit, rdf:langString without a tag) was named "triple 1501": a Turtle file's 1501st triple,
+// on line 1002. `put` names where the file writes it, as it names a syntax error.
+TEST_F(Cli, PutNamesTheLineOfATripleTheStoreRefuses) {
+  init();
+  std::string turtle = "@prefix ex: <http://e.org/> .\n";
+  for (int i = 0; i < 500; ++i) turtle += "ex:s" + std::to_string(i) + " ex:p \"v\" ;\n   ex:q \"w\" , \"z\" .\n";
+  turtle += "ex:s ex:p <http://[::1/p> .\n";
+  spit(tmp_ / "big_bad.ttl", turtle);
+  Outcome put = run({"put", node_, (tmp_ / "big_bad.ttl").string()});
+  EXPECT_EQ(put.status, 1);
+  EXPECT_NE(put.err.find((tmp_ / "big_bad.ttl").string() + ":1002:26: triple 1501, object: invalid IRI 'http://[::1/p'"),
+            std::string::npos)
+      << put.err;
+  put = run({"put", node_, "--format", "nt", "-"},
+            "<http://e.org/a> <http://e.org/p> \"x\" .\n"
+            "<http://e.org/a> <http://e.org/p> \"x\"^^<http://www.w3.org/1999/02/22-rdf-syntax-ns#langString> .\n");
+  EXPECT_EQ(put.status, 1);
+  EXPECT_NE(put.err.find("<stdin>:2:"), std::string::npos) << put.err;
+  EXPECT_NE(put.err.find(": triple 2, object: a literal of datatype rdf:langString needs a language tag"), std::string::npos)
+      << put.err;
+  EXPECT_TRUE(lines_of(run({"list", node_}).out).empty());
+}
+
 // On a store with a ring of N records, an item of more than N that no input buffer holds is
 // reclaimed by its own write (R13): `put` printed its id and exited 0, and nothing was stored.
 TEST_F(Cli, PutSaysWhenTheRingReclaimedTheItemAsItWasWritten) {

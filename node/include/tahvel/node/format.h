@@ -31,6 +31,12 @@ struct ParseOptions {
 // Blank-node labels are kept as written (the store renames them on write).
 Result<std::vector<Triple>> parse_rdf(std::string_view text, const ParseOptions& options);
 
+// Where triple `index` (0-based, in the order parse_rdf gives them) of `text` is written,
+// "<source>:LINE:COL" just past its object, to name an error found in it after parsing (the
+// store's checks say "triple N, object: ..."). Reads the text again, byte by byte. Empty when
+// the text does not parse or has fewer triples.
+std::string locate_triple(std::string_view text, const ParseOptions& options, std::size_t index);
+
 // Writes records one at a time.
 //   ntriples: one line per triple.
 //   turtle:   @prefix lines for `prefixes`, then triples abbreviated by serd.
