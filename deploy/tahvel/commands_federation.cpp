@@ -1078,6 +1078,8 @@ class Deployment {
   Deployment(const Deployment&) = delete;
   Deployment& operator=(const Deployment&) = delete;
 
+  const std::optional<std::string>& only() const { return only_; }
+
   // One line per change made, for the log and for the `up` that asked. `context`: the
   // environment of the `up` that asked (CommandContext).
   std::vector<std::string> apply(const Topology& topo, const CommandContext& context) {
@@ -1528,6 +1530,9 @@ void apply_requested(Deployment& deployment, const fs::path& pid_file, const age
   const CommandContext context{bin.substr(4), mitdb.substr(6), path.substr(5)};
   std::string answer = id + "\n";
   auto topo = load_topology(file);
+  // CYCLONEDDS_URI as the links will read it: this supervisor's.
+  if (topo)
+    if (auto ok = check_cyclone_uri(*topo, nodes_brought_up(*topo, deployment.only())); !ok) topo = Unexpected<node::Error>{ok.error()};
   if (!topo) {
     answer += "error: " + topo.error().message + "\n";
     log("up: cannot apply " + file + ": " + topo.error().message);
@@ -1649,7 +1654,10 @@ int run_up(const Args& args) {
   // Everything is checked before anything is created: a store that exists must be the node's,
   // and the files and patterns a new one gets must read.
   const std::vector<const NodeSpec*> mine = nodes_brought_up(topo, only);
-  if (auto ok = check_cyclone_uri(topo, mine); !ok) fail(ok.error().message);
+  // The links take the supervisor's environment: one that runs checks the file it is asked to
+  // apply in its own (apply_requested).
+  if (running == 0)
+    if (auto ok = check_cyclone_uri(topo, mine); !ok) fail(ok.error().message);
   const std::string in_file = topo.file.string() + ": node '";
   for (const NodeSpec* spec : mine) {
     const fs::path store = state / spec->id;

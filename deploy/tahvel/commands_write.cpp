@@ -236,10 +236,14 @@ void warn_if_the_ring_took(const node::Node& node, const node::Item& item, std::
   auto records = snapshot->item(id);
   const bool gone = records ? records->empty() : records.error().code == node::Errc::not_found;
   if (!gone) return;
+  // Certain when the item alone is larger than the ring; otherwise another writer's removal
+  // may have taken it meanwhile.
+  const bool larger = item.triples.size() > stats->ring;
   std::cerr << "tahvel: warning: item " << id << " of " << item.triples.size()
             << " records is gone already: the store's ring keeps at most " << stats->ring
-            << " non-persistent records (those waiting in input buffers among them), and reclaimed it as it was "
-               "written (put it --persistent, or make the store with a larger --ring)\n";
+            << " non-persistent records (those waiting in input buffers among them), and "
+            << (larger ? "reclaimed it as it was written" : "most likely reclaimed it as it was written")
+            << " (put it --persistent, or make the store with a larger --ring)\n";
 }
 
 int run_put(const Args& args) {

@@ -74,14 +74,15 @@ node::Result<const toml::table*> table_at(const toml::table& t, std::string_view
 // A DDS link without listen.config takes Cyclone's configuration from CYCLONEDDS_URI: a file
 // it names that cannot be read is a link that dies at each restart. The first such file, or
 // nullopt. The variable is a comma-separated list of files (`file://` optional) and inline XML
-// (from '<', which may hold commas: not looked into). Each file is taken as written, as Cyclone
-// takes it (a space before or after the comma is part of the name).
+// (from '<', which may hold commas: not looked into).
 std::optional<std::string> unreadable_cyclone_uri_file() {
   const char* uri = std::getenv("CYCLONEDDS_URI");
   if (!uri) return std::nullopt;
   std::string_view rest(uri);
   while (!rest.empty()) {
-    if (rest.front() == ',') {
+    // Cyclone skips blanks and commas before each item (q_config.c); a blank after a name is
+    // part of it.
+    if (rest.front() == ',' || rest.front() == ' ' || rest.front() == '\t' || rest.front() == '\n' || rest.front() == '\r') {
       rest.remove_prefix(1);
       continue;
     }

@@ -785,8 +785,9 @@ Result<void> Env::check_reserve_untouched(std::uint64_t new_bytes) {
                                     std::to_string(new_bytes) + " bytes, and " + std::to_string(in_use) +
                                     " are in use of the " + std::to_string(room) + " that writes may fill (of its maximum of " +
                                     std::to_string(settings_.max_map_bytes) +
-                                    " bytes, as much as a removal may need is kept free after one); write less at a "
-                                    "time, remove records, or make the store with a larger --max-map");
+                                    " bytes, as much as a removal may need is kept free after one); " +
+                                    (in_use < room ? "write less at a time, " : "") +
+                                    "remove records, or make the store with a larger --max-map");
 }
 
 Result<void> Env::reserve_disk(WriteKind kind, std::uint64_t new_bytes) {

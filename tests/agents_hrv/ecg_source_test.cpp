@@ -346,6 +346,20 @@ TEST_F(EcgSourceTest, ATakeLeftUnendedIsEndedNotContinuedByAnotherSignal) {
   EXPECT_EQ(chunks(dir, takes[1]).samples.size(), 60u);
 }
 
+// `--seconds 0` was read as no limit: the generator ran until stopped (65 MB in 20 s).
+TEST_F(EcgSourceTest, ZeroSecondsOfSyntheticEcgIsRefused) {
+  const std::string dir = new_node("zero");
+  const fs::path log = tmp_ / "zero.log";
+  tahvel::test_support::AgentProcess source({std::string(TAHVEL_BIN_DIR) + "/tahvel-ecg-source", dir, "--synthetic",
+                                             "--seconds", "0", "--speed", "0"},
+                                            log.string());
+  EXPECT_EQ(source.wait(10s), 2);
+  EXPECT_TRUE(recordings(dir).empty());
+  std::ifstream in(log);
+  const std::string said((std::istreambuf_iterator<char>(in)), std::istreambuf_iterator<char>());
+  EXPECT_NE(said.find("--seconds: '0' is less than one sample"), std::string::npos) << said;
+}
+
 // A sensor whose store is made again (replaced) remembers nothing of its takes, while its home
 // holds the old take's chunks and has run R-peaks on them. Each take is named by its start, so
 // the new one is not the old one's name again: the home would have taken its chunks for done.

@@ -2461,7 +2461,8 @@ TEST_F(Cli, UpRefusesADdsLinkWhoseCycloneddsUriNamesAFileThatCannotBeRead) {
   spit(tmp_ / "t.toml", "[[node]]\nid = \"hospital\"\niri = \"http://example.org/hospital\"\n"
                         "listen = { kind = \"dds\", domain = 5 }\n"
                         "  [[node.agent]]\n  id = \"x\"\n  run = [\"/nonexistent/prog\"]\n");
-  for (const std::string& uri : {"file://" + (tmp_ / "dds.xml").string(), (tmp_ / "dds.xml").string() + ", <CycloneDDS/>"}) {
+  for (const std::string& uri : {"file://" + (tmp_ / "dds.xml").string(), (tmp_ / "dds.xml").string() + ", <CycloneDDS/>",
+                                 " file://" + (tmp_ / "dds.xml").string() + ", " + (tmp_ / "dds.xml").string()}) {
     setenv("CYCLONEDDS_URI", uri.c_str(), 1);
     up = run({"up", (tmp_ / "t.toml").string(), "--state", (tmp_ / "state").string()});
     EXPECT_EQ(up.status, 1);
