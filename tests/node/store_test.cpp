@@ -753,9 +753,10 @@ TEST(Store, AFullStoreCanAlwaysBeEmptiedAndDataNeverTakesTheRemovalsReserve) {
     ASSERT_EQ(full.code, Errc::store_full) << full.message;
     // After removals the store refuses short of its maximum, and says why, not "reached its
     // maximum" (a probe's store was nearly empty).
-    if (round > 0)
+    if (round > 0) {
       EXPECT_NE(full.message.find(" that writes may fill (of its maximum of " + std::to_string(kMax) + " bytes"), std::string::npos)
           << full.message;
+    }
     auto stats = node.stats();
     EXPECT_GE(stats->high_water_bytes * 10, kMax * 9) << "round " << round << ": full, so at the high-water mark";
     EXPECT_LE(stats->high_water_bytes, kMax + kMax / 16 + (1 << 20)) << "round " << round;
@@ -1266,14 +1267,24 @@ TEST(Store, OutputBufferListsWhatTheAgentWrote) {
   EXPECT_EQ(*a->written(*a1), (std::vector<std::uint64_t>{*a2}));
 }
 
-TEST(Store, RingKeepsStoreWithinBoundAndKeepsPersistentAndUnreadItems) {
+// A store with a ring of `ring` records, agent "writer", and agent "reader" subscribed to the
+// records of `predicate` (what waits in its buffer the ring keeps).
+struct RingWithReader {
+  RingWithReader(std::uint64_t ring, const std::string& predicate)
+      : node(make_node(dir.path(), InitOptions{.ring = ring})), writer(node.agent("writer").value()),
+        reader(node.agent("reader").value()) {
+    EXPECT_TRUE(reader.subscribe(Pattern{.p = ex(predicate)}));
+  }
   TempDir dir;
-  InitOptions options;
-  options.ring = 100;
-  Node node = make_node(dir.path(), options);
-  auto writer = node.agent("writer");
-  auto reader = node.agent("reader");
-  ASSERT_TRUE(reader->subscribe(Pattern{.p = ex("alarm")}));
+  Node node;
+  Agent writer, reader;
+};
+
+TEST(Store, RingKeepsStoreWithinBoundAndKeepsPersistentAndUnreadItems) {
+  RingWithReader ring(100, "alarm");
+  Node& node = ring.node;
+  Agent* writer = &ring.writer;
+  Agent* reader = &ring.reader;
   Item keep;
   keep.persistent = true;
   keep.add(ex("config"), ex("window"), Term::integer(300));
@@ -1305,13 +1316,10 @@ TEST(Store, RingKeepsStoreWithinBoundAndKeepsPersistentAndUnreadItems) {
 // take made every write walk all of them) and comes back for those taken since: taken, they
 // are the oldest the ring may reclaim, and go first.
 TEST(Store, TheRingReclaimsItemsTakenLongAfterTheyWereStoredAndKeepsThoseStillWaiting) {
-  TempDir dir;
-  InitOptions options;
-  options.ring = 10;
-  Node node = make_node(dir.path(), options);
-  auto writer = node.agent("writer");
-  auto reader = node.agent("reader");
-  ASSERT_TRUE(reader->subscribe(Pattern{.p = ex("hr")}));
+  RingWithReader ring(10, "hr");
+  Node& node = ring.node;
+  Agent* writer = &ring.writer;
+  Agent* reader = &ring.reader;
   std::vector<std::uint64_t> ids;
   for (int i = 0; i < 300; ++i) {
     auto id = writer->store(Item{}.add(ex("obs" + std::to_string(i)), ex("hr"), Term::integer(i)));
