@@ -248,6 +248,8 @@ std::chrono::milliseconds seconds_flag(const Args& args, std::string_view comman
                                        std::chrono::seconds at_most);
 
 // Groups triples into items for `load`: one item per subject group (see docs/cli.md).
-std::vector<std::vector<node::Triple>> group_by_subject(std::vector<node::Triple> triples);
+// `*places` gets, for each group, the place in `triples` of each of its triples.
+std::vector<std::vector<node::Triple>> group_by_subject(std::vector<node::Triple> triples,
+                                                        std::vector<std::vector<std::size_t>>* places);
 
 }  // namespace tahvel::cli

@@ -88,9 +88,11 @@ class Groups {
 };
 
 // Stores `items` through store_all, in transactions of about `batch` triples. Returns the
-// number of triples stored; on failure names how many were stored by earlier transactions.
-std::uint64_t store_in_batches(node::Agent& agent, std::vector<node::Item> items,
-                               std::uint64_t batch) {
+// number of triples stored; on failure names how many were stored by earlier transactions, and
+// where `input` writes a triple the store refused: item k's triple j is triple
+// `places[k][j]` of the file.
+std::uint64_t store_in_batches(node::Agent& agent, std::vector<node::Item> items, std::uint64_t batch,
+                               const Input& input, const std::vector<std::vector<std::size_t>>& places) {
   std::uint64_t loaded = 0, pending_triples = 0;
   std::size_t items_before = 0;  // items of the file stored by earlier batches
   std::vector<node::Item> pending;
@@ -108,7 +110,14 @@ std::uint64_t store_in_batches(node::Agent& agent, std::vector<node::Item> items
                   : 0;
         if (end) {
           const node::Item& bad = pending[n - 1];
-          message = "item " + std::to_string(items_before + n) + " of the file (subject " +
+          std::string at;  // "FILE:LINE:COL: " of the triple, when the store named one
+          if (std::string_view rest = std::string_view(message).substr(end); rest.starts_with(": triple ")) {
+            const std::uint64_t j = std::strtoull(rest.data() + 9, nullptr, 10);
+            const std::vector<std::size_t>& place = places.at(items_before + n - 1);
+            if (j >= 1 && j <= place.size()) at = node::locate_triple(input.text, input.options, place[j - 1]);
+            if (!at.empty()) at += ": ";
+          }
+          message = at + "item " + std::to_string(items_before + n) + " of the file (subject " +
                     (bad.triples.empty() ? std::string("-") : bad.triples.front().s.to_ntriples()) + ")" + message.substr(end);
         }
       }
@@ -264,7 +273,8 @@ int run_put(const Args& args) {
   return kExitOk;
 }
 
-std::vector<std::vector<node::Triple>> group_by_subject(std::vector<node::Triple> triples) {
+std::vector<std::vector<node::Triple>> group_by_subject(std::vector<node::Triple> triples,
+                                                        std::vector<std::vector<std::size_t>>* places) {
   Groups groups;
   std::vector<std::size_t> member(triples.size());
   for (std::size_t i = 0; i < triples.size(); ++i) {
@@ -275,8 +285,12 @@ std::vector<std::vector<node::Triple>> group_by_subject(std::vector<node::Triple
   std::vector<std::vector<node::Triple>> out;
   for (std::size_t i = 0; i < triples.size(); ++i) {
     auto [it, added] = slot_of_root.try_emplace(groups.root(member[i]), out.size());
-    if (added) out.emplace_back();
+    if (added) {
+      out.emplace_back();
+      places->emplace_back();
+    }
     out[it->second].push_back(std::move(triples[i]));
+    (*places)[it->second].push_back(i);
   }
   return out;
 }
@@ -303,14 +317,16 @@ int run_load(const Args& args) {
   std::uint64_t batch = std::max<std::uint64_t>(1, args.get_u64("--batch", 10000));
   node::Agent agent = check(node.agent(agent_id(args, "cli")));
   std::vector<node::Item> items;
-  std::vector<node::Triple> triples = parse_input(node, path, input_format(args, path), prefixes);
+  Input input;
+  std::vector<node::Triple> triples = parse_input(node, path, input_format(args, path), prefixes, &input);
   warn_of_unreadable_geometry(triples, path);
   warn_of_unknown_addressee(node, frame, agent);
-  for (auto& group : group_by_subject(std::move(triples))) {
+  std::vector<std::vector<std::size_t>> places;
+  for (auto& group : group_by_subject(std::move(triples), &places)) {
     items.push_back(frame);
     items.back().triples = std::move(group);
   }
-  print_number(store_in_batches(agent, std::move(items), batch));
+  print_number(store_in_batches(agent, std::move(items), batch, input, places));
   return kExitOk;
 }
 

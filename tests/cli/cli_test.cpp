@@ -888,7 +888,24 @@ TEST_F(Cli, LoadNamesAnItemItCannotStoreByItsPlaceInTheFileAndItsSubject) {
   Outcome r = run({"load", node_, (tmp_ / "big.nt").string(), "--batch", "100"});
   EXPECT_EQ(r.status, 1);
   EXPECT_NE(r.err.find("item 1001 of the file (subject <" + kEx + "s1000>): "), std::string::npos) << r.err;
+  EXPECT_NE(r.err.find((tmp_ / "big.nt").string() + ":1001:"), std::string::npos) << r.err;
   EXPECT_NE(r.err.find("(1000 triples were loaded by earlier batches)"), std::string::npos) << r.err;
+}
+
+// An item is a subject group, its triples gathered from across the file: the store's "item 1:
+// triple 2" is the file's third line here, and `load` named only the item, not the line.
+TEST_F(Cli, LoadNamesTheLineOfATripleTheStoreRefusesInASubjectGroupSpreadOverTheFile) {
+  init();
+  spit(tmp_ / "spread.nt", "<" + kEx + "a> <" + kEx + "p> \"x\" .\n"
+                           "<" + kEx + "b> <" + kEx + "p> \"y\" .\n"
+                           "<" + kEx + "a> <" + kEx + "p> \"z\"^^<http://www.w3.org/1999/02/22-rdf-syntax-ns#langString> .\n");
+  Outcome r = run({"load", node_, (tmp_ / "spread.nt").string()});
+  EXPECT_EQ(r.status, 1);
+  EXPECT_NE(r.err.find((tmp_ / "spread.nt").string() + ":3:"), std::string::npos) << r.err;
+  EXPECT_NE(r.err.find(": item 1 of the file (subject <" + kEx + "a>): triple 2, object: a literal of datatype rdf:langString"),
+            std::string::npos)
+      << r.err;
+  EXPECT_TRUE(lines_of(run({"list", node_}).out).empty());
 }
 
 TEST_F(Cli, LoadStoresOneItemPerSubjectGroupAndPrintsTheTripleCount) {
