@@ -18,6 +18,7 @@
 #include <filesystem>
 #include <map>
 #include <memory>
+#include <cstdio>
 #include <cstdlib>
 #include <iostream>
 #include <optional>
@@ -47,6 +48,35 @@ struct Signal {
   std::function<agg::Result<std::size_t>(std::size_t n, Frames& out)> read;
 };
 
+// The digest of a record's samples that tells records apart which tv:replayedFrom names alike
+// ("ecg/rec" of patientA/ecg/rec and of patientB/ecg/rec): FNV-1a (64 bits) over the values of
+// every signal of its first kDigestFrames frames, read by a reader of its own. Identity, not
+// security: two recordings of people do not begin with the same 11 s of samples.
+constexpr std::size_t kDigestFrames = 4096;
+
+agg::Result<std::string> sample_digest(const std::string& path) {
+  auto reader = agg::SignalReader::open(path);
+  if (!reader) return tahvel::unexpected(reader.error());
+  Frames frames(reader->header().signals.size());
+  std::size_t taken = 0;
+  while (taken < kDigestFrames) {
+    auto got = reader->read(kDigestFrames - taken, frames);
+    if (!got) return tahvel::unexpected(got.error());
+    if (*got == 0) break;
+    taken += *got;
+  }
+  std::uint64_t hash = 0xcbf29ce484222325ull;
+  for (const auto& lead : frames)
+    for (const std::int32_t v : lead)
+      for (int byte = 0; byte < 4; ++byte) {
+        hash ^= (static_cast<std::uint32_t>(v) >> (8 * byte)) & 0xffu;
+        hash *= 0x100000001b3ull;
+      }
+  char text[40];
+  std::snprintf(text, sizeof text, "fnv1a64:%016llx", static_cast<unsigned long long>(hash));
+  return std::string(text);
+}
+
 // `signal`: the record's signal that is the ECG (0 the first), or nullopt for the one
 // agg::ecg_signal chooses.
 agg::Result<Signal> record_signal(const std::string& path, std::optional<std::size_t> signal) {
@@ -60,6 +90,9 @@ agg::Result<Signal> record_signal(const std::string& path, std::optional<std::si
   s.info.fs = h.fs;
   if (h.samples_per_signal > 0) s.frames = h.samples_per_signal;
   s.info.source = std::filesystem::path(h.directory).filename().string() + "/" + h.name;
+  auto digest = sample_digest(path);
+  if (!digest) return tahvel::unexpected(digest.error());
+  s.info.sample_digest = std::move(*digest);
   // As `tahvel hrv`: a header without signals has no ECG (it wrote an empty recording, exit 0).
   if (h.signals.empty()) return agg::fail(h.path + ": the record has no signals, so no ECG");
   // The chunks carry the record's ECG lead first, whatever its place in the record (a record
@@ -169,24 +202,30 @@ struct EarlierRun {
   std::int64_t next = 0;                 // the frame after its last chunk
   std::optional<std::int64_t> start_ns;  // asserted-at of its frame 0 (from a chunk's time)
   std::string replayed_from;             // its tv:replayedFrom (the record, or the generator's settings)
+  std::string sample_digest;             // its tv:sampleDigest; empty in takes of older builds
   std::optional<double> fs, gain;        // its tv:samplingRate and tv:gain
   std::map<long, std::string> leads;     // its tv:lead values ("0 MLII"), by index
   bool ended_here = false;               // this run wrote its tv:endSample (another signal's take)
 };
 
 // Whether a take with these settings holds `signal`: the same record or generator settings,
-// read at the same rate and gain. A header corrected in place names the same record.
+// read at the same rate and gain, and a record beginning with the same samples (a take of a
+// build before tv:sampleDigest is judged without them).
 bool same_signal(const EarlierRun& run, const Signal& signal) {
   const auto same = [](std::optional<double> a, double b) { return a && std::abs(*a - b) <= 1e-9 * std::abs(b); };
   // The leads in their order: MIT-BIH leads share a gain, and `--signal 1` of a record is
   // another signal than its lead 0 under the same name.
   std::vector<std::string> leads;
   for (const auto& [index, name] : run.leads) leads.push_back(name);
-  return run.replayed_from == signal.info.source && same(run.fs, signal.info.fs) && same(run.gain, signal.info.gain) &&
-         leads == signal.info.leads;
+  const bool same_samples = run.sample_digest.empty() || run.sample_digest == signal.info.sample_digest;
+  return run.replayed_from == signal.info.source && same_samples && same(run.fs, signal.info.fs) &&
+         same(run.gain, signal.info.gain) && leads == signal.info.leads;
 }
 
-tahvel::node::Result<EarlierRun> earlier_run(const rt::Session& session, const std::string& iri, double fs) {
+// What an earlier run left of the take `iri`; without `chunks_too` only what the recording item
+// and its end say (not where its chunks stop).
+tahvel::node::Result<EarlierRun> earlier_run(const rt::Session& session, const std::string& iri, double fs,
+                                             bool chunks_too = true) {
   using tahvel::node::Term;
   const std::string tv = agg::kTv;
   auto snapshot = session.node.snapshot();
@@ -210,7 +249,9 @@ tahvel::node::Result<EarlierRun> earlier_run(const rt::Session& session, const s
       run.leads[std::strtol(text.c_str(), nullptr, 10)] = space == std::string::npos ? "" : text.substr(space + 1);
     }
     if (r.triple.p.value == tv + "replayedFrom") run.replayed_from = r.triple.o.value;
+    if (r.triple.p.value == tv + "sampleDigest") run.sample_digest = r.triple.o.value;
   }
+  if (!chunks_too) return run;
   // Chunks name the recording (tv:recording) and say where they start and how many frames they
   // hold; the last one (by start) is where this run goes on.
   tahvel::node::Pattern chunks;
@@ -295,6 +336,12 @@ tahvel::node::Result<std::vector<std::string>> takes_on_board(const rt::Session&
   return takes;
 }
 
+void say_nothing_more(const std::string& take, const Signal& signal) {
+  rt::log_line(kProgram, "<" + take + "> holds the whole of " + signal.name + " (" + std::to_string(*signal.frames) +
+                             " frames), replayed by an earlier run: nothing more to replay (remove that take, "
+                             "tahvel remove --under its IRI, to replay it again)");
+}
+
 int replay(rt::Session& session, Signal& signal, double speed) {
   auto& agent = session.agent;
   // Each take of a recording has an IRI of its own, from its start: a source whose store was
@@ -330,8 +377,11 @@ int replay(rt::Session& session, Signal& signal, double speed) {
         rt::log_line(kProgram, "store end item: " + s.error().message);
         return rt::kExitError;
       }
+      const bool renamed = earlier.replayed_from == signal.info.source && !earlier.sample_digest.empty() &&
+                           earlier.sample_digest != signal.info.sample_digest;
       rt::log_line(kProgram, "<" + takes->back() + ">, left unended by an earlier run, holds another signal (" +
-                                 earlier.replayed_from + "): ended at frame " + std::to_string(earlier.next) +
+                                 earlier.replayed_from + (renamed ? ", another record of that name: its first samples differ" : "") +
+                                 "): ended at frame " + std::to_string(earlier.next) +
                                  "; recording anew");
       earlier.end = earlier.next;
       earlier.ended_here = true;
@@ -341,11 +391,22 @@ int replay(rt::Session& session, Signal& signal, double speed) {
     // a down and up): replaying it again would give the node above the same patient twice,
     // under a second take.
     if (earlier.end && signal.frames && *earlier.end >= *signal.frames && same_signal(earlier, signal)) {
-      rt::log_line(kProgram, "<" + takes->back() + "> holds the whole of " + signal.name + " (" + std::to_string(*signal.frames) +
-                                 " frames), replayed by an earlier run: nothing more to replay (remove that take, "
-                                 "tahvel remove --under its IRI, to replay it again)");
+      say_nothing_more(takes->back(), signal);
       return rt::kExitOk;
     }
+    // Nor when an older take holds it whole (this record, then another, then this one again).
+    if (earlier.end && signal.frames)
+      for (auto take = std::next(takes->rbegin()); take != takes->rend(); ++take) {
+        auto older = earlier_run(session, *take, signal.info.fs, false);
+        if (!older) {
+          rt::log_line(kProgram, "reading the board: " + older.error().message);
+          return rt::kExitError;
+        }
+        if (older->end && *older->end >= *signal.frames && same_signal(*older, signal)) {
+          say_nothing_more(*take, signal);
+          return rt::kExitOk;
+        }
+      }
   }
   if (takes->empty() || earlier.end) {
     const std::string ended = takes->empty() || earlier.ended_here ? std::string() : takes->back();

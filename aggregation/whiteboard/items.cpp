@@ -231,6 +231,7 @@ Item recording_item(const RecordingInfo& info) {
   if (!info.model.empty()) item.add(rec, tv("sensorModel"), text(info.model));
   if (!info.filters.empty()) item.add(rec, tv("filters"), text(info.filters));
   if (!info.source.empty()) item.add(rec, tv("replayedFrom"), text(info.source));
+  if (!info.sample_digest.empty()) item.add(rec, tv("sampleDigest"), text(info.sample_digest));
   if (info.started_at) item.add(rec, tv("startedAt"), Term::integer(*info.started_at));
   return item;
 }
@@ -290,6 +291,7 @@ Result<RecordingInfo> read_recording(const std::vector<Record>& records, const s
   if (const Term* t = object(records, iri, "sensorModel")) info.model = t->value;
   if (const Term* t = object(records, iri, "filters")) info.filters = t->value;
   if (const Term* t = object(records, iri, "replayedFrom")) info.source = t->value;
+  if (const Term* t = object(records, iri, "sampleDigest")) info.sample_digest = t->value;
   if (const Term* t = object(records, iri, "startedAt")) info.started_at = to_int(t->value);
   return info;
 }

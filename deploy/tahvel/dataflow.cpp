@@ -26,7 +26,8 @@ const std::vector<Shape>& shapes_of(Kind kind) {
   static const std::vector<Shape> shapes[kKinds] = {
       {{kRdfType, kTv + "EcgRecording"}, {kSosa + "madeBySensor", ""}, {kTv + "samplingRate", ""}, {kTv + "gain", ""},
        {kTv + "baseline", ""}, {kTv + "unit", ""}, {kTv + "sampleFormat", ""}, {kTv + "lead", ""}, {kTv + "leadCalibration", ""}, {kTv + "sensorMaker", ""},
-       {kTv + "sensorModel", ""}, {kTv + "filters", ""}, {kTv + "replayedFrom", ""}, {kTv + "startedAt", ""}},
+       {kTv + "sensorModel", ""}, {kTv + "filters", ""}, {kTv + "replayedFrom", ""}, {kTv + "sampleDigest", ""},
+       {kTv + "startedAt", ""}},
       {{kRdfType, kTv + "EcgChunk"}, {kTv + "recording", ""}, {kTv + "startSample", ""}, {kTv + "frameCount", ""},
        {kTv + "samples", ""}},
       {{kTv + "endSample", ""}},

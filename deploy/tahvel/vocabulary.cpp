@@ -120,6 +120,7 @@ constexpr std::array kTerms = {
     std::string_view("robustSd"),
     std::string_view("room"),
     std::string_view("rrCount"),
+    std::string_view("sampleDigest"),
     std::string_view("sampleFormat"),
     std::string_view("samples"),
     std::string_view("samplingRate"),

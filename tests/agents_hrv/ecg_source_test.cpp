@@ -324,6 +324,31 @@ TEST_F(EcgSourceTest, ARecordReadAtAnotherRateOrLeadIsAnotherSignalAndIsReplayed
   EXPECT_EQ(objects(dir, recordings(dir)[2], std::string(agg::kTv) + "lead"), (std::vector<std::string>{"0 V1", "1 MLII"}));
 }
 
+// tv:replayedFrom names a record by its directory and name ("ecg/rec"): the record of another
+// patient under the same layout (patientB/ecg/rec after patientA/ecg/rec) was "the whole of rec,
+// replayed by an earlier run" and never recorded (or, after a kill, spliced onto A's take).
+TEST_F(EcgSourceTest, AnotherRecordUnderTheSameDirectoryAndNameIsAnotherSignal) {
+  const std::string dir = new_node("patients");
+  const std::string header = "rec 2 360 720\nrec.dat 16 200/mV 16 0 0 0 0 MLII\nrec.dat 16 200/mV 16 0 0 0 0 V1\n";
+  fs::create_directories(tmp_ / "patientA" / "ecg");
+  fs::create_directories(tmp_ / "patientB" / "ecg");
+  const fs::path a = two_signal_record("patientA/ecg/rec", header, 720, 5, 7);
+  const fs::path b = two_signal_record("patientB/ecg/rec", header, 720, 6, 8);
+  const std::string bin = std::string(TAHVEL_BIN_DIR) + "/tahvel-ecg-source";
+  tahvel::test_support::AgentProcess first({bin, dir, "--record", a.string(), "--speed", "0"});
+  ASSERT_EQ(first.wait(60s), 0);
+  ASSERT_EQ(recordings(dir).size(), 1u);
+  tahvel::test_support::AgentProcess second({bin, dir, "--record", b.string(), "--speed", "0"});
+  ASSERT_EQ(second.wait(60s), 0);
+  const auto takes = recordings(dir);
+  ASSERT_EQ(takes.size(), 2u) << "patient B's record was taken for patient A's";
+  EXPECT_EQ(chunks(dir, takes[1]).samples.size(), 2u);
+  // Patient A's record again is the same signal: nothing more to replay.
+  tahvel::test_support::AgentProcess again({bin, dir, "--record", a.string(), "--speed", "0"});
+  ASSERT_EQ(again.wait(60s), 0);
+  EXPECT_EQ(recordings(dir).size(), 2u);
+}
+
 // A take an earlier run left unended (the source killed) goes on only with the same signal: the
 // generator at another heart rate went on with the killed take, its frames after the other's.
 TEST_F(EcgSourceTest, ATakeLeftUnendedIsEndedNotContinuedByAnotherSignal) {

@@ -67,6 +67,9 @@ struct RecordingInfo {
   std::string maker, model;   // sensor maker and model
   std::string filters;        // filters applied before digitising, as the source states them
   std::string source;         // where the samples come from ("mitdb/100", "ecgsyn seed 7")
+  // Of a replayed file: a digest of its first samples, which tells two records apart that
+  // `source` names alike (patientA/ecg/rec, patientB/ecg/rec); empty when not known.
+  std::string sample_digest;
   // When sample 0 was taken, ns since the Unix epoch (tv:startedAt): chunks are asserted at
   // started_at + sample / fs, and what is derived from them (R-peaks, RR intervals, HRV
   // windows) at the signal time it describes, so that an operator can ask for the raw ECG
