@@ -2217,10 +2217,14 @@ RemoteBoard ask_board(node::Node& from, const std::string& target, std::chrono::
   // (empty: that its subject wrote about itself).
   // A query's pattern names no source, and a state item has no one triple that leads to the
   // rest, so each field is asked for by its predicate.
+  // As --timeout gave it: "0.001" was said as "within 0.0 s".
+  const std::string no_answer =
+      "no answer within " + (budget < std::chrono::seconds(1) ? std::to_string(budget.count()) + " ms"
+                                                             : seconds_text(static_cast<double>(budget.count()) / 1e3));
   auto ask = [&](const std::string& p, const std::string& subject, const std::string& writer,
                  const std::function<void(const node::Record&)>& each) -> std::string {
     const auto left = std::chrono::duration_cast<std::chrono::milliseconds>(deadline - std::chrono::steady_clock::now());
-    if (left.count() <= 0) return "no answer within " + seconds_text(static_cast<double>(budget.count()) / 1e3);
+    if (left.count() <= 0) return no_answer;
     node::Pattern pattern{.p = node::Term::iri(p)};
     if (!subject.empty()) pattern.s = node::Term::iri(subject);
     // A node whose link restarts is shown as it is now, not waited for: status asks many nodes.
@@ -2228,7 +2232,7 @@ RemoteBoard ask_board(node::Node& from, const std::string& target, std::chrono::
       if (r.meta.source == (writer.empty() ? r.triple.s.value : writer)) each(r);
     });
     if (answered) return {};
-    if (answered.error().code == node::Errc::timeout) return "no answer within " + seconds_text(static_cast<double>(budget.count()) / 1e3);
+    if (answered.error().code == node::Errc::timeout) return no_answer;
     return answered.error().message;
   };
   auto local_name = [](const std::string& iri) { return iri.substr(iri.find('#') + 1); };
