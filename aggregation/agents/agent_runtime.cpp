@@ -10,6 +10,7 @@
 #include <cstring>
 #include <cmath>
 #include <csignal>
+#include <cstdio>
 #include <cstdlib>
 #include <iostream>
 #include <set>
@@ -24,6 +25,13 @@ namespace {
 volatile std::sig_atomic_t g_stop = 0;
 
 void on_signal(int) { g_stop = 1; }
+
+// "0", "30", "0.5": as a person writes the bound (std::to_string gave "0.000000").
+std::string format_number(double v) {
+  char text[32];
+  std::snprintf(text, sizeof text, "%g", v);
+  return text;
+}
 
 bool declared(const std::vector<std::string>& list, const std::string& flag) {
   for (const auto& f : list)
@@ -69,7 +77,7 @@ double Args::number(const std::string& flag, double fallback, double minimum) co
   char* end = nullptr;
   const double v = std::strtod(it->second.c_str(), &end);
   if (it->second.empty() || *end != '\0' || !std::isfinite(v) || v < minimum)
-    throw UsageError(flag + ": '" + it->second + "' is not a number >= " + std::to_string(minimum));
+    throw UsageError(flag + ": '" + it->second + "' is not a number >= " + format_number(minimum));
   return v;
 }
 

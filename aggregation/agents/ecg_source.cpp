@@ -156,7 +156,17 @@ agg::Result<Signal> record_signal(const std::string& path, std::optional<std::si
 agg::Result<Signal> synthetic_signal(const rt::Args& args) {
   agg::SyntheticEcgOptions options;
   options.seed = static_cast<std::uint64_t>(args.number("--seed", 1));
-  options.mean_hr_bpm = args.number("--hr", options.mean_hr_bpm);
+  // ECGSYN's range (SyntheticEcgOptions), said of the flag: the generator's own error named
+  // its option mean_hr_bpm and exited 1 without the usage.
+  const auto hr_out_of_range = [&] {
+    return rt::UsageError("--hr: '" + args.text("--hr", "") + "' is not a heart rate from 30 to 180 beats per minute");
+  };
+  try {
+    options.mean_hr_bpm = args.number("--hr", options.mean_hr_bpm, 30);
+  } catch (const rt::UsageError&) {
+    throw hr_out_of_range();
+  }
+  if (options.mean_hr_bpm > 180) throw hr_out_of_range();
   auto generator = agg::SyntheticEcg::create(options);
   if (!generator) return tahvel::unexpected(generator.error());
   const double seconds = args.number("--seconds", 0);

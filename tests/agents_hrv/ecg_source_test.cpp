@@ -385,6 +385,23 @@ TEST_F(EcgSourceTest, ZeroSecondsOfSyntheticEcgIsRefused) {
   EXPECT_NE(said.find("--seconds: '0' is less than one sample"), std::string::npos) << said;
 }
 
+// A heart rate outside ECGSYN's 30..180 exited 1 without the usage, naming the generator's
+// option (mean_hr_bpm) rather than the flag; 'abc' was "not a number >= 0.000000".
+TEST_F(EcgSourceTest, AHeartRateTheGeneratorCannotMakeIsAUsageErrorNamingTheFlag) {
+  const std::string dir = new_node("hr");
+  for (const std::string hr : {"200", "0", "abc"}) {
+    const fs::path log = tmp_ / ("hr-" + hr + ".log");
+    tahvel::test_support::AgentProcess source({std::string(TAHVEL_BIN_DIR) + "/tahvel-ecg-source", dir, "--synthetic", "--hr", hr,
+                                               "--seconds", "5", "--speed", "0"},
+                                              log.string());
+    EXPECT_EQ(source.wait(10s), 2) << hr;
+    std::ifstream in(log);
+    const std::string said((std::istreambuf_iterator<char>(in)), std::istreambuf_iterator<char>());
+    EXPECT_NE(said.find("--hr: '" + hr + "' is not a heart rate from 30 to 180 beats per minute"), std::string::npos) << said;
+  }
+  EXPECT_TRUE(recordings(dir).empty());
+}
+
 // A sensor whose store is made again (replaced) remembers nothing of its takes, while its home
 // holds the old take's chunks and has run R-peaks on them. Each take is named by its start, so
 // the new one is not the old one's name again: the home would have taken its chunks for done.
