@@ -139,14 +139,14 @@ std::optional<std::string> nothing_scored(const agg::BeatScore& score, double du
 }
 
 // A RECORD argument as WFDB names records: without extension. A path to one of its files
-// (…/100.hea, as a shell completes it) names the record, when there is no record of that name.
+// (…/100.hea, as a shell completes it) names the record, when there is no record of that name
+// (whose header a missing one is then: "…/100.hea", not "…/100.dat.hea").
 std::string record_path(const std::string& arg) {
   if (arg.empty()) usage_error("hrv: RECORD is empty: a WFDB record path without extension, as …/mitdb/100");
   for (const char* extension : {".hea", ".dat", ".atr"}) {
     if (!arg.ends_with(extension)) continue;
-    const std::string stem = arg.substr(0, arg.size() - 4);
     std::error_code ec;
-    if (!std::filesystem::exists(arg + ".hea", ec) && std::filesystem::exists(stem + ".hea", ec)) return stem;
+    if (!std::filesystem::exists(arg + ".hea", ec)) return arg.substr(0, arg.size() - 4);
   }
   return arg;
 }

@@ -1136,6 +1136,12 @@ TEST_F(Cli, HrvTakesARecordNamedByOneOfItsFilesAndNamesItInItsWarnings) {
   const Outcome empty = run({"hrv", ""});
   EXPECT_EQ(empty.status, 2);
   EXPECT_NE(empty.err.find("hrv: RECORD is empty"), std::string::npos) << empty.err;
+  // The record's header missing: it is the one named, not "…/nohea.dat.hea".
+  fs::create_directories(tmp_ / "nohea");
+  fs::create_symlink(mitdb_record("100") + ".dat", tmp_ / "nohea" / "r.dat");
+  const Outcome missing = run({"hrv", (tmp_ / "nohea" / "r.dat").string()});
+  EXPECT_EQ(missing.status, 1);
+  EXPECT_NE(missing.err.find((tmp_ / "nohea" / "r.hea").string() + ": cannot open header"), std::string::npos) << missing.err;
 }
 
 // Window times in the text are exact: "%7.0f" printed a window from 1.5 s as "2-12".
