@@ -156,6 +156,27 @@ TEST(Rules, ParseErrorsNameFileLineAndColumn) {
   }
 }
 
+// `<foo>` was "found '<' that starts no IRI: ... without spaces (escape a space as %20)", of a
+// term with no space; and an integer out of range said no lower bound, while the reasoner itself
+// derives -9223372036854775808.
+TEST(Rules, ARelativeIriAndAnIntegerBeyondSixtyFourBitsAreNamedForWhatTheyAre) {
+  struct Case { std::string text, message; };
+  const Case cases[] = {
+      {"p(X, <foo>) :- q(X, _).\n", "bad.rules:1:6: expected a term, found <foo>, an IRI without a scheme"},
+      {"p(X, <../a/b#c>) :- q(X, _).\n", "bad.rules:1:6: expected a term, found <../a/b#c>, an IRI without a scheme"},
+      {"n(X) :- m(X, -9223372036854775808).\n",
+       "bad.rules:1:15: integer 9223372036854775808 is out of range: integers are 64-bit, from -9223372036854775808 to "
+       "9223372036854775807"},
+  };
+  for (const Case& c : cases) {
+    auto p = tr::parse_rules(c.text, options("bad.rules"));
+    ASSERT_FALSE(p.has_value()) << c.text;
+    EXPECT_EQ(p.error().message.rfind(c.message, 0), 0u) << p.error().message;
+  }
+  // '<' as "less than" between terms written without spaces is still a comparison.
+  EXPECT_TRUE(parse("p(X) :- q(X, N), r(X, T), N<T, T>3.\n"));
+}
+
 // A negation inside recursion names the chain of rules that closes the loop: here through
 // rdf:type, which the file also derives (every class pattern depends on such a rule), where
 // "negation of later depends on latest itself" named no rule that makes it so.
@@ -804,6 +825,9 @@ TEST(Rules, InvisibleCharactersBadUtf8AndCompactComparisonsAreReadAsAnEditorShow
       {"p(X, yes) :- q(X, yes), r\xC2\xA0s(X).\n", "bad.rules:1:26: unexpected no-break space (U+00A0)"},
       {"p(X, \"\xC3\xA4\xC3\xB6\xC3\xBC\", Y) :- q(X, Y), ?.\n", "bad.rules:1:28:"},
       {"ok(a, b).\np(X, \"a\xFF\") :- q(X, Y).\n", "bad.rules:2:8: not UTF-8: byte 0xFF"},
+      // A NUL ended the text: the rules after it were dropped without a word.
+      {std::string("p(X, yes) :- q(X, yes).\n\0r(X) :- q(X, no).\n", 43), "bad.rules:2:1: a NUL byte (0x00)"},
+      {std::string("p(X, yes) :- q(X, yes). \0 garbage ((((\n", 39), "bad.rules:1:25: a NUL byte (0x00)"},
   };
   for (const Case& c : cases) {
     auto p = tr::parse_rules(c.text, options("bad.rules"));

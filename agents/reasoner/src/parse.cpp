@@ -33,6 +33,8 @@ struct Token {
   std::string text;   // var/name: the identifier; iri: the IRI; punct: the symbol
   node::Term term;    // literal
   Pos pos;
+  // punct '<' that begins "<foo>", an IRI reference without a scheme: "<foo>", for the error
+  std::string relative_iri;
 };
 
 // Bytes of non-ASCII UTF-8 count as letters: IRIs are Unicode (ex:lämpötila, #café).
@@ -210,7 +212,8 @@ Result<Token> Lexer::number(Pos start) {
     digits.erase(0, z);
     std::int64_t fits;
     auto [end, ec] = std::from_chars(digits.data(), digits.data() + digits.size(), fits);
-    if (ec != std::errc()) return error(start, "integer " + digits + " is out of range (at most 9223372036854775807)");
+    if (ec != std::errc()) return error(start, "integer " + digits + " is out of range: integers are 64-bit, from -9223372036854775808 to "
+                                                      "9223372036854775807 (a literal -9223372036854775808 is not read: write -9223372036854775807 - 1)");
   }
   return Token{Tok::literal, {}, node::Term::literal(digits, std::string(dt)), start};
 }
@@ -287,6 +290,10 @@ Result<Token> Lexer::next() {
     const bool scheme = k > 1 && std::isalpha(static_cast<unsigned char>(at(1))) && at(k) == ':';
     while (at(k) && at(k) != '>' && !std::isspace(static_cast<unsigned char>(at(k))) && at(k) != '<') ++k;
     if (at(k) == '>' && scheme) return iri_ref(start);
+    if (at(k) == '>' && k > 1 && !std::isspace(static_cast<unsigned char>(at(1))) && at(1) != '=') {
+      advance();
+      return Token{Tok::punct, "<", {}, start, "<" + std::string(text_.substr(i_, k - 1)) + ">"};
+    }
   }
   if (c == '#' && name_char(1)) {
     advance();
@@ -448,6 +455,10 @@ Result<Arg> Parser::term(bool allow_now) {
   }
   // '<' is read as an IRI only when a scheme and ':' start a run without spaces up to '>'; an
   // IRI with a space or no scheme was "found '<'" and nothing more.
+  if (is("<") && !tok_.relative_iri.empty())
+    return error(tok_.pos, "expected a term, found " + tok_.relative_iri +
+                               ", an IRI without a scheme: rules are not resolved against a base, so write an absolute "
+                               "IRI (<http://...>), a prefixed name (ex:name), #name in the default namespace, or me");
   if (is("<"))
     return error(tok_.pos, "expected a term, found '<' that starts no IRI: an IRI is <scheme:...> up to '>' without "
                            "spaces (escape a space as %20), and '<' alone is 'less than'");
@@ -782,17 +793,23 @@ Result<std::shared_ptr<Program>> parse_program(std::string_view text, const Pars
   if (!uri::normalize(options.me)) return unexpected(Error{options.file + ": the node IRI '" + options.me + "' (me) is not an absolute IRI"});
   // The store refuses a term that is not UTF-8 only when a conclusion is written: a running
   // reasoner given such a file ended there, instead of naming the place and keeping its rules.
-  if (const std::size_t bad = node::ill_formed_utf8_at(text); bad != std::string_view::npos) {
+  const auto where = [&](std::size_t bad) {  // "FILE:LINE:COL" of byte `bad` (columns in characters)
     const std::string_view before = text.substr(0, bad);
     const std::size_t line_start = before.rfind('\n') == std::string_view::npos ? 0 : before.rfind('\n') + 1;
     std::size_t col = 1;
     for (std::size_t k = line_start; k < bad; ++k)
       if ((static_cast<unsigned char>(text[k]) & 0xC0) != 0x80) ++col;
+    return options.file + ":" + std::to_string(std::count(before.begin(), before.end(), '\n') + 1) + ":" + std::to_string(col);
+  };
+  if (const std::size_t bad = node::ill_formed_utf8_at(text); bad != std::string_view::npos) {
     char byte[8];
     std::snprintf(byte, sizeof byte, "0x%02X", static_cast<unsigned char>(text[bad]));
-    return unexpected(Error{options.file + ":" + std::to_string(std::count(before.begin(), before.end(), '\n') + 1) + ":" +
-                            std::to_string(col) + ": not UTF-8: byte " + byte + " begins no UTF-8 character"});
+    return unexpected(Error{where(bad) + ": not UTF-8: byte " + byte + " begins no UTF-8 character"});
   }
+  // The parser reads a NUL as the end of the text: the rules after one (a file padded with NULs
+  // by a crash, say) were dropped without a word, and their conclusions withdrawn.
+  if (const std::size_t nul = text.find('\0'); nul != std::string_view::npos)
+    return unexpected(Error{where(nul) + ": a NUL byte (0x00): a rule file is text, and nothing after it would be read"});
   Parser parser(text, options, *program);
   if (auto r = parser.run(); !r) return unexpected(r.error());
   return program;
