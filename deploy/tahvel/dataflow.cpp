@@ -20,6 +20,9 @@ using Kinds = std::bitset<kKinds>;
 // A triple an item of a kind has: its predicate, and its object when that is always the same.
 struct Shape {
   std::string p, o;  // o empty: any object
+  // False for a triple only some items of the kind carry (the last RR series of a recording its
+  // tv:endSample): a forward that takes it passes those items, not the kind (passes).
+  bool every = true;
 };
 
 const std::vector<Shape>& shapes_of(Kind kind) {
@@ -32,9 +35,10 @@ const std::vector<Shape>& shapes_of(Kind kind) {
        {kTv + "samples", ""}},
       {{kTv + "endSample", ""}},
       {{kRdfType, kTv + "RPeaks"}, {kTv + "recording", ""}, {kTv + "fromSample", ""}, {kTv + "toSample", ""},
-       {kTv + "peaks", ""}, {kTv + "emptyGapEnds", ""}, {kTv + "pWaveGapEnds", ""}, {kProv + "wasDerivedFrom", ""}},
+       {kTv + "peaks", ""}, {kTv + "emptyGapEnds", "", false}, {kTv + "pWaveGapEnds", "", false},
+       {kProv + "wasDerivedFrom", ""}, {kTv + "endSample", "", false}},
       {{kRdfType, kTv + "RrSeries"}, {kTv + "recording", ""}, {kTv + "intervals", ""}, {kProv + "wasDerivedFrom", ""},
-       {kTv + "endSample", ""}},
+       {kTv + "endSample", "", false}},
       {{kRdfType, kSosa + "Observation"}, {kSosa + "observedProperty", kTv + "HeartRateVariability"},
        {kProv + "wasDerivedFrom", ""}, {kProv + "wasAttributedTo", ""}, {kTv + "windowStartS", ""}, {kTv + "windowEndS", ""},
        {kTv + "meanNnMs", ""}, {kTv + "sdnnMs", ""}, {kTv + "rmssdMs", ""}, {kTv + "pnn50Pct", ""}, {kTv + "meanHrBpm", ""},
@@ -96,10 +100,11 @@ std::optional<Program> program_of(const AgentSpec& agent) {
   return p;
 }
 
-// Whether an uplink subscribed to `pattern` may take an item of `kind`: some triple of the kind
-// can match it. A subject, or an object the kind does not fix, may match.
+// Whether an uplink subscribed to `pattern` may take the items of `kind`: some triple every item
+// of the kind has can match it. A subject, or an object the kind does not fix, may match.
 bool passes(const node::Pattern& pattern, Kind kind) {
   return std::any_of(shapes_of(kind).begin(), shapes_of(kind).end(), [&](const Shape& shape) {
+    if (!shape.every) return false;
     if (pattern.p && (!pattern.p->is_iri() || pattern.p->value != shape.p)) return false;
     if (pattern.o && !shape.o.empty() && (!pattern.o->is_iri() || pattern.o->value != shape.o)) return false;
     return true;

@@ -2564,13 +2564,15 @@ TEST_F(Cli, UpWarnsOfAnAgentWhoseInputNothingInTheFileWritesOrForwards) {
   const std::string hospital = "[[node]]\nid = \"hospital\"\niri = \"http://example.org/hospital\"\n"
                                "listen = { kind = \"lcm\", url = \"udpm://239.255.76.67:7723?ttl=0\" }\n" +
                                agent("trend", "tahvel-trend");
-  // home1: hrv without rr, under a sensor that forwards its chunks; home2: the chain without a
-  // sensor. Neither sends windows up, so the hospital's trend gets none either.
+  // home1: hrv without rr, under a sensor that forwards its chunks and its recordings' ends (an
+  // RR series' last item carries tv:endSample too: the sensor was blamed for the missing rr);
+  // home2: the chain without a sensor. Neither sends windows up, so the hospital's trend gets
+  // none either.
   spit(file, hospital +
                  "[[node]]\nid = \"home1\"\nparent = \"hospital\"\n"
                  "listen = { kind = \"lcm\", url = \"udpm://239.255.76.67:7724?ttl=0\" }\n" +
                  agent("rpeak", "tahvel-rpeak") + agent("hrv", "tahvel-hrv") +
-                 "[[node]]\nid = \"ecg1\"\nparent = \"home1\"\nforward = [\"_ a tv:EcgRecording\", \"_ a tv:EcgChunk\"]\n"
+                 "[[node]]\nid = \"ecg1\"\nparent = \"home1\"\nforward = [\"_ a tv:EcgRecording\", \"_ a tv:EcgChunk\", \"_ tv:endSample _\"]\n"
                  "  [[node.agent]]\n  id = \"ecg\"\n"
                  "  run = [\"{bin}/tahvel-ecg-source\", \"{store}\", \"--synthetic\", \"--seconds\", \"2\", \"--speed\", \"0\"]\n" +
                  "[[node]]\nid = \"home2\"\nparent = \"hospital\"\n" + agent("rpeak", "tahvel-rpeak") + agent("rr", "tahvel-rr") +
