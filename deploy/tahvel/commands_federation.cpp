@@ -906,7 +906,7 @@ void load_new_files(const NodeSpec& spec, node::Node& node, const Topology& topo
   for (const auto& r : check(snap.list({.p = node::Term::iri(kLoadFile), .source = loader.iri()})))
     loaded[r.triple.o.value] = {digests[r.meta.item], r.meta.item};
   if (loaded.empty() && check(snap.count({.source = loader.iri()})) > 0) {
-    std::cerr << "up: warning: " << topo.file.string() << ": node '" << spec.id << "': its store was made before up recorded "
+    std::cerr << "up: warning: " << spec.load_at << ": node '" << spec.id << "': its store was made before up recorded "
               << "the files it loads; its load files are not loaded again nor checked\n";
     return;
   }
@@ -915,7 +915,7 @@ void load_new_files(const NodeSpec& spec, node::Node& node, const Topology& topo
     if (it == loaded.end()) {
       load_onto(loader, spec, file, node.prefixes(), topo);
     } else if (it->second.first != load_digest(file)) {
-      std::cerr << "up: warning: " << topo.file.string() << ": node '" << spec.id << "': " << file.string()
+      std::cerr << "up: warning: " << spec.load_at << ": node '" << spec.id << "': " << file.string()
                 << " changed since up loaded it (item " << it->second.second << "); to load it anew: tahvel remove "
                 << node.dir().string() << " --item " << it->second.second << ", then up again\n";
     }
@@ -1658,7 +1658,6 @@ int run_up(const Args& args) {
   // apply in its own (apply_requested).
   if (running == 0)
     if (auto ok = check_cyclone_uri(topo, mine); !ok) fail(ok.error().message);
-  const std::string in_file = topo.file.string() + ": node '";
   for (const NodeSpec* spec : mine) {
     const fs::path store = state / spec->id;
     if (fs::exists(store / "data.mdb")) {
@@ -1675,7 +1674,7 @@ int run_up(const Args& args) {
       const node::Stats made = check(existing.stats());
       const std::string made_durability = made.durability == node::Durability::durable ? "durable" : "fast";
       if (made_durability != spec->durability || made.ring != spec->ring)
-        std::cerr << "up: warning: " << in_file << spec->id << "': the store at " << store.string() << " was made with durability "
+        std::cerr << "up: warning: " << spec->store_at << ": node '" << spec->id << "': the store at " << store.string() << " was made with durability "
                   << made_durability << ", ring " << made.ring << "; the file's durability " << spec->durability << ", ring "
                   << spec->ring << " apply only to a new store (move this one away to make it so)\n";
     } else {

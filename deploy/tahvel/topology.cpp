@@ -159,17 +159,17 @@ node::Result<std::vector<std::string>> strings(const toml::node* n, const std::f
 }
 
 // `restart` of an agent: "on-failure" (also when absent), "always", "never"; true and false
-// (the older spelling) mean "always" and "never".
+// (the older spelling) mean "always" and "never". `agent` names it: "node 'home1': agent 'hrv'".
 node::Result<agents::Restart> restart_policy(const toml::node* n, const std::filesystem::path& file,
-                                             const std::string& agent_id) {
+                                             const std::string& agent) {
   if (!n) return agents::Restart::on_failure;
   if (auto b = n->value<bool>(); b && n->is_boolean()) return *b ? agents::Restart::always : agents::Restart::never;
   if (auto text = n->value<std::string>()) {
     for (auto r : {agents::Restart::on_failure, agents::Restart::always, agents::Restart::never})
       if (*text == agents::restart_name(r)) return r;
   }
-  return node::fail(Errc::invalid_argument, where(*n, file) + ": agent '" + agent_id +
-                                                "': restart must be \"on-failure\", \"always\" or \"never\"");
+  return node::fail(Errc::invalid_argument, where(*n, file) + ": " + agent +
+                                                ": restart must be \"on-failure\", \"always\" or \"never\"");
 }
 
 // The UDP port of an LCM `udpm://` URL (LCM's default 7667 when it names none), or nothing for
@@ -375,6 +375,7 @@ node::Result<Topology> load_topology(const std::filesystem::path& file) {
       }
     }
     TAHVEL_TRY(store, table_at(*t, "store", file, what));
+    spec.store_at = t->get("store") ? where(*t->get("store"), file) : spec.at;
     if (store) {
       if (auto ok = only_keys(*store, {"durability", "ring"}, file, what, "store."); !ok) return Unexpected<node::Error>{ok.error()};
       TAHVEL_TRY(durability, typed<std::string>(*store, "durability", file, what + "store.", "\"fast\" or \"durable\""));
@@ -430,14 +431,15 @@ node::Result<Topology> load_topology(const std::filesystem::path& file) {
         if (const char* owner = agent_id_in_use(agent.id))
           return node::fail(Errc::invalid_argument, where(*at, file) + ": node '" + spec.id + "': agent id '" + agent.id +
                                                         "' is taken: it is " + owner);
-        auto run = strings((*at)["run"].node(), file, "agent '" + agent.id + "': run");
+        auto run = strings((*at)["run"].node(), file, what + "agent '" + agent.id + "': run");
         if (!run) return Unexpected<node::Error>{run.error()};
-        if (run->empty()) return node::fail(Errc::invalid_argument, where(*at, file) + ": agent '" + agent.id + "' needs run = [command, args...]");
+        if (run->empty())
+          return node::fail(Errc::invalid_argument, where(*at, file) + ": " + what + "agent '" + agent.id + "' needs run = [command, args...]");
         agent.run = *run;
-        auto with_mitdb = strings((*at)["run_with_mitdb"].node(), file, "agent '" + agent.id + "': run_with_mitdb");
+        auto with_mitdb = strings((*at)["run_with_mitdb"].node(), file, what + "agent '" + agent.id + "': run_with_mitdb");
         if (!with_mitdb) return Unexpected<node::Error>{with_mitdb.error()};
         agent.run_with_mitdb = *with_mitdb;
-        if (auto r = restart_policy((*at)["restart"].node(), file, agent.id); r) agent.restart = *r;
+        if (auto r = restart_policy((*at)["restart"].node(), file, what + "agent '" + agent.id + "'"); r) agent.restart = *r;
         else return Unexpected<node::Error>{r.error()};
         spec.agents.push_back(std::move(agent));
       }

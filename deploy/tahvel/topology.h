@@ -52,8 +52,9 @@ struct NodeSpec {
   std::filesystem::path behaviours;    // the dispatcher's folder of behaviours; empty: none
   std::vector<AgentSpec> agents;
   // Where the file says it ("FILE:LINE:COL"), for errors found once all nodes are read: the
-  // node's table, its `parent`, its `iri` and its `load` (the table's when the key is absent).
-  std::string at, parent_at, iri_at, load_at;
+  // node's table, its `parent`, its `iri`, its `load` and its `store` (the table's when the key
+  // is absent).
+  std::string at, parent_at, iri_at, load_at, store_at;
 };
 
 struct Topology {

@@ -2108,6 +2108,8 @@ TEST_F(Cli, UpWarnsThatAChangedRingDoesNotApplyToAnExistingStore) {
   EXPECT_NE(up.err.find("was made with durability fast, ring 0; the file's durability fast, ring 1000 apply only to a new store"),
             std::string::npos)
       << up.err;
+  EXPECT_NE(up.err.find("up: warning: " + (tmp_ / "node.toml").string() + ":4:9: node 'solo': the store at "), std::string::npos)
+      << up.err;
   EXPECT_EQ(run({"down", "--state", state}).status, 0);
 }
 
@@ -2322,7 +2324,15 @@ TEST_F(Cli, UpRefusesAnUnknownRestartPolicyNamingTheAgent) {
   Outcome up = run({"up", (tmp_ / "node.toml").string(), "--state", (tmp_ / "state").string()});
   EXPECT_EQ(up.status, 1);
   EXPECT_NE(up.err.find("node.toml:7:"), std::string::npos) << up.err;
-  EXPECT_NE(up.err.find("agent 'hrv': restart must be \"on-failure\", \"always\" or \"never\""), std::string::npos) << up.err;
+  EXPECT_NE(up.err.find("node 'solo': agent 'hrv': restart must be \"on-failure\", \"always\" or \"never\""), std::string::npos)
+      << up.err;
+  // An agent without a command, or with one that is not all strings, names its node too.
+  for (const std::string run_line : {"", "  run = []\n", "  run = [\"/bin/sleep\", 100]\n"}) {
+    spit(tmp_ / "node.toml", "[[node]]\nid = \"solo\"\niri = \"http://example.org/solo\"\n  [[node.agent]]\n  id = \"hrv\"\n" + run_line);
+    up = run({"up", (tmp_ / "node.toml").string(), "--state", (tmp_ / "state").string()});
+    EXPECT_EQ(up.status, 1);
+    EXPECT_NE(up.err.find(": node 'solo': agent 'hrv'"), std::string::npos) << up.err;
+  }
 }
 
 // A topology that could not run as written is refused before anything is made, the error naming
@@ -3142,6 +3152,7 @@ TEST_F(Cli, UpLoadsAFileAddedToAnExistingNodeOnceAndNamesOneChangedSinceItWasLoa
   const std::string changed = "plan.ttl changed since up loaded it (item ";
   const std::size_t at = up.err.find(changed);
   ASSERT_NE(at, std::string::npos) << up.err;
+  EXPECT_NE(up.err.find("up: warning: " + (tmp_ / "node.toml").string() + ":4:8: node 'solo': "), std::string::npos) << up.err;
   const std::size_t from = at + changed.size();
   const std::string item = up.err.substr(from, up.err.find(')', from) - from);
   EXPECT_NE(up.err.find("tahvel remove " + store + " --item " + item + ", then up again"), std::string::npos) << up.err;
