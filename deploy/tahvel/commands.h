@@ -108,6 +108,9 @@ std::string age_of(std::int64_t unix_ns, std::int64_t at_ns = 0);
 
 // The area of --area (and --floor): WKT when it reads as WKT, else a room's IRI or CURIE.
 spatial::AreaSpec area_flag(const Args& args, const uri::PrefixMap& prefixes);
+// --floor N: a floor as the board reads one (spatial::parse_floor: a whole number within ±1e9);
+// a usage error naming the flag otherwise.
+int floor_flag(const std::string& text);
 bool pattern_has_triple(const node::Pattern& pattern);
 // True when `record` matches every bound field of `pattern` (s, p, o, context, source, under).
 bool matches(const node::Pattern& pattern, const node::Record& record);

@@ -566,16 +566,16 @@ spatial::AreaSpec area_flag(const Args& args, const uri::PrefixMap& prefixes) {
   auto shape = spatial::parse_shape(text);
   if (!shape) usage_error("--area: " + shape.error().message);
   spec.shape = std::move(*shape);
-  if (auto floor = args.get("--floor")) {
-    int value = 0;
-    const char* end = floor->data() + floor->size();
-    auto parsed = std::from_chars(floor->data(), end, value);
-    if (floor->empty() || parsed.ec != std::errc() || parsed.ptr != end) {
-      usage_error("--floor: expected an integer, found '" + *floor + "'");
-    }
-    spec.floor = value;
-  }
+  if (auto floor = args.get("--floor")) spec.floor = floor_flag(*floor);
   return spec;
+}
+
+int floor_flag(const std::string& text) {
+  // A floor the area keeper would refuse (1000000001) was taken, and the subscription then got
+  // nothing, with a problem only in the keeper's log.
+  const std::optional<int> floor = spatial::parse_floor(node::Term::literal(text));
+  if (!floor) usage_error("--floor: expected a whole number from -1000000000 to 1000000000, found '" + text + "'");
+  return *floor;
 }
 
 std::int64_t time_flag(std::string_view flag, const std::string& text) {

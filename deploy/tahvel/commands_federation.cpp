@@ -349,15 +349,7 @@ int run_query(const Args& args) {
       query.area = parse_iri(*area, prefixes, "--area");  // absolute: the target's prefixes may differ
       if (args.has("--floor")) usage_error("--floor: only with a WKT --area (a room has its own floor)");
     }
-    if (auto floor = args.get("--floor")) {
-      try {
-        std::size_t used = 0;
-        query.floor = std::stoll(*floor, &used);
-        if (used != floor->size()) throw std::invalid_argument("trailing");
-      } catch (const std::exception&) {
-        usage_error("--floor: expected an integer, found '" + *floor + "'");
-      }
-    }
+    if (auto floor = args.get("--floor")) query.floor = floor_flag(*floor);
   } else if (args.has("--floor")) {
     usage_error("--floor: only with --area");
   }
