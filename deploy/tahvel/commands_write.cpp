@@ -191,10 +191,13 @@ const Command kPutCommand{
 void warn_of_unreadable_geometry(const std::vector<node::Triple>& triples, const std::string& path) {
   std::size_t warned = 0;
   for (const node::Triple& t : triples) {
-    if (t.p.value != spatial::kGeoAsWkt || !t.o.is_literal()) continue;
-    if (auto geometry = spatial::parse_wkt(t.o.value); !geometry && ++warned <= 20)
+    if (t.p.value != spatial::kGeoAsWkt) continue;
+    std::string why;
+    if (!t.o.is_literal()) why = "a WKT literal is needed, not " + t.o.to_ntriples();
+    else if (auto geometry = spatial::parse_wkt(t.o.value); !geometry) why = geometry.error().message;
+    if (!why.empty() && ++warned <= 20)
       std::cerr << "tahvel: warning: " << (path == "-" ? std::string("<stdin>") : path) << ": <" << t.s.value
-                << "> geo:asWKT: " << geometry.error().message << " (the feature is skipped when the floor plan is read)\n";
+                << "> geo:asWKT: " << why << " (the feature is skipped when the floor plan is read)\n";
   }
   if (warned > 20) std::cerr << "tahvel: warning: " << warned - 20 << " more geometries that will not read\n";
 }

@@ -136,6 +136,21 @@ TEST_F(BoardTest, LatestGeometryWinsAndMalformedWktIsReportedNotFatal) {
       << board.problems[0];
 }
 
+// A geometry whose geo:asWKT is an IRI (`<POLYGON>`, angle brackets where quotes belong) was
+// skipped without a word: naming the room then said only that it is not on the board.
+TEST_F(BoardTest, AGeometryWhoseWktIsAnIriIsReportedNotSkippedSilently) {
+  const std::string room = kHome + "/room/iri";
+  node::Item item;
+  item.persistent = true;
+  item.add(Term::iri(room), Term::iri(kGeoHasGeometry), Term::iri(room + "/g"))
+      .add(Term::iri(room + "/g"), Term::iri(kGeoAsWkt), Term::iri(kHome + "/POLYGON"));
+  put(item);
+  BoardPlan board = plan();
+  EXPECT_EQ(board.plan.room(room), nullptr);
+  ASSERT_EQ(board.problems.size(), 1u);
+  EXPECT_EQ(board.problems[0], room + ": geo:asWKT of <" + room + "/g> must be a WKT literal, not <" + kHome + "/POLYGON>");
+}
+
 // A floor is a whole number however it is written: "2" was one and "1.0" was refused.
 TEST_F(BoardTest, AFloorWrittenAsAWholeDecimalIsThatFloorAndAFractionIsReported) {
   auto with_floor = [](const std::string& feature, Term floor) {

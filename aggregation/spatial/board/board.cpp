@@ -85,19 +85,23 @@ Result<Geometry> parse_wkt_remembered(const std::string& text) {
 }
 
 
-// The geo:asWKT literal of geometry `g` stated last, or nullopt; `*id` gets its record's id.
-Result<std::optional<std::string>> latest_wkt(const node::Snapshot& snapshot, const node::Term& g, std::uint64_t* id) {
+// The geo:asWKT of geometry `g` stated last, or nullopt; `*id` gets its record's id. An object
+// that is no literal (an IRI) is returned as Term::to_ntriples gives it, `*not_literal` set.
+Result<std::optional<std::string>> latest_wkt(const node::Snapshot& snapshot, const node::Term& g, std::uint64_t* id,
+                                              bool* not_literal) {
   node::Pattern pattern;
   pattern.s = g;
   pattern.p = node::Term::iri(kGeoAsWkt);
   std::optional<std::string> wkt;
   std::uint64_t best = 0;
   std::int64_t best_asserted = 0;
+  *not_literal = false;
   auto read = snapshot.for_each(pattern, [&](const node::Record& r) {
-    if (r.triple.o.is_literal() && (best == 0 || stated_before(best_asserted, best, stated_at(r.meta), r.meta.id))) {
+    if (best == 0 || stated_before(best_asserted, best, stated_at(r.meta), r.meta.id)) {
       best = r.meta.id;
       best_asserted = stated_at(r.meta);
-      wkt = r.triple.o.value;
+      *not_literal = !r.triple.o.is_literal();
+      wkt = *not_literal ? r.triple.o.to_ntriples() : r.triple.o.value;
     }
     return true;
   });
@@ -249,9 +253,15 @@ Result<BoardPlan> load_plan(const node::Snapshot& snapshot) {
       continue;
     }
     std::uint64_t wkt_id = 0;
-    auto wkt = latest_wkt(snapshot, geometry.value, &wkt_id);
+    bool not_literal = false;
+    auto wkt = latest_wkt(snapshot, geometry.value, &wkt_id, &not_literal);
     if (!wkt) return unexpected(wkt.error());
     if (!*wkt) continue;  // a geometry without WKT (yet): not located
+    // Skipped without a word, the feature was "no room on the board" to whoever named it.
+    if (not_literal) {
+      out.problems.push_back(feature + ": geo:asWKT of " + geometry.value.to_ntriples() + " must be a WKT literal, not " + **wkt);
+      continue;
+    }
     const auto floor_records = floor_history->find("<" + feature);
     out.placed_by[feature] = placed_since(geometry_history->at("<" + feature),
                                           floor_records == floor_history->end() ? nullptr : &floor_records->second, *wkt_history);
