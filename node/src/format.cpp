@@ -423,10 +423,21 @@ class Parser {
     }
   }
 
-  static SerdStatus on_statement(void* handle, SerdStatementFlags, const SerdNode*,
+  static SerdStatus on_statement(void* handle, SerdStatementFlags, const SerdNode* graph,
                                  const SerdNode* s, const SerdNode* p, const SerdNode* o,
                                  const SerdNode* datatype, const SerdNode* lang) {
-    return guarded(handle, [&](Parser& self) { return self.statement(s, p, o, datatype, lang); });
+    return guarded(handle, [&](Parser& self) {
+      // serd 0.30 reads a TriG graph block (`<g> { ... }`) in Turtle and N-Triples too: its
+      // triples were stored with the graph's name dropped.
+      if (graph && graph->type != SERD_NOTHING) {
+        const std::string name(view_of(graph));
+        const std::string as_written = graph->type == SERD_URI ? "<" + name + ">" : graph->type == SERD_BLANK ? "_:" + name : name;
+        return self.stop("a named graph block (" + as_written +
+                         " { ... }): Tahvel reads Turtle and N-Triples, whose triples are in no graph; put the block's "
+                         "triples without it (an item's context, put --context, may say what they are about)");
+      }
+      return self.statement(s, p, o, datatype, lang);
+    });
   }
   static SerdStatus on_base(void* handle, const SerdNode* uri) {
     return guarded(handle, [&](Parser& self) { return self.set_base(uri); });

@@ -162,6 +162,24 @@ TEST(Format, TurtleNestedDeeperThanTheLimitIsAnErrorAtTheBracketNotACrash) {
   EXPECT_EQ(parse_ok(escaped, turtle).size(), 3600u);
 }
 
+// serd 0.30 reads a TriG graph block in Turtle and in N-Triples: the triples were stored with
+// the graph's name dropped, and put, load and tahvel_store said nothing.
+TEST(Format, ANamedGraphBlockIsASyntaxErrorNotAGraphDropped) {
+  for (const Format format : {Format::turtle, Format::ntriples}) {
+    ParseOptions options;
+    options.format = format;
+    options.source_name = "g.ttl";
+    tn::Error named = parse_error("<" + kEx + "s> <" + kEx + "p> \"0\" .\n<" + kEx + "g> { <" + kEx + "s> <" + kEx + "p> \"x\" . }\n", options);
+    EXPECT_EQ(named.code, tn::Errc::syntax);
+    EXPECT_EQ(named.message.rfind("g.ttl:2:", 0), 0u) << named.message;
+    EXPECT_NE(named.message.find("a named graph block (<" + kEx + "g> { ... })"), std::string::npos) << named.message;
+  }
+  ParseOptions turtle;
+  turtle.format = Format::turtle;
+  EXPECT_NE(parse_error("_:g { <" + kEx + "s> <" + kEx + "p> 1 . }\n", turtle).message.find("a named graph block (_:g { ... })"),
+            std::string::npos);
+}
+
 TEST(Format, ParseFormatAcceptsShortAndLongNames) {
   EXPECT_EQ(*tn::parse_format("nt"), Format::ntriples);
   EXPECT_EQ(*tn::parse_format("ntriples"), Format::ntriples);
