@@ -1266,7 +1266,8 @@ Result<std::vector<Change>> Node::watch(std::uint64_t bookmark, std::chrono::mil
       });
       if (!walked) return unexpected(walked.error());
       MDB_cursor* cursor = nullptr;
-      if (mdb_cursor_open(read.txn, impl_->env->removals, &cursor) == 0) {
+      // Nothing comes after the greatest bookmark (bookmark + 1 wrapped to 0: every removal).
+      if (bookmark != UINT64_MAX && mdb_cursor_open(read.txn, impl_->env->removals, &cursor) == 0) {
         std::uint64_t from = bookmark + 1;
         MDB_val k = val(from), v;
         for (int rc = mdb_cursor_get(cursor, &k, &v, MDB_SET_RANGE); rc == 0; rc = mdb_cursor_get(cursor, &k, &v, MDB_NEXT)) {

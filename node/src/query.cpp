@@ -175,6 +175,8 @@ Result<void> Query::for_each(const Pattern& pattern,
   auto bound = resolve(pattern);
   if (!bound) return unexpected(bound.error());
   if (bound->empty) return {};
+  // No record comes after the greatest id (after_id + 1 wrapped to 0: every record).
+  if (pattern.after_id == UINT64_MAX) return {};
   const Bound& b = *bound;
   std::uint64_t first = pattern.after_id ? *pattern.after_id + 1 : 0;
 

@@ -584,6 +584,12 @@ TEST_F(CApiTest, WatchResumesFromItsBookmarkAndReportsRemovals) {
   EXPECT_EQ(tahvel_watch(node_, after, kWaitMs, 0, nullptr, &len, &unseen), TAHVEL_INVALID_ARGUMENT);
   EXPECT_EQ(unseen, after);
   EXPECT_NE(std::string(tahvel_last_error()).find("json_out must not be NULL"), std::string::npos) << tahvel_last_error();
+  // Nothing comes after the greatest bookmark: it wrapped to 0 and gave the whole board again.
+  Text beyond;
+  uint64_t last = 0;
+  ASSERT_EQ(tahvel_watch(node_, UINT64_MAX, 10, 0, &beyond.data, &beyond.len, &last), TAHVEL_OK);
+  EXPECT_EQ(beyond.str(), "");
+  EXPECT_EQ(last, UINT64_MAX);
   tahvel_agent_close(writer);
 }
 
