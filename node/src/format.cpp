@@ -278,12 +278,15 @@ class Parser {
   // "<source>:LINE:COL: reason" for byte `at`; line and column 1-based, column in code points.
   std::string located(std::size_t at, std::string_view reason) const {
     at = std::min(at, text_.size());
-    const std::string_view before = text_.substr(0, at);
-    const std::size_t line =
-        1 + static_cast<std::size_t>(std::count(before.begin(), before.end(), '\n'));
-    const std::size_t nl = before.rfind('\n');
-    const std::string_view line_text =
-        nl == std::string_view::npos ? before : before.substr(nl + 1);
+    // Lines end as serd ends them: at "\n", "\r\n" and a lone "\r" (old Mac files), which
+    // counted as no line end put every error on line 1.
+    std::size_t line = 1, line_start = 0;
+    for (std::size_t i = 0; i < at; ++i)
+      if (text_[i] == '\n' || (text_[i] == '\r' && (i + 1 >= text_.size() || text_[i + 1] != '\n'))) {
+        ++line;
+        line_start = i + 1;
+      }
+    const std::string_view line_text = text_.substr(line_start, at - line_start);
     std::size_t column = 1;
     for (const char c : line_text)
       if ((static_cast<unsigned char>(c) & 0xC0) != 0x80) ++column;
@@ -295,6 +298,18 @@ class Parser {
     out += ": ";
     out += reason;
     return out;
+  }
+
+  // serd's message, or what it means where serd's words mislead.
+  std::string explained(std::string message) const {
+    // serd reads the end of the input as the character -1.
+    if (message.find("escape %FFFFFFFF") != std::string::npos) return "the input ends inside an IRI (no closing '>')";
+    // The records `list --format json` writes, put back: '{' starts a graph block to serd.
+    const std::size_t first = text_.find_first_not_of(" \t\r\n");
+    if (first != std::string_view::npos && text_[first] == '{')
+      return message + " (the input reads as JSON, which is not read here: N-Triples and Turtle are, as `list --format nt` "
+                       "writes them)";
+    return message;
   }
 
   // Records the first error, at serd's current position, and returns a status that stops serd.
@@ -447,7 +462,7 @@ class Parser {
   }
   static SerdStatus on_error(void* handle, const SerdError* error) {
     return guarded(handle, [&](Parser& self) {
-      if (!self.error_) self.stop(format_serd_message(*error));
+      if (!self.error_) self.stop(self.explained(format_serd_message(*error)));
       return SERD_SUCCESS;
     });
   }

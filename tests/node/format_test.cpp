@@ -180,6 +180,24 @@ TEST(Format, ANamedGraphBlockIsASyntaxErrorNotAGraphDropped) {
             std::string::npos);
 }
 
+// Errors say where and what as a reader sees the file: a lone CR ends a line (old Mac files put
+// every error on line 1), the end of the input inside an IRI is said as such (serd said
+// "invalid IRI character (escape %FFFFFFFF)"), and JSON records put back are named JSON.
+TEST(Format, ErrorsCountLoneCarriageReturnsAsLineEndsAndSayWhatTheInputIs) {
+  ParseOptions nt;
+  nt.format = Format::ntriples;
+  nt.source_name = "in.nt";
+  EXPECT_EQ(parse_error("<" + kEx + "s> <" + kEx + "p> \"a\" .\r<" + kEx + "s> <" + kEx + "p> \"b .\r", nt).message.rfind("in.nt:2:", 0), 0u);
+  EXPECT_EQ(parse_error("<" + kEx + "s> <" + kEx + "p> \"a\" .\r\n<" + kEx + "s> <" + kEx + "p> \"b .\r\n", nt).message.rfind("in.nt:2:", 0),
+            0u);
+  EXPECT_NE(parse_error("<" + kEx + "s> <" + kEx + "p> <http://a/", nt).message.find("the input ends inside an IRI (no closing '>')"),
+            std::string::npos);
+  ParseOptions turtle;
+  turtle.format = Format::turtle;
+  EXPECT_NE(parse_error("{\"s\":\"<" + kEx + "s>\",\"p\":\"<" + kEx + "p>\"}\n", turtle).message.find("the input reads as JSON"),
+            std::string::npos);
+}
+
 TEST(Format, ParseFormatAcceptsShortAndLongNames) {
   EXPECT_EQ(*tn::parse_format("nt"), Format::ntriples);
   EXPECT_EQ(*tn::parse_format("ntriples"), Format::ntriples);
