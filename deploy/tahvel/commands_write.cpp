@@ -46,8 +46,12 @@ std::vector<node::Triple> parse_input(const node::Node& node, const std::string&
 // The store names a triple it refuses by its place in the item ("triple 1501, object: invalid
 // IRI ..."): `message` led by where the input writes it ("FILE:LINE:COL: "), as a syntax error
 // is, when it names one.
-std::string named_where(const Input& input, const std::string& message) {
-  if (!message.starts_with("triple ")) return message;
+std::string named_where(const Input& input, const node::Error& error) {
+  const std::string& message = error.message;
+  // A damaged store fails while a triple is written; the triple is not at fault.
+  if (!message.starts_with("triple ") || error.code == node::Errc::corrupt || error.code == node::Errc::io ||
+      error.code == node::Errc::version || error.code == node::Errc::store_full)
+    return message;
   const std::uint64_t n = std::strtoull(message.c_str() + 7, nullptr, 10);
   if (n == 0) return message;
   const std::string at = node::locate_triple(input.text, input.options, n - 1);
@@ -269,7 +273,7 @@ int run_put(const Args& args) {
   warn_of_unreadable_geometry(item.triples, path);
   warn_of_unknown_addressee(node, item, agent);
   auto stored = agent.store(item);
-  if (!stored) fail(named_where(input, stored.error().message));
+  if (!stored) fail(named_where(input, stored.error()));
   const std::uint64_t id = *stored;
   print_number(id);
   warn_if_the_ring_took(node, item, id);

@@ -191,7 +191,12 @@ Error lmdb_error(int rc, std::string_view what) {
   else if (rc == MDB_NOTFOUND || rc == ENOENT) code = Errc::not_found;
   else if (rc == MDB_VERSION_MISMATCH) code = Errc::version;
   else if (rc == MDB_INVALID || rc == MDB_CORRUPTED || rc == MDB_PAGE_NOTFOUND) code = Errc::corrupt;
-  return Error{code, std::string(what) + ": " + mdb_strerror(rc)};
+  // LMDB's words name neither cause: the store's file is damaged (no page is checksummed), or
+  // for a version mismatch also written by another LMDB build.
+  const char* why = code == Errc::corrupt ? " (the store's file is damaged; restore it from a copy)"
+                    : code == Errc::version ? " (the store was written by another LMDB build, or its file is damaged)"
+                                            : "";
+  return Error{code, std::string(what) + ": " + mdb_strerror(rc) + why};
 }
 
 Result<Counters> load_counters(MDB_txn* txn, MDB_dbi meta) {
