@@ -855,12 +855,18 @@ Result<std::uint64_t> Agent::subscribe(const Pattern& given, const SubscribeOpti
   Item item;
   item.persistent = true;
   const Term node = Term::blank("subscription");
+  // What the caller wrote, by the declaration's triple: a bad term is named by its field, not as
+  // "triple 3, object" of a declaration the caller never wrote.
+  std::vector<const char*> field{"subscriber"};
   item.add(node, Term::iri(std::string(kSubscriber)), Term::iri(impl_->iri));
-  if (pattern.s) item.add(node, Term::iri(std::string(kSubject)), *pattern.s);
-  if (pattern.p) item.add(node, Term::iri(std::string(kPredicate)), *pattern.p);
-  if (pattern.o) item.add(node, Term::iri(std::string(kObject)), *pattern.o);
-  if (pattern.context) item.add(node, Term::iri(std::string(kSubscriptionContext)), Term::iri(*pattern.context));
-  if (pattern.source) item.add(node, Term::iri(std::string(kSubscriptionSource)), Term::iri(*pattern.source));
+  if (pattern.s) item.add(node, Term::iri(std::string(kSubject)), *pattern.s), field.push_back("subject");
+  if (pattern.p) item.add(node, Term::iri(std::string(kPredicate)), *pattern.p), field.push_back("predicate");
+  if (pattern.o) item.add(node, Term::iri(std::string(kObject)), *pattern.o), field.push_back("object");
+  if (pattern.context) item.add(node, Term::iri(std::string(kSubscriptionContext)), Term::iri(*pattern.context)), field.push_back("context");
+  if (pattern.source) item.add(node, Term::iri(std::string(kSubscriptionSource)), Term::iri(*pattern.source)), field.push_back("source");
+  for (std::size_t i = 1; i < item.triples.size(); ++i)
+    if (const Term& o = item.triples[i].o; o.is_iri())
+      if (auto ok = uri::normalize(o.value); !ok) return fail(Errc::invalid_iri, std::string("subscription ") + field[i] + ": " + ok.error().message);
   if (auto v = validate_item(item, impl_->env->settings()); !v) return unexpected(v.error());
   std::uint64_t id = 0;
   auto written = impl_->env->write([&](Txn& txn) -> Result<void> {

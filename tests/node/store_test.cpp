@@ -251,6 +251,14 @@ TEST(Store, APatternUnderAnIriTakesTheRecordsOfThatSubjectAndOfTheSubjectsBelowI
   auto refused = node.agent("reader")->subscribe({.under = base + "100"});
   ASSERT_FALSE(refused);
   EXPECT_EQ(refused.error().code, Errc::invalid_argument);
+  // A bad term is named by the field it was given in ("triple 3, object: invalid IRI 'rel'"
+  // named a triple of a declaration the caller never wrote).
+  auto relative = node.agent("reader")->subscribe({.p = samples, .context = "rel"});
+  ASSERT_FALSE(relative);
+  EXPECT_EQ(relative.error().message.rfind("subscription context: invalid IRI 'rel'", 0), 0u) << relative.error().message;
+  auto object = node.agent("reader")->subscribe({.p = samples, .o = Term::iri("http://[::1/p")});
+  ASSERT_FALSE(object);
+  EXPECT_EQ(object.error().message.rfind("subscription object: invalid IRI", 0), 0u) << object.error().message;
 }
 
 // A time range takes an item that held for a span of time (a second of ECG) when the span
