@@ -51,7 +51,8 @@ struct Signal {
 // The digest of a record's samples that tells records apart which tv:replayedFrom names alike
 // ("ecg/rec" of patientA/ecg/rec and of patientB/ecg/rec): FNV-1a (64 bits) over the values of
 // every signal of its first kDigestFrames frames, read by a reader of its own. Identity, not
-// security: two recordings of people do not begin with the same 11 s of samples.
+// security: recordings of two people do not begin with the same 4,096 frames of samples (records
+// that begin flat, a lead off, may: they are told apart by name, rate, gain and leads only).
 constexpr std::size_t kDigestFrames = 4096;
 
 agg::Result<std::string> sample_digest(const std::string& path) {
@@ -360,8 +361,9 @@ int replay(rt::Session& session, Signal& signal, double speed) {
   // must not write the same seconds twice: a take an earlier run left without an end (the
   // source was killed) goes on after its last chunk, on the same time axis; one it ended (its
   // tv:endSample is there: it was stopped) is over, and this run takes anew; one that holds the
-  // whole of this signal (the same tv:replayedFrom, rate and gain: another --hr or a corrected
-  // header is another signal) is left as it is, and this run has nothing to do.
+  // whole of this signal (same_signal: the same tv:replayedFrom, first samples, rate, gain and
+  // leads; another --hr or a corrected header is another signal), the latest take or an older
+  // one, is left as it is, and this run has nothing to do.
   const std::string base_iri = signal.info.iri;
   const std::int64_t now_ns =
       std::chrono::duration_cast<std::chrono::nanoseconds>(std::chrono::system_clock::now().time_since_epoch()).count();

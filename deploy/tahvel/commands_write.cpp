@@ -43,15 +43,19 @@ std::vector<node::Triple> parse_input(const node::Node& node, const std::string&
   return triples;
 }
 
+// A damaged store (or a full disk) fails while a triple is written; the triple is not at fault,
+// and naming its line would send the operator to the input.
+bool the_input_may_be_at_fault(const node::Error& error) {
+  return error.code != node::Errc::corrupt && error.code != node::Errc::io && error.code != node::Errc::version &&
+         error.code != node::Errc::store_full;
+}
+
 // The store names a triple it refuses by its place in the item ("triple 1501, object: invalid
 // IRI ..."): `message` led by where the input writes it ("FILE:LINE:COL: "), as a syntax error
 // is, when it names one.
 std::string named_where(const Input& input, const node::Error& error) {
   const std::string& message = error.message;
-  // A damaged store fails while a triple is written; the triple is not at fault.
-  if (!message.starts_with("triple ") || error.code == node::Errc::corrupt || error.code == node::Errc::io ||
-      error.code == node::Errc::version || error.code == node::Errc::store_full)
-    return message;
+  if (!message.starts_with("triple ") || !the_input_may_be_at_fault(error)) return message;
   const std::uint64_t n = std::strtoull(message.c_str() + 7, nullptr, 10);
   if (n == 0) return message;
   const std::string at = node::locate_triple(input.text, input.options, n - 1);
@@ -115,7 +119,8 @@ std::uint64_t store_in_batches(node::Agent& agent, std::vector<node::Item> items
         if (end) {
           const node::Item& bad = pending[n - 1];
           std::string at;  // "FILE:LINE:COL: " of the triple, when the store named one
-          if (std::string_view rest = std::string_view(message).substr(end); rest.starts_with(": triple ")) {
+          if (std::string_view rest = std::string_view(message).substr(end);
+              rest.starts_with(": triple ") && the_input_may_be_at_fault(stored.error())) {
             const std::uint64_t j = std::strtoull(rest.data() + 9, nullptr, 10);
             const std::vector<std::size_t>& place = places.at(items_before + n - 1);
             if (j >= 1 && j <= place.size()) at = node::locate_triple(input.text, input.options, place[j - 1]);

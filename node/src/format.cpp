@@ -278,8 +278,8 @@ class Parser {
   // "<source>:LINE:COL: reason" for byte `at`; line and column 1-based, column in code points.
   std::string located(std::size_t at, std::string_view reason) const {
     at = std::min(at, text_.size());
-    // Lines end as serd ends them: at "\n", "\r\n" and a lone "\r" (old Mac files), which
-    // counted as no line end put every error on line 1.
+    // Lines end at "\n", "\r\n" and a lone "\r" (old Mac files; N-Triples' EOL, and editors, count
+    // it), which counted as no line end put every error on line 1.
     std::size_t line = 1, line_start = 0;
     for (std::size_t i = 0; i < at; ++i)
       if (text_[i] == '\n' || (text_[i] == '\r' && (i + 1 >= text_.size() || text_[i + 1] != '\n'))) {
@@ -306,7 +306,7 @@ class Parser {
     if (message.find("escape %FFFFFFFF") != std::string::npos) return "the input ends inside an IRI (no closing '>')";
     // The records `list --format json` writes, put back: '{' starts a graph block to serd.
     const std::size_t first = text_.find_first_not_of(" \t\r\n");
-    if (first != std::string_view::npos && text_[first] == '{')
+    if (first != std::string_view::npos && text_.substr(first, 2) == "{\"")
       return message + " (the input reads as JSON, which is not read here: N-Triples and Turtle are, as `list --format nt` "
                        "writes them)";
     return message;

@@ -867,7 +867,15 @@ Result<std::uint64_t> Agent::subscribe(const Pattern& given, const SubscribeOpti
   for (std::size_t i = 1; i < item.triples.size(); ++i)
     if (const Term& o = item.triples[i].o; o.is_iri())
       if (auto ok = uri::normalize(o.value); !ok) return fail(Errc::invalid_iri, std::string("subscription ") + field[i] + ": " + ok.error().message);
-  if (auto v = validate_item(item, impl_->env->settings()); !v) return unexpected(v.error());
+  if (auto v = validate_item(item, impl_->env->settings()); !v) {
+    // "triple N, object: ..." of the declaration: the caller's term is the object of triple N.
+    Error e = v.error();
+    const std::size_t n = e.message.starts_with("triple ") ? std::strtoull(e.message.c_str() + 7, nullptr, 10) : 0;
+    const std::size_t object = e.message.find(", object: ");
+    if (n >= 2 && n <= field.size() && object != std::string::npos)
+      e.message = std::string("subscription ") + field[n - 1] + ": " + e.message.substr(object + 10);
+    return unexpected(std::move(e));
+  }
   std::uint64_t id = 0;
   auto written = impl_->env->write([&](Txn& txn) -> Result<void> {
     auto existing = impl_->find_subscription(txn, pattern);

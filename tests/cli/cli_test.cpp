@@ -3272,12 +3272,15 @@ TEST_F(Cli, SubscribeByAnUnknownRoomExits1NamingItAndByRoomWithFloorExits2) {
   // A floor the area keeper refuses (beyond ±1e9) was taken, and the subscription got nothing.
   for (const std::vector<std::string>& command :
        {std::vector<std::string>{"subscribe", node_, "--agent", "ui"}, std::vector<std::string>{"list", node_}}) {
-    std::vector<std::string> args = command;
-    args.insert(args.end(), {"--area", "POLYGON((0 0, 8 0, 8 4, 0 4, 0 0))", "--floor", "1000000001"});
-    Outcome far = run(args);
-    EXPECT_EQ(far.status, 2) << command[0];
-    EXPECT_NE(far.err.find("--floor: expected a whole number from -1000000000 to 1000000000, found '1000000001'"), std::string::npos)
-        << far.err;
+    for (const std::string floor : {"1000000001", "-2147483648"}) {  // the latter: std::abs(INT_MIN)
+      std::vector<std::string> with = command;
+      with.insert(with.end(), {"--area", "POLYGON((0 0, 8 0, 8 4, 0 4, 0 0))", "--floor", floor});
+      Outcome far = run(with);
+      EXPECT_EQ(far.status, 2) << command[0] << " " << floor;
+      EXPECT_NE(far.err.find("--floor: expected a whole number from -1000000000 to 1000000000, found '" + floor + "'"),
+                std::string::npos)
+          << far.err;
+    }
   }
   // As the board writes floors: "+1" and "1.0" are floor 1.
   EXPECT_EQ(run({"list", node_, "--area", "POLYGON((0 0, 8 0, 8 4, 0 4, 0 0))", "--floor", "1.0"}).status, 0);

@@ -338,9 +338,9 @@ TEST_F(Deployment, StatusOnTheRootsMachineShowsTheNodesAndProgramsOfTheMachinesB
   EXPECT_NE(shown.find("    programs and children unknown: not asked (--local)\n"), std::string::npos) << shown;
   // A timeout under a second is said as given ("0.001" was "no answer within 0.0 s").
   shown = status_of("ward", " --timeout 0.001");
+  // (Every node below is asked several fields, each a round trip over DDS: not within 1 ms.)
   EXPECT_EQ(shown.find("within 0.0 s"), std::string::npos) << shown;
-  if (const auto at = shown.find("no answer within "); at != std::string::npos)
-    EXPECT_EQ(shown.substr(at, 21), "no answer within 1 ms") << shown;
+  EXPECT_NE(shown.find("no answer within 1 ms"), std::string::npos) << shown;
 
   // The sensor's supervisor frozen: its programs still run, but what its board says of them is
   // no longer rewritten, and status says so instead of showing it as current.

@@ -259,6 +259,9 @@ TEST(Store, APatternUnderAnIriTakesTheRecordsOfThatSubjectAndOfTheSubjectsBelowI
   auto object = node.agent("reader")->subscribe({.p = samples, .o = Term::iri("http://[::1/p")});
   ASSERT_FALSE(object);
   EXPECT_EQ(object.error().message.rfind("subscription object: invalid IRI", 0), 0u) << object.error().message;
+  auto not_text = node.agent("reader")->subscribe({.p = samples, .o = Term::literal("a\xFF")});
+  ASSERT_FALSE(not_text);
+  EXPECT_EQ(not_text.error().message.rfind("subscription object: ", 0), 0u) << not_text.error().message;
 }
 
 // A time range takes an item that held for a span of time (a second of ECG) when the span

@@ -166,7 +166,7 @@ TEST(Rules, ARelativeIriAndAnIntegerBeyondSixtyFourBitsAreNamedForWhatTheyAre) {
       {"p(X, <../a/b#c>) :- q(X, _).\n", "bad.rules:1:6: expected a term, found <../a/b#c>, an IRI without a scheme"},
       {"n(X) :- m(X, -9223372036854775808).\n",
        "bad.rules:1:15: integer 9223372036854775808 is out of range: integers are 64-bit, from -9223372036854775808 to "
-       "9223372036854775807"},
+       "9223372036854775807 (-9223372036854775808 is not read as a literal; in arithmetic it is -9223372036854775807 - 1)"},
   };
   for (const Case& c : cases) {
     auto p = tr::parse_rules(c.text, options("bad.rules"));
@@ -175,6 +175,12 @@ TEST(Rules, ARelativeIriAndAnIntegerBeyondSixtyFourBitsAreNamedForWhatTheyAre) {
   }
   // '<' as "less than" between terms written without spaces is still a comparison.
   EXPECT_TRUE(parse("p(X) :- q(X, N), r(X, T), N<T, T>3.\n"));
+  EXPECT_TRUE(parse("@prefix ex: <http://ex.org/> .\np(X, Z) :- q(X, N), r(X, T), N<T,ex:a(T, Z),Z>3.\n"));
+  // A '%' comment ends at a lone CR (old Mac line ends): it ran to the end of the file, and the
+  // rules after it were dropped without a word.
+  auto cr = tr::parse_rules("% a comment\rp(X, <foo>) :- q(X, _).\r", options("bad.rules"));
+  ASSERT_FALSE(cr.has_value());
+  EXPECT_EQ(cr.error().message.rfind("bad.rules:2:6: expected a term, found <foo>", 0), 0u) << cr.error().message;
 }
 
 // A negation inside recursion names the chain of rules that closes the loop: here through

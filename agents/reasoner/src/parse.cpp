@@ -110,7 +110,9 @@ class Lexer {
   // Columns count characters, as editors show them: a UTF-8 continuation byte adds none.
   void advance(std::size_t n = 1) {
     for (; n > 0 && i_ < text_.size(); --n, ++i_) {
-      if (text_[i_] == '\n') { ++line_; col_ = 1; }
+      // A lone '\r' ends a line too (old Mac files), as in put's input: a '%' comment ran on
+      // to the file's end and took every rule after it.
+      if (text_[i_] == '\n' || (text_[i_] == '\r' && (i_ + 1 >= text_.size() || text_[i_ + 1] != '\n'))) { ++line_; col_ = 1; }
       else if ((static_cast<unsigned char>(text_[i_]) & 0xC0) != 0x80) { ++col_; }
     }
   }
@@ -136,7 +138,7 @@ Result<void> Lexer::skip_space() {
   for (;;) {
     char c = at();
     if (c == '%') {
-      while (at() && at() != '\n') advance();
+      while (at() && at() != '\n' && at() != '\r') advance();
     } else if (c == '/' && at(1) == '*') {
       Pos start = pos();
       advance(2);
@@ -213,7 +215,8 @@ Result<Token> Lexer::number(Pos start) {
     std::int64_t fits;
     auto [end, ec] = std::from_chars(digits.data(), digits.data() + digits.size(), fits);
     if (ec != std::errc()) return error(start, "integer " + digits + " is out of range: integers are 64-bit, from -9223372036854775808 to "
-                                                      "9223372036854775807 (a literal -9223372036854775808 is not read: write -9223372036854775807 - 1)");
+                                                      "9223372036854775807 (-9223372036854775808 is not read as a literal; in arithmetic it is "
+                                                      "-9223372036854775807 - 1)");
   }
   return Token{Tok::literal, {}, node::Term::literal(digits, std::string(dt)), start};
 }
@@ -290,7 +293,9 @@ Result<Token> Lexer::next() {
     const bool scheme = k > 1 && std::isalpha(static_cast<unsigned char>(at(1))) && at(k) == ':';
     while (at(k) && at(k) != '>' && !std::isspace(static_cast<unsigned char>(at(k))) && at(k) != '<') ++k;
     if (at(k) == '>' && scheme) return iri_ref(start);
-    if (at(k) == '>' && k > 1 && !std::isspace(static_cast<unsigned char>(at(1))) && at(1) != '=') {
+    const std::string_view run = text_.substr(i_ + 1, k > 1 ? k - 1 : 0);
+    if (at(k) == '>' && k > 1 && !std::isspace(static_cast<unsigned char>(at(1))) && at(1) != '=' &&
+        run.find_first_of("(),") == std::string_view::npos) {
       advance();
       return Token{Tok::punct, "<", {}, start, "<" + std::string(text_.substr(i_, k - 1)) + ">"};
     }
@@ -793,13 +798,17 @@ Result<std::shared_ptr<Program>> parse_program(std::string_view text, const Pars
   if (!uri::normalize(options.me)) return unexpected(Error{options.file + ": the node IRI '" + options.me + "' (me) is not an absolute IRI"});
   // The store refuses a term that is not UTF-8 only when a conclusion is written: a running
   // reasoner given such a file ended there, instead of naming the place and keeping its rules.
-  const auto where = [&](std::size_t bad) {  // "FILE:LINE:COL" of byte `bad` (columns in characters)
-    const std::string_view before = text.substr(0, bad);
-    const std::size_t line_start = before.rfind('\n') == std::string_view::npos ? 0 : before.rfind('\n') + 1;
+  const auto where = [&](std::size_t bad) {  // "FILE:LINE:COL" of byte `bad` (columns in characters), as the lexer counts
+    std::size_t line = 1, line_start = 0;
+    for (std::size_t k = 0; k < bad; ++k)
+      if (text[k] == '\n' || (text[k] == '\r' && (k + 1 >= text.size() || text[k + 1] != '\n'))) {
+        ++line;
+        line_start = k + 1;
+      }
     std::size_t col = 1;
     for (std::size_t k = line_start; k < bad; ++k)
       if ((static_cast<unsigned char>(text[k]) & 0xC0) != 0x80) ++col;
-    return options.file + ":" + std::to_string(std::count(before.begin(), before.end(), '\n') + 1) + ":" + std::to_string(col);
+    return options.file + ":" + std::to_string(line) + ":" + std::to_string(col);
   };
   if (const std::size_t bad = node::ill_formed_utf8_at(text); bad != std::string_view::npos) {
     char byte[8];

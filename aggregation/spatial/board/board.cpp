@@ -214,7 +214,7 @@ std::optional<int> parse_floor(const node::Term& term) {
   const char* begin = text.data() + (!text.empty() && text[0] == '+' ? 1 : 0);
   auto [end, ec] = std::from_chars(begin, text.data() + text.size(), value);
   if (ec == std::errc() && end == text.data() + text.size() && begin != end) {
-    if (std::abs(value) > 1'000'000'000) return std::nullopt;
+    if (value < -1'000'000'000 || value > 1'000'000'000) return std::nullopt;  // std::abs(INT_MIN) is undefined
     return value;
   }
   // A whole number written as a decimal or double ("1.0", "2e0") is that floor, as "1" is.
