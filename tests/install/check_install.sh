@@ -1,0 +1,51 @@
+#!/usr/bin/env bash
+# Install.AnAgentBuiltOutsideTheTreeRunsAgainstTheInstalledTree SOURCE_DIR BUILD_DIR CC CXX
+#
+# What an integrator and an agent developer do with a release: `cmake --install` into a prefix,
+# then build the two example agents against the installed headers and library through
+# pkg-config alone (no path into the source or build tree), and run one of them against a store
+# made by the installed `tahvel`: the item it derives must be on the board, written as its agent.
+# Also: the installed systemd unit names the installed `tahvel`.
+set -euo pipefail
+src=$1 build=$2 cc=$3 cxx=$4
+work=$(mktemp -d)
+trap 'rm -rf "$work"' EXIT
+prefix=$work/prefix
+fail() { echo "FAIL: $*" >&2; exit 1; }
+
+cmake --install "$build" --prefix "$prefix" > "$work/install.log" || { cat "$work/install.log" >&2; fail "cmake --install"; }
+for program in tahvel tahvel-ecg-source tahvel-rpeak tahvel-rr tahvel-hrv tahvel-trend; do
+  [[ -x $prefix/bin/$program ]] || fail "bin/$program is not installed"
+done
+grep -q "^ExecStart=$prefix/bin/tahvel up " "$prefix/lib/systemd/system/tahvel-node@.service" ||
+  fail "the installed unit does not start $prefix/bin/tahvel: $(grep ExecStart "$prefix/lib/systemd/system/tahvel-node@.service")"
+[[ -f $prefix/share/tahvel/home-to-hospital.toml ]] || fail "share/tahvel/home-to-hospital.toml is not installed"
+
+# Moved after installing: the pkg-config file must find its tree where it is, not where it was.
+mv "$prefix" "$work/moved"
+prefix=$work/moved
+export PKG_CONFIG_PATH=$prefix/lib/pkgconfig
+flags=$(pkg-config --cflags --libs tahvel) || fail "pkg-config does not know tahvel"
+[[ $flags != *"$src"* && $flags != *"$build"* ]] || fail "pkg-config points into the source or build tree: $flags"
+# shellcheck disable=SC2086  # the flags are words
+"$cc" -std=c99 -o "$work/example_agent" "$src/agents/examples/example_agent.c" $flags ||
+  fail "the C example does not build against the installed tree"
+# shellcheck disable=SC2086
+"$cxx" -std=c++20 -o "$work/example_agent_cpp" "$src/agents/examples/example_agent_cpp.cpp" $flags ||
+  fail "the C++ example does not build against the installed tree"
+
+store=$work/home1
+"$prefix/bin/tahvel" init "$store" --iri http://example.org/home1
+# A first run of each writes its subscription (persistent), which later items are routed by.
+"$work/example_agent" "$store" --idle 1 > /dev/null 2>&1 || fail "the C example built outside the tree failed"
+"$work/example_agent_cpp" "$store" --idle 1 > /dev/null 2>&1 || fail "the C++ example built outside the tree failed"
+"$prefix/bin/tahvel" put "$store" > /dev/null <<'TTL'
+<http://example.org/home1/obs/17> <https://w3id.org/tahvel#heartRate> "112"^^<http://www.w3.org/2001/XMLSchema#integer> .
+TTL
+"$work/example_agent" "$store" --count 1 --idle 10 > /dev/null || fail "the C example built outside the tree failed"
+"$work/example_agent_cpp" "$store" --count 1 --idle 10 > /dev/null || fail "the C++ example built outside the tree failed"
+for agent in example-c example-cpp; do
+  out=$("$prefix/bin/tahvel" list "$store" --source "http://example.org/home1/$agent" -p https://w3id.org/tahvel#heartRateClass)
+  [[ $out == *'"high"'* ]] || fail "no heartRateClass \"high\" from $agent on the board: $out"
+done
+echo "installed, built outside the tree, ran"
