@@ -201,6 +201,7 @@ extern const Command kDumpCommand;
 extern const Command kTakeCommand;
 extern const Command kTailCommand;
 extern const Command kStatsCommand;
+extern const Command kCheckCommand;  // commands_check.cpp
 extern const Command kHrvCommand;
 extern const Command kPatientsCommand;
 extern const Command kEcgCommand;  // commands_ecg.cpp
@@ -216,6 +217,7 @@ int run_dump(const Args& args);
 int run_take(const Args& args);
 int run_tail(const Args& args);
 int run_stats(const Args& args);
+int run_check(const Args& args);
 int run_hrv(const Args& args);
 int run_patients(const Args& args);
 int run_ecg(const Args& args);

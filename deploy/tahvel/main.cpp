@@ -127,6 +127,7 @@ std::span<const Subcommand> subcommands() {
       {&kTakeCommand, run_take},
       {&kTailCommand, run_tail},   {&kDumpCommand, run_dump},
       {&kLoadCommand, run_load},   {&kStatsCommand, run_stats},
+      {&kCheckCommand, run_check},
       {&kHrvCommand, run_hrv},     {&kPatientsCommand, run_patients},
       {&kEcgCommand, run_ecg},
       {&kReasonCommand, run_reason},

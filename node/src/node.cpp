@@ -11,6 +11,7 @@
 #include <span>
 #include <type_traits>
 
+#include "check.h"
 #include "dictionary.h"
 #include "env.h"
 #include "query.h"
@@ -1434,6 +1435,12 @@ uri::PrefixMap Node::prefixes() const {
   }
   mdb_cursor_close(cursor);
   return map;
+}
+
+Result<CheckReport> Node::check(std::size_t max_problems, const std::function<void(std::string_view)>& progress) const {
+  ReadTxn read(*impl_->env);
+  if (auto r = read.begin(); !r) return unexpected(r.error());
+  return check_store(*impl_->env, read.txn, max_problems, progress);
 }
 
 Result<Stats> Node::stats() const {

@@ -13,6 +13,7 @@
 
 #include <chrono>
 #include <cstdlib>
+#include <cstring>
 #include <map>
 #include <filesystem>
 #include <functional>
@@ -351,7 +352,7 @@ TEST_F(Cli, ANumberFlagBeyondItsRangeSaysTooLargeAndAWordSaysNotAnInteger) {
 
 TEST_F(Cli, EverySubcommandHelpExits0WithItsUsageLine) {
   for (std::string name : {"init", "put", "list", "remove", "subscribe", "areas", "take", "tail", "dump",
-                           "load", "stats", "patients", "bench"}) {
+                           "load", "stats", "check", "patients", "bench"}) {
     Outcome r = run({name, "--help"});
     EXPECT_EQ(r.status, 0) << name << ": " << r.err;
     EXPECT_EQ(r.out.rfind("usage: tahvel " + name + " ", 0), 0u) << r.out;
@@ -955,6 +956,43 @@ TEST_F(Cli, MissingNodeDirectoryExits1WithOneLine) {
   EXPECT_EQ(r.status, 1);
   EXPECT_EQ(r.err.rfind("tahvel: ", 0), 0u) << r.err;
   EXPECT_EQ(lines_of(r.err).size(), 1u) << r.err;
+}
+
+// `tahvel check`: a store the library wrote holds together (exit 0, the counts); a damaged one
+// is said to be damaged, with the table being read, even when reading it ends the reading
+// process (LMDB asserts on a table root it cannot have: the reading process aborts, not check).
+TEST_F(Cli, CheckSaysAStoreHoldsTogetherAndNamesTheTableWhoseDamageEndedTheReading) {
+  init();
+  put(kObservation);
+  Outcome ok = run({"check", node_});
+  ASSERT_EQ(ok.status, 0) << ok.err;
+  EXPECT_NE(ok.out.find("records: " + std::to_string(lines_of(run({"dump", node_}).out).size()) + "\n"), std::string::npos) << ok.out;
+  EXPECT_NE(ok.out.find("problems_found: 0\n"), std::string::npos) << ok.out;
+  Outcome json = run({"check", node_, "--json"});
+  ASSERT_EQ(json.status, 0) << json.err;
+  EXPECT_EQ(json.out.rfind("{\"consistent\":true,\"records\":", 0), 0u) << json.out;
+
+  // The records table's root set to page 1 in every copy of the main table's node for it.
+  std::string file = slurp(fs::path(node_) / "data.mdb");
+  const std::string node_head = std::string("\x02\x00\x07\x00", 4) + "records";
+  int patched = 0;
+  for (auto at = file.find(node_head); at != std::string::npos; at = file.find(node_head, at + 1)) {
+    const std::uint64_t root = 1;
+    std::memcpy(&file[at + node_head.size() + 40], &root, sizeof root);  // MDB_db::md_root
+    ++patched;
+  }
+  ASSERT_GT(patched, 0);
+  spit(fs::path(node_) / "data.mdb", file);
+  Outcome damaged = run({"check", node_});
+  EXPECT_EQ(damaged.status, 1) << damaged.err;
+  EXPECT_NE(damaged.err.find("tahvel: " + node_ + ": the store's file is damaged: the reading process was ended by SIGABRT "
+                             "while reading table records"),
+            std::string::npos)
+      << damaged.err;
+  Outcome damaged_json = run({"check", node_, "--json"});
+  EXPECT_EQ(damaged_json.status, 1);
+  EXPECT_EQ(damaged_json.out, "{\"consistent\":false,\"ended_in_table\":\"records\",\"how\":\"ended by SIGABRT\"}\n");
+  EXPECT_EQ(run({"check", (tmp_ / "nothing").string()}).status, 1);
 }
 
 TEST_F(Cli, StatsJsonCountsRecordsAndItems) {

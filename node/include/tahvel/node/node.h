@@ -114,6 +114,17 @@ struct Change {
 // 1 s for its snapshots to end and then fails (Errc::io, "release the snapshot and retry").
 // Release snapshots before writing, above all in a thread that writes.
 
+// What Node::check found: every table read whole in one snapshot, each row decoded and each
+// reference between tables followed (docs/architecture.md, "Checking a store").
+struct CheckReport {
+  std::uint64_t records = 0, items = 0, terms = 0;
+  std::uint64_t index_entries = 0;   // subject, predicate and object index entries
+  std::uint64_t time_entries = 0;    // time index entries
+  std::uint64_t buffer_entries = 0;  // input and output buffer entries
+  std::vector<std::string> problems; // empty: the store holds together; else the first ones found
+  std::uint64_t problems_found = 0;  // all of them (problems holds up to max_problems)
+};
+
 struct PredicateSummary {
   std::string predicate;  // IRI
   std::uint64_t records = 0;
@@ -496,6 +507,15 @@ class Node {
   uri::PrefixMap prefixes() const;
 
   Result<Stats> stats() const;
+
+  // Reads the whole store in one snapshot (agents may go on writing) and reports what does not
+  // hold together: rows that do not decode, records whose item, terms or index entries are
+  // missing, index and time-index entries that name nothing, counters that disagree with the
+  // tables. Errors only when no snapshot can be taken. LMDB checksums no page, so a damaged page
+  // may also end the reading process (SIGSEGV, SIGBUS, an abort): `tahvel check` runs this in a
+  // child process. `progress`, when set, is called with each table's name before it is read.
+  Result<CheckReport> check(std::size_t max_problems = 100,
+                            const std::function<void(std::string_view table)>& progress = {}) const;
 
   // The store's identity: 32 hex digits, random, made when the store was created. A store made
   // again in the same place (a replaced disk, a new machine) has another one, so that a peer

@@ -1,0 +1,289 @@
+#include "check.h"
+
+#include <algorithm>
+#include <cstring>
+#include <optional>
+#include <string>
+#include <utility>
+#include <vector>
+
+#include "dictionary.h"
+#include "rows.h"
+
+namespace tahvel::node::detail {
+
+namespace {
+
+// One table's walk: a cursor, closed at the end, and LMDB's refusals turned into problems.
+class Walk {
+ public:
+  Walk(MDB_txn* txn, MDB_dbi dbi) { rc_ = mdb_cursor_open(txn, dbi, &cursor_); }
+  ~Walk() {
+    if (cursor_) mdb_cursor_close(cursor_);
+  }
+  Walk(const Walk&) = delete;
+  Walk& operator=(const Walk&) = delete;
+
+  // The next entry (every duplicate of a key in turn); false at the end or when LMDB refuses.
+  bool next(std::uint64_t& key, MDB_val& value) {
+    if (rc_ != 0) return false;
+    MDB_val k;
+    rc_ = mdb_cursor_get(cursor_, &k, &value, started_ ? MDB_NEXT : MDB_FIRST);
+    started_ = true;
+    if (rc_ != 0) return false;
+    if (k.mv_size != sizeof key) {
+      rc_ = MDB_CORRUPTED;
+      return false;
+    }
+    std::memcpy(&key, k.mv_data, sizeof key);
+    return true;
+  }
+  // Why the walk ended early; empty when it reached the end.
+  std::string failure() const {
+    if (rc_ == 0 || rc_ == MDB_NOTFOUND) return {};
+    return lmdb_error(rc_, "reading on").message;
+  }
+
+ private:
+  MDB_cursor* cursor_ = nullptr;
+  int rc_ = 0;
+  bool started_ = false;
+};
+
+std::uint64_t u64(const MDB_val& v) {
+  std::uint64_t x = 0;
+  if (v.mv_size == sizeof x) std::memcpy(&x, v.mv_data, sizeof x);
+  return x;
+}
+
+class Checker {
+ public:
+  Checker(Env& env, MDB_txn* txn, std::size_t max_problems) : env_(env), txn_(txn), max_(max_problems) {}
+
+  void problem(std::string what) {
+    ++report.problems_found;
+    if (report.problems.size() < max_) report.problems.push_back(std::move(what));
+  }
+  void ended(const Walk& walk, std::string_view table, std::uint64_t after) {
+    if (auto why = walk.failure(); !why.empty())
+      problem(std::string(table) + ": the walk stops after key " + std::to_string(after) + ": " + why);
+  }
+
+  bool has_term(std::uint64_t id) const {
+    return id == 0 || is_inline(id) || std::binary_search(term_ids_.begin(), term_ids_.end(), id);
+  }
+  void need_term(std::uint64_t id, const std::string& whose) {
+    if (!has_term(id)) problem(whose + " names term " + std::to_string(id) + ", which is not in the dictionary");
+  }
+
+  void terms() {
+    Walk walk(txn_, env_.terms);
+    TermReader reader(txn_, env_);
+    std::uint64_t id = 0;
+    MDB_val v;
+    while (walk.next(id, v)) {
+      term_ids_.push_back(id);
+      ++report.terms;
+      if (auto term = reader.get(id, false, false); !term) problem("term " + std::to_string(id) + ": " + term.error().message);
+    }
+    ended(walk, "terms", id);
+    Walk hashes(txn_, env_.term_hash);
+    std::uint64_t hash = 0;
+    while (hashes.next(hash, v)) {
+      if (!has_term(u64(v)))
+        problem("term_hash: hash " + std::to_string(hash) + " names term " + std::to_string(u64(v)) +
+                ", which is not in the dictionary");
+    }
+    ended(hashes, "term_hash", hash);
+  }
+
+  // Records in id order; an item's records are a run of ids from the item's own, so the
+  // records of each item are counted as one run.
+  void records() {
+    Walk walk(txn_, env_.records);
+    MDB_cursor* index[3] = {};
+    const MDB_dbi dbis[3] = {env_.idx_s, env_.idx_p, env_.idx_o};
+    const char* names[3] = {"subject", "predicate", "object"};
+    for (int i = 0; i < 3; ++i) mdb_cursor_open(txn_, dbis[i], &index[i]);
+    std::uint64_t id = 0;
+    MDB_val v;
+    std::uint64_t item = 0;
+    std::optional<ItemRow> item_row;
+    while (walk.next(id, v)) {
+      ++report.records;
+      const std::string whose = "record " + std::to_string(id);
+      RecordRow row;
+      if (!decode_record(id, view(v), row)) {
+        problem(whose + ": its row does not decode");
+        continue;
+      }
+      need_term(row.s, whose + " (subject)");
+      need_term(row.p, whose + " (predicate)");
+      need_term(row.o, whose + " (object)");
+      const std::uint64_t terms[3] = {row.s, row.p, row.o};
+      for (int i = 0; i < 3; ++i) {
+        MDB_val k = val(terms[i]), d = val(id);
+        if (!index[i] || mdb_cursor_get(index[i], &k, &d, MDB_GET_BOTH) != 0)
+          problem(whose + " is not in the " + names[i] + " index");
+      }
+      if (runs_.empty() || runs_.back().first != row.item) {
+        runs_.emplace_back(row.item, 0);
+        item = row.item;
+        auto got = get_item(txn_, env_, item);
+        item_row = got ? *got : std::nullopt;
+        if (!got) problem(whose + ": its item " + std::to_string(item) + ": " + got.error().message);
+        else if (!*got) problem(whose + " names item " + std::to_string(item) + ", which is not in the store");
+      }
+      ++runs_.back().second;
+      if (item_row && (id < item || id - item >= item_row->count))
+        problem(whose + " lies outside its item " + std::to_string(item) + " (records " + std::to_string(item) + " to " +
+                std::to_string(item + item_row->count - 1) + ")");
+    }
+    ended(walk, "records", id);
+    for (MDB_cursor* c : index)
+      if (c) mdb_cursor_close(c);
+  }
+
+  void items() {
+    Walk walk(txn_, env_.items);
+    MDB_cursor* times = nullptr;
+    if (env_.by_time) mdb_cursor_open(txn_, env_.by_time, &times);
+    std::sort(runs_.begin(), runs_.end());
+    auto run = runs_.begin();
+    std::uint64_t id = 0;
+    MDB_val v;
+    while (walk.next(id, v)) {
+      ++report.items;
+      const std::string whose = "item " + std::to_string(id);
+      ItemRow row;
+      if (!decode_item(view(v), row)) {
+        problem(whose + ": its row does not decode (truncated, or written by a later build)");
+        continue;
+      }
+      need_term(row.source, whose + " (source)");
+      need_term(row.context, whose + " (context)");
+      need_term(row.writer, whose + " (writer)");
+      while (run != runs_.end() && run->first < id) ++run;
+      const std::uint64_t found = run != runs_.end() && run->first == id ? run->second : 0;
+      if (found != row.live)
+        problem(whose + " counts " + std::to_string(row.live) + " live records; the records table holds " +
+                std::to_string(found));
+      if (times) {
+        const std::uint64_t at = time_key(row.asserted_at);
+        MDB_val k = val(at), d = val(id);
+        if (mdb_cursor_get(times, &k, &d, MDB_GET_BOTH) != 0) problem(whose + " is not in the time index");
+      }
+    }
+    ended(walk, "items", id);
+    if (times) mdb_cursor_close(times);
+  }
+
+  // Every index entry names a record that has the entry's term in that position.
+  void index(MDB_dbi dbi, const char* table, int position) {
+    Walk walk(txn_, dbi);
+    std::uint64_t key = 0;
+    MDB_val v;
+    while (walk.next(key, v)) {
+      ++report.index_entries;
+      const std::uint64_t id = u64(v);
+      auto row = get_record(txn_, env_, id);
+      if (!row) {
+        problem(std::string(table) + ": term " + std::to_string(key) + " -> record " + std::to_string(id) + ": " +
+                row.error().message);
+        continue;
+      }
+      const std::uint64_t terms[3] = {(*row) ? (*row)->s : 0, (*row) ? (*row)->p : 0, (*row) ? (*row)->o : 0};
+      if (!*row)
+        problem(std::string(table) + ": term " + std::to_string(key) + " names record " + std::to_string(id) +
+                ", which is not in the store");
+      else if (terms[position] != key)
+        problem(std::string(table) + ": term " + std::to_string(key) + " names record " + std::to_string(id) +
+                ", whose term there is " + std::to_string(terms[position]));
+    }
+    ended(walk, table, key);
+  }
+
+  void time_index() {
+    if (!env_.by_time) return;
+    Walk walk(txn_, env_.by_time);
+    std::uint64_t key = 0;
+    MDB_val v;
+    while (walk.next(key, v)) {
+      ++report.time_entries;
+      const std::uint64_t id = u64(v);
+      auto row = get_item(txn_, env_, id);
+      if (!row) problem("by_time: item " + std::to_string(id) + ": " + row.error().message);
+      else if (!*row) problem("by_time: an entry names item " + std::to_string(id) + ", which is not in the store");
+      else if (time_key((*row)->asserted_at) != key)
+        problem("by_time: item " + std::to_string(id) + " is listed at another time than it was asserted at");
+    }
+    ended(walk, "by_time", key);
+  }
+
+  // Input and output buffer entries are counted, not followed: an entry may outlive its item
+  // by design (an output buffer is trimmed after the parent's acknowledgement).
+  void buffers(MDB_dbi dbi, const char* table) {
+    Walk walk(txn_, dbi);
+    std::uint64_t key = 0;
+    MDB_val v;
+    while (walk.next(key, v)) ++report.buffer_entries;
+    ended(walk, table, key);
+  }
+
+  void counters() {
+    auto c = load_counters(txn_, env_.main);
+    if (!c) {
+      problem("counters: " + c.error().message);
+      return;
+    }
+    auto compare = [&](const char* what, std::uint64_t counted, std::uint64_t kept) {
+      if (counted != kept)
+        problem(std::string("counters: ") + what + " " + std::to_string(kept) + ", the tables hold " + std::to_string(counted));
+    };
+    compare("records", report.records, c->records);
+    compare("items", report.items, c->items);
+    compare("terms", report.terms, c->terms);
+  }
+
+  CheckReport report;
+
+ private:
+  Env& env_;
+  MDB_txn* txn_;
+  std::size_t max_;
+  std::vector<std::uint64_t> term_ids_;                          // ascending, as the table holds them
+  std::vector<std::pair<std::uint64_t, std::uint64_t>> runs_;  // item -> records seen
+};
+
+}  // namespace
+
+Result<CheckReport> check_store(Env& env, MDB_txn* txn, std::size_t max_problems,
+                                const std::function<void(std::string_view table)>& progress) {
+  Checker check(env, txn, max_problems);
+  auto step = [&](std::string_view table) {
+    if (progress) progress(table);
+  };
+  step("terms");
+  check.terms();
+  step("records");
+  check.records();
+  step("items");
+  check.items();
+  step("idx_s");
+  check.index(env.idx_s, "idx_s", 0);
+  step("idx_p");
+  check.index(env.idx_p, "idx_p", 1);
+  step("idx_o");
+  check.index(env.idx_o, "idx_o", 2);
+  step("by_time");
+  check.time_index();
+  step("inbox");
+  check.buffers(env.inbox, "inbox");
+  step("outbox");
+  check.buffers(env.outbox, "outbox");
+  step("counters");
+  check.counters();
+  return std::move(check.report);
+}
+
+}  // namespace tahvel::node::detail
