@@ -96,7 +96,9 @@ class ReasonerTest : public ::testing::Test {
     put({{n("s1"), n("hr"), tn::Term::integer(120)}});
     auto s = r.session();
     EXPECT_TRUE(s.has_value()) << (s ? "" : s.error().message);
-    if (s) EXPECT_EQ(s->added.size(), 2u);
+    if (s) {
+      EXPECT_EQ(s->added.size(), 2u);
+    }
     auto snap = node_->snapshot();
     auto a = snap->list(first), b = snap->list(second);
     EXPECT_TRUE(a && a->size() == 1u && b && b->size() == 1u);
@@ -249,6 +251,37 @@ TEST_F(ReasonerTest, RemovingAPremiseRetractsExactlyWhatLostAllSupport) {
   EXPECT_EQ(before.size(), 4u);  // r(x, y), r(x, z), r(y, z), lonely(x, z)
   std::map<std::string, int> left = {{nt("y", "r", "z"), 1}};
   EXPECT_EQ(board(), left);
+}
+
+// A blank node of the board is written as its skolem IRI, <node>/.well-known/genid/bN (RS12),
+// which is the only name other agents have for it. Read back as an IRI, a fact about that IRI did
+// not join with the blank node's, a conclusion reached through each name was the same triple
+// written twice, and removing one support removed the triple that the other still held.
+TEST_F(ReasonerTest, TheSkolemIriOfABlankNodeIsReadAsThatBlankNode) {
+  auto file = rules("g.rules",
+                    "has(X, yes) :- name(X, _).\nhas(X, yes) :- hr(X, _).\nnamed(X, N) :- hr(X, _), name(X, N).\n");
+  put({{tn::Term::blank("x"), n("hr"), tn::Term::integer(120)}});
+  auto snap = node_->snapshot();
+  auto hr = snap->list(tn::Pattern{.p = n("hr")});
+  ASSERT_TRUE(hr && hr->size() == 1u);
+  const tn::Term skolem = tn::Term::iri(kIri + "/.well-known/genid/" + hr->front().triple.s.value);
+  const std::uint64_t name = put({{skolem, n("name"), tn::Term::literal("Bob")}});
+  // skolem()'s own IRIs (…/genid/s…) and other nodes' are IRIs still.
+  put({{tn::Term::iri(kIri + "/.well-known/genid/s00ff"), n("name"), tn::Term::literal("Eve")}});
+
+  auto r = open(file);
+  ASSERT_TRUE(r.session().has_value());
+  const std::string subject = skolem.to_ntriples();
+  auto b = board();
+  EXPECT_EQ(b[subject + " " + n("has").to_ntriples() + " " + n("yes").to_ntriples()], 1) << "written once";
+  EXPECT_EQ(b[subject + " " + n("named").to_ntriples() + " \"Bob\""], 1) << "the two names join";
+  EXPECT_EQ(b["<" + kIri + "/.well-known/genid/s00ff> " + n("has").to_ntriples() + " " + n("yes").to_ntriples()], 1);
+
+  ASSERT_TRUE(node_->remove_item(name).has_value());
+  ASSERT_TRUE(r.session().has_value());
+  b = board();
+  EXPECT_EQ(b[subject + " " + n("has").to_ntriples() + " " + n("yes").to_ntriples()], 1) << "still held by hr";
+  EXPECT_EQ(b.count(subject + " " + n("named").to_ntriples() + " \"Bob\""), 0u);
 }
 
 // A snapshot held by a process keeps the store from growing (Env::grow). The reasoner wrote a

@@ -120,6 +120,22 @@ struct Reasoner::Impl {
   std::string genid(const node::Term& t) const {
     return node.iri() + "/.well-known/genid/" + t.value;
   }
+  // A fact as the engine reads it: the skolem IRI this node writes for a blank node of the board,
+  // `<node IRI>/.well-known/genid/bN` (RS12), is that blank node again. Other agents can name the
+  // node only by that IRI; read as an IRI, their facts did not join with the blank node's, and a
+  // conclusion reached through each name was one triple written twice (and removed with the
+  // first to lose its support). Only the store's own labels (b and digits): skolem() mints
+  // `…/genid/s…` IRIs, which stay IRIs.
+  node::Triple as_read(node::Triple t) const {
+    const std::string prefix = node.iri() + "/.well-known/genid/b";
+    for (node::Term* term : {&t.s, &t.o}) {
+      const std::string& v = term->value;
+      if (term->is_iri() && v.size() > prefix.size() && v.compare(0, prefix.size(), prefix) == 0 &&
+          v.find_first_not_of("0123456789", prefix.size()) == std::string::npos)
+        *term = node::Term::blank(v.substr(prefix.size() - 1));
+    }
+    return t;
+  }
   std::vector<node::Triple> stored(const Atom& atom) const {
     Atom a = atom;
     for (node::Term& t : a.args) if (t.is_blank()) t = node::Term::iri(genid(t));
@@ -188,7 +204,7 @@ Result<void> Reasoner::Impl::read_changes(const node::Snapshot& snap, std::vecto
     auto walked = snap.for_each(pattern, [&](const node::Record& r) {
       if (stop_at && r.meta.id >= stop_at) return false;
       ++present;
-      if (!own(r) && r.triple.p.is_iri() && engine.relevant(r.triple.p.value)) in.push_back(r.triple);
+      if (!own(r) && r.triple.p.is_iri() && engine.relevant(r.triple.p.value)) in.push_back(as_read(r.triple));
       return true;
     });
     if (!walked) return unexpected(node_error(walked.error()));
@@ -211,7 +227,7 @@ Result<void> Reasoner::Impl::read_changes(const node::Snapshot& snap, std::vecto
       ++removals;
       if (c.record.meta.id > bookmark) { ++removed_new; continue; }  // never seen
       if (!own(c.record) && c.record.triple.p.is_iri() && engine.relevant(c.record.triple.p.value))
-        out.push_back(c.record.triple);  // as insertions are read: only what some rule reads
+        out.push_back(as_read(c.record.triple));  // as insertions are read: only what some rule reads
     }
   }
   gap = last - bookmark != present + removals + removed_new || removed_by_others;
@@ -227,7 +243,7 @@ Result<Engine::Update> Reasoner::Impl::first_session(const node::Snapshot& snap,
   std::map<std::string, node::Triple> mine;
   auto walked = snap.for_each({}, [&](const node::Record& r) {
     if (own(r)) mine.emplace(key_of(r.triple), r.triple);
-    else if (r.triple.p.is_iri() && engine.relevant(r.triple.p.value)) base.push_back(r.triple);
+    else if (r.triple.p.is_iri() && engine.relevant(r.triple.p.value)) base.push_back(as_read(r.triple));
     return true;
   });
   if (!walked) return unexpected(node_error(walked.error()));
@@ -259,7 +275,7 @@ Result<Engine::Update> Reasoner::Impl::resync(const node::Snapshot& snap, std::i
   std::map<std::string, node::Triple> mine;
   auto walked = snap.for_each({}, [&](const node::Record& r) {
     if (own(r)) mine.emplace(key_of(r.triple), r.triple);
-    else if (r.triple.p.is_iri() && fresh.relevant(r.triple.p.value)) base.push_back(r.triple);
+    else if (r.triple.p.is_iri() && fresh.relevant(r.triple.p.value)) base.push_back(as_read(r.triple));
     return true;
   });
   if (!walked) return unexpected(node_error(walked.error()));
