@@ -12,15 +12,16 @@
 // t0 + (k + 1) s / X), so time does not drift however long the run. SIGINT/SIGTERM end the
 // recording after the current chunk (the end item is still written).
 #include <algorithm>
+#include <charconv>
 #include <chrono>
 #include <cmath>
-#include <ctime>
-#include <filesystem>
-#include <map>
-#include <memory>
 #include <cstdio>
 #include <cstdlib>
+#include <ctime>
+#include <filesystem>
 #include <iostream>
+#include <map>
+#include <memory>
 #include <optional>
 #include <string_view>
 #include <thread>
@@ -211,7 +212,8 @@ struct EarlierRun {
   bool recording = false;                // the recording item is there
   std::optional<std::int64_t> end;       // its tv:endSample: that run ended it
   std::int64_t next = 0;                 // the frame after its last chunk
-  std::optional<std::int64_t> start_ns;  // asserted-at of its frame 0 (from a chunk's time)
+  std::optional<std::int64_t> start_ns;  // asserted-at of its frame 0 (from a chunk's time, else
+                                         // its tv:startedAt)
   std::string replayed_from;             // its tv:replayedFrom (the record, or the generator's settings)
   std::string sample_digest;             // its tv:sampleDigest; empty in takes of older builds
   std::optional<double> fs, gain;        // its tv:samplingRate and tv:gain
@@ -261,6 +263,15 @@ tahvel::node::Result<EarlierRun> earlier_run(const rt::Session& session, const s
     }
     if (r.triple.p.value == tv + "replayedFrom") run.replayed_from = r.triple.o.value;
     if (r.triple.p.value == tv + "sampleDigest") run.sample_digest = r.triple.o.value;
+    // The take's time axis before any chunk is on the board: a run killed before its first chunk
+    // left the recording item alone, and the next one, going on under its name, stamped its
+    // chunks from its own start, seconds after this: a time range of the take found no chunk.
+    if (r.triple.p.value == tv + "startedAt") {
+      std::int64_t at = 0;
+      const std::string& v = r.triple.o.value;
+      if (auto [end, ec] = std::from_chars(v.data(), v.data() + v.size(), at); ec == std::errc() && end == v.data() + v.size())
+        run.start_ns = at;
+    }
   }
   if (!chunks_too) return run;
   // Chunks name the recording (tv:recording) and say where they start and how many frames they

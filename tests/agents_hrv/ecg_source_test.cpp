@@ -228,6 +228,34 @@ TEST_F(EcgSourceTest, ARestartAfterAKillGoesOnAfterTheLastChunkAndWritesEachSeco
 // Each chunk is asserted at its first frame and spans to the next chunk's first frame, to the
 // ns: a time range from inside a second gets that second's chunk, and one from a chunk's start
 // not the chunk before.
+// A source killed before its first chunk leaves the recording item alone. The next run went on
+// under the take's name but stamped its chunks from its own start, seconds after the take's
+// tv:startedAt: `tahvel ecg` found nothing in a range of the take, and an HRV window's samples
+// were "not at the node". It goes on on the take's axis, as after a chunk.
+TEST_F(EcgSourceTest, ATakeKilledBeforeItsFirstChunkGoesOnOnItsOwnTimeAxis) {
+  const std::string whole = new_node("whole");
+  ASSERT_EQ(run_source(whole), 0);
+  agg::RecordingInfo info = recording_info(whole);
+  ASSERT_TRUE(info.started_at);
+  const std::int64_t started_at = *info.started_at - 5'000'000'000;  // killed five seconds ago
+  info.started_at = started_at;
+
+  const std::string dir = new_node("early");
+  {
+    auto node = tn::Node::open(dir);
+    ASSERT_TRUE(node);
+    auto source = node->agent("ecg");
+    ASSERT_TRUE(source);
+    ASSERT_TRUE(source->store(agg::recording_item(info)));
+  }
+  ASSERT_EQ(run_source(dir), 0);
+  EXPECT_EQ(recordings(dir), std::vector<std::string>{info.iri}) << "the take goes on";
+  const Chunks written = chunks(dir, info.iri);
+  ASSERT_EQ(written.time.size(), 60u);
+  EXPECT_EQ(written.time.at(0).first, started_at) << "chunk 0 is asserted at the take's tv:startedAt";
+  expect_each_chunk_ends_where_the_next_begins(written);
+}
+
 TEST_F(EcgSourceTest, EachChunkSpansItsSecondSoATimeRangeFromInsideItGetsIt) {
   const std::string dir = new_node("home1");
   ASSERT_EQ(run_source(dir), 0);
