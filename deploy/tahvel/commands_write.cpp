@@ -267,6 +267,27 @@ void warn_if_the_ring_took(const node::Node& node, const node::Item& item, std::
             << " (put it --persistent, or make the store with a larger --ring)\n";
 }
 
+// Records the store's ring has reclaimed so far (0 without a ring).
+std::uint64_t ring_reclaimed(const node::Node& node) {
+  auto stats = node.stats();
+  return stats && stats->ring != 0 ? stats->reclaimed_records : 0;
+}
+
+// The same for `load`, whose batches of many items a small ring takes as they are written: it
+// printed the number of triples loaded and exited 0 over an empty store.
+void warn_if_the_ring_took_some(const node::Node& node, std::uint64_t loaded, std::uint64_t reclaimed_before) {
+  auto stats = node.stats();
+  if (!stats || stats->ring == 0 || stats->reclaimed_records <= reclaimed_before) return;
+  const std::uint64_t reclaimed = stats->reclaimed_records - reclaimed_before;
+  std::cerr << "tahvel: warning: the store's ring keeps at most " << stats->ring
+            << " non-persistent records (those waiting in input buffers among them) and reclaimed " << reclaimed
+            << " as this load wrote: "
+            << (loaded > stats->ring ? "at least " + std::to_string(loaded - stats->ring) + " of the " + std::to_string(loaded) +
+                                           " triples loaded are gone already"
+                                     : "the triples loaded may be among them")
+            << " (load with --persistent, or make the store with a larger --ring)\n";
+}
+
 int run_put(const Args& args) {
   node::Node node = open_node(args.positional(0));
   uri::PrefixMap prefixes = prefixes_with_flags(node.prefixes(), args);
@@ -338,7 +359,10 @@ int run_load(const Args& args) {
     items.push_back(frame);
     items.back().triples = std::move(group);
   }
-  print_number(store_in_batches(agent, std::move(items), batch, input, places));
+  const std::uint64_t reclaimed_before = ring_reclaimed(node);
+  const std::uint64_t loaded = store_in_batches(agent, std::move(items), batch, input, places);
+  print_number(loaded);
+  if (!frame.persistent) warn_if_the_ring_took_some(node, loaded, reclaimed_before);
   return kExitOk;
 }
 

@@ -585,6 +585,28 @@ TEST_F(Cli, PutSaysWhenTheRingReclaimedTheItemAsItWasWritten) {
   EXPECT_EQ(lines_of(run({"list", node_}).out).size(), 6u);
 }
 
+// `load` into a ring store: the same, for a file of many items. It printed the triples loaded and
+// exited 0 over a store that kept none of them.
+TEST_F(Cli, LoadSaysWhenTheRingReclaimedWhatItLoaded) {
+  ASSERT_EQ(run({"init", node_, "--iri", kNodeIri, "--ring", "5"}).status, 0);
+  spit(tmp_ / "ten.ttl", "<http://e.org/s> <http://e.org/p> 0, 1, 2, 3, 4, 5, 6, 7, 8, 9 .\n");
+  Outcome load = run({"load", node_, (tmp_ / "ten.ttl").string()});
+  EXPECT_EQ(load.status, 0);
+  EXPECT_EQ(load.out, "10\n");
+  EXPECT_NE(load.err.find("tahvel: warning: the store's ring keeps at most 5 non-persistent records (those waiting in input "
+                          "buffers among them) and reclaimed 10 as this load wrote: at least 5 of the 10 triples loaded are "
+                          "gone already (load with --persistent"),
+            std::string::npos)
+      << load.err;
+  spit(tmp_ / "few.ttl", "<http://e.org/a> <http://e.org/p> 1 .\n<http://e.org/b> <http://e.org/p> 2 .\n");
+  for (const std::vector<std::string>& args : {std::vector<std::string>{"load", node_, (tmp_ / "few.ttl").string()},
+                                               std::vector<std::string>{"load", node_, (tmp_ / "ten.ttl").string(), "--persistent"}}) {
+    load = run(args);
+    EXPECT_EQ(load.status, 0) << load.err;
+    EXPECT_EQ(load.err.find("warning"), std::string::npos) << load.err;
+  }
+}
+
 // An item addressed (R18) to an agent nothing on the node knows waits in its input buffer for
 // ever: `put` and `load` say so, naming the child nodes known, and store it all the same.
 TEST_F(Cli, PutAndLoadWarnOfAContextAddressingAnAgentNothingOnTheNodeKnows) {
