@@ -563,14 +563,10 @@ extern "C" tahvel_status tahvel_subscribe_earlier(tahvel_agent* agent, const cha
   return subscribe_as("tahvel_subscribe_earlier", agent, s, p, o, true, subscription_out);
 }
 
-extern "C" tahvel_status tahvel_take(tahvel_agent* agent, int timeout_ms, uint64_t* item_out,
-                                     char** ntriples_out, size_t* len_out) {
-  return tahvel_take_as(agent, timeout_ms, TAHVEL_FORMAT_NTRIPLES, item_out, ntriples_out, len_out);
-}
-
-extern "C" tahvel_status tahvel_take_as(tahvel_agent* agent, int timeout_ms, int format,
-                                        uint64_t* item_out, char** text_out, size_t* len_out) {
-  static constexpr const char* fn = "tahvel_take";
+namespace {
+// tahvel_take and tahvel_take_as; `fn` names the one called in errors.
+tahvel_status take_as(const char* fn, tahvel_agent* agent, int timeout_ms, int format, uint64_t* item_out,
+                      char** text_out, size_t* len_out) {
   return guarded(fn, [&] {
     clear(item_out);
     clear(text_out);
@@ -591,6 +587,17 @@ extern "C" tahvel_status tahvel_take_as(tahvel_agent* agent, int timeout_ms, int
     if (status == TAHVEL_OK && item_out != nullptr) *item_out = delivery.item;
     return status;
   });
+}
+}  // namespace
+
+extern "C" tahvel_status tahvel_take(tahvel_agent* agent, int timeout_ms, uint64_t* item_out,
+                                     char** ntriples_out, size_t* len_out) {
+  return take_as("tahvel_take", agent, timeout_ms, TAHVEL_FORMAT_NTRIPLES, item_out, ntriples_out, len_out);
+}
+
+extern "C" tahvel_status tahvel_take_as(tahvel_agent* agent, int timeout_ms, int format,
+                                        uint64_t* item_out, char** text_out, size_t* len_out) {
+  return take_as("tahvel_take_as", agent, timeout_ms, format, item_out, text_out, len_out);
 }
 
 extern "C" tahvel_status tahvel_pending(tahvel_agent* agent, uint64_t* count_out) {

@@ -534,6 +534,13 @@ TEST_F(CApiTest, TakeAsJsonCarriesWhoWroteItAndWhen) {
   EXPECT_NE(text.str().find("\"stored_at\":"), std::string::npos);
   Text bad;
   EXPECT_EQ(tahvel_take_as(reader, 0, TAHVEL_FORMAT_TURTLE, &item, &bad.data, &bad.len), TAHVEL_INVALID_ARGUMENT);
+  // Its errors name the function called (they named tahvel_take).
+  EXPECT_EQ(std::string(tahvel_last_error()).rfind("tahvel_take_as: format ", 0), 0u) << tahvel_last_error();
+  ASSERT_EQ(tahvel_ack(reader, sent), TAHVEL_OK) << tahvel_last_error();
+  EXPECT_EQ(tahvel_take_as(reader, 0, TAHVEL_FORMAT_JSON, &item, &bad.data, &bad.len), TAHVEL_TIMEOUT);
+  EXPECT_EQ(std::string(tahvel_last_error()), "tahvel_take_as: no item within 0 ms");
+  EXPECT_EQ(tahvel_take(reader, 0, &item, &bad.data, &bad.len), TAHVEL_TIMEOUT);
+  EXPECT_EQ(std::string(tahvel_last_error()), "tahvel_take: no item within 0 ms");
   tahvel_agent_close(writer);
   tahvel_agent_close(reader);
 }
