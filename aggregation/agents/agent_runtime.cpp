@@ -46,10 +46,19 @@ std::string node_error(const node::Error& e) {
 }  // namespace
 
 Args::Args(int argc, char** argv, const std::vector<std::string>& valued,
-           const std::vector<std::string>& boolean) {
+           const std::vector<std::string>& boolean, const std::vector<std::string>& repeatable) {
   for (int i = 1; i < argc; ++i) {
     const std::string arg = argv[i];
     if (arg == "-h" || arg == "--help") throw HelpRequested{};
+    if (declared(repeatable, arg)) {
+      if (i + 1 >= argc) throw UsageError(arg + ": needs a value");
+      repeated_.emplace_back(arg, argv[++i]);
+      continue;
+    }
+    // A flag given twice is an error, as in `tahvel` (docs/cli.md, Conventions): the last one
+    // was taken without a word, and a topology file that gives `--window` twice got one of them.
+    if ((declared(valued, arg) || declared(boolean, arg)) && values_.count(arg))
+      throw UsageError("flag '" + arg + "' given twice");
     if (declared(valued, arg)) {
       if (i + 1 >= argc) throw UsageError(arg + ": needs a value");
       values_[arg] = argv[++i];
@@ -64,6 +73,13 @@ Args::Args(int argc, char** argv, const std::vector<std::string>& valued,
     }
   }
   if (dir_.empty()) throw UsageError("the node directory is missing");
+}
+
+std::vector<std::string> Args::values(const std::string& flag) const {
+  std::vector<std::string> out;
+  for (const auto& [name, value] : repeated_)
+    if (name == flag) out.push_back(value);
+  return out;
 }
 
 std::string Args::text(const std::string& flag, const std::string& fallback) const {

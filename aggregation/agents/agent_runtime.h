@@ -36,11 +36,14 @@ struct HelpRequested {};
 int guarded_main(const char* program, const char* usage, const std::function<int()>& body);
 
 // The command line: one positional argument (the node directory) and "--name value" or
-// "--name" flags, each of which must be declared. Throws UsageError.
+// "--name" flags, each of which must be declared. A flag given twice is an error unless it is
+// declared `repeatable` (valued; values() has each). Throws UsageError.
 class Args {
  public:
   Args(int argc, char** argv, const std::vector<std::string>& valued,
-       const std::vector<std::string>& boolean);
+       const std::vector<std::string>& boolean, const std::vector<std::string>& repeatable = {});
+  // Every value of a repeatable flag, in command-line order.
+  std::vector<std::string> values(const std::string& flag) const;
   const std::string& dir() const { return dir_; }
   bool has(const std::string& flag) const { return values_.count(flag) != 0; }
   std::string text(const std::string& flag, const std::string& fallback) const;
@@ -50,6 +53,7 @@ class Args {
  private:
   std::string dir_;
   std::map<std::string, std::string> values_;
+  std::vector<std::pair<std::string, std::string>> repeated_;
 };
 
 // SIGINT and SIGTERM set a flag that the loops below test; the current item is finished first.

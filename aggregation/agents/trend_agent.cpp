@@ -15,7 +15,6 @@
 // the windows of its writer are (docs/agents.md).
 #include <algorithm>
 #include <cmath>
-#include <cstring>
 #include <iostream>
 #include <map>
 #include <set>
@@ -206,17 +205,13 @@ class TrendStage {
 
 int main(int argc, char** argv) {
   return rt::guarded_main(kProgram, "usage: tahvel-trend DIR [--agent ID] [--idle S] [--metric NAME ...]", [&]() -> int {
-    const rt::Args args(argc, argv, {"--agent", "--idle", "--metric"}, {});
-    // --metric may repeat (Args keeps the last value): collect every one.
+    const rt::Args args(argc, argv, {"--agent", "--idle"}, {}, {"--metric"});
     std::vector<agg::HrvMetric> metrics;
-    for (int i = 1; i + 1 < argc; ++i)
-      if (std::strcmp(argv[i], "--metric") == 0) {
-        auto m = agg::metric_from_local_name(argv[++i]);
-        if (!m) throw rt::UsageError(std::string("--metric: unknown metric '") + argv[i] + "'");
-        bool seen = false;
-        for (auto x : metrics) seen = seen || x == *m;
-        if (!seen) metrics.push_back(*m);
-      }
+    for (const std::string& name : args.values("--metric")) {
+      auto m = agg::metric_from_local_name(name);
+      if (!m) throw rt::UsageError("--metric: unknown metric '" + name + "'");
+      if (std::find(metrics.begin(), metrics.end(), *m) == metrics.end()) metrics.push_back(*m);
+    }
     if (metrics.empty()) metrics = {agg::HrvMetric::sdnn, agg::HrvMetric::rmssd, agg::HrvMetric::mean_hr};
     const double idle = args.number("--idle", 0);
     rt::install_stop_handlers();

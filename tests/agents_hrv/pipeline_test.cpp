@@ -705,6 +705,32 @@ TEST(AgentPrograms, HelpPrintsTheUsageOnStandardOutputAndExitsZero) {
   }
 }
 
+// A flag given twice is a usage error naming it, as in `tahvel` (docs/cli.md, Conventions): the
+// programs took the last value without a word (`--signal 1 --signal 0` recorded lead 0).
+TEST(AgentPrograms, AFlagGivenTwiceIsAUsageErrorNamingIt) {
+  for (const std::string name : {"tahvel-ecg-source", "tahvel-rpeak", "tahvel-rr", "tahvel-hrv", "tahvel-trend",
+                                 "tahvel-environment", "tahvel-env-motes"}) {
+    const std::string flag = name == "tahvel-env-motes" ? "--seed" : "--agent";  // one each program has
+    FILE* out = popen((bin(name) + " /nonexistent " + flag + " 1 " + flag + " 2 2>&1").c_str(), "r");
+    ASSERT_NE(out, nullptr);
+    std::string text;
+    char buffer[512];
+    while (std::fgets(buffer, sizeof buffer, out)) text += buffer;
+    const int status = pclose(out);
+    EXPECT_TRUE(WIFEXITED(status) && WEXITSTATUS(status) == 2) << name << ": " << text;
+    EXPECT_NE(text.find(name + ": flag '" + flag + "' given twice"), std::string::npos) << name << ": " << text;
+  }
+  // tahvel-trend's --metric is repeatable: the command line is taken (the store is what fails).
+  FILE* out = popen((bin("tahvel-trend") + " /nonexistent --metric sdnnMs --metric rmssdMs 2>&1").c_str(), "r");
+  ASSERT_NE(out, nullptr);
+  std::string text;
+  char buffer[512];
+  while (std::fgets(buffer, sizeof buffer, out)) text += buffer;
+  const int status = pclose(out);
+  EXPECT_TRUE(WIFEXITED(status) && WEXITSTATUS(status) == 1) << text;
+  EXPECT_EQ(text.find("given twice"), std::string::npos) << text;
+}
+
 // The configuration of tahvel-hrv as an operator at the hospital sends it: a setting that is
 // not a number of seconds (or under a millisecond, which made millions of windows out of one
 // RR item) is logged and ignored; a valid one that a ring may reclaim (relayed items keep their
