@@ -786,25 +786,26 @@ std::string pattern_text(const node::Snapshot& snap, std::uint64_t item, const u
   return parts[0] + " " + parts[1] + " " + parts[2];
 }
 
-// A `forward` pattern of the file, errors naming the file and node.
-node::Pattern forward_pattern_of(const NodeSpec& spec, const std::string& text, const uri::PrefixMap& prefixes) {
+// Pattern `i` of the node's `forward`, errors naming where the file writes it and the node.
+node::Pattern forward_pattern_of(const NodeSpec& spec, std::size_t i, const uri::PrefixMap& prefixes) {
   try {
-    return forward_pattern(text, prefixes, "pattern");
+    return forward_pattern(spec.forward[i], prefixes, "pattern");
   } catch (const Failure& f) {
-    fail(spec.forward_at + ": node '" + spec.id + "': forward: " + f.message);
+    fail(spec.forward_place(i) + ": node '" + spec.id + "': forward: " + f.message);
   }
 }
 
 // Warns about a `forward` pattern that names a tv: term the vocabulary does not have: no item of
 // Tahvel's has it, so the pattern forwards nothing (a misspelt class, say), and nothing else
 // would say so. A warning, not a refusal: an agent of the deployment's own may write such terms.
-void warn_of_unknown_terms(const NodeSpec& spec, const std::string& text, const node::Pattern& pattern) {
+void warn_of_unknown_terms(const NodeSpec& spec, std::size_t i, const node::Pattern& pattern) {
+  const std::string& text = spec.forward[i];
   constexpr std::string_view kTv = federation::vocab::kTv;
   for (const auto* term : {&pattern.s, &pattern.p, &pattern.o}) {
     if (!*term || !(*term)->is_iri() || !(*term)->value.starts_with(kTv)) continue;
     const std::string_view local = std::string_view((*term)->value).substr(kTv.size());
     if (is_tahvel_term(local)) continue;
-    std::cerr << "up: warning: " << spec.forward_at << ": node '" << spec.id << "': forward: pattern '" << text << "': tv:" << local
+    std::cerr << "up: warning: " << spec.forward_place(i) << ": node '" << spec.id << "': forward: pattern '" << text << "': tv:" << local
               << " is not a term of the tv: vocabulary (docs/vocabulary.md)";
     if (auto near = nearest_tahvel_term(local)) std::cerr << "; did you mean tv:" << *near << "?";
     else std::cerr << ".";
@@ -1659,7 +1660,8 @@ int run_up(const Args& args) {
       if (existing.iri() != spec->iri)
         fail((changed_at.empty() ? topo.file.string() : changed_at) + ": node '" + spec->id + "': the store at " + store.string() + " is the node <" + existing.iri() + ">, the file says <" +
              spec->iri + "> (a changed iri or parent); move that store away, or give the node another id");
-      for (const auto& f : spec->forward) warn_of_unknown_terms(*spec, f, forward_pattern_of(*spec, f, existing.prefixes()));
+      for (std::size_t i = 0; i < spec->forward.size(); ++i)
+        warn_of_unknown_terms(*spec, i, forward_pattern_of(*spec, i, existing.prefixes()));
       for (const fs::path& file : spec->load) (void)load_file_triples(*spec, file, existing.prefixes(), topo);
       // Durability and ring are the store's, set when it was made: a changed ring would remove
       // records (or keep more) behind the operator's back, so the file's is only compared.
@@ -1672,7 +1674,7 @@ int run_up(const Args& args) {
     } else {
       if (fs::is_directory(state)) refuse_a_second_store_of(*spec, state);
       const uri::PrefixMap prefixes = uri::PrefixMap::standard();
-      for (const auto& f : spec->forward) warn_of_unknown_terms(*spec, f, forward_pattern_of(*spec, f, prefixes));
+      for (std::size_t i = 0; i < spec->forward.size(); ++i) warn_of_unknown_terms(*spec, i, forward_pattern_of(*spec, i, prefixes));
       for (const fs::path& file : spec->load) (void)load_file_triples(*spec, file, prefixes, topo);
     }
   }
@@ -1725,7 +1727,7 @@ int run_up(const Args& args) {
       node::Node node = check(node::Node::open(store));
       node::Agent uplink = check(node.agent("uplink"));
       std::vector<node::Pattern> policy;
-      for (const auto& f : spec.forward) policy.push_back(forward_pattern_of(spec, f, node.prefixes()));
+      for (std::size_t i = 0; i < spec.forward.size(); ++i) policy.push_back(forward_pattern_of(spec, i, node.prefixes()));
       if (!spec.forward_given) policy = federation::default_forward_policy();
       auto before = check(node.snapshot());
       std::set<std::uint64_t> had;

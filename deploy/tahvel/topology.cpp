@@ -391,6 +391,8 @@ node::Result<Topology> load_topology(const std::filesystem::path& file) {
     spec.forward = *forward;
     spec.forward_given = t->get("forward") != nullptr;
     spec.forward_at = t->get("forward") ? where(*t->get("forward"), file) : spec.at;
+    if (const toml::array* patterns = t->get("forward") ? t->get("forward")->as_array() : nullptr)
+      for (const auto& e : *patterns) spec.forward_each_at.push_back(where(e, file));
     TAHVEL_TRY(behaviours, typed<std::string>(*t, "behaviours", file, what, "a string (a folder)"));
     if (behaviours) {
       std::filesystem::path p = *behaviours;

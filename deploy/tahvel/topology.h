@@ -48,6 +48,9 @@ struct NodeSpec {
   std::vector<std::string> forward;    // uplink policy patterns "S P O" (CURIEs, _ for any)
   bool forward_given = false;          // absent: the default policy; `forward = []`: nothing goes up
   std::string forward_at;              // where `forward` is written (the node's table when absent)
+  std::vector<std::string> forward_each_at;  // where each of its patterns is written
+  // Where pattern `i` of `forward` is written (FILE:LINE:COL), for errors about that pattern.
+  const std::string& forward_place(std::size_t i) const { return i < forward_each_at.size() ? forward_each_at[i] : forward_at; }
   std::vector<std::filesystem::path> load;  // Turtle files put (persistent) into a new store
   std::filesystem::path behaviours;    // the dispatcher's folder of behaviours; empty: none
   std::vector<AgentSpec> agents;

@@ -2468,8 +2468,11 @@ TEST_F(Cli, UpRefusesATopologyThatCouldNotRunAsWrittenNamingWhatAndWhere) {
        "t.toml:1:1: node 'hospital' has children (node 'home1') but no listen"},
       // A pattern of the file is named as the file writes it, not as a command-line flag.
       {listening + "[[node]]\nid = \"home1\"\nparent = \"hospital\"\nforward = [\"_ zz:foo _\"]\n",
-       "t.toml:8:11: node 'home1': forward: pattern '_ zz:foo _': unknown prefix 'zz' in 'zz:foo' (known: geo, owl, prov, "
+       "t.toml:8:12: node 'home1': forward: pattern '_ zz:foo _': unknown prefix 'zz' in 'zz:foo' (known: geo, owl, prov, "
        "rdf, rdfs, sosa, ssn, tv, xsd; write the full IRI in <…> for any other)"},
+      // In a long policy, the pattern at fault is named at its own line, not at `forward = [`.
+      {listening + "[[node]]\nid = \"home1\"\nparent = \"hospital\"\nforward = [\n  \"_ a tv:EcgChunk\",\n  \"_ a\",\n]\n",
+       "t.toml:10:3: node 'home1': forward: pattern '_ a': "},
       // A child node is agent <id> of its parent: the agents every node has are not free. A child
       // 'supervisor' had what its parent relayed from it replaced away every 5 s.
       {listening + "[[node]]\nid = \"supervisor\"\nparent = \"hospital\"\n",
@@ -2587,7 +2590,7 @@ TEST_F(Cli, UpWarnsOfAForwardTermOutsideTheVocabularyAndSaysOnceWhenTheDefaultPo
              "[[node]]\nid = \"home2\"\nparent = \"hospital\"\n");
   Outcome first = run({"up", file, "--state", state});
   ASSERT_EQ(first.status, 0) << first.err;
-  EXPECT_NE(first.err.find("t.toml:8:11: node 'home1': forward: pattern '_ sosa:observedProperty tv:HeartRateVariabilty': "
+  EXPECT_NE(first.err.find("t.toml:8:12: node 'home1': forward: pattern '_ sosa:observedProperty tv:HeartRateVariabilty': "
                            "tv:HeartRateVariabilty is not a term of the tv: vocabulary (docs/vocabulary.md); did you mean "
                            "tv:HeartRateVariability?"),
             std::string::npos)
