@@ -162,12 +162,19 @@ TEST_F(BoardTest, AFloorWrittenAsAWholeDecimalIsThatFloorAndAFractionIsReported)
   put(with_floor(kHome + "/m-decimal", Term::literal("1.0", "http://www.w3.org/2001/XMLSchema#decimal")));
   put(with_floor(kHome + "/m-double", Term::literal("1e0", "http://www.w3.org/2001/XMLSchema#double")));
   put(with_floor(kHome + "/m-half", Term::literal("1.5", "http://www.w3.org/2001/XMLSchema#decimal")));
+  // A whole number out of range was said to be "not an integer", which sent the author to the
+  // wrong fix.
+  put(with_floor(kHome + "/m-high", Term::integer(2'000'000'000)));
   BoardPlan board = plan();
   EXPECT_EQ(board.plan.sensor(kHome + "/m-decimal")->floor, 1);
   EXPECT_EQ(board.plan.sensor(kHome + "/m-double")->floor, 1);
   EXPECT_EQ(board.plan.sensor(kHome + "/m-half"), nullptr);
-  ASSERT_EQ(board.problems.size(), 1u);
-  EXPECT_NE(board.problems[0].find("tv:floor '1.5' is not an integer"), std::string::npos) << board.problems[0];
+  EXPECT_EQ(board.plan.sensor(kHome + "/m-high"), nullptr);
+  ASSERT_EQ(board.problems.size(), 2u);
+  std::sort(board.problems.begin(), board.problems.end());
+  EXPECT_NE(board.problems[0].find("tv:floor '1.5' is not a whole number within ±1e9"), std::string::npos) << board.problems[0];
+  EXPECT_NE(board.problems[1].find("tv:floor '2000000000' is not a whole number within ±1e9"), std::string::npos)
+      << board.problems[1];
 }
 
 TEST_F(BoardTest, ListByRoomSelectsTheRoomItsSensorsAndTheirReadings) {

@@ -243,7 +243,7 @@ Result<BoardPlan> load_plan(const node::Snapshot& snapshot) {
     if (auto it = floors->find(feature); it != floors->end()) {
       auto parsed = parse_floor(it->second.value);
       if (!parsed) {
-        out.problems.push_back(feature + ": tv:floor '" + it->second.value.value + "' is not an integer");
+        out.problems.push_back(feature + ": tv:floor '" + it->second.value.value + "' is not a whole number within ±1e9");
         continue;
       }
       floor = *parsed;

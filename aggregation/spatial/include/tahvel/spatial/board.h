@@ -40,7 +40,7 @@ inline constexpr const char* kSosaMadeBySensor = "http://www.w3.org/ns/sosa/made
 // features), ids = their IRIs.
 struct BoardPlan {
   Plan plan;
-  // Features skipped because their WKT is malformed or their tv:floor is not an integer, one
+  // Features skipped because their WKT is malformed or their tv:floor is not a whole number within ±1e9, one
   // line each ("<iri>: WKT column 9: ring is not closed ..."). The rest of the plan stands.
   std::vector<std::string> problems;
   // Per located feature, the id of the record from which on the records stating its place
