@@ -11,6 +11,7 @@
 #include <sys/wait.h>
 #include <unistd.h>
 
+#include <atomic>
 #include <chrono>
 #include <cstdlib>
 #include <cstring>
@@ -466,6 +467,29 @@ TEST_F(Cli, RemoveByPatternKeepsSubscriptionsAndSaysSo) {
   EXPECT_NE(removed.err.find("1 matching record(s) kept: they belong to subscriptions"), std::string::npos) << removed.err;
   Outcome gone = run({"remove", node_, "--item", s.out.substr(0, s.out.size() - 1)});
   EXPECT_EQ(gone.status, 0) << gone.err;
+
+  // A match another writer stores while the removal runs is not a subscription's: it was counted
+  // as one ("kept: they belong to subscriptions" on a board without any).
+  std::atomic<bool> stop{false};
+  std::thread writer([&] {
+    auto node = tahvel::node::Node::open(node_);
+    if (!node) return;
+    auto agent = node->agent("sensor");
+    if (!agent) return;
+    for (int i = 0; !stop; ++i) {
+      tahvel::node::Item item;
+      item.add(tahvel::node::Term::iri(kEx + "obs/" + std::to_string(i)), tahvel::node::Term::iri(kEx + "heartRate"), tahvel::node::Term::integer(i));
+      if (!agent->store(item)) return;
+      std::this_thread::sleep_for(std::chrono::microseconds(200));
+    }
+  });
+  for (int i = 0; i < 10; ++i) {
+    Outcome again = run({"remove", node_, "-p", "ex:heartRate", "--prefix", "ex=" + kEx});
+    EXPECT_EQ(again.status, 0) << again.err;
+    EXPECT_EQ(again.err.find("belong to subscriptions"), std::string::npos) << again.err;
+  }
+  stop = true;
+  writer.join();
 }
 
 TEST_F(Cli, SubscribeEarlierBringsWhatIsAlreadyOnTheBoardAndRefusesAnArea) {
