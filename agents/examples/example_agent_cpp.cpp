@@ -17,6 +17,7 @@
 // Stops after N items, after SECONDS without input (default 10), or on SIGINT/SIGTERM.
 // Exit status: 0 done, 1 Tahvel error, 2 usage.
 #include <chrono>
+#include <cmath>
 #include <csignal>
 #include <cstdlib>
 #include <iostream>
@@ -76,9 +77,27 @@ const char* classify(double bpm) {
   return "normal";
 }
 
-// The derived item for one heart-rate record.
-tn::Item derive(const tn::Record& observation) {
-  const double bpm = std::strtod(observation.triple.o.value.c_str(), nullptr);
+// The heart rate a literal holds: its whole lexical form a finite decimal number of beats per
+// minute ("abc", "NaN" and "0x40" are none).
+std::optional<double> heart_rate(const std::string& text) {
+  char* end = nullptr;
+  const double bpm = std::strtod(text.c_str(), &end);
+  if (text.empty() || end != text.c_str() + text.size() || !std::isfinite(bpm) || bpm < 0 ||
+      text.find_first_of("xX") != std::string::npos)
+    return std::nullopt;
+  return bpm;
+}
+
+// The derived item for one heart-rate record; nothing for a literal that is no heart rate
+// (logged and skipped, as the pipeline's agents do with malformed input).
+std::optional<tn::Item> derive(const tn::Record& observation) {
+  const std::optional<double> rate = heart_rate(observation.triple.o.value);
+  if (!rate) {
+    std::cerr << "example_agent_cpp: " << observation.triple.s.to_ntriples() << " " << observation.triple.o.to_ntriples()
+              << ": not a heart rate, skipped\n";
+    return std::nullopt;
+  }
+  const double bpm = *rate;
   const auto c = tn::Term::blank("c");
   tn::Item item;
   item.add(c, tn::Term::iri(std::string(tn::kRdfType)),
@@ -95,7 +114,9 @@ tn::Item derive(const tn::Record& observation) {
 tn::Result<void> process(tn::Agent& agent, const tn::Delivery& delivery) {
   for (const tn::Record& record : delivery.records) {
     if (record.triple.p.value != kTv + "heartRate" || !record.triple.o.is_literal()) continue;
-    auto stored = agent.store(derive(record));
+    const std::optional<tn::Item> derived = derive(record);
+    if (!derived) continue;
+    auto stored = agent.store(*derived);
     if (!stored) return tahvel::unexpected(stored.error());
   }
   return {};

@@ -492,6 +492,36 @@ TEST_F(Cli, RemoveByPatternKeepsSubscriptionsAndSaysSo) {
   writer.join();
 }
 
+// The worked example agents, which are meant to be copied, classified "abc", NaN and "0x40" as
+// heart rates ("low", "normal") with provenance to the observation. They skip them, saying so.
+TEST_F(Cli, TheExampleAgentsClassifyOnlyLiteralsThatAreHeartRates) {
+  init();
+  const std::vector<std::string> examples = {TAHVEL_BIN_DIR "/example_agent", TAHVEL_BIN_DIR "/example_agent_cpp"};
+  auto run_example = [&](const std::string& program, const std::string& flags) {
+    const fs::path err = tmp_ / (fs::path(program).filename().string() + ".err");
+    const std::string command = program + " " + node_ + " " + flags + " > /dev/null 2> " + err.string();
+    EXPECT_EQ(std::system(command.c_str()), 0) << slurp(err);
+    return slurp(err);
+  };
+  for (const std::string& program : examples) run_example(program, "--idle 1");  // subscribes
+  Outcome put = run({"put", node_, "-"},
+                    "<http://example.org/home1/obs/1> <https://w3id.org/tahvel#heartRate> \"abc\" .\n"
+                    "<http://example.org/home1/obs/1> <https://w3id.org/tahvel#heartRate> \"NaN\"^^<http://www.w3.org/2001/XMLSchema#double> .\n"
+                    "<http://example.org/home1/obs/1> <https://w3id.org/tahvel#heartRate> \"0x40\"^^<http://www.w3.org/2001/XMLSchema#integer> .\n"
+                    "<http://example.org/home1/obs/1> <https://w3id.org/tahvel#heartRate> \"112\"^^<http://www.w3.org/2001/XMLSchema#integer> .\n");
+  ASSERT_EQ(put.status, 0) << put.err;
+  for (const std::string& program : examples) {
+    const std::string said = run_example(program, "--count 1 --idle 5");
+    EXPECT_NE(said.find("\"abc\": not a heart rate, skipped"), std::string::npos) << said;
+    EXPECT_NE(said.find("\"NaN\"^^<http://www.w3.org/2001/XMLSchema#double>: not a heart rate, skipped"), std::string::npos) << said;
+    EXPECT_NE(said.find("\"0x40\"^^<http://www.w3.org/2001/XMLSchema#integer>: not a heart rate, skipped"), std::string::npos)
+        << said;
+  }
+  Outcome classes = run({"list", node_, "-p", "tv:heartRateClass"});
+  EXPECT_EQ(lines_of(classes.out).size(), 2u) << classes.out;  // one each, for 112
+  for (const std::string& line : lines_of(classes.out)) EXPECT_NE(line.find("\"high\""), std::string::npos) << line;
+}
+
 TEST_F(Cli, SubscribeEarlierBringsWhatIsAlreadyOnTheBoardAndRefusesAnArea) {
   init();
   put(kObservation);
