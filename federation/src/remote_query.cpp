@@ -120,6 +120,11 @@ Result<std::uint64_t> remote_query(node::Node& node, const RemoteQuery& query,
   if (!uri::is_under(*target, self))
     return node::fail(Errc::not_found, "unknown node <" + *target + ">: not below <" + self + ">, where the query was asked");
   std::size_t end = target->find_first_of("/#?", self.size() + 1);
+  // `…/hospital//home1`: no child has an empty id. It was said to have "no child
+  // <…/hospital/>", an IRI --at itself refuses.
+  if (end == self.size() + 1)
+    return node::fail(Errc::not_found, "unknown node <" + *target + ">: an empty segment follows <" + self +
+                                           "> (a node's IRI is its parent's, '/' and its id)");
   const std::string child = target->substr(0, end);
   // One deadline for the whole call: the wait for a restarting link comes out of the timeout.
   const auto deadline = std::chrono::steady_clock::now() + timeout;

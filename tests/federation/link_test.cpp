@@ -1468,6 +1468,12 @@ TEST(Link, RemoteQueryReturnsExactlyTheRecordsHeldBelowAndNamesItsErrors) {
   auto unknown = remote_query(hospital, {.target = kHospital + "/home9"}, 2s, [](const node::Record&) {});
   ASSERT_FALSE(unknown);
   EXPECT_EQ(unknown.error().code, Errc::not_found);
+  // A doubled slash is no child (it was said to be "no child <…/hospital/>").
+  auto doubled = remote_query(hospital, {.target = kHospital + "//home1"}, 2s, [](const node::Record&) {});
+  ASSERT_FALSE(doubled);
+  EXPECT_EQ(doubled.error().code, Errc::not_found);
+  EXPECT_EQ(doubled.error().message, "unknown node <" + kHospital + "//home1>: an empty segment follows <" + kHospital +
+                                         "> (a node's IRI is its parent's, '/' and its id)");
   auto unreachable = remote_query(hospital, {.target = kHome2}, 2s, [](const node::Record&) {});
   ASSERT_FALSE(unreachable);
   EXPECT_EQ(unreachable.error().code, Errc::io);
