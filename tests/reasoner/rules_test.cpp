@@ -138,7 +138,8 @@ TEST(Rules, ParseErrorsNameFileLineAndColumn) {
   struct Case { const char* text; const char* where; };
   const Case cases[] = {
       {"p(X, Y) :- q(X.\n", "bad.rules:1:15:"},
-      {"p(X) :- q(X), \\+ r(Y).\n", "bad.rules:1:18:"},          // Y unbound under negation (not _)
+      {"p(X) :- q(X), \\+ r(Y).\n", "bad.rules:1:20:"},          // Y unbound under negation (not _), at Y
+      {"p(X) :- q(X, Y), Y > W.\n", "bad.rules:1:22:"},           // W unbound: at W (it was at Y, the comparison's start)
       {"p(X, 1) :- q(X, Y), Y > 99999999999999999999.\n", "bad.rules:1:25:"},  // beyond int64
       {":- ranked(p/99999999999999999999).\n", "bad.rules:1:13:"},           // arity out of range
       {":- ranked(p/16).\n", "bad.rules:1:13:"},
@@ -659,12 +660,12 @@ TEST(Rules, CompactDropsRowsOfGoneFactsAndKeepsConclusions) {
 }
 
 // RS6: a named variable under a negation is bound by the literals written before it. Bound only
-// by a later literal it is an error naming the negation, not a negation reordered after that
+// by a later literal it is an error naming the variable there, not a negation reordered after that
 // literal (SWI-Prolog gives nothing for r on these facts: \+ c(a, Z) fails, as a has a c).
 TEST(Rules, ANamedVariableUnderANegationBoundOnlyLaterIsAnError) {
   auto p = tr::parse_rules("r(X, Y) :- b(X, Y), \\+ c(X, Z), d(Z, Y).\n", options("neg.rules"));
   ASSERT_FALSE(p.has_value());
-  EXPECT_EQ(p.error().message, "neg.rules:1:24: variable Z is not bound by any positive literal before it "
+  EXPECT_EQ(p.error().message, "neg.rules:1:29: variable Z is not bound by any positive literal before it "
                                "(unsafe; for 'any value' write _ there)");
   auto later = parse("r(X, Y) :- b(X, Y), d(Z, Y), \\+ c(X, Z).\n");  // bound before it: fine
   ASSERT_TRUE(later);

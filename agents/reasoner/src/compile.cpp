@@ -11,6 +11,7 @@
 //  4. strata: strongly connected components of the predicate graph in dependency order; a
 //     negation inside a component is an error.
 #include <algorithm>
+#include <limits>
 #include <deque>
 #include <functional>
 #include <map>
@@ -169,8 +170,12 @@ int boundness(const Literal& l, const VarSet& bound, const std::vector<RangeCand
   return (vars + consts == total ? 1000 : 0) + 10 * vars + 3 * ranged + consts;
 }
 
-Unexpected<Error> unbound_before(const Program& program, const Literal& l, const std::string& variable) {
-  return unexpected(Error{where(program, l.pos) + ": variable " + variable +
+// Named where the variable is first written (the literal's start named another variable's place:
+// `Y > W` said W at Y's column), or at the literal when that is not known.
+Unexpected<Error> unbound_before(const Program& program, const Rule& rule, const Literal& l, std::uint32_t var) {
+  const Pos pos = var < rule.var_pos.size() ? rule.var_pos[var] : l.pos;
+  const std::string variable = var < rule.var_names.size() ? rule.var_names[var] : "?";
+  return unexpected(Error{where(program, pos) + ": variable " + variable +
                           " is not bound by any positive literal before it (unsafe" +
                           (l.kind == Literal::negation ? std::string("; for 'any value' write _ there") : "") + ")"});
 }
@@ -206,9 +211,9 @@ Result<std::vector<std::uint32_t>> plan(const Program& program, const Rule& rule
       const Literal& l = rule.body[preference.front()];
       std::vector<std::uint32_t> needs, binds;
       needs_and_binds(l, bound, needs, binds);
-      std::string name = "?";
-      for (std::uint32_t v : needs) if (!bound[v]) { name = rule.var_names[v]; break; }
-      return unbound_before(program, l, name);
+      std::uint32_t var = std::numeric_limits<std::uint32_t>::max();
+      for (std::uint32_t v : needs) if (!bound[v]) { var = v; break; }
+      return unbound_before(program, rule, l, var);
     }
     bind_vars(rule.body[*pick], bound);
     order.push_back(*pick);
@@ -310,6 +315,7 @@ void add_existential_negations(Program& program, std::vector<int>& cuts) {
       helper.body.back().kind = Literal::atom;
       helper.vars = rule.vars;
       helper.var_names = rule.var_names;
+      helper.var_pos = rule.var_pos;
       helper.pos = neg.pos;
       neg.pred = helper.head;
       neg.args = kept;
@@ -463,6 +469,7 @@ void add_ranking(Program& program, const std::vector<int>& cuts) {
       helper.body.assign(rule.body.begin(), rule.body.begin() + cuts[r]);
       helper.vars = rule.vars;
       helper.var_names = rule.var_names;
+      helper.var_pos = rule.var_pos;
       helper.uses_now = rule.uses_now;
       helper.pos = rule.pos;
       program.rules.push_back(std::move(helper));  // invalidates `rule`
@@ -489,6 +496,7 @@ Result<void> add_demand_rules(Program& program, const std::map<std::uint32_t, De
       d.body.assign(rule.body.begin(), rule.body.begin() + static_cast<long>(i));
       d.vars = rule.vars;
       d.var_names = rule.var_names;
+      d.var_pos = rule.var_pos;
       d.uses_now = rule.uses_now;
       d.pos = call.pos;
       VarSet bound = reachable_bindings(d);
@@ -640,7 +648,7 @@ Result<void> check_negations_follow_their_bindings(const Program& program, const
     if (l.kind != Literal::negation) continue;
     const VarSet bound = reachable_bindings(rule, k, VarSet(rule.vars, false));
     for (const Arg& a : l.args)
-      if (a.is_var && !bound[a.index]) return unbound_before(program, l, rule.var_names[a.index]);
+      if (a.is_var && !bound[a.index]) return unbound_before(program, rule, l, a.index);
   }
   return {};
 }

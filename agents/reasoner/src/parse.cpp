@@ -383,7 +383,7 @@ class Parser {
   Result<Expr> combine(Expr::Kind kind, Pos pos, Expr a, std::optional<Expr> b);
   Result<Arg> term(bool allow_now);
   Arg constant(const node::Term& term);
-  Arg variable(const std::string& name);
+  Arg variable(const std::string& name, Pos pos);
   std::uint32_t pred(const std::string& iri, std::uint32_t arity);
   std::string name_iri(const std::string& name) const {
     return name == "me" ? options_.me : options_.default_ns + name;
@@ -408,13 +408,14 @@ Arg Parser::constant(const node::Term& term) {
   return Arg{false, it->second};
 }
 
-Arg Parser::variable(const std::string& name) {
+Arg Parser::variable(const std::string& name, Pos pos) {
   if (name != "_") {
     auto it = var_index_.find(name);
     if (it != var_index_.end()) return Arg{true, it->second};
   }
   std::uint32_t index = rule_->vars++;
   rule_->var_names.push_back(name);
+  rule_->var_pos.push_back(pos);
   if (name != "_") var_index_[name] = index;
   return Arg{true, index};
 }
@@ -429,7 +430,7 @@ Result<Arg> Parser::term(bool allow_now) {
   Token t = tok_;
   if (t.kind == Tok::var) {
     if (auto a = advance(); !a) return unexpected(a.error());
-    return variable(t.text);
+    return variable(t.text, t.pos);
   }
   if (t.kind == Tok::literal) {
     if (auto a = advance(); !a) return unexpected(a.error());

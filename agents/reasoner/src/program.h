@@ -96,6 +96,7 @@ struct Rule {
   std::vector<Literal> body;   // as written (after rewriting), evaluation order in plans
   std::uint32_t vars = 0;      // number of variables
   std::vector<std::string> var_names;
+  std::vector<Pos> var_pos;    // where each variable is first written (errors name it there)
   bool uses_now = false;
   Pos pos;
   // Evaluation orders: plans[0] the full body (naive round: its first atom as written, then
