@@ -518,9 +518,10 @@ std::vector<std::string> link_argv(const Topology& topo, const NodeSpec& spec, c
   }
   const auto children = topo.children(spec.id);
   if (!children.empty()) {
-    // Only the kinds some child links over: a listen nobody uses opens no endpoint.
+    // Every kind the file declares, used by a child of this file or not: a child whose machine's
+    // file links it over the other kind (added there first) heard nothing, not the refusal and
+    // its reason; and a child moving to the other kind restarted the link under every child.
     for (const LinkSpec& l : spec.listen) {
-      if (std::none_of(children.begin(), children.end(), [&](const NodeSpec* c) { return c->up == l.kind; })) continue;
       argv.insert(argv.end(), {"--listen", l.kind});
       transport_flags(l, "--listen-");
     }

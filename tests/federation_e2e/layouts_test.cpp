@@ -505,6 +505,27 @@ TEST_F(Deployment, AParentListeningOnLcmAndDdsServesAChildOnEach) {
   }
 }
 
+// A parent that declares both kinds listens on both, whichever kinds its own file's children use:
+// a child on another machine whose file links it over the other kind (added there before the
+// parent's file was) was met with silence, "never connected", and no reason anywhere.
+TEST_F(Deployment, AParentListensOnEveryKindItDeclaresAndRefusesAChildItDoesNotKnowOnEither) {
+  const std::string ward = "[[node]]\nid = \"ward\"\niri = \"" + kWard + "\"\n"
+                           "listen = [{ kind = \"dds\", domain = 7, " + kDdsConfig +
+                           " }, { kind = \"lcm\", url = \"udpm://239.255.76.67:7714?ttl=0\" }]\n\n";
+  write_topology(ward + "[[node]]\nid = \"bed\"\nparent = \"ward\"\nup = \"lcm\"\n");
+  const std::string said = up();
+  std::ofstream(root_ / "home.toml") << ward + "[[node]]\nid = \"home\"\nparent = \"ward\"\nup = \"dds\"\n";
+  const fs::path other = root_ / "state-home";
+  const std::string home_said = tahvel("up " + (root_ / "home.toml").string() + " --node home --state " + other.string());
+  std::string shown;
+  EXPECT_TRUE(eventually([&] {
+    shown = tahvel("status --state " + other.string());
+    return shown.find("refused (<" + kWard + "/home> is not among the children configured for <" + kWard + ">)") !=
+           std::string::npos;
+  })) << said << home_said << shown;
+  shell(kBin + "/tahvel down --state " + other.string() + " >/dev/null");
+}
+
 // A Cyclone DDS file edited in place (the file's path, and so the link's command, unchanged) is
 // applied by the next `up`: the links that read it restart (it used to say "nothing to change").
 TEST_F(Deployment, UpAgainRestartsTheLinksThatReadAnEditedDdsConfiguration) {
