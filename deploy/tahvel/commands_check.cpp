@@ -9,6 +9,7 @@
 #include <csignal>
 #include <cstring>
 #include <iostream>
+#include <optional>
 #include <sstream>
 #include <string>
 #include <vector>
@@ -30,7 +31,7 @@ const Command kCheckCommand{
     "reading.",
     {{"--json", "", "", "print one JSON object"},
      {"--max-problems", "", "N", "list at most N problems (default 100; all are counted)"}},
-    1, 1};
+    1, 1, false};
 
 namespace {
 
@@ -48,16 +49,29 @@ void child_walk(const std::string& dir, std::size_t max_problems, int fd) {
       off += static_cast<std::size_t>(n);
     }
   };
-  auto node = node::Node::open(dir);
-  if (!node) {
-    send("error " + node.error().message);
+  // Nothing leaves this function but by _exit: an exception (memory for a huge store) must not
+  // reach the parent's code, copied into this process by fork.
+  std::optional<node::CheckReport> checked;
+  try {
+    auto node = node::Node::open(dir);
+    if (!node) {
+      send("error " + node.error().message);
+      _exit(kExitFailure);
+    }
+    auto report = node->check(max_problems, [&](std::string_view table) { send("table " + std::string(table)); });
+    if (!report) {
+      send("error " + report.error().message);
+      _exit(kExitFailure);
+    }
+    checked = std::move(*report);
+  } catch (const std::exception& e) {
+    send(std::string("error check: ") + e.what());
+    _exit(kExitFailure);
+  } catch (...) {
+    send("error check: the reading process failed");
     _exit(kExitFailure);
   }
-  auto report = node->check(max_problems, [&](std::string_view table) { send("table " + std::string(table)); });
-  if (!report) {
-    send("error " + report.error().message);
-    _exit(kExitFailure);
-  }
+  const node::CheckReport* report = &*checked;
   const std::pair<const char*, std::uint64_t> counts[] = {
       {"records", report->records},           {"items", report->items},
       {"terms", report->terms},               {"index_entries", report->index_entries},
@@ -127,13 +141,18 @@ int run_check(const Args& args) {
   }
   if (!error.empty()) fail(error);
   if (!ended) {
-    const std::string how = WIFSIGNALED(status) ? "ended by " + signal_name(WTERMSIG(status))
-                                                : "exited with status " + std::to_string(WEXITSTATUS(status));
-    const std::string where = table.empty() ? "while opening it" : "while reading table " + table;
-    const std::string message = dir + ": the store's file is damaged: the reading process was " + how + " " + where +
-                                " (LMDB checksums no page; a damaged one can end a reader or a writer)";
+    // A damaged page ends the reader by a fault or LMDB's assertion; other ends (the OOM
+    // killer's SIGKILL, a SIGTERM) say nothing of the file.
+    const int sig = WIFSIGNALED(status) ? WTERMSIG(status) : 0;
+    const bool fault = sig == SIGSEGV || sig == SIGBUS || sig == SIGABRT;
+    const std::string how = sig ? "ended by " + signal_name(sig) : "ended with status " + std::to_string(WEXITSTATUS(status));
+    const std::string where = table.empty() ? "while opening the store" : "while reading table " + table;
+    const std::string message =
+        fault ? dir + ": the store's file is damaged: the reading process was " + how + " " + where +
+                    " (LMDB checksums no page; a damaged one can end a reader or a writer)"
+              : dir + ": the check did not finish: the reading process was " + how + " " + where;
     if (json) {
-      std::cout << "{\"consistent\":false,\"ended_in_table\":\"" << node::json_escape(table) << "\",\"how\":\""
+      std::cout << "{\"consistent\":" << (fault ? "false" : "null") << ",\"ended_in_table\":\"" << node::json_escape(table) << "\",\"how\":\""
                 << node::json_escape(how) << "\"}\n";
       finish_output(std::cout);
     }

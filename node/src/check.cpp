@@ -36,8 +36,10 @@ class Walk {
       return false;
     }
     std::memcpy(&key, k.mv_data, sizeof key);
+    read_any_ = true;
     return true;
   }
+  bool read_any() const { return read_any_; }
   // Why the walk ended early; empty when it reached the end.
   std::string failure() const {
     if (rc_ == 0 || rc_ == MDB_NOTFOUND) return {};
@@ -47,7 +49,7 @@ class Walk {
  private:
   MDB_cursor* cursor_ = nullptr;
   int rc_ = 0;
-  bool started_ = false;
+  bool started_ = false, read_any_ = false;
 };
 
 std::uint64_t u64(const MDB_val& v) {
@@ -66,7 +68,8 @@ class Checker {
   }
   void ended(const Walk& walk, std::string_view table, std::uint64_t after) {
     if (auto why = walk.failure(); !why.empty())
-      problem(std::string(table) + ": the walk stops after key " + std::to_string(after) + ": " + why);
+      problem(std::string(table) + ": the walk stops " + (walk.read_any() ? "after key " + std::to_string(after) : "at its start") +
+              ": " + why);
   }
 
   bool has_term(std::uint64_t id) const {
@@ -101,10 +104,12 @@ class Checker {
   // records of each item are counted as one run.
   void records() {
     Walk walk(txn_, env_.records);
-    MDB_cursor* index[3] = {};
+    Cursor index[3];
     const MDB_dbi dbis[3] = {env_.idx_s, env_.idx_p, env_.idx_o};
     const char* names[3] = {"subject", "predicate", "object"};
-    for (int i = 0; i < 3; ++i) mdb_cursor_open(txn_, dbis[i], &index[i]);
+    for (int i = 0; i < 3; ++i)
+      if (int rc = mdb_cursor_open(txn_, dbis[i], &index[i].c); rc != 0)
+        problem(std::string("the ") + names[i] + " index cannot be read: " + lmdb_error(rc, "opening").message);
     std::uint64_t id = 0;
     MDB_val v;
     std::uint64_t item = 0;
@@ -123,7 +128,7 @@ class Checker {
       const std::uint64_t terms[3] = {row.s, row.p, row.o};
       for (int i = 0; i < 3; ++i) {
         MDB_val k = val(terms[i]), d = val(id);
-        if (!index[i] || mdb_cursor_get(index[i], &k, &d, MDB_GET_BOTH) != 0)
+        if (index[i].c && mdb_cursor_get(index[i].c, &k, &d, MDB_GET_BOTH) != 0)
           problem(whose + " is not in the " + names[i] + " index");
       }
       if (runs_.empty() || runs_.back().first != row.item) {
@@ -140,14 +145,16 @@ class Checker {
                 std::to_string(item + item_row->count - 1) + ")");
     }
     ended(walk, "records", id);
-    for (MDB_cursor* c : index)
-      if (c) mdb_cursor_close(c);
+    max_record_ = id;
   }
 
   void items() {
     Walk walk(txn_, env_.items);
-    MDB_cursor* times = nullptr;
-    if (env_.by_time) mdb_cursor_open(txn_, env_.by_time, &times);
+    Cursor times, outbox;
+    if (int rc = env_.by_time ? mdb_cursor_open(txn_, env_.by_time, &times.c) : 0; rc != 0)
+      problem("the time index cannot be read: " + lmdb_error(rc, "opening").message);
+    if (int rc = mdb_cursor_open(txn_, env_.outbox, &outbox.c); rc != 0)
+      problem("the output buffers cannot be read: " + lmdb_error(rc, "opening").message);
     std::sort(runs_.begin(), runs_.end());
     auto run = runs_.begin();
     std::uint64_t id = 0;
@@ -168,14 +175,21 @@ class Checker {
       if (found != row.live)
         problem(whose + " counts " + std::to_string(row.live) + " live records; the records table holds " +
                 std::to_string(found));
-      if (times) {
+      if (times.c) {
         const std::uint64_t at = time_key(row.asserted_at);
         MDB_val k = val(at), d = val(id);
-        if (mdb_cursor_get(times, &k, &d, MDB_GET_BOTH) != 0) problem(whose + " is not in the time index");
+        if (mdb_cursor_get(times.c, &k, &d, MDB_GET_BOTH) != 0) problem(whose + " is not in the time index");
       }
+      // Every item is in its writer's output buffer until it goes (write.cpp, rows.cpp).
+      if (outbox.c) {
+        const std::uint64_t writer = row.output_buffer();
+        MDB_val k = val(writer), d = val(id);
+        if (mdb_cursor_get(outbox.c, &k, &d, MDB_GET_BOTH) != 0) problem(whose + " is not in its writer's output buffer");
+      }
+      max_span_ = std::max(max_span_, row.span);
     }
     ended(walk, "items", id);
-    if (times) mdb_cursor_close(times);
+    max_item_ = id;
   }
 
   // Every index entry names a record that has the entry's term in that position.
@@ -220,13 +234,31 @@ class Checker {
     ended(walk, "by_time", key);
   }
 
-  // Input and output buffer entries are counted, not followed: an entry may outlive its item
-  // by design (an output buffer is trimmed after the parent's acknowledgement).
-  void buffers(MDB_dbi dbi, const char* table) {
+  // An input buffer entry names an item or a removal notice that is there (both leave the
+  // buffers when they go); an output buffer entry names an item whose output buffer it is.
+  void buffers(MDB_dbi dbi, const char* table, bool output) {
     Walk walk(txn_, dbi);
     std::uint64_t key = 0;
     MDB_val v;
-    while (walk.next(key, v)) ++report.buffer_entries;
+    while (walk.next(key, v)) {
+      ++report.buffer_entries;
+      const std::uint64_t id = u64(v);
+      const std::string whose = std::string(table) + ": agent term " + std::to_string(key) + " holds " + std::to_string(id);
+      auto item = get_item(txn_, env_, id);
+      if (!item) {
+        problem(whose + ": " + item.error().message);
+        continue;
+      }
+      if (output) {
+        if (!*item) problem(whose + ", which is not an item in the store");
+        else if ((*item)->output_buffer() != key) problem(whose + ", an item of another output buffer");
+        continue;
+      }
+      if (*item) continue;
+      auto notice = get_notice(txn_, env_, id);
+      if (!notice) problem(whose + ": " + notice.error().message);
+      else if (!*notice) problem(whose + ", which is neither an item nor a removal notice in the store");
+    }
     ended(walk, table, key);
   }
 
@@ -243,6 +275,17 @@ class Checker {
     compare("records", report.records, c->records);
     compare("items", report.items, c->items);
     compare("terms", report.terms, c->terms);
+    // Ids only grow: a counter at or below an id in use would hand it out again.
+    if (c->next_seq <= std::max(max_record_, max_item_))
+      problem("counters: next id " + std::to_string(c->next_seq) + ", but id " + std::to_string(std::max(max_record_, max_item_)) +
+              " is in use");
+    if (!term_ids_.empty() && c->next_term <= term_ids_.back())
+      problem("counters: next term id " + std::to_string(c->next_term) + ", but term " + std::to_string(term_ids_.back()) +
+              " is in use");
+    // A time range is looked for from max_span before it: a longer span would be missed.
+    if (static_cast<std::uint64_t>(std::max<std::int64_t>(max_span_, 0)) > c->max_span)
+      problem("counters: the longest span is kept as " + std::to_string(c->max_span) + " ns, but an item spans " +
+              std::to_string(max_span_) + " ns (time ranges would miss it)");
   }
 
   CheckReport report;
@@ -253,6 +296,8 @@ class Checker {
   std::size_t max_;
   std::vector<std::uint64_t> term_ids_;                          // ascending, as the table holds them
   std::vector<std::pair<std::uint64_t, std::uint64_t>> runs_;  // item -> records seen
+  std::uint64_t max_record_ = 0, max_item_ = 0;                 // the greatest ids in use
+  std::int64_t max_span_ = 0;                                   // the longest item span
 };
 
 }  // namespace
@@ -278,9 +323,9 @@ Result<CheckReport> check_store(Env& env, MDB_txn* txn, std::size_t max_problems
   step("by_time");
   check.time_index();
   step("inbox");
-  check.buffers(env.inbox, "inbox");
+  check.buffers(env.inbox, "inbox", false);
   step("outbox");
-  check.buffers(env.outbox, "outbox");
+  check.buffers(env.outbox, "outbox", true);
   step("counters");
   check.counters();
   return std::move(check.report);

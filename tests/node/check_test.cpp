@@ -104,6 +104,21 @@ TEST(Check, RowsThatDoNotDecodeAndReferencesThatLeadNowhereAreEachNamed) {
       }
     }
     mdb_cursor_close(c);
+    // The third item's output buffer entry gone too.
+    MDB_dbi outbox;
+    if (!deleted || mdb_dbi_open(txn, "outbox", MDB_INTEGERKEY | MDB_DUPSORT | MDB_DUPFIXED | MDB_INTEGERDUP, &outbox) != 0 ||
+        mdb_cursor_open(txn, outbox, &c) != 0)
+      return false;
+    deleted = false;
+    for (int rc = mdb_cursor_get(c, &key, &value, MDB_FIRST); rc == 0; rc = mdb_cursor_get(c, &key, &value, MDB_NEXT)) {
+      std::uint64_t id = 0;
+      std::memcpy(&id, value.mv_data, sizeof id);
+      if (id == third) {
+        deleted = mdb_cursor_del(c, 0) == 0;
+        break;
+      }
+    }
+    mdb_cursor_close(c);
     return deleted;
   }));
 
@@ -115,6 +130,8 @@ TEST(Check, RowsThatDoNotDecodeAndReferencesThatLeadNowhereAreEachNamed) {
   EXPECT_TRUE(mentions(*report, "record " + s + " names item " + s + ", which is not in the store")) << all(*report);
   EXPECT_TRUE(mentions(*report, "record " + t + " is not in the predicate index")) << all(*report);
   EXPECT_TRUE(mentions(*report, "counters: items 3, the tables hold 2")) << all(*report);
+  EXPECT_TRUE(mentions(*report, "item " + t + " is not in its writer's output buffer")) << all(*report);
+  EXPECT_TRUE(mentions(*report, "outbox: agent term ")) << "the lost item's output buffer entry names nothing\n" << all(*report);
   EXPECT_TRUE(mentions(*report, "idx_p: term ")) << "the garbled record's index entries name a row that does not decode\n"
                                                   << all(*report);
   EXPECT_EQ(report->problems_found, report->problems.size());

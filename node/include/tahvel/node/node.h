@@ -514,6 +514,8 @@ class Node {
   // tables. Errors only when no snapshot can be taken. LMDB checksums no page, so a damaged page
   // may also end the reading process (SIGSEGV, SIGBUS, an abort): `tahvel check` runs this in a
   // child process. `progress`, when set, is called with each table's name before it is read.
+  // The walk holds one snapshot throughout: pages freed meanwhile are not reused until it ends,
+  // and this process cannot grow the map while it runs (see Snapshot).
   Result<CheckReport> check(std::size_t max_problems = 100,
                             const std::function<void(std::string_view table)>& progress = {}) const;
 
