@@ -100,7 +100,8 @@ class Groups {
 // where `input` writes a triple the store refused: item k's triple j is triple
 // `places[k][j]` of the file.
 std::uint64_t store_in_batches(node::Agent& agent, std::vector<node::Item> items, std::uint64_t batch,
-                               const Input& input, const std::vector<std::vector<std::size_t>>& places) {
+                               const Input& input, const std::vector<std::vector<std::size_t>>& places,
+                               std::vector<std::pair<std::uint64_t, std::size_t>>* written = nullptr) {
   std::uint64_t loaded = 0, pending_triples = 0;
   std::size_t items_before = 0;  // items of the file stored by earlier batches
   std::vector<node::Item> pending;
@@ -132,6 +133,8 @@ std::uint64_t store_in_batches(node::Agent& agent, std::vector<node::Item> items
       }
       fail(message + " (" + std::to_string(loaded) + " triples were loaded by earlier batches)");
     }
+    if (written)
+      for (std::size_t i = 0; i < stored->size() && i < pending.size(); ++i) written->emplace_back((*stored)[i], pending[i].triples.size());
     loaded += pending_triples;
     items_before += pending.size();
     pending.clear();
@@ -267,25 +270,36 @@ void warn_if_the_ring_took(const node::Node& node, const node::Item& item, std::
             << " (put it --persistent, or make the store with a larger --ring)\n";
 }
 
-// Records the store's ring has reclaimed so far (0 without a ring).
+// Records the store's ring (or a TTL) has reclaimed so far (0 without a ring).
 std::uint64_t ring_reclaimed(const node::Node& node) {
   auto stats = node.stats();
   return stats && stats->ring != 0 ? stats->reclaimed_records : 0;
 }
 
 // The same for `load`, whose batches of many items a small ring takes as they are written: it
-// printed the number of triples loaded and exited 0 over an empty store.
-void warn_if_the_ring_took_some(const node::Node& node, std::uint64_t loaded, std::uint64_t reclaimed_before) {
+// printed the number of triples loaded and exited 0 over an empty store. Only when something was
+// reclaimed meanwhile are the loaded items looked for, and those gone counted exactly (another
+// writer's records, or items an input buffer holds, may be what the ring took).
+void warn_if_the_ring_took_some(const node::Node& node, const std::vector<std::pair<std::uint64_t, std::size_t>>& written,
+                                std::uint64_t reclaimed_before) {
   auto stats = node.stats();
   if (!stats || stats->ring == 0 || stats->reclaimed_records <= reclaimed_before) return;
-  const std::uint64_t reclaimed = stats->reclaimed_records - reclaimed_before;
-  std::cerr << "tahvel: warning: the store's ring keeps at most " << stats->ring
-            << " non-persistent records (those waiting in input buffers among them) and reclaimed " << reclaimed
-            << " as this load wrote: "
-            << (loaded > stats->ring ? "at least " + std::to_string(loaded - stats->ring) + " of the " + std::to_string(loaded) +
-                                           " triples loaded are gone already"
-                                     : "the triples loaded may be among them")
-            << " (load with --persistent, or make the store with a larger --ring)\n";
+  auto snapshot = node.snapshot();
+  if (!snapshot) return;
+  std::uint64_t gone_items = 0, gone_triples = 0, triples = 0;
+  for (const auto& [id, count] : written) {
+    triples += count;
+    auto records = snapshot->item(id);
+    if (records ? records->empty() : records.error().code == node::Errc::not_found) {
+      ++gone_items;
+      gone_triples += count;
+    }
+  }
+  if (gone_items == 0) return;
+  std::cerr << "tahvel: warning: " << gone_items << " of the " << written.size() << " items loaded (" << gone_triples
+            << " of " << triples << " triples) are gone already: the store's ring keeps at most " << stats->ring
+            << " non-persistent records (those waiting in input buffers among them) and reclaimed them as the load wrote "
+            << "(load with --persistent, or make the store with a larger --ring)\n";
 }
 
 int run_put(const Args& args) {
@@ -360,9 +374,9 @@ int run_load(const Args& args) {
     items.back().triples = std::move(group);
   }
   const std::uint64_t reclaimed_before = ring_reclaimed(node);
-  const std::uint64_t loaded = store_in_batches(agent, std::move(items), batch, input, places);
-  print_number(loaded);
-  if (!frame.persistent) warn_if_the_ring_took_some(node, loaded, reclaimed_before);
+  std::vector<std::pair<std::uint64_t, std::size_t>> written;  // item id, its triples
+  print_number(store_in_batches(agent, std::move(items), batch, input, places, frame.persistent ? nullptr : &written));
+  if (!frame.persistent) warn_if_the_ring_took_some(node, written, reclaimed_before);
   return kExitOk;
 }
 

@@ -122,7 +122,7 @@ Result<std::uint64_t> remote_query(node::Node& node, const RemoteQuery& query,
   std::size_t end = target->find_first_of("/#?", self.size() + 1);
   // `…/hospital//home1`: no child has an empty id. It was said to have "no child
   // <…/hospital/>", an IRI --at itself refuses.
-  if (end == self.size() + 1)
+  if (end == self.size() + 1 && (*target)[end] == '/')
     return node::fail(Errc::not_found, "unknown node <" + *target + ">: an empty segment follows <" + self +
                                            "> (a node's IRI is its parent's, '/' and its id)");
   const std::string child = target->substr(0, end);

@@ -225,9 +225,6 @@ TEST_F(EcgSourceTest, ARestartAfterAKillGoesOnAfterTheLastChunkAndWritesEachSeco
   expect_each_chunk_ends_where_the_next_begins(after);
 }
 
-// Each chunk is asserted at its first frame and spans to the next chunk's first frame, to the
-// ns: a time range from inside a second gets that second's chunk, and one from a chunk's start
-// not the chunk before.
 // A source killed before its first chunk leaves the recording item alone. The next run went on
 // under the take's name but stamped its chunks from its own start, seconds after the take's
 // tv:startedAt: `tahvel ecg` found nothing in a range of the take, and an HRV window's samples
@@ -256,6 +253,9 @@ TEST_F(EcgSourceTest, ATakeKilledBeforeItsFirstChunkGoesOnOnItsOwnTimeAxis) {
   expect_each_chunk_ends_where_the_next_begins(written);
 }
 
+// Each chunk is asserted at its first frame and spans to the next chunk's first frame, to the
+// ns: a time range from inside a second gets that second's chunk, and one from a chunk's start
+// not the chunk before.
 TEST_F(EcgSourceTest, EachChunkSpansItsSecondSoATimeRangeFromInsideItGetsIt) {
   const std::string dir = new_node("home1");
   ASSERT_EQ(run_source(dir), 0);

@@ -1,5 +1,5 @@
 #!/usr/bin/env bash
-# Install.AnAgentBuiltOutsideTheTreeRunsAgainstTheInstalledTree SOURCE_DIR BUILD_DIR CC CXX
+# Install.AnAgentBuiltOutsideTheTreeRunsAgainstTheInstalledTree SOURCE_DIR BUILD_DIR CC CXX LIBDIR
 #
 # What an integrator and an agent developer do with a release: `cmake --install` into a prefix,
 # then build the two example agents against the installed headers and library through
@@ -7,7 +7,7 @@
 # made by the installed `tahvel`: the item it derives must be on the board, written as its agent.
 # Also: the installed systemd unit names the installed `tahvel`.
 set -euo pipefail
-src=$1 build=$2 cc=$3 cxx=$4
+src=$1 build=$2 cc=$3 cxx=$4 libdir=${5:-lib}
 work=$(mktemp -d)
 trap 'rm -rf "$work"' EXIT
 prefix=$work/prefix
@@ -24,7 +24,7 @@ grep -q "^ExecStart=$prefix/bin/tahvel up " "$prefix/lib/systemd/system/tahvel-n
 # Moved after installing: the pkg-config file must find its tree where it is, not where it was.
 mv "$prefix" "$work/moved"
 prefix=$work/moved
-export PKG_CONFIG_PATH=$prefix/lib/pkgconfig
+export PKG_CONFIG_PATH=$prefix/$libdir/pkgconfig
 flags=$(pkg-config --cflags --libs tahvel) || fail "pkg-config does not know tahvel"
 [[ $flags != *"$src"* && $flags != *"$build"* ]] || fail "pkg-config points into the source or build tree: $flags"
 # shellcheck disable=SC2086  # the flags are words

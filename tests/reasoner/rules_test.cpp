@@ -140,6 +140,7 @@ TEST(Rules, ParseErrorsNameFileLineAndColumn) {
       {"p(X, Y) :- q(X.\n", "bad.rules:1:15:"},
       {"p(X) :- q(X), \\+ r(Y).\n", "bad.rules:1:20:"},          // Y unbound under negation (not _), at Y
       {"p(X) :- q(X, Y), Y > W.\n", "bad.rules:1:22:"},           // W unbound: at W (it was at Y, the comparison's start)
+      {"p(X, Z) :- q(X), \\+ r(Z), s(Z).\n", "bad.rules:1:21:"},  // Z first in the head: at the negation
       {"p(X, 1) :- q(X, Y), Y > 99999999999999999999.\n", "bad.rules:1:25:"},  // beyond int64
       {":- ranked(p/99999999999999999999).\n", "bad.rules:1:13:"},           // arity out of range
       {":- ranked(p/16).\n", "bad.rules:1:13:"},

@@ -173,7 +173,10 @@ int boundness(const Literal& l, const VarSet& bound, const std::vector<RangeCand
 // Named where the variable is first written (the literal's start named another variable's place:
 // `Y > W` said W at Y's column), or at the literal when that is not known.
 Unexpected<Error> unbound_before(const Program& program, const Rule& rule, const Literal& l, std::uint32_t var) {
-  const Pos pos = var < rule.var_pos.size() ? rule.var_pos[var] : l.pos;
+  // First written before the literal (in the head, or a literal that binds nothing): the
+  // literal is where the error is.
+  Pos pos = var < rule.var_pos.size() ? rule.var_pos[var] : l.pos;
+  if (pos.line < l.pos.line || (pos.line == l.pos.line && pos.col < l.pos.col)) pos = l.pos;
   const std::string variable = var < rule.var_names.size() ? rule.var_names[var] : "?";
   return unexpected(Error{where(program, pos) + ": variable " + variable +
                           " is not bound by any positive literal before it (unsafe" +
