@@ -30,6 +30,24 @@ std::string all(const CheckReport& report) {
   return text;
 }
 
+// Deletes the first entry of table `dbi` whose value is `id`; false when there is none.
+bool delete_value(MDB_txn* txn, MDB_dbi dbi, std::uint64_t id) {
+  MDB_cursor* c = nullptr;
+  if (mdb_cursor_open(txn, dbi, &c) != 0) return false;
+  MDB_val key, value;
+  bool deleted = false;
+  for (int rc = mdb_cursor_get(c, &key, &value, MDB_FIRST); rc == 0; rc = mdb_cursor_get(c, &key, &value, MDB_NEXT)) {
+    std::uint64_t found = 0;
+    std::memcpy(&found, value.mv_data, sizeof found);
+    if (found == id) {
+      deleted = mdb_cursor_del(c, 0) == 0;
+      break;
+    }
+  }
+  mdb_cursor_close(c);
+  return deleted;
+}
+
 // Items of every shape the write path handles differently: several triples, literals of several
 // kinds, blank nodes, a batch, a relayed item's writer, removals, ring eviction, a subscription
 // and its input buffer.
@@ -90,36 +108,10 @@ TEST(Check, RowsThatDoNotDecodeAndReferencesThatLeadNowhereAreEachNamed) {
     // The second item's row gone, its record left.
     MDB_val item_key{sizeof second, &second};
     if (mdb_del(txn, items, &item_key, nullptr) != 0) return false;
-    // The third item's predicate index entry gone.
-    MDB_cursor* c = nullptr;
-    if (mdb_cursor_open(txn, idx_p, &c) != 0) return false;
-    MDB_val key, value;
-    bool deleted = false;
-    for (int rc = mdb_cursor_get(c, &key, &value, MDB_FIRST); rc == 0; rc = mdb_cursor_get(c, &key, &value, MDB_NEXT)) {
-      std::uint64_t id = 0;
-      std::memcpy(&id, value.mv_data, sizeof id);
-      if (id == third) {
-        deleted = mdb_cursor_del(c, 0) == 0;
-        break;
-      }
-    }
-    mdb_cursor_close(c);
-    // The third item's output buffer entry gone too.
+    // The third item's predicate index entry and its output buffer entry gone.
     MDB_dbi outbox;
-    if (!deleted || mdb_dbi_open(txn, "outbox", MDB_INTEGERKEY | MDB_DUPSORT | MDB_DUPFIXED | MDB_INTEGERDUP, &outbox) != 0 ||
-        mdb_cursor_open(txn, outbox, &c) != 0)
-      return false;
-    deleted = false;
-    for (int rc = mdb_cursor_get(c, &key, &value, MDB_FIRST); rc == 0; rc = mdb_cursor_get(c, &key, &value, MDB_NEXT)) {
-      std::uint64_t id = 0;
-      std::memcpy(&id, value.mv_data, sizeof id);
-      if (id == third) {
-        deleted = mdb_cursor_del(c, 0) == 0;
-        break;
-      }
-    }
-    mdb_cursor_close(c);
-    return deleted;
+    if (mdb_dbi_open(txn, "outbox", MDB_INTEGERKEY | MDB_DUPSORT | MDB_DUPFIXED | MDB_INTEGERDUP, &outbox) != 0) return false;
+    return delete_value(txn, idx_p, third) && delete_value(txn, outbox, third);
   }));
 
   Node node = Node::open(dir.path()).value();
