@@ -192,74 +192,63 @@ class Checker {
     max_item_ = id;
   }
 
-  // Every index entry names a record that has the entry's term in that position.
-  void index(MDB_dbi dbi, const char* table, int position) {
+  // Walks a table of id values (an index, the time index, a buffer: key -> ids), counting each
+  // entry in `count` and handing it to `entry(key, id)`.
+  template <class Entry>
+  void each_id(MDB_dbi dbi, std::string_view table, std::uint64_t& count, Entry entry) {
     Walk walk(txn_, dbi);
     std::uint64_t key = 0;
     MDB_val v;
     while (walk.next(key, v)) {
-      ++report.index_entries;
-      const std::uint64_t id = u64(v);
-      auto row = get_record(txn_, env_, id);
-      if (!row) {
-        problem(std::string(table) + ": term " + std::to_string(key) + " -> record " + std::to_string(id) + ": " +
-                row.error().message);
-        continue;
-      }
-      const std::uint64_t terms[3] = {(*row) ? (*row)->s : 0, (*row) ? (*row)->p : 0, (*row) ? (*row)->o : 0};
-      if (!*row)
-        problem(std::string(table) + ": term " + std::to_string(key) + " names record " + std::to_string(id) +
-                ", which is not in the store");
-      else if (terms[position] != key)
-        problem(std::string(table) + ": term " + std::to_string(key) + " names record " + std::to_string(id) +
-                ", whose term there is " + std::to_string(terms[position]));
+      ++count;
+      entry(key, u64(v));
     }
     ended(walk, table, key);
   }
 
+  // Every index entry names a record that has the entry's term in that position.
+  void index(MDB_dbi dbi, const char* table, int position) {
+    each_id(dbi, table, report.index_entries, [&](std::uint64_t key, std::uint64_t id) {
+      const std::string whose = std::string(table) + ": term " + std::to_string(key);
+      auto row = get_record(txn_, env_, id);
+      if (!row) problem(whose + " -> record " + std::to_string(id) + ": " + row.error().message);
+      else if (!*row) problem(whose + " names record " + std::to_string(id) + ", which is not in the store");
+      else if (const std::uint64_t terms[3] = {(*row)->s, (*row)->p, (*row)->o}; terms[position] != key)
+        problem(whose + " names record " + std::to_string(id) + ", whose term there is " + std::to_string(terms[position]));
+    });
+  }
+
   void time_index() {
     if (!env_.by_time) return;
-    Walk walk(txn_, env_.by_time);
-    std::uint64_t key = 0;
-    MDB_val v;
-    while (walk.next(key, v)) {
-      ++report.time_entries;
-      const std::uint64_t id = u64(v);
+    each_id(env_.by_time, "by_time", report.time_entries, [&](std::uint64_t key, std::uint64_t id) {
       auto row = get_item(txn_, env_, id);
       if (!row) problem("by_time: item " + std::to_string(id) + ": " + row.error().message);
       else if (!*row) problem("by_time: an entry names item " + std::to_string(id) + ", which is not in the store");
       else if (time_key((*row)->asserted_at) != key)
         problem("by_time: item " + std::to_string(id) + " is listed at another time than it was asserted at");
-    }
-    ended(walk, "by_time", key);
+    });
   }
 
   // An input buffer entry names an item or a removal notice that is there (both leave the
   // buffers when they go); an output buffer entry names an item whose output buffer it is.
   void buffers(MDB_dbi dbi, const char* table, bool output) {
-    Walk walk(txn_, dbi);
-    std::uint64_t key = 0;
-    MDB_val v;
-    while (walk.next(key, v)) {
-      ++report.buffer_entries;
-      const std::uint64_t id = u64(v);
+    each_id(dbi, table, report.buffer_entries, [&](std::uint64_t key, std::uint64_t id) {
       const std::string whose = std::string(table) + ": agent term " + std::to_string(key) + " holds " + std::to_string(id);
       auto item = get_item(txn_, env_, id);
       if (!item) {
         problem(whose + ": " + item.error().message);
-        continue;
+        return;
       }
       if (output) {
         if (!*item) problem(whose + ", which is not an item in the store");
         else if ((*item)->output_buffer() != key) problem(whose + ", an item of another output buffer");
-        continue;
+        return;
       }
-      if (*item) continue;
+      if (*item) return;
       auto notice = get_notice(txn_, env_, id);
       if (!notice) problem(whose + ": " + notice.error().message);
       else if (!*notice) problem(whose + ", which is neither an item nor a removal notice in the store");
-    }
-    ended(walk, table, key);
+    });
   }
 
   void counters() {
