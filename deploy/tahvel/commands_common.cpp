@@ -637,6 +637,8 @@ std::int64_t time_flag(std::string_view flag, const std::string& text) {
     const std::size_t first = at;
     for (; at < text.size() && text[at] >= '0' && text[at] <= '9'; ++at, scale /= 10) fraction += (text[at] - '0') * scale;
     if (at == first) usage_error(what + "a '.' needs digits after it");
+  } else if (at < text.size() && text[at] == ',') {
+    usage_error(what + "write the fraction after a '.', not a ','");
   }
   std::int64_t offset_s = 0;
   if (at < text.size() && (text[at] == 'Z' || text[at] == 'z')) {

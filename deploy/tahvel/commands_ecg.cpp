@@ -79,9 +79,18 @@ class FrameWriter {
   // recording's first sample when no --since was given: a ring reclaims the oldest chunks, and
   // minutes of them missing went unsaid), and, when the recording's end is known (`end_sample`,
   // tv:endSample), after the last, are missing too. (Without its end, samples after the last
-  // chunk may not have been taken yet.)
+  // chunk may not have been taken yet.) With no frame written, the samples of the range that lie
+  // before that end are missing: the range fell wholly inside removed or reclaimed chunks.
   void finish(std::optional<std::int64_t> end_sample) {
-    if (!first_) return;
+    if (!first_) {
+      if (!end_sample) return;
+      // Without a start the range does not apply (write() keeps every frame).
+      const bool timed = info_.started_at.has_value();
+      const std::int64_t from = since_ && timed ? first_at_or_after(*since_) : 0;
+      const std::int64_t to = until_ && timed ? std::min(*end_sample, first_at_or_after(*until_)) : *end_sample;
+      if (from < to) gaps_.push_back({from, to});
+      return;
+    }
     if (!since_ || info_.started_at) {
       const std::int64_t from = since_ ? first_at_or_after(*since_) : 0;
       if (from < *first_) gaps_.insert(gaps_.begin(), {from, *first_});
@@ -153,7 +162,8 @@ int run_ecg(const Args& args) {
   const std::chrono::milliseconds timeout = seconds_flag(args, "ecg", std::chrono::seconds(30), std::chrono::hours(24));
   const auto deadline = std::chrono::steady_clock::now() + timeout;
   // The two queries (the description, then the chunks) share the one --timeout: the second
-  // gets what the first left, and a timeout names the whole, not what was left of it.
+  // gets what the first left, and a timeout names the whole, not what was left of it, and counts
+  // the frames written out, not the query's records (a chunk of hundreds of frames is a few).
   PieceOutput out;
   auto ask_in_time = [&](const std::function<void(const node::Record&)>& each, const std::function<void()>& answered) {
     const auto left = std::max(std::chrono::milliseconds(1),
@@ -161,9 +171,13 @@ int run_ecg(const Args& args) {
     try {
       ask_below("ecg", node, ask, left, out, each, answered, "frame");
     } catch (Failure& f) {
-      if (f.status == kExitTimeout && left < timeout)
-        f.message += "; the description and the chunks share --timeout " +
-                     (args.get("--timeout") ? *args.get("--timeout") : std::string("30 (the default)"));
+      if (f.status == kExitTimeout) {
+        const std::uint64_t n = out.written();
+        f.message = "ecg: timeout: no complete answer from <" + ask.target + "> within --timeout " +
+                    (args.get("--timeout") ? *args.get("--timeout") + " s" : std::string("30 s (the default)")) +
+                    " (the description and the chunks share it); " + std::to_string(n) + " frame" + (n == 1 ? "" : "s") +
+                    " written out";
+      }
       throw;
     }
   };

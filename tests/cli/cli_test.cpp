@@ -1438,6 +1438,12 @@ TEST_F(Cli, EcgPrintsEachFrameOfTheRangeInMillivoltsAndNamesWhatIsMissing) {
   EXPECT_EQ(none.status, 0) << none.err;
   EXPECT_EQ(none.out, "sample,unix_ns,MLII,V5\n");
   EXPECT_NE(none.err.find("holds no sample of <" + rec + "> in that range"), std::string::npos) << none.err;
+  // A range wholly inside the missing chunk names its samples as missing, as a range that only
+  // overlaps it does: it read as a time without ECG, a range past the recording's end.
+  EXPECT_NE(none.err.find("tahvel: ecg: samples 8 to 11 (1.0 s) are not at <"), std::string::npos) << none.err;
+  Outcome after = run({"ecg", node_, "--recording", rec, "--since", std::to_string(t0 + 5'000'000'000)});
+  EXPECT_EQ(after.status, 0) << after.err;
+  EXPECT_EQ(after.err, "tahvel: ecg: <" + kNodeIri + "> holds no sample of <" + rec + "> in that range\n");
   // Without --since, the samples missing before the first frame are named from the recording's
   // first (a ring takes the oldest chunks; minutes of them went unsaid).
   ASSERT_TRUE(tahvel::node::Node::open(node_).value().remove({.s = tahvel::node::Term::iri(rec + "/chunk/0")}));
@@ -2281,6 +2287,11 @@ TEST_F(Cli, QueryTimesAreCheckedAndHonourTheirOffset) {
   EXPECT_NE(r.err.find("no such date or time"), std::string::npos) << r.err;
   EXPECT_EQ(query("--until", "2026-11-21T10:00:00.Z").status, 2);
   EXPECT_EQ(query("--until", "2026-11-21T10:00:00").status, 2);
+  // ISO 8601 allows a comma before the fraction, RFC 3339 does not: the message named the offset,
+  // which was there.
+  r = query("--since", "2026-11-21T10:00:00,5Z");
+  EXPECT_EQ(r.status, 2);
+  EXPECT_NE(r.err.find("--since '2026-11-21T10:00:00,5Z': write the fraction after a '.', not a ','"), std::string::npos) << r.err;
   r = run({"query", node_, "--at", kNodeIri, "--since", "2026-11-21T11:00:00Z", "--until", "2026-11-21T10:00:00Z"});
   EXPECT_EQ(r.status, 2);
   EXPECT_NE(r.err.find("is not after --since"), std::string::npos) << r.err;

@@ -211,6 +211,14 @@ TEST(Hierarchy, HrvFromBothHomesReachesTheHospitalWithTheirSourcesAndRawEcgStays
   const auto rows = static_cast<double>(std::count(remote.begin(), remote.end(), '\n') - 1);
   EXPECT_GE(rows, seconds * 100) << remote.substr(0, 300);  // at least 100 Hz
   EXPECT_EQ(remote.rfind("sample,unix_ns,", 0), 0u) << remote.substr(0, 300);
+  // A timeout names the --timeout typed and counts frames, not what was left of it for the
+  // chunks and the query's records ("within 239 ms (146 records received)" for --timeout 0.3).
+  const std::string late = d.tahvel("ecg " + hospital + " --at " + kHome2 + range + " --timeout 0.001 2>&1 >/dev/null", &status);
+  EXPECT_EQ(status, 3) << late;
+  EXPECT_NE(late.find("ecg: timeout: no complete answer from <" + kHome2 +
+                      "> within --timeout 0.001 s (the description and the chunks share it); 0 frames written out"),
+            std::string::npos)
+      << late;
 }
 
 TEST(Hierarchy, WindowChangeWrittenAtTheHospitalTakesEffectAtThatHomeOnly) {
