@@ -8,12 +8,14 @@
 
 #include <cstdlib>
 #include <fstream>
+#include <functional>
 #include <iterator>
 #include <mutex>
 #include <string>
 #include <vector>
 
 #include "tahvel/federation/wire_names.h"
+#include "tahvel_frame_t.h"
 #include "wire_settings.h"
 
 namespace tahvel::federation {
@@ -402,6 +404,81 @@ TEST(WireUdpm, DatagramsThatAreNotLcmAreDroppedNamingTheirSenderAndTheEndpointGo
       << drops[0];
   EXPECT_NE(drops[1].find(from + "an LCM fragment cut inside its header"), std::string::npos) << drops[1];
   EXPECT_NE(drops[2].find(from + "LCM fragment 2 of 1 of message 1: no such fragment"), std::string::npos) << drops[2];
+}
+
+// An LCM message on the endpoint's channel whose tahvel_frame_t lengths lie (a negative body
+// size or string length, a string without the NUL its length counts, a body longer than the
+// message) is dropped naming the field, and the endpoint goes on: lcm-gen's decoder handed a
+// negative length to malloc and memcpy, and one datagram of 164 bytes crashed a link.
+TEST(WireUdpm, AFrameWhoseLengthsLieIsDroppedNamingTheFieldAndTheEndpointGoesOn) {
+  require_netns();
+  const LcmSettings settings{.url = "udpm://239.255.76.67:7754?ttl=0"};
+  std::vector<std::string> drops;
+  std::mutex mu;
+  auto receiver = open_lcm(settings, "tahvel://wire-udpm/receiver", [&](std::string_view line) {
+    std::lock_guard lock(mu);
+    drops.emplace_back(line);
+  });
+  auto sender = open_lcm(settings, "tahvel://wire-udpm/sender");
+  ASSERT_TRUE(receiver && sender);
+  const std::string from = (*sender)->self(), to = (*receiver)->self();
+  // A frame as lcm-gen encodes it, then `patch`ed, in one LCM datagram on the receiver's channel.
+  auto datagram = [&](const std::function<void(std::string&)>& patch) {
+    std::string body = "abc";
+    tahvel_frame_t msg{};
+    msg.version = kProtocolVersion;
+    msg.fingerprint = static_cast<std::int64_t>(message_fingerprint());
+    msg.kind = static_cast<std::uint8_t>(FrameKind::heartbeat);
+    msg.from = const_cast<char*>(from.c_str());
+    msg.to = const_cast<char*>(to.c_str());
+    msg.body_size = static_cast<std::int32_t>(body.size());
+    msg.body = reinterpret_cast<std::uint8_t*>(body.data());
+    std::string frame(static_cast<std::size_t>(tahvel_frame_t_encoded_size(&msg)), '\0');
+    EXPECT_EQ(tahvel_frame_t_encode(frame.data(), 0, static_cast<int>(frame.size()), &msg), static_cast<int>(frame.size()));
+    patch(frame);
+    return std::string("LC02\0\0\0\1", 8) + lcm_channel(to) + '\0' + frame;
+  };
+  auto put_int32 = [](std::string& bytes, std::size_t at, std::int32_t value) {
+    for (int i = 0; i < 4; ++i) bytes[at + i] = static_cast<char>(static_cast<std::uint32_t>(value) >> (24 - 8 * i));
+  };
+  const std::size_t from_length = 8 + 2 + 8 + 1;  // after the type hash, version, fingerprint, kind
+  const std::size_t to_length = from_length + 4 + from.size() + 1;
+  const std::size_t body_size = to_length + 4 + to.size() + 1 + 3 * 8;
+  const int fd = ::socket(AF_INET, SOCK_DGRAM, 0);
+  ASSERT_GE(fd, 0);
+  sockaddr_in group{};
+  group.sin_family = AF_INET;
+  group.sin_port = htons(7754);
+  inet_pton(AF_INET, "239.255.76.67", &group.sin_addr);
+  auto send_raw = [&](const std::string& bytes) {
+    ASSERT_EQ(::sendto(fd, bytes.data(), bytes.size(), 0, reinterpret_cast<sockaddr*>(&group), sizeof group),
+              static_cast<ssize_t>(bytes.size()));
+  };
+  send_raw(datagram([&](std::string& f) { put_int32(f, body_size, -1); }));
+  send_raw(datagram([&](std::string& f) { put_int32(f, from_length, -16); }));
+  send_raw(datagram([&](std::string& f) { put_int32(f, to_length, 0); }));
+  send_raw(datagram([&](std::string& f) { f[to_length - 1] = 'x'; }));  // from's NUL
+  send_raw(datagram([&](std::string& f) { put_int32(f, body_size, INT32_MAX); }));
+  ::close(fd);
+  Frame f;
+  f.kind = FrameKind::heartbeat;
+  f.from = from;
+  f.to = to;
+  f.seq = 42;
+  ASSERT_TRUE((*sender)->send(f));
+  auto got = (*receiver)->receive(5s);
+  ASSERT_TRUE(got && *got) << "the good frame after the bad ones did not arrive";
+  EXPECT_EQ((*got)->seq, 42u);
+  std::lock_guard lock(mu);
+  ASSERT_EQ(drops.size(), 5u);
+  for (const std::string& drop : drops)
+    EXPECT_EQ(drop.rfind("lcm <tahvel://wire-udpm/receiver>: dropped ", 0), 0u) << drop;
+  EXPECT_NE(drops[0].find(": not a tahvel_frame_t ('body' says -1 bytes, 3 are left)"), std::string::npos) << drops[0];
+  EXPECT_NE(drops[1].find(": not a tahvel_frame_t ('from' says -16 bytes, "), std::string::npos) << drops[1];
+  EXPECT_NE(drops[2].find(": not a tahvel_frame_t ('to' says 0 bytes, "), std::string::npos) << drops[2];
+  EXPECT_NE(drops[3].find(": not a tahvel_frame_t ('from' does not end with the NUL its length counts)"), std::string::npos)
+      << drops[3];
+  EXPECT_NE(drops[4].find(": not a tahvel_frame_t ('body' says 2147483647 bytes, 3 are left)"), std::string::npos) << drops[4];
 }
 
 // Linux hands a socket bound to a port the datagrams of every group any socket of the host joined
