@@ -865,6 +865,7 @@ std::uint64_t Env::pages_end_bytes() {
 }
 
 Result<void> Env::write(const std::function<Result<void>(Txn&)>& body, WriteKind kind, std::uint64_t new_bytes) {
+  bool dead_readers_cleared = false;
   for (;;) {
     if (auto r = reserve_disk(kind, new_bytes); !r) return r;
     if (kind != WriteKind::removal) {
@@ -916,6 +917,16 @@ Result<void> Env::write(const std::function<Result<void>(Txn&)>& body, WriteKind
     active_txns_.fetch_sub(1);
     bool map_full = (!result && result.error().code == Errc::store_full) || rc == MDB_MAP_FULL;
     if (map_full) {
+      // A reader that died holding its snapshot (SIGKILL, the OOM killer) leaves its slot, and
+      // LMDB hands out no page freed after that snapshot while the slot stays: the map filled
+      // with free pages it would not reuse, and a ring store's writers failed with store_full,
+      // the store nearly empty. Slots of dead processes were cleared only when a process opened
+      // the store; they are cleared here too, and the write tried again, before the map grows.
+      int dead = 0;
+      if (!dead_readers_cleared && mdb_reader_check(env_, &dead) == 0 && dead > 0) {
+        dead_readers_cleared = true;
+        continue;
+      }
       if (auto g = grow(kind); !g) return g;
       continue;
     }

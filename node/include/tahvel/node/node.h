@@ -429,8 +429,8 @@ class Node {
   // Errors: exists, invalid_iri, io, invalid_argument (max_map_bytes below kMinMaxMapBytes).
   static Result<Node> init(const std::filesystem::path& dir, const InitOptions& options);
 
-  // Opens an existing store. Clears reader slots left by dead processes. Errors: not_found, io,
-  // corrupt, version.
+  // Opens an existing store. Clears reader slots left by dead processes (a write that finds the
+  // map full clears them too). Errors: not_found, io, corrupt, version.
   static Result<Node> open(const std::filesystem::path& dir);
 
   Node(Node&&) noexcept;

@@ -127,7 +127,7 @@ void tahvel_free(void* ptr);
 
 /* Opens the existing store in directory `dir` (every process of a node opens the same
  * directory) and sets *out to a new node handle, to be closed with tahvel_node_close().
- * Clears reader slots left by dead processes.
+ * Clears reader slots left by dead processes (a write that finds the map full clears them too).
  * Errors: TAHVEL_INVALID_ARGUMENT (dir or out NULL), TAHVEL_NOT_FOUND (no store in `dir`),
  * TAHVEL_IO, TAHVEL_CORRUPT, TAHVEL_VERSION, TAHVEL_NO_MEMORY. */
 tahvel_status tahvel_node_open(const char* dir, tahvel_node** out);
