@@ -130,6 +130,21 @@ Result<Frame> decode_frame(std::string_view bytes) {
   return frame;
 }
 
+std::string frame_kind_name(FrameKind kind) {
+  switch (kind) {
+    case FrameKind::hello: return "hello";
+    case FrameKind::welcome: return "welcome";
+    case FrameKind::up: return "up";
+    case FrameKind::ack: return "ack";
+    case FrameKind::down: return "down";
+    case FrameKind::query: return "query";
+    case FrameKind::answer: return "answer";
+    case FrameKind::error: return "error";
+    case FrameKind::heartbeat: return "heartbeat";
+  }
+  return "kind " + std::to_string(static_cast<unsigned>(kind));
+}
+
 std::optional<std::string> frame_refusal(const Frame& frame, std::string_view self_iri) {
   if (frame.version < kOldestProtocolVersion || frame.version > kProtocolVersion)
     return "protocol version " + std::to_string(frame.version) + " from <" + frame.from + ">, this node speaks " +

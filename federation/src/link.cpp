@@ -404,7 +404,34 @@ struct Link::Impl {
   std::map<std::string, std::shared_ptr<Child>> children;  // by IRI
   // Child IRI -> the store it registered with, as the board said at start (P10b); read-only after.
   std::map<std::string, std::string> stores_before;
-  std::map<std::string, std::pair<std::string, Clock::time_point>> refusals_logged;  // sender -> last reason logged
+  // P17 for the state body of a hello, welcome, heartbeat or item-stream ack: into `state`;
+  // none for an empty body (a peer from before state bodies, whose store ids are empty, P6b).
+  // False, logged, when the body does not decode: the frame is dropped. It was read as a peer
+  // without store ids, so that a cut-short hello made the child's items a new stream, applied
+  // again.
+  bool read_state(const Frame& f, std::optional<wire::StateBody>& state) const {
+    state.reset();
+    if (f.body.empty()) return true;
+    auto decoded = wire::decode_state(f.body);
+    if (!decoded) {
+      log("dropped a malformed " + frame_kind_name(f.kind) + " frame from <" + f.from + ">: " + decoded.error().message);
+      return false;
+    }
+    state = std::move(*decoded);
+    return true;
+  }
+
+  std::string ack_beyond_issued(std::uint64_t mark) const {
+    return "it acknowledges up to " + std::to_string(mark) + ", and this store has sent no item past " +
+           std::to_string(issued_to_peers());
+  }
+
+  struct Refusal {
+    std::string why;                       // the reason last logged
+    Clock::time_point logged, answered{};  // when it was logged, when the sender was last told
+  };
+  std::map<std::string, Refusal> refusals;  // by sender (refuse())
+  static constexpr std::size_t kRefusalsKept = 4096;
 
   // Stream names (P6a): a child's items by its IRI and store id; what comes down by the parent's
   // store id. Without an id (a peer from before store ids): the names used then.
@@ -535,9 +562,11 @@ struct Link::Impl {
   };
   std::deque<BoardWrite> board_writes;
 
+  // Lines name IRIs and messages that came from the wire: each is made one line (wire::one_line).
   void log(const std::string& line) const {
-    if (opt.log) opt.log(line);
-    else std::cerr << "tahvel link <" << self << ">: " << line << "\n";
+    const std::string safe = wire::one_line(line);
+    if (opt.log) opt.log(safe);
+    else std::cerr << "tahvel link <" << self << ">: " << safe << "\n";
   }
 
   // Children heard speaking an earlier protocol version (P3), by IRI, and whether there are any:
@@ -639,7 +668,7 @@ struct Link::Impl {
     frame.version = kProtocolVersion;
     if (older_children_heard.load(std::memory_order_relaxed)) speak_as_older_child(frame);
     if (auto sent = via->send(frame); !sent) {
-      log("send " + frame.to + " failed: " + sent.error().message);
+      log("send to <" + frame.to + "> failed: " + sent.error().message);
       return false;
     }
     return true;
@@ -1079,19 +1108,25 @@ struct Link::Impl {
     parent_heard_ns = now_ns();
   }
 
-  std::shared_ptr<Child> accepted_child(const std::string& iri, std::string* why) {
+  // P1: why the sender `iri` cannot be a child of this node, or its child id.
+  node::Result<std::string> child_id_of(const std::string& iri) const {
     auto id = uri::child_id(iri, self);
+    if (!id)
+      return node::fail(Errc::invalid_argument, "<" + iri + "> is not a child of <" + self +
+                                                    "> (a child's IRI is the parent's IRI + \"/\" + its id): " +
+                                                    id.error().message);
+    if (!opt.children.empty() && std::find(opt.children.begin(), opt.children.end(), *id) == opt.children.end())
+      return node::fail(Errc::invalid_argument, "<" + iri + "> is not among the children configured for <" + self + ">");
+    if (*id == kLinkAgent || *id == kUplinkAgent)  // child C is agent C of this node
+      return node::fail(Errc::invalid_argument, "<" + iri + "> has the id '" + *id + "', which is this node's own agent '" +
+                                                    *id + "' at <" + self + ">");
+    return *id;
+  }
+
+  std::shared_ptr<Child> accepted_child(const std::string& iri, std::string* why) {
+    auto id = child_id_of(iri);
     if (!id) {
-      *why = "<" + iri + "> is not a child of <" + self + "> (a child's IRI is the parent's IRI + \"/\" + its id): " +
-             id.error().message;
-      return nullptr;
-    }
-    if (!opt.children.empty() && std::find(opt.children.begin(), opt.children.end(), *id) == opt.children.end()) {
-      *why = "<" + iri + "> is not among the children configured for <" + self + ">";
-      return nullptr;
-    }
-    if (*id == kLinkAgent || *id == kUplinkAgent) {  // P1: child C is agent C of this node
-      *why = "<" + iri + "> has the id '" + *id + "', which is this node's own agent '" + *id + "' at <" + self + ">";
+      *why = id.error().message;
       return nullptr;
     }
     std::lock_guard lock(mu);
@@ -1145,17 +1180,17 @@ struct Link::Impl {
       return;
     }
     if (up ? !child : !from_parent(head)) {
+      if (!up || !opt.down) return refuse(via, head.from, head.kind, frames.size(), "<" + head.from + "> is not this node's parent");
+      // A sender that is no child of this node is refused as its hello would be (P6), and
+      // logged; a child that is not connected is told to say hello (P6).
+      auto id = child_id_of(head.from);
+      if (!id) return refuse(via, head.from, head.kind, frames.size(), id.error().message);
       {
         std::lock_guard lock(mu);
         counters.refused += frames.size();
       }
-      if (up && opt.down && !conflict.empty()) {
-        send_error(via, head.from, 0, {"refused", conflict, ""});
-      } else if (up && opt.down) {  // P6: a child the parent does not know registers again
-        send_error(via, head.from, 0, {"unregistered", "<" + head.from + "> must say hello to <" + self + "> first", ""});
-      } else {
-        log("dropped " + std::to_string(frames.size()) + " frame(s) from <" + head.from + ">: not this node's parent");
-      }
+      if (!conflict.empty()) send_error(via, head.from, 0, {"refused", conflict, ""});
+      else send_error(via, head.from, 0, {"unregistered", "<" + head.from + "> must say hello to <" + self + "> first", ""});
       return;
     }
     std::uint64_t registered_tag = 0, own_tag = 0;
@@ -1328,23 +1363,41 @@ struct Link::Impl {
       if ((opt.down || !opt.also_down.empty()) && f.from != self && uri::is_under(f.from, self)) return;
       why = "<" + f.from + "> is not the parent <" + opt.parent_iri + "> of <" + self + ">";
     }
-    bool say = false;
+    refuse(via, f.from, f.kind, 1, why);
+  }
+
+  // P6: `frames` frames of `kind` from `from`, whom this node does not take as a child or parent,
+  // counted and logged once per sender and reason a minute (a refused child says hello every
+  // second). From below, a hello, heartbeat or up is answered with `refused`, so that a child that
+  // was welcomed and is no longer accepted (its parent restarted with a file without it) learns
+  // so from its next heartbeat or item; at most once a second per sender, so that frames from
+  // made-up IRIs cost this node bounded work.
+  void refuse(Transport* via, const std::string& from, FrameKind kind, std::size_t frames, const std::string& why) {
+    bool say = false, answer = false;
     {
       std::lock_guard lock(mu);
-      ++counters.refused;
-      // Once per sender and reason a minute: a refused child says hello every second.
-      auto& last = refusals_logged[f.from];
-      if (last.first != why || Clock::now() - last.second > std::chrono::minutes(1)) {
-        last = {why, Clock::now()};
+      counters.refused += frames;
+      // Bounded: each sender a frame makes up is one more entry.
+      if (refusals.size() >= kRefusalsKept && !refusals.contains(from)) refusals.clear();
+      Refusal& last = refusals[from];
+      const auto now = Clock::now();
+      if (last.why != why || now - last.logged > std::chrono::minutes(1)) {
+        last.why = why;
+        last.logged = now;
         say = true;
       }
+      if (now - last.answered >= std::chrono::seconds(1)) {
+        last.answered = now;
+        answer = true;
+      }
     }
-    if (say) log("refused " + std::to_string(static_cast<int>(f.kind)) + "-frame: " + why);
-    // A child that was welcomed and is no longer accepted (its parent restarted with a file
-    // without it) learns so from its next heartbeat or item, not only at its next hello.
-    if (is_down(via) &&
-        (f.kind == FrameKind::hello || f.kind == FrameKind::heartbeat || f.kind == FrameKind::up))
-      send_error(via, f.from, 0, {"refused", why, ""});
+    if (say) {
+      const std::string name = frame_kind_name(kind);
+      const std::string count = frames != 1 ? std::to_string(frames) + " " : name.find_first_of("aeiu") == 0 ? "an " : "a ";
+      log("refused " + count + name + (frames == 1 ? " frame: " : " frames: ") + why);
+    }
+    if (answer && is_down(via) && (kind == FrameKind::hello || kind == FrameKind::heartbeat || kind == FrameKind::up))
+      send_error(via, from, 0, {"refused", why, ""});
   }
 
   // An answer in an earlier version's layout, read on as this version's: it goes on the board
@@ -1367,10 +1420,18 @@ struct Link::Impl {
   void from_child_frame(Transport* via, const Frame& f, const std::shared_ptr<Child>& child, AgentFn& agent) {
     switch (f.kind) {
       case FrameKind::hello: {
-        auto state = wire::decode_state(f.body);
+        std::optional<wire::StateBody> state;
+        if (!read_state(f, state)) return;
         node::Agent* link = agent(child->id);
         if (!link) return;
-        const std::string child_store = state ? state->store_id : std::string();
+        std::string child_store = state ? state->store_id : std::string();
+        if (child_store.empty()) {
+          // P6b: an empty id (a peer from before store ids) is taken as a match: it goes on with
+          // the stream registered, and is not a new one from its start (whose items the parent
+          // would apply again).
+          std::lock_guard lock(mu);
+          child_store = child->store_id.empty() ? child->store_before : child->store_id;
+        }
         auto mark = link->relay_mark(up_stream(child->iri, child_store));
         if (!mark) {
           log("cannot read the mark of <" + child->iri + ">: " + mark.error().message);
@@ -1502,7 +1563,8 @@ struct Link::Impl {
         return;
       }
       case FrameKind::heartbeat: {
-        auto state = wire::decode_state(f.body);
+        std::optional<wire::StateBody> state;
+        if (!read_state(f, state)) return;
         std::unique_lock lock(mu);
         if (state && child->connected && store_differs(child->store_id, state->store_id)) {
           // P6b: another store than the registered one beats as this child: both are alive.
@@ -1553,13 +1615,19 @@ struct Link::Impl {
         }
         // P6b: the acknowledgement of another store than the registered one (a second node
         // under this child's IRI) would move the registered one's down window.
-        auto stores = wire::decode_state(f.body);
+        std::optional<wire::StateBody> stores;
+        if (!read_state(f, stores)) return;
         if (stores && store_differs(store_id, stores->peer_store_id)) return;  // of another parent's down stream
         if (stores && store_differs(child->store_id, stores->store_id)) {
           if (child->flips.saw(child->store_id, stores->store_id, "the child <" + child->iri + ">"))
             log("conflict: " + child->flips.said());
           if (child->flips.active()) disconnect_for_conflict(*child);
           return;
+        }
+        if (f.ack > issued_to_peers()) {
+          // Never sent: taken, it would empty the child's down window of items it never had.
+          lock.unlock();
+          return refuse(via, f.from, f.kind, 1, ack_beyond_issued(f.ack));
         }
         child->last_seen = Clock::now();
         bool news = false;  // for the pump: room in the window, items to acknowledge, a go-back
@@ -1598,7 +1666,8 @@ struct Link::Impl {
   void from_parent_frame(Transport* via, const Frame& f, AgentFn&) {
     switch (f.kind) {
       case FrameKind::welcome: {
-        auto state = wire::decode_state(f.body);
+        std::optional<wire::StateBody> state;
+        if (!read_state(f, state)) return;
         // P6b: the welcome of another store of this node's IRI (a second node under it), whose
         // mark would empty this one's outbox of items never applied.
         if (state && store_differs(current_store_id(), state->peer_store_id)) return;
@@ -1667,7 +1736,9 @@ struct Link::Impl {
           lock.unlock();
           return send_all(out);
         }
-        if (auto stores = wire::decode_state(f.body)) {
+        std::optional<wire::StateBody> stores;
+        if (!read_state(f, stores)) return;
+        if (stores) {
           // P6b: from another store than the parent that welcomed this node: two parents under
           // one IRI.
           if (store_differs(parent_store_id, stores->store_id)) {
@@ -1687,6 +1758,12 @@ struct Link::Impl {
             welcomed = false;
             return;
           }
+        }
+        if (f.ack > issued_to_peers()) {
+          // Never sent: taken, it would leave every later item in the outbox for good (the
+          // outbox is emptied up to the mark, and the mark would never be passed again).
+          lock.unlock();
+          return refuse(via, f.from, f.kind, 1, ack_beyond_issued(f.ack));
         }
         if (f.ack > up_mark) {
           up_mark = f.ack;

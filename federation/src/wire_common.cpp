@@ -3,6 +3,8 @@
 
 #include <cstdio>
 
+#include "tahvel/node/term.h"
+
 namespace tahvel::federation::wire {
 
 bool known_kind(std::uint8_t kind) noexcept {
@@ -23,6 +25,36 @@ std::string printable(std::string_view text, std::size_t max) {
     }
   }
   if (text.size() > max) out += "...";
+  return out;
+}
+
+std::string one_line(std::string_view text) {
+  std::string out;
+  out.reserve(text.size());
+  auto escape = [&out](unsigned char c) {
+    char buf[5];
+    std::snprintf(buf, sizeof buf, "\\x%02x", c);
+    out += buf;
+  };
+  while (!text.empty()) {
+    const std::size_t bad = node::ill_formed_utf8_at(text);
+    const std::string_view good = text.substr(0, bad);
+    for (std::size_t i = 0; i < good.size(); ++i) {
+      const auto c = static_cast<unsigned char>(good[i]);
+      const bool c1 = c == 0xc2 && i + 1 < good.size() && static_cast<unsigned char>(good[i + 1]) < 0xa0;  // U+0080-U+009F
+      if (c < 0x20 || c == 0x7f) {
+        escape(c);
+      } else if (c1) {
+        escape(c);
+        escape(static_cast<unsigned char>(good[++i]));
+      } else {
+        out += static_cast<char>(c);
+      }
+    }
+    if (bad == std::string_view::npos) break;
+    escape(static_cast<unsigned char>(text[bad]));
+    text.remove_prefix(bad + 1);
+  }
   return out;
 }
 

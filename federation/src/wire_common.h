@@ -22,6 +22,11 @@ bool known_kind(std::uint8_t kind) noexcept;
 // `text` made safe for a one-line log: control and non-ASCII bytes as \xNN, cut at `max` bytes.
 std::string printable(std::string_view text, std::size_t max = 160);
 
+// `text` as one line of a log, whole: control bytes (C0, DEL, C1) and bytes that are not
+// well-formed UTF-8 as \xNN, other UTF-8 kept (a node's IRI may be "…/kotiä"). For lines that
+// carry what a peer sent: a forged IRI must not add a line of its own, or move a terminal's cursor.
+std::string one_line(std::string_view text);
+
 // "kind 3 seq 5 from <iri> to <iri>" for log lines.
 std::string describe(const Frame& frame);
 

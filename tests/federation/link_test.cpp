@@ -1248,6 +1248,109 @@ TEST(Link, MalformedFramesAreDroppedWithAReasonAndTheLinkKeepsWorking) {
   EXPECT_TRUE(tree.hospital_log.has("not UTF-8"));
 }
 
+// P17, P6b: a hello whose state body does not decode is dropped with a line; it was read as a
+// hello of a store without an id, and the child's items became a new stream, from its start,
+// applied again at the parent ("has another store (id , was …)"). A hello with no body at all
+// (a peer from before state bodies) goes on with the stream registered.
+TEST(Link, AHelloWhoseStateBodyDoesNotDecodeIsDroppedAndStartsNoNewStream) {
+  Tree tree;
+  ASSERT_TRUE(tree.start_hospital_and_home1());
+  ASSERT_TRUE(home1_sends(tree, 0, 10, 10));
+  Frame hello;
+  hello.kind = FrameKind::hello;
+  hello.from = kHome1;
+  hello.to = kHospital;
+  hello.body = std::string("\x05\x00\x00\x00ab", 6);  // a software version cut short
+  tree.bus.inject_raw(kHospital, encode_frame(hello));
+  hello.body.clear();
+  tree.bus.inject_raw(kHospital, encode_frame(hello));
+  ASSERT_TRUE(home1_sends(tree, 10, 10, 20));
+  EXPECT_TRUE(eventually([&] { return tree.hospital_log.has("dropped a malformed hello frame from <" + kHome1 + ">: "); }))
+      << tree.hospital_log.text();
+  EXPECT_FALSE(tree.hospital_log.has("has another store")) << tree.hospital_log.text();
+  EXPECT_EQ(count(tree.hospital_dir, {.p = Term::iri(kEx + "n")}), 20u);
+}
+
+// P8, P6a: an acknowledgement of more than the child has sent is refused with a line: taken, it
+// emptied the outbox of items the parent never had, and left every later one there for good.
+TEST(Link, AnAckBeyondWhatTheChildHasSentIsRefusedAndTheOutboxKeepsItsItems) {
+  Tree tree;
+  auto parent = tree.bus.open(kHospital);
+  tree.home1 = tree.start_home(tree.home1_dir, kHome1, tree.home1_log);
+  const std::string own_store = node::Node::open(tree.home1_dir).value().store_id().value();
+  auto next = [&](FrameKind kind) -> std::optional<Frame> {
+    for (auto deadline = std::chrono::steady_clock::now() + 5s; std::chrono::steady_clock::now() < deadline;) {
+      auto f = parent->receive(100ms);
+      if (f && *f && (*f)->kind == kind) return **f;
+    }
+    return std::nullopt;
+  };
+  ASSERT_TRUE(next(FrameKind::hello));
+  Frame welcome;
+  welcome.kind = FrameKind::welcome;
+  welcome.from = kHospital;
+  welcome.to = kHome1;
+  welcome.body = wire::encode_state({"test", 0, "pppp", own_store});
+  ASSERT_TRUE(parent->send(welcome));
+  store_hrv_items(tree.home1_dir, 0, 5);
+  std::set<std::uint64_t> sent;
+  while (sent.size() < 5) {
+    auto up = next(FrameKind::up);
+    ASSERT_TRUE(up);
+    sent.insert(up->seq);
+  }
+  auto ack = [&](std::uint64_t mark) {
+    Frame f;
+    f.kind = FrameKind::ack;
+    f.from = kHospital;
+    f.to = kHome1;
+    f.ack = mark;
+    f.body = wire::encode_state({"", 0, "pppp", own_store});
+    return parent->send(f);
+  };
+  const std::uint64_t last = *sent.rbegin();
+  ASSERT_TRUE(ack(std::uint64_t{1} << 62));
+  EXPECT_TRUE(eventually([&] { return tree.home1_log.has("it acknowledges up to 4611686018427387904, and this store has sent no item past"); }))
+      << tree.home1_log.text();
+  EXPECT_EQ(outbox(tree.home1_dir), 5u);
+  ASSERT_TRUE(ack(last));
+  EXPECT_TRUE(eventually([&] { return outbox(tree.home1_dir) == 0; }));
+  store_hrv_items(tree.home1_dir, 5, 1);
+  EXPECT_TRUE(next(FrameKind::up)) << "items after it are sent";
+}
+
+// P6: frames from a sender that is no child of this node, up frames too, are refused in a line
+// that names the frame's kind, and every line is one line whatever the sender's IRI holds (a
+// newline in it wrote a forged line of its own into the log).
+TEST(Link, FramesFromSendersThatAreNoChildAreRefusedInOneLogLineEach) {
+  Tree tree;
+  tree.hospital = tree.start_hospital();
+  Frame up;
+  up.kind = FrameKind::up;
+  up.from = kHospital + "/stranger";
+  up.to = kHospital;
+  up.seq = 1;
+  up.body = wire::encode_item({.source = up.from, .item = hrv_item(1)});
+  tree.bus.inject_raw(kHospital, encode_frame(up));
+  Frame hello;
+  hello.kind = FrameKind::hello;
+  hello.from = "http://x/\n2026-12-02T06:00:00.000Z child <" + kHome1 + "> registered\x1b[2K\xff";
+  hello.to = kHospital;
+  tree.bus.inject_raw(kHospital, encode_frame(hello));
+  EXPECT_TRUE(eventually([&] {
+    return tree.hospital_log.has("refused an up frame: <" + kHospital + "/stranger> is not among the children configured");
+  })) << tree.hospital_log.text();
+  EXPECT_TRUE(eventually([&] { return tree.hospital_log.has("refused a hello frame: <http://x/\\x0a2026-12-02T06:00:00.000Z"); }))
+      << tree.hospital_log.text();
+  std::lock_guard lock(tree.hospital_log.mu);
+  for (const std::string& line : tree.hospital_log.lines) {
+    EXPECT_EQ(line.find('\n'), std::string::npos) << line;
+    EXPECT_EQ(line.find('\x1b'), std::string::npos) << line;
+    EXPECT_EQ(line.find('\xff'), std::string::npos) << line;
+  }
+  EXPECT_EQ(count(tree.hospital_dir, {.p = Term::iri(kEx + "n")}), 0u);
+}
+
 // A node of protocol version 2 as the link sees it: what it sends is in version 2 (answers in
 // that layout, no item spans, which it does not have), and what reaches it is checked to be
 // version 2, which it would refuse else (P3, P4).

@@ -3,10 +3,13 @@
 // the link's takes them all (docs/architecture.md).
 #include <gtest/gtest.h>
 
+#include <algorithm>
 #include <chrono>
 #include <cstdlib>
+#include <mutex>
 #include <string>
 #include <thread>
+#include <vector>
 
 #include "tahvel/federation/link.h"
 #include "tahvel/federation/sim.h"
@@ -109,6 +112,40 @@ TEST_P(LinkOverDds, ARunWhoseLastFrameNeverComesIsAppliedAfterAShortWait) {
   for (int i = 0; i < 50 && !acked; ++i)
     if (auto got = home->receive(100ms); got && *got) acked = (*got)->kind == FrameKind::ack && (*got)->ack == 1;
   EXPECT_TRUE(acked) << "no ack of the item";
+  hospital.reset();
+}
+
+// P6: a parent answers each refused sender with `refused`. Over DDS the first frame to a new
+// IRI waited up to 2 s for a reader to match, and a made-up sender has none: 30 hellos from
+// made-up child IRIs held the hospital's receiving thread a minute, its real child's items and
+// heartbeats unread (the child went down). Now they cost it nothing of the kind.
+TEST_P(LinkOverDds, HellosFromMadeUpChildrenDoNotHoldUpARealOne) {
+  test_support::TempDir tmp("tahvel-push");
+  const std::string hospital_dir = (tmp / "hospital").string(), home_dir = (tmp / "home").string();
+  ASSERT_TRUE(node::Node::init(hospital_dir, {.iri = kHospital}));
+  ASSERT_TRUE(node::Node::init(home_dir, {.iri = kHome}));
+  std::mutex mu;
+  std::vector<std::string> lines;
+  auto hospital = Link::start({.dir = hospital_dir, .down = dds(kHospital), .children = {"home1"}, .push = GetParam(),
+                               .log = [&](std::string_view line) {
+                                 std::lock_guard lock(mu);
+                                 lines.emplace_back(line);
+                               }})
+                      .value();
+  auto home = Link::start({.dir = home_dir, .parent_iri = kHospital, .up = dds(kHome), .push = GetParam()}).value();
+  ASSERT_TRUE(eventually([&] { return home->connected(); }));
+  auto forger = dds(kHospital + "/forger");
+  for (int i = 0; i < 30; ++i) ASSERT_TRUE(forger->send(sim::hello_frame(kHospital + "/made-up-" + std::to_string(i), kHospital, {})));
+  auto hrv = node::Node::open(home_dir).value().agent("hrv").value();
+  ASSERT_TRUE(hrv.store(hrv_item(1)));
+  EXPECT_TRUE(eventually([&] { return numbered(hospital_dir) == 1; }, 10s)) << "the real child's item waited";
+  EXPECT_TRUE(eventually([&] {
+    std::lock_guard lock(mu);
+    return std::count_if(lines.begin(), lines.end(), [](const std::string& l) { return l.find("refused a hello frame: <") == 0; }) == 30;
+  })) << "each made-up sender is refused in a line";
+  std::lock_guard lock(mu);
+  for (const std::string& line : lines) EXPECT_EQ(line.find("down"), std::string::npos) << line;
+  home.reset();
   hospital.reset();
 }
 

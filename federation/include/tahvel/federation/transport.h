@@ -207,6 +207,10 @@ Result<std::unique_ptr<Transport>> open_dds(const DdsSettings& settings, std::st
 std::string encode_frame(const Frame& frame);
 Result<Frame> decode_frame(std::string_view bytes);
 
+// The kind's name as docs/protocol.md writes it ("hello", "up", …; "kind 12" for one it does not
+// name), for log lines.
+std::string frame_kind_name(FrameKind kind);
+
 // Why a received, decoded frame must be dropped by the endpoint bound to `self_iri` (another
 // protocol version, another fingerprint, addressed to another IRI), or nullopt to accept it.
 // Every binding applies this same rule (docs/protocol.md P4).
