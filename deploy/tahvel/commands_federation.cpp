@@ -1120,11 +1120,13 @@ class Deployment {
       if (it != applied_.end() && same_program(it->second, program)) continue;
       // A new restart policy alone is no reason to stop a program that runs.
       if (it != applied_.end() && only_restart_differs(it->second, program)) {
-        if (auto set = supervisor_.set_restart(name, program.restart); !set) {
-          changes.push_back("cannot change " + name + ": " + set.error().message);
+        auto starts = supervisor_.set_restart(name, program.restart);
+        if (!starts) {
+          changes.push_back("cannot change " + name + ": " + starts.error().message);
           continue;
         }
-        changes.push_back("changed " + name + " (" + what_changed(it->second, program) + "; it was not restarted)");
+        changes.push_back("changed " + name + " (" + what_changed(it->second, program) +
+                          (*starts ? "; it was not running, and starts again under the new policy)" : "; it was not restarted)"));
         it->second = program;
         continue;
       }
@@ -2065,7 +2067,11 @@ int run_down(const Args& args) {
     }
     ::close(fd);
   }
-  if (stopped == 0 && leftovers == 0) std::cout << "down: nothing was running under " << state.string() << "\n";
+  if (stopped == 0 && leftovers == 0) {
+    // With --node, the others under the state directory may run: "nothing" said they did not.
+    if (only) std::cout << "down: node '" << *only << "' was not running under " << state.string() << "\n";
+    else std::cout << "down: nothing was running under " << state.string() << "\n";
+  }
   return kExitOk;
 }
 

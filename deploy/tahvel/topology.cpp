@@ -169,7 +169,8 @@ node::Result<agents::Restart> restart_policy(const toml::node* n, const std::fil
       if (*text == agents::restart_name(r)) return r;
   }
   return node::fail(Errc::invalid_argument, where(*n, file) + ": " + agent +
-                                                ": restart must be \"on-failure\", \"always\" or \"never\"");
+                                                ": restart must be \"on-failure\", \"always\" or \"never\" (or true or false, the older "
+                                                "spelling of \"always\" and \"never\")");
 }
 
 // The UDP port of an LCM `udpm://` URL (LCM's default 7667 when it names none), or nothing for

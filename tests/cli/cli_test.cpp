@@ -2459,7 +2459,9 @@ TEST_F(Cli, UpRefusesAnUnknownRestartPolicyNamingTheAgent) {
   Outcome up = run({"up", (tmp_ / "node.toml").string(), "--state", (tmp_ / "state").string()});
   EXPECT_EQ(up.status, 1);
   EXPECT_NE(up.err.find("node.toml:7:"), std::string::npos) << up.err;
-  EXPECT_NE(up.err.find("node 'solo': agent 'hrv': restart must be \"on-failure\", \"always\" or \"never\""), std::string::npos)
+  EXPECT_NE(up.err.find("node 'solo': agent 'hrv': restart must be \"on-failure\", \"always\" or \"never\" (or true or false, "
+                        "the older spelling of \"always\" and \"never\")"),
+            std::string::npos)
       << up.err;
   // An agent without a command, or with one that is not all strings, names its node too.
   for (const std::string run_line : {"", "  run = []\n", "  run = [\"/bin/sleep\", 100]\n"}) {
@@ -3209,6 +3211,10 @@ TEST_F(Cli, OneNodeRunsUnderOneSupervisorAndDownNodeStopsOnlyThatOne) {
   EXPECT_EQ(down.status, 0) << down.err;
   EXPECT_NE(down.out.find("stopped supervisor"), std::string::npos) << down.out;
   EXPECT_FALSE(fs::exists(tmp_ / "state" / "supervisor-solo.pid"));
+  // Again: that node, not the directory, runs nothing (another node's supervisor may run there).
+  Outcome again = run({"down", "--state", state, "--node", "solo"});
+  EXPECT_EQ(again.status, 0) << again.err;
+  EXPECT_EQ(again.out, "down: node 'solo' was not running under " + state + "\n");
 }
 
 // A store left by an earlier file under the same id is another node's (a changed iri, or a node

@@ -509,18 +509,18 @@ std::string contents(const std::filesystem::path& file) {
 TEST_F(SupervisorTest, ANewRestartPolicyAppliesWithoutStoppingTheProgram) {
   start("runs", "sleep 1001", Restart::on_failure);
   const pid_t pid = supervisor_.state("runs")->pid;
-  ASSERT_TRUE(supervisor_.set_restart("runs", Restart::always).has_value());
+  EXPECT_EQ(supervisor_.set_restart("runs", Restart::always).value(), false) << "a running program does not start again";
   EXPECT_EQ(after("runs", 100ms).pid, pid) << "the running program was stopped";
 
   start("done", "exit 0", Restart::on_failure);
   ASSERT_TRUE(poll_until([&] { return !supervisor_.state("done")->running; }));
   EXPECT_EQ(after("done", 100ms).restarts, 0u);
-  ASSERT_TRUE(supervisor_.set_restart("done", Restart::always).has_value());
+  EXPECT_EQ(supervisor_.set_restart("done", Restart::always).value(), true) << "says that it starts";
   EXPECT_TRUE(poll_until([&] { return supervisor_.state("done")->restarts >= 1; })) << "a finished program did not start under always";
 
   start("fails", "exit 3", Restart::on_failure);
   ASSERT_TRUE(poll_until([&] { return supervisor_.state("fails")->restart_at.has_value(); }));
-  ASSERT_TRUE(supervisor_.set_restart("fails", Restart::never).has_value());
+  EXPECT_EQ(supervisor_.set_restart("fails", Restart::never).value(), false);
   const ProgramState left = after("fails", 300ms);
   EXPECT_FALSE(left.running);
   EXPECT_FALSE(left.restart_at) << "still waiting to start again under never";

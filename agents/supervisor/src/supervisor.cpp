@@ -393,17 +393,17 @@ void Supervisor::poll() {
   }
 }
 
-Result<void> Supervisor::set_restart(std::string_view name, Restart restart) {
+Result<bool> Supervisor::set_restart(std::string_view name, Restart restart) {
   auto it = std::find_if(programs_.begin(), programs_.end(), [&](const Program* p) { return p->spec.name == name; });
   if (it == programs_.end()) return fail(Errc::not_found, "no program named '" + std::string(name) + "'");
   Program& p = **it;
   p.spec.restart = restart;
-  if (p.state.running || p.stopping) return {};
+  if (p.state.running || p.stopping) return false;
   const bool finished = p.state.exit_status == 0;
   const bool wanted = restart == Restart::always || (restart == Restart::on_failure && !finished);
   if (!wanted) p.restart_at.reset();
   else if (!p.restart_at) p.restart_at = Clock::now();
-  return {};
+  return wanted;
 }
 
 void Supervisor::stop_programs(const std::vector<Program*>& programs, std::chrono::milliseconds grace) {

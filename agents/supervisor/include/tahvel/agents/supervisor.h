@@ -133,9 +133,10 @@ class Supervisor {
   // Changes when a program is started again, without stopping it: it applies from the program's
   // next end. A program waiting out its back-off that `restart` would leave stopped stays
   // stopped; one that finished (or failed under `never`) starts now when `restart` would have
-  // started it again. A program stopped on request stays stopped. not_found when no program has
-  // that name.
-  Result<void> set_restart(std::string_view name, Restart restart);
+  // started it again. A program stopped on request stays stopped. True when the program is not
+  // running and starts again under `restart` (now, or at the end of its back-off); not_found when
+  // no program has that name.
+  Result<bool> set_restart(std::string_view name, Restart restart);
 
   // Called about every 100 ms while stop(), remove() and stop_all() wait for programs to end
   // (`tahvel up` rewrites its state file there, so that a stop taking its grace does not look
