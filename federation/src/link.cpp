@@ -432,6 +432,9 @@ struct Link::Impl {
   };
   std::map<std::string, Refusal> refusals;  // by sender (refuse())
   static constexpr std::size_t kRefusalsKept = 4096;
+  static constexpr int kRefusalAnswersPerSecond = 20;
+  Clock::time_point refusal_answers_since{};  // the second refusal_answers counts in
+  int refusal_answers = 0;
 
   // Stream names (P6a): a child's items by its IRI and store id; what comes down by the parent's
   // store id. Without an id (a peer from before store ids): the names used then.
@@ -689,12 +692,14 @@ struct Link::Impl {
     void add(Transport* via, Frame f) {
       if (via) frames.emplace_back(via, std::move(f));
     }
-    void error(Transport* via, const std::string& to, std::uint64_t seq, const wire::ErrorBody& body) {
+    void error(Transport* via, const std::string& to, std::uint64_t seq, const wire::ErrorBody& body,
+               bool may_find_nobody = false) {
       Frame f;
       f.kind = FrameKind::error;
       f.to = to;
       f.seq = seq;
       f.body = wire::encode_error(body);
+      f.may_find_nobody = may_find_nobody;
       add(via, std::move(f));
     }
   };
@@ -713,9 +718,10 @@ struct Link::Impl {
     out.frames.clear();
   }
 
-  void send_error(Transport* via, const std::string& to, std::uint64_t seq, const wire::ErrorBody& body) {
+  void send_error(Transport* via, const std::string& to, std::uint64_t seq, const wire::ErrorBody& body,
+                  bool may_find_nobody = false) {
     Outgoing out;
-    out.error(via, to, seq, body);
+    out.error(via, to, seq, body, may_find_nobody);
     send_all(out);
   }
 
@@ -1180,7 +1186,8 @@ struct Link::Impl {
       return;
     }
     if (up ? !child : !from_parent(head)) {
-      if (!up || !opt.down) return refuse(via, head.from, head.kind, frames.size(), "<" + head.from + "> is not this node's parent");
+      if (!up) return refuse(via, head.from, head.kind, frames.size(), "<" + head.from + "> is not this node's parent");
+      if (!opt.down) return refuse(via, head.from, head.kind, frames.size(), "<" + self + "> takes no children");
       // A sender that is no child of this node is refused as its hello would be (P6), and
       // logged; a child that is not connected is told to say hello (P6).
       auto id = child_id_of(head.from);
@@ -1366,13 +1373,19 @@ struct Link::Impl {
     refuse(via, f.from, f.kind, 1, why);
   }
 
-  // P6: `frames` frames of `kind` from `from`, whom this node does not take as a child or parent,
-  // counted and logged once per sender and reason a minute (a refused child says hello every
-  // second). From below, a hello, heartbeat or up is answered with `refused`, so that a child that
-  // was welcomed and is no longer accepted (its parent restarted with a file without it) learns
-  // so from its next heartbeat or item; at most once a second per sender, so that frames from
-  // made-up IRIs cost this node bounded work.
-  void refuse(Transport* via, const std::string& from, FrameKind kind, std::size_t frames, const std::string& why) {
+  // `frames` frames of `kind` from `from` that this node does not take, counted, and logged with
+  // `why` once a minute per sender and reason (`reason`: the reason without the figures that
+  // change from one frame to the next; a refused child says hello every second). P6: from a
+  // sender that is no child of this node (or not a connected one), a hello, heartbeat or up is
+  // answered with `refused`, so that a child that was welcomed and is no longer accepted (its
+  // parent restarted with a file without it) learns so from its next heartbeat or item; at most
+  // once a second per sender and kRefusalAnswersPerSecond in all, without waiting for the sender
+  // to be found (Frame::may_find_nobody), so that frames from made-up IRIs cost this node
+  // bounded work.
+  void refuse(Transport* via, const std::string& from, FrameKind kind, std::size_t frames, const std::string& why,
+              const std::string& reason = {}) {
+    const bool answered_kind =
+        is_down(via) && (kind == FrameKind::hello || kind == FrameKind::heartbeat || kind == FrameKind::up);
     bool say = false, answer = false;
     {
       std::lock_guard lock(mu);
@@ -1380,14 +1393,20 @@ struct Link::Impl {
       // Bounded: each sender a frame makes up is one more entry.
       if (refusals.size() >= kRefusalsKept && !refusals.contains(from)) refusals.clear();
       Refusal& last = refusals[from];
+      const std::string& key = reason.empty() ? why : reason;
       const auto now = Clock::now();
-      if (last.why != why || now - last.logged > std::chrono::minutes(1)) {
-        last.why = why;
+      if (last.why != key || now - last.logged > std::chrono::minutes(1)) {
+        last.why = key;
         last.logged = now;
         say = true;
       }
-      if (now - last.answered >= std::chrono::seconds(1)) {
+      if (now - refusal_answers_since >= std::chrono::seconds(1)) {
+        refusal_answers_since = now;
+        refusal_answers = 0;
+      }
+      if (answered_kind && now - last.answered >= std::chrono::seconds(1) && refusal_answers < kRefusalAnswersPerSecond) {
         last.answered = now;
+        ++refusal_answers;
         answer = true;
       }
     }
@@ -1396,8 +1415,7 @@ struct Link::Impl {
       const std::string count = frames != 1 ? std::to_string(frames) + " " : name.find_first_of("aeiu") == 0 ? "an " : "a ";
       log("refused " + count + name + (frames == 1 ? " frame: " : " frames: ") + why);
     }
-    if (answer && is_down(via) && (kind == FrameKind::hello || kind == FrameKind::heartbeat || kind == FrameKind::up))
-      send_error(via, from, 0, {"refused", why, ""});
+    if (answer) send_error(via, from, 0, {"refused", why, ""}, /*may_find_nobody=*/true);
   }
 
   // An answer in an earlier version's layout, read on as this version's: it goes on the board
@@ -1627,7 +1645,7 @@ struct Link::Impl {
         if (f.ack > issued_to_peers()) {
           // Never sent: taken, it would empty the child's down window of items it never had.
           lock.unlock();
-          return refuse(via, f.from, f.kind, 1, ack_beyond_issued(f.ack));
+          return refuse(via, f.from, f.kind, 1, ack_beyond_issued(f.ack), "an ack beyond what this store sent");
         }
         child->last_seen = Clock::now();
         bool news = false;  // for the pump: room in the window, items to acknowledge, a go-back
@@ -1763,7 +1781,7 @@ struct Link::Impl {
           // Never sent: taken, it would leave every later item in the outbox for good (the
           // outbox is emptied up to the mark, and the mark would never be passed again).
           lock.unlock();
-          return refuse(via, f.from, f.kind, 1, ack_beyond_issued(f.ack));
+          return refuse(via, f.from, f.kind, 1, ack_beyond_issued(f.ack), "an ack beyond what this store sent");
         }
         if (f.ack > up_mark) {
           up_mark = f.ack;

@@ -22,9 +22,9 @@
 //
 // Discovery: a writer created by send() first waits (bounded by kMatchWait) until it has matched
 // at least one reader, so that a frame sent right after opening reaches a receiver that already
-// exists. Only the first send to a destination waits, and never an error (it answers a frame, and
-// its addressee asks again); if nobody has matched by then the frame goes out to nobody (lost;
-// the link resends).
+// exists. Only the first send to a destination waits, and never one of a frame that may find
+// nobody (Frame::may_find_nobody); if nobody has matched by then the frame goes out to nobody
+// (lost; the link resends).
 #include <dds/dds.h>
 #include <dds/ddsrt/xmlparser.h>
 
@@ -155,10 +155,7 @@ class DdsTransport final : public Transport {
     auto writer = writer_for(frame.to);
     if (!writer) return node::fail(writer.error().code, writer.error().message);
     Writer& w = **writer;
-    // An error answers a frame its addressee sent, which asks again if it is lost; waiting for
-    // a reader here held the link's receiving thread 2 s for each sender without one (frames
-    // from made-up IRIs, refused), and its real children's heartbeats with it.
-    if (frame.kind != FrameKind::error) std::call_once(w.matched_once, [&] { wait_for_reader(w.writer); });
+    if (!frame.may_find_nobody) std::call_once(w.matched_once, [&] { wait_for_reader(w.writer); });
     std::lock_guard lock(w.mu);
     const bool goes_on =
         (frame.kind == FrameKind::up || frame.kind == FrameKind::down) && (frame.ack & kMoreFollow) != 0;

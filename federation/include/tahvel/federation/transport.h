@@ -76,6 +76,11 @@ struct Frame {
   std::uint64_t prev = 0;
   std::uint64_t ack = 0;
   std::string body;               // kind-specific payload bytes
+  // Not on the wire: a frame to an addressee this endpoint may never have heard of (the answer to
+  // a refused sender, P6), sent without waiting for the addressee to be found (DDS: a reader to
+  // match its new writer) and lost when it is not found yet. A sender that made up its IRI has
+  // nobody behind it, and each such wait held the sending thread up to 2 s.
+  bool may_find_nobody = false;
 };
 
 // Called with one line whenever a binding drops something it received (undecodable bytes, a frame
