@@ -1168,45 +1168,63 @@ TEST(Link, ASecondNodeUnderTheParentsIriStopsTheChildsUplinkUntilItGoesAndNothin
   for (int n = 0; n < 40; ++n) EXPECT_EQ(count(tree.hospital_dir, {.p = Term::iri(kEx + "n"), .o = Term::integer(n)}), 1u) << n;
 }
 
-// P6b: an acknowledgement names the store whose stream it moves. One of another store of the
-// child's IRI (a second node under it, registered at the parent) would otherwise empty this
-// one's outbox of items the parent never applied.
-TEST(Link, AChildKeepsItsOutboxWhenAnAckIsOfAnotherStoresStream) {
+// home1's link under a parent played by hand on the bus (the hospital's endpoint), as the store
+// "pppp": home1 welcomed, with five items sent up.
+struct HomeUnderAParentByHand {
   Tree tree;
-  auto parent = tree.bus.open(kHospital);
-  tree.home1 = tree.start_home(tree.home1_dir, kHome1, tree.home1_log);
-  const std::string own_store = node::Node::open(tree.home1_dir).value().store_id().value();
-  auto next = [&](FrameKind kind) -> std::optional<Frame> {
+  std::unique_ptr<Transport> parent = tree.bus.open(kHospital);
+  std::string own_store;  // home1's store id
+  Frame welcome;
+  std::set<std::uint64_t> sent;  // the seqs of the five items
+
+  // `welcome_names_own_store`: the welcome's mark is of home1's stream by its store id (else by
+  // none, as from before store ids).
+  void start(bool welcome_names_own_store) {
+    tree.home1 = tree.start_home(tree.home1_dir, kHome1, tree.home1_log);
+    own_store = node::Node::open(tree.home1_dir).value().store_id().value();
+    ASSERT_TRUE(next(FrameKind::hello));
+    welcome.kind = FrameKind::welcome;
+    welcome.from = kHospital;
+    welcome.to = kHome1;
+    welcome.body = wire::encode_state({"test", 0, "pppp", welcome_names_own_store ? own_store : ""});
+    ASSERT_TRUE(parent->send(welcome));
+    store_hrv_items(tree.home1_dir, 0, 5);
+    while (sent.size() < 5) {
+      auto up = next(FrameKind::up);
+      ASSERT_TRUE(up);
+      sent.insert(up->seq);
+    }
+  }
+  // Sends home1 an ack of its stream up to `mark`, saying the stream is of `peer_store`.
+  bool ack(std::uint64_t mark, const std::string& peer_store) {
+    Frame f;
+    f.kind = FrameKind::ack;
+    f.from = kHospital;
+    f.to = kHome1;
+    f.ack = mark;
+    f.body = wire::encode_state({"", 0, "pppp", peer_store});
+    return parent->send(f).has_value();
+  }
+  // The next frame of `kind` home1 sends, within 5 s.
+  std::optional<Frame> next(FrameKind kind) {
     for (auto deadline = std::chrono::steady_clock::now() + 5s; std::chrono::steady_clock::now() < deadline;) {
       auto f = parent->receive(100ms);
       if (f && *f && (*f)->kind == kind) return **f;
     }
     return std::nullopt;
-  };
-  ASSERT_TRUE(next(FrameKind::hello));
-  Frame welcome;
-  welcome.kind = FrameKind::welcome;
-  welcome.from = kHospital;
-  welcome.to = kHome1;
-  welcome.body = wire::encode_state({"test", 0, "pppp", ""});
-  ASSERT_TRUE(parent->send(welcome));
-  store_hrv_items(tree.home1_dir, 0, 5);
-  std::set<std::uint64_t> sent;
-  while (sent.size() < 5) {
-    auto up = next(FrameKind::up);
-    ASSERT_TRUE(up);
-    sent.insert(up->seq);
   }
+};
+
+// P6b: an acknowledgement names the store whose stream it moves. One of another store of the
+// child's IRI (a second node under it, registered at the parent) would otherwise empty this
+// one's outbox of items the parent never applied.
+TEST(Link, AChildKeepsItsOutboxWhenAnAckIsOfAnotherStoresStream) {
+  HomeUnderAParentByHand home;
+  ASSERT_NO_FATAL_FAILURE(home.start(false));
+  auto& [tree, parent, own_store, welcome, sent] = home;
+  auto next = [&](FrameKind kind) { return home.next(kind); };
   const std::uint64_t last = *sent.rbegin();
-  auto ack_of = [&](const std::string& peer_store) {
-    Frame ack;
-    ack.kind = FrameKind::ack;
-    ack.from = kHospital;
-    ack.to = kHome1;
-    ack.ack = last;
-    ack.body = wire::encode_state({"", 0, "pppp", peer_store});
-    return parent->send(ack);
-  };
+  auto ack_of = [&](const std::string& peer_store) { return home.ack(last, peer_store); };
   ASSERT_TRUE(ack_of("a-store-that-is-not-home1s"));
   // The parent holds that other store as this node: this one says hello again.
   EXPECT_TRUE(next(FrameKind::hello));
@@ -1274,40 +1292,11 @@ TEST(Link, AHelloWhoseStateBodyDoesNotDecodeIsDroppedAndStartsNoNewStream) {
 // P8, P6a: an acknowledgement of more than the child has sent is refused with a line: taken, it
 // emptied the outbox of items the parent never had, and left every later one there for good.
 TEST(Link, AnAckBeyondWhatTheChildHasSentIsRefusedAndTheOutboxKeepsItsItems) {
-  Tree tree;
-  auto parent = tree.bus.open(kHospital);
-  tree.home1 = tree.start_home(tree.home1_dir, kHome1, tree.home1_log);
-  const std::string own_store = node::Node::open(tree.home1_dir).value().store_id().value();
-  auto next = [&](FrameKind kind) -> std::optional<Frame> {
-    for (auto deadline = std::chrono::steady_clock::now() + 5s; std::chrono::steady_clock::now() < deadline;) {
-      auto f = parent->receive(100ms);
-      if (f && *f && (*f)->kind == kind) return **f;
-    }
-    return std::nullopt;
-  };
-  ASSERT_TRUE(next(FrameKind::hello));
-  Frame welcome;
-  welcome.kind = FrameKind::welcome;
-  welcome.from = kHospital;
-  welcome.to = kHome1;
-  welcome.body = wire::encode_state({"test", 0, "pppp", own_store});
-  ASSERT_TRUE(parent->send(welcome));
-  store_hrv_items(tree.home1_dir, 0, 5);
-  std::set<std::uint64_t> sent;
-  while (sent.size() < 5) {
-    auto up = next(FrameKind::up);
-    ASSERT_TRUE(up);
-    sent.insert(up->seq);
-  }
-  auto ack = [&](std::uint64_t mark) {
-    Frame f;
-    f.kind = FrameKind::ack;
-    f.from = kHospital;
-    f.to = kHome1;
-    f.ack = mark;
-    f.body = wire::encode_state({"", 0, "pppp", own_store});
-    return parent->send(f);
-  };
+  HomeUnderAParentByHand home;
+  ASSERT_NO_FATAL_FAILURE(home.start(true));
+  auto& [tree, parent, own_store, welcome, sent] = home;
+  auto next = [&](FrameKind kind) { return home.next(kind); };
+  auto ack = [&](std::uint64_t mark) { return home.ack(mark, own_store); };
   const std::uint64_t last = *sent.rbegin();
   ASSERT_TRUE(ack(std::uint64_t{1} << 62));
   EXPECT_TRUE(eventually([&] { return tree.home1_log.has("it acknowledges up to 4611686018427387904, and this store has sent no item past"); }))

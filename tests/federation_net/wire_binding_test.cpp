@@ -356,36 +356,67 @@ TEST(WireUdpm, EverySizeLiblcmPublishesArrivesWhole) {
   }
 }
 
+// A receiving LCM endpoint that keeps its drop lines, and a sender, on the group 239.255.76.67
+// at `port`.
+struct LcmPairWithDrops {
+  explicit LcmPairWithDrops(int port)
+      : receiver(open_lcm(settings(port), "tahvel://wire-udpm/receiver",
+                          [this](std::string_view line) {
+                            std::lock_guard lock(mu);
+                            drops.emplace_back(line);
+                          })),
+        sender(open_lcm(settings(port), "tahvel://wire-udpm/sender")) {}
+  static LcmSettings settings(int port) {
+    return {.url = "udpm://239.255.76.67:" + std::to_string(port) + "?ttl=0"};
+  }
+  std::vector<std::string> drops;
+  std::mutex mu;
+  Result<std::unique_ptr<Transport>> receiver, sender;
+};
+
+// A UDP socket sending raw datagrams to the group 239.255.76.67 on `port`, as anything on the
+// LAN may: what reaches an LCM endpoint that is not what its binding sends.
+class RawGroupSender {
+ public:
+  explicit RawGroupSender(int port) : fd_(::socket(AF_INET, SOCK_DGRAM, 0)) {
+    EXPECT_GE(fd_, 0);
+    group_.sin_family = AF_INET;
+    group_.sin_port = htons(static_cast<std::uint16_t>(port));
+    inet_pton(AF_INET, "239.255.76.67", &group_.sin_addr);
+  }
+  ~RawGroupSender() { ::close(fd_); }
+  RawGroupSender(const RawGroupSender&) = delete;
+  RawGroupSender& operator=(const RawGroupSender&) = delete;
+
+  void send(const std::string& bytes) {
+    ASSERT_EQ(::sendto(fd_, bytes.data(), bytes.size(), 0, reinterpret_cast<sockaddr*>(&group_), sizeof group_),
+              static_cast<ssize_t>(bytes.size()));
+  }
+  // The port the datagrams came from (after the first send).
+  int port() const {
+    sockaddr_in bound{};
+    socklen_t size = sizeof bound;
+    EXPECT_EQ(::getsockname(fd_, reinterpret_cast<sockaddr*>(&bound), &size), 0);
+    return ntohs(bound.sin_port);
+  }
+
+ private:
+  int fd_;
+  sockaddr_in group_{};
+};
+
 // Whatever else reaches the group's port (a program that is not LCM, a broken fragment) is
 // dropped with its sender and what is wrong, and the endpoint goes on receiving.
 TEST(WireUdpm, DatagramsThatAreNotLcmAreDroppedNamingTheirSenderAndTheEndpointGoesOn) {
   require_netns();
-  const LcmSettings settings{.url = "udpm://239.255.76.67:7752?ttl=0"};
-  std::vector<std::string> drops;
-  std::mutex mu;
-  auto receiver = open_lcm(settings, "tahvel://wire-udpm/receiver", [&](std::string_view line) {
-    std::lock_guard lock(mu);
-    drops.emplace_back(line);
-  });
-  auto sender = open_lcm(settings, "tahvel://wire-udpm/sender");
+  LcmPairWithDrops pair(7752);
+  auto& [drops, mu, receiver, sender] = pair;
   ASSERT_TRUE(receiver && sender);
-  const int fd = ::socket(AF_INET, SOCK_DGRAM, 0);
-  ASSERT_GE(fd, 0);
-  sockaddr_in group{};
-  group.sin_family = AF_INET;
-  group.sin_port = htons(7752);
-  inet_pton(AF_INET, "239.255.76.67", &group.sin_addr);
-  auto send_raw = [&](const std::string& bytes) {
-    ASSERT_EQ(::sendto(fd, bytes.data(), bytes.size(), 0, reinterpret_cast<sockaddr*>(&group), sizeof group),
-              static_cast<ssize_t>(bytes.size()));
-  };
-  send_raw("hello");
-  send_raw(std::string("LC03\0\0\0\1", 8));
-  send_raw(std::string("LC03\0\0\0\1\0\0\0\4\0\0\0\0\0\2\0\1", 20));  // fragment 2 of 1
-  sockaddr_in bound{};
-  socklen_t bound_size = sizeof bound;
-  ASSERT_EQ(::getsockname(fd, reinterpret_cast<sockaddr*>(&bound), &bound_size), 0);
-  ::close(fd);
+  RawGroupSender raw(7752);
+  raw.send("hello");
+  raw.send(std::string("LC03\0\0\0\1", 8));
+  raw.send(std::string("LC03\0\0\0\1\0\0\0\4\0\0\0\0\0\2\0\1", 20));  // fragment 2 of 1
+  const int port = raw.port();
   Frame f;
   f.kind = FrameKind::heartbeat;
   f.from = (*sender)->self();
@@ -398,7 +429,7 @@ TEST(WireUdpm, DatagramsThatAreNotLcmAreDroppedNamingTheirSenderAndTheEndpointGo
   std::lock_guard lock(mu);
   ASSERT_EQ(drops.size(), 3u);
   // The source address is the namespace's (0.0.0.0 on a loopback without routes); the port is the socket's.
-  const std::string from = ":" + std::to_string(ntohs(bound.sin_port)) + ": ";
+  const std::string from = ":" + std::to_string(port) + ": ";
   EXPECT_EQ(drops[0].rfind("lcm <tahvel://wire-udpm/receiver>: dropped a datagram of 5 bytes from ", 0), 0u) << drops[0];
   EXPECT_NE(drops[0].find(from + "not an LCM datagram (magic 0x68656c6c, LCM's are LC02 and LC03)"), std::string::npos)
       << drops[0];
@@ -412,14 +443,8 @@ TEST(WireUdpm, DatagramsThatAreNotLcmAreDroppedNamingTheirSenderAndTheEndpointGo
 // negative length to malloc and memcpy, and one datagram of 164 bytes crashed a link.
 TEST(WireUdpm, AFrameWhoseLengthsLieIsDroppedNamingTheFieldAndTheEndpointGoesOn) {
   require_netns();
-  const LcmSettings settings{.url = "udpm://239.255.76.67:7754?ttl=0"};
-  std::vector<std::string> drops;
-  std::mutex mu;
-  auto receiver = open_lcm(settings, "tahvel://wire-udpm/receiver", [&](std::string_view line) {
-    std::lock_guard lock(mu);
-    drops.emplace_back(line);
-  });
-  auto sender = open_lcm(settings, "tahvel://wire-udpm/sender");
+  LcmPairWithDrops pair(7754);
+  auto& [drops, mu, receiver, sender] = pair;
   ASSERT_TRUE(receiver && sender);
   const std::string from = (*sender)->self(), to = (*receiver)->self();
   // A frame as lcm-gen encodes it, then `patch`ed, in one LCM datagram on the receiver's channel.
@@ -444,22 +469,12 @@ TEST(WireUdpm, AFrameWhoseLengthsLieIsDroppedNamingTheFieldAndTheEndpointGoesOn)
   const std::size_t from_length = 8 + 2 + 8 + 1;  // after the type hash, version, fingerprint, kind
   const std::size_t to_length = from_length + 4 + from.size() + 1;
   const std::size_t body_size = to_length + 4 + to.size() + 1 + 3 * 8;
-  const int fd = ::socket(AF_INET, SOCK_DGRAM, 0);
-  ASSERT_GE(fd, 0);
-  sockaddr_in group{};
-  group.sin_family = AF_INET;
-  group.sin_port = htons(7754);
-  inet_pton(AF_INET, "239.255.76.67", &group.sin_addr);
-  auto send_raw = [&](const std::string& bytes) {
-    ASSERT_EQ(::sendto(fd, bytes.data(), bytes.size(), 0, reinterpret_cast<sockaddr*>(&group), sizeof group),
-              static_cast<ssize_t>(bytes.size()));
-  };
-  send_raw(datagram([&](std::string& f) { put_int32(f, body_size, -1); }));
-  send_raw(datagram([&](std::string& f) { put_int32(f, from_length, -16); }));
-  send_raw(datagram([&](std::string& f) { put_int32(f, to_length, 0); }));
-  send_raw(datagram([&](std::string& f) { f[to_length - 1] = 'x'; }));  // from's NUL
-  send_raw(datagram([&](std::string& f) { put_int32(f, body_size, INT32_MAX); }));
-  ::close(fd);
+  RawGroupSender raw(7754);
+  raw.send(datagram([&](std::string& f) { put_int32(f, body_size, -1); }));
+  raw.send(datagram([&](std::string& f) { put_int32(f, from_length, -16); }));
+  raw.send(datagram([&](std::string& f) { put_int32(f, to_length, 0); }));
+  raw.send(datagram([&](std::string& f) { f[to_length - 1] = 'x'; }));  // from's NUL
+  raw.send(datagram([&](std::string& f) { put_int32(f, body_size, INT32_MAX); }));
   Frame f;
   f.kind = FrameKind::heartbeat;
   f.from = from;
