@@ -1278,7 +1278,7 @@ TEST(Link, AHelloWhoseStateBodyDoesNotDecodeIsDroppedAndStartsNoNewStream) {
   hello.kind = FrameKind::hello;
   hello.from = kHome1;
   hello.to = kHospital;
-  hello.body = std::string("\x05\x00\x00\x00ab", 6);  // a software version cut short
+  hello.body = std::string("\x05\x00\x00\x00" "ab", 6);  // a software version cut short
   tree.bus.inject_raw(kHospital, encode_frame(hello));
   hello.body.clear();
   tree.bus.inject_raw(kHospital, encode_frame(hello));
