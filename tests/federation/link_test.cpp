@@ -643,7 +643,9 @@ TEST(Link, ConfigurationForAnAgentTheHomeDoesNotKnowIsItsLinksProblemUntilTheAge
                                     "> knows (no program of that id runs here"),
             std::string::npos)
       << problems().front();
-  EXPECT_NE(tree.home1_log.text().find("addresses <" + kHome1 + "/hrvv>"), std::string::npos) << tree.home1_log.text();
+  // The link writes the problem on the board before its log line.
+  EXPECT_TRUE(eventually([&] { return tree.home1_log.text().find("addresses <" + kHome1 + "/hrvv>") != std::string::npos; }))
+      << tree.home1_log.text();
   // The operator removes the misaddressed item at the hospital: it leaves the home too (P10a),
   // nothing waits for the unknown agent, and the problem goes (it stayed until the link restarted).
   ASSERT_TRUE(node::Node::open(tree.hospital_dir).value().remove_item(last_configured));
