@@ -23,11 +23,11 @@
 #include <string>
 #include <vector>
 
+#include "tahvel/federation/lcm_frame.h"
 #include "tahvel/federation/lcm_udpm.h"
 #include "tahvel/federation/transport.h"
 #include "tahvel/federation/wire_names.h"
 #include "tahvel/node/node.h"
-#include "tahvel_frame_t.h"
 #include "wire_common.h"
 
 namespace tahvel::federation {
@@ -42,52 +42,6 @@ constexpr int kQueueCapacity = 10000;
 // 64 kB fragments of a large frame, so a frame of a few MB arriving while the receiving thread
 // is busy would lose a fragment, and with it the whole frame.
 constexpr std::size_t kRecvBufSize = 4194304;
-
-// Why `data` is not a whole tahvel_frame_t as lcm-gen lays one out (big-endian: type hash,
-// version, fingerprint, kind, from, to, seq, prev, ack, body size, body; a string is an int32
-// length counting its NUL, then its bytes), or nothing. The generated decoder trusts the lengths
-// it reads: a negative one goes to malloc and memcpy (the process crashes) and a string without
-// its NUL is read past its end, so they are checked here first. Bytes after the body are left to
-// the caller, which names them.
-std::optional<std::string> frame_layout_problem(const unsigned char* data, std::size_t size) {
-  std::size_t at = 0;
-  auto int_at = [&](std::size_t bytes) {
-    std::uint64_t value = 0;
-    for (std::size_t i = 0; i < bytes; ++i) value = value << 8 | data[at + i];
-    at += bytes;
-    return value;
-  };
-  auto cut = [&](std::size_t need, const char* field) -> std::optional<std::string> {
-    if (size - at >= need) return std::nullopt;
-    return std::string("cut short in '") + field + "' (" + std::to_string(size) + " bytes)";
-  };
-  if (auto c = cut(8, "type hash")) return c;
-  const auto hash = int_at(8);
-  if (hash != static_cast<std::uint64_t>(__tahvel_frame_t_get_hash())) {
-    char text[80];
-    std::snprintf(text, sizeof text, "type hash 0x%016llx, a tahvel_frame_t's is 0x%016llx",
-                  static_cast<unsigned long long>(hash), static_cast<unsigned long long>(__tahvel_frame_t_get_hash()));
-    return text;
-  }
-  if (auto c = cut(2 + 8 + 1, "kind")) return c;
-  at += 2 + 8 + 1;
-  for (const char* field : {"from", "to"}) {
-    if (auto c = cut(4, field)) return c;
-    const auto length = static_cast<std::int32_t>(int_at(4));
-    if (length < 1 || static_cast<std::size_t>(length) > size - at)
-      return std::string("'") + field + "' says " + std::to_string(length) + " bytes, " + std::to_string(size - at) +
-             " are left";
-    if (data[at + static_cast<std::size_t>(length) - 1] != 0)
-      return std::string("'") + field + "' does not end with the NUL its length counts";
-    at += static_cast<std::size_t>(length);
-  }
-  if (auto c = cut(3 * 8 + 4, "body_size")) return c;
-  at += 3 * 8;
-  const auto body = static_cast<std::int32_t>(int_at(4));
-  if (body < 0 || static_cast<std::size_t>(body) > size - at)
-    return "'body' says " + std::to_string(body) + " bytes, " + std::to_string(size - at) + " are left";
-  return std::nullopt;
-}
 
 class LcmTransport final : public Transport {
  public:
@@ -125,27 +79,15 @@ class LcmTransport final : public Transport {
 
   Result<void> send(const Frame& frame) override {
     if (auto ok = wire::check_sendable(frame, "lcm", self_); !ok) return ok;
-    tahvel_frame_t msg{};
-    msg.version = static_cast<int16_t>(frame.version);
-    msg.fingerprint = static_cast<int64_t>(frame.fingerprint);
-    msg.kind = static_cast<uint8_t>(frame.kind);
-    msg.from = const_cast<char*>(frame.from.c_str());
-    msg.to = const_cast<char*>(frame.to.c_str());
-    msg.seq = static_cast<int64_t>(frame.seq);
-    msg.prev = static_cast<int64_t>(frame.prev);
-    msg.ack = static_cast<int64_t>(frame.ack);
-    msg.body_size = static_cast<int32_t>(frame.body.size());
-    msg.body = reinterpret_cast<uint8_t*>(const_cast<char*>(frame.body.data()));
-    const int size = tahvel_frame_t_encoded_size(&msg);
-    std::vector<char> bytes(static_cast<std::size_t>(size));
-    if (tahvel_frame_t_encode(bytes.data(), 0, size, &msg) != size) {
-      return node::fail(Errc::invalid_argument,
-                        "lcm <" + self_ + ">: cannot encode " + wire::describe(frame));
-    }
+    auto bytes = encode_lcm_frame(frame);
+    if (!bytes)
+      return node::fail(Errc::invalid_argument, "lcm <" + self_ + ">: cannot encode " + wire::describe(frame) + ": " +
+                                                    bytes.error().message);
+    const auto size = bytes->size();
     const std::string channel = lcm_channel(frame.to);
     // lcm_publish on udpm locks internally; this lock also covers providers that do not.
     std::lock_guard lock(send_mutex_);
-    if (lcm_publish(send_lcm_ != nullptr ? send_lcm_ : lcm_, channel.c_str(), bytes.data(), static_cast<unsigned>(size)) != 0) {
+    if (lcm_publish(send_lcm_ != nullptr ? send_lcm_ : lcm_, channel.c_str(), bytes->data(), static_cast<unsigned>(size)) != 0) {
       return node::fail(Errc::io, "lcm <" + self_ + ">: publish of " + std::to_string(size) +
                                       " bytes on channel " + channel + " failed (" +
                                       wire::describe(frame) + ")");
@@ -248,41 +190,17 @@ class LcmTransport final : public Transport {
   // The frame in one LCM message on `channel`, or nothing when it is dropped (with a log line).
   std::optional<Frame> decode(const void* data, std::size_t size, const char* channel) {
     const std::string where = "lcm <" + self_ + ">: dropped ";
-    auto problem = size > static_cast<std::size_t>(INT32_MAX)
-                       ? std::optional<std::string>("larger than LCM's 2 GB")
-                       : frame_layout_problem(static_cast<const unsigned char*>(data), size);
-    tahvel_frame_t msg{};
-    // After the layout check the decoder cannot fail; should it, it is said as the rest are.
-    const int used = problem ? -1 : tahvel_frame_t_decode(data, 0, static_cast<int>(size), &msg);
-    if (!problem && used < 0) problem = "LCM's decoder refused it";
-    if (problem) {
-      log_(where + std::to_string(size) + " bytes on channel " + channel + ": not a tahvel_frame_t (" + *problem + ")");
+    auto decoded = decode_lcm_frame({static_cast<const char*>(data), size});
+    if (!decoded) {
+      log_(where + std::to_string(size) + " bytes on channel " + channel + ": " + decoded.error().message);
       return std::nullopt;
     }
-    Frame frame;
-    frame.version = static_cast<std::uint16_t>(msg.version);
-    frame.fingerprint = static_cast<std::uint64_t>(msg.fingerprint);
-    frame.kind = static_cast<FrameKind>(msg.kind);
-    frame.from = msg.from != nullptr ? msg.from : "";
-    frame.to = msg.to != nullptr ? msg.to : "";
-    frame.seq = static_cast<std::uint64_t>(msg.seq);
-    frame.prev = static_cast<std::uint64_t>(msg.prev);
-    frame.ack = static_cast<std::uint64_t>(msg.ack);
-    if (msg.body_size > 0) {
-      frame.body.assign(reinterpret_cast<const char*>(msg.body),
-                        static_cast<std::size_t>(msg.body_size));
-    }
-    tahvel_frame_t_decode_cleanup(&msg);
-    if (static_cast<std::size_t>(used) != size) {
-      log_(where + wire::describe(frame) + " on channel " + channel + ": " +
-           std::to_string(size - static_cast<std::size_t>(used)) + " trailing bytes after the frame");
-      return std::nullopt;
-    }
+    Frame& frame = *decoded;
     if (auto why = wire::reject_reason(frame, self_)) {
       log_(where + wire::describe(frame) + " on channel " + channel + ": " + *why);
       return std::nullopt;
     }
-    return frame;
+    return std::move(frame);
   }
 
   std::unique_ptr<UdpmSocket> udpm_;  // null: listens through lcm_
