@@ -14,8 +14,8 @@
 #include <string>
 #include <vector>
 
+#include "tahvel/federation/lcm_frame.h"
 #include "tahvel/federation/wire_names.h"
-#include "tahvel_frame_t.h"
 #include "wire_settings.h"
 
 namespace tahvel::federation {
@@ -369,6 +369,20 @@ struct LcmPairWithDrops {
   static LcmSettings settings(int port) {
     return {.url = "udpm://239.255.76.67:" + std::to_string(port) + "?ttl=0"};
   }
+  // Sends a good frame after whatever reached the receiver before it and waits for it: the
+  // receiver's drop lines by then, or nothing when the good frame did not arrive.
+  std::optional<std::vector<std::string>> drops_once_a_good_frame_arrives() {
+    Frame f;
+    f.kind = FrameKind::heartbeat;
+    f.from = (*sender)->self();
+    f.to = (*receiver)->self();
+    f.seq = 42;
+    if (!(*sender)->send(f)) return std::nullopt;
+    auto got = (*receiver)->receive(5s);
+    if (!got || !*got || (*got)->seq != 42) return std::nullopt;
+    std::lock_guard lock(mu);
+    return drops;
+  }
   std::vector<std::string> drops;
   std::mutex mu;
   Result<std::unique_ptr<Transport>> receiver, sender;
@@ -410,23 +424,15 @@ class RawGroupSender {
 TEST(WireUdpm, DatagramsThatAreNotLcmAreDroppedNamingTheirSenderAndTheEndpointGoesOn) {
   require_netns();
   LcmPairWithDrops pair(7752);
-  auto& [drops, mu, receiver, sender] = pair;
-  ASSERT_TRUE(receiver && sender);
+  ASSERT_TRUE(pair.receiver && pair.sender);
   RawGroupSender raw(7752);
   raw.send("hello");
   raw.send(std::string("LC03\0\0\0\1", 8));
   raw.send(std::string("LC03\0\0\0\1\0\0\0\4\0\0\0\0\0\2\0\1", 20));  // fragment 2 of 1
   const int port = raw.port();
-  Frame f;
-  f.kind = FrameKind::heartbeat;
-  f.from = (*sender)->self();
-  f.to = (*receiver)->self();
-  f.seq = 42;
-  ASSERT_TRUE((*sender)->send(f));
-  auto got = (*receiver)->receive(5s);
-  ASSERT_TRUE(got && *got) << "the good frame after the bad datagrams did not arrive";
-  EXPECT_EQ((*got)->seq, 42u);
-  std::lock_guard lock(mu);
+  auto said = pair.drops_once_a_good_frame_arrives();
+  ASSERT_TRUE(said) << "the good frame after the bad datagrams did not arrive";
+  const std::vector<std::string>& drops = *said;
   ASSERT_EQ(drops.size(), 3u);
   // The source address is the namespace's (0.0.0.0 on a loopback without routes); the port is the socket's.
   const std::string from = ":" + std::to_string(port) + ": ";
@@ -444,47 +450,33 @@ TEST(WireUdpm, DatagramsThatAreNotLcmAreDroppedNamingTheirSenderAndTheEndpointGo
 TEST(WireUdpm, AFrameWhoseLengthsLieIsDroppedNamingTheFieldAndTheEndpointGoesOn) {
   require_netns();
   LcmPairWithDrops pair(7754);
-  auto& [drops, mu, receiver, sender] = pair;
-  ASSERT_TRUE(receiver && sender);
-  const std::string from = (*sender)->self(), to = (*receiver)->self();
-  // A frame as lcm-gen encodes it, then `patch`ed, in one LCM datagram on the receiver's channel.
+  ASSERT_TRUE(pair.receiver && pair.sender);
+  Frame heartbeat;
+  heartbeat.kind = FrameKind::heartbeat;
+  heartbeat.from = (*pair.sender)->self();
+  heartbeat.to = (*pair.receiver)->self();
+  heartbeat.body = "abc";
+  // The frame as the binding encodes it, then `patch`ed, in one LCM datagram on the receiver's channel.
   auto datagram = [&](const std::function<void(std::string&)>& patch) {
-    std::string body = "abc";
-    tahvel_frame_t msg{};
-    msg.version = kProtocolVersion;
-    msg.fingerprint = static_cast<std::int64_t>(message_fingerprint());
-    msg.kind = static_cast<std::uint8_t>(FrameKind::heartbeat);
-    msg.from = const_cast<char*>(from.c_str());
-    msg.to = const_cast<char*>(to.c_str());
-    msg.body_size = static_cast<std::int32_t>(body.size());
-    msg.body = reinterpret_cast<std::uint8_t*>(body.data());
-    std::string frame(static_cast<std::size_t>(tahvel_frame_t_encoded_size(&msg)), '\0');
-    EXPECT_EQ(tahvel_frame_t_encode(frame.data(), 0, static_cast<int>(frame.size()), &msg), static_cast<int>(frame.size()));
+    std::string frame = encode_lcm_frame(heartbeat).value();
     patch(frame);
-    return std::string("LC02\0\0\0\1", 8) + lcm_channel(to) + '\0' + frame;
+    return std::string("LC02\0\0\0\1", 8) + lcm_channel(heartbeat.to) + '\0' + frame;
   };
   auto put_int32 = [](std::string& bytes, std::size_t at, std::int32_t value) {
     for (int i = 0; i < 4; ++i) bytes[at + i] = static_cast<char>(static_cast<std::uint32_t>(value) >> (24 - 8 * i));
   };
   const std::size_t from_length = 8 + 2 + 8 + 1;  // after the type hash, version, fingerprint, kind
-  const std::size_t to_length = from_length + 4 + from.size() + 1;
-  const std::size_t body_size = to_length + 4 + to.size() + 1 + 3 * 8;
+  const std::size_t to_length = from_length + 4 + heartbeat.from.size() + 1;
+  const std::size_t body_size = to_length + 4 + heartbeat.to.size() + 1 + 3 * 8;
   RawGroupSender raw(7754);
   raw.send(datagram([&](std::string& f) { put_int32(f, body_size, -1); }));
   raw.send(datagram([&](std::string& f) { put_int32(f, from_length, -16); }));
   raw.send(datagram([&](std::string& f) { put_int32(f, to_length, 0); }));
   raw.send(datagram([&](std::string& f) { f[to_length - 1] = 'x'; }));  // from's NUL
   raw.send(datagram([&](std::string& f) { put_int32(f, body_size, INT32_MAX); }));
-  Frame f;
-  f.kind = FrameKind::heartbeat;
-  f.from = from;
-  f.to = to;
-  f.seq = 42;
-  ASSERT_TRUE((*sender)->send(f));
-  auto got = (*receiver)->receive(5s);
-  ASSERT_TRUE(got && *got) << "the good frame after the bad ones did not arrive";
-  EXPECT_EQ((*got)->seq, 42u);
-  std::lock_guard lock(mu);
+  auto said = pair.drops_once_a_good_frame_arrives();
+  ASSERT_TRUE(said) << "the good frame after the bad ones did not arrive";
+  const std::vector<std::string>& drops = *said;
   ASSERT_EQ(drops.size(), 5u);
   for (const std::string& drop : drops)
     EXPECT_EQ(drop.rfind("lcm <tahvel://wire-udpm/receiver>: dropped ", 0), 0u) << drop;
