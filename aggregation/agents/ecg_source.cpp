@@ -118,7 +118,8 @@ agg::Result<Signal> record_signal(const std::string& path, std::optional<std::si
   // or respiration, which the ECG lead's gain made wrong numbers of.
   for (std::size_t i : order) {
     const agg::SignalInfo& sig = h.signals[i];
-    agg::RecordingInfo::LeadCalibration c{sig.gain == 0 ? 200 : sig.gain, sig.baseline, sig.units.empty() ? "mV" : sig.units};
+    agg::RecordingInfo::LeadCalibration c{sig.gain == 0 ? 200 : sig.gain, sig.baseline, sig.units.empty() ? "mV" : sig.units,
+                                          agg::invalid_sample(sig)};
     if (agg::gain_per_mv(sig) != c.gain) {  // uV or V: in mV, as the ECG lead (a negative gain kept)
       c.gain = agg::gain_per_mv(sig);
       c.unit = "mV";

@@ -4,6 +4,7 @@
 #include <algorithm>
 #include <charconv>
 #include <cmath>
+#include <cstdint>
 #include <cstdio>
 #include <map>
 #include <sstream>
@@ -226,6 +227,8 @@ Item recording_item(const RecordingInfo& info) {
     const auto& c = info.calibration[i];
     item.add(rec, tv("leadCalibration"),
              text(std::to_string(i) + " " + exact_decimal(c.gain).value + " " + std::to_string(c.baseline) + " " + c.unit));
+    if (c.invalid_sample)
+      item.add(rec, tv("leadInvalidSample"), text(std::to_string(i) + " " + std::to_string(*c.invalid_sample)));
   }
   if (!info.maker.empty()) item.add(rec, tv("sensorMaker"), text(info.maker));
   if (!info.model.empty()) item.add(rec, tv("sensorModel"), text(info.model));
@@ -285,6 +288,18 @@ Result<RecordingInfo> read_recording(const std::vector<Record>& records, const s
   }
   if (readable && !calibrations.empty() && calibrations.rbegin()->first + 1 == static_cast<long>(calibrations.size()))
     for (auto& [index, c] : calibrations) info.calibration.push_back(c);
+  // "<lead> <value>"; one that does not read, or names no lead, is passed over (a reading then
+  // prints as a number, as it did before this was kept). The ECG lead's is tv:invalidSample
+  // when the recording has no leadInvalidSample of its own for it (written before it was kept).
+  for (const Term* t : objects(records, iri, "leadInvalidSample")) {
+    std::istringstream in(t->value);
+    long index = -1;
+    std::int64_t value = 0;
+    if ((in >> index >> value) && (in >> std::ws).eof() && index >= 0 &&
+        static_cast<std::size_t>(index) < info.calibration.size() && value >= INT32_MIN && value <= INT32_MAX)
+      info.calibration[static_cast<std::size_t>(index)].invalid_sample = static_cast<std::int32_t>(value);
+  }
+  if (!info.calibration.empty() && !info.calibration[0].invalid_sample) info.calibration[0].invalid_sample = info.invalid_sample;
   for (const Record& r : records)
     if (r.triple.s.value == iri && r.triple.p.value == kSosa + "madeBySensor") info.sensor_iri = r.triple.o.value;
   if (const Term* t = object(records, iri, "sensorMaker")) info.maker = t->value;

@@ -59,13 +59,13 @@ class FrameWriter {
       out_ << sample << ',';
       if (at) out_ << *at;
       for (std::size_t l = 0; l < chunk.leads.size(); ++l) {
-        // The ECG lead's no-value (WFDB's, tv:invalidSample) is no voltage: an empty field, as
+        // A lead's no-value (WFDB's, tv:leadInvalidSample) is no reading: an empty field, as
         // rdsamp prints "-" (it read as -164 mV).
-        if (l == 0 && info_.invalid_sample && chunk.leads[l][i] == *info_.invalid_sample) {
+        const auto c = info_.calibration_of(l);
+        if (c.invalid_sample && chunk.leads[l][i] == *c.invalid_sample) {
           out_ << ',';
           continue;
         }
-        const auto c = info_.calibration_of(l);
         std::snprintf(value, sizeof value, ",%.6g", (chunk.leads[l][i] - c.baseline) / c.gain);
         out_ << value;
       }

@@ -68,6 +68,7 @@ constexpr std::array kTerms = {
     std::string_view("latest"),
     std::string_view("lead"),
     std::string_view("leadCalibration"),
+    std::string_view("leadInvalidSample"),
     std::string_view("lfHf"),
     std::string_view("lfMs2"),
     std::string_view("light"),

@@ -178,8 +178,11 @@ TEST_F(EcgSourceTest, EachLeadOfARecordKeepsItsOwnCalibration) {
   EXPECT_EQ(info.calibration[1].gain, 10);
   EXPECT_EQ(info.calibration[1].baseline, 0);
   EXPECT_EQ(info.calibration[1].unit, "mmHg");
-  // The ECG lead's no-value (format 16), for the R-peak agent to read as no signal.
+  // The ECG lead's no-value (format 16), for the R-peak agent to read as no signal, and each
+  // lead's own, for `tahvel ecg` to print as no value.
   EXPECT_EQ(info.invalid_sample, -32768);
+  EXPECT_EQ(info.calibration[0].invalid_sample, -32768);
+  EXPECT_EQ(info.calibration[1].invalid_sample, -32768);
 }
 
 // A record whose ECG is not the lead the source would choose (an unnamed signal after a named

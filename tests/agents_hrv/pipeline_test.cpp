@@ -381,7 +381,9 @@ TEST_F(PipelineTest, AnHrvAgentRestartedJustBeforeTheRecordingsEndStillWritesIts
   end_alone.intervals.clear();
   auto rr = node_->agent("rr");
   ASSERT_TRUE(rr);
-  if (!intervals.intervals.empty()) ASSERT_TRUE(rr->store(agg::rr_item(intervals)));
+  if (!intervals.intervals.empty()) {
+    ASSERT_TRUE(rr->store(agg::rr_item(intervals)));
+  }
   auto hrv = [&] { return std::make_unique<Process>(std::vector<std::string>{bin("tahvel-hrv"), dir_, "--idle", "300"}); };
   agents_.push_back(hrv());
   wait_until("all windows but the last", [&] { return *node_->snapshot()->count(hrv_items()) >= expected->windows.size() - 1; });

@@ -1488,6 +1488,42 @@ TEST_F(Cli, EcgPrintsEachLeadByItsOwnCalibration) {
                        "2,1800000000500000000,2,1.2\n3,1800000000750000000,3,1.4\n");
 }
 
+// WFDB's no-value where a lead had no signal is no reading: an empty field in each lead, by that
+// lead's own tv:leadInvalidSample (a second lead read from a format-212 file has -2048; it was
+// printed as -1029 mV). A recording written before leadInvalidSample was kept has the ECG lead's
+// tv:invalidSample only, and that lead alone prints empty.
+TEST_F(Cli, EcgPrintsEachLeadsNoValueAsAnEmptyField) {
+  using tahvel::node::Term;
+  init();
+  const std::string tv = "https://w3id.org/tahvel#";
+  const std::int64_t t0 = 1'800'000'000'000'000'000;
+  auto source = tahvel::node::Node::open(node_).value().agent("source").value();
+  auto store = [&](const std::string& rec, bool per_lead) {
+    tahvel::node::Item description = recording_description(rec, "4.0", "2.0", 10, {"MLII", "V5"}, t0);
+    description.add(Term::iri(rec), Term::iri(tv + "invalidSample"), Term::integer(-32768));
+    description.add(Term::iri(rec), Term::iri(tv + "leadCalibration"), Term::literal("0 2.0 10 mV"));
+    description.add(Term::iri(rec), Term::iri(tv + "leadCalibration"), Term::literal("1 2.0 10 mV"));
+    if (per_lead) description.add(Term::iri(rec), Term::iri(tv + "leadInvalidSample"), Term::literal("1 -2048"));
+    ASSERT_TRUE(source.store(description));
+    const std::vector<int> mlii{10, -32768, 12, -2048}, v5{-2048, 10, -32768, 12};
+    std::string bytes;
+    for (std::size_t f = 0; f < mlii.size(); ++f)
+      for (int v : {mlii[f], v5[f]}) bytes += {static_cast<char>(v & 0xff), static_cast<char>(v >> 8 & 0xff)};
+    ASSERT_TRUE(source.store(ecg_chunk(rec, 0, 4, bytes, t0)));
+  };
+  const std::string rec = kNodeIri + "/source/recording/gaps", before = kNodeIri + "/source/recording/before";
+  store(rec, true);
+  store(before, false);
+  Outcome now = run({"ecg", node_, "--recording", rec});
+  ASSERT_EQ(now.status, 0) << now.err;
+  EXPECT_EQ(now.out, "sample,unix_ns,MLII,V5\n0,1800000000000000000,0,\n1,1800000000250000000,,0\n"
+                     "2,1800000000500000000,1,-16389\n3,1800000000750000000,-1029,1\n");
+  Outcome old = run({"ecg", node_, "--recording", before});
+  ASSERT_EQ(old.status, 0) << old.err;
+  EXPECT_EQ(old.out, "sample,unix_ns,MLII,V5\n0,1800000000000000000,0,-1029\n1,1800000000250000000,,0\n"
+                     "2,1800000000500000000,1,-16389\n3,1800000000750000000,-1029,1\n");
+}
+
 // HRV windows and trends as tahvel-hrv and tahvel-trend write them (docs/vocabulary.md), put by
 // hand: recordings a and c alert, b does not.
 const char* kPatientsTurtle =

@@ -58,11 +58,16 @@ struct RecordingInfo {
     double gain = 200;
     int baseline = 0;
     std::string unit = "mV";
+    // The lead's no-value sample (tv:leadInvalidSample; WFDB's for the lead's format), printed
+    // as no value. nullopt: every value is a reading.
+    std::optional<std::int32_t> invalid_sample;
   };
   std::vector<LeadCalibration> calibration;
-  // Lead `lead`'s calibration: its own, or the recording's.
+  // Lead `lead`'s calibration: its own, or the recording's (the ECG lead's no-value on lead 0).
   LeadCalibration calibration_of(std::size_t lead) const {
-    return lead < calibration.size() ? calibration[lead] : LeadCalibration{gain, baseline, unit};
+    return lead < calibration.size()
+               ? calibration[lead]
+               : LeadCalibration{gain, baseline, unit, lead == 0 ? invalid_sample : std::nullopt};
   }
   std::string maker, model;   // sensor maker and model
   std::string filters;        // filters applied before digitising, as the source states them
