@@ -319,10 +319,11 @@ int main(int argc, char** argv) {
     const rt::Args args(argc, argv, {"--agent", "--idle", "--window", "--step"}, {});
     const double idle = args.number("--idle", 0);
     WindowConfig defaults{args.number("--window", 300), args.number("--step", 0)};
-    // As the board's settings and `tahvel hrv` take them; --step 0 is the window.
+    // As the board's settings and `tahvel hrv` take them; without --step the step is the window
+    // (step_s 0), and a --step 0 given is refused as `tahvel hrv` refuses it.
     if (auto problem = agg::window_setting_problem(defaults.window_s, false))
       throw rt::UsageError("--window: " + *problem + ", got " + number_text(defaults.window_s));
-    if (defaults.step_s != 0)
+    if (args.has("--step"))
       if (auto problem = agg::window_setting_problem(defaults.step_s, true))
         throw rt::UsageError("--step: " + *problem + ", got " + number_text(defaults.step_s));
     rt::install_stop_handlers();

@@ -982,6 +982,12 @@ TEST(AgentPrograms, AnHrvWindowOrStepTooShortForHrvIsRefusedWithTheBoundsAndTheA
   EXPECT_NE(flag.poll(), 0);
   const std::string said = text_of(scratch.tmp + "/flag.log");
   EXPECT_NE(said.find("--window: must be a number of seconds in [10, 86400]"), std::string::npos) << said;
+  // A step of 0 given is refused too (without --step, the step is the window): it was taken.
+  Process zero_step({bin("tahvel-hrv"), scratch.dir, "--step", "0"}, scratch.tmp + "/zero_step.log");
+  ASSERT_TRUE(within_a_minute([&] { return zero_step.poll() >= 0; })) << "--step 0 was taken";
+  EXPECT_EQ(zero_step.poll(), 2);
+  const std::string zero_said = text_of(scratch.tmp + "/zero_step.log");
+  EXPECT_NE(zero_said.find("--step: must be a number of seconds in [1, 86400] (at most one window per second of signal), got 0"), std::string::npos) << zero_said;
 }
 
 // A recording whose chunks tahvel-rpeak cannot use gives no HRV anywhere: the agent says why on
