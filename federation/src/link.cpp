@@ -188,6 +188,13 @@ std::string subtree_for(const std::string& context, const std::string& node) {
   return uri::is_under(node, base) ? node + "/*" : context;
 }
 
+// A child's down queue takes the items for the whole subtree (P11). A child new to the tree
+// (added to the file, or accepted on its first hello) gets, when its queue first subscribes, the
+// persistent ones written before it came: a setting for every node reaches a home deployed
+// later, as one for the home alone waits in its queue (R18). The commands sent before it came
+// are not its own.
+constexpr node::SubscribeOptions kSubtreeSubscription{.earlier = true, .persistent_only = true};
+
 }  // namespace
 
 HelloGap next_hello_gap(std::chrono::nanoseconds before, std::chrono::nanoseconds heartbeat_every) {
@@ -1478,7 +1485,7 @@ struct Link::Impl {
         if (!board_set) {
           node::Pattern subtree;
           subtree.context = self + "/*";
-          auto sub = link->subscribe(subtree);
+          auto sub = link->subscribe(subtree, kSubtreeSubscription);
           if (!sub) log("cannot subscribe <" + child->iri + "> to subtree items: " + sub.error().message);
           auto removals = link->receive_removals();
           if (!removals) log("cannot have removals sent to <" + child->iri + ">: " + removals.error().message);
@@ -3213,7 +3220,7 @@ Result<std::unique_ptr<Link>> Link::start(LinkOptions options) {
       if (!agent) return Unexpected<Error>{agent.error()};
       node::Pattern subtree;
       subtree.context = s.self + "/*";
-      if (auto sub = agent->subscribe(subtree); !sub) return Unexpected<Error>{sub.error()};
+      if (auto sub = agent->subscribe(subtree, kSubtreeSubscription); !sub) return Unexpected<Error>{sub.error()};
       if (auto r = agent->receive_removals(); !r) return Unexpected<Error>{r.error()};  // P10a
       auto child = std::make_shared<Impl::Child>();
       child->flips.set_hold(s.opt.conflict_hold);

@@ -892,7 +892,7 @@ Result<std::uint64_t> Agent::subscribe(const Pattern& given, const SubscribeOpti
     // Interned by the subscription item in this transaction (not remembered: it may abort).
     auto self = find_term(txn.raw(), txn.env(), Term::iri(impl_->iri));
     if (!self) return unexpected(self.error());
-    auto delivered = detail::deliver_earlier(txn, *self, impl_->iri, pattern, id);
+    auto delivered = detail::deliver_earlier(txn, *self, impl_->iri, pattern, id, options.persistent_only);
     if (!delivered) return unexpected(delivered.error());
     return {};
   });

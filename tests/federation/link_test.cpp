@@ -693,6 +693,43 @@ TEST(Link, ConfigurationForOneHomeReachesThatHomeAndTheAddressedAgentOnly) {
   EXPECT_EQ(count(tree.hospital_dir, {.p = Term::iri(kEx + "notice")}), 1u);
 }
 
+// A setting written for the whole tree (`<hospital>/*`, persistent) reached the homes there were
+// when it was written, and never one added to the tree later, even across restarts. A home added
+// later gets it once; a command sent to the whole tree before it came (not persistent) is not its.
+TEST(Link, ASettingForTheWholeTreeReachesAHomeAddedLaterAndACommandSentBeforeDoesNot) {
+  Tree tree;
+  tree.hospital = Link::start({.dir = tree.hospital_dir,
+                               .down = std::shared_ptr<Transport>(tree.bus.open(kHospital, tree.hospital_log.sink())),
+                               .children = {"home1"}, .resend_after = 100ms, .log = tree.hospital_log.sink()})
+                      .value();
+  tree.home1 = tree.start_home(tree.home1_dir, kHome1, tree.home1_log);
+  ASSERT_TRUE(eventually([&] { return tree.home1->connected(); }));
+  auto operator_ = node::Node::open(tree.hospital_dir).value().agent("operator").value();
+  node::Item setting, command;
+  setting.context = command.context = kHospital + "/*";
+  setting.persistent = true;
+  setting.add(Term::iri(kHospital), Term::iri(kEx + "policy"), Term::literal("tree-wide"));
+  command.add(Term::iri(kHospital), Term::iri(kEx + "notice"), Term::literal("maintenance"));
+  ASSERT_TRUE(operator_.store(setting));
+  ASSERT_TRUE(operator_.store(command));
+  ASSERT_TRUE(eventually([&] {
+    return count(tree.home1_dir, {.p = Term::iri(kEx + "policy")}) == 1 && count(tree.home1_dir, {.p = Term::iri(kEx + "notice")}) == 1;
+  }));
+  // home2 joins the tree: the hospital's link starts again with it configured, as `tahvel up`
+  // with the new file does.
+  tree.hospital.reset();
+  tree.hospital = tree.start_hospital();
+  tree.home2 = tree.start_home(tree.home2_dir, kHome2, tree.home2_log);
+  ASSERT_TRUE(eventually([&] { return tree.home1->connected() && tree.home2->connected(); }));
+  EXPECT_TRUE(eventually([&] { return count(tree.home2_dir, {.p = Term::iri(kEx + "policy")}) == 1; }))
+      << tree.hospital_log.text();
+  std::this_thread::sleep_for(500ms);
+  EXPECT_EQ(count(tree.home2_dir, {.p = Term::iri(kEx + "notice")}), 0u);
+  EXPECT_EQ(count(tree.home2_dir, {.p = Term::iri(kEx + "policy")}), 1u);
+  EXPECT_EQ(count(tree.home1_dir, {.p = Term::iri(kEx + "policy")}), 1u);
+  EXPECT_EQ(count(tree.home1_dir, {.p = Term::iri(kEx + "notice")}), 1u);
+}
+
 // A node may listen on two transports (LCM for its LAN, DDS beyond): home1 reaches the hospital
 // on one bus and home2 on another. Items come up from both, and what goes to a child — its
 // configuration, a query, the acks of its items — goes on the transport its hello came on.

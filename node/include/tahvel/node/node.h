@@ -174,6 +174,10 @@ struct SubscribeOptions {
   // its input was written (a stage of a pipeline started after a recording was replayed) still
   // gets all of it, and a crash cannot leave the subscription without its earlier items.
   bool earlier = false;
+  // With `earlier`, only the persistent items: a child's link agent on a parent, the child added
+  // to the tree after settings were written for the whole subtree (`<parent>/*`, P11), gets the
+  // settings kept for every node, not the commands sent before it existed.
+  bool persistent_only = false;
 };
 
 // ---------------------------------------------------------------------------------------------
