@@ -230,6 +230,23 @@ TEST(Rules, PrefixesIrisHashNamesLiteralsAndMe) {
   EXPECT_EQ(got.args[1], tn::Term::lang_literal("a b", "en"));
 }
 
+// IRIs are matched and written as the rule file writes them, as put and load store them (R1):
+// in normal form, <http://Device.example.org/V#hr> or a path with "./" in it matched nothing
+// the board held under the same IRI, even with the data's own @prefix line.
+TEST(Rules, AnIriIsTakenAsWrittenAsTheBoardHoldsIt) {
+  const std::string dev = "http://Device.example.org/V#";
+  const tr::Atom got = only_conclusion(
+      "@prefix dev: <http://Device.example.org/V#> .\n"
+      "<HTTP://Example.org/a/./high>(P, <http://example.org/a/./b>) :- dev:hr(P, H), H > 100, "
+      "<http://example.org/a/./kind>(P, <http://example.org/a/./b>).\n",
+      {{tn::Term::iri(dev + "pat2"), tn::Term::iri(dev + "hr"), tn::Term::integer(150)},
+       {tn::Term::iri(dev + "pat2"), tn::Term::iri("http://example.org/a/./kind"), tn::Term::iri("http://example.org/a/./b")}});
+  EXPECT_EQ(got.predicate, "HTTP://Example.org/a/./high");
+  ASSERT_EQ(got.args.size(), 2u);
+  EXPECT_EQ(got.args[0], tn::Term::iri(dev + "pat2"));
+  EXPECT_EQ(got.args[1], tn::Term::iri("http://example.org/a/./b"));
+}
+
 // Rule files are UTF-8: non-ASCII names (IRIs are Unicode) and Turtle's \u and \U escapes.
 TEST(Rules, NonAsciiNamesAndUnicodeEscapes) {
   const tr::Atom got = only_conclusion(

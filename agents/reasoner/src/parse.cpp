@@ -75,6 +75,13 @@ const char* invisible_name(char32_t c) {
   }
 }
 
+// Why `text` is not an absolute IRI, or nothing.
+std::optional<std::string> not_an_iri(const std::string& text) {
+  if (uri::is_valid(text)) return std::nullopt;
+  auto parsed = uri::normalize(text);
+  return parsed ? std::string("not an absolute IRI") : parsed.error().message;
+}
+
 class Lexer {
  public:
   Lexer(std::string_view text, const ParseOptions& options, uri::PrefixMap& prefixes)
@@ -98,6 +105,9 @@ class Lexer {
     advance();
     return name;
   }
+  // A namespace declared in the rule file, as written: its CURIEs expand to exactly the IRIs the
+  // data written with the same @prefix holds (the store compares IRIs as written, R1).
+  void declare(const std::string& prefix, const std::string& namespace_iri) { written_[prefix] = namespace_iri; }
 
  private:
   char at(std::size_t k = 0) const { return i_ + k < text_.size() ? text_[i_ + k] : '\0'; }
@@ -130,6 +140,7 @@ class Lexer {
   std::string_view text_;
   const ParseOptions& options_;
   uri::PrefixMap& prefixes_;
+  std::map<std::string, std::string> written_;  // the file's own prefixes, as written
   std::size_t i_ = 0;
   int line_ = 1, col_ = 1;
 };
@@ -162,6 +173,12 @@ Result<std::string> Lexer::curie(Pos start, std::string prefix) {
     --i_;
     --col_;
   }
+  if (auto declared = written_.find(prefix); declared != written_.end()) {
+    std::string iri = declared->second + local;
+    if (auto why = not_an_iri(iri)) return error(start, "CURIE " + prefix + ":" + local + ": " + *why);
+    return iri;
+  }
+  // The node's prefixes and the standard ones, kept in normal form (init --prefix).
   auto iri = prefixes_.expand(prefix + ":" + local);
   if (!iri) return error(start, "CURIE " + prefix + ":" + local + ": " + iri.error().message);
   return *iri;
@@ -184,9 +201,10 @@ Result<Token> Lexer::iri_ref(Pos start) {
   std::string iri;
   while (at() && at() != '>') { iri += at(); advance(); }
   advance();
-  auto normal = uri::normalize(iri);
-  if (!normal) return error(start, "IRI <" + iri + ">: " + normal.error().message);
-  return Token{Tok::iri, *normal, {}, start};
+  // As written, as put and load store it (R1): normalised, <http://Device.example.org/x> or
+  // <http://e/a/./b> matched nothing the board held under it.
+  if (auto why = not_an_iri(iri)) return error(start, "IRI <" + iri + ">: " + *why);
+  return Token{Tok::iri, iri, {}, start};
 }
 
 Result<Token> Lexer::number(Pos start) {
@@ -741,6 +759,7 @@ Result<void> Parser::directive() {
     else return expected("the namespace IRI as <iri> or \"iri\"");
     if (auto added = prefixes_.add(name, ns); !added)
       return error(start, "prefix " + name + ": " + added.error().message);
+    lexer_.declare(name, ns);
     if (auto a = advance(); !a) return a;
   } else if (which == "ranked") {
     Token name = tok_;
@@ -779,6 +798,7 @@ Result<void> Parser::run() {
       if (tok_.kind != Tok::iri) return expected("the namespace <iri> of @prefix " + *name + ":");
       if (auto added = prefixes_.add(*name, tok_.text); !added)
         return error(start, "prefix " + *name + ": " + added.error().message);
+      lexer_.declare(*name, tok_.text);
       if (auto a = advance(); !a) return a;
       r = expect(".", "'.' after @prefix");
     } else {
