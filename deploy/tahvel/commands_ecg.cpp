@@ -9,6 +9,8 @@
 #include <cmath>
 #include <cstdio>
 #include <iostream>
+#include <iterator>
+#include <map>
 #include <optional>
 #include <string>
 #include <vector>
@@ -53,9 +55,13 @@ class FrameWriter {
       const std::int64_t sample = chunk.start_sample + static_cast<std::int64_t>(i);
       const std::optional<std::int64_t> at = agg::signal_time_ns(info_, static_cast<double>(sample) / info_.fs);
       if (at && ((since_ && *at < *since_) || (until_ && *at >= *until_))) continue;
-      if (next_ && sample > *next_) gaps_.push_back({*next_, sample});
-      if (!first_) first_ = sample;
-      next_ = sample + 1;
+      // A chunk held twice (a dump loaded back, a store's items sent again on a new stream):
+      // each frame is printed once. Its rows came again after the later ones, and the samples
+      // between were said to be missing.
+      if (!cover(sample)) {
+        ++repeated_;
+        continue;
+      }
       out_ << sample << ',';
       if (at) out_ << *at;
       for (std::size_t l = 0; l < chunk.leads.size(); ++l) {
@@ -75,14 +81,15 @@ class FrameWriter {
     }
   }
 
-  // After the last chunk: the samples of the range before the first frame written (from the
-  // recording's first sample when no --since was given: a ring reclaims the oldest chunks, and
-  // minutes of them missing went unsaid), and, when the recording's end is known (`end_sample`,
-  // tv:endSample), after the last, are missing too. (Without its end, samples after the last
-  // chunk may not have been taken yet.) With no frame written, the samples of the range that lie
-  // before that end are missing: the range fell wholly inside removed or reclaimed chunks.
+  // After the last chunk: the samples of the range that no frame written covers. Before the
+  // first frame (from the recording's first sample when no --since was given: a ring reclaims
+  // the oldest chunks, and minutes of them missing went unsaid), between frames, and, when the
+  // recording's end is known (`end_sample`, tv:endSample), after the last. (Without its end,
+  // samples after the last chunk may not have been taken yet.) With no frame written, the
+  // samples of the range that lie before that end are missing: the range fell wholly inside
+  // removed or reclaimed chunks.
   void finish(std::optional<std::int64_t> end_sample) {
-    if (!first_) {
+    if (covered_.empty()) {
       if (!end_sample) return;
       // Without a start the range does not apply (write() keeps every frame).
       const bool timed = info_.started_at.has_value();
@@ -93,17 +100,25 @@ class FrameWriter {
     }
     if (!since_ || info_.started_at) {
       const std::int64_t from = since_ ? first_at_or_after(*since_) : 0;
-      if (from < *first_) gaps_.insert(gaps_.begin(), {from, *first_});
+      if (from < *first()) gaps_.push_back({from, *first()});
     }
+    for (auto run = covered_.begin(); std::next(run) != covered_.end(); ++run) gaps_.push_back({run->second, std::next(run)->first});
     if (end_sample) {
       const std::int64_t to = until_ && info_.started_at ? std::min(*end_sample, first_at_or_after(*until_)) : *end_sample;
-      if (*next_ < to) gaps_.push_back({*next_, to});
+      if (*next() < to) gaps_.push_back({*next(), to});
     }
   }
 
   std::uint64_t frames() const { return frames_; }
-  std::optional<std::int64_t> first() const { return first_; }
-  std::optional<std::int64_t> next() const { return next_; }
+  // Frames of chunks held more than once, written once.
+  std::uint64_t repeated() const { return repeated_; }
+  // The first sample written, and the one after the last.
+  std::optional<std::int64_t> first() const {
+    return covered_.empty() ? std::nullopt : std::optional<std::int64_t>(covered_.begin()->first);
+  }
+  std::optional<std::int64_t> next() const {
+    return covered_.empty() ? std::nullopt : std::optional<std::int64_t>(covered_.rbegin()->second);
+  }
   // [from, to) sample ranges of the range asked that no chunk held (after finish()).
   const std::vector<std::pair<std::int64_t, std::int64_t>>& gaps() const { return gaps_; }
 
@@ -116,12 +131,37 @@ class FrameWriter {
     return sample;
   }
 
+  // Adds `sample` to the samples written; false when it is there already.
+  bool cover(std::int64_t sample) {
+    auto after = covered_.upper_bound(sample);  // the first run starting after it
+    if (after != covered_.begin()) {
+      auto run = std::prev(after);
+      if (sample < run->second) return false;
+      if (sample == run->second) {
+        run->second = sample + 1;
+        if (after != covered_.end() && after->first == run->second) {
+          run->second = after->second;
+          covered_.erase(after);
+        }
+        return true;
+      }
+    }
+    if (after != covered_.end() && after->first == sample + 1) {
+      const std::int64_t end = after->second;
+      covered_.erase(after);
+      covered_.emplace(sample, end);
+    } else {
+      covered_.emplace(sample, sample + 1);
+    }
+    return true;
+  }
+
   const agg::RecordingInfo& info_;
   std::optional<std::int64_t> since_, until_;
   PieceOutput& piece_;
   std::ostream& out_;
-  std::optional<std::int64_t> first_, next_;
-  std::uint64_t frames_ = 0;
+  std::map<std::int64_t, std::int64_t> covered_;  // samples written, as runs [from, to)
+  std::uint64_t frames_ = 0, repeated_ = 0;
   std::vector<std::pair<std::int64_t, std::int64_t>> gaps_;
 };
 
@@ -258,6 +298,9 @@ int run_ecg(const Args& args) {
               << ") are not at " << where << ": no readable chunk holds them (removed, or reclaimed by a ring)\n";
   if (unreadable > 0)
     std::cerr << "tahvel: ecg: " << unreadable << " chunk(s) could not be read, left out; the first: " << first_error << "\n";
+  if (frames.repeated() > 0)
+    std::cerr << "tahvel: ecg: " << frames.repeated() << " frame(s) of the range are held more than once at " << where
+              << " (a chunk stored twice); each is printed once\n";
   if (frames.frames() == 0) {
     std::cerr << "tahvel: ecg: " << where << " holds no sample of <" << recording << ">"
               << (since || until ? " in that range" : "") << "\n";
