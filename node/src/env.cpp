@@ -410,12 +410,14 @@ std::string stores_in_subdirectories(const std::filesystem::path& dir) {
 }
 }  // namespace
 
-Result<std::shared_ptr<Env>> Env::open(const std::filesystem::path& dir_in, const InitOptions* init) {
+Result<std::shared_ptr<Env>> Env::open(const std::filesystem::path& dir_in, const InitOptions* init,
+                                       const FirstWrite& first_write) {
   // An empty path is no directory: LMDB would make "/data.mdb" of it, and the store files the
   // current directory.
   if (dir_in.empty()) return fail(Errc::invalid_argument, "no store directory given (an empty path)");
   std::error_code ec;
-  if (init) std::filesystem::create_directories(dir_in, ec);
+  if (init && !std::filesystem::create_directories(dir_in, ec) && ec)
+    return fail(Errc::io, "cannot make the store's directory " + dir_in.string() + ": " + ec.message());
   auto dir = std::filesystem::weakly_canonical(dir_in, ec);
   if (ec) dir = dir_in;
   const bool exists = std::filesystem::exists(dir / "data.mdb", ec);
@@ -439,7 +441,7 @@ Result<std::shared_ptr<Env>> Env::open(const std::filesystem::path& dir_in, cons
   if (!init && std::filesystem::file_size(dir / "data.mdb", ec) == 0 && !ec)
     return fail(Errc::corrupt, (dir / "data.mdb").string() + " is empty: not a store");
   if (init) {
-    if (auto made = make_store(dir, *init); !made) return unexpected(made.error());
+    if (auto made = make_store(dir, *init, first_write); !made) return unexpected(made.error());
   }
   return open_at(dir, nullptr);
 }
@@ -472,7 +474,7 @@ int move_unless_there(const std::filesystem::path& from, const std::filesystem::
 
 }  // namespace
 
-Result<void> Env::make_store(const std::filesystem::path& dir, const InitOptions& init) {
+Result<void> Env::make_store(const std::filesystem::path& dir, const InitOptions& init, const FirstWrite& first_write) {
   remove_abandoned_inits(dir);
   std::random_device random;
   const std::filesystem::path building =
@@ -490,6 +492,13 @@ Result<void> Env::make_store(const std::filesystem::path& dir, const InitOptions
     if (!made) {
       cleanup();
       return unexpected(made.error());
+    }
+    if (first_write) {
+      if (auto written = first_write(**made); !written) {
+        *made = nullptr;  // closed before its directory goes
+        cleanup();
+        return unexpected(written.error());
+      }
     }
   }  // closed: its data file is complete (and synced when durable)
   const int moved = move_unless_there(building / "data.mdb", dir / "data.mdb");

@@ -165,7 +165,13 @@ class Env {
   // made in a directory of its own inside `dir` and its data file moved into place only once
   // complete, without replacing one there: of two inits at once one gets `exists`, and an init
   // killed half-way leaves no store that can neither be opened nor made again.
-  static Result<std::shared_ptr<Env>> open(const std::filesystem::path& dir, const InitOptions* init);
+  // `first_write`, with `init`: what the new store holds from its first moment (the node's
+  // vocabulary), written before its data file is moved into place. A store whose first write
+  // failed (no room to grow on a full disk) was left in place, and every later open failed on
+  // what it lacked.
+  using FirstWrite = std::function<Result<void>(Env&)>;
+  static Result<std::shared_ptr<Env>> open(const std::filesystem::path& dir, const InitOptions* init,
+                                           const FirstWrite& first_write = {});
   ~Env();
 
   MDB_env* raw() const { return env_; }
@@ -247,7 +253,7 @@ class Env {
   // with `init`. open() calls it on the finished store, and with `init` on the new one.
   static Result<std::shared_ptr<Env>> open_at(const std::filesystem::path& dir, const InitOptions* init);
   // Makes a new store in a directory of its own in `dir`, then moves its data file into `dir`.
-  static Result<void> make_store(const std::filesystem::path& dir, const InitOptions& init);
+  static Result<void> make_store(const std::filesystem::path& dir, const InitOptions& init, const FirstWrite& first_write);
   Result<void> open_tables(MDB_txn* txn, bool create);
   // Opens the tables added since format 2; false (and nothing opened) when the store has not
   // got them yet and `create` is false.

@@ -959,16 +959,17 @@ Result<Node> Node::init(const std::filesystem::path& dir, const InitOptions& opt
   if (options.max_map_bytes < kMinMaxMapBytes) return fail(Errc::invalid_argument, "max_map_bytes must be at least 1 MiB");
   InitOptions normalized = options;
   normalized.iri = *iri;
-  auto env = Env::open(dir, &normalized);
+  auto vocabulary = [](Env& made) {
+    return made.write([](Txn& txn) -> Result<void> {
+      for (auto iri : {kSubscriber, kSubject, kPredicate, kObject}) {
+        auto id = intern_term(txn, Term::iri(std::string(iri)), true);
+        if (!id) return unexpected(id.error());
+      }
+      return {};
+    });
+  };
+  auto env = Env::open(dir, &normalized, vocabulary);
   if (!env) return unexpected(env.error());
-  auto vocab = (*env)->write([](Txn& txn) -> Result<void> {
-    for (auto iri : {kSubscriber, kSubject, kPredicate, kObject}) {
-      auto id = intern_term(txn, Term::iri(std::string(iri)), true);
-      if (!id) return unexpected(id.error());
-    }
-    return {};
-  });
-  if (!vocab) return unexpected(vocab.error());
   if (auto v = load_vocabulary(**env); !v) return unexpected(v.error());
   return Node(std::make_shared<Impl>(Impl{std::move(*env)}));
 }

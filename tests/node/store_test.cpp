@@ -860,16 +860,14 @@ TEST(Store, AWriteThatMustGrowTheMapWhileTheProcessHoldsASnapshotSaysSoAndSuccee
 }
 
 // Runs `body` in a child process with its own mount namespace and a tmpfs of `size` mounted on
-// `dir`, with a new store at dir/store and its agent "w". The child ends through
-// `say(text, status)`; a child that cannot mount ends with 77.
+// `dir`. The child ends through `say(text, status)`; a child that cannot mount ends with 77.
 using Say = std::function<void(const std::string& text, int status)>;
 struct ChildEnd {
   int status = -1;  // exit status, or -1 when killed
   int signal = 0;
   std::string said;
 };
-ChildEnd run_on_small_disk(const std::filesystem::path& dir, const char* size,
-                           const std::function<void(const Say&, Node&, Agent&)>& body) {
+ChildEnd run_in_tmpfs(const std::filesystem::path& dir, const char* size, const std::function<void(const Say&)>& body) {
   int pipe_fds[2];
   if (pipe(pipe_fds) != 0) return {.said = "pipe failed"};
   const pid_t pid = fork();
@@ -884,12 +882,7 @@ ChildEnd run_on_small_disk(const std::filesystem::path& dir, const char* size,
     if (unshare(CLONE_NEWNS) != 0 || mount("none", "/", nullptr, MS_REC | MS_PRIVATE, nullptr) != 0 ||
         mount("tmpfs", dir.c_str(), "tmpfs", 0, options.c_str()) != 0)
       say("cannot mount a tmpfs here", 77);
-    if (auto made = Node::init(dir / "store", {.iri = "http://example.org/n"}); !made) say("init: " + made.error().message, 1);
-    auto node = Node::open(dir / "store");
-    if (!node) say("open: " + node.error().message, 1);
-    auto agent = node->agent("w");
-    if (!agent) say("agent: " + agent.error().message, 1);
-    body(say, *node, *agent);
+    body(say);
     say("the body ended without saying how", 1);
   }
   close(pipe_fds[1]);
@@ -902,6 +895,38 @@ ChildEnd run_on_small_disk(const std::filesystem::path& dir, const char* size,
   if (WIFEXITED(status)) end.status = WEXITSTATUS(status);
   if (WIFSIGNALED(status)) end.signal = WTERMSIG(status);
   return end;
+}
+
+// run_in_tmpfs with a new store at dir/store and its agent "w".
+ChildEnd run_on_small_disk(const std::filesystem::path& dir, const char* size,
+                           const std::function<void(const Say&, Node&, Agent&)>& body) {
+  return run_in_tmpfs(dir, size, [&](const Say& say) {
+    if (auto made = Node::init(dir / "store", {.iri = "http://example.org/n"}); !made) say("init: " + made.error().message, 1);
+    auto node = Node::open(dir / "store");
+    if (!node) say("open: " + node.error().message, 1);
+    auto agent = node->agent("w");
+    if (!agent) say("agent: " + agent.error().message, 1);
+    body(say, *node, *agent);
+  });
+}
+
+// An init on a disk without room for the store's first write (3 MiB free; the map reserves
+// more) left the new store in place without its vocabulary: every later open failed on
+// "vocabulary term missing", and init again said the directory "already holds a store". It
+// leaves nothing now, and the same init succeeds once there is room.
+TEST(Store, AnInitWithoutRoomForItsFirstWriteLeavesNoStore) {
+  TempDir dir;
+  const ChildEnd end = run_in_tmpfs(dir.path(), "3m", [&](const Say& say) {
+    auto made = Node::init(dir.path() / "store", {.iri = "http://example.org/n"});
+    if (made) say("a 3 MiB disk took a new store", 2);
+    if (std::filesystem::exists(dir.path() / "store" / "data.mdb")) say("init failed (" + made.error().message + ") and left data.mdb", 1);
+    auto opened = Node::open(dir.path() / "store");
+    if (opened || opened.error().code != Errc::not_found) say("open after the failed init: " + (opened ? std::string("opened") : opened.error().message), 1);
+    say(made.error().message, 0);
+  });
+  if (end.status == 77) GTEST_SKIP() << end.said;
+  if (end.status == 2) GTEST_SKIP() << "this filesystem gives the store its first write: " << end.said;
+  EXPECT_EQ(end.status, 0) << end.said;
 }
 
 // A disk that fills under the store: the data file is as large as the map but sparse, and a
@@ -1726,6 +1751,13 @@ TEST(Store, InitRefusesExistingStoreAndOpenRefusesMissingOne) {
   EXPECT_EQ(decomposed.error().code, Errc::invalid_iri);
   EXPECT_NE(decomposed.error().message.find("NFC"), std::string::npos) << decomposed.error().message;
   EXPECT_FALSE(std::filesystem::exists(dir / "decomposed" / "data.mdb"));
+  // A directory that cannot be made is named with why, not a temporary file inside it ("making
+  // …/.init-NNN: No such file or directory").
+  std::ofstream(dir / "a_file") << "x";
+  auto under_a_file = Node::init(dir / "a_file" / "store", InitOptions{.iri = testing::kNodeIri});
+  ASSERT_FALSE(under_a_file);
+  EXPECT_EQ(under_a_file.error().message,
+            "cannot make the store's directory " + (dir / "a_file" / "store").string() + ": Not a directory");
 }
 
 // What is not a store is an error value naming the place, never an exception, never a store made
