@@ -188,6 +188,12 @@ std::string subtree_for(const std::string& context, const std::string& node) {
   return uri::is_under(node, base) ? node + "/*" : context;
 }
 
+// The kind of a reason a store gave for not storing, as P9b's logging tells reasons apart: its
+// words before the first ": " ("store full"). The rest names figures that change at every turn
+// of a store hovering at full ("this write may take up to 1297 bytes, and 905216 are in use…"),
+// and each new figure was said as a new reason.
+std::string_view reason_kind(std::string_view why) { return why.substr(0, why.find(": ")); }
+
 // A child's down queue takes the items for the whole subtree (P11). A child new to the tree
 // (added to the file, or accepted on its first hello) gets, when its queue first subscribes, the
 // persistent ones written before it came: a setting for every node reaches a home deployed
@@ -347,11 +353,21 @@ struct Link::Impl {
   std::string refused_by_parent;  // the parent's refusal, until a welcome
   // P9b: why the parent could not store what this node sent, until its mark moves again.
   std::string parent_cannot_store;
+  // P9b, as logged: a parent whose store is nearly full stores an item now and then between
+  // refusals, and each turn took a pair of lines, two or three a second. A reason is said once
+  // every 10 s (kRelayFailureSaidEvery), with the times it was not, and "stores again" once after it.
+  struct CannotStoreSaid {
+    std::string why;
+    Clock::time_point at{};
+    bool open = false;  // said, and "stores again" not said since
+    std::uint64_t unsaid = 0;
+  } parent_cannot_store_said;
   // P9b, at the receiving end: the last failure to store a sender's run, by sender, as logged.
   struct RelayFailure {
     std::string why;
     Clock::time_point said_at{}, sent_at{};
     std::uint64_t since_said = 0;
+    bool stored_since_sent = false;  // a run of the sender stored since the last cannot_store sent
   };
   std::map<std::string, RelayFailure> relay_failures;
   // P9b from children: what was last logged of each and when, and whether that episode is
@@ -1298,16 +1314,19 @@ struct Link::Impl {
       const std::string why = outcome.error().message;
       std::unique_lock lock(mu);
       RelayFailure& failure = relay_failures[head.from];
-      // Once a second at most: a sender of a build before P9b logs each one.
-      if (why != failure.why || Clock::now() - failure.sent_at >= std::chrono::seconds(1)) {
+      // Once a second at most (a sender of a build before P9b logs each one), and at once after
+      // a run was stored: the sender then sends its whole window again.
+      const bool new_kind = reason_kind(why) != reason_kind(failure.why);
+      if (new_kind || failure.stored_since_sent || Clock::now() - failure.sent_at >= std::chrono::seconds(1)) {
         failure.sent_at = Clock::now();
+        failure.stored_since_sent = false;
         lock.unlock();
         send_error(via, head.from, 0, {std::string(kCannotStore), why, ""});
         lock.lock();
       }
-      if (why != failure.why || Clock::now() - failure.said_at >= kRelayFailureSaidEvery) {
+      if (new_kind || Clock::now() - failure.said_at >= kRelayFailureSaidEvery) {
         log("relay from <" + head.from + "> refused: " + why +
-            (failure.since_said > 0 && why == failure.why ? " (and " + std::to_string(failure.since_said) + " times more since it was last said)" : ""));
+            (failure.since_said > 0 && !new_kind ? " (and " + std::to_string(failure.since_said) + " times more since it was last said)" : ""));
         failure.why = why;
         failure.said_at = Clock::now();
         failure.since_said = 0;
@@ -1318,9 +1337,15 @@ struct Link::Impl {
       auto mark = relayer->relay_mark(stream);
       ack.ack = mark ? *mark : 0;
     } else {
-      if (!outcome->stored.empty()) {  // stored again: a failure after is said again
+      if (!outcome->stored.empty()) {
+        // Stored again. A store nearly full takes a run now and then between refusals: the
+        // failure after is said 10 s after the last at the earliest, as every repeat is (it
+        // was said at once, two or three lines a second).
         std::lock_guard lock(mu);
-        relay_failures.erase(head.from);
+        if (auto failed = relay_failures.find(head.from); failed != relay_failures.end()) {
+          if (Clock::now() - failed->second.said_at >= kRelayFailureSaidEvery) relay_failures.erase(failed);
+          else failed->second.stored_since_sent = true;
+        }
       }
       ack.ack = outcome->mark;
       ack.prev = outcome->gap ? 1 : 0;
@@ -1794,7 +1819,8 @@ struct Link::Impl {
           up_mark = f.ack;
           up_progress = Clock::now();
           if (!parent_cannot_store.empty()) {
-            log("the parent <" + opt.parent_iri + "> stores what this node sends again");
+            if (parent_cannot_store_said.open) log("the parent <" + opt.parent_iri + "> stores what this node sends again");
+            parent_cannot_store_said.open = false;
             parent_cannot_store.clear();
           }
         }
@@ -1819,9 +1845,18 @@ struct Link::Impl {
         }
         if (code == kCannotStore) {
           const std::string why = body ? body->message : std::string("no reason given");
-          if (why != parent_cannot_store)
+          CannotStoreSaid& said = parent_cannot_store_said;
+          const bool new_kind = reason_kind(why) != reason_kind(said.why);
+          if (new_kind || Clock::now() - said.at >= kRelayFailureSaidEvery) {
             log("the parent <" + opt.parent_iri + "> cannot store what this node sends: " + why +
-                "; items wait in the outbox, sent one at a time until it can");
+                "; items wait in the outbox, sent one at a time until it can" +
+                (said.unsaid > 0 && !new_kind
+                     ? " (and " + std::to_string(said.unsaid) + " times more since it was last said, storing some between)"
+                     : ""));
+            said = {why, Clock::now(), true, 0};
+          } else if (parent_cannot_store.empty()) {
+            ++said.unsaid;
+          }
           parent_cannot_store = why;
           return;
         }
@@ -2249,7 +2284,7 @@ struct Link::Impl {
     if (body->code == kCannotStore) {  // P9b: once per reason; the child acknowledges nothing meanwhile
       CannotStore& episode = child_cannot_store[f.from];
       const auto now = Clock::now();
-      if (episode.said != body->message || (!episode.open && now - episode.at >= std::chrono::seconds(10))) {
+      if (reason_kind(episode.said) != reason_kind(body->message) || (!episode.open && now - episode.at >= kRelayFailureSaidEvery)) {
         log("child <" + f.from + "> cannot store what this node sends down: " + body->message);
         episode.said = body->message;
         episode.at = now;

@@ -1728,6 +1728,35 @@ TEST(Link, AChildWhoseParentCannotStoreSendsOneFrameAtATimeAndSaysWhy) {
   EXPECT_TRUE(tree.home1_log.has("stores what this node sends again")) << tree.home1_log.text();
 }
 
+// A parent store nearly full takes an item now and then between refusals (a probe's hospital:
+// 3,386 items in 86 s). Each turn was said at both ends, two or three lines a second: the parent's
+// "refused: store full", the child's "cannot store" and "stores again". Each is said once in 10 s.
+TEST(Link, AParentThatStoresNowAndThenBetweenRefusalsIsNotSaidAtEachTurn) {
+  Tree tree({.max_map_bytes = 1 << 20});
+  ASSERT_TRUE(tree.start_hospital_and_home1());
+  fill_to_the_last_page(tree.hospital_dir, kHospital);
+  store_hrv_items(tree.home1_dir, 0, 400);
+  ASSERT_TRUE(eventually([&] { return tree.hospital->counters().refused > 0; })) << tree.hospital_log.text();
+  const auto stored = [&] { return count(tree.hospital_dir, {.p = Term::iri(kEx + "n")}); };
+  int turns = 0;
+  for (int f = 0; f < 300 && turns < 3; f += 30) {
+    const std::uint64_t before = stored(), refused = tree.hospital->counters().refused;
+    auto hospital = node::Node::open(tree.hospital_dir).value();
+    for (int k = f; k < f + 30; ++k) ASSERT_TRUE(hospital.remove({.s = Term::iri(kHospital + "/f" + std::to_string(k))}));
+    if (!eventually([&] { return stored() > before; }, 3s)) continue;  // the room freed took no item
+    ASSERT_TRUE(eventually([&] { return tree.hospital->counters().refused > refused; })) << tree.hospital_log.text();
+    ++turns;
+  }
+  ASSERT_EQ(turns, 3) << "the case under test did not happen: " << stored() << " items stored";
+  auto lines_with = [](Log& log, const std::string& text) {
+    std::lock_guard lock(log.mu);
+    return std::count_if(log.lines.begin(), log.lines.end(), [&](const std::string& l) { return l.find(text) != std::string::npos; });
+  };
+  EXPECT_EQ(lines_with(tree.hospital_log, "relay from <" + kHome1 + "> refused: store full"), 1) << tree.hospital_log.text();
+  EXPECT_EQ(lines_with(tree.home1_log, "cannot store what this node sends: store full"), 1) << tree.home1_log.text();
+  EXPECT_LE(lines_with(tree.home1_log, "stores what this node sends again"), 1) << tree.home1_log.text();
+}
+
 // P9b downwards: a parent logs a child that cannot store what it sends down once per reason; it
 // remembered the reason for ever, so when the child's store filled a second time, after it had
 // stored again, the parent's log said nothing of it. Episodes are said once per 10 s at most
