@@ -336,6 +336,14 @@ TEST(Iri, CheckIdRejectsDotAndDotDot) {
   EXPECT_TRUE(contains(err(check_id("..")).message, "path steps"));
 }
 
+// A child node "*" had the IRI <parent>/*, the address of the parent's whole subtree (P11):
+// what was sent to it went nowhere, and a query --at it went to a sibling.
+TEST(Iri, CheckIdRejectsTheSubtreeStarButNotAStarInAnId) {
+  EXPECT_TRUE(contains(err(check_id("*")).message, "addresses the whole subtree")) << err(check_id("*")).message;
+  EXPECT_TRUE(check_id("a*"));
+  EXPECT_FALSE(child_node_iri("http://h", "*"));
+}
+
 TEST(Iri, CheckIdRejectsWhitespace) {
   EXPECT_EQ(err(check_id(" ")).position, 0u);
   EXPECT_EQ(err(check_id("a b")).position, 1u);

@@ -73,6 +73,8 @@ std::optional<Failure> nfc_failure(std::string_view text, std::string_view what,
 std::optional<Failure> id_failure(std::string_view id) {
   if (id.empty()) return Failure{0, "an id cannot be empty"};
   if (id == "." || id == "..") return Failure{0, "'.' and '..' are path steps, not ids"};
+  // A child "*" would have the IRI <parent>/*, which addresses the parent's whole subtree.
+  if (id == "*") return Failure{0, "'*' is not an id: <X>/* addresses the whole subtree of node X (docs/protocol.md P11)"};
   for (std::size_t pos = 0; pos < id.size();) {
     detail::CodePoint cp = detail::decode_utf8(id, pos);
     if (cp.length == 0 || forbidden_in_id(cp.value)) {

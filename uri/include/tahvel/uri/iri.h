@@ -37,7 +37,7 @@ bool is_valid(std::string_view text);
 IriResult<std::string> resolve(std::string_view base, std::string_view reference);
 
 // Checks an agent or child-node id: non-empty, no '/', '?', '#', whitespace or control
-// characters, not "." or "..", and in Unicode normalization form C (composed characters: ids
+// characters, not "." or ".." or "*" (<X>/* is X's whole subtree), and in Unicode normalization form C (composed characters: ids
 // that look alike are byte for byte alike). Returns the id unchanged, or an error naming the
 // position. child_id, agent_iri and child_node_iri check ids so too.
 IriResult<std::string> check_id(std::string_view id);
