@@ -145,6 +145,7 @@ int run_reason(const Args& args) {
     // starts it again.
     std::cerr.clear();
     if (r.problem_not_written) std::cerr << "tahvel: the rules' problem is not on the board: " << *r.problem_not_written << "\n";
+    for (const std::string& said : r.not_written) std::cerr << "tahvel: warning: " << said << "\n";
     if (json) print_json(r); else print_text(r, prefixes);
     return static_cast<bool>(std::cout);
   };

@@ -306,6 +306,35 @@ TEST_F(ReasonerTest, ASessionWhoseConclusionsMakeTheStoreGrowIsWritten) {
   EXPECT_GT(node_->stats()->map_bytes, first_map) << "the store did not have to grow: the test proves nothing";
 }
 
+// A conclusion with a literal over the node's limit (init --max-literal) failed the whole
+// session's write: the reasoner ended with "item 1: triple 1, object: literal of 2000 bytes
+// exceeds …", and every other conclusion of the session went with it. It is left out and said,
+// once per predicate, and the rest is written.
+TEST_F(ReasonerTest, AConclusionTheNodeCannotHoldIsLeftOutAndSaidAndTheRestIsWritten) {
+  init_.reset();
+  node_.reset();
+  fs::remove_all(root_ / "node");
+  auto small = tn::Node::init(root_ / "node", {.iri = kIri, .max_literal_bytes = 1000});
+  ASSERT_TRUE(small) << small.error().message;
+  node_ = std::make_unique<tn::Node>(std::move(*small));
+  init_ = std::make_unique<tn::Agent>(node_->agent("init").value());
+  put({t("a", "v", "b")});
+  auto r = open(rules("big.rules", "big(X, S) :- v(X, _), S = \"" + std::string(2000, 'x') + "\".\nok(X) :- v(X, _).\n"));
+  auto s = r.session();
+  ASSERT_TRUE(s) << s.error().message;
+  ASSERT_EQ(s->not_written.size(), 1u);
+  EXPECT_NE(s->not_written[0].find("its literal of 2000 bytes is over this node's limit of 1000"), std::string::npos)
+      << s->not_written[0];
+  ASSERT_EQ(s->added.size(), 1u);
+  EXPECT_EQ(s->added[0].predicate, kNs + "ok");
+  EXPECT_EQ(board().size(), 2u);  // ok(a): its node's rdf:type and rdf:_1 (NonBinaryConclusionsHaveTheDocumentedStoredForm)
+  put({t("c", "v", "d")});
+  auto next = r.session();
+  ASSERT_TRUE(next) << next.error().message;
+  EXPECT_TRUE(next->not_written.empty());  // said once
+  EXPECT_EQ(next->added.size(), 1u);       // ok(c)
+}
+
 // Conclusions an earlier run wrote that no longer hold go at the first session (RS13), and the
 // session says how many (it said "retracted 0").
 TEST_F(ReasonerTest, TheFirstSessionReportsTheEarlierRunsConclusionsItRemoves) {

@@ -163,7 +163,13 @@ struct Reasoner::Impl {
                                        std::vector<node::Triple>& extra_removals);
   Result<Engine::Update> resync(const node::Snapshot& snap, std::int64_t now, SessionReport& report,
                                 std::vector<node::Triple>& extra_removals);
-  Result<void> write(const Engine::Update& update, const std::vector<node::Triple>& extra_removals, std::int64_t now);
+  // Leaves out of update.added what the node cannot hold (report.not_written).
+  Result<void> write(Engine::Update& update, const std::vector<node::Triple>& extra_removals, std::int64_t now,
+                     SessionReport& report);
+  // The node's literal limit (init --max-literal; 0: none known), and the conclusions over it
+  // said so far.
+  std::uint64_t literal_limit = 0;
+  std::set<std::string> said_not_written;
   Result<SessionReport> session();
 };
 
@@ -303,8 +309,8 @@ Result<Engine::Update> Reasoner::Impl::resync(const node::Snapshot& snap, std::i
 
 // A session's conclusions change in one transaction (Agent::replace): a reader sees the
 // conclusions before the session or after it, never a mix.
-Result<void> Reasoner::Impl::write(const Engine::Update& update, const std::vector<node::Triple>& extra_removals,
-                                   std::int64_t now) {
+Result<void> Reasoner::Impl::write(Engine::Update& update, const std::vector<node::Triple>& extra_removals,
+                                   std::int64_t now, SessionReport& report) {
   own_first = own_last = 0;
   // One item per predicate, and per class for rdf:type: a node's forwarding policy routes whole
   // items (P5), and one item of everything a session concluded sent a home-only conclusion (a
@@ -312,7 +318,22 @@ Result<void> Reasoner::Impl::write(const Engine::Update& update, const std::vect
   // shares rdf:type, and a policy forwarding one class sent the session's other classes too.
   std::vector<node::Item> items;
   std::map<std::string, std::size_t> item_of;
+  std::vector<Atom> left_out;
   for (const Atom& a : update.added) {
+    std::vector<node::Triple> form = stored(a);
+    const auto too_long = std::find_if(form.begin(), form.end(), [&](const node::Triple& t) {
+      return literal_limit > 0 && t.o.is_literal() && t.o.value.size() > literal_limit;
+    });
+    if (too_long != form.end()) {
+      std::string text = a.to_string();
+      if (text.size() > 200) text = text.substr(0, 200) + "…";
+      if (said_not_written.insert(a.predicate).second)
+        report.not_written.push_back("the conclusion " + text + " is not written: its literal of " +
+                                     std::to_string(too_long->o.value.size()) + " bytes is over this node's limit of " +
+                                     std::to_string(literal_limit) + " (tahvel init --max-literal); the rest of the session is");
+      left_out.push_back(a);
+      continue;
+    }
     std::string key = a.predicate;
     if (a.predicate == node::kRdfType && a.args.size() == 2) key += ' ' + a.args[1].value;
     auto [at, is_new] = item_of.emplace(key, items.size());
@@ -321,8 +342,9 @@ Result<void> Reasoner::Impl::write(const Engine::Update& update, const std::vect
       items.back().asserted_at = now;
       items.back().persistent = options.persistent;
     }
-    for (node::Triple& t : stored(a)) items[at->second].triples.push_back(std::move(t));
+    for (node::Triple& t : form) items[at->second].triples.push_back(std::move(t));
   }
+  std::erase_if(update.added, [&](const Atom& a) { return std::find(left_out.begin(), left_out.end(), a) != left_out.end(); });
   std::vector<node::Triple> gone = extra_removals;
   for (const Atom& a : update.removed) {
     auto form = stored(a);
@@ -423,7 +445,7 @@ Result<SessionReport> Reasoner::Impl::session() {
   // (Env::grow), and the write may need it to (it failed with store_full, for ever).
   snap.reset();
   const auto t2 = Clock::now();
-  if (auto w = write(update, extra_removals, now); !w) {
+  if (auto w = write(update, extra_removals, now, report); !w) {
     // The engine moved on but the board did not: the next session starts from scratch and
     // writes the difference between the board and the rules.
     started = false;
@@ -479,6 +501,7 @@ Result<Reasoner> Reasoner::open(const std::filesystem::path& dir, ReasonerOption
   auto impl = std::make_unique<Impl>(std::move(*node), std::move(*agent), std::move(options), std::move(parse), std::move(*program),
                                      std::move(rule_file));
   impl->agent_lock = lock;
+  if (auto st = impl->node.stats()) impl->literal_limit = st->max_literal_bytes;
   // A problem an earlier run reported is over: this one's rules parse. One that cannot go now
   // (a full store) goes once a changed rule file parses.
   if (!impl->agent.report_problem("")) impl->problem = "(left by an earlier run)";

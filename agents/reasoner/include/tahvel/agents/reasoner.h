@@ -69,6 +69,10 @@ struct SessionReport {
   bool clocked = false;
   std::optional<std::string> problem_not_written;  // why the rules' problem could not be put on
                                                    // the board (or taken off it)
+  // Conclusions this node cannot hold (a literal over its `init --max-literal`), each said once:
+  // left out, and the rest of the session written. One such conclusion failed the whole
+  // session's write, and the reasoner ended, its other conclusions with it.
+  std::vector<std::string> not_written;
   double read_ms = 0, derive_ms = 0, write_ms = 0, total_ms = 0;
   EngineStats engine;
 };
