@@ -61,7 +61,9 @@ void print_json(const reasoner::SessionReport& r) {
       << ",\"added\":" << json_atoms(r.added) << ",\"removed\":" << json_atoms(r.removed)
       << ",\"stale_records_removed\":" << r.stale_records_removed << ",\"total_ms\":" << fixed(r.total_ms) << ",\"read_ms\":" << fixed(r.read_ms)
       << ",\"derive_ms\":" << fixed(r.derive_ms) << ",\"write_ms\":" << fixed(r.write_ms)
-      << ",\"conclusions\":" << r.engine.conclusions << ",\"base_facts\":" << r.engine.base_facts << "}\n";
+      << ",\"conclusions\":" << r.engine.conclusions << ",\"base_facts\":" << r.engine.base_facts << ",\"not_written\":[";
+  for (std::size_t i = 0; i < r.not_written.size(); ++i) out << (i ? ",\"" : "\"") << node::json_escape(r.not_written[i]) << "\"";
+  out << "]}\n";
   std::cout << out.str() << std::flush;
 }
 

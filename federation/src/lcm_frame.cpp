@@ -71,9 +71,11 @@ Result<Frame> not_a_frame(const std::string& why) {
 Result<std::string> encode_lcm_frame(const Frame& frame) {
   if (frame.from.find('\0') != std::string::npos || frame.to.find('\0') != std::string::npos)
     return node::fail(Errc::invalid_argument, "an IRI of the frame has a NUL in it, which LCM's strings cannot carry");
-  if (frame.body.size() > static_cast<std::size_t>(INT32_MAX))
-    return node::fail(Errc::invalid_argument, "a body of " + std::to_string(frame.body.size()) +
-                                                  " bytes is more than LCM's byte arrays hold (2 GB)");
+  // The whole message in an int, as lcm-gen adds its size up (in an int: past it, undefined).
+  const std::size_t whole = 8 + 2 + 8 + 1 + (4 + frame.from.size() + 1) + (4 + frame.to.size() + 1) + 3 * 8 + 4 + frame.body.size();
+  if (whole > static_cast<std::size_t>(INT32_MAX))
+    return node::fail(Errc::invalid_argument, "a frame of " + std::to_string(whole) +
+                                                  " bytes is more than an LCM message holds (2 GB)");
   tahvel_frame_t msg{};
   msg.version = static_cast<int16_t>(frame.version);
   msg.fingerprint = static_cast<int64_t>(frame.fingerprint);
@@ -86,8 +88,9 @@ Result<std::string> encode_lcm_frame(const Frame& frame) {
   msg.body_size = static_cast<int32_t>(frame.body.size());
   msg.body = reinterpret_cast<uint8_t*>(const_cast<char*>(frame.body.data()));
   const int size = tahvel_frame_t_encoded_size(&msg);
-  std::string bytes(static_cast<std::size_t>(size), '\0');
-  if (size < 0 || tahvel_frame_t_encode(bytes.data(), 0, size, &msg) != size)
+  if (size < 0 || static_cast<std::size_t>(size) != whole) return node::fail(Errc::invalid_argument, "LCM's encoder sized the frame otherwise");
+  std::string bytes(whole, '\0');
+  if (tahvel_frame_t_encode(bytes.data(), 0, size, &msg) != size)
     return node::fail(Errc::invalid_argument, "LCM's encoder refused the frame");
   return bytes;
 }

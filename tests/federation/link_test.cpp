@@ -693,41 +693,55 @@ TEST(Link, ConfigurationForOneHomeReachesThatHomeAndTheAddressedAgentOnly) {
   EXPECT_EQ(count(tree.hospital_dir, {.p = Term::iri(kEx + "notice")}), 1u);
 }
 
-// A setting written for the whole tree (`<hospital>/*`, persistent) reached the homes there were
-// when it was written, and never one added to the tree later, even across restarts. A home added
-// later gets it once; a command sent to the whole tree before it came (not persistent) is not its.
-TEST(Link, ASettingForTheWholeTreeReachesAHomeAddedLaterAndACommandSentBeforeDoesNot) {
+// A setting written for the whole tree (`<hospital>/*`, persistent) reached the nodes there were
+// when it was written, and never one added to the tree later, even across restarts: a home added
+// to the hospital's file, or a sensor that first says hello to its home. Each gets it once; a
+// command sent to the whole tree before it came (not persistent) is not its.
+TEST(Link, ASettingForTheWholeTreeReachesNodesAddedLaterAtEachHopAndACommandSentBeforeDoesNot) {
   Tree tree;
   tree.hospital = Link::start({.dir = tree.hospital_dir,
                                .down = std::shared_ptr<Transport>(tree.bus.open(kHospital, tree.hospital_log.sink())),
                                .children = {"home1"}, .resend_after = 100ms, .log = tree.hospital_log.sink()})
                       .value();
-  tree.home1 = tree.start_home(tree.home1_dir, kHome1, tree.home1_log);
+  auto home1_endpoint = std::shared_ptr<Transport>(tree.bus.open(kHome1, tree.home1_log.sink()));
+  tree.home1 = Link::start({.dir = tree.home1_dir, .parent_iri = kHospital, .up = home1_endpoint, .down = home1_endpoint,
+                            .resend_after = 100ms, .heartbeat_every = 200ms, .log = tree.home1_log.sink()})
+                   .value();
   ASSERT_TRUE(eventually([&] { return tree.home1->connected(); }));
   auto operator_ = node::Node::open(tree.hospital_dir).value().agent("operator").value();
-  node::Item setting, command;
-  setting.context = command.context = kHospital + "/*";
-  setting.persistent = true;
-  setting.add(Term::iri(kHospital), Term::iri(kEx + "policy"), Term::literal("tree-wide"));
-  command.add(Term::iri(kHospital), Term::iri(kEx + "notice"), Term::literal("maintenance"));
-  ASSERT_TRUE(operator_.store(setting));
-  ASSERT_TRUE(operator_.store(command));
-  ASSERT_TRUE(eventually([&] {
-    return count(tree.home1_dir, {.p = Term::iri(kEx + "policy")}) == 1 && count(tree.home1_dir, {.p = Term::iri(kEx + "notice")}) == 1;
-  }));
+  auto to_all = [&](const std::string& what, const std::string& value, bool persistent) {
+    node::Item item;
+    item.context = kHospital + "/*";
+    item.persistent = persistent;
+    item.add(Term::iri(kHospital), Term::iri(kEx + what), Term::literal(value));
+    return static_cast<bool>(operator_.store(item));
+  };
+  const auto has = [&](const std::string& dir, const std::string& what) { return count(dir, {.p = Term::iri(kEx + what)}); };
+  ASSERT_TRUE(to_all("policy", "tree-wide", true));
+  ASSERT_TRUE(to_all("notice", "maintenance", false));
+  ASSERT_TRUE(eventually([&] { return has(tree.home1_dir, "policy") == 1 && has(tree.home1_dir, "notice") == 1; }));
   // home2 joins the tree: the hospital's link starts again with it configured, as `tahvel up`
-  // with the new file does.
+  // with the new file does; and a sensor says hello to home1 for the first time.
   tree.hospital.reset();
   tree.hospital = tree.start_hospital();
   tree.home2 = tree.start_home(tree.home2_dir, kHome2, tree.home2_log);
-  ASSERT_TRUE(eventually([&] { return tree.home1->connected() && tree.home2->connected(); }));
-  EXPECT_TRUE(eventually([&] { return count(tree.home2_dir, {.p = Term::iri(kEx + "policy")}) == 1; }))
-      << tree.hospital_log.text();
-  std::this_thread::sleep_for(500ms);
-  EXPECT_EQ(count(tree.home2_dir, {.p = Term::iri(kEx + "notice")}), 0u);
-  EXPECT_EQ(count(tree.home2_dir, {.p = Term::iri(kEx + "policy")}), 1u);
-  EXPECT_EQ(count(tree.home1_dir, {.p = Term::iri(kEx + "policy")}), 1u);
-  EXPECT_EQ(count(tree.home1_dir, {.p = Term::iri(kEx + "notice")}), 1u);
+  const std::string sensor_dir = (tree.tmp / "ecg1").string();
+  ASSERT_TRUE(node::Node::init(sensor_dir, {.iri = kHome1 + "/ecg1"}));
+  Log sensor_log;
+  auto sensor = Link::start({.dir = sensor_dir, .parent_iri = kHome1,
+                             .up = std::shared_ptr<Transport>(tree.bus.open(kHome1 + "/ecg1", sensor_log.sink())),
+                             .resend_after = 100ms, .heartbeat_every = 200ms, .log = sensor_log.sink()})
+                    .value();
+  ASSERT_TRUE(eventually([&] { return tree.home1->connected() && tree.home2->connected() && sensor->connected(); }));
+  // A persistent marker sent after both came: it follows whatever the queues would hold before it.
+  ASSERT_TRUE(to_all("marker", "after", true));
+  for (const std::string& dir : {tree.home2_dir, sensor_dir}) {
+    EXPECT_TRUE(eventually([&] { return has(dir, "marker") == 1; })) << dir << tree.hospital_log.text() << tree.home1_log.text();
+    EXPECT_EQ(has(dir, "policy"), 1u) << dir;
+    EXPECT_EQ(has(dir, "notice"), 0u) << dir;
+  }
+  EXPECT_EQ(has(tree.home1_dir, "policy"), 1u);
+  EXPECT_EQ(has(tree.home1_dir, "notice"), 1u);
 }
 
 // A node may listen on two transports (LCM for its LAN, DDS beyond): home1 reaches the hospital
@@ -1737,6 +1751,7 @@ TEST(Link, AParentThatStoresNowAndThenBetweenRefusalsIsNotSaidAtEachTurn) {
   fill_to_the_last_page(tree.hospital_dir, kHospital);
   store_hrv_items(tree.home1_dir, 0, 400);
   ASSERT_TRUE(eventually([&] { return tree.hospital->counters().refused > 0; })) << tree.hospital_log.text();
+  const auto first_refused = std::chrono::steady_clock::now();
   const auto stored = [&] { return count(tree.hospital_dir, {.p = Term::iri(kEx + "n")}); };
   int turns = 0;
   for (int f = 0; f < 300 && turns < 3; f += 30) {
@@ -1752,9 +1767,11 @@ TEST(Link, AParentThatStoresNowAndThenBetweenRefusalsIsNotSaidAtEachTurn) {
     std::lock_guard lock(log.mu);
     return std::count_if(log.lines.begin(), log.lines.end(), [&](const std::string& l) { return l.find(text) != std::string::npos; });
   };
-  EXPECT_EQ(lines_with(tree.hospital_log, "relay from <" + kHome1 + "> refused: store full"), 1) << tree.hospital_log.text();
-  EXPECT_EQ(lines_with(tree.home1_log, "cannot store what this node sends: store full"), 1) << tree.home1_log.text();
-  EXPECT_LE(lines_with(tree.home1_log, "stores what this node sends again"), 1) << tree.home1_log.text();
+  // Once per 10 s (a slow machine may take longer than that over the three turns).
+  const long allowed = 1 + std::chrono::duration_cast<std::chrono::seconds>(std::chrono::steady_clock::now() - first_refused).count() / 10;
+  EXPECT_LE(lines_with(tree.hospital_log, "relay from <" + kHome1 + "> refused: store full"), allowed) << tree.hospital_log.text();
+  EXPECT_LE(lines_with(tree.home1_log, "cannot store what this node sends: store full"), allowed) << tree.home1_log.text();
+  EXPECT_LE(lines_with(tree.home1_log, "stores what this node sends again"), allowed) << tree.home1_log.text();
 }
 
 // P9b downwards: a parent logs a child that cannot store what it sends down once per reason; it

@@ -158,6 +158,19 @@ TEST(Rules, ParseErrorsNameFileLineAndColumn) {
   }
 }
 
+// Two messages that sent a rule's author the wrong way: a blank node was "unknown prefix '_'"
+// (declare it?), and a comparison's unbound variable was "not bound … before it" (reorder? order
+// does not count there, RS9).
+TEST(Rules, ABlankNodeAndAnUnboundVariableOfAComparisonAreNamedForWhatTheyAre) {
+  auto blank = tr::parse_rules("p(X, _:b) :- q(X, _).\n", options("bad.rules"));
+  ASSERT_FALSE(blank);
+  EXPECT_EQ(blank.error().message, "bad.rules:1:6: _:b: a blank node is not a term of a rule: a variable stands for any node, "
+                                   "and skolem(L, …) makes an IRI per conclusion (RS5)");
+  auto unbound = tr::parse_rules("p(X) :- q(X, Y), Y > Z.\n", options("bad.rules"));
+  ASSERT_FALSE(unbound);
+  EXPECT_EQ(unbound.error().message, "bad.rules:1:22: variable Z is not bound by any positive literal of the rule (unsafe)");
+}
+
 // `<foo>` was "found '<' that starts no IRI: ... without spaces (escape a space as %20)", of a
 // term with no space; and an integer out of range said no lower bound, while the reasoner itself
 // derives -9223372036854775808.

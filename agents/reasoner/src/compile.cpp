@@ -178,9 +178,11 @@ Unexpected<Error> unbound_before(const Program& program, const Rule& rule, const
   Pos pos = var < rule.var_pos.size() ? rule.var_pos[var] : l.pos;
   if (pos.line < l.pos.line || (pos.line == l.pos.line && pos.col < l.pos.col)) pos = l.pos;
   const std::string variable = var < rule.var_names.size() ? rule.var_names[var] : "?";
+  // Order counts for a negation only (RS6); "before it" sent the author of a comparison to
+  // reorder literals, which does not help (RS9: bound by nothing).
   return unexpected(Error{where(program, pos) + ": variable " + variable +
-                          " is not bound by any positive literal before it (unsafe" +
-                          (l.kind == Literal::negation ? std::string("; for 'any value' write _ there") : "") + ")"});
+                          (l.kind == Literal::negation ? " is not bound by any positive literal before it (unsafe; for 'any value' write _ there)"
+                                                       : " is not bound by any positive literal of the rule (unsafe)")});
 }
 
 // An evaluation order of `body` following `preference`: filters (built-ins, negations) as soon

@@ -173,6 +173,10 @@ Result<std::string> Lexer::curie(Pos start, std::string prefix) {
     --i_;
     --col_;
   }
+  // Turtle's blank node: no term of a rule ("unknown prefix '_'" sent the author to declare it).
+  if (prefix == "_")
+    return error(start, "_:" + local + ": a blank node is not a term of a rule: a variable stands for any node, and "
+                        "skolem(L, …) makes an IRI per conclusion (RS5)");
   if (auto declared = written_.find(prefix); declared != written_.end()) {
     std::string iri = declared->second + local;
     if (auto why = not_an_iri(iri)) return error(start, "CURIE " + prefix + ":" + local + ": " + *why);

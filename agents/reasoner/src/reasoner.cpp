@@ -318,8 +318,9 @@ Result<void> Reasoner::Impl::write(Engine::Update& update, const std::vector<nod
   // shares rdf:type, and a policy forwarding one class sent the session's other classes too.
   std::vector<node::Item> items;
   std::map<std::string, std::size_t> item_of;
-  std::vector<Atom> left_out;
-  for (const Atom& a : update.added) {
+  std::vector<bool> left_out(update.added.size(), false);
+  for (std::size_t i = 0; i < update.added.size(); ++i) {
+    const Atom& a = update.added[i];
     std::vector<node::Triple> form = stored(a);
     const auto too_long = std::find_if(form.begin(), form.end(), [&](const node::Triple& t) {
       return literal_limit > 0 && t.o.is_literal() && t.o.value.size() > literal_limit;
@@ -331,7 +332,7 @@ Result<void> Reasoner::Impl::write(Engine::Update& update, const std::vector<nod
         report.not_written.push_back("the conclusion " + text + " is not written: its literal of " +
                                      std::to_string(too_long->o.value.size()) + " bytes is over this node's limit of " +
                                      std::to_string(literal_limit) + " (tahvel init --max-literal); the rest of the session is");
-      left_out.push_back(a);
+      left_out[i] = true;
       continue;
     }
     std::string key = a.predicate;
@@ -344,7 +345,13 @@ Result<void> Reasoner::Impl::write(Engine::Update& update, const std::vector<nod
     }
     for (node::Triple& t : form) items[at->second].triples.push_back(std::move(t));
   }
-  std::erase_if(update.added, [&](const Atom& a) { return std::find(left_out.begin(), left_out.end(), a) != left_out.end(); });
+  std::size_t kept = 0;
+  for (std::size_t i = 0; i < update.added.size(); ++i)
+    if (!left_out[i]) {
+      if (kept != i) update.added[kept] = std::move(update.added[i]);  // not onto itself: a moved-from vector
+      ++kept;
+    }
+  update.added.resize(kept);
   std::vector<node::Triple> gone = extra_removals;
   for (const Atom& a : update.removed) {
     auto form = stored(a);

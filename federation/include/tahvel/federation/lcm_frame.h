@@ -12,7 +12,7 @@
 namespace tahvel::federation {
 
 // The message's bytes. Fails (invalid_argument) only for a frame LCM's types cannot carry: a
-// body of 2 GB or more, or an IRI with a NUL in it (LCM's strings end at their first NUL).
+// message of 2 GB or more, or an IRI with a NUL in it (LCM's strings end at their first NUL).
 node::Result<std::string> encode_lcm_frame(const Frame& frame);
 
 // The frame `message` holds, or why it holds none (invalid_argument; the message says what is
