@@ -1847,7 +1847,9 @@ struct Link::Impl {
           const std::string why = body ? body->message : std::string("no reason given");
           CannotStoreSaid& said = parent_cannot_store_said;
           const bool new_kind = reason_kind(why) != reason_kind(said.why);
-          if (new_kind || Clock::now() - said.at >= kRelayFailureSaidEvery) {
+          // Said again only after the parent stored since (a store hovering at full); a parent
+          // that stays full says so once a second, and that is one episode.
+          if (new_kind || (parent_cannot_store.empty() && Clock::now() - said.at >= kRelayFailureSaidEvery)) {
             log("the parent <" + opt.parent_iri + "> cannot store what this node sends: " + why +
                 "; items wait in the outbox, sent one at a time until it can" +
                 (said.unsaid > 0 && !new_kind
