@@ -1492,11 +1492,12 @@ TEST_F(Cli, EcgPrintsEachLeadByItsOwnCalibration) {
 // rows were printed again after the later ones, and the samples between were then said to be
 // missing ("samples 36360 to 150479 (5 min 17 s) are not at …" of rows all printed).
 TEST_F(Cli, EcgPrintsAChunkHeldTwiceOnceAndCallsNothingPrintedMissing) {
-  init();
   const std::string rec = kNodeIri + "/source/recording/twice";
   const std::int64_t t0 = 1'800'000'000'000'000'000;
+  auto ecg_of_all = [&] { return run({"ecg", node_, "--recording", rec}); };
+  init();
   store_recording(node_, rec, t0);
-  Outcome once = run({"ecg", node_, "--recording", rec});
+  const Outcome once = ecg_of_all();
   ASSERT_EQ(once.status, 0) << once.err;
   ASSERT_NE(once.err.find("samples 8 to 11 (1.0 s) are not at"), std::string::npos) << once.err;
   auto source = tahvel::node::Node::open(node_).value().agent("source").value();
@@ -1504,7 +1505,7 @@ TEST_F(Cli, EcgPrintsAChunkHeldTwiceOnceAndCallsNothingPrintedMissing) {
   for (int f = 0; f < 4; ++f)
     for (int v : {10 + 2 * f, 8 + 2 * f}) bytes += {static_cast<char>(v & 0xff), static_cast<char>(v >> 8 & 0xff)};
   ASSERT_TRUE(source.store(ecg_chunk(rec, 0, 4, bytes, t0 + 4'500'000'000)));
-  Outcome twice = run({"ecg", node_, "--recording", rec});
+  const Outcome twice = ecg_of_all();
   ASSERT_EQ(twice.status, 0) << twice.err;
   EXPECT_EQ(twice.out, once.out);
   EXPECT_EQ(twice.err, once.err + "tahvel: ecg: 4 frame(s) of the range are held more than once at <" + kNodeIri +
