@@ -273,6 +273,40 @@ TEST_F(BoardTest, APlaceAssertedAheadOfItsArrivalCountsAsAssertedOnArrival) {
   EXPECT_EQ(plan().plan.sensors_in_room(kBedroom), (Ids{kMote, mote}));
 }
 
+// A locator that writes a mote's position as of its fix, a few seconds back, after the plan
+// linked the mote to its geometry: the positions were replayed by when they were asserted, so the
+// plan's later geo:hasGeometry looked like the start of today's place, and a reading stored
+// between the old position and the new one was credited to the new room.
+TEST_F(BoardTest, AReadingStoredBeforeAMoveAssertedInThePastIsNotCreditedToTheNewRoom) {
+  const std::string mote = kHome + "/mote5";
+  const Term geometry = Term::iri(mote + "/geometry");
+  const std::int64_t now = std::chrono::duration_cast<std::chrono::nanoseconds>(
+                              std::chrono::system_clock::now().time_since_epoch()).count();
+  const std::int64_t second = 1'000'000'000;
+  node::Item linked;
+  linked.add(Term::iri(mote), Term::iri(kGeoHasGeometry), geometry)
+      .add(Term::iri(mote), Term::iri(kTvFloor), Term::integer(0));
+  put(linked);
+  auto fix = [&](const char* wkt, std::int64_t asserted_at) {
+    node::Item item;
+    item.asserted_at = asserted_at;
+    item.add(geometry, Term::iri(kGeoAsWkt), Term::literal(wkt, kGeoWktLiteral));
+    put(item);
+  };
+  fix("POINT(1 1)", now - 10 * second);  // the bedroom
+  reading("mote5", 20.0);
+  fix("POINT(6 1)", now - 2 * second);  // the hall
+  node::Pattern of_mote5 = readings();
+  of_mote5.source = mote;
+  EXPECT_EQ(plan().plan.sensors_in_room(kHall), Ids{mote});
+  EXPECT_EQ(in_area({kHall, std::nullopt, std::nullopt}, of_mote5).size(), 0u);
+  EXPECT_EQ(in_area({kBedroom, std::nullopt, std::nullopt}, of_mote5).size(), 0u);
+  reading("mote5", 22.0);
+  auto hall = in_area({kHall, std::nullopt, std::nullopt}, of_mote5);
+  ASSERT_EQ(hall.size(), 1u);
+  EXPECT_EQ(hall.front().triple.o.value, std::to_string(22.0));
+}
+
 TEST_F(BoardTest, ListByWktOnEveryFloorOrOne) {
   auto shape = parse_shape("POLYGON((0 0, 2 0, 2 2, 0 2, 0 0))");
   ASSERT_TRUE(shape.has_value());

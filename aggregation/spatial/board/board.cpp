@@ -145,6 +145,12 @@ std::string place_key(const std::string& wkt) {
 // give together is today's. A restatement of the same place (a plan put again, a mote announcing
 // its position, a new blank geometry with the same WKT) is no move: what the sensor wrote before
 // it was written there.
+//
+// Readings are ordered by arrival (record id), so the records are replayed in arrival order too,
+// each statement's place being the latest asserted of those arrived so far. Replayed in order of
+// assertion, a position asserted before the plan's geo:hasGeometry but stored after it made the
+// geo:hasGeometry record the start of today's place, and a reading stored between the old and
+// the new position was credited to the new room (docs/spatial.md S8).
 std::uint64_t placed_since(const std::vector<Latest>& geometry_records, const std::vector<Latest>* floor_records,
                            const std::map<std::string, std::vector<Latest>>& wkt_records) {
   enum class Kind { geometry, wkt, floor };
@@ -165,31 +171,37 @@ std::uint64_t placed_since(const std::vector<Latest>& geometry_records, const st
   }
   if (floor_records)
     for (const Latest& f : *floor_records) events.push_back({f.id, f.asserted_at, Kind::floor, &f, {}});
-  std::sort(events.begin(), events.end(),
-            [](const Event& a, const Event& b) { return stated_before(a.asserted_at, a.id, b.asserted_at, b.id); });
-  std::string geometry, floor = "0";
-  std::map<std::string, std::string> text_of;  // geometry -> its latest WKT so far
+  std::sort(events.begin(), events.end(), [](const Event& a, const Event& b) { return a.id < b.id; });
+  // The latest statement of each part among those arrived so far.
+  const Event* geometry = nullptr;
+  const Event* floor = nullptr;
+  std::map<std::string, const Event*> wkt_of;  // geometry -> its latest literal WKT so far
+  auto later = [](const Event* latest, const Event& e) {
+    return latest == nullptr || stated_before(latest->asserted_at, latest->id, e.asserted_at, e.id);
+  };
   std::vector<std::string> places;
   for (const Event& e : events) {
-    if (e.kind == Kind::geometry) geometry = e.record->value.is_literal() ? std::string() : key_of(e.record->value);
-    if (e.kind == Kind::wkt && e.record->value.is_literal()) text_of[e.geometry] = e.record->value.value;
-    if (e.kind == Kind::floor) {
-      const auto parsed = parse_floor(e.record->value);
-      floor = parsed ? std::to_string(*parsed) : "?" + e.record->value.value;
+    if (e.kind == Kind::geometry && later(geometry, e)) geometry = &e;
+    if (e.kind == Kind::wkt && e.record->value.is_literal() && later(wkt_of[e.geometry], e)) wkt_of[e.geometry] = &e;
+    if (e.kind == Kind::floor && later(floor, e)) floor = &e;
+    std::string floor_text = "0";
+    if (floor) {
+      const auto parsed = parse_floor(floor->record->value);
+      floor_text = parsed ? std::to_string(*parsed) : "?" + floor->record->value.value;
     }
+    const Event* text = nullptr;
+    if (geometry && !geometry->record->value.is_literal())
+      if (auto it = wkt_of.find(key_of(geometry->record->value)); it != wkt_of.end()) text = it->second;
     // The place an item states, after all of its records: a new geometry and its WKT come in one.
-    const auto text = text_of.find(geometry);
-    places.push_back((text == text_of.end() ? std::string("none") : place_key(text->second)) + "\n" + floor);
+    places.push_back((text ? place_key(text->record->value.value) : std::string("none")) + "\n" + floor_text);
   }
   std::size_t first = places.size();
   while (first > 0 && (places[first - 1] == places.back() ||
                        (first < places.size() && events[first - 1].record->item == events[first].record->item)))
     --first;
-  // Readings are ordered by arrival: those after the first record (by id) that stated today's
-  // place were taken there.
-  std::uint64_t since = 0;
-  for (std::size_t i = first; i < events.size(); ++i) since = since ? std::min(since, events[i].id) : events[i].id;
-  return since;
+  // Readings are ordered by arrival: those after the first record that stated today's place
+  // were taken there.
+  return first < events.size() ? events[first].id : 0;
 }
 
 // True when `source` is one of `sensors` or lies under one (a sensor that is a node of its own,
