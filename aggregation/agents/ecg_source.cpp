@@ -130,7 +130,8 @@ agg::Result<Signal> record_signal(const std::string& path, std::optional<std::si
   // the ECG lead (the R-peak agent reads them as no signal: tv:invalidSample), and, at the end
   // of a record read from its start, checksums that do not add up.
   s.read = [shared, order, in_record = Frames(), sums = std::vector<std::uint16_t>(h.signals.size()),
-            whole = shared->position() == 0, invalid_said = false](std::size_t n, Frames& out) mutable -> agg::Result<std::size_t> {
+            whole = shared->position() == 0, invalid_count = std::uint64_t{0},
+            first_invalid = std::int64_t{-1}](std::size_t n, Frames& out) mutable -> agg::Result<std::size_t> {
     const agg::RecordHeader& header = shared->header();
     in_record.assign(order.size(), {});
     auto got = shared->read(n, in_record);
@@ -139,12 +140,32 @@ agg::Result<Signal> record_signal(const std::string& path, std::optional<std::si
       for (std::int32_t v : in_record[i]) sums[i] = static_cast<std::uint16_t>(sums[i] + static_cast<std::uint16_t>(v));
     const std::vector<std::int32_t>& ecg_lead = in_record[order[0]];
     const std::int32_t invalid = agg::invalid_sample(header.signals[order[0]]);
-    if (auto at = std::find(ecg_lead.begin(), ecg_lead.end(), invalid); !invalid_said && at != ecg_lead.end()) {
-      invalid_said = true;
-      const std::int64_t sample = shared->position() - static_cast<std::int64_t>(ecg_lead.size()) + (at - ecg_lead.begin());
-      std::cerr << "tahvel-ecg-source: warning: " << header.path << ": signal " << order[0] << " ("
-                << header.signals[order[0]].description << ") holds WFDB's no-value " << invalid << " from sample " << sample
-                << " on: the R-peak agent reads such samples as no signal (the last valid sample held)\n";
+    const std::string lead = "signal " + std::to_string(order[0]) + " (" + header.signals[order[0]].description + ")";
+    auto at_sample = [&](std::int64_t sample) {
+      char text[64];
+      std::snprintf(text, sizeof text, "sample %lld (%.3f s)", static_cast<long long>(sample), static_cast<double>(sample) / header.fs);
+      return std::string(text);
+    };
+    // Said at the first (the agents downstream may be read meanwhile), and counted at the end:
+    // "from sample N on" read as a lead lost for the rest of the record, when a few runs of
+    // half a second were.
+    if (const auto count = static_cast<std::uint64_t>(std::count(ecg_lead.begin(), ecg_lead.end(), invalid)); count > 0) {
+      if (first_invalid < 0) {
+        first_invalid = shared->position() - static_cast<std::int64_t>(ecg_lead.size()) +
+                        (std::find(ecg_lead.begin(), ecg_lead.end(), invalid) - ecg_lead.begin());
+        std::cerr << "tahvel-ecg-source: warning: " << header.path << ": " << lead << " holds WFDB's no-value " << invalid
+                  << ", the first at " << at_sample(first_invalid)
+                  << ": the R-peak agent reads such samples as no signal (the last valid sample held); how many is said at the "
+                     "record's end\n";
+      }
+      invalid_count += count;
+    }
+    if (*got == 0 && invalid_count > 0) {
+      std::cerr << "tahvel-ecg-source: warning: " << header.path << ": " << invalid_count << " sample(s) of " << lead
+                << (whole ? "" : " sent") << " held WFDB's no-value " << invalid << ", the first at " << at_sample(first_invalid)
+                << "\n";
+      invalid_count = 0;  // said once, however often the end is read
+      first_invalid = -1;
     }
     if (*got == 0 && whole)
       for (const std::string& mismatch : agg::checksum_mismatches(header, sums))

@@ -340,7 +340,10 @@ int run_query(const Args& args) {
   query.target = parse_node_iri(args.required("--at"), prefixes, "--at");
   query.pattern = pattern_from_args(args, prefixes);
   query.cascade = cascade_flag(args);
-  query.limit = args.get_u64("--limit", 0);
+  // One record more than --limit is asked for, and not printed: it tells a cut answer from a
+  // whole one (an operator asking for the latest 100 records must know that there are more).
+  const std::uint64_t limit = args.get_u64("--limit", 0);
+  query.limit = limit == 0 || limit == std::numeric_limits<std::uint64_t>::max() ? limit : limit + 1;
   if (auto area = args.get("--area")) {
     if (spatial::looks_like_wkt(*area)) {
       if (auto shape = spatial::parse_shape(*area); !shape) usage_error("--area: " + shape.error().message);
@@ -360,7 +363,14 @@ int run_query(const Args& args) {
   // Each record is one piece of the output: a Ctrl-C ends it after a whole record.
   PieceOutput out;
   std::optional<node::RecordWriter> writer;
-  const std::uint64_t answered = ask_below("query", node, query, timeout, out, [&](const node::Record& r) {
+  std::uint64_t printed = 0;
+  bool more = false;
+  ask_below("query", node, query, timeout, out, [&](const node::Record& r) {
+    if (limit != 0 && printed == limit) {
+      more = true;
+      return;
+    }
+    ++printed;
     if (!writer) writer.emplace(out.stream(), format, prefixes);
     writer->write(r);
     out.end_piece();
@@ -372,8 +382,8 @@ int run_query(const Args& args) {
   // A count for the operator at a terminal; a script's standard error stays empty on success.
   if (isatty(STDERR_FILENO)) {
     auto target = uri::normalize(query.target);
-    std::cerr << "tahvel: query: " << answered << (answered == 1 ? " record" : " records") << " from <"
-              << (target ? *target : query.target) << ">\n";
+    std::cerr << "tahvel: query: " << printed << (printed == 1 ? " record" : " records") << " from <"
+              << (target ? *target : query.target) << ">" << (more ? "; --limit reached, more records match" : "") << "\n";
   }
   return kExitOk;
 }

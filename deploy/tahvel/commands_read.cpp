@@ -118,7 +118,9 @@ int run_list(const Args& args) {
   node::Pattern pattern = pattern_from_args(args, prefixes);
   node::ListOptions options;
   options.cascade = cascade_flag(args);
-  options.limit = args.get_u64("--limit", 0);
+  // One record more than --limit is read, and not printed: it tells a cut answer from a whole one.
+  const std::uint64_t limit = args.get_u64("--limit", 0);
+  options.limit = limit == 0 || limit == std::numeric_limits<std::uint64_t>::max() ? limit : limit + 1;
   node::Format format = format_flag(args, node::Format::ntriples);
   std::optional<spatial::AreaSpec> area;
   if (args.has("--area")) {
@@ -127,17 +129,23 @@ int run_list(const Args& args) {
     usage_error("--floor: only with a WKT --area");
   }
   node::Snapshot snapshot = check(node.snapshot());
+  std::vector<node::Record> records_read;
   if (area) {
     std::vector<std::string> skipped;
     auto records = spatial::list_in_area(snapshot, pattern, *area, options, &skipped);
     if (!records) fail("--area: " + records.error().message);
     // A feature whose place cannot be read is in no area: say so, or it is silently missing.
     for (const std::string& problem : skipped) std::cerr << "list: --area: feature skipped: " << problem << '\n';
-    write_records(std::cout, format, prefixes, *records);
+    records_read = std::move(*records);
   } else {
-    write_records(std::cout, format, prefixes, check(snapshot.list(pattern, options)));
+    records_read = check(snapshot.list(pattern, options));
   }
+  const bool more = limit != 0 && records_read.size() > limit;
+  if (more) records_read.resize(limit);
+  write_records(std::cout, format, prefixes, records_read);
   finish_output(std::cout);
+  // Said to an operator at a terminal only: a script's standard error stays empty on success.
+  if (more && isatty(STDERR_FILENO)) std::cerr << "tahvel: list: --limit reached, more records match\n";
   return kExitOk;
 }
 

@@ -18,6 +18,7 @@
 #include "tahvel/node/node.h"
 #include "agent_process.h"
 #include "temp_dir.h"
+#include "wfdb_record.h"
 
 namespace {
 
@@ -183,6 +184,29 @@ TEST_F(EcgSourceTest, EachLeadOfARecordKeepsItsOwnCalibration) {
   EXPECT_EQ(info.invalid_sample, -32768);
   EXPECT_EQ(info.calibration[0].invalid_sample, -32768);
   EXPECT_EQ(info.calibration[1].invalid_sample, -32768);
+}
+
+// Runs of WFDB's no-value in the ECG lead: said at the first, where it is, and counted at the
+// record's end, as `tahvel hrv` counts them. "from sample N on" alone read as a lead lost for
+// the rest of the record, when two short runs were.
+TEST_F(EcgSourceTest, NoValueSamplesAreSaidAtTheFirstAndCountedAtTheEnd) {
+  const std::string dir = new_node("novalue");
+  std::vector<std::int32_t> samples(3600, 1024);
+  std::fill(samples.begin() + 720, samples.begin() + 730, -32768);    // 10 at 2 s
+  std::fill(samples.begin() + 1800, samples.begin() + 1805, -32768);  // 5 at 5 s
+  const std::string record = tahvel::test_support::write_format16_record(tmp_.path(), "novalue", samples);
+  const std::string log = (tmp_ / "novalue.log").string();
+  tahvel::test_support::AgentProcess source(
+      {std::string(TAHVEL_BIN_DIR) + "/tahvel-ecg-source", dir, "--record", record, "--speed", "0"}, log);
+  ASSERT_EQ(source.wait(std::chrono::seconds(60)), 0);
+  std::ifstream in(log);
+  const std::string said((std::istreambuf_iterator<char>(in)), std::istreambuf_iterator<char>());
+  EXPECT_NE(said.find("signal 0 (ECG) holds WFDB's no-value -32768, the first at sample 720 (2.000 s)"), std::string::npos)
+      << said;
+  EXPECT_NE(said.find("15 sample(s) of signal 0 (ECG) held WFDB's no-value -32768, the first at sample 720 (2.000 s)"),
+            std::string::npos)
+      << said;
+  EXPECT_EQ(said.find(" on:"), std::string::npos) << said;
 }
 
 // A record whose ECG is not the lead the source would choose (an unnamed signal after a named
