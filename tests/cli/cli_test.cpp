@@ -112,6 +112,40 @@ class Cli : public ::testing::Test {
     spit(tmp_ / "eth9.xml", config);
   }
 
+  // The same with standard error on a terminal (a pseudo-terminal), as an operator runs a
+  // command: what it says only to a person there. Standard error as the terminal shows it.
+  Outcome run_at_terminal(const std::vector<std::string>& args) {
+    int n = ++runs_;
+    const int master = posix_openpt(O_RDWR | O_NOCTTY);
+    if (master < 0 || grantpt(master) != 0 || unlockpt(master) != 0) {
+      ADD_FAILURE() << "no pseudo-terminal: " << std::strerror(errno);
+      return {};
+    }
+    const std::string terminal = ptsname(master);
+    spit(tmp_ / ("in" + std::to_string(n)), "");
+    pid_t pid = fork();
+    if (pid == 0) {
+      close(master);
+      redirect(tmp_ / ("in" + std::to_string(n)), 0, O_RDONLY);
+      redirect(tmp_ / ("out" + std::to_string(n)), 1, O_WRONLY | O_CREAT | O_TRUNC);
+      redirect(terminal, 2, O_RDWR | O_NOCTTY);
+      std::vector<char*> argv{const_cast<char*>(kBin.c_str())};
+      for (const std::string& a : args) argv.push_back(const_cast<char*>(a.c_str()));
+      argv.push_back(nullptr);
+      execv(kBin.c_str(), argv.data());
+      _exit(127);
+    }
+    // Read until the child's end closes the terminal (EIO), so that it never blocks on a full one.
+    std::string shown;
+    char buffer[4096];
+    for (ssize_t got; (got = read(master, buffer, sizeof buffer)) > 0 || (got < 0 && errno == EINTR);)
+      if (got > 0) shown.append(buffer, static_cast<std::size_t>(got));
+    close(master);
+    Outcome r = finish(pid, n);
+    r.err = shown;
+    return r;
+  }
+
   // The same, run in the directory `cwd` (for relative paths as a user gives them).
   Outcome run_in(const fs::path& cwd, const std::vector<std::string>& args) {
     int n = ++runs_;
@@ -299,6 +333,34 @@ TEST_F(Cli, InitMaxMapBelowOneMebibyteIsAUsageErrorNamingTheFlagAndTheMinimum) {
   EXPECT_FALSE(fs::exists(fs::path(node_) / "data.mdb"));
   Outcome least = run({"init", node_, "--iri", kNodeIri, "--max-map", "1048576"});
   EXPECT_EQ(least.status, 0) << least.err;
+}
+
+// An answer cut by --limit says so to the operator at a terminal: "5 records" looked the same
+// whether 5 matched or 1,180 did. A whole answer says nothing more, and a script's standard
+// error stays empty.
+TEST_F(Cli, ListAndQuerySayAtATerminalWhenLimitCutTheAnswer) {
+  init();
+  put("<http://example.org/a> <http://example.org/p> 1, 2, 3 .");
+  Outcome cut = run_at_terminal({"list", node_, "--limit", "2"});
+  EXPECT_EQ(cut.status, 0) << cut.err;
+  EXPECT_EQ(lines_of(cut.out).size(), 2u) << cut.out;
+  EXPECT_NE(cut.err.find("tahvel: list: --limit reached, more records match"), std::string::npos) << cut.err;
+  Outcome whole = run_at_terminal({"list", node_, "--limit", "3", "-p", "http://example.org/p"});
+  EXPECT_EQ(lines_of(whole.out).size(), 3u) << whole.out;
+  EXPECT_EQ(whole.err.find("--limit reached"), std::string::npos) << whole.err;
+  Outcome asked = run_at_terminal({"query", node_, "--at", kNodeIri, "-p", "http://example.org/p", "--limit", "2"});
+  EXPECT_EQ(asked.status, 0) << asked.err;
+  EXPECT_EQ(lines_of(asked.out).size(), 2u) << asked.out;
+  EXPECT_NE(asked.err.find("2 records from <" + std::string(kNodeIri) + ">; --limit reached, more records match"),
+            std::string::npos)
+      << asked.err;
+  Outcome all = run_at_terminal({"query", node_, "--at", kNodeIri, "-p", "http://example.org/p", "--limit", "3"});
+  EXPECT_EQ(lines_of(all.out).size(), 3u) << all.out;
+  EXPECT_NE(all.err.find("3 records from <"), std::string::npos) << all.err;
+  EXPECT_EQ(all.err.find("--limit reached"), std::string::npos) << all.err;
+  Outcome script = run({"query", node_, "--at", kNodeIri, "-p", "http://example.org/p", "--limit", "2"});
+  EXPECT_EQ(lines_of(script.out).size(), 2u) << script.out;
+  EXPECT_EQ(script.err, "");
 }
 
 TEST_F(Cli, UnknownSubcommandExits2) {
