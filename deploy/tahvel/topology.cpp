@@ -204,6 +204,36 @@ std::string utf8_prefix(const std::string& text, std::size_t bytes) {
   return text.substr(0, bytes);
 }
 
+// A node's link runs its DDS end up to the parent and its DDS end down to its children in one
+// process, and Cyclone DDS runs one configuration per domain in a process: a node that listens
+// on its parent's domain under another configuration had a link that failed at every start
+// ("DDS domain 4 already runs in this process with another configuration"). The files are
+// compared by content (two copies of one file are one configuration); no file is Cyclone's
+// CYCLONEDDS_URI, which may or may not be the other.
+node::Result<void> check_one_dds_configuration_per_domain(const Topology& topo) {
+  auto text_of = [](const std::string& path) {
+    std::ifstream in(path, std::ios::binary);
+    return std::string((std::istreambuf_iterator<char>(in)), std::istreambuf_iterator<char>());
+  };
+  auto named = [](const LinkSpec& l) { return l.dds_config.empty() ? std::string("no config (CYCLONEDDS_URI)") : "config " + l.dds_config; };
+  for (const auto& n : topo.nodes) {
+    const LinkSpec* up = topo.uplink(n);
+    if (!up || up->kind != "dds") continue;
+    for (const LinkSpec& l : n.listen) {
+      if (l.kind != "dds" || l.dds_domain != up->dds_domain) continue;
+      if (l.dds_config.empty() != up->dds_config.empty() ||
+          (!l.dds_config.empty() && l.dds_config != up->dds_config && text_of(l.dds_config) != text_of(up->dds_config)))
+        return node::fail(Errc::invalid_argument,
+                          l.url_at + ": node '" + n.id + "': listens on DDS domain " + std::to_string(l.dds_domain) + " with " +
+                              named(l) + ", and its link up to '" + n.parent + "' is on domain " +
+                              std::to_string(up->dds_domain) + " with " + named(*up) +
+                              ": one link process runs one Cyclone DDS configuration per domain, so this node's link "
+                              "would fail at every start; give both the same config, or listen on another domain");
+    }
+  }
+  return {};
+}
+
 node::Result<void> check_lcm_ports_clear_of_dds(const Topology& topo) {
   std::map<std::uint32_t, std::string> dds_domains;  // domain -> a node listening on it
   for (const auto& n : topo.nodes)
@@ -555,6 +585,7 @@ node::Result<Topology> load_topology(const std::filesystem::path& file) {
         }
   }
   if (auto clear = check_lcm_ports_clear_of_dds(topo); !clear) return Unexpected<node::Error>{clear.error()};
+  if (auto one = check_one_dds_configuration_per_domain(topo); !one) return Unexpected<node::Error>{one.error()};
   return topo;
 }
 

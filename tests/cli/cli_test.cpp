@@ -2541,6 +2541,45 @@ TEST_F(Cli, UpRefusesAnLcmPortAmongTheDdsDomainsPorts) {
   }
 }
 
+// A ward that listens for its homes on the hospital's DDS domain under another Cyclone DDS
+// configuration: its link runs both ends in one process, one configuration per domain, and
+// failed at every start while `up` said nothing. Two copies of one file are one configuration;
+// another domain is another configuration's place.
+TEST_F(Cli, UpRefusesANodeListeningOnItsParentsDdsDomainUnderAnotherConfiguration) {
+  const std::string loopback = slurp(fs::path(TAHVEL_SOURCE_DIR) / "deploy" / "cyclonedds-loopback.xml");
+  spit(tmp_ / "a.xml", loopback);
+  spit(tmp_ / "copy.xml", loopback);
+  std::string other = loopback;
+  const std::string lo = "<NetworkInterface name=\"lo\"";
+  ASSERT_NE(other.find(lo), std::string::npos);
+  other.replace(other.find(lo), lo.size(), "<NetworkInterface name=\"eth9\"");
+  spit(tmp_ / "b.xml", other);
+  auto topology = [](const std::string& ward_listen) {
+    return "[[node]]\nid = \"hospital\"\niri = \"http://example.org/hospital\"\n"
+           "listen = { kind = \"dds\", domain = 4, config = \"a.xml\" }\n\n"
+           "[[node]]\nid = \"ward\"\nparent = \"hospital\"\nlisten = " + ward_listen + "\n\n"
+           "[[node]]\nid = \"home1\"\nparent = \"ward\"\n";
+  };
+  const std::string state = (tmp_ / "state").string();
+  for (const std::string& listen : {std::string("{ kind = \"dds\", domain = 4, config = \"b.xml\" }"),
+                                    std::string("{ kind = \"dds\", domain = 4 }")}) {
+    spit(tmp_ / "ward.toml", topology(listen));
+    Outcome up = run({"up", (tmp_ / "ward.toml").string(), "--state", state, "--node", "nobody"});
+    EXPECT_EQ(up.status, 1) << listen;
+    EXPECT_NE(up.err.find("ward.toml:9:"), std::string::npos) << up.err;  // the line of the ward's listen
+    EXPECT_NE(up.err.find("node 'ward': listens on DDS domain 4 with "), std::string::npos) << up.err;
+    EXPECT_NE(up.err.find("its link up to 'hospital' is on domain 4 with config " + (tmp_ / "a.xml").string()), std::string::npos)
+        << up.err;
+  }
+  for (const std::string& listen : {std::string("{ kind = \"dds\", domain = 4, config = \"copy.xml\" }"),
+                                    std::string("{ kind = \"dds\", domain = 4, config = \"a.xml\" }"),
+                                    std::string("{ kind = \"dds\", domain = 5, config = \"b.xml\" }")}) {
+    spit(tmp_ / "ward.toml", topology(listen));
+    Outcome up = run({"up", (tmp_ / "ward.toml").string(), "--state", state, "--node", "nobody"});
+    EXPECT_NE(up.err.find("--node 'nobody': no such node"), std::string::npos) << listen << ": " << up.err;
+  }
+}
+
 // An agent that finishes (exit 0) stays finished under the default restart policy — a replay
 // is not replayed again — while restart = "always" runs it again and "never" does not retry
 // a failure.
