@@ -11,6 +11,7 @@
 
 #include "tahvel/agents/supervisor.h"
 #include "tahvel/node/error.h"
+#include "tahvel/uri/iri.h"
 
 namespace tahvel::cli {
 
@@ -33,7 +34,7 @@ struct AgentSpec {
 
 // A node id's most bytes: the state directory names files after it, the longest being
 // supervisor-<id>.apply.lock, and a file name has at most 255 bytes.
-inline constexpr std::size_t kMaxNodeIdBytes = 200;
+inline constexpr std::size_t kMaxNodeIdBytes = uri::kMaxIdBytes;
 
 struct NodeSpec {
   std::string id;

@@ -344,6 +344,16 @@ TEST(Iri, CheckIdRejectsTheSubtreeStarButNotAStarInAnId) {
   EXPECT_FALSE(child_node_iri("http://h", "*"));
 }
 
+// Files are named after ids: an agent of 250 bytes could not make its lock file and restarted
+// for ever, and one of 253 never started while `up` said it had.
+TEST(Iri, CheckIdRejectsAnIdLongerThanAFileNameCanCarry) {
+  EXPECT_TRUE(check_id(std::string(kMaxIdBytes, 'a')));
+  const auto long_one = err(check_id(std::string(kMaxIdBytes + 1, 'a')));
+  EXPECT_EQ(long_one.position, kMaxIdBytes);
+  EXPECT_TRUE(contains(long_one.message, "an id is at most 200 bytes (files are named after ids); this one has 201")) << long_one.message;
+  EXPECT_FALSE(agent_iri("http://h", std::string(250, 'a')));
+}
+
 TEST(Iri, CheckIdRejectsWhitespace) {
   EXPECT_EQ(err(check_id(" ")).position, 0u);
   EXPECT_EQ(err(check_id("a b")).position, 1u);

@@ -75,6 +75,11 @@ std::optional<Failure> id_failure(std::string_view id) {
   if (id == "." || id == "..") return Failure{0, "'.' and '..' are path steps, not ids"};
   // A child "*" would have the IRI <parent>/*, which addresses the parent's whole subtree.
   if (id == "*") return Failure{0, "'*' is not an id: <X>/* addresses the whole subtree of node X (docs/protocol.md P11)"};
+  // Files are named after ids (an agent's lock and log, a node's state directory): a longer one
+  // made an agent that could not start, over and over ("File name too long").
+  if (id.size() > kMaxIdBytes)
+    return Failure{kMaxIdBytes, "an id is at most " + std::to_string(kMaxIdBytes) + " bytes (files are named after ids); this one has " +
+                                    std::to_string(id.size())};
   for (std::size_t pos = 0; pos < id.size();) {
     detail::CodePoint cp = detail::decode_utf8(id, pos);
     if (cp.length == 0 || forbidden_in_id(cp.value)) {

@@ -36,10 +36,15 @@ bool is_valid(std::string_view text);
 // and normalises the result.
 IriResult<std::string> resolve(std::string_view base, std::string_view reference);
 
-// Checks an agent or child-node id: non-empty, no '/', '?', '#', whitespace or control
-// characters, not "." or ".." or "*" (<X>/* is X's whole subtree), and in Unicode normalization form C (composed characters: ids
-// that look alike are byte for byte alike). Returns the id unchanged, or an error naming the
-// position. child_id, agent_iri and child_node_iri check ids so too.
+// An id's most bytes: files are named after ids (an agent's lock and log files, a node's state
+// directory and its supervisor's files), and a file name has at most 255 bytes.
+inline constexpr std::size_t kMaxIdBytes = 200;
+
+// Checks an agent or child-node id: non-empty, at most kMaxIdBytes bytes, no '/', '?', '#',
+// whitespace or control characters, not "." or ".." or "*" (<X>/* is X's whole subtree), and in
+// Unicode normalization form C (composed characters: ids that look alike are byte for byte
+// alike). Returns the id unchanged, or an error naming the position. child_id, agent_iri and
+// child_node_iri check ids so too.
 IriResult<std::string> check_id(std::string_view id);
 
 // The IRI of a node that has no parent here (a store's `init`, a topology's root): parsed and
