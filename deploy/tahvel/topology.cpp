@@ -344,6 +344,12 @@ node::Result<Topology> load_topology(const std::filesystem::path& file) {
     NodeSpec spec;
     TAHVEL_TRY(id, typed<std::string>(*t, "id", file, "node: ", "a string"));
     if (!id) return node::fail(Errc::invalid_argument, where(*t, file) + ": a node needs an id");
+    // The longest name made of an id, supervisor-<id>.apply.lock, must fit a file name (255 bytes).
+    // Said before check_id, which would quote the whole id.
+    if (id->size() > kMaxNodeIdBytes)
+      return node::fail(Errc::invalid_argument, where(*t, file) + ": node id '" + utf8_prefix(*id, 40) + "...' is " +
+                                                    std::to_string(id->size()) + " bytes long; at most " +
+                                                    std::to_string(kMaxNodeIdBytes) + " are allowed (the state directory names files after it)");
     // check_id's message shows the id with its control characters escaped: not quoted raw here too.
     if (auto ok = uri::check_id(*id); !ok) return node::fail(Errc::invalid_argument, where(*t, file) + ": node id: " + ok.error().message);
     spec.id = *id;
@@ -356,11 +362,6 @@ node::Result<Topology> load_topology(const std::filesystem::path& file) {
       return node::fail(Errc::invalid_argument,
                         where(*t, file) + ": node id '" + spec.id +
                             "' is taken by the state directory's own files (logs/, all, .*, supervisor-*, *.making)");
-    // The longest name made of an id, supervisor-<id>.apply.lock, must fit a file name (255 bytes).
-    if (spec.id.size() > kMaxNodeIdBytes)
-      return node::fail(Errc::invalid_argument, where(*t, file) + ": node id '" + utf8_prefix(spec.id, 40) + "...' is " +
-                                                    std::to_string(spec.id.size()) + " bytes long; at most " +
-                                                    std::to_string(kMaxNodeIdBytes) + " are allowed (the state directory names files after it)");
     const std::string what = "node '" + spec.id + "': ";
     if (auto ok = only_keys(*t, {"id", "iri", "tier", "parent", "up", "listen", "store", "forward", "behaviours", "load", "agent"}, file, what); !ok)
       return Unexpected<node::Error>{ok.error()};
