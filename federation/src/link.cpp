@@ -21,6 +21,7 @@
 #include <cstring>
 #include <deque>
 #include <iostream>
+#include <limits>
 #include <map>
 #include <mutex>
 #include <random>
@@ -338,6 +339,9 @@ struct Link::Impl {
   // P6c: a welcome whose mark is 0; the up loop puts the persistent items its policy routes into
   // the outbox again. Under mu.
   bool resend_persistent = false;
+  // P6d: a welcome with a mark above 0; the uplink puts back into its outbox what it took out
+  // after that mark (a parent store restored from a backup acknowledged it, then lost it).
+  bool requeue_after_welcome = false;
   std::string parent_store_id;  // from the welcome: names the down stream (P6a); under mu
   std::uint64_t up_mark = 0;       // the parent's mark of our stream: applied there
   std::uint64_t up_last_sent = 0;  // the seq of the last up frame sent
@@ -1752,8 +1756,11 @@ struct Link::Impl {
         if (state && state->store_id != parent_store_id) {
           if (!parent_store_id.empty())
             log("the parent <" + opt.parent_iri + "> has another store (id " + state->store_id + ", was " +
-                parent_store_id + "): what comes down is a new stream, from its start; of what went up to the store "
-                "before, only persistent items are sent again (P6c): the others it had are not in this one");
+                parent_store_id + "): what comes down is a new stream, from its start; " +
+                (f.ack == 0 ? std::string("of what went up to the store before, only persistent items are sent again "
+                                          "(P6c): the others it had are not in this one")
+                            : "it holds this node's stream up to " + std::to_string(f.ack) +
+                                  " (a store restored from a backup, which took a new id): what it lacks after that goes up again (P6d)"));
           if (parent_flips.saw(parent_store_id, state->store_id, "the parent <" + opt.parent_iri + ">"))
             log("conflict: " + parent_flips.said());
           parent_store_id = state->store_id;
@@ -1771,6 +1778,7 @@ struct Link::Impl {
         // The parent holds nothing of this store's stream: a first welcome, or a parent store
         // made again (a replaced gateway) that never got what the one before it applied.
         if (f.ack == 0) resend_persistent = true;
+        else requeue_after_welcome = true;
         up_mark = f.ack;
         up_last_sent = f.ack;
         up_in_flight.clear();
@@ -2338,7 +2346,7 @@ struct Link::Impl {
     while (!stopping) {
       std::uint64_t after = 0, mark = 0;
       std::size_t room = 0;
-      bool resend = false;
+      bool resend = false, requeue = false;
       {
         std::unique_lock lock(mu);
         if (!welcomed) {
@@ -2346,6 +2354,7 @@ struct Link::Impl {
           continue;
         }
         resend = std::exchange(resend_persistent, false);
+        requeue = std::exchange(requeue_after_welcome, false);
         while (!up_in_flight.empty() && up_in_flight.front() <= up_mark) up_in_flight.pop_front();
         if (up_go_back || (!up_in_flight.empty() && Clock::now() - up_progress > opt.resend_after)) {
           up_last_sent = up_mark;  // P8: go back to the parent's mark
@@ -2376,6 +2385,22 @@ struct Link::Impl {
           log("the parent <" + opt.parent_iri + "> holds nothing of this store's stream (a new store in its place): " +
               std::to_string(*again) + " persistent item(s) its policy routes go up again");
           acked_locally = 0;  // they have ids below what the store before acknowledged
+        }
+      }
+      if (requeue) {
+        // P6d: the outbox is emptied up to the parent's mark only, so what it lacks after the
+        // welcome's mark and before what waits in the outbox was acknowledged by a store the
+        // parent no longer is (restored from a backup). Read up to the first item waiting, not
+        // the whole store: a link restarted with a long backlog looks at no more than its gap.
+        auto waiting = uplink->peek(mark, 1, 0ms);
+        const std::uint64_t before = waiting && !waiting->empty() ? waiting->front().item : std::numeric_limits<std::uint64_t>::max();
+        if (auto again = uplink->deliver_again_between(mark, before); !again) {
+          log("cannot queue for the parent again what it acknowledged before its mark went back: " + again.error().message);
+        } else if (*again > 0) {
+          log("the parent <" + opt.parent_iri + "> holds this store's stream up to " + std::to_string(mark) +
+              " only, though it had acknowledged more (its store restored from a backup?): " + std::to_string(*again) +
+              " item(s) it acknowledged after that go up again (P6d)");
+          acked_locally = std::min(acked_locally, mark);
         }
       }
       auto ready = uplink->peek(after, room, 50ms);

@@ -922,6 +922,12 @@ Result<std::uint64_t> Agent::deliver_persistent_again(Redelivery which) {
   });
 }
 
+Result<std::uint64_t> Agent::deliver_again_between(std::uint64_t after, std::uint64_t before) {
+  return impl_->change_own_buffer([after, before](detail::Txn& txn, std::uint64_t agent, const std::string& agent_iri) {
+    return detail::deliver_again(txn, agent, agent_iri, false, after, before);
+  });
+}
+
 Result<std::vector<std::uint64_t>> Agent::written(std::uint64_t after, std::size_t limit) const {
   ReadTxn read(*impl_->env);
   if (auto r = read.begin(); !r) return unexpected(r.error());

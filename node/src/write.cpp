@@ -1225,8 +1225,8 @@ Result<HeldCopies> held_copies(MDB_txn* txn, const Env& env, const Item& notice,
   return out;
 }
 
-Result<std::uint64_t> deliver_persistent_again(Txn& txn, std::uint64_t agent, const std::string& agent_iri,
-                                               bool addressed_too) {
+Result<std::uint64_t> deliver_again(Txn& txn, std::uint64_t agent, const std::string& agent_iri, bool persistent_only,
+                                    std::uint64_t after, std::uint64_t before) {
   auto subs = load_subscriptions(txn);
   if (!subs) return unexpected(subs.error());
   TermReader reader(txn.raw(), txn.env());
@@ -1248,10 +1248,19 @@ Result<std::uint64_t> deliver_persistent_again(Txn& txn, std::uint64_t agent, co
       pattern.context = *context;
     }
     if (sub.source) pattern.source = sub.source_iri;
-    auto n = deliver_earlier(txn, agent, agent_iri, pattern, std::numeric_limits<std::uint64_t>::max(), true);
+    if (after != 0) pattern.after_id = after;
+    auto n = deliver_earlier(txn, agent, agent_iri, pattern, before, persistent_only);
     if (!n) return unexpected(n.error());
     delivered += *n;
   }
+  return delivered;
+}
+
+Result<std::uint64_t> deliver_persistent_again(Txn& txn, std::uint64_t agent, const std::string& agent_iri,
+                                               bool addressed_too) {
+  auto subscribed = deliver_again(txn, agent, agent_iri, true, 0, std::numeric_limits<std::uint64_t>::max());
+  if (!subscribed) return unexpected(subscribed.error());
+  const std::uint64_t delivered = *subscribed;
   if (!addressed_too) return delivered;
   // And those addressed to it (R18: a context under its IRI), which no subscription names: the
   // settings written on a parent for a child's node, which its link agent there carries down.
@@ -1260,6 +1269,7 @@ Result<std::uint64_t> deliver_persistent_again(Txn& txn, std::uint64_t agent, co
   // writer is the item's output buffer, as when the item was stored and routed.
   if (auto f = flush_index(txn); !f) return unexpected(f.error());
   const std::string& node_iri = txn.env().settings().iri;
+  TermReader reader(txn.raw(), txn.env());
   std::vector<std::uint64_t> addressed;
   {
     MDB_cursor* cursor = nullptr;

@@ -423,6 +423,37 @@ TEST(Link, APersistentItemOfAStoreRestoredFromABackupIsNotDoubledAtTheParent) {
   EXPECT_EQ(count(tree.hospital_dir, numbered), 13u);
 }
 
+// P6d: a hospital whose store is restored from a backup holds home1's stream only up to the
+// backup, though it had acknowledged more, and home1 had emptied its outbox of that. Those items
+// go up again (home1 still holds them), persistent or not; the home's link restarted meanwhile,
+// so it knows of the gap only from its outbox. They were lost, without a word in either log.
+TEST(Link, ItemsAParentRestoredFromABackupHadAcknowledgedGoUpAgain) {
+  Tree tree;
+  ASSERT_NO_FATAL_FAILURE(home1_sends_a_description_and_five_items(tree));
+  tree.hospital.reset();
+  const std::string backup = (tree.tmp / "hospital-backup").string();
+  std::filesystem::copy(tree.hospital_dir, backup, std::filesystem::copy_options::recursive);
+  tree.hospital = tree.start_hospital();
+  node::Item setting = hrv_item(8);
+  setting.persistent = true;
+  ASSERT_TRUE(node::Node::open(tree.home1_dir).value().agent("hrv").value().store(setting));
+  ASSERT_TRUE(home1_sends(tree, 100, 5, 12));
+  tree.hospital.reset();
+  std::filesystem::remove_all(tree.hospital_dir);
+  std::filesystem::rename(backup, tree.hospital_dir);
+  tree.home1.reset();
+  tree.home1 = tree.start_home(tree.home1_dir, kHome1, tree.home1_log);
+  tree.hospital = tree.start_hospital();
+  store_hrv_items(tree.home1_dir, 200, 2);
+  const node::Pattern numbered{.p = Term::iri(kEx + "n")};
+  EXPECT_TRUE(eventually([&] { return count(tree.hospital_dir, numbered) == 14 && outbox(tree.home1_dir) == 0; }))
+      << count(tree.hospital_dir, numbered) << " at the hospital, " << outbox(tree.home1_dir) << " in the outbox";
+  std::this_thread::sleep_for(300ms);
+  for (int n : {0, 1, 2, 3, 4, 7, 8, 100, 101, 102, 103, 104, 200, 201})
+    EXPECT_EQ(count(tree.hospital_dir, {.p = Term::iri(kEx + "n"), .o = Term::integer(n)}), 1u) << n;
+  EXPECT_TRUE(tree.home1_log.has("6 item(s) it acknowledged after that go up again (P6d)")) << tree.home1_log.text();
+}
+
 // P6a: the same downwards. A hospital whose store is made again issues configuration with ids
 // that a home has applied already from the old store; the home still gets it.
 TEST(Link, ConfigurationFromAParentWhoseStoreIsMadeAgainArrives) {
