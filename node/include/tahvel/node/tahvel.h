@@ -202,7 +202,9 @@ tahvel_status tahvel_remove_item(tahvel_node* node, uint64_t item, unsigned casc
  * it). The id is one IRI path segment: non-empty, not "." or ".." (nor a percent-escaped
  * form of them), in Unicode NFC, and without '/', '?', '#', whitespace, control characters or
  * the characters an IRI may not hold ('<', '>', '"', '{', '}', '|', '\\', '^', '`', '[', ']').
- * Spellings that name one IRI ("%41" and "A") are one agent.
+ * Spellings that name one IRI ("%41" and "A": a percent-escape of an unreserved ASCII
+ * character, RFC 3986 6.2.2.2) are one agent; a percent-escaped non-ASCII character ("%C3%A9")
+ * is not that character ("é"), as two RDF IRIs that differ so are two IRIs.
  * Opening a handle with the same id again (for example after a restart) gives the same input
  * buffer: items taken but not acknowledged by the previous handle are delivered again.
  * Close the handle with tahvel_agent_close(); it may outlive `node`.
