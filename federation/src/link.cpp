@@ -1856,15 +1856,17 @@ struct Link::Impl {
           CannotStoreSaid& said = parent_cannot_store_said;
           const bool new_kind = reason_kind(why) != reason_kind(said.why);
           // Said again only after the parent stored since (a store hovering at full); a parent
-          // that stays full says so once a second, and that is one episode.
-          if (new_kind || (parent_cannot_store.empty() && Clock::now() - said.at >= kRelayFailureSaidEvery)) {
+          // that stays full says so once a second, and that is one episode. One whose last line
+          // is "stores again" (a late ack moved the mark) and that refuses on is said again 10 s
+          // after: the log ended on "stores again" while the parent stored nothing for minutes.
+          if (new_kind || ((parent_cannot_store.empty() || !said.open) && Clock::now() - said.at >= kRelayFailureSaidEvery)) {
             log("the parent <" + opt.parent_iri + "> cannot store what this node sends: " + why +
                 "; items wait in the outbox, sent one at a time until it can" +
                 (said.unsaid > 0 && !new_kind
                      ? " (and " + std::to_string(said.unsaid) + " times more since it was last said, storing some between)"
                      : ""));
             said = {why, Clock::now(), true, 0};
-          } else if (parent_cannot_store.empty()) {
+          } else if (parent_cannot_store.empty() || !said.open) {
             ++said.unsaid;
           }
           parent_cannot_store = why;
