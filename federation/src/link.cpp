@@ -3115,10 +3115,26 @@ struct Link::Impl {
           previous.push_back({.s = node::Term::iri(child.iri), .source = link.iri()});
         }
       }
-      if (auto stored = link.replace(previous, items); !stored)
-        log("cannot write the state of " + std::to_string(items.size()) + " child(ren): " + stored.error().message);
+      if (auto stored = link.replace(previous, items); !stored) {
+        // Once per 10 s and kind of reason, as P9b's lines: a full store refused it every 2 s.
+        const std::string& why = stored.error().message;
+        StateWriteFailure& said = state_write_failure;
+        if (reason_kind(why) != reason_kind(said.why) || Clock::now() - said.at >= kRelayFailureSaidEvery) {
+          log("cannot write the state of " + std::to_string(items.size()) + " child(ren): " + why +
+              (said.unsaid > 0 ? " (and " + std::to_string(said.unsaid) + " times more since it was last said)" : ""));
+          said = {why, Clock::now(), 0};
+        } else {
+          ++said.unsaid;
+        }
+      }
     }
   }
+  // The last failure to write the children's state, as logged (write_child_states' thread only).
+  struct StateWriteFailure {
+    std::string why;
+    Clock::time_point at{};
+    std::uint64_t unsaid = 0;
+  } state_write_failure;
 
   // P12a: this node's view of its uplink as one persistent item about the node, written by its
   // agent `link` when what it says changes and every kStateRefreshNs while the link is up, so
