@@ -1539,6 +1539,8 @@ void apply_requested(Deployment& deployment, const fs::path& pid_file, const age
   // CYCLONEDDS_URI as the links will read it: this supervisor's.
   if (topo)
     if (auto ok = check_cyclone_uri(*topo, nodes_brought_up(*topo, deployment.only())); !ok) topo = Unexpected<node::Error>{ok.error()};
+    else if (auto fits = check_dds_participants(*topo, nodes_brought_up(*topo, deployment.only())); !fits)
+      topo = Unexpected<node::Error>{fits.error()};
   if (!topo) {
     answer += "error: " + topo.error().message + "\n";
     log("up: cannot apply " + file + ": " + topo.error().message);
@@ -1664,6 +1666,7 @@ int run_up(const Args& args) {
   // apply in its own (apply_requested).
   if (running == 0)
     if (auto ok = check_cyclone_uri(topo, mine); !ok) fail(ok.error().message);
+  if (auto fits = check_dds_participants(topo, mine); !fits) fail(fits.error().message);
   for (const NodeSpec* spec : mine) {
     const fs::path store = state / spec->id;
     if (fs::exists(store / "data.mdb")) {

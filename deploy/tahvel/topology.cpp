@@ -686,6 +686,57 @@ CommandContext CommandContext::of_this_process() {
   return context;
 }
 
+node::Result<void> check_dds_participants(const Topology& topo, const std::vector<const NodeSpec*>& here) {
+  // Per domain: the link processes on it here (one participant each, whichever ends they run),
+  // and the listen whose config they take.
+  std::map<std::uint32_t, std::pair<std::set<std::string>, const LinkSpec*>> domains;
+  std::map<std::uint32_t, std::string> listener;  // domain -> the node whose listen it is
+  for (const NodeSpec* spec : here) {
+    for (const LinkSpec& l : spec->listen)
+      if (l.kind == "dds") {
+        auto& [nodes, link] = domains[l.dds_domain];
+        nodes.insert(spec->id);
+        if (!link) link = &l, listener[l.dds_domain] = spec->id;
+      }
+    if (const LinkSpec* up = topo.uplink(*spec); up && up->kind == "dds") {
+      auto& [nodes, link] = domains[up->dds_domain];
+      nodes.insert(spec->id);
+      if (!link) link = up, listener[up->dds_domain] = spec->parent;
+    }
+  }
+  for (const auto& [domain, users] : domains) {
+    const auto& [nodes, link] = users;
+    if (link->dds_config.empty()) continue;  // Cyclone's defaults or CYCLONEDDS_URI: not read here
+    std::ifstream in(link->dds_config, std::ios::binary);
+    const std::string xml((std::istreambuf_iterator<char>(in)), std::istreambuf_iterator<char>());
+    // Only "auto" participant indices run out: the default ("none") takes any free port.
+    auto element = [&](const std::string& name) -> std::optional<std::string> {
+      const std::size_t open = xml.find("<" + name + ">");
+      if (open == std::string::npos) return std::nullopt;
+      const std::size_t from = open + name.size() + 2, close = xml.find("</" + name + ">", from);
+      if (close == std::string::npos) return std::nullopt;
+      std::string value = xml.substr(from, close - from);
+      value.erase(0, value.find_first_not_of(" \t\r\n"));
+      value.erase(value.find_last_not_of(" \t\r\n") + 1);
+      return value;
+    };
+    const auto index = element("ParticipantIndex");
+    if (!index || *index != "auto") continue;
+    const auto most = element("MaxAutoParticipantIndex");
+    // Cyclone's default when the element is absent: 9.
+    const unsigned long max_index = most ? std::strtoul(most->c_str(), nullptr, 10) : 9;
+    if (nodes.size() <= max_index + 1) continue;
+    return node::fail(Errc::invalid_argument,
+                      link->url_at + ": node '" + listener[domain] + "': " + std::to_string(nodes.size()) +
+                          " nodes' links would run on DDS domain " + std::to_string(domain) + " on this machine, but its config " +
+                          link->dds_config + " gives participant indices 0.." + std::to_string(max_index) +
+                          " (MaxAutoParticipantIndex, ParticipantIndex auto): the links beyond the first " +
+                          std::to_string(max_index + 1) + " would fail at every start (\"Failed to find a free participant "
+                          "index\"); raise MaxAutoParticipantIndex there, or bring up fewer nodes on this machine (--node)");
+  }
+  return {};
+}
+
 node::Result<void> check_cyclone_uri(const Topology& topo, const std::vector<const NodeSpec*>& here) {
   for (const NodeSpec* spec : here) {
     std::vector<std::pair<const LinkSpec*, std::string>> links;  // the link, and whose listen it is

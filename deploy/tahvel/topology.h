@@ -84,6 +84,12 @@ node::Result<Topology> load_topology(const std::filesystem::path& file);
 // at each restart).
 node::Result<void> check_cyclone_uri(const Topology& topo, const std::vector<const NodeSpec*>& here);
 
+// Cyclone DDS gives each process on a host a participant index, up to the config's
+// MaxAutoParticipantIndex when ParticipantIndex is "auto" (the shipped loopback file: 50): for
+// the nodes `here`, an error naming the listen when more of their links would run on one domain
+// than that allows (those past it would fail at every start).
+node::Result<void> check_dds_participants(const Topology& topo, const std::vector<const NodeSpec*>& here);
+
 // What an agent's command is expanded with: the environment of the `tahvel up` that asked, not
 // the running supervisor's (which may have been started from another shell days before).
 struct CommandContext {

@@ -2580,6 +2580,36 @@ TEST_F(Cli, UpRefusesANodeListeningOnItsParentsDdsDomainUnderAnotherConfiguratio
   }
 }
 
+// Cyclone DDS numbers the processes of a domain on a host up to MaxAutoParticipantIndex: with
+// more nodes' links on one machine than that, those beyond it failed at every start, and the
+// restarts loaded the machine, while `up` said nothing. Refused before anything is made.
+TEST_F(Cli, UpRefusesMoreDdsLinksOnOneMachineThanTheConfigsParticipantIndicesAllow) {
+  std::string config = slurp(fs::path(TAHVEL_SOURCE_DIR) / "deploy" / "cyclonedds-loopback.xml");
+  const std::string most = "<MaxAutoParticipantIndex>50</MaxAutoParticipantIndex>";
+  ASSERT_NE(config.find(most), std::string::npos);
+  config.replace(config.find(most), most.size(), "<MaxAutoParticipantIndex>2</MaxAutoParticipantIndex>");
+  spit(tmp_ / "three.xml", config);
+  auto topology = [](int homes) {
+    std::string text = "[[node]]\nid = \"hospital\"\niri = \"http://example.org/hospital\"\n"
+                       "listen = { kind = \"dds\", config = \"three.xml\" }\n";
+    for (int h = 1; h <= homes; ++h) text += "\n[[node]]\nid = \"home" + std::to_string(h) + "\"\nparent = \"hospital\"\n";
+    return text;
+  };
+  const std::string state = (tmp_ / "state").string();
+  spit(tmp_ / "four.toml", topology(3));
+  Outcome up = run({"up", (tmp_ / "four.toml").string(), "--state", state});
+  EXPECT_EQ(up.status, 1) << up.err;
+  EXPECT_NE(up.err.find("four.toml:4:"), std::string::npos) << up.err;  // the hospital's listen
+  EXPECT_NE(up.err.find("node 'hospital': 4 nodes' links would run on DDS domain 0 on this machine, but its config "),
+            std::string::npos)
+      << up.err;
+  EXPECT_NE(up.err.find("gives participant indices 0..2"), std::string::npos) << up.err;
+  EXPECT_FALSE(fs::exists(fs::path(state) / "hospital"));
+  // One machine of the deployment: its node's link is one participant.
+  Outcome one = run({"up", (tmp_ / "four.toml").string(), "--state", state, "--node", "nobody"});
+  EXPECT_NE(one.err.find("--node 'nobody': no such node"), std::string::npos) << one.err;
+}
+
 // An agent that finishes (exit 0) stays finished under the default restart policy — a replay
 // is not replayed again — while restart = "always" runs it again and "never" does not retry
 // a failure.
