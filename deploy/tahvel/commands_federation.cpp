@@ -1537,10 +1537,13 @@ void apply_requested(Deployment& deployment, const fs::path& pid_file, const age
   std::string answer = id + "\n";
   auto topo = load_topology(file);
   // CYCLONEDDS_URI as the links will read it: this supervisor's.
-  if (topo)
-    if (auto ok = check_cyclone_uri(*topo, nodes_brought_up(*topo, deployment.only())); !ok) topo = Unexpected<node::Error>{ok.error()};
-    else if (auto fits = check_dds_participants(*topo, nodes_brought_up(*topo, deployment.only())); !fits)
+  if (topo) {
+    if (auto ok = check_cyclone_uri(*topo, nodes_brought_up(*topo, deployment.only())); !ok) {
+      topo = Unexpected<node::Error>{ok.error()};
+    } else if (auto fits = check_dds_participants(*topo, nodes_brought_up(*topo, deployment.only())); !fits) {
       topo = Unexpected<node::Error>{fits.error()};
+    }
+  }
   if (!topo) {
     answer += "error: " + topo.error().message + "\n";
     log("up: cannot apply " + file + ": " + topo.error().message);
@@ -1646,19 +1649,22 @@ int run_up(const Args& args) {
          "): --foreground would not be it. 'tahvel down --state " + shell_word(state) +
          "' first, or 'tahvel up' without --foreground applies the file to it");
   // One supervisor per node: `up --node X` beside `up` of the whole file would run X's link and
-  // agents twice (two ECG sources writing every chunk twice).
-  if (only) {
-    if (pid_t whole = supervisor_holding(state / pid_file_name(std::nullopt)); whole != 0)
-      fail("the supervisor of the whole file runs under " + state.string() + " (pid " + std::to_string(whole) + "), node '" +
-           *only + "' with it: 'tahvel up " + shell_word(topo.file) + " --state " + shell_word(state) +
-           "' applies the file to it (it starts what is new), 'tahvel down --state " + shell_word(state) + "' stops it");
-  }
-  if (!only) {
-    for (const NodeSpec& spec : topo.nodes)
-      if (supervisor_holding(state / pid_file_name(spec.id)) != 0)
-        fail("node '" + spec.id + "' already runs under its own supervisor (" + (state / pid_file_name(spec.id)).string() +
-             "); 'tahvel down --state " + shell_word(state) + " --node " + spec.id + "' first");
-  }
+  // agents twice (two ECG sources writing every chunk twice). Checked again once this `up` has
+  // its turn (below): an `up` of the other selection started at the same moment may have won it.
+  auto refuse_a_supervisor_of_another_selection = [&] {
+    if (only) {
+      if (pid_t whole = supervisor_holding(state / pid_file_name(std::nullopt)); whole != 0)
+        fail("the supervisor of the whole file runs under " + state.string() + " (pid " + std::to_string(whole) + "), node '" +
+             *only + "' with it: 'tahvel up " + shell_word(topo.file) + " --state " + shell_word(state) +
+             "' applies the file to it (it starts what is new), 'tahvel down --state " + shell_word(state) + "' stops it");
+    } else {
+      for (const NodeSpec& spec : topo.nodes)
+        if (supervisor_holding(state / pid_file_name(spec.id)) != 0)
+          fail("node '" + spec.id + "' already runs under its own supervisor (" + (state / pid_file_name(spec.id)).string() +
+               "); 'tahvel down --state " + shell_word(state) + " --node " + spec.id + "' first");
+    }
+  };
+  refuse_a_supervisor_of_another_selection();
   // Everything is checked before anything is created: a store that exists must be the node's,
   // and the files and patterns a new one gets must read.
   const std::vector<const NodeSpec*> mine = nodes_brought_up(topo, only);
@@ -1717,6 +1723,7 @@ int run_up(const Args& args) {
   if (turn < 0 || flock(turn, LOCK_EX) != 0) fail(turn_file.string() + ": " + std::strerror(errno));
   running = supervisor_holding(pid_file);
   if (running < 0) fail("a supervisor is starting (" + pid_file.string() + "); try again in a moment");
+  if (running == 0) refuse_a_supervisor_of_another_selection();
   // A supervisor runs each node it holds (Deployment::lock_node); one that holds a node here
   // without a pid file saying so (the file was deleted) would be a second writer beside the one
   // this `up` would start.

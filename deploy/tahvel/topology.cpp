@@ -208,8 +208,8 @@ std::string utf8_prefix(const std::string& text, std::size_t bytes) {
 // process, and Cyclone DDS runs one configuration per domain in a process: a node that listens
 // on its parent's domain under another configuration had a link that failed at every start
 // ("DDS domain 4 already runs in this process with another configuration"). The files are
-// compared by content (two copies of one file are one configuration); no file is Cyclone's
-// CYCLONEDDS_URI, which may or may not be the other.
+// compared by content (two copies of one file are one configuration); an uplink without a file
+// takes Cyclone's CYCLONEDDS_URI, which may or may not be the listen's.
 node::Result<void> check_one_dds_configuration_per_domain(const Topology& topo) {
   auto text_of = [](const std::string& path) {
     std::ifstream in(path, std::ios::binary);
@@ -221,8 +221,10 @@ node::Result<void> check_one_dds_configuration_per_domain(const Topology& topo) 
     if (!up || up->kind != "dds") continue;
     for (const LinkSpec& l : n.listen) {
       if (l.kind != "dds" || l.dds_domain != up->dds_domain) continue;
-      if (l.dds_config.empty() != up->dds_config.empty() ||
-          (!l.dds_config.empty() && l.dds_config != up->dds_config && text_of(l.dds_config) != text_of(up->dds_config)))
+      // A listen without config on the uplink's domain takes the uplink's (the link opens one
+      // endpoint for both); an uplink without one, beside a listen with one, does not.
+      if (l.dds_config.empty()) continue;
+      if (up->dds_config.empty() || (l.dds_config != up->dds_config && text_of(l.dds_config) != text_of(up->dds_config)))
         return node::fail(Errc::invalid_argument,
                           l.url_at + ": node '" + n.id + "': listens on DDS domain " + std::to_string(l.dds_domain) + " with " +
                               named(l) + ", and its link up to '" + n.parent + "' is on domain " +
@@ -700,7 +702,12 @@ node::Result<void> check_dds_participants(const Topology& topo, const std::vecto
       }
     if (const LinkSpec* up = topo.uplink(*spec); up && up->kind == "dds") {
       auto& [nodes, link] = domains[up->dds_domain];
-      nodes.insert(spec->id);
+      // Ends of one domain under two files are two endpoints, two participants (the link shares
+      // one only when the file is the same: a listen without one takes the uplink's).
+      const bool apart = std::any_of(spec->listen.begin(), spec->listen.end(), [&](const LinkSpec& l) {
+        return l.kind == "dds" && l.dds_domain == up->dds_domain && !l.dds_config.empty() && l.dds_config != up->dds_config;
+      });
+      nodes.insert(apart ? spec->id + "/up" : spec->id);
       if (!link) link = up, listener[up->dds_domain] = spec->parent;
     }
   }
@@ -728,7 +735,7 @@ node::Result<void> check_dds_participants(const Topology& topo, const std::vecto
     if (nodes.size() <= max_index + 1) continue;
     return node::fail(Errc::invalid_argument,
                       link->url_at + ": node '" + listener[domain] + "': " + std::to_string(nodes.size()) +
-                          " nodes' links would run on DDS domain " + std::to_string(domain) + " on this machine, but its config " +
+                          " DDS participants of links would run on domain " + std::to_string(domain) + " on this machine, but its config " +
                           link->dds_config + " gives participant indices 0.." + std::to_string(max_index) +
                           " (MaxAutoParticipantIndex, ParticipantIndex auto): the links beyond the first " +
                           std::to_string(max_index + 1) + " would fail at every start (\"Failed to find a free participant "

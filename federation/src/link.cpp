@@ -342,6 +342,8 @@ struct Link::Impl {
   // P6d: a welcome with a mark above 0; the uplink puts back into its outbox what it took out
   // after that mark (a parent store restored from a backup acknowledged it, then lost it).
   bool requeue_after_welcome = false;
+  Clock::time_point last_welcome_at{};  // under mu
+  static constexpr auto kStaleWelcome = std::chrono::seconds(2);
   std::string parent_store_id;  // from the welcome: names the down stream (P6a); under mu
   std::uint64_t up_mark = 0;       // the parent's mark of our stream: applied there
   std::uint64_t up_last_sent = 0;  // the seq of the last up frame sent
@@ -1750,6 +1752,7 @@ struct Link::Impl {
           }
           return;
         }
+        const bool same_store_as_last_welcome = !state || state->store_id == parent_store_id;
         if (state && state->store_id != parent_store_id) pending_parent_store.clear();
         parent_store_heard = now;
         if (!welcomed) log("registered with the parent <" + opt.parent_iri + ">");
@@ -1777,8 +1780,14 @@ struct Link::Impl {
         parent_cannot_store.clear();  // said again by a parent that still cannot (P9b)
         // The parent holds nothing of this store's stream: a first welcome, or a parent store
         // made again (a replaced gateway) that never got what the one before it applied.
-        if (f.ack == 0) resend_persistent = true;
-        else requeue_after_welcome = true;
+        if (f.ack == 0) {
+          resend_persistent = true;
+        } else if (!(same_store_as_last_welcome && now - last_welcome_at < kStaleWelcome)) {
+          // A welcome hard on the heels of another from the same store answers a hello repeated
+          // while the first was on its way: its mark is stale, not a store gone back in time.
+          requeue_after_welcome = true;
+        }
+        last_welcome_at = now;
         up_mark = f.ack;
         up_last_sent = f.ack;
         up_in_flight.clear();
@@ -2396,7 +2405,8 @@ struct Link::Impl {
         // the whole store: a link restarted with a long backlog looks at no more than its gap.
         auto waiting = uplink->peek(mark, 1, 0ms);
         const std::uint64_t before = waiting && !waiting->empty() ? waiting->front().item : std::numeric_limits<std::uint64_t>::max();
-        if (auto again = uplink->deliver_again_between(mark, before); !again) {
+        // Only what goes up: items relayed down from above are never sent (P7).
+        if (auto again = uplink->deliver_again_between(mark, before, self); !again) {
           log("cannot queue for the parent again what it acknowledged before its mark went back: " + again.error().message);
         } else if (*again > 0) {
           log("the parent <" + opt.parent_iri + "> holds this store's stream up to " + std::to_string(mark) +
@@ -3119,9 +3129,10 @@ struct Link::Impl {
         // Once per 10 s and kind of reason, as P9b's lines: a full store refused it every 2 s.
         const std::string& why = stored.error().message;
         StateWriteFailure& said = state_write_failure;
-        if (reason_kind(why) != reason_kind(said.why) || Clock::now() - said.at >= kRelayFailureSaidEvery) {
+        const bool new_kind = reason_kind(why) != reason_kind(said.why);
+        if (new_kind || Clock::now() - said.at >= kRelayFailureSaidEvery) {
           log("cannot write the state of " + std::to_string(items.size()) + " child(ren): " + why +
-              (said.unsaid > 0 ? " (and " + std::to_string(said.unsaid) + " times more since it was last said)" : ""));
+              (said.unsaid > 0 && !new_kind ? " (and " + std::to_string(said.unsaid) + " times more since it was last said)" : ""));
           said = {why, Clock::now(), 0};
         } else {
           ++said.unsaid;

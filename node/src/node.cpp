@@ -922,9 +922,9 @@ Result<std::uint64_t> Agent::deliver_persistent_again(Redelivery which) {
   });
 }
 
-Result<std::uint64_t> Agent::deliver_again_between(std::uint64_t after, std::uint64_t before) {
-  return impl_->change_own_buffer([after, before](detail::Txn& txn, std::uint64_t agent, const std::string& agent_iri) {
-    return detail::deliver_again(txn, agent, agent_iri, false, after, before);
+Result<std::uint64_t> Agent::deliver_again_between(std::uint64_t after, std::uint64_t before, const std::string& source_under) {
+  return impl_->change_own_buffer([after, before, &source_under](detail::Txn& txn, std::uint64_t agent, const std::string& agent_iri) {
+    return detail::deliver_again(txn, agent, agent_iri, false, after, before, source_under);
   });
 }
 

@@ -1023,6 +1023,9 @@ Result<std::uint64_t> deliver_earlier(Txn& txn, std::uint64_t agent, const std::
     Query query(txn.raw(), txn.env());
     auto walked = query.for_each(pattern, [&](std::uint64_t id, const RecordRow& row) {
       if (id >= before) return false;  // ascending ids: nothing earlier follows
+      // after_id bounds record ids; an item at or before it whose matching record is a later
+      // one of its own (an HRV window's second triple) is not after it.
+      if (pattern.after_id && row.item <= *pattern.after_id) return true;
       if (items.empty() || items.back() != row.item) items.push_back(row.item);
       return true;
     });
@@ -1226,7 +1229,7 @@ Result<HeldCopies> held_copies(MDB_txn* txn, const Env& env, const Item& notice,
 }
 
 Result<std::uint64_t> deliver_again(Txn& txn, std::uint64_t agent, const std::string& agent_iri, bool persistent_only,
-                                    std::uint64_t after, std::uint64_t before) {
+                                    std::uint64_t after, std::uint64_t before, const std::string& source_under) {
   auto subs = load_subscriptions(txn);
   if (!subs) return unexpected(subs.error());
   TermReader reader(txn.raw(), txn.env());
@@ -1248,6 +1251,16 @@ Result<std::uint64_t> deliver_again(Txn& txn, std::uint64_t agent, const std::st
       pattern.context = *context;
     }
     if (sub.source) pattern.source = sub.source_iri;
+    if (!source_under.empty()) {
+      // Both bounds: the narrower, or nothing when neither lies under the other.
+      if (!pattern.source || uri::is_under(*pattern.source, source_under)) {
+        if (!pattern.source) pattern.source = source_under;
+      } else if (uri::is_under(source_under, *pattern.source)) {
+        pattern.source = source_under;
+      } else {
+        continue;
+      }
+    }
     if (after != 0) pattern.after_id = after;
     auto n = deliver_earlier(txn, agent, agent_iri, pattern, before, persistent_only);
     if (!n) return unexpected(n.error());
@@ -1258,7 +1271,7 @@ Result<std::uint64_t> deliver_again(Txn& txn, std::uint64_t agent, const std::st
 
 Result<std::uint64_t> deliver_persistent_again(Txn& txn, std::uint64_t agent, const std::string& agent_iri,
                                                bool addressed_too) {
-  auto subscribed = deliver_again(txn, agent, agent_iri, true, 0, std::numeric_limits<std::uint64_t>::max());
+  auto subscribed = deliver_again(txn, agent, agent_iri, true, 0, std::numeric_limits<std::uint64_t>::max(), {});
   if (!subscribed) return unexpected(subscribed.error());
   const std::uint64_t delivered = *subscribed;
   if (!addressed_too) return delivered;

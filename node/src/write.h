@@ -70,9 +70,10 @@ Result<std::uint64_t> deliver_earlier(Txn& txn, std::uint64_t agent, const std::
                                       const Pattern& pattern, std::uint64_t before, bool persistent_only = false);
 
 // deliver_earlier for each of the subscriptions of `agent`: the items with ids in (after, before)
-// (after 0: from the first), persistent ones only when `persistent_only` (Agent::deliver_again_between).
+// (after 0: from the first), persistent ones only when `persistent_only`, and with
+// `source_under` only those whose source is that IRI or under it (Agent::deliver_again_between).
 Result<std::uint64_t> deliver_again(Txn& txn, std::uint64_t agent, const std::string& agent_iri, bool persistent_only,
-                                    std::uint64_t after, std::uint64_t before);
+                                    std::uint64_t after, std::uint64_t before, const std::string& source_under);
 
 // deliver_earlier for each of the subscriptions of `agent`, persistent items only, and with
 // `addressed_too` the persistent items addressed to it by their context (R18), found by reading

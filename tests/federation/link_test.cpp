@@ -454,6 +454,30 @@ TEST(Link, ItemsAParentRestoredFromABackupHadAcknowledgedGoUpAgain) {
   EXPECT_TRUE(tree.home1_log.has("6 item(s) it acknowledged after that go up again (P6d)")) << tree.home1_log.text();
 }
 
+// P6d on a plain restart (nothing restored): the item at the parent's mark, whose triple the
+// policy matches is not its first (an HRV window's sosa:observedProperty is its second), was put
+// back into the outbox at every welcome, logged as a restore, and waited there for ever.
+TEST(Link, ARestartedLinkPutsNothingBackWhenTheParentHasEverything) {
+  Tree tree;
+  tree.hospital = tree.start_hospital();
+  tree.home1 = tree.start_home(tree.home1_dir, kHome1, tree.home1_log);
+  auto hrv = node::Node::open(tree.home1_dir).value().agent("hrv").value();
+  for (int n = 0; n < 3; ++n) {
+    node::Item item;
+    const Term obs = Term::iri(kHome1 + "/rec/hrv/" + std::to_string(n));
+    item.add(obs, Term::iri(kEx + "n"), Term::integer(n)).add(obs, kObservedProperty, kHrvProperty);
+    ASSERT_TRUE(hrv.store(item));
+  }
+  const node::Pattern numbered{.p = Term::iri(kEx + "n")};
+  ASSERT_TRUE(eventually([&] { return count(tree.hospital_dir, numbered) == 3 && outbox(tree.home1_dir) == 0; }));
+  tree.home1.reset();
+  tree.home1 = tree.start_home(tree.home1_dir, kHome1, tree.home1_log);
+  ASSERT_TRUE(eventually([&] { return tree.home1->connected(); }));
+  EXPECT_TRUE(eventually([&] { return outbox(tree.home1_dir) == 0; })) << outbox(tree.home1_dir) << " in the outbox";
+  EXPECT_FALSE(tree.home1_log.has("(P6d)")) << tree.home1_log.text();
+  EXPECT_EQ(count(tree.hospital_dir, numbered), 3u);
+}
+
 // P6a: the same downwards. A hospital whose store is made again issues configuration with ids
 // that a home has applied already from the old store; the home still gets it.
 TEST(Link, ConfigurationFromAParentWhoseStoreIsMadeAgainArrives) {

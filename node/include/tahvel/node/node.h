@@ -375,10 +375,11 @@ class Agent {
   // the settings kept for it.) The addressed items are found by reading every item's row once.
   Result<std::uint64_t> deliver_persistent_again(Redelivery which = Redelivery::subscribed);
   // Puts into the input buffer again every item with an id in (`after`, `before`) that one of
-  // this agent's subscriptions matches and that is not there, oldest first; returns how many.
-  // (A link whose parent's store was restored from a backup: what that store had acknowledged
+  // this agent's subscriptions matches, whose source is `source_under` or under it (empty: any),
+  // and that is not there, oldest first; returns how many. (A link whose parent's store was
+  // restored from a backup: what this node's subtree wrote that that store had acknowledged
   // since the backup, and the link had therefore taken out of its outbox, goes up again.)
-  Result<std::uint64_t> deliver_again_between(std::uint64_t after, std::uint64_t before);
+  Result<std::uint64_t> deliver_again_between(std::uint64_t after, std::uint64_t before, const std::string& source_under = {});
 
   // Item ids in this agent's output buffer after `after`, oldest first (audit of its writes).
   Result<std::vector<std::uint64_t>> written(std::uint64_t after = 0, std::size_t limit = 0) const;
