@@ -459,8 +459,7 @@ TEST(Link, ItemsAParentRestoredFromABackupHadAcknowledgedGoUpAgain) {
 // back into the outbox at every welcome, logged as a restore, and waited there for ever.
 TEST(Link, ARestartedLinkPutsNothingBackWhenTheParentHasEverything) {
   Tree tree;
-  tree.hospital = tree.start_hospital();
-  tree.home1 = tree.start_home(tree.home1_dir, kHome1, tree.home1_log);
+  ASSERT_TRUE(tree.start_hospital_and_home1());
   auto hrv = node::Node::open(tree.home1_dir).value().agent("hrv").value();
   for (int n = 0; n < 3; ++n) {
     node::Item item;
