@@ -525,7 +525,9 @@ int main(int argc, char** argv) {
   return rt::guarded_main(kProgram, kUsage, [&]() -> int {
     const rt::Args args(argc, argv, {"--record", "--signal", "--seed", "--hr", "--seconds", "--speed", "--agent"},
                         {"--synthetic"});
-    if (args.has("--record") == args.has("--synthetic")) throw rt::UsageError("give --record PATH or --synthetic");
+    if (args.has("--record") && args.has("--synthetic"))
+      throw rt::UsageError("--record and --synthetic: give one of them, not both (a record is replayed, or a synthetic signal made)");
+    if (!args.has("--record") && !args.has("--synthetic")) throw rt::UsageError("give --record PATH or --synthetic");
     if (args.has("--signal") && !args.has("--record")) throw rt::UsageError("--signal is for --record");
     std::optional<std::size_t> ecg_lead;
     if (args.has("--signal")) {

@@ -325,7 +325,7 @@ const Command kBenchReasonCommand{
     "from scratch, on a node; the same rules and facts in SWI-Prolog (swipl); a class hierarchy\n"
     "closure over 1M facts. Targets: incremental session <= 1 ms, >= 20x SWI-Prolog.",
     {{"--json", "", "", "print one JSON object"}, {"--quick", "", "", "fewer runs, a 100k-fact closure"}},
-    0, 0};
+    0, 0, false};
 
 std::string json_num(double v) {
   char buf[48];

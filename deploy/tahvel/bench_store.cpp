@@ -60,7 +60,7 @@ struct Config {
 };
 
 const char* kUsage =
-    "usage: tahvel bench store [--json] [--quick] [--records N] [--bulk-items N] [--dir PATH]\n"
+    "usage: tahvel bench store [--json] [--quick] [--records N] [--bulk-items N] [--dir PATH] [--wake-pause-us N]\n"
     "  --json          print one JSON object instead of the table\n"
     "  --quick         a small run (seconds), for smoke tests\n"
     "  --records N     triples bulk-loaded and queried (default 1000000)\n"

@@ -127,6 +127,10 @@ std::string read_input(const std::string& path);
 void finish_output(std::ostream& out);
 // Set by main when standard output was closed at start (it is /dev/full then: output fails).
 extern bool g_stdout_was_closed;
+// For a command that writes to the store and then prints: fails (as finish_output would) before
+// anything is written when standard output was closed at start, so that status 1 never follows a
+// write that was done (a caller trusting the status would write again).
+void refuse_when_output_was_closed();
 // True when standard output is a pipe whose reader has gone (`tahvel … | head`).
 bool stdout_reader_gone();
 // True once SIGINT or SIGTERM came to a command that cancels on them (install_stop_handlers in

@@ -373,6 +373,10 @@ namespace {
 }
 }  // namespace
 
+void refuse_when_output_was_closed() {
+  if (g_stdout_was_closed) fail_output(0);
+}
+
 void finish_output(std::ostream& out) {
   out.flush();
   if (out) return;

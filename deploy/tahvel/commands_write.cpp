@@ -110,6 +110,8 @@ std::uint64_t store_in_batches(node::Agent& agent, std::vector<node::Item> items
     if (!stored) {
       // store_all counts items within the batch ("item 101: ..."): named in the file's terms.
       std::string message = stored.error().message;
+      // A batch of one item is refused as that item ("triple 1, object: ..."), without its number.
+      if (pending.size() == 1 && message.starts_with("triple ")) message = "item 1: " + message;
       std::size_t end = 0;
       if (message.starts_with("item ")) {
         std::size_t n = 0;
@@ -303,6 +305,7 @@ void warn_if_the_ring_took_some(const node::Node& node, const std::vector<std::p
 }
 
 int run_put(const Args& args) {
+  refuse_when_output_was_closed();
   node::Node node = open_node(args.positional(0));
   uri::PrefixMap prefixes = prefixes_with_flags(node.prefixes(), args);
   std::string path = args.positional().size() > 1 ? args.positional(1) : "-";
@@ -357,6 +360,7 @@ const Command kLoadCommand{
     2, 2};
 
 int run_load(const Args& args) {
+  refuse_when_output_was_closed();
   node::Node node = open_node(args.positional(0));
   uri::PrefixMap prefixes = prefixes_with_flags(node.prefixes(), args);
   const std::string& path = args.positional(1);
@@ -422,6 +426,7 @@ std::uint64_t subscription_records_matching(const node::Node& node, const node::
 }
 
 int run_remove(const Args& args) {
+  refuse_when_output_was_closed();
   node::Node node = open_node(args.positional(0));
   uri::PrefixMap prefixes = prefixes_with_flags(node.prefixes(), args);
   node::Pattern pattern = pattern_from_args(args, prefixes);
@@ -472,6 +477,7 @@ const Command kSubscribeCommand{
     1, 1};
 
 int run_subscribe(const Args& args) {
+  refuse_when_output_was_closed();
   node::Node node = open_node(args.positional(0));
   uri::PrefixMap prefixes = prefixes_with_flags(node.prefixes(), args);
   args.required("--agent");

@@ -77,6 +77,11 @@ std::string stopped_link(const std::string& self, pid_t pid) {
          "/stat); 'kill -CONT " + p + "' resumes it";
 }
 
+Unexpected<Error> timed_out(const std::string& target, std::chrono::milliseconds timeout, std::uint64_t delivered) {
+  return node::fail(Errc::timeout, "timeout: no complete answer from <" + target + "> within " + std::to_string(timeout.count()) +
+                                       " ms (" + std::to_string(delivered) + " records received)");
+}
+
 }  // namespace
 
 Result<std::uint64_t> remote_query(node::Node& node, const RemoteQuery& query,
@@ -99,7 +104,8 @@ Result<std::uint64_t> remote_query(node::Node& node, const RemoteQuery& query,
     if (!normal) return node::fail(Errc::invalid_iri, std::string(iri == &pattern.source ? "source" : "under") + ": " + normal.error().message);
     *iri = std::move(*normal);
   }
-  if (*target == self) {  // asked here: the local store answers
+  if (*target == self) {  // asked here: the local store answers, within the same timeout
+    const auto deadline = std::chrono::steady_clock::now() + timeout;
     auto snap = node.snapshot();
     if (!snap) return Unexpected<Error>{snap.error()};
     node::ListOptions options{.cascade = query.cascade, .limit = query.limit};
@@ -112,6 +118,9 @@ Result<std::uint64_t> remote_query(node::Node& node, const RemoteQuery& query,
     for (const auto& r : *records) {
       if (cancelled && cancelled())
         return node::fail(Errc::io, "cancelled after " + std::to_string(delivered) + " records from <" + *target + ">");
+      // A reader slower than the answer (a pager left open) ends it, as it does a remote one.
+      if (std::chrono::steady_clock::now() >= deadline)
+        return timed_out(*target, timeout, delivered);
       each(r);
       ++delivered;
     }
@@ -214,9 +223,7 @@ Result<std::uint64_t> remote_query(node::Node& node, const RemoteQuery& query,
   while (!done) {
     auto left = std::chrono::duration_cast<std::chrono::milliseconds>(deadline - std::chrono::steady_clock::now());
     if (left.count() <= 0) {
-      return node::fail(Errc::timeout, "timeout: no complete answer from <" + *target + "> within " +
-                                           std::to_string(timeout.count()) + " ms (" + std::to_string(delivered) +
-                                           " records received)");
+      return timed_out(*target, timeout, delivered);
     }
     if (cancelled && cancelled()) {
       // The query item leaves the board on return, and the link cancels the query below (P18).

@@ -440,6 +440,20 @@ TEST_F(EcgSourceTest, ZeroSecondsOfSyntheticEcgIsRefused) {
   EXPECT_NE(said.find("--seconds: '0' is less than one sample"), std::string::npos) << said;
 }
 
+// Given both, the source said "give --record PATH or --synthetic", which the user had done.
+TEST_F(EcgSourceTest, ARecordAndSyntheticTogetherAreRefusedAsTwoSourcesNotAsNone) {
+  const std::string dir = new_node("both");
+  const fs::path log = tmp_ / "both.log";
+  tahvel::test_support::AgentProcess source({std::string(TAHVEL_BIN_DIR) + "/tahvel-ecg-source", dir, "--synthetic", "--record",
+                                             (tmp_ / "none").string(), "--speed", "0"},
+                                            log.string());
+  EXPECT_EQ(source.wait(10s), 2);
+  std::ifstream in(log);
+  const std::string said((std::istreambuf_iterator<char>(in)), std::istreambuf_iterator<char>());
+  EXPECT_NE(said.find("--record and --synthetic: give one of them, not both"), std::string::npos) << said;
+  EXPECT_TRUE(recordings(dir).empty());
+}
+
 // A heart rate outside ECGSYN's 30..180 exited 1 without the usage, naming the generator's
 // option (mean_hr_bpm) rather than the flag; 'abc' was "not a number >= 0.000000".
 TEST_F(EcgSourceTest, AHeartRateTheGeneratorCannotMakeIsAUsageErrorNamingTheFlag) {
