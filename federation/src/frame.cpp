@@ -146,6 +146,10 @@ std::string frame_kind_name(FrameKind kind) {
 }
 
 std::optional<std::string> frame_refusal(const Frame& frame, std::string_view self_iri) {
+  // First: the reasons below quote the sender's IRI.
+  if (frame.from.size() > kMaxFrameIriBytes)
+    return "a sender IRI of " + std::to_string(frame.from.size()) + " bytes, over the limit of " +
+           std::to_string(kMaxFrameIriBytes) + " (<" + frame.from.substr(0, 80) + "...>)";
   if (frame.version < kOldestProtocolVersion || frame.version > kProtocolVersion)
     return "protocol version " + std::to_string(frame.version) + " from <" + frame.from + ">, this node speaks " +
            std::to_string(kProtocolVersion) + " and hears " + std::to_string(kOldestProtocolVersion) + " to " +

@@ -42,6 +42,7 @@ namespace {
 using Clock = std::chrono::steady_clock;
 using namespace std::chrono_literals;
 
+constexpr std::uint16_t kFirstVersionWithSpans = 3;  // P3: version 2 had no item spans
 constexpr std::size_t kAnswerChunkBytes = 48 * 1024;  // P14: fits LCM's datagram fragments well
 constexpr std::size_t kAnswerWindow = 16;
 constexpr std::size_t kAnswerPartMax = 1 << 20;  // base64 characters per literal of a chunk
@@ -464,6 +465,13 @@ struct Link::Impl {
   static constexpr int kRefusalAnswersPerSecond = 20;
   Clock::time_point refusal_answers_since{};  // the second refusal_answers counts in
   int refusal_answers = 0;
+  // Refusal lines, over all senders (made-up ones are many): at most kRefusalLinesPerWindow per
+  // kRefusalLogWindow; those left out are counted and the count said with the next line.
+  static constexpr int kRefusalLinesPerWindow = 10;
+  static constexpr auto kRefusalLogWindow = std::chrono::seconds(10);
+  Clock::time_point refusal_lines_since{};
+  int refusal_lines = 0;
+  std::uint64_t refusal_lines_left_out = 0;
 
   // Stream names (P6a): a child's items by its IRI and store id; what comes down by the parent's
   // store id. Without an id (a peer from before store ids): the names used then.
@@ -608,26 +616,29 @@ struct Link::Impl {
   std::atomic<bool> older_children_heard{false};
 
   // From a child's own frames (hello, heartbeat, up; not what it relays from below), also of
-  // one not accepted, which is told why in its version; at most kOlderChildrenKept of those.
+  // one not accepted, which is told why in its version; at most kOlderChildrenKept of those, so
+  // that made-up senders cannot fill the table: an `accepted` child (one this node may have) is
+  // always kept.
   static constexpr std::size_t kOlderChildrenKept = 4096;
-  void note_child_version(const std::string& iri, std::uint16_t version) {
+  void note_child_version(const std::string& iri, std::uint16_t version, bool accepted) {
     if (version == kProtocolVersion && !older_children_heard.load(std::memory_order_relaxed)) return;
     std::lock_guard lock(older_children_mu);
     if (version == kProtocolVersion) {
-      older_children.erase(iri);
+      if (older_children.erase(iri) > 0 && accepted)
+        log("child <" + iri + "> speaks protocol version " + std::to_string(version) + " again: spoken to in it");
     } else if (auto it = older_children.find(iri); it != older_children.end()) {
       it->second = version;
-    } else if (older_children.size() < kOlderChildrenKept) {
+    } else if (accepted || older_children.size() < kOlderChildrenKept) {
       older_children.emplace(iri, version);
       log("child <" + iri + "> speaks protocol version " + std::to_string(version) + ", this node " +
           std::to_string(kProtocolVersion) + ": spoken to in " + std::to_string(version) +
-          " (items sent down go without their span)");
+          (version < kFirstVersionWithSpans ? " (items sent down go without their span)" : ""));
     }
     older_children_heard = !older_children.empty();
   }
 
-  // `frame`, for a child of an earlier version, in that version: an item sent down without its
-  // span (version 2 has none, and would refuse the flag).
+  // `frame`, for a child of an earlier version, in that version: an item sent down to a child of
+  // version 2 without its span (it has none, and would refuse the flag).
   void speak_as_older_child(Frame& frame) {
     {
       std::lock_guard lock(older_children_mu);
@@ -642,7 +653,7 @@ struct Link::Impl {
         if (auto older = wire::encode_query(*q, frame.version)) frame.body = std::move(*older);
       return;
     }
-    if (frame.kind != FrameKind::down) return;
+    if (frame.kind != FrameKind::down || frame.version >= kFirstVersionWithSpans) return;
     if (auto item = wire::decode_item(frame.body); item && item->item.span != 0) {
       item->item.span = 0;
       frame.body = wire::encode_item(*item);
@@ -1196,7 +1207,7 @@ struct Link::Impl {
     std::string conflict;  // P6b: why a known child is not linked with
     // A child's items may come before its hello (this node restarted): what it is told then
     // ("unregistered") must be in its version.
-    if (up) note_child_version(head.from, head.version);
+    if (up) note_child_version(head.from, head.version, child_id_of(head.from).has_value());
     if (up) {
       std::lock_guard lock(mu);
       auto it = children.find(head.from);
@@ -1395,8 +1406,8 @@ struct Link::Impl {
     }
     std::string why;
     if (is_down(via)) {
-      if (f.kind == FrameKind::hello || f.kind == FrameKind::heartbeat) note_child_version(f.from, f.version);
       auto child = accepted_child(f.from, &why);
+      if (f.kind == FrameKind::hello || f.kind == FrameKind::heartbeat) note_child_version(f.from, f.version, child != nullptr);
       if (child) {
         if (f.version != kProtocolVersion && f.kind == FrameKind::answer) return answer_of_older_child(via, f, child, agent);
         return from_child_frame(via, f, child, agent);
@@ -1425,6 +1436,7 @@ struct Link::Impl {
     const bool answered_kind =
         is_down(via) && (kind == FrameKind::hello || kind == FrameKind::heartbeat || kind == FrameKind::up);
     bool say = false, answer = false;
+    std::uint64_t left_out = 0;  // refusal lines not said in the window before this line
     {
       std::lock_guard lock(mu);
       counters.refused += frames;
@@ -1436,7 +1448,15 @@ struct Link::Impl {
       if (last.why != key || now - last.logged > std::chrono::minutes(1)) {
         last.why = key;
         last.logged = now;
-        say = true;
+        if (now - refusal_lines_since >= kRefusalLogWindow) {
+          left_out = refusal_lines_left_out;
+          refusal_lines_since = now;
+          refusal_lines = 0;
+          refusal_lines_left_out = 0;
+        }
+        say = refusal_lines < kRefusalLinesPerWindow;
+        if (say) ++refusal_lines;
+        else ++refusal_lines_left_out;
       }
       if (now - refusal_answers_since >= std::chrono::seconds(1)) {
         refusal_answers_since = now;
@@ -1448,6 +1468,9 @@ struct Link::Impl {
         answer = true;
       }
     }
+    if (left_out > 0)
+      log(std::to_string(left_out) + " more refusal" + (left_out == 1 ? " was" : "s were") + " not logged (at most " +
+          std::to_string(kRefusalLinesPerWindow) + " lines per " + std::to_string(kRefusalLogWindow.count()) + " s)");
     if (say) {
       const std::string name = frame_kind_name(kind);
       const std::string count = frames != 1 ? std::to_string(frames) + " " : name.find_first_of("aeiu") == 0 ? "an " : "a ";

@@ -98,7 +98,7 @@ class DdsTransport final : public Transport {
       : domain_(settings.domain),
         self_(std::move(self)),
         topic_name_(dds_topic(self_)),
-        log_(wire::or_stderr(std::move(log))) {}
+        log_(wire::rate_limited(wire::or_stderr(std::move(log)))) {}
 
   ~DdsTransport() override {
     if (watch_ != 0) dds_domain::unwatch_rejections(watch_);

@@ -54,7 +54,7 @@ class LcmTransport final : public Transport {
         self_(std::move(self)),
         channel_(lcm_channel(self_)),
         reassembler_(channel_),
-        log_(wire::or_stderr(std::move(log))) {}
+        log_(wire::rate_limited(wire::or_stderr(std::move(log)))) {}
 
   ~LcmTransport() override {
     if (sub_ != nullptr) lcm_unsubscribe(lcm_, sub_);

@@ -1,7 +1,10 @@
 // Frame checks and drop-line wording shared by the LCM and DDS bindings.
 #include "wire_common.h"
 
+#include <chrono>
 #include <cstdio>
+#include <memory>
+#include <mutex>
 
 #include "tahvel/node/term.h"
 
@@ -145,6 +148,36 @@ std::vector<Frame> unpack(const Frame& sample, std::string& error) {
     frames.clear();
   }
   return frames;
+}
+
+DropLog rate_limited(DropLog log) {
+  struct Budget {
+    std::mutex mu;
+    std::chrono::steady_clock::time_point window_start{};
+    std::size_t said = 0, left_out = 0;
+  };
+  return [log = std::move(log), budget = std::make_shared<Budget>()](std::string_view line) {
+    std::size_t left_out = 0;
+    {
+      std::lock_guard lock(budget->mu);
+      const auto now = std::chrono::steady_clock::now();
+      if (now - budget->window_start >= kDropLogWindow) {
+        left_out = budget->left_out;
+        budget->window_start = now;
+        budget->said = 0;
+        budget->left_out = 0;
+      }
+      if (budget->said == kDropLinesPerWindow) {
+        ++budget->left_out;
+        return;
+      }
+      ++budget->said;
+    }
+    if (left_out > 0)
+      log(std::to_string(left_out) + " more dropped frame" + (left_out == 1 ? " was" : "s were") + " not logged (at most " +
+          std::to_string(kDropLinesPerWindow) + " lines per " + std::to_string(kDropLogWindow.count()) + " s)");
+    log(line);
+  };
 }
 
 DropLog or_stderr(DropLog log) {

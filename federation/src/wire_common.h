@@ -2,6 +2,7 @@
 // before it is sent and after it is received, and the wording of drop lines.
 #pragma once
 
+#include <chrono>
 #include <optional>
 #include <string>
 #include <string_view>
@@ -53,5 +54,12 @@ std::vector<Frame> unpack(const Frame& sample, std::string& error);
 
 // `log`, or a sink that writes the line to stderr when `log` is empty (the DropLog default).
 DropLog or_stderr(DropLog log);
+
+// `log`, saying at most kDropLinesPerWindow lines per kDropLogWindow (P4): a sender of junk
+// must not fill the log and push out what it held. The lines left out are counted, and the
+// count is said with the next line said after the window.
+inline constexpr std::size_t kDropLinesPerWindow = 10;
+inline constexpr std::chrono::seconds kDropLogWindow{10};
+DropLog rate_limited(DropLog log);
 
 }  // namespace tahvel::federation::wire

@@ -1484,17 +1484,17 @@ TEST(Link, FramesFromSendersThatAreNoChildAreRefusedInOneLogLineEach) {
   EXPECT_EQ(count(tree.hospital_dir, {.p = Term::iri(kEx + "n")}), 0u);
 }
 
-// A node of protocol version 2 as the link sees it: what it sends is in version 2 (answers in
-// that layout, no item spans, which it does not have), and what reaches it is checked to be
-// version 2, which it would refuse else (P3, P4).
-class VersionTwo : public Transport {
+// A node of an earlier protocol version (2 or 3) as the link sees it: what it sends is in that
+// version (answers in its layout), and what reaches it is checked to be in that version, with
+// no item spans before version 3, which it would refuse else (P3, P4).
+class OlderVersion : public Transport {
  public:
-  explicit VersionTwo(std::unique_ptr<Transport> inner) : inner_(std::move(inner)) {}
+  OlderVersion(std::unique_ptr<Transport> inner, std::uint16_t version) : inner_(std::move(inner)), version_(version) {}
   const std::string& self() const override { return inner_->self(); }
   Result<void> send(const Frame& frame) override {
     Frame old = frame;
-    old.version = 2;
-    if (old.kind == FrameKind::answer) old.body = wire::encode_answer(wire::decode_answer(frame.body).value(), 2);
+    old.version = version_;
+    if (old.kind == FrameKind::answer) old.body = wire::encode_answer(wire::decode_answer(frame.body).value(), version_);
     return inner_->send(old);
   }
   Result<std::optional<Frame>> receive(std::chrono::milliseconds timeout) override {
@@ -1502,12 +1502,20 @@ class VersionTwo : public Transport {
     if (got && *got) {
       const Frame& f = **got;
       std::lock_guard lock(mu_);
-      if (f.version != 2) refused_.push_back("version " + std::to_string(f.version));
+      if (f.version != version_) refused_.push_back("version " + std::to_string(f.version));
       if (f.kind == FrameKind::up || f.kind == FrameKind::down)
-        if (auto item = wire::decode_item(f.body); !item || item->item.span != 0) refused_.push_back("an item with a span");
-      if (f.kind == FrameKind::query && !wire::decode_query(f.body, 2)) refused_.push_back("a query not in its layout");
+        if (auto item = wire::decode_item(f.body); !item || (version_ < 3 && item->item.span != 0))
+          refused_.push_back("an item with a span");
+      if (f.kind == FrameKind::query && !wire::decode_query(f.body, version_)) refused_.push_back("a query not in its layout");
+      if (f.kind == FrameKind::down)
+        if (auto item = wire::decode_item(f.body)) spans_.push_back(item->item.span);
     }
     return got;
+  }
+  // The spans of the items that came down, in order.
+  std::vector<std::int64_t> spans() const {
+    std::lock_guard lock(mu_);
+    return spans_;
   }
   std::vector<std::string> refused() const {
     std::lock_guard lock(mu_);
@@ -1516,8 +1524,10 @@ class VersionTwo : public Transport {
 
  private:
   std::unique_ptr<Transport> inner_;
+  std::uint16_t version_;
   mutable std::mutex mu_;
   std::vector<std::string> refused_;
+  std::vector<std::int64_t> spans_;
 };
 
 // home1's kEx:samples records as the hospital's remote query returns them (P13), and as home1's
@@ -1542,7 +1552,7 @@ SamplesAnswer ask_home1_for_samples(const Tree& tree, std::chrono::seconds timeo
 TEST(Link, AParentSpeaksToAChildOfTheVersionBeforeInThatVersion) {
   Tree tree;
   tree.hospital = tree.start_hospital();
-  auto old_home = std::make_shared<VersionTwo>(tree.bus.open(kHome1, tree.home1_log.sink()));
+  auto old_home = std::make_shared<OlderVersion>(tree.bus.open(kHome1, tree.home1_log.sink()), 2);
   tree.home1 = Link::start({.dir = tree.home1_dir, .parent_iri = kHospital, .up = old_home, .resend_after = 100ms,
                             .heartbeat_every = 200ms, .log = tree.home1_log.sink()})
                    .value();
@@ -1581,6 +1591,48 @@ TEST(Link, AParentSpeaksToAChildOfTheVersionBeforeInThatVersion) {
   EXPECT_TRUE(eventually([&] { return count(tree.hospital_dir, {.p = Term::iri(kEx + "n")}) == 6; }, 15s))
       << tree.hospital_log.text();
   EXPECT_EQ(old_home->refused(), std::vector<std::string>{}) << "frames the old home would have refused";
+}
+
+// A child of version 3 has item spans (P3): its settings came down without theirs. And 4,200
+// hellos of version 3 from made-up children filled the table of older children, so that the
+// real one, heard after them, was spoken to in version 4, which it cannot hear; each made-up
+// sender was one more line in the log.
+TEST(Link, AChildOfVersionThreeGetsSpansAndIsHeardInItsVersionAfterAFloodOfMadeUpOlderSenders) {
+  Tree tree;
+  tree.hospital = tree.start_hospital();
+  auto injector = tree.bus.open(kHospital + "/injector");
+  for (int i = 0; i < 4200; ++i) {
+    Frame hello;
+    hello.version = 3;
+    hello.kind = FrameKind::hello;
+    hello.from = kHospital + "/made" + std::to_string(i);
+    hello.to = kHospital;
+    hello.body = wire::encode_state({"tahvel 0.0.3", 0, "", ""});
+    ASSERT_TRUE(injector->send(hello));
+  }
+  ASSERT_TRUE(eventually([&] { return tree.hospital->counters().refused >= 4200; }, 20s));
+  // One line per made-up sender filled the log: at most 10 refusal lines per 10 s are said.
+  {
+    std::lock_guard lock(tree.hospital_log.mu);
+    const auto& lines = tree.hospital_log.lines;
+    EXPECT_LE(std::count_if(lines.begin(), lines.end(), [](const std::string& l) { return l.starts_with("refused a hello"); }), 20)
+        << lines.size() << " lines";
+  }
+  auto old_home = std::make_shared<OlderVersion>(tree.bus.open(kHome1, tree.home1_log.sink()), 3);
+  tree.home1 = Link::start({.dir = tree.home1_dir, .parent_iri = kHospital, .up = old_home, .resend_after = 100ms,
+                            .heartbeat_every = 200ms, .log = tree.home1_log.sink()})
+                   .value();
+  ASSERT_TRUE(eventually([&] { return tree.home1->connected(); })) << tree.home1_log.text();
+  EXPECT_TRUE(tree.hospital_log.has("<" + kHome1 + "> speaks protocol version 3")) << tree.hospital_log.text();
+  node::Item config;
+  config.context = kHome1 + "/hrv";
+  config.span = 60'000'000'000;
+  config.add(Term::iri(kHome1 + "/hrv"), Term::iri(kEx + "windowS"), Term::integer(60));
+  ASSERT_TRUE(node::Node::open(tree.hospital_dir).value().agent("operator").value().store(config));
+  ASSERT_TRUE(eventually([&] { return count(tree.home1_dir, {.p = Term::iri(kEx + "windowS")}) == 1; }));
+  const auto arrived = node::Node::open(tree.home1_dir).value().snapshot().value().list({.p = Term::iri(kEx + "windowS")}).value();
+  EXPECT_EQ(arrived.front().meta.span, 60'000'000'000) << "version 3 has spans";
+  EXPECT_EQ(old_home->refused(), std::vector<std::string>{}) << "frames the version-3 home would have refused";
 }
 
 // Two patients' recordings on one sensor node, written by two agents: a query two hops down by
@@ -1642,7 +1694,7 @@ TEST(Link, AQueryBySubjectOrSourceIsRefusedNamingTheChildOfAnEarlierVersionOnThe
   tree.home1 = Link::start({.dir = tree.home1_dir, .parent_iri = kHospital, .up = gateway, .down = gateway,
                             .resend_after = 100ms, .heartbeat_every = 200ms, .log = tree.home1_log.sink()})
                    .value();
-  auto old_sensor = std::make_shared<VersionTwo>(tree.bus.open(sensor_iri, tree.home2_log.sink()));
+  auto old_sensor = std::make_shared<OlderVersion>(tree.bus.open(sensor_iri, tree.home2_log.sink()), 2);
   auto sensor_link = Link::start({.dir = sensor_dir, .parent_iri = kHome1, .up = old_sensor, .resend_after = 100ms,
                                   .heartbeat_every = 200ms, .log = tree.home2_log.sink()})
                          .value();

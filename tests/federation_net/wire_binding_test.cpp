@@ -488,6 +488,32 @@ TEST(WireUdpm, AFrameWhoseLengthsLieIsDroppedNamingTheFieldAndTheEndpointGoesOn)
   EXPECT_NE(drops[4].find(": not a tahvel_frame_t ('body' says 2147483647 bytes, 3 are left)"), std::string::npos) << drops[4];
 }
 
+// A sender of junk filled the log with a line per datagram, pushing out what it held; a frame
+// from a made-up IRI of megabytes was kept and logged whole by the link (P4). The first is
+// dropped naming the limit; then at most 10 lines per 10 s are said.
+TEST(WireUdpm, AnOverlongSenderIriIsDroppedAndAFloodOfJunkIsLoggedAtMostTenLinesAWindow) {
+  require_netns();
+  LcmPairWithDrops pair(7755);
+  ASSERT_TRUE(pair.receiver && pair.sender);
+  Frame made_up;
+  made_up.kind = FrameKind::hello;
+  made_up.from = "tahvel://wire-udpm/receiver/" + std::string(kMaxFrameIriBytes, 'a');
+  made_up.to = (*pair.receiver)->self();
+  ASSERT_TRUE((*pair.sender)->send(made_up));
+  auto first = pair.drops_once_a_good_frame_arrives();
+  ASSERT_TRUE(first) << "the good frame after the overlong IRI did not arrive";
+  ASSERT_EQ(first->size(), 1u);
+  EXPECT_NE((*first)[0].find("a sender IRI of " + std::to_string(made_up.from.size()) + " bytes, over the limit of 8192"),
+            std::string::npos)
+      << (*first)[0];
+  EXPECT_LT((*first)[0].size(), 1000u);
+  RawGroupSender raw(7755);
+  for (int i = 0; i < 30; ++i) raw.send("junk");
+  auto said = pair.drops_once_a_good_frame_arrives();
+  ASSERT_TRUE(said) << "the good frame after the junk did not arrive";
+  EXPECT_EQ(said->size(), 10u) << "one line for the IRI and nine of the junk in the first window";
+}
+
 // Linux hands a socket bound to a port the datagrams of every group any socket of the host joined
 // on it; an endpoint hears only its URL's group.
 TEST(WireUdpm, AnEndpointDoesNotHearAnotherGroupOnItsPort) {

@@ -216,9 +216,14 @@ Result<Frame> decode_frame(std::string_view bytes);
 // name), for log lines.
 std::string frame_kind_name(FrameKind kind);
 
+// The longest `from` IRI a frame may carry (P4): 40 levels of 200-byte ids. Frames from longer
+// made-up IRIs are dropped before the link keeps or logs anything of them.
+inline constexpr std::size_t kMaxFrameIriBytes = 8192;
+
 // Why a received, decoded frame must be dropped by the endpoint bound to `self_iri` (another
-// protocol version, another fingerprint, addressed to another IRI), or nullopt to accept it.
-// Every binding applies this same rule (docs/protocol.md P4).
+// protocol version, another fingerprint, addressed to another IRI, a `from` over
+// kMaxFrameIriBytes), or nullopt to accept it. Every binding applies this same rule
+// (docs/protocol.md P4).
 std::optional<std::string> frame_refusal(const Frame& frame, std::string_view self_iri);
 
 }  // namespace tahvel::federation
