@@ -436,6 +436,15 @@ TEST_F(ReasonerTest, ADirectoryIsNotARuleFile) {
   EXPECT_EQ(r.error().message, root_.string() + ": cannot read the rule file: it is a directory");
 }
 
+// A rule file that would not open was "cannot read the rule file", without why.
+TEST_F(ReasonerTest, ARuleFileThatWillNotOpenIsRefusedSayingWhy) {
+  tr::ReasonerOptions o;
+  o.rules = root_ / "no-such.rules";
+  auto r = tr::Reasoner::open(root_ / "node", o);
+  ASSERT_FALSE(r.has_value());
+  EXPECT_EQ(r.error().message, (root_ / "no-such.rules").string() + ": cannot read the rule file: No such file or directory");
+}
+
 TEST_F(ReasonerTest, RulesReloadAndABrokenFileIsReportedWhileThePreviousRulesRun) {
   auto file = rules("live.rules", "p(X, Y) :- a(X, Y).\n");
   put({t("x", "a", "y")});

@@ -292,6 +292,35 @@ TEST(Rules, ArithmeticTimesAndNow) {
   EXPECT_EQ(later.removed.size(), 1u);  // late(a, 30)
 }
 
+// One sensor writes epoch seconds, another dateTimes: `TB - TA` with TB the number failed
+// silently (number − time was undefined), while `>` read the number as seconds since the epoch.
+TEST(Rules, EpochSecondsMinusATimeIsSecondsAsInAComparison) {
+  auto program = parse("gap(A, B, D) :- at(A, TA), later(B, TB), D is TB - TA.\n");
+  ASSERT_TRUE(program);
+  tr::Engine engine(program);
+  auto dt = [](const char* s) { return tn::Term::literal(s, std::string(tn::xsd::kDateTime)); };
+  // 2026-01-01T09:11:07Z is 1767258667 s since the epoch.
+  std::vector<tn::Triple> in = {tl("door", "at", dt("2026-01-01T09:11:07Z")), tl("motion", "later", tn::Term::integer(1767258714)),
+                                tl("half", "later", tn::Term::literal("1767258667.5", std::string(tn::xsd::kDecimal)))};
+  std::set<std::string> got = strings(engine.apply(in, {}, 0).added);
+  const std::set<std::string> want = {
+      tr::Atom{kNs + "gap", {n("door"), n("motion"), tn::Term::integer(47)}}.to_string(),
+      tr::Atom{kNs + "gap", {n("door"), n("half"), tn::Term::literal("0.5", std::string(tn::xsd::kDouble))}}.to_string()};
+  EXPECT_EQ(got, want);
+}
+
+// A variable's name starts with an upper-case letter, Unicode's: `Ärsyke` was read as the
+// constant <…#Ärsyke>, and the rule derived nothing, silently.
+TEST(Rules, ANameStartingWithANonAsciiCapitalIsAVariable) {
+  auto program = parse("l\u00e4mp\u00f6(\u00c4rsyke) :- at(\u00c4rsyke, _).\nlow(X) :- at(X, \u00e4rsyke).\n");
+  ASSERT_TRUE(program);
+  tr::Engine engine(program);
+  std::vector<tn::Triple> in = {tl("s1", "at", tn::Term::integer(5))};
+  std::set<std::string> got = strings(engine.apply(in, {}, 0).added);
+  const std::set<std::string> want = {tr::Atom{kNs + "l\u00e4mp\u00f6", {n("s1")}}.to_string()};
+  EXPECT_EQ(got, want);
+}
+
 // Integer arithmetic that leaves int64, and times outside the ns range, are undefined like a
 // division by zero: the literal fails, nothing wraps around into a wrong conclusion. (Under
 // UBSan, the overflow itself would fail this test.)
@@ -506,7 +535,7 @@ ModelValue model_add(ModelValue a, ModelValue b) {
 }
 ModelValue model_sub(ModelValue a, ModelValue b) {
   if (a.kind == ModelValue::none || b.kind == ModelValue::none) return {};
-  if (a.kind == ModelValue::number && b.kind == ModelValue::time) return {};
+  // number − time: the number is seconds since the epoch, the difference seconds (RS5).
   return {a.kind == ModelValue::time && b.kind == ModelValue::number ? ModelValue::time : ModelValue::number, a.x - b.x};
 }
 ModelValue num(double x) { return {ModelValue::number, x}; }

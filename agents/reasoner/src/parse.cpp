@@ -9,6 +9,9 @@
 #include <map>
 #include <optional>
 
+#include <unictype.h>
+#include <unistr.h>
+
 #include "program.h"
 #include "tahvel/uri/unicode_escape.h"
 
@@ -188,6 +191,18 @@ Result<std::string> Lexer::curie(Pos start, std::string prefix) {
   return *iri;
 }
 
+namespace {
+// RS4: a name whose first character is '_' or an upper-case letter (Unicode's Lu or Lt, as
+// SWI-Prolog reads them: `Ärsyke` is a variable) names a variable.
+bool starts_a_variable(const std::string& id) {
+  if (id.empty()) return false;
+  if (id[0] == '_') return true;
+  ucs4_t first = 0;
+  u8_mbtouc(&first, reinterpret_cast<const std::uint8_t*>(id.data()), id.size());
+  return uc_is_general_category(first, UC_UPPERCASE_LETTER) || uc_is_general_category(first, UC_TITLECASE_LETTER);
+}
+}  // namespace
+
 Result<Token> Lexer::identifier(Pos start) {
   std::string id;
   while (name_char()) { id += at(); advance(); }
@@ -196,8 +211,7 @@ Result<Token> Lexer::identifier(Pos start) {
     if (!iri) return unexpected(iri.error());
     return Token{Tok::iri, *iri, {}, start};
   }
-  bool var = std::isupper(static_cast<unsigned char>(id[0])) || id[0] == '_';
-  return Token{var ? Tok::var : Tok::name, id, {}, start};
+  return Token{starts_a_variable(id) ? Tok::var : Tok::name, id, {}, start};
 }
 
 Result<Token> Lexer::iri_ref(Pos start) {

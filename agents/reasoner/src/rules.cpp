@@ -1,4 +1,6 @@
 // Public entry points of the rule language (rules.h): parsing, atoms and their stored form.
+#include <cerrno>
+#include <cstring>
 #include <fstream>
 #include <sstream>
 
@@ -18,10 +20,10 @@ Result<std::string> read_rule_file(const std::filesystem::path& path) {
   if (std::error_code ec; std::filesystem::is_directory(path, ec))
     return unexpected(Error{path.string() + ": cannot read the rule file: it is a directory"});
   std::ifstream in(path, std::ios::binary);
-  if (!in) return unexpected(Error{path.string() + ": cannot read the rule file"});
+  if (!in) return unexpected(Error{path.string() + ": cannot read the rule file: " + std::strerror(errno)});
   std::ostringstream text;
   text << in.rdbuf();
-  if (in.bad()) return unexpected(Error{path.string() + ": error while reading the rule file"});
+  if (in.bad()) return unexpected(Error{path.string() + ": error while reading the rule file: " + std::strerror(errno)});
   return text.str();
 }
 

@@ -163,6 +163,12 @@ Value arith(ArithOp op, const Value& a, const Value& b) {
   if (a.kind == Value::time && is_number(b) && (op == ArithOp::add || op == ArithOp::sub))
     return shifted(a.i, b, op == ArithOp::add);
   if (is_number(a) && b.kind == Value::time && op == ArithOp::add) return shifted(b.i, a, true);
+  // Seconds since the epoch minus a time: the number is an instant, as in a comparison (RS5),
+  // so that sensors writing epoch seconds and others writing dateTimes can be subtracted.
+  if (is_number(a) && b.kind == Value::time && op == ArithOp::sub) {
+    auto ns = ns_of(a);
+    return ns ? arith(op, time(*ns), b) : Value{};
+  }
   if (a.kind == Value::time && b.kind == Value::time && op == ArithOp::sub) {
     std::int64_t ns;
     if (__builtin_sub_overflow(a.i, b.i, &ns)) return {};
