@@ -590,11 +590,19 @@ Result<HrvWindowItem> read_hrv_window(const std::vector<Record>& records) {
   HrvWindowItem w;
   const std::string observed = kSosa + "observedProperty";
   const std::string hrv = std::string(kTv) + "HeartRateVariability";
+  bool blank = false;  // the triple is there, on a blank node
   for (const Record& r : records)
-    if (r.triple.p.value == observed && r.triple.o.value == hrv && r.triple.s.is_iri()) {
+    if (r.triple.p.value == observed && r.triple.o.value == hrv) {
+      if (!r.triple.s.is_iri()) {
+        blank = true;
+        continue;
+      }
       w.iri = r.triple.s.value;
       break;
     }
+  if (w.iri.empty() && blank)
+    return fail("the HRV window's subject is a blank node: a window is named by an IRI (the recording's + \"/hrv/\" + its "
+                "start), so that its trend and its copies up the tree name the same window");
   if (w.iri.empty()) return fail("no sosa:observedProperty tv:HeartRateVariability in the item (not an HRV window)");
   // The recording the IRI extends first, as patients_on_board groups windows by it without
   // reading past the derivation (patients.cpp, window_facts).

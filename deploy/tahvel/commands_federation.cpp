@@ -1681,7 +1681,11 @@ int run_up(const Args& args) {
       const std::string& changed_at = !spec->parent.empty() && spec->iri_at == spec->at ? spec->parent_at : spec->iri_at;
       if (existing.iri() != spec->iri)
         fail((changed_at.empty() ? topo.file.string() : changed_at) + ": node '" + spec->id + "': the store at " + store.string() + " is the node <" + existing.iri() + ">, the file says <" +
-             spec->iri + "> (a changed iri or parent); move that store away, or give the node another id");
+             spec->iri + "> (a changed iri or parent); " +
+             (running != 0 ? "'tahvel down --state " + shell_word(state) + (only ? " --node " + *only : std::string()) +
+                                 "' first (a store moved while its supervisor runs stops every node of that supervisor), then "
+                           : std::string()) +
+             "move that store away, or give the node another id");
       for (std::size_t i = 0; i < spec->forward.size(); ++i)
         warn_of_unknown_terms(*spec, i, forward_pattern_of(*spec, i, existing.prefixes()));
       for (const fs::path& file : spec->load) (void)load_file_triples(*spec, file, existing.prefixes(), topo);

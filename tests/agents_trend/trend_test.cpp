@@ -379,6 +379,17 @@ TEST_F(TrendAgentTest, WindowsCutShortByTheRecordsEndAreNoPointsOfTheSeries) {
   }
 }
 
+// An integrator's agent wrote its windows on blank nodes; the trend agent said the item had no
+// sosa:observedProperty tv:HeartRateVariability, which it had.
+TEST(HrvWindowItems, AWindowOnABlankNodeIsRefusedNamingTheBlankNodeNotAMissingTriple) {
+  tn::Record r;
+  r.triple = {tn::Term::blank("w"), tn::Term::iri("http://www.w3.org/ns/sosa/observedProperty"),
+              tn::Term::iri("https://w3id.org/tahvel#HeartRateVariability")};
+  auto window = agg::read_hrv_window({r});
+  ASSERT_FALSE(window);
+  EXPECT_NE(window.error().message.find("the HRV window's subject is a blank node"), std::string::npos) << window.error().message;
+}
+
 // Windows a minute apart after 115 days (1.00001e+07 s with six significant digits) were
 // named alike, and the later one was taken for a repeat and never written.
 TEST(ItemNames, WindowAndTrendNamesTellApartStartsOnLongRecordingsAndKeepShortOnesShort) {

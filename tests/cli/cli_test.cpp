@@ -3483,6 +3483,16 @@ TEST_F(Cli, UpRefusesAStoreThatBelongsToAnotherIri) {
   EXPECT_NE(up.err.find("moved.toml:3:7: node 'solo': the store at " + state + "/solo is the node <http://example.org/solo>, the file says "
                         "<http://example.org/other>"), std::string::npos) << up.err;
   EXPECT_FALSE(fs::exists(tmp_ / "state" / "supervisor-all.pid"));
+  // While its supervisor runs, moving the store away (as the message said) stopped every node
+  // of that supervisor: the message says to stop it first.
+  ASSERT_EQ(run({"up", (tmp_ / "node.toml").string(), "--state", state}).status, 0);
+  Outcome running = run({"up", (tmp_ / "moved.toml").string(), "--state", state});
+  EXPECT_EQ(running.status, 1);
+  EXPECT_NE(running.err.find("'tahvel down --state " + state + "' first (a store moved while its supervisor runs stops every "
+                             "node of that supervisor), then move that store away"),
+            std::string::npos)
+      << running.err;
+  EXPECT_EQ(run({"down", "--state", state}).status, 0);
 }
 
 // A `load` file that cannot be read stops `up` before any store is made; once it is there, the
