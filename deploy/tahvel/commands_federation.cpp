@@ -2674,9 +2674,11 @@ int run_status(const Args& args) {
     std::cout << indent << n.id << "  <" << n.iri << ">";
     if (n.remote) std::cout << "  (on another machine)";
     if (left) std::cout << "  not in the deployment (taken out of its file; the store is kept)";
-    if (!n.link.empty() && !unknown_because.empty())
+    if (!n.link.empty() && !unknown_because.empty()) {
       std::cout << "  link state unknown: " << unknown_because << " (it last said: " << said << ")";
-    else if (!n.link.empty())
+      // The parent's view is stale; the node's own, written here, is not (its outbox grows).
+      if (!n.uplink.empty() && uplink_unknown_because.empty()) std::cout << "; its own link says: " << uplink_said;
+    } else if (!n.link.empty())
       std::cout << "  " << said;
     else if (!n.uplink.empty() && !uplink_unknown_because.empty())
       std::cout << "  uplink state unknown: " << uplink_unknown_because << " (it last said: " << uplink_said << ")";

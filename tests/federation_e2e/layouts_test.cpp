@@ -142,7 +142,8 @@ class Deployment : public ::testing::Test {
 
 // One machine per node (`up --node`). The ward's link writes the gateway's state; once the ward
 // is stopped, that state is the link's last word, and `status` must not show it as current (an
-// operator read "link up, last seen 45 s ago" for a link nobody was running).
+// operator read "link up, last seen 45 s ago" for a link nobody was running). The gateway's own
+// view is shown beside it (it showed the parent's "outbox 0" while items piled up).
 TEST_F(Deployment, StatusDoesNotShowAStoppedParentsLastWordAsTheLinksState) {
   write_topology("[[node]]\nid = \"ward\"\niri = \"" + kWard + "\"\nlisten = { kind = \"dds\", domain = 6, " + kDdsConfig +
                  " }\n\n[[node]]\nid = \"gateway\"\nparent = \"ward\"\n");
@@ -161,6 +162,10 @@ TEST_F(Deployment, StatusDoesNotShowAStoppedParentsLastWordAsTheLinksState) {
   EXPECT_NE(shown.find("gateway  <" + kWard + "/gateway>  link state unknown: ward/link is stopped (it last said: link up"),
             std::string::npos)
       << shown;
+  // Beside the parent's stale word, the gateway's own, current one (its outbox grows meanwhile).
+  EXPECT_TRUE(eventually([&] {
+    return (shown = status()).find("); its own link says: uplink to <" + kWard + "> down, parent last heard ") != std::string::npos;
+  })) << shown;
   shown = tahvel("status --json --state " + state_.string());
   EXPECT_NE(shown.find(gateway_json + "\"known\":false,\"unknown_because\":\"ward/link is stopped\","), std::string::npos) << shown;
 }
