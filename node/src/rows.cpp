@@ -21,9 +21,12 @@ std::uint64_t removal_log_limit(const Settings& settings) {
 }
 // And by size (16 MB at most): a removed record may be large (a remote query's answer chunks, up to the literal
 // limit each, are removed from the asking board as they are read), and 65,536 of them kept every
-// answer of the last hundreds of queries, raw ECG included, in the hospital's store.
+// answer of the last hundreds of queries, raw ECG included, in the hospital's store. At least
+// 256 KB, but never more than 1/64 of a small store: 256 KB of a 1 MiB store kept most of what
+// a removal freed, and the full store stayed full.
 std::uint64_t removal_log_bytes_limit(const Settings& settings) {
-  return std::clamp<std::uint64_t>(settings.max_map_bytes / 4096, 256 << 10, 16 << 20);
+  const std::uint64_t floor = std::min<std::uint64_t>(256 << 10, settings.max_map_bytes / 64);
+  return std::clamp<std::uint64_t>(settings.max_map_bytes / 4096, floor, 16 << 20);
 }
 
 std::uint64_t table_bytes(MDB_txn* txn, MDB_dbi dbi) {

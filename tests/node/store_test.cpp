@@ -785,6 +785,31 @@ TEST(Store, AFullStoreCanAlwaysBeEmptiedAndDataNeverTakesTheRemovalsReserve) {
                      << node.stats()->used_bytes << ")";
 }
 
+// A 1 MiB store full of items with 2 KB literals: removing a third of them freed 20 KB, as the
+// removal log kept what was removed (at least 256 KB of it, a quarter of the store), and the
+// next small write was refused. The log of a small store keeps at most 1/64 of it.
+TEST(Store, RemovingAThirdOfASmallFullStoreMakesRoomForMore) {
+  TempDir dir;
+  Node node = make_node(dir.path(), {.max_map_bytes = 1 << 20});
+  auto agent = node.agent("w");
+  int stored = 0;
+  for (;; ++stored) {
+    const std::string i = std::to_string(stored);
+    auto written = agent->store(Item{}.add(ex("s" + i), ex(stored % 3 == 0 ? "gone" : "kept"), Term::literal(std::string(2000, 'b') + i)));
+    if (!written) {
+      ASSERT_EQ(written.error().code, Errc::store_full) << written.error().message;
+      break;
+    }
+  }
+  ASSERT_GT(stored, 100);
+  auto removed = node.remove({.p = ex("gone")});
+  ASSERT_TRUE(removed) << removed.error().message;
+  for (int k = 0; k < 20; ++k) {
+    auto after = agent->store(Item{}.add(ex("new" + std::to_string(k)), ex("kept"), Term::literal(std::string(2000, 'c'))));
+    ASSERT_TRUE(after) << "write " << k << " after removing " << *removed << " of " << stored << ": " << after.error().message;
+  }
+}
+
 // Stores item_of(0), item_of(1), ... in transactions of 200 until the store is full; returns how
 // many were stored (0 after a failure other than store_full).
 std::uint64_t fill_until_full(Agent& agent, const std::function<Item(std::uint64_t)>& item_of) {
