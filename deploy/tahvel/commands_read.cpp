@@ -172,6 +172,29 @@ int run_dump(const Args& args) {
   return kExitOk;
 }
 
+const Command kBackupCommand{
+    "backup",
+    "DIR DEST",
+    "Copy a store, as of one snapshot, to the new directory DEST, while its agents run.",
+    "A copy of DIR's files made with cp while agents write may be damaged (a page copied half\n"
+    "written); this one is taken from one snapshot, without the store's free pages. DEST must not\n"
+    "exist; the copy is made beside it and renamed to it once whole. To restore, stop the node\n"
+    "('tahvel down --node ID'), put DEST in DIR's place and start it again: its links see that\n"
+    "the store went back in time and make up for it (docs/protocol.md P6a, P6d). Prints the\n"
+    "copy's size in bytes.",
+    {},
+    2, 2, false};
+
+int run_backup(const Args& args) {
+  refuse_when_output_was_closed();
+  node::Node node = open_node(args.positional(0));
+  auto bytes = node.back_up(args.positional(1));
+  if (!bytes) fail("backup: " + bytes.error().message);
+  std::cout << *bytes << "\n";
+  finish_output(std::cout);
+  return kExitOk;
+}
+
 const Command kTakeCommand{
     "take",
     "DIR --agent ID [--timeout MS] [--format nt|ttl|json]",

@@ -126,6 +126,7 @@ std::span<const Subcommand> subcommands() {
       {&kSubscribeCommand, run_subscribe}, {&kAreasCommand, run_areas},
       {&kTakeCommand, run_take},
       {&kTailCommand, run_tail},   {&kDumpCommand, run_dump},
+      {&kBackupCommand, run_backup},
       {&kLoadCommand, run_load},   {&kStatsCommand, run_stats},
       {&kCheckCommand, run_check},
       {&kHrvCommand, run_hrv},     {&kPatientsCommand, run_patients},

@@ -5,6 +5,7 @@
 #include <unistd.h>
 
 #include <algorithm>
+#include <cerrno>
 #include <cstring>
 #include <limits>
 #include <map>
@@ -1413,6 +1414,37 @@ Result<std::string> Node::store_id() const {
   int rc = mdb_get(read.txn, impl_->env->meta, &k, &v);
   if (rc != 0) return lmdb_fail(rc, "reading the store id");
   return std::string(view(v));
+}
+
+Result<std::uint64_t> Node::back_up(const std::filesystem::path& dest) const {
+  namespace fs = std::filesystem;
+  std::error_code ec;
+  if (fs::exists(fs::symlink_status(dest, ec)))
+    return fail(Errc::invalid_argument, dest.string() + " exists: a backup goes to a new directory");
+  const fs::path partial = dest.string() + ".partial-" + std::to_string(::getpid());
+  fs::remove_all(partial, ec);
+  if (!fs::create_directory(partial, ec))
+    return fail(Errc::io, "cannot make " + partial.string() + ": " + (ec ? ec.message() : "it exists"));
+  auto discard = [&] {
+    std::error_code ignored;
+    fs::remove_all(partial, ignored);
+  };
+  // MDB_CP_COMPACT copies from one read transaction: a snapshot, and without the free pages.
+  if (int rc = mdb_env_copy2(impl_->env->raw(), partial.c_str(), MDB_CP_COMPACT); rc != 0) {
+    discard();
+    return fail(rc == ENOSPC ? Errc::store_full : Errc::io, "cannot copy the store to " + partial.string() + ": " + mdb_strerror(rc));
+  }
+  const std::uintmax_t bytes = fs::file_size(partial / "data.mdb", ec);
+  if (ec) {
+    discard();
+    return fail(Errc::io, "cannot read the size of the copy in " + partial.string() + ": " + ec.message());
+  }
+  fs::rename(partial, dest, ec);
+  if (ec) {
+    discard();
+    return fail(Errc::io, "cannot rename " + partial.string() + " to " + dest.string() + ": " + ec.message());
+  }
+  return static_cast<std::uint64_t>(bytes);
 }
 
 Result<std::string> Node::renew_store_id() {

@@ -1163,6 +1163,46 @@ TEST_F(Cli, MissingNodeDirectoryExits1WithOneLine) {
   EXPECT_EQ(lines_of(r.err).size(), 1u) << r.err;
 }
 
+// A copy of a store's files made with cp while an agent wrote was damaged in half the tries
+// ("vocabulary term missing"), and nothing said how to make a sound one. `backup` copies one
+// snapshot: each copy checks clean and holds whole items only.
+TEST_F(Cli, BackupWhileAnAgentWritesGivesACopyThatChecksCleanWithWholeItems) {
+  init();
+  std::atomic<bool> stop{false};
+  std::thread writer([&] {
+    auto node = tahvel::node::Node::open(node_);
+    if (!node) return;
+    auto agent = node->agent("sensor");
+    if (!agent) return;
+    for (int i = 0; !stop; ++i) {
+      const auto obs = tahvel::node::Term::iri(kEx + "obs/" + std::to_string(i));
+      tahvel::node::Item item;
+      item.add(obs, tahvel::node::Term::iri(kEx + "a"), tahvel::node::Term::integer(i))
+          .add(obs, tahvel::node::Term::iri(kEx + "b"), tahvel::node::Term::literal(std::string(300, 'x')));
+      if (!agent->store(item)) return;
+      std::this_thread::sleep_for(std::chrono::microseconds(100));
+    }
+  });
+  for (int k = 0; k < 3; ++k) {
+    std::this_thread::sleep_for(std::chrono::milliseconds(150));
+    const std::string copy = (tmp_ / ("copy" + std::to_string(k))).string();
+    Outcome backup = run({"backup", node_, copy});
+    ASSERT_EQ(backup.status, 0) << backup.err;
+    EXPECT_GT(std::stoull(backup.out), 0u) << backup.out;
+    Outcome checked = run({"check", copy});
+    EXPECT_EQ(checked.status, 0) << checked.out << checked.err;
+    const auto a = lines_of(run({"list", copy, "-p", kEx + "a"}).out).size(), b = lines_of(run({"list", copy, "-p", kEx + "b"}).out).size();
+    EXPECT_GT(a, 0u);
+    EXPECT_EQ(a, b) << "an item copied in part";
+  }
+  stop = true;
+  writer.join();
+  Outcome again = run({"backup", node_, (tmp_ / "copy0").string()});
+  EXPECT_EQ(again.status, 1);
+  EXPECT_NE(again.err.find("backup: " + (tmp_ / "copy0").string() + " exists: a backup goes to a new directory"), std::string::npos)
+      << again.err;
+}
+
 // `tahvel check`: a store the library wrote holds together (exit 0, the counts); a damaged one
 // is said to be damaged, with the table being read, even when reading it ends the reading
 // process (LMDB asserts on a table root it cannot have: the reading process aborts, not check).

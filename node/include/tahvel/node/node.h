@@ -537,6 +537,14 @@ class Node {
   // not take them for ones they have seen. Returns the new id.
   Result<std::string> renew_store_id();
 
+  // Writes a copy of the store, as of one snapshot, to the new directory `dest` (it must not
+  // exist; its parent must), while agents go on writing: what a copy of the files made then
+  // would not be (a page being written is copied half old, half new). Free pages are left out.
+  // The copy is made beside `dest` and renamed to it once whole: nothing half-written is left
+  // under `dest`. Returns the copy's size in bytes. Errors: invalid_argument (`dest` exists),
+  // io.
+  Result<std::uint64_t> back_up(const std::filesystem::path& dest) const;
+
  private:
   friend class Agent;
   struct Impl;
