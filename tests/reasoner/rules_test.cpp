@@ -158,6 +158,23 @@ TEST(Rules, ParseErrorsNameFileLineAndColumn) {
   }
 }
 
+// A built-in written with other arguments (`lesstime(T)`, `skolem(L)`, `now(T, X)`, a bare
+// `now`) was an atom no rule defines: the rule derived nothing, and nothing said why.
+TEST(Rules, ABuiltInWrittenWithOtherArgumentsIsAnErrorNamingItsArguments) {
+  const std::vector<std::pair<std::string, std::string>> cases = {
+      {"p(X) :- q(X, Y), lesstime(Y).\n", "bad.rules:1:18: lesstime is a built-in of two arguments, lesstime(A, B) (A before B); written with 1 argument"},
+      {"r(L) :- q(X, Y), skolem(L).\n", "bad.rules:1:18: skolem is a built-in of two or more arguments, skolem(L, A1, ...); written with 1 argument"},
+      {"s(X) :- q(X, Y), now(Y, X).\n", "bad.rules:1:18: now is a built-in of one argument, now(T) (or 'now' inside an expression); written with 2 arguments"},
+      {"t(X) :- q(X, Y), now.\n", "bad.rules:1:18: now is a built-in of one argument, now(T) (or 'now' inside an expression); written with 0 arguments"},
+  };
+  for (const auto& [text, said] : cases) {
+    auto p = tr::parse_rules(text, options("bad.rules"));
+    ASSERT_FALSE(p.has_value()) << text;
+    EXPECT_EQ(p.error().message, said);
+  }
+  EXPECT_TRUE(tr::parse_rules("late(X) :- q(X, T), now(N), lesstime(T, N), skolem(L, X).\n", options("ok.rules")));
+}
+
 // Two messages that sent a rule's author the wrong way: a blank node was "unknown prefix '_'"
 // (declare it?), and a comparison's unbound variable was "not bound … before it" (reorder? order
 // does not count there, RS9).

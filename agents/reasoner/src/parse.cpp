@@ -621,6 +621,17 @@ Result<Literal> Parser::callable(bool negated) {
     if (auto a = advance(); !a) return unexpected(a.error());
   }
   if (args.size() > kMaxArity) return error(head.pos, head.text + ": at most " + std::to_string(kMaxArity) + " arguments");
+  // A built-in's name with other arguments was an atom no rule defines, which never held: the
+  // rule derived nothing, without a word (RS5).
+  if (head.kind == Tok::name) {
+    const std::string written = std::to_string(args.size()) + (args.size() == 1 ? " argument" : " arguments");
+    if (head.text == "now" && args.size() != 1)
+      return error(head.pos, "now is a built-in of one argument, now(T) (or 'now' inside an expression); written with " + written);
+    if (head.text == "lesstime" && args.size() != 2)
+      return error(head.pos, "lesstime is a built-in of two arguments, lesstime(A, B) (A before B); written with " + written);
+    if (head.text == "skolem" && args.size() < 2)
+      return error(head.pos, "skolem is a built-in of two or more arguments, skolem(L, A1, ...); written with " + written);
+  }
   if (head.kind == Tok::name && !negated) {
     if (head.text == "now" && args.size() == 1) {
       rule_->uses_now = true;
