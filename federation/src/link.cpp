@@ -1937,6 +1937,12 @@ struct Link::Impl {
       log("dropped a malformed query from the parent: " + q.error().message);
       return;
     }
+    // The answer goes to the origin, up through this node's parent: an origin that is not a
+    // node above this one (empty, made up) has no way there.
+    if (q->origin == self || !uri::is_under(self, q->origin)) {
+      log("dropped a query from the parent whose origin <" + wire::printable(q->origin, 200) + "> is not a node above <" + self + ">");
+      return;
+    }
     const std::string key = query_key(q->origin, f.seq);
     {
       std::lock_guard lock(mu);

@@ -1396,6 +1396,29 @@ TEST(Link, AHelloWhoseStateBodyDoesNotDecodeIsDroppedAndStartsNoNewStream) {
   EXPECT_EQ(count(tree.hospital_dir, {.p = Term::iri(kEx + "n")}), 20u);
 }
 
+// P13: a query frame with an empty origin was answered, the whole store sent up towards no one.
+// It is dropped with a line, and the link goes on.
+TEST(Link, AQueryFromTheParentWhoseOriginIsNoNodeAboveIsDropped) {
+  Tree tree;
+  ASSERT_TRUE(tree.start_hospital_and_home1());
+  for (const std::string origin : {std::string(), std::string("http://example.org/elsewhere")}) {
+    wire::QueryBody body;
+    body.origin = origin;
+    body.target = kHome1;
+    Frame query;
+    query.kind = FrameKind::query;
+    query.from = kHospital;
+    query.to = kHome1;
+    query.seq = 77;
+    query.body = wire::encode_query(body).value();
+    tree.bus.inject_raw(kHome1, encode_frame(query));
+    EXPECT_TRUE(eventually([&] {
+      return tree.home1_log.has("dropped a query from the parent whose origin <" + origin + "> is not a node above <" + kHome1 + ">");
+    })) << tree.home1_log.text();
+  }
+  ASSERT_TRUE(home1_sends(tree, 0, 5, 5));
+}
+
 // P8, P6a: an acknowledgement of more than the child has sent is refused with a line: taken, it
 // emptied the outbox of items the parent never had, and left every later one there for good.
 TEST(Link, AnAckBeyondWhatTheChildHasSentIsRefusedAndTheOutboxKeepsItsItems) {

@@ -14,6 +14,7 @@
 #include <limits>
 #include <deque>
 #include <functional>
+#include <iterator>
 #include <map>
 #include <optional>
 #include <set>
@@ -414,15 +415,29 @@ std::vector<std::uint32_t> demand_positions(const Rule& rule) {
 // Step 1: demand literals for rules with unbound head variables.
 Result<std::map<std::uint32_t, Demand>> add_demand_literals(Program& program, std::vector<int>& cuts) {
   std::map<std::uint32_t, Demand> demands;  // by predicate
+  // The positions callers must bind are those any alternative needs: the first alternative's
+  // were taken for all, and an alternative needing others was refused, or not, by clause order
+  // (`q(P, D, I) :- I = 1.` then `q(P, D, I) :- ex:interval(D, I).` was accepted, the other
+  // way round refused).
+  std::vector<std::vector<std::uint32_t>> own(program.rules.size());
+  std::map<std::uint32_t, std::vector<std::uint32_t>> needed;  // by predicate
+  for (std::size_t r = 0; r < program.rules.size(); ++r) {
+    own[r] = demand_positions(program.rules[r]);
+    if (own[r].empty()) continue;
+    std::vector<std::uint32_t>& all = needed[program.rules[r].head];
+    std::vector<std::uint32_t> merged;
+    std::set_union(all.begin(), all.end(), own[r].begin(), own[r].end(), std::back_inserter(merged));
+    all = std::move(merged);
+  }
   for (std::size_t r = 0; r < program.rules.size(); ++r) {
     Rule& rule = program.rules[r];
-    std::vector<std::uint32_t> positions = demand_positions(rule);
-    if (positions.empty()) continue;
+    if (own[r].empty()) continue;
+    const std::vector<std::uint32_t>& positions = needed.at(rule.head);
     auto [it, fresh] = demands.try_emplace(rule.head);
     if (fresh) {
       it->second.positions = positions;
       it->second.pos = rule.pos;
-      const std::uint32_t head_var = rule.head_args[positions.front()].index;
+      const std::uint32_t head_var = rule.head_args[own[r].front()].index;
       it->second.variable = rule.var_names[head_var];
       if (auto need = unbound_need_of(rule, head_var)) {
         it->second.unbound_need = rule.var_names[need->first];
@@ -431,16 +446,6 @@ Result<std::map<std::uint32_t, Demand>> add_demand_literals(Program& program, st
       const Pred& p = program.preds[rule.head];
       it->second.pred = add_pred(program, "demand for " + p.iri + "/" + std::to_string(p.arity),
                                  static_cast<std::uint32_t>(positions.size()));
-    }
-    if (it->second.positions != positions) {
-      // Callers bind one set of positions; a rule that needs others could not run for them.
-      std::vector<std::uint32_t>& known = it->second.positions;
-      bool covered = std::includes(known.begin(), known.end(), positions.begin(), positions.end());
-      if (!covered)
-        return unexpected(Error{where(program, rule.pos) + ": head variable " +
-                                rule.var_names[rule.head_args[positions.back()].index] +
-                                " is bound by no literal, and other alternatives need other arguments from the caller"});
-      positions = known;
     }
     std::vector<Arg> args;
     for (std::uint32_t i : positions) args.push_back(rule.head_args[i]);
@@ -786,9 +791,9 @@ Result<void> stratify(Program& program) {
       if (l.kind != Literal::negation) continue;
       for (auto [w, neg] : edges[rule.head]) {
         if (neg && comp[w] == comp[rule.head] && (l.pred == w || l.pred == kAnyBinary))
-          return unexpected(Error{where(program, l.pos) + ": negation of " + program.preds[w].iri +
-                                  " depends on " + program.preds[rule.head].iri +
-                                  " itself (not stratified; ranking and \\+ cannot go through recursion): " +
+          return unexpected(Error{where(program, l.pos) + ": " + program.preds[rule.head].iri + " depends on the negation of " +
+                                  program.preds[w].iri + ", which is derived from " + program.preds[rule.head].iri +
+                                  " in turn (not stratified; ranking and \\+ cannot go through recursion): " +
                                   dependency_path(program, edges, comp, w, rule.head)});
       }
     }
