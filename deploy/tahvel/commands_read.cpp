@@ -178,10 +178,11 @@ const Command kBackupCommand{
     "Copy a store, as of one snapshot, to the new directory DEST, while its agents run.",
     "A copy of DIR's files made with cp while agents write may be damaged (a page copied half\n"
     "written); this one is taken from one snapshot, without the store's free pages. DEST must not\n"
-    "exist; the copy is made beside it and renamed to it once whole. To restore, stop the node\n"
-    "('tahvel down --node ID'), put DEST in DIR's place and start it again: its links see that\n"
-    "the store went back in time and make up for it (docs/protocol.md P6a, P6d). Prints the\n"
-    "copy's size in bytes.",
+    "exist; the copy is made beside it (DEST.partial-PID), synced and renamed to it once whole.\n"
+    "To restore, stop the node ('tahvel down', or 'tahvel down --node ID' for a node brought up\n"
+    "with 'up --node ID'), put DEST in DIR's place and start it again. Its children send again\n"
+    "what it lacks; its parent gets again what its outbox held, and holds the non-persistent\n"
+    "items among them twice (docs/protocol.md P6d). Prints the copy's size in bytes.",
     {},
     2, 2, false};
 

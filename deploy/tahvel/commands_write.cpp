@@ -305,11 +305,11 @@ void warn_if_the_ring_took_some(const node::Node& node, const std::vector<std::p
 }
 
 int run_put(const Args& args) {
-  refuse_when_output_was_closed();
   node::Node node = open_node(args.positional(0));
   uri::PrefixMap prefixes = prefixes_with_flags(node.prefixes(), args);
   std::string path = args.positional().size() > 1 ? args.positional(1) : "-";
   node::Item item = item_frame(args, prefixes);
+  refuse_when_output_was_closed();  // after the usage errors (exit 2), before anything is written
   node::Agent agent = check(node.agent(agent_id(args, "cli")));
   Input input;
   item.triples = parse_input(node, path, input_format(args, path), prefixes, &input);
@@ -360,12 +360,12 @@ const Command kLoadCommand{
     2, 2};
 
 int run_load(const Args& args) {
-  refuse_when_output_was_closed();
   node::Node node = open_node(args.positional(0));
   uri::PrefixMap prefixes = prefixes_with_flags(node.prefixes(), args);
   const std::string& path = args.positional(1);
   node::Item frame = item_frame(args, prefixes);
   std::uint64_t batch = std::max<std::uint64_t>(1, args.get_u64("--batch", 10000));
+  refuse_when_output_was_closed();  // after the usage errors (exit 2), before anything is written
   node::Agent agent = check(node.agent(agent_id(args, "cli")));
   std::vector<node::Item> items;
   Input input;
@@ -426,7 +426,6 @@ std::uint64_t subscription_records_matching(const node::Node& node, const node::
 }
 
 int run_remove(const Args& args) {
-  refuse_when_output_was_closed();
   node::Node node = open_node(args.positional(0));
   uri::PrefixMap prefixes = prefixes_with_flags(node.prefixes(), args);
   node::Pattern pattern = pattern_from_args(args, prefixes);
@@ -436,6 +435,7 @@ int run_remove(const Args& args) {
   }
   if (args.has("--item") && (pattern.since || pattern.until)) usage_error("remove: --since and --until narrow a pattern, not --item");
   const node::Reach reach = args.has("--local") ? node::Reach::this_node : node::Reach::copies_too;
+  refuse_when_output_was_closed();  // after the usage errors (exit 2), before anything is removed
   if (args.has("--item")) {
     print_number(check(node.remove_item(args.get_u64("--item", 0), cascade, reach)));
   } else {
@@ -477,19 +477,22 @@ const Command kSubscribeCommand{
     1, 1};
 
 int run_subscribe(const Args& args) {
-  refuse_when_output_was_closed();
   node::Node node = open_node(args.positional(0));
   uri::PrefixMap prefixes = prefixes_with_flags(node.prefixes(), args);
   args.required("--agent");
   node::Pattern pattern = pattern_from_args(args, prefixes);
+  if (!args.has("--area") && args.has("--floor")) usage_error("--floor: only with a WKT --area");
+  if (args.has("--area") && args.has("--earlier"))
+    usage_error("--earlier: not with --area (an area subscription follows sensors as they move)");
+  std::optional<spatial::AreaSpec> given_area;
+  if (args.has("--area")) given_area = area_flag(args, prefixes);
+  refuse_when_output_was_closed();  // after the usage errors (exit 2), before anything is written
   node::Agent agent = check(node.agent(agent_id(args, "")));
-  if (!args.has("--area")) {
-    if (args.has("--floor")) usage_error("--floor: only with a WKT --area");
+  if (!given_area) {
     print_number(check(agent.subscribe(pattern, {.earlier = args.has("--earlier")})));
     return kExitOk;
   }
-  if (args.has("--earlier")) usage_error("--earlier: not with --area (an area subscription follows sensors as they move)");
-  spatial::AreaSpec area = area_flag(args, prefixes);
+  const spatial::AreaSpec& area = *given_area;
   {
     // A room that is not on the board is refused, as 'list --area' refuses it: a typo would
     // otherwise wait silently for a room that never comes.

@@ -559,6 +559,12 @@ node::Result<Topology> load_topology(const std::filesystem::path& file) {
   // Two nodes with one IRI would bind one name twice: their children flip between them.
   std::map<std::string, std::string> by_iri;
   for (const auto& n : topo.nodes) {
+    // Its peers would drop every frame it sent, each with a line, and never say why to it.
+    if (n.iri.size() > federation::kMaxFrameIriBytes)
+      return node::fail(Errc::invalid_argument, n.iri_at + ": node '" + n.id + "': its IRI is " +
+                                                    std::to_string(n.iri.size()) + " bytes, over the " +
+                                                    std::to_string(federation::kMaxFrameIriBytes) +
+                                                    " a link frame's sender may have (docs/protocol.md P4)");
     auto [it, fresh] = by_iri.emplace(n.iri, n.id);
     if (!fresh)
       return node::fail(Errc::invalid_argument, n.iri_at + ": nodes '" + it->second + "' and '" + n.id +

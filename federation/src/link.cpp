@@ -617,10 +617,11 @@ struct Link::Impl {
 
   // From a child's own frames (hello, heartbeat, up; not what it relays from below), also of
   // one not accepted, which is told why in its version; at most kOlderChildrenKept of those, so
-  // that made-up senders cannot fill the table: an `accepted` child (one this node may have) is
-  // always kept.
+  // that made-up senders cannot fill the table: an `accepted` child of a configured list is
+  // always kept (without a list any IRI below is accepted, and counts against the bound).
   static constexpr std::size_t kOlderChildrenKept = 4096;
   void note_child_version(const std::string& iri, std::uint16_t version, bool accepted) {
+    accepted = accepted && !opt.children.empty();
     if (version == kProtocolVersion && !older_children_heard.load(std::memory_order_relaxed)) return;
     std::lock_guard lock(older_children_mu);
     if (version == kProtocolVersion) {
@@ -1446,8 +1447,6 @@ struct Link::Impl {
       const std::string& key = reason.empty() ? why : reason;
       const auto now = Clock::now();
       if (last.why != key || now - last.logged > std::chrono::minutes(1)) {
-        last.why = key;
-        last.logged = now;
         if (now - refusal_lines_since >= kRefusalLogWindow) {
           left_out = refusal_lines_left_out;
           refusal_lines_since = now;
@@ -1455,8 +1454,15 @@ struct Link::Impl {
           refusal_lines_left_out = 0;
         }
         say = refusal_lines < kRefusalLinesPerWindow;
-        if (say) ++refusal_lines;
-        else ++refusal_lines_left_out;
+        // Only a line said counts as this sender's last: one left out is counted each time, and
+        // the sender's next refusal after the window is said.
+        if (say) {
+          ++refusal_lines;
+          last.why = key;
+          last.logged = now;
+        } else {
+          ++refusal_lines_left_out;
+        }
       }
       if (now - refusal_answers_since >= std::chrono::seconds(1)) {
         refusal_answers_since = now;
@@ -3270,6 +3276,10 @@ LinkCounters Link::counters() const {
 Result<std::unique_ptr<Link>> Link::start(LinkOptions options) {
   auto node = node::Node::open(options.dir);
   if (!node) return Unexpected<Error>{node.error()};
+  // P4: every peer would drop what it sent, and never say why to it.
+  if (node->iri().size() > kMaxFrameIriBytes)
+    return node::fail(Errc::invalid_argument, "the node IRI is " + std::to_string(node->iri().size()) + " bytes, over the " +
+                                                  std::to_string(kMaxFrameIriBytes) + " a link frame's sender may have (P4)");
   if (!options.parent_iri.empty()) {
     if (!options.up) return node::fail(Errc::invalid_argument, "a parent IRI needs a transport to the parent");
     auto id = uri::child_id(node->iri(), options.parent_iri);

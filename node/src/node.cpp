@@ -2,6 +2,8 @@
 // write path.
 #include "tahvel/node/node.h"
 
+#include <fcntl.h>
+#include <stdio.h>
 #include <unistd.h>
 
 #include <algorithm>
@@ -1416,34 +1418,61 @@ Result<std::string> Node::store_id() const {
   return std::string(view(v));
 }
 
-Result<std::uint64_t> Node::back_up(const std::filesystem::path& dest) const {
+namespace {
+
+// fsync of a file or directory by path: what a rename needs before and after it to survive a
+// power cut (the copy's data, the new name, the directory entry).
+Result<void> sync_path(const std::filesystem::path& path, bool directory) {
+  int fd = ::open(path.c_str(), (directory ? O_RDONLY | O_DIRECTORY : O_RDONLY) | O_CLOEXEC);
+  if (fd < 0) return fail(Errc::io, "cannot open " + path.string() + " to sync it: " + std::strerror(errno));
+  int rc = ::fsync(fd);
+  int saved = errno;
+  ::close(fd);
+  if (rc != 0) return fail(Errc::io, "cannot sync " + path.string() + ": " + std::strerror(saved));
+  return {};
+}
+
+}  // namespace
+
+Result<std::uint64_t> Node::back_up(const std::filesystem::path& requested) const {
   namespace fs = std::filesystem;
+  // "copy/" names the directory copy: without the trailing separator its filename is "copy"
+  // and the partial copy goes beside it, not inside it.
+  fs::path dest = requested;
+  while (!dest.empty() && !dest.has_filename() && dest.has_relative_path()) dest = dest.parent_path();
+  if (dest.empty() || !dest.has_filename())
+    return fail(Errc::invalid_argument, "'" + requested.string() + "' names no new directory for the backup");
   std::error_code ec;
   if (fs::exists(fs::symlink_status(dest, ec)))
     return fail(Errc::invalid_argument, dest.string() + " exists: a backup goes to a new directory");
-  const fs::path partial = dest.string() + ".partial-" + std::to_string(::getpid());
+  const fs::path parent = dest.has_parent_path() ? dest.parent_path() : fs::path(".");
+  const fs::path partial = parent / (dest.filename().string() + ".partial-" + std::to_string(::getpid()));
   fs::remove_all(partial, ec);
   if (!fs::create_directory(partial, ec))
     return fail(Errc::io, "cannot make " + partial.string() + ": " + (ec ? ec.message() : "it exists"));
-  auto discard = [&] {
+  auto discard = [&](Error error) -> Result<std::uint64_t> {
     std::error_code ignored;
     fs::remove_all(partial, ignored);
+    return unexpected(std::move(error));
   };
   // MDB_CP_COMPACT copies from one read transaction: a snapshot, and without the free pages.
-  if (int rc = mdb_env_copy2(impl_->env->raw(), partial.c_str(), MDB_CP_COMPACT); rc != 0) {
-    discard();
-    return fail(rc == ENOSPC ? Errc::store_full : Errc::io, "cannot copy the store to " + partial.string() + ": " + mdb_strerror(rc));
-  }
+  if (int rc = mdb_env_copy2(impl_->env->raw(), partial.c_str(), MDB_CP_COMPACT); rc != 0)
+    return discard(Error{rc == ENOSPC ? Errc::store_full : Errc::io,
+                         "cannot copy the store to " + partial.string() + ": " + mdb_strerror(rc)});
   const std::uintmax_t bytes = fs::file_size(partial / "data.mdb", ec);
-  if (ec) {
-    discard();
-    return fail(Errc::io, "cannot read the size of the copy in " + partial.string() + ": " + ec.message());
+  if (ec) return discard(Error{Errc::io, "cannot read the size of the copy in " + partial.string() + ": " + ec.message()});
+  // LMDB's copy does not sync: without these a power cut soon after could leave DEST named but
+  // its data not on disk.
+  if (auto synced = sync_path(partial / "data.mdb", false); !synced) return discard(synced.error());
+  if (auto synced = sync_path(partial, true); !synced) return discard(synced.error());
+  // RENAME_NOREPLACE: a DEST made by someone else since the check above is not replaced.
+  if (::renameat2(AT_FDCWD, partial.c_str(), AT_FDCWD, dest.c_str(), RENAME_NOREPLACE) != 0) {
+    int saved = errno;
+    if (saved == EEXIST || saved == ENOTEMPTY)
+      return discard(Error{Errc::invalid_argument, dest.string() + " exists: a backup goes to a new directory"});
+    return discard(Error{Errc::io, "cannot rename " + partial.string() + " to " + dest.string() + ": " + std::strerror(saved)});
   }
-  fs::rename(partial, dest, ec);
-  if (ec) {
-    discard();
-    return fail(Errc::io, "cannot rename " + partial.string() + " to " + dest.string() + ": " + ec.message());
-  }
+  if (auto synced = sync_path(parent, true); !synced) return unexpected(synced.error());
   return static_cast<std::uint64_t>(bytes);
 }
 

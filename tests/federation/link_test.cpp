@@ -204,6 +204,20 @@ bool home1_sends(Tree& tree, int first, int n, std::uint64_t total) {
   });
 }
 
+// P4: a node whose IRI is longer than a frame's sender may be would have every frame it sent
+// dropped by its peers, who would never tell it why. Its link does not start, and says so.
+TEST(Link, ANodeWhoseIriIsLongerThanAFrameMayNameDoesNotStartALink) {
+  TempDir tmp{"tahvel-link"};
+  const std::string iri = kHospital + "/" + std::string(kMaxFrameIriBytes, 'h');
+  ASSERT_TRUE(node::Node::init((tmp / "long").string(), {.iri = iri}));
+  MemoryBus bus;
+  auto link = Link::start({.dir = (tmp / "long").string(), .down = std::shared_ptr<Transport>(bus.open(iri))});
+  ASSERT_FALSE(link);
+  EXPECT_EQ(link.error().code, Errc::invalid_argument);
+  EXPECT_NE(link.error().message.find("the node IRI is " + std::to_string(iri.size()) + " bytes, over the 8192"), std::string::npos)
+      << link.error().message.substr(0, 200);
+}
+
 TEST(Link, ItemsGoUpExactlyOnceThroughLossDuplicationAndReorderingAndRawSignalsStayHome) {
   Tree tree;
   tree.bus.set_faults({.seed = 7, .drop = 0.2, .duplicate = 0.1, .reorder = 0.1});

@@ -135,15 +135,20 @@ TEST_P(LinkOverDds, HellosFromMadeUpChildrenDoNotHoldUpARealOne) {
   auto home = Link::start({.dir = home_dir, .parent_iri = kHospital, .up = dds(kHome), .push = GetParam()}).value();
   ASSERT_TRUE(eventually([&] { return home->connected(); }));
   auto forger = dds(kHospital + "/forger");
+  const auto forging_began = std::chrono::steady_clock::now();
   for (int i = 0; i < 30; ++i) ASSERT_TRUE(forger->send(sim::hello_frame(kHospital + "/made-up-" + std::to_string(i), kHospital, {})));
   auto hrv = node::Node::open(home_dir).value().agent("hrv").value();
   ASSERT_TRUE(hrv.store(hrv_item(1)));
   EXPECT_TRUE(eventually([&] { return numbered(hospital_dir) == 1; }, 10s)) << "the real child's item waited";
   EXPECT_TRUE(eventually([&] { return hospital->counters().refused >= 30; })) << "each made-up sender is refused";
+  const bool in_one_window = std::chrono::steady_clock::now() - forging_began < 9s;
   {
     // A line for each of the first 10 in 10 s: a flood of made-up senders does not fill the log (P4).
+    // A machine slow enough to spread the refusals over two windows may say 10 more.
     std::lock_guard lock(mu);
-    EXPECT_EQ(std::count_if(lines.begin(), lines.end(), [](const std::string& l) { return l.find("refused a hello frame: <") == 0; }), 10);
+    const auto said = std::count_if(lines.begin(), lines.end(), [](const std::string& l) { return l.find("refused a hello frame: <") == 0; });
+    if (in_one_window) EXPECT_EQ(said, 10);
+    else EXPECT_TRUE(said >= 10 && said <= 20) << said;
   }
   std::lock_guard lock(mu);
   for (const std::string& line : lines) EXPECT_EQ(line.find("down"), std::string::npos) << line;

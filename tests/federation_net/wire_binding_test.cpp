@@ -495,6 +495,7 @@ TEST(WireUdpm, AnOverlongSenderIriIsDroppedAndAFloodOfJunkIsLoggedAtMostTenLines
   require_netns();
   LcmPairWithDrops pair(7755);
   ASSERT_TRUE(pair.receiver && pair.sender);
+  const auto began = std::chrono::steady_clock::now();
   Frame made_up;
   made_up.kind = FrameKind::hello;
   made_up.from = "tahvel://wire-udpm/receiver/" + std::string(kMaxFrameIriBytes, 'a');
@@ -511,7 +512,10 @@ TEST(WireUdpm, AnOverlongSenderIriIsDroppedAndAFloodOfJunkIsLoggedAtMostTenLines
   for (int i = 0; i < 30; ++i) raw.send("junk");
   auto said = pair.drops_once_a_good_frame_arrives();
   ASSERT_TRUE(said) << "the good frame after the junk did not arrive";
-  EXPECT_EQ(said->size(), 10u) << "one line for the IRI and nine of the junk in the first window";
+  if (std::chrono::steady_clock::now() - began < 9s)
+    EXPECT_EQ(said->size(), 10u) << "one line for the IRI and nine of the junk in the first window";
+  else  // a machine slow enough to spread the drops over two windows: the second says its count
+    EXPECT_LE(said->size(), 21u);
 }
 
 // Linux hands a socket bound to a port the datagrams of every group any socket of the host joined

@@ -445,6 +445,15 @@ TEST_F(ReasonerTest, ARuleFileThatWillNotOpenIsRefusedSayingWhy) {
   EXPECT_EQ(r.error().message, (root_ / "no-such.rules").string() + ": cannot read the rule file: No such file or directory");
 }
 
+// A read that failed part way stopped the reading as the file's end did: the rules before it
+// ran, those after it were retracted, and nothing said so. (/proc/self/mem fails its first read
+// with EIO: its offset 0 is mapped in no process.)
+TEST_F(ReasonerTest, ARuleFileWhoseReadFailsIsRefusedSayingWhy) {
+  auto text = tr::read_rule_file("/proc/self/mem");
+  ASSERT_FALSE(text.has_value()) << text->size() << " bytes read";
+  EXPECT_EQ(text.error().message, "/proc/self/mem: error while reading the rule file: Input/output error");
+}
+
 TEST_F(ReasonerTest, RulesReloadAndABrokenFileIsReportedWhileThePreviousRulesRun) {
   auto file = rules("live.rules", "p(X, Y) :- a(X, Y).\n");
   put({t("x", "a", "y")});

@@ -166,6 +166,11 @@ TEST(Rules, ABuiltInWrittenWithOtherArgumentsIsAnErrorNamingItsArguments) {
       {"r(L) :- q(X, Y), skolem(L).\n", "bad.rules:1:18: skolem is a built-in of two or more arguments, skolem(L, A1, ...); written with 1 argument"},
       {"s(X) :- q(X, Y), now(Y, X).\n", "bad.rules:1:18: now is a built-in of one argument, now(T) (or 'now' inside an expression); written with 2 arguments"},
       {"t(X) :- q(X, Y), now.\n", "bad.rules:1:18: now is a built-in of one argument, now(T) (or 'now' inside an expression); written with 0 arguments"},
+      // Negated, each was an atom no rule defines, so the negation always held.
+      {"u(X) :- q(X, Y), now(N), \\+ lesstime(Y, N).\n",
+       "bad.rules:1:29: lesstime cannot be negated (it would hold for arguments that are not times); write the opposite comparison, B =< A for \\+ lesstime(A, B)"},
+      {"v(X) :- q(X, Y), not(now(Y)).\n", "bad.rules:1:22: now cannot be negated: it binds its first argument and always holds"},
+      {"w(X) :- q(X, Y), \\+ skolem(L, X).\n", "bad.rules:1:21: skolem cannot be negated: it binds its first argument and always holds"},
   };
   for (const auto& [text, said] : cases) {
     auto p = tr::parse_rules(text, options("bad.rules"));
@@ -173,6 +178,7 @@ TEST(Rules, ABuiltInWrittenWithOtherArgumentsIsAnErrorNamingItsArguments) {
     EXPECT_EQ(p.error().message, said);
   }
   EXPECT_TRUE(tr::parse_rules("late(X) :- q(X, T), now(N), lesstime(T, N), skolem(L, X).\n", options("ok.rules")));
+  EXPECT_TRUE(tr::parse_rules("notLate(X) :- q(X, T), now(N), N =< T.\n", options("ok.rules")));
 }
 
 // "Override, else the drug's interval, else a default": the alternatives need other arguments

@@ -631,6 +631,12 @@ Result<Literal> Parser::callable(bool negated) {
       return error(head.pos, "lesstime is a built-in of two arguments, lesstime(A, B) (A before B); written with " + written);
     if (head.text == "skolem" && args.size() < 2)
       return error(head.pos, "skolem is a built-in of two or more arguments, skolem(L, A1, ...); written with " + written);
+    // Negated, each was an atom of that name that no rule defines, so the negation always held.
+    if (negated && head.text == "lesstime")
+      return error(head.pos, "lesstime cannot be negated (it would hold for arguments that are not times); write the opposite "
+                             "comparison, B =< A for \\+ lesstime(A, B)");
+    if (negated && (head.text == "now" || head.text == "skolem"))
+      return error(head.pos, head.text + " cannot be negated: it binds its first argument and always holds");
   }
   if (head.kind == Tok::name && !negated) {
     if (head.text == "now" && args.size() == 1) {

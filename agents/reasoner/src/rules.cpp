@@ -1,8 +1,9 @@
 // Public entry points of the rule language (rules.h): parsing, atoms and their stored form.
+#include <fcntl.h>
+#include <unistd.h>
+
 #include <cerrno>
 #include <cstring>
-#include <fstream>
-#include <sstream>
 
 #include "program.h"
 
@@ -19,12 +20,25 @@ Result<std::string> read_rule_file(const std::filesystem::path& path) {
   // A directory opens as an empty stream: read as no rules, it would retract every conclusion.
   if (std::error_code ec; std::filesystem::is_directory(path, ec))
     return unexpected(Error{path.string() + ": cannot read the rule file: it is a directory"});
-  std::ifstream in(path, std::ios::binary);
-  if (!in) return unexpected(Error{path.string() + ": cannot read the rule file: " + std::strerror(errno)});
-  std::ostringstream text;
-  text << in.rdbuf();
-  if (in.bad()) return unexpected(Error{path.string() + ": error while reading the rule file: " + std::strerror(errno)});
-  return text.str();
+  const int fd = ::open(path.c_str(), O_RDONLY | O_CLOEXEC);
+  if (fd < 0) return unexpected(Error{path.string() + ": cannot read the rule file: " + std::strerror(errno)});
+  // read(2), not a stream: `out << in.rdbuf()` stops at a read error as at the end of the file,
+  // and a rule file cut short that way still parses (fewer rules: the rest retracted).
+  std::string text;
+  char buffer[65536];
+  for (;;) {
+    const ssize_t got = ::read(fd, buffer, sizeof buffer);
+    if (got == 0) break;
+    if (got < 0) {
+      if (errno == EINTR) continue;
+      const int error = errno;
+      ::close(fd);
+      return unexpected(Error{path.string() + ": error while reading the rule file: " + std::strerror(error)});
+    }
+    text.append(buffer, static_cast<std::size_t>(got));
+  }
+  ::close(fd);
+  return text;
 }
 
 Result<std::shared_ptr<const Program>> load_rules(const std::filesystem::path& path, ParseOptions options) {

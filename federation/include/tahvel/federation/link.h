@@ -104,7 +104,10 @@ struct LinkOptions {
   // from `up` and `down` (a gateway with its LAN's sensors on LCM and a node further away on
   // DDS). A child is answered on the transport its hello came on.
   std::vector<std::shared_ptr<Transport>> also_down;
-  std::vector<std::string> children;  // child ids accepted; empty: any direct child
+  // Child ids accepted. Empty: any direct child, for a network where only trusted nodes speak
+  // (`tahvel link` without --child): each IRI that says hello is kept as a child, with its state
+  // on the board, so made-up senders grow both.
+  std::vector<std::string> children;
 
   std::size_t window = 512;                       // up or down items in flight per link
   std::chrono::milliseconds resend_after{300};    // no acknowledgement for this long: resend

@@ -540,9 +540,11 @@ class Node {
   // Writes a copy of the store, as of one snapshot, to the new directory `dest` (it must not
   // exist; its parent must), while agents go on writing: what a copy of the files made then
   // would not be (a page being written is copied half old, half new). Free pages are left out.
-  // The copy is made beside `dest` and renamed to it once whole: nothing half-written is left
-  // under `dest`. Returns the copy's size in bytes. Errors: invalid_argument (`dest` exists),
-  // io.
+  // The copy is made beside `dest` (as `dest`.partial-PID) and synced, renamed to it once whole
+  // (never over a `dest` made meanwhile), and the rename synced: nothing half-written is left
+  // under `dest`, and a `dest` that exists holds the whole copy after a power cut. A process
+  // killed while copying leaves its .partial-PID directory behind. Returns the copy's size in
+  // bytes. Errors: invalid_argument (`dest` exists or names no directory), io, store_full.
   Result<std::uint64_t> back_up(const std::filesystem::path& dest) const;
 
  private:
