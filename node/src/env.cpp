@@ -753,6 +753,65 @@ Result<void> Env::grow(WriteKind kind) {
   return {};
 }
 
+namespace {
+
+// Where the data file's allocated blocks from `from` on end: the first hole at or after `from`.
+// `from` itself where the filesystem cannot tell (without SEEK_HOLE support Linux reports the
+// whole file as data, which for this sparse file would be a lie).
+std::uint64_t allocated_from(int fd, std::uint64_t from) {
+  struct stat st;
+  if (::fstat(fd, &st) != 0) return from;
+  const off_t hole = ::lseek(fd, static_cast<off_t>(from), SEEK_HOLE);
+  if (hole < 0) return from;
+  if (hole >= st.st_size && static_cast<std::uint64_t>(st.st_blocks) * 512 < static_cast<std::uint64_t>(st.st_size)) return from;
+  return static_cast<std::uint64_t>(hole);
+}
+
+// The oldest snapshot any reader of the store holds (LMDB's reader table, which
+// mdb_reader_list prints as "pid thread txnid" lines, "-" for an idle slot); ~0 when none.
+std::uint64_t oldest_reader_txnid(MDB_env* env) {
+  std::uint64_t oldest = ~0ull;
+  mdb_reader_list(
+      env,
+      [](const char* line, void* ctx) -> int {
+        int pid = 0;
+        std::size_t thread = 0;
+        unsigned long long txnid = 0;
+        if (std::sscanf(line, "%d %zx %llu", &pid, &thread, &txnid) == 3) {
+          auto& least = *static_cast<std::uint64_t*>(ctx);
+          least = std::min<std::uint64_t>(least, txnid);
+        }
+        return 0;
+      },
+      &oldest);
+  return oldest;
+}
+
+// Bytes of the free pages a write transaction begun now may reuse.
+std::uint64_t free_bytes_reusable(MDB_env* env, MDB_txn* txn) {
+  MDB_envinfo info;
+  MDB_stat stat;
+  if (mdb_env_info(env, &info) != 0 || mdb_env_stat(env, &stat) != 0) return 0;
+  // A write transaction takes the pages freed by transactions before every reader's snapshot
+  // and before the last commit (whose pages the previous snapshot may still be reading).
+  const std::uint64_t before = std::min<std::uint64_t>(oldest_reader_txnid(env), info.me_last_txnid);
+  std::uint64_t free_pages = 0;
+  MDB_cursor* cursor = nullptr;
+  if (mdb_cursor_open(txn, 0, &cursor) != 0) return 0;
+  MDB_val k, v;
+  for (int rc = mdb_cursor_get(cursor, &k, &v, MDB_FIRST); rc == 0; rc = mdb_cursor_get(cursor, &k, &v, MDB_NEXT)) {
+    std::size_t txnid = 0, count = 0;  // copied: LMDB aligns keys and values to 2 bytes only
+    if (k.mv_size >= sizeof txnid) std::memcpy(&txnid, k.mv_data, sizeof txnid);
+    if (txnid >= before) break;  // keys ascend
+    if (v.mv_size >= sizeof count) std::memcpy(&count, v.mv_data, sizeof count);
+    free_pages += count;
+  }
+  mdb_cursor_close(cursor);
+  return free_pages * stat.ms_psize;
+}
+
+}  // namespace
+
 std::uint64_t pages_in_use_bytes(MDB_env* env, MDB_txn* txn) {
   MDB_envinfo info;
   MDB_stat stat;
@@ -804,7 +863,8 @@ Result<void> Env::check_reserve_untouched(std::uint64_t new_bytes) {
                                     "remove records, or make the store with a larger --max-map");
 }
 
-Result<void> Env::reserve_disk(WriteKind kind, std::uint64_t new_bytes) {
+Result<void> Env::reserve_disk(WriteKind kind, const WriteBound& bound) {
+  const std::uint64_t new_bytes = bound.bytes;
   MDB_envinfo info;
   MDB_stat stat;
   if (!map_info(info, stat)) return {};
@@ -845,9 +905,29 @@ Result<void> Env::reserve_disk(WriteKind kind, std::uint64_t new_bytes) {
       return {};
     }
   }
-  if (rc == ENOSPC)
-    return fail(Errc::store_full, "store full: the disk holding " + dir_.string() + " has no room left for the store to grow (" +
-                                      std::to_string(want / (1 << 20)) + " MB wanted); free some space");
+  if (rc == ENOSPC) {
+    // Removals free pages inside the file, and LMDB reuses free pages before it takes new ones
+    // at the end: without this a store emptied on a full disk took no write again until the
+    // disk had room for it to grow (a probe). Single pages come from the free ones while any are
+    // reusable; a long term's run of pages may still be taken at the end, where the blocks
+    // allocated already must hold it (and 64 pages for the tables' paths, as a removal's part).
+    const std::uint64_t least = (kind == WriteKind::removal ? (1u << 20) : kDiskLeast) + new_bytes;
+    const std::uint64_t backed = allocated_from(fd, in_use);
+    const std::uint64_t free_bytes = reusable_free_bytes();
+    if (free_bytes >= least && backed >= in_use + bound.large_term_bytes + 64 * page) {
+      disk_backed_.store(std::max(reserved, backed));
+      disk_tight_.store(true);
+      return {};
+    }
+    const std::uint64_t needed = in_use + least;
+    const std::uint64_t short_by = needed - std::min(backed, needed);
+    const std::string why = free_bytes >= least
+                                ? std::to_string(bound.large_term_bytes >> 10) + " KB of long terms, which need runs of pages the free ones may not have"
+                                : std::to_string(free_bytes >> 20) + " MB of its pages are free for writes to reuse, less than this write may take";
+    return fail(Errc::store_full, "store full: the disk holding " + dir_.string() + " has no room left for the store to grow: free " +
+                                      std::to_string(std::max<std::uint64_t>(1, (short_by + (1 << 20) - 1) >> 20)) + " MB on that disk" +
+                                      (kind == WriteKind::removal ? "" : ", or remove records from the store,") + " and write again (" + why + ")");
+  }
   if (rc == EOPNOTSUPP || rc == ENOSYS || rc == EINVAL) {
     disk_reserved_.store(~0ull);  // this filesystem cannot: as before, without the reserve
     return {};
@@ -855,15 +935,23 @@ Result<void> Env::reserve_disk(WriteKind kind, std::uint64_t new_bytes) {
   return fail(Errc::io, "reserving disk space for " + dir_.string() + ": " + std::strerror(rc));
 }
 
-Result<std::optional<std::uint64_t>> Env::disk_room_for_removal(std::uint64_t need) {
-  if (auto r = reserve_disk(WriteKind::removal, need); !r) {
+std::uint64_t Env::reusable_free_bytes() {
+  auto read = begin_read();
+  if (!read) return 0;
+  const std::uint64_t bytes = free_bytes_reusable(env_, *read);
+  end_read(*read);
+  return bytes;
+}
+
+Result<std::optional<DiskRoom>> Env::disk_room_for_removal(std::uint64_t need) {
+  if (auto r = reserve_disk(WriteKind::removal, WriteBound{need, need}); !r) {
     // Not even that: what is allocated already is the room there is.
     if (r.error().code != Errc::store_full || need == 0) return unexpected(r.error());
-    if (auto least = reserve_disk(WriteKind::removal, 0); !least) return unexpected(least.error());
+    if (auto least = reserve_disk(WriteKind::removal, WriteBound{}); !least) return unexpected(least.error());
   }
-  if (!disk_tight_.load()) return std::optional<std::uint64_t>{};
+  if (!disk_tight_.load()) return std::optional<DiskRoom>{};
   const std::uint64_t end = pages_end_bytes(), backed = disk_backed_.load();
-  return std::optional<std::uint64_t>{backed > end ? backed - end : 0};
+  return std::optional<DiskRoom>{DiskRoom{backed > end ? backed - end : 0, reusable_free_bytes()}};
 }
 
 std::uint64_t Env::pages_end_bytes() {
@@ -873,10 +961,11 @@ std::uint64_t Env::pages_end_bytes() {
   return (info.me_last_pgno + 1) * stat.ms_psize;
 }
 
-Result<void> Env::write(const std::function<Result<void>(Txn&)>& body, WriteKind kind, std::uint64_t new_bytes) {
+Result<void> Env::write(const std::function<Result<void>(Txn&)>& body, WriteKind kind, WriteBound bound) {
+  const std::uint64_t new_bytes = bound.bytes;
   bool dead_readers_cleared = false;
   for (;;) {
-    if (auto r = reserve_disk(kind, new_bytes); !r) return r;
+    if (auto r = reserve_disk(kind, bound); !r) return r;
     if (kind != WriteKind::removal) {
       if (auto r = check_reserve_untouched(new_bytes); !r) return r;
     }

@@ -94,6 +94,27 @@ class Txn;
 
 enum class WriteKind { data, removal };
 
+// An upper bound on the bytes of new pages a write transaction may add to the data file
+// (write_bound, write.h), and the part of it in terms long enough for overflow pages: those
+// need runs of consecutive pages, which the free pages may not have.
+struct WriteBound {
+  std::uint64_t bytes = 0;
+  std::uint64_t large_term_bytes = 0;
+  WriteBound& operator+=(const WriteBound& more) {
+    bytes += more.bytes;
+    large_term_bytes += more.large_term_bytes;
+    return *this;
+  }
+};
+
+// What a removal on a full disk may take (Env::disk_room_for_removal): the bytes the data file
+// has allocated beyond its last page in use, which a long copy's run of pages may need, and the
+// free pages inside the file that single pages are taken from first.
+struct DiskRoom {
+  std::uint64_t at_end = 0;
+  std::uint64_t reusable = 0;
+};
+
 // A term's key in the write path's caches (term_key, dictionary.h) with its hash, computed once:
 // one term is looked up in up to four of these maps (the transaction's ids, the process's pinned
 // and unpinned caches, then remembered), and hashing the key at each was ~10% of a hospital's
@@ -196,19 +217,25 @@ class Env {
   // map (up to max_map_bytes) and runs `body` again from the start; past the maximum returns
   // store_full. Any error from `body` aborts: nothing is written. Removals may grow into a
   // reserve beyond the maximum, so that a full store can always be emptied.
-  // `new_bytes` bounds what `body` may add to the data file (write_bound, write.h): the disk
+  // `bound` bounds what `body` may add to the data file (write_bound, write.h): the disk
   // reserve covers it before the transaction starts.
   Result<void> write(const std::function<Result<void>(Txn&)>& body, WriteKind kind = WriteKind::data,
-                     std::uint64_t new_bytes = 0);
+                     WriteBound bound = {});
 
   // On a disk that has filled (reserve_disk could not allocate its usual kDiskAhead ahead), the
-  // bytes the data file has allocated beyond its last page in use: a removal must not take more
-  // new pages than that, since a page beyond is SIGBUS, not an error. nullopt while the disk has
-  // room, and where the filesystem cannot allocate ahead. Errors: store_full (not even a
-  // removal's least is left), io.
+  // room a removal has (DiskRoom): it must not take new pages beyond what the data file has
+  // allocated, since a page beyond is SIGBUS, not an error. nullopt while the disk has room, and
+  // where the filesystem cannot allocate ahead. Errors: store_full (not even a removal's least
+  // is left), io.
   // `need`: what the next part may take beyond the last page in use; the file is allocated for
   // it, past the removal's usual 1 MB, when the disk has that much free (space freed since).
-  Result<std::optional<std::uint64_t>> disk_room_for_removal(std::uint64_t need = 0);
+  Result<std::optional<DiskRoom>> disk_room_for_removal(std::uint64_t need = 0);
+  // Whether the last write of this process found the disk full (went on within what the data
+  // file had allocated, or the free pages inside it).
+  bool disk_tight() const { return disk_tight_.load(); }
+  // Bytes of the free pages inside the data file that a write transaction begun now may reuse:
+  // those freed by transactions before every reader's snapshot and before the last commit.
+  std::uint64_t reusable_free_bytes();
   // The data file's high-water mark: bytes up to its last page in use.
   std::uint64_t pages_end_bytes();
 
@@ -275,7 +302,9 @@ class Env {
   // (`new_bytes`), beyond the last page in use; a full disk is then a store_full error naming it
   // (a removal goes on within what is allocated). Filesystems without fallocate are left as they
   // were.
-  Result<void> reserve_disk(WriteKind kind, std::uint64_t new_bytes);
+  // On a disk that is full, a data write goes on within the pages removals freed inside the
+  // file when they hold it and the blocks allocated at the end hold its large terms.
+  Result<void> reserve_disk(WriteKind kind, const WriteBound& bound);
   std::atomic<std::uint64_t> disk_reserved_{0};  // bytes of the file allocated by this process
   // Whether the last reserve_disk found the disk full (and went on within `disk_backed_`, the
   // bytes of the file known to have blocks).

@@ -488,7 +488,7 @@ Result<std::vector<std::uint64_t>> Agent::Impl::write_items(std::span<const Patt
       if (auto v = validate_item(items[i], env->settings()); !v)
         return unexpected(items.size() == 1 ? v.error() : with_context(v.error(), "item " + std::to_string(i + 1)));
     }
-    std::uint64_t new_bytes = 0;
+    WriteBound new_bytes;
     for (const Item& item : items) new_bytes += write_bound(item);
     std::vector<std::uint64_t> ids;
     auto written = env->write([&](Txn& txn) -> Result<void> {
@@ -745,8 +745,13 @@ Result<RelayOutcome> Agent::relay(std::string_view stream, const std::vector<Rel
       }
     }
     RelayOutcome outcome;
-    std::uint64_t new_bytes = 0;
-    for (const RelayedItem& relayed : items) new_bytes += write_bound(relayed.item) + relayed.source.size();
+    WriteBound new_bytes;
+    for (const RelayedItem& relayed : items) {
+      new_bytes += write_bound(relayed.item);
+      // Its source IRI (up to 8192 bytes, P4), a term as write_bound counts them.
+      const std::uint64_t source = relayed.source.size();
+      new_bytes += source > 1024 ? WriteBound{source + 4096, source + 4096} : WriteBound{source, 0};
+    }
     // An item refused only when it is written (a term's IRI is checked when the dictionary first
     // meets it) aborts the transaction; it is then run again with that item refused, once per
     // such item.
@@ -1052,8 +1057,10 @@ Result<std::uint64_t> remove_records(Env& env, Reach reach,
   }
   std::vector<std::uint64_t> ids;
   // Per record, what its removal adds at most beyond its table paths: its copy in the removal
-  // log (R17: its terms, for watchers), whole pages (a large literal's copy is pages of its own).
+  // log (R17: its terms, for watchers), whole pages (a large literal's copy is pages of its own,
+  // a run that the free pages may not have: `long_copy`).
   std::vector<std::uint64_t> copies;
+  std::vector<bool> long_copy;
   constexpr std::uint64_t kPage = 4096;
   auto listed = env.write([&](Txn& txn) -> Result<void> {
     auto all = collect(txn);
@@ -1068,6 +1075,7 @@ Result<std::uint64_t> remove_records(Env& env, Reach reach,
         for (std::uint64_t term : {(*row)->s, (*row)->p, (*row)->o})
           if (auto t = reader.get(term, false, false)) bytes += t->value.size() + t->datatype.size() + t->language.size();
       copies.push_back((bytes + kPage - 1) / kPage * kPage);
+      long_copy.push_back(bytes > kPage / 4);
     }
     return {};
   }, WriteKind::removal);
@@ -1091,29 +1099,34 @@ Result<std::uint64_t> remove_records(Env& env, Reach reach,
     if (*room) {
       // Half of what is allocated ahead, at what the last part took per record (a page at
       // least); the first part is one record.
-      part = !per_record ? 1 : static_cast<std::size_t>(std::clamp<std::uint64_t>(**room / 2 / std::max(*per_record, kPage), 1, 4096));
+      part = !per_record ? 1 : static_cast<std::size_t>(std::clamp<std::uint64_t>((*room)->at_end / 2 / std::max(*per_record, kPage), 1, 4096));
     }
     part = std::min(part, cap);
     if (*room) {
-      // And no more than what is allocated could take if no freed page were reused: a page
-      // written beyond it is SIGBUS. The copies of records with large literals made a part of
-      // one record take 500 KB (a probe: a bus error after the first few of 300 KB each).
-      const auto need = [&](std::size_t n) {
+      // And no more than could be taken if LMDB took every long copy's run at the end (a page
+      // written beyond what is allocated there is SIGBUS: the copies of records with large
+      // literals made a part of one record take 500 KB, and a probe's 300 KB records died of a
+      // bus error after the first few), and the rest from the free pages or the end.
+      const auto need = [&](std::size_t n, bool long_only) {
         std::uint64_t sum = kPathPages;
-        for (std::size_t i = at; i < at + n && i < ids.size(); ++i) sum += copies[i];
+        for (std::size_t i = at; i < at + n && i < ids.size(); ++i)
+          if (!long_only || long_copy[i]) sum += copies[i];
         return sum;
       };
-      while (part > 1 && need(part) > **room) part /= 2;
-      if (need(part) > **room) {
+      const auto fits = [&](std::size_t n, const DiskRoom& r) {
+        return need(n, true) <= r.at_end && need(n, false) <= r.at_end + r.reusable;
+      };
+      while (part > 1 && !fits(part, **room)) part /= 2;
+      if (!fits(part, **room)) {
         // The disk may have room again (space freed since): allocated for this part, if so.
-        room = env.disk_room_for_removal(need(part));
+        room = env.disk_room_for_removal(need(part, false));
         if (!room) return failed(room.error());
       }
-      if (*room && need(part) > **room)
+      if (*room && !fits(part, **room))
         return failed(Error{Errc::store_full, "store full: removing record " + std::to_string(ids[at]) + " copies " +
                                                   std::to_string(copies[at] / 1024) + " KB into the removal log (R17), and the disk holding the store has " +
-                                                  std::to_string(**room / 1024) + " KB allocated for it beyond its last page; free " +
-                                                  std::to_string((need(part) + (1 << 20)) / (1 << 20) + 1) + " MB on that disk and remove again"});
+                                                  std::to_string((*room)->at_end / 1024) + " KB allocated for it beyond its last page; free " +
+                                                  std::to_string((need(part, false) + (1 << 20)) / (1 << 20) + 1) + " MB on that disk and remove again"});
     }
     const std::uint64_t end_before = env.pages_end_bytes();
     const std::span<const std::uint64_t> slice(ids.data() + at, std::min(part, ids.size() - at));

@@ -110,7 +110,11 @@ Result<Record> log_removal(Txn& txn, std::uint64_t id, const RecordRow& row, con
   if (rc != 0) return lmdb_fail(rc, "logging a removal");
   ++txn.counters.removals;
   const Settings& settings = txn.env().settings();
-  const std::uint64_t byte_limit = removal_log_bytes_limit(settings);
+  // On a full disk, the least (256 KB): its copies took what the removals freed, and a disk
+  // smaller than the store's maximum never saw the log trimmed, so emptying the store won
+  // nothing back (a probe; watchers further behind are told what they missed, as above).
+  const std::uint64_t byte_limit = txn.env().disk_tight() ? std::min<std::uint64_t>(removal_log_bytes_limit(settings), 256 << 10)
+                                                          : removal_log_bytes_limit(settings);
   // The oldest go; the newest entry always stays, however large.
   while (txn.counters.removals > 1 && (txn.counters.removals > removal_log_limit(settings) ||
                                        table_bytes(txn.raw(), txn.env().removals) > byte_limit)) {

@@ -863,22 +863,27 @@ Result<std::uint64_t> insert_item(Txn& txn, const Item& item, const std::string&
   return item_id;
 }
 
-std::uint64_t write_bound(const Item& item) {
+WriteBound write_bound(const Item& item) {
   // Rows of a triple (record, three index entries, its share of the item row and of the output
   // and input buffers) are under a hundred bytes; pages split half full and copied on write make
   // 512 a bound. A term longer than a quarter page goes to overflow pages: its size rounded up
   // to a page, with its header.
   constexpr std::uint64_t kPerTriple = 512;
   static const std::uint64_t page = static_cast<std::uint64_t>(std::max(4096L, sysconf(_SC_PAGESIZE)));
-  std::uint64_t bytes = 0;
+  WriteBound bound;
   for (const Triple& t : item.triples) {
-    bytes += kPerTriple;
+    bound.bytes += kPerTriple;
     for (const Term* term : {&t.s, &t.p, &t.o}) {
       const std::uint64_t size = term->value.size() + term->datatype.size() + term->language.size();
-      bytes += size > page / 4 ? size + page : size;
+      if (size <= page / 4) {
+        bound.bytes += size;
+        continue;
+      }
+      bound.bytes += size + page;
+      bound.large_term_bytes += size + page;
     }
   }
-  return bytes;
+  return bound;
 }
 
 Result<std::uint64_t> apply_retention(Txn& txn) {

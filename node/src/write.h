@@ -56,7 +56,7 @@ Result<HeldCopies> held_copies(MDB_txn* txn, const Env& env, const Item& notice,
 // terms (a large literal takes overflow pages of its own) and a generous share of the record,
 // index and item rows per triple. Env::write reserves the disk for it before the transaction
 // writes, since with a memory-mapped file a page with no disk block behind it is SIGBUS.
-std::uint64_t write_bound(const Item& item);
+WriteBound write_bound(const Item& item);
 
 // Takes out of the input buffer of `agent` (a term id; IRI `agent_iri`) the items that none of
 // its subscriptions routes to it now and that are not addressed to it (R18); returns how many.

@@ -1056,6 +1056,55 @@ TEST(Store, RemovingRecordsWithLargeLiteralsOnAFullDiskIsNotACrash) {
   EXPECT_EQ(end.status, 0) << end.said;
 }
 
+// A disk that filled, then the store emptied: the removals logged copies of what they removed
+// (R17), up to 16 MB on a store of the default maximum, more than such a disk has, and a write
+// still asked the disk for room to grow beyond the last page in use; every write was refused
+// until something else on the disk was deleted (a probe). On a full disk the log keeps 256 KB,
+// and writes reuse the freed pages, until those are taken; then the refusal says how much to
+// free. Large literals, which need runs of pages the free ones may not have, are refused rather
+// than written beyond what the disk holds (SIGBUS).
+TEST(Store, AStoreEmptiedOnAFullDiskTakesWritesAgainInThePagesItFreed) {
+  TempDir dir;
+  const ChildEnd end = run_on_small_disk(dir.path(), "16m", [&](const Say& say, Node& node, Agent& agent) {
+    auto batch = [](int i) {
+      Item item;
+      for (int k = 0; k < 20; ++k) {
+        const int n = i * 20 + k;
+        item.add(ex("s" + std::to_string(n)), ex("p" + std::to_string(n % 4)), Term::literal(std::string(150, 'a' + n % 26) + std::to_string(n)));
+      }
+      return item;
+    };
+    int stored = 0;
+    Result<std::uint64_t> last = std::uint64_t{0};
+    for (; last; ++stored) {
+      last = agent.store(batch(stored));
+      if (stored > 100000) say("a 16 MiB disk took 2 million records", 1);
+    }
+    if (last.error().code != Errc::store_full) say("wrong error filling the disk: " + last.error().message, 1);
+    // All of it: removing one predicate of four leaves every page three quarters full (B-tree
+    // pages are merged under a quarter), and frees little whatever the disk.
+    for (int p = 0; p < 4; ++p) {
+      Pattern pattern;
+      pattern.p = ex("p" + std::to_string(p));
+      if (auto removed = node.remove(pattern); !removed) say("remove p" + std::to_string(p) + ": " + removed.error().message, 1);
+    }
+    int again = 0;
+    for (last = std::uint64_t{0}; last; ++again) last = agent.store(batch(stored + again));
+    if (again < 2) say("no write went into the pages the removals freed: " + last.error().message, 1);
+    if (last.error().code != Errc::store_full || last.error().message.find("MB on that disk") == std::string::npos)
+      say("the refusal once the freed pages are taken does not say what to free: " + last.error().message, 1);
+    auto large = agent.store(Item{}.add(ex("large"), ex("p"), Term::literal(std::string(2'000'000, 'z'))));
+    if (large) say("a 2 MB literal went onto a full disk", 1);
+    auto report = node.check();
+    if (!report || !report->problems.empty())
+      say("check: " + (report ? report->problems.front() : report.error().message), 1);
+    say(std::to_string(again - 1) + " items stored after the removals, then: " + last.error().message, 0);
+  });
+  ASSERT_EQ(end.signal, 0) << "the writer died of signal " << end.signal << " (7: SIGBUS)";
+  if (end.status == 77) GTEST_SKIP() << end.said;
+  EXPECT_EQ(end.status, 0) << end.said;
+}
+
 // A store at its maximum map size: a removal's trimming of the removal log met MDB_MAP_FULL,
 // went on in the spoilt transaction and failed with "MDB_BAD_TXN", after parts of the removal
 // had been committed. It is a store-full condition the removal works around (in smaller parts).
