@@ -555,6 +555,19 @@ Result<std::shared_ptr<Env>> Env::open_at(const std::filesystem::path& dir, cons
   if (!init)
     if (auto cut = cut_short(dir / "data.mdb")) return fail(Errc::corrupt, *cut);
   rc = mdb_env_open(env->env_, dir.c_str(), flags, 0644);
+  if (rc == EROFS && !init) {
+    // A store on a read-only filesystem (a disk mounted read-only to save what is on it, a
+    // copy on read-only media) is read without its lock file, which LMDB allows for a
+    // read-only environment only; nothing can write there, so nothing is missed.
+    mdb_env_close(env->env_);
+    env->env_ = nullptr;
+    if ((rc = mdb_env_create(&env->env_)) != 0) return lmdb_fail(rc, "creating LMDB environment");
+    mdb_env_set_maxdbs(env->env_, kMaxTables);
+    mdb_env_set_maxreaders(env->env_, kMaxReaders);
+    if (const std::uint64_t bytes = data_file_bytes(dir); bytes > 0) mdb_env_set_mapsize(env->env_, bytes);
+    rc = mdb_env_open(env->env_, dir.c_str(), MDB_NOTLS | MDB_RDONLY, 0644);
+    env->read_only_ = rc == 0;
+  }
   if (rc != 0) return lmdb_fail(rc, "opening store " + dir.string());
   int dead = 0;
   mdb_reader_check(env->env_, &dead);  // reader slots of dead processes
@@ -624,7 +637,10 @@ Result<std::shared_ptr<Env>> Env::open_at(const std::filesystem::path& dir, cons
   if (rc != 0) return lmdb_fail(rc, "committing the first transaction in " + dir.string());
   // After the tables are found: a directory that holds another program's LMDB file gets no
   // file of ours.
-  if (auto w = env->wake_.open(dir / "wake"); !w) return unexpected(w.error());
+  if (auto w = env->read_only_ ? env->wake_.open_private() : env->wake_.open(dir / "wake"); !w) return unexpected(w.error());
+  if (env->read_only_ && needs_tables)
+    return fail(Errc::version, dir.string() + " is on a read-only filesystem, and its store, of an earlier format, is upgraded at its first open: copy it to a writable disk to read it");
+  if (env->read_only_) needs_store_id = false;  // a store made before store ids: read without one
   // A format-2 store's time index needs room (tens of bytes an item): when the map is full the
   // transaction is tried again in a larger one, into the reserve kept for removals if need be
   // (a store that cannot be opened could not be emptied either).
@@ -666,6 +682,7 @@ bool Env::quiesce_locked() {
 }
 
 Result<void> Env::begin(MDB_txn** txn, unsigned flags) {
+  if (read_only_ && !(flags & MDB_RDONLY)) return unexpected(read_only_error());
   for (int attempt = 0; attempt < 2; ++attempt) {
     int rc = 0;
     {
@@ -864,6 +881,7 @@ Result<void> Env::check_reserve_untouched(std::uint64_t new_bytes) {
 }
 
 Result<void> Env::reserve_disk(WriteKind kind, const WriteBound& bound) {
+  if (read_only_) return unexpected(read_only_error());  // before every write, a removal's parts too
   const std::uint64_t new_bytes = bound.bytes;
   MDB_envinfo info;
   MDB_stat stat;
@@ -959,6 +977,10 @@ std::uint64_t Env::pages_end_bytes() {
   MDB_stat stat;
   if (!map_info(info, stat)) return 0;
   return (info.me_last_pgno + 1) * stat.ms_psize;
+}
+
+Error Env::read_only_error() const {
+  return Error{Errc::io, "the store in " + dir_.string() + " is on a read-only filesystem: it can be read, not written"};
 }
 
 Result<void> Env::write(const std::function<Result<void>(Txn&)>& body, WriteKind kind, WriteBound bound) {

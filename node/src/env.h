@@ -199,6 +199,10 @@ class Env {
   const Settings& settings() const { return settings_; }
   const std::filesystem::path& dir() const { return dir_; }
   WakeBoard& wake() { return wake_; }
+  // Whether the store was opened on a read-only filesystem: it is read as usual, and every
+  // write fails with io naming the filesystem.
+  bool read_only() const { return read_only_; }
+  Error read_only_error() const;
 
   // Table handles.
   // `main` is LMDB's unnamed table, which every write touches anyway (it holds the other
@@ -340,6 +344,7 @@ class Env {
   std::vector<MDB_txn*> idle_readers_;
 
   MDB_env* env_ = nullptr;
+  bool read_only_ = false;
   std::filesystem::path dir_;
   Settings settings_;
   WakeBoard wake_;

@@ -42,6 +42,13 @@ Result<void> WakeBoard::open(const std::filesystem::path& file) {
   return {};
 }
 
+Result<void> WakeBoard::open_private() {
+  void* p = mmap(nullptr, sizeof(Shared), PROT_READ | PROT_WRITE, MAP_PRIVATE | MAP_ANONYMOUS, -1, 0);
+  if (p == MAP_FAILED) return fail(Errc::io, std::string("cannot map a wake board: ") + std::strerror(errno));
+  shared_ = static_cast<Shared*>(p);
+  return {};
+}
+
 std::uint32_t WakeBoard::slot_for(std::string_view agent_iri) {
   return 1 + static_cast<std::uint32_t>(codec::hash64(agent_iri) % (kSlots - 1));
 }

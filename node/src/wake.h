@@ -31,6 +31,9 @@ class WakeBoard {
   ~WakeBoard();
 
   Result<void> open(const std::filesystem::path& file);
+  // A board of this process only, for a store that cannot be written (on a read-only
+  // filesystem): nothing commits there, so a sleeper just sleeps out its timeout.
+  Result<void> open_private();
 
   static std::uint32_t slot_for(std::string_view agent_iri);
 

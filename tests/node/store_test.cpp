@@ -1105,6 +1105,44 @@ TEST(Store, AStoreEmptiedOnAFullDiskTakesWritesAgainInThePagesItFreed) {
   EXPECT_EQ(end.status, 0) << end.said;
 }
 
+// A disk mounted read-only to save what is on it (or a copy on read-only media): every open
+// failed "Read-only file system", since LMDB's lock file cannot be written there, and nothing
+// could be read, backed up or checked. It opens read-only now: reads, check and backup work,
+// and every write fails with an error that says why.
+TEST(Store, AStoreOnAReadOnlyFilesystemIsReadAndRefusesWritesSayingWhy) {
+  TempDir dir, copies;
+  const std::filesystem::path backup = copies.path() / "copy";
+  const ChildEnd end = run_in_tmpfs(dir.path(), "8m", [&](const Say& say) {
+    {
+      if (auto made = Node::init(dir.path() / "store", {.iri = "http://example.org/n"}); !made) say("init: " + made.error().message, 1);
+      auto node = Node::open(dir.path() / "store");
+      if (!node) say("open: " + node.error().message, 1);
+      if (!node->agent("w")->store(Item{}.add(ex("a"), ex("p"), Term::literal("1")))) say("store failed", 1);
+    }
+    if (mount(nullptr, dir.path().c_str(), nullptr, MS_REMOUNT | MS_RDONLY, nullptr) != 0) say("cannot remount read-only", 77);
+    auto node = Node::open(dir.path() / "store");
+    if (!node) say("open on a read-only filesystem: " + node.error().message, 1);
+    auto records = node->snapshot()->list({.p = ex("p")});
+    if (!records || records->size() != 1) say("the record was not read back", 1);
+    auto report = node->check();
+    if (!report || !report->problems.empty()) say("check: " + (report ? report->problems.front() : report.error().message), 1);
+    if (auto copied = node->back_up(backup); !copied) say("backup: " + copied.error().message, 1);
+    auto agent = node->agent("w");
+    auto stored = agent->store(Item{}.add(ex("b"), ex("p"), Term::literal("2")));
+    if (stored || stored.error().message.find("read-only filesystem: it can be read, not written") == std::string::npos)
+      say("a write: " + (stored ? std::string("stored") : stored.error().message), 1);
+    auto removed = node->remove_item(1);
+    if (removed || removed.error().message.find("read-only filesystem") == std::string::npos)
+      say("a removal: " + (removed ? std::string("removed") : removed.error().message), 1);
+    say("read, checked and copied; writes refused", 0);
+  });
+  if (end.status == 77) GTEST_SKIP() << end.said;
+  ASSERT_EQ(end.status, 0) << end.said;
+  auto copy = Node::open(backup);
+  ASSERT_TRUE(copy) << copy.error().message;
+  EXPECT_EQ(copy->stats()->records, 1u);
+}
+
 // A store at its maximum map size: a removal's trimming of the removal log met MDB_MAP_FULL,
 // went on in the spoilt transaction and failed with "MDB_BAD_TXN", after parts of the removal
 // had been committed. It is a store-full condition the removal works around (in smaller parts).
