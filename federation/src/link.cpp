@@ -1552,7 +1552,7 @@ struct Link::Impl {
           std::lock_guard lock(mu);
           child->board_set = sub && removals;
         }
-        std::string refuse;
+        std::string refusal;
         {
           std::lock_guard lock(mu);
           const auto now = Clock::now();
@@ -1567,7 +1567,7 @@ struct Link::Impl {
                 log("conflict: " + child->flips.said());
               disconnect_for_conflict(*child);
             }
-            refuse = child->flips.active()
+            refusal = child->flips.active()
                          ? child->flips.said()
                          : "another store (id " + child->store_id + ") is registered as <" + child->iri + "> and was heard " +
                                seconds_text(now - child->last_seen) + " ago; this one (id " + child_store +
@@ -1576,8 +1576,10 @@ struct Link::Impl {
                                "expected; else a second node with this IRI on this network)";
           }
         }
-        if (!refuse.empty()) {
-          send_error(via, f.from, 0, {"refused", refuse, ""});
+        if (!refusal.empty()) {
+          // Said at the parent too, as other refusals are (a line per sender and reason a
+          // minute): the hospital's operator saw nothing while a replaced home was kept out.
+          refuse(via, f.from, f.kind, 1, refusal, "another store is registered");
           return;
         }
         bool store_made_again = false;
@@ -1598,12 +1600,12 @@ struct Link::Impl {
           if (child->flips.active()) {
             // P6b: which store is the impostor cannot be told; linking with either mixes their
             // items under one IRI and lets one's acknowledgements empty the other's outbox.
-            refuse = child->flips.said();
+            refusal = child->flips.said();
             disconnect_for_conflict(*child);
           }
         }
-        if (!refuse.empty()) {
-          send_error(via, f.from, 0, {"refused", refuse, ""});
+        if (!refusal.empty()) {
+          refuse(via, f.from, f.kind, 1, refusal, "another store is registered");
           return;
         }
         if (store_made_again && down_from == 0) {

@@ -1231,6 +1231,14 @@ TEST(Link, ASecondNodeUnderAChildsIriStopsThatLinkUntilItGoesAndNothingIsLost) {
   store_hrv_items(twin_dir, 1000, 20);  // after its start: the uplink's outbox takes them
   ASSERT_TRUE(eventually([&] { return tree.hospital_log.has("conflict: two stores"); })) << tree.hospital_log.text();
   ASSERT_TRUE(eventually([&] { return count(tree.hospital_dir, {.s = Term::iri(kHome1), .p = Term::iri(vocab::kLinkConflict)}) == 1; }));
+  // The hospital's operator is told of the twin's first hellos, refused before the conflict
+  // was declared, and not once a hello.
+  const std::string text = tree.hospital_log.text();
+  std::size_t said = 0;
+  for (std::size_t at = text.find("refused a hello frame: another store (id "); at != std::string::npos;
+       at = text.find("refused a hello frame: another store (id ", at + 1))
+    ++said;
+  EXPECT_EQ(said, 1u) << text;
 
   // While both live, nothing more of home1's is taken, and none of it leaves its outbox.
   store_hrv_items(tree.home1_dir, 20, 20);
@@ -1415,7 +1423,7 @@ TEST(Link, AHelloWhoseStateBodyDoesNotDecodeIsDroppedAndStartsNoNewStream) {
 TEST(Link, AQueryFromTheParentWhoseOriginIsNoNodeAboveIsDropped) {
   Tree tree;
   ASSERT_TRUE(tree.start_hospital_and_home1());
-  for (const std::string origin : {std::string(), std::string("http://example.org/elsewhere")}) {
+  for (const std::string& origin : {std::string(), std::string("http://example.org/elsewhere")}) {
     wire::QueryBody body;
     body.origin = origin;
     body.target = kHome1;
