@@ -299,16 +299,30 @@ SkippedInputs::SkippedInputs(Session& session, std::string others) : session_(se
 }
 
 void SkippedInputs::skip(const std::string& key, const std::string& why, const std::string& what) {
+  if (auto it = causes_.find(key); it != causes_.end() && it->second.text == why + "; " + what + " are skipped") {
+    ++it->second.skipped_since;  // said already: one line and one write per change
+    return;
+  }
   log_line(session_.program, why + "; skipped");
-  std::string cause = why + "; " + what + " are skipped";
-  if (latest_ == key && causes_[key] == cause) return;  // said already: one write per change
-  causes_[key] = std::move(cause);
+  causes_[key] = Cause{why + "; " + what + " are skipped", 0};
+  latest_ = key;
+  report();
+}
+
+void SkippedInputs::hold(const std::string& key, const std::string& text) {
+  if (auto it = causes_.find(key); it != causes_.end() && it->second.text == text) return;
+  log_line(session_.program, text);
+  causes_[key] = Cause{text, 0};
   latest_ = key;
   report();
 }
 
 void SkippedInputs::resume(const std::string& key) {
-  if (causes_.erase(key) == 0) return;
+  auto it = causes_.find(key);
+  if (it == causes_.end()) return;
+  if (it->second.skipped_since > 0)
+    log_line(session_.program, key + ": " + std::to_string(it->second.skipped_since) + " more skipped for the same cause");
+  causes_.erase(it);
   if (latest_ == key) latest_ = causes_.empty() ? std::string() : causes_.begin()->first;
   report();
 }
@@ -316,7 +330,7 @@ void SkippedInputs::resume(const std::string& key) {
 void SkippedInputs::report() {
   std::string text;
   if (!causes_.empty()) {
-    text = causes_[latest_];
+    text = causes_[latest_].text;
     if (causes_.size() > 1) text += " (and those of " + std::to_string(causes_.size() - 1) + " other " + others_ + ")";
   }
   if (auto said = session_.agent.report_problem(text); !said)

@@ -157,16 +157,26 @@ class SkippedInputs {
  public:
   // `others` names the keys in the count ("recording(s)"): "... (and those of 2 other recording(s))".
   SkippedInputs(Session& session, std::string others);
-  // Logs "<why>; skipped" and makes `key` a cause: "<why>; <what> are skipped".
+  // Makes `key` a cause, "<why>; <what> are skipped", and logs "<why>; skipped" when that is
+  // new for the key: a recording at a rate the detector refuses logged a line per chunk, one a
+  // second for as long as its sensor ran. The skips after are counted, and logged when the key
+  // is resumed.
   void skip(const std::string& key, const std::string& why, const std::string& what);
+  // Makes `key` a cause with `text` as it is (input used, but nothing comes of it: a flat
+  // signal), logged when new for the key.
+  void hold(const std::string& key, const std::string& text);
   // What `key` skipped is used again, or over (a recording ended): no longer a cause.
   void resume(const std::string& key);
 
  private:
+  struct Cause {
+    std::string text;
+    std::uint64_t skipped_since = 0;  // skips after the one logged
+  };
   void report();
   Session& session_;
   std::string others_;
-  std::map<std::string, std::string> causes_;  // key -> "<why>; <what> are skipped"
+  std::map<std::string, Cause> causes_;
   std::string latest_;
 };
 

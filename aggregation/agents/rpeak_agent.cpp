@@ -35,7 +35,16 @@ struct Stream {
   agg::RPeakDetector detector;
   std::int64_t offset = 0;  // sample index of the detector's first sample
   std::int64_t next = 0;    // start of the chunk expected next
+  // The last beat found, or where the signal without one began (the stream's start, a gap).
+  std::int64_t beat_or_start = 0;
 };
+
+// Signal without a beat for this long is said as the agent's problem: a lead off, a gain off by
+// far, a channel that is not an ECG give R-peak items without peaks, and so no RR and no HRV,
+// and the recording was nowhere to be seen (a probe); so does an asystole, which is worth
+// saying too. The detector decides on a beat up to about a second after it: 12 s of signal
+// without one is at least 10 s of none.
+constexpr double kSilentSeconds = 12;
 
 class RPeakStage {
  public:
@@ -111,6 +120,7 @@ class RPeakStage {
       for (auto p : held_p_waves) out.p_wave_gap_ends.push_back(p + s.offset);
       s.detector = agg::RPeakDetector(detector_options(s.info));
       s.offset = chunk.start_sample;
+      s.beat_or_start = chunk.start_sample;
     }
     std::vector<std::int64_t> found, gaps, p_waves;
     s.detector.push(chunk.leads[0].data(), chunk.frames, found, gaps, p_waves);
@@ -118,10 +128,32 @@ class RPeakStage {
     for (auto p : gaps) out.empty_gap_ends.push_back(p + s.offset);
     for (auto p : p_waves) out.p_wave_gap_ends.push_back(p + s.offset);
     s.next = out.to_sample = chunk.start_sample + static_cast<std::int64_t>(chunk.frames);
+    note_beats(s, out.peaks);
     out.derived_from = chunk.iri;
     tn::Item item = agg::rpeak_item(out);
     item.asserted_at = agg::signal_time_ns(s.info, static_cast<double>(out.from_sample) / s.info.fs);
     return rt::store_output(session_, item, catching_up);
+  }
+
+  // Its own key: a chunk used resumes the recording's key (its chunks are not skipped), and a
+  // silence goes on through many used chunks.
+  static std::string silent_key(const std::string& recording) { return "no beat in " + recording; }
+
+  // A recording whose signal has had no beat for kSilentSeconds is the agent's problem until a
+  // beat is found or the recording ends.
+  void note_beats(Stream& s, const std::vector<std::int64_t>& peaks) {
+    if (!peaks.empty()) {
+      s.beat_or_start = std::max(s.beat_or_start, *std::max_element(peaks.begin(), peaks.end()));
+      skipped_.resume(silent_key(s.info.iri));
+      return;
+    }
+    const double silent = static_cast<double>(s.next - s.beat_or_start) / s.info.fs;
+    if (silent < kSilentSeconds) return;
+    skipped_.hold(silent_key(s.info.iri), "<" + s.info.iri + ">: no beat found in " +
+                                  (s.beat_or_start == s.offset ? "its signal since sample " : "its signal after the beat at sample ") +
+                                  std::to_string(s.beat_or_start) +
+                                  " (a flat or lead-off signal, a gain in its description off by far, or not an ECG; or an "
+                                  "asystole): no R-peaks, RR intervals or HRV come of it");
   }
 
   // A recording whose chunks cannot be used (no recording item, a sampling rate or gain the
@@ -160,6 +192,7 @@ class RPeakStage {
       rt::Outcome outcome;
       Stream* s = stream_for(recording, *end, outcome);
       skipped_.resume(recording);  // used, or over: its chunks are not being skipped any more
+      skipped_.resume(silent_key(recording));
       if (!s || outcome.fatal) return outcome;
       agg::RPeaks out;
       out.recording = recording;

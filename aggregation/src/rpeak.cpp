@@ -9,6 +9,7 @@
 #include <algorithm>
 #include <array>
 #include <cmath>
+#include <cstdio>
 #include <complex>
 #include <numbers>
 #include <optional>
@@ -97,18 +98,24 @@ std::int64_t samples(double ms, double fs) {
 
 Result<void> validate(const DetectorOptions& o) {
   auto positive = [](double x) { return std::isfinite(x) && x > 0; };
-  if (!positive(o.fs)) return fail("rpeak: fs must be positive, got " + std::to_string(o.fs));
+  // 10 Hz, not std::to_string's 10.000000 Hz.
+  auto number = [](double x) {
+    char text[32];
+    std::snprintf(text, sizeof text, "%.10g", x);
+    return std::string(text);
+  };
+  if (!positive(o.fs)) return fail("rpeak: fs must be positive, got " + number(o.fs));
   // Its buffers hold seconds of signal: a rate of 1e9 took all the memory there is.
   if (o.fs > kMaxDetectorHz)
-    return fail("rpeak: a sampling rate of " + std::to_string(o.fs) + " Hz is more than the detector takes (100000 Hz)");
+    return fail("rpeak: a sampling rate of " + number(o.fs) + " Hz is more than the detector takes (100000 Hz)");
   if (!(o.fs > 2 * o.lowpass_hz))
-    return fail("rpeak: a sampling rate of " + std::to_string(o.fs) + " Hz is too low for R-peak detection: the QRS band it "
-                "keeps ends at " + std::to_string(o.lowpass_hz) + " Hz, which needs more than twice that");
-  if (!positive(o.gain)) return fail("rpeak: gain must be positive, got " + std::to_string(o.gain));
+    return fail("rpeak: a sampling rate of " + number(o.fs) + " Hz is too low for R-peak detection: the QRS band it "
+                "keeps ends at " + number(o.lowpass_hz) + " Hz, which needs more than twice that");
+  if (!positive(o.gain)) return fail("rpeak: gain must be positive, got " + number(o.gain));
   if (!positive(o.highpass_hz) || !(o.highpass_hz < o.lowpass_hz) || !(o.lowpass_hz < o.fs / 2))
     return fail("rpeak: need 0 < highpass_hz < lowpass_hz < fs/2, got " +
-                std::to_string(o.highpass_hz) + ", " + std::to_string(o.lowpass_hz) + ", fs " +
-                std::to_string(o.fs));
+                number(o.highpass_hz) + ", " + number(o.lowpass_hz) + ", fs " +
+                number(o.fs));
   if (!positive(o.integration_ms) || !positive(o.hold_ms) || !positive(o.twave_ms) ||
       !positive(o.relearn_s) || !positive(o.searchback_rr))
     return fail("rpeak: integration_ms, hold_ms, twave_ms, relearn_s, searchback_rr must be > 0");
@@ -242,7 +249,7 @@ class RPeakDetector::Impl {
   // that ends at the latest one, and the latest runs at least that long ([first, last] sample;
   // a few, since a beat is accepted a while after it, and a run after it must not hide one in
   // the gap before it).
-  std::int64_t flat_run_, same_run_ = 0;
+  std::int64_t flat_run_ = 0, same_run_ = 0;
   std::array<std::pair<std::int64_t, std::int64_t>, 4> flat_runs_{};
   std::size_t flat_runs_n_ = 0;
   double last_bp_ = 0, sum_ = 0, last_f_ = 0;
@@ -345,8 +352,8 @@ RPeakDetector::Impl::Impl(const DetectorOptions& o)
       p_lead_(samples(170, o.fs)),
       p_search_(samples(80, o.fs)),
       p_step_(std::max<std::int64_t>(1, std::llround(o.fs / 120))),
-      own_p_(std::llround(o.own_pwave_ms * o.fs / 1000)),
-      flat_run_(o.flat_run_ms > 0 ? std::max<std::int64_t>(2, std::llround(o.flat_run_ms * o.fs / 1000)) : 0) {
+      own_p_(std::llround(o.own_pwave_ms * o.fs / 1000)) {
+  flat_run_ = o.flat_run_ms > 0 ? std::max<std::int64_t>(2, std::llround(o.flat_run_ms * o.fs / 1000)) : 0;
   for (double mains_hz : {50.0, 60.0})
     if (mains_hz < o.fs / 2) notches_.push_back(notch(mains_hz, o.fs, 10));
   bp_delay_ = group_delay(hp_, lp_, std::sqrt(o.highpass_hz * o.lowpass_hz), o.fs);

@@ -128,13 +128,17 @@ std::size_t checked_signal(const std::string& record, std::size_t signal) {
 
 // Why a record scored nothing with scoring from `from_s` on, or nullopt: shorter than the start
 // (by default bxb's learning period, 5 minutes; `from_given`: --eval-from's), or no reference
-// beat after it.
+// beat after it (its detections then false positives, as bxb scores them: said, since they pull
+// the gross totals down, and an annotation file that stops early is the likelier cause).
 std::optional<std::string> nothing_scored(const agg::BeatScore& score, double duration_s, double from_s, bool from_given) {
   if (score.tp + score.fn > 0) return std::nullopt;
   const std::string length = seconds_number(std::round(duration_s * 10) / 10), from = seconds_number(from_s);
   if (duration_s <= from_s)
     return "the record is " + length + " s long, no longer than the scoring start (" + from +
            (from_given ? " s, --eval-from" : " s, bxb's learning period") + "): nothing scored; --eval-from 0 scores it from its start";
+  if (score.fp > 0)
+    return "no reference beat from " + from + " s on (the record is " + length + " s long): its " + std::to_string(score.fp) +
+           " detected beat(s) there are scored as false positives, in the gross totals too (an annotation file that stops early?)";
   return "no reference beat from " + from + " s on (the record is " + length + " s long): nothing scored";
 }
 

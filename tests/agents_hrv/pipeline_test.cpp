@@ -1035,6 +1035,48 @@ TEST(AgentPrograms, ARecordingTheRPeakAgentCannotUseIsItsProblemWhileItsChunksAr
   }
 }
 
+// A recording whose signal has no beat (a lead off from the start, a gain in its description
+// off by a hundred, a channel that is not an ECG) gave R-peak items without peaks, so no RR and
+// no HRV, and no word anywhere: the operator could not tell it from no patient at all (a probe).
+// Twelve seconds of signal without a beat are the R-peak agent's problem, said once in its log,
+// until a beat is found; a line per chunk was not written for it.
+TEST(AgentPrograms, ASignalWithoutBeatsIsTheRPeakAgentsProblemUntilABeatIsFound) {
+  ScratchNode scratch("rpeak-silent");
+  ASSERT_TRUE(scratch.node) << "cannot make a store under /tmp";
+  std::optional<tn::Node>& node = scratch.node;
+  auto ecg = node->agent("ecg");
+  ASSERT_TRUE(ecg);
+  auto problem = [&] { return scratch.problem("rpeak"); };
+  const auto& eventually = within_a_minute;
+  agg::RecordingInfo info = recording_at_250_hz();
+  info.gain = 200;
+  agg::SyntheticEcgOptions options;
+  options.fs = 250;
+  options.adc_zero = 0;
+  auto beating = agg::synthetic_ecg(40, options);
+  ASSERT_TRUE(beating) << beating.error().message;
+  std::vector<std::int32_t> signal(250 * 20, 0);  // 20 s flat, then 40 s of ECG
+  signal.insert(signal.end(), beating->begin(), beating->end());
+  const std::vector<std::vector<std::int32_t>> leads(1, signal);
+  auto chunk = [&](int second) { return agg::ecg_chunk_item(info, second * 250, leads, static_cast<std::size_t>(second * 250), 250); };
+  const std::string log = scratch.tmp + "/rpeak.log";
+  Process agent({bin("tahvel-rpeak"), scratch.dir, "--idle", "30"}, log);
+  ASSERT_TRUE(ecg->store(agg::recording_item(info)));
+  for (int second = 0; second < 20; ++second) ASSERT_TRUE(ecg->store(chunk(second)));
+  ASSERT_TRUE(eventually([&] { return problem().find("no beat found") != std::string::npos; })) << "no problem: " << problem();
+  EXPECT_NE(problem().find("<" + kRecording + ">"), std::string::npos) << problem();
+  EXPECT_NE(problem().find("no R-peaks, RR intervals or HRV come of it"), std::string::npos) << problem();
+  for (int second = 20; second < 60; ++second) ASSERT_TRUE(ecg->store(chunk(second)));
+  EXPECT_TRUE(eventually([&] { return problem().empty(); })) << "still: " << problem();
+  EXPECT_EQ(agent.stop(), 0);
+  std::ifstream in(log);
+  std::ostringstream text;
+  text << in.rdbuf();
+  std::size_t lines = 0;
+  for (std::size_t at = text.str().find("no beat found"); at != std::string::npos; at = text.str().find("no beat found", at + 1)) ++lines;
+  EXPECT_EQ(lines, 1u) << text.str();
+}
+
 // R-peak items tahvel-rr cannot use give no RR and no HRV: a recording without its description,
 // or items it cannot read (a detector of another version). Each is its problem on the board
 // while such items are skipped: the recording's until it is used, the writer's until an item

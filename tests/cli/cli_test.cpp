@@ -1369,6 +1369,24 @@ TEST_F(Cli, HrvEvalJsonWithNothingScoredIsValidJsonWithNulls) {
   EXPECT_EQ(r.out.find(":-"), std::string::npos) << r.out;
 }
 
+// An annotation file without beats after the scoring start (one that stops early, or empty):
+// the record's detections are false positives, as bxb scores them, and were counted in the gross
+// totals while the warning said "nothing scored" (a probe: gross +P 50 % from a record whose
+// warning said it was not scored). The warning says what was scored.
+TEST_F(Cli, HrvEvalOfARecordWithoutReferenceBeatsSaysItsDetectionsAreFalsePositives) {
+  fs::create_directories(tmp_ / "noref");
+  fs::create_symlink(mitdb_record("100") + ".dat", tmp_ / "noref" / "100.dat");
+  fs::copy_file(mitdb_record("100") + ".hea", tmp_ / "noref" / "100.hea");
+  spit(tmp_ / "noref" / "100.atr", std::string(2, '\0'));  // no annotations: the end word only
+  const std::string record = (tmp_ / "noref" / "100").string();
+  Outcome r = run({"hrv", record, "--eval", "--json"});
+  ASSERT_EQ(r.status, 0) << r.err;
+  EXPECT_EQ(r.err.find("nothing scored"), std::string::npos) << r.err;
+  EXPECT_NE(r.err.find("no reference beat from 300 s on"), std::string::npos) << r.err;
+  EXPECT_NE(r.err.find("detected beat(s) there are scored as false positives, in the gross totals too"), std::string::npos) << r.err;
+  EXPECT_NE(r.out.find("\"tp\":0,\"fn\":0,\"fp\":"), std::string::npos) << r.out;
+}
+
 // A record shorter than the scoring start (bxb's 5 minutes) scored nothing without a word (TP 0
 // FN 0 FP 0, Se "-"): it says so, naming its length and the start, and --eval-from 0 scores it.
 TEST_F(Cli, HrvEvalOfARecordShorterThanTheScoringStartSaysSoAndEvalFromScoresIt) {
