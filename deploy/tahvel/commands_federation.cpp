@@ -1707,10 +1707,19 @@ int run_up(const Args& args) {
   const CommandContext here = CommandContext::of_this_process();
   CommandContext here_for_file = here;
   here_for_file.dir = fs::absolute(topo.file).lexically_normal().parent_path();
-  for (const NodeSpec* spec : mine)
-    for (const AgentSpec& agent : spec->agents)
-      if (auto argv = expand_agent_command(agent, *spec, state / spec->id, here_for_file); !argv)
-        fail(argv.error().message);  // it starts with the file, line and column of the agent
+  for (const NodeSpec* spec : mine) {
+    // A rule file's CURIEs read with the store's prefixes, as its reasoner will read them.
+    std::optional<uri::PrefixMap> prefixes;
+    for (const AgentSpec& agent : spec->agents) {
+      auto argv = expand_agent_command(agent, *spec, state / spec->id, here_for_file);
+      if (!argv) fail(argv.error().message);  // it starts with the file, line and column of the agent
+      if (!prefixes) {
+        auto existing = fs::exists(state / spec->id / "data.mdb") ? node::Node::open(state / spec->id) : node::Result<node::Node>(node::fail(node::Errc::not_found, ""));
+        prefixes = existing ? existing->prefixes() : uri::PrefixMap::standard();
+      }
+      if (auto rules = check_rule_file(agent, *spec, *argv, *prefixes); !rules) fail(rules.error().message);
+    }
+  }
   warn_of_dataflow(topo, mine);
   // Only now, with everything checked: a refused file leaves no state directory behind.
   std::error_code ec;

@@ -13,6 +13,7 @@
 #include <toml++/toml.h>
 
 #include "tahvel/agents/dispatcher.h"
+#include "tahvel/agents/rules.h"
 #include "tahvel/aggregation/wfdb.h"
 #include "tahvel/federation/transport.h"
 #include "tahvel/spatial/area_subscriptions.h"
@@ -681,6 +682,26 @@ node::Result<std::vector<std::string>> expand_agent_command(const AgentSpec& age
     }
   }
   return argv;
+}
+
+node::Result<void> check_rule_file(const AgentSpec& agent, const NodeSpec& node, const std::vector<std::string>& argv,
+                                   const uri::PrefixMap& prefixes) {
+  if (argv.size() < 4 || std::filesystem::path(argv[0]).filename() != "tahvel" || argv[1] != "reason") return {};
+  const std::string what = (agent.at.empty() ? std::string() : agent.at + ": ") + "node '" + node.id + "': agent '" + agent.id + "': ";
+  const std::string& file = argv[3];
+  const bool flags_change_parsing = std::any_of(argv.begin() + 4, argv.end(), [](const std::string& a) {
+    return a == "--prefix" || a.starts_with("--prefix=") || a == "--default-ns" || a.starts_with("--default-ns=");
+  });
+  if (flags_change_parsing) {
+    if (auto read = reasoner::read_rule_file(file); !read) return node::fail(Errc::invalid_argument, what + read.error().message);
+    return {};
+  }
+  reasoner::ParseOptions parse;
+  parse.me = node.iri;
+  parse.default_ns = node.iri + "#";
+  parse.prefixes = prefixes;
+  if (auto rules = reasoner::load_rules(file, parse); !rules) return node::fail(Errc::invalid_argument, what + rules.error().message);
+  return {};
 }
 
 CommandContext CommandContext::of_this_process() {

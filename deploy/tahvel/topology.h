@@ -110,4 +110,13 @@ node::Result<std::vector<std::string>> expand_agent_command(const AgentSpec& age
                                                             const std::filesystem::path& store,
                                                             const CommandContext& context);
 
+// A reasoner agent's rule file (`tahvel reason {store} RULES`, argv as expanded), read and parsed
+// as the reasoner will at its start, with the node's `prefixes` (its store's, or the standard
+// ones for a store not made yet): a missing or broken file only showed as the reasoner failing
+// and restarted for ever. Only read, not parsed, when the command gives --prefix or
+// --default-ns. Errors (invalid_argument): the agent's place, then the rule file's
+// file:line:col and what is wrong.
+node::Result<void> check_rule_file(const AgentSpec& agent, const NodeSpec& node, const std::vector<std::string>& argv,
+                                   const uri::PrefixMap& prefixes);
+
 }  // namespace tahvel::cli

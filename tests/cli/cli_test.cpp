@@ -2672,6 +2672,32 @@ TEST_F(Cli, UpRefusesANodeWhoseIriIsLongerThanALinkFrameMayName) {
   EXPECT_FALSE(fs::exists(tmp_ / "state" / "hospital"));
 }
 
+// A reasoner agent whose rule file is missing or does not parse started with the rest and was
+// restarted for ever, its cause only in its log (a probe). `up` reads and parses the file as
+// the reasoner will and refuses the topology, naming the agent and the rule file's line and
+// column, before anything starts.
+TEST_F(Cli, UpRefusesAReasonerWhoseRuleFileIsMissingOrBroken) {
+  auto topology = [&](const std::string& rules) {
+    spit(tmp_ / "rules.toml", "[[node]]\nid = \"hospital\"\niri = \"http://example.org/hospital\"\n\n"
+                              "  [[node.agent]]\n  id = \"reasoner\"\n  run = [\"{bin}/tahvel\", \"reason\", \"{store}\", \"{dir}/" +
+                                  rules + "\"]\n");
+    return run({"up", (tmp_ / "rules.toml").string(), "--state", (tmp_ / "state").string()});
+  };
+  Outcome up = topology("nope.rules");
+  EXPECT_EQ(up.status, 1);
+  EXPECT_NE(up.err.find("rules.toml:5:"), std::string::npos) << up.err;
+  EXPECT_NE(up.err.find("node 'hospital': agent 'reasoner': "), std::string::npos) << up.err;
+  EXPECT_NE(up.err.find("nope.rules"), std::string::npos) << up.err;
+  EXPECT_NE(up.err.find("No such file or directory"), std::string::npos) << up.err;
+  EXPECT_FALSE(fs::exists(tmp_ / "state"));
+
+  spit(tmp_ / "broken.rules", "alert(X) :- hr(X, V), V > 120.\nfact(a, b\n");
+  up = topology("broken.rules");
+  EXPECT_EQ(up.status, 1);
+  EXPECT_NE(up.err.find("broken.rules:3:1: expected ',' or ')' in the arguments of fact"), std::string::npos) << up.err;
+  EXPECT_FALSE(fs::exists(tmp_ / "state"));
+}
+
 // Cyclone DDS takes ports 7400 + 250 D ... for domain D and binds them without SO_REUSEADDR: an
 // LCM listen on one of them (LCM's default 7667 is domain 1's fourth participant) could not bind
 // once enough DDS links ran on the host, and its link failed on every restart (chaos seed
