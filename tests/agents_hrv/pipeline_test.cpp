@@ -1041,19 +1041,17 @@ TEST(AgentPrograms, ARecordingTheRPeakAgentCannotUseIsItsProblemWhileItsChunksAr
 // Twelve seconds of signal without a beat are the R-peak agent's problem, said once in its log,
 // until a beat is found; a line per chunk was not written for it.
 TEST(AgentPrograms, ASignalWithoutBeatsIsTheRPeakAgentsProblemUntilABeatIsFound) {
-  ScratchNode scratch("rpeak-silent");
-  ASSERT_TRUE(scratch.node) << "cannot make a store under /tmp";
-  std::optional<tn::Node>& node = scratch.node;
-  auto ecg = node->agent("ecg");
-  ASSERT_TRUE(ecg);
-  auto problem = [&] { return scratch.problem("rpeak"); };
-  const auto& eventually = within_a_minute;
-  agg::RecordingInfo info = recording_at_250_hz();
-  info.gain = 200;
   agg::SyntheticEcgOptions options;
   options.fs = 250;
   options.adc_zero = 0;
   auto beating = agg::synthetic_ecg(40, options);
+  ScratchNode scratch("rpeak-silent");
+  ASSERT_TRUE(scratch.node) << "cannot make a store under /tmp";
+  auto ecg = scratch.node->agent("ecg");
+  ASSERT_TRUE(ecg);
+  auto problem = [&] { return scratch.problem("rpeak"); };
+  agg::RecordingInfo info = recording_at_250_hz();
+  info.gain = options.gain;
   ASSERT_TRUE(beating) << beating.error().message;
   std::vector<std::int32_t> signal(250 * 20, 0);  // 20 s flat, then 40 s of ECG
   signal.insert(signal.end(), beating->begin(), beating->end());
@@ -1063,11 +1061,11 @@ TEST(AgentPrograms, ASignalWithoutBeatsIsTheRPeakAgentsProblemUntilABeatIsFound)
   Process agent({bin("tahvel-rpeak"), scratch.dir, "--idle", "30"}, log);
   ASSERT_TRUE(ecg->store(agg::recording_item(info)));
   for (int second = 0; second < 20; ++second) ASSERT_TRUE(ecg->store(chunk(second)));
-  ASSERT_TRUE(eventually([&] { return problem().find("no beat found") != std::string::npos; })) << "no problem: " << problem();
+  ASSERT_TRUE(within_a_minute([&] { return problem().find("no beat found") != std::string::npos; })) << "no problem: " << problem();
   EXPECT_NE(problem().find("<" + kRecording + ">"), std::string::npos) << problem();
   EXPECT_NE(problem().find("no R-peaks, RR intervals or HRV come of it"), std::string::npos) << problem();
   for (int second = 20; second < 60; ++second) ASSERT_TRUE(ecg->store(chunk(second)));
-  EXPECT_TRUE(eventually([&] { return problem().empty(); })) << "still: " << problem();
+  EXPECT_TRUE(within_a_minute([&] { return problem().empty(); })) << "still: " << problem();
   EXPECT_EQ(agent.stop(), 0);
   std::ifstream in(log);
   std::ostringstream text;
