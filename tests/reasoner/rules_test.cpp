@@ -134,6 +134,30 @@ TEST_F(Spo2, DefaultRuleSystemAndDoctorThresholdsRankAsInThePaper) {
   EXPECT_FALSE(emergency());
 }
 
+// A call of one's own predicate with another number of arguments than its rules have read an
+// empty relation without a word: `\+ low(P)` beside rules of low/2 said every patient stable,
+// and `alert(P) :- low(P).` never held (a probe). Base facts are triples, so a call of p/N, N
+// other than 2, that no rule defines is an error at the call, naming the arities defined.
+TEST(Rules, ACallOfAPredicateNoRuleDefinesWithThatArityIsAnError) {
+  const std::string low = "low(P, W) :- fact(W, sosa:patient, P), fact(W, sosa:rmssd, R), R < 20.\n";
+  auto negated = tr::parse_rules(low + "stable(P) :- fact(P, rdf:type, sosa:Patient), \\+ low(P).\n", options("bad.rules"));
+  ASSERT_FALSE(negated);
+  EXPECT_EQ(negated.error().message.rfind("bad.rules:2:50: ", 0), 0u) << negated.error().message;
+  EXPECT_NE(negated.error().message.find("#low/1 is defined by no rule (its rules have arity 2)"), std::string::npos)
+      << negated.error().message;
+  EXPECT_NE(negated.error().message.find("this negation would always hold"), std::string::npos) << negated.error().message;
+  auto called = tr::parse_rules(low + "alert(P) :- low(P).\n", options("bad.rules"));
+  ASSERT_FALSE(called);
+  EXPECT_NE(called.error().message.find("this call would never hold"), std::string::npos) << called.error().message;
+  auto unknown = tr::parse_rules("alert(P) :- fact(P, rdf:type, sosa:Patient), \\+ muted(P).\n", options("bad.rules"));
+  ASSERT_FALSE(unknown);
+  EXPECT_NE(unknown.error().message.find("#muted/1 is defined by no rule, and base facts are triples"), std::string::npos)
+      << unknown.error().message;
+  // A call of arity 2 reads the triples of its predicate, defined by rules or not.
+  EXPECT_TRUE(tr::parse_rules(low + "alert(P) :- low(P, W).\nquiet(P) :- fact(P, rdf:type, sosa:Patient), \\+ sosa:muted(P, _).\n",
+                              options("ok.rules")));
+}
+
 TEST(Rules, ParseErrorsNameFileLineAndColumn) {
   struct Case { const char* text; const char* where; };
   const Case cases[] = {

@@ -845,9 +845,37 @@ Result<void> check_ranked_declarations(const Program& program) {
   return {};
 }
 
+// A call of p/N (N other than 2) that no rule defines: base facts are triples, so it never holds,
+// and under \+ always holds (`\+ low(P)` beside rules of low/2 said every patient stable). As
+// Prolog's "unknown procedure", an error.
+std::optional<Error> undefined_call(const Program& program) {
+  std::set<std::uint32_t> defined;
+  for (const Rule& rule : program.rules) defined.insert(rule.head);
+  for (const Rule& rule : program.rules) {
+    for (const Literal& l : rule.body) {
+      if ((l.kind != Literal::atom && l.kind != Literal::negation) || l.pred == kAnyBinary) continue;
+      const Pred& p = program.preds[l.pred];
+      if (p.internal || p.arity == 2 || defined.contains(l.pred)) continue;
+      std::set<std::uint32_t> arities;
+      for (std::uint32_t head : defined)
+        if (program.preds[head].iri == p.iri) arities.insert(program.preds[head].arity);
+      std::string others;
+      for (std::uint32_t n : arities) others += (others.empty() ? " (its rules have arity " : " and ") + std::to_string(n);
+      if (!others.empty()) others += ")";
+      return Error{where(program, l.pos) + ": " + p.iri + "/" + std::to_string(p.arity) + " is defined by no rule" + others +
+                   ", and base facts are triples (arity 2): this " +
+                   (l.kind == Literal::negation ? "negation would always hold" : "call would never hold")};
+    }
+  }
+  return std::nullopt;
+}
+
 }  // namespace
 
 Result<void> compile_program(Program& program) {
+  // Found in the rules as written, said after the other errors (an unbound variable, a
+  // negation through recursion), which name the line to mend first.
+  const std::optional<Error> undefined = undefined_call(program);
   if (auto r = check_ranked_declarations(program); !r) return r;
   auto cuts = take_cuts(program);
   if (!cuts) return unexpected(cuts.error());
@@ -858,6 +886,7 @@ Result<void> compile_program(Program& program) {
   if (auto d = add_demand_rules(program, *demands); !d) return d;
   if (auto p = make_plans(program); !p) return p;
   if (auto s = stratify(program); !s) return s;
+  if (undefined) return unexpected(*undefined);
   collect_reads(program);
   return {};
 }
