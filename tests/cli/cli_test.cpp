@@ -2403,7 +2403,7 @@ TEST_F(Cli, StatusShowsAProgramWaitingOutItsBackOffAsRestarting) {
 // The program's id ("alerts") is not the reasoner's agent's ("reasoner", the default): found by
 // its process.
 TEST_F(Cli, StatusShowsAReasonersRuleFileThatNoLongerParsesUntilItDoes) {
-  spit(tmp_ / "alerts.rules", "alert(X) :- hot(X).\n");
+  spit(tmp_ / "alerts.rules", "alert(X) :- hot(X, _).\n");
   spit(tmp_ / "node.toml",
        "[[node]]\nid = \"solo\"\niri = \"http://example.org/solo\"\n"
        "  [[node.agent]]\n  id = \"alerts\"\n  run = [\"{bin}/tahvel\", \"reason\", \"{store}\", \"{dir}/alerts.rules\"]\n");
@@ -2416,7 +2416,7 @@ TEST_F(Cli, StatusShowsAReasonersRuleFileThatNoLongerParsesUntilItDoes) {
   const fs::path log = tmp_ / "state" / "logs" / "solo" / "alerts.log";
   ASSERT_TRUE(eventually([&] { return slurp(log).find("session at seq ") != std::string::npos; })) << slurp(log);
   EXPECT_EQ(run({"status", "--state", state}).out.find("PROBLEM"), std::string::npos);
-  spit(tmp_ / "alerts.rules", "alert(X) :- hot(X).\nalert(X :- cold(X).\n");
+  spit(tmp_ / "alerts.rules", "alert(X) :- hot(X, _).\nalert(X :- cold(X, _).\n");
   const std::string said = "PROBLEM rules not reloaded (the previous rules run): " + (tmp_ / "alerts.rules").string() + ":2:";
   Outcome broken = status_until(state, said);
   EXPECT_NE(broken.out.find("  - alerts  running (pid "), std::string::npos) << broken.out;
@@ -2425,7 +2425,7 @@ TEST_F(Cli, StatusShowsAReasonersRuleFileThatNoLongerParsesUntilItDoes) {
   EXPECT_NE(json.out.find("\"problem\":\"rules not reloaded (the previous rules run): " + (tmp_ / "alerts.rules").string() + ":2:"),
             std::string::npos)
       << json.out;
-  spit(tmp_ / "alerts.rules", "alert(X) :- cold(X).\n");
+  spit(tmp_ / "alerts.rules", "alert(X) :- cold(X, _).\n");
   Outcome fixed = status_until(state, "PROBLEM", false);
   EXPECT_EQ(fixed.out.find("PROBLEM"), std::string::npos) << fixed.out;
   EXPECT_EQ(run({"down", "--state", state}).status, 0);

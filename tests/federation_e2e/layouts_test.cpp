@@ -273,7 +273,7 @@ TEST_F(Deployment, TwoUpsAtOnceOnANewStateDirectoryTakeTurnsAndEveryStoreIsMade)
 // shown under it.
 TEST_F(Deployment, StatusOnTheRootsMachineShowsTheNodesAndProgramsOfTheMachinesBelowIt) {
   const fs::path rule_file = root_ / "gateway.rules";
-  std::ofstream(rule_file) << "alert(X) :- hot(X).\n";
+  std::ofstream(rule_file) << "alert(X) :- hot(X, _).\n";
   write_topology("[[node]]\nid = \"ward\"\niri = \"" + kWard + "\"\nlisten = { kind = \"dds\", domain = 6, " + kDdsConfig +
                  " }\n\n[[node]]\nid = \"gateway\"\nparent = \"ward\"\n"
                  "listen = { kind = \"lcm\", url = \"udpm://239.255.76.68:7712?ttl=0\" }\n\n"
@@ -310,12 +310,12 @@ TEST_F(Deployment, StatusOnTheRootsMachineShowsTheNodesAndProgramsOfTheMachinesB
     return std::string(std::istreambuf_iterator<char>(in), {});
   };
   ASSERT_TRUE(eventually([&] { return log_text().find("session at seq ") != std::string::npos; })) << log_text();
-  std::ofstream(rule_file) << "alert(X :- hot(X).\n";
+  std::ofstream(rule_file) << "alert(X :- hot(X, _).\n";
   const std::string problem = "rules not reloaded (the previous rules run): " + rule_file.string() + ":1:";
   EXPECT_TRUE(eventually([&] { return (shown = status_of("ward")).find("\n        PROBLEM " + problem) != std::string::npos; }))
       << shown;
   EXPECT_NE(status_of("ward", " --json").find("\"problem\":\"" + problem), std::string::npos);
-  std::ofstream(rule_file) << "alert(X) :- hot(X).\n";
+  std::ofstream(rule_file) << "alert(X) :- hot(X, _).\n";
   EXPECT_TRUE(eventually([&] { return (shown = status_of("ward")).find("PROBLEM") == std::string::npos; })) << shown;
   const std::string json = status_of("ward", " --json");
   EXPECT_NE(json.find("{\"id\":\"sensor\",\"iri\":\"" + kWard + "/gateway/sensor\",\"depth\":2,\"parent\":\"" + kWard + "/gateway\",\"remote\":true,"), std::string::npos) << json;
