@@ -182,6 +182,29 @@ TEST(Rules, ParseErrorsNameFileLineAndColumn) {
   }
 }
 
+// A typed constant without a value of its type compared with nothing: a rule of
+// `T > "2026-12-03T10:00Z"^^xsd:dateTime` (no seconds) never fired, and nothing said why.
+TEST(Rules, ATypedConstantThatIsNotAValueOfItsTypeIsAnErrorAtTheConstant) {
+  const std::vector<std::pair<std::string, std::string>> cases = {
+      {"late(P, T) :- q(P, T), T > \"2026-12-03T10:00Z\"^^xsd:dateTime.\n",
+       "bad.rules:1:28: \"2026-12-03T10:00Z\" is not a valid xsd:dateTime (YYYY-MM-DDThh:mm:ss"},
+      {"big(P, N) :- q(P, N), N > \"12x\"^^xsd:integer.\n", "bad.rules:1:27: \"12x\" is not a valid xsd:integer"},
+      {"big(P, N) :- q(P, N), N > \"99999999999999999999\"^^<http://www.w3.org/2001/XMLSchema#long>.\n",
+       "bad.rules:1:27: \"99999999999999999999\" is not a valid xsd:long (or does not fit in 64 bits)"},
+      {"hot(P, N) :- q(P, N), N > \"3,5\"^^xsd:decimal.\n", "bad.rules:1:27: \"3,5\" is not a valid xsd:decimal"},
+  };
+  for (const auto& [text, said] : cases) {
+    auto p = tr::parse_rules(text, options("bad.rules"));
+    ASSERT_FALSE(p.has_value()) << text;
+    EXPECT_EQ(p.error().message.rfind(said, 0), 0u) << p.error().message;
+  }
+  // Valid constants of those types, and of types the built-ins do not read, are constants.
+  EXPECT_TRUE(tr::parse_rules("late(P, T) :- q(P, T), T > \"2026-12-03T10:00:00.5+02:00\"^^xsd:dateTime.\n"
+                              "big(P, N) :- q(P, N), N > \"+12\"^^xsd:integer, N < \"1e3\"^^xsd:double.\n"
+                              "odd(P, N) :- q(P, N), N = \"12x\"^^<http://example.org/code>.\n",
+                              options("ok.rules")));
+}
+
 // A built-in written with other arguments (`lesstime(T)`, `skolem(L)`, `now(T, X)`, a bare
 // `now`) was an atom no rule defines: the rule derived nothing, and nothing said why.
 TEST(Rules, ABuiltInWrittenWithOtherArgumentsIsAnErrorNamingItsArguments) {

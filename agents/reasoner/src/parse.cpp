@@ -13,6 +13,7 @@
 #include <unistr.h>
 
 #include "program.h"
+#include "value.h"
 #include "tahvel/uri/unicode_escape.h"
 
 namespace tahvel::reasoner {
@@ -303,6 +304,15 @@ Result<Token> Lexer::string_literal(Pos start, char quote) {
     if (dt->kind != Tok::iri) return error(dpos, "expected a datatype IRI after ^^");
     term.datatype = dt->text;
     if (term.datatype == node::xsd::kString) term.datatype.clear();
+    // Such a constant compares with nothing and its rule never fires, without a word.
+    if (auto type = valued_type_name(term); !type.empty() && value_of(term).kind == Value::none) {
+      std::string why = type.find("dateTime") != std::string::npos
+                            ? " (YYYY-MM-DDThh:mm:ss, then optional .fraction and Z or ±hh:mm)"
+                            : type == "xsd:decimal" || type == "xsd:double" || type == "xsd:float"
+                                  ? ""
+                                  : " (or does not fit in 64 bits)";
+      return error(start, "\"" + value + "\" is not a valid " + type + why);
+    }
   } else if (at() == '@') {
     advance();
     std::string lang;

@@ -153,6 +153,17 @@ Value value_of(const node::Term& term) {
   return {};
 }
 
+std::string valued_type_name(const node::Term& term) {
+  if (!term.is_literal() || term.datatype.size() <= kXsd.size() ||
+      std::string_view(term.datatype).substr(0, kXsd.size()) != kXsd)
+    return {};
+  std::string_view local = std::string_view(term.datatype).substr(kXsd.size());
+  if (is_integer_type(local) || local == "decimal" || local == "double" || local == "float" ||
+      local == "dateTime" || local == "dateTimeStamp")
+    return "xsd:" + std::string(local);
+  return {};
+}
+
 Value arith(ArithOp op, const Value& a, const Value& b) {
   if (op == ArithOp::neg) {
     if (a.kind == Value::integer) return integer_arith(ArithOp::neg, a.i, 0);

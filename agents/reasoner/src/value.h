@@ -20,6 +20,11 @@ struct Value {
 // (no offset: UTC). Anything else: none.
 Value value_of(const node::Term& term);
 
+// For a literal whose datatype value_of reads: that datatype as "xsd:<local name>". Empty for
+// any other term. A rule's constant of such a type without a value ("12x"^^xsd:integer) would
+// compare with nothing, so the rule reader refuses it.
+std::string valued_type_name(const node::Term& term);
+
 // Arithmetic: + - * / on numbers (integers stay integers unless / leaves a remainder), time ±
 // seconds, time - time (seconds). none when undefined: a type mismatch, division by zero, an
 // integer result outside int64, a time outside 1677-09-21..2262-04-11.
