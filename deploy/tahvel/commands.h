@@ -89,6 +89,13 @@ std::string parse_iri(std::string_view text, const uri::PrefixMap& prefixes,
 std::string parse_node_iri(std::string_view text, const uri::PrefixMap& prefixes, std::string_view flag);
 // The pattern of -s, -p, -o (and --context, --source, --under when the command has them).
 node::Pattern pattern_from_args(const Args& args, const uri::PrefixMap& prefixes);
+// After an empty answer to a pattern with -p: a warning on standard error when no record of
+// `held` (what the store that answered holds per predicate) has that predicate, naming the
+// nearest it holds (a misspelt `-p tv:sample` answered nothing, with exit 0 and no word).
+// `where` names the store ("this store", "<iri> (as its supervisor wrote it 3 s ago)").
+void warn_of_a_predicate_held_by_none(std::string_view command, const node::Pattern& pattern,
+                                      const std::vector<node::PredicateSummary>& held, const uri::PrefixMap& prefixes,
+                                      const std::string& where);
 // --cascade N; depths beyond 2^20 (deeper than any store's sub-trees) are taken as 2^20.
 unsigned cascade_flag(const Args& args);
 // The time `text` given to `flag` (--since, --until), ns since the epoch: an integer (ns) or an

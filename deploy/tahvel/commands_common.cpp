@@ -19,6 +19,7 @@
 #include <streambuf>
 
 #include "commands.h"
+#include "vocabulary.h"
 #include "tahvel/spatial/wkt.h"
 #include "tahvel/uri/unicode_escape.h"
 
@@ -283,6 +284,44 @@ node::Term parse_term(std::string_view text, const uri::PrefixMap& prefixes,
 
 unsigned cascade_flag(const Args& args) {
   return static_cast<unsigned>(std::min<std::uint64_t>(args.get_u64("--cascade", 0), 1u << 20));
+}
+
+namespace {
+
+// The part of an IRI after its last '#' or '/': what a slip of the prefix leaves the same.
+std::string_view local_part(std::string_view iri) {
+  const std::size_t cut = iri.find_last_of("#/");
+  return cut == std::string_view::npos ? iri : iri.substr(cut + 1);
+}
+
+}  // namespace
+
+void warn_of_a_predicate_held_by_none(std::string_view command, const node::Pattern& pattern,
+                                      const std::vector<node::PredicateSummary>& held, const uri::PrefixMap& prefixes,
+                                      const std::string& where) {
+  if (!pattern.p || !pattern.p->is_iri()) return;
+  const std::string& asked = pattern.p->value;
+  const node::PredicateSummary* nearest = nullptr;
+  std::size_t nearest_edits = 4;  // more than 3 edits away is another word, not a slip
+  for (const node::PredicateSummary& h : held) {
+    if (h.records == 0) continue;
+    if (h.predicate == asked) return;
+    const std::string_view local = local_part(asked), held_local = local_part(h.predicate);
+    const bool same_namespace = std::string_view(asked).substr(0, asked.size() - local.size()) ==
+                                std::string_view(h.predicate).substr(0, h.predicate.size() - held_local.size());
+    // A right name under the wrong prefix (sosa:rmssd for tv:rmssd) is one edit away.
+    const std::size_t e = std::min(edit_distance(asked, h.predicate), edit_distance(local, held_local) + (same_namespace ? 0 : 1));
+    if (e < nearest_edits) nearest_edits = e, nearest = &h;
+  }
+  auto shown = [&](const std::string& iri) {
+    std::string curie = prefixes.compact(iri);
+    return curie == iri ? "<" + iri + ">" : curie;
+  };
+  std::cerr << "tahvel: " << command << ": warning: " << where << " has no record with the predicate " << shown(asked);
+  if (nearest)
+    std::cerr << "; did you mean " << shown(nearest->predicate) << " (" << nearest->records << (nearest->records == 1 ? " record" : " records") << ")?";
+  else std::cerr << ".";
+  std::cerr << " 'tahvel stats DIR --predicates" << (where.starts_with("<") ? " --at NODE-IRI" : "") << "' lists what it holds\n";
 }
 
 node::Pattern pattern_from_args(const Args& args, const uri::PrefixMap& prefixes) {

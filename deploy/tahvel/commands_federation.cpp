@@ -324,6 +324,8 @@ std::chrono::milliseconds seconds_flag(const Args& args, std::string_view comman
 // A remote query's error as `command`'s failure, with the exit status that says which it was
 // (docs/cli.md): 3 no answer in time, 4 unknown node, 5 unreachable, 1 anything else.
 namespace {
+std::int64_t remote_predicates(node::Node& node, const std::string& target, std::chrono::milliseconds timeout,
+                               std::vector<node::PredicateSummary>& out);
 [[noreturn]] void fail_remote(std::string_view command, const node::Error& e) {
   const int status = e.code == node::Errc::timeout ? kExitTimeout
                      : e.code == node::Errc::not_found ? kExitUnknownNode
@@ -379,6 +381,23 @@ int run_query(const Args& args) {
     out.finish();
   }, "record");
   out.check();
+  // The target's holdings as its supervisor last wrote them (a second query, after an empty
+  // answer only); none read, nothing said: a node not run by 'tahvel up' has none.
+  if (printed == 0 && query.pattern.p) {
+    std::vector<node::PredicateSummary> held;
+    if (query.target == node.iri()) {
+      if (auto snapshot = node.snapshot(); snapshot)
+        if (auto here = snapshot->predicates(); here)
+          warn_of_a_predicate_held_by_none("query", query.pattern, *here, prefixes, "this store");
+    } else {
+      try {
+        if (const std::int64_t written = remote_predicates(node, query.target, std::min(timeout, std::chrono::milliseconds(5000)), held))
+          warn_of_a_predicate_held_by_none("query", query.pattern, held, prefixes,
+                                           "<" + query.target + "> (as its supervisor wrote it " + age_of(written) + ")");
+      } catch (const Failure&) {
+      }
+    }
+  }
   // A count for the operator at a terminal; a script's standard error stays empty on success.
   if (isatty(STDERR_FILENO)) {
     auto target = uri::normalize(query.target);

@@ -142,6 +142,8 @@ int run_list(const Args& args) {
   }
   const bool more = limit != 0 && records_read.size() > limit;
   if (more) records_read.resize(limit);
+  if (records_read.empty() && pattern.p)
+    warn_of_a_predicate_held_by_none("list", pattern, check(snapshot.predicates()), prefixes, "this store");
   write_records(std::cout, format, prefixes, records_read);
   finish_output(std::cout);
   // Said to an operator at a terminal only: a script's standard error stays empty on success.

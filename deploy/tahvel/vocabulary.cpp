@@ -157,8 +157,9 @@ constexpr std::array kTerms = {
     std::string_view("zAgainstOthers"),
 };
 
-// Levenshtein distance, for the suggestion (the terms are short).
-std::size_t edits(std::string_view a, std::string_view b) {
+}  // namespace
+
+std::size_t edit_distance(std::string_view a, std::string_view b) {
   std::vector<std::size_t> row(b.size() + 1);
   for (std::size_t j = 0; j <= b.size(); ++j) row[j] = j;
   for (std::size_t i = 1; i <= a.size(); ++i) {
@@ -173,8 +174,6 @@ std::size_t edits(std::string_view a, std::string_view b) {
   return row[b.size()];
 }
 
-}  // namespace
-
 bool is_tahvel_term(std::string_view local_name) {
   return std::binary_search(kTerms.begin(), kTerms.end(), local_name);
 }
@@ -183,7 +182,7 @@ std::optional<std::string_view> nearest_tahvel_term(std::string_view local_name)
   std::optional<std::string_view> best;
   std::size_t best_edits = 4;  // more than 3 edits away is another word, not a slip
   for (std::string_view term : kTerms) {
-    const std::size_t e = edits(local_name, term);
+    const std::size_t e = edit_distance(local_name, term);
     if (e < best_edits) best_edits = e, best = term;
   }
   return best;

@@ -3,10 +3,14 @@
 // tests/hygiene/check_vocabulary.sh fails when a term is used and not listed here.
 #pragma once
 
+#include <cstddef>
 #include <optional>
 #include <string_view>
 
 namespace tahvel::cli {
+
+// Levenshtein distance between `a` and `b`: how many one-character edits a slip is away.
+std::size_t edit_distance(std::string_view a, std::string_view b);
 
 // Whether `local_name` (the part after "tv:") is a term of the vocabulary.
 bool is_tahvel_term(std::string_view local_name);

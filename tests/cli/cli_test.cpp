@@ -397,6 +397,27 @@ TEST_F(Cli, ListAndQuerySayAtATerminalWhenLimitCutTheAnswer) {
   EXPECT_EQ(script.err, "");
 }
 
+// A misspelt predicate answered nothing with exit 0 and no word: an operator took it for "no
+// data". An empty answer to a predicate the store holds no record of says so, with the nearest
+// it holds (a slip of a letter or of the prefix); an empty answer to a held one says nothing.
+TEST_F(Cli, AnEmptyAnswerToAPredicateTheStoreHoldsNoneOfSaysSoWithTheNearest) {
+  init();
+  put("@prefix tv: <https://w3id.org/tahvel#> .\n<http://example.org/a> tv:rmssd 20.5, 31.0 .\n");
+  for (const std::vector<std::string>& command :
+       {std::vector<std::string>{"list", node_, "-p", "tv:rmsd"}, {"query", node_, "--at", kNodeIri, "-p", "tv:rmsd"}}) {
+    const Outcome r = run(command);
+    EXPECT_EQ(r.status, 0) << r.err;
+    EXPECT_EQ(r.out, "");
+    EXPECT_EQ(r.err, "tahvel: " + command[0] + ": warning: this store has no record with the predicate tv:rmsd; did you mean tv:rmssd "
+                     "(2 records)? 'tahvel stats DIR --predicates' lists what it holds\n");
+  }
+  EXPECT_NE(run({"list", node_, "-p", "sosa:rmssd"}).err.find("predicate sosa:rmssd; did you mean tv:rmssd (2 records)?"), std::string::npos);
+  EXPECT_NE(run({"list", node_, "-p", "tv:heartRate"}).err.find("no record with the predicate tv:heartRate. 'tahvel stats"), std::string::npos);
+  const Outcome held = run({"list", node_, "-p", "tv:rmssd", "-o", "99"});
+  EXPECT_EQ(held.status, 0) << held.err;
+  EXPECT_EQ(held.out + held.err, "");
+}
+
 TEST_F(Cli, UnknownSubcommandExits2) {
   Outcome r = run({"frobnicate"});
   EXPECT_EQ(r.status, 2);

@@ -336,6 +336,13 @@ TEST_F(Deployment, StatusOnTheRootsMachineShowsTheNodesAndProgramsOfTheMachinesB
     return held.find("{\"predicate\":\"https://w3id.org/tahvel#uplinkState\",\"records\":1,") != std::string::npos;
   }, 15s)) << held;
   EXPECT_EQ(held.find("#linkState\""), std::string::npos) << held;  // the sensor has no child
+  // A query of a predicate the node below holds no record of says so, with the nearest it
+  // holds (a misspelt -p answered nothing, with no word); the answer stays empty, exit 0.
+  const std::string misspelt = tahvel("query " + ward_store + " --at " + kWard + "/gateway -p tv:uplinkStat");
+  EXPECT_NE(misspelt.find("tahvel: query: warning: <" + kWard + "/gateway> (as its supervisor wrote it "), std::string::npos) << misspelt;
+  EXPECT_NE(misspelt.find(") has no record with the predicate tv:uplinkStat; did you mean tv:uplinkState (1 record)?"), std::string::npos)
+      << misspelt;
+  EXPECT_EQ(tahvel("query " + ward_store + " --at " + kWard + "/gateway -p tv:uplinkState -o tv:nothing").find("warning"), std::string::npos);
 
   shown = status_of("ward", " --local");
   EXPECT_EQ(shown.find("sensor"), std::string::npos) << shown;
