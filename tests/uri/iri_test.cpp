@@ -77,6 +77,24 @@ TEST(Iri, NormalizeAcceptsUrnAndLowercasesOnlyItsScheme) {
   EXPECT_EQ(ok(normalize("URN:Ex:A")), "urn:Ex:A");
 }
 
+// RFC 3986 §6.2.3: a node written "http://h:80/x" in one place and "http://h/x" in another was
+// two nodes (a query --at the one missed the other: "unknown node").
+TEST(Iri, NormalizeDropsTheSchemesDefaultPortAndAnEmptyOne) {
+  EXPECT_EQ(ok(normalize("http://h:80/x")), "http://h/x");
+  EXPECT_EQ(ok(normalize("HTTPS://H:443/x")), "https://h/x");
+  EXPECT_EQ(ok(normalize("http://h:080/x")), "http://h/x");
+  EXPECT_EQ(ok(normalize("http://h:/x")), "http://h/x");
+  EXPECT_EQ(ok(normalize("http://user@h:80")), "http://user@h");
+  EXPECT_EQ(ok(normalize("http://[::1]:80/x")), "http://[::1]/x");
+  EXPECT_EQ(ok(normalize("http://hé.example:80/é")), "http://hé.example/é");
+  EXPECT_EQ(ok(normalize("http://h:8080/x")), "http://h:8080/x");
+  EXPECT_EQ(ok(normalize("https://h:80/x")), "https://h:80/x");
+  EXPECT_EQ(ok(normalize("coap://h:5683/x")), "coap://h:5683/x");
+  EXPECT_TRUE(is_under("http://h:80/home1/ecg", "http://h/home1"));
+  EXPECT_EQ(ok(child_node_iri("http://h:80/hospital", "home1")), "http://h/hospital/home1");
+  EXPECT_EQ(ok(node_iri("http://h:80/hospital")), "http://h/hospital");
+}
+
 TEST(Iri, NormalizeIsIdempotent) {
   for (const char* text : {"HTTP://H/a/./b/../%7e%c3%a9", "http://h/é/%c3%a9/%25", "urn:x:y#z",
                            "http://%c3%89x.com/?q=%2f", "http://[::1]/a"}) {

@@ -166,6 +166,22 @@ bool ParsedUri::resolve(const ParsedUri& base, const ParsedUri& reference) {
 
 bool ParsedUri::has_scheme() const { return live_ && uri_.scheme.first != nullptr; }
 
+std::optional<std::pair<std::size_t, std::size_t>> ParsedUri::default_port() const {
+  if (!live_ || !uri_.scheme.first || !uri_.portText.first) return std::nullopt;
+  std::string scheme(uri_.scheme.first, uri_.scheme.afterLast);
+  for (char& c : scheme) c = static_cast<char>(std::tolower(static_cast<unsigned char>(c)));
+  const std::string_view port(uri_.portText.first, static_cast<std::size_t>(uri_.portText.afterLast - uri_.portText.first));
+  unsigned number = 0;
+  for (char c : port) {
+    if (c < '0' || c > '9' || number > 65535) return std::nullopt;
+    number = number * 10 + static_cast<unsigned>(c - '0');
+  }
+  const unsigned usual = scheme == "http" || scheme == "ws" ? 80 : scheme == "https" || scheme == "wss" ? 443 : 0;
+  if (!port.empty() && (usual == 0 || number != usual)) return std::nullopt;
+  const std::size_t colon = static_cast<std::size_t>(uri_.portText.first - ascii_.data()) - 1;  // the ':' before it
+  return std::pair(origin(colon), origin(static_cast<std::size_t>(uri_.portText.afterLast - ascii_.data())));
+}
+
 bool ParsedUri::normalize() { return uriNormalizeSyntaxA(&uri_) == URI_SUCCESS; }
 
 std::string ParsedUri::to_string() const {
@@ -207,6 +223,13 @@ Expected<std::string, Failure> normal_form(std::string_view text) {
   ParsedUri uri;
   if (auto failure = uri.parse(text, has_non_ascii(text))) return unexpected(std::move(*failure));
   if (!uri.has_scheme()) return unexpected(Failure{0, "no scheme: not an absolute IRI"});
+  // Rare, so the text without the port is parsed again rather than uriparser's owned ranges
+  // edited: one node written "http://h:80/x" in one place and "http://h/x" in another was two.
+  if (auto port = uri.default_port()) {
+    std::string without(text.substr(0, port->first));
+    without += text.substr(port->second);
+    return normal_form(without);
+  }
   if (!uri.normalize()) return unexpected(Failure{0, "out of memory"});
   return uri.to_string();
 }

@@ -9,6 +9,7 @@
 #include <optional>
 #include <string>
 #include <string_view>
+#include <utility>
 #include <vector>
 
 #include "text.h"
@@ -37,6 +38,11 @@ class ParsedUri {
 
   bool has_scheme() const;
 
+  // Where in the parsed text ":port" is when it is its scheme's default (http 80, https 443,
+  // ws 80, wss 443) or empty: [begin, end) of the text to drop for RFC 3986 §6.2.3's
+  // scheme-based normal form ("http://h:80/x" is "http://h/x"). Nothing otherwise.
+  std::optional<std::pair<std::size_t, std::size_t>> default_port() const;
+
   // RFC 3986 §6.2.2 syntax-based normalisation, in place. False when out of memory.
   bool normalize();
 
@@ -55,7 +61,8 @@ class ParsedUri {
   bool encoded_ = false;  // ascii_ is the encoded form, so output must be decoded
 };
 
-// `text` as an absolute IRI in RFC 3986 §6 normal form, or where and why it is not one.
+// `text` as an absolute IRI in RFC 3986 §6 normal form (syntax-based, and a default port
+// dropped), or where and why it is not one.
 Expected<std::string, Failure> normal_form(std::string_view text);
 
 }  // namespace tahvel::uri::detail

@@ -26,7 +26,9 @@ using IriResult = Expected<T, IriError>;
 
 // Parses `text` as an absolute IRI (scheme required) and returns its RFC 3986 §6 syntax-based
 // normal form: lower-case scheme and host, upper-case percent-encoding hex digits, decoded
-// unreserved characters, removed dot segments. Non-ASCII characters (RFC 3987) are kept as is.
+// unreserved characters, removed dot segments; and, scheme-based (§6.2.3), an empty port or
+// the scheme's default one (http and ws 80, https and wss 443) dropped. Non-ASCII characters
+// (RFC 3987) are kept as is.
 IriResult<std::string> normalize(std::string_view text);
 
 // True when `text` parses as an absolute IRI.
