@@ -91,7 +91,7 @@ std::string parse_node_iri(std::string_view text, const uri::PrefixMap& prefixes
 node::Pattern pattern_from_args(const Args& args, const uri::PrefixMap& prefixes);
 // After an empty answer to a pattern with -p: a warning on standard error when no record of
 // `held` (what the store that answered holds per predicate) has that predicate, naming the
-// nearest it holds (a misspelt `-p tv:sample` answered nothing, with exit 0 and no word).
+// nearest it holds (a misspelt `-p sosa:hasSimpleReslt` answered nothing, with exit 0 and no word).
 // `where` names the store ("this store", "<iri> (as its supervisor wrote it 3 s ago)").
 void warn_of_a_predicate_held_by_none(std::string_view command, const node::Pattern& pattern,
                                       const std::vector<node::PredicateSummary>& held, const uri::PrefixMap& prefixes,

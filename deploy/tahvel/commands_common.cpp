@@ -309,7 +309,7 @@ void warn_of_a_predicate_held_by_none(std::string_view command, const node::Patt
     const std::string_view local = local_part(asked), held_local = local_part(h.predicate);
     const bool same_namespace = std::string_view(asked).substr(0, asked.size() - local.size()) ==
                                 std::string_view(h.predicate).substr(0, h.predicate.size() - held_local.size());
-    // A right name under the wrong prefix (sosa:rmssd for tv:rmssd) is one edit away.
+    // A right name under the wrong prefix (sosa:rmssdMs for the tv: one) is one edit away.
     const std::size_t e = std::min(edit_distance(asked, h.predicate), edit_distance(local, held_local) + (same_namespace ? 0 : 1));
     if (e < nearest_edits) nearest_edits = e, nearest = &h;
   }

@@ -389,6 +389,7 @@ struct Link::Impl {
   // P11a: the contexts of items applied from above, for the timer to see whom they address.
   std::vector<std::string> down_contexts;
   StoreFlips parent_flips;        // welcomes from two parents' stores in turn; under mu
+  std::optional<Clock::time_point> acked_another_said;  // an ack for another store of this IRI, last logged; under mu
   Clock::time_point parent_store_heard{};  // last frame naming the welcoming parent's store
   std::string pending_parent_store;        // P6b: a welcome from another store while it lived
   Clock::time_point pending_parent_since{};
@@ -1853,6 +1854,14 @@ struct Link::Impl {
           // node under this IRI said hello after this one). This one says hello again, which
           // the parent sees as two stores taking turns.
           if (store_differs(store_id, stores->peer_store_id)) {
+            // Said, at most once a minute: registration dropped without a word looked like a
+            // link that stalls for no reason.
+            if (!acked_another_said || Clock::now() - *acked_another_said >= 60s) {
+              acked_another_said = Clock::now();
+              log("the parent <" + opt.parent_iri + "> acknowledges another store of this node's IRI (id " + stores->peer_store_id +
+                  "; this one is " + store_id + "): a second node under <" + self +
+                  ">? This one says hello again; the parent logs a conflict while both do (P6b)");
+            }
             welcomed = false;
             return;
           }

@@ -1355,9 +1355,14 @@ TEST(Link, AChildKeepsItsOutboxWhenAnAckIsOfAnotherStoresStream) {
   const std::uint64_t last = *sent.rbegin();
   auto ack_of = [&](const std::string& peer_store) { return home.ack(last, peer_store); };
   ASSERT_TRUE(ack_of("a-store-that-is-not-home1s"));
-  // The parent holds that other store as this node: this one says hello again.
+  // The parent holds that other store as this node: this one says hello again, and says why
+  // (its registration was dropped without a word).
   EXPECT_TRUE(next(FrameKind::hello));
   EXPECT_EQ(outbox(tree.home1_dir), 5u);
+  EXPECT_TRUE(eventually([&] {
+    return tree.home1_log.has("the parent <" + kHospital + "> acknowledges another store of this node's IRI (id a-store-that-is-not-home1s; this one is " +
+                              own_store + "): a second node under <" + kHome1 + ">?");
+  })) << tree.home1_log.text();
   welcome.ack = last;  // the parent's mark of home1's stream: all of it applied
   ASSERT_TRUE(parent->send(welcome));
   ASSERT_TRUE(ack_of(own_store));
