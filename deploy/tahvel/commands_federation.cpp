@@ -2592,7 +2592,8 @@ int run_status(const Args& args) {
   }
   // A remote node's programs are what its supervisor last wrote on its board: believed when
   // rewritten within kProgramsStaleAfterS of when they were read here (by the clock of that
-  // machine: the machines' clocks are taken to agree, as the link's times are).
+  // machine: the machines' clocks are taken to agree, as the link's times are, and a clock
+  // found more than that ahead is said).
   for (StatusNode& n : nodes) {
     if (!n.remote) continue;
     if (n.programs_unknown_because.empty() && n.programs_at == 0)
@@ -2600,6 +2601,13 @@ int run_status(const Args& args) {
     else if (n.programs_unknown_because.empty() && seconds_since(n.programs_at, n.programs_read_ns) > kProgramsStaleAfterS)
       n.programs_unknown_because =
           "its supervisor has not refreshed them for " + seconds_text(seconds_since(n.programs_at, n.programs_read_ns));
+    // Written "later" than they were read: that machine's clock is ahead, and however long ago
+    // its supervisor stopped, they would look fresh (a sensor without NTP showed a frozen
+    // supervisor's programs as running for as long as its clock was ahead).
+    else if (n.programs_unknown_because.empty() && -seconds_since(n.programs_at, n.programs_read_ns) > kProgramsStaleAfterS)
+      n.programs_unknown_because = "its clock is " + seconds_text(-seconds_since(n.programs_at, n.programs_read_ns)) +
+                                   " ahead of this machine's (its supervisor's last write is dated " + node::utc_text(n.programs_at) +
+                                   "), so how old they are cannot be told; set its clock (NTP)";
     n.programs_current = n.programs_unknown_because.empty();
   }
   // Depth first: each node right after its parent and before the parent's next sibling. '/'

@@ -363,6 +363,19 @@ TEST_F(Deployment, StatusOnTheRootsMachineShowsTheNodesAndProgramsOfTheMachinesB
     return shown.find("      programs as last written, now unknown: its supervisor has not refreshed them for") != std::string::npos;
   }, 30s)) << shown;
   EXPECT_NE(shown.find("      - link  running (pid "), std::string::npos) << shown;
+  // Its last write dated an hour ahead (the sensor's clock ahead, no NTP): a frozen supervisor's
+  // programs looked fresh for that hour. Status says how far ahead, and that their age is unknown.
+  const std::string ahead = std::to_string(std::chrono::duration_cast<std::chrono::nanoseconds>(
+                                               std::chrono::system_clock::now().time_since_epoch() + std::chrono::hours(1))
+                                               .count());
+  ASSERT_EQ(shell("echo '<" + kWard + "/gateway/sensor> <https://w3id.org/tahvel#programsAt> " + ahead + " .' | " + kBin +
+                  "/tahvel put " + (machine["sensor"] / "sensor").string() + " --agent supervisor --persistent"),
+            0);
+  EXPECT_TRUE(eventually([&] {
+    shown = status_of("ward");
+    return std::regex_search(shown, std::regex("      programs as last written, now unknown: its clock is (59 min [0-9]+ s|1 h 0 min) ahead of "
+                                               "this machine's \\(its supervisor's last write is dated 20"));
+  }, 15s)) << shown;
   shell("kill -CONT " + supervisor_pid);
 
   tahvel("down --state " + machine["sensor"].string());
