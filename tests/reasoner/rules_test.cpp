@@ -205,6 +205,24 @@ TEST(Rules, ATypedConstantThatIsNotAValueOfItsTypeIsAnErrorAtTheConstant) {
                               options("ok.rules")));
 }
 
+// A slip in an alternative's head variable (`Tt` for `T`) leaves that argument to the callers;
+// the call that leaves it unbound is refused, and the error names the alternative too (it named
+// the call only, where nothing is wrong).
+TEST(Rules, ACallLeavingUnboundWhatAnAlternativeTakesFromItsCallerNamesThatAlternative) {
+  auto p = tr::parse_rules(
+      "thr(P, T) :- fact(P, rdf:type, sosa:Patient), ex:threshold(P, T), !.\n"
+      "thr(P, T) :- fact(P, rdf:type, sosa:Patient), Tt = 20.\n"
+      "alert(P) :- fact(W, sosa:rmssd, R), fact(W, sosa:patient, P), thr(P, T), R < T.\n",
+      [] {
+        auto o = options("bad.rules");
+        EXPECT_TRUE(o.prefixes.add("ex", "http://example.org/"));
+        return o;
+      }());
+  ASSERT_FALSE(p.has_value());
+  EXPECT_EQ(p.error().message, "bad.rules:3:63: this call of " + kNs + "thr leaves T unbound, and its alternative at bad.rules:2:1 "
+                               "(whose body binds no T) takes that argument from its caller only");
+}
+
 // A built-in written with other arguments (`lesstime(T)`, `skolem(L)`, `now(T, X)`, a bare
 // `now`) was an atom no rule defines: the rule derived nothing, and nothing said why.
 TEST(Rules, ABuiltInWrittenWithOtherArgumentsIsAnErrorNamingItsArguments) {

@@ -340,6 +340,9 @@ struct Demand {
   // `a(X, Y) :- b(X), Y is Z + 1.`): that variable and the literal, which the error names instead.
   std::string unbound_need;
   Pos unbound_need_pos;
+  // Per head argument position callers must bind: the first alternative that needs it and the
+  // name of its head variable there, for the error at a call that leaves it unbound.
+  std::map<std::uint32_t, std::pair<Pos, std::string>> needed_by;
 };
 
 // The variable that keeps `rule` from binding head variable `head_var`, and the literal that
@@ -447,6 +450,7 @@ Result<std::map<std::uint32_t, Demand>> add_demand_literals(Program& program, st
       it->second.pred = add_pred(program, "demand for " + p.iri + "/" + std::to_string(p.arity),
                                  static_cast<std::uint32_t>(positions.size()));
     }
+    for (std::uint32_t i : own[r]) it->second.needed_by.try_emplace(i, rule.pos, rule.var_names[rule.head_args[i].index]);
     std::vector<Arg> args;
     for (std::uint32_t i : positions) args.push_back(rule.head_args[i]);
     rule.body.insert(rule.body.begin(), atom_literal(it->second.pred, std::move(args), rule.pos));
@@ -512,10 +516,13 @@ Result<void> add_demand_rules(Program& program, const std::map<std::uint32_t, De
       VarSet bound = reachable_bindings(d);
       for (std::size_t k = 0; k < d.head_args.size(); ++k) {
         const Arg& a = d.head_args[k];
-        if (a.is_var && !bound[a.index])
-          return unexpected(Error{where(program, call.pos) + ": this call of " + program.preds[call.pred].iri +
-                                  " leaves " + rule.var_names[a.index] +
-                                  " unbound, and an alternative of it binds that argument from its caller only"});
+        if (!a.is_var || bound[a.index]) continue;
+        // Named with the alternative: the slip is most often there (`thr(P, T) :- Tt = 20.`).
+        std::string which = "an alternative of it";
+        if (auto by = it->second.needed_by.find(it->second.positions[k]); by != it->second.needed_by.end())
+          which = "its alternative at " + where(program, by->second.first) + " (whose body binds no " + by->second.second + ")";
+        return unexpected(Error{where(program, call.pos) + ": this call of " + program.preds[call.pred].iri + " leaves " +
+                                rule.var_names[a.index] + " unbound, and " + which + " takes that argument from its caller only"});
       }
       if (rule.head != call.pred) called.insert(call.pred);
       program.rules.push_back(std::move(d));
