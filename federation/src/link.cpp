@@ -355,6 +355,10 @@ struct Link::Impl {
   Clock::time_point up_went_back_at{};
   // P12a: this node's own view of its uplink, on its board.
   bool ever_welcomed = false;
+  // Welcomed in an earlier run (this node's state on the board said "up" or "down"): a link
+  // restarted while its parent is away is "down", with the time the parent was last heard, not
+  // "never connected".
+  bool welcomed_before = false;
   Clock::time_point parent_heard{};
   std::int64_t parent_heard_ns = 0;
   std::string refused_by_parent;  // the parent's refusal, until a welcome
@@ -3207,8 +3211,8 @@ struct Link::Impl {
       const bool silent = welcomed && silence > opt.child_silence;
       const std::string state = !refused_by_parent.empty() ? "refused"
                                 : welcomed && !silent      ? "up"
-                                : ever_welcomed            ? "down"
-                                                           : "never connected";
+                                : ever_welcomed || welcomed_before ? "down"
+                                                                   : "never connected";
       // The parent logs a silent child; the child logs its silent parent, which it sees only as
       // frames that stop coming.
       if (state == "down" && own_state_logged == "up")
@@ -3336,6 +3340,25 @@ Result<std::unique_ptr<Link>> Link::start(LinkOptions options) {
     }
     // P7a: a removal follows what went up.
     if (auto r = uplink->receive_removals(); !r) return Unexpected<Error>{r.error()};
+    // P12a: what an earlier run said of this uplink, so that a link restarted while its parent
+    // is away says "down" and when the parent was last heard.
+    auto link_agent = node->agent(kLinkAgent);
+    if (!link_agent) return Unexpected<Error>{link_agent.error()};
+    auto snap = node->snapshot();
+    if (!snap) return Unexpected<Error>{snap.error()};
+    const node::Term me = node::Term::iri(node->iri());
+    auto states = snap->list({.s = me, .p = node::Term::iri(vocab::kUplinkState), .source = link_agent->iri()});
+    if (!states) return Unexpected<Error>{states.error()};
+    for (const auto& r : *states)
+      if (r.triple.o.value == "up" || r.triple.o.value == "down") impl->welcomed_before = true;
+    if (impl->welcomed_before) {
+      auto heard = snap->list({.s = me, .p = node::Term::iri(vocab::kParentLastHeard), .source = link_agent->iri()});
+      if (!heard) return Unexpected<Error>{heard.error()};
+      if (!heard->empty()) {
+        const std::string& text = heard->back().triple.o.value;
+        std::from_chars(text.data(), text.data() + text.size(), impl->parent_heard_ns);
+      }
+    }
   }
   Link::Impl& s = *impl;
   s.opt = std::move(options);

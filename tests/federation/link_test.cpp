@@ -1011,6 +1011,42 @@ TEST(Link, AChildKeepsItsOwnViewOfItsUplinkThatFollowsItsParent) {
   EXPECT_EQ(count(home3_dir, {.s = Term::iri(home3), .p = Term::iri(vocab::kUplinkRefusal)}), 1u);
 }
 
+// P12a across a restart of the child's link: a link restarted while its parent is away says
+// "down" with the time the parent was last heard (the earlier run's), not "never connected" —
+// what `tahvel status` on the child's machine shows of a home whose link was restarted in an
+// outage.
+TEST(Link, AChildsLinkRestartedWhileItsParentIsAwaySaysDownWithWhenItWasLastHeard) {
+  Tree tree;
+  ASSERT_TRUE(tree.start_hospital_and_home1());
+  using States = std::vector<std::string>;
+  auto own_state = [&] { return uplink_states(tree.home1_dir, kHome1); };
+  auto last_heard = [&] {
+    auto records = node::Node::open(tree.home1_dir).value().snapshot().value().list(
+        {.s = Term::iri(kHome1), .p = Term::iri(vocab::kParentLastHeard)}).value();
+    return records.empty() ? std::string() : records[0].triple.o.value;
+  };
+  auto state_item = [&] {
+    auto records = node::Node::open(tree.home1_dir).value().snapshot().value().list(
+        {.s = Term::iri(kHome1), .p = Term::iri(vocab::kUplinkState)}).value();
+    return records.empty() ? 0 : records[0].meta.item;
+  };
+  ASSERT_TRUE(eventually([&] { return own_state() == States{"up"}; }));
+  tree.hospital.reset();
+  ASSERT_TRUE(eventually([&] { return own_state() == States{"down"}; }));
+  const std::string heard = last_heard();
+  ASSERT_FALSE(heard.empty());
+  const std::uint64_t item_before = state_item();
+  tree.home1.reset();
+  tree.home1 = tree.start_home(tree.home1_dir, kHome1, tree.home1_log);
+  ASSERT_TRUE(eventually([&] { return state_item() != item_before; })) << "the new run wrote no state of its uplink";
+  EXPECT_EQ(own_state(), States{"down"});
+  EXPECT_EQ(last_heard(), heard);
+  // And up again once the parent is back.
+  tree.hospital = tree.start_hospital();
+  EXPECT_TRUE(eventually([&] { return own_state() == States{"up"}; }));
+  EXPECT_NE(last_heard(), heard);
+}
+
 // A child that was welcomed learns that its parent no longer accepts it (the parent restarted
 // with a file without it) from the answer to its next heartbeat: "refused", with the reason, not
 // "down" for ever. The parent drops the state it kept of it.
