@@ -1379,8 +1379,8 @@ struct Link::Impl {
         send_error(via, head.from, r.seq, {std::string(kItemRefused), r.why.message, ""});
       }
       if (outcome->already_held > 0)
-        log("dropped " + std::to_string(outcome->already_held) + " persistent item(s) from <" + head.from +
-            "> that this store holds already (sent again on a new stream: P6c)");
+        log("dropped " + std::to_string(outcome->already_held) + " item(s) from <" + head.from +
+            "> that this store holds already (sent again on a new stream: P6c, P10c)");
       std::lock_guard lock(mu);
       counters.items_refused += outcome->refused.size();
       counters.removals_applied += outcome->removals;
@@ -1588,12 +1588,14 @@ struct Link::Impl {
           return;
         }
         bool store_made_again = false;
+        std::string store_registered;
         {
           std::lock_guard lock(mu);
           if (child->store_id != child_store) child->pending_store.clear();
           // The store registered before: in this run, or in an earlier one (the board's state).
           const std::string known = child->store_id.empty() ? child->store_before : child->store_id;
           store_made_again = known != child_store && !known.empty();
+          store_registered = known;
           if (store_made_again)
             log("child <" + child->iri + "> has another store (id " + child_store + ", was " + known +
                 "): its items are a new stream, from its start");
@@ -1612,6 +1614,17 @@ struct Link::Impl {
         if (!refusal.empty()) {
           refuse(via, f.from, f.kind, 1, refusal, "another store is registered");
           return;
+        }
+        if (store_made_again) {
+          // P10c: a store restored from a backup sends again, on its new stream, what its
+          // backup's outbox held, which this store applied from the stream before; a store made
+          // again from nothing repeats nothing, and loses nothing by the check.
+          auto before = link->relay_mark(up_stream(child->iri, store_registered));
+          if (!before)
+            log("cannot read the mark of <" + child->iri + ">'s store before: " + before.error().message);
+          else if (*before > 0)
+            if (auto said = link->relay_may_repeat(up_stream(child->iri, child_store), *before); !said)
+              log("cannot note that <" + child->iri + ">'s new stream may repeat the one before: " + said.error().message);
         }
         if (store_made_again && down_from == 0) {
           // P10b: the new store holds nothing of what came down; what was written for it to

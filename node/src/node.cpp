@@ -686,6 +686,21 @@ Result<std::uint64_t> read_relay_mark(MDB_txn* txn, const Env& env, std::string_
   return u64(v);
 }
 
+// The seq up to which a stream's items may repeat items held here (Agent::relay_may_repeat);
+// 0 when never said.
+std::string relay_repeats_key(std::string_view stream) { return "relay-repeats:" + std::string(stream); }
+
+Result<std::uint64_t> read_relay_repeats(MDB_txn* txn, const Env& env, std::string_view stream) {
+  std::string key = relay_repeats_key(stream);
+  MDB_val k = val(key), v;
+  int rc = mdb_get(txn, env.meta, &k, &v);
+  if (rc == MDB_NOTFOUND) return std::uint64_t{0};
+  if (rc != 0) return lmdb_fail(rc, "reading how far " + std::string(stream) + " may repeat what is held");
+  if (v.mv_size != sizeof(std::uint64_t))
+    return fail(Errc::corrupt, "how far " + std::string(stream) + " may repeat what is held has " + std::to_string(v.mv_size) + " bytes");
+  return u64(v);
+}
+
 }  // namespace
 
 namespace {
@@ -763,6 +778,8 @@ Result<RelayOutcome> Agent::relay(std::string_view stream, const std::vector<Rel
         auto mark = read_relay_mark(txn.raw(), *impl_->env, stream);
         if (!mark) return unexpected(mark.error());
         outcome.mark = *mark;
+        auto repeats = read_relay_repeats(txn.raw(), *impl_->env, stream);
+        if (!repeats) return unexpected(repeats.error());
         for (std::size_t i = 0; i < items.size(); ++i) {
           const RelayedItem& relayed = items[i];
           if (relayed.seq <= outcome.mark) {
@@ -793,7 +810,9 @@ Result<RelayOutcome> Agent::relay(std::string_view stream, const std::vector<Rel
               return unexpected(with_context(on.error(), about(i)));
             ++outcome.removals;
             outcome.records_removed += copies->records.size();
-          } else if (auto twin = held_persistent_twin(txn.raw(), *impl_->env, relayed.item, relayed.source); !twin) {
+          } else if (auto twin = relayed.seq <= *repeats ? held_twin(txn.raw(), *impl_->env, relayed.item, relayed.source)
+                                                         : held_persistent_twin(txn.raw(), *impl_->env, relayed.item, relayed.source);
+                     !twin) {
             return unexpected(with_context(twin.error(), about(i)));
           } else if (*twin != 0) {
             ++outcome.already_held;
@@ -838,6 +857,24 @@ Result<std::uint64_t> Agent::relay_mark(std::string_view stream) const noexcept 
     return read_relay_mark(read.txn, *impl_->env, stream);
   } catch (const std::bad_alloc&) {
     return fail(Errc::io, "out of memory while reading a relay mark");
+  }
+}
+
+Result<void> Agent::relay_may_repeat(std::string_view stream, std::uint64_t through_seq) noexcept {
+  try {
+    if (stream.empty()) return fail(Errc::invalid_argument, "relay_may_repeat: empty stream name");
+    return impl_->env->write([&](Txn& txn) -> Result<void> {
+      auto now = read_relay_repeats(txn.raw(), *impl_->env, stream);
+      if (!now) return unexpected(now.error());
+      if (*now >= through_seq) return {};
+      std::string key = relay_repeats_key(stream);
+      MDB_val k = val(key), v = val(through_seq);
+      if (int rc = mdb_put(txn.raw(), impl_->env->meta, &k, &v, 0); rc != 0)
+        return lmdb_fail(rc, "writing how far " + std::string(stream) + " may repeat what is held");
+      return {};
+    });
+  } catch (const std::bad_alloc&) {
+    return fail(Errc::io, "out of memory while writing how far a stream may repeat");
   }
 }
 

@@ -1094,17 +1094,8 @@ Result<std::vector<std::uint64_t>> indexed(MDB_txn* txn, MDB_dbi dbi, std::uint6
 
 }  // namespace
 
-Result<std::uint64_t> held_persistent_twin(MDB_txn* txn, const Env& env, const Item& item, const std::string& source) {
-  if (!item.persistent || !item.asserted_at || item.triples.empty()) return std::uint64_t{0};
-  // The candidates are the items with a record about the first subject that is not a blank
-  // node (a blank subject's label is the store's own): its subject index entries.
-  const Triple* anchor = nullptr;
-  for (const Triple& t : item.triples)
-    if (!t.s.is_blank()) {
-      anchor = &t;
-      break;
-    }
-  if (!anchor) return std::uint64_t{0};
+Result<std::uint64_t> held_twin(MDB_txn* txn, const Env& env, const Item& item, const std::string& source) {
+  if (!item.asserted_at || item.triples.empty() || !env.by_time) return std::uint64_t{0};
   auto source_id = find_term(txn, env, Term::iri(source));
   if (!source_id || *source_id == 0) return source_id;
   std::uint64_t context_id = 0;
@@ -1113,26 +1104,22 @@ Result<std::uint64_t> held_persistent_twin(MDB_txn* txn, const Env& env, const I
     if (!c || *c == 0) return c;
     context_id = *c;
   }
+  // A term this store has never met is in no item held here (blank nodes match any blank node).
   auto found = ids_of(txn, env, item.triples);
   if (!found) return unexpected(found.error());
   if (!*found) return std::uint64_t{0};
   const auto& wanted = **found;
-  const std::uint64_t subject = wanted[static_cast<std::size_t>(anchor - item.triples.data())][0];
-  auto records = indexed(txn, env.idx_s, subject);
-  if (!records) return unexpected(records.error());
+  // The candidates are the items asserted at the same nanosecond: the time index's entries.
+  auto candidates = indexed(txn, env.by_time, time_key(*item.asserted_at));
+  if (!candidates) return unexpected(candidates.error());
   TermReader terms(txn, env);
-  std::uint64_t last_item = 0;
-  for (std::uint64_t record : *records) {
-    auto head = get_record(txn, env, record);
-    if (!head) return unexpected(head.error());
-    if (!*head || (*head)->item == last_item) continue;
-    const std::uint64_t candidate = last_item = (*head)->item;
+  for (std::uint64_t candidate : *candidates) {
     auto row = get_item(txn, env, candidate);
     if (!row) return unexpected(row.error());
     if (!*row) continue;
     const ItemRow& it = **row;
-    if (!it.persistent || it.source != *source_id || it.asserted_at != *item.asserted_at || it.context != context_id ||
-        it.count != wanted.size() || it.live != it.count)
+    if (it.persistent != item.persistent || it.source != *source_id || it.asserted_at != *item.asserted_at ||
+        it.context != context_id || it.count != wanted.size() || it.live != it.count)
       continue;
     bool same = true;
     for (std::size_t i = 0; i < wanted.size() && same; ++i) {
@@ -1149,6 +1136,11 @@ Result<std::uint64_t> held_persistent_twin(MDB_txn* txn, const Env& env, const I
     if (same) return candidate;
   }
   return std::uint64_t{0};
+}
+
+Result<std::uint64_t> held_persistent_twin(MDB_txn* txn, const Env& env, const Item& item, const std::string& source) {
+  if (!item.persistent) return std::uint64_t{0};
+  return held_twin(txn, env, item, source);
 }
 
 Result<HeldCopies> held_copies(MDB_txn* txn, const Env& env, const Item& notice, const std::vector<std::uint32_t>& positions,

@@ -33,12 +33,16 @@ std::optional<std::string> addressee_of(const std::string& node_iri, std::string
 Result<std::uint64_t> insert_item(Txn& txn, const Item& item, const std::string& agent_iri,
                                   const std::string* relayed_source = nullptr);
 
-// The id of a persistent item this store holds that `item`, relayed from `source`, repeats:
-// persistent too, the same source, asserted-at time and context, and the same triples in the
-// same order (blank nodes match blank nodes, as they are renamed on the way). 0 when none. A
-// node sends its persistent items again to a parent that says it holds nothing of its stream
-// (docs/protocol.md P6c), and a parent made again, or a child restored from a backup, passes
-// them on to nodes above that have them already on the stream before.
+// The id of an item this store holds that `item`, relayed from `source`, repeats: persistent
+// or not as it is, the same source, asserted-at time and context, and the same triples in the
+// same order (blank nodes match blank nodes, as they are renamed on the way). 0 when none.
+// The candidates are the time index's items of that nanosecond.
+Result<std::uint64_t> held_twin(MDB_txn* txn, const Env& env, const Item& item, const std::string& source);
+
+// held_twin for a persistent item, 0 for any other. A node sends its persistent items again to
+// a parent that says it holds nothing of its stream (docs/protocol.md P6c), and a parent made
+// again, or a child restored from a backup, passes them on to nodes above that have them
+// already on the stream before.
 Result<std::uint64_t> held_persistent_twin(MDB_txn* txn, const Env& env, const Item& item, const std::string& source);
 
 // The copies this store holds of the records a relayed removal notice names

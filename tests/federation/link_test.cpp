@@ -381,6 +381,38 @@ TEST(Link, AChildRestoredFromABackupHasItsNewItemsArrive) {
   EXPECT_TRUE(tree.home1_log.has("this store takes a new id"));
 }
 
+// P10c: a home's store restored from a backup taken while items waited in its outbox (its link
+// stopped) sends them again on its new stream. The hospital had applied them from the stream
+// before, and keeps one of each; what the home writes after the restore arrives.
+TEST(Link, ItemsWaitingInTheOutboxOfAChildsBackupAreNotDoubledAtTheParent) {
+  Tree tree;
+  const node::Pattern numbered{.p = Term::iri(kEx + "n")};
+  tree.hospital = tree.start_hospital();
+  tree.home1 = tree.start_home(tree.home1_dir, kHome1, tree.home1_log);
+  ASSERT_TRUE(home1_sends(tree, 0, 10, 10));
+  tree.home1.reset();
+  store_hrv_items(tree.home1_dir, 100, 20);  // they wait in the outbox, and so in the backup
+  ASSERT_EQ(outbox(tree.home1_dir), 20u);
+  const std::string backup = (tree.tmp / "home1-backup").string();
+  std::filesystem::copy(tree.home1_dir, backup, std::filesystem::copy_options::recursive);
+  tree.home1 = tree.start_home(tree.home1_dir, kHome1, tree.home1_log);
+  ASSERT_TRUE(eventually([&] { return count(tree.hospital_dir, numbered) == 30 && outbox(tree.home1_dir) == 0; }));
+  ASSERT_TRUE(home1_sends(tree, 200, 5, 35));
+  tree.home1.reset();
+  std::filesystem::remove_all(tree.home1_dir);
+  std::filesystem::rename(backup, tree.home1_dir);
+  tree.home1 = tree.start_home(tree.home1_dir, kHome1, tree.home1_log);
+  ASSERT_TRUE(eventually([&] { return tree.home1_log.has("this store takes a new id"); })) << "the case under test did not happen: "
+                                                                                         << tree.home1_log.text();
+  store_hrv_items(tree.home1_dir, 1000, 3);
+  EXPECT_TRUE(eventually([&] { return count(tree.hospital_dir, numbered) == 38 && outbox(tree.home1_dir) == 0; }))
+      << count(tree.hospital_dir, numbered) << " numbered items at the hospital";
+  std::this_thread::sleep_for(300ms);
+  EXPECT_EQ(count(tree.hospital_dir, numbered), 38u);
+  for (int n : {100, 119, 1000, 1002}) EXPECT_EQ(count(tree.hospital_dir, {.p = Term::iri(kEx + "n"), .o = Term::integer(n)}), 1u) << n;
+  EXPECT_TRUE(tree.hospital_log.has("that this store holds already (sent again on a new stream")) << tree.hospital_log.text();
+}
+
 // Both ends running, and at the hospital: a persistent item of home1 (its description, n = 7)
 // and five others (n = 0..4).
 void home1_sends_a_description_and_five_items(Tree& tree) {

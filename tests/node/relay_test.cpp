@@ -495,6 +495,38 @@ TEST(Relay, APersistentItemHeldAlreadyFromTheSameSourceIsDroppedOnAnotherStream)
   EXPECT_EQ(child.relay("child#third", {on(longer, 1, 0)}).value().stored.size(), 1u);
 }
 
+// A child store restored from a backup sends again, on a new stream, what its backup's outbox
+// held (docs/protocol.md P10c). Up to the seq said by relay_may_repeat, an item that repeats one
+// held is dropped, persistent or not; beyond it, and on other streams, it is stored.
+TEST(Relay, AnItemThatRepeatsOneHeldIsDroppedUpToWhereItsStreamMayRepeat) {
+  TempDir dir;
+  Node node = make_node(dir.path());
+  Agent child = node.agent("child").value();
+  const std::string source = kNodeIri + "/child/hrv";
+  auto at = [&](std::uint64_t seq, std::int64_t time, int n) {
+    RelayedItem r = relayed(seq, seq - 1, source, n);
+    r.item.asserted_at = time;
+    return r;
+  };
+  ASSERT_EQ(child.relay("child#old", {at(1, 1000, 1), at(2, 2000, 2), at(3, 3000, 3)}).value().stored.size(), 3u);
+  ASSERT_TRUE(child.relay_may_repeat("child#new", 2));
+  ASSERT_TRUE(child.relay_may_repeat("child#new", 1)) << "a lower bound is no error";
+  auto again = child.relay("child#new", {at(1, 1000, 1), at(2, 2000, 2), at(3, 3000, 3), at(4, 2500, 2)}).value();
+  EXPECT_EQ(again.already_held, 2u);
+  EXPECT_EQ(again.stored.size(), 2u) << "seq 3 lies beyond where the stream may repeat; seq 4 was asserted at another time";
+  EXPECT_EQ(again.mark, 4u);
+  EXPECT_EQ(node.snapshot().value().list({.p = ex("value"), .o = Term::integer(1)}).value().size(), 1u);
+  EXPECT_EQ(node.snapshot().value().list({.p = ex("value"), .o = Term::integer(2)}).value().size(), 2u);
+  EXPECT_EQ(node.snapshot().value().list({.p = ex("value"), .o = Term::integer(3)}).value().size(), 2u);
+  // Another stream repeats nothing unless said.
+  EXPECT_EQ(child.relay("child#third", {at(1, 1000, 1)}).value().stored.size(), 1u);
+  // What was said is kept in the store.
+  Node reopened = Node::open(dir.path()).value();
+  auto later = reopened.agent("child").value().relay("child#new", {at(5, 1000, 1)}).value();
+  EXPECT_EQ(later.stored.size(), 1u) << "seq 5 lies beyond 2";
+  EXPECT_FALSE(child.relay_may_repeat("", 1)) << "an empty stream name";
+}
+
 // A relayed item is in the output buffer of the link agent that relayed it, though its source is
 // the writer below. When retention takes the item, its entry must go from that buffer too: an
 // entry left behind would name an item that is gone, and a ring-bounded node's buffers would grow

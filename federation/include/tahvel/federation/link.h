@@ -138,7 +138,7 @@ struct LinkCounters {
   std::uint64_t relayed_in = 0;     // items relayed into this store from children
   std::uint64_t relay_writes = 0;   // store transactions that relayed them
   std::uint64_t duplicates_in = 0;  // relayed items dropped as duplicates (P9)
-  std::uint64_t already_held_in = 0;  // persistent items dropped as held already (P6c, R19)
+  std::uint64_t already_held_in = 0;  // items dropped as held already (P6c, P10c, R19)
   std::uint64_t down_applied = 0;   // items relayed into this store from the parent
   std::uint64_t removals_applied = 0;    // removal notices applied from either side (P7a, P10a)
   std::uint64_t records_removed_in = 0;  // the records of this store they removed

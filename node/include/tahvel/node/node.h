@@ -219,9 +219,10 @@ struct RelayOutcome {
   std::uint64_t mark = 0;             // the stream's mark afterwards: last seq applied in order
   std::vector<std::uint64_t> stored;  // ids of the items stored, in order
   std::size_t duplicates = 0;         // items at or below the mark, dropped
-  std::size_t already_held = 0;       // persistent items this store holds already, the same
-                                      // from the same source (sent again on another stream:
-                                      // docs/protocol.md P6c): dropped, the mark moved past them
+  std::size_t already_held = 0;       // items this store holds already, the same from the
+                                      // same source (sent again on another stream: persistent
+                                      // ones, docs/protocol.md P6c, and any up to the stream's
+                                      // relay_may_repeat): dropped, the mark moved past them
   bool gap = false;                   // an item's prev was not the mark: it and those after it
                                       // were not applied (the sender resends from the mark)
   std::vector<RefusedItem> refused;   // items in order that this node can never store; the
@@ -347,6 +348,14 @@ class Agent {
 
   // The stream's mark (0 when nothing was relayed on it).
   Result<std::uint64_t> relay_mark(std::string_view stream) const noexcept;
+
+  // Says that the items of `stream` up to seq `through_seq` may repeat items this store holds
+  // already: relay() then drops each of them that repeats one held, persistent or not (as it
+  // drops persistent ones on every stream), and counts it in RelayOutcome::already_held. A
+  // child store restored from a backup sends again, on a new stream, what its backup's outbox
+  // held, which the parent had applied from the stream before (docs/protocol.md P10c). Kept
+  // in the store; a lower `through_seq` than one said before changes nothing.
+  Result<void> relay_may_repeat(std::string_view stream, std::uint64_t through_seq) noexcept;
 
   // Writes a subscription as a persistent item of triples (vocabulary: docs/record-model.md):
   // from now on every stored item with at least one triple matching the pattern's s, p and o
