@@ -91,6 +91,7 @@ constexpr std::array kTerms = {
     std::string_view("pWaveGapEnds"),
     std::string_view("parent"),
     std::string_view("parentLastHeard"),
+    std::string_view("parentStoreId"),
     std::string_view("peaks"),
     std::string_view("pid"),
     std::string_view("pnn50Pct"),

@@ -346,6 +346,11 @@ struct Link::Impl {
   Clock::time_point last_welcome_at{};  // under mu
   static constexpr auto kStaleWelcome = std::chrono::seconds(2);
   std::string parent_store_id;  // from the welcome: names the down stream (P6a); under mu
+  // The parent store an earlier run was welcomed by (its uplink state on the board), until the
+  // first welcome of this run: the hello names it and carries this node's mark of its down
+  // stream, so that a parent restored from a backup learns it went back in time even when this
+  // node restarted too (P6a). Under mu.
+  std::string parent_store_before;
   std::uint64_t up_mark = 0;       // the parent's mark of our stream: applied there
   std::uint64_t up_last_sent = 0;  // the seq of the last up frame sent
   std::deque<std::uint64_t> up_in_flight;
@@ -1730,8 +1735,15 @@ struct Link::Impl {
           return;
         }
         if (f.ack > issued_to_peers()) {
-          // Never sent: taken, it would empty the child's down window of items it never had.
           lock.unlock();
+          // P6a: a child that names this store and has applied more of its stream than it has
+          // issued knows a store that was here before: this one was restored from a backup (the
+          // child restarted too, so its hello carried no mark). Taken as a mark, the child
+          // would drop this store's next items as ones it has.
+          if (stores && !stores->peer_store_id.empty())
+            return renew_store_id("child <" + child->iri + "> acknowledges up to " + std::to_string(f.ack) +
+                                  " of this store, which has issued less");
+          // Never sent: taken, it would empty the child's down window of items it never had.
           return refuse(via, f.from, f.kind, 1, ack_beyond_issued(f.ack), "an ack beyond what this store sent");
         }
         child->last_seen = Clock::now();
@@ -1767,8 +1779,22 @@ struct Link::Impl {
     }
   }
 
+  // P10c, downwards: a parent store restored from a backup sends again, on its new stream,
+  // what its backup's down queue held, which this node applied from the stream `before`: the
+  // new stream's items up to that stream's mark may repeat items held here.
   template <class AgentFn>
-  void from_parent_frame(Transport* via, const Frame& f, AgentFn&) {
+  void note_down_repeats(AgentFn& agent, const std::string& before, const std::string& after) {
+    node::Agent* uplink = agent(std::string(kUplinkAgent));
+    if (!uplink) return;
+    auto mark = uplink->relay_mark(before);
+    if (!mark) return log("cannot read the mark of " + before + ": " + mark.error().message);
+    if (*mark == 0) return;
+    if (auto said = uplink->relay_may_repeat(after, *mark); !said)
+      log("cannot note that " + after + " may repeat " + before + ": " + said.error().message);
+  }
+
+  template <class AgentFn>
+  void from_parent_frame(Transport* via, const Frame& f, AgentFn& agent) {
     switch (f.kind) {
       case FrameKind::welcome: {
         std::optional<wire::StateBody> state;
@@ -1784,7 +1810,7 @@ struct Link::Impl {
                          " of this store, which has issued less");
           return;
         }
-        std::lock_guard lock(mu);
+        std::unique_lock lock(mu);
         const auto now = Clock::now();
         if (state && ever_welcomed && store_differs(parent_store_id, state->store_id) &&
             now - parent_store_heard < opt.child_silence) {
@@ -1806,16 +1832,26 @@ struct Link::Impl {
         parent_store_heard = now;
         if (!welcomed) log("registered with the parent <" + opt.parent_iri + ">");
         if (state && state->store_id != parent_store_id) {
-          if (!parent_store_id.empty())
+          // The store before: of this run, or the one an earlier run was welcomed by.
+          const std::string was = parent_store_id.empty() ? parent_store_before : parent_store_id;
+          if (!was.empty() && was != state->store_id)
             log("the parent <" + opt.parent_iri + "> has another store (id " + state->store_id + ", was " +
-                parent_store_id + "): what comes down is a new stream, from its start; " +
+                was + "): what comes down is a new stream, from its start; " +
                 (f.ack == 0 ? std::string("of what went up to the store before, only persistent items are sent again "
                                           "(P6c): the others it had are not in this one")
                             : "it holds this node's stream up to " + std::to_string(f.ack) +
                                   " (a store restored from a backup, which took a new id): what it lacks after that goes up again (P6d)"));
           if (parent_flips.saw(parent_store_id, state->store_id, "the parent <" + opt.parent_iri + ">"))
             log("conflict: " + parent_flips.said());
+          const std::string before = !was.empty() && was != state->store_id ? std::string(kDownStream) + "#" + was : std::string();
           parent_store_id = state->store_id;
+          parent_store_before.clear();
+          if (!before.empty()) {
+            const std::string after = down_stream();
+            lock.unlock();  // a store write; this thread is the only one that takes welcomes
+            note_down_repeats(agent, before, after);
+            lock.lock();
+          }
         }
         // P6b: while two stores take turns as the parent, this node links with neither: their
         // acknowledgements would empty its outbox of items that only one of them has.
@@ -2870,6 +2906,10 @@ struct Link::Impl {
           f.kind = welcomed ? FrameKind::heartbeat : FrameKind::hello;
           stream = down_stream();
           parent_store = parent_store_id;
+          if (parent_store.empty() && !parent_store_before.empty()) {
+            parent_store = parent_store_before;
+            stream = std::string(kDownStream) + "#" + parent_store_before;
+          }
         }
         // A heartbeat names this store too: a parent then sees a second node under this IRI (P6b).
         wire::StateBody state{opt.software_version, depth ? *depth : 0, current_store_id(), ""};
@@ -3238,7 +3278,7 @@ struct Link::Impl {
       const std::string refusal = !refused_by_parent.empty()     ? refused_by_parent
                                   : !parent_cannot_store.empty() ? "the parent cannot store what this node sends: " + parent_cannot_store
                                                                  : std::string();
-      said = state + " " + std::to_string(outbox_depth) + " " + refusal + " " + conflict;
+      said = state + " " + std::to_string(outbox_depth) + " " + refusal + " " + conflict + " " + parent_store_id;
       const std::int64_t wall = now_ns();
       if (said == own_state_said && !(state == "up" && wall - own_state_written_ns > kStateRefreshNs)) return;
       own_state_said = said;
@@ -3246,6 +3286,8 @@ struct Link::Impl {
       item.add(me, node::Term::iri(vocab::kParent), node::Term::iri(opt.parent_iri));
       item.add(me, node::Term::iri(vocab::kUplinkState), node::Term::literal(state));
       if (parent_heard_ns) item.add(me, node::Term::iri(vocab::kParentLastHeard), node::Term::integer(parent_heard_ns));
+      if (const std::string& parent_store = parent_store_id.empty() ? parent_store_before : parent_store_id; !parent_store.empty())
+        item.add(me, node::Term::iri(vocab::kParentStoreId), node::Term::literal(parent_store));
       item.add(me, node::Term::iri(vocab::kOutboxDepth), node::Term::integer(static_cast<std::int64_t>(outbox_depth)));
       if (!refusal.empty()) item.add(me, node::Term::iri(vocab::kUplinkRefusal), node::Term::literal(refusal));
       if (!conflict.empty()) item.add(me, node::Term::iri(vocab::kLinkConflict), node::Term::literal(conflict));
@@ -3372,6 +3414,9 @@ Result<std::unique_ptr<Link>> Link::start(LinkOptions options) {
         std::from_chars(text.data(), text.data() + text.size(), impl->parent_heard_ns);
       }
     }
+    auto parent_store = snap->list({.s = me, .p = node::Term::iri(vocab::kParentStoreId), .source = link_agent->iri()});
+    if (!parent_store) return Unexpected<Error>{parent_store.error()};
+    if (!parent_store->empty()) impl->parent_store_before = parent_store->back().triple.o.value;
   }
   Link::Impl& s = *impl;
   s.opt = std::move(options);

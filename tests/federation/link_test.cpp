@@ -525,19 +525,23 @@ TEST(Link, ARestartedLinkPutsNothingBackWhenTheParentHasEverything) {
 
 // P6a: the same downwards. A hospital whose store is made again issues configuration with ids
 // that a home has applied already from the old store; the home still gets it.
+// Settings `first` .. `first + n - 1` for home1's agent hrv, written on the hospital by its
+// agent operator.
+void configure_home1(Tree& tree, int first, int n) {
+  auto operator_ = node::Node::open(tree.hospital_dir).value().agent("operator").value();
+  for (int i = first; i < first + n; ++i) {
+    node::Item config;
+    config.context = kHome1 + "/hrv";
+    config.add(Term::iri(kHome1 + "/hrv"), Term::iri(kEx + "setting"), Term::integer(i));
+    ASSERT_TRUE(operator_.store(config));
+  }
+}
+
 TEST(Link, ConfigurationFromAParentWhoseStoreIsMadeAgainArrives) {
   Tree tree;
   tree.hospital = tree.start_hospital();
   tree.home1 = tree.start_home(tree.home1_dir, kHome1, tree.home1_log);
-  auto configure = [&](int first, int n) {
-    auto operator_ = node::Node::open(tree.hospital_dir).value().agent("operator").value();
-    for (int i = first; i < first + n; ++i) {
-      node::Item config;
-      config.context = kHome1 + "/hrv";
-      config.add(Term::iri(kHome1 + "/hrv"), Term::iri(kEx + "setting"), Term::integer(i));
-      ASSERT_TRUE(operator_.store(config));
-    }
-  };
+  auto configure = [&](int first, int n) { configure_home1(tree, first, n); };
   const node::Pattern settings{.p = Term::iri(kEx + "setting")};
   configure(0, 30);
   ASSERT_TRUE(eventually([&] { return count(tree.home1_dir, settings) == 30; }));
@@ -549,6 +553,48 @@ TEST(Link, ConfigurationFromAParentWhoseStoreIsMadeAgainArrives) {
   EXPECT_TRUE(eventually([&] { return count(tree.home1_dir, settings) == 35; })) << count(tree.home1_dir, settings);
   std::this_thread::sleep_for(300ms);
   EXPECT_EQ(count(tree.home1_dir, settings), 35u);
+}
+
+// P10c downwards: a hospital restored from a backup taken while settings for home1 waited in
+// its down queue (home1's link stopped) takes a new id and sends them again on its new stream.
+// Home1 had applied them from the stream before, and keeps one of each; what the hospital
+// writes after the restore arrives.
+TEST(Link, SettingsWaitingInTheDownQueueOfAParentsBackupAreNotDoubledAtTheChild) {
+  Tree tree;
+  const node::Pattern settings{.p = Term::iri(kEx + "setting")};
+  tree.hospital = tree.start_hospital();
+  tree.home1 = tree.start_home(tree.home1_dir, kHome1, tree.home1_log);
+  configure_home1(tree, 0, 5);
+  ASSERT_TRUE(eventually([&] { return count(tree.home1_dir, settings) == 5; }));
+  tree.home1.reset();
+  configure_home1(tree, 100, 10);  // they wait in the hospital's queue for home1, and so in the backup
+  tree.hospital.reset();
+  const std::string backup = (tree.tmp / "hospital-backup").string();
+  std::filesystem::copy(tree.hospital_dir, backup, std::filesystem::copy_options::recursive);
+  tree.hospital = tree.start_hospital();
+  tree.home1 = tree.start_home(tree.home1_dir, kHome1, tree.home1_log);
+  ASSERT_TRUE(eventually([&] { return count(tree.home1_dir, settings) == 15; }));
+  configure_home1(tree, 200, 3);
+  ASSERT_TRUE(eventually([&] { return count(tree.home1_dir, settings) == 18; }));
+  // Home1's uplink state names the parent store that welcomed it (written at a heartbeat).
+  ASSERT_TRUE(eventually([&] { return count(tree.home1_dir, {.s = Term::iri(kHome1), .p = Term::iri(vocab::kParentStoreId)}) == 1; }));
+  tree.hospital.reset();
+  tree.home1.reset();
+  std::filesystem::remove_all(tree.hospital_dir);
+  std::filesystem::rename(backup, tree.hospital_dir);
+  // Written before home1 is back, they take ids that the hospital had issued before the restore:
+  // home1, restarted too, says hello without a mark, and only its acknowledgement tells the
+  // hospital that it went back in time (its next ids would have been dropped at home1 as ones
+  // applied).
+  tree.hospital = tree.start_hospital();
+  configure_home1(tree, 300, 25);
+  tree.home1 = tree.start_home(tree.home1_dir, kHome1, tree.home1_log);
+  ASSERT_TRUE(eventually([&] { return tree.hospital_log.has("this store takes a new id"); })) << "the case under test did not happen: "
+                                                                                            << tree.hospital_log.text();
+  EXPECT_TRUE(eventually([&] { return count(tree.home1_dir, settings) == 43; })) << count(tree.home1_dir, settings) << " settings at home1";
+  std::this_thread::sleep_for(300ms);
+  EXPECT_EQ(count(tree.home1_dir, settings), 43u);
+  for (int n : {100, 109, 300, 324}) EXPECT_EQ(count(tree.home1_dir, {.p = Term::iri(kEx + "setting"), .o = Term::integer(n)}), 1u) << n;
 }
 
 // P10b: a child whose store is made again (a replaced disk) holds nothing of what came down.

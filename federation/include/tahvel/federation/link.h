@@ -46,6 +46,9 @@ inline const std::string kChildStoreId = std::string(kTv) + "childStoreId";
 // A node's own view of its uplink (P12a): "up", "down", "never connected" or "refused".
 inline const std::string kUplinkState = std::string(kTv) + "uplinkState";
 inline const std::string kParentLastHeard = std::string(kTv) + "parentLastHeard";
+// The parent store that welcomed this node (P6a), kept so that the next run's hello carries the
+// node's mark of its down stream before any welcome.
+inline const std::string kParentStoreId = std::string(kTv) + "parentStoreId";
 inline const std::string kUplinkRefusal = std::string(kTv) + "uplinkRefusal";
 // Two stores take turns under one child's or parent's IRI (P6b), said for two minutes after.
 inline const std::string kLinkConflict = std::string(kTv) + "linkConflict";
