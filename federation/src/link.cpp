@@ -1738,8 +1738,9 @@ struct Link::Impl {
           lock.unlock();
           // P6a: a child that names this store and has applied more of its stream than it has
           // issued knows a store that was here before: this one was restored from a backup (the
-          // child restarted too, so its hello carried no mark). Taken as a mark, the child
-          // would drop this store's next items as ones it has.
+          // child's hello carried no mark: its board named no parent store, as a child's from
+          // before tv:parentStoreId). Taken as a mark, the child would drop this store's next
+          // items as ones it has.
           if (stores && !stores->peer_store_id.empty())
             return renew_store_id("child <" + child->iri + "> acknowledges up to " + std::to_string(f.ack) +
                                   " of this store, which has issued less");

@@ -676,14 +676,18 @@ namespace {
 
 std::string relay_mark_key(std::string_view stream) { return "relay:" + std::string(stream); }
 
-Result<std::uint64_t> read_relay_mark(MDB_txn* txn, const Env& env, std::string_view stream) {
-  std::string key = relay_mark_key(stream);
+// A number kept in the meta table under `key`, 0 when absent; `what` names it in errors.
+Result<std::uint64_t> read_meta_number(MDB_txn* txn, const Env& env, const std::string& key, const std::string& what) {
   MDB_val k = val(key), v;
   int rc = mdb_get(txn, env.meta, &k, &v);
   if (rc == MDB_NOTFOUND) return std::uint64_t{0};
-  if (rc != 0) return lmdb_fail(rc, "reading the relay mark of " + std::string(stream));
-  if (v.mv_size != sizeof(std::uint64_t)) return fail(Errc::corrupt, "relay mark of " + std::string(stream) + " has " + std::to_string(v.mv_size) + " bytes");
+  if (rc != 0) return lmdb_fail(rc, "reading the " + what);
+  if (v.mv_size != sizeof(std::uint64_t)) return fail(Errc::corrupt, "the " + what + " has " + std::to_string(v.mv_size) + " bytes");
   return u64(v);
+}
+
+Result<std::uint64_t> read_relay_mark(MDB_txn* txn, const Env& env, std::string_view stream) {
+  return read_meta_number(txn, env, relay_mark_key(stream), "relay mark of " + std::string(stream));
 }
 
 // The seq up to which a stream's items may repeat items held here (Agent::relay_may_repeat);
@@ -691,14 +695,7 @@ Result<std::uint64_t> read_relay_mark(MDB_txn* txn, const Env& env, std::string_
 std::string relay_repeats_key(std::string_view stream) { return "relay-repeats:" + std::string(stream); }
 
 Result<std::uint64_t> read_relay_repeats(MDB_txn* txn, const Env& env, std::string_view stream) {
-  std::string key = relay_repeats_key(stream);
-  MDB_val k = val(key), v;
-  int rc = mdb_get(txn, env.meta, &k, &v);
-  if (rc == MDB_NOTFOUND) return std::uint64_t{0};
-  if (rc != 0) return lmdb_fail(rc, "reading how far " + std::string(stream) + " may repeat what is held");
-  if (v.mv_size != sizeof(std::uint64_t))
-    return fail(Errc::corrupt, "how far " + std::string(stream) + " may repeat what is held has " + std::to_string(v.mv_size) + " bytes");
-  return u64(v);
+  return read_meta_number(txn, env, relay_repeats_key(stream), "seq up to which " + std::string(stream) + " may repeat what is held");
 }
 
 }  // namespace
