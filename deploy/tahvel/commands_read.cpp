@@ -182,9 +182,10 @@ const Command kBackupCommand{
     "written); this one is taken from one snapshot, without the store's free pages. DEST must not\n"
     "exist; the copy is made beside it (DEST.partial-PID), synced and renamed to it once whole.\n"
     "To restore, stop the node ('tahvel down', or 'tahvel down --node ID' for a node brought up\n"
-    "with 'up --node ID'), put DEST in DIR's place and start it again. Its children send again\n"
-    "what it lacks; its parent gets again what its outbox held, and holds the non-persistent\n"
-    "items among them twice (docs/protocol.md P6d). Prints the copy's size in bytes.",
+    "with 'up --node ID'), put DEST in DIR's place and start it again. The copy has a store id\n"
+    "of its own, so its peers take the restored node for another store of it: its children send\n"
+    "again what it lacks, its parent gets again what its outbox held and keeps one of each\n"
+    "(docs/protocol.md P6a, P6d, P10c). Prints the copy's size in bytes.",
     {},
     2, 2, false};
 

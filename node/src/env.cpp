@@ -185,6 +185,38 @@ std::string new_store_id() {
   return out;
 }
 
+Result<std::string> renew_store_id_of_copy(const std::filesystem::path& dir) {
+  MDB_env* raw = nullptr;
+  if (int rc = mdb_env_create(&raw); rc != 0) return lmdb_fail(rc, "opening the copy in " + dir.string());
+  std::error_code ec;
+  const std::uintmax_t bytes = std::filesystem::file_size(dir / "data.mdb", ec);
+  if (ec) {
+    mdb_env_close(raw);
+    return fail(Errc::io, "cannot read the size of the copy in " + dir.string() + ": " + ec.message());
+  }
+  mdb_env_set_maxdbs(raw, kMaxTables);
+  mdb_env_set_mapsize(raw, static_cast<std::size_t>(bytes) + (std::size_t{8} << 20));  // room for the new id's pages
+  MDB_txn* txn = nullptr;
+  MDB_dbi meta = 0;
+  const std::string id = new_store_id();
+  int rc = mdb_env_open(raw, dir.c_str(), MDB_NOTLS, 0644);
+  if (rc == 0) rc = mdb_txn_begin(raw, nullptr, 0, &txn);
+  if (rc == 0) rc = mdb_dbi_open(txn, "meta", 0, &meta);
+  if (rc == 0) {
+    MDB_val k{kStoreIdKey.size(), const_cast<char*>(kStoreIdKey.data())}, v{id.size(), const_cast<char*>(id.data())};
+    rc = mdb_put(txn, meta, &k, &v, 0);
+  }
+  if (rc == 0) {
+    rc = mdb_txn_commit(txn);  // synced: the environment is opened without MDB_NOSYNC
+    txn = nullptr;
+  }
+  if (txn) mdb_txn_abort(txn);
+  mdb_env_close(raw);
+  std::filesystem::remove(dir / "lock.mdb", ec);
+  if (rc != 0) return lmdb_fail(rc, "giving the copy in " + dir.string() + " a store id of its own");
+  return id;
+}
+
 Error lmdb_error(int rc, std::string_view what) {
   Errc code = Errc::io;
   if (rc == MDB_MAP_FULL) code = Errc::store_full;

@@ -66,6 +66,10 @@ inline constexpr std::string_view kStoreIdKey = "store_id";
 // trimmed. A key of its own, not a counter: builds that check the counters' size still open it.
 inline constexpr std::string_view kRemovalsTrimmedKey = "removals_trimmed_through";
 std::string new_store_id();
+// Writes a new store id into the copy of a store in `dir` (Node::back_up's, not open anywhere):
+// a store restored from it goes on from an earlier point than its peers know, and is another
+// store to them (docs/protocol.md P6a). Leaves no lock file behind. Returns the id.
+Result<std::string> renew_store_id_of_copy(const std::filesystem::path& dir);
 
 struct Settings {
   std::string iri;

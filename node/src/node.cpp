@@ -1506,6 +1506,12 @@ Result<std::uint64_t> Node::back_up(const std::filesystem::path& requested) cons
   if (int rc = mdb_env_copy2(impl_->env->raw(), partial.c_str(), MDB_CP_COMPACT); rc != 0)
     return discard(Error{rc == ENOSPC ? Errc::store_full : Errc::io,
                          "cannot copy the store to " + partial.string() + ": " + mdb_strerror(rc)});
+  // A store restored from the copy goes on from the backup's snapshot, a point its peers have
+  // passed: to them it must be another store, whose streams start again (what it sends again
+  // is dropped where held, docs/protocol.md P10c), not this one, whose next ids they would drop
+  // as ones they have. Only a peer's mark above what the link could have sent showed it before,
+  // and agents that wrote before the link started hid that.
+  if (auto renewed = renew_store_id_of_copy(partial); !renewed) return discard(renewed.error());
   const std::uintmax_t bytes = fs::file_size(partial / "data.mdb", ec);
   if (ec) return discard(Error{Errc::io, "cannot read the size of the copy in " + partial.string() + ": " + ec.message()});
   // LMDB's copy does not sync: without these a power cut soon after could leave DEST named but

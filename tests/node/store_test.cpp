@@ -1105,6 +1105,27 @@ TEST(Store, AStoreEmptiedOnAFullDiskTakesWritesAgainInThePagesItFreed) {
   EXPECT_EQ(end.status, 0) << end.said;
 }
 
+// A backup is the store as of one snapshot, under a store id of its own: a store restored from
+// it goes on from a point its peers have passed, and must be another store to them
+// (docs/protocol.md P6a). No lock file of the copying is left in it.
+TEST(Store, ABackupHoldsTheSameRecordsUnderAStoreIdOfItsOwn) {
+  TempDir dir, copies;
+  ASSERT_TRUE(Node::init(dir.path(), {.iri = "http://example.org/n"}));
+  auto node = Node::open(dir.path());
+  ASSERT_TRUE(node);
+  for (int i = 0; i < 3; ++i) ASSERT_TRUE(node->agent("w")->store(Item{}.add(ex("a"), ex("p"), Term::integer(i))));
+  const std::filesystem::path backup = copies.path() / "copy";
+  ASSERT_TRUE(node->back_up(backup));
+  EXPECT_FALSE(std::filesystem::exists(backup / "lock.mdb"));
+  auto copy = Node::open(backup);
+  ASSERT_TRUE(copy) << copy.error().message;
+  EXPECT_NE(copy->store_id().value(), node->store_id().value());
+  EXPECT_EQ(copy->store_id().value().size(), node->store_id().value().size());
+  EXPECT_EQ(copy->snapshot()->list({.p = ex("p")})->size(), 3u);
+  EXPECT_EQ(copy->stats()->last_seq, node->stats()->last_seq) << "the same ids: it goes on from the same point";
+  EXPECT_TRUE(copy->check().value().problems.empty());
+}
+
 // A disk mounted read-only to save what is on it (or a copy on read-only media): every open
 // failed "Read-only file system", since LMDB's lock file cannot be written there, and nothing
 // could be read, backed up or checked. It opens read-only now: reads, check and backup work,

@@ -552,8 +552,10 @@ class Node {
   // The copy is made beside `dest` (as `dest`.partial-PID) and synced, renamed to it once whole
   // (never over a `dest` made meanwhile), and the rename synced: nothing half-written is left
   // under `dest`, and a `dest` that exists holds the whole copy after a power cut. A process
-  // killed while copying leaves its .partial-PID directory behind. Returns the copy's size in
-  // bytes. Errors: invalid_argument (`dest` exists or names no directory), io, store_full.
+  // killed while copying leaves its .partial-PID directory behind. The copy has a store id of
+  // its own (store_id): a store restored from it is another store to its peers, whose streams
+  // start again (docs/protocol.md P6a, P10c). Returns the copy's size in bytes. Errors:
+  // invalid_argument (`dest` exists or names no directory), io, store_full.
   Result<std::uint64_t> back_up(const std::filesystem::path& dest) const;
 
  private:
