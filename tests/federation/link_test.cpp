@@ -365,6 +365,13 @@ void restore_home1_after_sending_more(Tree& tree, int first, int n, std::uint64_
   std::filesystem::rename(backup, tree.home1_dir);
 }
 
+// Both ends running, and home1's items n = 0..9 at the hospital, its outbox empty.
+void both_running_with_ten_of_home1s_items_sent(Tree& tree) {
+  tree.hospital = tree.start_hospital();
+  tree.home1 = tree.start_home(tree.home1_dir, kHome1, tree.home1_log);
+  ASSERT_TRUE(home1_sends(tree, 0, 10, 10));
+}
+
 // P6a: a home's store restored from a backup goes back in time: its next ids are ones the
 // hospital has applied already. The home takes a new store id and its new items arrive.
 TEST(Link, AChildRestoredFromABackupHasItsNewItemsArrive) {
@@ -387,9 +394,7 @@ TEST(Link, AChildRestoredFromABackupHasItsNewItemsArrive) {
 TEST(Link, ItemsWaitingInTheOutboxOfAChildsBackupAreNotDoubledAtTheParent) {
   Tree tree;
   const node::Pattern numbered{.p = Term::iri(kEx + "n")};
-  tree.hospital = tree.start_hospital();
-  tree.home1 = tree.start_home(tree.home1_dir, kHome1, tree.home1_log);
-  ASSERT_TRUE(home1_sends(tree, 0, 10, 10));
+  ASSERT_NO_FATAL_FAILURE(both_running_with_ten_of_home1s_items_sent(tree));
   tree.home1.reset();
   store_hrv_items(tree.home1_dir, 100, 20);  // they wait in the outbox, and so in the backup
   ASSERT_EQ(outbox(tree.home1_dir), 20u);
@@ -422,9 +427,7 @@ TEST(Link, ItemsWaitingInTheOutboxOfAChildsBackupAreNotDoubledAtTheParent) {
 TEST(Link, AChildRestoredFromABackupWhoseAgentsWroteBeforeItsLinkStartedLosesNothing) {
   Tree tree;
   const node::Pattern numbered{.p = Term::iri(kEx + "n")};
-  tree.hospital = tree.start_hospital();
-  tree.home1 = tree.start_home(tree.home1_dir, kHome1, tree.home1_log);
-  ASSERT_TRUE(home1_sends(tree, 0, 10, 10));
+  ASSERT_NO_FATAL_FAILURE(both_running_with_ten_of_home1s_items_sent(tree));
   const std::string backup = (tree.tmp / "home1-backup").string();
   ASSERT_TRUE(node::Node::open(tree.home1_dir).value().back_up(backup));
   ASSERT_TRUE(home1_sends(tree, 100, 5, 15));
