@@ -1106,17 +1106,10 @@ class Deployment {
   // One line per change made, for the log and for the `up` that asked. `context`: the
   // environment of the `up` that asked (CommandContext).
   std::vector<std::string> apply(const Topology& topo, const CommandContext& context) {
-    std::vector<std::string> changes;
-    // A store removed (or moved) since this supervisor locked it, and made again by the `up`
-    // that asks: this supervisor's programs of it write where nobody reads, and it stops
-    // within a second (stores_gone); the file is not applied, and `up` says to ask again.
-    if (const auto gone = stores_gone(); !gone.empty()) {
-      std::string ids;
-      for (const auto& id : gone) ids += (ids.empty() ? "'" : ", '") + id + "'";
-      changes.push_back("not applied: the store of node " + ids + " was removed or moved while this supervisor ran it, so "
-                        "it stops; run the same 'tahvel up' again once it has (a second)");
-      return changes;
-    }
+    // A store removed (or moved) since this supervisor locked it, and most likely made again by
+    // the `up` that asks: what ran of the node stops here first, then the node starts anew on
+    // the store that is there now (lock_node below).
+    std::vector<std::string> changes = drop_nodes(stores_gone());
     // Another file taking over a running deployment is most often the wrong file: said first.
     const fs::path file = fs::absolute(topo.file).lexically_normal();
     if (!file_.empty() && file != file_)
@@ -1169,18 +1162,8 @@ class Deployment {
       applied_[name] = program;
     }
     std::set<std::string> ids;
-    std::string listed;
-    for (const NodeSpec* spec : mine) {
-      ids.insert(spec->id);
-      listed += spec->id + "\n";
-    }
-    // The nodes this supervisor runs, for `status` to tell a store left from a node taken out of
-    // the file from one that is part of the deployment.
-    try {
-      write_whole(fs::path(state_ / pid_file_name(only_)).replace_extension(".nodes"), listed);
-    } catch (const Failure& f) {
-      changes.push_back(f.message);
-    }
+    for (const NodeSpec* spec : mine) ids.insert(spec->id);
+    if (auto listed = write_node_list(ids)) changes.push_back(*listed);
     for (auto it = dispatchers_.begin(); it != dispatchers_.end();) {
       const NodeSpec* spec = topo.node(it->first);
       if (ids.count(it->first) && spec->behaviours == it->second.folder) {
@@ -1365,6 +1348,52 @@ class Deployment {
     return all;
   }
 
+  // Stops what this supervisor runs of the nodes `gone`, whose store directories were removed or
+  // moved while they ran (stores_gone): their programs wrote into files nobody else opens, and an
+  // `up` of the directory would start every program of the node a second time. Their
+  // dispatchers, area keepers and board writers go too, and each directory's lock is let go. The
+  // other nodes run on; the next `up` of the file makes the store again and starts the node anew.
+  // One line per node stopped, for the log and for the `up` that asked.
+  std::vector<std::string> drop_nodes(const std::vector<std::string>& gone) {
+    std::vector<std::string> changes;
+    for (const std::string& id : gone) {
+      if (auto d = dispatchers_.find(id); d != dispatchers_.end()) {  // its behaviours first
+        (void)d->second.dispatcher.stop_all(std::chrono::seconds(2));
+        dispatchers_.erase(d);
+      }
+      if (auto d = opening_dispatchers_.find(id); d != opening_dispatchers_.end()) {
+        abandoned_dispatchers_.push_back(std::move(d->second.opening));
+        opening_dispatchers_.erase(d);
+      }
+      if (auto k = opening_keepers_.find(id); k != opening_keepers_.end()) {
+        abandoned_keepers_.push_back(std::move(k->second));
+        opening_keepers_.erase(k);
+      }
+      keepers_.erase(id);
+      published_.erase(id);  // nothing is written on the board of a store that is gone
+      const std::string prefix = id + "/";
+      std::vector<std::string> programs;
+      for (const auto& [name, spec] : applied_)
+        if (name.starts_with(prefix)) programs.push_back(name);
+      supervisor_.remove(programs);
+      for (const auto& name : programs) applied_.erase(name);
+      if (auto lock = locks_.find(id); lock != locks_.end()) {
+        ::close(lock->second);
+        locks_.erase(lock);
+      }
+      node_ids_.erase(id);
+      changes.push_back("stopped node '" + id + "' (" + std::to_string(programs.size()) + " program(s)): its store " +
+                        (state_ / id).string() + " was removed or moved while it ran; the other nodes run on, and "
+                        "'tahvel up' of the file makes the store again and starts the node anew");
+    }
+    if (!gone.empty())
+      if (auto listed = write_node_list(node_ids_)) changes.push_back(*listed);
+    return changes;
+  }
+
+  // How many nodes this supervisor runs (whose store directory it holds).
+  std::size_t node_count() const { return locks_.size(); }
+
   // The nodes whose store directory is no longer where this supervisor started them (`rm -rf`
   // of the state directory, or a move): their programs write into files nobody else opens, and
   // an `up` of that directory would start every program of the node a second time.
@@ -1470,6 +1499,19 @@ class Deployment {
                         "' had started and left running when their supervisor was killed: " + list);
     }
     return true;
+  }
+
+  // The nodes this supervisor runs, for `status` to tell a store left from a node taken out of
+  // the file from one that is part of the deployment. Why it could not be written, if so.
+  std::optional<std::string> write_node_list(const std::set<std::string>& ids) {
+    std::string listed;
+    for (const auto& id : ids) listed += id + "\n";
+    try {
+      write_whole(fs::path(state_ / pid_file_name(only_)).replace_extension(".nodes"), listed);
+    } catch (const Failure& f) {
+      return f.message;
+    }
+    return std::nullopt;
   }
 
   static bool same_program(const agents::ProgramSpec& a, const agents::ProgramSpec& b) {
@@ -1964,12 +2006,16 @@ int run_up(const Args& args) {
     if (std::chrono::steady_clock::now() - stores_checked >= 1s) {
       stores_checked = std::chrono::steady_clock::now();
       if (const auto gone = deployment.stores_gone(); !gone.empty()) {
-        std::string ids;
-        for (const auto& id : gone) ids += (ids.empty() ? "'" : ", '") + id + "'";
-        log("up: the store of node " + ids + " is no longer in " + state.string() +
-            " (removed or moved while it ran); stopping, since its programs would write where no one reads and an "
-            "'up' of that directory would run them twice");
-        break;
+        // The whole state directory removed (or every node's store): nothing is left to run.
+        if (!still_holds(state_fd, state) || gone.size() == deployment.node_count()) {
+          std::string ids;
+          for (const auto& id : gone) ids += (ids.empty() ? "'" : ", '") + id + "'";
+          log("up: the store of node " + ids + " is no longer in " + state.string() +
+              " (removed or moved while it ran); stopping, since its programs would write where no one reads and an "
+              "'up' of that directory would run them twice");
+          break;
+        }
+        for (const auto& line : deployment.drop_nodes(gone)) log("up: " + line);
       }
     }
     std::this_thread::sleep_for(100ms);

@@ -214,6 +214,31 @@ class Cli : public ::testing::Test {
     return static_cast<pid_t>(std::stol(m[1]));
   }
 
+  // How many processes run programs that a supervisor started for the node whose store is `store`
+  // (they carry its mark in their environment, agents::kLeftoverMark).
+  static int programs_of_store(const fs::path& store) {
+    const std::string mark = "TAHVEL_SUPERVISED_NODE=" + fs::absolute(store).string();
+    int count = 0;
+    for (const auto& entry : fs::directory_iterator("/proc")) {
+      std::ifstream in(entry.path() / "environ", std::ios::binary);
+      for (std::string variable; std::getline(in, variable, '\0');)
+        if (variable == mark) {
+          ++count;
+          break;
+        }
+    }
+    return count;
+  }
+
+  // Whether process `pid` runs (exists and is not a zombie).
+  static bool alive(pid_t pid) {
+    std::ifstream stat("/proc/" + std::to_string(pid) + "/stat");
+    std::string text;
+    std::getline(stat, text);
+    const auto close = text.rfind(')');
+    return close != std::string::npos && close + 2 < text.size() && text[close + 2] != 'Z';
+  }
+
   // `up` of one node whose agent "flaky" exits with status 3 at once; returns the state
   // directory.
   std::string up_a_node_with_a_flaky_agent() {
@@ -3405,26 +3430,7 @@ TEST_F(Cli, RemovingARunningDeploymentsStateDirectoryStopsItsSupervisor) {
   const fs::path state = tmp_ / "state";
   spit(tmp_ / "node.toml", "[[node]]\nid = \"a\"\niri = \"http://example.org/a\"\n"
                           "  [[node.agent]]\n  id = \"a-idle\"\n  run = [\"/bin/sleep\", \"600\"]\n");
-  const std::string mark = "TAHVEL_SUPERVISED_NODE=" + fs::absolute(state / "a").string();
-  auto marked = [&] {  // the processes that run programs of node a
-    int count = 0;
-    for (const auto& entry : fs::directory_iterator("/proc")) {
-      std::ifstream in(entry.path() / "environ", std::ios::binary);
-      for (std::string variable; std::getline(in, variable, '\0');)
-        if (variable == mark) {
-          ++count;
-          break;
-        }
-    }
-    return count;
-  };
-  auto alive = [](pid_t pid) {
-    std::ifstream stat("/proc/" + std::to_string(pid) + "/stat");
-    std::string text;
-    std::getline(stat, text);
-    const auto close = text.rfind(')');
-    return close != std::string::npos && close + 2 < text.size() && text[close + 2] != 'Z';
-  };
+  auto marked = [&] { return programs_of_store(state / "a"); };
   auto supervisor = [&] { return static_cast<pid_t>(std::stol(slurp(state / "supervisor-all.pid"))); };
   ASSERT_EQ(run({"up", (tmp_ / "node.toml").string(), "--state", state.string()}).status, 0);
   status_until(state.string(), "a-idle  running (pid");
@@ -3446,6 +3452,49 @@ TEST_F(Cli, RemovingARunningDeploymentsStateDirectoryStopsItsSupervisor) {
   remove_state();
   EXPECT_TRUE(eventually([&] { return !alive(second); })) << "a supervisor whose store was removed runs on";
   EXPECT_TRUE(eventually([&] { return marked() == 0; }));
+}
+
+// One node's store removed while a deployment of several ran (a disk replaced, `rm -rf` of
+// state/a to start that node afresh) stopped the whole supervisor: the hospital and every other
+// node went down with it. Now only that node's programs stop; the others run on untouched, and
+// `up` again makes the node's store anew and starts it.
+TEST_F(Cli, RemovingOneNodesStoreStopsThatNodeAloneAndUpAgainStartsItAnew) {
+  const fs::path state = tmp_ / "state";
+  spit(tmp_ / "node.toml", "[[node]]\nid = \"a\"\niri = \"http://example.org/a\"\n"
+                          "  [[node.agent]]\n  id = \"a-idle\"\n  run = [\"/bin/sleep\", \"600\"]\n"
+                          "[[node]]\nid = \"b\"\niri = \"http://example.org/b\"\n"
+                          "  [[node.agent]]\n  id = \"b-idle\"\n  run = [\"/bin/sleep\", \"600\"]\n");
+  ASSERT_EQ(run({"up", (tmp_ / "node.toml").string(), "--state", state.string()}).status, 0);
+  std::smatch m;
+  const std::regex b_running("- b-idle  running \\(pid ([0-9]+)\\)");
+  std::string shown = status_until(state.string(), "a-idle  running (pid").out;
+  ASSERT_TRUE(std::regex_search(shown, m, b_running)) << shown;
+  const auto b_idle = static_cast<pid_t>(std::stol(m[1]));
+  const auto supervisor = static_cast<pid_t>(std::stol(slurp(state / "supervisor-all.pid")));
+  ASSERT_EQ(programs_of_store(state / "a"), 1);
+
+  std::error_code ec;
+  fs::remove_all(state / "a", ec);
+  ASSERT_FALSE(ec) << ec.message();
+  EXPECT_TRUE(eventually([&] { return programs_of_store(state / "a") == 0; })) << "node a's program runs on";
+  const fs::path log = state / "logs" / "supervisor.log";
+  EXPECT_TRUE(eventually([&] { return slurp(log).find("stopped node 'a' (1 program(s)): its store") != std::string::npos; }))
+      << slurp(log);
+  EXPECT_TRUE(alive(supervisor)) << slurp(log);
+  EXPECT_TRUE(alive(b_idle)) << "node b's program was stopped too";
+  EXPECT_EQ(slurp(state / "supervisor-all.nodes"), "b\n");
+
+  Outcome again = run({"up", (tmp_ / "node.toml").string(), "--state", state.string()});
+  ASSERT_EQ(again.status, 0) << again.out << again.err;
+  EXPECT_NE(again.out.find("created the store of a"), std::string::npos) << again.out;
+  shown = status_until(state.string(), "a-idle  running (pid").out;
+  EXPECT_NE(shown.find("a-idle  running (pid"), std::string::npos) << shown;
+  ASSERT_TRUE(std::regex_search(shown, m, b_running)) << shown;
+  EXPECT_EQ(static_cast<pid_t>(std::stol(m[1])), b_idle) << "node b's program was restarted";
+  EXPECT_EQ(programs_of_store(state / "a"), 1);
+  EXPECT_EQ(static_cast<pid_t>(std::stol(slurp(state / "supervisor-all.pid"))), supervisor);
+  EXPECT_EQ(slurp(state / "supervisor-all.nodes"), "a\nb\n");
+  EXPECT_EQ(run({"down", "--state", state.string()}).status, 0);
 }
 
 // A root renamed in the file (its id; its IRI is the file's) got a new, empty store beside the one
