@@ -185,6 +185,20 @@ std::string new_store_id() {
   return out;
 }
 
+std::string data_file_identity(const std::filesystem::path& dir) {
+  // No device number: it can change across reboots (btrfs, disks found in another order) while
+  // the file stays the same one. An inode number is reused once freed, but not with the birth
+  // time of the file it was.
+  struct statx sx {};
+  if (::statx(AT_FDCWD, (dir / "data.mdb").c_str(), 0, STATX_INO | STATX_BTIME, &sx) != 0) return {};
+  std::string identity = std::to_string(sx.stx_ino) + ":";
+  if (sx.stx_mask & STATX_BTIME)
+    identity += std::to_string(sx.stx_btime.tv_sec) + "." + std::to_string(sx.stx_btime.tv_nsec);
+  else
+    identity += "-";
+  return identity;
+}
+
 Result<std::string> renew_store_id_of_copy(const std::filesystem::path& dir) {
   MDB_env* raw = nullptr;
   if (int rc = mdb_env_create(&raw); rc != 0) return lmdb_fail(rc, "opening the copy in " + dir.string());
@@ -204,6 +218,11 @@ Result<std::string> renew_store_id_of_copy(const std::filesystem::path& dir) {
   if (rc == 0) rc = mdb_dbi_open(txn, "meta", 0, &meta);
   if (rc == 0) {
     MDB_val k{kStoreIdKey.size(), const_cast<char*>(kStoreIdKey.data())}, v{id.size(), const_cast<char*>(id.data())};
+    rc = mdb_put(txn, meta, &k, &v, 0);
+  }
+  // The copy's own file, which the rename into place keeps: its first open finds it the same.
+  if (const std::string file = data_file_identity(dir); rc == 0 && !file.empty()) {
+    MDB_val k{kDataFileKey.size(), const_cast<char*>(kDataFileKey.data())}, v{file.size(), const_cast<char*>(file.data())};
     rc = mdb_put(txn, meta, &k, &v, 0);
   }
   if (rc == 0) {
@@ -608,7 +627,8 @@ Result<std::shared_ptr<Env>> Env::open_at(const std::filesystem::path& dir, cons
   // inside its transaction (stopped, stuck) must not hang every process that opens the store,
   // `tahvel status` among them. Only a store made before store ids needs a write, once.
   const unsigned first_flags = init ? 0 : MDB_RDONLY;
-  bool needs_store_id = false, needs_tables = false;
+  bool needs_store_id = false, needs_tables = false, needs_file_record = false;
+  const std::string data_file = data_file_identity(dir);
   MDB_txn* txn = nullptr;
   rc = mdb_txn_begin(env->env_, nullptr, first_flags, &txn);
   if (rc == MDB_MAP_RESIZED) {
@@ -659,6 +679,13 @@ Result<std::shared_ptr<Env>> Env::open_at(const std::filesystem::path& dir, cons
       if (first_flags & MDB_RDONLY) needs_store_id = true;
       else if (auto r = put_meta(txn, env->meta, kStoreIdKey, new_store_id()); !r) return r;
     }
+    if (init) {
+      if (!data_file.empty())
+        if (auto r = put_meta(txn, env->meta, kDataFileKey, data_file); !r) return r;
+    } else if (!data_file.empty()) {
+      auto recorded = get_meta(txn, env->meta, kDataFileKey);
+      needs_file_record = !recorded || *recorded != data_file;
+    }
     return {};
   };
   if (auto r = body(); !r) {
@@ -672,15 +699,22 @@ Result<std::shared_ptr<Env>> Env::open_at(const std::filesystem::path& dir, cons
   if (auto w = env->read_only_ ? env->wake_.open_private() : env->wake_.open(dir / "wake"); !w) return unexpected(w.error());
   if (env->read_only_ && needs_tables)
     return fail(Errc::version, dir.string() + " is on a read-only filesystem, and its store, of an earlier format, is upgraded at its first open: copy it to a writable disk to read it");
-  if (env->read_only_) needs_store_id = false;  // a store made before store ids: read without one
+  if (env->read_only_) needs_store_id = needs_file_record = false;  // read as it is: nothing can write there
   // A format-2 store's time index needs room (tens of bytes an item): when the map is full the
   // transaction is tried again in a larger one, into the reserve kept for removals if need be
   // (a store that cannot be opened could not be emptied either).
-  for (int attempt = 0; needs_store_id || needs_tables; ++attempt) {
+  for (int attempt = 0; needs_store_id || needs_tables || needs_file_record; ++attempt) {
     rc = mdb_txn_begin(env->env_, nullptr, 0, &txn);
     if (rc != 0) return lmdb_fail(rc, "starting a transaction in " + dir.string());
     Result<void> r;
     if (!get_meta(txn, env->meta, kStoreIdKey)) r = put_meta(txn, env->meta, kStoreIdKey, new_store_id());
+    // Read again in this transaction: another process may have opened the copy meanwhile and
+    // given it its id. A store that recorded no file yet (made before this was kept) only
+    // records it: nothing says it was copied.
+    if (auto recorded = get_meta(txn, env->meta, kDataFileKey); r && needs_file_record && (!recorded || *recorded != data_file)) {
+      if (recorded) r = put_meta(txn, env->meta, kStoreIdKey, new_store_id());
+      if (r) r = put_meta(txn, env->meta, kDataFileKey, data_file);
+    }
     if (r && needs_tables) {
       if (auto made = env->open_later_tables(txn, true); !made) r = unexpected(made.error());
     }

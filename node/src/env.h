@@ -66,6 +66,15 @@ inline constexpr std::string_view kStoreIdKey = "store_id";
 // trimmed. A key of its own, not a counter: builds that check the counters' size still open it.
 inline constexpr std::string_view kRemovalsTrimmedKey = "removals_trimmed_through";
 std::string new_store_id();
+// Which file the store's data last was, in its meta table: the data file's inode number and
+// birth time (statx), recorded when the store is made and checked at every open that may
+// write. A data file that is another file now was copied (`cp -a`, a restore from tar or
+// rsync, a move to another disk): the copy goes on from the point it was copied at, which its
+// peers may have passed, so it takes a new store id (docs/protocol.md P6a).
+inline constexpr std::string_view kDataFileKey = "data_file";
+// The identity kDataFileKey records of the data file in `dir` ("<inode>:<birth s>.<ns>", or
+// "<inode>:-" where the filesystem keeps no birth time); empty when it cannot be read.
+std::string data_file_identity(const std::filesystem::path& dir);
 // Writes a new store id into the copy of a store in `dir` (Node::back_up's, not open anywhere):
 // a store restored from it goes on from an earlier point than its peers know, and is another
 // store to them (docs/protocol.md P6a). Leaves no lock file behind. Returns the id.

@@ -1126,6 +1126,37 @@ TEST(Store, ABackupHoldsTheSameRecordsUnderAStoreIdOfItsOwn) {
   EXPECT_TRUE(copy->check().value().problems.empty());
 }
 
+// A store copied with `cp -a` (or restored from tar or rsync, or moved to another disk) goes on
+// from the point it was copied at, which its peers may have passed; up to session 63 it kept the
+// id, and a restore from such a copy could lose items (docs/protocol.md P6a). Its data file is
+// another file: its first open gives it an id of its own, which it keeps. The original, and a
+// store moved within its filesystem (the same file), keep theirs.
+TEST(Store, AStoreCopiedToAnotherFileTakesAStoreIdOfItsOwnAtItsFirstOpen) {
+  TempDir dir, copies;
+  const std::filesystem::path original = dir.path() / "store", copied = copies.path() / "copy",
+                              moved = copies.path() / "moved";
+  std::string id;
+  {
+    ASSERT_TRUE(Node::init(original, {.iri = "http://example.org/n"}));
+    auto node = Node::open(original);
+    ASSERT_TRUE(node);
+    ASSERT_TRUE(node->agent("w")->store(Item{}.add(ex("a"), ex("p"), Term::integer(1))));
+    id = node->store_id().value();
+  }
+  std::filesystem::copy(original, copied, std::filesystem::copy_options::recursive);
+  std::string copy_id;
+  {
+    auto copy = Node::open(copied);
+    ASSERT_TRUE(copy) << copy.error().message;
+    copy_id = copy->store_id().value();
+    EXPECT_NE(copy_id, id);
+    EXPECT_EQ(copy->snapshot()->list({.p = ex("p")})->size(), 1u);
+  }
+  std::filesystem::rename(copied, moved);
+  EXPECT_EQ(Node::open(moved)->store_id().value(), copy_id) << "a store moved (the same file) is the same store";
+  EXPECT_EQ(Node::open(original)->store_id().value(), id);
+}
+
 // A disk mounted read-only to save what is on it (or a copy on read-only media): every open
 // failed "Read-only file system", since LMDB's lock file cannot be written there, and nothing
 // could be read, backed up or checked. It opens read-only now: reads, check and backup work,

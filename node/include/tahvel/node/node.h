@@ -540,7 +540,9 @@ class Node {
 
   // The store's identity: 32 hex digits, random, made when the store was created. A store made
   // again in the same place (a replaced disk, a new machine) has another one, so that a peer
-  // which kept positions in this store's streams (a link's marks) can tell them void.
+  // which kept positions in this store's streams (a link's marks) can tell them void. So has a
+  // copy of the store in another file (`cp -a`, a restore from tar, a move to another disk): its
+  // first open finds its data file is not the one the store recorded, and gives it a new id.
   Result<std::string> store_id() const;
   // A new identity, for a store restored from a backup: its ids go back in time, and peers must
   // not take them for ones they have seen. Returns the new id.
