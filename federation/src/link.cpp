@@ -68,6 +68,10 @@ constexpr std::chrono::seconds kHelloGapMax{4};
 constexpr std::size_t kInlineFrames = 8;
 // How often at most the uplink removes from the outbox what the parent applied (up_loop).
 constexpr auto kOutboxTrimEvery = std::chrono::milliseconds(50);
+// P10c: what a store restored from a backup relays again for its own children comes under new
+// seqs, but was asserted before the restore, on the clocks of the nodes below, which may run
+// ahead of this one's by this much.
+constexpr std::chrono::hours kRepeatClockAhead{1};
 
 // P8: the ack of an item stream waits for this many items or LinkOptions::ack_delay, unless the
 // sender asks for it (its window half full) or it signals a gap or a resend. On a quiet link an
@@ -1628,7 +1632,7 @@ struct Link::Impl {
           if (!before)
             log("cannot read the mark of <" + child->iri + ">'s store before: " + before.error().message);
           else if (*before > 0)
-            if (auto said = link->relay_may_repeat(up_stream(child->iri, child_store), *before); !said)
+            if (auto said = link->relay_may_repeat(up_stream(child->iri, child_store), *before, repeats_asserted_through()); !said)
               log("cannot note that <" + child->iri + ">'s new stream may repeat the one before: " + said.error().message);
         }
         if (store_made_again && down_from == 0) {
@@ -1790,8 +1794,14 @@ struct Link::Impl {
     auto mark = uplink->relay_mark(before);
     if (!mark) return log("cannot read the mark of " + before + ": " + mark.error().message);
     if (*mark == 0) return;
-    if (auto said = uplink->relay_may_repeat(after, *mark); !said)
+    if (auto said = uplink->relay_may_repeat(after, *mark, repeats_asserted_through()); !said)
       log("cannot note that " + after + " may repeat " + before + ": " + said.error().message);
+  }
+
+  // P10c: the items of a restored store's new stream asserted up to now (allowing for clocks
+  // ahead) may repeat items held here, whatever their seq: what its children sent it again.
+  static std::int64_t repeats_asserted_through() {
+    return now_ns() + std::chrono::duration_cast<std::chrono::nanoseconds>(kRepeatClockAhead).count();
   }
 
   template <class AgentFn>

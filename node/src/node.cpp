@@ -690,12 +690,37 @@ Result<std::uint64_t> read_relay_mark(MDB_txn* txn, const Env& env, std::string_
   return read_meta_number(txn, env, relay_mark_key(stream), "relay mark of " + std::string(stream));
 }
 
-// The seq up to which a stream's items may repeat items held here (Agent::relay_may_repeat);
-// 0 when never said.
+// Which of a stream's items may repeat items held here (Agent::relay_may_repeat): those up to
+// a seq, and those asserted at or before a time. Kept as the seq (8 bytes; so written up to
+// session 63), then the time when one was said.
 std::string relay_repeats_key(std::string_view stream) { return "relay-repeats:" + std::string(stream); }
 
-Result<std::uint64_t> read_relay_repeats(MDB_txn* txn, const Env& env, std::string_view stream) {
-  return read_meta_number(txn, env, relay_repeats_key(stream), "seq up to which " + std::string(stream) + " may repeat what is held");
+struct RepeatBounds {
+  std::uint64_t through_seq = 0;
+  std::optional<std::int64_t> asserted_through;
+
+  bool cover(const RelayedItem& relayed) const {
+    return relayed.seq <= through_seq ||
+           (asserted_through && relayed.item.asserted_at && *relayed.item.asserted_at <= *asserted_through);
+  }
+};
+
+Result<RepeatBounds> read_relay_repeats(MDB_txn* txn, const Env& env, std::string_view stream) {
+  const std::string key = relay_repeats_key(stream);
+  MDB_val k = val(key), v;
+  int rc = mdb_get(txn, env.meta, &k, &v);
+  if (rc == MDB_NOTFOUND) return RepeatBounds{};
+  const std::string what = "bounds of what " + std::string(stream) + " may repeat of what is held";
+  if (rc != 0) return lmdb_fail(rc, "reading the " + what);
+  if (v.mv_size != 8 && v.mv_size != 16) return fail(Errc::corrupt, "the " + what + " have " + std::to_string(v.mv_size) + " bytes");
+  RepeatBounds bounds;
+  std::memcpy(&bounds.through_seq, v.mv_data, 8);
+  if (v.mv_size == 16) {
+    std::int64_t t = 0;
+    std::memcpy(&t, static_cast<const char*>(v.mv_data) + 8, 8);
+    bounds.asserted_through = t;
+  }
+  return bounds;
 }
 
 }  // namespace
@@ -807,7 +832,7 @@ Result<RelayOutcome> Agent::relay(std::string_view stream, const std::vector<Rel
               return unexpected(with_context(on.error(), about(i)));
             ++outcome.removals;
             outcome.records_removed += copies->records.size();
-          } else if (auto twin = relayed.seq <= *repeats ? held_twin(txn.raw(), *impl_->env, relayed.item, relayed.source)
+          } else if (auto twin = repeats->cover(relayed) ? held_twin(txn.raw(), *impl_->env, relayed.item, relayed.source)
                                                          : held_persistent_twin(txn.raw(), *impl_->env, relayed.item, relayed.source);
                      !twin) {
             return unexpected(with_context(twin.error(), about(i)));
@@ -857,15 +882,22 @@ Result<std::uint64_t> Agent::relay_mark(std::string_view stream) const noexcept 
   }
 }
 
-Result<void> Agent::relay_may_repeat(std::string_view stream, std::uint64_t through_seq) noexcept {
+Result<void> Agent::relay_may_repeat(std::string_view stream, std::uint64_t through_seq,
+                                     std::optional<std::int64_t> asserted_through) noexcept {
   try {
     if (stream.empty()) return fail(Errc::invalid_argument, "relay_may_repeat: empty stream name");
     return impl_->env->write([&](Txn& txn) -> Result<void> {
       auto now = read_relay_repeats(txn.raw(), *impl_->env, stream);
       if (!now) return unexpected(now.error());
-      if (*now >= through_seq) return {};
+      RepeatBounds wider = *now;
+      wider.through_seq = std::max(wider.through_seq, through_seq);
+      if (asserted_through) wider.asserted_through = std::max(wider.asserted_through.value_or(*asserted_through), *asserted_through);
+      if (wider.through_seq == now->through_seq && wider.asserted_through == now->asserted_through) return {};
+      char bytes[16];
+      std::memcpy(bytes, &wider.through_seq, 8);
+      if (wider.asserted_through) std::memcpy(bytes + 8, &*wider.asserted_through, 8);
       std::string key = relay_repeats_key(stream);
-      MDB_val k = val(key), v = val(through_seq);
+      MDB_val k = val(key), v{wider.asserted_through ? 16u : 8u, bytes};
       if (int rc = mdb_put(txn.raw(), impl_->env->meta, &k, &v, 0); rc != 0)
         return lmdb_fail(rc, "writing how far " + std::string(stream) + " may repeat what is held");
       return {};

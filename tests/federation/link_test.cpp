@@ -480,6 +480,44 @@ TEST(Link, AChildRestoredFromAFileCopyWhoseAgentsWroteBeforeItsLinkStartedLosesN
   });
 }
 
+// P10c across a gateway: home1, between its sensor and the hospital, restored from a backup.
+// The sensor sends again what home1 had acknowledged after the backup (P6d), and home1 relays
+// those items again under ids of its new stream. Its own agents wrote before its link started,
+// so those ids lie beyond the hospital's mark of home1's old stream, where up to session 63 the
+// hospital looked for no twins: it held each of those items twice.
+TEST(Link, ItemsASensorSendsAgainToItsRestoredGatewayAreNotDoubledAtTheHospital) {
+  Tree tree;
+  const std::string sensor_dir = (tree.tmp / "ecg1").string();
+  auto sensor_link = tree.start_three_tiers(sensor_dir);
+  const node::Pattern numbered{.p = Term::iri(kEx + "n")};
+  auto all_sent = [&](std::uint64_t total) {
+    return eventually([&] {
+      return count(tree.hospital_dir, numbered) == total && outbox(sensor_dir) == 0 && outbox(tree.home1_dir) == 0;
+    }, 20s);
+  };
+  store_hrv_items(sensor_dir, 0, 5);
+  ASSERT_TRUE(all_sent(5));
+  const std::filesystem::path backup = tree.tmp / "home1-backup";
+  ASSERT_TRUE(node::Node::open(tree.home1_dir).value().back_up(backup));
+  store_hrv_items(sensor_dir, 100, 20);
+  ASSERT_TRUE(all_sent(25));
+  tree.home1.reset();
+  std::filesystem::remove_all(tree.home1_dir);
+  std::filesystem::rename(backup, tree.home1_dir);
+  store_hrv_items(tree.home1_dir, 1000, 60);  // before its link starts
+  auto endpoint = std::shared_ptr<Transport>(tree.bus.open(kHome1, tree.home1_log.sink()));
+  tree.home1 = Link::start({.dir = tree.home1_dir, .parent_iri = kHospital, .up = endpoint, .down = endpoint,
+                            .resend_after = 100ms, .heartbeat_every = 200ms, .log = tree.home1_log.sink()})
+                   .value();
+  ASSERT_TRUE(eventually([&] { return tree.home2_log.has("what it lacks after that goes up again (P6d)"); }, 20s))
+      << "the case under test did not happen: " << tree.home2_log.text();
+  EXPECT_TRUE(all_sent(85)) << count(tree.hospital_dir, numbered) << " numbered items at the hospital";
+  std::this_thread::sleep_for(300ms);
+  EXPECT_EQ(count(tree.hospital_dir, numbered), 85u);
+  for (int n : {100, 110, 119, 1000, 1059})
+    EXPECT_EQ(count(tree.hospital_dir, {.p = Term::iri(kEx + "n"), .o = Term::integer(n)}), 1u) << n;
+}
+
 // Both ends running, and at the hospital: a persistent item of home1 (its description, n = 7)
 // and five others (n = 0..4).
 void home1_sends_a_description_and_five_items(Tree& tree) {

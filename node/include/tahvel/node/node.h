@@ -349,13 +349,17 @@ class Agent {
   // The stream's mark (0 when nothing was relayed on it).
   Result<std::uint64_t> relay_mark(std::string_view stream) const noexcept;
 
-  // Says that the items of `stream` up to seq `through_seq` may repeat items this store holds
-  // already: relay() then drops each of them that repeats one held, persistent or not (as it
-  // drops persistent ones on every stream), and counts it in RelayOutcome::already_held. A
+  // Says that the items of `stream` up to seq `through_seq`, and those asserted at or before
+  // `asserted_through` (ns since the epoch) whatever their seq, may repeat items this store
+  // holds already: relay() then drops each of them that repeats one held, persistent or not (as
+  // it drops persistent ones on every stream), and counts it in RelayOutcome::already_held. A
   // child store restored from a backup sends again, on a new stream, what its backup's outbox
-  // held, which the parent had applied from the stream before (docs/protocol.md P10c). Kept
-  // in the store; a lower `through_seq` than one said before changes nothing.
-  Result<void> relay_may_repeat(std::string_view stream, std::uint64_t through_seq) noexcept;
+  // held, which the parent had applied from the stream before; and it relays again, under new
+  // seqs that may pass the old stream's mark, what its own children send it again, all of it
+  // asserted before the restore (docs/protocol.md P10c). Kept in the store; bounds lower than
+  // ones said before change nothing.
+  Result<void> relay_may_repeat(std::string_view stream, std::uint64_t through_seq,
+                                std::optional<std::int64_t> asserted_through = std::nullopt) noexcept;
 
   // Writes a subscription as a persistent item of triples (vocabulary: docs/record-model.md):
   // from now on every stored item with at least one triple matching the pattern's s, p and o
