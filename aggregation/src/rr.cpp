@@ -165,6 +165,7 @@ void NnClassifier::reset() {
   hist_.clear();
   diffs_.clear();
   short_run_.clear();
+  unaccepted_.clear();
   forget_prior();
   forget_ectopic_run();
 }
@@ -232,6 +233,18 @@ bool NnClassifier::step(std::vector<Interval>& decided) {
     return true;
   }
   if (hist_.empty()) hist_.push_back(r);
+  if (const auto stale = stale_reference()) {
+    const std::size_t keep = std::min(unaccepted_.size(), size_t_of(rule_.reference_beats));
+    hist_.assign(unaccepted_.end() - static_cast<std::ptrdiff_t>(keep), unaccepted_.end());
+    diffs_.clear();
+    short_run_.clear();
+    unaccepted_.clear();
+    forget_prior();
+    forget_ectopic_run();
+    // From faster intervals, as a rebase on a run of short ones (short_beat): not a rhythm to
+    // return to, nor one whose long intervals are pauses.
+    rebased_short_ = *stale == Stale::faster;
+  }
   const double ref = median_of(hist_);
   const double spread = diffs_.size() >= 8 ? median_of(diffs_) : 0.0;
   const double tol_short = std::max(rule_.short_fraction, rule_.spread_factor * spread / ref);
@@ -434,11 +447,29 @@ void NnClassifier::forget_ectopic_run() {
   ectopic_ = false;
 }
 
+// Whether stale_reference_beats intervals in a row were not NN and their median lies outside
+// the fixed tolerances of the reference, and on which side (NnRule::stale_reference_beats).
+std::optional<NnClassifier::Stale> NnClassifier::stale_reference() const {
+  if (rule_.stale_reference_beats <= 0 || hist_.empty()) return std::nullopt;
+  if (unaccepted_.size() < size_t_of(rule_.stale_reference_beats)) return std::nullopt;
+  const double ref = median_of(hist_);
+  const double typical = median_of(unaccepted_);
+  if (typical < (1 - rule_.short_fraction) * ref) return Stale::faster;
+  if (typical > (1 + rule_.long_fraction) * ref) return Stale::slower;
+  return std::nullopt;
+}
+
 // Emits the front interval with the rule's decision, excluded ranges applied.
 void NnClassifier::decide(bool ok, std::vector<Interval>& decided, Track kind) {
   const Pending p = pending_.front();
   pending_.pop_front();
   if (p.rr > 0 && p.rr <= max_rr_) track(p.rr, kind);
+  if (ok) {
+    unaccepted_.clear();
+  } else if (p.rr > 0 && p.rr <= max_rr_ && rule_.stale_reference_beats > 0) {
+    unaccepted_.push_back(p.rr);
+    if (unaccepted_.size() > size_t_of(rule_.stale_reference_beats)) unaccepted_.pop_front();
+  }
   prev_pause_ = false;
   prev_ok_ = ok;
   prev_rr_ = p.rr;

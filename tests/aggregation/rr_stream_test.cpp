@@ -221,7 +221,8 @@ bool same(const std::vector<Interval>& a, const std::vector<Interval>& b, std::s
 }
 
 // Every check on one series: model == batch with the rules the model knows (it predates
-// hold_after_ectopic_run and pause_after_couplet, which are turned off for that comparison), batch == one-by-one
+// hold_after_ectopic_run, pause_after_couplet and stale_reference_beats, which are turned off
+// for that comparison), batch == one-by-one
 // stream == chunked streams with the rule as given; each
 // interval decided by the time D + 1 positive-length intervals from it (itself included) are
 // pushed, and one left for finish() only when fewer were; pending() <= D
@@ -231,6 +232,7 @@ void check_series(const std::vector<std::int64_t>& peaks, double fs, const NnRul
   NnRule known = rule;
   known.hold_after_ectopic_run = false;
   known.pause_after_couplet = false;
+  known.stale_reference_beats = 0;
   std::string why;
   EXPECT_TRUE(same(intervals_from_peaks(peaks, fs, known, excluded),
                    model(peaks, fs, known, excluded), why))

@@ -241,6 +241,30 @@ TEST(DetectedRule, EndOfABlockedRunReturnsToTheRhythmBeforeIt) {
   EXPECT_TRUE(intervals_from_peaks(peaks, blocked, four, 360)[32].nn);
 }
 
+// Atrial fibrillation after a slow stretch: the reference sat at the slow rhythm, and the
+// faster, irregular intervals after it were each rejected as short, so that neither a run of
+// agreeing short intervals nor a steady rhythm ever restarted it (MIT-BIH 219: no NN in its
+// last 6 minutes, windows before them at 39 bpm against 70). After stale_reference_beats
+// intervals in a row not NN and off the reference, it restarts from them.
+TEST(DetectedRule, AReferenceNoIntervalComesNearRestartsFromTheRhythmThatFollows) {
+  std::vector<int> rr(20, 540);  // 40 bpm at 360 Hz
+  std::uint32_t state = 12345;
+  for (int i = 0; i < 200; ++i) {  // irregular, 0.56 to 1.05 s: none agrees with the next within 12 %
+    state = state * 1664525u + 1013904223u;
+    rr.push_back(200 + static_cast<int>((state >> 8) % 181));
+  }
+  const auto peaks = peaks_from_rr(rr);
+  auto nn_in_last = [&](const std::vector<Interval>& iv, std::size_t n) {
+    return std::count_if(iv.end() - static_cast<std::ptrdiff_t>(n), iv.end(), [](const Interval& i) { return i.nn; });
+  };
+  const auto restarted = intervals_from_peaks(peaks, 360);
+  ASSERT_EQ(restarted.size(), rr.size());
+  EXPECT_GE(nn_in_last(restarted, 100), 80) << "the reference did not follow the new rhythm";
+  NnRule never;
+  never.stale_reference_beats = 0;
+  EXPECT_LE(nn_in_last(intervals_from_peaks(peaks, 360, never), 100), 10) << "the case under test did not happen";
+}
+
 // A reference rebased on a run of short intervals is not remembered: in bigeminy it is the
 // coupling interval, and a later "return" to it would be an ectopic beat.
 TEST(DetectedRule, ReferenceFromShortIntervalsIsNotReturnedTo) {

@@ -7,6 +7,7 @@
 #include <cstddef>
 #include <cstdint>
 #include <deque>
+#include <optional>
 #include <utility>
 #include <vector>
 
@@ -94,6 +95,16 @@ std::vector<Interval> reference_intervals(const std::vector<Beat>& beats,
 //    reference rule drops those beats, the RR rule alone kept them. The first interval at
 //    the sinus rate, or sinus_return_beats intervals in a row each within tol_prem * ref of
 //    the one before (a steady new rhythm), ends this; so does a gap.
+//  - a stale reference (stale_reference_beats): when that many intervals in a row (gaps and
+//    zero-length ones not counted) were not NN and their median lies outside the fixed
+//    tolerances, below (1 - short_fraction) * ref or above (1 + long_fraction) * ref, the
+//    reference no longer describes the rhythm: it restarts from the last reference_beats of
+//    them. In atrial fibrillation a run of long intervals taken as a slower rhythm left the
+//    reference at 1.5 s, and every interval after it was short and irregular, so neither a
+//    run of agreeing short intervals nor a steady rhythm restarted it: MIT-BIH 219 had 0 NN of
+//    the 450 intervals of its last 6 minutes, and windows before them a heart rate of 39 bpm
+//    from a few intervals (the reference rule: 70). In bigeminy the compensatory intervals
+//    keep the median near the reference, and ventricular runs rebase sooner (above).
 // Whatever the comparison, an interval longer than max_interval_s or overlapping an excluded
 // range is not NN, and the reference restarts after a gap longer than max_interval_s.
 // max_interval_s is 3.5 s, not the 2 s of filters tuned for adults in sinus rhythm (PhysioNet's
@@ -121,6 +132,8 @@ struct NnRule {
   int ectopic_run_beats = 3;            // consecutive short intervals that make a run
   double regular_spread = 0.03;         // a rhythm is regular below this spread / ref
   int sinus_return_beats = 4;           // steady intervals that end the ectopic rhythm
+  int stale_reference_beats = 32;       // intervals in a row not NN whose median is off the
+                                        // reference: it restarts from them (0: never; below)
 };
 
 // Intervals between consecutive detected peaks (samples, sorted ascending; duplicates give a
@@ -165,7 +178,8 @@ std::vector<Interval> intervals_from_peaks(const std::vector<std::int64_t>& peak
 //
 // Memory is bounded for an endless stream: the undecided intervals (pending()), the reference
 // window (reference_beats), the spread window (spread_diffs), the run of short intervals
-// (max(rebase_beats, reference_beats)), a remembered reference and spread from before a block,
+// (max(rebase_beats, reference_beats)), the intervals not NN since the last NN one
+// (stale_reference_beats), a remembered reference and spread from before a block,
 // a few scalars for the ectopic-run state and the excluded ranges given at construction.
 // excluded need not be sorted. With fs <= 0 nothing is ever decided, as the batch function
 // returns nothing. Peaks out of order give an interval of non-positive length, never NN.
@@ -206,6 +220,8 @@ class NnClassifier {
   bool seed();
   bool step(std::vector<Interval>& decided);
   bool confirmed_pause() const;
+  enum class Stale { faster, slower };
+  std::optional<Stale> stale_reference() const;
   void remember_prior();
   void forget_prior();
   void count_slow(const Pending& p);
@@ -237,6 +253,8 @@ class NnClassifier {
   bool prev_pause_ = false;      // the interval before the front was a confirmed pause
   bool rebased_short_ = false;   // the reference restarted from a run of short intervals
   std::deque<double> hist_, diffs_, short_run_;
+  // Usable intervals decided not NN since the last NN one, the last stale_reference_beats.
+  std::deque<double> unaccepted_;
   // The reference and spread before a slower rhythm adopted over empty gaps (empty: none).
   std::deque<double> prior_hist_, prior_diffs_;
   // Since then: the intervals kept at the slower rhythm, and how many ended at a P-wave gap.
