@@ -625,7 +625,8 @@ Result<std::shared_ptr<Env>> Env::open_at(const std::filesystem::path& dir, cons
 
   // An existing store is opened in a read transaction: a writer of another process that hangs
   // inside its transaction (stopped, stuck) must not hang every process that opens the store,
-  // `tahvel status` among them. Only a store made before store ids needs a write, once.
+  // `tahvel status` among them. Only a store made before store ids (or before its data file
+  // was recorded) needs a write, once, and a copy of a store in another file, at its first open.
   const unsigned first_flags = init ? 0 : MDB_RDONLY;
   bool needs_store_id = false, needs_tables = false, needs_file_record = false;
   const std::string data_file = data_file_identity(dir);
