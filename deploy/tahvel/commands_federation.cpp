@@ -714,6 +714,19 @@ std::optional<double> seconds_running(const std::string& pid) {
   return std::max(0.0, uptime_s - start_ticks / static_cast<double>(ticks_per_s));
 }
 
+// Whether the process `pid` (a decimal number) has exited: /proc has no such process, or it is
+// a zombie its parent has not waited for. False when `pid` is not a number.
+bool process_has_exited(const std::string& pid) {
+  if (pid.empty() || pid.find_first_not_of("0123456789") != std::string::npos) return false;
+  std::ifstream stat_file("/proc/" + pid + "/stat");
+  if (!stat_file) return true;
+  std::string text;
+  std::getline(stat_file, text);
+  const std::size_t name_end = text.rfind(')');
+  return name_end != std::string::npos && name_end + 2 < text.size() &&
+         (text[name_end + 2] == 'Z' || text[name_end + 2] == 'X');
+}
+
 // A link that runs and has not yet written its uplink's state is starting for this long.
 constexpr double kLinkStartingS = 10;
 
@@ -766,7 +779,15 @@ std::vector<ProgramRow> read_state_files(const fs::path& dir) {
       f.resize(5);
       if (!shown.insert(f[0]).second) continue;
       if (!file.supervised && f[2].rfind("stopped", 0) != 0) f[2] = "stopped (its supervisor is not running)";
-      if (file.supervised && file.silent_s > kSupervisorSilentS)
+      // The file says what the supervisor saw last; a program that died since is dead now,
+      // whether the supervisor has seen it yet or is itself stopped (SIGSTOP) and cannot.
+      if (file.supervised && f[2] == "running" && process_has_exited(f[1]))
+        f[2] = "exited (pid " + f[1] + "), and its supervisor has not seen it yet" +
+               (file.silent_s > kSupervisorSilentS / 10
+                    ? ": it has not written its state for " + seconds_text(file.silent_s) + " (" + why_state_not_written(dir) +
+                          "), so nothing restarts it now"
+                    : "");
+      else if (file.supervised && file.silent_s > kSupervisorSilentS)
         f[2] = "unknown: its supervisor has not written its state for " + seconds_text(file.silent_s) + " (" +
                why_state_not_written(dir) + "); it last said " + f[2];
       rows.push_back({f[0], f[1], f[2], f[3], f[4]});

@@ -3497,6 +3497,28 @@ TEST_F(Cli, RemovingOneNodesStoreStopsThatNodeAloneAndUpAgainStartsItAnew) {
   EXPECT_EQ(run({"down", "--state", state.string()}).status, 0);
 }
 
+// Its supervisor stopped (SIGSTOP), a program killed since was shown "running" with its dead pid
+// for the 5 s before status called the supervisor late: at 3 a.m. the tree looked healthy while
+// nothing would restart the agent. Status looks at the process itself.
+TEST_F(Cli, AProgramThatDiedWhileItsSupervisorIsStoppedIsShownExitedNotRunning) {
+  const std::string state = (tmp_ / "state").string();
+  const pid_t idle = up_and_pid_of("[[node]]\nid = \"a\"\niri = \"http://example.org/a\"\n"
+                                   "  [[node.agent]]\n  id = \"a-idle\"\n  run = [\"/bin/sleep\", \"600\"]\n",
+                                   state, "a-idle");
+  ASSERT_GT(idle, 0);
+  const auto supervisor = static_cast<pid_t>(std::stol(slurp(tmp_ / "state" / "supervisor-all.pid")));
+  ASSERT_EQ(kill(supervisor, SIGSTOP), 0);
+  ASSERT_EQ(kill(idle, SIGKILL), 0);
+  const Outcome shown = status_until(state, "a-idle  exited (pid " + std::to_string(idle) + ")");
+  EXPECT_NE(shown.out.find("a-idle  exited (pid " + std::to_string(idle) + "), and its supervisor has not seen it yet"),
+            std::string::npos) << shown.out;
+  EXPECT_EQ(shown.out.find("running (pid " + std::to_string(idle)), std::string::npos) << shown.out;
+  EXPECT_TRUE(eventually([&] { return run({"status", "--state", state}).out.find("so nothing restarts it now") != std::string::npos; }))
+      << run({"status", "--state", state}).out;
+  ASSERT_EQ(kill(supervisor, SIGCONT), 0);
+  EXPECT_EQ(run({"down", "--state", state}).status, 0);
+}
+
 // A root renamed in the file (its id; its IRI is the file's) got a new, empty store beside the one
 // holding its history, without a word: the earlier HRV windows and trend baselines were gone
 // from the hospital, and `status` showed two nodes of one IRI. `up` says what to do instead.
