@@ -155,7 +155,7 @@ Result<HrvReport> hrv_from_record(const std::string& record_path, const ChainOpt
     report->warnings.push_back(std::to_string(report->beats.size()) + " beat(s) found in " +
                                std::to_string(static_cast<long long>(report->duration_s)) + " s of signal " +
                                std::to_string(channel) + " (" + info.description +
-                               "): a flat or lead-off signal, or not an ECG; no HRV" + others);
+                               "): a flat or lead-off signal, a gain in its header off by far, or not an ECG; no HRV" + others);
   else if (signals->samples[channel].empty())
     report->warnings.push_back("the record holds no samples; no HRV");
   else if (report->beats.size() < 2) {

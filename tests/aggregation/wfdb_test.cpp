@@ -281,7 +281,7 @@ TEST_F(WfdbTemp, AFlatRecordGivesNoBeatsAndSaysSo) {
   ASSERT_TRUE(report) << report.error().message;
   EXPECT_TRUE(report->beats.empty());
   ASSERT_FALSE(report->warnings.empty());
-  EXPECT_EQ(report->warnings.back(), "0 beat(s) found in 60 s of signal 0 (MLII): a flat or lead-off signal, or not an ECG; no HRV");
+  EXPECT_EQ(report->warnings.back(), "0 beat(s) found in 60 s of signal 0 (MLII): a flat or lead-off signal, a gain in its header off by far, or not an ECG; no HRV");
 }
 
 // A record with nothing to read is said so, not reported as HRV that happens to be null: no
@@ -305,7 +305,7 @@ TEST_F(WfdbTemp, ARecordWithNoSignalNoSamplesOrTheWrongLeadIsSaidSo) {
   auto two = hrv_from_record(record("two"));
   ASSERT_TRUE(two) << two.error().message;
   ASSERT_FALSE(two->warnings.empty());
-  EXPECT_EQ(two->warnings.back(), "0 beat(s) found in 60 s of signal 0 (resp): a flat or lead-off signal, or not an ECG; "
+  EXPECT_EQ(two->warnings.back(), "0 beat(s) found in 60 s of signal 0 (resp): a flat or lead-off signal, a gain in its header off by far, or not an ECG; "
                                   "no HRV (the record has 2 signals: another may be the ECG: --signal N reads it)");
 }
 
