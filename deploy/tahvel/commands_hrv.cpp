@@ -168,15 +168,28 @@ int run_eval(const Args& args, const agg::ChainOptions& options, std::size_t sig
   scoring.start_s = from_s;
   agg::BeatScore gross;
   std::ostringstream rows;
+  // A record that cannot be read is said and left out; the others are scored, and the gross
+  // totals are theirs (one missing record of a list stopped the whole run, unscored).
+  std::vector<std::string> not_scored;
   const std::vector<std::string> records = record_paths(args);
   for (const std::string& record : records) {
+    auto leave_out = [&](const std::string& why) {
+      std::cerr << "tahvel: " << why << " (" << record << " not scored)\n";
+      not_scored.push_back(record);
+    };
     auto report = agg::hrv_from_record(record, options, checked_signal(record, signal));
-    if (!report) fail(report.error().message);
+    if (!report) {
+      leave_out(report.error().message);
+      continue;
+    }
     // Several records: each warning says whose it is (a checksum's names its header already).
     for (const std::string& warning : report->warnings)
       std::cerr << "tahvel: warning: " << (warning.starts_with(record) ? "" : record + ": ") << warning << "\n";
     auto reference = agg::read_annotations(record, "atr");
-    if (!reference) fail(reference.error().message);
+    if (!reference) {
+      leave_out(reference.error().message);
+      continue;
+    }
     // To the record's end, as bxb: a reference file that goes on past the signal (a header cut
     // short) does not count the beats after it as missed.
     scoring.end_s = report->duration_s;
@@ -196,9 +209,12 @@ int run_eval(const Args& args, const agg::ChainOptions& options, std::size_t sig
     }
   }
   if (json) {
+    std::string unread;
+    for (const std::string& record : not_scored) unread += (unread.empty() ? "\"" : ",\"") + node::json_escape(record) + "\"";
     std::cout << "{\"eval_from_s\":" << seconds_number(from_s) << ",\"records\":[" << rows.str() << "],\"tp\":" << gross.tp << ",\"fn\":" << gross.fn
               << ",\"fp\":" << gross.fp << ",\"sensitivity_pct\":" << percent(gross.sensitivity(), true)
-              << ",\"positive_predictivity_pct\":" << percent(gross.positive_predictivity(), true) << "}\n";
+              << ",\"positive_predictivity_pct\":" << percent(gross.positive_predictivity(), true)
+              << ",\"not_scored\":[" << unread << "]}\n";
   } else if (records.size() > 1) {
     std::printf("%-24s TP %7lld  FN %5lld  FP %5lld  Se %6s %%  +P %6s %%\n", "gross",
                 static_cast<long long>(gross.tp), static_cast<long long>(gross.fn),
@@ -206,6 +222,11 @@ int run_eval(const Args& args, const agg::ChainOptions& options, std::size_t sig
                 percent(gross.positive_predictivity()).c_str());
   }
   finish_output(std::cout);
+  if (!not_scored.empty()) {
+    std::cerr << "tahvel: " << not_scored.size() << " of " << records.size() << " record(s) could not be read and were not scored"
+              << (records.size() > not_scored.size() ? "; the totals are those of the others" : "") << "\n";
+    return kExitFailure;
+  }
   return kExitOk;
 }
 

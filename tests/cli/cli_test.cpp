@@ -1399,6 +1399,22 @@ TEST_F(Cli, HrvEvalOfSeveralRecordsNamesTheRecordOfEachWarning) {
   EXPECT_EQ(r.err.find(mitdb_record("100")), std::string::npos) << r.err;
 }
 
+// A missing record in a list stopped the run there, the records after it unscored and no totals
+// printed. It is said and left out; the others are scored, and the status says one failed.
+TEST_F(Cli, HrvEvalOfSeveralRecordsScoresTheOthersWhenOneCannotBeRead) {
+  const std::string missing = (tmp_ / "nowhere" / "999").string();
+  Outcome r = run({"hrv", mitdb_record("100"), missing, mitdb_record("101"), "--eval"});
+  EXPECT_EQ(r.status, 1) << r.out << r.err;
+  EXPECT_NE(r.out.find(mitdb_record("101")), std::string::npos) << r.out;
+  EXPECT_NE(r.out.find("gross"), std::string::npos) << r.out;
+  EXPECT_NE(r.err.find("(" + missing + " not scored)"), std::string::npos) << r.err;
+  EXPECT_NE(r.err.find("1 of 3 record(s) could not be read and were not scored; the totals are those of the others"),
+            std::string::npos) << r.err;
+  r = run({"hrv", mitdb_record("100"), missing, "--eval", "--json"});
+  EXPECT_EQ(r.status, 1) << r.err;
+  EXPECT_NE(r.out.find("\"not_scored\":[\"" + missing + "\"]}"), std::string::npos) << r.out;
+}
+
 // A record of 5 minutes or less has nothing scored: the JSON said "-" where a number goes.
 TEST_F(Cli, HrvEvalJsonWithNothingScoredIsValidJsonWithNulls) {
   Outcome r = run({"hrv", mitdb_record("100"), "--eval", "--json"});
