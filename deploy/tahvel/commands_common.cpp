@@ -19,6 +19,7 @@
 #include <streambuf>
 
 #include "commands.h"
+#include "topology.h"
 #include "vocabulary.h"
 #include "tahvel/spatial/wkt.h"
 #include "tahvel/uri/unicode_escape.h"
@@ -208,6 +209,12 @@ std::string agent_id(const Args& args, std::string_view fallback) {
   std::string id = args.get("--agent").value_or(std::string(fallback));
   auto checked = uri::check_id(id);
   if (!checked) bad_value("--agent", checked.error().message);
+  // The board is open to every local process, so this is said, not refused (a test may write as
+  // the supervisor on purpose); but an operator who borrowed such an id by chance would see the
+  // items taken from or mixed with a running program's, or the supervisor's replaced within seconds.
+  if (const char* owner = agent_id_in_use(id); owner && id != fallback && id != "cli")
+    std::cerr << "tahvel: warning: --agent " << id << ": on a node that `tahvel up` runs, that agent is " << owner
+              << "; what this command writes or takes as '" << id << "' mixes with that program's own\n";
   return id;
 }
 

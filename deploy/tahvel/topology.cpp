@@ -265,6 +265,15 @@ node::Result<void> check_lcm_ports_clear_of_dds(const Topology& topo) {
   return {};
 }
 
+// "a -> b -> a" for the cycle of `path` (parents followed from path[0]) that starts at `at`.
+std::string describe_cycle(const std::vector<std::string>& path, const std::string& at) {
+  std::string text;
+  for (auto it = std::find(path.begin(), path.end(), at); it != path.end(); ++it) text += *it + " -> ";
+  return text + at;
+}
+
+}  // namespace
+
 // Whose agent `id` is on every node `tahvel up` runs (so no child node may have it), or null.
 const char* agent_id_in_use(const std::string& id) {
   if (id == "link" || id == "uplink") return "the node's link (its communication agent)";
@@ -278,15 +287,6 @@ const char* agent_id_in_use(const std::string& id) {
   if (id == agents::DispatcherOptions{}.agent_id) return "the node's dispatcher, which takes every item addressed to it";
   return nullptr;
 }
-
-// "a -> b -> a" for the cycle of `path` (parents followed from path[0]) that starts at `at`.
-std::string describe_cycle(const std::vector<std::string>& path, const std::string& at) {
-  std::string text;
-  for (auto it = std::find(path.begin(), path.end(), at); it != path.end(); ++it) text += *it + " -> ";
-  return text + at;
-}
-
-}  // namespace
 
 const LinkSpec* Topology::uplink(const NodeSpec& child) const {
   const NodeSpec* parent = node(child.parent);

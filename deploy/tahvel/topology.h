@@ -72,6 +72,10 @@ struct Topology {
   const LinkSpec* uplink(const NodeSpec& child) const;
 };
 
+// What agent `id` is on every node `tahvel up` runs ("the node's link (its communication
+// agent)"), so that no child node and no topology agent may take it; null for any other id.
+const char* agent_id_in_use(const std::string& id);
+
 // Reads and checks FILE: TOML syntax; unique node ids; every parent exists, no cycles; a child's
 // IRI is its parent's IRI + "/" + its id (derived when omitted); a parent with children has a
 // `listen` (one table, or an array with at most one per kind), and a child whose parent listens
