@@ -846,14 +846,24 @@ node::Pattern forward_pattern_of(const NodeSpec& spec, std::size_t i, const uri:
   }
 }
 
-// Warns about a `forward` pattern that names a tv: term the vocabulary does not have: no item of
-// Tahvel's has it, so the pattern forwards nothing (a misspelt class, say), and nothing else
+// Warns about a `forward` pattern that names a tv: term the vocabulary does not have, or a near
+// miss of a SOSA term: no item of Tahvel's has it, so the pattern forwards nothing (a misspelt class, say), and nothing else
 // would say so. A warning, not a refusal: an agent of the deployment's own may write such terms.
 void warn_of_unknown_terms(const NodeSpec& spec, std::size_t i, const node::Pattern& pattern) {
   const std::string& text = spec.forward[i];
   constexpr std::string_view kTv = federation::vocab::kTv;
+  constexpr std::string_view kSosa = "http://www.w3.org/ns/sosa/";
   for (const auto* term : {&pattern.s, &pattern.p, &pattern.o}) {
-    if (!*term || !(*term)->is_iri() || !(*term)->value.starts_with(kTv)) continue;
+    if (!*term || !(*term)->is_iri()) continue;
+    if ((*term)->value.starts_with(kSosa)) {
+      const std::string_view local = std::string_view((*term)->value).substr(kSosa.size());
+      if (auto near = sosa_term_misspelt(local))
+        std::cerr << "up: warning: " << spec.forward_place(i) << ": node '" << spec.id << "': forward: pattern '" << text << "': sosa:" << local
+                  << " is not a term of SOSA (http://www.w3.org/ns/sosa/); did you mean sosa:" << *near
+                  << "? Only items that an agent of the deployment's own writes with it will go up\n";
+      continue;
+    }
+    if (!(*term)->value.starts_with(kTv)) continue;
     const std::string_view local = std::string_view((*term)->value).substr(kTv.size());
     if (is_tahvel_term(local)) continue;
     std::cerr << "up: warning: " << spec.forward_place(i) << ": node '" << spec.id << "': forward: pattern '" << text << "': tv:" << local

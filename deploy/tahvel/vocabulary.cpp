@@ -5,6 +5,7 @@
 
 #include <algorithm>
 #include <array>
+#include <iterator>
 #include <vector>
 
 namespace tahvel::cli {
@@ -158,6 +159,30 @@ constexpr std::array kTerms = {
     std::string_view("zAgainstOthers"),
 };
 
+// SOSA's terms (https://www.w3.org/TR/vocab-ssn/, the 2017 core and terms the 2023 edition
+// adds), sorted: `forward` patterns name them as often as tv: ones. A deployment may use terms of
+// a later edition, so only a near miss of one of these is warned of.
+constexpr std::string_view kSosaTerms[] = {
+    "ActuatableProperty", "Actuation", "Actuator", "FeatureOfInterest", "ObservableProperty", "Observation",
+    "ObservationCollection", "Platform", "Procedure", "Result", "Sample", "Sampler", "Sampling", "Sensor",
+    "actsOnProperty", "hasFeatureOfInterest", "hasMember", "hasOriginalSample", "hasResult", "hasSample",
+    "hasSimpleResult", "hasUltimateFeatureOfInterest", "hosts", "isActedOnBy", "isFeatureOfInterestOf",
+    "isHostedBy", "isObservedBy", "isResultOf", "isSampleOf", "madeActuation", "madeByActuator", "madeBySampler",
+    "madeBySensor", "madeObservation", "madeSampling", "observedProperty", "observes", "phenomenonTime",
+    "resultTime", "usedProcedure",
+};
+
+template <typename Terms>
+std::optional<std::string_view> nearest_of(const Terms& terms, std::string_view local_name, std::size_t within) {
+  std::optional<std::string_view> best;
+  std::size_t best_edits = within + 1;
+  for (std::string_view term : terms) {
+    const std::size_t e = edit_distance(local_name, term);
+    if (e < best_edits) best_edits = e, best = term;
+  }
+  return best;
+}
+
 }  // namespace
 
 std::size_t edit_distance(std::string_view a, std::string_view b) {
@@ -180,13 +205,13 @@ bool is_tahvel_term(std::string_view local_name) {
 }
 
 std::optional<std::string_view> nearest_tahvel_term(std::string_view local_name) {
-  std::optional<std::string_view> best;
-  std::size_t best_edits = 4;  // more than 3 edits away is another word, not a slip
-  for (std::string_view term : kTerms) {
-    const std::size_t e = edit_distance(local_name, term);
-    if (e < best_edits) best_edits = e, best = term;
-  }
-  return best;
+  return nearest_of(kTerms, local_name, 3);  // more than 3 edits away is another word, not a slip
+}
+
+std::optional<std::string_view> sosa_term_misspelt(std::string_view local_name) {
+  if (std::binary_search(std::begin(kSosaTerms), std::end(kSosaTerms), local_name)) return std::nullopt;
+  // Two edits, not three: a term of a later edition should not be taken for a slip.
+  return nearest_of(kSosaTerms, local_name, 2);
 }
 
 }  // namespace tahvel::cli

@@ -18,4 +18,8 @@ bool is_tahvel_term(std::string_view local_name);
 // The term nearest to `local_name` within three edits (a misspelling), if any.
 std::optional<std::string_view> nearest_tahvel_term(std::string_view local_name);
 
+// For a name after "sosa:" that is not a SOSA term: the term it is within two edits of (a
+// misspelling, "observedPropery"), if any. Null for a term and for a name near none.
+std::optional<std::string_view> sosa_term_misspelt(std::string_view local_name);
+
 }  // namespace tahvel::cli

@@ -3128,14 +3128,15 @@ TEST_F(Cli, UpRefusesADdsLinkWhoseCycloneddsUriNamesAFileThatCannotBeRead) {
 // starts, what left the file stops, a program whose command changed restarts, the rest runs on
 // with the same pid. A file that does not check is refused and changes nothing.
 // What `up` cannot refuse but an integrator must hear of: a forwarding pattern naming a tv: term
-// that nothing of Tahvel's writes (a misspelling forwards nothing), and a node left with the
+// that nothing of Tahvel's writes or a misspelt SOSA one (a misspelling forwards nothing), and a node left with the
 // default policy (a sensor node without `forward` sends its raw signal nowhere), said once.
 TEST_F(Cli, UpWarnsOfAForwardTermOutsideTheVocabularyAndSaysOnceWhenTheDefaultPolicyApplies) {
   const std::string file = (tmp_ / "t.toml").string(), state = (tmp_ / "state").string();
   spit(file, "[[node]]\nid = \"hospital\"\niri = \"http://example.org/hospital\"\n"
              "listen = { kind = \"lcm\", url = \"udpm://239.255.76.67:7721?ttl=0\" }\n"
              "[[node]]\nid = \"home1\"\nparent = \"hospital\"\n"
-             "forward = [\"_ sosa:observedProperty tv:HeartRateVariabilty\", \"_ a tv:EcgChunk\"]\n"
+             "forward = [\"_ sosa:observedProperty tv:HeartRateVariabilty\", \"_ a tv:EcgChunk\", "
+             "\"_ sosa:observedPropery tv:RrSeries\", \"_ sosa:hasDeployment _\"]\n"
              "[[node]]\nid = \"home2\"\nparent = \"hospital\"\n");
   Outcome first = run({"up", file, "--state", state});
   ASSERT_EQ(first.status, 0) << first.err;
@@ -3145,6 +3146,12 @@ TEST_F(Cli, UpWarnsOfAForwardTermOutsideTheVocabularyAndSaysOnceWhenTheDefaultPo
             std::string::npos)
       << first.err;
   EXPECT_EQ(first.err.find("tv:EcgChunk is not"), std::string::npos) << first.err;
+  // A SOSA term misspelt; a SOSA name near none (perhaps of a later edition) is not warned of.
+  EXPECT_NE(first.err.find("node 'home1': forward: pattern '_ sosa:observedPropery tv:RrSeries': sosa:observedPropery is not a "
+                           "term of SOSA (http://www.w3.org/ns/sosa/); did you mean sosa:observedProperty?"),
+            std::string::npos)
+      << first.err;
+  EXPECT_EQ(first.err.find("hasDeployment is not"), std::string::npos) << first.err;
   EXPECT_NE(first.out.find("up: home2: no forward in the file, so only HRV windows go up to 'hospital' (the default); "
                            "raw signals stay on the node\n"),
             std::string::npos)
