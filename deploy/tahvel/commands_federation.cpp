@@ -788,8 +788,11 @@ std::vector<ProgramRow> read_state_files(const fs::path& dir) {
                           "), so nothing restarts it now"
                     : "");
       else if (file.supervised && file.silent_s > kSupervisorSilentS)
+        // Whether its process is still there is known here (it has not exited: checked above);
+        // whether it does its work is not.
         f[2] = "unknown: its supervisor has not written its state for " + seconds_text(file.silent_s) + " (" +
-               why_state_not_written(dir) + "); it last said " + f[2];
+               why_state_not_written(dir) + "); it last said " + f[2] +
+               (f[2] == "running" ? ", and its process (pid " + f[1] + ") is still there" : "");
       rows.push_back({f[0], f[1], f[2], f[3], f[4]});
     }
   }

@@ -3275,7 +3275,7 @@ TEST_F(Cli, AStoppedSupervisorsProgramsAreShownAsUnknownAndUpSaysItWillNotAnswer
   Outcome up = run({"up", file, "--state", state});
   kill(supervisor, SIGCONT);
   EXPECT_NE(shown.out.find("idle  unknown: its supervisor has not written its state for "), std::string::npos) << shown.out;
-  EXPECT_NE(shown.out.find("(stopped, hung or held up); it last said running"), std::string::npos) << shown.out;
+  EXPECT_NE(shown.out.find("(stopped, hung or held up); it last said running, and its process (pid "), std::string::npos) << shown.out;
   EXPECT_EQ(up.status, 1);
   EXPECT_NE(up.err.find("the supervisor " + std::to_string(supervisor) + " has not written its state for "), std::string::npos) << up.err;
   EXPECT_TRUE(eventually([&] { return run({"status", "--state", state}).out.find("idle  running (pid") != std::string::npos; }));
