@@ -2,9 +2,11 @@
 #include <algorithm>
 #include <cmath>
 #include <cstdio>
+#include <filesystem>
 
 #include "tahvel/aggregation/pipeline.h"
 
+#include "tahvel/aggregation/annotations.h"
 #include "tahvel/aggregation/wfdb.h"
 
 namespace tahvel::aggregation {
@@ -118,6 +120,28 @@ std::optional<std::string> flat_runs_warning(const std::vector<std::int32_t>& sa
   return std::string(text);
 }
 
+std::optional<std::string> paced_beats_warning(const std::string& record_path) {
+  const std::string file = record_path + ".atr";
+  std::error_code ec;
+  if (!std::filesystem::is_regular_file(file, ec)) return std::nullopt;
+  auto annotations = read_annotations(record_path, "atr");
+  if (!annotations)
+    return annotations.error().message + ": its beat labels were not read, so whether the rhythm is paced is not known";
+  std::size_t beats = 0, paced = 0;
+  for (const Annotation& a : *annotations) {
+    if (!is_beat(a.code)) continue;
+    ++beats;
+    if (a.code == '/' || a.code == 'f') ++paced;
+  }
+  if (beats == 0 || 100.0 * static_cast<double>(paced) < kPacedPct * static_cast<double>(beats)) return std::nullopt;
+  char text[400];
+  std::snprintf(text, sizeof text,
+                "%s labels %zu of its %zu beats (%.0f %%) paced ('/') or pacemaker fusion ('f'): the intervals of a "
+                "paced rhythm are the pacemaker's, and their HRV says little of the heart's own regulation",
+                file.c_str(), paced, beats, 100.0 * static_cast<double>(paced) / static_cast<double>(beats));
+  return std::string(text);
+}
+
 Result<HrvReport> hrv_from_record(const std::string& record_path, const ChainOptions& options,
                                   std::size_t channel) {
   auto signals = read_signals(record_path);
@@ -143,7 +167,8 @@ Result<HrvReport> hrv_from_record(const std::string& record_path, const ChainOpt
   if (auto units = non_voltage_warning(signals->header, channel)) report->warnings.push_back(*units);
   if (auto irregular = irregular_rhythm_warning(report->metrics, gap_count(report->intervals, report->fs, options.nn),
                                                 options.nn.max_interval_s))
-    report->warnings.push_back(*irregular);
+    report->rhythm_warnings.push_back(*irregular);
+  if (auto paced = paced_beats_warning(record_path)) report->rhythm_warnings.push_back(*paced);
   // A flat signal (a lead off, a channel of zeros) gives no beat, and every metric null: said,
   // so that it is not read as a record without HRV for another reason.
   // With other signals in the record, the lead chosen may be the wrong one (an unnamed ECG after

@@ -183,6 +183,7 @@ int run_eval(const Args& args, const agg::ChainOptions& options, std::size_t sig
       continue;
     }
     // Several records: each warning says whose it is (a checksum's names its header already).
+    // What the signal's rhythm means for HRV (irregular, paced) says nothing of the scoring.
     for (const std::string& warning : report->warnings)
       std::cerr << "tahvel: warning: " << (warning.starts_with(record) ? "" : record + ": ") << warning << "\n";
     auto reference = agg::read_annotations(record, "atr");
@@ -501,8 +502,9 @@ int run_hrv(const Args& args) {
   auto report = agg::hrv_from_record(record, options, checked_signal(record, signal));
   if (!report) fail(report.error().message);
   // Said as with --eval: whose warning it is, when the warning does not name the file itself.
-  for (const std::string& warning : report->warnings)
-    std::cerr << "tahvel: warning: " << (warning.starts_with(record) ? "" : record + ": ") << warning << "\n";
+  for (const auto* warnings : {&report->warnings, &report->rhythm_warnings})
+    for (const std::string& warning : *warnings)
+      std::cerr << "tahvel: warning: " << (warning.starts_with(record) ? "" : record + ": ") << warning << "\n";
   if (args.has("--json")) {
     print_report_json(record, *report);
   } else {

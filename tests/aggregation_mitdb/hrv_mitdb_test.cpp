@@ -87,8 +87,33 @@ TEST(HrvMitdbWarning, RecordsWithFrequentEctopicBeatsAreWarnedOf) {
     auto report = hrv_from_record(mitdb_record(name));
     ASSERT_TRUE(report) << report.error().message;
     bool warned = false;
-    for (const std::string& w : report->warnings) warned |= w.find("an irregular rhythm") != std::string::npos;
+    for (const std::string& w : report->rhythm_warnings) warned |= w.find("an irregular rhythm") != std::string::npos;
     EXPECT_TRUE(warned) << name << ": irregular " << report->metrics.irregular_pct.value_or(-1) << " %";
+  }
+}
+
+// The paced records (102, 107: paced throughout; 104, 217: paced and fusion beats among sinus
+// ones) gave confident HRV without a word: their intervals are the pacemaker's. The reference
+// labels say so; records without paced beats are not warned of.
+TEST(HrvMitdbWarning, RecordsWhoseReferenceLabelsPacedBeatsAreWarnedOf) {
+  auto paced_warning = [](const HrvReport& report) {
+    for (const std::string& w : report.rhythm_warnings)
+      if (w.find(" paced ('/') or pacemaker fusion ('f'): ") != std::string::npos) return w;
+    return std::string();
+  };
+  for (const char* name : {"102", "104", "107", "217"}) {
+    auto report = hrv_from_record(mitdb_record(name));
+    ASSERT_TRUE(report) << report.error().message;
+    EXPECT_NE(paced_warning(*report), "") << name;
+  }
+  auto report = hrv_from_record(mitdb_record("107"));
+  ASSERT_TRUE(report) << report.error().message;
+  EXPECT_EQ(paced_warning(*report).rfind(mitdb_record("107") + ".atr labels 2078 of its 2137 beats (97 %) paced", 0), 0u)
+      << paced_warning(*report);
+  for (const char* name : {"100", "200", "219"}) {
+    auto plain = hrv_from_record(mitdb_record(name));
+    ASSERT_TRUE(plain) << plain.error().message;
+    EXPECT_EQ(paced_warning(*plain), "") << name;
   }
 }
 

@@ -1413,12 +1413,27 @@ TEST_F(Cli, HrvEvalScoresAgainstTheReferenceAnnotations) {
   EXPECT_NE(r.out.find("+P"), std::string::npos);
 }
 
-// Several records scored at once: a warning says which record it is about.
-TEST_F(Cli, HrvEvalOfSeveralRecordsNamesTheRecordOfEachWarning) {
-  Outcome r = run({"hrv", mitdb_record("100"), mitdb_record("200"), "--eval"});
+// Several records scored at once: a warning says which record it is about. What a record's
+// rhythm means for HRV (200's irregular, 107's paced) says nothing of the scoring: plain
+// `tahvel hrv` says it, --eval does not (a researcher scoring took it for a scoring problem).
+TEST_F(Cli, HrvEvalOfSeveralRecordsNamesTheRecordOfEachWarningAndLeavesOutWhatTheRhythmMeansForHrv) {
+  fs::create_directories(tmp_ / "flat");
+  spit(tmp_ / "flat" / "f.hea", "f 1 360 21600\nf.dat 16 200 16 0 0 0 0 II\n");
+  spit(tmp_ / "flat" / "f.dat", std::string(43200, '\0'));  // a minute of zeros: a lead off
+  spit(tmp_ / "flat" / "f.atr", std::string(2, '\0'));
+  const std::string flat = (tmp_ / "flat" / "f").string();
+  Outcome r = run({"hrv", mitdb_record("100"), mitdb_record("200"), mitdb_record("107"), flat, "--eval"});
   ASSERT_EQ(r.status, 0) << r.err;
-  EXPECT_NE(r.err.find("tahvel: warning: " + mitdb_record("200") + ": an irregular rhythm"), std::string::npos) << r.err;
+  EXPECT_NE(r.err.find("tahvel: warning: " + flat + ": 60.0 s of signal 0 (II) hold one value"), std::string::npos) << r.err;
+  EXPECT_NE(r.err.find("tahvel: warning: " + flat + ": 0 beat(s) found"), std::string::npos) << r.err;
+  EXPECT_EQ(r.err.find("irregular rhythm"), std::string::npos) << r.err;
+  EXPECT_EQ(r.err.find("paced"), std::string::npos) << r.err;
   EXPECT_EQ(r.err.find(mitdb_record("100")), std::string::npos) << r.err;
+  const Outcome paced = run({"hrv", mitdb_record("107")});
+  ASSERT_EQ(paced.status, 0) << paced.err;
+  EXPECT_NE(paced.err.find("tahvel: warning: " + mitdb_record("107") + ".atr labels 2078 of its 2137 beats (97 %) paced ('/') or "
+                           "pacemaker fusion ('f')"),
+            std::string::npos) << paced.err;
 }
 
 // A missing record in a list stopped the run there, the records after it unscored and no totals

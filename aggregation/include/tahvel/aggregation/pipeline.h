@@ -28,13 +28,24 @@ struct HrvReport {
   double fs = 0;
   double duration_s = 0;             // the signal's length: where its last windows end
   std::size_t signal = 0;            // hrv_from_record: the record's signal that was read
-  std::vector<std::string> warnings; // hrv_from_record: checksum_mismatches of the record, and
-                                     // irregular_rhythm_warning of the whole record
+  std::vector<std::string> warnings; // hrv_from_record: what was read wrong or not at all (a
+                                     // checksum, no-value samples, flat runs, no beats): what
+                                     // both HRV and beat scoring must know
+  std::vector<std::string> rhythm_warnings;  // hrv_from_record: why the HRV of this rhythm may
+                                     // not mean what HRV means (irregular_rhythm_warning of the
+                                     // whole record, paced_beats_warning), beats aside
   std::vector<std::int64_t> beats;   // detected R peaks, sample indices
   std::vector<Interval> intervals;   // consecutive beats, NN-marked
   HrvMetrics metrics;                // the whole series
   std::vector<WindowMetrics> windows;
 };
+
+// When the record's reference annotations ("<record_path>.atr", if there is one) label at least
+// kPacedPct percent of its beats paced ('/') or pacemaker fusion ('f'): how many, and that the
+// intervals of a paced rhythm are the pacemaker's, which RR alone cannot tell. Nullopt without
+// such a file or below the share; a file that cannot be read is said.
+inline constexpr double kPacedPct = 10;
+std::optional<std::string> paced_beats_warning(const std::string& record_path);
 
 // How many intervals of a series are longer than rule.max_interval_s at fs Hz: the gaps that
 // intervals_from_peaks never takes as NN, whatever the rhythm.
