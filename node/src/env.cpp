@@ -813,15 +813,19 @@ void Env::end_read(MDB_txn* txn) {
   }
 }
 
-Result<void> Env::grow(WriteKind kind) {
+Result<void> Env::grow(WriteKind kind, std::uint64_t removal_copy_bytes) {
   std::unique_lock lock(growth_mutex_);
   MDB_envinfo info;
   mdb_env_info(env_, &info);
   std::uint64_t current = info.me_mapsize;
   // Removal needs pages too (LMDB copies on write): a reserve beyond the maximum is kept for
-  // it, so that a full store can always be emptied.
+  // it, so that a full store can always be emptied. A record's copy into the removal log is one
+  // run of pages, as long as its literal (up to max_literal_bytes, 1 MB by default, which the
+  // reserve of a small store is not): room for two, since the pages the last removal's copy
+  // freed are not reused by the next transaction. A 1 MiB store holding 300 KB literals could
+  // not be emptied.
   std::uint64_t limit = settings_.max_map_bytes;
-  if (kind == WriteKind::removal) limit += removal_reserve(limit);
+  if (kind == WriteKind::removal) limit += removal_reserve(limit) + 2 * removal_copy_bytes;
   if (current >= limit)
     return fail(Errc::store_full, "store full: " + dir_.string() + " reached its maximum of " +
                                       std::to_string(settings_.max_map_bytes) + " bytes");
@@ -1114,7 +1118,7 @@ Result<void> Env::write(const std::function<Result<void>(Txn&)>& body, WriteKind
         dead_readers_cleared = true;
         continue;
       }
-      if (auto g = grow(kind); !g) return g;
+      if (auto g = grow(kind, kind == WriteKind::removal ? bound.large_term_bytes : 0); !g) return g;
       continue;
     }
     if (!result) return result;

@@ -235,7 +235,8 @@ class Env {
   // store_full. Any error from `body` aborts: nothing is written. Removals may grow into a
   // reserve beyond the maximum, so that a full store can always be emptied.
   // `bound` bounds what `body` may add to the data file (write_bound, write.h): the disk
-  // reserve covers it before the transaction starts.
+  // reserve covers it before the transaction starts. A removal's `bound.large_term_bytes` is
+  // its largest record's copy into the removal log (see grow()).
   Result<void> write(const std::function<Result<void>(Txn&)>& body, WriteKind kind = WriteKind::data,
                      WriteBound bound = {});
 
@@ -302,7 +303,10 @@ class Env {
   // Opens the tables added since format 2; false (and nothing opened) when the store has not
   // got them yet and `create` is false.
   Result<bool> open_later_tables(MDB_txn* txn, bool create);
-  Result<void> grow(WriteKind kind);
+  // Grows the map, up to max_map_bytes, or for a removal into the reserve beyond it, and further
+  // by twice `removal_copy_bytes`: the run of pages a record's copy into the removal log takes
+  // (R17), which a record with a literal larger than the reserve would not find there.
+  Result<void> grow(WriteKind kind, std::uint64_t removal_copy_bytes = 0);
   // mdb_env_info and mdb_env_stat under growth_mutex_ held shared: they read LMDB's meta pages,
   // inside the map, which another thread's grow() may be moving. (Within a transaction of this
   // process the map cannot move, and they may be called directly.)

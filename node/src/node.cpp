@@ -1196,7 +1196,14 @@ Result<std::uint64_t> remove_records(Env& env, Reach reach,
     }
     const std::uint64_t end_before = env.pages_end_bytes();
     const std::span<const std::uint64_t> slice(ids.data() + at, std::min(part, ids.size() - at));
-    auto done = env.write([&](Txn& txn) { return remove_ids(txn, slice); }, WriteKind::removal);
+    // What the part may copy into the removal log, and its longest copy (one run of pages): the
+    // map may grow beyond the removals' reserve for it.
+    WriteBound bound;
+    for (std::size_t i = at; i < at + slice.size(); ++i) {
+      bound.bytes += copies[i];
+      if (long_copy[i]) bound.large_term_bytes = std::max(bound.large_term_bytes, copies[i]);
+    }
+    auto done = env.write([&](Txn& txn) { return remove_ids(txn, slice); }, WriteKind::removal, bound);
     if (!done && done.error().code == Errc::store_full && !advanced) {
       // LMDB reuses the pages a transaction freed from the second transaction after it on: a
       // full store's next part found none, and every smaller one was the same first transaction

@@ -810,6 +810,38 @@ TEST(Store, RemovingAThirdOfASmallFullStoreMakesRoomForMore) {
   }
 }
 
+// A removed record's copy in the removal log (R17) is one run of pages as long as its literal:
+// a 1 MiB store full of 200-300 KB literals (the limit is 1 MB) could not remove a record, since
+// the removals' reserve beyond the maximum (192 KB) is shorter than one copy: neither one item
+// nor a pattern went, and the store could not be emptied. Every removal goes now, and the store
+// takes data again.
+TEST(Store, AFullStoreOfLiteralsLongerThanTheRemovalsReserveCanBeEmptied) {
+  TempDir dir;
+  Node node = make_node(dir.path(), {.max_map_bytes = 1 << 20});
+  auto agent = node.agent("w");
+  std::vector<std::uint64_t> items;
+  for (int n = 0;; ++n) {
+    const std::size_t bytes = n % 2 == 0 ? 300'000 : 200'000;
+    auto stored = agent->store(Item{}.add(ex("s"), ex("p"), Term::literal(std::string(bytes, static_cast<char>('a' + n)))));
+    if (!stored) {
+      ASSERT_EQ(stored.error().code, Errc::store_full) << stored.error().message;
+      break;
+    }
+    items.push_back(*stored);
+  }
+  ASSERT_GE(items.size(), 2u);
+  // A small write still fits beside them.
+  ASSERT_TRUE(agent->store(Item{}.add(ex("s"), ex("q"), Term::integer(1))));
+  auto one = node.remove_item(items.front());
+  ASSERT_TRUE(one) << one.error().message;
+  auto rest = node.remove({.p = ex("p")});
+  ASSERT_TRUE(rest) << rest.error().message;
+  EXPECT_EQ(*rest, items.size() - 1);
+  EXPECT_EQ(*node.snapshot()->count({.p = ex("p")}), 0u);
+  auto after = agent->store(Item{}.add(ex("s"), ex("p"), Term::literal(std::string(200'000, 'z'))));
+  EXPECT_TRUE(after) << after.error().message;
+}
+
 // Stores item_of(0), item_of(1), ... in transactions of 200 until the store is full; returns how
 // many were stored (0 after a failure other than store_full).
 std::uint64_t fill_until_full(Agent& agent, const std::function<Item(std::uint64_t)>& item_of) {
