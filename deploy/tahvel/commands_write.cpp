@@ -234,7 +234,8 @@ void warn_of_unknown_addressee(const node::Node& node, const node::Item& item, c
     return found || !read;  // a read error is not the user's mistake
   };
   const std::string tv(uri::kTahvelNs);
-  if (any({.s = who}) || any({.p = node::Term::iri(tv + "subscriber"), .o = who})) return;
+  // Known if anything is said of it, it subscribes, or it (or an agent under it) has written.
+  if (any({.s = who}) || any({.p = node::Term::iri(tv + "subscriber"), .o = who}) || any({.source = *agent})) return;
   std::set<std::string> children;  // the child nodes' states name them (docs/protocol.md P12)
   auto listed = snapshot->list({.p = node::Term::iri(tv + "linkState")});
   if (listed)

@@ -87,7 +87,23 @@ class Checker {
     while (walk.next(id, v)) {
       term_ids_.push_back(id);
       ++report.terms;
-      if (auto term = reader.get(id, false, false); !term) problem("term " + std::to_string(id) + ": " + term.error().message);
+      auto term = reader.get(id, false, false);
+      if (!term) {
+        problem("term " + std::to_string(id) + ": " + term.error().message);
+        continue;
+      }
+      // LMDB checksums no page: a page overwritten in the middle of a long literal still
+      // decodes. What the store never writes (ill-formed UTF-8), and text that no longer hashes
+      // to its own entry, is a damaged term, which a dump would copy out as it is.
+      bool named = false;  // one problem per term
+      for (const std::string* part : {&term->value, &term->datatype, &term->language})
+        if (const std::size_t at = ill_formed_utf8_at(*part); !named && at != std::string::npos) {
+          problem("term " + std::to_string(id) + ": not UTF-8 at byte " + std::to_string(at) + " of its " +
+                  (part == &term->value ? "text" : part == &term->datatype ? "datatype" : "language tag") + " (damaged)");
+          named = true;
+        }
+      if (auto found = find_term(txn_, env_, *term); !named && found && *found != id)
+        problem("term " + std::to_string(id) + ": its text is not found under its own hash (damaged, or its hash entry is)");
     }
     ended(walk, "terms", id);
     Walk hashes(txn_, env_.term_hash);

@@ -538,17 +538,28 @@ Result<void> Env::make_store(const std::filesystem::path& dir, const InitOptions
     registry.erase({getpid(), building.string()});
     std::filesystem::remove_all(building, ec);
   };
+  // The error of a write into the store being made names the directory it is made in, which
+  // is gone by then, and a full store's way out: there is no store yet to remove records from.
+  auto making_failed = [&](Error error) {
+    for (std::size_t at; (at = error.message.find(building.string())) != std::string::npos;)
+      error.message.replace(at, building.string().size(), dir.string());
+    if (error.code == Errc::store_full)
+      for (const std::string_view removal : {", or remove records from the store,", ", remove records"})
+        if (const std::size_t at = error.message.find(removal); at != std::string::npos) error.message.erase(at, removal.size());
+    error.message = "making a store in " + dir.string() + ": " + error.message + "; nothing was made";
+    return unexpected(std::move(error));
+  };
   {
     auto made = open_at(building, &init);
     if (!made) {
       cleanup();
-      return unexpected(made.error());
+      return making_failed(made.error());
     }
     if (first_write) {
       if (auto written = first_write(**made); !written) {
         *made = nullptr;  // closed before its directory goes
         cleanup();
-        return unexpected(written.error());
+        return making_failed(written.error());
       }
     }
   }  // closed: its data file is complete (and synced when durable)

@@ -24,7 +24,35 @@ bool holds_at_or_after(const ItemRow& meta, std::int64_t since) {
 
 }  // namespace
 
+namespace {
+
+// A pattern no record could match because it is ill-formed, not because nothing matches: said,
+// as the C API and subscriptions say it, rather than answered with nothing (a relative IRI, a
+// literal subject).
+Result<void> check_pattern(const Pattern& pattern) {
+  const char* names[3] = {"subject", "predicate", "object"};
+  const std::optional<Term>* terms[3] = {&pattern.s, &pattern.p, &pattern.o};
+  for (int k = 0; k < 3; ++k) {
+    const std::optional<Term>& term = *terms[k];
+    if (!term) continue;
+    const std::string what = std::string("pattern ") + names[k] + " " + term->to_ntriples();
+    if (term->is_iri() && !uri::is_valid(term->value)) return fail(Errc::invalid_iri, what + ": not an absolute IRI");
+    if (k == 0 && term->is_literal()) return fail(Errc::invalid_argument, what + ": a subject cannot be a literal");
+    if (k == 1 && !term->is_iri()) return fail(Errc::invalid_argument, what + ": a predicate must be an IRI");
+  }
+  if (pattern.under && !uri::is_valid(*pattern.under))
+    return fail(Errc::invalid_iri, "pattern under <" + *pattern.under + ">: not an absolute IRI");
+  if (pattern.source && !pattern.source->empty() && !uri::is_valid(*pattern.source))
+    return fail(Errc::invalid_iri, "pattern source <" + *pattern.source + ">: not an absolute IRI");
+  if (pattern.context && !pattern.context->empty() && !uri::is_valid(*pattern.context))
+    return fail(Errc::invalid_iri, "pattern context <" + *pattern.context + ">: not an absolute IRI");
+  return {};
+}
+
+}  // namespace
+
 Result<Query::Bound> Query::resolve(const Pattern& pattern) {
+  if (auto checked = check_pattern(pattern); !checked) return unexpected(checked.error());
   Bound b;
   auto one = [&](const std::optional<Term>& term, std::uint64_t& id) -> Result<void> {
     if (!term) return {};

@@ -890,10 +890,17 @@ TEST_F(Cli, PutAndLoadWarnOfAContextAddressingAnAgentNothingOnTheNodeKnows) {
       EXPECT_EQ(known.status, 0) << known.err;
       EXPECT_EQ(known.err.find("warning"), std::string::npos) << command << " " << context << ": " << known.err;
     }
-    // Written by that agent itself, the item is no one's (R18): nothing waits.
+  }
+  // Written by that agent itself, the item is no one's (R18): nothing waits.
+  for (const char* command : {"put", "load"}) {
     Outcome own = run({command, node_, file, "--agent", "gw9", "--context", kNodeIri + "/gw9/hrv"});
     EXPECT_EQ(own.err.find("warning"), std::string::npos) << own.err;
   }
+  // An agent that has written is known, though nothing is said of it and it subscribes to nothing.
+  put("<http://example.org/a> <http://example.org/p> 5 .\n", {"--agent", "writer1"});
+  Outcome known_writer = run({"put", node_, file, "--context", kNodeIri + "/writer1"});
+  EXPECT_EQ(known_writer.status, 0) << known_writer.err;
+  EXPECT_EQ(known_writer.err.find("warning"), std::string::npos) << known_writer.err;
   Outcome waiting = run({"list", node_, "-p", "<http://example.org/windowSeconds>", "--context", kNodeIri + "/gw9/hrv"});
   EXPECT_EQ(lines_of(waiting.out).size(), 4u) << waiting.out;  // stored all the same
 }

@@ -4,6 +4,9 @@
 #include <lmdb.h>
 
 #include <cstring>
+#include <filesystem>
+#include <fstream>
+#include <iterator>
 #include <string>
 #include <vector>
 
@@ -46,6 +49,43 @@ bool delete_value(MDB_txn* txn, MDB_dbi dbi, std::uint64_t id) {
   }
   mdb_cursor_close(c);
   return deleted;
+}
+
+// LMDB checksums no page: bytes of a long literal overwritten in the file (a disk error, a
+// stray write) still decoded, `check` said the store held together, and `dump` copied the
+// garbage out as N-Triples that `load` refused. Text the store never writes (ill-formed UTF-8)
+// and text that no longer hashes to its own entry are named.
+TEST(Check, ALongLiteralWhoseBytesWereOverwrittenInTheFileIsNamedAsDamaged) {
+  TempDir dir;
+  const std::string literal(400'000, 'q');
+  std::uint64_t other = 0;
+  {
+    Node node = make_node(dir.path());
+    auto writer = node.agent("w").value();
+    ASSERT_TRUE(writer.store(Item{}.add(ex("a"), ex("p"), Term::literal(literal))));
+    other = writer.store(Item{}.add(ex("b"), ex("p"), Term::literal(std::string(300'000, 'r')))).value();
+  }
+  ASSERT_GT(other, 0u);
+  const std::filesystem::path data = dir.path() / "data.mdb";
+  std::fstream file(data, std::ios::in | std::ios::out | std::ios::binary);
+  std::string bytes((std::istreambuf_iterator<char>(file)), {});
+  // Two runs of 8 KB in the middle of each literal: random-looking bytes in one, valid ASCII in
+  // the other (only its hash tells).
+  const std::size_t q = bytes.find(std::string(100'000, 'q')), r = bytes.find(std::string(100'000, 'r'));
+  ASSERT_NE(q, std::string::npos);
+  ASSERT_NE(r, std::string::npos);
+  for (std::size_t i = 0; i < 8192; ++i) bytes[q + 50'000 + i] = static_cast<char>(0x80 + i % 0x7f);
+  for (std::size_t i = 0; i < 8192; ++i) bytes[r + 50'000 + i] = 'x';
+  file.seekp(0);
+  file.write(bytes.data(), static_cast<std::streamsize>(bytes.size()));
+  file.close();
+
+  Node node = Node::open(dir.path()).value();
+  auto report = node.check();
+  ASSERT_TRUE(report) << report.error().message;
+  EXPECT_EQ(report->problems_found, 2u) << all(*report);
+  EXPECT_TRUE(mentions(*report, ": not UTF-8 at byte 50000 of its text (damaged)")) << all(*report);
+  EXPECT_TRUE(mentions(*report, ": its text is not found under its own hash (damaged, or its hash entry is)")) << all(*report);
 }
 
 // Items of every shape the write path handles differently: several triples, literals of several

@@ -618,6 +618,41 @@ TEST(Store, PatternWithBoundObjectFindsLiteral) {
   EXPECT_TRUE(node.snapshot()->list(p)->empty());
 }
 
+// A pattern no record could match because it is ill-formed (a literal subject, a relative IRI,
+// an `under` that is no IRI) answered OK and nothing from the C++ API, where the C API and
+// subscriptions refuse it: a caller's typo read as "no data". Every read and removal by pattern
+// says what is wrong with it.
+TEST(Store, AnIllFormedPatternIsRefusedNamingWhatIsWrongNotAnsweredWithNothing) {
+  TempDir dir;
+  Node node = make_node(dir.path());
+  ASSERT_TRUE(node.agent("w")->store(Item{}.add(ex("a"), ex("p"), Term::literal("x"))));
+  const std::vector<std::pair<Pattern, std::string>> bad = {
+      {Pattern{.s = Term::literal("x")}, "pattern subject \"x\": a subject cannot be a literal"},
+      {Pattern{.p = Term::literal("x")}, "pattern predicate \"x\": a predicate must be an IRI"},
+      {Pattern{.p = Term::iri("rel")}, "pattern predicate <rel>: not an absolute IRI"},
+      {Pattern{.o = Term::iri("")}, "pattern object <>: not an absolute IRI"},
+      {Pattern{.under = "bad iri"}, "pattern under <bad iri>: not an absolute IRI"},
+      {Pattern{.source = "w"}, "pattern source <w>: not an absolute IRI"},
+  };
+  {
+    auto snapshot = node.snapshot();
+    ASSERT_TRUE(snapshot);
+    for (const auto& [pattern, message] : bad) {
+      auto listed = snapshot->list(pattern);
+      ASSERT_FALSE(listed) << message;
+      EXPECT_EQ(listed.error().message, message);
+      EXPECT_FALSE(snapshot->count(pattern)) << message;
+      EXPECT_FALSE(snapshot->for_each(pattern, [](const Record&) { return true; })) << message;
+    }
+  }
+  auto removed = node.remove({.s = Term::literal("x")});
+  ASSERT_FALSE(removed);
+  EXPECT_EQ(removed.error().code, Errc::invalid_argument);
+  // An empty context stays what it means: the records without one.
+  EXPECT_EQ(*node.snapshot()->count({.context = ""}), 1u);
+  EXPECT_EQ(*node.snapshot()->count({}), 1u);
+}
+
 TEST(Store, InvalidIriIsRefusedAndNothingIsStored) {
   TempDir dir;
   Node node = make_node(dir.path());
