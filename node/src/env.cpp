@@ -546,6 +546,8 @@ Result<void> Env::make_store(const std::filesystem::path& dir, const InitOptions
     if (error.code == Errc::store_full)
       for (const std::string_view removal : {", or remove records from the store,", ", remove records"})
         if (const std::size_t at = error.message.find(removal); at != std::string::npos) error.message.erase(at, removal.size());
+    if (const std::size_t at = error.message.find(" and write again"); at != std::string::npos)
+      error.message.replace(at, 16, " and make it again");
     error.message = "making a store in " + dir.string() + ": " + error.message + "; nothing was made";
     return unexpected(std::move(error));
   };
