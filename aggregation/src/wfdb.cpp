@@ -10,6 +10,7 @@
 #include <cstring>
 #include <filesystem>
 #include <fstream>
+#include <limits>
 #include <sstream>
 #include <system_error>
 
@@ -54,6 +55,16 @@ bool parse_int(std::string_view s, Int& out) {
   if (s.empty()) return false;
   auto [p, ec] = std::from_chars(s.data(), s.data() + s.size(), out);
   return ec == std::errc() && p == s.data() + s.size();
+}
+
+// Why `s` did not parse as an Int: a number of digits beyond Int's range is said to be so (a
+// sample count of 10^20 was "not a non-negative integer"); anything else gets `otherwise`.
+template <class Int>
+std::string not_int_because(std::string_view s, const char* otherwise) {
+  if (!s.empty() && s.front() == '+') s.remove_prefix(1);  // a negative number is not non-negative
+  if (!s.empty() && s.find_first_not_of("0123456789") == std::string_view::npos)
+    return "out of range: at most " + std::to_string(std::numeric_limits<Int>::max());
+  return otherwise;
 }
 
 bool parse_double(std::string_view s, double& out) {
@@ -127,7 +138,7 @@ Result<bool> parse_record_line(std::string_view line, const Where& at, RecordHea
                                "multi-segment records are not supported"));
   h.name = std::string(name);
   if (!parse_int(t.items[1], h.signal_count) || h.signal_count < 0)
-    return fail(at.field_error("number of signals", t.items[1], "not a non-negative integer"));
+    return fail(at.field_error("number of signals", t.items[1], not_int_because<int>(t.items[1], "not a non-negative integer")));
   if (t.items.size() > 2) {
     std::string_view fs = t.items[2];
     // The counter frequency and base counter are not used, but a field that does not parse is
@@ -157,7 +168,7 @@ Result<bool> parse_record_line(std::string_view line, const Where& at, RecordHea
   if (t.items.size() > 3) {
     if (!parse_int(t.items[3], h.samples_per_signal) || h.samples_per_signal < 0)
       return fail(at.field_error("number of samples per signal", t.items[3],
-                                 "not a non-negative integer"));
+                                 not_int_because<std::int64_t>(t.items[3], "not a non-negative integer")));
   }
   // The base time and date are not used; checked so that a mangled record line is not read.
   if (t.items.size() > 4 && !is_base_time(t.items[4]))
@@ -227,7 +238,7 @@ Result<SignalInfo> parse_signal_line(std::string_view line, const Where& at) {
   if (t.items.size() > 2)
     if (auto r = parse_gain(t.items[2], at, s, has_baseline); !r) return fail(r.error().message);
   if (t.items.size() > 3 && (!parse_int(t.items[3], s.adc_resolution) || s.adc_resolution < 0))
-    return fail(at.field_error("ADC resolution", t.items[3], "not a non-negative integer"));
+    return fail(at.field_error("ADC resolution", t.items[3], not_int_because<int>(t.items[3], "not a non-negative integer")));
   if (t.items.size() > 4) {
     if (!parse_int(t.items[4], s.adc_zero))
       return fail(at.field_error("ADC zero", t.items[4], "not an integer"));
@@ -395,10 +406,19 @@ Result<SignalReader> SignalReader::open(const std::string& record_path) {
     std::int64_t found = values_in_bytes(g->format, std::max<std::int64_t>(0, size - offset)) /
                          static_cast<std::int64_t>(g->count);
     std::int64_t expected = r.header_.samples_per_signal;
-    if (expected > 0 && found < expected)
+    if (expected > 0 && found < expected) {
+      // A file of exactly the size the other format would take for the header's count was
+      // written in that format, not cut short: a header saying 16 over format-212 data.
+      std::string hint;
+      for (const int other : {212, 16})
+        if (other != g->format &&
+            values_in_bytes(other, std::max<std::int64_t>(0, size - offset)) / static_cast<std::int64_t>(g->count) == expected)
+          hint = "; its size is what format " + std::to_string(other) + " takes for that many: is the header's format (" +
+                 std::to_string(g->format) + ") that of the file?";
       return fail(g->path + ": truncated: expected " + std::to_string(expected) +
                   " samples per signal, found " + std::to_string(found) + " (" +
-                  std::to_string(size) + " bytes)");
+                  std::to_string(size) + " bytes)" + hint);
+    }
     g->in.seekg(offset);
     r.groups_.push_back(std::move(g));
     i = j;

@@ -449,6 +449,11 @@ TEST_F(WfdbTemp, RecordLineFieldsThatDoNotParseAreRefusedNamingTheField) {
       {"r 1 360 1 10:00:00 45/13/2003", "r.hea:1: field 'base date' ('45/13/2003')"},
       {"r 1 360/x 1", "r.hea:1: field 'sampling frequency' ('360/x'): the counter frequency"},
       {"r 1 360() 1", "r.hea:1: field 'sampling frequency' ('360()'): the base counter"},
+      // A count too large for the reader is said to be so, not "not a non-negative integer".
+      {"r 1 360 100000000000000000000", "r.hea:1: field 'number of samples per signal' ('100000000000000000000'): out of range: "
+                                        "at most 9223372036854775807"},
+      {"r 1 360 -5", "r.hea:1: field 'number of samples per signal' ('-5'): not a non-negative integer"},
+      {"r 99999999999 360 1", "r.hea:1: field 'number of signals' ('99999999999'): out of range: at most 2147483647"},
   };
   for (const auto& [line, expected] : refused) {
     write("r.hea", std::string(line) + "\nr.dat 16\n");
@@ -579,6 +584,22 @@ TEST_F(WfdbTemp, HugeSampleCountIsATruncationErrorNotAnAllocation) {
   auto s = read_signals(record("r"));
   ASSERT_FALSE(s);
   EXPECT_NE(s.error().message.find("truncated"), std::string::npos) << s.error().message;
+}
+
+// A header saying format 16 over data written in 212 (3 bytes a pair of samples, not 4) was
+// called truncated and nothing more: the file is whole, its header wrong. The size says which.
+TEST_F(WfdbTemp, AHeaderWhoseFormatDoesNotFitTheFileSaysTheFormatTheSizeFits) {
+  write("r.hea", "r 2 360 1000\nr.dat 16 200 12 0 0 0 0 I\nr.dat 16 200 12 0 0 0 0 II\n");
+  write("r.dat", std::string(3000, '\0'));  // 2 x 1000 samples in format 212
+  auto s = read_signals(record("r"));
+  ASSERT_FALSE(s);
+  EXPECT_NE(s.error().message.find(": truncated: expected 1000 samples per signal, found 750 (3000 bytes); its size is what "
+                                   "format 212 takes for that many: is the header's format (16) that of the file?"),
+            std::string::npos) << s.error().message;
+  write("r.dat", std::string(2000, '\0'));  // cut short in either format: no hint
+  s = read_signals(record("r"));
+  ASSERT_FALSE(s);
+  EXPECT_EQ(s.error().message.find("format 212 takes"), std::string::npos) << s.error().message;
 }
 
 TEST_F(WfdbTemp, MultiSegmentRecordIsRefused) {
