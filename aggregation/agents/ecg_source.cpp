@@ -28,6 +28,7 @@
 
 #include "agent_runtime.h"
 #include "tahvel/aggregation/ecgsyn.h"
+#include "tahvel/aggregation/rpeak.h"
 #include "tahvel/aggregation/wfdb.h"
 
 namespace {
@@ -113,6 +114,15 @@ agg::Result<Signal> record_signal(const std::string& path, std::optional<std::si
   s.info.baseline = h.signals[ecg].baseline;
   s.info.unit = h.signals[ecg].units;
   if (s.info.gain != h.signals[ecg].gain) s.info.unit = "mV";  // converted from uV or V
+  // A rate the R-peak detector refuses (too low for its QRS band, or beyond its buffers): the
+  // recording is replayed all the same (it can be queried), but no beat will come of it, and the
+  // R-peak agent says so only in its own log.
+  agg::DetectorOptions detector;
+  detector.fs = h.fs;
+  detector.gain = std::abs(s.info.gain) > 0 ? std::abs(s.info.gain) : 200;
+  if (auto usable = agg::validate(detector); !usable)
+    std::cerr << "tahvel-ecg-source: warning: " << h.path << ": the R-peak agent will find no beat in this record: "
+              << usable.error().message << "\n";
   for (std::size_t i : order) s.info.leads.push_back(h.signals[i].description);
   // Each lead's own calibration: beside the ECG a record may hold blood pressure (10 per mmHg)
   // or respiration, which the ECG lead's gain made wrong numbers of.

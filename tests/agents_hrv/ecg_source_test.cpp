@@ -209,6 +209,40 @@ TEST_F(EcgSourceTest, NoValueSamplesAreSaidAtTheFirstAndCountedAtTheEnd) {
   EXPECT_EQ(said.find(" on:"), std::string::npos) << said;
 }
 
+// A record at a rate the R-peak detector refuses (20 Hz: its QRS band needs more than 30) was
+// replayed without a word, and no beat ever came of it: the R-peak agent said why only in its
+// own log. The source replays it (its ECG can be queried) and says so.
+TEST_F(EcgSourceTest, ARecordAtARateTheDetectorRefusesIsReplayedWithAWarningThatNoBeatWillComeOfIt) {
+  const std::string dir = new_node("lowrate");
+  const std::string record = tahvel::test_support::write_format16_record(tmp_.path(), "slow", std::vector<std::int32_t>(200, 1024));
+  std::string header;
+  {
+    std::ifstream in(record + ".hea");
+    header.assign(std::istreambuf_iterator<char>(in), std::istreambuf_iterator<char>());
+  }
+  header.replace(header.find(" 1 360 "), 7, " 1 20 ");
+  std::ofstream(record + ".hea") << header;
+  const std::string log = (tmp_ / "lowrate.log").string();
+  tahvel::test_support::AgentProcess source(
+      {std::string(TAHVEL_BIN_DIR) + "/tahvel-ecg-source", dir, "--record", record, "--speed", "0"}, log);
+  ASSERT_EQ(source.wait(std::chrono::seconds(60)), 0);
+  std::ifstream in(log);
+  const std::string said((std::istreambuf_iterator<char>(in)), std::istreambuf_iterator<char>());
+  EXPECT_NE(said.find("tahvel-ecg-source: warning: " + record + ".hea: the R-peak agent will find no beat in this record: rpeak: a "
+                      "sampling rate of 20 Hz is too low for R-peak detection"),
+            std::string::npos)
+      << said;
+  EXPECT_EQ(recordings(dir).size(), 1u);
+  // At 360 Hz, nothing of the kind.
+  const std::string usual = tahvel::test_support::write_format16_record(tmp_.path(), "usual", std::vector<std::int32_t>(720, 1024));
+  const std::string log2 = (tmp_ / "usual.log").string();
+  tahvel::test_support::AgentProcess plain({std::string(TAHVEL_BIN_DIR) + "/tahvel-ecg-source", dir, "--record", usual, "--speed", "0"}, log2);
+  ASSERT_EQ(plain.wait(std::chrono::seconds(60)), 0);
+  std::ifstream in2(log2);
+  const std::string said2((std::istreambuf_iterator<char>(in2)), std::istreambuf_iterator<char>());
+  EXPECT_EQ(said2.find("R-peak agent will find no beat"), std::string::npos) << said2;
+}
+
 // A record whose ECG is not the lead the source would choose (an unnamed signal after a named
 // respiration signal): `tahvel hrv --signal 1` read it, but the streaming chain could not.
 TEST_F(EcgSourceTest, SignalNamesTheRecordsEcgLeadWhenItIsNotTheOneChosen) {
