@@ -1,6 +1,7 @@
 // Helpers shared by the `tahvel` subcommands: terms and patterns from the command line, the
 // prefix table, input and output. Everything here runs once per invocation (not hot).
 #include <algorithm>
+#include <cctype>
 #include <charconv>
 #include <chrono>
 #include <cerrno>
@@ -167,8 +168,15 @@ Term quoted_literal(std::string_view text, const uri::PrefixMap& prefixes,
 
 // Schemes that are written without "//" and so cannot be told from a CURIE by shape alone.
 bool opaque_scheme(std::string_view scheme) {
+  // Schemes are case-insensitive (RFC 3986 3.1): "URN:example:x" is the IRI urn:example:x, not
+  // a CURIE of an unknown prefix "URN".
+  const auto same = [](std::string_view a, std::string_view b) {
+    return a.size() == b.size() && std::equal(a.begin(), a.end(), b.begin(), [](char x, char y) {
+             return std::tolower(static_cast<unsigned char>(x)) == y;
+           });
+  };
   for (std::string_view s : {"urn", "mailto", "tag", "did", "data", "uuid", "geo"}) {
-    if (scheme == s) return true;
+    if (same(scheme, s)) return true;
   }
   return false;
 }

@@ -566,6 +566,9 @@ std::string pid_file_name(const std::optional<std::string>& only) {
   return "supervisor-" + only.value_or("all") + ".pid";
 }
 
+// Where the supervisor of `pid_file` lists the nodes it stopped because their store went.
+fs::path gone_list_file(const fs::path& pid_file) { return fs::path(pid_file).replace_extension(".gone"); }
+
 // Writes the programs' states to `file` through a temporary file renamed over it, so that a
 // reader sees one whole write. Empty when written; else why not (a full disk), and the file
 // keeps what it held: an emptied one made `status` show the node without its programs.
@@ -1128,7 +1131,10 @@ std::vector<const NodeSpec*> nodes_brought_up(const Topology& topo, const std::o
 class Deployment {
  public:
   Deployment(agents::Supervisor& supervisor, fs::path state, std::optional<std::string> only)
-      : supervisor_(supervisor), state_(std::move(state)), only_(std::move(only)) {}
+      : supervisor_(supervisor), state_(std::move(state)), only_(std::move(only)) {
+    std::error_code ec;  // an earlier supervisor's list is not this one's
+    fs::remove(gone_list_file(state_ / pid_file_name(only_)), ec);
+  }
   ~Deployment() {
     for (const auto& [id, fd] : locks_) ::close(fd);
   }
@@ -1416,12 +1422,15 @@ class Deployment {
         locks_.erase(lock);
       }
       node_ids_.erase(id);
+      gone_[id] = iris_[id];
       changes.push_back("stopped node '" + id + "' (" + std::to_string(programs.size()) + " program(s)): its store " +
                         (state_ / id).string() + " was removed or moved while it ran; the other nodes run on, and "
                         "'tahvel up' of the file makes the store again and starts the node anew");
     }
-    if (!gone.empty())
+    if (!gone.empty()) {
       if (auto listed = write_node_list(node_ids_)) changes.push_back(*listed);
+      if (auto listed = write_gone_list()) changes.push_back(*listed);
+    }
     return changes;
   }
 
@@ -1526,6 +1535,9 @@ class Deployment {
       return false;
     }
     locks_[spec.id] = fd;
+    iris_[spec.id] = spec.iri;
+    if (gone_.erase(spec.id) > 0)
+      if (auto listed = write_gone_list()) changes.push_back(*listed);
     if (const auto killed = agents::kill_leftovers(store.string()); !killed.empty()) {
       std::string list;
       for (const auto& k : killed) list += (list.empty() ? "" : ", ") + k;
@@ -1542,6 +1554,20 @@ class Deployment {
     for (const auto& id : ids) listed += id + "\n";
     try {
       write_whole(fs::path(state_ / pid_file_name(only_)).replace_extension(".nodes"), listed);
+    } catch (const Failure& f) {
+      return f.message;
+    }
+    return std::nullopt;
+  }
+
+  // The nodes this supervisor stopped because their store went (drop_nodes), "id TAB IRI" a
+  // line, until an `up` starts them again: `status` shows each as this machine's node with its
+  // store missing, not as a node on another machine known from its parent's state of it.
+  std::optional<std::string> write_gone_list() {
+    std::string listed;
+    for (const auto& [id, iri] : gone_) listed += id + "\t" + iri + "\n";
+    try {
+      write_whole(gone_list_file(state_ / pid_file_name(only_)), listed);
     } catch (const Failure& f) {
       return f.message;
     }
@@ -1596,6 +1622,8 @@ class Deployment {
   std::vector<std::unique_ptr<Opening<node::Result<agents::Dispatcher>>>> abandoned_dispatchers_;
   std::vector<std::unique_ptr<Opening<spatial::Result<OpenedKeeper>>>> abandoned_keepers_;
   std::set<std::string> node_ids_;                // the nodes this supervisor runs
+  std::map<std::string, std::string> iris_;       // their IRIs, by node id
+  std::map<std::string, std::string> gone_;       // IRI, by node id: stopped as their store went
   std::map<std::string, Published> published_;    // by node id
   bool boards_finished_ = true;
 };
@@ -1851,6 +1879,23 @@ int run_up(const Args& args) {
     } else {
       node::Node existing = check(node::Node::open(store));
       load_new_files(spec, existing, topo);
+    }
+    {
+      // Whose child the node is, on its own board (tv:parent, written as its uplink, persistent):
+      // `status` tells a child from a root by it where no forwarding policy (`forward = []`) and
+      // no state of a link that never ran say so. A node made a root loses it.
+      node::Node node = check(node::Node::open(store));
+      node::Agent uplink = check(node.agent("uplink"));
+      const node::Pattern recorded{.s = node::Term::iri(node.iri()), .p = node::Term::iri(federation::vocab::kParent), .source = uplink.iri()};
+      const NodeSpec* parent = topo.node(spec.parent);
+      auto was = check(check(node.snapshot()).list(recorded));
+      if (!parent && !was.empty()) check(uplink.replace({recorded}, {}));
+      if (parent && (was.size() != 1 || was[0].triple.o.value != parent->iri)) {
+        node::Item item;
+        item.persistent = true;
+        item.add(node::Term::iri(node.iri()), node::Term::iri(federation::vocab::kParent), node::Term::iri(parent->iri));
+        check(uplink.replace({recorded}, {item}));
+      }
     }
     if (!spec.parent.empty()) {
       // The forwarding policy is on the board before any agent starts: an item written before
@@ -2514,7 +2559,9 @@ int run_status(const Args& args) {
     if (auto it = own.find(node->iri()); it != own.end()) own_state[node->iri()] = it->second;
     auto policy = snap->count({.p = node::Term::iri(std::string(federation::vocab::kTv) + "subscriber"),
                                .o = node::Term::iri(node->iri() + "/uplink")});
-    nodes.back().has_parent = policy && *policy > 0;
+    auto parent = snap->count({.s = node::Term::iri(node->iri()), .p = node::Term::iri(federation::vocab::kParent),
+                               .source = node->iri() + "/uplink"});
+    nodes.back().has_parent = (policy && *policy > 0) || (parent && *parent > 0);
     for (const std::string& p : {node::kProblem, node::kProblemPid})
       if (auto records = snap->list({.p = node::Term::iri(p)})) read_problems(*records, node->iri(), nodes.back().problems);
   }
@@ -2550,6 +2597,18 @@ int run_status(const Args& args) {
     const std::string id = p.name.substr(0, slash);
     if (std::none_of(nodes.begin(), nodes.end(), [&](const StatusNode& n) { return n.id == id; })) storeless.insert(id);
   }
+  // Nodes a running supervisor stopped as their store went (drop_nodes): this machine's, and
+  // still the deployment's, though no program of theirs runs.
+  std::map<std::string, std::string> gone;  // IRI, by node id
+  for (const auto& entry : fs::directory_iterator(state, ec)) {
+    const std::string name = entry.path().filename().string();
+    if (!name.starts_with("supervisor-") || !name.ends_with(".pid") || supervisor_holding(entry.path()) == 0) continue;
+    std::ifstream in(gone_list_file(entry.path()));
+    for (std::string line; std::getline(in, line);)
+      if (const auto tab = line.find('\t'); tab != std::string::npos && tab > 0) gone[line.substr(0, tab)] = line.substr(tab + 1);
+  }
+  ec.clear();
+  for (const auto& [id, iri] : gone) storeless.erase(id);
   auto iri_from_parent = [&](const std::string& id) {  // from its parent's state of it, when that store is here
     std::string iri;
     for (const auto& [child_iri, fields] : child_state) {
@@ -2565,6 +2624,13 @@ int run_status(const Args& args) {
     nodes.back().store_warning = "its store " + (state / id).string() +
                                  " is missing (deleted while the node runs?): its programs fail until 'tahvel down' and "
                                  "'tahvel up' make it again";
+  }
+  for (const auto& [id, iri] : gone) {
+    if (unopened.count(id) || std::any_of(nodes.begin(), nodes.end(), [&](const StatusNode& n) { return n.id == id; })) continue;
+    nodes.push_back({.id = id, .iri = iri.empty() ? iri_from_parent(id) : iri});
+    nodes.back().store_warning = "its store " + (state / id).string() +
+                                 " was removed or moved while the node ran: its supervisor stopped its programs, and "
+                                 "'tahvel up' of the file makes the store again and starts the node anew";
   }
   // A store here that cannot be opened (damaged, cut short, on a read-only disk): the node is
   // this machine's, with its programs, not "on another machine" by its parent's state of it.
@@ -2590,7 +2656,7 @@ int run_status(const Args& args) {
   for (StatusNode& n : nodes)
     if (!n.remote) attach_problems(n.programs, n.iri, n.problems);
   const std::optional<std::set<std::string>> deployed = nodes_supervised(state);
-  auto in_deployment = [&](const std::string& id) { return !deployed || deployed->count(id) > 0; };
+  auto in_deployment = [&](const std::string& id) { return !deployed || deployed->count(id) > 0 || gone.count(id) > 0; };
   // What a store left behind by a node taken out of the file kept of its children is not news.
   std::erase_if(nodes, [&](const StatusNode& n) {
     if (!n.remote) return false;
@@ -2794,9 +2860,13 @@ int run_status(const Args& args) {
       std::cout << "  link state unknown: " << unknown_because << " (it last said: " << said << ")";
       // The parent's view is stale; the node's own, written here, is not (its outbox grows).
       if (!n.uplink.empty() && uplink_unknown_because.empty()) std::cout << "; its own link says: " << uplink_said;
-    } else if (!n.link.empty())
+    } else if (!n.link.empty()) {
       std::cout << "  " << said;
-    else if (!n.uplink.empty() && !uplink_unknown_because.empty())
+      // The parent's view says the link is up; only the node's own says the parent refuses what
+      // it sends (P9b: a full store), and its outbox grows.
+      if (!n.uplink.empty() && uplink_unknown_because.empty() && !n.uplink["uplinkRefusal"].empty())
+        std::cout << "; REFUSED: " << n.uplink["uplinkRefusal"];
+    } else if (!n.uplink.empty() && !uplink_unknown_because.empty())
       std::cout << "  uplink state unknown: " << uplink_unknown_because << " (it last said: " << uplink_said << ")";
     else if (!n.uplink.empty())
       std::cout << "  " << uplink_said;

@@ -9,6 +9,7 @@
 #include <iterator>
 #include <map>
 #include <optional>
+#include <regex>
 #include <set>
 #include <toml++/toml.h>
 
@@ -309,6 +310,45 @@ std::vector<const NodeSpec*> Topology::children(const std::string& id) const {
   return out;
 }
 
+namespace {
+
+// " (in the [[node]] of line 12, id 'home1')" for the node table holding line `line` of `file`,
+// as every other error names its node; "" outside one. For the parser's own errors (a key
+// given twice), which name only where.
+std::string node_table_around(const std::filesystem::path& file, std::size_t line) {
+  std::ifstream in(file);
+  std::vector<std::string> lines;
+  for (std::string l; std::getline(in, l);) lines.push_back(l);
+  const auto trimmed = [](const std::string& l) {
+    const std::size_t first = l.find_first_not_of(" \t");
+    return first == std::string::npos ? std::string() : l.substr(first);
+  };
+  std::size_t header = lines.size();
+  for (std::size_t i = std::min(line, lines.size()); i-- > 0;) {
+    const std::string t = trimmed(lines[i]);
+    if (t.starts_with("[[node]]")) {
+      header = i;
+      break;
+    }
+    if (t.starts_with("[") && !t.starts_with("[[node.") && !t.starts_with("[node.")) return {};  // another table
+  }
+  if (header == lines.size()) return {};
+  std::string id;
+  for (std::size_t i = header + 1; i < lines.size(); ++i) {
+    const std::string t = trimmed(lines[i]);
+    if (t.starts_with("[")) break;  // the node's own keys come before its sub-tables
+    static const std::regex id_line(R"re(^id\s*=\s*"([^"]*)")re");
+    std::smatch m;
+    if (std::regex_search(t, m, id_line)) {
+      id = m[1];
+      break;
+    }
+  }
+  return " (in the [[node]] of line " + std::to_string(header + 1) + (id.empty() ? "" : ", id '" + id + "'") + ")";
+}
+
+}  // namespace
+
 node::Result<Topology> load_topology(const std::filesystem::path& file) {
   toml::table root;
   std::error_code ec;
@@ -320,7 +360,8 @@ node::Result<Topology> load_topology(const std::filesystem::path& file) {
     root = toml::parse_file(file.string());
   } catch (const toml::parse_error& e) {
     return node::fail(Errc::syntax, file.string() + ":" + std::to_string(e.source().begin.line) + ":" +
-                                        std::to_string(e.source().begin.column) + ": " + std::string(e.description()));
+                                        std::to_string(e.source().begin.column) + ": " + std::string(e.description()) +
+                                        node_table_around(file, e.source().begin.line));
   }
   Topology topo;
   topo.file = file;

@@ -304,6 +304,23 @@ class Parser {
   std::string explained(std::string message) const {
     // serd reads the end of the input as the character -1.
     if (message.find("escape %FFFFFFFF") != std::string::npos) return "the input ends inside an IRI (no closing '>')";
+    // A bare number or boolean, as Turtle writes it, where N-Triples wants a quoted literal (a
+    // setting copied from a Turtle example into a .nt file): serd says only what it expected.
+    if (options_.format == Format::ntriples) {
+      const std::size_t at = offset();
+      const std::string_view rest = at < text_.size() ? text_.substr(at) : std::string_view();
+      const std::size_t end = std::min(rest.find_first_of(" \t\r\n"), rest.size());
+      const std::string_view token = rest.substr(0, end);
+      const bool number = !token.empty() && token.find_first_not_of("0123456789+-.eE") == std::string_view::npos &&
+                          token.find_first_of("0123456789") != std::string_view::npos;
+      if (number || token == "true" || token == "false")
+        return message + " (N-Triples writes every literal in quotes, \"" + std::string(token) + "\"^^<http://www.w3.org/2001/XMLSchema#" +
+               (!number                                               ? "boolean"
+                : token.find_first_of("eE") != std::string_view::npos ? "double"
+                : token.find('.') != std::string_view::npos           ? "decimal"
+                                                                      : "integer") +
+               ">; Turtle, a .ttl file or --format ttl, takes a bare " + std::string(token) + ")";
+    }
     // The records `list --format json` writes, put back: '{' starts a graph block to serd.
     const std::size_t first = text_.find_first_not_of(" \t\r\n");
     if (first != std::string_view::npos && text_.substr(first, 2) == "{\"")

@@ -936,6 +936,11 @@ TEST_F(Cli, CurieOnTheCommandLineExpandsWithPrefixFlagAndNodePrefixes) {
   Outcome unknown = run({"list", node_, "-s", "nope:a"});
   EXPECT_EQ(unknown.status, 2);
   EXPECT_EQ(unknown.err, "tahvel: -s: unknown prefix 'nope' in 'nope:a' (add --prefix nope=IRI, or write <nope:a> for an absolute IRI)\n");
+  // A scheme is case-insensitive: URN:… is an IRI (as urn:… is), not a CURIE of prefix "URN".
+  for (const char* iri : {"urn:example:a", "URN:example:a", "Urn:example:a"}) {
+    Outcome urn = run({"list", node_, "-s", iri});
+    EXPECT_EQ(urn.status, 0) << iri << ": " << urn.err;
+  }
 }
 
 TEST_F(Cli, BareNumberAndTypedLiteralMatchTheSameIntegerObject) {
@@ -2762,6 +2767,14 @@ TEST_F(Cli, UpRefusesATopologyWhoseChildIriIsNotUnderItsParent) {
   EXPECT_EQ(up.status, 1);
   EXPECT_NE(up.err.find("syntax.toml:2:"), std::string::npos) << up.err;
   EXPECT_FALSE(fs::exists(tmp_ / "state" / "hospital"));
+  // A key given twice: the parser's message names where; the node is named as every other
+  // error names it.
+  spit(tmp_ / "twice.toml", "[[node]]\nid = \"hospital\"\nlisten = { kind = \"dds\" }\n\n[[node]]\nid = \"home1\"\n"
+                            "parent = \"hospital\"\nparent = \"hospital\"\n");
+  up = run({"up", (tmp_ / "twice.toml").string(), "--state", (tmp_ / "state").string()});
+  EXPECT_EQ(up.status, 1);
+  EXPECT_NE(up.err.find("twice.toml:8:"), std::string::npos) << up.err;
+  EXPECT_NE(up.err.find(" (in the [[node]] of line 5, id 'home1')"), std::string::npos) << up.err;
 }
 
 // A node IRI over the 8 KiB a frame's sender may have (P4) came up, and every frame it sent was
@@ -3550,6 +3563,19 @@ TEST_F(Cli, RemovingOneNodesStoreStopsThatNodeAloneAndUpAgainStartsItAnew) {
   EXPECT_TRUE(alive(supervisor)) << slurp(log);
   EXPECT_TRUE(alive(b_idle)) << "node b's program was stopped too";
   EXPECT_EQ(slurp(state / "supervisor-all.nodes"), "b\n");
+  // Status shows it as this machine's node whose store went, not as a node on another machine
+  // (nor, without a parent's state of it, not at all).
+  const Outcome gone = run({"status", "--state", state.string()});
+  EXPECT_NE(gone.out.find("a  <http://example.org/a>"), std::string::npos) << gone.out;
+  EXPECT_NE(gone.out.find("  STORE its store " + (state / "a").string() +
+                          " was removed or moved while the node ran: its supervisor stopped its programs"),
+            std::string::npos)
+      << gone.out;
+  EXPECT_EQ(gone.out.find("on another machine"), std::string::npos) << gone.out;
+  const Outcome gone_json = run({"status", "--state", state.string(), "--json"});
+  EXPECT_NE(gone_json.out.find("{\"id\":\"a\",\"iri\":\"http://example.org/a\",\"depth\":0,\"parent\":null,\"remote\":false,"),
+            std::string::npos)
+      << gone_json.out;
 
   Outcome again = run({"up", (tmp_ / "node.toml").string(), "--state", state.string()});
   ASSERT_EQ(again.status, 0) << again.out << again.err;
@@ -3561,6 +3587,7 @@ TEST_F(Cli, RemovingOneNodesStoreStopsThatNodeAloneAndUpAgainStartsItAnew) {
   EXPECT_EQ(programs_of_store(state / "a"), 1);
   EXPECT_EQ(static_cast<pid_t>(std::stol(slurp(state / "supervisor-all.pid"))), supervisor);
   EXPECT_EQ(slurp(state / "supervisor-all.nodes"), "a\nb\n");
+  EXPECT_EQ(run({"status", "--state", state.string()}).out.find("was removed or moved while the node ran"), std::string::npos);
   EXPECT_EQ(run({"down", "--state", state.string()}).status, 0);
 }
 
@@ -3601,6 +3628,35 @@ TEST_F(Cli, UpRefusesANewStoreForAnIriThatAnotherStoreOfTheDirectoryHolds) {
             std::string::npos) << renamed.err;
   EXPECT_FALSE(fs::exists(tmp_ / "state" / "hq" / "data.mdb"));
   EXPECT_EQ(run({"down", "--state", state}).status, 0);
+}
+
+// A child with `forward = []` has no forwarding policy on its board, and a link that never ran
+// left no state: `status` showed it with nothing after its IRI, as a root, where a child whose
+// link has not run says "uplink never started". `up` records the parent on the child's board.
+TEST_F(Cli, AChildWithAnEmptyForwardingPolicyWhoseLinkHasSaidNothingIsShownAsAChild) {
+  const std::string state = (tmp_ / "state").string();
+  spit(tmp_ / "pair.toml", "[[node]]\nid = \"hospital\"\niri = \"http://example.org/quiet\"\n"
+                           "listen = { kind = \"lcm\", url = \"udpm://239.255.79.43:7845?ttl=0\" }\n"
+                           "[[node]]\nid = \"home\"\nparent = \"hospital\"\nforward = []\n");
+  ASSERT_EQ(run({"up", (tmp_ / "pair.toml").string(), "--state", state}).status, 0);
+  ASSERT_EQ(run({"down", "--state", state}).status, 0);
+  const std::string home = (tmp_ / "state" / "home").string();
+  const Outcome parent = run({"list", home, "-p", "<https://w3id.org/tahvel#parent>", "--source", "http://example.org/quiet/home/uplink"});
+  EXPECT_EQ(parent.out, "<http://example.org/quiet/home> <https://w3id.org/tahvel#parent> <http://example.org/quiet> .\n") << parent.err;
+  // What its link said while it ran, gone: as a link that never ran leaves it.
+  ASSERT_EQ(run({"remove", home, "-p", "<https://w3id.org/tahvel#uplinkState>"}).status, 0);
+  ASSERT_EQ(run({"remove", (tmp_ / "state" / "hospital").string(), "-p", "<https://w3id.org/tahvel#linkState>"}).status, 0);
+  const Outcome shown = run({"status", "--state", state, "--local"});
+  EXPECT_NE(shown.out.find("home  <http://example.org/quiet/home>  uplink never started"), std::string::npos) << shown.out;
+  const Outcome json = run({"status", "--state", state, "--local", "--json"});
+  const std::size_t at = json.out.find("{\"id\":\"home\"");
+  ASSERT_NE(at, std::string::npos) << json.out;
+  EXPECT_NE(json.out.find("\"has_parent\":true", at), std::string::npos) << json.out;
+  // Up again leaves the one record as it is.
+  ASSERT_EQ(run({"up", (tmp_ / "pair.toml").string(), "--state", state}).status, 0);
+  ASSERT_EQ(run({"down", "--state", state}).status, 0);
+  EXPECT_EQ(run({"list", home, "-p", "<https://w3id.org/tahvel#parent>", "--source", "http://example.org/quiet/home/uplink"}).out,
+            parent.out);
 }
 
 // Its supervisor stopped (SIGSTOP, hung), a link that runs on and refreshes its state was shown
@@ -3648,6 +3704,33 @@ TEST_F(Cli, StatusSaysWhenAStoreIsFull) {
   Outcome json = run({"status", "--state", state.string(), "--local", "--json"});
   EXPECT_NE(json.out.find("\"store_warning\":\""), std::string::npos) << json.out;
   EXPECT_NE(json.out.find(" MB of its maximum 2.0 MB used ("), std::string::npos) << json.out;
+}
+
+// A parent that refuses what its child sends (P9b: its store full) keeps the link up in its own
+// view of it, which the text tree showed alone on one machine ("link up, outbox 31"): only
+// `--json` had the child's word that everything it sends is refused. The text says it too.
+TEST_F(Cli, StatusSaysOnTheChildsLineThatItsParentRefusesWhatItSends) {
+  const fs::path state = tmp_ / "state";
+  const std::string parent = "http://example.org/h", child = parent + "/home";
+  ASSERT_EQ(run({"init", (state / "h").string(), "--iri", parent}).status, 0);
+  ASSERT_EQ(run({"init", (state / "home").string(), "--iri", child}).status, 0);
+  const std::string now = std::to_string(std::chrono::duration_cast<std::chrono::nanoseconds>(
+                                             std::chrono::system_clock::now().time_since_epoch()).count());
+  const std::string tv = "<https://w3id.org/tahvel#";
+  ASSERT_EQ(run({"put", (state / "h").string(), "--agent", "link", "--format", "ttl"},
+                "<" + child + "> " + tv + "linkState> \"up\" ; " + tv + "parent> <" + parent + "> ; " + tv + "lastSeen> " + now +
+                    " ; " + tv + "outboxDepth> 0 .\n")
+                .status,
+            0);
+  const std::string why = "the parent cannot store what this node sends: store full: its maximum";
+  ASSERT_EQ(run({"put", (state / "home").string(), "--agent", "link", "--format", "ttl"},
+                "<" + child + "> " + tv + "uplinkState> \"up\" ; " + tv + "parent> <" + parent + "> ; " + tv +
+                    "parentLastHeard> " + now + " ; " + tv + "outboxDepth> 31 ; " + tv + "uplinkRefusal> \"" + why + "\" .\n")
+                .status,
+            0);
+  const Outcome shown = run({"status", "--state", state.string(), "--local"});
+  EXPECT_NE(shown.out.find("home  <" + child + ">  link up, last seen "), std::string::npos) << shown.out;
+  EXPECT_NE(shown.out.find(", outbox 0; REFUSED: " + why + "\n"), std::string::npos) << shown.out;
 }
 
 TEST_F(Cli, UpAgainAppliesAnEditedFileToTheRunningSupervisor) {

@@ -341,6 +341,26 @@ TEST(Format, SyntaxErrorColumnCountsCharactersNotBytes) {
   EXPECT_EQ(error.message.rfind("<input>:1:32: ", 0), 0u) << error.message;
 }
 
+// `<…/hrv> <…#windowSeconds> 20 .` in a .nt file (a setting copied from a Turtle example) was
+// refused with serd's "expected: ':', '<', or '_'" alone: the error says how N-Triples writes it.
+TEST(Format, ABareNumberOrBooleanInNTriplesSaysHowNTriplesWritesIt) {
+  const std::pair<const char*, const char*> cases[] = {
+      {"<http://x/a> <http://x/p> 20 .\n", "\"20\"^^<http://www.w3.org/2001/XMLSchema#integer>; Turtle, a .ttl file or --format ttl, takes a bare 20)"},
+      {"<http://x/a> <http://x/p> -1.5 .\n", "\"-1.5\"^^<http://www.w3.org/2001/XMLSchema#decimal>"},
+      {"<http://x/a> <http://x/p> 2e3 .\n", "\"2e3\"^^<http://www.w3.org/2001/XMLSchema#double>"},
+      {"<http://x/a> <http://x/p> true .\n", "\"true\"^^<http://www.w3.org/2001/XMLSchema#boolean>"},
+  };
+  for (const auto& [text, hint] : cases) {
+    auto error = parse_error(text, ntriples());
+    EXPECT_EQ(error.code, tn::Errc::syntax) << text;
+    EXPECT_EQ(error.message.rfind("<input>:1:27: ", 0), 0u) << error.message;
+    EXPECT_NE(error.message.find("(N-Triples writes every literal in quotes, " + std::string(hint)), std::string::npos) << error.message;
+  }
+  // Another error in N-Triples gets no such hint.
+  auto other = parse_error("<http://x/a> <http://x/p> ? .\n", ntriples());
+  EXPECT_EQ(other.message.find("N-Triples writes"), std::string::npos) << other.message;
+}
+
 TEST(Format, NTriplesSyntaxErrorNamesLineAndColumn) {
   ParseOptions options = ntriples();
   options.source_name = "in.nt";
