@@ -3999,6 +3999,23 @@ TEST_F(Cli, ListByAreaSelectsTheRoomsSensorReadings) {
   }
 }
 
+// A node id with a character outside ASCII (kodu-õie), copied from a browser's address bar as
+// kodu-%C3%B5ie: another IRI to RDF, so an unknown node (exit 4), with nothing to say which
+// child was meant. The error names it.
+TEST_F(Cli, QueryOfAChildNamedByItsPercentEncodedIriSaysWhichChildItMeans) {
+  init();
+  put("<" + kNodeIri + "/kodu-\xC3\xB5ie> <https://w3id.org/tahvel#linkState> \"down\" .\n", {"--agent", "link"});
+  const Outcome q = run({"query", node_, "--at", kNodeIri + "/kodu-%C3%B5ie"});
+  EXPECT_EQ(q.status, 4) << q.err;
+  EXPECT_NE(q.err.find("has no child <" + kNodeIri + "/kodu-%C3%B5ie>; did you mean <" + kNodeIri + "/kodu-\xC3\xB5ie>? (an IRI is "
+                       "compared as written"),
+            std::string::npos)
+      << q.err;
+  const Outcome other = run({"query", node_, "--at", kNodeIri + "/kodu-%C3%B6ie"});
+  EXPECT_EQ(other.status, 4) << other.err;
+  EXPECT_EQ(other.err.find("did you mean"), std::string::npos) << other.err;
+}
+
 // The point, from the command line: moving a sensor from one room to another changes
 // which area subscriptions receive its readings (the keeper run once with `areas --once`).
 TEST_F(Cli, SubscribeByAreaFollowsASensorMovedToAnotherRoom) {
