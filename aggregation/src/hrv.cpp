@@ -9,6 +9,7 @@
 #include <cmath>
 #include <cstdint>
 #include <cstdio>
+#include <limits>
 
 namespace tahvel::aggregation {
 
@@ -81,12 +82,12 @@ void time_domain(const NnSeries& s, double fs, HrvMetrics& out) {
   if (sd2_sq >= 0) out.sd2_ms = std::sqrt(sd2_sq);
 }
 
-// Band power by the midpoint rule on a grid that divides the band exactly.
+// Band power by the midpoint rule on a grid that divides the band exactly, its step no coarser
+// than df_target: a peak about 1/span wide needs a few points across it.
 double band_power(const std::vector<double>& t, const std::vector<double>& y, double lo,
-                  double hi, double df_target, std::size_t max_count, double hole_s) {
+                  double hi, double df_target, double hole_s) {
   if (!(hi > lo)) return 0;
-  auto count = static_cast<std::size_t>(std::ceil((hi - lo) / df_target));
-  count = std::clamp<std::size_t>(count, 1, std::max<std::size_t>(max_count, 1));
+  const auto count = std::max<std::size_t>(1, static_cast<std::size_t>(std::ceil((hi - lo) / df_target)));
   const double df = (hi - lo) / static_cast<double>(count);
   const std::vector<double> psd = lomb_scargle_density(t, y, lo + df / 2, df, count, hole_s);
   double sum = 0;
@@ -160,13 +161,41 @@ BandPowers lomb_scargle_bands(const std::vector<double>& t_s, const std::vector<
   if (n < 3) return out;
   const double span = t_s[n - 1] - t_s[0];
   if (!(span > 0)) return out;
-  const double df = 1.0 / (std::max(o.oversampling, 1.0) * span);
+  const double oversampling = std::max(o.oversampling, 1.0);
   const double width = (o.lf_high_hz - o.lf_low_hz) + (o.hf_high_hz - o.hf_low_hz);
-  const auto share = [&](double w) {
-    return static_cast<std::size_t>(std::max(1.0, static_cast<double>(o.max_frequencies) * w / width));
-  };
-  out.lf_ms2 = band_power(t_s, nn_ms, o.lf_low_hz, o.lf_high_hz, df, share(o.lf_high_hz - o.lf_low_hz), o.gap_s);
-  out.hf_ms2 = band_power(t_s, nn_ms, o.hf_low_hz, o.hf_high_hz, df, share(o.hf_high_hz - o.hf_low_hz), o.gap_s);
+  const double work = static_cast<double>(n) * width * oversampling * span;  // O(N * F)
+  const auto parts = static_cast<std::size_t>(std::clamp(std::ceil(work / std::max(o.max_work, 1.0)), 1.0, static_cast<double>(n / 3)));
+  if (parts <= 1) {
+    const double df = 1.0 / (oversampling * span);
+    out.lf_ms2 = band_power(t_s, nn_ms, o.lf_low_hz, o.lf_high_hz, df, o.gap_s);
+    out.hf_ms2 = band_power(t_s, nn_ms, o.hf_low_hz, o.hf_high_hz, df, o.gap_s);
+    return out;
+  }
+  // Too long for one periodogram at that step (a day of Holter ECG): equal parts of time, each
+  // hours long, each at its own fine step, their band powers averaged by how many intervals each
+  // holds. Parts that long lose nothing of LF and HF (a 25 s period at most), only of slower ones.
+  double lf = 0, hf = 0, weight = 0;
+  std::size_t begin = 0;
+  for (std::size_t k = 1; k <= parts && begin < n; ++k) {
+    const double until = t_s[0] + span * static_cast<double>(k) / static_cast<double>(parts);
+    std::size_t end = begin;
+    while (end < n && (k == parts || t_s[end] < until)) ++end;
+    const std::vector<double> t(t_s.begin() + static_cast<std::ptrdiff_t>(begin), t_s.begin() + static_cast<std::ptrdiff_t>(end));
+    const std::vector<double> y(nn_ms.begin() + static_cast<std::ptrdiff_t>(begin), nn_ms.begin() + static_cast<std::ptrdiff_t>(end));
+    begin = end;
+    if (t.size() < 3 || !(t.back() > t.front())) continue;
+    HrvOptions one = o;
+    one.max_work = std::numeric_limits<double>::infinity();
+    const BandPowers piece = lomb_scargle_bands(t, y, one);
+    const double w = static_cast<double>(t.size());
+    lf += piece.lf_ms2 * w;
+    hf += piece.hf_ms2 * w;
+    weight += w;
+  }
+  if (weight > 0) {
+    out.lf_ms2 = lf / weight;
+    out.hf_ms2 = hf / weight;
+  }
   return out;
 }
 

@@ -52,7 +52,11 @@ struct HrvOptions {
   double min_hf_s = 60.0;                       // NN data needed for HF (Task Force: 1 min)
   double min_lf_s = 120.0;                      // NN data needed for LF (Task Force: 2 min)
   double oversampling = 4.0;                    // frequency step = 1 / (oversampling * span)
-  std::size_t max_frequencies = 1024;           // cap on the grid over [lf_low, hf_high]
+  // Work of one periodogram, samples x frequencies, beyond which the series is cut into equal
+  // parts of time whose band powers are averaged (about 4.5 h of NN intervals in one piece): the
+  // step above, not a coarser one, is what keeps a narrow peak's power (a grid capped at 1,024
+  // frequencies made a 2-h record's HF twice what it is).
+  double max_work = 5e8;
   double gap_s = NnRule{}.max_interval_s;       // longer intervals are gaps, not rhythm (irregular_pct)
 };
 
