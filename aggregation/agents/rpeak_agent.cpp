@@ -153,7 +153,7 @@ class RPeakStage {
                                   (s.beat_or_start == s.offset ? "its signal since sample " : "its signal after the beat at sample ") +
                                   std::to_string(s.beat_or_start) +
                                   " (a flat or lead-off signal, a gain in its description off by far, or not an ECG; or an "
-                                  "asystole): no R-peaks, RR intervals or HRV come of it");
+                                  "asystole): no R-peaks, RR intervals or HRV come of it until a beat is found again");
   }
 
   // A recording whose chunks cannot be used (no recording item, a sampling rate or gain the

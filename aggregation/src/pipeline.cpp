@@ -67,7 +67,8 @@ std::optional<std::string> irregular_rhythm_warning(const HrvMetrics& m, std::si
   }
   std::snprintf(text, sizeof text,
                 "an irregular rhythm (%.0f %% of successive intervals differ by more than 20 %%; %.0f %% of intervals are "
-                "not NN): frequent ectopic beats, atrial fibrillation, or beats the detector missed on a poor lead, "
+                "not NN): frequent ectopic beats, atrial fibrillation, beats the detector missed on a poor lead, or "
+                "noise it took for beats, "
                 "which the RR-only NN rule cannot tell apart; "
                 "HRV of this record may be several times off (docs/hrv.md, \"Where the rule fails\")",
                 irregular, not_nn);

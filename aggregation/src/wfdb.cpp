@@ -510,8 +510,9 @@ bool names_ecg_lead(std::string_view description) {
   std::erase(d, ' ');
   if (d.find("ecg") != std::string::npos || d.find("ekg") != std::string::npos) return true;
   if (d.starts_with("lead")) d.erase(0, 4);
-  for (const char* lead : {"mli", "mlii", "mliii", "i", "ii", "iii", "avr", "avl", "avf", "d1", "d2", "d3", "v1", "v2", "v3", "v4",
-                           "v5", "v6", "mv1", "mv2", "mv3", "mv4", "mv5", "mv6", "modv1", "modv5"})
+  // "V" alone is the chest lead of a bedside monitor's record (MIMIC: "II", "V", "AVR").
+  for (const char* lead : {"mli", "mlii", "mliii", "i", "ii", "iii", "avr", "avl", "avf", "d1", "d2", "d3", "v", "v1", "v2", "v3",
+                           "v4", "v5", "v6", "mv1", "mv2", "mv3", "mv4", "mv5", "mv6", "modv1", "modv5"})
     if (d == lead) return true;
   // MCLn, CMn, CCn, MLn (n a chest position 1-6; ML2 and ML5 in Holter records).
   for (const char* chest : {"mcl", "cm", "cc", "ml"})

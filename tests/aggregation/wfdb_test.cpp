@@ -209,8 +209,10 @@ TEST_F(WfdbTemp, TheEcgLeadIsTheFirstNamedOneElseTheFirstInVoltsAndGainIsPerMill
   write("i.hea", "i 2 250 0\ni.dat 16 200/V 16 0 0 0 0 Pleth\ni.dat 16 200 16 0 0 0 0 V4R\n");
   // An accelerometer's axes are not taken for Frank leads: the first signal in volts is.
   write("j.hea", "j 3 250 0\nj.dat 16 200/g 16 0 0 0 0 X\nj.dat 16 200/g 16 0 0 0 0 Y\nj.dat 16 200/mV 16 0 0 0 0 chest\n");
+  // A bedside monitor's chest lead, named "V" (MIMIC), after a respiration signal in volts.
+  write("k.hea", "k 2 125 0\nk.dat 16 200/V 16 0 0 0 0 Resp\nk.dat 16 200/mV 16 0 0 0 0 V\n");
   const std::pair<const char*, std::size_t> cases[] = {{"a", 2}, {"b", 1}, {"c", 0}, {"d", 0}, {"e", 1}, {"f", 1},
-                                                       {"g", 1}, {"h", 1}, {"i", 1}, {"j", 2}};
+                                                       {"g", 1}, {"h", 1}, {"i", 1}, {"j", 2}, {"k", 1}};
   for (const auto& [name, lead] : cases) {
     auto h = read_header(record(name));
     ASSERT_TRUE(h) << h.error().message;
