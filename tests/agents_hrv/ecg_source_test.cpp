@@ -51,6 +51,26 @@ int run_source(const std::string& dir) {
 
 class EcgSourceTest : public ::testing::Test {
  protected:
+  // What a file holds (a program's log, a header), "" when it cannot be read.
+  static std::string text_of(const fs::path& file) {
+    std::ifstream in(file);
+    return std::string(std::istreambuf_iterator<char>(in), std::istreambuf_iterator<char>());
+  }
+
+  // The source replaying `record` into `dir` at full speed, its stderr in tmp_/<log_name>.log:
+  // its exit status and what it said.
+  struct Replay {
+    int status = -1;
+    std::string said;
+  };
+  Replay replay_logged(const std::string& dir, const std::string& record, const std::string& log_name) {
+    const fs::path log = tmp_ / (log_name + ".log");
+    tahvel::test_support::AgentProcess source(
+        {std::string(TAHVEL_BIN_DIR) + "/tahvel-ecg-source", dir, "--record", record, "--speed", "0"}, log.string());
+    const int status = source.wait(std::chrono::seconds(60));
+    return {status, text_of(log)};
+  }
+
   std::string new_node(const std::string& name) {
     const std::string dir = (tmp_ / name).string();
     auto node = tn::Node::init(dir, tn::InitOptions{.iri = kNodeIri});
@@ -195,12 +215,8 @@ TEST_F(EcgSourceTest, NoValueSamplesAreSaidAtTheFirstAndCountedAtTheEnd) {
   std::fill(samples.begin() + 720, samples.begin() + 730, -32768);    // 10 at 2 s
   std::fill(samples.begin() + 1800, samples.begin() + 1805, -32768);  // 5 at 5 s
   const std::string record = tahvel::test_support::write_format16_record(tmp_.path(), "novalue", samples);
-  const std::string log = (tmp_ / "novalue.log").string();
-  tahvel::test_support::AgentProcess source(
-      {std::string(TAHVEL_BIN_DIR) + "/tahvel-ecg-source", dir, "--record", record, "--speed", "0"}, log);
-  ASSERT_EQ(source.wait(std::chrono::seconds(60)), 0);
-  std::ifstream in(log);
-  const std::string said((std::istreambuf_iterator<char>(in)), std::istreambuf_iterator<char>());
+  const auto [status, said] = replay_logged(dir, record, "novalue");
+  ASSERT_EQ(status, 0) << said;
   EXPECT_NE(said.find("signal 0 (ECG) holds WFDB's no-value -32768, the first at sample 720 (2.000 s)"), std::string::npos)
       << said;
   EXPECT_NE(said.find("15 sample(s) of signal 0 (ECG) held WFDB's no-value -32768, the first at sample 720 (2.000 s)"),
@@ -215,19 +231,11 @@ TEST_F(EcgSourceTest, NoValueSamplesAreSaidAtTheFirstAndCountedAtTheEnd) {
 TEST_F(EcgSourceTest, ARecordAtARateTheDetectorRefusesIsReplayedWithAWarningThatNoBeatWillComeOfIt) {
   const std::string dir = new_node("lowrate");
   const std::string record = tahvel::test_support::write_format16_record(tmp_.path(), "slow", std::vector<std::int32_t>(200, 1024));
-  std::string header;
-  {
-    std::ifstream in(record + ".hea");
-    header.assign(std::istreambuf_iterator<char>(in), std::istreambuf_iterator<char>());
-  }
+  std::string header = text_of(record + ".hea");
   header.replace(header.find(" 1 360 "), 7, " 1 20 ");
   std::ofstream(record + ".hea") << header;
-  const std::string log = (tmp_ / "lowrate.log").string();
-  tahvel::test_support::AgentProcess source(
-      {std::string(TAHVEL_BIN_DIR) + "/tahvel-ecg-source", dir, "--record", record, "--speed", "0"}, log);
-  ASSERT_EQ(source.wait(std::chrono::seconds(60)), 0);
-  std::ifstream in(log);
-  const std::string said((std::istreambuf_iterator<char>(in)), std::istreambuf_iterator<char>());
+  const auto [status, said] = replay_logged(dir, record, "lowrate");
+  ASSERT_EQ(status, 0) << said;
   EXPECT_NE(said.find("tahvel-ecg-source: warning: " + record + ".hea: the R-peak agent will find no beat in this record: rpeak: a "
                       "sampling rate of 20 Hz is too low for R-peak detection"),
             std::string::npos)
@@ -235,12 +243,9 @@ TEST_F(EcgSourceTest, ARecordAtARateTheDetectorRefusesIsReplayedWithAWarningThat
   EXPECT_EQ(recordings(dir).size(), 1u);
   // At 360 Hz, nothing of the kind.
   const std::string usual = tahvel::test_support::write_format16_record(tmp_.path(), "usual", std::vector<std::int32_t>(720, 1024));
-  const std::string log2 = (tmp_ / "usual.log").string();
-  tahvel::test_support::AgentProcess plain({std::string(TAHVEL_BIN_DIR) + "/tahvel-ecg-source", dir, "--record", usual, "--speed", "0"}, log2);
-  ASSERT_EQ(plain.wait(std::chrono::seconds(60)), 0);
-  std::ifstream in2(log2);
-  const std::string said2((std::istreambuf_iterator<char>(in2)), std::istreambuf_iterator<char>());
-  EXPECT_EQ(said2.find("R-peak agent will find no beat"), std::string::npos) << said2;
+  const Replay plain = replay_logged(dir, usual, "usual");
+  ASSERT_EQ(plain.status, 0) << plain.said;
+  EXPECT_EQ(plain.said.find("R-peak agent will find no beat"), std::string::npos) << plain.said;
 }
 
 // A record whose ECG is not the lead the source would choose (an unnamed signal after a named
@@ -375,8 +380,7 @@ TEST_F(EcgSourceTest, ASignalAnEarlierRunReplayedWholeIsNotReplayedAgain) {
   EXPECT_EQ(again.wait(60s), 0);
   EXPECT_EQ(recordings(dir), takes);
   EXPECT_EQ(tn::Node::open(dir).value().stats().value().items, items) << "the second run wrote";
-  std::ifstream in(log);
-  const std::string said((std::istreambuf_iterator<char>(in)), std::istreambuf_iterator<char>());
+  const std::string said = text_of(log);
   EXPECT_NE(said.find("holds the whole of synthetic-5 (21600 frames), replayed by an earlier run: nothing more to replay"),
             std::string::npos) << said;
   // Another signal under the same name (the generator at another heart rate) is a new take.
@@ -469,8 +473,7 @@ TEST_F(EcgSourceTest, ZeroSecondsOfSyntheticEcgIsRefused) {
                                             log.string());
   EXPECT_EQ(source.wait(10s), 2);
   EXPECT_TRUE(recordings(dir).empty());
-  std::ifstream in(log);
-  const std::string said((std::istreambuf_iterator<char>(in)), std::istreambuf_iterator<char>());
+  const std::string said = text_of(log);
   EXPECT_NE(said.find("--seconds: '0' is less than one sample"), std::string::npos) << said;
 }
 
@@ -482,8 +485,7 @@ TEST_F(EcgSourceTest, ARecordAndSyntheticTogetherAreRefusedAsTwoSourcesNotAsNone
                                              (tmp_ / "none").string(), "--speed", "0"},
                                             log.string());
   EXPECT_EQ(source.wait(10s), 2);
-  std::ifstream in(log);
-  const std::string said((std::istreambuf_iterator<char>(in)), std::istreambuf_iterator<char>());
+  const std::string said = text_of(log);
   EXPECT_NE(said.find("--record and --synthetic: give one of them, not both"), std::string::npos) << said;
   EXPECT_TRUE(recordings(dir).empty());
 }
@@ -498,8 +500,7 @@ TEST_F(EcgSourceTest, AHeartRateTheGeneratorCannotMakeIsAUsageErrorNamingTheFlag
                                                "--seconds", "5", "--speed", "0"},
                                               log.string());
     EXPECT_EQ(source.wait(10s), 2) << hr;
-    std::ifstream in(log);
-    const std::string said((std::istreambuf_iterator<char>(in)), std::istreambuf_iterator<char>());
+    const std::string said = text_of(log);
     EXPECT_NE(said.find("--hr: '" + hr + "' is not a heart rate from 30 to 180 beats per minute"), std::string::npos) << said;
   }
   EXPECT_TRUE(recordings(dir).empty());

@@ -2066,6 +2066,12 @@ const char* const kIdleNodeToml =
     "[[node]]\nid = \"solo\"\niri = \"http://example.org/solo\"\n"
     "  [[node.agent]]\n  id = \"idle\"\n  run = [\"/bin/sleep\", \"600\"]\n";
 
+// A hospital at `iri` listening on LCM at `lcm_url`, and one child "home" forwarding nothing.
+std::string hospital_and_home_toml(const std::string& iri, const std::string& lcm_url) {
+  return "[[node]]\nid = \"hospital\"\niri = \"" + iri + "\"\nlisten = { kind = \"lcm\", url = \"" + lcm_url +
+         "\" }\n[[node]]\nid = \"home\"\nparent = \"hospital\"\nforward = []\n";
+}
+
 TEST_F(Cli, UpAndDownIgnoreAStalePidFileWhosePidIsAnotherProgram) {
   pid_t other = fork();  // another program that now has the pid written in the stale file
   if (other == 0) {
@@ -3635,9 +3641,7 @@ TEST_F(Cli, UpRefusesANewStoreForAnIriThatAnotherStoreOfTheDirectoryHolds) {
 // link has not run says "uplink never started". `up` records the parent on the child's board.
 TEST_F(Cli, AChildWithAnEmptyForwardingPolicyWhoseLinkHasSaidNothingIsShownAsAChild) {
   const std::string state = (tmp_ / "state").string();
-  spit(tmp_ / "pair.toml", "[[node]]\nid = \"hospital\"\niri = \"http://example.org/quiet\"\n"
-                           "listen = { kind = \"lcm\", url = \"udpm://239.255.79.43:7845?ttl=0\" }\n"
-                           "[[node]]\nid = \"home\"\nparent = \"hospital\"\nforward = []\n");
+  spit(tmp_ / "pair.toml", hospital_and_home_toml("http://example.org/quiet", "udpm://239.255.79.43:7845?ttl=0"));
   ASSERT_EQ(run({"up", (tmp_ / "pair.toml").string(), "--state", state}).status, 0);
   ASSERT_EQ(run({"down", "--state", state}).status, 0);
   const std::string home = (tmp_ / "state" / "home").string();
@@ -3664,9 +3668,7 @@ TEST_F(Cli, AChildWithAnEmptyForwardingPolicyWhoseLinkHasSaidNothingIsShownAsACh
 // programs are unknown, the link's own fresh word is believed.
 TEST_F(Cli, AFreshLinkStateIsBelievedWhileOnlyItsSupervisorIsLate) {
   const std::string state = (tmp_ / "state").string();
-  spit(tmp_ / "pair.toml", "[[node]]\nid = \"hospital\"\niri = \"http://example.org/late\"\n"
-                           "listen = { kind = \"lcm\", url = \"udpm://239.255.79.41:7841?ttl=0\" }\n"
-                           "[[node]]\nid = \"home\"\nparent = \"hospital\"\nforward = []\n");
+  spit(tmp_ / "pair.toml", hospital_and_home_toml("http://example.org/late", "udpm://239.255.79.41:7841?ttl=0"));
   ASSERT_EQ(run({"up", (tmp_ / "pair.toml").string(), "--state", state}).status, 0);
   const std::string up_line = "home  <http://example.org/late/home>  link up";
   ASSERT_TRUE(eventually([&] { return run({"status", "--state", state}).out.find(up_line) != std::string::npos; }))
