@@ -4,6 +4,9 @@
 
 #include <gtest/gtest.h>
 
+#include <cmath>
+#include <limits>
+
 namespace tahvel::spatial {
 namespace {
 
@@ -126,6 +129,21 @@ TEST(Wkt, OverlappingHolesAndTinyCoordinatesAreNotTakenForAPolygonWithoutArea) {
                            "POLYGON((0 0, 4e-200 0, 4e-200 4e-200, 0 4e-200, 0 0), (1e-200 1e-200, 3e-200 1e-200, "
                            "3e-200 3e-200, 1e-200 3e-200, 1e-200 1e-200))"})
     EXPECT_TRUE(parse_wkt(text).has_value()) << text << ": " << parse_wkt(text).error().message;
+}
+
+// S1: a number is read to the nearest double. Below the least subnormal that is zero, of the
+// number's sign; 1e-330 was refused as "out of range" while 1e-310 was read.
+TEST(Wkt, ANumberBelowTheLeastSubnormalIsReadAsZero) {
+  auto tiny = parse_point("POINT(1e-330 -2.5e-400)");
+  ASSERT_TRUE(tiny.has_value()) << tiny.error().message;
+  EXPECT_EQ(tiny->x, 0.0);
+  EXPECT_EQ(tiny->y, 0.0);
+  EXPECT_TRUE(std::signbit(tiny->y));
+  auto subnormal = parse_point("POINT(1e-310 5e-324)");
+  ASSERT_TRUE(subnormal.has_value()) << subnormal.error().message;
+  EXPECT_GT(subnormal->x, 0.0);
+  EXPECT_EQ(subnormal->y, std::numeric_limits<double>::denorm_min());
+  EXPECT_NE(error_of("POINT(1e-330 1e999)").message.find("'1e999' is out of range"), std::string::npos);
 }
 
 // Exporters (QGIS, some CAD tools) repeat a vertex; OGC allows it. It is kept once.

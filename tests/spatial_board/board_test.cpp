@@ -658,6 +658,48 @@ TEST_F(BoardTest, EachDeclarationInAnItemIsKeptAndItsProblemsAreItsOwn) {
   EXPECT_EQ(pending(*bad), 0u);
 }
 
+// A declaration whose subscriber is a string or a blank node (`tv:areaSubscriber "ui2"`, `[]`)
+// made an expansion the node refused: every sync of the node failed ("item 1: triple 1,
+// object: invalid IRI 'ui2'", naming neither the declaration nor its agent), the other
+// declarations stopped following their sensors, and so did every `tahvel remove`. It is now
+// that declaration's problem, and the others are kept current.
+TEST_F(BoardTest, ADeclarationWhoseSubscriberIsNotAnIriIsItsOwnProblemAndTheOthersAreKept) {
+  const std::string kTv = "https://w3id.org/tahvel#";
+  node::Item item;
+  item.persistent = true;
+  item.add(Term::blank("a"), Term::iri(kTv + "areaSubscriber"), Term::iri(kHome + "/ui-bed"))
+      .add(Term::blank("a"), Term::iri(kTv + "area"), Term::iri(kBedroom))
+      .add(Term::blank("b"), Term::iri(kTv + "areaSubscriber"), Term::literal("ui2"))
+      .add(Term::blank("b"), Term::iri(kTv + "area"), Term::iri(kBedroom))
+      .add(Term::blank("c"), Term::iri(kTv + "areaSubscriber"), Term::blank("someone"))
+      .add(Term::blank("c"), Term::iri(kTv + "area"), Term::iri(kHall))
+      .add(Term::blank("d"), Term::iri(kTv + "areaSubscriber"), Term::iri(kHome + "/ui-hall"))
+      .add(Term::blank("d"), Term::iri(kTv + "area"), Term::iri(kHall))
+      .add(Term::blank("d"), Term::iri(kTv + "predicate"), Term::literal("hasSimpleResult"));
+  AreaSyncReport first;
+  auto keeper = keep(item, first);
+  ASSERT_TRUE(keeper.has_value()) << keeper.error().message;
+  EXPECT_EQ(first.declarations, 4u);
+  ASSERT_EQ(first.problems.size(), 3u);
+  EXPECT_NE(first.problems[0].find("tv:areaSubscriber \"ui2\" (a literal) is not an agent's IRI"), std::string::npos) << first.problems[0];
+  EXPECT_NE(first.problems[1].find("tv:areaSubscriber _:"), std::string::npos) << first.problems[1];
+  EXPECT_NE(first.problems[2].find("of <" + kHome + "/ui-hall>: tv:predicate \"hasSimpleResult\" (a literal) is not an absolute IRI"),
+            std::string::npos) << first.problems[2];
+  auto bed = node_->agent("ui-bed");
+  ASSERT_TRUE(bed.has_value());
+  reading("mote1", 21.0);
+  EXPECT_EQ(pending(*bed), 1u);
+  // The keeper still follows the plan: mote1 carried into the hall leaves the bedroom's subscriber.
+  put(located_feature_item(kMote, "POINT(6 1)", 0));
+  auto synced = keeper->poll();
+  ASSERT_TRUE(synced.has_value()) << synced.error().message;
+  ASSERT_TRUE(synced->has_value());
+  EXPECT_EQ((*synced)->removed, 2u);
+  const std::size_t before = pending(*bed);  // the move itself is about mote1, still in the bedroom then
+  reading("mote1", 22.0);
+  EXPECT_EQ(pending(*bed), before);
+}
+
 // Each move of a sensor syncs the keeper; a feature the plan skips was reported again at each
 // sync, and a log of `tahvel up` or `tahvel areas` repeated it at every move.
 TEST_F(BoardTest, TheKeeperReportsAProblemOnceHoweverOftenItSyncs) {

@@ -10,6 +10,7 @@
 #include <utility>
 
 #include "tahvel/spatial/wkt.h"
+#include "tahvel/uri/iri.h"
 
 namespace tahvel::spatial {
 
@@ -45,6 +46,13 @@ struct Declaration {
   std::string problem;  // why it cannot be expanded, empty when it can
 };
 
+// A term as a message shows it: <iri>, _:label or "text".
+std::string describe(const Term& term) {
+  if (term.is_iri()) return "<" + term.value + ">";
+  if (term.is_blank()) return "_:" + term.value + " (a blank node)";
+  return "\"" + term.value + "\" (a literal)";
+}
+
 // The declaration about `subject` among an item's records (an item may hold several, one per
 // subject of tv:areaSubscriber).
 Declaration parse_declaration(std::uint64_t id, const Term& subject, const std::vector<node::Record>& records) {
@@ -73,6 +81,20 @@ Declaration parse_declaration(std::uint64_t id, const Term& subject, const std::
       if (floor) d.spec.floor = *floor;
       else d.problem = "tv:areaFloor '" + o.value + "' is not a whole number within ±1e9";
     }
+  }
+  // What the expansions would carry: a term the node refuses there (a subscriber written as a
+  // string or a blank node) failed the sync of every declaration on the node, not this one.
+  for (const node::Record& r : records) {
+    if (!d.problem.empty() || r.triple.s != subject) continue;
+    const std::string& p = r.triple.p.value;
+    const Term& o = r.triple.o;
+    const bool iri = o.is_iri() && uri::is_valid(o.value);
+    if (p == kTvAreaSubscriber && !iri)
+      d.problem = "tv:areaSubscriber " + describe(o) + " is not an agent's IRI (write <http://…/agent-id>)";
+    else if ((p == kTvPredicate || p == kTvContext) && !iri)
+      d.problem = std::string(p == kTvPredicate ? "tv:predicate " : "tv:context ") + describe(o) + " is not an absolute IRI";
+    else if (p == kTvSubject && !iri)
+      d.problem = "tv:subject " + describe(o) + " is not an absolute IRI";
   }
   if (d.problem.empty() && subscribers > 1) d.problem = "more than one tv:areaSubscriber";
   if (d.problem.empty() && areas > 1) d.problem = "more than one tv:area";
@@ -167,6 +189,12 @@ node::Item expansion_item(const Declaration& d, const Key& key) {
   return item;
 }
 
+// The node refused the item itself (a term, a pattern), not for the store's state.
+bool refused_item(const node::Error& e) {
+  return e.code == node::Errc::invalid_argument || e.code == node::Errc::invalid_iri ||
+         e.code == node::Errc::syntax || e.code == node::Errc::literal_too_large;
+}
+
 bool same_term(const std::optional<Term>& a, const std::optional<Term>& b) {
   if (!a || !b) return !a && !b;
   return a->kind == b->kind && a->value == b->value && a->datatype == b->datatype &&
@@ -235,6 +263,7 @@ Result<AreaSyncReport> sync_area_subscriptions(node::Node& node,
   AreaSyncReport report;
   report.declarations = declarations->size();
   std::vector<node::Item> to_add;
+  std::vector<std::pair<std::uint64_t, std::string>> added_for;  // to_add[i]'s declaration and agent
   std::vector<std::uint64_t> to_remove;
   for (auto& [id, d] : *declarations) {
     if (declaration && id != *declaration) continue;
@@ -242,7 +271,10 @@ Result<AreaSyncReport> sync_area_subscriptions(node::Node& node,
     if (!d.problem.empty()) report.problems.push_back("area subscription " + std::to_string(id) + " of <" + d.agent + ">: " + d.problem);
     auto& have = (*expansions)[id];
     for (const Key& key : wanted)
-      if (!have.count(key)) to_add.push_back(expansion_item(d, key));
+      if (!have.count(key)) {
+        to_add.push_back(expansion_item(d, key));
+        added_for.emplace_back(id, d.agent);
+      }
     for (const auto& [key, ids] : have) {
       // Stale keys go whole; a key written twice (two syncs at once) keeps its oldest.
       auto first_kept = wanted.count(key) ? ids.begin() + 1 : ids.begin();
@@ -260,8 +292,22 @@ Result<AreaSyncReport> sync_area_subscriptions(node::Node& node,
     auto keeper = node.agent(kAreaKeeperId);
     if (!keeper) return store_error(keeper.error());
     auto stored = keeper->store_all(to_add);
-    if (!stored) return store_error(stored.error());
-    report.added = stored->size();
+    if (stored) {
+      report.added = stored->size();
+    } else if (refused_item(stored.error())) {
+      // One declaration's expansion the node will not take (what parse_declaration does not
+      // foresee) must not hold up the others': each alone, the refused ones said.
+      for (std::size_t i = 0; i < to_add.size(); ++i) {
+        auto one = keeper->store(to_add[i]);
+        if (one) ++report.added;
+        else if (refused_item(one.error()))
+          report.problems.push_back("area subscription " + std::to_string(added_for[i].first) + " of <" +
+                                    added_for[i].second + ">: its expansion was refused: " + one.error().message);
+        else return store_error(one.error());
+      }
+    } else {
+      return store_error(stored.error());
+    }
   }
   for (std::uint64_t id : to_remove) {
     auto removed = node.remove_item(id);
@@ -347,9 +393,20 @@ Result<std::optional<AreaSyncReport>> AreaKeeper::poll(std::chrono::milliseconds
     if (!changes->empty()) bookmark_ = changes->back().seq;
     for (const node::Change& change : *changes) dirty = dirty || changes_the_plan(change);
   }
-  if (!dirty) return std::optional<AreaSyncReport>{};
+  // A sync that failed (the store full, say) is tried again at the next poll a second later,
+  // the plan change that called for it being behind the bookmark by then; the same failure is
+  // said once, not at every try.
+  const auto now = std::chrono::steady_clock::now();
+  if (!dirty && (!retry_at_ || now < *retry_at_)) return std::optional<AreaSyncReport>{};
   auto report = sync();
-  if (!report) return unexpected(report.error());
+  if (!report) {
+    retry_at_ = now + std::chrono::seconds(1);
+    if (report.error().message == last_failure_) return std::optional<AreaSyncReport>{};
+    last_failure_ = report.error().message;
+    return unexpected(report.error());
+  }
+  retry_at_.reset();
+  last_failure_.clear();
   return std::optional<AreaSyncReport>{std::move(*report)};
 }
 

@@ -268,7 +268,14 @@ Result<BoardPlan> load_plan(const node::Snapshot& snapshot) {
     bool not_literal = false;
     auto wkt = latest_wkt(snapshot, geometry.value, &wkt_id, &not_literal);
     if (!wkt) return unexpected(wkt.error());
-    if (!*wkt) continue;  // a geometry without WKT (yet): not located
+    if (!*wkt) {
+      // Not located: said, as a malformed place is. A sensor moved in two puts (its new
+      // geo:hasGeometry, then that geometry's WKT) is in no area in between, and a room drawn so
+      // was "no room on the board" though it has a geo:hasGeometry.
+      out.problems.push_back(feature + ": its geometry " + geometry.value.to_ntriples() +
+                             " has no geo:asWKT (yet): in no area until it has one");
+      continue;
+    }
     // Skipped without a word, the feature was "no room on the board" to whoever named it.
     if (not_literal) {
       out.problems.push_back(feature + ": geo:asWKT of " + geometry.value.to_ntriples() + " must be a WKT literal, not " + **wkt);

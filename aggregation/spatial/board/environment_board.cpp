@@ -88,10 +88,12 @@ Result<SensingSubscriptions> read_sensing_subscriptions(const node::Snapshot& sn
     s.iri = head.triple.s.value;
     std::optional<Quantity> quantity;
     std::optional<double> max_age, duration, above, period;
+    std::optional<std::string> area_not_iri;  // a WKT or a name where the room's IRI belongs
     for (const node::Record& r : *records) {
       const std::string& p = r.triple.p.value;
       if (p == kTv + "quantity") quantity = quantity_of(r.triple.o);
       if (p == kTv + "area" && r.triple.o.is_iri()) s.area = r.triple.o.value;
+      if (p == kTv + "area" && !r.triple.o.is_iri()) area_not_iri = r.triple.o.value;
       if (p == kTv + "maxAgeS") max_age = number(r.triple.o);
       if (p == kTv + "durationS") duration = number(r.triple.o);
       if (p == kTv + "thresholdAbove") above = number(r.triple.o);
@@ -99,6 +101,8 @@ Result<SensingSubscriptions> read_sensing_subscriptions(const node::Snapshot& sn
     }
     std::string problem;
     if (!quantity) problem = "no tv:quantity among " + std::string("temperature humidity light movement");
+    else if (s.area.empty() && area_not_iri)
+      problem = "tv:area \"" + *area_not_iri + "\" is a literal: a sensing subscription names a room by its IRI";
     else if (s.area.empty()) problem = "no tv:area (a room IRI)";
     else if (!max_age || !(*max_age > 0) || std::isinf(*max_age))
       problem = "tv:maxAgeS must be a positive finite number of seconds";

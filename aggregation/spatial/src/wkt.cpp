@@ -4,7 +4,12 @@
 
 #include <cctype>
 #include <charconv>
+#include <cerrno>
 #include <cmath>
+#include <cstdlib>
+#include <limits>
+#include <optional>
+#include <string>
 
 #include "checks.h"
 
@@ -25,6 +30,16 @@ namespace {
 bool is_space(char c) { return c == ' ' || c == '\t' || c == '\n' || c == '\r'; }
 bool is_alpha(char c) { return std::isalpha(static_cast<unsigned char>(c)) != 0; }
 bool is_digit(char c) { return c >= '0' && c <= '9'; }
+
+// The value of a number whose magnitude is below the doubles' range (strtod gives zero or a
+// subnormal, with ERANGE), or nullopt for one above it.
+std::optional<double> underflowed(std::string_view number) {
+  const std::string text(number);
+  errno = 0;
+  const double value = std::strtod(text.c_str(), nullptr);
+  if (errno == ERANGE && std::abs(value) < std::numeric_limits<double>::min()) return value;
+  return std::nullopt;
+}
 
 constexpr double kMaxCoordinate = 1e15;
 
@@ -174,6 +189,11 @@ class Parser {
     }
     double value = 0;
     auto [end, ec] = std::from_chars(text_.data() + from, text_.data() + i, value);
+    // Below the least subnormal (1e-330) from_chars says out of range; the nearest double
+    // (S1) is zero, of the number's sign.
+    if (ec == std::errc::result_out_of_range && end == text_.data() + i) {
+      if (auto tiny = underflowed(text_.substr(start, i - start))) ec = std::errc(), value = *tiny;
+    }
     if (ec != std::errc() || end != text_.data() + i || !std::isfinite(value)) {
       return error(start, "number '" + std::string(text_.substr(start, i - start)) +
                               "' is out of range");

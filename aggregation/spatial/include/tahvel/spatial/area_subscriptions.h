@@ -83,7 +83,9 @@ class AreaKeeper {
   // Waits up to `wait` for a change; returns the sync's report when it synced. A keeper's
   // reports give a problem when it appears: a sync that meets again what the one before it
   // reported leaves it out (moving a sensor syncs, and a skipped feature repeated at every move
-  // filled the log); one fixed and come back is given again.
+  // filled the log); one fixed and come back is given again. A sync that fails returns its
+  // error once; it is tried again every second until it succeeds (the same error not returned
+  // again meanwhile).
   Result<std::optional<AreaSyncReport>> poll(std::chrono::milliseconds wait = std::chrono::milliseconds(0));
 
   // Syncs now, whatever changed.
@@ -99,6 +101,8 @@ class AreaKeeper {
   std::uint64_t bookmark_ = 0;
   std::size_t declarations_ = 0;
   std::set<std::string> told_;  // the problems of the last sync
+  std::optional<std::chrono::steady_clock::time_point> retry_at_;  // after a failed sync
+  std::string last_failure_;                                       // its message, said once
 };
 
 // An agent's own area subscription: declares it, syncs it, and follows the plan when the agent
