@@ -233,6 +233,8 @@ int run_take(const Args& args) {
       if (fd >= 0) ::close(fd);
     }
   } lock{::open(lock_path.c_str(), O_RDWR | O_CREAT | O_CLOEXEC, 0644)};
+  if (lock.fd < 0 && errno == EROFS)  // as a write to such a store says (cli.md "read-only filesystem")
+    fail("the store in " + args.positional(0) + " is on a read-only filesystem: it can be read, not written");
   if (lock.fd < 0) fail(lock_path + ": " + std::strerror(errno));
   const auto deadline = std::chrono::steady_clock::now() + timeout;
   const auto left = [&] {
@@ -309,6 +311,8 @@ int run_stats(const Args& args) {
   node::Node node = open_node(args.positional(0));
   if ((args.has("--at") || args.has("--timeout")) && !args.has("--predicates"))
     usage_error("stats: --at and --timeout go with --predicates");
+  if (args.has("--timeout") && !args.has("--at"))  // the local table needs no waiting: a --timeout there is a mistake
+    usage_error("stats: --timeout goes with --at (the time to wait for a node below)");
   if (args.has("--predicates")) return print_predicates(node, args);
   node::Stats stats = check(node.stats());
   if (args.has("--json")) {

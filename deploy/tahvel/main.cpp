@@ -39,8 +39,8 @@ const Command kBenchCommand{
     "from K simulated homes; it sends packets, so run it under tests/tools/netns-run. Everything\n"
     "after the benchmark's name goes to it; 'tahvel bench store --help' (hrv, spatial, reason,\n"
     "federation) lists its flags.",
-    {{"--json", "", "", "(after 'store') print one JSON object instead of the table"},
-     {"--quick", "", "", "(after 'store') a small run of seconds, for smoke tests"}},
+    {{"--json", "", "", "(after the benchmark's name) print one JSON object instead of the table"},
+     {"--quick", "", "", "(after the benchmark's name) a small run of seconds, for smoke tests"}},
     1, 64, false};
 
 void print_global_help(std::ostream& out) {

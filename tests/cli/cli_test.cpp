@@ -4,8 +4,10 @@
 #include <fcntl.h>
 #include <gtest/gtest.h>
 #include <lmdb.h>
+#include <sched.h>
 #include <signal.h>
 #include <sys/file.h>
+#include <sys/mount.h>
 #include <sys/stat.h>
 #include <sys/syscall.h>
 #include <sys/wait.h>
@@ -682,6 +684,42 @@ TEST_F(Cli, TakeThatCannotWriteItsOutputLeavesTheItemForTheNextTake) {
   Outcome again = run({"take", node_, "--agent", "reader"});
   EXPECT_EQ(again.status, 0) << again.err;
   EXPECT_EQ(lines_of(again.out).size(), 3u) << again.out;
+}
+
+// A store on a read-only filesystem: take, which writes too (it acknowledges what it printed),
+// failed on its lock file with "…/.take-ID.lock: Read-only file system", where every other
+// write says what the store is and why it cannot be written.
+TEST_F(Cli, TakeOnAReadOnlyFilesystemSaysTheStoreCannotBeWritten) {
+  const fs::path disk = tmp_ / "disk";
+  fs::create_directories(disk);
+  const std::string store = (disk / "store").string();
+  const fs::path said = tmp_ / "said";
+  pid_t pid = fork();
+  if (pid == 0) {
+    auto say = [&](const std::string& text, int status) {
+      spit(said, text);
+      _exit(status);
+    };
+    if (unshare(CLONE_NEWNS) != 0 || mount("none", "/", nullptr, MS_REC | MS_PRIVATE, nullptr) != 0 ||
+        mount("tmpfs", disk.c_str(), "tmpfs", 0, "size=8m") != 0)
+      say("cannot mount a tmpfs here", 77);
+    if (run({"init", store, "--iri", kNodeIri}).status != 0) say("init failed", 1);
+    if (run({"subscribe", store, "--agent", "reader", "-p", "sosa:hasSimpleResult"}).status != 0) say("subscribe failed", 1);
+    if (Outcome put = run({"put", store, "--agent", "ecg", "--format", "ttl", "-"}, kObservation); put.status != 0) say("put: " + put.err, 1);
+    if (mount(nullptr, disk.c_str(), nullptr, MS_REMOUNT | MS_RDONLY, nullptr) != 0) say("cannot remount read-only", 77);
+    Outcome taken = run({"take", store, "--agent", "reader"});
+    if (taken.status != 1) say("take exited " + std::to_string(taken.status) + ": " + taken.err, 1);
+    if (taken.err.find("the store in " + store + " is on a read-only filesystem: it can be read, not written") == std::string::npos)
+      say("take said: " + taken.err, 1);
+    Outcome listed = run({"list", store, "-p", "sosa:hasSimpleResult"});
+    if (listed.status != 0 || lines_of(listed.out).size() != 1) say("list: " + listed.err + listed.out, 1);
+    say("refused, saying why", 0);
+  }
+  int status = 0;
+  ASSERT_EQ(waitpid(pid, &status, 0), pid);
+  ASSERT_TRUE(WIFEXITED(status));
+  if (WEXITSTATUS(status) == 77) GTEST_SKIP() << slurp(said);
+  EXPECT_EQ(WEXITSTATUS(status), 0) << slurp(said);
 }
 
 // Started with standard output closed (by a supervisor, or `>&-`), take opened the store's lock
@@ -1394,6 +1432,9 @@ TEST_F(Cli, StatsPredicatesSaysWhatTheStoreHoldsPerPredicate) {
   Outcome alone = run({"stats", node_, "--at", kNodeIri});
   EXPECT_EQ(alone.status, 2);
   EXPECT_NE(alone.err.find("--at and --timeout go with --predicates"), std::string::npos) << alone.err;
+  Outcome local_timeout = run({"stats", node_, "--predicates", "--timeout", "5"});
+  EXPECT_EQ(local_timeout.status, 2);
+  EXPECT_NE(local_timeout.err.find("--timeout goes with --at"), std::string::npos) << local_timeout.err;
 }
 
 }  // namespace
