@@ -190,8 +190,20 @@ TEST(Rules, ATypedConstantThatIsNotAValueOfItsTypeIsAnErrorAtTheConstant) {
        "bad.rules:1:28: \"2026-12-03T10:00Z\" is not a valid xsd:dateTime (YYYY-MM-DDThh:mm:ss"},
       {"big(P, N) :- q(P, N), N > \"12x\"^^xsd:integer.\n", "bad.rules:1:27: \"12x\" is not a valid xsd:integer"},
       {"big(P, N) :- q(P, N), N > \"99999999999999999999\"^^<http://www.w3.org/2001/XMLSchema#long>.\n",
-       "bad.rules:1:27: \"99999999999999999999\" is not a valid xsd:long (or does not fit in 64 bits)"},
+       "bad.rules:1:27: \"99999999999999999999\" is not a valid xsd:long (or does not fit in 64 bits"},
       {"hot(P, N) :- q(P, N), N > \"3,5\"^^xsd:decimal.\n", "bad.rules:1:27: \"3,5\" is not a valid xsd:decimal"},
+      // A value outside its type's range, or a lexical form the type does not have, is none of
+      // its values either: they were read as numbers.
+      {"big(P, N) :- q(P, N), N > \"300\"^^xsd:byte.\n", "bad.rules:1:27: \"300\" is not a valid xsd:byte"},
+      {"big(P, N) :- q(P, N), N > \"-1\"^^xsd:nonNegativeInteger.\n", "bad.rules:1:27: \"-1\" is not a valid xsd:nonNegativeInteger"},
+      {"big(P, N) :- q(P, N), N > \"1.5e3\"^^xsd:decimal.\n", "bad.rules:1:27: \"1.5e3\" is not a valid xsd:decimal (digits with at most one '.'"},
+      {"big(P, N) :- q(P, N), N > \"nan\"^^xsd:double.\n", "bad.rules:1:27: \"nan\" is not a valid xsd:double"},
+      {"late(P, T) :- q(P, T), T > \"2026-12-03T10:00:00+15:00\"^^xsd:dateTime.\n",
+       "bad.rules:1:28: \"2026-12-03T10:00:00+15:00\" is not a valid xsd:dateTime"},
+      // Well formed, but not a time the built-ins read: said so, not "not a valid" one.
+      {"open(P, T) :- q(P, T), T < \"9999-12-31T23:59:59Z\"^^xsd:dateTime.\n",
+       "bad.rules:1:28: \"9999-12-31T23:59:59Z\" is an xsd:dateTime outside the times the built-ins read (1677-09-21 to 2262-04-11"},
+      {"p(X, \"x\"@en-) :- q(X, Y).\n", "bad.rules:1:10: 'en-' is not a language tag"},
   };
   for (const auto& [text, said] : cases) {
     auto p = tr::parse_rules(text, options("bad.rules"));

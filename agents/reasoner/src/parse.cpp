@@ -171,7 +171,13 @@ Result<void> Lexer::skip_space() {
 Result<std::string> Lexer::curie(Pos start, std::string prefix) {
   advance();  // ':'
   std::string local;
-  while (local_char()) { local += at(); advance(); }
+  // Turtle's local names hold %HH as written (`ex:a%20b`, as `tahvel put` stores it); a '%'
+  // there started a comment, and the error fell on a later line.
+  auto hex = [&](std::size_t k) { return std::isxdigit(static_cast<unsigned char>(at(k))) != 0; };
+  while (local_char() || (at() == '%' && hex(1) && hex(2))) {
+    const int n = at() == '%' ? 3 : 1;
+    for (int k = 0; k < n; ++k) { local += at(); advance(); }
+  }
   while (!local.empty() && local.back() == '.') {  // the clause's full stop, not the name's
     local.pop_back();
     --i_;
@@ -224,6 +230,20 @@ Result<Token> Lexer::iri_ref(Pos start) {
   // <http://e/a/./b> matched nothing the board held under it.
   if (auto why = not_an_iri(iri)) return error(start, "IRI <" + iri + ">: " + *why);
   return Token{Tok::iri, iri, {}, start};
+}
+
+// Turtle's LANGTAG: [a-zA-Z]+ ('-' [a-zA-Z0-9]+)*.
+bool is_language_tag(std::string_view tag) {
+  std::size_t i = 0;
+  while (i < tag.size() && std::isalpha(static_cast<unsigned char>(tag[i]))) ++i;
+  if (i == 0) return false;
+  while (i < tag.size()) {
+    if (tag[i++] != '-') return false;
+    const std::size_t from = i;
+    while (i < tag.size() && std::isalnum(static_cast<unsigned char>(tag[i]))) ++i;
+    if (i == from) return false;
+  }
+  return true;
 }
 
 Result<Token> Lexer::number(Pos start) {
@@ -306,18 +326,26 @@ Result<Token> Lexer::string_literal(Pos start, char quote) {
     if (term.datatype == node::xsd::kString) term.datatype.clear();
     // Such a constant compares with nothing and its rule never fires, without a word.
     if (auto type = valued_type_name(term); !type.empty() && value_of(term).kind == Value::none) {
+      if (type.find("dateTime") != std::string::npos && datetime_beyond_range(value))
+        return error(start, "\"" + value + "\" is an " + type +
+                                " outside the times the built-ins read (1677-09-21 to 2262-04-11: nanoseconds in 64 bits); "
+                                "as a constant of a rule it would compare with no time");
       std::string why = type.find("dateTime") != std::string::npos
-                            ? " (YYYY-MM-DDThh:mm:ss, then optional .fraction and Z or ±hh:mm)"
-                            : type == "xsd:decimal" || type == "xsd:double" || type == "xsd:float"
+                            ? " (YYYY-MM-DDThh:mm:ss, then optional .fraction and Z or ±hh:mm, the offset within ±14:00)"
+                            : type == "xsd:decimal" ? " (digits with at most one '.': no exponent)"
+                            : type == "xsd:double" || type == "xsd:float"
                                   ? ""
-                                  : " (or does not fit in 64 bits)";
+                                  : " (or does not fit in 64 bits, or is outside its type's range)";
       return error(start, "\"" + value + "\" is not a valid " + type + why);
     }
   } else if (at() == '@') {
     advance();
+    const Pos tag_at = pos();
     std::string lang;
     while (name_char() || at() == '-') { lang += static_cast<char>(std::tolower(at())); advance(); }
     if (lang.empty()) return error(pos(), "expected a language tag after @");
+    if (!is_language_tag(lang))
+      return error(tag_at, "'" + lang + "' is not a language tag (letters, then '-' and letters or digits: en, en-gb)");
     term = node::Term::lang_literal(value, lang);
   }
   return Token{Tok::literal, {}, std::move(term), start};
@@ -349,7 +377,11 @@ Result<Token> Lexer::next() {
   if (c == '#' && name_char(1)) {
     advance();
     std::string local;
-    while (name_char() || at() == '-') { local += at(); advance(); }
+    auto hex = [&](std::size_t k) { return std::isxdigit(static_cast<unsigned char>(at(k))) != 0; };
+    while (name_char() || at() == '-' || (at() == '%' && hex(1) && hex(2))) {
+      const int n = at() == '%' ? 3 : 1;
+      for (int k = 0; k < n; ++k) { local += at(); advance(); }
+    }
     return Token{Tok::iri, options_.default_ns + local, {}, start};
   }
   if (c == ':' && name_char(1)) {

@@ -5,6 +5,9 @@
 #include <charconv>
 #include <cmath>
 #include <cstdio>
+#include <cstdlib>
+#include <limits>
+#include <string>
 #include <string_view>
 
 namespace tahvel::reasoner {
@@ -13,13 +16,52 @@ namespace {
 
 constexpr std::string_view kXsd = "http://www.w3.org/2001/XMLSchema#";
 
-bool is_integer_type(std::string_view local) {
-  static const std::string_view kTypes[] = {
-      "integer", "int", "long", "short", "byte", "nonNegativeInteger", "positiveInteger",
-      "negativeInteger", "nonPositiveInteger", "unsignedLong", "unsignedInt", "unsignedShort",
-      "unsignedByte"};
-  for (auto t : kTypes) if (t == local) return true;
-  return false;
+struct IntegerType {
+  std::string_view local;
+  std::int64_t min, max;  // the type's range, cut to 64 bits (unsignedLong reads up to 2^63 - 1)
+};
+
+constexpr std::int64_t kMin64 = std::numeric_limits<std::int64_t>::min();
+constexpr std::int64_t kMax64 = std::numeric_limits<std::int64_t>::max();
+constexpr IntegerType kIntegerTypes[] = {
+    {"integer", kMin64, kMax64},         {"long", kMin64, kMax64},
+    {"int", -2147483648LL, 2147483647},  {"short", -32768, 32767},
+    {"byte", -128, 127},                 {"nonNegativeInteger", 0, kMax64},
+    {"positiveInteger", 1, kMax64},      {"negativeInteger", kMin64, -1},
+    {"nonPositiveInteger", kMin64, 0},   {"unsignedLong", 0, kMax64},
+    {"unsignedInt", 0, 4294967295LL},    {"unsignedShort", 0, 65535},
+    {"unsignedByte", 0, 255}};
+
+const IntegerType* integer_type(std::string_view local) {
+  for (const IntegerType& t : kIntegerTypes)
+    if (t.local == local) return &t;
+  return nullptr;
+}
+
+bool is_integer_type(std::string_view local) { return integer_type(local) != nullptr; }
+
+// XSD's decimal lexical form: an optional sign, digits with at most one '.', at least one digit
+// (no exponent, no INF or NaN, which from_chars would read).
+bool is_decimal_lexical(std::string_view lex) {
+  if (!lex.empty() && (lex[0] == '+' || lex[0] == '-')) lex.remove_prefix(1);
+  bool digit = false, point = false;
+  for (char c : lex) {
+    if (c >= '0' && c <= '9') digit = true;
+    else if (c == '.' && !point) point = true;
+    else return false;
+  }
+  return digit;
+}
+
+// XSD's double and float lexical form: a decimal with an optional exponent (the special values
+// are read apart). from_chars also reads "nan", "inf" and "infinity" in any case.
+bool is_double_lexical(std::string_view lex) {
+  const std::size_t e = lex.find_first_of("eE");
+  if (e == std::string_view::npos) return is_decimal_lexical(lex);
+  std::string_view exponent = lex.substr(e + 1);
+  if (!exponent.empty() && (exponent[0] == '+' || exponent[0] == '-')) exponent.remove_prefix(1);
+  return is_decimal_lexical(lex.substr(0, e)) && !exponent.empty() &&
+         exponent.find_first_not_of("0123456789") == std::string_view::npos;
 }
 
 // Days from 1970-01-01 to y-m-d (proleptic Gregorian; H. Hinnant's algorithm).
@@ -42,7 +84,9 @@ bool digits(std::string_view s, std::size_t at, std::size_t n, int& out) {
   return true;
 }
 
-std::optional<std::int64_t> parse_datetime(std::string_view s) {
+// nullopt when `s` is not an xsd:dateTime the built-ins read; *beyond then says whether it is
+// a well-formed one outside 1677-09-21..2262-04-11.
+std::optional<std::int64_t> parse_datetime(std::string_view s, bool* beyond = nullptr) {
   int y, mo, d, h, mi, se;
   if (!digits(s, 0, 4, y) || s.size() < 19 || s[4] != '-' || !digits(s, 5, 2, mo) || s[7] != '-' ||
       !digits(s, 8, 2, d) || s[10] != 'T' || !digits(s, 11, 2, h) || s[13] != ':' ||
@@ -72,6 +116,7 @@ std::optional<std::int64_t> parse_datetime(std::string_view s) {
     } else if (s[k] == '+' || s[k] == '-') {
       int oh, om;
       if (!digits(s, k + 1, 2, oh) || s.size() < k + 6 || s[k + 3] != ':' || !digits(s, k + 4, 2, om)) return std::nullopt;
+      if (om > 59 || oh > 14 || (oh == 14 && om != 0)) return std::nullopt;  // XSD: -14:00 to +14:00
       offset = (oh * 3600 + om * 60) * (s[k] == '-' ? -1 : 1);
       k += 6;
     }
@@ -81,8 +126,10 @@ std::optional<std::int64_t> parse_datetime(std::string_view s) {
                       h * 3600 + mi * 60 + se - offset;
   // Outside 1677-09-21..2262-04-11 the ns do not fit: not a time (rather than a wrapped one).
   std::int64_t ns;
-  if (__builtin_mul_overflow(secs, std::int64_t{1000000000}, &ns) || __builtin_add_overflow(ns, frac, &ns))
+  if (__builtin_mul_overflow(secs, std::int64_t{1000000000}, &ns) || __builtin_add_overflow(ns, frac, &ns)) {
+    if (beyond) *beyond = true;
     return std::nullopt;
+  }
   return ns;
 }
 
@@ -128,20 +175,31 @@ Value value_of(const node::Term& term) {
     return {};
   std::string_view local = std::string_view(term.datatype).substr(kXsd.size());
   std::string_view lex = term.value;
-  if (is_integer_type(local)) {
+  if (const IntegerType* type = integer_type(local)) {
     if (!lex.empty() && lex[0] == '+') lex.remove_prefix(1);
     std::int64_t i = 0;
     auto [end, ec] = std::from_chars(lex.data(), lex.data() + lex.size(), i);
     if (ec != std::errc() || end != lex.data() + lex.size()) return {};
+    if (i < type->min || i > type->max) return {};  // "300"^^xsd:byte is no byte
     return integer(i);
   }
   if (local == "decimal" || local == "double" || local == "float") {
     // xsd:double's infinities compare with every number; arithmetic on them gives none (real()).
-    if (lex == "INF" || lex == "+INF") return Value{Value::real, 0, INFINITY};
-    if (lex == "-INF") return Value{Value::real, 0, -INFINITY};
-    double d = 0;
+    const bool decimal = local == "decimal";
+    if (!decimal && (lex == "INF" || lex == "+INF")) return Value{Value::real, 0, INFINITY};
+    if (!decimal && lex == "-INF") return Value{Value::real, 0, -INFINITY};
+    if (decimal ? !is_decimal_lexical(lex) : !is_double_lexical(lex)) return {};
     if (!lex.empty() && lex[0] == '+') lex.remove_prefix(1);
+    double d = 0;
     auto [end, ec] = std::from_chars(lex.data(), lex.data() + lex.size(), d);
+    if (ec == std::errc::result_out_of_range && end == lex.data() + lex.size()) {
+      // XSD 1.1 rounds to the nearest double: beyond its range an infinity, below it zero or a
+      // subnormal. 1e400 compared with nothing ("V < 1e400" never held, without a word).
+      const std::string text(lex);
+      d = std::strtod(text.c_str(), nullptr);
+      if (std::isinf(d)) return Value{Value::real, 0, d};
+      return real(d);
+    }
     if (ec != std::errc() || end != lex.data() + lex.size()) return {};
     return real(d);
   }
@@ -151,6 +209,11 @@ Value value_of(const node::Term& term) {
     return {Value::time, *ns, 0};
   }
   return {};
+}
+
+bool datetime_beyond_range(std::string_view lex) {
+  bool beyond = false;
+  return !parse_datetime(lex, &beyond) && beyond;
 }
 
 std::string valued_type_name(const node::Term& term) {

@@ -25,6 +25,10 @@ Value value_of(const node::Term& term);
 // compare with nothing, so the rule reader refuses it.
 std::string valued_type_name(const node::Term& term);
 
+// True for a well-formed xsd:dateTime outside the times value_of reads (ns since the epoch in
+// 64 bits: 1677-09-21 to 2262-04-11), such as a "valid forever" 9999-12-31.
+bool datetime_beyond_range(std::string_view lex);
+
 // Arithmetic: + - * / on numbers (integers stay integers unless / leaves a remainder), time ±
 // seconds, time - time (seconds). none when undefined: a type mismatch, division by zero, an
 // integer result outside int64, a time outside 1677-09-21..2262-04-11.
