@@ -71,8 +71,11 @@ void print_text(const reasoner::SessionReport& r, const uri::PrefixMap& prefixes
   // Rules on `now` are evaluated every second on a quiet board: only what changed is told.
   if (r.clocked && r.added.empty() && r.removed.empty() && !r.rules_error && !r.problem_not_written) return;
   if (r.rules_error) std::cerr << "tahvel: rules not reloaded (the previous rules run): " << *r.rules_error << "\n";
-  std::cout << "session at seq " << r.seq << ": " << r.facts_in << " new and " << r.facts_out
-            << " removed facts" << (r.resynced ? " (resynchronised)" : "")
+  // A resynchronised session reads the whole board again, not what changed: its count is not
+  // "new" facts (3 facts and one conclusion record removed by hand read "3 new").
+  std::cout << "session at seq " << r.seq << ": "
+            << (r.resynced ? "resynchronised, " + std::to_string(r.facts_in) + " facts read again"
+                           : std::to_string(r.facts_in) + " new and " + std::to_string(r.facts_out) + " removed facts")
             << (r.rules_reloaded ? ", rules reloaded" : "") << "; derived " << r.added.size()
             << ", retracted " << r.removed.size()
             << (r.stale_records_removed ? " and " + std::to_string(r.stale_records_removed) +

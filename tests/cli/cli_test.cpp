@@ -1203,6 +1203,27 @@ TEST_F(Cli, ReasonWarnsOnARingStoreAndPersistentConclusionsAreNotTheRings) {
   for (const auto& line : lines_of(listed.out)) EXPECT_NE(line.find("\"persistent\":true"), std::string::npos) << line;
 }
 
+// A conclusion record removed by hand makes the running reasoner resynchronise: it read the
+// whole board again and said "3 new and 0 removed facts (resynchronised)" of a board where
+// nothing new had come. It says what it did, and writes the conclusion again.
+TEST_F(Cli, AResynchronisedReasonerSaysItReadTheBoardAgainNotThatFactsAreNew) {
+  init();
+  ASSERT_EQ(run({"put", node_, "--format", "ttl"},
+                "<http://example.org/a> <http://example.org/hr> 120 .\n<http://example.org/b> <http://example.org/hr> 130 .\n"
+                "<http://example.org/c> <http://example.org/hr> 60 .\n").status, 0);
+  spit(tmp_ / "r.rules", "<http://example.org/high>(S, true) :- fact(S, <http://example.org/hr>, V), V > 100.\n");
+  const pid_t reasoner = spawn({"reason", node_, (tmp_ / "r.rules").string(), "--interval", "0"}, "", 900);
+  const fs::path out = tmp_ / "out900";
+  ASSERT_TRUE(eventually([&] { return slurp(out).find("derived 2") != std::string::npos; })) << slurp(out);
+  ASSERT_EQ(run({"remove", node_, "-s", "<http://example.org/a>", "-p", "<http://example.org/high>"}).status, 0);
+  ASSERT_TRUE(eventually([&] { return slurp(out).find("resynchronised, 3 facts read again; derived 1") != std::string::npos; }))
+      << slurp(out);
+  kill(reasoner, SIGTERM);
+  finish(reasoner, 900);
+  EXPECT_EQ(slurp(out).find("new and 0 removed facts (resynchronised)"), std::string::npos);
+  EXPECT_EQ(lines_of(run({"list", node_, "-p", "<http://example.org/high>"}).out).size(), 2u);
+}
+
 TEST_F(Cli, RemoveItemPrintsTheRecordCountAndTheRecordsAreGone) {
   init();
   std::string id = put(kObservation);

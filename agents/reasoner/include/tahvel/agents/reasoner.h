@@ -53,8 +53,8 @@ struct ReasonerOptions {
 struct SessionReport {
   std::uint64_t seq = 0;         // last sequence number of the session's snapshot
   std::int64_t time_ns = 0;      // the session time (asserted_at of what it wrote)
-  std::size_t facts_in = 0;      // base records read as new
-  std::size_t facts_out = 0;     // base records read as removed
+  std::size_t facts_in = 0;      // base records read as new (resynced: every one read again)
+  std::size_t facts_out = 0;     // base records read as removed (resynced: 0)
   bool resynced = false;         // the change stream had a gap (retention, trimmed log): the
                                  // rules ran from scratch on the snapshot, the difference applied
   std::vector<Atom> added;       // conclusions written
