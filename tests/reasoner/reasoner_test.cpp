@@ -145,6 +145,31 @@ TEST_F(ReasonerTest, DoublesBeyondTheirRangeCompareAsInfinityOrZeroAndPercentNam
   EXPECT_EQ(held.count(n("big").to_ntriples() + " " + n("small").to_ntriples() + " \"true\"^^<http://www.w3.org/2001/XMLSchema#boolean>"), 0u);
 }
 
+// "Reachable from a start node" written left-recursively, the usual Datalog form: the recursive
+// call passes the demanded start on unchanged, and was refused as leaving it unbound. Only what
+// the demand asks for is derived (nothing from m1), and a link added later extends it.
+TEST_F(ReasonerTest, LeftRecursionFromADemandedStartDerivesWhatIsReachableFromIt) {
+  auto r = open(rules("reach.rules",
+                      "path(S, Y) :- Y = S.\n"
+                      "path(S, Z) :- path(S, Y), link(Y, Z).\n"
+                      "reach(X, Z) :- start(X, yes), path(X, Z).\n"));
+  put({t("n1", "link", "n2"), t("n2", "link", "n3"), t("m1", "link", "m2"), t("n1", "start", "yes")});
+  auto s = r.session();
+  ASSERT_TRUE(s.has_value()) << s.error().message;
+  auto reached = [&] {
+    std::set<std::string> out;
+    for (const auto& [triple, count] : board())
+      for (const char* to : {"n1", "n2", "n3", "n4", "m1", "m2"})
+        if (triple == nt("n1", "reach", to)) out.insert(to);
+    return out;
+  };
+  EXPECT_EQ(reached(), (std::set<std::string>{"n1", "n2", "n3"}));
+  for (const auto& [triple, count] : board()) EXPECT_NE(triple.rfind(n("m1").to_ntriples(), 0), 0u) << "not demanded: " << triple;
+  put({t("n3", "link", "n4")});
+  ASSERT_TRUE(r.session().has_value());
+  EXPECT_EQ(reached(), (std::set<std::string>{"n1", "n2", "n3", "n4"}));
+}
+
 TEST_F(ReasonerTest, RobotSessionIsWrittenOnceWithTheReasonersSourceAndSessionTime) {
   put({t("me", "state", "stateIdle"), t("me", "myNameIs", "robot3"), t("robot3", "receivedTask", "clean")},
       kIri + "/wGandalf");

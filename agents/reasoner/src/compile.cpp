@@ -514,6 +514,18 @@ Result<void> add_demand_rules(Program& program, const std::map<std::uint32_t, De
       d.uses_now = rule.uses_now;
       d.pos = call.pos;
       VarSet bound = reachable_bindings(d);
+      // Left recursion (`path(S, Z) :- path(S, Y), link(Y, Z).` beside `path(S, Y) :- Y = S.`):
+      // the call passes the head's own demanded arguments on unchanged, so it asks for nothing
+      // new; its facts are those the demand made. Its demand would be demand itself.
+      const bool passes_its_own_on =
+          rule.head == call.pred && std::all_of(it->second.positions.begin(), it->second.positions.end(), [&](std::uint32_t p) {
+            const Arg& in_call = call.args[p];
+            const Arg& in_head = rule.head_args[p];
+            return in_call.is_var && in_head.is_var && in_call.index == in_head.index;
+          });
+      const bool leaves_one_unbound = std::any_of(d.head_args.begin(), d.head_args.end(),
+                                                  [&](const Arg& a) { return a.is_var && !bound[a.index]; });
+      if (passes_its_own_on && leaves_one_unbound) continue;
       for (std::size_t k = 0; k < d.head_args.size(); ++k) {
         const Arg& a = d.head_args[k];
         if (!a.is_var || bound[a.index]) continue;
