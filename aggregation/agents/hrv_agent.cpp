@@ -25,9 +25,11 @@
 #include <set>
 
 #include <iostream>
+#include <vector>
 
 #include "agent_runtime.h"
 #include "tahvel/aggregation/hrv.h"
+#include "tahvel/uri/iri.h"
 
 namespace {
 
@@ -70,10 +72,18 @@ class HrvStage {
   void load_config() {
     auto snapshot = session_.node.snapshot();
     if (!snapshot) return rt::log_line(kProgram, "read configuration: " + snapshot.error().message);
-    tn::Pattern pattern;
-    pattern.s = tn::Term::iri(session_.agent.iri());
-    auto records = snapshot->list(pattern);
-    if (!records) return rt::log_line(kProgram, "read configuration: " + records.error().message);
+    // By predicate, then by subject in normal form: a setting written for
+    // <https://Haigla.Example.EE/…/hrv>, as a topology file may spell the node's IRI, reached
+    // this agent and was read by none (its IRI is <https://haigla.example.ee/…/hrv>).
+    std::vector<tn::Record> found;
+    for (const char* setting : {"windowSeconds", "stepSeconds"}) {
+      auto records = snapshot->list({.p = agg::tv_term(setting)});
+      if (!records) return rt::log_line(kProgram, "read configuration: " + records.error().message);
+      for (tn::Record& r : *records)
+        if (is_me(r.triple.s)) found.push_back(std::move(r));
+    }
+    std::sort(found.begin(), found.end(), [](const tn::Record& a, const tn::Record& b) { return a.meta.id < b.meta.id; });
+    auto records = &found;
     // The latest written wins, wherever it was written: by asserted-at (when the writer stored
     // it, kept as the item travels down), then by arrival. By arrival alone, a hospital's
     // setting held back by a cut link undid the home's newer one when the link came back.
@@ -135,9 +145,17 @@ class HrvStage {
     for (auto& [iri, s] : streams_) s.windower.set_window(config_.window_s, config_.step());
   }
 
+  // The agent's IRI, however written: settings are about it.
+  bool is_me(const tn::Term& subject) const {
+    if (!subject.is_iri()) return false;
+    if (subject.value == session_.agent.iri()) return true;
+    auto normal = tahvel::uri::normalize(subject.value);
+    return normal && *normal == session_.agent.iri();
+  }
+
   rt::Outcome handle(const tn::Delivery& delivery) {
     for (const tn::Record& r : delivery.records)
-      if (r.triple.s.value == session_.agent.iri()) {
+      if (is_me(r.triple.s)) {
         if (delivery.removal) forget_kept_settings(delivery.records);
         load_config();
         break;
@@ -332,10 +350,14 @@ int main(int argc, char** argv) {
     if (!rt::subscribe_predicates(*session, {std::string(agg::kTv) + "intervals"})) return rt::kExitError;
     tn::Pattern config;
     config.s = tn::Term::iri(session->agent.iri());
-    if (auto s = session->agent.subscribe(config); !s) {
-      rt::log_line(kProgram, "subscribe to the configuration: " + s.error().message);
-      return rt::kExitError;
-    }
+    // And the settings by predicate: one written with the node's IRI in another spelling
+    // (upper-case host) is about this agent too (HrvStage::is_me), and no subscription by
+    // subject delivers it.
+    for (const tn::Pattern& pattern : {config, tn::Pattern{.p = agg::tv_term("windowSeconds")}, tn::Pattern{.p = agg::tv_term("stepSeconds")}})
+      if (auto s = session->agent.subscribe(pattern); !s) {
+        rt::log_line(kProgram, "subscribe to the configuration: " + s.error().message);
+        return rt::kExitError;
+      }
     // A setting removed is read as the configuration changing: an unusable one taken back is no
     // longer the agent's problem.
     if (auto r = session->agent.receive_removals(); !r) {

@@ -2,6 +2,7 @@
 // window), and with --eval the beat-by-beat score of the detector against the record's
 // reference annotations. `tahvel patients`: what a node's board says of each patient's HRV.
 #include <algorithm>
+#include <chrono>
 #include <cctype>
 #include <charconv>
 #include <cmath>
@@ -9,6 +10,7 @@
 #include <cstring>
 #include <filesystem>
 #include <iostream>
+#include <map>
 #include <optional>
 #include <sstream>
 #include <string>
@@ -300,7 +302,8 @@ std::pair<std::int64_t, std::int64_t> signal_range_ns(const agg::PatientView& p)
 // come from below: an operator reading a home's latest window must know that the home is down
 // here, and the windows computed there since have not come.
 struct LinkOnTheWay {
-  std::string child;  // this node's child on the way to the node that computed the windows
+  std::string at;     // the node whose link says this state: this one, or a node on the way
+  std::string child;  // its child on the way to the node that computed the windows
   std::string state;  // tv:linkState: "up", "down" or "never connected"
   std::optional<std::int64_t> last_seen_ns;
   std::int64_t written_ns = 0;  // when the link wrote the state (its record's asserted-at)
@@ -316,6 +319,7 @@ std::optional<LinkOnTheWay> link_on_the_way(const node::Snapshot& snap, const st
       computed_at[node_iri.size()] != '/')
     return std::nullopt;
   LinkOnTheWay link;
+  link.at = node_iri;
   link.child = computed_at.substr(0, computed_at.find('/', node_iri.size() + 1));
   auto field = [&](const std::string& predicate) -> std::optional<std::string> {
     auto records = snap.list({.s = node::Term::iri(link.child), .p = node::Term::iri(predicate)});
@@ -331,6 +335,45 @@ std::optional<LinkOnTheWay> link_on_the_way(const node::Snapshot& snap, const st
     if (std::from_chars(seen->data(), seen->data() + seen->size(), ns).ec == std::errc()) link.last_seen_ns = ns;
   }
   return link;
+}
+
+// The first link below this node's child, on the way to `computed_at`, that is not up: each
+// node on the way keeps its children's state on its own board, and this node holds only its
+// own children's. Asked of each such node in turn (a remote query, within `deadline`), while
+// the hop above it is up; nullopt when every hop is up, or a node does not answer.
+std::optional<LinkOnTheWay> link_below(node::Node& node, const LinkOnTheWay& first, const std::string& computed_at,
+                                       std::chrono::steady_clock::time_point deadline) {
+  LinkOnTheWay above = first;
+  while (computed_at.size() > above.child.size() + 1 && computed_at.compare(0, above.child.size(), above.child) == 0 &&
+         computed_at[above.child.size()] == '/') {
+    LinkOnTheWay link;
+    link.at = above.child;
+    link.child = computed_at.substr(0, computed_at.find('/', link.at.size() + 1));
+    auto writer = uri::agent_iri(link.at, "link");
+    if (!writer) return std::nullopt;
+    for (const std::string& predicate : {federation::vocab::kLinkState, federation::vocab::kLastSeen}) {
+      const auto left = std::chrono::duration_cast<std::chrono::milliseconds>(deadline - std::chrono::steady_clock::now());
+      if (left.count() <= 0) return std::nullopt;
+      auto answered = federation::remote_query(
+          node, {.target = link.at, .pattern = {.s = node::Term::iri(link.child), .p = node::Term::iri(predicate)}, .restart_grace = {}},
+          left, [&](const node::Record& r) {
+            if (r.meta.source != *writer) return;
+            if (predicate == federation::vocab::kLinkState) {
+              link.state = r.triple.o.value;
+              link.written_ns = r.meta.asserted_at;
+            } else {
+              std::int64_t ns = 0;
+              if (std::from_chars(r.triple.o.value.data(), r.triple.o.value.data() + r.triple.o.value.size(), ns).ec == std::errc())
+                link.last_seen_ns = ns;
+            }
+          });
+      if (!answered) return std::nullopt;
+    }
+    if (link.state.empty()) return std::nullopt;
+    if (link.worth_saying()) return link;
+    above = std::move(link);
+  }
+  return std::nullopt;
 }
 
 void print_patients_json(const std::string& node_iri, const agg::PatientsOnBoard& board,
@@ -359,7 +402,7 @@ void print_patients_json(const std::string& node_iri, const agg::PatientsOnBoard
     if (const auto& link = links[i]) {
       out << ",\"link\":{\"child\":\"" << node::json_escape(link->child) << "\",\"state\":\"" << node::json_escape(link->state)
           << "\",\"last_seen_ns\":" << (link->last_seen_ns ? std::to_string(*link->last_seen_ns) : "null")
-          << ",\"stale\":" << (link->stale() ? "true" : "false") << "}";
+          << ",\"stale\":" << (link->stale() ? "true" : "false") << ",\"at\":\"" << node::json_escape(link->at) << "\"}";
     } else {
       out << ",\"link\":null";
     }
@@ -409,10 +452,10 @@ void print_patient_text(const std::string& dir, const std::string& node_iri, con
   if (link && link->worth_saying()) {
     const std::string heard = link->last_seen_ns ? "last heard " + age_of(*link->last_seen_ns) : "never heard";
     if (link->stale())
-      std::cout << "  its windows come through <" << link->child << ">, up at <" << node_iri << "> as this node's link said "
+      std::cout << "  its windows come through <" << link->child << ">, up at <" << link->at << "> as " << (link->at == node_iri ? "this" : "that") << " node's link said "
                 << age_of(link->written_ns) << " (it says so every 2 s while it runs): is that link running? (tahvel status)\n";
     else
-      std::cout << "  its windows come through <" << link->child << ">, " << link->state << " at <" << node_iri << "> ("
+      std::cout << "  its windows come through <" << link->child << ">, " << link->state << " at <" << link->at << "> ("
                 << heard << "): windows computed since have not come\n";
   }
   for (const auto& [writer, count] : p.other_writers)
@@ -550,7 +593,20 @@ int run_patients(const Args& args) {
     if (!args.has("--alerts") || p.alerting()) shown.push_back(&p);
   }
   std::vector<std::optional<LinkOnTheWay>> links;
-  for (const agg::PatientView* p : shown) links.push_back(link_on_the_way(snapshot, node.iri(), p->source_node()));
+  // Below this node's children the links' states are on the boards of the nodes on the way:
+  // asked, once per hop, within 3 s in all (a home behind a gateway that went down was shown
+  // as if its windows were just late).
+  const auto deadline = std::chrono::steady_clock::now() + std::chrono::seconds(3);
+  std::map<std::string, std::optional<LinkOnTheWay>> asked;  // by the node that computed the windows
+  for (const agg::PatientView* p : shown) {
+    auto link = link_on_the_way(snapshot, node.iri(), p->source_node());
+    if (link && !link->worth_saying()) {
+      auto [it, fresh] = asked.try_emplace(p->source_node());
+      if (fresh) it->second = link_below(node, *link, p->source_node(), deadline);
+      if (it->second) link = it->second;
+    }
+    links.push_back(std::move(link));
+  }
   if (args.has("--json")) {
     print_patients_json(node.iri(), *board, shown, links);
   } else {

@@ -884,6 +884,33 @@ TEST(AgentPrograms, ASecondProcessOfAnAgentIdIsRefusedWhileTheFirstRuns) {
   EXPECT_EQ(again.stop(), 0);
 }
 
+// A topology file may spell a node's IRI with an upper-case host; the node's IRI, and its
+// agents', are in normal form. A setting written for <HTTP://EXAMPLE.ORG/home1/hrv> reached the
+// HRV agent and was read by none: the window stayed as it was, and nothing said so.
+TEST(AgentPrograms, AnHrvSettingForTheAgentsIriInAnotherSpellingIsItsSetting) {
+  ScratchNode scratch("hrv-spelling");
+  ASSERT_TRUE(scratch.node) << "cannot make a store under /tmp";
+  const std::string log = scratch.tmp + "/hrv.log";
+  auto logged = [&](const std::string& line) {
+    std::ifstream in(log);
+    std::ostringstream text;
+    text << in.rdbuf();
+    return text.str().find(line) != std::string::npos;
+  };
+  ASSERT_EQ(kNodeIri.rfind("http://example.org/", 0), 0u);
+  const tn::Term spelt = tn::Term::iri("HTTP://Example.ORG/" + kNodeIri.substr(19) + "/hrv");
+  Process agent({bin("tahvel-hrv"), scratch.dir, "--idle", "30", "--window", "60"}, log);
+  ASSERT_TRUE(scratch.node->agent("operator")->store(tn::Item{}.add(spelt, agg::tv_term("windowSeconds"), tn::Term::integer(90))));
+  EXPECT_TRUE(within_a_minute([&] { return logged("window 90.000000 s"); })) << "the setting was not read";
+  // Another agent's setting is not this one's.
+  ASSERT_TRUE(scratch.node->agent("operator")->store(
+      tn::Item{}.add(tn::Term::iri(kNodeIri + "/hrv2"), agg::tv_term("windowSeconds"), tn::Term::integer(120))));
+  ASSERT_TRUE(scratch.node->agent("operator")->store(tn::Item{}.add(spelt, agg::tv_term("stepSeconds"), tn::Term::integer(45))));
+  ASSERT_TRUE(within_a_minute([&] { return logged("step 45.000000 s"); }));
+  EXPECT_FALSE(logged("window 120.000000 s")) << "another agent's setting was taken";
+  EXPECT_EQ(agent.stop(), 0);
+}
+
 // The setting written last holds, wherever it was written and whenever it arrives: a hospital's
 // setting held back by a cut link (asserted before the home's own, arriving after it) undid the
 // home's newer one when the link came back.

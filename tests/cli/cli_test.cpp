@@ -2041,7 +2041,7 @@ TEST_F(Cli, PatientsSaysWhenTheChildTheirWindowsComeThroughIsDownOrNotRefreshed)
       << down.out;
   Outcome json = run({"patients", dir, "--json"});
   EXPECT_NE(json.out.find("\"link\":{\"child\":\"" + home + "\",\"state\":\"down\",\"last_seen_ns\":" + std::to_string(now - 200'000'000'000) +
-                          ",\"stale\":false}"),
+                          ",\"stale\":false,\"at\":\"" + hospital + "\"}"),
             std::string::npos) << json.out;
   link_says("up", now);
   Outcome up = run({"patients", dir});

@@ -378,11 +378,29 @@ TEST_F(Deployment, StatusOnTheRootsMachineShowsTheNodesAndProgramsOfTheMachinesB
   }, 15s)) << shown;
   shell("kill -CONT " + supervisor_pid);
 
+  // An HRV window computed on the sensor reaches the ward (the default policy sends windows up).
+  const std::string sensor_iri = kWard + "/gateway/sensor", rec = sensor_iri + "/ecg/recording/a";
+  ASSERT_EQ(shell("printf '%s\\n' '@prefix tv: <https://w3id.org/tahvel#> .' '<" + rec + "/hrv/0> "
+                  "<http://www.w3.org/ns/sosa/observedProperty> tv:HeartRateVariability ; "
+                  "<http://www.w3.org/ns/prov#wasDerivedFrom> <" + rec + "> ; tv:windowStartS 0.0 ; tv:windowEndS 60.0 ; tv:sdnnMs 40.0 .' | " +
+                  kBin + "/tahvel put " + (machine["sensor"] / "sensor").string() + " --agent hrv"),
+            0);
+  std::string patients;
+  ASSERT_TRUE(eventually([&] { return (patients = tahvel("patients " + ward_store)).find("1 patient(s)") != std::string::npos; }, 15s))
+      << patients;
+  EXPECT_EQ(patients.find("its windows come through"), std::string::npos) << "every link on the way is up:\n" << patients;
+
   tahvel("down --state " + machine["sensor"].string());
   EXPECT_TRUE(eventually([&] {
     shown = status_of("ward");
     return shown.find("    sensor  <" + kWard + "/gateway/sensor>  (on another machine)  link down") != std::string::npos;
   }, 15s)) << shown;
+  // The sensor is two hops down: its link state is on the gateway's board, not the ward's, and
+  // `patients` at the ward showed its windows as if they were only late.
+  patients = tahvel("patients " + ward_store);
+  EXPECT_NE(patients.find("its windows come through <" + sensor_iri + ">, down at <" + kWard + "/gateway> (last heard "), std::string::npos)
+      << patients;
+  EXPECT_NE(tahvel("patients " + ward_store + " --json").find(",\"stale\":false,\"at\":\"" + kWard + "/gateway\"}"), std::string::npos);
   EXPECT_NE(shown.find("      programs and children unknown: unreachable: "), std::string::npos) << shown;
   EXPECT_EQ(shown.find("flaky"), std::string::npos) << shown;
   tahvel("down --state " + machine["gateway"].string());
