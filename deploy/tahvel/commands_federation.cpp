@@ -2187,6 +2187,7 @@ int run_down(const Args& args) {
   }
   std::error_code ec;
   int stopped = 0;
+  std::set<std::string> stopped_ids;  // of the pid files whose supervisor this down stopped ("all": every node)
   for (const auto& entry : fs::directory_iterator(state, ec)) {
     const std::string name = entry.path().filename().string();
     if (name.rfind("supervisor-", 0) != 0 || entry.path().extension() != ".pid") continue;
@@ -2212,6 +2213,7 @@ int run_down(const Args& args) {
       std::this_thread::sleep_for(50ms);
     if (supervisor_holding(entry.path()) != 0) fail(not_stopped_because(pid, state));
     ++stopped;
+    stopped_ids.insert(name.substr(std::string("supervisor-").size(), name.size() - std::string("supervisor-").size() - 4));
     std::cout << "down: stopped supervisor " << pid << " (" << name << ")\n";
   }
   if (ec) fail(state.string() + ": " + ec.message());
@@ -2230,15 +2232,22 @@ int run_down(const Args& args) {
       while (supervisor_of_store(store) != 0 && std::chrono::steady_clock::now() < deadline) std::this_thread::sleep_for(50ms);
       if (supervisor_of_store(store) != 0) fail(not_stopped_because(holder, state));
       ++stopped;
+      stopped_ids.insert(entry.path().filename().string());
       std::cout << "down: stopped supervisor " << holder << " (it ran node '" << entry.path().filename().string()
                 << "' without a pid file)\n";
     }
     const int fd = ::open(store.c_str(), O_RDONLY | O_DIRECTORY | O_CLOEXEC);
     if (fd < 0) continue;
     if (flock(fd, LOCK_EX | LOCK_NB) == 0) {
+      const std::string id = entry.path().filename().string();
+      // A supervisor this down stopped ended its programs' process groups: what is left was
+      // started apart from them (setsid, a double fork), not left by a supervisor killed.
+      const bool stopped_now = stopped_ids.count(id) > 0 || stopped_ids.count("all") > 0;
       for (const auto& killed : agents::kill_leftovers(store.string())) {
-        std::cout << "down: killed " << killed << ", left running by a program of node '" << entry.path().filename().string()
-                  << "' when its supervisor was killed\n";
+        std::cout << "down: killed " << killed << ", left running by a program of node '" << id << "' "
+                  << (stopped_now ? "outside its process group (setsid or a double fork: its supervisor, stopped, did not reach it)"
+                                  : "when its supervisor was killed")
+                  << "\n";
         ++leftovers;
       }
     }

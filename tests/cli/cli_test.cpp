@@ -2260,6 +2260,25 @@ TEST_F(Cli, StatusSaysHowLongAStoppedSupervisorHasBeenSilentInHoursAndMinutes) {
   EXPECT_EQ(run({"down", "--state", state}).status, 0);
 }
 
+// A program that starts a process in a session of its own (setsid): the supervisor stopping
+// its programs' process groups does not reach it, and `down` kills it as a leftover. It said
+// "when its supervisor was killed" of a supervisor this same `down` had just stopped.
+TEST_F(Cli, DownSaysALeftoverOutsideItsProgramsProcessGroupWasNotLeftByAKilledSupervisor) {
+  const std::string file = (tmp_ / "detach.toml").string(), state = (tmp_ / "state").string();
+  const fs::path child_file = tmp_ / "child";
+  spit(file, "[[node]]\nid = \"solo\"\niri = \"http://example.org/solo\"\n  [[node.agent]]\n  id = \"detach\"\n"
+             "  run = [\"/bin/sh\", \"-c\", \"setsid sleep 1007 & echo $! > " + child_file.string() + "; exec sleep 1006\"]\n");
+  ASSERT_EQ(run({"up", file, "--state", state}).status, 0);
+  ASSERT_TRUE(eventually([&] { return fs::exists(child_file) && std::atoi(slurp(child_file).c_str()) > 0; }));
+  const pid_t child = std::atoi(slurp(child_file).c_str());
+  Outcome down = run({"down", "--state", state});
+  EXPECT_EQ(down.status, 0) << down.err;
+  EXPECT_NE(down.out.find("down: killed " + std::to_string(child) + " (sleep), left running by a program of node 'solo' outside its "
+                          "process group"),
+            std::string::npos) << down.out;
+  EXPECT_EQ(down.out.find("when its supervisor was killed"), std::string::npos) << down.out;
+}
+
 // An agent that is a shell wrapper: what it starts goes with it, on `down`, and when its
 // supervisor was SIGKILLed (the wrapper dies with it; its child used to run on, out of reach of
 // `down`, beside the next `up`'s copy), at the next `down` or `up`.
@@ -2292,7 +2311,8 @@ TEST_F(Cli, DownAndTheNextUpStopWhatAProgramStartedEvenAfterItsSupervisorWasKill
   EXPECT_FALSE(gone(child));  // nothing stops it until a `down` or `up`
   Outcome down = run({"down", "--state", state});
   EXPECT_EQ(down.status, 0) << down.err;
-  EXPECT_NE(down.out.find("down: killed " + std::to_string(child) + " (sleep), left running by a program of node 'solo'"),
+  EXPECT_NE(down.out.find("down: killed " + std::to_string(child) + " (sleep), left running by a program of node 'solo' "
+                          "when its supervisor was killed"),
             std::string::npos) << down.out;
   EXPECT_TRUE(eventually([&] { return gone(child); }));  // SIGKILL is delivered, not awaited
 
