@@ -2054,7 +2054,11 @@ struct Link::Impl {
                                                 : !it->second->connected && !it->second->ever;
       if (opt.down && young && not_yet) return;
       if (it == children.end() || !opt.down) {
-        out.error(via, opt.parent_iri, f.seq, {"unknown_node", "no node <" + q->target + "> below <" + self + ">", q->origin});
+        std::string hint;  // a child written with characters where the query percent-encodes them, or the other way
+        for (const auto& [iri, child] : children)
+          if (!child_iri.empty() && iri != child_iri && uri::percent_decoded(iri) == uri::percent_decoded(child_iri))
+            hint = "; did you mean <" + iri + ">? (an IRI is compared as written: a character and its percent-encoding are two IRIs)";
+        out.error(via, opt.parent_iri, f.seq, {"unknown_node", "no node <" + q->target + "> below <" + self + ">" + hint, q->origin});
       } else if (!it->second->connected) {
         out.error(via, opt.parent_iri, f.seq,
                   {"unreachable", "<" + child_iri + ">" + (child_iri == q->target ? "" : " (on the way to <" + q->target + ">)") +

@@ -82,31 +82,14 @@ Unexpected<Error> timed_out(const std::string& target, std::chrono::milliseconds
                                        " ms (" + std::to_string(delivered) + " records received)");
 }
 
-// `text` with every "%HH" decoded to its byte: what a browser shows of an IRI it was given
-// percent-encoded ("kodu-%C3%B5ie" is "kodu-õie" on screen, and another IRI to RDF).
-std::string percent_decoded(std::string_view text) {
-  std::string out;
-  for (std::size_t i = 0; i < text.size(); ++i) {
-    unsigned value = 0;
-    if (text[i] == '%' && i + 2 < text.size() &&
-        std::from_chars(text.data() + i + 1, text.data() + i + 3, value, 16).ptr == text.data() + i + 3) {
-      out.push_back(static_cast<char>(value));
-      i += 2;
-    } else {
-      out.push_back(text[i]);
-    }
-  }
-  return out;
-}
-
 // "; did you mean <…>?" for a child of the node whose IRI is `child` written with characters
 // where `child` percent-encodes them (or the other way round); "" when none is.
 std::string percent_spelling_hint(const node::Snapshot& snap, const std::string& child) {
-  const std::string decoded = percent_decoded(child);
+  const std::string decoded = uri::percent_decoded(child);
   auto children = snap.list({.p = node::Term::iri(vocab::kLinkState)});
   if (!children) return {};
   for (const node::Record& r : *children)
-    if (r.triple.s.is_iri() && r.triple.s.value != child && percent_decoded(r.triple.s.value) == decoded)
+    if (r.triple.s.is_iri() && r.triple.s.value != child && uri::percent_decoded(r.triple.s.value) == decoded)
       return "; did you mean <" + r.triple.s.value + ">? (an IRI is compared as written: a character and its percent-encoding are two IRIs)";
   return {};
 }

@@ -742,3 +742,11 @@ TEST(UnicodeEscape, EscapesBecomeUtf8AndNonCharactersAreRefused) {
 
 }  // namespace
 }  // namespace tahvel::uri
+
+// What a browser shows of a percent-encoded IRI, for naming the IRI a user meant: every %HH
+// decoded to its byte, anything else (a '%' without two hex digits) as written.
+TEST(IriPercentDecoded, DecodesEachEscapeAndKeepsWhatIsNotOne) {
+  EXPECT_EQ(tahvel::uri::percent_decoded("http://h/kodu-%C3%B5ie"), "http://h/kodu-\xC3\xB5ie");
+  EXPECT_EQ(tahvel::uri::percent_decoded("http://h/a%2fb%zz%4"), "http://h/a/b%zz%4");
+  EXPECT_EQ(tahvel::uri::percent_decoded(""), "");
+}

@@ -73,6 +73,11 @@ bool is_under(std::string_view iri, std::string_view ancestor);
 // http://h/home1), or an error when `iri` is not exactly one segment below `parent`.
 IriResult<std::string> child_id(std::string_view iri, std::string_view parent);
 
+// `text` with every "%HH" decoded to its byte: what a browser shows of an IRI given
+// percent-encoded ("kodu-%C3%B5ie" reads "kodu-õie"; to RDF they are two IRIs). For telling a
+// user which IRI they meant, not for comparing IRIs.
+std::string percent_decoded(std::string_view text);
+
 // Prefix table for CURIEs ("sosa:Observation"). Prefix names follow Turtle's PN_PREFIX
 // (may be empty: ":x").
 class PrefixMap {
