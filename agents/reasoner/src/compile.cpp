@@ -761,6 +761,27 @@ std::string dependency_path(const Program& program, const std::vector<std::vecto
   return out + " (each derived from the next)";
 }
 
+// Whether a rule of the binary predicate `p` may derive a triple that `fact(S, P, O)` (`l`)
+// matches, or an atom of `p` (`l`) its rules: a head whose argument is a constant other than
+// the call's own constant there derives none (`\+ fact(X, _, ex:Person)` beside
+// `bare(X, true) :- …` was refused as depending on its own negation, though `true` is never
+// ex:Person; so was `\+ rdf:type(X, ex:Person)` beside a rule deriving rdf:type ex:Alerted).
+// Such a predicate is no dependency of the call: strata may put it anywhere.
+bool may_derive_a_match(const Program& program, std::uint32_t p, const Literal& l) {
+  auto compatible = [](const Arg& head, const Arg& call) { return head.is_var || call.is_var || head.index == call.index; };
+  // fact(S, P, O) against a binary head (S, O); an atom of p against its head, argument by argument.
+  const bool any_binary = l.pred == kAnyBinary;
+  for (const Rule& rule : program.rules) {
+    if (rule.head != p) continue;
+    if (any_binary ? rule.head_args.size() != 2 || l.args.size() != 3 : rule.head_args.size() != l.args.size()) return true;
+    bool matches = true;
+    for (std::size_t i = 0; i < rule.head_args.size() && matches; ++i)
+      matches = compatible(rule.head_args[i], l.args[any_binary && i == 1 ? 2 : i]);
+    if (matches) return true;
+  }
+  return false;
+}
+
 // Step 4: Tarjan's strongly connected components; emitted dependencies first.
 Result<void> stratify(Program& program) {
   const std::size_t n = program.preds.size();
@@ -772,11 +793,12 @@ Result<void> stratify(Program& program) {
       if (l.kind != Literal::atom && l.kind != Literal::negation) continue;
       bool neg = l.kind == Literal::negation;
       if (l.pred != kAnyBinary) {
-        edges[rule.head].push_back({l.pred, neg});
+        if (may_derive_a_match(program, l.pred, l)) edges[rule.head].push_back({l.pred, neg});
         continue;
       }
       for (std::uint32_t p = 0; p < n; ++p)
-        if (defined[p] && program.preds[p].arity == 2 && !program.preds[p].internal) edges[rule.head].push_back({p, neg});
+        if (defined[p] && program.preds[p].arity == 2 && !program.preds[p].internal && may_derive_a_match(program, p, l))
+          edges[rule.head].push_back({p, neg});
     }
   }
   std::vector<int> index(n, -1), low(n, 0), comp(n, -1);
