@@ -786,6 +786,14 @@ std::string problem_of(tn::Node& node, const tn::Term& agent) {
   return records->empty() ? std::string() : records->front().triple.o.value;
 }
 
+// Whether the log file at `log` holds `line` (anywhere in it).
+bool log_holds(const std::string& log, const std::string& line) {
+  std::ifstream in(log);
+  std::ostringstream text;
+  text << in.rdbuf();
+  return text.str().find(line) != std::string::npos;
+}
+
 // Whether `holds` comes true within a minute (an agent process answers in milliseconds).
 bool within_a_minute(const std::function<bool()>& holds) {
   const auto deadline = std::chrono::steady_clock::now() + 60s;
@@ -833,12 +841,7 @@ TEST(AgentPrograms, AnHrvSettingRemovedGivesBackTheCommandLinesWindow) {
     ASSERT_TRUE(made) << made.error().message;
     std::optional<tn::Node> node(std::move(*made));
     const tn::Term hrv = tn::Term::iri(kNodeIri + "/hrv");
-    auto logged = [&](const std::string& line) {
-      std::ifstream in(log);
-      std::ostringstream text;
-      text << in.rdbuf();
-      return text.str().find(line) != std::string::npos;
-    };
+    auto logged = [&](const std::string& line) { return log_holds(log, line); };
     {
       Process agent({bin("tahvel-hrv"), dir, "--window", "30", "--idle", "30"}, log);
       ASSERT_TRUE(node->agent("operator")->store(tn::Item{}.add(hrv, agg::tv_term("windowSeconds"), tn::Term::integer(60))));
@@ -891,12 +894,7 @@ TEST(AgentPrograms, AnHrvSettingForTheAgentsIriInAnotherSpellingIsItsSetting) {
   ScratchNode scratch("hrv-spelling");
   ASSERT_TRUE(scratch.node) << "cannot make a store under /tmp";
   const std::string log = scratch.tmp + "/hrv.log";
-  auto logged = [&](const std::string& line) {
-    std::ifstream in(log);
-    std::ostringstream text;
-    text << in.rdbuf();
-    return text.str().find(line) != std::string::npos;
-  };
+  auto logged = [&](const std::string& line) { return log_holds(log, line); };
   ASSERT_EQ(kNodeIri.rfind("http://example.org/", 0), 0u);
   const tn::Term spelt = tn::Term::iri("HTTP://Example.ORG/" + kNodeIri.substr(19) + "/hrv");
   Process agent({bin("tahvel-hrv"), scratch.dir, "--idle", "30", "--window", "60"}, log);
@@ -919,12 +917,7 @@ TEST(AgentPrograms, TheHrvSettingWrittenLastHoldsWhicheverArrivesLast) {
   ASSERT_TRUE(scratch.node) << "cannot make a store under /tmp";
   const tn::Term hrv = tn::Term::iri(kNodeIri + "/hrv");
   const std::string log = scratch.tmp + "/hrv.log";
-  auto logged = [&](const std::string& line) {
-    std::ifstream in(log);
-    std::ostringstream text;
-    text << in.rdbuf();
-    return text.str().find(line) != std::string::npos;
-  };
+  auto logged = [&](const std::string& line) { return log_holds(log, line); };
   const std::int64_t now = std::chrono::duration_cast<std::chrono::nanoseconds>(std::chrono::system_clock::now().time_since_epoch()).count();
   Process agent({bin("tahvel-hrv"), scratch.dir, "--idle", "30"}, log);
   tn::Item home = tn::Item{}.add(hrv, agg::tv_term("windowSeconds"), tn::Term::integer(200));
