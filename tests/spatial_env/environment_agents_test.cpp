@@ -10,6 +10,7 @@
 
 #include <algorithm>
 #include <filesystem>
+#include <fstream>
 #include <map>
 #include <thread>
 
@@ -173,6 +174,27 @@ TEST_F(EnvironmentAgents, OneMoteAtATimeAnswersForARoomAndTheMotesTakeTurns) {
   ASSERT_EQ(times.size(), 12u);
   for (std::size_t i = 0; i < times.size(); ++i) EXPECT_EQ(times[i], kT0 + static_cast<std::int64_t>(i) * 300 * kS);
   for (std::size_t i = 1; i < one.size(); ++i) EXPECT_EQ(one[i].at_ns - one[i - 1].at_ns, 600 * kS);
+}
+
+// A mote on the wall between two rooms is in both (S3). Asked for light in the hall every 300 s
+// and in the bathroom every 600 s, it took two readings at each instant both were due: a
+// second reading of the same moment, which under the closed rule the first already gave both.
+TEST_F(EnvironmentAgents, AMoteOnASharedWallTakesOneReadingForBothRoomsAtAnInstant) {
+  const std::string wall =
+      "@prefix geo: <http://www.opengis.net/ont/geosparql#> .\n@prefix tv: <https://w3id.org/tahvel#> .\n"
+      "<" + kHome + "/mote-wall> a <http://www.w3.org/ns/sosa/Sensor> ; tv:floor 0 ; geo:hasGeometry <" + kHome +
+      "/mote-wall/geometry> ; tv:senses tv:light .\n<" + kHome + "/mote-wall/geometry> geo:asWKT \"POINT(7 5)\"^^geo:wktLiteral .\n";
+  std::ofstream(dir_ / "wall.ttl") << wall;
+  ASSERT_EQ(run(bin("tahvel") + " put " + store_ + " --persistent " + (dir_ / "wall.ttl").string() + " > /dev/null"), 0);
+  subscribe("hall-light", Quantity::light, "hall", 300, 0);
+  subscribe("bath-light", Quantity::light, "bathroom", 600, 0);
+  simulate_one_hour();
+  const auto& taken = readings()[{"mote-wall", Quantity::light}];
+  ASSERT_EQ(taken.size(), 12u);  // every 300 s for the hall, the bathroom's within them
+  for (std::size_t i = 0; i < taken.size(); ++i) EXPECT_EQ(taken[i].at_ns, kT0 + static_cast<std::int64_t>(i) * 300 * kS);
+  aggregate_at(kT0 + 3590 * kS);
+  EXPECT_NE(environment("bathroom", "light"), "unknown");
+  EXPECT_EQ(environment("bathroom", "light"), environment("hall", "light"));
 }
 
 // The supervisor restarts a crashed simulator: it picks the schedule and the turns up from the

@@ -156,8 +156,18 @@ class Simulator {
       last_time_[key] = now_ns;
       last_value_[key] = r.value;
     }
+    // A mote on the wall between two rooms is in both (S3): one reading at an instant counts
+    // for each room it is due in (S12), instead of a second reading of the same moment.
+    std::map<std::pair<std::string, sp::Quantity>, double> read_now;  // (mote, quantity) -> value
     for (const auto& [key, due] : room_due) {
       if (!is_due(key, due.period_s, now_ns)) continue;
+      const auto shared = std::find_if(due.motes.begin(), due.motes.end(),
+                                       [&](const std::string& m) { return read_now.count({m, key.second}) > 0; });
+      if (shared != due.motes.end()) {
+        last_time_[key] = now_ns;
+        last_value_[key] = read_now.at({*shared, key.second});
+        continue;
+      }
       const std::string* mote = &due.motes.front();
       for (const std::string& m : due.motes) {
         auto answered = [&](const std::string& x) {
@@ -171,6 +181,7 @@ class Simulator {
       last_time_[key] = now_ns;
       last_value_[key] = r.value;
       last_answered_[{*mote, key.second}] = now_ns;
+      read_now[{*mote, key.second}] = r.value;
     }
     return true;
   }
