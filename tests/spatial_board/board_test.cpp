@@ -53,6 +53,14 @@ class BoardTest : public testing::Test {
     node_.reset();
   }
 
+  static Term tv(const std::string& local) { return Term::iri("https://w3id.org/tahvel#" + local); }
+  // Adds to `item` a declaration, as a file written by hand states one: blank node `label`
+  // subscribes `subscriber` to `area` (a room's IRI or a WKT literal). Returns the item, for
+  // more about it.
+  static node::Item& declare(node::Item& item, const std::string& label, const Term& subscriber, const Term& area) {
+    return item.add(Term::blank(label), tv("areaSubscriber"), subscriber).add(Term::blank(label), tv("area"), area);
+  }
+
   // Stores `declarations` as an operator's file is put, then opens the area keeper on the store;
   // `first` gets the report of its first sync.
   Result<AreaKeeper> keep(const node::Item& declarations, AreaSyncReport& first) {
@@ -630,17 +638,12 @@ TEST_F(BoardTest, AWktAreaOnOneFloorExpandsToTheSensorsOfThatFloorOnly) {
 // each subject of tv:areaSubscriber is a declaration of its own, expanded on its own, and a
 // problem is reported against the declaration that has it. The keeper's first sync is reported.
 TEST_F(BoardTest, EachDeclarationInAnItemIsKeptAndItsProblemsAreItsOwn) {
-  const std::string kTv = "https://w3id.org/tahvel#";
   node::Item item;
   item.persistent = true;
-  item.add(Term::blank("a"), Term::iri(kTv + "areaSubscriber"), Term::iri(kHome + "/ui-bed"))
-      .add(Term::blank("a"), Term::iri(kTv + "area"), Term::iri(kBedroom))
-      .add(Term::blank("a"), Term::iri(kTv + "predicate"), Term::iri("http://www.w3.org/ns/sosa/hasSimpleResult"))
-      .add(Term::blank("b"), Term::iri(kTv + "areaSubscriber"), Term::iri(kHome + "/ui-up"))
-      .add(Term::blank("b"), Term::iri(kTv + "area"), Term::iri(kUpstairs))
-      .add(Term::blank("c"), Term::iri(kTv + "areaSubscriber"), Term::iri(kHome + "/ui-bad"))
-      .add(Term::blank("c"), Term::iri(kTv + "area"), Term::iri(kHall))
-      .add(Term::blank("c"), Term::iri(kTv + "areaFloor"), Term::integer(1));
+  declare(item, "a", Term::iri(kHome + "/ui-bed"), Term::iri(kBedroom))
+      .add(Term::blank("a"), tv("predicate"), Term::iri("http://www.w3.org/ns/sosa/hasSimpleResult"));
+  declare(item, "b", Term::iri(kHome + "/ui-up"), Term::iri(kUpstairs));
+  declare(item, "c", Term::iri(kHome + "/ui-bad"), Term::iri(kHall)).add(Term::blank("c"), tv("areaFloor"), Term::integer(1));
   AreaSyncReport first;
   auto keeper = keep(item, first);
   ASSERT_TRUE(keeper.has_value()) << keeper.error().message;
@@ -664,18 +667,12 @@ TEST_F(BoardTest, EachDeclarationInAnItemIsKeptAndItsProblemsAreItsOwn) {
 // declarations stopped following their sensors, and so did every `tahvel remove`. It is now
 // that declaration's problem, and the others are kept current.
 TEST_F(BoardTest, ADeclarationWhoseSubscriberIsNotAnIriIsItsOwnProblemAndTheOthersAreKept) {
-  const std::string kTv = "https://w3id.org/tahvel#";
   node::Item item;
   item.persistent = true;
-  item.add(Term::blank("a"), Term::iri(kTv + "areaSubscriber"), Term::iri(kHome + "/ui-bed"))
-      .add(Term::blank("a"), Term::iri(kTv + "area"), Term::iri(kBedroom))
-      .add(Term::blank("b"), Term::iri(kTv + "areaSubscriber"), Term::literal("ui2"))
-      .add(Term::blank("b"), Term::iri(kTv + "area"), Term::iri(kBedroom))
-      .add(Term::blank("c"), Term::iri(kTv + "areaSubscriber"), Term::blank("someone"))
-      .add(Term::blank("c"), Term::iri(kTv + "area"), Term::iri(kHall))
-      .add(Term::blank("d"), Term::iri(kTv + "areaSubscriber"), Term::iri(kHome + "/ui-hall"))
-      .add(Term::blank("d"), Term::iri(kTv + "area"), Term::iri(kHall))
-      .add(Term::blank("d"), Term::iri(kTv + "predicate"), Term::literal("hasSimpleResult"));
+  declare(item, "a", Term::iri(kHome + "/ui-bed"), Term::iri(kBedroom));
+  declare(item, "b", Term::literal("ui2"), Term::iri(kBedroom));
+  declare(item, "c", Term::blank("someone"), Term::iri(kHall));
+  declare(item, "d", Term::iri(kHome + "/ui-hall"), Term::iri(kHall)).add(Term::blank("d"), tv("predicate"), Term::literal("hasSimpleResult"));
   AreaSyncReport first;
   auto keeper = keep(item, first);
   ASSERT_TRUE(keeper.has_value()) << keeper.error().message;
@@ -741,16 +738,12 @@ TEST_F(BoardTest, TheKeeperReportsAProblemOnceHoweverOftenItSyncs) {
 // tv:areaFloor is a floor as tv:floor is (S5): "1.0" was refused as not an integer, and
 // 4294967296 was cut to an int and read as floor 0.
 TEST_F(BoardTest, AnAreaFloorIsReadAsAFeatureFloorIs) {
-  const std::string kTv = "https://w3id.org/tahvel#";
-  const std::string xsd_decimal = "http://www.w3.org/2001/XMLSchema#decimal";
+  const Term square = Term::literal("POLYGON((0 0, 2 0, 2 2, 0 2, 0 0))", kGeoWktLiteral);
   node::Item item;
   item.persistent = true;
-  item.add(Term::blank("a"), Term::iri(kTv + "areaSubscriber"), Term::iri(kHome + "/ui-up"))
-      .add(Term::blank("a"), Term::iri(kTv + "area"), Term::literal("POLYGON((0 0, 2 0, 2 2, 0 2, 0 0))", kGeoWktLiteral))
-      .add(Term::blank("a"), Term::iri(kTv + "areaFloor"), Term::literal("1.0", xsd_decimal))
-      .add(Term::blank("b"), Term::iri(kTv + "areaSubscriber"), Term::iri(kHome + "/ui-far"))
-      .add(Term::blank("b"), Term::iri(kTv + "area"), Term::literal("POLYGON((0 0, 2 0, 2 2, 0 2, 0 0))", kGeoWktLiteral))
-      .add(Term::blank("b"), Term::iri(kTv + "areaFloor"), Term::integer(4294967296));
+  declare(item, "a", Term::iri(kHome + "/ui-up"), square)
+      .add(Term::blank("a"), tv("areaFloor"), Term::literal("1.0", "http://www.w3.org/2001/XMLSchema#decimal"));
+  declare(item, "b", Term::iri(kHome + "/ui-far"), square).add(Term::blank("b"), tv("areaFloor"), Term::integer(4294967296));
   AreaSyncReport first;
   auto keeper = keep(item, first);
   ASSERT_TRUE(keeper.has_value()) << keeper.error().message;
