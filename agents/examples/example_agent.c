@@ -26,6 +26,7 @@
 /* The C API is C99; clock_gettime and sigaction are POSIX, which strict C99 leaves out. */
 #define _POSIX_C_SOURCE 200809L
 
+#include <ctype.h>
 #include <math.h>
 #include <signal.h>
 #include <stdio.h>
@@ -100,10 +101,10 @@ static tahvel_status derive(tahvel_agent* agent, const char* subject, const char
   int n;
   char* end = NULL;
   if (object[0] != '"') return TAHVEL_OK; /* not a literal: nothing to classify */
-  /* The whole lexical form a finite number ("abc", "NaN" and "0x40" are no heart rate): else
-   * logged and skipped, as the pipeline's agents do with malformed input. */
+  /* The whole lexical form a finite number ("abc", "NaN", "0x40" and " 72" are no heart rate):
+   * else logged and skipped, as the pipeline's agents do with malformed input. */
   bpm = strtod(object + 1, &end);
-  if (end == object + 1 || *end != '"' || !isfinite(bpm) || bpm < 0 || memchr(object + 1, 'x', (size_t)(end - object - 1)) ||
+  if (end == object + 1 || isspace((unsigned char)object[1]) || *end != '"' || !isfinite(bpm) || bpm < 0 || memchr(object + 1, 'x', (size_t)(end - object - 1)) ||
       memchr(object + 1, 'X', (size_t)(end - object - 1))) {
     fprintf(stderr, "example_agent: %s %s: not a heart rate, skipped\n", subject, object);
     return TAHVEL_OK;

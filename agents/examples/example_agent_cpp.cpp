@@ -17,6 +17,7 @@
 // Stops after N items, after SECONDS without input (default 10), or on SIGINT/SIGTERM.
 // Exit status: 0 done, 1 Tahvel error, 2 usage.
 #include <chrono>
+#include <cctype>
 #include <cmath>
 #include <csignal>
 #include <cstdlib>
@@ -78,11 +79,12 @@ const char* classify(double bpm) {
 }
 
 // The heart rate a literal holds: its whole lexical form a finite decimal number of beats per
-// minute ("abc", "NaN" and "0x40" are none).
+// minute ("abc", "NaN", "0x40" and " 72" are none: strtod would skip the space).
 std::optional<double> heart_rate(const std::string& text) {
+  if (text.empty() || std::isspace(static_cast<unsigned char>(text[0]))) return std::nullopt;
   char* end = nullptr;
   const double bpm = std::strtod(text.c_str(), &end);
-  if (text.empty() || end != text.c_str() + text.size() || !std::isfinite(bpm) || bpm < 0 ||
+  if (end != text.c_str() + text.size() || !std::isfinite(bpm) || bpm < 0 ||
       text.find_first_of("xX") != std::string::npos)
     return std::nullopt;
   return bpm;

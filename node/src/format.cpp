@@ -321,6 +321,17 @@ class Parser {
                                                                       : "integer") +
                ">; Turtle, a .ttl file or --format ttl, takes a bare " + std::string(token) + ")";
     }
+    // A literal where a subject goes: serd, reading it as a subject that is no term, says only
+    // "bad verb" at the statement's start.
+    if (message.ends_with("bad verb")) {
+      const std::size_t at = std::min(offset(), text_.size());
+      const std::size_t line = text_.substr(0, at).rfind('\n');
+      const std::size_t begin = text_.find_first_not_of(" \t", line == std::string_view::npos ? 0 : line + 1);
+      const std::string_view statement = begin == std::string_view::npos ? std::string_view() : text_.substr(begin);
+      if (!statement.empty() && (std::string_view("\"'0123456789+-.").find(statement[0]) != std::string_view::npos ||
+                                 statement.starts_with("true") || statement.starts_with("false")))
+        return message + " (a literal cannot be a subject: a statement begins with an IRI or a blank node)";
+    }
     // The records `list --format json` writes, put back: '{' starts a graph block to serd.
     const std::size_t first = text_.find_first_not_of(" \t\r\n");
     if (first != std::string_view::npos && text_.substr(first, 2) == "{\"")

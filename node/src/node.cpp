@@ -927,6 +927,9 @@ Result<std::uint64_t> Agent::subscribe(const Pattern& given, const SubscribeOpti
   // API refuses it).
   if (pattern.s && pattern.s->is_literal()) return fail(Errc::invalid_argument, "a subscription's subject cannot be a literal");
   if (pattern.p && !pattern.p->is_iri()) return fail(Errc::invalid_argument, "a subscription's predicate must be an IRI");
+  if (pattern.o && pattern.o->is_literal())
+    if (auto bad = detail::pattern_literal_problem(*pattern.o); !bad.empty())
+      return fail(Errc::invalid_argument, "subscription object: " + bad);
   Item item;
   item.persistent = true;
   const Term node = Term::blank("subscription");

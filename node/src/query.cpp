@@ -6,6 +6,7 @@
 #include <unordered_set>
 
 #include "tahvel/uri/iri.h"
+#include "write.h"
 
 namespace tahvel::node::detail {
 namespace {
@@ -39,6 +40,8 @@ Result<void> check_pattern(const Pattern& pattern) {
     if (term->is_iri() && !uri::is_valid(term->value)) return fail(Errc::invalid_iri, what + ": not an absolute IRI");
     if (k == 0 && term->is_literal()) return fail(Errc::invalid_argument, what + ": a subject cannot be a literal");
     if (k == 1 && !term->is_iri()) return fail(Errc::invalid_argument, what + ": a predicate must be an IRI");
+    if (term->is_literal())
+      if (auto bad = detail::pattern_literal_problem(*term); !bad.empty()) return fail(Errc::invalid_argument, what + ": " + bad);
   }
   if (pattern.under && !uri::is_valid(*pattern.under))
     return fail(Errc::invalid_iri, "pattern under <" + *pattern.under + ">: not an absolute IRI");

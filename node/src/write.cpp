@@ -464,7 +464,26 @@ std::string not_utf8(std::string_view text, std::string_view of_what) {
          " does not begin a well-formed sequence";
 }
 
+// What is wrong with a literal's language tag and its pairing with a datatype, or "".
+std::string language_tag_problem(const Term& term) {
+  if (term.language.size() > 255) return "language tag too long";
+  if (!term.language.empty() && !is_language_tag(term.language))
+    return "language tag '" + term.language + "' is not letters, then '-' and letters or digits (en, et-EE)";
+  if (!term.language.empty() && !term.datatype.empty() && term.datatype != kRdfLangString)
+    return "a literal has a language tag or a datatype, not both";
+  // RDF 1.1: rdf:langString is the datatype of the literals with a language tag, and of no other.
+  if (term.language.empty() && term.datatype == kRdfLangString) return "a literal of datatype rdf:langString needs a language tag";
+  return {};
+}
+
 }  // namespace
+
+std::string pattern_literal_problem(const Term& term) {
+  if (auto bad = not_utf8(term.value, ""); !bad.empty()) return bad.substr(2);
+  if (auto bad = not_utf8(term.datatype, " of the datatype"); !bad.empty()) return bad.substr(2);
+  if (!term.datatype.empty() && !uri::is_valid(term.datatype)) return "its datatype <" + term.datatype + "> is not an absolute IRI";
+  return language_tag_problem(term);
+}
 
 Result<void> validate_item(const Item& item, const Settings& settings) {
   if (item.triples.empty()) return fail(Errc::invalid_argument, "an item needs at least one triple");
@@ -498,15 +517,7 @@ Result<void> validate_item(const Item& item, const Settings& settings) {
         return fail(Errc::literal_too_large, where(pos) + ": literal of " + std::to_string(term.value.size()) +
                                                  " bytes exceeds the node's limit of " +
                                                  std::to_string(settings.max_literal_bytes));
-      if (term.language.size() > 255) return fail(Errc::invalid_argument, where(pos) + ": language tag too long");
-      if (!term.language.empty() && !is_language_tag(term.language))
-        return fail(Errc::invalid_argument, where(pos) + ": language tag '" + term.language +
-                                                "' is not letters, then '-' and letters or digits (en, et-EE)");
-      if (!term.language.empty() && !term.datatype.empty() && term.datatype != kRdfLangString)
-        return fail(Errc::invalid_argument, where(pos) + ": a literal has a language tag or a datatype, not both");
-      // RDF 1.1: rdf:langString is the datatype of the literals with a language tag, and of no other.
-      if (term.language.empty() && term.datatype == kRdfLangString)
-        return fail(Errc::invalid_argument, where(pos) + ": a literal of datatype rdf:langString needs a language tag");
+      if (auto bad = language_tag_problem(term); !bad.empty()) return fail(Errc::invalid_argument, where(pos) + ": " + bad);
     }
   }
   return {};

@@ -17,6 +17,13 @@ namespace tahvel::node::detail {
 // literal sizes and language tags. Error names the triple (1-based) and position.
 Result<void> validate_item(const Item& item, const Settings& settings);
 
+// What keeps `literal`, a pattern's object, from being a term any record could hold, or "" when
+// nothing: not UTF-8, a datatype that is not an absolute IRI, a language tag that is not one or
+// beside a datatype other than rdf:langString, rdf:langString without a tag. A pattern with such
+// a term is an error, not an empty answer (stored literals get the same checks from validate_item
+// and, for the datatype, as it enters the dictionary).
+std::string pattern_literal_problem(const Term& literal);
+
 // The subscription vocabulary term for an item-context condition (tv:context).
 inline constexpr std::string_view kSubscriptionContext = "https://w3id.org/tahvel#context";
 // The subscription vocabulary term for a source condition (tv:source): the writer's IRI or an

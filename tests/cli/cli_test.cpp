@@ -630,7 +630,8 @@ TEST_F(Cli, RemoveByPatternKeepsSubscriptionsAndSaysSo) {
 }
 
 // The worked example agents, which are meant to be copied, classified "abc", NaN and "0x40" as
-// heart rates ("low", "normal") with provenance to the observation. They skip them, saying so.
+// heart rates ("low", "normal") with provenance to the observation; the C++ one took "\t72" for 72
+// (strtod skips leading space) where the C one skipped it. They skip them, saying so.
 TEST_F(Cli, TheExampleAgentsClassifyOnlyLiteralsThatAreHeartRates) {
   init();
   const std::vector<std::string> examples = {TAHVEL_BIN_DIR "/example_agent", TAHVEL_BIN_DIR "/example_agent_cpp"};
@@ -645,6 +646,7 @@ TEST_F(Cli, TheExampleAgentsClassifyOnlyLiteralsThatAreHeartRates) {
                     "<http://example.org/home1/obs/1> <https://w3id.org/tahvel#heartRate> \"abc\" .\n"
                     "<http://example.org/home1/obs/1> <https://w3id.org/tahvel#heartRate> \"NaN\"^^<http://www.w3.org/2001/XMLSchema#double> .\n"
                     "<http://example.org/home1/obs/1> <https://w3id.org/tahvel#heartRate> \"0x40\"^^<http://www.w3.org/2001/XMLSchema#integer> .\n"
+                    "<http://example.org/home1/obs/1> <https://w3id.org/tahvel#heartRate> \"\\t72\" .\n"
                     "<http://example.org/home1/obs/1> <https://w3id.org/tahvel#heartRate> \"112\"^^<http://www.w3.org/2001/XMLSchema#integer> .\n");
   ASSERT_EQ(put.status, 0) << put.err;
   for (const std::string& program : examples) {
@@ -653,6 +655,8 @@ TEST_F(Cli, TheExampleAgentsClassifyOnlyLiteralsThatAreHeartRates) {
     EXPECT_NE(said.find("\"NaN\"^^<http://www.w3.org/2001/XMLSchema#double>: not a heart rate, skipped"), std::string::npos) << said;
     EXPECT_NE(said.find("\"0x40\"^^<http://www.w3.org/2001/XMLSchema#integer>: not a heart rate, skipped"), std::string::npos)
         << said;
+    // The C agent sees the N-Triples text (escaped), the C++ one the term: both skip it.
+    EXPECT_NE(said.find("72\": not a heart rate, skipped"), std::string::npos) << said;
   }
   Outcome classes = run({"list", node_, "-p", "tv:heartRateClass"});
   EXPECT_EQ(lines_of(classes.out).size(), 2u) << classes.out;  // one each, for 112

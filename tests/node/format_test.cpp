@@ -361,6 +361,23 @@ TEST(Format, ABareNumberOrBooleanInNTriplesSaysHowNTriplesWritesIt) {
   EXPECT_EQ(other.message.find("N-Triples writes"), std::string::npos) << other.message;
 }
 
+// A literal written as a subject was refused with serd's "bad verb" alone, which names neither
+// the literal nor the subject: the error says what is wrong, in both syntaxes.
+TEST(Format, ALiteralWhereASubjectGoesSaysALiteralCannotBeASubject) {
+  const std::pair<const char*, ParseOptions> cases[] = {
+      {"\"x\" <http://x/p> <http://x/o> .\n", ntriples()},
+      {"<http://x/a> <http://x/p> <http://x/o> .\n  12 <http://x/p> <http://x/o> .\n", ParseOptions{}},
+  };
+  for (const auto& [text, options] : cases) {
+    auto error = parse_error(text, options);
+    EXPECT_EQ(error.code, tn::Errc::syntax) << text;
+    EXPECT_NE(error.message.find("(a literal cannot be a subject"), std::string::npos) << error.message;
+  }
+  // Another "bad verb" (a statement of one term) gets no such hint.
+  auto other = parse_error("<http://x/a> .\n");
+  EXPECT_EQ(other.message.find("a literal cannot be"), std::string::npos) << other.message;
+}
+
 TEST(Format, NTriplesSyntaxErrorNamesLineAndColumn) {
   ParseOptions options = ntriples();
   options.source_name = "in.nt";

@@ -262,6 +262,10 @@ TEST(Store, APatternUnderAnIriTakesTheRecordsOfThatSubjectAndOfTheSubjectsBelowI
   auto not_text = node.agent("reader")->subscribe({.p = samples, .o = Term::literal("a\xFF")});
   ASSERT_FALSE(not_text);
   EXPECT_EQ(not_text.error().message.rfind("subscription object: ", 0), 0u) << not_text.error().message;
+  // Not "triple 2, object: invalid IRI 'integer'", a triple of the declaration.
+  auto datatype = node.agent("reader")->subscribe({.p = samples, .o = Term::literal("1", "integer")});
+  ASSERT_FALSE(datatype);
+  EXPECT_EQ(datatype.error().message, "subscription object: its datatype <integer> is not an absolute IRI");
 }
 
 // A time range takes an item that held for a span of time (a second of ECG) when the span
@@ -633,6 +637,15 @@ TEST(Store, AnIllFormedPatternIsRefusedNamingWhatIsWrongNotAnsweredWithNothing) 
       {Pattern{.o = Term::iri("")}, "pattern object <>: not an absolute IRI"},
       {Pattern{.under = "bad iri"}, "pattern under <bad iri>: not an absolute IRI"},
       {Pattern{.source = "w"}, "pattern source <w>: not an absolute IRI"},
+      // Literals no record can hold: a relative datatype, rdf:langString without a tag, a
+      // language tag that is none (they answered nothing where the C API refused them).
+      {Pattern{.o = Term::literal("1", "integer")},
+       "pattern object \"1\"^^<integer>: its datatype <integer> is not an absolute IRI"},
+      {Pattern{.o = Term::literal("x", "http://www.w3.org/1999/02/22-rdf-syntax-ns#langString")},
+       "pattern object \"x\"^^<http://www.w3.org/1999/02/22-rdf-syntax-ns#langString>: a literal of datatype "
+       "rdf:langString needs a language tag"},
+      {Pattern{.o = Term::lang_literal("x", "not a tag")},
+       "pattern object \"x\"@not a tag: language tag 'not a tag' is not letters, then '-' and letters or digits (en, et-EE)"},
   };
   {
     auto snapshot = node.snapshot();
@@ -648,6 +661,9 @@ TEST(Store, AnIllFormedPatternIsRefusedNamingWhatIsWrongNotAnsweredWithNothing) 
   auto removed = node.remove({.s = Term::literal("x")});
   ASSERT_FALSE(removed);
   EXPECT_EQ(removed.error().code, Errc::invalid_argument);
+  auto relative_datatype = node.remove({.o = Term::literal("x", "string")});
+  ASSERT_FALSE(relative_datatype);
+  EXPECT_EQ(relative_datatype.error().code, Errc::invalid_argument);
   // An empty context stays what it means: the records without one.
   EXPECT_EQ(*node.snapshot()->count({.context = ""}), 1u);
   EXPECT_EQ(*node.snapshot()->count({}), 1u);

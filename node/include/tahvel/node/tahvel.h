@@ -35,7 +35,8 @@
  * Errors. Every function that can fail returns a tahvel_status: TAHVEL_OK (0) or a positive
  * code. On failure:
  *   - the store is unchanged: a failed write leaves nothing of its item behind;
- *   - every out-parameter has been set to NULL or 0 (so freeing it is always safe);
+ *   - every out-parameter has been set to NULL or 0 (so freeing it is always safe), except
+ *     tahvel_watch's *bookmark_out, which keeps the bookmark given (to resume from);
  *   - tahvel_last_error() returns a one-line message naming the function, the cause and the
  *     place (line and column for syntax errors, the IRI for bad IRIs, the path for I/O).
  * No C++ exception ever leaves this API.
@@ -177,7 +178,8 @@ tahvel_status tahvel_list_as(tahvel_node* node, const char* s, const char* p, co
  * {"seq":N,"removed":false|true,"unreadable":"why"}. Waits up to `timeout_ms` (negative: without limit) for the first change when there is
  * none yet (woken by the writer's commit); a signal that runs a handler ends the wait as a
  * timeout does, so that a watcher sees its stop flag. Sets *bookmark_out (may be NULL) to the last sequence
- * number returned, or to `bookmark` when none: pass it to the next call to resume exactly.
+ * number returned, or to `bookmark` when none or on an error: pass it to the next call to resume
+ * exactly.
  * The text (empty on timeout: TAHVEL_OK, not TAHVEL_TIMEOUT) is freed with tahvel_free().
  * Removals older than the last 65,536 are no longer reported.
  * Errors: TAHVEL_INVALID_ARGUMENT (a bad handle, or json_out NULL: the bookmark would move past
@@ -199,7 +201,8 @@ tahvel_status tahvel_remove_item(tahvel_node* node, uint64_t item, unsigned casc
 
 /* Sets *out to a handle for agent `id` of the node: its IRI is the node IRI + "/" + id, and it
  * is the `source` of everything the handle stores (the store sets it; an agent cannot forge
- * it). The id is one IRI path segment: non-empty, not "." or ".." (nor a percent-escaped
+ * it). The id is one IRI path segment of at most 200 bytes (files are named after ids):
+ * non-empty, not "." or ".." (nor a percent-escaped
  * form of them), in Unicode NFC, and without '/', '?', '#', whitespace, control characters or
  * the characters an IRI may not hold ('<', '>', '"', '{', '}', '|', '\\', '^', '`', '[', ']').
  * Spellings that name one IRI ("%41" and "A": a percent-escape of an unreserved ASCII
