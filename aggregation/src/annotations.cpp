@@ -4,15 +4,18 @@
 
 #include <algorithm>
 #include <array>
+#include <cmath>
+#include <cstdlib>
 #include <fstream>
 #include <iterator>
+#include <string_view>
 
 namespace tahvel::aggregation {
 
 namespace {
 
 constexpr int kSkip = 59, kNum = 60, kSub = 61, kChn = 62, kAux = 63;
-constexpr int kNoise = 14, kVfOn = 32, kVfOff = 33;
+constexpr int kNoise = 14, kNote = 22, kVfOn = 32, kVfOff = 33;
 
 // Index = WFDB annotation code (ecgcodes.h); 0 where WFDB has no one-character mnemonic.
 constexpr std::array<char, 50> kCodes = {
@@ -67,7 +70,7 @@ bool is_beat(char code) {
 }
 
 Result<std::vector<Annotation>> read_annotations(const std::string& record_path,
-                                                 const std::string& annotator) {
+                                                 const std::string& annotator, double record_fs) {
   const std::string file = record_path + "." + annotator;
   std::ifstream in(file, std::ios::binary);
   if (!in) return fail(file + ": cannot open annotation file");
@@ -121,7 +124,8 @@ Result<std::vector<Annotation>> read_annotations(const std::string& record_path,
         break;
       }
       default: {
-        if (a >= 50) return fail(at(file, here) + "reserved annotation type " + std::to_string(a));
+        // Types 50..58 have no meaning in ecgcodes.h, but WFDB's getann reads them as annotations
+        // of that type (their code is 0: no beat, nothing scored).
         time += i;
         // An annotation file is in time order (WFDB's writer sorts what it was given when it
         // closes the file); a negative SKIP that goes back would make beats match nothing,
@@ -138,6 +142,22 @@ Result<std::vector<Annotation>> read_annotations(const std::string& record_path,
         out.push_back(std::move(ann));
       }
     }
+  }
+  // WFDB 10.5's "## time resolution: F" note (a NOTE at time 0, as setafreq writes it): the
+  // times are in units of 1/F s, which getann converts to the record's samples.
+  for (const Annotation& a : out) {
+    if (a.sample != 0) break;
+    constexpr std::string_view kResolution = "## time resolution: ";
+    if (a.type != kNote || !a.aux.starts_with(kResolution)) continue;
+    const std::string text = a.aux.substr(kResolution.size());
+    char* end = nullptr;
+    const double f = std::strtod(text.c_str(), &end);
+    if (end == text.c_str() || !std::isfinite(f) || f <= 0)
+      return fail(file + ": the time resolution note '" + a.aux + "' does not give a frequency above 0");
+    if (record_fs <= 0) break;  // the caller does not use the times
+    if (f != record_fs)
+      for (Annotation& b : out) b.sample = std::llround(static_cast<double>(b.sample) * record_fs / f);
+    break;
   }
   return out;
 }
@@ -172,6 +192,26 @@ std::vector<std::pair<std::int64_t, std::int64_t>> unreadable_intervals(
       annotations, record_end,
       [](const Annotation& a) { return a.type == kNoise && (a.subtype & 0x30) == 0x30; },
       [](const Annotation& a) { return a.type == kNoise; });
+}
+
+std::optional<UnclosedUnreadable> unclosed_unreadable(const std::vector<Annotation>& annotations) {
+  const std::vector<std::pair<std::int64_t, std::int64_t>> intervals = unreadable_intervals(annotations, 0);
+  if (intervals.empty()) return std::nullopt;
+  // Closed: a '~' after the marker at or past where the interval ends.
+  const std::int64_t opened = intervals.back().first;
+  bool marker_seen = false;
+  UnclosedUnreadable open{opened, 0};
+  for (const Annotation& a : annotations) {
+    if (a.sample < opened) continue;
+    if (!marker_seen) {
+      marker_seen = a.type == kNoise && (a.subtype & 0x30) == 0x30;
+      continue;
+    }
+    if (a.type == kNoise) return std::nullopt;
+    if (is_beat(a.code)) ++open.beats_after;
+  }
+  if (open.beats_after == 0) return std::nullopt;
+  return open;
 }
 
 std::vector<std::pair<std::int64_t, std::int64_t>> flutter_intervals(

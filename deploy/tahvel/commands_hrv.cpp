@@ -188,7 +188,7 @@ int run_eval(const Args& args, const agg::ChainOptions& options, std::size_t sig
     // What the signal's rhythm means for HRV (irregular, paced) says nothing of the scoring.
     for (const std::string& warning : report->warnings)
       std::cerr << "tahvel: warning: " << (warning.starts_with(record) ? "" : record + ": ") << warning << "\n";
-    auto reference = agg::read_annotations(record, "atr");
+    auto reference = agg::read_annotations(record, "atr", report->fs);
     if (!reference) {
       leave_out(reference.error().message);
       continue;
@@ -198,6 +198,13 @@ int run_eval(const Args& args, const agg::ChainOptions& options, std::size_t sig
     scoring.end_s = report->duration_s;
     agg::BeatScore score = agg::score_beats(*reference, report->beats, report->fs, scoring);
     if (auto why = nothing_scored(score, report->duration_s, from_s, args.has("--eval-from"))) std::cerr << "tahvel: warning: " << record << ": " << *why << "\n";
+    if (auto open = agg::unclosed_unreadable(*reference))
+      std::cerr << "tahvel: warning: " << record << ": the unreadable interval opened by the '~' at "
+                << seconds_number(std::round(static_cast<double>(open->opened_at) / report->fs * 10) / 10)
+                << " s is never closed by another '~': the " << open->beats_after
+                << " reference beat(s) after it are not scored (the scoring convention: a '~' with subtype bits 4 and 5 set "
+                   "opens an unreadable interval, the next '~' closes it; a file that marks a short shutdown with one '~', "
+                   "as AHA files do, loses the rest of the record)\n";
     gross += score;
     if (json) {
       rows << (rows.tellp() > 0 ? "," : "") << "{\"record\":\"" << node::json_escape(record)

@@ -170,6 +170,44 @@ TEST_F(AnnotTemp, AnnotationsOutOfTimeOrderAreRefusedNamingWhere) {
   EXPECT_TRUE(read_annotations(write(ties.bytes)));
 }
 
+// Annotations written in 1/1000 s (WFDB 10.5's setafreq, with its note at time 0) were read as
+// samples: most reference beats fell past the record's end. They are converted to the record's
+// samples; without a frequency to convert to they stay as written.
+TEST_F(AnnotTemp, ATimeResolutionNoteConvertsTheTimesToTheRecordsSamples) {
+  AtrWriter w;
+  w.ann(22, 0).aux("## time resolution: 1000")  // NOTE at 0
+      .ann(1, 1000)                              // N at 1.000 s
+      .ann(1, 1001)                              // N at 2.001 s
+      .end();
+  const std::string record = write(w.bytes);
+  auto at_360 = read_annotations(record, "atr", 360);
+  ASSERT_TRUE(at_360) << at_360.error().message;
+  ASSERT_EQ(at_360->size(), 3u);
+  EXPECT_EQ((*at_360)[1].sample, 360);
+  EXPECT_EQ((*at_360)[2].sample, 720);  // 2.001 s x 360 = 720.36
+  auto as_written = read_annotations(record, "atr");
+  ASSERT_TRUE(as_written) << as_written.error().message;
+  EXPECT_EQ((*as_written)[2].sample, 2001);
+  AtrWriter bad;
+  bad.ann(22, 0).aux("## time resolution: none").ann(1, 10).end();
+  auto refused = read_annotations(write(bad.bytes), "atr", 360);
+  ASSERT_FALSE(refused);
+  EXPECT_NE(refused.error().message.find("does not give a frequency above 0"), std::string::npos) << refused.error().message;
+}
+
+// WFDB's getann reads the unassigned types 50..58 as annotations; here they stopped the record.
+TEST_F(AnnotTemp, AnUnassignedAnnotationTypeIsReadAsAnAnnotationThatIsNoBeat) {
+  AtrWriter w;
+  w.ann(1, 10).ann(50, 5).ann(58, 5).ann(1, 5).end();
+  auto a = read_annotations(write(w.bytes));
+  ASSERT_TRUE(a) << a.error().message;
+  ASSERT_EQ(a->size(), 4u);
+  EXPECT_EQ((*a)[1].type, 50);
+  EXPECT_EQ((*a)[1].code, 0);
+  EXPECT_FALSE(is_beat((*a)[2].code));
+  EXPECT_EQ((*a)[3].sample, 25);
+}
+
 TEST_F(AnnotTemp, OtherAnnotatorNameSelectsTheExtension) {
   AtrWriter w;
   w.ann(1, 42).end();
@@ -291,6 +329,17 @@ TEST(AnnotUnreadable, IntervalLeftOpenRunsToRecordEnd) {
   auto u = unreadable_intervals(a, 1000);
   ASSERT_EQ(u.size(), 1u);
   EXPECT_EQ(u[0], (std::pair<std::int64_t, std::int64_t>{300, 1000}));
+}
+
+// What `tahvel hrv --eval` warns of: the last interval never closed, with beats after its marker.
+TEST(AnnotUnreadable, AnIntervalNeverClosedIsFoundWithTheBeatsAfterIt) {
+  auto open = unclosed_unreadable({make(100, 'N'), make(300, '~', 0x30), make(350, 'N'), make(400, 'V')});
+  ASSERT_TRUE(open);
+  EXPECT_EQ(open->opened_at, 300);
+  EXPECT_EQ(open->beats_after, 2u);
+  EXPECT_FALSE(unclosed_unreadable({make(100, 'N'), make(300, '~', 0x30), make(350, 'N'), make(400, '~', 0)}));
+  EXPECT_FALSE(unclosed_unreadable({make(100, 'N'), make(300, '~', 0x30)}));  // nothing after it
+  EXPECT_FALSE(unclosed_unreadable({make(100, 'N'), make(300, '~', 0x10), make(350, 'N')}));  // no marker
 }
 
 TEST(AnnotFlutter, EpisodeRunsFromOpenBracketToCloseBracket) {

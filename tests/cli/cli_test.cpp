@@ -1564,6 +1564,29 @@ TEST_F(Cli, HrvEvalOfARecordWithoutReferenceBeatsSaysItsDetectionsAreFalsePositi
   EXPECT_NE(r.out.find("\"tp\":0,\"fn\":0,\"fp\":"), std::string::npos) << r.out;
 }
 
+// A '~' marker with no '~' after it (an AHA-style file marks a short shutdown with one) left the
+// rest of the record unscored without a word (TP 129 of ~1,900 reference beats). It is said.
+TEST_F(Cli, HrvEvalSaysWhenAnUnreadableIntervalIsNeverClosed) {
+  fs::create_directories(tmp_ / "open");
+  spit(tmp_ / "open" / "o.hea", "o 1 360 3600\no.dat 16 200 16 0 0 0 0 II\n");
+  spit(tmp_ / "open" / "o.dat", std::string(7200, '\0'));
+  auto word = [](unsigned w) { return std::string{static_cast<char>(w & 0xFF), static_cast<char>(w >> 8)}; };
+  spit(tmp_ / "open" / "o.atr", word((1u << 10) | 100) + word((14u << 10) | 620) + word((61u << 10) | 0x30) +
+                                    word((1u << 10) | 280) + word((1u << 10) | 1000) + word(0));
+  const std::string record = (tmp_ / "open" / "o").string();
+  Outcome r = run({"hrv", record, "--eval", "--eval-from", "0"});
+  ASSERT_EQ(r.status, 0) << r.err;
+  EXPECT_NE(r.err.find("tahvel: warning: " + record + ": the unreadable interval opened by the '~' at 2 s is never closed by "
+                       "another '~': the 2 reference beat(s) after it are not scored"),
+            std::string::npos) << r.err;
+  // Closed by a second '~': no such warning.
+  spit(tmp_ / "open" / "o.atr", word((1u << 10) | 100) + word((14u << 10) | 620) + word((61u << 10) | 0x30) +
+                                    word((14u << 10) | 100) + word((1u << 10) | 180) + word(0));
+  r = run({"hrv", record, "--eval", "--eval-from", "0"});
+  ASSERT_EQ(r.status, 0) << r.err;
+  EXPECT_EQ(r.err.find("never closed"), std::string::npos) << r.err;
+}
+
 // A record shorter than the scoring start (bxb's 5 minutes) scored nothing without a word (TP 0
 // FN 0 FP 0, Se "-"): it says so, naming its length and the start, and --eval-from 0 scores it.
 TEST_F(Cli, HrvEvalOfARecordShorterThanTheScoringStartSaysSoAndEvalFromScoresIt) {

@@ -19,6 +19,7 @@
 #pragma once
 
 #include <cstdint>
+#include <optional>
 #include <string>
 #include <utility>
 #include <vector>
@@ -38,12 +39,16 @@ struct Annotation {
 };
 
 // Reads "<record_path>.<annotator>" ("…/mitdb/100" + "atr"). Annotations come in file order
-// (which the WFDB writer keeps sorted by time). Errors, each naming the file and the byte
-// offset: the file cannot be opened; it ends inside a word, a SKIP interval or AUX bytes; it
-// ends without the terminating zero word; a SKIP makes the time negative; an annotation type
-// 50..58 (reserved).
+// (which the WFDB writer keeps sorted by time). Types 50..58, unassigned, are read as WFDB's
+// getann reads them: annotations of that type, with no mnemonic. A file whose times are in
+// another unit, said by WFDB 10.5's note at time 0 ("## time resolution: F", as setafreq writes
+// it), has them converted to samples at `record_fs` (rounded to the nearest), when the caller
+// gives it (0: as written). Errors, each naming the file and the byte offset: the file cannot be
+// opened; it ends inside a word, a SKIP interval or AUX bytes; it ends without the terminating
+// zero word; a SKIP makes the time negative; a time resolution note without a frequency above 0.
 Result<std::vector<Annotation>> read_annotations(const std::string& record_path,
-                                                 const std::string& annotator = "atr");
+                                                 const std::string& annotator = "atr",
+                                                 double record_fs = 0);
 
 // The mnemonic WFDB prints for an annotation code: 1 'N', 2 'L', 3 'R', 4 'a', 5 'V', 6 'F',
 // 7 'J', 8 'A', 9 'S', 10 'E', 11 'j', 12 '/', 13 'Q', 14 '~', 16 '|', 18 's', 19 'T', 20 '*',
@@ -60,12 +65,24 @@ int annotation_type(char code);
 // Flutter waves '!' and every rhythm, noise and waveform annotation are not beats.
 bool is_beat(char code);
 
-// Unreadable intervals, as bxb and the project's scoring conventions define them: a '~'
-// (NOISE) annotation whose subtype has bits 4 and 5 set (subtype & 0x30 == 0x30) opens one; the
-// next '~' annotation, whatever its subtype, closes it. An interval still open at the end runs
-// to record_end. Each pair is [first, second] in samples, both ends included, in time order.
+// Unreadable intervals, as the project's scoring convention defines them (shared/data/mitdb's
+// README; MIT-BIH's own markers come in such pairs): a '~' (NOISE) annotation whose subtype has
+// bits 4 and 5 set (subtype & 0x30 == 0x30) opens one; the next '~' annotation, whatever its
+// subtype, closes it. An interval still open at the end runs to record_end. (bxb's getref also
+// reads AHA-style files, whose single marker sits inside a short shutdown with beats after it;
+// here such a marker opens an interval to the next '~' or the end.) Each pair is [first, second] in samples, both ends included, in time order.
 std::vector<std::pair<std::int64_t, std::int64_t>> unreadable_intervals(
     const std::vector<Annotation>& annotations, std::int64_t record_end);
+
+// An unreadable interval left open: its marker has no '~' after it, and `beats_after` reference
+// beats follow it, which the scoring leaves out to the record's end. A file in AHA style (one
+// marker inside a short shutdown) reads so; the caller says it rather than score a fraction of
+// the record in silence. nullopt when every interval is closed or nothing follows.
+struct UnclosedUnreadable {
+  std::int64_t opened_at = 0;  // sample of the marker
+  std::size_t beats_after = 0;
+};
+std::optional<UnclosedUnreadable> unclosed_unreadable(const std::vector<Annotation>& annotations);
 
 // Ventricular flutter/fibrillation episodes: from each '[' (VFON) to the next ']' (VFOFF), both
 // ends included; an episode still open at the end runs to record_end. bxb ignores reference
