@@ -226,7 +226,11 @@ int run_take(const Args& args) {
   // for an item happens outside it, so that a waiting take does not hold the others up.
   // The lock is waited for within --timeout too: a take whose output goes to a slow reader (or
   // one stopped by Ctrl-Z) holds it, and the others time out rather than hang.
-  const std::string lock_path = (std::filesystem::path(args.positional(0)) / (".take-" + id + ".lock")).string();
+  // Named after the id as the store knows it: "%41" and "A" are one agent with one buffer, and
+  // a lock per spelling let two takes deliver its head twice.
+  const auto known_id = uri::child_id(agent.iri(), node.iri());
+  const std::string lock_path =
+      (std::filesystem::path(args.positional(0)) / (".take-" + (known_id ? *known_id : id) + ".lock")).string();
   struct Lock {
     int fd = -1;
     ~Lock() {

@@ -1266,6 +1266,16 @@ struct Link::Impl {
     std::string foreign;  // P6b: why frames of this run are not this stream's
     for (std::size_t k = 0; k < frames.size(); ++k) {
       const Frame& f = frames[k];
+      // A body that does not decode first (P17): a frame that is no item is dropped for that
+      // alone, and its store tags, whatever they say, are no sign of another store (P6b) —
+      // three such frames held a healthy child off for the conflict's two minutes.
+      auto& body = *bodies[k];
+      if (!body) {
+        refuse(via, f.from, f.kind, 1,
+               "dropped a malformed " + std::string(up ? "up" : "down") + " frame from <" + f.from + ">: " + body.error().message,
+               "malformed", /*answer=*/false);
+        break;  // the rest follows it in the sender's sequence: they come again after a resend
+      }
       const std::uint64_t from_tag = (f.ack >> kStoreTagShift) & kStoreTagMask, to_tag = f.ack >> kPeerStoreTagShift;
       if (from_tag != 0 && registered_tag != 0 && from_tag != registered_tag) {
         foreign = describe_tag("from another store", from_tag);
@@ -1274,13 +1284,6 @@ struct Link::Impl {
       if (to_tag != 0 && own_tag != 0 && to_tag != own_tag) {
         foreign = describe_tag("to another store of this node's IRI", to_tag);
         continue;  // sent on a link with that other store
-      }
-      auto& body = *bodies[k];
-      if (!body) {
-        log("dropped a malformed " + std::string(up ? "up" : "down") + " frame from <" + f.from + ">: " + body.error().message);
-        std::lock_guard lock(mu);
-        ++counters.refused;
-        break;  // the rest follows it in the sender's sequence: they come again after a resend
       }
       if (!up) body->item.context = subtree_for(body->item.context, self);  // P11
       items.push_back({f.seq, f.prev, std::move(body->source), std::move(body->item), body->removal, std::move(body->positions)});
@@ -1446,10 +1449,11 @@ struct Link::Impl {
   // once a second per sender and kRefusalAnswersPerSecond in all, without waiting for the sender
   // to be found (Frame::may_find_nobody), so that frames from made-up IRIs cost this node
   // bounded work.
+  // `answer` false: logged and counted only (a frame from a sender this node takes, dropped).
   void refuse(Transport* via, const std::string& from, FrameKind kind, std::size_t frames, const std::string& why,
-              const std::string& reason = {}) {
-    const bool answered_kind =
-        is_down(via) && (kind == FrameKind::hello || kind == FrameKind::heartbeat || kind == FrameKind::up);
+              const std::string& reason = {}, bool answer_it = true) {
+    const bool answered_kind = answer_it && is_down(via) &&
+                               (kind == FrameKind::hello || kind == FrameKind::heartbeat || kind == FrameKind::up);
     bool say = false, answer = false;
     std::uint64_t left_out = 0;  // refusal lines not said in the window before this line
     {
@@ -1494,7 +1498,7 @@ struct Link::Impl {
     if (say) {
       const std::string name = frame_kind_name(kind);
       const std::string count = frames != 1 ? std::to_string(frames) + " " : name.find_first_of("aeiu") == 0 ? "an " : "a ";
-      log("refused " + count + name + (frames == 1 ? " frame: " : " frames: ") + why);
+      log(answer_it ? "refused " + count + name + (frames == 1 ? " frame: " : " frames: ") + why : why);
     }
     if (answer) send_error(via, from, 0, {"refused", why, ""}, /*may_find_nobody=*/true);
   }
@@ -1778,9 +1782,8 @@ struct Link::Impl {
       case FrameKind::error:
         return error_from_child(f);
       default:
-        log("refused a frame of kind " + std::to_string(static_cast<int>(f.kind)) + " from child <" + f.from + ">");
-        std::lock_guard lock(mu);
-        ++counters.refused;
+        refuse(via, f.from, f.kind, 1, "refused a frame of kind " + std::to_string(static_cast<int>(f.kind)) + " from child <" + f.from + ">",
+               "kind " + std::to_string(static_cast<int>(f.kind)), /*answer=*/false);
     }
   }
 
@@ -2004,9 +2007,8 @@ struct Link::Impl {
         return;
       }
       default:
-        log("refused a frame of kind " + std::to_string(static_cast<int>(f.kind)) + " from the parent");
-        std::lock_guard lock(mu);
-        ++counters.refused;
+        refuse(via, f.from, f.kind, 1, "refused a frame of kind " + std::to_string(static_cast<int>(f.kind)) + " from the parent",
+               "kind " + std::to_string(static_cast<int>(f.kind)), /*answer=*/false);
     }
   }
 

@@ -577,7 +577,7 @@ TEST_F(Cli, TakesOfOneAgentAtOnceEachGetADifferentItem) {
 }
 
 // While another take holds the agent's take lock (printing the head to a slow reader), a take
-// neither prints that item nor waits past its --timeout.
+// neither prints that item nor waits past its --timeout, whichever spelling of the id it gives.
 TEST_F(Cli, ATakeWhileAnotherHoldsTheAgentsItemTimesOutAndLeavesTheItem) {
   init();
   ASSERT_EQ(run({"subscribe", node_, "--agent", "pool", "-p", "sosa:observedProperty"}).status, 0);
@@ -592,6 +592,11 @@ TEST_F(Cli, ATakeWhileAnotherHoldsTheAgentsItemTimesOutAndLeavesTheItem) {
   EXPECT_EQ(waiting.status, 3) << waiting.err;
   EXPECT_EQ(waiting.out, "");
   EXPECT_LT(waited, std::chrono::seconds(20)) << "it waited for the lock past its timeout";
+  // Another spelling of the id ("%70" is "p") is the same agent, with the same lock: it had one
+  // of its own, and took the item the holder was printing.
+  Outcome respelled = run({"take", node_, "--agent", "%70ool", "--timeout", "300"});
+  EXPECT_EQ(respelled.status, 3) << respelled.err;
+  EXPECT_EQ(respelled.out, "");
   ::close(held);
   Outcome taken = run({"take", node_, "--agent", "pool"});
   EXPECT_EQ(taken.status, 0) << taken.err;

@@ -1642,6 +1642,39 @@ TEST(Link, AHelloWhoseStateBodyDoesNotDecodeIsDroppedAndStartsNoNewStream) {
   EXPECT_EQ(count(tree.hospital_dir, {.p = Term::iri(kEx + "n")}), 20u);
 }
 
+// P17, P6b, P4: up frames whose body does not decode, carrying store tags of no store the
+// parent knows, were counted as signs of another store before their body was looked at: three
+// of them held the child off for the conflict's two minutes. They are dropped as malformed, with
+// at most one line per sender and reason a minute; the child's stream goes on.
+TEST(Link, UpFramesThatDoNotDecodeAreDroppedAndAreNoSignOfAnotherStore) {
+  Tree tree;
+  ASSERT_TRUE(tree.start_hospital_and_home1());
+  ASSERT_TRUE(home1_sends(tree, 0, 10, 10));
+  for (std::uint64_t k = 0; k < 20; ++k) {
+    Frame bad;
+    bad.kind = FrameKind::up;
+    bad.from = kHome1;
+    bad.to = kHospital;
+    bad.seq = 999'999 - k;
+    bad.prev = 998;
+    bad.ack = (std::uint64_t{0xAAAAAA} << kPeerStoreTagShift) | (std::uint64_t{0xBBBBBB} << kStoreTagShift);
+    bad.body = "\x01";
+    tree.bus.inject_raw(kHospital, encode_frame(bad));
+  }
+  ASSERT_TRUE(home1_sends(tree, 10, 10, 20));
+  EXPECT_TRUE(eventually([&] { return tree.hospital_log.has("dropped a malformed up frame from <" + kHome1 + ">: "); }))
+      << tree.hospital_log.text();
+  EXPECT_FALSE(tree.hospital_log.has("another store")) << tree.hospital_log.text();
+  EXPECT_FALSE(tree.hospital_log.has("conflict")) << tree.hospital_log.text();
+  const std::string text = tree.hospital_log.text();
+  std::size_t lines = 0;
+  for (std::size_t at = text.find("dropped a malformed up frame"); at != std::string::npos;
+       at = text.find("dropped a malformed up frame", at + 1))
+    ++lines;
+  EXPECT_EQ(lines, 1u) << text;
+  EXPECT_EQ(count(tree.hospital_dir, {.p = Term::iri(kEx + "n")}), 20u);
+}
+
 // P13: a query frame with an empty origin was answered, the whole store sent up towards no one.
 // It is dropped with a line, and the link goes on.
 TEST(Link, AQueryFromTheParentWhoseOriginIsNoNodeAboveIsDropped) {
