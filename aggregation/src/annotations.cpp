@@ -197,7 +197,7 @@ std::vector<std::pair<std::int64_t, std::int64_t>> unreadable_intervals(
 std::optional<UnclosedUnreadable> unclosed_unreadable(const std::vector<Annotation>& annotations) {
   const std::vector<std::pair<std::int64_t, std::int64_t>> intervals = unreadable_intervals(annotations, 0);
   if (intervals.empty()) return std::nullopt;
-  // Closed: a '~' after the marker at or past where the interval ends.
+  // Left open when no '~' follows the last interval's marker; beats after the marker count.
   const std::int64_t opened = intervals.back().first;
   bool marker_seen = false;
   UnclosedUnreadable open{opened, 0};
