@@ -3190,7 +3190,9 @@ TEST(Link, WhatIsRemovedBelowIsRemovedAtEveryNodeAboveThatGotIt) {
     for (int gone : {3, 4, 7, 10, 99})
       EXPECT_EQ(count(dir, {.s = Term::iri(kHome1 + "/rec/hrv/" + std::to_string(gone)), .p = Term::iri(kEx + "n")}), 0u) << gone;
   }
-  EXPECT_GE(tree.hospital->counters().removals_applied, 4u);
+  // The applier counts a removal after its write commits: the counts above can show it first.
+  EXPECT_TRUE(eventually([&] { return tree.hospital->counters().removals_applied >= 4u; }))
+      << tree.hospital->counters().removals_applied << " removals applied";
   // The sensor keeps what it was not asked to remove.
   EXPECT_EQ(count(sensor_dir, hrv_windows), 17u);
 }
