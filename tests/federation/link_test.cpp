@@ -56,6 +56,11 @@ struct Log {
       if (l.find(part) != std::string::npos) return true;
     return false;
   }
+  // How many lines hold `part`: a refusal or drop said once, not at every frame.
+  std::size_t lines_with(std::string_view part) {
+    std::lock_guard lock(mu);
+    return static_cast<std::size_t>(std::count_if(lines.begin(), lines.end(), [&](const std::string& l) { return l.find(part) != std::string::npos; }));
+  }
   std::string text() {  // for a failure's message
     std::lock_guard lock(mu);
     std::string all;
@@ -1452,12 +1457,7 @@ TEST(Link, ASecondNodeUnderAChildsIriStopsThatLinkUntilItGoesAndNothingIsLost) {
   ASSERT_TRUE(eventually([&] { return count(tree.hospital_dir, {.s = Term::iri(kHome1), .p = Term::iri(vocab::kLinkConflict)}) == 1; }));
   // The hospital's operator is told of the twin's first hellos, refused before the conflict
   // was declared, and not once a hello.
-  const std::string text = tree.hospital_log.text();
-  std::size_t said = 0;
-  for (std::size_t at = text.find("refused a hello frame: another store (id "); at != std::string::npos;
-       at = text.find("refused a hello frame: another store (id ", at + 1))
-    ++said;
-  EXPECT_EQ(said, 1u) << text;
+  EXPECT_EQ(tree.hospital_log.lines_with("refused a hello frame: another store (id "), 1u) << tree.hospital_log.text();
 
   // While both live, nothing more of home1's is taken, and none of it leaves its outbox.
   store_hrv_items(tree.home1_dir, 20, 20);
@@ -1666,12 +1666,7 @@ TEST(Link, UpFramesThatDoNotDecodeAreDroppedAndAreNoSignOfAnotherStore) {
       << tree.hospital_log.text();
   EXPECT_FALSE(tree.hospital_log.has("another store")) << tree.hospital_log.text();
   EXPECT_FALSE(tree.hospital_log.has("conflict")) << tree.hospital_log.text();
-  const std::string text = tree.hospital_log.text();
-  std::size_t lines = 0;
-  for (std::size_t at = text.find("dropped a malformed up frame"); at != std::string::npos;
-       at = text.find("dropped a malformed up frame", at + 1))
-    ++lines;
-  EXPECT_EQ(lines, 1u) << text;
+  EXPECT_EQ(tree.hospital_log.lines_with("dropped a malformed up frame"), 1u) << tree.hospital_log.text();
   EXPECT_EQ(count(tree.hospital_dir, {.p = Term::iri(kEx + "n")}), 20u);
 }
 
