@@ -132,6 +132,9 @@ std::string read_input(const std::string& path);
 // Flushes `out` and fails (naming standard output) when anything could not be written; quietly
 // (status 1, no message) when standard output is a pipe whose reader has gone.
 void finish_output(std::ostream& out);
+// finish_output for what a command prints after its write committed: a failure names what was
+// done (`done`, "item 42 is stored"), so that status 1 is not read as "nothing was written".
+void finish_output_after(std::ostream& out, const std::string& done);
 // Set by main when standard output was closed at start (it is /dev/full then: output fails).
 extern bool g_stdout_was_closed;
 // For a command that writes to the store and then prints: fails (as finish_output would) before

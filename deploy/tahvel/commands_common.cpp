@@ -419,11 +419,15 @@ bool g_stdout_was_closed = false;
 
 namespace {
 // `error` (errno of a failed write to standard output, 0 when not known) as the command's failure.
+std::string output_failure(int error) {
+  return std::string("cannot write to standard output: ") +
+         (g_stdout_was_closed ? "it was closed when tahvel started" : error ? std::strerror(error) : "write failed");
+}
+
 [[noreturn]] void fail_output(int error) {
   // A reader that went away (`tahvel tail | head`) is not worth a message; exit 1 quietly.
   if (error == EPIPE || stdout_reader_gone()) throw Failure{kExitFailure, ""};
-  fail(std::string("cannot write to standard output: ") +
-       (g_stdout_was_closed ? "it was closed when tahvel started" : error ? std::strerror(error) : "write failed"));
+  fail(output_failure(error));
 }
 }  // namespace
 
@@ -435,6 +439,15 @@ void finish_output(std::ostream& out) {
   out.flush();
   if (out) return;
   fail_output(errno);  // may be stale: the stream could have failed on an earlier write
+}
+
+void finish_output_after(std::ostream& out, const std::string& done) {
+  out.flush();
+  if (out) return;
+  const int error = errno;
+  // Said even when the reader went away: the status alone (1) would read as "nothing done".
+  fail(done + ", but " + (error == EPIPE || stdout_reader_gone() ? std::string("the reader of standard output went away") : output_failure(error)) +
+       " (the write stands: running the command again would repeat it)");
 }
 
 // --- PieceOutput ----------------------------------------------------------------------------

@@ -195,7 +195,7 @@ int run_backup(const Args& args) {
   auto bytes = node.back_up(args.positional(1));
   if (!bytes) fail("backup: " + bytes.error().message);
   std::cout << *bytes << "\n";
-  finish_output(std::cout);
+  finish_output_after(std::cout, "the copy in " + args.positional(1) + " is made");
   return kExitOk;
 }
 

@@ -158,7 +158,7 @@ int run_reason(const Args& args) {
     auto report = reasoner->session();
     if (!report) fail(report.error().message);
     print(*report);
-    finish_output(std::cout);
+    finish_output_after(std::cout, "the session's conclusions are on the board");
     return kExitOk;
   }
   std::signal(SIGINT, on_stop_signal);

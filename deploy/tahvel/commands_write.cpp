@@ -70,9 +70,10 @@ node::Item item_frame(const Args& args, const uri::PrefixMap& prefixes) {
   return item;
 }
 
-void print_number(std::uint64_t n) {
+// Prints what a write that committed returned; `done` says it in words for a failed print.
+void print_number(std::uint64_t n, const std::string& done) {
   std::cout << n << "\n";
-  finish_output(std::cout);
+  finish_output_after(std::cout, done);
 }
 
 // Union-find over subjects and blank nodes, for group_by_subject.
@@ -319,7 +320,7 @@ int run_put(const Args& args) {
   auto stored = agent.store(item);
   if (!stored) fail(named_where(input, stored.error()));
   const std::uint64_t id = *stored;
-  print_number(id);
+  print_number(id, "item " + std::to_string(id) + " is stored");
   warn_if_the_ring_took(node, item, id);
   return kExitOk;
 }
@@ -380,7 +381,8 @@ int run_load(const Args& args) {
   }
   const std::uint64_t reclaimed_before = ring_reclaimed(node);
   std::vector<std::pair<std::uint64_t, std::size_t>> written;  // item id, its triples
-  print_number(store_in_batches(agent, std::move(items), batch, input, places, frame.persistent ? nullptr : &written));
+  const std::uint64_t loaded = store_in_batches(agent, std::move(items), batch, input, places, frame.persistent ? nullptr : &written);
+  print_number(loaded, std::to_string(loaded) + " triples are loaded");
   if (!frame.persistent) warn_if_the_ring_took_some(node, written, reclaimed_before);
   return kExitOk;
 }
@@ -437,10 +439,11 @@ int run_remove(const Args& args) {
   if (args.has("--item") && (pattern.since || pattern.until)) usage_error("remove: --since and --until narrow a pattern, not --item");
   const node::Reach reach = args.has("--local") ? node::Reach::this_node : node::Reach::copies_too;
   refuse_when_output_was_closed();  // after the usage errors (exit 2), before anything is removed
+  std::uint64_t removed = 0;
   if (args.has("--item")) {
-    print_number(check(node.remove_item(args.get_u64("--item", 0), cascade, reach)));
+    removed = check(node.remove_item(args.get_u64("--item", 0), cascade, reach));
   } else {
-    print_number(check(node.remove(pattern, cascade, reach)));
+    removed = check(node.remove(pattern, cascade, reach));
     // Subscriptions are left whole (R9): `remove -p tv:subscriber` printing 0 said nothing why.
     // Only the matches that are a subscription's are counted: another writer's match stored
     // since (an agent writing its conclusion again) was blamed on subscriptions.
@@ -456,6 +459,7 @@ int run_remove(const Args& args) {
     auto synced = spatial::sync_area_subscriptions(node);
     if (!synced) fail("removed, but the area subscriptions could not follow: " + synced.error().message);
   }
+  print_number(removed, std::to_string(removed) + " records are removed");
   return kExitOk;
 }
 
@@ -490,7 +494,8 @@ int run_subscribe(const Args& args) {
   refuse_when_output_was_closed();  // after the usage errors (exit 2), before anything is written
   node::Agent agent = check(node.agent(agent_id(args, "")));
   if (!given_area) {
-    print_number(check(agent.subscribe(pattern, {.earlier = args.has("--earlier")})));
+    const std::uint64_t id = check(agent.subscribe(pattern, {.earlier = args.has("--earlier")}));
+    print_number(id, "subscription " + std::to_string(id) + " is stored");
     return kExitOk;
   }
   const spatial::AreaSpec& area = *given_area;
@@ -513,7 +518,7 @@ int run_subscribe(const Args& args) {
   if (!expansion) fail("--area: " + expansion.error().message);
   std::cerr << "subscribe: " << expansion->sensors.size() << " sensors and " << expansion->features.size()
             << " located features in the area now; 'tahvel up' (or 'tahvel areas DIR') keeps it current\n";
-  print_number(*declaration);
+  print_number(*declaration, "area subscription " + std::to_string(*declaration) + " is stored");
   return kExitOk;
 }
 

@@ -2849,7 +2849,7 @@ struct Link::Impl {
     while (!stopping) {
       std::vector<BoardWrite> writes;
       std::vector<std::shared_ptr<Child>> dirty;
-      bool beat = false;
+      bool beat = false, parent_went_silent = false;
       Outgoing resends;
       {
         std::unique_lock lock(mu);
@@ -2890,6 +2890,9 @@ struct Link::Impl {
           if (child->flips.said() != child->conflict_written) child->state_dirty = true;  // a conflict ended (P6b)
           if (child->state_dirty) dirty.push_back(child);
         }
+        // The parent's silence is told as the parent tells a child's: at the round it passes
+        // child_silence, not at the next heartbeat (which made it "up" for up to a second more).
+        parent_went_silent = opt.up && welcomed && own_state_logged == "up" && now - parent_heard > opt.child_silence;
         for (auto& [key, out] : out_answers)
           if (!out.unacked.empty() && now - out.last_send > opt.resend_after) answer_window(out, resends, true);
         // Resends are not progress: a parent that never acknowledges again is given up on.
@@ -2937,6 +2940,9 @@ struct Link::Impl {
         }
         f.body = wire::encode_state(state);
         send(opt.up.get(), std::move(f));
+        write_own_state(*link, depth ? *depth : 0);
+      } else if (parent_went_silent) {
+        auto depth = uplink->pending();
         write_own_state(*link, depth ? *depth : 0);
       }
       std::vector<std::pair<const BoardWrite*, std::uint64_t>> written;

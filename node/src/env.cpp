@@ -467,14 +467,35 @@ Result<std::shared_ptr<Env>> Env::open(const std::filesystem::path& dir_in, cons
   // current directory.
   if (dir_in.empty()) return fail(Errc::invalid_argument, "no store directory given (an empty path)");
   std::error_code ec;
+  // The directories an init makes, deepest first: a failed init takes them away again ("nothing
+  // was made" left an empty directory, which the next init took for a place already chosen).
+  std::vector<std::filesystem::path> made_dirs;
+  if (init) {
+    for (auto at = std::filesystem::absolute(dir_in, ec); !ec && !at.empty() && !std::filesystem::exists(at, ec) && !ec;
+         at = at.parent_path()) {
+      made_dirs.push_back(at);
+      if (at == at.parent_path()) break;
+    }
+    ec.clear();
+  }
   if (init && !std::filesystem::create_directories(dir_in, ec) && ec)
     return fail(Errc::io, "cannot make the store's directory " + dir_in.string() + ": " + ec.message());
+  auto unmake_dirs = [&] {
+    std::error_code ignored;
+    for (const auto& made : made_dirs) std::filesystem::remove(made, ignored);  // only while empty
+  };
   auto dir = std::filesystem::weakly_canonical(dir_in, ec);
   if (ec) dir = dir_in;
   const bool exists = std::filesystem::exists(dir / "data.mdb", ec);
   if (ec && ec != std::errc::no_such_file_or_directory)
     return fail(Errc::io, "cannot look for a store in " + dir.string() + ": " + ec.message());
-  if (init && exists) return fail(Errc::exists, dir.string() + " already holds a store");
+  if (init && exists) {
+    // As opening it says (below): an empty data file is no store, and "already holds a store"
+    // there sent the user to a store `list` says is not one.
+    if (std::filesystem::file_size(dir / "data.mdb", ec) == 0 && !ec)
+      return fail(Errc::exists, (dir / "data.mdb").string() + " is empty: not a store, but in the way of one; remove it to make a store there");
+    return fail(Errc::exists, dir.string() + " already holds a store");
+  }
   // A directory of node stores (tahvel up's state directory) given for one of them: the usual
   // slip, and "run tahvel init" made an empty store beside them that answered every question.
   if (const std::string below = init || !exists ? stores_in_subdirectories(dir) : ""; !below.empty()) {
@@ -492,7 +513,10 @@ Result<std::shared_ptr<Env>> Env::open(const std::filesystem::path& dir_in, cons
   if (!init && std::filesystem::file_size(dir / "data.mdb", ec) == 0 && !ec)
     return fail(Errc::corrupt, (dir / "data.mdb").string() + " is empty: not a store");
   if (init) {
-    if (auto made = make_store(dir, *init, first_write); !made) return unexpected(made.error());
+    if (auto made = make_store(dir, *init, first_write); !made) {
+      unmake_dirs();
+      return unexpected(made.error());
+    }
   }
   return open_at(dir, nullptr);
 }
@@ -589,6 +613,53 @@ std::uint64_t data_file_bytes(const std::filesystem::path& dir) {
   return static_cast<std::uint64_t>(st.st_size);
 }
 
+// What a permission error opening the store at `dir` comes from, as ": FILE is not …" (empty
+// when every file is as it should be). Reading takes writing too: LMDB keeps its readers' table
+// in lock.mdb, and a reader wakes writers through `wake`; the message alone left users
+// looking at data.mdb.
+std::string access_hint(const std::filesystem::path& dir) {
+  std::string said;
+  auto check = [&](const std::filesystem::path& file, int mode, const char* why) {
+    if (::access(file.c_str(), F_OK) != 0 || ::access(file.c_str(), mode) == 0) return;
+    said += "; " + file.filename().string() + " is not " + (mode == R_OK ? "readable" : "writable") + " by this user: " + why;
+  };
+  check(dir / "data.mdb", R_OK, "the records are in it");
+  check(dir / "data.mdb", R_OK | W_OK, "LMDB maps it read-write in every process, readers too");
+  check(dir / "lock.mdb", R_OK | W_OK, "every process that reads the store, not only writers, registers in it");
+  check(dir / "wake", R_OK | W_OK, "every process that opens the store uses it to wake the others");
+  if (said.empty() && ::access(dir.c_str(), W_OK | X_OK) != 0)
+    said = "; the directory is not writable by this user: the lock file is made there";
+  if (!said.empty()) said += " (this user is uid " + std::to_string(::geteuid()) + "; run as the store's owner, or give it those rights)";
+  return said;
+}
+
+// Allocates the blocks of the store's lock file up to what LMDB makes of it (its readers'
+// table: kMaxReaders slots of a cache line, and its header), before LMDB maps it. LMDB sizes
+// the file with ftruncate, which allocates nothing: on a full disk the first write into the map
+// (at init) or the first into a reader slot on a page not touched before was SIGBUS, the store
+// left half made. KEEP_SIZE: LMDB takes the file's size for its table's, so the size stays its.
+// Where the file cannot be opened here (a read-only filesystem, another user's) LMDB says why.
+Result<void> allocate_lock_file(const std::filesystem::path& dir) {
+  const std::filesystem::path file = dir / "lock.mdb";
+  const int fd = ::open(file.c_str(), O_RDWR | O_CREAT | O_CLOEXEC, 0644);
+  if (fd < 0) return {};
+  struct stat st {};
+  const bool fresh = fstat(fd, &st) == 0 && st.st_size == 0;
+  // A file LMDB sized already: its own size (beyond it a block may not be had on a full disk,
+  // where this store must still open to be read and emptied). A new one: a margin over the table.
+  const off_t bytes = fresh ? static_cast<off_t>(kMaxReaders) * 64 + 4096 : st.st_size;
+  int rc = 0;
+  do rc = bytes > 0 && fallocate(fd, FALLOC_FL_KEEP_SIZE, 0, bytes) != 0 ? errno : 0;
+  while (rc == EINTR);
+  ::close(fd);
+  // A lock file an older version left sparse on a disk that has filled: opened as it is, as
+  // before (a reader on one of its holes may die of SIGBUS), rather than not at all.
+  if (rc == ENOSPC && fresh)
+    return fail(Errc::store_full, "the disk holding " + dir.string() + " has no room for the store's lock file (" +
+                                      std::to_string(bytes >> 10) + " KB): free some space on it and try again");
+  return {};  // EOPNOTSUPP and the like: a filesystem without it, as LMDB alone
+}
+
 }  // namespace
 
 Result<std::shared_ptr<Env>> Env::open_at(const std::filesystem::path& dir, const InitOptions* init) {
@@ -618,6 +689,7 @@ Result<std::shared_ptr<Env>> Env::open_at(const std::filesystem::path& dir, cons
   // Before mdb_env_open, which with MDB_WRITEMAP grows a short file to the map's size with zeros.
   if (!init)
     if (auto cut = cut_short(dir / "data.mdb")) return fail(Errc::corrupt, *cut);
+  if (auto allocated = allocate_lock_file(dir); !allocated) return unexpected(allocated.error());
   rc = mdb_env_open(env->env_, dir.c_str(), flags, 0644);
   if (rc == EROFS && !init) {
     // A store on a read-only filesystem (a disk mounted read-only to save what is on it, a
@@ -632,6 +704,7 @@ Result<std::shared_ptr<Env>> Env::open_at(const std::filesystem::path& dir, cons
     rc = mdb_env_open(env->env_, dir.c_str(), MDB_NOTLS | MDB_RDONLY, 0644);
     env->read_only_ = rc == 0;
   }
+  if (rc == EACCES || rc == EPERM) return fail(Errc::io, "opening store " + dir.string() + ": " + std::strerror(rc) + access_hint(dir));
   if (rc != 0) return lmdb_fail(rc, "opening store " + dir.string());
   int dead = 0;
   mdb_reader_check(env->env_, &dead);  // reader slots of dead processes

@@ -34,6 +34,16 @@ Result<void> WakeBoard::open(const std::filesystem::path& file) {
     ::close(fd);
     return fail(Errc::io, "cannot size " + file.string() + ": " + std::strerror(err));
   }
+  // Its blocks allocated now: ftruncate allocates none, and on a full disk the first write
+  // into the map was SIGBUS. Where the filesystem cannot (EOPNOTSUPP), as before.
+  int rc = 0;
+  do rc = fallocate(fd, 0, 0, sizeof(Shared)) == 0 ? 0 : errno;
+  while (rc == EINTR);
+  if (rc == ENOSPC) {
+    ::close(fd);
+    return fail(Errc::store_full, "the disk holding " + file.string() + " has no room for it (" +
+                                      std::to_string(sizeof(Shared) >> 10) + " KB): free some space on it and try again");
+  }
   void* p = mmap(nullptr, sizeof(Shared), PROT_READ | PROT_WRITE, MAP_SHARED, fd, 0);
   int err = errno;
   ::close(fd);

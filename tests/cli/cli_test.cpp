@@ -731,6 +731,88 @@ TEST_F(Cli, TakeOnAReadOnlyFilesystemSaysTheStoreCannotBeWritten) {
   EXPECT_EQ(WEXITSTATUS(status), 0) << slurp(said);
 }
 
+// On a full disk, init died of SIGBUS (LMDB's first write into its lock file, which ftruncate
+// had sized without blocks) and left its .init-PID directory; a reader taking a slot on a page
+// of the lock file not touched before died the same way. The lock file's and the wake file's
+// blocks are now allocated when they are made, and a disk without room for them is an error.
+TEST_F(Cli, InitOnAFullDiskFailsSayingSoAndLeavesNothingBehind) {
+  const fs::path disk = tmp_ / "disk";
+  fs::create_directories(disk);
+  const std::string store = (disk / "store").string();
+  const fs::path said = tmp_ / "said";
+  pid_t pid = fork();
+  if (pid == 0) {
+    auto say = [&](const std::string& text, int status) {
+      spit(said, text);
+      _exit(status);
+    };
+    if (unshare(CLONE_NEWNS) != 0 || mount("none", "/", nullptr, MS_REC | MS_PRIVATE, nullptr) != 0 ||
+        mount("tmpfs", disk.c_str(), "tmpfs", 0, "size=12m") != 0)
+      say("cannot mount a tmpfs here", 77);
+    {  // fills the disk to its last block
+      std::ofstream filler(disk / "filler", std::ios::binary);
+      const std::string block(4096, 'x');
+      while (filler.write(block.data(), block.size()) && filler.flush()) {
+      }
+    }
+    Outcome made = run({"init", store, "--iri", kNodeIri});
+    if (made.status != 1) say("init exited " + std::to_string(made.status) + ": " + made.err, 1);
+    if (made.err.find("making a store in " + store + ": the disk holding " + store + " has no room for the store's lock file") ==
+        std::string::npos)
+      say("init said: " + made.err, 1);
+    if (fs::exists(store)) say("init left " + store + " behind", 1);
+    // With room for the files but not for the store's first pages: refused as well, and undone.
+    fs::resize_file(disk / "filler", fs::file_size(disk / "filler") - (512 << 10));
+    made = run({"init", store, "--iri", kNodeIri});
+    if (made.status != 1 || made.err.find("store full") == std::string::npos) say("second init: " + made.err, 1);
+    if (fs::exists(store)) say("the second init left " + store + " behind", 1);
+    // With room: the store's lock file holds all its blocks (a reader never meets a hole).
+    fs::remove(disk / "filler");
+    if (Outcome ok = run({"init", store, "--iri", kNodeIri}); ok.status != 0) say("init with room: " + ok.err, 1);
+    struct stat st {};
+    if (::stat((fs::path(store) / "lock.mdb").c_str(), &st) != 0) say("no lock.mdb", 1);
+    if (st.st_blocks * 512 < st.st_size)
+      say("lock.mdb has " + std::to_string(st.st_blocks * 512) + " bytes of blocks for its " + std::to_string(st.st_size), 1);
+    say("refused, saying why", 0);
+  }
+  int status = 0;
+  ASSERT_EQ(waitpid(pid, &status, 0), pid);
+  ASSERT_TRUE(WIFEXITED(status)) << "signal " << (WIFSIGNALED(status) ? WTERMSIG(status) : 0);
+  if (WEXITSTATUS(status) == 77) GTEST_SKIP() << slurp(said);
+  EXPECT_EQ(WEXITSTATUS(status), 0) << slurp(said);
+}
+
+// A store another user made (a node's, read by an operator): opening it said only "Permission
+// denied", though data.mdb was readable; reading takes writing lock.mdb, which it now names.
+TEST_F(Cli, ReadingAStoreWhoseLockFileIsNotWritableNamesTheLockFile) {
+  init();
+  put(kObservation);
+  fs::permissions(tmp_, fs::perms::owner_all | fs::perms::group_read | fs::perms::group_exec |
+                            fs::perms::others_read | fs::perms::others_exec);
+  fs::permissions(fs::path(node_) / "lock.mdb", fs::perms::owner_write | fs::perms::group_write | fs::perms::others_write,
+                  fs::perm_options::remove);
+  const fs::path err = tmp_ / "err-denied";
+  pid_t pid = fork();
+  if (pid == 0) {
+    redirect("/dev/null", 1, O_WRONLY);
+    redirect(err, 2, O_WRONLY | O_CREAT | O_TRUNC);
+    // Root may write any file: the read is made as nobody, whom the other bits keep out.
+    if (geteuid() == 0 && (setgid(65534) != 0 || setuid(65534) != 0)) _exit(126);
+    execl(kBin.c_str(), kBin.c_str(), "list", node_.c_str(), static_cast<char*>(nullptr));
+    _exit(127);
+  }
+  int status = 0;
+  waitpid(pid, &status, 0);
+  fs::permissions(fs::path(node_) / "lock.mdb", fs::perms::owner_write, fs::perm_options::add);
+  ASSERT_TRUE(WIFEXITED(status));
+  ASSERT_NE(WEXITSTATUS(status), 126) << "cannot become another user here";
+  EXPECT_EQ(WEXITSTATUS(status), 1);
+  const std::string said = slurp(err);
+  EXPECT_NE(said.find("opening store " + node_ + ": Permission denied"), std::string::npos) << said;
+  EXPECT_NE(said.find("lock.mdb is not writable by this user: every process that reads the store"), std::string::npos) << said;
+  EXPECT_EQ(run({"list", node_, "-p", "sosa:hasSimpleResult"}).status, 0) << "the owner reads it";
+}
+
 // Started with standard output closed (by a supervisor, or `>&-`), take opened the store's lock
 // file as descriptor 1, wrote the item into it, acknowledged it and exited 0.
 TEST_F(Cli, TakeWithStandardOutputClosedFailsAndLeavesTheItem) {
@@ -791,6 +873,35 @@ TEST_F(Cli, CommandsThatWriteRefuseBeforeWritingWhenStandardOutputWasClosed) {
   put(kObservation);
   run_closed({"remove", node_, "-p", "sosa:hasSimpleResult"});
   EXPECT_EQ(lines_of(run({"list", node_, "-p", "sosa:hasSimpleResult"}).out).size(), 1u) << "a removal that reported failure was done";
+}
+
+// Output that fails after the write (a full disk, /dev/full): put, load, subscribe and remove
+// exited 1 saying only "cannot write to standard output", which a script reads as "nothing
+// stored" and runs again, storing twice. The message now says what was done.
+TEST_F(Cli, CommandsWhosePrintFailsAfterTheWriteSayWhatWasDone) {
+  if (!fs::exists("/dev/full")) GTEST_SKIP() << "no /dev/full";
+  init();
+  spit(tmp_ / "obs.ttl", kObservation);
+  int n = 900;  // spawn's file numbers, apart from run()'s
+  auto run_full = [&](const std::vector<std::string>& args) {
+    ++n;
+    return finish(spawn(args, "", n, "/dev/full"), n);
+  };
+  Outcome put = run_full({"put", node_, (tmp_ / "obs.ttl").string()});
+  EXPECT_EQ(put.status, 1);
+  EXPECT_NE(put.err.find("item "), std::string::npos) << put.err;
+  EXPECT_NE(put.err.find(" is stored, but cannot write to standard output: No space left on device"), std::string::npos) << put.err;
+  Outcome load = run_full({"load", node_, (tmp_ / "obs.ttl").string()});
+  EXPECT_EQ(load.status, 1);
+  EXPECT_NE(load.err.find("3 triples are loaded, but cannot write to standard output"), std::string::npos) << load.err;
+  Outcome sub = run_full({"subscribe", node_, "--agent", "reader", "-p", "sosa:hasSimpleResult"});
+  EXPECT_EQ(sub.status, 1);
+  EXPECT_NE(sub.err.find(" is stored, but cannot write"), std::string::npos) << sub.err;
+  EXPECT_EQ(lines_of(run({"list", node_, "-p", "sosa:hasSimpleResult"}).out).size(), 2u) << "the put and the load are both stored";
+  Outcome removed = run_full({"remove", node_, "-p", "sosa:hasSimpleResult"});
+  EXPECT_EQ(removed.status, 1);
+  EXPECT_NE(removed.err.find("2 records are removed, but cannot write to standard output"), std::string::npos) << removed.err;
+  EXPECT_EQ(run({"list", node_, "-p", "sosa:hasSimpleResult"}).out, "");
 }
 
 // A floor plan's geometry that will not read is skipped when the plan is read, and was said
@@ -2227,6 +2338,23 @@ TEST_F(Cli, StatusShowsANodeWhoseStoreCannotBeOpenedAsThisMachinesSayingWhy) {
         << shown.out;
     EXPECT_EQ(shown.out.find("on another machine"), std::string::npos) << shown.out;
   }
+}
+
+// An empty data.mdb (a copy that failed, a disk that filled): list said "is empty: not a
+// store" and init "already holds a store", each sending the user to the other.
+TEST_F(Cli, InitAndListAgreeThatAnEmptyDataFileIsNoStore) {
+  const std::string dir = (tmp_ / "emptied").string();
+  fs::create_directories(dir);
+  spit(fs::path(dir) / "data.mdb", "");
+  const std::string empty = fs::canonical(dir).string() + "/data.mdb is empty: not a store";
+  Outcome listed = run({"list", dir});
+  EXPECT_EQ(listed.status, 1);
+  EXPECT_NE(listed.err.find(empty), std::string::npos) << listed.err;
+  Outcome made = run({"init", dir, "--iri", kNodeIri});
+  EXPECT_EQ(made.status, 1);
+  EXPECT_NE(made.err.find(empty + ", but in the way of one; remove it to make a store there"), std::string::npos) << made.err;
+  fs::remove(fs::path(dir) / "data.mdb");
+  EXPECT_EQ(run({"init", dir, "--iri", kNodeIri}).status, 0);
 }
 
 TEST_F(Cli, StatusDoesNotCallProgramsRunningOnceTheirSupervisorIsGone) {
