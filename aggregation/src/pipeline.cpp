@@ -81,6 +81,28 @@ std::optional<std::string> irregular_rhythm_warning(const HrvMetrics& m, std::si
   return out;
 }
 
+std::optional<std::string> detector_rate_warning(const std::vector<Interval>& intervals, double fs, double hold_ms) {
+  if (intervals.size() < 10 || !(fs > 0)) return std::nullopt;
+  const double fastest_ms = hold_ms + std::max(5.0, 1000 / fs);
+  std::size_t at_hold = 0;
+  double total_ms = 0;
+  for (const Interval& i : intervals) {
+    const double ms = static_cast<double>(i.end - i.start) * 1000 / fs;
+    total_ms += ms;
+    if (ms <= fastest_ms) ++at_hold;
+  }
+  const double share = 100.0 * static_cast<double>(at_hold) / static_cast<double>(intervals.size());
+  if (share < kAtTheHoldPct) return std::nullopt;
+  char text[480];
+  std::snprintf(text, sizeof text,
+                "%zu of %zu intervals (%.0f %%) are as short as the detector allows (%g ms, its hold between two beats), "
+                "%.0f bpm on average: beats found as fast as it can find them, which no heart's rhythm is; a periodic "
+                "signal faster than a heart (mains hum at 50 or 60 Hz, a test tone) or noise, not an ECG; its HRV means "
+                "nothing",
+                at_hold, intervals.size(), share, hold_ms, 60'000 / (total_ms / static_cast<double>(intervals.size())));
+  return std::string(text);
+}
+
 std::optional<std::string> invalid_samples_warning(const std::vector<std::int32_t>& samples, const SignalInfo& info,
                                                    std::size_t channel, double fs) {
   const std::int32_t invalid = invalid_sample(info);
@@ -166,6 +188,8 @@ Result<HrvReport> hrv_from_record(const std::string& record_path, const ChainOpt
     report->warnings.push_back(*flat);
   if (auto rate = default_rate_warning(signals->header)) report->warnings.insert(report->warnings.begin(), *rate);
   if (auto units = non_voltage_warning(signals->header, channel)) report->warnings.push_back(*units);
+  if (auto fastest = detector_rate_warning(report->intervals, report->fs, chain.detector.hold_ms))
+    report->warnings.push_back(*fastest);
   if (auto irregular = irregular_rhythm_warning(report->metrics, gap_count(report->intervals, report->fs, options.nn),
                                                 options.nn.max_interval_s))
     report->rhythm_warnings.push_back(*irregular);

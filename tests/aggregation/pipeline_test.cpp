@@ -75,6 +75,34 @@ TEST(IrregularRhythmWarning, NamesLongIntervalsAsPausesOrBradycardiaNotEctopicBe
   EXPECT_NE(said->find("ectopic"), std::string::npos) << *said;
 }
 
+// A 50 Hz sine (mains hum on an unplugged lead) was read as a rhythm of 299 bpm, its HRV printed
+// without a word: the detector fired at every hold it allows. Said; a fast real rhythm is not.
+TEST(DetectorRateWarning, BeatsAtTheDetectorsHoldAreSaidToBeNoHeartsRhythm) {
+  constexpr double fs = 360;
+  std::vector<std::int32_t> hum(static_cast<std::size_t>(120 * fs));
+  for (std::size_t i = 0; i < hum.size(); ++i)
+    hum[i] = static_cast<std::int32_t>(std::lround(200 * std::sin(2 * M_PI * 50 * static_cast<double>(i) / fs)));
+  auto report = hrv_from_samples(hum, fs, 200);
+  ASSERT_TRUE(report) << report.error().message;
+  const double hold_ms = DetectorOptions{}.hold_ms;
+  auto said = detector_rate_warning(report->intervals, fs, hold_ms);
+  ASSERT_TRUE(said) << report->intervals.size() << " intervals";
+  EXPECT_NE(said->find("are as short as the detector allows (200 ms, its hold between two beats)"), std::string::npos) << *said;
+  EXPECT_NE(said->find("mains hum"), std::string::npos) << *said;
+  // A tachycardia of 180 bpm (333 ms) and the ECGSYN rhythm are rhythms.
+  std::vector<Interval> fast;
+  for (std::int64_t i = 0; i < 100; ++i) fast.push_back({i * 120, (i + 1) * 120, true});
+  EXPECT_FALSE(detector_rate_warning(fast, fs, hold_ms));
+  const SyntheticRun run = synthetic(120, 70, 3);
+  auto ecg = hrv_from_samples(run.samples, 360, 200);
+  ASSERT_TRUE(ecg) << ecg.error().message;
+  EXPECT_FALSE(detector_rate_warning(ecg->intervals, 360, hold_ms));
+  // At the hold itself, 72 samples: said.
+  std::vector<Interval> pinned;
+  for (std::int64_t i = 0; i < 100; ++i) pinned.push_back({i * 72, (i + 1) * 72, true});
+  EXPECT_TRUE(detector_rate_warning(pinned, fs, hold_ms));
+}
+
 // A window or step too short for HRV is refused, naming the setting and its bounds; a window
 // of 0.0001 s made 18 million windows of MIT-BIH 100 (std::bad_alloc).
 TEST(HrvChain, RefusesAWindowShorterThan10sOrAStepShorterThan1s) {

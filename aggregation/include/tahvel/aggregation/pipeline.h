@@ -57,6 +57,14 @@ std::size_t gap_count(const std::vector<Interval>& intervals, double fs, const N
 // of those rejected and the rhythm is regular (irregular_pct not above kIrregularPct), the
 // warning names them (pauses, lost signal, a heart rate below 60 / max_interval_s bpm) rather
 // than ectopic beats or atrial fibrillation, which the irregular-rhythm warning names.
+// When at least kAtTheHoldPct percent of the intervals are as short as the detector allows
+// (its hold, DetectorOptions::hold_ms, plus a sample or 5 ms): beats found as fast as it can
+// find them, which no heart's rhythm is (a 200 ms hold is 300 bpm) but a periodic signal
+// faster than one is (mains hum at 50 or 60 Hz, a test tone); how many, the rate, and that
+// HRV of it means nothing. Nullopt below that share, or with fewer than 10 intervals.
+inline constexpr double kAtTheHoldPct = 50;
+std::optional<std::string> detector_rate_warning(const std::vector<Interval>& intervals, double fs, double hold_ms);
+
 std::optional<std::string> irregular_rhythm_warning(const HrvMetrics& metrics, std::size_t gaps = 0,
                                                     double max_interval_s = NnRule{}.max_interval_s);
 
