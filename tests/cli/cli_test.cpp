@@ -792,20 +792,27 @@ TEST_F(Cli, ReadingAStoreWhoseLockFileIsNotWritableNamesTheLockFile) {
   fs::permissions(fs::path(node_) / "lock.mdb", fs::perms::owner_write | fs::perms::group_write | fs::perms::others_write,
                   fs::perm_options::remove);
   const fs::path err = tmp_ / "err-denied";
+  // A copy of the binary beside the store: the build tree may be closed to other users (a CI
+  // clone in a mode-700 temporary directory).
+  const fs::path bin = tmp_ / "tahvel";
+  fs::copy_file(kBin, bin);
+  fs::permissions(bin, fs::perms::owner_all | fs::perms::group_read | fs::perms::group_exec | fs::perms::others_read |
+                           fs::perms::others_exec);
   pid_t pid = fork();
   if (pid == 0) {
     redirect("/dev/null", 1, O_WRONLY);
     redirect(err, 2, O_WRONLY | O_CREAT | O_TRUNC);
     // Root may write any file: the read is made as nobody, whom the other bits keep out.
     if (geteuid() == 0 && (setgid(65534) != 0 || setuid(65534) != 0)) _exit(126);
-    execl(kBin.c_str(), kBin.c_str(), "list", node_.c_str(), static_cast<char*>(nullptr));
+    execl(bin.c_str(), bin.c_str(), "list", node_.c_str(), static_cast<char*>(nullptr));
     _exit(127);
   }
   int status = 0;
   waitpid(pid, &status, 0);
   fs::permissions(fs::path(node_) / "lock.mdb", fs::perms::owner_write, fs::perm_options::add);
   ASSERT_TRUE(WIFEXITED(status));
-  ASSERT_NE(WEXITSTATUS(status), 126) << "cannot become another user here";
+  if (WEXITSTATUS(status) == 126 || WEXITSTATUS(status) == 127)
+    GTEST_SKIP() << "cannot run the binary as another user here (the temporary directory's parents closed to it?)";
   EXPECT_EQ(WEXITSTATUS(status), 1);
   const std::string said = slurp(err);
   EXPECT_NE(said.find("opening store " + node_ + ": Permission denied"), std::string::npos) << said;
