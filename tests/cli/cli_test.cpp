@@ -315,6 +315,33 @@ class Cli : public ::testing::Test {
     return r;
   }
 
+  // Runs `body` in a forked child, in a mount namespace of its own with a tmpfs of `options`
+  // ("size=8m") at tmp_/disk; `say` ends it with what it says and a status: 0 passes, 77 skips
+  // (no tmpfs can be mounted here), any other fails, showing what was said.
+  using Say = std::function<void(const std::string&, int)>;
+  void on_a_small_disk(const char* options, const std::function<void(const fs::path&, const Say&)>& body) {
+    const fs::path disk = tmp_ / "disk";
+    fs::create_directories(disk);
+    const fs::path said = tmp_ / "said";
+    pid_t pid = fork();
+    if (pid == 0) {
+      const Say say = [&](const std::string& text, int status) {
+        spit(said, text);
+        _exit(status);
+      };
+      if (unshare(CLONE_NEWNS) != 0 || mount("none", "/", nullptr, MS_REC | MS_PRIVATE, nullptr) != 0 ||
+          mount("tmpfs", disk.c_str(), "tmpfs", 0, options) != 0)
+        say("cannot mount a tmpfs here", 77);
+      body(disk, say);
+      say("the test's body ended without saying how", 1);
+    }
+    int status = 0;
+    ASSERT_EQ(waitpid(pid, &status, 0), pid);
+    ASSERT_TRUE(WIFEXITED(status)) << "signal " << (WIFSIGNALED(status) ? WTERMSIG(status) : 0);
+    if (WEXITSTATUS(status) == 77) GTEST_SKIP() << slurp(said);
+    EXPECT_EQ(WEXITSTATUS(status), 0) << slurp(said);
+  }
+
   tahvel::test_support::TempDir dir_{"tahvel-cli"};
   const fs::path tmp_ = dir_.path();
   std::string node_;
@@ -699,19 +726,8 @@ TEST_F(Cli, TakeThatCannotWriteItsOutputLeavesTheItemForTheNextTake) {
 // failed on its lock file with "…/.take-ID.lock: Read-only file system", where every other
 // write says what the store is and why it cannot be written.
 TEST_F(Cli, TakeOnAReadOnlyFilesystemSaysTheStoreCannotBeWritten) {
-  const fs::path disk = tmp_ / "disk";
-  fs::create_directories(disk);
-  const std::string store = (disk / "store").string();
-  const fs::path said = tmp_ / "said";
-  pid_t pid = fork();
-  if (pid == 0) {
-    auto say = [&](const std::string& text, int status) {
-      spit(said, text);
-      _exit(status);
-    };
-    if (unshare(CLONE_NEWNS) != 0 || mount("none", "/", nullptr, MS_REC | MS_PRIVATE, nullptr) != 0 ||
-        mount("tmpfs", disk.c_str(), "tmpfs", 0, "size=8m") != 0)
-      say("cannot mount a tmpfs here", 77);
+  on_a_small_disk("size=8m", [&](const fs::path& disk, const Say& say) {
+    const std::string store = (disk / "store").string();
     if (run({"init", store, "--iri", kNodeIri}).status != 0) say("init failed", 1);
     if (run({"subscribe", store, "--agent", "reader", "-p", "sosa:hasSimpleResult"}).status != 0) say("subscribe failed", 1);
     if (Outcome put = run({"put", store, "--agent", "ecg", "--format", "ttl", "-"}, kObservation); put.status != 0) say("put: " + put.err, 1);
@@ -723,12 +739,7 @@ TEST_F(Cli, TakeOnAReadOnlyFilesystemSaysTheStoreCannotBeWritten) {
     Outcome listed = run({"list", store, "-p", "sosa:hasSimpleResult"});
     if (listed.status != 0 || lines_of(listed.out).size() != 1) say("list: " + listed.err + listed.out, 1);
     say("refused, saying why", 0);
-  }
-  int status = 0;
-  ASSERT_EQ(waitpid(pid, &status, 0), pid);
-  ASSERT_TRUE(WIFEXITED(status));
-  if (WEXITSTATUS(status) == 77) GTEST_SKIP() << slurp(said);
-  EXPECT_EQ(WEXITSTATUS(status), 0) << slurp(said);
+  });
 }
 
 // On a full disk, init died of SIGBUS (LMDB's first write into its lock file, which ftruncate
@@ -736,19 +747,8 @@ TEST_F(Cli, TakeOnAReadOnlyFilesystemSaysTheStoreCannotBeWritten) {
 // of the lock file not touched before died the same way. The lock file's and the wake file's
 // blocks are now allocated when they are made, and a disk without room for them is an error.
 TEST_F(Cli, InitOnAFullDiskFailsSayingSoAndLeavesNothingBehind) {
-  const fs::path disk = tmp_ / "disk";
-  fs::create_directories(disk);
-  const std::string store = (disk / "store").string();
-  const fs::path said = tmp_ / "said";
-  pid_t pid = fork();
-  if (pid == 0) {
-    auto say = [&](const std::string& text, int status) {
-      spit(said, text);
-      _exit(status);
-    };
-    if (unshare(CLONE_NEWNS) != 0 || mount("none", "/", nullptr, MS_REC | MS_PRIVATE, nullptr) != 0 ||
-        mount("tmpfs", disk.c_str(), "tmpfs", 0, "size=12m") != 0)
-      say("cannot mount a tmpfs here", 77);
+  on_a_small_disk("size=12m", [&](const fs::path& disk, const Say& say) {
+    const std::string store = (disk / "store").string();
     {  // fills the disk to its last block
       std::ofstream filler(disk / "filler", std::ios::binary);
       const std::string block(4096, 'x');
@@ -774,12 +774,7 @@ TEST_F(Cli, InitOnAFullDiskFailsSayingSoAndLeavesNothingBehind) {
     if (st.st_blocks * 512 < st.st_size)
       say("lock.mdb has " + std::to_string(st.st_blocks * 512) + " bytes of blocks for its " + std::to_string(st.st_size), 1);
     say("refused, saying why", 0);
-  }
-  int status = 0;
-  ASSERT_EQ(waitpid(pid, &status, 0), pid);
-  ASSERT_TRUE(WIFEXITED(status)) << "signal " << (WIFSIGNALED(status) ? WTERMSIG(status) : 0);
-  if (WEXITSTATUS(status) == 77) GTEST_SKIP() << slurp(said);
-  EXPECT_EQ(WEXITSTATUS(status), 0) << slurp(said);
+  });
 }
 
 // A store another user made (a node's, read by an operator): opening it said only "Permission
