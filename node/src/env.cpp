@@ -624,7 +624,7 @@ std::string access_hint(const std::filesystem::path& dir) {
     said += "; " + file.filename().string() + " is not " + (mode == R_OK ? "readable" : "writable") + " by this user: " + why;
   };
   check(dir / "data.mdb", R_OK, "the records are in it");
-  check(dir / "data.mdb", R_OK | W_OK, "LMDB maps it read-write in every process, readers too");
+  check(dir / "data.mdb", W_OK, "LMDB maps it read-write in every process, readers too");
   check(dir / "lock.mdb", R_OK | W_OK, "every process that reads the store, not only writers, registers in it");
   check(dir / "wake", R_OK | W_OK, "every process that opens the store uses it to wake the others");
   if (said.empty() && ::access(dir.c_str(), W_OK | X_OK) != 0)
