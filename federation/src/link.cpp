@@ -1327,6 +1327,7 @@ struct Link::Impl {
     node::Result<node::RelayOutcome> outcome = node::RelayOutcome{.mark = *buffer.mark};
     const std::size_t relayed = run.size();
     if (!run.empty()) outcome = relayer->relay(stream, run);
+    if (outcome && outcome->not_applied) std::erase_if(run, [&](const node::RelayedItem& r) { return r.seq > outcome->mark; });
     applied.push_back(std::move(run));  // freed by the taker, with the rest of the batch
     if (outcome) {
       buffer.mark = outcome->mark;
@@ -1342,33 +1343,7 @@ struct Link::Impl {
       std::lock_guard lock(mu);
       ack = stream_ack(head.from, up ? child->store_id : parent_store_id);
     }
-    if (!outcome) {
-      // A refused source (P9) or a full store: nothing was applied. The sender is told why (P9b)
-      // and probes with one frame at a time until the mark moves: a home resent its window
-      // every resend_after, and this log took a line for each, for as long as the store was full.
-      const std::string why = outcome.error().message;
-      std::unique_lock lock(mu);
-      RelayFailure& failure = relay_failures[head.from];
-      // Once a second at most (a sender of a build before P9b logs each one), and at once after
-      // a run was stored: the sender then sends its whole window again.
-      const bool new_kind = reason_kind(why) != reason_kind(failure.why);
-      if (new_kind || failure.stored_since_sent || Clock::now() - failure.sent_at >= std::chrono::seconds(1)) {
-        failure.sent_at = Clock::now();
-        failure.stored_since_sent = false;
-        lock.unlock();
-        send_error(via, head.from, 0, {std::string(kCannotStore), why, ""});
-        lock.lock();
-      }
-      if (new_kind || Clock::now() - failure.said_at >= kRelayFailureSaidEvery) {
-        log("relay from <" + head.from + "> refused: " + why +
-            (failure.since_said > 0 && !new_kind ? " (and " + std::to_string(failure.since_said) + " times more since it was last said)" : ""));
-        failure.why = why;
-        failure.said_at = Clock::now();
-        failure.since_said = 0;
-      } else {
-        ++failure.since_said;
-      }
-      ++counters.refused;
+    if (!outcome) {  // a refused source (P9), a full store: nothing applied, the mark stays
       auto mark = relayer->relay_mark(stream);
       ack.ack = mark ? *mark : 0;
     } else {
@@ -1411,9 +1386,42 @@ struct Link::Impl {
     }
     // At once what the sender must act on: a refusal, a gap, a resend (duplicates), a run that
     // applied nothing, or its window half full (P8).
-    const bool now = !outcome || ack.prev == 1 || outcome->duplicates > 0 || relayed == 0 || !outcome->refused.empty() ||
+    const bool now = !outcome || outcome->not_applied || ack.prev == 1 || outcome->duplicates > 0 || relayed == 0 ||
+                     !outcome->refused.empty() ||
                      std::any_of(frames.begin(), frames.end(), [](const Frame& f) { return (f.ack & kAckNow) != 0; });
     if (auto due = acks.hold(std::move(ack), relayed, now)) send(via, std::move(*due));
+    // After the ack: an ack that moves the mark tells the sender the parent stores again, and
+    // this says it cannot store the rest (the store took part of the run).
+    if (!outcome) cannot_store_run(via, head.from, outcome.error().message);
+    else if (outcome->not_applied) cannot_store_run(via, head.from, outcome->not_applied->message);
+  }
+
+  // A full store applied none, or only the first part, of a run from `from` (P9b). The sender is
+  // told why and probes with one frame at a time until the mark moves: a home resent its window
+  // every resend_after, and this log took a line for each, for as long as the store was full.
+  void cannot_store_run(Transport* via, const std::string& from, const std::string& why) {
+    std::unique_lock lock(mu);
+    RelayFailure& failure = relay_failures[from];
+    // Once a second at most (a sender of a build before P9b logs each one), and at once after
+    // a run was stored: the sender then sends its whole window again.
+    const bool new_kind = reason_kind(why) != reason_kind(failure.why);
+    if (new_kind || failure.stored_since_sent || Clock::now() - failure.sent_at >= std::chrono::seconds(1)) {
+      failure.sent_at = Clock::now();
+      failure.stored_since_sent = false;
+      lock.unlock();
+      send_error(via, from, 0, {std::string(kCannotStore), why, ""});
+      lock.lock();
+    }
+    if (new_kind || Clock::now() - failure.said_at >= kRelayFailureSaidEvery) {
+      log("relay from <" + from + "> refused: " + why +
+          (failure.since_said > 0 && !new_kind ? " (and " + std::to_string(failure.since_said) + " times more since it was last said)" : ""));
+      failure.why = why;
+      failure.said_at = Clock::now();
+      failure.since_said = 0;
+    } else {
+      ++failure.since_said;
+    }
+    ++counters.refused;
   }
 
   template <class AgentFn>

@@ -782,13 +782,22 @@ Result<RelayOutcome> Agent::relay(std::string_view stream, const std::vector<Rel
       }
     }
     RelayOutcome outcome;
-    WriteBound new_bytes;
-    for (const RelayedItem& relayed : items) {
-      new_bytes += write_bound(relayed.item);
-      // Its source IRI (up to 8192 bytes, P4), a term as write_bound counts them.
-      const std::uint64_t source = relayed.source.size();
-      new_bytes += source > 1024 ? WriteBound{source + 4096, source + 4096} : WriteBound{source, 0};
-    }
+    auto bound_of_first = [&](std::size_t n) {
+      WriteBound bound;
+      for (std::size_t i = 0; i < n; ++i) {
+        bound += write_bound(items[i].item);
+        // Its source IRI (up to 8192 bytes, P4), a term as write_bound counts them.
+        const std::uint64_t source = items[i].source.size();
+        bound += source > 1024 ? WriteBound{source + 4096, source + 4096} : WriteBound{source, 0};
+      }
+      return bound;
+    };
+    // A run the store has no room for is tried again with its first half, down to one item: a
+    // store nearly full, where some room was freed, took one item per round trip (the sender
+    // probes one at a time after a refusal, and its whole window again once one was stored).
+    std::size_t applying = items.size();
+    std::optional<Error> full;
+    WriteBound new_bytes = bound_of_first(applying);
     // An item refused only when it is written (a term's IRI is checked when the dictionary first
     // meets it) aborts the transaction; it is then run again with that item refused, once per
     // such item.
@@ -802,7 +811,7 @@ Result<RelayOutcome> Agent::relay(std::string_view stream, const std::vector<Rel
         outcome.mark = *mark;
         auto repeats = read_relay_repeats(txn.raw(), *impl_->env, stream);
         if (!repeats) return unexpected(repeats.error());
-        for (std::size_t i = 0; i < items.size(); ++i) {
+        for (std::size_t i = 0; i < applying; ++i) {
           const RelayedItem& relayed = items[i];
           if (relayed.seq <= outcome.mark) {
             ++outcome.duplicates;
@@ -864,7 +873,14 @@ Result<RelayOutcome> Agent::relay(std::string_view stream, const std::vector<Rel
         refuse(*refused_in_write, written.error());
         continue;
       }
+      if (!written && written.error().code == Errc::store_full && applying > 1) {
+        if (!full) full = written.error();
+        applying /= 2;
+        new_bytes = bound_of_first(applying);
+        continue;
+      }
       if (!written) return unexpected(written.error());
+      if (applying < items.size() && !outcome.gap) outcome.not_applied = std::move(full);
       return outcome;
     }
   } catch (const std::bad_alloc&) {

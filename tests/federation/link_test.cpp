@@ -2177,7 +2177,8 @@ TEST(Link, AParentThatStoresNowAndThenBetweenRefusalsIsNotSaidAtEachTurn) {
   Tree tree({.max_map_bytes = 1 << 20});
   ASSERT_TRUE(tree.start_hospital_and_home1());
   fill_to_the_last_page(tree.hospital_dir, kHospital);
-  store_hrv_items(tree.home1_dir, 0, 400);
+  int sent = 400;
+  store_hrv_items(tree.home1_dir, 0, sent);
   ASSERT_TRUE(eventually([&] { return tree.hospital->counters().refused > 0; })) << tree.hospital_log.text();
   const auto first_refused = std::chrono::steady_clock::now();
   const auto stored = [&] { return count(tree.hospital_dir, {.p = Term::iri(kEx + "n")}); };
@@ -2187,7 +2188,12 @@ TEST(Link, AParentThatStoresNowAndThenBetweenRefusalsIsNotSaidAtEachTurn) {
     auto hospital = node::Node::open(tree.hospital_dir).value();
     for (int k = f; k < f + 30; ++k) ASSERT_TRUE(hospital.remove({.s = Term::iri(kHospital + "/f" + std::to_string(k))}));
     if (!eventually([&] { return stored() > before; }, 3s)) continue;  // the room freed took no item
-    ASSERT_TRUE(eventually([&] { return tree.hospital->counters().refused > refused; })) << tree.hospital_log.text();
+    // The next refusal; a room that took every item the home had is given more to refuse.
+    ASSERT_TRUE(eventually([&] {
+      if (tree.hospital->counters().refused > refused) return true;
+      if (stored() == static_cast<std::uint64_t>(sent)) store_hrv_items(tree.home1_dir, std::exchange(sent, sent + 100), 100);
+      return false;
+    })) << stored() << " of " << sent << " items stored; outbox " << outbox(tree.home1_dir) << "\n" << tree.hospital_log.text() << tree.home1_log.text();
     ++turns;
   }
   ASSERT_EQ(turns, 3) << "the case under test did not happen: " << stored() << " items stored";
@@ -2200,6 +2206,30 @@ TEST(Link, AParentThatStoresNowAndThenBetweenRefusalsIsNotSaidAtEachTurn) {
   EXPECT_LE(lines_with(tree.hospital_log, "relay from <" + kHome1 + "> refused: store full"), allowed) << tree.hospital_log.text();
   EXPECT_LE(lines_with(tree.home1_log, "cannot store what this node sends: store full"), allowed) << tree.home1_log.text();
   EXPECT_LE(lines_with(tree.home1_log, "stores what this node sends again"), allowed) << tree.home1_log.text();
+}
+
+// A parent whose full store had room freed takes what fits of the child's window at once, then
+// refuses the rest: it refused the whole window, and took one item per probe after each refusal.
+// Once it has room for all, every item is there once.
+TEST(Link, AParentWithRoomForPartOfAWindowStoresWhatFitsAndLosesNothing) {
+  Tree tree({.max_map_bytes = 1 << 20});
+  ASSERT_TRUE(tree.start_hospital_and_home1());
+  fill_to_the_last_page(tree.hospital_dir, kHospital);
+  store_hrv_items(tree.home1_dir, 0, 400);
+  ASSERT_TRUE(eventually([&] { return tree.hospital->counters().refused > 0; })) << tree.hospital_log.text();
+  const auto stored = [&] { return count(tree.hospital_dir, {.p = Term::iri(kEx + "n")}); };
+  const std::uint64_t before = stored(), refused = tree.hospital->counters().refused;
+  auto hospital = node::Node::open(tree.hospital_dir).value();
+  for (int k = 0; k < 30; ++k) ASSERT_TRUE(hospital.remove({.s = Term::iri(kHospital + "/f" + std::to_string(k))}));
+  ASSERT_TRUE(eventually([&] { return tree.hospital->counters().refused > refused && stored() > before; }))
+      << stored() << tree.hospital_log.text();
+  // 30 fill records of 2 KB make room for about a hundred of these items.
+  EXPECT_GE(stored() - before, 20u) << "the freed room took what one probe carries";
+  ASSERT_TRUE(hospital.remove({.p = Term::iri(kEx + "fill")}));
+  ASSERT_TRUE(eventually([&] { return stored() == 400 && outbox(tree.home1_dir) == 0; }))
+      << stored() << " stored, outbox " << outbox(tree.home1_dir) << tree.hospital_log.text();
+  std::this_thread::sleep_for(300ms);
+  EXPECT_EQ(stored(), 400u) << "an item was stored twice";
 }
 
 // P9b downwards: a parent logs a child that cannot store what it sends down once per reason; it

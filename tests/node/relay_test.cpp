@@ -454,6 +454,45 @@ TEST(Relay, StoresEachSequenceOnceKeepsTheSourceAndStopsAtAGap) {
   for (const auto& r : records) EXPECT_EQ(r.meta.source, source);
 }
 
+// A run the store has room for in part: the items that fit are stored in order, the mark stops
+// after the last of them, and why the rest was not applied is said. The whole run was refused,
+// and a sender then probing one item at a time got one item stored per round trip.
+TEST(Relay, AStoreWithRoomForPartOfARunStoresTheItemsThatFitAndSaysWhyNotTheRest) {
+  TempDir dir;
+  Node node = make_node(dir.path(), {.max_map_bytes = 1 << 20});
+  Agent filler = node.agent("filler").value();
+  std::vector<std::uint64_t> fills;
+  for (std::size_t size : {2000, 200, 20})
+    for (;;) {
+      auto id = filler.store(Item{}.add(Term::iri(kNodeIri + "/f" + std::to_string(fills.size())), ex("fill"),
+                                        Term::literal(std::string(size, 'f') + std::to_string(fills.size()))));
+      if (!id) break;
+      fills.push_back(*id);
+    }
+  for (std::size_t i = 0; i < 30; ++i) ASSERT_TRUE(node.remove({.s = Term::iri(kNodeIri + "/f" + std::to_string(i))}));
+  Agent child = node.agent("child").value();
+  const std::string source = kNodeIri + "/child/hrv";
+  std::vector<RelayedItem> run;
+  for (std::uint64_t seq = 1; seq <= 1000; ++seq) run.push_back(relayed(seq, seq - 1, source, static_cast<int>(seq)));
+  auto relayed_part = child.relay("up", run);
+  ASSERT_TRUE(relayed_part) << relayed_part.error().message;
+  auto part = *relayed_part;
+  ASSERT_FALSE(part.stored.empty()) << "the room freed took nothing";
+  ASSERT_LT(part.stored.size(), run.size()) << "the case under test did not happen: the whole run fitted";
+  EXPECT_EQ(part.mark, part.stored.size());
+  ASSERT_TRUE(part.not_applied);
+  EXPECT_EQ(part.not_applied->code, Errc::store_full);
+  EXPECT_FALSE(part.gap);
+  EXPECT_EQ(child.relay_mark("up").value(), part.mark);
+  EXPECT_EQ(node.snapshot().value().count({.p = ex("value")}).value(), part.stored.size());
+  // The rest, sent again from the mark once there is room, continues the stream.
+  ASSERT_TRUE(node.remove({.p = ex("fill")}));
+  auto rest = child.relay("up", std::vector<RelayedItem>(run.begin() + static_cast<std::ptrdiff_t>(part.mark), run.end())).value();
+  EXPECT_FALSE(rest.not_applied);
+  EXPECT_EQ(rest.mark, 1000u);
+  EXPECT_EQ(node.snapshot().value().count({.p = ex("value")}).value(), 1000u);
+}
+
 // A node's persistent items go up again on a new stream when a store on the way was made again
 // or restored from a backup (docs/protocol.md P6c). A node above that holds them from the stream
 // before drops them; anything that differs in what makes an item the same is stored.
