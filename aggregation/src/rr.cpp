@@ -256,7 +256,10 @@ bool NnClassifier::step(std::vector<Interval>& decided) {
   short_tol_ = tol_short * ref;
   steady_tol_ = tol_prem * ref;
   regular_ = diffs_.size() >= 8 && spread < rule_.regular_spread * ref;
-  const bool continuous = prev_ok_ && std::abs(r - prev_rr_) <= tol_prem * ref &&
+  // Half a sample more than the tolerance: the difference of two intervals carries the rounding
+  // of three fiducials, and at 128 Hz a rhythm quickening by just the tolerance a beat went over
+  // it, and was taken for premature beats until it slowed again (103 at 128 Hz, 28 in a row).
+  const bool continuous = prev_ok_ && std::abs(r - prev_rr_) <= tol_prem * ref + 0.5 &&
                           std::abs(r - ref) <= rule_.continuity_band * tol_short * ref;
   if (!continuous && r < (1 - tol_short) * ref && returns_to_prior(r, tol_short)) {
     // The slower rhythm was a block and conduction is back: the interval is NN, and the

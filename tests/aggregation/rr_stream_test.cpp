@@ -78,7 +78,7 @@ class ModelRule {
     const double tol_long = std::max(rule_.long_fraction, rule_.spread_factor * spread / ref);
     const double tol_prem =
         std::max(rule_.premature_fraction, rule_.premature_spread_factor * spread / ref);
-    const bool continuous = i > 0 && ok_[i - 1] && std::abs(r - rr_[i - 1]) <= tol_prem * ref &&
+    const bool continuous = i > 0 && ok_[i - 1] && std::abs(r - rr_[i - 1]) <= tol_prem * ref + 0.5 &&
                             std::abs(r - ref) <= rule_.continuity_band * tol_short * ref;
     if (!continuous && r < (1 - tol_short) * ref) return short_beat(i, tol_short * ref);
     short_run_.clear();

@@ -58,8 +58,8 @@ std::vector<Interval> reference_intervals(const std::vector<Beat>& beats,
 //   tol_long  = max(long_fraction,  spread_factor * spread / ref)
 //   tol_prem  = max(premature_fraction, premature_spread_factor * spread / ref)
 // An interval continuous with the accepted interval just before it (|RR - previous| <=
-// tol_prem * ref) and within continuity_band * tol_short of ref is accepted (gradual rate
-// change). Otherwise:
+// tol_prem * ref + half a sample, for the rounding of the fiducials) and within
+// continuity_band * tol_short of ref is accepted (gradual rate change). Otherwise:
 //  - shorter than (1 - tol_short) * ref: premature beat or spurious detection; it and the next
 //    interval (the compensatory pause, or the other half of a split interval) are not NN;
 //    when that next one is short too (a couplet, N V V N: pause_after_couplet), the one after
