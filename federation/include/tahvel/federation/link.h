@@ -145,7 +145,8 @@ struct LinkCounters {
   std::uint64_t down_applied = 0;   // items relayed into this store from the parent
   std::uint64_t removals_applied = 0;    // removal notices applied from either side (P7a, P10a)
   std::uint64_t records_removed_in = 0;  // the records of this store they removed
-  std::uint64_t refused = 0;        // frames refused (foreign IRI, unknown child, bad body)
+  std::uint64_t refused = 0;        // frames refused (foreign IRI, unknown child, bad body), and runs
+                                    // this store could not hold, or held in part (P9b)
   std::uint64_t items_refused = 0;  // items received that this store can never hold, passed over
                                     // (P9a)
   std::uint64_t items_refused_by_peer = 0;  // items sent that the receiver refused so (P9a)
