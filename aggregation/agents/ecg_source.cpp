@@ -111,6 +111,10 @@ agg::Result<Signal> record_signal(const std::string& path, std::optional<std::si
   if (auto units = agg::non_voltage_warning(h, ecg)) std::cerr << "tahvel-ecg-source: warning: " << *units << "\n";
   s.info.gain = agg::gain_per_mv(h.signals[ecg]);
   s.info.invalid_sample = agg::invalid_sample(h.signals[ecg]);
+  // Chunks of 16-bit samples would wrap values of 24- and 32-bit formats, and format 8's
+  // running sums, which no bound holds to 16 bits.
+  for (const agg::SignalInfo& sig : h.signals)
+    if (sig.format == 8 || sig.format == 24 || sig.format == 32) s.info.sample_bytes = 4;
   s.info.baseline = h.signals[ecg].baseline;
   s.info.unit = h.signals[ecg].units;
   if (s.info.gain != h.signals[ecg].gain) s.info.unit = "mV";  // converted from uV or V

@@ -1,4 +1,5 @@
-// WFDB header parsing and signal decoding (formats 212 and 16). The header parser is a small
+// WFDB header parsing and signal decoding (the formats of signal(5): 8, 16, 24, 32, 61, 80, 160,
+// 212, 310, 311). The header parser is a small
 // field-by-field reader so that every error can name the file, line and field; the decoders
 // work on whole byte blocks so a 30-minute MIT-BIH record decodes in one pass.
 #include "tahvel/aggregation/wfdb.h"
@@ -178,6 +179,47 @@ Result<bool> parse_record_line(std::string_view line, const Where& at, RecordHea
   return true;  // WFDB reads nothing after the date, and neither does this reader
 }
 
+// How a format packs values: `bytes` bytes hold `values` values, the signals of a file
+// interleaved value by value. nullopt: not a format this reader decodes.
+struct Packing {
+  int bytes;
+  int values;
+};
+std::optional<Packing> packing_of(int format) {
+  switch (format) {
+    case 8:    // 8-bit first differences
+    case 80:   // 8-bit offset binary
+      return Packing{1, 1};
+    case 16:   // 16-bit two's complement, little-endian
+    case 61:   // 16-bit two's complement, big-endian
+    case 160:  // 16-bit offset binary
+      return Packing{2, 1};
+    case 212:  // two 12-bit values in 3 bytes
+      return Packing{3, 2};
+    case 24:
+      return Packing{3, 1};
+    case 32:
+      return Packing{4, 1};
+    case 310:  // three 10-bit values in 4 bytes (two 16-bit words)
+    case 311:  // three 10-bit values in 4 bytes (one 32-bit word)
+      return Packing{4, 3};
+    default:
+      return std::nullopt;
+  }
+}
+
+// WFDB's ADC resolution when the header gives none: the bits a sample of the format holds.
+int default_resolution(int format) {
+  switch (format) {
+    case 8: case 80: return 8;
+    case 310: case 311: return 10;
+    case 212: return 12;
+    case 24: return 24;
+    case 32: return 32;
+    default: return 16;
+  }
+}
+
 // ---- signal line: file format[xsamp][:skew][+offset] gain[(baseline)][/units] adcres adczero
 //      initval checksum blocksize description ----
 
@@ -199,10 +241,17 @@ Result<bool> parse_format(std::string_view tok, const Where& at, SignalInfo& s) 
     if (kind == '+') s.byte_offset = v;
     end = next;
   }
-  if (s.format != 212 && s.format != 16)
+  if (!packing_of(s.format)) {
+    // FLAC-compressed signal files (WFDB 10.7) are read by WFDB's own tools, which can write
+    // them out again uncompressed.
+    const bool flac = s.format == 508 || s.format == 516 || s.format == 524;
     return fail(at.field_error("format", tok,
                                "format " + std::to_string(s.format) +
-                                   " is not supported (supported: 16, 212)"));
+                                   " is not supported (supported: 8, 16, 24, 32, 61, 80, 160, 212, 310, 311)" +
+                                   (flac ? "; it is FLAC-compressed: write the record out uncompressed first (WFDB's "
+                                           "xform, or wfdb-python's wrsamp, in format 16)"
+                                         : "")));
+  }
   return true;
 }
 
@@ -257,7 +306,7 @@ Result<SignalInfo> parse_signal_line(std::string_view line, const Where& at) {
   if (t.items.size() > 7 && !parse_int(t.items[7], s.block_size))
     return fail(at.field_error("block size", t.items[7], "not an integer"));
   if (t.items.size() > 8) s.description = std::string(trim(line.substr(t.starts[8])));
-  if (s.adc_resolution == 0) s.adc_resolution = s.format == 212 ? 12 : 16;
+  if (s.adc_resolution == 0) s.adc_resolution = default_resolution(s.format);
   if (!has_zero) s.adc_zero = 0;
   if (!has_baseline) s.baseline = s.adc_zero;
   if (!has_init) s.initial_value = s.adc_zero;
@@ -271,14 +320,22 @@ std::string parent_dir(const std::string& path) {
 
 // ---- decoding ----
 
-// Values (12- or 16-bit samples, counted across the interleaved signals of one file) held by
-// `bytes` bytes of a format.
+// Values (counted across the interleaved signals of one file) held by `bytes` bytes of a
+// format. A last, partial block holds what WFDB's writers flush into it: one 212 value in two
+// bytes, one 310 value per 16-bit word written, one 311 value per byte after the first two.
 std::int64_t values_in_bytes(int format, std::int64_t bytes) {
-  if (format == 16) return bytes / 2;
-  return 2 * (bytes / 3) + (bytes % 3 >= 2 ? 1 : 0);
+  const Packing p = packing_of(format).value_or(Packing{1, 1});
+  const std::int64_t whole = bytes / p.bytes * p.values, rest = bytes % p.bytes;
+  if (format == 212 || format == 310) return whole + (rest >= 2 ? 1 : 0);
+  if (format == 311) return whole + std::max<std::int64_t>(0, rest - 1);
+  return whole;
 }
 
-std::int32_t sign12(unsigned v) { return static_cast<std::int32_t>(v & 0x800 ? v | ~0xFFFu : v); }
+std::int32_t sign_extend(std::uint32_t v, int bits) {
+  const std::uint32_t mask = bits == 32 ? ~0u : (1u << bits) - 1, sign = 1u << (bits - 1);
+  v &= mask;
+  return static_cast<std::int32_t>(v & sign ? v | ~mask : v);
+}
 
 }  // namespace
 
@@ -286,11 +343,16 @@ std::int32_t sign12(unsigned v) { return static_cast<std::int32_t>(v & 0x800 ? v
 struct SignalReader::Group {
   std::string path;       // as opened (directory + file name)
   int format = 0;
+  Packing packing{2, 1};
   std::size_t first = 0;  // index of its first signal in the header
   std::size_t count = 0;  // number of signals in the file
   std::ifstream in;
-  std::vector<std::int32_t> pending;  // a decoded 212 value read ahead (at most one)
+  std::vector<std::int32_t> pending;  // values of a packed block decoded ahead of a request
   std::vector<unsigned char> bytes;   // reusable read buffer
+  // Format 8: each signal's last value, which the next difference adds to (from the header's
+  // initial value), and the signal the next value in the file belongs to.
+  std::vector<std::int32_t> running;
+  std::size_t next_signal = 0;
 
   // Decodes the next `want` values; returns how many were available (fewer only at end of file).
   Result<std::size_t> next_values(std::size_t want, std::vector<std::int32_t>& out) {
@@ -300,9 +362,11 @@ struct SignalReader::Group {
     pending.erase(pending.begin(), pending.begin() + take);
     std::size_t rest = want - take;
     if (rest == 0) return want;
-    // 212 packs values in pairs; an odd request reads the whole pair and keeps one back.
-    std::size_t values = format == 212 ? rest + (rest % 2) : rest;
-    bytes.resize(static_cast<std::size_t>(format == 212 ? 3 * (values / 2) : 2 * values));
+    // Packed formats are read in whole blocks; values of the last block beyond the request are
+    // kept for the next one.
+    const auto per_block = static_cast<std::size_t>(packing.values);
+    const std::size_t blocks = (rest + per_block - 1) / per_block;
+    bytes.resize(blocks * static_cast<std::size_t>(packing.bytes));
     in.read(reinterpret_cast<char*>(bytes.data()), static_cast<std::streamsize>(bytes.size()));
     std::size_t got = static_cast<std::size_t>(in.gcount());
     if (in.bad()) return fail(path + ": read error");
@@ -314,16 +378,65 @@ struct SignalReader::Group {
     return out.size();
   }
 
-  void decode(std::size_t got, std::vector<std::int32_t>& out) const {
-    if (format == 16) {
-      for (std::size_t i = 0; i + 1 < got; i += 2)
-        out.push_back(static_cast<std::int16_t>(bytes[i] | (bytes[i + 1] << 8)));
-      return;
-    }
-    for (std::size_t i = 0; i + 1 < got; i += 3) {
-      unsigned b0 = bytes[i], b1 = bytes[i + 1];
-      out.push_back(sign12(b0 | ((b1 & 0x0Fu) << 8)));
-      if (i + 2 < got) out.push_back(sign12(bytes[i + 2] | ((b1 & 0xF0u) << 4)));
+  void decode(std::size_t got, std::vector<std::int32_t>& out) {
+    const unsigned char* b = bytes.data();
+    const auto u16 = [&](std::size_t i) { return static_cast<std::uint32_t>(b[i] | (b[i + 1] << 8)); };
+    switch (format) {
+      case 8:
+        for (std::size_t i = 0; i < got; ++i) {
+          std::int32_t& value = running[next_signal];
+          value += static_cast<std::int8_t>(b[i]);
+          out.push_back(value);
+          next_signal = (next_signal + 1) % running.size();
+        }
+        return;
+      case 80:
+        for (std::size_t i = 0; i < got; ++i) out.push_back(static_cast<std::int32_t>(b[i]) - 128);
+        return;
+      case 16:
+        for (std::size_t i = 0; i + 1 < got; i += 2) out.push_back(sign_extend(u16(i), 16));
+        return;
+      case 61:
+        for (std::size_t i = 0; i + 1 < got; i += 2) out.push_back(sign_extend(static_cast<std::uint32_t>(b[i] << 8 | b[i + 1]), 16));
+        return;
+      case 160:
+        for (std::size_t i = 0; i + 1 < got; i += 2) out.push_back(static_cast<std::int32_t>(u16(i)) - 32768);
+        return;
+      case 24:
+        for (std::size_t i = 0; i + 2 < got; i += 3) out.push_back(sign_extend(u16(i) | static_cast<std::uint32_t>(b[i + 2]) << 16, 24));
+        return;
+      case 32:
+        for (std::size_t i = 0; i + 3 < got; i += 4) out.push_back(sign_extend(u16(i) | u16(i + 2) << 16, 32));
+        return;
+      case 310:
+        // Words w0, w1: values 0 and 1 in bits 1-10 of each; value 2's low five bits in bits
+        // 11-15 of w0, its high five in bits 11-15 of w1.
+        for (std::size_t i = 0; i + 1 < got; i += 4) {
+          const std::uint32_t w0 = u16(i);
+          out.push_back(sign_extend(w0 >> 1, 10));
+          if (i + 3 >= got) break;
+          const std::uint32_t w1 = u16(i + 2);
+          out.push_back(sign_extend(w1 >> 1, 10));
+          out.push_back(sign_extend((w0 >> 11) | ((w1 >> 11) << 5), 10));
+        }
+        return;
+      case 311:
+        // One little-endian 32-bit word: values in bits 0-9, 10-19 and 20-29.
+        for (std::size_t i = 0; i + 1 < got; i += 4) {
+          std::uint32_t word = u16(i);
+          std::size_t have = 1;
+          if (i + 2 < got) word |= static_cast<std::uint32_t>(b[i + 2]) << 16, have = 2;
+          if (i + 3 < got) word |= static_cast<std::uint32_t>(b[i + 3]) << 24, have = 3;
+          for (std::size_t k = 0; k < have; ++k) out.push_back(sign_extend(word >> (10 * k), 10));
+        }
+        return;
+      default:  // 212
+        for (std::size_t i = 0; i + 1 < got; i += 3) {
+          const std::uint32_t b1 = b[i + 1];
+          out.push_back(sign_extend(b[i] | ((b1 & 0x0Fu) << 8), 12));
+          if (i + 2 < got) out.push_back(sign_extend(b[i + 2] | ((b1 & 0xF0u) << 4), 12));
+        }
+        return;
     }
   }
 };
@@ -395,6 +508,8 @@ Result<SignalReader> SignalReader::open(const std::string& record_path) {
     auto g = std::make_unique<Group>();
     g->path = (std::filesystem::path(r.header_.directory) / sigs[i].file).string();
     g->format = sigs[i].format;
+    g->packing = *packing_of(g->format);
+    for (std::size_t k = i; k < j; ++k) g->running.push_back(sigs[k].initial_value);
     g->first = i;
     g->count = j - i;
     g->in.open(g->path, std::ios::binary);
@@ -411,7 +526,7 @@ Result<SignalReader> SignalReader::open(const std::string& record_path) {
       // written in that format, not cut short: a header saying 16 over format-212 data.
       std::string hint;
       for (const int other : {212, 16})
-        if (other != g->format &&
+        if (other != g->format && (g->format == 212 || g->format == 16) &&
             values_in_bytes(other, std::max<std::int64_t>(0, size - offset)) / static_cast<std::int64_t>(g->count) == expected)
           hint = "; its size is what format " + std::to_string(other) + " takes for that many: is the header's format (" +
                  std::to_string(g->format) + ") that of the file?";
@@ -536,11 +651,11 @@ std::vector<std::string> unread_samples(const RecordHeader& header) {
     const std::string path = (std::filesystem::path(header.directory) / first.file).string();
     std::error_code ec;
     const auto size = static_cast<std::int64_t>(std::filesystem::file_size(path, ec));
-    if (!ec && (first.format == 16 || first.format == 212)) {
+    if (!ec && packing_of(first.format)) {
       const std::int64_t found = values_in_bytes(first.format, std::max<std::int64_t>(0, size - first.byte_offset)) /
                                  static_cast<std::int64_t>(j - i);
-      // One more is format 212's padding of an odd number of values.
-      if (found > expected + 1)
+      // Values of a last packed block beyond the count are its padding (212: one; 310, 311: two).
+      if (found > expected + (packing_of(first.format)->values - 1))
         out.push_back(path + " holds " + std::to_string(found) + " samples per signal, the header " + header.path + " says " +
                       std::to_string(expected) + ": the last " + std::to_string(found - expected) +
                       " are not read (is the header's sample count right?)");
@@ -595,7 +710,16 @@ std::optional<std::string> non_voltage_warning(const RecordHeader& header, std::
          info.units + "', not a voltage: its samples are read as millivolts at the header's gain (is the header right?)";
 }
 
-std::int32_t invalid_sample(const SignalInfo& info) { return info.format == 212 ? -2048 : -32768; }
+std::int32_t invalid_sample(const SignalInfo& info) {
+  switch (info.format) {
+    case 80: return -128;
+    case 212: return -2048;
+    case 310: case 311: return -512;
+    case 24: return -(1 << 23);
+    case 8: case 32: return std::numeric_limits<std::int32_t>::min();
+    default: return -32768;
+  }
+}
 
 double gain_per_mv(const SignalInfo& info) {
   const double gain = info.gain == 0 ? 200 : info.gain;

@@ -161,6 +161,14 @@ const Term* object(const std::vector<Record>& records, const std::string& subjec
   return all.empty() ? nullptr : all.front();
 }
 
+// tv:sampleFormat of a recording's (and a wide chunk's) samples, by bytes per sample.
+std::string sample_format_name(int bytes) { return bytes == 4 ? "int32le interleaved" : "int16le interleaved"; }
+std::optional<int> sample_bytes_of(const std::string& name) {
+  if (name == "int16le interleaved") return 2;
+  if (name == "int32le interleaved") return 4;
+  return std::nullopt;
+}
+
 Unexpected<Error> missing(const std::string& subject, const char* local, const char* what) {
   return fail("<" + subject + ">: tv:" + local + " " + what);
 }
@@ -218,7 +226,7 @@ Item recording_item(const RecordingInfo& info) {
       .add(rec, tv("gain"), exact_decimal(info.gain))
       .add(rec, tv("baseline"), Term::integer(info.baseline))
       .add(rec, tv("unit"), text(info.unit))
-      .add(rec, tv("sampleFormat"), text("int16le interleaved"));
+      .add(rec, tv("sampleFormat"), text(sample_format_name(info.sample_bytes)));
   if (info.invalid_sample) item.add(rec, tv("invalidSample"), Term::integer(*info.invalid_sample));
   for (std::size_t i = 0; i < info.leads.size(); ++i)
     item.add(rec, tv("lead"), text(std::to_string(i) + " " + info.leads[i]));
@@ -259,6 +267,11 @@ Result<RecordingInfo> read_recording(const std::vector<Record>& records, const s
   if (const Term* t = object(records, iri, "unit")) info.unit = t->value;
   if (const Term* t = object(records, iri, "invalidSample"))
     if (auto v = to_int(t->value)) info.invalid_sample = static_cast<std::int32_t>(*v);
+  if (const Term* t = object(records, iri, "sampleFormat")) {
+    auto bytes = sample_bytes_of(t->value);
+    if (!bytes) return missing(iri, "sampleFormat", ("is not one this build reads: '" + t->value + "'").c_str());
+    info.sample_bytes = *bytes;
+  }
   std::map<long, std::string> leads;
   for (const Term* t : objects(records, iri, "lead")) {
     const auto space = t->value.find(' ');
@@ -321,13 +334,13 @@ Item recording_end_item(const std::string& recording_iri, std::int64_t end_sampl
 Item ecg_chunk_item(const RecordingInfo& info, std::int64_t start_sample,
                     const std::vector<std::vector<std::int32_t>>& leads, std::size_t offset,
                     std::size_t frames) {
+  const int width = info.sample_bytes == 4 ? 4 : 2;
   std::string bytes;
-  bytes.reserve(frames * leads.size() * 2);
+  bytes.reserve(frames * leads.size() * static_cast<std::size_t>(width));
   for (std::size_t f = offset; f < offset + frames; ++f) {
     for (const auto& lead : leads) {
-      auto v = static_cast<std::uint16_t>(static_cast<std::int16_t>(lead[f]));
-      bytes += static_cast<char>(v & 0xFF);
-      bytes += static_cast<char>(v >> 8);
+      auto v = static_cast<std::uint32_t>(lead[f]);
+      for (int k = 0; k < width; ++k, v >>= 8) bytes += static_cast<char>(v & 0xFF);
     }
   }
   Item item;
@@ -337,6 +350,7 @@ Item ecg_chunk_item(const RecordingInfo& info, std::int64_t start_sample,
       .add(chunk, tv("startSample"), Term::integer(start_sample))
       .add(chunk, tv("frameCount"), Term::integer(static_cast<std::int64_t>(frames)))
       .add(chunk, tv("samples"), Term::literal(base64(bytes), std::string(node::xsd::kBase64Binary)));
+  if (width == 4) item.add(chunk, tv("sampleFormat"), text(sample_format_name(width)));
   if (info.started_at) {
     const auto frame_time = [&](std::int64_t sample) {
       return *info.started_at + std::llround(static_cast<double>(sample) * 1e9 / info.fs);
@@ -364,18 +378,28 @@ Result<EcgChunk> read_chunk(const std::vector<Record>& records) {
   if (*frames <= 0) return missing(chunk.iri, "frameCount", "is not positive");
   chunk.start_sample = *start;
   chunk.frames = static_cast<std::size_t>(*frames);
+  int width = 2;
+  if (const Term* format = object(records, chunk.iri, "sampleFormat")) {
+    auto bytes = sample_bytes_of(format->value);
+    if (!bytes) return missing(chunk.iri, "sampleFormat", ("is not one this build reads: '" + format->value + "'").c_str());
+    width = *bytes;
+  }
   auto bytes = unbase64(object(records, chunk.iri, "samples")->value);
   if (!bytes) return missing(chunk.iri, "samples", "is not base64");
+  const auto w = static_cast<std::size_t>(width);
   const std::size_t per_frame = bytes->size() / chunk.frames;
-  if (per_frame == 0 || per_frame % 2 != 0 || per_frame * chunk.frames != bytes->size())
+  if (per_frame == 0 || per_frame % w != 0 || per_frame * chunk.frames != bytes->size())
     return missing(chunk.iri, "samples",
-                   ("holds " + std::to_string(bytes->size()) + " bytes, not frames x leads x 2").c_str());
-  const std::size_t leads = per_frame / 2;
+                   ("holds " + std::to_string(bytes->size()) + " bytes, not frames x leads x " + std::to_string(w)).c_str());
+  const std::size_t leads = per_frame / w;
   chunk.leads.assign(leads, std::vector<std::int32_t>(chunk.frames));
   const auto* b = reinterpret_cast<const unsigned char*>(bytes->data());
   for (std::size_t f = 0; f < chunk.frames; ++f)
-    for (std::size_t l = 0; l < leads; ++l, b += 2)
-      chunk.leads[l][f] = static_cast<std::int16_t>(static_cast<std::uint16_t>(b[0] | (b[1] << 8)));
+    for (std::size_t l = 0; l < leads; ++l, b += w) {
+      std::uint32_t v = 0;
+      for (std::size_t k = 0; k < w; ++k) v |= static_cast<std::uint32_t>(b[k]) << (8 * k);
+      chunk.leads[l][f] = w == 2 ? static_cast<std::int16_t>(static_cast<std::uint16_t>(v)) : static_cast<std::int32_t>(v);
+    }
   return chunk;
 }
 

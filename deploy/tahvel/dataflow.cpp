@@ -32,7 +32,7 @@ const std::vector<Shape>& shapes_of(Kind kind) {
        {kTv + "sensorModel", ""}, {kTv + "filters", ""}, {kTv + "replayedFrom", ""}, {kTv + "sampleDigest", ""},
        {kTv + "startedAt", ""}},
       {{kRdfType, kTv + "EcgChunk"}, {kTv + "recording", ""}, {kTv + "startSample", ""}, {kTv + "frameCount", ""},
-       {kTv + "samples", ""}},
+       {kTv + "samples", ""}, {kTv + "sampleFormat", "", false}},
       {{kTv + "endSample", ""}},
       {{kRdfType, kTv + "RPeaks"}, {kTv + "recording", ""}, {kTv + "fromSample", ""}, {kTv + "toSample", ""},
        {kTv + "peaks", ""}, {kTv + "emptyGapEnds", "", false}, {kTv + "pWaveGapEnds", "", false},

@@ -206,6 +206,47 @@ TEST_F(EcgSourceTest, EachLeadOfARecordKeepsItsOwnCalibration) {
   EXPECT_EQ(info.calibration[1].invalid_sample, -32768);
 }
 
+// A 24-bit recorder's samples (here 100,000 per mV, values beyond 16 bits) reach the board
+// whole, in chunks of 4-byte samples that say so: 16-bit chunks would wrap them, and the
+// R-peak agent and an operator's query would read noise.
+TEST_F(EcgSourceTest, SamplesOfA24BitRecordReachTheBoardWholeInFourByteChunks) {
+  const std::string dir = new_node("wide");
+  const fs::path record = tmp_ / "wide";
+  std::ofstream(record.string() + ".hea") << "wide 1 250 750\nwide.dat 24 100000(0)/mV 24 0 0 0 0 ECG\n";
+  std::vector<std::int32_t> values;
+  {
+    std::ofstream dat(record.string() + ".dat", std::ios::binary);
+    for (int k = 0; k < 750; ++k) {
+      values.push_back((k % 50 - 25) * 4001);
+      for (int b = 0; b < 3; ++b) dat.put(static_cast<char>(static_cast<std::uint32_t>(values.back()) >> (8 * b) & 0xff));
+    }
+  }
+  const auto [status, said] = replay_logged(dir, record.string(), "wide");
+  ASSERT_EQ(status, 0) << said;
+  const std::string rec = the_recording(dir);
+  EXPECT_EQ(recording_info(dir).sample_bytes, 4);
+  auto node = tn::Node::open(dir);
+  ASSERT_TRUE(node) << node.error().message;
+  auto snapshot = node->snapshot();
+  ASSERT_TRUE(snapshot);
+  auto named = snapshot->list(tn::Pattern{.p = agg::tv_term("recording"), .o = tn::Term::iri(rec)});
+  ASSERT_TRUE(named);
+  std::vector<std::int32_t> stored(values.size());
+  std::size_t frames = 0;
+  for (const auto& r : *named) {
+    auto fields = snapshot->list(tn::Pattern{.s = r.triple.s});
+    ASSERT_TRUE(fields);
+    auto chunk = agg::read_chunk(*fields);
+    ASSERT_TRUE(chunk) << chunk.error().message;
+    ASSERT_EQ(chunk->leads.size(), 1u);
+    ASSERT_LE(chunk->start_sample + static_cast<std::int64_t>(chunk->frames), 750);
+    std::copy(chunk->leads[0].begin(), chunk->leads[0].end(), stored.begin() + chunk->start_sample);
+    frames += chunk->frames;
+  }
+  EXPECT_EQ(frames, values.size());
+  EXPECT_EQ(stored, values);
+}
+
 // Runs of WFDB's no-value in the ECG lead: said at the first, where it is, and counted at the
 // record's end, as `tahvel hrv` counts them. "from sample N on" alone read as a lead lost for
 // the rest of the record, when two short runs were.

@@ -145,6 +145,42 @@ TEST(WfdbRecord100, StreamingInOneSecondChunksEqualsWholeRead) {
   EXPECT_EQ(out, whole->samples);
 }
 
+// A minute of record 100 written in each format wide enough for its 11-bit samples reads back
+// sample for sample (the HRV chain then sees the same record whatever its format).
+class WfdbRecord100InAnotherFormat : public WfdbTemp {};
+TEST_F(WfdbRecord100InAnotherFormat, AMinuteWrittenInEachWideFormatReadsBackTheSameSamples) {
+  REQUIRE_MITDB();
+  auto original = read_signals(mitdb_record("100"));
+  ASSERT_TRUE(original) << original.error().message;
+  const std::size_t frames = 21600;
+  for (const int format : {16, 61, 160, 24, 32}) {
+    SCOPED_TRACE("format " + std::to_string(format));
+    std::string dat;
+    for (std::size_t f = 0; f < frames; ++f)
+      for (const auto& signal : original->samples) {
+        const std::int32_t v = signal[f];
+        const auto u = static_cast<std::uint32_t>(format == 160 ? v + 32768 : v);
+        if (format == 61) {
+          dat += static_cast<char>(u >> 8 & 0xFF);
+          dat += static_cast<char>(u & 0xFF);
+        } else {
+          for (int k = 0; k < (format == 24 ? 3 : format == 32 ? 4 : 2); ++k) dat += static_cast<char>(u >> (8 * k) & 0xFF);
+        }
+      }
+    const std::string name = "m" + std::to_string(format);
+    write(name + ".hea", name + " 2 360 " + std::to_string(frames) + "\n" + name + ".dat " + std::to_string(format) +
+                             " 200(1024) 11 1024 995 0 0 MLII\n" + name + ".dat " + std::to_string(format) +
+                             " 200(1024) 11 1024 1011 0 0 V5\n");
+    write(name + ".dat", dat);
+    auto copy = read_signals(record(name));
+    ASSERT_TRUE(copy) << copy.error().message;
+    for (std::size_t i = 0; i < 2; ++i)
+      EXPECT_TRUE(std::equal(copy->samples[i].begin(), copy->samples[i].end(), original->samples[i].begin()) &&
+                  copy->samples[i].size() == frames)
+          << "signal " << i;
+  }
+}
+
 TEST(WfdbRecord100, PhysicalValueIsAduMinusBaselineOverGain) {
   REQUIRE_MITDB();
   auto h = read_header(mitdb_record("100"));
@@ -191,6 +227,81 @@ TEST_F(WfdbTemp, Format212DecodesNegativeTwelveBitValuesAndOddSignalCounts) {
   ASSERT_TRUE(end);
   EXPECT_EQ(*end, 0u);
   EXPECT_EQ(out[0], (std::vector<std::int32_t>{-2047, 2047, -1}));
+}
+
+// The formats of WFDB's signal(5) besides 212 and 16, each from bytes packed by hand from the
+// specification (PhysioNet records come in them: 310 in older ones, 80 and 8 in 8-bit ones,
+// 24 and 32 from newer recorders); a partial last block holds what WFDB's writers flush.
+TEST_F(WfdbTemp, EachFormatOfSignal5DecodesBytesPackedByHand) {
+  struct Case {
+    const char* format;
+    std::string bytes;
+    std::vector<std::int32_t> values;
+  };
+  const std::vector<Case> cases = {
+      {"80", bytes_of({0x80, 0x81, 0x7F, 0x00, 0xFF}), {0, 1, -1, -128, 127}},
+      {"160", bytes_of({0x00, 0x80, 0x01, 0x80, 0xFF, 0x7F, 0x00, 0x00}), {0, 1, -1, -32768}},
+      {"61", bytes_of({0x01, 0x2C, 0xFF, 0xFE, 0x80, 0x00}), {300, -2, -32768}},
+      {"24", bytes_of({0x01, 0x00, 0x80, 0xFF, 0xFF, 0x7F, 0x00, 0x00, 0x01, 0xFE, 0xFF, 0xFF}), {-8388607, 8388607, 65536, -2}},
+      {"32", bytes_of({0x00, 0x00, 0x01, 0x00, 0xFF, 0xFF, 0xFF, 0xFF, 0x00, 0x00, 0x00, 0x80}), {65536, -1, INT32_MIN}},
+      // 5, -2, 300 in two words (bits 1-10 of each; 300's low five bits in bits 11-15 of the
+      // first, its high five in bits 11-15 of the second), then -512 alone in one word.
+      {"310", bytes_of({0x0A, 0x60, 0xFC, 0x4F, 0x00, 0x04}), {5, -2, 300, -512}},
+      // 5, -2, 300 in bits 0-9, 10-19, 20-29 of one 32-bit word, then 1 and -1 in three bytes.
+      {"311", bytes_of({0x05, 0xF8, 0xCF, 0x12, 0x01, 0xFC, 0x0F}), {5, -2, 300, 1, -1}},
+  };
+  for (const Case& c : cases) {
+    SCOPED_TRACE(std::string("format ") + c.format);
+    const std::string name = std::string("f") + c.format;
+    write(name + ".hea", name + " 1 250 " + std::to_string(c.values.size()) + "\n" + name + ".dat " + c.format + " 200 0 0 0\n");
+    write(name + ".dat", c.bytes);
+    auto s = read_signals(record(name));
+    ASSERT_TRUE(s) << s.error().message;
+    EXPECT_EQ(s->samples[0], c.values);
+    EXPECT_TRUE(unread_samples(s->header).empty());
+    // One frame at a time: a packed block is decoded once, its values handed out in turn.
+    auto r = SignalReader::open(record(name));
+    ASSERT_TRUE(r) << r.error().message;
+    std::vector<std::vector<std::int32_t>> out;
+    for (std::size_t k = 0; k < c.values.size(); ++k) ASSERT_EQ(*r->read(1, out), 1u);
+    EXPECT_EQ(*r->read(1, out), 0u);
+    EXPECT_EQ(out[0], c.values);
+  }
+}
+
+// Format 8 holds first differences: each signal of the file adds its own, from the header's
+// initial value, the signals interleaved byte by byte.
+TEST_F(WfdbTemp, Format8AddsEachSignalsDifferencesToItsInitialValue) {
+  write("d.hea", "d 2 250 3\nd.dat 8 200 12 0 100 0 0 ECG\nd.dat 8 200 12 0 -5 0 0 V5\n");
+  write("d.dat", bytes_of({0x01, 0x02, 0xFD, 0x80, 0x7F, 0x00}));
+  auto s = read_signals(record("d"));
+  ASSERT_TRUE(s) << s.error().message;
+  EXPECT_EQ(s->samples[0], (std::vector<std::int32_t>{101, 98, 225}));
+  EXPECT_EQ(s->samples[1], (std::vector<std::int32_t>{-3, -131, -131}));
+  auto r = SignalReader::open(record("d"));
+  ASSERT_TRUE(r) << r.error().message;
+  std::vector<std::vector<std::int32_t>> out;
+  ASSERT_EQ(*r->read(2, out), 2u);
+  ASSERT_EQ(*r->read(5, out), 1u);
+  EXPECT_EQ(out[0], s->samples[0]);
+  EXPECT_EQ(out[1], s->samples[1]);
+}
+
+// A signal without a value is written as its format's least value; a record cut inside a
+// packed block is truncated, not read short.
+TEST_F(WfdbTemp, EachFormatsNoValueIsItsLeastValueAndACutBlockIsTruncation) {
+  const std::vector<std::pair<int, std::int32_t>> least = {
+      {16, -32768}, {61, -32768}, {160, -32768}, {212, -2048}, {310, -512}, {311, -512}, {80, -128}, {24, -8388608}, {32, INT32_MIN}};
+  for (const auto& [format, value] : least) {
+    SignalInfo info;
+    info.format = format;
+    EXPECT_EQ(invalid_sample(info), value) << "format " << format;
+  }
+  write("c.hea", "c 1 250 4\nc.dat 310 200 10 0 0 0 0\n");
+  write("c.dat", bytes_of({0x0A, 0x60, 0xFC, 0x4F, 0x00}));  // three values, then half a word
+  auto s = read_signals(record("c"));
+  ASSERT_FALSE(s);
+  EXPECT_NE(s.error().message.find("expected 4 samples per signal, found 3"), std::string::npos) << s.error().message;
 }
 
 // A record may start with respiration or blood pressure (the HRV chain read it as the ECG and
@@ -466,13 +577,19 @@ TEST_F(WfdbTemp, RecordLineFieldsThatDoNotParseAreRefusedNamingTheField) {
 }
 
 TEST_F(WfdbTemp, UnsupportedFormatIsAnErrorNamingFileLineFieldAndFormat) {
-  write("r.hea", "r 1 360 2\nr.dat 311 200 10 0 0 0 0\n");
+  write("r.hea", "r 1 360 2\nr.dat 99 200 10 0 0 0 0\n");
   auto h = read_header(record("r"));
   ASSERT_FALSE(h);
   const std::string& m = h.error().message;
   EXPECT_NE(m.find("r.hea:2: field 'format'"), std::string::npos) << m;
-  EXPECT_NE(m.find("311 is not supported"), std::string::npos) << m;
+  EXPECT_NE(m.find("99 is not supported (supported: 8, 16, 24, 32, 61, 80, 160, 212, 310, 311)"), std::string::npos) << m;
   EXPECT_FALSE(read_signals(record("r")));
+  // FLAC-compressed files (WFDB 10.7) are named as such, with what to do.
+  write("z.hea", "z 1 360 2\nz.dat 516 200 16 0 0 0 0\n");
+  auto z = read_header(record("z"));
+  ASSERT_FALSE(z);
+  EXPECT_NE(z.error().message.find("516 is not supported"), std::string::npos) << z.error().message;
+  EXPECT_NE(z.error().message.find("FLAC-compressed: write the record out uncompressed"), std::string::npos) << z.error().message;
 }
 
 TEST_F(WfdbTemp, MissingSignalLinesAreAnError) {

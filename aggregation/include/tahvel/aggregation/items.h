@@ -80,6 +80,10 @@ struct RecordingInfo {
   // windows) at the signal time it describes, so that an operator can ask for the raw ECG
   // behind an HRV window by its time. Absent on recordings written before it was kept.
   std::optional<std::int64_t> started_at;
+  // Bytes per sample in the chunks (tv:sampleFormat): 2, "int16le interleaved", for records
+  // whose values fit 16 bits (WFDB formats up to 16 bits: every MIT-BIH one); 4, "int32le
+  // interleaved", for formats 24 and 32 and format 8's running sums, which 16 bits would wrap.
+  int sample_bytes = 2;
 };
 
 // started_at + `seconds` of the recording's own clock, when started_at is known.
@@ -106,7 +110,9 @@ std::string rr_end_iri(const std::string& recording_iri);  // an RR item with no
 std::string hrv_iri(const std::string& recording_iri, double start_s);
 
 // One chunk of samples (usually one second): frames of all leads interleaved, each sample a
-// 16-bit little-endian two's-complement integer, as an xsd:base64Binary literal. The chunk is
+// little-endian two's-complement integer of info.sample_bytes bytes, as an xsd:base64Binary
+// literal; a chunk of 4-byte samples says so itself (tv:sampleFormat "int32le interleaved"),
+// so that it reads back without its recording. The chunk is
 // named chunk_iri(info.iri, start_sample). leads[i][offset .. offset + frames) are written.
 // When info.started_at is known the chunk is asserted at its first frame's time and spans to
 // the next chunk's (node::Item::span), so that a time-range query starting inside it gets it.
@@ -124,8 +130,9 @@ struct EcgChunk {
 };
 
 // The first tv:EcgChunk in `records` (a delivered item). Errors: no chunk, a missing
-// tv:recording, tv:startSample, tv:frameCount or tv:samples, bad base64, or a byte count that is
-// not frames x leads x 2.
+// tv:recording, tv:startSample, tv:frameCount or tv:samples, bad base64, a tv:sampleFormat other
+// than "int16le interleaved" (the default) or "int32le interleaved", or a byte count that is not
+// frames x leads x the sample's bytes.
 Result<EcgChunk> read_chunk(const std::vector<node::Record>& records);
 
 // R peaks decided while the detector read the samples [from_sample, to_sample) of a recording

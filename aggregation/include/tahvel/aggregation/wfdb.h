@@ -3,7 +3,8 @@
 // 1.9 MB): read_signals() holds a whole record in memory; SignalReader replays one in chunks
 // (agents replay 1-second chunks) and holds only the chunk.
 //
-// Supported: single-segment records; signal formats 212 and 16; several signals per file
+// Supported: single-segment records; the signal formats of WFDB's signal(5) without
+// compression (8, 16, 24, 32, 61, 80, 160, 212, 310, 311); several signals per file
 // (interleaved) and several files per record; a byte offset before the first sample. Anything
 // else (multi-segment records, other formats, more than one sample per frame, skew) is refused
 // with an Error naming the header file, line and field. Nothing is ever read short silently:
@@ -29,13 +30,14 @@ namespace tahvel::aggregation {
 struct SignalInfo {
   std::string file;          // signal file name as written in the header, relative to the header's
                              // directory ("100.dat")
-  int format = 0;            // storage format: 212 or 16
+  int format = 0;            // storage format: 8, 16, 24, 32, 61, 80, 160, 212, 310 or 311
   double gain = 200;         // ADC units per physical unit; 0 or absent in the header means 200
   int baseline = 0;          // ADC value of physical zero; absent means adc_zero
   std::string units = "mV";  // physical units; absent means "mV"
-  int adc_resolution = 0;    // bits; absent or 0 means 12 (format 212) or 16 (format 16)
+  int adc_resolution = 0;    // bits; absent or 0 means the format's (8, 10, 12, 16, 24 or 32)
   int adc_zero = 0;          // ADC value at the middle of the input range; absent means 0
-  int initial_value = 0;     // first sample; absent means adc_zero
+  int initial_value = 0;     // first sample (format 8: what its first difference adds to);
+                             // absent means adc_zero
   int checksum = 0;          // 16-bit sum of all samples as written (0 when absent)
   bool has_checksum = false;  // whether the header gave a checksum
   int block_size = 0;        // 0 for ordinary files
@@ -149,7 +151,9 @@ class SignalReader {
 double to_physical(std::int32_t adu, const SignalInfo& info);
 
 // The sample value that WFDB writes where a signal has no value (a lead off, a gap in
-// digitising): -32768 in format 16, -2048 in format 212, the least value of each.
+// digitising): the least value of the format (-32768 in 16, 61 and 160, -2048 in 212, -512 in
+// 310 and 311, -128 in 80, -2^23 in 24, -2^31 in 32). Format 8 has none; its value here is
+// -2^31, which no record of 8-bit differences reaches.
 std::int32_t invalid_sample(const SignalInfo& info);
 
 // ADC units per millivolt: the header's gain is per its own unit ("1000(0)/mV" and "1(0)/uV"
