@@ -164,7 +164,7 @@ std::vector<std::string> record_paths(const Args& args) {
 }
 
 // Scores each record and prints one line per record and the gross totals.
-int run_eval(const Args& args, const agg::ChainOptions& options, std::size_t signal, double from_s) {
+int run_eval(const Args& args, const agg::ChainOptions& options, std::size_t signal, double from_s, const std::string& annotator) {
   const bool json = args.has("--json");
   agg::ScoreOptions scoring;
   scoring.start_s = from_s;
@@ -188,7 +188,7 @@ int run_eval(const Args& args, const agg::ChainOptions& options, std::size_t sig
     // What the signal's rhythm means for HRV (irregular, paced) says nothing of the scoring.
     for (const std::string& warning : report->warnings)
       std::cerr << "tahvel: warning: " << (warning.starts_with(record) ? "" : record + ": ") << warning << "\n";
-    auto reference = agg::read_annotations(record, "atr", report->fs);
+    auto reference = agg::read_annotations(record, annotator, report->fs);
     if (!reference) {
       leave_out(reference.error().message);
       continue;
@@ -221,7 +221,7 @@ int run_eval(const Args& args, const agg::ChainOptions& options, std::size_t sig
   if (json) {
     std::string unread;
     for (const std::string& record : not_scored) unread += (unread.empty() ? "\"" : ",\"") + node::json_escape(record) + "\"";
-    std::cout << "{\"eval_from_s\":" << seconds_number(from_s) << ",\"records\":[" << rows.str() << "],\"tp\":" << gross.tp << ",\"fn\":" << gross.fn
+    std::cout << "{\"eval_from_s\":" << seconds_number(from_s) << ",\"annotator\":\"" << node::json_escape(annotator) << "\",\"records\":[" << rows.str() << "],\"tp\":" << gross.tp << ",\"fn\":" << gross.fn
               << ",\"fp\":" << gross.fp << ",\"sensitivity_pct\":" << percent(gross.sensitivity(), true)
               << ",\"positive_predictivity_pct\":" << percent(gross.positive_predictivity(), true)
               << ",\"not_scored\":[" << unread << "]}\n";
@@ -275,6 +275,18 @@ double eval_from_flag(const Args& args) {
   if (!(value >= 0) || value > 1e9)
     usage_error("--eval-from: expected seconds from the record's start, a number >= 0, got '" + *text + "'");
   return value;
+}
+
+// --annotator: the reference annotation file's extension, as WFDB names annotators ("atr",
+// "qrs", "ecg"); with --eval only. A name that is no plain extension (a path, a dot) is a usage
+// error: it would open another file than RECORD.<name>.
+std::string annotator_flag(const Args& args) {
+  auto text = args.get("--annotator");
+  if (!text) return "atr";
+  if (!args.has("--eval")) usage_error("--annotator: only with --eval");
+  if (text->empty() || text->find_first_not_of("ABCDEFGHIJKLMNOPQRSTUVWXYZabcdefghijklmnopqrstuvwxyz0123456789_-") != std::string::npos)
+    usage_error("--annotator: expected an annotator name, the annotation file's extension (atr, qrs, ...), got '" + *text + "'");
+  return *text;
 }
 
 // ---- tahvel patients ----------------------------------------------------------------------
@@ -505,7 +517,7 @@ void print_patient_text(const std::string& dir, const std::string& node_iri, con
 
 const Command kHrvCommand{
     "hrv",
-    "RECORD [--signal N] [--window S] [--step S] [--json] | RECORD... --eval [--eval-from S] [--signal N] [--json]",
+    "RECORD [--signal N] [--window S] [--step S] [--json] | RECORD... --eval [--eval-from S] [--annotator NAME] [--signal N] [--json]",
     "Run the HRV chain over a WFDB record, or score its beat detection.",
     "RECORD is a WFDB record path without extension (…/mitdb/100; or …/100.hea): its header\n"
     "(.hea) and signal files are read, and its ECG lead goes through the chain (the first signal\n"
@@ -518,7 +530,7 @@ const Command kHrvCommand{
     "a metric whose minimum-length guard fails is null.\n"
     "\n"
     "With --eval, each RECORD's detected beats are scored against its reference annotations\n"
-    "(.atr) as WFDB's bxb does: 150 ms match window, from 5 minutes in (--eval-from S: from S\n"
+    "(.atr; --annotator NAME: RECORD.NAME) as WFDB's bxb does: 150 ms match window, from 5 minutes in (--eval-from S: from S\n"
     "seconds; a record no longer than that scores nothing, with a warning), unreadable intervals\n"
     "skipped (docs/wfdb.md). Prints TP, FN, FP, sensitivity and positive predictivity per record\n"
     "and, for several records, the gross totals.",
@@ -527,6 +539,7 @@ const Command kHrvCommand{
      {"--signal", "", "N", "the record's signal to read, 0 the first (default: its ECG lead)"},
      {"--eval", "", "", "score the detected beats against RECORD.atr"},
      {"--eval-from", "", "S", "with --eval: score from S seconds in (default 300, bxb's; 0: the whole record)"},
+     {"--annotator", "", "NAME", "with --eval: the reference annotations' extension (default atr)"},
      {"--json", "", "", "print JSON instead of text"}},
     1, SIZE_MAX, false};
 
@@ -538,6 +551,7 @@ int run_hrv(const Args& args) {
   std::optional<std::uint64_t> typed;
   if (args.has("--signal")) typed = args.get_u64("--signal", 0);
   const double from_s = eval_from_flag(args);
+  const std::string annotator = annotator_flag(args);
   if (typed && *typed >= agg::kEcgSignal) {  // only on a machine whose size_t is narrower, or the largest value
     const std::string record = record_path(args.positional(0));
     auto header = agg::read_header(record);
@@ -546,7 +560,7 @@ int run_hrv(const Args& args) {
          std::to_string(header->signals.size()) + ")");
   }
   const std::size_t signal = typed ? static_cast<std::size_t>(*typed) : agg::kEcgSignal;
-  if (args.has("--eval")) return run_eval(args, options, signal, from_s);
+  if (args.has("--eval")) return run_eval(args, options, signal, from_s, annotator);
   if (args.positional().size() != 1) usage_error("hrv: one RECORD at a time (several only with --eval)");
   const std::string record = record_path(args.positional(0));
   auto report = agg::hrv_from_record(record, options, checked_signal(record, signal));

@@ -1738,6 +1738,34 @@ TEST_F(Cli, HrvEvalOfARecordShorterThanTheScoringStartSaysSoAndEvalFromScoresIt)
   EXPECT_NE(bad.err.find("--eval-from"), std::string::npos) << bad.err;
 }
 
+// Databases whose beat labels are in another annotation file than .atr (.qrs, .ecg) were not
+// scored at all: --annotator names it, as bxb's -a names an annotator.
+TEST_F(Cli, HrvEvalScoresAgainstTheAnnotatorNamed) {
+  fs::create_directories(tmp_ / "ann");
+  fs::create_symlink(mitdb_record("100") + ".dat", tmp_ / "ann" / "100.dat");
+  fs::create_symlink(mitdb_record("100") + ".atr", tmp_ / "ann" / "100.qrs");
+  spit(tmp_ / "ann" / "100.hea",
+       "100 2 360 21600\n100.dat 212 200 11 1024 995 0 0 MLII\n100.dat 212 200 11 1024 1011 0 0 V5\n");
+  const std::string record = (tmp_ / "ann" / "100").string();
+  Outcome r = run({"hrv", record, "--eval", "--eval-from", "0", "--annotator", "qrs", "--json"});
+  ASSERT_EQ(r.status, 0) << r.err;
+  EXPECT_NE(r.out.find("\"annotator\":\"qrs\""), std::string::npos) << r.out;
+  EXPECT_NE(r.out.find("\"tp\":74,\"fn\":0,\"fp\":0,\"sensitivity_pct\":100.00"), std::string::npos) << r.out;
+  // Without it, .atr, which this record does not have.
+  r = run({"hrv", record, "--eval", "--eval-from", "0"});
+  EXPECT_EQ(r.status, 1);
+  EXPECT_NE(r.err.find(record + ".atr: cannot open annotation file"), std::string::npos) << r.err;
+  // A name that is no annotator's would open another file than RECORD.NAME.
+  for (const char* name : {"../qrs", "q.rs", ""}) {
+    Outcome bad = run({"hrv", record, "--eval", "--annotator", name});
+    EXPECT_EQ(bad.status, 2) << name;
+    EXPECT_NE(bad.err.find("--annotator: expected an annotator name"), std::string::npos) << bad.err;
+  }
+  Outcome bad = run({"hrv", record, "--annotator", "qrs"});
+  EXPECT_EQ(bad.status, 2);
+  EXPECT_NE(bad.err.find("--annotator: only with --eval"), std::string::npos) << bad.err;
+}
+
 // A window or step too short for HRV is a usage error naming the flag and its bounds (a window of
 // 0.0001 s made 18 million windows of 100 and std::bad_alloc).
 TEST_F(Cli, HrvRefusesAWindowOrStepTooShortForHrvNamingTheFlagAndTheBounds) {
