@@ -1159,6 +1159,9 @@ StoreRelayFigures measure_store_relay(const Config& cfg, const ScratchDir& scrat
                                          std::make_move_iterator(h.items.begin() + static_cast<std::ptrdiff_t>(to)));
       auto outcome = h.agent.relay(h.stream, run);
       if (!outcome) throw std::runtime_error("relay into " + dir.string() + ": " + outcome.error().message);
+      // A part of the run left out (a full store) would be counted lost by the ledger; say why here.
+      if (outcome->not_applied)
+        throw std::runtime_error("relay into " + dir.string() + ": " + outcome->not_applied->message);
       stored += outcome->stored.size();
     }
   }

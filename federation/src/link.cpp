@@ -88,8 +88,9 @@ constexpr std::int64_t kStateRefreshNs = 2'000'000'000;
 constexpr std::chrono::seconds kOwnStall{1};
 // The error code of P9a: an item passed over for good (frame seq = the item's seq).
 constexpr std::string_view kItemRefused = "item_refused";
-// P9b: the receiver could not store a run it was sent (its store full, an I/O error): nothing
-// of it was applied, and the sender slows to a probe until the receiver's mark moves again.
+// P9b: the receiver could not store all of a run it was sent (its store full, an I/O error): at
+// most a first part of it was applied, and the sender slows to a probe until the receiver's mark
+// moves again.
 constexpr std::string_view kCannotStore = "cannot_store";
 constexpr std::string_view kUplinkAgent = "uplink";
 constexpr std::string_view kLinkAgent = "link";
@@ -1393,13 +1394,17 @@ struct Link::Impl {
     // After the ack: an ack that moves the mark tells the sender the parent stores again, and
     // this says it cannot store the rest (the store took part of the run).
     if (!outcome) cannot_store_run(via, head.from, outcome.error().message);
-    else if (outcome->not_applied) cannot_store_run(via, head.from, outcome->not_applied->message);
+    else if (outcome->not_applied)
+      cannot_store_run(via, head.from, outcome->not_applied->message,
+                       " the rest of a run, having stored " + std::to_string(applied.back().size()) + " of its " +
+                           std::to_string(relayed) + " item(s)");
   }
 
   // A full store applied none, or only the first part, of a run from `from` (P9b). The sender is
   // told why and probes with one frame at a time until the mark moves: a home resent its window
   // every resend_after, and this log took a line for each, for as long as the store was full.
-  void cannot_store_run(Transport* via, const std::string& from, const std::string& why) {
+  // `part` says what of the run was stored, when some was.
+  void cannot_store_run(Transport* via, const std::string& from, const std::string& why, const std::string& part = "") {
     std::unique_lock lock(mu);
     RelayFailure& failure = relay_failures[from];
     // Once a second at most (a sender of a build before P9b logs each one), and at once after
@@ -1413,7 +1418,7 @@ struct Link::Impl {
       lock.lock();
     }
     if (new_kind || Clock::now() - failure.said_at >= kRelayFailureSaidEvery) {
-      log("relay from <" + from + "> refused: " + why +
+      log("relay from <" + from + "> refused" + part + ": " + why +
           (failure.since_said > 0 && !new_kind ? " (and " + std::to_string(failure.since_said) + " times more since it was last said)" : ""));
       failure.why = why;
       failure.said_at = Clock::now();
@@ -2426,7 +2431,7 @@ struct Link::Impl {
       log("child <" + f.from + "> refused item " + std::to_string(f.seq) + " sent down (it stays in this node's store): " + body->message);
       return;
     }
-    if (body->code == kCannotStore) {  // P9b: once per reason; the child acknowledges nothing meanwhile
+    if (body->code == kCannotStore) {  // P9b: once per reason; the child's mark stays put or moves by parts meanwhile
       CannotStore& episode = child_cannot_store[f.from];
       const auto now = Clock::now();
       if (reason_kind(episode.said) != reason_kind(body->message) || (!episode.open && now - episode.at >= kRelayFailureSaidEvery)) {

@@ -874,7 +874,7 @@ Result<RelayOutcome> Agent::relay(std::string_view stream, const std::vector<Rel
         continue;
       }
       if (!written && written.error().code == Errc::store_full && applying > 1) {
-        if (!full) full = written.error();
+        full = written.error();  // the smallest part that did not fit says most
         applying /= 2;
         new_bytes = bound_of_first(applying);
         continue;

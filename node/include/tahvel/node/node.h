@@ -229,7 +229,8 @@ struct RelayOutcome {
                                       // mark moved past them
   std::size_t removals = 0;           // removal notices applied (RelayedItem::removal)
   std::uint64_t records_removed = 0;  // records they removed (0 for a copy no longer held)
-  // The store had no room for the whole run: the first items that fit were applied, up to
+  // The store had no room for the whole run: a first part that fit was applied (the run halved
+  // until one did, so at least half of the items that would have fitted), up to
   // `mark`, and those after it were not, for this reason (store_full). The sender sends them
   // again from the mark once there is room.
   std::optional<Error> not_applied;
@@ -336,8 +337,8 @@ class Agent {
   // stored, listed in `refused`, and the mark moves past it as if applied, so that one bad item
   // does not hold up the rest of the stream for ever (it stays in the sender's store). An error
   // that may pass (a full store, I/O) fails the call instead, and nothing of it is stored;
-  // except that a store with room for part of the run stores the items that fit, in order, and
-  // says why the rest was not (RelayOutcome::not_applied).
+  // except that a store with room for part of the run stores a first part that fits (halving
+  // the run until one does), in order, and says why the rest was not (RelayOutcome::not_applied).
   // A removal notice (RelayedItem::removal) takes the place of an item in the stream: it removes
   // the records of this store, relayed from the same source, that have the notice's context and
   // asserted-at time and its triples at their positions in their item (a blank node matches a
