@@ -2231,7 +2231,8 @@ TEST(Link, AParentWithRoomForPartOfAWindowStoresWhatFitsAndLosesNothing) {
       << stored() << " stored, outbox " << outbox(tree.home1_dir) << tree.hospital_log.text();
   std::this_thread::sleep_for(300ms);
   std::set<std::int64_t> numbers;
-  for (const auto& r : hospital.snapshot().value().list({.p = Term::iri(kEx + "n")}).value())
+  const auto records = hospital.snapshot().value().list({.p = Term::iri(kEx + "n")}).value();
+  for (const auto& r : records)
     EXPECT_TRUE(numbers.insert(std::stoll(r.triple.o.value)).second) << "item " << r.triple.o.value << " was stored twice";
   EXPECT_EQ(numbers.size(), 400u);
   EXPECT_EQ(numbers.empty() ? -1 : *numbers.begin(), 0);

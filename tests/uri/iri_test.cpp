@@ -716,6 +716,16 @@ TEST(IriPrefixMap, CompactReturnsIriWhenNoNamespaceMatches) {
   EXPECT_EQ(PrefixMap::standard().compact("http://example.org/x"), "http://example.org/x");
 }
 
+// A store holds "HTTP://www.w3.org/..." and "http://www.w3.org:80/..." apart from the normal
+// form; printed under one CURIE they would look like one IRI.
+TEST(IriPrefixMap, CompactLeavesAnIriNotInNormalFormAsWritten) {
+  PrefixMap map = PrefixMap::standard();
+  for (const char* iri : {"HTTP://www.w3.org/ns/sosa/Observation", "http://WWW.W3.ORG/ns/sosa/Observation",
+                          "http://www.w3.org:80/ns/sosa/Observation"})
+    EXPECT_EQ(map.compact(iri), iri);
+  EXPECT_EQ(map.compact("http://www.w3.org/ns/sosa/Observation"), "sosa:Observation");
+}
+
 TEST(IriPrefixMap, CompactThenExpandRoundTrips) {
   PrefixMap map = PrefixMap::standard();
   for (const char* iri :

@@ -177,8 +177,9 @@ IriResult<std::string> PrefixMap::expand(std::string_view curie_or_iri) const {
 }
 
 std::string PrefixMap::compact(std::string_view iri) const {
-  auto normal = normal_form(iri);
-  std::string_view target = normal ? std::string_view(*normal) : iri;
+  // Matched as written, not normalised: a CURIE must expand to the very IRI it stands for, or
+  // two IRIs a store holds apart (case of the host, ":80") would print as one.
+  std::string_view target = iri;
   std::optional<std::string> best;
   for (const auto& [prefix, ns] : entries_) {
     if (!target.starts_with(ns)) continue;

@@ -91,6 +91,8 @@ class PrefixMap {
   IriResult<std::string> expand(std::string_view curie_or_iri) const;
 
   // The shortest CURIE for `iri` whose local part is a valid Turtle PN_LOCAL, or `iri` itself.
+  // `iri` is matched as written (namespaces are held normalised): expand() of the CURIE gives
+  // back `iri` exactly, so an IRI not in normal form is returned as it is.
   std::string compact(std::string_view iri) const;
 
   const std::map<std::string, std::string>& entries() const { return entries_; }
