@@ -942,6 +942,34 @@ TEST(Rules, DeeplyNestedExpressionsAreAnErrorWithAPosition) {
             (tr::Atom{kNs + "r", {n("a"), tn::Term::integer(2)}}));
 }
 
+// A body is planned once per delta variant, in time that grows with the cube of its length: a
+// generated rule of thousands of literals held every reload for minutes.
+TEST(Rules, ABodyOfMoreThan256LiteralsIsAnErrorAtTheFirstLiteralOver) {
+  auto chain = [](int n) {
+    std::string text = "p(X0, X" + std::to_string(n) + ") :-";
+    for (int i = 0; i < n; ++i) text += std::string(i ? "," : "") + "\n  e(X" + std::to_string(i) + ", X" + std::to_string(i + 1) + ")";
+    return text + ".\n";
+  };
+  auto p = tr::parse_rules(chain(257), options("long.rules"));
+  ASSERT_FALSE(p.has_value());
+  EXPECT_EQ(p.error().message, "long.rules:258:3: a rule body has at most 256 literals; split it with a predicate of its own for a part");
+  EXPECT_TRUE(tr::parse_rules(chain(256), options("long.rules")).has_value());
+}
+
+// "<=", "=>" and "!=" lex as two operators of ours; the error names the one meant.
+TEST(Rules, AnOperatorOfAnotherLanguageIsNamedWithTheOneMeant) {
+  const std::pair<std::string, std::string> cases[] = {
+      {"Y <= 2", "ops.rules:1:23: '<=' is not an operator: less than or equal is written =<"},
+      {"Y => 2", "ops.rules:1:23: '=>' is not an operator: greater than or equal is written >="},
+      {"Y != 2", "ops.rules:1:23: '!=' is not an operator: write \\= (terms differ) or =\\= (numbers differ)"}};
+  for (const auto& [comparison, message] : cases) {
+    auto p = tr::parse_rules("a(X, Y) :- v(X, Y), " + comparison + ".\n", options("ops.rules"));
+    ASSERT_FALSE(p.has_value()) << comparison;
+    EXPECT_EQ(p.error().message, message);
+  }
+  EXPECT_TRUE(tr::parse_rules("a(X, Y) :- v(X, Y), Y =< 2, Y >= -1, Y =\\= 0, X \\= Y.\n", options("ops.rules")).has_value());
+}
+
 // RS9: a head variable bound by nothing that no rule calls for (a typo) is an error, as is
 // `ranked` naming a predicate no rule defines with that arity.
 TEST(Rules, AHeadVariableNoCallerBindsIsAnError) {
