@@ -112,7 +112,17 @@ int dispatch(const std::vector<std::string>& argv) {
   }
   if (command == &kBenchCommand) return run_bench(rest);
   for (const Subcommand& s : subcommands()) {
-    if (s.spec == command) return s.run(parse_args(*command, rest));
+    if (s.spec != command) continue;
+    try {
+      return s.run(parse_args(*command, rest));
+    } catch (Failure& f) {
+      // A usage error names its command, as the parser's own do ("reason: unknown flag"), also
+      // where a command checks a value itself: in a script's log, "--max-conclusions: must be at
+      // least 1" said not which of its commands was wrong.
+      const std::string own = std::string(command->name) + ": ";
+      if (f.status == kExitUsage && !f.message.starts_with(own)) f.message = own + f.message;
+      throw;
+    }
   }
   return kExitUsage;
 }

@@ -404,7 +404,7 @@ TEST_F(Cli, InvalidIriOnTheCommandLineIsAUsageErrorNamingTheFlag) {
   init();
   Outcome r = run({"list", node_, "-s", "<http://example.org/a b>"});
   EXPECT_EQ(r.status, 2);
-  EXPECT_EQ(r.err.rfind("tahvel: -s: ", 0), 0u) << r.err;
+  EXPECT_EQ(r.err.rfind("tahvel: list: -s: ", 0), 0u) << r.err;
   Outcome i = run({"init", (tmp_ / "other").string(), "--iri", "not an iri"});
   EXPECT_EQ(i.status, 2);
   EXPECT_NE(i.err.find("--iri"), std::string::npos) << i.err;
@@ -504,7 +504,7 @@ TEST_F(Cli, AnAtThatIsNoNodeIriIsAUsageError) {
   for (const std::string& at : {kNodeIri + "?x=1", kNodeIri + "#me", kNodeIri + "/"}) {
     Outcome r = run({"query", node_, "--at", at});
     EXPECT_EQ(r.status, 2) << at << ": " << r.err;
-    EXPECT_EQ(r.err.rfind("tahvel: --at: not a node IRI: ", 0), 0u) << r.err;
+    EXPECT_EQ(r.err.rfind("tahvel: query: --at: not a node IRI: ", 0), 0u) << r.err;
     EXPECT_EQ(r.out, "");
   }
   EXPECT_EQ(run({"query", node_, "--at", kNodeIri}).status, 0);
@@ -1095,7 +1095,7 @@ TEST_F(Cli, CurieOnTheCommandLineExpandsWithPrefixFlagAndNodePrefixes) {
   EXPECT_EQ(lines_of(n.out).size(), 1u) << n.out;
   Outcome unknown = run({"list", node_, "-s", "nope:a"});
   EXPECT_EQ(unknown.status, 2);
-  EXPECT_EQ(unknown.err, "tahvel: -s: unknown prefix 'nope' in 'nope:a' (add --prefix nope=IRI, or write <nope:a> for an absolute IRI)\n");
+  EXPECT_EQ(unknown.err, "tahvel: list: -s: unknown prefix 'nope' in 'nope:a' (add --prefix nope=IRI, or write <nope:a> for an absolute IRI)\n");
   // A scheme is case-insensitive: URN:… is an IRI (as urn:… is), not a CURIE of prefix "URN".
   for (const char* iri : {"urn:example:a", "URN:example:a", "Urn:example:a"}) {
     Outcome urn = run({"list", node_, "-s", iri});
@@ -1301,7 +1301,7 @@ TEST_F(Cli, ReasonIntervalOfMoreThanADayIsAUsageError) {
   for (const char* ms : {"86400001", "18446744073709551615"}) {
     Outcome r = run({"reason", node_, (tmp_ / "r.rules").string(), "--once", "--interval", ms});
     EXPECT_EQ(r.status, 2) << ms;
-    EXPECT_EQ(r.err, "tahvel: --interval: " + std::string(ms) + " ms is more than a day (at most 86400000)\n");
+    EXPECT_EQ(r.err, "tahvel: reason: --interval: " + std::string(ms) + " ms is more than a day (at most 86400000)\n");
   }
   EXPECT_EQ(run({"reason", node_, (tmp_ / "r.rules").string(), "--once", "--interval", "86400000"}).status, 0);
 }
