@@ -970,6 +970,22 @@ TEST(Rules, AnOperatorOfAnotherLanguageIsNamedWithTheOneMeant) {
   EXPECT_TRUE(tr::parse_rules("a(X, Y) :- v(X, Y), Y =< 2, Y >= -1, Y =\\= 0, X \\= Y.\n", options("ops.rules")).has_value());
 }
 
+// An integer is compared with a double by value, not as the double it rounds to above 2^53.
+TEST(Rules, AnIntegerAbove2To53ComparesExactlyWithADouble) {
+  const tn::Term big = tn::Term::integer(9007199254740993);  // 2^53 + 1: no double holds it
+  EXPECT_EQ(only_conclusion("gt(X, yes) :- v(X, V), V > 9.007199254740992e15.\n", {tl("a", "v", big)}),
+            (tr::Atom{kNs + "gt", {n("a"), n("yes")}}));
+  EXPECT_EQ(only_conclusion("lt(X, yes) :- v(X, V), 9.007199254740992e15 < V, V =\\= 9.007199254740992e15, V < 1.0e300.\n",
+                            {tl("a", "v", big)}),
+            (tr::Atom{kNs + "lt", {n("a"), n("yes")}}));
+  EXPECT_EQ(only_conclusion("eq(X, yes) :- v(X, V), V =:= 9.007199254740992e15, V >= -9.3e18.\n",
+                            {tl("a", "v", tn::Term::integer(9007199254740992))}),
+            (tr::Atom{kNs + "eq", {n("a"), n("yes")}}));
+  EXPECT_EQ(only_conclusion("neg(X, yes) :- v(X, V), V < -2.5, V > -3.5, V =:= -3.0, V > -1.0e300.\n",
+                            {tl("a", "v", tn::Term::integer(-3))}),
+            (tr::Atom{kNs + "neg", {n("a"), n("yes")}}));
+}
+
 // RS9: a head variable bound by nothing that no rule calls for (a typo) is an error, as is
 // `ranked` naming a predicate no rule defines with that arity.
 TEST(Rules, AHeadVariableNoCallerBindsIsAnError) {

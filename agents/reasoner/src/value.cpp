@@ -251,9 +251,28 @@ Value arith(ArithOp op, const Value& a, const Value& b) {
   return {};
 }
 
+namespace {
+
+// An integer against a double, exactly: converted to a double, an integer above 2^53 rounds,
+// and 9007199254740993 > 9007199254740992.0 did not hold.
+int compare_integer_double(std::int64_t i, double d) {
+  if (std::isnan(d)) return 0;  // not read as a number (value.h); kept as the double compare had it
+  if (d >= 9223372036854775808.0) return -1;   // 2^63: above every int64
+  if (d < -9223372036854775808.0) return 1;    // below -2^63
+  const double whole = std::trunc(d);
+  const auto w = static_cast<std::int64_t>(whole);  // in range: -2^63 <= whole < 2^63
+  if (i != w) return i < w ? -1 : 1;
+  const double frac = d - whole;  // exact: d and whole are close doubles
+  return frac > 0 ? -1 : (frac < 0 ? 1 : 0);
+}
+
+}  // namespace
+
 std::optional<int> compare_values(const Value& a, const Value& b) {
   auto sign = [](auto x, auto y) { return x < y ? -1 : (y < x ? 1 : 0); };
   if (a.kind == Value::integer && b.kind == Value::integer) return sign(a.i, b.i);
+  if (a.kind == Value::integer && b.kind == Value::real) return compare_integer_double(a.i, b.d);
+  if (a.kind == Value::real && b.kind == Value::integer) return -compare_integer_double(b.i, a.d);
   if (is_number(a) && is_number(b)) return sign(as_double(a), as_double(b));
   if (a.kind == Value::time && b.kind == Value::time) return sign(a.i, b.i);
   if (a.kind == Value::time && is_number(b)) return sign(static_cast<double>(a.i) / 1e9, as_double(b));
