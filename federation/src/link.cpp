@@ -1368,7 +1368,10 @@ struct Link::Impl {
       }
       if (outcome->already_held > 0)
         log("dropped " + std::to_string(outcome->already_held) + " item(s) from <" + head.from +
-            "> that this store holds already (sent again on a new stream: P6c, P10c)");
+            "> that this store holds already (sent again on a new stream: P6c, P10c)" +
+            (outcome->recomputed > 0 ? "; " + std::to_string(outcome->recomputed) +
+                                           " of them computed again with other triples, the one held of each name kept"
+                                     : std::string()));
       std::lock_guard lock(mu);
       counters.items_refused += outcome->refused.size();
       counters.removals_applied += outcome->removals;

@@ -1105,52 +1105,75 @@ Result<std::vector<std::uint64_t>> indexed(MDB_txn* txn, MDB_dbi dbi, std::uint6
 
 }  // namespace
 
-Result<std::uint64_t> held_twin(MDB_txn* txn, const Env& env, const Item& item, const std::string& source) {
-  if (!item.asserted_at || item.triples.empty() || !env.by_time) return std::uint64_t{0};
+Result<HeldRepeat> held_twin(MDB_txn* txn, const Env& env, const Item& item, const std::string& source,
+                             std::uint64_t namesakes_before) {
+  if (!item.asserted_at || item.triples.empty() || !env.by_time) return HeldRepeat{};
   auto source_id = find_term(txn, env, Term::iri(source));
-  if (!source_id || *source_id == 0) return source_id;
+  if (!source_id) return unexpected(source_id.error());
+  if (*source_id == 0) return HeldRepeat{};
   std::uint64_t context_id = 0;
   if (!item.context.empty()) {
     auto c = find_term(txn, env, Term::iri(item.context));
-    if (!c || *c == 0) return c;
+    if (!c) return unexpected(c.error());
+    if (*c == 0) return HeldRepeat{};
     context_id = *c;
   }
   // A term this store has never met is in no item held here (blank nodes match any blank node).
   auto found = ids_of(txn, env, item.triples);
   if (!found) return unexpected(found.error());
-  if (!*found) return std::uint64_t{0};
-  const auto& wanted = **found;
+  // What a recomputed item shares with the one held is its name, its first subject; its other
+  // terms (the items it was derived from, cut otherwise) may be new here.
+  std::uint64_t name_id = 0;
+  if (namesakes_before > 0 && item.triples.front().s.is_iri()) {
+    if (*found) {
+      name_id = (**found)[0][0];
+    } else {
+      auto name = find_term(txn, env, item.triples.front().s);
+      if (!name) return unexpected(name.error());
+      name_id = *name;
+    }
+  }
+  if (!*found && name_id == 0) return HeldRepeat{};
   // The candidates are the items asserted at the same nanosecond: the time index's entries.
   auto candidates = indexed(txn, env.by_time, time_key(*item.asserted_at));
   if (!candidates) return unexpected(candidates.error());
   TermReader terms(txn, env);
+  HeldRepeat namesake;
   for (std::uint64_t candidate : *candidates) {
     auto row = get_item(txn, env, candidate);
     if (!row) return unexpected(row.error());
     if (!*row) continue;
     const ItemRow& it = **row;
     if (it.persistent != item.persistent || it.source != *source_id || it.asserted_at != *item.asserted_at ||
-        it.context != context_id || it.count != wanted.size() || it.live != it.count)
+        it.context != context_id || it.live != it.count)
       continue;
-    bool same = true;
-    for (std::size_t i = 0; i < wanted.size() && same; ++i) {
-      auto r = get_record(txn, env, candidate + i);
-      if (!r) return unexpected(r.error());
-      if (!*r) {
-        same = false;
-        break;
+    if (*found && it.count == (*found)->size()) {
+      bool same = true;
+      for (std::size_t i = 0; i < (*found)->size() && same; ++i) {
+        auto r = get_record(txn, env, candidate + i);
+        if (!r) return unexpected(r.error());
+        if (!*r) {
+          same = false;
+          break;
+        }
+        auto matches = same_triple(terms, **r, (**found)[i]);
+        if (!matches) return unexpected(matches.error());
+        same = *matches;
       }
-      auto matches = same_triple(terms, **r, wanted[i]);
-      if (!matches) return unexpected(matches.error());
-      same = *matches;
+      if (same) return HeldRepeat{candidate, false};
     }
-    if (same) return candidate;
+    // An item's id is its first record's.
+    if (name_id != 0 && namesake.id == 0 && candidate < namesakes_before) {
+      auto first = get_record(txn, env, candidate);
+      if (!first) return unexpected(first.error());
+      if (*first && (*first)->s == name_id) namesake = HeldRepeat{candidate, true};
+    }
   }
-  return std::uint64_t{0};
+  return namesake;
 }
 
-Result<std::uint64_t> held_persistent_twin(MDB_txn* txn, const Env& env, const Item& item, const std::string& source) {
-  if (!item.persistent) return std::uint64_t{0};
+Result<HeldRepeat> held_persistent_twin(MDB_txn* txn, const Env& env, const Item& item, const std::string& source) {
+  if (!item.persistent) return HeldRepeat{};
   return held_twin(txn, env, item, source);
 }
 

@@ -40,17 +40,28 @@ std::optional<std::string> addressee_of(const std::string& node_iri, std::string
 Result<std::uint64_t> insert_item(Txn& txn, const Item& item, const std::string& agent_iri,
                                   const std::string* relayed_source = nullptr);
 
-// The id of an item this store holds that `item`, relayed from `source`, repeats: persistent
-// or not as it is, the same source, asserted-at time and context, and the same triples in the
-// same order (blank nodes match blank nodes, as they are renamed on the way). 0 when none.
-// The candidates are the time index's items of that nanosecond.
-Result<std::uint64_t> held_twin(MDB_txn* txn, const Env& env, const Item& item, const std::string& source);
+// An item this store holds that a relayed item repeats (held_twin).
+struct HeldRepeat {
+  std::uint64_t id = 0;     // 0 when none
+  bool recomputed = false;  // of the same name only, with other triples
+};
 
-// held_twin for a persistent item, 0 for any other. A node sends its persistent items again to
-// a parent that says it holds nothing of its stream (docs/protocol.md P6c), and a parent made
-// again, or a child restored from a backup, passes them on to nodes above that have them
-// already on the stream before.
-Result<std::uint64_t> held_persistent_twin(MDB_txn* txn, const Env& env, const Item& item, const std::string& source);
+// The item this store holds that `item`, relayed from `source`, repeats: persistent or not as
+// it is, the same source, asserted-at time and context, and the same triples in the same order
+// (blank nodes match blank nodes, as they are renamed on the way). Failing that, when
+// `namesakes_before` is above 0, an item with an id below it that names the same thing — the
+// same source, asserted-at time, context and persistence, the same first subject (an IRI), all
+// of its records still held — and so was computed again by a store that replaced the one it
+// came from (docs/protocol.md P10c). The candidates are the time index's items of that
+// nanosecond.
+Result<HeldRepeat> held_twin(MDB_txn* txn, const Env& env, const Item& item, const std::string& source,
+                             std::uint64_t namesakes_before = 0);
+
+// held_twin for a persistent item, none for any other, and no namesakes. A node sends its
+// persistent items again to a parent that says it holds nothing of its stream (docs/protocol.md
+// P6c), and a parent made again, or a child restored from a backup, passes them on to nodes
+// above that have them already on the stream before.
+Result<HeldRepeat> held_persistent_twin(MDB_txn* txn, const Env& env, const Item& item, const std::string& source);
 
 // The copies this store holds of the records a relayed removal notice names
 // (RelayedItem::removal): records of items relayed from `source` with the notice's asserted-at

@@ -358,6 +358,48 @@ TEST(Link, AChildWhoseStoreIsMadeAgainHasAllOfItsNewItemsArrive) {
   EXPECT_TRUE(tree.hospital_log.has("has another store"));
 }
 
+// HRV window n of home1 as a gateway computes it: named by its start, asserted at its signal
+// time, derived from an RR item whose name depends on where the gateway's RR series began.
+node::Item window_item(int n, const std::string& rr_series) {
+  node::Item item = hrv_item(n);
+  item.asserted_at = 1'780'000'000'000'000'000 + std::int64_t{n} * 300'000'000'000;
+  item.add(Term::iri(kHome1 + "/rec/hrv/" + std::to_string(n)), Term::iri("http://www.w3.org/ns/prov#wasDerivedFrom"),
+           Term::iri(kHome1 + "/rec/rr/" + rr_series + std::to_string(n)));
+  return item;
+}
+
+// P10c: a standby gateway with a store of its own takes home1's place and computes its HRV
+// windows again from RR items cut otherwise (a sensor's ring no longer holding the recording's
+// start). The hospital keeps the window of each name it held; the windows after them arrive.
+// Up to session 71 it held both of each (docs/deploy.md).
+TEST(Link, WindowsAStoreInTheChildsPlaceComputesAgainAreNotDoubledAtTheParent) {
+  Tree tree;
+  tree.hospital = tree.start_hospital();
+  tree.home1 = tree.start_home(tree.home1_dir, kHome1, tree.home1_log);
+  const node::Pattern numbered{.p = Term::iri(kEx + "n")};
+  {
+    auto hrv = node::Node::open(tree.home1_dir).value().agent("hrv").value();
+    for (int n = 0; n < 10; ++n) ASSERT_TRUE(hrv.store(window_item(n, "first-")));
+  }
+  ASSERT_TRUE(eventually([&] { return count(tree.hospital_dir, numbered) == 10 && outbox(tree.home1_dir) == 0; }));
+  tree.home1.reset();
+  std::filesystem::remove_all(tree.home1_dir);
+  ASSERT_TRUE(node::Node::init(tree.home1_dir, {.iri = kHome1}));
+  tree.home1 = tree.start_home(tree.home1_dir, kHome1, tree.home1_log);
+  {
+    auto hrv = node::Node::open(tree.home1_dir).value().agent("hrv").value();
+    for (int n = 0; n < 15; ++n) ASSERT_TRUE(hrv.store(window_item(n, "later-")));
+  }
+  EXPECT_TRUE(eventually([&] { return count(tree.hospital_dir, numbered) >= 15 && outbox(tree.home1_dir) == 0; }))
+      << count(tree.hospital_dir, numbered) << " windows at the hospital";
+  std::this_thread::sleep_for(300ms);
+  EXPECT_EQ(count(tree.hospital_dir, numbered), 15u);
+  for (int n : {0, 9, 10, 14}) EXPECT_EQ(count(tree.hospital_dir, {.p = Term::iri(kEx + "n"), .o = Term::integer(n)}), 1u) << n;
+  const node::Pattern first_series{.o = Term::iri(kHome1 + "/rec/rr/first-0")};
+  EXPECT_EQ(count(tree.hospital_dir, first_series), 1u) << "the window held is kept";
+  EXPECT_TRUE(tree.hospital_log.has("of them computed again with other triples")) << tree.hospital_log.text();
+}
+
 // Keeps the bytes of the store at `store` (nothing has it open) in `snapshot`, for
 // roll_back_in_place.
 void take_snapshot(const std::filesystem::path& store, const std::filesystem::path& snapshot) {

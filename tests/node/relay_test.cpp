@@ -566,6 +566,43 @@ TEST(Relay, AnItemThatRepeatsOneHeldIsDroppedUpToWhereItsStreamMayRepeat) {
   EXPECT_FALSE(child.relay_may_repeat("", 1)) << "an empty stream name";
 }
 
+// A store that takes the place of another (a standby gateway with a store of its own) computes
+// again what the one before had sent up, from inputs cut otherwise: an HRV window of the same
+// name, source and time derived from RR items named otherwise (docs/protocol.md P10c). Where its
+// stream may repeat, the parent keeps the one it held and drops the other; an item of that name
+// that the new stream stored itself, or of another source, time or stream, is another item.
+TEST(Relay, AnItemComputedAgainByAStoreInAnothersPlaceIsHeldByItsNameOnce) {
+  TempDir dir;
+  Node node = make_node(dir.path());
+  Agent child = node.agent("child").value();
+  const std::string source = kNodeIri + "/child/hrv";
+  auto window = [&](std::uint64_t seq, int n, std::int64_t time, const std::string& derived_from) {
+    RelayedItem r = relayed(seq, seq - 1, source, n);
+    r.item.asserted_at = time;
+    r.item.add(Term::iri(kNodeIri + "/obs/" + std::to_string(n)), ex("derivedFrom"), Term::iri(kNodeIri + "/rr/" + derived_from));
+    return r;
+  };
+  ASSERT_EQ(child.relay("child#old", {window(1, 1, 1000, "a"), window(2, 2, 2000, "b")}).value().stored.size(), 2u);
+  ASSERT_TRUE(child.relay_may_repeat("child#new", 0, 1'000'000));
+  RelayedItem other_source = window(5, 2, 2000, "y");
+  other_source.source = kNodeIri + "/child/other";
+  RelayedItem blank_name = window(6, 1, 1000, "z");
+  blank_name.item.triples.front().s = Term::blank("w");
+  auto again = child.relay("child#new", {window(1, 1, 1000, "c"), window(2, 3, 2000, "d"), window(3, 4, 3000, "e"),
+                                         window(4, 4, 3000, "f"), other_source, blank_name}).value();
+  EXPECT_EQ(again.already_held, 1u);
+  EXPECT_EQ(again.recomputed, 1u);
+  EXPECT_EQ(again.stored.size(), 5u) << "another name at that time, an item of a name this stream stored itself, another "
+                                        "source and a blank first subject are other items";
+  EXPECT_EQ(again.mark, 6u);
+  auto snapshot = node.snapshot().value();
+  EXPECT_EQ(snapshot.list({.o = Term::iri(kNodeIri + "/rr/a")}).value().size(), 1u) << "the one held is kept";
+  EXPECT_EQ(snapshot.list({.o = Term::iri(kNodeIri + "/rr/c")}).value().size(), 0u);
+  EXPECT_EQ(snapshot.list({.o = Term::iri(kNodeIri + "/rr/f")}).value().size(), 1u);
+  // A stream not said to repeat anything keeps every such item.
+  EXPECT_EQ(child.relay("child#third", {window(1, 1, 1000, "g")}).value().stored.size(), 1u);
+}
+
 // A relayed item is in the output buffer of the link agent that relayed it, though its source is
 // the writer below. When retention takes the item, its entry must go from that buffer too: an
 // entry left behind would name an item that is gone, and a ring-bounded node's buffers would grow

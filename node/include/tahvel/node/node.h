@@ -223,6 +223,9 @@ struct RelayOutcome {
                                       // same source (sent again on another stream: persistent
                                       // ones, docs/protocol.md P6c, and any up to the stream's
                                       // relay_may_repeat): dropped, the mark moved past them
+  std::size_t recomputed = 0;         // of those, items held by name only: computed again,
+                                      // with other triples, by a store that replaced the one
+                                      // they came from (relay_may_repeat)
   bool gap = false;                   // an item's prev was not the mark: it and those after it
                                       // were not applied (the sender resends from the mark)
   std::vector<RefusedItem> refused;   // items in order that this node can never store; the
@@ -363,8 +366,13 @@ class Agent {
   // child store restored from a backup sends again, on a new stream, what its backup's outbox
   // held, which the parent had applied from the stream before; and it relays again, under new
   // seqs that may pass the old stream's mark, what its own children send it again, all of it
-  // asserted before the restore (docs/protocol.md P10c). Kept in the store; bounds lower than
-  // ones said before change nothing.
+  // asserted before the restore (docs/protocol.md P10c). Such an item also repeats one that
+  // this store held when this was first said for the stream and that names the same thing —
+  // the same source, asserted-at time, context and persistence, the same first subject (an
+  // IRI) — with other triples: a store that took the place of another computed it again from
+  // inputs cut otherwise (an HRV window of RR items named otherwise); the one held is kept
+  // (RelayOutcome::recomputed). Kept in the store; bounds lower than ones said before change
+  // nothing.
   Result<void> relay_may_repeat(std::string_view stream, std::uint64_t through_seq,
                                 std::optional<std::int64_t> asserted_through = std::nullopt) noexcept;
 
