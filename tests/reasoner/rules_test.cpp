@@ -970,6 +970,42 @@ TEST(Rules, AnOperatorOfAnotherLanguageIsNamedWithTheOneMeant) {
   EXPECT_TRUE(tr::parse_rules("a(X, Y) :- v(X, Y), Y =< 2, Y >= -1, Y =\\= 0, X \\= Y.\n", options("ops.rules")).has_value());
 }
 
+// Prolog written where it has no meaning here is named for what it is, at its place: a negated
+// comparison, a literal in parentheses, a disjunction, a tabling directive. Up to session 71
+// these read "expected a predicate, found 'Y'", "a compound term such as fact(...) cannot be
+// an argument", "unexpected character ';'" and "expected '(' after table".
+TEST(Rules, PrologWithoutMeaningHereIsNamedWithWhatToWriteInstead) {
+  const std::pair<std::string, std::string> cases[] = {
+      {"a(X, Y) :- v(X, Y), \\+ Y = X.\n",
+       "p.rules:1:24: \\+ negates an atom (\\+ p(X)); a comparison is negated by its opposite operator: \\= for =, \\== for "
+       "==, =\\= for =:=, >= for <, =< for >"},
+      {"a(X, Y) :- v(X, Y), \\+ (2 < Y).\n",
+       "p.rules:1:25: \\+ negates an atom (\\+ p(X)); a comparison is negated by its opposite operator: \\= for =, \\== for "
+       "==, =\\= for =:=, >= for <, =< for >"},
+      {"a(X, Y) :- (v(X, Y)).\n",
+       "p.rules:1:12: a literal in parentheses: write it without them (a body is literals joined by ','; for alternatives, one "
+       "rule each)"},
+      {"a(X, Y) :- v(X, Y), (Y > 3 ; Y < 1).\n",
+       "p.rules:1:21: a literal in parentheses: write it without them (a body is literals joined by ','; for alternatives, one "
+       "rule each)"},
+      {"a(X, Y) :- v(X, Y) ; w(X, Y).\n",
+       "p.rules:1:20: ';' (or) is not part of the rule language: a body is literals joined by ','; write one rule for each "
+       "alternative"},
+      {":- table a/2.\n",
+       "p.rules:1:1: ':- table' is a Prolog directive with no use here: rules are evaluated bottom-up to a fixpoint, every "
+       "predicate as if tabled and open to new facts; remove it"},
+      {":- module(m, []).\n", "p.rules:1:1: unknown directive 'module' (known: prefix, ranked)"}};
+  for (const auto& [rules, message] : cases) {
+    auto p = tr::parse_rules(rules, options("p.rules"));
+    ASSERT_FALSE(p.has_value()) << rules;
+    EXPECT_EQ(p.error().message, message);
+  }
+  // Parentheses that group arithmetic stay what they are, and a negated atom may have them.
+  EXPECT_TRUE(tr::parse_rules("a(X, Y) :- v(X, Y), (Y + 1) > 3, (Y) > 2, \\+ (w(X, Y)), \\+ w(Y, X).\nw(X, Y) :- v(Y, X).\n",
+                              options("p.rules"))
+                  .has_value());
+}
+
 // An integer is compared with a double by value, not as the double it rounds to above 2^53.
 TEST(Rules, AnIntegerAbove2To53ComparesExactlyWithADouble) {
   const tn::Term big = tn::Term::integer(9007199254740993);  // 2^53 + 1: no double holds it

@@ -414,6 +414,10 @@ Result<Token> Lexer::next() {
     if (cp != 0) return error(start, std::string("unexpected character ") + hex);
     return error(start, "invalid UTF-8 (byte 0x" + [&] { char b[4]; std::snprintf(b, sizeof b, "%02X", static_cast<unsigned char>(c)); return std::string(b); }() + ")");
   }
+  // Prolog's disjunction and if-then-else: named, not left as an unknown character.
+  if (c == ';' || c == '|')
+    return error(start, std::string("'") + c + "' (or) is not part of the rule language: a body is literals joined by ','; "
+                        "write one rule for each alternative");
   return error(start, std::string("unexpected character '") + c + "'");
 }
 
@@ -451,6 +455,7 @@ class Parser {
   }
 
   Result<void> directive();
+  bool operator_follows();
   Result<void> clause();
   Result<std::vector<Literal>> body();
   std::optional<Error> foreign_operator();
@@ -735,23 +740,36 @@ Result<Literal> Parser::literal() {
     if (auto a = advance(); !a) return unexpected(a.error());
     bool paren = is("(");
     if (paren) { if (auto a = advance(); !a) return unexpected(a.error()); }
+    // \+ Y = X: a comparison is negated by the operator of the opposite.
+    if (tok_.kind == Tok::var || tok_.kind == Tok::literal || (tok_.kind != Tok::end && operator_follows()))
+      return error(tok_.pos, "\\+ negates an atom (\\+ p(X)); a comparison is negated by its opposite operator: "
+                             "\\= for =, \\== for ==, =\\= for =:=, >= for <, =< for >");
     auto inner = callable(true);
     if (!inner) return inner;
     if (paren) { if (auto c = expect(")", "')' after the negated atom"); !c) return unexpected(c.error()); }
     return inner;
   }
+  // (fact(X, p, Y)) or (X > 3 ; …): a literal in parentheses, which an arithmetic expression
+  // cannot start with ((Y + 1) > 3 is one).
+  if (is("(")) {
+    static const char* kComparisons[] = {"<", ">", "=<", ">=", "=:=", "=\\=", "=", "\\=", "==", "\\=="};
+    auto saved = lexer_.state();
+    bool literal_inside = false;
+    if (auto first = lexer_.next(); first && first->kind != Tok::punct && first->kind != Tok::end)
+      if (auto second = lexer_.next(); second) {
+        const bool name = first->kind == Tok::name || first->kind == Tok::iri;
+        literal_inside = (name && second->kind == Tok::punct && second->text == "(") ||
+                         (second->kind == Tok::name && second->text == "is");
+        for (const char* op : kComparisons) literal_inside |= second->kind == Tok::punct && second->text == op;
+      }
+    lexer_.restore(saved);
+    if (literal_inside)
+      return error(start, "a literal in parentheses: write it without them (a body is literals joined by ','; for "
+                          "alternatives, one rule each)");
+  }
   // A name starts an atom unless an operator follows it (then it is a constant in a term).
   bool name_like = tok_.kind == Tok::name || tok_.kind == Tok::iri;
-  if (name_like) {
-    auto saved = lexer_.state();
-    auto peek = lexer_.next();
-    lexer_.restore(saved);
-    if (!peek) return unexpected(peek.error());
-    static const char* kOps[] = {"<", ">", "=<", ">=", "=:=", "=\\=", "=", "\\=", "==", "\\==", "+", "-", "*", "/"};
-    bool op_follows = peek->kind == Tok::name && peek->text == "is";
-    for (const char* op : kOps) op_follows |= peek->kind == Tok::punct && peek->text == op;
-    if (!op_follows) return callable(false);
-  }
+  if (name_like && !operator_follows()) return callable(false);
   auto left = expression();
   if (!left) return unexpected(left.error());
   Literal lit;
@@ -786,6 +804,19 @@ Result<Literal> Parser::literal() {
   if (terms_only && (lit.lhs.kind != Expr::arg || lit.rhs.kind != Expr::arg))
     return error(start, "=, \\=, == and \\== compare terms; use 'is' or =:= for arithmetic");
   return lit;
+}
+
+// Whether a comparison or arithmetic operator, or 'is', follows the current token: a name then
+// is a constant in a term, not an atom.
+bool Parser::operator_follows() {
+  auto saved = lexer_.state();
+  auto peek = lexer_.next();
+  lexer_.restore(saved);
+  if (!peek) return false;  // the lexer's error comes again when the token is read
+  static const char* kOps[] = {"<", ">", "=<", ">=", "=:=", "=\\=", "=", "\\=", "==", "\\==", "+", "-", "*", "/"};
+  bool follows = peek->kind == Tok::name && peek->text == "is";
+  for (const char* op : kOps) follows |= peek->kind == Tok::punct && peek->text == op;
+  return follows;
 }
 
 // An operator as other languages write it, at the current token: "<=", "=>", "!=".
@@ -852,6 +883,13 @@ Result<void> Parser::directive() {
   if (auto a = advance(); !a) return a;
   if (tok_.kind != Tok::name) return expected("a directive (prefix or ranked)");
   std::string which = tok_.text;
+  if (which != "prefix" && which != "ranked") {
+    // Prolog's directives: what they ask for holds here already, or has no meaning.
+    if (which == "table" || which == "dynamic" || which == "discontiguous")
+      return error(start, "':- " + which + "' is a Prolog directive with no use here: rules are evaluated bottom-up to a "
+                          "fixpoint, every predicate as if tabled and open to new facts; remove it");
+    return error(start, "unknown directive '" + which + "' (known: prefix, ranked)");
+  }
   if (auto a = advance(); !a) return a;
   if (auto c = expect("(", "'(' after " + which); !c) return c;
   if (which == "prefix") {
@@ -867,7 +905,7 @@ Result<void> Parser::directive() {
       return error(start, "prefix " + name + ": " + added.error().message);
     lexer_.declare(name, ns);
     if (auto a = advance(); !a) return a;
-  } else if (which == "ranked") {
+  } else {  // ranked
     Token name = tok_;
     if (name.kind != Tok::name && name.kind != Tok::iri) return expected("a predicate name");
     if (auto a = advance(); !a) return a;
@@ -882,8 +920,6 @@ Result<void> Parser::directive() {
     program_.preds[ranked].ranked = true;
     program_.ranked_declarations.emplace_back(ranked, name.pos);
     if (auto a = advance(); !a) return a;
-  } else {
-    return error(start, "unknown directive '" + which + "' (known: prefix, ranked)");
   }
   if (auto c = expect(")", "')' closing the directive"); !c) return c;
   return expect(".", "'.' after the directive");
