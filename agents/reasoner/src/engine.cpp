@@ -297,6 +297,10 @@ struct Engine::Impl {
   std::unordered_set<std::string> read_iris;  // binary predicates some rule reads
   bool first = true;
   std::size_t current_stratum = 0;
+  // Each relation's rows new to a round (cur) and found in it (next), kept across strata and
+  // empty between them. Made per stratum (two vectors per relation) they cost a from-scratch
+  // session the square of the strata: 20,000 chained negations took 0.9 s with no fact at all.
+  std::vector<std::vector<std::uint32_t>> cur_rows, next_rows;
   std::size_t session_new_rows = 0;  // conclusions derived in this apply
   std::size_t conclusion_limit = kMaxSessionConclusions;
   EngineStats st;
@@ -1024,14 +1028,30 @@ void Engine::Impl::run_stratum(std::size_t s) {
     }
     if (!touched) return;
   }
-  std::vector<std::vector<std::uint32_t>> next(rels.size()), cur(rels.size());
+  // Relations are made before the strata run (base_change), never while they do.
+  if (cur_rows.size() < rels.size()) {
+    cur_rows.resize(rels.size());
+    next_rows.resize(rels.size());
+  }
+  auto& cur = cur_rows;
+  auto& next = next_rows;
+  // A stratum fills cur from the relations touched this session and from its own relations'
+  // next, and next only in its own relations (the heads of its rules): those are emptied.
+  std::vector<std::uint32_t> own;
+  for (std::uint32_t p : stratum.preds) own.push_back(rel_of_pred[p]);
+  std::sort(own.begin(), own.end());
+  own.erase(std::unique(own.begin(), own.end()), own.end());
+  auto clear_cur = [&] {
+    for (std::uint32_t rel : touched_rels) cur[rel].clear();
+    for (std::uint32_t rel : own) cur[rel].clear();
+  };
   const bool negations_grew = only_negations_grew(stratum);
   const bool recompute = !negations_grew && needs_recompute(stratum);
   bool any_input = false;
   if (negations_grew) {
     retract_for_negations(stratum, cur, next);
     any_input = true;
-    for (auto& rows : cur) rows.clear();
+    clear_cur();
   }
   if (recompute) {
     for (std::uint32_t p : stratum.preds) {
@@ -1067,21 +1087,19 @@ void Engine::Impl::run_stratum(std::size_t s) {
   }
   if (any_input) ++st.strata_run;
   // Rounds over this stratum's own new rows (recursion) to the fixpoint.
-  std::set<std::uint32_t> own;
-  for (std::uint32_t p : stratum.preds) own.insert(rel_of_pred[p]);
   for (;;) {
+    clear_cur();
     bool more = false;
-    for (std::uint32_t rel = 0; rel < rels.size(); ++rel) {
-      cur[rel].clear();
+    for (std::uint32_t rel : own)
       if (!next[rel].empty()) { cur[rel].swap(next[rel]); more = true; }
-    }
     if (!more) break;
     for (std::uint32_t ri : stratum.rules) {
       const Rule& rule = program->rules[ri];
       for (std::size_t k = 0; k < rule.kth_atom.size(); ++k) {
         const Literal& l = rule.body[rule.kth_atom[k]];
         bool has = false;
-        if (l.pred != kAnyBinary) has = own.count(rel_of_pred[l.pred]) && !cur[rel_of_pred[l.pred]].empty();
+        if (l.pred != kAnyBinary)
+          has = std::binary_search(own.begin(), own.end(), rel_of_pred[l.pred]) && !cur[rel_of_pred[l.pred]].empty();
         else for (std::uint32_t rel : own) has |= rels[rel].pred_iri && !cur[rel].empty();
         if (has) RuleRun(*this, rule, rule.plans[1 + k], &cur, next).run();
       }
