@@ -691,13 +691,12 @@ Result<std::uint64_t> read_relay_mark(MDB_txn* txn, const Env& env, std::string_
 }
 
 // Which of a stream's items may repeat items held here (Agent::relay_may_repeat): those up to
-// a seq, and those asserted at or before a time; and the first item id that the store had not
-// given when that was first said. Kept as the seq (8 bytes; so written up to session 63), then
-// the time when one was said (16 bytes; up to session 71), then that id (24 bytes, the time
-// INT64_MIN when none was said).
+// a seq, and those asserted at or before a time. Kept as the seq (8 bytes; so written up to
+// session 63), then the time when one was said. Beside it, under a key of its own (so that a
+// build before session 72 reads the first as it wrote it), the first item id that the store
+// had not given when it was first said.
 std::string relay_repeats_key(std::string_view stream) { return "relay-repeats:" + std::string(stream); }
-
-constexpr std::int64_t kNoTime = std::numeric_limits<std::int64_t>::min();
+std::string relay_held_before_key(std::string_view stream) { return "relay-repeats-held-before:" + std::string(stream); }
 
 struct RepeatBounds {
   std::uint64_t through_seq = 0;
@@ -722,18 +721,18 @@ Result<RepeatBounds> read_relay_repeats(MDB_txn* txn, const Env& env, std::strin
   if (rc == MDB_NOTFOUND) return RepeatBounds{};
   const std::string what = "bounds of what " + std::string(stream) + " may repeat of what is held";
   if (rc != 0) return lmdb_fail(rc, "reading the " + what);
-  if (v.mv_size != 8 && v.mv_size != 16 && v.mv_size != 24)
-    return fail(Errc::corrupt, "the " + what + " have " + std::to_string(v.mv_size) + " bytes");
+  if (v.mv_size != 8 && v.mv_size != 16) return fail(Errc::corrupt, "the " + what + " have " + std::to_string(v.mv_size) + " bytes");
   RepeatBounds bounds;
   bounds.said = true;
-  const char* bytes = static_cast<const char*>(v.mv_data);
-  std::memcpy(&bounds.through_seq, bytes, 8);
-  if (v.mv_size >= 16) {
+  std::memcpy(&bounds.through_seq, v.mv_data, 8);
+  if (v.mv_size == 16) {
     std::int64_t t = 0;
-    std::memcpy(&t, bytes + 8, 8);
-    if (t != kNoTime) bounds.asserted_through = t;
+    std::memcpy(&t, static_cast<const char*>(v.mv_data) + 8, 8);
+    bounds.asserted_through = t;
   }
-  if (v.mv_size == 24) std::memcpy(&bounds.held_before, bytes + 16, 8);
+  auto held_before = read_meta_number(txn, env, relay_held_before_key(stream), "first id not held before " + std::string(stream));
+  if (!held_before) return unexpected(held_before.error());
+  bounds.held_before = *held_before;
   return bounds;
 }
 
@@ -927,17 +926,18 @@ Result<void> Agent::relay_may_repeat(std::string_view stream, std::uint64_t thro
       // The first time said: what the stream stores from now on is not what it may repeat. (Said
       // before session 72, when no id was kept, it stays without: the stream may have stored
       // items since.)
-      if (!now->said) wider.held_before = txn.counters.next_seq;
-      if (wider.through_seq == now->through_seq && wider.asserted_through == now->asserted_through &&
-          wider.held_before == now->held_before)
-        return {};
-      char bytes[24];
-      const std::int64_t time = wider.asserted_through.value_or(kNoTime);
+      if (!now->said) {
+        std::string key = relay_held_before_key(stream);
+        MDB_val k = val(key), v = val(txn.counters.next_seq);
+        if (int rc = mdb_put(txn.raw(), impl_->env->meta, &k, &v, 0); rc != 0)
+          return lmdb_fail(rc, "writing the first id not held before " + std::string(stream));
+      }
+      if (wider.through_seq == now->through_seq && wider.asserted_through == now->asserted_through && now->said) return {};
+      char bytes[16];
       std::memcpy(bytes, &wider.through_seq, 8);
-      std::memcpy(bytes + 8, &time, 8);
-      std::memcpy(bytes + 16, &wider.held_before, 8);
+      if (wider.asserted_through) std::memcpy(bytes + 8, &*wider.asserted_through, 8);
       std::string key = relay_repeats_key(stream);
-      MDB_val k = val(key), v{sizeof bytes, bytes};
+      MDB_val k = val(key), v{wider.asserted_through ? 16u : 8u, bytes};
       if (int rc = mdb_put(txn.raw(), impl_->env->meta, &k, &v, 0); rc != 0)
         return lmdb_fail(rc, "writing how far " + std::string(stream) + " may repeat what is held");
       return {};
