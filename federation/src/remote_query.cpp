@@ -6,6 +6,7 @@
 #include <sys/stat.h>
 #include <unistd.h>
 
+#include <algorithm>
 #include <atomic>
 #include <cerrno>
 #include <charconv>
@@ -94,6 +95,25 @@ std::string percent_spelling_hint(const node::Snapshot& snap, const std::string&
   return {};
 }
 
+// The children this node knows, when none was meant by a spelling: an operator who took a
+// path from another layout (<…/hospital/home2> where a ward lies between) sees where the tree
+// goes on.
+std::string known_children_hint(const node::Snapshot& snap) {
+  auto states = snap.list({.p = node::Term::iri(vocab::kLinkState)});
+  if (!states) return {};
+  std::vector<std::string> children;
+  for (const node::Record& r : *states)
+    if (r.triple.s.is_iri()) children.push_back(r.triple.s.value);
+  std::sort(children.begin(), children.end());
+  children.erase(std::unique(children.begin(), children.end()), children.end());
+  if (children.empty()) return "; it knows no child (none has said hello to its link)";
+  constexpr std::size_t kShown = 8;
+  std::string out = children.size() == 1 ? "; its child is " : "; its children are ";
+  for (std::size_t i = 0; i < children.size() && i < kShown; ++i) out += (i ? ", <" : "<") + children[i] + ">";
+  if (children.size() > kShown) out += " and " + std::to_string(children.size() - kShown) + " more (tahvel status)";
+  return out;
+}
+
 }  // namespace
 
 Result<std::uint64_t> remote_query(node::Node& node, const RemoteQuery& query,
@@ -160,7 +180,10 @@ Result<std::uint64_t> remote_query(node::Node& node, const RemoteQuery& query,
       if (!state) return Unexpected<Error>{state.error()};
       if (state->empty())
         return node::fail(Errc::not_found, "unknown node <" + *target + ">: <" + self + "> has no child <" + child + ">" +
-                                               percent_spelling_hint(*snap, child));
+                                               [&] {
+                                                 std::string hint = percent_spelling_hint(*snap, child);
+                                                 return hint.empty() ? known_children_hint(*snap) : hint;
+                                               }());
       child_state = state->back().triple.o.value;
     }
     const LinkSeen link = link_serving(node.dir());

@@ -4290,6 +4290,28 @@ TEST_F(Cli, QueryOfAChildNamedByItsPercentEncodedIriSaysWhichChildItMeans) {
   EXPECT_EQ(other.err.find("did you mean"), std::string::npos) << other.err;
 }
 
+// A path taken from another layout (<…/home2> where a ward lies between the node and the
+// homes) is an unknown node, exit 4; the error names the children the node knows, so that the
+// operator sees where the tree goes on. Up to session 71 it named none.
+TEST_F(Cli, QueryOfANodeThatIsNoChildNamesTheChildrenThereAre) {
+  init();
+  const Outcome none = run({"query", node_, "--at", kNodeIri + "/home2"});
+  EXPECT_EQ(none.status, 4) << none.err;
+  EXPECT_NE(none.err.find("has no child <" + kNodeIri + "/home2>; it knows no child"), std::string::npos) << none.err;
+  put("<" + kNodeIri + "/ward> <https://w3id.org/tahvel#linkState> \"up\" .\n", {"--agent", "link"});
+  const Outcome one = run({"query", node_, "--at", kNodeIri + "/home2"});
+  EXPECT_EQ(one.status, 4) << one.err;
+  EXPECT_NE(one.err.find("has no child <" + kNodeIri + "/home2>; its child is <" + kNodeIri + "/ward>"), std::string::npos)
+      << one.err;
+  std::string many;
+  for (int i = 0; i < 10; ++i)
+    many += "<" + kNodeIri + "/w" + std::to_string(i) + "> <https://w3id.org/tahvel#linkState> \"up\" .\n";
+  put(many, {"--agent", "link"});
+  const Outcome eleven = run({"query", node_, "--at", kNodeIri + "/home2"});
+  EXPECT_NE(eleven.err.find("its children are <" + kNodeIri + "/w0>, <" + kNodeIri + "/w1>"), std::string::npos) << eleven.err;
+  EXPECT_NE(eleven.err.find(" and 3 more (tahvel status)"), std::string::npos) << eleven.err;
+}
+
 // The point, from the command line: moving a sensor from one room to another changes
 // which area subscriptions receive its readings (the keeper run once with `areas --once`).
 TEST_F(Cli, SubscribeByAreaFollowsASensorMovedToAnotherRoom) {
