@@ -2133,6 +2133,10 @@ TEST(Link, RemoteQueryReturnsExactlyTheRecordsHeldBelowAndNamesItsErrors) {
   auto below_home = remote_query(hospital, {.target = kHome1 + "/ecg9"}, 5s, [](const node::Record&) {});
   ASSERT_FALSE(below_home);
   EXPECT_EQ(below_home.error().code, Errc::not_found) << below_home.error().message;
+  // The hop that does not know the node says which children it has (here none).
+  EXPECT_NE(below_home.error().message.find("no node <" + kHome1 + "/ecg9> below <" + kHome1 + ">; it has no child node"),
+            std::string::npos)
+      << below_home.error().message;
 }
 
 // A cascade answer is read whole at the target and sent a window of chunks at a time: the
