@@ -32,6 +32,7 @@
 #include <utility>
 
 #include "base64.h"
+#include "children_hint.h"
 #include "tahvel/uri/iri.h"
 #include "tahvel/federation/wire.h"
 #include "wire_common.h"
@@ -2077,15 +2078,10 @@ struct Link::Impl {
           if (!child_iri.empty() && iri != child_iri && uri::percent_decoded(iri) == uri::percent_decoded(child_iri))
             hint = "; did you mean <" + iri + ">? (an IRI is compared as written: a character and its percent-encoding are two IRIs)";
         // Otherwise the children there are, as the asking node's own error names its own.
-        if (hint.empty() && children.empty()) hint = "; it has no child node";
         if (hint.empty()) {
           std::vector<std::string> known;
           for (const auto& entry : children) known.push_back(entry.first);
-          std::sort(known.begin(), known.end());
-          constexpr std::size_t kShown = 8;
-          hint = known.size() == 1 ? "; its child is " : "; its children are ";
-          for (std::size_t i = 0; i < known.size() && i < kShown; ++i) hint += (i ? ", <" : "<") + known[i] + ">";
-          if (known.size() > kShown) hint += " and " + std::to_string(known.size() - kShown) + " more";
+          hint = detail::children_hint(std::move(known), "; it has no child node");
         }
         out.error(via, opt.parent_iri, f.seq, {"unknown_node", "no node <" + q->target + "> below <" + self + ">" + hint, q->origin});
       } else if (!it->second->connected) {

@@ -6,7 +6,6 @@
 #include <sys/stat.h>
 #include <unistd.h>
 
-#include <algorithm>
 #include <atomic>
 #include <cerrno>
 #include <charconv>
@@ -16,6 +15,7 @@
 #include <thread>
 
 #include "base64.h"
+#include "children_hint.h"
 #include "tahvel/federation/link.h"
 #include "tahvel/node/process.h"
 #include "tahvel/uri/iri.h"
@@ -95,23 +95,14 @@ std::string percent_spelling_hint(const node::Snapshot& snap, const std::string&
   return {};
 }
 
-// The children this node knows, when none was meant by a spelling: an operator who took a
-// path from another layout (<…/hospital/home2> where a ward lies between) sees where the tree
-// goes on.
+// The children this node knows (those whose link state it keeps).
 std::string known_children_hint(const node::Snapshot& snap) {
   auto states = snap.list({.p = node::Term::iri(vocab::kLinkState)});
   if (!states) return {};
   std::vector<std::string> children;
   for (const node::Record& r : *states)
     if (r.triple.s.is_iri()) children.push_back(r.triple.s.value);
-  std::sort(children.begin(), children.end());
-  children.erase(std::unique(children.begin(), children.end()), children.end());
-  if (children.empty()) return "; it knows no child (none has said hello to its link)";
-  constexpr std::size_t kShown = 8;
-  std::string out = children.size() == 1 ? "; its child is " : "; its children are ";
-  for (std::size_t i = 0; i < children.size() && i < kShown; ++i) out += (i ? ", <" : "<") + children[i] + ">";
-  if (children.size() > kShown) out += " and " + std::to_string(children.size() - kShown) + " more (tahvel status)";
-  return out;
+  return detail::children_hint(std::move(children), "; it knows no child (none has said hello to its link)");
 }
 
 }  // namespace
