@@ -958,14 +958,18 @@ void load_onto(node::Agent& loader, const NodeSpec& spec, const fs::path& file, 
 void load_new_files(const NodeSpec& spec, node::Node& node, const Topology& topo) {
   if (spec.load.empty()) return;
   node::Agent loader = check(node.agent("deploy"));
-  auto snap = check(node.snapshot());
   std::map<std::string, std::pair<std::string, std::uint64_t>> loaded;  // name -> (digest, item)
-  std::map<std::uint64_t, std::string> digests;                         // item -> digest
-  for (const auto& r : check(snap.list({.p = node::Term::iri(kLoadDigest), .source = loader.iri()})))
-    digests[r.meta.item] = r.triple.o.value;
-  for (const auto& r : check(snap.list({.p = node::Term::iri(kLoadFile), .source = loader.iri()})))
-    loaded[r.triple.o.value] = {digests[r.meta.item], r.meta.item};
-  if (loaded.empty() && check(snap.count({.source = loader.iri()})) > 0) {
+  bool loader_wrote = false;
+  {  // released before loading: a store that must grow cannot while this process holds one
+    auto snap = check(node.snapshot());
+    std::map<std::uint64_t, std::string> digests;  // item -> digest
+    for (const auto& r : check(snap.list({.p = node::Term::iri(kLoadDigest), .source = loader.iri()})))
+      digests[r.meta.item] = r.triple.o.value;
+    for (const auto& r : check(snap.list({.p = node::Term::iri(kLoadFile), .source = loader.iri()})))
+      loaded[r.triple.o.value] = {digests[r.meta.item], r.meta.item};
+    loader_wrote = loaded.empty() && check(snap.count({.source = loader.iri()})) > 0;
+  }
+  if (loader_wrote) {
     std::cerr << "up: warning: " << spec.load_at << ": node '" << spec.id << "': its store was made before up recorded "
               << "the files it loads; its load files are not loaded again nor checked\n";
     return;
@@ -1905,10 +1909,12 @@ int run_up(const Args& args) {
       std::vector<node::Pattern> policy;
       for (std::size_t i = 0; i < spec.forward.size(); ++i) policy.push_back(forward_pattern_of(spec, i, node.prefixes()));
       if (!spec.forward_given) policy = federation::default_forward_policy();
-      auto before = check(node.snapshot());
+      // Snapshots are released before the writes below: a store that must grow for them (a
+      // copy made by `tahvel backup`, its map as large as its data) cannot while this process
+      // holds one, and `up` on a restored backup failed so.
       std::set<std::uint64_t> had;
-      for (const auto& r : check(before.list({.p = node::Term::iri(std::string(federation::vocab::kTv) + "subscriber"),
-                                               .o = node::Term::iri(uplink.iri())})))
+      for (const auto& r : check(check(node.snapshot()).list({.p = node::Term::iri(std::string(federation::vocab::kTv) + "subscriber"),
+                                                              .o = node::Term::iri(uplink.iri())})))
         had.insert(r.meta.item);
       // Said once, when the node's first policy is written: a sensor node left without `forward`
       // sends its parent nothing of its raw signal, and nothing else says so.
@@ -1926,16 +1932,20 @@ int run_up(const Args& args) {
       }
       // A pattern taken out of the file stops going up (a narrowed policy keeps raw data home):
       // the uplink's own subscriptions are the file's. Those the parent sent down stay.
-      auto snap = check(node.snapshot());
-      const std::string subscriber = std::string(federation::vocab::kTv) + "subscriber";
+      std::vector<std::pair<std::uint64_t, std::string>> dropped;  // item, pattern
+      {
+        auto snap = check(node.snapshot());
+        const std::string subscriber = std::string(federation::vocab::kTv) + "subscriber";
+        for (const auto& r : check(snap.list({.p = node::Term::iri(subscriber), .o = node::Term::iri(uplink.iri())})))
+          if (r.meta.source == uplink.iri() && !kept.count(r.meta.item))
+            dropped.emplace_back(r.meta.item, pattern_text(snap, r.meta.item, node.prefixes()));
+      }
       bool narrowed = false;
-      for (const auto& r : check(snap.list({.p = node::Term::iri(subscriber), .o = node::Term::iri(uplink.iri())}))) {
-        if (r.meta.source != uplink.iri() || kept.count(r.meta.item)) continue;
-        const std::string pattern = pattern_text(snap, r.meta.item, node.prefixes());
-        check(uplink.unsubscribe(r.meta.item));
+      for (const auto& [item, pattern] : dropped) {
+        check(uplink.unsubscribe(item));
         narrowed = true;
         std::cout << "up: " << spec.id << ": removed the forwarding pattern '" << pattern
-                  << "', no longer in the file (item " << r.meta.item << ")\n";
+                  << "', no longer in the file (item " << item << ")\n";
       }
       // What the removed patterns queued while the parent was away stays home too: a policy
       // narrowed to keep raw ECG at home must not still send the backlog.
