@@ -11,7 +11,9 @@
 set -euo pipefail
 
 TAHVEL=${1:-build/bin/tahvel}
-if [ ! -x "$TAHVEL" ]; then
+# The other demos take the directory of the binaries: that is taken here too.
+if [ -d "$TAHVEL" ]; then TAHVEL=$TAHVEL/tahvel; fi
+if [ ! -f "$TAHVEL" ] || [ ! -x "$TAHVEL" ]; then
   echo "single-node.sh: no tahvel binary at '$TAHVEL' (build first, or pass its path)" >&2
   exit 2
 fi
