@@ -994,7 +994,11 @@ TEST(Rules, PrologWithoutMeaningHereIsNamedWithWhatToWriteInstead) {
       {":- table a/2.\n",
        "p.rules:1:1: ':- table' is a Prolog directive with no use here: rules are evaluated bottom-up to a fixpoint, every "
        "predicate as if tabled and open to new facts; remove it"},
-      {":- module(m, []).\n", "p.rules:1:1: unknown directive 'module' (known: prefix, ranked)"}};
+      {":- module(m, []).\n", "p.rules:1:1: unknown directive 'module' (known: prefix, ranked)"},
+      {"a(X) :- v(X, Y), not w(Y, X).\n", "p.rules:1:18: 'not' negates in parentheses only: write not(p(X)) or \\+ p(X)"},
+      {"a(X) :- v(X, Y), \\+ (w(Y, X), w(X, Y)).\n",
+       "p.rules:1:29: \\+ negates one atom, not a conjunction: give the conjunction a predicate of its own "
+       "(both(X) :- a(X), b(X).) and negate that (\\+ both(X))"}};
   for (const auto& [rules, message] : cases) {
     auto p = tr::parse_rules(rules, options("p.rules"));
     ASSERT_FALSE(p.has_value()) << rules;
@@ -1004,6 +1008,8 @@ TEST(Rules, PrologWithoutMeaningHereIsNamedWithWhatToWriteInstead) {
   EXPECT_TRUE(tr::parse_rules("a(X, Y) :- v(X, Y), (Y + 1) > 3, (Y) > 2, \\+ (w(X, Y)), \\+ w(Y, X).\nw(X, Y) :- v(Y, X).\n",
                               options("p.rules"))
                   .has_value());
+  // not(atom) is negation too (RS6).
+  EXPECT_TRUE(tr::parse_rules("a(X) :- v(X, Y), not(w(Y, X)).\nw(X, Y) :- v(Y, X).\n", options("p.rules")).has_value());
 }
 
 // An integer is compared with a double by value, not as the double it rounds to above 2^53.

@@ -746,8 +746,19 @@ Result<Literal> Parser::literal() {
                              "\\= for =, \\== for ==, =\\= for =:=, >= for <, =< for >");
     auto inner = callable(true);
     if (!inner) return inner;
+    if (paren && is(","))
+      return error(tok_.pos, "\\+ negates one atom, not a conjunction: give the conjunction a predicate of its own "
+                             "(both(X) :- a(X), b(X).) and negate that (\\+ both(X))");
     if (paren) { if (auto c = expect(")", "')' after the negated atom"); !c) return unexpected(c.error()); }
     return inner;
+  }
+  // not p(X), negation written as an operator, parsed as the atom not followed by another.
+  if (tok_.kind == Tok::name && tok_.text == "not") {
+    auto saved = lexer_.state();
+    auto next = lexer_.next();
+    lexer_.restore(saved);
+    if (next && (next->kind == Tok::name || next->kind == Tok::iri))
+      return error(start, "'not' negates in parentheses only: write not(p(X)) or \\+ p(X)");
   }
   // (fact(X, p, Y)) or (X > 3 ; …): a literal in parentheses, which an arithmetic expression
   // cannot start with ((Y + 1) > 3 is one).

@@ -331,7 +331,7 @@ Result<void> Reasoner::Impl::write(Engine::Update& update, const std::vector<nod
       if (said_not_written.insert(a.predicate).second)
         report.not_written.push_back("the conclusion " + text + " is not written: its literal of " +
                                      std::to_string(too_long->o.value.size()) + " bytes is over this node's limit of " +
-                                     std::to_string(literal_limit) + " (tahvel init --max-literal); the rest of the session is");
+                                     std::to_string(literal_limit) + " (tahvel init --max-literal); the rest of the session is written");
       left_out[i] = true;
       continue;
     }
