@@ -181,7 +181,7 @@ class TrendStage {
               break;
             }
         }
-        u.z_against_others = agg::cross_patient_z(points.back().value, others);
+        u.z_against_others = agg::cross_patient_z(points.back().value, others, options.min_robust_sd);
         if (u.z_against_others) u.others = others.size();
       }
       // At the window's signal time, as everything the chain derives: a time range selects a

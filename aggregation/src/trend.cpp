@@ -97,14 +97,14 @@ TrendSummary analyse_trend(const std::vector<TrendPoint>& points, const TrendOpt
   return s;
 }
 
-std::optional<double> cross_patient_z(double value, const std::vector<double>& others) noexcept {
+std::optional<double> cross_patient_z(double value, const std::vector<double>& others, double min_sd) noexcept {
   if (others.size() < 2) return std::nullopt;
   double m = 0;
   for (double x : others) m += x;
   m /= static_cast<double>(others.size());
   double ss = 0;
   for (double x : others) ss += (x - m) * (x - m);
-  const double sd = std::sqrt(ss / static_cast<double>(others.size() - 1));
+  const double sd = std::max(std::sqrt(ss / static_cast<double>(others.size() - 1)), min_sd);
   if (!(sd > 0)) return std::nullopt;
   return (value - m) / sd;
 }

@@ -257,6 +257,21 @@ TEST_F(TrendAgentTest, AnotherTakeOfTheSameRecordingIsNotAnotherPatientForTheZSc
   EXPECT_EQ(t.others, 2u) << "B and C; not d's first take";
 }
 
+// Two other patients whose values happen to agree closely: their SD (0.007 ms) made a 3 ms
+// difference a z of 420; the SD is held to the metric's resolution (1 ms for SDNN).
+TEST_F(TrendAgentTest, TheZScoreAgainstOthersThatAgreeCloselyIsHeldToTheMetricsResolution) {
+  store_window(kRecA, 0, 43);
+  store_window(kRecB, 0, 40);
+  store_window(kRecC, 0, 40.01);
+  start_agent("120");
+  wait_for_trends(3 * 3);
+  EXPECT_EQ(agent_->stop(), 0);
+  const agg::TrendUpdate& t = trends().at(agg::trend_iri(kRecA, agg::HrvMetric::sdnn, 0));
+  ASSERT_TRUE(t.z_against_others);
+  EXPECT_EQ(t.others, 2u);
+  EXPECT_NEAR(*t.z_against_others, 2.995, 1e-6);
+}
+
 // A window with no beats (lead off) has no value: its trend items must not show the window
 // before's as "the metric in this window", nor carry on that window's alert.
 // A trend update describes the patient at its window's time: it is asserted at the window's

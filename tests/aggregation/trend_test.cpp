@@ -74,5 +74,13 @@ TEST(Trend, CrossPatientZ) {
   EXPECT_FALSE(cross_patient_z(35, {10, 10}));
 }
 
+TEST(Trend, CrossPatientZHoldsOthersThatAgreeCloselyToTheMetricsResolution) {
+  // Others that happen to agree closely are held to the metric's resolution, not to their SD:
+  // 73.6498 and 73.6743 bpm (SD 0.017) made 76.48 bpm a z of +162.
+  EXPECT_DOUBLE_EQ(*cross_patient_z(76.5, {73.5, 73.5}, 1.0), 3.0);
+  EXPECT_NEAR(*cross_patient_z(76.48, {73.6498, 73.6743}, 1.0), 2.8180, 1e-4);
+  EXPECT_DOUBLE_EQ(*cross_patient_z(35, {10, 20, 30}, 1.0), 1.5);  // an SD above the floor is the SD
+}
+
 }  // namespace
 }  // namespace tahvel::aggregation

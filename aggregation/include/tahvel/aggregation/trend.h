@@ -58,8 +58,9 @@ struct TrendSummary {
 // Baseline, slope and alerts of one series (points ascending in time).
 TrendSummary analyse_trend(const std::vector<TrendPoint>& points, const TrendOptions& options = {});
 
-// z-score of value against others: (value - mean) / SD (n - 1) of others; nullopt with fewer
-// than two others or when their SD is 0.
-std::optional<double> cross_patient_z(double value, const std::vector<double>& others) noexcept;
+// z-score of value against others: (value - mean) / SD (n - 1) of others, the SD floored at
+// min_sd (the metric's resolution: two others 0.02 bpm apart made a z of 3,000 from a 6 bpm
+// difference); nullopt with fewer than two others or when the SD, floored, is 0.
+std::optional<double> cross_patient_z(double value, const std::vector<double>& others, double min_sd = 0) noexcept;
 
 }  // namespace tahvel::aggregation
