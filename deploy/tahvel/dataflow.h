@@ -31,7 +31,9 @@ using ForwardPolicies = std::map<std::string, std::optional<std::vector<node::Pa
 // - an input that no agent of its node writes and no child passes up (once per cause; the agents
 //   that wait on it are named with it);
 // - a stage whose input and results both come up from one child, so that the child's stage and
-//   this one write one recording's items under the same names.
+//   this one write one recording's items under the same names;
+// - a shipped program that runs as the same agent (its --agent, or its default) as another of
+//   its node, and so waits until that one ends.
 std::vector<std::string> dataflow_warnings(const Topology& topo, const ForwardPolicies& policies,
                                            const std::vector<const NodeSpec*>& judged);
 

@@ -3495,6 +3495,33 @@ TEST_F(Cli, UpSaysAPatternAddedToAnEmptyForwardPolicy) {
   EXPECT_EQ(run({"down", "--state", state}).status, 0);
 }
 
+// Two ECG sources of one node left at their default agent: one process at a time holds an
+// agent, so the second failed at each start until the first had replayed its whole record, and
+// `up` had said nothing.
+TEST_F(Cli, UpWarnsOfTwoProgramsOfANodeThatRunAsOneAgent) {
+  const std::string file = (tmp_ / "t.toml").string(), state = (tmp_ / "state").string();
+  auto source = [](const std::string& id, const std::string& extra) {
+    return "  [[node.agent]]\n  id = \"" + id + "\"\n  run = [\"{bin}/tahvel-ecg-source\", \"{store}\", \"--synthetic\", "
+           "\"--seconds\", \"1\", \"--speed\", \"0\"" + extra + "]\n  restart = \"never\"\n";
+  };
+  spit(file, "[[node]]\nid = \"gw\"\niri = \"http://example.org/gw\"\n" + source("bed1", "") + source("bed2", "") +
+                 source("bed3", ", \"--agent\", \"ecg3\"") +
+                 "  [[node.agent]]\n  id = \"rules\"\n  run = [\"{bin}/tahvel\", \"reason\", \"{store}\", \"{dir}/r.rules\", \"--agent\", \"ecg\"]\n");
+  spit((tmp_ / "r.rules").string(), "a(X, Y) :- b(X, Y).\n");
+  Outcome up = run({"up", file, "--state", state});
+  ASSERT_EQ(up.status, 0) << up.err;
+  EXPECT_NE(up.err.find("t.toml:8:3: node 'gw': agent 'bed2' (tahvel-ecg-source) runs as agent <http://example.org/gw/ecg>, "
+                        "as 'bed1' (" + file + ":4:3) does: one process at a time holds an agent, so it will wait until "
+                        "that one ends; give one of them --agent ID\n"),
+            std::string::npos)
+      << up.err;
+  EXPECT_NE(up.err.find("t.toml:16:3: node 'gw': agent 'rules' (tahvel) runs as agent <http://example.org/gw/ecg>, as 'bed1'"),
+            std::string::npos)
+      << up.err;
+  EXPECT_EQ(up.err.find("agent 'bed3'"), std::string::npos) << up.err;  // --agent ecg3: its own
+  EXPECT_EQ(run({"down", "--state", state}).status, 0);
+}
+
 // A node whose chain lacks a stage runs, reports nothing wrong and writes no HRV: `up` says which
 // agent waits for what, once per cause (the agents after it named with it), and says nothing of
 // a node that runs a program of the deployment's own, which may write anything.
