@@ -7,10 +7,11 @@
 #include <optional>
 #include <string_view>
 
+#include "tahvel/uri/spelling.h"
+
 namespace tahvel::cli {
 
-// Levenshtein distance between `a` and `b`: how many one-character edits a slip is away.
-std::size_t edit_distance(std::string_view a, std::string_view b);
+using uri::edit_distance;
 
 // Whether `local_name` (the part after "tv:") is a term of the vocabulary.
 bool is_tahvel_term(std::string_view local_name);

@@ -204,6 +204,12 @@ TEST(Rules, ATypedConstantThatIsNotAValueOfItsTypeIsAnErrorAtTheConstant) {
       {"open(P, T) :- q(P, T), T < \"9999-12-31T23:59:59Z\"^^xsd:dateTime.\n",
        "bad.rules:1:28: \"9999-12-31T23:59:59Z\" is an xsd:dateTime outside the times the built-ins read (1677-09-21 to 2262-04-11"},
       {"p(X, \"x\"@en-) :- q(X, Y).\n", "bad.rules:1:10: 'en-' is not a language tag"},
+      // A datatype XSD does not define: a slip, named with the type meant (at the datatype).
+      {"big(P, N) :- q(P, N), N > \"10\"^^xsd:integr.\n",
+       "bad.rules:1:33: xsd:integr is no XSD datatype (did you mean xsd:integer?): a constant of it would equal no value "
+       "the data holds"},
+      {"big(P, N) :- q(P, N), N > \"10\"^^<http://www.w3.org/2001/XMLSchema#number>.\n",
+       "bad.rules:1:33: xsd:number is no XSD datatype: a constant of it"},
   };
   for (const auto& [text, said] : cases) {
     auto p = tr::parse_rules(text, options("bad.rules"));
@@ -213,7 +219,8 @@ TEST(Rules, ATypedConstantThatIsNotAValueOfItsTypeIsAnErrorAtTheConstant) {
   // Valid constants of those types, and of types the built-ins do not read, are constants.
   EXPECT_TRUE(tr::parse_rules("late(P, T) :- q(P, T), T > \"2026-12-03T10:00:00.5+02:00\"^^xsd:dateTime.\n"
                               "big(P, N) :- q(P, N), N > \"+12\"^^xsd:integer, N < \"1e3\"^^xsd:double.\n"
-                              "odd(P, N) :- q(P, N), N = \"12x\"^^<http://example.org/code>.\n",
+                              "odd(P, N) :- q(P, N), N = \"12x\"^^<http://example.org/code>.\n"
+                              "ok(P, N) :- q(P, N), N \\= \"P1D\"^^xsd:duration, N \\= \"a\"^^xsd:NCName.\n",
                               options("ok.rules")));
 }
 

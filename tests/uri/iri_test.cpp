@@ -2,6 +2,7 @@
 // (UTF-8) IRIs, ids, agent and child IRIs, the "is under" test that routing and authorisation
 // rely on, and CURIE expansion. Each test names the behaviour it checks.
 #include "tahvel/uri/iri.h"
+#include "tahvel/uri/spelling.h"
 #include "tahvel/uri/unicode_escape.h"
 
 #include <gtest/gtest.h>
@@ -759,4 +760,16 @@ TEST(IriPercentDecoded, DecodesEachEscapeAndKeepsWhatIsNotOne) {
   EXPECT_EQ(tahvel::uri::percent_decoded("http://h/kodu-%C3%B5ie"), "http://h/kodu-\xC3\xB5ie");
   EXPECT_EQ(tahvel::uri::percent_decoded("http://h/a%2fb%zz%4"), "http://h/a/b%zz%4");
   EXPECT_EQ(tahvel::uri::percent_decoded(""), "");
+}
+
+// The "did you mean" of a misspelt term counts a dropped, an added, a changed and a swapped
+// (two) character as a slip that far away.
+TEST(Spelling, EditDistanceCountsTheOneCharacterEditsBetweenTwoNames) {
+  EXPECT_EQ(tahvel::uri::edit_distance("integer", "integer"), 0u);
+  EXPECT_EQ(tahvel::uri::edit_distance("integr", "integer"), 1u);
+  EXPECT_EQ(tahvel::uri::edit_distance("integerr", "integer"), 1u);
+  EXPECT_EQ(tahvel::uri::edit_distance("intager", "integer"), 1u);
+  EXPECT_EQ(tahvel::uri::edit_distance("itneger", "integer"), 2u);
+  EXPECT_EQ(tahvel::uri::edit_distance("", "abc"), 3u);
+  EXPECT_EQ(tahvel::uri::edit_distance("abc", ""), 3u);
 }

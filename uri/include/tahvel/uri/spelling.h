@@ -1,0 +1,15 @@
+// How far a name is from another, for the "did you mean" of a misspelt term: the CLI's
+// vocabulary warnings and the reasoner's datatypes.
+//
+//   uri::edit_distance("integr", "integer") == 1
+#pragma once
+
+#include <cstddef>
+#include <string_view>
+
+namespace tahvel::uri {
+
+// Levenshtein distance between `a` and `b` (bytes): how many one-character edits a slip is away.
+std::size_t edit_distance(std::string_view a, std::string_view b);
+
+}  // namespace tahvel::uri
