@@ -301,33 +301,15 @@ unsigned cascade_flag(const Args& args) {
   return static_cast<unsigned>(std::min<std::uint64_t>(args.get_u64("--cascade", 0), 1u << 20));
 }
 
-namespace {
-
-// The part of an IRI after its last '#' or '/': what a slip of the prefix leaves the same.
-std::string_view local_part(std::string_view iri) {
-  const std::size_t cut = iri.find_last_of("#/");
-  return cut == std::string_view::npos ? iri : iri.substr(cut + 1);
-}
-
-}  // namespace
-
 void warn_of_a_predicate_held_by_none(std::string_view command, const node::Pattern& pattern,
                                       const std::vector<node::PredicateSummary>& held, const uri::PrefixMap& prefixes,
                                       const std::string& where) {
   if (!pattern.p || !pattern.p->is_iri()) return;
   const std::string& asked = pattern.p->value;
-  const node::PredicateSummary* nearest = nullptr;
-  std::size_t nearest_edits = 4;  // more than 3 edits away is another word, not a slip
-  for (const node::PredicateSummary& h : held) {
-    if (h.records == 0) continue;
-    if (h.predicate == asked) return;
-    const std::string_view local = local_part(asked), held_local = local_part(h.predicate);
-    const bool same_namespace = std::string_view(asked).substr(0, asked.size() - local.size()) ==
-                                std::string_view(h.predicate).substr(0, h.predicate.size() - held_local.size());
-    // A right name under the wrong prefix (sosa:rmssdMs for the tv: one) is one edit away.
-    const std::size_t e = std::min(edit_distance(asked, h.predicate), edit_distance(local, held_local) + (same_namespace ? 0 : 1));
-    if (e < nearest_edits) nearest_edits = e, nearest = &h;
-  }
+  // More than 3 edits away is another word, not a slip.
+  const node::PredicateMatch match = node::match_predicate(asked, held, 4);
+  if (match.held) return;
+  const node::PredicateSummary* nearest = match.nearest;
   auto shown = [&](const std::string& iri) {
     std::string curie = prefixes.compact(iri);
     return curie == iri ? "<" + iri + ">" : curie;

@@ -63,6 +63,8 @@ void print_json(const reasoner::SessionReport& r) {
       << ",\"derive_ms\":" << fixed(r.derive_ms) << ",\"write_ms\":" << fixed(r.write_ms)
       << ",\"conclusions\":" << r.engine.conclusions << ",\"base_facts\":" << r.engine.base_facts << ",\"not_written\":[";
   for (std::size_t i = 0; i < r.not_written.size(); ++i) out << (i ? ",\"" : "\"") << node::json_escape(r.not_written[i]) << "\"";
+  out << "],\"warnings\":[";
+  for (std::size_t i = 0; i < r.warnings.size(); ++i) out << (i ? ",\"" : "\"") << node::json_escape(r.warnings[i]) << "\"";
   out << "]}\n";
   std::cout << out.str() << std::flush;
 }
@@ -151,6 +153,7 @@ int run_reason(const Args& args) {
     std::cerr.clear();
     if (r.problem_not_written) std::cerr << "tahvel: the rules' problem is not on the board: " << *r.problem_not_written << "\n";
     for (const std::string& said : r.not_written) std::cerr << "tahvel: warning: " << said << "\n";
+    for (const std::string& said : r.warnings) std::cerr << "tahvel: warning: " << said << "\n";
     if (json) print_json(r); else print_text(r, prefixes);
     return static_cast<bool>(std::cout);
   };

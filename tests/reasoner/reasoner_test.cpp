@@ -507,6 +507,35 @@ TEST_F(ReasonerTest, ARuleFileWhoseReadFailsIsRefusedSayingWhy) {
   EXPECT_EQ(text.error().message, "/proc/self/mem: error while reading the rule file: Input/output error");
 }
 
+// A rule on a misspelt predicate (rmsd for the rmssd on the board) holds for nothing, and an
+// alert of it never fires, without a word: the first session, and the first after the rules
+// are reloaded, say so. A predicate that nothing on the board is near may not have come yet.
+TEST_F(ReasonerTest, ASessionOfNewRulesWarnsOfAPredicateTheyReadThatIsASlipOfOneOnTheBoard) {
+  put({{n("w1"), n("rmssd"), tn::Term::integer(12)}, t("w1", "patient", "p1")});
+  auto file = rules("alert.rules",
+                    "low(P, yes) :- rmsd(W, R), patient(W, P), R < 20.\n"
+                    "flag(P, yes) :- notyet(P, _).\n"
+                    "mark(W, yes) :- rmssd(W, _), \\+ patiant(W, _).\n");
+  auto r = open(file);
+  auto s = r.session();
+  ASSERT_TRUE(s.has_value()) << s.error().message;
+  ASSERT_EQ(s->warnings.size(), 2u) << ::testing::PrintToString(s->warnings);
+  EXPECT_EQ(s->warnings[0], file.string() + ":1:16: <" + kNs + "rmsd>: no fact on the board has this predicate; did you mean <" +
+                                kNs + "rmssd> (1 record)? Until one has it, what the rules read of it holds for nothing");
+  EXPECT_EQ(s->warnings[1].rfind(file.string() + ":3:33: <" + kNs + "patiant>: no fact on the board has this predicate; did you "
+                                 "mean <" + kNs + "patient> (1 record)?", 0),
+            0u)
+      << s->warnings[1];
+  put({t("w2", "patient", "p2")});
+  EXPECT_TRUE(r.session().value().warnings.empty());  // said once per rules
+  rules("alert.rules", "low(P, yes) :- rmssd(W, R), patient(W, P), R < 20.\n");
+  auto mended = r.session();
+  ASSERT_TRUE(mended.has_value());
+  EXPECT_TRUE(mended->rules_reloaded);
+  EXPECT_TRUE(mended->warnings.empty()) << ::testing::PrintToString(mended->warnings);
+  EXPECT_EQ(board().count(nt("p1", "low", "yes")), 1u);
+}
+
 TEST_F(ReasonerTest, RulesReloadAndABrokenFileIsReportedWhileThePreviousRulesRun) {
   auto file = rules("live.rules", "p(X, Y) :- a(X, Y).\n");
   put({t("x", "a", "y")});

@@ -159,6 +159,7 @@ struct Reasoner::Impl {
   void maybe_reload(SessionReport& report);
   Result<void> read_changes(const node::Snapshot& snap, std::vector<node::Triple>& in,
                             std::vector<node::Triple>& out, bool& gap);
+  void say_predicates_held_by_none(const node::Snapshot& snap, SessionReport& report) const;
   Result<Engine::Update> first_session(const node::Snapshot& snap, std::int64_t now, SessionReport& report,
                                        std::vector<node::Triple>& extra_removals);
   Result<Engine::Update> resync(const node::Snapshot& snap, std::int64_t now, SessionReport& report,
@@ -239,6 +240,22 @@ Result<void> Reasoner::Impl::read_changes(const node::Snapshot& snap, std::vecto
   gap = last - bookmark != present + removals + removed_new || removed_by_others;
   removing.clear();
   return {};
+}
+
+void Reasoner::Impl::say_predicates_held_by_none(const node::Snapshot& snap, SessionReport& report) const {
+  auto held = snap.predicates();
+  if (!held) return;  // a hint only: the session reads the board anyway and says its error
+  for (const BasePredicate& read : base_predicates(*program)) {
+    // More than two edits away is another word, not a slip.
+    const node::PredicateMatch match = node::match_predicate(read.iri, *held, 3);
+    const node::PredicateSummary* nearest = match.nearest;
+    // A predicate that nothing on the board is near may simply not have come yet.
+    if (match.held || !nearest) continue;
+    report.warnings.push_back(read.where + ": <" + read.iri + ">: no fact on the board has this predicate; did you mean <" +
+                              nearest->predicate + "> (" + std::to_string(nearest->records) +
+                              (nearest->records == 1 ? " record" : " records") +
+                              ")? Until one has it, what the rules read of it holds for nothing");
+  }
 }
 
 Result<Engine::Update> Reasoner::Impl::first_session(const node::Snapshot& snap, std::int64_t now,
@@ -416,6 +433,7 @@ Result<SessionReport> Reasoner::Impl::session() {
   bool gap = false;
   const auto t1 = Clock::now();
   try {
+  if (!started || rules_pending) say_predicates_held_by_none(*snap, report);
   if (!started) {
     auto u = first_session(*snap, now, report, extra_removals);
     if (!u) return unexpected(u.error());

@@ -50,6 +50,21 @@ Result<std::shared_ptr<const Program>> load_rules(const std::filesystem::path& p
 
 std::size_t rule_count(const Program& program) { return program.written_rules; }
 
+std::vector<BasePredicate> base_predicates(const Program& program) {
+  std::vector<bool> concluded(program.preds.size(), false), named(program.preds.size(), false);
+  for (const Rule& rule : program.rules) concluded[rule.head] = true;
+  std::vector<BasePredicate> out;
+  for (const Rule& rule : program.rules)
+    for (const Literal& lit : rule.body) {
+      if ((lit.kind != Literal::atom && lit.kind != Literal::negation) || lit.pred == kAnyBinary) continue;
+      const Pred& pred = program.preds[lit.pred];
+      if (pred.arity != 2 || pred.internal || concluded[lit.pred] || named[lit.pred]) continue;
+      named[lit.pred] = true;
+      out.push_back({pred.iri, where(program, lit.pos)});
+    }
+  return out;
+}
+
 std::string Atom::to_string() const {
   std::string out = "<" + predicate + ">(";
   for (std::size_t i = 0; i < args.size(); ++i) out += (i ? ", " : "") + args[i].to_ntriples();

@@ -131,6 +131,17 @@ struct PredicateSummary {
   std::int64_t first_asserted_at = 0, last_asserted_at = 0;  // ns since the epoch
 };
 
+// For the "did you mean" of a predicate asked for (a pattern, a rule) among those a store holds
+// (Snapshot::predicates): whether it is held (with records), and if not, the held predicate it
+// is most likely a slip of: fewest one-character edits on the whole IRI or on the local name
+// (after the last '#' or '/'; under another namespace one edit more: sosa:rmssdMs for the tv:
+// one), fewer than `edits_below`; nullptr when none is that near.
+struct PredicateMatch {
+  bool held = false;
+  const PredicateSummary* nearest = nullptr;  // into the vector given
+};
+PredicateMatch match_predicate(std::string_view asked, const std::vector<PredicateSummary>& held, std::size_t edits_below);
+
 class Snapshot {
  public:
   Snapshot(Snapshot&&) noexcept;

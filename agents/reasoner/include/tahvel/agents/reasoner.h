@@ -73,6 +73,11 @@ struct SessionReport {
   // left out, and the rest of the session written. One such conclusion failed the whole
   // session's write, and the reasoner ended, its other conclusions with it.
   std::vector<std::string> not_written;
+  // At the first session and after the rules are reloaded: each predicate the rules read as
+  // triples that no fact on the board has, while one a slip away does ("file:line:col: ex:rmsd:
+  // no fact on the board has this predicate; did you mean ex:rmssd (12 records)? ..."). A rule
+  // on a misspelt predicate holds for nothing, and an alert of it never fires, without a word.
+  std::vector<std::string> warnings;
   double read_ms = 0, derive_ms = 0, write_ms = 0, total_ms = 0;
   EngineStats engine;
 };

@@ -74,6 +74,15 @@ Result<std::shared_ptr<const Program>> load_rules(const std::filesystem::path& p
 // Number of rules of the program as written (clauses, without the rewriting).
 std::size_t rule_count(const Program& program);
 
+// A predicate the rules read as triples and no rule concludes: only the board's facts give it.
+struct BasePredicate {
+  std::string iri;
+  std::string where;  // file:line:col of the first literal reading it
+};
+
+// The program's base predicates, in the order the rules first read them.
+std::vector<BasePredicate> base_predicates(const Program& program);
+
 // A conclusion: a predicate IRI and its arguments. Arity 2 is the triple args[0] predicate
 // args[1]; other arities are stored reified (see store_form).
 struct Atom {
