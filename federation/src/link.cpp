@@ -3505,15 +3505,23 @@ Result<std::unique_ptr<Link>> Link::start(LinkOptions options) {
       for (const auto& r : *states) {
         if (auto known = s.children.find(r.triple.s.value); known != s.children.end()) {
           // A child an earlier run had connected is "down" until it says hello again, with the
-          // time it was last seen, not "never connected" (a restarted gateway's children).
+          // time it was last seen, the outbox depth and version it last said, not "never
+          // connected" (a restarted gateway's children), nor an outbox of 0 (a child whose
+          // parent's link was killed while its items waited showed "outbox 0" for as long as
+          // Cyclone's lease kept it from saying hello again).
           if (r.triple.o.value == "up" || r.triple.o.value == "down") {
-            known->second->ever_before = true;
-            auto seen = snap->list({.s = r.triple.s, .p = node::Term::iri(vocab::kLastSeen), .source = link_agent->iri()});
-            if (seen && !seen->empty()) {
-              std::int64_t ns = 0;
-              const std::string& text = seen->back().triple.o.value;
-              std::from_chars(text.data(), text.data() + text.size(), ns);
-              known->second->last_seen_ns = ns;
+            Impl::Child& child = *known->second;
+            child.ever_before = true;
+            auto said = snap->list({.s = r.triple.s, .source = link_agent->iri()});
+            for (const node::Record& k : said ? *said : std::vector<node::Record>{}) {
+              const std::string& text = k.triple.o.value;
+              if (k.triple.p.value == vocab::kLastSeen) {
+                std::from_chars(text.data(), text.data() + text.size(), child.last_seen_ns);
+              } else if (k.triple.p.value == vocab::kOutboxDepth) {
+                std::from_chars(text.data(), text.data() + text.size(), child.outbox_depth);
+              } else if (k.triple.p.value == vocab::kSoftwareVersion) {
+                child.version = text;
+              }
             }
           }
           continue;

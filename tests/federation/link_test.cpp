@@ -1204,6 +1204,34 @@ TEST(Link, EachChildHasOneStateItemThatFollowsItsLinkAcrossARestartOfTheParent) 
   ASSERT_EQ(last_seen().size(), 1u);
   EXPECT_EQ(last_seen()[0].triple.o.value, seen_before);
   EXPECT_EQ(state_of(kHome2), States{"never connected"});
+  // And with what it last said of itself: its version and outbox depth (a new run wrote no
+  // version and an outbox of 0, while the child's own view said 12 items waited).
+  auto said = [&](const std::string& predicate) {
+    auto records = node::Node::open(tree.hospital_dir).value().snapshot().value().list({.s = Term::iri(kHome1), .p = Term::iri(predicate)}).value();
+    return records.size() == 1 ? records[0].triple.o.value : "(" + std::to_string(records.size()) + " records)";
+  };
+  const std::string version = said(vocab::kSoftwareVersion);
+  EXPECT_NE(version.find("tahvel"), std::string::npos) << version;
+  {  // as a run that last heard home1 with 12 items in its outbox left it
+    auto hospital_node = node::Node::open(tree.hospital_dir).value();
+    auto link_agent = hospital_node.agent("link").value();
+    node::Item state;
+    state.persistent = true;
+    state.add(Term::iri(kHome1), Term::iri(vocab::kParent), Term::iri(kHospital))
+        .add(Term::iri(kHome1), Term::iri(vocab::kLinkState), Term::literal("down"))
+        .add(Term::iri(kHome1), Term::iri(vocab::kLastSeen), Term::integer(std::stoll(seen_before)))
+        .add(Term::iri(kHome1), Term::iri(vocab::kOutboxDepth), Term::integer(12))
+        .add(Term::iri(kHome1), Term::iri(vocab::kSoftwareVersion), Term::literal(version));
+    tree.hospital.reset();
+    ASSERT_TRUE(link_agent.replace({{.s = Term::iri(kHome1), .source = link_agent.iri()}}, {state}).has_value());
+  }
+  const std::uint64_t item_written = state_item();
+  tree.hospital = tree.start_hospital();
+  ASSERT_TRUE(eventually([&] { return state_item() != item_written; })) << "the new run wrote no state of home1";
+  EXPECT_EQ(state_of(kHome1), States{"down"});
+  EXPECT_EQ(said(vocab::kOutboxDepth), "12");
+  EXPECT_EQ(said(vocab::kSoftwareVersion), version);
+  EXPECT_EQ(said(vocab::kLastSeen), seen_before);
 }
 
 // P12a: a child keeps its own view of its uplink on its board (what `tahvel status` shows on a
