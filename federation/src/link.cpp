@@ -2896,12 +2896,18 @@ struct Link::Impl {
         }
         const std::int64_t wall = now_ns();
         // A round comes at least every 50 ms. A longer gap is this process not running (stopped
-        // by a signal, a paused machine): its children were not heard because it did not listen,
-        // so each keeps the silence it had left, rather than all being declared down at once.
+        // by a signal, a paused machine): its children and its parent were not heard because it
+        // did not listen, so each keeps the silence it had left, rather than being declared down
+        // at once (a gateway stopped for 24 s logged that its parent "has not been heard for
+        // 24.8 s", and its parent was fine).
         const auto stalled = now - last_round - std::chrono::milliseconds(50);
         last_round = now;
-        if (stalled > kOwnStall)
+        if (stalled > kOwnStall) {
           for (auto& [iri, child] : children) child->last_seen = std::min(now, child->last_seen + stalled);
+          if (opt.up) parent_heard = std::min(now, parent_heard + stalled);
+          log("this process did not run for " + seconds_text(stalled) +
+              " (stopped by a signal, or the machine paused): its parent and children keep the silence they had left");
+        }
         for (auto& [iri, child] : children) {
           if (child->connected && now - child->last_seen > opt.child_silence) {
             child->connected = false;
@@ -3314,7 +3320,12 @@ struct Link::Impl {
                                                                    : "never connected";
       // The parent logs a silent child; the child logs its silent parent, which it sees only as
       // frames that stop coming.
-      if (state == "down" && own_state_logged == "up")
+      // Down while the parent is heard: it answered that this node must say hello again (its
+      // link restarted, or it found this node silent: this process stopped for a while).
+      if (state == "down" && own_state_logged == "up" && silence <= opt.child_silence)
+        went = "the parent <" + opt.parent_iri + "> no longer holds this node registered: link down until it welcomes "
+               "this node again; items wait in the outbox (" + std::to_string(outbox_depth) + ")";
+      else if (state == "down" && own_state_logged == "up")
         went = "the parent <" + opt.parent_iri + "> has not been heard for " + seconds_text(silence) +
                ": link down; items wait in the outbox (" + std::to_string(outbox_depth) + ") until it is heard again";
       else if (state == "up" && own_state_logged == "down" && !silent)

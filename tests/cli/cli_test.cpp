@@ -3993,6 +3993,39 @@ TEST_F(Cli, UpStartsANodeRestoredFromABackupAndWritesItsChangedForwardingPolicy)
   EXPECT_EQ(policy.out.find("EcgChunk"), std::string::npos) << policy.out;
 }
 
+// A gateway's link stopped (SIGSTOP) for longer than child_silence, then resumed: its parent
+// had been fine all along, yet it logged that the parent "has not been heard for 24.8 s: link
+// down" (an exploratory failure schedule). It says that it did not run, and the parent keeps
+// the silence it had left, as its children do.
+TEST_F(Cli, ALinkThatWasStoppedSaysSoRatherThanThatItsParentWentSilent) {
+  const std::string state = (tmp_ / "state").string();
+  spit(tmp_ / "pair.toml", hospital_and_home_toml("http://example.org/paused", "udpm://239.255.79.49:7851?ttl=0"));
+  ASSERT_EQ(run({"up", (tmp_ / "pair.toml").string(), "--state", state}).status, 0);
+  ASSERT_TRUE(eventually([&] { return run({"status", "--state", state, "--local"}).out.find("link up") != std::string::npos; }))
+      << run({"status", "--state", state, "--local"}).out;
+  pid_t link = 0;
+  {
+    std::ifstream in(fs::path(state) / "supervisor-all.state");
+    for (std::string line; std::getline(in, line);)
+      if (line.starts_with("home/link\t")) link = static_cast<pid_t>(std::stol(line.substr(10)));
+  }
+  ASSERT_GT(link, 0);
+  ASSERT_EQ(kill(link, SIGSTOP), 0);
+  std::this_thread::sleep_for(std::chrono::seconds(5));
+  ASSERT_EQ(kill(link, SIGCONT), 0);
+  const fs::path log = fs::path(state) / "logs" / "home" / "link.log";
+  EXPECT_TRUE(eventually([&] { return slurp(log).find("this process did not run for ") != std::string::npos; })) << slurp(log);
+  std::this_thread::sleep_for(std::chrono::milliseconds(1500));  // a beat or two: the parent answers
+  EXPECT_EQ(slurp(log).find("has not been heard for"), std::string::npos) << slurp(log);
+  // The parent found it silent meanwhile, and says so at its first heartbeat: it says hello again.
+  EXPECT_NE(slurp(log).find("the parent <http://example.org/paused> no longer holds this node registered: link down until it "
+                            "welcomes this node again"),
+            std::string::npos)
+      << slurp(log);
+  EXPECT_TRUE(eventually([&] { return run({"status", "--state", state, "--local"}).out.find("link up") != std::string::npos; }));
+  EXPECT_EQ(run({"down", "--state", state}).status, 0);
+}
+
 // Its supervisor stopped (SIGSTOP, hung), a link that runs on and refreshes its state was shown
 // "link state unknown" by `status` on its own machine, while the machine above showed it up: the
 // programs are unknown, the link's own fresh word is believed.
