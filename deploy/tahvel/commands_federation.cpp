@@ -2363,9 +2363,18 @@ std::string store_warning(const node::Node& node, const fs::path& dir) {
   said << std::fixed;
   // By the file's high-water mark, not the pages holding data: copy on write needs fresh pages
   // beyond what the last write freed, so a store refuses writes with a third of its pages free.
-  if (auto st = node.stats(); st && st->max_map_bytes > 0 && st->high_water_bytes * 10 >= st->max_map_bytes * 9)
-    said << st->high_water_bytes / kMB << " MB of its maximum " << st->max_map_bytes / kMB << " MB used ("
-         << st->used_bytes / kMB << " MB holding data): writes that do not fit are refused";
+  // But pages freed below the mark are used again: a store emptied with `tahvel remove` takes
+  // writes, its file as large as before (it was called full with 0.1 MB of 2 holding data). A
+  // removal may take the mark past the maximum, into the reserve kept for removals.
+  if (auto st = node.stats(); st && st->max_map_bytes > 0 && st->high_water_bytes * 10 >= st->max_map_bytes * 9 &&
+                              st->used_bytes * 2 >= st->max_map_bytes) {
+    if (st->high_water_bytes > st->max_map_bytes)
+      said << st->high_water_bytes / kMB << " MB used, past its maximum of " << st->max_map_bytes / kMB
+           << " MB into the reserve kept for removals (";
+    else
+      said << st->high_water_bytes / kMB << " MB of its maximum " << st->max_map_bytes / kMB << " MB used (";
+    said << st->used_bytes / kMB << " MB holding data): writes that do not fit are refused";
+  }
   struct statvfs disk {};
   if (statvfs(dir.c_str(), &disk) == 0) {
     const double free_mb = static_cast<double>(disk.f_bavail) * static_cast<double>(disk.f_frsize) / kMB;

@@ -4069,6 +4069,19 @@ TEST_F(Cli, StatusSaysWhenAStoreIsFull) {
   Outcome json = run({"status", "--state", state.string(), "--local", "--json"});
   EXPECT_NE(json.out.find("\"store_warning\":\""), std::string::npos) << json.out;
   EXPECT_NE(json.out.find(" MB of its maximum 2.0 MB used ("), std::string::npos) << json.out;
+  // A removal takes the file's high-water mark past the maximum, into the reserve kept for
+  // removals ("2.1 MB of its maximum 2.0 MB used" read as a contradiction).
+  ASSERT_EQ(run({"remove", (state / "solo").string(), "-s", "http://example.org/solo/r3"}).status, 0);
+  shown = run({"status", "--state", state.string(), "--local"});
+  EXPECT_TRUE(std::regex_search(shown.out, std::regex("\n  STORE ((1\\.[89]|2\\.0) MB of its maximum 2\\.0 MB used|2\\.[0-9] MB used, past "
+                                                      "its maximum of 2\\.0 MB into the reserve kept for removals) \\(")))
+      << shown.out;
+  // Emptied, it takes writes again, its file as large as before: no longer said to refuse them.
+  ASSERT_EQ(run({"remove", (state / "solo").string(), "-p", "http://example.org/p"}).status, 0);
+  shown = run({"status", "--state", state.string(), "--local"});
+  EXPECT_EQ(shown.out.find("STORE"), std::string::npos) << shown.out;
+  EXPECT_EQ(run({"put", (state / "solo").string(), "--format", "nt"},
+                "<http://example.org/solo/again> <http://example.org/p> \"" + literal + "\" .\n").status, 0);
 }
 
 // A parent that refuses what its child sends (P9b: its store full) keeps the link up in its own
