@@ -897,7 +897,8 @@ void warn_of_dataflow(const Topology& topo, const std::vector<const NodeSpec*>& 
       policies[spec.id] = std::nullopt;  // said where that node is brought up
     }
   }
-  for (const std::string& line : dataflow_warnings(topo, policies, mine)) std::cerr << "up: warning: " << line << "\n";
+  const bool with_mitdb = !CommandContext::of_this_process().mitdb.empty();
+  for (const std::string& line : dataflow_warnings(topo, policies, mine, with_mitdb)) std::cerr << "up: warning: " << line << "\n";
 }
 
 // The triples of a `load` file as the node's new board reads them: relative IRIs against the
@@ -2369,8 +2370,8 @@ std::string store_warning(const node::Node& node, const fs::path& dir) {
   if (auto st = node.stats(); st && st->max_map_bytes > 0 && st->high_water_bytes * 10 >= st->max_map_bytes * 9 &&
                               st->used_bytes * 2 >= st->max_map_bytes) {
     if (st->high_water_bytes > st->max_map_bytes)
-      said << st->high_water_bytes / kMB << " MB used, past its maximum of " << st->max_map_bytes / kMB
-           << " MB into the reserve kept for removals (";
+      said << st->high_water_bytes / kMB << " MB used, " << (st->high_water_bytes - st->max_map_bytes) / 1024
+           << " KB past its maximum of " << st->max_map_bytes / kMB << " MB, into the reserve kept for removals (";
     else
       said << st->high_water_bytes / kMB << " MB of its maximum " << st->max_map_bytes / kMB << " MB used (";
     said << st->used_bytes / kMB << " MB holding data): writes that do not fit are refused";

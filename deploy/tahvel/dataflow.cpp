@@ -188,8 +188,11 @@ std::string list_of(const std::vector<std::string>& names) {
 std::string program_name(const AgentSpec& agent) { return std::filesystem::path(agent.run.front()).filename().string(); }
 
 // The agent id a shipped program runs as on its node's board: its --agent, else the program's
-// default; nullopt for any other program (what it runs as is not known here).
-std::optional<std::string> board_agent_id(const AgentSpec& agent) {
+// default; nullopt for any other program (what it runs as is not known here). `with_mitdb`:
+// TAHVEL_MITDB is set, and an agent with run_with_mitdb runs that.
+std::optional<std::string> board_agent_id(const AgentSpec& spec, bool with_mitdb) {
+  AgentSpec agent = spec;
+  if (with_mitdb && !spec.run_with_mitdb.empty()) agent.run = spec.run_with_mitdb;
   if (agent.run.empty()) return std::nullopt;
   static const std::map<std::string, std::string> kDefaults = {
       {"tahvel-ecg-source", "ecg"}, {"tahvel-rpeak", "rpeak"},   {"tahvel-rr", "rr"},
@@ -204,31 +207,33 @@ std::optional<std::string> board_agent_id(const AgentSpec& agent) {
   } else {
     return std::nullopt;
   }
-  for (std::size_t i = flags_from; i + 1 < agent.run.size(); ++i)
-    if (agent.run[i] == "--agent") return agent.run[i + 1];
+  for (std::size_t i = flags_from; i < agent.run.size(); ++i) {
+    if (agent.run[i] == "--agent" && i + 1 < agent.run.size()) return agent.run[i + 1];
+    if (agent.run[i].starts_with("--agent=")) return agent.run[i].substr(8);
+  }
   return fallback;
 }
 
 }  // namespace
 
 std::vector<std::string> dataflow_warnings(const Topology& topo, const ForwardPolicies& policies,
-                                           const std::vector<const NodeSpec*>& judged) {
+                                           const std::vector<const NodeSpec*>& judged, bool with_mitdb) {
   Flow flow(topo, policies);
   std::vector<std::string> warnings;
   for (const NodeSpec* spec : judged) {
     // Two programs that run as one agent: one process at a time holds an agent (its lock), so the
-    // second fails at each start, restarted with back-off, until the first ends (two ECG sources
-    // left at their default: the second patient's ECG came a whole record late).
+    // second fails at each start until the first ends (two ECG sources left at their default:
+    // the second patient's ECG came a whole record late; restarted only as its policy says).
     std::map<std::string, const AgentSpec*> runs_as;
     for (const AgentSpec& agent : spec->agents) {
-      auto id = board_agent_id(agent);
+      auto id = board_agent_id(agent, with_mitdb);
       if (!id) continue;
       auto [first, fresh] = runs_as.emplace(*id, &agent);
       if (!fresh)
         warnings.push_back(agent.at + ": node '" + spec->id + "': agent '" + agent.id + "' (" + program_name(agent) +
                            ") runs as agent <" + spec->iri + "/" + *id + ">, as '" + first->second->id + "' (" +
-                           first->second->at + ") does: one process at a time holds an agent, so it will wait until "
-                           "that one ends; give one of them --agent ID");
+                           first->second->at + ") does: one process at a time holds an agent, so it cannot run while "
+                           "that one does; give one of them --agent ID");
     }
     const Holds& here = flow.holds(*spec);
     // A stage here whose input and output both come up from one child: the child's stage and this

@@ -33,8 +33,9 @@ using ForwardPolicies = std::map<std::string, std::optional<std::vector<node::Pa
 // - a stage whose input and results both come up from one child, so that the child's stage and
 //   this one write one recording's items under the same names;
 // - a shipped program that runs as the same agent (its --agent, or its default) as another of
-//   its node, and so waits until that one ends.
+//   its node, and so cannot run while that one does.
+// `with_mitdb`: TAHVEL_MITDB is set, so agents with run_with_mitdb run that.
 std::vector<std::string> dataflow_warnings(const Topology& topo, const ForwardPolicies& policies,
-                                           const std::vector<const NodeSpec*>& judged);
+                                           const std::vector<const NodeSpec*>& judged, bool with_mitdb);
 
 }  // namespace tahvel::cli

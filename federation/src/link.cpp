@@ -2868,7 +2868,6 @@ struct Link::Impl {
     std::set<std::string> unknown_addressees;
     Clock::time_point next_addressee_check{};
     if (opt.up) (void)link->report_problem("");
-    Clock::time_point last_round = Clock::now();
     while (!stopping) {
       std::vector<BoardWrite> writes;
       std::vector<std::shared_ptr<Child>> dirty;
@@ -2878,6 +2877,7 @@ struct Link::Impl {
         std::unique_lock lock(mu);
         // While answer chunks wait on the board, look often for the asker having taken them.
         const bool unread = std::any_of(in_answers.begin(), in_answers.end(), [](const auto& e) { return !e.second.unread.empty(); });
+        const auto waited_from = Clock::now();
         board_due.wait_for(lock, unread ? 5ms : 50ms, [&] { return !board_writes.empty() || stopping.load(); });
         writes.assign(std::make_move_iterator(board_writes.begin()), std::make_move_iterator(board_writes.end()));
         board_writes.clear();
@@ -2895,13 +2895,13 @@ struct Link::Impl {
           }
         }
         const std::int64_t wall = now_ns();
-        // A round comes at least every 50 ms. A longer gap is this process not running (stopped
-        // by a signal, a paused machine): its children and its parent were not heard because it
+        // The wait above ends within 50 ms. A longer one is this process not running (stopped by
+        // a signal, a paused machine): its children and its parent were not heard because it
         // did not listen, so each keeps the silence it had left, rather than being declared down
         // at once (a gateway stopped for 24 s logged that its parent "has not been heard for
-        // 24.8 s", and its parent was fine).
-        const auto stalled = now - last_round - std::chrono::milliseconds(50);
-        last_round = now;
+        // 24.8 s", and its parent was fine). Only the wait: the round's board writes may take
+        // long on a busy store while the receiving threads hear on.
+        const auto stalled = now - waited_from - std::chrono::milliseconds(50);
         if (stalled > kOwnStall) {
           for (auto& [iri, child] : children) child->last_seen = std::min(now, child->last_seen + stalled);
           if (opt.up) parent_heard = std::min(now, parent_heard + stalled);
@@ -3320,11 +3320,12 @@ struct Link::Impl {
                                                                    : "never connected";
       // The parent logs a silent child; the child logs its silent parent, which it sees only as
       // frames that stop coming.
-      // Down while the parent is heard: it answered that this node must say hello again (its
-      // link restarted, or it found this node silent: this process stopped for a while).
+      // Down while the parent is heard: this node must say hello again (the parent answered
+      // "unregistered": its link restarted, or it found this node silent while this process
+      // was stopped; or this node's store or the parent's changed).
       if (state == "down" && own_state_logged == "up" && silence <= opt.child_silence)
-        went = "the parent <" + opt.parent_iri + "> no longer holds this node registered: link down until it welcomes "
-               "this node again; items wait in the outbox (" + std::to_string(outbox_depth) + ")";
+        went = "the parent <" + opt.parent_iri + "> is heard, but this node must say hello to it again: link down until "
+               "it is welcomed; items wait in the outbox (" + std::to_string(outbox_depth) + ")";
       else if (state == "down" && own_state_logged == "up")
         went = "the parent <" + opt.parent_iri + "> has not been heard for " + seconds_text(silence) +
                ": link down; items wait in the outbox (" + std::to_string(outbox_depth) + ") until it is heard again";

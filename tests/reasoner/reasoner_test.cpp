@@ -3,7 +3,9 @@
 // retracting exactly what lost all support, rule reload (and a broken file reported while the
 // previous rules run), the board against a from-scratch evaluation (differential), and a
 // concurrent writer whose items a session never sees half of.
+#include <fcntl.h>
 #include <gtest/gtest.h>
+#include <sys/file.h>
 #include <unistd.h>
 #include <stdlib.h>
 
@@ -208,11 +210,33 @@ TEST_F(ReasonerTest, ASecondReasonerAsTheSameAgentIsRefusedAndAnotherAgentIsNot)
   o.rules = rules("b.rules", "cold(X, true) :- temp(X, T), T < 10.\n");
   auto second = tr::Reasoner::open(root_ / "node", o);
   ASSERT_FALSE(second.has_value());
-  EXPECT_NE(second.error().message.find("agent <" + kIri + "/reasoner> already runs a reasoner on this node (pid " +
-                                        std::to_string(getpid()) + "): give each reasoner its own --agent"),
+  EXPECT_NE(second.error().message.find("another process runs as agent <" + kIri + "/reasoner> on this node (pid " +
+                                        std::to_string(getpid()) + "), " + (root_ / "node" / ".agent-reasoner.lock").string() +
+                                        " is locked: give each reasoner its own --agent"),
             std::string::npos) << second.error().message;
   o.agent_id = "cold-reasoner";
   EXPECT_TRUE(tr::Reasoner::open(root_ / "node", o).has_value());
+}
+
+// A reasoner run as another program's agent (`--agent ecg` beside tahvel-ecg-source) would take
+// that program's records for conclusions of an earlier run and remove them at its first session:
+// it holds the lock the shipped agents hold, and is refused while one of them runs.
+TEST_F(ReasonerTest, AReasonerAsTheAgentOfARunningProgramIsRefusedAndRemovesNothing) {
+  tn::Item written;
+  written.add(n("chunk1"), n("samples"), n("x"));
+  const std::uint64_t chunk = node_->agent("ecg").value().store(written).value();
+  const int held = ::open((root_ / "node" / ".agent-ecg.lock").c_str(), O_RDWR | O_CREAT | O_CLOEXEC, 0644);
+  ASSERT_GE(held, 0);
+  ASSERT_EQ(flock(held, LOCK_EX | LOCK_NB), 0);  // as tahvel-ecg-source holds it while it runs
+  tr::ReasonerOptions o;
+  o.rules = rules("a.rules", "hot(X, true) :- temp(X, T), T > 30.\n");
+  o.agent_id = "ecg";
+  auto reasoner = tr::Reasoner::open(root_ / "node", o);
+  ::close(held);
+  ASSERT_FALSE(reasoner.has_value());
+  EXPECT_NE(reasoner.error().message.find("another process runs as agent <" + kIri + "/ecg> on this node"), std::string::npos)
+      << reasoner.error().message;
+  EXPECT_TRUE(node_->snapshot()->item(chunk).has_value()) << "the program's record is gone";
 }
 
 // A session reports the removed facts that some rule reads, as it does the new ones: removals of

@@ -1015,8 +1015,9 @@ TEST(Rules, PrologWithoutMeaningHereIsNamedWithWhatToWriteInstead) {
   EXPECT_TRUE(tr::parse_rules("a(X, Y) :- v(X, Y), (Y + 1) > 3, (Y) > 2, \\+ (w(X, Y)), \\+ w(Y, X).\nw(X, Y) :- v(Y, X).\n",
                               options("p.rules"))
                   .has_value());
-  // not(atom) is negation too (RS6).
+  // not(atom) is negation too (RS6), and the constant not stays one.
   EXPECT_TRUE(tr::parse_rules("a(X) :- v(X, Y), not(w(Y, X)).\nw(X, Y) :- v(Y, X).\n", options("p.rules")).has_value());
+  EXPECT_TRUE(tr::parse_rules("a(X, Y) :- v(X, Y), not is Y.\nb(X) :- v(X, not).\n", options("p.rules")).has_value());
 }
 
 // An integer is compared with a double by value, not as the double it rounds to above 2^53.

@@ -785,7 +785,7 @@ Result<Literal> Parser::literal() {
     auto saved = lexer_.state();
     auto next = lexer_.next();
     lexer_.restore(saved);
-    if (next && (next->kind == Tok::name || next->kind == Tok::iri))
+    if (next && (next->kind == Tok::iri || (next->kind == Tok::name && next->text != "is")))
       return error(start, "'not' negates in parentheses only: write not(p(X)) or \\+ p(X)");
   }
   // (fact(X, p, Y)) or (X > 3 ; …): a literal in parentheses, which an arithmetic expression

@@ -76,6 +76,7 @@ struct Reasoner::Impl {
   ReasonerOptions options;
   ParseOptions parse;
   std::shared_ptr<const Program> program;
+  const Program* warned_of = nullptr;  // the rules whose predicates held by none were said (once)
   bool uses_now() const {
     return std::any_of(program->strata.begin(), program->strata.end(), [](const Stratum& s) { return s.volatile_; });
   }
@@ -433,7 +434,10 @@ Result<SessionReport> Reasoner::Impl::session() {
   bool gap = false;
   const auto t1 = Clock::now();
   try {
-  if (!started || rules_pending) say_predicates_held_by_none(*snap, report);
+  if (warned_of != program.get()) {
+    say_predicates_held_by_none(*snap, report);
+    warned_of = program.get();
+  }
   if (!started) {
     auto u = first_session(*snap, now, report, extra_removals);
     if (!u) return unexpected(u.error());
@@ -507,19 +511,24 @@ Result<Reasoner> Reasoner::open(const std::filesystem::path& dir, ReasonerOption
   RuleFile rule_file(options.rules);
   auto program = parse_rule_file(rule_file, parse);
   if (!program) return unexpected(program.error());
-  // One reasoner per agent: a reasoner owns every conclusion of its agent, and at its first
-  // session removes those it did not derive, so a second one writing as the same agent (two
-  // `tahvel reason` with the default --agent) deleted the first one's live conclusions.
-  const std::filesystem::path lock_file = dir / (".reasoner-" + options.agent_id + ".lock");
+  // One process per agent: a reasoner owns every record of its agent, and at its first session
+  // removes those it did not derive, so a second one writing as the same agent (two `tahvel
+  // reason` with the default --agent) deleted the first one's live conclusions, and one run as
+  // another program's agent (`--agent ecg` beside tahvel-ecg-source) would delete its records.
+  // The lock is the one the shipped agents hold (agent_runtime.h), named by the id as the
+  // agent's IRI has it.
+  const std::filesystem::path lock_file =
+      node->dir() / (".agent-" + agent->iri().substr(node->iri().size() + 1) + ".lock");
   const int lock = ::open(lock_file.c_str(), O_RDWR | O_CREAT | O_CLOEXEC, 0644);
   if (lock < 0) return unexpected(Error{lock_file.string() + ": " + std::strerror(errno)});
   if (flock(lock, LOCK_EX | LOCK_NB) != 0) {
     char text[32] = {};
     const ssize_t n = pread(lock, text, sizeof text - 1, 0);
     ::close(lock);
-    return unexpected(Error{"agent <" + agent->iri() + "> already runs a reasoner on this node" +
+    return unexpected(Error{"another process runs as agent <" + agent->iri() + "> on this node" +
                             (n > 0 && std::atoi(text) > 0 ? " (pid " + std::to_string(std::atoi(text)) + ")" : std::string()) +
-                            ": give each reasoner its own --agent, or each deletes the other's conclusions"});
+                            ", " + lock_file.string() + " is locked: give each reasoner its own --agent (a reasoner removes "
+                            "the records of its agent that it did not derive)"});
   }
   const std::string pid = std::to_string(getpid()) + "\n";
   if (ftruncate(lock, 0) == 0) (void)!pwrite(lock, pid.data(), pid.size(), 0);  // for the message above only
