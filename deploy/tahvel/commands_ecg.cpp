@@ -273,7 +273,9 @@ int run_ecg(const Args& args) {
     if (read && read->leads.size() != info->leads.size())
       why = "holds " + std::to_string(read->leads.size()) + " lead(s), the recording names " + std::to_string(info->leads.size());
     if (why.empty()) frames.write(*read);
-    else if (unreadable++ == 0) first_error = "<" + chunk.front().triple.s.value + ">: " + why;
+    // read_chunk's errors name the chunk already ("<…/chunk/0>: tv:samples is not base64").
+    else if (unreadable++ == 0)
+      first_error = why.starts_with("<" + chunk.front().triple.s.value + ">") ? why : "<" + chunk.front().triple.s.value + ">: " + why;
     chunk.clear();
   };
   ask_in_time([&](const node::Record& r) {

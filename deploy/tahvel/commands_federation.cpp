@@ -939,9 +939,10 @@ std::string load_digest(const fs::path& file) {
   return std::string("fnv1a64:") + hex;
 }
 
-// Puts `file` on the node's board as one persistent item, with its name and digest.
-void load_onto(node::Agent& loader, const NodeSpec& spec, const fs::path& file, const uri::PrefixMap& prefixes,
-               const Topology& topo) {
+// Puts `file` on the node's board as one persistent item, with its name and digest. Returns
+// the line that says so.
+std::string load_onto(node::Agent& loader, const NodeSpec& spec, const fs::path& file, const uri::PrefixMap& prefixes,
+                      const Topology& topo) {
   node::Item item;
   item.persistent = true;
   item.triples = load_file_triples(spec, file, prefixes, topo);
@@ -950,7 +951,7 @@ void load_onto(node::Agent& loader, const NodeSpec& spec, const fs::path& file, 
   item.add(source, node::Term::iri(kLoadFile), node::Term::literal(load_name(file, topo)))
       .add(source, node::Term::iri(kLoadDigest), node::Term::literal(load_digest(file)));
   check(loader.store(item));
-  std::cout << "up: put " << triples << " triples of " << file.string() << " on " << spec.id << "\n";
+  return "up: put " + std::to_string(triples) + " triples of " + file.string() + " on " + spec.id + "\n";
 }
 
 // On an existing store: loads the topology's files it has not had yet, and names those changed
@@ -978,7 +979,7 @@ void load_new_files(const NodeSpec& spec, node::Node& node, const Topology& topo
   for (const fs::path& file : spec.load) {
     auto it = loaded.find(load_name(file, topo));
     if (it == loaded.end()) {
-      load_onto(loader, spec, file, node.prefixes(), topo);
+      std::cout << load_onto(loader, spec, file, node.prefixes(), topo);
     } else if (it->second.first != load_digest(file)) {
       std::cerr << "up: warning: " << spec.load_at << ": node '" << spec.id << "': " << file.string()
                 << " changed since up loaded it (item " << it->second.second << "); to load it anew: tahvel remove "
@@ -1037,6 +1038,7 @@ void create_store(const NodeSpec& spec, const fs::path& store, const Topology& t
   }
   std::error_code ec;
   fs::remove_all(making, ec);
+  std::string loaded;  // said after the store is in place, as it is made aside
   {
     node::InitOptions init;
     init.iri = spec.iri;
@@ -1044,7 +1046,7 @@ void create_store(const NodeSpec& spec, const fs::path& store, const Topology& t
     init.ring = spec.ring;
     node::Node created = check(node::Node::init(making, init));
     node::Agent loader = check(created.agent("deploy"));
-    for (const fs::path& file : spec.load) load_onto(loader, spec, file, created.prefixes(), topo);
+    for (const fs::path& file : spec.load) loaded += load_onto(loader, spec, file, created.prefixes(), topo);
   }
   fs::remove_all(store, ec);  // an empty folder, or the rest of a store without its data file
   fs::rename(making, store, ec);
@@ -1053,7 +1055,7 @@ void create_store(const NodeSpec& spec, const fs::path& store, const Topology& t
     fs::remove_all(making, ec);
     fail("cannot make the store of node '" + spec.id + "' at " + store.string() + " (" + why + ")");
   }
-  std::cout << "up: created the store of " << spec.id << " <" << spec.iri << "> at " << store.string() << "\n";
+  std::cout << "up: created the store of " << spec.id << " <" << spec.iri << "> at " << store.string() << "\n" << loaded;
 }
 
 // Writes `file` whole or not at all (beside it, then renamed).

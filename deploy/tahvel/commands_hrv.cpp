@@ -592,9 +592,11 @@ const Command kPatientsCommand{
     "--since T counts only the windows (and trends) of signal time T or later: ns since the\n"
     "epoch or an RFC 3339 time such as 2026-11-21T10:00:00Z, as tahvel query takes it.\n"
     "--json prints one object: {node, patients: [{recording, source, windows, alerting,\n"
-    "irregular, latest: {iri, start_s, end_s, stored_ns, asserted_ns, metrics}, trends: [{metric,\n"
-    "window_start_s, windows, latest, baseline, robust_sd, slope_per_hour, alert, direction,\n"
-    "z_against_others, others}]}], unreadable: [{source, count, first_error}]}.",
+    "irregular, other_writers: [{source, windows}], latest: {iri, start_s, end_s, stored_ns,\n"
+    "asserted_ns, metrics}, raw_ecg: {node, since_ns, until_ns} or null, link: {child, state,\n"
+    "last_seen_ns, stale, at} or null, trends: [{metric, window_start_s, windows, latest,\n"
+    "baseline, robust_sd, slope_per_hour, alert, direction, z_against_others, others}]}],\n"
+    "unreadable: [{source, count, first_error}]}.",
     {{"--since", "", "T", "only windows and trends of signal time T or later"},
      {"--alerts", "", "", "only the patients with an alert"},
      {"--json", "", "", "print JSON instead of text"}},

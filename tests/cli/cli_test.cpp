@@ -4269,6 +4269,11 @@ TEST_F(Cli, UpMakesNoStoreWhenALoadFileIsMissingAndLoadsItOnceItIsThere) {
   spit(tmp_ / "plan.ttl", "<room/bedroom> a <https://w3id.org/tahvel#Room> .\n");
   up = run({"up", (tmp_ / "node.toml").string(), "--state", state});
   ASSERT_EQ(up.status, 0) << up.err;
+  // Made aside, loaded, then put in place: said in the order a reader expects (the load was
+  // said before the store was).
+  const std::size_t created = up.out.find("up: created the store of solo"), put = up.out.find("up: put 1 triples of ");
+  EXPECT_NE(put, std::string::npos) << up.out;
+  EXPECT_LT(created, put) << up.out;
   ASSERT_EQ(run({"down", "--state", state}).status, 0);
   Outcome listed = run({"list", state + "/solo", "-s", "<http://example.org/solo/room/bedroom>"});
   EXPECT_EQ(listed.status, 0) << listed.err;
