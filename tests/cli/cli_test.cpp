@@ -1937,6 +1937,28 @@ void store_recording(const std::string& dir, const std::string& rec, std::int64_
   chunk(16, {{10, 10, 10, 10}});
 }
 
+// A chunk whose samples do not decode is left out and named once with why (its IRI was printed
+// twice: "<…/chunk/0>: <…/chunk/0>: tv:samples is not base64").
+TEST_F(Cli, EcgNamesAChunkWhoseSamplesDoNotDecodeOnceWithWhy) {
+  init();
+  const std::string rec = kNodeIri + "/source/recording/garbled";
+  const std::int64_t t0 = 1'800'000'000'000'000'000;
+  {
+    auto source = tahvel::node::Node::open(node_).value().agent("source").value();
+    ASSERT_TRUE(source.store(recording_description(rec, "4.0", "2.0", 0, {"MLII"}, t0)));
+    tahvel::node::Item garbled = ecg_chunk(rec, 0, 4, std::string(8, '\1'), t0);
+    for (auto& t : garbled.triples)
+      if (t.p.value == "https://w3id.org/tahvel#samples") t.o.value = "!!! not base64";
+    ASSERT_TRUE(source.store(garbled));
+  }
+  Outcome r = run({"ecg", node_, "--recording", rec});
+  ASSERT_EQ(r.status, 0) << r.err;
+  EXPECT_NE(r.err.find("tahvel: ecg: 1 chunk(s) could not be read, left out; the first: <" + rec +
+                       "/chunk/0>: tv:samples is not base64\n"),
+            std::string::npos)
+      << r.err;
+}
+
 // As `query` (QueryInterruptedWhileItsPipeIsFull…), `tahvel ecg`: the output ends after a whole
 // row, and the count is of the frames written out.
 TEST_F(Cli, EcgInterruptedWhileItsPipeIsFullWritesWholeRowsAndCountsTheFramesWrittenOut) {
