@@ -1937,6 +1937,15 @@ void store_recording(const std::string& dir, const std::string& rec, std::int64_
   chunk(16, {{10, 10, 10, 10}});
 }
 
+// The agent "source" of the store at `dir`, with a one-lead (MLII) recording `rec` of `fs` Hz
+// and gain `gain` described on it; its chunks are the caller's to write.
+tahvel::node::Agent source_of_one_lead_recording(const std::string& dir, const std::string& rec, const char* fs,
+                                                 const char* gain, std::int64_t t0) {
+  auto source = tahvel::node::Node::open(dir).value().agent("source").value();
+  EXPECT_TRUE(source.store(recording_description(rec, fs, gain, 0, {"MLII"}, t0)));
+  return source;
+}
+
 // A chunk whose samples do not decode is left out and named once with why (its IRI was printed
 // twice: "<…/chunk/0>: <…/chunk/0>: tv:samples is not base64").
 TEST_F(Cli, EcgNamesAChunkWhoseSamplesDoNotDecodeOnceWithWhy) {
@@ -1944,8 +1953,7 @@ TEST_F(Cli, EcgNamesAChunkWhoseSamplesDoNotDecodeOnceWithWhy) {
   const std::string rec = kNodeIri + "/source/recording/garbled";
   const std::int64_t t0 = 1'800'000'000'000'000'000;
   {
-    auto source = tahvel::node::Node::open(node_).value().agent("source").value();
-    ASSERT_TRUE(source.store(recording_description(rec, "4.0", "2.0", 0, {"MLII"}, t0)));
+    auto source = source_of_one_lead_recording(node_, rec, "4.0", "2.0", t0);
     tahvel::node::Item garbled = ecg_chunk(rec, 0, 4, std::string(8, '\1'), t0);
     for (auto& t : garbled.triples)
       if (t.p.value == "https://w3id.org/tahvel#samples") t.o.value = "!!! not base64";
@@ -1966,8 +1974,7 @@ TEST_F(Cli, EcgInterruptedWhileItsPipeIsFullWritesWholeRowsAndCountsTheFramesWri
   const std::string rec = kNodeIri + "/source/recording/long";
   const std::int64_t t0 = 1'800'000'000'000'000'000;
   {
-    auto source = tahvel::node::Node::open(node_).value().agent("source").value();
-    ASSERT_TRUE(source.store(recording_description(rec, "250.0", "200.0", 0, {"MLII"}, t0)));
+    auto source = source_of_one_lead_recording(node_, rec, "250.0", "200.0", t0);
     for (int second = 0; second < 40; ++second) {  // 10,000 rows of about 35 bytes
       std::string bytes;
       for (int f = 0; f < 250; ++f) bytes += {static_cast<char>(f + 1), static_cast<char>(1)};
