@@ -2,8 +2,8 @@
 // window items (sosa:observedProperty tv:HeartRateVariability), groups them per recording and,
 // after each window, writes one trend item per metric, <recording>/trend/<metric>/<start_s>:
 // baseline, slope per hour, change alert (trend.h, docs/hrv.md "Trends") over the recording's
-// windows up to that one, and, when at least two other recordings are known, the z-score of
-// the latest value against the other recordings' latest values.
+// windows up to that one, and, when at least two other recordings have a window at the same
+// time, the z-score of the window's value against theirs.
 //
 //   tahvel-trend DIR [--agent ID] [--idle S] [--metric NAME ...]     (agent id default "trend")
 //
@@ -70,8 +70,25 @@ std::int64_t asserted_at(const std::vector<tn::Record>& records, const std::stri
   return 0;
 }
 
-// A recording's windows by start time.
-using Series = std::map<double, Window>;
+// A recording's windows by start time, and their start times by signal time, to find the
+// window of another patient at a given moment.
+struct Series {
+  std::map<double, Window> windows;
+  std::multimap<std::int64_t, double> starts_by_time;
+
+  void put(double start_s, Window window) {
+    if (auto old = windows.find(start_s); old != windows.end()) {
+      auto [first, last] = starts_by_time.equal_range(old->second.asserted_ns);
+      for (auto it = first; it != last; ++it)
+        if (it->second == start_s) {
+          starts_by_time.erase(it);
+          break;
+        }
+    }
+    starts_by_time.emplace(window.asserted_ns, start_s);
+    windows.insert_or_assign(start_s, std::move(window));
+  }
+};
 
 // Windows of one length are one series: SDNN and the spectrum grow with the window, so after a
 // length change (tv:windowSeconds from the hospital) the longer windows are not judged by the
@@ -87,6 +104,30 @@ bool same_length(const agg::WindowMetrics& a, const agg::WindowMetrics& b) {
 // an alert of the record's end.
 using agg::cut_short;
 
+// `metric` in the window of `other` nearest in signal time to `window`, of its length and not cut
+// short, among those that start less than two window lengths from it: the other patient's
+// window of the same time, or while that has not arrived (it ends when this one does, and
+// another home sends it), the one before; nullopt when there is none. Up to session 73 it was
+// the other's latest window, whatever its time: replays at --speed 0 held one patient's minute
+// 27 against another's minute 5, and a recording that ended hours ago counted as a patient of now.
+std::optional<double> value_beside(const Series& other, const Window& window, agg::HrvMetric metric) {
+  const auto reach = static_cast<std::int64_t>(std::llround(2 * window.metrics.length_s * 1e9));
+  std::optional<double> nearest;
+  std::int64_t nearest_gap = 0;
+  for (auto it = other.starts_by_time.upper_bound(window.asserted_ns - reach);
+       it != other.starts_by_time.end() && it->first < window.asserted_ns + reach; ++it) {
+    const Window& candidate = other.windows.at(it->second);
+    const auto v = agg::metric_value(candidate.metrics.metrics, metric);
+    if (!v || cut_short(candidate.metrics) || !same_length(candidate.metrics, window.metrics)) continue;
+    const std::int64_t gap = std::abs(it->first - window.asserted_ns);
+    if (!nearest || gap <= nearest_gap) {  // of two as near, the later
+      nearest = v;
+      nearest_gap = gap;
+    }
+  }
+  return nearest;
+}
+
 class TrendStage {
  public:
   TrendStage(rt::Session& session, std::vector<agg::HrvMetric> metrics)
@@ -99,11 +140,11 @@ class TrendStage {
     std::size_t windows = 0;
     for (const auto& records : *items)
       if (auto w = read_window(records)) {
-        recordings_[w->recording][w->window.start_s] = {w->iri, w->window, asserted_at(records, w->iri)};
+        recordings_[w->recording].put(w->window.start_s, {w->iri, w->window, asserted_at(records, w->iri)});
         ++windows;
       }
     for (const auto& [recording, series] : recordings_)
-      for (const auto& [start, window] : series)
+      for (const auto& [start, window] : series.windows)
         if (auto o = write_updates(recording, start, true); o.fatal) return o;
     if (windows) rt::log_line(kProgram, "read " + std::to_string(windows) + " HRV window(s) of " +
                                          std::to_string(recordings_.size()) + " recording(s) from the board");
@@ -113,7 +154,7 @@ class TrendStage {
   rt::Outcome handle(const tn::Delivery& delivery) {
     auto w = read_window(delivery.records);
     if (!w) return rt::Outcome::ok();
-    recordings_[w->recording][w->window.start_s] = {w->iri, w->window, asserted_at(delivery.records, w->iri)};
+    recordings_[w->recording].put(w->window.start_s, {w->iri, w->window, asserted_at(delivery.records, w->iri)});
     return write_updates(w->recording, w->window.start_s, false);
   }
 
@@ -136,10 +177,9 @@ class TrendStage {
   // length up to it.
   rt::Outcome write_updates(const std::string& recording, double start, bool catching_up) {
     const Series& series = recordings_.at(recording);
-    const Window& window = series.at(start);
-    const bool latest = series.rbegin()->first == start;
+    const Window& window = series.windows.at(start);
     std::vector<agg::WindowMetrics> upto;
-    for (const auto& [s, w] : series) {
+    for (const auto& [s, w] : series.windows) {
       if (s > start) break;
       if (same_length(w.metrics, window.metrics) && !cut_short(w.metrics)) upto.push_back(w.metrics);
     }
@@ -165,21 +205,16 @@ class TrendStage {
       u.slope_per_hour = summary.slope_per_hour;
       u.alert = window_has_it && summary.alerting;
       if (u.alert && !summary.alerts.empty()) u.alert_direction = summary.alerts.back().direction;
-      // Across patients: only for the recording's latest window (the others' latest values are
-      // those known now) and when this window has the metric itself; another recording counts
-      // when its latest window with the metric is of this window's length.
-      if (latest && window_has_it) {
+      // Across patients: against each other patient's value at the same time, when this
+      // window has the metric itself.
+      if (window_has_it) {
         std::vector<double> others;
         for (const auto& [other, other_series] : recordings_) {
           // Another take of the same recording (<recording>-<start>, its source restarted) is
           // the same patient: against their own earlier values the z-score said "other
           // patients" of one (a probe: 3 of the 7 "others" were the patient's own).
           if (other == recording || take_of(other) == take_of(recording)) continue;
-          for (auto it = other_series.rbegin(); it != other_series.rend(); ++it)
-            if (auto v = agg::metric_value(it->second.metrics.metrics, metric); v && !cut_short(it->second.metrics)) {
-              if (same_length(it->second.metrics, window.metrics)) others.push_back(*v);
-              break;
-            }
+          if (auto v = value_beside(other_series, window, metric)) others.push_back(*v);
         }
         u.z_against_others = agg::cross_patient_z(points.back().value, others, options.min_robust_sd);
         if (u.z_against_others) u.others = others.size();

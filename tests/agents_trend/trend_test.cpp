@@ -39,6 +39,9 @@ const std::vector<double> kSdnnA = {50, 52, 48, 51, 49, 50, 53, 47, 80, 81, 79, 
 const std::vector<double> kSdnnB = {40, 41, 39, 40, 42, 38, 40, 41, 39, 40, 41, 40};
 const std::vector<double> kSdnnC = {60, 62, 58, 61, 59, 60, 61, 59, 60, 62, 58, 60};
 
+// When the test's recordings start (2026-12-01T10:00:00Z).
+constexpr std::int64_t kSignalStart = 1'796'119'200'000'000'000;
+
 using Process = tahvel::test_support::AgentProcess;
 
 tn::Pattern trend_items() {
@@ -75,7 +78,8 @@ class TrendAgentTest : public ::testing::Test {
   }
 
   // Window k (300 s) of a recording with the given SDNN; RMSSD and mean HR vary a little.
-  // Asserted at `asserted_ns` when given (tahvel-hrv: the signal time of the window's start).
+  // Asserted at `asserted_ns` when given, else at kSignalStart + its start (tahvel-hrv: the
+  // signal time of the window's start; the test's recordings run side by side).
   void store_window(const std::string& recording, std::size_t k, double sdnn,
                     std::optional<std::int64_t> asserted_ns = std::nullopt) {
     store_window_at(recording, 300.0 * static_cast<double>(k), 300, k, sdnn, asserted_ns);
@@ -94,7 +98,7 @@ class TrendAgentTest : public ::testing::Test {
     w.metrics.mean_hr_bpm = 70 + static_cast<double>(k % 2);
     w.metrics.nn_count = w.metrics.rr_count = 350;
     tn::Item item = agg::hrv_window_item(info, w, hrv_->iri());
-    item.asserted_at = asserted_ns;
+    item.asserted_at = asserted_ns.value_or(kSignalStart + static_cast<std::int64_t>(start_s * 1e9));
     ASSERT_TRUE(hrv_->store(item));
   }
 
@@ -270,6 +274,37 @@ TEST_F(TrendAgentTest, TheZScoreAgainstOthersThatAgreeCloselyIsHeldToTheMetricsR
   ASSERT_TRUE(t.z_against_others);
   EXPECT_EQ(t.others, 2u);
   EXPECT_NEAR(*t.z_against_others, 2.995, 1e-6);
+}
+
+// Patients are compared at the same moment: each window against the other recordings' windows
+// that overlap it in signal time. Against the others' latest windows, whatever their time, a
+// replay at --speed 0 held one patient's minute 27 against another's minute 5, and a recording
+// that ended long ago counted as a patient of now.
+TEST_F(TrendAgentTest, TheZScoreComparesEachWindowWithTheOtherPatientsWindowsOfTheSameTime) {
+  const std::vector<double> sdnn_b = {40, 40, 90, 90, 90, 90, 90};
+  for (std::size_t k = 0; k < sdnn_b.size(); ++k) store_window(kRecB, k, sdnn_b[k]);
+  for (std::size_t k = 0; k < 2; ++k) store_window(kRecC, k, 60);  // C's recording ends at 10 min
+  for (std::size_t k = 0; k < 6; ++k) store_window(kRecA, k, 50);
+  start_agent("120");
+  wait_for_trends((sdnn_b.size() + 2 + 6) * 3);
+  store_window(kRecA, 6, 50);  // arrives while the agent runs
+  wait_for_trends((sdnn_b.size() + 2 + 7) * 3);
+  EXPECT_EQ(agent_->stop(), 0);
+  const auto all = trends();
+  // Minute 5: B's 40 and C's 60 of minute 5, not B's later 90.
+  const agg::TrendUpdate& a1 = all.at(agg::trend_iri(kRecA, agg::HrvMetric::sdnn, 300));
+  ASSERT_TRUE(a1.z_against_others);
+  EXPECT_EQ(a1.others, 2u);
+  EXPECT_NEAR(*a1.z_against_others, 0.0, 1e-9);
+  const agg::TrendUpdate& b1 = all.at(agg::trend_iri(kRecB, agg::HrvMetric::sdnn, 300));
+  ASSERT_TRUE(b1.z_against_others);
+  EXPECT_NEAR(*b1.z_against_others, (40.0 - 55.0) / std::sqrt(50.0), 1e-5);  // against 50 and 60
+  // Minute 30: C's last window began 25 minutes before; B alone is no group to compare with.
+  const agg::TrendUpdate& a6 = all.at(agg::trend_iri(kRecA, agg::HrvMetric::sdnn, 1800));
+  EXPECT_FALSE(a6.z_against_others.has_value()) << *a6.z_against_others << " against " << a6.others;
+  EXPECT_FALSE(all.at(agg::trend_iri(kRecA, agg::HrvMetric::sdnn, 1500)).z_against_others.has_value());
+  // Minute 10: C's window of minute 5 is the one before (C's of minute 10 had not arrived).
+  EXPECT_EQ(all.at(agg::trend_iri(kRecA, agg::HrvMetric::sdnn, 600)).others, 2u);
 }
 
 // A window with no beats (lead off) has no value: its trend items must not show the window
