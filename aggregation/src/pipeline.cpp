@@ -3,6 +3,7 @@
 #include <cmath>
 #include <cstdio>
 #include <filesystem>
+#include <numbers>
 
 #include "tahvel/aggregation/pipeline.h"
 
@@ -103,6 +104,62 @@ std::optional<std::string> detector_rate_warning(const std::vector<Interval>& in
   return std::string(text);
 }
 
+MainsShare mains_share(const std::vector<std::int32_t>& samples, double fs) {
+  const auto block = static_cast<std::size_t>(std::llround(fs));
+  if (!(fs >= 122) || block == 0 || samples.size() < block) return {};
+  double total = 0;  // sum over blocks of N * sum (x - mean)^2, which the DFT's bins add up to
+  std::vector<double> x(block);
+  auto bins_near = [&](double hz) {
+    std::vector<std::size_t> bins;
+    for (double f : {hz - 1, hz, hz + 1}) {
+      const auto k = static_cast<std::size_t>(std::llround(f * static_cast<double>(block) / fs));
+      if (k > 0 && 2 * k < block && std::find(bins.begin(), bins.end(), k) == bins.end()) bins.push_back(k);
+    }
+    return bins;
+  };
+  const std::vector<std::size_t> bins50 = bins_near(50), bins60 = bins_near(60);
+  double power50 = 0, power60 = 0;
+  auto goertzel = [&](std::size_t k) {  // |X_k|^2
+    const double w = 2 * std::numbers::pi * static_cast<double>(k) / static_cast<double>(block);
+    const double coeff = 2 * std::cos(w);
+    double s1 = 0, s2 = 0;
+    for (double v : x) {
+      const double s0 = v + coeff * s1 - s2;
+      s2 = s1;
+      s1 = s0;
+    }
+    return s1 * s1 + s2 * s2 - coeff * s1 * s2;
+  };
+  for (std::size_t start = 0; start + block <= samples.size(); start += block) {
+    double mean = 0;
+    for (std::size_t i = 0; i < block; ++i) mean += samples[start + i];
+    mean /= static_cast<double>(block);
+    double squares = 0;
+    for (std::size_t i = 0; i < block; ++i) {
+      x[i] = samples[start + i] - mean;
+      squares += x[i] * x[i];
+    }
+    total += static_cast<double>(block) * squares;
+    for (std::size_t k : bins50) power50 += 2 * goertzel(k);  // a bin and its mirror
+    for (std::size_t k : bins60) power60 += 2 * goertzel(k);
+  }
+  if (!(total > 0)) return {};
+  const bool fifty = power50 >= power60;
+  return {100 * std::min(1.0, (fifty ? power50 : power60) / total), fifty ? 50.0 : 60.0};
+}
+
+std::optional<std::string> mains_hum_warning(const std::vector<std::int32_t>& samples, const SignalInfo& info,
+                                             std::size_t channel, double fs) {
+  const MainsShare hum = mains_share(samples, fs);
+  if (hum.percent < kMainsHumPct) return std::nullopt;
+  char text[400];
+  std::snprintf(text, sizeof text,
+                "%.0f %% of signal %zu's power (%s) is mains hum at %g Hz: a lead off or unplugged picks up the mains, "
+                "and the beats found may be the hum's, as regular as no heart; its HRV may mean nothing",
+                hum.percent, channel, info.description.c_str(), hum.hz);
+  return std::string(text);
+}
+
 std::optional<std::string> invalid_samples_warning(const std::vector<std::int32_t>& samples, const SignalInfo& info,
                                                    std::size_t channel, double fs) {
   const std::int32_t invalid = invalid_sample(info);
@@ -186,6 +243,8 @@ Result<HrvReport> hrv_from_record(const std::string& record_path, const ChainOpt
     report->warnings.push_back(*invalid);
   if (auto flat = flat_runs_warning(signals->samples[channel], info, channel, signals->header.fs))
     report->warnings.push_back(*flat);
+  if (auto hum = mains_hum_warning(signals->samples[channel], info, channel, signals->header.fs))
+    report->warnings.push_back(*hum);
   if (auto rate = default_rate_warning(signals->header)) report->warnings.insert(report->warnings.begin(), *rate);
   if (auto units = non_voltage_warning(signals->header, channel)) report->warnings.push_back(*units);
   if (auto fastest = detector_rate_warning(report->intervals, report->fs, chain.detector.hold_ms))

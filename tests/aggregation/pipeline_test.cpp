@@ -103,6 +103,42 @@ TEST(DetectorRateWarning, BeatsAtTheDetectorsHoldAreSaidToBeNoHeartsRhythm) {
   EXPECT_TRUE(detector_rate_warning(pinned, fs, hold_ms));
 }
 
+// A 50 Hz sine at 250 Hz locked the detector to every 12th cycle: 250 bpm, as regular as no heart
+// (SDNN 3 ms), with intervals longer than the hold, so that nothing was said. The share of the
+// signal's power at the mains frequency tells; an ECG with a little hum on it is not said.
+TEST(MainsHumWarning, ASignalThatIsMostlyMainsHumIsSaidAndAnEcgWithSomeHumIsNot) {
+  auto sine = [](double fs, double hz, double amplitude, std::size_t seconds) {
+    std::vector<std::int32_t> out(static_cast<std::size_t>(static_cast<double>(seconds) * fs));
+    for (std::size_t i = 0; i < out.size(); ++i)
+      out[i] = static_cast<std::int32_t>(std::lround(amplitude * std::sin(2 * M_PI * hz * static_cast<double>(i) / fs)));
+    return out;
+  };
+  SignalInfo lead;
+  lead.description = "MLII";
+  for (const auto& [fs, hz] : {std::pair{250.0, 50.0}, {360.0, 49.8}, {500.0, 60.0}, {128.0, 60.2}}) {
+    const MainsShare hum = mains_share(sine(fs, hz, 200, 60), fs);
+    EXPECT_GT(hum.percent, 95) << fs << " Hz, " << hz << " Hz hum";
+    EXPECT_EQ(hum.hz, std::round(hz / 10) * 10) << fs << " Hz, " << hz << " Hz hum";
+    auto said = mains_hum_warning(sine(fs, hz, 200, 60), lead, 0, fs);
+    ASSERT_TRUE(said) << fs << " Hz";
+    EXPECT_NE(said->find("of signal 0's power (MLII) is mains hum at"), std::string::npos) << *said;
+  }
+  // A synthetic ECG (200 units per mV at 360 Hz), alone and under a hum of 0.1 mV.
+  const SyntheticRun run = synthetic(60, 70, 3);
+  EXPECT_LT(mains_share(run.samples, 360).percent, 1);
+  EXPECT_FALSE(mains_hum_warning(run.samples, lead, 0, 360));
+  std::vector<std::int32_t> humming = run.samples;
+  const std::vector<std::int32_t> hum = sine(360, 50, 20, 60);
+  for (std::size_t i = 0; i < humming.size() && i < hum.size(); ++i) humming[i] += hum[i];
+  const double share = mains_share(humming, 360).percent;
+  EXPECT_GT(share, 1);
+  EXPECT_LT(share, kMainsHumPct);
+  EXPECT_FALSE(mains_hum_warning(humming, lead, 0, 360));
+  // Below 122 Hz, 61 Hz is past half the rate: not measured. Shorter than a second: neither.
+  EXPECT_EQ(mains_share(sine(100, 50, 200, 60), 100).percent, 0);
+  EXPECT_EQ(mains_share(std::vector<std::int32_t>(359, 5), 360).percent, 0);
+}
+
 // A window or step too short for HRV is refused, naming the setting and its bounds; a window
 // of 0.0001 s made 18 million windows of MIT-BIH 100 (std::bad_alloc).
 TEST(HrvChain, RefusesAWindowShorterThan10sOrAStepShorterThan1s) {

@@ -68,6 +68,25 @@ std::optional<std::string> detector_rate_warning(const std::vector<Interval>& in
 std::optional<std::string> irregular_rhythm_warning(const HrvMetrics& metrics, std::size_t gaps = 0,
                                                     double max_interval_s = NnRule{}.max_interval_s);
 
+// The share of a signal's power (its mean taken out second by second) within 1 Hz of the mains
+// frequency, 50 or 60 Hz, whichever holds more, and that frequency; {0, 0} when the signal is
+// shorter than a second or sampled below 122 Hz (61 Hz must be under half the rate). Measured on whole seconds with
+// the Goertzel algorithm at the three DFT bins nearest f-1, f and f+1 Hz.
+struct MainsShare {
+  double percent = 0;
+  double hz = 0;
+};
+MainsShare mains_share(const std::vector<std::int32_t>& samples, double fs);
+
+// When at least kMainsHumPct percent of signal `channel`'s power is mains hum (mains_share):
+// how much, at which frequency, and that an unplugged lead picks up the mains, so that the beats
+// found in it may be the hum's. A 50 Hz sine at 250 Hz locks the detector to every 12th cycle,
+// 250 bpm as regular as no heart, and detector_rate_warning does not see it (its intervals are
+// longer than the hold). MIT-BIH's records have at most a few percent.
+inline constexpr double kMainsHumPct = 50;
+std::optional<std::string> mains_hum_warning(const std::vector<std::int32_t>& samples, const SignalInfo& info,
+                                             std::size_t channel, double fs);
+
 // Samples of signal `channel` that hold WFDB's no-value (invalid_sample, wfdb.h): how many and
 // where the first is, and that the detector read them as no signal. nullopt when none.
 std::optional<std::string> invalid_samples_warning(const std::vector<std::int32_t>& samples, const SignalInfo& info,
