@@ -4,7 +4,9 @@
 
 #include <algorithm>
 #include <array>
+#include <cerrno>
 #include <cmath>
+#include <cstring>
 #include <cstdlib>
 #include <fstream>
 #include <iterator>
@@ -73,7 +75,7 @@ Result<std::vector<Annotation>> read_annotations(const std::string& record_path,
                                                  const std::string& annotator, double record_fs) {
   const std::string file = record_path + "." + annotator;
   std::ifstream in(file, std::ios::binary);
-  if (!in) return fail(file + ": cannot open annotation file");
+  if (!in) return fail(file + ": cannot open annotation file: " + std::strerror(errno));
   std::vector<unsigned char> bytes((std::istreambuf_iterator<char>(in)),
                                    std::istreambuf_iterator<char>());
   if (in.bad()) return fail(file + ": read error");

@@ -272,6 +272,15 @@ Result<HrvReport> hrv_from_record(const std::string& record_path, const ChainOpt
     std::snprintf(seconds, sizeof seconds, "%.3g", report->duration_s);
     report->warnings.push_back(std::to_string(report->beats.size()) + " beat(s) found in " + seconds +
                                " s: too short a record for HRV");
+  } else if (report->duration_s < kMinWindowS) {
+    // Windows are refused below 10 s, for the handful of beats fewer seconds hold; a whole record
+    // that short had its SDNN and RMSSD of 5 intervals printed without a word.
+    char text[200];
+    std::snprintf(text, sizeof text,
+                  "the record is %.3g s long, %zu interval(s): HRV over fewer than %g s (the shortest window) says "
+                  "little",
+                  report->duration_s, report->intervals.size(), kMinWindowS);
+    report->warnings.push_back(text);
   }
   return report;
 }

@@ -6,6 +6,7 @@
 
 #include <algorithm>
 #include <cctype>
+#include <cerrno>
 #include <charconv>
 #include <cmath>
 #include <cstring>
@@ -444,7 +445,7 @@ struct SignalReader::Group {
 Result<RecordHeader> read_header(const std::string& record_path) {
   const std::string file = record_path + ".hea";
   std::ifstream in(file, std::ios::binary);
-  if (!in) return fail(file + ": cannot open header");
+  if (!in) return fail(file + ": cannot open header: " + std::strerror(errno));
   RecordHeader h;
   h.directory = parent_dir(file);
   h.path = file;
@@ -513,7 +514,7 @@ Result<SignalReader> SignalReader::open(const std::string& record_path) {
     g->first = i;
     g->count = j - i;
     g->in.open(g->path, std::ios::binary);
-    if (!g->in) return fail(g->path + ": cannot open signal file");
+    if (!g->in) return fail(g->path + ": cannot open signal file: " + std::strerror(errno));
     std::error_code ec;
     auto size = static_cast<std::int64_t>(std::filesystem::file_size(g->path, ec));
     if (ec) return fail(g->path + ": cannot stat signal file: " + ec.message());

@@ -2,7 +2,12 @@
 // ECG (ecgsyn.h) whose true beats are known.
 #include <gtest/gtest.h>
 
+#include <unistd.h>
+
+#include <algorithm>
 #include <cmath>
+#include <filesystem>
+#include <fstream>
 
 #include "tahvel/aggregation/ecgsyn.h"
 #include "tahvel/aggregation/pipeline.h"
@@ -137,6 +142,38 @@ TEST(MainsHumWarning, ASignalThatIsMostlyMainsHumIsSaidAndAnEcgWithSomeHumIsNot)
   // Below 122 Hz, 61 Hz is past half the rate: not measured. Shorter than a second: neither.
   EXPECT_EQ(mains_share(sine(100, 50, 200, 60), 100).percent, 0);
   EXPECT_EQ(mains_share(std::vector<std::int32_t>(359, 5), 360).percent, 0);
+}
+
+// A whole record shorter than the shortest window had the SDNN and RMSSD of its 5 intervals
+// printed without a word, where a window that short is refused: said; 10 s is not.
+TEST(HrvFromRecord, ARecordShorterThanTheShortestWindowIsSaidToSayLittle) {
+  char pattern[] = "/tmp/tahvel-pipeline-XXXXXX";
+  ASSERT_NE(mkdtemp(pattern), nullptr);
+  const std::filesystem::path dir = pattern;
+  auto write_record = [&](const std::string& name, double seconds) {
+    const SyntheticRun run = synthetic(seconds, 70, 3);
+    std::ofstream(dir / (name + ".hea")) << name << " 1 360 " << run.samples.size() << "\n"
+                                         << name << ".dat 16 200 16 0 0 0 0 MLII\n";
+    std::ofstream dat(dir / (name + ".dat"), std::ios::binary);
+    for (std::int32_t v : run.samples) {
+      const auto u = static_cast<std::uint16_t>(static_cast<std::int16_t>(v));
+      dat.put(static_cast<char>(u & 0xff)).put(static_cast<char>(u >> 8));
+    }
+    return (dir / name).string();
+  };
+  auto said_short = [](const HrvReport& r) {
+    return std::any_of(r.warnings.begin(), r.warnings.end(),
+                       [](const std::string& w) { return w.find("says little") != std::string::npos; });
+  };
+  auto five = hrv_from_record(write_record("five", 5));
+  ASSERT_TRUE(five) << five.error().message;
+  ASSERT_GE(five->intervals.size(), 3u);
+  EXPECT_TRUE(said_short(*five));
+  EXPECT_NE(five->warnings.back().find("the record is 5 s long"), std::string::npos) << five->warnings.back();
+  auto ten = hrv_from_record(write_record("ten", 10));
+  ASSERT_TRUE(ten) << ten.error().message;
+  EXPECT_FALSE(said_short(*ten));
+  std::filesystem::remove_all(dir);
 }
 
 // A window or step too short for HRV is refused, naming the setting and its bounds; a window
