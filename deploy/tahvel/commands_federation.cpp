@@ -1812,10 +1812,9 @@ int run_up(const Args& args) {
       if (existing.iri() != spec->iri)
         fail((changed_at.empty() ? topo.file.string() : changed_at) + ": node '" + spec->id + "': the store at " + store.string() + " is the node <" + existing.iri() + ">, the file says <" +
              spec->iri + "> (a changed iri or parent); " +
-             (running != 0 ? "'tahvel down --state " + shell_word(state) + (only ? " --node " + *only : std::string()) +
-                                 "' first (a store moved while its supervisor runs stops every node of that supervisor), then "
-                           : std::string()) +
-             "move that store away, or give the node another id");
+             "move that store away" +
+             (running != 0 ? std::string(" (its node stops within a second; the others run on)") : std::string()) +
+             " and 'tahvel up' again, or give the node another id");
       for (std::size_t i = 0; i < spec->forward.size(); ++i)
         warn_of_unknown_terms(*spec, i, forward_pattern_of(*spec, i, existing.prefixes()));
       for (const fs::path& file : spec->load) (void)load_file_triples(*spec, file, existing.prefixes(), topo);
@@ -1837,6 +1836,8 @@ int run_up(const Args& args) {
   const CommandContext here = CommandContext::of_this_process();
   CommandContext here_for_file = here;
   here_for_file.dir = fs::absolute(topo.file).lexically_normal().parent_path();
+  for (const NodeSpec* spec : mine)
+    if (auto clash = agents_running_as_one(*spec, !here.mitdb.empty())) fail(*clash);
   for (const NodeSpec* spec : mine) {
     // A rule file's CURIEs read with the store's prefixes, as its reasoner will read them.
     std::optional<uri::PrefixMap> prefixes;
@@ -2323,6 +2324,7 @@ struct StatusNode {
   std::int64_t programs_at = 0, programs_read_ns = 0;  // as for RemoteBoard
   bool programs_current = true;  // a remote node's: read now, and rewritten recently
   std::string store_warning;     // a local store near its maximum, or its disk near full
+  std::string moved_from;        // a store under another id: the node whose store was moved here
   // A local store with a forwarding policy (`up` subscribes its uplink only on a node with a
   // parent): without an uplink state it is a child whose link has not run, not a root.
   bool has_parent = false;
@@ -2658,10 +2660,24 @@ int run_status(const Args& args) {
   }
   for (const auto& [id, iri] : gone) {
     if (unopened.count(id) || std::any_of(nodes.begin(), nodes.end(), [&](const StatusNode& n) { return n.id == id; })) continue;
-    nodes.push_back({.id = id, .iri = iri.empty() ? iri_from_parent(id) : iri});
-    nodes.back().store_warning = "its store " + (state / id).string() +
-                                 " was removed or moved while the node ran: its supervisor stopped its programs, and "
-                                 "'tahvel up' of the file makes the store again and starts the node anew";
+    StatusNode node{.id = id, .iri = iri.empty() ? iri_from_parent(id) : iri};
+    // Moved within the state directory (a copy kept as state/home1.bak): 'up' refuses to make a
+    // new store beside another of the node's IRI, so "up makes it again" was no way out.
+    auto moved = std::find_if(nodes.begin(), nodes.end(), [&](const StatusNode& n) {
+      return !n.remote && !node.iri.empty() && n.iri == node.iri && n.id != id;
+    });
+    if (moved != nodes.end()) {
+      node.store_warning = "its store " + (state / id).string() + " was moved to " + (state / moved->id).string() +
+                           " while the node ran: its supervisor stopped its programs; move it back and 'tahvel up' "
+                           "the file again to go on with its data, or move it out of " + state.string() +
+                           " for 'tahvel up' to make the node a new store";
+      moved->moved_from = id;
+    } else {
+      node.store_warning = "its store " + (state / id).string() +
+                           " was removed or moved while the node ran: its supervisor stopped its programs, and "
+                           "'tahvel up' of the file makes the store again and starts the node anew";
+    }
+    nodes.push_back(std::move(node));
   }
   // A store here that cannot be opened (damaged, cut short, on a read-only disk): the node is
   // this machine's, with its programs, not "on another machine" by its parent's state of it.
@@ -2847,8 +2863,9 @@ int run_status(const Args& args) {
                 << node::json_escape(n.iri) << "\",\"depth\":" << depth << ",\"parent\":";
       print_json_string_or_null(parent ? parent->iri : std::string());
       std::cout << ",\"remote\":" << (n.remote ? "true" : "false")
-                << ",\"in_deployment\":" << (left ? "false" : "true")
-                << ",\"link\":";
+                << ",\"in_deployment\":" << (left ? "false" : "true") << ",\"moved_from\":";
+      print_json_string_or_null(n.moved_from);
+      std::cout << ",\"link\":";
       first_node = false;
       if (n.link.empty()) std::cout << "null";
       else
@@ -2886,7 +2903,10 @@ int run_status(const Args& args) {
     std::string indent(depth * 2, ' ');
     std::cout << indent << n.id << "  <" << n.iri << ">";
     if (n.remote) std::cout << "  (on another machine)";
-    if (left) std::cout << "  not in the deployment (taken out of its file; the store is kept)";
+    if (left && !n.moved_from.empty())
+      std::cout << "  not in the deployment (the store of node '" << n.moved_from << "', moved here while it ran)";
+    else if (left)
+      std::cout << "  not in the deployment (taken out of its file; the store is kept)";
     if (!n.link.empty() && !unknown_because.empty()) {
       std::cout << "  link state unknown: " << unknown_because << " (it last said: " << said << ")";
       // The parent's view is stale; the node's own, written here, is not (its outbox grows).

@@ -216,25 +216,26 @@ std::optional<std::string> board_agent_id(const AgentSpec& spec, bool with_mitdb
 
 }  // namespace
 
+std::optional<std::string> agents_running_as_one(const NodeSpec& spec, bool with_mitdb) {
+  std::map<std::string, const AgentSpec*> runs_as;
+  for (const AgentSpec& agent : spec.agents) {
+    auto id = board_agent_id(agent, with_mitdb);
+    if (!id) continue;
+    auto [first, fresh] = runs_as.emplace(*id, &agent);
+    if (!fresh)
+      return agent.at + ": node '" + spec.id + "': agent '" + agent.id + "' (" + program_name(agent) + ") runs as agent <" +
+             spec.iri + "/" + *id + ">, as '" + first->second->id + "' (" + first->second->at +
+             ") does: one process at a time holds an agent, so it could not run while that one does; give one of them "
+             "--agent ID";
+  }
+  return std::nullopt;
+}
+
 std::vector<std::string> dataflow_warnings(const Topology& topo, const ForwardPolicies& policies,
                                            const std::vector<const NodeSpec*>& judged, bool with_mitdb) {
   Flow flow(topo, policies);
   std::vector<std::string> warnings;
   for (const NodeSpec* spec : judged) {
-    // Two programs that run as one agent: one process at a time holds an agent (its lock), so the
-    // second fails at each start until the first ends (two ECG sources left at their default:
-    // the second patient's ECG came a whole record late; restarted only as its policy says).
-    std::map<std::string, const AgentSpec*> runs_as;
-    for (const AgentSpec& agent : spec->agents) {
-      auto id = board_agent_id(agent, with_mitdb);
-      if (!id) continue;
-      auto [first, fresh] = runs_as.emplace(*id, &agent);
-      if (!fresh)
-        warnings.push_back(agent.at + ": node '" + spec->id + "': agent '" + agent.id + "' (" + program_name(agent) +
-                           ") runs as agent <" + spec->iri + "/" + *id + ">, as '" + first->second->id + "' (" +
-                           first->second->at + ") does: one process at a time holds an agent, so it cannot run while "
-                           "that one does; give one of them --agent ID");
-    }
     const Holds& here = flow.holds(*spec);
     // A stage here whose input and output both come up from one child: the child's stage and this
     // one write the same items (named by recording) from one input.

@@ -31,11 +31,16 @@ using ForwardPolicies = std::map<std::string, std::optional<std::vector<node::Pa
 // - an input that no agent of its node writes and no child passes up (once per cause; the agents
 //   that wait on it are named with it);
 // - a stage whose input and results both come up from one child, so that the child's stage and
-//   this one write one recording's items under the same names;
-// - a shipped program that runs as the same agent (its --agent, or its default) as another of
-//   its node, and so cannot run while that one does.
+//   this one write one recording's items under the same names.
 // `with_mitdb`: TAHVEL_MITDB is set, so agents with run_with_mitdb run that.
 std::vector<std::string> dataflow_warnings(const Topology& topo, const ForwardPolicies& policies,
                                            const std::vector<const NodeSpec*>& judged, bool with_mitdb);
+
+// Why two agents of `spec` cannot both run, or nullopt: two shipped programs that run as one agent
+// (each its --agent, or its program's default), where one process at a time holds an agent (its
+// lock), so that the second would fail at each start while the first runs (two ECG sources left
+// at their default: a second patient's ECG unmonitored). Other programs are not judged: what
+// they run as is not known here. `with_mitdb` as above.
+std::optional<std::string> agents_running_as_one(const NodeSpec& spec, bool with_mitdb);
 
 }  // namespace tahvel::cli
