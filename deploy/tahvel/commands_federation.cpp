@@ -1963,6 +1963,10 @@ int run_up(const Args& args) {
   if (running > 0) return ask_to_apply(running, pid_file, topo.file);
   const std::size_t program_count = programs_of(topo, mine, state, here).size();
   const bool foreground = args.has("--foreground");
+  // The foreground supervisor is a service's main process, its output a pipe to the journal: a
+  // line is written when it is said, not held in a buffer until a clean stop (a SIGKILL, the
+  // service manager's stop timeout, lost what was held).
+  if (foreground) std::cout << std::unitbuf << std::flush;
   int ready_fd = -1;  // the daemon's end of the pipe `up` waits on
   int pid_fd = -1;    // the pid file, held
   if (!foreground) {

@@ -2778,6 +2778,21 @@ TEST_F(Cli, UpInTheForegroundBesideARunningSupervisorIsRefused) {
   EXPECT_EQ(run({"down", "--state", state}).status, 0);
 }
 
+// Under a service manager `up --foreground` writes to a pipe to the journal: its lines were held
+// in a buffer until a clean stop, and a SIGKILL (the stop timeout, the OOM killer) lost them.
+TEST_F(Cli, UpInTheForegroundWritesEachLineWhenItIsSaid) {
+  const std::string file = (tmp_ / "node.toml").string(), state = (tmp_ / "state").string();
+  spit(file, kIdleNodeToml);
+  const int n = 997;  // apart from run()'s numbers
+  const pid_t pid = spawn({"up", file, "--state", state, "--foreground"}, "", n);
+  const fs::path out = tmp_ / ("out" + std::to_string(n));
+  EXPECT_TRUE(eventually([&] { return slurp(out).find("up: created the store of ") != std::string::npos; }))
+      << slurp(out) << slurp(tmp_ / ("err" + std::to_string(n)));
+  kill(pid, SIGKILL);
+  EXPECT_EQ(finish(pid, n).status, 128 + SIGKILL);
+  EXPECT_EQ(run({"down", "--state", state}).status, 0);  // what the killed supervisor left running
+}
+
 // The commands `up` suggests can be pasted as they are, also with a space in the path.
 TEST_F(Cli, UpQuotesAStateDirectoryWithASpaceInTheCommandsItSuggests) {
   const std::string file = (tmp_ / "node.toml").string(), state = (tmp_ / "my state").string();
