@@ -364,6 +364,18 @@ struct Link::Impl {
   bool up_go_back = false;
   std::uint64_t up_went_back_to = ~0ull;
   Clock::time_point up_went_back_at{};
+  // P8a: go-backs in a row after which the parent's mark has not moved. Each halves the window
+  // and doubles the wait before the next; each ack that moves the mark takes one back. Under
+  // mu. The mark at the last go-back tells whether one moved it.
+  unsigned up_backoff = 0;
+  std::uint64_t up_mark_at_go_back = ~0ull;
+  static constexpr unsigned kMaxBackoff = 9;          // a window of 512 >> 9 = 1
+  static constexpr unsigned kMaxResendDoublings = 4;  // resend_after x 16: 4.8 s by default
+
+  std::chrono::milliseconds up_resend_after() const {
+    return opt.resend_after * (1u << std::min(up_backoff, kMaxResendDoublings));
+  }
+  std::size_t up_window() const { return std::max<std::size_t>(1, opt.window >> std::min(up_backoff, kMaxBackoff)); }
   // P12a: this node's own view of its uplink, on its board.
   bool ever_welcomed = false;
   // Welcomed in an earlier run (this node's state on the board said "up" or "down"): a link
@@ -1167,7 +1179,16 @@ struct Link::Impl {
 
   void heard_from_parent() {
     std::lock_guard lock(mu);
-    parent_heard = Clock::now();
+    const Clock::time_point now = Clock::now();
+    // P8a: a parent heard again after a silence is a path that passes frames again: what waits
+    // goes now, in a whole window, not after a backed-off wait (up to 16 x resend_after).
+    if (now - parent_heard > opt.child_silence && up_backoff > 0) {
+      up_backoff = 0;
+      up_mark_at_go_back = ~0ull;
+      if (!up_in_flight.empty()) up_go_back = true;
+      changed.notify_all();
+    }
+    parent_heard = now;
     parent_heard_ns = now_ns();
   }
 
@@ -1908,6 +1929,8 @@ struct Link::Impl {
         up_last_sent = f.ack;
         up_in_flight.clear();
         up_progress = Clock::now();
+        up_backoff = 0;  // P8a: a new session
+        up_mark_at_go_back = ~0ull;
         changed.notify_all();
         return;
       }
@@ -1959,13 +1982,14 @@ struct Link::Impl {
         if (f.ack > up_mark) {
           up_mark = f.ack;
           up_progress = Clock::now();
+          if (up_backoff > 0) --up_backoff;  // P8a
           if (!parent_cannot_store.empty()) {
             if (parent_cannot_store_said.open) log("the parent <" + opt.parent_iri + "> stores what this node sends again");
             parent_cannot_store_said.open = false;
             parent_cannot_store.clear();
           }
         }
-        if (f.prev == 1 && (f.ack != up_went_back_to || Clock::now() - up_went_back_at > opt.resend_after)) {
+        if (f.prev == 1 && (f.ack != up_went_back_to || Clock::now() - up_went_back_at > up_resend_after())) {
           up_go_back = true;  // P8: once per mark and interval, not on every gap ack
           up_went_back_to = f.ack;
           up_went_back_at = Clock::now();
@@ -2506,12 +2530,18 @@ struct Link::Impl {
         resend = std::exchange(resend_persistent, false);
         requeue = std::exchange(requeue_after_welcome, false);
         while (!up_in_flight.empty() && up_in_flight.front() <= up_mark) up_in_flight.pop_front();
-        if (up_go_back || (!up_in_flight.empty() && Clock::now() - up_progress > opt.resend_after)) {
+        if (up_go_back || (!up_in_flight.empty() && Clock::now() - up_progress > up_resend_after())) {
           up_last_sent = up_mark;  // P8: go back to the parent's mark
           up_in_flight.clear();
           up_go_back = false;
           up_progress = Clock::now();
           ++counters.up_resends;
+          // P8a: a go-back that the last one did not get past is a sign of a path that loses
+          // what it is given (a LAN or radio at its capacity): resending the whole window every
+          // resend_after multiplied what a sensor offered it 23-fold, and its gateway's own
+          // uplink went down with it, for a cut of a tenth of the capacity.
+          if (up_mark == up_mark_at_go_back && up_backoff < kMaxBackoff) ++up_backoff;
+          up_mark_at_go_back = up_mark;
         }
         mark = up_mark;
         after = up_last_sent;
@@ -2519,7 +2549,7 @@ struct Link::Impl {
         // go-back, a probe, not the window: a sensor resent 512 items every resend_after onto
         // its LAN for as long as its gateway was down. Any frame from it opens the window again.
         const bool parent_silent = Clock::now() - parent_heard > opt.child_silence;
-        const std::size_t window = parent_silent || !parent_cannot_store.empty() ? 1 : opt.window;
+        const std::size_t window = parent_silent || !parent_cannot_store.empty() ? 1 : up_window();
         room = window > up_in_flight.size() ? window - up_in_flight.size() : 0;
         if (room == 0) {
           changed.wait_for(lock, 20ms);
@@ -2591,7 +2621,7 @@ struct Link::Impl {
         ++counters.up_sent;
       }
       for (std::size_t k = 0; k + 1 < frames.size(); ++k) frames[k].ack |= kMoreFollow;  // P9b
-      if (!frames.empty() && up_in_flight.size() * 2 >= opt.window) frames.back().ack |= kAckNow;  // P8
+      if (!frames.empty() && up_in_flight.size() * 2 >= up_window()) frames.back().ack |= kAckNow;  // P8
       mark = up_mark;
       lock.unlock();
       // Only this thread sends up frames, so they leave in the order of the stream; a go-back

@@ -2873,7 +2873,7 @@ TEST_F(Cli, StatusJsonHasEachNodesLinkAndPrograms) {
   Outcome json = run({"status", "--state", state, "--json"});
   EXPECT_EQ(json.status, 0) << json.err;
   EXPECT_EQ(json.out.rfind("{\"state\":\"" + state + "\",\"nodes\":[{\"id\":\"solo\",\"iri\":\"http://example.org/solo\",\"depth\":0,"
-                           "\"parent\":null,\"remote\":false,\"in_deployment\":true,\"link\":null,\"has_parent\":false,\"uplink\":null,\"programs\":[",
+                           "\"parent\":null,\"remote\":false,\"in_deployment\":true,\"moved_from\":null,\"link\":null,\"has_parent\":false,\"uplink\":null,\"programs\":[",
                            0),
             0u)
       << json.out;

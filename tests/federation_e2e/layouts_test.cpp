@@ -152,7 +152,7 @@ TEST_F(Deployment, StatusDoesNotShowAStoppedParentsLastWordAsTheLinksState) {
   std::string shown;
   ASSERT_TRUE(eventually([&] { return (shown = status()).find("gateway  <" + kWard + "/gateway>  link up, last seen") != std::string::npos; }))
       << shown;
-  const std::string gateway_json = "{\"id\":\"gateway\",\"iri\":\"" + kWard + "/gateway\",\"depth\":1,\"parent\":\"" + kWard + "\",\"remote\":false,\"in_deployment\":true,\"link\":{\"parent\":\"" + kWard +
+  const std::string gateway_json = "{\"id\":\"gateway\",\"iri\":\"" + kWard + "/gateway\",\"depth\":1,\"parent\":\"" + kWard + "\",\"remote\":false,\"in_deployment\":true,\"moved_from\":null,\"link\":{\"parent\":\"" + kWard +
                                    "\",\"state\":\"up\",";
   shown = tahvel("status --json --state " + state_.string());
   EXPECT_NE(shown.find(gateway_json + "\"known\":true,\"unknown_because\":null,\"last_seen_ns\":"), std::string::npos) << shown;
@@ -193,7 +193,7 @@ TEST_F(Deployment, StatusOnEachMachineShowsWhatThatMachineKnowsOfTheLinkBetweenT
   })) << gateway_sees;
   EXPECT_EQ(gateway_sees.find("(root)"), std::string::npos) << gateway_sees;
   const std::string json = tahvel("status --json --state " + gateway_machine.string());
-  EXPECT_NE(json.find("\"remote\":false,\"in_deployment\":true,\"link\":null,\"has_parent\":true,\"uplink\":{\"parent\":\"" + kWard + "\",\"state\":\"up\",\"known\":true,"),
+  EXPECT_NE(json.find("\"remote\":false,\"in_deployment\":true,\"moved_from\":null,\"link\":null,\"has_parent\":true,\"uplink\":{\"parent\":\"" + kWard + "\",\"state\":\"up\",\"known\":true,"),
             std::string::npos)
       << json;
 
