@@ -244,8 +244,8 @@ Error lmdb_error(int rc, std::string_view what) {
   else if (rc == MDB_INVALID || rc == MDB_CORRUPTED || rc == MDB_PAGE_NOTFOUND) code = Errc::corrupt;
   // LMDB's words name neither cause: the store's file is damaged (no page is checksummed), or
   // for a version mismatch also written by another LMDB build.
-  const char* why = code == Errc::corrupt ? " (the store's file is damaged; restore it from a copy)"
-                    : code == Errc::version ? " (the store was written by another LMDB build, or its file is damaged)"
+  const char* why = code == Errc::corrupt ? " (the store's data file, data.mdb, is damaged; restore it from a copy)"
+                    : code == Errc::version ? " (the store was written by another LMDB build, or its data file, data.mdb, is damaged)"
                                             : "";
   return Error{code, std::string(what) + ": " + mdb_strerror(rc) + why};
 }

@@ -332,6 +332,20 @@ class Parser {
                                  statement.starts_with("true") || statement.starts_with("false")))
         return message + " (a literal cannot be a subject: a statement begins with an IRI or a blank node)";
     }
+    // A fourth term where a statement ends: N-Quads' graph name (a .nq file), of which serd says
+    // only what it expected.
+    if (message.ends_with("missing ';' or '.'")) {
+      const std::size_t at = std::min(offset(), text_.size());
+      const std::size_t term = text_.find_first_not_of(" \t", at);
+      const std::size_t line_end = std::min(text_.find('\n', at), text_.size());
+      if (term < line_end && (text_[term] == '<' || text_.substr(term, 2) == "_:")) {
+        const std::string_view rest = text_.substr(term, line_end - term);
+        const std::size_t last = rest.find_last_not_of(" \t\r");
+        if (last != std::string_view::npos && rest[last] == '.' && rest.find_first_of(" \t") < last)
+          return message + " (a fourth term, as N-Quads writes a triple's graph: Tahvel reads Turtle and N-Triples, "
+                           "whose triples are in no graph; leave the graph names out)";
+      }
+    }
     // The records `list --format json` writes, put back: '{' starts a graph block to serd.
     const std::size_t first = text_.find_first_not_of(" \t\r\n");
     if (first != std::string_view::npos && text_.substr(first, 2) == "{\"")

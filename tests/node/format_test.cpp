@@ -180,6 +180,24 @@ TEST(Format, ANamedGraphBlockIsASyntaxErrorNotAGraphDropped) {
             std::string::npos);
 }
 
+// An N-Quads line (a .nq file given to load or put) got only "missing ';' or '.'" at its graph
+// name. Said as such, in both formats; a fourth term without the final '.' is no quad.
+TEST(Format, AQuadsGraphNameIsSaidToBeOneThatIsNotRead) {
+  for (const Format format : {Format::turtle, Format::ntriples}) {
+    ParseOptions options;
+    options.format = format;
+    options.source_name = "q.nq";
+    for (const std::string& graph : {"<" + kEx + "g>", std::string("_:g")}) {
+      tn::Error quad = parse_error("<" + kEx + "s> <" + kEx + "p> \"x\" " + graph + " .\n", options);
+      EXPECT_EQ(quad.code, tn::Errc::syntax);
+      EXPECT_EQ(quad.message.rfind("q.nq:1:", 0), 0u) << quad.message;
+      EXPECT_NE(quad.message.find("a fourth term, as N-Quads writes a triple's graph"), std::string::npos) << quad.message;
+    }
+    tn::Error unended = parse_error("<" + kEx + "s> <" + kEx + "p> \"x\" <" + kEx + "g>\n", options);
+    EXPECT_EQ(unended.message.find("N-Quads"), std::string::npos) << unended.message;
+  }
+}
+
 // Errors say where and what as a reader sees the file: a lone CR ends a line (old Mac files put
 // every error on line 1), the end of the input inside an IRI is said as such (serd said
 // "invalid IRI character (escape %FFFFFFFF)"), and JSON records put back are named JSON.

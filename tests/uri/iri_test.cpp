@@ -350,6 +350,17 @@ TEST(Iri, CheckIdRejectsQueryAndFragmentMarks) {
   EXPECT_EQ(err(check_id("ab#")).position, 2u);
 }
 
+// An id whose percent-escape is none passed check_id and failed only when an IRI was made of it:
+// `tahvel put --agent %zz` was a failure of the store's (exit 1), not a bad command line.
+TEST(Iri, CheckIdRejectsAnIdThatMakesNoIri) {
+  const IriError e = err(check_id("%zz"));
+  EXPECT_TRUE(contains(e.message, "invalid percent-encoding '%zz'")) << e.message;
+  EXPECT_TRUE(contains(e.message, "invalid id '%zz'")) << e.message;
+  EXPECT_FALSE(check_id("a%2"));
+  EXPECT_FALSE(check_id("%2E%2E"));
+  EXPECT_TRUE(check_id("a%20b"));
+}
+
 TEST(Iri, CheckIdRejectsDotAndDotDot) {
   EXPECT_TRUE(contains(err(check_id(".")).message, "path steps"));
   EXPECT_TRUE(contains(err(check_id("..")).message, "path steps"));

@@ -235,6 +235,10 @@ IriResult<std::string> resolve(std::string_view base, std::string_view reference
 
 IriResult<std::string> check_id(std::string_view id) {
   if (auto failure = id_failure(id)) return unexpected(make_error("invalid id", id, *failure));
+  // What only an IRI made of it shows: a percent-escape that is none ('%zz'), escaped dots that
+  // normalise into a path step. Found here, `tahvel put --agent %zz` is a bad command line, not
+  // a failure of the store's.
+  if (auto child = derive_child("http://id.invalid", id, "node"); !child) return unexpected(child.error());
   return std::string(id);
 }
 
