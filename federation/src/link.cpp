@@ -234,6 +234,10 @@ std::vector<node::Pattern> default_forward_policy() {
 // `hold` after the last change (LinkOptions::conflict_hold).
 class StoreFlips {
  public:
+  // A store id as said: "id 07e11dc6…", or a store told by its tag only (describe_tag) as it is.
+  static std::string named(const std::string& store) {
+    return store.starts_with("the store of tag ") ? store : "id " + store;
+  }
   void set_hold(Clock::duration hold) { hold_ = hold; }
   // A frame named `store`, where `before` was expected (empty: none yet). True when that makes a
   // conflict that was not one before.
@@ -244,7 +248,7 @@ class StoreFlips {
     while (!flips_.empty() && now - flips_.front() > kWindow) flips_.pop_front();
     if (flips_.size() < kFlips) return false;
     const bool fresh = !active();
-    said_ = "two stores (ids " + before + " and " + store + ") take turns as " + who +
+    said_ = "two stores (" + named(before) + " and " + named(store) + ") take turns as " + who +
             ": two nodes with one IRI on this network, such as a second deployment of the same file; this link "
             "does not link with it until " + std::to_string(std::chrono::duration_cast<std::chrono::seconds>(hold_).count()) +
             " s after the last sign of two";
@@ -256,7 +260,7 @@ class StoreFlips {
   bool declare(const std::string& registered, const std::string& other, const std::string& who) {
     flips_.assign(kFlips, Clock::now());
     const bool fresh = !active();
-    said_ = "two stores (ids " + registered + " and " + other + ") are alive as " + who +
+    said_ = "two stores (" + named(registered) + " and " + named(other) + ") are alive as " + who +
             ": two nodes with one IRI on this network, such as a second deployment of the same file; this link "
             "does not link with it until " + std::to_string(std::chrono::duration_cast<std::chrono::seconds>(hold_).count()) +
             " s after the last sign of two";
@@ -546,9 +550,12 @@ struct Link::Impl {
     ack.body = wire::encode_state({"", 0, store_id, peer_store});
     return ack;
   }
-  static std::string describe_tag(const char* what, std::uint64_t tag) {
-    char text[80];
-    std::snprintf(text, sizeof text, "(%s, tag %06llx)", what, static_cast<unsigned long long>(tag));
+  // A store known by the tag its frames carry only, as StoreFlips names the two stores: "the
+  // store of tag 9e9446, which sent …". Up to session 73 the text went in where an id goes:
+  // "two stores (ids 07e11dc6 and (to another store of this node's IRI, tag 9e9446))".
+  static std::string describe_tag(const char* after, std::uint64_t tag) {
+    char text[120];
+    std::snprintf(text, sizeof text, "the store of tag %06llx, %s", static_cast<unsigned long long>(tag), after);
     return text;
   }
   // P6b: up or down frames came from, or went to, a store of the peer's or this node's IRI other
@@ -1301,11 +1308,11 @@ struct Link::Impl {
       }
       const std::uint64_t from_tag = (f.ack >> kStoreTagShift) & kStoreTagMask, to_tag = f.ack >> kPeerStoreTagShift;
       if (from_tag != 0 && registered_tag != 0 && from_tag != registered_tag) {
-        foreign = describe_tag("from another store", from_tag);
+        foreign = describe_tag("which sent frames here", from_tag);
         continue;  // the other store's seqs are not this stream's: never applied, never acknowledged
       }
       if (to_tag != 0 && own_tag != 0 && to_tag != own_tag) {
-        foreign = describe_tag("to another store of this node's IRI", to_tag);
+        foreign = describe_tag("another of this node's IRI, to which frames here were sent", to_tag);
         continue;  // sent on a link with that other store
       }
       if (!up) body->item.context = subtree_for(body->item.context, self);  // P11

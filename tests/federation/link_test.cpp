@@ -1526,7 +1526,7 @@ TEST(Link, TwoStoresTakingTurnsUnderOneIriAreAConflictInTheStateOfTheSideThatSee
   ASSERT_TRUE(heartbeat_from("aaaa"));
   std::this_thread::sleep_for(100ms);
   ASSERT_TRUE(hello_from("bbbb"));
-  EXPECT_TRUE(eventually([&] { return tree.hospital_log.has("conflict: two stores (ids aaaa and bbbb) are alive as the child <" + kHome1 + ">"); }));
+  EXPECT_TRUE(eventually([&] { return tree.hospital_log.has("conflict: two stores (id aaaa and id bbbb) are alive as the child <" + kHome1 + ">"); }));
   EXPECT_TRUE(eventually([&] { return count(tree.hospital_dir, {.s = Term::iri(kHome1), .p = conflict}) == 1; }));
 
   // The child's side: welcomes from two stores of its parent.
@@ -1548,7 +1548,7 @@ TEST(Link, TwoStoresTakingTurnsUnderOneIriAreAConflictInTheStateOfTheSideThatSee
     ASSERT_TRUE(parent->send(welcome));
     std::this_thread::sleep_for(50ms);
   }
-  EXPECT_TRUE(eventually([&] { return other.home1_log.has("conflict: two stores (ids cccc and dddd) are alive as the parent <" + kHospital + ">"); }))
+  EXPECT_TRUE(eventually([&] { return other.home1_log.has("conflict: two stores (id cccc and id dddd) are alive as the parent <" + kHospital + ">"); }))
       << other.home1_log.text();
   EXPECT_TRUE(eventually([&] { return count(other.home1_dir, {.s = Term::iri(kHome1), .p = conflict}) == 1; }));
 }
