@@ -58,7 +58,10 @@ void child_walk(const std::string& dir, std::size_t max_problems, int fd) {
       send("error " + node.error().message);
       _exit(kExitFailure);
     }
-    auto report = node->check(max_problems, [&](std::string_view table) { send("table " + std::string(table)); });
+    // Each problem as it is found: a damaged page may end this process before the report.
+    auto report = node->check(
+        max_problems, [&](std::string_view table) { send("table " + std::string(table)); },
+        [&](std::string_view problem) { send("problem " + std::string(problem)); });
     if (!report) {
       send("error " + report.error().message);
       _exit(kExitFailure);
@@ -78,7 +81,6 @@ void child_walk(const std::string& dir, std::size_t max_problems, int fd) {
       {"time_entries", report->time_entries}, {"buffer_entries", report->buffer_entries},
       {"problems_found", report->problems_found}};
   for (const auto& [name, value] : counts) send(std::string("count ") + name + " " + std::to_string(value));
-  for (const std::string& p : report->problems) send("problem " + p);
   send("end");
   _exit(kExitOk);
 }
@@ -151,11 +153,16 @@ int run_check(const Args& args) {
         fault ? dir + ": the store's file is damaged: the reading process was " + how + " " + where +
                     " (LMDB checksums no page; a damaged one can end a reader or a writer)"
               : dir + ": the check did not finish: the reading process was " + how + " " + where;
+    // What it had found before it ended (a first damaged page read without a fault).
     if (json) {
       std::cout << "{\"consistent\":" << (fault ? "false" : "null") << ",\"ended_in_table\":\"" << node::json_escape(table) << "\",\"how\":\""
-                << node::json_escape(how) << "\"}\n";
-      finish_output(std::cout);
+                << node::json_escape(how) << "\",\"problems\":[";
+      for (std::size_t i = 0; i < problems.size(); ++i) std::cout << (i ? "," : "") << '"' << node::json_escape(problems[i]) << '"';
+      std::cout << "]}\n";
+    } else {
+      for (const std::string& p : problems) std::cout << "problem: " << p << "\n";
     }
+    finish_output(std::cout);
     fail(message);
   }
   std::string found = "0";

@@ -2,7 +2,9 @@
 
 #include <algorithm>
 #include <cstring>
+#include <functional>
 #include <optional>
+#include <set>
 #include <string>
 #include <utility>
 #include <vector>
@@ -60,22 +62,60 @@ std::uint64_t u64(const MDB_val& v) {
 
 class Checker {
  public:
-  Checker(Env& env, MDB_txn* txn, std::size_t max_problems) : env_(env), txn_(txn), max_(max_problems) {}
+  Checker(Env& env, MDB_txn* txn, std::size_t max_problems, const std::function<void(std::string_view)>& found)
+      : env_(env), txn_(txn), max_(max_problems), found_(found) {}
 
   void problem(std::string what) {
-    ++report.problems_found;
-    if (report.problems.size() < max_) report.problems.push_back(std::move(what));
+    // After LMDB refuses a page (damaged, MDB_CORRUPTED), the read transaction refuses every
+    // later read (MDB_BAD_TXN): one bad page of idx_s was reported as eleven damaged tables.
+    if (broken_) {
+      ++unsaid_;
+      return;
+    }
+    keep(std::move(what));
+    MDB_val k = val(std::string_view("counters")), v;
+    broken_ = mdb_get(txn_, env_.main, &k, &v) == MDB_BAD_TXN;
   }
   void ended(const Walk& walk, std::string_view table, std::uint64_t after) {
-    if (auto why = walk.failure(); !why.empty())
+    if (auto why = walk.failure(); !why.empty()) {
+      cut_.insert(std::string(table));
       problem(std::string(table) + ": the walk stops " + (walk.read_any() ? "after key " + std::to_string(after) : "at its start") +
               ": " + why);
+    }
+  }
+  bool broken() const { return broken_; }
+  // After a step whose read LMDB refused: the next steps read on a new read transaction, and
+  // what the refused one would have said of `step` is counted as its consequence, not said.
+  // False when no new read can begin (the steps after would say nothing true).
+  bool read_anew(std::string_view step) {
+    if (!broken_) return true;
+    cut_.insert(std::string(step));
+    mdb_txn_reset(txn_);
+    const int rc = mdb_txn_renew(txn_);
+    broken_ = false;
+    const std::size_t unsaid = std::exchange(unsaid_, 0);
+    if (rc != 0) {
+      problem("the store cannot be read again after the problem above: " + lmdb_error(rc, "beginning a read").message);
+      return false;
+    }
+    keep(std::string(step) + ": LMDB refused the rest of this read after the problem above" +
+         (unsaid ? " (" + std::to_string(unsaid) + " later finding(s) of it left unsaid)" : "") + "; the tables after " +
+         std::string(step) + " are read anew");
+    return true;
+  }
+  void keep(std::string what) {
+    ++report.problems_found;
+    if (report.problems.size() >= max_) return;
+    if (found_) found_(what);
+    report.problems.push_back(std::move(what));
   }
 
   bool has_term(std::uint64_t id) const {
     return id == 0 || is_inline(id) || std::binary_search(term_ids_.begin(), term_ids_.end(), id);
   }
   void need_term(std::uint64_t id, const std::string& whose) {
+    // The terms walk cut short (a damaged page) saw none of the later terms.
+    if (cut_.count("terms") && (term_ids_.empty() || id > term_ids_.back())) return;
     if (!has_term(id)) problem(whose + " names term " + std::to_string(id) + ", which is not in the dictionary");
   }
 
@@ -142,11 +182,14 @@ class Checker {
       need_term(row.p, whose + " (predicate)");
       need_term(row.o, whose + " (object)");
       const std::uint64_t terms[3] = {row.s, row.p, row.o};
-      for (int i = 0; i < 3; ++i) {
+      for (int i = 0; i < 3 && !broken_; ++i) {
         MDB_val k = val(terms[i]), d = val(id);
-        if (index[i].c && mdb_cursor_get(index[i].c, &k, &d, MDB_GET_BOTH) != 0)
-          problem(whose + " is not in the " + names[i] + " index");
+        const int rc = index[i].c ? mdb_cursor_get(index[i].c, &k, &d, MDB_GET_BOTH) : 0;
+        if (rc == MDB_NOTFOUND) problem(whose + " is not in the " + names[i] + " index");
+        else if (rc != 0)
+          problem(std::string("the ") + names[i] + " index cannot be read at " + whose + ": " + lmdb_error(rc, "looking it up").message);
       }
+      if (broken_) break;
       if (runs_.empty() || runs_.back().first != row.item) {
         runs_.emplace_back(row.item, 0);
         item = row.item;
@@ -188,7 +231,9 @@ class Checker {
       need_term(row.writer, whose + " (writer)");
       while (run != runs_.end() && run->first < id) ++run;
       const std::uint64_t found = run != runs_.end() && run->first == id ? run->second : 0;
-      if (found != row.live)
+      // The records walk cut short (a damaged page) saw none of the later items' records.
+      const bool records_seen = !cut_.count("records") || (!runs_.empty() && id < runs_.back().first);
+      if (records_seen && found != row.live)
         problem(whose + " counts " + std::to_string(row.live) + " live records; the records table holds " +
                 std::to_string(found));
       if (times.c) {
@@ -277,9 +322,10 @@ class Checker {
       if (counted != kept)
         problem(std::string("counters: ") + what + " " + std::to_string(kept) + ", the tables hold " + std::to_string(counted));
     };
-    compare("records", report.records, c->records);
-    compare("items", report.items, c->items);
-    compare("terms", report.terms, c->terms);
+    // A table whose walk was cut short has counted less than it holds: no finding of its own.
+    if (!cut_.count("records")) compare("records", report.records, c->records);
+    if (!cut_.count("items")) compare("items", report.items, c->items);
+    if (!cut_.count("terms")) compare("terms", report.terms, c->terms);
     // Ids only grow: a counter at or below an id in use would hand it out again.
     if (c->next_seq <= std::max(max_record_, max_item_))
       problem("counters: next id " + std::to_string(c->next_seq) + ", but id " + std::to_string(std::max(max_record_, max_item_)) +
@@ -299,6 +345,10 @@ class Checker {
   Env& env_;
   MDB_txn* txn_;
   std::size_t max_;
+  const std::function<void(std::string_view)>& found_;
+  bool broken_ = false;       // LMDB refused this read: later reads of it fail as MDB_BAD_TXN
+  std::size_t unsaid_ = 0;    // findings while broken_, consequences of the refusal
+  std::set<std::string> cut_;  // tables whose walk did not reach the end
   std::vector<std::uint64_t> term_ids_;                          // ascending, as the table holds them
   std::vector<std::pair<std::uint64_t, std::uint64_t>> runs_;  // item -> records seen
   std::uint64_t max_record_ = 0, max_item_ = 0;                 // the greatest ids in use
@@ -308,31 +358,29 @@ class Checker {
 }  // namespace
 
 Result<CheckReport> check_store(Env& env, MDB_txn* txn, std::size_t max_problems,
-                                const std::function<void(std::string_view table)>& progress) {
-  Checker check(env, txn, max_problems);
+                                const std::function<void(std::string_view table)>& progress,
+                                const std::function<void(std::string_view problem)>& found) {
+  Checker check(env, txn, max_problems, found);
   auto step = [&](std::string_view table) {
     if (progress) progress(table);
   };
-  step("terms");
-  check.terms();
-  step("records");
-  check.records();
-  step("items");
-  check.items();
-  step("idx_s");
-  check.index(env.idx_s, "idx_s", 0);
-  step("idx_p");
-  check.index(env.idx_p, "idx_p", 1);
-  step("idx_o");
-  check.index(env.idx_o, "idx_o", 2);
-  step("by_time");
-  check.time_index();
-  step("inbox");
-  check.buffers(env.inbox, "inbox", false);
-  step("outbox");
-  check.buffers(env.outbox, "outbox", true);
-  step("counters");
-  check.counters();
+  const std::pair<std::string_view, std::function<void()>> steps[] = {
+      {"terms", [&] { check.terms(); }},
+      {"records", [&] { check.records(); }},
+      {"items", [&] { check.items(); }},
+      {"idx_s", [&] { check.index(env.idx_s, "idx_s", 0); }},
+      {"idx_p", [&] { check.index(env.idx_p, "idx_p", 1); }},
+      {"idx_o", [&] { check.index(env.idx_o, "idx_o", 2); }},
+      {"by_time", [&] { check.time_index(); }},
+      {"inbox", [&] { check.buffers(env.inbox, "inbox", false); }},
+      {"outbox", [&] { check.buffers(env.outbox, "outbox", true); }},
+      {"counters", [&] { check.counters(); }},
+  };
+  for (const auto& [table, run] : steps) {
+    step(table);
+    run();
+    if (!check.read_anew(table)) break;
+  }
   return std::move(check.report);
 }
 

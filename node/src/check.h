@@ -14,6 +14,7 @@ namespace tahvel::node::detail {
 // Reads every table of `env` in `txn` (a read transaction). Problems go into the report, up to
 // `max_problems` of them; an error only when the walk cannot go on at all.
 Result<CheckReport> check_store(Env& env, MDB_txn* txn, std::size_t max_problems,
-                                const std::function<void(std::string_view table)>& progress);
+                                const std::function<void(std::string_view table)>& progress,
+                                const std::function<void(std::string_view problem)>& found);
 
 }  // namespace tahvel::node::detail

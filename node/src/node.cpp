@@ -1640,10 +1640,11 @@ uri::PrefixMap Node::prefixes() const {
   return map;
 }
 
-Result<CheckReport> Node::check(std::size_t max_problems, const std::function<void(std::string_view)>& progress) const {
+Result<CheckReport> Node::check(std::size_t max_problems, const std::function<void(std::string_view)>& progress,
+                                const std::function<void(std::string_view)>& found) const {
   ReadTxn read(*impl_->env);
   if (auto r = read.begin(); !r) return unexpected(r.error());
-  return check_store(*impl_->env, read.txn, max_problems, progress);
+  return check_store(*impl_->env, read.txn, max_problems, progress, found);
 }
 
 Result<Stats> Node::stats() const {

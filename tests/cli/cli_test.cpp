@@ -1538,7 +1538,7 @@ TEST_F(Cli, CheckSaysAStoreHoldsTogetherAndNamesTheTableWhoseDamageEndedTheReadi
       << damaged.err;
   Outcome damaged_json = run({"check", node_, "--json"});
   EXPECT_EQ(damaged_json.status, 1);
-  EXPECT_EQ(damaged_json.out, "{\"consistent\":false,\"ended_in_table\":\"records\",\"how\":\"ended by SIGABRT\"}\n");
+  EXPECT_EQ(damaged_json.out, "{\"consistent\":false,\"ended_in_table\":\"records\",\"how\":\"ended by SIGABRT\",\"problems\":[]}\n");
   EXPECT_EQ(run({"check", (tmp_ / "nothing").string()}).status, 1);
 }
 

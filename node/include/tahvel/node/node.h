@@ -562,11 +562,17 @@ class Node {
   // missing, index and time-index entries that name nothing, counters that disagree with the
   // tables. Errors only when no snapshot can be taken. LMDB checksums no page, so a damaged page
   // may also end the reading process (SIGSEGV, SIGBUS, an abort): `tahvel check` runs this in a
-  // child process. `progress`, when set, is called with each table's name before it is read.
-  // The walk holds one snapshot throughout: pages freed meanwhile are not reused until it ends,
-  // and this process cannot grow the map while it runs (see Snapshot).
+  // child process. `progress`, when set, is called with each table's name before it is read,
+  // and `found` with each problem as it is found (of those the report keeps): a caller whose
+  // process a damaged page ends has them. The walk holds one snapshot, but for a read that LMDB
+  // refuses (a damaged page, MDB_CORRUPTED): the read transaction then refuses every later read,
+  // so the tables after that one are read on a new snapshot, and what the refused read said
+  // after its first problem is counted (a line says how many), not reported: one bad page of
+  // one index read as eleven damaged tables. Pages freed meanwhile are not reused until the walk
+  // ends, and this process cannot grow the map while it runs (see Snapshot).
   Result<CheckReport> check(std::size_t max_problems = 100,
-                            const std::function<void(std::string_view table)>& progress = {}) const;
+                            const std::function<void(std::string_view table)>& progress = {},
+                            const std::function<void(std::string_view problem)>& found = {}) const;
 
   // The store's identity: 32 hex digits, random, made when the store was created. A store made
   // again in the same place (a replaced disk, a new machine) has another one, so that a peer
