@@ -1086,7 +1086,11 @@ Result<void> Env::reserve_disk(WriteKind kind, const WriteBound& bound) {
     // disk had room for it to grow (a probe). Single pages come from the free ones while any are
     // reusable; a long term's run of pages may still be taken at the end, where the blocks
     // allocated already must hold it (and 64 pages for the tables' paths, as a removal's part).
-    const std::uint64_t least = (kind == WriteKind::removal ? (1u << 20) : kDiskLeast) + new_bytes;
+    // From free pages a write takes its rows' pages (bounded by four times its bytes: rows,
+    // index entries, their branches) and its tables' paths (1 MB covers them many times over).
+    // kDiskLeast here left a small store emptied on an 8 MB disk unwritable for good: its 3 MB of
+    // free pages were never 4 (an exploratory run of session 74).
+    const std::uint64_t least = (1u << 20) + (kind == WriteKind::removal ? new_bytes : 4 * new_bytes);
     const std::uint64_t backed = allocated_from(fd, in_use);
     const std::uint64_t free_bytes = reusable_free_bytes();
     if (free_bytes >= least && backed >= in_use + bound.large_term_bytes + 64 * page) {
