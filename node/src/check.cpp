@@ -83,7 +83,6 @@ class Checker {
               ": " + why);
     }
   }
-  bool broken() const { return broken_; }
   // After a step whose read LMDB refused: the next steps read on a new read transaction, and
   // what the refused one would have said of `step` is counted as its consequence, not said.
   // False when no new read can begin (the steps after would say nothing true).
