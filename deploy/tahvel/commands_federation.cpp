@@ -40,6 +40,7 @@
 #include "tahvel/spatial/board.h"
 #include "tahvel/spatial/wkt.h"
 #include "tahvel/uri/iri.h"
+#include "tahvel/uri/spelling.h"
 #include "dataflow.h"
 #include "opening.h"
 #include "program_board.h"
@@ -1749,6 +1750,34 @@ int ask_to_apply(pid_t supervisor, const fs::path& pid_file, const fs::path& fil
 
 }  // namespace
 
+// Why --node ID may name no node: a systemd unit's instance name as systemd passes it (`%i`,
+// each byte outside [A-Za-z0-9:_.-] as \xHH: `kodu-\xc3\xb5ie` for kodu-õie), or a slip of one or
+// two characters. Empty when neither.
+std::string node_id_hint(const Topology& topo, const std::string& id) {
+  std::string unescaped;
+  for (std::size_t i = 0; i < id.size(); ++i) {
+    unsigned byte = 0;
+    if (id.compare(i, 2, "\\x") == 0 && i + 4 <= id.size() && std::sscanf(id.c_str() + i + 2, "%2x", &byte) == 1 &&
+        std::isxdigit(static_cast<unsigned char>(id[i + 2])) && std::isxdigit(static_cast<unsigned char>(id[i + 3]))) {
+      unescaped += static_cast<char>(byte);
+      i += 3;
+    } else {
+      unescaped += id[i];
+    }
+  }
+  if (unescaped != id && topo.node(unescaped))
+    return " ('" + unescaped + "', systemd-escaped: a unit passes its instance name so when the id holds characters "
+           "other than ASCII letters, digits, ':', '_', '.' and '-'; give the node an id of those, docs/deploy.md)";
+  const NodeSpec* nearest = nullptr;
+  std::size_t best = 3;
+  for (const NodeSpec& spec : topo.nodes)
+    if (const std::size_t d = uri::edit_distance(id, spec.id); d < best) {
+      best = d;
+      nearest = &spec;
+    }
+  return nearest ? "; did you mean '" + nearest->id + "'?" : std::string();
+}
+
 int run_up(const Args& args) {
   Topology topo = check(load_topology(args.positional(0)));
   fs::path state = fs::absolute(state_dir(args));
@@ -1756,7 +1785,8 @@ int run_up(const Args& args) {
   if (only && !topo.node(*only)) {
     const bool runs = supervisor_holding(state / pid_file_name(only)) != 0;
     fail("--node '" + *only + "': no such node in " + topo.file.string() +
-         (runs ? " (it still runs from an earlier file: 'tahvel down --state " + shell_word(state) + " --node " + *only + "' stops it)" : ""));
+         (runs ? " (it still runs from an earlier file: 'tahvel down --state " + shell_word(state) + " --node " + *only + "' stops it)"
+               : node_id_hint(topo, *only)));
   }
   fs::path pid_file = state / pid_file_name(only);
   // The supervisor of this selection already running is asked to apply the file as it is now,

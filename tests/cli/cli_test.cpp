@@ -2793,6 +2793,27 @@ TEST_F(Cli, UpInTheForegroundWritesEachLineWhenItIsSaid) {
   EXPECT_EQ(run({"down", "--state", state}).status, 0);  // what the killed supervisor left running
 }
 
+// `up --node` with an id that names no node: a systemd unit's instance name arrives escaped
+// (`kodu-\xc3\xb5ie` for kodu-õie), as docs/deploy.md warns, and said only "no such node"; a slip
+// of a character said nothing of the node meant. Both are named; nothing starts.
+TEST_F(Cli, UpNodeNamesTheNodeAnEscapedOrMisspeltIdMeant) {
+  const std::string file = (tmp_ / "t.toml").string(), state = (tmp_ / "state").string();
+  spit(file, "[[node]]\nid = \"kodu-õie\"\niri = \"http://example.org/kodu-õie\"\n"
+             "[[node]]\nid = \"home1\"\niri = \"http://example.org/home1\"\n");
+  Outcome escaped = run({"up", file, "--node", "kodu-\\xc3\\xb5ie", "--state", state});
+  EXPECT_EQ(escaped.status, 1);
+  EXPECT_NE(escaped.err.find("no such node in " + file + " ('kodu-õie', systemd-escaped: a unit passes its instance name so"),
+            std::string::npos)
+      << escaped.err;
+  Outcome slip = run({"up", file, "--node", "home2", "--state", state});
+  EXPECT_EQ(slip.status, 1);
+  EXPECT_NE(slip.err.find("--node 'home2': no such node in " + file + "; did you mean 'home1'?"), std::string::npos) << slip.err;
+  Outcome far = run({"up", file, "--node", "hospital", "--state", state});
+  EXPECT_EQ(far.status, 1);
+  EXPECT_EQ(far.err.find("did you mean"), std::string::npos) << far.err;
+  EXPECT_FALSE(fs::exists(state));
+}
+
 // The commands `up` suggests can be pasted as they are, also with a space in the path.
 TEST_F(Cli, UpQuotesAStateDirectoryWithASpaceInTheCommandsItSuggests) {
   const std::string file = (tmp_ / "node.toml").string(), state = (tmp_ / "my state").string();
