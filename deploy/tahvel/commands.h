@@ -20,6 +20,7 @@
 #include "tahvel/federation/link.h"
 #include "tahvel/node/format.h"
 #include "tahvel/node/node.h"
+#include "tahvel/spatial/area_subscriptions.h"
 #include "tahvel/spatial/board.h"
 #include "tahvel/uri/iri.h"
 
@@ -118,6 +119,8 @@ spatial::AreaSpec area_flag(const Args& args, const uri::PrefixMap& prefixes);
 // --floor N: a floor as the board reads one (spatial::parse_floor: a whole number within ±1e9);
 // a usage error naming the flag otherwise.
 int floor_flag(const std::string& text);
+// ", N items caught up" for a sync that delivered readings stored before it (S9), else "".
+std::string caught_up_text(const spatial::AreaSyncReport& report);
 bool pattern_has_triple(const node::Pattern& pattern);
 // True when `record` matches every bound field of `pattern` (s, p, o, context, source, under).
 bool matches(const node::Pattern& pattern, const node::Record& record);

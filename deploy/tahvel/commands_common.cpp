@@ -608,6 +608,12 @@ std::string base_iri_of(const node::Node& node) {
   return iri.ends_with('/') ? iri : iri + "/";
 }
 
+std::string caught_up_text(const spatial::AreaSyncReport& report) {
+  if (report.caught_up == 0) return {};
+  return ", " + std::to_string(report.caught_up) + (report.caught_up == 1 ? " item" : " items") +
+         " stored since a sensor came into an area delivered";
+}
+
 spatial::AreaSpec area_flag(const Args& args, const uri::PrefixMap& prefixes) {
   std::string text = args.required("--area");
   spatial::AreaSpec spec;

@@ -1303,7 +1303,7 @@ class Deployment {
         log("up: area keeper <" + keeper.iri() + ">: " + synced.error().message);
       } else if (*synced) {
         log("up: area keeper <" + keeper.iri() + ">: " + std::to_string((*synced)->added) + " subscriptions added, " +
-            std::to_string((*synced)->removed) + " removed");
+            std::to_string((*synced)->removed) + " removed" + caught_up_text(**synced));
         for (const auto& problem : (*synced)->problems) log("up: area keeper <" + keeper.iri() + ">: " + problem);
       }
     }

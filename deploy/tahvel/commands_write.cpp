@@ -538,7 +538,7 @@ int run_areas(const Args& args) {
   if (!keeper) fail(args.positional(0) + ": " + keeper.error().message);
   auto print = [](const spatial::AreaSyncReport& r) {
     std::cout << "areas: " << r.declarations << " area subscriptions, " << r.added << " subscriptions added, "
-              << r.removed << " removed" << std::endl;
+              << r.removed << " removed" << caught_up_text(r) << std::endl;
     for (const std::string& problem : r.problems) std::cerr << "areas: " << problem << std::endl;
   };
   print(first);

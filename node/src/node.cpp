@@ -1372,6 +1372,19 @@ Result<std::uint64_t> Node::remove_items(const std::vector<std::uint64_t>& item_
   });
 }
 
+Result<std::uint64_t> Node::deliver_missed(std::span<const MissedSince> missed, std::uint64_t older_than) {
+  if (missed.empty()) return std::uint64_t{0};
+  std::uint64_t delivered = 0;
+  auto done = impl_->env->write([&](Txn& txn) -> Result<void> {
+    auto n = detail::deliver_missed(txn, missed, older_than);
+    if (!n) return unexpected(n.error());
+    delivered = *n;
+    return {};
+  });
+  if (!done) return unexpected(done.error());
+  return delivered;
+}
+
 bool Node::wait_for_commit(const std::function<bool()>& ready, std::chrono::nanoseconds timeout) const {
   const auto deadline = deadline_after(timeout);
   WakeBoard& board = impl_->env->wake();

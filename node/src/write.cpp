@@ -1022,6 +1022,49 @@ Result<std::vector<std::uint64_t>> persistent_items_with_context(Txn& txn, const
 
 }  // namespace
 
+namespace {
+
+// The items with an id below `before` that have a record matching `pattern`, ascending. Ids
+// first, then the buffer: Query reads the indexes the deliveries would write beside.
+Result<std::vector<std::uint64_t>> items_matching(Txn& txn, const Pattern& pattern, std::uint64_t before) {
+  std::vector<std::uint64_t> items;
+  Query query(txn.raw(), txn.env());
+  auto walked = query.for_each(pattern, [&](std::uint64_t id, const RecordRow& row) {
+    if (id >= before) return false;  // ascending ids: nothing earlier follows
+    // after_id bounds record ids; an item at or before it whose matching record is a later
+    // one of its own (an HRV window's second triple) is not after it.
+    if (pattern.after_id && row.item <= *pattern.after_id) return true;
+    if (items.empty() || items.back() != row.item) items.push_back(row.item);
+    return true;
+  });
+  if (!walked) return unexpected(walked.error());
+  std::sort(items.begin(), items.end());
+  items.erase(std::unique(items.begin(), items.end()), items.end());
+  return items;
+}
+
+// The pattern `sub` routes by: its s, p, o, context and source.
+Result<Pattern> pattern_of(const Subscription& sub, TermReader& reader) {
+  Pattern pattern;
+  std::optional<Term>* positions[] = {&pattern.s, &pattern.p, &pattern.o};
+  const std::uint64_t ids[] = {sub.s, sub.p, sub.o};
+  for (int k = 0; k < 3; ++k) {
+    if (ids[k] == 0) continue;
+    auto term = reader.get(ids[k]);
+    if (!term) return unexpected(term.error());
+    *positions[k] = std::move(*term);
+  }
+  if (sub.context) {
+    auto context = reader.iri(sub.context);
+    if (!context) return unexpected(context.error());
+    pattern.context = *context;
+  }
+  if (sub.source) pattern.source = sub.source_iri;
+  return pattern;
+}
+
+}  // namespace
+
 Result<std::uint64_t> deliver_earlier(Txn& txn, std::uint64_t agent, const std::string& agent_iri,
                                       const Pattern& pattern, std::uint64_t before, bool persistent_only) {
   if (auto f = flush_index(txn); !f) return unexpected(f.error());
@@ -1033,23 +1076,63 @@ Result<std::uint64_t> deliver_earlier(Txn& txn, std::uint64_t agent, const std::
     if (!items) return unexpected(items.error());
     return deliver_items(txn, agent, agent_iri, *items, true);
   }
-  // Ids first, then the buffer: Query reads the indexes the deliveries would write beside.
-  std::vector<std::uint64_t> items;
+  auto items = items_matching(txn, pattern, before);
+  if (!items) return unexpected(items.error());
+  return deliver_items(txn, agent, agent_iri, *items, persistent_only);
+}
+
+Result<std::uint64_t> deliver_missed(Txn& txn, std::span<const MissedSince> missed, std::uint64_t older_than) {
+  if (auto r = refresh_caches(txn); !r) return unexpected(r.error());
+  if (auto f = flush_index(txn); !f) return unexpected(f.error());
+  std::vector<Subscription> subs;
   {
-    Query query(txn.raw(), txn.env());
-    auto walked = query.for_each(pattern, [&](std::uint64_t id, const RecordRow& row) {
-      if (id >= before) return false;  // ascending ids: nothing earlier follows
-      // after_id bounds record ids; an item at or before it whose matching record is a later
-      // one of its own (an HRV window's second triple) is not after it.
-      if (pattern.after_id && row.item <= *pattern.after_id) return true;
-      if (items.empty() || items.back() != row.item) items.push_back(row.item);
-      return true;
-    });
-    if (!walked) return unexpected(walked.error());
+    std::lock_guard lock(txn.env().cache_mutex);
+    subs = txn.env().subs;
   }
-  std::sort(items.begin(), items.end());
-  items.erase(std::unique(items.begin(), items.end()), items.end());
-  return deliver_items(txn, agent, agent_iri, items, persistent_only);
+  TermReader reader(txn.raw(), txn.env());
+  std::uint64_t delivered = 0;
+  for (const MissedSince& late : missed) {
+    auto sub = std::find_if(subs.begin(), subs.end(), [&](const Subscription& s) { return s.item == late.subscription; });
+    if (sub == subs.end()) continue;  // removed meanwhile
+    auto agent_iri = reader.iri(sub->agent);
+    if (!agent_iri) return unexpected(agent_iri.error());
+    auto pattern = pattern_of(*sub, reader);
+    if (!pattern) return unexpected(pattern.error());
+    if (late.after != 0) pattern->after_id = late.after;
+    auto candidates = items_matching(txn, *pattern, late.subscription);
+    if (!candidates) return unexpected(candidates.error());
+    // What the subscriber got anyway, or has waiting: an item its older subscriptions route,
+    // or one addressed to it (R18).
+    std::vector<std::uint64_t> items;
+    for (const std::uint64_t item_id : *candidates) {
+      auto row = get_item(txn.raw(), txn.env(), item_id);
+      if (!row) return unexpected(row.error());
+      if (!*row) continue;
+      const ItemRow& item = **row;
+      if (item.context) {
+        auto context = reader.iri(item.context);
+        if (!context) return unexpected(context.error());
+        if (*context == *agent_iri || uri::is_under(*context, *agent_iri)) continue;
+      }
+      std::vector<std::array<std::uint64_t, 3>> triples;
+      for (std::uint64_t id = item_id; id < item_id + item.count; ++id) {
+        auto record = get_record(txn.raw(), txn.env(), id);
+        if (!record) return unexpected(record.error());
+        if (*record) triples.push_back({(*record)->s, (*record)->p, (*record)->o});
+      }
+      auto source = reader.iri(item.source);
+      if (!source) return unexpected(source.error());
+      const bool routed_before = std::any_of(subs.begin(), subs.end(), [&](const Subscription& s) {
+        return s.agent == sub->agent && s.item < older_than && (!s.context || s.context == item.context) &&
+               routes(s, item_id, item, triples, *source);
+      });
+      if (!routed_before) items.push_back(item_id);
+    }
+    auto n = deliver_items(txn, sub->agent, *agent_iri, items, false);
+    if (!n) return unexpected(n.error());
+    delivered += *n;
+  }
+  return delivered;
 }
 
 namespace {
@@ -1267,21 +1350,9 @@ Result<std::uint64_t> deliver_again(Txn& txn, std::uint64_t agent, const std::st
   std::uint64_t delivered = 0;
   for (const Subscription& sub : *subs) {
     if (sub.agent != agent) continue;
-    Pattern pattern;
-    std::optional<Term>* positions[] = {&pattern.s, &pattern.p, &pattern.o};
-    const std::uint64_t ids[] = {sub.s, sub.p, sub.o};
-    for (int k = 0; k < 3; ++k) {
-      if (ids[k] == 0) continue;
-      auto term = reader.get(ids[k]);
-      if (!term) return unexpected(term.error());
-      *positions[k] = std::move(*term);
-    }
-    if (sub.context) {
-      auto context = reader.iri(sub.context);
-      if (!context) return unexpected(context.error());
-      pattern.context = *context;
-    }
-    if (sub.source) pattern.source = sub.source_iri;
+    auto routed_by = pattern_of(sub, reader);
+    if (!routed_by) return unexpected(routed_by.error());
+    Pattern& pattern = *routed_by;
     if (!source_under.empty()) {
       // Both bounds: the narrower, or nothing when neither lies under the other.
       if (!pattern.source || uri::is_under(*pattern.source, source_under)) {

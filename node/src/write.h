@@ -4,6 +4,7 @@
 
 #include <cstdint>
 #include <optional>
+#include <span>
 #include <string>
 #include <vector>
 
@@ -90,6 +91,9 @@ Result<std::uint64_t> withdraw_unrouted(Txn& txn, std::uint64_t agent, const std
 // (SubscribeOptions::earlier). Returns how many it put.
 Result<std::uint64_t> deliver_earlier(Txn& txn, std::uint64_t agent, const std::string& agent_iri,
                                       const Pattern& pattern, std::uint64_t before, bool persistent_only = false);
+
+// Node::deliver_missed in `txn`.
+Result<std::uint64_t> deliver_missed(Txn& txn, std::span<const MissedSince> missed, std::uint64_t older_than);
 
 // deliver_earlier for each of the subscriptions of `agent`: the items with ids in (after, before)
 // (after 0: from the first), persistent ones only when `persistent_only`, and with

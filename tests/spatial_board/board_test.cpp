@@ -598,6 +598,55 @@ TEST_F(BoardTest, TheKeeperMovesADeclaredAreaSubscriptionWithItsSensor) {
   EXPECT_EQ(pending(*ui), 3u);
 }
 
+// Routing happens when a reading is stored, by the expansions then on the board: a reading
+// stored after its sensor's move and before the keeper's sync went by the old room's expansions.
+// The sync that adds the hall's expansion puts it into the hall's subscriber too (S9), and not
+// into a subscriber that got it already by another subscription.
+TEST_F(BoardTest, AReadingStoredBetweenASensorsMoveAndTheSyncReachesTheRoomItMovedInto) {
+  auto bed_watch = node_->agent("bedroom-watch");
+  auto hall_watch = node_->agent("hall-watch");
+  auto house_watch = node_->agent("house-watch");  // both rooms
+  auto logger = node_->agent("logger");            // the hall, and every reading besides
+  ASSERT_TRUE(bed_watch && hall_watch && house_watch && logger);
+  const AreaSpec bedroom{kBedroom, std::nullopt, std::nullopt}, hall{kHall, std::nullopt, std::nullopt};
+  ASSERT_TRUE(declare_area_subscription(*node_, *bed_watch, bedroom, readings()).has_value());
+  ASSERT_TRUE(declare_area_subscription(*node_, *hall_watch, hall, readings()).has_value());
+  ASSERT_TRUE(declare_area_subscription(*node_, *house_watch, bedroom, readings()).has_value());
+  ASSERT_TRUE(declare_area_subscription(*node_, *house_watch, hall, readings()).has_value());
+  ASSERT_TRUE(declare_area_subscription(*node_, *logger, hall, readings()).has_value());
+  ASSERT_TRUE(logger->subscribe(readings()).has_value());
+  auto keeper = AreaKeeper::open(dir_ / "store");
+  ASSERT_TRUE(keeper.has_value()) << keeper.error().message;
+
+  reading("mote1", 21.0);  // in the bedroom
+  put(located_feature_item(kMote, "POINT(6 1)", 0));  // carried into the hall
+  reading("mote1", 22.0);  // before the keeper has seen the move
+  EXPECT_EQ(pending(*hall_watch), 0u);
+
+  auto synced = keeper->poll();
+  ASSERT_TRUE(synced.has_value()) << synced.error().message;
+  ASSERT_TRUE(synced->has_value());
+  EXPECT_EQ((*synced)->caught_up, 1u);  // to the hall's watcher only
+  auto taken = hall_watch->take(std::chrono::milliseconds(0));
+  ASSERT_TRUE(taken.has_value() && taken->has_value());
+  bool is_22 = false;
+  for (const node::Record& r : (*taken)->records) is_22 = is_22 || r.triple.o.value == std::to_string(22.0);
+  EXPECT_TRUE(is_22) << "the hall's watcher got the reading taken before the move";
+  EXPECT_EQ(pending(*hall_watch), 0u);
+  EXPECT_EQ(pending(*house_watch), 2u);  // each reading once, by the bedroom's expansion
+  EXPECT_EQ(pending(*logger), 2u);       // each once, by its own subscription
+
+  // After the sync the hall's expansion routes the reading as it is stored; nothing is caught up.
+  reading("mote1", 23.0);
+  EXPECT_EQ(pending(*hall_watch), 1u);
+  put(located_feature_item(kMote, "POINT(6 1)", 0));  // the same place stated again: no move
+  auto again = keeper->poll();
+  ASSERT_TRUE(again.has_value() && again->has_value());
+  EXPECT_EQ((*again)->added, 0u);
+  EXPECT_EQ((*again)->caught_up, 0u);
+  EXPECT_EQ(pending(*hall_watch), 1u);
+}
+
 TEST_F(BoardTest, AnAreaSubscriptionSelectsRecordsAboutFeaturesInTheAreaBySubject) {
   auto ui = node_->agent("ui");
   auto writer = node_->agent("environment");

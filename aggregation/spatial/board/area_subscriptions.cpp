@@ -171,6 +171,20 @@ std::set<Key> wanted_keys(const BoardPlan& board, Declaration& d) {
   return keys;
 }
 
+// The record id after which `key` has been in `d`'s area: since the declaration, the key's
+// feature standing where it stands, and the declaration's room being drawn as it is. Items stored
+// after it that the expansion matches and that were written before the expansion went by the
+// expansions then on the board: a reading stored between a sensor's move and the sync.
+std::uint64_t missed_since(const BoardPlan& board, const Declaration& d, const Key& key) {
+  auto placed = [&](const std::string& feature) -> std::uint64_t {
+    auto it = board.placed_by.find(feature);
+    return it == board.placed_by.end() ? 0 : it->second;
+  };
+  std::uint64_t since = std::max(d.id, placed(key.second));
+  if (!d.spec.room_iri.empty()) since = std::max(since, placed(d.spec.room_iri));
+  return since;
+}
+
 node::Item expansion_item(const Declaration& d, const Key& key) {
   const Term x = Term::blank("x");
   node::Item item;
@@ -264,6 +278,7 @@ Result<AreaSyncReport> sync_area_subscriptions(node::Node& node,
   report.declarations = declarations->size();
   std::vector<node::Item> to_add;
   std::vector<std::pair<std::uint64_t, std::string>> added_for;  // to_add[i]'s declaration and agent
+  std::vector<std::uint64_t> in_force_after;                      // to_add[i]: missed_since
   std::vector<std::uint64_t> to_remove;
   for (auto& [id, d] : *declarations) {
     if (declaration && id != *declaration) continue;
@@ -274,6 +289,7 @@ Result<AreaSyncReport> sync_area_subscriptions(node::Node& node,
       if (!have.count(key)) {
         to_add.push_back(expansion_item(d, key));
         added_for.emplace_back(id, d.agent);
+        in_force_after.push_back(missed_since(*board, d, key));
       }
     for (const auto& [key, ids] : have) {
       // Stale keys go whole; a key written twice (two syncs at once) keeps its oldest.
@@ -291,15 +307,17 @@ Result<AreaSyncReport> sync_area_subscriptions(node::Node& node,
   if (!to_add.empty()) {
     auto keeper = node.agent(kAreaKeeperId);
     if (!keeper) return store_error(keeper.error());
+    std::vector<node::MissedSince> missed;
     auto stored = keeper->store_all(to_add);
     if (stored) {
       report.added = stored->size();
+      for (std::size_t i = 0; i < stored->size(); ++i) missed.push_back({(*stored)[i], in_force_after[i]});
     } else if (refused_item(stored.error())) {
       // One declaration's expansion the node will not take (what parse_declaration does not
       // foresee) must not hold up the others': each alone, the refused ones said.
       for (std::size_t i = 0; i < to_add.size(); ++i) {
         auto one = keeper->store(to_add[i]);
-        if (one) ++report.added;
+        if (one) ++report.added, missed.push_back({*one, in_force_after[i]});
         else if (refused_item(one.error()))
           report.problems.push_back("area subscription " + std::to_string(added_for[i].first) + " of <" +
                                     added_for[i].second + ">: its expansion was refused: " + one.error().message);
@@ -307,6 +325,12 @@ Result<AreaSyncReport> sync_area_subscriptions(node::Node& node,
       }
     } else {
       return store_error(stored.error());
+    }
+    // Before the stale ones go: an item they routed to the same agent is not delivered again.
+    if (!missed.empty()) {
+      auto caught_up = node.deliver_missed(missed, missed.front().subscription);
+      if (!caught_up) return store_error(caught_up.error());
+      report.caught_up = *caught_up;
     }
   }
   for (std::uint64_t id : to_remove) {

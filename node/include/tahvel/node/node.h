@@ -23,6 +23,7 @@
 #include <functional>
 #include <memory>
 #include <optional>
+#include <span>
 #include <string>
 #include <string_view>
 #include <vector>
@@ -452,6 +453,13 @@ struct InitOptions {
 // The smallest InitOptions::max_map_bytes; Node::init refuses less (invalid_argument).
 inline constexpr std::uint64_t kMinMaxMapBytes = 1ull << 20;  // 1 MiB
 
+// A subscription written after what it follows had begun, and the id after which it should
+// have been in force (Node::deliver_missed).
+struct MissedSince {
+  std::uint64_t subscription = 0;  // the subscription's item id
+  std::uint64_t after = 0;         // a record id: items after it were missed
+};
+
 struct Stats {
   std::string iri;
   Durability durability = Durability::fast;
@@ -517,6 +525,16 @@ class Node {
   // store, where remove_item per item syncs each); items already gone are skipped. Returns the
   // number of records removed.
   Result<std::uint64_t> remove_items(const std::vector<std::uint64_t>& item_ids, Reach reach = Reach::copies_too);
+
+  // For subscriptions written after what they follow had begun (an area subscription's new
+  // expansion, docs/spatial.md S9: a sensor's readings between its move into the area and the
+  // expansion were routed by the expansions then on the board): puts into the input buffer of
+  // each one's subscriber the items with an id in (`after`, the subscription's id) that it
+  // matches, that none of the subscriber's subscriptions with an id below `older_than` routes
+  // and that are not addressed to it (what it got, or had coming, anyway), and that are not
+  // there, oldest first. One transaction; a subscription removed meanwhile is skipped. Returns
+  // how many items were put.
+  Result<std::uint64_t> deliver_missed(std::span<const MissedSince> missed, std::uint64_t older_than);
 
   // Changes after `bookmark` (a seq), oldest first, at most `limit` (0: no limit). Waits up to
   // `timeout` for the first one when there is none yet; an empty vector means timeout. Removals

@@ -53,6 +53,9 @@ struct AreaSyncReport {
   std::size_t declarations = 0;  // declarations on the board
   std::size_t added = 0;         // expansions stored
   std::size_t removed = 0;       // expansions removed (stale, duplicate, or declaration gone)
+  // Items put into subscribers' input buffers by the new expansions: those stored after the
+  // sensor or feature came into the area and before its expansion was written (S9).
+  std::uint64_t caught_up = 0;
   // One line per declaration that could not be expanded (its room is not on the board, its WKT
   // is malformed, ...): it has no expansions until the cause is fixed. Then one per located
   // feature the plan skipped ("feature skipped: <iri>: WKT column ..."): in no area.
