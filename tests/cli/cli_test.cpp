@@ -630,6 +630,25 @@ TEST_F(Cli, ATakeWhileAnotherHoldsTheAgentsItemTimesOutAndLeavesTheItem) {
   EXPECT_EQ(lines_of(taken.out).size(), 3u) << taken.out;
 }
 
+// A program running as the agent (the shipped agents hold DIR/.agent-<id>.lock while they run):
+// a take of its id took its input from under it, and the program never saw the item.
+TEST_F(Cli, ATakeOfAnAgentAProgramRunsAsIsRefusedAndLeavesTheItem) {
+  init();
+  ASSERT_EQ(run({"subscribe", node_, "--agent", "trend", "-p", "sosa:observedProperty"}).status, 0);
+  put(kObservation);
+  const int held = ::open((node_ + "/.agent-trend.lock").c_str(), O_RDWR | O_CREAT | O_CLOEXEC, 0644);
+  ASSERT_GE(held, 0);
+  ASSERT_EQ(flock(held, LOCK_EX), 0);
+  Outcome refused = run({"take", node_, "--agent", "t%72end", "--timeout", "100"});
+  EXPECT_EQ(refused.status, 1) << refused.err;
+  EXPECT_EQ(refused.out, "");
+  EXPECT_NE(refused.err.find("another process runs as agent <" + kNodeIri + "/trend>"), std::string::npos) << refused.err;
+  ::close(held);
+  Outcome taken = run({"take", node_, "--agent", "trend"});
+  EXPECT_EQ(taken.status, 0) << taken.err;
+  EXPECT_EQ(lines_of(taken.out).size(), 3u) << taken.out;
+}
+
 // A removal by pattern leaves subscriptions whole and says so: `remove -o ex:heartRate` took the
 // subscription's `tv:object ex:heartRate`, and it then matched any object.
 TEST_F(Cli, RemoveByPatternKeepsSubscriptionsAndSaysSo) {
