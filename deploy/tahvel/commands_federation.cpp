@@ -175,7 +175,25 @@ std::string shell_word(const fs::path& path) {
   return quoted + "\"";
 }
 
-fs::path state_dir(const Args& args) { return args.get("--state").value_or("state"); }
+// --state DIR: the directory holding the node stores. A node's own store given instead (every
+// other command takes one as DIR) made `up` build a second deployment inside it.
+fs::path state_dir(const Args& args) {
+  const fs::path state = args.get("--state").value_or("state");
+  if (state.empty()) usage_error("--state: give the deployment's state directory (default ./state)");
+  std::error_code ec;
+  if (fs::exists(state / "data.mdb", ec)) {
+    std::string iri;
+    if (auto node = node::Node::open(state)) iri = " <" + node->iri() + ">";
+    fs::path store = fs::absolute(state, ec).lexically_normal();
+    if (!store.has_filename()) store = store.parent_path();  // "st/home/"
+    const fs::path parent = store.parent_path();
+    fail(state.string() + " is the store of a node" + iri + ", not a state directory: --state takes the directory "
+         "that holds the node stores (here " + parent.string() + ")");
+  }
+  if (fs::exists(state, ec) && !fs::is_directory(state, ec))
+    fail(state.string() + " is a file, not a directory: --state takes the directory that holds the node stores");
+  return state;
+}
 
 // The spatial library's answer to a query by area (federation::AreaQuery): the area is a room's
 // absolute IRI or WKT, as the asking node sent it.

@@ -3719,6 +3719,29 @@ TEST_F(Cli, AStoppedSupervisorsProgramsAreShownAsUnknownAndUpSaysItWillNotAnswer
   EXPECT_EQ(run({"down", "--state", state}).status, 0);
 }
 
+// Every other command takes a node's store as DIR: given to --state, `up` built a second
+// deployment inside the store, and `status` said there were no stores under it.
+TEST_F(Cli, AStateDirectoryThatIsANodesStoreIsRefusedNamingTheOneMeant) {
+  const fs::path state = tmp_ / "state";
+  ASSERT_EQ(run({"init", (state / "solo").string(), "--iri", "http://example.org/solo"}).status, 0);
+  spit(tmp_ / "node.toml", kIdleNodeToml);
+  for (const std::string& command : {"up", "status", "down"}) {
+    std::vector<std::string> argv{command};
+    if (command == "up") argv.push_back((tmp_ / "node.toml").string());
+    argv.insert(argv.end(), {"--state", (state / "solo").string() + "/"});
+    Outcome refused = run(argv);
+    EXPECT_EQ(refused.status, 1) << command << ": " << refused.err;
+    EXPECT_NE(refused.err.find("/solo/ is the store of a node <http://example.org/solo>, not a state directory: --state "
+                               "takes the directory that holds the node stores (here " + fs::absolute(state).string() + ")"),
+              std::string::npos)
+        << command << ": " << refused.err;
+  }
+  EXPECT_FALSE(fs::exists(state / "solo" / "solo")) << "up made a store inside the store";
+  Outcome empty = run({"status", "--state="});
+  EXPECT_EQ(empty.status, 2) << empty.err;
+  EXPECT_NE(empty.err.find("--state: give the deployment's state directory"), std::string::npos) << empty.err;
+}
+
 // Ctrl-C (or SIGKILL) during a first `up` leaves the store it was making, STATE/<id>.making,
 // which holds the node's IRI: `status` showed it as a node beside the real one. It is not a
 // node: status passes it over, and says so when it is all there is.
