@@ -113,16 +113,45 @@ std::shared_ptr<federation::Transport> open_transport(const TransportFlags& t, c
 
 // "S P O" with '_' for any position, in the node's prefixes. Errors name `origin` (the flag, or
 // the pattern as a topology file writes it).
+// The terms of a pattern, split at blanks outside a quoted literal ('"x y"@en' is one term).
+std::vector<std::string> pattern_terms(const std::string& text) {
+  std::vector<std::string> terms;
+  std::size_t i = 0;
+  while (i < text.size()) {
+    if (std::isspace(static_cast<unsigned char>(text[i]))) {
+      ++i;
+      continue;
+    }
+    const std::size_t start = i;
+    if (text[i] == '"') {
+      for (++i; i < text.size() && text[i] != '"'; ++i)
+        if (text[i] == '\\') ++i;
+      if (i < text.size()) ++i;  // the closing quote; an unclosed one is parse_term's to say
+    }
+    while (i < text.size() && !std::isspace(static_cast<unsigned char>(text[i]))) ++i;
+    terms.push_back(text.substr(start, i - start));
+  }
+  return terms;
+}
+
 node::Pattern forward_pattern(const std::string& text, const uri::PrefixMap& prefixes, std::string_view origin = "--forward") {
-  std::istringstream in(text);
-  std::string s, p, o, extra;
-  if (!(in >> s >> p >> o) || (in >> extra))
-    usage_error(std::string(origin) + " '" + text + "': write three terms 'S P O', '_' for any");
+  const std::vector<std::string> terms = pattern_terms(text);
+  if (terms.size() != 3)
+    usage_error(std::string(origin) + " '" + text + "': write three terms 'S P O', '_' for any (found " +
+                std::to_string(terms.size()) + ")");
   node::Pattern pattern;
   const std::string named = origin == "--forward" ? std::string(origin) : std::string(origin) + " '" + text + "'";
-  if (s != "_") pattern.s = parse_term(s, prefixes, named, Position::subject);
-  if (p != "_") pattern.p = parse_term(p, prefixes, named, Position::predicate);
-  if (o != "_") pattern.o = parse_term(o, prefixes, named, Position::object);
+  const Position positions[] = {Position::subject, Position::predicate, Position::object};
+  std::optional<node::Term>* fields[] = {&pattern.s, &pattern.p, &pattern.o};
+  const char* names[] = {"subject", "predicate", "object"};
+  for (int k = 0; k < 3; ++k) {
+    if (terms[k] == "_") continue;
+    *fields[k] = parse_term(terms[k], prefixes, named, positions[k]);
+    // A blank node's label is the writer's own: it names no node of the store, so such a
+    // pattern would forward nothing (the node refuses it, after the stores were made).
+    if ((*fields[k])->is_blank())
+      usage_error(named + ": the " + names[k] + " " + terms[k] + " is a blank node, which matches nothing here; write '_' for any");
+  }
   return pattern;
 }
 

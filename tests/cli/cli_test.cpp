@@ -3418,6 +3418,13 @@ TEST_F(Cli, UpRefusesATopologyThatCouldNotRunAsWrittenNamingWhatAndWhere) {
       {listening + "[[node]]\nid = \"home1\"\nparent = \"hospital\"\nforward = [\"_ zz:foo _\"]\n",
        "t.toml:8:12: node 'home1': forward: pattern '_ zz:foo _': unknown prefix 'zz' in 'zz:foo' (known: geo, owl, prov, "
        "rdf, rdfs, sosa, ssn, tv, xsd; write the full IRI in <…> for any other)"},
+      // A blank node was refused by the node when the link subscribed, after the stores were
+      // made, without the file's place.
+      {listening + "[[node]]\nid = \"home1\"\nparent = \"hospital\"\nforward = [\"_:x a _\"]\n",
+       "t.toml:8:12: node 'home1': forward: pattern '_:x a _': the subject _:x is a blank node, which matches nothing here"},
+      // A literal with a blank in it is one term: this pattern has four, not five.
+      {listening + "[[node]]\nid = \"home1\"\nparent = \"hospital\"\nforward = ['_ rdfs:label \"x y\" _']\n",
+       "t.toml:8:12: node 'home1': forward: pattern '_ rdfs:label \"x y\" _': write three terms 'S P O', '_' for any (found 4)"},
       // In a long policy, the pattern at fault is named at its own line, not at `forward = [`.
       {listening + "[[node]]\nid = \"home1\"\nparent = \"hospital\"\nforward = [\n  \"_ a tv:EcgChunk\",\n  \"_ a\",\n]\n",
        "t.toml:10:3: node 'home1': forward: pattern '_ a': "},
