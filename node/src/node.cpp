@@ -32,6 +32,12 @@ constexpr std::string_view kSubject = "https://w3id.org/tahvel#subject";
 constexpr std::string_view kPredicate = "https://w3id.org/tahvel#predicate";
 constexpr std::string_view kObject = "https://w3id.org/tahvel#object";
 
+// A call on a handle whose contents were moved into another: an error, as a closed C handle
+// gives, not a null dereference.
+Unexpected<Error> moved_from() {
+  return fail(Errc::invalid_argument, "this handle was moved from: use the one it was moved into");
+}
+
 // A read transaction that ends when it goes out of scope.
 struct ReadTxn {
   Env& env;
@@ -401,22 +407,26 @@ const std::string& Agent::id() const { return impl_->id; }
 std::uint32_t Agent::buffer_version() const noexcept { return impl_->env->wake().version(impl_->slot); }
 
 Result<std::uint64_t> Agent::store(const Item& item) noexcept {
+  if (!impl_) return moved_from();
   auto ids = impl_->write_items({}, std::span<const Item>(&item, 1));
   if (!ids) return unexpected(ids.error());
   return ids->front();
 }
 
 Result<std::vector<std::uint64_t>> Agent::store_all(const std::vector<Item>& items) noexcept {
+  if (!impl_) return moved_from();
   if (items.empty()) return std::vector<std::uint64_t>{};
   return impl_->write_items({}, items);
 }
 
 Result<std::vector<std::uint64_t>> Agent::replace(const std::vector<Pattern>& removals,
                                                   const std::vector<Item>& items) noexcept {
+  if (!impl_) return moved_from();
   return impl_->write_items(removals, items);
 }
 
 Result<void> Agent::report_problem(std::string_view text) noexcept {
+  if (!impl_) return moved_from();
   try {
     const std::string said = with_replacement_characters(text);
     const Term self = Term::iri(impl_->iri);
@@ -536,6 +546,7 @@ std::chrono::steady_clock::time_point deadline_after(std::chrono::duration<Rep, 
 }  // namespace
 
 Result<std::optional<Delivery>> Agent::take(std::chrono::milliseconds timeout, Ack ack) noexcept {
+  if (!impl_) return moved_from();
   try {
     const auto deadline = deadline_after(timeout);
     WakeBoard& board = impl_->env->wake();
@@ -556,6 +567,7 @@ Result<std::optional<Delivery>> Agent::take(std::chrono::milliseconds timeout, A
 }
 
 Result<void> Agent::ack(std::uint64_t item_id) noexcept {
+  if (!impl_) return moved_from();
   try {
     return impl_->drop(item_id);
   } catch (const std::bad_alloc&) {
@@ -564,6 +576,7 @@ Result<void> Agent::ack(std::uint64_t item_id) noexcept {
 }
 
 Result<std::uint64_t> Agent::pending() const noexcept {
+  if (!impl_) return moved_from();
   ReadTxn read(*impl_->env);
   if (auto r = read.begin(); !r) return unexpected(r.error());
   auto self = impl_->self_id(read.txn);
@@ -581,6 +594,7 @@ Result<std::uint64_t> Agent::pending() const noexcept {
 
 Result<std::vector<Delivery>> Agent::peek(std::uint64_t after, std::size_t limit,
                                           std::chrono::milliseconds timeout) noexcept {
+  if (!impl_) return moved_from();
   try {
     const auto deadline = deadline_after(timeout);
     WakeBoard& board = impl_->env->wake();
@@ -620,6 +634,7 @@ Result<std::vector<Delivery>> Agent::peek(std::uint64_t after, std::size_t limit
 }
 
 Result<void> Agent::receive_removals() noexcept {
+  if (!impl_) return moved_from();
   try {
     return impl_->env->write([&](Txn& txn) { return detail::receive_removals(txn, impl_->iri); });
   } catch (const std::bad_alloc&) {
@@ -628,6 +643,7 @@ Result<void> Agent::receive_removals() noexcept {
 }
 
 Result<std::uint64_t> Agent::ack_through(std::uint64_t through) noexcept {
+  if (!impl_) return moved_from();
   try {
     std::uint64_t acked = 0;
     auto written = impl_->env->write([&](Txn& txn) -> Result<void> {
@@ -749,6 +765,7 @@ bool refuses_the_item(Errc code) {
 }  // namespace
 
 Result<RelayOutcome> Agent::relay(std::string_view stream, const std::vector<RelayedItem>& items) noexcept {
+  if (!impl_) return moved_from();
   try {
     if (stream.empty()) return fail(Errc::invalid_argument, "relay: empty stream name");
     const std::string& node_iri = impl_->env->settings().iri;
@@ -904,6 +921,7 @@ Result<RelayOutcome> Agent::relay(std::string_view stream, const std::vector<Rel
 }
 
 Result<std::uint64_t> Agent::relay_mark(std::string_view stream) const noexcept {
+  if (!impl_) return moved_from();
   try {
     ReadTxn read(*impl_->env);
     if (auto r = read.begin(); !r) return unexpected(r.error());
@@ -915,6 +933,7 @@ Result<std::uint64_t> Agent::relay_mark(std::string_view stream) const noexcept 
 
 Result<void> Agent::relay_may_repeat(std::string_view stream, std::uint64_t through_seq,
                                      std::optional<std::int64_t> asserted_through) noexcept {
+  if (!impl_) return moved_from();
   try {
     if (stream.empty()) return fail(Errc::invalid_argument, "relay_may_repeat: empty stream name");
     return impl_->env->write([&](Txn& txn) -> Result<void> {
@@ -948,6 +967,7 @@ Result<void> Agent::relay_may_repeat(std::string_view stream, std::uint64_t thro
 }
 
 Result<std::uint64_t> Agent::subscribe(const Pattern& given, const SubscribeOptions& options) {
+  if (!impl_) return moved_from();
   Pattern pattern = given;
   if (pattern.source && !pattern.source->empty()) {
     // Kept in normal form: routing compares sources by dictionary id first.
@@ -1018,6 +1038,7 @@ Result<std::uint64_t> Agent::subscribe(const Pattern& given, const SubscribeOpti
 }
 
 Result<void> Agent::unsubscribe(std::uint64_t subscription) {
+  if (!impl_) return moved_from();
   std::string subscriber(kSubscriber);
   return impl_->env->write([&](Txn& txn) -> Result<void> {
     Query query(txn.raw(), txn.env());
@@ -1031,21 +1052,27 @@ Result<void> Agent::unsubscribe(std::uint64_t subscription) {
   });
 }
 
-Result<std::uint64_t> Agent::withdraw_unrouted() { return impl_->change_own_buffer(detail::withdraw_unrouted); }
+Result<std::uint64_t> Agent::withdraw_unrouted() {
+  if (!impl_) return moved_from();
+  return impl_->change_own_buffer(detail::withdraw_unrouted);
+}
 
 Result<std::uint64_t> Agent::deliver_persistent_again(Redelivery which) {
+  if (!impl_) return moved_from();
   return impl_->change_own_buffer([which](detail::Txn& txn, std::uint64_t agent, const std::string& agent_iri) {
     return detail::deliver_persistent_again(txn, agent, agent_iri, which == Redelivery::addressed_too);
   });
 }
 
 Result<std::uint64_t> Agent::deliver_again_between(std::uint64_t after, std::uint64_t before, const std::string& source_under) {
+  if (!impl_) return moved_from();
   return impl_->change_own_buffer([after, before, &source_under](detail::Txn& txn, std::uint64_t agent, const std::string& agent_iri) {
     return detail::deliver_again(txn, agent, agent_iri, false, after, before, source_under);
   });
 }
 
 Result<std::vector<std::uint64_t>> Agent::written(std::uint64_t after, std::size_t limit) const {
+  if (!impl_) return moved_from();
   ReadTxn read(*impl_->env);
   if (auto r = read.begin(); !r) return unexpected(r.error());
   auto self = impl_->self_id(read.txn);
@@ -1108,6 +1135,7 @@ const std::string& Node::iri() const { return impl_->env->settings().iri; }
 const std::filesystem::path& Node::dir() const { return impl_->env->dir(); }
 
 Result<Agent> Node::agent(std::string_view id) const {
+  if (!impl_) return moved_from();
   auto agent_iri = uri::agent_iri(iri(), id);
   if (!agent_iri) return fail(Errc::invalid_iri, "agent id: " + agent_iri.error().message);
   auto impl = std::make_unique<Agent::Impl>();
@@ -1124,7 +1152,10 @@ std::optional<std::string> Node::addressee(std::string_view context) const {
   return detail::addressee_of(iri(), *normal, {});
 }
 
-Result<Snapshot> Node::snapshot() const { return Snapshot::Impl::open(impl_->env); }
+Result<Snapshot> Node::snapshot() const {
+  if (!impl_) return moved_from();
+  return Snapshot::Impl::open(impl_->env);
+}
 
 namespace {
 
@@ -1332,6 +1363,7 @@ Result<std::vector<std::uint64_t>> subscription_items(Txn& txn) {
 }  // namespace
 
 Result<std::uint64_t> Node::remove(const Pattern& pattern, unsigned cascade, Reach reach) {
+  if (!impl_) return moved_from();
   if (!pattern.s && !pattern.p && !pattern.o && !pattern.context && !pattern.source && !pattern.under)
     return fail(Errc::invalid_argument, "refusing to remove with an empty pattern; name a subject, predicate, object, context, source or subject prefix");
   return remove_records(*impl_->env, reach, [&](Txn& txn) -> Result<std::vector<std::uint64_t>> {
@@ -1355,10 +1387,12 @@ Result<std::uint64_t> Node::remove(const Pattern& pattern, unsigned cascade, Rea
 }
 
 Result<std::uint64_t> Node::remove_item(std::uint64_t item_id, unsigned cascade, Reach reach) {
+  if (!impl_) return moved_from();
   return remove_records(*impl_->env, reach, [&](Txn& txn) { return item_with_subtrees(txn, item_id, cascade); });
 }
 
 Result<std::uint64_t> Node::remove_items(const std::vector<std::uint64_t>& item_ids, Reach reach) {
+  if (!impl_) return moved_from();
   if (item_ids.empty()) return std::uint64_t{0};
   return remove_records(*impl_->env, reach, [&](Txn& txn) -> Result<std::vector<std::uint64_t>> {
     std::vector<std::uint64_t> ids;
@@ -1373,6 +1407,7 @@ Result<std::uint64_t> Node::remove_items(const std::vector<std::uint64_t>& item_
 }
 
 Result<std::uint64_t> Node::deliver_missed(std::span<const MissedSince> missed, std::uint64_t older_than) {
+  if (!impl_) return moved_from();
   if (missed.empty()) return std::uint64_t{0};
   std::uint64_t delivered = 0;
   auto done = impl_->env->write([&](Txn& txn) -> Result<void> {
@@ -1408,6 +1443,7 @@ std::chrono::microseconds wait_spin() {
 }
 
 Result<std::vector<Change>> Node::watch(std::uint64_t bookmark, std::chrono::milliseconds timeout, std::size_t limit) const {
+  if (!impl_) return moved_from();
   const auto deadline = deadline_after(timeout);
   WakeBoard& board = impl_->env->wake();
   for (;;) {
@@ -1474,6 +1510,7 @@ Result<std::vector<Change>> Node::watch(std::uint64_t bookmark, std::chrono::mil
 }
 
 Result<void> Node::set_ttl(std::string_view predicate_iri, std::chrono::nanoseconds ttl) {
+  if (!impl_) return moved_from();
   auto iri = uri::normalize(predicate_iri);
   if (!iri) return fail(Errc::invalid_iri, "TTL predicate: " + iri.error().message);
   if (ttl.count() < 0) return fail(Errc::invalid_argument, "a time-to-live cannot be negative");
@@ -1493,6 +1530,7 @@ Result<void> Node::set_ttl(std::string_view predicate_iri, std::chrono::nanoseco
 }
 
 Result<std::vector<std::pair<std::string, std::chrono::nanoseconds>>> Node::ttls() const {
+  if (!impl_) return moved_from();
   ReadTxn read(*impl_->env);
   if (auto r = read.begin(); !r) return unexpected(r.error());
   std::vector<std::pair<std::string, std::chrono::nanoseconds>> out;
@@ -1513,6 +1551,7 @@ Result<std::vector<std::pair<std::string, std::chrono::nanoseconds>>> Node::ttls
 }
 
 Result<std::uint64_t> Node::reclaim() {
+  if (!impl_) return moved_from();
   // A pass reclaims at most kTtlScanBudget records per TTL rule (a write's retention must stay
   // short): passes, each its own transaction, until one reclaims nothing, or as many records as
   // the store held at the start are reclaimed (writers storing records already due would keep
@@ -1540,6 +1579,7 @@ Result<std::uint64_t> Node::reclaim() {
 }
 
 Result<void> Node::set_prefix(std::string_view prefix, std::string_view namespace_iri) {
+  if (!impl_) return moved_from();
   uri::PrefixMap check;
   if (auto a = check.add(prefix, namespace_iri); !a) return fail(Errc::invalid_iri, a.error().message);
   return impl_->env->write([&](Txn& txn) -> Result<void> {
@@ -1552,6 +1592,7 @@ Result<void> Node::set_prefix(std::string_view prefix, std::string_view namespac
 }
 
 Result<std::string> Node::store_id() const {
+  if (!impl_) return moved_from();
   ReadTxn read(*impl_->env);
   if (auto r = read.begin(); !r) return unexpected(r.error());
   MDB_val k = val(kStoreIdKey), v;
@@ -1577,6 +1618,7 @@ Result<void> sync_path(const std::filesystem::path& path, bool directory) {
 }  // namespace
 
 Result<std::uint64_t> Node::back_up(const std::filesystem::path& requested) const {
+  if (!impl_) return moved_from();
   namespace fs = std::filesystem;
   // "copy/" names the directory copy: without the trailing separator its filename is "copy"
   // and the partial copy goes beside it, not inside it.
@@ -1625,6 +1667,7 @@ Result<std::uint64_t> Node::back_up(const std::filesystem::path& requested) cons
 }
 
 Result<std::string> Node::renew_store_id() {
+  if (!impl_) return moved_from();
   std::string id = new_store_id();
   auto written = impl_->env->write([&](Txn& txn) -> Result<void> {
     MDB_val k = val(kStoreIdKey), v = val(id);
@@ -1655,12 +1698,14 @@ uri::PrefixMap Node::prefixes() const {
 
 Result<CheckReport> Node::check(std::size_t max_problems, const std::function<void(std::string_view)>& progress,
                                 const std::function<void(std::string_view)>& found) const {
+  if (!impl_) return moved_from();
   ReadTxn read(*impl_->env);
   if (auto r = read.begin(); !r) return unexpected(r.error());
   return check_store(*impl_->env, read.txn, max_problems, progress, found);
 }
 
 Result<Stats> Node::stats() const {
+  if (!impl_) return moved_from();
   ReadTxn read(*impl_->env);
   if (auto r = read.begin(); !r) return unexpected(r.error());
   auto c = load_counters(read.txn, impl_->env->main);

@@ -115,6 +115,27 @@ TEST_F(TwoObservations, CascadeListFromItemRootReturnsExactlyItsSubtree) {
 // A record first met deep in one match's sub-tree and then nearer another's is walked again
 // from the nearer place: `ex:deep ex:z 1`, 2 levels below `m q2 k`, was left out of a cascade 2
 // read of m because it was first met 3 levels below `m q1 n`.
+// A call on a handle moved into another crashed (a null dereference) where a closed C handle
+// gives an error.
+TEST(Store, AHandleMovedFromGivesAnErrorNotACrash) {
+  TempDir dir;
+  Node node = make_node(dir.path());
+  auto agent = node.agent("writer");
+  ASSERT_TRUE(agent);
+  Agent moved_into = std::move(*agent);
+  auto stored = agent->store(Item{}.add(ex("s"), ex("p"), ex("o")));
+  ASSERT_FALSE(stored);
+  EXPECT_EQ(stored.error().code, Errc::invalid_argument);
+  EXPECT_NE(stored.error().message.find("moved from"), std::string::npos) << stored.error().message;
+  EXPECT_FALSE(agent->take(std::chrono::milliseconds(0)));
+  EXPECT_FALSE(agent->pending());
+  EXPECT_TRUE(moved_into.store(Item{}.add(ex("s"), ex("p"), ex("o"))));
+  Node other = std::move(node);
+  EXPECT_FALSE(node.snapshot());
+  EXPECT_FALSE(node.agent("x"));
+  EXPECT_TRUE(other.snapshot());
+}
+
 TEST(Store, ACascadeTakesWhatLiesWithinItsDepthOfAnyMatchWhateverTheOrder) {
   TempDir dir;
   Node node = make_node(dir.path());
