@@ -308,9 +308,10 @@ void clear(T* out) {
 tahvel::node::Result<std::string> parse_context(const char* context) {
   if (context == nullptr) return std::string();
   std::string_view text = trim(context);
+  if (text.empty()) return std::string();
+  // "<>" is an empty IRI (a relative reference), not "no context": refused as "< >" is.
   if (text.size() >= 2 && text.front() == '<' && text.back() == '>')
     text = text.substr(1, text.size() - 2);
-  if (text.empty()) return std::string();
   if (!tahvel::uri::is_valid(text))
     return tahvel::node::fail(Errc::invalid_iri, "invalid context IRI '" + std::string(text) + "'");
   return std::string(text);

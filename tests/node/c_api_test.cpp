@@ -363,6 +363,9 @@ TEST_F(CApiTest, BadTermsAndArguments) {
   EXPECT_EQ(tahvel_store(agent, nt, sizeof nt - 1, TAHVEL_FORMAT_NTRIPLES, "not an iri", 0,
                          nullptr),
             TAHVEL_INVALID_IRI);
+  // "<>" is an empty IRI, not "no context": it was stored as none.
+  EXPECT_EQ(tahvel_store(agent, nt, sizeof nt - 1, TAHVEL_FORMAT_NTRIPLES, "<>", 0, nullptr),
+            TAHVEL_INVALID_IRI);
   tahvel_node* missing = nullptr;
   EXPECT_EQ(tahvel_node_open((root_ / "missing").c_str(), &missing), TAHVEL_NOT_FOUND);
   tahvel_node* again = nullptr;
