@@ -141,6 +141,24 @@ TEST_F(DispatcherTest, StopCommandEndsARunningBehaviourAndUnknownNamesAreRefused
   EXPECT_FALSE(holds(n("goAhead"), kNs + "result", n("ok")));
 }
 
+// `behavior(me, goAhead)` for `behavior(me, "goAhead")`: a command written as an IRI was passed
+// over without a run record or a word in the log.
+TEST_F(DispatcherTest, ACommandWrittenAsAnIriIsRefusedSayingToQuoteIt) {
+  ta::Supervisor supervisor([](std::string_view) {});
+  auto d = ta::Dispatcher::open(root_ / "node", {.folder = root_ / "behaviours"}, supervisor);
+  ASSERT_TRUE(d.has_value());
+  put({{n("me"), n("behavior"), n("goAhead")}}, d->iri());
+  std::vector<ta::DispatchEvent> events = poll_until(*d, [&] {
+    auto snap = node_->snapshot();
+    return *snap->count({.p = tn::Term::iri(kTv + "state"), .o = tn::Term::literal("refused")}) == 1;
+  });
+  ASSERT_EQ(events.size(), 1u);
+  EXPECT_EQ(events[0].kind, ta::DispatchEvent::refused);
+  EXPECT_NE(events[0].detail.find("<" + kNs + "goAhead> is not a string: write it quoted"), std::string::npos) << events[0].detail;
+  EXPECT_EQ(d->running(), 0u);
+  EXPECT_FALSE(holds(n("goAhead"), kNs + "result", n("ok")));
+}
+
 // A command sent down from a node above is addressed to the node (its context is the node's
 // IRI, as configuration is): it was taken and acknowledged without running, and no trace left.
 TEST_F(DispatcherTest, ACommandAddressedToTheNodeRunsAsOneAddressedToTheDispatcher) {

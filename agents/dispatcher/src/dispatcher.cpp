@@ -110,12 +110,13 @@ struct Dispatcher::Impl {
   // without a trace).
   bool is_command(const node::Record& r) const {
     return r.triple.s.is_iri() && r.triple.s.value == node.iri() && r.triple.p.value == ns + "behavior" &&
-           r.triple.o.is_literal() &&
            (r.meta.context.empty() || r.meta.context == agent.iri() || r.meta.context == node.iri() ||
             r.meta.context == node.iri() + "/*");
   }
 
-  Result<void> command(std::uint64_t item, const std::string& text, std::vector<DispatchEvent>& events);
+  // `not_a_string`: the command's object is an IRI or a blank node (`text` its N-Triples form).
+  Result<void> command(std::uint64_t item, const std::string& text, std::vector<DispatchEvent>& events,
+                       bool not_a_string = false);
   Result<void> reap(std::vector<DispatchEvent>& events);
   Result<std::size_t> close_interrupted_runs();
 };
@@ -144,9 +145,9 @@ Result<std::size_t> Dispatcher::Impl::close_interrupted_runs() {
 }
 
 Result<void> Dispatcher::Impl::command(std::uint64_t item, const std::string& text,
-                                       std::vector<DispatchEvent>& events) {
+                                       std::vector<DispatchEvent>& events, bool not_a_string) {
   const std::string run = agent.iri() + "/run/" + std::to_string(item);
-  std::vector<std::string> argv = words(text);
+  std::vector<std::string> argv = not_a_string ? std::vector<std::string>{} : words(text);
   if (argv.size() == 2 && argv[0] == "stop") {
     std::vector<std::string> stopping;  // together: one grace for all, not 2 s each
     for (auto& [program, r] : runs) {
@@ -164,6 +165,8 @@ Result<void> Dispatcher::Impl::command(std::uint64_t item, const std::string& te
                         t(run, kTv + "state", node::Term::literal("refused")),
                         t(run, kTv + "output", node::Term::literal(why))});
   };
+  if (not_a_string)
+    return refuse("the command " + text + " is not a string: write it quoted, behavior(me, \"name args\")");
   if (argv.empty() || !plain_file_name(argv[0])) return refuse("not a behaviour name: '" + text + "'");
   // Its result is written about <ns + name>: a name that cannot end an IRI ("a%zz", "a b")
   // could never have its end recorded.
@@ -270,7 +273,10 @@ Result<std::vector<DispatchEvent>> Dispatcher::poll(std::chrono::milliseconds wa
   if (*taken) {
     for (const node::Record& r : (*taken)->records) {
       if (!impl_->is_command(r)) continue;
-      if (auto c = impl_->command(r.meta.id, r.triple.o.value, events); !c) return unexpected(c.error());
+      // A command written as an IRI (`behavior(me, echo1)` for `behavior(me, "echo1")`) was
+      // passed over without a word: refused, as any other command that names no behaviour.
+      const std::string text = r.triple.o.is_literal() ? r.triple.o.value : r.triple.o.to_ntriples();
+      if (auto c = impl_->command(r.meta.id, text, events, !r.triple.o.is_literal()); !c) return unexpected(c.error());
     }
     if (auto a = impl_->agent.ack((*taken)->item); !a) return unexpected(a.error());
   }
