@@ -36,7 +36,8 @@ const Command kCheckCommand{
 namespace {
 
 // What the child sends, one line each: "table NAME", then "count NAME N" per figure and
-// "problem TEXT" per problem, then "end"; "error TEXT" when the store cannot be opened.
+// "problem TEXT" per problem, then "end"; "error CODE TEXT" (CODE: node::errc_name) when the
+// store cannot be opened or read.
 void child_walk(const std::string& dir, std::size_t max_problems, int fd) {
   auto send = [fd](std::string line) {
     for (char& c : line)
@@ -55,7 +56,7 @@ void child_walk(const std::string& dir, std::size_t max_problems, int fd) {
   try {
     auto node = node::Node::open(dir);
     if (!node) {
-      send("error " + node.error().message);
+      send("error " + std::string(node::errc_name(node.error().code)) + " " + node.error().message);
       _exit(kExitFailure);
     }
     // Each problem as it is found: a damaged page may end this process before the report.
@@ -63,15 +64,15 @@ void child_walk(const std::string& dir, std::size_t max_problems, int fd) {
         max_problems, [&](std::string_view table) { send("table " + std::string(table)); },
         [&](std::string_view problem) { send("problem " + std::string(problem)); });
     if (!report) {
-      send("error " + report.error().message);
+      send("error " + std::string(node::errc_name(report.error().code)) + " " + report.error().message);
       _exit(kExitFailure);
     }
     checked = std::move(*report);
   } catch (const std::exception& e) {
-    send(std::string("error check: ") + e.what());
+    send(std::string("error io check: ") + e.what());
     _exit(kExitFailure);
   } catch (...) {
-    send("error check: the reading process failed");
+    send("error io check: the reading process failed");
     _exit(kExitFailure);
   }
   const node::CheckReport* report = &*checked;
@@ -124,7 +125,7 @@ int run_check(const Args& args) {
   while (::waitpid(pid, &status, 0) < 0 && errno == EINTR) {
   }
 
-  std::string table, error;
+  std::string table, error, error_code;
   std::vector<std::pair<std::string, std::string>> counts;
   std::vector<std::string> problems;
   bool ended = false;
@@ -133,7 +134,11 @@ int run_check(const Args& args) {
     const auto space = line.find(' ');
     const std::string kind = line.substr(0, space), rest = space == std::string::npos ? "" : line.substr(space + 1);
     if (kind == "table") table = rest;
-    else if (kind == "error") error = rest;
+    else if (kind == "error") {
+      const auto sep = rest.find(' ');
+      error_code = rest.substr(0, sep);
+      error = sep == std::string::npos ? "" : rest.substr(sep + 1);
+    }
     else if (kind == "problem") problems.push_back(rest);
     else if (kind == "end") ended = true;
     else if (kind == "count") {
@@ -141,7 +146,20 @@ int run_check(const Args& args) {
       counts.emplace_back(rest.substr(0, sep), rest.substr(sep + 1));
     }
   }
-  if (!error.empty()) fail(error);
+  if (!error_code.empty()) {
+    if (error.find(dir) == std::string::npos) error = dir + ": " + error;  // which store, among many checked
+    // A monitoring script reads JSON whatever happened: a store that cannot be opened or read
+    // for damage is not consistent; one that is missing or busy was not judged.
+    if (json) {
+      const bool damaged = error_code == "corrupt" || error_code == "version";
+      std::cout << "{\"consistent\":" << (damaged ? "false" : "null") << ",\"error\":\"" << node::json_escape(error)
+                << "\",\"error_code\":\"" << node::json_escape(error_code) << "\",\"problems\":[";
+      for (std::size_t i = 0; i < problems.size(); ++i) std::cout << (i ? "," : "") << '"' << node::json_escape(problems[i]) << '"';
+      std::cout << "]}\n";
+      finish_output(std::cout);
+    }
+    fail(error);
+  }
   if (!ended) {
     // A damaged page ends the reader by a fault or LMDB's assertion; other ends (the OOM
     // killer's SIGKILL, a SIGTERM) say nothing of the file.

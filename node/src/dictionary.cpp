@@ -62,7 +62,14 @@ Result<std::uint64_t> lookup_payload(MDB_txn* txn, const Env& env, std::string_v
        rc = mdb_cursor_get(cursor, &k, &v, MDB_NEXT_DUP)) {
     std::uint64_t id = u64(v);
     MDB_val tk = val(id), tv;
-    if (mdb_get(txn, env.terms, &tk, &tv) == 0 && tv.mv_size >= 1 && view(tv).substr(1) == bytes) {
+    const int got = mdb_get(txn, env.terms, &tk, &tv);
+    // A term that cannot be read (a damaged page) is said as such: passed over, it left the
+    // transaction failed, and the next step said only MDB_BAD_TXN.
+    if (got != 0 && got != MDB_NOTFOUND) {
+      mdb_cursor_close(cursor);
+      return lmdb_fail(got, "reading term " + std::to_string(id));
+    }
+    if (got == 0 && tv.mv_size >= 1 && view(tv).substr(1) == bytes) {
       found = id;
       if (pinned) *pinned = static_cast<const std::uint8_t*>(tv.mv_data)[0] & kPinned;
       break;

@@ -244,9 +244,13 @@ Error lmdb_error(int rc, std::string_view what) {
   else if (rc == MDB_INVALID || rc == MDB_CORRUPTED || rc == MDB_PAGE_NOTFOUND) code = Errc::corrupt;
   // LMDB's words name neither cause: the store's file is damaged (no page is checksummed), or
   // for a version mismatch also written by another LMDB build.
+  // MDB_BAD_TXN: an earlier step of the transaction failed, which in a store's reads is a page
+  // LMDB refused.
   const char* why = code == Errc::corrupt ? " (the store's data file, data.mdb, is damaged; restore it from a copy)"
                     : code == Errc::version ? " (the store was written by another LMDB build, or its data file, data.mdb, is damaged)"
-                                            : "";
+                    : rc == MDB_BAD_TXN ? " (an earlier read of this transaction failed: the store's data file, data.mdb, may be "
+                                          "damaged; 'tahvel check' on the store says)"
+                                        : "";
   return Error{code, std::string(what) + ": " + mdb_strerror(rc) + why};
 }
 
@@ -746,7 +750,10 @@ Result<std::shared_ptr<Env>> Env::open_at(const std::filesystem::path& dir, cons
       if (auto r = save_counters(txn, env->main, Counters{}); !r) return r;
     }
     const std::uint32_t v = format_of(txn, env->meta);
-    if (v == 0) return fail(Errc::corrupt, dir.string() + " holds no Tahvel store settings");
+    if (v == 0)
+      return fail(Errc::corrupt, dir.string() + " holds no Tahvel store settings (its settings table reads as empty: the "
+                                               "store's data file, data.mdb, is damaged, or it is another program's LMDB "
+                                               "file; restore it from a copy)");
     if (v == kUpgradedFormatVersion && (first_flags & MDB_RDONLY)) {
       needs_tables = true;  // and its time index filled: open_later_tables found it missing
     } else if (v != kFormatVersion) {

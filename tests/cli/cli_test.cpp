@@ -1561,6 +1561,36 @@ TEST_F(Cli, CheckSaysAStoreHoldsTogetherAndNamesTheTableWhoseDamageEndedTheReadi
   EXPECT_EQ(run({"check", (tmp_ / "nothing").string()}).status, 1);
 }
 
+// A page zeroed anywhere in a small store: `check` said "reading the term index: MDB_BAD_TXN"
+// (a failed read passed over), or that the store held no settings, with no word of damage, and
+// `--json` printed nothing for a monitoring script to read.
+TEST_F(Cli, CheckOfAStoreWithAZeroedPageSaysDamageAndAlwaysPrintsJson) {
+  init();
+  put(kObservation);
+  const std::string whole = slurp(fs::path(node_) / "data.mdb");
+  const std::size_t pages = std::min<std::size_t>(whole.size() / 4096, 16);
+  int damaged = 0;
+  for (std::size_t page = 1; page < pages; ++page) {
+    const fs::path copy = tmp_ / ("zeroed-" + std::to_string(page));
+    fs::create_directories(copy);
+    std::string file = whole;
+    std::fill_n(file.begin() + static_cast<std::ptrdiff_t>(page * 4096), 4096, '\0');
+    spit(copy / "data.mdb", file);
+    Outcome text = run({"check", copy.string()});
+    Outcome json = run({"check", copy.string(), "--json"});
+    EXPECT_EQ(json.status, text.status) << "page " << page;
+    EXPECT_EQ(json.out.rfind("{\"consistent\":", 0), 0u) << "page " << page << ": " << json.out << json.err;
+    if (text.status == 0) continue;  // a free page
+    ++damaged;
+    EXPECT_EQ(text.status, 1) << "page " << page << ": " << text.err;
+    EXPECT_NE(text.err.find(copy.string()), std::string::npos) << "page " << page << ": " << text.err;
+    EXPECT_NE((text.err + text.out).find("data.mdb, is damaged"), std::string::npos) << "page " << page << ": " << text.out << text.err;
+    EXPECT_EQ(text.err.find("MDB_BAD_TXN"), std::string::npos) << "page " << page << ": " << text.err;
+    EXPECT_EQ(json.out.find("\"consistent\":true"), std::string::npos) << "page " << page << ": " << json.out;
+  }
+  EXPECT_GT(damaged, 0);
+}
+
 TEST_F(Cli, StatsJsonCountsRecordsAndItems) {
   init();
   put(kObservation);
