@@ -8,8 +8,9 @@
 //  3. safety and evaluation orders (plans) for the naive round and for each delta literal, with
 //     per step the range scan a comparison allows and the independent run that starts there
 //     (docs/reasoner.md, "Joins");
-//  4. strata: strongly connected components of the predicate graph in dependency order; a
-//     negation inside a component is an error.
+//  4. strata: strongly connected components of the graph of head patterns (the rules of a
+//     predicate whose heads have the same constants) in dependency order; a negation inside a
+//     component is an error.
 #include <algorithm>
 #include <limits>
 #include <deque>
@@ -736,130 +737,197 @@ Result<void> make_plans(Program& program) {
   return {};
 }
 
-// The shortest chain of rules by which `from` depends on `to` (both in one component), as
-// "a <- b <- c": a rule that derives any rdf:type makes every class pattern depend on it, and
-// "later depends on latest" alone named no rule that closes the loop.
-std::string dependency_path(const Program& program, const std::vector<std::vector<std::pair<std::uint32_t, bool>>>& edges,
-                            const std::vector<int>& comp, std::uint32_t from, std::uint32_t to) {
-  std::vector<std::int64_t> came_from(program.preds.size(), -1);
-  std::deque<std::uint32_t> queue{from};
-  came_from[from] = from;
-  while (!queue.empty() && came_from[to] < 0) {
-    const std::uint32_t v = queue.front();
-    queue.pop_front();
-    for (auto [w, neg] : edges[v]) {
-      if (comp[w] != comp[from] || came_from[w] >= 0) continue;
-      came_from[w] = v;
-      queue.push_back(w);
-    }
-  }
-  if (came_from[to] < 0) return program.preds[from].iri + " <- " + program.preds[to].iri;
-  std::vector<std::uint32_t> chain{to};
-  while (chain.back() != from) chain.push_back(static_cast<std::uint32_t>(came_from[chain.back()]));
-  std::string out;
-  for (auto it = chain.rbegin(); it != chain.rend(); ++it) out += (out.empty() ? "" : " <- ") + program.preds[*it].iri;
-  return out + " (each derived from the next)";
-}
+// Step 4 works on head patterns, not predicates (RS6): a pattern is the rules of one predicate
+// whose heads have the same constants in the same places. A call depends on the patterns whose
+// head could match it (a constant other than the call's own there cannot), so
+// `rdf:type(X, alerted) :- q(X, _), \+ rdf:type(X, person).` beside
+// `rdf:type(X, person) :- q(X, person).` is stratified: the person rule, a stratum of its own,
+// runs first. (until session 74 the graph was one of predicates, and a rule deriving rdf:type
+// person made every rdf:type rule depend on it: that rule set was refused as not stratified.)
+// A call that matches one rule of a pattern matches all of them, so grouping them changes no
+// cycle. The evaluator keeps, per row, which strata derive it (engine.cpp, Relation::owners).
+struct Dependency {
+  std::uint32_t to = 0;    // pattern
+  bool negated = false;
+  std::uint32_t rule = 0;  // the rule whose body makes it
+};
 
-// Whether a rule of the binary predicate `p` may derive a triple that `fact(S, P, O)` (`l`)
-// matches, or an atom of `p` (`l`) its rules: a head whose argument is a constant other than
-// the call's own constant there derives none (`\+ fact(X, _, ex:Person)` beside
-// `bare(X, true) :- …` was refused as depending on its own negation, though `true` is never
-// ex:Person; so was `\+ rdf:type(X, ex:Person)` beside a rule deriving rdf:type ex:Alerted).
-// Such a predicate is no dependency of the call: strata may put it anywhere.
-// `rules_of[p]`: the indexes of p's rules (looking through all rules per call made
-// stratification quadratic: 40,000 chained rules took 3.5 s to load).
-bool may_derive_a_match(const Program& program, const std::vector<std::vector<std::uint32_t>>& rules_of, std::uint32_t p,
-                        const Literal& l) {
-  auto compatible = [](const Arg& head, const Arg& call) { return head.is_var || call.is_var || head.index == call.index; };
-  // fact(S, P, O) against a binary head (S, O); an atom of p against its head, argument by argument.
+struct PatternGraph {
+  std::vector<std::uint32_t> pattern_of_rule;
+  std::vector<std::vector<std::uint32_t>> rules_of;        // per pattern, in written order
+  std::vector<std::vector<std::uint32_t>> patterns_of;     // per predicate
+  std::vector<std::uint32_t> binary_patterns;              // of binary user predicates (fact/3 reads them)
+  std::vector<std::vector<Dependency>> edges;              // per pattern
+};
+
+// Whether a head (args of a rule of the pattern) could derive an atom the call `l` matches:
+// `fact(S, P, O)` against a binary head (S, O), another call argument by argument. A variable
+// matches anything; two constants only when they are the same.
+bool head_may_match(const std::vector<Arg>& head, const Literal& l) {
   const bool any_binary = l.pred == kAnyBinary;
-  for (std::uint32_t ri : rules_of[p]) {
-    const Rule& rule = program.rules[ri];
-    if (any_binary ? rule.head_args.size() != 2 || l.args.size() != 3 : rule.head_args.size() != l.args.size()) return true;
-    bool matches = true;
-    for (std::size_t i = 0; i < rule.head_args.size() && matches; ++i)
-      matches = compatible(rule.head_args[i], l.args[any_binary && i == 1 ? 2 : i]);
-    if (matches) return true;
+  if (any_binary ? head.size() != 2 || l.args.size() != 3 : head.size() != l.args.size()) return true;
+  for (std::size_t i = 0; i < head.size(); ++i) {
+    const Arg& call = l.args[any_binary && i == 1 ? 2 : i];
+    if (!head[i].is_var && !call.is_var && head[i].index != call.index) return false;
   }
-  return false;
+  return true;
 }
 
-// Step 4: Tarjan's strongly connected components; emitted dependencies first.
-Result<void> stratify(Program& program) {
-  const std::size_t n = program.preds.size();
-  std::vector<std::vector<std::pair<std::uint32_t, bool>>> edges(n);  // head -> (body, negated)
-  std::vector<bool> defined(n, false);
-  std::vector<std::vector<std::uint32_t>> rules_of(n);
+// The patterns a call depends on.
+template <class F>
+void for_each_match(const Program& program, const PatternGraph& g, const Literal& l, F&& f) {
+  const auto& candidates = l.pred == kAnyBinary ? g.binary_patterns : g.patterns_of[l.pred];
+  for (std::uint32_t p : candidates)
+    if (head_may_match(program.rules[g.rules_of[p].front()].head_args, l)) f(p);
+}
+
+PatternGraph pattern_graph(const Program& program) {
+  PatternGraph g;
+  g.patterns_of.resize(program.preds.size());
+  std::map<std::pair<std::uint32_t, std::vector<std::int64_t>>, std::uint32_t> by_head;
   for (std::uint32_t ri = 0; ri < program.rules.size(); ++ri) {
-    defined[program.rules[ri].head] = true;
-    rules_of[program.rules[ri].head].push_back(ri);
+    const Rule& rule = program.rules[ri];
+    std::vector<std::int64_t> key;
+    for (const Arg& a : rule.head_args) key.push_back(a.is_var ? -1 : static_cast<std::int64_t>(a.index));
+    auto [it, fresh] = by_head.try_emplace({rule.head, std::move(key)}, static_cast<std::uint32_t>(g.rules_of.size()));
+    if (fresh) {
+      g.rules_of.emplace_back();
+      g.patterns_of[rule.head].push_back(it->second);
+      const Pred& pred = program.preds[rule.head];
+      if (pred.arity == 2 && !pred.internal) g.binary_patterns.push_back(it->second);
+    }
+    g.rules_of[it->second].push_back(ri);
+    g.pattern_of_rule.push_back(it->second);
   }
-  for (const Rule& rule : program.rules) {
-    for (const Literal& l : rule.body) {
+  g.edges.resize(g.rules_of.size());
+  for (std::uint32_t ri = 0; ri < program.rules.size(); ++ri) {
+    for (const Literal& l : program.rules[ri].body) {
       if (l.kind != Literal::atom && l.kind != Literal::negation) continue;
-      bool neg = l.kind == Literal::negation;
-      if (l.pred != kAnyBinary) {
-        if (may_derive_a_match(program, rules_of, l.pred, l)) edges[rule.head].push_back({l.pred, neg});
-        continue;
-      }
-      for (std::uint32_t p = 0; p < n; ++p)
-        if (defined[p] && program.preds[p].arity == 2 && !program.preds[p].internal && may_derive_a_match(program, rules_of, p, l))
-          edges[rule.head].push_back({p, neg});
+      for_each_match(program, g, l, [&](std::uint32_t p) {
+        g.edges[g.pattern_of_rule[ri]].push_back({p, l.kind == Literal::negation, ri});
+      });
     }
   }
+  return g;
+}
+
+// Tarjan's strongly connected components, iteratively (a chain of 300,000 negations is as many
+// levels); components are emitted dependencies first. Returns each pattern's component.
+std::vector<int> components_of(const PatternGraph& g, std::vector<std::vector<std::uint32_t>>& components) {
+  const std::size_t n = g.edges.size();
   std::vector<int> index(n, -1), low(n, 0), comp(n, -1);
   std::vector<bool> on_stack(n, false);
   std::vector<std::uint32_t> stack;
-  std::vector<std::vector<std::uint32_t>> components;
+  std::vector<std::pair<std::uint32_t, std::size_t>> work;  // (pattern, next edge)
   int counter = 0;
-  std::function<void(std::uint32_t)> visit = [&](std::uint32_t v) {
+  auto enter = [&](std::uint32_t v) {
     index[v] = low[v] = counter++;
     stack.push_back(v);
     on_stack[v] = true;
-    for (auto [w, neg] : edges[v]) {
-      if (index[w] < 0) { visit(w); low[v] = std::min(low[v], low[w]); }
-      else if (on_stack[w]) low[v] = std::min(low[v], index[w]);
-    }
-    if (low[v] != index[v]) return;
-    std::vector<std::uint32_t> members;
-    std::uint32_t w;
-    do {
-      w = stack.back();
-      stack.pop_back();
-      on_stack[w] = false;
-      comp[w] = static_cast<int>(components.size());
-      members.push_back(w);
-    } while (w != v);
-    components.push_back(std::move(members));
+    work.emplace_back(v, 0);
   };
-  for (std::uint32_t p = 0; p < n; ++p) if (index[p] < 0) visit(p);
-  for (const Rule& rule : program.rules) {
+  for (std::uint32_t s = 0; s < n; ++s) {
+    if (index[s] >= 0) continue;
+    enter(s);
+    while (!work.empty()) {
+      const std::uint32_t v = work.back().first;
+      if (work.back().second < g.edges[v].size()) {
+        const std::uint32_t w = g.edges[v][work.back().second++].to;
+        if (index[w] < 0) enter(w);
+        else if (on_stack[w]) low[v] = std::min(low[v], index[w]);
+        continue;
+      }
+      work.pop_back();
+      if (!work.empty()) low[work.back().first] = std::min(low[work.back().first], low[v]);
+      if (low[v] != index[v]) continue;
+      std::vector<std::uint32_t> members;
+      std::uint32_t w;
+      do {
+        w = stack.back();
+        stack.pop_back();
+        on_stack[w] = false;
+        comp[w] = static_cast<int>(components.size());
+        members.push_back(w);
+      } while (w != v);
+      components.push_back(std::move(members));
+    }
+  }
+  return comp;
+}
+
+// The shortest chain by which pattern `from` depends on `to` (both in one component), as
+// "a <- b <- c (each derived from the next), by the rules at f:2:1 <- f:1:1 <- f:3:1": the
+// predicates and the rules that close the loop. `last_rule`: the rule of `to` on the loop (the
+// one with the negation).
+std::string dependency_path(const Program& program, const PatternGraph& g, const std::vector<int>& comp,
+                            std::uint32_t from, std::uint32_t to, std::uint32_t last_rule) {
+  struct Step {
+    std::int64_t pattern = -1;
+    std::uint32_t rule = 0;
+  };
+  std::vector<Step> came_from(g.edges.size());
+  std::deque<std::uint32_t> queue{from};
+  came_from[from].pattern = from;
+  while (!queue.empty() && came_from[to].pattern < 0) {
+    const std::uint32_t v = queue.front();
+    queue.pop_front();
+    for (const Dependency& d : g.edges[v]) {
+      if (comp[d.to] != comp[from] || came_from[d.to].pattern >= 0) continue;
+      came_from[d.to] = {v, d.rule};
+      queue.push_back(d.to);
+    }
+  }
+  auto pred_of = [&](std::uint32_t p) { return program.preds[program.rules[g.rules_of[p].front()].head].iri; };
+  if (came_from[to].pattern < 0) return pred_of(from) + " <- " + pred_of(to);
+  // chain[i] is derived from chain[i + 1] by rules[i]; the last by the negating rule.
+  std::vector<std::uint32_t> chain{to}, rules{last_rule};
+  while (chain.back() != from) {
+    rules.push_back(came_from[chain.back()].rule);
+    chain.push_back(static_cast<std::uint32_t>(came_from[chain.back()].pattern));
+  }
+  std::string preds, places;
+  for (std::size_t i = chain.size(); i-- > 0;) {
+    preds += (preds.empty() ? "" : " <- ") + pred_of(chain[i]);
+    places += (places.empty() ? "" : " <- ") + where(program, program.rules[rules[i]].pos);
+  }
+  if (chain.size() == 1) return preds + ", by the rule at " + places;
+  return preds + " (each derived from the next), by the rules at " + places;
+}
+
+Result<void> stratify(Program& program) {
+  const PatternGraph g = pattern_graph(program);
+  std::vector<std::vector<std::uint32_t>> components;
+  const std::vector<int> comp = components_of(g, components);
+  for (std::uint32_t ri = 0; ri < program.rules.size(); ++ri) {
+    const Rule& rule = program.rules[ri];
+    const std::uint32_t own = g.pattern_of_rule[ri];
     for (const Literal& l : rule.body) {
       if (l.kind != Literal::negation) continue;
-      for (auto [w, neg] : edges[rule.head]) {
-        if (neg && comp[w] == comp[rule.head] && (l.pred == w || l.pred == kAnyBinary))
-          return unexpected(Error{where(program, l.pos) + ": " + program.preds[rule.head].iri + " depends on the negation of " +
-                                  program.preds[w].iri + ", which is derived from " + program.preds[rule.head].iri +
-                                  " in turn (not stratified; ranking and \\+ cannot go through recursion): " +
-                                  dependency_path(program, edges, comp, w, rule.head)});
-      }
+      std::optional<std::uint32_t> loop;
+      for_each_match(program, g, l, [&](std::uint32_t p) { if (!loop && comp[p] == comp[own]) loop = p; });
+      if (!loop) continue;
+      const std::string& negated = program.preds[program.rules[g.rules_of[*loop].front()].head].iri;
+      return unexpected(Error{where(program, l.pos) + ": " + program.preds[rule.head].iri + " depends on the negation of " +
+                              negated + ", which is derived from " + program.preds[rule.head].iri +
+                              " in turn (not stratified; ranking and \\+ cannot go through recursion): " +
+                              dependency_path(program, g, comp, *loop, own, ri)});
     }
   }
   program.strata.clear();
-  std::vector<int> stratum_of(components.size(), -1);
-  for (std::size_t c = 0; c < components.size(); ++c) {
+  for (const auto& members : components) {
     Stratum s;
-    for (std::uint32_t p : components[c]) if (defined[p]) s.preds.push_back(p);
-    if (s.preds.empty()) continue;
-    stratum_of[c] = static_cast<int>(program.strata.size());
+    for (std::uint32_t p : members) {
+      for (std::uint32_t ri : g.rules_of[p]) {
+        s.rules.push_back(ri);
+        s.preds.push_back(program.rules[ri].head);
+        s.volatile_ |= program.rules[ri].uses_now;
+      }
+      for (const Dependency& d : g.edges[p]) s.recursive |= comp[d.to] == comp[p];
+    }
+    std::sort(s.rules.begin(), s.rules.end());
+    std::sort(s.preds.begin(), s.preds.end());
+    s.preds.erase(std::unique(s.preds.begin(), s.preds.end()), s.preds.end());
     program.strata.push_back(std::move(s));
-  }
-  for (std::uint32_t r = 0; r < program.rules.size(); ++r) {
-    Stratum& s = program.strata[stratum_of[comp[program.rules[r].head]]];
-    s.rules.push_back(r);
-    s.volatile_ |= program.rules[r].uses_now;
-    for (auto [w, neg] : edges[program.rules[r].head]) s.recursive |= comp[w] == comp[program.rules[r].head];
   }
   return {};
 }

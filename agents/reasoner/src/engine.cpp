@@ -5,11 +5,12 @@
 // and disappeared (for the strata above) and the conclusions that changed (for the store) are
 // read off the touched rows at the end.
 //
-// Strata run in dependency order. A stratum whose inputs only grew runs semi-naive: each rule
-// once per body atom that has new rows, that atom over the new rows only, then rounds over its
-// own new rows to the fixpoint. A stratum reached by a removal, by any change under a negation,
-// or using `now` is recomputed: its derived flags are cleared and it runs to the fixpoint again;
-// what differs from before is what changed.
+// Strata run in dependency order; a predicate's rules may lie in several (split by head
+// pattern, RS6), and a row then records which of them derive it. A stratum whose inputs only
+// grew runs semi-naive: each rule once per body atom that has new rows, that atom over the new
+// rows only, then rounds over its own new rows to the fixpoint. A stratum reached by a removal,
+// by any change under a negation, or using `now` is recomputed: its derived flags are cleared
+// and it runs to the fixpoint again; what differs from before is what changed.
 //
 // Joins (docs/reasoner.md, "Joins") are tuned for sensor data: thousands of readings joined with
 // context by time windows. An atom whose variable comparisons bound reads a sorted index over
@@ -192,7 +193,13 @@ struct Relation {
   std::uint32_t arity = 0;
   Id pred_iri = 0;        // binary relations: the predicate's term id
   int pred = -1;          // program predicate, -1 for a relation of base facts only
-  int stratum = -1;       // defining stratum, -1 for base facts only
+  // The strata with rules for this relation, in order. A predicate's rules are split into
+  // strata by head pattern (RS6), so several may derive one row: then `words` 64-bit words per
+  // row in `owners` say which (bit k: deriving[k]), and derived[r] is whether any does, so
+  // that recomputing one stratum clears only its own derivations.
+  std::vector<std::uint32_t> deriving;
+  std::uint32_t words = 0;  // 0: one stratum at most, derived[r] says it alone
+  std::vector<std::uint64_t> owners;
   bool read = true;       // some rule reads it (base facts are kept only then)
   std::vector<Id> data;   // row r: data[r * arity .. + arity)
   std::vector<std::uint32_t> base;
@@ -227,6 +234,7 @@ struct Relation {
     data.insert(data.end(), t, t + arity);
     base.push_back(0);
     derived.push_back(0);
+    owners.resize(owners.size() + words, 0);
     mark.push_back(0);
     rows.insert(h, r);
     for (Index& ix : indexes) link(ix, r);
@@ -272,6 +280,22 @@ struct Relation {
     std::inplace_merge(sx->entries.begin(), sx->entries.begin() + static_cast<long>(old), sx->entries.end());
     return *sx;
   }
+  // The k-th of `deriving` derives row r (slot: its index there).
+  bool derived_by(std::uint32_t r, std::uint32_t slot) const {
+    if (!words) return derived[r] != 0;
+    return (owners[static_cast<std::size_t>(r) * words + slot / 64] >> (slot % 64)) & 1u;
+  }
+  void set_derived(std::uint32_t r, std::uint32_t slot) {
+    derived[r] = 1;
+    if (words) owners[static_cast<std::size_t>(r) * words + slot / 64] |= std::uint64_t{1} << (slot % 64);
+  }
+  void clear_derived(std::uint32_t r, std::uint32_t slot) {
+    if (!words) { derived[r] = 0; return; }
+    const std::size_t at = static_cast<std::size_t>(r) * words;
+    owners[at + slot / 64] &= ~(std::uint64_t{1} << (slot % 64));
+    derived[r] = std::any_of(owners.begin() + static_cast<long>(at), owners.begin() + static_cast<long>(at + words),
+                             [](std::uint64_t w) { return w != 0; });
+  }
   void touch(std::uint32_t r) {
     if (mark[r]) return;
     mark[r] = kTouched | (alive(r) ? kWasAlive : 0) | (derived[r] ? kWasDerived : 0) | (base[r] > 0 ? kWasBase : 0);
@@ -291,6 +315,7 @@ struct Engine::Impl {
   std::vector<std::uint32_t> rel_of_pred;  // program predicate -> relation
   KeyMap binary;                           // predicate term id -> relation
   std::vector<Id> const_ids;               // program constant -> term id
+  std::vector<std::uint32_t> slot_of_rule;  // rule -> its stratum's slot in its head's Relation::deriving
   std::vector<std::uint32_t> touched_rels;
   std::vector<std::uint8_t> rel_is_touched;
   std::int64_t now = 0;
@@ -314,8 +339,13 @@ struct Engine::Impl {
       rels[r].pred = static_cast<int>(i);
       rel_of_pred.push_back(r);
     }
-    for (std::size_t s = 0; s < program->strata.size(); ++s)
-      for (std::uint32_t p : program->strata[s].preds) rels[rel_of_pred[p]].stratum = static_cast<int>(s);
+    for (std::uint32_t s = 0; s < program->strata.size(); ++s)
+      for (std::uint32_t p : program->strata[s].preds) rels[rel_of_pred[p]].deriving.push_back(s);
+    for (Relation& R : rels)
+      if (R.deriving.size() > 1) R.words = static_cast<std::uint32_t>((R.deriving.size() + 63) / 64);
+    slot_of_rule.resize(program->rules.size());
+    for (std::uint32_t s = 0; s < program->strata.size(); ++s)
+      for (std::uint32_t ri : program->strata[s].rules) slot_of_rule[ri] = slot(rel_of_pred[program->rules[ri].head], s);
     for (std::uint32_t p : program->read_binary) read_iris.insert(program->preds[p].iri);
     for (Relation& R : rels)
       if (R.pred_iri && R.pred >= 0) R.read = relevant(program->preds[R.pred].iri);
@@ -334,6 +364,11 @@ struct Engine::Impl {
     r = new_rel(2, iri);
     binary.put(iri, r);
     return r;
+  }
+  // The index of stratum s in rels[rel].deriving (s has rules for it).
+  std::uint32_t slot(std::uint32_t rel, std::uint32_t s) const {
+    const auto& d = rels[rel].deriving;
+    return static_cast<std::uint32_t>(std::find(d.begin(), d.end(), s) - d.begin());
   }
   void touch(std::uint32_t rel, std::uint32_t row) {
     rels[rel].touch(row);
@@ -377,7 +412,8 @@ class RuleRun {
   // delta: per relation, the rows the first literal of `plan` iterates (nullptr: all rows).
   RuleRun(EngineImpl& e, const Rule& rule, const std::vector<std::uint32_t>& plan,
           const std::vector<std::vector<std::uint32_t>>* delta, std::vector<std::vector<std::uint32_t>>& out)
-      : e_(e), rule_(rule), plan_(plan), delta_(delta), out_(out), bind_(rule.vars, 0) {
+      : e_(e), rule_(rule), plan_(plan), delta_(delta), out_(out), bind_(rule.vars, 0),
+        slot_(e.slot_of_rule[static_cast<std::size_t>(&rule - e.program->rules.data())]) {
     for (std::size_t i = 0; i < rule.plans.size(); ++i)
       if (&rule.plans[i] == &plan) { ready_ = rule.ready[i]; ranges_ = &rule.plan_ranges[i]; memos_ = &rule.plan_memos[i]; }
     for (std::size_t i = 0; i < rule.neg_plans.size(); ++i)
@@ -432,6 +468,7 @@ class RuleRun {
   const std::vector<std::vector<std::uint32_t>>* delta_;
   std::vector<std::vector<std::uint32_t>>& out_;
   std::vector<Id> bind_;
+  std::uint32_t slot_;  // the rule's stratum among those deriving its head (Relation::deriving)
   std::size_t ready_ = ~std::size_t{0};
   const std::vector<RangeScan>* ranges_ = nullptr;  // per step of plan_
   // Independent runs (program.h, Memo): per step, the bindings kept once enumerated.
@@ -501,10 +538,10 @@ void RuleRun<E>::emit() {
   std::uint32_t rel = e_.rel_of_pred[rule_.head];
   Relation& R = e_.rels[rel];
   std::uint32_t r = R.ensure(tuple);
-  if (R.derived[r]) return;
+  if (R.derived_by(r, slot_)) return;
   e_.touch(rel, r);
   bool was_visible = R.alive(r);
-  R.derived[r] = 1;
+  R.set_derived(r, slot_);
   if (!was_visible) out_[rel].push_back(r);
   // A rule whose conclusion feeds itself new values (count(X, N1) :- count(X, N), N1 is N + 1)
   // never reaches a fixpoint: it took all the memory there is. Stopped with where it is.
@@ -967,15 +1004,18 @@ void Engine::Impl::retract_for_negations(const Stratum& stratum, std::vector<std
     if (!found.empty()) candidates.emplace_back(rule.head, std::move(found));
   }
   // Withdraw them, then derive each again from any rule of its predicate.
+  // Only this stratum's derivations: another stratum's rules of the predicate (another head
+  // pattern) may derive the same row, and it stays theirs.
   std::vector<std::pair<std::uint32_t, std::uint32_t>> withdrawn;  // (relation, row)
   for (auto& [head, tuples] : candidates) {
     std::uint32_t rel = rel_of_pred[head];
     Relation& R = rels[rel];
+    const std::uint32_t own = slot(rel, static_cast<std::uint32_t>(current_stratum));
     for (const auto& t : tuples) {
       std::uint32_t r = R.find(t.data());
-      if (r == kNone || !R.derived[r]) continue;
+      if (r == kNone || !R.derived_by(r, own)) continue;
       touch(rel, r);
-      R.derived[r] = 0;
+      R.clear_derived(r, own);
       withdrawn.emplace_back(rel, r);
     }
   }
@@ -983,7 +1023,7 @@ void Engine::Impl::retract_for_negations(const Stratum& stratum, std::vector<std
     std::vector<Id> tuple(rels[rel].row(row), rels[rel].row(row) + rels[rel].arity);
     for (std::uint32_t ri : stratum.rules) {
       const Rule& rule = program->rules[ri];
-      if (rel_of_pred[rule.head] != rel || rels[rel].derived[row]) continue;
+      if (rel_of_pred[rule.head] != rel || rels[rel].derived_by(row, slot_of_rule[ri])) continue;
       RuleRun(*this, rule, rule.plans[0], nullptr, next).run_bound(tuple.data());
     }
   }
@@ -1054,13 +1094,13 @@ void Engine::Impl::run_stratum(std::size_t s) {
     clear_cur();
   }
   if (recompute) {
-    for (std::uint32_t p : stratum.preds) {
-      std::uint32_t rel = rel_of_pred[p];
+    for (std::uint32_t rel : own) {
       Relation& R = rels[rel];
+      const std::uint32_t mine = slot(rel, static_cast<std::uint32_t>(s));
       for (std::uint32_t r = 0; r < R.size(); ++r) {
-        if (!R.derived[r]) continue;
+        if (!R.derived_by(r, mine)) continue;
         touch(rel, r);
-        R.derived[r] = 0;
+        R.clear_derived(r, mine);
       }
     }
     for (std::uint32_t ri : stratum.rules) {
