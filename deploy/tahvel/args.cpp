@@ -94,7 +94,10 @@ void check_positional_count(const Command& command, const Args& args) {
   }
   if (n > command.max_positional) {
     // `--limit --format json`: --limit took "--format" for its value, and "json" is left over.
-    const std::string hint = args.flag_as_value().empty() ? "" : " (" + args.flag_as_value() + ")";
+    std::string hint = args.flag_as_value().empty() ? "" : " (" + args.flag_as_value() + ")";
+    // `tahvel status st`: the other commands take their directory as DIR, these as a flag.
+    if (hint.empty() && command.max_positional == 0 && find_flag(command, "--state"))
+      hint = " (the state directory is given as --state " + args.positional()[0] + ")";
     usage_error(prefix_of(command) + "unexpected argument '" + args.positional()[command.max_positional] + "'" + hint);
   }
 }

@@ -999,7 +999,7 @@ std::string load_onto(node::Agent& loader, const NodeSpec& spec, const fs::path&
   item.add(source, node::Term::iri(kLoadFile), node::Term::literal(load_name(file, topo)))
       .add(source, node::Term::iri(kLoadDigest), node::Term::literal(load_digest(file)));
   check(loader.store(item));
-  return "up: put " + std::to_string(triples) + " triples of " + file.string() + " on " + spec.id + "\n";
+  return "up: put " + std::to_string(triples) + (triples == 1 ? " triple of " : " triples of ") + file.string() + " on " + spec.id + "\n";
 }
 
 // On an existing store: loads the topology's files it has not had yet, and names those changed
@@ -2033,7 +2033,8 @@ int run_up(const Args& args) {
       if (narrowed) {
         if (const std::uint64_t withdrawn = check(uplink.withdraw_unrouted()); withdrawn > 0)
           std::cout << "up: " << spec.id << ": " << withdrawn << (withdrawn == 1 ? " item" : " items")
-                    << " queued for '" << spec.parent << "' under the removed patterns stay on the node (out of the outbox)\n";
+                    << " queued for '" << spec.parent << "' under the removed patterns " << (withdrawn == 1 ? "stays" : "stay")
+                    << " on the node (out of the outbox)\n";
       }
     }
   }

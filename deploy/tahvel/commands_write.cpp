@@ -315,6 +315,8 @@ int run_put(const Args& args) {
   node::Agent agent = check(node.agent(agent_id(args, "cli")));
   Input input;
   item.triples = parse_input(node, path, input_format(args, path), prefixes, &input);
+  if (item.triples.empty())
+    fail((path == "-" ? std::string("standard input") : path) + ": no triple to put (an item needs at least one)");
   warn_of_unreadable_geometry(item.triples, path);
   warn_of_unknown_addressee(node, item, agent);
   auto stored = agent.store(item);

@@ -701,10 +701,18 @@ node::Result<std::vector<std::string>> expand_agent_command(const AgentSpec& age
   // would only show as "exited with status 127; restarting" in the supervisor's log.
   std::string& program = argv.front();
   if (program.find('/') != std::string::npos) {
-    if (access(program.c_str(), X_OK) != 0 || std::filesystem::is_directory(program))
+    if (access(program.c_str(), X_OK) != 0 || std::filesystem::is_directory(program)) {
+      // Read from where `up` runs, not from the file's directory: said, with the way to the other.
+      std::error_code ec;
+      const std::string relative =
+          program.front() == '/' ? std::string()
+                                 : " (a relative path is read from the directory 'up' runs in, " +
+                                       std::filesystem::current_path(ec).string() + "; for a program beside the file write {dir}/" +
+                                       std::filesystem::path(program).lexically_normal().string() + ")";
       return node::fail(Errc::invalid_argument, what + "cannot run '" + program + "': " +
                                                      (std::filesystem::exists(program) ? "not an executable file" : "no such file") +
-                                                     " (programs of this build: {bin}/tahvel-...)");
+                                                     (relative.empty() ? " (programs of this build: {bin}/tahvel-...)" : relative));
+    }
   } else if (std::string found = program.empty() ? std::string() : find_on_path(program, context.path); !found.empty()) {
     program = found;  // the supervisor runs what this PATH finds, whatever its own PATH is
   } else {

@@ -3435,6 +3435,9 @@ TEST_F(Cli, UpRefusesATopologyThatCouldNotRunAsWrittenNamingWhatAndWhere) {
        "t.toml:4:3: node 'hospital': agent 'trend': unknown placeholder {stor} in '{stor}'"},
       {hospital + "  [[node.agent]]\n  id = \"x\"\n  run = [\"/nonexistent/prog\"]\n",
        "node 'hospital': agent 'x': cannot run '/nonexistent/prog': no such file"},
+      // A script beside the file, named as if paths were read from there.
+      {hospital + "  [[node.agent]]\n  id = \"x\"\n  run = [\"./no-such-script.sh\"]\n",
+       "agent 'x': cannot run './no-such-script.sh': no such file (a relative path is read from the directory 'up' runs in, "},
       {hospital + "  [[node.agent]]\n  id = \"x\"\n  run = [\"tahvel-no-such-agent\"]\n",
        "agent 'x': cannot run 'tahvel-no-such-agent': not found on PATH"},
       // Two nodes under one name: their children would flip between them.
@@ -4474,7 +4477,7 @@ TEST_F(Cli, UpMakesNoStoreWhenALoadFileIsMissingAndLoadsItOnceItIsThere) {
   ASSERT_EQ(up.status, 0) << up.err;
   // Made aside, loaded, then put in place: said in the order a reader expects (the load was
   // said before the store was).
-  const std::size_t created = up.out.find("up: created the store of solo"), put = up.out.find("up: put 1 triples of ");
+  const std::size_t created = up.out.find("up: created the store of solo"), put = up.out.find("up: put 1 triple of ");
   EXPECT_NE(put, std::string::npos) << up.out;
   EXPECT_LT(created, put) << up.out;
   ASSERT_EQ(run({"down", "--state", state}).status, 0);
@@ -4501,7 +4504,7 @@ TEST_F(Cli, UpLoadsAFileAddedToAnExistingNodeOnceAndNamesOneChangedSinceItWasLoa
   spit(tmp_ / "node.toml", node + "load = [\"plan.ttl\"]\n");
   Outcome up = run({"up", (tmp_ / "node.toml").string(), "--state", state});
   ASSERT_EQ(up.status, 0) << up.err;
-  EXPECT_NE(up.out.find("up: put 1 triples of " + (tmp_ / "plan.ttl").string() + " on solo"), std::string::npos) << up.out;
+  EXPECT_NE(up.out.find("up: put 1 triple of " + (tmp_ / "plan.ttl").string() + " on solo"), std::string::npos) << up.out;
   ASSERT_EQ(run({"down", "--state", state}).status, 0);
   ASSERT_EQ(rooms().size(), 1u);
 

@@ -486,7 +486,7 @@ TEST_F(Deployment, AForwardPatternTakenOutOfTheFileStopsGoingUp) {
   const std::string said = up();
   EXPECT_NE(said.find("bed: added the forwarding pattern '_ a tv:HrvWindow'"), std::string::npos) << said;
   EXPECT_NE(said.find("bed: removed the forwarding pattern '_ rdf:type tv:EcgRecording', no longer in the file"), std::string::npos) << said;
-  EXPECT_NE(said.find("bed: 1 item queued for 'ward' under the removed patterns stay on the node (out of the outbox)"), std::string::npos)
+  EXPECT_NE(said.find("bed: 1 item queued for 'ward' under the removed patterns stays on the node (out of the outbox)"), std::string::npos)
       << said;
   ASSERT_EQ(put("rec2", "EcgRecording"), 0);  // stored before the chunk: in order on the link
   ASSERT_EQ(put("chunk2", "EcgChunk"), 0);
