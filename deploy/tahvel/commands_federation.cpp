@@ -1055,10 +1055,12 @@ void refuse_a_second_store_of(const NodeSpec& spec, const fs::path& state) {
     auto other = node::Node::open(dir);
     if (!other || other->iri() != spec.iri) continue;
     const std::string old_id = dir.filename().string();
-    fail("node '" + spec.id + "' would get a new store, but " + dir.string() + " (node '" + old_id +
-         "') already holds <" + spec.iri + ">: was the node renamed in the file? To keep its data under the new id, " +
-         "'tahvel down --state " + shell_word(state) + "', rename " + dir.string() + " to " + (state / spec.id).string() +
-         " and 'up' again; to start it afresh, remove " + dir.string() + " first");
+    // Either the file renamed the node or its store was moved aside (a copy kept as home1.bak):
+    // the way on is the same move, so both are said.
+    fail("node '" + spec.id + "' would get a new store, but " + dir.string() + " already holds <" + spec.iri +
+         ">: its store was moved there, or the node was renamed in the file (from '" + old_id + "'). To go on with its data, " +
+         "move " + dir.string() + " to " + (state / spec.id).string() + " and 'up' again; to start it afresh, move " +
+         dir.string() + " out of " + state.string() + " first");
   }
 }
 
@@ -1211,8 +1213,15 @@ class Deployment {
       changes.push_back("the deployment ran " + file_.string() + " until now and runs " + file.string() + " from now on");
     file_ = file;
     std::vector<const NodeSpec*> mine;
-    for (const NodeSpec* spec : nodes_brought_up(topo, only_))
+    const std::vector<const NodeSpec*> brought_up = nodes_brought_up(topo, only_);
+    for (const NodeSpec* spec : brought_up)
       if (lock_node(*spec, changes)) mine.push_back(spec);
+    // A node stopped as its store went that the file no longer has (renamed, its store moved to
+    // the new id) is no node of the deployment: `status` showed it for ever as a store moved away.
+    if (std::erase_if(gone_, [&](const auto& g) {
+          return std::none_of(brought_up.begin(), brought_up.end(), [&](const NodeSpec* spec) { return spec->id == g.first; });
+        }) > 0)
+      if (auto listed = write_gone_list()) changes.push_back(*listed);
     const std::vector<agents::ProgramSpec> in_order = programs_of(topo, mine, state_, context);  // parents first
     std::map<std::string, const agents::ProgramSpec*> wanted;
     for (const auto& program : in_order) wanted[program.name] = &program;

@@ -4126,10 +4126,21 @@ TEST_F(Cli, UpRefusesANewStoreForAnIriThatAnotherStoreOfTheDirectoryHolds) {
   spit(tmp_ / "b.toml", "[[node]]\nid = \"hq\"\niri = \"http://example.org/r1\"\n");
   Outcome renamed = run({"up", (tmp_ / "b.toml").string(), "--state", state});
   EXPECT_NE(renamed.status, 0);
-  EXPECT_NE(renamed.err.find("node 'hq' would get a new store, but " + state + "/hospital (node 'hospital') already holds "
-                             "<http://example.org/r1>: was the node renamed in the file?"),
+  EXPECT_NE(renamed.err.find("node 'hq' would get a new store, but " + state + "/hospital already holds "
+                             "<http://example.org/r1>: its store was moved there, or the node was renamed in the file (from "
+                             "'hospital'). To go on with its data, move " + state + "/hospital to " + state + "/hq and 'up' again"),
             std::string::npos) << renamed.err;
   EXPECT_FALSE(fs::exists(tmp_ / "state" / "hq" / "data.mdb"));
+  // The advice followed while the deployment runs: the node goes on under its new id, its data with it.
+  ASSERT_EQ(run({"put", state + "/hospital", "--format", "nt", "-"}, "<http://example.org/r1/x> <http://example.org/p> \"kept\" .\n").status, 0);
+  fs::rename(tmp_ / "state" / "hospital", tmp_ / "state" / "hq");
+  Outcome moved = run({"up", (tmp_ / "b.toml").string(), "--state", state});
+  EXPECT_EQ(moved.status, 0) << moved.err;
+  EXPECT_NE(run({"list", state + "/hq", "-o", "\"kept\""}).out.find("kept"), std::string::npos);
+  EXPECT_TRUE(eventually([&] { return run({"status", "--state", state}).out.find("hq  <http://example.org/r1>  (root)") != std::string::npos; }))
+      << run({"status", "--state", state}).out;
+  EXPECT_TRUE(eventually([&] { return run({"status", "--state", state}).out.find("hospital") == std::string::npos; }))
+      << run({"status", "--state", state}).out;
   EXPECT_EQ(run({"down", "--state", state}).status, 0);
 }
 
