@@ -1268,6 +1268,11 @@ class Deployment {
     std::set<std::string> ids;
     for (const NodeSpec* spec : mine) ids.insert(spec->id);
     if (auto listed = write_node_list(ids)) changes.push_back(*listed);
+    if (only_) {  // what the file has beside this node, for `status` (nodes_supervised)
+      std::set<std::string> in_file;
+      for (const NodeSpec& spec : topo.nodes) in_file.insert(spec.id);
+      if (auto listed = write_node_list(in_file, ".file-nodes")) changes.push_back(*listed);
+    }
     for (auto it = dispatchers_.begin(); it != dispatchers_.end();) {
       const NodeSpec* spec = topo.node(it->first);
       if (ids.count(it->first) && spec->behaviours == it->second.folder) {
@@ -1613,11 +1618,12 @@ class Deployment {
 
   // The nodes this supervisor runs, for `status` to tell a store left from a node taken out of
   // the file from one that is part of the deployment. Why it could not be written, if so.
-  std::optional<std::string> write_node_list(const std::set<std::string>& ids) {
+  // With `extension` ".file-nodes": the nodes of the file a supervisor of one node runs.
+  std::optional<std::string> write_node_list(const std::set<std::string>& ids, const char* extension = ".nodes") {
     std::string listed;
     for (const auto& id : ids) listed += id + "\n";
     try {
-      write_whole(fs::path(state_ / pid_file_name(only_)).replace_extension(".nodes"), listed);
+      write_whole(fs::path(state_ / pid_file_name(only_)).replace_extension(extension), listed);
     } catch (const Failure& f) {
       return f.message;
     }
@@ -2609,11 +2615,19 @@ std::string unbelieved_because(const StatusNode* keeper, const std::string& writ
 std::optional<std::set<std::string>> nodes_supervised(const fs::path& state) {
   const fs::path whole = state / pid_file_name(std::nullopt);
   if (supervisor_holding(whole) == 0) {
+    // Supervisors of one node each (`up --node`): the nodes of the files they run. A store of a
+    // node none of those files has is one taken out of the file.
+    std::optional<std::set<std::string>> in_files;
     std::error_code ec;
     for (const auto& entry : fs::directory_iterator(state, ec)) {
       const std::string name = entry.path().filename().string();
-      if (name.starts_with("supervisor-") && name.ends_with(".pid") && supervisor_holding(entry.path()) != 0) return std::nullopt;
+      if (!name.starts_with("supervisor-") || !name.ends_with(".pid") || supervisor_holding(entry.path()) == 0) continue;
+      std::ifstream in(fs::path(entry.path()).replace_extension(".file-nodes"));
+      if (!in) return std::nullopt;  // a supervisor of an earlier build, which did not say
+      if (!in_files) in_files.emplace();
+      for (std::string id; std::getline(in, id);) in_files->insert(id);
     }
+    if (in_files) return in_files;
   }
   std::ifstream in(fs::path(whole).replace_extension(".nodes"));
   if (!in) return std::nullopt;

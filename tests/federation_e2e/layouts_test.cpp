@@ -446,6 +446,16 @@ TEST_F(Deployment, AChildAddedToTheFileOfARunningDeploymentRegistersAfterUpAgain
   EXPECT_NE(shown.find("gateway2  <" + kWard + "/gateway2>  not in the deployment (taken out of its file; the store is kept)\n"),
             std::string::npos)
       << shown;
+  // And while the nodes run as machines of their own (`up --node`), whose files do not have it:
+  // it was shown as deployed, with the uplink its link last wrote.
+  up("--node ward");
+  up("--node gateway");
+  shown = status();
+  EXPECT_NE(shown.find("gateway2  <" + kWard + "/gateway2>  not in the deployment (taken out of its file; the store is kept)\n"),
+            std::string::npos)
+      << shown;
+  tahvel("down --state " + state_.string() + " --node gateway");
+  tahvel("down --state " + state_.string() + " --node ward");
 }
 
 // A child node named "-h" (an id like any other): its parent's link runs with `--child -h`,
