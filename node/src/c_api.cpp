@@ -220,6 +220,13 @@ tahvel::node::Result<std::optional<Term>> parse_term(const char* text, Position 
   auto triples = tahvel::node::parse_rdf(document, options);
   const std::string quoted =
       std::string(position_name(position)) + " term '" + std::string(term) + "'";
+  // The two slips a caller makes most, said as such: the parser's words for them ("invalid IRI
+  // character" at a column past the term, "expected ':', '<', or '_'") name neither.
+  if (term.front() == '<' && term.find('>') == std::string_view::npos)
+    return fail(Errc::syntax, "invalid " + quoted + ": the IRI has no closing '>'");
+  if (term.front() != '<' && term.front() != '"' && !term.starts_with("_:"))
+    return fail(Errc::syntax, "invalid " + quoted + ": a term is written as N-Triples writes it: <IRI>, \"literal\" or _:label "
+                              "(prefixed names such as tv:x, and bare IRIs or numbers, are not read here)");
   if (!triples) {
     const Error& error = triples.error();
     return fail(error.code, "invalid " + quoted + " " + term_error(error.message));
