@@ -17,6 +17,7 @@
 #include "args.h"
 #include "bench.h"
 #include "commands.h"
+#include "tahvel/uri/spelling.h"
 
 namespace tahvel::cli {
 
@@ -54,7 +55,8 @@ void print_global_help(std::ostream& out) {
   };
   for (const Subcommand& s : subcommands()) row(*s.spec);
   row(kBenchCommand);
-  out << "  help        'tahvel help SUBCOMMAND' shows a subcommand's flags\n\n"
+  out << "  help        'tahvel help SUBCOMMAND' shows a subcommand's flags\n"
+         "  --version   the software version (as links and status give it)\n\n"
          "terms (-s, -p, -o, --context): <http://x/a>, http://x/a, a CURIE such as\n"
          "sosa:Observation (the node's prefixes and --prefix P=IRI), _:label, \"text\",\n"
          "\"text\"@en, \"72\"^^xsd:integer, 72 (xsd:integer), 72.5 (xsd:decimal), 7e2 (xsd:double),\n"
@@ -100,8 +102,20 @@ int dispatch(const std::vector<std::string>& argv) {
   const std::string& name = argv[0];
   std::vector<std::string> rest(argv.begin() + 1, argv.end());
   if (name == "help" || name == "--help" || name == "-h") return run_help(rest);
+  if (name == "--version" || name == "version") {
+    std::cout << federation::LinkOptions{}.software_version << "\n";  // what links and status say
+    return kExitOk;
+  }
   const Command* command = find_command(name);
-  if (!command) usage_error("unknown subcommand '" + name + "' (see 'tahvel --help')");
+  if (!command) {
+    // `tahvel lst`: the nearest subcommand within two edits.
+    std::string nearest;
+    std::size_t best = 3;
+    for (const Subcommand& s : subcommands())
+      if (const std::size_t d = uri::edit_distance(name, s.spec->name); d < best) best = d, nearest = s.spec->name;
+    usage_error("unknown subcommand '" + name + "'" + (nearest.empty() ? "" : "; did you mean '" + nearest + "'?") +
+                " (see 'tahvel --help')");
+  }
   // `tahvel bench store --help` is answered by the store benchmark itself (and so on).
   bool named_bench = command == &kBenchCommand && !rest.empty() &&
                      (rest[0] == "store" || rest[0] == "hrv" || rest[0] == "spatial" || rest[0] == "reason" ||

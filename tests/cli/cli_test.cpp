@@ -544,6 +544,23 @@ TEST_F(Cli, EverySubcommandHelpExits0WithItsUsageLine) {
 // A flag's value is a value, whatever it looks like. `up` runs a parent's link with `--child ID`,
 // and for a child node named "-h" that link printed its usage and exited 0, restarted for ever:
 // the parent served no child. Only "-h" and "--help" in a flag's place ask for help.
+// What an operator types first: the version (status printed it, nothing else did), a slip in a
+// subcommand's name, and a state directory given as DIR.
+TEST_F(Cli, VersionAndSlipsInTheCommandLineAreAnswered) {
+  Outcome version = run({"--version"});
+  EXPECT_EQ(version.status, 0) << version.err;
+  EXPECT_TRUE(std::regex_match(version.out, std::regex("tahvel [0-9]+\\.[0-9]+\\.[0-9]+\n"))) << version.out;
+  Outcome slip = run({"lst", node_});
+  EXPECT_EQ(slip.status, 2);
+  EXPECT_NE(slip.err.find("unknown subcommand 'lst'; did you mean 'list'?"), std::string::npos) << slip.err;
+  Outcome far = run({"zzzzzz"});
+  EXPECT_EQ(far.status, 2);
+  EXPECT_EQ(far.err.find("did you mean"), std::string::npos) << far.err;
+  Outcome bare = run({"status", "st"});
+  EXPECT_EQ(bare.status, 2);
+  EXPECT_NE(bare.err.find("unexpected argument 'st' (the state directory is given as --state st)"), std::string::npos) << bare.err;
+}
+
 TEST_F(Cli, AFlagsValueThatLooksLikeHelpIsAValueNotAskingForHelp) {
   const std::string missing = (tmp_ / "no-store").string();
   for (const std::string help : {"-h", "--help"}) {
