@@ -388,23 +388,24 @@ node::Result<Topology> load_topology(const std::filesystem::path& file) {
     NodeSpec spec;
     TAHVEL_TRY(id, typed<std::string>(*t, "id", file, "node: ", "a string"));
     if (!id) return node::fail(Errc::invalid_argument, where(*t, file) + ": a node needs an id");
+    const toml::node& id_at = *t->get("id");  // errors about the id point at it, not at [[node]]
     // The longest name made of an id, supervisor-<id>.apply.lock, must fit a file name (255 bytes).
     // Said before check_id, which would quote the whole id.
     if (id->size() > kMaxNodeIdBytes)
-      return node::fail(Errc::invalid_argument, where(*t, file) + ": node id '" + utf8_prefix(*id, 40) + "...' is " +
+      return node::fail(Errc::invalid_argument, where(id_at, file) + ": node id '" + utf8_prefix(*id, 40) + "...' is " +
                                                     std::to_string(id->size()) + " bytes long; at most " +
                                                     std::to_string(kMaxNodeIdBytes) + " are allowed (the state directory names files after it)");
     // check_id's message shows the id with its control characters escaped: not quoted raw here too.
-    if (auto ok = uri::check_id(*id); !ok) return node::fail(Errc::invalid_argument, where(*t, file) + ": node id: " + ok.error().message);
+    if (auto ok = uri::check_id(*id); !ok) return node::fail(Errc::invalid_argument, where(id_at, file) + ": node id: " + ok.error().message);
     spec.id = *id;
-    if (by_id.count(spec.id)) return node::fail(Errc::invalid_argument, where(*t, file) + ": node id '" + spec.id + "' appears twice");
+    if (by_id.count(spec.id)) return node::fail(Errc::invalid_argument, where(id_at, file) + ": node id '" + spec.id + "' appears twice");
     // STATE/<id> is the node's store, beside the supervisors' files in STATE (the whole file's
     // is supervisor-all.*, one node's supervisor-<id>.*), `up`'s turn (.up.lock) and the stores
     // `up` is making (STATE/<id>.making, which `status` does not take for nodes).
     if (spec.id == "logs" || spec.id == "all" || spec.id.starts_with(".") || spec.id.starts_with("supervisor-") ||
         spec.id.ends_with(".making"))
       return node::fail(Errc::invalid_argument,
-                        where(*t, file) + ": node id '" + spec.id +
+                        where(id_at, file) + ": node id '" + spec.id +
                             "' is taken by the state directory's own files (logs/, all, .*, supervisor-*, *.making)");
     const std::string what = "node '" + spec.id + "': ";
     if (auto ok = only_keys(*t, {"id", "iri", "tier", "parent", "up", "listen", "store", "forward", "behaviours", "load", "agent"}, file, what); !ok)

@@ -3430,12 +3430,12 @@ TEST_F(Cli, UpRefusesATopologyThatCouldNotRunAsWrittenNamingWhatAndWhere) {
       {"[[node]]\nid = \"hq.making\"\niri = \"http://example.org/hq\"\n", "node id 'hq.making' is taken by the state directory"},
       // The whole file's supervisor is supervisor-all.pid: a node 'all' on the machine of another
       // node was refused at `up --node` as "the supervisor of the whole file runs".
-      {"[[node]]\nid = \"all\"\niri = \"http://example.org/all\"\n", "t.toml:1:1: node id 'all' is taken by the state directory"},
+      {"[[node]]\nid = \"all\"\niri = \"http://example.org/all\"\n", "t.toml:2:6: node id 'all' is taken by the state directory"},
       // `up`'s turn, STATE/.up.lock: such a node failed half-way, its parent's store made.
       {"[[node]]\nid = \".up.lock\"\niri = \"http://example.org/x\"\n", "node id '.up.lock' is taken by the state directory"},
       // A longer id failed after its parent's store was made ("File name too long").
       {"[[node]]\nid = \"" + std::string(201, 'n') + "\"\niri = \"http://example.org/x\"\n",
-       "t.toml:1:1: node id '" + std::string(40, 'n') + "...' is 201 bytes long; at most 200 are allowed"},
+       "t.toml:2:6: node id '" + std::string(40, 'n') + "...' is 201 bytes long; at most 200 are allowed"},
       // "café" with a combining accent: the same on screen as the precomposed one, other bytes.
       {"[[node]]\nid = \"hospital\"\niri = \"http://example.org/cafe\xCC\x81\"\n",
        "t.toml:3:7: node 'hospital': iri: invalid IRI 'http://example.org/cafe\xCC\x81' at position 22: not in Unicode normalization form C (NFC)"},
@@ -3507,7 +3507,7 @@ TEST_F(Cli, UpRefusesATopologyThatCouldNotRunAsWrittenNamingWhatAndWhere) {
        "t.toml:7:3: node 'hospital': agent id 'x' is taken: the node's agent on line 4 has it"},
       // A control character in an id is shown escaped, the error on one line.
       {"[[node]]\nid = \"home\\n1\"\niri = \"http://example.org/h\"\n",
-       "t.toml:1:1: node id: invalid id 'home\\x0A1' at position 4: unexpected control character 0x0A in an id\n"},
+       "t.toml:2:6: node id: invalid id 'home\\x0A1' at position 4: unexpected control character 0x0A in an id\n"},
       {hospital + "[[node]]\nid = \"home1\"\nparent = \"a\\u0007x\"\n",
        "t.toml:6:10: node 'home1': parent: invalid id 'a\\x07x' at position 1: unexpected control character 0x07 in an id\n"},
       {"[deployment]\nname = \"d\\u001b[2J\"\n" + hospital, "t.toml:2:8: deployment.name: a control character in a name\n"},
