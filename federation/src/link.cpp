@@ -493,6 +493,15 @@ struct Link::Impl {
     Clock::time_point logged, answered{};  // when it was logged, when the sender was last told
   };
   std::map<std::string, Refusal> refusals;  // by sender (refuse())
+  // Hellos refused from would-be children (a node whose id the file here lacks, an IRI outside
+  // this subtree): by sender, why and when last, until it is welcomed or stops trying.
+  struct RefusedHello {
+    std::string why;
+    Clock::time_point last;
+  };
+  std::map<std::string, RefusedHello> refused_hellos;
+  static constexpr std::size_t kRefusedHellosShown = 8;
+  static constexpr std::chrono::minutes kRefusedHelloShownFor{10};
   static constexpr std::size_t kRefusalsKept = 4096;
   static constexpr int kRefusalAnswersPerSecond = 20;
   Clock::time_point refusal_answers_since{};  // the second refusal_answers counts in
@@ -1508,6 +1517,14 @@ struct Link::Impl {
       if (refusals.size() >= kRefusalsKept && !refusals.contains(from)) refusals.clear();
       Refusal& last = refusals[from];
       const std::string& key = reason.empty() ? why : reason;
+      // A would-be child's hello, for `status` here (say_problem): it was in the log only.
+      if (answered_kind && kind == FrameKind::hello) {
+        if (refused_hellos.size() >= kRefusedHellosShown && !refused_hellos.contains(from))
+          refused_hellos.erase(std::min_element(refused_hellos.begin(), refused_hellos.end(), [](const auto& a, const auto& b) {
+                                 return a.second.last < b.second.last;
+                               }));
+        refused_hellos[from] = {why, Clock::now()};
+      }
       const auto now = Clock::now();
       if (last.why != key || now - last.logged > std::chrono::minutes(1)) {
         if (now - refusal_lines_since >= kRefusalLogWindow) {
@@ -1712,6 +1729,7 @@ struct Link::Impl {
             pump_new.push_back(child);
           }
           if (!was) log("child <" + child->iri + "> registered (" + child->version + ")");
+          refused_hellos.erase(child->iri);
         }
         Frame welcome;
         welcome.kind = FrameKind::welcome;
@@ -2904,7 +2922,7 @@ struct Link::Impl {
     // run's problem is not this run's to keep: it would stay on the board, said by no one.
     std::set<std::string> unknown_addressees;
     Clock::time_point next_addressee_check{};
-    if (opt.up) (void)link->report_problem("");
+    say_problem(*link);  // an earlier run's problem is not this run's to keep
     while (!stopping) {
       std::vector<BoardWrite> writes;
       std::vector<std::shared_ptr<Child>> dirty;
@@ -3037,6 +3055,7 @@ struct Link::Impl {
       for (std::uint64_t item : abandoned) (void)node->remove_item(item);
       write_child_states(*link, dirty);
       if (opt.up) look_at_addressees(*node, *link, unknown_addressees, next_addressee_check);
+      say_problem(*link);
     }
   }
 
@@ -3096,9 +3115,32 @@ struct Link::Impl {
                                     "> knows (no program of that id runs here, it subscribes to nothing, and nothing here "
                                     "has written of it): it waits in that agent's input buffer until one takes it (a typo in "
                                     "the item's context, or an agent not deployed here?)";
-    if (auto said = link.report_problem(problem); !said) return log("cannot write the link's problem: " + said.error().message);
+    addressee_problem = problem;
+    say_problem(link);
     log(problem.empty() ? "every agent that configuration from above addresses is known here now" : problem);
     unknown = std::move(still_unknown);
+  }
+
+  // The link's problem on the board (report_problem keeps one per agent), for `tahvel status`:
+  // what waits for agents nothing here knows (P11a) and the would-be children whose hellos it
+  // refuses (P6), together. The refusals go from it once the sender is welcomed, or has not
+  // tried for kRefusedHelloShownFor. Written when the text changes (the run loop's thread only).
+  std::string addressee_problem, problem_said;
+  bool problem_cleared = false;
+  void say_problem(node::Agent& link) {
+    std::string refusals;
+    {
+      std::lock_guard lock(mu);
+      const auto now = Clock::now();
+      std::erase_if(refused_hellos, [&](const auto& r) { return now - r.second.last > kRefusedHelloShownFor; });
+      for (const auto& [from, r] : refused_hellos) refusals += (refusals.empty() ? "" : "; ") + ("<" + from + ">: " + r.why);
+    }
+    std::string text = addressee_problem;
+    if (!refusals.empty()) text += (text.empty() ? "" : "; ") + std::string("refuses the hello of ") + refusals;
+    if (text == problem_said && problem_cleared) return;
+    if (auto said = link.report_problem(text); !said) return log("cannot write the link's problem: " + said.error().message);
+    problem_said = text;
+    problem_cleared = true;
   }
 
   // P13: queries asked on this board that an earlier run of the link had sent down. Their answer

@@ -1466,6 +1466,20 @@ TEST(Link, ParentRefusesAChildOutsideItsSubtreeAndAnUnconfiguredChild) {
   EXPECT_TRUE(tree.hospital_log.has("not among the children configured"));
   EXPECT_EQ(answer_to_hello(tree.bus, kHome1 + "/ecg"), FrameKind::error);
   EXPECT_TRUE(tree.hospital_log.has("is not a child of"));
+  // Said on the board too, as the link's problem, for `tahvel status` at the parent: a home whose
+  // id the hospital's file lacks was refused in the hospital's log only.
+  auto board = tahvel::node::Node::open(tree.hospital_dir);
+  ASSERT_TRUE(board.has_value());
+  std::string problem;
+  EXPECT_TRUE(eventually([&] {
+    auto snap = board->snapshot();
+    auto said = snap ? snap->list({.s = Term::iri(kHospital + "/link"), .p = Term::iri(tahvel::node::kProblem)})
+                     : tahvel::node::Result<std::vector<tahvel::node::Record>>(std::vector<tahvel::node::Record>{});
+    problem = said && !said->empty() ? said->front().triple.o.value : "";
+    return problem.find("<" + kHospital + "/home3>: <" + kHospital + "/home3> is not among the children configured") !=
+           std::string::npos;
+  })) << problem;
+  EXPECT_NE(problem.find("refuses the hello of "), std::string::npos) << problem;
 }
 
 // A node that accepts any child still refuses one whose id is not in NFC: "café" with a
