@@ -226,7 +226,7 @@ tahvel::node::Result<std::optional<Term>> parse_term(const char* text, Position 
     return fail(Errc::syntax, "invalid " + quoted + ": the IRI has no closing '>'");
   if (term.front() != '<' && term.front() != '"' && !term.starts_with("_:"))
     return fail(Errc::syntax, "invalid " + quoted + ": a term is written as N-Triples writes it: <IRI>, \"literal\" or _:label "
-                              "(prefixed names such as tv:x, and bare IRIs or numbers, are not read here)");
+                              "(prefixed names such as ex:name, and bare IRIs or numbers, are not read here)");
   if (!triples) {
     const Error& error = triples.error();
     return fail(error.code, "invalid " + quoted + " " + term_error(error.message));

@@ -404,6 +404,21 @@ TEST(Rules, PrefixesIrisHashNamesLiteralsAndMe) {
   EXPECT_EQ(got.args[1], tn::Term::lang_literal("a b", "en"));
 }
 
+// `ex:` alone is the namespace's own IRI, as Turtle reads it: it was "unexpected character ':'".
+// A rule's neck written without a blank (`p(X):-`) is still a neck.
+TEST(Rules, APrefixedNameWithAnEmptyLocalPartIsTheNamespaceIri) {
+  const tr::Atom got = only_conclusion(
+      "@prefix ex: <http://ex.org/> .\n"
+      "ex:p(X, ex:) :- ex:q(X, ex:).\n",
+      {{n("x"), tn::Term::iri("http://ex.org/q"), tn::Term::iri("http://ex.org/")}});
+  EXPECT_EQ(got.predicate, "http://ex.org/p");
+  ASSERT_EQ(got.args.size(), 2u);
+  EXPECT_EQ(got.args[1], tn::Term::iri("http://ex.org/"));
+  const tr::Atom neck = only_conclusion("@prefix ex: <http://ex.org/> .\nex:r(X):-ex:q(X, Y).\n",
+                                        {{n("x"), tn::Term::iri("http://ex.org/q"), tn::Term::iri("http://ex.org/")}});
+  EXPECT_EQ(neck.predicate, "http://ex.org/r");
+}
+
 // IRIs are matched and written as the rule file writes them, as put and load store them (R1):
 // in normal form, <http://Device.example.org/V#hr> or a path with "./" in it matched nothing
 // the board held under the same IRI, even with the data's own @prefix line.

@@ -742,7 +742,7 @@ Result<void> make_plans(Program& program) {
 // head could match it (a constant other than the call's own there cannot), so
 // `rdf:type(X, alerted) :- q(X, _), \+ rdf:type(X, person).` beside
 // `rdf:type(X, person) :- q(X, person).` is stratified: the person rule, a stratum of its own,
-// runs first. (until session 74 the graph was one of predicates, and a rule deriving rdf:type
+// runs first. (Until session 75 the graph was one of predicates, and a rule deriving rdf:type
 // person made every rdf:type rule depend on it: that rule set was refused as not stratified.)
 // A call that matches one rule of a pattern matches all of them, so grouping them changes no
 // cycle. The evaluator keeps, per row, which strata derive it (engine.cpp, Relation::owners).

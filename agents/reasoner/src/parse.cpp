@@ -241,7 +241,11 @@ std::optional<std::string> unknown_xsd_datatype(std::string_view datatype) {
 Result<Token> Lexer::identifier(Pos start) {
   std::string id;
   while (name_char()) { id += at(); advance(); }
-  if (at() == ':' && (name_char(1))) {
+  // `ex:` alone is the namespace IRI itself, as Turtle reads it (not `p:-`, a rule's neck).
+  const char after = at(1);
+  const bool empty_local = after == ',' || after == ')' || after == '.' || after == ']' ||
+                           std::isspace(static_cast<unsigned char>(after)) != 0;
+  if (at() == ':' && (name_char(1) || empty_local)) {
     auto iri = curie(start, id);
     if (!iri) return unexpected(iri.error());
     return Token{Tok::iri, *iri, {}, start};
