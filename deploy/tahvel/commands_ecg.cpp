@@ -7,6 +7,7 @@
 #include <algorithm>
 #include <charconv>
 #include <cmath>
+#include <limits>
 #include <cstdio>
 #include <iostream>
 #include <iterator>
@@ -124,11 +125,17 @@ class FrameWriter {
 
  private:
   // The first sample (0 or later) taken at or after `time`, as write() times samples.
+  // A sample whose time an int64 cannot hold comes after any `time`: --until 2^63-1 ("no end")
+  // made the time of the samples near it overflow, and this loop spin for ever.
   std::int64_t first_at_or_after(std::int64_t time) const {
-    const double estimate = std::ceil(static_cast<double>(time - *info_.started_at) * info_.fs / 1e9);
+    const double started = static_cast<double>(*info_.started_at);
+    const double estimate = std::ceil((static_cast<double>(time) - started) * info_.fs / 1e9);
     std::int64_t sample = std::max<std::int64_t>(0, static_cast<std::int64_t>(estimate) - 1);
-    while (*agg::signal_time_ns(info_, static_cast<double>(sample) / info_.fs) < time) ++sample;
-    return sample;
+    const double last_ns = static_cast<double>(std::numeric_limits<std::int64_t>::max()) - started;
+    for (;; ++sample) {
+      const double seconds = static_cast<double>(sample) / info_.fs;
+      if (seconds * 1e9 >= last_ns || *agg::signal_time_ns(info_, seconds) >= time) return sample;
+    }
   }
 
   // Adds `sample` to the samples written; false when it is there already.

@@ -2080,6 +2080,14 @@ TEST_F(Cli, EcgPrintsEachFrameOfTheRangeInMillivoltsAndNamesWhatIsMissing) {
   EXPECT_NE(all.err.find("1 chunk(s) could not be read, left out; the first: <" + rec + "/chunk/16>: holds 1 lead(s), the recording names 2"),
             std::string::npos) << all.err;
   EXPECT_NE(all.err.find("tahvel: ecg: samples 16 to 19 (1.0 s) are not at <"), std::string::npos) << "up to its end:\n" << all.err;
+  // The largest time there is, a script's "no end": the times of the samples near it overflowed,
+  // and ecg spun for ever after the last row, deaf to Ctrl-C.
+  Outcome no_end = run({"ecg", node_, "--recording", rec, "--until", "9223372036854775807"});
+  EXPECT_EQ(no_end.status, 0) << no_end.err;
+  EXPECT_EQ(no_end.out, all.out);
+  Outcome far = run({"ecg", node_, "--recording", rec, "--since", "9223372036854775806", "--until", "9223372036854775807"});
+  EXPECT_EQ(far.status, 0) << far.err;
+  EXPECT_NE(far.err.find("holds no sample of <" + rec + "> in that range"), std::string::npos) << far.err;
   // From inside a frame's chunk to the next chunk's start: the frames taken in that time only,
   // asked of this node through the query path too (--at itself).
   Outcome part = run({"ecg", node_, "--at", kNodeIri, "--recording", rec, "--since", std::to_string(t0 + 1'100'000'000),
