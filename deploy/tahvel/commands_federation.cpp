@@ -3022,6 +3022,11 @@ int run_status(const Args& args) {
       // it sends (P9b: a full store), and its outbox grows.
       if (!n.uplink.empty() && uplink_unknown_because.empty() && !n.uplink["uplinkRefusal"].empty())
         std::cout << "; REFUSED: " << n.uplink["uplinkRefusal"];
+      // Its own link died a moment ago: the parent calls it down only after child_silence, and
+      // the line said "link up" above "link  restarting … killed by signal 9".
+      const auto own = std::find_if(n.programs.begin(), n.programs.end(), [](const ProgramRow& p) { return p.name == "link"; });
+      if (!n.remote && n.link["linkState"] == "up" && own != n.programs.end() && !alive(*own))
+        std::cout << " (as its parent last saw it; its own link is " << own->state << " now)";
     } else if (!n.uplink.empty() && !uplink_unknown_because.empty())
       std::cout << "  uplink state unknown: " << uplink_unknown_because << " (it last said: " << uplink_said << ")";
     else if (!n.uplink.empty())

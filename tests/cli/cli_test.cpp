@@ -4256,6 +4256,36 @@ TEST_F(Cli, ALinkThatWasStoppedSaysSoRatherThanThatItsParentWentSilent) {
   EXPECT_EQ(run({"down", "--state", state}).status, 0);
 }
 
+// A home's link killed: until its parent finds it silent (child_silence), the parent's view says
+// "link up", and status showed that line above "link  restarting … killed by signal 9".
+TEST_F(Cli, AChildWhoseOwnLinkIsDeadIsNotShownUpWithoutSayingSo) {
+  const std::string state = (tmp_ / "state").string();
+  spit(tmp_ / "pair.toml", hospital_and_home_toml("http://example.org/killed", "udpm://239.255.79.53:7855?ttl=0"));
+  ASSERT_EQ(run({"up", (tmp_ / "pair.toml").string(), "--state", state}).status, 0);
+  const std::string up_line = "home  <http://example.org/killed/home>  link up";
+  ASSERT_TRUE(eventually([&] { return run({"status", "--state", state}).out.find(up_line) != std::string::npos; }))
+      << run({"status", "--state", state}).out;
+  // Each kill doubles the supervisor's wait before the restart (0.5 s, 1 s, 2 s, …): one of the
+  // first kills is seen while the link waits.
+  std::string shown;
+  for (int kill_count = 0; kill_count < 4; ++kill_count) {
+    pid_t link = 0;
+    ASSERT_TRUE(eventually([&] {
+      std::ifstream in(fs::path(state) / "supervisor-all.state");
+      for (std::string line; std::getline(in, line);)
+        if (line.starts_with("home/link\t")) link = static_cast<pid_t>(std::atol(line.substr(10).c_str()));
+      return link > 0 && kill(link, 0) == 0;
+    }));
+    ASSERT_TRUE(eventually([&] { return run({"status", "--state", state}).out.find(up_line + ", last seen") != std::string::npos; }));
+    ASSERT_EQ(kill(link, SIGKILL), 0);
+    std::this_thread::sleep_for(std::chrono::milliseconds(150));
+    shown = run({"status", "--state", state}).out;
+    if (shown.find("(as its parent last saw it; its own link is restarting in ") != std::string::npos) break;
+  }
+  EXPECT_NE(shown.find("(as its parent last saw it; its own link is restarting in "), std::string::npos) << shown;
+  EXPECT_EQ(run({"down", "--state", state}).status, 0);
+}
+
 // Its supervisor stopped (SIGSTOP, hung), a link that runs on and refreshes its state was shown
 // "link state unknown" by `status` on its own machine, while the machine above showed it up: the
 // programs are unknown, the link's own fresh word is believed.
