@@ -912,6 +912,32 @@ Result<std::uint64_t> apply_retention(Txn& txn) {
   return *ring + *ttl;
 }
 
+namespace {
+
+// Whether item `item_id` reaches the agent `agent_iri` without a new subscription: it is
+// addressed to it or to something under it (R18), or one of `subs` (the agent's) routes it.
+Result<bool> reaches_anyway(Txn& txn, TermReader& terms, std::uint64_t item_id, const ItemRow& item,
+                            const std::string& agent_iri, const std::vector<Subscription>& subs) {
+  if (item.context) {
+    auto context = terms.iri(item.context);
+    if (!context) return unexpected(context.error());
+    if (*context == agent_iri || uri::is_under(*context, agent_iri)) return true;
+  }
+  std::vector<std::array<std::uint64_t, 3>> triples;
+  for (std::uint64_t id = item_id; id < item_id + item.count; ++id) {
+    auto record = get_record(txn.raw(), txn.env(), id);
+    if (!record) return unexpected(record.error());
+    if (*record) triples.push_back({(*record)->s, (*record)->p, (*record)->o});
+  }
+  auto source = terms.iri(item.source);
+  if (!source) return unexpected(source.error());
+  return std::any_of(subs.begin(), subs.end(), [&](const Subscription& sub) {
+    return (!sub.context || sub.context == item.context) && routes(sub, item_id, item, triples, *source);
+  });
+}
+
+}  // namespace
+
 Result<std::uint64_t> withdraw_unrouted(Txn& txn, std::uint64_t agent, const std::string& agent_iri) {
   if (auto r = refresh_caches(txn); !r) return unexpected(r.error());
   std::vector<std::uint64_t> waiting;
@@ -938,23 +964,9 @@ Result<std::uint64_t> withdraw_unrouted(Txn& txn, std::uint64_t agent, const std
     if (!row) return unexpected(row.error());
     if (!*row) continue;  // removed; the buffer entry goes when it is taken
     ItemRow item = **row;
-    if (item.context) {  // addressed to the agent, or to something under it (R18)
-      auto context = terms.iri(item.context);
-      if (!context) return unexpected(context.error());
-      if (*context == agent_iri || uri::is_under(*context, agent_iri)) continue;
-    }
-    std::vector<std::array<std::uint64_t, 3>> triples;
-    for (std::uint64_t id = item_id; id < item_id + item.count; ++id) {
-      auto record = get_record(txn.raw(), txn.env(), id);
-      if (!record) return unexpected(record.error());
-      if (*record) triples.push_back({(*record)->s, (*record)->p, (*record)->o});
-    }
-    auto source = terms.iri(item.source);
-    if (!source) return unexpected(source.error());
-    const bool routed = std::any_of(own.begin(), own.end(), [&](const Subscription& sub) {
-      return (!sub.context || sub.context == item.context) && routes(sub, item_id, item, triples, *source);
-    });
-    if (routed) continue;
+    auto routed = reaches_anyway(txn, terms, item_id, item, agent_iri, own);
+    if (!routed) return unexpected(routed.error());
+    if (*routed) continue;
     MDB_val k = val(agent), v = val(item_id);
     if (int rc = mdb_del(txn.raw(), txn.env().inbox, &k, &v); rc != 0) return lmdb_fail(rc, "withdrawing from an input buffer");
     if (txn.counters.pending > 0) --txn.counters.pending;
@@ -1101,6 +1113,9 @@ Result<std::uint64_t> deliver_missed(Txn& txn, std::span<const MissedSince> miss
     if (late.after != 0) pattern->after_id = late.after;
     auto candidates = items_matching(txn, *pattern, late.subscription);
     if (!candidates) return unexpected(candidates.error());
+    std::vector<Subscription> older;
+    for (const Subscription& s : subs)
+      if (s.agent == sub->agent && s.item < older_than) older.push_back(s);
     // What the subscriber got anyway, or has waiting: an item its older subscriptions route,
     // or one addressed to it (R18).
     std::vector<std::uint64_t> items;
@@ -1108,25 +1123,9 @@ Result<std::uint64_t> deliver_missed(Txn& txn, std::span<const MissedSince> miss
       auto row = get_item(txn.raw(), txn.env(), item_id);
       if (!row) return unexpected(row.error());
       if (!*row) continue;
-      const ItemRow& item = **row;
-      if (item.context) {
-        auto context = reader.iri(item.context);
-        if (!context) return unexpected(context.error());
-        if (*context == *agent_iri || uri::is_under(*context, *agent_iri)) continue;
-      }
-      std::vector<std::array<std::uint64_t, 3>> triples;
-      for (std::uint64_t id = item_id; id < item_id + item.count; ++id) {
-        auto record = get_record(txn.raw(), txn.env(), id);
-        if (!record) return unexpected(record.error());
-        if (*record) triples.push_back({(*record)->s, (*record)->p, (*record)->o});
-      }
-      auto source = reader.iri(item.source);
-      if (!source) return unexpected(source.error());
-      const bool routed_before = std::any_of(subs.begin(), subs.end(), [&](const Subscription& s) {
-        return s.agent == sub->agent && s.item < older_than && (!s.context || s.context == item.context) &&
-               routes(s, item_id, item, triples, *source);
-      });
-      if (!routed_before) items.push_back(item_id);
+      auto got_anyway = reaches_anyway(txn, reader, item_id, **row, *agent_iri, older);
+      if (!got_anyway) return unexpected(got_anyway.error());
+      if (!*got_anyway) items.push_back(item_id);
     }
     auto n = deliver_items(txn, sub->agent, *agent_iri, items, false);
     if (!n) return unexpected(n.error());
