@@ -3126,7 +3126,8 @@ struct Link::Impl {
   // refuses (P6), together. The refusals go from it once the sender is welcomed, or has not
   // tried for kRefusedHelloShownFor. Written when the text changes (the run loop's thread only).
   std::string addressee_problem, problem_said;
-  bool problem_cleared = false;
+  bool problem_written = false;
+  Clock::time_point problem_retry_at{};  // after a failed write (a full store): not at every turn
   void say_problem(node::Agent& link) {
     std::string refusals;
     {
@@ -3137,10 +3138,14 @@ struct Link::Impl {
     }
     std::string text = addressee_problem;
     if (!refusals.empty()) text += (text.empty() ? "" : "; ") + std::string("refuses the hello of ") + refusals;
-    if (text == problem_said && problem_cleared) return;
-    if (auto said = link.report_problem(text); !said) return log("cannot write the link's problem: " + said.error().message);
+    if (text == problem_said && problem_written) return;
+    if (Clock::now() < problem_retry_at) return;
+    if (auto said = link.report_problem(text); !said) {
+      problem_retry_at = Clock::now() + std::chrono::seconds(10);
+      return log("cannot write the link's problem: " + said.error().message);
+    }
     problem_said = text;
-    problem_cleared = true;
+    problem_written = true;
   }
 
   // P13: queries asked on this board that an earlier run of the link had sent down. Their answer
