@@ -111,8 +111,6 @@ std::shared_ptr<federation::Transport> open_transport(const TransportFlags& t, c
   return std::shared_ptr<federation::Transport>(check(std::move(transport)));
 }
 
-// "S P O" with '_' for any position, in the node's prefixes. Errors name `origin` (the flag, or
-// the pattern as a topology file writes it).
 // The terms of a pattern, split at blanks outside a quoted literal ('"x y"@en' is one term).
 std::vector<std::string> pattern_terms(const std::string& text) {
   std::vector<std::string> terms;
@@ -134,6 +132,8 @@ std::vector<std::string> pattern_terms(const std::string& text) {
   return terms;
 }
 
+// "S P O" with '_' for any position, in the node's prefixes. Errors name `origin` (the flag, or
+// the pattern as a topology file writes it).
 node::Pattern forward_pattern(const std::string& text, const uri::PrefixMap& prefixes, std::string_view origin = "--forward") {
   const std::vector<std::string> terms = pattern_terms(text);
   if (terms.size() != 3)
