@@ -127,6 +127,10 @@ class Cli : public ::testing::Test {
     return r;
   }
 
+  // A hospital and a home over LCM at `lcm_url` (hospital_and_home_toml) brought up under
+  // `state`; returns the home's status line start once it shows the link up.
+  std::string up_pair_until_home_is_up(const std::string& state, const std::string& iri, const std::string& lcm_url);
+
   Outcome run(const std::vector<std::string>& args, const std::string& input = "") {
     int n = ++runs_;
     return finish(spawn(args, input, n), n);
@@ -2412,6 +2416,15 @@ std::string hospital_and_home_toml(const std::string& iri, const std::string& lc
          "\" }\n[[node]]\nid = \"home\"\nparent = \"hospital\"\nforward = []\n";
 }
 
+std::string Cli::up_pair_until_home_is_up(const std::string& state, const std::string& iri, const std::string& lcm_url) {
+  spit(tmp_ / "pair.toml", hospital_and_home_toml(iri, lcm_url));
+  EXPECT_EQ(run({"up", (tmp_ / "pair.toml").string(), "--state", state}).status, 0);
+  const std::string up_line = "home  <" + iri + "/home>  link up";
+  EXPECT_TRUE(eventually([&] { return run({"status", "--state", state}).out.find(up_line) != std::string::npos; }))
+      << run({"status", "--state", state}).out;
+  return up_line;
+}
+
 TEST_F(Cli, UpAndDownIgnoreAStalePidFileWhosePidIsAnotherProgram) {
   pid_t other = fork();  // another program that now has the pid written in the stale file
   if (other == 0) {
@@ -3790,7 +3803,7 @@ TEST_F(Cli, AStateDirectoryThatIsANodesStoreIsRefusedNamingTheOneMeant) {
   const fs::path state = tmp_ / "state";
   ASSERT_EQ(run({"init", (state / "solo").string(), "--iri", "http://example.org/solo"}).status, 0);
   spit(tmp_ / "node.toml", kIdleNodeToml);
-  for (const std::string& command : {"up", "status", "down"}) {
+  for (const std::string command : {"up", "status", "down"}) {
     std::vector<std::string> argv{command};
     if (command == "up") argv.push_back((tmp_ / "node.toml").string());
     argv.insert(argv.end(), {"--state", (state / "solo").string() + "/"});
@@ -4260,11 +4273,8 @@ TEST_F(Cli, ALinkThatWasStoppedSaysSoRatherThanThatItsParentWentSilent) {
 // "link up", and status showed that line above "link  restarting … killed by signal 9".
 TEST_F(Cli, AChildWhoseOwnLinkIsDeadIsNotShownUpWithoutSayingSo) {
   const std::string state = (tmp_ / "state").string();
-  spit(tmp_ / "pair.toml", hospital_and_home_toml("http://example.org/killed", "udpm://239.255.79.53:7855?ttl=0"));
-  ASSERT_EQ(run({"up", (tmp_ / "pair.toml").string(), "--state", state}).status, 0);
-  const std::string up_line = "home  <http://example.org/killed/home>  link up";
-  ASSERT_TRUE(eventually([&] { return run({"status", "--state", state}).out.find(up_line) != std::string::npos; }))
-      << run({"status", "--state", state}).out;
+  const std::string up_line = up_pair_until_home_is_up(state, "http://example.org/killed", "udpm://239.255.79.53:7855?ttl=0");
+  if (HasFailure()) return;
   // Each kill doubles the supervisor's wait before the restart (0.5 s, 1 s, 2 s, …): one of the
   // first kills is seen while the link waits.
   std::string shown;
@@ -4291,11 +4301,8 @@ TEST_F(Cli, AChildWhoseOwnLinkIsDeadIsNotShownUpWithoutSayingSo) {
 // programs are unknown, the link's own fresh word is believed.
 TEST_F(Cli, AFreshLinkStateIsBelievedWhileOnlyItsSupervisorIsLate) {
   const std::string state = (tmp_ / "state").string();
-  spit(tmp_ / "pair.toml", hospital_and_home_toml("http://example.org/late", "udpm://239.255.79.41:7841?ttl=0"));
-  ASSERT_EQ(run({"up", (tmp_ / "pair.toml").string(), "--state", state}).status, 0);
-  const std::string up_line = "home  <http://example.org/late/home>  link up";
-  ASSERT_TRUE(eventually([&] { return run({"status", "--state", state}).out.find(up_line) != std::string::npos; }))
-      << run({"status", "--state", state}).out;
+  const std::string up_line = up_pair_until_home_is_up(state, "http://example.org/late", "udpm://239.255.79.41:7841?ttl=0");
+  if (HasFailure()) return;
   const pid_t supervisor = std::atoi(slurp(tmp_ / "state" / "supervisor-all.pid").c_str());
   ASSERT_GT(supervisor, 0);
   ASSERT_EQ(kill(supervisor, SIGSTOP), 0);
