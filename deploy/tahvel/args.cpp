@@ -57,6 +57,16 @@ std::size_t take_flag(const Command& command, std::span<const std::string> argv,
     std::string instead;
     if (arg == "--json" && find_flag(command, "--format")) instead = "; give --format json";
     if (arg == "--format" && find_flag(command, "--json")) instead = "; give --json";
+    // `-p=sosa:x`: only long flags take their value after '='.
+    if (const auto eq = arg.find('='); !arg.starts_with("--") && eq != std::string_view::npos) {
+      const Flag* short_flag = find_flag(command, arg.substr(0, eq));
+      if (short_flag && !short_flag->value.empty()) {
+        const std::string value(arg.substr(eq + 1));
+        instead = "; write '" + std::string(arg.substr(0, eq)) + " " + value + "'";
+        const std::string_view long_name = short_flag->name.starts_with("--") ? short_flag->name : short_flag->alias;
+        if (long_name.starts_with("--")) instead += " or '" + std::string(long_name) + "=" + value + "'";
+      }
+    }
     usage_error(prefix_of(command) + "unknown flag '" + std::string(arg) + "'" + instead + " (see 'tahvel " +
                 std::string(command.name) + " --help')");
   }

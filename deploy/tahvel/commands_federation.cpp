@@ -945,8 +945,7 @@ void warn_of_dataflow(const Topology& topo, const std::vector<const NodeSpec*>& 
       policies[spec.id] = std::nullopt;  // said where that node is brought up
     }
   }
-  const bool with_mitdb = !CommandContext::of_this_process().mitdb.empty();
-  for (const std::string& line : dataflow_warnings(topo, policies, mine, with_mitdb)) std::cerr << "up: warning: " << line << "\n";
+  for (const std::string& line : dataflow_warnings(topo, policies, mine)) std::cerr << "up: warning: " << line << "\n";
 }
 
 // The triples of a `load` file as the node's new board reads them: relative IRIs against the

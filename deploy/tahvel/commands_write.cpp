@@ -1,5 +1,6 @@
 // `tahvel` subcommands that change a whiteboard: init, put, load, remove, subscribe.
 #include <charconv>
+#include <filesystem>
 #include <iostream>
 #include <set>
 #include <unordered_map>
@@ -158,9 +159,9 @@ const Command kInitCommand{
     "init",
     "DIR --iri IRI [--durable] [--ring N] [--max-literal BYTES] [--max-map BYTES]",
     "Create a new whiteboard (node store) in DIR.",
-    "DIR is created if missing and must not already hold a store. The node's IRI is its name in\n"
-    "the network; agents get IRI/ID. Prefixes given with --prefix are stored in the node and\n"
-    "known to every later command. Prints nothing on success.",
+    "DIR is created if missing and must not already hold a store, nor lie inside one. The node's\n"
+    "IRI is its name in the network; agents get IRI/ID. Prefixes given with --prefix are stored\n"
+    "in the node and known to every later command. Prints nothing on success.",
     {{"--iri", "", "IRI", "the node's IRI (required, absolute), e.g. http://example.org/home1"},
      {"--durable", "", "", "sync every commit to disk (default: fast, no fsync)"},
      {"--ring", "", "N", "keep at most N non-persistent records, dropping the oldest (0: no ring)"},
@@ -182,6 +183,16 @@ int run_init(const Args& args) {
     usage_error("init: --max-map: " + std::to_string(options.max_map_bytes) + " bytes is less than the smallest store, " +
                 std::to_string(node::kMinMaxMapBytes) + " bytes (1 MiB)");
   uri::PrefixMap extra = prefixes_with_flags({}, args);  // checked before anything is created
+  // A store's directory holds its own files only: one made inside it would be copied by every
+  // copy of the outer store, and taken for the outer's leftovers by whoever tidies it.
+  std::error_code ec;
+  const std::filesystem::path dir = std::filesystem::absolute(args.positional(0), ec).lexically_normal();
+  for (std::filesystem::path up = dir.parent_path(); !ec && !up.empty(); up = up.parent_path()) {
+    if (std::filesystem::exists(up / "data.mdb", ec))
+      fail("init: " + args.positional(0) + " lies inside the store at " + up.string() +
+           "; make the new store in a directory outside it");
+    if (up == up.root_path()) break;
+  }
   node::Node node = check(node::Node::init(args.positional(0), options));
   for (const auto& [prefix, ns] : extra.entries()) check(node.set_prefix(prefix, ns));
   return kExitOk;

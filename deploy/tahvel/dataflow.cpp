@@ -232,7 +232,7 @@ std::optional<std::string> agents_running_as_one(const NodeSpec& spec, bool with
 }
 
 std::vector<std::string> dataflow_warnings(const Topology& topo, const ForwardPolicies& policies,
-                                           const std::vector<const NodeSpec*>& judged, bool with_mitdb) {
+                                           const std::vector<const NodeSpec*>& judged) {
   Flow flow(topo, policies);
   std::vector<std::string> warnings;
   for (const NodeSpec* spec : judged) {

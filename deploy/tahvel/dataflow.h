@@ -32,9 +32,9 @@ using ForwardPolicies = std::map<std::string, std::optional<std::vector<node::Pa
 //   that wait on it are named with it);
 // - a stage whose input and results both come up from one child, so that the child's stage and
 //   this one write one recording's items under the same names.
-// `with_mitdb`: TAHVEL_MITDB is set, so agents with run_with_mitdb run that.
+// A program is known by its `run` (an agent's run_with_mitdb runs the same program on a record).
 std::vector<std::string> dataflow_warnings(const Topology& topo, const ForwardPolicies& policies,
-                                           const std::vector<const NodeSpec*>& judged, bool with_mitdb);
+                                           const std::vector<const NodeSpec*>& judged);
 
 // Why two agents of `spec` cannot both run, or nullopt: two shipped programs that run as one agent
 // (each its --agent, or its program's default), where one process at a time holds an agent (its

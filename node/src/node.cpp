@@ -269,8 +269,10 @@ struct Agent::Impl {
   Result<std::optional<Delivery>> head(bool remove);
 
   // Agent::replace without copying the items (store() of one item passes it in place).
-  Result<std::vector<std::uint64_t>> write_items(std::span<const Pattern> removals,
-                                                 std::span<const Item> items) noexcept;
+  // `then`, when given, runs in the same transaction after the items are inserted, with their ids.
+  using AfterInsert = std::function<Result<void>(Txn&, std::span<const std::uint64_t>)>;
+  Result<std::vector<std::uint64_t>> write_items(std::span<const Pattern> removals, std::span<const Item> items,
+                                                 const AfterInsert& then = {}) noexcept;
 
   // Removes `item` from the input buffer (acknowledges it); absent is not an error.
   Result<void> drop(std::uint64_t item_id);
@@ -419,6 +421,27 @@ Result<std::vector<std::uint64_t>> Agent::store_all(const std::vector<Item>& ite
   return impl_->write_items({}, items);
 }
 
+Result<StoredSubscriptions> Agent::store_subscriptions(const std::vector<Item>& subscriptions,
+                                                       std::span<const std::uint64_t> missed_after) noexcept {
+  if (!impl_) return moved_from();
+  if (missed_after.size() != subscriptions.size())
+    return fail(Errc::invalid_argument, "store_subscriptions: " + std::to_string(subscriptions.size()) + " items but " +
+                                            std::to_string(missed_after.size()) + " ids to catch up after");
+  StoredSubscriptions stored;
+  if (subscriptions.empty()) return stored;
+  auto ids = impl_->write_items({}, subscriptions, [&](Txn& txn, std::span<const std::uint64_t> new_ids) -> Result<void> {
+    std::vector<detail::MissedSince> missed;
+    for (std::size_t i = 0; i < new_ids.size(); ++i) missed.push_back({new_ids[i], missed_after[i]});
+    auto delivered = detail::deliver_missed(txn, missed, new_ids.front());
+    if (!delivered) return unexpected(delivered.error());
+    stored.caught_up = *delivered;
+    return {};
+  });
+  if (!ids) return unexpected(ids.error());
+  stored.ids = std::move(*ids);
+  return stored;
+}
+
 Result<std::vector<std::uint64_t>> Agent::replace(const std::vector<Pattern>& removals,
                                                   const std::vector<Item>& items) noexcept {
   if (!impl_) return moved_from();
@@ -488,7 +511,8 @@ std::vector<std::vector<const Pattern*>> removal_groups(std::span<const Pattern>
 }  // namespace
 
 Result<std::vector<std::uint64_t>> Agent::Impl::write_items(std::span<const Pattern> removals,
-                                                            std::span<const Item> items) noexcept {
+                                                            std::span<const Item> items,
+                                                            const AfterInsert& then) noexcept {
   try {
     for (const Pattern& p : removals) {
       if (!p.s && !p.p && !p.o && !p.context && !p.source)
@@ -519,6 +543,8 @@ Result<std::vector<std::uint64_t>> Agent::Impl::write_items(std::span<const Patt
         if (!id) return unexpected(items.size() == 1 ? id.error() : with_context(id.error(), "item " + std::to_string(i + 1)));
         ids.push_back(*id);
       }
+      if (then)
+        if (auto done = then(txn, ids); !done) return done;
       auto reclaimed = apply_retention(txn);
       if (!reclaimed) return unexpected(reclaimed.error());
       return {};
@@ -1404,20 +1430,6 @@ Result<std::uint64_t> Node::remove_items(const std::vector<std::uint64_t>& item_
     }
     return ids;
   });
-}
-
-Result<std::uint64_t> Node::deliver_missed(std::span<const MissedSince> missed, std::uint64_t older_than) {
-  if (!impl_) return moved_from();
-  if (missed.empty()) return std::uint64_t{0};
-  std::uint64_t delivered = 0;
-  auto done = impl_->env->write([&](Txn& txn) -> Result<void> {
-    auto n = detail::deliver_missed(txn, missed, older_than);
-    if (!n) return unexpected(n.error());
-    delivered = *n;
-    return {};
-  });
-  if (!done) return unexpected(done.error());
-  return delivered;
 }
 
 bool Node::wait_for_commit(const std::function<bool()>& ready, std::chrono::nanoseconds timeout) const {

@@ -92,7 +92,17 @@ Result<std::uint64_t> withdraw_unrouted(Txn& txn, std::uint64_t agent, const std
 Result<std::uint64_t> deliver_earlier(Txn& txn, std::uint64_t agent, const std::string& agent_iri,
                                       const Pattern& pattern, std::uint64_t before, bool persistent_only = false);
 
-// Node::deliver_missed in `txn`.
+// A subscription written after what it follows had begun, and the id after which it should
+// have been in force.
+struct MissedSince {
+  std::uint64_t subscription = 0;  // the subscription's item id
+  std::uint64_t after = 0;         // a record id: items after it were missed
+};
+
+// The catch-up of Agent::store_subscriptions in `txn`: for each of `missed`, the items with an
+// id in (after, subscription) that it matches, that none of the subscriber's subscriptions with
+// an id below `older_than` routes, not addressed to it and not in its input buffer, put there.
+// A subscription not on the board is skipped. Returns how many it put.
 Result<std::uint64_t> deliver_missed(Txn& txn, std::span<const MissedSince> missed, std::uint64_t older_than);
 
 // deliver_earlier for each of the subscriptions of `agent`: the items with ids in (after, before)

@@ -427,6 +427,18 @@ TEST_F(Cli, InitMaxMapBelowOneMebibyteIsAUsageErrorNamingTheFlagAndTheMinimum) {
   EXPECT_EQ(least.status, 0) << least.err;
 }
 
+// A store made inside another store's directory would go with every copy of the outer one.
+TEST_F(Cli, InitInsideAnotherStoresDirectoryIsRefusedNamingThatStore) {
+  init();
+  const std::string inner = (fs::path(node_) / "logs" / "inner").string();
+  Outcome r = run({"init", inner, "--iri", "http://example.org/inner"});
+  EXPECT_EQ(r.status, 1) << r.err;
+  EXPECT_NE(r.err.find("lies inside the store at " + fs::absolute(node_).lexically_normal().string()), std::string::npos) << r.err;
+  EXPECT_FALSE(fs::exists(fs::path(node_) / "logs"));
+  Outcome beside = run({"init", (fs::path(node_).parent_path() / "beside").string(), "--iri", "http://example.org/beside"});
+  EXPECT_EQ(beside.status, 0) << beside.err;
+}
+
 // An answer cut by --limit says so to the operator at a terminal: "5 records" looked the same
 // whether 5 matched or 1,180 did. A whole answer says nothing more, and a script's standard
 // error stays empty.
@@ -493,6 +505,11 @@ TEST_F(Cli, UnknownFlagExits2NamingTheFlag) {
   // --json where the command says --format json, and the other way round.
   EXPECT_NE(run({"list", node_, "--json"}).err.find("unknown flag '--json'; give --format json"), std::string::npos);
   EXPECT_NE(run({"stats", node_, "--format", "json"}).err.find("unknown flag '--format'; give --json"), std::string::npos);
+  // A short flag written with '=', which only long flags take.
+  Outcome short_eq = run({"list", node_, "-p=sosa:x"});
+  EXPECT_EQ(short_eq.status, 2);
+  EXPECT_NE(short_eq.err.find("unknown flag '-p=sosa:x'; write '-p sosa:x' or '--predicate=sosa:x'"), std::string::npos)
+      << short_eq.err;
   // A value left out before the next flag: what is left over is explained by the flag that took it.
   Outcome left = run({"list", node_, "--limit", "--format", "json"});
   EXPECT_EQ(left.status, 2);

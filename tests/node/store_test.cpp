@@ -2150,6 +2150,46 @@ TEST(Store, SubscriptionWrittenByAnotherAgentRoutesToTheNamedSubscriber) {
   EXPECT_EQ((*got)->item, *sent);
 }
 
+// A subscription written late (an area's expansion after a sensor moved in) comes with what it
+// missed since a given item, in the same transaction: a refused subscription delivers nothing.
+TEST(Store, SubscriptionsStoredLateBringWhatTheyMissedInTheSameTransaction) {
+  TempDir dir;
+  Node node = make_node(dir.path());
+  auto keeper = node.agent("keeper");
+  auto reader = node.agent("reader");
+  auto sensor = node.agent("sensor");
+  const auto subscription_to = [&](const std::string& predicate) {
+    Item sub;
+    sub.persistent = true;
+    sub.add(Term::blank("s"), Term::iri(std::string(uri::kTahvelNs) + "subscriber"), Term::iri(reader->iri()))
+        .add(Term::blank("s"), Term::iri(std::string(uri::kTahvelNs) + "predicate"), ex(predicate));
+    return sub;
+  };
+  const std::uint64_t before = *sensor->store(Item{}.add(ex("o0"), ex("hr"), Term::integer(60)));
+  const std::uint64_t missed = *sensor->store(Item{}.add(ex("o1"), ex("hr"), Term::integer(61)));
+  ASSERT_TRUE(sensor->store(Item{}.add(ex("o2"), ex("temp"), Term::integer(36))));
+
+  const std::uint64_t after[] = {before};
+  auto stored = keeper->store_subscriptions({subscription_to("hr")}, after);
+  ASSERT_TRUE(stored) << stored.error().message;
+  ASSERT_EQ(stored->ids.size(), 1u);
+  EXPECT_EQ(stored->caught_up, 1u);
+  auto got = reader->take(std::chrono::milliseconds(0));
+  ASSERT_TRUE(got && *got);
+  EXPECT_EQ((*got)->item, missed) << "only what came after the given item";
+  EXPECT_FALSE(*reader->take(std::chrono::milliseconds(0)));
+
+  // A refused one (an empty item) stores nothing and delivers nothing.
+  const std::uint64_t none[] = {0, 0};
+  auto refused = keeper->store_subscriptions({subscription_to("temp"), Item{}}, none);
+  EXPECT_FALSE(refused);
+  EXPECT_EQ(*reader->pending(), 0u);
+  const std::uint64_t one[] = {0};
+  EXPECT_EQ(keeper->store_subscriptions({subscription_to("temp")}, std::span(none)).error().code, Errc::invalid_argument);
+  EXPECT_TRUE(keeper->store_subscriptions({subscription_to("temp")}, one));
+  EXPECT_EQ(*reader->pending(), 1u) << "the temperature reading, missed since the first item";
+}
+
 // A subscription naming another node's agent (what loading that node's dump brings) must not
 // hold items in a buffer nobody here can take: they would never be reclaimed. Checked both
 // ways the cache learns of it: as it is stored, and reloaded by a process that opens the store.

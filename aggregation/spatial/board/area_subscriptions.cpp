@@ -302,22 +302,22 @@ Result<AreaSyncReport> sync_area_subscriptions(node::Node& node,
     for (const auto& [key, ids] : have) to_remove.insert(to_remove.end(), ids.begin(), ids.end());
   }
 
-  // New expansions first, in one transaction, then the stale ones: a sensor that stays in the
-  // area is covered at every moment.
+  // New expansions first, in one transaction with what they missed (before the stale ones go,
+  // so that an item those routed to the same agent is not delivered again), then the stale
+  // ones: a sensor that stays in the area is covered at every moment.
   if (!to_add.empty()) {
     auto keeper = node.agent(kAreaKeeperId);
     if (!keeper) return store_error(keeper.error());
-    std::vector<node::MissedSince> missed;
-    auto stored = keeper->store_all(to_add);
+    auto stored = keeper->store_subscriptions(to_add, in_force_after);
     if (stored) {
-      report.added = stored->size();
-      for (std::size_t i = 0; i < stored->size(); ++i) missed.push_back({(*stored)[i], in_force_after[i]});
+      report.added = stored->ids.size();
+      report.caught_up = stored->caught_up;
     } else if (refused_item(stored.error())) {
       // One declaration's expansion the node will not take (what parse_declaration does not
       // foresee) must not hold up the others': each alone, the refused ones said.
       for (std::size_t i = 0; i < to_add.size(); ++i) {
-        auto one = keeper->store(to_add[i]);
-        if (one) ++report.added, missed.push_back({*one, in_force_after[i]});
+        auto one = keeper->store_subscriptions({to_add[i]}, std::span(&in_force_after[i], 1));
+        if (one) ++report.added, report.caught_up += one->caught_up;
         else if (refused_item(one.error()))
           report.problems.push_back("area subscription " + std::to_string(added_for[i].first) + " of <" +
                                     added_for[i].second + ">: its expansion was refused: " + one.error().message);
@@ -325,12 +325,6 @@ Result<AreaSyncReport> sync_area_subscriptions(node::Node& node,
       }
     } else {
       return store_error(stored.error());
-    }
-    // Before the stale ones go: an item they routed to the same agent is not delivered again.
-    if (!missed.empty()) {
-      auto caught_up = node.deliver_missed(missed, missed.front().subscription);
-      if (!caught_up) return store_error(caught_up.error());
-      report.caught_up = *caught_up;
     }
   }
   for (std::uint64_t id : to_remove) {

@@ -261,6 +261,13 @@ enum class Ack {
 inline const std::string kProblem = std::string(uri::kTahvelNs) + "problem";
 inline const std::string kProblemPid = std::string(uri::kTahvelNs) + "pid";
 
+// What Agent::store_subscriptions did: the new items' ids, in order, and how many items it put
+// into their subscribers' input buffers.
+struct StoredSubscriptions {
+  std::vector<std::uint64_t> ids;
+  std::uint64_t caught_up = 0;
+};
+
 class Agent {
  public:
   Agent(Agent&&) noexcept;
@@ -279,6 +286,18 @@ class Agent {
 
   // Stores many items in one transaction (bulk load). Returns their ids in order.
   Result<std::vector<std::uint64_t>> store_all(const std::vector<Item>& items) noexcept;
+
+  // Stores `subscriptions` (items holding subscription records, as store_all) that are written
+  // after what they follow had begun: an area subscription's new expansion (docs/spatial.md S9),
+  // when a sensor's readings between its move into the area and the expansion were routed by
+  // the expansions then on the board. In the same transaction, puts into the input buffer of
+  // each one's subscriber the items with an id after `missed_after[i]` (one per item; 0: from
+  // the first) that it matches, unless the subscriber got them, or has them coming, anyway (one
+  // of its subscriptions older than these routes them, or they are addressed to it, R18) or
+  // they are there already; oldest first. A crash leaves both done or neither. Errors: those of
+  // store_all; invalid_argument when the two lists differ in length.
+  Result<StoredSubscriptions> store_subscriptions(const std::vector<Item>& subscriptions,
+                                                  std::span<const std::uint64_t> missed_after) noexcept;
 
   // Removes the records matching each of `removals` (as Node::remove with cascade 0) and stores
   // `items` (as store_all), in one transaction: a reader sees the old records or the new ones,
@@ -453,12 +472,6 @@ struct InitOptions {
 // The smallest InitOptions::max_map_bytes; Node::init refuses less (invalid_argument).
 inline constexpr std::uint64_t kMinMaxMapBytes = 1ull << 20;  // 1 MiB
 
-// A subscription written after what it follows had begun, and the id after which it should
-// have been in force (Node::deliver_missed).
-struct MissedSince {
-  std::uint64_t subscription = 0;  // the subscription's item id
-  std::uint64_t after = 0;         // a record id: items after it were missed
-};
 
 struct Stats {
   std::string iri;
@@ -525,16 +538,6 @@ class Node {
   // store, where remove_item per item syncs each); items already gone are skipped. Returns the
   // number of records removed.
   Result<std::uint64_t> remove_items(const std::vector<std::uint64_t>& item_ids, Reach reach = Reach::copies_too);
-
-  // For subscriptions written after what they follow had begun (an area subscription's new
-  // expansion, docs/spatial.md S9: a sensor's readings between its move into the area and the
-  // expansion were routed by the expansions then on the board): puts into the input buffer of
-  // each one's subscriber the items with an id in (`after`, the subscription's id) that it
-  // matches, that none of the subscriber's subscriptions with an id below `older_than` routes
-  // and that are not addressed to it (what it got, or had coming, anyway), and that are not
-  // there, oldest first. One transaction; a subscription removed meanwhile is skipped. Returns
-  // how many items were put.
-  Result<std::uint64_t> deliver_missed(std::span<const MissedSince> missed, std::uint64_t older_than);
 
   // Changes after `bookmark` (a seq), oldest first, at most `limit` (0: no limit). Waits up to
   // `timeout` for the first one when there is none yet; an empty vector means timeout. Removals
