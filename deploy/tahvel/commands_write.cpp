@@ -213,17 +213,27 @@ const Command kPutCommand{
 
 // A floor plan's geometry that will not read is skipped when the plan is read (docs/spatial.md
 // S7), and said only there, far from the file that held it: said here too, as a warning (the
-// triples are stored as given).
+// triples are stored as given). So is one read otherwise than its writer may have meant: a
+// literal that is not geo:wktLiteral (GML, a language tag) or a CRS that is not applied
+// (degrees of EPSG:4326 read as metres).
 void warn_of_unreadable_geometry(const std::vector<node::Triple>& triples, const std::string& path) {
   std::size_t warned = 0;
   for (const node::Triple& t : triples) {
     if (t.p.value != spatial::kGeoAsWkt) continue;
-    std::string why;
+    std::string why, read_anyway;
     if (!t.o.is_literal()) why = "a WKT literal is needed, not " + t.o.to_ntriples();
     else if (auto geometry = spatial::parse_wkt(t.o.value); !geometry) why = geometry.error().message;
-    if (!why.empty() && ++warned <= 20)
+    else if (!t.o.language.empty() || (t.o.effective_datatype() != spatial::kGeoWktLiteral &&
+                                      t.o.effective_datatype() != "http://www.w3.org/2001/XMLSchema#string"))
+      read_anyway = "a literal " + (t.o.language.empty() ? "of datatype <" + t.o.datatype + ">" : "tagged @" + t.o.language) +
+                    " is read as WKT (geo:wktLiteral expected)";
+    else if (const std::string_view crs = spatial::wkt_crs(t.o.value); !crs.empty() && crs != spatial::kCrs84)
+      read_anyway = "its CRS <" + std::string(crs) + "> is not applied: a floor plan's coordinates are read as planar, "
+                    "in the plan's own frame (docs/spatial.md S1)";
+    if ((!why.empty() || !read_anyway.empty()) && ++warned <= 20)
       std::cerr << "tahvel: warning: " << (path == "-" ? std::string("<stdin>") : path) << ": <" << t.s.value
-                << "> geo:asWKT: " << why << " (the feature is skipped when the floor plan is read)\n";
+                << "> geo:asWKT: " << (why.empty() ? read_anyway : why + " (the feature is skipped when the floor plan is read)")
+                << "\n";
   }
   if (warned > 20) std::cerr << "tahvel: warning: " << warned - 20 << " more geometries that will not read\n";
 }

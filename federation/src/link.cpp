@@ -2937,6 +2937,10 @@ struct Link::Impl {
         writes.assign(std::make_move_iterator(board_writes.begin()), std::make_move_iterator(board_writes.end()));
         board_writes.clear();
         const auto now = Clock::now();
+        // Hellos back off to kHelloGapMax while the parent is away, longer than child_silence:
+        // the first heartbeat after a welcome kept the hello's time, and the parent called the
+        // child silent (and the child its parent) a few seconds after welcoming it.
+        if (welcomed && next_beat - now > opt.heartbeat_every) next_beat = now + opt.heartbeat_every;
         if (now >= next_beat) {
           beat = true;
           // A refused node asks again at the heartbeat's pace, not four times a second.

@@ -970,7 +970,16 @@ TEST_F(Cli, PutAndLoadWarnOfAGeometryThatWillNotReadAndStoreIt) {
   const std::string plan =
       "@prefix geo: <http://www.opengis.net/ont/geosparql#> .\n"
       "<http://example.org/home1/room/a/geometry> geo:asWKT \"POLYGON((0 0, 3 0, 3 3, 0 3))\"^^geo:wktLiteral .\n"
-      "<http://example.org/home1/room/b/geometry> geo:asWKT \"POLYGON((0 0, 3 0, 3 3, 0 3, 0 0))\"^^geo:wktLiteral .\n";
+      "<http://example.org/home1/room/b/geometry> geo:asWKT \"POLYGON((0 0, 3 0, 3 3, 0 3, 0 0))\"^^geo:wktLiteral .\n"
+      // Read, but maybe not as meant: degrees read as metres, GML or a tagged string read as WKT.
+      "<http://example.org/home1/room/c/geometry> geo:asWKT \"<http://www.opengis.net/def/crs/EPSG/0/4326> "
+      "POLYGON((0 0, 3 0, 3 3, 0 0))\"^^geo:wktLiteral .\n"
+      "<http://example.org/home1/room/d/geometry> geo:asWKT \"POLYGON((0 0, 3 0, 3 3, 0 0))\"^^geo:gmlLiteral .\n"
+      "<http://example.org/home1/room/e/geometry> geo:asWKT \"POLYGON((0 0, 3 0, 3 3, 0 0))\"@en .\n"
+      // Read as meant: CRS84 (what every plan is taken to be) and a plain string.
+      "<http://example.org/home1/room/f/geometry> geo:asWKT \"<http://www.opengis.net/def/crs/OGC/1.3/CRS84> "
+      "POLYGON((0 0, 3 0, 3 3, 0 0))\"^^geo:wktLiteral .\n"
+      "<http://example.org/home1/room/g/geometry> geo:asWKT \"POLYGON((0 0, 3 0, 3 3, 0 0))\" .\n";
   spit(tmp_ / "plan.ttl", plan);
   for (const char* command : {"put", "load"}) {
     Outcome stored = run({command, node_, (tmp_ / "plan.ttl").string()});
@@ -978,9 +987,15 @@ TEST_F(Cli, PutAndLoadWarnOfAGeometryThatWillNotReadAndStoreIt) {
     EXPECT_NE(stored.err.find("warning: " + (tmp_ / "plan.ttl").string() + ": <http://example.org/home1/room/a/geometry> geo:asWKT: "
                               "WKT column 9: ring is not closed"),
               std::string::npos) << command << ": " << stored.err;
-    EXPECT_EQ(stored.err.find("room/b"), std::string::npos) << "a good geometry warned of: " << stored.err;
+    for (const char* said : {"room/c/geometry> geo:asWKT: its CRS <http://www.opengis.net/def/crs/EPSG/0/4326> is not applied",
+                             "room/d/geometry> geo:asWKT: a literal of datatype <http://www.opengis.net/ont/geosparql#gmlLiteral> "
+                             "is read as WKT (geo:wktLiteral expected)",
+                             "room/e/geometry> geo:asWKT: a literal tagged @en is read as WKT"})
+      EXPECT_NE(stored.err.find(said), std::string::npos) << command << ": " << stored.err;
+    for (const char* good : {"room/b", "room/f", "room/g"})
+      EXPECT_EQ(stored.err.find(good), std::string::npos) << "a good geometry warned of: " << stored.err;
   }
-  EXPECT_EQ(lines_of(run({"list", node_, "-p", "<http://www.opengis.net/ont/geosparql#asWKT>"}).out).size(), 4u);
+  EXPECT_EQ(lines_of(run({"list", node_, "-p", "<http://www.opengis.net/ont/geosparql#asWKT>"}).out).size(), 14u);
 }
 
 // `put --agent supervisor` by chance: the supervisor replaces every item of its own every few

@@ -1299,6 +1299,25 @@ TEST(Link, AChildKeepsItsOwnViewOfItsUplinkThatFollowsItsParent) {
   EXPECT_EQ(count(home3_dir, {.s = Term::iri(home3), .p = Term::iri(vocab::kUplinkRefusal)}), 1u);
 }
 
+// A child started well before its parent backs its hellos off to 4 s (P6). Its first heartbeat
+// after the welcome kept the next hello's time, 3-5 s on, and the parent called it silent a few
+// seconds after welcoming it, and it its parent: every child of a gateway brought up before the
+// gateway's own parent flapped down and up. Heartbeats start at the welcome.
+TEST(Link, AChildThatWaitedLongForItsParentBeatsFromTheWelcomeAndStaysUp) {
+  Tree tree;
+  tree.home1 = tree.start_home(tree.home1_dir, kHome1, tree.home1_log);
+  std::this_thread::sleep_for(7s);  // hellos at 0.2, 0.4, 0.8, 1.6, 3.2 s apart, then 4 s
+  tree.hospital = Link::start({.dir = tree.hospital_dir, .down = std::shared_ptr<Transport>(tree.bus.open(kHospital, tree.hospital_log.sink())),
+                               .children = {"home1", "home2"}, .resend_after = 100ms, .child_silence = 2s,
+                               .log = tree.hospital_log.sink()})
+                      .value();
+  ASSERT_TRUE(eventually([&] { return tree.home1->connected(); }, 10s)) << tree.home1_log.text();
+  std::this_thread::sleep_for(4s);
+  EXPECT_FALSE(tree.hospital_log.has("silent for")) << tree.hospital_log.text();
+  EXPECT_TRUE(state_says_up(tree.hospital_dir, kHome1));
+  EXPECT_FALSE(tree.home1_log.has("has not been heard for")) << tree.home1_log.text();
+}
+
 // P12a: the child's view went "down" at its next heartbeat after child_silence had passed, up
 // to a heartbeat late (`status` on the home's machine said "up" 4-5.7 s after the parent fell
 // silent, deploy.md says 3.5). It goes down at the round that passes child_silence, which the

@@ -33,6 +33,8 @@ TEST(Wkt, SkipsAGeoSparqlCrsIri) {
   auto p = parse_point("<http://www.opengis.net/def/crs/OGC/1.3/CRS84> POINT(24.7 59.4)");
   ASSERT_TRUE(p.has_value()) << p.error().message;
   EXPECT_EQ(*p, (Point{24.7, 59.4}));
+  EXPECT_EQ(wkt_crs("  <http://www.opengis.net/def/crs/EPSG/0/4326> POINT(1 2)"), "http://www.opengis.net/def/crs/EPSG/0/4326");
+  EXPECT_EQ(wkt_crs("POINT(1 2)"), "");
 }
 
 TEST(Wkt, ReadsAPolygonWithAHoleAndDropsTheClosingPoint) {
@@ -98,6 +100,8 @@ TEST(Wkt, RefusesMalformedTextNamingTheColumn) {
       {"POLYGON((0 0, 4 0, 4 4, 0 4, 0 0), (5 5, 6 5, 6 6, 5 5))", 36, "outside the outer ring"},
       {"MULTIPOLYGON(((0 0, 1 0, 1 1, 0 0)), ((0 0, 1 0, 1 1, 0 1)))", 39, "not closed"},
       {"<http://x/crs POINT(1 2)", 1, "without '>'"},
+      {"<junk junk> POINT(1 2)", 1, "'<junk junk>' is not a CRS IRI"},
+      {"<> POINT(1 2)", 1, "'<>' is not a CRS IRI"},
       // A typo is not two numbers: "1.5.5" is not (1.5 .5), "4-0" not (4 -0).
       {"POINT(1.5.5)", 7, "malformed number '1.5.5'"},
       {"POINT(2e1.5)", 7, "malformed number '2e1.5'"},

@@ -2,6 +2,7 @@
 // literals (a room has tens of vertices); errors name the 1-based byte column.
 #include "tahvel/spatial/wkt.h"
 
+#include <algorithm>
 #include <cctype>
 #include <charconv>
 #include <cerrno>
@@ -108,6 +109,10 @@ class Parser {
     if (pos_ >= text_.size() || text_[pos_] != '<') return {};
     std::size_t close = text_.find('>', pos_);
     if (close == std::string_view::npos) return error(pos_, "CRS IRI '<' without '>'");
+    // "<junk junk> POLYGON(…)": no IRI holds a space, or nothing at all.
+    const std::string_view iri = text_.substr(pos_ + 1, close - pos_ - 1);
+    if (iri.empty() || std::any_of(iri.begin(), iri.end(), [](char c) { return is_space(c); }))
+      return error(pos_, "'<" + std::string(iri) + ">' is not a CRS IRI");
     pos_ = close + 1;
     skip_space();
     return {};
@@ -348,6 +353,15 @@ std::size_t keyword_column(std::string_view text) {
 }  // namespace
 
 Result<Geometry> parse_wkt(std::string_view text) { return Parser(text).parse(); }
+
+std::string_view wkt_crs(std::string_view text) {
+  std::size_t i = 0;
+  while (i < text.size() && is_space(text[i])) ++i;
+  if (i >= text.size() || text[i] != '<') return {};
+  const std::size_t close = text.find('>', i);
+  if (close == std::string_view::npos) return {};
+  return text.substr(i + 1, close - i - 1);
+}
 
 Result<Point> parse_point(std::string_view text) {
   auto geometry = parse_wkt(text);

@@ -32,6 +32,13 @@ using Geometry = std::variant<Point, Shape>;
 
 Result<Geometry> parse_wkt(std::string_view text);
 
+// The CRS IRI written before the geometry (without its <>), or empty when none is. The CRS is
+// not applied (a plan is planar in its own frame); `tahvel put` warns of one other than CRS84.
+std::string_view wkt_crs(std::string_view text);
+
+// The CRS IRI that says what Tahvel assumes of every plan anyway: no CRS at all.
+inline constexpr std::string_view kCrs84 = "http://www.opengis.net/def/crs/OGC/1.3/CRS84";
+
 // parse_wkt, then refuse the other kind ("WKT column 1: expected a POINT, found POLYGON").
 Result<Point> parse_point(std::string_view text);
 Result<Shape> parse_shape(std::string_view text);
