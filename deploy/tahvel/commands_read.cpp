@@ -239,14 +239,19 @@ int run_take(const Args& args) {
   } lock{::open(lock_path.c_str(), O_RDWR | O_CREAT | O_CLOEXEC, 0644)};
   if (lock.fd < 0 && errno == EROFS)  // as a write to such a store says (cli.md "read-only filesystem")
     fail("the store in " + args.positional(0) + " is on a read-only filesystem: it can be read, not written");
-  if (lock.fd < 0) fail(lock_path + ": " + std::strerror(errno));
+  // A store this user may read but whose directory it may not write (another user's node).
+  const auto cannot_make = [&](const std::string& path) {
+    fail("take: cannot make its lock file " + std::filesystem::absolute(path).string() + ": " + std::strerror(errno) +
+         " (a take writes in the store's directory: run it as the store's owner)");
+  };
+  if (lock.fd < 0) cannot_make(lock_path);
   // A program running as this agent (the shipped agents, `tahvel reason`) holds its agent lock
   // for as long as it runs: a take would take its input from under it. Takes share the lock
   // among themselves, a pool of them being one way to run an agent.
   const std::string running_path =
       (std::filesystem::path(args.positional(0)) / (".agent-" + (known_id ? *known_id : id) + ".lock")).string();
   Lock running{::open(running_path.c_str(), O_RDWR | O_CREAT | O_CLOEXEC, 0644)};
-  if (running.fd < 0) fail(running_path + ": " + std::strerror(errno));
+  if (running.fd < 0) cannot_make(running_path);
   if (flock(running.fd, LOCK_SH | LOCK_NB) != 0)
     fail(errno == EWOULDBLOCK ? "another process runs as agent <" + agent.iri() + "> (" + running_path +
                                     " is locked): a take would take its input from it; stop it first, or take "

@@ -463,6 +463,8 @@ std::string stores_in_subdirectories(const std::filesystem::path& dir) {
   if (names.size() > 5) list += ", …";
   return list;
 }
+
+void remove_abandoned_inits(const std::filesystem::path& dir);
 }  // namespace
 
 Result<std::shared_ptr<Env>> Env::open(const std::filesystem::path& dir_in, const InitOptions* init,
@@ -522,7 +524,11 @@ Result<std::shared_ptr<Env>> Env::open(const std::filesystem::path& dir_in, cons
       return unexpected(made.error());
     }
   }
-  return open_at(dir, nullptr);
+  auto opened = open_at(dir, nullptr);
+  // What an init killed before it finished left here (its store being made, a sparse 64 MiB
+  // file; or, killed once the store was in place, an empty directory that nothing else takes).
+  if (opened && !(*opened)->read_only_) remove_abandoned_inits(dir);
+  return opened;
 }
 
 namespace {
@@ -790,7 +796,12 @@ Result<std::shared_ptr<Env>> Env::open_at(const std::filesystem::path& dir, cons
   if (rc != 0) return lmdb_fail(rc, "committing the first transaction in " + dir.string());
   // After the tables are found: a directory that holds another program's LMDB file gets no
   // file of ours.
-  if (auto w = env->read_only_ ? env->wake_.open_private() : env->wake_.open(dir / "wake"); !w) return unexpected(w.error());
+  if (auto w = env->read_only_ ? env->wake_.open_private() : env->wake_.open(dir / "wake"); !w) {
+    // The wake file alone another user's, or read-only: said as for the store's own files.
+    if (const std::string hint = access_hint(dir); !hint.empty() && w.error().code == Errc::io)
+      return fail(Errc::io, "opening store " + dir.string() + ": " + w.error().message + hint);
+    return unexpected(w.error());
+  }
   if (env->read_only_ && needs_tables)
     return fail(Errc::version, dir.string() + " is on a read-only filesystem, and its store, of an earlier format, is upgraded at its first open: copy it to a writable disk to read it");
   if (env->read_only_) needs_store_id = needs_file_record = false;  // read as it is: nothing can write there
@@ -906,6 +917,10 @@ void Env::end_read(MDB_txn* txn) {
   }
 }
 
+namespace {
+std::string pinned_by_a_reader(MDB_env* env, std::uint64_t last_txnid);
+}  // namespace
+
 Result<void> Env::grow(WriteKind kind, std::uint64_t removal_copy_bytes) {
   std::unique_lock lock(growth_mutex_);
   MDB_envinfo info;
@@ -921,7 +936,8 @@ Result<void> Env::grow(WriteKind kind, std::uint64_t removal_copy_bytes) {
   if (kind == WriteKind::removal) limit += removal_reserve(limit) + 2 * removal_copy_bytes;
   if (current >= limit)
     return fail(Errc::store_full, "store full: " + dir_.string() + " reached its maximum of " +
-                                      std::to_string(settings_.max_map_bytes) + " bytes");
+                                      std::to_string(settings_.max_map_bytes) + " bytes" +
+                                      pinned_by_a_reader(env_, info.me_last_txnid));
   if (!quiesce_locked())  // not full: growing waits for this process's own snapshots
     return fail(Errc::io, "the store in " + dir_.string() +
                               " must grow, and cannot while this process holds a snapshot; release the snapshot and retry");
@@ -948,10 +964,15 @@ std::uint64_t allocated_from(int fd, std::uint64_t from) {
   return static_cast<std::uint64_t>(hole);
 }
 
-// The oldest snapshot any reader of the store holds (LMDB's reader table, which
-// mdb_reader_list prints as "pid thread txnid" lines, "-" for an idle slot); ~0 when none.
-std::uint64_t oldest_reader_txnid(MDB_env* env) {
-  std::uint64_t oldest = ~0ull;
+// The oldest snapshot any reader of the store holds, and the process holding it (LMDB's reader
+// table, which mdb_reader_list prints as "pid thread txnid" lines, "-" for an idle slot); txnid
+// ~0 when there is none.
+struct OldestReader {
+  std::uint64_t txnid = ~0ull;
+  int pid = 0;
+};
+OldestReader oldest_reader(MDB_env* env) {
+  OldestReader oldest;
   mdb_reader_list(
       env,
       [](const char* line, void* ctx) -> int {
@@ -959,13 +980,34 @@ std::uint64_t oldest_reader_txnid(MDB_env* env) {
         std::size_t thread = 0;
         unsigned long long txnid = 0;
         if (std::sscanf(line, "%d %zx %llu", &pid, &thread, &txnid) == 3) {
-          auto& least = *static_cast<std::uint64_t*>(ctx);
-          least = std::min<std::uint64_t>(least, txnid);
+          auto& least = *static_cast<OldestReader*>(ctx);
+          if (txnid < least.txnid) least = {txnid, pid};
         }
         return 0;
       },
       &oldest);
   return oldest;
+}
+
+std::uint64_t oldest_reader_txnid(MDB_env* env) { return oldest_reader(env).txnid; }
+
+// Why a store at its maximum may hold far less: a snapshot older than the last commits keeps
+// every page freed since from being reused (LMDB), and the store filled with free pages (a
+// `dump` stopped in a pipe, an agent that never ends its reads). Empty when no snapshot is.
+std::string pinned_by_a_reader(MDB_env* env, std::uint64_t last_txnid) {
+  const OldestReader oldest = oldest_reader(env);
+  // A few commits behind is any busy reader; a read held over many is one that pins.
+  constexpr std::uint64_t kPinningLag = 8;
+  if (oldest.txnid == ~0ull || oldest.txnid + kPinningLag > last_txnid) return {};
+  std::string who = "process " + std::to_string(oldest.pid);
+  if (oldest.pid == getpid()) {
+    who += " (this one)";
+  } else if (std::ifstream comm("/proc/" + std::to_string(oldest.pid) + "/comm"); comm) {
+    std::string name;
+    if (std::getline(comm, name) && !name.empty()) who += " (" + name + ")";
+  }
+  return "; a snapshot that " + who + " has held for the last " + std::to_string(last_txnid - oldest.txnid) +
+         " commits keeps the pages freed since from being reused (`tahvel stats` gives what the store holds): end that read";
 }
 
 // Bytes of the free pages a write transaction begun now may reuse.

@@ -835,41 +835,62 @@ TEST_F(Cli, InitOnAFullDiskFailsSayingSoAndLeavesNothingBehind) {
 }
 
 // A store another user made (a node's, read by an operator): opening it said only "Permission
-// denied", though data.mdb was readable; reading takes writing lock.mdb, which it now names.
-TEST_F(Cli, ReadingAStoreWhoseLockFileIsNotWritableNamesTheLockFile) {
+// denied", though data.mdb was readable; reading takes writing lock.mdb, which it now names. So
+// with the wake file alone, which said only "cannot open …/wake"; and a take, which writes its
+// lock file in the store's directory, said only ".take-x.lock: Permission denied".
+TEST_F(Cli, AStoreThisUserMayNotWriteNamesTheFileItCannotWrite) {
   init();
   put(kObservation);
   fs::permissions(tmp_, fs::perms::owner_all | fs::perms::group_read | fs::perms::group_exec |
                             fs::perms::others_read | fs::perms::others_exec);
-  fs::permissions(fs::path(node_) / "lock.mdb", fs::perms::owner_write | fs::perms::group_write | fs::perms::others_write,
-                  fs::perm_options::remove);
-  const fs::path err = tmp_ / "err-denied";
   // A copy of the binary beside the store: the build tree may be closed to other users (a CI
   // clone in a mode-700 temporary directory).
   const fs::path bin = tmp_ / "tahvel";
   fs::copy_file(kBin, bin);
   fs::permissions(bin, fs::perms::owner_all | fs::perms::group_read | fs::perms::group_exec | fs::perms::others_read |
                            fs::perms::others_exec);
-  pid_t pid = fork();
-  if (pid == 0) {
-    redirect("/dev/null", 1, O_WRONLY);
-    redirect(err, 2, O_WRONLY | O_CREAT | O_TRUNC);
-    // Root may write any file: the read is made as nobody, whom the other bits keep out.
-    if (geteuid() == 0 && (setgid(65534) != 0 || setuid(65534) != 0)) _exit(126);
-    execl(bin.c_str(), bin.c_str(), "list", node_.c_str(), static_cast<char*>(nullptr));
-    _exit(127);
+  // Runs `tahvel args…` as another user: its exit status (126/127: could not) and standard error.
+  const auto as_another_user = [&](std::vector<std::string> args) {
+    const fs::path err = tmp_ / "err-denied";
+    pid_t pid = fork();
+    if (pid == 0) {
+      redirect("/dev/null", 1, O_WRONLY);
+      redirect(err, 2, O_WRONLY | O_CREAT | O_TRUNC);
+      // Root may write any file: the command runs as nobody, whom the other bits keep out.
+      if (geteuid() == 0 && (setgid(65534) != 0 || setuid(65534) != 0)) _exit(126);
+      std::vector<char*> argv{const_cast<char*>(bin.c_str())};
+      for (std::string& arg : args) argv.push_back(arg.data());
+      argv.push_back(nullptr);
+      execv(bin.c_str(), argv.data());
+      _exit(127);
+    }
+    int status = 0;
+    waitpid(pid, &status, 0);
+    return std::make_pair(WIFEXITED(status) ? WEXITSTATUS(status) : 128, slurp(err));
+  };
+  const fs::perms write_bits = fs::perms::owner_write | fs::perms::group_write | fs::perms::others_write;
+  for (const char* file : {"lock.mdb", "wake"}) {
+    fs::permissions(fs::path(node_) / file, write_bits, fs::perm_options::remove);
+    const auto [status, said] = as_another_user({"list", node_});
+    fs::permissions(fs::path(node_) / file, fs::perms::owner_write, fs::perm_options::add);
+    if (status == 126 || status == 127)
+      GTEST_SKIP() << "cannot run the binary as another user here (the temporary directory's parents closed to it?)";
+    EXPECT_EQ(status, 1) << file;
+    EXPECT_NE(said.find("opening store " + node_ + ": "), std::string::npos) << said;
+    EXPECT_NE(said.find("Permission denied"), std::string::npos) << said;
+    EXPECT_NE(said.find(std::string(file) + " is not writable by this user: every process that"), std::string::npos) << said;
+    EXPECT_EQ(run({"list", node_, "-p", "sosa:hasSimpleResult"}).status, 0) << "the owner reads it";
   }
-  int status = 0;
-  waitpid(pid, &status, 0);
-  fs::permissions(fs::path(node_) / "lock.mdb", fs::perms::owner_write, fs::perm_options::add);
-  ASSERT_TRUE(WIFEXITED(status));
-  if (WEXITSTATUS(status) == 126 || WEXITSTATUS(status) == 127)
-    GTEST_SKIP() << "cannot run the binary as another user here (the temporary directory's parents closed to it?)";
-  EXPECT_EQ(WEXITSTATUS(status), 1);
-  const std::string said = slurp(err);
-  EXPECT_NE(said.find("opening store " + node_ + ": Permission denied"), std::string::npos) << said;
-  EXPECT_NE(said.find("lock.mdb is not writable by this user: every process that reads the store"), std::string::npos) << said;
-  EXPECT_EQ(run({"list", node_, "-p", "sosa:hasSimpleResult"}).status, 0) << "the owner reads it";
+  // Every file writable by all, the directory by its owner only: reading works, a take cannot.
+  for (const char* file : {"data.mdb", "lock.mdb", "wake"}) fs::permissions(fs::path(node_) / file, write_bits, fs::perm_options::add);
+  fs::permissions(node_, write_bits, fs::perm_options::remove);
+  EXPECT_EQ(as_another_user({"list", node_}).first, 0);
+  const auto [status, said] = as_another_user({"take", node_, "--agent", "x", "--timeout", "0"});
+  fs::permissions(node_, fs::perms::owner_write, fs::perm_options::add);
+  EXPECT_EQ(status, 1) << said;
+  EXPECT_NE(said.find("take: cannot make its lock file " + (fs::absolute(node_) / ".take-x.lock").string() +
+                      ": Permission denied (a take writes in the store's directory: run it as the store's owner)"),
+            std::string::npos) << said;
 }
 
 // Started with standard output closed (by a supervisor, or `>&-`), take opened the store's lock
