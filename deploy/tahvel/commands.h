@@ -150,6 +150,22 @@ bool stdout_reader_gone();
 // commands_federation.cpp: `query`, `ecg`, `up --foreground`, `link`).
 bool stop_requested();
 
+// Says on standard error, once, that a small write not done after `after` most likely waits
+// for the store's writer lock: LMDB has one writer at a time, and a writer stopped inside its
+// transaction (Ctrl-Z, SIGSTOP, a debugger) holds it until it goes on or ends. A `put` that hung
+// there said nothing. For writes that are quick once they begin (an item, a subscription).
+class SaidIfSlow {
+ public:
+  SaidIfSlow(std::string command, std::string dir, std::chrono::milliseconds after = std::chrono::seconds(5));
+  ~SaidIfSlow();
+  SaidIfSlow(const SaidIfSlow&) = delete;
+  SaidIfSlow& operator=(const SaidIfSlow&) = delete;
+
+ private:
+  struct State;
+  std::shared_ptr<State> state_;
+};
+
 // Standard output in whole pieces (a record, a CSV row), for the commands that print an answer
 // as it comes (`query`, `ecg`). A stop (SIGINT, SIGTERM) ends the output at the end of a piece,
 // never inside one, and written() counts the pieces that went out: what the command says it

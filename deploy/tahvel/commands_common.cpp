@@ -8,6 +8,8 @@
 #include <cstring>
 #include <ctime>
 #include <climits>
+#include <condition_variable>
+#include <mutex>
 #include <deque>
 #include <limits>
 #include <poll.h>
@@ -18,6 +20,7 @@
 #include <iterator>
 #include <sstream>
 #include <streambuf>
+#include <thread>
 
 #include "commands.h"
 #include "topology.h"
@@ -765,6 +768,38 @@ std::string age_of(std::int64_t unix_ns, std::int64_t at_ns) {
   const double age = seconds_since(unix_ns, at_ns);
   // A time written on another machine may be ahead of this one's clock: said so, not as "-0.4 s ago".
   return age < -0.05 ? seconds_text(-age) + " ahead of this machine's clock" : seconds_text(std::max(age, 0.0)) + " ago";
+}
+
+}  // namespace tahvel::cli
+
+namespace tahvel::cli {
+
+struct SaidIfSlow::State {
+  std::mutex mu;
+  std::condition_variable done_cv;
+  bool done = false;
+  std::thread watcher;
+};
+
+SaidIfSlow::SaidIfSlow(std::string command, std::string dir, std::chrono::milliseconds after)
+    : state_(std::make_shared<State>()) {
+  state_->watcher = std::thread([state = state_, command = std::move(command), dir = std::move(dir), after] {
+    std::unique_lock lock(state->mu);
+    if (state->done_cv.wait_for(lock, after, [&] { return state->done; })) return;
+    std::cerr << "tahvel: " << command << ": not written after " << seconds_text(std::chrono::duration<double>(after).count())
+              << ", most likely waiting for the writer lock of " << dir
+              << ", which another process holds (one stopped inside a write holds it until it goes on or ends); "
+                 "still waiting\n";
+  });
+}
+
+SaidIfSlow::~SaidIfSlow() {
+  {
+    std::lock_guard lock(state_->mu);
+    state_->done = true;
+  }
+  state_->done_cv.notify_all();
+  state_->watcher.join();
 }
 
 }  // namespace tahvel::cli

@@ -340,7 +340,10 @@ int run_put(const Args& args) {
     fail((path == "-" ? std::string("standard input") : path) + ": no triple to put (an item needs at least one)");
   warn_of_unreadable_geometry(item.triples, path);
   warn_of_unknown_addressee(node, item, agent);
-  auto stored = agent.store(item);
+  auto stored = [&] {
+    SaidIfSlow said("put", args.positional(0));
+    return agent.store(item);
+  }();
   if (!stored) fail(named_where(input, stored.error()));
   const std::uint64_t id = *stored;
   print_number(id, "item " + std::to_string(id) + " is stored");
@@ -517,7 +520,12 @@ int run_subscribe(const Args& args) {
   refuse_when_output_was_closed();  // after the usage errors (exit 2), before anything is written
   node::Agent agent = check(node.agent(agent_id(args, "")));
   if (!given_area) {
-    const std::uint64_t id = check(agent.subscribe(pattern, {.earlier = args.has("--earlier")}));
+    const std::uint64_t id = check([&] {
+      // With --earlier it delivers what is on the board: slow when that is much.
+      std::optional<SaidIfSlow> said;
+      if (!args.has("--earlier")) said.emplace("subscribe", args.positional(0));
+      return agent.subscribe(pattern, {.earlier = args.has("--earlier")});
+    }());
     print_number(id, "subscription " + std::to_string(id) + " is stored");
     return kExitOk;
   }

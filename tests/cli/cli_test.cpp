@@ -3970,6 +3970,23 @@ class HeldWriterLock {
   MDB_txn* txn_ = nullptr;
 };
 
+// A put behind a writer stopped inside its transaction waited without a word.
+TEST_F(Cli, APutThatWaitsForAnotherWritersLockSaysSoAndWritesOnceItIsFree) {
+  init();
+  std::optional<HeldWriterLock> held(std::in_place, fs::path(node_));
+  Outcome put_behind;
+  std::thread putter([&] { put_behind = run({"put", node_, "--format", "nt"}, "<http://example.org/a> <http://example.org/p> \"1\" .\n"); });
+  std::this_thread::sleep_for(std::chrono::milliseconds(6500));
+  held.reset();  // by the thread that took it: LMDB's writer mutex is that thread's to release
+  putter.join();
+  EXPECT_EQ(put_behind.status, 0) << put_behind.err;
+  EXPECT_NE(put_behind.err.find("tahvel: put: not written after 5.0 s, most likely waiting for the writer lock of " + node_),
+            std::string::npos) << put_behind.err;
+  EXPECT_EQ(lines_of(run({"list", node_, "-s", "http://example.org/a"}).out).size(), 1u);
+  EXPECT_EQ(run({"put", node_, "--format", "nt"}, "<http://example.org/b> <http://example.org/p> \"2\" .\n").err, "")
+      << "a put that does not wait says nothing";
+}
+
 // The supervisor writes each node's programs on its board. That write waited for the store's
 // writer lock in the supervisor's own loop: while one node's store was held (an operator's bulk
 // load, a writer stopped with Ctrl-Z), no program of any node was restarted, the state file went
