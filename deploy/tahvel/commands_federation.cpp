@@ -7,6 +7,7 @@
 #include <signal.h>
 #include <sys/file.h>
 #include <sys/stat.h>
+#include <pwd.h>
 #include <sys/wait.h>
 #include <time.h>
 #include <unistd.h>
@@ -1839,6 +1840,15 @@ std::string node_id_hint(const Topology& topo, const std::string& id) {
   return nearest ? "; did you mean '" + nearest->id + "'?" : std::string();
 }
 
+namespace {
+// "tahvel (uid 998)", or "uid 998" for a user the system does not name.
+std::string user_name(uid_t uid) {
+  const std::string number = "uid " + std::to_string(uid);
+  if (const passwd* user = ::getpwuid(uid); user && user->pw_name) return std::string(user->pw_name) + " (" + number + ")";
+  return number;
+}
+}  // namespace
+
 int run_up(const Args& args) {
   Topology topo = check(load_topology(args.positional(0)));
   fs::path state = fs::absolute(state_dir(args));
@@ -1867,8 +1877,16 @@ int run_up(const Args& args) {
   // one and returning would end the service while the node runs outside it.
   if (running > 0 && args.has("--foreground"))
     fail("a supervisor already runs this selection (pid " + std::to_string(running) + ", " + pid_file.string() +
-         "): --foreground would not be it. 'tahvel down --state " + shell_word(state) +
+         "): --foreground would not be it. 'tahvel down --state " + shell_word(state) + (only ? " --node " + *only : "") +
          "' first, or 'tahvel up' without --foreground applies the file to it");
+  // Root applying a file to a service user's supervisor left root's files in its state
+  // directory (the next `up` of that user failed on them) after changing its stores: refused
+  // before anything is touched.
+  if (struct stat owner {}; running > 0 && ::stat(("/proc/" + std::to_string(running)).c_str(), &owner) == 0 &&
+                            owner.st_uid != ::geteuid())
+    fail("the running supervisor (pid " + std::to_string(running) + ") runs as " + user_name(owner.st_uid) + ", this 'up' as " +
+         user_name(::geteuid()) + ": nothing applied. Run it as " + user_name(owner.st_uid) + " (sudo -u " +
+         user_name(owner.st_uid) + " tahvel up …), so that what it writes in " + state.string() + " stays that user's");
   // One supervisor per node: `up --node X` beside `up` of the whole file would run X's link and
   // agents twice (two ECG sources writing every chunk twice). Checked again once this `up` has
   // its turn (below): an `up` of the other selection started at the same moment may have won it.

@@ -357,6 +357,37 @@ class Cli : public ::testing::Test {
     close(f);
   }
 
+  // Runs `tahvel args…` as another user (nobody, when the test runs as root): its exit status
+  // (126/127: it could not be run so) and standard error. The test's directory is opened to
+  // others, and a copy of the binary put in it: the build tree may be closed to other users (a
+  // CI clone in a mode-700 temporary directory).
+  std::pair<int, std::string> run_as_another_user(std::vector<std::string> args) {
+    const fs::path bin = tmp_ / "tahvel";
+    if (!fs::exists(bin)) {
+      fs::permissions(tmp_, fs::perms::owner_all | fs::perms::group_read | fs::perms::group_exec |
+                                fs::perms::others_read | fs::perms::others_exec);
+      fs::copy_file(kBin, bin);
+      fs::permissions(bin, fs::perms::owner_all | fs::perms::group_read | fs::perms::group_exec | fs::perms::others_read |
+                               fs::perms::others_exec);
+    }
+    const fs::path err = tmp_ / "err-another-user";
+    pid_t pid = fork();
+    if (pid == 0) {
+      redirect("/dev/null", 1, O_WRONLY);
+      redirect(err, 2, O_WRONLY | O_CREAT | O_TRUNC);
+      // Root may write any file: the command runs as nobody, whom the other bits keep out.
+      if (geteuid() == 0 && (setgid(65534) != 0 || setuid(65534) != 0)) _exit(126);
+      std::vector<char*> argv{const_cast<char*>(bin.c_str())};
+      for (std::string& arg : args) argv.push_back(arg.data());
+      argv.push_back(nullptr);
+      execv(bin.c_str(), argv.data());
+      _exit(127);
+    }
+    int status = 0;
+    waitpid(pid, &status, 0);
+    return {WIFEXITED(status) ? WEXITSTATUS(status) : 128, slurp(err)};
+  }
+
  private:
   int runs_ = 0;
 };
@@ -841,33 +872,7 @@ TEST_F(Cli, InitOnAFullDiskFailsSayingSoAndLeavesNothingBehind) {
 TEST_F(Cli, AStoreThisUserMayNotWriteNamesTheFileItCannotWrite) {
   init();
   put(kObservation);
-  fs::permissions(tmp_, fs::perms::owner_all | fs::perms::group_read | fs::perms::group_exec |
-                            fs::perms::others_read | fs::perms::others_exec);
-  // A copy of the binary beside the store: the build tree may be closed to other users (a CI
-  // clone in a mode-700 temporary directory).
-  const fs::path bin = tmp_ / "tahvel";
-  fs::copy_file(kBin, bin);
-  fs::permissions(bin, fs::perms::owner_all | fs::perms::group_read | fs::perms::group_exec | fs::perms::others_read |
-                           fs::perms::others_exec);
-  // Runs `tahvel args…` as another user: its exit status (126/127: could not) and standard error.
-  const auto as_another_user = [&](std::vector<std::string> args) {
-    const fs::path err = tmp_ / "err-denied";
-    pid_t pid = fork();
-    if (pid == 0) {
-      redirect("/dev/null", 1, O_WRONLY);
-      redirect(err, 2, O_WRONLY | O_CREAT | O_TRUNC);
-      // Root may write any file: the command runs as nobody, whom the other bits keep out.
-      if (geteuid() == 0 && (setgid(65534) != 0 || setuid(65534) != 0)) _exit(126);
-      std::vector<char*> argv{const_cast<char*>(bin.c_str())};
-      for (std::string& arg : args) argv.push_back(arg.data());
-      argv.push_back(nullptr);
-      execv(bin.c_str(), argv.data());
-      _exit(127);
-    }
-    int status = 0;
-    waitpid(pid, &status, 0);
-    return std::make_pair(WIFEXITED(status) ? WEXITSTATUS(status) : 128, slurp(err));
-  };
+  const auto as_another_user = [&](std::vector<std::string> args) { return run_as_another_user(std::move(args)); };
   const fs::perms write_bits = fs::perms::owner_write | fs::perms::group_write | fs::perms::others_write;
   for (const char* file : {"lock.mdb", "wake"}) {
     fs::permissions(fs::path(node_) / file, write_bits, fs::perm_options::remove);
@@ -2476,6 +2481,32 @@ std::string Cli::up_pair_until_home_is_up(const std::string& state, const std::s
   EXPECT_TRUE(eventually([&] { return run({"status", "--state", state}).out.find(up_line) != std::string::npos; }))
       << run({"status", "--state", state}).out;
   return up_line;
+}
+
+// Root applying a file to a service user's supervisor left root's lock file in its state
+// directory, after writing the new forwarding patterns to the stores: the next `up` of that
+// user changed the stores again and failed on the file. Refused before anything is touched.
+TEST_F(Cli, UpAsAnotherUserThanTheRunningSupervisorIsRefusedBeforeAnythingChanges) {
+  if (geteuid() != 0) GTEST_SKIP() << "needs root, to run the supervisor as another user";
+  const fs::path state = tmp_ / "service-state";
+  fs::create_directories(state);
+  ASSERT_EQ(chown(state.c_str(), 65534, 65534), 0);
+  spit(tmp_ / "node.toml", kIdleNodeToml);
+  const auto [started, why] = run_as_another_user({"up", (tmp_ / "node.toml").string(), "--state", state.string()});
+  if (started == 126 || started == 127) GTEST_SKIP() << "cannot run the binary as another user here";
+  ASSERT_EQ(started, 0) << why;
+  Outcome as_root = run({"up", (tmp_ / "node.toml").string(), "--state", state.string()});
+  EXPECT_EQ(as_root.status, 1) << as_root.err;
+  EXPECT_NE(as_root.err.find(") runs as nobody (uid 65534), this 'up' as root (uid 0): nothing applied. Run it as nobody"),
+            std::string::npos) << as_root.err;
+  for (const auto& entry : fs::recursive_directory_iterator(state)) {
+    struct stat st {};
+    ASSERT_EQ(::lstat(entry.path().c_str(), &st), 0);
+    EXPECT_EQ(st.st_uid, 65534u) << entry.path() << " left by root";
+  }
+  EXPECT_EQ(run_as_another_user({"up", (tmp_ / "node.toml").string(), "--state", state.string()}).first, 0)
+      << "its own user applies the file";
+  EXPECT_EQ(run({"down", "--state", state.string()}).status, 0);
 }
 
 TEST_F(Cli, UpAndDownIgnoreAStalePidFileWhosePidIsAnotherProgram) {
