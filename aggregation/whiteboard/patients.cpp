@@ -263,6 +263,31 @@ Result<PatientsOnBoard> patients_on_board(const Snapshot& snapshot, std::optiona
       if (whole || !shown || measured(**w) > measured(shown->second)) shown.emplace(entry, std::move(**w));
       if (whole) break;
     }
+    // With --since after a recording's last whole window (it ended), the window since then is
+    // only its cut-short end, and it was shown, its trend update without the alert. Its newest
+    // whole window, asserted before `since` (one window's length back at most), is its state.
+    std::optional<std::pair<Entry, HrvWindowItem>> before_since;
+    if (since && shown && cut_short(shown->second.window)) {
+      Pattern earlier = hrv;
+      const double back_s = shown->second.window.length_s + 1;
+      earlier.since = shown->first->asserted_ns - static_cast<std::int64_t>(back_s * 1e9);
+      earlier.until = *since;
+      auto listed_before = snapshot.list(earlier);
+      if (!listed_before) return unexpected(store_error(listed_before.error()));
+      for (const Record& r : *listed_before) {
+        if (!r.triple.s.is_iri() || (clashing.count(r.meta.source) && r.meta.source != chosen)) continue;
+        auto facts = window_facts(snapshot, r.triple.s.value);
+        if (!facts) return unexpected(facts.error());
+        if (facts->recording && *facts->recording != recording) continue;
+        Entry entry{r.triple.s.value, 0, r.meta.item, r.meta.source, r.meta.stored_at, r.meta.asserted_at};
+        auto w = read_whole(snapshot, entry, read_hrv_window, unreadable);
+        if (!w) return unexpected(w.error());
+        if (!*w || (*w)->recording != recording || cut_short((*w)->window)) continue;
+        entry.start_s = (*w)->window.start_s;
+        if (!before_since || before_since->second.window.start_s < entry.start_s) before_since.emplace(entry, std::move(**w));
+      }
+      if (before_since) shown.emplace(&before_since->first, std::move(before_since->second));
+    }
     if (shown) {
       PatientView& p = patients[recording];
       p.recording = recording;
@@ -288,7 +313,12 @@ Result<PatientsOnBoard> patients_on_board(const Snapshot& snapshot, std::optiona
   for (const auto& [recording, p] : patients) recent_from = std::min(recent_from, p.latest_asserted_ns);
   recent_from = recent_from < std::numeric_limits<std::int64_t>::min() + kTrendLagNs ? std::numeric_limits<std::int64_t>::min()
                                                                                        : recent_from - kTrendLagNs;
-  if (since) recent_from = std::max(recent_from, *since);
+  // Not after a patient's shown window, which may be asserted before `since` (above).
+  if (since) {
+    std::int64_t earliest_shown = std::numeric_limits<std::int64_t>::max();
+    for (const auto& [recording, p] : patients) earliest_shown = std::min(earliest_shown, p.latest_asserted_ns);
+    recent_from = std::max(recent_from, std::min(*since, earliest_shown));
+  }
   // Reads the trend updates asserted in [from, until) and keeps, per recording and metric, the
   // one of the largest start that `wanted` accepts.
   auto read_trends = [&](std::optional<std::int64_t> from, std::optional<std::int64_t> until,

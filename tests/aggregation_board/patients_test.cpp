@@ -123,6 +123,8 @@ TEST_F(PatientsOnBoard, EachRecordingIsOnePatientWithItsLatestWindowAndItsLatest
 // holds a handful of beats, and is no patient's state. The newest whole window is the latest;
 // a recording with only a cut-short window still shows that one.
 TEST_F(PatientsOnBoard, AWindowTheRecordsEndCutShortIsNotThePatientsLatest) {
+  // As the chain asserts them: at the window's signal time.
+  const std::int64_t t0 = 1'700'000'000'000'000'000, second = 1'000'000'000;
   auto window_of = [&](const std::string& recording, double start, double end, double sdnn) {
     agg::RecordingInfo info;
     info.iri = recording;
@@ -133,7 +135,9 @@ TEST_F(PatientsOnBoard, AWindowTheRecordsEndCutShortIsNotThePatientsLatest) {
     w.metrics.sdnn_ms = sdnn;
     w.metrics.mean_hr_bpm = 70;
     w.metrics.nn_count = w.metrics.rr_count = 8;
-    store("home1-hrv", agg::hrv_window_item(info, w, kHospital + "/home1-hrv"));
+    tn::Item item = agg::hrv_window_item(info, w, kHospital + "/home1-hrv");
+    item.asserted_at = t0 + static_cast<std::int64_t>(start) * second;
+    store("home1-hrv", item);
   };
   window_of(kRecA, 1200, 1500, 50);
   window_of(kRecA, 1500, 1800, 52);
@@ -141,8 +145,8 @@ TEST_F(PatientsOnBoard, AWindowTheRecordsEndCutShortIsNotThePatientsLatest) {
   window_of(kRecB, 0, 20, 30);  // a record of 20 s
   // The trend's update of the cut-short window has no latest value and no alert: the one shown
   // is the update of the window shown, with its alert.
-  trend(kRecA, agg::HrvMetric::sdnn, 1500, true);
-  trend(kRecA, agg::HrvMetric::sdnn, 1800, false);
+  trend(kRecA, agg::HrvMetric::sdnn, 1500, true, t0 + 1500 * second);
+  trend(kRecA, agg::HrvMetric::sdnn, 1800, false, t0 + 1800 * second);
   const agg::PatientsOnBoard board = read();
   ASSERT_EQ(board.patients.size(), 2u);
   for (const agg::PatientView& p : board.patients) {
@@ -158,6 +162,16 @@ TEST_F(PatientsOnBoard, AWindowTheRecordsEndCutShortIsNotThePatientsLatest) {
       EXPECT_EQ(p.latest.window.end_s, 20);
     }
   }
+  // Since a time after the last whole window: the cut-short one is all there is since then, and
+  // it showed with its update's "no alert". The patient is the same as without --since.
+  const agg::PatientsOnBoard since = read(t0 + 1750 * second);
+  ASSERT_EQ(since.patients.size(), 1u);
+  const agg::PatientView& a = since.patients[0];
+  EXPECT_EQ(a.latest.window.start_s, 1500);
+  EXPECT_EQ(a.latest.window.metrics.sdnn_ms, 52);
+  ASSERT_EQ(a.trends.size(), 1u);
+  EXPECT_EQ(a.trends[0].window_start_s, 1500);
+  EXPECT_TRUE(a.alerting());
 }
 
 // Window times of a long recording keep their fraction on the board, as xsd:decimal (fixed, no
