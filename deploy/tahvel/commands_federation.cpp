@@ -2691,11 +2691,39 @@ int run_status(const Args& args) {
   std::string unfinished;                                 // stores an interrupted first `up` left
   std::map<std::string, std::string> unopened;            // why, by the store's directory name
   std::error_code ec;
+  // Copies of a node's store kept beside it (`tahvel backup state/hospital
+  // state/hospital-2026-12-06`): the same IRI as the node's, so shown as a node they took its
+  // children, or hid them, with stale states. The node's is the one of the deployment, else
+  // the one a supervisor holds, else the one named as its IRI ends; the others are copies.
+  const std::optional<std::set<std::string>> supervised = nodes_supervised(state);
+  std::map<std::string, std::vector<std::string>> dirs_of_iri;
+  for (const auto& entry : fs::directory_iterator(state, ec)) {
+    if (!entry.is_directory() || !fs::exists(entry.path() / "data.mdb") || store_being_made(entry.path())) continue;
+    if (auto node = node::Node::open(entry.path())) dirs_of_iri[node->iri()].push_back(entry.path().filename().string());
+  }
+  ec.clear();
+  std::map<std::string, std::string> copy_of;  // directory name -> the node's
+  for (const auto& [iri, dirs] : dirs_of_iri) {
+    if (dirs.size() < 2) continue;
+    const std::string ends_as = iri.substr(iri.rfind('/') + 1);
+    const auto rank = [&](const std::string& dir) {
+      return (supervised && supervised->count(dir) ? 4 : 0) + (supervisor_of_store(state / dir) != 0 ? 2 : 0) + (dir == ends_as ? 1 : 0);
+    };
+    const std::string node_dir = *std::max_element(dirs.begin(), dirs.end(), [&](const auto& a, const auto& b) { return rank(a) < rank(b); });
+    if (std::count_if(dirs.begin(), dirs.end(), [&](const std::string& d) { return rank(d) == rank(node_dir); }) > 1) continue;
+    for (const std::string& dir : dirs)
+      if (dir != node_dir) copy_of[dir] = node_dir;
+  }
   for (const auto& entry : fs::directory_iterator(state, ec)) {
     if (!entry.is_directory() || !fs::exists(entry.path() / "data.mdb")) continue;
     // Not a node, though it holds one's IRI: shown as one, it doubled the node in the tree.
     if (store_being_made(entry.path())) {
       unfinished += (unfinished.empty() ? "" : ", ") + entry.path().filename().string();
+      continue;
+    }
+    if (const auto copy = copy_of.find(entry.path().filename().string()); copy != copy_of.end()) {
+      std::cerr << "status: " << entry.path().string() << " holds a copy of the store of node '" << copy->second
+                << "' (its IRI), not shown: keep copies outside " << state.string() << "\n";
       continue;
     }
     auto node = node::Node::open(entry.path());
@@ -2824,7 +2852,7 @@ int run_status(const Args& args) {
   }
   for (StatusNode& n : nodes)
     if (!n.remote) attach_problems(n.programs, n.iri, n.problems);
-  const std::optional<std::set<std::string>> deployed = nodes_supervised(state);
+  const std::optional<std::set<std::string>>& deployed = supervised;
   auto in_deployment = [&](const std::string& id) { return !deployed || deployed->count(id) > 0 || gone.count(id) > 0; };
   // What a store left behind by a node taken out of the file kept of its children is not news.
   std::erase_if(nodes, [&](const StatusNode& n) {

@@ -4415,6 +4415,27 @@ TEST_F(Cli, AFreshLinkStateIsBelievedWhileOnlyItsSupervisorIsLate) {
   EXPECT_EQ(run({"down", "--state", state}).status, 0);
 }
 
+// A backup kept in the state directory (`tahvel backup state/hospital state/hospital-copy`) has
+// the hospital's IRI: shown as a node, it took the hospital's children (or hid them) and was
+// said to be a node taken out of its file. It is named as a copy and left out of the tree.
+TEST_F(Cli, ACopyOfANodesStoreInTheStateDirectoryIsNotShownAsANode) {
+  const std::string state = (tmp_ / "state").string();
+  const std::string up_line = up_pair_until_home_is_up(state, "http://example.org/copied", "udpm://239.255.79.57:7859?ttl=0");
+  if (HasFailure()) return;
+  ASSERT_EQ(run({"backup", state + "/hospital", state + "/hospital-copy"}).status, 0);
+  Outcome shown = run({"status", "--state", state});
+  EXPECT_EQ(shown.status, 0) << shown.err;
+  EXPECT_NE(shown.out.find("hospital  <http://example.org/copied>  (root)"), std::string::npos) << shown.out;
+  EXPECT_NE(shown.out.find(up_line), std::string::npos) << shown.out;
+  EXPECT_EQ(shown.out.find("hospital-copy"), std::string::npos) << shown.out;
+  EXPECT_EQ(shown.out.find("not in the deployment"), std::string::npos) << shown.out;
+  EXPECT_NE(shown.err.find("status: " + state + "/hospital-copy holds a copy of the store of node 'hospital' (its IRI), not shown"),
+            std::string::npos) << shown.err;
+  Outcome json = run({"status", "--state", state, "--json"});
+  EXPECT_EQ(json.out.find("hospital-copy"), std::string::npos) << json.out;
+  EXPECT_EQ(run({"down", "--state", state}).status, 0);
+}
+
 // A store at its maximum refuses writes; its programs then fail and its link cannot write its
 // children's state, which `status` showed as a frozen link. It says the store is full first.
 TEST_F(Cli, StatusSaysWhenAStoreIsFull) {
