@@ -185,6 +185,10 @@ Result<std::optional<T>> read_whole(const Snapshot& snapshot, const Entry& entry
 
 }  // namespace
 
+// How far before `since` a recording's newest whole window is looked for: a day and a window,
+// the longest step and window the chain takes (hrv.h).
+constexpr double kMaxLookBackS = 2 * 86400 + 1;
+
 Result<PatientsOnBoard> patients_on_board(const Snapshot& snapshot, std::optional<std::int64_t> since) {
   Unreadable unreadable;
 
@@ -266,10 +270,14 @@ Result<PatientsOnBoard> patients_on_board(const Snapshot& snapshot, std::optiona
     // With --since after a recording's last whole window (it ended), the window since then is
     // only its cut-short end, and it was shown, its trend update without the alert. Its newest
     // whole window, asserted before `since` (one window's length back at most), is its state.
+    // The window before starts a step back, which may be longer than the window: looked for a
+    // window's length back, then twice as far, up to a day (the longest step the chain takes).
     std::optional<std::pair<Entry, HrvWindowItem>> before_since;
-    if (since && shown && cut_short(shown->second.window)) {
+    const double length_s = shown ? shown->second.window.length_s : 0;
+    for (double back_s = std::isfinite(length_s) ? std::clamp(length_s, 1.0, kMaxLookBackS) + 1 : kMaxLookBackS;
+         since && shown && cut_short(shown->second.window) && !before_since; back_s *= 2) {
+      back_s = std::min(back_s, kMaxLookBackS);
       Pattern earlier = hrv;
-      const double back_s = shown->second.window.length_s + 1;
       earlier.since = shown->first->asserted_ns - static_cast<std::int64_t>(back_s * 1e9);
       earlier.until = *since;
       auto listed_before = snapshot.list(earlier);
@@ -287,6 +295,7 @@ Result<PatientsOnBoard> patients_on_board(const Snapshot& snapshot, std::optiona
         if (!before_since || before_since->second.window.start_s < entry.start_s) before_since.emplace(entry, std::move(**w));
       }
       if (before_since) shown.emplace(&before_since->first, std::move(before_since->second));
+      if (back_s >= kMaxLookBackS) break;
     }
     if (shown) {
       PatientView& p = patients[recording];

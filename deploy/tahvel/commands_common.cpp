@@ -783,14 +783,18 @@ struct SaidIfSlow::State {
 
 SaidIfSlow::SaidIfSlow(std::string command, std::string dir, std::chrono::milliseconds after)
     : state_(std::make_shared<State>()) {
-  state_->watcher = std::thread([state = state_, command = std::move(command), dir = std::move(dir), after] {
+  try {
+    state_->watcher = std::thread([state = state_, command = std::move(command), dir = std::move(dir), after] {
     std::unique_lock lock(state->mu);
     if (state->done_cv.wait_for(lock, after, [&] { return state->done; })) return;
     std::cerr << "tahvel: " << command << ": not written after " << seconds_text(std::chrono::duration<double>(after).count())
               << ", most likely waiting for the writer lock of " << dir
               << ", which another process holds (one stopped inside a write holds it until it goes on or ends); "
                  "still waiting\n";
-  });
+    });
+  } catch (const std::system_error&) {
+    // No thread to be had (the process's limit): the write goes on without the word.
+  }
 }
 
 SaidIfSlow::~SaidIfSlow() {
@@ -799,7 +803,7 @@ SaidIfSlow::~SaidIfSlow() {
     state_->done = true;
   }
   state_->done_cv.notify_all();
-  state_->watcher.join();
+  if (state_->watcher.joinable()) state_->watcher.join();
 }
 
 }  // namespace tahvel::cli

@@ -1847,6 +1847,25 @@ std::string user_name(uid_t uid) {
   if (const passwd* user = ::getpwuid(uid); user && user->pw_name) return std::string(user->pw_name) + " (" + number + ")";
   return number;
 }
+
+// The user as sudo -u takes it: "tahvel", or "#998".
+std::string sudo_user(uid_t uid) {
+  if (const passwd* user = ::getpwuid(uid); user && user->pw_name) return user->pw_name;
+  return "'#" + std::to_string(uid) + "'";
+}
+
+// The effective uid of process `pid` (the second field of the Uid line of /proc/PID/status: the
+// owner of /proc/PID is root for a process that is not dumpable), nullopt when it cannot be read.
+std::optional<uid_t> effective_uid_of(pid_t pid) {
+  std::ifstream status("/proc/" + std::to_string(pid) + "/status");
+  for (std::string line; std::getline(status, line);) {
+    if (!line.starts_with("Uid:")) continue;
+    std::istringstream fields(line.substr(4));
+    unsigned long real = 0, effective = 0;
+    if (fields >> real >> effective) return static_cast<uid_t>(effective);
+  }
+  return std::nullopt;
+}
 }  // namespace
 
 int run_up(const Args& args) {
@@ -1882,11 +1901,10 @@ int run_up(const Args& args) {
   // Root applying a file to a service user's supervisor left root's files in its state
   // directory (the next `up` of that user failed on them) after changing its stores: refused
   // before anything is touched.
-  if (struct stat owner {}; running > 0 && ::stat(("/proc/" + std::to_string(running)).c_str(), &owner) == 0 &&
-                            owner.st_uid != ::geteuid())
-    fail("the running supervisor (pid " + std::to_string(running) + ") runs as " + user_name(owner.st_uid) + ", this 'up' as " +
-         user_name(::geteuid()) + ": nothing applied. Run it as " + user_name(owner.st_uid) + " (sudo -u " +
-         user_name(owner.st_uid) + " tahvel up …), so that what it writes in " + state.string() + " stays that user's");
+  if (const std::optional<uid_t> runs_as = running > 0 ? effective_uid_of(running) : std::nullopt; runs_as && *runs_as != ::geteuid())
+    fail("the running supervisor (pid " + std::to_string(running) + ") runs as " + user_name(*runs_as) + ", this 'up' as " +
+         user_name(::geteuid()) + ": nothing applied. Run it as that user (sudo -u " + sudo_user(*runs_as) +
+         " tahvel up …), so that what it writes in " + state.string() + " stays that user's");
   // One supervisor per node: `up --node X` beside `up` of the whole file would run X's link and
   // agents twice (two ECG sources writing every chunk twice). Checked again once this `up` has
   // its turn (below): an `up` of the other selection started at the same moment may have won it.
@@ -2069,6 +2087,27 @@ int run_up(const Args& args) {
                     << " on the node (out of the outbox)\n";
       }
     }
+  }
+  // A node taken out of the file, or renamed (a child's IRI changes with its id), keeps its store
+  // and what its outbox holds: items its parent never acknowledged, which go up only when a node
+  // of that IRI runs again. Said, as nothing else would.
+  if (!only) {
+    for (const auto& entry : fs::directory_iterator(state, ec)) {
+      const std::string id = entry.path().filename().string();
+      if (topo.node(id) || !fs::exists(entry.path() / "data.mdb") || store_being_made(entry.path())) continue;
+      auto left = node::Node::open(entry.path());
+      // A copy of a node of the file (a backup kept here) is not one left behind.
+      if (!left || std::any_of(topo.nodes.begin(), topo.nodes.end(), [&](const NodeSpec& n) { return n.iri == left->iri(); }))
+        continue;
+      auto uplink = left->agent("uplink");
+      const auto waiting = uplink ? uplink->pending() : node::Result<std::uint64_t>(std::uint64_t{0});
+      if (waiting && *waiting > 0)
+        std::cout << "up: warning: the store " << entry.path().string() << " of <" << left->iri() << ">, a node not in "
+                  << topo.file.string() << ", holds " << *waiting << (*waiting == 1 ? " item" : " items")
+                  << " its parent never acknowledged: they go up only when a node of that IRI runs again (put it back "
+                     "in the file until its outbox is empty, as 'tahvel status' shows)\n";
+    }
+    ec.clear();
   }
   if (running > 0) return ask_to_apply(running, pid_file, topo.file);
   const std::size_t program_count = programs_of(topo, mine, state, here).size();

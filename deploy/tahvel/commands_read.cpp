@@ -241,8 +241,11 @@ int run_take(const Args& args) {
     fail("the store in " + args.positional(0) + " is on a read-only filesystem: it can be read, not written");
   // A store this user may read but whose directory it may not write (another user's node).
   const auto cannot_make = [&](const std::string& path) {
-    fail("take: cannot make its lock file " + std::filesystem::absolute(path).string() + ": " + std::strerror(errno) +
-         " (a take writes in the store's directory: run it as the store's owner)");
+    const int err = errno;
+    std::error_code ec;
+    const std::filesystem::path where = std::filesystem::absolute(path, ec);
+    fail("take: cannot make its lock file " + (ec ? path : where.string()) + ": " + std::strerror(err) +
+         (err == EACCES || err == EPERM ? " (a take writes in the store's directory: run it as the store's owner)" : ""));
   };
   if (lock.fd < 0) cannot_make(lock_path);
   // A program running as this agent (the shipped agents, `tahvel reason`) holds its agent lock

@@ -186,11 +186,13 @@ int run_init(const Args& args) {
   // A store's directory holds its own files only: one made inside it would be copied by every
   // copy of the outer store, and taken for the outer's leftovers by whoever tidies it.
   std::error_code ec;
-  const std::filesystem::path dir = std::filesystem::absolute(args.positional(0), ec).lexically_normal();
+  std::filesystem::path dir = std::filesystem::absolute(args.positional(0), ec).lexically_normal();
+  if (!dir.has_filename()) dir = dir.parent_path();  // "state/home1/", as a shell completes it
   for (std::filesystem::path up = dir.parent_path(); !ec && !up.empty(); up = up.parent_path()) {
-    if (std::filesystem::exists(up / "data.mdb", ec))
+    if (std::filesystem::is_regular_file(up / "data.mdb", ec) && std::filesystem::file_size(up / "data.mdb", ec) > 0 && !ec)
       fail("init: " + args.positional(0) + " lies inside the store at " + up.string() +
-           "; make the new store in a directory outside it");
+           " (it holds a data.mdb); make the new store in a directory outside it");
+    ec.clear();
     if (up == up.root_path()) break;
   }
   node::Node node = check(node::Node::init(args.positional(0), options));
@@ -235,7 +237,7 @@ void warn_of_unreadable_geometry(const std::vector<node::Triple>& triples, const
                 << "> geo:asWKT: " << (why.empty() ? read_anyway : why + " (the feature is skipped when the floor plan is read)")
                 << "\n";
   }
-  if (warned > 20) std::cerr << "tahvel: warning: " << warned - 20 << " more geometries that will not read\n";
+  if (warned > 20) std::cerr << "tahvel: warning: " << warned - 20 << " more geometries warned of\n";
 }
 
 // An item addressed (R18) to an agent nothing on this node knows waits in that agent's input

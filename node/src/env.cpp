@@ -538,12 +538,15 @@ constexpr std::string_view kInitDirPrefix = ".init-";
 // Directories that inits killed before they finished left in `dir` (their process is gone).
 void remove_abandoned_inits(const std::filesystem::path& dir) {
   std::error_code ec;
-  for (const auto& entry : std::filesystem::directory_iterator(dir, ec)) {
-    const std::string name = entry.path().filename().string();
+  // increment(ec): a directory removed while listed ends the walk, not with an exception.
+  for (auto entry = std::filesystem::directory_iterator(dir, ec); !ec && entry != std::filesystem::directory_iterator();
+       entry.increment(ec)) {
+    const std::string name = entry->path().filename().string();
     if (!name.starts_with(kInitDirPrefix)) continue;
     const long pid = std::strtol(name.c_str() + kInitDirPrefix.size(), nullptr, 10);
     if (pid > 0 && (kill(static_cast<pid_t>(pid), 0) == 0 || errno != ESRCH)) continue;
-    std::filesystem::remove_all(entry.path(), ec);
+    std::error_code removing;
+    std::filesystem::remove_all(entry->path(), removing);
   }
 }
 

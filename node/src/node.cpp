@@ -422,7 +422,8 @@ Result<std::vector<std::uint64_t>> Agent::store_all(const std::vector<Item>& ite
 }
 
 Result<StoredSubscriptions> Agent::store_subscriptions(const std::vector<Item>& subscriptions,
-                                                       std::span<const std::uint64_t> missed_after) noexcept {
+                                                       std::span<const std::uint64_t> missed_after,
+                                                       std::uint64_t older_than) noexcept {
   if (!impl_) return moved_from();
   if (missed_after.size() != subscriptions.size())
     return fail(Errc::invalid_argument, "store_subscriptions: " + std::to_string(subscriptions.size()) + " items but " +
@@ -432,7 +433,7 @@ Result<StoredSubscriptions> Agent::store_subscriptions(const std::vector<Item>& 
   auto ids = impl_->write_items({}, subscriptions, [&](Txn& txn, std::span<const std::uint64_t> new_ids) -> Result<void> {
     std::vector<detail::MissedSince> missed;
     for (std::size_t i = 0; i < new_ids.size(); ++i) missed.push_back({new_ids[i], missed_after[i]});
-    auto delivered = detail::deliver_missed(txn, missed, new_ids.front());
+    auto delivered = detail::deliver_missed(txn, missed, older_than != 0 ? older_than : new_ids.front());
     if (!delivered) return unexpected(delivered.error());
     stored.caught_up = *delivered;
     return {};

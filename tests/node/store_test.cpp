@@ -802,6 +802,14 @@ TEST(Store, AStoreFullOfPagesAnOldSnapshotPinsNamesThatReader) {
     char go = 0;
     _exit(write(held[1], &ok, 1) == 1 && read(release[0], &go, 1) >= 0 ? 0 : 1);
   }
+  struct AtEnd {  // the reader does not wait for ever when an assertion below ends the test
+    pid_t reader;
+    ~AtEnd() {
+      if (reader <= 0) return;  // reaped already (kill(-1) would signal every process)
+      kill(reader, SIGKILL);
+      waitpid(reader, nullptr, 0);
+    }
+  } reaped{reader};
   char ok = 0;
   ASSERT_EQ(read(held[0], &ok, 1), 1);
   ASSERT_EQ(ok, 'y');
@@ -820,6 +828,7 @@ TEST(Store, AStoreFullOfPagesAnOldSnapshotPinsNamesThatReader) {
   EXPECT_EQ(write(release[1], &go, 1), 1);
   int status = 0;
   waitpid(reader, &status, 0);
+  reaped.reader = 0;  // reaped: nothing for the guard to do
   ASSERT_FALSE(last);
   EXPECT_EQ(last.error().code, Errc::store_full);
   EXPECT_NE(last.error().message.find("a snapshot that process " + std::to_string(reader) + " ("), std::string::npos)

@@ -315,13 +315,20 @@ Result<AreaSyncReport> sync_area_subscriptions(node::Node& node,
     } else if (refused_item(stored.error())) {
       // One declaration's expansion the node will not take (what parse_declaration does not
       // foresee) must not hold up the others': each alone, the refused ones said.
+      // Older than this sync's expansions is older than the first stored: one stored before
+      // another in this loop must not count as routing what the other missed.
+      std::uint64_t first_of_sync = 0;
       for (std::size_t i = 0; i < to_add.size(); ++i) {
-        auto one = keeper->store_subscriptions({to_add[i]}, std::span(&in_force_after[i], 1));
-        if (one) ++report.added, report.caught_up += one->caught_up;
-        else if (refused_item(one.error()))
+        auto one = keeper->store_subscriptions({to_add[i]}, std::span(&in_force_after[i], 1), first_of_sync);
+        if (one) {
+          ++report.added, report.caught_up += one->caught_up;
+          if (first_of_sync == 0) first_of_sync = one->ids.front();
+        } else if (refused_item(one.error())) {
           report.problems.push_back("area subscription " + std::to_string(added_for[i].first) + " of <" +
                                     added_for[i].second + ">: its expansion was refused: " + one.error().message);
-        else return store_error(one.error());
+        } else {
+          return store_error(one.error());
+        }
       }
     } else {
       return store_error(stored.error());

@@ -294,10 +294,13 @@ class Agent {
   // each one's subscriber the items with an id after `missed_after[i]` (one per item; 0: from
   // the first) that it matches, unless the subscriber got them, or has them coming, anyway (one
   // of its subscriptions older than these routes them, or they are addressed to it, R18) or
-  // they are there already; oldest first. A crash leaves both done or neither. Errors: those of
-  // store_all; invalid_argument when the two lists differ in length.
+  // they are there already; oldest first. Older than these: below `older_than`, or (0) than the
+  // first of them (a caller storing one sync's subscriptions in parts gives the first part's
+  // first id). A crash leaves both done or neither. Errors: those of store_all;
+  // invalid_argument when the two lists differ in length.
   Result<StoredSubscriptions> store_subscriptions(const std::vector<Item>& subscriptions,
-                                                  std::span<const std::uint64_t> missed_after) noexcept;
+                                                  std::span<const std::uint64_t> missed_after,
+                                                  std::uint64_t older_than = 0) noexcept;
 
   // Removes the records matching each of `removals` (as Node::remove with cascade 0) and stores
   // `items` (as store_all), in one transaction: a reader sees the old records or the new ones,
