@@ -3,6 +3,7 @@
 #include <unistd.h>
 
 #include <algorithm>
+#include <cstdio>
 #include <cstdlib>
 #include <filesystem>
 #include <fstream>
@@ -31,6 +32,22 @@ std::string where(const toml::node& n, const std::filesystem::path& file) {
 }
 
 std::optional<std::uint32_t> lcm_udp_port(const std::string& url);
+
+// `value` in double quotes for an error message, its control characters as \xNN: the message
+// stays on one line whatever the file held.
+std::string in_quotes(std::string_view value) {
+  std::string out = "\"";
+  for (char c : value) {
+    if (static_cast<unsigned char>(c) < 0x20 || c == 0x7f || c == '"' || c == '\\') {
+      char escaped[8];
+      std::snprintf(escaped, sizeof escaped, "\\x%02X", static_cast<unsigned char>(c));
+      out += escaped;
+    } else {
+      out += c;
+    }
+  }
+  return out + "\"";
+}
 
 // A misspelt key would otherwise be skipped and its default used (`durabilty = "durable"` a fast
 // store), so every table accepts only the keys it knows.
@@ -106,8 +123,11 @@ node::Result<LinkSpec> link_spec(const toml::table& t, const std::filesystem::pa
     return Unexpected<node::Error>{ok.error()};
   LinkSpec spec;
   TAHVEL_TRY(kind, typed<std::string>(t, "kind", file, what, "\"lcm\" or \"dds\""));
-  if (!kind || (*kind != "lcm" && *kind != "dds"))
-    return node::fail(Errc::invalid_argument, where(t, file) + ": " + what + "kind must be \"lcm\" or \"dds\"");
+  if (!kind)
+    return node::fail(Errc::invalid_argument, where(t, file) + ": " + what + "kind is missing: write kind = \"lcm\" or \"dds\"");
+  if (*kind != "lcm" && *kind != "dds")
+    return node::fail(Errc::invalid_argument, where(*t.get("kind"), file) + ": " + what + "kind is " + in_quotes(*kind) +
+                                                  ": it must be \"lcm\" or \"dds\"");
   spec.kind = *kind;
   TAHVEL_TRY(url, typed<std::string>(t, "url", file, what, "a string (an LCM URL such as \"udpm://239.255.76.67:7667?ttl=0\")"));
   TAHVEL_TRY(domain, typed<std::int64_t>(t, "domain", file, what, "an integer 0..232"));
@@ -424,7 +444,7 @@ node::Result<Topology> load_topology(const std::filesystem::path& file) {
     spec.up = up.value_or("");
     spec.up_at = t->get("up") ? where(*t->get("up"), file) : spec.at;
     if (up && *up != "lcm" && *up != "dds")
-      return node::fail(Errc::invalid_argument, spec.up_at + ": " + what + "up must be \"lcm\" or \"dds\"");
+      return node::fail(Errc::invalid_argument, spec.up_at + ": " + what + "up is " + in_quotes(*up) + ": it must be \"lcm\" or \"dds\"");
     // `listen = { ... }` or, for a node that serves children on both kinds, an array of them.
     if (const toml::node* listen = t->get("listen")) {
       std::vector<const toml::table*> tables;

@@ -3640,7 +3640,11 @@ TEST_F(Cli, UpRefusesATopologyThatCouldNotRunAsWrittenNamingWhatAndWhere) {
        "t.toml:5:1: node 'home1': its parent 'hospital' listens on lcm and dds; say which this node links over: up = \"lcm\" or up = \"dds\""},
       {listening + "[[node]]\nid = \"home1\"\nparent = \"hospital\"\nup = \"lcm\"\n",
        "t.toml:8:6: node 'home1': up = \"lcm\", but its parent 'hospital' listens on dds only"},
-      {listening + "[[node]]\nid = \"home1\"\nparent = \"hospital\"\nup = \"udp\"\n", "t.toml:8:6: node 'home1': up must be \"lcm\" or \"dds\""},
+      {listening + "[[node]]\nid = \"home1\"\nparent = \"hospital\"\nup = \"udp\"\n", "t.toml:8:6: node 'home1': up is \"udp\": it must be \"lcm\" or \"dds\""},
+      // The value the file holds is quoted, escaped: a typo is seen, not only that there is one.
+      {hospital + "listen = { kind = \"DDS\" }\n", "t.toml:4:19: node 'hospital': listen.kind is \"DDS\": it must be \"lcm\" or \"dds\""},
+      {hospital + "listen = { kind = \"d\\u001bs\" }\n", "node 'hospital': listen.kind is \"d\\x1Bs\": it must be"},
+      {hospital + "listen = { url = \"udpm://239.255.76.67:7667?ttl=0\" }\n", "t.toml:4:10: node 'hospital': listen.kind is missing: write kind = \"lcm\" or \"dds\""},
       {hospital + "up = \"dds\"\n", "t.toml:4:6: node 'hospital': up = \"dds\", but it has no parent to link to"},
       {hospital + "forward = [\"_ a tv:EcgChunk\"]\n", "t.toml:4:11: node 'hospital': forward, but it has no parent to forward to"},
       {hospital + "[[node]]\nid = \"annex\"\niri = \"http://example.org/hospital/annex\"\n",
