@@ -73,6 +73,15 @@ uri::PrefixMap prefixes_with_flags(uri::PrefixMap base, const Args& args);
 // The agent id of --agent (default `fallback`), checked (usage error naming --agent).
 std::string agent_id(const Args& args, std::string_view fallback);
 
+// Whether anything on `node`'s board (read in `snapshot`) knows its agent `agent` (an IRI): it
+// subscribes, anything is said of it (a child node's state, a problem), or it or an agent under
+// it has written. An item addressed (R18) to an agent nothing knows waits in its input buffer
+// until one comes: a home not yet deployed, or a typo, waits for ever. True when the board
+// cannot be read (the store itself says what is wrong).
+bool board_knows_agent(const node::Snapshot& snapshot, const std::string& agent);
+// The ids of the child nodes whose states `node`'s board keeps (docs/protocol.md P12).
+std::vector<std::string> child_nodes_known(const node::Node& node, const node::Snapshot& snapshot);
+
 // --- terms and patterns ---------------------------------------------------------------------
 
 enum class Position { subject, predicate, object, any };

@@ -18,6 +18,7 @@
 #include <fstream>
 #include <iostream>
 #include <iterator>
+#include <set>
 #include <sstream>
 #include <streambuf>
 #include <thread>
@@ -214,6 +215,27 @@ uri::PrefixMap prefixes_with_flags(uri::PrefixMap base, const Args& args) {
     if (!added) bad_value("--prefix", added.error().message);
   }
   return base;
+}
+
+bool board_knows_agent(const node::Snapshot& snapshot, const std::string& agent) {
+  const node::Term who = node::Term::iri(agent);
+  auto any = [&](const node::Pattern& pattern) {  // stops at the first: an index lookup
+    bool found = false;
+    auto read = snapshot.for_each(pattern, [&](const node::Record&) { return !(found = true); });
+    return found || !read;  // a read error is not the user's mistake
+  };
+  return any({.s = who}) || any({.p = node::Term::iri(std::string(uri::kTahvelNs) + "subscriber"), .o = who}) ||
+         any({.source = agent});
+}
+
+std::vector<std::string> child_nodes_known(const node::Node& node, const node::Snapshot& snapshot) {
+  std::set<std::string> children;
+  auto listed = snapshot.list({.p = node::Term::iri(std::string(uri::kTahvelNs) + "linkState")});
+  if (listed)
+    for (const node::Record& r : *listed)
+      if (r.triple.s.is_iri() && node.addressee(r.triple.s.value) == r.triple.s.value)
+        children.insert(r.triple.s.value.substr(node.iri().size() + (node.iri().ends_with('/') ? 0 : 1)));
+  return {children.begin(), children.end()};
 }
 
 std::string agent_id(const Args& args, std::string_view fallback) {

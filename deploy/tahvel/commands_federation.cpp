@@ -2483,6 +2483,9 @@ struct StatusNode {
   bool has_parent = false;
   // Problems the node's programs report on its board (node::kProblem), by agent IRI.
   std::map<std::string, Problem> problems;
+  // Input buffers of agents nothing on a local node knows (board_knows_agent, and no program of
+  // its runs as them): items addressed to a home not deployed, or to a typo, wait there for ever.
+  std::vector<node::InputBufferSummary> waiting_for_unknown;
 };
 
 // The problems on a board: records of node::kProblem and node::kProblemPid that an agent of
@@ -2786,6 +2789,9 @@ int run_status(const Args& args) {
     nodes.back().has_parent = (policy && *policy > 0) || (parent && *parent > 0);
     for (const std::string& p : {node::kProblem, node::kProblemPid})
       if (auto records = snap->list({.p = node::Term::iri(p)})) read_problems(*records, node->iri(), nodes.back().problems);
+    if (auto buffers = snap->input_buffers())
+      for (node::InputBufferSummary& buffer : *buffers)
+        if (!board_knows_agent(*snap, buffer.agent)) nodes.back().waiting_for_unknown.push_back(std::move(buffer));
   }
   if (ec) fail(state.string() + ": " + ec.message());
   if (nodes.empty() && unopened.empty())
@@ -2889,8 +2895,18 @@ int run_status(const Args& args) {
         n.programs.back().name.erase(0, slash + 1);
       }
   }
-  for (StatusNode& n : nodes)
-    if (!n.remote) attach_problems(n.programs, n.iri, n.problems);
+  for (StatusNode& n : nodes) {
+    if (n.remote) continue;
+    attach_problems(n.programs, n.iri, n.problems);
+    // A program that runs as the agent takes what waits for it (it has not subscribed yet).
+    std::erase_if(n.waiting_for_unknown, [&](const node::InputBufferSummary& buffer) {
+      return std::any_of(n.programs.begin(), n.programs.end(),
+                         [&](const ProgramRow& p) {
+                           auto iri = uri::agent_iri(n.iri, p.name);
+                           return iri && *iri == buffer.agent;
+                         });
+    });
+  }
   const std::optional<std::set<std::string>>& deployed = supervised;
   auto in_deployment = [&](const std::string& id) { return !deployed || deployed->count(id) > 0 || gone.count(id) > 0; };
   // What a store left behind by a node taken out of the file kept of its children is not news.
@@ -3086,7 +3102,13 @@ int run_status(const Args& args) {
       print_json_string_or_null(n.children_unknown_because);
       std::cout << ",\"store_warning\":";
       print_json_string_or_null(n.store_warning);
-      std::cout << "}";
+      std::cout << ",\"waiting_for_unknown\":[";
+      for (std::size_t i = 0; i < n.waiting_for_unknown.size(); ++i) {
+        const node::InputBufferSummary& w = n.waiting_for_unknown[i];
+        std::cout << (i ? "," : "") << "{\"agent\":\"" << node::json_escape(w.agent) << "\",\"items\":" << w.waiting
+                  << ",\"oldest_asserted_at_ns\":" << w.oldest_asserted_at << "}";
+      }
+      std::cout << "]}";
       continue;
     }
     std::string indent(depth * 2, ' ');
@@ -3133,6 +3155,11 @@ int run_status(const Args& args) {
       std::cout << "  (root)";
     std::cout << "\n";
     if (!n.store_warning.empty()) std::cout << indent << "  STORE " << n.store_warning << "\n";
+    for (const node::InputBufferSummary& w : n.waiting_for_unknown)
+      std::cout << indent << "  WAITING " << w.waiting << " item(s) addressed to <" << w.agent
+                << ">, which nothing on this node knows (no child node of that IRI has registered, and no agent of it "
+                   "runs, subscribes or has said anything), the oldest written "
+                << age_of(w.oldest_asserted_at) << ": they wait in its input buffer until one takes them\n";
     if (n.remote && !programs_unknown_because.empty() && programs_unknown_because == n.children_unknown_because) {
       std::cout << indent << "  programs and children unknown: " << programs_unknown_because << "\n";
     } else {

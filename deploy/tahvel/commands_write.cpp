@@ -250,24 +250,9 @@ void warn_of_unknown_addressee(const node::Node& node, const node::Item& item, c
   const std::optional<std::string> agent = node.addressee(item.context);
   if (!agent || *agent == writer.iri()) return;  // R18: never its own item's addressee
   auto snapshot = node.snapshot();
-  if (!snapshot) return;  // the store itself will say what is wrong
-  const node::Term who = node::Term::iri(*agent);
-  auto any = [&](const node::Pattern& pattern) {  // stops at the first: an index lookup
-    bool found = false;
-    auto read = snapshot->for_each(pattern, [&](const node::Record&) { return !(found = true); });
-    return found || !read;  // a read error is not the user's mistake
-  };
-  const std::string tv(uri::kTahvelNs);
-  // Known if anything is said of it, it subscribes, or it (or an agent under it) has written.
-  if (any({.s = who}) || any({.p = node::Term::iri(tv + "subscriber"), .o = who}) || any({.source = *agent})) return;
-  std::set<std::string> children;  // the child nodes' states name them (docs/protocol.md P12)
-  auto listed = snapshot->list({.p = node::Term::iri(tv + "linkState")});
-  if (listed)
-    for (const node::Record& r : *listed)
-      if (r.triple.s.is_iri() && node.addressee(r.triple.s.value) == r.triple.s.value)
-        children.insert(r.triple.s.value.substr(node.iri().size() + (node.iri().ends_with('/') ? 0 : 1)));
+  if (!snapshot || board_knows_agent(*snapshot, *agent)) return;
   std::string known;
-  for (const std::string& child : children) known += (known.empty() ? "" : ", ") + child;
+  for (const std::string& child : child_nodes_known(node, *snapshot)) known += (known.empty() ? "" : ", ") + child;
   std::cerr << "tahvel: warning: --context <" << item.context << "> addresses <" << *agent
             << ">, which nothing on this node knows (no child node of that IRI has registered, and no agent of it runs, "
                "subscribes or has said anything): the item waits in its input buffer until one takes it"

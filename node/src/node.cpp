@@ -218,6 +218,38 @@ Result<std::vector<PredicateSummary>> Snapshot::predicates() const {
   return out;
 }
 
+Result<std::vector<InputBufferSummary>> Snapshot::input_buffers() const {
+  MDB_txn* txn = impl_->txn;
+  const Env& env = *impl_->env;
+  MDB_cursor* cursor = nullptr;
+  if (int rc = mdb_cursor_open(txn, env.inbox, &cursor); rc != 0) return lmdb_fail(rc, "reading the input buffers");
+  struct Close {
+    MDB_cursor* c;
+    ~Close() { mdb_cursor_close(c); }
+  } close{cursor};
+  TermReader terms(txn, env);
+  std::vector<InputBufferSummary> out;
+  MDB_val key, first;
+  for (int rc = mdb_cursor_get(cursor, &key, &first, MDB_FIRST); rc != MDB_NOTFOUND;
+       rc = mdb_cursor_get(cursor, &key, &first, MDB_NEXT_NODUP)) {
+    if (rc != 0) return lmdb_fail(rc, "reading the input buffers");
+    InputBufferSummary summary;
+    auto iri = terms.iri(u64(key));
+    if (!iri) return unexpected(iri.error());
+    summary.agent = std::move(*iri);
+    std::size_t waiting = 0;
+    if (int c = mdb_cursor_count(cursor, &waiting); c != 0) return lmdb_fail(c, "counting an input buffer");
+    summary.waiting = waiting;
+    summary.oldest_item = u64(first);
+    auto item = get_item(txn, env, summary.oldest_item);
+    if (!item) return unexpected(item.error());
+    if (*item) summary.oldest_asserted_at = (*item)->asserted_at;
+    out.push_back(std::move(summary));
+  }
+  std::sort(out.begin(), out.end(), [](const InputBufferSummary& a, const InputBufferSummary& b) { return a.agent < b.agent; });
+  return out;
+}
+
 Result<std::vector<Record>> Snapshot::item(std::uint64_t item_id) const {
   return item_records(impl_->txn, *impl_->env, item_id);
 }

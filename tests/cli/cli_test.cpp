@@ -3085,7 +3085,7 @@ TEST_F(Cli, StatusJsonHasEachNodesLinkAndPrograms) {
       << json.out;
   // A local node's programs come from its supervisor's state file: known, and written nowhere.
   EXPECT_TRUE(json.out.ends_with("}],\"programs_known\":true,\"programs_unknown_because\":null,\"programs_written_ns\":null,"
-                                  "\"children_unknown_because\":null,\"store_warning\":null}]}\n"))
+                                  "\"children_unknown_because\":null,\"store_warning\":null,\"waiting_for_unknown\":[]}]}\n"))
       << json.out;
   EXPECT_EQ(run({"down", "--state", state}).status, 0);
 }
@@ -4283,6 +4283,40 @@ TEST_F(Cli, AProgramThatDiedWhileItsSupervisorIsStoppedIsShownExitedNotRunning) 
 
 // A child renamed in the file is a new node (its IRI is its parent's + its id): the old store
 // stays with what its outbox held, which never went up, and nothing said so.
+// Configuration addressed to a home that does not exist (a typo, or one not yet deployed) waits
+// in that agent's input buffer for ever: `put` warns once, and `status` said nothing after.
+// It names the addressee, how many wait and since when, until something on the node knows it.
+TEST_F(Cli, StatusNamesItemsWaitingForAnAgentNothingOnTheNodeKnows) {
+  const std::string state = (tmp_ / "state").string();
+  const std::string store = state + "/hospital";
+  ASSERT_EQ(run({"init", store, "--iri", "http://example.org/hospital"}).status, 0);
+  const std::string config = "<http://example.org/cfg> <http://example.org/windowS> \"120\" .\n";
+  for (int i = 0; i < 2; ++i)
+    ASSERT_EQ(run({"put", store, "--context", "http://example.org/hospital/home9/hrv", "-"}, config).status, 0);
+  // Addressed to a known agent (it subscribes): no line for it.
+  ASSERT_EQ(run({"subscribe", store, "--agent", "trend", "-p", "http://example.org/windowS"}).status, 0);
+  ASSERT_EQ(run({"put", store, "--context", "http://example.org/hospital/trend", "-"}, config).status, 0);
+
+  Outcome text = run({"status", "--state", state});
+  EXPECT_EQ(text.status, 0) << text.err;
+  EXPECT_NE(text.out.find("  WAITING 2 item(s) addressed to <http://example.org/hospital/home9>, which nothing on this node "
+                          "knows"),
+            std::string::npos)
+      << text.out;
+  EXPECT_EQ(text.out.find("hospital/trend>"), std::string::npos) << text.out;
+  Outcome json = run({"status", "--state", state, "--json"});
+  EXPECT_NE(json.out.find("\"waiting_for_unknown\":[{\"agent\":\"http://example.org/hospital/home9\",\"items\":2,"
+                          "\"oldest_asserted_at_ns\":"),
+            std::string::npos)
+      << json.out;
+
+  // Once the agent is known (here it subscribes), the items are its backlog, not lost mail.
+  ASSERT_EQ(run({"subscribe", store, "--agent", "home9", "-p", "http://example.org/windowS"}).status, 0);
+  text = run({"status", "--state", state});
+  EXPECT_EQ(text.out.find("WAITING"), std::string::npos) << text.out;
+  EXPECT_NE(run({"status", "--state", state, "--json"}).out.find("\"waiting_for_unknown\":[]"), std::string::npos);
+}
+
 TEST_F(Cli, UpSaysWhatTheOutboxOfANodeNoLongerInTheFileHolds) {
   const std::string state = (tmp_ / "state").string();
   const std::string head = "[[node]]\nid = \"hospital\"\niri = \"http://example.org/renaming\"\n"

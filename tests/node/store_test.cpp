@@ -1647,6 +1647,42 @@ TEST(Store, PredicatesSayHowManyRecordsAndWhenTheFirstAndLastStoredWereAsserted)
   EXPECT_EQ((*held)[1].last_asserted_at, 50'000'000'000LL);
 }
 
+// What waits for whom, for an operator: an item addressed to an agent that never comes (a home
+// not deployed) shows among the input buffers, with its age, beside a reader's backlog.
+TEST(Store, InputBuffersSayWhatWaitsForEachAgentAndSinceWhen) {
+  TempDir dir;
+  Node node = make_node(dir.path());
+  auto writer = node.agent("writer");
+  auto hrv = node.agent("hrv");
+  ASSERT_TRUE(hrv->subscribe({.p = ex("rr")}));
+  EXPECT_TRUE(node.snapshot().value().input_buffers().value().empty());
+  std::vector<std::uint64_t> beats;
+  for (int i = 0; i < 3; ++i) {
+    Item beat;
+    beat.asserted_at = 1'000'000'000LL * (200 + i);
+    beat.add(ex("beat" + std::to_string(i)), ex("rr"), Term::integer(800 + i));
+    beats.push_back(writer->store(beat).value());
+  }
+  Item window;
+  window.asserted_at = 1'000'000'000LL * 100;
+  window.context = testing::kNodeIri + "/ghost/hrv";  // R18: waits in agent ghost's buffer
+  window.add(ex("config"), ex("windowS"), Term::integer(120));
+  const std::uint64_t addressed = writer->store(window).value();
+  ASSERT_EQ(hrv->take(std::chrono::milliseconds(0)).value()->item, beats[0]);
+
+  auto buffers = node.snapshot().value().input_buffers();
+  ASSERT_TRUE(buffers) << buffers.error().message;
+  ASSERT_EQ(buffers->size(), 2u);
+  EXPECT_EQ((*buffers)[0].agent, testing::kNodeIri + "/ghost");  // in IRI order
+  EXPECT_EQ((*buffers)[0].waiting, 1u);
+  EXPECT_EQ((*buffers)[0].oldest_item, addressed);
+  EXPECT_EQ((*buffers)[0].oldest_asserted_at, 100'000'000'000LL);
+  EXPECT_EQ((*buffers)[1].agent, testing::kNodeIri + "/hrv");
+  EXPECT_EQ((*buffers)[1].waiting, 2u);
+  EXPECT_EQ((*buffers)[1].oldest_item, beats[1]);
+  EXPECT_EQ((*buffers)[1].oldest_asserted_at, 201'000'000'000LL);
+}
+
 TEST(Store, OutputBufferListsWhatTheAgentWrote) {
   TempDir dir;
   Node node = make_node(dir.path());

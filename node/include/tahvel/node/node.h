@@ -126,6 +126,14 @@ struct CheckReport {
   std::uint64_t problems_found = 0;  // all of them (problems holds up to max_problems)
 };
 
+// One agent's input buffer (Snapshot::input_buffers).
+struct InputBufferSummary {
+  std::string agent;                   // IRI
+  std::uint64_t waiting = 0;           // items in it
+  std::uint64_t oldest_item = 0;       // the first take() would return
+  std::int64_t oldest_asserted_at = 0; // of that item, ns since the epoch
+};
+
 struct PredicateSummary {
   std::string predicate;  // IRI
   std::uint64_t records = 0;
@@ -165,6 +173,11 @@ class Snapshot {
   // for data stored as it happens, such as a sensor's, its time range). Costs two record
   // lookups per distinct predicate, not a scan: an operator may ask a large store for it.
   Result<std::vector<PredicateSummary>> predicates() const;
+
+  // Every input buffer that holds an item, in agent IRI order: how many wait and the oldest.
+  // For an operator's "what waits for whom", an item addressed to an agent that never comes
+  // among them; one lookup per agent, not a scan of the items.
+  Result<std::vector<InputBufferSummary>> input_buffers() const;
 
   // All current records of one item, in id order. Error not_found when none remain.
   Result<std::vector<Record>> item(std::uint64_t item_id) const;
