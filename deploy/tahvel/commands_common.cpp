@@ -719,8 +719,15 @@ std::int64_t time_flag(std::string_view flag, const std::string& text) {
     ++at;
     std::int64_t scale = 100'000'000;
     const std::size_t first = at;
-    for (; at < text.size() && text[at] >= '0' && text[at] <= '9'; ++at, scale /= 10) fraction += (text[at] - '0') * scale;
+    bool below_ns = false;  // a digit past the ninth that is not 0
+    for (; at < text.size() && text[at] >= '0' && text[at] <= '9'; ++at, scale /= 10) {
+      fraction += (text[at] - '0') * scale;
+      below_ns = below_ns || (scale == 0 && text[at] != '0');
+    }
     if (at == first) usage_error(what + "a '.' needs digits after it");
+    // Records are stamped in whole ns: the first at or after T (--since), and the first not
+    // before T (--until's bound), is T rounded up; cut off, --since took a record before T.
+    if (below_ns) ++fraction;
   } else if (at < text.size() && text[at] == ',') {
     usage_error(what + "write the fraction after a '.', not a ','");
   }
@@ -759,7 +766,7 @@ std::int64_t time_flag(std::string_view flag, const std::string& text) {
     if (!known && !possible)
       usage_error(what + "second 60 exists only as a leap second (23:59:60 UTC on a day one was inserted, such as 2016-12-31)");
   }
-  return utc_s * 1'000'000'000 + fraction;
+  return utc_s * 1'000'000'000 + fraction;  // a fraction rounded up to 1 s carries into the seconds
 }
 
 std::string seconds_text(double seconds) {

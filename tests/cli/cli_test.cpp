@@ -3223,6 +3223,27 @@ TEST_F(Cli, QueryTimesAreCheckedAndHonourTheirOffset) {
   r = query("--since", "2262-04-11T23:47:16.854775808Z");
   EXPECT_EQ(r.status, 2);
   EXPECT_NE(r.err.find("outside the times a record can have"), std::string::npos) << r.err;
+  // Digits past the ninth round up to the next whole ns: cut off, "--since T" took the record
+  // stamped a fraction of a ns before T.
+  EXPECT_EQ(query("--since", "2262-04-11T23:47:16.8547758069Z").status, 0);
+  EXPECT_EQ(query("--since", "2262-04-11T23:47:16.8547758071Z").status, 2);
+  {
+    const std::string json = run({"list", node_, "--format", "json"}).out;
+    const std::size_t at = json.find("\"asserted_at\":");
+    ASSERT_NE(at, std::string::npos) << json;
+    const std::int64_t ns = std::stoll(json.substr(at + 14));
+    const std::time_t whole = static_cast<std::time_t>(ns / 1'000'000'000);
+    std::tm utc{};
+    gmtime_r(&whole, &utc);
+    char text[64];
+    std::snprintf(text, sizeof text, "%04d-%02d-%02dT%02d:%02d:%02d.%09lld", utc.tm_year + 1900, utc.tm_mon + 1, utc.tm_mday,
+                  utc.tm_hour, utc.tm_min, utc.tm_sec, static_cast<long long>(ns % 1'000'000'000));
+    const std::string stamp = text;
+    EXPECT_EQ(lines_of(query("--since", stamp + "Z").out).size(), 1u);
+    EXPECT_EQ(lines_of(query("--since", stamp + "1Z").out).size(), 0u) << "a tenth of a ns after the record";
+    EXPECT_EQ(lines_of(query("--until", stamp + "1Z").out).size(), 1u);
+    EXPECT_EQ(lines_of(query("--until", stamp + "Z").out).size(), 0u);
+  }
   // `date --rfc-3339=s` writes a space for the 'T', which RFC 3339 allows.
   EXPECT_EQ(lines_of(query("--since", rfc3339(std::chrono::minutes(-30), 1).replace(10, 1, " ")).out).size(), 1u);
   EXPECT_EQ(lines_of(query("--since", rfc3339(std::chrono::minutes(30), 1).replace(10, 1, " ")).out).size(), 0u);
