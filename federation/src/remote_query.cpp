@@ -79,8 +79,15 @@ std::string stopped_link(const std::string& self, pid_t pid) {
 }
 
 Unexpected<Error> timed_out(const std::string& target, std::chrono::milliseconds timeout, std::uint64_t delivered) {
-  return node::fail(Errc::timeout, "timeout: no complete answer from <" + target + "> within " + std::to_string(timeout.count()) +
-                                       " ms (" + std::to_string(delivered) + " records received)");
+  // In seconds, as --timeout is given: "2 s", "0.05 s".
+  std::string seconds = std::to_string(timeout.count() / 1000);
+  if (const auto ms = timeout.count() % 1000; ms != 0) {
+    std::string fraction = std::to_string(1000 + ms).substr(1);
+    fraction.erase(fraction.find_last_not_of('0') + 1);
+    seconds += "." + fraction;
+  }
+  return node::fail(Errc::timeout, "timeout: no complete answer from <" + target + "> within " + seconds + " s (" +
+                                       std::to_string(delivered) + " records received)");
 }
 
 // "; did you mean <…>?" for a child of the node whose IRI is `child` written with characters
