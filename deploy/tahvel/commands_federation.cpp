@@ -346,7 +346,8 @@ const Command kQueryCommand{
     "With --area the node that answers keeps the records located in a room or WKT area of its own\n"
     "floor plan (as 'tahvel list --area' does there; docs/spatial.md). --under names one\n"
     "recording's chunks where a node holds several patients' ('tahvel patients' prints it).\n"
-    "Exit status: 0 answered, 3 timeout, 4 unknown node, 5 unreachable node, 1 other failure.",
+    "Exit status: 0 answered, 3 timeout, 4 unknown node, 5 unreachable node, 2 usage error,\n"
+    "130 interrupted (the query is cancelled below), 1 other failure.",
     {{"--at", "", "NODE-IRI", "the node that answers (this node or any node below it)"},
      kFlagS, kFlagP, kFlagO, kFlagSource, kFlagUnder,
      {"--area", "", "IRI|WKT", "only records located in this room or (MULTI)POLYGON, resolved at the target"},

@@ -135,7 +135,7 @@ int run_list(const Args& args) {
     auto records = spatial::list_in_area(snapshot, pattern, *area, options, &skipped);
     if (!records) fail("--area: " + records.error().message);
     // A feature whose place cannot be read is in no area: say so, or it is silently missing.
-    for (const std::string& problem : skipped) std::cerr << "list: --area: feature skipped: " << problem << '\n';
+    for (const std::string& problem : skipped) std::cerr << "tahvel: list: warning: --area: feature skipped: " << problem << '\n';
     records_read = std::move(*records);
   } else {
     records_read = check(snapshot.list(pattern, options));

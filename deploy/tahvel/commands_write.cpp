@@ -525,7 +525,7 @@ int run_subscribe(const Args& args) {
     if (!board) fail("--area: " + board.error().message);
     if (auto resolved = spatial::resolve_area(*board, area); !resolved)
       fail("--area: " + resolved.error().message);
-    for (const std::string& problem : board->problems) std::cerr << "subscribe: --area: feature skipped: " << problem << '\n';
+    for (const std::string& problem : board->problems) std::cerr << "tahvel: subscribe: warning: --area: feature skipped: " << problem << '\n';
   }
   auto declaration = spatial::declare_area_subscription(node, agent, area, pattern);
   if (!declaration) fail("--area: " + declaration.error().message);

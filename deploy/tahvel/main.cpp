@@ -26,9 +26,7 @@ namespace {
 const Command kBenchCommand{
     "bench",
     "store|hrv|spatial|reason|federation [--json] [--quick] [...]",
-    "Run a benchmark: 'store' (node store vs peers), 'hrv' (ECG chain speed, bytes),\n"
-    "'spatial' (area queries: index vs brute force), 'reason' (reasoner sessions vs SWI-Prolog)\n"
-    "or 'federation' (link latency, ingest).",
+    "Run a benchmark: store, hrv, spatial, reason or federation (each against its peers).",
     "'store' measures Tahvel's store against SQLite and sord on the same records in the same run\n"
     "and prints ratios. 'hrv' measures the R-peak detector and the whole HRV chain as multiples\n"
     "of real time on one core over MIT-BIH records, raw bytes kept at home against HRV bytes\n"

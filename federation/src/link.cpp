@@ -2410,7 +2410,7 @@ struct Link::Impl {
       if (body->origin != self)
         out.error(opt.up.get(), opt.parent_iri, f.seq,
                   {"link_restarted", "<" + self + "> lost the answer to query " + std::to_string(f.seq) + " of <" + body->origin +
-                                         "> coming from <" + f.from + "> (its link restarted)", body->origin});
+                                         "> coming up through <" + f.from + "> (its link restarted)", body->origin});
       lock.unlock();
       return send_all(out);
     }

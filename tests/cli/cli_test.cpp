@@ -4869,6 +4869,14 @@ TEST_F(Cli, ListByAreaSelectsTheRoomsSensorReadings) {
   Outcome hall = run({"list", node_, "--area", "POLYGON((4 0, 8 0, 8 4, 4 4, 4 0))", "-p", "sosa:hasSimpleResult"});
   EXPECT_EQ(hall.status, 0) << hall.err;
   EXPECT_TRUE(hall.out.empty()) << hall.out;
+  // A feature whose place cannot be read is in no area: a warning, shaped as every warning is.
+  put("<room/bowtie> <http://www.opengis.net/ont/geosparql#hasGeometry> <room/bowtie/geometry> .\n"
+      "<room/bowtie/geometry> <http://www.opengis.net/ont/geosparql#asWKT> \"POLYGON((0 0, 10 0, 0 10, 10 10, 0 0))\" .\n",
+      {"--format", "ttl"});
+  hall = run({"list", node_, "--area", kNodeIri + "/room/hall"});
+  EXPECT_EQ(hall.status, 0) << hall.err;
+  EXPECT_EQ(hall.err.rfind("tahvel: list: warning: --area: feature skipped: " + kNodeIri + "/room/bowtie: WKT column", 0), 0u)
+      << hall.err;
   // A room the plan lacks is the query's mistake, exit 1, by list and by query of the node's own
   // store alike; a query answered here exited 4, which says "unknown node".
   for (const std::vector<std::string>& command :
