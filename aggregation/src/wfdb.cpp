@@ -13,6 +13,7 @@
 #include <filesystem>
 #include <fstream>
 #include <limits>
+#include <cstdio>
 #include <sstream>
 #include <system_error>
 
@@ -82,7 +83,19 @@ struct Where {
   int line;
   std::string field_error(const char* field, std::string_view value, const std::string& why) const {
     std::ostringstream m;
-    m << file << ":" << line << ": field '" << field << "' ('" << value << "'): " << why;
+    m << file << ":" << line << ": field '" << field << "' ('";
+    // A control character (a lone carriage return left by an editor) is shown as \xNN: printed
+    // raw, it made a valid-looking value the one at fault ('650000' on a terminal).
+    for (char c : value) {
+      if (static_cast<unsigned char>(c) < 0x20 || c == 0x7f) {
+        char escaped[8];
+        std::snprintf(escaped, sizeof escaped, "\\x%02X", static_cast<unsigned char>(c));
+        m << escaped;
+      } else {
+        m << c;
+      }
+    }
+    m << "'): " << why;
     return m.str();
   }
 };

@@ -566,6 +566,8 @@ TEST_F(WfdbTemp, RecordLineFieldsThatDoNotParseAreRefusedNamingTheField) {
       {"r 1 360 100000000000000000000", "r.hea:1: field 'number of samples per signal' ('100000000000000000000'): out of range: "
                                         "at most 9223372036854775807"},
       {"r 1 360 -5", "r.hea:1: field 'number of samples per signal' ('-5'): not a non-negative integer"},
+      // A lone carriage return inside the line is shown, not printed raw beside a valid number.
+      {"r 1 360 650000\r 10:00:00", "r.hea:1: field 'number of samples per signal' ('650000\\x0D'): not a non-negative integer"},
       {"r 99999999999 360 1", "r.hea:1: field 'number of signals' ('99999999999'): out of range: at most 2147483647"},
   };
   for (const auto& [line, expected] : refused) {
