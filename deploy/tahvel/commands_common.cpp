@@ -340,8 +340,12 @@ void warn_of_a_predicate_held_by_none(std::string_view command, const node::Patt
     return curie == iri ? "<" + iri + ">" : curie;
   };
   std::cerr << "tahvel: " << command << ": warning: " << where << " has no record with the predicate " << shown(asked);
+  auto counted = [](const node::PredicateSummary& p) {
+    return " (" + std::to_string(p.records) + (p.records == 1 ? " record)" : " records)");
+  };
   if (nearest)
-    std::cerr << "; did you mean " << shown(nearest->predicate) << " (" << nearest->records << (nearest->records == 1 ? " record" : " records") << ")?";
+    std::cerr << "; did you mean " << shown(nearest->predicate) << counted(*nearest)
+              << (match.as_near ? " or " + shown(match.as_near->predicate) + counted(*match.as_near) : std::string()) << "?";
   else std::cerr << ".";
   std::cerr << " 'tahvel stats DIR --predicates" << (where.starts_with("<") ? " --at NODE-IRI" : "") << "' lists what it holds\n";
 }

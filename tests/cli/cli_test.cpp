@@ -514,6 +514,10 @@ TEST_F(Cli, AnEmptyAnswerToAPredicateTheStoreHoldsNoneOfSaysSoWithTheNearest) {
   }
   EXPECT_NE(run({"list", node_, "-p", "sosa:rmssd"}).err.find("predicate sosa:rmssd; did you mean tv:rmssd (2 records)?"), std::string::npos);
   EXPECT_NE(run({"list", node_, "-p", "tv:heartRate"}).err.find("no record with the predicate tv:heartRate. 'tahvel stats"), std::string::npos);
+  // Two held predicates one edit away: both named, not the first in IRI order alone.
+  put("@prefix tv: <https://w3id.org/tahvel#> .\n<http://example.org/w> tv:sd1Ms 4.0 ; tv:sdnnMs 31.0 .\n");
+  EXPECT_NE(run({"list", node_, "-p", "tv:sdnMs"}).err.find("did you mean tv:sd1Ms (1 record) or tv:sdnnMs (1 record)?"),
+            std::string::npos);
   const Outcome held = run({"list", node_, "-p", "tv:rmssd", "-o", "99"});
   EXPECT_EQ(held.status, 0) << held.err;
   EXPECT_EQ(held.out + held.err, "");

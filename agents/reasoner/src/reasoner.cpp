@@ -252,10 +252,12 @@ void Reasoner::Impl::say_predicates_held_by_none(const node::Snapshot& snap, Ses
     const node::PredicateSummary* nearest = match.nearest;
     // A predicate that nothing on the board is near may simply not have come yet.
     if (match.held || !nearest) continue;
-    report.warnings.push_back(read.where + ": <" + read.iri + ">: no fact on the board has this predicate; did you mean <" +
-                              nearest->predicate + "> (" + std::to_string(nearest->records) +
-                              (nearest->records == 1 ? " record" : " records") +
-                              ")? Until one has it, what the rules read of it holds for nothing");
+    auto counted = [](const node::PredicateSummary& p) {
+      return "<" + p.predicate + "> (" + std::to_string(p.records) + (p.records == 1 ? " record)" : " records)");
+    };
+    report.warnings.push_back(read.where + ": <" + read.iri + ">: no fact on the board has this predicate; did you mean " +
+                              counted(*nearest) + (match.as_near ? " or " + counted(*match.as_near) : std::string()) +
+                              "? Until one has it, what the rules read of it holds for nothing");
   }
 }
 
