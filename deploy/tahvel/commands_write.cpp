@@ -379,7 +379,8 @@ int run_load(const Args& args) {
   uri::PrefixMap prefixes = prefixes_with_flags(node.prefixes(), args);
   const std::string& path = args.positional(1);
   node::Item frame = item_frame(args, prefixes);
-  std::uint64_t batch = std::max<std::uint64_t>(1, args.get_u64("--batch", 10000));
+  const std::uint64_t batch = args.get_u64("--batch", 10000);
+  if (batch == 0) usage_error("--batch: must be at least 1 (triples per transaction)");
   refuse_when_output_was_closed();  // after the usage errors (exit 2), before anything is written
   node::Agent agent = check(node.agent(agent_id(args, "cli")));
   std::vector<node::Item> items;

@@ -1514,6 +1514,10 @@ TEST_F(Cli, LoadStoresOneItemPerSubjectGroupAndPrintsTheTripleCount) {
        "_:x <http://example.org/q> \"2\" .\n"
        "<http://example.org/a> <http://example.org/p> \"3\" .\n"
        "<http://example.org/c> <http://example.org/p> _:x .\n");
+  // No transaction of 0 triples: refused before anything is read, not taken as 1.
+  Outcome zero = run({"load", node_, file.string(), "--batch", "0"});
+  EXPECT_EQ(zero.status, 2);
+  EXPECT_NE(zero.err.find("load: --batch: must be at least 1"), std::string::npos) << zero.err;
   Outcome r = run({"load", node_, file.string()});
   ASSERT_EQ(r.status, 0) << r.err;
   EXPECT_EQ(r.out, "5\n");
