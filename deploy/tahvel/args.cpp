@@ -4,6 +4,9 @@
 #include <algorithm>
 #include <charconv>
 #include <ostream>
+#include <vector>
+
+#include "tahvel/uri/spelling.h"
 
 namespace tahvel::cli {
 namespace {
@@ -66,6 +69,22 @@ std::size_t take_flag(const Command& command, std::span<const std::string> argv,
         const std::string_view long_name = short_flag->name.starts_with("--") ? short_flag->name : short_flag->alias;
         if (long_name.starts_with("--")) instead += " or '" + std::string(long_name) + "=" + value + "'";
       }
+    }
+    // A slip of a letter or two (--fromat, --lmit): the nearest flag, when one alone is that near.
+    if (instead.empty() && arg.starts_with("--") && arg.size() > 4) {
+      std::vector<std::string_view> names{"--help"};
+      if (command.takes_prefix) names.push_back("--prefix");
+      for (const Flag& f : command.flags)
+        for (std::string_view n : {f.name, f.alias})
+          if (n.starts_with("--")) names.push_back(n);
+      std::size_t best = arg.size() <= 6 ? 1 : 2;  // more edits than this is another word (a swap is two)
+      std::vector<std::string_view> nearest;
+      for (std::string_view n : names) {
+        const std::size_t d = uri::edit_distance(arg, n);
+        if (d < best) best = d, nearest.clear();
+        if (d == best) nearest.push_back(n);
+      }
+      if (nearest.size() == 1) instead = "; did you mean '" + std::string(nearest.front()) + "'?";
     }
     usage_error(prefix_of(command) + "unknown flag '" + std::string(arg) + "'" + instead + " (see 'tahvel " +
                 std::string(command.name) + " --help')");

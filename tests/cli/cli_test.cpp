@@ -540,6 +540,10 @@ TEST_F(Cli, UnknownFlagExits2NamingTheFlag) {
   // --json where the command says --format json, and the other way round.
   EXPECT_NE(run({"list", node_, "--json"}).err.find("unknown flag '--json'; give --format json"), std::string::npos);
   EXPECT_NE(run({"stats", node_, "--format", "json"}).err.find("unknown flag '--format'; give --json"), std::string::npos);
+  // A slip of a letter names the flag meant, when one alone is that near; another word does not.
+  EXPECT_NE(run({"list", node_, "--lmit", "3"}).err.find("unknown flag '--lmit'; did you mean '--limit'? (see"), std::string::npos);
+  EXPECT_NE(run({"list", node_, "--fromat=nt"}).err.find("unknown flag '--fromat'; did you mean '--format'?"), std::string::npos);
+  EXPECT_NE(run({"list", node_, "--colour"}).err.find("unknown flag '--colour' (see"), std::string::npos);
   // A short flag written with '=', which only long flags take.
   Outcome short_eq = run({"list", node_, "-p=sosa:x"});
   EXPECT_EQ(short_eq.status, 2);
