@@ -1937,12 +1937,21 @@ int run_up(const Args& args) {
       node::Node existing = check(node::Node::open(store));
       // Named where the file says it: the `iri`, or for a child that derives it, its `parent`.
       const std::string& changed_at = !spec->parent.empty() && spec->iri_at == spec->at ? spec->parent_at : spec->iri_at;
-      if (existing.iri() != spec->iri)
+      if (existing.iri() != spec->iri) {
+        // A home moved to another hospital: what its outbox holds was sent up as <old IRI>'s, and
+        // goes up only under that IRI, to the old parent; a new store starts with an empty one.
+        std::string outbox;
+        auto uplink = existing.agent("uplink");
+        if (const auto waiting = uplink ? uplink->pending() : node::Result<std::uint64_t>(std::uint64_t{0}); waiting && *waiting > 0)
+          outbox = "; its outbox holds " + std::to_string(*waiting) + (*waiting == 1 ? " item" : " items") +
+                   " its parent never acknowledged, which go up only under <" + existing.iri() +
+                   ">: to keep them, run it as before until 'tahvel status' shows its outbox empty, then move it";
         fail((changed_at.empty() ? topo.file.string() : changed_at) + ": node '" + spec->id + "': the store at " + store.string() + " is the node <" + existing.iri() + ">, the file says <" +
              spec->iri + "> (a changed iri or parent); " +
              "move that store away" +
              (running != 0 ? std::string(" (its node stops within a second; the others run on)") : std::string()) +
-             " and 'tahvel up' again, or give the node another id");
+             " and 'tahvel up' again, or give the node another id" + outbox);
+      }
       for (std::size_t i = 0; i < spec->forward.size(); ++i)
         warn_of_unknown_terms(*spec, i, forward_pattern_of(*spec, i, existing.prefixes()));
       for (const fs::path& file : spec->load) (void)load_file_triples(*spec, file, existing.prefixes(), topo);

@@ -4369,6 +4369,33 @@ TEST_F(Cli, UpSaysWhatTheOutboxOfANodeNoLongerInTheFileHolds) {
   EXPECT_EQ(run({"down", "--state", state}).status, 0);
 }
 
+// A home moved under another hospital changes IRI: `up` refuses its store, and says what its
+// outbox holds, which goes up only under the old IRI (moving the store away lost it unsaid).
+TEST_F(Cli, UpRefusingAHomeMovedToAnotherParentSaysWhatItsOutboxHolds) {
+  const std::string state = (tmp_ / "state").string();
+  const std::string home = "[[node]]\nid = \"home1\"\nparent = \"hospital\"\nforward = [\"_ <http://example.org/p> _\"]\n";
+  auto hospital = [](const std::string& iri) {
+    return "[[node]]\nid = \"hospital\"\niri = \"" + iri + "\"\nlisten = { kind = \"lcm\", url = \"udpm://239.255.79.60:7863?ttl=0\" }\n";
+  };
+  spit(tmp_ / "a.toml", hospital("http://example.org/north") + home);
+  spit(tmp_ / "b.toml", hospital("http://example.org/south") + home);
+  ASSERT_EQ(run({"up", (tmp_ / "a.toml").string(), "--state", state}).status, 0);
+  ASSERT_EQ(run({"down", "--state", state}).status, 0);
+  for (const char* value : {"1", "2"})  // the hospital is away: they wait in the outbox
+    ASSERT_EQ(run({"put", state + "/home1", "--format", "nt"}, std::string("<http://example.org/s> <http://example.org/p> \"") + value + "\" .\n").status, 0);
+  fs::remove_all(tmp_ / "state" / "hospital");  // the other hospital is another machine's
+  Outcome moved = run({"up", (tmp_ / "b.toml").string(), "--state", state});
+  EXPECT_NE(moved.status, 0);
+  EXPECT_NE(moved.err.find("node 'home1': the store at " + state + "/home1 is the node <http://example.org/north/home1>, the file says "
+                           "<http://example.org/south/home1> (a changed iri or parent)"),
+            std::string::npos) << moved.err;
+  EXPECT_NE(moved.err.find("; its outbox holds 2 items its parent never acknowledged, which go up only under "
+                           "<http://example.org/north/home1>: to keep them, run it as before until 'tahvel status' shows its "
+                           "outbox empty, then move it\n"),
+            std::string::npos) << moved.err;
+  EXPECT_FALSE(fs::exists(tmp_ / "state" / "hospital" / "data.mdb")) << "nothing made before the refusal";
+}
+
 // A root renamed in the file (its id; its IRI is the file's) got a new, empty store beside the one
 // holding its history, without a word: the earlier HRV windows and trend baselines were gone
 // from the hospital, and `status` showed two nodes of one IRI. `up` says what to do instead.

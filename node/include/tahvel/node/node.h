@@ -148,8 +148,8 @@ struct PredicateSummary {
 struct PredicateMatch {
   bool held = false;
   const PredicateSummary* nearest = nullptr;  // into the vector given
-  // Another held predicate exactly as near (tv:sdnMs is one edit from tv:sd1Ms and from
-  // tv:sdnnMs): naming only the first would guess. nullptr when `nearest` is the only one.
+  // Another held predicate exactly as near ("sdnMs" is one edit from "sd1Ms" and from
+  // "sdnnMs"): naming only the first would guess. nullptr when `nearest` is the only one.
   const PredicateSummary* as_near = nullptr;
 };
 PredicateMatch match_predicate(std::string_view asked, const std::vector<PredicateSummary>& held, std::size_t edits_below);
