@@ -1150,6 +1150,8 @@ TEST(Rules, InvisibleCharactersBadUtf8AndCompactComparisonsAreReadAsAnEditorShow
       // A NUL ended the text: the rules after it were dropped without a word.
       {std::string("p(X, yes) :- q(X, yes).\n\0r(X) :- q(X, no).\n", 43), "bad.rules:2:1: a NUL byte (0x00)"},
       {std::string("p(X, yes) :- q(X, yes). \0 garbage ((((\n", 39), "bad.rules:1:25: a NUL byte (0x00)"},
+      // Another control character, named: printed raw it showed as "unexpected character ''".
+      {"p(X, yes) :- q(X, yes).\x01\n", "bad.rules:1:24: unexpected control character 0x01"},
   };
   for (const Case& c : cases) {
     auto p = tr::parse_rules(c.text, options("bad.rules"));

@@ -450,6 +450,11 @@ Result<Token> Lexer::next() {
   if (c == ';' || c == '|')
     return error(start, std::string("'") + c + "' (or) is not part of the rule language: a body is literals joined by ','; "
                         "write one rule for each alternative");
+  if (static_cast<unsigned char>(c) < 0x20 || c == 0x7f) {  // printed raw it showed as ''
+    char hex[8];
+    std::snprintf(hex, sizeof hex, "0x%02X", static_cast<unsigned char>(c));
+    return error(start, std::string("unexpected control character ") + hex);
+  }
   return error(start, std::string("unexpected character '") + c + "'");
 }
 
