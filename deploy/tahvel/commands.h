@@ -113,6 +113,11 @@ unsigned cascade_flag(const Args& args);
 // and 'z' in either case, or a space for the 't'). Out-of-range numbers and dates that do not exist (February 30) are
 // usage errors naming the flag, not times moved elsewhere.
 std::int64_t time_flag(std::string_view flag, const std::string& text);
+// "a", "a or b", "a, b or c"; with `of` more than named, "a, b, c or 2 more as near".
+std::string one_of(const std::vector<std::string>& named, std::size_t of);
+// A usage error unless `until` (of --until) is after `since` (of --since), both as time_flag read
+// them from `args`; `meaning` is added to the message (what the range selects).
+void check_time_range(const Args& args, std::int64_t since, std::int64_t until, std::string_view meaning = "");
 // "4.2 s" below a minute, then "12 min 5 s", "3 h 12 min", "2 d 3 h" (a NaN as a long time).
 std::string seconds_text(double seconds);
 // Now, ns since the epoch (the clock records are stamped with).

@@ -326,6 +326,14 @@ unsigned cascade_flag(const Args& args) {
   return static_cast<unsigned>(std::min<std::uint64_t>(args.get_u64("--cascade", 0), 1u << 20));
 }
 
+std::string one_of(const std::vector<std::string>& named, std::size_t of) {
+  std::string text;
+  for (std::size_t i = 0; i < named.size(); ++i)
+    text += (i == 0 ? "" : i + 1 == named.size() && of == named.size() ? " or " : ", ") + named[i];
+  if (of > named.size()) text += " or " + std::to_string(of - named.size()) + " more as near";
+  return text;
+}
+
 void warn_of_a_predicate_held_by_none(std::string_view command, const node::Pattern& pattern,
                                       const std::vector<node::PredicateSummary>& held, const uri::PrefixMap& prefixes,
                                       const std::string& where) {
@@ -343,9 +351,12 @@ void warn_of_a_predicate_held_by_none(std::string_view command, const node::Patt
   auto counted = [](const node::PredicateSummary& p) {
     return " (" + std::to_string(p.records) + (p.records == 1 ? " record)" : " records)");
   };
-  if (nearest)
-    std::cerr << "; did you mean " << shown(nearest->predicate) << counted(*nearest)
-              << (match.as_near ? " or " + shown(match.as_near->predicate) + counted(*match.as_near) : std::string()) << "?";
+  if (nearest) {
+    std::vector<std::string> named{shown(nearest->predicate) + counted(*nearest)};
+    for (const node::PredicateSummary* other : match.as_near)
+      if (named.size() < 3) named.push_back(shown(other->predicate) + counted(*other));
+    std::cerr << "; did you mean " << one_of(named, match.as_near.size() + 1) << "?";
+  }
   else std::cerr << ".";
   std::cerr << " 'tahvel stats DIR --predicates" << (where.starts_with("<") ? " --at NODE-IRI" : "") << "' lists what it holds\n";
 }
@@ -369,9 +380,9 @@ node::Pattern pattern_from_args(const Args& args, const uri::PrefixMap& prefixes
   if (has_flag_spec(args, "--since")) {
     if (auto since = args.get("--since")) pattern.since = time_flag("--since", *since);
     if (auto until = args.get("--until")) pattern.until = time_flag("--until", *until);
-    if (pattern.since && pattern.until && *pattern.until <= *pattern.since)
-      usage_error("--until " + *args.get("--until") + " is not after --since " + *args.get("--since") +
-                  " (records that held at some time at or after --since and before --until)");
+    if (pattern.since && pattern.until)
+      check_time_range(args, *pattern.since, *pattern.until,
+                       " (records that held at some time at or after --since and before --until)");
   }
   return pattern;
 }
@@ -664,6 +675,17 @@ int floor_flag(const std::string& text) {
   const std::optional<int> floor = spatial::parse_floor(node::Term::literal(text));
   if (!floor) usage_error("--floor: expected a whole number from -1000000000 to 1000000000, found '" + text + "'");
   return *floor;
+}
+
+void check_time_range(const Args& args, std::int64_t since, std::int64_t until, std::string_view meaning) {
+  if (until > since) return;
+  // Two times written apart that round up to one ns (they differ past the ninth fraction digit)
+  // hold no record between them: "is not after" alone read as false.
+  const std::string same_ns = until == since && *args.get("--until") != *args.get("--since")
+                                  ? " once both are rounded up to whole ns, as records are stamped: no record lies between them"
+                                  : "";
+  usage_error("--until " + *args.get("--until") + " is not after --since " + *args.get("--since") + same_ns +
+              std::string(meaning));
 }
 
 std::int64_t time_flag(std::string_view flag, const std::string& text) {

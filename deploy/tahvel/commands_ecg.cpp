@@ -204,8 +204,7 @@ int run_ecg(const Args& args) {
   std::optional<std::int64_t> since, until;
   if (auto text = args.get("--since")) since = time_flag("--since", *text);
   if (auto text = args.get("--until")) until = time_flag("--until", *text);
-  if (since && until && *until <= *since)
-    usage_error("--until " + *args.get("--until") + " is not after --since " + *args.get("--since"));
+  if (since && until) check_time_range(args, *since, *until);
   const std::chrono::milliseconds timeout = seconds_flag(args, "ecg", std::chrono::seconds(30), std::chrono::hours(24));
   const auto deadline = std::chrono::steady_clock::now() + timeout;
   // The two queries (the description, then the chunks) share the one --timeout: the second

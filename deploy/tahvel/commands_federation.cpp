@@ -3168,8 +3168,9 @@ int run_status(const Args& args) {
     for (const node::InputBufferSummary& w : n.waiting_for_unknown)
       std::cout << indent << "  WAITING " << w.waiting << " item(s) addressed to <" << w.agent
                 << ">, which nothing on this node knows (no child node of that IRI has registered, and no agent of it "
-                   "runs, subscribes or has said anything), the oldest written "
-                << age_of(w.oldest_asserted_at) << ": they wait in its input buffer until one takes them\n";
+                   "runs, subscribes or has said anything)"
+                << (w.oldest_asserted_at > 0 ? ", the oldest asserted " + age_of(w.oldest_asserted_at) : std::string())
+                << ": they wait in its input buffer until one takes them\n";
     if (n.remote && !programs_unknown_because.empty() && programs_unknown_because == n.children_unknown_because) {
       std::cout << indent << "  programs and children unknown: " << programs_unknown_because << "\n";
     } else {

@@ -27,8 +27,8 @@ PredicateMatch match_predicate(std::string_view asked, const std::vector<Predica
                                 std::string_view(h.predicate).substr(0, h.predicate.size() - held_local.size());
     const std::size_t e = std::min(uri::edit_distance(asked, h.predicate),
                                    uri::edit_distance(local, held_local) + (same_namespace ? 0 : 1));
-    if (e < nearest_edits) nearest_edits = e, match.nearest = &h, match.as_near = nullptr;
-    else if (e == nearest_edits && match.nearest && !match.as_near) match.as_near = &h;
+    if (e < nearest_edits) nearest_edits = e, match.nearest = &h, match.as_near.clear();
+    else if (e == nearest_edits && match.nearest) match.as_near.push_back(&h);
   }
   return match;
 }

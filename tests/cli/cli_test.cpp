@@ -518,6 +518,10 @@ TEST_F(Cli, AnEmptyAnswerToAPredicateTheStoreHoldsNoneOfSaysSoWithTheNearest) {
   put("@prefix tv: <https://w3id.org/tahvel#> .\n<http://example.org/w> tv:sd1Ms 4.0 ; tv:sdnnMs 31.0 .\n");
   EXPECT_NE(run({"list", node_, "-p", "tv:sdnMs"}).err.find("did you mean tv:sd1Ms (1 record) or tv:sdnnMs (1 record)?"),
             std::string::npos);
+  put("@prefix tv: <https://w3id.org/tahvel#> .\n<http://example.org/w> tv:sd2Ms 5.0 ; tv:sd3Ms 6.0 .\n");
+  EXPECT_NE(run({"list", node_, "-p", "tv:sdnMs"})
+                .err.find("did you mean tv:sd1Ms (1 record), tv:sd2Ms (1 record), tv:sd3Ms (1 record) or 1 more as near?"),
+            std::string::npos);
   const Outcome held = run({"list", node_, "-p", "tv:rmssd", "-o", "99"});
   EXPECT_EQ(held.status, 0) << held.err;
   EXPECT_EQ(held.out + held.err, "");
@@ -3223,6 +3227,11 @@ TEST_F(Cli, QueryTimesAreCheckedAndHonourTheirOffset) {
   r = run({"query", node_, "--at", kNodeIri, "--since", "2026-11-21T11:00:00Z", "--until", "2026-11-21T10:00:00Z"});
   EXPECT_EQ(r.status, 2);
   EXPECT_NE(r.err.find("is not after --since"), std::string::npos) << r.err;
+  // Apart as written, one ns once rounded up: said so, or "is not after" reads as false.
+  r = run({"query", node_, "--at", kNodeIri, "--since", "2026-11-21T10:00:00.0000000001Z", "--until", "2026-11-21T10:00:00.0000000002Z"});
+  EXPECT_EQ(r.status, 2);
+  EXPECT_NE(r.err.find("once both are rounded up to whole ns, as records are stamped: no record lies between them"), std::string::npos)
+      << r.err;
   // The record was asserted now. Half an hour from now is "half an hour ago" on a UTC-01:00
   // clock, and half an hour ago is "half an hour from now" on a UTC+01:00 clock: read as UTC,
   // both would leave the record out.

@@ -255,9 +255,12 @@ void Reasoner::Impl::say_predicates_held_by_none(const node::Snapshot& snap, Ses
     auto counted = [](const node::PredicateSummary& p) {
       return "<" + p.predicate + "> (" + std::to_string(p.records) + (p.records == 1 ? " record)" : " records)");
     };
+    std::string named = counted(*nearest);
+    for (std::size_t i = 0; i < match.as_near.size() && i < 2; ++i)
+      named += (i + 1 == match.as_near.size() ? " or " : ", ") + counted(*match.as_near[i]);
+    if (match.as_near.size() > 2) named += " or " + std::to_string(match.as_near.size() - 2) + " more as near";
     report.warnings.push_back(read.where + ": <" + read.iri + ">: no fact on the board has this predicate; did you mean " +
-                              counted(*nearest) + (match.as_near ? " or " + counted(*match.as_near) : std::string()) +
-                              "? Until one has it, what the rules read of it holds for nothing");
+                              named + "? Until one has it, what the rules read of it holds for nothing");
   }
 }
 

@@ -148,9 +148,9 @@ struct PredicateSummary {
 struct PredicateMatch {
   bool held = false;
   const PredicateSummary* nearest = nullptr;  // into the vector given
-  // Another held predicate exactly as near ("sdnMs" is one edit from "sd1Ms" and from
-  // "sdnnMs"): naming only the first would guess. nullptr when `nearest` is the only one.
-  const PredicateSummary* as_near = nullptr;
+  // The other held predicates exactly as near ("sdnMs" is one edit from "sd1Ms" and from
+  // "sdnnMs"): naming only the first would guess. Empty when `nearest` is the only one.
+  std::vector<const PredicateSummary*> as_near;
 };
 PredicateMatch match_predicate(std::string_view asked, const std::vector<PredicateSummary>& held, std::size_t edits_below);
 
