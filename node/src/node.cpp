@@ -172,12 +172,9 @@ Result<std::uint64_t> Snapshot::count(const Pattern& pattern) const {
 Result<std::vector<PredicateSummary>> Snapshot::predicates() const {
   MDB_txn* txn = impl_->txn;
   const Env& env = *impl_->env;
-  MDB_cursor* cursor = nullptr;
-  if (int rc = mdb_cursor_open(txn, env.idx_p, &cursor); rc != 0) return lmdb_fail(rc, "reading the predicate index");
-  struct Close {
-    MDB_cursor* c;
-    ~Close() { mdb_cursor_close(c); }
-  } close{cursor};
+  Cursor owned;
+  if (int rc = mdb_cursor_open(txn, env.idx_p, &owned.c); rc != 0) return lmdb_fail(rc, "reading the predicate index");
+  MDB_cursor* cursor = owned.c;
   auto asserted_at = [&](const MDB_val& record) -> Result<std::int64_t> {
     std::uint64_t id = 0;
     std::memcpy(&id, record.mv_data, sizeof id);
@@ -221,12 +218,9 @@ Result<std::vector<PredicateSummary>> Snapshot::predicates() const {
 Result<std::vector<InputBufferSummary>> Snapshot::input_buffers() const {
   MDB_txn* txn = impl_->txn;
   const Env& env = *impl_->env;
-  MDB_cursor* cursor = nullptr;
-  if (int rc = mdb_cursor_open(txn, env.inbox, &cursor); rc != 0) return lmdb_fail(rc, "reading the input buffers");
-  struct Close {
-    MDB_cursor* c;
-    ~Close() { mdb_cursor_close(c); }
-  } close{cursor};
+  Cursor owned;
+  if (int rc = mdb_cursor_open(txn, env.inbox, &owned.c); rc != 0) return lmdb_fail(rc, "reading the input buffers");
+  MDB_cursor* cursor = owned.c;
   TermReader terms(txn, env);
   std::vector<InputBufferSummary> out;
   MDB_val key, first;
