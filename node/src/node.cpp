@@ -169,15 +169,33 @@ Result<std::uint64_t> Snapshot::count(const Pattern& pattern) const {
   return n;
 }
 
+namespace {
+
+// Calls visit(cursor, key, first value, values) once for each key of the dupsort table `dbi`,
+// the cursor on that key's first value; the summaries of predicates() and input_buffers() are
+// read so, a step per key rather than a scan. `what` names the table in an error.
+template <class Visit>
+Result<void> for_each_key(MDB_txn* txn, MDB_dbi dbi, const std::string& what, Visit visit) {
+  Cursor cursor;
+  if (int rc = mdb_cursor_open(txn, dbi, &cursor.c); rc != 0) return lmdb_fail(rc, "reading " + what);
+  MDB_val key, first;
+  for (int rc = mdb_cursor_get(cursor.c, &key, &first, MDB_FIRST); rc != MDB_NOTFOUND;
+       rc = mdb_cursor_get(cursor.c, &key, &first, MDB_NEXT_NODUP)) {
+    if (rc != 0) return lmdb_fail(rc, "reading " + what);
+    std::size_t values = 0;
+    if (int c = mdb_cursor_count(cursor.c, &values); c != 0) return lmdb_fail(c, "counting in " + what);
+    if (auto ok = visit(cursor.c, u64(key), first, values); !ok) return ok;
+  }
+  return {};
+}
+
+}  // namespace
+
 Result<std::vector<PredicateSummary>> Snapshot::predicates() const {
   MDB_txn* txn = impl_->txn;
   const Env& env = *impl_->env;
-  Cursor owned;
-  if (int rc = mdb_cursor_open(txn, env.idx_p, &owned.c); rc != 0) return lmdb_fail(rc, "reading the predicate index");
-  MDB_cursor* cursor = owned.c;
   auto asserted_at = [&](const MDB_val& record) -> Result<std::int64_t> {
-    std::uint64_t id = 0;
-    std::memcpy(&id, record.mv_data, sizeof id);
+    const std::uint64_t id = u64(record);
     auto row = get_record(txn, env, id);
     if (!row) return unexpected(row.error());
     if (!*row) return fail(Errc::corrupt, "the predicate index names record " + std::to_string(id) + ", which is not there");
@@ -188,29 +206,25 @@ Result<std::vector<PredicateSummary>> Snapshot::predicates() const {
   };
   TermReader terms(txn, env);
   std::vector<PredicateSummary> out;
-  MDB_val key, first;
-  for (int rc = mdb_cursor_get(cursor, &key, &first, MDB_FIRST); rc != MDB_NOTFOUND;
-       rc = mdb_cursor_get(cursor, &key, &first, MDB_NEXT_NODUP)) {
-    if (rc != 0) return lmdb_fail(rc, "reading the predicate index");
-    std::uint64_t predicate = 0;
-    std::memcpy(&predicate, key.mv_data, sizeof predicate);
+  auto read = for_each_key(txn, env.idx_p, "the predicate index",
+                           [&](MDB_cursor* cursor, std::uint64_t predicate, const MDB_val& first, std::size_t records) -> Result<void> {
     PredicateSummary summary;
     auto iri = terms.iri(predicate);
     if (!iri) return unexpected(iri.error());
     summary.predicate = std::move(*iri);
-    std::size_t records = 0;
-    if (int c = mdb_cursor_count(cursor, &records); c != 0) return lmdb_fail(c, "counting a predicate's records");
     summary.records = records;
     auto oldest = asserted_at(first);
     if (!oldest) return unexpected(oldest.error());
     summary.first_asserted_at = *oldest;
-    MDB_val last;
+    MDB_val key, last;
     if (int l = mdb_cursor_get(cursor, &key, &last, MDB_LAST_DUP); l != 0) return lmdb_fail(l, "reading the predicate index");
     auto newest = asserted_at(last);
     if (!newest) return unexpected(newest.error());
     summary.last_asserted_at = *newest;
     out.push_back(std::move(summary));
-  }
+    return {};
+  });
+  if (!read) return unexpected(read.error());
   std::sort(out.begin(), out.end(), [](const PredicateSummary& a, const PredicateSummary& b) { return a.predicate < b.predicate; });
   return out;
 }
@@ -218,28 +232,23 @@ Result<std::vector<PredicateSummary>> Snapshot::predicates() const {
 Result<std::vector<InputBufferSummary>> Snapshot::input_buffers() const {
   MDB_txn* txn = impl_->txn;
   const Env& env = *impl_->env;
-  Cursor owned;
-  if (int rc = mdb_cursor_open(txn, env.inbox, &owned.c); rc != 0) return lmdb_fail(rc, "reading the input buffers");
-  MDB_cursor* cursor = owned.c;
   TermReader terms(txn, env);
   std::vector<InputBufferSummary> out;
-  MDB_val key, first;
-  for (int rc = mdb_cursor_get(cursor, &key, &first, MDB_FIRST); rc != MDB_NOTFOUND;
-       rc = mdb_cursor_get(cursor, &key, &first, MDB_NEXT_NODUP)) {
-    if (rc != 0) return lmdb_fail(rc, "reading the input buffers");
+  auto read = for_each_key(txn, env.inbox, "the input buffers",
+                           [&](MDB_cursor*, std::uint64_t agent, const MDB_val& first, std::size_t waiting) -> Result<void> {
     InputBufferSummary summary;
-    auto iri = terms.iri(u64(key));
+    auto iri = terms.iri(agent);
     if (!iri) return unexpected(iri.error());
     summary.agent = std::move(*iri);
-    std::size_t waiting = 0;
-    if (int c = mdb_cursor_count(cursor, &waiting); c != 0) return lmdb_fail(c, "counting an input buffer");
     summary.waiting = waiting;
     summary.oldest_item = u64(first);
     auto item = get_item(txn, env, summary.oldest_item);
     if (!item) return unexpected(item.error());
     if (*item) summary.oldest_asserted_at = (*item)->asserted_at;
     out.push_back(std::move(summary));
-  }
+    return {};
+  });
+  if (!read) return unexpected(read.error());
   std::sort(out.begin(), out.end(), [](const InputBufferSummary& a, const InputBufferSummary& b) { return a.agent < b.agent; });
   return out;
 }
