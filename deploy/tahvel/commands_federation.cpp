@@ -57,6 +57,10 @@ using namespace std::chrono_literals;
 inline constexpr int kExitUnknownNode = 4;
 inline constexpr int kExitUnreachable = 5;
 inline constexpr int kExitInterrupted = 130;  // as a shell reports a command ended by SIGINT
+// `up` refused the topology file as it stands (or a file it names, or a store it would run):
+// nothing was started or changed, and starting it again unchanged fails the same way. A service
+// manager told so (RestartPreventExitStatus=6 in deploy/systemd) stops restarting it.
+inline constexpr int kExitFileRefused = 6;
 
 // --- transports ---------------------------------------------------------------------------
 
@@ -862,7 +866,10 @@ const Command kUpCommand{
     "file), then starts every node's link and agents under a supervisor that restarts dead ones\n"
     "with back-off and logs why they died (DIR/logs/). With --node only that node (one machine of\n"
     "a real deployment). The supervisor runs in the background until 'tahvel down'; with\n"
-    "--foreground it stays attached until SIGINT/SIGTERM. The file format is docs/deploy.md.",
+    "--foreground it stays attached until SIGINT/SIGTERM. The file format is docs/deploy.md.\n"
+    "\n"
+    "Exit status 6: the file, a file it names or a store it would run was refused as it stands;\n"
+    "nothing was started or changed (the message says what and where). 1: any other failure.",
     {kFlagState, {"--node", "", "ID", "bring up only this node"},
      {"--foreground", "", "", "run the supervisor in this process"}},
     1, 1, false};
@@ -1869,7 +1876,11 @@ std::optional<uid_t> effective_uid_of(pid_t pid) {
 }
 }  // namespace
 
-int run_up(const Args& args) {
+namespace {
+
+// `checking` stays true while up only reads and checks (the file, what it names, the stores and
+// supervisors there), and is made false before anything is created or a supervisor asked.
+int up_checked(const Args& args, bool& checking) {
   Topology topo = check(load_topology(args.positional(0)));
   fs::path state = fs::absolute(state_dir(args));
   std::optional<std::string> only = args.get("--node");
@@ -1883,7 +1894,10 @@ int run_up(const Args& args) {
   // The supervisor of this selection already running is asked to apply the file as it is now,
   // once it is checked (below): `up` again after an edit adds a node, restarts what changed.
   pid_t running = supervisor_holding(pid_file);
-  if (running < 0) fail("a supervisor is starting (" + pid_file.string() + "); try again in a moment");
+  if (running < 0) {
+    checking = false;  // passes in a moment: not a refusal of the file
+    fail("a supervisor is starting (" + pid_file.string() + "); try again in a moment");
+  }
   // A supervisor stopped with SIGSTOP (or hung) would never answer, and one stopped inside a
   // write to a store would hold up this `up` at its own writes: said before anything is touched.
   if (const double silent = running > 0 ? state_file_silent_for(pid_file) : 0; silent > kSupervisorSilentS) {
@@ -1989,6 +2003,7 @@ int run_up(const Args& args) {
     }
   }
   warn_of_dataflow(topo, mine);
+  checking = false;
   // Only now, with everything checked: a refused file leaves no state directory behind.
   std::error_code ec;
   const bool new_state = !fs::exists(state, ec);
@@ -2286,6 +2301,18 @@ int run_up(const Args& args) {
   // (the log's mutex among them) should the lock be freed meanwhile: end without them.
   if (!deployment.boards_finished()) _exit(kExitOk);
   return kExitOk;
+}
+
+}  // namespace
+
+int run_up(const Args& args) {
+  bool checking = true;
+  try {
+    return up_checked(args, checking);
+  } catch (Failure& failure) {
+    if (checking && failure.status == kExitFailure) failure.status = kExitFileRefused;
+    throw;
+  }
 }
 
 const Command kDownCommand{

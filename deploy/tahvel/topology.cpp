@@ -26,10 +26,10 @@ namespace {
 
 using node::Errc;
 
-std::string where(const toml::node& n, const std::filesystem::path& file) {
-  const auto& src = n.source();
+std::string where(const toml::source_region& src, const std::filesystem::path& file) {
   return file.string() + ":" + std::to_string(src.begin.line) + ":" + std::to_string(src.begin.column);
 }
+std::string where(const toml::node& n, const std::filesystem::path& file) { return where(n.source(), file); }
 
 std::optional<std::uint32_t> lcm_udp_port(const std::string& url);
 
@@ -58,7 +58,8 @@ node::Result<void> only_keys(const toml::table& t, std::initializer_list<std::st
     if (std::find(known.begin(), known.end(), key.str()) != known.end()) continue;
     std::string list;
     for (auto k : known) list += (list.empty() ? "" : ", ") + std::string(k);
-    return node::fail(Errc::invalid_argument, where(value, file) + ": " + what + "unknown key '" + table + std::string(key.str()) +
+    // At the key, not its value: the key is what is wrong.
+    return node::fail(Errc::invalid_argument, where(key.source(), file) + ": " + what + "unknown key '" + table + std::string(key.str()) +
                                                   "' (known here: " + list + ")");
   }
   return {};

@@ -38,6 +38,9 @@ namespace fs = std::filesystem;
 const std::string kBin = TAHVEL_BIN_DIR "/tahvel";
 const std::string kNodeIri = "http://example.org/home1";
 const std::string kEx = "http://example.org/";
+// `up` refused its file, a file it names or a store as they stand (docs/cli.md; the service unit
+// does not restart on it).
+constexpr int kUpRefused = 6;
 
 struct Outcome {
   int status = -1;
@@ -2512,7 +2515,7 @@ TEST_F(Cli, UpAsAnotherUserThanTheRunningSupervisorIsRefusedBeforeAnythingChange
   if (started == 126 || started == 127) GTEST_SKIP() << "cannot run the binary as another user here";
   ASSERT_EQ(started, 0) << why;
   Outcome as_root = run({"up", (tmp_ / "node.toml").string(), "--state", state.string()});
-  EXPECT_EQ(as_root.status, 1) << as_root.err;
+  EXPECT_EQ(as_root.status, kUpRefused) << as_root.err;
   struct AtEnd {  // the supervisor of another user is not left running, whatever fails below
     std::function<void()> then;
     ~AtEnd() { then(); }
@@ -2971,7 +2974,7 @@ TEST_F(Cli, UpInTheForegroundBesideARunningSupervisorIsRefused) {
   spit(file, kIdleNodeToml);
   ASSERT_EQ(run({"up", file, "--state", state}).status, 0);
   Outcome foreground = run({"up", file, "--state", state, "--foreground"});
-  EXPECT_EQ(foreground.status, 1);
+  EXPECT_EQ(foreground.status, kUpRefused);
   EXPECT_NE(foreground.err.find("a supervisor already runs this selection (pid "), std::string::npos) << foreground.err;
   EXPECT_EQ(run({"down", "--state", state}).status, 0);
 }
@@ -2999,15 +3002,15 @@ TEST_F(Cli, UpNodeNamesTheNodeAnEscapedOrMisspeltIdMeant) {
   spit(file, "[[node]]\nid = \"kodu-õie\"\niri = \"http://example.org/kodu-õie\"\n"
              "[[node]]\nid = \"home1\"\niri = \"http://example.org/home1\"\n");
   Outcome escaped = run({"up", file, "--node", "kodu-\\xc3\\xb5ie", "--state", state});
-  EXPECT_EQ(escaped.status, 1);
+  EXPECT_EQ(escaped.status, kUpRefused);
   EXPECT_NE(escaped.err.find("no such node in " + file + " ('kodu-õie', systemd-escaped: a unit passes its instance name so"),
             std::string::npos)
       << escaped.err;
   Outcome slip = run({"up", file, "--node", "home2", "--state", state});
-  EXPECT_EQ(slip.status, 1);
+  EXPECT_EQ(slip.status, kUpRefused);
   EXPECT_NE(slip.err.find("--node 'home2': no such node in " + file + "; did you mean 'home1'?"), std::string::npos) << slip.err;
   Outcome far = run({"up", file, "--node", "hospital", "--state", state});
-  EXPECT_EQ(far.status, 1);
+  EXPECT_EQ(far.status, kUpRefused);
   EXPECT_EQ(far.err.find("did you mean"), std::string::npos) << far.err;
   EXPECT_FALSE(fs::exists(state));
 }
@@ -3117,7 +3120,7 @@ TEST_F(Cli, UpRefusesAnEcgRecordItCannotRead) {
            record + "\", \"--speed\", \"1\"]\n");
   const std::string state = (tmp_ / "state").string();
   Outcome up = run({"up", (tmp_ / "node.toml").string(), "--state", state});
-  EXPECT_EQ(up.status, 1);
+  EXPECT_EQ(up.status, kUpRefused);
   EXPECT_NE(up.err.find("node 'bed': agent 'source': --record " + record + ": " + record + ".hea"), std::string::npos) << up.err;
   EXPECT_FALSE(fs::exists(tmp_ / "state" / "bed"));
   fs::create_directories(tmp_ / "rec");
@@ -3140,13 +3143,13 @@ TEST_F(Cli, UpRefusesAMitdbPlaceholderWithoutTahvelMitdb) {
   const std::string saved = before ? before : "";
   unsetenv("TAHVEL_MITDB");
   Outcome up = run({"up", (tmp_ / "node.toml").string(), "--state", state});
-  EXPECT_EQ(up.status, 1);
+  EXPECT_EQ(up.status, kUpRefused);
   EXPECT_NE(up.err.find("node 'bed': agent 'source': its command uses {mitdb} but TAHVEL_MITDB is not set"), std::string::npos)
       << up.err;
   EXPECT_FALSE(fs::exists(tmp_ / "state" / "bed"));
   setenv("TAHVEL_MITDB", (tmp_ / "nowhere").c_str(), 1);
   up = run({"up", (tmp_ / "node.toml").string(), "--state", state});
-  EXPECT_EQ(up.status, 1);
+  EXPECT_EQ(up.status, kUpRefused);
   EXPECT_NE(up.err.find("TAHVEL_MITDB=" + (tmp_ / "nowhere").string() + " is not a directory"), std::string::npos) << up.err;
   setenv("TAHVEL_MITDB", tmp_.c_str(), 1);
   up = run({"up", (tmp_ / "node.toml").string(), "--state", state});
@@ -3329,11 +3332,11 @@ TEST_F(Cli, UpRefusesATopologyWhoseChildIriIsNotUnderItsParent) {
        "[[node]]\nid = \"hospital\"\niri = \"http://example.org/hospital\"\nlisten = { kind = \"dds\" }\n\n"
        "[[node]]\nid = \"home1\"\nparent = \"hospital\"\niri = \"http://example.org/elsewhere/home1\"\n");
   Outcome up = run({"up", (tmp_ / "bad.toml").string(), "--state", (tmp_ / "state").string()});
-  EXPECT_EQ(up.status, 1);
+  EXPECT_EQ(up.status, kUpRefused);
   EXPECT_NE(up.err.find("must be its parent's IRI"), std::string::npos) << up.err;
   spit(tmp_ / "syntax.toml", "[[node]]\nid = \"x\n");
   up = run({"up", (tmp_ / "syntax.toml").string(), "--state", (tmp_ / "state").string()});
-  EXPECT_EQ(up.status, 1);
+  EXPECT_EQ(up.status, kUpRefused);
   EXPECT_NE(up.err.find("syntax.toml:2:"), std::string::npos) << up.err;
   EXPECT_FALSE(fs::exists(tmp_ / "state" / "hospital"));
   // A key given twice: the parser's message names where; the node is named as every other
@@ -3341,7 +3344,7 @@ TEST_F(Cli, UpRefusesATopologyWhoseChildIriIsNotUnderItsParent) {
   spit(tmp_ / "twice.toml", "[[node]]\nid = \"hospital\"\nlisten = { kind = \"dds\" }\n\n[[node]]\nid = \"home1\"\n"
                             "parent = \"hospital\"\nparent = \"hospital\"\n");
   up = run({"up", (tmp_ / "twice.toml").string(), "--state", (tmp_ / "state").string()});
-  EXPECT_EQ(up.status, 1);
+  EXPECT_EQ(up.status, kUpRefused);
   EXPECT_NE(up.err.find("twice.toml:8:"), std::string::npos) << up.err;
   EXPECT_NE(up.err.find(" (in the [[node]] of line 5, id 'home1')"), std::string::npos) << up.err;
 }
@@ -3353,7 +3356,7 @@ TEST_F(Cli, UpRefusesANodeWhoseIriIsLongerThanALinkFrameMayName) {
   spit(tmp_ / "long.toml", "[[node]]\nid = \"hospital\"\niri = \"" + long_iri + "\"\nlisten = { kind = \"dds\" }\n\n"
                            "[[node]]\nid = \"home1\"\nparent = \"hospital\"\n");
   Outcome up = run({"up", (tmp_ / "long.toml").string(), "--state", (tmp_ / "state").string()});
-  EXPECT_EQ(up.status, 1);
+  EXPECT_EQ(up.status, kUpRefused);
   EXPECT_NE(up.err.find("long.toml:3:"), std::string::npos) << up.err.substr(0, 300);
   EXPECT_NE(up.err.find("node 'hospital': its IRI is " + std::to_string(long_iri.size()) + " bytes, over the 8192"), std::string::npos)
       << up.err.substr(0, 300);
@@ -3372,7 +3375,7 @@ TEST_F(Cli, UpRefusesAReasonerWhoseRuleFileIsMissingOrBroken) {
     return run({"up", (tmp_ / "rules.toml").string(), "--state", (tmp_ / "state").string()});
   };
   Outcome up = topology("nope.rules");
-  EXPECT_EQ(up.status, 1);
+  EXPECT_EQ(up.status, kUpRefused);
   EXPECT_NE(up.err.find("rules.toml:5:"), std::string::npos) << up.err;
   EXPECT_NE(up.err.find("node 'hospital': agent 'reasoner': "), std::string::npos) << up.err;
   EXPECT_NE(up.err.find("nope.rules"), std::string::npos) << up.err;
@@ -3381,7 +3384,7 @@ TEST_F(Cli, UpRefusesAReasonerWhoseRuleFileIsMissingOrBroken) {
 
   spit(tmp_ / "broken.rules", "alert(X) :- hr(X, V), V > 120.\nfact(a, b\n");
   up = topology("broken.rules");
-  EXPECT_EQ(up.status, 1);
+  EXPECT_EQ(up.status, kUpRefused);
   EXPECT_NE(up.err.find("broken.rules:3:1: expected ',' or ')' in the arguments of fact"), std::string::npos) << up.err;
   EXPECT_FALSE(fs::exists(tmp_ / "state"));
 }
@@ -3408,7 +3411,7 @@ TEST_F(Cli, UpRefusesAnLcmPortAmongTheDdsDomainsPorts) {
                                     std::string("{ kind = \"lcm\", url = \"udpm://239.255.76.68:7649\" }")}) {
     spit(tmp_ / "clash.toml", topology(listen, 1));
     Outcome up = run({"up", (tmp_ / "clash.toml").string(), "--state", state, "--node", "nobody"});
-    EXPECT_EQ(up.status, 1) << listen;
+    EXPECT_EQ(up.status, kUpRefused) << listen;
     EXPECT_NE(up.err.find("clash.toml:9:"), std::string::npos) << up.err;  // the line of home1's listen
     EXPECT_NE(up.err.find("node 'home1': listen.url"), std::string::npos) << up.err;
     EXPECT_NE(up.err.find("among the ports Cyclone DDS takes for domain 1 (7650-7899)"), std::string::npos) << up.err;
@@ -3448,7 +3451,7 @@ TEST_F(Cli, UpRefusesANodeListeningOnItsParentsDdsDomainUnderAnotherConfiguratio
   for (const std::string& listen : {std::string("{ kind = \"dds\", domain = 4, config = \"b.xml\" }")}) {
     spit(tmp_ / "ward.toml", topology(listen));
     Outcome up = run({"up", (tmp_ / "ward.toml").string(), "--state", state, "--node", "nobody"});
-    EXPECT_EQ(up.status, 1) << listen;
+    EXPECT_EQ(up.status, kUpRefused) << listen;
     EXPECT_NE(up.err.find("ward.toml:9:"), std::string::npos) << up.err;  // the line of the ward's listen
     EXPECT_NE(up.err.find("node 'ward': listens on DDS domain 4 with "), std::string::npos) << up.err;
     EXPECT_NE(up.err.find("its link up to 'hospital' is on domain 4 with config " + (tmp_ / "a.xml").string()), std::string::npos)
@@ -3483,7 +3486,7 @@ TEST_F(Cli, UpRefusesMoreDdsLinksOnOneMachineThanTheConfigsParticipantIndicesAll
   const std::string state = (tmp_ / "state").string();
   spit(tmp_ / "four.toml", topology(3));
   Outcome up = run({"up", (tmp_ / "four.toml").string(), "--state", state});
-  EXPECT_EQ(up.status, 1) << up.err;
+  EXPECT_EQ(up.status, kUpRefused) << up.err;
   EXPECT_NE(up.err.find("four.toml:4:"), std::string::npos) << up.err;  // the hospital's listen
   EXPECT_NE(up.err.find("node 'hospital': 4 DDS participants of links would run on domain 0 on this machine, but its config "),
             std::string::npos)
@@ -3533,7 +3536,7 @@ TEST_F(Cli, UpRefusesAnUnknownRestartPolicyNamingTheAgent) {
        "[[node]]\nid = \"solo\"\niri = \"http://example.org/solo\"\n"
        "  [[node.agent]]\n  id = \"hrv\"\n  run = [\"true\"]\n  restart = \"sometimes\"\n");
   Outcome up = run({"up", (tmp_ / "node.toml").string(), "--state", (tmp_ / "state").string()});
-  EXPECT_EQ(up.status, 1);
+  EXPECT_EQ(up.status, kUpRefused);
   EXPECT_NE(up.err.find("node.toml:7:"), std::string::npos) << up.err;
   EXPECT_NE(up.err.find("node 'solo': agent 'hrv': restart must be \"on-failure\", \"always\" or \"never\" (or true or false, "
                         "the older spelling of \"always\" and \"never\")"),
@@ -3543,7 +3546,7 @@ TEST_F(Cli, UpRefusesAnUnknownRestartPolicyNamingTheAgent) {
   for (const std::string run_line : {"", "  run = []\n", "  run = [\"/bin/sleep\", 100]\n"}) {
     spit(tmp_ / "node.toml", "[[node]]\nid = \"solo\"\niri = \"http://example.org/solo\"\n  [[node.agent]]\n  id = \"hrv\"\n" + run_line);
     up = run({"up", (tmp_ / "node.toml").string(), "--state", (tmp_ / "state").string()});
-    EXPECT_EQ(up.status, 1);
+    EXPECT_EQ(up.status, kUpRefused);
     EXPECT_NE(up.err.find(": node 'solo': agent 'hrv'"), std::string::npos) << up.err;
   }
 }
@@ -3559,7 +3562,7 @@ TEST_F(Cli, UpRefusesATopologyThatCouldNotRunAsWrittenNamingWhatAndWhere) {
   const std::string listening = hospital + "listen = { kind = \"dds\", config = \"dds.xml\" }\n";
   const std::pair<std::string, std::string> cases[] = {
       {"[[node]]\nid = \"home1\"\n", "node 'home1' has no parent, so it is a root, and a root needs an iri (or give it a parent)"},
-      {hospital + "store = { durabilty = \"durable\" }\n", "t.toml:4:23: node 'hospital': unknown key 'store.durabilty'"},
+      {hospital + "store = { durabilty = \"durable\" }\n", "t.toml:4:11: node 'hospital': unknown key 'store.durabilty'"},
       {hospital + "store = \"durable\"\n", "t.toml:4:9: node 'hospital': store must be a table"},
       {hospital + "store = { ring = 1.5 }\n", "node 'hospital': store.ring must be an integer"},
       {hospital + "listen = { kind = \"dds\", domian = 5 }\n", "node 'hospital': unknown key 'listen.domian'"},
@@ -3695,7 +3698,7 @@ TEST_F(Cli, UpRefusesATopologyThatCouldNotRunAsWrittenNamingWhatAndWhere) {
   for (const auto& [text, expected] : cases) {
     spit(tmp_ / "t.toml", text);
     Outcome up = run({"up", (tmp_ / "t.toml").string(), "--state", (tmp_ / "state").string()});
-    EXPECT_EQ(up.status, 1) << text;
+    EXPECT_EQ(up.status, kUpRefused) << text;
     EXPECT_NE(up.err.find(expected), std::string::npos) << "expected: " << expected << "\ngot: " << up.err;
     EXPECT_FALSE(fs::exists(tmp_ / "state")) << text;
   }
@@ -3712,7 +3715,7 @@ TEST_F(Cli, UpRefusesADdsLinkWhoseCycloneddsUriNamesAFileThatCannotBeRead) {
   const std::string saved = before ? before : "";
   setenv("CYCLONEDDS_URI", ("file://" + (tmp_ / "dds.xml").string() + ",file://" + (tmp_ / "missing.xml").string()).c_str(), 1);
   Outcome up = run({"up", (tmp_ / "t.toml").string(), "--state", (tmp_ / "state").string()});
-  EXPECT_EQ(up.status, 1);
+  EXPECT_EQ(up.status, kUpRefused);
   EXPECT_NE(up.err.find("t.toml:4:10: node 'hospital': listen.kind = \"dds\" without config: Cyclone DDS reads "
                         "CYCLONEDDS_URI, which names file://" + (tmp_ / "missing.xml").string() +
                         ", and that cannot be read"),
@@ -3728,7 +3731,7 @@ TEST_F(Cli, UpRefusesADdsLinkWhoseCycloneddsUriNamesAFileThatCannotBeRead) {
                                  " file://" + (tmp_ / "dds.xml").string() + ", " + (tmp_ / "dds.xml").string()}) {
     setenv("CYCLONEDDS_URI", uri.c_str(), 1);
     up = run({"up", (tmp_ / "t.toml").string(), "--state", (tmp_ / "state").string()});
-    EXPECT_EQ(up.status, 1);
+    EXPECT_EQ(up.status, kUpRefused);
     EXPECT_NE(up.err.find("agent 'x': cannot run '/nonexistent/prog'"), std::string::npos) << uri << ": " << up.err;
   }
   // listen.config is read instead of the variable.
@@ -3813,7 +3816,7 @@ TEST_F(Cli, UpRefusesTwoProgramsOfANodeThatRunAsOneAgent) {
   const std::string node = "[[node]]\nid = \"gw\"\niri = \"http://example.org/gw\"\n";
   spit(file, node + source("bed1", "") + source("bed2", ""));
   Outcome up = run({"up", file, "--state", state});
-  EXPECT_EQ(up.status, 1) << up.err;
+  EXPECT_EQ(up.status, kUpRefused) << up.err;
   EXPECT_NE(up.err.find("t.toml:8:3: node 'gw': agent 'bed2' (tahvel-ecg-source) runs as agent <http://example.org/gw/ecg>, "
                         "as 'bed1' (" + file + ":4:3) does: one process at a time holds an agent, so it could not run while "
                         "that one does; give one of them --agent ID\n"),
@@ -3825,7 +3828,7 @@ TEST_F(Cli, UpRefusesTwoProgramsOfANodeThatRunAsOneAgent) {
                  "  [[node.agent]]\n  id = \"rules\"\n  run = [\"{bin}/tahvel\", \"reason\", \"{store}\", \"{dir}/r.rules\", \"--agent=ecg\"]\n");
   spit((tmp_ / "r.rules").string(), "a(X, Y) :- b(X, Y).\n");
   up = run({"up", file, "--state", state});
-  EXPECT_EQ(up.status, 1) << up.err;
+  EXPECT_EQ(up.status, kUpRefused) << up.err;
   EXPECT_NE(up.err.find("t.toml:12:3: node 'gw': agent 'rules' (tahvel) runs as agent <http://example.org/gw/ecg>, as 'bed1'"),
             std::string::npos)
       << up.err;
@@ -3932,7 +3935,7 @@ TEST_F(Cli, AStoppedSupervisorsProgramsAreShownAsUnknownAndUpSaysItWillNotAnswer
   kill(supervisor, SIGCONT);
   EXPECT_NE(shown.out.find("idle  unknown: its supervisor has not written its state for "), std::string::npos) << shown.out;
   EXPECT_NE(shown.out.find("(stopped, hung or held up); it last said running, and its process (pid "), std::string::npos) << shown.out;
-  EXPECT_EQ(up.status, 1);
+  EXPECT_EQ(up.status, kUpRefused);
   EXPECT_NE(up.err.find("the supervisor " + std::to_string(supervisor) + " has not written its state for "), std::string::npos) << up.err;
   EXPECT_TRUE(eventually([&] { return run({"status", "--state", state}).out.find("idle  running (pid") != std::string::npos; }));
   EXPECT_EQ(run({"down", "--state", state}).status, 0);
@@ -3949,7 +3952,7 @@ TEST_F(Cli, AStateDirectoryThatIsANodesStoreIsRefusedNamingTheOneMeant) {
     if (command == "up") argv.push_back((tmp_ / "node.toml").string());
     argv.insert(argv.end(), {"--state", (state / "solo").string() + "/"});
     Outcome refused = run(argv);
-    EXPECT_EQ(refused.status, 1) << command << ": " << refused.err;
+    EXPECT_EQ(refused.status, command == "up" ? kUpRefused : 1) << command << ": " << refused.err;
     EXPECT_NE(refused.err.find("/solo/ is the store of a node <http://example.org/solo>, not a state directory: --state "
                                "takes the directory that holds the node stores (here " + fs::absolute(state).string() + ")"),
               std::string::npos)
@@ -4291,7 +4294,7 @@ TEST_F(Cli, AStoreMovedAsideWithinTheStateIsShownWhereItWentWithTheWaysOn) {
   EXPECT_NE(run({"status", "--state", state.string(), "--json"}).out.find("\"in_deployment\":false,\"moved_from\":\"a\""),
             std::string::npos);
   // As said: `up` now would give the node a second store of its IRI, and refuses.
-  EXPECT_EQ(run({"up", (tmp_ / "node.toml").string(), "--state", state.string()}).status, 1);
+  EXPECT_EQ(run({"up", (tmp_ / "node.toml").string(), "--state", state.string()}).status, kUpRefused);
   fs::rename(state / "a.bak", state / "a");
   const Outcome again = run({"up", (tmp_ / "node.toml").string(), "--state", state.string()});
   ASSERT_EQ(again.status, 0) << again.out << again.err;
@@ -4715,7 +4718,7 @@ TEST_F(Cli, UpAgainAppliesAnEditedFileToTheRunningSupervisor) {
 
   spit(file, "[[node]]\nid = \"solo\"\niri = \"http://example.org/solo\"\n  [[node.agent]]\n  id = \"\"\n");
   Outcome bad = run({"up", file, "--state", state});
-  EXPECT_EQ(bad.status, 1);
+  EXPECT_EQ(bad.status, kUpRefused);
   EXPECT_NE(bad.err.find(file), std::string::npos) << bad.err;
   EXPECT_EQ(pid_of("idle"), new_pid) << "a refused file changed what runs";
 
@@ -4739,7 +4742,7 @@ TEST_F(Cli, OneNodeRunsUnderOneSupervisorAndDownNodeStopsOnlyThatOne) {
   const std::string file = (tmp_ / "node.toml").string(), state = (tmp_ / "state").string();
   ASSERT_EQ(run({"up", file, "--state", state}).status, 0);
   Outcome twice = run({"up", file, "--state", state, "--node", "solo"});
-  EXPECT_EQ(twice.status, 1);
+  EXPECT_EQ(twice.status, kUpRefused);
   EXPECT_NE(twice.err.find("the supervisor of the whole file runs under " + state), std::string::npos) << twice.err;
   EXPECT_NE(twice.err.find("'tahvel up " + file + " --state " + state + "' applies the file to it"), std::string::npos) << twice.err;
   Outcome partial = run({"down", "--state", state, "--node", "solo"});
@@ -4752,7 +4755,7 @@ TEST_F(Cli, OneNodeRunsUnderOneSupervisorAndDownNodeStopsOnlyThatOne) {
 
   ASSERT_EQ(run({"up", file, "--state", state, "--node", "solo"}).status, 0);
   Outcome whole = run({"up", file, "--state", state});
-  EXPECT_EQ(whole.status, 1);
+  EXPECT_EQ(whole.status, kUpRefused);
   EXPECT_NE(whole.err.find("node 'solo' already runs under its own supervisor"), std::string::npos) << whole.err;
   Outcome down = run({"down", "--state", state, "--node", "solo"});
   EXPECT_EQ(down.status, 0) << down.err;
@@ -4776,7 +4779,7 @@ TEST_F(Cli, UpRefusesAStoreThatBelongsToAnotherIri) {
   moved.replace(moved.find("example.org/solo"), 16, "example.org/other");
   spit(tmp_ / "moved.toml", moved);
   Outcome up = run({"up", (tmp_ / "moved.toml").string(), "--state", state});
-  EXPECT_EQ(up.status, 1);
+  EXPECT_EQ(up.status, kUpRefused);
   // Named at the file's line of the iri.
   EXPECT_NE(up.err.find("moved.toml:3:7: node 'solo': the store at " + state + "/solo is the node <http://example.org/solo>, the file says "
                         "<http://example.org/other>"), std::string::npos) << up.err;
@@ -4786,7 +4789,7 @@ TEST_F(Cli, UpRefusesAStoreThatBelongsToAnotherIri) {
   // so, and `up` again after the move starts the node under its new IRI.
   ASSERT_EQ(run({"up", (tmp_ / "node.toml").string(), "--state", state}).status, 0);
   Outcome running = run({"up", (tmp_ / "moved.toml").string(), "--state", state});
-  EXPECT_EQ(running.status, 1);
+  EXPECT_EQ(running.status, kUpRefused);
   EXPECT_NE(running.err.find("move that store away (its node stops within a second; the others run on) and 'tahvel up' "
                              "again, or give the node another id"),
             std::string::npos)
@@ -4808,12 +4811,12 @@ TEST_F(Cli, UpMakesNoStoreWhenALoadFileIsMissingAndLoadsItOnceItIsThere) {
   spit(tmp_ / "node.toml", "[[node]]\nid = \"solo\"\niri = \"http://example.org/solo\"\nload = [\"plan.ttl\"]\n");
   const std::string state = (tmp_ / "state").string();
   Outcome up = run({"up", (tmp_ / "node.toml").string(), "--state", state});
-  EXPECT_EQ(up.status, 1);
+  EXPECT_EQ(up.status, kUpRefused);
   EXPECT_NE(up.err.find("node.toml:4:8: node 'solo': load: cannot open"), std::string::npos) << up.err;
   EXPECT_FALSE(fs::exists(tmp_ / "state" / "solo"));
   spit(tmp_ / "plan.ttl", "<room/bedroom> a\n");  // malformed: named once, with the line
   up = run({"up", (tmp_ / "node.toml").string(), "--state", state});
-  EXPECT_EQ(up.status, 1);
+  EXPECT_EQ(up.status, kUpRefused);
   EXPECT_NE(up.err.find("node.toml:4:8: node 'solo': load: " + (tmp_ / "plan.ttl").string() + ":2:"), std::string::npos) << up.err;
   EXPECT_EQ(up.err.find("load: " + (tmp_ / "node.toml").string()), std::string::npos) << up.err;
   EXPECT_FALSE(fs::exists(tmp_ / "state" / "solo"));
@@ -4884,9 +4887,21 @@ TEST_F(Cli, UpLoadsAFileAddedToAnExistingNodeOnceAndNamesOneChangedSinceItWasLoa
 
 TEST_F(Cli, UpNamesATopologyFileThatDoesNotExist) {
   Outcome up = run({"up", (tmp_ / "missing.toml").string(), "--state", (tmp_ / "state").string()});
-  EXPECT_EQ(up.status, 1);
+  EXPECT_EQ(up.status, kUpRefused);
   EXPECT_NE(up.err.find("missing.toml: no such file"), std::string::npos) << up.err;
   EXPECT_FALSE(fs::exists(tmp_ / "state"));
+}
+
+// Under the shipped unit a refused file is not started again every 5 s for ever: systemd is told
+// the status `up` gives it, and still restarts a supervisor that died of anything else.
+TEST_F(Cli, TheServiceUnitDoesNotRestartAFileUpRefused) {
+  const std::string unit = slurp(fs::path(TAHVEL_SOURCE_DIR) / "deploy" / "systemd" / "tahvel-node@.service");
+  EXPECT_NE(unit.find("\nRestart=on-failure\n"), std::string::npos) << unit;
+  EXPECT_NE(unit.find("\nRestartPreventExitStatus=" + std::to_string(kUpRefused) + "\n"), std::string::npos) << unit;
+  spit(tmp_ / "bad.toml", "[deployment]\nname = \"x\"\n[[node]]\nid = \"a\"\niri = \"http://example.org/a\"\ntier = \"home\"\nbogus = 1\n");
+  Outcome up = run({"up", (tmp_ / "bad.toml").string(), "--node", "a", "--state", (tmp_ / "state").string(), "--foreground"});
+  EXPECT_EQ(up.status, kUpRefused);
+  EXPECT_NE(up.err.find("bad.toml:7:1: node 'a': unknown key 'bogus'"), std::string::npos) << up.err;
 }
 
 // A bedroom and a hall sharing the wall x = 4, and mote1 in the bedroom (docs/spatial.md).
