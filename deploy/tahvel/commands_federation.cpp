@@ -57,9 +57,10 @@ using namespace std::chrono_literals;
 inline constexpr int kExitUnknownNode = 4;
 inline constexpr int kExitUnreachable = 5;
 inline constexpr int kExitInterrupted = 130;  // as a shell reports a command ended by SIGINT
-// `up` refused the topology file as it stands (or a file it names, or a store it would run):
-// nothing was started or changed, and starting it again unchanged fails the same way. A service
-// manager told so (RestartPreventExitStatus=6 in deploy/systemd) stops restarting it.
+// `up` refused to start as things stand (the file or a file it names, a store it would run, its
+// owner or permissions, a supervisor already there): nothing was started or changed, and starting
+// it again before someone acts fails the same way. A service manager told so
+// (RestartPreventExitStatus=6 in deploy/systemd) stops restarting it.
 inline constexpr int kExitFileRefused = 6;
 
 // --- transports ---------------------------------------------------------------------------
@@ -868,8 +869,9 @@ const Command kUpCommand{
     "a real deployment). The supervisor runs in the background until 'tahvel down'; with\n"
     "--foreground it stays attached until SIGINT/SIGTERM. The file format is docs/deploy.md.\n"
     "\n"
-    "Exit status 6: the file, a file it names or a store it would run was refused as it stands;\n"
-    "nothing was started or changed (the message says what and where). 1: any other failure.",
+    "Exit status 6: refused as things stand (the file or a file it names, a store, its owner or\n"
+    "permissions, a supervisor already running: the message says which and where); nothing was\n"
+    "started or changed. 1: any other failure.",
     {kFlagState, {"--node", "", "ID", "bring up only this node"},
      {"--foreground", "", "", "run the supervisor in this process"}},
     1, 1, false};
@@ -2003,7 +2005,6 @@ int up_checked(const Args& args, bool& checking) {
     }
   }
   warn_of_dataflow(topo, mine);
-  checking = false;
   // Only now, with everything checked: a refused file leaves no state directory behind.
   std::error_code ec;
   const bool new_state = !fs::exists(state, ec);
@@ -2018,7 +2019,10 @@ int up_checked(const Args& args, bool& checking) {
   const int turn = ::open(turn_file.c_str(), O_RDWR | O_CREAT | O_CLOEXEC, 0644);
   if (turn < 0 || flock(turn, LOCK_EX) != 0) fail(turn_file.string() + ": " + std::strerror(errno));
   running = supervisor_holding(pid_file);
-  if (running < 0) fail("a supervisor is starting (" + pid_file.string() + "); try again in a moment");
+  if (running < 0) {
+    checking = false;
+    fail("a supervisor is starting (" + pid_file.string() + "); try again in a moment");
+  }
   if (running == 0) refuse_a_supervisor_of_another_selection();
   // A supervisor runs each node it holds (Deployment::lock_node); one that holds a node here
   // without a pid file saying so (the file was deleted) would be a second writer beside the one
@@ -2030,6 +2034,7 @@ int up_checked(const Args& args, bool& checking) {
              ", which holds its store " + (state / spec->id).string() + " though no pid file under " + state.string() +
              " says so (was it deleted?): 'tahvel down --state " + shell_word(state) + "' stops it");
   }
+  checking = false;
   for (const NodeSpec* node_spec : mine) {
     const NodeSpec& spec = *node_spec;
     fs::path store = state / spec.id;
@@ -2115,8 +2120,9 @@ int up_checked(const Args& args, bool& checking) {
   }
   // A node taken out of the file, or renamed (a child's IRI changes with its id), keeps its store
   // and what its outbox holds: items its parent never acknowledged, which go up only when a node
-  // of that IRI runs again. Said, as nothing else would.
-  if (!only) {
+  // of that IRI runs again. Said, as nothing else would; with --node too (one machine of a real
+  // deployment, whose state directory holds its one node).
+  {
     for (const auto& entry : fs::directory_iterator(state, ec)) {
       const std::string id = entry.path().filename().string();
       if (topo.node(id) || !fs::exists(entry.path() / "data.mdb") || store_being_made(entry.path())) continue;
@@ -2126,11 +2132,20 @@ int up_checked(const Args& args, bool& checking) {
         continue;
       auto uplink = left->agent("uplink");
       const auto waiting = uplink ? uplink->pending() : node::Result<std::uint64_t>(std::uint64_t{0});
+      // Brought up with `up --node ID` and left running: its own supervisor runs it on, as the
+      // node the file no longer has, beside the one that replaces it.
+      const pid_t runs = only ? supervisor_holding(state / pid_file_name(id)) : 0;
+      const std::string still_runs = runs > 0 ? " Its supervisor (pid " + std::to_string(runs) + ") still runs it: 'tahvel down --state " +
+                                                    shell_word(state) + " --node " + id + "' stops it."
+                                              : std::string();
       if (waiting && *waiting > 0)
         std::cout << "up: warning: the store " << entry.path().string() << " of <" << left->iri() << ">, a node not in "
                   << topo.file.string() << ", holds " << *waiting << (*waiting == 1 ? " item" : " items")
                   << " its parent never acknowledged: they go up only when a node of that IRI runs again (put it back "
-                     "in the file until its outbox is empty, as 'tahvel status' shows)\n";
+                     "in the file until its outbox is empty, as 'tahvel status' shows)." << still_runs << "\n";
+      else if (runs > 0)
+        std::cout << "up: warning: node '" << id << "' <" << left->iri() << ">, not in " << topo.file.string()
+                  << ", runs on beside it." << still_runs << "\n";
     }
     ec.clear();
   }
@@ -2257,6 +2272,9 @@ int up_checked(const Args& args, bool& checking) {
     ::close(ready_fd);
   }
   auto log_checked = std::chrono::steady_clock::now(), stores_checked = log_checked;
+  // Left with no node to run (its stores removed to start afresh): it ends with a failure, so that
+  // a service manager restarting on failure starts it again and its `up` makes the stores anew.
+  bool stores_removed = false;
   while (!g_stop) {
     supervisor.poll();
     // Its own log too (in the foreground it writes to the terminal: nothing to keep).
@@ -2284,6 +2302,7 @@ int up_checked(const Args& args, bool& checking) {
           log("up: the store of node " + ids + " is no longer in " + state.string() +
               " (removed or moved while it ran); stopping, since its programs would write where no one reads and an "
               "'up' of that directory would run them twice");
+          stores_removed = true;
           break;
         }
         for (const auto& line : deployment.drop_nodes(gone)) log("up: " + line);
@@ -2299,8 +2318,9 @@ int up_checked(const Args& args, bool& checking) {
   log("up: supervisor " + std::to_string(getpid()) + " stopped");
   // A board's thread still waiting in the store would run on while static destructors do
   // (the log's mutex among them) should the lock be freed meanwhile: end without them.
-  if (!deployment.boards_finished()) _exit(kExitOk);
-  return kExitOk;
+  const int status = stores_removed ? kExitFailure : kExitOk;
+  if (!deployment.boards_finished()) _exit(status);
+  return status;
 }
 
 }  // namespace
@@ -2835,6 +2855,18 @@ int run_status(const Args& args) {
     fail("no node stores under " + state.string() +
          (unfinished.empty() ? " (did 'tahvel up' run with this --state?)"
                              : " (only " + unfinished + ", left unfinished by an interrupted 'tahvel up': the next 'up' makes it anew)"));
+  // A user who may open none of the stores (a monitoring account) got every node as "<>", none
+  // under its parent, and status 0: refused, naming whose the stores are.
+  if (nodes.empty() && std::all_of(unopened.begin(), unopened.end(), [](const auto& u) { return u.second.find("Permission denied") != std::string::npos; })) {
+    struct stat owner {};
+    const fs::path first = state / unopened.begin()->first;
+    const bool known = ::stat(first.c_str(), &owner) == 0;
+    fail("status: " + user_name(::geteuid()) + " may open none of the node stores under " + state.string() + " (" +
+         unopened.begin()->second + ")" +
+         (known && owner.st_uid != ::geteuid() ? "; they are " + user_name(owner.st_uid) + "'s: 'sudo -u " + sudo_user(owner.st_uid) +
+                                                      " tahvel status --state " + shell_word(state) + "'"
+                                                : std::string()));
+  }
   auto find = [&](const std::string& iri) -> StatusNode* {
     for (StatusNode& n : nodes)
       if (n.iri == iri) return &n;

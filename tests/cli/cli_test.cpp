@@ -2599,6 +2599,22 @@ TEST_F(Cli, StatusShowsANodeWhoseStoreCannotBeOpenedAsThisMachinesSayingWhy) {
   }
 }
 
+// A monitoring account that may open none of the stores got every node as "<>", none under its
+// parent, each with a Permission denied line, and status 0. It fails, naming whose they are.
+TEST_F(Cli, StatusByAUserWhoMayOpenNoneOfTheStoresFailsNamingWhoseTheyAre) {
+  if (geteuid() != 0) GTEST_SKIP() << "needs root, to run status as another user";
+  const std::string state = (tmp_ / "state").string();
+  ASSERT_EQ(run({"init", state + "/hospital", "--iri", "http://example.org/hospital"}).status, 0);
+  ASSERT_EQ(run({"init", state + "/home1", "--iri", "http://example.org/hospital/home1"}).status, 0);
+  const auto [status, why] = run_as_another_user({"status", "--state", state, "--local"});
+  if (status == 126 || status == 127) GTEST_SKIP() << "cannot run the binary as another user here";
+  EXPECT_EQ(status, 1) << why;
+  EXPECT_NE(why.find("tahvel: status: nobody (uid 65534) may open none of the node stores under " + state + " (opening store "),
+            std::string::npos) << why;
+  EXPECT_NE(why.find("Permission denied"), std::string::npos) << why;
+  EXPECT_NE(why.find("; they are root (uid 0)'s: 'sudo -u root tahvel status --state " + state + "'"), std::string::npos) << why;
+}
+
 // An empty data.mdb (a copy that failed, a disk that filled): list said "is empty: not a
 // store" and init "already holds a store", each sending the user to the other.
 TEST_F(Cli, InitAndListAgreeThatAnEmptyDataFileIsNoStore) {
@@ -2992,6 +3008,29 @@ TEST_F(Cli, UpInTheForegroundWritesEachLineWhenItIsSaid) {
   kill(pid, SIGKILL);
   EXPECT_EQ(finish(pid, n).status, 128 + SIGKILL);
   EXPECT_EQ(run({"down", "--state", state}).status, 0);  // what the killed supervisor left running
+}
+
+// A service's supervisor whose node store was removed (to start the node afresh) ended with
+// status 0, so the unit's Restart=on-failure left the node down for good. It now ends with a
+// failure, and the `up` the service manager starts next makes the store anew.
+TEST_F(Cli, AForegroundSupervisorWhoseStoreWasRemovedEndsWithAFailureAndUpMakesItAnew) {
+  const std::string file = (tmp_ / "node.toml").string(), state = (tmp_ / "state").string();
+  spit(file, kIdleNodeToml);
+  const int n = 996;
+  const pid_t pid = spawn({"up", file, "--state", state, "--foreground"}, "", n);
+  status_until(state, "running (pid");
+  std::error_code ec;
+  for (const auto& entry : fs::directory_iterator(state, ec))
+    if (fs::exists(entry.path() / "data.mdb")) fs::remove_all(entry.path(), ec);
+  const Outcome ended = finish(pid, n);
+  EXPECT_EQ(ended.status, 1) << ended.out << ended.err;
+  EXPECT_NE((ended.out + ended.err).find("is no longer in " + fs::absolute(state).string()), std::string::npos)
+      << ended.out << ended.err;
+  const pid_t again = spawn({"up", file, "--state", state, "--foreground"}, "", n + 1);
+  status_until(state, "running (pid");
+  EXPECT_NE(slurp(tmp_ / ("out" + std::to_string(n + 1))).find("up: created the store of "), std::string::npos);
+  kill(again, SIGTERM);
+  EXPECT_EQ(finish(again, n + 1).status, 0);
 }
 
 // `up --node` with an id that names no node: a systemd unit's instance name arrives escaped
@@ -4379,6 +4418,22 @@ TEST_F(Cli, UpSaysWhatTheOutboxOfANodeNoLongerInTheFileHolds) {
                              (tmp_ / "b.toml").string() + ", holds 3 items its parent never acknowledged"),
             std::string::npos) << renamed.out;
   EXPECT_EQ(run({"down", "--state", state}).status, 0);
+
+  // One machine of a real deployment (`up --node`): said too, and that the old node's own
+  // supervisor still runs it (up to session 78 nothing was said there).
+  const std::string machine = (tmp_ / "machine").string();
+  ASSERT_EQ(run({"up", (tmp_ / "a.toml").string(), "--node", "home1", "--state", machine}).status, 0);
+  for (const char* value : {"1", "2"})
+    ASSERT_EQ(run({"put", machine + "/home1", "--format", "nt"}, std::string("<http://example.org/s> <http://example.org/p> \"") + value + "\" .\n").status, 0);
+  const std::string old_supervisor = slurp(fs::path(machine) / "supervisor-home1.pid");
+  renamed = run({"up", (tmp_ / "b.toml").string(), "--node", "home9", "--state", machine});
+  EXPECT_EQ(renamed.status, 0) << renamed.err;
+  EXPECT_NE(renamed.out.find("of <http://example.org/renaming/home1>, a node not in " + (tmp_ / "b.toml").string() + ", holds 2 items"),
+            std::string::npos) << renamed.out;
+  EXPECT_NE(renamed.out.find("Its supervisor (pid " + std::to_string(std::stol(old_supervisor)) + ") still runs it: 'tahvel down --state " +
+                             machine + " --node home1' stops it."),
+            std::string::npos) << renamed.out;
+  EXPECT_EQ(run({"down", "--state", machine}).status, 0);
 }
 
 // A home moved under another hospital changes IRI: `up` refuses its store, and says what its
