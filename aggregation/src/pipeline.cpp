@@ -82,6 +82,27 @@ std::optional<std::string> irregular_rhythm_warning(const HrvMetrics& m, std::si
   return out;
 }
 
+std::optional<std::string> fixed_rate_warning(const std::vector<Interval>& intervals, double fs) {
+  if (!(fs > 0)) return std::nullopt;
+  std::size_t nn = 0;
+  std::int64_t shortest = 0, longest = 0;
+  for (const Interval& i : intervals) {
+    if (!i.nn || i.end <= i.start) continue;
+    const std::int64_t length = i.end - i.start;
+    shortest = nn == 0 ? length : std::min(shortest, length);
+    longest = nn == 0 ? length : std::max(longest, length);
+    ++nn;
+  }
+  if (nn < kFixedRateMinIntervals || longest - shortest > 1) return std::nullopt;
+  char text[400];
+  std::snprintf(text, sizeof text,
+                "all %zu NN intervals are %.0f ms to within one sample (%.3g ms): a rhythm as fixed as no heart keeps; "
+                "a fixed-rate pacemaker, a simulator or test signal, or a periodic artefact (a spike at a fixed rate); "
+                "its HRV says nothing of the heart",
+                nn, static_cast<double>(shortest) * 1000 / fs, 1000 / fs);
+  return std::string(text);
+}
+
 std::optional<std::string> detector_rate_warning(const std::vector<Interval>& intervals, double fs, double hold_ms) {
   if (intervals.size() < 10 || !(fs > 0)) return std::nullopt;
   const double fastest_ms = hold_ms + std::max(5.0, 1000 / fs);
@@ -253,6 +274,7 @@ Result<HrvReport> hrv_from_record(const std::string& record_path, const ChainOpt
                                                 options.nn.max_interval_s))
     report->rhythm_warnings.push_back(*irregular);
   if (auto paced = paced_beats_warning(record_path)) report->rhythm_warnings.push_back(*paced);
+  if (auto fixed = fixed_rate_warning(report->intervals, report->fs)) report->rhythm_warnings.push_back(*fixed);
   // A flat signal (a lead off, a channel of zeros) gives no beat, and every metric null: said,
   // so that it is not read as a record without HRV for another reason.
   // With other signals in the record, the lead chosen may be the wrong one (an unnamed ECG after

@@ -108,6 +108,40 @@ TEST(DetectorRateWarning, BeatsAtTheDetectorsHoldAreSaidToBeNoHeartsRhythm) {
   EXPECT_TRUE(detector_rate_warning(pinned, fs, hold_ms));
 }
 
+// A spike once a second (a test signal, a periodic artefact) gave 119 "beats", SDNN 0 and no
+// word: a rhythm held to the sample, which no heart keeps. Said; the ECGSYN rhythm, and too few
+// intervals to tell, are not.
+TEST(FixedRateWarning, IntervalsAllOneLengthToTheSampleAreSaidToBeNoHeartsRhythm) {
+  constexpr double fs = 360;
+  std::vector<std::int32_t> spikes(static_cast<std::size_t>(120 * fs), 0);
+  for (std::size_t i = 180; i < spikes.size(); i += 360) spikes[i] = 2000;
+  auto report = hrv_from_samples(spikes, fs, 200);
+  ASSERT_TRUE(report) << report.error().message;
+  auto said = fixed_rate_warning(report->intervals, fs);
+  ASSERT_TRUE(said) << report->intervals.size() << " intervals";
+  EXPECT_NE(said->find("NN intervals are 1000 ms to within one sample (2.78 ms)"), std::string::npos) << *said;
+  EXPECT_NE(said->find("its HRV says nothing of the heart"), std::string::npos) << *said;
+  // One sample either way is within it; two are not.
+  auto series = [](std::int64_t odd_length) {  // 300 samples, every other one `odd_length`
+    std::vector<Interval> out;
+    for (std::int64_t i = 0, at = 0; i < 40; ++i) {
+      const std::int64_t length = i % 2 ? odd_length : 300;
+      out.push_back({at, at + length, true});
+      at += length;
+    }
+    return out;
+  };
+  EXPECT_TRUE(fixed_rate_warning(series(301), fs));
+  EXPECT_FALSE(fixed_rate_warning(series(302), fs));
+  std::vector<Interval> few;
+  for (std::int64_t i = 0; i + 1 < static_cast<std::int64_t>(kFixedRateMinIntervals); ++i) few.push_back({i * 300, (i + 1) * 300, true});
+  EXPECT_FALSE(fixed_rate_warning(few, fs));
+  const SyntheticRun run = synthetic(120, 70, 3);
+  auto ecg = hrv_from_samples(run.samples, 360, 200);
+  ASSERT_TRUE(ecg) << ecg.error().message;
+  EXPECT_FALSE(fixed_rate_warning(ecg->intervals, 360));
+}
+
 // A 50 Hz sine at 250 Hz locked the detector to every 12th cycle: 250 bpm, as regular as no heart
 // (SDNN 3 ms), with intervals longer than the hold, so that nothing was said. The share of the
 // signal's power at the mains frequency tells; an ECG with a little hum on it is not said.
