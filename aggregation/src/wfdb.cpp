@@ -529,9 +529,16 @@ Result<SignalReader> SignalReader::open(const std::string& record_path) {
     g->in.open(g->path, std::ios::binary);
     if (!g->in) return fail(g->path + ": cannot open signal file: " + std::strerror(errno));
     std::error_code ec;
+    // A device or a pipe has no size to check the header's sample count against.
+    if (const auto kind = std::filesystem::status(g->path, ec).type(); !ec && kind != std::filesystem::file_type::regular)
+      return fail(g->path + ": the signal file is not a regular file (a device, a pipe or a directory): WFDB signals are read from files");
     auto size = static_cast<std::int64_t>(std::filesystem::file_size(g->path, ec));
     if (ec) return fail(g->path + ": cannot stat signal file: " + ec.message());
     std::int64_t offset = sigs[i].byte_offset;
+    if (offset > 0 && offset >= size)
+      return fail(record_path + ".hea: signal " + std::to_string(i) + ": its byte offset (+" + std::to_string(offset) + " in " +
+                  std::to_string(sigs[i].format) + "+" + std::to_string(offset) + ") is past the end of " + sigs[i].file + " (" +
+                  std::to_string(size) + " bytes)");
     std::int64_t found = values_in_bytes(g->format, std::max<std::int64_t>(0, size - offset)) /
                          static_cast<std::int64_t>(g->count);
     std::int64_t expected = r.header_.samples_per_signal;

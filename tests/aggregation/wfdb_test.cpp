@@ -723,6 +723,21 @@ TEST_F(WfdbTemp, AHeaderWhoseFormatDoesNotFitTheFileSaysTheFormatTheSizeFits) {
   EXPECT_EQ(s.error().message.find("format 212 takes"), std::string::npos) << s.error().message;
 }
 
+// A byte offset past the end of the file was "truncated: … found 0", naming neither the offset
+// nor the header; a device as the signal file "cannot stat signal file: Operation not supported".
+TEST_F(WfdbTemp, AnOffsetPastTheFileAndASignalFileThatIsNoFileAreNamedSo) {
+  write("r.hea", "r 1 360 100\nr.dat 16+5000 200 12 0 0 0 0 I\n");
+  write("r.dat", std::string(200, '\0'));
+  auto s = read_signals(record("r"));
+  ASSERT_FALSE(s);
+  EXPECT_NE(s.error().message.find("r.hea: signal 0: its byte offset (+5000 in 16+5000) is past the end of r.dat (200 bytes)"),
+            std::string::npos) << s.error().message;
+  write("r.hea", "r 1 360 100\n/dev/zero 16 200 12 0 0 0 0 I\n");
+  s = read_signals(record("r"));
+  ASSERT_FALSE(s);
+  EXPECT_NE(s.error().message.find("/dev/zero: the signal file is not a regular file"), std::string::npos) << s.error().message;
+}
+
 TEST_F(WfdbTemp, MultiSegmentRecordIsRefused) {
   write("r.hea", "r/3 1 360 4\n");
   auto h = read_header(record("r"));
