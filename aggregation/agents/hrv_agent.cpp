@@ -123,7 +123,20 @@ class HrvStage {
       (window ? next.window_s : next.step_s) = v;
       evictable = !r.meta.persistent;
     }
-    const std::string problem = unusable[1] + (!unusable[1].empty() && !unusable[0].empty() ? "; " : "") + unusable[0];
+    std::string problem = unusable[1] + (!unusable[1].empty() && !unusable[0].empty() ? "; " : "") + unusable[0];
+    // Each value usable, the two together not (a day's window from the hospital over the step
+    // of a minute's): the pair in force stands.
+    if (auto pair = agg::window_step_problem(next.window_s, next.step())) {
+      const std::string said = "configuration of <" + session_.agent.iri() + ">: " + *pair + "; ignored, the window (" +
+                               number_text(config_.window_s) + " s) and step (" + number_text(config_.step()) + " s) before stand";
+      if (said != pair_warned_) rt::log_line(kProgram, said);
+      pair_warned_ = said;
+      problem += (problem.empty() ? "" : "; ") + said;
+      next = config_;
+      evictable = false;
+    } else {
+      pair_warned_.clear();
+    }
     if (auto said = session_.agent.report_problem(problem); !said)
       rt::log_line(kProgram, "report the configuration's problem on the board: " + said.error().message);
     if (next.window_s != config_.window_s || next.step() != config_.step())
@@ -311,6 +324,7 @@ class HrvStage {
   const WindowConfig defaults_;  // --window, --step
   WindowConfig config_;
   std::set<std::uint64_t> warned_;  // configuration records already logged as ignored
+  std::string pair_warned_;  // the window-and-step problem last logged, said once until it changes
   std::map<std::string, Stream> streams_;
 };
 
@@ -344,6 +358,8 @@ int main(int argc, char** argv) {
     if (args.has("--step"))
       if (auto problem = agg::window_setting_problem(defaults.step_s, true))
         throw rt::UsageError("--step: " + *problem + ", got " + number_text(defaults.step_s));
+    if (auto problem = agg::window_step_problem(defaults.window_s, defaults.step()))
+      throw rt::UsageError("--step: " + *problem + ", got " + number_text(defaults.step_s));
     rt::install_stop_handlers();
     auto session = rt::open_session(kProgram, args.dir(), args.text("--agent", "hrv"));
     if (!session) return rt::kExitError;

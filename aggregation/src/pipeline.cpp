@@ -18,6 +18,7 @@ Result<HrvReport> hrv_from_samples(const std::vector<std::int32_t>& samples, dou
   if (options.step_s < 0) return fail("step: must not be negative");
   if (options.step_s > 0)
     if (auto problem = window_setting_problem(options.step_s, true)) return fail("step: " + *problem);
+  if (auto problem = window_step_problem(options.window_s, options.step_s)) return fail("step: " + *problem);
   DetectorOptions detector = options.detector;
   detector.fs = fs;
   detector.gain = gain;

@@ -547,6 +547,8 @@ int run_hrv(const Args& args) {
   agg::ChainOptions options;
   options.window_s = seconds_flag(args, "--window", 300, false);
   options.step_s = seconds_flag(args, "--step", options.window_s, true);
+  if (auto problem = agg::window_step_problem(options.window_s, options.step_s))
+    usage_error("--step: " + *problem + ", got '" + *args.get("--step") + "'");
   // Any number: checked_signal names it as typed when the record lacks it.
   std::optional<std::uint64_t> typed;
   if (args.has("--signal")) typed = args.get_u64("--signal", 0);

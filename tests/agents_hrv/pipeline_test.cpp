@@ -966,6 +966,44 @@ TEST(AgentPrograms, AnHrvSettingItCannotUseIsItsProblemOnTheBoardUntilAUsableOne
   EXPECT_EQ(node->snapshot()->count({.s = hrv, .p = tn::Term::iri(tn::kProblemPid)}).value(), 0u);
 }
 
+// The whole of the file at `path` (an agent's log); "" when it cannot be read.
+std::string text_of(const std::string& path) {
+  std::ifstream in(path);
+  std::ostringstream text;
+  text << in.rdbuf();
+  return text.str();
+}
+
+// A day's window sent down over the step of a minute's (each usable alone) made the agent lay
+// 1,440 windows over each moment, and with a second's step 86,400, each computed whole: it
+// would fall behind for good. The pair is refused as `tahvel hrv` refuses it, the window and
+// step before standing, until a pair that fits follows.
+TEST(AgentPrograms, AnHrvWindowAndStepThatLayTooManyWindowsOverAMomentAreRefusedTogether) {
+  ScratchNode scratch("hrv-pair");
+  ASSERT_TRUE(scratch.node) << "cannot make a store under /tmp";
+  std::optional<tn::Node>& node = scratch.node;
+  auto op = node->agent("operator");
+  ASSERT_TRUE(op);
+  const tn::Term hrv = tn::Term::iri(kNodeIri + "/hrv");
+  ASSERT_TRUE(op->store(tn::Item{}.add(hrv, agg::tv_term("stepSeconds"), tn::Term::integer(1))));
+  ASSERT_TRUE(op->store(tn::Item{}.add(hrv, agg::tv_term("windowSeconds"), tn::Term::integer(86400))));
+  auto problem = [&] { return problem_of(*node, hrv); };
+  const std::string log = scratch.tmp + "/hrv.log";
+  {
+    Process agent({bin("tahvel-hrv"), scratch.dir, "--idle", "30", "--window", "60"}, log);
+    ASSERT_TRUE(within_a_minute([&] { return !problem().empty(); })) << "no problem on the board";
+    EXPECT_NE(problem().find("a window of 86400 s stepped by 1 s lays 86400 windows over each moment of signal, at most 3600"),
+              std::string::npos) << problem();
+    EXPECT_NE(problem().find("ignored, the window (60 s) and step (60 s) before stand"), std::string::npos) << problem();
+    ASSERT_TRUE(op->store(tn::Item{}.add(hrv, agg::tv_term("stepSeconds"), tn::Term::integer(60))));
+    EXPECT_TRUE(within_a_minute([&] { return problem().empty(); })) << "still: " << problem();
+    EXPECT_EQ(agent.stop(), 0);
+  }
+  const std::string said = text_of(log);
+  EXPECT_NE(said.find("lays 86400 windows over each moment"), std::string::npos) << said;
+  EXPECT_NE(said.find("window 86400.000000 s, step 60.000000 s"), std::string::npos) << said;
+}
+
 // A window or step from the board (the hospital may send it) that is too short for HRV is
 // refused with its reason and the bounds, on the board and in the log, and the agent runs on
 // with the setting before it: a window of 0.5 s or a step of 0.01 s was taken, and made a
@@ -989,12 +1027,6 @@ TEST(AgentPrograms, AnHrvWindowOrStepTooShortForHrvIsRefusedWithTheBoundsAndTheA
     EXPECT_NE(problem().find("must be a number of seconds in [1, 86400]"), std::string::npos) << problem();
     EXPECT_EQ(agent.stop(), 0) << "the agent did not run on";
   }
-  const auto text_of = [](const std::string& path) {
-    std::ifstream in(path);
-    std::ostringstream text;
-    text << in.rdbuf();
-    return text.str();
-  };
   EXPECT_NE(text_of(log).find("windowSeconds '0.5'"), std::string::npos) << text_of(log);
   // The same bounds on its command line.
   Process flag({bin("tahvel-hrv"), scratch.dir, "--window", "5"}, scratch.tmp + "/flag.log");

@@ -236,5 +236,26 @@ TEST(HrvChain, RefusesAWindowShorterThan10sOrAStepShorterThan1s) {
   EXPECT_TRUE(window_setting_problem(std::nan(""), false));
 }
 
+// A day's window stepped by a second was taken: 86,400 windows over each moment, each computed
+// whole (about a second of CPU for a day of beats), a second of CPU per second of signal. Refused
+// above kMaxWindowsPerMoment, naming the least step for that window.
+TEST(HrvChain, RefusesAStepThatLaysMoreThan3600WindowsOverAMoment) {
+  const SyntheticRun run = synthetic(30, 70, 3);
+  ChainOptions o;
+  o.window_s = 86400;
+  o.step_s = 1;
+  auto report = hrv_from_samples(run.samples, 360, 200, o);
+  ASSERT_FALSE(report);
+  EXPECT_NE(report.error().message.find("step: a window of 86400 s stepped by 1 s lays 86400 windows over each moment of "
+                                        "signal, at most 3600 (each is computed whole): a step of at least 24 s for this window"),
+            std::string::npos)
+      << report.error().message;
+  o.step_s = 24;
+  EXPECT_TRUE(hrv_from_samples(run.samples, 360, 200, o));
+  EXPECT_FALSE(window_step_problem(3600, 1));
+  EXPECT_TRUE(window_step_problem(3601, 1));
+  EXPECT_FALSE(window_step_problem(300, 0));  // no step: the window's own
+}
+
 }  // namespace
 }  // namespace tahvel::aggregation

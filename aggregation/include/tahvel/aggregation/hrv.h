@@ -116,6 +116,16 @@ inline constexpr double kMaxWindowS = 86400;  // the longest window or step: a d
 // names the bounds ("must be a number of seconds in [10, 86400] (...)"); nullopt when it can.
 std::optional<std::string> window_setting_problem(double seconds, bool is_step);
 
+// At most this many windows over any moment of signal (window / step). Each window is computed
+// whole, its spectrum up to about a second of CPU for a day of beats (HrvOptions::max_work): a
+// day's window stepped by a second took a second of CPU per second of signal, per patient, and
+// an agent given it from the hospital would fall behind for good.
+inline constexpr double kMaxWindowsPerMoment = 3600;
+
+// Why a window of window_s stepped by step_s cannot be used (more than kMaxWindowsPerMoment
+// windows over a moment): the text names the least step for that window; nullopt when it can.
+std::optional<std::string> window_step_problem(double window_s, double step_s);
+
 // Windows k = 0, 1, ... start at k * step_s and last window_s; an interval belongs to every
 // window whose [start_s, end_s) contains its end beat (end / fs). Windows are produced from the
 // first one that ends after the first interval's end up to the last one starting at or before
