@@ -1665,15 +1665,24 @@ class Deployment {
     if (was.argv != now.argv) {
       // Where: a file unchanged but TAHVEL_MITDB unset (or set) changes a source's --record to
       // --synthetic, which "its command changed" alone did not tell.
+      // The arguments the two share at the end are left out too: a child added to a link's
+      // command read "nothing became '--child' 'homeD'", one flag taken out as if another had
+      // replaced it (what followed it shifted into its place).
       std::size_t at = 0;
       while (at < was.argv.size() && at < now.argv.size() && was.argv[at] == now.argv[at]) ++at;
+      std::size_t shared_tail = 0;
+      while (shared_tail < was.argv.size() - at && shared_tail < now.argv.size() - at &&
+             was.argv[was.argv.size() - 1 - shared_tail] == now.argv[now.argv.size() - 1 - shared_tail])
+        ++shared_tail;
       auto words = [&](const std::vector<std::string>& argv) {
+        const std::size_t end = argv.size() - shared_tail;
         std::string text;
-        for (std::size_t i = at; i < argv.size() && i < at + 2; ++i) text += (text.empty() ? "'" : " '") + argv[i] + "'";
-        return text.empty() ? std::string("nothing") : text + (argv.size() > at + 2 ? " ..." : "");
+        for (std::size_t i = at; i < end && i < at + 4; ++i) text += (text.empty() ? "'" : " '") + argv[i] + "'";
+        return text + (end > at + 4 ? " ..." : "");
       };
-      what.push_back("its command changed from argument " + std::to_string(at) + ": " + words(was.argv) + " became " +
-                     words(now.argv));
+      const std::string before = words(was.argv), after = words(now.argv);
+      what.push_back("its command changed from argument " + std::to_string(at) + ": " +
+                     (before.empty() ? after + " added" : after.empty() ? before + " taken out" : before + " became " + after));
     }
     else if (was.env != now.env) what.push_back("a file it reads at start changed");
     if (was.restart != now.restart)

@@ -102,14 +102,19 @@ std::string percent_spelling_hint(const node::Snapshot& snap, const std::string&
   return {};
 }
 
-// The children this node knows (those whose link state it keeps).
-std::string known_children_hint(const node::Snapshot& snap) {
+// The children this node knows (those whose link state it keeps). `served` says whether a link
+// has ever served children here (its lock file is there): a store whose link never ran (`up`
+// failed, only `init`) knows none for that reason, not because none exists.
+std::string known_children_hint(const node::Snapshot& snap, bool served) {
   auto states = snap.list({.p = node::Term::iri(vocab::kLinkState)});
   if (!states) return {};
   std::vector<std::string> children;
   for (const node::Record& r : *states)
     if (r.triple.s.is_iri()) children.push_back(r.triple.s.value);
-  return detail::children_hint(std::move(children), "; it knows no child (none has said hello to its link)");
+  return detail::children_hint(std::move(children),
+                               served ? "; it knows no child (none has said hello to its link)"
+                                      : "; it knows no child: no link has served children here (a node without 'listen', "
+                                        "or one whose link has not run yet: 'tahvel status' shows it)");
 }
 
 }  // namespace
@@ -176,12 +181,30 @@ Result<std::uint64_t> remote_query(node::Node& node, const RemoteQuery& query,
       if (!snap) return Unexpected<Error>{snap.error()};
       auto state = snap->list({.s = Term::iri(child), .p = Term::iri(vocab::kLinkState)});
       if (!state) return Unexpected<Error>{state.error()};
-      if (state->empty())
+      if (state->empty()) {
+        // A link served children here and none runs now (stopped, or restarting): a child that
+        // had not said hello to it yet is not known to be absent, only not heard from. Said as
+        // unreachable, as any child is with no link running, after the wait for a restart.
+        std::error_code ec;
+        const bool served = std::filesystem::exists(node.dir() / kServingLockFile, ec);
+        const LinkSeen link = served ? link_serving(node.dir()) : LinkSeen{};
+        if (served && !link.serving) {
+          if (std::chrono::steady_clock::now() < grace_end) {
+            std::this_thread::sleep_for(std::chrono::milliseconds(50));
+            continue;
+          }
+          return node::fail(Errc::io, "unreachable: no link runs for <" + self + "> (nothing holds " +
+                                          (node.dir() / kServingLockFile).string() + "), and <" + child +
+                                          "> has not said hello to one here, so only a running link can tell whether it "
+                                          "is below <" + self + ">; if 'tahvel status' shows the link restarting, ask again "
+                                          "once it runs, else start it ('tahvel up')");
+        }
         return node::fail(Errc::not_found, "unknown node <" + *target + ">: <" + self + "> has no child <" + child + ">" +
                                                [&] {
                                                  std::string hint = percent_spelling_hint(*snap, child);
-                                                 return hint.empty() ? known_children_hint(*snap) : hint;
+                                                 return hint.empty() ? known_children_hint(*snap, served) : hint;
                                                }());
+      }
       child_state = state->back().triple.o.value;
     }
     const LinkSeen link = link_serving(node.dir());

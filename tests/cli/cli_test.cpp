@@ -2812,6 +2812,32 @@ TEST_F(Cli, UpAgainExpandsCommandsWithTheCallersTahvelMitdb) {
   EXPECT_EQ(run({"down", "--state", state}).status, 0);
 }
 
+// A child added to a link's command read "nothing became '--child' 'homeD'", and a flag taken
+// out as if the one after it had replaced it: what the two commands share at their ends is left
+// out, and an argument added or taken out is said so.
+TEST_F(Cli, UpAgainSaysWhichArgumentsOfAProgramsCommandWereAddedOrTakenOut) {
+  const std::string file = (tmp_ / "node.toml").string(), state = (tmp_ / "state").string();
+  auto with_args = [&](const std::string& args) {
+    spit(file, "[[node]]\nid = \"solo\"\niri = \"http://example.org/solo\"\n  [[node.agent]]\n  id = \"idle\"\n"
+               "  run = [\"/bin/sh\", \"-c\", \"exec sleep 600\"" + args + ", \"last\"]\n");
+  };
+  with_args("");
+  ASSERT_EQ(run({"up", file, "--state", state}).status, 0);
+  with_args(", \"zero\", \"one\"");
+  Outcome added = run({"up", file, "--state", state});
+  EXPECT_NE(added.out.find("up:   restarted solo/idle (its command changed from argument 3: 'zero' 'one' added)"), std::string::npos)
+      << added.out;
+  with_args(", \"one\"");
+  Outcome taken = run({"up", file, "--state", state});
+  EXPECT_NE(taken.out.find("up:   restarted solo/idle (its command changed from argument 3: 'zero' taken out)"), std::string::npos)
+      << taken.out;
+  with_args(", \"two\"");
+  Outcome replaced = run({"up", file, "--state", state});
+  EXPECT_NE(replaced.out.find("up:   restarted solo/idle (its command changed from argument 3: 'one' became 'two')"), std::string::npos)
+      << replaced.out;
+  EXPECT_EQ(run({"down", "--state", state}).status, 0);
+}
+
 // The supervisor holds its nodes' stores: with its pid file deleted (a "stale files" clean-up),
 // a second `up` used to start a second supervisor running every agent twice.
 TEST_F(Cli, UpRefusesANodeThatASupervisorWithoutItsPidFileRunsAndDownStopsThatSupervisor) {
@@ -2822,7 +2848,7 @@ TEST_F(Cli, UpRefusesANodeThatASupervisorWithoutItsPidFileRunsAndDownStopsThatSu
   ASSERT_GT(first, 0);
   fs::remove(tmp_ / "state" / "supervisor-all.pid");
   Outcome second = run({"up", file, "--state", state});
-  EXPECT_EQ(second.status, 1);
+  EXPECT_EQ(second.status, kUpRefused);
   EXPECT_NE(second.err.find("node 'solo' is run by supervisor " + std::to_string(first) + ", which holds its store"), std::string::npos)
       << second.err;
   Outcome down = run({"down", "--state", state});

@@ -2518,13 +2518,14 @@ TEST(Link, AQueryAskedWhereNoLinkRunsIsUnreachableWithoutWaitingForItsTimeout) {
 
 // Where no link runs, that is why every child cannot be reached, whatever state the link's last
 // run left for it: `tahvel status` (no restart grace) said of a child that run had not heard
-// from "<…/home2> has never connected to <…/hospital>", and of one it had, "no link runs".
+// from "<…/home2> has never connected to <…/hospital>", and of one it had, "no link runs". A
+// child no run has heard of was an unknown node (exit 4), though only a running link can tell.
 TEST(Link, WhereNoLinkRunsEveryChildIsUnreachableBecauseNoLinkRunsNotForItsLastState) {
   Tree tree;
   ASSERT_TRUE(tree.start_hospital_and_home1());
   tree.hospital.reset();
   auto hospital = node::Node::open(tree.hospital_dir).value();
-  for (const std::string& child : {kHome1, kHome2}) {
+  for (const std::string& child : {kHome1, kHome2, kHospital + "/home9"}) {
     auto asked = remote_query(hospital, {.target = child, .restart_grace = {}}, 10s, [](const node::Record&) {});
     ASSERT_FALSE(asked) << child;
     EXPECT_EQ(asked.error().code, Errc::io) << child;
