@@ -92,7 +92,13 @@ class HrvStage {
     // From --window and --step: a setting taken back (removed) leaves what the board still says,
     // or those, not the value it had set.
     WindowConfig next = defaults_;
-    bool evictable = false;  // the value in force came from a record a ring or TTL may reclaim
+    // Whether the window and the step in force came from records a ring or TTL may reclaim.
+    bool window_evictable = false, step_evictable = false;
+    // The last pair the records made, in their order, that can be used together (the flags'
+    // at first): it stands when the latest pair cannot (a day's window over a second's step).
+    // Taken from the board alone, so that a restart runs what ran before it.
+    WindowConfig usable_pair = next;
+
     // The latest setting of the window and of the step when the agent cannot use it: its
     // problem, for `tahvel status` here and at the hospital that wrote it.
     std::string unusable[2];
@@ -121,22 +127,29 @@ class HrvStage {
       }
       unusable[window].clear();
       (window ? next.window_s : next.step_s) = v;
-      evictable = !r.meta.persistent;
+      (window ? window_evictable : step_evictable) = !r.meta.persistent;
+      if (!agg::window_step_problem(next.window_s, next.step())) {
+        usable_pair = next;
+      }
     }
     std::string problem = unusable[1] + (!unusable[1].empty() && !unusable[0].empty() ? "; " : "") + unusable[0];
     // Each value usable, the two together not (a day's window from the hospital over the step
-    // of a minute's): the pair in force stands.
+    // of a minute's): the last pair that could be used stands, until a setting makes one again.
     if (auto pair = agg::window_step_problem(next.window_s, next.step())) {
       const std::string said = "configuration of <" + session_.agent.iri() + ">: " + *pair + "; ignored, the window (" +
-                               number_text(config_.window_s) + " s) and step (" + number_text(config_.step()) + " s) before stand";
+                               number_text(usable_pair.window_s) + " s) and step (" + number_text(usable_pair.step()) +
+                               " s) before stand";
       if (said != pair_warned_) rt::log_line(kProgram, said);
       pair_warned_ = said;
       problem += (problem.empty() ? "" : "; ") + said;
-      next = config_;
-      evictable = false;
+      next = usable_pair;
+      // Not kept as the agent's own below: written after the refused setting, the kept pair
+      // would be the latest, and the refusal would vanish from the board unanswered.
+      window_evictable = step_evictable = false;
     } else {
       pair_warned_.clear();
     }
+    const bool evictable = window_evictable || step_evictable;
     if (auto said = session_.agent.report_problem(problem); !said)
       rt::log_line(kProgram, "report the configuration's problem on the board: " + said.error().message);
     if (next.window_s != config_.window_s || next.step() != config_.step())

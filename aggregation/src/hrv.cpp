@@ -284,7 +284,7 @@ std::optional<std::string> window_step_problem(double window_s, double step_s) {
   if (!(step_s > 0) || window_s / step_s <= kMaxWindowsPerMoment) return std::nullopt;
   char text[300];
   std::snprintf(text, sizeof text,
-                "a window of %g s stepped by %g s lays %.0f windows over each moment of signal, at most %g (each is "
+                "a window of %g s stepped by %g s lays %g windows over each moment of signal, at most %g (each is "
                 "computed whole): a step of at least %g s for this window",
                 window_s, step_s, window_s / step_s, kMaxWindowsPerMoment, std::ceil(window_s / kMaxWindowsPerMoment));
   return std::string(text);

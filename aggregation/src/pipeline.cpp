@@ -94,13 +94,16 @@ std::optional<std::string> fixed_rate_warning(const std::vector<Interval>& inter
     longest = nn == 0 ? length : std::max(longest, length);
     ++nn;
   }
-  if (nn < kFixedRateMinIntervals || longest - shortest > 1) return std::nullopt;
+  // A sample of 8 ms (128 Hz) is wider than a calm heart's beat-to-beat changes: only intervals
+  // of exactly one length are said there.
+  const std::int64_t within = 1000 / fs <= kFixedRateSampleMs ? 1 : 0;
+  if (nn < kFixedRateMinIntervals || longest - shortest > within) return std::nullopt;
   char text[400];
   std::snprintf(text, sizeof text,
-                "all %zu NN intervals are %.0f ms to within one sample (%.3g ms): a rhythm as fixed as no heart keeps; "
-                "a fixed-rate pacemaker, a simulator or test signal, or a periodic artefact (a spike at a fixed rate); "
-                "its HRV says nothing of the heart",
-                nn, static_cast<double>(shortest) * 1000 / fs, 1000 / fs);
+                "all %zu NN intervals are %.0f ms to within %s (%.3g ms): a rhythm as fixed as a heart's rarely is; "
+                "a fixed-rate pacemaker, a simulator or test signal, or a periodic artefact (a spike at a fixed rate)? "
+                "Its HRV would say nothing of the heart",
+                nn, static_cast<double>(shortest) * 1000 / fs, within ? "one sample" : "the sample", 1000 / fs);
   return std::string(text);
 }
 

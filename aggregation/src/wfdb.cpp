@@ -526,12 +526,13 @@ Result<SignalReader> SignalReader::open(const std::string& record_path) {
     for (std::size_t k = i; k < j; ++k) g->running.push_back(sigs[k].initial_value);
     g->first = i;
     g->count = j - i;
-    g->in.open(g->path, std::ios::binary);
-    if (!g->in) return fail(g->path + ": cannot open signal file: " + std::strerror(errno));
     std::error_code ec;
-    // A device or a pipe has no size to check the header's sample count against.
+    // A device or a pipe has no size to check the header's sample count against (and a pipe
+    // with no writer would hold the open below for ever): said before it is opened.
     if (const auto kind = std::filesystem::status(g->path, ec).type(); !ec && kind != std::filesystem::file_type::regular)
       return fail(g->path + ": the signal file is not a regular file (a device, a pipe or a directory): WFDB signals are read from files");
+    g->in.open(g->path, std::ios::binary);
+    if (!g->in) return fail(g->path + ": cannot open signal file: " + std::strerror(errno));
     auto size = static_cast<std::int64_t>(std::filesystem::file_size(g->path, ec));
     if (ec) return fail(g->path + ": cannot stat signal file: " + ec.message());
     std::int64_t offset = sigs[i].byte_offset;

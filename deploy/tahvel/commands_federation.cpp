@@ -869,9 +869,10 @@ const Command kUpCommand{
     "a real deployment). The supervisor runs in the background until 'tahvel down'; with\n"
     "--foreground it stays attached until SIGINT/SIGTERM. The file format is docs/deploy.md.\n"
     "\n"
-    "Exit status 6: refused as things stand (the file or a file it names, a store, its owner or\n"
-    "permissions, a supervisor already running: the message says which and where); nothing was\n"
-    "started or changed. 1: any other failure.",
+    "Exit status 6: refused as things stand (the file or a file it names, a store of another\n"
+    "node or that this user may not write, a supervisor already running: the message says which\n"
+    "and where); no node was started or changed. 2: a bad command line. 1: any other failure (a\n"
+    "file refused by a running supervisor asked to apply it, too).",
     {kFlagState, {"--node", "", "ID", "bring up only this node"},
      {"--foreground", "", "", "run the supervisor in this process"}},
     1, 1, false};
@@ -1889,8 +1890,12 @@ std::optional<uid_t> effective_uid_of(pid_t pid) {
 
 namespace {
 
+// A refusal of `up` as things stand, wherever it is met (kExitFileRefused).
+[[noreturn]] void refuse(std::string message) { throw Failure{kExitFileRefused, std::move(message)}; }
+
 // `checking` stays true while up only reads and checks (the file, what it names, the stores and
-// supervisors there), and is made false before anything is created or a supervisor asked.
+// supervisors there), and is made false before anything is created or a supervisor asked;
+// refusals met after that (another `up` won the race) are thrown as such (refuse).
 int up_checked(const Args& args, bool& checking) {
   Topology topo = check(load_topology(args.positional(0)));
   fs::path state = fs::absolute(state_dir(args));
@@ -1937,13 +1942,13 @@ int up_checked(const Args& args, bool& checking) {
   auto refuse_a_supervisor_of_another_selection = [&] {
     if (only) {
       if (pid_t whole = supervisor_holding(state / pid_file_name(std::nullopt)); whole != 0)
-        fail("the supervisor of the whole file runs under " + state.string() + " (pid " + std::to_string(whole) + "), node '" +
+        refuse("the supervisor of the whole file runs under " + state.string() + " (pid " + std::to_string(whole) + "), node '" +
              *only + "' with it: 'tahvel up " + shell_word(topo.file) + " --state " + shell_word(state) +
              "' applies the file to it (it starts what is new), 'tahvel down --state " + shell_word(state) + "' stops it");
     } else {
       for (const NodeSpec& spec : topo.nodes)
         if (supervisor_holding(state / pid_file_name(spec.id)) != 0)
-          fail("node '" + spec.id + "' already runs under its own supervisor (" + (state / pid_file_name(spec.id)).string() +
+          refuse("node '" + spec.id + "' already runs under its own supervisor (" + (state / pid_file_name(spec.id)).string() +
                "); 'tahvel down --state " + shell_word(state) + " --node " + spec.id + "' first");
     }
   };
@@ -2014,6 +2019,7 @@ int up_checked(const Args& args, bool& checking) {
     }
   }
   warn_of_dataflow(topo, mine);
+  checking = false;
   // Only now, with everything checked: a refused file leaves no state directory behind.
   std::error_code ec;
   const bool new_state = !fs::exists(state, ec);
@@ -2028,10 +2034,7 @@ int up_checked(const Args& args, bool& checking) {
   const int turn = ::open(turn_file.c_str(), O_RDWR | O_CREAT | O_CLOEXEC, 0644);
   if (turn < 0 || flock(turn, LOCK_EX) != 0) fail(turn_file.string() + ": " + std::strerror(errno));
   running = supervisor_holding(pid_file);
-  if (running < 0) {
-    checking = false;
-    fail("a supervisor is starting (" + pid_file.string() + "); try again in a moment");
-  }
+  if (running < 0) fail("a supervisor is starting (" + pid_file.string() + "); try again in a moment");
   if (running == 0) refuse_a_supervisor_of_another_selection();
   // A supervisor runs each node it holds (Deployment::lock_node); one that holds a node here
   // without a pid file saying so (the file was deleted) would be a second writer beside the one
@@ -2039,11 +2042,10 @@ int up_checked(const Args& args, bool& checking) {
   if (running == 0) {
     for (const NodeSpec* spec : mine)
       if (const pid_t holder = supervisor_of_store(state / spec->id); holder != 0)
-        fail("node '" + spec->id + "' is run by " + (holder > 0 ? "supervisor " + std::to_string(holder) : std::string("another supervisor")) +
+        refuse("node '" + spec->id + "' is run by " + (holder > 0 ? "supervisor " + std::to_string(holder) : std::string("another supervisor")) +
              ", which holds its store " + (state / spec->id).string() + " though no pid file under " + state.string() +
              " says so (was it deleted?): 'tahvel down --state " + shell_word(state) + "' stops it");
   }
-  checking = false;
   for (const NodeSpec* node_spec : mine) {
     const NodeSpec& spec = *node_spec;
     fs::path store = state / spec.id;
@@ -2154,7 +2156,7 @@ int up_checked(const Args& args, bool& checking) {
                      "in the file until its outbox is empty, as 'tahvel status' shows)." << still_runs << "\n";
       else if (runs > 0)
         std::cout << "up: warning: node '" << id << "' <" << left->iri() << ">, not in " << topo.file.string()
-                  << ", runs on beside it." << still_runs << "\n";
+                  << ", still runs, beside the node that replaces it." << still_runs << "\n";
     }
     ec.clear();
   }
@@ -2870,7 +2872,7 @@ int run_status(const Args& args) {
     struct stat owner {};
     const fs::path first = state / unopened.begin()->first;
     const bool known = ::stat(first.c_str(), &owner) == 0;
-    fail("status: " + user_name(::geteuid()) + " may open none of the node stores under " + state.string() + " (" +
+    fail(user_name(::geteuid()) + " may open none of the node stores under " + state.string() + " (" +
          unopened.begin()->second + ")" +
          (known && owner.st_uid != ::geteuid() ? "; they are " + user_name(owner.st_uid) + "'s: 'sudo -u " + sudo_user(owner.st_uid) +
                                                       " tahvel status --state " + shell_word(state) + "'"

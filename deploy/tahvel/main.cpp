@@ -60,7 +60,8 @@ void print_global_help(std::ostream& out) {
          "\"text\"@en, \"72\"^^xsd:integer, 72 (xsd:integer), 72.5 (xsd:decimal), 7e2 (xsd:double),\n"
          "true/false (xsd:boolean), and 'a' for rdf:type.\n\n"
          "exit status: 0 success, 1 failure, 2 bad command line, 3 timed out (take, query, ecg,\n"
-         "stats --at), 4 unknown node, 5 unreachable node, 130 interrupted (query, ecg, stats --at).\n";
+         "stats --at), 4 unknown node, 5 unreachable node, 6 refused as things stand (up),\n"
+         "130 interrupted (query, ecg, stats --at).\n";
 }
 
 const Command* find_command(std::string_view name) {

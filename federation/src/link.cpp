@@ -3639,6 +3639,12 @@ Result<std::unique_ptr<Link>> Link::start(LinkOptions options) {
     if (ftruncate(s.serving_lock, 0) != 0 ||
         pwrite(s.serving_lock, pid.data(), pid.size(), 0) != static_cast<ssize_t>(pid.size()))
       s.log((s.opt.dir / kServingLockFile).string() + ": cannot write this process's id: " + std::strerror(errno));
+  } else {
+    // A node that served children once and no longer listens (its `listen` taken out of the
+    // file): the lock file left by those runs told a query that a link serving children had
+    // stopped, and every child was "unreachable: no link runs", though this link runs.
+    std::error_code ec;
+    std::filesystem::remove(s.opt.dir / kServingLockFile, ec);
   }
   std::unique_ptr<Link> link(new Link(std::move(impl)));
   Impl* p = link->impl_.get();

@@ -188,6 +188,15 @@ Result<std::uint64_t> remote_query(node::Node& node, const RemoteQuery& query,
         std::error_code ec;
         const bool served = std::filesystem::exists(node.dir() / kServingLockFile, ec);
         const LinkSeen link = served ? link_serving(node.dir()) : LinkSeen{};
+        // The children it knows, or a spelling it holds: a mistyped child is seen as such now,
+        // not only once the link runs again.
+        const std::string hint = [&] {
+          std::string said = percent_spelling_hint(*snap, child);
+          return said.empty() ? known_children_hint(*snap, served) : said;
+        }();
+        if (link.stopped_pid)
+          return node::fail(Errc::io, "unreachable: nothing reaches <" + child + ">: " + stopped_link(self, *link.stopped_pid) +
+                                          "; <" + child + "> has not said hello to it" + hint);
         if (served && !link.serving) {
           if (std::chrono::steady_clock::now() < grace_end) {
             std::this_thread::sleep_for(std::chrono::milliseconds(50));
@@ -195,15 +204,12 @@ Result<std::uint64_t> remote_query(node::Node& node, const RemoteQuery& query,
           }
           return node::fail(Errc::io, "unreachable: no link runs for <" + self + "> (nothing holds " +
                                           (node.dir() / kServingLockFile).string() + "), and <" + child +
-                                          "> has not said hello to one here, so only a running link can tell whether it "
-                                          "is below <" + self + ">; if 'tahvel status' shows the link restarting, ask again "
-                                          "once it runs, else start it ('tahvel up')");
+                                          "> has not said hello to a link here, so only a running link can tell whether it "
+                                          "is below <" + self + ">" + (hint.size() > 2 ? " (" + hint.substr(2) + ")" : std::string()) +
+                                          "; if 'tahvel status' shows the link "
+                                          "restarting, ask again once it runs, else start it ('tahvel up')");
         }
-        return node::fail(Errc::not_found, "unknown node <" + *target + ">: <" + self + "> has no child <" + child + ">" +
-                                               [&] {
-                                                 std::string hint = percent_spelling_hint(*snap, child);
-                                                 return hint.empty() ? known_children_hint(*snap, served) : hint;
-                                               }());
+        return node::fail(Errc::not_found, "unknown node <" + *target + ">: <" + self + "> has no child <" + child + ">" + hint);
       }
       child_state = state->back().triple.o.value;
     }

@@ -109,8 +109,8 @@ TEST(DetectorRateWarning, BeatsAtTheDetectorsHoldAreSaidToBeNoHeartsRhythm) {
 }
 
 // A spike once a second (a test signal, a periodic artefact) gave 119 "beats", SDNN 0 and no
-// word: a rhythm held to the sample, which no heart keeps. Said; the ECGSYN rhythm, and too few
-// intervals to tell, are not.
+// word: a rhythm held to the sample, which a heart rarely keeps. Said; the ECGSYN rhythm, and
+// too few intervals to tell, are not.
 TEST(FixedRateWarning, IntervalsAllOneLengthToTheSampleAreSaidToBeNoHeartsRhythm) {
   constexpr double fs = 360;
   std::vector<std::int32_t> spikes(static_cast<std::size_t>(120 * fs), 0);
@@ -120,11 +120,11 @@ TEST(FixedRateWarning, IntervalsAllOneLengthToTheSampleAreSaidToBeNoHeartsRhythm
   auto said = fixed_rate_warning(report->intervals, fs);
   ASSERT_TRUE(said) << report->intervals.size() << " intervals";
   EXPECT_NE(said->find("NN intervals are 1000 ms to within one sample (2.78 ms)"), std::string::npos) << *said;
-  EXPECT_NE(said->find("its HRV says nothing of the heart"), std::string::npos) << *said;
+  EXPECT_NE(said->find("Its HRV would say nothing of the heart"), std::string::npos) << *said;
   // One sample either way is within it; two are not.
   auto series = [](std::int64_t odd_length) {  // 300 samples, every other one `odd_length`
     std::vector<Interval> out;
-    for (std::int64_t i = 0, at = 0; i < 40; ++i) {
+    for (std::int64_t i = 0, at = 0; i < 80; ++i) {
       const std::int64_t length = i % 2 ? odd_length : 300;
       out.push_back({at, at + length, true});
       at += length;
@@ -133,6 +133,9 @@ TEST(FixedRateWarning, IntervalsAllOneLengthToTheSampleAreSaidToBeNoHeartsRhythm
   };
   EXPECT_TRUE(fixed_rate_warning(series(301), fs));
   EXPECT_FALSE(fixed_rate_warning(series(302), fs));
+  // At 128 Hz a sample is 7.8 ms, more than a calm heart varies: only one length exactly.
+  EXPECT_FALSE(fixed_rate_warning(series(301), 128));
+  EXPECT_TRUE(fixed_rate_warning(series(300), 128));
   std::vector<Interval> few;
   for (std::int64_t i = 0; i + 1 < static_cast<std::int64_t>(kFixedRateMinIntervals); ++i) few.push_back({i * 300, (i + 1) * 300, true});
   EXPECT_FALSE(fixed_rate_warning(few, fs));

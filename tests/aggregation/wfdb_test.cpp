@@ -9,6 +9,7 @@
 
 #include <tuple>
 #include <unistd.h>
+#include <sys/stat.h>
 
 #include <algorithm>
 #include <cstdint>
@@ -736,6 +737,12 @@ TEST_F(WfdbTemp, AnOffsetPastTheFileAndASignalFileThatIsNoFileAreNamedSo) {
   s = read_signals(record("r"));
   ASSERT_FALSE(s);
   EXPECT_NE(s.error().message.find("/dev/zero: the signal file is not a regular file"), std::string::npos) << s.error().message;
+  // A pipe with no writer: refused at once, not waited on for ever.
+  write("r.hea", "r 1 360 100\nr.fifo 16 200 12 0 0 0 0 I\n");
+  ASSERT_EQ(::mkfifo((dir_ / "r.fifo").c_str(), 0600), 0);
+  s = read_signals(record("r"));
+  ASSERT_FALSE(s);
+  EXPECT_NE(s.error().message.find("r.fifo: the signal file is not a regular file"), std::string::npos) << s.error().message;
 }
 
 TEST_F(WfdbTemp, MultiSegmentRecordIsRefused) {

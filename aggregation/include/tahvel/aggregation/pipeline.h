@@ -68,11 +68,14 @@ std::optional<std::string> detector_rate_warning(const std::vector<Interval>& in
 std::optional<std::string> irregular_rhythm_warning(const HrvMetrics& metrics, std::size_t gaps = 0,
                                                     double max_interval_s = NnRule{}.max_interval_s);
 
-// When at least kFixedRateMinIntervals NN intervals are all one length to within a sample: a
-// rhythm held to the sample, which no heart keeps (a resting adult's SDNN is tens of ms) but a
-// fixed-rate pacemaker, a simulator or test signal, or a periodic artefact (a spike a second)
-// does; how many, how long, and that HRV of it says nothing of the heart. nullopt otherwise.
-inline constexpr std::size_t kFixedRateMinIntervals = 20;
+// When at least kFixedRateMinIntervals NN intervals (a minute at 60 bpm) are all one length to
+// within a sample no longer than kFixedRateSampleMs (at coarser rates: all exactly one length):
+// a rhythm held that still, which a heart rarely keeps (a resting adult's SDNN is tens of ms,
+// a transplanted heart's some ms) but a fixed-rate pacemaker, a simulator or test signal, or a
+// periodic artefact (a spike a second) does; how many, how long, and that HRV of it says
+// nothing of the heart. nullopt otherwise.
+inline constexpr std::size_t kFixedRateMinIntervals = 60;
+inline constexpr double kFixedRateSampleMs = 4;
 std::optional<std::string> fixed_rate_warning(const std::vector<Interval>& intervals, double fs);
 
 // The share of a signal's power (its mean taken out second by second) within 1 Hz of the mains
