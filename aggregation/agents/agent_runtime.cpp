@@ -18,13 +18,11 @@
 #include <algorithm>
 
 #include "tahvel/node/format.h"
+#include "tahvel/node/stop_signal.h"
 
 namespace tahvel::agents::hrv {
 namespace {
 
-volatile std::sig_atomic_t g_stop = 0;
-
-void on_signal(int) { g_stop = 1; }
 
 // "0", "30", "0.5": as a person writes the bound (std::to_string gave "0.000000").
 std::string format_number(double v) {
@@ -97,15 +95,9 @@ double Args::number(const std::string& flag, double fallback, double minimum) co
   return v;
 }
 
-void install_stop_handlers() {
-  struct sigaction action {};
-  action.sa_handler = on_signal;
-  sigemptyset(&action.sa_mask);
-  sigaction(SIGINT, &action, nullptr);
-  sigaction(SIGTERM, &action, nullptr);
-}
+void install_stop_handlers() { node::install_stop_signal_handlers(); }
 
-bool stop_requested() { return g_stop != 0; }
+bool stop_requested() { return node::stop_signal_received(); }
 
 namespace {
 constexpr std::chrono::milliseconds kStopCheck{100};
@@ -339,7 +331,10 @@ void SkippedInputs::report() {
 
 int guarded_main(const char* program, const char* usage, const std::function<int()>& body) {
   try {
-    return body();
+    // A clean end after a SIGTERM from anyone but its supervisor (an operator's `kill`) is no
+    // finish: 143, so that the supervisor starts it again (node/stop_signal.h).
+    const int status = body();
+    return status == 0 ? node::stop_exit_status() : status;
   } catch (const HelpRequested&) {
     std::cout << usage << '\n';
     return 0;

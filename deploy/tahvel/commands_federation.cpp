@@ -38,6 +38,7 @@
 #include "tahvel/federation/transport.h"
 #include "tahvel/node/format.h"
 #include "tahvel/node/process.h"
+#include "tahvel/node/stop_signal.h"
 #include "tahvel/spatial/board.h"
 #include "tahvel/spatial/wkt.h"
 #include "tahvel/uri/iri.h"
@@ -313,7 +314,9 @@ int run_link(const Args& args) {
   options.area_query = area_answer;
   for (const auto& text : args.all("--forward")) options.forward.push_back(forward_pattern(text, prefixes));
   options.default_forward = !args.has("--no-default-forward");
-  install_stop_handlers();
+  // Stopped by its supervisor it ends with 0; by an operator's `kill`, with 143, and its
+  // supervisor starts it again (node/stop_signal.h).
+  node::install_stop_signal_handlers();
   auto started = federation::Link::start(std::move(options));
   if (!started) {
     // Restarted by its supervisor, a link says this at every start: which store, and for a
@@ -328,14 +331,14 @@ int run_link(const Args& args) {
   auto link = std::move(*started);
   log(std::string("running") + (parent ? " (parent <" + *parent + "> over " + *up + ")" : "") +
       (listens.empty() ? "" : " (children over " + (listens.size() == 1 ? listens[0] : listens[0] + " and " + listens[1]) + ")"));
-  while (!g_stop) std::this_thread::sleep_for(100ms);
+  while (!node::stop_signal_received()) std::this_thread::sleep_for(100ms);
   link->stop();
   auto c = link->counters();
   log("stopped; sent up " + std::to_string(c.up_sent) + ", relayed in " + std::to_string(c.relayed_in) + ", duplicates dropped " +
       std::to_string(c.duplicates_in) + ", applied from above " + std::to_string(c.down_applied) + ", items refused " +
       std::to_string(c.items_refused) + ", refused by the other end " + std::to_string(c.items_refused_by_peer) +
       ", frames taken on the transport's thread " + std::to_string(c.taken_pushed));
-  return kExitOk;
+  return node::stop_exit_status();
 }
 
 // --- tahvel query -----------------------------------------------------------------------------

@@ -11,13 +11,12 @@
 
 #include "commands.h"
 #include "tahvel/agents/reasoner.h"
+#include "tahvel/node/stop_signal.h"
 
 namespace tahvel::cli {
 
 namespace {
 
-std::atomic<bool> g_stop{false};
-extern "C" void on_stop_signal(int) { g_stop = true; }
 
 std::string fixed(double v) {
   char buf[32];
@@ -164,12 +163,13 @@ int run_reason(const Args& args) {
     finish_output_after(std::cout, "the session's conclusions are on the board");
     return kExitOk;
   }
-  std::signal(SIGINT, on_stop_signal);
-  std::signal(SIGTERM, on_stop_signal);
-  auto ran = reasoner->run(print, [] { return g_stop.load(); });
+  // Stopped by its supervisor it ends with 0; by an operator's `kill`, with 143, and its
+  // supervisor starts it again (node/stop_signal.h).
+  node::install_stop_signal_handlers();
+  auto ran = reasoner->run(print, [] { return node::stop_signal_received(); });
   if (!ran) fail(ran.error().message);
   finish_output(std::cout);
-  return kExitOk;
+  return node::stop_exit_status();
 }
 
 }  // namespace tahvel::cli
