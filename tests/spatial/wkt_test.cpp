@@ -98,6 +98,8 @@ TEST(Wkt, RefusesMalformedTextNamingTheColumn) {
       {"POLYGON((0 0, 4 0, 4 4, 0 4, 0 0), (0 0, 4 0, 4 4, 0 0), (0 0, 4 4, 0 4, 0 0))", 8, "no area"},
       {"POINT(\u22121 2)", 7, "expected a number, found '\u2212'"},  // a Unicode minus, whole
       {"POLYGON((0 0, 4 0, 4 4, 0 4, 0 0), (5 5, 6 5, 6 6, 5 5))", 36, "outside the outer ring"},
+      // At the vertex that lies outside, not where its hole starts.
+      {"POLYGON((0 0, 4 0, 4 4, 0 4, 0 0), (1 1, 5 1, 2 2, 1 1))", 42, "hole vertex (5 1) lies outside the outer ring"},
       {"MULTIPOLYGON(((0 0, 1 0, 1 1, 0 0)), ((0 0, 1 0, 1 1, 0 1)))", 39, "not closed"},
       {"<http://x/crs POINT(1 2)", 1, "without '>'"},
       {"<junk junk> POINT(1 2)", 1, "'<junk junk>' is not a CRS IRI"},

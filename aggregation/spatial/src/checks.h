@@ -21,8 +21,9 @@ struct RingProblem {
 std::optional<RingProblem> ring_problem(const Ring& ring);
 
 // Why `hole` cannot be a hole of a polygon with outer ring `outer` (both valid rings), or
-// nullopt.
-std::optional<std::string> hole_problem(const Ring& outer, const Ring& hole);
+// nullopt. `vertex`: the hole's vertex that lies outside the outer ring, when that is why (0
+// otherwise, as for ring_problem: the ring as a whole).
+std::optional<RingProblem> hole_problem(const Ring& outer, const Ring& hole);
 
 // Why `polygon` (valid rings, valid holes) encloses no area: its holes cover all of it.
 std::optional<std::string> area_problem(const Polygon& polygon);

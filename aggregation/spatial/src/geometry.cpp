@@ -136,16 +136,16 @@ bool cross_properly(const CgalPoint& a, const CgalPoint& b, const CgalPoint& c,
 
 }  // namespace
 
-std::optional<std::string> hole_problem(const Ring& outer, const Ring& hole) {
+std::optional<RingProblem> hole_problem(const Ring& outer, const Ring& hole) {
   std::vector<CgalPoint> outer_points = to_cgal(outer), hole_points = to_cgal(hole);
-  for (const Point& p : hole) {
-    if (side(outer_points, CgalPoint(p.x, p.y)) == CGAL::ON_UNBOUNDED_SIDE) {
-      return "hole vertex " + coordinates(p) + " lies outside the outer ring";
+  for (std::size_t k = 0; k < hole.size(); ++k) {
+    if (side(outer_points, CgalPoint(hole[k].x, hole[k].y)) == CGAL::ON_UNBOUNDED_SIDE) {
+      return RingProblem{"hole vertex " + coordinates(hole[k]) + " lies outside the outer ring", k};
     }
   }
   for (const Point& p : outer) {
     if (side(hole_points, CgalPoint(p.x, p.y)) == CGAL::ON_BOUNDED_SIDE) {
-      return "outer ring vertex " + coordinates(p) + " lies inside the hole";
+      return RingProblem{"outer ring vertex " + coordinates(p) + " lies inside the hole"};
     }
   }
   for (std::size_t i = 0; i < hole_points.size(); ++i) {
@@ -153,13 +153,13 @@ std::optional<std::string> hole_problem(const Ring& outer, const Ring& hole) {
     const CgalPoint& b = hole_points[(i + 1) % hole_points.size()];
     for (std::size_t j = 0; j < outer_points.size(); ++j) {
       if (cross_properly(a, b, outer_points[j], outer_points[(j + 1) % outer_points.size()])) {
-        return "a hole edge crosses the outer ring";
+        return RingProblem{"a hole edge crosses the outer ring"};
       }
     }
   }
   // Vertices on the ring and edges that only touch it can still leave it (a hole drawn in a
   // concave ring's notch): decided exactly.
-  if (!ring_within(outer, hole)) return "the hole reaches outside the outer ring";
+  if (!ring_within(outer, hole)) return RingProblem{"the hole reaches outside the outer ring"};
   return std::nullopt;
 }
 
@@ -243,7 +243,7 @@ Result<void> validate(const Shape& shape) {
       std::string hole = where + ", hole " + std::to_string(h + 1) + ": ";
       if (auto problem = detail::ring_problem(polygon.holes[h])) return fail(hole + problem->message);
       if (auto problem = detail::hole_problem(polygon.outer, polygon.holes[h])) {
-        return fail(hole + *problem);
+        return fail(hole + problem->message);
       }
     }
     if (auto problem = detail::area_problem(polygon)) return fail(where + ": " + *problem);

@@ -238,7 +238,8 @@ class Parser {
   }
 
   // "(x y, x y, ...)": closed, then the closing vertex dropped and the ring checked.
-  Result<Ring> ring() {
+  // `columns_out`: where each vertex was read, for errors found once the ring is whole.
+  Result<Ring> ring(std::vector<std::size_t>* columns_out = nullptr) {
     skip_space();
     std::size_t at = pos_;
     if (auto open = expect('('); !open) return unexpected(open.error());
@@ -268,6 +269,7 @@ class Parser {
     if (auto problem = detail::ring_problem(ring)) {
       return error(problem->vertex == 0 ? at : columns[problem->vertex], problem->message);
     }
+    if (columns_out) *columns_out = std::move(columns);
     return ring;
   }
 
@@ -283,9 +285,11 @@ class Parser {
     while (accept(',')) {
       skip_space();
       std::size_t at = pos_;
-      auto hole = ring();
+      std::vector<std::size_t> columns;
+      auto hole = ring(&columns);
       if (!hole) return unexpected(hole.error());
-      if (auto problem = detail::hole_problem(polygon.outer, *hole)) return error(at, *problem);
+      if (auto problem = detail::hole_problem(polygon.outer, *hole))
+        return error(problem->vertex == 0 || problem->vertex >= columns.size() ? at : columns[problem->vertex], problem->message);
       polygon.holes.push_back(std::move(*hole));
     }
     if (auto close = expect(')'); !close) return unexpected(close.error());
