@@ -40,6 +40,14 @@ int exit_status_of(pid_t pid) {
   return WIFEXITED(status) ? WEXITSTATUS(status) : 1000 + WTERMSIG(status);
 }
 
+// Sends `sig` to `pid` from a process that is not its parent (a sibling, as an operator's shell
+// is); true when it was sent.
+bool signal_from_another_process(pid_t pid, int sig) {
+  const pid_t other = fork();
+  if (other == 0) _exit(kill(pid, sig) == 0 ? 0 : 1);
+  return other > 0 && exit_status_of(other) == 0;
+}
+
 // Its supervisor (the parent) stops it: a finish, 0.
 TEST(StopSignal, ASigtermFromTheParentEndsTheProgramWithZero) {
   const pid_t pid = start_program();
@@ -53,10 +61,7 @@ TEST(StopSignal, ASigtermFromTheParentEndsTheProgramWithZero) {
 TEST(StopSignal, ASigtermFromAnotherProcessEndsTheProgramWith143) {
   const pid_t pid = start_program();
   ASSERT_GT(pid, 0);
-  const pid_t other = fork();
-  if (other == 0) _exit(kill(pid, SIGTERM) == 0 ? 0 : 1);
-  ASSERT_GT(other, 0);
-  EXPECT_EQ(exit_status_of(other), 0);
+  ASSERT_TRUE(signal_from_another_process(pid, SIGTERM));
   EXPECT_EQ(exit_status_of(pid), 128 + SIGTERM);
 }
 
@@ -64,10 +69,7 @@ TEST(StopSignal, ASigtermFromAnotherProcessEndsTheProgramWith143) {
 TEST(StopSignal, ASigintEndsTheProgramWithZero) {
   const pid_t pid = start_program();
   ASSERT_GT(pid, 0);
-  const pid_t other = fork();
-  if (other == 0) _exit(kill(pid, SIGINT) == 0 ? 0 : 1);
-  ASSERT_GT(other, 0);
-  EXPECT_EQ(exit_status_of(other), 0);
+  ASSERT_TRUE(signal_from_another_process(pid, SIGINT));
   EXPECT_EQ(exit_status_of(pid), 0);
 }
 
