@@ -9,7 +9,6 @@
 #include <charconv>
 #include <cstring>
 #include <cmath>
-#include <csignal>
 #include <cstdio>
 #include <cstdlib>
 #include <iostream>
@@ -22,7 +21,6 @@
 
 namespace tahvel::agents::hrv {
 namespace {
-
 
 // "0", "30", "0.5": as a person writes the bound (std::to_string gave "0.000000").
 std::string format_number(double v) {

@@ -98,7 +98,6 @@ class HrvStage {
     // at first): it stands when the latest pair cannot (a day's window over a second's step).
     // Taken from the board alone, so that a restart runs what ran before it.
     WindowConfig usable_pair = next;
-
     // The latest setting of the window and of the step when the agent cannot use it: its
     // problem, for `tahvel status` here and at the hospital that wrote it.
     std::string unusable[2];
@@ -128,9 +127,7 @@ class HrvStage {
       unusable[window].clear();
       (window ? next.window_s : next.step_s) = v;
       (window ? window_evictable : step_evictable) = !r.meta.persistent;
-      if (!agg::window_step_problem(next.window_s, next.step())) {
-        usable_pair = next;
-      }
+      if (!agg::window_step_problem(next.window_s, next.step())) usable_pair = next;
     }
     std::string problem = unusable[1] + (!unusable[1].empty() && !unusable[0].empty() ? "; " : "") + unusable[0];
     // Each value usable, the two together not (a day's window from the hospital over the step

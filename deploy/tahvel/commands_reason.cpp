@@ -3,8 +3,6 @@
 // until SIGINT or SIGTERM. Prints, per session, what was derived and retracted and how long it
 // took: a text block, or one JSON object per line with --json.
 #include <algorithm>
-#include <atomic>
-#include <csignal>
 #include <cstdio>
 #include <iostream>
 #include <sstream>
