@@ -818,6 +818,18 @@ struct ScratchNode {
   }
   // What the agent `agent_id` of this node says is its problem ("": none).
   std::string problem(const std::string& agent_id) { return problem_of(*node, tn::Term::iri(kNodeIri + "/" + agent_id)); }
+
+  // The node's HRV agent, which tell_hrv's settings are about.
+  const tn::Term hrv = tn::Term::iri(kNodeIri + "/hrv");
+  // Stores settings of the HRV agent (tv:windowSeconds, tv:stepSeconds) in one item, as an
+  // operator of this node would; false when the store refused them.
+  bool tell_hrv(std::initializer_list<std::pair<const char*, tn::Term>> settings) {
+    auto op = node->agent("operator");
+    if (!op) return false;
+    tn::Item item;
+    for (const auto& [setting, value] : settings) item.add(hrv, agg::tv_term(setting), value);
+    return op->store(item).has_value();
+  }
 };
 
 // kRecording's description at 250 Hz, as the problem tests' ECG source states it.
@@ -942,11 +954,9 @@ TEST(AgentPrograms, AnHrvSettingItCannotUseIsItsProblemOnTheBoardUntilAUsableOne
   ASSERT_TRUE(scratch.node) << "cannot make a store under /tmp";
   const std::string &tmp = scratch.tmp, &dir = scratch.dir;
   std::optional<tn::Node>& node = scratch.node;
-  auto op = node->agent("operator");
-  ASSERT_TRUE(op);
-  const tn::Term hrv = tn::Term::iri(kNodeIri + "/hrv");
-  ASSERT_TRUE(op->store(tn::Item{}.add(hrv, agg::tv_term("windowSeconds"), tn::Term::literal("2 minutes"))));
-  auto problem = [&] { return problem_of(*node, hrv); };
+  const tn::Term& hrv = scratch.hrv;
+  ASSERT_TRUE(scratch.tell_hrv({{"windowSeconds", tn::Term::literal("2 minutes")}}));
+  auto problem = [&] { return scratch.problem("hrv"); };
   const auto& eventually = within_a_minute;
   {
     Process agent({bin("tahvel-hrv"), dir, "--idle", "30"}, tmp + "/hrv.log");
@@ -954,10 +964,10 @@ TEST(AgentPrograms, AnHrvSettingItCannotUseIsItsProblemOnTheBoardUntilAUsableOne
     EXPECT_NE(problem().find("windowSeconds '2 minutes'"), std::string::npos) << problem();
     EXPECT_NE(problem().find("the value before it stands"), std::string::npos) << problem();
     EXPECT_EQ(node->snapshot()->count({.s = hrv, .p = tn::Term::iri(tn::kProblemPid)}).value(), 1u);
-    ASSERT_TRUE(op->store(tn::Item{}.add(hrv, agg::tv_term("windowSeconds"), tn::Term::integer(120))));
+    ASSERT_TRUE(scratch.tell_hrv({{"windowSeconds", tn::Term::integer(120)}}));
     EXPECT_TRUE(eventually([&] { return problem().empty(); })) << "still: " << problem();
     // Another unusable setting, then taken back: the problem comes and goes with it.
-    ASSERT_TRUE(op->store(tn::Item{}.add(hrv, agg::tv_term("stepSeconds"), tn::Term::literal("-1"))));
+    ASSERT_TRUE(scratch.tell_hrv({{"stepSeconds", tn::Term::literal("-1")}}));
     ASSERT_TRUE(eventually([&] { return problem().find("stepSeconds '-1'") != std::string::npos; })) << problem();
     ASSERT_TRUE(node->remove({.s = hrv, .p = agg::tv_term("stepSeconds")}));
     EXPECT_TRUE(eventually([&] { return problem().empty(); })) << "still: " << problem();
@@ -981,13 +991,9 @@ std::string text_of(const std::string& path) {
 TEST(AgentPrograms, AnHrvWindowAndStepThatLayTooManyWindowsOverAMomentAreRefusedTogether) {
   ScratchNode scratch("hrv-pair");
   ASSERT_TRUE(scratch.node) << "cannot make a store under /tmp";
-  std::optional<tn::Node>& node = scratch.node;
-  auto op = node->agent("operator");
-  ASSERT_TRUE(op);
-  const tn::Term hrv = tn::Term::iri(kNodeIri + "/hrv");
-  ASSERT_TRUE(op->store(tn::Item{}.add(hrv, agg::tv_term("stepSeconds"), tn::Term::integer(1))));
-  ASSERT_TRUE(op->store(tn::Item{}.add(hrv, agg::tv_term("windowSeconds"), tn::Term::integer(86400))));
-  auto problem = [&] { return problem_of(*node, hrv); };
+  ASSERT_TRUE(scratch.tell_hrv({{"stepSeconds", tn::Term::integer(1)}}));
+  ASSERT_TRUE(scratch.tell_hrv({{"windowSeconds", tn::Term::integer(86400)}}));
+  auto problem = [&] { return scratch.problem("hrv"); };
   const std::string log = scratch.tmp + "/hrv.log";
   {
     Process agent({bin("tahvel-hrv"), scratch.dir, "--idle", "30", "--window", "60"}, log);
@@ -1002,7 +1008,7 @@ TEST(AgentPrograms, AnHrvWindowAndStepThatLayTooManyWindowsOverAMomentAreRefused
     Process agent({bin("tahvel-hrv"), scratch.dir, "--idle", "30", "--window", "60"}, log);
     ASSERT_TRUE(within_a_minute([&] { return problem().find("before stand") != std::string::npos; })) << problem();
     EXPECT_NE(problem().find("ignored, the window (60 s) and step (1 s) before stand"), std::string::npos) << problem();
-    ASSERT_TRUE(op->store(tn::Item{}.add(hrv, agg::tv_term("stepSeconds"), tn::Term::integer(60))));
+    ASSERT_TRUE(scratch.tell_hrv({{"stepSeconds", tn::Term::integer(60)}}));
     EXPECT_TRUE(within_a_minute([&] { return problem().empty(); })) << "still: " << problem();
     EXPECT_EQ(agent.stop(), 0);
   }
@@ -1018,13 +1024,8 @@ TEST(AgentPrograms, AnHrvWindowAndStepThatLayTooManyWindowsOverAMomentAreRefused
 TEST(AgentPrograms, AnHrvWindowOrStepTooShortForHrvIsRefusedWithTheBoundsAndTheAgentRunsOn) {
   ScratchNode scratch("hrv-short");
   ASSERT_TRUE(scratch.node) << "cannot make a store under /tmp";
-  std::optional<tn::Node>& node = scratch.node;
-  auto op = node->agent("operator");
-  ASSERT_TRUE(op);
-  const tn::Term hrv = tn::Term::iri(kNodeIri + "/hrv");
-  ASSERT_TRUE(op->store(tn::Item{}.add(hrv, agg::tv_term("windowSeconds"), tn::Term::literal("0.5"))
-                            .add(hrv, agg::tv_term("stepSeconds"), tn::Term::literal("0.01"))));
-  auto problem = [&] { return problem_of(*node, hrv); };
+  ASSERT_TRUE(scratch.tell_hrv({{"windowSeconds", tn::Term::literal("0.5")}, {"stepSeconds", tn::Term::literal("0.01")}}));
+  auto problem = [&] { return scratch.problem("hrv"); };
   const std::string log = scratch.tmp + "/hrv.log";
   {
     Process agent({bin("tahvel-hrv"), scratch.dir, "--idle", "30", "--window", "60"}, log);
