@@ -273,6 +273,12 @@ Result<void> save_counters(MDB_txn* txn, MDB_dbi meta, const Counters& c) {
   return {};
 }
 
+std::uint64_t read_notice_seqs(MDB_txn* txn, MDB_dbi meta) {
+  MDB_val k = val(kNoticeSeqsKey), v;
+  if (mdb_get(txn, meta, &k, &v) != 0 || v.mv_size != sizeof(std::uint64_t)) return 0;
+  return u64(v);
+}
+
 std::uint64_t TermCache::find(const TermKey& key, std::uint64_t gen, bool* pinned) {
   std::lock_guard lock(mu_);
   *pinned = true;
@@ -1220,6 +1226,11 @@ Result<void> Env::write(const std::function<Result<void>(Txn&)>& body, WriteKind
       if (txn.removals_trimmed_through != 0) {
         MDB_val k = val(kRemovalsTrimmedKey), v = val(txn.removals_trimmed_through);
         if (int rc = mdb_put(raw, meta, &k, &v, 0); rc != 0) return lmdb_fail(rc, "noting the removal log's trimmed end");
+      }
+      if (txn.notice_seqs_taken != 0) {
+        const std::uint64_t taken = read_notice_seqs(raw, meta) + txn.notice_seqs_taken;
+        MDB_val k = val(kNoticeSeqsKey), v = val(taken);
+        if (int rc = mdb_put(raw, meta, &k, &v, 0); rc != 0) return lmdb_fail(rc, "counting the sequence numbers of removal notices");
       }
       return save_counters(raw, main, txn.counters);
     };

@@ -65,6 +65,10 @@ inline constexpr std::string_view kStoreIdKey = "store_id";
 // The last sequence number trimmed from the removal log (a u64), absent until the log is first
 // trimmed. A key of its own, not a counter: builds that check the counters' size still open it.
 inline constexpr std::string_view kRemovalsTrimmedKey = "removals_trimmed_through";
+// How many sequence numbers removal notices have taken (a u64), absent until the first. A notice
+// is neither a record nor a logged removal: a reader that accounts for every number between two
+// snapshots (the reasoner's gap check) counts these too. A key of its own, like the one above.
+inline constexpr std::string_view kNoticeSeqsKey = "notice_seqs";
 std::string new_store_id();
 // Which file the store's data last was, in its meta table: the data file's inode number and
 // birth time (statx), recorded when the store is made and checked at every open that may
@@ -391,6 +395,12 @@ class Txn {
   // `meta` (kRemovalsTrimmedKey) at the end of the transaction: Node::watch tells a reader whose
   // bookmark is older that it missed removals.
   std::uint64_t removals_trimmed_through = 0;
+  // Sequence numbers this transaction gave to removal notices, added to kNoticeSeqsKey at its end.
+  std::uint64_t notice_seqs_taken = 0;
+  std::uint64_t take_notice_seq() {
+    ++notice_seqs_taken;
+    return counters.next_seq++;
+  }
   // A time-to-live scan stopped at its budget with records left to look at (apply_ttl):
   // Node::reclaim goes on with another pass even when this one reclaimed nothing.
   bool retention_unfinished = false;
@@ -467,5 +477,7 @@ struct Cursor {
 
 Result<Counters> load_counters(MDB_txn* txn, MDB_dbi meta);
 Result<void> save_counters(MDB_txn* txn, MDB_dbi meta, const Counters& c);
+// kNoticeSeqsKey in the meta table; 0 when absent (no notice yet, or written by an older build).
+std::uint64_t read_notice_seqs(MDB_txn* txn, MDB_dbi meta);
 
 }  // namespace tahvel::node::detail

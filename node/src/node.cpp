@@ -115,6 +115,7 @@ struct Snapshot::Impl {
   std::shared_ptr<Env> env;
   MDB_txn* txn = nullptr;
   std::uint64_t last_seq = 0;
+  std::uint64_t notice_seqs = 0;
   ~Impl() { if (txn) env->end_read(txn); }
 
   // A snapshot of the store as of now (Node::snapshot).
@@ -132,6 +133,7 @@ Result<Snapshot> Snapshot::Impl::open(const std::shared_ptr<Env>& env) {
   auto counters = load_counters(impl->txn, env->main);
   if (!counters) return unexpected(counters.error());
   impl->last_seq = counters->next_seq - 1;
+  impl->notice_seqs = read_notice_seqs(impl->txn, env->meta);
   return Snapshot(std::move(impl));
 }
 Snapshot::Snapshot(Snapshot&&) noexcept = default;
@@ -258,6 +260,7 @@ Result<std::vector<Record>> Snapshot::item(std::uint64_t item_id) const {
 }
 
 std::uint64_t Snapshot::last_seq() const { return impl_->last_seq; }
+std::uint64_t Snapshot::notice_seqs() const { return impl_->notice_seqs; }
 
 // ---------------------------------------------------------------------------------------------
 // Agent

@@ -681,7 +681,7 @@ Result<Txn::NoticePlan*> notice_plan(Txn& txn, std::uint64_t item_id, const Item
     txn.notice_plan_of.emplace(item_id, Txn::kNoNotice);
     return nullptr;
   }
-  txn.notice_plans.push_back({txn.counters.next_seq++, std::move(*to), {}});
+  txn.notice_plans.push_back({txn.take_notice_seq(), std::move(*to), {}});
   txn.notice_plan_of.emplace(item_id, txn.notice_plans.size() - 1);
   return &txn.notice_plans.back();
 }
@@ -728,7 +728,7 @@ Result<void> pass_notice_on(Txn& txn, const Item& notice, const std::vector<std:
   if (!to) return unexpected(to.error());
   if (auto r = add_remembered(txn, remembered, *to); !r) return unexpected(r.error());
   if (to->empty()) return {};
-  Txn::NoticePlan plan{txn.counters.next_seq++, std::move(*to), {}};
+  Txn::NoticePlan plan{txn.take_notice_seq(), std::move(*to), {}};
   // As the sender's records: meta.id - meta.item is each one's position in its item.
   for (std::size_t i = 0; i < notice.triples.size(); ++i) {
     Record record;

@@ -814,6 +814,36 @@ TEST_F(ReasonerTest, AConclusionRemovedByHandIsWrittenAgainWhileItHolds) {
   EXPECT_EQ(board(), both);
 }
 
+// Removing a fact routed to an agent that receives removal notices (an uplink's) gives the notice
+// a sequence number that is neither a record nor a logged removal. The session after reads the
+// removal as a change, not as a gap: under `tahvel up` a supervisor replacing a link's items
+// made every reasoner on the node read its whole board again every few seconds.
+TEST_F(ReasonerTest, ARemovalThatSendsANoticeIsReadAsAChangeNotAsAGap) {
+  auto uplink = node_->agent("uplink");
+  ASSERT_TRUE(uplink.has_value());
+  ASSERT_TRUE(uplink->subscribe({.p = n("p")}).has_value());
+  ASSERT_TRUE(uplink->receive_removals().has_value());
+  put({t("a", "p", "b")});
+  put({t("c", "p", "d")});
+  auto r = open(rules("notice.rules", "r(X, Y) :- p(X, Y).\n"));
+  ASSERT_TRUE(r.session().has_value());
+  ASSERT_EQ(board(), (std::map<std::string, int>{{nt("a", "r", "b"), 1}, {nt("c", "r", "d"), 1}}));
+  const std::uint64_t notices_before = node_->snapshot()->notice_seqs();
+  ASSERT_EQ(*node_->remove({.s = n("a"), .p = n("p")}), 1u);
+  ASSERT_EQ(node_->snapshot()->notice_seqs(), notices_before + 1) << "no notice was sent: the test proves nothing";
+  auto s = r.session();
+  ASSERT_TRUE(s.has_value()) << s.error().message;
+  EXPECT_FALSE(s->resynced);
+  ASSERT_EQ(s->removed.size(), 1u);
+  EXPECT_EQ(board(), (std::map<std::string, int>{{nt("c", "r", "d"), 1}}));
+  // Its notice is still in the uplink's input buffer: a second removal, a second number.
+  ASSERT_EQ(*node_->remove({.s = n("c"), .p = n("p")}), 1u);
+  s = r.session();
+  ASSERT_TRUE(s.has_value()) << s.error().message;
+  EXPECT_FALSE(s->resynced);
+  EXPECT_TRUE(board().empty());
+}
+
 // A finite closure larger than the default limit on a session's conclusions (a restart derives
 // all of it in one session) runs with a larger --max-conclusions; below it, the error says so.
 TEST_F(ReasonerTest, TheLimitOnASessionsConclusionsIsTheReasonersSetting) {

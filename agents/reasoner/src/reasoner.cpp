@@ -84,6 +84,10 @@ struct Reasoner::Impl {
   Engine engine;
   bool started = false;
   std::uint64_t bookmark = 0;  // last seq of the previous session's snapshot
+  // Its count of removal notices' seqs (Snapshot::notice_seqs): numbers after the bookmark that
+  // are neither records nor logged removals, taken whenever an item routed to an agent that
+  // receives notices (a link's) is removed.
+  std::uint64_t bookmark_notices = 0;
   // Ids of the item the previous session wrote (after its snapshot): the next session need not
   // read its own conclusions back; the gap check still accounts for them.
   std::uint64_t own_first = 0, own_last = 0;
@@ -199,7 +203,8 @@ Result<void> Reasoner::Impl::report_problem(const std::string& text) {
 }
 
 // Insertions after the bookmark from the snapshot; removals up to its last seq from the log.
-// `gap`: some sequence number in (bookmark, last] is neither a record nor a logged removal.
+// `gap`: some sequence number in (bookmark, last] is neither a record, a logged removal nor a
+// removal notice's.
 Result<void> Reasoner::Impl::read_changes(const node::Snapshot& snap, std::vector<node::Triple>& in,
                                           std::vector<node::Triple>& out, bool& gap) {
   const std::uint64_t last = snap.last_seq();
@@ -238,7 +243,8 @@ Result<void> Reasoner::Impl::read_changes(const node::Snapshot& snap, std::vecto
         out.push_back(as_read(c.record.triple));  // as insertions are read: only what some rule reads
     }
   }
-  gap = last - bookmark != present + removals + removed_new || removed_by_others;
+  const std::uint64_t notices = snap.notice_seqs() - std::min(bookmark_notices, snap.notice_seqs());
+  gap = last - bookmark != present + removals + removed_new + notices || removed_by_others;
   removing.clear();
   return {};
 }
@@ -434,6 +440,7 @@ Result<SessionReport> Reasoner::Impl::session() {
   if (auto s = node.snapshot(); s) snap.emplace(std::move(*s));
   else return unexpected(node_error(s.error()));
   report.seq = snap->last_seq();
+  const std::uint64_t notice_seqs = snap->notice_seqs();
   report.time_ns = now;
   std::vector<node::Triple> in, out, extra_removals;
   bool gap = false;
@@ -492,6 +499,7 @@ Result<SessionReport> Reasoner::Impl::session() {
   started = true;
   rules_pending = false;
   bookmark = report.seq;
+  bookmark_notices = notice_seqs;
   reclaimed = stats->reclaimed_records;
   report.added = std::move(update.added);
   report.removed = std::move(update.removed);

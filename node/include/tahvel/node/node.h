@@ -185,8 +185,14 @@ class Snapshot {
   // All current records of one item, in id order. Error not_found when none remain.
   Result<std::vector<Record>> item(std::uint64_t item_id) const;
 
-  // The highest sequence number (record id or removal) visible in this snapshot.
+  // The highest sequence number (record id, removal or removal notice) visible in this snapshot.
   std::uint64_t last_seq() const;
+
+  // How many sequence numbers removal notices have taken in this store so far (never lowered).
+  // A notice is neither a record nor a logged removal: a reader that accounts for every number
+  // between two snapshots counts the difference of these too. (Notices written by a build from
+  // before this count are not in it.)
+  std::uint64_t notice_seqs() const;
 
  private:
   friend class Node;
