@@ -199,6 +199,36 @@ TEST(LiesIn, ARoomInsideAnAreasHoleIsOut) {
                        shape("POLYGON((-1 -1, 5 -1, 5 5, -1 5, -1 -1), (0 0, 4 0, 2 2, 0 0))")));
 }
 
+// A wall between two holes of a room, and a hole's wall along the room's outer wall, are points
+// of the room's closed region (S3: a sensor there is in the room) with no inside of the room
+// beside them. The room lies in an area only when those lines do too: the regularized
+// difference of step 2 does not see them.
+TEST(LiesIn, TheLinesOfARoomThatHaveNoInsideBesideThemMustLieInTheAreaToo) {
+  Shape two_pillars = shape("POLYGON((0 0, 10 0, 10 10, 0 10, 0 0), (2 2, 5 2, 5 8, 2 8, 2 2), (5 2, 8 2, 8 8, 5 8, 5 2))");
+  Shape one_shaft = shape("POLYGON((0 0, 10 0, 10 10, 0 10, 0 0), (2 2, 8 2, 8 8, 2 8, 2 2))");
+  ASSERT_TRUE(validate(two_pillars).has_value());
+  ASSERT_TRUE(contains(two_pillars, {5, 5}));
+  ASSERT_FALSE(contains(one_shaft, {5, 5}));
+  EXPECT_FALSE(lies_in(two_pillars, one_shaft));
+  EXPECT_TRUE(lies_in(one_shaft, two_pillars));
+  EXPECT_TRUE(lies_in(two_pillars, two_pillars));
+  // An area with the same wall between its two holes holds it.
+  EXPECT_TRUE(lies_in(two_pillars, shape("POLYGON((-1 -1, 11 -1, 11 11, -1 11, -1 -1), (2 2, 5 2, 5 8, 2 8, 2 2), (5 2, 8 2, 8 8, 5 8, 5 2))")));
+  // The area's one hole has the lower half of the wall as its wall; the upper half is in its inside.
+  Shape l_shaft = shape("POLYGON((-1 -1, 11 -1, 11 11, -1 11, -1 -1), (2 2, 5 2, 5 5, 8 5, 8 8, 2 8, 2 2))");
+  ASSERT_TRUE(contains(l_shaft, {5, 3}));
+  ASSERT_FALSE(contains(l_shaft, {5, 6}));
+  EXPECT_FALSE(lies_in(two_pillars, l_shaft));
+
+  Shape alcove = shape("POLYGON((0 0, 10 0, 10 10, 0 10, 0 0), (0 2, 3 2, 3 5, 0 5, 0 2))");
+  Shape notched = shape("POLYGON((0 0, 10 0, 10 10, 0 10, 0 5, 3 5, 3 2, 0 2, 0 0))");
+  if (!validate(alcove)) GTEST_SKIP() << "a hole along the outer wall is refused: " << validate(alcove).error().message;
+  ASSERT_TRUE(contains(alcove, {0, 3}));
+  ASSERT_FALSE(contains(notched, {0, 3}));
+  EXPECT_FALSE(lies_in(alcove, notched));
+  EXPECT_TRUE(lies_in(notched, alcove));
+}
+
 TEST(LiesIn, MultipolygonsOnBothSides) {
   // Two halves of an area sharing the wall x = 5: a room across the wall lies in their union.
   Shape halves = shape("MULTIPOLYGON(((0 0, 5 0, 5 5, 0 5, 0 0)), ((5 0, 10 0, 10 5, 5 5, 5 0)))");

@@ -1,5 +1,5 @@
 // Polygon-in-area containment (docs/spatial.md S14): a shape lies in an area when its closed
-// region is a subset of the area's closed region. Decided in two steps:
+// region is a subset of the area's closed region. Decided in three steps:
 //   1. cheap exact rejections with the filtered exact predicates of locate(): the shape's box
 //      must lie in the area's box, and no vertex of the shape may lie outside the area;
 //   2. the exact answer: the regularized difference shape \ area (CGAL Boolean set operations on
@@ -12,7 +12,16 @@
 // area whose boundary lies on the shape's own boundary (the area's hole is the shape itself,
 // or the shape's hole is the area's hole), and a shape spanning two polygons of a
 // multipolygon area that share a wall.
+//   3. for a polygon with holes, the lines of its closed region that the regularized set drops:
+//      a wall between two of its holes, a hole's wall along its outer wall (a sensor there is
+//      in the room, S3, with no inside of the room beside it). Each edge of such a polygon is
+//      cut where it meets the area's boundary; the pieces' ends and midpoints, exact, must be
+//      in the area's closed region (a piece crosses no boundary inside it, so one point says
+//      where all of it is).
 #include "containment.h"
+
+#include <algorithm>
+#include <vector>
 
 #include <CGAL/Boolean_set_operations_2.h>
 #include <CGAL/Exact_predicates_exact_constructions_kernel.h>
@@ -26,6 +35,8 @@ namespace {
 using ExactKernel = CGAL::Exact_predicates_exact_constructions_kernel;
 using ExactPolygon = CGAL::Polygon_2<ExactKernel>;
 using ExactSet = CGAL::Polygon_set_2<ExactKernel>;
+using ExactPoint = ExactKernel::Point_2;
+using ExactSegment = ExactKernel::Segment_2;
 
 ExactPolygon exact_ring(const Ring& ring) {
   ExactPolygon out;
@@ -44,6 +55,84 @@ ExactSet exact_region(const Shape& shape) {
     out.join(part);
   }
   return out;
+}
+
+// A polygon's rings on the exact kernel, for S3 membership of points constructed exactly.
+struct ExactRings {
+  ExactPolygon outer;
+  std::vector<ExactPolygon> holes;
+};
+
+std::vector<ExactRings> exact_rings(const Shape& shape) {
+  std::vector<ExactRings> out;
+  for (const Polygon& polygon : shape.polygons) {
+    ExactRings rings{exact_ring(polygon.outer), {}};
+    for (const Ring& hole : polygon.holes) rings.holes.push_back(exact_ring(hole));
+    out.push_back(std::move(rings));
+  }
+  return out;
+}
+
+// S3 on an exact point: in some polygon's closed outer ring and in the open inside of none of its
+// holes.
+bool in_closed_region(const std::vector<ExactRings>& area, const ExactPoint& p) {
+  for (const ExactRings& polygon : area) {
+    if (polygon.outer.bounded_side(p) == CGAL::ON_UNBOUNDED_SIDE) continue;
+    if (std::none_of(polygon.holes.begin(), polygon.holes.end(),
+                     [&](const ExactPolygon& hole) { return hole.bounded_side(p) == CGAL::ON_BOUNDED_SIDE; }))
+      return true;
+  }
+  return false;
+}
+
+// True when every point of the segment a-b is in the area's closed region.
+bool segment_within(const std::vector<ExactRings>& area, const ExactPoint& a, const ExactPoint& b) {
+  const ExactSegment along(a, b);
+  std::vector<ExactPoint> cuts{a, b};
+  auto cut_at_edges_of = [&](const ExactPolygon& ring) {
+    for (auto edge = ring.edges_begin(); edge != ring.edges_end(); ++edge) {
+      auto hit = CGAL::intersection(along, *edge);
+      if (!hit) continue;
+      if (const ExactPoint* p = boost::get<ExactPoint>(&*hit)) {
+        cuts.push_back(*p);
+      } else if (const ExactSegment* s = boost::get<ExactSegment>(&*hit)) {
+        cuts.push_back(s->source());
+        cuts.push_back(s->target());
+      }
+    }
+  };
+  for (const ExactRings& polygon : area) {
+    cut_at_edges_of(polygon.outer);
+    for (const ExactPolygon& hole : polygon.holes) cut_at_edges_of(hole);
+  }
+  std::sort(cuts.begin(), cuts.end(), [&](const ExactPoint& p, const ExactPoint& q) {
+    return CGAL::compare_distance_to_point(a, p, q) == CGAL::SMALLER;
+  });
+  cuts.erase(std::unique(cuts.begin(), cuts.end()), cuts.end());
+  // The cuts between the ends lie on the area's boundary, so in it.
+  if (!in_closed_region(area, a) || !in_closed_region(area, b)) return false;
+  for (std::size_t i = 0; i + 1 < cuts.size(); ++i)
+    if (!in_closed_region(area, CGAL::midpoint(cuts[i], cuts[i + 1]))) return false;
+  return true;
+}
+
+// Step 3: every edge of every polygon of `inner` that has holes lies in the area.
+bool lines_within(const std::vector<ExactRings>& area, const Shape& inner) {
+  for (const Polygon& polygon : inner.polygons) {
+    if (polygon.holes.empty()) continue;  // its walls all border its inside: step 2 saw them
+    auto ring_within_area = [&](const Ring& ring) {
+      for (std::size_t i = 0; i < ring.size(); ++i) {
+        const Point& from = ring[i];
+        const Point& to = ring[(i + 1) % ring.size()];  // the ring does not repeat its first vertex
+        if (!segment_within(area, ExactPoint(from.x, from.y), ExactPoint(to.x, to.y))) return false;
+      }
+      return true;
+    };
+    if (!ring_within_area(polygon.outer)) return false;
+    for (const Ring& hole : polygon.holes)
+      if (!ring_within_area(hole)) return false;
+  }
+  return true;
 }
 
 }  // namespace
@@ -83,6 +172,7 @@ bool box_inside(const Box& inner, const Box& outer) {
 
 struct AreaRegion::Impl {
   ExactSet region;
+  std::vector<ExactRings> rings;
 };
 
 AreaRegion::AreaRegion(const Shape& area, const PreparedShape& prepared)
@@ -101,10 +191,10 @@ bool AreaRegion::holds(const Shape& inner, const PreparedShape& inner_prepared, 
     }
   }
   if (same_shape(inner, area_)) return true;
-  if (!impl_) impl_ = std::make_unique<Impl>(Impl{exact_region(area_)});
+  if (!impl_) impl_ = std::make_unique<Impl>(Impl{exact_region(area_), exact_rings(area_)});
   ExactSet rest = exact_region(inner);
   rest.difference(impl_->region);
-  return rest.is_empty();
+  return rest.is_empty() && lines_within(impl_->rings, inner);
 }
 
 }  // namespace tahvel::spatial::detail

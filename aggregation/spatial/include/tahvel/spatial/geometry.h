@@ -84,7 +84,9 @@ inline bool contains(const Shape& shape, Point p) { return locate(shape, p) != L
 // `area`'s closed region. So a shape touching the area's boundary from inside, or sharing a wall
 // with it, lies in it; one crossing the boundary, or overlapping the open inside of one of the
 // area's holes, does not; a shape lies in itself. Both shapes valid. Exact: cheap exact
-// predicates first (box, every vertex located), then an exact regularized difference.
+// predicates first (box, every vertex located), then an exact regularized difference, and for a
+// polygon with holes its edges (a wall between two holes is in the room, though no inside of it
+// borders the wall).
 bool lies_in(const Shape& inner, const Shape& area);
 
 }  // namespace tahvel::spatial
