@@ -215,6 +215,11 @@ class PieceOutput {
   bool cut() const;
   // errno of the write that failed (EPIPE: the reader went away), 0 when none did.
   int error() const;
+  // From now on a write waits for standard output no later than `deadline` (a `--timeout` that
+  // bounds the whole answer): past it the output ends as at a stop, and timed_out() says so. A
+  // reader that stops reading (a pager left open) held the command in write() for as long.
+  void set_deadline(std::chrono::steady_clock::time_point deadline);
+  bool timed_out() const;
   // Fails, as finish_output does, when a write failed (quietly when the reader went away).
   void check() const;
 

@@ -10,9 +10,11 @@
 #include <climits>
 #include <condition_variable>
 #include <mutex>
+#include <optional>
 #include <deque>
 #include <limits>
 #include <poll.h>
+#include <sys/stat.h>
 #include <unistd.h>
 #include <filesystem>
 #include <fstream>
@@ -514,6 +516,13 @@ struct PieceOutput::Impl {
   static constexpr std::chrono::seconds kCutAfter{2};
   std::chrono::steady_clock::time_point stopped_at{};
   int error = 0;                   // errno of a failed write
+  std::optional<std::chrono::steady_clock::time_point> deadline;
+  bool timed_out = false;
+  // A regular file takes every write at once; a pipe or terminal only as much as it has room for.
+  bool to_a_file = [] {
+    struct stat st{};
+    return ::fstat(STDOUT_FILENO, &st) == 0 && S_ISREG(st.st_mode);
+  }();
 
   // Whether a write of up to PIPE_BUF bytes goes out within `wait_ms` (0: now): a pipe with
   // room for them, a file.
@@ -548,6 +557,17 @@ struct PieceOutput::Impl {
           break;
         }
         n = std::min<std::size_t>(ends.front().first - sent, PIPE_BUF);
+      }
+      if (!stopped && deadline && !to_a_file) {
+        // Room for PIPE_BUF bytes by the deadline, and no more written at once: the write does
+        // not block past it.
+        const auto left = std::chrono::duration_cast<std::chrono::milliseconds>(*deadline - std::chrono::steady_clock::now());
+        if (!takes_now(static_cast<int>(std::clamp<std::int64_t>(left.count(), 0, std::numeric_limits<int>::max())))) {
+          timed_out = stopped = true;
+          stopped_at = std::chrono::steady_clock::now();
+          continue;  // as a stop: a piece cut here is finished if the reader takes it within kCutAfter
+        }
+        n = std::min<std::size_t>(n, PIPE_BUF);
       }
       const ssize_t put = ::write(STDOUT_FILENO, text.data() + sent, n);
       if (put < 0 && errno == EINTR) continue;  // the stop it brought is seen at the loop's top
@@ -616,6 +636,10 @@ bool PieceOutput::good() const { return !impl_->dropped && impl_->error == 0; }
 bool PieceOutput::cut() const { return impl_->cut; }
 
 int PieceOutput::error() const { return impl_->error; }
+
+void PieceOutput::set_deadline(std::chrono::steady_clock::time_point deadline) { impl_->deadline = deadline; }
+
+bool PieceOutput::timed_out() const { return impl_->timed_out; }
 
 void PieceOutput::check() const {
   if (impl_->error != 0) fail_output(impl_->error);

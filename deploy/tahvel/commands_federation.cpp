@@ -471,10 +471,20 @@ std::uint64_t ask_below(std::string_view command, node::Node& node, const federa
   // Ctrl-C, SIGTERM or a reader that went away (`| head`) cancels the query below (P18) instead
   // of leaving its answer to run on into this node's store.
   install_stop_handlers();
+  out.set_deadline(std::chrono::steady_clock::now() + timeout);
   auto cancelled = [&out] { return g_stop != 0 || !out.good(); };
   auto got = federation::remote_query(node, query, timeout, each, area_answer, cancelled);
   if (answered) answered();
   const std::string name(command);
+  if (out.timed_out() && !g_stop) {
+    const auto target = uri::normalize(query.target);
+    const std::uint64_t n = out.written();
+    throw Failure{kExitTimeout, name + ": timeout: the answer from <" + (target ? *target : query.target) + "> was not written out within " +
+                                    seconds_text(timeout.count() / 1000.0) + ": standard output took no more (a reader that stopped reading, "
+                                    "a pager left open: give it a longer --timeout); " + std::to_string(n) + " " + std::string(piece) +
+                                    (n == 1 ? "" : "s") + " written out" +
+                                    (out.cut() ? ", the next cut short" : "")};
+  }
   // Interrupted while the answer came, or while the last of it was written out: what was
   // written out is counted (not what came: the rest never reached the reader).
   if (g_stop && (!got || !out.good())) {
@@ -2097,6 +2107,9 @@ int up_checked(const Args& args, bool& checking) {
         std::cout << "up: " << spec.id << ": no forward in the file, so only HRV windows go up to '" << spec.parent
                   << "' (the default); raw signals stay on the node\n";
       std::set<std::uint64_t> kept;
+      // As the link does at its start (P7a), before the first pattern: every item routed to the
+      // uplink is then remembered as given to it (P6c, P6d send only those again).
+      check(uplink.receive_removals());
       for (std::size_t k = 0; k < policy.size(); ++k) {
         const std::uint64_t item = check(uplink.subscribe(policy[k]));
         kept.insert(item);

@@ -48,8 +48,14 @@ std::string json_atoms(const std::vector<reasoner::Atom>& atoms) {
   return out + "]";
 }
 
+// Rules on `now` are evaluated every second on a quiet board: only what changed is told, and a
+// session that read the whole board again (its cost is what an operator looks for in the log).
+bool quiet_clock_tick(const reasoner::SessionReport& r) {
+  return r.clocked && r.added.empty() && r.removed.empty() && !r.rules_error && !r.problem_not_written && !r.resynced;
+}
+
 void print_json(const reasoner::SessionReport& r) {
-  if (r.clocked && r.added.empty() && r.removed.empty() && !r.rules_error && !r.problem_not_written) return;  // as print_text
+  if (quiet_clock_tick(r)) return;  // as print_text
   std::ostringstream out;
   out << "{\"seq\":" << r.seq << ",\"time_ns\":" << r.time_ns << ",\"facts_in\":" << r.facts_in
       << ",\"facts_out\":" << r.facts_out << ",\"resynced\":" << (r.resynced ? "true" : "false")
@@ -67,8 +73,7 @@ void print_json(const reasoner::SessionReport& r) {
 }
 
 void print_text(const reasoner::SessionReport& r, const uri::PrefixMap& prefixes) {
-  // Rules on `now` are evaluated every second on a quiet board: only what changed is told.
-  if (r.clocked && r.added.empty() && r.removed.empty() && !r.rules_error && !r.problem_not_written) return;
+  if (quiet_clock_tick(r)) return;
   if (r.rules_error) std::cerr << "tahvel: rules not reloaded (the previous rules run): " << *r.rules_error << "\n";
   // A resynchronised session reads the whole board again, not what changed: its count is not
   // "new" facts (3 facts and one conclusion record removed by hand read "3 new").

@@ -503,6 +503,12 @@ int run_subscribe(const Args& args) {
   if (!args.has("--area") && args.has("--floor")) usage_error("--floor: only with a WKT --area");
   if (args.has("--area") && args.has("--earlier"))
     usage_error("--earlier: not with --area (an area subscription follows sensors as they move)");
+  // The outbox is a stream the parent applies in id order (docs/protocol.md P5, P9): earlier items
+  // with ids past what the parent has applied of it would leave the outbox unsent, those after
+  // it would go up, and which is which is where the last item that went up happens to be.
+  if (args.has("--earlier") && agent_id(args, "") == "uplink")
+    usage_error("--earlier: not for the uplink: items stored before a forwarding pattern stay on the node (docs/protocol.md "
+                "P5); from above, 'tahvel query --at <this node's IRI>' reads them");
   std::optional<spatial::AreaSpec> given_area;
   if (args.has("--area")) given_area = area_flag(args, prefixes);
   refuse_when_output_was_closed();  // after the usage errors (exit 2), before anything is written

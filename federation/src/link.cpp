@@ -1625,10 +1625,12 @@ struct Link::Impl {
         if (!board_set) {
           node::Pattern subtree;
           subtree.context = self + "/*";
-          auto sub = link->subscribe(subtree, kSubtreeSubscription);
-          if (!sub) log("cannot subscribe <" + child->iri + "> to subtree items: " + sub.error().message);
+          // Removals first: the items the subscription puts into the buffer at once are
+          // remembered as given to it, and so go down again to a store made again (P10b).
           auto removals = link->receive_removals();
           if (!removals) log("cannot have removals sent to <" + child->iri + ">: " + removals.error().message);
+          auto sub = link->subscribe(subtree, kSubtreeSubscription);
+          if (!sub) log("cannot subscribe <" + child->iri + "> to subtree items: " + sub.error().message);
           std::lock_guard lock(mu);
           child->board_set = sub && removals;
         }
@@ -3536,11 +3538,12 @@ Result<std::unique_ptr<Link>> Link::start(LinkOptions options) {
       if (!subs) return Unexpected<Error>{subs.error()};
       if (*subs == 0 && options.default_forward) policy = default_forward_policy();
     }
+    // P7a: a removal follows what went up. Set before the first subscription, so that every
+    // item the policy routes is remembered as given to the uplink (P6c, P6d send only those again).
+    if (auto r = uplink->receive_removals(); !r) return Unexpected<Error>{r.error()};
     for (const auto& pattern : policy) {
       if (auto s = uplink->subscribe(pattern); !s) return Unexpected<Error>{s.error()};
     }
-    // P7a: a removal follows what went up.
-    if (auto r = uplink->receive_removals(); !r) return Unexpected<Error>{r.error()};
     // P12a: what an earlier run said of this uplink, so that a link restarted while its parent
     // is away says "down" and when the parent was last heard.
     auto link_agent = node->agent(kLinkAgent);
@@ -3588,8 +3591,8 @@ Result<std::unique_ptr<Link>> Link::start(LinkOptions options) {
       if (!agent) return Unexpected<Error>{agent.error()};
       node::Pattern subtree;
       subtree.context = s.self + "/*";
+      if (auto r = agent->receive_removals(); !r) return Unexpected<Error>{r.error()};  // P10a; first, as above
       if (auto sub = agent->subscribe(subtree, kSubtreeSubscription); !sub) return Unexpected<Error>{sub.error()};
-      if (auto r = agent->receive_removals(); !r) return Unexpected<Error>{r.error()};  // P10a
       auto child = std::make_shared<Impl::Child>();
       child->flips.set_hold(s.opt.conflict_hold);
       child->id = id;

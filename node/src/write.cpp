@@ -988,7 +988,8 @@ namespace {
 // Puts the items `ids` (ascending) into the agent's input buffer, but those there already (and,
 // with persistent_only, those not persistent); returns how many went in.
 Result<std::uint64_t> deliver_items(Txn& txn, std::uint64_t agent, const std::string& agent_iri,
-                                    const std::vector<std::uint64_t>& ids, bool persistent_only) {
+                                    const std::vector<std::uint64_t>& ids, bool persistent_only,
+                                    std::uint64_t given_by = 0) {
   if (auto r = removals_noticed(txn); !r) return unexpected(r.error());  // read by deliver
   const std::uint32_t slot = WakeBoard::slot_for(agent_iri);
   std::uint64_t delivered = 0;
@@ -996,6 +997,12 @@ Result<std::uint64_t> deliver_items(Txn& txn, std::uint64_t agent, const std::st
     auto row = get_item(txn.raw(), txn.env(), item_id);
     if (!row) return unexpected(row.error());
     if (!*row || (persistent_only && !(*row)->persistent)) continue;
+    // Stored before the subscription `given_by` and never put into the agent's buffer since (an
+    // agent that receives removal notices is remembered on every item it is given): the item
+    // did not go to the agent, and going again would send it where it never went.
+    if (given_by != 0 && item_id < given_by &&
+        std::find((*row)->noticed.begin(), (*row)->noticed.end(), agent) == (*row)->noticed.end())
+      continue;
     ItemRow item = **row;
     const std::uint64_t pending = item.pending;
     if (auto d = deliver(txn, agent, slot, item_id, item); !d) return unexpected(d.error());
@@ -1078,7 +1085,8 @@ Result<Pattern> pattern_of(const Subscription& sub, TermReader& reader) {
 }  // namespace
 
 Result<std::uint64_t> deliver_earlier(Txn& txn, std::uint64_t agent, const std::string& agent_iri,
-                                      const Pattern& pattern, std::uint64_t before, bool persistent_only) {
+                                      const Pattern& pattern, std::uint64_t before, bool persistent_only,
+                                      std::uint64_t given_by) {
   if (auto f = flush_index(txn); !f) return unexpected(f.error());
   // A child's down queue on a parent (P11): its subscription names a context only. Walking the
   // records for it took a hospital's writer for seconds at each new home.
@@ -1086,11 +1094,11 @@ Result<std::uint64_t> deliver_earlier(Txn& txn, std::uint64_t agent, const std::
       !pattern.context->empty()) {
     auto items = persistent_items_with_context(txn, *pattern.context, before);
     if (!items) return unexpected(items.error());
-    return deliver_items(txn, agent, agent_iri, *items, true);
+    return deliver_items(txn, agent, agent_iri, *items, true, given_by);
   }
   auto items = items_matching(txn, pattern, before);
   if (!items) return unexpected(items.error());
-  return deliver_items(txn, agent, agent_iri, *items, persistent_only);
+  return deliver_items(txn, agent, agent_iri, *items, persistent_only, given_by);
 }
 
 Result<std::uint64_t> deliver_missed(Txn& txn, std::span<const MissedSince> missed, std::uint64_t older_than) {
@@ -1363,7 +1371,7 @@ Result<std::uint64_t> deliver_again(Txn& txn, std::uint64_t agent, const std::st
       }
     }
     if (after != 0) pattern.after_id = after;
-    auto n = deliver_earlier(txn, agent, agent_iri, pattern, before, persistent_only);
+    auto n = deliver_earlier(txn, agent, agent_iri, pattern, before, persistent_only, sub.item);
     if (!n) return unexpected(n.error());
     delivered += *n;
   }

@@ -88,9 +88,12 @@ Result<std::uint64_t> withdraw_unrouted(Txn& txn, std::uint64_t agent, const std
 // Puts into the input buffer of `agent` (a term id; IRI `agent_iri`) every item with id below
 // `before` that has a record matching `pattern` (s, p, o, context, source: what a subscription
 // routes), oldest first, unless it is there already: a new subscription's earlier items
-// (SubscribeOptions::earlier). Returns how many it put.
+// (SubscribeOptions::earlier). Returns how many it put. With `given_by` (a subscription's item
+// id), an item stored before that subscription is put only if it was put into the agent's buffer
+// before (ItemRow::noticed): what the subscription gave the agent goes again, nothing more.
 Result<std::uint64_t> deliver_earlier(Txn& txn, std::uint64_t agent, const std::string& agent_iri,
-                                      const Pattern& pattern, std::uint64_t before, bool persistent_only = false);
+                                      const Pattern& pattern, std::uint64_t before, bool persistent_only = false,
+                                      std::uint64_t given_by = 0);
 
 // A subscription written after what it follows had begun, and the id after which it should
 // have been in force.
@@ -105,7 +108,8 @@ struct MissedSince {
 // A subscription not on the board is skipped. Returns how many it put.
 Result<std::uint64_t> deliver_missed(Txn& txn, std::span<const MissedSince> missed, std::uint64_t older_than);
 
-// deliver_earlier for each of the subscriptions of `agent`: the items with ids in (after, before)
+// deliver_earlier for each of the subscriptions of `agent`, given by it: the items it gave the
+// agent (routed when stored, or put into its buffer since), with ids in (after, before)
 // (after 0: from the first), persistent ones only when `persistent_only`, and with
 // `source_under` only those whose source is that IRI or under it (Agent::deliver_again_between).
 Result<std::uint64_t> deliver_again(Txn& txn, std::uint64_t agent, const std::string& agent_iri, bool persistent_only,

@@ -809,6 +809,12 @@ TEST_F(Cli, SubscribeEarlierBringsWhatIsAlreadyOnTheBoardAndRefusesAnArea) {
   Outcome area = run({"subscribe", node_, "--agent", "ui", "--earlier", "--area", "POLYGON((0 0,1 0,1 1,0 0))"});
   EXPECT_EQ(area.status, 2);
   EXPECT_NE(area.err.find("--earlier: not with --area"), std::string::npos) << area.err;
+  // Nor for the outbox: of the earlier items only those after the parent's mark could go up.
+  Outcome outbox = run({"subscribe", node_, "--agent", "uplink", "-p", "sosa:observedProperty", "--earlier"});
+  EXPECT_EQ(outbox.status, 2);
+  EXPECT_NE(outbox.err.find("--earlier: not for the uplink: items stored before a forwarding pattern stay on the node"), std::string::npos)
+      << outbox.err;
+  EXPECT_EQ(run({"take", node_, "--agent", "uplink", "--timeout", "0"}).out, "") << "the refused subscription routed items";
 }
 
 TEST_F(Cli, TakeThatCannotWriteItsOutputLeavesTheItemForTheNextTake) {

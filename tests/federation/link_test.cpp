@@ -706,6 +706,48 @@ TEST(Link, ARestartedLinkPutsNothingBackWhenTheParentHasEverything) {
   EXPECT_EQ(count(tree.hospital_dir, numbered), 3u);
 }
 
+// P5: a pattern added to the policy takes the items stored after it. Those stored before stay home,
+// also when the link registers again: its welcome (mark above 0, P6d; mark 0, P6c for the
+// persistent ones) put back into the outbox every item after the parent's mark that the policy
+// matched now, so some old raw items went up and others did not, by where the mark stood.
+void items_before_a_pattern_stay_home_after_a_restart(bool something_went_up_before) {
+  Tree tree;
+  ASSERT_TRUE(tree.start_hospital_and_home1());
+  auto home1 = node::Node::open(tree.home1_dir).value();
+  auto hrv = home1.agent("hrv").value();
+  if (something_went_up_before) {
+    ASSERT_TRUE(hrv.store(hrv_item(0)));
+    ASSERT_TRUE(eventually([&] { return count(tree.hospital_dir, {.p = Term::iri(kEx + "n")}) == 1 && outbox(tree.home1_dir) == 0; }));
+  }
+  const Term raw = Term::iri(kEx + "raw");
+  auto raw_sample = [&](int n, bool persistent) {
+    node::Item item;
+    item.add(Term::iri(kHome1 + "/rec/ecg/" + std::to_string(n)), raw, Term::integer(n));
+    item.persistent = persistent;
+    return hrv.store(item).has_value();
+  };
+  ASSERT_TRUE(raw_sample(1, false));
+  ASSERT_TRUE(raw_sample(2, true));
+  ASSERT_TRUE(home1.agent("uplink").value().subscribe({.p = raw}));
+  tree.home1.reset();
+  tree.home1 = tree.start_home(tree.home1_dir, kHome1, tree.home1_log);
+  ASSERT_TRUE(eventually([&] { return tree.home1->connected(); }));
+  ASSERT_TRUE(raw_sample(3, false));
+  EXPECT_TRUE(eventually([&] { return count(tree.hospital_dir, {.p = raw}) >= 1 && outbox(tree.home1_dir) == 0; }));
+  std::this_thread::sleep_for(300ms);
+  EXPECT_EQ(count(tree.hospital_dir, {.p = raw}), 1u) << tree.home1_log.text();
+  EXPECT_EQ(count(tree.hospital_dir, {.p = raw, .o = Term::integer(3)}), 1u);
+  EXPECT_FALSE(tree.home1_log.has("go up again")) << tree.home1_log.text();
+}
+
+TEST(Link, ItemsStoredBeforeAPatternWasAddedStayHomeWhenTheLinkRegistersAgain) {
+  items_before_a_pattern_stay_home_after_a_restart(true);
+}
+
+TEST(Link, ItemsStoredBeforeAPatternWasAddedStayHomeWhenNothingHadGoneUpYet) {
+  items_before_a_pattern_stay_home_after_a_restart(false);
+}
+
 // P6a: the same downwards. A hospital whose store is made again issues configuration with ids
 // that a home has applied already from the old store; the home still gets it.
 // Settings `first` .. `first + n - 1` for home1's agent hrv, written on the hospital by its

@@ -4,6 +4,7 @@
 #include <gtest/gtest.h>
 
 #include <atomic>
+#include <limits>
 #include <random>
 #include <set>
 #include <thread>
@@ -257,6 +258,39 @@ TEST(Context, PersistentItemsAddressedToAnAgentAreDeliveredAgainOnceTaken) {
   // Put back once more, and then not again while it waits in the buffer.
   EXPECT_EQ(child.deliver_persistent_again(Redelivery::addressed_too).value(), 1u);
   EXPECT_EQ(child.deliver_persistent_again(Redelivery::addressed_too).value(), 0u);
+}
+
+// A link sends again what its parent lost (docs/protocol.md P6c, P6d): only what the uplink's
+// subscriptions gave it, never items stored before a pattern was added, which stay home (P5).
+// Up to session 78 every item the patterns matched now went up at the next welcome.
+TEST(Redelivery, OnlyWhatASubscriptionGaveTheAgentIsDeliveredAgain) {
+  TempDir dir;
+  Node node = make_node(dir.path());
+  Agent uplink = node.agent("uplink").value();
+  Agent writer = node.agent("writer").value();
+  ASSERT_TRUE(uplink.receive_removals());
+  Item kept_home = reading(1);
+  kept_home.persistent = true;
+  const std::uint64_t before_pattern = writer.store(kept_home).value();
+  ASSERT_TRUE(writer.store(reading(2)));
+  ASSERT_TRUE(uplink.subscribe({.p = ex("value")}));
+  Item description = reading(3);
+  description.persistent = true;
+  const std::uint64_t persistent_after = writer.store(description).value();
+  const std::uint64_t after = writer.store(reading(4)).value();
+  ASSERT_EQ(taken_ids(uplink), (std::vector<std::uint64_t>{persistent_after, after}));
+  ASSERT_TRUE(uplink.ack_through(after));
+  EXPECT_EQ(uplink.deliver_again_between(0, std::numeric_limits<std::uint64_t>::max()).value(), 2u);
+  EXPECT_EQ(taken_ids(uplink), (std::vector<std::uint64_t>{persistent_after, after}));
+  EXPECT_EQ(uplink.deliver_persistent_again().value(), 1u);
+  EXPECT_EQ(taken_ids(uplink), std::vector<std::uint64_t>{persistent_after});
+  // Given when it subscribed (`earlier`): those went to it, and go again.
+  Agent other = node.agent("other").value();
+  ASSERT_TRUE(other.receive_removals());
+  ASSERT_TRUE(other.subscribe({.p = ex("value")}, {.earlier = true}));
+  ASSERT_EQ(taken_ids(other).size(), 4u);
+  EXPECT_EQ(other.deliver_again_between(0, std::numeric_limits<std::uint64_t>::max()).value(), 4u);
+  EXPECT_EQ(taken_ids(other).front(), before_pattern);
 }
 
 TEST(Window, PeekLeavesItemsAndAckThroughRemovesUpToAnId) {

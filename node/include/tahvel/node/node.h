@@ -451,15 +451,19 @@ class Agent {
   // when its forwarding policy is narrowed: what was queued under the old policy stays home.)
   Result<std::uint64_t> withdraw_unrouted();
   // Puts into the input buffer again every persistent item that one of this agent's
-  // subscriptions matches (with Redelivery::addressed_too, also those addressed to it by their
-  // context, R18) and that is not there, oldest first; returns how many. (A link whose parent
+  // subscriptions gave it (with Redelivery::addressed_too, also those addressed to it by their
+  // context, R18) and that is not there, oldest first; returns how many. A subscription gave the
+  // agent the items it routed when they were stored, and those stored before it that were put
+  // into the buffer since (SubscribeOptions::earlier), which the node remembers only for an
+  // agent that receives removal notices (receive_removals: call it before subscribing); an item
+  // stored before the subscription and never given to the agent is not put. (A link whose parent
   // has a new store, a replaced gateway: the descriptions it sent the store before, a
   // recording's, which the parent's agents need for everything after, go to the new one; and,
   // addressed too, a child's link agent on the parent when the child's store was made again:
   // the settings kept for it.) The addressed items are found by reading every item's row once.
   Result<std::uint64_t> deliver_persistent_again(Redelivery which = Redelivery::subscribed);
   // Puts into the input buffer again every item with an id in (`after`, `before`) that one of
-  // this agent's subscriptions matches, whose source is `source_under` or under it (empty: any),
+  // this agent's subscriptions gave it (as above), whose source is `source_under` or under it (empty: any),
   // and that is not there, oldest first; returns how many. (A link whose parent's store was
   // restored from a backup: what this node's subtree wrote that that store had acknowledged
   // since the backup, and the link had therefore taken out of its outbox, goes up again.)
