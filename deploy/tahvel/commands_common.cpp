@@ -562,12 +562,15 @@ struct PieceOutput::Impl {
         // Room for PIPE_BUF bytes by the deadline, and no more written at once: the write does
         // not block past it.
         const auto left = std::chrono::duration_cast<std::chrono::milliseconds>(*deadline - std::chrono::steady_clock::now());
-        if (!takes_now(static_cast<int>(std::clamp<std::int64_t>(left.count(), 0, std::numeric_limits<int>::max())))) {
+        pollfd p{STDOUT_FILENO, POLLOUT, 0};
+        const int ready = ::poll(&p, 1, static_cast<int>(std::clamp<std::int64_t>(left.count(), 0, std::numeric_limits<int>::max())));
+        if (ready < 0 && errno == EINTR) continue;  // the stop it brought is seen at the loop's top
+        if (ready == 0) {
           timed_out = stopped = true;
           stopped_at = std::chrono::steady_clock::now();
           continue;  // as a stop: a piece cut here is finished if the reader takes it within kCutAfter
         }
-        n = std::min<std::size_t>(n, PIPE_BUF);
+        n = std::min<std::size_t>(n, PIPE_BUF);  // POLLERR, POLLHUP: the write says what
       }
       const ssize_t put = ::write(STDOUT_FILENO, text.data() + sent, n);
       if (put < 0 && errno == EINTR) continue;  // the stop it brought is seen at the loop's top
