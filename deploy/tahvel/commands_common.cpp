@@ -257,6 +257,9 @@ std::string parse_iri(std::string_view text, const uri::PrefixMap& prefixes,
                       std::string_view flag) {
   check_no_space(text, flag);
   if (text.starts_with("<")) {
+    if (const auto close = text.find('>'); close != std::string_view::npos && close + 1 < text.size())
+      bad_value(flag, "'" + std::string(text) + "' goes on after the '>' that ends the IRI, at column " + std::to_string(close + 2) +
+                          " ('" + std::string(text.substr(close + 1)) + "'): write the whole IRI inside <…>");
     if (!text.ends_with(">") || text.size() < 2) bad_value(flag, "'" + std::string(text) + "' lacks '>'");
     std::string_view inner = text.substr(1, text.size() - 2);
     auto normal = uri::normalize(inner);

@@ -217,7 +217,7 @@ int run_ecg(const Args& args) {
     try {
       ask_below("ecg", node, ask, left, out, each, answered, "frame");
     } catch (Failure& f) {
-      if (f.status == kExitTimeout) {
+      if (f.status == kExitTimeout && !out.timed_out()) {  // a reader that took no more says so itself
         const std::uint64_t n = out.written();
         f.message = "ecg: timeout: no complete answer from <" + ask.target + "> within --timeout " +
                     (args.get("--timeout") ? *args.get("--timeout") + " s" : std::string("30 s (the default)")) +

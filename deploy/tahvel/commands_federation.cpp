@@ -435,6 +435,8 @@ int run_query(const Args& args) {
     writer->write(r);
     out.end_piece();
   }, [&] {
+    // An empty answer in Turtle is the prefixes alone (docs/cli.md: they come first).
+    if (!writer && format == node::Format::turtle) writer.emplace(out.stream(), format, prefixes);
     if (writer) writer->finish();
     out.finish();
   }, "record");

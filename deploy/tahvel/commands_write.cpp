@@ -506,7 +506,7 @@ int run_subscribe(const Args& args) {
   // The outbox is a stream the parent applies in id order (docs/protocol.md P5, P9): earlier items
   // with ids past what the parent has applied of it would leave the outbox unsent, those after
   // it would go up, and which is which is where the last item that went up happens to be.
-  if (args.has("--earlier") && agent_id(args, "") == "uplink")
+  if (args.has("--earlier") && args.get("--agent") == std::optional<std::string>("uplink"))
     usage_error("--earlier: not for the uplink: items stored before a forwarding pattern stay on the node (docs/protocol.md "
                 "P5); from above, 'tahvel query --at <this node's IRI>' reads them");
   std::optional<spatial::AreaSpec> given_area;

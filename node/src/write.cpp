@@ -1000,7 +1000,7 @@ Result<std::uint64_t> deliver_items(Txn& txn, std::uint64_t agent, const std::st
     // Stored before the subscription `given_by` and never put into the agent's buffer since (an
     // agent that receives removal notices is remembered on every item it is given): the item
     // did not go to the agent, and going again would send it where it never went.
-    if (given_by != 0 && item_id < given_by &&
+    if (given_by != 0 && item_id <= given_by &&  // a subscription does not route itself (R10)
         std::find((*row)->noticed.begin(), (*row)->noticed.end(), agent) == (*row)->noticed.end())
       continue;
     ItemRow item = **row;
@@ -1090,11 +1090,14 @@ Result<std::uint64_t> deliver_earlier(Txn& txn, std::uint64_t agent, const std::
   if (auto f = flush_index(txn); !f) return unexpected(f.error());
   // A child's down queue on a parent (P11): its subscription names a context only. Walking the
   // records for it took a hospital's writer for seconds at each new home.
+  // Every persistent item before it went to the agent when it subscribed (SubscribeOptions::
+  // earlier, persistent_only), so the check of what it was given is not made: a parent store of a
+  // build that subscribed before receiving removal notices remembered none of them as given.
   if (persistent_only && !pattern.s && !pattern.p && !pattern.o && !pattern.source && pattern.context &&
       !pattern.context->empty()) {
     auto items = persistent_items_with_context(txn, *pattern.context, before);
     if (!items) return unexpected(items.error());
-    return deliver_items(txn, agent, agent_iri, *items, true, given_by);
+    return deliver_items(txn, agent, agent_iri, *items, true);
   }
   auto items = items_matching(txn, pattern, before);
   if (!items) return unexpected(items.error());

@@ -293,6 +293,25 @@ TEST(Redelivery, OnlyWhatASubscriptionGaveTheAgentIsDeliveredAgain) {
   EXPECT_EQ(taken_ids(other).front(), before_pattern);
 }
 
+// A child's down queue on a parent (P11, P10b): the whole-subtree settings kept before the child
+// joined went to it when it subscribed, and go down again to its store made again, also where a
+// build before session 79 subscribed it before it received removal notices (so they were never
+// remembered as given).
+TEST(Redelivery, SubtreeSettingsKeptBeforeAChildJoinedGoDownAgainWhateverTheOrderItWasSetUpIn) {
+  TempDir dir;
+  Node node = make_node(dir.path());
+  Agent operator_ = node.agent("operator").value();
+  Item for_all = reading(1, kNodeIri + "/*");
+  for_all.persistent = true;
+  const std::uint64_t setting = operator_.store(for_all).value();
+  Agent child = node.agent("home2").value();
+  ASSERT_TRUE(child.subscribe({.context = kNodeIri + "/*"}, {.earlier = true, .persistent_only = true}));
+  ASSERT_TRUE(child.receive_removals());
+  ASSERT_EQ(taken_ids(child), std::vector<std::uint64_t>{setting});
+  EXPECT_EQ(child.deliver_persistent_again(Redelivery::addressed_too).value(), 1u);
+  EXPECT_EQ(taken_ids(child), std::vector<std::uint64_t>{setting});
+}
+
 TEST(Window, PeekLeavesItemsAndAckThroughRemovesUpToAnId) {
   TempDir dir;
   Node node = make_node(dir.path());

@@ -27,6 +27,7 @@
 #include <CGAL/Exact_predicates_exact_constructions_kernel.h>
 #include <CGAL/Polygon_2.h>
 #include <CGAL/Polygon_set_2.h>
+#include <CGAL/version.h>
 
 namespace tahvel::spatial::detail {
 
@@ -55,6 +56,17 @@ ExactSet exact_region(const Shape& shape) {
     out.join(part);
   }
   return out;
+}
+
+// The alternative T of an intersection's result, or null: CGAL 5 returns a boost::variant,
+// CGAL 6 a std::variant.
+template <class T, class Variant>
+const T* alternative(const Variant& result) {
+#if CGAL_VERSION_NR >= 1060000000  // 6.0
+  return std::get_if<T>(&result);
+#else
+  return boost::get<T>(&result);
+#endif
 }
 
 // A polygon's rings on the exact kernel, for S3 membership of points constructed exactly.
@@ -91,11 +103,12 @@ bool segment_within(const std::vector<ExactRings>& area, const ExactPoint& a, co
   std::vector<ExactPoint> cuts{a, b};
   auto cut_at_edges_of = [&](const ExactPolygon& ring) {
     for (auto edge = ring.edges_begin(); edge != ring.edges_end(); ++edge) {
+      if (!CGAL::do_intersect(along, *edge)) continue;  // a filtered predicate: no construction
       auto hit = CGAL::intersection(along, *edge);
       if (!hit) continue;
-      if (const ExactPoint* p = boost::get<ExactPoint>(&*hit)) {
+      if (const ExactPoint* p = alternative<ExactPoint>(*hit)) {
         cuts.push_back(*p);
-      } else if (const ExactSegment* s = boost::get<ExactSegment>(&*hit)) {
+      } else if (const ExactSegment* s = alternative<ExactSegment>(*hit)) {
         cuts.push_back(s->source());
         cuts.push_back(s->target());
       }
