@@ -736,31 +736,39 @@ std::int64_t time_flag(std::string_view flag, const std::string& text) {
   }
   const std::string form = "give ns since the epoch or an RFC 3339 time like 2026-11-21T10:00:00Z";
   std::size_t at = 0;
-  auto digits = [&](std::size_t count) -> int {
+  // Where the text leaves the form, and what was wanted there: "+0200" (what `date +%z` prints)
+  // or a time without seconds got the form alone, and the operator had to find the fault.
+  auto not_the_form = [&](std::string_view wanted) {
+    const std::string found = at < text.size() ? "'" + text.substr(at, 1) + "'" : "the end";
+    usage_error(what + "at column " + std::to_string(at + 1) + ": expected " + std::string(wanted) + ", found " + found + "; " + form);
+  };
+  auto digits = [&](std::size_t count, std::string_view name) -> int {
     int value = 0;
     for (std::size_t i = 0; i < count; ++i, ++at) {
-      if (at >= text.size() || text[at] < '0' || text[at] > '9') usage_error(what + form);
+      if (at >= text.size() || text[at] < '0' || text[at] > '9')
+        not_the_form(std::string(name) + " (" + std::to_string(count) + " digits" + (i ? ", " + std::to_string(i) + " given" : "") + ")");
       value = value * 10 + (text[at] - '0');
     }
     return value;
   };
-  auto expect = [&](std::string_view one_of) {
-    if (at >= text.size() || one_of.find(text[at]) == std::string_view::npos) usage_error(what + form);
+  auto expect = [&](std::string_view one_of, std::string_view name) {
+    if (at >= text.size() || one_of.find(text[at]) == std::string_view::npos) not_the_form(name);
     ++at;
   };
   struct tm tm {};
-  tm.tm_year = digits(4) - 1900;
-  expect("-");
-  tm.tm_mon = digits(2) - 1;
-  expect("-");
-  tm.tm_mday = digits(2);
+  tm.tm_year = digits(4, "the year") - 1900;
+  expect("-", "'-' after the year");
+  tm.tm_mon = digits(2, "the month");
+  tm.tm_mon -= 1;
+  expect("-", "'-' after the month");
+  tm.tm_mday = digits(2, "the day");
   // RFC 3339 (5.6, NOTE) lets a space stand for the 'T', as `date --rfc-3339=s` prints it.
-  expect("Tt ");
-  tm.tm_hour = digits(2);
-  expect(":");
-  tm.tm_min = digits(2);
-  expect(":");
-  tm.tm_sec = digits(2);
+  expect("Tt ", "'T' (or one space) after the date");
+  tm.tm_hour = digits(2, "the hour");
+  expect(":", "':' after the hour");
+  tm.tm_min = digits(2, "the minute");
+  expect(":", "':' and the seconds after the minute");
+  tm.tm_sec = digits(2, "the second");
   // A leap second (23:59:60Z; RFC 3339 allows second 60) is the second after :59, as POSIX time,
   // which has no leap seconds, counts it.
   const int leap = tm.tm_sec == 60 ? 1 : 0;
@@ -792,15 +800,15 @@ std::int64_t time_flag(std::string_view flag, const std::string& text) {
     ++at;
   } else if (at < text.size() && (text[at] == '+' || text[at] == '-')) {
     const int sign = text[at++] == '+' ? 1 : -1;
-    const int hours = digits(2);
-    expect(":");
-    const int minutes = digits(2);
+    const int hours = digits(2, "the offset's hours");
+    expect(":", "':' between the offset's hours and minutes (±HH:MM)");
+    const int minutes = digits(2, "the offset's minutes");
     if (hours > 23 || minutes > 59) usage_error(what + "no such offset");
     offset_s = sign * (hours * 3600 + minutes * 60);
   } else {
     usage_error(what + "give the offset: Z for UTC, or ±HH:MM");
   }
-  if (at != text.size()) usage_error(what + form);
+  if (at != text.size()) not_the_form("the end after the offset");
   const std::int64_t utc_s = static_cast<std::int64_t>(seconds) - offset_s;
   constexpr std::int64_t kLast = std::numeric_limits<std::int64_t>::max();  // 2262-04-11T23:47:16.854775807Z
   if (utc_s < 0 || utc_s > kLast / 1'000'000'000 || (utc_s == kLast / 1'000'000'000 && fraction > kLast % 1'000'000'000))

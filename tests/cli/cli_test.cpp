@@ -3367,6 +3367,15 @@ TEST_F(Cli, QueryTimesAreCheckedAndHonourTheirOffset) {
   r = query("--since", "2026-11-21T10:00:00,5Z");
   EXPECT_EQ(r.status, 2);
   EXPECT_NE(r.err.find("--since '2026-11-21T10:00:00,5Z': write the fraction after a '.', not a ','"), std::string::npos) << r.err;
+  // Where a time leaves the form, and what was wanted there: `date +%z`'s offset, no seconds.
+  r = query("--since", "2026-11-21T10:00:00+0200");
+  EXPECT_EQ(r.status, 2);
+  EXPECT_NE(r.err.find("--since '2026-11-21T10:00:00+0200': at column 23: expected ':' between the offset's hours and minutes (±HH:MM), found '0'"),
+            std::string::npos)
+      << r.err;
+  r = query("--until", "2026-11-21T10:00Z");
+  EXPECT_EQ(r.status, 2);
+  EXPECT_NE(r.err.find("at column 17: expected ':' and the seconds after the minute, found 'Z'"), std::string::npos) << r.err;
   r = run({"query", node_, "--at", kNodeIri, "--since", "2026-11-21T11:00:00Z", "--until", "2026-11-21T10:00:00Z"});
   EXPECT_EQ(r.status, 2);
   EXPECT_NE(r.err.find("is not after --since"), std::string::npos) << r.err;
