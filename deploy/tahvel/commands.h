@@ -118,6 +118,10 @@ std::string one_of(const std::vector<std::string>& named, std::size_t of);
 // A usage error unless `until` (of --until) is after `since` (of --since), both as time_flag read
 // them from `args`; `meaning` is added to the message (what the range selects).
 void check_time_range(const Args& args, std::int64_t since, std::int64_t until, std::string_view meaning = "");
+// "tahvel: COMMAND: warning: ", COMMAND the subcommand that runs (main sets it): a warning names
+// its command, as an error does, for a script's log that holds the output of several.
+std::string warning_prefix();
+void set_running_command(std::string_view name);
 // "4.2 s" below a minute, then "12 min 5 s", "3 h 12 min", "2 d 3 h" (a NaN as a long time).
 std::string seconds_text(double seconds);
 // Now, ns since the epoch (the clock records are stamped with).

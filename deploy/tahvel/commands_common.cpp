@@ -248,7 +248,7 @@ std::string agent_id(const Args& args, std::string_view fallback) {
   // the supervisor on purpose); but an operator who borrowed such an id by chance would see the
   // items taken from or mixed with a running program's, or the supervisor's replaced within seconds.
   if (const char* owner = agent_id_in_use(id); owner && id != fallback && id != "cli")
-    std::cerr << "tahvel: warning: --agent " << id << ": on a node that `tahvel up` runs, that agent is " << owner
+    std::cerr << warning_prefix() << "--agent " << id << ": on a node that `tahvel up` runs, that agent is " << owner
               << "; what this command writes or takes as '" << id << "' mixes with that program's own\n";
   return id;
 }
@@ -729,7 +729,7 @@ std::int64_t time_flag(std::string_view flag, const std::string& text) {
     if (*n >= 100'000'000 && *n < 10'000'000'000'000'000) {
       const char* unit = *n < 10'000'000'000 ? "seconds" : *n < 10'000'000'000'000 ? "milliseconds" : "microseconds";
       const std::uint64_t scale = *n < 10'000'000'000 ? 1'000'000'000 : *n < 10'000'000'000'000 ? 1'000'000 : 1'000;
-      std::cerr << "tahvel: warning: " << what << "is read as ns since the epoch, a time in 1970; if it is " << unit
+      std::cerr << warning_prefix() << what << "is read as ns since the epoch, a time in 1970; if it is " << unit
                 << ", give " << text << std::string(scale == 1'000'000'000 ? 9 : scale == 1'000'000 ? 6 : 3, '0') << "\n";
     }
     return static_cast<std::int64_t>(*n);
@@ -832,6 +832,14 @@ std::int64_t time_flag(std::string_view flag, const std::string& text) {
   }
   return utc_s * 1'000'000'000 + fraction;  // a fraction rounded up to 1 s carries into the seconds
 }
+
+namespace {
+std::string g_running_command;  // set once, before the command runs
+}  // namespace
+
+void set_running_command(std::string_view name) { g_running_command = name; }
+
+std::string warning_prefix() { return g_running_command.empty() ? "tahvel: warning: " : "tahvel: " + g_running_command + ": warning: "; }
 
 std::string seconds_text(double seconds) {
   std::ostringstream out;

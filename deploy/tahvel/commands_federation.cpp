@@ -927,6 +927,15 @@ node::Pattern forward_pattern_of(const NodeSpec& spec, std::size_t i, const uri:
   }
 }
 
+// The node's forwarding policy as the file gives it: its `forward` patterns, or the default
+// (HRV windows) when it has no `forward`.
+std::vector<node::Pattern> forwarding_policy(const NodeSpec& spec, const uri::PrefixMap& prefixes) {
+  if (!spec.forward_given) return federation::default_forward_policy();
+  std::vector<node::Pattern> policy;
+  for (std::size_t i = 0; i < spec.forward.size(); ++i) policy.push_back(forward_pattern_of(spec, i, prefixes));
+  return policy;
+}
+
 // Warns about a `forward` pattern that names a tv: term the vocabulary does not have, or a near
 // miss of a SOSA term: no item of Tahvel's has it, so the pattern forwards nothing (a misspelt class, say), and nothing else
 // would say so. A warning, not a refusal: an agent of the deployment's own may write such terms.
@@ -1121,6 +1130,14 @@ void create_store(const NodeSpec& spec, const fs::path& store, const Topology& t
     init.durability = spec.durability == "durable" ? node::Durability::durable : node::Durability::fast;
     init.ring = spec.ring;
     node::Node created = check(node::Node::init(making, init));
+    if (!spec.parent.empty()) {
+      // The policy before the files: what they load and it matches goes up (P5, an item stored
+      // before a pattern stays home), as the rest of the node's first items do. As the link
+      // does, removal notices first (P6c, P6d send again only what the uplink was given).
+      node::Agent uplink = check(created.agent("uplink"));
+      check(uplink.receive_removals());
+      for (const node::Pattern& pattern : forwarding_policy(spec, created.prefixes())) check(uplink.subscribe(pattern));
+    }
     node::Agent loader = check(created.agent("deploy"));
     for (const fs::path& file : spec.load) loaded += load_onto(loader, spec, file, created.prefixes(), topo);
   }
@@ -2065,12 +2082,7 @@ int up_checked(const Args& args, bool& checking) {
     const NodeSpec& spec = *node_spec;
     fs::path store = state / spec.id;
     const bool new_store = !fs::exists(store / "data.mdb");
-    if (new_store) {
-      create_store(spec, store, topo);
-    } else {
-      node::Node existing = check(node::Node::open(store));
-      load_new_files(spec, existing, topo);
-    }
+    if (new_store) create_store(spec, store, topo);  // with its policy, then its files
     {
       // Whose child the node is, on its own board (tv:parent, written as its uplink, persistent):
       // `status` tells a child from a root by it where no forwarding policy (`forward = []`) and
@@ -2093,9 +2105,7 @@ int up_checked(const Args& args, bool& checking) {
       // the uplink subscribed would never be routed to it (P5).
       node::Node node = check(node::Node::open(store));
       node::Agent uplink = check(node.agent("uplink"));
-      std::vector<node::Pattern> policy;
-      for (std::size_t i = 0; i < spec.forward.size(); ++i) policy.push_back(forward_pattern_of(spec, i, node.prefixes()));
-      if (!spec.forward_given) policy = federation::default_forward_policy();
+      const std::vector<node::Pattern> policy = forwarding_policy(spec, node.prefixes());
       // Snapshots are released before the writes below: a store that must grow for them (a
       // copy made by `tahvel backup`, its map as large as its data) cannot while this process
       // holds one, and `up` on a restored backup failed so.
@@ -2105,7 +2115,7 @@ int up_checked(const Args& args, bool& checking) {
         had.insert(r.meta.item);
       // Said once, when the node's first policy is written: a sensor node left without `forward`
       // sends its parent nothing of its raw signal, and nothing else says so.
-      if (!spec.forward_given && had.empty())
+      if (!spec.forward_given && (had.empty() || new_store))
         std::cout << "up: " << spec.id << ": no forward in the file, so only HRV windows go up to '" << spec.parent
                   << "' (the default); raw signals stay on the node\n";
       std::set<std::uint64_t> kept;
@@ -2145,6 +2155,11 @@ int up_checked(const Args& args, bool& checking) {
                     << " queued for '" << spec.parent << "' under the removed patterns " << (withdrawn == 1 ? "stays" : "stay")
                     << " on the node (out of the outbox)\n";
       }
+    }
+    if (!new_store) {
+      // After the policy: a file added to the node together with a pattern that matches it goes up.
+      node::Node existing = check(node::Node::open(store));
+      load_new_files(spec, existing, topo);
     }
   }
   // A node taken out of the file, or renamed (a child's IRI changes with its id), keeps its store

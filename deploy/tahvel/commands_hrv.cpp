@@ -187,7 +187,7 @@ int run_eval(const Args& args, const agg::ChainOptions& options, std::size_t sig
     // Several records: each warning says whose it is (a checksum's names its header already).
     // What the signal's rhythm means for HRV (irregular, paced) says nothing of the scoring.
     for (const std::string& warning : report->warnings)
-      std::cerr << "tahvel: warning: " << (warning.starts_with(record) ? "" : record + ": ") << warning << "\n";
+      std::cerr << warning_prefix() << (warning.starts_with(record) ? "" : record + ": ") << warning << "\n";
     auto reference = agg::read_annotations(record, annotator, report->fs);
     if (!reference) {
       leave_out(reference.error().message);
@@ -197,9 +197,9 @@ int run_eval(const Args& args, const agg::ChainOptions& options, std::size_t sig
     // short) does not count the beats after it as missed.
     scoring.end_s = report->duration_s;
     agg::BeatScore score = agg::score_beats(*reference, report->beats, report->fs, scoring);
-    if (auto why = nothing_scored(score, report->duration_s, from_s, args.has("--eval-from"))) std::cerr << "tahvel: warning: " << record << ": " << *why << "\n";
+    if (auto why = nothing_scored(score, report->duration_s, from_s, args.has("--eval-from"))) std::cerr << warning_prefix() << record << ": " << *why << "\n";
     if (auto open = agg::unclosed_unreadable(*reference))
-      std::cerr << "tahvel: warning: " << record << ": the unreadable interval opened by the '~' at "
+      std::cerr << warning_prefix() << record << ": the unreadable interval opened by the '~' at "
                 << seconds_number(std::round(static_cast<double>(open->opened_at) / report->fs * 10) / 10)
                 << " s is never closed by another '~': the " << open->beats_after
                 << " reference beat(s) after it are not scored (the scoring convention: a '~' with subtype bits 4 and 5 set "
@@ -570,7 +570,7 @@ int run_hrv(const Args& args) {
   // Said as with --eval: whose warning it is, when the warning does not name the file itself.
   for (const auto* warnings : {&report->warnings, &report->rhythm_warnings})
     for (const std::string& warning : *warnings)
-      std::cerr << "tahvel: warning: " << (warning.starts_with(record) ? "" : record + ": ") << warning << "\n";
+      std::cerr << warning_prefix() << (warning.starts_with(record) ? "" : record + ": ") << warning << "\n";
   if (args.has("--json")) {
     print_report_json(record, *report);
   } else {

@@ -135,7 +135,7 @@ int run_reason(const Args& args) {
   // forwarding policy sends it up again (an alert repeated at the hospital), and a behaviour it
   // commands runs again.
   if (const auto stats = node.stats(); stats && stats->ring > 0 && !options.persistent)
-    std::cerr << "tahvel: warning: " << dir << " is a ring of " << stats->ring
+    std::cerr << warning_prefix() << dir << " is a ring of " << stats->ring
               << " records: conclusions it reclaims are written again while they hold (and sent up again, commands run "
                  "again); --persistent keeps them until they lose support\n";
   uri::PrefixMap prefixes = prefixes_with_flags(node.prefixes(), args);
@@ -154,8 +154,8 @@ int run_reason(const Args& args) {
     // starts it again.
     std::cerr.clear();
     if (r.problem_not_written) std::cerr << "tahvel: the rules' problem is not on the board: " << *r.problem_not_written << "\n";
-    for (const std::string& said : r.not_written) std::cerr << "tahvel: warning: " << said << "\n";
-    for (const std::string& said : r.warnings) std::cerr << "tahvel: warning: " << said << "\n";
+    for (const std::string& said : r.not_written) std::cerr << warning_prefix() << said << "\n";
+    for (const std::string& said : r.warnings) std::cerr << warning_prefix() << said << "\n";
     if (json) print_json(r); else print_text(r, prefixes);
     return static_cast<bool>(std::cout);
   };

@@ -233,11 +233,11 @@ void warn_of_unreadable_geometry(const std::vector<node::Triple>& triples, const
       read_anyway = "its CRS <" + std::string(crs) + "> is not applied: a floor plan's coordinates are read as planar, "
                     "in the plan's own frame (docs/spatial.md S1)";
     if ((!why.empty() || !read_anyway.empty()) && ++warned <= 20)
-      std::cerr << "tahvel: warning: " << (path == "-" ? std::string("<stdin>") : path) << ": <" << t.s.value
+      std::cerr << warning_prefix() << (path == "-" ? std::string("<stdin>") : path) << ": <" << t.s.value
                 << "> geo:asWKT: " << (why.empty() ? read_anyway : why + " (the feature is skipped when the floor plan is read)")
                 << "\n";
   }
-  if (warned > 20) std::cerr << "tahvel: warning: " << warned - 20 << " more geometries warned of\n";
+  if (warned > 20) std::cerr << warning_prefix() << warned - 20 << " more geometries warned of\n";
 }
 
 // An item addressed (R18) to an agent nothing on this node knows waits in that agent's input
@@ -253,7 +253,7 @@ void warn_of_unknown_addressee(const node::Node& node, const node::Item& item, c
   if (!snapshot || board_knows_agent(*snapshot, *agent)) return;
   std::string known;
   for (const std::string& child : child_nodes_known(node, *snapshot)) known += (known.empty() ? "" : ", ") + child;
-  std::cerr << "tahvel: warning: --context <" << item.context << "> addresses <" << *agent
+  std::cerr << warning_prefix() << "--context <" << item.context << "> addresses <" << *agent
             << ">, which nothing on this node knows (no child node of that IRI has registered, and no agent of it runs, "
                "subscribes or has said anything): the item waits in its input buffer until one takes it"
             << (known.empty() ? std::string() : "; child nodes known here: " + known) << "\n";
@@ -275,7 +275,7 @@ void warn_if_the_ring_took(const node::Node& node, const node::Item& item, std::
   // Certain when the item alone is larger than the ring; otherwise another writer's removal
   // may have taken it meanwhile.
   const bool larger = item.triples.size() > stats->ring;
-  std::cerr << "tahvel: warning: item " << id << " of " << item.triples.size()
+  std::cerr << warning_prefix() << "item " << id << " of " << item.triples.size()
             << " records is gone already: the store's ring keeps at most " << stats->ring
             << " non-persistent records (those waiting in input buffers among them), and "
             << (larger ? "reclaimed it as it was written" : "most likely reclaimed it as it was written")
@@ -308,7 +308,7 @@ void warn_if_the_ring_took_some(const node::Node& node, const std::vector<std::p
     }
   }
   if (gone_items == 0) return;
-  std::cerr << "tahvel: warning: " << gone_items << " of the " << written.size() << " items loaded (" << gone_triples
+  std::cerr << warning_prefix() << gone_items << " of the " << written.size() << " items loaded (" << gone_triples
             << " of " << triples << " triples) are gone already: the store's ring keeps at most " << stats->ring
             << " non-persistent records (those waiting in input buffers among them) and reclaimed them as the load wrote "
             << "(load with --persistent, or make the store with a larger --ring)\n";

@@ -124,6 +124,7 @@ int dispatch(const std::vector<std::string>& argv) {
     return kExitOk;
   }
   if (command == &kBenchCommand) return run_bench(rest);
+  set_running_command(command->name);
   for (const Subcommand& s : subcommands()) {
     if (s.spec != command) continue;
     try {

@@ -1069,14 +1069,14 @@ TEST_F(Cli, WritingOrTakingAsAnIdARunningProgramOfTheNodeHasIsWarnedOf) {
   for (const char* command : {"put", "load"}) {
     Outcome borrowed = run({command, node_, file, "--agent", "supervisor"});
     EXPECT_EQ(borrowed.status, 0) << command << ": " << borrowed.err;
-    EXPECT_NE(borrowed.err.find("tahvel: warning: --agent supervisor: on a node that `tahvel up` runs, that agent is the "
+    EXPECT_NE(borrowed.err.find("tahvel: " + std::string(command) + ": warning: --agent supervisor: on a node that `tahvel up` runs, that agent is the "
                                 "supervisor, which replaces what it wrote every few seconds"),
               std::string::npos) << command << ": " << borrowed.err;
     Outcome own = run({command, node_, file, "--agent", "hrv"});
     EXPECT_EQ(own.err.find("warning"), std::string::npos) << command << ": " << own.err;
   }
   Outcome take = run({"take", node_, "--agent", "link"});
-  EXPECT_NE(take.err.find("tahvel: warning: --agent link: on a node that `tahvel up` runs, that agent is the node's link"),
+  EXPECT_NE(take.err.find("tahvel: take: warning: --agent link: on a node that `tahvel up` runs, that agent is the node's link"),
             std::string::npos) << take.err;
   EXPECT_EQ(lines_of(run({"list", node_, "-p", "<http://example.org/p>"}).out).size(), 4u);
 }
@@ -1135,7 +1135,7 @@ TEST_F(Cli, LoadSaysWhenTheRingReclaimedWhatItLoaded) {
   Outcome load = run({"load", node_, (tmp_ / "ten.ttl").string()});
   EXPECT_EQ(load.status, 0);
   EXPECT_EQ(load.out, "10\n");
-  EXPECT_NE(load.err.find("tahvel: warning: 1 of the 1 items loaded (10 of 10 triples) are gone already: the store's ring "
+  EXPECT_NE(load.err.find("tahvel: load: warning: 1 of the 1 items loaded (10 of 10 triples) are gone already: the store's ring "
                           "keeps at most 5 non-persistent records (those waiting in input buffers among them) and reclaimed "
                           "them as the load wrote (load with --persistent"),
             std::string::npos)
@@ -1173,7 +1173,7 @@ TEST_F(Cli, PutAndLoadWarnOfAContextAddressingAnAgentNothingOnTheNodeKnows) {
   for (const char* command : {"put", "load"}) {
     Outcome typo = run({command, node_, file, "--context", kNodeIri + "/gw9/hrv"});
     EXPECT_EQ(typo.status, 0) << command << ": " << typo.err;
-    EXPECT_NE(typo.err.find("tahvel: warning: --context <" + kNodeIri + "/gw9/hrv> addresses <" + kNodeIri +
+    EXPECT_NE(typo.err.find("tahvel: " + std::string(command) + ": warning: --context <" + kNodeIri + "/gw9/hrv> addresses <" + kNodeIri +
                             "/gw9>, which nothing on this node knows"),
               std::string::npos) << command << ": " << typo.err;
     EXPECT_NE(typo.err.find("; child nodes known here: gw1\n"), std::string::npos) << typo.err;
@@ -1803,14 +1803,14 @@ TEST_F(Cli, HrvEvalOfSeveralRecordsNamesTheRecordOfEachWarningAndLeavesOutWhatTh
   const std::string flat = (tmp_ / "flat" / "f").string();
   Outcome r = run({"hrv", mitdb_record("100"), mitdb_record("200"), mitdb_record("107"), flat, "--eval"});
   ASSERT_EQ(r.status, 0) << r.err;
-  EXPECT_NE(r.err.find("tahvel: warning: " + flat + ": 60.0 s of signal 0 (II) hold one value"), std::string::npos) << r.err;
-  EXPECT_NE(r.err.find("tahvel: warning: " + flat + ": 0 beat(s) found"), std::string::npos) << r.err;
+  EXPECT_NE(r.err.find("tahvel: hrv: warning: " + flat + ": 60.0 s of signal 0 (II) hold one value"), std::string::npos) << r.err;
+  EXPECT_NE(r.err.find("tahvel: hrv: warning: " + flat + ": 0 beat(s) found"), std::string::npos) << r.err;
   EXPECT_EQ(r.err.find("irregular rhythm"), std::string::npos) << r.err;
   EXPECT_EQ(r.err.find("paced"), std::string::npos) << r.err;
   EXPECT_EQ(r.err.find(mitdb_record("100")), std::string::npos) << r.err;
   const Outcome paced = run({"hrv", mitdb_record("107")});
   ASSERT_EQ(paced.status, 0) << paced.err;
-  EXPECT_NE(paced.err.find("tahvel: warning: " + mitdb_record("107") + ".atr labels 2078 of its 2137 beats (97 %) paced ('/') or "
+  EXPECT_NE(paced.err.find("tahvel: hrv: warning: " + mitdb_record("107") + ".atr labels 2078 of its 2137 beats (97 %) paced ('/') or "
                            "pacemaker fusion ('f')"),
             std::string::npos) << paced.err;
 }
@@ -1825,7 +1825,7 @@ TEST_F(Cli, HrvWarnsOfARhythmFixedToTheSample) {
   spit(tmp_ / "spikes" / "s.dat", samples);
   const Outcome r = run({"hrv", (tmp_ / "spikes" / "s").string()});
   ASSERT_EQ(r.status, 0) << r.err;
-  EXPECT_NE(r.err.find("tahvel: warning: " + (tmp_ / "spikes" / "s").string() + ": all 119 NN intervals are 1000 ms to within "
+  EXPECT_NE(r.err.find("tahvel: hrv: warning: " + (tmp_ / "spikes" / "s").string() + ": all 119 NN intervals are 1000 ms to within "
                        "one sample (2.78 ms): a rhythm as fixed as a heart's rarely is"),
             std::string::npos) << r.err;
   const Outcome ecg = run({"hrv", mitdb_record("100")});
@@ -1894,7 +1894,7 @@ TEST_F(Cli, HrvEvalSaysWhenAnUnreadableIntervalIsNeverClosed) {
   const std::string record = (tmp_ / "open" / "o").string();
   Outcome r = run({"hrv", record, "--eval", "--eval-from", "0"});
   ASSERT_EQ(r.status, 0) << r.err;
-  EXPECT_NE(r.err.find("tahvel: warning: " + record + ": the unreadable interval opened by the '~' at 2 s is never closed by "
+  EXPECT_NE(r.err.find("tahvel: hrv: warning: " + record + ": the unreadable interval opened by the '~' at 2 s is never closed by "
                        "another '~': the 2 reference beat(s) after it are not scored"),
             std::string::npos) << r.err;
   // Closed by a second '~': no such warning.
@@ -1917,7 +1917,7 @@ TEST_F(Cli, HrvEvalOfARecordShorterThanTheScoringStartSaysSoAndEvalFromScoresIt)
   const std::string record = (tmp_ / "cut" / "100").string();
   Outcome r = run({"hrv", record, "--eval"});
   ASSERT_EQ(r.status, 0) << r.err;
-  EXPECT_NE(r.err.find("tahvel: warning: " + record + ": the record is 60 s long, no longer than the scoring start (300 s"),
+  EXPECT_NE(r.err.find("tahvel: hrv: warning: " + record + ": the record is 60 s long, no longer than the scoring start (300 s"),
             std::string::npos) << r.err;
   EXPECT_NE(r.err.find("--eval-from 0"), std::string::npos) << r.err;
   r = run({"hrv", record, "--eval", "--eval-from", "0", "--json"});
@@ -2015,7 +2015,7 @@ TEST_F(Cli, CommandsThatReadNoCuriesRefusePrefixAndTheOthersUseIt) {
 TEST_F(Cli, HrvTakesARecordNamedByOneOfItsFilesAndNamesItInItsWarnings) {
   const Outcome plain = run({"hrv", mitdb_record("200"), "--json"});
   ASSERT_EQ(plain.status, 0) << plain.err;
-  EXPECT_NE(plain.err.find("tahvel: warning: " + mitdb_record("200") + ": an irregular rhythm"), std::string::npos) << plain.err;
+  EXPECT_NE(plain.err.find("tahvel: hrv: warning: " + mitdb_record("200") + ": an irregular rhythm"), std::string::npos) << plain.err;
   for (const char* extension : {".hea", ".dat", ".atr"}) {
     const Outcome r = run({"hrv", mitdb_record("200") + extension, "--json"});
     ASSERT_EQ(r.status, 0) << extension << ": " << r.err;
@@ -4509,6 +4509,30 @@ TEST_F(Cli, StatusNamesItemsWaitingForAnAgentNothingOnTheNodeKnows) {
   text = run({"status", "--state", state});
   EXPECT_EQ(text.out.find("WAITING"), std::string::npos) << text.out;
   EXPECT_NE(run({"status", "--state", state, "--json"}).out.find("\"waiting_for_unknown\":[]"), std::string::npos);
+}
+
+// A node's `load` files are stored after its forwarding policy: what they hold and `forward`
+// matches goes up, as the rest of its items do. Loaded first, a new store's floor plan stayed home
+// (an item stored before a pattern does, P5), and so did a file added with its pattern later.
+TEST_F(Cli, UpLoadsANodesFilesAfterItsPolicySoThatWhatItForwardsOfThemGoesUp) {
+  const std::string state = (tmp_ / "state").string();
+  spit(tmp_ / "plan.ttl", "<room/kitchen> a <https://w3id.org/tahvel#Room> .\n");
+  spit(tmp_ / "more.ttl", "<room/hall> <http://example.org/p> \"wide\" .\n");
+  const std::string head = "[[node]]\nid = \"hospital\"\niri = \"http://example.org/loading\"\n"
+                           "listen = { kind = \"lcm\", url = \"udpm://239.255.79.58:7862?ttl=0\" }\n[[node]]\nid = \"home1\"\n"
+                           "parent = \"hospital\"\n";
+  spit(tmp_ / "a.toml", head + "forward = [\"_ a tv:Room\"]\nload = [\"plan.ttl\"]\n");
+  spit(tmp_ / "b.toml", head + "forward = [\"_ a tv:Room\", \"_ <http://example.org/p> _\"]\nload = [\"plan.ttl\", \"more.ttl\"]\n");
+  auto outbox = [&] {  // what waits for the hospital, which is not up
+    Outcome taken = run({"take", state + "/home1", "--agent", "uplink", "--timeout", "0"});
+    return taken.out;
+  };
+  ASSERT_EQ(run({"up", (tmp_ / "a.toml").string(), "--state", state, "--node", "home1"}).status, 0);
+  ASSERT_EQ(run({"down", "--state", state}).status, 0);
+  EXPECT_NE(outbox().find("<http://example.org/loading/home1/room/kitchen>"), std::string::npos);
+  ASSERT_EQ(run({"up", (tmp_ / "b.toml").string(), "--state", state, "--node", "home1"}).status, 0);
+  ASSERT_EQ(run({"down", "--state", state}).status, 0);
+  EXPECT_NE(outbox().find("<http://example.org/loading/home1/room/hall>"), std::string::npos);
 }
 
 TEST_F(Cli, UpSaysWhatTheOutboxOfANodeNoLongerInTheFileHolds) {
