@@ -408,6 +408,14 @@ struct Link::Impl {
     bool stored_since_sent = false;  // a run of the sender stored since the last cannot_store sent
   };
   std::map<std::string, RelayFailure> relay_failures;
+  // Items dropped as held already (P6c, P10c), by sender, as logged: a stream that repeats what
+  // this store holds comes an item or two a run, and each run took a line. Said at once, then
+  // every kRelayFailureSaidEvery with how many since.
+  struct HeldAlreadySaid {
+    Clock::time_point at{};
+    std::uint64_t unsaid = 0, unsaid_recomputed = 0;
+  };
+  std::map<std::string, HeldAlreadySaid> held_already_said;  // under mu
   // P9b from children: what was last logged of each and when, and whether that episode is
   // still open (the child has not stored since).
   struct CannotStore {
@@ -1404,13 +1412,24 @@ struct Link::Impl {
         log("refused item " + std::to_string(r.seq) + " from <" + head.from + "> (it stays in the sender's store): " + r.why.message);
         send_error(via, head.from, r.seq, {std::string(kItemRefused), r.why.message, ""});
       }
-      if (outcome->already_held > 0)
-        log("dropped " + std::to_string(outcome->already_held) + " item(s) from <" + head.from +
-            "> that this store holds already (sent again on a new stream: P6c, P10c)" +
-            (outcome->recomputed > 0 ? "; " + std::to_string(outcome->recomputed) +
-                                           " of them computed again with other triples, the one held of each name kept"
-                                     : std::string()));
-      std::lock_guard lock(mu);
+      std::unique_lock lock(mu);
+      if (outcome->already_held > 0) {
+        HeldAlreadySaid& said = held_already_said[head.from];
+        said.unsaid += outcome->already_held;
+        said.unsaid_recomputed += outcome->recomputed;
+        if (said.at == Clock::time_point{} || Clock::now() - said.at >= kRelayFailureSaidEvery) {
+          const std::string line = "dropped " + std::to_string(said.unsaid) + " item(s) from <" + head.from +
+                                   "> that this store holds already (sent again on a new stream: P6c, P10c)" +
+                                   (said.at == Clock::time_point{} ? "" : " since this was last said") +
+                                   (said.unsaid_recomputed > 0 ? "; " + std::to_string(said.unsaid_recomputed) +
+                                                                     " of them computed again with other triples, the one held of each name kept"
+                                                               : std::string());
+          said = {Clock::now(), 0, 0};
+          lock.unlock();
+          log(line);
+          lock.lock();
+        }
+      }
       counters.items_refused += outcome->refused.size();
       counters.removals_applied += outcome->removals;
       counters.records_removed_in += outcome->records_removed;
