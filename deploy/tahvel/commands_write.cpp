@@ -221,6 +221,13 @@ const Command kPutCommand{
 void warn_of_unreadable_geometry(const std::vector<node::Triple>& triples, const std::string& path) {
   std::size_t warned = 0;
   for (const node::Triple& t : triples) {
+    // A floor that is no whole number takes the feature out of the plan as a malformed one (S5,
+    // S7), also said only when the plan is read.
+    if (t.p.value == spatial::kTvFloor && !spatial::parse_floor(t.o) && ++warned <= 20) {
+      std::cerr << warning_prefix() << (path == "-" ? std::string("<stdin>") : path) << ": <" << t.s.value << "> tv:floor "
+                << t.o.to_ntriples() << ": a floor is a whole number within ±1e9 (the feature is skipped when the floor plan is read)\n";
+      continue;
+    }
     if (t.p.value != spatial::kGeoAsWkt) continue;
     std::string why, read_anyway;
     if (!t.o.is_literal()) why = "a WKT literal is needed, not " + t.o.to_ntriples();
@@ -541,8 +548,10 @@ int run_subscribe(const Args& args) {
   node::Snapshot snapshot = check(node.snapshot());
   auto expansion = spatial::area_expansion(snapshot, *declaration);
   if (!expansion) fail("--area: " + expansion.error().message);
-  std::cerr << "subscribe: " << expansion->sensors.size() << " sensors and " << expansion->features.size()
-            << " located features in the area now; 'tahvel up' (or 'tahvel areas DIR') keeps it current\n";
+  const std::size_t sensors = expansion->sensors.size(), features = expansion->features.size();
+  std::cerr << "subscribe: " << sensors << (sensors == 1 ? " sensor and " : " sensors and ") << features
+            << (features == 1 ? " located feature" : " located features")
+            << " in the area now; 'tahvel up' (or 'tahvel areas DIR') keeps it current\n";
   print_number(*declaration, "area subscription " + std::to_string(*declaration) + " is stored");
   return kExitOk;
 }

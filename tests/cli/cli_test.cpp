@@ -1040,7 +1040,10 @@ TEST_F(Cli, PutAndLoadWarnOfAGeometryThatWillNotReadAndStoreIt) {
       // Read as meant: CRS84 (what every plan is taken to be) and a plain string.
       "<http://example.org/home1/room/f/geometry> geo:asWKT \"<http://www.opengis.net/def/crs/OGC/1.3/CRS84> "
       "POLYGON((0 0, 3 0, 3 3, 0 0))\"^^geo:wktLiteral .\n"
-      "<http://example.org/home1/room/g/geometry> geo:asWKT \"POLYGON((0 0, 3 0, 3 3, 0 0))\" .\n";
+      "<http://example.org/home1/room/g/geometry> geo:asWKT \"POLYGON((0 0, 3 0, 3 3, 0 0))\" .\n"
+      // A floor that is no whole number takes the room out of the plan too; one written 2.0 does not.
+      "<http://example.org/home1/room/h> <https://w3id.org/tahvel#floor> 1.5 .\n"
+      "<http://example.org/home1/room/i> <https://w3id.org/tahvel#floor> 2.0 .\n";
   spit(tmp_ / "plan.ttl", plan);
   for (const char* command : {"put", "load"}) {
     Outcome stored = run({command, node_, (tmp_ / "plan.ttl").string()});
@@ -1051,9 +1054,10 @@ TEST_F(Cli, PutAndLoadWarnOfAGeometryThatWillNotReadAndStoreIt) {
     for (const char* said : {"room/c/geometry> geo:asWKT: its CRS <http://www.opengis.net/def/crs/EPSG/0/4326> is not applied",
                              "room/d/geometry> geo:asWKT: a literal of datatype <http://www.opengis.net/ont/geosparql#gmlLiteral> "
                              "is read as WKT (geo:wktLiteral expected)",
-                             "room/e/geometry> geo:asWKT: a literal tagged @en is read as WKT"})
+                             "room/e/geometry> geo:asWKT: a literal tagged @en is read as WKT",
+                             "room/h> tv:floor \"1.5\"^^<http://www.w3.org/2001/XMLSchema#decimal>: a floor is a whole number within ±1e9"})
       EXPECT_NE(stored.err.find(said), std::string::npos) << command << ": " << stored.err;
-    for (const char* good : {"room/b", "room/f", "room/g"})
+    for (const char* good : {"room/b", "room/f", "room/g", "room/i"})
       EXPECT_EQ(stored.err.find(good), std::string::npos) << "a good geometry warned of: " << stored.err;
   }
   EXPECT_EQ(lines_of(run({"list", node_, "-p", "<http://www.opengis.net/ont/geosparql#asWKT>"}).out).size(), 14u);
