@@ -93,6 +93,9 @@ constexpr std::string_view kItemRefused = "item_refused";
 // most a first part of it was applied, and the sender slows to a probe until the receiver's mark
 // moves again.
 constexpr std::string_view kCannotStore = "cannot_store";
+// P12c: a child's link that stops on purpose says so to its parent (an error frame, seq 0, its
+// store id as the origin), which takes the link as down at once rather than after child_silence.
+constexpr std::string_view kLeaving = "leaving";
 constexpr std::string_view kUplinkAgent = "uplink";
 constexpr std::string_view kLinkAgent = "link";
 constexpr std::string_view kDownStream = "down";
@@ -446,6 +449,7 @@ struct Link::Impl {
     bool connected = false;
     bool ever = false;          // connected in this run
     bool ever_before = false;   // connected in an earlier run (its state on the board said so)
+    bool left = false;          // its link said it was stopping (P12c), and it has not said hello since
     Clock::time_point last_seen{};
     std::int64_t last_seen_ns = 0;
     std::string version;
@@ -1722,6 +1726,19 @@ struct Link::Impl {
             if (auto said = link->relay_may_repeat(up_stream(child->iri, child_store), *before, repeats_asserted_through()); !said)
               log("cannot note that <" + child->iri + ">'s new stream may repeat the one before: " + said.error().message);
         }
+        if (store_made_again) {
+          // What the store before applied leaves the down queue first: the queue is trimmed a
+          // while after each acknowledgement, and a store made again may say hello at once (its
+          // link said it left, P12c), when the rest would go down again with the persistent.
+          std::uint64_t applied_before = 0;
+          {
+            std::lock_guard lock(mu);
+            applied_before = child->down_mark;
+          }
+          if (applied_before > 0)
+            if (auto trimmed = link->ack_through(applied_before); !trimmed)
+              log("cannot take out of <" + child->iri + ">'s down queue what its store before applied: " + trimmed.error().message);
+        }
         if (store_made_again && down_from == 0) {
           // P10b: the new store holds nothing of what came down; what was written for it to
           // keep (a setting put --persistent) goes down again, as P6c sends it up again.
@@ -1735,6 +1752,7 @@ struct Link::Impl {
           std::lock_guard lock(mu);
           bool was = child->connected;
           child->connected = child->ever = true;
+          child->left = false;
           child->last_seen = Clock::now();
           child->last_seen_ns = now_ns();
           if (state) {
@@ -2158,7 +2176,8 @@ struct Link::Impl {
         out.error(via, opt.parent_iri, f.seq,
                   {"unreachable", "<" + child_iri + ">" + (child_iri == q->target ? "" : " (on the way to <" + q->target + ">)") +
                                       (it->second->ever || it->second->ever_before ? " is down at <" : " has never connected to <") +
-                                      self + ">",  // as remote_query says it
+                                      self + ">" +  // as remote_query says it
+                                      (it->second->left ? " (its link was stopped: it said so as it left)" : ""),
                    q->origin});
       } else if (auto why = unservable_by(child_iri, *q)) {
         out.error(via, opt.parent_iri, f.seq, {"query_failed", *why, q->origin});
@@ -2499,6 +2518,18 @@ struct Link::Impl {
     }
   }
 
+  // P12c: said once, as the link stops on purpose (not when its process is killed), to a parent
+  // that welcomed it, so that its queries and state say so at once rather than after child_silence.
+  void say_leaving() {
+    std::string own_store;
+    {
+      std::lock_guard lock(mu);
+      if (!opt.up || !welcomed || !opt.say_leaving) return;
+      own_store = store_id;
+    }
+    send_error(opt.up.get(), opt.parent_iri, 0, {std::string(kLeaving), "<" + self + ">'s link stops", own_store});
+  }
+
   void error_from_child(const Frame& f) {
     auto body = wire::decode_error(f.body);
     if (!body) {
@@ -2520,6 +2551,18 @@ struct Link::Impl {
         episode.at = now;
         episode.open = true;
       }
+      return;
+    }
+    if (body->code == kLeaving) {  // P12c
+      auto it = children.find(f.from);
+      if (it == children.end() || !it->second->connected || store_differs(it->second->store_id, body->origin)) return;
+      Child& child = *it->second;
+      child.connected = false;
+      child.left = true;
+      child.state_dirty = true;
+      log("child <" + f.from + ">'s link is stopping (it said so): link down");
+      end_answers_from(f.from, "unreachable", "<" + f.from + ">'s link was stopped at <" + self + "> (it said so as it left)");
+      board_due.notify_all();
       return;
     }
     if (f.seq == 0) {
@@ -3491,7 +3534,9 @@ Link::Link(std::unique_ptr<Impl> impl) : impl_(std::move(impl)) {}
 Link::~Link() { stop(); }
 
 void Link::stop() {
-  if (!impl_ || impl_->stopping.exchange(true)) return;
+  if (!impl_ || impl_->stopping.load()) return;
+  impl_->say_leaving();
+  if (impl_->stopping.exchange(true)) return;
   impl_->changed.notify_all();
   impl_->board_due.notify_all();
   impl_->answers_due.notify_all();

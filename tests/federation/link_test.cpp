@@ -149,7 +149,8 @@ struct Tree {
   std::unique_ptr<Link> start_gateway_and_sensor(std::shared_ptr<Transport> endpoint, const std::string& sensor_dir) {
     const std::string sensor_iri = kHome1 + "/ecg1";
     EXPECT_TRUE(node::Node::init(sensor_dir, {.iri = sensor_iri}));
-    home1 = Link::start({.dir = home1_dir, .parent_iri = kHospital, .up = endpoint, .down = endpoint,
+    // Stopped by its tests as a killed process stops, unsaid (P15).
+    home1 = Link::start({.dir = home1_dir, .parent_iri = kHospital, .up = endpoint, .say_leaving = false, .down = endpoint,
                          .resend_after = 100ms, .heartbeat_every = 200ms, .log = home1_log.sink()})
                 .value();
     return Link::start({.dir = sensor_dir, .parent_iri = kHome1,
@@ -746,6 +747,20 @@ TEST(Link, ItemsStoredBeforeAPatternWasAddedStayHomeWhenTheLinkRegistersAgain) {
 
 TEST(Link, ItemsStoredBeforeAPatternWasAddedStayHomeWhenNothingHadGoneUpYet) {
   items_before_a_pattern_stay_home_after_a_restart(false);
+}
+
+// P12c: a child whose link stops on purpose says so, and its parent takes the link as down at
+// once, not after child_silence (a query for it waited that long and ended "went silent"). It is
+// up again at its next hello.
+TEST(Link, AChildWhoseLinkStopsSaysSoAndItsParentTakesTheLinkAsDownAtOnce) {
+  Tree tree;
+  ASSERT_TRUE(tree.start_hospital_and_home1());
+  tree.home1.reset();
+  EXPECT_TRUE(eventually([&] { return !state_says_up(tree.hospital_dir, kHome1); }));
+  EXPECT_TRUE(tree.hospital_log.has("child <" + kHome1 + ">'s link is stopping (it said so): link down")) << tree.hospital_log.text();
+  EXPECT_FALSE(tree.hospital_log.has("silent for")) << tree.hospital_log.text();
+  tree.home1 = tree.start_home(tree.home1_dir, kHome1, tree.home1_log);
+  EXPECT_TRUE(eventually([&] { return state_says_up(tree.hospital_dir, kHome1); }));
 }
 
 // P6a: the same downwards. A hospital whose store is made again issues configuration with ids
@@ -2878,8 +2893,9 @@ void store_chunk_sized_records(const std::string& dir, const std::string& node_i
 std::shared_ptr<AnswerTap> start_tapped_home(Tree& tree, std::chrono::milliseconds resend_after) {
   tree.hospital = tree.start_hospital();
   auto tap = std::make_shared<AnswerTap>(tree.bus.open(kHome1, tree.home1_log.sink()));
-  tree.home1 = Link::start({.dir = tree.home1_dir, .parent_iri = kHospital, .up = tap, .down = tap, .resend_after = resend_after,
-                            .heartbeat_every = 200ms, .log = tree.home1_log.sink()})
+  // Its tests stop it as a killed process stops, unsaid (P15: a restart, a node gone silent).
+  tree.home1 = Link::start({.dir = tree.home1_dir, .parent_iri = kHospital, .up = tap, .say_leaving = false, .down = tap,
+                            .resend_after = resend_after, .heartbeat_every = 200ms, .log = tree.home1_log.sink()})
                    .value();
   return tap;
 }
@@ -3167,7 +3183,7 @@ TEST(Link, AQueryUnderWayWhenTheOriginsLinkRestartsEndsAtOnceAndStopsTheTarget) 
 // answer streams in memory.
 void restart_home1(Tree& tree, std::shared_ptr<Transport> endpoint) {
   tree.home1.reset();
-  tree.home1 = Link::start({.dir = tree.home1_dir, .parent_iri = kHospital, .up = endpoint, .down = endpoint,
+  tree.home1 = Link::start({.dir = tree.home1_dir, .parent_iri = kHospital, .up = endpoint, .say_leaving = false, .down = endpoint,
                             .resend_after = 100ms, .heartbeat_every = 200ms, .log = tree.home1_log.sink()})
                    .value();
 }
