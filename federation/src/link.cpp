@@ -1726,10 +1726,12 @@ struct Link::Impl {
             if (auto said = link->relay_may_repeat(up_stream(child->iri, child_store), *before, repeats_asserted_through()); !said)
               log("cannot note that <" + child->iri + ">'s new stream may repeat the one before: " + said.error().message);
         }
-        if (store_made_again) {
+        if (store_made_again && down_from == 0) {
           // What the store before applied leaves the down queue first: the queue is trimmed a
           // while after each acknowledgement, and a store made again may say hello at once (its
-          // link said it left, P12c), when the rest would go down again with the persistent.
+          // link said it left, P12c), when the rest would go down again with the persistent. Not
+          // for a store that holds part of the stream (a backup of the child, down_from > 0):
+          // what the store before applied after that part is what it lacks.
           std::uint64_t applied_before = 0;
           {
             std::lock_guard lock(mu);
@@ -3534,15 +3536,16 @@ Link::Link(std::unique_ptr<Impl> impl) : impl_(std::move(impl)) {}
 Link::~Link() { stop(); }
 
 void Link::stop() {
-  if (!impl_ || impl_->stopping.load()) return;
-  impl_->say_leaving();
-  if (impl_->stopping.exchange(true)) return;
+  if (!impl_ || impl_->stopping.exchange(true)) return;
   impl_->changed.notify_all();
   impl_->board_due.notify_all();
   impl_->answers_due.notify_all();
   if (impl_->waker) impl_->waker->wake_waiters();  // the down pump
   for (auto& t : impl_->threads) t.join();
   impl_->threads.clear();
+  // P12c, once this run sends nothing more: a heartbeat after it, answered "unregistered", could
+  // have had a hello follow it, and the parent take the child as up again as it died.
+  impl_->say_leaving();
 }
 
 bool Link::connected() const {
