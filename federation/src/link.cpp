@@ -348,13 +348,27 @@ struct Link::Impl {
     for (auto& [iri, child] : children) child->connected = false;  // they say hello again
   }
 
+  // P6e: `other` (a store a child's hello names) is one this node's store was copied from
+  // (Node::copied_from). Read only then: rare, and the store's lineage changes when it does.
+  bool is_copy_of(const std::string& other) {
+    if (other.empty() || other == current_store_id()) return false;
+    std::lock_guard own_lock(own_mu);
+    auto lineage = own->copied_from();
+    if (!lineage) {
+      log("cannot read which stores this one was copied from: " + lineage.error().message);
+      return false;
+    }
+    return std::find(lineage->begin(), lineage->end(), other) != lineage->end();
+  }
+
   // Child role (P5-P8).
   bool welcomed = false;
   // P6c: a welcome whose mark is 0; the up loop puts the persistent items its policy routes into
   // the outbox again. Under mu.
   bool resend_persistent = false;
   // P6d: a welcome with a mark above 0; the uplink puts back into its outbox what it took out
-  // after that mark (a parent store restored from a backup acknowledged it, then lost it).
+  // after that mark (a parent store restored from a backup acknowledged it, then lost it). P6e:
+  // also a welcome with mark 0 from a copy of the store the hello named.
   bool requeue_after_welcome = false;
   Clock::time_point last_welcome_at{};  // under mu
   static constexpr auto kStaleWelcome = std::chrono::seconds(2);
@@ -419,6 +433,34 @@ struct Link::Impl {
     std::uint64_t unsaid = 0, unsaid_recomputed = 0;
   };
   std::map<std::string, HeldAlreadySaid> held_already_said;  // under mu
+  // The line that says `said`'s count for `sender`, which it resets. Caller holds mu.
+  static std::string held_already_line(const std::string& sender, HeldAlreadySaid& said) {
+    std::string line = "dropped " + std::to_string(said.unsaid) + " item(s) from <" + sender +
+                       "> that this store holds already (sent again on a new stream: P6c, P10c)" +
+                       (said.at == Clock::time_point{} ? "" : " since this was last said") +
+                       (said.unsaid_recomputed > 0 ? "; " + std::to_string(said.unsaid_recomputed) +
+                                                         " of them computed again with other triples, the one held of each name kept"
+                                                   : std::string());
+    said = {Clock::now(), 0, 0};
+    return line;
+  }
+  // The counts of items dropped as held already that wait to be said: a burst that stops
+  // within kRelayFailureSaidEvery of its last line would otherwise leave its rest unsaid. Caller
+  // holds mu.
+  std::vector<std::string> held_already_due(Clock::time_point now) {
+    std::vector<std::string> lines;
+    for (auto it = held_already_said.begin(); it != held_already_said.end();) {
+      if (now - it->second.at < kRelayFailureSaidEvery) {
+        ++it;
+      } else if (it->second.unsaid > 0) {
+        lines.push_back(held_already_line(it->first, it->second));
+        ++it;
+      } else {
+        it = held_already_said.erase(it);  // quiet for a while: its next drop is said at once
+      }
+    }
+    return lines;
+  }
   // P9b from children: what was last logged of each and when, and whether that episode is
   // still open (the child has not stored since).
   struct CannotStore {
@@ -450,6 +492,7 @@ struct Link::Impl {
     bool ever = false;          // connected in this run
     bool ever_before = false;   // connected in an earlier run (its state on the board said so)
     bool left = false;          // its link said it was stopping (P12c), and it has not said hello since
+    Clock::time_point hello_while_up_at{};  // its last hello said while it was connected (P12c)
     Clock::time_point last_seen{};
     std::int64_t last_seen_ns = 0;
     std::string version;
@@ -1422,13 +1465,7 @@ struct Link::Impl {
         said.unsaid += outcome->already_held;
         said.unsaid_recomputed += outcome->recomputed;
         if (said.at == Clock::time_point{} || Clock::now() - said.at >= kRelayFailureSaidEvery) {
-          const std::string line = "dropped " + std::to_string(said.unsaid) + " item(s) from <" + head.from +
-                                   "> that this store holds already (sent again on a new stream: P6c, P10c)" +
-                                   (said.at == Clock::time_point{} ? "" : " since this was last said") +
-                                   (said.unsaid_recomputed > 0 ? "; " + std::to_string(said.unsaid_recomputed) +
-                                                                     " of them computed again with other triples, the one held of each name kept"
-                                                               : std::string());
-          said = {Clock::now(), 0, 0};
+          const std::string line = held_already_line(head.from, said);
           lock.unlock();
           log(line);
           lock.lock();
@@ -1755,6 +1792,7 @@ struct Link::Impl {
           bool was = child->connected;
           child->connected = child->ever = true;
           child->left = false;
+          if (was) child->hello_while_up_at = Clock::now();
           child->last_seen = Clock::now();
           child->last_seen_ns = now_ns();
           if (state) {
@@ -1776,6 +1814,15 @@ struct Link::Impl {
         welcome.kind = FrameKind::welcome;
         welcome.to = child->iri;
         welcome.ack = *mark;
+        if (*mark == 0 && state && is_copy_of(state->peer_store_id)) {
+          // P6e: a store restored from a backup made before the child's stream reached the
+          // store it is a copy of. It holds nothing of the stream, as a store made new (P6c),
+          // but the child's items since went to that store and are here no more.
+          welcome.seq = kWelcomeFromACopy;
+          log("child <" + child->iri + "> was linked with store " + state->peer_store_id +
+              ", of which this store is a copy (restored from a backup) that holds nothing of its stream: "
+              "it is asked to send up again what that store had acknowledged (P6e)");
+        }
         // Its peer store names the stream the mark is of: a second node under the child's IRI
         // gets this welcome too, and must not take the mark for its own (P6b).
         welcome.body = wire::encode_state({opt.software_version, 0, current_store_id(), child_store});
@@ -1955,7 +2002,10 @@ struct Link::Impl {
           if (!was.empty() && was != state->store_id)
             log("the parent <" + opt.parent_iri + "> has another store (id " + state->store_id + ", was " +
                 was + "): what comes down is a new stream, from its start; " +
-                (f.ack == 0 ? std::string("of what went up to the store before, only persistent items are sent again "
+                (f.ack == 0 && f.seq == kWelcomeFromACopy
+                     ? std::string("it is a copy of the store before (restored from a backup) that holds nothing of this "
+                                   "node's stream: what went up to that store goes up again (P6e)")
+                 : f.ack == 0 ? std::string("of what went up to the store before, only persistent items are sent again "
                                           "(P6c): the others it had are not in this one")
                             : "it holds this node's stream up to " + std::to_string(f.ack) +
                                   " (a store restored from a backup, which took a new id): what it lacks after that goes up again (P6d)"));
@@ -1983,7 +2033,9 @@ struct Link::Impl {
         parent_cannot_store.clear();  // said again by a parent that still cannot (P9b)
         // The parent holds nothing of this store's stream: a first welcome, or a parent store
         // made again (a replaced gateway) that never got what the one before it applied.
-        if (f.ack == 0) {
+        // P6e: unless it is a copy of the store before (restored from a backup made before
+        // that store had any of the stream), which lacks everything that store acknowledged.
+        if (f.ack == 0 && f.seq != kWelcomeFromACopy) {
           resend_persistent = true;
         } else if (!(same_store_as_last_welcome && now - last_welcome_at < kStaleWelcome)) {
           // A welcome hard on the heels of another from the same store answers a hello repeated
@@ -2559,6 +2611,15 @@ struct Link::Impl {
       auto it = children.find(f.from);
       if (it == children.end() || !it->second->connected || store_differs(it->second->store_id, body->origin)) return;
       Child& child = *it->second;
+      if (Clock::now() - child.hello_while_up_at < kBothAlive) {
+        // A hello while it was up: a new run, whose run before had not been heard leave. Its
+        // store's id does not tell the two apart, and that run's notice, delivered late (a DDS
+        // writer outlives its process by about a second), would take the new one as down until
+        // its next heartbeat.
+        log("child <" + f.from + ">: dropped a notice that its link is stopping, heard within " + seconds_text(kBothAlive) +
+            " of a hello it said while up (sent by its run before, late)");
+        return;
+      }
       child.connected = false;
       child.left = true;
       child.state_dirty = true;
@@ -2668,6 +2729,10 @@ struct Link::Impl {
         // Only what goes up: items relayed down from above are never sent (P7).
         if (auto again = uplink->deliver_again_between(mark, before, self); !again) {
           log("cannot queue for the parent again what it acknowledged before its mark went back: " + again.error().message);
+        } else if (*again > 0 && mark == 0) {
+          log("the parent <" + opt.parent_iri + "> holds nothing of this store's stream, a copy of the store before: " +
+              std::to_string(*again) + " item(s) that store had acknowledged go up again (P6e)");
+          acked_locally = 0;
         } else if (*again > 0) {
           log("the parent <" + opt.parent_iri + "> holds this store's stream up to " + std::to_string(mark) +
               " only, though it had acknowledged more (its store restored from a backup?): " + std::to_string(*again) +
@@ -2992,6 +3057,7 @@ struct Link::Impl {
     while (!stopping) {
       std::vector<BoardWrite> writes;
       std::vector<std::shared_ptr<Child>> dirty;
+      std::vector<std::string> held_lines;
       bool beat = false, parent_went_silent = false;
       Outgoing resends;
       {
@@ -3003,6 +3069,7 @@ struct Link::Impl {
         writes.assign(std::make_move_iterator(board_writes.begin()), std::make_move_iterator(board_writes.end()));
         board_writes.clear();
         const auto now = Clock::now();
+        held_lines = held_already_due(now);
         // Hellos back off to kHelloGapMax while the parent is away, longer than child_silence:
         // the first heartbeat after a welcome kept the hello's time, and the parent called the
         // child silent (and the child its parent) a few seconds after welcoming it.
@@ -3069,6 +3136,7 @@ struct Link::Impl {
           }
         }
       }
+      for (const std::string& line : held_lines) log(line);
       send_all(resends);
       if (beat && opt.up) {
         auto depth = uplink->pending();
@@ -3640,13 +3708,18 @@ Result<std::unique_ptr<Link>> Link::start(LinkOptions options) {
   if (s.opt.down) {
     auto link_agent = node->agent(kLinkAgent);
     if (!link_agent) return Unexpected<Error>{link_agent.error()};
-    auto snap = node->snapshot();
-    if (!snap) return Unexpected<Error>{snap.error()};
-    // P10b: the stores children registered with in earlier runs, so that one made again while
-    // this link was down is known for what it is at its first hello.
-    auto stores = snap->list({.p = node::Term::iri(vocab::kChildStoreId), .source = link_agent->iri()});
-    if (!stores) return Unexpected<Error>{stores.error()};
-    for (const auto& r : *stores) s.stores_before[r.triple.s.value] = r.triple.o.value;
+    {
+      // Released before the subscriptions below write: a store restored from a backup (its map
+      // no larger than its data) must grow for them, and cannot while this process holds a
+      // snapshot.
+      auto snap = node->snapshot();
+      if (!snap) return Unexpected<Error>{snap.error()};
+      // P10b: the stores children registered with in earlier runs, so that one made again while
+      // this link was down is known for what it is at its first hello.
+      auto stores = snap->list({.p = node::Term::iri(vocab::kChildStoreId), .source = link_agent->iri()});
+      if (!stores) return Unexpected<Error>{stores.error()};
+      for (const auto& r : *stores) s.stores_before[r.triple.s.value] = r.triple.o.value;
+    }
     // Configured children: their down queues also take whole-subtree items (P11), and their state
     // is on the board from the start ("never connected").
     for (const auto& id : s.opt.children) {
@@ -3669,7 +3742,10 @@ Result<std::unique_ptr<Link>> Link::start(LinkOptions options) {
     }
     // The state an earlier run kept of a child that is no longer configured (taken out of the
     // file) would stay "up" on the board for ever: it goes (P12).
+    std::vector<std::uint64_t> gone_states;
     if (!s.opt.children.empty()) {
+      auto snap = node->snapshot();
+      if (!snap) return Unexpected<Error>{snap.error()};
       auto states = snap->list({.p = node::Term::iri(vocab::kLinkState), .source = link_agent->iri()});
       if (!states) return Unexpected<Error>{states.error()};
       for (const auto& r : *states) {
@@ -3696,9 +3772,11 @@ Result<std::unique_ptr<Link>> Link::start(LinkOptions options) {
           }
           continue;
         }
-        if (auto gone = node->remove_item(r.meta.item); !gone) return Unexpected<Error>{gone.error()};
+        gone_states.push_back(r.meta.item);
       }
     }
+    for (std::uint64_t item : gone_states)  // with the snapshot released, as above
+      if (auto gone = node->remove_item(item); !gone) return Unexpected<Error>{gone.error()};
     s.waker = std::move(*node);
     s.serving_lock = ::open((s.opt.dir / kServingLockFile).c_str(), O_RDWR | O_CREAT | O_CLOEXEC, 0644);
     if (s.serving_lock < 0 || flock(s.serving_lock, LOCK_SH) != 0)

@@ -27,6 +27,7 @@
 #include <map>
 #include <mutex>
 #include <random>
+#include <sstream>
 #include <system_error>
 #include <utility>
 
@@ -199,6 +200,21 @@ std::string data_file_identity(const std::filesystem::path& dir) {
   return identity;
 }
 
+Result<void> renew_store_id_as_copy(MDB_txn* txn, MDB_dbi meta, const std::string& id) {
+  std::string lineage;
+  if (auto was = get_meta(txn, meta, kStoreIdKey); was && !was->empty() && *was != id) {
+    lineage = *was;
+    if (auto before = get_meta(txn, meta, kCopiedFromKey)) {
+      std::istringstream ids(*before);
+      std::size_t kept = 1;
+      for (std::string one; kept < kMaxCopiedFrom && ids >> one; ++kept) lineage += " " + one;
+    }
+  }
+  if (auto r = put_meta(txn, meta, kStoreIdKey, id); !r) return r;
+  if (lineage.empty()) return {};
+  return put_meta(txn, meta, kCopiedFromKey, lineage);
+}
+
 Result<std::string> renew_store_id_of_copy(const std::filesystem::path& dir) {
   MDB_env* raw = nullptr;
   if (int rc = mdb_env_create(&raw); rc != 0) return lmdb_fail(rc, "opening the copy in " + dir.string());
@@ -216,22 +232,23 @@ Result<std::string> renew_store_id_of_copy(const std::filesystem::path& dir) {
   int rc = mdb_env_open(raw, dir.c_str(), MDB_NOTLS, 0644);
   if (rc == 0) rc = mdb_txn_begin(raw, nullptr, 0, &txn);
   if (rc == 0) rc = mdb_dbi_open(txn, "meta", 0, &meta);
+  std::optional<Error> failed;
   if (rc == 0) {
-    MDB_val k{kStoreIdKey.size(), const_cast<char*>(kStoreIdKey.data())}, v{id.size(), const_cast<char*>(id.data())};
-    rc = mdb_put(txn, meta, &k, &v, 0);
+    if (auto renewed = renew_store_id_as_copy(txn, meta, id); !renewed) failed = renewed.error();
   }
   // The copy's own file, which the rename into place keeps: its first open finds it the same.
-  if (const std::string file = data_file_identity(dir); rc == 0 && !file.empty()) {
+  if (const std::string file = data_file_identity(dir); rc == 0 && !failed && !file.empty()) {
     MDB_val k{kDataFileKey.size(), const_cast<char*>(kDataFileKey.data())}, v{file.size(), const_cast<char*>(file.data())};
     rc = mdb_put(txn, meta, &k, &v, 0);
   }
-  if (rc == 0) {
+  if (rc == 0 && !failed) {
     rc = mdb_txn_commit(txn);  // synced: the environment is opened without MDB_NOSYNC
     txn = nullptr;
   }
   if (txn) mdb_txn_abort(txn);
   mdb_env_close(raw);
   std::filesystem::remove(dir / "lock.mdb", ec);
+  if (failed) return fail(failed->code, "giving the copy in " + dir.string() + " a store id of its own: " + failed->message);
   if (rc != 0) return lmdb_fail(rc, "giving the copy in " + dir.string() + " a store id of its own");
   return id;
 }
@@ -826,7 +843,7 @@ Result<std::shared_ptr<Env>> Env::open_at(const std::filesystem::path& dir, cons
     // given it its id. A store that recorded no file yet (made before this was kept) only
     // records it: nothing says it was copied.
     if (auto recorded = get_meta(txn, env->meta, kDataFileKey); r && needs_file_record && (!recorded || *recorded != data_file)) {
-      if (recorded) r = put_meta(txn, env->meta, kStoreIdKey, new_store_id());
+      if (recorded) r = renew_store_id_as_copy(txn, env->meta, new_store_id());
       if (r) r = put_meta(txn, env->meta, kDataFileKey, data_file);
     }
     if (r && needs_tables) {

@@ -70,6 +70,14 @@ inline constexpr std::string_view kRemovalsTrimmedKey = "removals_trimmed_throug
 // snapshots (the reasoner's gap check) counts these too. A key of its own, like the one above.
 inline constexpr std::string_view kNoticeSeqsKey = "notice_seqs";
 std::string new_store_id();
+// The stores a copy was made from, nearest first, space-separated (Node::copied_from): written
+// whenever a store takes a new id because it is a copy (a backup, a file copy, a rollback a
+// peer showed), absent in a store that was never one. A parent restored from a backup tells its
+// children so by it (docs/protocol.md P6e). At most kMaxCopiedFrom ids are kept.
+inline constexpr std::string_view kCopiedFromKey = "copied_from";
+inline constexpr std::size_t kMaxCopiedFrom = 16;
+// Gives the store of `txn` the new id `id`, its old one put first in kCopiedFromKey.
+Result<void> renew_store_id_as_copy(MDB_txn* txn, MDB_dbi meta, const std::string& id);
 // Which file the store's data last was, in its meta table: the data file's inode number and
 // birth time (statx), recorded when the store is made and checked at every open that may
 // write. A data file that is another file now was copied (`cp -a`, a restore from tar or

@@ -12,6 +12,7 @@
 #include <limits>
 #include <map>
 #include <span>
+#include <sstream>
 #include <type_traits>
 
 #include "check.h"
@@ -1652,6 +1653,20 @@ Result<std::string> Node::store_id() const {
   return std::string(view(v));
 }
 
+Result<std::vector<std::string>> Node::copied_from() const {
+  if (!impl_) return moved_from();
+  ReadTxn read(*impl_->env);
+  if (auto r = read.begin(); !r) return unexpected(r.error());
+  MDB_val k = val(kCopiedFromKey), v;
+  int rc = mdb_get(read.txn, impl_->env->meta, &k, &v);
+  if (rc == MDB_NOTFOUND) return std::vector<std::string>{};
+  if (rc != 0) return lmdb_fail(rc, "reading the stores this one was copied from");
+  std::vector<std::string> ids;
+  std::istringstream text{std::string(view(v))};
+  for (std::string id; text >> id;) ids.push_back(std::move(id));
+  return ids;
+}
+
 namespace {
 
 // fsync of a file or directory by path: what a rename needs before and after it to survive a
@@ -1721,10 +1736,7 @@ Result<std::string> Node::renew_store_id() {
   if (!impl_) return moved_from();
   std::string id = new_store_id();
   auto written = impl_->env->write([&](Txn& txn) -> Result<void> {
-    MDB_val k = val(kStoreIdKey), v = val(id);
-    int rc = mdb_put(txn.raw(), txn.env().meta, &k, &v, 0);
-    if (rc != 0) return lmdb_fail(rc, "writing the store id");
-    return {};
+    return renew_store_id_as_copy(txn.raw(), txn.env().meta, id);
   });
   if (!written) return unexpected(written.error());
   return id;

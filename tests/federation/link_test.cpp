@@ -684,6 +684,62 @@ TEST(Link, ItemsAParentRolledBackToASnapshotHadAcknowledgedGoUpAgain) {
   EXPECT_TRUE(tree.home1_log.has("6 item(s) it acknowledged after that go up again (P6d)")) << tree.home1_log.text();
 }
 
+// P6e: a hospital restored from a backup made before home1 first registered holds nothing of
+// home1's stream: its mark is 0, as a store made new would say (P6c, persistent items only).
+// It is a copy of the store home1 was linked with, and says so in its welcome, so everything
+// home1 sent up since goes up again. Up to session 79 home1 sent only its description: the
+// hospital lost the other five items, which home1 had taken out of its outbox.
+TEST(Link, ItemsAParentRestoredFromABackupOlderThanTheChildsFirstLinkHadGoUpAgain) {
+  Tree tree;
+  const std::filesystem::path backup = tree.tmp / "hospital-backup";
+  ASSERT_TRUE(node::Node::open(tree.hospital_dir).value().back_up(backup));
+  ASSERT_NO_FATAL_FAILURE(home1_sends_a_description_and_five_items(tree));
+  tree.hospital.reset();
+  std::filesystem::remove_all(tree.hospital_dir);
+  std::filesystem::rename(backup, tree.hospital_dir);
+  tree.hospital = tree.start_hospital();
+  store_hrv_items(tree.home1_dir, 100, 2);
+  const node::Pattern numbered{.p = Term::iri(kEx + "n")};
+  EXPECT_TRUE(eventually([&] { return count(tree.hospital_dir, numbered) == 8 && outbox(tree.home1_dir) == 0; }))
+      << count(tree.hospital_dir, numbered) << " at the hospital, " << outbox(tree.home1_dir) << " in the outbox\n"
+      << tree.home1_log.text();
+  std::this_thread::sleep_for(300ms);
+  for (int n : {0, 1, 2, 3, 4, 7, 100, 101})
+    EXPECT_EQ(count(tree.hospital_dir, {.p = Term::iri(kEx + "n"), .o = Term::integer(n)}), 1u) << n;
+  EXPECT_TRUE(tree.home1_log.has("6 item(s) that store had acknowledged go up again (P6e)")) << tree.home1_log.text();
+  EXPECT_TRUE(tree.hospital_log.has("of which this store is a copy (restored from a backup)")) << tree.hospital_log.text();
+  // A restart of either link later is no copy: nothing goes up again.
+  tree.home1.reset();
+  tree.home1 = tree.start_home(tree.home1_dir, kHome1, tree.home1_log);
+  store_hrv_items(tree.home1_dir, 200, 1);
+  EXPECT_TRUE(eventually([&] { return count(tree.hospital_dir, numbered) == 9 && outbox(tree.home1_dir) == 0; }));
+  std::this_thread::sleep_for(300ms);
+  EXPECT_EQ(count(tree.hospital_dir, numbered), 9u);
+}
+
+// A store made new in the hospital's place is no copy: only the persistent item goes up again
+// (P6c), as before P6e; and a copy of a store home1 was never linked with is none of its either.
+TEST(Link, AParentMadeNewOrACopyOfAnotherStoreGetsOnlyThePersistentItemsAgain) {
+  Tree tree;
+  const std::filesystem::path elsewhere = tree.tmp / "other-hospital";
+  ASSERT_TRUE(node::Node::init(elsewhere.string(), {.iri = kHospital}));
+  const std::filesystem::path backup = tree.tmp / "other-backup";
+  ASSERT_TRUE(node::Node::open(elsewhere.string()).value().back_up(backup));
+  ASSERT_NO_FATAL_FAILURE(home1_sends_a_description_and_five_items(tree));
+  tree.hospital.reset();
+  std::filesystem::remove_all(tree.hospital_dir);
+  std::filesystem::rename(backup, tree.hospital_dir);
+  tree.hospital = tree.start_hospital();
+  store_hrv_items(tree.home1_dir, 100, 2);
+  const node::Pattern numbered{.p = Term::iri(kEx + "n")};
+  EXPECT_TRUE(eventually([&] { return count(tree.hospital_dir, numbered) == 3 && outbox(tree.home1_dir) == 0; }))
+      << count(tree.hospital_dir, numbered) << " at the hospital";
+  std::this_thread::sleep_for(300ms);
+  EXPECT_EQ(count(tree.hospital_dir, numbered), 3u);
+  EXPECT_TRUE(tree.home1_log.has("only persistent items are sent again (P6c)")) << tree.home1_log.text();
+  EXPECT_FALSE(tree.home1_log.has("(P6e)")) << tree.home1_log.text();
+}
+
 // P6d on a plain restart (nothing restored): the item at the parent's mark, whose triple the
 // policy matches is not its first (an HRV window's sosa:observedProperty is its second), was put
 // back into the outbox at every welcome, logged as a restore, and waited there for ever.
@@ -761,6 +817,38 @@ TEST(Link, AChildWhoseLinkStopsSaysSoAndItsParentTakesTheLinkAsDownAtOnce) {
   EXPECT_FALSE(tree.hospital_log.has("silent for")) << tree.hospital_log.text();
   tree.home1 = tree.start_home(tree.home1_dir, kHome1, tree.home1_log);
   EXPECT_TRUE(eventually([&] { return state_says_up(tree.hospital_dir, kHome1); }));
+}
+
+// P12c: a leaving notice that arrives within a second of a hello the child said while it was up
+// (a new run whose parent had not yet heard the run before leave) was sent by its run before
+// (the store id is the same in both), delivered late: the parent keeps the link up. One heard
+// later takes it down, as above.
+TEST(Link, ALeavingNoticeHardOnTheChildsHelloIsFromItsRunBeforeAndIsDropped) {
+  Tree tree;
+  tree.hospital = tree.start_hospital();
+  auto child = tree.bus.open(kHome1);
+  auto send = [&](FrameKind kind, std::string body) {
+    Frame f;
+    f.kind = kind;
+    f.from = kHome1;
+    f.to = kHospital;
+    f.body = std::move(body);
+    return child->send(f);
+  };
+  auto leaving = [&] { return send(FrameKind::error, wire::encode_error({"leaving", "<" + kHome1 + ">'s link stops", "aaaa"})); };
+  ASSERT_TRUE(send(FrameKind::hello, wire::encode_state({"home", 0, "aaaa", ""})));
+  ASSERT_TRUE(eventually([&] { return state_says_up(tree.hospital_dir, kHome1); }));
+  ASSERT_TRUE(send(FrameKind::hello, wire::encode_state({"home", 0, "aaaa", ""})));  // its new run
+  std::this_thread::sleep_for(100ms);
+  ASSERT_TRUE(leaving());
+  EXPECT_TRUE(eventually([&] { return tree.hospital_log.has("dropped a notice that its link is stopping"); })) << tree.hospital_log.text();
+  std::this_thread::sleep_for(300ms);
+  EXPECT_TRUE(state_says_up(tree.hospital_dir, kHome1));
+  std::this_thread::sleep_for(1s);
+  ASSERT_TRUE(send(FrameKind::heartbeat, wire::encode_state({"home", 0, "aaaa", ""})));
+  ASSERT_TRUE(leaving());
+  EXPECT_TRUE(eventually([&] { return !state_says_up(tree.hospital_dir, kHome1); }));
+  EXPECT_TRUE(tree.hospital_log.has("child <" + kHome1 + ">'s link is stopping (it said so): link down")) << tree.hospital_log.text();
 }
 
 // P6a: the same downwards. A hospital whose store is made again issues configuration with ids

@@ -1316,6 +1316,32 @@ TEST(Store, ABackupHoldsTheSameRecordsUnderAStoreIdOfItsOwn) {
   EXPECT_EQ(copy->snapshot()->list({.p = ex("p")})->size(), 3u);
   EXPECT_EQ(copy->stats()->last_seq, node->stats()->last_seq) << "the same ids: it goes on from the same point";
   EXPECT_TRUE(copy->check().value().problems.empty());
+  // It names the store it is a copy of: a parent restored from it tells a child that was
+  // linked with that store (docs/protocol.md P6e).
+  EXPECT_EQ(copy->copied_from().value(), std::vector<std::string>{node->store_id().value()});
+  EXPECT_TRUE(node->copied_from().value().empty()) << "the original was never a copy";
+}
+
+// A copy of a copy names both stores, nearest first, and a copy's id renewed (a rollback a
+// peer showed, P6a) puts the id it had first. The list is bounded.
+TEST(Store, ACopyOfACopyNamesEveryStoreItCameFromNearestFirst) {
+  TempDir dir, copies;
+  ASSERT_TRUE(Node::init(dir.path(), {.iri = "http://example.org/n"}));
+  auto original = Node::open(dir.path());
+  ASSERT_TRUE(original);
+  ASSERT_TRUE(original->back_up(copies.path() / "first"));
+  auto first = Node::open(copies.path() / "first");
+  ASSERT_TRUE(first);
+  ASSERT_TRUE(first->back_up(copies.path() / "second"));
+  auto second = Node::open(copies.path() / "second");
+  ASSERT_TRUE(second);
+  EXPECT_EQ(second->copied_from().value(), (std::vector<std::string>{first->store_id().value(), original->store_id().value()}));
+  const std::string before = second->store_id().value();
+  ASSERT_TRUE(second->renew_store_id());
+  EXPECT_EQ(second->copied_from().value(),
+            (std::vector<std::string>{before, first->store_id().value(), original->store_id().value()}));
+  for (int i = 0; i < 20; ++i) ASSERT_TRUE(second->renew_store_id());
+  EXPECT_EQ(second->copied_from().value().size(), 16u);
 }
 
 // A store copied with `cp -a` (or restored from tar or rsync, or moved to another disk) goes on
@@ -1342,10 +1368,12 @@ TEST(Store, AStoreCopiedToAnotherFileTakesAStoreIdOfItsOwnAtItsFirstOpen) {
     ASSERT_TRUE(copy) << copy.error().message;
     copy_id = copy->store_id().value();
     EXPECT_NE(copy_id, id);
+    EXPECT_EQ(copy->copied_from().value(), std::vector<std::string>{id});
     EXPECT_EQ(copy->snapshot()->list({.p = ex("p")})->size(), 1u);
   }
   std::filesystem::rename(copied, moved);
   EXPECT_EQ(Node::open(moved)->store_id().value(), copy_id) << "a store moved (the same file) is the same store";
+  EXPECT_EQ(Node::open(moved)->copied_from().value(), std::vector<std::string>{id}) << "and no copy again";
   EXPECT_EQ(Node::open(original)->store_id().value(), id);
 }
 

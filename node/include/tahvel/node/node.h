@@ -633,6 +633,11 @@ class Node {
   // A new identity, for a store restored from a backup: its ids go back in time, and peers must
   // not take them for ones they have seen. Returns the new id.
   Result<std::string> renew_store_id();
+  // The stores this one is a copy of, nearest first: the id it had before each time it took a
+  // new one as a copy (back_up's copy, a file copy found at its first open, renew_store_id),
+  // up to 16. Empty for a store that was never copied. A parent restored from a backup tells a
+  // child that was linked with the store it is a copy of (docs/protocol.md P6e).
+  Result<std::vector<std::string>> copied_from() const;
 
   // Writes a copy of the store, as of one snapshot, to the new directory `dest` (it must not
   // exist; its parent must), while agents go on writing: what a copy of the files made then
