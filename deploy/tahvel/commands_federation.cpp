@@ -754,7 +754,15 @@ pid_t supervisor_of_store(const fs::path& store) {
 struct ProgramRow {
   std::string name, pid, state, restarts, last_exit;
   std::string problem;  // what the program says on its board it cannot do (node::kProblem)
+  std::string problem_pid;  // the process that said it (node::kProblemPid), when it said
 };
+
+bool alive(const ProgramRow& p);
+// Said by a run of the program that is over: it stopped without taking the line back (killed,
+// crashed), or a run since has not yet got as far as saying anything.
+bool problem_of_a_run_before(const ProgramRow& p) {
+  return !p.problem.empty() && (!alive(p) || (!p.problem_pid.empty() && p.problem_pid != p.pid));
+}
 
 // A running supervisor rewrites its state file every 100 ms; one that has not for this long is
 // stopped (SIGSTOP), hung, or held up (a write to a store it waits for), and what the file says
@@ -2611,7 +2619,10 @@ void attach_problems(std::vector<ProgramRow>& programs, const std::string& node_
       if (auto iri = uri::agent_iri(node_iri, p.name); iri && *iri == agent) to = &p;
       else if (!to && !problem.pid.empty() && p.pid == problem.pid) to = &p;
     }
-    if (to) to->problem = problem.text;
+    if (to) {
+      to->problem = problem.text;
+      to->problem_pid = problem.pid;
+    }
   }
 }
 
@@ -3204,7 +3215,7 @@ int run_status(const Args& args) {
         print_json_string_or_null(p.last_exit);
         std::cout << ",\"problem\":";
         print_json_string_or_null(p.problem);
-        std::cout << "}";
+        std::cout << ",\"problem_of_this_run\":" << (p.problem.empty() ? "null" : problem_of_a_run_before(p) ? "false" : "true") << "}";
         first_program = false;
       }
       std::cout << "],\"programs_known\":" << (programs_unknown_because.empty() ? "true" : "false")
@@ -3289,7 +3300,14 @@ int run_status(const Args& args) {
       if (p.state == "running" || p.state == "suspended") std::cout << " (pid " << p.pid << ")";
       if (p.restarts != "0") std::cout << ", " << p.restarts << " restarts";
       if (!p.last_exit.empty()) std::cout << ", last: " << p.last_exit;
-      if (!p.problem.empty()) std::cout << "\n" << indent << "      PROBLEM " << p.problem;
+      // What a run that is over said is what it last found: nothing takes the line back until
+      // a run of the program says otherwise.
+      if (!p.problem.empty())
+        std::cout << "\n" << indent << "      PROBLEM "
+                  << (!problem_of_a_run_before(p) ? ""
+                      : alive(p)                  ? "(said by its run before this one) "
+                                                  : "(said while it ran; it is not running now) ")
+                  << p.problem;
       std::cout << "\n";
     }
   }
