@@ -2978,11 +2978,12 @@ void store_chunk_sized_records(const std::string& dir, const std::string& node_i
 }
 
 // The hospital and home1, whose endpoint is tapped; the caller waits with home1_is_up.
-std::shared_ptr<AnswerTap> start_tapped_home(Tree& tree, std::chrono::milliseconds resend_after) {
+std::shared_ptr<AnswerTap> start_tapped_home(Tree& tree, std::chrono::milliseconds resend_after, bool say_leaving = false) {
   tree.hospital = tree.start_hospital();
   auto tap = std::make_shared<AnswerTap>(tree.bus.open(kHome1, tree.home1_log.sink()));
-  // Its tests stop it as a killed process stops, unsaid (P15: a restart, a node gone silent).
-  tree.home1 = Link::start({.dir = tree.home1_dir, .parent_iri = kHospital, .up = tap, .say_leaving = false, .down = tap,
+  // Most of its tests stop it as a killed process stops, unsaid (P15: a restart, a node gone
+  // silent).
+  tree.home1 = Link::start({.dir = tree.home1_dir, .parent_iri = kHospital, .up = tap, .say_leaving = say_leaving, .down = tap,
                             .resend_after = resend_after, .heartbeat_every = 200ms, .log = tree.home1_log.sink()})
                    .value();
   return tap;
@@ -3042,8 +3043,9 @@ class SamplesQuery {
 
 // The hospital and home1 (endpoint tapped, resending after `resend_after`), home1 registered,
 // and `chunks` chunk-sized records on home1 for the hospital to ask for.
-std::shared_ptr<AnswerTap> start_answering_home(Tree& tree, std::chrono::milliseconds resend_after, int chunks) {
-  auto tap = start_tapped_home(tree, resend_after);
+std::shared_ptr<AnswerTap> start_answering_home(Tree& tree, std::chrono::milliseconds resend_after, int chunks,
+                                                bool say_leaving = false) {
+  auto tap = start_tapped_home(tree, resend_after, say_leaving);
   EXPECT_TRUE(home1_is_up(tree));
   store_chunk_sized_records(tree.home1_dir, kHome1, chunks);
   return tap;
@@ -3236,8 +3238,10 @@ TEST(Link, AGatewayKeepsTakingItsSensorsItemsWhileARelayedAnswerToAStalledParent
 // An answer of 120 chunks from home1 under way: the asker (paused after its first record) has
 // taken a chunk and home1 has sent its window.
 struct PausedAnswer {
+  // `say_leaving`: home1's link says so when it stops (P12c); else it stops as a killed one.
+  explicit PausedAnswer(bool say_leaving = false) : tap(start_answering_home(tree, 100ms, 120, say_leaving)) {}
   Tree tree;
-  std::shared_ptr<AnswerTap> tap = start_answering_home(tree, 100ms, 120);
+  std::shared_ptr<AnswerTap> tap;
   SamplesQuery query{tree, kHome1, 60s, /*pause_after=*/1};
   bool under_way() {
     return eventually([&] { return query.received() == 1 && tap->highest_sent() >= 16; });
@@ -3310,6 +3314,18 @@ TEST(Link, AQueryWhoseTargetGoesSilentMidAnswerEndsUnreachable) {
   // Said with how far the answer had come: an operator told it went silent "while it answered"
   // when nothing had come would look for a lost answer.
   expect_query_ends_early_with(query, "unreachable: <" + kHome1 + "> went silent at <" + kHospital + "> after ", 120);
+}
+
+// P12c: the target's link is stopped on purpose mid-answer (`tahvel down`, its supervisor's
+// stop or restart): it says so as it goes, and the asker ends at once as unreachable, saying
+// why, not once the hospital has called home1 silent.
+TEST(Link, AQueryWhoseTargetsLinkIsStoppedMidAnswerEndsAtOnceSayingItLeft) {
+  PausedAnswer answer{/*say_leaving=*/true};
+  ASSERT_TRUE(answer.under_way());
+  auto& [tree, tap, query] = answer;
+  tree.home1.reset();
+  expect_query_ends_early_with(query, "unreachable: <" + kHome1 + ">'s link was stopped at <" + kHospital + "> (it said so as it left)", 120);
+  EXPECT_FALSE(tree.hospital_log.has("silent for")) << tree.hospital_log.text();
 }
 
 // The asking node's own link is stopped (`tahvel down`) while the answer comes: nothing will
