@@ -307,6 +307,14 @@ struct Link::Impl {
 
   // This node's store id (P6a): it names the streams of this store's items at the peers.
   std::string store_id;  // under mu
+  // This run of the link (P12c): named in its hellos and its leaving notice, so that a parent
+  // tells a late notice of the run before (the same store id) from one of the run it registered.
+  const std::uint64_t run = [] {
+    std::random_device seed;
+    std::uint64_t token = 0;
+    while (token == 0) token = (std::uint64_t{seed()} << 32) ^ seed();
+    return token;
+  }();
   std::optional<node::Node> own;  // this node's store, for its id and last seq; under own_mu
   std::mutex own_mu;  // a Node is used by one thread at a time; the receive loops both use it
 
@@ -348,17 +356,18 @@ struct Link::Impl {
     for (auto& [iri, child] : children) child->connected = false;  // they say hello again
   }
 
-  // P6e: `other` (a store a child's hello names) is one this node's store was copied from
-  // (Node::copied_from). Read only then: rare, and the store's lineage changes when it does.
-  bool is_copy_of(const std::string& other) {
-    if (other.empty() || other == current_store_id()) return false;
+  // P6e: this node's store is a copy of another (Node::copied_from: restored from a backup),
+  // and `other`, the store a child's hello names, is not it. Read when a hello asks: rare, and
+  // both change only when the store takes a new id (renew_store_id, under own_mu too).
+  bool store_is_a_copy(const std::string& other) {
     std::lock_guard own_lock(own_mu);
+    auto id = own->store_id();
     auto lineage = own->copied_from();
-    if (!lineage) {
-      log("cannot read which stores this one was copied from: " + lineage.error().message);
+    if (!id || !lineage) {
+      log("cannot read which stores this one was copied from: " + (id ? lineage.error() : id.error()).message);
       return false;
     }
-    return std::find(lineage->begin(), lineage->end(), other) != lineage->end();
+    return !lineage->empty() && other != *id;
   }
 
   // Child role (P5-P8).
@@ -368,10 +377,15 @@ struct Link::Impl {
   bool resend_persistent = false;
   // P6d: a welcome with a mark above 0; the uplink puts back into its outbox what it took out
   // after that mark (a parent store restored from a backup acknowledged it, then lost it). P6e:
-  // also a welcome with mark 0 from a copy of the store the hello named.
+  // also a welcome with mark 0 from a copy, which says so.
   bool requeue_after_welcome = false;
   Clock::time_point last_welcome_at{};  // under mu
   static constexpr auto kStaleWelcome = std::chrono::seconds(2);
+  // P6e: the parent store whose welcome said it is a copy holding nothing of this store's
+  // stream, until what the stores before had is back in the outbox. Its later welcomes do not
+  // say so (this node's hello names it now): one not taken (P6b) or a put-back that failed
+  // would otherwise leave P6c in its place. Under mu.
+  std::string copy_owed;
   std::string parent_store_id;  // from the welcome: names the down stream (P6a); under mu
   // The parent store an earlier run was welcomed by (its uplink state on the board), until the
   // first welcome of this run: the hello names it and carries this node's mark of its down
@@ -445,12 +459,12 @@ struct Link::Impl {
     return line;
   }
   // The counts of items dropped as held already that wait to be said: a burst that stops
-  // within kRelayFailureSaidEvery of its last line would otherwise leave its rest unsaid. Caller
-  // holds mu.
-  std::vector<std::string> held_already_due(Clock::time_point now) {
+  // within kRelayFailureSaidEvery of its last line would otherwise leave its rest unsaid; `all`
+  // as the link stops. Caller holds mu.
+  std::vector<std::string> held_already_due(Clock::time_point now, bool all = false) {
     std::vector<std::string> lines;
     for (auto it = held_already_said.begin(); it != held_already_said.end();) {
-      if (now - it->second.at < kRelayFailureSaidEvery) {
+      if (!all && now - it->second.at < kRelayFailureSaidEvery) {
         ++it;
       } else if (it->second.unsaid > 0) {
         lines.push_back(held_already_line(it->first, it->second));
@@ -492,7 +506,8 @@ struct Link::Impl {
     bool ever = false;          // connected in this run
     bool ever_before = false;   // connected in an earlier run (its state on the board said so)
     bool left = false;          // its link said it was stopping (P12c), and it has not said hello since
-    Clock::time_point hello_while_up_at{};  // its last hello said while it was connected (P12c)
+    std::uint64_t run = 0;  // the run its last hello named (P12c; 0: a link that names none)
+    std::string copy_said_for;  // the store its hello named when P6e was last logged; under mu
     Clock::time_point last_seen{};
     std::int64_t last_seen_ns = 0;
     std::string version;
@@ -1726,6 +1741,7 @@ struct Link::Impl {
         }
         bool store_made_again = false;
         std::string store_registered;
+        std::uint64_t held_of_store_before = 0;  // this store's mark of that store's stream
         {
           std::lock_guard lock(mu);
           if (child->store_id != child_store) child->pending_store.clear();
@@ -1757,6 +1773,7 @@ struct Link::Impl {
           // backup's outbox held, which this store applied from the stream before; a store made
           // again from nothing repeats nothing, and loses nothing by the check.
           auto before = link->relay_mark(up_stream(child->iri, store_registered));
+          if (before) held_of_store_before = *before;
           if (!before)
             log("cannot read the mark of <" + child->iri + ">'s store before: " + before.error().message);
           else if (*before > 0)
@@ -1792,7 +1809,7 @@ struct Link::Impl {
           bool was = child->connected;
           child->connected = child->ever = true;
           child->left = false;
-          if (was) child->hello_while_up_at = Clock::now();
+          child->run = f.prev;
           child->last_seen = Clock::now();
           child->last_seen_ns = now_ns();
           if (state) {
@@ -1814,14 +1831,26 @@ struct Link::Impl {
         welcome.kind = FrameKind::welcome;
         welcome.to = child->iri;
         welcome.ack = *mark;
-        if (*mark == 0 && state && is_copy_of(state->peer_store_id)) {
+        // Not for a child store made again whose store before this one holds part of: what it
+        // sends again is the stream before, which P10c weighs (an item removed here came back).
+        if (*mark == 0 && held_of_store_before == 0 && state && !state->peer_store_id.empty() &&
+            store_is_a_copy(state->peer_store_id)) {
           // P6e: a store restored from a backup made before the child's stream reached the
-          // store it is a copy of. It holds nothing of the stream, as a store made new (P6c),
-          // but the child's items since went to that store and are here no more.
+          // store it was copied from. It holds nothing of the stream, as a store made new (P6c),
+          // but the child sent its items since to another store of this node, and they are not
+          // here. Which store that was the hello does not say beyond the last one (after two
+          // restores, not one this store is a copy of): any copy asks, and at worst gets items
+          // it never had.
           welcome.seq = kWelcomeFromACopy;
-          log("child <" + child->iri + "> was linked with store " + state->peer_store_id +
-              ", of which this store is a copy (restored from a backup) that holds nothing of its stream: "
-              "it is asked to send up again what that store had acknowledged (P6e)");
+          bool said = false;
+          {
+            std::lock_guard lock(mu);  // once, not for each hello the child repeats meanwhile
+            said = std::exchange(child->copy_said_for, state->peer_store_id) == state->peer_store_id;
+          }
+          if (!said)
+            log("child <" + child->iri + "> was linked with store " + state->peer_store_id +
+                " of this node, and this store, a copy (restored from a backup), holds nothing of its stream: "
+                "it is asked to send up again all it sent (P6e)");
         }
         // Its peer store names the stream the mark is of: a second node under the child's IRI
         // gets this welcome too, and must not take the mark for its own (P6b).
@@ -2002,9 +2031,9 @@ struct Link::Impl {
           if (!was.empty() && was != state->store_id)
             log("the parent <" + opt.parent_iri + "> has another store (id " + state->store_id + ", was " +
                 was + "): what comes down is a new stream, from its start; " +
-                (f.ack == 0 && f.seq == kWelcomeFromACopy
-                     ? std::string("it is a copy of the store before (restored from a backup) that holds nothing of this "
-                                   "node's stream: what went up to that store goes up again (P6e)")
+                (f.ack == 0 && (f.seq == kWelcomeFromACopy || state->store_id == copy_owed)
+                     ? std::string("it is a copy (restored from a backup) that holds nothing of this node's stream: "
+                                   "what went up to the stores before goes up again (P6e)")
                  : f.ack == 0 ? std::string("of what went up to the store before, only persistent items are sent again "
                                           "(P6c): the others it had are not in this one")
                             : "it holds this node's stream up to " + std::to_string(f.ack) +
@@ -2021,6 +2050,9 @@ struct Link::Impl {
             lock.lock();
           }
         }
+        if (state && f.ack == 0 && f.seq == kWelcomeFromACopy) copy_owed = state->store_id;
+        else if (state && f.ack != 0 && state->store_id == copy_owed) copy_owed.clear();  // it has had items since
+        const bool from_a_copy = f.ack == 0 && state && !copy_owed.empty() && state->store_id == copy_owed;
         // P6b: while two stores take turns as the parent, this node links with neither: their
         // acknowledgements would empty its outbox of items that only one of them has.
         if (parent_flips.active()) {
@@ -2033,9 +2065,9 @@ struct Link::Impl {
         parent_cannot_store.clear();  // said again by a parent that still cannot (P9b)
         // The parent holds nothing of this store's stream: a first welcome, or a parent store
         // made again (a replaced gateway) that never got what the one before it applied.
-        // P6e: unless it is a copy of the store before (restored from a backup made before
-        // that store had any of the stream), which lacks everything that store acknowledged.
-        if (f.ack == 0 && f.seq != kWelcomeFromACopy) {
+        // P6e: unless it is a copy (restored from a backup made before any of the stream
+        // reached the store it was copied from), which lacks everything the stores before had.
+        if (f.ack == 0 && !from_a_copy) {
           resend_persistent = true;
         } else if (!(same_store_as_last_welcome && now - last_welcome_at < kStaleWelcome)) {
           // A welcome hard on the heels of another from the same store answers a hello repeated
@@ -2581,7 +2613,10 @@ struct Link::Impl {
       if (!opt.up || !welcomed || !opt.say_leaving) return;
       own_store = store_id;
     }
-    send_error(opt.up.get(), opt.parent_iri, 0, {std::string(kLeaving), "<" + self + ">'s link stops", own_store});
+    Outgoing out;
+    out.error(opt.up.get(), opt.parent_iri, 0, {std::string(kLeaving), "<" + self + ">'s link stops", own_store});
+    if (!out.frames.empty()) out.frames.back().second.ack = run;  // which run leaves (P12c), as its hellos said
+    send_all(out);
   }
 
   void error_from_child(const Frame& f) {
@@ -2611,13 +2646,12 @@ struct Link::Impl {
       auto it = children.find(f.from);
       if (it == children.end() || !it->second->connected || store_differs(it->second->store_id, body->origin)) return;
       Child& child = *it->second;
-      if (Clock::now() - child.hello_while_up_at < kBothAlive) {
-        // A hello while it was up: a new run, whose run before had not been heard leave. Its
-        // store's id does not tell the two apart, and that run's notice, delivered late (a DDS
-        // writer outlives its process by about a second), would take the new one as down until
-        // its next heartbeat.
-        log("child <" + f.from + ">: dropped a notice that its link is stopping, heard within " + seconds_text(kBothAlive) +
-            " of a hello it said while up (sent by its run before, late)");
+      if (f.ack != 0 && child.run != 0 && f.ack != child.run) {
+        // Its store's id does not tell two runs apart: a notice of the run before, delivered
+        // after the new run's hello (a DDS writer outlives its process by about a second),
+        // would take the new one as down until its next heartbeat.
+        log("child <" + f.from + ">: dropped a notice that its link is stopping from a run before the one registered "
+            "(it came late)");
         return;
       }
       child.connected = false;
@@ -2648,6 +2682,26 @@ struct Link::Impl {
   }
 
   // ---- child role: up sender ----------------------------------------------------------------
+
+  // P6d, P6e: puts back into the outbox what the uplink was given with ids in (after, before)
+  // and no longer holds, a part of kRequeuePart ids per transaction: from mark 0 (P6e) that is
+  // all that went up since the store began, and one transaction for it held the node's writers
+  // up for as long. Returns how many.
+  static constexpr std::uint64_t kRequeuePart = 65'536;
+  node::Result<std::uint64_t> deliver_again_in_parts(node::Agent& uplink, std::uint64_t after, std::uint64_t before) {
+    const std::uint64_t issued = last_seq_here();
+    if (issued == ~0ull) return uplink.deliver_again_between(after, before, self);  // unknown: at once
+    const std::uint64_t end = std::min(before, issued + 1);
+    std::uint64_t total = 0;
+    for (std::uint64_t from = after; from + 1 < end && !stopping;) {
+      const std::uint64_t to = end - from > kRequeuePart + 1 ? from + kRequeuePart + 1 : end;
+      auto n = uplink.deliver_again_between(from, to, self);
+      if (!n) return n;
+      total += *n;
+      from = to - 1;
+    }
+    return total;
+  }
 
   // An item whose frame no binding takes (P4: bodies up to 64 MiB) could never be sent: it is
   // passed over in the stream (the next frame chains to the one before it) and stays in this
@@ -2727,11 +2781,20 @@ struct Link::Impl {
         auto waiting = uplink->peek(mark, 1, 0ms);
         const std::uint64_t before = waiting && !waiting->empty() ? waiting->front().item : std::numeric_limits<std::uint64_t>::max();
         // Only what goes up: items relayed down from above are never sent (P7).
-        if (auto again = uplink->deliver_again_between(mark, before, self); !again) {
-          log("cannot queue for the parent again what it acknowledged before its mark went back: " + again.error().message);
+        auto again = deliver_again_in_parts(*uplink, mark, before);
+        if (again && mark == 0) {
+          std::lock_guard lock(mu);
+          copy_owed.clear();
+        }
+        if (!again) {
+          log("cannot queue for the parent again what it acknowledged before its mark went back (tried again in 1 s): " +
+              again.error().message);
+          std::this_thread::sleep_for(1s);
+          std::lock_guard lock(mu);
+          requeue_after_welcome = true;
         } else if (*again > 0 && mark == 0) {
-          log("the parent <" + opt.parent_iri + "> holds nothing of this store's stream, a copy of the store before: " +
-              std::to_string(*again) + " item(s) that store had acknowledged go up again (P6e)");
+          log("the parent <" + opt.parent_iri + "> holds nothing of this store's stream, restored from a backup: " +
+              std::to_string(*again) + " item(s) the stores before had acknowledged go up again (P6e)");
           acked_locally = 0;
         } else if (*again > 0) {
           log("the parent <" + opt.parent_iri + "> holds this store's stream up to " + std::to_string(mark) +
@@ -3054,6 +3117,7 @@ struct Link::Impl {
     std::set<std::string> unknown_addressees;
     Clock::time_point next_addressee_check{};
     say_problem(*link);  // an earlier run's problem is not this run's to keep
+    Clock::time_point held_checked{};
     while (!stopping) {
       std::vector<BoardWrite> writes;
       std::vector<std::shared_ptr<Child>> dirty;
@@ -3069,7 +3133,10 @@ struct Link::Impl {
         writes.assign(std::make_move_iterator(board_writes.begin()), std::make_move_iterator(board_writes.end()));
         board_writes.clear();
         const auto now = Clock::now();
-        held_lines = held_already_due(now);
+        if (now - held_checked >= 1s) {  // a walk over every sender: not at every round
+          held_lines = held_already_due(now);
+          held_checked = now;
+        }
         // Hellos back off to kHelloGapMax while the parent is away, longer than child_silence:
         // the first heartbeat after a welcome kept the hello's time, and the parent called the
         // child silent (and the child its parent) a few seconds after welcoming it.
@@ -3158,6 +3225,7 @@ struct Link::Impl {
         if (f.kind == FrameKind::hello) {
           auto down_mark = uplink->relay_mark(stream);
           f.ack = down_mark ? *down_mark : 0;
+          f.prev = run;  // P12c: its leaving notice names the same
           state.peer_store_id = parent_store;
         }
         f.body = wire::encode_state(state);
@@ -3195,6 +3263,12 @@ struct Link::Impl {
       if (opt.up) look_at_addressees(*node, *link, unknown_addressees, next_addressee_check);
       say_problem(*link);
     }
+    std::vector<std::string> held_lines;
+    {
+      std::lock_guard lock(mu);
+      held_lines = held_already_due(Clock::now(), true);
+    }
+    for (const std::string& line : held_lines) log(line);
   }
 
   // P11a: an item from above addressed (R18) to an agent of this node that nothing here knows —

@@ -201,10 +201,16 @@ std::string data_file_identity(const std::filesystem::path& dir) {
 }
 
 Result<void> renew_store_id_as_copy(MDB_txn* txn, MDB_dbi meta, const std::string& id) {
+  // A store without an id yet (made before ids) was copied from none known; any other failure
+  // to read says so rather than leaving a copy that names nothing it came from.
   std::string lineage;
-  if (auto was = get_meta(txn, meta, kStoreIdKey); was && !was->empty() && *was != id) {
+  auto was = get_meta(txn, meta, kStoreIdKey);
+  if (!was && was.error().code != Errc::not_found) return unexpected(was.error());
+  if (was && !was->empty() && *was != id) {
     lineage = *was;
-    if (auto before = get_meta(txn, meta, kCopiedFromKey)) {
+    auto before = get_meta(txn, meta, kCopiedFromKey);
+    if (!before && before.error().code != Errc::not_found) return unexpected(before.error());
+    if (before) {
       std::istringstream ids(*before);
       std::size_t kept = 1;
       for (std::string one; kept < kMaxCopiedFrom && ids >> one; ++kept) lineage += " " + one;

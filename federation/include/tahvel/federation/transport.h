@@ -48,9 +48,9 @@ enum class FrameKind : std::uint8_t {
 // Bits of an up or down frame's `ack` field (docs/protocol.md P8, P9b).
 inline constexpr std::uint64_t kAckNow = 1;      // the sender's window is half full: ack the stream now
 inline constexpr std::uint64_t kMoreFollow = 2;  // more frames of the run sent back to back follow
-// A welcome's seq (docs/protocol.md P6e): the parent's store is a copy (restored from a backup)
-// of the store the child's hello named, made before that store had any of the child's stream.
-// 0 otherwise, which a link before P6e sends and reads.
+// A welcome's seq (docs/protocol.md P6e): the parent's store is a copy (restored from a backup),
+// holds nothing of the child's stream, and is not the store the child's hello named. 0
+// otherwise, which a link before P6e sends and reads.
 inline constexpr std::uint64_t kWelcomeFromACopy = 1;
 // An up or down frame's `ack` also names both ends' stores (P6b), so that frames of two stores
 // under one IRI are told apart: bits 16-39 a 24-bit tag of the sender's store id, bits 40-63 of

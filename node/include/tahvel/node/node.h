@@ -634,9 +634,10 @@ class Node {
   // not take them for ones they have seen. Returns the new id.
   Result<std::string> renew_store_id();
   // The stores this one is a copy of, nearest first: the id it had before each time it took a
-  // new one as a copy (back_up's copy, a file copy found at its first open, renew_store_id),
-  // up to 16. Empty for a store that was never copied. A parent restored from a backup tells a
-  // child that was linked with the store it is a copy of (docs/protocol.md P6e).
+  // new one as a copy (back_up's copy, a file copy found at its first open) or went back in time
+  // (renew_store_id: a rollback a peer showed), up to 16. Empty for a store that never did. A
+  // parent restored so tells a child that was linked with another store of it
+  // (docs/protocol.md P6e).
   Result<std::vector<std::string>> copied_from() const;
 
   // Writes a copy of the store, as of one snapshot, to the new directory `dest` (it must not
