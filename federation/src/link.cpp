@@ -383,8 +383,8 @@ struct Link::Impl {
   static constexpr auto kStaleWelcome = std::chrono::seconds(2);
   // P6e: the parent store whose welcome said it is a copy holding nothing of this store's
   // stream, until what the stores before had is back in the outbox. Its later welcomes do not
-  // say so (this node's hello names it now): one not taken (P6b) or a put-back that failed
-  // would otherwise leave P6c in its place. Under mu.
+  // say so (this node's hello names it now): one not taken for a conflict (P6b) would otherwise
+  // leave P6c in its place. Under mu.
   std::string copy_owed;
   std::string parent_store_id;  // from the welcome: names the down stream (P6a); under mu
   // The parent store an earlier run was welcomed by (its uplink state on the board), until the
@@ -507,6 +507,7 @@ struct Link::Impl {
     bool ever_before = false;   // connected in an earlier run (its state on the board said so)
     bool left = false;          // its link said it was stopping (P12c), and it has not said hello since
     std::uint64_t run = 0;  // the run its last hello named (P12c; 0: a link that names none)
+    Clock::time_point hello_while_up_at{};  // a hello said while it was connected (a run of 0)
     std::string copy_said_for;  // the store its hello named when P6e was last logged; under mu
     Clock::time_point last_seen{};
     std::int64_t last_seen_ns = 0;
@@ -1773,7 +1774,7 @@ struct Link::Impl {
           // backup's outbox held, which this store applied from the stream before; a store made
           // again from nothing repeats nothing, and loses nothing by the check.
           auto before = link->relay_mark(up_stream(child->iri, store_registered));
-          if (before) held_of_store_before = *before;
+          held_of_store_before = before ? *before : ~0ull;  // unknown: taken as held (no P6e)
           if (!before)
             log("cannot read the mark of <" + child->iri + ">'s store before: " + before.error().message);
           else if (*before > 0)
@@ -1810,6 +1811,7 @@ struct Link::Impl {
           child->connected = child->ever = true;
           child->left = false;
           child->run = f.prev;
+          child->hello_while_up_at = was ? Clock::now() : Clock::time_point{};
           child->last_seen = Clock::now();
           child->last_seen_ns = now_ns();
           if (state) {
@@ -2654,6 +2656,13 @@ struct Link::Impl {
             "(it came late)");
         return;
       }
+      if (child.run == 0 && Clock::now() - child.hello_while_up_at < kBothAlive) {
+        // A link that names no run (session 79): a hello while it was up within the second
+        // before is most likely a new run, and the notice its run before's.
+        log("child <" + f.from + ">: dropped a notice that its link is stopping, heard within " + seconds_text(kBothAlive) +
+            " of a hello it said while up (its link names no run: taken as its run before's, late)");
+        return;
+      }
       child.connected = false;
       child.left = true;
       child.state_dirty = true;
@@ -2682,26 +2691,6 @@ struct Link::Impl {
   }
 
   // ---- child role: up sender ----------------------------------------------------------------
-
-  // P6d, P6e: puts back into the outbox what the uplink was given with ids in (after, before)
-  // and no longer holds, a part of kRequeuePart ids per transaction: from mark 0 (P6e) that is
-  // all that went up since the store began, and one transaction for it held the node's writers
-  // up for as long. Returns how many.
-  static constexpr std::uint64_t kRequeuePart = 65'536;
-  node::Result<std::uint64_t> deliver_again_in_parts(node::Agent& uplink, std::uint64_t after, std::uint64_t before) {
-    const std::uint64_t issued = last_seq_here();
-    if (issued == ~0ull) return uplink.deliver_again_between(after, before, self);  // unknown: at once
-    const std::uint64_t end = std::min(before, issued + 1);
-    std::uint64_t total = 0;
-    for (std::uint64_t from = after; from + 1 < end && !stopping;) {
-      const std::uint64_t to = end - from > kRequeuePart + 1 ? from + kRequeuePart + 1 : end;
-      auto n = uplink.deliver_again_between(from, to, self);
-      if (!n) return n;
-      total += *n;
-      from = to - 1;
-    }
-    return total;
-  }
 
   // An item whose frame no binding takes (P4: bodies up to 64 MiB) could never be sent: it is
   // passed over in the stream (the next frame chains to the one before it) and stays in this
@@ -2781,17 +2770,13 @@ struct Link::Impl {
         auto waiting = uplink->peek(mark, 1, 0ms);
         const std::uint64_t before = waiting && !waiting->empty() ? waiting->front().item : std::numeric_limits<std::uint64_t>::max();
         // Only what goes up: items relayed down from above are never sent (P7).
-        auto again = deliver_again_in_parts(*uplink, mark, before);
+        auto again = uplink->deliver_again_between(mark, before, self);
         if (again && mark == 0) {
           std::lock_guard lock(mu);
           copy_owed.clear();
         }
         if (!again) {
-          log("cannot queue for the parent again what it acknowledged before its mark went back (tried again in 1 s): " +
-              again.error().message);
-          std::this_thread::sleep_for(1s);
-          std::lock_guard lock(mu);
-          requeue_after_welcome = true;
+          log("cannot queue for the parent again what it acknowledged before its mark went back: " + again.error().message);
         } else if (*again > 0 && mark == 0) {
           log("the parent <" + opt.parent_iri + "> holds nothing of this store's stream, restored from a backup: " +
               std::to_string(*again) + " item(s) the stores before had acknowledged go up again (P6e)");
@@ -3263,12 +3248,6 @@ struct Link::Impl {
       if (opt.up) look_at_addressees(*node, *link, unknown_addressees, next_addressee_check);
       say_problem(*link);
     }
-    std::vector<std::string> held_lines;
-    {
-      std::lock_guard lock(mu);
-      held_lines = held_already_due(Clock::now(), true);
-    }
-    for (const std::string& line : held_lines) log(line);
   }
 
   // P11a: an item from above addressed (R18) to an agent of this node that nothing here knows —
@@ -3685,6 +3664,12 @@ void Link::stop() {
   if (impl_->waker) impl_->waker->wake_waiters();  // the down pump
   for (auto& t : impl_->threads) t.join();
   impl_->threads.clear();
+  std::vector<std::string> held_lines;  // what the receivers dropped since the last line
+  {
+    std::lock_guard lock(impl_->mu);
+    held_lines = impl_->held_already_due(Clock::now(), true);
+  }
+  for (const std::string& line : held_lines) impl_->log(line);
   // P12c, once this run sends nothing more: a heartbeat after it, answered "unregistered", could
   // have had a hello follow it, and the parent take the child as up again as it died.
   impl_->say_leaving();
@@ -3774,7 +3759,12 @@ Result<std::unique_ptr<Link>> Link::start(LinkOptions options) {
     }
     auto parent_store = snap->list({.s = me, .p = node::Term::iri(vocab::kParentStoreId), .source = link_agent->iri()});
     if (!parent_store) return Unexpected<Error>{parent_store.error()};
-    if (!parent_store->empty()) impl->parent_store_before = parent_store->back().triple.o.value;
+    // Only of this parent: a node moved under another would name a store of its old parent in
+    // its hellos, and a copy at the new one would ask it for all it ever sent the old (P6e).
+    auto parent_before = snap->list({.s = me, .p = node::Term::iri(vocab::kParent), .source = link_agent->iri()});
+    if (!parent_before) return Unexpected<Error>{parent_before.error()};
+    const bool same_parent = !parent_before->empty() && parent_before->back().triple.o.value == options.parent_iri;
+    if (!parent_store->empty() && same_parent) impl->parent_store_before = parent_store->back().triple.o.value;
   }
   Link::Impl& s = *impl;
   s.opt = std::move(options);

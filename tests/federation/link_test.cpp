@@ -905,6 +905,7 @@ TEST(Link, ALeavingNoticeOfAnotherRunThanTheRegisteredOneIsDropped) {
   ASSERT_TRUE(eventually([&] { return state_says_up(tree.hospital_dir, kHome1); }));
   ASSERT_TRUE(leaving(0));
   EXPECT_TRUE(eventually([&] { return !state_says_up(tree.hospital_dir, kHome1); }));
+  EXPECT_FALSE(tree.hospital_log.has("silent for")) << "taken as down only once silent\n" << tree.hospital_log.text();
 }
 
 // P6a: the same downwards. A hospital whose store is made again issues configuration with ids
