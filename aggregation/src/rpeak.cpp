@@ -90,6 +90,15 @@ void shift_in(std::array<T, 8>& buf, T value) {
   buf[0] = value;
 }
 
+// The empty-gap evidence at fast rates (gap_before): the T wave has ended by this fraction of
+// the interval before (by Bazett at DetectorOptions::twave_qtc, counted from the R wave: 0.53 RR
+// at 150 bpm, 0.6 at 200); a missed beat lies within this many intervals of the beat before
+// (sinus arrhythmia moves it by 10-15 %); the P-wave cue needs intervals of at least this
+// many seconds (120 bpm).
+constexpr double kTwaveRrFraction = 0.7;
+constexpr double kMissedBeatLateRr = 1.2;
+constexpr double kPwaveCueMinRrS = 0.5;
+
 std::int64_t samples(double ms, double fs) {
   return std::max<std::int64_t>(1, std::llround(ms * fs / 1000));
 }
@@ -307,6 +316,9 @@ class RPeakDetector::Impl {
   double polarity_ = 0;  // running mean of the R-vs-S balance of recent beats, in [-1, 1]
   std::int64_t last_out_ = -1;
   bool finished_ = false;
+  // last_qrs_ when a candidate above the threshold was last rejected as a T wave: that gap
+  // may hide an early beat (gap_before).
+  std::int64_t twave_rejected_after_ = -1;
   // Every local maximum of the integrated slope (band-passed QRS point, height), newest at
   // events_[(events_n_ - 1) % size]: the evidence that a gap between beats is empty. Up to
   // ~30 maxima a second pass the 15 Hz low-pass, so 128 cover the 2 s gaps the NN rule keeps.
@@ -660,6 +672,7 @@ void RPeakDetector::Impl::classify(const Peak& p, std::vector<std::int64_t>& out
     accept(p, out);
     return;
   }
+  if (twave && p.height > threshold()) twave_rejected_after_ = last_qrs_;
   shift_in(noise_, p.height);
   shift_in(noise_at_, p.at);
   noise_med_ = median8(noise_);
@@ -725,9 +738,24 @@ auto RPeakDetector::Impl::gap_before(std::int64_t at) const -> Gap {
   // Nor can a gap with a run of one value repeated (DetectorOptions::flat_run_ms): no signal.
   for (std::size_t k = 0; k < std::min(flat_runs_n_, flat_runs_.size()); ++k)
     if (flat_runs_[k].second > last_qrs_ && flat_runs_[k].first < at) return gap;
+  // A candidate as tall as a beat, rejected as a T wave only for its slope: an early beat
+  // (an APC or PVC on the T wave) whose compensatory pause this is. Its QRS point lies before
+  // the gap's start, so no maximum below would show it.
+  if (twave_rejected_after_ == last_qrs_) return gap;
   const std::int64_t qt = std::llround(o_.twave_qtc * std::sqrt(rr_[0] / o_.fs) * o_.fs);
-  const std::int64_t from = last_qrs_ + std::max(twave_, qt), to = at - hold_;
-  const std::int64_t own_p = at - own_p_;
+  // The T wave ends before the next beat: at fast rates twave_ms reaches past where a missed
+  // beat would lie (at 150 bpm a beat comes 400 ms after the one before; a small missed one
+  // placed its maximum 305 ms after it, inside twave_ms), so the gap starts by
+  // kTwaveRrFraction of the interval before at the latest.
+  std::int64_t t_end = std::max(twave_, qt);
+  if (rr_[0] > 0) t_end = std::min<std::int64_t>(t_end, std::llround(kTwaveRrFraction * rr_[0]));
+  const std::int64_t from = last_qrs_ + t_end, to = at - hold_;
+  // This beat's own P wave lies after where a beat at the usual interval would (else a small
+  // missed beat at a fast rate, 300 ms or less before this one, was taken for it).
+  const std::int64_t own_p = std::max<std::int64_t>(at - own_p_, last_qrs_ + std::llround(kMissedBeatLateRr * rr_med_));
+  // At fast rates the P-wave template (250-90 ms before each beat) holds the T wave of the
+  // beat before, and a small missed QRS correlated with it at 0.9 or more.
+  const bool p_cue = rr_med_ >= kPwaveCueMinRrS * o_.fs;
   const double limit = o_.empty_gap_fraction * qrs_med_;
   const double p_limit = o_.pwave_fraction * qrs_med_;
   const std::size_t kept = std::min(events_n_, events_.size());
@@ -741,7 +769,7 @@ auto RPeakDetector::Impl::gap_before(std::int64_t at) const -> Gap {
       break;
     }
     if (when > from && when < to && height >= limit) {
-      if (pwave_at(when, height)) {
+      if (p_cue && pwave_at(when, height)) {
         gap.p_wave = true;  // shaped like the template (this beat's own P wave too, as before)
       } else if (when < own_p || height >= p_limit) {
         return Gap{};  // nor this beat's own P wave, which may have any shape

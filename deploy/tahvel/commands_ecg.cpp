@@ -73,8 +73,11 @@ class FrameWriter {
           out_ << ',';
           continue;
         }
-        std::snprintf(value, sizeof value, ",%.6g", (chunk.leads[l][i] - c.baseline) / c.gain);
-        out_ << value;
+        // The shortest text that reads back as the same number: with 6 significant digits,
+        // neighbouring ADC steps of a 24- or 32-bit lead printed alike (12.3457).
+        value[0] = ',';
+        const double v = (static_cast<double>(chunk.leads[l][i]) - c.baseline) / c.gain + 0.0;  // no "-0"
+        out_.write(value, std::to_chars(value + 1, value + sizeof value, v).ptr - value);
       }
       out_ << '\n';
       piece_.end_piece();

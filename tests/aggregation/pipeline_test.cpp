@@ -213,6 +213,58 @@ TEST(HrvFromRecord, ARecordShorterThanTheShortestWindowIsSaidToSayLittle) {
   std::filesystem::remove_all(dir);
 }
 
+// A record of several signals: the chain reads the ECG lead alone (read whole, a 12-lead
+// record took twelve times the memory of the lead it reads), still checks every signal's
+// checksum, and says a file shorter than its header.
+TEST(HrvFromRecord, ReadsTheEcgOfSeveralSignalsAndChecksEverySignalsSum) {
+  char pattern[] = "/tmp/tahvel-pipeline-XXXXXX";
+  ASSERT_NE(mkdtemp(pattern), nullptr);
+  const std::filesystem::path dir = pattern;
+  const SyntheticRun run = synthetic(60, 70, 3);
+  const std::size_t n = run.samples.size();
+  // Respiration first, then the ECG, then a signal whose checksum is wrong in the header.
+  const auto other = [&](std::size_t signal, std::size_t i) {
+    return static_cast<std::int32_t>((i * (signal + 3)) % 500) - 250;
+  };
+  std::uint16_t sums[3] = {0, 0, 0};
+  std::ofstream dat(dir / "three.dat", std::ios::binary);
+  for (std::size_t i = 0; i < n; ++i) {
+    for (std::size_t signal = 0; signal < 3; ++signal) {
+      const std::int32_t v = signal == 1 ? run.samples[i] : other(signal, i);
+      sums[signal] = static_cast<std::uint16_t>(sums[signal] + static_cast<std::uint16_t>(v));
+      const auto u = static_cast<std::uint16_t>(static_cast<std::int16_t>(v));
+      dat.put(static_cast<char>(u & 0xff)).put(static_cast<char>(u >> 8));
+    }
+  }
+  dat.close();
+  const auto sum_text = [](std::uint16_t sum) { return std::to_string(static_cast<std::int16_t>(sum)); };
+  std::ofstream(dir / "three.hea") << "three 3 360 " << n << "\n"
+                                   << "three.dat 16 200 16 0 0 " << sum_text(sums[0]) << " 0 Resp\n"
+                                   << "three.dat 16 200 16 0 0 " << sum_text(sums[1]) << " 0 MLII\n"
+                                   << "three.dat 16 200 16 0 0 " << sum_text(static_cast<std::uint16_t>(sums[2] + 1)) << " 0 ABP\n";
+  const std::string record = (dir / "three").string();
+  auto report = hrv_from_record(record);
+  ASSERT_TRUE(report) << report.error().message;
+  EXPECT_EQ(report->signal, 1u);
+  auto alone = hrv_from_samples(run.samples, 360, 200, {});
+  ASSERT_TRUE(alone) << alone.error().message;
+  EXPECT_EQ(report->beats, alone->beats);
+  const auto said = [&](const std::string& text) {
+    return std::any_of(report->warnings.begin(), report->warnings.end(),
+                       [&](const std::string& w) { return w.find(text) != std::string::npos; });
+  };
+  EXPECT_TRUE(said("three.hea: signal 2 (ABP): its samples add up to")) << ::testing::PrintToString(report->warnings);
+  EXPECT_FALSE(said("signal 1 (MLII)"));
+  EXPECT_FALSE(said("signal 0 (Resp)"));
+  // A file cut short is refused, naming it.
+  std::filesystem::resize_file(dir / "three.dat", n * 6 - 600);
+  auto cut = hrv_from_record(record);
+  ASSERT_FALSE(cut);
+  EXPECT_NE(cut.error().message.find("truncated"), std::string::npos) << cut.error().message;
+  EXPECT_NE(cut.error().message.find("three.dat"), std::string::npos) << cut.error().message;
+  std::filesystem::remove_all(dir);
+}
+
 // A window or step too short for HRV is refused, naming the setting and its bounds; a window
 // of 0.0001 s made 18 million windows of MIT-BIH 100 (std::bad_alloc).
 TEST(HrvChain, RefusesAWindowShorterThan10sOrAStepShorterThan1s) {

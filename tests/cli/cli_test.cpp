@@ -2265,6 +2265,29 @@ TEST_F(Cli, EcgPrintsEachFrameOfTheRangeInMillivoltsAndNamesWhatIsMissing) {
   EXPECT_EQ(run({"ecg", node_}).status, 2) << "--recording is required";
 }
 
+// A 24- or 32-bit lead (WFDB formats 24 and 32; chunks of "int32le interleaved") printed with 6
+// significant digits lost its ADC steps: 1234567 and 1234568 at 100,000 per mV both printed
+// 12.3457. Each value is printed so that it reads back as the same number.
+TEST_F(Cli, EcgPrintsEveryAdcStepOfAWideLeadApart) {
+  init();
+  const std::string rec = kNodeIri + "/source/recording/wide";
+  const std::int64_t t0 = 1'800'000'000'000'000'000;
+  auto source = source_of_one_lead_recording(node_, rec, "4.0", "100000", t0);
+  std::string bytes;
+  for (std::int32_t v : {1234567, 1234568, -2147483647, 0})
+    for (int b = 0; b < 4; ++b) bytes += static_cast<char>(static_cast<std::uint32_t>(v) >> (8 * b) & 0xff);
+  tahvel::node::Item chunk = ecg_chunk(rec, 0, 4, bytes, t0);
+  chunk.add(tahvel::node::Term::iri(rec + "/chunk/0"), tahvel::node::Term::iri("https://w3id.org/tahvel#sampleFormat"),
+            tahvel::node::Term::literal("int32le interleaved"));
+  ASSERT_TRUE(source.store(chunk));
+  Outcome r = run({"ecg", node_, "--recording", rec});
+  ASSERT_EQ(r.status, 0) << r.err;
+  EXPECT_EQ(r.out,
+            "sample,unix_ns,MLII\n"
+            "0,1800000000000000000,12.34567\n1,1800000000250000000,12.34568\n"
+            "2,1800000000500000000,-21474.83647\n3,1800000000750000000,0\n");
+}
+
 // An operator who asks a node without the recording (a typo, or the hospital instead of the
 // home that keeps the raw ECG) was told only that it is not there; now also what is.
 TEST_F(Cli, EcgOfARecordingTheNodeDoesNotHoldSaysWhichRecordingsItHolds) {
