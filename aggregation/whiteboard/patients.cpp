@@ -404,6 +404,26 @@ Result<PatientsOnBoard> patients_on_board(const Snapshot& snapshot, std::optiona
     if (*t) patients[key.first].trends.push_back(std::move(**t));
   }
 
+  // The newest recording of each sensor, by its latest window's signal time (then when that
+  // window was stored here): the others are superseded.
+  std::map<std::string, const PatientView*> newest_of_sensor;
+  const auto sensor_of = [](const std::string& recording) {
+    const std::size_t at = recording.rfind("/recording/");
+    return at == std::string::npos ? std::string() : recording.substr(0, at);
+  };
+  for (const auto& [recording, p] : patients) {
+    const std::string sensor = sensor_of(recording);
+    if (sensor.empty()) continue;
+    const PatientView*& newest = newest_of_sensor[sensor];
+    if (!newest || std::pair(p.latest_asserted_ns, p.latest_stored_ns) > std::pair(newest->latest_asserted_ns, newest->latest_stored_ns))
+      newest = &p;
+  }
+  for (auto& [recording, p] : patients) {
+    const std::string sensor = sensor_of(recording);
+    if (sensor.empty()) continue;
+    if (const PatientView* newest = newest_of_sensor[sensor]; newest != &p) p.superseded_by = newest->recording;
+  }
+
   PatientsOnBoard out;
   for (auto& [recording, p] : patients) {
     std::sort(p.trends.begin(), p.trends.end(),

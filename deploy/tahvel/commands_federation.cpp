@@ -862,12 +862,18 @@ std::vector<ProgramRow> read_state_files(const fs::path& dir) {
       if (!file.supervised && f[2].rfind("stopped", 0) != 0) f[2] = "stopped (its supervisor is not running)";
       // The file says what the supervisor saw last; a program that died since is dead now,
       // whether the supervisor has seen it yet or is itself stopped (SIGSTOP) and cannot.
-      if (file.supervised && f[2] == "running" && process_has_exited(f[1]))
+      if (file.supervised && f[2] == "running" && process_has_exited(f[1])) {
+        // A supervisor that cannot write its file for a full disk still runs, and restarts the
+        // program (the file is all that is stale); one stopped or hung restarts nothing.
+        const std::string why = why_state_not_written(dir);
+        const bool disk_full = why.rfind("the disk holding", 0) == 0;
         f[2] = "exited (pid " + f[1] + "), and its supervisor has not seen it yet" +
                (file.silent_s > kSupervisorSilentS / 10
-                    ? ": it has not written its state for " + seconds_text(file.silent_s) + " (" + why_state_not_written(dir) +
-                          "), so nothing restarts it now"
+                    ? ": it has not written its state for " + seconds_text(file.silent_s) + " (" + why +
+                          (disk_full ? "), so it may have restarted it since without saying so here"
+                                     : "), so nothing restarts it now")
                     : "");
+      }
       else if (file.supervised && file.silent_s > kSupervisorSilentS)
         // Whether its process is still there is known here (it has not exited: checked above);
         // whether it does its work is not.

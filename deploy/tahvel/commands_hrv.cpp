@@ -408,7 +408,10 @@ void print_patients_json(const std::string& node_iri, const agg::PatientsOnBoard
     for (std::size_t k = 0; k < p.other_writers.size(); ++k)
       out << (k ? "," : "") << "{\"source\":\"" << node::json_escape(p.other_writers[k].first)
           << "\",\"windows\":" << p.other_writers[k].second << "}";
-    out << "],\"latest\":{\"iri\":\"" << node::json_escape(p.latest.iri)
+    out << "],\"superseded_by\":";
+    if (p.superseded_by.empty()) out << "null";
+    else out << "\"" << node::json_escape(p.superseded_by) << "\"";
+    out << ",\"latest\":{\"iri\":\"" << node::json_escape(p.latest.iri)
         << "\",\"start_s\":" << seconds_number(p.latest.window.start_s) << ",\"end_s\":" << seconds_number(p.latest.window.end_s)
         << ",\"stored_ns\":" << p.latest_stored_ns << ",\"asserted_ns\":" << p.latest_asserted_ns << ",\"metrics\":" << metrics_json(p.latest.window.metrics) << "}";
     // Where the raw ECG behind the latest window is, for `tahvel ecg` or `tahvel query`.
@@ -477,6 +480,9 @@ void print_patient_text(const std::string& dir, const std::string& node_iri, con
       std::cout << "  its windows come through <" << link->child << ">, " << link->state << " at <" << link->at << "> ("
                 << heard << "): windows computed since have not come\n";
   }
+  if (!p.superseded_by.empty())
+    std::cout << "  a later recording of the same sensor, <" << p.superseded_by
+              << ">, has windows since: this one's source stopped or started again as that one\n";
   for (const auto& [writer, count] : p.other_writers)
     std::cout << "  also " << count << " window(s) of it from <" << writer
               << ">, not shown: two HRV agents on one recording (run one tahvel-hrv per recording)\n";
@@ -594,7 +600,7 @@ const Command kPatientsCommand{
     "--since T counts only the windows (and trends) of signal time T or later: ns since the\n"
     "epoch or an RFC 3339 time such as 2026-11-21T10:00:00Z, as tahvel query takes it.\n"
     "--json prints one object: {node, patients: [{recording, source, windows, alerting,\n"
-    "irregular, other_writers: [{source, windows}], latest: {iri, start_s, end_s, stored_ns,\n"
+    "irregular, other_writers: [{source, windows}], superseded_by, latest: {iri, start_s, end_s, stored_ns,\n"
     "asserted_ns, metrics}, raw_ecg: {node, since_ns, until_ns} or null, link: {child, state,\n"
     "last_seen_ns, stale, at} or null, trends: [{metric, window_start_s, windows, latest,\n"
     "baseline, robust_sd, slope_per_hour, alert, direction, z_against_others, others}]}],\n"

@@ -418,6 +418,31 @@ TEST_F(PatientsOnBoard, WindowsOfTwoWritersShowTheWriterNearestTheRecordingAndNa
   EXPECT_EQ(a.other_writers[0].second, 4u);
 }
 
+// A sensor restarted (or taken out of a deployment and put back) starts a new recording: the
+// same bed showed as two patients, the earlier one still with its alert, and nothing said which
+// was current. The earlier is now named superseded by the later (by its latest window's signal
+// time); another sensor's recording is not.
+TEST_F(PatientsOnBoard, AnEarlierRecordingOfTheSameSensorIsSupersededByTheLater) {
+  const std::string earlier = kHospital + "/home1/ecg/recording/synthetic-1";
+  const std::string later = kHospital + "/home1/ecg/recording/synthetic-2";
+  const std::int64_t t0 = 1'800'000'000'000'000'000;
+  window("home1-hrv", later, 0, 45, std::nullopt, t0 + 600'000'000'000);
+  window("home1-hrv", earlier, 0, 40, std::nullopt, t0);
+  window("home1-hrv", earlier, 60, 41, std::nullopt, t0 + 60'000'000'000);
+  trend(earlier, agg::HrvMetric::sdnn, 60, true, t0 + 60'000'000'000);
+  window("home2-hrv", kRecB, 0, 50, std::nullopt, t0);
+  const agg::PatientsOnBoard board = read();
+  ASSERT_EQ(board.patients.size(), 3u);
+  for (const agg::PatientView& p : board.patients) {
+    if (p.recording == earlier) {
+      EXPECT_EQ(p.superseded_by, later);
+      EXPECT_TRUE(p.alerting()) << "its alert is still its own";
+    } else {
+      EXPECT_EQ(p.superseded_by, "") << p.recording;
+    }
+  }
+}
+
 TEST(PatientView, TheSourceNodeIsTheWritersIriLessItsLastSegment) {
   agg::PatientView p;
   auto node_of = [&](const std::string& source) {

@@ -2430,7 +2430,7 @@ TEST_F(Cli, PatientsShowsEachRecordingsLatestWindowWithAlertingPatientsFirst) {
   EXPECT_NE(alerts.out.find("\"recording\":\"http://example.org/home1/ecg/recording/a\""), std::string::npos) << alerts.out;
   EXPECT_NE(alerts.out.find("\"recording\":\"http://example.org/home1/ecg/recording/c\""), std::string::npos) << alerts.out;
   EXPECT_EQ(alerts.out.find("recording/b\""), std::string::npos) << "only the alerting patients:\n" << alerts.out;
-  for (const char* key : {"\"node\":", "\"source\":", "\"windows\":2", "\"alerting\":true", "\"irregular\":false",
+  for (const char* key : {"\"node\":", "\"source\":", "\"windows\":2", "\"alerting\":true", "\"irregular\":false", "\"superseded_by\":",
                           "\"latest\":{", "\"stored_ns\":", "\"asserted_ns\":", "\"sdnn_ms\":90",
                           "\"raw_ecg\":{\"node\":\"http://example.org/home1\",\"since_ns\":", "\"trends\":[{\"metric\":\"sdnnMs\"",
                           "\"direction\":\"above\"", "\"unreadable\":[]"})
