@@ -255,6 +255,7 @@ struct EarlierRun {
   std::optional<double> fs, gain;        // its tv:samplingRate and tv:gain
   std::map<long, std::string> leads;     // its tv:lead values ("0 MLII"), by index
   bool ended_here = false;               // this run wrote its tv:endSample (another signal's take)
+  std::string written_on;                // its tv:takeStore: the store it was written on, when said
 };
 
 // Whether a take with these settings holds `signal`: the same record or generator settings,
@@ -299,6 +300,7 @@ tahvel::node::Result<EarlierRun> earlier_run(const rt::Session& session, const s
     }
     if (r.triple.p.value == tv + "replayedFrom") run.replayed_from = r.triple.o.value;
     if (r.triple.p.value == tv + "sampleDigest") run.sample_digest = r.triple.o.value;
+    if (r.triple.p.value == tv + "takeStore") run.written_on = r.triple.o.value;
     // The take's time axis before any chunk is on the board: a run killed before its first chunk
     // left the recording item alone, and the next one, going on under its name, stamped its
     // chunks from its own start, seconds after this: a time range of the take found no chunk.
@@ -412,6 +414,12 @@ int replay(rt::Session& session, Signal& signal, double speed) {
   // leads; another --hr or a corrected header is another signal), the latest take or an older
   // one, is left as it is, and this run has nothing to do.
   const std::string base_iri = signal.info.iri;
+  auto store_id_read = session.node.store_id();
+  if (!store_id_read) {
+    rt::log_line(kProgram, "reading the store's id: " + store_id_read.error().message);
+    return rt::kExitError;
+  }
+  const std::string store_id = *store_id_read;
   const std::int64_t now_ns =
       std::chrono::duration_cast<std::chrono::nanoseconds>(std::chrono::system_clock::now().time_since_epoch()).count();
   auto takes = takes_on_board(session, base_iri);
@@ -442,6 +450,20 @@ int replay(rt::Session& session, Signal& signal, double speed) {
                                  earlier.replayed_from + (renamed ? ", another record of that name: its first samples differ" : "") +
                                  "): ended at frame " + std::to_string(earlier.next) +
                                  "; recording anew");
+      earlier.end = earlier.next;
+      earlier.ended_here = true;
+    }
+    // A take left unended in a store that has since become a copy (restored from a backup, a
+    // file copy; docs/protocol.md P6a) may have gone on in the store it was copied from, and
+    // been ended there: its node above holds more of it, and its end. Going on from the copy's
+    // last chunk gave that node a second end and a take that went on after it (its chain reset,
+    // its HRV windows shifted and overlapping). This run takes anew; the end, if any, is the
+    // other store's to have said.
+    if (!earlier.end && earlier.recording && !earlier.written_on.empty() && earlier.written_on != store_id) {
+      rt::log_line(kProgram, "<" + takes->back() + ">, left unended, was written on store " + earlier.written_on +
+                                 ", and this store (" + store_id +
+                                 ") is a copy of it or made again: the take may have gone on there after the copy; "
+                                 "recording anew");
       earlier.end = earlier.next;
       earlier.ended_here = true;
     }
@@ -484,6 +506,18 @@ int replay(rt::Session& session, Signal& signal, double speed) {
   if (!earlier.recording) {
     if (auto s = agent.store(agg::recording_item(signal.info)); !s) {
       rt::log_line(kProgram, "store recording item: " + s.error().message);
+      return rt::kExitError;
+    }
+  }
+  // The store the take is written on (local: the forwarding policy sends the recording's
+  // description, not this), once per take and store; a take of a build before it was kept gets
+  // it when this run goes on with it.
+  if (earlier.written_on != store_id) {
+    tahvel::node::Item written_on;
+    written_on.persistent = true;
+    written_on.add(tahvel::node::Term::iri(signal.info.iri), agg::tv_term("takeStore"), tahvel::node::Term::literal(store_id));
+    if (auto s = agent.store(written_on); !s) {
+      rt::log_line(kProgram, "store the take's store: " + s.error().message);
       return rt::kExitError;
     }
   }

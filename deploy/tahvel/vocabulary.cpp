@@ -142,6 +142,7 @@ constexpr std::array kTerms = {
     std::string_view("stepSeconds"),
     std::string_view("subject"),
     std::string_view("subscriber"),
+    std::string_view("takeStore"),
     std::string_view("temperature"),
     std::string_view("temperatureAt"),
     std::string_view("thresholdAbove"),

@@ -332,6 +332,36 @@ TEST_F(EcgSourceTest, ARestartAfterAKillGoesOnAfterTheLastChunkAndWritesEachSeco
   expect_each_chunk_ends_where_the_next_begins(after);
 }
 
+// A sensor's store restored from a backup holds a take left unended at the copy, which the
+// store it was copied from went on with (and ended, at a `down`): its home holds those chunks and
+// that end. Going on from the copy's last chunk gave the home a take that went on after its end
+// (its chain reset, HRV windows shifted and overlapping; an exploratory run of session 81). The
+// source records anew instead, and leaves the copied take as it is.
+TEST_F(EcgSourceTest, ATakeLeftUnendedInAStoreRestoredFromABackupIsNotContinued) {
+  const std::string dir = new_node("sensor");
+  const std::size_t before = kill_the_source_after_ten_chunks(dir);
+  ASSERT_GE(before, 10u);
+  ASSERT_LT(before, 60u) << "the source ended before it was killed";
+  const std::string take = the_recording(dir);
+  const fs::path backup = tmp_ / "sensor-backup";
+  ASSERT_TRUE(tn::Node::open(dir)->back_up(backup));
+  ASSERT_EQ(run_source(dir), 0);  // the take goes on in the store backed up, and ends there
+  ASSERT_EQ(recordings(dir), std::vector<std::string>{take});
+  ASSERT_EQ(chunks(dir, take).samples.size(), 60u);
+  // A take is named to the second: the new one is not named as the first.
+  const auto second = std::chrono::floor<std::chrono::seconds>(std::chrono::system_clock::now());
+  std::this_thread::sleep_until(second + 1100ms);
+  fs::remove_all(dir);
+  fs::rename(backup, dir);
+  ASSERT_EQ(run_source(dir), 0);
+  const std::vector<std::string> takes = recordings(dir);
+  ASSERT_EQ(takes.size(), 2u) << "the copied take was gone on with";
+  const std::string fresh = takes[0] == take ? takes[1] : takes[0];
+  EXPECT_EQ(chunks(dir, take).samples.size(), before) << "the copied take is left as the copy holds it";
+  EXPECT_TRUE(objects(dir, take, std::string(agg::kTv) + "endSample").empty()) << "its end is the other store's to say";
+  EXPECT_EQ(chunks(dir, fresh).samples.size(), 60u);
+}
+
 // A source killed before its first chunk leaves the recording item alone. The next run went on
 // under the take's name but stamped its chunks from its own start, seconds after the take's
 // tv:startedAt: `tahvel ecg` found nothing in a range of the take, and an HRV window's samples
