@@ -813,6 +813,20 @@ constexpr double kLinkStartingS = 10;
 
 // Why a supervisor may not have written its state file in `dir` for a while: a full disk under
 // it, which is then the likely cause, and otherwise "stopped, hung or held up".
+// A program's name on node `node` from its IRI (agents::programs_item): the path below the node,
+// of one id or several ("behavior/17", a dispatcher's run); nullopt for an IRI not below it so.
+std::optional<std::string> program_name(const std::string& iri, const std::string& node) {
+  if (auto id = uri::child_id(iri, node)) return *id;
+  if (iri.size() <= node.size() + 1 || iri.compare(0, node.size(), node) != 0 || iri[node.size()] != '/') return std::nullopt;
+  const std::string path = iri.substr(node.size() + 1);
+  for (std::size_t from = 0;;) {
+    const std::size_t slash = std::min(path.find('/', from), path.size());
+    if (!uri::check_id(std::string_view(path).substr(from, slash - from))) return std::nullopt;
+    if (slash == path.size()) return path;
+    from = slash + 1;
+  }
+}
+
 std::string why_state_not_written(const fs::path& dir) {
   struct statvfs disk {};
   // The state file is written anew and renamed into place: it needs a block and an inode.
@@ -2756,7 +2770,7 @@ RemoteBoard ask_board(node::Node& from, const std::string& target, std::chrono::
   std::map<std::string, Problem> problems;
   read_problems(problem_records, target, problems);
   for (auto& [iri, f] : programs) {
-    auto name = uri::child_id(iri, target);
+    auto name = program_name(iri, target);
     if (!name) continue;
     board.programs.push_back({*name, f["pid"], f["programState"], f["restarts"].empty() ? "0" : f["restarts"], f["lastExit"]});
   }

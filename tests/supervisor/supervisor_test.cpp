@@ -363,6 +363,27 @@ TEST(ProgramsOnTheBoard, EachProgramIsNamedByItsAgentIriWithWhatItsSupervisorKno
   auto bad = programs_item("http://h/home1", {ProgramState{.name = "a b"}}, 1);
   ASSERT_FALSE(bad.has_value());
   EXPECT_NE(bad.error().message.find("program 'a b' of <http://h/home1>"), std::string::npos) << bad.error().message;
+  for (const char* name : {"behavior/", "/x", "behavior//17"})
+    EXPECT_FALSE(programs_item("http://h/home1", {ProgramState{.name = name}}, 1).has_value()) << name;
+}
+
+// A dispatcher's run is the program "behavior/<item>": as one id its '/' was refused, and while
+// any behaviour ran the supervisor wrote none of the node's programs, nor its holdings, to the
+// board (a remote status showed them stale; an exploratory run of session 81). Its IRI is the
+// path below the node.
+TEST(ProgramsOnTheBoard, ARunOfADispatchedBehaviourIsAPathBelowTheNode) {
+  ProgramState run{.name = "behavior/17", .pid = 4713, .running = true};
+  ProgramState link{.name = "link", .pid = 4711, .running = true};
+  auto item = programs_item("http://h/ward", {link, run}, 1);
+  ASSERT_TRUE(item.has_value()) << item.error().message;
+  auto has = [&](const std::string& s, const std::string& p, const std::string& o) {
+    for (const auto& t : item->triples)
+      if (t.s.value == s && t.p.value == p && t.o.value == o) return true;
+    return false;
+  };
+  EXPECT_TRUE(has("http://h/ward", vocab::kProgram, "http://h/ward/behavior/17"));
+  EXPECT_TRUE(has("http://h/ward/behavior/17", vocab::kPid, "4713"));
+  EXPECT_TRUE(has("http://h/ward", vocab::kProgram, "http://h/ward/link"));
 }
 
 // Beside the programs, what the node's store holds: one blank node per predicate under the

@@ -602,9 +602,18 @@ Result<node::Item> programs_item(const std::string& node_iri, const std::vector<
   const Term node = Term::iri(node_iri);
   item.add(node, Term::iri(vocab::kProgramsAt), Term::integer(now_ns));
   for (const ProgramState& p : programs) {
-    auto iri = uri::agent_iri(node_iri, p.name);
-    if (!iri) return fail(Errc::invalid_iri, "program '" + p.name + "' of <" + node_iri + ">: " + iri.error().message);
-    const Term program = Term::iri(*iri);
+    // A name of several ids is a path below the node: the dispatcher's runs are
+    // "behavior/<item>" (as one id, its '/' refused, every program's write failed while one ran).
+    std::string iri = node_iri;
+    for (std::size_t from = 0;;) {
+      const std::size_t slash = std::min(p.name.find('/', from), p.name.size());
+      auto below = uri::agent_iri(iri, std::string_view(p.name).substr(from, slash - from));
+      if (!below) return fail(Errc::invalid_iri, "program '" + p.name + "' of <" + node_iri + ">: " + below.error().message);
+      iri = *below;
+      if (slash == p.name.size()) break;
+      from = slash + 1;
+    }
+    const Term program = Term::iri(iri);
     item.add(node, Term::iri(vocab::kProgram), program);
     item.add(program, Term::iri(vocab::kProgramState), Term::literal(std::string(program_state_name(p))));
     if (p.running && p.pid > 0) item.add(program, Term::iri(vocab::kPid), Term::integer(p.pid));

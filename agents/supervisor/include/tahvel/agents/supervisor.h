@@ -218,7 +218,8 @@ inline constexpr std::chrono::seconds kProgramsRefresh{5};
 std::string_view program_state_name(const ProgramState& state);
 
 // The item above for node `node_iri`; `programs` carry their names on the node ("hrv", not
-// "home1/hrv"). Errors: invalid_iri when a name cannot extend the node's IRI.
+// "home1/hrv"). A name of several ids ("behavior/17", a dispatcher's run) is a path below the
+// node (<N>/behavior/17). Errors: invalid_iri when a name cannot extend the node's IRI.
 Result<node::Item> programs_item(const std::string& node_iri, const std::vector<ProgramState>& programs,
                                  std::int64_t now_ns);
 
