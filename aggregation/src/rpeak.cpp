@@ -319,10 +319,15 @@ class RPeakDetector::Impl {
   // last_qrs_ when a candidate above the threshold was last rejected as a T wave: that gap
   // may hide an early beat (gap_before).
   std::int64_t twave_rejected_after_ = -1;
-  // Every local maximum of the integrated slope (band-passed QRS point, height), newest at
-  // events_[(events_n_ - 1) % size]: the evidence that a gap between beats is empty. Up to
-  // ~30 maxima a second pass the 15 Hz low-pass, so 128 cover the 2 s gaps the NN rule keeps.
-  std::array<std::pair<std::int64_t, double>, 128> events_{};
+  // Every local maximum of the integrated slope, newest at events_[(events_n_ - 1) % size]:
+  // the evidence that a gap between beats is empty. Up to ~30 maxima a second pass the 15 Hz
+  // low-pass, so 128 cover the 2 s gaps the NN rule keeps.
+  struct Event {
+    std::int64_t when;    // the band-passed QRS point (its steepest sample, less the delay)
+    double height;
+    std::int64_t peak;    // where the integrated slope peaked: events are stored in its order
+  };
+  std::array<Event, 128> events_{};
   std::size_t events_n_ = 0;
   // The P-wave template (DetectorOptions::pwave_fraction): the running mean of the original
   // signal over 2 p_half_ + 1 samples centred p_lead_ before each accepted beat, the line
@@ -499,7 +504,7 @@ void RPeakDetector::Impl::on_fpeak(double height, std::int64_t at) {
   // Below the floor it is never a beat, but it still counts against an empty gap: a small
   // missed QRS often lies there.
   events_[events_n_++ % events_.size()] = {
-      std::max<std::int64_t>(0, best_at - std::llround(bp_delay_)), height};
+      std::max<std::int64_t>(0, best_at - std::llround(bp_delay_)), height, at};
   note_ripple(hi_v - lo_v);
   if (hi_v - lo_v < floor()) return;  // below the floor: never a beat
   Peak p;
@@ -745,10 +750,15 @@ auto RPeakDetector::Impl::gap_before(std::int64_t at) const -> Gap {
   const std::int64_t qt = std::llround(o_.twave_qtc * std::sqrt(rr_[0] / o_.fs) * o_.fs);
   // The T wave ends before the next beat: at fast rates twave_ms reaches past where a missed
   // beat would lie (at 150 bpm a beat comes 400 ms after the one before; a small missed one
-  // placed its maximum 305 ms after it, inside twave_ms), so the gap starts by
-  // kTwaveRrFraction of the interval before at the latest.
-  std::int64_t t_end = std::max(twave_, qt);
-  if (rr_[0] > 0) t_end = std::min<std::int64_t>(t_end, std::llround(kTwaveRrFraction * rr_[0]));
+  // had its QRS point 305 ms after it, inside twave_ms), so the gap starts by
+  // kTwaveRrFraction of the median interval at the latest (of the interval before, it started
+  // inside the T wave of an early beat, which then passed for a P wave). There, a maximum is in
+  // the gap when the integrated slope peaked in it: a small QRS just after the T wave had its
+  // steepest band-passed sample, its QRS point, on that T wave.
+  const std::int64_t t_end_by_qt = std::max(twave_, qt);
+  const std::int64_t t_end =
+      rr_med_ > 0 ? std::min<std::int64_t>(t_end_by_qt, std::llround(kTwaveRrFraction * rr_med_)) : t_end_by_qt;
+  const bool cut = t_end < t_end_by_qt;
   const std::int64_t from = last_qrs_ + t_end, to = at - hold_;
   // This beat's own P wave lies after where a beat at the usual interval would (else a small
   // missed beat at a fast rate, 300 ms or less before this one, was taken for it).
@@ -761,14 +771,14 @@ auto RPeakDetector::Impl::gap_before(std::int64_t at) const -> Gap {
   const std::size_t kept = std::min(events_n_, events_.size());
   bool covered = events_n_ <= events_.size();  // the ring reaches back to the start
   for (std::size_t k = 1; k <= kept; ++k) {
-    const auto& [when, height] = events_[(events_n_ - k) % events_.size()];
+    const auto& [when, height, peak] = events_[(events_n_ - k) % events_.size()];
     // Events are stored in the order of their integrator maxima, which may put a QRS point
     // up to one window (plus margin) before that of an older event: stop only past that.
-    if (when + win_ + margin_ <= from) {
+    if (when + win_ + margin_ <= from && peak <= from) {
       covered = true;
       break;
     }
-    if (when > from && when < to && height >= limit) {
+    if ((cut ? peak : when) > from && when < to && height >= limit) {
       if (p_cue && pwave_at(when, height)) {
         gap.p_wave = true;  // shaped like the template (this beat's own P wave too, as before)
       } else if (when < own_p || height >= p_limit) {

@@ -94,7 +94,7 @@ struct DetectorOptions {
   // P wave), not a missed beat. 0 disables the evidence. On MIT-BIH the missed beats left
   // after search-back reach 0.06 and more (one, in noise, reached nothing). A gap after a
   // candidate above the threshold that the T-wave test rejected (an early beat) is never
-  // empty; at fast rates the gap starts by 0.7 of the interval before at the latest, and below
+  // empty; at fast rates the gap starts by 0.7 of the median interval at the latest, and below
   // 0.5 s intervals the P-wave cue is off (docs/rpeak.md step 8, "Early beats and fast rates").
   double empty_gap_fraction = 0.05;
   // A wave in the gap that is the record's own P wave does not count against an empty gap: a
