@@ -157,31 +157,49 @@ class Simulator {
       last_value_[key] = r.value;
     }
     // A mote on the wall between two rooms is in both (S3): one reading at an instant counts
-    // for each room it is due in (S12), instead of a second reading of the same moment.
+    // for each room it stands in (S12). So the rooms due now are served fewest capable motes
+    // first, a room that a reading of this instant already counts for takes that one, and a
+    // room picks, of its motes, one that stands in no room served already, then the one that
+    // answered least recently: a mote on the corner of rooms B and C, C's only one, read for
+    // C after B's own mote had been read for B gave B two readings of one instant (and a room
+    // next to a shared mote read for it, as many).
+    std::vector<std::pair<std::pair<std::string, sp::Quantity>, const RoomDue*>> due_now;
+    for (const auto& [key, due] : room_due)
+      if (is_due(key, due.period_s, now_ns)) due_now.push_back({key, &due});
+    std::stable_sort(due_now.begin(), due_now.end(),
+                     [](const auto& a, const auto& b) { return a.second->motes.size() < b.second->motes.size(); });
+    std::map<std::pair<std::string, sp::Quantity>, std::set<std::string>> rooms_of;  // (mote, quantity) -> rooms due
+    for (const auto& [key, due] : due_now)
+      for (const std::string& m : due->motes) rooms_of[{m, key.second}].insert(key.first);
     std::map<std::pair<std::string, sp::Quantity>, double> read_now;  // (mote, quantity) -> value
-    for (const auto& [key, due] : room_due) {
-      if (!is_due(key, due.period_s, now_ns)) continue;
-      const auto shared = std::find_if(due.motes.begin(), due.motes.end(),
+    std::set<std::pair<std::string, sp::Quantity>> served;           // (room, quantity)
+    for (const auto& [key, due] : due_now) {
+      const auto shared = std::find_if(due->motes.begin(), due->motes.end(),
                                        [&](const std::string& m) { return read_now.count({m, key.second}) > 0; });
-      if (shared != due.motes.end()) {
+      if (shared != due->motes.end()) {
         last_time_[key] = now_ns;
         last_value_[key] = read_now.at({*shared, key.second});
+        served.insert(key);
         continue;
       }
-      const std::string* mote = &due.motes.front();
-      for (const std::string& m : due.motes) {
-        auto answered = [&](const std::string& x) {
-          auto it = last_answered_.find({x, key.second});
-          return it == last_answered_.end() ? std::numeric_limits<std::int64_t>::min() : it->second;
-        };
-        if (answered(m) < answered(*mote)) mote = &m;
-      }
+      auto answered = [&](const std::string& x) {
+        auto it = last_answered_.find({x, key.second});
+        return it == last_answered_.end() ? std::numeric_limits<std::int64_t>::min() : it->second;
+      };
+      auto in_a_served_room = [&](const std::string& x) {
+        const auto& rooms = rooms_of[{x, key.second}];
+        return std::any_of(rooms.begin(), rooms.end(), [&](const std::string& room) { return served.count({room, key.second}) > 0; });
+      };
+      const std::string* mote = &due->motes.front();
+      for (const std::string& m : due->motes)
+        if (std::pair(in_a_served_room(m), answered(m)) < std::pair(in_a_served_room(*mote), answered(*mote))) mote = &m;
       sp::Reading r{key.second, sense(*mote, key.second, now_ns), now_ns};
       if (!write(*mote, r)) return false;
       last_time_[key] = now_ns;
       last_value_[key] = r.value;
       last_answered_[{*mote, key.second}] = now_ns;
       read_now[{*mote, key.second}] = r.value;
+      served.insert(key);
     }
     return true;
   }
