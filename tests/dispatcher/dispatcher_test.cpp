@@ -141,6 +141,35 @@ TEST_F(DispatcherTest, StopCommandEndsARunningBehaviourAndUnknownNamesAreRefused
   EXPECT_FALSE(holds(n("goAhead"), kNs + "result", n("ok")));
 }
 
+// A stop that finds nothing to stop, a bare "stop", and a behaviour file without its execute
+// bit were passed over without a word, or called "no such executable behaviour" (an
+// exploratory run of session 81). Each is refused saying why.
+TEST_F(DispatcherTest, AStopOfNothingRunningABareStopAndAFileThatIsNotExecutableAreRefusedSayingWhy) {
+  std::ofstream(root_ / "behaviours" / "notExecutable") << "#!/bin/sh\necho ok\n";
+  fs::permissions(root_ / "behaviours" / "notExecutable", fs::perms::owner_read | fs::perms::owner_write);
+  ta::Supervisor supervisor([](std::string_view) {});
+  auto d = ta::Dispatcher::open(root_ / "node", {.folder = root_ / "behaviours"}, supervisor);
+  ASSERT_TRUE(d.has_value());
+  std::vector<ta::DispatchEvent> events;
+  for (const char* command : {"stop monitorObstacle", "stop", "notExecutable"}) {
+    put({{n("me"), n("behavior"), tn::Term::literal(command)}}, d->iri());
+    auto more = poll_until(*d, [&] {
+      auto snap = node_->snapshot();
+      return *snap->count({.p = tn::Term::iri(kTv + "command"), .o = tn::Term::literal(command)}) == 1;
+    });
+    events.insert(events.end(), more.begin(), more.end());
+  }
+  const auto refused_saying = [&](const std::string& command, const std::string& why) {
+    return std::any_of(events.begin(), events.end(), [&](const ta::DispatchEvent& e) {
+      return e.kind == ta::DispatchEvent::refused && e.command == command && e.detail.find(why) != std::string::npos;
+    });
+  };
+  EXPECT_TRUE(refused_saying("stop monitorObstacle", "no run of 'monitorObstacle' is running, so none was stopped (none is running)"));
+  EXPECT_TRUE(refused_saying("stop", "'stop' names no behaviour to stop: write \"stop NAME\""));
+  EXPECT_TRUE(refused_saying("notExecutable", "notExecutable: not executable by this user (chmod +x it)"));
+  EXPECT_EQ(d->running(), 0u);
+}
+
 // `behavior(me, goAhead)` for `behavior(me, "goAhead")`: a command written as an IRI was passed
 // over without a run record or a word in the log.
 TEST_F(DispatcherTest, ACommandWrittenAsAnIriIsRefusedSayingToQuoteIt) {

@@ -7,9 +7,13 @@
 
 #include <algorithm>
 #include <cctype>
+#include <filesystem>
 #include <fstream>
 #include <map>
+#include <set>
 #include <sstream>
+#include <string>
+#include <vector>
 
 #include "tahvel/node/node.h"
 #include "tahvel/uri/iri.h"
@@ -148,23 +152,32 @@ Result<void> Dispatcher::Impl::command(std::uint64_t item, const std::string& te
                                        std::vector<DispatchEvent>& events, bool not_a_string) {
   const std::string run = agent.iri() + "/run/" + std::to_string(item);
   std::vector<std::string> argv = not_a_string ? std::vector<std::string>{} : words(text);
-  if (argv.size() == 2 && argv[0] == "stop") {
-    std::vector<std::string> stopping;  // together: one grace for all, not 2 s each
-    for (auto& [program, r] : runs) {
-      if (r.name != argv[1]) continue;
-      r.stop_requested = true;
-      stopping.push_back(program);
-      events.push_back({DispatchEvent::stopped, r.iri, r.command, "stop command " + run});
-    }
-    supervisor.stop(stopping, std::chrono::seconds(2));
-    return {};
-  }
   auto refuse = [&](const std::string& why) -> Result<void> {
     events.push_back({DispatchEvent::refused, run, text, why});
     return record({t(run, kTv + "command", node::Term::literal(text)),
                         t(run, kTv + "state", node::Term::literal("refused")),
                         t(run, kTv + "output", node::Term::literal(why))});
   };
+  if (argv.size() == 2 && argv[0] == "stop") {
+    std::vector<std::string> stopping;  // together: one grace for all, not 2 s each
+    std::set<std::string> running;
+    for (auto& [program, r] : runs) {
+      running.insert(r.name);
+      if (r.name != argv[1]) continue;
+      r.stop_requested = true;
+      stopping.push_back(program);
+      events.push_back({DispatchEvent::stopped, r.iri, r.command, "stop command " + run});
+    }
+    // A stop that finds nothing to stop (a name mistyped, a run that has ended) said nothing.
+    if (stopping.empty()) {
+      std::string names;
+      for (const std::string& name : running) names += (names.empty() ? "" : ", ") + name;
+      return refuse("no run of '" + argv[1] + "' is running, so none was stopped" +
+                    (names.empty() ? std::string(" (none is running)") : " (running: " + names + ")"));
+    }
+    supervisor.stop(stopping, std::chrono::seconds(2));
+    return {};
+  }
   if (not_a_string)
     return refuse("the command " + text + " is not a string: write it quoted, behavior(me, \"name args\")");
   if (argv.empty() || !plain_file_name(argv[0])) return refuse("not a behaviour name: '" + text + "'");
@@ -173,7 +186,15 @@ Result<void> Dispatcher::Impl::command(std::uint64_t item, const std::string& te
   if (!uri::is_valid(ns + argv[0]))
     return refuse("not a behaviour name: '" + argv[0] + "' cannot end the IRI <" + ns + argv[0] + "> its result is written about");
   std::filesystem::path exe = options.folder / argv[0];
-  if (access(exe.c_str(), X_OK) != 0) return refuse(exe.string() + ": no such executable behaviour");
+  if (access(exe.c_str(), X_OK) != 0 || std::filesystem::is_directory(exe)) {
+    std::error_code ec;
+    if (argv == std::vector<std::string>{"stop"} && !std::filesystem::exists(exe, ec))
+      return refuse("'stop' names no behaviour to stop: write \"stop NAME\"");
+    if (std::filesystem::is_directory(exe, ec)) return refuse(exe.string() + ": a directory, not an executable behaviour");
+    if (std::filesystem::exists(exe, ec))
+      return refuse(exe.string() + ": not executable by this user (chmod +x it)");
+    return refuse(exe.string() + ": no such executable behaviour");
+  }
   ProgramSpec spec;
   spec.name = options.program_prefix + "behavior/" + std::to_string(item);
   spec.argv = argv;
