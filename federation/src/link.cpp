@@ -372,6 +372,8 @@ struct Link::Impl {
 
   // Child role (P5-P8).
   bool welcomed = false;
+  // P12d: the parent said its link stops; cleared at the next welcome. Under mu.
+  bool parent_left = false;
   // P6c: a welcome whose mark is 0; the up loop puts the persistent items its policy routes into
   // the outbox again. Under mu.
   bool resend_persistent = false;
@@ -2063,6 +2065,7 @@ struct Link::Impl {
           return;
         }
         welcomed = ever_welcomed = true;
+        parent_left = false;
         refused_by_parent.clear();
         parent_cannot_store.clear();  // said again by a parent that still cannot (P9b)
         // The parent holds nothing of this store's stream: a first welcome, or a parent store
@@ -2186,6 +2189,14 @@ struct Link::Impl {
           cancel_from_parent(f, *body, out);
           lock.unlock();
           return send_all(out);
+        }
+        if (code == kLeaving && f.seq == 0) {  // P12d
+          // A notice of another store than the one that welcomed this node (P6b) changes nothing.
+          if (!welcomed || !body || store_differs(parent_store_id, body->origin)) return;
+          welcomed = false;
+          parent_left = true;
+          log("the parent <" + opt.parent_iri + ">'s link is stopping (it said so): link down until it is back");
+          return;
         }
         if (code == "unregistered") {
           welcomed = false;
@@ -2618,6 +2629,24 @@ struct Link::Impl {
     Outgoing out;
     out.error(opt.up.get(), opt.parent_iri, 0, {std::string(kLeaving), "<" + self + ">'s link stops", own_store});
     if (!out.frames.empty()) out.frames.back().second.ack = run;  // which run leaves (P12c), as its hellos said
+    send_all(out);
+  }
+
+  // P12d: said once, as the link stops on purpose, to each child connected to it, as a child
+  // says so to its parent (P12c): the child's state is "down" at once, not after child_silence
+  // (a child showed its stopped parent "up, last heard 2.3 s ago").
+  void say_leaving_to_children() {
+    Outgoing out;
+    {
+      std::lock_guard lock(mu);
+      if (!opt.say_leaving) return;
+      for (const auto& [iri, child] : children) {
+        if (!child->connected || !child->via) continue;
+        const std::size_t before = out.frames.size();
+        out.error(child->via, iri, 0, {std::string(kLeaving), "<" + self + ">'s link stops", store_id});
+        if (out.frames.size() > before) out.frames.back().second.ack = run;
+      }
+    }
     send_all(out);
   }
 
@@ -3598,7 +3627,10 @@ struct Link::Impl {
       // Down while the parent is heard: this node must say hello again (the parent answered
       // "unregistered": its link restarted, or it found this node silent while this process
       // was stopped; or this node's store or the parent's changed).
-      if (state == "down" && own_state_logged == "up" && silence <= opt.child_silence)
+      if (state == "down" && own_state_logged == "up" && parent_left)
+        went = "items wait in the outbox (" + std::to_string(outbox_depth) + ") until the parent <" + opt.parent_iri +
+               "> is back";
+      else if (state == "down" && own_state_logged == "up" && silence <= opt.child_silence)
         went = "the parent <" + opt.parent_iri + "> is heard, but this node must say hello to it again: link down until "
                "it is welcomed; items wait in the outbox (" + std::to_string(outbox_depth) + ")";
       else if (state == "down" && own_state_logged == "up")
@@ -3673,6 +3705,7 @@ void Link::stop() {
   // P12c, once this run sends nothing more: a heartbeat after it, answered "unregistered", could
   // have had a hello follow it, and the parent take the child as up again as it died.
   impl_->say_leaving();
+  impl_->say_leaving_to_children();
 }
 
 bool Link::connected() const {

@@ -138,8 +138,10 @@ struct Tree {
     EXPECT_TRUE(node::Node::init(home2_dir, {.iri = kHome2}));
   }
 
-  std::unique_ptr<Link> start_hospital(std::chrono::milliseconds ack_delay = LinkOptions{}.ack_delay) {
-    return Link::start({.dir = hospital_dir, .down = std::shared_ptr<Transport>(bus.open(kHospital, hospital_log.sink())),
+  // With `say_leaving` false its stop is as its process dying: its children are not told (P12d).
+  std::unique_ptr<Link> start_hospital(std::chrono::milliseconds ack_delay = LinkOptions{}.ack_delay, bool say_leaving = true) {
+    return Link::start({.dir = hospital_dir, .say_leaving = say_leaving,
+                        .down = std::shared_ptr<Transport>(bus.open(kHospital, hospital_log.sink())),
                         .children = {"home1", "home2"}, .resend_after = 100ms, .ack_delay = ack_delay,
                         .log = hospital_log.sink()})
         .value();
@@ -325,7 +327,7 @@ TEST(Link, AnItemWrittenWhileTheLinkIsCutArrivesOnceAfterItIsRestored) {
 // is back everything arrives, once.
 TEST(Link, AHomeWhoseParentIsDownProbesWithOneFrameInsteadOfResendingItsWindow) {
   Tree tree;
-  tree.hospital = tree.start_hospital();
+  tree.hospital = tree.start_hospital(LinkOptions{}.ack_delay, /*say_leaving=*/false);  // it dies unheard
   tree.home1 = tree.start_home(tree.home1_dir, kHome1, tree.home1_log);
   ASSERT_TRUE(eventually([&] { return tree.home1->connected(); }));
   tree.hospital.reset();
@@ -908,6 +910,27 @@ TEST(Link, ALeavingNoticeOfAnotherRunThanTheRegisteredOneIsDropped) {
   EXPECT_FALSE(tree.hospital_log.has("silent for")) << "taken as down only once silent\n" << tree.hospital_log.text();
 }
 
+// P12d: a parent whose link stops says so to its connected children, as a child does (P12c):
+// the child's state is "down" at once. It was "up" until child_silence had passed (an
+// exploratory run of session 81: a home showed its stopped gateway "up, parent last heard
+// 2.3 s ago"), and the child logged the parent as not heard. Back, the parent welcomes it.
+TEST(Link, AParentWhoseLinkStopsSaysSoToItsChildrenWhichTakeItAsDownAtOnce) {
+  Tree tree;
+  ASSERT_TRUE(tree.start_hospital_and_home1());
+  ASSERT_TRUE(eventually([&] { return uplink_states(tree.home1_dir, kHome1) == std::vector<std::string>{"up"}; }));
+  tree.hospital.reset();
+  EXPECT_TRUE(eventually([&] { return uplink_states(tree.home1_dir, kHome1) == std::vector<std::string>{"down"}; }, 10s));
+  EXPECT_TRUE(tree.home1_log.has("the parent <" + kHospital + ">'s link is stopping (it said so): link down until it is back"))
+      << tree.home1_log.text();
+  EXPECT_FALSE(tree.home1_log.has("has not been heard for")) << tree.home1_log.text();
+  store_hrv_items(tree.home1_dir, 0, 3);
+  tree.hospital = tree.start_hospital();
+  const node::Pattern numbered{.p = Term::iri(kEx + "n")};
+  EXPECT_TRUE(eventually([&] { return count(tree.hospital_dir, numbered) == 3 && outbox(tree.home1_dir) == 0; }, 10s))
+      << tree.home1_log.text();
+  EXPECT_TRUE(eventually([&] { return uplink_states(tree.home1_dir, kHome1) == std::vector<std::string>{"up"}; }));
+}
+
 // P6a: the same downwards. A hospital whose store is made again issues configuration with ids
 // that a home has applied already from the old store; the home still gets it.
 // Settings `first` .. `first + n - 1` for home1's agent hrv, written on the hospital by its
@@ -1476,7 +1499,7 @@ TEST(Link, AChildKeepsItsOwnViewOfItsUplinkThatFollowsItsParent) {
   using States = std::vector<std::string>;
   tree.home1 = tree.start_home(tree.home1_dir, kHome1, tree.home1_log);
   ASSERT_TRUE(eventually([&] { return own_state(tree.home1_dir, kHome1) == States{"never connected"}; }));
-  tree.hospital = tree.start_hospital();
+  tree.hospital = tree.start_hospital(LinkOptions{}.ack_delay, /*say_leaving=*/false);  // it dies unheard
   ASSERT_TRUE(eventually([&] { return own_state(tree.home1_dir, kHome1) == States{"up"}; }));
   // Up for longer than child_silence with nothing but heartbeats: still up.
   std::this_thread::sleep_for(LinkOptions{}.child_silence + 1s);
@@ -1527,7 +1550,7 @@ TEST(Link, AChildThatWaitedLongForItsParentBeatsFromTheWelcomeAndStaysUp) {
 // would have seen 6 s.
 TEST(Link, AChildsOwnViewGoesDownWhenItsParentsSilencePassesChildSilenceNotAtItsNextHeartbeat) {
   Tree tree;
-  tree.hospital = tree.start_hospital();
+  tree.hospital = tree.start_hospital(LinkOptions{}.ack_delay, /*say_leaving=*/false);  // it dies unheard
   const LinkOptions defaults;
   tree.home1 = Link::start({.dir = tree.home1_dir, .parent_iri = kHospital,
                             .up = std::shared_ptr<Transport>(tree.bus.open(kHome1, tree.home1_log.sink())),

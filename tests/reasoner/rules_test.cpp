@@ -392,6 +392,21 @@ TEST(Rules, AnIriThatIsNoneSaysWhatAnIriIs) {
   }
 }
 
+// A token that is an IRI is shown as the file has it: "found 'http://example.org/v#c'" for
+// `ex:c`, and an <iri> without its brackets, sent the author looking for text the file does not
+// hold (an exploratory run of session 81).
+TEST(Rules, AnErrorShowsTheTokenAsWritten) {
+  const char* curie = "@prefix ex: <http://example.org/v#> .\nex:a(X) :- ex:b(X)\nex:c(X) :- ex:a(X).\n";
+  auto p = tr::parse_rules(curie, options("m.rules"));
+  ASSERT_FALSE(p.has_value());
+  EXPECT_NE(p.error().message.find("m.rules:3:1: expected ',' or '.' after the literal, found 'ex:c'"), std::string::npos)
+      << p.error().message;
+  auto q = tr::parse_rules("<http://x.org/q>(X) :- <http://x.org/p>(X)\n<http://x.org/p>(X) :- r(X).\n", options("m3.rules"));
+  ASSERT_FALSE(q.has_value());
+  EXPECT_NE(q.error().message.find("m3.rules:2:1: expected ',' or '.' after the literal, found '<http://x.org/p>'"), std::string::npos)
+      << q.error().message;
+}
+
 TEST(Rules, PrefixesIrisHashNamesLiteralsAndMe) {
   const tr::Atom got = only_conclusion(
       "@prefix ex: <http://ex.org/> .\n"

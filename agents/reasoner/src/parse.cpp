@@ -41,6 +41,9 @@ struct Token {
   Pos pos;
   // punct '<' that begins "<foo>", an IRI reference without a scheme: "<foo>", for the error
   std::string relative_iri;
+  // The token as the file has it ("ex:c", "<http://x/p>"), for errors: an IRI shown expanded
+  // was not what the author wrote.
+  std::string written;
 };
 
 // Bytes of non-ASCII UTF-8 count as letters: IRIs are Unicode (ex:lämpötila, #café).
@@ -96,7 +99,14 @@ class Lexer {
     if (text_.starts_with("\xEF\xBB\xBF")) i_ = 3;
   }
 
-  Result<Token> next();
+  // The next token, with what the file has of it.
+  Result<Token> next() {
+    if (auto s = skip_space(); !s) return unexpected(s.error());
+    const std::size_t from = i_;
+    auto t = token();
+    if (t && i_ > from) t->written = std::string(text_.substr(from, i_ - from));
+    return t;
+  }
   Pos pos() const { return {line_, col_}; }
   struct State { std::size_t i; int line, col; };
   State state() const { return {i_, line_, col_}; }
@@ -137,6 +147,7 @@ class Lexer {
                             std::to_string(pos.col) + ": " + what});
   }
   Result<void> skip_space();
+  Result<Token> token();  // after the space before it
   Result<Token> identifier(Pos start);
   Result<Token> iri_ref(Pos start);
   Result<Token> number(Pos start);
@@ -384,8 +395,7 @@ Result<Token> Lexer::string_literal(Pos start, char quote) {
   return Token{Tok::literal, {}, std::move(term), start};
 }
 
-Result<Token> Lexer::next() {
-  if (auto s = skip_space(); !s) return unexpected(s.error());
+Result<Token> Lexer::token() {
   Pos start = pos();
   char c = at();
   if (!c) return Token{Tok::end, {}, {}, start};
@@ -484,6 +494,7 @@ class Parser {
     return error(tok_.pos, "expected " + what + ", found " + got);
   }
   std::string token_text() const {
+    if (tok_.kind == Tok::iri && !tok_.written.empty()) return tok_.written;
     return tok_.kind == Tok::literal ? tok_.term.to_ntriples() : tok_.text;
   }
   Result<void> expect(std::string_view punct, const std::string& what) {

@@ -99,8 +99,9 @@ struct LinkOptions {
   std::vector<node::Pattern> forward;
   // False: the policy on the board is the whole of it, none included (`tahvel up` writes it).
   bool default_forward = true;
-  // Whether stop() tells the parent that this link is leaving (docs/protocol.md P12c), as a link
-  // stopped on purpose does. False: it stops as a killed process would, unsaid (tests of a crash).
+  // Whether stop() tells the parent that this link is leaving (docs/protocol.md P12c), and its
+  // connected children (P12d), as a link stopped on purpose does. False: it stops as a killed
+  // process would, unsaid (tests of a crash).
   bool say_leaving = true;
 
   // Parent role: the transport children reach this node on (bound to this node's IRI; may be the
