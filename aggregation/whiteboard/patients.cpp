@@ -430,8 +430,10 @@ Result<PatientsOnBoard> patients_on_board(const Snapshot& snapshot, std::optiona
               [](const TrendUpdate& a, const TrendUpdate& b) { return a.metric < b.metric; });
     out.patients.push_back(std::move(p));
   }
+  // Alerting first: of a superseded recording (its source stopped) an alert does not count.
+  const auto alert_now = [](const PatientView& p) { return p.alerting() && p.superseded_by.empty(); };
   std::stable_sort(out.patients.begin(), out.patients.end(),
-                   [](const PatientView& a, const PatientView& b) { return a.alerting() && !b.alerting(); });
+                   [&](const PatientView& a, const PatientView& b) { return alert_now(a) && !alert_now(b); });
   out.unreadable = unreadable.list();
   return out;
 }

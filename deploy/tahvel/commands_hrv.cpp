@@ -620,8 +620,11 @@ int run_patients(const Args& args) {
   std::vector<const agg::PatientView*> shown;
   std::size_t alerting = 0;
   for (const agg::PatientView& p : board->patients) {
-    if (p.alerting()) ++alerting;
-    if (!args.has("--alerts") || p.alerting()) shown.push_back(&p);
+    // An alert of a recording a later one of its sensor supersedes is of a source that stopped:
+    // shown with it, not counted nor listed by --alerts as the patient's.
+    const bool alert_now = p.alerting() && p.superseded_by.empty();
+    if (alert_now) ++alerting;
+    if (!args.has("--alerts") || alert_now) shown.push_back(&p);
   }
   std::vector<std::optional<LinkOnTheWay>> links;
   // Below this node's children the links' states are on the boards of the nodes on the way:

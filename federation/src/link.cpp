@@ -374,6 +374,9 @@ struct Link::Impl {
   bool welcomed = false;
   // P12d: the parent said its link stops; cleared at the next welcome. Under mu.
   bool parent_left = false;
+  // P12d: the run of the parent's link that last welcomed this node (0: a link before session
+  // 81, which names none). Under mu.
+  std::uint64_t parent_run = 0;
   // P6c: a welcome whose mark is 0; the up loop puts the persistent items its policy routes into
   // the outbox again. Under mu.
   bool resend_persistent = false;
@@ -1835,6 +1838,7 @@ struct Link::Impl {
         welcome.kind = FrameKind::welcome;
         welcome.to = child->iri;
         welcome.ack = *mark;
+        welcome.prev = run;  // P12d: its leaving notice names the same
         // Not for a child store made again whose store before this one holds part of: what it
         // sends again is the stream before, which P10c weighs (an item removed here came back).
         if (*mark == 0 && held_of_store_before == 0 && state && !state->peer_store_id.empty() &&
@@ -2066,6 +2070,7 @@ struct Link::Impl {
         }
         welcomed = ever_welcomed = true;
         parent_left = false;
+        parent_run = f.prev;
         refused_by_parent.clear();
         parent_cannot_store.clear();  // said again by a parent that still cannot (P9b)
         // The parent holds nothing of this store's stream: a first welcome, or a parent store
@@ -2193,6 +2198,13 @@ struct Link::Impl {
         if (code == kLeaving && f.seq == 0) {  // P12d
           // A notice of another store than the one that welcomed this node (P6b) changes nothing.
           if (!welcomed || !body || store_differs(parent_store_id, body->origin)) return;
+          if (f.ack != 0 && parent_run != 0 && f.ack != parent_run) {
+            // Of the parent's run before the one that welcomed this node, come late (a DDS
+            // writer outlives its process by about a second), as P12c's notices of a child.
+            log("dropped a notice that the parent's link is stopping from a run before the one that welcomed this node "
+                "(it came late)");
+            return;
+          }
           welcomed = false;
           parent_left = true;
           log("the parent <" + opt.parent_iri + ">'s link is stopping (it said so): link down until it is back");
@@ -3158,7 +3170,10 @@ struct Link::Impl {
         if (now >= next_beat) {
           beat = true;
           // A refused node asks again at the heartbeat's pace, not four times a second.
-          if (welcomed || !refused_by_parent.empty()) {
+          // So does one whose parent said it is stopping (P12d): its heartbeats kept that pace
+          // before, and a parent restarted on purpose (its supervisor, an upgrade) has it back
+          // within a heartbeat, not after a hello backed off to 4 s.
+          if (welcomed || !refused_by_parent.empty() || parent_left) {
             next_beat = now + opt.heartbeat_every;
             hello_gap = {};
           } else {

@@ -423,16 +423,17 @@ TEST_F(PatientsOnBoard, WindowsOfTwoWritersShowTheWriterNearestTheRecordingAndNa
 // was current. The earlier is now named superseded by the later (by its latest window's signal
 // time); another sensor's recording is not.
 TEST_F(PatientsOnBoard, AnEarlierRecordingOfTheSameSensorIsSupersededByTheLater) {
-  const std::string earlier = kHospital + "/home1/ecg/recording/synthetic-1";
-  const std::string later = kHospital + "/home1/ecg/recording/synthetic-2";
+  const std::string earlier = kHospital + "/home3/ecg/recording/synthetic-1";  // after kRecB by IRI
+  const std::string later = kHospital + "/home3/ecg/recording/synthetic-2";
   const std::int64_t t0 = 1'800'000'000'000'000'000;
-  window("home1-hrv", later, 0, 45, std::nullopt, t0 + 600'000'000'000);
-  window("home1-hrv", earlier, 0, 40, std::nullopt, t0);
-  window("home1-hrv", earlier, 60, 41, std::nullopt, t0 + 60'000'000'000);
+  window("home3-hrv", later, 0, 45, std::nullopt, t0 + 600'000'000'000);
+  window("home3-hrv", earlier, 0, 40, std::nullopt, t0);
+  window("home3-hrv", earlier, 60, 41, std::nullopt, t0 + 60'000'000'000);
   trend(earlier, agg::HrvMetric::sdnn, 60, true, t0 + 60'000'000'000);
   window("home2-hrv", kRecB, 0, 50, std::nullopt, t0);
   const agg::PatientsOnBoard board = read();
   ASSERT_EQ(board.patients.size(), 3u);
+  EXPECT_EQ(board.patients[0].recording, kRecB) << "an alert of a superseded recording does not put it first";
   for (const agg::PatientView& p : board.patients) {
     if (p.recording == earlier) {
       EXPECT_EQ(p.superseded_by, later);

@@ -169,11 +169,20 @@ Result<void> Dispatcher::Impl::command(std::uint64_t item, const std::string& te
       events.push_back({DispatchEvent::stopped, r.iri, r.command, "stop command " + run});
     }
     // A stop that finds nothing to stop (a name mistyped, a run that has ended) said nothing.
+    // Bounded (a name near the literal limit, many runs), and acknowledged even when its record
+    // cannot be written: a stop never blocked the input before it was recorded.
     if (stopping.empty()) {
       std::string names;
-      for (const std::string& name : running) names += (names.empty() ? "" : ", ") + name;
-      return refuse("no run of '" + argv[1] + "' is running, so none was stopped" +
-                    (names.empty() ? std::string(" (none is running)") : " (running: " + names + ")"));
+      std::size_t listed = 0;
+      for (const std::string& name : running)
+        if (++listed <= 5) names += (names.empty() ? "" : ", ") + name.substr(0, 100);
+      if (running.size() > 5) names += ", and " + std::to_string(running.size() - 5) + " more";
+      const std::string name = argv[1].size() > 200 ? argv[1].substr(0, 200) + "…" : argv[1];
+      if (auto recorded = refuse("no run of '" + name + "' is running, so none was stopped" +
+                                 (names.empty() ? std::string(" (none is running)") : " (running: " + names + ")"));
+          !recorded)
+        events.push_back({DispatchEvent::refused, run, text, "its refusal could not be recorded: " + recorded.error().message});
+      return {};
     }
     supervisor.stop(stopping, std::chrono::seconds(2));
     return {};
@@ -186,8 +195,8 @@ Result<void> Dispatcher::Impl::command(std::uint64_t item, const std::string& te
   if (!uri::is_valid(ns + argv[0]))
     return refuse("not a behaviour name: '" + argv[0] + "' cannot end the IRI <" + ns + argv[0] + "> its result is written about");
   std::filesystem::path exe = options.folder / argv[0];
-  if (access(exe.c_str(), X_OK) != 0 || std::filesystem::is_directory(exe)) {
-    std::error_code ec;
+  std::error_code ec;
+  if (access(exe.c_str(), X_OK) != 0 || std::filesystem::is_directory(exe, ec)) {
     if (argv == std::vector<std::string>{"stop"} && !std::filesystem::exists(exe, ec))
       return refuse("'stop' names no behaviour to stop: write \"stop NAME\"");
     if (std::filesystem::is_directory(exe, ec)) return refuse(exe.string() + ": a directory, not an executable behaviour");

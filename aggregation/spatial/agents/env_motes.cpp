@@ -171,6 +171,11 @@ class Simulator {
     std::map<std::pair<std::string, sp::Quantity>, std::set<std::string>> rooms_of;  // (mote, quantity) -> rooms due
     for (const auto& [key, due] : due_now)
       for (const std::string& m : due->motes) rooms_of[{m, key.second}].insert(key.first);
+    // Every room asked for the quantity that a mote stands in, due now or not: its reading is
+    // each one's latest (S12), as resume() counts it after a restart.
+    std::map<std::pair<std::string, sp::Quantity>, std::vector<std::string>> asked_rooms_of;
+    for (const auto& [key, due] : room_due)
+      for (const std::string& m : due.motes) asked_rooms_of[{m, key.second}].push_back(key.first);
     std::map<std::pair<std::string, sp::Quantity>, double> read_now;  // (mote, quantity) -> value
     std::set<std::pair<std::string, sp::Quantity>> served;           // (room, quantity)
     for (const auto& [key, due] : due_now) {
@@ -195,8 +200,10 @@ class Simulator {
         if (std::pair(in_a_served_room(m), answered(m)) < std::pair(in_a_served_room(*mote), answered(*mote))) mote = &m;
       sp::Reading r{key.second, sense(*mote, key.second, now_ns), now_ns};
       if (!write(*mote, r)) return false;
-      last_time_[key] = now_ns;
-      last_value_[key] = r.value;
+      for (const std::string& room : asked_rooms_of[{*mote, key.second}]) {
+        last_time_[{room, key.second}] = now_ns;
+        last_value_[{room, key.second}] = r.value;
+      }
       last_answered_[{*mote, key.second}] = now_ns;
       read_now[{*mote, key.second}] = r.value;
       served.insert(key);

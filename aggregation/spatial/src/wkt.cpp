@@ -93,6 +93,12 @@ class Parser {
       while (end < text_.size() && is_alpha(text_[end])) ++end;
       return "'" + std::string(text_.substr(pos_, end - pos_)) + "'";
     }
+    // A number whole ("42" where a geometry type belongs was "found '4'").
+    if (std::isdigit(static_cast<unsigned char>(text_[pos_]))) {
+      std::size_t end = pos_;
+      while (end < text_.size() && (std::isalnum(static_cast<unsigned char>(text_[end])) || text_[end] == '.')) ++end;
+      return "'" + std::string(text_.substr(pos_, end - pos_)) + "'";
+    }
     // A whole UTF-8 character (a Unicode minus, a non-breaking space), not its first byte.
     std::size_t end = pos_ + 1;
     while (end < text_.size() && (static_cast<unsigned char>(text_[end]) & 0xC0) == 0x80) ++end;

@@ -61,7 +61,7 @@ struct UnreadableItems {
 };
 
 struct PatientsOnBoard {
-  std::vector<PatientView> patients;       // alerting first, then by recording IRI
+  std::vector<PatientView> patients;       // alerting and not superseded first, then by recording IRI
   std::vector<UnreadableItems> unreadable; // by writer IRI
 };
 
