@@ -418,10 +418,15 @@ Result<PatientsOnBoard> patients_on_board(const Snapshot& snapshot, std::optiona
     if (!newest || std::pair(p.latest_asserted_ns, p.latest_stored_ns) > std::pair(newest->latest_asserted_ns, newest->latest_stored_ns))
       newest = &p;
   }
+  // Superseded: the newest one's latest window starts more than a window after this one's, so
+  // this one's windows stopped while the newest one's came (not two recordings at once).
   for (auto& [recording, p] : patients) {
     const std::string sensor = sensor_of(recording);
     if (sensor.empty()) continue;
-    if (const PatientView* newest = newest_of_sensor[sensor]; newest != &p) p.superseded_by = newest->recording;
+    const PatientView* newest = newest_of_sensor[sensor];
+    const double window_ns = std::max(0.0, (p.latest.window.end_s - p.latest.window.start_s) * 1e9);
+    if (newest != &p && static_cast<double>(newest->latest_asserted_ns - p.latest_asserted_ns) > window_ns)
+      p.superseded_by = newest->recording;
   }
 
   PatientsOnBoard out;

@@ -420,8 +420,9 @@ TEST_F(PatientsOnBoard, WindowsOfTwoWritersShowTheWriterNearestTheRecordingAndNa
 
 // A sensor restarted (or taken out of a deployment and put back) starts a new recording: the
 // same bed showed as two patients, the earlier one still with its alert, and nothing said which
-// was current. The earlier is now named superseded by the later (by its latest window's signal
-// time); another sensor's recording is not.
+// was current. The earlier is now named superseded by the later (whose latest window starts more
+// than a window after the earlier's, in signal time); one whose windows came at the same time,
+// and another sensor's recording, are not.
 TEST_F(PatientsOnBoard, AnEarlierRecordingOfTheSameSensorIsSupersededByTheLater) {
   const std::string earlier = kHospital + "/home3/ecg/recording/synthetic-1";  // after kRecB by IRI
   const std::string later = kHospital + "/home3/ecg/recording/synthetic-2";
@@ -431,8 +432,12 @@ TEST_F(PatientsOnBoard, AnEarlierRecordingOfTheSameSensorIsSupersededByTheLater)
   window("home3-hrv", earlier, 60, 41, std::nullopt, t0 + 60'000'000'000);
   trend(earlier, agg::HrvMetric::sdnn, 60, true, t0 + 60'000'000'000);
   window("home2-hrv", kRecB, 0, 50, std::nullopt, t0);
+  // A recording of the sensor whose windows come at the same time as the later one's (within a
+  // window): two at once, neither superseded.
+  const std::string beside = kHospital + "/home3/ecg/recording/synthetic-3";
+  window("home3-hrv", beside, 0, 44, std::nullopt, t0 + 590'000'000'000);
   const agg::PatientsOnBoard board = read();
-  ASSERT_EQ(board.patients.size(), 3u);
+  ASSERT_EQ(board.patients.size(), 4u);
   EXPECT_EQ(board.patients[0].recording, kRecB) << "an alert of a superseded recording does not put it first";
   for (const agg::PatientView& p : board.patients) {
     if (p.recording == earlier) {
