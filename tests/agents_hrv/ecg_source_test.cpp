@@ -158,14 +158,17 @@ class EcgSourceTest : public ::testing::Test {
   }
 
   // Runs the source on `dir` at 20 times real time (3 s of wall time for the 60 s), kills it
-  // with SIGKILL once it has written 10 chunks; the chunks it wrote.
-  std::size_t kill_the_source_after_ten_chunks(const std::string& dir) {
+  // with SIGKILL once it has written 10 chunks; `before`: the chunks it wrote, 10 or more and
+  // fewer than the signal's 60 (the source was killed midway, or the test fails here).
+  void kill_the_source_after_ten_chunks(const std::string& dir, std::size_t& before) {
     tahvel::test_support::AgentProcess source(source_argv(dir, "20"));
     const auto deadline = std::chrono::steady_clock::now() + 20s;
     auto written = [&] { return recordings(dir).empty() ? 0 : chunks(dir, recordings(dir).front()).samples.size(); };
     while (written() < 10 && std::chrono::steady_clock::now() < deadline) std::this_thread::sleep_for(20ms);
     source.crash();
-    return written();
+    before = written();
+    ASSERT_GE(before, 10u);
+    ASSERT_LT(before, 60u) << "the source ended before it was killed";
   }
 
   // What the one recording on `dir` says of itself.
@@ -313,9 +316,8 @@ TEST_F(EcgSourceTest, ARestartAfterAKillGoesOnAfterTheLastChunkAndWritesEachSeco
   ASSERT_EQ(reference.samples.size(), 60u);
 
   const std::string crashed = new_node("crashed");
-  const std::size_t before = kill_the_source_after_ten_chunks(crashed);
-  ASSERT_GE(before, 10u);
-  ASSERT_LT(before, 60u) << "the source ended before it was killed";
+  std::size_t before = 0;
+  ASSERT_NO_FATAL_FAILURE(kill_the_source_after_ten_chunks(crashed, before));
   const std::string recording = the_recording(crashed);
   EXPECT_TRUE(is_take(recording)) << recording;
 
@@ -339,9 +341,8 @@ TEST_F(EcgSourceTest, ARestartAfterAKillGoesOnAfterTheLastChunkAndWritesEachSeco
 // source records anew instead, and leaves the copied take as it is.
 TEST_F(EcgSourceTest, ATakeLeftUnendedInAStoreRestoredFromABackupIsNotContinued) {
   const std::string dir = new_node("sensor");
-  const std::size_t before = kill_the_source_after_ten_chunks(dir);
-  ASSERT_GE(before, 10u);
-  ASSERT_LT(before, 60u) << "the source ended before it was killed";
+  std::size_t before = 0;
+  ASSERT_NO_FATAL_FAILURE(kill_the_source_after_ten_chunks(dir, before));
   const std::string take = the_recording(dir);
   const fs::path backup = tmp_ / "sensor-backup";
   ASSERT_TRUE(tn::Node::open(dir)->back_up(backup));
@@ -517,9 +518,8 @@ TEST_F(EcgSourceTest, AnotherRecordUnderTheSameDirectoryAndNameIsAnotherSignal) 
 // generator at another heart rate went on with the killed take, its frames after the other's.
 TEST_F(EcgSourceTest, ATakeLeftUnendedIsEndedNotContinuedByAnotherSignal) {
   const std::string dir = new_node("other");
-  const std::size_t before = kill_the_source_after_ten_chunks(dir);
-  ASSERT_GE(before, 10u);
-  ASSERT_LT(before, 60u) << "the source ended before it was killed";
+  std::size_t before = 0;
+  ASSERT_NO_FATAL_FAILURE(kill_the_source_after_ten_chunks(dir, before));
   const std::string killed = the_recording(dir);
 
   std::vector<std::string> argv = source_argv(dir, "0");

@@ -6,6 +6,7 @@
 #include <sys/wait.h>
 #include <unistd.h>
 
+#include <algorithm>
 #include <chrono>
 #include <filesystem>
 #include <fstream>
@@ -332,6 +333,12 @@ TEST(SupervisorDeath, ProgramsDieWithAKilledSupervisor) {
   if (!gone) kill(program, SIGKILL);
 }
 
+// Whether `item` holds the triple (s, p, o), terms by their values.
+bool holds(const node::Item& item, const std::string& s, const std::string& p, const std::string& o) {
+  return std::any_of(item.triples.begin(), item.triples.end(),
+                     [&](const node::Triple& t) { return t.s.value == s && t.p.value == p && t.o.value == o; });
+}
+
 // What a machine above reads of a node's programs (tahvel status, docs/deploy.md): each program
 // under its agent IRI, with the state, pid, restarts and last exit the supervisor knows.
 TEST(ProgramsOnTheBoard, EachProgramIsNamedByItsAgentIriWithWhatItsSupervisorKnows) {
@@ -343,11 +350,7 @@ TEST(ProgramsOnTheBoard, EachProgramIsNamedByItsAgentIriWithWhatItsSupervisorKno
   auto item = programs_item("http://h/home1", {link, flaky, replay, frozen}, 1234);
   ASSERT_TRUE(item.has_value()) << item.error().message;
   EXPECT_TRUE(item->persistent);
-  auto has = [&](const std::string& s, const std::string& p, const std::string& o) {
-    for (const auto& t : item->triples)
-      if (t.s.value == s && t.p.value == p && t.o.value == o) return true;
-    return false;
-  };
+  auto has = [&](const std::string& s, const std::string& p, const std::string& o) { return holds(*item, s, p, o); };
   EXPECT_TRUE(has("http://h/home1", vocab::kProgramsAt, "1234"));
   EXPECT_TRUE(has("http://h/home1", vocab::kProgram, "http://h/home1/link"));
   EXPECT_TRUE(has("http://h/home1/link", vocab::kProgramState, "running"));
@@ -376,11 +379,7 @@ TEST(ProgramsOnTheBoard, ARunOfADispatchedBehaviourIsAPathBelowTheNode) {
   ProgramState link{.name = "link", .pid = 4711, .running = true};
   auto item = programs_item("http://h/ward", {link, run}, 1);
   ASSERT_TRUE(item.has_value()) << item.error().message;
-  auto has = [&](const std::string& s, const std::string& p, const std::string& o) {
-    for (const auto& t : item->triples)
-      if (t.s.value == s && t.p.value == p && t.o.value == o) return true;
-    return false;
-  };
+  auto has = [&](const std::string& s, const std::string& p, const std::string& o) { return holds(*item, s, p, o); };
   EXPECT_TRUE(has("http://h/ward", vocab::kProgram, "http://h/ward/behavior/17"));
   EXPECT_TRUE(has("http://h/ward/behavior/17", vocab::kPid, "4713"));
   EXPECT_TRUE(has("http://h/ward", vocab::kProgram, "http://h/ward/link"));
