@@ -42,7 +42,7 @@ Result<HrvReport> hrv_from_samples(const std::vector<std::int32_t>& samples, dou
 std::size_t gap_count(const std::vector<Interval>& intervals, double fs, const NnRule& rule) {
   const double limit = rule.max_interval_s * fs;
   return static_cast<std::size_t>(std::count_if(intervals.begin(), intervals.end(), [&](const Interval& i) {
-    return static_cast<double>(i.end - i.start) > limit;
+    return !i.nn && static_cast<double>(i.end - i.start) > limit;  // not a confirmed pause
   }));
 }
 

@@ -47,8 +47,8 @@ struct HrvReport {
 inline constexpr double kPacedPct = 10;
 std::optional<std::string> paced_beats_warning(const std::string& record_path);
 
-// How many intervals of a series are longer than rule.max_interval_s at fs Hz: the gaps that
-// intervals_from_peaks never takes as NN, whatever the rhythm.
+// How many intervals of a series are longer than rule.max_interval_s at fs Hz and not NN: the
+// gaps, which intervals_from_peaks takes as NN only when they are confirmed pauses.
 std::size_t gap_count(const std::vector<Interval>& intervals, double fs, const NnRule& rule = {});
 
 // Why HRV of a series with these metrics may be far off (HrvMetrics::irregular_pct or the
