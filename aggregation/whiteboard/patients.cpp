@@ -225,6 +225,8 @@ Result<PatientsOnBoard> patients_on_board(const Snapshot& snapshot, std::optiona
   }
 
   std::map<std::string, PatientView> patients;
+  // Per recording, when the first and the last of its windows read here were stored on this board.
+  std::map<std::string, std::pair<std::int64_t, std::int64_t>> stored_span;
   for (auto& [recording, by_writer] : windows) {
     // One tahvel-hrv per recording (docs/agents.md). Writers that wrote windows under the same
     // names (a hospital computing HRV from a home's RR intervals beside the home's own windows)
@@ -298,6 +300,12 @@ Result<PatientsOnBoard> patients_on_board(const Snapshot& snapshot, std::optiona
       if (back_s >= kMaxLookBackS) break;
     }
     if (shown) {
+      auto& [first, last] = stored_span[recording];
+      first = std::numeric_limits<std::int64_t>::max();
+      for (const auto& [iri, entry] : by_iri) {
+        first = std::min(first, entry.stored_ns);
+        last = std::max(last, entry.stored_ns);
+      }
       PatientView& p = patients[recording];
       p.recording = recording;
       p.source = shown->first->source;
@@ -404,8 +412,16 @@ Result<PatientsOnBoard> patients_on_board(const Snapshot& snapshot, std::optiona
     if (*t) patients[key.first].trends.push_back(std::move(**t));
   }
 
-  // The newest recording of each sensor, by its latest window's signal time (then when that
-  // window was stored here): the others are superseded.
+  // The newest recording of each sensor, by when it started (its latest window's signal time
+  // less that window's start in the recording; then when its last window was stored here).
+  // Not by the latest window's signal time: a replay at --speed 10 asserts up to half an hour
+  // ahead of the clock, and a finished replay passed for newer than the live recording after it.
+  const auto started = [](const PatientView& p) {
+    return p.latest_asserted_ns - static_cast<std::int64_t>(std::llround(p.latest.window.start_s * 1e9));
+  };
+  const auto newer = [&](const PatientView& a, const PatientView& b) {
+    return std::pair(started(a), stored_span[a.recording].second) > std::pair(started(b), stored_span[b.recording].second);
+  };
   std::map<std::string, const PatientView*> newest_of_sensor;
   const auto sensor_of = [](const std::string& recording) {
     const std::size_t at = recording.rfind("/recording/");
@@ -415,17 +431,19 @@ Result<PatientsOnBoard> patients_on_board(const Snapshot& snapshot, std::optiona
     const std::string sensor = sensor_of(recording);
     if (sensor.empty()) continue;
     const PatientView*& newest = newest_of_sensor[sensor];
-    if (!newest || std::pair(p.latest_asserted_ns, p.latest_stored_ns) > std::pair(newest->latest_asserted_ns, newest->latest_stored_ns))
-      newest = &p;
+    if (!newest || newer(p, *newest)) newest = &p;
   }
-  // Superseded: the newest one's latest window starts more than a window after this one's, so
-  // this one's windows stopped while the newest one's came (not two recordings at once).
+  // Superseded: this one's windows stopped while the newest one's came (not two recordings at
+  // once): in signal time, the newest one's latest window starts more than a window after this
+  // one's; or, on this board, none of this one's windows was stored since the newest one's first.
   for (auto& [recording, p] : patients) {
     const std::string sensor = sensor_of(recording);
     if (sensor.empty()) continue;
     const PatientView* newest = newest_of_sensor[sensor];
+    if (newest == &p) continue;
     const double window_ns = std::max(0.0, (p.latest.window.end_s - p.latest.window.start_s) * 1e9);
-    if (newest != &p && static_cast<double>(newest->latest_asserted_ns - p.latest_asserted_ns) > window_ns)
+    if (static_cast<double>(newest->latest_asserted_ns - p.latest_asserted_ns) > window_ns ||
+        stored_span[recording].second < stored_span[newest->recording].first)
       p.superseded_by = newest->recording;
   }
 

@@ -436,13 +436,23 @@ TEST_F(PatientsOnBoard, AnEarlierRecordingOfTheSameSensorIsSupersededByTheLater)
   // window): two at once, neither superseded.
   const std::string beside = kHospital + "/home3/ecg/recording/synthetic-3";
   window("home3-hrv", beside, 0, 44, std::nullopt, t0 + 590'000'000'000);
+  // A replay at --speed 10 that finished, its windows asserted half an hour ahead of when they
+  // came; then a live recording of its sensor, started after it. The replay's windows are the
+  // later in signal time, but it is the one whose windows stopped.
+  const std::string replay = kHospital + "/home4/ecg/recording/100";
+  const std::string live = kHospital + "/home4/ecg/recording/synthetic-1";
+  window("home4-hrv", replay, 0, 30, std::nullopt, t0);
+  window("home4-hrv", replay, 1740, 31, std::nullopt, t0 + 1'740'000'000'000);
+  window("home4-hrv", live, 0, 32, std::nullopt, t0 + 400'000'000'000);
   const agg::PatientsOnBoard board = read();
-  ASSERT_EQ(board.patients.size(), 4u);
+  ASSERT_EQ(board.patients.size(), 6u);
   EXPECT_EQ(board.patients[0].recording, kRecB) << "an alert of a superseded recording does not put it first";
   for (const agg::PatientView& p : board.patients) {
     if (p.recording == earlier) {
       EXPECT_EQ(p.superseded_by, later);
       EXPECT_TRUE(p.alerting()) << "its alert is still its own";
+    } else if (p.recording == replay) {
+      EXPECT_EQ(p.superseded_by, live);
     } else {
       EXPECT_EQ(p.superseded_by, "") << p.recording;
     }

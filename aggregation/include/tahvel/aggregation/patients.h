@@ -36,11 +36,13 @@ struct PatientView {
   // The node that computed it, where the raw ECG behind it lies: the writer's node (an agent's
   // IRI is its node's IRI + "/" + id). Empty when the writer's IRI has no path to strip.
   std::string source_node() const;
-  // A later recording of the same sensor (recording IRIs are <sensor>/recording/<name>) whose
+  // The newest recording of the same sensor (recording IRIs are <sensor>/recording/<name>; the
+  // newest started last) when this one's windows stopped while that one's came: that one's
   // latest window starts more than one of this recording's windows after this one's latest, in
-  // signal time: this recording's source stopped, or started again as a new recording (a sensor
-  // restarted, taken out of a deployment and put back). Its windows and alerts are of that
-  // earlier recording. Empty when none is.
+  // signal time, or none of this one's windows was stored on the board since that one's first.
+  // This recording's source stopped, or started again as a new recording (a sensor restarted,
+  // taken out of a deployment and put back). Its windows and alerts are of that earlier
+  // recording. Empty when none is.
   std::string superseded_by;
   // Per metric, the trend update of the latest window that has one (tahvel-trend's items), in
   // the order of HrvMetric; empty where no trend agent runs.
