@@ -689,11 +689,20 @@ spatial::AreaSpec area_flag(const Args& args, const uri::PrefixMap& prefixes) {
   spatial::AreaSpec spec;
   if (!spatial::looks_like_wkt(text)) {
     if (args.has("--floor")) usage_error("--floor: only with a WKT --area (a room has its own floor)");
+    // A plan's relative IRIs ("room/bedroom") resolve against the node's IRI when it is put; on
+    // the command line the room's whole IRI is what names it.
+    if (!text.starts_with("<") && text.find(':') == std::string::npos)
+      bad_value("--area", "'" + text + "' is not an IRI or CURIE: name the room by its whole IRI (a plan's relative '" + text +
+                              "' is the node's IRI + \"/" + text + "\"), or give a WKT POLYGON");
     spec.room_iri = parse_iri(text, prefixes, "--area");
     return spec;
   }
   auto shape = spatial::parse_shape(text);
   if (!shape) usage_error("--area: " + shape.error().message);
+  // As `put` says of a plan's geometry: degrees of EPSG:4326 would be compared with metres.
+  if (const std::string_view crs = spatial::wkt_crs(text); !crs.empty() && crs != spatial::kCrs84)
+    std::cerr << warning_prefix() << "--area: its CRS <" << crs
+              << "> is not applied: the area's coordinates are read as the floor plan's own, planar (docs/spatial.md S1)\n";
   spec.shape = std::move(*shape);
   if (auto floor = args.get("--floor")) spec.floor = floor_flag(*floor);
   return spec;

@@ -5178,6 +5178,17 @@ TEST_F(Cli, ListByAreaSelectsTheRoomsSensorReadings) {
     EXPECT_EQ(nope.status, 1) << command[0] << ": " << nope.err;
     EXPECT_NE(nope.err.find("no room " + kNodeIri + "/room/nope on the board"), std::string::npos) << nope.err;
   }
+  // The plan's own relative IRI, as its file writes it: a usage error that says how to name it.
+  Outcome relative = run({"list", node_, "--area", "room/bedroom"});
+  EXPECT_EQ(relative.status, 2) << relative.err;
+  EXPECT_NE(relative.err.find("the node's IRI + \"/room/bedroom\""), std::string::npos) << relative.err;
+  // An area in degrees is read in the plan's metres, as a plan's own geometry is: said, not refused.
+  Outcome degrees = run({"list", node_, "--area", "<http://www.opengis.net/def/crs/EPSG/0/4326> POLYGON((0 0, 3 0, 3 3, 0 3, 0 0))",
+                         "-p", "sosa:hasSimpleResult"});
+  EXPECT_EQ(degrees.status, 0) << degrees.err;
+  EXPECT_EQ(lines_of(degrees.out).size(), 1u) << degrees.out;
+  EXPECT_NE(degrees.err.find("--area: its CRS <http://www.opengis.net/def/crs/EPSG/0/4326> is not applied"), std::string::npos)
+      << degrees.err;
 }
 
 // A node id with a character outside ASCII (kodu-õie), copied from a browser's address bar as
