@@ -12,6 +12,7 @@
 #include <cerrno>
 #include <charconv>
 #include <cstring>
+#include <vector>
 
 namespace tahvel::federation {
 namespace {
@@ -77,6 +78,9 @@ node::Result<UdpmAddress> parse_udpm_url(std::string_view url) {
       return bad("port '" + std::string(text) + "' is not 1..65535 (in decimal, without a leading 0)");
     parsed.port = static_cast<std::uint16_t>(port);
   }
+  // One value a name: "ttl=0&ttl=1", read as ttl=0 by whoever reads the file, is ttl=1 to a
+  // reader that takes the last, and packets would leave the host.
+  std::vector<std::string_view> named;
   while (!options.empty()) {
     const std::size_t amp = options.find('&');
     const std::string_view option = options.substr(0, amp);
@@ -85,6 +89,9 @@ node::Result<UdpmAddress> parse_udpm_url(std::string_view url) {
     const std::string_view name = option.substr(0, eq);
     const std::string_view value = eq == std::string_view::npos ? std::string_view{} : option.substr(eq + 1);
     std::uint64_t n = 0;
+    if (std::find(named.begin(), named.end(), name) != named.end())
+      return bad("option '" + std::string(name) + "' is given twice");
+    named.push_back(name);
     if (name == "ttl") {
       if (!number(value, n) || n > 255) return bad("ttl '" + std::string(value) + "' is not 0..255");
     } else if (name == "recv_buf_size") {

@@ -238,6 +238,7 @@ TEST(WireOpen, LcmUrlCheckNamesWhatIsWrongAndPassesWhatLcmAccepts) {
       {"udpm://239.255.76.67:7667?ttl=-1", "ttl '-1' is not 0..255"},
       {"udpm://239.255.76.67:7667?ttl=0&tll=1", "unknown option 'tll=1' (known: ttl, recv_buf_size)"},
       {"udpm://239.255.76.67:7667?recv_buf_size=lots", "recv_buf_size 'lots' is not a size in bytes"},
+      {"udpm://239.255.76.67:7667?ttl=0&ttl=1", "option 'ttl' is given twice"},
   };
   for (const auto& [url, why] : refused) {
     auto checked = check_lcm_url(url);
