@@ -258,7 +258,9 @@ node::Result<std::vector<node::Record>> area_answer(const node::Snapshot& snapsh
 
 const Command kLinkCommand{
     "link",
-    "DIR [--parent IRI --up lcm|dds] [--listen lcm|dds]... [--child ID]... [--forward 'S P O']...",
+    "DIR [--parent IRI --up lcm|dds] [--listen lcm|dds]... [--child ID]... [--forward 'S P O']... [--no-default-forward]\n"
+    "            [--lcm-url URL] [--dds-domain N] [--dds-config FILE] [--listen-lcm-url URL] [--listen-dds-domain N]\n"
+    "            [--listen-dds-config FILE]",
     "Run a node's communication agent (normally started by 'tahvel up').",
     "Links the node at DIR to its parent (--parent, over --up) and serves its children (--listen).\n"
     "Items its agent 'uplink' subscribes to go up exactly once (the policy: --forward patterns,\n"

@@ -381,6 +381,32 @@ const Command kLoadCommand{
      {"--batch", "", "N", "triples per transaction (default 10000)"}},
     2, 2};
 
+// `dump` writes subscriptions (R9) with the rest, so `dump A | load B` made A's agents' live
+// subscriptions on B, persistent, their input buffers filling with B's items unread.
+void warn_of_subscriptions(const std::vector<node::Triple>& triples, const std::string& path) {
+  const std::string subscriber = std::string(uri::kTahvelNs) + "subscriber";
+  std::set<std::string> agents;
+  std::size_t count = 0;
+  for (const node::Triple& t : triples)
+    if (t.p.is_iri() && t.p.value == subscriber) {
+      ++count;
+      agents.insert(t.o.value);
+    }
+  if (count == 0) return;
+  std::string named;
+  for (const std::string& agent : agents) {
+    if (named.size() > 200) {
+      named += ", …";
+      break;
+    }
+    named += (named.empty() ? "<" : ", <") + agent + ">";
+  }
+  std::cerr << warning_prefix() << (path == "-" ? std::string("<stdin>") : path) << ": " << count
+            << " tv:subscriber record(s): loaded, each makes a subscription on this node (of " << named
+            << "), whose input buffer fills with the matching items stored here; `tahvel list DIR -p tv:subscriber --format "
+               "json` names their items, `tahvel remove DIR --item ID` ends one\n";
+}
+
 int run_load(const Args& args) {
   node::Node node = open_node(args.positional(0));
   uri::PrefixMap prefixes = prefixes_with_flags(node.prefixes(), args);
@@ -395,6 +421,7 @@ int run_load(const Args& args) {
   std::vector<node::Triple> triples = parse_input(node, path, input_format(args, path), prefixes, &input);
   warn_of_unreadable_geometry(triples, path);
   warn_of_unknown_addressee(node, frame, agent);
+  warn_of_subscriptions(triples, path);
   std::vector<std::vector<std::size_t>> places;
   for (auto& group : group_by_subject(std::move(triples), &places)) {
     items.push_back(frame);

@@ -346,11 +346,11 @@ class Parser {
                            "whose triples are in no graph; leave the graph names out)";
       }
     }
-    // The records `list --format json` writes, put back: '{' starts a graph block to serd.
+    // The records `list --format json` writes, put back: '{' starts a graph block to serd, whose
+    // words ("syntax does not support graphs") are about that, not about the input.
     const std::size_t first = text_.find_first_not_of(" \t\r\n");
     if (first != std::string_view::npos && text_.substr(first, 2) == "{\"")
-      return message + " (the input reads as JSON, which is not read here: N-Triples and Turtle are, as `list --format nt` "
-                       "writes them)";
+      return "the input reads as JSON, which is not read here: N-Triples and Turtle are, as `list --format nt` writes them";
     return message;
   }
 

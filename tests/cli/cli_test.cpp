@@ -1217,6 +1217,16 @@ TEST_F(Cli, DumpOfOneNodeLoadsIntoAnotherWithTheSameTriples) {
   EXPECT_EQ(load.out, std::to_string(lines_of(dump.out).size()) + "\n");
   Outcome literal = run({"list", other, "-o", "\"x\"@en"});
   EXPECT_EQ(lines_of(literal.out).size(), 1u) << literal.out;
+  EXPECT_EQ(load.err.find("tv:subscriber"), std::string::npos) << load.err;
+  // A subscription dumped with the rest makes one on the other node: said, naming its agent.
+  ASSERT_EQ(run({"subscribe", node_, "--agent", "rpeak", "-p", "sosa:hasSimpleResult"}).status, 0);
+  dump = run({"dump", node_});
+  spit(file, dump.out);
+  load = run({"load", other, file.string()});
+  ASSERT_EQ(load.status, 0) << load.err;
+  EXPECT_NE(load.err.find("1 tv:subscriber record(s): loaded, each makes a subscription on this node (of <" + kNodeIri + "/rpeak>)"),
+            std::string::npos)
+      << load.err;
 }
 
 TEST_F(Cli, CurieOnTheCommandLineExpandsWithPrefixFlagAndNodePrefixes) {
