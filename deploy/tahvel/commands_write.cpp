@@ -381,30 +381,31 @@ const Command kLoadCommand{
      {"--batch", "", "N", "triples per transaction (default 10000)"}},
     2, 2};
 
-// `dump` writes subscriptions (R9) with the rest, so `dump A | load B` made A's agents' live
-// subscriptions on B, persistent, their input buffers filling with B's items unread.
-void warn_of_subscriptions(const std::vector<node::Triple>& triples, const std::string& path) {
+// `dump` writes subscriptions (R9) with the rest: loaded, one for an agent of this node routes
+// items into its input buffer, whether or not that agent ever runs here; one for another node's
+// agent routes nothing (write.cpp) but stays, persistent.
+void warn_of_subscriptions(const node::Node& node, const std::vector<node::Triple>& triples, const std::string& path) {
   const std::string subscriber = std::string(uri::kTahvelNs) + "subscriber";
-  std::set<std::string> agents;
-  std::size_t count = 0;
+  std::set<std::string> here, elsewhere;
   for (const node::Triple& t : triples)
-    if (t.p.is_iri() && t.p.value == subscriber) {
-      ++count;
-      agents.insert(t.o.value);
+    if (t.p.is_iri() && t.p.value == subscriber && t.o.is_iri())
+      (uri::child_id(t.o.value, node.iri()) ? here : elsewhere).insert(t.o.value);
+  const auto named = [](const std::set<std::string>& agents) {
+    std::string out;
+    for (const std::string& agent : agents) {
+      if (out.size() > 200) return out + ", …";
+      out += (out.empty() ? "<" : ", <") + agent + ">";
     }
-  if (count == 0) return;
-  std::string named;
-  for (const std::string& agent : agents) {
-    if (named.size() > 200) {
-      named += ", …";
-      break;
-    }
-    named += (named.empty() ? "<" : ", <") + agent + ">";
-  }
-  std::cerr << warning_prefix() << (path == "-" ? std::string("<stdin>") : path) << ": " << count
-            << " tv:subscriber record(s): loaded, each makes a subscription on this node (of " << named
-            << "), whose input buffer fills with the matching items stored here; `tahvel list DIR -p tv:subscriber --format "
-               "json` names their items, `tahvel remove DIR --item ID` ends one\n";
+    return out;
+  };
+  const std::string file = path == "-" ? std::string("<stdin>") : path;
+  const char* ending = "; `tahvel list DIR -p tv:subscriber --format json` names their items, `tahvel remove DIR --item ID` ends one\n";
+  if (!here.empty())
+    std::cerr << warning_prefix() << file << ": subscriptions of this node's agents " << named(here)
+              << " are loaded: their input buffers fill with the matching items stored here, until they take them" << ending;
+  if (!elsewhere.empty())
+    std::cerr << warning_prefix() << file << ": subscriptions of another node's agents " << named(elsewhere)
+              << " are loaded: they route nothing here, and stay as persistent records" << ending;
 }
 
 int run_load(const Args& args) {
@@ -421,7 +422,7 @@ int run_load(const Args& args) {
   std::vector<node::Triple> triples = parse_input(node, path, input_format(args, path), prefixes, &input);
   warn_of_unreadable_geometry(triples, path);
   warn_of_unknown_addressee(node, frame, agent);
-  warn_of_subscriptions(triples, path);
+  warn_of_subscriptions(node, triples, path);
   std::vector<std::vector<std::size_t>> places;
   for (auto& group : group_by_subject(std::move(triples), &places)) {
     items.push_back(frame);
