@@ -1250,6 +1250,14 @@ Result<void> Env::write(const std::function<Result<void>(Txn&)>& body, WriteKind
         MDB_val k = val(kRemovalsTrimmedKey), v = val(txn.removals_trimmed_through);
         if (int rc = mdb_put(raw, meta, &k, &v, 0); rc != 0) return lmdb_fail(rc, "noting the removal log's trimmed end");
       }
+      if (txn.reclaimed_through != 0) {
+        MDB_val k = val(kReclaimedThroughKey), v;
+        const bool noted = mdb_get(raw, meta, &k, &v) == 0 && v.mv_size == sizeof(std::uint64_t);
+        if (!noted || u64(v) < txn.reclaimed_through) {
+          v = val(txn.reclaimed_through);
+          if (int rc = mdb_put(raw, meta, &k, &v, 0); rc != 0) return lmdb_fail(rc, "noting the records reclaimed");
+        }
+      }
       if (txn.notice_seqs_taken != 0) {
         const std::uint64_t taken = read_notice_seqs(raw, meta) + txn.notice_seqs_taken;
         MDB_val k = val(kNoticeSeqsKey), v = val(taken);

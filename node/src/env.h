@@ -65,6 +65,9 @@ inline constexpr std::string_view kStoreIdKey = "store_id";
 // The last sequence number trimmed from the removal log (a u64), absent until the log is first
 // trimmed. A key of its own, not a counter: builds that check the counters' size still open it.
 inline constexpr std::string_view kRemovalsTrimmedKey = "removals_trimmed_through";
+// The greatest record id the ring or a time-to-live reclaimed (they log no removal): Node::watch
+// tells a reader whose bookmark is older that records it never read may be gone.
+inline constexpr std::string_view kReclaimedThroughKey = "retention_reclaimed_through";
 // How many sequence numbers removal notices have taken (a u64), absent until the first. A notice
 // is neither a record nor a logged removal: a reader that accounts for every number between two
 // snapshots (the reasoner's gap check) counts these too. A key of its own, like the one above.
@@ -403,6 +406,9 @@ class Txn {
   // `meta` (kRemovalsTrimmedKey) at the end of the transaction: Node::watch tells a reader whose
   // bookmark is older that it missed removals.
   std::uint64_t removals_trimmed_through = 0;
+  // The greatest record id this transaction reclaimed (Removal::retention; 0: none), kept in
+  // `meta` (kReclaimedThroughKey) at its end when greater than what is there.
+  std::uint64_t reclaimed_through = 0;
   // Sequence numbers this transaction gave to removal notices, added to kNoticeSeqsKey at its end.
   std::uint64_t notice_seqs_taken = 0;
   std::uint64_t take_notice_seq() {

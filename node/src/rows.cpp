@@ -383,7 +383,10 @@ Result<void> delete_record(Txn& txn, std::uint64_t id, Removal why) {
   --txn.counters.records;
   if (it.persistent) --txn.counters.persistent_records;
   else --txn.counters.ring_records;
-  if (why == Removal::retention) ++txn.counters.reclaimed;
+  if (why == Removal::retention) {
+    ++txn.counters.reclaimed;
+    txn.reclaimed_through = std::max(txn.reclaimed_through, id);
+  }
   if (r.p == env.vocab.subscriber) {
     ++txn.counters.sub_gen;
     if (txn.counters.subscriptions > 0) --txn.counters.subscriptions;
