@@ -132,6 +132,10 @@ double seconds_since(std::int64_t unix_ns, std::int64_t at_ns = 0);
 // "never" for 0; as of `at_ns` (0: now), the moment it was read.
 std::string age_of(std::int64_t unix_ns, std::int64_t at_ns = 0);
 
+// Fails (`command: PATH lies inside the store at …; instead`) when a directory above `path`
+// holds a store: a store's directory holds its own files only.
+void refuse_inside_a_store(std::string_view command, const std::string& path, std::string_view instead);
+
 // The area of --area (and --floor): WKT when it reads as WKT, else a room's IRI or CURIE.
 spatial::AreaSpec area_flag(const Args& args, const uri::PrefixMap& prefixes);
 // --floor N: a floor as the board reads one (spatial::parse_floor: a whole number within ±1e9);

@@ -684,6 +684,21 @@ std::string caught_up_text(const spatial::AreaSyncReport& report) {
          " stored since a sensor came into an area delivered";
 }
 
+// A store's directory holds its own files only: one made inside it would be copied by every
+// copy of the outer store, and taken for the outer's leftovers by whoever tidies it.
+void refuse_inside_a_store(std::string_view command, const std::string& path, std::string_view instead) {
+  std::error_code ec;
+  std::filesystem::path dir = std::filesystem::absolute(path, ec).lexically_normal();
+  if (!dir.has_filename()) dir = dir.parent_path();  // "state/home1/", as a shell completes it
+  for (std::filesystem::path up = dir.parent_path(); !ec && !up.empty(); up = up.parent_path()) {
+    if (std::filesystem::is_regular_file(up / "data.mdb", ec) && std::filesystem::file_size(up / "data.mdb", ec) > 0 && !ec)
+      fail(std::string(command) + ": " + path + " lies inside the store at " + up.string() + " (it holds a data.mdb); " +
+           std::string(instead));
+    ec.clear();
+    if (up == up.root_path()) break;
+  }
+}
+
 spatial::AreaSpec area_flag(const Args& args, const uri::PrefixMap& prefixes) {
   std::string text = args.required("--area");
   spatial::AreaSpec spec;

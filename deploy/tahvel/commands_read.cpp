@@ -27,6 +27,11 @@ const Flag kFlagListContext{"--context", "", "IRI", "only records with this cont
 // One year: longer waits are refused rather than overflowing a deadline in the library.
 milliseconds timeout_flag(const Args& args) {
   constexpr std::uint64_t kMax = 365ull * 24 * 3600 * 1000;
+  // Past 64 bits too (12 significant digits or more are all above it), the bound said is this one.
+  if (const auto text = args.get("--timeout");
+      text && std::all_of(text->begin(), text->end(), [](char c) { return c >= '0' && c <= '9'; }) &&
+      text->size() - std::min(text->size(), text->find_first_not_of('0')) > 11)
+    usage_error("--timeout: at most " + std::to_string(kMax) + " ms");
   std::uint64_t ms = args.get_u64("--timeout", 0);
   if (ms > kMax) usage_error("--timeout: at most " + std::to_string(kMax) + " ms");
   return milliseconds(static_cast<milliseconds::rep>(ms));
@@ -192,6 +197,8 @@ const Command kBackupCommand{
 int run_backup(const Args& args) {
   refuse_when_output_was_closed();
   node::Node node = open_node(args.positional(0));
+  // Inside its own store, each backup would carry the ones before it.
+  refuse_inside_a_store("backup", args.positional(1), "make the copy in a directory outside it");
   auto bytes = node.back_up(args.positional(1));
   if (!bytes) fail("backup: " + bytes.error().message);
   std::cout << *bytes << "\n";

@@ -183,18 +183,7 @@ int run_init(const Args& args) {
     usage_error("init: --max-map: " + std::to_string(options.max_map_bytes) + " bytes is less than the smallest store, " +
                 std::to_string(node::kMinMaxMapBytes) + " bytes (1 MiB)");
   uri::PrefixMap extra = prefixes_with_flags({}, args);  // checked before anything is created
-  // A store's directory holds its own files only: one made inside it would be copied by every
-  // copy of the outer store, and taken for the outer's leftovers by whoever tidies it.
-  std::error_code ec;
-  std::filesystem::path dir = std::filesystem::absolute(args.positional(0), ec).lexically_normal();
-  if (!dir.has_filename()) dir = dir.parent_path();  // "state/home1/", as a shell completes it
-  for (std::filesystem::path up = dir.parent_path(); !ec && !up.empty(); up = up.parent_path()) {
-    if (std::filesystem::is_regular_file(up / "data.mdb", ec) && std::filesystem::file_size(up / "data.mdb", ec) > 0 && !ec)
-      fail("init: " + args.positional(0) + " lies inside the store at " + up.string() +
-           " (it holds a data.mdb); make the new store in a directory outside it");
-    ec.clear();
-    if (up == up.root_path()) break;
-  }
+  refuse_inside_a_store("init", args.positional(0), "make the new store in a directory outside it");
   node::Node node = check(node::Node::init(args.positional(0), options));
   for (const auto& [prefix, ns] : extra.entries()) check(node.set_prefix(prefix, ns));
   return kExitOk;

@@ -475,8 +475,8 @@ TEST_F(Cli, InitMaxMapBelowOneMebibyteIsAUsageErrorNamingTheFlagAndTheMinimum) {
   EXPECT_EQ(least.status, 0) << least.err;
 }
 
-// A store made inside another store's directory would go with every copy of the outer one.
-TEST_F(Cli, InitInsideAnotherStoresDirectoryIsRefusedNamingThatStore) {
+// A store or backup made inside a store's directory would go with every copy of the outer one.
+TEST_F(Cli, InitOrBackupInsideAStoresDirectoryIsRefusedNamingThatStore) {
   init();
   const std::string inner = (fs::path(node_) / "logs" / "inner").string();
   Outcome r = run({"init", inner, "--iri", "http://example.org/inner"});
@@ -485,6 +485,11 @@ TEST_F(Cli, InitInsideAnotherStoresDirectoryIsRefusedNamingThatStore) {
   EXPECT_FALSE(fs::exists(fs::path(node_) / "logs"));
   Outcome beside = run({"init", (fs::path(node_).parent_path() / "beside").string(), "--iri", "http://example.org/beside"});
   EXPECT_EQ(beside.status, 0) << beside.err;
+  // So is a backup there: each one would carry the ones before it.
+  Outcome backup = run({"backup", node_, inner});
+  EXPECT_EQ(backup.status, 1) << backup.err;
+  EXPECT_NE(backup.err.find("backup: " + inner + " lies inside the store at "), std::string::npos) << backup.err;
+  EXPECT_FALSE(fs::exists(fs::path(node_) / "logs"));
 }
 
 // An answer cut by --limit says so to the operator at a terminal: "5 records" looked the same
@@ -673,6 +678,12 @@ TEST_F(Cli, TakePrintsASubscribedItemOnceThenTimesOutWithExit3) {
   EXPECT_EQ(second.status, 3) << second.err;
   EXPECT_EQ(second.out, "");
   EXPECT_EQ(second.err, "");
+  // A wait too long says the one bound there is, whether or not the number fits 64 bits.
+  for (const char* too_long : {"31536000001", "18446744073709551615", "99999999999999999999"}) {
+    Outcome refused = run({"take", node_, "--agent", "reader", "--timeout", too_long});
+    EXPECT_EQ(refused.status, 2) << too_long;
+    EXPECT_EQ(refused.err, "tahvel: take: --timeout: at most 31536000000 ms\n") << too_long;
+  }
 }
 
 // A pool of workers taking from one agent: each take read the buffer's head and acknowledged it

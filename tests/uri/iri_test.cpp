@@ -773,14 +773,18 @@ TEST(IriPercentDecoded, DecodesEachEscapeAndKeepsWhatIsNotOne) {
   EXPECT_EQ(tahvel::uri::percent_decoded(""), "");
 }
 
-// The "did you mean" of a misspelt term counts a dropped, an added, a changed and a swapped
-// (two) character as a slip that far away.
+// The "did you mean" of a misspelt term counts a dropped, an added, a changed and two swapped
+// characters each as one slip (`tahvel lsit` is "list", not "init").
 TEST(Spelling, EditDistanceCountsTheOneCharacterEditsBetweenTwoNames) {
   EXPECT_EQ(tahvel::uri::edit_distance("integer", "integer"), 0u);
   EXPECT_EQ(tahvel::uri::edit_distance("integr", "integer"), 1u);
   EXPECT_EQ(tahvel::uri::edit_distance("integerr", "integer"), 1u);
   EXPECT_EQ(tahvel::uri::edit_distance("intager", "integer"), 1u);
-  EXPECT_EQ(tahvel::uri::edit_distance("itneger", "integer"), 2u);
+  EXPECT_EQ(tahvel::uri::edit_distance("itneger", "integer"), 1u);
+  EXPECT_EQ(tahvel::uri::edit_distance("lsit", "list"), 1u);
+  EXPECT_EQ(tahvel::uri::edit_distance("lsit", "init"), 2u);
+  EXPECT_EQ(tahvel::uri::edit_distance("ab", "ba"), 1u);
+  EXPECT_EQ(tahvel::uri::edit_distance("ca", "abc"), 3u);  // no edit of a swapped pair again
   EXPECT_EQ(tahvel::uri::edit_distance("", "abc"), 3u);
   EXPECT_EQ(tahvel::uri::edit_distance("abc", ""), 3u);
 }

@@ -9,7 +9,8 @@
 
 namespace tahvel::uri {
 
-// Levenshtein distance between `a` and `b` (bytes): how many one-character edits a slip is away.
+// How many one-character edits (a character dropped, added or changed, or two neighbours
+// swapped) a slip is away from `a` to `b`, in bytes: the optimal string alignment distance.
 std::size_t edit_distance(std::string_view a, std::string_view b);
 
 }  // namespace tahvel::uri
