@@ -321,6 +321,24 @@ class Parser {
                                                                       : "integer") +
                ">; Turtle, a .ttl file or --format ttl, takes a bare " + std::string(token) + ")";
     }
+    // A statement ended where its object goes ("ex:a ex:b ." or "ex:c , ."): serd reads the '.'
+    // as the start of a decimal number and says only that a digit should follow.
+    if (message.ends_with("expected digit")) {
+      const std::size_t at = std::min(offset(), text_.size());
+      const std::size_t dot = at > 0 && text_[at - 1] == '.' ? at - 1 : at < text_.size() && text_[at] == '.' ? at : std::string_view::npos;
+      if (dot != std::string_view::npos && dot > 0 && std::string_view(" \t\r\n,;").find(text_[dot - 1]) != std::string_view::npos &&
+          (dot + 1 >= text_.size() || std::string_view(" \t\r\n").find(text_[dot + 1]) != std::string_view::npos))
+        return "an object is missing before this '.' (a statement is subject, predicate and object, then '.')";
+    }
+    // "x"@ with no tag: serd says only what it met.
+    if (message.starts_with("unexpected")) {
+      const std::size_t at = std::min(offset(), text_.size());
+      if (at > 0 && text_[at - 1] == '@' && at > 1 && (text_[at - 2] == '"' || text_[at - 2] == '\''))
+        return message + " (a language tag is missing after '@': \"text\"@en)";
+    }
+    // In N-Triples an object is one of three, and serd names Turtle's prefixed names among them.
+    if (options_.format == Format::ntriples && message.find("expected: ':', '<', or '_'") != std::string::npos)
+      return message + " (an N-Triples term is an <IRI>, a _:blank node, or, as an object, a \"quoted literal\")";
     // A literal where a subject goes: serd, reading it as a subject that is no term, says only
     // "bad verb" at the statement's start.
     if (message.ends_with("bad verb")) {

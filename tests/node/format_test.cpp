@@ -212,6 +212,14 @@ TEST(Format, ErrorsCountLoneCarriageReturnsAsLineEndsAndSayWhatTheInputIs) {
             std::string::npos);
   ParseOptions turtle;
   turtle.format = Format::turtle;
+  // serd's words where they mislead: a missing object read as the start of a decimal, a
+  // language tag left out, Turtle's prefixed names offered in N-Triples.
+  EXPECT_NE(parse_error("@prefix ex: <" + kEx + "> .\nex:a ex:b ex:c ;\n  ex:d .\n", turtle).message.find("an object is missing before this '.'"),
+            std::string::npos);
+  EXPECT_NE(parse_error("@prefix ex: <" + kEx + "> .\nex:a ex:b ex:c , .\n", turtle).message.find("an object is missing"), std::string::npos);
+  EXPECT_NE(parse_error("<" + kEx + "s> <" + kEx + "p> \"x\"@ .\n", nt).message.find("a language tag is missing after '@'"),
+            std::string::npos);
+  EXPECT_NE(parse_error("<" + kEx + "s> <" + kEx + "p> bad .\n", nt).message.find("an N-Triples term is an <IRI>"), std::string::npos);
   const std::string json = parse_error("{\"s\":\"<" + kEx + "s>\",\"p\":\"<" + kEx + "p>\"}\n", turtle).message;
   EXPECT_NE(json.find("the input reads as JSON"), std::string::npos) << json;
   EXPECT_EQ(json.find("graphs"), std::string::npos) << json;  // serd's words, about a graph block
