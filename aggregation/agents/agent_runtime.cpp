@@ -13,6 +13,7 @@
 #include <cstdlib>
 #include <iostream>
 #include <set>
+#include <string_view>
 #include <thread>
 #include <algorithm>
 
@@ -133,8 +134,17 @@ HeldLock::~HeldLock() {
   if (fd_ >= 0) ::close(fd_);
 }
 
+namespace {
+struct OnlyChecking {};  // thrown by stop_here_when_only_checking, caught by guarded_main
+}  // namespace
+
+void stop_here_when_only_checking() {
+  if (const char* only = std::getenv(kCheckArgsEnv); only && std::string_view(only) == "1") throw OnlyChecking{};
+}
+
 std::optional<Session> open_session(const std::string& program, const std::string& dir,
                                     const std::string& agent_id) {
+  stop_here_when_only_checking();
   auto node = node::Node::open(dir);
   if (!node) {
     log_line(program, "open " + dir + ": " + node_error(node.error()));
@@ -335,6 +345,8 @@ int guarded_main(const char* program, const char* usage, const std::function<int
     return status == 0 ? node::stop_exit_status() : status;
   } catch (const HelpRequested&) {
     std::cout << usage << '\n';
+    return 0;
+  } catch (const OnlyChecking&) {
     return 0;
   } catch (const UsageError& e) {
     // The usage first and the error last: the supervisor shows the last line of a failed

@@ -30,6 +30,13 @@ struct UsageError : std::runtime_error {
 // Thrown by Args for -h / --help: guarded_main prints the usage on standard output, status 0.
 struct HelpRequested {};
 
+// `tahvel up` runs a program of its own build with kCheckArgsEnv=1 in its environment to check
+// its command line before it starts it (a refused flag was otherwise a program restarted for
+// ever): the program stops, status 0, where it would first touch the node or the signal, every
+// flag checked by then. stop_here_when_only_checking() is that place (open_session calls it).
+inline constexpr const char* kCheckArgsEnv = "TAHVEL_CHECK_ARGS";
+void stop_here_when_only_checking();
+
 // Runs an agent's `body` as its main(): a UsageError prints `usage` and then, as the last line,
 // "<program>: <message>" on standard error (the line a supervisor shows of a failed program)
 // and gives kExitUsage; otherwise the body's exit status.

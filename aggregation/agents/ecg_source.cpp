@@ -585,6 +585,7 @@ int main(int argc, char** argv) {
       ecg_lead = static_cast<std::size_t>(n);
     }
     const double speed = args.number("--speed", 1);
+    rt::stop_here_when_only_checking();  // before the record is read (`up` opened it already)
     rt::install_stop_handlers();
     auto signal = args.has("--record") ? record_signal(args.text("--record", ""), ecg_lead) : synthetic_signal(args);
     if (!signal) {

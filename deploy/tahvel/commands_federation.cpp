@@ -2078,6 +2078,7 @@ int up_checked(const Args& args, bool& checking) {
         prefixes = existing ? existing->prefixes() : uri::PrefixMap::standard();
       }
       if (auto rules = check_rule_file(agent, *spec, *argv, *prefixes); !rules) fail(rules.error().message);
+      if (auto flags = check_agent_flags(agent, *spec, *argv, here_for_file); !flags) fail(flags.error().message);
     }
   }
   warn_of_dataflow(topo, mine);

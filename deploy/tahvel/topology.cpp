@@ -1,8 +1,14 @@
 #include "topology.h"
 
+#include <fcntl.h>
+#include <poll.h>
+#include <sys/wait.h>
 #include <unistd.h>
 
 #include <algorithm>
+#include <cerrno>
+#include <chrono>
+#include <csignal>
 #include <cstdio>
 #include <cstdlib>
 #include <filesystem>
@@ -753,6 +759,69 @@ node::Result<std::vector<std::string>> expand_agent_command(const AgentSpec& age
     }
   }
   return argv;
+}
+
+node::Result<void> check_agent_flags(const AgentSpec& agent, const NodeSpec& node, const std::vector<std::string>& argv,
+                                     const CommandContext& context) {
+  // The agents of this build stop before they touch anything when TAHVEL_CHECK_ARGS=1
+  // (aggregation/agents/agent_runtime.h); another build's, or another program, would run.
+  static const std::set<std::string> kChecked = {"tahvel-ecg-source", "tahvel-rpeak", "tahvel-rr", "tahvel-hrv",
+                                                 "tahvel-trend", "tahvel-environment", "tahvel-env-motes"};
+  const std::filesystem::path program(argv.front());
+  std::error_code ec;
+  if (!kChecked.count(program.filename().string()) || context.bin.empty() ||
+      !std::filesystem::equivalent(program.parent_path(), context.bin, ec))
+    return {};
+  int err[2];
+  if (::pipe2(err, O_CLOEXEC) != 0) return {};  // unchecked rather than refused
+  const pid_t pid = ::fork();
+  if (pid < 0) {
+    ::close(err[0]);
+    ::close(err[1]);
+    return {};
+  }
+  if (pid == 0) {
+    ::dup2(err[1], STDERR_FILENO);
+    const int null = ::open("/dev/null", O_RDWR);
+    if (null >= 0) ::dup2(null, STDIN_FILENO), ::dup2(null, STDOUT_FILENO);
+    ::setenv("TAHVEL_CHECK_ARGS", "1", 1);
+    std::vector<char*> args;
+    for (const std::string& a : argv) args.push_back(const_cast<char*>(a.c_str()));
+    args.push_back(nullptr);
+    ::execv(args[0], args.data());
+    ::_exit(127);
+  }
+  ::close(err[1]);
+  std::string said;
+  char buffer[4096];
+  // A program that does not stop (it is not of this build after all) is not waited for.
+  const auto deadline = std::chrono::steady_clock::now() + std::chrono::seconds(10);
+  bool late = false;
+  for (;;) {
+    const auto left = std::chrono::duration_cast<std::chrono::milliseconds>(deadline - std::chrono::steady_clock::now()).count();
+    pollfd ready{err[0], POLLIN, 0};
+    if (left <= 0 || ::poll(&ready, 1, static_cast<int>(left)) == 0) {
+      late = true;
+      break;
+    }
+    const ssize_t n = ::read(err[0], buffer, sizeof buffer);
+    if (n < 0 && errno == EINTR) continue;
+    if (n <= 0) break;
+    if (said.size() < 65536) said.append(buffer, static_cast<std::size_t>(n));
+  }
+  ::close(err[0]);
+  if (late) ::kill(pid, SIGKILL);  // pid > 0: the child forked above
+  int status = 0;
+  while (::waitpid(pid, &status, 0) < 0 && errno == EINTR) {
+  }
+  if (late || !WIFEXITED(status) || WEXITSTATUS(status) != 2) return {};
+  // The program's last line is its reason: "<UTC time> tahvel-hrv: --window: ..." (the usage
+  // before it).
+  while (!said.empty() && (said.back() == '\n' || said.back() == '\r')) said.pop_back();
+  std::string last = said.substr(said.rfind('\n') == std::string::npos ? 0 : said.rfind('\n') + 1);
+  if (const std::size_t name = last.find(program.filename().string() + ": "); name != std::string::npos) last = last.substr(name);
+  const std::string what = (agent.at.empty() ? std::string() : agent.at + ": ") + "node '" + node.id + "': agent '" + agent.id + "': ";
+  return node::fail(Errc::invalid_argument, what + "its command line is refused: " + last);
 }
 
 node::Result<void> check_rule_file(const AgentSpec& agent, const NodeSpec& node, const std::vector<std::string>& argv,

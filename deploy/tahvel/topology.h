@@ -114,6 +114,14 @@ node::Result<std::vector<std::string>> expand_agent_command(const AgentSpec& age
                                                             const std::filesystem::path& store,
                                                             const CommandContext& context);
 
+// The command line of an agent program of this build (tahvel-hrv, tahvel-rpeak, … in
+// context.bin), checked by the program itself, run with TAHVEL_CHECK_ARGS=1 (it stops before it
+// touches the node): a refused flag ("--window -5") only showed as the agent restarted for ever.
+// Errors (invalid_argument): the agent's place, then the program's own message. Other programs,
+// and a check that cannot run, pass.
+node::Result<void> check_agent_flags(const AgentSpec& agent, const NodeSpec& node, const std::vector<std::string>& argv,
+                                     const CommandContext& context);
+
 // A reasoner agent's rule file (`tahvel reason {store} RULES`, argv as expanded), read and parsed
 // as the reasoner will at its start, with the node's `prefixes` (its store's, or the standard
 // ones for a store not made yet): a missing or broken file only showed as the reasoner failing

@@ -3339,6 +3339,31 @@ TEST_F(Cli, UpRefusesAnEcgRecordItCannotRead) {
   EXPECT_EQ(run({"down", "--state", state}).status, 0);
 }
 
+// A flag an agent of this build refuses (tahvel-hrv --window -5) only showed as the agent
+// restarted for ever, its reason in `status`. `up` runs each such program to check its command
+// line first (it stops before it touches the node), and refuses the file with the program's
+// reason; a command line it takes goes on as before. Another program is not run to check it.
+TEST_F(Cli, UpRefusesAnAgentCommandLineTheAgentItselfRefuses) {
+  const auto file = [&](const std::string& window) {
+    spit(tmp_ / "node.toml",
+         "[[node]]\nid = \"home\"\niri = \"http://example.org/home\"\n"
+         "  [[node.agent]]\n  id = \"hrv\"\n  run = [\"{bin}/tahvel-hrv\", \"{store}\", \"--window\", \"" + window + "\"]\n"
+         "  [[node.agent]]\n  id = \"other\"\n  run = [\"/bin/sleep\", \"--not-a-flag-of-sleep\"]\n");
+  };
+  const std::string state = (tmp_ / "state").string();
+  file("-5");
+  Outcome up = run({"up", (tmp_ / "node.toml").string(), "--state", state});
+  EXPECT_EQ(up.status, kUpRefused) << up.err;
+  EXPECT_NE(up.err.find("node.toml:4:3: node 'home': agent 'hrv': its command line is refused: tahvel-hrv: --window: '-5' is not a number >= 0"),
+            std::string::npos)
+      << up.err;
+  EXPECT_FALSE(fs::exists(tmp_ / "state"));
+  file("60");
+  up = run({"up", (tmp_ / "node.toml").string(), "--state", state});
+  EXPECT_EQ(up.status, 0) << up.err;
+  EXPECT_EQ(run({"down", "--state", state}).status, 0);
+}
+
 // `{mitdb}` in a command while TAHVEL_MITDB is unset used to become "" ("/100": a replay of a
 // file that is not there, failing and restarted for ever). `up` refuses it before making the
 // store, naming the node and the agent; the same with TAHVEL_MITDB set to a directory runs.

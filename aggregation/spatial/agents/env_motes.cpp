@@ -300,6 +300,7 @@ int run(int argc, char** argv) {
     if (!parsed) throw rt::UsageError("--start-ns: expected an integer (ns since the epoch)");
     now = *parsed;
   }
+  rt::stop_here_when_only_checking();
   auto opened = tn::Node::open(args.dir());
   if (!opened) {
     rt::log_line(kProgram, opened.error().message);
