@@ -344,10 +344,11 @@ class Agent {
   // (woken by the writer's commit, no polling). Returns nullopt on timeout. An item removed from
   // the store before it was taken is skipped. milliseconds::max() (or any timeout too long to
   // add to now) waits without limit; zero or a negative one does not wait. A signal that runs a
-  // handler ends the wait as a timeout does, SA_RESTART or not (the kernel does not restart a
-  // wait with a time limit), so that a program sees the stop flag its handler set; so do peek,
-  // Node::watch and Node::wait_for_commit. A loop that waits for items takes nullopt as "look
-  // again".
+  // handler while it sleeps ends the wait as a timeout does, SA_RESTART or not (the kernel does
+  // not restart a wait with a time limit), so that a program sees the stop flag its handler set;
+  // so do peek, Node::watch and Node::wait_for_commit. One in the microseconds before the sleep
+  // is not seen until the wait ends: a program that stops on a signal waits with a limit and
+  // checks its flag between waits. A loop that waits for items takes nullopt as "look again".
   Result<std::optional<Delivery>> take(std::chrono::milliseconds timeout,
                                        Ack ack = Ack::automatic) noexcept;
 

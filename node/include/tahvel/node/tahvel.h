@@ -174,10 +174,13 @@ tahvel_status tahvel_list_as(tahvel_node* node, const char* s, const char* p, co
 /* Changes on the whiteboard after `bookmark` (0: from the beginning), oldest first, at most
  * `limit` (0: no limit), as JSON lines: an insertion is its record's object (its "id" is its
  * sequence number); a removal is the removed record's object led by "removed":true and its
- * "seq"; a change that cannot be read (a damaged record or log entry) is
- * {"seq":N,"removed":false|true,"unreadable":"why"}. Waits up to `timeout_ms` (negative: without limit) for the first change when there is
- * none yet (woken by the writer's commit); a signal that runs a handler ends the wait as a
- * timeout does, so that a watcher sees its stop flag. Sets *bookmark_out (may be NULL) to the last sequence
+ * "seq"; a change that cannot be read (a damaged record or log entry), or records the ring or a
+ * time-to-live reclaimed before they were read (one change at the last of them, naming the
+ * ids), is {"seq":N,"removed":false|true,"unreadable":"why"}: read the board again. Waits up to
+ * `timeout_ms` (negative: without limit) for the first change when there is none yet (woken by
+ * the writer's commit); a signal that runs a handler while it sleeps ends the wait as a timeout
+ * does, so that a watcher sees its stop flag (one in the microseconds before it sleeps is not
+ * seen until the wait ends: wait with a limit, as tahvel_take says). Sets *bookmark_out (may be NULL) to the last sequence
  * number returned, or to `bookmark` when none or on an error: pass it to the next call to resume
  * exactly.
  * The text (empty on timeout: TAHVEL_OK, not TAHVEL_TIMEOUT) is freed with tahvel_free().
@@ -283,10 +286,13 @@ tahvel_status tahvel_subscribe_earlier(tahvel_agent* agent, const char* s, const
  * An item removed from the store before it was taken is skipped.
  *
  * Returns TAHVEL_TIMEOUT when no item arrived in time (out-parameters set to NULL/0), and also
- * when a signal that runs a handler arrived during the wait, SA_RESTART or not (tahvel_last_error
+ * when a signal that runs a handler arrived while it slept, SA_RESTART or not (tahvel_last_error
  * says "ended by a signal"; the kernel does not restart a wait with a time limit): an agent
- * whose SIGTERM handler sets a stop flag sees it at once, even in a wait without limit. A loop
- * that waits for items takes TAHVEL_TIMEOUT as "look again".
+ * whose SIGTERM handler sets a stop flag sees it at once. A signal in the microseconds between
+ * the call and its sleep (reading the buffer) is not seen until the wait ends, so an agent that
+ * stops on a signal waits with a limit (1000 ms, as the examples do) and checks its flag between
+ * waits; without a limit it may wait for the next item. A loop that waits for items takes
+ * TAHVEL_TIMEOUT as "look again".
  * Errors: TAHVEL_INVALID_ARGUMENT, TAHVEL_IO, TAHVEL_CORRUPT, TAHVEL_NO_MEMORY. */
 tahvel_status tahvel_take(tahvel_agent* agent, int timeout_ms, uint64_t* item_out,
                           char** ntriples_out, size_t* len_out);
