@@ -847,7 +847,8 @@ void RecordWriter::write(const Change& change) {
   if (!change.unreadable.empty()) {
     if (impl_->format == Format::json) {
       impl_->out << "{\"seq\":" << change.seq << ",\"removed\":" << (change.removed ? "true" : "false")
-                 << ",\"unreadable\":\"" << json_escape(change.unreadable) << "\"}\n";
+                 << (change.reclaimed ? ",\"reclaimed\":true" : "") << ",\"unreadable\":\"" << json_escape(change.unreadable)
+                 << "\"}\n";
     } else {
       impl_->finish();
       // One line: the reason is the store's message, which names what and where.

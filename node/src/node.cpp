@@ -1556,7 +1556,7 @@ Result<std::vector<Change>> Node::watch(std::uint64_t bookmark, std::chrono::mil
       if (mdb_get(read.txn, impl_->env->meta, &rk, &rv) == 0 && rv.mv_size == sizeof(std::uint64_t)) {
         const std::uint64_t reclaimed = u64(rv);
         if (reclaimed > bookmark) {
-          Change gap{reclaimed, true, {}, {}};
+          Change gap{reclaimed, true, {}, {}, true};
           gap.unreadable = "records with ids from " + std::to_string(bookmark + 1) + " to " + std::to_string(reclaimed) +
                            " were reclaimed (the ring, or a time-to-live) before they were read: those are not "
                            "listed here; read the board again";

@@ -1952,6 +1952,7 @@ TEST(Store, AWatcherBehindTheRingIsToldThatRecordsItNeverReadWereReclaimed) {
     if (!c.unreadable.empty()) {
       ++gaps;
       EXPECT_TRUE(c.removed);
+      EXPECT_TRUE(c.reclaimed);
       EXPECT_NE(c.unreadable.find("records with ids from " + std::to_string(bookmark + 1) + " to "), std::string::npos)
           << c.unreadable;
     }

@@ -503,6 +503,28 @@ TEST_F(ReasonerTest, RunWritesAgainTheConclusionsOtherWritersPushedOutOfTheRing)
   EXPECT_EQ(anc(), 3u);
 }
 
+// A ring too small for the conclusions reclaims some of them as the reasoner writes them. That
+// starts no session: the watch's notice of records reclaimed before they were read (R17) made
+// one every turn, for ever, each writing the conclusions again.
+TEST_F(ReasonerTest, RunStartsNoSessionForConclusionsItsOwnWritePushedOutOfTheRing) {
+  auto ring = tn::Node::init(root_ / "ring", {.iri = kIri, .ring = 8});
+  ASSERT_TRUE(ring.has_value()) << ring.error().message;
+  tn::Item premises;
+  premises.persistent = true;
+  premises.triples = {t("a", "parent", "b"), t("b", "parent", "c"), t("c", "parent", "d"), t("d", "parent", "e")};
+  ASSERT_TRUE(ring->agent("init")->store(premises).has_value());
+  tr::ReasonerOptions o;
+  o.rules = rules("anc.rules", "anc(X, Y) :- parent(X, Y).\nanc(X, Z) :- parent(X, Y), anc(Y, Z).\n");
+  o.interval = std::chrono::milliseconds(0);
+  auto r = tr::Reasoner::open(root_ / "ring", o);
+  ASSERT_TRUE(r.has_value()) << r.error().message;
+  int sessions = 0, turns = 0;
+  auto ran = r->run([&](const tr::SessionReport&) { return ++sessions < 10; }, [&] { return ++turns > 20; });
+  ASSERT_TRUE(ran.has_value()) << ran.error().message;
+  ASSERT_GT(ring->stats()->reclaimed_records, 0u) << "the ring reclaimed nothing: the test proves nothing";
+  EXPECT_EQ(sessions, 1);
+}
+
 // A directory opens as an empty stream; read as a rule file without rules it retracted every
 // conclusion of the agent.
 TEST_F(ReasonerTest, ADirectoryIsNotARuleFile) {

@@ -584,7 +584,10 @@ Result<void> Reasoner::run(const std::function<bool(const SessionReport&)>& on_s
       watched = std::max(watched, c.seq);
       const node::Record& r = c.record;
       // A change that cannot be read may be relevant: a session reads the board as it is.
-      if (!c.unreadable.empty() || (!impl_->own(r) && r.triple.p.is_iri() && impl_->engine.relevant(r.triple.p.value)))
+      // Records reclaimed before they were read are not such a change: reclaims are counted
+      // below, where the reasoner's own write's are told apart (each made a session, for ever).
+      if ((!c.unreadable.empty() && !c.reclaimed) ||
+          (!impl_->own(r) && r.triple.p.is_iri() && impl_->engine.relevant(r.triple.p.value)))
         pending = true;
       // A conclusion someone else removed is written again if it still holds (read_changes).
       if (c.removed && impl_->own(r) && !impl_->removing.count(key_of(r.triple))) pending = true;

@@ -105,6 +105,10 @@ struct Change {
   // for meta.id (an insertion's record id), so that a reader knows what it did not see instead
   // of missing it without a word.
   std::string unreadable;
+  // With `unreadable`: records with ids up to seq were reclaimed by the ring or a time-to-live
+  // before this reader read them (Node::watch), rather than a change that cannot be read. A
+  // reader that counts reclaims itself (Stats::reclaimed_records) may pass over it.
+  bool reclaimed = false;
 };
 
 // ---------------------------------------------------------------------------------------------
@@ -573,7 +577,9 @@ class Node {
   // `timeout` for the first one when there is none yet; an empty vector means timeout. Removals
   // after a non-zero bookmark that already left the removal log (it keeps the latest, R17) come
   // as one change: removed, seq = the last trimmed, `unreadable` naming the range (read the
-  // board again).
+  // board again). So do records after the bookmark (0 too: a reader from the start never saw
+  // them) that the ring or a time-to-live reclaimed before this call: one change, removed and
+  // `reclaimed`, seq = the greatest id reclaimed.
   Result<std::vector<Change>> watch(std::uint64_t bookmark, std::chrono::milliseconds timeout,
                                     std::size_t limit = 0) const;
 

@@ -176,7 +176,8 @@ tahvel_status tahvel_list_as(tahvel_node* node, const char* s, const char* p, co
  * sequence number); a removal is the removed record's object led by "removed":true and its
  * "seq"; a change that cannot be read (a damaged record or log entry), or records the ring or a
  * time-to-live reclaimed before they were read (one change at the last of them, naming the
- * ids), is {"seq":N,"removed":false|true,"unreadable":"why"}: read the board again. Waits up to
+ * ids, and "reclaimed":true after "removed"), is {"seq":N,"removed":false|true,"unreadable":"why"}:
+ * read the board again. Waits up to
  * `timeout_ms` (negative: without limit) for the first change when there is none yet (woken by
  * the writer's commit); a signal that runs a handler while it sleeps ends the wait as a timeout
  * does, so that a watcher sees its stop flag (one in the microseconds before it sleeps is not
