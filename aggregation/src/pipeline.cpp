@@ -42,8 +42,37 @@ Result<HrvReport> hrv_from_samples(const std::vector<std::int32_t>& samples, dou
 std::size_t gap_count(const std::vector<Interval>& intervals, double fs, const NnRule& rule) {
   const double limit = rule.max_interval_s * fs;
   return static_cast<std::size_t>(std::count_if(intervals.begin(), intervals.end(), [&](const Interval& i) {
-    return !i.nn && static_cast<double>(i.end - i.start) > limit;  // not a confirmed pause
+    return !i.nn && static_cast<double>(i.end - i.start) > limit;
   }));
+}
+
+std::optional<std::string> long_gaps_warning(const std::vector<Interval>& intervals, double fs, const NnRule& rule,
+                                             const HrvOptions& hrv) {
+  const std::size_t gaps = gap_count(intervals, fs, rule);
+  if (gaps == 0 || !(fs > 0)) return std::nullopt;
+  const double limit = rule.max_interval_s * fs;
+  std::vector<Interval> with_them = intervals;
+  const Interval* longest = nullptr;
+  for (Interval& i : with_them)
+    if (!i.nn && static_cast<double>(i.end - i.start) > limit) {
+      i.nn = true;
+      if (!longest || i.end - i.start > longest->end - longest->start) longest = &i;
+    }
+  const auto sdnn = [&](const std::vector<Interval>& series) {
+    char text[32];
+    if (const std::optional<double> v = compute_hrv(series, fs, hrv).sdnn_ms) std::snprintf(text, sizeof text, "%.1f ms", *v);
+    else std::snprintf(text, sizeof text, "none");
+    return std::string(text);
+  };
+  char text[700];
+  std::snprintf(text, sizeof text,
+                "%zu interval(s) longer than %g s are not NN (the longest %.1f s, from %.1f s into the signal): pauses "
+                "of the heart (sinus arrest, AV block) or signal lost (a lead off, also one that leaves a quiet line), "
+                "which RR alone cannot tell apart; HRV leaves them out: SDNN %s, and with them as NN %s "
+                "(docs/hrv.md, \"Gaps\")",
+                gaps, rule.max_interval_s, static_cast<double>(longest->end - longest->start) / fs,
+                static_cast<double>(longest->start) / fs, sdnn(intervals).c_str(), sdnn(with_them).c_str());
+  return std::string(text);
 }
 
 std::optional<std::string> irregular_rhythm_warning(const HrvMetrics& m, std::size_t gaps, double max_interval_s) {
@@ -315,7 +344,9 @@ Result<HrvReport> hrv_from_record(const std::string& record_path, const ChainOpt
     report->warnings.push_back(*fastest);
   if (auto irregular = irregular_rhythm_warning(report->metrics, gap_count(report->intervals, report->fs, options.nn),
                                                 options.nn.max_interval_s))
-    report->rhythm_warnings.push_back(*irregular);
+    report->rhythm_warnings.push_back(*irregular);  // which names the gaps
+  else if (auto gaps = long_gaps_warning(report->intervals, report->fs, options.nn, options.hrv))
+    report->rhythm_warnings.push_back(*gaps);
   if (auto paced = paced_beats_warning(record_path)) report->rhythm_warnings.push_back(*paced);
   if (auto fixed = fixed_rate_warning(report->intervals, report->fs)) report->rhythm_warnings.push_back(*fixed);
   // A flat signal (a lead off, a channel of zeros) gives no beat, and every metric null: said,

@@ -120,11 +120,7 @@ std::vector<Interval> intervals_from_peaks(const std::vector<std::int64_t>& peak
 // push. A judgement changes no state before it knows it can finish, so redoing it is exact.
 
 NnClassifier::NnClassifier(double fs, const NnRule& rule, std::vector<SampleRange> excluded)
-    : fs_(fs),
-      rule_(rule),
-      max_rr_(rule.max_interval_s * fs),
-      max_pause_rr_(std::max(rule.max_pause_s, rule.max_interval_s) * fs),
-      excluded_(std::move(excluded)) {
+    : fs_(fs), rule_(rule), max_rr_(rule.max_interval_s * fs), excluded_(std::move(excluded)) {
   excluded_max_ = prepare_ranges(excluded_);
 }
 
@@ -230,10 +226,6 @@ bool NnClassifier::step(std::vector<Interval>& decided) {
     decide(false, decided);
     return true;
   }
-  if (r > max_rr_ && r <= max_pause_rr_ && !hist_.empty() && confirmed_pause()) {
-    keep_pause(decided);
-    return true;
-  }
   if (r > max_rr_) {  // a gap: not NN, and the reference restarts after it
     short_run_.clear();
     seed_pending_ = true;
@@ -287,7 +279,14 @@ bool NnClassifier::step(std::vector<Interval>& decided) {
   }
   if (!continuous && r > (1 + tol_long) * ref) {  // long: NN only if a new rhythm follows
     if (confirmed_pause()) {
-      keep_pause(decided);
+      // A sinus pause or a blocked P wave: real intervals between normal beats, NN by the
+      // reference rule. Not a sinus interval either: it stays out of the reference and the
+      // spread, and the next interval is judged against the reference alone.
+      short_run_.clear();
+      count_slow(pending_.front());
+      decide(true, decided);
+      prev_ok_ = false;
+      prev_pause_ = true;
       return true;
     }
     const std::size_t k = size_t_of(rule_.sustained_beats);
@@ -404,17 +403,6 @@ void NnClassifier::accept(double rr) {
   }
   hist_.push_back(rr);
   if (hist_.size() > size_t_of(rule_.reference_beats)) hist_.pop_front();
-}
-
-// A sinus pause or a blocked P wave: real intervals between normal beats, NN by the reference
-// rule. Not a sinus interval either: it stays out of the reference and the spread, and the next
-// interval is judged against the reference alone.
-void NnClassifier::keep_pause(std::vector<Interval>& decided) {
-  short_run_.clear();
-  count_slow(pending_.front());
-  decide(true, decided);
-  prev_ok_ = false;
-  prev_pause_ = true;
 }
 
 // A long front interval is a confirmed pause when the detector found its gap empty, the

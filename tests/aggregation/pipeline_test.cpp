@@ -79,11 +79,12 @@ TEST(HrvChain, SmallMissedBeatsAtFastRatesAreNotKeptAsPauses) {
   }
 }
 
-// Sinus arrests of 4 and 6 s, beats left out with the baseline and its noise going on: the
-// detector finds the gaps empty and the pauses are NN, as the reference rule keeps them.
-// Longer than the gap bound (3.5 s) they were dropped: SDNN fell by 94 %, with no warning (a
-// researcher's probe, pauses of 3.6 s every 80 beats).
-TEST(HrvChain, SinusArrestsLongerThanTheGapBoundAreKeptAsNn) {
+// Sinus arrests of 4 and 6 s, beats left out with the baseline and its noise going on. RR alone
+// cannot tell them from a lead off that leaves a quiet line (kept as NN, such a lead-off took
+// SDNN from 35.5 ms to 246): they are gaps, not NN, and said, with the SDNN they would give as
+// NN, which is the true one. Dropped without a word, pauses of 3.6 s every 80 beats took SDNN
+// from 285 ms to 20 (a researcher's probe).
+TEST(HrvChain, SinusArrestsLongerThanTheGapBoundAreGapsAndSaidWithTheSdnnTheyWouldGive) {
   SyntheticRun run = synthetic(600, 60, 2);
   std::vector<std::int64_t> beats = {run.truth[0].start};
   for (const Interval& i : run.truth) beats.push_back(i.end);
@@ -111,10 +112,16 @@ TEST(HrvChain, SinusArrestsLongerThanTheGapBoundAreKeptAsNn) {
   auto report = hrv_from_samples(run.samples, 360, 200);
   ASSERT_TRUE(report) << report.error().message;
   const HrvMetrics want = compute_hrv(truth, 360);
-  EXPECT_EQ(report->metrics.nn_count, want.nn_count);
-  ASSERT_TRUE(report->metrics.sdnn_ms && want.sdnn_ms);
-  EXPECT_NEAR(*report->metrics.sdnn_ms, *want.sdnn_ms, 0.02 * *want.sdnn_ms);
-  EXPECT_EQ(gap_count(report->intervals, 360), 0u);
+  EXPECT_EQ(report->metrics.nn_count + 3, want.nn_count);
+  EXPECT_EQ(gap_count(report->intervals, 360), 3u);
+  const std::optional<std::string> said = long_gaps_warning(report->intervals, 360);
+  ASSERT_TRUE(said);
+  EXPECT_EQ(said->rfind("3 interval(s) longer than 3.5 s are not NN (the longest 6.", 0), 0u) << *said;
+  const std::size_t with = said->find("with them as NN ");
+  ASSERT_NE(with, std::string::npos) << *said;
+  ASSERT_TRUE(want.sdnn_ms);
+  EXPECT_NEAR(std::stod(said->substr(with + 16)), *want.sdnn_ms, 0.02 * *want.sdnn_ms) << *said;
+  EXPECT_FALSE(long_gaps_warning(truth, 360));  // no gap, nothing said
 }
 
 // Intervals rejected for their length alone (a rhythm slower than the bound, pauses, signal

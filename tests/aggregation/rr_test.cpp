@@ -3,7 +3,6 @@
 
 #include <cmath>
 
-#include "tahvel/aggregation/pipeline.h"
 #include "tahvel/aggregation/rr.h"
 
 namespace tahvel::aggregation {
@@ -212,33 +211,6 @@ TEST(DetectedRule, ConfirmedPauseIsNnAndAnUnconfirmedOneIsNot) {
   NnRule off;
   off.keep_confirmed_pauses = false;
   EXPECT_FALSE(intervals_from_peaks(peaks, {peaks[11]}, 360, off)[10].nn);
-}
-
-// A sinus arrest longer than max_interval_s whose gap the detector found empty held signal and
-// no beat: NN, as the reference rule keeps it (dropped, pauses of 3.6 s every 80 beats took
-// SDNN from 285 ms to 20, with nothing said), up to max_pause_s. Unconfirmed, beyond
-// max_pause_s, or with confirmed pauses off it is a gap, after which the reference restarts.
-TEST(DetectedRule, AConfirmedPauseLongerThanTheGapBoundIsNnUpToMaxPause) {
-  std::vector<int> rr(60, 360);
-  rr[20] = static_cast<int>(3.6 * 360);
-  rr[40] = 6 * 360;
-  const auto peaks = peaks_from_rr(rr);
-  const std::vector<std::int64_t> empty = {peaks[21], peaks[41]};
-  auto iv = intervals_from_peaks(peaks, empty, 360);
-  EXPECT_DOUBLE_EQ(nn_fraction(iv), 1.0);
-  EXPECT_EQ(gap_count(iv, 360), 0u);
-  EXPECT_FALSE(intervals_from_peaks(peaks, {peaks[41]}, 360)[20].nn);  // not confirmed
-  NnRule shorter;
-  shorter.max_pause_s = 5;
-  iv = intervals_from_peaks(peaks, empty, 360, shorter);
-  EXPECT_TRUE(iv[20].nn);
-  EXPECT_FALSE(iv[40].nn);
-  EXPECT_EQ(gap_count(iv, 360, shorter), 1u);
-  NnRule off;
-  off.keep_confirmed_pauses = false;
-  iv = intervals_from_peaks(peaks, empty, 360, off);
-  EXPECT_FALSE(iv[20].nn);
-  EXPECT_FALSE(iv[40].nn);
 }
 
 // Consecutive blocked beats (2:1 conduction for a few beats) are all confirmed pauses, and the

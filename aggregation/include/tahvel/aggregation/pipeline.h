@@ -48,8 +48,17 @@ inline constexpr double kPacedPct = 10;
 std::optional<std::string> paced_beats_warning(const std::string& record_path);
 
 // How many intervals of a series are longer than rule.max_interval_s at fs Hz and not NN: the
-// gaps, which intervals_from_peaks takes as NN only when they are confirmed pauses.
+// gaps, which intervals_from_peaks never takes as NN, whatever the rhythm.
 std::size_t gap_count(const std::vector<Interval>& intervals, double fs, const NnRule& rule = {});
+
+// When some intervals are gaps (gap_count) and no other warning names them: how many, the
+// longest and where, that they may be pauses of the heart (sinus arrest, AV block) or signal
+// lost (a lead off, also one that leaves a quiet line), which RR alone cannot tell apart, and
+// SDNN with them taken as NN beside the SDNN without them. A few pauses of 3.6 s took SDNN from
+// 285 ms to 20, with nothing said; kept as NN instead, a lead off with a quiet line made it 246
+// ms against 35.5 (docs/hrv.md, "Gaps"). Nullopt without gaps.
+std::optional<std::string> long_gaps_warning(const std::vector<Interval>& intervals, double fs, const NnRule& rule = {},
+                                             const HrvOptions& hrv = {});
 
 // Why HRV of a series with these metrics may be far off (HrvMetrics::irregular_pct or the
 // share of intervals not NN above kIrregularPct), or nullopt. `gaps` of the intervals not NN

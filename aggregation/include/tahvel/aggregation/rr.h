@@ -106,10 +106,7 @@ std::vector<Interval> reference_intervals(const std::vector<Beat>& beats,
 //    from a few intervals (the reference rule: 70). In bigeminy the compensatory intervals
 //    keep the median near the reference, and ventricular runs rebase sooner (above).
 // Whatever the comparison, an interval longer than max_interval_s or overlapping an excluded
-// range is not NN, and the reference restarts after a gap longer than max_interval_s; but a
-// confirmed pause (above) up to max_pause_s is NN, as the reference rule keeps it: its gap held
-// signal and nothing QRS-like, so it is a sinus arrest, not signal lost. Dropped, a 3.6 s
-// pause every 80 beats took SDNN from 285 ms to 20, with nothing said.
+// range is not NN, and the reference restarts after a gap longer than max_interval_s.
 // max_interval_s is 3.5 s, not the 2 s of filters tuned for adults in sinus rhythm (PhysioNet's
 // HRV toolkit, the 200-2000 ms "physiological range" of Wessel et al.'s adaptive filter):
 // bradycardia in complete AV block or sick sinus syndrome goes down to 20 bpm (RR 3 s), and
@@ -118,7 +115,6 @@ std::vector<Interval> reference_intervals(const std::vector<Beat>& beats,
 // is longer is a pause of clinical size (Holter reports pauses of 3 s and more) or lost signal.
 struct NnRule {
   double max_interval_s = 3.5;          // longer intervals are gaps (lost signal, long pauses)
-  double max_pause_s = 10.0;            // but confirmed pauses up to this are NN (above)
   int reference_beats = 9;              // accepted intervals in the reference median
   double short_fraction = 0.12;         // a beat more than 12 % early is premature
   double long_fraction = 0.45;          // an interval more than 45 % long is a missed beat
@@ -229,7 +225,6 @@ class NnClassifier {
   void remember_prior();
   void forget_prior();
   void count_slow(const Pending& p);
-  void keep_pause(std::vector<Interval>& decided);
   bool returns_to_prior(double rr, double tol) const;
   void short_beat(double rr, double tol);
   void accept(double rr);
@@ -244,7 +239,6 @@ class NnClassifier {
   double fs_;
   NnRule rule_;
   double max_rr_;
-  double max_pause_rr_;
   std::vector<SampleRange> excluded_;       // sorted by first
   std::vector<std::int64_t> excluded_max_;  // running maximum of last over excluded_
   bool has_last_ = false;
