@@ -434,16 +434,26 @@ Result<PatientsOnBoard> patients_on_board(const Snapshot& snapshot, std::optiona
     if (!newest || newer(p, *newest)) newest = &p;
   }
   // Superseded: this one's windows stopped while the newest one's came (not two recordings at
-  // once): in signal time, the newest one's latest window starts more than a window after this
-  // one's; or, on this board, none of this one's windows was stored since the newest one's first.
+  // once). In signal time: the newest one's latest window starts more than a window after this
+  // one's, unless the newest runs ahead of the clock (a replay at --speed 10, its window asserted
+  // after it was stored here: a live recording beside it was taken for stopped). On this board:
+  // none of this one's windows was stored since the newest one's first, and the newest went on
+  // storing for more than two of this one's periods (the time between its windows stored here,
+  // or its window's length when one is read) since this one's last: two recordings at once store
+  // in turn, and one that started a little later had seemed to supersede the other.
   for (auto& [recording, p] : patients) {
     const std::string sensor = sensor_of(recording);
     if (sensor.empty()) continue;
     const PatientView* newest = newest_of_sensor[sensor];
     if (newest == &p) continue;
     const double window_ns = std::max(0.0, (p.latest.window.end_s - p.latest.window.start_s) * 1e9);
-    if (static_cast<double>(newest->latest_asserted_ns - p.latest_asserted_ns) > window_ns ||
-        stored_span[recording].second < stored_span[newest->recording].first)
+    const bool newest_on_the_clock = newest->latest_asserted_ns <= newest->latest_stored_ns;
+    const auto& [first, last] = stored_span[recording];
+    const auto& [newest_first, newest_last] = stored_span[newest->recording];
+    const double period_ns =
+        p.windows > 1 ? static_cast<double>(last - first) / static_cast<double>(p.windows - 1) : window_ns;
+    if ((newest_on_the_clock && static_cast<double>(newest->latest_asserted_ns - p.latest_asserted_ns) > window_ns) ||
+        (last < newest_first && static_cast<double>(newest_last - last) > 2 * period_ns))
       p.superseded_by = newest->recording;
   }
 

@@ -5,8 +5,10 @@
 #include <gtest/gtest.h>
 
 #include <algorithm>
+#include <chrono>
 #include <optional>
 #include <string>
+#include <thread>
 
 #include "temp_dir.h"
 
@@ -426,7 +428,7 @@ TEST_F(PatientsOnBoard, WindowsOfTwoWritersShowTheWriterNearestTheRecordingAndNa
 TEST_F(PatientsOnBoard, AnEarlierRecordingOfTheSameSensorIsSupersededByTheLater) {
   const std::string earlier = kHospital + "/home3/ecg/recording/synthetic-1";  // after kRecB by IRI
   const std::string later = kHospital + "/home3/ecg/recording/synthetic-2";
-  const std::int64_t t0 = 1'800'000'000'000'000'000;
+  const std::int64_t t0 = 1'700'000'000'000'000'000;  // 2023: windows of the past, as live ones are
   window("home3-hrv", later, 0, 45, std::nullopt, t0 + 600'000'000'000);
   window("home3-hrv", earlier, 0, 40, std::nullopt, t0);
   window("home3-hrv", earlier, 60, 41, std::nullopt, t0 + 60'000'000'000);
@@ -436,16 +438,31 @@ TEST_F(PatientsOnBoard, AnEarlierRecordingOfTheSameSensorIsSupersededByTheLater)
   // window): two at once, neither superseded.
   const std::string beside = kHospital + "/home3/ecg/recording/synthetic-3";
   window("home3-hrv", beside, 0, 44, std::nullopt, t0 + 590'000'000'000);
-  // A replay at --speed 10 that finished, its windows asserted half an hour ahead of when they
-  // came; then a live recording of its sensor, started after it. The replay's windows are the
-  // later in signal time, but it is the one whose windows stopped.
+  // Two recordings of a sensor started 10 s apart, each with its first window, stored in the
+  // order they started: two at once (the later one's first window came after the other's last).
+  const std::string first_of_two = kHospital + "/home6/ecg/recording/a";
+  const std::string second_of_two = kHospital + "/home6/ecg/recording/b";
+  window("home6-hrv", first_of_two, 0, 33, std::nullopt, t0);
+  window("home6-hrv", second_of_two, 0, 34, std::nullopt, t0 + 10'000'000'000);
+  // A replay at --speed 10 started during a live recording of its sensor: its windows are
+  // asserted ahead of the clock, the live one's go on coming. The live one is not superseded.
+  const std::int64_t now = std::chrono::duration_cast<std::chrono::nanoseconds>(
+                               std::chrono::system_clock::now().time_since_epoch()).count();
+  const std::string live_beside = kHospital + "/home5/ecg/recording/synthetic-1";
+  const std::string ahead = kHospital + "/home5/ecg/recording/100";
+  window("home5-hrv", live_beside, 0, 35, std::nullopt, now - 120'000'000'000);
+  window("home5-hrv", ahead, 1740, 36, std::nullopt, now + 3'600'000'000'000);
+  window("home5-hrv", live_beside, 60, 37, std::nullopt, now - 60'000'000'000);
+  // A replay that finished, then a live recording of its sensor, started after it. The replay's
+  // windows are the later in signal time, but it is the one whose windows stopped being stored.
   const std::string replay = kHospital + "/home4/ecg/recording/100";
   const std::string live = kHospital + "/home4/ecg/recording/synthetic-1";
   window("home4-hrv", replay, 0, 30, std::nullopt, t0);
   window("home4-hrv", replay, 1740, 31, std::nullopt, t0 + 1'740'000'000'000);
-  window("home4-hrv", live, 0, 32, std::nullopt, t0 + 400'000'000'000);
+  std::this_thread::sleep_for(std::chrono::milliseconds(300));  // many times the replay's pace
+  window("home4-hrv", live, 0, 32, std::nullopt, t0 + 2'000'000'000'000);
   const agg::PatientsOnBoard board = read();
-  ASSERT_EQ(board.patients.size(), 6u);
+  ASSERT_EQ(board.patients.size(), 10u);
   EXPECT_EQ(board.patients[0].recording, kRecB) << "an alert of a superseded recording does not put it first";
   for (const agg::PatientView& p : board.patients) {
     if (p.recording == earlier) {

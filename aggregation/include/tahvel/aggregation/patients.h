@@ -39,7 +39,9 @@ struct PatientView {
   // The newest recording of the same sensor (recording IRIs are <sensor>/recording/<name>; the
   // newest started last) when this one's windows stopped while that one's came: that one's
   // latest window starts more than one of this recording's windows after this one's latest, in
-  // signal time, or none of this one's windows was stored on the board since that one's first.
+  // signal time (unless that one runs ahead of the clock: a replay at --speed 10), or none of
+  // this one's windows was stored on the board since that one's first and that one went on
+  // storing for more than two of this one's periods since this one's last.
   // This recording's source stopped, or started again as a new recording (a sensor restarted,
   // taken out of a deployment and put back). Its windows and alerts are of that earlier
   // recording. Empty when none is.
