@@ -77,7 +77,7 @@ std::size_t take_flag(const Command& command, std::span<const std::string> argv,
       for (const Flag& f : command.flags)
         for (std::string_view n : {f.name, f.alias})
           if (n.starts_with("--")) names.push_back(n);
-      std::size_t best = arg.size() <= 6 ? 1 : 2;  // more edits than this is another word (a swap is two)
+      std::size_t best = arg.size() <= 6 ? 1 : 2;  // more edits than this is another word (a swap is one)
       std::vector<std::string_view> nearest;
       for (std::string_view n : names) {
         const std::size_t d = uri::edit_distance(arg, n);

@@ -2154,7 +2154,8 @@ int up_checked(const Args& args, bool& checking) {
       // uplink is then remembered as given to it (P6c, P6d send only those again).
       check(uplink.receive_removals());
       for (std::size_t k = 0; k < policy.size(); ++k) {
-        const std::uint64_t item = check(uplink.subscribe(policy[k]));
+        // Its own, beside a parent's identical one: the parent's removal must not take the file's.
+        const std::uint64_t item = check(uplink.subscribe(policy[k], {.own_only = true}));
         kept.insert(item);
         // Not at a new store's first policy, which is the file's as it is. A store whose policy
         // was empty (`forward = []`) has no subscription to tell it from a new one by.

@@ -378,7 +378,8 @@ void warn_of_subscriptions(const node::Node& node, const std::vector<node::Tripl
   std::set<std::string> here, elsewhere;
   for (const node::Triple& t : triples)
     if (t.p.is_iri() && t.p.value == subscriber && t.o.is_iri())
-      (uri::child_id(t.o.value, node.iri()) ? here : elsewhere).insert(t.o.value);
+      // As routing tells them (write.cpp subscriber_of_this_node): the node's IRI as written.
+      (t.o.value.starts_with(node.iri()) && uri::child_id(t.o.value, node.iri()) ? here : elsewhere).insert(t.o.value);
   const auto named = [](const std::set<std::string>& agents) {
     std::string out;
     for (const std::string& agent : agents) {

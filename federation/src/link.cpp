@@ -3783,8 +3783,8 @@ Result<std::unique_ptr<Link>> Link::start(LinkOptions options) {
     // P7a: a removal follows what went up. Set before the first subscription, so that every
     // item the policy routes is remembered as given to the uplink (P6c, P6d send only those again).
     if (auto r = uplink->receive_removals(); !r) return Unexpected<Error>{r.error()};
-    for (const auto& pattern : policy) {
-      if (auto s = uplink->subscribe(pattern); !s) return Unexpected<Error>{s.error()};
+    for (const auto& pattern : policy) {  // its own, beside a parent's identical one (`up` too)
+      if (auto s = uplink->subscribe(pattern, {.own_only = true}); !s) return Unexpected<Error>{s.error()};
     }
     // P12a: what an earlier run said of this uplink, so that a link restarted while its parent
     // is away says "down" and when the parent was last heard.

@@ -317,13 +317,13 @@ struct Agent::Impl {
   Result<void> drop(std::uint64_t item_id);
 
   // The id of this agent's subscription with exactly `pattern`'s s, p and o, or 0.
-  Result<std::uint64_t> find_subscription(Txn& txn, const Pattern& pattern) const;
+  Result<std::uint64_t> find_subscription(Txn& txn, const Pattern& pattern, bool own_only) const;
 
   // Sources of relayed items found acceptable (relay): the most recent 16.
   std::vector<std::string> relay_sources;
 };
 
-Result<std::uint64_t> Agent::Impl::find_subscription(Txn& txn, const Pattern& pattern) const {
+Result<std::uint64_t> Agent::Impl::find_subscription(Txn& txn, const Pattern& pattern, bool own_only) const {
   if (auto r = refresh_caches(txn); !r) return unexpected(r.error());
   auto self = self_id(txn.raw());
   if (!self || *self == 0) return self;
@@ -339,11 +339,20 @@ Result<std::uint64_t> Agent::Impl::find_subscription(Txn& txn, const Pattern& pa
     if (*id == 0) return std::uint64_t{0};  // a term never seen: no subscription names it
     ids[i] = *id;
   }
-  std::lock_guard lock(env->cache_mutex);
-  for (const auto& sub : env->subs)
-    if (sub.agent == *self && sub.s == ids[0] && sub.p == ids[1] && sub.o == ids[2] && sub.context == ids[3] &&
-        sub.source == ids[4])
-      return sub.item;
+  std::vector<std::uint64_t> same;
+  {
+    std::lock_guard lock(env->cache_mutex);
+    for (const auto& sub : env->subs)
+      if (sub.agent == *self && sub.s == ids[0] && sub.p == ids[1] && sub.o == ids[2] && sub.context == ids[3] &&
+          sub.source == ids[4])
+        same.push_back(sub.item);
+  }
+  for (const std::uint64_t item : same) {
+    if (!own_only) return item;
+    auto row = get_item(txn.raw(), *env, item);
+    if (!row) return unexpected(row.error());
+    if (*row && (*row)->source == *self) return item;
+  }
   return std::uint64_t{0};
 }
 
@@ -1082,7 +1091,7 @@ Result<std::uint64_t> Agent::subscribe(const Pattern& given, const SubscribeOpti
   }
   std::uint64_t id = 0;
   auto written = impl_->env->write([&](Txn& txn) -> Result<void> {
-    auto existing = impl_->find_subscription(txn, pattern);
+    auto existing = impl_->find_subscription(txn, pattern, options.own_only);
     if (!existing) return unexpected(existing.error());
     if (*existing) {  // a restarted agent subscribing again: the one it has stands
       id = *existing;

@@ -2451,6 +2451,31 @@ TEST(Store, SubscribingAgainWithTheSamePatternKeepsOneSubscription) {
   EXPECT_EQ(*node.agent("reader")->pending(), 1u);
 }
 
+// A subscription another writer made for an agent (a parent's forwarding policy sent down for
+// a node's uplink) is that writer's: with own_only the agent's own identical one is another, so
+// that the other writer's removal leaves the agent's standing. Items still land once.
+TEST(Store, SubscribingOwnOnlyBesideAnotherWritersIdenticalSubscriptionMakesTheAgentsOwn) {
+  TempDir dir;
+  Node node = make_node(dir.path());
+  auto uplink = node.agent("uplink");
+  Item sent_down;
+  sent_down.persistent = true;
+  sent_down.add(Term::blank("sub"), Term::iri("https://w3id.org/tahvel#subscriber"), Term::iri(uplink->iri()))
+      .add(Term::blank("sub"), Term::iri("https://w3id.org/tahvel#predicate"), ex("hr"));
+  const auto parents = node.agent("operator")->store(sent_down);
+  ASSERT_TRUE(parents);
+  EXPECT_EQ(*uplink->subscribe(Pattern{.p = ex("hr")}), *parents);  // as before: the one there is
+  const auto own = uplink->subscribe(Pattern{.p = ex("hr")}, {.own_only = true});
+  ASSERT_TRUE(own);
+  EXPECT_NE(*own, *parents);
+  EXPECT_EQ(*uplink->subscribe(Pattern{.p = ex("hr")}, {.own_only = true}), *own);  // a restart
+  ASSERT_TRUE(node.agent("w")->store(Item{}.add(ex("o"), ex("hr"), Term::integer(70))));
+  EXPECT_EQ(*uplink->pending(), 1u);
+  ASSERT_TRUE(node.remove_item(*parents));
+  ASSERT_TRUE(node.agent("w")->store(Item{}.add(ex("o"), ex("hr"), Term::integer(71))));
+  EXPECT_EQ(*uplink->pending(), 2u);
+}
+
 // R10a: a new subscription with `earlier` brings what it would have routed had it been there
 // from the start: oldest first, once, with its source and context conditions, and the items
 // wait in the buffer like any other (a ring does not reclaim them, the count says so).

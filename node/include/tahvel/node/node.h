@@ -216,6 +216,11 @@ struct SubscribeOptions {
   // to the tree after settings were written for the whole subtree (`<parent>/*`, P11), gets the
   // settings kept for every node, not the commands sent before it existed.
   bool persistent_only = false;
+  // Only a subscription this agent wrote itself is "the existing one" a subscription with the
+  // same pattern returns: one another writer made for it (a parent's forwarding policy sent down
+  // for a node's uplink) is that writer's to remove, and a topology file's identical `forward`
+  // pattern taken for it went with the parent's removal (raw ECG stopped going up).
+  bool own_only = false;
 };
 
 // ---------------------------------------------------------------------------------------------
