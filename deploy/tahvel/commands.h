@@ -74,8 +74,8 @@ uri::PrefixMap prefixes_with_flags(uri::PrefixMap base, const Args& args);
 std::string agent_id(const Args& args, std::string_view fallback);
 
 // Whether anything on `node`'s board (read in `snapshot`) knows its agent `agent` (an IRI): it
-// subscribes, anything is said of it (a child node's state, a problem), or it or an agent under
-// it has written. An item addressed (R18) to an agent nothing knows waits in its input buffer
+// subscribes (itself: a subscription another wrote for it does not count), anything is said of
+// it (a child node's state, a problem), or it or an agent under it has written. An item addressed (R18) to an agent nothing knows waits in its input buffer
 // until one comes: a home not yet deployed, or a typo, waits for ever. True when the board
 // cannot be read (the store itself says what is wrong).
 bool board_knows_agent(const node::Snapshot& snapshot, const std::string& agent);

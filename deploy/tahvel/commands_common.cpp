@@ -226,7 +226,10 @@ bool board_knows_agent(const node::Snapshot& snapshot, const std::string& agent)
     auto read = snapshot.for_each(pattern, [&](const node::Record&) { return !(found = true); });
     return found || !read;  // a read error is not the user's mistake
   };
-  return any({.s = who}) || any({.p = node::Term::iri(std::string(uri::kTahvelNs) + "subscriber"), .o = who}) ||
+  // A subscription counts when the agent wrote it: one written for it by another (a parent's
+  // forwarding policy with the uplink misspelt) routed items into a buffer nothing reads, unsaid.
+  return any({.s = who}) ||
+         any({.p = node::Term::iri(std::string(uri::kTahvelNs) + "subscriber"), .o = who, .source = agent}) ||
          any({.source = agent});
 }
 

@@ -3306,7 +3306,8 @@ int run_status(const Args& args) {
     for (const node::InputBufferSummary& w : n.waiting_for_unknown)
       std::cout << indent << "  WAITING " << w.waiting << " item(s) addressed to <" << w.agent
                 << ">, which nothing on this node knows (no child node of that IRI has registered, and no agent of it "
-                   "runs, subscribes or has said anything)"
+                   "runs, subscribes itself or has said anything: a subscription another wrote for it, as a parent's "
+                   "forwarding policy, routes items there all the same)"
                 << (w.oldest_asserted_at > 0 ? ", the oldest asserted " + age_of(w.oldest_asserted_at) : std::string())
                 << ": they wait in its input buffer until one takes them\n";
     if (n.remote && !programs_unknown_because.empty() && programs_unknown_because == n.children_unknown_because) {

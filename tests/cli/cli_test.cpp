@@ -4602,6 +4602,16 @@ TEST_F(Cli, StatusNamesItemsWaitingForAnAgentNothingOnTheNodeKnows) {
   text = run({"status", "--state", state});
   EXPECT_EQ(text.out.find("WAITING"), std::string::npos) << text.out;
   EXPECT_NE(run({"status", "--state", state, "--json"}).out.find("\"waiting_for_unknown\":[]"), std::string::npos);
+  // A subscription written for a misspelt agent by another (a forwarding policy sent down for
+  // an uplink spelt "uplnk") routes items into a buffer nothing reads: said too.
+  ASSERT_EQ(run({"put", store, "--agent", "operator", "--persistent", "-"},
+                "_:s <https://w3id.org/tahvel#subscriber> <http://example.org/hospital/uplnk> ; "
+                "<https://w3id.org/tahvel#predicate> <http://example.org/reading> .\n")
+                .status,
+            0);
+  ASSERT_EQ(run({"put", store, "-"}, "<http://example.org/s> <http://example.org/reading> 1 .\n").status, 0);
+  text = run({"status", "--state", state});
+  EXPECT_NE(text.out.find("  WAITING 1 item(s) addressed to <http://example.org/hospital/uplnk>"), std::string::npos) << text.out;
 }
 
 // A node's `load` files are stored after its forwarding policy: what they hold and `forward`
