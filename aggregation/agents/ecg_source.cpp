@@ -585,9 +585,10 @@ int main(int argc, char** argv) {
       ecg_lead = static_cast<std::size_t>(n);
     }
     const double speed = args.number("--speed", 1);
-    rt::stop_here_when_only_checking();  // before the record is read (`up` opened it already)
+    if (args.has("--record")) rt::stop_here_when_only_checking();  // before it is read (`up` opened it)
     rt::install_stop_handlers();
     auto signal = args.has("--record") ? record_signal(args.text("--record", ""), ecg_lead) : synthetic_signal(args);
+    rt::stop_here_when_only_checking();  // a synthetic signal's flags are checked as it is made
     if (!signal) {
       rt::log_line(kProgram, signal.error().message);
       return rt::kExitError;

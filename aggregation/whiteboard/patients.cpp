@@ -447,7 +447,10 @@ Result<PatientsOnBoard> patients_on_board(const Snapshot& snapshot, std::optiona
     const PatientView* newest = newest_of_sensor[sensor];
     if (newest == &p) continue;
     const double window_ns = std::max(0.0, (p.latest.window.end_s - p.latest.window.start_s) * 1e9);
-    const bool newest_on_the_clock = newest->latest_asserted_ns <= newest->latest_stored_ns;
+    // A window is asserted at its start and stored after its end, unless its signal runs ahead.
+    const double newest_window_ns = std::max(0.0, (newest->latest.window.end_s - newest->latest.window.start_s) * 1e9);
+    const bool newest_on_the_clock =
+        static_cast<double>(newest->latest_asserted_ns) + newest_window_ns <= static_cast<double>(newest->latest_stored_ns);
     const auto& [first, last] = stored_span[recording];
     const auto& [newest_first, newest_last] = stored_span[newest->recording];
     const double period_ns =

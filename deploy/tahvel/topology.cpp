@@ -772,26 +772,37 @@ node::Result<void> check_agent_flags(const AgentSpec& agent, const NodeSpec& nod
   if (!kChecked.count(program.filename().string()) || context.bin.empty() ||
       !std::filesystem::equivalent(program.parent_path(), context.bin, ec))
     return {};
+  // With a store that cannot be opened or made: a program of an older build in {bin}, which
+  // knows no check, fails to open it (status 1, passed) rather than working on the node's store.
+  auto checked_argv = expand_agent_command(agent, node, "/dev/null/tahvel-check-args", context);
+  if (!checked_argv) return {};
+  // Everything the child needs, made before the fork: `up` may have threads.
+  std::vector<char*> args;
+  for (std::string& a : *checked_argv) args.push_back(a.data());
+  args.push_back(nullptr);
+  std::vector<std::string> environment;
+  for (char** e = environ; *e != nullptr; ++e)
+    if (!std::string_view(*e).starts_with("TAHVEL_CHECK_ARGS=")) environment.emplace_back(*e);
+  environment.emplace_back("TAHVEL_CHECK_ARGS=1");
+  std::vector<char*> envp;
+  for (std::string& e : environment) envp.push_back(e.data());
+  envp.push_back(nullptr);
   int err[2];
   if (::pipe2(err, O_CLOEXEC) != 0) return {};  // unchecked rather than refused
+  const int null = ::open("/dev/null", O_RDWR | O_CLOEXEC);
   const pid_t pid = ::fork();
-  if (pid < 0) {
-    ::close(err[0]);
-    ::close(err[1]);
-    return {};
-  }
   if (pid == 0) {
     ::dup2(err[1], STDERR_FILENO);
-    const int null = ::open("/dev/null", O_RDWR);
     if (null >= 0) ::dup2(null, STDIN_FILENO), ::dup2(null, STDOUT_FILENO);
-    ::setenv("TAHVEL_CHECK_ARGS", "1", 1);
-    std::vector<char*> args;
-    for (const std::string& a : argv) args.push_back(const_cast<char*>(a.c_str()));
-    args.push_back(nullptr);
-    ::execv(args[0], args.data());
+    ::execve(args[0], args.data(), envp.data());
     ::_exit(127);
   }
   ::close(err[1]);
+  if (null >= 0) ::close(null);
+  if (pid < 0) {
+    ::close(err[0]);
+    return {};
+  }
   std::string said;
   char buffer[4096];
   // A program that does not stop (it is not of this build after all) is not waited for.
@@ -800,7 +811,9 @@ node::Result<void> check_agent_flags(const AgentSpec& agent, const NodeSpec& nod
   for (;;) {
     const auto left = std::chrono::duration_cast<std::chrono::milliseconds>(deadline - std::chrono::steady_clock::now()).count();
     pollfd ready{err[0], POLLIN, 0};
-    if (left <= 0 || ::poll(&ready, 1, static_cast<int>(left)) == 0) {
+    const int polled = left > 0 ? ::poll(&ready, 1, static_cast<int>(left)) : 0;
+    if (polled < 0 && errno == EINTR) continue;
+    if (polled == 0) {
       late = true;
       break;
     }

@@ -3358,6 +3358,14 @@ TEST_F(Cli, UpRefusesAnAgentCommandLineTheAgentItselfRefuses) {
             std::string::npos)
       << up.err;
   EXPECT_FALSE(fs::exists(tmp_ / "state"));
+  // A synthetic source's flags are checked as its signal is made.
+  spit(tmp_ / "synthetic.toml", "[[node]]\nid = \"bed\"\niri = \"http://example.org/bed\"\n  [[node.agent]]\n  id = \"ecg\"\n"
+                                "  run = [\"{bin}/tahvel-ecg-source\", \"{store}\", \"--synthetic\", \"--hr\", \"250\"]\n");
+  up = run({"up", (tmp_ / "synthetic.toml").string(), "--state", state});
+  EXPECT_EQ(up.status, kUpRefused) << up.err;
+  EXPECT_NE(up.err.find("agent 'ecg': its command line is refused: tahvel-ecg-source: --hr: '250' is not a heart rate"),
+            std::string::npos)
+      << up.err;
   file("60");
   up = run({"up", (tmp_ / "node.toml").string(), "--state", state});
   EXPECT_EQ(up.status, 0) << up.err;
@@ -4147,8 +4155,9 @@ TEST_F(Cli, UpWarnsOfAnAgentWhoseInputNothingInTheFileWritesOrForwards) {
                  agent("hrv", "tahvel-hrv") +
                  "[[node]]\nid = \"home1\"\nparent = \"hospital\"\n"
                  "forward = [\"_ sosa:observedProperty tv:HeartRateVariability\", \"_ a tv:EcgRecording\", \"_ tv:intervals _\"]\n" +
-                 agent("ecg", "tahvel-ecg-source") + agent("rpeak", "tahvel-rpeak") + agent("rr", "tahvel-rr") +
-                 agent("hrv", "tahvel-hrv"));
+                 "  [[node.agent]]\n  id = \"ecg\"\n"
+                 "  run = [\"{bin}/tahvel-ecg-source\", \"{store}\", \"--synthetic\", \"--seconds\", \"2\", \"--speed\", \"0\"]\n" +
+                 agent("rpeak", "tahvel-rpeak") + agent("rr", "tahvel-rr") + agent("hrv", "tahvel-hrv"));
   Outcome twice = run({"up", both, "--state", state2});
   ASSERT_EQ(twice.status, 0) << twice.err;
   EXPECT_NE(twice.err.find("both.toml:5:3: node 'hospital': agent 'hrv' (tahvel-hrv) writes HRV windows (sosa:observedProperty "

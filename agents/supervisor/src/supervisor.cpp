@@ -305,6 +305,8 @@ void Supervisor::launch(Program& program) {
         if (fd > 2) ::close(fd);
       }
     }
+    // `up`'s check of an agent's flags (it stops before it works) is not for a program run here.
+    unsetenv("TAHVEL_CHECK_ARGS");
     for (auto& [k, v] : program.spec.env) setenv(k.c_str(), v.c_str(), 1);
     execvp(args[0], args.data());
     (void)!write(2, exec_failed.data(), exec_failed.size());

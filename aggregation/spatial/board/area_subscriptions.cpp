@@ -357,7 +357,9 @@ Result<AreaExpansion> area_expansion(const node::Snapshot& snapshot, std::uint64
 namespace {
 
 bool changes_the_plan(const node::Change& change) {
-  if (!change.unreadable.empty()) return true;  // it may have: the plan is read again
+  // It may have: the plan is read again. Not for records reclaimed before they were read (a ring
+  // under live ECG said so at every poll): a plan's geometry is persistent, never reclaimed.
+  if (!change.unreadable.empty()) return !change.reclaimed;
   const std::string& p = change.record.triple.p.value;
   if (p == kGeoAsWkt || p == kGeoHasGeometry || p == kTvFloor) return true;
   // A declaration removed: its expansions go. (A new one arrives through the keeper's input
