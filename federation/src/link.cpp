@@ -386,6 +386,16 @@ struct Link::Impl {
   bool requeue_after_welcome = false;
   Clock::time_point last_welcome_at{};  // under mu
   static constexpr auto kStaleWelcome = std::chrono::seconds(2);
+  // P6f: the last welcome said the parent's down queue held items for this node through this
+  // seq (0: none); nothing goes up until they are applied here, or until down_hold_until (a
+  // frame the parent cannot send, a store that cannot apply). Under mu.
+  std::uint64_t down_hold_through = 0;
+  Clock::time_point down_hold_until{};
+  static constexpr auto kDownHoldMax = std::chrono::seconds(5);
+  // The down stream the receive thread last relayed on and its mark after, set once the outbox
+  // holds nothing a narrowed policy keeps here (P6f). Under mu.
+  std::string down_applied_stream;
+  std::uint64_t down_applied_mark = 0;
   // P6e: the parent store whose welcome said it is a copy holding nothing of this store's
   // stream, until what the stores before had is back in the outbox. Its later welcomes do not
   // say so (this node's hello names it now): one not taken for a conflict (P6b) would otherwise
@@ -399,6 +409,7 @@ struct Link::Impl {
   std::string parent_store_before;
   std::uint64_t up_mark = 0;       // the parent's mark of our stream: applied there
   std::uint64_t up_last_sent = 0;  // the seq of the last up frame sent
+  std::uint64_t up_sent_highest = 0;  // of every up frame this run sent (a go-back goes below it)
   std::deque<std::uint64_t> up_in_flight;
   Clock::time_point up_progress{};
   bool up_go_back = false;
@@ -1441,7 +1452,19 @@ struct Link::Impl {
     }
     node::Result<node::RelayOutcome> outcome = node::RelayOutcome{.mark = *buffer.mark};
     const std::size_t relayed = run.size();
+    // P6f: a removal from above may narrow the forwarding policy (the subscriptions of this
+    // node's uplink, whose buffer is the outbox).
+    const bool may_narrow = !up && std::any_of(run.begin(), run.end(), [](const node::RelayedItem& r) { return r.removal; });
+    std::optional<std::set<std::uint64_t>> policy_before;
+    if (may_narrow) policy_before = policy_items();
     if (!run.empty()) outcome = relayer->relay(stream, run);
+    if (!up && outcome) {
+      if (policy_before && outcome->removals > 0) withdraw_if_narrowed(*relayer, *policy_before);
+      std::lock_guard lock(mu);
+      down_applied_stream = stream;
+      down_applied_mark = outcome->mark;
+      changed.notify_all();
+    }
     if (outcome && outcome->not_applied) std::erase_if(run, [&](const node::RelayedItem& r) { return r.seq > outcome->mark; });
     applied.push_back(std::move(run));  // freed by the taker, with the rest of the batch
     if (outcome) {
@@ -1522,6 +1545,44 @@ struct Link::Impl {
                            std::to_string(relayed) + " item(s)");
   }
 
+  // The items of this node's forwarding policy: the subscriptions of its agent uplink (P5);
+  // nullopt when the store cannot be read.
+  std::optional<std::set<std::uint64_t>> policy_items() {
+    auto failed = [&](const node::Error& e) {
+      log("cannot read the forwarding policy: " + e.message);
+      return std::nullopt;
+    };
+    auto node = node::Node::open(opt.dir);
+    if (!node) return failed(node.error());
+    auto snapshot = node->snapshot();
+    if (!snapshot) return failed(snapshot.error());
+    auto subscriptions = snapshot->list({.p = node::Term::iri(std::string(vocab::kTv) + "subscriber"),
+                                         .o = node::Term::iri(self + "/" + std::string(kUplinkAgent))});
+    if (!subscriptions) return failed(subscriptions.error());
+    std::set<std::uint64_t> items;
+    for (const node::Record& r : *subscriptions) items.insert(r.meta.item);
+    return items;
+  }
+
+  // P6f: once a subscription of the policy `before` is gone, what waits in the outbox that the
+  // policy left no longer sends stays on this node, as `tahvel up` does when its file narrows it.
+  void withdraw_if_narrowed(node::Agent& uplink, const std::set<std::uint64_t>& before) {
+    auto after = policy_items();
+    if (!after || std::includes(after->begin(), after->end(), before.begin(), before.end())) return;
+    // What went up stays sent: the parent may hold it, and a removal here goes after it (P7a).
+    std::uint64_t sent_through = 0;
+    {
+      std::lock_guard lock(mu);
+      sent_through = std::max(up_mark, up_sent_highest);
+    }
+    auto withdrawn = uplink.withdraw_unrouted(sent_through);
+    if (!withdrawn)
+      log("cannot take out of the outbox what the narrowed forwarding policy keeps here: " + withdrawn.error().message);
+    else if (*withdrawn > 0)
+      log("the forwarding policy was narrowed from above: " + std::to_string(*withdrawn) +
+          " item(s) it no longer sends, queued in the outbox and not yet sent, stay on this node");
+  }
+
   // A full store applied none, or only the first part, of a run from `from` (P9b). The sender is
   // told why and probes with one frame at a time until the mark moves: a home resent its window
   // every resend_after, and this log took a line for each, for as long as the store was full.
@@ -1550,6 +1611,23 @@ struct Link::Impl {
     }
     ++counters.refused;
   }
+
+  // P6f: the id of the last item after `after` in `queue` (a child's down queue) that the pump
+  // sends as a down frame, among the first kWelcomeScan; 0 when none.
+  std::uint64_t last_going_down(node::Agent& queue, const std::string& child_iri, std::uint64_t after) {
+    auto waiting = queue.peek(after, kWelcomeScan, 0ms);
+    if (!waiting) {
+      log("cannot read the down queue of <" + child_iri + ">: " + waiting.error().message);
+      return 0;
+    }
+    for (auto d = waiting->rbegin(); d != waiting->rend(); ++d) {
+      if (!d->records.empty() && uri::is_under(d->records.front().meta.source, child_iri)) continue;  // came up from it
+      if (object_of(d->records, vocab::kQueryTarget)) continue;  // goes as a query frame, or not at all
+      return d->item;
+    }
+    return 0;
+  }
+  static constexpr std::size_t kWelcomeScan = 4096;
 
   template <class AgentFn>
   void dispatch(Transport* via, const Frame& f, AgentFn& agent) {
@@ -1861,8 +1939,11 @@ struct Link::Impl {
                 "it is asked to send up again all it sent (P6e)");
         }
         // Its peer store names the stream the mark is of: a second node under the child's IRI
-        // gets this welcome too, and must not take the mark for its own (P6b).
-        welcome.body = wire::encode_state({opt.software_version, 0, current_store_id(), child_store});
+        // gets this welcome too, and must not take the mark for its own (P6b). P6f: its outbox
+        // depth is the last item of the child's down queue, which the child applies before it
+        // sends anything up.
+        welcome.body = wire::encode_state({opt.software_version, last_going_down(*link, child->iri, down_from),
+                                           current_store_id(), child_store});
         send(via, std::move(welcome));
         std::lock_guard lock(mu);
         nudge_pump(*child);  // after the welcome: down frames follow it
@@ -2071,6 +2152,8 @@ struct Link::Impl {
         welcomed = ever_welcomed = true;
         parent_left = false;
         parent_run = f.prev;
+        down_hold_through = state ? state->outbox_depth : 0;  // P6f
+        down_hold_until = now + kDownHoldMax;
         refused_by_parent.clear();
         parent_cannot_store.clear();  // said again by a parent that still cannot (P9b)
         // The parent holds nothing of this store's stream: a first welcome, or a parent store
@@ -2763,6 +2846,19 @@ struct Link::Impl {
           changed.wait_for(lock, 100ms);
           continue;
         }
+        if (down_hold_through != 0) {
+          // P6f: what came down while this node was away first (a forwarding policy narrowed
+          // meanwhile keeps at home what the old one queued).
+          const bool applied = down_applied_stream == down_stream() && down_applied_mark >= down_hold_through;
+          if (!applied && Clock::now() < down_hold_until) {
+            changed.wait_for(lock, 20ms);
+            continue;
+          }
+          if (!applied)
+            log("sends up again before applying what the parent's welcome said waits for it (through item " +
+                std::to_string(down_hold_through) + " of its down queue; waited " + seconds_text(kDownHoldMax) + ")");
+          down_hold_through = 0;
+        }
         resend = std::exchange(resend_persistent, false);
         requeue = std::exchange(requeue_after_welcome, false);
         while (!up_in_flight.empty() && up_in_flight.front() <= up_mark) up_in_flight.pop_front();
@@ -2862,6 +2958,7 @@ struct Link::Impl {
         if (up_in_flight.empty()) up_progress = Clock::now();
         up_in_flight.push_back(d.item);
         up_last_sent = d.item;
+        up_sent_highest = std::max(up_sent_highest, d.item);
         note_sent(d.item);
         ++counters.up_sent;
       }
@@ -2884,6 +2981,14 @@ struct Link::Impl {
         trimmed = Clock::now();
       }
     }
+    // Stopping: what the parent applied leaves the outbox now, so that what is left there is
+    // what it lacks (`tahvel up` withdraws from it what a narrowed policy keeps home).
+    std::uint64_t applied = 0;
+    {
+      std::lock_guard lock(mu);
+      applied = welcomed ? up_mark : 0;
+    }
+    if (applied > acked_locally) (void)uplink->ack_through(applied);
   }
 
   // ---- parent role: one down pump for all children ------------------------------------------

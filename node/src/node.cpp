@@ -1127,9 +1127,11 @@ Result<void> Agent::unsubscribe(std::uint64_t subscription) {
   });
 }
 
-Result<std::uint64_t> Agent::withdraw_unrouted() {
+Result<std::uint64_t> Agent::withdraw_unrouted(std::uint64_t after) {
   if (!impl_) return moved_from();
-  return impl_->change_own_buffer(detail::withdraw_unrouted);
+  return impl_->change_own_buffer([after](detail::Txn& txn, std::uint64_t agent, const std::string& agent_iri) {
+    return detail::withdraw_unrouted(txn, agent, agent_iri, after);
+  });
 }
 
 Result<std::uint64_t> Agent::deliver_persistent_again(Redelivery which) {

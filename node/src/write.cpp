@@ -938,7 +938,7 @@ Result<bool> reaches_anyway(Txn& txn, TermReader& terms, std::uint64_t item_id, 
 
 }  // namespace
 
-Result<std::uint64_t> withdraw_unrouted(Txn& txn, std::uint64_t agent, const std::string& agent_iri) {
+Result<std::uint64_t> withdraw_unrouted(Txn& txn, std::uint64_t agent, const std::string& agent_iri, std::uint64_t after) {
   if (auto r = refresh_caches(txn); !r) return unexpected(r.error());
   std::vector<std::uint64_t> waiting;
   {
@@ -947,7 +947,7 @@ Result<std::uint64_t> withdraw_unrouted(Txn& txn, std::uint64_t agent, const std
     if (rc != 0) return lmdb_fail(rc, "opening the input buffers");
     MDB_val k = val(agent), v;
     for (rc = mdb_cursor_get(cursor, &k, &v, MDB_SET); rc == 0; rc = mdb_cursor_get(cursor, &k, &v, MDB_NEXT_DUP))
-      waiting.push_back(u64(v));
+      if (u64(v) > after) waiting.push_back(u64(v));
     mdb_cursor_close(cursor);
     if (rc != MDB_NOTFOUND) return lmdb_fail(rc, "reading an input buffer");
   }

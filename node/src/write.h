@@ -83,7 +83,8 @@ WriteBound write_bound(const Item& item);
 
 // Takes out of the input buffer of `agent` (a term id; IRI `agent_iri`) the items that none of
 // its subscriptions routes to it now and that are not addressed to it (R18); returns how many.
-Result<std::uint64_t> withdraw_unrouted(Txn& txn, std::uint64_t agent, const std::string& agent_iri);
+Result<std::uint64_t> withdraw_unrouted(Txn& txn, std::uint64_t agent, const std::string& agent_iri,
+                                         std::uint64_t after);
 
 // Puts into the input buffer of `agent` (a term id; IRI `agent_iri`) every item with id below
 // `before` that has a record matching `pattern` (s, p, o, context, source: what a subscription

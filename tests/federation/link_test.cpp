@@ -2867,6 +2867,32 @@ TEST(Link, ACopySentUnderAPolicyNarrowedSinceGoesWhenTheHomeRemovesIt) {
       << count(tree.hospital_dir, samples) << " chunk(s) left at the hospital";
 }
 
+// P6f: a policy removed at the hospital while the home was away. What the home queued under the
+// old policy meanwhile (a sensor's backlog) stays home: the home applies what came down before it
+// sends anything up, and takes out of its outbox what the narrowed policy no longer sends.
+TEST(Link, WhatAPolicyRemovedWhileTheHomeWasAwayQueuedStaysHomeWhenItComesBack) {
+  Tree tree;
+  ASSERT_TRUE(tree.start_hospital_and_home1());
+  auto home = node::Node::open(tree.home1_dir).value();
+  auto hospital = node::Node::open(tree.hospital_dir).value();
+  const std::uint64_t policy_id = hospital.agent("operator").value().store(raw_samples_go_up()).value();
+  ASSERT_TRUE(eventually([&] { return count(tree.home1_dir, kHome1UplinkSubscriptions) == 2; }));
+  tree.home1.reset();
+  ASSERT_TRUE(hospital.remove_item(policy_id));
+  auto sensor = home.agent("ecg").value();
+  for (int i = 0; i < 20; ++i) ASSERT_TRUE(sensor.store(raw_item(i)));
+  store_hrv_items(tree.home1_dir, 0, 1);
+  ASSERT_EQ(outbox(tree.home1_dir), 21u) << "the old policy did not route the backlog: the case under test did not happen";
+
+  tree.home1 = tree.start_home(tree.home1_dir, kHome1, tree.home1_log);
+  ASSERT_TRUE(eventually([&] { return count(tree.hospital_dir, {.p = Term::iri(kEx + "n")}) == 1 && outbox(tree.home1_dir) == 0; }))
+      << outbox(tree.home1_dir) << " item(s) left in the outbox";
+  EXPECT_EQ(count(tree.home1_dir, kHome1UplinkSubscriptions), 1u);
+  EXPECT_EQ(count(tree.hospital_dir, {.p = Term::iri(kEx + "samples")}), 0u) << "raw samples went up under the removed policy";
+  EXPECT_EQ(count(tree.home1_dir, {.p = Term::iri(kEx + "samples")}), 20u);
+  EXPECT_TRUE(tree.home1_log.has("20 item(s) it no longer sends")) << tree.home1_log.text();
+}
+
 TEST(Link, ConfigurationTravelsTwoHopsDownToAnAgentOfASensorNode) {
   Tree tree;
   const std::string sensor_iri = kHome1 + "/ecg1";

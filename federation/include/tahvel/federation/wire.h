@@ -75,7 +75,7 @@ Result<ErrorBody> decode_error(std::string_view bytes);
 // (docs/protocol.md P6a).
 struct StateBody {
   std::string software_version;
-  std::uint64_t outbox_depth = 0;
+  std::uint64_t outbox_depth = 0;  // in a welcome: the last item of the child's down queue (P6f)
   std::string store_id;       // the sender's store (node::Node::store_id)
   std::string peer_store_id;  // hello: the parent's store that the child's down mark counts in
 };

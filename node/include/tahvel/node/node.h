@@ -457,9 +457,11 @@ class Agent {
   Result<void> unsubscribe(std::uint64_t subscription);
   // Takes out of the input buffer the items that none of this agent's subscriptions would route
   // to it now and that are not addressed to it (R18): after unsubscribing, what the old
-  // subscriptions alone brought and the agent has not taken. Returns how many. (A link's outbox
-  // when its forwarding policy is narrowed: what was queued under the old policy stays home.)
-  Result<std::uint64_t> withdraw_unrouted();
+  // subscriptions alone brought and the agent has not taken. Only items with ids above `after`:
+  // a link's outbox keeps what its parent has applied (its mark) until it trims it. Returns how
+  // many. (A link's outbox when its forwarding policy is narrowed: what was queued under the old
+  // policy stays home.)
+  Result<std::uint64_t> withdraw_unrouted(std::uint64_t after = 0);
   // Puts into the input buffer again every persistent item that one of this agent's
   // subscriptions gave it (with Redelivery::addressed_too, also those addressed to it by their
   // context, R18) and that is not there, oldest first; returns how many. A subscription gave the
