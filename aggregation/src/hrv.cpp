@@ -215,6 +215,9 @@ HrvMetrics compute_hrv(const std::vector<Interval>& intervals, double fs, const 
     if (std::abs(second - first) > 0.2 * first) ++irregular;
   }
   if (pairs > 0) out.irregular_pct = 100.0 * static_cast<double>(irregular) / static_cast<double>(pairs);
+  out.gap_count = static_cast<std::size_t>(std::count_if(intervals.begin(), intervals.end(), [&](const Interval& i) {
+    return !i.nn && static_cast<double>(i.end - i.start) > o.gap_s * fs;
+  }));
   const NnSeries s = collect(intervals, fs);
   out.nn_count = s.nn_ms.size();
   time_domain(s, fs, out);

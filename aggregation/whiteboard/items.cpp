@@ -556,7 +556,8 @@ Item hrv_window_item(const RecordingInfo& info, const WindowMetrics& window,
   for (const auto& [name, value] : results)
     if (*value && std::isfinite(**value)) item.add(obs, tv(name), decimal(**value));
   item.add(obs, tv("nnCount"), Term::integer(static_cast<std::int64_t>(m.nn_count)))
-      .add(obs, tv("rrCount"), Term::integer(static_cast<std::int64_t>(m.rr_count)));
+      .add(obs, tv("rrCount"), Term::integer(static_cast<std::int64_t>(m.rr_count)))
+      .add(obs, tv("gapCount"), Term::integer(static_cast<std::int64_t>(m.gap_count)));
   return item;
 }
 
@@ -664,6 +665,11 @@ Result<HrvWindowItem> read_hrv_window(const std::vector<Record>& records) {
     auto n = int_of(records, w.iri, "rrCount");
     if (!n) return unexpected(n.error());
     w.window.metrics.rr_count = static_cast<std::size_t>(std::max<std::int64_t>(0, *n));
+  }
+  if (object(records, w.iri, "gapCount")) {  // windows written before session 83 have none
+    auto n = int_of(records, w.iri, "gapCount");
+    if (!n) return unexpected(n.error());
+    w.window.metrics.gap_count = static_cast<std::size_t>(std::max<std::int64_t>(0, *n));
   }
   return w;
 }

@@ -68,7 +68,7 @@ std::string metrics_json(const agg::HrvMetrics& m) {
       << ",\"mean_hr_bpm\":" << json_number(m.mean_hr_bpm) << ",\"lf_ms2\":" << json_number(m.lf_ms2)
       << ",\"hf_ms2\":" << json_number(m.hf_ms2) << ",\"lf_hf\":" << json_number(m.lf_hf)
       << ",\"sd1_ms\":" << json_number(m.sd1_ms) << ",\"sd2_ms\":" << json_number(m.sd2_ms)
-      << ",\"nn_count\":" << m.nn_count << ",\"rr_count\":" << m.rr_count
+      << ",\"nn_count\":" << m.nn_count << ",\"rr_count\":" << m.rr_count << ",\"gap_count\":" << m.gap_count
       << ",\"irregular_pct\":" << json_number(m.irregular_pct) << "}";
   return out.str();
 }
@@ -94,7 +94,9 @@ void print_metrics_line(const char* label, const agg::HrvMetrics& m) {
             << " ms  SDNN " << v(m.sdnn_ms) << " ms  RMSSD " << v(m.rmssd_ms) << " ms  pNN50 "
             << v(m.pnn50_pct) << " %  HR " << v(m.mean_hr_bpm) << " bpm  LF " << v(m.lf_ms2)
             << " ms2  HF " << v(m.hf_ms2) << " ms2  LF/HF " << v(m.lf_hf) << "  SD1 " << v(m.sd1_ms)
-            << " ms  SD2 " << v(m.sd2_ms) << " ms  irregular " << v(m.irregular_pct) << " %\n";
+            << " ms  SD2 " << v(m.sd2_ms) << " ms  irregular " << v(m.irregular_pct) << " %";
+  if (m.gap_count > 0) std::cout << "  gaps " << m.gap_count;  // intervals over the gap bound, not NN
+  std::cout << "\n";
 }
 
 void print_report_text(const std::string& record, const agg::HrvReport& report) {

@@ -429,6 +429,35 @@ TEST_F(TrendAgentTest, WindowsCutShortByTheRecordsEndAreNoPointsOfTheSeries) {
   }
 }
 
+// A window says how many of its intervals it left out as gaps (pauses or signal lost), and reads
+// back with its counts; one written before tv:gapCount reads as none.
+TEST(HrvWindowItems, AWindowKeepsItsCountsOfNnIntervalsAndGapsThroughTheBoard) {
+  agg::RecordingInfo info;
+  info.iri = "http://example.org/home1/ecg/recording/116";
+  agg::WindowMetrics w;
+  w.start_s = 1200;
+  w.end_s = w.length_s = 1500;
+  w.metrics.sdnn_ms = 22.6;
+  w.metrics.nn_count = 360;
+  w.metrics.rr_count = 371;
+  w.metrics.gap_count = 2;
+  tn::Item item = agg::hrv_window_item(info, w, "http://example.org/home1/hrv");
+  const auto records_of = [](const tn::Item& i) {
+    std::vector<tn::Record> records;
+    for (const auto& t : i.triples) records.push_back(tn::Record{.triple = t});
+    return records;
+  };
+  auto read = agg::read_hrv_window(records_of(item));
+  ASSERT_TRUE(read) << read.error().message;
+  EXPECT_EQ(read->window.metrics.nn_count, 360u);
+  EXPECT_EQ(read->window.metrics.rr_count, 371u);
+  EXPECT_EQ(read->window.metrics.gap_count, 2u);
+  std::erase_if(item.triples, [](const tn::Triple& t) { return t.p.value == std::string(agg::kTv) + "gapCount"; });
+  read = agg::read_hrv_window(records_of(item));
+  ASSERT_TRUE(read) << read.error().message;
+  EXPECT_EQ(read->window.metrics.gap_count, 0u);
+}
+
 // An integrator's agent wrote its windows on blank nodes; the trend agent said the item had no
 // sosa:observedProperty tv:HeartRateVariability, which it had.
 TEST(HrvWindowItems, AWindowOnABlankNodeIsRefusedNamingTheBlankNodeNotAMissingTriple) {

@@ -114,6 +114,7 @@ TEST(HrvChain, SinusArrestsLongerThanTheGapBoundAreGapsAndSaidWithTheSdnnTheyWou
   const HrvMetrics want = compute_hrv(truth, 360);
   EXPECT_EQ(report->metrics.nn_count + 3, want.nn_count);
   EXPECT_EQ(gap_count(report->intervals, 360), 3u);
+  EXPECT_EQ(report->metrics.gap_count, 3u);  // what a window on the board says (tv:gapCount)
   const std::optional<std::string> said = long_gaps_warning(report->intervals, 360);
   ASSERT_TRUE(said);
   EXPECT_EQ(said->rfind("3 interval(s) longer than 3.5 s are not NN (the longest 6.", 0), 0u) << *said;

@@ -30,6 +30,9 @@ struct HrvMetrics {
   std::optional<double> mean_nn_ms, sdnn_ms, rmssd_ms, pnn50_pct, mean_hr_bpm, lf_ms2, hf_ms2,
       lf_hf, sd1_ms, sd2_ms;
   std::size_t nn_count = 0, rr_count = 0;
+  // Intervals longer than HrvOptions::gap_s that are not NN: pauses of the heart or signal lost
+  // between two beats, which RR alone cannot tell apart and HRV leaves out (docs/hrv.md, "Gaps").
+  std::size_t gap_count = 0;
   // How irregular the rhythm is, NN or not: the share (%) of adjacent RR pairs whose second
   // differs from the first by more than 20 % of it (nullopt without a pair). Pairs with an
   // interval longer than HrvOptions::gap_s are not counted: a gap (signal lost between two
