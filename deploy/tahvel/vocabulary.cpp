@@ -52,6 +52,7 @@ constexpr std::array kTerms = {
     std::string_view("frameCount"),
     std::string_view("fromSample"),
     std::string_view("gain"),
+    std::string_view("gapCount"),
     std::string_view("heartRate"),
     std::string_view("heartRateClass"),
     std::string_view("heldPredicate"),

@@ -396,6 +396,12 @@ struct Link::Impl {
   // holds nothing a narrowed policy keeps here (P6f). Under mu.
   std::string down_applied_stream;
   std::uint64_t down_applied_mark = 0;
+  // P6f: a removal from above took a subscription of the uplink; the up loop withdraws from the
+  // outbox what the policy left no longer routes. Under mu.
+  bool policy_narrowed = false;
+  // P6f: after this run's first welcome the up loop withdraws what the policy does not route
+  // above its mark (a narrowing whose withdrawal a stop cut short). Under mu.
+  bool withdraw_after_welcome = false;
   // P6e: the parent store whose welcome said it is a copy holding nothing of this store's
   // stream, until what the stores before had is back in the outbox. Its later welcomes do not
   // say so (this node's hello names it now): one not taken for a conflict (P6b) would otherwise
@@ -1459,8 +1465,9 @@ struct Link::Impl {
     if (may_narrow) policy_before = policy_items();
     if (!run.empty()) outcome = relayer->relay(stream, run);
     if (!up && outcome) {
-      if (policy_before && outcome->removals > 0) withdraw_if_narrowed(*relayer, *policy_before);
+      const bool narrowed = policy_before && outcome->removals > 0 && policy_narrowed_since(*policy_before);
       std::lock_guard lock(mu);
+      if (narrowed) policy_narrowed = true;  // the up loop withdraws before it reads the outbox again
       down_applied_stream = stream;
       down_applied_mark = outcome->mark;
       changed.notify_all();
@@ -1564,23 +1571,10 @@ struct Link::Impl {
     return items;
   }
 
-  // P6f: once a subscription of the policy `before` is gone, what waits in the outbox that the
-  // policy left no longer sends stays on this node, as `tahvel up` does when its file narrows it.
-  void withdraw_if_narrowed(node::Agent& uplink, const std::set<std::uint64_t>& before) {
+  // P6f: whether a subscription of the policy `before` is gone.
+  bool policy_narrowed_since(const std::set<std::uint64_t>& before) {
     auto after = policy_items();
-    if (!after || std::includes(after->begin(), after->end(), before.begin(), before.end())) return;
-    // What went up stays sent: the parent may hold it, and a removal here goes after it (P7a).
-    std::uint64_t sent_through = 0;
-    {
-      std::lock_guard lock(mu);
-      sent_through = std::max(up_mark, up_sent_highest);
-    }
-    auto withdrawn = uplink.withdraw_unrouted(sent_through);
-    if (!withdrawn)
-      log("cannot take out of the outbox what the narrowed forwarding policy keeps here: " + withdrawn.error().message);
-    else if (*withdrawn > 0)
-      log("the forwarding policy was narrowed from above: " + std::to_string(*withdrawn) +
-          " item(s) it no longer sends, queued in the outbox and not yet sent, stay on this node");
+    return after && !std::includes(after->begin(), after->end(), before.begin(), before.end());
   }
 
   // A full store applied none, or only the first part, of a run from `from` (P9b). The sender is
@@ -1613,21 +1607,24 @@ struct Link::Impl {
   }
 
   // P6f: the id of the last item after `after` in `queue` (a child's down queue) that the pump
-  // sends as a down frame, among the first kWelcomeScan; 0 when none.
-  std::uint64_t last_going_down(node::Agent& queue, const std::string& child_iri, std::uint64_t after) {
-    auto waiting = queue.peek(after, kWelcomeScan, 0ms);
-    if (!waiting) {
-      log("cannot read the down queue of <" + child_iri + ">: " + waiting.error().message);
-      return 0;
+  // sends as a down frame; 0 when none. Read from the queue's end: the newest is nearly always
+  // one (not the child's own item, nor a query).
+  std::uint64_t last_going_down(const node::Agent& queue, const std::string& child_iri, std::uint64_t after) {
+    for (std::uint64_t before = std::numeric_limits<std::uint64_t>::max();;) {
+      auto newest = queue.peek_newest(after, before, 16);
+      if (!newest) {
+        log("cannot read the down queue of <" + child_iri + ">: " + newest.error().message);
+        return 0;
+      }
+      if (newest->empty()) return 0;
+      for (const node::Delivery& d : *newest) {
+        if (!d.records.empty() && uri::is_under(d.records.front().meta.source, child_iri)) continue;  // came up from it
+        if (object_of(d.records, vocab::kQueryTarget)) continue;  // goes as a query frame, or not at all
+        return d.item;
+      }
+      before = newest->back().item;
     }
-    for (auto d = waiting->rbegin(); d != waiting->rend(); ++d) {
-      if (!d->records.empty() && uri::is_under(d->records.front().meta.source, child_iri)) continue;  // came up from it
-      if (object_of(d->records, vocab::kQueryTarget)) continue;  // goes as a query frame, or not at all
-      return d->item;
-    }
-    return 0;
   }
-  static constexpr std::size_t kWelcomeScan = 4096;
 
   template <class AgentFn>
   void dispatch(Transport* via, const Frame& f, AgentFn& agent) {
@@ -2149,11 +2146,15 @@ struct Link::Impl {
           welcomed = false;
           return;
         }
+        // P6f: at this run's first welcome, what the policy does not route leaves the outbox
+        // above the mark (a narrowing whose withdrawal a stop cut short: the removal was applied).
+        if (!ever_welcomed) withdraw_after_welcome = true;
         welcomed = ever_welcomed = true;
         parent_left = false;
         parent_run = f.prev;
-        down_hold_through = state ? state->outbox_depth : 0;  // P6f
-        down_hold_until = now + kDownHoldMax;
+        // P6f: a welcome repeated meanwhile (hellos crossed it) does not put the time limit off.
+        if (down_hold_through == 0) down_hold_until = now + kDownHoldMax;
+        down_hold_through = state ? state->outbox_depth : 0;
         refused_by_parent.clear();
         parent_cannot_store.clear();  // said again by a parent that still cannot (P9b)
         // The parent holds nothing of this store's stream: a first welcome, or a parent store
@@ -2170,6 +2171,7 @@ struct Link::Impl {
         last_welcome_at = now;
         up_mark = f.ack;
         up_last_sent = f.ack;
+        up_sent_highest = f.ack;  // what went after the mark before did not reach this store
         up_in_flight.clear();
         up_progress = Clock::now();
         up_backoff = 0;  // P8a: a new session
@@ -2840,6 +2842,9 @@ struct Link::Impl {
       std::uint64_t after = 0, mark = 0;
       std::size_t room = 0;
       bool resend = false, requeue = false;
+      // P6f: items above this id that the forwarding policy does not route leave the outbox
+      // before it is read again (none: the largest id).
+      std::uint64_t withdraw_above = std::numeric_limits<std::uint64_t>::max();
       {
         std::unique_lock lock(mu);
         if (!welcomed) {
@@ -2859,8 +2864,6 @@ struct Link::Impl {
                 std::to_string(down_hold_through) + " of its down queue; waited " + seconds_text(kDownHoldMax) + ")");
           down_hold_through = 0;
         }
-        resend = std::exchange(resend_persistent, false);
-        requeue = std::exchange(requeue_after_welcome, false);
         while (!up_in_flight.empty() && up_in_flight.front() <= up_mark) up_in_flight.pop_front();
         if (up_go_back || (!up_in_flight.empty() && Clock::now() - up_progress > up_resend_after())) {
           up_last_sent = up_mark;  // P8: go back to the parent's mark
@@ -2887,6 +2890,21 @@ struct Link::Impl {
           changed.wait_for(lock, 20ms);
           continue;
         }
+        if (std::exchange(withdraw_after_welcome, false)) withdraw_above = up_mark;
+        if (std::exchange(policy_narrowed, false)) withdraw_above = std::min(withdraw_above, std::max(up_mark, up_sent_highest));
+        resend = std::exchange(resend_persistent, false);
+        requeue = std::exchange(requeue_after_welcome, false);
+      }
+      if (withdraw_above != std::numeric_limits<std::uint64_t>::max()) {
+        // What went up stays sent: the parent may hold it, and a removal here goes after it (P7a).
+        // Above the welcome's mark nothing is at the parent (it applies a stream in order).
+        // Here, in the only thread that reads the outbox to send, so that nothing read before
+        // the withdrawal goes up after it.
+        if (auto withdrawn = uplink->withdraw_unrouted(withdraw_above); !withdrawn)
+          log("cannot take out of the outbox what the narrowed forwarding policy keeps here: " + withdrawn.error().message);
+        else if (*withdrawn > 0)
+          log("the forwarding policy was narrowed: " + std::to_string(*withdrawn) +
+              " item(s) it no longer sends, queued in the outbox and not yet sent, stay on this node");
       }
       if (resend) {
         // P6c: what the parent's agents need for everything after (an ECG recording's

@@ -667,6 +667,45 @@ Result<std::uint64_t> Agent::pending() const noexcept {
   return std::uint64_t{n};
 }
 
+Result<std::vector<Delivery>> Agent::peek_newest(std::uint64_t after, std::uint64_t before, std::size_t limit) const noexcept {
+  if (!impl_) return moved_from();
+  try {
+    std::vector<Delivery> out;
+    ReadTxn read(*impl_->env);
+    if (auto r = read.begin(); !r) return unexpected(r.error());
+    auto self = impl_->self_id(read.txn);
+    if (!self) return unexpected(self.error());
+    if (*self == 0 || before <= after + 1) return out;
+    std::vector<std::uint64_t> ids;
+    MDB_cursor* cursor = nullptr;
+    int rc = mdb_cursor_open(read.txn, impl_->env->inbox, &cursor);
+    if (rc != 0) return lmdb_fail(rc, "opening the input buffer of " + impl_->iri);
+    // The first entry at or after `before`, then back; or the last entry when none is.
+    MDB_val k = val(*self), v = val(before);
+    rc = mdb_cursor_get(cursor, &k, &v, MDB_GET_BOTH_RANGE);
+    if (rc == MDB_NOTFOUND) {
+      k = val(*self);
+      rc = mdb_cursor_get(cursor, &k, &v, MDB_SET);
+      if (rc == 0) rc = mdb_cursor_get(cursor, &k, &v, MDB_LAST_DUP);
+    }
+    for (; rc == 0 && (!limit || ids.size() < limit); rc = mdb_cursor_get(cursor, &k, &v, MDB_PREV_DUP)) {
+      const std::uint64_t id = u64(v);
+      if (id <= after) break;
+      if (id < before) ids.push_back(id);
+    }
+    mdb_cursor_close(cursor);
+    if (rc != 0 && rc != MDB_NOTFOUND) return lmdb_fail(rc, "reading the input buffer of " + impl_->iri);
+    for (std::uint64_t id : ids) {
+      auto found = buffered(read.txn, *impl_->env, id);
+      if (!found) return unexpected(found.error());
+      if (*found) out.push_back(std::move(**found));  // else removed since
+    }
+    return out;
+  } catch (const std::bad_alloc&) {
+    return fail(Errc::io, "out of memory while peeking");
+  }
+}
+
 Result<std::vector<Delivery>> Agent::peek(std::uint64_t after, std::size_t limit,
                                           std::chrono::milliseconds timeout) noexcept {
   if (!impl_) return moved_from();

@@ -2878,6 +2878,14 @@ TEST(Link, WhatAPolicyRemovedWhileTheHomeWasAwayQueuedStaysHomeWhenItComesBack) 
   const std::uint64_t policy_id = hospital.agent("operator").value().store(raw_samples_go_up()).value();
   ASSERT_TRUE(eventually([&] { return count(tree.home1_dir, kHome1UplinkSubscriptions) == 2; }));
   tree.home1.reset();
+  // Settings for an agent of home1 written meanwhile, before the removal: it is far down the
+  // queue (a first version looked at its first 4,096 items only, and the backlog went up).
+  std::vector<node::Item> settings(5000);
+  for (std::size_t i = 0; i < settings.size(); ++i) {
+    settings[i].context = kHome1 + "/cfg";
+    settings[i].add(Term::iri(kHome1 + "/cfg"), Term::iri(kEx + "setting"), Term::integer(static_cast<std::int64_t>(i)));
+  }
+  ASSERT_TRUE(hospital.agent("operator").value().store_all(settings));
   ASSERT_TRUE(hospital.remove_item(policy_id));
   auto sensor = home.agent("ecg").value();
   for (int i = 0; i < 20; ++i) ASSERT_TRUE(sensor.store(raw_item(i)));

@@ -334,6 +334,32 @@ TEST(Window, PeekLeavesItemsAndAckThroughRemovesUpToAnId) {
   EXPECT_TRUE(uplink.peek(ids[4], 0, 10ms).value().empty());  // nothing after the last: timeout
 }
 
+// A link's down queue read from its end (docs/protocol.md P6f): the newest items between two ids,
+// newest first, without waiting.
+TEST(Window, PeekNewestReadsTheBufferFromItsEndBetweenTwoIds) {
+  TempDir dir;
+  Node node = make_node(dir.path());
+  Agent queue = node.agent("home1").value();
+  Agent writer = node.agent("writer").value();
+  EXPECT_TRUE(queue.peek_newest(0, ~0ull, 3).value().empty());  // never seen: no buffer
+  ASSERT_TRUE(queue.subscribe({.p = ex("value")}));
+  std::vector<std::uint64_t> ids;
+  for (int i = 0; i < 5; ++i) ids.push_back(writer.store(reading(i)).value());
+  const auto items_of = [](const std::vector<Delivery>& ds) {
+    std::vector<std::uint64_t> out;
+    for (const Delivery& d : ds) out.push_back(d.item);
+    return out;
+  };
+  EXPECT_EQ(items_of(queue.peek_newest(0, ~0ull, 2).value()), (std::vector<std::uint64_t>{ids[4], ids[3]}));
+  EXPECT_EQ(items_of(queue.peek_newest(ids[1], ids[4], 0).value()), (std::vector<std::uint64_t>{ids[3], ids[2]}));
+  EXPECT_EQ(items_of(queue.peek_newest(0, ids[1] + 1, 5).value()), (std::vector<std::uint64_t>{ids[1], ids[0]}));
+  EXPECT_TRUE(queue.peek_newest(ids[4], ~0ull, 5).value().empty());
+  EXPECT_TRUE(queue.peek_newest(ids[2], ids[3], 5).value().empty());
+  ASSERT_TRUE(node.remove_item(ids[4]));  // removed: skipped
+  EXPECT_EQ(items_of(queue.peek_newest(ids[2], ~0ull, 5).value()), (std::vector<std::uint64_t>{ids[3]}));
+  EXPECT_EQ(queue.pending().value(), 4u);  // left in place
+}
+
 // A subscription written as plain data (R9: any agent may write one on the subscriber's behalf)
 // is kept on a ring store: reclaimed, the subscriber stopped receiving, and nothing said so.
 // A ring store of 5 records: a configurator writes subscriptions as plain data for a monitor,

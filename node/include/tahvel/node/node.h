@@ -373,6 +373,10 @@ class Agent {
   // for the first one. Items removed from the store meanwhile are skipped.
   Result<std::vector<Delivery>> peek(std::uint64_t after, std::size_t limit,
                                      std::chrono::milliseconds timeout) noexcept;
+  // Up to `limit` items of the input buffer with `after` < id < `before`, newest first, left in
+  // place, without waiting (a link's down queue read from its end). Items removed meanwhile are
+  // skipped.
+  Result<std::vector<Delivery>> peek_newest(std::uint64_t after, std::uint64_t before, std::size_t limit) const noexcept;
 
   // Acknowledges every item of the input buffer with id <= `through`; returns how many.
   Result<std::uint64_t> ack_through(std::uint64_t through) noexcept;
