@@ -109,9 +109,10 @@ const Command kListCommand{
     "Matches come in id order; with --cascade N each is followed by its sub-tree: the records\n"
     "whose subject is the match's object (an IRI or blank node), N levels deep. JSON output has\n"
     "one object per line with the record's metadata (id, item, stored_at, asserted_at, span when\n"
-    "the record holds for a time, source, context, persistent). With --area only matches whose subject is a feature located in the\n"
-    "area (a sensor inside it, or the room itself) or whose source is a sensor inside it are\n"
-    "kept; sensors are placed by geo:hasGeometry/geo:asWKT as the board says when the command\n"
+    "the record holds for a time, source, context, persistent). With --area only matches whose\n"
+    "subject is a feature located in the area (a sensor inside it, a room or other polygon\n"
+    "feature lying in it, or the room itself) or whose source is a sensor inside it are kept;\n"
+    "sensors are placed by geo:hasGeometry/geo:asWKT as the board says when the command\n"
     "runs (docs/spatial.md).",
     {kFlagS, kFlagP, kFlagO, kFlagListContext, kFlagSource, kFlagUnder, kFlagSince, kFlagUntil, kFlagArea, kFlagFloor, kFlagCascade,
      {"--limit", "", "N", "print at most N records in all (0: no limit)"}, kFlagFormat},

@@ -1,4 +1,5 @@
 // `tahvel` subcommands that change a whiteboard: init, put, load, remove, subscribe.
+#include <cctype>
 #include <charconv>
 #include <filesystem>
 #include <iostream>
@@ -6,6 +7,7 @@
 #include <unordered_map>
 
 #include "commands.h"
+#include "vocabulary.h"
 #include "tahvel/spatial/area_subscriptions.h"
 #include "tahvel/spatial/board.h"
 #include "tahvel/spatial/wkt.h"
@@ -209,7 +211,17 @@ const Command kPutCommand{
 // (degrees of EPSG:4326 read as metres).
 void warn_of_unreadable_geometry(const std::vector<node::Triple>& triples, const std::string& path) {
   std::size_t warned = 0;
+  std::unordered_map<std::string, const node::Term*> floor_of;  // a subject's first tv:floor here
   for (const node::Triple& t : triples) {
+    // Two floors for one feature in one input: the one stated last wins (S6), and a plan that
+    // reused a room's IRI on two floors lost the first room without a word.
+    if (t.p.value == spatial::kTvFloor) {
+      auto [first, fresh] = floor_of.emplace(t.s.value, &t.o);
+      if (!fresh && !(*first->second == t.o) && ++warned <= 20)
+        std::cerr << warning_prefix() << (path == "-" ? std::string("<stdin>") : path) << ": <" << t.s.value << "> has two floors, "
+                  << first->second->to_ntriples() << " and " << t.o.to_ntriples()
+                  << ": a feature has one place (the one stated last is read, docs/spatial.md S6); give each floor's room an IRI of its own\n";
+    }
     // A floor that is no whole number takes the feature out of the plan as a malformed one (S5,
     // S7), also said only when the plan is read.
     if (t.p.value == spatial::kTvFloor && !spatial::parse_floor(t.o) && ++warned <= 20) {
@@ -234,6 +246,42 @@ void warn_of_unreadable_geometry(const std::vector<node::Triple>& triples, const
                 << "\n";
   }
   if (warned > 20) std::cerr << warning_prefix() << warned - 20 << " more geometries warned of\n";
+}
+
+// A predicate or class of the tv: vocabulary that it does not define is a misspelling the
+// programs reading the board pass over without a word: `tv:flor 1` left a room on floor 0, and a
+// tv: namespace written otherwise (`<http://www.tahvel.org/ns#floor>`) did the same. Said here.
+void warn_of_unknown_vocabulary(const std::vector<node::Triple>& triples, const std::string& path) {
+  const std::string where = path == "-" ? std::string("<stdin>") : path;
+  const std::string rdf_type = "http://www.w3.org/1999/02/22-rdf-syntax-ns#type";
+  std::set<std::string> said;
+  auto look_at = [&](const node::Term& term) {
+    if (!term.is_iri() || said.size() > 20 || said.contains(term.value)) return;
+    const std::string& iri = term.value;
+    if (iri.starts_with(uri::kTahvelNs)) {
+      const std::string_view local = std::string_view(iri).substr(uri::kTahvelNs.size());
+      if (is_tahvel_term(local)) return;
+      said.insert(iri);
+      std::cerr << warning_prefix() << where << ": tv:" << local << " is not a term of the tv: vocabulary (docs/vocabulary.md)";
+      if (auto near = nearest_tahvel_term(local)) std::cerr << "; did you mean tv:" << *near << "?";
+      std::cerr << " Tahvel's programs pass over it\n";
+      return;
+    }
+    // Another namespace spelt like Tahvel's, with a term of it: <http://www.tahvel.org/ns#floor>.
+    const std::size_t hash = iri.find_last_of("#/");
+    if (hash == std::string::npos || hash + 1 >= iri.size()) return;
+    const std::string_view ns = std::string_view(iri).substr(0, hash + 1), local = std::string_view(iri).substr(hash + 1);
+    std::string lower(ns);
+    for (char& c : lower) c = static_cast<char>(std::tolower(static_cast<unsigned char>(c)));
+    if (lower.find("tahvel") == std::string::npos || !is_tahvel_term(local)) return;
+    said.insert(iri);
+    std::cerr << warning_prefix() << where << ": <" << iri << "> is not tv:" << local << ", which is <" << uri::kTahvelNs << local
+              << ">: Tahvel's programs pass over it (@prefix tv: <" << uri::kTahvelNs << "> .)\n";
+  };
+  for (const node::Triple& t : triples) {
+    look_at(t.p);
+    if (t.p.value == rdf_type) look_at(t.o);
+  }
 }
 
 // An item addressed (R18) to an agent nothing on this node knows waits in that agent's input
@@ -322,6 +370,7 @@ int run_put(const Args& args) {
   if (item.triples.empty())
     fail((path == "-" ? std::string("standard input") : path) + ": no triple to put (an item needs at least one)");
   warn_of_unreadable_geometry(item.triples, path);
+  warn_of_unknown_vocabulary(item.triples, path);
   warn_of_unknown_addressee(node, item, agent);
   auto stored = [&] {
     SaidIfSlow said("put", args.positional(0));
@@ -411,6 +460,7 @@ int run_load(const Args& args) {
   Input input;
   std::vector<node::Triple> triples = parse_input(node, path, input_format(args, path), prefixes, &input);
   warn_of_unreadable_geometry(triples, path);
+  warn_of_unknown_vocabulary(triples, path);
   warn_of_unknown_addressee(node, frame, agent);
   warn_of_subscriptions(node, triples, path);
   std::vector<std::vector<std::size_t>> places;
@@ -494,9 +544,12 @@ int run_remove(const Args& args) {
   // route on until a keeper ran, and none runs without 'tahvel up'. They go now.
   node::Pattern expansions;
   expansions.p = node::Term::iri(spatial::kTvAreaSubscription);
-  if (check(check(node.snapshot()).count(expansions)) > 0) {
+  if (removed > 0 && check(check(node.snapshot()).count(expansions)) > 0) {
     auto synced = spatial::sync_area_subscriptions(node);
     if (!synced) fail("removed, but the area subscriptions could not follow: " + synced.error().message);
+    if (synced->added + synced->removed > 0)
+      std::cerr << "tahvel: remove: the area subscriptions follow: " << synced->added << " expansion(s) added, " << synced->removed
+                << " removed (docs/spatial.md S9)\n";
   }
   print_number(removed, std::to_string(removed) + " records are removed");
   return kExitOk;

@@ -171,7 +171,7 @@ UdpmReassembler::Taken UdpmReassembler::take_fragment(std::uint64_t sender, std:
     Partial p;
     p.seqno = seqno, p.size = size, p.fragments = fragments, p.started = takes_;
     p.have.assign(fragments, '\0');
-    p.data.resize(size);
+    p.data.reset(new char[size]);
     held_bytes_ += held_size(size, fragments);
     it = partial_.emplace(sender, std::move(p)).first;
   }
@@ -187,9 +187,21 @@ UdpmReassembler::Taken UdpmReassembler::take_fragment(std::uint64_t sender, std:
   if (p.have[number]) return {};  // a duplicate
   p.have[number] = 1;
   ++p.received;
-  std::memcpy(p.data.data() + offset, part.data(), part.size());
+  std::memcpy(p.data.get() + offset, part.data(), part.size());
+  p.spans.emplace_back(offset, static_cast<std::uint32_t>(part.size()));
   if (p.received < p.fragments) return {};
-  whole_ = std::move(p.data);
+  std::sort(p.spans.begin(), p.spans.end());
+  std::uint64_t covered = 0;
+  for (const auto& [at, length] : p.spans) {
+    if (at != covered) break;
+    covered += length;
+  }
+  if (covered != p.size) {
+    drop(it);
+    return {{}, where + ": its fragments do not tile the message's " + std::to_string(size) +
+                    " bytes (they overlap or leave a hole)"};
+  }
+  whole_.assign(p.data.get(), p.size);
   drop(it);
   return {std::string_view(whole_), {}};
 }

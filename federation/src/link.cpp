@@ -1396,6 +1396,7 @@ struct Link::Impl {
     std::vector<node::RelayedItem> items;
     items.reserve(frames.size());
     std::string foreign;  // P6b: why frames of this run are not this stream's
+    std::size_t untagged = 0;  // P6b: frames without a store tag from a peer whose store has one
     for (std::size_t k = 0; k < frames.size(); ++k) {
       const Frame& f = frames[k];
       // A body that does not decode first (P17): a frame that is no item is dropped for that
@@ -1409,6 +1410,13 @@ struct Link::Impl {
         break;  // the rest follows it in the sender's sequence: they come again after a resend
       }
       const std::uint64_t from_tag = (f.ack >> kStoreTagShift) & kStoreTagMask, to_tag = f.ack >> kPeerStoreTagShift;
+      if (from_tag == 0 && registered_tag != 0) {
+        // Only a peer from before store tags sends none, and it registered no store id: one
+        // forged frame so, its seq far ahead, moved the mark past every item the child would
+        // ever send, and the child's stream stopped for good.
+        ++untagged;
+        continue;
+      }
       if (from_tag != 0 && registered_tag != 0 && from_tag != registered_tag) {
         foreign = describe_tag("which sent frames here", from_tag);
         continue;  // the other store's seqs are not this stream's: never applied, never acknowledged
@@ -1420,8 +1428,14 @@ struct Link::Impl {
       if (!up) body->item.context = subtree_for(body->item.context, self);  // P11
       items.push_back({f.seq, f.prev, std::move(body->source), std::move(body->item), body->removal, std::move(body->positions)});
     }
+    if (untagged > 0)
+      refuse(via, head.from, head.kind, untagged,
+             "dropped " + std::string(up ? "up" : "down") + " frames from <" + head.from +
+                 "> that carry no store tag, though the store registered for it has one (P6b): a forger, or a peer "
+                 "from before store tags whose store has an id now",
+             "no store tag", /*answer=*/false);
     if (!foreign.empty()) other_store_sent(up ? child.get() : nullptr, foreign);
-    if (items.empty() && !foreign.empty()) return;
+    if (items.empty() && (!foreign.empty() || untagged > 0)) return;
     node::Agent* relayer = agent(up ? child->id : std::string(kUplinkAgent));
     if (!relayer) return;
     std::string stream;

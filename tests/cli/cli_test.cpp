@@ -1074,6 +1074,33 @@ TEST_F(Cli, PutAndLoadWarnOfAGeometryThatWillNotReadAndStoreIt) {
   EXPECT_EQ(lines_of(run({"list", node_, "-p", "<http://www.opengis.net/ont/geosparql#asWKT>"}).out).size(), 14u);
 }
 
+// A floor plan whose floor predicate is misspelt (tv:flor), or whose tv: namespace is written
+// otherwise, left its rooms on floor 0 without a word; a room given two floors in one file lost
+// the first. put and load say so, and store the triples as given.
+TEST_F(Cli, PutAndLoadWarnOfATermTheTvVocabularyLacksAndOfAFeatureGivenTwoFloors) {
+  init();
+  const std::string plan =
+      "@prefix tv: <https://w3id.org/tahvel#> .\n"
+      "@prefix wrong: <http://www.tahvel.org/ns#> .\n"
+      "<http://example.org/home1/room/up> tv:flor 1 .\n"
+      "<http://example.org/home1/room/up2> wrong:floor 1 .\n"
+      "<http://example.org/home1/room/bed> tv:floor 0 ; tv:floor 1 .\n"
+      "<http://example.org/home1/room/ok> tv:floor 2 ; a tv:Room ; <http://example.org/own#floor> 3 .\n";
+  spit(tmp_ / "plan.ttl", plan);
+  for (const char* command : {"put", "load"}) {
+    Outcome stored = run({command, node_, (tmp_ / "plan.ttl").string()});
+    EXPECT_EQ(stored.status, 0) << command << ": " << stored.err;
+    for (const char* said : {"tv:flor is not a term of the tv: vocabulary (docs/vocabulary.md); did you mean tv:floor?",
+                             "<http://www.tahvel.org/ns#floor> is not tv:floor, which is <https://w3id.org/tahvel#floor>",
+                             "<http://example.org/home1/room/bed> has two floors, \"0\"^^<http://www.w3.org/2001/XMLSchema#integer> and "
+                             "\"1\"^^<http://www.w3.org/2001/XMLSchema#integer>"})
+      EXPECT_NE(stored.err.find(said), std::string::npos) << command << ": " << stored.err;
+    for (const char* good : {"room/ok", "tv:Room", "own#floor"})
+      EXPECT_EQ(stored.err.find(good), std::string::npos) << "a good term warned of: " << stored.err;
+  }
+  EXPECT_EQ(lines_of(run({"list", node_, "-s", "<http://example.org/home1/room/bed>"}).out).size(), 4u);
+}
+
 // `put --agent supervisor` by chance: the supervisor replaces every item of its own every few
 // seconds, so what was put vanished without a word. The board stays open (it is stored), but
 // the id's owner is named; an agent id of one's own is not warned of.

@@ -158,6 +158,31 @@ TEST(UdpmReassembler, MalformedDatagramsAreRefusedNamingWhatIsWrong) {
   EXPECT_TRUE(r.take(kSenderA, parts.back()).payload);
 }
 
+// A message's bytes are not zero-filled before its fragments come (60 MB of zeros per forged
+// fragment 0 kept a gateway from hearing its sensors): fragments that overlap, leaving bytes no
+// fragment wrote, make no message.
+TEST(UdpmReassembler, FragmentsThatDoNotTileTheirMessageMakeNoMessage) {
+  UdpmReassembler r("TVchannel");
+  const std::string payload = pattern(10000);
+  auto parts = fragments(6, "TVchannel", payload, 4000);
+  ASSERT_EQ(parts.size(), 3u);
+  std::string overlapping = parts[2];  // fragment 2 written over fragment 1's first bytes
+  const std::uint32_t at = 3990 - 10;  // fragment 1 starts at 3990 (4000 less the channel)
+  overlapping[12] = 0, overlapping[13] = 0, overlapping[14] = static_cast<char>(at >> 8), overlapping[15] = static_cast<char>(at & 0xFF);
+  EXPECT_FALSE(r.take(kSenderA, parts[0]).payload);
+  EXPECT_FALSE(r.take(kSenderA, parts[1]).payload);
+  auto t = r.take(kSenderA, overlapping);
+  EXPECT_FALSE(t.payload);
+  EXPECT_EQ(t.refused, "LCM fragment 2 of 3 of message 6: its fragments do not tile the message's 10000 bytes (they overlap or leave a hole)");
+  EXPECT_EQ(r.held_bytes(), 0u);
+  // The sender's next message is made whole as ever.
+  auto again = fragments(7, "TVchannel", payload, 4000);
+  for (std::size_t i = 0; i + 1 < again.size(); ++i) EXPECT_FALSE(r.take(kSenderA, again[i]).payload);
+  auto whole = r.take(kSenderA, again.back());
+  ASSERT_TRUE(whole.payload);
+  EXPECT_TRUE(*whole.payload == payload);
+}
+
 TEST(UdpmReassembler, HeldBytesStayBoundedOverSendersThatNeverFinish) {
   UdpmReassembler r("TVchannel");
   std::string header;

@@ -2074,6 +2074,32 @@ TEST(Link, UpFramesThatDoNotDecodeAreDroppedAndAreNoSignOfAnotherStore) {
   EXPECT_EQ(count(tree.hospital_dir, {.p = Term::iri(kEx + "n")}), 20u);
 }
 
+// P6b: an up frame without a store tag, from a child whose registered store has one. A forger on
+// the LAN sent one so, its seq far ahead and its prev the mark it read off an ack: the mark went
+// past every item the child would send, and the child's stream stopped for good.
+TEST(Link, AnUpFrameWithoutAStoreTagFromAChildWhoseStoreHasOneIsDroppedAndTheStreamGoesOn) {
+  Tree tree;
+  ASSERT_TRUE(tree.start_hospital_and_home1());
+  ASSERT_TRUE(home1_sends(tree, 0, 10, 10));
+  const std::uint64_t mark = node::Node::open(tree.home1_dir).value().agent("hrv").value().written().value().back();
+  for (std::uint64_t k = 0; k < 5; ++k) {
+    Frame forged;
+    forged.kind = FrameKind::up;
+    forged.from = kHome1;
+    forged.to = kHospital;
+    forged.prev = mark + k;
+    forged.seq = (std::uint64_t{1} << 62) + forged.prev;
+    node::Item item;
+    item.add(Term::iri(kHome1 + "/forged"), Term::iri(kEx + "forged"), Term::integer(1));
+    forged.body = wire::encode_item({kHome1 + "/hrv", item});
+    tree.bus.inject_raw(kHospital, encode_frame(forged));
+  }
+  ASSERT_TRUE(home1_sends(tree, 10, 10, 20)) << tree.hospital_log.text();
+  EXPECT_EQ(count(tree.hospital_dir, {.p = Term::iri(kEx + "forged")}), 0u);
+  EXPECT_TRUE(tree.hospital_log.has("that carry no store tag, though the store registered for it has one")) << tree.hospital_log.text();
+  EXPECT_FALSE(tree.hospital_log.has("conflict")) << tree.hospital_log.text();
+}
+
 // P13: a query frame with an empty origin was answered, the whole store sent up towards no one.
 // It is dropped with a line, and the link goes on.
 TEST(Link, AQueryFromTheParentWhoseOriginIsNoNodeAboveIsDropped) {

@@ -111,7 +111,11 @@ class Simulator {
     for (const sp::SensingSubscription& s : subscriptions->subscriptions) {
       if (!s.active_at(now_ns)) continue;
       if (!board->plan.room(s.area)) {
-        warn_once(s.iri + ": no room " + s.area + " on the board");
+        // A room on the board whose place cannot be read is skipped (said above), not absent.
+        const bool skipped = std::any_of(board->problems.begin(), board->problems.end(),
+                                         [&](const std::string& p) { return p.starts_with(s.area + ":"); });
+        warn_once(s.iri + (skipped ? ": room " + s.area + " cannot be used as an area (its place cannot be read; see the feature skipped)"
+                                   : ": no room " + s.area + " on the board"));
         continue;
       }
       std::vector<std::string> capable;
