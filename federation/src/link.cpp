@@ -757,6 +757,8 @@ struct Link::Impl {
   // that made-up senders cannot fill the table: an `accepted` child of a configured list is
   // always kept (without a list any IRI below is accepted, and counts against the bound).
   static constexpr std::size_t kOlderChildrenKept = 4096;
+  std::size_t older_strangers_said = 0;  // under older_children_mu
+  static constexpr std::size_t kOlderStrangersSaid = 8;
   void note_child_version(const std::string& iri, std::uint16_t version, bool accepted) {
     accepted = accepted && !opt.children.empty();
     if (version == kProtocolVersion && !older_children_heard.load(std::memory_order_relaxed)) return;
@@ -768,9 +770,16 @@ struct Link::Impl {
       it->second = version;
     } else if (accepted || older_children.size() < kOlderChildrenKept) {
       older_children.emplace(iri, version);
-      log("child <" + iri + "> speaks protocol version " + std::to_string(version) + ", this node " +
-          std::to_string(kProtocolVersion) + ": spoken to in " + std::to_string(version) +
-          (version < kFirstVersionWithSpans ? " (items sent down go without their span)" : ""));
+      // Senders this node does not take as children are refused on their own budget (P4): of
+      // them only the first few are said here, else a flood of made-up senders wrote 4,096
+      // lines (0.8 MB) in a second.
+      if (accepted || ++older_strangers_said <= kOlderStrangersSaid)
+        log("child <" + iri + "> speaks protocol version " + std::to_string(version) + ", this node " +
+            std::to_string(kProtocolVersion) + ": spoken to in " + std::to_string(version) +
+            (version < kFirstVersionWithSpans ? " (items sent down go without their span)" : "") +
+            (!accepted && older_strangers_said == kOlderStrangersSaid
+                 ? "; further senders of older versions that are not configured children are not logged"
+                 : ""));
     }
     older_children_heard = !older_children.empty();
   }
@@ -1342,6 +1351,22 @@ struct Link::Impl {
     std::map<std::uint64_t, node::RelayedItem> by_prev;  // keyed by the seq each one follows
   };
   static constexpr std::size_t kHeldMax = 4096;
+  // And their bytes: items of up to 64 MB each made 4,096 held ones half a gigabyte of a
+  // gateway's memory (a peer sending far ahead of a gap). What is dropped comes again (P8).
+  static constexpr std::size_t kHeldMaxBytes = 64u << 20;
+  static void drop_held_past(HeldFrames& held, std::size_t max_bytes) {
+    std::size_t bytes = 0;
+    for (auto it = held.by_prev.begin(); it != held.by_prev.end(); ++it) {
+      const node::RelayedItem& r = it->second;
+      bytes += r.source.size() + r.item.context.size() + 64;
+      for (const node::Triple& t : r.item.triples)
+        bytes += t.s.value.size() + t.p.value.size() + t.o.value.size() + t.o.datatype.size() + t.o.language.size() + 96;
+      if (bytes > max_bytes) {
+        held.by_prev.erase(it, held.by_prev.end());
+        return;
+      }
+    }
+  }
 
   template <class AgentFn>
   void relay_run(Transport* via, std::span<const Frame> frames,
@@ -1493,6 +1518,7 @@ struct Link::Impl {
       outcome->duplicates += early_duplicates;
       std::erase_if(buffer.by_prev, [&](const auto& e) { return e.second.seq <= *buffer.mark; });
       while (buffer.by_prev.size() > kHeldMax) buffer.by_prev.erase(std::prev(buffer.by_prev.end()));
+      drop_held_past(buffer, kHeldMaxBytes);
       outcome->gap = outcome->gap || !buffer.by_prev.empty();
     } else {
       buffer = HeldFrames{};  // read the mark again; the sender resends what is missing

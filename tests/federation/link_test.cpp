@@ -2273,6 +2273,26 @@ SamplesAnswer ask_home1_for_samples(const Tree& tree, std::chrono::seconds timeo
   return a;
 }
 
+// P3, P4: made-up senders of an older version (a flood on the LAN) were each logged as a child
+// speaking that version, 4,096 lines in a second; refused on P4's budget, only the first 8 are.
+TEST(Link, OlderVersionsOfSendersThatAreNoChildrenAreLoggedForTheFirstFewOnly) {
+  Tree tree;
+  ASSERT_TRUE(tree.start_hospital_and_home1());
+  for (int k = 0; k < 40; ++k) {
+    Frame hello;
+    hello.version = 2;
+    hello.kind = FrameKind::hello;
+    hello.from = "http://evil.example/x" + std::to_string(k);
+    hello.to = kHospital;
+    hello.body = wire::encode_state({"v", 0});
+    tree.bus.inject_raw(kHospital, encode_frame(hello));
+  }
+  ASSERT_TRUE(home1_sends(tree, 0, 3, 3));
+  EXPECT_TRUE(eventually([&] { return tree.hospital_log.has("further senders of older versions that are not configured children are not logged"); }))
+      << tree.hospital_log.text();
+  EXPECT_EQ(tree.hospital_log.lines_with("speaks protocol version 2"), 8u) << tree.hospital_log.text();
+}
+
 // A hospital upgraded before its homes (docs/deploy.md, "Upgrading"): a home of the version
 // before is registered, its items go up, configuration goes down to it in its version (without
 // the span it would refuse) and its answers are read in its layout.
