@@ -416,6 +416,11 @@ struct Link::Impl {
   std::uint64_t up_mark = 0;       // the parent's mark of our stream: applied there
   std::uint64_t up_last_sent = 0;  // the seq of the last up frame sent
   std::uint64_t up_sent_highest = 0;  // of every up frame this run sent (a go-back goes below it)
+  // When the parent's mark of this node's stream last moved (or the welcome), and the mark of an
+  // ack refused as beyond what this store sent since: a stream the parent takes nothing of while
+  // it is heard is this link's problem (say_problem). Under mu.
+  Clock::time_point up_mark_moved_at{};
+  std::uint64_t ack_beyond_seen = 0;
   std::deque<std::uint64_t> up_in_flight;
   Clock::time_point up_progress{};
   bool up_go_back = false;
@@ -2212,6 +2217,8 @@ struct Link::Impl {
         up_mark = f.ack;
         up_last_sent = f.ack;
         up_sent_highest = f.ack;  // what went after the mark before did not reach this store
+        up_mark_moved_at = now;
+        ack_beyond_seen = 0;
         up_in_flight.clear();
         up_progress = Clock::now();
         up_backoff = 0;  // P8a: a new session
@@ -2261,12 +2268,14 @@ struct Link::Impl {
         if (f.ack > issued_to_peers()) {
           // Never sent: taken, it would leave every later item in the outbox for good (the
           // outbox is emptied up to the mark, and the mark would never be passed again).
+          ack_beyond_seen = f.ack;
           lock.unlock();
           return refuse(via, f.from, f.kind, 1, ack_beyond_issued(f.ack), "an ack beyond what this store sent");
         }
         if (f.ack > up_mark) {
           up_mark = f.ack;
-          up_progress = Clock::now();
+          up_progress = up_mark_moved_at = Clock::now();
+          ack_beyond_seen = 0;
           if (up_backoff > 0) --up_backoff;  // P8a
           if (!parent_cannot_store.empty()) {
             if (parent_cannot_store_said.open) log("the parent <" + opt.parent_iri + "> stores what this node sends again");
@@ -3527,15 +3536,31 @@ struct Link::Impl {
   bool problem_written = false;
   Clock::time_point problem_retry_at{};  // after a failed write (a full store): not at every turn
   void say_problem(node::Agent& link) {
-    std::string refusals;
+    std::string refusals, stall;
     {
       std::lock_guard lock(mu);
       const auto now = Clock::now();
       std::erase_if(refused_hellos, [&](const auto& r) { return now - r.second.last > kRefusedHelloShownFor; });
       for (const auto& [from, r] : refused_hellos) refusals += (refusals.empty() ? "" : "; ") + ("<" + from + ">: " + r.why);
+      // Items in flight, the parent heard, and its mark still: the link is up and the stream
+      // stands. Up to session 82 `status` said "link up" while a sensor's outbox grew for minutes.
+      const auto stands_for = 2 * opt.child_silence;
+      if (opt.up && welcomed && !up_in_flight.empty() && now - parent_heard < opt.child_silence &&
+          now - up_mark_moved_at > stands_for) {
+        stall = "the parent <" + opt.parent_iri + "> has applied nothing this node sent for over " + seconds_text(stands_for) +
+                " though it is heard; items wait in the outbox";
+        if (ack_beyond_seen != 0)
+          stall += ": it acknowledges up to " + std::to_string(ack_beyond_seen) + ", past all this store sent (" +
+                   std::to_string(issued_to_peers()) +
+                   "), so its mark of this node's stream is wrong and it takes what comes for repeats (a forged frame on "
+                   "the network? docs/protocol.md, Trust)";
+        else if (!parent_cannot_store.empty())
+          stall += ": it cannot store them (" + parent_cannot_store + ")";
+      }
     }
     std::string text = addressee_problem;
     if (!refusals.empty()) text += (text.empty() ? "" : "; ") + std::string("refuses the hello of ") + refusals;
+    if (!stall.empty()) text += (text.empty() ? "" : "; ") + stall;
     if (text == problem_said && problem_written) return;
     if (Clock::now() < problem_retry_at) return;
     if (auto said = link.report_problem(text); !said) {

@@ -2145,6 +2145,32 @@ TEST(Link, AnAckBeyondWhatTheChildHasSentIsRefusedAndTheOutboxKeepsItsItems) {
   EXPECT_TRUE(later_sent) << "items after it are sent";
 }
 
+// A parent that keeps acknowledging past all the child sent (its mark of the stream moved by a
+// forged frame) takes everything after for repeats: the child's stream stands while the link is
+// up. Up to session 82 only a line of the child's log said so, once a minute; `status` showed
+// "link up". It is the link's problem on the board, and goes once the mark moves.
+TEST(Link, AStreamTheParentAppliesNothingOfWhileItIsHeardIsTheLinksProblem) {
+  HomeUnderAParentByHand home;
+  ASSERT_NO_FATAL_FAILURE(home.start(true));
+  auto& [tree, parent, own_store, welcome, sent] = home;
+  const node::Pattern problem{.s = Term::iri(kHome1 + "/link"), .p = Term::iri(node::kProblem)};
+  const auto problems = [&] {
+    std::string text;
+    for (const auto& r : node::Node::open(tree.home1_dir).value().snapshot().value().list(problem).value()) text += r.triple.o.value;
+    return text;
+  };
+  bool said = false;
+  for (auto deadline = std::chrono::steady_clock::now() + 20s; !said && std::chrono::steady_clock::now() < deadline;) {
+    ASSERT_TRUE(home.ack(std::uint64_t{1} << 62, own_store));  // heard, and beyond
+    std::this_thread::sleep_for(300ms);
+    said = problems().find("has applied nothing this node sent for over 7.0 s though it is heard") != std::string::npos;
+  }
+  ASSERT_TRUE(said) << problems() << tree.home1_log.text();
+  EXPECT_NE(problems().find("it acknowledges up to 4611686018427387904, past all this store sent"), std::string::npos) << problems();
+  ASSERT_TRUE(home.ack(*sent.rbegin(), own_store));
+  EXPECT_TRUE(eventually([&] { return problems().empty(); })) << problems();
+}
+
 // The same at the parent: a child's acknowledgement of more of the down stream than the parent
 // has sent is refused with a line, once however many come.
 TEST(Link, AChildsAckBeyondWhatTheParentHasSentIsRefusedWithOneLine) {
