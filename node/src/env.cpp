@@ -748,6 +748,9 @@ Result<std::shared_ptr<Env>> Env::open_at(const std::filesystem::path& dir, cons
   }
   if (rc == EACCES || rc == EPERM) return fail(Errc::io, "opening store " + dir.string() + ": " + std::strerror(rc) + access_hint(dir));
   if (rc != 0) return lmdb_fail(rc, "opening store " + dir.string());
+  // LMDB opens the data file without close-on-exec: a program this process starts (the
+  // supervisor's agents, `up`'s checks) held the store open for as long as it ran.
+  if (mdb_filehandle_t fd; mdb_env_get_fd(env->env_, &fd) == 0) ::fcntl(fd, F_SETFD, ::fcntl(fd, F_GETFD) | FD_CLOEXEC);
   int dead = 0;
   mdb_reader_check(env->env_, &dead);  // reader slots of dead processes
 

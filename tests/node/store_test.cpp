@@ -2510,5 +2510,15 @@ TEST(Store, SubscribingWithEarlierDeliversTheMatchingItemsAlreadyOnTheBoardOldes
   EXPECT_EQ(*plain->pending(), 0u);
 }
 
+// A program that a process with an open store starts does not hold the store's data file open:
+// LMDB opens it without close-on-exec, and a supervisor's restarted agents held every store of
+// the deployment (a store removed meanwhile kept its space while they ran).
+TEST(StoreFiles, AProgramStartedByAProcessWithAnOpenStoreDoesNotInheritItsDataFile) {
+  TempDir dir;
+  Node node = make_node(dir.path());
+  const std::string probe = "ls -l /proc/$$/fd 2>/dev/null | grep -q '" + dir.path().string() + "/data.mdb'";
+  EXPECT_NE(std::system(probe.c_str()), 0) << "the shell started here holds the store's data.mdb";
+}
+
 }  // namespace
 }  // namespace tahvel::node

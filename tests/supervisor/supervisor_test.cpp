@@ -81,6 +81,16 @@ TEST_F(SupervisorTest, AProgramThatFinishesWithStatusZeroStaysStopped) {
   expect_left_stopped("replay", 0, "(finished; restart = on-failure)");
 }
 
+// A program gets none of the supervisor's files, also those it opened without close-on-exec
+// (LMDB's data file of every store: a restarted agent held the whole deployment's stores open).
+TEST_F(SupervisorTest, AProgramInheritsNoFileTheSupervisorHasOpen) {
+  const int fd = ::open("/dev/null", O_RDONLY);  // no O_CLOEXEC, as LMDB opens a data file
+  ASSERT_GE(fd, 3);
+  start("agent", "[ -e /proc/$$/fd/" + std::to_string(fd) + " ] && exit 7; exit 0", Restart::on_failure);
+  expect_left_stopped("agent", 0, "(finished; restart = on-failure)");
+  ::close(fd);
+}
+
 TEST_F(SupervisorTest, AProgramThatFailsIsStartedAgainWithBackOffAndTheLogSaysWhy) {
   start("agent", "exit 3", Restart::on_failure);
   ASSERT_TRUE(poll_until([&] { return supervisor_.state("agent")->restarts >= 3; }));

@@ -305,6 +305,11 @@ void Supervisor::launch(Program& program) {
         if (fd > 2) ::close(fd);
       }
     }
+    // None of the supervisor's files: LMDB opens a store's data file without close-on-exec, and a
+    // program restarted after the supervisor had opened the stores held every store of the
+    // deployment open (a removed store's space stayed taken while it ran).
+    if (close_range(3, ~0U, 0) != 0)
+      for (int fd = 3; fd < 4096; ++fd) ::close(fd);
     // `up`'s check of an agent's flags (it stops before it works) is not for a program run here.
     unsetenv("TAHVEL_CHECK_ARGS");
     for (auto& [k, v] : program.spec.env) setenv(k.c_str(), v.c_str(), 1);
