@@ -182,9 +182,14 @@ Result<std::uint64_t> intern_term(Txn& txn, const Term& term, bool pinned) {
 namespace {
 
 // Remembers `id` for the rest of the transaction and, once it commits, for the process.
+constexpr std::size_t kLongestTermCached = 512;
+
 void remember(Txn& txn, const TermKey& key, std::uint64_t id, bool pinned, bool beyond_txn) {
   auto [known, fresh] = txn.term_ids.try_emplace(key, Txn::KnownTerm{id, pinned});
   if (!fresh && pinned) known->second.pinned = true;
+  // The process's cache is for writers, sources, predicates and classes, which come again; a
+  // long literal seldom does, and 65,536 of them (its bound in entries) could be gigabytes.
+  if (key.text.size() > kLongestTermCached) return;
   if (pinned) {
     txn.staged_pinned.try_emplace(key, id);
   } else if (beyond_txn) {
