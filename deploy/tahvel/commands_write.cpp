@@ -249,7 +249,7 @@ void warn_of_unreadable_geometry(const std::vector<node::Triple>& triples, const
 }
 
 // A predicate or class of the tv: vocabulary that it does not define is a misspelling the
-// programs reading the board pass over without a word: `tv:flor 1` left a room on floor 0, and a
+// programs reading the board pass over without a word: a floor predicate spelt "flor" left a room on floor 0, and a
 // tv: namespace written otherwise (`<http://www.tahvel.org/ns#floor>`) did the same. Said here.
 void warn_of_unknown_vocabulary(const std::vector<node::Triple>& triples, const std::string& path) {
   const std::string where = path == "-" ? std::string("<stdin>") : path;
