@@ -217,7 +217,9 @@ void warn_of_unreadable_geometry(const std::vector<node::Triple>& triples, const
     // reused a room's IRI on two floors lost the first room without a word.
     if (t.p.value == spatial::kTvFloor) {
       auto [first, fresh] = floor_of.emplace(t.s.value, &t.o);
-      if (!fresh && !(*first->second == t.o) && ++warned <= 20)
+      const auto one = spatial::parse_floor(*first->second), other = spatial::parse_floor(t.o);
+      const bool same = *first->second == t.o || (one && other && *one == *other);  // 1 and "1": one floor
+      if (!fresh && !same && ++warned <= 20)
         std::cerr << warning_prefix() << (path == "-" ? std::string("<stdin>") : path) << ": <" << t.s.value << "> has two floors, "
                   << first->second->to_ntriples() << " and " << t.o.to_ntriples()
                   << ": a feature has one place (the one stated last is read, docs/spatial.md S6); give each floor's room an IRI of its own\n";

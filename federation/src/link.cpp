@@ -20,6 +20,7 @@
 #include <charconv>
 #include <cstring>
 #include <deque>
+#include <filesystem>
 #include <iostream>
 #include <limits>
 #include <map>
@@ -399,9 +400,20 @@ struct Link::Impl {
   // P6f: a removal from above took a subscription of the uplink; the up loop withdraws from the
   // outbox what the policy left no longer routes. Under mu.
   bool policy_narrowed = false;
-  // P6f: after this run's first welcome the up loop withdraws what the policy does not route
-  // above its mark (a narrowing whose withdrawal a stop cut short). Under mu.
-  bool withdraw_after_welcome = false;
+  bool relaying_may_narrow = false;  // between mark_narrowing(true) and the relay's end; under mu
+  // P6f: a file in the store while a down run that may narrow the policy is relayed and until
+  // the withdrawal it calls for is done: a link stopped between the two withdraws at its next
+  // start, since the removal is applied and nothing else would tell.
+  std::filesystem::path narrowing_marker() const { return std::filesystem::path(opt.dir) / "uplink-policy-narrowed"; }
+  void mark_narrowing(bool on) {
+    std::error_code ec;
+    if (on) {
+      const int fd = ::open(narrowing_marker().c_str(), O_WRONLY | O_CREAT | O_CLOEXEC, 0644);
+      if (fd >= 0) ::close(fd);
+    } else {
+      std::filesystem::remove(narrowing_marker(), ec);
+    }
+  }
   // P6e: the parent store whose welcome said it is a copy holding nothing of this store's
   // stream, until what the stores before had is back in the outbox. Its later welcomes do not
   // say so (this node's hello names it now): one not taken for a conflict (P6b) would otherwise
@@ -1506,15 +1518,26 @@ struct Link::Impl {
     // node's uplink, whose buffer is the outbox).
     const bool may_narrow = !up && std::any_of(run.begin(), run.end(), [](const node::RelayedItem& r) { return r.removal; });
     std::optional<std::set<std::uint64_t>> policy_before;
-    if (may_narrow) policy_before = policy_items();
+    if (may_narrow) {
+      policy_before = policy_items();
+      std::lock_guard lock(mu);
+      relaying_may_narrow = true;
+      mark_narrowing(true);  // before the removal is applied: a stop after it withdraws at the next start
+    }
     if (!run.empty()) outcome = relayer->relay(stream, run);
-    if (!up && outcome) {
-      const bool narrowed = policy_before && outcome->removals > 0 && policy_narrowed_since(*policy_before);
+    if (!up) {
+      const bool narrowed = outcome && policy_before && outcome->removals > 0 && policy_narrowed_since(*policy_before);
       std::lock_guard lock(mu);
       if (narrowed) policy_narrowed = true;  // the up loop withdraws before it reads the outbox again
-      down_applied_stream = stream;
-      down_applied_mark = outcome->mark;
-      changed.notify_all();
+      if (may_narrow) {
+        relaying_may_narrow = false;
+        if (!policy_narrowed) mark_narrowing(false);
+      }
+      if (outcome) {
+        down_applied_stream = stream;
+        down_applied_mark = outcome->mark;
+        changed.notify_all();
+      }
     }
     if (outcome && outcome->not_applied) std::erase_if(run, [&](const node::RelayedItem& r) { return r.seq > outcome->mark; });
     applied.push_back(std::move(run));  // freed by the taker, with the rest of the batch
@@ -2191,14 +2214,14 @@ struct Link::Impl {
           welcomed = false;
           return;
         }
-        // P6f: at this run's first welcome, what the policy does not route leaves the outbox
-        // above the mark (a narrowing whose withdrawal a stop cut short: the removal was applied).
-        if (!ever_welcomed) withdraw_after_welcome = true;
+        // A welcome hard on the heels of another from the same store answers a hello repeated
+        // while the first was on its way (below: its mark is stale).
+        const bool repeated = same_store_as_last_welcome && now - last_welcome_at < kStaleWelcome;
         welcomed = ever_welcomed = true;
         parent_left = false;
         parent_run = f.prev;
-        // P6f: a welcome repeated meanwhile (hellos crossed it) does not put the time limit off.
-        if (down_hold_through == 0) down_hold_until = now + kDownHoldMax;
+        // P6f: a repeated welcome does not put the time limit off; a new session has its own.
+        if (!repeated || down_hold_through == 0) down_hold_until = now + kDownHoldMax;
         down_hold_through = state ? state->outbox_depth : 0;
         refused_by_parent.clear();
         parent_cannot_store.clear();  // said again by a parent that still cannot (P9b)
@@ -2208,7 +2231,7 @@ struct Link::Impl {
         // reached the store it was copied from), which lacks everything the stores before had.
         if (f.ack == 0 && !from_a_copy) {
           resend_persistent = true;
-        } else if (!(same_store_as_last_welcome && now - last_welcome_at < kStaleWelcome)) {
+        } else if (!repeated) {
           // A welcome hard on the heels of another from the same store answers a hello repeated
           // while the first was on its way: its mark is stale, not a store gone back in time.
           requeue_after_welcome = true;
@@ -2216,7 +2239,7 @@ struct Link::Impl {
         last_welcome_at = now;
         up_mark = f.ack;
         up_last_sent = f.ack;
-        up_sent_highest = f.ack;  // what went after the mark before did not reach this store
+        if (!repeated) up_sent_highest = f.ack;  // what went after the mark before did not reach this store
         up_mark_moved_at = now;
         ack_beyond_seen = 0;
         up_in_flight.clear();
@@ -2887,6 +2910,10 @@ struct Link::Impl {
     std::uint64_t acked_locally = 0;
     Clock::time_point trimmed{};  // when the outbox last lost what the parent applied
     UnderAncestor from_this_subtree(self);
+    if (std::error_code ec; std::filesystem::exists(narrowing_marker(), ec)) {
+      std::lock_guard lock(mu);
+      policy_narrowed = true;  // P6f: an earlier run stopped between a narrowing and its withdrawal
+    }
     while (!stopping) {
       std::uint64_t after = 0, mark = 0;
       std::size_t room = 0;
@@ -2939,8 +2966,7 @@ struct Link::Impl {
           changed.wait_for(lock, 20ms);
           continue;
         }
-        if (std::exchange(withdraw_after_welcome, false)) withdraw_above = up_mark;
-        if (std::exchange(policy_narrowed, false)) withdraw_above = std::min(withdraw_above, std::max(up_mark, up_sent_highest));
+        if (std::exchange(policy_narrowed, false)) withdraw_above = std::max(up_mark, up_sent_highest);
         resend = std::exchange(resend_persistent, false);
         requeue = std::exchange(requeue_after_welcome, false);
       }
@@ -2949,11 +2975,14 @@ struct Link::Impl {
         // Above the welcome's mark nothing is at the parent (it applies a stream in order).
         // Here, in the only thread that reads the outbox to send, so that nothing read before
         // the withdrawal goes up after it.
-        if (auto withdrawn = uplink->withdraw_unrouted(withdraw_above); !withdrawn)
+        auto withdrawn = uplink->withdraw_unrouted(withdraw_above);
+        if (!withdrawn)
           log("cannot take out of the outbox what the narrowed forwarding policy keeps here: " + withdrawn.error().message);
         else if (*withdrawn > 0)
           log("the forwarding policy was narrowed: " + std::to_string(*withdrawn) +
               " item(s) it no longer sends, queued in the outbox and not yet sent, stay on this node");
+        std::lock_guard lock(mu);
+        if (withdrawn && !policy_narrowed && !relaying_may_narrow) mark_narrowing(false);
       }
       if (resend) {
         // P6c: what the parent's agents need for everything after (an ECG recording's

@@ -1085,7 +1085,8 @@ TEST_F(Cli, PutAndLoadWarnOfATermTheTvVocabularyLacksAndOfAFeatureGivenTwoFloors
       "<http://example.org/home1/room/up> tv:flor 1 .\n"
       "<http://example.org/home1/room/up2> wrong:floor 1 .\n"
       "<http://example.org/home1/room/bed> tv:floor 0 ; tv:floor 1 .\n"
-      "<http://example.org/home1/room/ok> tv:floor 2 ; a tv:Room ; <http://example.org/own#floor> 3 .\n";
+      "<http://example.org/home1/room/ok> tv:floor 2 ; tv:floor \"2\" ; a tv:Room ; <http://example.org/own#floor> 3 .\n"
+      "<http://example.org/home1/room/ok/environment> tv:humidityAt 1 ; tv:lightAt 1 ; tv:movementAt 1 .\n";
   spit(tmp_ / "plan.ttl", plan);
   for (const char* command : {"put", "load"}) {
     Outcome stored = run({command, node_, (tmp_ / "plan.ttl").string()});
@@ -1095,7 +1096,7 @@ TEST_F(Cli, PutAndLoadWarnOfATermTheTvVocabularyLacksAndOfAFeatureGivenTwoFloors
                              "<http://example.org/home1/room/bed> has two floors, \"0\"^^<http://www.w3.org/2001/XMLSchema#integer> and "
                              "\"1\"^^<http://www.w3.org/2001/XMLSchema#integer>"})
       EXPECT_NE(stored.err.find(said), std::string::npos) << command << ": " << stored.err;
-    for (const char* good : {"room/ok", "tv:Room", "own#floor"})
+    for (const char* good : {"room/ok", "tv:Room", "own#floor", "humidityAt", "lightAt", "movementAt"})
       EXPECT_EQ(stored.err.find(good), std::string::npos) << "a good term warned of: " << stored.err;
   }
   EXPECT_EQ(lines_of(run({"list", node_, "-s", "<http://example.org/home1/room/bed>"}).out).size(), 4u);

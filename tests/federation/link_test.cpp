@@ -2973,6 +2973,63 @@ TEST(Link, WhatAPolicyRemovedWhileTheHomeWasAwayQueuedStaysHomeWhenItComesBack) 
   EXPECT_TRUE(tree.home1_log.has("20 item(s) it no longer sends")) << tree.home1_log.text();
 }
 
+// P6f: the hold of a session that ended before the down stream was applied (the parent's link
+// stopped) does not cut the next session's hold short: a first version kept its time limit, and
+// at the next welcome, seconds later, the home sent its backlog at once (a review's test).
+TEST(Link, AHoldOfAnEndedSessionDoesNotCutTheNextSessionsHoldShort) {
+  Tree tree;
+  ASSERT_TRUE(tree.start_hospital_and_home1());
+  auto home = node::Node::open(tree.home1_dir).value();
+  auto hospital = node::Node::open(tree.hospital_dir).value();
+  const std::uint64_t policy_id = hospital.agent("operator").value().store(raw_samples_go_up()).value();
+  ASSERT_TRUE(eventually([&] { return count(tree.home1_dir, kHome1UplinkSubscriptions) == 2; }));
+  tree.home1.reset();
+  std::vector<node::Item> settings(30000);
+  for (std::size_t i = 0; i < settings.size(); ++i) {
+    settings[i].context = kHome1 + "/cfg";
+    settings[i].add(Term::iri(kHome1 + "/cfg"), Term::iri(kEx + "setting"), Term::integer(static_cast<std::int64_t>(i)));
+  }
+  ASSERT_TRUE(hospital.agent("operator").value().store_all(settings));
+  ASSERT_TRUE(hospital.remove_item(policy_id));
+  auto sensor = home.agent("ecg").value();
+  for (int i = 0; i < 20; ++i) ASSERT_TRUE(sensor.store(raw_item(i)));
+  store_hrv_items(tree.home1_dir, 0, 1);
+  ASSERT_EQ(outbox(tree.home1_dir), 21u);
+
+  tree.home1 = tree.start_home(tree.home1_dir, kHome1, tree.home1_log);
+  ASSERT_TRUE(eventually([&] { return tree.home1->connected(); }));
+  tree.hospital.reset();  // its link stops (and says so), most likely before home1 applied the removal
+  std::this_thread::sleep_for(6s);
+  tree.hospital = tree.start_hospital();
+  ASSERT_TRUE(eventually([&] { return count(tree.hospital_dir, {.p = Term::iri(kEx + "n")}) == 1 && outbox(tree.home1_dir) == 0; }))
+      << outbox(tree.home1_dir) << " item(s) left in the outbox";
+  EXPECT_EQ(count(tree.hospital_dir, {.p = Term::iri(kEx + "samples")}), 0u) << tree.home1_log.text();
+  EXPECT_FALSE(tree.home1_log.has("sends up again before applying")) << tree.home1_log.text();
+}
+
+// P6f: a link stopped between a narrowing's removal and its withdrawal (its store keeps a file
+// saying so) withdraws at its next start, before anything goes up.
+TEST(Link, ANarrowingAStopCutShortIsWithdrawnAtTheNextStart) {
+  Tree tree;
+  ASSERT_TRUE(tree.start_hospital_and_home1());
+  auto home = node::Node::open(tree.home1_dir).value();
+  auto uplink = home.agent("uplink").value();
+  const std::uint64_t local_policy = uplink.subscribe({.p = Term::iri(kEx + "samples")}).value();
+  tree.home1.reset();
+  auto sensor = home.agent("ecg").value();
+  for (int i = 0; i < 5; ++i) ASSERT_TRUE(sensor.store(raw_item(i)));
+  ASSERT_EQ(outbox(tree.home1_dir), 5u);
+  ASSERT_TRUE(home.remove_item(local_policy));  // as a removal relayed just before the stop
+  { std::ofstream marker(tree.home1_dir + "/uplink-policy-narrowed"); }
+  store_hrv_items(tree.home1_dir, 0, 1);
+  tree.home1 = tree.start_home(tree.home1_dir, kHome1, tree.home1_log);
+  ASSERT_TRUE(eventually([&] { return count(tree.hospital_dir, {.p = Term::iri(kEx + "n")}) == 1 && outbox(tree.home1_dir) == 0; }))
+      << outbox(tree.home1_dir) << " item(s) left in the outbox";
+  EXPECT_EQ(count(tree.hospital_dir, {.p = Term::iri(kEx + "samples")}), 0u) << tree.home1_log.text();
+  EXPECT_TRUE(tree.home1_log.has("5 item(s) it no longer sends")) << tree.home1_log.text();
+  EXPECT_FALSE(std::filesystem::exists(tree.home1_dir + "/uplink-policy-narrowed"));
+}
+
 TEST(Link, ConfigurationTravelsTwoHopsDownToAnAgentOfASensorNode) {
   Tree tree;
   const std::string sensor_iri = kHome1 + "/ecg1";
