@@ -393,8 +393,8 @@ struct Link::Impl {
   std::uint64_t down_hold_through = 0;
   Clock::time_point down_hold_until{};
   static constexpr auto kDownHoldMax = std::chrono::seconds(5);
-  // The down stream the receive thread last relayed on and its mark after, set once the outbox
-  // holds nothing a narrowed policy keeps here (P6f). Under mu.
+  // The down stream the receive thread last relayed on and its mark after; a narrowing it found
+  // is flagged (policy_narrowed) in the same locked section (P6f). Under mu.
   std::string down_applied_stream;
   std::uint64_t down_applied_mark = 0;
   // P6f: a removal from above took a subscription of the uplink; the up loop withdraws from the
@@ -1534,6 +1534,9 @@ struct Link::Impl {
         if (!policy_narrowed) mark_narrowing(false);
       }
       if (outcome) {
+        // P6f: the hold's limit is for a down stream that stands; one that moves (30,000
+        // settings relayed on a slow store) is waited for.
+        if (down_hold_through != 0 && outcome->mark > down_applied_mark) down_hold_until = Clock::now() + kDownHoldMax;
         down_applied_stream = stream;
         down_applied_mark = outcome->mark;
         changed.notify_all();
@@ -2937,7 +2940,7 @@ struct Link::Impl {
           }
           if (!applied)
             log("sends up again before applying what the parent's welcome said waits for it (through item " +
-                std::to_string(down_hold_through) + " of its down queue; waited " + seconds_text(kDownHoldMax) + ")");
+                std::to_string(down_hold_through) + " of its down queue; its down stream stood for " + seconds_text(kDownHoldMax) + ")");
           down_hold_through = 0;
         }
         while (!up_in_flight.empty() && up_in_flight.front() <= up_mark) up_in_flight.pop_front();

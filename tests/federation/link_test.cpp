@@ -2156,7 +2156,8 @@ TEST(Link, AStreamTheParentAppliesNothingOfWhileItIsHeardIsTheLinksProblem) {
   const node::Pattern problem{.s = Term::iri(kHome1 + "/link"), .p = Term::iri(node::kProblem)};
   const auto problems = [&] {
     std::string text;
-    for (const auto& r : node::Node::open(tree.home1_dir).value().snapshot().value().list(problem).value()) text += r.triple.o.value;
+    const std::vector<node::Record> records = node::Node::open(tree.home1_dir).value().snapshot().value().list(problem).value();
+    for (const auto& r : records) text += r.triple.o.value;
     return text;
   };
   bool said = false;
