@@ -2940,30 +2940,39 @@ TEST(Link, ACopySentUnderAPolicyNarrowedSinceGoesWhenTheHomeRemovesIt) {
       << count(tree.hospital_dir, samples) << " chunk(s) left at the hospital";
 }
 
-// P6f: a policy removed at the hospital while the home was away. What the home queued under the
-// old policy meanwhile (a sensor's backlog) stays home: the home applies what came down before it
-// sends anything up, and takes out of its outbox what the narrowed policy no longer sends.
-TEST(Link, WhatAPolicyRemovedWhileTheHomeWasAwayQueuedStaysHomeWhenItComesBack) {
-  Tree tree;
+// P6f's case: a policy that sends raw samples up is written at the hospital for home1; home1
+// stops; the hospital writes `settings` items for an agent of home1, then removes the policy;
+// home1's sensor stores 20 raw chunks and its HRV agent a window, all queued in the outbox under
+// the old policy, which home1 has not yet heard was removed.
+void remove_the_policy_while_home1_is_away(Tree& tree, std::size_t settings) {
   ASSERT_TRUE(tree.start_hospital_and_home1());
   auto home = node::Node::open(tree.home1_dir).value();
   auto hospital = node::Node::open(tree.hospital_dir).value();
-  const std::uint64_t policy_id = hospital.agent("operator").value().store(raw_samples_go_up()).value();
+  auto operator_ = hospital.agent("operator").value();
+  const std::uint64_t policy_id = operator_.store(raw_samples_go_up()).value();
   ASSERT_TRUE(eventually([&] { return count(tree.home1_dir, kHome1UplinkSubscriptions) == 2; }));
   tree.home1.reset();
-  // Settings for an agent of home1 written meanwhile, before the removal: it is far down the
-  // queue (a first version looked at its first 4,096 items only, and the backlog went up).
-  std::vector<node::Item> settings(5000);
-  for (std::size_t i = 0; i < settings.size(); ++i) {
-    settings[i].context = kHome1 + "/cfg";
-    settings[i].add(Term::iri(kHome1 + "/cfg"), Term::iri(kEx + "setting"), Term::integer(static_cast<std::int64_t>(i)));
+  std::vector<node::Item> items(settings);
+  for (std::size_t i = 0; i < items.size(); ++i) {
+    items[i].context = kHome1 + "/cfg";
+    items[i].add(Term::iri(kHome1 + "/cfg"), Term::iri(kEx + "setting"), Term::integer(static_cast<std::int64_t>(i)));
   }
-  ASSERT_TRUE(hospital.agent("operator").value().store_all(settings));
+  ASSERT_TRUE(operator_.store_all(items));
   ASSERT_TRUE(hospital.remove_item(policy_id));
   auto sensor = home.agent("ecg").value();
   for (int i = 0; i < 20; ++i) ASSERT_TRUE(sensor.store(raw_item(i)));
   store_hrv_items(tree.home1_dir, 0, 1);
   ASSERT_EQ(outbox(tree.home1_dir), 21u) << "the old policy did not route the backlog: the case under test did not happen";
+}
+
+// P6f: a policy removed at the hospital while the home was away. What the home queued under the
+// old policy meanwhile (a sensor's backlog) stays home: the home applies what came down before it
+// sends anything up, and takes out of its outbox what the narrowed policy no longer sends.
+TEST(Link, WhatAPolicyRemovedWhileTheHomeWasAwayQueuedStaysHomeWhenItComesBack) {
+  Tree tree;
+  // Settings for an agent of home1 written meanwhile, before the removal, put it far down the
+  // queue (a first version looked at its first 4,096 items only, and the backlog went up).
+  ASSERT_NO_FATAL_FAILURE(remove_the_policy_while_home1_is_away(tree, 5000));
 
   tree.home1 = tree.start_home(tree.home1_dir, kHome1, tree.home1_log);
   ASSERT_TRUE(eventually([&] { return count(tree.hospital_dir, {.p = Term::iri(kEx + "n")}) == 1 && outbox(tree.home1_dir) == 0; }))
@@ -2979,23 +2988,7 @@ TEST(Link, WhatAPolicyRemovedWhileTheHomeWasAwayQueuedStaysHomeWhenItComesBack) 
 // at the next welcome, seconds later, the home sent its backlog at once (a review's test).
 TEST(Link, AHoldOfAnEndedSessionDoesNotCutTheNextSessionsHoldShort) {
   Tree tree;
-  ASSERT_TRUE(tree.start_hospital_and_home1());
-  auto home = node::Node::open(tree.home1_dir).value();
-  auto hospital = node::Node::open(tree.hospital_dir).value();
-  const std::uint64_t policy_id = hospital.agent("operator").value().store(raw_samples_go_up()).value();
-  ASSERT_TRUE(eventually([&] { return count(tree.home1_dir, kHome1UplinkSubscriptions) == 2; }));
-  tree.home1.reset();
-  std::vector<node::Item> settings(30000);
-  for (std::size_t i = 0; i < settings.size(); ++i) {
-    settings[i].context = kHome1 + "/cfg";
-    settings[i].add(Term::iri(kHome1 + "/cfg"), Term::iri(kEx + "setting"), Term::integer(static_cast<std::int64_t>(i)));
-  }
-  ASSERT_TRUE(hospital.agent("operator").value().store_all(settings));
-  ASSERT_TRUE(hospital.remove_item(policy_id));
-  auto sensor = home.agent("ecg").value();
-  for (int i = 0; i < 20; ++i) ASSERT_TRUE(sensor.store(raw_item(i)));
-  store_hrv_items(tree.home1_dir, 0, 1);
-  ASSERT_EQ(outbox(tree.home1_dir), 21u);
+  ASSERT_NO_FATAL_FAILURE(remove_the_policy_while_home1_is_away(tree, 30000));
 
   tree.home1 = tree.start_home(tree.home1_dir, kHome1, tree.home1_log);
   ASSERT_TRUE(eventually([&] { return tree.home1->connected(); }));
