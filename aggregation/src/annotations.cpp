@@ -76,9 +76,15 @@ Result<std::vector<Annotation>> read_annotations(const std::string& record_path,
   const std::string file = record_path + "." + annotator;
   std::ifstream in(file, std::ios::binary);
   if (!in) return fail(file + ": cannot open annotation file: " + std::strerror(errno));
-  std::vector<unsigned char> bytes((std::istreambuf_iterator<char>(in)),
-                                   std::istreambuf_iterator<char>());
-  if (in.bad()) return fail(file + ": read error");
+  // A directory opens, and its first read throws from inside the stream buffer: an "internal
+  // error" that stopped `tahvel hrv --eval` over several records at that one.
+  std::vector<unsigned char> bytes;
+  try {
+    bytes.assign(std::istreambuf_iterator<char>(in), std::istreambuf_iterator<char>());
+  } catch (const std::exception&) {
+    return fail(file + ": cannot read annotation file: " + std::strerror(errno ? errno : EIO));
+  }
+  if (in.bad()) return fail(file + ": cannot read annotation file: " + std::strerror(errno ? errno : EIO));
 
   std::vector<Annotation> out;
   Cursor c{bytes};

@@ -490,7 +490,7 @@ Result<RecordHeader> read_header(const std::string& record_path) {
     }
     // Other lines after the last signal line (info strings without '#') are ignored, as WFDB does.
   }
-  if (in.bad()) return fail(file + ": read error");
+  if (in.bad()) return fail(file + ": read error: " + std::strerror(errno ? errno : EIO));
   if (!have_record_line) return fail(file + ": no record line");
   if (static_cast<int>(h.signals.size()) < h.signal_count)
     return fail(file + ": record line announces " + std::to_string(h.signal_count) +

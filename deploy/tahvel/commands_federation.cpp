@@ -506,7 +506,14 @@ std::uint64_t ask_below(std::string_view command, node::Node& node, const federa
     throw Failure{kExitFailure, name + ": cannot write the answer to standard output (" + std::strerror(out.error()) + "); " +
                                     got.error().message};
   }
-  if (!got) fail_remote(command, got.error());
+  if (!got) {
+    // What was written out is a correct beginning of the answer; the operator is told how much
+    // of it came before the failure, as a timeout or an interrupt tells it.
+    node::Error e = got.error();
+    if (const std::uint64_t n = out.written(); n > 0)
+      e.message += "; " + std::to_string(n) + " " + std::string(piece) + (n == 1 ? "" : "s") + " written out before it";
+    fail_remote(command, e);
+  }
   return *got;
 }
 
@@ -1129,28 +1136,33 @@ void refuse_a_second_store_of(const NodeSpec& spec, const fs::path& state) {
   }
 }
 
+// What may be where a node's new store is to be made (`store`, no data.mdb there): nothing, an
+// empty folder, or what is left of a store whose data file is gone. Anything else is not `up`'s
+// to delete, and a mount point cannot take the rename (remove_all had emptied the volume before
+// the rename failed). Checked before anything is made, so that a refusal leaves nothing behind.
+void refuse_what_a_new_stores_place_holds(const NodeSpec& spec, const fs::path& store) {
+  std::error_code ec;
+  if (!fs::exists(store, ec)) return;
+  const std::string where = spec.store_at + ": node '" + spec.id + "': " + store.string();
+  if (!fs::is_directory(store, ec)) fail(where + " is not a directory");
+  struct stat here {}, above {};
+  if (stat(store.c_str(), &here) == 0 && stat(store.parent_path().c_str(), &above) == 0 && here.st_dev != above.st_dev)
+    fail(where + " is a mount point: a node's store is made beside its directory and renamed into place, which a mount "
+                 "point refuses; mount the volume on the state directory (--state) instead, or on a directory above it");
+  for (const auto& entry : fs::directory_iterator(store, ec)) {
+    const std::string name = entry.path().filename().string();
+    if (name != "lock.mdb" && name != "wake")
+      fail(where + " holds " + name + " but no store (no data.mdb); move it aside, and 'tahvel up' makes the node's store there");
+  }
+  if (ec) fail(where + ": " + ec.message());
+}
+
 // A node's new store with the files the topology puts on its board (a floor plan, sensing
 // subscriptions: one persistent item each). Made beside `store` and renamed into place once
 // whole, so a failure leaves no store that `up` would then take as made and never load.
 void create_store(const NodeSpec& spec, const fs::path& store, const Topology& topo) {
   const fs::path making = store.string() + std::string(kMakingSuffix);
-  // What may be at `store` without a data.mdb: nothing, an empty folder, or what is left of a
-  // store whose data file is gone. Anything else is not this command's to delete, and a mount
-  // point cannot take the rename (remove_all had emptied the volume before the rename failed).
-  if (fs::exists(store)) {
-    if (!fs::is_directory(store)) fail("node '" + spec.id + "': " + store.string() + " is not a directory");
-    struct stat here {}, above {};
-    if (stat(store.c_str(), &here) == 0 && stat(store.parent_path().c_str(), &above) == 0 && here.st_dev != above.st_dev)
-      fail("node '" + spec.id + "': " + store.string() +
-           " is a mount point: a node's store is made beside its directory and renamed into place, which a mount "
-           "point refuses; mount the volume on the state directory (--state) instead, or on a directory above it");
-    for (const auto& entry : fs::directory_iterator(store)) {
-      const std::string name = entry.path().filename().string();
-      if (name != "lock.mdb" && name != "wake")
-        fail("node '" + spec.id + "': " + store.string() + " holds " + name +
-             " but no store (no data.mdb); move it aside, and 'tahvel up' makes the node's store there");
-    }
-  }
+  refuse_what_a_new_stores_place_holds(spec, store);  // again: checked before, changed since?
   std::error_code ec;
   fs::remove_all(making, ec);
   std::string loaded;  // said after the store is in place, as it is made aside
@@ -2057,6 +2069,7 @@ int up_checked(const Args& args, bool& checking) {
                   << spec->ring << " apply only to a new store (move this one away to make it so)\n";
     } else {
       if (fs::is_directory(state)) refuse_a_second_store_of(*spec, state);
+      refuse_what_a_new_stores_place_holds(*spec, store);
       const uri::PrefixMap prefixes = uri::PrefixMap::standard();
       for (std::size_t i = 0; i < spec->forward.size(); ++i) warn_of_unknown_terms(*spec, i, forward_pattern_of(*spec, i, prefixes));
       for (const fs::path& file : spec->load) (void)load_file_triples(*spec, file, prefixes, topo);

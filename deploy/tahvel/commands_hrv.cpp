@@ -200,6 +200,20 @@ int run_eval(const Args& args, const agg::ChainOptions& options, std::size_t sig
     scoring.end_s = report->duration_s;
     agg::BeatScore score = agg::score_beats(*reference, report->beats, report->fs, scoring);
     if (auto why = nothing_scored(score, report->duration_s, from_s, args.has("--eval-from"))) std::cerr << warning_prefix() << record << ": " << *why << "\n";
+    // Not scored, as bxb, and not silently: 1,132 beats after a signal cut to half were
+    // neither missed nor mentioned, which hides an annotation file of another record or rate.
+    std::size_t after_end = 0;
+    std::int64_t last_after = 0;
+    for (const agg::Annotation& a : *reference)
+      if (agg::is_beat(a.code) && static_cast<double>(a.sample) >= report->duration_s * report->fs) {
+        ++after_end;
+        last_after = std::max(last_after, a.sample);
+      }
+    if (after_end > 0)
+      std::cerr << warning_prefix() << record << ": " << after_end << " reference beat(s) lie after the signal's end ("
+                << seconds_number(std::round(report->duration_s * 10) / 10) << " s; the last at "
+                << seconds_number(std::round(static_cast<double>(last_after) / report->fs * 10) / 10)
+                << " s) and are not scored: a header or signal file cut short, or annotations of another record or rate?\n";
     if (auto open = agg::unclosed_unreadable(*reference))
       std::cerr << warning_prefix() << record << ": the unreadable interval opened by the '~' at "
                 << seconds_number(std::round(static_cast<double>(open->opened_at) / report->fs * 10) / 10)

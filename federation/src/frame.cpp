@@ -1,4 +1,4 @@
-// Frame fingerprint and the byte encoding used by the in-memory binding and by tests.
+// Frame fingerprint, store tags and the byte encoding used by the in-memory binding and by tests.
 #include <cstring>
 
 #include "tahvel/federation/transport.h"
@@ -26,6 +26,12 @@ constexpr std::uint64_t fnv1a64(std::string_view text) {
 }  // namespace
 
 std::uint64_t message_fingerprint() noexcept { return fnv1a64(kSchema); }
+
+std::uint64_t store_tag(std::string_view store_id) noexcept {
+  if (store_id.empty()) return 0;
+  const std::uint64_t tag = (fnv1a64(store_id) >> 40) & kStoreTagMask;
+  return tag != 0 ? tag : 1;
+}
 
 }  // namespace tahvel::federation
 

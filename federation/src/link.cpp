@@ -244,15 +244,19 @@ class StoreFlips {
   }
   void set_hold(Clock::duration hold) { hold_ = hold; }
   // A frame named `store`, where `before` was expected (empty: none yet). True when that makes a
-  // conflict that was not one before.
-  bool saw(const std::string& before, const std::string& store, const std::string& who) {
+  // conflict that was not one before. `twin_of`: this node's IRI when `store` is another store
+  // of it, to which `who` sends too (the twin is this node, not the peer: two parents answer a
+  // child, or a parent answers two children of one IRI).
+  bool saw(const std::string& before, const std::string& store, const std::string& who, const std::string& twin_of = {}) {
     if (before.empty() || store.empty() || before == store) return false;  // no id: a peer from before ids
     const auto now = Clock::now();
     flips_.push_back(now);
     while (!flips_.empty() && now - flips_.front() > kWindow) flips_.pop_front();
     if (flips_.size() < kFlips) return false;
     const bool fresh = !active();
-    said_ = "two stores (" + named(before) + " and " + named(store) + ") take turns as " + who +
+    said_ = (twin_of.empty() ? "two stores (" + named(before) + " and " + named(store) + ") take turns as " + who
+                             : who + " sends both to this node's store and to " + store + ", another of this node's IRI <" +
+                                   twin_of + ">") +
             ": two nodes with one IRI on this network, such as a second deployment of the same file; this link "
             "does not link with it until " + std::to_string(std::chrono::duration_cast<std::chrono::seconds>(hold_).count()) +
             " s after the last sign of two";
@@ -633,15 +637,6 @@ struct Link::Impl {
     return parent_store_id.empty() ? std::string(kDownStream) : std::string(kDownStream) + "#" + parent_store_id;
   }
 
-  // P6b: the tag of store `id` that up and down frames carry in `ack`: 24 bits of its FNV-1a
-  // hash, never 0 (0: no tag, a peer from before tags, or no id).
-  static std::uint64_t store_tag(const std::string& id) {
-    if (id.empty()) return 0;
-    std::uint64_t hash = 0xcbf29ce484222325ull;
-    for (unsigned char c : id) hash = (hash ^ c) * 0x100000001b3ull;
-    const std::uint64_t tag = (hash >> 40) & kStoreTagMask;
-    return tag != 0 ? tag : 1;
-  }
   // The tag bits of a frame from store `from` to store `to`.
   static std::uint64_t store_tags(const std::string& from, const std::string& to) {
     return (store_tag(from) << kStoreTagShift) | (store_tag(to) << kPeerStoreTagShift);
@@ -674,20 +669,21 @@ struct Link::Impl {
   // "two stores (ids 07e11dc6 and (to another store of this node's IRI, tag 9e9446))".
   static std::string describe_tag(const char* after, std::uint64_t tag) {
     char text[120];
-    std::snprintf(text, sizeof text, "the store of tag %06llx, %s", static_cast<unsigned long long>(tag), after);
+    std::snprintf(text, sizeof text, "the store of tag %06llx%s%s", static_cast<unsigned long long>(tag), *after ? ", " : "", after);
     return text;
   }
   // P6b: up or down frames came from, or went to, a store of the peer's or this node's IRI other
-  // than the registered one (`other` says which): from the child `child`, or from the parent when
-  // null. Two stores are alive under one IRI.
-  void other_store_sent(Child* child, const std::string& other) {
+  // than the registered one (`other` says which; `to_twin`: went to another store of this node's
+  // IRI): from the child `child`, or from the parent when null. Two stores are alive under one IRI.
+  void other_store_sent(Child* child, const std::string& other, bool to_twin) {
     std::lock_guard lock(mu);
     ++counters.refused;
+    const std::string twin_of = to_twin ? self : std::string();
     if (child) {
-      if (child->flips.saw(child->store_id, other, "the child <" + child->iri + ">")) log("conflict: " + child->flips.said());
+      if (child->flips.saw(child->store_id, other, "the child <" + child->iri + ">", twin_of)) log("conflict: " + child->flips.said());
       if (child->flips.active()) disconnect_for_conflict(*child);
     } else {
-      if (parent_flips.saw(parent_store_id, other, "the parent <" + opt.parent_iri + ">")) log("conflict: " + parent_flips.said());
+      if (parent_flips.saw(parent_store_id, other, "the parent <" + opt.parent_iri + ">", twin_of)) log("conflict: " + parent_flips.said());
       if (parent_flips.active() && welcomed) {
         log("the parent is not linked with while the conflict lasts");
         welcomed = false;
@@ -1438,6 +1434,7 @@ struct Link::Impl {
     std::vector<node::RelayedItem> items;
     items.reserve(frames.size());
     std::string foreign;  // P6b: why frames of this run are not this stream's
+    bool foreign_is_twin = false;  // they went to another store of this node's IRI
     std::size_t untagged = 0;  // P6b: frames without a store tag from a peer whose store has one
     for (std::size_t k = 0; k < frames.size(); ++k) {
       const Frame& f = frames[k];
@@ -1461,10 +1458,12 @@ struct Link::Impl {
       }
       if (from_tag != 0 && registered_tag != 0 && from_tag != registered_tag) {
         foreign = describe_tag("which sent frames here", from_tag);
+        foreign_is_twin = false;
         continue;  // the other store's seqs are not this stream's: never applied, never acknowledged
       }
       if (to_tag != 0 && own_tag != 0 && to_tag != own_tag) {
-        foreign = describe_tag("another of this node's IRI, to which frames here were sent", to_tag);
+        foreign = describe_tag("", to_tag);
+        foreign_is_twin = true;
         continue;  // sent on a link with that other store
       }
       if (!up) body->item.context = subtree_for(body->item.context, self);  // P11
@@ -1476,7 +1475,7 @@ struct Link::Impl {
                  "> that carry no store tag, though the store registered for it has one (P6b): a forger, or a peer "
                  "from before store tags whose store has an id now",
              "no store tag", /*answer=*/false);
-    if (!foreign.empty()) other_store_sent(up ? child.get() : nullptr, foreign);
+    if (!foreign.empty()) other_store_sent(up ? child.get() : nullptr, foreign, foreign_is_twin);
     if (items.empty() && (!foreign.empty() || untagged > 0)) return;
     node::Agent* relayer = agent(up ? child->id : std::string(kUplinkAgent));
     if (!relayer) return;

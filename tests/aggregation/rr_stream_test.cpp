@@ -97,6 +97,11 @@ class ModelRule {
         rr_[i + 1] > (1 + tol_prem) * ref) {
       return i + 2;
     }
+    // premature_pause_when_continuous: shorter than the interval before, and a pause alone after it.
+    if (continuous && rule_.premature_pause_when_continuous && r < rr_[i - 1] && r < (1 - tol_prem) * ref && i + 2 < rr_.size() &&
+        rr_[i + 1] > (1 + tol_prem) * ref && rr_[i + 1] <= (1 + tol_long) * ref && rr_[i + 2] < rr_[i + 1] - tol_prem * ref) {
+      return i + 2;
+    }
     accept(i);
     return i + 1;
   }

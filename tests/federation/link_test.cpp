@@ -2100,6 +2100,40 @@ TEST(Link, AnUpFrameWithoutAStoreTagFromAChildWhoseStoreHasOneIsDroppedAndTheStr
   EXPECT_FALSE(tree.hospital_log.has("conflict")) << tree.hospital_log.text();
 }
 
+// P6b: a child whose frames go to a second store of its parent's IRI (the parent's node brought
+// up twice on one network: two parents answer the child) was said to be "two stores (the child's
+// and the parent's twin) take turns as the child": an operator looked for a second sensor that
+// did not exist (an exploratory run of session 84). The conflict says that the twin is this node.
+TEST(Link, AChildSendingToATwinOfItsParentIsSaidToSendToAnotherStoreOfTheParentsIri) {
+  Tree tree;
+  ASSERT_TRUE(tree.start_hospital_and_home1());
+  ASSERT_TRUE(home1_sends(tree, 0, 10, 10));
+  const std::string home1_store = node::Node::open(tree.home1_dir).value().store_id().value();
+  const std::uint64_t twin_tag = store_tag("a second store of the hospital's IRI");
+  for (std::uint64_t k = 0; k < 3; ++k) {
+    Frame sent;
+    sent.kind = FrameKind::up;
+    sent.from = kHome1;
+    sent.to = kHospital;
+    sent.seq = 1 + k;
+    sent.prev = k;
+    sent.ack = (store_tag(home1_store) << kStoreTagShift) | (twin_tag << kPeerStoreTagShift);
+    node::Item item;
+    item.add(Term::iri(kHome1 + "/for-the-twin"), Term::iri(kEx + "twin"), Term::integer(static_cast<std::int64_t>(k)));
+    sent.body = wire::encode_item({kHome1 + "/hrv", item});
+    tree.bus.inject_raw(kHospital, encode_frame(sent));
+    std::this_thread::sleep_for(50ms);
+  }
+  char tag[16];
+  std::snprintf(tag, sizeof tag, "%06llx", static_cast<unsigned long long>(twin_tag));
+  EXPECT_TRUE(eventually([&] {
+    return tree.hospital_log.has("conflict: the child <" + kHome1 + "> sends both to this node's store and to the store of tag " + tag +
+                                 ", another of this node's IRI <" + kHospital + ">: two nodes with one IRI on this network");
+  })) << tree.hospital_log.text();
+  EXPECT_FALSE(tree.hospital_log.has("take turns as")) << tree.hospital_log.text();
+  EXPECT_EQ(count(tree.hospital_dir, {.p = Term::iri(kEx + "twin")}), 0u);
+}
+
 // P13: a query frame with an empty origin was answered, the whole store sent up towards no one.
 // It is dropped with a line, and the link goes on.
 TEST(Link, AQueryFromTheParentWhoseOriginIsNoNodeAboveIsDropped) {

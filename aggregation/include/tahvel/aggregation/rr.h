@@ -75,7 +75,10 @@ std::vector<Interval> reference_intervals(const std::vector<Beat>& beats,
 //    reference is the coupling interval and every compensatory pause looks long). A confirmed
 //    pause is NN but moves neither the reference nor the spread (keep_confirmed_pauses);
 //  - shorter than (1 - tol_prem) * ref and followed by one longer than (1 + tol_prem) * ref:
-//    a premature beat with its compensatory pause; both are not NN;
+//    a premature beat with its compensatory pause; both are not NN. So too for an interval
+//    continuous with the one before but shorter than it (premature_pause_when_continuous),
+//    when the pause is within (1 + tol_long) * ref and the interval after it is shorter than
+//    the pause by more than tol_prem * ref (a pause, not a slower rhythm);
 //  - a return to the rhythm before a block (return_to_prior_rhythm): when the reference
 //    restarts from a new, slower rhythm, the reference before it is remembered (unless it
 //    came from a run of short intervals); a later short interval within tol_short of that
@@ -129,6 +132,7 @@ struct NnRule {
   bool return_to_prior_rhythm = true;   // the end of a blocked run is NN (above)
   bool hold_after_ectopic_run = true;   // early intervals after an ectopic run are not NN (above)
   bool pause_after_couplet = true;      // the pause after two short intervals is not NN (above)
+  bool premature_pause_when_continuous = true;  // also an interval near the one before (above)
   int ectopic_run_beats = 3;            // consecutive short intervals that make a run
   double regular_spread = 0.03;         // a rhythm is regular below this spread / ref
   int sinus_return_beats = 4;           // steady intervals that end the ectopic rhythm

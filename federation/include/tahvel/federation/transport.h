@@ -57,6 +57,9 @@ inline constexpr std::uint64_t kWelcomeFromACopy = 1;
 // the store it sends to (0: none).
 inline constexpr int kStoreTagShift = 16, kPeerStoreTagShift = 40;
 inline constexpr std::uint64_t kStoreTagMask = 0xFFFFFF;
+// The tag of the store whose id is `store_id`: 24 bits of its 64-bit FNV-1a hash, never 0 (0 is
+// no tag: an empty id, a peer from before tags).
+std::uint64_t store_tag(std::string_view store_id) noexcept;
 
 // The kind of a Cyclone DDS sample that carries several frames of one sender to one addressee
 // (docs/transports.md, "Packing"). The DDS binding makes and unpacks such samples itself: it
