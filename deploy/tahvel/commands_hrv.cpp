@@ -202,10 +202,12 @@ int run_eval(const Args& args, const agg::ChainOptions& options, std::size_t sig
     if (auto why = nothing_scored(score, report->duration_s, from_s, args.has("--eval-from"))) std::cerr << warning_prefix() << record << ": " << *why << "\n";
     // Not scored, as bxb, and not silently: 1,132 beats after a signal cut to half were
     // neither missed nor mentioned, which hides an annotation file of another record or rate.
+    // Past the sample score_beats scores to (its end, rounded as it rounds it).
     std::size_t after_end = 0;
     std::int64_t last_after = 0;
+    const std::int64_t scored_to = std::llround(report->duration_s * report->fs);
     for (const agg::Annotation& a : *reference)
-      if (agg::is_beat(a.code) && static_cast<double>(a.sample) >= report->duration_s * report->fs) {
+      if (agg::is_beat(a.code) && a.sample > scored_to) {
         ++after_end;
         last_after = std::max(last_after, a.sample);
       }

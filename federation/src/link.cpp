@@ -255,8 +255,7 @@ class StoreFlips {
     if (flips_.size() < kFlips) return false;
     const bool fresh = !active();
     said_ = (twin_of.empty() ? "two stores (" + named(before) + " and " + named(store) + ") take turns as " + who
-                             : who + " sends both to this node's store and to " + store + ", another of this node's IRI <" +
-                                   twin_of + ">") +
+                             : "two stores of <" + twin_of + "> are alive, and " + who + " sends to both (one is " + store + ")") +
             ": two nodes with one IRI on this network, such as a second deployment of the same file; this link "
             "does not link with it until " + std::to_string(std::chrono::duration_cast<std::chrono::seconds>(hold_).count()) +
             " s after the last sign of two";

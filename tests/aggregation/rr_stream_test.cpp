@@ -169,7 +169,7 @@ std::vector<Interval> model(const std::vector<std::int64_t>& peaks, double fs, c
 std::size_t delay_bound(const NnRule& rule) {
   const auto at_least_1 = [](int v) { return static_cast<std::size_t>(std::max(v, 1)); };
   return std::max({at_least_1(rule.sustained_beats), at_least_1(rule.reference_beats) - 1,
-                   std::size_t{1}});
+                   std::size_t{rule.premature_pause_when_continuous ? 2u : 1u}});
 }
 
 struct Streamed {
@@ -425,6 +425,14 @@ TEST(NnClassifier, UnusualRulesMatchBatch) {
                              NnRule{.reference_beats = 25, .sustained_beats = 10}}) {
     check_series(peaks, 360, rule);
   }
+  // A PVC continuous with the short interval before it waits two intervals for its pause to be
+  // one (premature_pause_when_continuous): D is 2 even where the rule's other look-aheads are 1.
+  const auto near = peaks_from_rr(join({repeat(410, 40), {385, 480, 410}, repeat(410, 6)}));
+  const NnRule short_look = {.reference_beats = 1, .sustained_beats = 1};
+  check_series(near, 360, short_look);
+  const auto decided = intervals_from_peaks(near, 360, short_look);
+  EXPECT_FALSE(decided[40].nn);
+  EXPECT_FALSE(decided[41].nn);
 }
 
 // --- Random series --------------------------------------------------------------------------

@@ -2127,8 +2127,8 @@ TEST(Link, AChildSendingToATwinOfItsParentIsSaidToSendToAnotherStoreOfTheParents
   char tag[16];
   std::snprintf(tag, sizeof tag, "%06llx", static_cast<unsigned long long>(twin_tag));
   EXPECT_TRUE(eventually([&] {
-    return tree.hospital_log.has("conflict: the child <" + kHome1 + "> sends both to this node's store and to the store of tag " + tag +
-                                 ", another of this node's IRI <" + kHospital + ">: two nodes with one IRI on this network");
+    return tree.hospital_log.has("conflict: two stores of <" + kHospital + "> are alive, and the child <" + kHome1 +
+                                 "> sends to both (one is the store of tag " + tag + "): two nodes with one IRI on this network");
   })) << tree.hospital_log.text();
   EXPECT_FALSE(tree.hospital_log.has("take turns as")) << tree.hospital_log.text();
   EXPECT_EQ(count(tree.hospital_dir, {.p = Term::iri(kEx + "twin")}), 0u);

@@ -172,11 +172,13 @@ std::vector<Interval> intervals_from_peaks(const std::vector<std::int64_t>& peak
 // (premature beat with a pause) or the next sustained_beats (a new, slower rhythm), and after
 // the start or a gap the reference is seeded from the next reference_beats intervals. An
 // interval's decision is therefore final once
-//     D = max(sustained_beats, reference_beats - 1, 1)   (8 with the defaults)
+//     D = max(sustained_beats, reference_beats - 1, 1, and 2 with
+//             premature_pause_when_continuous)            (8 with the defaults)
 // further intervals of positive length have been pushed (zero-length ones, from duplicate
 // peaks, do not count, and a zero-length interval itself may wait for D + 1). The bound is
 // reached only after the start and after a gap; in a steady rhythm most intervals are decided
-// when their end beat is pushed, an early one after the next beat, a long one after
+// when their end beat is pushed, an early one after the next beat (one continuous with the
+// interval before it, after two: premature_pause_when_continuous), a long one after
 // sustained_beats more. Decisions come out in order. pending() is at most D after any push
 // when no two peaks are equal.
 //
