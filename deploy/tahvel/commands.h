@@ -159,7 +159,8 @@ std::string read_input(const std::string& path);
 void finish_output(std::ostream& out);
 // finish_output for what a command prints after its write committed: a failure names what was
 // done (`done`, "item 42 is stored"), so that status 1 is not read as "nothing was written".
-void finish_output_after(std::ostream& out, const std::string& done);
+void finish_output_after(std::ostream& out, const std::string& done,
+                         const std::string& again = "running the command again would repeat it");
 // Set by main when standard output was closed at start (it is /dev/full then: output fails).
 extern bool g_stdout_was_closed;
 // For a command that writes to the store and then prints: fails (as finish_output would) before

@@ -471,13 +471,13 @@ void finish_output(std::ostream& out) {
   fail_output(errno);  // may be stale: the stream could have failed on an earlier write
 }
 
-void finish_output_after(std::ostream& out, const std::string& done) {
+void finish_output_after(std::ostream& out, const std::string& done, const std::string& again) {
   out.flush();
   if (out) return;
   const int error = errno;
   // Said even when the reader went away: the status alone (1) would read as "nothing done".
   fail(done + ", but " + (error == EPIPE || stdout_reader_gone() ? std::string("the reader of standard output went away") : output_failure(error)) +
-       " (the write stands: running the command again would repeat it)");
+       " (the write stands: " + again + ")");
 }
 
 // --- PieceOutput ----------------------------------------------------------------------------

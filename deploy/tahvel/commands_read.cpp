@@ -203,7 +203,8 @@ int run_backup(const Args& args) {
   auto bytes = node.back_up(args.positional(1));
   if (!bytes) fail("backup: " + bytes.error().message);
   std::cout << *bytes << "\n";
-  finish_output_after(std::cout, "the copy in " + args.positional(1) + " is made");
+  finish_output_after(std::cout, "the copy in " + args.positional(1) + " is made",
+                      "running it again refuses, as " + args.positional(1) + " exists");
   return kExitOk;
 }
 

@@ -163,7 +163,8 @@ int run_reason(const Args& args) {
     auto report = reasoner->session();
     if (!report) fail(report.error().message);
     print(*report);
-    finish_output_after(std::cout, "the session's conclusions are on the board");
+    finish_output_after(std::cout, "the session's conclusions are on the board",
+                        "running it again writes nothing twice, and says 'derived 0' for them");
     return kExitOk;
   }
   // Stopped by its supervisor it ends with 0; by an operator's `kill`, with 143, and its

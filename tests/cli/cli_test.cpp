@@ -1033,6 +1033,25 @@ TEST_F(Cli, CommandsWhosePrintFailsAfterTheWriteSayWhatWasDone) {
   EXPECT_EQ(removed.status, 1);
   EXPECT_NE(removed.err.find("2 records are removed, but cannot write to standard output"), std::string::npos) << removed.err;
   EXPECT_EQ(run({"list", node_, "-p", "sosa:hasSimpleResult"}).out, "");
+  // What running these again does differs: a reasoner's session writes nothing twice, and a
+  // backup refuses a directory that exists (both said "running the command again would repeat
+  // it": an exploratory run of session 84).
+  ASSERT_EQ(run({"put", node_, "--format", "ttl"}, "<http://example.org/s1> <http://example.org/hr> 120 .\n").status, 0);
+  spit(tmp_ / "r.rules", "hi(S) :- fact(S, <http://example.org/hr>, V), V > 100.\n");
+  Outcome reasoned = run_full({"reason", node_, (tmp_ / "r.rules").string(), "--once"});
+  EXPECT_EQ(reasoned.status, 1);
+  EXPECT_NE(reasoned.err.find("the session's conclusions are on the board, but cannot write to standard output: No space left on "
+                              "device (the write stands: running it again writes nothing twice"),
+            std::string::npos) << reasoned.err;
+  Outcome again = run({"reason", node_, (tmp_ / "r.rules").string(), "--once"});
+  EXPECT_EQ(again.status, 0) << again.err;
+  EXPECT_NE(again.out.find("derived 0"), std::string::npos) << again.out;
+  const std::string copy = (tmp_ / "copy").string();
+  Outcome backed_up = run_full({"backup", node_, copy});
+  EXPECT_EQ(backed_up.status, 1);
+  EXPECT_NE(backed_up.err.find("the copy in " + copy + " is made, but cannot write to standard output: No space left on device "
+                               "(the write stands: running it again refuses, as " + copy + " exists)"),
+            std::string::npos) << backed_up.err;
 }
 
 // A floor plan's geometry that will not read is skipped when the plan is read, and was said
