@@ -876,6 +876,34 @@ TEST_F(Cli, TakeOnAReadOnlyFilesystemSaysTheStoreCannotBeWritten) {
   });
 }
 
+// An emptied store on a full disk refused a load of 2,000 triples, telling to free space on the
+// disk or to remove records from a store that held none, and took the same triples 500 at a
+// time (an exploratory run of session 84): where a smaller write fits, that is said.
+TEST_F(Cli, AStoreOnAFullDiskSaysWhenASmallerWriteWouldFit) {
+  std::string padded, short_lines;
+  for (int i = 0; i < 4000; ++i)
+    padded += "<http://example.org/f" + std::to_string(i) + "> <http://example.org/v#pad> \"" + std::string(2000, 'p') + std::to_string(i) +
+              "\" .\n";  // each its own literal: one literal is stored once
+  for (int i = 0; i < 2000; ++i)
+    short_lines += "<http://example.org/s" + std::to_string(i) + "> <http://example.org/v#p> \"value number " + std::to_string(i) +
+                   " with some padding text to make it longer\" .\n";
+  spit(tmp_ / "padded.nt", padded);  // beside the small disk, not on it
+  spit(tmp_ / "short.nt", short_lines);
+  on_a_small_disk("size=8m", [&](const fs::path& disk, const Say& say) {
+    const std::string store = (disk / "store").string();
+    if (run({"init", store, "--iri", kNodeIri}).status != 0) say("init failed", 1);
+    const Outcome filled = run({"load", store, (tmp_ / "padded.nt").string(), "--batch", "1"});
+    if (filled.status != 1 || filled.err.find("store full") == std::string::npos) say("filling the disk: " + filled.err, 1);
+    if (Outcome removed = run({"remove", store, "-p", "http://example.org/v#pad"}); removed.status != 0) say("remove: " + removed.err, 1);
+    const Outcome at_once = run({"load", store, (tmp_ / "short.nt").string()});
+    if (at_once.status == 0) say("the emptied store took 2,000 triples at once: this disk does not reproduce it", 77);
+    if (at_once.err.find("or write less at once (a smaller load --batch)") == std::string::npos) say("load said: " + at_once.err, 1);
+    const Outcome in_parts = run({"load", store, (tmp_ / "short.nt").string(), "--batch", "200"});
+    if (in_parts.status != 0) say("load --batch 200: " + in_parts.err, 1);
+    say("a smaller write named, and it fits", 0);
+  });
+}
+
 // On a full disk, init died of SIGBUS (LMDB's first write into its lock file, which ftruncate
 // had sized without blocks) and left its .init-PID directory; a reader taking a slot on a page
 // of the lock file not touched before died the same way. The lock file's and the wake file's
