@@ -189,6 +189,7 @@ class TrendStage {
       const auto points = agg::trend_points(upto, metric);
       agg::TrendOptions options = options_;
       options.min_robust_sd = std::max(options.min_robust_sd, agg::metric_resolution(metric));
+      options.window_s = window.metrics.length_s;  // the series is of windows of one length
       const agg::TrendSummary summary = agg::analyse_trend(points, options);
       agg::TrendUpdate u;
       u.recording = recording;
@@ -196,9 +197,11 @@ class TrendStage {
       u.window_start_s = start;
       u.window_iri = window.iri;
       u.windows = points.size();
-      // A window without the metric (no beats: lead off, asystole) has no latest value and no
-      // alert of its own; the series' last value is an earlier window's, not this one's.
-      const bool window_has_it = !points.empty() && points.back().time_s == window.metrics.end_s;
+      // A window without the metric (no beats: lead off, asystole), or one the record's end cut
+      // short, is no point of the series: it has no latest value and no alert of its own, the
+      // series' last value being an earlier window's. (Compared by end time, a cut-short window
+      // ending where the last whole one ends took that one's value, alert and z-score.)
+      const bool window_has_it = !cut_short(window.metrics) && agg::metric_value(window.metrics.metrics, metric).has_value();
       if (window_has_it) u.latest = summary.latest;
       u.baseline = summary.baseline;
       u.robust_sd = summary.robust_sd;

@@ -73,7 +73,12 @@ TrendSummary analyse_trend(const std::vector<TrendPoint>& points, const TrendOpt
   if (points.empty()) return s;
   s.latest = points.back().value;
   s.slope_per_hour = least_squares_slope(points);
-  const std::size_t k = std::max<std::size_t>(o.baseline_points, 1);
+  // The baseline: the first K points, and as many more as make them span (K - 1) window
+  // lengths; not yet one while the series is shorter.
+  const std::size_t k_least = std::max<std::size_t>(o.baseline_points, 1);
+  const double span = o.window_s > 0 ? static_cast<double>(k_least - 1) * o.window_s - 1e-6 : 0.0;
+  std::size_t k = k_least;
+  while (k <= points.size() && points[k - 1].time_s - points.front().time_s < span) ++k;
   if (points.size() < k) return s;
   std::vector<double> first;
   for (std::size_t i = 0; i < k; ++i) first.push_back(points[i].value);
@@ -82,16 +87,27 @@ TrendSummary analyse_trend(const std::vector<TrendPoint>& points, const TrendOpt
   const double rsd = std::max(1.4826 * median_of(first), o.min_robust_sd);
   s.baseline = base;
   s.robust_sd = rsd;
+  // An alert: M points in a row beyond the threshold on one side, spanning (M - 1) window
+  // lengths when those are known.
   const std::size_t need = std::max<std::size_t>(o.alert_consecutive, 1);
+  const double run_span = o.window_s > 0 ? static_cast<double>(need - 1) * o.window_s - 1e-6 : 0.0;
   std::size_t run = 0;
   int side = 0;
+  bool raised = false;
   for (std::size_t i = k; i < points.size(); ++i) {
     const double dev = points[i].value - base;
     const int here = std::abs(dev) > o.alert_robust_sds * rsd ? (dev > 0 ? 1 : -1) : 0;
     run = (here != 0 && here == side) ? run + 1 : (here != 0 ? 1 : 0);
     side = here;
-    if (run == need) s.alerts.push_back({i + 1 - need, i, side});
-    if (run > need) s.alerts.back().last = i;
+    if (run <= 1) raised = false;
+    if (run == 0) continue;
+    const std::size_t from = i + 1 - run;
+    if (!raised && run >= need && points[i].time_s - points[from].time_s >= run_span) {
+      s.alerts.push_back({from, i, side});
+      raised = true;
+    } else if (raised) {
+      s.alerts.back().last = i;
+    }
   }
   s.alerting = !s.alerts.empty() && s.alerts.back().last == points.size() - 1;
   return s;

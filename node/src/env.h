@@ -419,6 +419,14 @@ class Txn {
   // Node::reclaim goes on with another pass even when this one reclaimed nothing.
   bool retention_unfinished = false;
   std::vector<std::uint32_t> wake_slots;  // woken after commit
+  // While set (Agent::replace: removals, then the items that take their place), the terms the
+  // removals leave unused are collected only once the items are in (deferred_terms): those the
+  // items use again keep their ids. A supervisor rewriting its board every 5 s collected and
+  // made anew each of its predicates, under a new id each time: a new entry per id in every
+  // reader's decoded-term cache (+7 MB/h until the cache's cap), and the term cache's
+  // generation moved, emptying the unpinned part in every writer of the store.
+  bool defer_term_collection = false;
+  std::vector<std::uint64_t> deferred_terms;
   // Term ids looked up or created in this transaction (write.cpp), and whether the term is
   // known to be pinned (then a caller that pins it needs nothing more: the writer and source of
   // every item of a relayed run). Cleared whenever a term is collected, since a collected id

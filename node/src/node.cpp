@@ -454,7 +454,7 @@ Agent::~Agent() = default;
 const std::string& Agent::iri() const { return impl_->iri; }
 const std::string& Agent::id() const { return impl_->id; }
 
-std::uint32_t Agent::buffer_version() const noexcept { return impl_->env->wake().version(impl_->slot); }
+std::uint32_t Agent::buffer_version() const noexcept { return impl_ ? impl_->env->wake().version(impl_->slot) : 0; }
 
 Result<std::uint64_t> Agent::store(const Item& item) noexcept {
   if (!impl_) return moved_from();
@@ -577,6 +577,8 @@ Result<std::vector<std::uint64_t>> Agent::Impl::write_items(std::span<const Patt
     auto written = env->write([&](Txn& txn) -> Result<void> {
       ids.clear();
       Query query(txn.raw(), txn.env());
+      txn.defer_term_collection = !removals.empty() && !items.empty();
+      txn.deferred_terms.clear();
       for (const auto& group : removal_groups(removals)) {
         auto gone = group.size() == 1 ? query.collect(*group.front(), ListOptions{0, 0}) : query.collect_exact(group);
         if (!gone) return unexpected(gone.error());
@@ -591,6 +593,14 @@ Result<std::vector<std::uint64_t>> Agent::Impl::write_items(std::span<const Patt
         auto id = insert_item(txn, items[i], iri);
         if (!id) return unexpected(items.size() == 1 ? id.error() : with_context(id.error(), "item " + std::to_string(i + 1)));
         ids.push_back(*id);
+      }
+      if (txn.defer_term_collection) {
+        txn.defer_term_collection = false;
+        std::sort(txn.deferred_terms.begin(), txn.deferred_terms.end());
+        txn.deferred_terms.erase(std::unique(txn.deferred_terms.begin(), txn.deferred_terms.end()), txn.deferred_terms.end());
+        for (const std::uint64_t term : txn.deferred_terms)
+          if (auto c = collect_term_if_unused(txn, term); !c) return c;
+        txn.deferred_terms.clear();
       }
       if (then)
         if (auto done = then(txn, ids); !done) return done;
@@ -1248,7 +1258,10 @@ Result<Node> Node::open(const std::filesystem::path& dir) {
 }
 
 const std::string& Node::iri() const { return impl_->env->settings().iri; }
-const std::filesystem::path& Node::dir() const { return impl_->env->dir(); }
+const std::filesystem::path& Node::dir() const {
+  static const std::filesystem::path none;  // of a handle moved from
+  return impl_ ? impl_->env->dir() : none;
+}
 
 Result<Agent> Node::agent(std::string_view id) const {
   if (!impl_) return moved_from();
@@ -1263,6 +1276,7 @@ Result<Agent> Node::agent(std::string_view id) const {
 }
 
 std::optional<std::string> Node::addressee(std::string_view context) const {
+  if (!impl_) return std::nullopt;
   auto normal = uri::normalize(context);  // as the store keeps an item's context
   if (!normal) return std::nullopt;
   return detail::addressee_of(iri(), *normal, {});
@@ -1523,6 +1537,7 @@ Result<std::uint64_t> Node::remove_items(const std::vector<std::uint64_t>& item_
 }
 
 bool Node::wait_for_commit(const std::function<bool()>& ready, std::chrono::nanoseconds timeout) const {
+  if (!impl_) return ready();
   const auto deadline = deadline_after(timeout);
   WakeBoard& board = impl_->env->wake();
   for (;;) {
@@ -1536,7 +1551,9 @@ bool Node::wait_for_commit(const std::function<bool()>& ready, std::chrono::nano
   }
 }
 
-void Node::wake_waiters() const { impl_->env->wake().wake_buffer_waiters(); }
+void Node::wake_waiters() const {
+  if (impl_) impl_->env->wake().wake_buffer_waiters();
+}
 
 void set_wait_spin(std::chrono::microseconds budget) { WakeBoard::set_spin_budget(budget); }
 
@@ -1808,6 +1825,7 @@ Result<std::string> Node::renew_store_id() {
 
 uri::PrefixMap Node::prefixes() const {
   uri::PrefixMap map;
+  if (!impl_) return map;
   ReadTxn read(*impl_->env);
   if (!read.begin()) return map;
   MDB_cursor* cursor = nullptr;
@@ -1847,6 +1865,7 @@ Result<Stats> Node::stats() const {
   st.persistent_records = c->persistent_records;
   st.items = c->items;
   st.terms = c->terms;
+  st.terms_collected = c->next_term - 1 - c->terms;
   st.subscriptions = c->subscriptions;
   st.pending_deliveries = c->pending;
   st.last_seq = c->next_seq - 1;

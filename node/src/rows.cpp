@@ -396,8 +396,13 @@ Result<void> delete_record(Txn& txn, std::uint64_t id, Removal why) {
   } else if (auto x = put_item(txn, r.item, it); !x) {
     return x;
   }
-  for (std::uint64_t term : {r.s, r.p, r.o})
+  for (std::uint64_t term : {r.s, r.p, r.o}) {
+    if (txn.defer_term_collection) {
+      txn.deferred_terms.push_back(term);
+      continue;
+    }
     if (auto c = collect_term_if_unused(txn, term); !c) return c;
+  }
   return {};
 }
 

@@ -400,14 +400,18 @@ TEST_F(TrendAgentTest, AChangeOfWindowLengthStartsASeriesOfItsOwnAndRaisesNoAler
 // (SDNN grows with the window), and three of them below the baseline, as overlapping windows
 // give at every recording's end, made an alert of the end itself. They are no points of the
 // series: no latest value, no alert, and the series' baseline and count as before them.
+// Up to session 84 a cut-short window that ends where the last whole one ends (a record whose
+// end falls on a window's, with overlapping windows: here the one from 2160 s) was taken for
+// that one, by its end time, and got its value, alert and z-score.
 TEST_F(TrendAgentTest, WindowsCutShortByTheRecordsEndAreNoPointsOfTheSeries) {
   for (std::size_t k = 0; k < 8; ++k) store_window(kRecA, k, kSdnnA[k]);
-  for (std::size_t i = 0; i < 3; ++i) {
+  const std::vector<double> cut_starts{2160, 2400, 2460, 2520};
+  for (const double start : cut_starts) {
     agg::RecordingInfo info;
     info.iri = kRecA;
     agg::WindowMetrics cut;
-    cut.start_s = 2400 + 60.0 * static_cast<double>(i);
-    cut.end_s = 2580;  // the record ends here
+    cut.start_s = start;
+    cut.end_s = start < 2400 ? 2400 : 2580;  // the record ends here
     cut.length_s = 300;
     cut.metrics.sdnn_ms = 30;
     cut.metrics.rmssd_ms = 30;
@@ -416,14 +420,15 @@ TEST_F(TrendAgentTest, WindowsCutShortByTheRecordsEndAreNoPointsOfTheSeries) {
     ASSERT_TRUE(hrv_->store(agg::hrv_window_item(info, cut, hrv_->iri())));
   }
   start_agent("2");
-  wait_for_trends((8 + 3) * 3);
+  wait_for_trends((8 + cut_starts.size()) * 3);
   ASSERT_FALSE(HasFatalFailure());
   EXPECT_EQ(agent_->wait(30s), 0);
   const auto all = trends();
-  for (std::size_t i = 0; i < 3; ++i) {
-    const auto t = all.at(agg::trend_iri(kRecA, agg::HrvMetric::sdnn, 2400 + 60.0 * static_cast<double>(i)));
+  for (const double start : cut_starts) {
+    const auto t = all.at(agg::trend_iri(kRecA, agg::HrvMetric::sdnn, start));
     EXPECT_FALSE(t.alert) << t.iri;
     EXPECT_FALSE(t.latest.has_value()) << t.iri;
+    EXPECT_FALSE(t.z_against_others.has_value()) << t.iri;
     EXPECT_EQ(t.windows, 8u) << t.iri;
     EXPECT_TRUE(t.baseline.has_value()) << t.iri;
   }

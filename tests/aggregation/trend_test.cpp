@@ -49,6 +49,41 @@ TEST(Trend, AlertNeedsConsecutiveDepartures) {
   EXPECT_TRUE(s.alerting);
 }
 
+// Windows of 300 s every 60 s share most of their beats: six of them are 10 minutes of signal,
+// not 30, and three in a row one excursion. With their length known the baseline spans five
+// window lengths and an alert's run two, as for windows that do not overlap (a stationary
+// synthetic ECG of 2 hours alerted in 22 of 116 RMSSD items: an exploratory run of session 84).
+TEST(Trend, OverlappingWindowsSpanTheBaselineAndAnAlertsRunInWindowLengths) {
+  // Points every 60 s: 6 at 41 ± 1, then 20 at 50 ± 1, then a step to 60.
+  std::vector<double> v;
+  for (int i = 0; i < 6; ++i) v.push_back(i % 2 ? 42.0 : 40.0);
+  for (int i = 0; i < 20; ++i) v.push_back(i % 2 ? 51.0 : 49.0);
+  for (int i = 0; i < 4; ++i) v.push_back(60.0);
+  const TrendOptions by_count;
+  const auto counted = analyse_trend(series(v, 60), by_count);
+  ASSERT_TRUE(counted.baseline);
+  EXPECT_EQ(*counted.baseline, 41.0) << "six points: 6 minutes of signal";
+  EXPECT_FALSE(counted.alerts.empty());
+  TrendOptions by_length;
+  by_length.window_s = 300;
+  EXPECT_FALSE(analyse_trend(series({v.begin(), v.begin() + 25}, 60), by_length).baseline) << "25 points span 24 minutes";
+  const auto spanned = analyse_trend(series(v, 60), by_length);
+  ASSERT_TRUE(spanned.baseline);
+  EXPECT_EQ(*spanned.baseline, 49.0) << "26 points: they span five window lengths";
+  EXPECT_TRUE(spanned.alerts.empty()) << "four points above span less than two window lengths";
+  v.resize(v.size() + 7, 60.0);  // eleven in a row: two window lengths
+  const auto longer = analyse_trend(series(v, 60), by_length);
+  ASSERT_EQ(longer.alerts.size(), 1u);
+  EXPECT_EQ(longer.alerts[0].first, 26u);
+  EXPECT_EQ(longer.alerts[0].last, 36u);
+  EXPECT_EQ(longer.alerts[0].direction, 1);
+  EXPECT_TRUE(longer.alerting);
+  // Windows that do not overlap: as without their length.
+  const std::vector<double> plain{49, 51, 50, 49, 51, 50, 56, 50, 57, 58, 59};
+  EXPECT_EQ(analyse_trend(series(plain), by_length).alerts.size(), 1u);
+  EXPECT_EQ(analyse_trend(series(plain), by_count).alerts.size(), 1u);
+}
+
 TEST(Trend, SideChangeRestartsTheRun) {
   std::vector<double> v{49, 51, 50, 49, 51, 50, 60, 40, 60, 40};
   EXPECT_TRUE(analyse_trend(series(v)).alerts.empty());

@@ -134,6 +134,15 @@ TEST(Store, AHandleMovedFromGivesAnErrorNotACrash) {
   EXPECT_FALSE(node.snapshot());
   EXPECT_FALSE(node.agent("x"));
   EXPECT_TRUE(other.snapshot());
+  // The calls that return no Result crashed too (a developer's probe of session 84).
+  EXPECT_EQ(agent->buffer_version(), 0u);
+  EXPECT_TRUE(node.dir().empty());
+  EXPECT_TRUE(node.prefixes().entries().empty());
+  EXPECT_FALSE(node.addressee(other.iri() + "/writer"));
+  node.wake_waiters();
+  EXPECT_FALSE(node.wait_for_commit([] { return false; }, std::chrono::milliseconds(1)));
+  EXPECT_TRUE(node.wait_for_commit([] { return true; }, std::chrono::milliseconds(1)));
+  EXPECT_FALSE(other.dir().empty());
 }
 
 TEST(Store, ACascadeTakesWhatLiesWithinItsDepthOfAnyMatchWhateverTheOrder) {

@@ -51,6 +51,32 @@ TEST(TermCache, ATermCollectedAndStoredAgainGetsItsNewId) {
   EXPECT_EQ(with_predicate(node, p), (Triples{{ex("c"), p, o}}));
 }
 
+// R16: a replace whose new items use the terms of the records it removes again (a board item
+// rewritten every 5 s by the supervisor) collects none of them: each was removed and made anew
+// under a new id, and every reader's decoded-term cache took an entry per new id.
+TEST(TermCache, AReplaceThatUsesTheRemovedTermsAgainCollectsNoneOfThem) {
+  TempDir dir;
+  Node node = make_node(dir.path());
+  auto agent = node.agent("board");
+  ASSERT_TRUE(agent);
+  const Term s = ex("node"), p = ex("programsAt"), q = ex("heldRecords");
+  const std::vector<Pattern> old = {{.s = s, .source = agent->iri()}};
+  auto written = [&](int n) {  // literals of the dictionary (small integers are inline, no terms)
+    return std::vector<Item>{Item{}.add(s, p, Term::literal("five")).add(s, q, Term::literal("n=" + std::to_string(n)))};
+  };
+  ASSERT_TRUE(agent->replace(old, written(0)));
+  const auto before = node.stats()->terms_collected;
+  for (int i = 0; i < 20; ++i) ASSERT_TRUE(agent->replace(old, written(0)));
+  EXPECT_EQ(node.stats()->terms_collected, before) << "the same terms, rewritten: none collected";
+  // A value that changes is collected once the item that replaced it is in: the old one only.
+  ASSERT_TRUE(agent->replace(old, written(1)));
+  EXPECT_EQ(node.stats()->terms_collected, before + 1);
+  ASSERT_TRUE(agent->replace(old, {Item{}.add(s, ex("other"), Term::integer(1))}));
+  EXPECT_EQ(node.stats()->terms_collected, before + 5) << "p, q, \"five\" and \"n=1\" are used by nothing now";
+  EXPECT_EQ(with_predicate(node, ex("other")), (Triples{{s, ex("other"), Term::integer(1)}}));
+  EXPECT_EQ(with_predicate(node, p), Triples{});
+}
+
 TEST(TermCache, RemovalAndStoreInOneTransactionUseTheSameTermSafely) {
   TempDir dir;
   Node node = make_node(dir.path());

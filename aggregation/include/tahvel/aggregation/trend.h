@@ -33,10 +33,18 @@ struct TrendPoint {
 std::vector<TrendPoint> trend_points(const std::vector<WindowMetrics>& windows, HrvMetric which);
 
 struct TrendOptions {
-  std::size_t baseline_points = 6;  // baseline: median of the first K points (30 min of 5-min windows)
+  std::size_t baseline_points = 6;  // baseline: median of the first K points (30 min of 5-min windows;
+                                    // more points of overlapping ones: window_s)
   double alert_robust_sds = 3.0;    // departure threshold in robust SDs (1.4826 * MAD)
   std::size_t alert_consecutive = 3;  // points in a row beyond the threshold, on one side
   double min_robust_sd = 0.0;       // floor for the robust SD (a flat baseline has MAD 0)
+  // The length of the windows the points are of, in s (0: not known). Windows that overlap (a
+  // step shorter than the window) share most of their beats, so K and M points of them are
+  // not K and M windows' worth of signal: the baseline then also spans (K - 1) window lengths
+  // and an alert's run (M - 1), so that the step does not change what a series says. (Points
+  // of 300-s windows every 60 s made the baseline 10 minutes and an alert one excursion of 7:
+  // a stationary synthetic ECG of 2 hours alerted in 22 of 116 RMSSD items.)
+  double window_s = 0.0;
 };
 
 // A change alert: points [first, last] (indices into the series) lie beyond the threshold on
@@ -47,8 +55,8 @@ struct TrendAlert {
 };
 
 struct TrendSummary {
-  std::optional<double> baseline;        // median of the first K points (>= K points needed)
-  std::optional<double> robust_sd;       // max(1.4826 * MAD of the first K points, min_robust_sd)
+  std::optional<double> baseline;        // median of the first K points, or more (window_s)
+  std::optional<double> robust_sd;       // max(1.4826 * MAD of those points, min_robust_sd)
   std::optional<double> slope_per_hour;  // least-squares slope, value units per hour (>= 2 distinct times)
   std::optional<double> latest;          // value of the last point
   std::vector<TrendAlert> alerts;        // in order; points before K are not judged

@@ -527,6 +527,7 @@ struct Stats {
   std::uint64_t persistent_records = 0;
   std::uint64_t items = 0;
   std::uint64_t terms = 0;               // entries in the term dictionary
+  std::uint64_t terms_collected = 0;     // entries removed from it as unused, since init (R16)
   std::uint64_t subscriptions = 0;
   std::uint64_t pending_deliveries = 0;  // items waiting in input buffers, over all agents
   std::uint64_t last_seq = 0;
