@@ -76,7 +76,9 @@ TrendSummary analyse_trend(const std::vector<TrendPoint>& points, const TrendOpt
   // The baseline: the first K points, and as many more as make them span (K - 1) window
   // lengths; not yet one while the series is shorter.
   const std::size_t k_least = std::max<std::size_t>(o.baseline_points, 1);
-  const double span = o.window_s > 0 ? static_cast<double>(k_least - 1) * o.window_s - 1e-6 : 0.0;
+  // Less a millisecond: window times are kept to the microsecond, and lengths a millisecond
+  // apart are one setting (the trend agent's same_length).
+  const double span = o.window_s > 0 ? static_cast<double>(k_least - 1) * o.window_s - 1e-3 : 0.0;
   std::size_t k = k_least;
   while (k <= points.size() && points[k - 1].time_s - points.front().time_s < span) ++k;
   if (points.size() < k) return s;
@@ -90,7 +92,7 @@ TrendSummary analyse_trend(const std::vector<TrendPoint>& points, const TrendOpt
   // An alert: M points in a row beyond the threshold on one side, spanning (M - 1) window
   // lengths when those are known.
   const std::size_t need = std::max<std::size_t>(o.alert_consecutive, 1);
-  const double run_span = o.window_s > 0 ? static_cast<double>(need - 1) * o.window_s - 1e-6 : 0.0;
+  const double run_span = o.window_s > 0 ? static_cast<double>(need - 1) * o.window_s - 1e-3 : 0.0;
   std::size_t run = 0;
   int side = 0;
   bool raised = false;

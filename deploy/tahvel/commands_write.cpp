@@ -73,10 +73,12 @@ node::Item item_frame(const Args& args, const uri::PrefixMap& prefixes) {
   return item;
 }
 
-// Prints what a write that committed returned; `done` says it in words for a failed print.
-void print_number(std::uint64_t n, const std::string& done) {
+// Prints what a write that committed returned; `done` says it in words for a failed print,
+// and `again` what running the command again would do.
+void print_number(std::uint64_t n, const std::string& done,
+                  const std::string& again = "running the command again would repeat it") {
   std::cout << n << "\n";
-  finish_output_after(std::cout, done);
+  finish_output_after(std::cout, done, again);
 }
 
 // Union-find over subjects and blank nodes, for group_by_subject.
@@ -553,7 +555,8 @@ int run_remove(const Args& args) {
       std::cerr << "tahvel: remove: the area subscriptions follow: " << synced->added << " expansion(s) added, " << synced->removed
                 << " removed (docs/spatial.md S9)\n";
   }
-  print_number(removed, std::to_string(removed) + " records are removed");
+  print_number(removed, std::to_string(removed) + " records are removed",
+               "running it again removes only what matches by then");
   return kExitOk;
 }
 

@@ -1187,14 +1187,23 @@ Result<void> Env::reserve_disk(WriteKind kind, const WriteBound& bound) {
     const std::string why = free_bytes >= least
                                 ? std::to_string(bound.large_term_bytes >> 10) + " KB of long terms, which need runs of pages the free ones may not have"
                                 : std::to_string(free_bytes >> 20) + " MB of its pages are free for writes to reuse, less than this write may take";
-    // With free pages beyond a write's fixed part a smaller write fits in them: an emptied
-    // store refused a load of 2,000 triples, telling to remove records it did not hold, and
-    // took the same triples 500 at a time (an exploratory run of session 84).
-    const bool smaller_fits = kind != WriteKind::removal && free_bytes > (1u << 20) + (64u << 10);
-    return fail(Errc::store_full, "store full: the disk holding " + dir_.string() + " has no room left for the store to grow: free " +
-                                      std::to_string(std::max<std::uint64_t>(1, (short_by + (1 << 20) - 1) >> 20)) + " MB on that disk" +
-                                      (kind == WriteKind::removal ? "" : ", or remove records from the store,") +
-                                      (smaller_fits ? " or write less at once (a smaller load --batch)," : "") + " and write again (" + why + ")");
+    // The ways on that exist: an emptied store refused a load of 2,000 triples, telling to
+    // remove records it did not hold, and took the same triples 500 at a time (an exploratory
+    // run of session 84). Removing records helps a store that holds some; a smaller write, one
+    // of several triples whose rows the free pages could hold were it a quarter of its size,
+    // when only those pages are short (not the blocks for a long term's run of pages).
+    std::uint64_t records = 1;  // unknown: as if some
+    if (auto read = begin_read(); read) {
+      if (auto counters = load_counters(*read, main); counters) records = counters->records;
+      end_read(*read);
+    }
+    const bool smaller_fits = kind != WriteKind::removal && free_bytes < least && bound.triples > 1 &&
+                              free_bytes >= (1u << 20) + new_bytes && backed >= in_use + bound.large_term_bytes + 64 * page;
+    std::string ways = "free " + std::to_string(std::max<std::uint64_t>(1, (short_by + (1 << 20) - 1) >> 20)) + " MB on that disk";
+    if (kind != WriteKind::removal && records > 0) ways += ", or remove records from the store,";
+    if (smaller_fits) ways += std::string(records > 0 ? "" : ",") + " or write fewer triples at once (load --batch),";
+    return fail(Errc::store_full, "store full: the disk holding " + dir_.string() + " has no room left for the store to grow: " + ways +
+                                      " and write again (" + why + ")");
   }
   if (rc == EOPNOTSUPP || rc == ENOSYS || rc == EINVAL) {
     disk_reserved_.store(~0ull);  // this filesystem cannot: as before, without the reserve

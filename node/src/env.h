@@ -128,9 +128,11 @@ enum class WriteKind { data, removal };
 struct WriteBound {
   std::uint64_t bytes = 0;
   std::uint64_t large_term_bytes = 0;
+  std::uint64_t triples = 0;  // what a smaller write would split (a store full says so)
   WriteBound& operator+=(const WriteBound& more) {
     bytes += more.bytes;
     large_term_bytes += more.large_term_bytes;
+    triples += more.triples;
     return *this;
   }
 };
@@ -423,8 +425,8 @@ class Txn {
   // removals leave unused are collected only once the items are in (deferred_terms): those the
   // items use again keep their ids. A supervisor rewriting its board every 5 s collected and
   // made anew each of its predicates, under a new id each time: a new entry per id in every
-  // reader's decoded-term cache (+7 MB/h until the cache's cap), and the term cache's
-  // generation moved, emptying the unpinned part in every writer of the store.
+  // reader's decoded-term cache (+7 MB/h until the cache's cap). Its timestamps still change,
+  // and each one collected moves the term cache's generation (TermCache).
   bool defer_term_collection = false;
   std::vector<std::uint64_t> deferred_terms;
   // Term ids looked up or created in this transaction (write.cpp), and whether the term is

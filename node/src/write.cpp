@@ -882,6 +882,7 @@ WriteBound write_bound(const Item& item) {
   constexpr std::uint64_t kPerTriple = 512;
   static const std::uint64_t page = static_cast<std::uint64_t>(std::max(4096L, sysconf(_SC_PAGESIZE)));
   WriteBound bound;
+  bound.triples = item.triples.size();
   for (const Triple& t : item.triples) {
     bound.bytes += kPerTriple;
     for (const Term* term : {&t.s, &t.p, &t.o}) {
