@@ -17,6 +17,9 @@ bool PatientView::alerting() const {
   return std::any_of(trends.begin(), trends.end(), [](const TrendUpdate& t) { return t.alert; });
 }
 
+// No mean heart rate either: a window written without its counts (another version) has beats.
+bool PatientView::no_beats() const { return latest.window.metrics.rr_count == 0 && !latest.window.metrics.mean_hr_bpm; }
+
 namespace {
 
 // The node of an agent's IRI: the last path segment goes: "http://h/home1/hrv" ->
@@ -466,8 +469,9 @@ Result<PatientsOnBoard> patients_on_board(const Snapshot& snapshot, std::optiona
               [](const TrendUpdate& a, const TrendUpdate& b) { return a.metric < b.metric; });
     out.patients.push_back(std::move(p));
   }
-  // Alerting first: of a superseded recording (its source stopped) an alert does not count.
-  const auto alert_now = [](const PatientView& p) { return p.alerting() && p.superseded_by.empty(); };
+  // Alerting (or without beats) first: of a superseded recording (its source stopped) neither
+  // counts.
+  const auto alert_now = [](const PatientView& p) { return (p.alerting() || p.no_beats()) && p.superseded_by.empty(); };
   std::stable_sort(out.patients.begin(), out.patients.end(),
                    [&](const PatientView& a, const PatientView& b) { return alert_now(a) && !alert_now(b); });
   out.unreadable = unreadable.list();

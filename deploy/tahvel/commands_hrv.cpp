@@ -422,6 +422,7 @@ void print_patients_json(const std::string& node_iri, const agg::PatientsOnBoard
     const agg::PatientView& p = *shown[i];
     out << (i ? "," : "") << "{\"recording\":\"" << node::json_escape(p.recording) << "\",\"source\":\""
         << node::json_escape(p.source) << "\",\"windows\":" << p.windows << ",\"alerting\":" << (p.alerting() ? "true" : "false")
+        << ",\"no_beats\":" << (p.no_beats() ? "true" : "false")
         << ",\"irregular\":" << (p.irregular() ? "true" : "false") << ",\"other_writers\":[";
     for (std::size_t k = 0; k < p.other_writers.size(); ++k)
       out << (k ? "," : "") << "{\"source\":\"" << node::json_escape(p.other_writers[k].first)
@@ -485,6 +486,7 @@ void print_patient_text(const std::string& dir, const std::string& node_iri, con
   std::cout << "\n<" << p.recording << ">";
   for (const agg::TrendUpdate& t : p.trends)
     if (t.alert) std::cout << "  ALERT: " << agg::metric_local_name(t.metric) << " " << off_baseline(t.alert_direction);
+  if (p.no_beats()) std::cout << "  NO BEATS in the latest window";
   std::cout << "\n  " << p.windows << " HRV window(s) from <" << p.source << ">; the latest "
             << seconds_number(p.latest.window.start_s) << "-" << seconds_number(p.latest.window.end_s)
             << " s into the recording, stored " << node::utc_text(p.latest_stored_ns) << " ("
@@ -508,6 +510,9 @@ void print_patient_text(const std::string& dir, const std::string& node_iri, con
   std::cout << "  latest window: SDNN " << text_number(m.sdnn_ms) << " ms, RMSSD " << text_number(m.rmssd_ms)
             << " ms, mean HR " << text_number(m.mean_hr_bpm) << " bpm, " << m.nn_count << " NN of " << m.rr_count
             << " RR intervals\n";
+  if (p.no_beats())
+    std::cout << "  no beats were found in it: a lead off, a flat line, or asystole? Its trends have no value and no alert "
+                 "of their own; an alert of the windows before it no longer runs to the latest\n";
   // The chunks of that window's time at the node that computed it, of this recording only (a
   // node with two sensors holds another patient's chunks of the same time; a chunk's subject is
   // <recording>/chunk/N).
@@ -617,14 +622,14 @@ const Command kPatientsCommand{
     "with an alert come first. Windows or trends that cannot be read are counted per writer.\n"
     "--since T counts only the windows (and trends) of signal time T or later: ns since the\n"
     "epoch or an RFC 3339 time such as 2026-11-21T10:00:00Z, as tahvel query takes it.\n"
-    "--json prints one object: {node, patients: [{recording, source, windows, alerting,\n"
+    "--json prints one object: {node, patients: [{recording, source, windows, alerting, no_beats,\n"
     "irregular, other_writers: [{source, windows}], superseded_by, latest: {iri, start_s, end_s, stored_ns,\n"
     "asserted_ns, metrics}, raw_ecg: {node, since_ns, until_ns} or null, link: {child, state,\n"
     "last_seen_ns, stale, at} or null, trends: [{metric, window_start_s, windows, latest,\n"
     "baseline, robust_sd, slope_per_hour, alert, direction, z_against_others, others}]}],\n"
     "unreadable: [{source, count, first_error}]}.",
     {{"--since", "", "T", "only windows and trends of signal time T or later"},
-     {"--alerts", "", "", "only the patients with an alert"},
+     {"--alerts", "", "", "only the patients with an alert, or without beats in their latest window"},
      {"--json", "", "", "print JSON instead of text"}},
     1, 1, false};
 
@@ -636,13 +641,15 @@ int run_patients(const Args& args) {
   auto board = agg::patients_on_board(snapshot, since);
   if (!board) fail(board.error().message);
   std::vector<const agg::PatientView*> shown;
-  std::size_t alerting = 0;
+  std::size_t alerting = 0, silent = 0;  // with an alert; without beats in the latest window
   for (const agg::PatientView& p : board->patients) {
     // An alert of a recording a later one of its sensor supersedes is of a source that stopped:
     // shown with it, not counted nor listed by --alerts as the patient's.
     const bool alert_now = p.alerting() && p.superseded_by.empty();
+    const bool silent_now = p.no_beats() && p.superseded_by.empty();
     if (alert_now) ++alerting;
-    if (!args.has("--alerts") || alert_now) shown.push_back(&p);
+    if (silent_now) ++silent;
+    if (!args.has("--alerts") || alert_now || silent_now) shown.push_back(&p);
   }
   std::vector<std::optional<LinkOnTheWay>> links;
   // Below this node's children the links' states are on the boards of the nodes on the way:
@@ -663,7 +670,8 @@ int run_patients(const Args& args) {
     print_patients_json(node.iri(), *board, shown, links);
   } else {
     std::cout << board->patients.size() << " patient(s) with HRV on <" << node.iri() << ">"
-              << (since ? " since " + node::utc_text(*since) : std::string()) << ", " << alerting << " with an alert\n";
+              << (since ? " since " + node::utc_text(*since) : std::string()) << ", " << alerting << " with an alert"
+              << (silent ? ", " + std::to_string(silent) + " without beats in the latest window" : std::string()) << "\n";
     for (std::size_t i = 0; i < shown.size(); ++i) print_patient_text(args.positional(0), node.iri(), *shown[i], links[i]);
     for (const agg::UnreadableItems& u : board->unreadable)
       std::cout << "\n" << u.count << " HRV window or trend item(s) from <" << u.source

@@ -476,6 +476,35 @@ TEST_F(PatientsOnBoard, AnEarlierRecordingOfTheSameSensorIsSupersededByTheLater)
   }
 }
 
+// A window without beats (a lead off) has trend updates without a value or an alert: the alert
+// of the windows before it left the patient's view as the beats stopped, with nothing said (an
+// exploratory run of session 84). Such a patient is shown with the alerting ones.
+TEST_F(PatientsOnBoard, APatientWhoseLatestWindowHasNoBeatsComesWithTheAlertingOnes) {
+  window("home1-hrv", kRecA, 0, 50);
+  window("home2-hrv", kRecB, 0, 40);
+  window("home2-hrv", kRecB, 60, 20);
+  trend(kRecB, agg::HrvMetric::sdnn, 60, true);
+  agg::RecordingInfo info;
+  info.iri = kRecB;
+  agg::WindowMetrics silent;  // no beats: no metrics, no intervals
+  silent.start_s = 120;
+  silent.end_s = 180;
+  store("home2-hrv", agg::hrv_window_item(info, silent, kHospital + "/home2-hrv"));
+  agg::TrendUpdate lead_off;
+  lead_off.recording = kRecB;
+  lead_off.metric = agg::HrvMetric::sdnn;
+  lead_off.window_start_s = 120;
+  lead_off.window_iri = agg::hrv_iri(kRecB, 120);
+  lead_off.windows = 2;
+  store("trend", agg::trend_item(lead_off, kHospital + "/trend"));
+  const agg::PatientsOnBoard board = read();
+  ASSERT_EQ(board.patients.size(), 2u);
+  EXPECT_EQ(board.patients[0].recording, kRecB);
+  EXPECT_FALSE(board.patients[0].alerting());
+  EXPECT_TRUE(board.patients[0].no_beats());
+  EXPECT_FALSE(board.patients[1].no_beats());
+}
+
 TEST(PatientView, TheSourceNodeIsTheWritersIriLessItsLastSegment) {
   agg::PatientView p;
   auto node_of = [&](const std::string& source) {

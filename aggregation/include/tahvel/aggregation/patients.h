@@ -52,6 +52,11 @@ struct PatientView {
 
   // A trend's change alert runs to its latest update.
   bool alerting() const;
+  // The latest window holds no RR interval: no beats were found in it (a lead off, a flat line,
+  // asystole). Its trend updates have no value and no alert of their own (docs/agents.md), so
+  // an alert that ran up to it is not alerting() any more; the operator's view puts such a
+  // patient with the alerting ones, since when the beats stop is when to look.
+  bool no_beats() const;
   // The latest window's rhythm is too irregular for the RR-only NN rule (kIrregularPct): its
   // HRV may be off (docs/hrv.md, "Where the rule fails").
   bool irregular() const;
@@ -66,7 +71,7 @@ struct UnreadableItems {
 };
 
 struct PatientsOnBoard {
-  std::vector<PatientView> patients;       // alerting and not superseded first, then by recording IRI
+  std::vector<PatientView> patients;       // alerting or without beats, not superseded, first; then by recording IRI
   std::vector<UnreadableItems> unreadable; // by writer IRI
 };
 
