@@ -369,6 +369,14 @@ TEST_F(CApiTest, BadTermsAndArguments) {
   EXPECT_EQ(tahvel_store(agent, nt, sizeof nt - 1, TAHVEL_FORMAT_NTRIPLES, "not an iri", 0,
                          nullptr),
             TAHVEL_INVALID_IRI);
+  // Why, as the C++ API says it, and a byte that is not UTF-8 escaped: the message named the
+  // IRI alone, the byte raw (a developer's probe of session 84).
+  EXPECT_EQ(tahvel_store(agent, nt, sizeof nt - 1, TAHVEL_FORMAT_NTRIPLES, "rel", 0, nullptr), TAHVEL_INVALID_IRI);
+  EXPECT_NE(std::string(tahvel_last_error()).find("context: invalid IRI 'rel' at position 0: no scheme"), std::string::npos)
+      << tahvel_last_error();
+  EXPECT_EQ(tahvel_store(agent, nt, sizeof nt - 1, TAHVEL_FORMAT_NTRIPLES, "http://x/\xff", 0, nullptr), TAHVEL_INVALID_IRI);
+  EXPECT_NE(std::string(tahvel_last_error()).find("'http://x/\\xFF' at position 9: invalid UTF-8 byte 0xFF"), std::string::npos)
+      << tahvel_last_error();
   // "<>" is an empty IRI, not "no context": it was stored as none.
   EXPECT_EQ(tahvel_store(agent, nt, sizeof nt - 1, TAHVEL_FORMAT_NTRIPLES, "<>", 0, nullptr),
             TAHVEL_INVALID_IRI);
