@@ -112,10 +112,14 @@ using agg::cut_short;
 // 27 against another's minute 5, and a recording that ended hours ago counted as a patient of now.
 std::optional<double> value_beside(const Series& other, const Window& window, agg::HrvMetric metric) {
   const auto reach = static_cast<std::int64_t>(std::llround(2 * window.metrics.length_s * 1e9));
+  // Later by half a window at most: of the same time, give or take how two homes' windows fall;
+  // a later one is neither that nor the one before (in a catch-up, where every window is there,
+  // the nearest either way took a window of minute 15 for one of minute 10: session 84).
+  const auto ahead = static_cast<std::int64_t>(std::llround(0.5 * window.metrics.length_s * 1e9));
   std::optional<double> nearest;
   std::int64_t nearest_gap = 0;
   for (auto it = other.starts_by_time.upper_bound(window.asserted_ns - reach);
-       it != other.starts_by_time.end() && it->first < window.asserted_ns + reach; ++it) {
+       it != other.starts_by_time.end() && it->first <= window.asserted_ns + ahead; ++it) {
     const Window& candidate = other.windows.at(it->second);
     const auto v = agg::metric_value(candidate.metrics.metrics, metric);
     if (!v || cut_short(candidate.metrics) || !same_length(candidate.metrics, window.metrics)) continue;

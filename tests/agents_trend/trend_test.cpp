@@ -285,10 +285,14 @@ TEST_F(TrendAgentTest, TheZScoreComparesEachWindowWithTheOtherPatientsWindowsOfT
   for (std::size_t k = 0; k < sdnn_b.size(); ++k) store_window(kRecB, k, sdnn_b[k]);
   for (std::size_t k = 0; k < 2; ++k) store_window(kRecC, k, 60);  // C's recording ends at 10 min
   for (std::size_t k = 0; k < 6; ++k) store_window(kRecA, k, 50);
+  // D's only window is of minute 15: no window "of the same time, or the one before" for A's of
+  // minute 10, where up to session 84 the nearest either way was taken (in a catch-up).
+  const std::string rec_d = kRecA + "-d";
+  store_window(rec_d, 3, 200);
   start_agent("120");
-  wait_for_trends((sdnn_b.size() + 2 + 6) * 3);
+  wait_for_trends((sdnn_b.size() + 2 + 6 + 1) * 3);
   store_window(kRecA, 6, 50);  // arrives while the agent runs
-  wait_for_trends((sdnn_b.size() + 2 + 7) * 3);
+  wait_for_trends((sdnn_b.size() + 2 + 7 + 1) * 3);
   EXPECT_EQ(agent_->stop(), 0);
   const auto all = trends();
   // Minute 5: B's 40 and C's 60 of minute 5, not B's later 90.
