@@ -319,10 +319,13 @@ tahvel::node::Result<std::string> parse_context(const char* context) {
   // "<>" is an empty IRI (a relative reference), not "no context": refused as "< >" is.
   if (text.size() >= 2 && text.front() == '<' && text.back() == '>')
     text = text.substr(1, text.size() - 2);
-  // Why, as the C++ API says it, the bytes escaped: the message named the IRI alone, and a byte
-  // that was not UTF-8 went into it raw (a developer's probe of session 84).
-  if (auto normal = tahvel::uri::normalize(text); !normal)
-    return tahvel::node::fail(Errc::invalid_iri, "context: " + normal.error().message);
+  // Parsing alone decides, as for every IRI the store takes (dictionary.cpp); normalize words
+  // the refusal, as the C++ API does, its bytes escaped: the message named the IRI alone, and a
+  // byte that was not UTF-8 went into it raw (a developer's probe of session 84).
+  if (!tahvel::uri::is_valid(text)) {
+    auto normal = tahvel::uri::normalize(text);
+    return tahvel::node::fail(Errc::invalid_iri, "context: " + (normal ? "invalid IRI <" + *normal + ">" : normal.error().message));
+  }
   return std::string(text);
 }
 
