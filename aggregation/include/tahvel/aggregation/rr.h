@@ -178,8 +178,8 @@ std::vector<Interval> intervals_from_peaks(const std::vector<std::int64_t>& peak
 // peaks, do not count, and a zero-length interval itself may wait for D + 1). The bound is
 // reached only after the start and after a gap; in a steady rhythm most intervals are decided
 // when their end beat is pushed, an early one after the next beat (one continuous with the
-// interval before it, after two: premature_pause_when_continuous), a long one after
-// sustained_beats more. Decisions come out in order. pending() is at most D after any push
+// interval before it and followed by a pause, after two: premature_pause_when_continuous), a
+// long one after sustained_beats more. Decisions come out in order. pending() is at most D after any push
 // when no two peaks are equal.
 //
 // Memory is bounded for an endless stream: the undecided intervals (pending()), the reference
