@@ -68,25 +68,42 @@ double metric_resolution(HrvMetric which) noexcept {
   }
 }
 
-TrendSummary analyse_trend(const std::vector<TrendPoint>& points, const TrendOptions& o) {
-  TrendSummary s;
-  if (points.empty()) return s;
-  s.latest = points.back().value;
-  s.slope_per_hour = least_squares_slope(points);
-  // The baseline: the first K points, and as many more as make them span (K - 1) window
-  // lengths; not yet one while the series is shorter.
+std::optional<TrendBaseline> trend_baseline(const std::vector<TrendPoint>& points, const TrendOptions& o) {
+  // The first K points, and as many more as make them span (K - 1) window lengths; not yet one
+  // while the series is shorter.
   const std::size_t k_least = std::max<std::size_t>(o.baseline_points, 1);
   // Less a millisecond: window times are kept to the microsecond, and lengths a millisecond
   // apart are one setting (the trend agent's same_length).
   const double span = o.window_s > 0 ? static_cast<double>(k_least - 1) * o.window_s - 1e-3 : 0.0;
   std::size_t k = k_least;
   while (k <= points.size() && points[k - 1].time_s - points.front().time_s < span) ++k;
-  if (points.size() < k) return s;
+  if (points.size() < k) return std::nullopt;
   std::vector<double> first;
   for (std::size_t i = 0; i < k; ++i) first.push_back(points[i].value);
   const double base = median_of(first);
   for (double& v : first) v = std::abs(v - base);
-  const double rsd = std::max(1.4826 * median_of(first), o.min_robust_sd);
+  return TrendBaseline{base, std::max(1.4826 * median_of(first), o.min_robust_sd), points[k - 1].time_s};
+}
+
+TrendSummary analyse_trend(const std::vector<TrendPoint>& points, const TrendOptions& o) {
+  return analyse_trend(points, o, trend_baseline(points, o));
+}
+
+TrendSummary analyse_trend(const std::vector<TrendPoint>& points, const TrendOptions& o,
+                           const std::optional<TrendBaseline>& baseline) {
+  TrendSummary s;
+  if (points.empty()) return s;
+  s.latest = points.back().value;
+  if (o.slope_horizon_s > 0) {
+    const double from = points.back().time_s - o.slope_horizon_s - 1e-3;
+    const auto first = std::find_if(points.begin(), points.end(), [&](const TrendPoint& p) { return p.time_s >= from; });
+    s.slope_per_hour = least_squares_slope({first, points.end()});
+  } else {
+    s.slope_per_hour = least_squares_slope(points);
+  }
+  if (!baseline || points.back().time_s < baseline->until_s) return s;
+  const double base = baseline->value;
+  const double rsd = baseline->robust_sd;
   s.baseline = base;
   s.robust_sd = rsd;
   // An alert: M points in a row beyond the threshold on one side, spanning (M - 1) window
@@ -96,6 +113,10 @@ TrendSummary analyse_trend(const std::vector<TrendPoint>& points, const TrendOpt
   std::size_t run = 0;
   int side = 0;
   bool raised = false;
+  const std::size_t k = static_cast<std::size_t>(
+      std::upper_bound(points.begin(), points.end(), baseline->until_s,
+                       [](double t, const TrendPoint& p) { return t < p.time_s; }) -
+      points.begin());
   for (std::size_t i = k; i < points.size(); ++i) {
     const double dev = points[i].value - base;
     const int here = std::abs(dev) > o.alert_robust_sds * rsd ? (dev > 0 ? 1 : -1) : 0;

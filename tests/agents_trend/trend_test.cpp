@@ -459,6 +459,55 @@ TEST_F(TrendAgentTest, WindowsCutShortByTheRecordsEndAreNoPointsOfTheSeries) {
   }
 }
 
+// A patient monitored for weeks: the agent keeps a recording's baseline and the windows of the
+// last hours (--horizon-h), not every window since the start (about 1.3 MB per patient per day
+// of 60-s windows up to session 84, each read again for every new window). The slope is of the
+// horizon's windows; the baseline, the count and the alerts are the whole series', whether the
+// windows were on the board before the agent started (read a page at a time) or came one by one.
+TEST_F(TrendAgentTest, ARecordingLongerThanTheHorizonKeepsItsBaselineAndCountAndSlopesOverTheHorizon) {
+  std::vector<double> sdnn{49, 51, 50, 49, 51, 50};
+  for (int i = 0; i < 12; ++i) sdnn.push_back(50 + (i % 3) - 1);
+  for (int i = 0; i < 12; ++i) sdnn.push_back(60 + i);  // the last hour: above, and rising
+  for (std::size_t k = 0; k < sdnn.size(); ++k) store_window(kRecA, k, sdnn[k]);
+  agent_ = std::make_unique<Process>(std::vector<std::string>{std::string(TAHVEL_BIN_DIR) + "/tahvel-trend", dir_,
+                                                              "--idle", "120", "--horizon-h", "1"});
+  wait_for_trends(sdnn.size() * 3);
+  for (std::size_t k = 0; k < sdnn.size(); ++k) store_window(kRecB, k, sdnn[k]);
+  wait_for_trends(sdnn.size() * 3 * 2);
+  ASSERT_FALSE(HasFatalFailure());
+  EXPECT_EQ(agent_->stop(), 0);
+  const auto all = trends();
+  const std::size_t last = sdnn.size() - 1;
+  std::vector<agg::TrendPoint> hour;  // the windows that end within the hour of the last one's end
+  for (std::size_t k = 0; k < sdnn.size(); ++k)
+    if (300.0 * static_cast<double>(k + 1) >= 300.0 * static_cast<double>(last + 1) - 3600) hour.push_back({300.0 * static_cast<double>(k + 1), sdnn[k]});
+  ASSERT_EQ(hour.size(), 13u);
+  const auto expected_slope = agg::analyse_trend(hour).slope_per_hour;
+  ASSERT_TRUE(expected_slope);
+  for (const std::string& recording : {kRecA, kRecB}) {
+    SCOPED_TRACE(recording);
+    const auto t = all.at(agg::trend_iri(recording, agg::HrvMetric::sdnn, 300.0 * static_cast<double>(last)));
+    EXPECT_EQ(t.windows, sdnn.size());
+    ASSERT_TRUE(t.baseline);
+    EXPECT_DOUBLE_EQ(*t.baseline, 50) << "the first six windows', gone from the agent's memory by now";
+    ASSERT_TRUE(t.robust_sd);
+    EXPECT_NEAR(*t.robust_sd, 1.4826, 1e-4);
+    ASSERT_TRUE(t.slope_per_hour);
+    EXPECT_NEAR(*t.slope_per_hour, *expected_slope, 1e-3);  // kept to 4 decimals on the board
+    EXPECT_TRUE(t.alert);
+    EXPECT_EQ(t.alert_direction, 1);
+    for (std::size_t k = 0; k < sdnn.size(); ++k) {
+      const auto a = all.at(agg::trend_iri(kRecA, agg::HrvMetric::sdnn, 300.0 * static_cast<double>(k)));
+      const auto b = all.at(agg::trend_iri(kRecB, agg::HrvMetric::sdnn, 300.0 * static_cast<double>(k)));
+      EXPECT_EQ(a.windows, k + 1);
+      EXPECT_EQ(a.windows, b.windows);
+      EXPECT_EQ(a.baseline, b.baseline) << k;
+      EXPECT_EQ(a.slope_per_hour, b.slope_per_hour) << k;
+      EXPECT_EQ(a.alert, b.alert) << k;
+    }
+  }
+}
+
 // A window says how many of its intervals it left out as gaps (pauses or signal lost), and reads
 // back with its counts; one written before tv:gapCount reads as none.
 TEST(HrvWindowItems, AWindowKeepsItsCountsOfNnIntervalsAndGapsThroughTheBoard) {

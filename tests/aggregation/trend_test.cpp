@@ -84,6 +84,48 @@ TEST(Trend, OverlappingWindowsSpanTheBaselineAndAnAlertsRunInWindowLengths) {
   EXPECT_EQ(analyse_trend(series(plain), by_count).alerts.size(), 1u);
 }
 
+// A recording monitored for weeks: the trend agent keeps its baseline and forgets the points it
+// was made of, and the slope reaches back a horizon. Judged with the baseline kept, the points
+// of the last hours alert as the whole series does; the slope is of those hours alone.
+TEST(Trend, ABaselineKeptJudgesTheLaterPointsAsTheWholeSeriesDoes) {
+  std::vector<double> v{49, 51, 50, 49, 51, 50};
+  for (int i = 0; i < 30; ++i) v.push_back(50 + (i % 3) - 1);
+  for (int i = 0; i < 12; ++i) v.push_back(60 + i);  // the last hour: above, and rising 12 an hour
+  const auto all = series(v);
+  const auto baseline = trend_baseline(all);
+  ASSERT_TRUE(baseline);
+  EXPECT_DOUBLE_EQ(baseline->value, 50);
+  EXPECT_DOUBLE_EQ(baseline->until_s, 5 * 300);
+  EXPECT_FALSE(trend_baseline({all.begin(), all.begin() + 5}));
+  const std::vector<TrendPoint> recent(all.end() - 14, all.end());
+  const auto whole = analyse_trend(all);
+  const auto kept = analyse_trend(recent, {}, baseline);
+  ASSERT_TRUE(kept.baseline);
+  EXPECT_DOUBLE_EQ(*kept.baseline, *whole.baseline);
+  EXPECT_DOUBLE_EQ(*kept.robust_sd, *whole.robust_sd);
+  EXPECT_TRUE(whole.alerting);
+  EXPECT_TRUE(kept.alerting);
+  ASSERT_FALSE(kept.alerts.empty());
+  EXPECT_EQ(kept.alerts.back().first, 2u) << "indices into the points given";
+  EXPECT_EQ(kept.alerts.back().direction, 1);
+  // Points that end before the baseline's last point have none yet, and are not judged.
+  const auto early = analyse_trend({all.begin(), all.begin() + 3}, {}, baseline);
+  EXPECT_FALSE(early.baseline);
+  EXPECT_TRUE(early.alerts.empty());
+  // The slope: of every point, or of those within the horizon of the last.
+  TrendOptions hour;
+  hour.slope_horizon_s = 3600;
+  const auto horizon = analyse_trend(all, hour);
+  ASSERT_TRUE(horizon.slope_per_hour);
+  const auto last_hour = analyse_trend({all.end() - 13, all.end()});  // 13 points: 51, then 60..71
+  EXPECT_DOUBLE_EQ(*horizon.slope_per_hour, *last_hour.slope_per_hour);
+  EXPECT_GT(*horizon.slope_per_hour, 12.0);
+  ASSERT_TRUE(whole.slope_per_hour);
+  EXPECT_LT(*whole.slope_per_hour, *horizon.slope_per_hour);
+  EXPECT_EQ(*analyse_trend(recent, hour, baseline).slope_per_hour, *horizon.slope_per_hour)
+      << "the horizon's points, whatever came before them";
+}
+
 TEST(Trend, SideChangeRestartsTheRun) {
   std::vector<double> v{49, 51, 50, 49, 51, 50, 60, 40, 60, 40};
   EXPECT_TRUE(analyse_trend(series(v)).alerts.empty());

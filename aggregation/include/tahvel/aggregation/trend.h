@@ -45,7 +45,23 @@ struct TrendOptions {
   // of 300-s windows every 60 s made the baseline 10 minutes and an alert one excursion of 7:
   // a stationary synthetic ECG of 2 hours alerted in 22 of 116 RMSSD items.)
   double window_s = 0.0;
+  // The slope's reach, in s (0: every point): the slope is of the points that end at most this
+  // long before the last one. A recording monitored for weeks is judged by its recent course,
+  // and its trend agent keeps no more than that (tahvel-trend --horizon-h).
+  double slope_horizon_s = 0.0;
 };
+
+// A series' baseline: the median and robust SD of its first points (TrendOptions), and the
+// time of the last of them; the points after it are judged against it.
+struct TrendBaseline {
+  double value = 0;
+  double robust_sd = 0;
+  double until_s = 0;
+};
+
+// The baseline of a series from its first points (ascending in time); nullopt while it is too
+// short. The trend agent keeps it when it forgets the points it was made of.
+std::optional<TrendBaseline> trend_baseline(const std::vector<TrendPoint>& points, const TrendOptions& options = {});
 
 // A change alert: points [first, last] (indices into the series) lie beyond the threshold on
 // one side (direction +1 above, -1 below); raised at point first + alert_consecutive - 1.
@@ -57,7 +73,8 @@ struct TrendAlert {
 struct TrendSummary {
   std::optional<double> baseline;        // median of the first K points, or more (window_s)
   std::optional<double> robust_sd;       // max(1.4826 * MAD of those points, min_robust_sd)
-  std::optional<double> slope_per_hour;  // least-squares slope, value units per hour (>= 2 distinct times)
+  std::optional<double> slope_per_hour;  // least-squares slope, value units per hour (>= 2 distinct
+                                         // times within slope_horizon_s of the last point)
   std::optional<double> latest;          // value of the last point
   std::vector<TrendAlert> alerts;        // in order; points before K are not judged
   bool alerting = false;                 // the last alert runs to the last point
@@ -65,6 +82,11 @@ struct TrendSummary {
 
 // Baseline, slope and alerts of one series (points ascending in time).
 TrendSummary analyse_trend(const std::vector<TrendPoint>& points, const TrendOptions& options = {});
+// The same with the series' baseline found earlier (trend_baseline), when `points` need not
+// begin where the series does: a series that ends before the baseline's last point has none
+// yet, and only the points after it are judged. Alert indices are into `points`.
+TrendSummary analyse_trend(const std::vector<TrendPoint>& points, const TrendOptions& options,
+                           const std::optional<TrendBaseline>& baseline);
 
 // z-score of value against others: (value - mean) / SD (n - 1) of others, the SD floored at
 // min_sd (the metric's resolution: two others 0.02 bpm apart made a z of 3,000 from a 6 bpm
