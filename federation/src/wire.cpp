@@ -1,5 +1,9 @@
 #include "tahvel/federation/wire.h"
 
+#include <algorithm>
+
+#include "wire_common.h"
+
 namespace tahvel::federation::wire {
 namespace {
 
@@ -283,8 +287,19 @@ Result<StateBody> decode_state(std::string_view bytes) {
   body.software_version = in.str("software_version");
   body.outbox_depth = in.u64("outbox_depth");
   if (in.ok() && !in.at_end()) {
-    body.store_id = in.str("store_id");
-    body.peer_store_id = in.str("peer_store_id");
+    // A store's id is 32 lowercase hex digits (node::Node::store_id), or none from a peer of
+    // before store ids: another is a body damaged or made up. Taken, a hello whose id had one
+    // digit changed was "another store" of the child, and a few made a conflict that kept two
+    // children out for two minutes (an exploratory run of session 85).
+    const auto store_id = [&](const char* field) {
+      std::string id = in.str(field);
+      const bool hex = std::all_of(id.begin(), id.end(), [](char c) { return (c >= '0' && c <= '9') || (c >= 'a' && c <= 'f'); });
+      if (in.ok() && !id.empty() && (id.size() != 32 || !hex))
+        in.fail(field, "'" + printable(id, 64) + "' is not a store id (32 lowercase hex digits)");
+      return id;
+    };
+    body.store_id = store_id("store_id");
+    body.peer_store_id = store_id("peer_store_id");
   }
   return in.finish(std::move(body));
 }

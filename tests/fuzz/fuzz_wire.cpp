@@ -132,6 +132,6 @@ std::vector<std::string> fuzz_seeds() {
           with(2, wire::encode_answer(answer)),
           with(3, wire::encode_error({"item_refused", "literal of 300 bytes exceeds the node's limit of 200", ""})),
           with(4, wire::encode_state({"0.1.0", 3})),
-          with(4, wire::encode_state({"0.1.0", 3, "5f0c", "a9e1"})),
+          with(4, wire::encode_state({"0.1.0", 3, "5f0c8e3b27a14d9c9b2f6a1e0d4c7b38", "a9e1f04d3c2b1a09e8d7c6b5a4938271"})),
           with(5, encode_frame(frame))};
 }
