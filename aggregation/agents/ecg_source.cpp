@@ -105,6 +105,7 @@ agg::Result<Signal> record_signal(const std::string& path, std::optional<std::si
     return agg::fail(h.path + ": no signal " + std::to_string(*signal) + " (the record has " +
                      std::to_string(h.signals.size()) + "; --signal counts from 0)");
   const std::size_t ecg = signal ? *signal : agg::ecg_signal(h);
+  if (auto why = agg::not_an_ecg_signal(h, ecg)) return agg::fail(*why);
   std::vector<std::size_t> order{ecg};
   for (std::size_t i = 0; i < h.signals.size(); ++i)
     if (i != ecg) order.push_back(i);

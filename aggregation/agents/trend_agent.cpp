@@ -187,24 +187,24 @@ using agg::cut_short;
 // another home sends it), the one before; nullopt when there is none. Up to session 73 it was
 // the other's latest window, whatever its time: replays at --speed 0 held one patient's minute
 // 27 against another's minute 5, and a recording that ended hours ago counted as a patient of now.
-std::optional<double> value_beside(const Series& other, const Window& window, std::size_t m) {
+struct ValueBeside {
+  double value = 0;
+  std::int64_t gap_ns = 0;  // between the two windows' signal times
+};
+std::optional<ValueBeside> value_beside(const Series& other, const Window& window, std::size_t m) {
   const auto reach = static_cast<std::int64_t>(std::llround(2 * window.length_s * 1e9));
   // Later by half a window at most: of the same time, give or take how two homes' windows fall;
   // a later one is neither that nor the one before (in a catch-up, where every window is there,
   // the nearest either way took a window of minute 15 for one of minute 10: session 84).
   const auto ahead = static_cast<std::int64_t>(std::llround(0.5 * window.length_s * 1e9));
-  std::optional<double> nearest;
-  std::int64_t nearest_gap = 0;
+  std::optional<ValueBeside> nearest;
   for (auto it = other.starts_by_time.upper_bound(window.asserted_ns - reach);
        it != other.starts_by_time.end() && it->first <= window.asserted_ns + ahead; ++it) {
     const Window& candidate = other.windows.at(it->second);
     const auto& v = candidate.values[m];
     if (!v || candidate.cut_short || !same_length(candidate.length_s, window.length_s)) continue;
     const std::int64_t gap = std::abs(it->first - window.asserted_ns);
-    if (!nearest || gap <= nearest_gap) {  // of two as near, the later
-      nearest = v;
-      nearest_gap = gap;
-    }
+    if (!nearest || gap <= nearest->gap_ns) nearest = ValueBeside{*v, gap};  // of two as near, the later
   }
   return nearest;
 }
@@ -348,14 +348,24 @@ class TrendStage {
       // Across patients: against each other patient's value at the same time, when this
       // window has the metric itself.
       if (window_has_it) {
-        std::vector<double> others;
+        // One value per other patient: of their takes (<recording>-<start>, a source started
+        // again), the window nearest in time. Two takes of one patient that overlap in signal
+        // time (a replay restarted from its first sample) were two "other patients": a home's
+        // down and up made its z-score "against 2 other patients" where there was one (an
+        // exploratory run of session 85).
+        std::map<std::string_view, ValueBeside> by_patient;
         for (const auto& [other, other_series] : recordings_) {
-          // Another take of the same recording (<recording>-<start>, its source restarted) is
-          // the same patient: against their own earlier values the z-score said "other
-          // patients" of one (a probe: 3 of the 7 "others" were the patient's own).
+          // Another take of the same recording is the same patient: against their own earlier
+          // values the z-score said "other patients" of one (a probe: 3 of the 7 "others" were
+          // the patient's own).
           if (other == a.recording || take_of(other) == take_of(a.recording)) continue;
-          if (auto v = value_beside(other_series, window, m)) others.push_back(*v);
+          if (auto v = value_beside(other_series, window, m)) {
+            auto [it, first] = by_patient.emplace(take_of(other), *v);
+            if (!first && v->gap_ns < it->second.gap_ns) it->second = *v;
+          }
         }
+        std::vector<double> others;
+        for (const auto& [patient, v] : by_patient) others.push_back(v.value);
         u.z_against_others = agg::cross_patient_z(points.back().value, others, options.min_robust_sd);
         if (u.z_against_others) u.others = others.size();
       }

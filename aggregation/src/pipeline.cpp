@@ -299,6 +299,7 @@ Result<OneSignal> read_one_signal(const std::string& record_path, std::size_t ch
   if (one.channel >= count)
     return fail(record_path + ".hea: no signal " + std::to_string(one.channel) + " (the record has " +
                 std::to_string(count) + ")");
+  if (auto why = not_an_ecg_signal(reader->header(), one.channel)) return fail(*why);
   if (reader->header().samples_per_signal > 0) one.samples.reserve(static_cast<std::size_t>(reader->header().samples_per_signal));
   one.sums.assign(count, 0);
   std::vector<std::vector<std::int32_t>> block(count);

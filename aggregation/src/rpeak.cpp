@@ -9,6 +9,7 @@
 #include <algorithm>
 #include <array>
 #include <cmath>
+#include <limits>
 #include <cstdio>
 #include <complex>
 #include <numbers>
@@ -120,7 +121,7 @@ Result<void> validate(const DetectorOptions& o) {
   if (!(o.fs > 2 * o.lowpass_hz))
     return fail("rpeak: a sampling rate of " + number(o.fs) + " Hz is too low for R-peak detection: the QRS band it "
                 "keeps ends at " + number(o.lowpass_hz) + " Hz, which needs more than twice that");
-  if (!positive(o.gain)) return fail("rpeak: gain must be positive, got " + number(o.gain));
+  if (!positive(std::abs(o.gain))) return fail("rpeak: gain must be a number other than 0, got " + number(o.gain));
   if (!positive(o.highpass_hz) || !(o.highpass_hz < o.lowpass_hz) || !(o.lowpass_hz < o.fs / 2))
     return fail("rpeak: need 0 < highpass_hz < lowpass_hz < fs/2, got " +
                 number(o.highpass_hz) + ", " + number(o.lowpass_hz) + ", fs " +
@@ -244,6 +245,7 @@ class RPeakDetector::Impl {
 
   // Parameters in samples / adu.
   DetectorOptions o_;
+  bool upside_down_ = false;  // DetectorOptions::gain was negative: samples are turned over
   std::int64_t win_, hold_, fpeak_timeout_, twave_, second_, relearn_, margin_, deriv_,
       bls_half_, bls_pair_;
   double bp_delay_, min_p2p_, frac_;
@@ -343,8 +345,18 @@ class RPeakDetector::Impl {
   int p_beats_ = 0;
 };
 
+namespace {
+// The options for the lead as it is upright: a negative gain (a lead recorded upside down) is
+// its size, and the samples are turned over as they come (Impl::step).
+DetectorOptions upright(DetectorOptions o) {
+  o.gain = std::abs(o.gain);
+  return o;
+}
+}  // namespace
+
 RPeakDetector::Impl::Impl(const DetectorOptions& o)
-    : o_(o),
+    : o_(upright(o)),
+      upside_down_(o.gain < 0),
       win_(samples(o.integration_ms, o.fs)),
       hold_(samples(o.hold_ms, o.fs)),
       fpeak_timeout_(samples(95, o.fs)),
@@ -356,7 +368,7 @@ RPeakDetector::Impl::Impl(const DetectorOptions& o)
       bls_half_(samples(110, o.fs)),
       bls_pair_(samples(150, o.fs)),
       bp_delay_(0),
-      min_p2p_(o.min_qrs_mv * o.gain),
+      min_p2p_(o.min_qrs_mv * std::abs(o.gain)),
       frac_(o.threshold_fraction),
       refine_before_(samples(50, o.fs)),
       refine_after_(samples(30, o.fs)),
@@ -395,8 +407,10 @@ void RPeakDetector::Impl::push(const std::int32_t* s, std::size_t n,
 
 void RPeakDetector::Impl::step(std::int32_t x, std::vector<std::int64_t>& out) {
   const std::int64_t n = n_;
+  const bool no_value = o_.invalid_sample && x == *o_.invalid_sample;
+  if (upside_down_ && !no_value) x = x == std::numeric_limits<std::int32_t>::min() ? std::numeric_limits<std::int32_t>::max() : -x;
   if (o_.invalid_sample) {
-    if (x == *o_.invalid_sample) {
+    if (no_value) {
       last_invalid_ = n;
       x = last_valid_.value_or(0);
     } else {

@@ -255,6 +255,7 @@ Result<bool> parse_format(std::string_view tok, const Where& at, SignalInfo& s) 
     if (kind == '+') s.byte_offset = v;
     end = next;
   }
+  if (s.format == 0) return true;  // a null signal: no file holds it (SignalReader gives no-values)
   if (!packing_of(s.format)) {
     // FLAC-compressed signal files (WFDB 10.7) are read by WFDB's own tools, which can write
     // them out again uncompressed.
@@ -278,8 +279,10 @@ Result<bool> parse_gain(std::string_view tok, const Where& at, SignalInfo& s, bo
   }
   std::size_t paren = tok.find('(');
   std::string_view g = tok.substr(0, paren);
-  if (!parse_double(g, s.gain) || s.gain < 0)
-    return fail(at.field_error("gain", tok, "not a non-negative number"));
+  // A negative gain is a lead recorded upside down (WFDB reads it so); the detector takes
+  // either polarity.
+  if (!parse_double(g, s.gain) || !std::isfinite(s.gain))
+    return fail(at.field_error("gain", tok, "not a number"));
   if (s.gain == 0) s.gain = 200;  // WFDB: 0 means "uncalibrated", read with the default gain
   if (paren != std::string_view::npos) {
     if (tok.back() != ')' || !parse_int(tok.substr(paren + 1, tok.size() - paren - 2), s.baseline))
@@ -371,6 +374,10 @@ struct SignalReader::Group {
   // Decodes the next `want` values; returns how many were available (fewer only at end of file).
   Result<std::size_t> next_values(std::size_t want, std::vector<std::int32_t>& out) {
     out.clear();
+    if (format == 0) {  // a null signal: WFDB's no-value at every sample, as long as the others go
+      out.assign(want, -32768);
+      return want;
+    }
     std::size_t take = std::min(want, pending.size());
     out.insert(out.end(), pending.begin(), pending.begin() + take);
     pending.erase(pending.begin(), pending.begin() + take);
@@ -522,10 +529,15 @@ Result<SignalReader> SignalReader::open(const std::string& record_path) {
     auto g = std::make_unique<Group>();
     g->path = (std::filesystem::path(r.header_.directory) / sigs[i].file).string();
     g->format = sigs[i].format;
-    g->packing = *packing_of(g->format);
     for (std::size_t k = i; k < j; ++k) g->running.push_back(sigs[k].initial_value);
     g->first = i;
     g->count = j - i;
+    if (g->format == 0) {  // null signals (file "~" by convention): no file to open
+      r.groups_.push_back(std::move(g));
+      i = j;
+      continue;
+    }
+    g->packing = *packing_of(g->format);
     std::error_code ec;
     // A device or a pipe has no size to check the header's sample count against (and a pipe
     // with no writer would hold the open below for ever): said before it is opened.
@@ -750,11 +762,21 @@ double gain_per_mv(const SignalInfo& info) {
 }
 
 std::size_t ecg_signal(const RecordHeader& header) {
-  for (std::size_t i = 0; i < header.signals.size(); ++i)
-    if (names_ecg_lead(header.signals[i].description)) return i;
-  for (std::size_t i = 0; i < header.signals.size(); ++i)
-    if (millivolts_per_unit(header.signals[i].units) > 0) return i;
+  const auto& sigs = header.signals;
+  for (std::size_t i = 0; i < sigs.size(); ++i)
+    if (sigs[i].format != 0 && names_ecg_lead(sigs[i].description)) return i;
+  for (std::size_t i = 0; i < sigs.size(); ++i)
+    if (sigs[i].format != 0 && millivolts_per_unit(sigs[i].units) > 0) return i;
+  for (std::size_t i = 0; i < sigs.size(); ++i)
+    if (sigs[i].format != 0) return i;
   return 0;
+}
+
+std::optional<std::string> not_an_ecg_signal(const RecordHeader& header, std::size_t signal) {
+  if (signal >= header.signals.size() || header.signals[signal].format != 0) return std::nullopt;
+  return header.path + ": signal " + std::to_string(signal) +
+         (header.signals[signal].description.empty() ? "" : " (" + header.signals[signal].description + ")") +
+         " is a null signal (format 0: WFDB's place for a signal that was not recorded), which has no samples";
 }
 
 }  // namespace tahvel::aggregation

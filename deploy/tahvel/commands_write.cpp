@@ -296,6 +296,18 @@ void warn_of_unknown_vocabulary(const std::vector<node::Triple>& triples, const 
 void warn_of_unknown_addressee(const node::Node& node, const node::Item& item, const node::Agent& writer) {
   if (item.context.empty()) return;
   const std::optional<std::string> agent = node.addressee(item.context);
+  // Under this node's IRI, with nothing between its '/' and the next (`<H>//home1/hrv`): no
+  // agent's, not the subtree's ("*"), so the item stays here as data, and went nowhere without
+  // a word (an exploratory run of session 85).
+  const std::string below = node.iri() + (node.iri().ends_with('/') ? "" : "/");
+  if (!agent && item.context.starts_with(below) && item.context.size() > below.size() &&
+      (item.context[below.size()] == '/' || item.context[below.size()] == '#' || item.context[below.size()] == '?')) {
+    std::cerr << warning_prefix() << "--context <" << item.context << "> lies under this node's IRI <" << node.iri()
+              << "> with an empty segment after it, which names no agent and no child node: the item addresses nobody and "
+                 "stays here (an agent's or a child's context is <"
+              << below << "ID>…)\n";
+    return;
+  }
   if (!agent || *agent == writer.iri()) return;  // R18: never its own item's addressee
   auto snapshot = node.snapshot();
   if (!snapshot || board_knows_agent(*snapshot, *agent)) return;

@@ -261,6 +261,29 @@ TEST_F(TrendAgentTest, AnotherTakeOfTheSameRecordingIsNotAnotherPatientForTheZSc
   EXPECT_EQ(t.others, 2u) << "B and C; not d's first take";
 }
 
+// Two takes of another patient that overlap in signal time (a replay started again from its
+// first sample after a `down` and `up`) are one other patient: they were two, and a home's
+// z-score said "against 2 other patients" where there was one (an exploratory run of session 85).
+TEST_F(TrendAgentTest, TwoTakesOfAnotherPatientAreOneOtherPatientForTheZScore) {
+  const std::string e1 = kNodeIri + "/ecg/recording/e-20261201T100000Z", e2 = kNodeIri + "/ecg/recording/e-20261201T100000Z-2";
+  for (std::size_t k = 0; k < 2; ++k) {
+    store_window(e1, k, 40);
+    store_window(e2, k, 44);
+    store_window(kRecC, k, 60);
+  }
+  store_window(kRecA, 1, 80);
+  start_agent("2");
+  wait_for_trends(7 * 3);
+  ASSERT_FALSE(HasFatalFailure());
+  EXPECT_EQ(agent_->wait(30s), 0);
+  const auto all = trends();
+  const agg::TrendUpdate& a = all.at(agg::trend_iri(kRecA, agg::HrvMetric::sdnn, 300));
+  ASSERT_TRUE(a.z_against_others);
+  EXPECT_EQ(a.others, 2u) << "e and C: e's two takes are one patient";
+  const agg::TrendUpdate& c = all.at(agg::trend_iri(kRecC, agg::HrvMetric::sdnn, 0));
+  EXPECT_FALSE(c.z_against_others) << "e alone is one other patient, and a z needs two";
+}
+
 // Two other patients whose values happen to agree closely: their SD (0.007 ms) made a 3 ms
 // difference a z of 420; the SD is held to the metric's resolution (1 ms for SDNN).
 TEST_F(TrendAgentTest, TheZScoreAgainstOthersThatAgreeCloselyIsHeldToTheMetricsResolution) {

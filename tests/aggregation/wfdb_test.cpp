@@ -182,6 +182,53 @@ TEST_F(WfdbRecord100InAnotherFormat, AMinuteWrittenInEachWideFormatReadsBackTheS
   }
 }
 
+// A null signal (format 0, file "~": WFDB's place for a signal not recorded) beside the ECG, and
+// an ECG lead recorded upside down (a negative gain): both stopped the record from being read
+// (an exploratory run of session 85). The null signal reads as WFDB's no-value and is never the
+// ECG; the upside-down lead gives the beats of the lead as recorded.
+TEST_F(WfdbRecord100InAnotherFormat, ANullSignalBesideTheEcgAndANegativeGainAreRead) {
+  REQUIRE_MITDB();
+  auto original = read_signals(mitdb_record("100"));
+  ASSERT_TRUE(original) << original.error().message;
+  const std::size_t frames = 360 * 120;
+  std::string plain, upside_down;
+  for (std::size_t f = 0; f < frames; ++f) {
+    const std::int32_t v = original->samples[0][f] - 1024;
+    for (int k = 0; k < 2; ++k) {
+      plain += static_cast<char>(static_cast<std::uint32_t>(v) >> (8 * k) & 0xFF);
+      upside_down += static_cast<char>(static_cast<std::uint32_t>(-v) >> (8 * k) & 0xFF);
+    }
+  }
+  const std::string count = std::to_string(frames);
+  write("p.hea", "p 1 360 " + count + "\np.dat 16 200 11 0 0 0 0 MLII\n");
+  write("p.dat", plain);
+  write("n.hea", "n 2 360 " + count + "\n~ 0 200 16 1024 0 0 0 Resp\nn.dat 16 -200 11 0 0 0 0 MLII\n");
+  write("n.dat", upside_down);
+  auto h = read_header(record("n"));
+  ASSERT_TRUE(h) << h.error().message;
+  EXPECT_EQ(h->signals[1].gain, -200);
+  EXPECT_EQ(ecg_signal(*h), 1u);
+  auto why = not_an_ecg_signal(*h, 0);
+  ASSERT_TRUE(why);
+  EXPECT_EQ(*why, record("n") + ".hea: signal 0 (Resp) is a null signal (format 0: WFDB's place for a signal that was not "
+                                "recorded), which has no samples");
+  EXPECT_FALSE(not_an_ecg_signal(*h, 1));
+  auto read = read_signals(record("n"));
+  ASSERT_TRUE(read) << read.error().message;
+  ASSERT_EQ(read->samples[0].size(), frames);
+  EXPECT_TRUE(std::all_of(read->samples[0].begin(), read->samples[0].end(), [](std::int32_t v) { return v == -32768; }));
+  EXPECT_DOUBLE_EQ(to_physical(read->samples[1][100], h->signals[1]), to_physical(original->samples[0][100], original->header.signals[0]));
+  auto as_recorded = hrv_from_record(record("p"));
+  auto beside_null = hrv_from_record(record("n"));
+  ASSERT_TRUE(as_recorded) << as_recorded.error().message;
+  ASSERT_TRUE(beside_null) << beside_null.error().message;
+  EXPECT_GT(as_recorded->beats.size(), 100u);
+  EXPECT_EQ(beside_null->beats, as_recorded->beats);
+  auto null_named = hrv_from_record(record("n"), {}, 0);
+  ASSERT_FALSE(null_named);
+  EXPECT_EQ(null_named.error().message, *why);
+}
+
 TEST(WfdbRecord100, PhysicalValueIsAduMinusBaselineOverGain) {
   REQUIRE_MITDB();
   auto h = read_header(mitdb_record("100"));

@@ -39,7 +39,8 @@ namespace tahvel::aggregation {
 // record.
 struct DetectorOptions {
   double fs = 360;     // sampling frequency, Hz (> 0; filters are designed for 100–1000 Hz)
-  double gain = 200;   // ADC units per mV (> 0); scales `min_qrs_mv` and the hum level
+  double gain = 200;   // ADC units per mV; scales `min_qrs_mv` and the hum level. Negative: a
+                       // lead recorded upside down (WFDB), whose samples are turned over
   // The record's "no value" sample (WFDB: -32768 in format 16, -2048 in 212; wfdb.h
   // invalid_sample): the detector holds the last valid sample over a run of them, as a flat
   // lead, rather than read a step of -160 mV into the QRS band. nullopt: every value is signal.
@@ -140,7 +141,7 @@ struct DetectorOptions {
   double flat_run_ms = 80;
 };
 
-// Checks that the options are usable (fs and gain positive, band 0 < highpass < lowpass <
+// Checks that the options are usable (fs positive, gain not 0, band 0 < highpass < lowpass <
 // fs/2, windows positive). Nothing else can fail.
 Result<void> validate(const DetectorOptions& options);
 

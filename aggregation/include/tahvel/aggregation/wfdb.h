@@ -31,7 +31,8 @@ struct SignalInfo {
   std::string file;          // signal file name as written in the header, relative to the header's
                              // directory ("100.dat")
   int format = 0;            // storage format: 8, 16, 24, 32, 61, 80, 160, 212, 310 or 311
-  double gain = 200;         // ADC units per physical unit; 0 or absent in the header means 200
+  double gain = 200;         // ADC units per physical unit; 0 or absent in the header means 200;
+                             // negative for a lead recorded upside down
   int baseline = 0;          // ADC value of physical zero; absent means adc_zero
   std::string units = "mV";  // physical units; absent means "mV"
   int adc_resolution = 0;    // bits; absent or 0 means the format's (8, 10, 12, 16, 24 or 32)
@@ -163,7 +164,11 @@ double gain_per_mv(const SignalInfo& info);
 // The signal the HRV chain reads when none is named: the first whose description names an ECG
 // lead (ECG, EKG, MLII, V1 to V6, I, II, III, aVR, aVL, aVF, …), else the first in volts
 // (V, mV, µV), else the first. In MIT-BIH it is MLII, signal 0; in a record that starts with
-// respiration or blood pressure it is the ECG after it.
+// respiration or blood pressure it is the ECG after it. Null signals (format 0) are passed over.
 std::size_t ecg_signal(const RecordHeader& header);
+
+// Why `signal` of `header` cannot be read as the ECG, or nullopt: a null signal (format 0, file
+// "~" by convention), which SignalReader gives as WFDB's no-value at every sample.
+std::optional<std::string> not_an_ecg_signal(const RecordHeader& header, std::size_t signal);
 
 }  // namespace tahvel::aggregation
