@@ -531,6 +531,28 @@ TEST_F(TrendAgentTest, ARecordingLongerThanTheHorizonKeepsItsBaselineAndCountAnd
   }
 }
 
+// Windows that came while the agent was stopped wait in its input buffer, and are on the board
+// too: read at start, they are not taken in again from the buffer. A window older than the
+// horizon would come back into memory and count twice among the series' points (tv:windows).
+TEST_F(TrendAgentTest, WindowsReadAtStartAreNotTakenInAgainFromTheInputBuffer) {
+  auto run_with_horizon = [&](const char* idle) {
+    agent_ = std::make_unique<Process>(std::vector<std::string>{std::string(TAHVEL_BIN_DIR) + "/tahvel-trend", dir_,
+                                                                "--idle", idle, "--horizon-h", "1"});
+  };
+  run_with_horizon("1");  // subscribes, then stops: what comes next waits for it
+  EXPECT_EQ(agent_->wait(30s), 0);
+  for (std::size_t k = 0; k < 30; ++k) store_window(kRecA, k, 50 + static_cast<double>(k % 3));
+  run_with_horizon("120");
+  wait_for_trends(30 * 3);
+  store_window(kRecA, 30, 51);
+  wait_for_trends(31 * 3);
+  ASSERT_FALSE(HasFatalFailure());
+  EXPECT_EQ(agent_->stop(), 0);
+  const auto all = trends();
+  EXPECT_EQ(all.at(agg::trend_iri(kRecA, agg::HrvMetric::sdnn, 300.0 * 29)).windows, 30u);
+  EXPECT_EQ(all.at(agg::trend_iri(kRecA, agg::HrvMetric::sdnn, 300.0 * 30)).windows, 31u);
+}
+
 // A window says how many of its intervals it left out as gaps (pauses or signal lost), and reads
 // back with its counts; one written before tv:gapCount reads as none.
 TEST(HrvWindowItems, AWindowKeepsItsCountsOfNnIntervalsAndGapsThroughTheBoard) {
