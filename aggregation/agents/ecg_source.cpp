@@ -124,7 +124,7 @@ agg::Result<Signal> record_signal(const std::string& path, std::optional<std::si
   // R-peak agent says so only in its own log.
   agg::DetectorOptions detector;
   detector.fs = h.fs;
-  detector.gain = std::abs(s.info.gain) > 0 ? std::abs(s.info.gain) : 200;
+  detector.gain = s.info.gain != 0 ? s.info.gain : 200;
   if (auto usable = agg::validate(detector); !usable)
     std::cerr << "tahvel-ecg-source: warning: " << h.path << ": the R-peak agent will find no beat in this record: "
               << usable.error().message << "\n";

@@ -149,9 +149,11 @@ class HrvStage {
     const bool evictable = window_evictable || step_evictable;
     if (auto said = session_.agent.report_problem(problem); !said)
       rt::log_line(kProgram, "report the configuration's problem on the board: " + said.error().message);
-    if (next.window_s != config_.window_s || next.step() != config_.step())
+    const bool changed = next.window_s != config_.window_s || next.step() != config_.step();
+    if (changed)
       rt::log_line(kProgram, "window " + std::to_string(next.window_s) + " s, step " + std::to_string(next.step()) + " s");
     config_ = next;
+    if (changed || !in_force_said_) say_in_force();
     // A setting relayed from the hospital keeps its flag: on a home with a ring it would be
     // reclaimed, and after a restart the agent would go back to --window without a word. The
     // setting in force is kept as a persistent item of the agent's own (the latest wins).
@@ -166,6 +168,27 @@ class HrvStage {
         rt::log_line(kProgram, "keep the configuration: " + stored.error().message);
     }
     for (auto& [iri, s] : streams_) s.windower.set_window(config_.window_s, config_.step());
+  }
+
+  // The window and step in force, on the board as the agent's own state (the latest only), so
+  // that whoever sent a setting can read what came of it, from the hospital too (`tahvel query
+  // --at HOME -s <HOME/hrv> -p tv:windowSecondsInForce`): the settings sent were there, every
+  // one, in the order they came, and the one in force (the latest written, or one before it
+  // when the latest cannot be used) was in the agent's log only (an exploratory run of
+  // session 85).
+  void say_in_force() {
+    const tn::Term self = tn::Term::iri(session_.agent.iri());
+    tn::Item state;
+    state.persistent = true;  // a ring would take it, and the board would say nothing in force
+    state.add(self, agg::tv_term("windowSecondsInForce"), tn::Term::literal(number_text(config_.window_s), std::string(tn::xsd::kDecimal)));
+    state.add(self, agg::tv_term("stepSecondsInForce"), tn::Term::literal(number_text(config_.step()), std::string(tn::xsd::kDecimal)));
+    std::vector<tn::Pattern> old;
+    for (const char* predicate : {"windowSecondsInForce", "stepSecondsInForce"})
+      old.push_back({.s = self, .p = agg::tv_term(predicate), .source = session_.agent.iri()});
+    if (auto written = session_.agent.replace(old, {state}); !written)
+      rt::log_line(kProgram, "say the window in force on the board: " + written.error().message);
+    else
+      in_force_said_ = true;
   }
 
   // The agent's IRI, however written: settings are about it.
@@ -333,6 +356,7 @@ class HrvStage {
   rt::Session& session_;
   const WindowConfig defaults_;  // --window, --step
   WindowConfig config_;
+  bool in_force_said_ = false;  // say_in_force() has written the window in force since the start
   std::set<std::uint64_t> warned_;  // configuration records already logged as ignored
   std::string pair_warned_;  // the window-and-step problem last logged, said once until it changes
   std::map<std::string, Stream> streams_;

@@ -365,7 +365,8 @@ class TrendStage {
           if (other == a.recording || take_of(other) == take_of(a.recording)) continue;
           if (auto v = value_beside(other_series, window, m)) {
             auto [it, first] = by_patient.emplace(take_of(other), *v);
-            if (!first && v->gap_ns < it->second.gap_ns) it->second = *v;
+            // Of two takes as near, the later (names hold the take's start: in name order).
+            if (!first && v->gap_ns <= it->second.gap_ns) it->second = *v;
           }
         }
         std::vector<double> others;

@@ -517,14 +517,15 @@ Result<SignalReader> SignalReader::open(const std::string& record_path) {
   const auto& sigs = r.header_.signals;
   for (std::size_t i = 0; i < sigs.size();) {
     std::size_t j = i + 1;
-    while (j < sigs.size() && sigs[j].file == sigs[i].file) {
+    // Null signals (format 0) share no file, whatever their file is called ("~", anywhere).
+    while (j < sigs.size() && sigs[j].file == sigs[i].file && (sigs[i].format == 0) == (sigs[j].format == 0)) {
       if (sigs[j].format != sigs[i].format)
         return fail(record_path + ".hea: signals " + std::to_string(i) + " and " +
                     std::to_string(j) + " share file " + sigs[i].file + " but differ in format");
       ++j;
     }
     for (const auto& g : r.groups_)
-      if (sigs[g->first].file == sigs[i].file)
+      if (sigs[i].format != 0 && g->format != 0 && sigs[g->first].file == sigs[i].file)
         return fail(record_path + ".hea: signals of file " + sigs[i].file + " are not consecutive");
     auto g = std::make_unique<Group>();
     g->path = (std::filesystem::path(r.header_.directory) / sigs[i].file).string();
@@ -583,6 +584,9 @@ Result<std::size_t> SignalReader::read(std::size_t frames,
   if (total > 0) frames = static_cast<std::size_t>(std::min<std::int64_t>(
                      static_cast<std::int64_t>(frames), total - position_));
   if (frames == 0 || nsig == 0) return std::size_t{0};
+  // Null signals alone, with no sample count: nothing says where they end.
+  if (total <= 0 && std::all_of(groups_.begin(), groups_.end(), [](const auto& g) { return g->format == 0; }))
+    return std::size_t{0};
   if (out.size() < nsig) out.resize(nsig);
 
   // Decode every file first, then append: an error leaves `out` without a partial frame.

@@ -259,8 +259,13 @@ Result<RecordingInfo> read_recording(const std::vector<Record>& records, const s
     const Term* t = object(records, iri, local);
     if (!t) return missing(iri, local, "missing (is it a tv:EcgRecording?)");
     auto v = to_double(t->value);
-    if (!v || !(*v > 0)) return missing(iri, local, ("is not a positive number: '" + t->value + "'").c_str());
-    (std::string(local) == "gain" ? info.gain : info.fs) = *v;
+    // A gain may be negative (a lead recorded upside down: WFDB, and the R-peak detector, read
+    // it so), not 0; a sampling rate is positive.
+    const bool gain = std::string(local) == "gain";
+    if (!v || !std::isfinite(*v) || (gain ? *v == 0 : !(*v > 0)))
+      return missing(iri, local, (gain ? "is not a number other than 0: '" + t->value + "'"
+                                       : "is not a positive number: '" + t->value + "'").c_str());
+    (gain ? info.gain : info.fs) = *v;
   }
   if (const Term* t = object(records, iri, "baseline"))
     info.baseline = static_cast<int>(to_int(t->value).value_or(0));

@@ -300,8 +300,10 @@ void warn_of_unknown_addressee(const node::Node& node, const node::Item& item, c
   // agent's, not the subtree's ("*"), so the item stays here as data, and went nowhere without
   // a word (an exploratory run of session 85).
   const std::string below = node.iri() + (node.iri().ends_with('/') ? "" : "/");
-  if (!agent && item.context.starts_with(below) && item.context.size() > below.size() &&
-      (item.context[below.size()] == '/' || item.context[below.size()] == '#' || item.context[below.size()] == '?')) {
+  const auto normal = uri::normalize(item.context);  // as the store compares IRIs: the host's case
+  const std::string& context = normal ? *normal : item.context;
+  if (!agent && context.starts_with(below) && context.size() > below.size() &&
+      (context[below.size()] == '/' || context[below.size()] == '#' || context[below.size()] == '?')) {
     std::cerr << warning_prefix() << "--context <" << item.context << "> lies under this node's IRI <" << node.iri()
               << "> with an empty segment after it, which names no agent and no child node: the item addresses nobody and "
                  "stays here (an agent's or a child's context is <"

@@ -584,6 +584,7 @@ struct Link::Impl {
   // False, logged, when the body does not decode: the frame is dropped. It was read as a peer
   // without store ids, so that a cut-short hello made the child's items a new stream, applied
   // again.
+  // Not with `mu` held: a malformed body is said through refuse(), which takes it.
   bool read_state(const Frame& f, std::optional<wire::StateBody>& state) {
     state.reset();
     if (f.body.empty()) return true;
@@ -2087,6 +2088,11 @@ struct Link::Impl {
         return;
       }
       case FrameKind::ack: {
+        // An item-stream ack's state body is read before `mu` is taken: a malformed one is said
+        // through refuse(), which takes it (session 85's first version read it under `mu`, and
+        // one such frame hung the link for good).
+        std::optional<wire::StateBody> stores;
+        if (f.seq == 0 && !read_state(f, stores)) return;
         std::unique_lock lock(mu);
         if (f.seq != 0) {
           child->last_seen = Clock::now();
@@ -2097,8 +2103,6 @@ struct Link::Impl {
         }
         // P6b: the acknowledgement of another store than the registered one (a second node
         // under this child's IRI) would move the registered one's down window.
-        std::optional<wire::StateBody> stores;
-        if (!read_state(f, stores)) return;
         if (stores && store_differs(store_id, stores->peer_store_id)) return;  // of another parent's down stream
         if (stores && store_differs(child->store_id, stores->store_id)) {
           if (child->flips.saw(child->store_id, stores->store_id, "the child <" + child->iri + ">"))
@@ -2280,6 +2284,8 @@ struct Link::Impl {
         return;
       }
       case FrameKind::ack: {
+        std::optional<wire::StateBody> stores;
+        if (f.seq == 0 && !read_state(f, stores)) return;  // before `mu`, as the parent's ack case
         std::unique_lock lock(mu);
         if (f.seq != 0) {
           Outgoing out;
@@ -2287,8 +2293,6 @@ struct Link::Impl {
           lock.unlock();
           return send_all(out);
         }
-        std::optional<wire::StateBody> stores;
-        if (!read_state(f, stores)) return;
         if (stores) {
           // P6b: from another store than the parent that welcomed this node: two parents under
           // one IRI.

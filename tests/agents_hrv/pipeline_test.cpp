@@ -305,6 +305,33 @@ TEST_F(PipelineTest, AgentsReadWfdbsNoValueSamplesAsTheBatchChainDoes) {
   EXPECT_EQ(beats, expected->beats);
 }
 
+// A lead recorded upside down (a negative gain in its header, which WFDB reads so) goes
+// through the agents as through `tahvel hrv`: the recording item carried the gain, and the R-peak
+// agent skipped every chunk ("tv:gain is not a positive number"; a review of session 85).
+TEST_F(PipelineTest, ALeadRecordedUpsideDownGoesThroughTheAgentsAsThroughTahvelHrv) {
+  auto ecg = agg::synthetic_ecg(360, agg::SyntheticEcgOptions{});
+  ASSERT_TRUE(ecg) << ecg.error().message;
+  for (std::int32_t& v : *ecg) v = -v;
+  record_ = tahvel::test_support::write_format16_record(tmp_, "upside", *ecg);
+  std::ostringstream header;
+  header << std::ifstream(record_ + ".hea").rdbuf();
+  std::string text = header.str();
+  ASSERT_NE(text.find(" 16 200 16 "), std::string::npos) << text;
+  text.replace(text.find(" 16 200 16 "), 11, " 16 -200 16 ");
+  std::ofstream(record_ + ".hea") << text;
+  auto expected = agg::hrv_from_record(record_);
+  ASSERT_TRUE(expected) << expected.error().message;
+  EXPECT_GT(expected->beats.size(), 300u);
+  run_pipeline(expected->windows.size());
+  ASSERT_FALSE(HasFatalFailure());
+  expect_windows(*expected);
+  auto peaks = derived<agg::RPeaks>("rpeaks", agg::read_rpeaks);
+  std::vector<std::int64_t> beats;
+  for (const auto& p : peaks) beats.insert(beats.end(), p.peaks.begin(), p.peaks.end());
+  std::sort(beats.begin(), beats.end());
+  EXPECT_EQ(beats, expected->beats);
+}
+
 TEST_F(PipelineTest, ConfiguredWindowGivesThoseWindows) {
   configure_window(120);
   agg::ChainOptions options;
@@ -974,6 +1001,36 @@ TEST(AgentPrograms, AnHrvSettingItCannotUseIsItsProblemOnTheBoardUntilAUsableOne
     EXPECT_EQ(agent.stop(), 0);
   }
   EXPECT_EQ(node->snapshot()->count({.s = hrv, .p = tn::Term::iri(tn::kProblemPid)}).value(), 0u);
+}
+
+// What a setting came to is on the board, for whoever sent it to read (from the hospital too,
+// with `tahvel query --at`): the window and step in force, once, the latest only. The settings
+// sent were all there in the order they came, and which stood (the latest written, or the one
+// before when the latest cannot be used) was in the agent's log alone (an exploratory run of
+// session 85).
+TEST(AgentPrograms, TheHrvWindowAndStepInForceAreOnTheBoard) {
+  ScratchNode scratch("hrv-in-force");
+  ASSERT_TRUE(scratch.node) << "cannot make a store under /tmp";
+  const tn::Term& hrv = scratch.hrv;
+  auto in_force = [&](const char* predicate) -> std::string {
+    auto snapshot = scratch.node->snapshot();
+    if (!snapshot) return "no snapshot";
+    auto records = snapshot->list({.s = hrv, .p = agg::tv_term(predicate)});
+    if (!records) return "unreadable";
+    if (records->size() != 1) return std::to_string(records->size()) + " records";
+    return records->front().triple.o.value;
+  };
+  Process agent({bin("tahvel-hrv"), scratch.dir, "--idle", "30", "--window", "60"}, scratch.tmp + "/hrv.log");
+  EXPECT_TRUE(within_a_minute([&] { return in_force("windowSecondsInForce") == "60" && in_force("stepSecondsInForce") == "60"; }))
+      << in_force("windowSecondsInForce") << " / " << in_force("stepSecondsInForce");
+  ASSERT_TRUE(scratch.tell_hrv({{"windowSeconds", tn::Term::integer(120)}, {"stepSeconds", tn::Term::integer(30)}}));
+  EXPECT_TRUE(within_a_minute([&] { return in_force("windowSecondsInForce") == "120" && in_force("stepSecondsInForce") == "30"; }))
+      << in_force("windowSecondsInForce") << " / " << in_force("stepSecondsInForce");
+  // One it cannot use: the one before stands, and the board says so.
+  ASSERT_TRUE(scratch.tell_hrv({{"windowSeconds", tn::Term::literal("2 minutes")}}));
+  ASSERT_TRUE(within_a_minute([&] { return !scratch.problem("hrv").empty(); }));
+  EXPECT_EQ(in_force("windowSecondsInForce"), "120");
+  EXPECT_EQ(agent.stop(), 0);
 }
 
 // The whole of the file at `path` (an agent's log); "" when it cannot be read.

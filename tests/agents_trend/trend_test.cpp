@@ -488,14 +488,18 @@ TEST_F(TrendAgentTest, WindowsCutShortByTheRecordsEndAreNoPointsOfTheSeries) {
 // horizon's windows; the baseline, the count and the alerts are the whole series', whether the
 // windows were on the board before the agent started (read a page at a time) or came one by one.
 TEST_F(TrendAgentTest, ARecordingLongerThanTheHorizonKeepsItsBaselineAndCountAndSlopesOverTheHorizon) {
+  // 1,100 windows of 60 s: more than a page of the catch-up (1,024), with windows forgotten
+  // between its pages; the last hour above the baseline, and rising.
+  constexpr double kLength = 60;
   std::vector<double> sdnn{49, 51, 50, 49, 51, 50};
-  for (int i = 0; i < 12; ++i) sdnn.push_back(50 + (i % 3) - 1);
-  for (int i = 0; i < 12; ++i) sdnn.push_back(60 + i);  // the last hour: above, and rising
-  for (std::size_t k = 0; k < sdnn.size(); ++k) store_window(kRecA, k, sdnn[k]);
+  while (sdnn.size() < 1040) sdnn.push_back(50 + static_cast<double>(sdnn.size() % 3) - 1);
+  while (sdnn.size() < 1100) sdnn.push_back(60 + 0.2 * static_cast<double>(sdnn.size() - 1040));
+  auto start_of = [&](std::size_t k) { return kLength * static_cast<double>(k); };
+  for (std::size_t k = 0; k < sdnn.size(); ++k) store_window_at(kRecA, start_of(k), kLength, k, sdnn[k]);
   agent_ = std::make_unique<Process>(std::vector<std::string>{std::string(TAHVEL_BIN_DIR) + "/tahvel-trend", dir_,
                                                               "--idle", "120", "--horizon-h", "1"});
   wait_for_trends(sdnn.size() * 3);
-  for (std::size_t k = 0; k < sdnn.size(); ++k) store_window(kRecB, k, sdnn[k]);
+  for (std::size_t k = 0; k < sdnn.size(); ++k) store_window_at(kRecB, start_of(k), kLength, k, sdnn[k]);
   wait_for_trends(sdnn.size() * 3 * 2);
   ASSERT_FALSE(HasFatalFailure());
   EXPECT_EQ(agent_->stop(), 0);
@@ -503,13 +507,13 @@ TEST_F(TrendAgentTest, ARecordingLongerThanTheHorizonKeepsItsBaselineAndCountAnd
   const std::size_t last = sdnn.size() - 1;
   std::vector<agg::TrendPoint> hour;  // the windows that end within the hour of the last one's end
   for (std::size_t k = 0; k < sdnn.size(); ++k)
-    if (300.0 * static_cast<double>(k + 1) >= 300.0 * static_cast<double>(last + 1) - 3600) hour.push_back({300.0 * static_cast<double>(k + 1), sdnn[k]});
-  ASSERT_EQ(hour.size(), 13u);
+    if (start_of(k + 1) >= start_of(last + 1) - 3600) hour.push_back({start_of(k + 1), sdnn[k]});
+  ASSERT_EQ(hour.size(), 61u);
   const auto expected_slope = agg::analyse_trend(hour).slope_per_hour;
   ASSERT_TRUE(expected_slope);
   for (const std::string& recording : {kRecA, kRecB}) {
     SCOPED_TRACE(recording);
-    const auto t = all.at(agg::trend_iri(recording, agg::HrvMetric::sdnn, 300.0 * static_cast<double>(last)));
+    const auto t = all.at(agg::trend_iri(recording, agg::HrvMetric::sdnn, start_of(last)));
     EXPECT_EQ(t.windows, sdnn.size());
     ASSERT_TRUE(t.baseline);
     EXPECT_DOUBLE_EQ(*t.baseline, 50) << "the first six windows', gone from the agent's memory by now";
@@ -519,15 +523,16 @@ TEST_F(TrendAgentTest, ARecordingLongerThanTheHorizonKeepsItsBaselineAndCountAnd
     EXPECT_NEAR(*t.slope_per_hour, *expected_slope, 1e-3);  // kept to 4 decimals on the board
     EXPECT_TRUE(t.alert);
     EXPECT_EQ(t.alert_direction, 1);
-    for (std::size_t k = 0; k < sdnn.size(); ++k) {
-      const auto a = all.at(agg::trend_iri(kRecA, agg::HrvMetric::sdnn, 300.0 * static_cast<double>(k)));
-      const auto b = all.at(agg::trend_iri(kRecB, agg::HrvMetric::sdnn, 300.0 * static_cast<double>(k)));
-      EXPECT_EQ(a.windows, k + 1);
-      EXPECT_EQ(a.windows, b.windows);
-      EXPECT_EQ(a.baseline, b.baseline) << k;
-      EXPECT_EQ(a.slope_per_hour, b.slope_per_hour) << k;
-      EXPECT_EQ(a.alert, b.alert) << k;
-    }
+  }
+  // Read at start a page at a time, or taken one by one as they came: the same items.
+  for (std::size_t k = 0; k < sdnn.size(); ++k) {
+    const auto a = all.at(agg::trend_iri(kRecA, agg::HrvMetric::sdnn, start_of(k)));
+    const auto b = all.at(agg::trend_iri(kRecB, agg::HrvMetric::sdnn, start_of(k)));
+    ASSERT_EQ(a.windows, k + 1) << k;
+    ASSERT_EQ(a.windows, b.windows) << k;
+    ASSERT_EQ(a.baseline, b.baseline) << k;
+    ASSERT_EQ(a.slope_per_hour, b.slope_per_hour) << k;
+    ASSERT_EQ(a.alert, b.alert) << k;
   }
 }
 

@@ -227,6 +227,16 @@ TEST_F(WfdbRecord100InAnotherFormat, ANullSignalBesideTheEcgAndANegativeGainAreR
   auto null_named = hrv_from_record(record("n"), {}, 0);
   ASSERT_FALSE(null_named);
   EXPECT_EQ(null_named.error().message, *why);
+  // Null signals apart from each other share no file ("signals of file ~ are not consecutive",
+  // a review of session 85); null signals alone, with no sample count, read as none.
+  write("z.hea", "z 3 360 " + count + "\n~ 0 200 16 1024 0 0 0 Resp\nn.dat 16 -200 11 0 0 0 0 MLII\n~ 0 200 16 1024 0 0 0 ABP\n");
+  auto apart = hrv_from_record(record("z"));
+  ASSERT_TRUE(apart) << apart.error().message;
+  EXPECT_EQ(apart->beats, as_recorded->beats);
+  write("e.hea", "e 2 360\n~ 0 200 16 1024 0 0 0 Resp\n~ 0 200 16 1024 0 0 0 ABP\n");
+  auto none = read_signals(record("e"));
+  ASSERT_TRUE(none) << none.error().message;
+  EXPECT_TRUE(none->samples[0].empty());
 }
 
 TEST(WfdbRecord100, PhysicalValueIsAduMinusBaselineOverGain) {

@@ -1294,13 +1294,14 @@ TEST_F(Cli, PutAndLoadWarnOfAContextAddressingAnAgentNothingOnTheNodeKnows) {
   EXPECT_EQ(lines_of(waiting.out).size(), 4u) << waiting.out;  // stored all the same
   // A segment left empty below the node (`<node>//gw1/hrv`, a slash typed twice) names no agent:
   // the item addresses nobody, which went without a word (an exploratory run of session 85).
-  for (const char* command : {"put", "load"}) {
-    Outcome doubled = run({command, node_, file, "--context", kNodeIri + "//gw1/hrv"});
-    EXPECT_EQ(doubled.status, 0) << doubled.err;
-    EXPECT_NE(doubled.err.find("tahvel: " + std::string(command) + ": warning: --context <" + kNodeIri + "//gw1/hrv> lies under this "
-                               "node's IRI <" + kNodeIri + "> with an empty segment after it, which names no agent and no child node"),
-              std::string::npos) << command << ": " << doubled.err;
-  }
+  for (const char* command : {"put", "load"})
+    for (const std::string& context : {kNodeIri + "//gw1/hrv", std::string("HTTP://EXAMPLE.org/home1//gw1/hrv")}) {
+      Outcome doubled = run({command, node_, file, "--context", context});
+      EXPECT_EQ(doubled.status, 0) << doubled.err;
+      EXPECT_NE(doubled.err.find("tahvel: " + std::string(command) + ": warning: --context <" + context + "> lies under this "
+                                 "node's IRI <" + kNodeIri + "> with an empty segment after it, which names no agent and no child node"),
+                std::string::npos) << command << ": " << doubled.err;
+    }
 }
 
 TEST_F(Cli, DumpOfOneNodeLoadsIntoAnotherWithTheSameTriples) {

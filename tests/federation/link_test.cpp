@@ -1757,7 +1757,7 @@ TEST(Link, ParentRefusesAChildOutsideItsSubtreeAndAnUnconfiguredChild) {
 TEST(Link, ParentRefusesAnIriThatIsItsChildsOnlyInNormalForm) {
   Tree tree;
   tree.hospital = tree.start_hospital();
-  for (const std::string alias : {std::string("http://EXAMPLE.org/hospital/home1"), kHospital + "/../hospital/home1",
+  for (const std::string& alias : {std::string("http://EXAMPLE.org/hospital/home1"), kHospital + "/../hospital/home1",
                                   kHospital + "/./home1"}) {
     EXPECT_EQ(answer_to_hello(tree.bus, alias), FrameKind::error) << alias;
     EXPECT_TRUE(eventually([&] {
@@ -1835,7 +1835,7 @@ TEST(Link, TwoStoresTakingTurnsUnderOneIriAreAConflictInTheStateOfTheSideThatSee
   other.home1 = other.start_home(other.home1_dir, kHome1, other.home1_log);
   // The second store's welcome waits while the first is heard; the first heard more than a
   // second after it, and it welcomes again: both are alive.
-  for (const std::string store : {store_of('c'), store_of('d'), std::string(), store_of('c'), store_of('d')}) {
+  for (const std::string& store : {store_of('c'), store_of('d'), std::string(), store_of('c'), store_of('d')}) {
     if (store.empty()) {
       std::this_thread::sleep_for(1100ms);
       continue;
@@ -2065,7 +2065,21 @@ TEST(Link, AStateBodyWithAStoreIdThatIsNoneIsMalformedAndSaidOnceAMinute) {
     f.body = wire::encode_state({"tahvel 0.1.0", 0, damaged, ""});
     tree.bus.inject_raw(kHospital, encode_frame(f));
   }
+  // An item-stream ack (seq 0) with such a body, each way: read under the link's lock, it hung
+  // the link for good (a review of session 85).
+  for (const auto& [from, to] : {std::pair{kHome1, kHospital}, std::pair{kHospital, kHome1}}) {
+    Frame ack;
+    ack.kind = FrameKind::ack;
+    ack.from = from;
+    ack.to = to;
+    ack.body = wire::encode_state({"", 0, std::string(32, 'D'), ""});
+    tree.bus.inject_raw(to, encode_frame(ack));
+  }
   ASSERT_TRUE(home1_sends(tree, 10, 10, 20));
+  EXPECT_TRUE(eventually([&] { return tree.hospital_log.has("dropped a malformed ack frame from <" + kHome1 + ">"); }))
+      << tree.hospital_log.text();
+  EXPECT_TRUE(eventually([&] { return tree.home1_log.has("dropped a malformed ack frame from <" + kHospital + ">"); }))
+      << tree.home1_log.text();
   EXPECT_TRUE(eventually([&] { return tree.hospital_log.has("is not a store id (32 lowercase hex digits)"); }))
       << tree.hospital_log.text();
   EXPECT_FALSE(tree.hospital_log.has("has another store")) << tree.hospital_log.text();
