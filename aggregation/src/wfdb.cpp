@@ -684,7 +684,9 @@ std::vector<std::string> unread_samples(const RecordHeader& header) {
   if (expected <= 0) return out;
   for (std::size_t i = 0; i < header.signals.size();) {
     std::size_t j = i + 1;
-    while (j < header.signals.size() && header.signals[j].file == header.signals[i].file) ++j;
+    while (j < header.signals.size() && header.signals[j].file == header.signals[i].file &&
+           (header.signals[i].format == 0) == (header.signals[j].format == 0))  // as SignalReader::open groups them
+      ++j;
     const SignalInfo& first = header.signals[i];
     const std::string path = (std::filesystem::path(header.directory) / first.file).string();
     std::error_code ec;
