@@ -217,6 +217,17 @@ class PipelineTest : public ::testing::Test {
   }
 
   // Compares each window's metrics, as decimal strings, with the item builder's for `expected`.
+  // The agents' windows and beats over record_ are those of the batch chain (`tahvel hrv`).
+  void expect_agents_as_batch(const agg::HrvReport& expected) {
+    run_pipeline(expected.windows.size());
+    ASSERT_FALSE(HasFatalFailure());
+    expect_windows(expected);
+    auto peaks = derived<agg::RPeaks>("rpeaks", agg::read_rpeaks);
+    std::vector<std::int64_t> beats;
+    for (const auto& p : peaks) beats.insert(beats.end(), p.peaks.begin(), p.peaks.end());
+    std::sort(beats.begin(), beats.end());
+    EXPECT_EQ(beats, expected.beats);
+  }
   void expect_windows(const agg::HrvReport& expected) { expect_windows(expected.windows); }
   void expect_windows(const std::vector<agg::WindowMetrics>& windows) {
     const std::string rec = recording();
@@ -295,14 +306,7 @@ TEST_F(PipelineTest, AgentsReadWfdbsNoValueSamplesAsTheBatchChainDoes) {
   auto expected = agg::hrv_from_record(record_);
   ASSERT_TRUE(expected) << expected.error().message;
   ASSERT_FALSE(expected->warnings.empty());  // the batch chain saw them as no-value samples
-  run_pipeline(expected->windows.size());
-  ASSERT_FALSE(HasFatalFailure());
-  expect_windows(*expected);
-  auto peaks = derived<agg::RPeaks>("rpeaks", agg::read_rpeaks);
-  std::vector<std::int64_t> beats;
-  for (const auto& p : peaks) beats.insert(beats.end(), p.peaks.begin(), p.peaks.end());
-  std::sort(beats.begin(), beats.end());
-  EXPECT_EQ(beats, expected->beats);
+  expect_agents_as_batch(*expected);
 }
 
 // A lead recorded upside down (a negative gain in its header, which WFDB reads so) goes
@@ -322,14 +326,7 @@ TEST_F(PipelineTest, ALeadRecordedUpsideDownGoesThroughTheAgentsAsThroughTahvelH
   auto expected = agg::hrv_from_record(record_);
   ASSERT_TRUE(expected) << expected.error().message;
   EXPECT_GT(expected->beats.size(), 300u);
-  run_pipeline(expected->windows.size());
-  ASSERT_FALSE(HasFatalFailure());
-  expect_windows(*expected);
-  auto peaks = derived<agg::RPeaks>("rpeaks", agg::read_rpeaks);
-  std::vector<std::int64_t> beats;
-  for (const auto& p : peaks) beats.insert(beats.end(), p.peaks.begin(), p.peaks.end());
-  std::sort(beats.begin(), beats.end());
-  EXPECT_EQ(beats, expected->beats);
+  expect_agents_as_batch(*expected);
 }
 
 TEST_F(PipelineTest, ConfiguredWindowGivesThoseWindows) {
