@@ -347,6 +347,7 @@ class TrendStage {
       u.baseline = summary.baseline;
       u.robust_sd = summary.robust_sd;
       u.slope_per_hour = summary.slope_per_hour;
+      u.slope_horizon_s = horizon_s_;
       u.alert = window_has_it && summary.alerting;
       if (u.alert && !summary.alerts.empty()) u.alert_direction = summary.alerts.back().direction;
       // Across patients: against each other patient's value at the same time, when this

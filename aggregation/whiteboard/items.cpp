@@ -698,6 +698,7 @@ Item trend_item(const TrendUpdate& u, const std::string& agent_iri) {
   if (u.baseline) item.add(s, tv("baseline"), decimal(*u.baseline));
   if (u.robust_sd) item.add(s, tv("robustSd"), decimal(*u.robust_sd));
   if (u.slope_per_hour) item.add(s, tv("slopePerHour"), decimal(*u.slope_per_hour));
+  if (u.slope_per_hour && u.slope_horizon_s) item.add(s, tv("slopeHorizonS"), decimal(*u.slope_horizon_s));
   if (u.alert) item.add(s, tv("alertDirection"), text(u.alert_direction > 0 ? "above" : "below"));
   if (u.z_against_others) {
     item.add(s, tv("zAgainstOthers"), decimal(*u.z_against_others))
@@ -738,6 +739,7 @@ Result<TrendUpdate> read_trend(const std::vector<Record>& records) {
   for (auto [local, field] : {std::pair{"latest", &TrendUpdate::latest}, std::pair{"baseline", &TrendUpdate::baseline},
                               std::pair{"robustSd", &TrendUpdate::robust_sd},
                               std::pair{"slopePerHour", &TrendUpdate::slope_per_hour},
+                              std::pair{"slopeHorizonS", &TrendUpdate::slope_horizon_s},
                               std::pair{"zAgainstOthers", &TrendUpdate::z_against_others}}) {
     auto v = optional_double(records, u.iri, local);
     if (!v) return unexpected(v.error());

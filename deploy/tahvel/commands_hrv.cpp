@@ -359,6 +359,7 @@ std::string trend_json(const agg::TrendUpdate& t) {
   out << "{\"metric\":\"" << agg::metric_local_name(t.metric) << "\",\"window_start_s\":" << seconds_number(t.window_start_s)
       << ",\"windows\":" << t.windows << ",\"latest\":" << json_number(t.latest) << ",\"baseline\":" << json_number(t.baseline)
       << ",\"robust_sd\":" << json_number(t.robust_sd) << ",\"slope_per_hour\":" << json_number(t.slope_per_hour)
+      << ",\"slope_horizon_s\":" << json_number(t.slope_horizon_s)
       << ",\"alert\":" << (t.alert ? "true" : "false") << ",\"direction\":"
       << (direction ? std::string("\"") + direction + "\"" : std::string("null"))
       << ",\"z_against_others\":" << json_number(t.z_against_others) << ",\"others\":" << t.others << "}";
@@ -569,8 +570,14 @@ void print_patient_text(const std::string& dir, const std::string& node_iri, con
     std::snprintf(line, sizeof line, "  trend %-10s latest %-7s baseline %-7s", agg::metric_local_name(t.metric),
                   text_number(t.latest).c_str(), text_number(t.baseline).c_str());
     std::cout << line;
-    if (t.slope_per_hour) std::cout << " slope " << text_number(t.slope_per_hour, "%+.3g") << "/h";
-    std::cout << " over " << t.windows << " window(s)";
+    // The slope is of the last hours' windows (tahvel-trend --horizon-h), the count of all of
+    // them: "slope … over N window(s)" said the slope was of every window since the start.
+    if (t.slope_per_hour) {
+      std::cout << " slope " << text_number(t.slope_per_hour, "%+.3g") << "/h";
+      if (t.slope_horizon_s) std::cout << " over the last " << text_number(*t.slope_horizon_s / 3600, "%.3g") << " h";
+      std::cout << ",";
+    }
+    std::cout << " " << t.windows << " window(s)";
     if (t.alert) std::cout << ", ALERT " << off_baseline(t.alert_direction);
     if (t.z_against_others)
       std::cout << ", z " << text_number(t.z_against_others, "%+.2f") << " against " << t.others << " other patient(s)";
@@ -662,7 +669,8 @@ const Command kPatientsCommand{
     "irregular, other_writers: [{source, windows}], superseded_by, latest: {iri, start_s, end_s, stored_ns,\n"
     "asserted_ns, metrics}, raw_ecg: {node, since_ns, until_ns} or null, link: {child, state,\n"
     "last_seen_ns, stale, at} or null, trends: [{metric, window_start_s, windows, latest,\n"
-    "baseline, robust_sd, slope_per_hour, alert, direction, z_against_others, others}]}],\n"
+    "baseline, robust_sd, slope_per_hour, slope_horizon_s, alert, direction, z_against_others,\n"
+    "others}]}],\n"
     "unreadable: [{source, count, first_error}]}.",
     {{"--since", "", "T", "only windows and trends of signal time T or later"},
      {"--alerts", "", "", "only the patients with an alert, or without beats in their latest window"},

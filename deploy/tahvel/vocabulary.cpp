@@ -137,6 +137,7 @@ constexpr std::array kTerms = {
     std::string_view("senses"),
     std::string_view("sensorMaker"),
     std::string_view("sensorModel"),
+    std::string_view("slopeHorizonS"),
     std::string_view("slopePerHour"),
     std::string_view("softwareVersion"),
     std::string_view("source"),

@@ -521,6 +521,7 @@ TEST_F(TrendAgentTest, ARecordingLongerThanTheHorizonKeepsItsBaselineAndCountAnd
     EXPECT_NEAR(*t.robust_sd, 1.4826, 1e-4);
     ASSERT_TRUE(t.slope_per_hour);
     EXPECT_NEAR(*t.slope_per_hour, *expected_slope, 1e-3);  // kept to 4 decimals on the board
+    EXPECT_EQ(t.slope_horizon_s, 3600.0) << "how far back the slope reaches, on the item";
     EXPECT_TRUE(t.alert);
     EXPECT_EQ(t.alert_direction, 1);
   }

@@ -2608,7 +2608,7 @@ const char* kPatientsTurtle =
     "  tv:rmssdMs 45.0 ; tv:meanHrBpm 71.0 ; tv:nnCount 70 ; tv:rrCount 70 .\n"
     "<http://example.org/home1/ecg/recording/a/trend/sdnnMs/60> a tv:HrvTrend ; tv:recording rec:a ;\n"
     "  tv:metric tv:sdnnMs ; tv:windowStartS 60.0 ; tv:windows 2 ; tv:latest 90.0 ; tv:baseline 50.0 ;\n"
-    "  tv:alert true ; tv:alertDirection \"above\" .\n"
+    "  tv:slopePerHour 2400.0 ; tv:slopeHorizonS 86400.0 ; tv:alert true ; tv:alertDirection \"above\" .\n"
     // A trend of another writer that alerts without saying on which side.
     "<http://example.org/home1/ecg/recording/c/hrv/0> sosa:observedProperty tv:HeartRateVariability ;\n"
     "  prov:wasDerivedFrom rec:c ; tv:windowStartS 0.0 ; tv:windowEndS 60.0 ; tv:sdnnMs 30.0 .\n"
@@ -2632,6 +2632,9 @@ TEST_F(Cli, PatientsShowsEachRecordingsLatestWindowWithAlertingPatientsFirst) {
       << "when it came, and how long ago:\n" << text.out;
   EXPECT_NE(text.out.find("SDNN 90 ms"), std::string::npos) << text.out;
   EXPECT_NE(text.out.find("no trend of it on this node"), std::string::npos) << text.out;
+  // The slope is of the last hours' windows, the count of all: "slope … over 2 window(s)" said
+  // it was of every window since the start (session 85).
+  EXPECT_NE(text.out.find("slope +2.4e+03/h over the last 24 h, 2 window(s)"), std::string::npos) << text.out;
   // Where the raw ECG behind the latest window lies, and the query that brings it.
   EXPECT_NE(text.out.find("its raw ECG, at <http://example.org/home1>: tahvel query " + node_ +
                           " --at http://example.org/home1 --under http://example.org/home1/ecg/recording/a -p tv:samples --since "),
@@ -2645,7 +2648,7 @@ TEST_F(Cli, PatientsShowsEachRecordingsLatestWindowWithAlertingPatientsFirst) {
   for (const char* key : {"\"node\":", "\"source\":", "\"windows\":2", "\"alerting\":true", "\"irregular\":false", "\"superseded_by\":",
                           "\"latest\":{", "\"stored_ns\":", "\"asserted_ns\":", "\"sdnn_ms\":90",
                           "\"raw_ecg\":{\"node\":\"http://example.org/home1\",\"since_ns\":", "\"trends\":[{\"metric\":\"sdnnMs\"",
-                          "\"direction\":\"above\"", "\"unreadable\":[]"})
+                          "\"direction\":\"above\"", "\"slope_horizon_s\":86400", "\"unreadable\":[]"})
     EXPECT_NE(alerts.out.find(key), std::string::npos) << key << " in " << alerts.out;
 
   // Windows put now are asserted now: none since tomorrow; a time that is no time is refused.

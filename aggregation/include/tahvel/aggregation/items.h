@@ -223,6 +223,7 @@ struct TrendUpdate {
   std::string window_iri;                 // the window item it follows (prov:wasDerivedFrom)
   std::size_t windows = 0;                // points in the series (windows with the metric)
   std::optional<double> latest, baseline, robust_sd, slope_per_hour;
+  std::optional<double> slope_horizon_s;  // the slope's reach (TrendOptions::slope_horizon_s), when set
   bool alert = false;                     // TrendSummary::alerting
   int alert_direction = 0;                // +1 above the baseline, -1 below (when alert)
   std::optional<double> z_against_others; // cross_patient_z of latest against other recordings
