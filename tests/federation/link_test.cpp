@@ -370,11 +370,13 @@ TEST(Link, AHomeWhoseGoBacksDoNotGetThroughBacksOffItsWindowAndItsResends) {
   ASSERT_TRUE(eventually([&] { return count(tree.hospital_dir, numbered) >= 300 && outbox(tree.home1_dir) == 0; }, 15s))
       << count(tree.hospital_dir, numbered);
   EXPECT_EQ(count(tree.hospital_dir, numbered), 300u);
-  // The window opens again as the mark moves: 300 more go up at once.
+  // The window opens again as the mark moves: 300 more go up at once, without the go-backs of a
+  // window left shut. One or two go-backs are an ack later than resend_after (100 ms) under a
+  // slow build: the AddressSanitizer one of session 85 went back once in one run of five.
   const std::uint64_t resends = tree.home1->counters().up_resends;
   store_hrv_items(tree.home1_dir, 300, 300);
   ASSERT_TRUE(eventually([&] { return count(tree.hospital_dir, numbered) >= 600 && outbox(tree.home1_dir) == 0; }, 15s));
-  EXPECT_EQ(tree.home1->counters().up_resends, resends);
+  EXPECT_LE(tree.home1->counters().up_resends - resends, 2u);
 }
 
 // P6a: a home whose store is made again (a replaced disk or gateway) issues item ids from the
