@@ -263,6 +263,78 @@ aggregation::Result<std::vector<std::vector<node::Record>>> recording_items(
   return items_matching(node, pattern);
 }
 
+aggregation::Result<void> for_each_recording_item(const node::Node& node, const std::string& recording_iri,
+                                                  std::int64_t since_ns, std::int64_t until_ns,
+                                                  const std::function<bool(const std::vector<node::Record>&)>& each) {
+  constexpr std::int64_t kPageNs = std::int64_t{600} * 1'000'000'000;
+  for (std::int64_t from = since_ns; from < until_ns;) {
+    const std::int64_t to = until_ns - from > kPageNs ? from + kPageNs : until_ns;
+    std::vector<std::pair<std::pair<std::int64_t, std::uint64_t>, std::vector<node::Record>>> page;
+    {
+      auto snapshot = node.snapshot();
+      if (!snapshot) return aggregation::fail("snapshot: " + node_error(snapshot.error()));
+      node::Pattern pattern{.p = aggregation::tv_term("recording"), .o = node::Term::iri(recording_iri), .since = from, .until = to};
+      auto records = snapshot->list(pattern);
+      if (!records) return aggregation::fail("list: " + node_error(records.error()));
+      std::set<std::uint64_t> seen;
+      for (const node::Record& r : *records) {
+        // An item that began before the page (a span reaching into it) was in an earlier one.
+        if (r.meta.asserted_at < from || r.meta.asserted_at >= to || !seen.insert(r.meta.item).second) continue;
+        auto item = snapshot->item(r.meta.item);
+        if (!item) continue;  // removed meanwhile
+        page.push_back({{r.meta.asserted_at, r.meta.item}, std::move(*item)});
+      }
+    }
+    std::sort(page.begin(), page.end(), [](const auto& a, const auto& b) { return a.first < b.first; });
+    for (const auto& entry : page)
+      if (!each(entry.second)) return {};
+    from = to;
+  }
+  return {};
+}
+
+std::optional<std::vector<node::Record>> item_about(const node::Node& node, const std::string& iri) {
+  auto snapshot = node.snapshot();
+  if (!snapshot) return std::nullopt;
+  auto records = snapshot->list({.s = node::Term::iri(iri)}, {.limit = 1});
+  if (!records || records->empty()) return std::nullopt;
+  auto item = snapshot->item(records->front().meta.item);
+  if (!item) return std::nullopt;
+  return std::move(*item);
+}
+
+double warm_up_seconds(const Args& args) {
+  const double seconds = args.number("--warm-up", 0);
+  if (seconds > 0 && seconds < 60)
+    throw UsageError("--warm-up " + args.text("--warm-up", "") + ": give 0 (replay from the start) or at least 60 seconds");
+  return seconds;
+}
+
+aggregation::Result<bool> resume_by_warm_up(const std::string& program, const aggregation::RecordingInfo& info,
+                                            std::int64_t upto, double warm_up_s, const std::string& inputs,
+                                            const std::function<aggregation::Result<WarmUp>(std::int64_t start)>& warm_up) {
+  for (double w = warm_up_s; w > 0 && info.started_at; w *= 4) {
+    const std::int64_t start = upto - std::llround(std::min(w * info.fs, static_cast<double>(upto)));
+    if (start <= 0) return false;
+    auto tried = warm_up(start);
+    if (!tried) return aggregation::fail("catch up <" + info.iri + ">: " + tried.error().message);
+    switch (tried->verdict) {
+      case WarmUp::Verdict::agreed:
+        log_line(program, "<" + info.iri + ">: resumed at sample " + std::to_string(upto) + " after reading " +
+                              std::to_string(tried->read) + " " + inputs + " again from sample " + std::to_string(start) +
+                              "; the last " + std::to_string(tried->compared) + " output(s) agree with the board");
+        return true;
+      case WarmUp::Verdict::missing:
+        return false;
+      case WarmUp::Verdict::differs:
+        log_line(program, "<" + info.iri + ">: a warm-up from sample " + std::to_string(start) + " " + tried->why +
+                              "; reading further back");
+        break;
+    }
+  }
+  return false;
+}
+
 bool on_board(const node::Node& node, const std::string& iri) {
   auto snapshot = node.snapshot();
   if (!snapshot) return false;

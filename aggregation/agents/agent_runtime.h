@@ -139,6 +139,39 @@ aggregation::Result<std::vector<std::vector<node::Record>>> items_matching(
 aggregation::Result<std::vector<std::vector<node::Record>>> recording_items(
     const node::Node& node, const std::string& recording_iri);
 
+// Every item of one recording (those with tv:recording <recording_iri>) asserted in
+// [since_ns, until_ns), each once, in order of asserted time (then id), read ten minutes of
+// that time per snapshot, and each page handed on after its snapshot is let go (`each` may
+// store): what a restarted stage reads again, holding a page in memory rather than the
+// recording (13.6 hours of ECG chunks read at once took 940 MB). `each` returns false to stop.
+aggregation::Result<void> for_each_recording_item(const node::Node& node, const std::string& recording_iri,
+                                                  std::int64_t since_ns, std::int64_t until_ns,
+                                                  const std::function<bool(const std::vector<node::Record>&)>& each);
+// The records of the item that has a record about `iri` (an output, named by its subject);
+// nullopt when there is none, or on a read error.
+std::optional<std::vector<node::Record>> item_about(const node::Node& node, const std::string& iri);
+// What a stage's warm-up from one sample came to (resume_by_warm_up): its outputs over the
+// second half of the inputs it read again agreed with those on the board, one differed (`why`
+// names it), or one was not on the board (a late start, a removal: a replay writes it).
+struct WarmUp {
+  enum class Verdict { agreed, differs, missing } verdict = Verdict::missing;
+  std::size_t read = 0, compared = 0;  // inputs read again, outputs compared
+  std::string why;
+};
+// --warm-up S: seconds of signal a restarted stage reads again before where it stopped (0, the
+// default: it replays the recording from its start). At least 60: a shorter warm-up would
+// compare the outputs of a new detector's first seconds, in which it learns its thresholds.
+// Throws UsageError.
+double warm_up_seconds(const Args& args);
+// After a restart at sample `upto` of a recording: tries `warm_up(start)` from warm_up_s seconds
+// of signal before `upto`, then from four times as far back while its outputs differ from the
+// board's, and logs how it ended. True when one agreed (the stage has taken its state), false
+// when the stage must replay the recording from its start: warm_up_s 0 (--warm-up not given),
+// a warm-up reaching the start, an output missing, or a recording without its start time (its
+// items are not at signal times).
+aggregation::Result<bool> resume_by_warm_up(const std::string& program, const aggregation::RecordingInfo& info,
+                                            std::int64_t upto, double warm_up_s, const std::string& inputs,
+                                            const std::function<aggregation::Result<WarmUp>(std::int64_t start)>& warm_up);
 // A decimal integer, all of `text`; nullopt otherwise.
 std::optional<std::int64_t> parse_int(const std::string& text);
 

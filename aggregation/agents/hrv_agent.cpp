@@ -256,31 +256,94 @@ class HrvStage {
     return it == streams_.end() ? nullptr : &it->second;
   }
 
-  // After a (re)start: feeds the intervals of the recording's RR items on the board that end by
-  // `upto` through the new windower, writing the window items that are missing.
-  rt::Outcome catch_up(Stream& s, std::int64_t upto) {
+  // The last window this agent wrote of the recording (the one ending last), if any: its end
+  // values alone are read, not the windows.
+  agg::Result<std::optional<agg::WindowMetrics>> last_window_written(const Stream& s) {
+    auto snapshot = session_.node.snapshot();
+    if (!snapshot) return agg::fail("snapshot: " + snapshot.error().message);
+    auto ends = snapshot->list({.p = agg::tv_term("windowEndS"), .source = session_.agent.iri(), .under = s.info.iri});
+    if (!ends) return agg::fail("list: " + ends.error().message);
+    const tn::Record* last = nullptr;
+    double last_end = 0;
+    for (const tn::Record& r : *ends) {
+      char* stop = nullptr;
+      const double end = std::strtod(r.triple.o.value.c_str(), &stop);
+      if (stop == r.triple.o.value.c_str() || !(end > last_end || !last)) continue;
+      last = &r;
+      last_end = end;
+    }
+    if (!last) return std::optional<agg::WindowMetrics>();
+    auto item = snapshot->item(last->meta.item);
+    if (!item) return agg::fail("item " + std::to_string(last->meta.item) + ": " + item.error().message);
+    auto window = agg::read_hrv_window(*item);
+    if (!window) return agg::fail(window.error().message);
+    return std::optional<agg::WindowMetrics>(window->window);
+  }
+
+  // The recording's RR items with intervals, each once and in order, whose intervals end by
+  // `upto`, from those asserted at `from_s` seconds of signal on (0: all of them).
+  agg::Result<void> for_each_rr(const Stream& s, double from_s, std::int64_t upto,
+                                const std::function<bool(const agg::RrSeries&)>& each) {
+    auto since = agg::signal_time_ns(s.info, from_s);
+    const auto until = upto == std::numeric_limits<std::int64_t>::max()
+                           ? std::optional<std::int64_t>(std::numeric_limits<std::int64_t>::max())
+                           : agg::signal_time_ns(s.info, static_cast<double>(upto) / s.info.fs + 1);
+    const auto usable = [&](const agg::Result<agg::RrSeries>& rr) {
+      return rr && !rr->intervals.empty() && rr->intervals.back().end <= upto;
+    };
+    if (since && until)
+      return rt::for_each_recording_item(session_.node, s.info.iri, *since, *until, [&](const std::vector<tn::Record>& records) {
+        auto rr = agg::read_rr(records);
+        return !usable(rr) || each(*rr);
+      });
+    // A recording without its start time: its items are not at signal times.
     auto items = rt::recording_items(session_.node, s.info.iri);
-    if (!items) return rt::Outcome::error("catch up <" + s.info.iri + ">: " + items.error().message);
+    if (!items) return agg::fail(items.error().message);
     std::map<std::int64_t, agg::RrSeries> earlier;
     for (const auto& records : *items)
-      if (auto rr = agg::read_rr(records); rr && !rr->intervals.empty() && rr->intervals.back().end <= upto)
-        earlier.emplace(rr->intervals.front().start, std::move(*rr));
+      if (auto rr = agg::read_rr(records); usable(rr)) earlier.emplace(rr->intervals.front().start, std::move(*rr));
+    for (const auto& [start, rr] : earlier)
+      if (!each(rr)) break;
+    return {};
+  }
+
+  // After a (re)start: feeds the intervals of the recording's RR items on the board that end by
+  // `upto` through the new windower, from the end of the last window it wrote, writing the
+  // window items that are missing. Intervals that end before the next window's start are in
+  // none of the windows to come, so it reads from a little before that start (a margin ending
+  // in an interval, so that the windower counts its windows as from the recording's start),
+  // and from the start when no interval ends in the margin or no window was written.
+  rt::Outcome catch_up(Stream& s, std::int64_t upto) {
+    auto last_written = last_window_written(s);
+    if (!last_written) return rt::Outcome::error("catch up <" + s.info.iri + ">: " + last_written.error().message);
     // The windows on the board were made with the setting of their time; the replay goes on
     // after the last of them with today's (a shorter window from 0 would overlap them).
-    tn::Pattern mine{.p = tn::Term::iri(agg::kProvDerivedFrom), .o = tn::Term::iri(s.info.iri),
-                     .source = session_.agent.iri()};
-    auto written = rt::items_matching(session_.node, mine);
-    if (!written) return rt::Outcome::error("catch up <" + s.info.iri + ">: " + written.error().message);
-    std::optional<agg::WindowMetrics> last_written;
-    for (const auto& records : *written)
-      if (auto window = agg::read_hrv_window(records); window && (!last_written || window->window.end_s > last_written->end_s))
-        last_written = window->window;
-    if (last_written) s.windower.resume_after(last_written->end_s, last_written->length_s);
-    if (earlier.empty()) return rt::Outcome::ok();
-    for (const auto& [start, rr] : earlier)
-      if (auto o = process(s, rr, true); o.fatal) return o;
-    rt::log_line(kProgram, "replayed " + std::to_string(earlier.size()) + " earlier RR item(s) of <" + s.info.iri +
-                               "> from the board");
+    if (*last_written) s.windower.resume_after((*last_written)->end_s, (*last_written)->length_s);
+    constexpr double kMarginS = 300;
+    // Where the next window starts at the earliest (HrvWindower::resume_after).
+    const double next_start = *last_written ? (*last_written)->end_s - config_.window_s : 0;
+    double from_s = std::max(0.0, next_start - kMarginS);
+    std::size_t replayed = 0;
+    rt::Outcome outcome;
+    const std::string recording = s.info.iri;  // the recording's end closes its stream, s with it
+    for (;;) {
+      bool too_late = false;
+      auto read = for_each_rr(s, from_s, upto, [&](const agg::RrSeries& rr) {
+        if (replayed == 0 && from_s > 0 && static_cast<double>(rr.intervals.front().end) / s.info.fs >= next_start) {
+          too_late = true;  // no interval ends in the margin: read from the start
+          return false;
+        }
+        ++replayed;
+        outcome = process(s, rr, true);
+        return !outcome.fatal && streams_.count(recording) != 0;
+      });
+      if (!read) return rt::Outcome::error("catch up <" + recording + ">: " + read.error().message);
+      if (!too_late) break;
+      from_s = 0;
+    }
+    if (outcome.fatal || replayed == 0) return outcome;
+    rt::log_line(kProgram, "replayed " + std::to_string(replayed) + " earlier RR item(s) of <" + recording +
+                               "> from the board" + (from_s > 0 ? ", from " + number_text(from_s) + " s of signal" : std::string()));
     return rt::Outcome::ok();
   }
 

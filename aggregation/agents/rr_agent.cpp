@@ -12,9 +12,11 @@
 // An R-peak item it cannot read, or of a recording without a recording item, is logged and
 // skipped, and is the agent's problem on the board while such items are (docs/agents.md).
 // (Re)start: the first R-peak item of a recording that does not start at sample 0 makes the
-// agent replay the recording's earlier R-peak items from the board through a new classifier,
-// writing only the RR items that are not on the board yet.
+// agent replay the recording's earlier R-peak items from the board (ten minutes of signal in
+// memory at a time) through a new classifier, writing only the RR items that are not on the
+// board yet.
 #include <map>
+#include <optional>
 
 #include <iostream>
 
@@ -76,25 +78,54 @@ class RrStage {
     return &s;
   }
 
-  // After a (re)start: feeds the recording's R-peak items before `upto` that are on the board
-  // through the new classifier, writing the RR items that are missing.
-  rt::Outcome catch_up(Stream& s, std::int64_t upto) {
+  // The recording's R-peak items from `start` (not the end's) before `upto`, in order, each
+  // once: `each` returns false to stop.
+  agg::Result<void> for_each_rpeaks(const Stream& s, std::int64_t start, std::int64_t upto,
+                                    const std::function<bool(const agg::RPeaks&)>& each) {
+    auto since = agg::signal_time_ns(s.info, static_cast<double>(start) / s.info.fs);
+    auto until = agg::signal_time_ns(s.info, static_cast<double>(upto) / s.info.fs);
+    if (since && until)
+      return rt::for_each_recording_item(session_.node, s.recording, *since, *until, [&](const std::vector<tn::Record>& records) {
+        auto p = agg::read_rpeaks(records);
+        return !p || p->end_sample || p->from_sample < start || p->from_sample >= upto || each(*p);
+      });
+    // A recording without its start time: its items are not at signal times.
     auto items = rt::recording_items(session_.node, s.recording);
-    if (!items) return rt::Outcome::error("catch up <" + s.recording + ">: " + items.error().message);
+    if (!items) return agg::fail(items.error().message);
     std::map<std::int64_t, agg::RPeaks> earlier;
     for (const auto& records : *items)
-      if (auto p = agg::read_rpeaks(records); p && p->from_sample < upto && !p->end_sample)
+      if (auto p = agg::read_rpeaks(records); p && p->from_sample >= start && p->from_sample < upto && !p->end_sample)
         earlier.emplace(p->from_sample, std::move(*p));
     for (const auto& [from, p] : earlier)
-      if (auto o = process(s, p, true); o.fatal) return o;
-    rt::log_line(kProgram, "replayed " + std::to_string(earlier.size()) + " earlier R-peak item(s) of <" +
-                               s.recording + "> from the board, up to sample " + std::to_string(s.next));
+      if (!each(p)) break;
+    return {};
+  }
+
+  // After a (re)start: feeds the recording's R-peak items before `upto` that are on the board
+  // through the new classifier, writing the RR items that are missing (the early ones after a
+  // late start). Not from a warm-up, as tahvel-rpeak may: a classifier fed from the middle of a
+  // recording took another state than the run before while the RR items of its last minutes
+  // agreed with the board's (record 221: windows after the restart otherwise), and the R-peak
+  // items are small.
+  rt::Outcome catch_up(Stream& s, std::int64_t upto) {
+    std::size_t replayed = 0;
+    rt::Outcome outcome;
+    auto read = for_each_rpeaks(s, 0, upto, [&](const agg::RPeaks& p) {
+      if (replayed > 0 && p.from_sample < s.next) return true;  // a repeat
+      ++replayed;
+      outcome = process(s, p, true);
+      return !outcome.fatal;
+    });
+    if (!read) return rt::Outcome::error("catch up <" + s.recording + ">: " + read.error().message);
+    if (outcome.fatal) return outcome;
+    rt::log_line(kProgram, "replayed " + std::to_string(replayed) + " earlier R-peak item(s) of <" + s.recording +
+                               "> from the board, up to sample " + std::to_string(s.next));
     return rt::Outcome::ok();
   }
 
-  // Pushes the peaks of one R-peak item; writes an RR item when intervals were decided or the
-  // recording ended (then the stream is closed).
-  rt::Outcome process(Stream& s, const agg::RPeaks& p, bool catching_up) {
+  // Pushes the peaks of one R-peak item; returns the RR item when intervals were decided or
+  // the recording ended.
+  std::optional<agg::RrSeries> decide(Stream& s, const agg::RPeaks& p) {
     agg::RrSeries out;
     out.recording = s.recording;
     if (p.from_sample != s.next) {
@@ -118,11 +149,19 @@ class RrStage {
       s.classifier.finish(out.intervals);
       out.end_sample = p.end_sample;
     }
-    if (out.intervals.empty() && !out.end_sample) return rt::Outcome::ok();
+    if (out.intervals.empty() && !out.end_sample) return std::nullopt;
     out.derived_from = std::move(s.read_since);
     s.read_since.clear();
-    tn::Item item = agg::rr_item(out);
-    const std::int64_t first = out.intervals.empty() ? p.from_sample : out.intervals.front().start;
+    return out;
+  }
+
+  // Pushes the peaks of one R-peak item; writes an RR item when intervals were decided or the
+  // recording ended (then the stream is closed).
+  rt::Outcome process(Stream& s, const agg::RPeaks& p, bool catching_up) {
+    auto out = decide(s, p);
+    if (!out) return rt::Outcome::ok();
+    tn::Item item = agg::rr_item(*out);
+    const std::int64_t first = out->intervals.empty() ? p.from_sample : out->intervals.front().start;
     item.asserted_at = agg::signal_time_ns(s.info, static_cast<double>(first) / s.info.fs);
     if (p.end_sample) streams_.erase(p.recording);  // s is gone from here on
     return rt::store_output(session_, item, catching_up);

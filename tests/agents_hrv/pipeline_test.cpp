@@ -20,6 +20,8 @@
 #include <fstream>
 #include <functional>
 #include <map>
+#include <optional>
+#include <regex>
 #include <sstream>
 #include <set>
 #include <string>
@@ -97,12 +99,15 @@ class PipelineTest : public ::testing::Test {
     ASSERT_TRUE(op->store(item));
   }
 
-  // With `logs`, each agent's stderr goes to <tmp>/<program>.log (see agent_log).
-  void start_agents(bool logs = false) {
+  // With `logs`, each agent's stderr goes to <tmp>/<program>.log (see agent_log); `warm_up`
+  // is given to the R-peak agent as --warm-up.
+  void start_agents(bool logs = false, std::optional<int> warm_up = std::nullopt) {
     agents_.clear();
-    for (const char* name : {"tahvel-rpeak", "tahvel-rr", "tahvel-hrv"})
-      agents_.push_back(std::make_unique<Process>(std::vector<std::string>{bin(name), dir_, "--idle", "300"},
-                                                  logs ? tmp_ + "/" + name + ".log" : ""));
+    for (const char* name : {"tahvel-rpeak", "tahvel-rr", "tahvel-hrv"}) {
+      std::vector<std::string> argv{bin(name), dir_, "--idle", "300"};
+      if (warm_up && std::string(name) == "tahvel-rpeak") argv.insert(argv.end(), {"--warm-up", std::to_string(*warm_up)});
+      agents_.push_back(std::make_unique<Process>(argv, logs ? tmp_ + "/" + name + ".log" : ""));
+    }
   }
 
   std::string agent_log(const std::string& program) {
@@ -139,22 +144,25 @@ class PipelineTest : public ::testing::Test {
   }
 
   // Starts the three processing agents, replays the record, waits for `windows` HRV items.
-  // With crash_after > 0, kills the three agents (SIGKILL) once that many R-peak items are on
-  // the board and starts them again.
-  void run_pipeline(std::size_t windows, std::uint64_t crash_after = 0) {
+  // With crash_after > 0, kills the three agents (SIGKILL) once that many R-peak items (HRV
+  // windows with `crash_after_windows`) are on the board and starts them again; these log
+  // (agent_log) and take `warm_up` as start_agents does. The source replays at `speed`.
+  void run_pipeline(std::size_t windows, std::uint64_t crash_after = 0, std::optional<int> warm_up = std::nullopt,
+                    bool crash_after_windows = false, const std::string& speed = "0") {
     const std::uint64_t before = node_->stats()->subscriptions;
     start_agents();
     // rpeak: chunks and ends; rr: peaks; hrv: intervals and its configuration.
     wait_until("the agents' subscriptions", [&] { return node_->stats()->subscriptions >= before + 5; });
     if (HasFatalFailure()) return;
-    Process source({bin("tahvel-ecg-source"), dir_, "--record", record_, "--speed", "0"});
+    Process source({bin("tahvel-ecg-source"), dir_, "--record", record_, "--speed", speed});
     if (crash_after > 0) {
       tn::Pattern rpeaks;
       rpeaks.p = agg::tv_term("peaks");
-      wait_until("R-peak items", [&] { return *node_->snapshot()->count(rpeaks) >= crash_after; });
+      const tn::Pattern counted = crash_after_windows ? hrv_items() : rpeaks;
+      wait_until("the items to crash after", [&] { return *node_->snapshot()->count(counted) >= crash_after; });
       if (HasFatalFailure()) return;
       for (auto& a : agents_) a->crash();
-      start_agents();
+      start_agents(true, warm_up);
     }
     wait_until(std::to_string(windows) + " HRV items", [&] { return *node_->snapshot()->count(hrv_items()) >= windows; });
     EXPECT_EQ(source.stop(), 0);
@@ -363,6 +371,42 @@ TEST_F(PipelineTest, CrashAndRestartChangeNothing) {
   }
 }
 
+// A restart two thirds into the record with --warm-up reads a warm-up of the signal before it
+// again, not the record from its start (a week-long recording read whole took minutes and GBs at
+// each restart), and here changes nothing: the R-peak agent resumes once the items its warm-up
+// gives agree with the board's, the HRV agent reads from shortly before its next window, and the
+// RR agent (whose input is small) replays its R-peak items.
+TEST_F(PipelineTest, ARestartReadsAWarmUpOfTheSignalBeforeItAndChangesNothing) {
+  auto expected = agg::hrv_from_record(record_);
+  ASSERT_TRUE(expected) << expected.error().message;
+  // Windows of 300 s: the crash comes past 1,200 s of signal, and the replay at 120 times real
+  // time leaves 5 s for the crash to come before the agents are done with the record.
+  run_pipeline(expected->windows.size(), 4, 120, true, "120");
+  ASSERT_FALSE(HasFatalFailure());
+  expect_windows(*expected);
+  auto peaks = derived<agg::RPeaks>("rpeaks", agg::read_rpeaks);
+  std::vector<std::int64_t> beats;
+  for (const auto& p : peaks) beats.insert(beats.end(), p.peaks.begin(), p.peaks.end());
+  std::sort(beats.begin(), beats.end());
+  EXPECT_EQ(beats, expected->beats);
+  const std::string log = agent_log("tahvel-rpeak");
+  std::smatch resumed;
+  ASSERT_TRUE(std::regex_search(log, resumed, std::regex("resumed at sample ([0-9]+) after reading ([0-9]+) chunk\\(s\\) again")))
+      << log;
+  EXPECT_GE(std::stoll(resumed[1]), 1200 * 360) << log;
+  EXPECT_LE(std::stoll(resumed[2]), 121) << "a warm-up of 120 s reads about 120 one-second chunks:\n" << log;
+  EXPECT_EQ(log.find("replayed"), std::string::npos) << log;
+  EXPECT_NE(agent_log("tahvel-rr").find("replayed"), std::string::npos) << agent_log("tahvel-rr");
+  // The HRV agent: from 300 s before the next window's start (900 s or later), not from 0.
+  const std::string hrv_log = agent_log("tahvel-hrv");
+  std::smatch m;
+  ASSERT_TRUE(std::regex_search(hrv_log, m, std::regex("replayed ([0-9]+) earlier RR item\\(s\\) of <[^>]+> from the board, "
+                                                       "from ([0-9.]+) s of signal")))
+      << hrv_log;
+  EXPECT_GE(std::stod(m[2]), 600) << hrv_log;
+  EXPECT_LT(std::stoll(m[1]), 900) << hrv_log;
+}
+
 // tahvel-hrv restarted between the recording's last RR item and its end (the RR item with
 // tv:endSample and no interval; a `down` stops hrv before the source) lost the recording's
 // last window: the end, the first item the new run saw, finished an empty windower.
@@ -405,8 +449,14 @@ TEST_F(PipelineTest, AnHrvAgentRestartedJustBeforeTheRecordingsEndStillWritesIts
   end_alone.intervals.clear();
   auto rr = node_->agent("rr");
   ASSERT_TRUE(rr);
+  // Asserted as tahvel-rr asserts its items, at the signal time of their first interval (the
+  // end alone at its sample): a restarted stage reads its inputs again by that time.
+  auto info = agg::read_recording(about(rec), rec);
+  ASSERT_TRUE(info) << info.error().message;
   if (!intervals.intervals.empty()) {
-    ASSERT_TRUE(rr->store(agg::rr_item(intervals)));
+    tn::Item item = agg::rr_item(intervals);
+    item.asserted_at = agg::signal_time_ns(*info, static_cast<double>(intervals.intervals.front().start) / info->fs);
+    ASSERT_TRUE(rr->store(item));
   }
   auto hrv = [&] { return std::make_unique<Process>(std::vector<std::string>{bin("tahvel-hrv"), dir_, "--idle", "300"}); };
   agents_.push_back(hrv());
@@ -414,7 +464,9 @@ TEST_F(PipelineTest, AnHrvAgentRestartedJustBeforeTheRecordingsEndStillWritesIts
   ASSERT_FALSE(HasFatalFailure());
   EXPECT_EQ(agents_.back()->stop(), 0);
   agents_.clear();
-  ASSERT_TRUE(rr->store(agg::rr_item(end_alone)));
+  tn::Item end_item = agg::rr_item(end_alone);
+  end_item.asserted_at = agg::signal_time_ns(*info, static_cast<double>(*end_alone.end_sample) / info->fs);
+  ASSERT_TRUE(rr->store(end_item));
   agents_.push_back(hrv());
   const auto deadline = std::chrono::steady_clock::now() + 30s;
   while (*node_->snapshot()->count(hrv_items()) < expected->windows.size() && std::chrono::steady_clock::now() < deadline)
@@ -713,6 +765,116 @@ TEST_F(PipelineTest, GapInTheChunksIsLoggedAndRestartsTheDetectorKeepingTheBeats
   EXPECT_EQ(before_gap, want_before);
   EXPECT_EQ(after_gap, want_after);
   EXPECT_GT(after_gap.size(), 50u);  // record 100 beats about 75 per minute
+}
+
+// A restarted R-peak agent takes the state of a warm-up only when the R-peak items it gives
+// agree with the board's: an item on the board that the detector would not give (here one
+// tampered with) makes it read further back, and at last replay the recording from its start;
+// either way each R-peak item is the one an uninterrupted detector gives.
+TEST_F(PipelineTest, ARestartedRPeakAgentReadsFurtherBackWhenItsWarmUpDisagreesWithTheBoard) {
+  auto signals = agg::read_signals(record_);
+  ASSERT_TRUE(signals) << signals.error().message;
+  const auto& h = signals->header;
+  agg::RecordingInfo info;
+  info.iri = kRecording;
+  info.sensor_iri = kNodeIri + "/ecg";
+  info.fs = h.fs;
+  info.gain = h.signals[0].gain;
+  info.baseline = h.signals[0].baseline;
+  for (const auto& sig : h.signals) info.leads.push_back(sig.description);
+  info.source = "mitdb/100";
+  info.started_at = std::int64_t{1'796'000'000} * 1'000'000'000;  // warm-ups read chunks by their signal time
+  const auto fs = static_cast<std::int64_t>(std::llround(info.fs));
+  const std::int64_t seconds = 1500;
+  ASSERT_GE(static_cast<std::int64_t>(signals->samples[0].size()), seconds * fs);
+
+  // What an uninterrupted detector gives per one-second chunk, and at the end.
+  agg::DetectorOptions options;
+  options.fs = info.fs;
+  options.gain = info.gain;
+  std::vector<std::vector<std::int64_t>> want(static_cast<std::size_t>(seconds + 1));
+  {
+    agg::RPeakDetector detector(options);
+    for (std::int64_t k = 0; k < seconds; ++k)
+      detector.push(signals->samples[0].data() + k * fs, static_cast<std::size_t>(fs), want[static_cast<std::size_t>(k)]);
+    detector.finish(want.back());
+  }
+
+  auto ecg = node_->agent("ecg");
+  ASSERT_TRUE(ecg);
+  ASSERT_TRUE(ecg->store(agg::recording_item(info)));
+  const auto write_chunks = [&](std::int64_t from, std::int64_t to) {
+    for (std::int64_t k = from; k < to; ++k) {
+      tn::Item chunk = agg::ecg_chunk_item(info, k * fs, signals->samples, static_cast<std::size_t>(k * fs), static_cast<std::size_t>(fs));
+      chunk.asserted_at = agg::signal_time_ns(info, static_cast<double>(k));
+      ASSERT_TRUE(ecg->store(chunk));
+    }
+  };
+  const auto run_rpeak_until = [&](std::int64_t chunks, const std::string& log) {
+    agents_.clear();
+    agents_.push_back(std::make_unique<Process>(
+        std::vector<std::string>{bin("tahvel-rpeak"), dir_, "--idle", "300", "--warm-up", "120"}, tmp_ + "/" + log));
+    wait_until("the R-peak item of chunk " + std::to_string(chunks - 1),
+               [&] { return !about(agg::rpeaks_iri(kRecording, (chunks - 1) * fs)).empty(); });
+    ASSERT_FALSE(HasFatalFailure());
+    EXPECT_EQ(agents_.back()->stop(), 0);
+    agents_.clear();
+  };
+  const auto log_of = [&](const std::string& name) {
+    std::ifstream in(tmp_ + "/" + name);
+    std::ostringstream text;
+    text << in.rdbuf();
+    return text.str();
+  };
+
+  write_chunks(0, 900);
+  run_rpeak_until(900, "first.log");
+  ASSERT_FALSE(HasFatalFailure());
+  // Stopped and started again: the warm-up of 120 s agrees, and is all it reads.
+  write_chunks(900, 1200);
+  run_rpeak_until(1200, "second.log");
+  ASSERT_FALSE(HasFatalFailure());
+  const std::string second = log_of("second.log");
+  EXPECT_NE(second.find("resumed at sample 324000 after reading 120 chunk(s) again from sample 280800"), std::string::npos) << second;
+
+  // The item of chunk 1190 changed on the board (in the half of the warm-up it compares): no
+  // warm-up agrees with it, so the agent reads further back and then replays the recording.
+  const std::string tampered = agg::rpeaks_iri(kRecording, 1190 * fs);
+  auto on_board = about(tampered);
+  ASSERT_FALSE(on_board.empty());
+  auto original = node_->snapshot()->item(on_board.front().meta.item);
+  ASSERT_TRUE(original);
+  auto changed = agg::read_rpeaks(*original);
+  ASSERT_TRUE(changed) << changed.error().message;
+  changed->peaks.push_back(1190 * fs + 5);
+  ASSERT_TRUE(node_->remove_item(on_board.front().meta.item));
+  auto writer = node_->agent("rpeak");
+  ASSERT_TRUE(writer);
+  tn::Item replaced = agg::rpeak_item(*changed);
+  replaced.asserted_at = agg::signal_time_ns(info, 1190);
+  ASSERT_TRUE(writer->store(replaced));
+  write_chunks(1200, seconds);
+  ASSERT_FALSE(HasFatalFailure());
+  ASSERT_TRUE(ecg->store(agg::recording_end_item(kRecording, seconds * fs)));
+  run_rpeak_until(seconds + 1, "third.log");
+  ASSERT_FALSE(HasFatalFailure());
+  const std::string third = log_of("third.log");
+  EXPECT_NE(third.find("a warm-up from sample 388800 found other peaks than <" + tampered + "> on the board; reading further back"),
+            std::string::npos)
+      << third;
+  EXPECT_NE(third.find("replayed 1200 earlier chunk(s) of <" + kRecording + "> from the board, up to sample 432000"),
+            std::string::npos)
+      << third;
+  EXPECT_EQ(third.find("resumed at sample"), std::string::npos) << third;
+
+  // Every item but the one changed is the uninterrupted detector's, each once.
+  auto items = derived<agg::RPeaks>("rpeaks", agg::read_rpeaks);
+  ASSERT_EQ(items.size(), static_cast<std::size_t>(seconds + 1));
+  for (const auto& item : items) {
+    const std::size_t k = item.end_sample ? want.size() - 1 : static_cast<std::size_t>(item.from_sample / fs);
+    if (item.iri == tampered) continue;
+    EXPECT_EQ(item.peaks, want[k]) << item.iri;
+  }
 }
 
 // `--help` is how an operator finds an agent's flags: the usage on standard output, status 0
