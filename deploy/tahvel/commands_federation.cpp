@@ -913,20 +913,23 @@ std::vector<ProgramRow> read_state_files(const fs::path& dir) {
 
 const Command kUpCommand{
     "up",
-    "FILE [--state DIR] [--node ID] [--foreground]",
+    "FILE [--state DIR] [--node ID] [--foreground] [--check]",
     "Bring up a deployment (or one node of it) from a topology file.",
     "Creates each node's store at DIR/<node id> when missing (IRI, durability and ring from the\n"
     "file), then starts every node's link and agents under a supervisor that restarts dead ones\n"
     "with back-off and logs why they died (DIR/logs/). With --node only that node (one machine of\n"
     "a real deployment). The supervisor runs in the background until 'tahvel down'; with\n"
-    "--foreground it stays attached until SIGINT/SIGTERM. The file format is docs/deploy.md.\n"
+    "--foreground it stays attached until SIGINT/SIGTERM. With --check it checks all it would\n"
+    "check before making anything (the file, the files it names, the stores there) and stops,\n"
+    "status 0, having made and started nothing. The file format is docs/deploy.md.\n"
     "\n"
     "Exit status 6: refused as things stand (the file or a file it names, a store of another\n"
     "node or that this user may not write, a supervisor already running: the message says which\n"
     "and where); no node was started or changed. 2: a bad command line. 1: any other failure (a\n"
     "file refused by a running supervisor asked to apply it, too).",
     {kFlagState, {"--node", "", "ID", "bring up only this node"},
-     {"--foreground", "", "", "run the supervisor in this process"}},
+     {"--foreground", "", "", "run the supervisor in this process"},
+     {"--check", "", "", "check the file and what it names, make and start nothing"}},
     1, 1, false};
 
 namespace {
@@ -998,6 +1001,27 @@ void warn_of_unknown_terms(const NodeSpec& spec, std::size_t i, const node::Patt
     if (auto near = nearest_tahvel_term(local)) std::cerr << "; did you mean tv:" << *near << "?";
     else std::cerr << ".";
     std::cerr << " Only items that an agent of the deployment's own writes with it will go up\n";
+  }
+}
+
+// Refuses a `forward` pattern of a node another machine brings up that is wrong whatever its
+// store's prefixes (not three terms, a blank node, a literal not closed): it passed `up --node`
+// on every machine but its node's, which then would not start. A CURIE of a prefix the standard
+// ones lack is left to that machine, whose store may define it.
+void refuse_malformed_patterns_of_others(const Topology& topo, const std::vector<const NodeSpec*>& mine) {
+  const uri::PrefixMap standard = uri::PrefixMap::standard();
+  const auto prefix_of_its_own = [&](const std::string& term) {
+    const std::size_t colon = term.find(':');
+    return colon != std::string::npos && term[0] != '<' && term[0] != '"' && !term.starts_with("_:") &&
+           standard.entries().count(term.substr(0, colon)) == 0;
+  };
+  for (const NodeSpec& spec : topo.nodes) {
+    if (std::find(mine.begin(), mine.end(), &spec) != mine.end()) continue;
+    for (std::size_t i = 0; i < spec.forward.size(); ++i) {
+      const std::vector<std::string> terms = pattern_terms(spec.forward[i]);
+      if (terms.size() == 3 && std::any_of(terms.begin(), terms.end(), prefix_of_its_own)) continue;
+      (void)forward_pattern_of(spec, i, standard);
+    }
   }
 }
 
@@ -2075,6 +2099,7 @@ int up_checked(const Args& args, bool& checking) {
       for (const fs::path& file : spec->load) (void)load_file_triples(*spec, file, prefixes, topo);
     }
   }
+  refuse_malformed_patterns_of_others(topo, mine);
   const CommandContext here = CommandContext::of_this_process();
   CommandContext here_for_file = here;
   here_for_file.dir = fs::absolute(topo.file).lexically_normal().parent_path();
@@ -2095,6 +2120,13 @@ int up_checked(const Args& args, bool& checking) {
     }
   }
   warn_of_dataflow(topo, mine);
+  if (args.has("--check")) {
+    std::string ids;
+    for (const NodeSpec* spec : mine) ids += (ids.empty() ? "" : ", ") + spec->id;
+    std::cout << "up: " << topo.file.string() << ": checked " << mine.size() << (mine.size() == 1 ? " node" : " nodes") << " (" << ids
+              << ") as this machine would bring " << (mine.size() == 1 ? "it" : "them") << " up; nothing made or started (--check)\n";
+    return 0;
+  }
   checking = false;
   // Only now, with everything checked: a refused file leaves no state directory behind.
   std::error_code ec;

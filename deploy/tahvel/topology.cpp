@@ -445,6 +445,10 @@ node::Result<Topology> load_topology(const std::filesystem::path& file) {
     spec.parent = parent.value_or("");
     spec.at = where(*t, file);
     spec.parent_at = t->get("parent") ? where(*t->get("parent"), file) : spec.at;
+    // An empty parent is a slip, not a root: a root has no `parent` key.
+    if (parent && parent->empty())
+      return node::fail(Errc::invalid_argument, spec.parent_at + ": " + what +
+                                                    "parent is empty: give the parent node's id, or leave the key out for a root");
     spec.iri_at = t->get("iri") ? where(*t->get("iri"), file) : spec.at;
     spec.load_at = t->get("load") ? where(*t->get("load"), file) : spec.at;
     TAHVEL_TRY(up, typed<std::string>(*t, "up", file, what, "\"lcm\" or \"dds\" (which of its parent's listen it links over)"));

@@ -4068,6 +4068,9 @@ TEST_F(Cli, UpRefusesATopologyThatCouldNotRunAsWrittenNamingWhatAndWhere) {
        "t.toml:7:7: nodes 'hospital' and 'h2' have the same IRI <http://example.org/hospital>"},
       // Errors about parents, found once every node is read, name the line too.
       {hospital + "[[node]]\nid = \"home1\"\nparent = \"hospitl\"\n", "t.toml:6:10: node 'home1': parent 'hospitl' is not a node of this file"},
+      // Not "has no parent, so it is a root": the file gives one, empty.
+      {hospital + "[[node]]\nid = \"home1\"\nparent = \"\"\n",
+       "t.toml:6:10: node 'home1': parent is empty: give the parent node's id, or leave the key out for a root"},
       {hospital + "[[node]]\nid = \"home1\"\nparent = \"hospital\"\n",
        "t.toml:1:1: node 'hospital' has children (node 'home1') but no listen"},
       // A pattern of the file is named as the file writes it, not as a command-line flag.
@@ -4147,6 +4150,31 @@ TEST_F(Cli, UpRefusesATopologyThatCouldNotRunAsWrittenNamingWhatAndWhere) {
     EXPECT_NE(up.err.find(expected), std::string::npos) << "expected: " << expected << "\ngot: " << up.err;
     EXPECT_FALSE(fs::exists(tmp_ / "state")) << text;
   }
+}
+
+// `up --node` checks the other nodes' `forward` patterns too: one of two terms passed on every
+// machine but its node's, which then would not start. A CURIE of a prefix outside the standard
+// ones is that node's machine's to read, with its store's prefixes.
+TEST_F(Cli, UpNodeRefusesAnotherNodesForwardPatternOfTheWrongShape) {
+  spit(tmp_ / "dds.xml", "<CycloneDDS/>\n");
+  const std::string file = "[[node]]\nid = \"hospital\"\niri = \"http://example.org/hospital\"\n"
+                           "listen = { kind = \"dds\", config = \"dds.xml\" }\n[[node]]\nid = \"home1\"\nparent = \"hospital\"\n";
+  spit(tmp_ / "t.toml", file + "forward = [\"_ sosa:observedProperty\"]\n");
+  Outcome up = run({"up", (tmp_ / "t.toml").string(), "--node", "hospital", "--state", (tmp_ / "state").string()});
+  EXPECT_EQ(up.status, kUpRefused);
+  EXPECT_NE(up.err.find("t.toml:8:12: node 'home1': forward: pattern '_ sosa:observedProperty': write three terms 'S P O', "
+                        "'_' for any (found 2)"),
+            std::string::npos)
+      << up.err;
+  EXPECT_FALSE(fs::exists(tmp_ / "state"));
+  spit(tmp_ / "t.toml", file + "forward = [\"_:b a _\"]\n");
+  up = run({"up", (tmp_ / "t.toml").string(), "--node", "hospital", "--state", (tmp_ / "state").string()});
+  EXPECT_EQ(up.status, kUpRefused);
+  EXPECT_NE(up.err.find("node 'home1': forward: pattern '_:b a _': the subject _:b is a blank node"), std::string::npos) << up.err;
+  // A prefix of home1's own store: not refused here (checked with --check, which starts nothing).
+  spit(tmp_ / "t.toml", file + "forward = [\"_ ex:kind _\"]\n");
+  up = run({"up", (tmp_ / "t.toml").string(), "--node", "hospital", "--check", "--state", (tmp_ / "state").string()});
+  EXPECT_EQ(up.status, 0) << up.err;
 }
 
 // A DDS link without listen.config reads Cyclone's configuration from CYCLONEDDS_URI (the unit
