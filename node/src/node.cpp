@@ -142,6 +142,7 @@ Snapshot& Snapshot::operator=(Snapshot&&) noexcept = default;
 Snapshot::~Snapshot() = default;
 
 Result<std::vector<Record>> Snapshot::list(const Pattern& pattern, const ListOptions& options) const {
+  if (!impl_) return moved_from();
   Query query(impl_->txn, *impl_->env);
   auto ids = query.collect(pattern, options);
   if (!ids) return unexpected(ids.error());
@@ -149,6 +150,7 @@ Result<std::vector<Record>> Snapshot::list(const Pattern& pattern, const ListOpt
 }
 
 Result<void> Snapshot::for_each(const Pattern& pattern, const std::function<bool(const Record&)>& visit) const {
+  if (!impl_) return moved_from();
   Query query(impl_->txn, *impl_->env);
   std::optional<Error> failure;
   auto walked = query.for_each(pattern, [&](std::uint64_t id, const RecordRow& row) {
@@ -165,6 +167,7 @@ Result<void> Snapshot::for_each(const Pattern& pattern, const std::function<bool
 }
 
 Result<std::uint64_t> Snapshot::count(const Pattern& pattern) const {
+  if (!impl_) return moved_from();
   Query query(impl_->txn, *impl_->env);
   std::uint64_t n = 0;
   auto walked = query.for_each(pattern, [&](std::uint64_t, const RecordRow&) { ++n; return true; });
@@ -195,6 +198,7 @@ Result<void> for_each_key(MDB_txn* txn, MDB_dbi dbi, const std::string& what, Vi
 }  // namespace
 
 Result<std::vector<PredicateSummary>> Snapshot::predicates() const {
+  if (!impl_) return moved_from();
   MDB_txn* txn = impl_->txn;
   const Env& env = *impl_->env;
   auto asserted_at = [&](const MDB_val& record) -> Result<std::int64_t> {
@@ -233,6 +237,7 @@ Result<std::vector<PredicateSummary>> Snapshot::predicates() const {
 }
 
 Result<std::vector<InputBufferSummary>> Snapshot::input_buffers() const {
+  if (!impl_) return moved_from();
   MDB_txn* txn = impl_->txn;
   const Env& env = *impl_->env;
   TermReader terms(txn, env);
@@ -257,11 +262,12 @@ Result<std::vector<InputBufferSummary>> Snapshot::input_buffers() const {
 }
 
 Result<std::vector<Record>> Snapshot::item(std::uint64_t item_id) const {
+  if (!impl_) return moved_from();
   return item_records(impl_->txn, *impl_->env, item_id);
 }
 
-std::uint64_t Snapshot::last_seq() const { return impl_->last_seq; }
-std::uint64_t Snapshot::notice_seqs() const { return impl_->notice_seqs; }
+std::uint64_t Snapshot::last_seq() const { return impl_ ? impl_->last_seq : 0; }
+std::uint64_t Snapshot::notice_seqs() const { return impl_ ? impl_->notice_seqs : 0; }
 
 // ---------------------------------------------------------------------------------------------
 // Agent
@@ -1624,7 +1630,10 @@ Result<std::vector<Change>> Node::watch(std::uint64_t bookmark, std::chrono::mil
         const std::uint64_t reclaimed = u64(rv);
         if (reclaimed > bookmark) {
           Change gap{reclaimed, true, {}, {}, true};
-          gap.unreadable = "records with ids from " + std::to_string(bookmark + 1) + " to " + std::to_string(reclaimed) +
+          // "Some": a persistent record, or one waiting in a buffer, within the range is kept,
+          // and is listed (a developer read "ids from 1 to 12 were reclaimed" after records 6
+          // and 7, still there).
+          gap.unreadable = "some records with ids from " + std::to_string(bookmark + 1) + " to " + std::to_string(reclaimed) +
                            " were reclaimed (the ring, or a time-to-live) before they were read: those are not "
                            "listed here; read the board again";
           changes.push_back(std::move(gap));

@@ -143,6 +143,20 @@ TEST(Store, AHandleMovedFromGivesAnErrorNotACrash) {
   EXPECT_FALSE(node.wait_for_commit([] { return false; }, std::chrono::milliseconds(1)));
   EXPECT_TRUE(node.wait_for_commit([] { return true; }, std::chrono::milliseconds(1)));
   EXPECT_FALSE(other.dir().empty());
+  // A snapshot moved from, too (a developer's probe of session 86: a segmentation fault).
+  auto snapshot = other.snapshot();
+  ASSERT_TRUE(snapshot);
+  Snapshot kept = std::move(*snapshot);
+  const auto listed = snapshot->list({});
+  ASSERT_FALSE(listed);
+  EXPECT_NE(listed.error().message.find("moved from"), std::string::npos) << listed.error().message;
+  EXPECT_FALSE(snapshot->count({}));
+  EXPECT_FALSE(snapshot->item(1));
+  EXPECT_FALSE(snapshot->predicates());
+  EXPECT_FALSE(snapshot->input_buffers());
+  EXPECT_FALSE(snapshot->for_each({}, [](const Record&) { return true; }));
+  EXPECT_EQ(snapshot->last_seq(), 0u);
+  EXPECT_TRUE(kept.count({}));
 }
 
 TEST(Store, ACascadeTakesWhatLiesWithinItsDepthOfAnyMatchWhateverTheOrder) {

@@ -3,7 +3,7 @@
 //
 //   auto node = Node::open("state/home1");            // every process opens the same directory
 //   auto hrv = node->agent("hrv");                    // IRI = node IRI + "/hrv"; fixes `source`
-//   hrv->subscribe({.p = Term::iri(tv + "rr")});      // a subscription is triples on the board
+//   if (!hrv->subscribe({.p = Term::iri(tv + "rr")})) ...   // a subscription: triples on the board
 //   for (;;) if (auto d = hrv->take(1000ms); d && *d) { ... }   // input buffer, woken by futex
 //   hrv->store(item);                                 // atomic item, routed to subscribers
 //
@@ -453,7 +453,8 @@ class Agent {
   // since, until and after_id must be unset. Returns the
   // subscription's item id. Subscribing again with the same pattern (an agent restarted by its
   // supervisor) returns the existing subscription instead of adding another, and delivers
-  // nothing more.
+  // nothing more. Errors: invalid_argument (a blank node or literal as subject, since, until,
+  // under or after_id set), invalid_iri, store_full, io.
   Result<std::uint64_t> subscribe(const Pattern& pattern, const SubscribeOptions& options = {});
 
   // Removes one of this agent's subscriptions (by the id subscribe returned). Items it routed
