@@ -733,6 +733,7 @@ struct Link::Impl {
   struct InStream {  // answer chunks this node receives from a child
     bool forward_up = false;
     std::string child;
+    std::string target;  // the node asked, the child or one below it: named in errors (P15)
     std::string reply_to;
     std::uint64_t expected = 1;
     // Chunks passed on: acknowledged by the parent, or at the origin taken off the board by the
@@ -2490,6 +2491,7 @@ struct Link::Impl {
         InStream& in = in_answers[key];
         in.forward_up = true;
         in.child = child_iri;
+        in.target = q->target;
         in.query_frame = down;
         in.sent = Clock::now();
         out.add(via_to(child_iri), std::move(down));
@@ -2807,7 +2809,13 @@ struct Link::Impl {
       f.seq = in.query_frame.seq;
       const std::string when = in.expected <= 1 ? " before its first answer chunk"
                                                 : " after " + std::to_string(in.expected - 1) + " answer chunk(s)";
-      f.body = wire::encode_error({code, why + when, key.substr(0, key.rfind('#'))});
+      // The node asked is named too when it lies below the child: "<home1> (on the way to
+      // <home1/ecg1>) went silent", as the other errors of P15 say it.
+      const std::string asked = in.target.empty() || in.target == child_iri ? "" : " (on the way to <" + in.target + ">)";
+      std::string said = why;
+      if (const std::string child_named = "<" + child_iri + ">"; !asked.empty() && said.starts_with(child_named))
+        said.insert(child_named.size(), asked);
+      f.body = wire::encode_error({code, said + when, key.substr(0, key.rfind('#'))});
       if (in.forward_up) {
         f.to = opt.parent_iri;
         answers_up.add(opt.up.get(), std::move(f));
@@ -3337,6 +3345,7 @@ struct Link::Impl {
     const std::string key = query_key(self, d.item);
     InStream& in = in_answers[key];
     in.reply_to = reply_to ? reply_to->value : std::string();
+    in.target = q.target;
     if (auto why = unservable_by(child.iri, q)) {
       in.done = true;
       Frame error;
