@@ -762,6 +762,22 @@ std::int64_t time_flag(std::string_view flag, const std::string& text) {
     return static_cast<std::int64_t>(*n);
   }
   const std::string form = "give ns since the epoch or an RFC 3339 time like 2026-11-21T10:00:00Z";
+  // Seconds with a fraction (`date +%s.%N`), or a number with a unit, are neither form: said with
+  // the ns they would be, not as a date that lacks its '-' after the year.
+  const std::size_t digits_end = text.find_first_not_of("0123456789");
+  if (digits_end != 0 && digits_end != std::string::npos) {
+    const std::string whole = text.substr(0, digits_end), rest = text.substr(digits_end);
+    const bool fraction = rest.size() > 1 && rest[0] == '.' && rest.size() <= 10 &&
+                          rest.find_first_not_of("0123456789", 1) == std::string::npos;
+    if (fraction)
+      usage_error(what + "seconds with a fraction are not read: give ns since the epoch (" + whole + rest.substr(1) +
+                  std::string(10 - rest.size(), '0') + " for these seconds) or an RFC 3339 time like 2026-11-21T10:00:00.5Z");
+    static const std::pair<const char*, std::size_t> units[] = {{"ns", 0}, {"us", 3}, {"ms", 6}, {"s", 9}};
+    for (const auto& [unit, zeros] : units)
+      if (rest == unit)
+        usage_error(what + "a unit is not read: give ns since the epoch as digits alone (" + whole + std::string(zeros, '0') +
+                    ") or an RFC 3339 time like 2026-11-21T10:00:00Z");
+  }
   std::size_t at = 0;
   // Where the text leaves the form, and what was wanted there: "+0200" (what `date +%z` prints)
   // or a time without seconds got the form alone, and the operator had to find the fault.

@@ -3672,6 +3672,22 @@ TEST_F(Cli, QueryTimesAreCheckedAndHonourTheirOffset) {
   r = query("--until", "2026-11-21T10:00Z");
   EXPECT_EQ(r.status, 2);
   EXPECT_NE(r.err.find("at column 17: expected ':' and the seconds after the minute, found 'Z'"), std::string::npos) << r.err;
+  // Seconds with a fraction (`date +%s.%N`) and numbers with a unit got "expected '-' after the
+  // year" (an operator's probe of session 86): said as what they are, with the ns they would be.
+  r = query("--since", "1796659563.5");
+  EXPECT_EQ(r.status, 2);
+  EXPECT_NE(r.err.find("--since '1796659563.5': seconds with a fraction are not read: give ns since the epoch "
+                       "(1796659563500000000 for these seconds)"),
+            std::string::npos)
+      << r.err;
+  r = query("--until", "1796659563269357865ns");
+  EXPECT_EQ(r.status, 2);
+  EXPECT_NE(r.err.find("--until '1796659563269357865ns': a unit is not read: give ns since the epoch as digits alone (1796659563269357865)"),
+            std::string::npos)
+      << r.err;
+  r = query("--since", "1796659563s");
+  EXPECT_EQ(r.status, 2);
+  EXPECT_NE(r.err.find("(1796659563000000000)"), std::string::npos) << r.err;
   r = run({"query", node_, "--at", kNodeIri, "--since", "2026-11-21T11:00:00Z", "--until", "2026-11-21T10:00:00Z"});
   EXPECT_EQ(r.status, 2);
   EXPECT_NE(r.err.find("is not after --since"), std::string::npos) << r.err;
