@@ -256,25 +256,30 @@ class HrvStage {
     return it == streams_.end() ? nullptr : &it->second;
   }
 
-  // The last window this agent wrote of the recording (the one ending last), if any: its end
-  // values alone are read, not the windows.
+  // The last window this agent wrote of the recording (the one ending last), if any: found by
+  // the recording (its windows derive from it), only their ends read, then that window.
   agg::Result<std::optional<agg::WindowMetrics>> last_window_written(const Stream& s) {
     auto snapshot = session_.node.snapshot();
     if (!snapshot) return agg::fail("snapshot: " + snapshot.error().message);
-    auto ends = snapshot->list({.p = agg::tv_term("windowEndS"), .source = session_.agent.iri(), .under = s.info.iri});
-    if (!ends) return agg::fail("list: " + ends.error().message);
-    const tn::Record* last = nullptr;
+    auto derived = snapshot->list({.p = tn::Term::iri(agg::kProvDerivedFrom), .o = tn::Term::iri(s.info.iri),
+                                   .source = session_.agent.iri()});
+    if (!derived) return agg::fail("list: " + derived.error().message);
+    std::optional<std::uint64_t> last;
     double last_end = 0;
-    for (const tn::Record& r : *ends) {
+    for (const tn::Record& r : *derived) {
+      auto ends = snapshot->list({.s = r.triple.s, .p = agg::tv_term("windowEndS")}, {.limit = 1});
+      if (!ends) return agg::fail("list: " + ends.error().message);
+      if (ends->empty()) continue;
       char* stop = nullptr;
-      const double end = std::strtod(r.triple.o.value.c_str(), &stop);
-      if (stop == r.triple.o.value.c_str() || !(end > last_end || !last)) continue;
-      last = &r;
+      const std::string& text = ends->front().triple.o.value;
+      const double end = std::strtod(text.c_str(), &stop);
+      if (stop == text.c_str() || (last && !(end > last_end))) continue;
+      last = r.meta.item;
       last_end = end;
     }
     if (!last) return std::optional<agg::WindowMetrics>();
-    auto item = snapshot->item(last->meta.item);
-    if (!item) return agg::fail("item " + std::to_string(last->meta.item) + ": " + item.error().message);
+    auto item = snapshot->item(*last);
+    if (!item) return agg::fail("item " + std::to_string(*last) + ": " + item.error().message);
     auto window = agg::read_hrv_window(*item);
     if (!window) return agg::fail(window.error().message);
     return std::optional<agg::WindowMetrics>(window->window);
@@ -285,8 +290,10 @@ class HrvStage {
   agg::Result<void> for_each_rr(const Stream& s, double from_s, std::int64_t upto,
                                 const std::function<bool(const agg::RrSeries&)>& each) {
     auto since = agg::signal_time_ns(s.info, from_s);
+    // No bound (an RR item without intervals or end first after a restart): read whole, not page
+    // by empty page up to the year 2262.
     const auto until = upto == std::numeric_limits<std::int64_t>::max()
-                           ? std::optional<std::int64_t>(std::numeric_limits<std::int64_t>::max())
+                           ? std::nullopt
                            : agg::signal_time_ns(s.info, static_cast<double>(upto) / s.info.fs + 1);
     const auto usable = [&](const agg::Result<agg::RrSeries>& rr) {
       return rr && !rr->intervals.empty() && rr->intervals.back().end <= upto;
@@ -296,7 +303,7 @@ class HrvStage {
         auto rr = agg::read_rr(records);
         return !usable(rr) || each(*rr);
       });
-    // A recording without its start time: its items are not at signal times.
+    // A recording without its start time: its items are not at signal times. Read whole.
     auto items = rt::recording_items(session_.node, s.info.iri);
     if (!items) return agg::fail(items.error().message);
     std::map<std::int64_t, agg::RrSeries> earlier;
@@ -322,7 +329,8 @@ class HrvStage {
     constexpr double kMarginS = 300;
     // Where the next window starts at the earliest (HrvWindower::resume_after).
     const double next_start = *last_written ? (*last_written)->end_s - config_.window_s : 0;
-    double from_s = std::max(0.0, next_start - kMarginS);
+    const bool paged = s.info.started_at && upto != std::numeric_limits<std::int64_t>::max();  // for_each_rr
+    double from_s = paged ? std::max(0.0, next_start - kMarginS) : 0;
     std::size_t replayed = 0;
     rt::Outcome outcome;
     const std::string recording = s.info.iri;  // the recording's end closes its stream, s with it
@@ -333,12 +341,16 @@ class HrvStage {
           too_late = true;  // no interval ends in the margin: read from the start
           return false;
         }
+        // An item held twice (a dump loaded back), skipped as the live path skips it.
+        if (rr.intervals.front().end <= s.last_end) return true;
         ++replayed;
         outcome = process(s, rr, true);
         return !outcome.fatal && streams_.count(recording) != 0;
       });
       if (!read) return rt::Outcome::error("catch up <" + recording + ">: " + read.error().message);
-      if (!too_late) break;
+      // Nothing read after the margin's start is nothing known of it: an interval longer than
+      // the margin (a flat signal for minutes) began before it and may end in the next window.
+      if (!too_late && (replayed > 0 || from_s == 0)) break;
       from_s = 0;
     }
     if (outcome.fatal || replayed == 0) return outcome;

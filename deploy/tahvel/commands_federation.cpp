@@ -1009,18 +1009,20 @@ void warn_of_unknown_terms(const NodeSpec& spec, std::size_t i, const node::Patt
 // on every machine but its node's, which then would not start. A CURIE of a prefix the standard
 // ones lack is left to that machine, whose store may define it.
 void refuse_malformed_patterns_of_others(const Topology& topo, const std::vector<const NodeSpec*>& mine) {
-  const uri::PrefixMap standard = uri::PrefixMap::standard();
-  const auto prefix_of_its_own = [&](const std::string& term) {
-    const std::size_t colon = term.find(':');
-    return colon != std::string::npos && term[0] != '<' && term[0] != '"' && !term.starts_with("_:") &&
-           standard.entries().count(term.substr(0, colon)) == 0;
-  };
   for (const NodeSpec& spec : topo.nodes) {
     if (std::find(mine.begin(), mine.end(), &spec) != mine.end()) continue;
     for (std::size_t i = 0; i < spec.forward.size(); ++i) {
-      const std::vector<std::string> terms = pattern_terms(spec.forward[i]);
-      if (terms.size() == 3 && std::any_of(terms.begin(), terms.end(), prefix_of_its_own)) continue;
-      (void)forward_pattern_of(spec, i, standard);
+      // The pattern read with every prefix it names that the standard ones lack standing for a
+      // namespace of its own: all else about it (three terms, no blank node, literals closed)
+      // is checked as on its node's machine.
+      uri::PrefixMap prefixes = uri::PrefixMap::standard();
+      for (const std::string& term : pattern_terms(spec.forward[i])) {
+        const std::size_t colon = term.find(':');
+        if (colon == std::string::npos || term[0] == '<' || term[0] == '"' || term.starts_with("_:")) continue;
+        if (const std::string prefix = term.substr(0, colon); prefixes.entries().count(prefix) == 0)
+          (void)prefixes.add(prefix, "http://prefix.invalid/" + std::to_string(prefixes.entries().size()) + "/");
+      }
+      (void)forward_pattern_of(spec, i, prefixes);
     }
   }
 }

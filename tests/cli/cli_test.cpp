@@ -4187,10 +4187,17 @@ TEST_F(Cli, UpNodeRefusesAnotherNodesForwardPatternOfTheWrongShape) {
   up = run({"up", (tmp_ / "t.toml").string(), "--node", "hospital", "--state", (tmp_ / "state").string()});
   EXPECT_EQ(up.status, kUpRefused);
   EXPECT_NE(up.err.find("node 'home1': forward: pattern '_:b a _': the subject _:b is a blank node"), std::string::npos) << up.err;
-  // A prefix of home1's own store: not refused here (checked with --check, which starts nothing).
+  // A prefix of home1's own store is not refused here, but a blank node beside it is.
+  spit(tmp_ / "t.toml", file + "forward = [\"_:b ex:kind _\"]\n");
+  up = run({"up", (tmp_ / "t.toml").string(), "--node", "hospital", "--state", (tmp_ / "state").string()});
+  EXPECT_EQ(up.status, kUpRefused);
+  EXPECT_NE(up.err.find("node 'home1': forward: pattern '_:b ex:kind _': the subject _:b is a blank node"), std::string::npos) << up.err;
   spit(tmp_ / "t.toml", file + "forward = [\"_ ex:kind _\"]\n");
   up = run({"up", (tmp_ / "t.toml").string(), "--node", "hospital", "--check", "--state", (tmp_ / "state").string()});
   EXPECT_EQ(up.status, 0) << up.err;
+  // --check made nothing and started nothing.
+  EXPECT_NE(up.out.find("checked 1 node (hospital)"), std::string::npos) << up.out;
+  EXPECT_FALSE(fs::exists(tmp_ / "state"));
 }
 
 // A DDS link without listen.config reads Cyclone's configuration from CYCLONEDDS_URI (the unit
