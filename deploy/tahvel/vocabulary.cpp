@@ -77,6 +77,7 @@ constexpr std::array kTerms = {
     std::string_view("light"),
     std::string_view("lightAt"),
     std::string_view("linkConflict"),
+    std::string_view("linkLeft"),
     std::string_view("linkState"),
     std::string_view("loadDigest"),
     std::string_view("loadFile"),

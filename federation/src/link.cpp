@@ -3955,6 +3955,7 @@ struct Link::Impl {
       item.add(c, node::Term::iri(vocab::kChildStoreId), node::Term::literal(store));
     if (const std::string conflict = child.flips.said(); !conflict.empty())
       item.add(c, node::Term::iri(vocab::kLinkConflict), node::Term::literal(conflict));
+    if (!child.connected && child.left) item.add(c, node::Term::iri(vocab::kLinkLeft), node::Term::literal("true", std::string(node::xsd::kBoolean)));
     return item;
   }
 };

@@ -176,6 +176,7 @@ Result<std::uint64_t> remote_query(node::Node& node, const RemoteQuery& query,
   for (;;) {
     if (cancelled && cancelled()) return node::fail(Errc::io, "cancelled before anything was asked of <" + *target + ">");
     std::string child_state;
+    bool child_left = false;  // down because its link said it was stopping (P12c)
     {  // the snapshot is not held while waiting
       auto snap = node.snapshot();
       if (!snap) return Unexpected<Error>{snap.error()};
@@ -212,6 +213,8 @@ Result<std::uint64_t> remote_query(node::Node& node, const RemoteQuery& query,
         return node::fail(Errc::not_found, "unknown node <" + *target + ">: <" + self + "> has no child <" + child + ">" + hint);
       }
       child_state = state->back().triple.o.value;
+      auto left = snap->list({.s = Term::iri(child), .p = Term::iri(vocab::kLinkLeft), .source = state->back().meta.source});
+      child_left = left && !left->empty() && left->back().triple.o.value == "true";
     }
     const LinkSeen link = link_serving(node.dir());
     if (link.stopped_pid)
@@ -237,7 +240,8 @@ Result<std::uint64_t> remote_query(node::Node& node, const RemoteQuery& query,
                                       "else start it ('tahvel up')");
     return node::fail(Errc::io, "unreachable: <" + child + ">" + (child == *target ? "" : " (on the way to <" + *target + ">)") +
                                     (child_state == "never connected" ? " has never connected to <" + self + ">"
-                                                                      : " is " + child_state + " at <" + self + ">"));
+                                                                      : " is " + child_state + " at <" + self + ">") +
+                                    (child_state == "down" && child_left ? " (its link was stopped: it said so as it left)" : ""));
   }
   static std::atomic<int> counter{0};
   auto agent = node.agent("query-" + std::to_string(getpid()) + "-" + std::to_string(++counter));

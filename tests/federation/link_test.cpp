@@ -3002,6 +3002,25 @@ TEST(Link, AQueryAskedBeforeTheChildrenGreetANewRunOfTheOriginsLinkWaitsForThem)
   EXPECT_TRUE(asked) << asked.error().message;
 }
 
+// P12c: a child whose link said it was stopping is "down" with tv:linkLeft on the board, and a
+// query for it asked by another process says why, as the link says it of a node further down
+// (an operator's probe of session 86: `down --node home2` read as a crash), until it is back.
+TEST(Link, AQueryForAChildWhoseLinkSaidItLeftSaysSo) {
+  Tree tree;
+  ASSERT_TRUE(tree.start_hospital_and_home1());
+  auto hospital = node::Node::open(tree.hospital_dir).value();
+  tree.home1.reset();  // says it leaves (say_leaving)
+  ASSERT_TRUE(eventually([&] { return count(tree.hospital_dir, {.s = Term::iri(kHome1), .p = Term::iri(vocab::kLinkLeft)}) == 1; }));
+  auto asked = remote_query(hospital, {.target = kHome1}, 5s, [](const node::Record&) {});
+  ASSERT_FALSE(asked);
+  EXPECT_EQ(asked.error().message,
+            "unreachable: <" + kHome1 + "> is down at <" + kHospital + "> (its link was stopped: it said so as it left)");
+  // Back: the mark goes with the "down".
+  tree.home1 = tree.start_home(tree.home1_dir, kHome1, tree.home1_log);
+  ASSERT_TRUE(eventually([&] { return state_says_up(tree.hospital_dir, kHome1); }));
+  EXPECT_TRUE(eventually([&] { return count(tree.hospital_dir, {.s = Term::iri(kHome1), .p = Term::iri(vocab::kLinkLeft)}) == 0; }));
+}
+
 TEST(Link, ParentChangesAChildsForwardingPolicyBySendingASubscriptionDown) {
   Tree tree;
   tree.hospital = tree.start_hospital();

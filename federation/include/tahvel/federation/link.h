@@ -52,6 +52,9 @@ inline const std::string kParentStoreId = std::string(kTv) + "parentStoreId";
 inline const std::string kUplinkRefusal = std::string(kTv) + "uplinkRefusal";
 // Two stores take turns under one child's or parent's IRI (P6b), said for two minutes after.
 inline const std::string kLinkConflict = std::string(kTv) + "linkConflict";
+// A child that is down because its link said it was stopping (P12c), not because it went
+// silent: true, beside its tv:linkState "down", until it says hello again.
+inline const std::string kLinkLeft = std::string(kTv) + "linkLeft";
 inline const std::string kRemoteQuery = std::string(kTv) + "RemoteQuery";
 inline const std::string kQueryTarget = std::string(kTv) + "queryTarget";
 inline const std::string kReplyTo = std::string(kTv) + "replyTo";
