@@ -45,11 +45,23 @@ std::string node_error(const node::Error& e) {
 Args::Args(int argc, char** argv, const std::vector<std::string>& valued,
            const std::vector<std::string>& boolean, const std::vector<std::string>& repeatable) {
   for (int i = 1; i < argc; ++i) {
-    const std::string arg = argv[i];
+    std::string arg = argv[i];
     if (arg == "-h" || arg == "--help") throw HelpRequested{};
-    if (declared(repeatable, arg)) {
+    // `--flag=VALUE` as `--flag VALUE`, as `tahvel` reads it (docs/cli.md, Conventions).
+    std::optional<std::string> attached;
+    if (const std::size_t eq = arg.find('='); arg.starts_with("--") && eq != std::string::npos &&
+                                              (declared(valued, arg.substr(0, eq)) || declared(repeatable, arg.substr(0, eq)) ||
+                                               declared(boolean, arg.substr(0, eq)))) {
+      attached = arg.substr(eq + 1);
+      arg.resize(eq);
+    }
+    const auto value = [&]() -> std::string {
+      if (attached) return *attached;
       if (i + 1 >= argc) throw UsageError(arg + ": needs a value");
-      repeated_.emplace_back(arg, argv[++i]);
+      return argv[++i];
+    };
+    if (declared(repeatable, arg)) {
+      repeated_.emplace_back(arg, value());
       continue;
     }
     // A flag given twice is an error, as in `tahvel` (docs/cli.md, Conventions): the last one
@@ -57,9 +69,9 @@ Args::Args(int argc, char** argv, const std::vector<std::string>& valued,
     if ((declared(valued, arg) || declared(boolean, arg)) && values_.count(arg))
       throw UsageError("flag '" + arg + "' given twice");
     if (declared(valued, arg)) {
-      if (i + 1 >= argc) throw UsageError(arg + ": needs a value");
-      values_[arg] = argv[++i];
+      values_[arg] = value();
     } else if (declared(boolean, arg)) {
+      if (attached) throw UsageError("flag '" + arg + "' takes no value");
       values_[arg] = "";
     } else if (arg.starts_with("-")) {
       throw UsageError("unknown flag '" + arg + "'");
