@@ -267,7 +267,7 @@ class HrvStage {
     std::optional<std::uint64_t> last;
     double last_end = 0;
     for (const tn::Record& r : *derived) {
-      auto ends = snapshot->list({.s = r.triple.s, .p = agg::tv_term("windowEndS")}, {.limit = 1});
+      auto ends = snapshot->list({.s = r.triple.s, .p = agg::tv_term("windowEndS"), .source = session_.agent.iri()}, {.limit = 1});
       if (!ends) return agg::fail("list: " + ends.error().message);
       if (ends->empty()) continue;
       char* stop = nullptr;
@@ -303,8 +303,9 @@ class HrvStage {
         auto rr = agg::read_rr(records);
         return !usable(rr) || each(*rr);
       });
-    // A recording without its start time: its items are not at signal times. Read whole.
-    auto items = rt::recording_items(session_.node, s.info.iri);
+    // A recording without its start time (its items are not at signal times), or no bound: its
+    // RR items read whole (the RR items alone, not the recording's chunks with them).
+    auto items = rt::items_matching(session_.node, {.p = agg::tv_term("intervals"), .under = s.info.iri});
     if (!items) return agg::fail(items.error().message);
     std::map<std::int64_t, agg::RrSeries> earlier;
     for (const auto& records : *items)

@@ -1018,7 +1018,10 @@ void refuse_malformed_patterns_of_others(const Topology& topo, const std::vector
       uri::PrefixMap prefixes = uri::PrefixMap::standard();
       for (const std::string& term : pattern_terms(spec.forward[i])) {
         const std::size_t colon = term.find(':');
-        if (colon == std::string::npos || term[0] == '<' || term[0] == '"' || term.starts_with("_:")) continue;
+        // An IRI written bare (http://…) is the parser's to read, not a CURIE of an unknown prefix.
+        if (colon == std::string::npos || term[0] == '<' || term[0] == '"' || term.starts_with("_:") ||
+            term.compare(colon + 1, 2, "//") == 0)
+          continue;
         if (const std::string prefix = term.substr(0, colon); prefixes.entries().count(prefix) == 0)
           (void)prefixes.add(prefix, "http://prefix.invalid/" + std::to_string(prefixes.entries().size()) + "/");
       }
@@ -2786,7 +2789,8 @@ RemoteBoard ask_board(node::Node& from, const std::string& target, std::chrono::
   };
   auto local_name = [](const std::string& iri) { return iri.substr(iri.find('#') + 1); };
   for (const std::string& p : {federation::vocab::kLinkState, federation::vocab::kParent, federation::vocab::kLastSeen,
-                               federation::vocab::kOutboxDepth, federation::vocab::kSoftwareVersion, federation::vocab::kLinkConflict}) {
+                               federation::vocab::kOutboxDepth, federation::vocab::kSoftwareVersion, federation::vocab::kLinkConflict,
+                               federation::vocab::kLinkLeft}) {
     board.children_error = ask(p, "", *link, [&](const node::Record& r) {
       if (r.triple.s.value == target) return;
       Fields& fields = board.children[r.triple.s.value];
@@ -2891,7 +2895,7 @@ void print_json_string_or_null(const std::string& text) {
 // own (P12a), which differ in their time (`time_key`) and last field (`extra_key`).
 void print_link_json(const std::string& parent, const std::string& state, const std::string& unknown_because,
                      std::string_view time_key, std::int64_t time_ns, const std::string& outbox, std::string_view extra_key,
-                     const std::string& extra, const std::string& conflict) {
+                     const std::string& extra, const std::string& conflict, bool left = false) {
   std::cout << "{\"parent\":\"" << node::json_escape(parent) << "\",\"state\":\"" << node::json_escape(state)
             << "\",\"known\":" << (unknown_because.empty() ? "true" : "false") << ",\"unknown_because\":";
   print_json_string_or_null(unknown_because);
@@ -2900,7 +2904,8 @@ void print_link_json(const std::string& parent, const std::string& state, const 
   print_json_string_or_null(extra);
   std::cout << ",\"conflict\":";
   print_json_string_or_null(conflict);
-  std::cout << "}";
+  // Down because its link said it was stopping (P12c), not because it went silent.
+  std::cout << ",\"left\":" << (left ? "true" : "false") << "}";
 }
 
 }  // namespace
@@ -3239,7 +3244,8 @@ int run_status(const Args& args) {
                                  : keeper                  ? "the link of <" + keeper->iri + ">"
                                                            : "the parent's link";
       const std::int64_t read_ns = static_cast<std::int64_t>(parse_u64(f[kReadAtField]).value_or(0));
-      said = "link " + f["linkState"] + ", last seen " + age_of(seen, read_ns) + ", outbox " + f["outboxDepth"];
+      said = "link " + f["linkState"] + (f["linkState"] == "down" && f["linkLeft"] == "true" ? " (its link was stopped: it said so as it left)" : "") +
+             ", last seen " + age_of(seen, read_ns) + ", outbox " + f["outboxDepth"];
       if (!f["softwareVersion"].empty()) said += ", " + f["softwareVersion"];
       if (!f["linkConflict"].empty()) said += "; CONFLICT: " + f["linkConflict"];
       unknown_because = unbelieved_because(keeper, writer, f["linkState"], seen, read_ns);
@@ -3270,7 +3276,8 @@ int run_status(const Args& args) {
       if (n.link.empty()) std::cout << "null";
       else
         print_link_json(n.link["parent"], n.link["linkState"], unknown_because, "last_seen_ns", seen, n.link["outboxDepth"],
-                        "software_version", n.link["softwareVersion"], n.link["linkConflict"]);
+                        "software_version", n.link["softwareVersion"], n.link["linkConflict"],
+                        n.link["linkState"] == "down" && n.link["linkLeft"] == "true");
       std::cout << ",\"has_parent\":" << (n.has_parent || !n.uplink.empty() || n.remote ? "true" : "false") << ",\"uplink\":";
       if (n.uplink.empty()) std::cout << "null";
       else

@@ -756,10 +756,14 @@ node::Result<std::vector<std::string>> expand_agent_command(const AgentSpec& age
   // source failing and restarted for ever in its log: its header and signal files are opened
   // here, as the source opens them.
   if (std::filesystem::path(program).filename() == "tahvel-ecg-source") {
-    for (std::size_t i = 1; i + 1 < argv.size(); ++i) {
-      if (argv[i] != "--record") continue;
-      if (auto record = aggregation::SignalReader::open(argv[i + 1]); !record)
-        return node::fail(Errc::invalid_argument, what + "--record " + argv[i + 1] + ": " + record.error().message);
+    for (std::size_t i = 1; i < argv.size(); ++i) {
+      // `--record PATH` or `--record=PATH`, as the source reads both.
+      std::string path;
+      if (argv[i] == "--record" && i + 1 < argv.size()) path = argv[i + 1];
+      else if (argv[i].starts_with("--record=")) path = argv[i].substr(9);
+      else continue;
+      if (auto record = aggregation::SignalReader::open(path); !record)
+        return node::fail(Errc::invalid_argument, what + "--record " + path + ": " + record.error().message);
     }
   }
   return argv;

@@ -4140,6 +4140,8 @@ Result<std::unique_ptr<Link>> Link::start(LinkOptions options) {
                 std::from_chars(text.data(), text.data() + text.size(), child.outbox_depth);
               } else if (k.triple.p.value == vocab::kSoftwareVersion) {
                 child.version = text;
+              } else if (k.triple.p.value == vocab::kLinkLeft) {
+                child.left = text == "true";  // kept until it says hello again, this run too
               }
             }
           }

@@ -3489,6 +3489,8 @@ TEST_F(Cli, StatusShowsAReasonersRuleFileThatNoLongerParsesUntilItDoes) {
            last_json.find("\"last_exit\":\"exited with status 1 (its log ends: tahvel: " + (tmp_ / "alerts.rules").string() + ":2:") !=
                std::string::npos;
   })) << last_json;
+  // Never as the problem of a run that is not running.
+  EXPECT_EQ(last_json.find("\"problem_of_this_run\":true"), std::string::npos) << last_json;
   spit(tmp_ / "alerts.rules", "alert(X) :- cold(X, _).\n");
   Outcome fixed = status_until(state, "PROBLEM", false);
   EXPECT_EQ(fixed.out.find("PROBLEM"), std::string::npos) << fixed.out;
@@ -3530,6 +3532,14 @@ TEST_F(Cli, UpRefusesAnEcgRecordItCannotRead) {
   EXPECT_EQ(up.status, kUpRefused);
   EXPECT_NE(up.err.find("node 'bed': agent 'source': --record " + record + ": " + record + ".hea"), std::string::npos) << up.err;
   EXPECT_FALSE(fs::exists(tmp_ / "state" / "bed"));
+  // `--record=PATH`, which the source reads too since session 86, is checked as well.
+  spit(tmp_ / "attached.toml",
+       "[[node]]\nid = \"bed\"\niri = \"http://example.org/bed\"\n"
+       "  [[node.agent]]\n  id = \"source\"\n  run = [\"{bin}/tahvel-ecg-source\", \"{store}\", \"--record=" + record +
+           "\", \"--speed\", \"1\"]\n");
+  up = run({"up", (tmp_ / "attached.toml").string(), "--state", state, "--check"});
+  EXPECT_EQ(up.status, kUpRefused);
+  EXPECT_NE(up.err.find("node 'bed': agent 'source': --record " + record + ": " + record + ".hea"), std::string::npos) << up.err;
   fs::create_directories(tmp_ / "rec");
   spit(tmp_ / "rec" / "s.hea", "s 1 360 2\ns.dat 16 200 16 0 0 0 0 II\n");
   spit(tmp_ / "rec" / "s.dat", std::string(4, '\0'));
@@ -5247,6 +5257,29 @@ TEST_F(Cli, StatusSaysOnTheChildsLineThatItsParentRefusesWhatItSends) {
   const Outcome shown = run({"status", "--state", state.string(), "--local"});
   EXPECT_NE(shown.out.find("home  <" + child + ">  link up, last seen "), std::string::npos) << shown.out;
   EXPECT_NE(shown.out.find(", outbox 0; REFUSED: " + why + "\n"), std::string::npos) << shown.out;
+}
+
+// A child down because its link said it was stopping (`down --node`, its supervisor's stop) is
+// said so by status, text and JSON (tv:linkLeft, P12c): "link down" alone read as a crash (an
+// operator's probe of session 86).
+TEST_F(Cli, StatusSaysAChildWhoseLinkSaidItLeftWasStoppedNotSilent) {
+  const fs::path state = tmp_ / "state";
+  const std::string parent = "http://example.org/h", child = parent + "/home";
+  ASSERT_EQ(run({"init", (state / "h").string(), "--iri", parent}).status, 0);
+  ASSERT_EQ(run({"init", (state / "home").string(), "--iri", child}).status, 0);
+  const std::string now = std::to_string(std::chrono::duration_cast<std::chrono::nanoseconds>(
+                                             std::chrono::system_clock::now().time_since_epoch()).count());
+  const std::string tv = "<https://w3id.org/tahvel#";
+  ASSERT_EQ(run({"put", (state / "h").string(), "--agent", "link", "--format", "ttl"},
+                "<" + child + "> " + tv + "linkState> \"down\" ; " + tv + "parent> <" + parent + "> ; " + tv + "lastSeen> " + now +
+                    " ; " + tv + "outboxDepth> 0 ; " + tv + "linkLeft> true .\n")
+                .status,
+            0);
+  const Outcome shown = run({"status", "--state", state.string(), "--local"});
+  EXPECT_NE(shown.out.find("home  <" + child + ">  link down (its link was stopped: it said so as it left), last seen "), std::string::npos)
+      << shown.out;
+  const Outcome json = run({"status", "--state", state.string(), "--local", "--json"});
+  EXPECT_NE(json.out.find("\"conflict\":null,\"left\":true}"), std::string::npos) << json.out;
 }
 
 TEST_F(Cli, UpAgainAppliesAnEditedFileToTheRunningSupervisor) {

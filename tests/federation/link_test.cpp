@@ -3015,6 +3015,14 @@ TEST(Link, AQueryForAChildWhoseLinkSaidItLeftSaysSo) {
   ASSERT_FALSE(asked);
   EXPECT_EQ(asked.error().message,
             "unreachable: <" + kHome1 + "> is down at <" + kHospital + "> (its link was stopped: it said so as it left)");
+  // A new run of the hospital's link keeps it (review of session 86: the first state it wrote
+  // dropped it).
+  tree.hospital.reset();
+  tree.hospital = tree.start_hospital();
+  std::this_thread::sleep_for(500ms);  // its first state writes
+  asked = remote_query(hospital, {.target = kHome1}, 5s, [](const node::Record&) {});
+  ASSERT_FALSE(asked);
+  EXPECT_NE(asked.error().message.find("(its link was stopped: it said so as it left)"), std::string::npos) << asked.error().message;
   // Back: the mark goes with the "down".
   tree.home1 = tree.start_home(tree.home1_dir, kHome1, tree.home1_log);
   ASSERT_TRUE(eventually([&] { return state_says_up(tree.hospital_dir, kHome1); }));
