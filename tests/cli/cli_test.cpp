@@ -101,6 +101,9 @@ class Cli : public ::testing::Test {
     node_ = (tmp_ / "node").string();
   }
 
+  // Defined with the status tests that use it.
+  std::string parent_and_child_with_state(const fs::path& state, const std::string& link_state, const std::string& more = "");
+
   // Starts `tahvel ARGS` with `input` on standard input; returns its pid. Standard output goes
   // to tmp/outN, or to `stdout_path` when given.
   pid_t spawn(const std::vector<std::string>& args, const std::string& input, int n,
@@ -5235,19 +5238,29 @@ TEST_F(Cli, StatusSaysWhenAStoreIsFull) {
 // A parent that refuses what its child sends (P9b: its store full) keeps the link up in its own
 // view of it, which the text tree showed alone on one machine ("link up, outbox 31"): only
 // `--json` had the child's word that everything it sends is refused. The text says it too.
-TEST_F(Cli, StatusSaysOnTheChildsLineThatItsParentRefusesWhatItSends) {
-  const fs::path state = tmp_ / "state";
+// Stores h and h/home in DIR/state, and on h the state of its child home as h's link writes
+// it: `link_state` ("up", "down"), last seen now, and `more` (Turtle: " ; tv:… …") if given.
+// The time written.
+std::string Cli::parent_and_child_with_state(const fs::path& state, const std::string& link_state, const std::string& more) {
   const std::string parent = "http://example.org/h", child = parent + "/home";
-  ASSERT_EQ(run({"init", (state / "h").string(), "--iri", parent}).status, 0);
-  ASSERT_EQ(run({"init", (state / "home").string(), "--iri", child}).status, 0);
+  EXPECT_EQ(run({"init", (state / "h").string(), "--iri", parent}).status, 0);
+  EXPECT_EQ(run({"init", (state / "home").string(), "--iri", child}).status, 0);
   const std::string now = std::to_string(std::chrono::duration_cast<std::chrono::nanoseconds>(
                                              std::chrono::system_clock::now().time_since_epoch()).count());
   const std::string tv = "<https://w3id.org/tahvel#";
-  ASSERT_EQ(run({"put", (state / "h").string(), "--agent", "link", "--format", "ttl"},
-                "<" + child + "> " + tv + "linkState> \"up\" ; " + tv + "parent> <" + parent + "> ; " + tv + "lastSeen> " + now +
-                    " ; " + tv + "outboxDepth> 0 .\n")
+  EXPECT_EQ(run({"put", (state / "h").string(), "--agent", "link", "--format", "ttl"},
+                    "<" + child + "> " + tv + "linkState> \"" + link_state + "\" ; " + tv + "parent> <" + parent + "> ; " + tv +
+                        "lastSeen> " + now + " ; " + tv + "outboxDepth> 0" + more + " .\n")
                 .status,
             0);
+  return now;
+}
+
+TEST_F(Cli, StatusSaysOnTheChildsLineThatItsParentRefusesWhatItSends) {
+  const fs::path state = tmp_ / "state";
+  const std::string parent = "http://example.org/h", child = parent + "/home";
+  const std::string now = parent_and_child_with_state(state, "up");
+  const std::string tv = "<https://w3id.org/tahvel#";
   const std::string why = "the parent cannot store what this node sends: store full: its maximum";
   ASSERT_EQ(run({"put", (state / "home").string(), "--agent", "link", "--format", "ttl"},
                 "<" + child + "> " + tv + "uplinkState> \"up\" ; " + tv + "parent> <" + parent + "> ; " + tv +
@@ -5264,17 +5277,8 @@ TEST_F(Cli, StatusSaysOnTheChildsLineThatItsParentRefusesWhatItSends) {
 // operator's probe of session 86).
 TEST_F(Cli, StatusSaysAChildWhoseLinkSaidItLeftWasStoppedNotSilent) {
   const fs::path state = tmp_ / "state";
-  const std::string parent = "http://example.org/h", child = parent + "/home";
-  ASSERT_EQ(run({"init", (state / "h").string(), "--iri", parent}).status, 0);
-  ASSERT_EQ(run({"init", (state / "home").string(), "--iri", child}).status, 0);
-  const std::string now = std::to_string(std::chrono::duration_cast<std::chrono::nanoseconds>(
-                                             std::chrono::system_clock::now().time_since_epoch()).count());
-  const std::string tv = "<https://w3id.org/tahvel#";
-  ASSERT_EQ(run({"put", (state / "h").string(), "--agent", "link", "--format", "ttl"},
-                "<" + child + "> " + tv + "linkState> \"down\" ; " + tv + "parent> <" + parent + "> ; " + tv + "lastSeen> " + now +
-                    " ; " + tv + "outboxDepth> 0 ; " + tv + "linkLeft> true .\n")
-                .status,
-            0);
+  const std::string child = "http://example.org/h/home";
+  parent_and_child_with_state(state, "down", " ; <https://w3id.org/tahvel#linkLeft> true");
   const Outcome shown = run({"status", "--state", state.string(), "--local"});
   EXPECT_NE(shown.out.find("home  <" + child + ">  link down (its link was stopped: it said so as it left), last seen "), std::string::npos)
       << shown.out;
