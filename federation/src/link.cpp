@@ -2474,7 +2474,9 @@ struct Link::Impl {
           for (const auto& entry : children) known.push_back(entry.first);
           hint = detail::children_hint(std::move(known), "; it has no child node");
         }
-        out.error(via, opt.parent_iri, f.seq, {"unknown_node", "no node <" + q->target + "> below <" + self + ">" + hint, q->origin});
+        // Worded as the asking node words its own: "unknown node <T>: <here> has no child <C>".
+        const std::string why = child_iri.empty() ? "not below <" + self + ">" : "<" + self + "> has no child <" + child_iri + ">";
+        out.error(via, opt.parent_iri, f.seq, {"unknown_node", "<" + q->target + ">: " + why + hint, q->origin});
       } else if (!it->second->connected) {
         out.error(via, opt.parent_iri, f.seq,
                   {"unreachable", "<" + child_iri + ">" + (child_iri == q->target ? "" : " (on the way to <" + q->target + ">)") +

@@ -329,7 +329,9 @@ Result<std::uint64_t> remote_query(node::Node& node, const RemoteQuery& query,
       if (const Term* code = object_of(records, vocab::kErrorCode)) {
         const Term* message = object_of(records, vocab::kErrorMessage);
         std::string text = message ? message->value : code->value;
-        if (code->value == "unknown_node") return node::fail(Errc::not_found, "unknown node: " + text);
+        // A node of this version begins with the node asked for ("<T>: <…> has no child <…>");
+        // one before session 87 with "no node <T> below <…>".
+        if (code->value == "unknown_node") return node::fail(Errc::not_found, "unknown node" + std::string(text.starts_with('<') ? " " : ": ") + text);
         if (code->value == "unreachable") return node::fail(Errc::io, "unreachable: " + text);
         return node::fail(Errc::io, code->value + ": " + text);
       }
