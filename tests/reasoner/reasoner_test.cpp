@@ -555,23 +555,30 @@ TEST_F(ReasonerTest, ARuleFileWhoseReadFailsIsRefusedSayingWhy) {
 
 // A rule on a misspelt predicate (rmsd for the rmssd on the board) holds for nothing, and an
 // alert of it never fires, without a word: the first session, and the first after the rules
-// are reloaded, say so. A predicate that nothing on the board is near may not have come yet.
+// are reloaded, say so. A predicate that nothing on the board is near may not have come yet,
+// unless it is a built-in of another language (count).
 TEST_F(ReasonerTest, ASessionOfNewRulesWarnsOfAPredicateTheyReadThatIsASlipOfOneOnTheBoard) {
   put({{n("w1"), n("rmssd"), tn::Term::integer(12)}, t("w1", "patient", "p1")});
   auto file = rules("alert.rules",
                     "low(P, yes) :- rmsd(W, R), patient(W, P), R < 20.\n"
                     "flag(P, yes) :- notyet(P, _).\n"
-                    "mark(W, yes) :- rmssd(W, _), \\+ patiant(W, _).\n");
+                    "mark(W, yes) :- rmssd(W, _), \\+ patiant(W, _).\n"
+                    "many(P, N) :- patient(_, P), count(P, N).\n");
   auto r = open(file);
   auto s = r.session();
   ASSERT_TRUE(s.has_value()) << s.error().message;
-  ASSERT_EQ(s->warnings.size(), 2u) << ::testing::PrintToString(s->warnings);
+  ASSERT_EQ(s->warnings.size(), 3u) << ::testing::PrintToString(s->warnings);
   EXPECT_EQ(s->warnings[0], file.string() + ":1:16: <" + kNs + "rmsd>: no fact on the board has this predicate; did you mean <" +
                                 kNs + "rmssd> (1 record)? Until one has it, what the rules read of it holds for nothing");
-  EXPECT_EQ(s->warnings[1].rfind(file.string() + ":3:33: <" + kNs + "patiant>: no fact on the board has this predicate; did you "
-                                 "mean <" + kNs + "patient> (1 record)?", 0),
-            0u)
-      << s->warnings[1];
+  const std::string patiant = file.string() + ":3:33: <" + kNs + "patiant>: no fact on the board has this predicate; did you mean <" +
+                              kNs + "patient> (1 record)?";
+  // Near nothing, but a built-in of another language (a researcher's aggregation, session 87).
+  const std::string count = file.string() + ":4:30: <" + kNs + "count>: no rule concludes it and no fact on the board has it, so "
+                            "what the rules read of it holds for nothing; count is no built-in here (there is no aggregation; "
+                            "the built-ins are in docs/reasoner.md RS5)";
+  EXPECT_EQ(std::count_if(s->warnings.begin(), s->warnings.end(), [&](const std::string& w) { return w.starts_with(patiant); }), 1)
+      << ::testing::PrintToString(s->warnings);
+  EXPECT_EQ(std::count(s->warnings.begin(), s->warnings.end(), count), 1) << ::testing::PrintToString(s->warnings);
   put({t("w2", "patient", "p2")});
   EXPECT_TRUE(r.session().value().warnings.empty());  // said once per rules
   rules("alert.rules", "low(P, yes) :- rmssd(W, R), patient(W, P), R < 20.\n");

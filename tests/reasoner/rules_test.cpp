@@ -999,6 +999,29 @@ TEST(Rules, AnOperatorOfAnotherLanguageIsNamedWithTheOneMeant) {
   EXPECT_TRUE(tr::parse_rules("a(X, Y) :- v(X, Y), Y =< 2, Y >= -1, Y =\\= 0, X \\= Y.\n", options("ops.rules")).has_value());
 }
 
+// A string or an IRI as an operand compares with nothing: `S < "50"` was accepted and its rule
+// never fired, without a word; functions and operators the language lacks read as "expected ','
+// or '.' after the literal" (a researcher's probes of session 87). Each is now named at its place.
+TEST(Rules, AnOperandWithoutAValueOrAFunctionTheLanguageLacksIsNamedAtItsPlace) {
+  const std::pair<std::string, std::string> cases[] = {
+      {"S < \"50\"", "ops.rules:1:25: \"50\" is a string (write 50 for the number), not a number or a time: a comparison with it never holds"},
+      {"S >= \"high\"@en", "ops.rules:1:26: \"high\"@en is a string, not a number or a time: a comparison with it never holds"},
+      {"S < limit", "ops.rules:1:25: <" + kNs + "limit> is an IRI, not a number or a time: a comparison with it never holds"},
+      {"Y is S + \"1\"", "ops.rules:1:30: \"1\" is a string (write 1 for the number), not a number or a time: 'is' computes nothing from it"},
+      {"abs(S) < 50", "ops.rules:1:21: abs(...) is not a function here: arithmetic is + - * / and parentheses on numbers and "
+                      "times, with no functions (abs, min, max, ...)"},
+      {"Y is S mod 2", "ops.rules:1:28: 'mod' is not an operator here: arithmetic is + - * / and parentheses (no mod, rem or //; "
+                       "a body's literals are joined by ',')"},
+      {"Y is S // 2", "ops.rules:1:28: '//' is not an operator: write X / Y, an integer when it divides exactly (a double otherwise)"}};
+  for (const auto& [literal, message] : cases) {
+    auto p = tr::parse_rules("a(X, Y) :- v(X, S), " + literal + ", Y = S.\n", options("ops.rules"));
+    ASSERT_FALSE(p.has_value()) << literal;
+    EXPECT_EQ(p.error().message, message);
+  }
+  // A term, not an operand: compared as written, a string or an IRI is fine.
+  EXPECT_TRUE(tr::parse_rules("a(X, Y) :- v(X, Y), Y = \"50\", X \\== limit, \"5\" is 2 + 3.\n", options("ops.rules")).has_value());
+}
+
 // Prolog written where it has no meaning here is named for what it is, at its place: a negated
 // comparison, a literal in parentheses, a disjunction, a tabling directive. Up to session 71
 // these read "expected a predicate, found 'Y'", "a compound term such as fact(...) cannot be
@@ -1056,6 +1079,37 @@ TEST(Rules, AnIntegerAbove2To53ComparesExactlyWithADouble) {
   EXPECT_EQ(only_conclusion("neg(X, yes) :- v(X, V), V < -2.5, V > -3.5, V =:= -3.0, V > -1.0e300.\n",
                             {tl("a", "v", tn::Term::integer(-3))}),
             (tr::Atom{kNs + "neg", {n("a"), n("yes")}}));
+}
+
+// An xsd:decimal is exact (XSD): compared with an integer or another decimal it is not the double
+// it rounds to. 9007199254740993.0 equalled 9007199254740992 and not 9007199254740993 (a
+// researcher's probe of session 87).
+TEST(Rules, ADecimalComparesExactlyWithAnIntegerAndADecimalAbove2To53) {
+  auto decimal = [](const char* lex) { return tn::Term::literal(lex, std::string(tn::xsd::kDecimal)); };
+  const std::vector<tn::Triple> held = {tl("a", "v", tn::Term::integer(9007199254740993)),
+                                        tl("b", "v", decimal("9007199254740993.0")),
+                                        tl("c", "v", tn::Term::integer(9007199254740992)),
+                                        tl("d", "v", decimal("9007199254740992.5")),
+                                        tl("e", "v", decimal("-0.5")),
+                                        tl("f", "v", tn::Term::integer(0))};
+  auto pairs = [&](const std::string& rule) {
+    std::set<std::pair<std::string, std::string>> got;
+    auto program = parse(rule);
+    if (!program) return got;
+    tr::Engine engine(program);
+    for (const tr::Atom& atom : engine.apply(held, {}, 0).added) got.insert({atom.args[0].value, atom.args[1].value});
+    return got;
+  };
+  using Pairs = std::set<std::pair<std::string, std::string>>;
+  EXPECT_EQ(pairs("eq(X, Y) :- v(X, A), v(Y, B), X \\== Y, A =:= B.\n"),
+            (Pairs{{kNs + "a", kNs + "b"}, {kNs + "b", kNs + "a"}}));
+  // c < d < a = b, and e < f: each pair once, in order.
+  EXPECT_EQ(pairs("lt(X, Y) :- v(X, A), v(Y, B), A < B, B - A < 2.\n"),
+            (Pairs{{kNs + "c", kNs + "d"}, {kNs + "c", kNs + "a"}, {kNs + "c", kNs + "b"}, {kNs + "d", kNs + "a"},
+                   {kNs + "d", kNs + "b"}, {kNs + "e", kNs + "f"}}));
+  // A constant of the rule is a decimal as well.
+  EXPECT_EQ(pairs("above(X, yes) :- v(X, A), A > 9007199254740992.0.\n"),
+            (Pairs{{kNs + "a", kNs + "yes"}, {kNs + "b", kNs + "yes"}, {kNs + "d", kNs + "yes"}}));
 }
 
 // RS9: a head variable bound by nothing that no rule calls for (a typo) is an error, as is

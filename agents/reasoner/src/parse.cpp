@@ -504,6 +504,7 @@ class Parser {
 
   Result<void> directive();
   bool operator_follows();
+  std::string without_value(const node::Term& constant) const;
   Result<void> clause();
   Result<std::vector<Literal>> body();
   std::optional<Error> foreign_operator();
@@ -529,6 +530,9 @@ class Parser {
   Token tok_;
   Rule* rule_ = nullptr;  // the clause being parsed
   std::uint32_t nesting_ = 0;  // parentheses and signs open around the expression being parsed
+  // The constants of the literal being parsed that are operands of arithmetic or a comparison
+  // (where each was written): one with no value makes the literal never hold (literal()).
+  std::vector<std::pair<Pos, Arg>> operands_;
   std::map<std::string, std::uint32_t> var_index_;
   std::map<std::string, std::uint32_t> const_index_;
   std::map<std::pair<std::string, std::uint32_t>, std::uint32_t> pred_index_;
@@ -654,6 +658,7 @@ Result<Expr> Parser::unary() {
   }
   auto arg = term(false);
   if (!arg) return unexpected(arg.error());
+  if (!arg->is_var) operands_.emplace_back(pos, *arg);
   Expr e;
   e.leaf = *arg;
   return e;
@@ -666,6 +671,8 @@ Result<Expr> Parser::product() {
     const Pos pos = tok_.pos;
     const Expr::Kind kind = is("*") ? Expr::mul : Expr::div;
     if (auto a = advance(); !a) return unexpected(a.error());
+    if (kind == Expr::div && is("/"))
+      return error(pos, "'//' is not an operator: write X / Y, an integer when it divides exactly (a double otherwise)");
     auto right = unary();
     if (!right) return right;
     left = combine(kind, pos, std::move(*left), std::move(*right));
@@ -829,8 +836,10 @@ Result<Literal> Parser::literal() {
   // A name starts an atom unless an operator follows it (then it is a constant in a term).
   bool name_like = tok_.kind == Tok::name || tok_.kind == Tok::iri;
   if (name_like && !operator_follows()) return callable(false);
+  operands_.clear();
   auto left = expression();
   if (!left) return unexpected(left.error());
+  const std::size_t left_operands = operands_.size();
   Literal lit;
   lit.pos = start;
   lit.lhs = std::move(*left);
@@ -862,7 +871,32 @@ Result<Literal> Parser::literal() {
   bool terms_only = lit.kind == Literal::unify || lit.kind == Literal::not_unify || lit.kind == Literal::identical;
   if (terms_only && (lit.lhs.kind != Expr::arg || lit.rhs.kind != Expr::arg))
     return error(start, "=, \\=, == and \\== compare terms; use 'is' or =:= for arithmetic");
+  // A string or an IRI compares with nothing and adds to nothing: `S < "50"` was accepted and its
+  // rule never fired, without a word (a researcher's probe of session 87). The left side of
+  // 'is' is a term to match, not an operand.
+  if (!terms_only) {
+    for (std::size_t k = lit.kind == Literal::assign ? left_operands : 0; k < operands_.size(); ++k) {
+      const auto& [at, operand] = operands_[k];
+      const node::Term& constant = program_.constants[operand.index];
+      if (value_of(constant).kind != Value::none) continue;
+      return error(at, without_value(constant) + ", not a number or a time: " +
+                           (lit.kind == Literal::assign ? "'is' computes nothing from it" : "a comparison with it never holds"));
+    }
+  }
   return lit;
+}
+
+// What a constant without a value is, for the error above: "\"50\" is a string (write 50 for the
+// number)", "<…#limit> is an IRI".
+std::string Parser::without_value(const node::Term& constant) const {
+  if (constant.is_iri()) return "<" + constant.value + "> is an IRI";
+  if (!constant.is_literal()) return constant.to_ntriples() + " is a blank node";
+  const std::string written = constant.to_ntriples();
+  if (!constant.datatype.empty() && constant.datatype != node::xsd::kString) return written + " is of a datatype the built-ins do not read";
+  for (std::string_view type : {node::xsd::kInteger, node::xsd::kDecimal, node::xsd::kDouble})
+    if (value_of(node::Term::literal(constant.value, std::string(type))).kind != Value::none)
+      return written + " is a string (write " + constant.value + " for the number)";
+  return written + " is a string";
 }
 
 // Whether a comparison or arithmetic operator, or 'is', follows the current token: a name then
@@ -905,8 +939,22 @@ Result<std::vector<Literal>> Parser::body() {
     if (out.size() == kMaxBodyLiterals)
       return error(tok_.pos, "a rule body has at most " + std::to_string(kMaxBodyLiterals) +
                                  " literals; split it with a predicate of its own for a part");
+    const Token first = tok_;
     auto lit = literal();
     if (!lit) return unexpected(lit.error());
+    if (!is(",") && !is(".")) {
+      // Functions and operators of other languages: abs(S) < 50 read as the atom abs(S), and
+      // S mod 2 as S then a stray name, said as "expected ',' or '.' after the literal".
+      static const char* kOperators[] = {"<", ">", "=<", ">=", "=:=", "=\\=", "+", "-", "*", "/"};
+      bool operator_next = tok_.kind == Tok::name && tok_.text == "is";
+      for (const char* op : kOperators) operator_next |= is(op);
+      if (lit->kind == Literal::atom && first.kind == Tok::name && operator_next)
+        return error(first.pos, first.text + "(...) is not a function here: arithmetic is + - * / and parentheses on "
+                                             "numbers and times, with no functions (abs, min, max, ...)");
+      if ((lit->kind == Literal::compare || lit->kind == Literal::assign) && tok_.kind == Tok::name)
+        return error(tok_.pos, "'" + tok_.text + "' is not an operator here: arithmetic is + - * / and parentheses (no mod, "
+                                                  "rem or //; a body's literals are joined by ',')");
+    }
     out.push_back(std::move(*lit));
     if (!is(",")) return out;
     if (auto a = advance(); !a) return unexpected(a.error());

@@ -256,8 +256,20 @@ void Reasoner::Impl::say_predicates_held_by_none(const node::Snapshot& snap, Ses
     // More than two edits away is another word, not a slip.
     const node::PredicateMatch match = node::match_predicate(read.iri, *held, 3);
     const node::PredicateSummary* nearest = match.nearest;
-    // A predicate that nothing on the board is near may simply not have come yet.
-    if (match.held || !nearest) continue;
+    if (match.held) continue;
+    // A predicate that nothing on the board is near may simply not have come yet, unless it is
+    // a built-in of another language in the rules' own namespace (count(W, N) for an
+    // aggregation), which held for nothing without a word (a researcher's probe of session 87).
+    if (!nearest) {
+      static const std::set<std::string> kOtherLanguages = {"count", "sum", "min", "max", "avg", "average", "length",
+                                                            "findall", "aggregate_all", "bagof", "setof", "member", "abs",
+                                                            "between", "succ", "plus", "atom_length", "sort", "msort"};
+      if (read.iri.starts_with(parse.default_ns) && kOtherLanguages.count(read.iri.substr(parse.default_ns.size())))
+        report.warnings.push_back(read.where + ": <" + read.iri + ">: no rule concludes it and no fact on the board has it, so " +
+                                  "what the rules read of it holds for nothing; " + read.iri.substr(parse.default_ns.size()) +
+                                  " is no built-in here (there is no aggregation; the built-ins are in docs/reasoner.md RS5)");
+      continue;
+    }
     auto counted = [](const node::PredicateSummary& p) {
       return "<" + p.predicate + "> (" + std::to_string(p.records) + (p.records == 1 ? " record)" : " records)");
     };

@@ -53,6 +53,28 @@ bool is_decimal_lexical(std::string_view lex) {
   return digit;
 }
 
+// A decimal's exact parts (Value::split), for one whose integer part fits an int64. `lex` is
+// a decimal's lexical form without a leading '+'.
+void split_decimal(std::string_view lex, Value& v) {
+  const bool negative = !lex.empty() && lex[0] == '-';
+  if (negative) lex.remove_prefix(1);
+  const std::size_t point = lex.find('.');
+  const std::string_view whole = lex.substr(0, point);
+  std::uint64_t magnitude = 0;
+  if (!whole.empty()) {
+    auto [end, ec] = std::from_chars(whole.data(), whole.data() + whole.size(), magnitude);
+    if (ec != std::errc() || end != whole.data() + whole.size() || magnitude > 9223372036854775807ull) return;
+  }
+  double rest = 0;
+  if (point != std::string_view::npos && point + 1 < lex.size()) {
+    const std::string fraction = "0" + std::string(lex.substr(point));
+    std::from_chars(fraction.data(), fraction.data() + fraction.size(), rest);
+  }
+  v.i = negative ? -static_cast<std::int64_t>(magnitude) : static_cast<std::int64_t>(magnitude);
+  v.frac = negative ? -rest : rest;
+  v.split = true;
+}
+
 // XSD's double and float lexical form: a decimal with an optional exponent (the special values
 // are read apart). from_chars also reads "nan", "inf" and "infinity" in any case.
 bool is_double_lexical(std::string_view lex) {
@@ -201,7 +223,9 @@ Value value_of(const node::Term& term) {
       return real(d);
     }
     if (ec != std::errc() || end != lex.data() + lex.size()) return {};
-    return real(d);
+    Value v = real(d);
+    if (decimal) split_decimal(lex, v);
+    return v;
   }
   if (local == "dateTime" || local == "dateTimeStamp") {
     auto ns = parse_datetime(lex);
@@ -271,6 +295,11 @@ int compare_integer_double(std::int64_t i, double d) {
 std::optional<int> compare_values(const Value& a, const Value& b) {
   auto sign = [](auto x, auto y) { return x < y ? -1 : (y < x ? 1 : 0); };
   if (a.kind == Value::integer && b.kind == Value::integer) return sign(a.i, b.i);
+  // Decimals exactly, by their integer parts first (an integer's rest is 0).
+  if ((a.split || a.kind == Value::integer) && (b.split || b.kind == Value::integer) && (a.split || b.split)) {
+    if (a.i != b.i) return sign(a.i, b.i);
+    return sign(a.split ? a.frac : 0.0, b.split ? b.frac : 0.0);
+  }
   if (a.kind == Value::integer && b.kind == Value::real) return compare_integer_double(a.i, b.d);
   if (a.kind == Value::real && b.kind == Value::integer) return -compare_integer_double(b.i, a.d);
   if (is_number(a) && is_number(b)) return sign(as_double(a), as_double(b));

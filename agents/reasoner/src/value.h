@@ -12,8 +12,13 @@ namespace tahvel::reasoner {
 
 struct Value {
   enum Kind : std::uint8_t { none, integer, real, time } kind = none;
-  std::int64_t i = 0;  // integer; time: ns since the Unix epoch
+  // A real read from an xsd:decimal whose integer part fits an int64 is also held exactly, for
+  // comparisons: `i` is that part (truncated toward zero) and `frac` the rest, of the same sign.
+  // A double rounds past 2^53, and 9007199254740993.0 equalled the integer 9007199254740992.
+  std::int64_t i = 0;  // integer; time: ns since the Unix epoch; real: its integer part if split
   double d = 0;        // real
+  double frac = 0;     // real, if split: what follows the integer part
+  bool split = false;
 };
 
 // The value of a literal: xsd integer types, xsd:decimal/double/float, xsd:dateTime(Stamp)
