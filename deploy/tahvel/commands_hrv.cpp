@@ -452,7 +452,7 @@ std::optional<LinkOnTheWay> link_below(node::Node& node, const LinkOnTheWay& fir
 
 void print_patients_json(const std::string& node_iri, const agg::PatientsOnBoard& board,
                          const std::vector<const agg::PatientView*>& shown,
-                         const std::vector<std::optional<LinkOnTheWay>>& links) {
+                         const std::vector<std::optional<LinkOnTheWay>>& links, const std::vector<bool>& ecg_held_here) {
   std::ostringstream out;
   out << "{\"node\":\"" << node::json_escape(node_iri) << "\",\"patients\":[";
   for (std::size_t i = 0; i < shown.size(); ++i) {
@@ -473,7 +473,8 @@ void print_patients_json(const std::string& node_iri, const agg::PatientsOnBoard
     // Where the raw ECG behind the latest window is, for `tahvel ecg` or `tahvel query`.
     if (const std::string at = p.source_node(); !at.empty()) {
       const auto [since, until] = signal_range_ns(p);
-      out << ",\"raw_ecg\":{\"node\":\"" << node::json_escape(at) << "\",\"since_ns\":" << since << ",\"until_ns\":" << until << "}";
+      out << ",\"raw_ecg\":{\"node\":\"" << node::json_escape(at) << "\",\"since_ns\":" << since << ",\"until_ns\":" << until
+          << ",\"held_here\":" << (ecg_held_here[i] ? "true" : "false") << "}";
     } else {
       out << ",\"raw_ecg\":null";
     }
@@ -518,7 +519,7 @@ std::string shell_word(const std::string& text) {
   return out + "'";
 }
 
-void print_patient_text(const std::string& dir, const std::string& node_iri, const agg::PatientView& p,
+void print_patient_text(const std::string& dir, const std::string& node_iri, const agg::PatientView& p, bool ecg_held_here,
                         const std::optional<LinkOnTheWay>& link) {
   std::cout << "\n<" << p.recording << ">";
   for (const agg::TrendUpdate& t : p.trends)
@@ -560,6 +561,11 @@ void print_patient_text(const std::string& dir, const std::string& node_iri, con
               << " --until " << until << "\n";
     std::cout << "  as numbers (CSV): tahvel ecg " << shell_word(dir) << " --at " << shell_word(node) << " --recording "
               << shell_word(p.recording) << " --since " << since << " --until " << until << "\n";
+    // A forward policy that sends raw ECG up (docs/deploy.md) leaves a copy here: read without
+    // a remote query, and while the way down is cut.
+    if (ecg_held_here)
+      std::cout << "  its raw ECG is held here too (forwarded up): tahvel ecg " << shell_word(dir) << " --recording "
+                << shell_word(p.recording) << " --since " << since << " --until " << until << "\n";
   }
   if (p.irregular())
     std::cout << "  irregular rhythm: " << text_number(m.irregular_pct, "%.0f")
@@ -667,7 +673,7 @@ const Command kPatientsCommand{
     "epoch or an RFC 3339 time such as 2026-11-21T10:00:00Z, as tahvel query takes it.\n"
     "--json prints one object: {node, patients: [{recording, source, windows, alerting, no_beats,\n"
     "irregular, other_writers: [{source, windows}], superseded_by, latest: {iri, start_s, end_s, stored_ns,\n"
-    "asserted_ns, metrics}, raw_ecg: {node, since_ns, until_ns} or null, link: {child, state,\n"
+    "asserted_ns, metrics}, raw_ecg: {node, since_ns, until_ns, held_here} or null, link: {child, state,\n"
     "last_seen_ns, stale, at} or null, trends: [{metric, window_start_s, windows, latest,\n"
     "baseline, robust_sd, slope_per_hour, slope_horizon_s, alert, direction, z_against_others,\n"
     "others}]}],\n"
@@ -710,13 +716,30 @@ int run_patients(const Args& args) {
     }
     links.push_back(std::move(link));
   }
+  // Whether this node holds raw ECG of each latest window's time (a chunk of it), beside the
+  // node that computed the window.
+  std::vector<bool> ecg_held_here;
+  for (const agg::PatientView* p : shown) {
+    bool held = false;
+    if (const std::string at = p->source_node(); !at.empty() && at != node.iri()) {
+      const auto [since_ns, until_ns] = signal_range_ns(*p);
+      node::Pattern chunks;
+      chunks.p = node::Term::iri(std::string(agg::kTv) + "samples");
+      chunks.under = p->recording;
+      chunks.since = since_ns;
+      chunks.until = until_ns;
+      held = !check(snapshot.list(chunks, {.limit = 1})).empty();
+    }
+    ecg_held_here.push_back(held);
+  }
   if (args.has("--json")) {
-    print_patients_json(node.iri(), *board, shown, links);
+    print_patients_json(node.iri(), *board, shown, links, ecg_held_here);
   } else {
     std::cout << board->patients.size() << " patient(s) with HRV on <" << node.iri() << ">"
               << (since ? " since " + node::utc_text(*since) : std::string()) << ", " << alerting << " with an alert"
               << (silent ? ", " + std::to_string(silent) + " without beats in the latest window" : std::string()) << "\n";
-    for (std::size_t i = 0; i < shown.size(); ++i) print_patient_text(args.positional(0), node.iri(), *shown[i], links[i]);
+    for (std::size_t i = 0; i < shown.size(); ++i)
+      print_patient_text(args.positional(0), node.iri(), *shown[i], ecg_held_here[i], links[i]);
     for (const agg::UnreadableItems& u : board->unreadable)
       std::cout << "\n" << u.count << " HRV window or trend item(s) from <" << u.source
                 << "> could not be read; the first: " << u.first_error << "\n";

@@ -2714,6 +2714,44 @@ TEST_F(Cli, PatientsSaysWhenTheChildTheirWindowsComeThroughIsDownOrNotRefreshed)
             std::string::npos) << stale.out;
 }
 
+// A forward policy that sends raw ECG up leaves it at the hospital too: `patients` offered only
+// the remote query to the home, which fails while the home is away (session 86's integrator).
+TEST_F(Cli, PatientsSaysWhenTheRawEcgBehindTheLatestWindowIsHeldHereToo) {
+  using tahvel::node::Term;
+  const std::string dir = (tmp_ / "hospital").string(), hospital = "http://example.org/hospital", home = hospital + "/home1";
+  ASSERT_TRUE(tahvel::node::Node::init(dir, {.iri = hospital}));
+  auto node = tahvel::node::Node::open(dir).value();
+  const std::string tv = "https://w3id.org/tahvel#", rec = home + "/ecg/recording/a", xsd = "http://www.w3.org/2001/XMLSchema#";
+  const std::int64_t t0 = 1'800'000'000'000'000'000;
+  tahvel::node::Item window;
+  window.asserted_at = t0 + 60'000'000'000;  // tahvel-hrv asserts a window at its start's signal time
+  const Term w = Term::iri(rec + "/hrv/60");
+  window.add(w, Term::iri("http://www.w3.org/ns/sosa/observedProperty"), Term::iri(tv + "HeartRateVariability"))
+      .add(w, Term::iri("http://www.w3.org/ns/prov#wasDerivedFrom"), Term::iri(rec))
+      .add(w, Term::iri(tv + "windowStartS"), Term::literal("60.0", xsd + "decimal"))
+      .add(w, Term::iri(tv + "windowEndS"), Term::literal("120.0", xsd + "decimal"))
+      .add(w, Term::iri(tv + "sdnnMs"), Term::literal("40.0", xsd + "decimal"));
+  auto home1 = node.agent("home1").value();
+  ASSERT_TRUE(home1.relay("up", {{.seq = 1, .source = home + "/hrv", .item = window}}));
+  // A chunk of the recording from before the window is not the window's.
+  ASSERT_TRUE(home1.relay("up", {{.seq = 2, .prev = 1, .source = home + "/ecg", .item = ecg_chunk(rec, 0, 4, std::string(16, '\0'), t0)}}));
+  const std::string held = "  its raw ECG is held here too (forwarded up): tahvel ecg " + dir + " --recording " + rec + " --since " +
+                           std::to_string(t0 + 60'000'000'000) + " --until " + std::to_string(t0 + 120'000'000'000) + "\n";
+  Outcome before = run({"patients", dir});
+  ASSERT_EQ(before.status, 0) << before.err;
+  EXPECT_NE(before.out.find("its raw ECG, at <" + home + ">: tahvel query"), std::string::npos) << before.out;
+  EXPECT_EQ(before.out.find("held here"), std::string::npos) << before.out;
+  EXPECT_NE(run({"patients", dir, "--json"}).out.find("\"held_here\":false"), std::string::npos);
+  ASSERT_TRUE(home1.relay("up", {{.seq = 3, .prev = 2, .source = home + "/ecg", .item = ecg_chunk(rec, 4 * 90, 4, std::string(16, '\0'), t0 + 90'000'000'000)}}));
+  Outcome after = run({"patients", dir});
+  EXPECT_NE(after.out.find("its raw ECG, at <" + home + ">: tahvel query"), std::string::npos) << after.out;
+  EXPECT_NE(after.out.find(held), std::string::npos) << after.out;
+  Outcome json = run({"patients", dir, "--json"});
+  EXPECT_NE(json.out.find("\"raw_ecg\":{\"node\":\"" + home + "\",\"since_ns\":" + std::to_string(t0 + 60'000'000'000) +
+                          ",\"until_ns\":" + std::to_string(t0 + 120'000'000'000) + ",\"held_here\":true}"),
+            std::string::npos) << json.out;
+}
+
 TEST_F(Cli, HrvOnAMissingRecordNamesTheFile) {
   Outcome r = run({"hrv", (tmp_ / "nothing").string()});
   EXPECT_EQ(r.status, 1);
