@@ -1401,14 +1401,22 @@ struct Link::Impl {
     const bool up = head.kind == FrameKind::up;
     std::shared_ptr<Child> child;
     std::string conflict;  // P6b: why a known child is not linked with
-    // A child's items may come before its hello (this node restarted): what it is told then
-    // ("unregistered") must be in its version.
-    if (up) note_child_version(head.from, head.version, child_id_of(head.from).has_value());
+    std::uint64_t head_registered_tag = 0;  // of the store registered for the sender, if any
     if (up) {
       std::lock_guard lock(mu);
       auto it = children.find(head.from);
       if (it != children.end() && it->second->connected) child = it->second;
       else if (it != children.end()) conflict = it->second->flips.said();
+      if (it != children.end()) head_registered_tag = store_tag(it->second->store_id);
+    }
+    // A child's items may come before its hello (this node restarted): what it is told then
+    // ("unregistered") must be in its version. Only a frame that would be taken says it: one
+    // junk frame of version 3 under a child's name, its body undecodable or its store tag not the
+    // registered store's, had the child spoken to in 3 (a prober's flood of session 87).
+    if (up && *bodies.front()) {
+      const std::uint64_t from_tag = (head.ack >> kStoreTagShift) & kStoreTagMask;
+      if (head_registered_tag == 0 || from_tag == head_registered_tag)
+        note_child_version(head.from, head.version, child_id_of(head.from).has_value());
     }
     bool unwelcomed = false;
     if (!up) {
@@ -1716,7 +1724,10 @@ struct Link::Impl {
     std::string why;
     if (is_down(via)) {
       auto child = accepted_child(f.from, &why);
-      if (f.kind == FrameKind::hello || f.kind == FrameKind::heartbeat) note_child_version(f.from, f.version, child != nullptr);
+      // A hello or heartbeat whose body does not decode is dropped (read_state): it says nothing
+      // of its sender's version either.
+      if ((f.kind == FrameKind::hello || f.kind == FrameKind::heartbeat) && (f.body.empty() || wire::decode_state(f.body)))
+        note_child_version(f.from, f.version, child != nullptr);
       if (child) {
         if (f.version != kProtocolVersion && f.kind == FrameKind::answer) return answer_of_older_child(via, f, child, agent);
         return from_child_frame(via, f, child, agent);
@@ -1741,8 +1752,10 @@ struct Link::Impl {
   // to be found (Frame::may_find_nobody), so that frames from made-up IRIs cost this node
   // bounded work.
   // `answer` false: logged and counted only (a frame from a sender this node takes, dropped).
+  // `counted` false: a frame taken but whose line is limited all the same (an error frame that
+  // anyone on the network can send, said a line each).
   void refuse(Transport* via, const std::string& from, FrameKind kind, std::size_t frames, const std::string& why,
-              const std::string& reason = {}, bool answer_it = true) {
+              const std::string& reason = {}, bool answer_it = true, bool counted = true) {
     const bool answered_kind = answer_it && is_down(via) &&
                                (kind == FrameKind::hello || kind == FrameKind::heartbeat || kind == FrameKind::up);
     bool say = false, answer = false;
@@ -1750,7 +1763,7 @@ struct Link::Impl {
     std::uint64_t unsaid = 0;    // this sender's refusals not said since its line before
     {
       std::lock_guard lock(mu);
-      counters.refused += frames;
+      if (counted) counters.refused += frames;
       // Bounded: each sender a frame makes up is one more entry.
       if (refusals.size() >= kRefusalsKept && !refusals.contains(from)) refusals.clear();
       Refusal& last = refusals[from];
@@ -1808,7 +1821,7 @@ struct Link::Impl {
       const std::string count = frames != 1 ? std::to_string(frames) + " " : name.find_first_of("aeiu") == 0 ? "an " : "a ";
       const std::string since = unsaid == 0 ? std::string()
                                             : " (" + std::to_string(unsaid) + " more frame" + (unsaid == 1 ? "" : "s") +
-                                                  " of this sender refused since its line before, not logged)";
+                                                  " of this sender " + (counted ? "refused" : "so") + " since its line before, not logged)";
       log((answer_it ? "refused " + count + name + (frames == 1 ? " frame: " : " frames: ") + why : why) + since);
     }
     if (answer) send_error(via, from, 0, {"refused", why, ""}, /*may_find_nobody=*/true);
@@ -1819,6 +1832,12 @@ struct Link::Impl {
   // were 3,750 lines of a parent's log, one a frame, up to session 84.
   void dropped_malformed(const Frame& f, const std::string& line) {
     refuse(nullptr, f.from, f.kind, 1, line, "malformed " + frame_kind_name(f.kind), /*answer_it=*/false);
+  }
+  // An error frame's line, limited as refusals are: a flood of error frames of made-up codes,
+  // each well formed, wrote a line a frame on both sides (a prober of session 87). Not with
+  // `mu` held.
+  void error_said(const Frame& f, const std::string& line, const std::string& code) {
+    refuse(nullptr, f.from, f.kind, 1, line, "error " + code.substr(0, 64), /*answer_it=*/false, /*counted=*/false);
   }
 
   // An answer in an earlier version's layout, read on as this version's: it goes on the board
@@ -2353,11 +2372,16 @@ struct Link::Impl {
         return query_from_parent(via, f);
       case FrameKind::error: {
         auto body = wire::decode_error(f.body);
-        std::string code = body ? body->code : "malformed";
+        if (!body) {  // it said "error from the parent: malformed", a line a frame
+          dropped_malformed(f, "dropped a malformed error from the parent <" + f.from + ">: " + body.error().message);
+          return;
+        }
+        std::string code = body->code;
         std::unique_lock lock(mu);
         if (code == kItemRefused) {
           ++counters.items_refused_by_peer;
-          log("the parent refused item " + std::to_string(f.seq) + " (it stays in this node's store): " + body->message);
+          lock.unlock();
+          error_said(f, "the parent refused item " + std::to_string(f.seq) + " (it stays in this node's store): " + body->message, code);
           return;
         }
         if (code == kCannotStore) {
@@ -2410,7 +2434,8 @@ struct Link::Impl {
           if (why != refused_by_parent) log("the parent refused this node: " + why);  // not at every hello
           refused_by_parent = why;
         } else {
-          log("error from the parent: " + code + (body ? ": " + body->message : std::string()));
+          lock.unlock();
+          error_said(f, "error from the parent: " + wire::printable(code, 200) + ": " + body->message, code);
         }
         return;
       }
@@ -2872,7 +2897,9 @@ struct Link::Impl {
     std::unique_lock lock(mu);
     if (body->code == kItemRefused) {
       ++counters.items_refused_by_peer;
-      log("child <" + f.from + "> refused item " + std::to_string(f.seq) + " sent down (it stays in this node's store): " + body->message);
+      lock.unlock();
+      error_said(f, "child <" + f.from + "> refused item " + std::to_string(f.seq) + " sent down (it stays in this node's store): " +
+                        body->message, body->code);
       return;
     }
     if (body->code == kCannotStore) {  // P9b: once per reason; the child's mark stays put or moves by parts meanwhile
@@ -2914,7 +2941,8 @@ struct Link::Impl {
       return;
     }
     if (f.seq == 0) {
-      log("error from child <" + f.from + ">: " + body->code + ": " + body->message);
+      lock.unlock();
+      error_said(f, "error from child <" + f.from + ">: " + wire::printable(body->code, 200) + ": " + body->message, body->code);
       return;
     }
     const std::string key = query_key(body->origin, f.seq);

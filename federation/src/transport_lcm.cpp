@@ -148,7 +148,7 @@ class LcmTransport final : public Transport {
         continue;
       }
       if (!taken.payload) continue;
-      if (auto frame = decode(taken.payload->data(), taken.payload->size(), channel_.c_str()))
+      if (auto frame = decode(taken.payload->data(), taken.payload->size(), channel_.c_str(), sender))
         return std::optional<Frame>(std::move(*frame));
     }
   }
@@ -188,16 +188,22 @@ class LcmTransport final : public Transport {
   }
 
   // The frame in one LCM message on `channel`, or nothing when it is dropped (with a log line).
-  std::optional<Frame> decode(const void* data, std::size_t size, const char* channel) {
-    const std::string where = "lcm <" + self_ + ">: dropped ";
+  // `sender`: the datagram's address (UdpmSocket), said in the line: a frame names the node it
+  // claims to come from, and a forged one was blamed on that node (a prober of session 87).
+  // liblcm does not give it.
+  std::optional<Frame> decode(const void* data, std::size_t size, const char* channel,
+                              std::optional<std::uint64_t> sender = std::nullopt) {
+    auto where = [&] {
+      return "lcm <" + self_ + ">: dropped " + (sender ? "(sent from " + UdpmSocket::sender_name(*sender) + ") " : std::string());
+    };
     auto decoded = decode_lcm_frame({static_cast<const char*>(data), size});
     if (!decoded) {
-      log_(where + std::to_string(size) + " bytes on channel " + channel + ": " + decoded.error().message);
+      log_(where() + std::to_string(size) + " bytes on channel " + channel + ": " + decoded.error().message);
       return std::nullopt;
     }
     Frame& frame = *decoded;
     if (auto why = wire::reject_reason(frame, self_)) {
-      log_(where + wire::describe(frame) + " on channel " + channel + ": " + *why);
+      log_(where() + wire::describe(frame) + " on channel " + channel + ": " + *why);
       return std::nullopt;
     }
     return std::move(frame);

@@ -2145,6 +2145,68 @@ TEST(Link, UpFramesThatDoNotDecodeAreDroppedAndAreNoSignOfAnotherStore) {
   EXPECT_EQ(count(tree.hospital_dir, {.p = Term::iri(kEx + "n")}), 20u);
 }
 
+// P3, P17, P4: junk under a child's name (a prober's flood of session 87). A heartbeat, hello or
+// up frame of version 3 whose body does not decode, or an up frame of another store's tag, had
+// the hospital speak to home1 in version 3 (queries by source were refused as too old for it)
+// though each was dropped. Error frames of made-up codes, each well formed, and error frames
+// whose body does not decode were a log line each, on both sides.
+TEST(Link, FramesDroppedUnderAChildsNameSayNothingOfItsVersionAndErrorFloodsAreLimited) {
+  Tree tree;
+  ASSERT_TRUE(tree.start_hospital_and_home1());
+  ASSERT_TRUE(home1_sends(tree, 0, 10, 10));
+  const std::string home1_store = node::Node::open(tree.home1_dir).value().store_id().value();
+  for (FrameKind kind : {FrameKind::heartbeat, FrameKind::hello, FrameKind::up, FrameKind::up}) {
+    Frame junk;
+    junk.version = 3;
+    junk.kind = kind;
+    junk.from = kHome1;
+    junk.to = kHospital;
+    junk.seq = kind == FrameKind::up ? 999'999 : 0;
+    junk.prev = kind == FrameKind::up ? 999'998 : 0;
+    junk.body = "\x01\x02";
+    tree.bus.inject_raw(kHospital, encode_frame(junk));
+  }
+  Frame other_store;  // decodes, but of no store registered for home1
+  other_store.version = 3;
+  other_store.kind = FrameKind::up;
+  other_store.from = kHome1;
+  other_store.to = kHospital;
+  other_store.seq = 999'999;
+  other_store.prev = 999'998;
+  other_store.ack = (std::uint64_t{0xBBBBBB} << kStoreTagShift);
+  node::Item item;
+  item.add(Term::iri(kHome1 + "/junk"), Term::iri(kEx + "junk"), Term::integer(1));
+  other_store.body = wire::encode_item({kHome1 + "/hrv", item});
+  ASSERT_NE(store_tag(home1_store), std::uint64_t{0xBBBBBB});
+  tree.bus.inject_raw(kHospital, encode_frame(other_store));
+  for (int k = 0; k < 40; ++k) {
+    Frame error;
+    error.kind = FrameKind::error;
+    error.from = kHome1;
+    error.to = kHospital;
+    error.body = wire::encode_error({"code" + std::to_string(k), "m", ""});
+    tree.bus.inject_raw(kHospital, encode_frame(error));
+    error.from = kHospital;
+    error.to = kHome1;
+    tree.bus.inject_raw(kHome1, encode_frame(error));
+    error.body = "\x07";
+    tree.bus.inject_raw(kHome1, encode_frame(error));
+  }
+  ASSERT_TRUE(home1_sends(tree, 10, 10, 20));
+  EXPECT_TRUE(eventually([&] { return tree.hospital_log.has("dropped a malformed heartbeat frame from <" + kHome1 + ">"); }))
+      << tree.hospital_log.text();
+  EXPECT_TRUE(eventually([&] { return tree.home1_log.has("dropped a malformed error from the parent <" + kHospital + ">: "); }))
+      << tree.home1_log.text();
+  EXPECT_FALSE(tree.hospital_log.has("speaks protocol version 3")) << tree.hospital_log.text();
+  EXPECT_EQ(count(tree.hospital_dir, {.p = Term::iri(kEx + "junk")}), 0u);
+  // At most 10 lines in 10 s of all such lines on a node (P4), not one a frame.
+  EXPECT_GE(tree.hospital_log.lines_with("error from child <" + kHome1 + ">: code"), 1u) << tree.hospital_log.text();
+  EXPECT_LE(tree.hospital_log.lines_with("error from child <" + kHome1 + ">: code"), 10u) << tree.hospital_log.text();
+  EXPECT_LE(tree.home1_log.lines_with("error from the parent: code"), 10u) << tree.home1_log.text();
+  EXPECT_EQ(tree.home1_log.lines_with("dropped a malformed error from the parent"), 1u) << tree.home1_log.text();
+  EXPECT_EQ(tree.home1_log.lines_with("error from the parent: malformed"), 0u) << tree.home1_log.text();
+}
+
 // P6b: an up frame without a store tag, from a child whose registered store has one. A forger on
 // the LAN sent one so, its seq far ahead and its prev the mark it read off an ack: the mark went
 // past every item the child would send, and the child's stream stopped for good.
