@@ -12,6 +12,18 @@ namespace tahvel::node::detail {
 namespace {
 
 constexpr std::uint8_t kPinned = 1;
+
+// The dictionary row of term `id` into `v`, and the table it is in (`terms`, or `long_terms`
+// for a long one, kLongTermBytes): LMDB's code, MDB_NOTFOUND in neither. Short terms, the most
+// read, are looked up first.
+int get_term_row(MDB_txn* txn, const Env& env, std::uint64_t id, MDB_val& v, MDB_dbi* table = nullptr) {
+  MDB_val k = val(id);
+  int rc = mdb_get(txn, env.terms, &k, &v);
+  if (table) *table = env.terms;
+  if (rc != MDB_NOTFOUND || env.long_terms == 0) return rc;
+  if (table) *table = env.long_terms;
+  return mdb_get(txn, env.long_terms, &k, &v);
+}
 constexpr std::int64_t kInlineIntMin = -(1ll << 59);
 constexpr std::int64_t kInlineIntMax = (1ll << 59) - 1;
 
@@ -61,8 +73,8 @@ Result<std::uint64_t> lookup_payload(MDB_txn* txn, const Env& env, std::string_v
   for (rc = mdb_cursor_get(cursor, &k, &v, MDB_SET_KEY); rc == 0;
        rc = mdb_cursor_get(cursor, &k, &v, MDB_NEXT_DUP)) {
     std::uint64_t id = u64(v);
-    MDB_val tk = val(id), tv;
-    const int got = mdb_get(txn, env.terms, &tk, &tv);
+    MDB_val tv;
+    const int got = get_term_row(txn, env, id, tv);
     // A term that cannot be read (a damaged page) is said as such: passed over, it left the
     // transaction failed, and the next step said only MDB_BAD_TXN.
     if (got != 0 && got != MDB_NOTFOUND) {
@@ -85,21 +97,22 @@ Result<std::uint64_t> lookup_payload(MDB_txn* txn, const Env& env, std::string_v
 Result<void> pin_term(Txn& txn, std::uint64_t id) {
   if (is_inline(id)) return {};
   MDB_val k = val(id), v;
-  int rc = mdb_get(txn.raw(), txn.env().terms, &k, &v);
+  MDB_dbi table = 0;
+  int rc = get_term_row(txn.raw(), txn.env(), id, v, &table);
   if (rc != 0) return lmdb_fail(rc, "reading term " + std::to_string(id));
   if (static_cast<const std::uint8_t*>(v.mv_data)[0] & kPinned) return {};
   std::string value(view(v));
   value[0] = static_cast<char>(value[0] | kPinned);
   MDB_val nv = val(value);
-  rc = mdb_put(txn.raw(), txn.env().terms, &k, &nv, 0);
+  rc = mdb_put(txn.raw(), table, &k, &nv, 0);
   if (rc != 0) return lmdb_fail(rc, "pinning term " + std::to_string(id));
   return {};
 }
 
 Result<bool> is_pinned(MDB_txn* txn, const Env& env, std::uint64_t id) {
   if (is_inline(id)) return false;
-  MDB_val k = val(id), v;
-  int rc = mdb_get(txn, env.terms, &k, &v);
+  MDB_val v;
+  int rc = get_term_row(txn, env, id, v);
   if (rc == MDB_NOTFOUND) return false;
   if (rc != 0) return lmdb_fail(rc, "reading term " + std::to_string(id));
   return (static_cast<const std::uint8_t*>(v.mv_data)[0] & kPinned) != 0;
@@ -254,7 +267,9 @@ Result<std::uint64_t> intern_keyed(Txn& txn, const Term& term, const TermKey& ke
   value.push_back(static_cast<char>(pinned ? kPinned : 0));
   value += bytes;
   MDB_val k = val(id), v = val(value);
-  int rc = mdb_put(txn.raw(), txn.env().terms, &k, &v, MDB_APPEND);
+  // Ids rise in either table: appended, each fills its pages.
+  const MDB_dbi table = value.size() >= kLongTermBytes && txn.env().long_terms != 0 ? txn.env().long_terms : txn.env().terms;
+  int rc = mdb_put(txn.raw(), table, &k, &v, MDB_APPEND);
   if (rc != 0) return lmdb_fail(rc, "adding a term");
   MDB_val hk = val(hash), hv = val(id);
   rc = mdb_put(txn.raw(), txn.env().term_hash, &hk, &hv, 0);
@@ -270,7 +285,8 @@ Result<void> collect_term_if_unused(Txn& txn, std::uint64_t id) {
   MDB_txn* raw = txn.raw();
   Env& env = txn.env();
   MDB_val k = val(id), v;
-  int rc = mdb_get(raw, env.terms, &k, &v);
+  MDB_dbi table = 0;
+  int rc = get_term_row(raw, env, id, v, &table);
   if (rc == MDB_NOTFOUND) return {};
   if (rc != 0) return lmdb_fail(rc, "reading term " + std::to_string(id));
   if (static_cast<const std::uint8_t*>(v.mv_data)[0] & kPinned) return {};
@@ -284,7 +300,7 @@ Result<void> collect_term_if_unused(Txn& txn, std::uint64_t id) {
   MDB_val hk = val(hash), hv = val(id);
   rc = mdb_del(raw, env.term_hash, &hk, &hv);
   if (rc != 0 && rc != MDB_NOTFOUND) return lmdb_fail(rc, "unindexing a term");
-  rc = mdb_del(raw, env.terms, &k, nullptr);
+  rc = mdb_del(raw, table, &k, nullptr);
   if (rc != 0) return lmdb_fail(rc, "removing a term");
   --txn.counters.terms;
   // Ids seen before this collection may name the collected term: forget them (the process
@@ -318,8 +334,8 @@ Result<Term> TermReader::get(std::uint64_t id, bool repeating, bool remember) {
       return term;
     }
   }
-  MDB_val k = val(id), v;
-  int rc = mdb_get(txn_, env_.terms, &k, &v);
+  MDB_val v;
+  int rc = get_term_row(txn_, env_, id, v);
   if (rc != 0) return lmdb_fail(rc, "reading term " + std::to_string(id));
   std::string_view bytes = view(v);
   if (bytes.size() < 2) return fail(Errc::corrupt, "term " + std::to_string(id) + " is truncated");

@@ -128,7 +128,7 @@ std::uint64_t bytes_u64(std::string_view s) {
 // The store format in `meta`; 0 when it says none.
 Error other_format(const std::filesystem::path& dir, std::uint32_t v) {
   return Error{Errc::version, dir.string() + " has store format " + std::to_string(v) + ", this build reads " +
-                                  std::to_string(kUpgradedFormatVersion) + " and " + std::to_string(kFormatVersion)};
+                                  std::to_string(kOldestUpgradedFormatVersion) + " to " + std::to_string(kFormatVersion)};
 }
 
 std::uint32_t format_of(MDB_txn* txn, MDB_dbi meta) {
@@ -174,8 +174,12 @@ Result<void> upgrade_to_format_3(MDB_txn* txn, const Env& env) {
   if (!counters) return unexpected(counters.error());
   counters->max_span = std::max(counters->max_span, max_span);
   if (auto r = save_counters(txn, env.main, *counters); !r) return r;
-  return put_format(txn, env.meta, kFormatVersion);
+  return put_format(txn, env.meta, 3);
 }
+
+// Format 3 to 4: the table of long terms, made empty with the later tables (open_later_tables);
+// the long terms a store holds stay where they are (a term is looked up in `terms` first).
+Result<void> upgrade_to_format_4(MDB_txn* txn, const Env& env) { return put_format(txn, env.meta, 4); }
 
 }  // namespace
 
@@ -388,7 +392,7 @@ Result<void> Env::open_tables(MDB_txn* txn, bool create) {
     rc = mdb_dbi_open(txn, t.name, t.flags | (create ? MDB_CREATE : 0), t.dbi);
     if (rc == MDB_NOTFOUND && !create) {
       // A store of a format this build does not read may lack a table this one has.
-      if (const std::uint32_t v = t.dbi != &meta ? format_of(txn, meta) : 0; v != 0 && v != kFormatVersion && v != kUpgradedFormatVersion)
+      if (const std::uint32_t v = t.dbi != &meta ? format_of(txn, meta) : 0; v != 0 && v != kFormatVersion && !is_upgraded_format(v))
         return unexpected(other_format(dir_, v));
       return fail(Errc::corrupt, dir_.string() + " is not a Tahvel store: its LMDB file has no table " + t.name +
                                      " (another program's database, or a damaged store)");
@@ -399,12 +403,13 @@ Result<void> Env::open_tables(MDB_txn* txn, bool create) {
 }
 
 Result<bool> Env::open_later_tables(MDB_txn* txn, bool create) {
-  // Tables added to format 2 (notices) and in format 3 (by_time): a store made before has them
+  // Tables added to format 2 (notices), in format 3 (by_time) and 4 (long_terms): a store made before has them
   // not until its first open, which makes them in a write transaction (open_at).
   const unsigned dupfixed = MDB_DUPSORT | MDB_DUPFIXED | MDB_INTEGERDUP;
   const std::pair<const char*, std::pair<MDB_dbi*, unsigned>> later[] = {
       {"notices", {&notices, MDB_INTEGERKEY}},
       {"by_time", {&by_time, MDB_INTEGERKEY | dupfixed}},
+      {"long_terms", {&long_terms, MDB_INTEGERKEY}},
   };
   bool all = true;
   for (const auto& [name, table] : later) {
@@ -795,8 +800,8 @@ Result<std::shared_ptr<Env>> Env::open_at(const std::filesystem::path& dir, cons
       return fail(Errc::corrupt, dir.string() + " holds no Tahvel store settings (its settings table reads as empty: the "
                                                "store's data file, data.mdb, is damaged, or it is another program's LMDB "
                                                "file; restore it from a copy)");
-    if (v == kUpgradedFormatVersion && (first_flags & MDB_RDONLY)) {
-      needs_tables = true;  // and its time index filled: open_later_tables found it missing
+    if (is_upgraded_format(v) && (first_flags & MDB_RDONLY)) {
+      needs_tables = true;  // and its format written (format 2: its time index filled)
     } else if (v != kFormatVersion) {
       return unexpected(other_format(dir, v));
     }
@@ -859,7 +864,8 @@ Result<std::shared_ptr<Env>> Env::open_at(const std::filesystem::path& dir, cons
       if (auto made = env->open_later_tables(txn, true); !made) r = unexpected(made.error());
     }
     // Read again in this transaction: another process may have upgraded the store meanwhile.
-    if (r && format_of(txn, env->meta) == kUpgradedFormatVersion) r = upgrade_to_format_3(txn, *env);
+    if (r && format_of(txn, env->meta) == 2) r = upgrade_to_format_3(txn, *env);
+    if (r && format_of(txn, env->meta) == 3) r = upgrade_to_format_4(txn, *env);
     if (r) {
       rc = mdb_txn_commit(txn);
       if (rc == 0) break;
@@ -969,10 +975,13 @@ Result<void> Env::grow(WriteKind kind, std::uint64_t removal_copy_bytes) {
   // not be emptied.
   std::uint64_t limit = settings_.max_map_bytes;
   if (kind == WriteKind::removal) limit += removal_reserve(limit) + 2 * removal_copy_bytes;
-  if (current >= limit)
+  if (kind == WriteKind::from_below) limit -= kept_for_own_writers(limit);
+  if (current >= limit) {
+    if (kind == WriteKind::from_below) return from_below_refused(current, true);
     return fail(Errc::store_full, "store full: " + dir_.string() + " reached its maximum of " +
                                       std::to_string(settings_.max_map_bytes) + " bytes" +
                                       pinned_by_a_reader(env_, info.me_last_txnid));
+  }
   if (!quiesce_locked())  // not full: growing waits for this process's own snapshots
     return fail(Errc::io, "the store in " + dir_.string() +
                               " must grow, and cannot while this process holds a snapshot; release the snapshot and retry");
@@ -1095,10 +1104,34 @@ bool Env::map_info(MDB_envinfo& info, MDB_stat& stat) {
   return mdb_env_info(env_, &info) == 0 && mdb_env_stat(env_, &stat) == 0;
 }
 
-Result<void> Env::check_reserve_untouched(std::uint64_t new_bytes) {
+Result<void> Env::from_below_refused(std::uint64_t in_use, bool map_end) const {
+  return fail(Errc::store_full, "store full: " + dir_.string() + ": " + std::to_string(in_use) + " bytes are in use " +
+                                    (map_end ? "(up to its last page) " : "") + "of its maximum of " +
+                                    std::to_string(settings_.max_map_bytes) + ", and items relayed from below leave the last " +
+                                    std::to_string(kept_for_own_writers(settings_.max_map_bytes)) +
+                                    " bytes of it to this node's own agents; they wait in the child's outbox: remove records, "
+                                    "or make the store with a larger --max-map");
+}
+
+Result<void> Env::check_reserve_untouched(std::uint64_t new_bytes, WriteKind kind) {
   MDB_envinfo info;
   MDB_stat stat;
-  if (!map_info(info, stat) || info.me_mapsize <= settings_.max_map_bytes) return {};
+  if (!map_info(info, stat)) return {};
+  const bool into_reserve = info.me_mapsize > settings_.max_map_bytes;
+  if (kind == WriteKind::from_below) {
+    // Up to the last page in use first, which needs no read: within the room, free pages or not.
+    const std::uint64_t kept = kept_for_own_writers(settings_.max_map_bytes);
+    const std::uint64_t limit = settings_.max_map_bytes - kept -
+                                (into_reserve ? std::min(removal_reserve(settings_.max_map_bytes), settings_.max_map_bytes - kept) : 0);
+    if ((info.me_last_pgno + 1) * stat.ms_psize + new_bytes > limit) {
+      auto read = begin_read();
+      if (!read) return {};
+      const std::uint64_t in_use = pages_in_use_bytes(env_, *read);
+      end_read(*read);
+      if (in_use + new_bytes > limit) return from_below_refused(in_use, false);
+    }
+  }
+  if (!into_reserve) return {};
   // LMDB's free-page table can be read in a read transaction only (which also holds the map
   // in place while pages_in_use_bytes reads LMDB's meta pages).
   auto read = begin_read();
@@ -1244,11 +1277,11 @@ Error Env::read_only_error() const {
 
 Result<void> Env::write(const std::function<Result<void>(Txn&)>& body, WriteKind kind, WriteBound bound) {
   const std::uint64_t new_bytes = bound.bytes;
-  bool dead_readers_cleared = false;
+  bool dead_readers_cleared = false, freelist_turned = false;
   for (;;) {
     if (auto r = reserve_disk(kind, bound); !r) return r;
     if (kind != WriteKind::removal) {
-      if (auto r = check_reserve_untouched(new_bytes); !r) return r;
+      if (auto r = check_reserve_untouched(new_bytes, kind); !r) return r;
     }
     MDB_txn* raw = nullptr;
     if (auto r = begin(&raw, 0); !r) return r;
@@ -1319,7 +1352,14 @@ Result<void> Env::write(const std::function<Result<void>(Txn&)>& body, WriteKind
         dead_readers_cleared = true;
         continue;
       }
-      if (auto g = grow(kind, kind == WriteKind::removal ? bound.large_term_bytes : 0); !g) return g;
+      if (auto g = grow(kind, kind == WriteKind::removal ? bound.large_term_bytes : 0); !g) {
+        // LMDB reuses the pages a transaction freed from the second transaction after it on: the
+        // first write after a large removal found none and the map at its maximum, the store
+        // nearly empty. A small write in between makes them free (as between a removal's parts).
+        if (kind == WriteKind::removal || freelist_turned) return g;
+        freelist_turned = true;
+        if (!write([](Txn&) -> Result<void> { return {}; }, WriteKind::removal)) return g;
+      }
       continue;
     }
     if (!result) return result;

@@ -29,11 +29,17 @@
 
 namespace tahvel::node::detail {
 
-inline constexpr std::uint32_t kFormatVersion = 3;
-// A store of format 2 has no time index (and may lack the notices table): this build brings it
-// up to format 3 at its first open, in one write transaction (Env::open), after which builds
-// that read format 2 refuse it (they would write items the time index does not list).
-inline constexpr std::uint32_t kUpgradedFormatVersion = 2;
+inline constexpr std::uint32_t kFormatVersion = 4;
+// A store of format 2 has no time index (and may lack the notices table), and one of format 3 no
+// table of long terms: this build brings either up to format 4 at its first open, in one write
+// transaction (Env::open), after which builds that read the format before refuse it (they would
+// write items the time index does not list, or not find a long term).
+inline constexpr std::uint32_t kOldestUpgradedFormatVersion = 2;
+inline bool is_upgraded_format(std::uint32_t v) { return v >= kOldestUpgradedFormatVersion && v < kFormatVersion; }
+// A term whose dictionary value is this long or longer (ECG samples, a long text) is kept in
+// `long_terms`, apart from the short ones: removing old chunks then empties whole pages of it,
+// where among short terms it left every page partly full, and LMDB frees no such page.
+inline constexpr std::size_t kLongTermBytes = 256;
 
 // Counters kept in one meta value so that a write touches one key for all of them.
 struct Counters {
@@ -120,7 +126,14 @@ struct TtlRule {
 
 class Txn;
 
-enum class WriteKind { data, removal };
+// `from_below`: items a child node relays up. They leave what kept_for_own_writers says of the
+// maximum to this node's own writers: relayed into room a removal had just made, a sensor's
+// backlog of raw ECG took all of it, and the agents that derive from it (R-peaks, RR, HRV) could
+// not write, the store freed for nothing (an integrator's full home, session 87).
+enum class WriteKind { data, from_below, removal };
+// The part of a store's maximum `max` that items relayed from below leave free: a sixteenth, at
+// most 64 MiB.
+inline std::uint64_t kept_for_own_writers(std::uint64_t max) { return std::min<std::uint64_t>(max / 16, 64ull << 20); }
 
 // An upper bound on the bytes of new pages a write transaction may add to the data file
 // (write_bound, write.h), and the part of it in terms long enough for overflow pages: those
@@ -246,6 +259,9 @@ class Env {
   // removed with its item (retire_item). Format 3; a format-2 store gets it, filled, at its first
   // open.
   MDB_dbi by_time = 0;
+  // Dictionary terms of kLongTermBytes or more (id -> value, as `terms`), format 4. A term of a
+  // store made before stays in `terms`: a term is looked up in `terms` first, then here.
+  MDB_dbi long_terms = 0;
 
   // Runs `body` in a write transaction and commits it. When the map fills, aborts, grows the
   // map (up to max_map_bytes) and runs `body` again from the start; past the maximum returns
@@ -331,7 +347,11 @@ class Env {
   // A data write in a map that a removal grew beyond the maximum (into the removals' reserve):
   // store_full when the pages in use, free ones not counted, and `new_bytes` would exceed the
   // maximum. Without it data filled the reserve, and then even removals were refused.
-  Result<void> check_reserve_untouched(std::uint64_t new_bytes);
+  // For a write from below (WriteKind::from_below): store_full too when the pages in use and
+  // `new_bytes` would leave less than kept_for_own_writers within the room writes may fill.
+  Result<void> check_reserve_untouched(std::uint64_t new_bytes, WriteKind kind);
+  // The store_full of a write from below, `in_use` bytes in use (`map_end`: up to the map's end).
+  Result<void> from_below_refused(std::uint64_t in_use, bool map_end) const;
   Result<void> begin(MDB_txn** txn, unsigned flags);
   // With MDB_WRITEMAP the data file is as large as the map but sparse: a page written where the
   // file has no block yet takes one from the filesystem, and on a full disk that is SIGBUS in

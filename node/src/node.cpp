@@ -326,7 +326,7 @@ struct Agent::Impl {
   Result<std::uint64_t> find_subscription(Txn& txn, const Pattern& pattern, bool own_only) const;
 
   // Sources of relayed items found acceptable (relay): the most recent 16.
-  std::vector<std::string> relay_sources;
+  std::vector<std::pair<std::string, bool>> relay_sources;  // checked sources, and whether each is under this agent
 };
 
 Result<std::uint64_t> Agent::Impl::find_subscription(Txn& txn, const Pattern& pattern, bool own_only) const {
@@ -913,12 +913,21 @@ Result<RelayOutcome> Agent::relay(std::string_view stream, const std::vector<Rel
     // remembered by this handle (the checks parse IRIs, were a quarter of a hospital's ingest
     // cost, and depend only on the source, this agent and the node). A lone item on a quiet
     // link then costs no IRI parsing.
-    std::vector<std::string>& checked_sources = impl_->relay_sources;
+    std::vector<std::pair<std::string, bool>>& checked_sources = impl_->relay_sources;
+    // Items from below (each source at or under this agent's IRI: a child node's writers) leave
+    // this node's own agents their part of the maximum (WriteKind::from_below); a removal notice
+    // alone frees room and is not held back.
+    bool all_below = true, any_item = false;
     for (std::size_t i = 0; i < items.size(); ++i) {
       const std::string& source = items[i].source;
-      bool known = std::find(checked_sources.begin(), checked_sources.end(), source) != checked_sources.end();
-      if (!known) {
-        if (!uri::is_under(source, impl_->iri) && uri::is_under(source, node_iri)) {
+      any_item = any_item || !items[i].removal;
+      auto known = std::find_if(checked_sources.begin(), checked_sources.end(), [&](const auto& c) { return c.first == source; });
+      if (known != checked_sources.end()) {
+        all_below = all_below && known->second;
+      } else {
+        const bool below = uri::is_under(source, impl_->iri);
+        all_below = all_below && below;
+        if (!below && uri::is_under(source, node_iri)) {
           refuse(i, Error{Errc::invalid_argument, about(i) + ": source <" + source + "> is a writer of this node outside <" +
                                                        impl_->iri + ">; a link agent relays only its own subtree or writers above this node"});
           continue;
@@ -928,7 +937,7 @@ Result<RelayOutcome> Agent::relay(std::string_view stream, const std::vector<Rel
           continue;
         }
         if (checked_sources.size() >= 16) checked_sources.erase(checked_sources.begin());
-        checked_sources.push_back(source);
+        checked_sources.emplace_back(source, below);
       }
       if (items[i].removal && items[i].positions.size() != items[i].item.triples.size()) {
         refuse(i, Error{Errc::invalid_argument, about(i) + ": a removal notice of " + std::to_string(items[i].item.triples.size()) +
@@ -941,6 +950,7 @@ Result<RelayOutcome> Agent::relay(std::string_view stream, const std::vector<Rel
         refuse(i, with_context(v.error(), about(i)));
       }
     }
+    const bool from_below = any_item && all_below;
     RelayOutcome outcome;
     auto bound_of_first = [&](std::size_t n) {
       WriteBound bound;
@@ -1030,7 +1040,7 @@ Result<RelayOutcome> Agent::relay(std::string_view stream, const std::vector<Rel
           if (!reclaimed) return unexpected(reclaimed.error());
         }
         return {};
-      }, WriteKind::data, new_bytes);
+      }, from_below ? WriteKind::from_below : WriteKind::data, new_bytes);
       if (!written && refused_in_write) {
         refuse(*refused_in_write, written.error());
         continue;

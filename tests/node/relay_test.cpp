@@ -548,7 +548,9 @@ TEST(Relay, AStoreWithRoomForPartOfARunStoresTheItemsThatFitAndSaysWhyNotTheRest
       if (!id) break;
       fills.push_back(*id);
     }
-  for (std::size_t i = 0; i < 30; ++i) ASSERT_TRUE(node.remove({.s = Term::iri(kNodeIri + "/f" + std::to_string(i))}));
+  // Room for part of the run, beyond the part of the maximum that items from below leave to the
+  // node's own writers (kept_for_own_writers).
+  for (std::size_t i = 0; i < 120; ++i) ASSERT_TRUE(node.remove({.s = Term::iri(kNodeIri + "/f" + std::to_string(i))}));
   Agent child = node.agent("child").value();
   const std::string source = kNodeIri + "/child/hrv";
   std::vector<RelayedItem> run;
@@ -570,6 +572,46 @@ TEST(Relay, AStoreWithRoomForPartOfARunStoresTheItemsThatFitAndSaysWhyNotTheRest
   EXPECT_FALSE(rest.not_applied);
   EXPECT_EQ(rest.mark, 1000u);
   EXPECT_EQ(node.snapshot().value().count({.p = ex("value")}).value(), 1000u);
+}
+
+// A full home whose operator removed old raw ECG: the sensor's backlog, relayed into the room
+// made, took all of it, and the home's own agents (R-peaks, RR, HRV) could not write, the
+// removal done for nothing (an integrator's probe of session 87). Items from below leave the
+// last part of the maximum (kept_for_own_writers: a sixteenth) to this node's own writers.
+TEST(Relay, ItemsFromBelowLeaveRoomForThisNodesOwnWriters) {
+  TempDir dir;
+  constexpr std::uint64_t kMax = 4 << 20;
+  Node node = make_node(dir.path(), {.max_map_bytes = kMax});
+  Agent child = node.agent("child").value();
+  const std::string source = kNodeIri + "/child/ecg";
+  std::uint64_t seq = 0;
+  std::optional<Error> full;
+  while (!full) {
+    std::vector<RelayedItem> run;
+    for (int k = 0; k < 50; ++k, ++seq)
+      run.push_back(RelayedItem{seq + 1, seq, source, Item{}.add(Term::iri(source + "/c" + std::to_string(seq)), ex("samples"),
+                                                                 Term::literal(std::string(900, 's') + std::to_string(seq)))});
+    auto relayed_run = child.relay("up", run);
+    ASSERT_TRUE(relayed_run) << relayed_run.error().message;
+    full = relayed_run->not_applied;
+    seq = relayed_run->mark;
+  }
+  EXPECT_EQ(full->code, Errc::store_full);
+  EXPECT_NE(full->message.find("items relayed from below leave the last 262144 bytes of it to this node's own agents; they wait "
+                               "in the child's outbox"),
+            std::string::npos)
+      << full->message;
+  // This node's own agent still writes, 200 KB of items (beyond what is kept for it, it would not).
+  Agent own = node.agent("rpeak").value();
+  for (int k = 0; k < 200; ++k) {
+    auto stored = own.store(Item{}.add(ex("peaks" + std::to_string(k)), ex("peaks"), Term::literal(std::string(900, 'p'))));
+    ASSERT_TRUE(stored) << "own write " << k << ": " << stored.error().message;
+  }
+  // A parent's configuration relayed down (its source above this node) is this node's to write too.
+  Agent uplink = node.agent("uplink").value();
+  auto down = uplink.relay("down", {RelayedItem{1, 0, "http://example.org/hospital/cli", Item{}.add(ex("config"), ex("window"), Term::integer(300))}});
+  ASSERT_TRUE(down) << down.error().message;
+  EXPECT_FALSE(down->not_applied);
 }
 
 // A node's persistent items go up again on a new stream when a store on the way was made again
