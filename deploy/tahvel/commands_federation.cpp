@@ -2715,12 +2715,14 @@ std::string store_warning(const node::Node& node, const fs::path& dir) {
   // removal may take the mark past the maximum, into the reserve kept for removals.
   if (auto st = node.stats(); st && st->max_map_bytes > 0 && st->high_water_bytes * 10 >= st->max_map_bytes * 9 &&
                               st->used_bytes * 2 >= st->max_map_bytes) {
+    // MiB, as said: the errors give bytes, and "MB" beside them read as another figure.
     if (st->high_water_bytes > st->max_map_bytes)
-      said << st->high_water_bytes / kMB << " MB used, " << (st->high_water_bytes - st->max_map_bytes) / 1024
-           << " KB past its maximum of " << st->max_map_bytes / kMB << " MB, into the reserve kept for removals (";
+      said << st->high_water_bytes / kMB << " MiB used, " << (st->high_water_bytes - st->max_map_bytes) / 1024
+           << " KiB past its maximum of " << st->max_map_bytes / kMB << " MiB, into the reserve kept for removals (";
     else
-      said << st->high_water_bytes / kMB << " MB of its maximum " << st->max_map_bytes / kMB << " MB used (";
-    said << st->used_bytes / kMB << " MB holding data): writes that do not fit are refused";
+      said << st->high_water_bytes / kMB << " MiB of its maximum " << st->max_map_bytes / kMB << " MiB used (";
+    said << st->used_bytes / kMB << " MiB holding data): writes that do not fit are refused; remove records, the oldest "
+         << "first (tahvel remove --until T)";
   }
   struct statvfs disk {};
   if (statvfs(dir.c_str(), &disk) == 0) {

@@ -563,8 +563,8 @@ void print_patient_text(const std::string& dir, const std::string& node_iri, con
               << shell_word(p.recording) << " --since " << since << " --until " << until << "\n";
     // A forward policy that sends raw ECG up (docs/deploy.md) leaves a copy here: read without
     // a remote query, and while the way down is cut.
-    if (ecg_held_here)
-      std::cout << "  its raw ECG is held here too (forwarded up): tahvel ecg " << shell_word(dir) << " --recording "
+    if (ecg_held_here && node != node_iri)
+      std::cout << "  some of its raw ECG is held here too (forwarded up): tahvel ecg " << shell_word(dir) << " --recording "
                 << shell_word(p.recording) << " --since " << since << " --until " << until << "\n";
   }
   if (p.irregular())
@@ -718,17 +718,20 @@ int run_patients(const Args& args) {
   }
   // Whether this node holds raw ECG of each latest window's time (a chunk of it), beside the
   // node that computed the window.
+  // `tahvel ecg` reads the recording's description too: without it here (a policy that sends
+  // chunks alone, a ring that took it), the command offered would fail.
   std::vector<bool> ecg_held_here;
   for (const agg::PatientView* p : shown) {
     bool held = false;
-    if (const std::string at = p->source_node(); !at.empty() && at != node.iri()) {
+    if (!p->source_node().empty()) {
       const auto [since_ns, until_ns] = signal_range_ns(*p);
       node::Pattern chunks;
       chunks.p = node::Term::iri(std::string(agg::kTv) + "samples");
       chunks.under = p->recording;
       chunks.since = since_ns;
       chunks.until = until_ns;
-      held = !check(snapshot.list(chunks, {.limit = 1})).empty();
+      held = !check(snapshot.list(chunks, {.limit = 1})).empty() &&
+             !check(snapshot.list({.s = node::Term::iri(p->recording)}, {.limit = 1})).empty();
     }
     ecg_held_here.push_back(held);
   }

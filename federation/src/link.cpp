@@ -1821,7 +1821,7 @@ struct Link::Impl {
       const std::string count = frames != 1 ? std::to_string(frames) + " " : name.find_first_of("aeiu") == 0 ? "an " : "a ";
       const std::string since = unsaid == 0 ? std::string()
                                             : " (" + std::to_string(unsaid) + " more frame" + (unsaid == 1 ? "" : "s") +
-                                                  " of this sender " + (counted ? "refused" : "so") + " since its line before, not logged)";
+                                                  " of this sender " + (counted ? "refused" : "dropped or said") + " since its line before, not logged)";
       log((answer_it ? "refused " + count + name + (frames == 1 ? " frame: " : " frames: ") + why : why) + since);
     }
     if (answer) send_error(via, from, 0, {"refused", why, ""}, /*may_find_nobody=*/true);
@@ -1836,8 +1836,9 @@ struct Link::Impl {
   // An error frame's line, limited as refusals are: a flood of error frames of made-up codes,
   // each well formed, wrote a line a frame on both sides (a prober of session 87). Not with
   // `mu` held.
-  void error_said(const Frame& f, const std::string& line, const std::string& code) {
-    refuse(nullptr, f.from, f.kind, 1, line, "error " + code.substr(0, 64), /*answer_it=*/false, /*counted=*/false);
+  void error_said(const Frame& f, const std::string& line, const std::string& code, const std::string& message) {
+    refuse(nullptr, f.from, f.kind, 1, line, "error " + code.substr(0, 64) + " " + std::string(reason_kind(message).substr(0, 64)),
+           /*answer_it=*/false, /*counted=*/false);
   }
 
   // An answer in an earlier version's layout, read on as this version's: it goes on the board
@@ -2381,7 +2382,8 @@ struct Link::Impl {
         if (code == kItemRefused) {
           ++counters.items_refused_by_peer;
           lock.unlock();
-          error_said(f, "the parent refused item " + std::to_string(f.seq) + " (it stays in this node's store): " + body->message, code);
+          error_said(f, "the parent refused item " + std::to_string(f.seq) + " (it stays in this node's store): " + body->message, code,
+                     body->message);
           return;
         }
         if (code == kCannotStore) {
@@ -2435,7 +2437,7 @@ struct Link::Impl {
           refused_by_parent = why;
         } else {
           lock.unlock();
-          error_said(f, "error from the parent: " + wire::printable(code, 200) + ": " + body->message, code);
+          error_said(f, "error from the parent: " + wire::printable(code, 200) + ": " + body->message, code, body->message);
         }
         return;
       }
@@ -2899,7 +2901,7 @@ struct Link::Impl {
       ++counters.items_refused_by_peer;
       lock.unlock();
       error_said(f, "child <" + f.from + "> refused item " + std::to_string(f.seq) + " sent down (it stays in this node's store): " +
-                        body->message, body->code);
+                        body->message, body->code, body->message);
       return;
     }
     if (body->code == kCannotStore) {  // P9b: once per reason; the child's mark stays put or moves by parts meanwhile
@@ -2942,7 +2944,8 @@ struct Link::Impl {
     }
     if (f.seq == 0) {
       lock.unlock();
-      error_said(f, "error from child <" + f.from + ">: " + wire::printable(body->code, 200) + ": " + body->message, body->code);
+      error_said(f, "error from child <" + f.from + ">: " + wire::printable(body->code, 200) + ": " + body->message, body->code,
+                 body->message);
       return;
     }
     const std::string key = query_key(body->origin, f.seq);
@@ -3889,19 +3892,9 @@ struct Link::Impl {
           previous.push_back({.s = node::Term::iri(child.iri), .source = link.iri()});
         }
       }
-      if (auto stored = link.replace(previous, items); !stored) {
-        // Once per 10 s and kind of reason, as P9b's lines: a full store refused it every 2 s.
-        const std::string& why = stored.error().message;
-        StateWriteFailure& said = state_write_failure;
-        const bool new_kind = reason_kind(why) != reason_kind(said.why);
-        if (new_kind || Clock::now() - said.at >= kRelayFailureSaidEvery) {
-          log("cannot write the state of " + std::to_string(items.size()) + " child(ren): " + why +
-              (said.unsaid > 0 && !new_kind ? " (and " + std::to_string(said.unsaid) + " times more since it was last said)" : ""));
-          said = {why, Clock::now(), 0};
-        } else {
-          ++said.unsaid;
-        }
-      }
+      if (auto stored = link.replace(previous, items); !stored)
+        say_state_write_failure(state_write_failure, "the state of " + std::to_string(items.size()) + " child(ren)",
+                                stored.error().message);
     }
   }
   // The last failure to write the children's state, as logged (write_child_states' thread only).
@@ -3909,7 +3902,19 @@ struct Link::Impl {
     std::string why;
     Clock::time_point at{};
     std::uint64_t unsaid = 0;
-  } state_write_failure;
+  } state_write_failure, uplink_state_write_failure;
+  // "cannot write <what>: <why>", once per 10 s and kind of reason (P9b's lines): a full store
+  // refused a state every 1-2 s, a line each.
+  void say_state_write_failure(StateWriteFailure& said, const std::string& what, const std::string& why) {
+    const bool new_kind = reason_kind(why) != reason_kind(said.why);
+    if (new_kind || Clock::now() - said.at >= kRelayFailureSaidEvery) {
+      log("cannot write " + what + ": " + why +
+          (said.unsaid > 0 && !new_kind ? " (and " + std::to_string(said.unsaid) + " times more since it was last said)" : ""));
+      said = {why, Clock::now(), 0};
+    } else {
+      ++said.unsaid;
+    }
+  }
 
   // P12a: this node's view of its uplink as one persistent item about the node, written by its
   // agent `link` when what it says changes and every kStateRefreshNs while the link is up, so
@@ -3964,7 +3969,7 @@ struct Link::Impl {
     }
     if (!went.empty()) log(went);
     if (auto stored = link.replace({{.s = node::Term::iri(self), .source = link.iri()}}, {item}); !stored) {
-      log("cannot write this node's uplink state: " + stored.error().message);
+      say_state_write_failure(uplink_state_write_failure, "this node's uplink state", stored.error().message);
       std::lock_guard lock(mu);
       own_state_said.clear();  // again at the next beat
     }

@@ -765,6 +765,7 @@ Result<std::shared_ptr<Env>> Env::open_at(const std::filesystem::path& dir, cons
   // was recorded) needs a write, once, and a copy of a store in another file, at its first open.
   const unsigned first_flags = init ? 0 : MDB_RDONLY;
   bool needs_store_id = false, needs_tables = false, needs_file_record = false;
+  std::uint32_t opened_format = 0;
   const std::string data_file = data_file_identity(dir);
   MDB_txn* txn = nullptr;
   rc = mdb_txn_begin(env->env_, nullptr, first_flags, &txn);
@@ -796,6 +797,7 @@ Result<std::shared_ptr<Env>> Env::open_at(const std::filesystem::path& dir, cons
       if (auto r = save_counters(txn, env->main, Counters{}); !r) return r;
     }
     const std::uint32_t v = format_of(txn, env->meta);
+    opened_format = v;
     if (v == 0)
       return fail(Errc::corrupt, dir.string() + " holds no Tahvel store settings (its settings table reads as empty: the "
                                                "store's data file, data.mdb, is damaged, or it is another program's LMDB "
@@ -842,6 +844,9 @@ Result<std::shared_ptr<Env>> Env::open_at(const std::filesystem::path& dir, cons
       return fail(Errc::io, "opening store " + dir.string() + ": " + w.error().message + hint);
     return unexpected(w.error());
   }
+  // Format 3 lacks only the table of long terms, which no read needs (long_terms stays 0): read
+  // as it is. A format-2 store's time index must be filled first.
+  if (env->read_only_ && needs_tables && opened_format == 3) needs_tables = false;
   if (env->read_only_ && needs_tables)
     return fail(Errc::version, dir.string() + " is on a read-only filesystem, and its store, of an earlier format, is upgraded at its first open: copy it to a writable disk to read it");
   if (env->read_only_) needs_store_id = needs_file_record = false;  // read as it is: nothing can write there
@@ -977,7 +982,11 @@ Result<void> Env::grow(WriteKind kind, std::uint64_t removal_copy_bytes) {
   if (kind == WriteKind::removal) limit += removal_reserve(limit) + 2 * removal_copy_bytes;
   if (kind == WriteKind::from_below) limit -= kept_for_own_writers(limit);
   if (current >= limit) {
-    if (kind == WriteKind::from_below) return from_below_refused(current, true);
+    if (kind == WriteKind::from_below) {
+      MDB_stat stat;
+      mdb_env_stat(env_, &stat);
+      return from_below_refused((info.me_last_pgno + 1) * stat.ms_psize, true, pinned_by_a_reader(env_, info.me_last_txnid));
+    }
     return fail(Errc::store_full, "store full: " + dir_.string() + " reached its maximum of " +
                                       std::to_string(settings_.max_map_bytes) + " bytes" +
                                       pinned_by_a_reader(env_, info.me_last_txnid));
@@ -1104,13 +1113,14 @@ bool Env::map_info(MDB_envinfo& info, MDB_stat& stat) {
   return mdb_env_info(env_, &info) == 0 && mdb_env_stat(env_, &stat) == 0;
 }
 
-Result<void> Env::from_below_refused(std::uint64_t in_use, bool map_end) const {
+Result<void> Env::from_below_refused(std::uint64_t in_use, bool map_end, const std::string& pinned) const {
   return fail(Errc::store_full, "store full: " + dir_.string() + ": " + std::to_string(in_use) + " bytes are in use " +
                                     (map_end ? "(up to its last page) " : "") + "of its maximum of " +
                                     std::to_string(settings_.max_map_bytes) + ", and items relayed from below leave the last " +
                                     std::to_string(kept_for_own_writers(settings_.max_map_bytes)) +
-                                    " bytes of it to this node's own agents; they wait in the child's outbox: remove records, "
-                                    "or make the store with a larger --max-map");
+                                    " bytes of it to this node's own agents; they wait in the child's outbox" +
+                                    (pinned.empty() ? ": remove records, the oldest first (tahvel remove --until T), and the backlog comes in"
+                                                    : pinned));
 }
 
 Result<void> Env::check_reserve_untouched(std::uint64_t new_bytes, WriteKind kind) {
@@ -1124,11 +1134,24 @@ Result<void> Env::check_reserve_untouched(std::uint64_t new_bytes, WriteKind kin
     const std::uint64_t limit = settings_.max_map_bytes - kept -
                                 (into_reserve ? std::min(removal_reserve(settings_.max_map_bytes), settings_.max_map_bytes - kept) : 0);
     if ((info.me_last_pgno + 1) * stat.ms_psize + new_bytes > limit) {
-      auto read = begin_read();
-      if (!read) return {};
-      const std::uint64_t in_use = pages_in_use_bytes(env_, *read);
-      end_read(*read);
-      if (in_use + new_bytes > limit) return from_below_refused(in_use, false);
+      // The free-page table is walked once per committed transaction: a store once near full
+      // keeps its last page high for good, and every run from below, and each halving of one,
+      // walked it again.
+      std::uint64_t in_use = 0;
+      {
+        std::lock_guard lock(in_use_cache_mutex_);
+        if (in_use_cache_txnid_ == info.me_last_txnid) in_use = in_use_cache_bytes_;
+      }
+      if (in_use == 0) {
+        auto read = begin_read();
+        if (!read) return {};
+        in_use = pages_in_use_bytes(env_, *read);
+        end_read(*read);
+        std::lock_guard lock(in_use_cache_mutex_);
+        in_use_cache_txnid_ = info.me_last_txnid;
+        in_use_cache_bytes_ = in_use;
+      }
+      if (in_use + new_bytes > limit) return from_below_refused(in_use, false, {});
     }
   }
   if (!into_reserve) return {};
@@ -1151,7 +1174,8 @@ Result<void> Env::check_reserve_untouched(std::uint64_t new_bytes, WriteKind kin
                                     std::to_string(settings_.max_map_bytes) +
                                     " bytes, as much as a removal may need is kept free after one); " +
                                     (in_use < room ? "write less at a time, " : "") +
-                                    "remove records, or make the store with a larger --max-map");
+                                    "remove records, the oldest first (tahvel remove --until T): the maximum is the one the "
+                                    "store was made with (tahvel init --max-map)");
 }
 
 Result<void> Env::reserve_disk(WriteKind kind, const WriteBound& bound) {
@@ -1358,6 +1382,14 @@ Result<void> Env::write(const std::function<Result<void>(Txn&)>& body, WriteKind
         // nearly empty. A small write in between makes them free (as between a removal's parts).
         if (kind == WriteKind::removal || freelist_turned) return g;
         freelist_turned = true;
+        // Only where free pages would hold the write: a store truly full got a commit (an fsync
+        // when durable) at every refused write.
+        std::uint64_t in_use = settings_.max_map_bytes;
+        if (auto read = begin_read()) {
+          in_use = pages_in_use_bytes(env_, *read);
+          end_read(*read);
+        }
+        if (in_use + new_bytes > settings_.max_map_bytes) return g;
         if (!write([](Txn&) -> Result<void> { return {}; }, WriteKind::removal)) return g;
       }
       continue;

@@ -350,8 +350,12 @@ class Env {
   // For a write from below (WriteKind::from_below): store_full too when the pages in use and
   // `new_bytes` would leave less than kept_for_own_writers within the room writes may fill.
   Result<void> check_reserve_untouched(std::uint64_t new_bytes, WriteKind kind);
-  // The store_full of a write from below, `in_use` bytes in use (`map_end`: up to the map's end).
-  Result<void> from_below_refused(std::uint64_t in_use, bool map_end) const;
+  // The store_full of a write from below, `in_use` bytes in use (`map_end`: up to the last page,
+  // the map at its limit); `pinned`: what pinned_by_a_reader says, said instead of the advice.
+  Result<void> from_below_refused(std::uint64_t in_use, bool map_end, const std::string& pinned) const;
+  // pages_in_use_bytes as of the transaction id it was read at (check_reserve_untouched).
+  std::mutex in_use_cache_mutex_;
+  std::uint64_t in_use_cache_txnid_ = 0, in_use_cache_bytes_ = 0;
   Result<void> begin(MDB_txn** txn, unsigned flags);
   // With MDB_WRITEMAP the data file is as large as the map but sparse: a page written where the
   // file has no block yet takes one from the filesystem, and on a full disk that is SIGBUS in

@@ -917,16 +917,17 @@ Result<RelayOutcome> Agent::relay(std::string_view stream, const std::vector<Rel
     // Items from below (each source at or under this agent's IRI: a child node's writers) leave
     // this node's own agents their part of the maximum (WriteKind::from_below); a removal notice
     // alone frees room and is not held back.
-    bool all_below = true, any_item = false;
+    // For the first n items (the run is halved while it does not fit): all from below, and one
+    // of them an item, not a notice.
+    std::vector<char> item_below(items.size(), 0);
     for (std::size_t i = 0; i < items.size(); ++i) {
       const std::string& source = items[i].source;
-      any_item = any_item || !items[i].removal;
       auto known = std::find_if(checked_sources.begin(), checked_sources.end(), [&](const auto& c) { return c.first == source; });
       if (known != checked_sources.end()) {
-        all_below = all_below && known->second;
+        item_below[i] = known->second;
       } else {
         const bool below = uri::is_under(source, impl_->iri);
-        all_below = all_below && below;
+        item_below[i] = below;
         if (!below && uri::is_under(source, node_iri)) {
           refuse(i, Error{Errc::invalid_argument, about(i) + ": source <" + source + "> is a writer of this node outside <" +
                                                        impl_->iri + ">; a link agent relays only its own subtree or writers above this node"});
@@ -950,7 +951,10 @@ Result<RelayOutcome> Agent::relay(std::string_view stream, const std::vector<Rel
         refuse(i, with_context(v.error(), about(i)));
       }
     }
-    const bool from_below = any_item && all_below;
+    auto from_below = [&](std::size_t n) {
+      return std::all_of(item_below.begin(), item_below.begin() + static_cast<std::ptrdiff_t>(n), [](char b) { return b != 0; }) &&
+             std::any_of(items.begin(), items.begin() + static_cast<std::ptrdiff_t>(n), [](const RelayedItem& r) { return !r.removal; });
+    };
     RelayOutcome outcome;
     auto bound_of_first = [&](std::size_t n) {
       WriteBound bound;
@@ -1040,7 +1044,7 @@ Result<RelayOutcome> Agent::relay(std::string_view stream, const std::vector<Rel
           if (!reclaimed) return unexpected(reclaimed.error());
         }
         return {};
-      }, from_below ? WriteKind::from_below : WriteKind::data, new_bytes);
+      }, from_below(applying) ? WriteKind::from_below : WriteKind::data, new_bytes);
       if (!written && refused_in_write) {
         refuse(*refused_in_write, written.error());
         continue;

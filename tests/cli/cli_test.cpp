@@ -2735,7 +2735,7 @@ TEST_F(Cli, PatientsSaysWhenTheRawEcgBehindTheLatestWindowIsHeldHereToo) {
   ASSERT_TRUE(home1.relay("up", {{.seq = 1, .source = home + "/hrv", .item = window}}));
   // A chunk of the recording from before the window is not the window's.
   ASSERT_TRUE(home1.relay("up", {{.seq = 2, .prev = 1, .source = home + "/ecg", .item = ecg_chunk(rec, 0, 4, std::string(16, '\0'), t0)}}));
-  const std::string held = "  its raw ECG is held here too (forwarded up): tahvel ecg " + dir + " --recording " + rec + " --since " +
+  const std::string held = "  some of its raw ECG is held here too (forwarded up): tahvel ecg " + dir + " --recording " + rec + " --since " +
                            std::to_string(t0 + 60'000'000'000) + " --until " + std::to_string(t0 + 120'000'000'000) + "\n";
   Outcome before = run({"patients", dir});
   ASSERT_EQ(before.status, 0) << before.err;
@@ -2743,9 +2743,17 @@ TEST_F(Cli, PatientsSaysWhenTheRawEcgBehindTheLatestWindowIsHeldHereToo) {
   EXPECT_EQ(before.out.find("held here"), std::string::npos) << before.out;
   EXPECT_NE(run({"patients", dir, "--json"}).out.find("\"held_here\":false"), std::string::npos);
   ASSERT_TRUE(home1.relay("up", {{.seq = 3, .prev = 2, .source = home + "/ecg", .item = ecg_chunk(rec, 4 * 90, 4, std::string(16, '\0'), t0 + 90'000'000'000)}}));
+  // Chunks without the recording's description: `tahvel ecg` could not read them.
+  EXPECT_EQ(run({"patients", dir}).out.find("held here"), std::string::npos);
+  tahvel::node::Item description = recording_description(rec, "4.0", "2.0", 10, {"MLII", "V5"}, t0);
+  ASSERT_TRUE(home1.relay("up", {{.seq = 4, .prev = 3, .source = home + "/ecg", .item = description}}));
   Outcome after = run({"patients", dir});
   EXPECT_NE(after.out.find("its raw ECG, at <" + home + ">: tahvel query"), std::string::npos) << after.out;
   EXPECT_NE(after.out.find(held), std::string::npos) << after.out;
+  // What the line offers works: the samples of the chunk in the window's range, as numbers.
+  Outcome ecg = run({"ecg", dir, "--recording", rec, "--since", std::to_string(t0 + 60'000'000'000), "--until",
+                     std::to_string(t0 + 120'000'000'000)});
+  EXPECT_EQ(ecg.status, 0) << ecg.err;
   Outcome json = run({"patients", dir, "--json"});
   EXPECT_NE(json.out.find("\"raw_ecg\":{\"node\":\"" + home + "\",\"since_ns\":" + std::to_string(t0 + 60'000'000'000) +
                           ",\"until_ns\":" + std::to_string(t0 + 120'000'000'000) + ",\"held_here\":true}"),
@@ -5246,18 +5254,19 @@ TEST_F(Cli, StatusSaysWhenAStoreIsFull) {
   Outcome shown = run({"status", "--state", state.string(), "--local"});
   EXPECT_NE(shown.out.find("solo  <http://example.org/solo>"), std::string::npos) << shown.out;
   // The file's high-water mark: 1.8 to 2.0 MB of 2, then the pages holding data.
-  EXPECT_TRUE(std::regex_search(shown.out, std::regex("\n  STORE (1\\.[89]|2\\.0) MB of its maximum 2\\.0 MB used \\([0-9.]+ MB "
-                                                      "holding data\\): writes that do not fit are refused\n")))
+  EXPECT_TRUE(std::regex_search(shown.out, std::regex("\n  STORE (1\\.[89]|2\\.0) MiB of its maximum 2\\.0 MiB used \\([0-9.]+ MiB "
+                                                      "holding data\\): writes that do not fit are refused; remove records, the "
+                                                      "oldest first \\(tahvel remove --until T\\)\n")))
       << shown.out;
   Outcome json = run({"status", "--state", state.string(), "--local", "--json"});
   EXPECT_NE(json.out.find("\"store_warning\":\""), std::string::npos) << json.out;
-  EXPECT_NE(json.out.find(" MB of its maximum 2.0 MB used ("), std::string::npos) << json.out;
+  EXPECT_NE(json.out.find(" MiB of its maximum 2.0 MiB used ("), std::string::npos) << json.out;
   // A removal takes the file's high-water mark past the maximum, into the reserve kept for
   // removals ("2.1 MB of its maximum 2.0 MB used" read as a contradiction).
   ASSERT_EQ(run({"remove", (state / "solo").string(), "-s", "http://example.org/solo/r3"}).status, 0);
   shown = run({"status", "--state", state.string(), "--local"});
-  EXPECT_TRUE(std::regex_search(shown.out, std::regex("\n  STORE ((1\\.[89]|2\\.0) MB of its maximum 2\\.0 MB used|2\\.[0-9] MB used, [0-9.]+ KB "
-                                                      "past its maximum of 2\\.0 MB, into the reserve kept for removals) \\(")))
+  EXPECT_TRUE(std::regex_search(shown.out, std::regex("\n  STORE ((1\\.[89]|2\\.0) MiB of its maximum 2\\.0 MiB used|2\\.[0-9] MiB used, [0-9.]+ KiB "
+                                                      "past its maximum of 2\\.0 MiB, into the reserve kept for removals) \\(")))
       << shown.out;
   // Emptied, it takes writes again, its file as large as before: no longer said to refuse them.
   ASSERT_EQ(run({"remove", (state / "solo").string(), "-p", "http://example.org/p"}).status, 0);

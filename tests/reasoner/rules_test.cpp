@@ -1012,7 +1012,14 @@ TEST(Rules, AnOperandWithoutAValueOrAFunctionTheLanguageLacksIsNamedAtItsPlace) 
                       "times, with no functions (abs, min, max, ...)"},
       {"Y is S mod 2", "ops.rules:1:28: 'mod' is not an operator here: arithmetic is + - * / and parentheses (no mod, rem or //; "
                        "a body's literals are joined by ',')"},
-      {"Y is S // 2", "ops.rules:1:28: '//' is not an operator: write X / Y, an integer when it divides exactly (a double otherwise)"}};
+      {"Y is S // 2", "ops.rules:1:28: '//' is not an operator: write X / Y, an integer when it divides exactly (a double otherwise)"},
+      // On the left of a comparison and in parentheses too; a ',' left out before an atom is said
+      // as such (a review of session 87).
+      {"S mod 2 =:= 0", "ops.rules:1:23: 'mod' is not an operator here: arithmetic is + - * / and parentheses (no mod, rem or //; "
+                        "a body's literals are joined by ',')"},
+      {"Y is (S mod 2)", "ops.rules:1:29: 'mod' is not an operator here: arithmetic is + - * / and parentheses (no mod, rem or //; "
+                         "a body's literals are joined by ',')"},
+      {"S > 5 w(X)", "ops.rules:1:27: expected ',' before w(...): a body's literals are joined by ','"}};
   for (const auto& [literal, message] : cases) {
     auto p = tr::parse_rules("a(X, Y) :- v(X, S), " + literal + ", Y = S.\n", options("ops.rules"));
     ASSERT_FALSE(p.has_value()) << literal;
@@ -1109,6 +1116,11 @@ TEST(Rules, ADecimalComparesExactlyWithAnIntegerAndADecimalAbove2To53) {
                    {kNs + "d", kNs + "b"}, {kNs + "e", kNs + "f"}}));
   // A constant of the rule is a decimal as well.
   EXPECT_EQ(pairs("above(X, yes) :- v(X, A), A > 9007199254740992.0.\n"),
+            (Pairs{{kNs + "a", kNs + "yes"}, {kNs + "b", kNs + "yes"}, {kNs + "d", kNs + "yes"}}));
+  // Against a double too (a review of session 87: b was above c and equal to this double, which
+  // equals c).
+  EXPECT_EQ(pairs("dbl(X, yes) :- v(X, A), A =:= 9.007199254740992e15.\n"), (Pairs{{kNs + "c", kNs + "yes"}}));
+  EXPECT_EQ(pairs("dbl(X, yes) :- v(X, A), A > 9.007199254740992e15, A < 9.007199254740996e15.\n"),
             (Pairs{{kNs + "a", kNs + "yes"}, {kNs + "b", kNs + "yes"}, {kNs + "d", kNs + "yes"}}));
 }
 

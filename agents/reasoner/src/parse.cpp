@@ -505,6 +505,11 @@ class Parser {
   Result<void> directive();
   bool operator_follows();
   std::string without_value(const node::Term& constant) const;
+  // The current token, a name where an arithmetic or comparison operator would go (S mod 2).
+  Unexpected<Error> not_an_operator() const {
+    return error(tok_.pos, "'" + tok_.text + "' is not an operator here: arithmetic is + - * / and parentheses (no mod, rem or //; "
+                                              "a body's literals are joined by ',')");
+  }
   Result<void> clause();
   Result<std::vector<Literal>> body();
   std::optional<Error> foreign_operator();
@@ -646,6 +651,7 @@ Result<Expr> Parser::unary() {
     if (auto a = advance(); !a) return unexpected(a.error());
     auto inner = nested(pos, [&] { return expression(); });
     if (!inner) return inner;
+    if (tok_.kind == Tok::name) return not_an_operator();  // (S mod 2)
     if (auto c = expect(")", "')' closing the expression"); !c) return unexpected(c.error());
     return inner;
   }
@@ -862,6 +868,7 @@ Result<Literal> Parser::literal() {
     lit.kind = found->kind;
     lit.op = found->op;
   } else {
+    if (tok_.kind == Tok::name) return not_an_operator();  // S mod 2 =:= 0
     return expected("a comparison operator (< > =< >= =:= =\\= = \\= == \\==) or 'is'");
   }
   if (auto a = advance(); !a) return unexpected(a.error());
@@ -951,9 +958,15 @@ Result<std::vector<Literal>> Parser::body() {
       if (lit->kind == Literal::atom && first.kind == Tok::name && operator_next)
         return error(first.pos, first.text + "(...) is not a function here: arithmetic is + - * / and parentheses on "
                                              "numbers and times, with no functions (abs, min, max, ...)");
-      if ((lit->kind == Literal::compare || lit->kind == Literal::assign) && tok_.kind == Tok::name)
-        return error(tok_.pos, "'" + tok_.text + "' is not an operator here: arithmetic is + - * / and parentheses (no mod, "
-                                                  "rem or //; a body's literals are joined by ',')");
+      if ((lit->kind == Literal::compare || lit->kind == Literal::assign) && tok_.kind == Tok::name) {
+        // A name and '(' begins an atom: a ',' left out before it, not an operator.
+        auto saved = lexer_.state();
+        auto next = lexer_.next();
+        lexer_.restore(saved);
+        if (next && next->kind == Tok::punct && next->text == "(")
+          return error(tok_.pos, "expected ',' before " + tok_.text + "(...): a body's literals are joined by ','");
+        return not_an_operator();
+      }
     }
     out.push_back(std::move(*lit));
     if (!is(",")) return out;

@@ -290,16 +290,32 @@ int compare_integer_double(std::int64_t i, double d) {
   return frac > 0 ? -1 : (frac < 0 ? 1 : 0);
 }
 
+// A decimal held exactly (Value::split) against a double, as compare_integer_double does.
+int compare_split_double(const Value& s, double d) {
+  if (std::isnan(d)) return 0;
+  if (d >= 9223372036854775808.0) return -1;
+  if (d < -9223372036854775808.0) return 1;
+  const double whole = std::trunc(d);
+  const auto w = static_cast<std::int64_t>(whole);
+  if (s.i != w) return s.i < w ? -1 : 1;
+  const double frac = d - whole;
+  return s.frac < frac ? -1 : (frac < s.frac ? 1 : 0);
+}
+
 }  // namespace
 
 std::optional<int> compare_values(const Value& a, const Value& b) {
   auto sign = [](auto x, auto y) { return x < y ? -1 : (y < x ? 1 : 0); };
   if (a.kind == Value::integer && b.kind == Value::integer) return sign(a.i, b.i);
-  // Decimals exactly, by their integer parts first (an integer's rest is 0).
+  // Decimals exactly, by their integer parts first (an integer's rest is 0); against a double,
+  // by its integer part too, or =:= was not transitive: 9007199254740993.0 above the integer
+  // 9007199254740992 and equal to the double 9007199254740992.0, which equals that integer.
   if ((a.split || a.kind == Value::integer) && (b.split || b.kind == Value::integer) && (a.split || b.split)) {
     if (a.i != b.i) return sign(a.i, b.i);
     return sign(a.split ? a.frac : 0.0, b.split ? b.frac : 0.0);
   }
+  if (a.split && b.kind == Value::real && !b.split) return compare_split_double(a, b.d);
+  if (b.split && a.kind == Value::real && !a.split) return -compare_split_double(b, a.d);
   if (a.kind == Value::integer && b.kind == Value::real) return compare_integer_double(a.i, b.d);
   if (a.kind == Value::real && b.kind == Value::integer) return -compare_integer_double(b.i, a.d);
   if (is_number(a) && is_number(b)) return sign(as_double(a), as_double(b));
