@@ -27,25 +27,7 @@ prefix=$work/moved
 export PKG_CONFIG_PATH=$prefix/$libdir/pkgconfig
 flags=$(pkg-config --cflags --libs tahvel) || fail "pkg-config does not know tahvel"
 [[ $flags != *"$src"* && $flags != *"$build"* ]] || fail "pkg-config points into the source or build tree: $flags"
-# shellcheck disable=SC2086  # the flags are words
-"$cc" -std=c99 -o "$work/example_agent" "$src/agents/examples/example_agent.c" $flags ||
-  fail "the C example does not build against the installed tree"
-# shellcheck disable=SC2086
-"$cxx" -std=c++20 -o "$work/example_agent_cpp" "$src/agents/examples/example_agent_cpp.cpp" $flags ||
-  fail "the C++ example does not build against the installed tree"
-
-store=$work/home1
-"$prefix/bin/tahvel" init "$store" --iri http://example.org/home1
-# A first run of each writes its subscription (persistent), which later items are routed by.
-"$work/example_agent" "$store" --idle 1 > /dev/null 2>&1 || fail "the C example built outside the tree failed"
-"$work/example_agent_cpp" "$store" --idle 1 > /dev/null 2>&1 || fail "the C++ example built outside the tree failed"
-"$prefix/bin/tahvel" put "$store" > /dev/null <<'TTL'
-<http://example.org/home1/obs/17> <https://w3id.org/tahvel#heartRate> "112"^^<http://www.w3.org/2001/XMLSchema#integer> .
-TTL
-"$work/example_agent" "$store" --count 1 --idle 10 > /dev/null || fail "the C example built outside the tree failed"
-"$work/example_agent_cpp" "$store" --count 1 --idle 10 > /dev/null || fail "the C++ example built outside the tree failed"
-for agent in example-c example-cpp; do
-  out=$("$prefix/bin/tahvel" list "$store" --source "http://example.org/home1/$agent" -p https://w3id.org/tahvel#heartRateClass)
-  [[ $out == *'"high"'* ]] || fail "no heartRateClass \"high\" from $agent on the board: $out"
-done
+# shellcheck source=tests/install/examples.sh
+source "$src/tests/install/examples.sh"
+build_and_run_examples "$prefix/bin/tahvel" "the installed tree"
 echo "installed, built outside the tree, ran"
