@@ -2669,6 +2669,10 @@ struct StatusNode {
   // Input buffers of agents nothing on a local node knows (board_knows_agent, and no program of
   // its runs as them): items addressed to a home not deployed, or to a typo, wait there for ever.
   std::vector<node::InputBufferSummary> waiting_for_unknown;
+  // A local store with a parent: the items its uplink's outbox holds (its input buffer), read
+  // here. Its parent's state says the depth of its last heartbeat, and its own link, stopped or
+  // killed, no longer rewrites its own.
+  std::optional<std::uint64_t> outbox_here;
 };
 
 // The problems on a board: records of node::kProblem and node::kProblemPid that an agent of
@@ -2979,9 +2983,12 @@ int run_status(const Args& args) {
     nodes.back().has_parent = (policy && *policy > 0) || (parent && *parent > 0);
     for (const std::string& p : {node::kProblem, node::kProblemPid})
       if (auto records = snap->list({.p = node::Term::iri(p)})) read_problems(*records, node->iri(), nodes.back().problems);
+    if (nodes.back().has_parent) nodes.back().outbox_here = 0;
     if (auto buffers = snap->input_buffers())
-      for (node::InputBufferSummary& buffer : *buffers)
+      for (node::InputBufferSummary& buffer : *buffers) {
+        if (nodes.back().has_parent && buffer.agent == node->iri() + "/uplink") nodes.back().outbox_here = buffer.waiting;
         if (!board_knows_agent(*snap, buffer.agent)) nodes.back().waiting_for_unknown.push_back(std::move(buffer));
+      }
   }
   if (ec) fail(state.string() + ": " + ec.message());
   if (nodes.empty() && unopened.empty())
@@ -3280,7 +3287,8 @@ int run_status(const Args& args) {
         print_link_json(n.link["parent"], n.link["linkState"], unknown_because, "last_seen_ns", seen, n.link["outboxDepth"],
                         "software_version", n.link["softwareVersion"], n.link["linkConflict"],
                         n.link["linkState"] == "down" && n.link["linkLeft"] == "true");
-      std::cout << ",\"has_parent\":" << (n.has_parent || !n.uplink.empty() || n.remote ? "true" : "false") << ",\"uplink\":";
+      std::cout << ",\"has_parent\":" << (n.has_parent || !n.uplink.empty() || n.remote ? "true" : "false") << ",\"outbox_here\":"
+                << (!n.remote && n.outbox_here ? std::to_string(*n.outbox_here) : "null") << ",\"uplink\":";
       if (n.uplink.empty()) std::cout << "null";
       else
         print_link_json(n.uplink["parent"], n.uplink["uplinkState"], uplink_unknown_because, "parent_last_heard_ns", heard,
@@ -3322,12 +3330,19 @@ int run_status(const Args& args) {
       std::cout << "  not in the deployment (the store of node '" << n.moved_from << "', moved here while it ran)";
     else if (left)
       std::cout << "  not in the deployment (taken out of its file; the store is kept)";
+    // Its own link not running, the depths said above are of before: the outbox as it is here
+    // (a home SIGKILLed while its parent was away showed "outbox 0" and held 60 windows).
+    const auto own_link = std::find_if(n.programs.begin(), n.programs.end(), [](const ProgramRow& p) { return p.name == "link"; });
+    const bool own_link_runs = own_link != n.programs.end() && alive(*own_link);
+    const std::string outbox_here = !n.remote && n.outbox_here && *n.outbox_here > 0 && !own_link_runs
+                                        ? "; its outbox here holds " + std::to_string(*n.outbox_here) + " item(s)"
+                                        : std::string();
     if (!n.link.empty() && !unknown_because.empty()) {
-      std::cout << "  link state unknown: " << unknown_because << " (it last said: " << said << ")";
+      std::cout << "  link state unknown: " << unknown_because << " (it last said: " << said << ")" << outbox_here;
       // The parent's view is stale; the node's own, written here, is not (its outbox grows).
       if (!n.uplink.empty() && uplink_unknown_because.empty()) std::cout << "; its own link says: " << uplink_said;
     } else if (!n.link.empty()) {
-      std::cout << "  " << said;
+      std::cout << "  " << said << outbox_here;
       // The parent's view says the link is up; only the node's own says the parent refuses what
       // it sends (P9b: a full store), and its outbox grows.
       if (!n.uplink.empty() && uplink_unknown_because.empty() && !n.uplink["uplinkRefusal"].empty())

@@ -3234,7 +3234,7 @@ TEST_F(Cli, StatusShowsAChildWhoseLinkNeverStartedAsSuchNotAsARoot) {
   Outcome shown = status_until(state, "Cyclone DDS: eth9: does not match an available interface");
   EXPECT_NE(shown.out.find("home1  <http://example.org/hospital/home1>  uplink never started"), std::string::npos) << shown.out;
   EXPECT_EQ(shown.out.find("(root)"), std::string::npos) << shown.out;
-  EXPECT_NE(run({"status", "--state", state, "--json"}).out.find("\"has_parent\":true,\"uplink\":null"), std::string::npos);
+  EXPECT_NE(run({"status", "--state", state, "--json"}).out.find("\"has_parent\":true,\"outbox_here\":0,\"uplink\":null"), std::string::npos);
   EXPECT_EQ(run({"down", "--state", state}).status, 0);
 }
 
@@ -3553,7 +3553,7 @@ TEST_F(Cli, StatusJsonHasEachNodesLinkAndPrograms) {
   Outcome json = run({"status", "--state", state, "--json"});
   EXPECT_EQ(json.status, 0) << json.err;
   EXPECT_EQ(json.out.rfind("{\"state\":\"" + state + "\",\"nodes\":[{\"id\":\"solo\",\"iri\":\"http://example.org/solo\",\"depth\":0,"
-                           "\"parent\":null,\"remote\":false,\"in_deployment\":true,\"moved_from\":null,\"link\":null,\"has_parent\":false,\"uplink\":null,\"programs\":[",
+                           "\"parent\":null,\"remote\":false,\"in_deployment\":true,\"moved_from\":null,\"link\":null,\"has_parent\":false,\"outbox_here\":null,\"uplink\":null,\"programs\":[",
                            0),
             0u)
       << json.out;
@@ -5325,6 +5325,29 @@ TEST_F(Cli, StatusSaysAChildWhoseLinkSaidItLeftWasStoppedNotSilent) {
       << shown.out;
   const Outcome json = run({"status", "--state", state.string(), "--local", "--json"});
   EXPECT_NE(json.out.find("\"conflict\":null,\"left\":true}"), std::string::npos) << json.out;
+}
+
+// A home SIGKILLed while its parent was away: the parent's state of it said "outbox 0" (its
+// last heartbeat), and the home's own link, dead, no longer said its outbox; the store here
+// held 60 windows for the parent (an integrator's probe of session 87). Said from the store.
+TEST_F(Cli, StatusSaysTheOutboxAChildsStoreHereHoldsWhenItsLinkDoesNotRun) {
+  const fs::path state = tmp_ / "state";
+  const std::string child = "http://example.org/h/home";
+  parent_and_child_with_state(state, "down");
+  {
+    auto home = tahvel::node::Node::open(state / "home").value();
+    const tahvel::node::Term window = tahvel::node::Term::iri("https://w3id.org/tahvel#sdnnMs");
+    ASSERT_TRUE(home.agent("uplink").value().subscribe({.p = window}));
+    auto hrv = home.agent("hrv").value();
+    for (int k = 0; k < 3; ++k)
+      ASSERT_TRUE(hrv.store(tahvel::node::Item{}.add(tahvel::node::Term::iri(child + "/w" + std::to_string(k)), window,
+                                                     tahvel::node::Term::integer(40 + k))));
+  }
+  const Outcome shown = run({"status", "--state", state.string(), "--local"});
+  EXPECT_NE(shown.out.find("home  <" + child + ">  link down, last seen "), std::string::npos) << shown.out;
+  EXPECT_NE(shown.out.find(", outbox 0; its outbox here holds 3 item(s)\n"), std::string::npos) << shown.out;
+  const Outcome json = run({"status", "--state", state.string(), "--local", "--json"});
+  EXPECT_NE(json.out.find("\"outbox_here\":3,"), std::string::npos) << json.out;
 }
 
 TEST_F(Cli, UpAgainAppliesAnEditedFileToTheRunningSupervisor) {

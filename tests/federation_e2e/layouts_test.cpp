@@ -193,7 +193,7 @@ TEST_F(Deployment, StatusOnEachMachineShowsWhatThatMachineKnowsOfTheLinkBetweenT
   })) << gateway_sees;
   EXPECT_EQ(gateway_sees.find("(root)"), std::string::npos) << gateway_sees;
   const std::string json = tahvel("status --json --state " + gateway_machine.string());
-  EXPECT_NE(json.find("\"remote\":false,\"in_deployment\":true,\"moved_from\":null,\"link\":null,\"has_parent\":true,\"uplink\":{\"parent\":\"" + kWard + "\",\"state\":\"up\",\"known\":true,"),
+  EXPECT_NE(json.find("\"remote\":false,\"in_deployment\":true,\"moved_from\":null,\"link\":null,\"has_parent\":true,\"outbox_here\":0,\"uplink\":{\"parent\":\"" + kWard + "\",\"state\":\"up\",\"known\":true,"),
             std::string::npos)
       << json;
 
