@@ -9,6 +9,7 @@
 #include <cstdint>
 #include <functional>
 #include <iosfwd>
+#include <map>
 #include <memory>
 #include <optional>
 #include <span>
@@ -131,6 +132,16 @@ double seconds_since(std::int64_t unix_ns, std::int64_t at_ns = 0);
 // "4.2 s ago", "0.3 s ahead of this machine's clock" (a time written on another machine), or
 // "never" for 0; as of `at_ns` (0: now), the moment it was read.
 std::string age_of(std::int64_t unix_ns, std::int64_t at_ns = 0);
+// What an operator must know of a store before anything else: writes to it are refused or soon
+// will be (at 90% of its maximum, or under 64 MB free on its disk; its programs then fail, and
+// its link cannot even write its children's state). Empty when there is room. `used`: bytes up
+// to its last page in use; `data`: the pages holding data; `disk_free`: nullopt when not known.
+std::string store_room_warning(std::uint64_t used, std::uint64_t data, std::uint64_t max, std::optional<std::uint64_t> disk_free);
+// store_room_warning of a store on another machine, as its parent's state of it says (fields by
+// the predicates' local names: storeUsedBytes, storeDataBytes, storeMaxBytes, diskFreeBytes, from
+// its last hello or heartbeat, docs/protocol.md P12), with how old that is (lastSeen, as of
+// `read_ns`); empty when it says no such figures, or there is room.
+std::string store_warning_from_state(const std::map<std::string, std::string>& state, std::int64_t read_ns = 0);
 
 // Fails (`command: PATH lies inside the store at …; instead`) when a directory above `path`
 // holds a store: a store's directory holds its own files only.

@@ -914,6 +914,44 @@ std::string age_of(std::int64_t unix_ns, std::int64_t at_ns) {
   return age < -0.05 ? seconds_text(-age) + " ahead of this machine's clock" : seconds_text(std::max(age, 0.0)) + " ago";
 }
 
+std::string store_room_warning(std::uint64_t used, std::uint64_t data, std::uint64_t max, std::optional<std::uint64_t> disk_free) {
+  constexpr double kMB = 1 << 20;
+  std::ostringstream said;
+  said.precision(1);
+  said << std::fixed;
+  // By the file's high-water mark, not the pages holding data: copy on write needs fresh pages
+  // beyond what the last write freed, so a store refuses writes with a third of its pages free.
+  // But pages freed below the mark are used again: a store emptied with `tahvel remove` takes
+  // writes, its file as large as before (it was called full with 0.1 MB of 2 holding data). A
+  // removal may take the mark past the maximum, into the reserve kept for removals.
+  if (max > 0 && used * 10 >= max * 9 && data * 2 >= max) {
+    // MiB, as said: the errors give bytes, and "MB" beside them read as another figure.
+    if (used > max)
+      said << used / kMB << " MiB used, " << (used - max) / 1024 << " KiB past its maximum of " << max / kMB
+           << " MiB, into the reserve kept for removals (";
+    else
+      said << used / kMB << " MiB of its maximum " << max / kMB << " MiB used (";
+    said << data / kMB << " MiB holding data): writes that do not fit are refused; remove records, the oldest "
+         << "first (tahvel remove --until T)";
+  }
+  if (disk_free && *disk_free / kMB < 64)
+    said << (said.tellp() > 0 ? "; " : "") << "the disk holding it has " << *disk_free / kMB << " MB free";
+  return said.str();
+}
+
+std::string store_warning_from_state(const std::map<std::string, std::string>& state, std::int64_t read_ns) {
+  const auto field = [&](const char* name) -> std::optional<std::uint64_t> {
+    auto it = state.find(name);
+    return it == state.end() ? std::nullopt : parse_u64(it->second);
+  };
+  const auto used = field("storeUsedBytes"), data = field("storeDataBytes"), max = field("storeMaxBytes");
+  if (!used || !data || !max) return {};
+  std::string said = store_room_warning(*used, *data, *max, field("diskFreeBytes"));
+  if (said.empty()) return said;
+  const auto seen = field("lastSeen");
+  return said + (seen ? " (as its link said " + age_of(static_cast<std::int64_t>(*seen), read_ns) + ")" : std::string());
+}
+
 }  // namespace tahvel::cli
 
 namespace tahvel::cli {

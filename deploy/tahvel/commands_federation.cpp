@@ -2704,36 +2704,14 @@ void attach_problems(std::vector<ProgramRow>& programs, const std::string& node_
   }
 }
 
-// What an operator must know of a store here before anything else: writes to it are refused
-// or soon will be (at 90% of its maximum, or under 64 MB free on its disk; its programs then
-// fail, and its link cannot even write its children's state). Empty when there is room.
+// store_room_warning of a store here.
 std::string store_warning(const node::Node& node, const fs::path& dir) {
-  constexpr double kMB = 1 << 20;
-  std::ostringstream said;
-  said.precision(1);
-  said << std::fixed;
-  // By the file's high-water mark, not the pages holding data: copy on write needs fresh pages
-  // beyond what the last write freed, so a store refuses writes with a third of its pages free.
-  // But pages freed below the mark are used again: a store emptied with `tahvel remove` takes
-  // writes, its file as large as before (it was called full with 0.1 MB of 2 holding data). A
-  // removal may take the mark past the maximum, into the reserve kept for removals.
-  if (auto st = node.stats(); st && st->max_map_bytes > 0 && st->high_water_bytes * 10 >= st->max_map_bytes * 9 &&
-                              st->used_bytes * 2 >= st->max_map_bytes) {
-    // MiB, as said: the errors give bytes, and "MB" beside them read as another figure.
-    if (st->high_water_bytes > st->max_map_bytes)
-      said << st->high_water_bytes / kMB << " MiB used, " << (st->high_water_bytes - st->max_map_bytes) / 1024
-           << " KiB past its maximum of " << st->max_map_bytes / kMB << " MiB, into the reserve kept for removals (";
-    else
-      said << st->high_water_bytes / kMB << " MiB of its maximum " << st->max_map_bytes / kMB << " MiB used (";
-    said << st->used_bytes / kMB << " MiB holding data): writes that do not fit are refused; remove records, the oldest "
-         << "first (tahvel remove --until T)";
-  }
-  struct statvfs disk {};
-  if (statvfs(dir.c_str(), &disk) == 0) {
-    const double free_mb = static_cast<double>(disk.f_bavail) * static_cast<double>(disk.f_frsize) / kMB;
-    if (free_mb < 64) said << (said.tellp() > 0 ? "; " : "") << "the disk holding it has " << free_mb << " MB free";
-  }
-  return said.str();
+  std::optional<std::uint64_t> disk_free;
+  if (struct statvfs disk {}; statvfs(dir.c_str(), &disk) == 0)
+    disk_free = static_cast<std::uint64_t>(disk.f_bavail) * disk.f_frsize;
+  auto st = node.stats();
+  return st ? store_room_warning(st->high_water_bytes, st->used_bytes, st->max_map_bytes, disk_free)
+            : store_room_warning(0, 0, 0, disk_free);
 }
 
 // The fields of each item with a triple of `predicate`, by the item's subject.
@@ -2796,7 +2774,8 @@ RemoteBoard ask_board(node::Node& from, const std::string& target, std::chrono::
   auto local_name = [](const std::string& iri) { return iri.substr(iri.find('#') + 1); };
   for (const std::string& p : {federation::vocab::kLinkState, federation::vocab::kParent, federation::vocab::kLastSeen,
                                federation::vocab::kOutboxDepth, federation::vocab::kSoftwareVersion, federation::vocab::kLinkConflict,
-                               federation::vocab::kLinkLeft}) {
+                               federation::vocab::kLinkLeft, federation::vocab::kStoreUsedBytes, federation::vocab::kStoreDataBytes,
+                               federation::vocab::kStoreMaxBytes, federation::vocab::kDiskFreeBytes}) {
     board.children_error = ask(p, "", *link, [&](const node::Record& r) {
       if (r.triple.s.value == target) return;
       Fields& fields = board.children[r.triple.s.value];
@@ -2901,7 +2880,7 @@ void print_json_string_or_null(const std::string& text) {
 // own (P12a), which differ in their time (`time_key`) and last field (`extra_key`).
 void print_link_json(const std::string& parent, const std::string& state, const std::string& unknown_because,
                      std::string_view time_key, std::int64_t time_ns, const std::string& outbox, std::string_view extra_key,
-                     const std::string& extra, const std::string& conflict, bool left = false) {
+                     const std::string& extra, const std::string& conflict, bool left = false, const Fields* room_of = nullptr) {
   std::cout << "{\"parent\":\"" << node::json_escape(parent) << "\",\"state\":\"" << node::json_escape(state)
             << "\",\"known\":" << (unknown_because.empty() ? "true" : "false") << ",\"unknown_because\":";
   print_json_string_or_null(unknown_because);
@@ -2911,7 +2890,23 @@ void print_link_json(const std::string& parent, const std::string& state, const 
   std::cout << ",\"conflict\":";
   print_json_string_or_null(conflict);
   // Down because its link said it was stopping (P12c), not because it went silent.
-  std::cout << ",\"left\":" << (left ? "true" : "false") << "}";
+  std::cout << ",\"left\":" << (left ? "true" : "false");
+  // The child's store as its last hello or heartbeat said (P12; null from a link before
+  // protocol version 5).
+  if (room_of) {
+    std::cout << ",\"store\":";
+    const auto field = [&](const char* name) -> std::optional<std::uint64_t> {
+      auto it = room_of->find(name);
+      return it == room_of->end() ? std::nullopt : parse_u64(it->second);
+    };
+    const auto used = field("storeUsedBytes"), data = field("storeDataBytes"), max = field("storeMaxBytes"), disk = field("diskFreeBytes");
+    if (used && data && max && disk)
+      std::cout << "{\"used_bytes\":" << *used << ",\"data_bytes\":" << *data << ",\"max_bytes\":" << *max
+                << ",\"disk_free_bytes\":" << *disk << "}";
+    else
+      std::cout << "null";
+  }
+  std::cout << "}";
 }
 
 }  // namespace
@@ -3197,6 +3192,12 @@ int run_status(const Args& args) {
       level = std::move(below);
     }
   }
+  // A store on another machine is known here only by what it said of its room to its parent.
+  for (StatusNode& n : nodes)
+    if (n.remote && n.store_warning.empty()) {
+      auto read = n.link.find(kReadAtField);
+      n.store_warning = store_warning_from_state(n.link, read == n.link.end() ? 0 : static_cast<std::int64_t>(parse_u64(read->second).value_or(0)));
+    }
   // A remote node's programs are what its supervisor last wrote on its board: believed when
   // rewritten within kProgramsStaleAfterS of when they were read here (by the clock of that
   // machine: the machines' clocks are taken to agree, as the link's times are, and a clock
@@ -3286,7 +3287,7 @@ int run_status(const Args& args) {
       else
         print_link_json(n.link["parent"], n.link["linkState"], unknown_because, "last_seen_ns", seen, n.link["outboxDepth"],
                         "software_version", n.link["softwareVersion"], n.link["linkConflict"],
-                        n.link["linkState"] == "down" && n.link["linkLeft"] == "true");
+                        n.link["linkState"] == "down" && n.link["linkLeft"] == "true", &n.link);
       std::cout << ",\"has_parent\":" << (n.has_parent || !n.uplink.empty() || n.remote ? "true" : "false") << ",\"outbox_here\":"
                 << (!n.remote && n.outbox_here ? std::to_string(*n.outbox_here) : "null") << ",\"uplink\":";
       if (n.uplink.empty()) std::cout << "null";

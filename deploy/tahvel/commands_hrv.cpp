@@ -374,17 +374,33 @@ std::pair<std::int64_t, std::int64_t> signal_range_ns(const agg::PatientView& p)
 
 // What this node's link says (P12) of the child a patient's windows come through, when they
 // come from below: an operator reading a home's latest window must know that the home is down
-// here, and the windows computed there since have not come.
+// here, and the windows computed there since have not come, or that its store refuses writes.
 struct LinkOnTheWay {
   std::string at;     // the node whose link says this state: this one, or a node on the way
   std::string child;  // its child on the way to the node that computed the windows
   std::string state;  // tv:linkState: "up", "down" or "never connected"
   std::optional<std::int64_t> last_seen_ns;
   std::int64_t written_ns = 0;  // when the link wrote the state (its record's asserted-at)
+  std::string store_warning;    // the child's store near full, as it said (store_warning_from_state)
   // The link rewrites an "up" state every 2 s (P12): one much older was left by a link that
   // no longer runs, and says nothing of the child now.
   bool stale() const { return state == "up" && written_ns > 0 && seconds_since(written_ns) > 15; }
-  bool worth_saying() const { return state != "up" || stale(); }
+  bool worth_saying() const { return state != "up" || stale() || !store_warning.empty(); }
+
+  // From the records of the child's state that the link of `at` wrote.
+  void read(const std::vector<node::Record>& records) {
+    std::map<std::string, std::string> fields;  // by the predicate's local name
+    for (const node::Record& r : records) {
+      if (r.triple.s.value != child) continue;
+      fields[r.triple.p.value.substr(r.triple.p.value.find('#') + 1)] = r.triple.o.value;
+      if (r.triple.p.value == federation::vocab::kLinkState) written_ns = r.meta.asserted_at;
+    }
+    state = fields["linkState"];
+    std::int64_t ns = 0;
+    if (const std::string& seen = fields["lastSeen"]; std::from_chars(seen.data(), seen.data() + seen.size(), ns).ec == std::errc())
+      last_seen_ns = ns;
+    store_warning = store_warning_from_state(fields);
+  }
 };
 
 std::optional<LinkOnTheWay> link_on_the_way(const node::Snapshot& snap, const std::string& node_iri,
@@ -395,26 +411,20 @@ std::optional<LinkOnTheWay> link_on_the_way(const node::Snapshot& snap, const st
   LinkOnTheWay link;
   link.at = node_iri;
   link.child = computed_at.substr(0, computed_at.find('/', node_iri.size() + 1));
-  auto field = [&](const std::string& predicate) -> std::optional<std::string> {
-    auto records = snap.list({.s = node::Term::iri(link.child), .p = node::Term::iri(predicate)});
-    if (!records || records->empty()) return std::nullopt;
-    if (predicate == federation::vocab::kLinkState) link.written_ns = records->front().meta.asserted_at;
-    return records->front().triple.o.value;
-  };
-  auto state = field(federation::vocab::kLinkState);
-  if (!state) return std::nullopt;
-  link.state = *state;
-  if (auto seen = field(federation::vocab::kLastSeen)) {
-    std::int64_t ns = 0;
-    if (std::from_chars(seen->data(), seen->data() + seen->size(), ns).ec == std::errc()) link.last_seen_ns = ns;
-  }
+  auto writer = uri::agent_iri(link.at, "link");
+  if (!writer) return std::nullopt;
+  auto records = snap.list({.s = node::Term::iri(link.child), .source = *writer});
+  if (!records) return std::nullopt;
+  link.read(*records);
+  if (link.state.empty()) return std::nullopt;
   return link;
 }
 
-// The first link below this node's child, on the way to `computed_at`, that is not up: each
-// node on the way keeps its children's state on its own board, and this node holds only its
-// own children's. Asked of each such node in turn (a remote query, within `deadline`), while
-// the hop above it is up; nullopt when every hop is up, or a node does not answer.
+// The first link below this node's child, on the way to `computed_at`, that is not up or whose
+// child's store is near full: each node on the way keeps its children's state on its own
+// board, and this node holds only its own children's. Asked of each such node in turn (a
+// remote query, within `deadline`), while the hop above it is up; nullopt when every hop is up
+// with room, or a node does not answer.
 std::optional<LinkOnTheWay> link_below(node::Node& node, const LinkOnTheWay& first, const std::string& computed_at,
                                        std::chrono::steady_clock::time_point deadline) {
   LinkOnTheWay above = first;
@@ -425,24 +435,16 @@ std::optional<LinkOnTheWay> link_below(node::Node& node, const LinkOnTheWay& fir
     link.child = computed_at.substr(0, computed_at.find('/', link.at.size() + 1));
     auto writer = uri::agent_iri(link.at, "link");
     if (!writer) return std::nullopt;
-    for (const std::string& predicate : {federation::vocab::kLinkState, federation::vocab::kLastSeen}) {
-      const auto left = std::chrono::duration_cast<std::chrono::milliseconds>(deadline - std::chrono::steady_clock::now());
-      if (left.count() <= 0) return std::nullopt;
-      auto answered = federation::remote_query(
-          node, {.target = link.at, .pattern = {.s = node::Term::iri(link.child), .p = node::Term::iri(predicate)}, .restart_grace = {}},
-          left, [&](const node::Record& r) {
-            if (r.meta.source != *writer) return;
-            if (predicate == federation::vocab::kLinkState) {
-              link.state = r.triple.o.value;
-              link.written_ns = r.meta.asserted_at;
-            } else {
-              std::int64_t ns = 0;
-              if (std::from_chars(r.triple.o.value.data(), r.triple.o.value.data() + r.triple.o.value.size(), ns).ec == std::errc())
-                link.last_seen_ns = ns;
-            }
-          });
-      if (!answered) return std::nullopt;
-    }
+    const auto left = std::chrono::duration_cast<std::chrono::milliseconds>(deadline - std::chrono::steady_clock::now());
+    if (left.count() <= 0) return std::nullopt;
+    // The child's whole state in one question: only its link's records of it.
+    std::vector<node::Record> records;
+    auto answered = federation::remote_query(node, {.target = link.at, .pattern = {.s = node::Term::iri(link.child)}, .restart_grace = {}},
+                                             left, [&](const node::Record& r) {
+                                               if (r.meta.source == *writer) records.push_back(r);
+                                             });
+    if (!answered) return std::nullopt;
+    link.read(records);
     if (link.state.empty()) return std::nullopt;
     if (link.worth_saying()) return link;
     above = std::move(link);
@@ -481,7 +483,9 @@ void print_patients_json(const std::string& node_iri, const agg::PatientsOnBoard
     if (const auto& link = links[i]) {
       out << ",\"link\":{\"child\":\"" << node::json_escape(link->child) << "\",\"state\":\"" << node::json_escape(link->state)
           << "\",\"last_seen_ns\":" << (link->last_seen_ns ? std::to_string(*link->last_seen_ns) : "null")
-          << ",\"stale\":" << (link->stale() ? "true" : "false") << ",\"at\":\"" << node::json_escape(link->at) << "\"}";
+          << ",\"stale\":" << (link->stale() ? "true" : "false") << ",\"at\":\"" << node::json_escape(link->at) << "\",\"store_warning\":";
+      if (link->store_warning.empty()) out << "null}";
+      else out << "\"" << node::json_escape(link->store_warning) << "\"}";
     } else {
       out << ",\"link\":null";
     }
@@ -531,12 +535,17 @@ void print_patient_text(const std::string& dir, const std::string& node_iri, con
             << age_of(p.latest_stored_ns) << ")\n";
   if (link && link->worth_saying()) {
     const std::string heard = link->last_seen_ns ? "last heard " + age_of(*link->last_seen_ns) : "never heard";
-    if (link->stale())
+    if (link->state == "up" && !link->stale())
+      std::cout << "  its windows come through <" << link->child << ">, whose store is near full or refuses writes: "
+                << link->store_warning << "\n";
+    else if (link->stale())
       std::cout << "  its windows come through <" << link->child << ">, up at <" << link->at << "> as " << (link->at == node_iri ? "this" : "that") << " node's link said "
                 << age_of(link->written_ns) << " (it says so every 2 s while it runs): is that link running? (tahvel status)\n";
     else
       std::cout << "  its windows come through <" << link->child << ">, " << link->state << " at <" << link->at << "> ("
                 << heard << "): windows computed since have not come\n";
+    if (link->state != "up" || link->stale())
+      if (!link->store_warning.empty()) std::cout << "  its store, as it last said: " << link->store_warning << "\n";
   }
   if (!p.superseded_by.empty())
     std::cout << "  a later recording of the same sensor, <" << p.superseded_by

@@ -11,6 +11,7 @@
 #include <fcntl.h>
 #include <pthread.h>
 #include <sys/file.h>
+#include <sys/statvfs.h>
 #include <unistd.h>
 
 #include <algorithm>
@@ -326,6 +327,19 @@ struct Link::Impl {
     std::lock_guard lock(mu);
     return store_id;
   }
+  // How full this store is, for the parent (wire::StoreRoom); none when it cannot be read.
+  std::optional<wire::StoreRoom> store_room() {
+    std::optional<wire::StoreRoom> room;
+    {
+      std::lock_guard own_lock(own_mu);
+      auto stats = own->stats();
+      if (!stats) return room;
+      room = wire::StoreRoom{stats->high_water_bytes, stats->used_bytes, stats->max_map_bytes, 0};
+    }
+    if (struct statvfs disk {}; statvfs(opt.dir.c_str(), &disk) == 0)
+      room->disk_free_bytes = static_cast<std::uint64_t>(disk.f_bavail) * disk.f_frsize;
+    return room;
+  }
   // The highest seq this store has issued (its item ids are below it); max on error, so that
   // nothing looks restored when the store cannot be read.
   std::uint64_t last_seq_here() {
@@ -555,6 +569,7 @@ struct Link::Impl {
     std::int64_t last_seen_ns = 0;
     std::string version;
     std::uint64_t outbox_depth = 0;
+    std::optional<wire::StoreRoom> room;  // as its last hello or heartbeat said (version 5)
     std::uint64_t down_mark = 0, down_last_sent = 0;
     std::deque<std::uint64_t> down_in_flight;
     Clock::time_point down_progress{};
@@ -588,7 +603,7 @@ struct Link::Impl {
   bool read_state(const Frame& f, std::optional<wire::StateBody>& state) {
     state.reset();
     if (f.body.empty()) return true;
-    auto decoded = wire::decode_state(f.body);
+    auto decoded = wire::decode_state(f.body, f.version);
     if (!decoded) {
       dropped_malformed(f, "dropped a malformed " + frame_kind_name(f.kind) + " frame from <" + f.from + ">: " + decoded.error().message);
       return false;
@@ -1726,7 +1741,7 @@ struct Link::Impl {
       auto child = accepted_child(f.from, &why);
       // A hello or heartbeat whose body does not decode is dropped (read_state): it says nothing
       // of its sender's version either.
-      if ((f.kind == FrameKind::hello || f.kind == FrameKind::heartbeat) && (f.body.empty() || wire::decode_state(f.body)))
+      if ((f.kind == FrameKind::hello || f.kind == FrameKind::heartbeat) && (f.body.empty() || wire::decode_state(f.body, f.version)))
         note_child_version(f.from, f.version, child != nullptr);
       if (child) {
         if (f.version != kProtocolVersion && f.kind == FrameKind::answer) return answer_of_older_child(via, f, child, agent);
@@ -2017,6 +2032,7 @@ struct Link::Impl {
           if (state) {
             child->version = state->software_version;
             child->outbox_depth = state->outbox_depth;
+            if (state->room) child->room = state->room;
           }
           child->down_mark = child->down_last_sent = down_from;  // P6: resume down from the child's mark
           child->down_in_flight.clear();
@@ -2100,6 +2116,7 @@ struct Link::Impl {
           if (state->software_version != child->version) child->state_dirty = true;
           child->outbox_depth = state->outbox_depth;
           child->version = state->software_version;
+          if (state->room) child->room = state->room;
         }
         // P12a: so that the child hears its parent while nothing else comes down (an ack whose
         // mark 0 moves nothing).
@@ -3527,7 +3544,7 @@ struct Link::Impl {
           }
         }
         // A heartbeat names this store too: a parent then sees a second node under this IRI (P6b).
-        wire::StateBody state{opt.software_version, depth ? *depth : 0, current_store_id(), ""};
+        wire::StateBody state{opt.software_version, depth ? *depth : 0, current_store_id(), "", store_room()};
         if (f.kind == FrameKind::hello) {
           auto down_mark = uplink->relay_mark(stream);
           f.ack = down_mark ? *down_mark : 0;
@@ -3986,6 +4003,13 @@ struct Link::Impl {
     if (child.last_seen_ns) item.add(c, node::Term::iri(vocab::kLastSeen), node::Term::integer(child.last_seen_ns));
     item.add(c, node::Term::iri(vocab::kOutboxDepth), node::Term::integer(static_cast<std::int64_t>(child.outbox_depth)));
     if (!child.version.empty()) item.add(c, node::Term::iri(vocab::kSoftwareVersion), node::Term::literal(child.version));
+    if (child.room) {
+      const auto bytes = [](std::uint64_t n) { return node::Term::integer(static_cast<std::int64_t>(std::min<std::uint64_t>(n, std::numeric_limits<std::int64_t>::max()))); };
+      item.add(c, node::Term::iri(vocab::kStoreUsedBytes), bytes(child.room->used_bytes));
+      item.add(c, node::Term::iri(vocab::kStoreDataBytes), bytes(child.room->data_bytes));
+      item.add(c, node::Term::iri(vocab::kStoreMaxBytes), bytes(child.room->max_bytes));
+      item.add(c, node::Term::iri(vocab::kDiskFreeBytes), bytes(child.room->disk_free_bytes));
+    }
     if (const std::string& store = child.store_id.empty() ? child.store_before : child.store_id; !store.empty())
       item.add(c, node::Term::iri(vocab::kChildStoreId), node::Term::literal(store));
     if (const std::string conflict = child.flips.said(); !conflict.empty())
@@ -4175,6 +4199,14 @@ Result<std::unique_ptr<Link>> Link::start(LinkOptions options) {
                 std::from_chars(text.data(), text.data() + text.size(), child.outbox_depth);
               } else if (k.triple.p.value == vocab::kSoftwareVersion) {
                 child.version = text;
+              } else if (std::uint64_t wire::StoreRoom::*field =
+                             k.triple.p.value == vocab::kStoreUsedBytes   ? &wire::StoreRoom::used_bytes
+                             : k.triple.p.value == vocab::kStoreDataBytes ? &wire::StoreRoom::data_bytes
+                             : k.triple.p.value == vocab::kStoreMaxBytes  ? &wire::StoreRoom::max_bytes
+                             : k.triple.p.value == vocab::kDiskFreeBytes  ? &wire::StoreRoom::disk_free_bytes
+                                                                          : nullptr) {
+                if (!child.room) child.room.emplace();
+                std::from_chars(text.data(), text.data() + text.size(), child.room.value().*field);
               } else if (k.triple.p.value == vocab::kLinkLeft) {
                 child.left = text == "true";  // kept until it says hello again, this run too
               }

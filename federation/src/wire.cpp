@@ -277,11 +277,12 @@ std::string encode_state(const StateBody& body) {
   out.str(body.software_version).u64(body.outbox_depth);
   // The store ids follow only when there are any: a body without them is what a link from
   // before store ids sends, and reads the same.
-  if (!body.store_id.empty() || !body.peer_store_id.empty()) out.str(body.store_id).str(body.peer_store_id);
+  if (!body.store_id.empty() || !body.peer_store_id.empty() || body.room) out.str(body.store_id).str(body.peer_store_id);
+  if (body.room) out.u64(body.room->used_bytes).u64(body.room->data_bytes).u64(body.room->max_bytes).u64(body.room->disk_free_bytes);
   return out.take();
 }
 
-Result<StateBody> decode_state(std::string_view bytes) {
+Result<StateBody> decode_state(std::string_view bytes, std::uint16_t version) {
   In in(bytes, "state");
   StateBody body;
   body.software_version = in.str("software_version");
@@ -300,6 +301,14 @@ Result<StateBody> decode_state(std::string_view bytes) {
     };
     body.store_id = store_id("store_id");
     body.peer_store_id = store_id("peer_store_id");
+  }
+  if (version >= 5 && in.ok() && !in.at_end()) {
+    StoreRoom room;
+    room.used_bytes = in.u64("store_used_bytes");
+    room.data_bytes = in.u64("store_data_bytes");
+    room.max_bytes = in.u64("store_max_bytes");
+    room.disk_free_bytes = in.u64("disk_free_bytes");
+    body.room = room;
   }
   return in.finish(std::move(body));
 }

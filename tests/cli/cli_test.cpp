@@ -2684,11 +2684,17 @@ TEST_F(Cli, PatientsSaysWhenTheChildTheirWindowsComeThroughIsDownOrNotRefreshed)
   ASSERT_TRUE(node.agent("home1").value().relay("up", {{.seq = 1, .source = home + "/hrv", .item = window}}));
   auto link = node.agent("link").value();
   const std::int64_t now = std::chrono::duration_cast<std::chrono::nanoseconds>(std::chrono::system_clock::now().time_since_epoch()).count();
-  auto link_says = [&](const std::string& state, std::int64_t seen_ns, std::int64_t written_ns = 0) {
+  // `used`: the home's store, as its heartbeat said (P12), up to its last page of a maximum of 20 MB.
+  auto link_says = [&](const std::string& state, std::int64_t seen_ns, std::int64_t written_ns = 0, std::int64_t used = 0) {
     tahvel::node::Item item;
     item.persistent = true;
     if (written_ns) item.asserted_at = written_ns;
     item.add(Term::iri(home), Term::iri(tv + "linkState"), Term::literal(state)).add(Term::iri(home), Term::iri(tv + "lastSeen"), Term::integer(seen_ns));
+    if (used)
+      item.add(Term::iri(home), Term::iri(tv + "storeUsedBytes"), Term::integer(used))
+          .add(Term::iri(home), Term::iri(tv + "storeDataBytes"), Term::integer(used - 1'000'000))
+          .add(Term::iri(home), Term::iri(tv + "storeMaxBytes"), Term::integer(20'000'000))
+          .add(Term::iri(home), Term::iri(tv + "diskFreeBytes"), Term::integer(5'000'000'000));
     ASSERT_TRUE(link.replace({{.s = Term::iri(home)}}, {item}));
   };
   link_says("down", now - 200'000'000'000);
@@ -2698,7 +2704,7 @@ TEST_F(Cli, PatientsSaysWhenTheChildTheirWindowsComeThroughIsDownOrNotRefreshed)
       << down.out;
   Outcome json = run({"patients", dir, "--json"});
   EXPECT_NE(json.out.find("\"link\":{\"child\":\"" + home + "\",\"state\":\"down\",\"last_seen_ns\":" + std::to_string(now - 200'000'000'000) +
-                          ",\"stale\":false,\"at\":\"" + hospital + "\"}"),
+                          ",\"stale\":false,\"at\":\"" + hospital + "\",\"store_warning\":null}"),
             std::string::npos) << json.out;
   link_says("up", now);
   Outcome up = run({"patients", dir});
@@ -2712,6 +2718,24 @@ TEST_F(Cli, PatientsSaysWhenTheChildTheirWindowsComeThroughIsDownOrNotRefreshed)
   EXPECT_NE(stale.out.find("up at <" + hospital + "> as this node's link said 1 min 0 s ago (it says so every 2 s while it runs): "
                            "is that link running?"),
             std::string::npos) << stale.out;
+  // Up, its store full (its agents' writes refused, its windows stopped): said, though the link
+  // is up; a store with room is not.
+  link_says("up", now, 0, 10'000'000);
+  EXPECT_EQ(run({"patients", dir}).out.find("its windows come through"), std::string::npos);
+  link_says("up", now, 0, 19'500'000);
+  Outcome full = run({"patients", dir});
+  EXPECT_NE(full.out.find("its windows come through <" + home + ">, whose store is near full or refuses writes: 18.6 MiB of its "
+                          "maximum 19.1 MiB used (17.6 MiB holding data): writes that do not fit are refused; remove records, the "
+                          "oldest first (tahvel remove --until T) (as its link said "),
+            std::string::npos) << full.out;
+  json = run({"patients", dir, "--json"});
+  EXPECT_NE(json.out.find("\"stale\":false,\"at\":\"" + hospital + "\",\"store_warning\":\"18.6 MiB of its maximum 19.1 MiB used"),
+            std::string::npos) << json.out;
+  // Down with it: both said.
+  link_says("down", now - 200'000'000'000, 0, 19'500'000);
+  Outcome both = run({"patients", dir});
+  EXPECT_NE(both.out.find(", down at <" + hospital + "> (last heard 3 min 2"), std::string::npos) << both.out;
+  EXPECT_NE(both.out.find("\n  its store, as it last said: 18.6 MiB of its maximum 19.1 MiB used"), std::string::npos) << both.out;
 }
 
 // A forward policy that sends raw ECG up leaves it at the hospital too: `patients` offered only
@@ -5313,6 +5337,42 @@ TEST_F(Cli, StatusSaysOnTheChildsLineThatItsParentRefusesWhatItSends) {
   EXPECT_NE(shown.out.find(", outbox 0; REFUSED: " + why + "\n"), std::string::npos) << shown.out;
 }
 
+// A node on another machine whose store is near full (its agents' writes refused, the data they
+// make stopped) looked well from its parent's machine: only its windows' age showed it. Its
+// hellos and heartbeats say its store's figures (P12, protocol version 5), and status shows
+// them as it shows a store here.
+TEST_F(Cli, StatusShowsTheStoreOfANodeOnAnotherMachineNearFullAsItsHeartbeatSaid) {
+  const fs::path state = tmp_ / "state";
+  const std::string child = "http://example.org/h/home";
+  const std::string tv = " ; <https://w3id.org/tahvel#";
+  const auto room = [&](std::int64_t used) {
+    return tv + "storeUsedBytes> " + std::to_string(used) + tv + "storeDataBytes> " + std::to_string(used - 1'000'000) + tv +
+           "storeMaxBytes> 20000000" + tv + "diskFreeBytes> 5000000000";
+  };
+  parent_and_child_with_state(state, "up", room(19'500'000));
+  fs::remove_all(state / "home");  // its store is on another machine
+  Outcome shown = run({"status", "--state", state.string(), "--local"});
+  EXPECT_NE(shown.out.find("home  <" + child + ">  (on another machine)  link up"), std::string::npos) << shown.out;
+  EXPECT_NE(shown.out.find("STORE 18.6 MiB of its maximum 19.1 MiB used (17.6 MiB holding data): writes that do not fit are refused; "
+                           "remove records, the oldest first (tahvel remove --until T) (as its link said "),
+            std::string::npos) << shown.out;
+  const Outcome json = run({"status", "--state", state.string(), "--local", "--json"});
+  EXPECT_NE(json.out.find("\"left\":false,\"store\":{\"used_bytes\":19500000,\"data_bytes\":18500000,\"max_bytes\":20000000,"
+                          "\"disk_free_bytes\":5000000000}}"),
+            std::string::npos) << json.out;
+  EXPECT_NE(json.out.find("\"store_warning\":\"18.6 MiB of its maximum 19.1 MiB used"), std::string::npos) << json.out;
+  // With room: no line; a child of before protocol version 5 says no figures ("store":null).
+  fs::remove_all(state);
+  parent_and_child_with_state(state, "up", room(2'000'000));
+  fs::remove_all(state / "home");
+  shown = run({"status", "--state", state.string(), "--local"});
+  EXPECT_EQ(shown.out.find("STORE"), std::string::npos) << shown.out;
+  fs::remove_all(state);
+  parent_and_child_with_state(state, "up");
+  fs::remove_all(state / "home");
+  EXPECT_NE(run({"status", "--state", state.string(), "--local", "--json"}).out.find("\"left\":false,\"store\":null}"), std::string::npos);
+}
+
 // A child down because its link said it was stopping (`down --node`, its supervisor's stop) is
 // said so by status, text and JSON (tv:linkLeft, P12c): "link down" alone read as a crash (an
 // operator's probe of session 86).
@@ -5324,7 +5384,7 @@ TEST_F(Cli, StatusSaysAChildWhoseLinkSaidItLeftWasStoppedNotSilent) {
   EXPECT_NE(shown.out.find("home  <" + child + ">  link down (its link was stopped: it said so as it left), last seen "), std::string::npos)
       << shown.out;
   const Outcome json = run({"status", "--state", state.string(), "--local", "--json"});
-  EXPECT_NE(json.out.find("\"conflict\":null,\"left\":true}"), std::string::npos) << json.out;
+  EXPECT_NE(json.out.find("\"conflict\":null,\"left\":true,\"store\":null}"), std::string::npos) << json.out;
 }
 
 // A home SIGKILLed while its parent was away: the parent's state of it said "outbox 0" (its

@@ -2416,6 +2416,11 @@ class OlderVersion : public Transport {
     Frame old = frame;
     old.version = version_;
     if (old.kind == FrameKind::answer) old.body = wire::encode_answer(wire::decode_answer(frame.body).value(), version_);
+    if ((old.kind == FrameKind::hello || old.kind == FrameKind::heartbeat) && version_ < 5) {  // no store room before 5
+      auto state = wire::decode_state(frame.body).value();
+      state.room.reset();
+      old.body = wire::encode_state(state);
+    }
     return inner_->send(old);
   }
   Result<std::optional<Frame>> receive(std::chrono::milliseconds timeout) override {
@@ -2896,6 +2901,41 @@ TEST(Link, AParentLogsEachEpisodeOfAChildThatCannotStoreWhatItSendsDown) {
         << tree.hospital_log.text();
     if (episode == 1) std::this_thread::sleep_for(10s);
   }
+}
+
+// P12: a child says how full its store is in its hellos and heartbeats (version 5), and its
+// state at the parent follows it as the store fills, and is kept by a new run of the parent's
+// link while the child is away: a home whose store refused its agents' writes looked well from
+// the hospital.
+TEST(Link, AChildsStateAtTheParentSaysHowFullItsStoreIsAndFollowsItAsItFills) {
+  Tree tree({}, {.max_map_bytes = 1 << 20});
+  ASSERT_TRUE(tree.start_hospital_and_home1());
+  auto said = [&](const std::string& predicate) -> std::optional<std::uint64_t> {
+    auto records = node::Node::open(tree.hospital_dir).value().snapshot().value().list({.s = Term::iri(kHome1), .p = Term::iri(predicate)}).value();
+    if (records.size() != 1) return std::nullopt;
+    return std::stoull(records[0].triple.o.value);
+  };
+  ASSERT_TRUE(eventually([&] { return said(vocab::kStoreMaxBytes) == (1u << 20); })) << tree.hospital_log.text();
+  ASSERT_TRUE(said(vocab::kStoreUsedBytes) && said(vocab::kStoreDataBytes) && said(vocab::kDiskFreeBytes));
+  EXPECT_LT(*said(vocab::kStoreUsedBytes), (1u << 20) * 9 / 10) << "a new store is far from full";
+  EXPECT_LE(*said(vocab::kStoreDataBytes), *said(vocab::kStoreUsedBytes));
+  EXPECT_GT(*said(vocab::kDiskFreeBytes), 0u);
+  fill_to_the_last_page(tree.home1_dir, kHome1);
+  const auto stats = node::Node::open(tree.home1_dir).value().stats().value();
+  // Within a refresh of the child's state (2 s) and a heartbeat.
+  EXPECT_TRUE(eventually([&] { return said(vocab::kStoreUsedBytes) >= stats.high_water_bytes; }, 10s))
+      << said(vocab::kStoreUsedBytes).value_or(0) << " of " << stats.high_water_bytes;
+  EXPECT_GE(*said(vocab::kStoreDataBytes) * 2, stats.max_map_bytes);
+  // Away, and the parent's link started again: it keeps what the child last said.
+  tree.home1.reset();
+  ASSERT_TRUE(eventually([&] { return !state_says_up(tree.hospital_dir, kHome1); }));
+  const auto used = said(vocab::kStoreUsedBytes);
+  tree.hospital.reset();
+  tree.hospital = tree.start_hospital();
+  ASSERT_TRUE(eventually([&] { return tree.hospital_log.has("link up") || count(tree.hospital_dir, {.s = Term::iri(kHome1), .p = Term::iri(vocab::kLinkState), .o = Term::literal("down")}) == 1; }));
+  std::this_thread::sleep_for(500ms);  // the new run's first write of the states
+  EXPECT_EQ(said(vocab::kStoreUsedBytes), used);
+  EXPECT_EQ(said(vocab::kStoreMaxBytes), 1u << 20);
 }
 
 // A chunk the asking node cannot write on its board (here its store is full) ends the query

@@ -131,5 +131,35 @@ TEST(QueryBody, SourceAndUnderSurviveVersion4AndVersion3HasNeither) {
   EXPECT_FALSE(wire::decode_query(wire::encode_query(query).value(), 3)) << "trailing bytes";
 }
 
+// P12: a child's hello and heartbeat say how full its store is, from version 5; a body of an
+// earlier version with those bytes is malformed, and one without them has no room.
+TEST(StateBody, AStoresRoomSurvivesVersion5AndAnEarlierVersionHasNone) {
+  wire::StateBody state{"tahvel 0.1.0", 7, std::string(32, 'a'), "", wire::StoreRoom{19398656, 17891328, 20000000, 51234816}};
+  auto decoded = wire::decode_state(wire::encode_state(state));
+  ASSERT_TRUE(decoded) << decoded.error().message;
+  ASSERT_TRUE(decoded->room);
+  EXPECT_EQ(*decoded->room, *state.room);
+  EXPECT_EQ(decoded->store_id, state.store_id);
+  EXPECT_EQ(decoded->outbox_depth, 7u);
+  auto in_version_4 = wire::decode_state(wire::encode_state(state), 4);
+  ASSERT_FALSE(in_version_4);
+  EXPECT_NE(in_version_4.error().message.find("stray bytes"), std::string::npos) << in_version_4.error().message;
+  // Without a store id (a peer of before store ids would send none) the room still has its place.
+  state.store_id.clear();
+  ASSERT_TRUE(wire::decode_state(wire::encode_state(state)).value().room);
+  state.room.reset();
+  EXPECT_FALSE(wire::decode_state(wire::encode_state(state)).value().room);
+  state.store_id = std::string(32, 'b');
+  EXPECT_FALSE(wire::decode_state(wire::encode_state(state)).value().room);
+  EXPECT_TRUE(wire::decode_state(wire::encode_state(state), 4)) << "a version 4 body reads as before";
+  // Cut short inside the room: malformed, naming the field.
+  state.room = wire::StoreRoom{1, 2, 3, 4};
+  std::string bytes = wire::encode_state(state);
+  bytes.resize(bytes.size() - 4);
+  auto cut = wire::decode_state(bytes);
+  ASSERT_FALSE(cut);
+  EXPECT_NE(cut.error().message.find("disk_free_bytes"), std::string::npos) << cut.error().message;
+}
+
 }  // namespace
 }  // namespace tahvel::federation

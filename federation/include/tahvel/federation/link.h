@@ -55,6 +55,13 @@ inline const std::string kLinkConflict = std::string(kTv) + "linkConflict";
 // A child that is down because its link said it was stopping (P12c), not because it went
 // silent: true, beside its tv:linkState "down", until it says hello again.
 inline const std::string kLinkLeft = std::string(kTv) + "linkLeft";
+// How full a child's store is, as its last hello or heartbeat said (wire::StoreRoom; protocol
+// version 5): the bytes up to its last page in use, those holding data, its maximum, and what
+// the disk holding it has free.
+inline const std::string kStoreUsedBytes = std::string(kTv) + "storeUsedBytes";
+inline const std::string kStoreDataBytes = std::string(kTv) + "storeDataBytes";
+inline const std::string kStoreMaxBytes = std::string(kTv) + "storeMaxBytes";
+inline const std::string kDiskFreeBytes = std::string(kTv) + "diskFreeBytes";
 inline const std::string kRemoteQuery = std::string(kTv) + "RemoteQuery";
 inline const std::string kQueryTarget = std::string(kTv) + "queryTarget";
 inline const std::string kReplyTo = std::string(kTv) + "replyTo";

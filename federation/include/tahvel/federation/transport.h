@@ -30,7 +30,7 @@ using node::Result;
 // The protocol version this build speaks, and the oldest it still hears: a parent speaks to a
 // child of an earlier version in that version (P3 in docs/protocol.md). Frames of other
 // versions are dropped.
-inline constexpr std::uint16_t kProtocolVersion = 4;
+inline constexpr std::uint16_t kProtocolVersion = 5;
 inline constexpr std::uint16_t kOldestProtocolVersion = 2;
 
 enum class FrameKind : std::uint8_t {

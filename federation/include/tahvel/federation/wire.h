@@ -70,6 +70,17 @@ struct ErrorBody {
 std::string encode_error(const ErrorBody& body);
 Result<ErrorBody> decode_error(std::string_view bytes);
 
+// How full a child's store is, as its hellos and heartbeats say since protocol version 5
+// (docs/protocol.md P12): its parent shows it, so that a store that refuses its agents' writes
+// is seen from above, where the data it stops making is missed.
+struct StoreRoom {
+  std::uint64_t used_bytes = 0;       // up to the last page in use (node::Stats::high_water_bytes)
+  std::uint64_t data_bytes = 0;       // pages holding data (node::Stats::used_bytes)
+  std::uint64_t max_bytes = 0;        // the most it may use (node::Stats::max_map_bytes)
+  std::uint64_t disk_free_bytes = 0;  // free to it on the disk that holds it
+  bool operator==(const StoreRoom&) const = default;
+};
+
 // Hello (child -> parent), welcome (parent -> child) and heartbeat bodies: the sender's
 // software version and state, and for hello and welcome the store ids that name the streams
 // (docs/protocol.md P6a).
@@ -78,8 +89,11 @@ struct StateBody {
   std::uint64_t outbox_depth = 0;  // in a welcome: the last item of the child's down queue (P6f)
   std::string store_id;       // the sender's store (node::Node::store_id)
   std::string peer_store_id;  // hello: the parent's store that the child's down mark counts in
+  std::optional<StoreRoom> room;  // a child's hello and heartbeat, from version 5
 };
 std::string encode_state(const StateBody& body);
-Result<StateBody> decode_state(std::string_view bytes);
+// `version`: the frame's; a body of an earlier version has no room, and bytes where it would
+// be are left over.
+Result<StateBody> decode_state(std::string_view bytes, std::uint16_t version = kProtocolVersion);
 
 }  // namespace tahvel::federation::wire
