@@ -20,15 +20,15 @@
  * item is stored, so a crash in between delivers it again on restart (at least once).
  *
  * Stops after N items (--count), after SECONDS without input (--idle, default 10), or on
- * SIGINT/SIGTERM. Exit status: 0 when it stopped as asked, 1 on a Tahvel error (printed on
- * stderr), 2 on a usage error.
+ * SIGINT/SIGTERM. Exit status: 0 when it stopped as asked, 143 when a process other than its
+ * parent sent the SIGTERM (an operator's `kill PID`: its supervisor then starts it again,
+ * tahvel_stop_exit_status()), 1 on a Tahvel error (printed on stderr), 2 on a usage error.
  */
-/* The C API is C99; clock_gettime and sigaction are POSIX, which strict C99 leaves out. */
+/* The C API is C99; clock_gettime is POSIX, which strict C99 leaves out. */
 #define _POSIX_C_SOURCE 200809L
 
 #include <ctype.h>
 #include <math.h>
-#include <signal.h>
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
@@ -39,13 +39,6 @@
 #define AGENT_ID "example-c"
 #define HEART_RATE "<https://w3id.org/tahvel#heartRate>"
 #define TAKE_TIMEOUT_MS 1000
-
-static volatile sig_atomic_t g_stop = 0;
-
-static void on_signal(int signum) {
-  (void)signum;
-  g_stop = 1;
-}
 
 struct options {
   const char* dir;
@@ -158,7 +151,7 @@ static int run(tahvel_agent* agent, const struct options* options) {
   long done = 0;
   /* Measured, not counted in timeouts: a signal ends a wait early as a timeout does. */
   double last_input = monotonic_seconds();
-  while (!g_stop && (options->count == 0 || done < options->count)) {
+  while (!tahvel_stop_signal_received() && (options->count == 0 || done < options->count)) {
     uint64_t item;
     char* text;
     tahvel_status status = tahvel_take(agent, TAKE_TIMEOUT_MS, &item, &text, NULL);
@@ -179,7 +172,7 @@ static int run(tahvel_agent* agent, const struct options* options) {
     ++done;
   }
   fprintf(stderr, "example_agent: processed %ld item(s)\n", done);
-  return 0;
+  return tahvel_stop_exit_status();
 }
 
 int main(int argc, char** argv) {
@@ -196,8 +189,7 @@ int main(int argc, char** argv) {
     else fprintf(stderr, "example_agent: the node directory is missing\n");
     return 2;
   }
-  signal(SIGINT, on_signal);
-  signal(SIGTERM, on_signal);
+  tahvel_install_stop_signal_handlers();
 
   status = tahvel_node_open(options.dir, &node);
   if (status != TAHVEL_OK) return report("tahvel_node_open", status);

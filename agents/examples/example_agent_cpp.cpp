@@ -15,11 +15,12 @@
 // stored (Ack::manual), so a crash in between delivers it again on restart.
 //
 // Stops after N items, after SECONDS without input (default 10), or on SIGINT/SIGTERM.
-// Exit status: 0 done, 1 Tahvel error, 2 usage.
+// Exit status: 0 done, 143 when a process other than its parent sent the SIGTERM (an operator's
+// `kill PID`: its supervisor then starts it again, tahvel/node/stop_signal.h), 1 Tahvel error,
+// 2 usage.
 #include <chrono>
 #include <cctype>
 #include <cmath>
-#include <csignal>
 #include <cstdlib>
 #include <iostream>
 #include <optional>
@@ -27,6 +28,7 @@
 #include <string_view>
 
 #include "tahvel/node/node.h"
+#include "tahvel/node/stop_signal.h"
 #include "tahvel/uri/iri.h"
 
 namespace {
@@ -36,7 +38,6 @@ using namespace std::chrono_literals;
 
 const std::string kTv(tahvel::uri::kTahvelNs);
 const std::string kProv = "http://www.w3.org/ns/prov#";
-volatile std::sig_atomic_t g_stop = 0;
 
 struct Options {
   std::string dir;
@@ -128,7 +129,7 @@ int run(tn::Agent& agent, const Options& options) {
   long done = 0;
   // Measured, not counted in timeouts: a signal ends a wait early as a timeout does.
   auto last_input = std::chrono::steady_clock::now();
-  while (!g_stop && (options.count == 0 || done < options.count)) {
+  while (!tn::stop_signal_received() && (options.count == 0 || done < options.count)) {
     auto taken = agent.take(1000ms, tn::Ack::manual);
     if (!taken) return report("take", taken.error());
     if (!*taken) {  // timeout (or a signal): look again
@@ -147,7 +148,7 @@ int run(tn::Agent& agent, const Options& options) {
     ++done;
   }
   std::cerr << "example_agent_cpp: processed " << done << " item(s)\n";
-  return 0;
+  return tn::stop_exit_status();
 }
 
 }  // namespace
@@ -161,8 +162,7 @@ int main(int argc, char** argv) {
               << "example_agent_cpp: " << error << "\n";
     return 2;
   }
-  std::signal(SIGINT, [](int) { g_stop = 1; });
-  std::signal(SIGTERM, [](int) { g_stop = 1; });
+  tn::install_stop_signal_handlers();
 
   auto node = tn::Node::open(options->dir);
   if (!node) return report("open " + options->dir, node.error());

@@ -35,6 +35,7 @@
 #include "tahvel/node/error.h"
 #include "tahvel/node/format.h"
 #include "tahvel/node/node.h"
+#include "tahvel/node/stop_signal.h"
 #include "tahvel/node/term.h"
 #include "tahvel/uri/iri.h"
 
@@ -645,3 +646,9 @@ extern "C" tahvel_status tahvel_ack(tahvel_agent* agent, uint64_t item) {
     return TAHVEL_OK;
   });
 }
+
+extern "C" void tahvel_install_stop_signal_handlers(void) { tahvel::node::install_stop_signal_handlers(); }
+
+extern "C" int tahvel_stop_signal_received(void) { return tahvel::node::stop_signal_received() ? 1 : 0; }
+
+extern "C" int tahvel_stop_exit_status(void) { return tahvel::node::stop_exit_status(); }

@@ -3410,23 +3410,28 @@ TEST_F(Cli, UpInTheForegroundWritesEachLineWhenItIsSaid) {
 // An operator's `kill PID` of an agent: the agent stopped cleanly with status 0, the supervisor
 // took it for finished ("exited with status 0 (finished; restart = on-failure)"), and it stayed
 // stopped until `down` and `up`. It now ends with 143 and is started again; the supervisor's own
-// stop (`down`) still ends it with 0.
+// stop (`down`) still ends it with 0. So do the worked examples in C and C++, which a partner's
+// agent copies (docs/api.md "Stopping"; up to session 87 they ended with 0 and stayed stopped).
 TEST_F(Cli, AnAgentStoppedWithAKillFromOutsideItsSupervisorIsStartedAgain) {
-  const std::string state = (tmp_ / "state").string();
-  const std::string toml = "[[node]]\nid = \"solo\"\niri = \"http://example.org/solo\"\n"
-                           "  [[node.agent]]\n  id = \"hrv\"\n  run = [\"{bin}/tahvel-hrv\", \"{store}\"]\n";
-  const pid_t pid = up_and_pid_of(toml.c_str(), state, "hrv");
-  ASSERT_GT(pid, 0);
-  ASSERT_EQ(kill(pid, SIGTERM), 0);
-  const Outcome shown = status_until(state, "last: exited with status 143");
-  EXPECT_NE(shown.out.find("last: exited with status 143"), std::string::npos) << shown.out;
-  EXPECT_TRUE(eventually([&] {
-    const std::string now = run({"status", "--state", state}).out;
-    return now.find("- hrv  running (pid") != std::string::npos && now.find("(pid " + std::to_string(pid) + ")") == std::string::npos;
-  })) << run({"status", "--state", state}).out;
-  EXPECT_EQ(run({"down", "--state", state}).status, 0);
-  const std::string log = slurp(fs::path(state) / "logs" / "supervisor.log");
-  EXPECT_EQ(log.find("exited with status 0 (finished"), std::string::npos) << log;
+  for (const std::string program : {"tahvel-hrv", "example_agent", "example_agent_cpp"}) {
+    SCOPED_TRACE(program);
+    const std::string state = (tmp_ / ("state-" + program)).string();
+    const std::string toml = "[[node]]\nid = \"solo\"\niri = \"http://example.org/solo\"\n"
+                             "  [[node.agent]]\n  id = \"agent\"\n  run = [\"{bin}/" + program + "\", \"{store}\"" +
+                             (program == "tahvel-hrv" ? "" : ", \"--idle\", \"3600\"") + "]\n";
+    const pid_t pid = up_and_pid_of(toml.c_str(), state, "agent");
+    ASSERT_GT(pid, 0);
+    ASSERT_EQ(kill(pid, SIGTERM), 0);
+    const Outcome shown = status_until(state, "last: exited with status 143");
+    EXPECT_NE(shown.out.find("last: exited with status 143"), std::string::npos) << shown.out;
+    EXPECT_TRUE(eventually([&] {
+      const std::string now = run({"status", "--state", state}).out;
+      return now.find("- agent  running (pid") != std::string::npos && now.find("(pid " + std::to_string(pid) + ")") == std::string::npos;
+    })) << run({"status", "--state", state}).out;
+    EXPECT_EQ(run({"down", "--state", state}).status, 0);
+    const std::string log = slurp(fs::path(state) / "logs" / "supervisor.log");
+    EXPECT_EQ(log.find("exited with status 0 (finished"), std::string::npos) << log;
+  }
 }
 
 // A service's supervisor whose node store was removed (to start the node afresh) ended with

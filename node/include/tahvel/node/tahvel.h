@@ -81,12 +81,14 @@ typedef enum tahvel_status {
   TAHVEL_INVALID_IRI = 2,        /* an IRI that does not parse; message names the position */
   TAHVEL_SYNTAX = 3,             /* N-Triples/Turtle input error; message names line and column */
   TAHVEL_LITERAL_TOO_LARGE = 4,  /* a literal over the node's limit; message names the sizes */
-  TAHVEL_STORE_FULL = 5,         /* the store reached its configured maximum size */
+  TAHVEL_STORE_FULL = 5,         /* the store reached its configured maximum size, or its
+                                    disk has no room */
   TAHVEL_NOT_FOUND = 6,          /* no such node directory, item or record */
   TAHVEL_EXISTS = 7,             /* tahvel_node_init() of a directory that holds a store */
   TAHVEL_IO = 8,                 /* an operating-system error; message has the cause and path */
   TAHVEL_CORRUPT = 9,            /* the store's contents are not what this version wrote */
-  TAHVEL_TIMEOUT = 10,           /* a wait ended without the awaited event (tahvel_take()) */
+  TAHVEL_TIMEOUT = 10,           /* a wait ended without the awaited event (tahvel_take(),
+                                    tahvel_take_as()) */
   TAHVEL_VERSION = 11,           /* the store was written by an incompatible format version */
   TAHVEL_NO_MEMORY = 100,        /* an allocation failed; nothing was changed */
   TAHVEL_INTERNAL = 101          /* an unexpected failure inside the library (a bug: please
@@ -207,7 +209,7 @@ tahvel_status tahvel_remove_item(tahvel_node* node, uint64_t item, unsigned casc
  * is the `source` of everything the handle stores (the store sets it; an agent cannot forge
  * it). The id is one IRI path segment of at most 200 bytes (files are named after ids):
  * non-empty, not "." or ".." (nor a percent-escaped
- * form of them), in Unicode NFC, and without '/', '?', '#', whitespace, control characters or
+ * form of them) nor "*" (which addresses a node's whole subtree), in Unicode NFC, and without '/', '?', '#', whitespace, control characters or
  * the characters an IRI may not hold ('<', '>', '"', '{', '}', '|', '\\', '^', '`', '[', ']').
  * Spellings that name one IRI ("%41" and "A": a percent-escape of an unreserved ASCII
  * character, RFC 3986 6.2.2.2) are one agent; a percent-escaped non-ASCII character ("%C3%A9")
@@ -215,7 +217,8 @@ tahvel_status tahvel_remove_item(tahvel_node* node, uint64_t item, unsigned casc
  * Opening a handle with the same id again (for example after a restart) gives the same input
  * buffer: items taken but not acknowledged by the previous handle are delivered again.
  * Close the handle with tahvel_agent_close(); it may outlive `node`.
- * Errors: TAHVEL_INVALID_ARGUMENT, TAHVEL_INVALID_IRI (bad id), TAHVEL_NO_MEMORY. */
+ * Errors: TAHVEL_INVALID_ARGUMENT, TAHVEL_INVALID_IRI (bad id), TAHVEL_IO and TAHVEL_CORRUPT
+ * (reading the node's prefixes), TAHVEL_NO_MEMORY. */
 tahvel_status tahvel_agent_open(tahvel_node* node, const char* id, tahvel_agent** out);
 
 /* Closes an agent handle. Items taken and not acknowledged stay in the input buffer and are
@@ -318,6 +321,30 @@ tahvel_status tahvel_unsubscribe(tahvel_agent* agent, uint64_t subscription);
  * in the buffer (acknowledged before, or never delivered) is not an error.
  * Errors: TAHVEL_INVALID_ARGUMENT, TAHVEL_IO, TAHVEL_NO_MEMORY. */
 tahvel_status tahvel_ack(tahvel_agent* agent, uint64_t item);
+
+/* ------------------------------------------------------------------------------------------ */
+/* Stopping under a supervisor                                                                */
+
+/* How an agent run by a supervisor (`tahvel up`) ends on SIGTERM and SIGINT, as Tahvel's own
+ * programs do (tahvel/node/stop_signal.h): it stops cleanly in both cases, and its exit status
+ * tells the supervisor whether the stop was asked for. A SIGTERM from its parent (the supervisor
+ * stopping it, `tahvel down`) or a SIGINT (Ctrl-C) should end it with status 0; a SIGTERM from
+ * anyone else (an operator's `kill PID`) with 143, 128 + SIGTERM. An agent that exits 0 on any
+ * SIGTERM is taken for finished after a `kill PID`, and under the default restart policy (on
+ * failure) never started again.
+ *
+ * tahvel_install_stop_signal_handlers() installs handlers for both signals (sigaction, without
+ * SA_RESTART: a tahvel_take() in progress returns TAHVEL_TIMEOUT at the signal). Call it once,
+ * early in main(), before any other thread starts. */
+void tahvel_install_stop_signal_handlers(void);
+
+/* Non-zero once SIGTERM or SIGINT has arrived since tahvel_install_stop_signal_handlers(): the
+ * agent's loop checks it between takes and stops. */
+int tahvel_stop_signal_received(void);
+
+/* The exit status for an agent ending now: 143 after a SIGTERM sent by a process other than its
+ * parent at the time the handlers were installed, else 0. */
+int tahvel_stop_exit_status(void);
 
 #ifdef __cplusplus
 } /* extern "C" */
