@@ -99,9 +99,11 @@ std::string Args::text(const std::string& flag, const std::string& fallback) con
 double Args::number(const std::string& flag, double fallback, double minimum) const {
   auto it = values_.find(flag);
   if (it == values_.end()) return fallback;
-  char* end = nullptr;
-  const double v = std::strtod(it->second.c_str(), &end);
-  if (it->second.empty() || *end != '\0' || !std::isfinite(v) || v < minimum)
+  // Decimal only, as `tahvel hrv` reads its numbers: strtod took "0x3C" as 60 and " 60" too.
+  const std::string& text = it->second;
+  double v = 0;
+  const auto [end, ec] = std::from_chars(text.data(), text.data() + text.size(), v);
+  if (text.empty() || ec != std::errc() || end != text.data() + text.size() || !std::isfinite(v) || v < minimum)
     throw UsageError(flag + ": '" + it->second + "' is not a number >= " + format_number(minimum));
   return v;
 }

@@ -88,6 +88,9 @@ agg::Result<Signal> record_signal(const std::string& path, std::optional<std::si
   auto shared = std::make_shared<agg::SignalReader>(std::move(*reader));
   const agg::RecordHeader& h = shared->header();
   if (auto rate = agg::default_rate_warning(h)) std::cerr << "tahvel-ecg-source: warning: " << *rate << "\n";
+  // Samples the header's count leaves unread are said, as `tahvel hrv` says them: a header that
+  // counts too few made a short recording without a word.
+  for (const std::string& unread : agg::unread_samples(h)) std::cerr << "tahvel-ecg-source: warning: " << unread << "\n";
   Signal s;
   s.name = h.name;
   s.info.fs = h.fs;

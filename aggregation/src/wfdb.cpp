@@ -565,9 +565,13 @@ Result<SignalReader> SignalReader::open(const std::string& record_path) {
             values_in_bytes(other, std::max<std::int64_t>(0, size - offset)) / static_cast<std::int64_t>(g->count) == expected)
           hint = "; its size is what format " + std::to_string(other) + " takes for that many: is the header's format (" +
                  std::to_string(g->format) + ") that of the file?";
-      return fail(g->path + ": truncated: expected " + std::to_string(expected) +
-                  " samples per signal, found " + std::to_string(found) + " (" +
-                  std::to_string(size) + " bytes)" + hint);
+      // A byte offset (`212+64801`) is read past: the bytes said are those after it.
+      return fail(g->path + ": truncated: expected " + std::to_string(expected) + " samples per signal, found " +
+                  std::to_string(found) + " (" +
+                  (offset > 0 ? std::to_string(std::max<std::int64_t>(0, size - offset)) + " bytes after the header's byte offset " +
+                                    std::to_string(offset) + ", of " + std::to_string(size)
+                              : std::to_string(size) + " bytes") +
+                  ")" + hint);
     }
     g->in.seekg(offset);
     r.groups_.push_back(std::move(g));
@@ -721,16 +725,22 @@ std::vector<std::string> checksum_mismatches(const RecordHeader& header, const s
   // that did not know how long it would run), and its checksum field with it: often 0, which
   // warned of a file in another format.
   if (header.samples_per_signal == 0) return out;
+  // A file holding more samples than the header counts: the sums are of the part read, and
+  // "is it in format 212?" sent a researcher after the wrong cause.
+  const std::vector<std::string> unread = unread_samples(header);
   for (std::size_t i = 0; i < sums.size() && i < header.signals.size(); ++i) {
     const SignalInfo& info = header.signals[i];
     if (!info.has_checksum) continue;
     const std::uint16_t sum = sums[i];
     const auto said = static_cast<std::uint16_t>(info.checksum);
+    const std::string path = (std::filesystem::path(header.directory) / info.file).string();
+    const bool cut_short = std::any_of(unread.begin(), unread.end(), [&](const std::string& u) { return u.starts_with(path + " holds "); });
     if (sum != said)
       out.push_back(header.path + ": signal " + std::to_string(i) + " (" +
                     info.description + "): its samples add up to " + std::to_string(static_cast<std::int16_t>(sum)) +
                     ", the header's checksum is " + std::to_string(static_cast<std::int16_t>(said)) +
-                    " (is " + info.file + " in format " + std::to_string(info.format) + "?)");
+                    (cut_short ? " (the header's sample count leaves samples of " + info.file + " unread: is it right?)"
+                               : " (is " + info.file + " in format " + std::to_string(info.format) + "?)"));
   }
   return out;
 }

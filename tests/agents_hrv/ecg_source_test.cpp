@@ -292,6 +292,23 @@ TEST_F(EcgSourceTest, ARecordAtARateTheDetectorRefusesIsReplayedWithAWarningThat
   EXPECT_EQ(plain.said.find("R-peak agent will find no beat"), std::string::npos) << plain.said;
 }
 
+// A header whose sample count is short of its file: the source replayed that many samples and
+// said only "wrote N frames" (a researcher's probe of session 88), where `tahvel hrv` says the
+// rest is not read. It says so too.
+TEST_F(EcgSourceTest, AHeaderThatCountsFewerSamplesThanItsFileHoldsIsSaidAsTheRestNotRead) {
+  const std::string dir = new_node("short");
+  const std::string record = tahvel::test_support::write_format16_record(tmp_.path(), "short", std::vector<std::int32_t>(720, 1024));
+  std::string header = text_of(record + ".hea");
+  header.replace(header.find(" 1 360 720"), 10, " 1 360 360");
+  std::ofstream(record + ".hea") << header;
+  const auto [status, said] = replay_logged(dir, record, "short");
+  ASSERT_EQ(status, 0) << said;
+  EXPECT_NE(said.find("tahvel-ecg-source: warning: " + record + ".dat holds 720 samples per signal, the header " + record +
+                      ".hea says 360: the last 360 are not read"),
+            std::string::npos)
+      << said;
+}
+
 // A record whose ECG is not the lead the source would choose (an unnamed signal after a named
 // respiration signal): `tahvel hrv --signal 1` read it, but the streaming chain could not.
 TEST_F(EcgSourceTest, SignalNamesTheRecordsEcgLeadWhenItIsNotTheOneChosen) {

@@ -689,7 +689,17 @@ TEST_F(WfdbTemp, SamplesAfterTheHeadersCountAreNamedAsNotRead) {
                            ".hea says 100: the last 100 are not read"),
             std::string::npos)
       << unread[0];
+  // A checksum (of the 200) then differs: the count is named as the cause, not the format.
+  write("r.hea", "r 1 100 100\nr.dat 16 200 16 0 0 7 0 MLII\n");
+  write("r.dat", std::string(2 * 100, '\0') + std::string(2 * 100, '\x01'));
+  h = read_header(record("r"));
+  ASSERT_TRUE(h) << h.error().message;
+  auto mismatches = checksum_mismatches(*h, {0});
+  ASSERT_EQ(mismatches.size(), 1u);
+  EXPECT_NE(mismatches[0].find("(the header's sample count leaves samples of r.dat unread: is it right?)"), std::string::npos)
+      << mismatches[0];
   write("r.dat", std::string(2 * 100, '\0'));
+  EXPECT_NE(checksum_mismatches(*h, {0})[0].find("(is r.dat in format 16?)"), std::string::npos);
   EXPECT_TRUE(unread_samples(*h).empty());
   write("r.hea", "r 1 100 101\nr.dat 212 200 12 0 0 0 0 MLII\n");
   write("r.dat", std::string(153, '\0'));  // 51 pairs of values: 101 and one of padding
@@ -779,6 +789,15 @@ TEST_F(WfdbTemp, AHeaderWhoseFormatDoesNotFitTheFileSaysTheFormatTheSizeFits) {
   s = read_signals(record("r"));
   ASSERT_FALSE(s);
   EXPECT_EQ(s.error().message.find("format 212 takes"), std::string::npos) << s.error().message;
+  // Behind a byte offset the bytes said are those after it (the whole file's size was given,
+  // and a misplaced offset read as a file cut short).
+  write("r.hea", "r 2 360 1000\nr.dat 16+1 200 12 0 0 0 0 I\nr.dat 16+1 200 12 0 0 0 0 II\n");
+  write("r.dat", std::string(4000, '\0'));
+  s = read_signals(record("r"));
+  ASSERT_FALSE(s);
+  EXPECT_NE(s.error().message.find(": truncated: expected 1000 samples per signal, found 999 (3999 bytes after the header's byte "
+                                   "offset 1, of 4000)"),
+            std::string::npos) << s.error().message;
 }
 
 // A byte offset past the end of the file was "truncated: … found 0", naming neither the offset

@@ -3645,6 +3645,13 @@ TEST_F(Cli, UpRefusesAnAgentCommandLineTheAgentItselfRefuses) {
             std::string::npos)
       << up.err;
   EXPECT_FALSE(fs::exists(tmp_ / "state"));
+  // Decimal only, as `tahvel hrv` takes it: "0x3C" ran with a window of 60 s, " 60" too.
+  for (const std::string window : {"0x3C", " 60", "60s"}) {
+    file(window);
+    up = run({"up", (tmp_ / "node.toml").string(), "--state", state});
+    EXPECT_EQ(up.status, kUpRefused) << window << ": " << up.err;
+    EXPECT_NE(up.err.find("tahvel-hrv: --window: '" + window + "' is not a number >= 0"), std::string::npos) << up.err;
+  }
   // A synthetic source's flags are checked as its signal is made.
   spit(tmp_ / "synthetic.toml", "[[node]]\nid = \"bed\"\niri = \"http://example.org/bed\"\n  [[node.agent]]\n  id = \"ecg\"\n"
                                 "  run = [\"{bin}/tahvel-ecg-source\", \"{store}\", \"--synthetic\", \"--hr\", \"250\"]\n");
