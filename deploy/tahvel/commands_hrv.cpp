@@ -403,6 +403,15 @@ struct LinkOnTheWay {
   }
 };
 
+// The node a recording lies below: recording IRIs are <sensor>/recording/<name>, the sensor an
+// agent of its node. Empty when the IRI is not of that shape.
+std::string recording_node(const std::string& recording) {
+  const auto at = recording.rfind("/recording/");
+  if (at == std::string::npos) return {};
+  const auto slash = recording.rfind('/', at - 1);
+  return at == 0 || slash == std::string::npos ? std::string() : recording.substr(0, slash);
+}
+
 std::optional<LinkOnTheWay> link_on_the_way(const node::Snapshot& snap, const std::string& node_iri,
                                             const std::string& computed_at) {
   if (computed_at.size() <= node_iri.size() + 1 || computed_at.compare(0, node_iri.size(), node_iri) != 0 ||
@@ -533,7 +542,22 @@ void print_patient_text(const std::string& dir, const std::string& node_iri, con
             << seconds_number(p.latest.window.start_s) << "-" << seconds_number(p.latest.window.end_s)
             << " s into the recording, stored " << node::utc_text(p.latest_stored_ns) << " ("
             << age_of(p.latest_stored_ns) << ")\n";
-  if (link && link->worth_saying()) {
+  // A hop below the node that computed the windows is the sensor's, which its ECG comes from.
+  const std::string computed_at = p.source_node();
+  const bool sensor_hop = link && !computed_at.empty() && link->child.size() > computed_at.size() && uri::is_under(link->child, computed_at);
+  if (link && link->worth_saying() && sensor_hop && (link->state != "up" || link->stale())) {
+    const std::string heard = link->last_seen_ns ? "last heard " + age_of(*link->last_seen_ns) : "never heard";
+    if (link->stale())
+      std::cout << "  its ECG comes from <" << link->child << ">, up at <" << link->at << "> as that node's link said "
+                << age_of(link->written_ns) << " (it says so every 2 s while it runs): is that link running? (tahvel status)\n";
+    else
+      std::cout << "  its ECG comes from <" << link->child << ">, " << link->state << " at <" << link->at << "> (" << heard
+                << "): no window is made without it\n";
+    if (!link->store_warning.empty()) std::cout << "  its store, as it last said: " << link->store_warning << "\n";
+  } else if (link && link->worth_saying() && sensor_hop) {
+    std::cout << "  its ECG comes from <" << link->child << ">, whose store is near full or refuses writes: " << link->store_warning
+              << "\n";
+  } else if (link && link->worth_saying()) {
     const std::string heard = link->last_seen_ns ? "last heard " + age_of(*link->last_seen_ns) : "never heard";
     if (link->state == "up" && !link->stale())
       std::cout << "  its windows come through <" << link->child << ">, whose store is near full or refuses writes: "
@@ -713,14 +737,21 @@ int run_patients(const Args& args) {
   std::vector<std::optional<LinkOnTheWay>> links;
   // Below this node's children the links' states are on the boards of the nodes on the way:
   // asked, once per hop, within 3 s in all (a home behind a gateway that went down was shown
-  // as if its windows were just late).
+  // as if its windows were just late). The way goes on to the sensor node the recording lies
+  // below, where that is below the node that computed the windows: a sensor whose link is down
+  // stops the windows as surely (its home showed "up", its windows merely late).
   const auto deadline = std::chrono::steady_clock::now() + std::chrono::seconds(3);
-  std::map<std::string, std::optional<LinkOnTheWay>> asked;  // by the node that computed the windows
+  std::map<std::string, std::optional<LinkOnTheWay>> asked;  // by the node at the end of the way
   for (const agg::PatientView* p : shown) {
-    auto link = link_on_the_way(snapshot, node.iri(), p->source_node());
+    const std::string computed_at = p->source_node();
+    std::string way_to = computed_at;
+    if (const std::string sensor = recording_node(p->recording);
+        !computed_at.empty() && sensor.size() > computed_at.size() && uri::is_under(sensor, computed_at))
+      way_to = sensor;
+    auto link = link_on_the_way(snapshot, node.iri(), way_to);
     if (link && !link->worth_saying()) {
-      auto [it, fresh] = asked.try_emplace(p->source_node());
-      if (fresh) it->second = link_below(node, *link, p->source_node(), deadline);
+      auto [it, fresh] = asked.try_emplace(way_to);
+      if (fresh) it->second = link_below(node, *link, way_to, deadline);
       if (it->second) link = it->second;
     }
     links.push_back(std::move(link));
