@@ -3259,6 +3259,13 @@ int run_status(const Args& args) {
       if (!f["softwareVersion"].empty()) said += ", " + f["softwareVersion"];
       if (!f["linkConflict"].empty()) said += "; CONFLICT: " + f["linkConflict"];
       unknown_because = unbelieved_because(keeper, writer, f["linkState"], seen, read_ns);
+      // Asked after the state was read, the parent's link answered that the node is down: it
+      // heard so before writing it (a link that said it was leaving, within 0.1 s), and "link
+      // up" beside "unreachable: … is down" was two answers to one question.
+      const std::string& asked = n.programs_unknown_because;
+      if (unknown_because.empty() && f["linkState"] == "up" && n.remote &&
+          (asked.find("<" + n.iri + "> is down at <") != std::string::npos || asked.find("<" + n.iri + "> went silent at <") != std::string::npos))
+        unknown_because = writer + " has since answered that it is not up";
     }
     // This node's own view of its uplink, shown when its parent is not here to say more.
     std::string uplink_said, uplink_unknown_because;

@@ -1299,7 +1299,35 @@ Error Env::read_only_error() const {
   return Error{Errc::io, "the store in " + dir_.string() + " is on a read-only filesystem: it can be read, not written"};
 }
 
+Result<void> Env::check_in_place() {
+  const std::int64_t now = std::chrono::duration_cast<std::chrono::nanoseconds>(std::chrono::steady_clock::now().time_since_epoch()).count();
+  std::int64_t last = in_place_checked_ns_.load(std::memory_order_relaxed);
+  // Once found gone, looked at every time (it may be moved back).
+  if (!out_of_place_.load(std::memory_order_relaxed) &&
+      (now - last < 100'000'000 || !in_place_checked_ns_.compare_exchange_strong(last, now)))
+    return {};
+  mdb_filehandle_t fd = -1;
+  struct stat open_file {}, at_path {};
+  if (mdb_env_get_fd(env_, &fd) != 0 || ::fstat(fd, &open_file) != 0) return {};
+  const std::string path = (dir_ / "data.mdb").string();
+  const bool deleted = open_file.st_nlink == 0;
+  // By inode alone: an overlay filesystem may give a path and its open file different devices.
+  // A path that cannot be looked at for another reason (permissions changed) is not called moved.
+  const int looked = deleted ? 0 : ::stat(path.c_str(), &at_path);
+  const bool elsewhere = !deleted && (looked != 0 ? errno == ENOENT || errno == ENOTDIR : at_path.st_ino != open_file.st_ino);
+  out_of_place_ = deleted || elsewhere;
+  if (deleted)
+    return fail(Errc::io, path + " was deleted while this process had the store open: what it writes now is lost; open the "
+                                 "store again (a program under `tahvel up` is restarted)");
+  if (elsewhere)
+    return fail(Errc::io, path + " is no longer the file this process opened (the store was moved or replaced while it ran): "
+                                 "what it writes now is not in the store there; open the store again (a program under "
+                                 "`tahvel up` is restarted)");
+  return {};
+}
+
 Result<void> Env::write(const std::function<Result<void>(Txn&)>& body, WriteKind kind, WriteBound bound) {
+  if (auto r = check_in_place(); !r) return r;
   const std::uint64_t new_bytes = bound.bytes;
   bool dead_readers_cleared = false, freelist_turned = false;
   for (;;) {

@@ -290,6 +290,12 @@ class Env {
   // The data file's high-water mark: bytes up to its last page in use.
   std::uint64_t pages_end_bytes();
 
+  // io when the data file this process has open is no longer DIR/data.mdb: deleted (`rm -rf`
+  // of the store while it ran), or moved or replaced (a restore over it). What a write commits
+  // there is lost, and nothing written by others reaches it. Looked at most every 100 ms (a
+  // stat of the path and of the open file); writes and take()'s timeouts call it.
+  Result<void> check_in_place();
+
   // Begins a read-only transaction (a snapshot), renewing an idle one when there is one. The
   // caller ends it with end_read().
   Result<MDB_txn*> begin_read();
@@ -403,6 +409,8 @@ class Env {
 
   MDB_env* env_ = nullptr;
   bool read_only_ = false;
+  std::atomic<std::int64_t> in_place_checked_ns_{0};  // steady clock, check_in_place()'s last look
+  std::atomic<bool> out_of_place_{false};              // what check_in_place() last found
   std::filesystem::path dir_;
   Settings settings_;
   WakeBoard wake_;

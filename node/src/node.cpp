@@ -457,8 +457,12 @@ Agent::Agent(Agent&&) noexcept = default;
 Agent& Agent::operator=(Agent&&) noexcept = default;
 Agent::~Agent() = default;
 
-const std::string& Agent::iri() const { return impl_->iri; }
-const std::string& Agent::id() const { return impl_->id; }
+namespace {
+const std::string kNoText;  // what a handle moved from names
+}  // namespace
+
+const std::string& Agent::iri() const { return impl_ ? impl_->iri : kNoText; }
+const std::string& Agent::id() const { return impl_ ? impl_->id : kNoText; }
 
 std::uint32_t Agent::buffer_version() const noexcept { return impl_ ? impl_->env->wake().version(impl_->slot) : 0; }
 
@@ -646,7 +650,11 @@ Result<std::optional<Delivery>> Agent::take(std::chrono::milliseconds timeout, A
       auto got = impl_->head(ack == Ack::automatic);
       if (!got || *got) return got;
       auto left = deadline - std::chrono::steady_clock::now();
-      if (left <= std::chrono::nanoseconds::zero()) return std::optional<Delivery>();
+      if (left <= std::chrono::nanoseconds::zero()) {
+        // A store deleted or moved while it waits: nothing will ever come (not a timeout).
+        if (auto in_place = impl_->env->check_in_place(); !in_place) return unexpected(in_place.error());
+        return std::optional<Delivery>();
+      }
       // A signal handler ran (one installed without SA_RESTART): returned as a timeout, so that
       // the program sees the stop flag its handler set.
       if (board.sleep(impl_->slot, token, std::chrono::duration_cast<std::chrono::nanoseconds>(left)))
@@ -1277,7 +1285,7 @@ Result<Node> Node::open(const std::filesystem::path& dir) {
   return Node(std::make_shared<Impl>(Impl{std::move(*env)}));
 }
 
-const std::string& Node::iri() const { return impl_->env->settings().iri; }
+const std::string& Node::iri() const { return impl_ ? impl_->env->settings().iri : kNoText; }
 const std::filesystem::path& Node::dir() const {
   static const std::filesystem::path none;  // of a handle moved from
   return impl_ ? impl_->env->dir() : none;

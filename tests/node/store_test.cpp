@@ -143,6 +143,11 @@ TEST(Store, AHandleMovedFromGivesAnErrorNotACrash) {
   EXPECT_FALSE(node.wait_for_commit([] { return false; }, std::chrono::milliseconds(1)));
   EXPECT_TRUE(node.wait_for_commit([] { return true; }, std::chrono::milliseconds(1)));
   EXPECT_FALSE(other.dir().empty());
+  // Their names: empty, not a read through a null pointer (a partner's probe of session 88).
+  EXPECT_TRUE(agent->iri().empty());
+  EXPECT_TRUE(agent->id().empty());
+  EXPECT_TRUE(node.iri().empty());
+  EXPECT_EQ(moved_into.id(), "writer");
   // A snapshot moved from, too (a developer's probe of session 86: a segmentation fault).
   auto snapshot = other.snapshot();
   ASSERT_TRUE(snapshot);
@@ -157,6 +162,37 @@ TEST(Store, AHandleMovedFromGivesAnErrorNotACrash) {
   EXPECT_FALSE(snapshot->for_each({}, [](const Record&) { return true; }));
   EXPECT_EQ(snapshot->last_seq(), 0u);
   EXPECT_TRUE(kept.count({}));
+}
+
+// A store deleted (`rm -rf` of its directory) while an agent had it open took its writes into
+// the unlinked file and answered them as stored, and its takes timed out for ever (a partner's
+// probe of session 88); so did a store moved away. Both are io errors naming the file, and a
+// store moved back takes writes again.
+TEST(Store, WritesAndTakesOfAStoreDeletedOrMovedAwayWhileOpenAreErrorsNotLostWrites) {
+  TempDir dir;
+  const std::filesystem::path store = dir.path() / "moving";
+  auto agent = make_node(store).agent("writer").value();
+  const Item item = Item{}.add(ex("s"), ex("p"), ex("o"));
+  ASSERT_TRUE(agent.store(item));
+  std::filesystem::rename(store, dir.path() / "moved");
+  std::this_thread::sleep_for(150ms);  // past the 100 ms between looks
+  auto stored = agent.store(item);
+  ASSERT_FALSE(stored);
+  EXPECT_EQ(stored.error().code, Errc::io);
+  EXPECT_NE(stored.error().message.find((store / "data.mdb").string() + " is no longer the file this process opened"),
+            std::string::npos) << stored.error().message;
+  EXPECT_FALSE(agent.store(item)) << "said at every write, not once in 100 ms";
+  std::filesystem::rename(dir.path() / "moved", store);
+  EXPECT_TRUE(agent.store(item));
+  std::filesystem::remove_all(store);
+  std::this_thread::sleep_for(150ms);
+  stored = agent.store(item);
+  ASSERT_FALSE(stored);
+  EXPECT_NE(stored.error().message.find((store / "data.mdb").string() + " was deleted while this process had the store open"),
+            std::string::npos) << stored.error().message;
+  auto taken = agent.take(50ms);
+  ASSERT_FALSE(taken) << "a take of a deleted store is no timeout";
+  EXPECT_EQ(taken.error().code, Errc::io);
 }
 
 TEST(Store, ACascadeTakesWhatLiesWithinItsDepthOfAnyMatchWhateverTheOrder) {

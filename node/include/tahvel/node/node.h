@@ -4,8 +4,14 @@
 //   auto node = Node::open("state/home1");            // every process opens the same directory
 //   auto hrv = node->agent("hrv");                    // IRI = node IRI + "/hrv"; fixes `source`
 //   if (!hrv->subscribe({.p = Term::iri(tv + "rr")})) ...   // a subscription: triples on the board
-//   for (;;) if (auto d = hrv->take(1000ms); d && *d) { ... }   // input buffer, woken by futex
-//   hrv->store(item);                                 // atomic item, routed to subscribers
+//   for (;;) {                                        // input buffer, woken by futex
+//     auto d = hrv->take(1000ms, Ack::manual);        // nullopt: timeout, look again
+//     if (!d) return d.error();                       // errors are values: the store is gone, ...
+//     if (!*d) continue;
+//     if (auto stored = hrv->store(item); !stored) return stored.error();  // derived from **d
+//     hrv->ack((*d)->item);                           // only now: a crash before delivers it again
+//   }
+// (docs/api.md walks through a whole agent, agents/examples/example_agent_cpp.cpp.)
 //
 // Workload: many small items (measurements, 1-10 triples) from a few local writers, a few
 // readers, occasional large literals (1 s ECG chunks). Writers are serialised by LMDB; readers
@@ -305,6 +311,7 @@ class Agent {
   Agent& operator=(Agent&&) noexcept;
   ~Agent();
 
+  // Empty for a handle moved from (its other calls fail with invalid_argument).
   const std::string& iri() const;
   const std::string& id() const;
 
@@ -510,9 +517,12 @@ struct InitOptions {
   std::uint64_t ring = 0;                    // keep at most this many non-persistent records;
                                              // 0: no ring (explicit removal and TTL only)
   std::uint64_t max_literal_bytes = 1 << 20; // larger literals are refused
-  std::uint64_t max_map_bytes = 1ull << 36;  // the store may grow to this size (64 GiB), then
-                                             // refuses writes with store_full; at least
-                                             // kMinMaxMapBytes
+  std::uint64_t max_map_bytes = 1ull << 36;  // writes may fill the store up to this size
+                                             // (64 GiB), then are refused with store_full; at
+                                             // least kMinMaxMapBytes. Removals may take its file
+                                             // beyond, into a reserve of 1/16 of it and up to
+                                             // 1 MB more (an eighth under 8 MB), so that a full
+                                             // store can be emptied
 };
 
 // The smallest InitOptions::max_map_bytes; Node::init refuses less (invalid_argument).
@@ -554,6 +564,7 @@ class Node {
   Node& operator=(Node&&) noexcept;
   ~Node();
 
+  // Empty for a handle moved from.
   const std::string& iri() const;
   const std::filesystem::path& dir() const;
 
