@@ -102,7 +102,8 @@ double Args::number(const std::string& flag, double fallback, double minimum) co
   // Decimal only, as `tahvel hrv` reads its numbers: strtod took "0x3C" as 60 and " 60" too.
   const std::string& text = it->second;
   double v = 0;
-  const auto [end, ec] = std::from_chars(text.data(), text.data() + text.size(), v);
+  const char* begin = text.data() + (text.starts_with('+') && text.size() > 1 && text[1] != '-' ? 1 : 0);  // as strtod took "+300"
+  const auto [end, ec] = std::from_chars(begin, text.data() + text.size(), v);
   if (text.empty() || ec != std::errc() || end != text.data() + text.size() || !std::isfinite(v) || v < minimum)
     throw UsageError(flag + ": '" + it->second + "' is not a number >= " + format_number(minimum));
   return v;

@@ -96,8 +96,10 @@ node::Term parse_term(std::string_view text, const uri::PrefixMap& prefixes,
 std::string parse_iri(std::string_view text, const uri::PrefixMap& prefixes,
                       std::string_view flag);
 // As parse_iri, for a node's IRI (--at): one with a query, a fragment or a trailing '/' is a
-// usage error naming `flag`.
-std::string parse_node_iri(std::string_view text, const uri::PrefixMap& prefixes, std::string_view flag);
+// usage error naming `flag`. `here`: the node asked (DIR's), whose IRI + "/" + `text` the error
+// for an id alone suggests.
+std::string parse_node_iri(std::string_view text, const uri::PrefixMap& prefixes, std::string_view flag,
+                           std::string_view here = {});
 // The pattern of -s, -p, -o (and --context, --source, --under when the command has them).
 node::Pattern pattern_from_args(const Args& args, const uri::PrefixMap& prefixes);
 // After an empty answer to a pattern with -p: a warning on standard error when no record of

@@ -296,7 +296,12 @@ std::string parse_iri(std::string_view text, const uri::PrefixMap& prefixes,
                       std::string(text) + "> for an absolute IRI)");
 }
 
-std::string parse_node_iri(std::string_view text, const uri::PrefixMap& prefixes, std::string_view flag) {
+std::string parse_node_iri(std::string_view text, const uri::PrefixMap& prefixes, std::string_view flag, std::string_view here) {
+  // A node's id alone (`--at home1`): named as the whole IRI it most likely means.
+  if (!here.empty() && !text.empty() && text.find(':') == std::string_view::npos && !text.starts_with("<") &&
+      uri::node_iri(std::string(here) + "/" + std::string(text)))
+    bad_value(flag, "'" + std::string(text) + "' is not an IRI or CURIE: a node is named by its whole IRI (did you mean " +
+                        std::string(here) + "/" + std::string(text) + "?)");
   std::string iri = parse_iri(text, prefixes, flag);
   // A node IRI has no query or fragment and no trailing '/' (uri::node_iri): asked of the tree,
   // `…/home1?x=1` came back "unknown node" and `…/home1/` was taken for home1.
@@ -366,6 +371,10 @@ void warn_of_a_predicate_held_by_none(std::string_view command, const node::Patt
     std::cerr << "; did you mean " << one_of(named, match.as_near.size() + 1) << "?";
   }
   else std::cerr << ".";
+  // Raw ECG asked where it is not (as `tahvel ecg` says it): it stays where HRV is computed.
+  if (!nearest && asked == std::string(uri::kTahvelNs) + "samples")
+    std::cerr << " Raw ECG stays on the node that computes its HRV (usually a home): `tahvel patients` at the hospital prints, "
+                 "for each recording, the query that brings it (--at that node).";
   std::cerr << " 'tahvel stats DIR --predicates" << (where.starts_with("<") ? " --at NODE-IRI" : "") << "' lists what it holds\n";
 }
 
@@ -415,8 +424,10 @@ node::Format format_flag(const Args& args, node::Format fallback, bool allow_jso
   if (!name) return fallback;
   auto format = node::parse_format(*name);
   if (!format || (!allow_json && *format == node::Format::json)) {
-    bad_value("--format", "unknown format '" + *name + "' (use " +
-                              (allow_json ? "nt, ttl or json)" : "nt or ttl)"));
+    // CSV is asked of the raw ECG: `tahvel ecg` writes it.
+    const bool csv = *name == "csv" || *name == "CSV";
+    bad_value("--format", "unknown format '" + *name + "' (use " + (allow_json ? "nt, ttl or json)" : "nt or ttl)") +
+                              (csv ? "; for raw ECG as numbers in CSV, 'tahvel ecg DIR --recording IRI'" : ""));
   }
   return *format;
 }
@@ -924,7 +935,9 @@ std::string store_room_warning(std::uint64_t used, std::uint64_t data, std::uint
   // But pages freed below the mark are used again: a store emptied with `tahvel remove` takes
   // writes, its file as large as before (it was called full with 0.1 MB of 2 holding data). A
   // removal may take the mark past the maximum, into the reserve kept for removals.
-  if (max > 0 && used * 10 >= max * 9 && data * 2 >= max) {
+  // In 128 bits: figures a child sends may be anything, and `used * 10` wrapped near 2^64.
+  using Wide = unsigned __int128;
+  if (max > 0 && Wide{used} * 10 >= Wide{max} * 9 && Wide{data} * 2 >= Wide{max}) {
     // MiB, as said: the errors give bytes, and "MB" beside them read as another figure.
     if (used > max)
       said << used / kMB << " MiB used, " << (used - max) / 1024 << " KiB past its maximum of " << max / kMB

@@ -203,7 +203,7 @@ int run_ecg(const Args& args) {
   uri::PrefixMap prefixes = prefixes_with_flags(node.prefixes(), args);
   const std::string recording = parse_iri(args.required("--recording"), prefixes, "--recording");
   federation::RemoteQuery ask;
-  ask.target = args.has("--at") ? parse_node_iri(*args.get("--at"), prefixes, "--at") : node.iri();
+  ask.target = args.has("--at") ? parse_node_iri(*args.get("--at"), prefixes, "--at", node.iri()) : node.iri();
   std::optional<std::int64_t> since, until;
   if (auto text = args.get("--since")) since = time_flag("--since", *text);
   if (auto text = args.get("--until")) until = time_flag("--until", *text);
@@ -264,7 +264,15 @@ int run_ecg(const Args& args) {
     fail("ecg: " + where + " holds no recording <" + recording + "> (nothing has it as subject)" + hint);
   }
   auto info = agg::read_recording(description, recording);
-  if (!info) fail("ecg: the description of <" + recording + "> at " + where + ": " + info.error().message);
+  if (!info) {
+    // An IRI below a recording's (an HRV window's, <rec>/hrv/4440, pasted from `patients`): the
+    // recording it belongs to is named.
+    std::string belongs;
+    if (const auto at = recording.find("/recording/"); at != std::string::npos)
+      if (const auto end = recording.find('/', at + std::string_view("/recording/").size()); end != std::string::npos)
+        belongs = " (<" + recording + "> lies below the recording <" + recording.substr(0, end) + ">: give that to --recording)";
+    fail("ecg: the description of <" + recording + "> at " + where + ": " + info.error().message + belongs);
+  }
   if (info->leads.empty()) fail("ecg: the description of <" + recording + "> at " + where + " names no tv:lead");
 
   // Its chunks (<recording>/chunk/<first sample>) that held in the range, in the order stored:

@@ -399,7 +399,7 @@ int run_query(const Args& args) {
   node::Node node = open_node(args.positional(0));
   uri::PrefixMap prefixes = prefixes_with_flags(node.prefixes(), args);
   federation::RemoteQuery query;
-  query.target = parse_node_iri(args.required("--at"), prefixes, "--at");
+  query.target = parse_node_iri(args.required("--at"), prefixes, "--at", node.iri());
   query.pattern = pattern_from_args(args, prefixes);
   query.cascade = cascade_flag(args);
   // One record more than --limit is asked for, and not printed: it tells a cut answer from a
@@ -563,7 +563,7 @@ int print_predicates(node::Node& node, const Args& args) {
   const uri::PrefixMap prefixes = prefixes_with_flags(node.prefixes(), args);
   std::vector<node::PredicateSummary> held;
   std::optional<std::string> target;
-  if (auto at = args.get("--at")) target = parse_node_iri(*at, prefixes, "--at");
+  if (auto at = args.get("--at")) target = parse_node_iri(*at, prefixes, "--at", node.iri());
   std::int64_t written = 0;  // 0: read here and now
   if (target && *target != node.iri()) {
     written = remote_predicates(node, *target, seconds_flag(args, "stats", std::chrono::seconds(10), std::chrono::seconds(600)), held);
@@ -1030,6 +1030,44 @@ void refuse_malformed_patterns_of_others(const Topology& topo, const std::vector
   }
 }
 
+// A tahvel-hrv whose window or step is set on its node's board runs with that setting, whatever
+// its command line says (docs/agents.md): a --window edited in the file was "restarted … '30'
+// became '45'" and ran on at the board's 60 s (an integrator's probe of session 88). Said, with
+// what lets the flag stand.
+void warn_of_settings_on_the_board(const AgentSpec& agent, const NodeSpec& spec, const std::vector<std::string>& argv,
+                                   const fs::path& store) {
+  if (argv.empty() || fs::path(argv[0]).filename() != "tahvel-hrv" || !fs::exists(store / "data.mdb")) return;
+  std::string agent_id = "hrv";  // tahvel-hrv's default --agent
+  for (std::size_t i = 1; i + 1 < argv.size(); ++i)
+    if (argv[i] == "--agent") agent_id = argv[i + 1];
+  const auto agent_iri = uri::agent_iri(spec.iri, agent_id);
+  if (!agent_iri) return;
+  std::optional<node::Node> board;
+  for (const auto& [flag, setting] : {std::pair{"--window", "windowSeconds"}, std::pair{"--step", "stepSeconds"}}) {
+    const auto given = std::find(argv.begin() + 1, argv.end(), flag);
+    if (given == argv.end() || given + 1 == argv.end()) continue;
+    if (!board) {
+      auto opened = node::Node::open(store);
+      if (!opened) return;
+      board.emplace(std::move(*opened));
+    }
+    auto snap = board->snapshot();
+    if (!snap) return;
+    const std::string predicate = std::string(uri::kTahvelNs) + setting;
+    auto settings = snap->list({.s = node::Term::iri(*agent_iri), .p = node::Term::iri(predicate)});
+    if (!settings || settings->empty()) continue;
+    // The latest written stands (by asserted-at, then by arrival), as tahvel-hrv reads them.
+    const node::Record& latest = *std::max_element(settings->begin(), settings->end(), [](const node::Record& a, const node::Record& b) {
+      return std::pair(a.meta.asserted_at, a.meta.id) < std::pair(b.meta.asserted_at, b.meta.id);
+    });
+    std::cerr << "up: warning: " << agent.at << ": node '" << spec.id << "': agent '" << agent.id << "': " << flag << " " << *(given + 1)
+              << " is not in force: its board sets tv:" << setting << " " << latest.triple.o.value << " (the latest setting, put by <"
+              << latest.meta.source << "> at " << node::utc_text(latest.meta.asserted_at)
+              << "), which stands over the flag (docs/agents.md); to let the flag stand: tahvel remove " << shell_word(store) << " -s "
+              << shell_word(fs::path(*agent_iri)) << " -p tv:" << setting << "\n";
+  }
+}
+
 // Warns about an agent of the shipped chain whose input nothing in the file writes or passes up,
 // or whose results a child sends up as well (dataflow.h).
 void warn_of_dataflow(const Topology& topo, const std::vector<const NodeSpec*>& mine) {
@@ -1422,6 +1460,7 @@ class Deployment {
       ::close(entry.second);
       return true;
     });
+    std::erase_if(data_files_, [&](const auto& entry) { return !ids.count(entry.first); });
     node_ids_ = ids;
     // Opened on threads of their own (opening.h); what opens within a moment is said by this
     // apply, what waits for its store is said when it opens (poll()).
@@ -1474,9 +1513,15 @@ class Deployment {
     for (auto& [id, keeper] : keepers_) {
       if (board_held_up(id)) continue;
       auto synced = keeper.poll(std::chrono::milliseconds(0));
+      // A failure said once while it lasts (a store whose data file went failed every 100 ms).
+      std::string& failed = poll_failures_["keeper " + keeper.iri()];
       if (!synced) {
-        log("up: area keeper <" + keeper.iri() + ">: " + synced.error().message);
-      } else if (*synced) {
+        if (synced.error().message != failed) log("up: area keeper <" + keeper.iri() + ">: " + synced.error().message);
+        failed = synced.error().message;
+        continue;
+      }
+      failed.clear();
+      if (*synced) {
         log("up: area keeper <" + keeper.iri() + ">: " + std::to_string((*synced)->added) + " subscriptions added, " +
             std::to_string((*synced)->removed) + " removed" + caught_up_text(**synced));
         for (const auto& problem : (*synced)->problems) log("up: area keeper <" + keeper.iri() + ">: " + problem);
@@ -1485,9 +1530,14 @@ class Deployment {
     for (auto& [id, d] : dispatchers_) {
       if (board_held_up(id)) continue;
       auto events = d.dispatcher.poll(std::chrono::milliseconds(0));
-      if (!events) log("up: dispatcher <" + d.dispatcher.iri() + ">: " + events.error().message);
-      else
-        for (const auto& e : *events) log("up: " + e.run + " \"" + e.command + "\" " + e.detail);
+      std::string& failed = poll_failures_["dispatcher " + d.dispatcher.iri()];
+      if (!events) {
+        if (events.error().message != failed) log("up: dispatcher <" + d.dispatcher.iri() + ">: " + events.error().message);
+        failed = events.error().message;
+        continue;
+      }
+      failed.clear();
+      for (const auto& e : *events) log("up: " + e.run + " \"" + e.command + "\" " + e.detail);
     }
   }
 
@@ -1604,6 +1654,7 @@ class Deployment {
         ::close(lock->second);
         locks_.erase(lock);
       }
+      data_files_.erase(id);
       node_ids_.erase(id);
       gone_[id] = iris_[id];
       changes.push_back("stopped node '" + id + "' (" + std::to_string(programs.size()) + " program(s)): its store " +
@@ -1623,13 +1674,20 @@ class Deployment {
   // The nodes whose store directory is no longer where this supervisor started them (`rm -rf`
   // of the state directory, or a move): their programs write into files nobody else opens, and
   // an `up` of that directory would start every program of the node a second time.
+  // Also those whose data file alone was removed or replaced (`rm DIR/data.mdb`, a copy put in
+  // its place): their programs' writes fail, and the keeper's and dispatcher's failed every poll.
   std::vector<std::string> stores_gone() const {
     std::vector<std::string> gone;
     for (const auto& [id, fd] : locks_) {
-      struct stat held {}, there {};
+      struct stat held {}, there {}, data {};
       if (fstat(fd, &held) != 0) continue;
+      const auto file = data_files_.find(id);
+      const bool data_gone = file != data_files_.end() &&
+                             (::stat((state_ / id / "data.mdb").c_str(), &data) != 0
+                                  ? errno == ENOENT
+                                  : std::pair(data.st_dev, data.st_ino) != file->second);
       if (held.st_nlink == 0 || ::stat((state_ / id).c_str(), &there) != 0 || there.st_ino != held.st_ino ||
-          there.st_dev != held.st_dev)
+          there.st_dev != held.st_dev || data_gone)
         gone.push_back(id);
     }
     return gone;
@@ -1718,6 +1776,7 @@ class Deployment {
       return false;
     }
     locks_[spec.id] = fd;
+    if (struct stat data {}; ::stat((store / "data.mdb").c_str(), &data) == 0) data_files_[spec.id] = {data.st_dev, data.st_ino};
     iris_[spec.id] = spec.iri;
     if (gone_.erase(spec.id) > 0)
       if (auto listed = write_gone_list()) changes.push_back(*listed);
@@ -1807,6 +1866,8 @@ class Deployment {
   fs::path file_;  // the topology file applied last (absolute)
   std::map<std::string, agents::ProgramSpec> applied_;
   std::map<std::string, int> locks_;  // by node id: the store directory's descriptor, locked
+  std::map<std::string, std::pair<dev_t, ino_t>> data_files_;  // by node id: its data.mdb when locked
+  std::map<std::string, std::string> poll_failures_;  // by keeper or dispatcher IRI: what its poll last said
   std::map<std::string, Dispatching> dispatchers_;
   std::map<std::string, spatial::AreaKeeper> keepers_;
   std::map<std::string, OpeningDispatcher> opening_dispatchers_;
@@ -2122,6 +2183,7 @@ int up_checked(const Args& args, bool& checking) {
       }
       if (auto rules = check_rule_file(agent, *spec, *argv, *prefixes); !rules) fail(rules.error().message);
       if (auto flags = check_agent_flags(agent, *spec, *argv, here_for_file); !flags) fail(flags.error().message);
+      warn_of_settings_on_the_board(agent, *spec, *argv, state / spec->id);
     }
   }
   warn_of_dataflow(topo, mine);
@@ -2774,8 +2836,7 @@ RemoteBoard ask_board(node::Node& from, const std::string& target, std::chrono::
   auto local_name = [](const std::string& iri) { return iri.substr(iri.find('#') + 1); };
   for (const std::string& p : {federation::vocab::kLinkState, federation::vocab::kParent, federation::vocab::kLastSeen,
                                federation::vocab::kOutboxDepth, federation::vocab::kSoftwareVersion, federation::vocab::kLinkConflict,
-                               federation::vocab::kLinkLeft, federation::vocab::kStoreUsedBytes, federation::vocab::kStoreDataBytes,
-                               federation::vocab::kStoreMaxBytes, federation::vocab::kDiskFreeBytes}) {
+                               federation::vocab::kLinkLeft}) {
     board.children_error = ask(p, "", *link, [&](const node::Record& r) {
       if (r.triple.s.value == target) return;
       Fields& fields = board.children[r.triple.s.value];
@@ -2785,6 +2846,16 @@ RemoteBoard ask_board(node::Node& from, const std::string& target, std::chrono::
     if (!board.children_error.empty()) break;
   }
   if (!board.children_error.empty()) board.children.clear();
+  // The figures of the children's stores (P12, version 5) last, and without them the children
+  // are still shown: they only add a STORE line.
+  if (!board.children.empty())
+    for (const std::string& p : {federation::vocab::kStoreUsedBytes, federation::vocab::kStoreDataBytes,
+                                 federation::vocab::kStoreMaxBytes, federation::vocab::kDiskFreeBytes}) {
+      const std::string failed = ask(p, "", *link, [&](const node::Record& r) {
+        if (auto child = board.children.find(r.triple.s.value); child != board.children.end()) child->second[local_name(p)] = r.triple.o.value;
+      });
+      if (!failed.empty()) break;
+    }
   std::erase_if(board.children, [](const auto& c) { return !c.second.count("linkState"); });
 
   std::vector<std::pair<std::string, Fields>> programs;  // by program IRI, in the supervisor's order

@@ -403,13 +403,15 @@ struct LinkOnTheWay {
   }
 };
 
-// The node a recording lies below: recording IRIs are <sensor>/recording/<name>, the sensor an
-// agent of its node. Empty when the IRI is not of that shape.
-std::string recording_node(const std::string& recording) {
-  const auto at = recording.rfind("/recording/");
-  if (at == std::string::npos) return {};
+// The node a recording lies below, at or below `computed_at` (the node that computed its
+// windows): recording IRIs are <sensor>/recording/<name>, the sensor an agent of its node; the
+// first "/recording/" past `computed_at` is the sensor's. Empty when the IRI is not of that shape.
+std::string recording_node(const std::string& recording, const std::string& computed_at) {
+  if (!uri::is_under(recording, computed_at)) return {};
+  const auto at = recording.find("/recording/", computed_at.size());
+  if (at == std::string::npos || at <= computed_at.size()) return {};
   const auto slash = recording.rfind('/', at - 1);
-  return at == 0 || slash == std::string::npos ? std::string() : recording.substr(0, slash);
+  return slash == std::string::npos || slash < computed_at.size() ? std::string() : recording.substr(0, slash);
 }
 
 std::optional<LinkOnTheWay> link_on_the_way(const node::Snapshot& snap, const std::string& node_iri,
@@ -548,7 +550,8 @@ void print_patient_text(const std::string& dir, const std::string& node_iri, con
   if (link && link->worth_saying() && sensor_hop && (link->state != "up" || link->stale())) {
     const std::string heard = link->last_seen_ns ? "last heard " + age_of(*link->last_seen_ns) : "never heard";
     if (link->stale())
-      std::cout << "  its ECG comes from <" << link->child << ">, up at <" << link->at << "> as that node's link said "
+      std::cout << "  its ECG comes from <" << link->child << ">, up at <" << link->at << "> as "
+                << (link->at == node_iri ? "this" : "that") << " node's link said "
                 << age_of(link->written_ns) << " (it says so every 2 s while it runs): is that link running? (tahvel status)\n";
     else
       std::cout << "  its ECG comes from <" << link->child << ">, " << link->state << " at <" << link->at << "> (" << heard
@@ -745,7 +748,7 @@ int run_patients(const Args& args) {
   for (const agg::PatientView* p : shown) {
     const std::string computed_at = p->source_node();
     std::string way_to = computed_at;
-    if (const std::string sensor = recording_node(p->recording);
+    if (const std::string sensor = computed_at.empty() ? std::string() : recording_node(p->recording, computed_at);
         !computed_at.empty() && sensor.size() > computed_at.size() && uri::is_under(sensor, computed_at))
       way_to = sensor;
     auto link = link_on_the_way(snapshot, node.iri(), way_to);

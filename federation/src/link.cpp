@@ -334,7 +334,8 @@ struct Link::Impl {
       std::lock_guard own_lock(own_mu);
       auto stats = own->stats();
       if (!stats) return room;
-      room = wire::StoreRoom{stats->high_water_bytes, stats->used_bytes, stats->max_map_bytes, 0};
+      // Free space not known: said as all there is, not as none (which read as a full disk).
+      room = wire::StoreRoom{stats->high_water_bytes, stats->used_bytes, stats->max_map_bytes, ~0ull};
     }
     if (struct statvfs disk {}; statvfs(opt.dir.c_str(), &disk) == 0)
       room->disk_free_bytes = static_cast<std::uint64_t>(disk.f_bavail) * disk.f_frsize;
@@ -2032,8 +2033,10 @@ struct Link::Impl {
           if (state) {
             child->version = state->software_version;
             child->outbox_depth = state->outbox_depth;
-            if (state->room) child->room = state->room;
           }
+          // None from a child that says none (an older build after a rollback): figures kept
+          // from before would be shown under its fresh last-seen time.
+          child->room = state ? state->room : std::nullopt;
           child->down_mark = child->down_last_sent = down_from;  // P6: resume down from the child's mark
           child->down_in_flight.clear();
           child->down_progress = Clock::now();
@@ -2116,7 +2119,7 @@ struct Link::Impl {
           if (state->software_version != child->version) child->state_dirty = true;
           child->outbox_depth = state->outbox_depth;
           child->version = state->software_version;
-          if (state->room) child->room = state->room;
+          child->room = state->room;
         }
         // P12a: so that the child hears its parent while nothing else comes down (an ack whose
         // mark 0 moves nothing).
@@ -2497,6 +2500,7 @@ struct Link::Impl {
     }
     std::string child_iri = child_on_path(self, q->target);
     Outgoing out;
+    std::optional<wire::ErrorBody> unknown;  // said once `mu` is released: its hint reads the store
     {
       std::lock_guard lock(mu);
       auto it = child_iri.empty() ? children.end() : children.find(child_iri);
@@ -2520,7 +2524,7 @@ struct Link::Impl {
         }
         // Worded as the asking node words its own: "unknown node <T>: <here> has no child <C>".
         const std::string why = child_iri.empty() ? "not below <" + self + ">" : "<" + self + "> has no child <" + child_iri + ">";
-        out.error(via, opt.parent_iri, f.seq, {"unknown_node", "<" + q->target + ">: " + why + hint, q->origin});
+        unknown = {"unknown_node", "<" + q->target + ">: " + why + hint, q->origin};
       } else if (!it->second->connected) {
         out.error(via, opt.parent_iri, f.seq,
                   {"unreachable", "<" + child_iri + ">" + (child_iri == q->target ? "" : " (on the way to <" + q->target + ">)") +
@@ -2543,7 +2547,28 @@ struct Link::Impl {
         out.add(via_to(child_iri), std::move(down));
       }
     }
+    if (unknown) {
+      // The IRI of an agent here (a recording's prefix, <…/ecg1/ecg>, taken for a node).
+      if (!child_iri.empty() && names_an_agent_here(child_iri))
+        unknown->message = "<" + q->target + ">: <" + self + "> has no child <" + child_iri + ">: <" + child_iri + "> is an agent of <" +
+                           self + ">, not a node (ask --at <" + self + ">)";
+      out.error(via, opt.parent_iri, f.seq, std::move(*unknown));
+    }
     send_all(out);
+  }
+
+  // Whether the board of this node has a record about `iri` or naming it as its object (an
+  // agent's own state, a recording attributed to it): a query --at an agent's IRI is told to ask
+  // the agent's node. Index lookups that stop at the first record.
+  bool names_an_agent_here(const std::string& iri) {
+    std::lock_guard own_lock(own_mu);
+    auto snap = own->snapshot();
+    if (!snap) return false;
+    for (const node::Pattern& pattern : {node::Pattern{.s = node::Term::iri(iri)}, node::Pattern{.o = node::Term::iri(iri)}}) {
+      bool found = false;
+      if (snap->for_each(pattern, [&](const node::Record&) { return !(found = true); }) && found) return true;
+    }
+    return false;
   }
 
   // ---- answering a query on this node (P14) -------------------------------------------------
@@ -2876,6 +2901,34 @@ struct Link::Impl {
 
   // P12c: said once, as the link stops on purpose (not when its process is killed), to a parent
   // that welcomed it, so that its queries and state say so at once rather than after child_silence.
+  // P12c: a link stopped on purpose first lets what waits in its outbox go up and be
+  // acknowledged, while its parent is up, for up to `limit`: the last items of a node taken out of
+  // the file (a replay's end of recording) had arrived and their acknowledgement not, and `up`
+  // said they never would go up.
+  void drain_outbox(std::chrono::milliseconds limit) {
+    {
+      std::lock_guard lock(mu);
+      if (!opt.up || !welcomed || !opt.say_leaving) return;
+    }
+    std::optional<node::Agent> uplink;
+    {
+      std::lock_guard own_lock(own_mu);
+      auto agent = own->agent("uplink");
+      if (!agent) return;
+      uplink.emplace(std::move(*agent));
+    }
+    const auto until = Clock::now() + limit;
+    for (;;) {
+      auto waiting = uplink->pending();
+      if (!waiting || *waiting == 0 || Clock::now() >= until) return;
+      {
+        std::lock_guard lock(mu);
+        if (!welcomed || parent_left) return;
+      }
+      std::this_thread::sleep_for(std::chrono::milliseconds(10));
+    }
+  }
+
   void say_leaving() {
     std::string own_store;
     {
@@ -4024,7 +4077,9 @@ Link::Link(std::unique_ptr<Impl> impl) : impl_(std::move(impl)) {}
 Link::~Link() { stop(); }
 
 void Link::stop() {
-  if (!impl_ || impl_->stopping.exchange(true)) return;
+  if (!impl_ || impl_->stopping.load()) return;
+  impl_->drain_outbox(std::chrono::seconds(1));
+  if (impl_->stopping.exchange(true)) return;
   impl_->changed.notify_all();
   impl_->board_due.notify_all();
   impl_->answers_due.notify_all();

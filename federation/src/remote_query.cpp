@@ -193,7 +193,14 @@ Result<std::uint64_t> remote_query(node::Node& node, const RemoteQuery& query,
         // not only once the link runs again.
         const std::string hint = [&] {
           std::string said = percent_spelling_hint(*snap, child);
-          return said.empty() ? known_children_hint(*snap, served) : said;
+          if (!said.empty()) return said;
+          // The IRI of an agent here (a recording's prefix, <…/home1/hrv>) taken for a node.
+          for (const node::Pattern& pattern : {node::Pattern{.s = Term::iri(child)}, node::Pattern{.o = Term::iri(child)}}) {
+            bool found = false;
+            if (snap->for_each(pattern, [&](const node::Record&) { return !(found = true); }) && found)
+              return ": <" + child + "> is an agent of <" + self + ">, not a node (ask --at <" + self + ">)";
+          }
+          return known_children_hint(*snap, served);
         }();
         if (link.stopped_pid)
           return node::fail(Errc::io, "unreachable: nothing reaches <" + child + ">: " + stopped_link(self, *link.stopped_pid) +

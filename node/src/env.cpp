@@ -713,7 +713,9 @@ Result<std::shared_ptr<Env>> Env::open_at(const std::filesystem::path& dir, cons
   std::lock_guard lock(registry_mutex);
   auto reg_key = std::make_pair(getpid(), dir.string());
   if (auto it = registry.find(reg_key); it != registry.end()) {
-    if (auto shared = it->second.lock()) return shared;
+    // Not one whose data file is no longer the one at `dir` (deleted and made again while a
+    // handle of this process kept the old one open): every write through it failed.
+    if (auto shared = it->second.lock(); shared && shared->check_in_place(/*now=*/true)) return shared;
   }
 
   keep_standard_fds_taken();
@@ -756,6 +758,11 @@ Result<std::shared_ptr<Env>> Env::open_at(const std::filesystem::path& dir, cons
   // LMDB opens the data file without close-on-exec: a program this process starts (the
   // supervisor's agents, `up`'s checks) held the store open for as long as it ran.
   if (mdb_filehandle_t fd; mdb_env_get_fd(env->env_, &fd) == 0) ::fcntl(fd, F_SETFD, ::fcntl(fd, F_GETFD) | FD_CLOEXEC);
+  // What check_in_place() compares the path with later: the file as the path named it now.
+  if (struct stat data {}; ::stat((dir / "data.mdb").c_str(), &data) == 0) {
+    env->data_dev_ = data.st_dev;
+    env->data_ino_ = data.st_ino;
+  }
   int dead = 0;
   mdb_reader_check(env->env_, &dead);  // reader slots of dead processes
 
@@ -1299,23 +1306,28 @@ Error Env::read_only_error() const {
   return Error{Errc::io, "the store in " + dir_.string() + " is on a read-only filesystem: it can be read, not written"};
 }
 
-Result<void> Env::check_in_place() {
+Result<void> Env::check_in_place(bool now_) {
   const std::int64_t now = std::chrono::duration_cast<std::chrono::nanoseconds>(std::chrono::steady_clock::now().time_since_epoch()).count();
   std::int64_t last = in_place_checked_ns_.load(std::memory_order_relaxed);
   // Once found gone, looked at every time (it may be moved back).
-  if (!out_of_place_.load(std::memory_order_relaxed) &&
+  if (!now_ && !out_of_place_.load(std::memory_order_relaxed) &&
       (now - last < 100'000'000 || !in_place_checked_ns_.compare_exchange_strong(last, now)))
     return {};
   mdb_filehandle_t fd = -1;
   struct stat open_file {}, at_path {};
-  if (mdb_env_get_fd(env_, &fd) != 0 || ::fstat(fd, &open_file) != 0) return {};
+  if (data_ino_ == 0 || mdb_env_get_fd(env_, &fd) != 0 || ::fstat(fd, &open_file) != 0) return {};
   const std::string path = (dir_ / "data.mdb").string();
   const bool deleted = open_file.st_nlink == 0;
-  // By inode alone: an overlay filesystem may give a path and its open file different devices.
-  // A path that cannot be looked at for another reason (permissions changed) is not called moved.
-  const int looked = deleted ? 0 : ::stat(path.c_str(), &at_path);
-  const bool elsewhere = !deleted && (looked != 0 ? errno == ENOENT || errno == ENOTDIR : at_path.st_ino != open_file.st_ino);
+  // The path against what it named at open (device and inode: a store of the same inode number
+  // on another filesystem mounted over it is another store). A path that cannot be looked at for
+  // another reason (permissions changed) is not called moved.
+  const int looked = ::stat(path.c_str(), &at_path);
+  const bool elsewhere = !deleted && (looked != 0 ? errno == ENOENT || errno == ENOTDIR
+                                                  : at_path.st_dev != data_dev_ || at_path.st_ino != data_ino_);
   out_of_place_ = deleted || elsewhere;
+  if (deleted && looked == 0)  // another file renamed over it: a restore, a copy put in its place
+    return fail(Errc::io, path + " was replaced by another file while this process had the store open: what it writes now "
+                                 "is lost; open the store again (a program under `tahvel up` is restarted)");
   if (deleted)
     return fail(Errc::io, path + " was deleted while this process had the store open: what it writes now is lost; open the "
                                  "store again (a program under `tahvel up` is restarted)");
@@ -1327,7 +1339,6 @@ Result<void> Env::check_in_place() {
 }
 
 Result<void> Env::write(const std::function<Result<void>(Txn&)>& body, WriteKind kind, WriteBound bound) {
-  if (auto r = check_in_place(); !r) return r;
   const std::uint64_t new_bytes = bound.bytes;
   bool dead_readers_cleared = false, freelist_turned = false;
   for (;;) {
@@ -1341,6 +1352,9 @@ Result<void> Env::write(const std::function<Result<void>(Txn&)>& body, WriteKind
     txn.unflushed_index.swap(spare_index_);  // this thread is the process's one writer now
     std::uint64_t first_seq = 0;
     auto run = [&]() -> Result<void> {
+      // With the writer lock held: a write that waited for it (behind a long load) while the
+      // store was deleted is told so, not committed into the unlinked file.
+      if (auto r = check_in_place(); !r) return r;
       auto counters = load_counters(raw, main);
       if (!counters) return unexpected(counters.error());
       txn.counters = *counters;
@@ -1450,12 +1464,22 @@ void Env::prefault_ahead() {
     std::lock_guard start(prefaulter_start_mutex_);
     if (!(p = prefaulter_.load())) {
       auto made = std::make_unique<Prefaulter>();
+      // Started with the program's stop signals blocked, which it inherits: taken by this
+      // thread, they left a take() in the program's own thread waiting out its timeout instead
+      // of returning at the signal (stop_signal.h).
+      sigset_t stops, before;
+      sigemptyset(&stops);
+      sigaddset(&stops, SIGINT);
+      sigaddset(&stops, SIGTERM);
+      pthread_sigmask(SIG_BLOCK, &stops, &before);
       try {
         made->thread = std::thread([this, q = made.get()] { prefault_loop(*q); });
       } catch (const std::system_error&) {
+        pthread_sigmask(SIG_SETMASK, &before, nullptr);
         prefault_off_.store(true);  // no thread to be had (a task limit): the writer faults as before
         return;
       }
+      pthread_sigmask(SIG_SETMASK, &before, nullptr);
       p = made.release();
       prefaulter_.store(p);
     }

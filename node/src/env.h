@@ -5,6 +5,7 @@
 #pragma once
 
 #include <lmdb.h>
+#include <sys/types.h>
 
 #include <array>
 #include <atomic>
@@ -293,8 +294,10 @@ class Env {
   // io when the data file this process has open is no longer DIR/data.mdb: deleted (`rm -rf`
   // of the store while it ran), or moved or replaced (a restore over it). What a write commits
   // there is lost, and nothing written by others reaches it. Looked at most every 100 ms (a
-  // stat of the path and of the open file); writes and take()'s timeouts call it.
-  Result<void> check_in_place();
+  // stat of the path and of the open file), or `now`; writes (once they hold the writer lock)
+  // and take()'s waits call it, and open() before it hands out this environment again. A
+  // process that changes its root or mount namespace after opening sees its stores as moved.
+  Result<void> check_in_place(bool now = false);
 
   // Begins a read-only transaction (a snapshot), renewing an idle one when there is one. The
   // caller ends it with end_read().
@@ -411,6 +414,8 @@ class Env {
   bool read_only_ = false;
   std::atomic<std::int64_t> in_place_checked_ns_{0};  // steady clock, check_in_place()'s last look
   std::atomic<bool> out_of_place_{false};              // what check_in_place() last found
+  dev_t data_dev_ = 0;                                 // DIR/data.mdb as opened (0: not known)
+  ino_t data_ino_ = 0;
   std::filesystem::path dir_;
   Settings settings_;
   WakeBoard wake_;

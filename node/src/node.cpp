@@ -649,15 +649,14 @@ Result<std::optional<Delivery>> Agent::take(std::chrono::milliseconds timeout, A
       const std::uint32_t token = board.version(impl_->slot);
       auto got = impl_->head(ack == Ack::automatic);
       if (!got || *got) return got;
+      // A store deleted or moved while it waits: nothing will ever come (not a timeout). Looked
+      // at once a second at most while it waits (check_in_place says when it looks).
+      if (auto in_place = impl_->env->check_in_place(); !in_place) return unexpected(in_place.error());
       auto left = deadline - std::chrono::steady_clock::now();
-      if (left <= std::chrono::nanoseconds::zero()) {
-        // A store deleted or moved while it waits: nothing will ever come (not a timeout).
-        if (auto in_place = impl_->env->check_in_place(); !in_place) return unexpected(in_place.error());
-        return std::optional<Delivery>();
-      }
+      if (left <= std::chrono::nanoseconds::zero()) return std::optional<Delivery>();
       // A signal handler ran (one installed without SA_RESTART): returned as a timeout, so that
-      // the program sees the stop flag its handler set.
-      if (board.sleep(impl_->slot, token, std::chrono::duration_cast<std::chrono::nanoseconds>(left)))
+      // the program sees the stop flag its handler set. A wait without limit wakes each second.
+      if (board.sleep(impl_->slot, token, std::min<std::chrono::nanoseconds>(left, std::chrono::seconds(1))))
         return std::optional<Delivery>();
     }
   } catch (const std::bad_alloc&) {

@@ -540,6 +540,10 @@ TEST_F(Cli, AnEmptyAnswerToAPredicateTheStoreHoldsNoneOfSaysSoWithTheNearest) {
   }
   EXPECT_NE(run({"list", node_, "-p", "sosa:rmssd"}).err.find("predicate sosa:rmssd; did you mean tv:rmssd (2 records)?"), std::string::npos);
   EXPECT_NE(run({"list", node_, "-p", "tv:heartRate"}).err.find("no record with the predicate tv:heartRate. 'tahvel stats"), std::string::npos);
+  // Raw ECG asked of a node that holds none (the hospital) says where it stays, as `ecg` does.
+  EXPECT_NE(run({"query", node_, "--at", kNodeIri, "-p", "tv:samples"})
+                .err.find("no record with the predicate tv:samples. Raw ECG stays on the node that computes its HRV (usually a home)"),
+            std::string::npos);
   // Two held predicates one edit away: both named, not the first in IRI order alone.
   put("@prefix tv: <https://w3id.org/tahvel#> .\n<http://example.org/w> tv:sd1Ms 4.0 ; tv:sdnnMs 31.0 .\n");
   EXPECT_NE(run({"list", node_, "-p", "tv:sdnMs"}).err.find("did you mean tv:sd1Ms (1 record) or tv:sdnnMs (1 record)?"),
@@ -587,6 +591,20 @@ TEST_F(Cli, UnknownFlagExits2NamingTheFlag) {
       << left.err;
 }
 
+// A format the command does not write is a usage error naming those it does; CSV, which an
+// operator asks of raw ECG, points at `tahvel ecg` (session 88).
+TEST_F(Cli, AnUnknownFormatNamesTheFormatsAndCsvPointsAtEcg) {
+  init();
+  const Outcome csv = run({"query", node_, "--at", kNodeIri, "--format", "csv"});
+  EXPECT_EQ(csv.status, 2) << csv.err;
+  EXPECT_NE(csv.err.find("--format: unknown format 'csv' (use nt, ttl or json); for raw ECG as numbers in CSV, 'tahvel ecg DIR "
+                         "--recording IRI'"),
+            std::string::npos) << csv.err;
+  const Outcome xml = run({"list", node_, "--format", "xml"});
+  EXPECT_EQ(xml.status, 2) << xml.err;
+  EXPECT_NE(xml.err.find("unknown format 'xml' (use nt, ttl or json)\n"), std::string::npos) << xml.err;
+}
+
 // `--at` names a node: an IRI with a query, a fragment or a trailing '/' names none, and is a
 // usage error (exit 2), not an unknown node (exit 4) or another spelling of the node.
 TEST_F(Cli, AnAtThatIsNoNodeIriIsAUsageError) {
@@ -598,6 +616,14 @@ TEST_F(Cli, AnAtThatIsNoNodeIriIsAUsageError) {
     EXPECT_EQ(r.out, "");
   }
   EXPECT_EQ(run({"query", node_, "--at", kNodeIri}).status, 0);
+  // A child's id alone: the IRI it most likely means is named (an operator's probe of session 88).
+  for (const std::string command : {"query", "ecg"}) {
+    Outcome id = run({command, node_, "--at", "home1", "--recording", kNodeIri + "/ecg/recording/1"});
+    if (command == "query") id = run({command, node_, "--at", "home1"});
+    EXPECT_EQ(id.status, 2) << id.err;
+    EXPECT_NE(id.err.find("--at: 'home1' is not an IRI or CURIE: a node is named by its whole IRI (did you mean " + kNodeIri + "/home1?)"),
+              std::string::npos) << id.err;
+  }
 }
 
 // A number past 2^64 - 1 is a number, too large: "not a non-negative integer" sent the reader
@@ -2518,6 +2544,14 @@ TEST_F(Cli, EcgOfARecordingTheNodeDoesNotHoldSaysWhichRecordingsItHolds) {
   EXPECT_NE(many.err.find("; it holds <" + kNodeIri + "/source/recording/r"), std::string::npos) << many.err;
   EXPECT_NE(many.err.find(" and more (tahvel query " + node_ + " --at " + kNodeIri + " -p rdf:type -o tv:EcgRecording lists them)"),
             std::string::npos) << many.err;
+  // An HRV window's IRI, pasted from `patients`: the recording it lies below is named (an
+  // operator's probe of session 88 read "tv:samplingRate missing (is it a tv:EcgRecording?)").
+  const std::string window = kNodeIri + "/source/recording/r1/hrv/60";
+  put("<" + window + "> <https://w3id.org/tahvel#sdnnMs> 40.0 .\n");
+  Outcome pasted = run({"ecg", node_, "--recording", window});
+  EXPECT_EQ(pasted.status, 1);
+  EXPECT_NE(pasted.err.find("(<" + window + "> lies below the recording <" + kNodeIri + "/source/recording/r1>: give that to --recording)"),
+            std::string::npos) << pasted.err;
 }
 
 // A lead calibrated otherwise than the ECG (blood pressure in mmHg at 10 per mmHg from 0) was
@@ -3664,6 +3698,32 @@ TEST_F(Cli, UpRefusesAnAgentCommandLineTheAgentItselfRefuses) {
   up = run({"up", (tmp_ / "node.toml").string(), "--state", state});
   EXPECT_EQ(up.status, 0) << up.err;
   EXPECT_EQ(run({"down", "--state", state}).status, 0);
+}
+
+// A window set on the board (from the hospital, or a `put`) stands over tahvel-hrv's --window,
+// as docs/agents.md says: an integrator who edited --window in the file saw "restarted … '30'
+// became '45'" and windows of the board's 60 s (session 88). `up` says so, with the removal that
+// lets the flag stand, and says nothing once it is done.
+TEST_F(Cli, UpSaysAnHrvWindowSetOnTheBoardStandsOverTheFlagInTheFile) {
+  const std::string state = (tmp_ / "state").string(), store = state + "/solo", hrv = "http://example.org/solo/hrv";
+  spit(tmp_ / "node.toml", "[[node]]\nid = \"solo\"\niri = \"http://example.org/solo\"\n"
+                           "  [[node.agent]]\n  id = \"hrv\"\n  run = [\"{bin}/tahvel-hrv\", \"{store}\", \"--window\", \"45\"]\n");
+  ASSERT_EQ(run({"init", store, "--iri", "http://example.org/solo"}).status, 0);
+  Outcome check = run({"up", (tmp_ / "node.toml").string(), "--state", state, "--check"});
+  ASSERT_EQ(check.status, 0) << check.err;
+  EXPECT_EQ(check.err.find("is not in force"), std::string::npos) << check.err;
+  ASSERT_EQ(run({"put", store, "--format", "ttl"}, "<" + hrv + "> <https://w3id.org/tahvel#windowSeconds> 60 .\n").status, 0);
+  check = run({"up", (tmp_ / "node.toml").string(), "--state", state, "--check"});
+  ASSERT_EQ(check.status, 0) << check.err;
+  EXPECT_NE(check.err.find("node.toml:4:3: node 'solo': agent 'hrv': --window 45 is not in force: its board sets tv:windowSeconds 60 "
+                           "(the latest setting, put by <http://example.org/solo/"),
+            std::string::npos) << check.err;
+  const std::string removal = "tahvel remove " + store + " -s " + hrv + " -p tv:windowSeconds";
+  EXPECT_NE(check.err.find("which stands over the flag (docs/agents.md); to let the flag stand: " + removal + "\n"), std::string::npos)
+      << check.err;
+  ASSERT_EQ(run({"remove", store, "-s", hrv, "-p", "tv:windowSeconds"}).status, 0);
+  check = run({"up", (tmp_ / "node.toml").string(), "--state", state, "--check"});
+  EXPECT_EQ(check.err.find("is not in force"), std::string::npos) << check.err;
 }
 
 // `{mitdb}` in a command while TAHVEL_MITDB is unset used to become "" ("/100": a replay of a
@@ -5759,6 +5819,14 @@ TEST_F(Cli, QueryOfANodeThatIsNoChildNamesTheChildrenThereAre) {
   // A store no link has served children from (`init` alone) knows none for that reason.
   EXPECT_NE(none.err.find("has no child <" + kNodeIri + "/home2>; it knows no child: no link has served children here"),
             std::string::npos) << none.err;
+  // An agent's IRI (a recording's prefix, taken for a node's) is named as the agent's, with the
+  // node to ask (an operator's probe of session 88).
+  put("<" + kNodeIri + "/hrv> <https://w3id.org/tahvel#windowSecondsInForce> 60 .\n", {"--agent", "hrv"});
+  const Outcome agent = run({"query", node_, "--at", kNodeIri + "/hrv"});
+  EXPECT_EQ(agent.status, 4) << agent.err;
+  EXPECT_NE(agent.err.find("has no child <" + kNodeIri + "/hrv>: <" + kNodeIri + "/hrv> is an agent of <" + kNodeIri +
+                           ">, not a node (ask --at <" + kNodeIri + ">)"),
+            std::string::npos) << agent.err;
   put("<" + kNodeIri + "/ward> <https://w3id.org/tahvel#linkState> \"up\" .\n", {"--agent", "link"});
   const Outcome one = run({"query", node_, "--at", kNodeIri + "/home2"});
   EXPECT_EQ(one.status, 4) << one.err;

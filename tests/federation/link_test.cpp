@@ -874,6 +874,22 @@ TEST(Link, AChildWhoseLinkStopsSaysSoAndItsParentTakesTheLinkAsDownAtOnce) {
   EXPECT_TRUE(eventually([&] { return state_says_up(tree.hospital_dir, kHome1); }));
 }
 
+// P12c: a child whose link is stopped on purpose lets what it has sent be acknowledged first
+// (up to 1 s, while its parent is up): a sensor taken out of the file had its end of recording
+// at its parent and in its own outbox, and `up` said it would never go up (session 88).
+TEST(Link, AChildWhoseLinkStopsOnPurposeLetsWhatItSentBeAcknowledgedFirst) {
+  Tree tree;
+  tree.hospital = tree.start_hospital(/*ack_delay=*/300ms);
+  tree.home1 = tree.start_home(tree.home1_dir, kHome1, tree.home1_log);
+  ASSERT_TRUE(eventually([&] { return state_says_up(tree.hospital_dir, kHome1); }));
+  store_hrv_items(tree.home1_dir, 0, 3);
+  ASSERT_TRUE(eventually([&] { return count(tree.hospital_dir, {.p = Term::iri(kEx + "n")}) == 3; }));
+  ASSERT_GT(outbox(tree.home1_dir), 0u) << "acknowledged within the parent's ack delay, not before";
+  tree.home1.reset();
+  EXPECT_EQ(outbox(tree.home1_dir), 0u);
+  EXPECT_TRUE(tree.hospital_log.has("child <" + kHome1 + ">'s link is stopping (it said so): link down")) << tree.hospital_log.text();
+}
+
 // P12c: a child's hello names its link's run, and so does its leaving notice. A notice of
 // another run than the one registered was sent by its run before (the store id is the same in
 // both), delivered after the new run's hello: the parent keeps the link up. The registered
@@ -2433,6 +2449,8 @@ class OlderVersion : public Transport {
         if (auto item = wire::decode_item(f.body); !item || (version_ < 3 && item->item.span != 0))
           refused_.push_back("an item with a span");
       if (f.kind == FrameKind::query && !wire::decode_query(f.body, version_)) refused_.push_back("a query not in its layout");
+      if (f.kind == FrameKind::welcome && !f.body.empty() && !wire::decode_state(f.body, version_))
+        refused_.push_back("a welcome not in its layout");
       if (f.kind == FrameKind::down)
         if (auto item = wire::decode_item(f.body)) spans_.push_back(item->item.span);
     }
@@ -2925,17 +2943,34 @@ TEST(Link, AChildsStateAtTheParentSaysHowFullItsStoreIsAndFollowsItAsItFills) {
   // Within a refresh of the child's state (2 s) and a heartbeat.
   EXPECT_TRUE(eventually([&] { return said(vocab::kStoreUsedBytes) >= stats.high_water_bytes; }, 10s))
       << said(vocab::kStoreUsedBytes).value_or(0) << " of " << stats.high_water_bytes;
+  ASSERT_TRUE(said(vocab::kStoreDataBytes));
   EXPECT_GE(*said(vocab::kStoreDataBytes) * 2, stats.max_map_bytes);
   // Away, and the parent's link started again: it keeps what the child last said.
   tree.home1.reset();
   ASSERT_TRUE(eventually([&] { return !state_says_up(tree.hospital_dir, kHome1); }));
   const auto used = said(vocab::kStoreUsedBytes);
+  auto state_item = [&] {
+    auto records = node::Node::open(tree.hospital_dir).value().snapshot().value().list({.s = Term::iri(kHome1), .p = Term::iri(vocab::kLinkState)}).value();
+    return records.empty() ? 0 : records[0].meta.item;
+  };
+  const std::uint64_t item_before = state_item();
   tree.hospital.reset();
   tree.hospital = tree.start_hospital();
-  ASSERT_TRUE(eventually([&] { return tree.hospital_log.has("link up") || count(tree.hospital_dir, {.s = Term::iri(kHome1), .p = Term::iri(vocab::kLinkState), .o = Term::literal("down")}) == 1; }));
-  std::this_thread::sleep_for(500ms);  // the new run's first write of the states
+  ASSERT_TRUE(eventually([&] { return state_item() != item_before && state_item() != 0; })) << "the new run wrote no state of home1";
   EXPECT_EQ(said(vocab::kStoreUsedBytes), used);
   EXPECT_EQ(said(vocab::kStoreMaxBytes), 1u << 20);
+  // A child of version 4 says none: its state has no figures, and its items go up as before.
+  auto old_home = std::make_shared<OlderVersion>(tree.bus.open(kHome2, tree.home2_log.sink()), 4);
+  tree.home2 = Link::start({.dir = tree.home2_dir, .parent_iri = kHospital, .up = old_home, .resend_after = 100ms,
+                            .heartbeat_every = 200ms, .log = tree.home2_log.sink()})
+                   .value();
+  ASSERT_TRUE(eventually([&] { return state_says_up(tree.hospital_dir, kHome2); })) << tree.hospital_log.text();
+  EXPECT_TRUE(tree.hospital_log.has("<" + kHome2 + "> speaks protocol version 4")) << tree.hospital_log.text();
+  store_hrv_items(tree.home2_dir, 0, 2);
+  EXPECT_TRUE(eventually([&] { return count(tree.hospital_dir, {.p = Term::iri(kEx + "n")}) == 2; }));
+  std::this_thread::sleep_for(2500ms);  // a refresh of its state
+  EXPECT_EQ(count(tree.hospital_dir, {.s = Term::iri(kHome2), .p = Term::iri(vocab::kStoreMaxBytes)}), 0u);
+  EXPECT_EQ(old_home->refused(), std::vector<std::string>{}) << "frames the version 4 home would have refused";
 }
 
 // A chunk the asking node cannot write on its board (here its store is full) ends the query

@@ -184,15 +184,30 @@ TEST(Store, WritesAndTakesOfAStoreDeletedOrMovedAwayWhileOpenAreErrorsNotLostWri
   EXPECT_FALSE(agent.store(item)) << "said at every write, not once in 100 ms";
   std::filesystem::rename(dir.path() / "moved", store);
   EXPECT_TRUE(agent.store(item));
+  // Its data file replaced by another store's (a restore over it): another file at the path.
+  make_node(dir.path() / "other", {.iri = "http://example.org/other"});
+  std::filesystem::rename(dir.path() / "other" / "data.mdb", store / "data.mdb");
+  std::this_thread::sleep_for(150ms);
+  stored = agent.store(item);
+  ASSERT_FALSE(stored);
+  EXPECT_NE(stored.error().message.find((store / "data.mdb").string() + " was replaced by another file while this process had the store open"),
+            std::string::npos) << stored.error().message;
   std::filesystem::remove_all(store);
   std::this_thread::sleep_for(150ms);
   stored = agent.store(item);
   ASSERT_FALSE(stored);
   EXPECT_NE(stored.error().message.find((store / "data.mdb").string() + " was deleted while this process had the store open"),
             std::string::npos) << stored.error().message;
-  auto taken = agent.take(50ms);
-  ASSERT_FALSE(taken) << "a take of a deleted store is no timeout";
-  EXPECT_EQ(taken.error().code, Errc::io);
+  // A take, with a limit or without one: no wait for an item that cannot come.
+  for (const auto limit : {std::chrono::milliseconds(50), std::chrono::milliseconds::max()}) {
+    auto taken = agent.take(limit);
+    ASSERT_FALSE(taken) << "a take of a deleted store is no timeout";
+    EXPECT_EQ(taken.error().code, Errc::io);
+  }
+  // A store made again at the path is that store to this process, not the one it had open.
+  auto again = make_node(store).agent("writer").value();
+  EXPECT_TRUE(again.store(item));
+  EXPECT_EQ(Node::open(store).value().snapshot().value().count({}).value(), 1u);
 }
 
 TEST(Store, ACascadeTakesWhatLiesWithinItsDepthOfAnyMatchWhateverTheOrder) {
