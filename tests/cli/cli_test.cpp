@@ -4916,6 +4916,33 @@ TEST_F(Cli, RemovingOneNodesStoreStopsThatNodeAloneAndUpAgainStartsItAnew) {
   EXPECT_EQ(run({"down", "--state", state.string()}).status, 0);
 }
 
+// Its data file alone removed (`rm state/a/data.mdb`): the supervisor did not see the store
+// go, its programs failed on and were restarted, and the node's area keeper logged the failure
+// every 100 ms (a partner's probe of session 88: 42 lines in 4 s). The node is stopped as one
+// whose store went.
+TEST_F(Cli, RemovingANodesDataFileAloneStopsThatNodeAsIfItsStoreWent) {
+  const fs::path state = tmp_ / "state";
+  spit(tmp_ / "node.toml", "[[node]]\nid = \"a\"\niri = \"http://example.org/a\"\n"
+                          "  [[node.agent]]\n  id = \"a-idle\"\n  run = [\"/bin/sleep\", \"600\"]\n"
+                          "[[node]]\nid = \"b\"\niri = \"http://example.org/b\"\n"
+                          "  [[node.agent]]\n  id = \"b-idle\"\n  run = [\"/bin/sleep\", \"600\"]\n");
+  ASSERT_EQ(run({"up", (tmp_ / "node.toml").string(), "--state", state.string()}).status, 0);
+  status_until(state.string(), "a-idle  running (pid");
+  ASSERT_EQ(programs_of_store(state / "a"), 1);
+  fs::remove(state / "a" / "data.mdb");
+  EXPECT_TRUE(eventually([&] { return programs_of_store(state / "a") == 0; })) << "node a's program runs on";
+  const fs::path log = state / "logs" / "supervisor.log";
+  EXPECT_TRUE(eventually([&] { return slurp(log).find("stopped node 'a' (1 program(s)): its store") != std::string::npos; }))
+      << slurp(log);
+  std::this_thread::sleep_for(std::chrono::seconds(1));
+  const std::string said = slurp(log);
+  std::size_t deleted_lines = 0;
+  for (std::size_t at = 0; (at = said.find("data.mdb was deleted", at)) != std::string::npos; ++at) ++deleted_lines;
+  EXPECT_LE(deleted_lines, 2u) << said;
+  EXPECT_NE(status_until(state.string(), "b-idle  running (pid").out.find("b-idle  running (pid"), std::string::npos);
+  EXPECT_EQ(run({"down", "--state", state.string()}).status, 0);
+}
+
 // A node's store moved aside within the state directory (kept as state/a.bak) while it ran: status
 // said "'tahvel up' of the file makes the store again", which `up` refuses while another store
 // there holds the node's IRI, and showed a.bak as a node "taken out of its file". Status says
