@@ -465,7 +465,8 @@ std::optional<LinkOnTheWay> link_below(node::Node& node, const LinkOnTheWay& fir
 
 void print_patients_json(const std::string& node_iri, const agg::PatientsOnBoard& board,
                          const std::vector<const agg::PatientView*>& shown,
-                         const std::vector<std::optional<LinkOnTheWay>>& links, const std::vector<bool>& ecg_held_here) {
+                         const std::vector<std::optional<LinkOnTheWay>>& links, const std::vector<bool>& ecg_held_here,
+                         const std::vector<std::optional<std::uint64_t>>& ended) {
   std::ostringstream out;
   out << "{\"node\":\"" << node::json_escape(node_iri) << "\",\"patients\":[";
   for (std::size_t i = 0; i < shown.size(); ++i) {
@@ -480,6 +481,7 @@ void print_patients_json(const std::string& node_iri, const agg::PatientsOnBoard
     out << "],\"superseded_by\":";
     if (p.superseded_by.empty()) out << "null";
     else out << "\"" << node::json_escape(p.superseded_by) << "\"";
+    out << ",\"recording_ended_at_sample\":" << (ended[i] ? std::to_string(*ended[i]) : "null");
     out << ",\"latest\":{\"iri\":\"" << node::json_escape(p.latest.iri)
         << "\",\"start_s\":" << seconds_number(p.latest.window.start_s) << ",\"end_s\":" << seconds_number(p.latest.window.end_s)
         << ",\"stored_ns\":" << p.latest_stored_ns << ",\"asserted_ns\":" << p.latest_asserted_ns << ",\"metrics\":" << metrics_json(p.latest.window.metrics) << "}";
@@ -535,7 +537,7 @@ std::string shell_word(const std::string& text) {
 }
 
 void print_patient_text(const std::string& dir, const std::string& node_iri, const agg::PatientView& p, bool ecg_held_here,
-                        const std::optional<LinkOnTheWay>& link) {
+                        const std::optional<LinkOnTheWay>& link, std::optional<std::uint64_t> ended_at) {
   std::cout << "\n<" << p.recording << ">";
   for (const agg::TrendUpdate& t : p.trends)
     if (t.alert) std::cout << "  ALERT: " << agg::metric_local_name(t.metric) << " " << off_baseline(t.alert_direction);
@@ -574,6 +576,9 @@ void print_patient_text(const std::string& dir, const std::string& node_iri, con
     if (link->state != "up" || link->stale())
       if (!link->store_warning.empty()) std::cout << "  its store, as it last said: " << link->store_warning << "\n";
   }
+  if (ended_at)
+    std::cout << "  its recording ended at sample " << *ended_at << " (its source wrote tv:endSample): no window comes after "
+              << "the last\n";
   if (!p.superseded_by.empty())
     std::cout << "  a later recording of the same sensor, <" << p.superseded_by
               << ">, has windows since: this one's source stopped or started again as that one\n";
@@ -708,9 +713,9 @@ const Command kPatientsCommand{
     "--since T counts only the windows (and trends) of signal time T or later: ns since the\n"
     "epoch or an RFC 3339 time such as 2026-11-21T10:00:00Z, as tahvel query takes it.\n"
     "--json prints one object: {node, patients: [{recording, source, windows, alerting, no_beats,\n"
-    "irregular, other_writers: [{source, windows}], superseded_by, latest: {iri, start_s, end_s, stored_ns,\n"
-    "asserted_ns, metrics}, raw_ecg: {node, since_ns, until_ns, held_here} or null, link: {child, state,\n"
-    "last_seen_ns, stale, at} or null, trends: [{metric, window_start_s, windows, latest,\n"
+    "irregular, other_writers: [{source, windows}], superseded_by, recording_ended_at_sample, latest: {iri,\n"
+    "start_s, end_s, stored_ns, asserted_ns, metrics}, raw_ecg: {node, since_ns, until_ns, held_here} or null,\n"
+    "link: {child, state, last_seen_ns, stale, at, store_warning} or null, trends: [{metric, window_start_s, windows, latest,\n"
     "baseline, robust_sd, slope_per_hour, slope_horizon_s, alert, direction, z_against_others,\n"
     "others}]}],\n"
     "unreadable: [{source, count, first_error}]}.",
@@ -759,6 +764,29 @@ int run_patients(const Args& args) {
     }
     links.push_back(std::move(link));
   }
+  // Whether each late patient's recording has ended (its source's `<rec> tv:endSample N`, kept
+  // where its windows are computed): a replay that finished looked like a home whose windows
+  // were late (an operator's probe of session 88). Read here when they are computed here; else
+  // asked of the node that computes them for a patient whose latest window was stored longer
+  // ago than a window lasts (at least a minute), within what is left of the 3 s.
+  std::vector<std::optional<std::uint64_t>> ended(shown.size());
+  for (std::size_t i = 0; i < shown.size(); ++i) {
+    const agg::PatientView& p = *shown[i];
+    const std::string computed_at = p.source_node().empty() ? node.iri() : p.source_node();
+    const double length_s = std::max(60.0, p.latest.window.end_s - p.latest.window.start_s);
+    if (computed_at != node.iri() && seconds_since(p.latest_stored_ns) < length_s) continue;
+    const node::Pattern end{.s = node::Term::iri(p.recording), .p = node::Term::iri(std::string(agg::kTv) + "endSample")};
+    auto take_end = [&](const node::Record& r) {
+      if (auto n = parse_u64(r.triple.o.value)) ended[i] = *n;
+    };
+    if (computed_at == node.iri()) {
+      for (const node::Record& r : check(snapshot.list(end, {.limit = 1}))) take_end(r);
+    } else if (!links[i] || !links[i]->worth_saying()) {
+      const auto left = std::chrono::duration_cast<std::chrono::milliseconds>(deadline - std::chrono::steady_clock::now());
+      if (left.count() <= 0) break;
+      (void)federation::remote_query(node, {.target = computed_at, .pattern = end, .restart_grace = {}}, left, take_end);
+    }
+  }
   // Whether this node holds raw ECG of each latest window's time (a chunk of it), beside the
   // node that computed the window.
   // `tahvel ecg` reads the recording's description too: without it here (a policy that sends
@@ -779,13 +807,13 @@ int run_patients(const Args& args) {
     ecg_held_here.push_back(held);
   }
   if (args.has("--json")) {
-    print_patients_json(node.iri(), *board, shown, links, ecg_held_here);
+    print_patients_json(node.iri(), *board, shown, links, ecg_held_here, ended);
   } else {
     std::cout << board->patients.size() << " patient(s) with HRV on <" << node.iri() << ">"
               << (since ? " since " + node::utc_text(*since) : std::string()) << ", " << alerting << " with an alert"
               << (silent ? ", " + std::to_string(silent) + " without beats in the latest window" : std::string()) << "\n";
     for (std::size_t i = 0; i < shown.size(); ++i)
-      print_patient_text(args.positional(0), node.iri(), *shown[i], ecg_held_here[i], links[i]);
+      print_patient_text(args.positional(0), node.iri(), *shown[i], ecg_held_here[i], links[i], ended[i]);
     for (const agg::UnreadableItems& u : board->unreadable)
       std::cout << "\n" << u.count << " HRV window or trend item(s) from <" << u.source
                 << "> could not be read; the first: " << u.first_error << "\n";

@@ -2687,6 +2687,16 @@ TEST_F(Cli, PatientsShowsEachRecordingsLatestWindowWithAlertingPatientsFirst) {
                           "\"raw_ecg\":{\"node\":\"http://example.org/home1\",\"since_ns\":", "\"trends\":[{\"metric\":\"sdnnMs\"",
                           "\"direction\":\"above\"", "\"slope_horizon_s\":86400", "\"unreadable\":[]"})
     EXPECT_NE(alerts.out.find(key), std::string::npos) << key << " in " << alerts.out;
+  EXPECT_NE(alerts.out.find("\"recording_ended_at_sample\":null"), std::string::npos) << alerts.out;
+  // A recording whose source ended it says so: a replay that finished looked like a late home
+  // (an operator's probe of session 88).
+  EXPECT_EQ(text.out.find("its recording ended"), std::string::npos) << text.out;
+  put("<http://example.org/home1/ecg/recording/a> <https://w3id.org/tahvel#endSample> 43200 .\n", {"--agent", "ecg"});
+  const Outcome ended = run({"patients", node_});
+  EXPECT_NE(ended.out.find("its recording ended at sample 43200 (its source wrote tv:endSample): no window comes after the last\n"),
+            std::string::npos) << ended.out;
+  EXPECT_EQ(ended.out.find("its recording ended", ended.out.find("recording/b>")), std::string::npos) << "b has not ended:\n" << ended.out;
+  EXPECT_NE(run({"patients", node_, "--json"}).out.find("\"recording_ended_at_sample\":43200"), std::string::npos);
 
   // Windows put now are asserted now: none since tomorrow; a time that is no time is refused.
   Outcome later = run({"patients", node_, "--since", "2262-01-01T00:00:00Z"});
