@@ -4869,16 +4869,20 @@ TEST_F(Cli, RemovingARunningDeploymentsStateDirectoryStopsItsSupervisor) {
   EXPECT_TRUE(eventually([&] { return marked() == 0; }));
 }
 
+// Nodes a and b, each with a program that idles for 10 min.
+constexpr const char* kTwoIdleNodesToml =
+    "[[node]]\nid = \"a\"\niri = \"http://example.org/a\"\n"
+    "  [[node.agent]]\n  id = \"a-idle\"\n  run = [\"/bin/sleep\", \"600\"]\n"
+    "[[node]]\nid = \"b\"\niri = \"http://example.org/b\"\n"
+    "  [[node.agent]]\n  id = \"b-idle\"\n  run = [\"/bin/sleep\", \"600\"]\n";
+
 // One node's store removed while a deployment of several ran (a disk replaced, `rm -rf` of
 // state/a to start that node afresh) stopped the whole supervisor: the hospital and every other
 // node went down with it. Now only that node's programs stop; the others run on untouched, and
 // `up` again makes the node's store anew and starts it.
 TEST_F(Cli, RemovingOneNodesStoreStopsThatNodeAloneAndUpAgainStartsItAnew) {
   const fs::path state = tmp_ / "state";
-  spit(tmp_ / "node.toml", "[[node]]\nid = \"a\"\niri = \"http://example.org/a\"\n"
-                          "  [[node.agent]]\n  id = \"a-idle\"\n  run = [\"/bin/sleep\", \"600\"]\n"
-                          "[[node]]\nid = \"b\"\niri = \"http://example.org/b\"\n"
-                          "  [[node.agent]]\n  id = \"b-idle\"\n  run = [\"/bin/sleep\", \"600\"]\n");
+  spit(tmp_ / "node.toml", kTwoIdleNodesToml);
   ASSERT_EQ(run({"up", (tmp_ / "node.toml").string(), "--state", state.string()}).status, 0);
   std::smatch m;
   const std::regex b_running("- b-idle  running \\(pid ([0-9]+)\\)");
@@ -4932,10 +4936,7 @@ TEST_F(Cli, RemovingOneNodesStoreStopsThatNodeAloneAndUpAgainStartsItAnew) {
 // whose store went.
 TEST_F(Cli, RemovingANodesDataFileAloneStopsThatNodeAsIfItsStoreWent) {
   const fs::path state = tmp_ / "state";
-  spit(tmp_ / "node.toml", "[[node]]\nid = \"a\"\niri = \"http://example.org/a\"\n"
-                          "  [[node.agent]]\n  id = \"a-idle\"\n  run = [\"/bin/sleep\", \"600\"]\n"
-                          "[[node]]\nid = \"b\"\niri = \"http://example.org/b\"\n"
-                          "  [[node.agent]]\n  id = \"b-idle\"\n  run = [\"/bin/sleep\", \"600\"]\n");
+  spit(tmp_ / "node.toml", kTwoIdleNodesToml);
   ASSERT_EQ(run({"up", (tmp_ / "node.toml").string(), "--state", state.string()}).status, 0);
   status_until(state.string(), "a-idle  running (pid");
   ASSERT_EQ(programs_of_store(state / "a"), 1);
