@@ -31,6 +31,7 @@
 #include <thread>
 
 #include "commands.h"
+#include "tahvel/aggregation/hrv.h"
 #include "tahvel/agents/dispatcher.h"
 #include "tahvel/spatial/area_subscriptions.h"
 #include "tahvel/agents/supervisor.h"
@@ -1037,15 +1038,27 @@ void refuse_malformed_patterns_of_others(const Topology& topo, const std::vector
 void warn_of_settings_on_the_board(const AgentSpec& agent, const NodeSpec& spec, const std::vector<std::string>& argv,
                                    const fs::path& store) {
   if (argv.empty() || fs::path(argv[0]).filename() != "tahvel-hrv" || !fs::exists(store / "data.mdb")) return;
-  std::string agent_id = "hrv";  // tahvel-hrv's default --agent
-  for (std::size_t i = 1; i + 1 < argv.size(); ++i)
-    if (argv[i] == "--agent") agent_id = argv[i + 1];
-  const auto agent_iri = uri::agent_iri(spec.iri, agent_id);
+  // The flags as tahvel-hrv reads them: "--window 45" or "--window=45"; the last one given stands.
+  std::map<std::string, std::string> flags;
+  for (std::size_t i = 1; i < argv.size(); ++i) {
+    const std::string& a = argv[i];
+    if (!a.starts_with("--")) continue;
+    if (const auto eq = a.find('='); eq != std::string::npos) flags[a.substr(0, eq)] = a.substr(eq + 1);
+    else if (i + 1 < argv.size()) flags[a] = argv[++i];
+  }
+  const auto agent_iri = uri::agent_iri(spec.iri, flags.count("--agent") ? flags["--agent"] : "hrv");  // its default --agent
+  const auto parse_double = [](const std::string& text) -> std::optional<double> {
+    double v = 0;
+    const char* begin = text.data() + (text.starts_with('+') ? 1 : 0);
+    const auto [end, ec] = std::from_chars(begin, text.data() + text.size(), v);
+    if (ec != std::errc() || end != text.data() + text.size()) return std::nullopt;
+    return v;
+  };
   if (!agent_iri) return;
   std::optional<node::Node> board;
   for (const auto& [flag, setting] : {std::pair{"--window", "windowSeconds"}, std::pair{"--step", "stepSeconds"}}) {
-    const auto given = std::find(argv.begin() + 1, argv.end(), flag);
-    if (given == argv.end() || given + 1 == argv.end()) continue;
+    const auto given = flags.find(flag);
+    if (given == flags.end()) continue;
     if (!board) {
       auto opened = node::Node::open(store);
       if (!opened) return;
@@ -1055,12 +1068,19 @@ void warn_of_settings_on_the_board(const AgentSpec& agent, const NodeSpec& spec,
     if (!snap) return;
     const std::string predicate = std::string(uri::kTahvelNs) + setting;
     auto settings = snap->list({.s = node::Term::iri(*agent_iri), .p = node::Term::iri(predicate)});
-    if (!settings || settings->empty()) continue;
-    // The latest written stands (by asserted-at, then by arrival), as tahvel-hrv reads them.
+    if (!settings) return;
+    // The latest written that tahvel-hrv can use stands (by asserted-at, then by arrival), as it
+    // reads them; one of the flag's value changes nothing.
+    std::erase_if(*settings, [&](const node::Record& r) {
+      const auto seconds = parse_double(r.triple.o.value);
+      return !seconds || tahvel::aggregation::window_setting_problem(*seconds, std::string_view(flag) == "--step");
+    });
+    if (settings->empty()) continue;
     const node::Record& latest = *std::max_element(settings->begin(), settings->end(), [](const node::Record& a, const node::Record& b) {
       return std::pair(a.meta.asserted_at, a.meta.id) < std::pair(b.meta.asserted_at, b.meta.id);
     });
-    std::cerr << "up: warning: " << agent.at << ": node '" << spec.id << "': agent '" << agent.id << "': " << flag << " " << *(given + 1)
+    if (parse_double(latest.triple.o.value) == parse_double(given->second)) continue;
+    std::cerr << "up: warning: " << agent.at << ": node '" << spec.id << "': agent '" << agent.id << "': " << flag << " " << given->second
               << " is not in force: its board sets tv:" << setting << " " << latest.triple.o.value << " (the latest setting, put by <"
               << latest.meta.source << "> at " << node::utc_text(latest.meta.asserted_at)
               << "), which stands over the flag (docs/agents.md); to let the flag stand: tahvel remove " << shell_word(store) << " -s "
@@ -2971,9 +2991,9 @@ void print_link_json(const std::string& parent, const std::string& state, const 
       return it == room_of->end() ? std::nullopt : parse_u64(it->second);
     };
     const auto used = field("storeUsedBytes"), data = field("storeDataBytes"), max = field("storeMaxBytes"), disk = field("diskFreeBytes");
-    if (used && data && max && disk)
+    if (used && data && max)
       std::cout << "{\"used_bytes\":" << *used << ",\"data_bytes\":" << *data << ",\"max_bytes\":" << *max
-                << ",\"disk_free_bytes\":" << *disk << "}";
+                << ",\"disk_free_bytes\":" << (disk ? std::to_string(*disk) : "null") << "}";
     else
       std::cout << "null";
   }

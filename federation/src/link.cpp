@@ -2548,8 +2548,9 @@ struct Link::Impl {
       }
     }
     if (unknown) {
-      // The IRI of an agent here (a recording's prefix, <…/ecg1/ecg>, taken for a node).
-      if (!child_iri.empty() && names_an_agent_here(child_iri))
+      // The IRI of an agent here (a recording's prefix, <…/ecg1/ecg>, taken for a node); a
+      // spelling of a child's IRI said first.
+      if (!child_iri.empty() && unknown->message.find("; did you mean <") == std::string::npos && names_an_agent_here(child_iri))
         unknown->message = "<" + q->target + ">: <" + self + "> has no child <" + child_iri + ">: <" + child_iri + "> is an agent of <" +
                            self + ">, not a node (ask --at <" + self + ">)";
       out.error(via, opt.parent_iri, f.seq, std::move(*unknown));
@@ -2557,18 +2558,12 @@ struct Link::Impl {
     send_all(out);
   }
 
-  // Whether the board of this node has a record about `iri` or naming it as its object (an
-  // agent's own state, a recording attributed to it): a query --at an agent's IRI is told to ask
-  // the agent's node. Index lookups that stop at the first record.
+  // Whether the board of this node says `iri` made data here (detail::made_data): a
+  // query --at an agent's IRI is told to ask the agent's node.
   bool names_an_agent_here(const std::string& iri) {
     std::lock_guard own_lock(own_mu);
     auto snap = own->snapshot();
-    if (!snap) return false;
-    for (const node::Pattern& pattern : {node::Pattern{.s = node::Term::iri(iri)}, node::Pattern{.o = node::Term::iri(iri)}}) {
-      bool found = false;
-      if (snap->for_each(pattern, [&](const node::Record&) { return !(found = true); }) && found) return true;
-    }
-    return false;
+    return snap && detail::made_data(*snap, iri);
   }
 
   // ---- answering a query on this node (P14) -------------------------------------------------
@@ -2913,7 +2908,7 @@ struct Link::Impl {
     std::optional<node::Agent> uplink;
     {
       std::lock_guard own_lock(own_mu);
-      auto agent = own->agent("uplink");
+      auto agent = own->agent(kUplinkAgent);
       if (!agent) return;
       uplink.emplace(std::move(*agent));
     }
@@ -4061,7 +4056,8 @@ struct Link::Impl {
       item.add(c, node::Term::iri(vocab::kStoreUsedBytes), bytes(child.room->used_bytes));
       item.add(c, node::Term::iri(vocab::kStoreDataBytes), bytes(child.room->data_bytes));
       item.add(c, node::Term::iri(vocab::kStoreMaxBytes), bytes(child.room->max_bytes));
-      item.add(c, node::Term::iri(vocab::kDiskFreeBytes), bytes(child.room->disk_free_bytes));
+      if (child.room->disk_free_bytes != ~0ull)  // not known to the child
+        item.add(c, node::Term::iri(vocab::kDiskFreeBytes), bytes(child.room->disk_free_bytes));
     }
     if (const std::string& store = child.store_id.empty() ? child.store_before : child.store_id; !store.empty())
       item.add(c, node::Term::iri(vocab::kChildStoreId), node::Term::literal(store));

@@ -195,11 +195,7 @@ Result<std::uint64_t> remote_query(node::Node& node, const RemoteQuery& query,
           std::string said = percent_spelling_hint(*snap, child);
           if (!said.empty()) return said;
           // The IRI of an agent here (a recording's prefix, <…/home1/hrv>) taken for a node.
-          for (const node::Pattern& pattern : {node::Pattern{.s = Term::iri(child)}, node::Pattern{.o = Term::iri(child)}}) {
-            bool found = false;
-            if (snap->for_each(pattern, [&](const node::Record&) { return !(found = true); }) && found)
-              return ": <" + child + "> is an agent of <" + self + ">, not a node (ask --at <" + self + ">)";
-          }
+          if (detail::made_data(*snap, child)) return ": <" + child + "> is an agent of <" + self + ">, not a node (ask --at <" + self + ">)";
           return known_children_hint(*snap, served);
         }();
         if (link.stopped_pid)

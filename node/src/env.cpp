@@ -713,9 +713,19 @@ Result<std::shared_ptr<Env>> Env::open_at(const std::filesystem::path& dir, cons
   std::lock_guard lock(registry_mutex);
   auto reg_key = std::make_pair(getpid(), dir.string());
   if (auto it = registry.find(reg_key); it != registry.end()) {
-    // Not one whose data file is no longer the one at `dir` (deleted and made again while a
-    // handle of this process kept the old one open): every write through it failed.
-    if (auto shared = it->second.lock(); shared && shared->check_in_place(/*now=*/true)) return shared;
+    if (auto shared = it->second.lock()) {
+      // Not one whose data file is no longer the one at `dir` (the store deleted and made again
+      // while a handle of this process kept the old one open: every write through it failed).
+      // A second environment is opened only on another lock file: two on one lock file in one
+      // process break LMDB's locks (its fcntl locks are the process's), and closing the old one
+      // would clear the new one's reader slots. A data file put in place alone is refused.
+      auto in_place = shared->check_in_place(/*now=*/true);
+      if (in_place) return shared;
+      struct stat lock {};
+      if (::stat((dir / "lock.mdb").c_str(), &lock) == 0 && lock.st_dev == shared->lock_dev_ && lock.st_ino == shared->lock_ino_)
+        return fail(Errc::io, in_place.error().message + "; this process still has the store it replaced open: close every "
+                                                         "handle of it before opening the one now there");
+    }
   }
 
   keep_standard_fds_taken();
@@ -762,6 +772,10 @@ Result<std::shared_ptr<Env>> Env::open_at(const std::filesystem::path& dir, cons
   if (struct stat data {}; ::stat((dir / "data.mdb").c_str(), &data) == 0) {
     env->data_dev_ = data.st_dev;
     env->data_ino_ = data.st_ino;
+  }
+  if (struct stat lock {}; ::stat((dir / "lock.mdb").c_str(), &lock) == 0) {
+    env->lock_dev_ = lock.st_dev;
+    env->lock_ino_ = lock.st_ino;
   }
   int dead = 0;
   mdb_reader_check(env->env_, &dead);  // reader slots of dead processes

@@ -416,6 +416,8 @@ class Env {
   std::atomic<bool> out_of_place_{false};              // what check_in_place() last found
   dev_t data_dev_ = 0;                                 // DIR/data.mdb as opened (0: not known)
   ino_t data_ino_ = 0;
+  dev_t lock_dev_ = 0;                                 // DIR/lock.mdb as opened
+  ino_t lock_ino_ = 0;
   std::filesystem::path dir_;
   Settings settings_;
   WakeBoard wake_;

@@ -2695,7 +2695,10 @@ TEST_F(Cli, PatientsShowsEachRecordingsLatestWindowWithAlertingPatientsFirst) {
   const Outcome ended = run({"patients", node_});
   EXPECT_NE(ended.out.find("its recording ended at sample 43200 (its source wrote tv:endSample): no window comes after the last\n"),
             std::string::npos) << ended.out;
-  EXPECT_EQ(ended.out.find("its recording ended", ended.out.find("recording/b>")), std::string::npos) << "b has not ended:\n" << ended.out;
+  const auto b_block = ended.out.find("\n<http://example.org/home1/ecg/recording/b>");
+  ASSERT_NE(b_block, std::string::npos) << ended.out;
+  const std::string b_text = ended.out.substr(b_block, ended.out.find("\n<", b_block + 1) - b_block);
+  EXPECT_EQ(b_text.find("its recording ended"), std::string::npos) << "b has not ended:\n" << ended.out;
   EXPECT_NE(run({"patients", node_, "--json"}).out.find("\"recording_ended_at_sample\":43200"), std::string::npos);
 
   // Windows put now are asserted now: none since tomorrow; a time that is no time is refused.
@@ -3731,8 +3734,16 @@ TEST_F(Cli, UpSaysAnHrvWindowSetOnTheBoardStandsOverTheFlagInTheFile) {
   const std::string removal = "tahvel remove " + store + " -s " + hrv + " -p tv:windowSeconds";
   EXPECT_NE(check.err.find("which stands over the flag (docs/agents.md); to let the flag stand: " + removal + "\n"), std::string::npos)
       << check.err;
+  // As tahvel-hrv reads its flags: "--window=45" too; the board's own value in the file is in force.
+  const auto file_with = [&](const std::string& args) {
+    spit(tmp_ / "node.toml", "[[node]]\nid = \"solo\"\niri = \"http://example.org/solo\"\n"
+                             "  [[node.agent]]\n  id = \"hrv\"\n  run = [\"{bin}/tahvel-hrv\", \"{store}\", " + args + "]\n");
+    return run({"up", (tmp_ / "node.toml").string(), "--state", state, "--check"});
+  };
+  EXPECT_NE(file_with("\"--window=45\"").err.find("agent 'hrv': --window 45 is not in force"), std::string::npos);
+  EXPECT_EQ(file_with("\"--window\", \"60\"").err.find("is not in force"), std::string::npos);
   ASSERT_EQ(run({"remove", store, "-s", hrv, "-p", "tv:windowSeconds"}).status, 0);
-  check = run({"up", (tmp_ / "node.toml").string(), "--state", state, "--check"});
+  check = file_with("\"--window\", \"45\"");
   EXPECT_EQ(check.err.find("is not in force"), std::string::npos) << check.err;
 }
 
@@ -5859,12 +5870,15 @@ TEST_F(Cli, QueryOfANodeThatIsNoChildNamesTheChildrenThereAre) {
             std::string::npos) << none.err;
   // An agent's IRI (a recording's prefix, taken for a node's) is named as the agent's, with the
   // node to ask (an operator's probe of session 88).
-  put("<" + kNodeIri + "/hrv> <https://w3id.org/tahvel#windowSecondsInForce> 60 .\n", {"--agent", "hrv"});
+  put("<" + kNodeIri + "/w/0> <http://www.w3.org/ns/prov#wasAttributedTo> <" + kNodeIri + "/hrv> .\n", {"--agent", "hrv"});
   const Outcome agent = run({"query", node_, "--at", kNodeIri + "/hrv"});
   EXPECT_EQ(agent.status, 4) << agent.err;
   EXPECT_NE(agent.err.find("has no child <" + kNodeIri + "/hrv>: <" + kNodeIri + "/hrv> is an agent of <" + kNodeIri +
                            ">, not a node (ask --at <" + kNodeIri + ">)"),
             std::string::npos) << agent.err;
+  // An IRI that records name otherwise (as a parent's board names a child gone) is no agent.
+  put("<" + kNodeIri + "/home2> <http://example.org/label> \"the second home\" .\n", {"--agent", "link"});
+  EXPECT_EQ(run({"query", node_, "--at", kNodeIri + "/home2"}).err.find("is an agent of"), std::string::npos);
   put("<" + kNodeIri + "/ward> <https://w3id.org/tahvel#linkState> \"up\" .\n", {"--agent", "link"});
   const Outcome one = run({"query", node_, "--at", kNodeIri + "/home2"});
   EXPECT_EQ(one.status, 4) << one.err;
