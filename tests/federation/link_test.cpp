@@ -886,7 +886,8 @@ TEST(Link, AChildWhoseLinkStopsOnPurposeLetsWhatItSentBeAcknowledgedFirst) {
   tree.home1.reset();  // at once: they go up and are acknowledged as it stops
   EXPECT_EQ(outbox(tree.home1_dir), 0u);
   EXPECT_EQ(count(tree.hospital_dir, {.p = Term::iri(kEx + "n")}), 3u);
-  EXPECT_TRUE(tree.hospital_log.has("child <" + kHome1 + ">'s link is stopping (it said so): link down")) << tree.hospital_log.text();
+  EXPECT_TRUE(eventually([&] { return tree.hospital_log.has("child <" + kHome1 + ">'s link is stopping (it said so): link down"); }))
+      << tree.hospital_log.text();
 }
 
 // P12c: a child's hello names its link's run, and so does its leaving notice. A notice of
