@@ -2894,8 +2894,6 @@ struct Link::Impl {
     }
   }
 
-  // P12c: said once, as the link stops on purpose (not when its process is killed), to a parent
-  // that welcomed it, so that its queries and state say so at once rather than after child_silence.
   // P12c: a link stopped on purpose first lets what waits in its outbox go up and be
   // acknowledged, while its parent is up, for up to `limit`: the last items of a node taken out of
   // the file (a replay's end of recording) had arrived and their acknowledgement not, and `up`
@@ -2924,6 +2922,8 @@ struct Link::Impl {
     }
   }
 
+  // P12c: said once, as the link stops on purpose (not when its process is killed), to a parent
+  // that welcomed it, so that its queries and state say so at once rather than after child_silence.
   void say_leaving() {
     std::string own_store;
     {
@@ -4256,7 +4256,7 @@ Result<std::unique_ptr<Link>> Link::start(LinkOptions options) {
                              : k.triple.p.value == vocab::kStoreMaxBytes  ? &wire::StoreRoom::max_bytes
                              : k.triple.p.value == vocab::kDiskFreeBytes  ? &wire::StoreRoom::disk_free_bytes
                                                                           : nullptr) {
-                if (!child.room) child.room.emplace();
+                if (!child.room) child.room = wire::StoreRoom{.disk_free_bytes = ~0ull};  // absent: not known
                 std::from_chars(text.data(), text.data() + text.size(), child.room.value().*field);
               } else if (k.triple.p.value == vocab::kLinkLeft) {
                 child.left = text == "true";  // kept until it says hello again, this run too

@@ -1518,7 +1518,11 @@ TEST(Link, EachChildHasOneStateItemThatFollowsItsLinkAcrossARestartOfTheParent) 
         .add(Term::iri(kHome1), Term::iri(vocab::kLinkState), Term::literal("down"))
         .add(Term::iri(kHome1), Term::iri(vocab::kLastSeen), Term::integer(std::stoll(seen_before)))
         .add(Term::iri(kHome1), Term::iri(vocab::kOutboxDepth), Term::integer(12))
-        .add(Term::iri(kHome1), Term::iri(vocab::kSoftwareVersion), Term::literal(version));
+        .add(Term::iri(kHome1), Term::iri(vocab::kSoftwareVersion), Term::literal(version))
+        // Its store's figures, the free disk not known to it (P12).
+        .add(Term::iri(kHome1), Term::iri(vocab::kStoreUsedBytes), Term::integer(4096))
+        .add(Term::iri(kHome1), Term::iri(vocab::kStoreDataBytes), Term::integer(2048))
+        .add(Term::iri(kHome1), Term::iri(vocab::kStoreMaxBytes), Term::integer(1 << 20));
     tree.hospital.reset();
     ASSERT_TRUE(link_agent.replace({{.s = Term::iri(kHome1), .source = link_agent.iri()}}, {state}).has_value());
   }
@@ -1529,6 +1533,8 @@ TEST(Link, EachChildHasOneStateItemThatFollowsItsLinkAcrossARestartOfTheParent) 
   EXPECT_EQ(said(vocab::kOutboxDepth), "12");
   EXPECT_EQ(said(vocab::kSoftwareVersion), version);
   EXPECT_EQ(said(vocab::kLastSeen), seen_before);
+  EXPECT_EQ(said(vocab::kStoreMaxBytes), std::to_string(1 << 20));
+  EXPECT_EQ(said(vocab::kDiskFreeBytes), "(0 records)") << "not known is not 0 bytes free";
 }
 
 // P12a: a child keeps its own view of its uplink on its board (what `tahvel status` shows on a
