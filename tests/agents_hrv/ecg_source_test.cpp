@@ -57,6 +57,16 @@ class EcgSourceTest : public ::testing::Test {
     return std::string(std::istreambuf_iterator<char>(in), std::istreambuf_iterator<char>());
   }
 
+  // A format-16 record of `samples` frames (write_format16_record) whose header's record line is
+  // `record_line` instead ("NAME 1 RATE COUNT": another rate, another count): its path.
+  std::string record_with_record_line(const std::string& name, std::size_t samples, const std::string& record_line) {
+    const std::string record = tahvel::test_support::write_format16_record(tmp_.path(), name, std::vector<std::int32_t>(samples, 1024));
+    std::string header = text_of(record + ".hea");
+    header.replace(0, header.find('\n'), record_line);
+    std::ofstream(record + ".hea") << header;
+    return record;
+  }
+
   // The source replaying `record` into `dir` at full speed, its stderr in tmp_/<log_name>.log:
   // its exit status and what it said.
   struct Replay {
@@ -274,10 +284,7 @@ TEST_F(EcgSourceTest, NoValueSamplesAreSaidAtTheFirstAndCountedAtTheEnd) {
 // own log. The source replays it (its ECG can be queried) and says so.
 TEST_F(EcgSourceTest, ARecordAtARateTheDetectorRefusesIsReplayedWithAWarningThatNoBeatWillComeOfIt) {
   const std::string dir = new_node("lowrate");
-  const std::string record = tahvel::test_support::write_format16_record(tmp_.path(), "slow", std::vector<std::int32_t>(200, 1024));
-  std::string header = text_of(record + ".hea");
-  header.replace(header.find(" 1 360 "), 7, " 1 20 ");
-  std::ofstream(record + ".hea") << header;
+  const std::string record = record_with_record_line("slow", 200, "slow 1 20 200");
   const auto [status, said] = replay_logged(dir, record, "lowrate");
   ASSERT_EQ(status, 0) << said;
   EXPECT_NE(said.find("tahvel-ecg-source: warning: " + record + ".hea: the R-peak agent will find no beat in this record: rpeak: a "
@@ -297,10 +304,7 @@ TEST_F(EcgSourceTest, ARecordAtARateTheDetectorRefusesIsReplayedWithAWarningThat
 // rest is not read. It says so too.
 TEST_F(EcgSourceTest, AHeaderThatCountsFewerSamplesThanItsFileHoldsIsSaidAsTheRestNotRead) {
   const std::string dir = new_node("short");
-  const std::string record = tahvel::test_support::write_format16_record(tmp_.path(), "short", std::vector<std::int32_t>(720, 1024));
-  std::string header = text_of(record + ".hea");
-  header.replace(header.find(" 1 360 720"), 10, " 1 360 360");
-  std::ofstream(record + ".hea") << header;
+  const std::string record = record_with_record_line("short", 720, "short 1 360 360");
   const auto [status, said] = replay_logged(dir, record, "short");
   ASSERT_EQ(status, 0) << said;
   EXPECT_NE(said.find("tahvel-ecg-source: warning: " + record + ".dat holds 720 samples per signal, the header " + record +
