@@ -589,6 +589,31 @@ TEST_F(ReasonerTest, ASessionOfNewRulesWarnsOfAPredicateTheyReadThatIsASlipOfOne
   EXPECT_EQ(board().count(nt("p1", "low", "yes")), 1u);
 }
 
+// `\+ low(W, _)` beside rules of low/1 reads triples none of those rules writes: the negation
+// held for every window and each alerted, without a word (a researcher's probe, session 89). A
+// board that holds such triples is read as written.
+TEST_F(ReasonerTest, ASessionWarnsOfACallWithTwoArgumentsOfAPredicateTheRulesConcludeWithAnother) {
+  put({{n("w1"), n("sdnn"), tn::Term::integer(12)}, {n("w2"), n("sdnn"), tn::Term::integer(80)}});
+  auto file = rules("arity.rules",
+                    "low(W) :- sdnn(W, V), V < 30.\n"
+                    "alert(W, yes) :- sdnn(W, _), \\+ low(W, _).\n");
+  auto r = open(file);
+  auto s = r.session();
+  ASSERT_TRUE(s.has_value()) << s.error().message;
+  ASSERT_EQ(s->warnings.size(), 1u) << ::testing::PrintToString(s->warnings);
+  EXPECT_EQ(s->warnings[0], file.string() + ":2:33: <" + kNs + "low> with 2 arguments is concluded by no rule (its rules have arity 1) "
+                            "and no fact on the board has it, so a call of it holds for nothing and its negation for everything: "
+                            "give the call its rules' arguments");
+  rules("arity.rules",
+        "low(W) :- sdnn(W, V), V < 30.\n"
+        "alert(W, yes) :- sdnn(W, _), \\+ low(W).\n");
+  auto mended = r.session();
+  ASSERT_TRUE(mended.has_value()) << mended.error().message;
+  EXPECT_TRUE(mended->warnings.empty()) << ::testing::PrintToString(mended->warnings);
+  EXPECT_EQ(board().count(nt("w2", "alert", "yes")), 1u);
+  EXPECT_EQ(board().count(nt("w1", "alert", "yes")), 0u);
+}
+
 TEST_F(ReasonerTest, RulesReloadAndABrokenFileIsReportedWhileThePreviousRulesRun) {
   auto file = rules("live.rules", "p(X, Y) :- a(X, Y).\n");
   put({t("x", "a", "y")});

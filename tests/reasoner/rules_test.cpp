@@ -1019,7 +1019,11 @@ TEST(Rules, AnOperandWithoutAValueOrAFunctionTheLanguageLacksIsNamedAtItsPlace) 
                         "a body's literals are joined by ',')"},
       {"Y is (S mod 2)", "ops.rules:1:29: 'mod' is not an operator here: arithmetic is + - * / and parentheses (no mod, rem or //; "
                          "a body's literals are joined by ',')"},
-      {"S > 5 w(X)", "ops.rules:1:27: expected ',' before w(...): a body's literals are joined by ','"}};
+      {"S > 5 w(X)", "ops.rules:1:27: expected ',' before w(...): a body's literals are joined by ','"},
+      // In 'is' as in a comparison (a researcher's probe of session 89).
+      {"Y is max(S, 2)", "ops.rules:1:26: a compound term such as max(...) cannot be an argument, and there are no functions: "
+                         "arithmetic is + - * / and parentheses on numbers and times (no abs, min, max, count, ...: there is no "
+                         "aggregation)"}};
   for (const auto& [literal, message] : cases) {
     auto p = tr::parse_rules("a(X, Y) :- v(X, S), " + literal + ", Y = S.\n", options("ops.rules"));
     ASSERT_FALSE(p.has_value()) << literal;

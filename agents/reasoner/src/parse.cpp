@@ -587,7 +587,11 @@ Result<Arg> Parser::term(bool allow_now) {
   }
   if (t.kind == Tok::iri || (t.kind == Tok::name && (allow_now || t.text != "now"))) {
     if (auto a = advance(); !a) return unexpected(a.error());
-    if (is("(")) return error(t.pos, "a compound term such as " + t.text + "(...) cannot be an argument");
+    // `N is max(V, 2)` and `N is count(W)` came here: said as the comparison's function is.
+    if (is("("))
+      return error(t.pos, "a compound term such as " + t.text +
+                              "(...) cannot be an argument, and there are no functions: arithmetic is + - * / and "
+                              "parentheses on numbers and times (no abs, min, max, count, ...: there is no aggregation)");
     return constant(node::Term::iri(t.kind == Tok::iri ? t.text : name_iri(t.text)));
   }
   if (is("-")) {  // a negative number

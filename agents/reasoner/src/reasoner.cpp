@@ -257,6 +257,17 @@ void Reasoner::Impl::say_predicates_held_by_none(const node::Snapshot& snap, Ses
     const node::PredicateMatch match = node::match_predicate(read.iri, *held, 3);
     const node::PredicateSummary* nearest = match.nearest;
     if (match.held) continue;
+    // A slip of arity (a researcher's probe of session 89): `\+ ex:low(W, _)` beside rules of
+    // ex:low/1 always held and alerted for every window, without a word.
+    if (!read.concluded_arities.empty()) {
+      std::string arities;
+      for (std::uint32_t n : read.concluded_arities)
+        arities += (arities.empty() ? "" : " and ") + std::to_string(n);
+      report.warnings.push_back(read.where + ": <" + read.iri + "> with 2 arguments is concluded by no rule (its rules have arity " +
+                                arities + ") and no fact on the board has it, so a call of it holds for nothing and its " +
+                                "negation for everything: give the call its rules' arguments");
+      continue;
+    }
     // A predicate that nothing on the board is near may simply not have come yet, unless it is
     // a built-in of another language in the rules' own namespace (count(W, N) for an
     // aggregation), which held for nothing without a word (a researcher's probe of session 87).

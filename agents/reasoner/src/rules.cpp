@@ -4,6 +4,7 @@
 
 #include <cerrno>
 #include <cstring>
+#include <set>
 
 #include "program.h"
 
@@ -60,7 +61,10 @@ std::vector<BasePredicate> base_predicates(const Program& program) {
       const Pred& pred = program.preds[lit.pred];
       if (pred.arity != 2 || pred.internal || concluded[lit.pred] || named[lit.pred]) continue;
       named[lit.pred] = true;
-      out.push_back({pred.iri, where(program, lit.pos)});
+      std::set<std::uint32_t> arities;
+      for (const Rule& other : program.rules)
+        if (program.preds[other.head].iri == pred.iri) arities.insert(program.preds[other.head].arity);
+      out.push_back({pred.iri, where(program, lit.pos), {arities.begin(), arities.end()}});
     }
   return out;
 }

@@ -78,6 +78,9 @@ std::size_t rule_count(const Program& program);
 struct BasePredicate {
   std::string iri;
   std::string where;  // file:line:col of the first literal reading it
+  // The arities the rules conclude the IRI with (never 2): `\+ low(W, _)` beside rules of
+  // low/1 reads triples that none of those rules writes.
+  std::vector<std::uint32_t> concluded_arities;
 };
 
 // The program's base predicates, in the order the rules first read them.
