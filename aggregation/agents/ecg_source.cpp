@@ -9,8 +9,9 @@
 //
 // --speed 1 (default) paces the chunks at real time, X at X times real time, 0 as fast as
 // possible. Pacing follows a monotonic clock from the start (chunk k is written at
-// t0 + (k + 1) s / X), so time does not drift however long the run. SIGINT/SIGTERM end the
-// recording after the current chunk (the end item is still written).
+// t0 + (k + 1) s / X), so time does not drift however long the run. SIGINT/SIGTERM stop it
+// after the current chunk: a signal of known length (a record, --seconds) is left open for the
+// next run to go on with, a live one (--synthetic alone) is ended (the end item written).
 #include <algorithm>
 #include <charconv>
 #include <chrono>
@@ -416,7 +417,8 @@ int replay(rt::Session& session, Signal& signal, double speed) {
   // tv:endSample is there: it was stopped) is over, and this run takes anew; one that holds the
   // whole of this signal (same_signal: the same tv:replayedFrom, first samples, rate, gain and
   // leads; another --hr or a corrected header is another signal), the latest take or an older
-  // one, is left as it is, and this run has nothing to do.
+  // one, is left as it is, and this run has nothing to do. A run stopped by a signal leaves a
+  // take of known length open, as a kill does (below).
   const std::string base_iri = signal.info.iri;
   auto store_id_read = session.node.store_id();
   if (!store_id_read) {
@@ -561,6 +563,16 @@ int replay(rt::Session& session, Signal& signal, double speed) {
       return rt::kExitError;
     }
     position += static_cast<std::int64_t>(*got);
+  }
+  // A replay stopped before its end (a `down` for maintenance, an operator's kill) is left
+  // open, as a kill leaves it: the next run goes on from here under the same take. Ended, it
+  // was over, and the next run replayed the record again from its start as a second take: the
+  // hospital showed the patient twice, the same minutes under two names (a reliability
+  // engineer's probe, session 89). A signal whose length is not known (a live source) ends.
+  if (rt::stop_requested() && signal.frames && position < *signal.frames) {
+    rt::log_line(kProgram, "stopped by signal at frame " + std::to_string(position) + " of " + std::to_string(*signal.frames) +
+                               ": <" + signal.info.iri + "> is left open, and the next run goes on from there");
+    return rt::kExitOk;
   }
   if (auto s = agent.store(agg::recording_end_item(signal.info.iri, position)); !s) {
     rt::log_line(kProgram, "store end item: " + s.error().message);

@@ -470,6 +470,37 @@ int run_query(const Args& args) {
   return kExitOk;
 }
 
+// Of a node below that is no child (anymore): a store of it, or of the node it lies below,
+// kept beside this node's in its state directory (`tahvel up` keeps the store of a node taken
+// out of the file). An integrator's probe of session 89: "has no child <…/home2>" did not say
+// that the home's data was at state/home2. Empty when none is.
+std::string kept_store_hint(const node::Node& node, const std::string& target) {
+  std::error_code ec;
+  const fs::path state = fs::absolute(node.dir(), ec).parent_path();
+  if (ec || state.empty()) return {};
+  std::vector<fs::path> dirs;
+  for (fs::directory_iterator it(state, ec), end; !ec && it != end; it.increment(ec))
+    if (it->path() != node.dir() && fs::exists(it->path() / "data.mdb", ec)) dirs.push_back(it->path());
+  std::sort(dirs.begin(), dirs.end());
+  // The target's own store, else the one of the nearest node it lies below.
+  fs::path best;
+  std::string best_iri;
+  for (const fs::path& dir : dirs) {
+    // A store that cannot be opened here is simply not named.
+    auto other = node::Node::open(dir);
+    if (!other) continue;
+    const std::string iri = other->iri();
+    if (iri != target && !uri::is_under(target, iri)) continue;
+    if (best_iri.empty() || iri.size() > best_iri.size()) {
+      best = dir;
+      best_iri = iri;
+    }
+  }
+  if (best_iri.empty()) return {};
+  return "; a store of <" + best_iri + "> is kept at " + best.string() + " on this machine (a node taken out of the deployment?): " +
+         "ask it there, as in 'tahvel query " + shell_word(best) + (best_iri == target ? "" : " --at " + shell_word(target)) + " ...'";
+}
+
 std::uint64_t ask_below(std::string_view command, node::Node& node, const federation::RemoteQuery& query,
                         std::chrono::milliseconds timeout, PieceOutput& out, const std::function<void(const node::Record&)>& each,
                         const std::function<void()>& answered, std::string_view piece) {
@@ -511,6 +542,7 @@ std::uint64_t ask_below(std::string_view command, node::Node& node, const federa
     // What was written out is a correct beginning of the answer; the operator is told how much
     // of it came before the failure, as a timeout or an interrupt tells it.
     node::Error e = got.error();
+    if (e.code == node::Errc::not_found) e.message += kept_store_hint(node, query.target);
     if (const std::uint64_t n = out.written(); n > 0)
       e.message += "; " + std::to_string(n) + " " + std::string(piece) + (n == 1 ? "" : "s") + " written out before it";
     fail_remote(command, e);
@@ -2160,11 +2192,32 @@ int up_checked(const Args& args, bool& checking) {
           outbox = "; its outbox holds " + std::to_string(*waiting) + (*waiting == 1 ? " item" : " items") +
                    " its parent never acknowledged, which go up only under <" + existing.iri() +
                    ">: to keep them, run it as before until 'tahvel status' shows its outbox empty, then move it";
+        // Its parent renamed (home3 to home4): said as such, at the renamed node, not only at
+        // this child's `parent` line (an integrator's probe of session 89).
+        std::string renamed;
+        const std::string& was = existing.iri();
+        const auto was_cut = was.rfind('/'), is_cut = spec->iri.rfind('/');
+        if (was_cut != std::string::npos && is_cut != std::string::npos &&
+            was.compare(was_cut, std::string::npos, spec->iri, is_cut, std::string::npos) == 0) {
+          const std::string old_parent = was.substr(0, was_cut), new_parent = spec->iri.substr(0, is_cut);
+          const auto in_file = [&](const std::string& iri) {
+            return std::find_if(topo.nodes.begin(), topo.nodes.end(), [&](const NodeSpec& n) { return n.iri == iri; });
+          };
+          if (const auto parent = in_file(new_parent); parent != topo.nodes.end() && in_file(old_parent) == topo.nodes.end())
+            renamed = "; its parent in that store, <" + old_parent + ">, is no node of the file, and its parent '" + parent->id +
+                      "' (" + parent->at + ") is <" + new_parent + ">: renamed? A node's IRI is its identity, and a node renamed " +
+                      "gives each node below it a new one: their stores cannot go on under it. Give it its old id back, or move " +
+                      "away its store and those of the nodes below it" +
+                      (running != 0 ? std::string(" (they stop within a second; the others run on)") : std::string()) +
+                      " and 'tahvel up' again: each stays readable where it is moved (tahvel query DIR)";
+        }
         fail((changed_at.empty() ? topo.file.string() : changed_at) + ": node '" + spec->id + "': the store at " + store.string() + " is the node <" + existing.iri() + ">, the file says <" +
-             spec->iri + "> (a changed iri or parent); " +
-             "move that store away" +
-             (running != 0 ? std::string(" (its node stops within a second; the others run on)") : std::string()) +
-             " and 'tahvel up' again, or give the node another id" + outbox);
+             spec->iri + "> (a changed iri or parent)" +
+             (!renamed.empty() ? renamed
+                               : "; move that store away" +
+                                     (running != 0 ? std::string(" (its node stops within a second; the others run on)") : std::string()) +
+                                     " and 'tahvel up' again, or give the node another id") +
+             outbox);
       }
       for (std::size_t i = 0; i < spec->forward.size(); ++i)
         warn_of_unknown_terms(*spec, i, forward_pattern_of(*spec, i, existing.prefixes()));

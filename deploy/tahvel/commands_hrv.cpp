@@ -378,7 +378,9 @@ std::pair<std::int64_t, std::int64_t> signal_range_ns(const agg::PatientView& p)
 struct LinkOnTheWay {
   std::string at;     // the node whose link says this state: this one, or a node on the way
   std::string child;  // its child on the way to the node that computed the windows
-  std::string state;  // tv:linkState: "up", "down" or "never connected"
+  // tv:linkState: "up", "down" or "never connected"; or "not a child" when the link keeps
+  // states of its children and none of this one (taken out of the file, or refused).
+  std::string state;
   std::optional<std::int64_t> last_seen_ns;
   std::int64_t written_ns = 0;  // when the link wrote the state (its record's asserted-at)
   std::string store_warning;    // the child's store near full, as it said (store_warning_from_state)
@@ -427,7 +429,14 @@ std::optional<LinkOnTheWay> link_on_the_way(const node::Snapshot& snap, const st
   auto records = snap.list({.s = node::Term::iri(link.child), .source = *writer});
   if (!records) return std::nullopt;
   link.read(*records);
-  if (link.state.empty()) return std::nullopt;
+  if (link.state.empty()) {
+    // A link that keeps its children's states removes the state of a child taken out of its
+    // children (P12): a home taken out of the file, or refused, showed its windows as if they
+    // were merely late (an integrator's probe of session 89).
+    auto states = snap.list({.p = node::Term::iri(federation::vocab::kLinkState), .source = *writer}, {.limit = 1});
+    if (!states || states->empty()) return std::nullopt;
+    link.state = "not a child";
+  }
   return link;
 }
 
@@ -555,6 +564,10 @@ void print_patient_text(const std::string& dir, const std::string& node_iri, con
       std::cout << "  its ECG comes from <" << link->child << ">, up at <" << link->at << "> as "
                 << (link->at == node_iri ? "this" : "that") << " node's link said "
                 << age_of(link->written_ns) << " (it says so every 2 s while it runs): is that link running? (tahvel status)\n";
+    else if (link->state == "not a child")
+      std::cout << "  its ECG comes from <" << link->child << ">, which is no child of <" << link->at
+                << "> now (its link keeps no state of it: taken out of the deployment, or refused; tahvel status): "
+                << "no window is made without it\n";
     else
       std::cout << "  its ECG comes from <" << link->child << ">, " << link->state << " at <" << link->at << "> (" << heard
                 << "): no window is made without it\n";
@@ -570,6 +583,10 @@ void print_patient_text(const std::string& dir, const std::string& node_iri, con
     else if (link->stale())
       std::cout << "  its windows come through <" << link->child << ">, up at <" << link->at << "> as " << (link->at == node_iri ? "this" : "that") << " node's link said "
                 << age_of(link->written_ns) << " (it says so every 2 s while it runs): is that link running? (tahvel status)\n";
+    else if (link->state == "not a child")
+      std::cout << "  its windows come through <" << link->child << ">, which is no child of <" << link->at
+                << "> now (its link keeps no state of it: taken out of the deployment, or refused; tahvel status): "
+                << "windows computed there since have not come\n";
     else
       std::cout << "  its windows come through <" << link->child << ">, " << link->state << " at <" << link->at << "> ("
                 << heard << "): windows computed since have not come\n";
@@ -595,7 +612,18 @@ void print_patient_text(const std::string& dir, const std::string& node_iri, con
   // The chunks of that window's time at the node that computed it, of this recording only (a
   // node with two sensors holds another patient's chunks of the same time; a chunk's subject is
   // <recording>/chunk/N).
-  if (const std::string node = p.source_node(); !node.empty()) {
+  const bool cut_off = link && link->state == "not a child" && link->at == node_iri;
+  if (const std::string node = p.source_node(); !node.empty() && cut_off) {
+    // The query would answer "unknown node": the way down goes through a child this node no
+    // longer has.
+    std::cout << "  its raw ECG, at <" << node << ">, cannot be asked from here: <" << link->child
+              << "> is no child of this node\n";
+    if (ecg_held_here) {
+      const auto [since, until] = signal_range_ns(p);
+      std::cout << "  some of its raw ECG is held here (forwarded up): tahvel ecg " << shell_word(dir) << " --recording "
+                << shell_word(p.recording) << " --since " << since << " --until " << until << "\n";
+    }
+  } else if (!node.empty()) {
     const auto [since, until] = signal_range_ns(p);
     std::cout << "  its raw ECG, at <" << node << ">: tahvel query " << shell_word(dir) << " --at "
               << shell_word(node) << " --under " << shell_word(p.recording) << " -p tv:samples --since " << since

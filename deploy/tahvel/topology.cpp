@@ -26,6 +26,7 @@
 #include "tahvel/federation/transport.h"
 #include "tahvel/spatial/area_subscriptions.h"
 #include "tahvel/uri/iri.h"
+#include "tahvel/uri/spelling.h"
 
 namespace tahvel::cli {
 namespace {
@@ -567,7 +568,16 @@ node::Result<Topology> load_topology(const std::filesystem::path& file) {
         // No node has an id that is not one: check_id's message shows it escaped.
         if (auto ok = uri::check_id(spec.parent); !ok)
           return node::fail(Errc::invalid_argument, spec.parent_at + ": node '" + spec.id + "': parent: " + ok.error().message);
-        return node::fail(Errc::invalid_argument, spec.parent_at + ": node '" + spec.id + "': parent '" + spec.parent + "' is not a node of this file");
+        std::string nearest;  // a slip of the id ("hom2"), as --node says it
+        std::size_t best = 3;
+        for (const auto& [id, at] : by_id)
+          if (const std::size_t d = uri::edit_distance(spec.parent, id); d < best && id != spec.id) {
+            best = d;
+            nearest = id;
+          }
+        return node::fail(Errc::invalid_argument, spec.parent_at + ": node '" + spec.id + "': parent '" + spec.parent +
+                                                      "' is not a node of this file" +
+                                                      (nearest.empty() ? "" : "; did you mean '" + nearest + "'?"));
       }
       if (!spec.parent.empty() && !placed.count(spec.parent)) continue;
       if (spec.parent.empty()) {

@@ -434,29 +434,51 @@ TEST_F(EcgSourceTest, EachChunkSpansItsSecondSoATimeRangeFromInsideItGetsIt) {
   EXPECT_EQ(starts, (std::vector<std::string>{"3600", "3960"}));
 }
 
-TEST_F(EcgSourceTest, ARecordingThatWasStoppedIsNotWrittenAgainTheNextRunRecordsAnew) {
+TEST_F(EcgSourceTest, AReplayStoppedBySignalIsLeftOpenAndTheNextRunGoesOnWhereItStopped) {
+  // Stopped by its supervisor (a `down` for maintenance) or an operator's kill, a replay of
+  // known length was ended, and the next run replayed it from its start as a second take: the
+  // hospital showed the patient twice (a reliability engineer's probe, session 89). It is left
+  // open, as a kill leaves it, and the next run goes on from there.
   const std::string dir = new_node("home1");
-  {
-    tahvel::test_support::AgentProcess first(source_argv(dir, "10"));  // 6 s of wall time for the 60 s
+  const std::string log = dir + ".log";
+  auto stopped_after = [&](std::vector<std::string> argv, std::size_t chunks_at_least) {
+    const std::string at = argv[1], take_before = recordings(at).empty() ? "" : recordings(at).back();
+    tahvel::test_support::AgentProcess source(std::move(argv), log);
     const auto deadline = std::chrono::steady_clock::now() + 20s;
-    while ((recordings(dir).empty() || chunks(dir, recordings(dir).front()).samples.size() < 5) &&
+    while ((recordings(at).empty() || recordings(at).back() == take_before ||
+            chunks(at, recordings(at).back()).samples.size() < chunks_at_least) &&
            std::chrono::steady_clock::now() < deadline)
       std::this_thread::sleep_for(20ms);
-    ASSERT_EQ(first.stop(), 0);  // SIGTERM: the take ends where it is
-  }
-  ASSERT_EQ(run_source(dir), 0);  // most likely in the same second: the take gets "-2"
-  const std::vector<std::string> takes = recordings(dir);
-  ASSERT_EQ(takes.size(), 2u);
-  EXPECT_NE(takes[0], takes[1]);
-  const Chunks first = chunks(dir, takes[0]);
-  ASSERT_GE(first.samples.size(), 5u);
-  ASSERT_LT(first.samples.size(), 60u) << "the source ended before it was stopped";
-  for (const auto& [start, n] : first.copies) EXPECT_EQ(n, 1) << "chunk at " << start;
-  EXPECT_EQ(objects(dir, takes[0], std::string(agg::kTv) + "endSample").size(), 1u);
-  const Chunks second = chunks(dir, takes[1]);
-  ASSERT_EQ(second.samples.size(), 60u);
-  for (const auto& [start, samples] : first.samples) EXPECT_EQ(second.samples.at(start), samples);  // the same seed, from 0
-  EXPECT_EQ(objects(dir, takes[1], std::string(agg::kTv) + "endSample"), std::vector<std::string>{std::to_string(kFrames)});
+    return source.stop();
+  };
+  ASSERT_EQ(stopped_after(source_argv(dir, "10"), 5), 0);  // 6 s of wall time for the 60 s
+  const std::vector<std::string> first = recordings(dir);
+  ASSERT_EQ(first.size(), 1u);
+  const std::size_t before = chunks(dir, first[0]).samples.size();
+  ASSERT_GE(before, 5u);
+  ASSERT_LT(before, 60u) << "the source ended before it was stopped";
+  EXPECT_TRUE(objects(dir, first[0], std::string(agg::kTv) + "endSample").empty()) << "left open";
+  ASSERT_EQ(run_source(dir), 0);
+  EXPECT_EQ(recordings(dir), first) << "the stopped take goes on";
+  const Chunks whole = chunks(dir, first[0]);
+  ASSERT_EQ(whole.samples.size(), 60u);
+  for (const auto& [start, n] : whole.copies) EXPECT_EQ(n, 1) << "chunk at " << start;
+  EXPECT_EQ(objects(dir, first[0], std::string(agg::kTv) + "endSample"), std::vector<std::string>{std::to_string(kFrames)});
+  expect_each_chunk_ends_where_the_next_begins(whole);
+  EXPECT_NE(text_of(log).find("stopped by signal at frame "), std::string::npos) << text_of(log);
+
+  // A live source (no length to go on to) ends its take when stopped; the next run records anew.
+  const std::string live = new_node("live");
+  const std::vector<std::string> live_argv = {std::string(TAHVEL_BIN_DIR) + "/tahvel-ecg-source", live, "--synthetic", "--seed", "5",
+                                              "--speed", "10"};
+  ASSERT_EQ(stopped_after(live_argv, 3), 0);
+  const std::vector<std::string> taken = recordings(live);
+  ASSERT_EQ(taken.size(), 1u);
+  EXPECT_EQ(objects(live, taken[0], std::string(agg::kTv) + "endSample").size(), 1u);
+  ASSERT_EQ(stopped_after(live_argv, 3), 0);
+  const std::vector<std::string> retaken = recordings(live);
+  ASSERT_EQ(retaken.size(), 2u);
+  EXPECT_NE(retaken[0], retaken[1]);
 }
 
 // A take that holds the whole signal was replayed again as a second take whenever the source was

@@ -2783,6 +2783,26 @@ TEST_F(Cli, PatientsSaysWhenTheChildTheirWindowsComeThroughIsDownOrNotRefreshed)
   Outcome both = run({"patients", dir});
   EXPECT_NE(both.out.find(", down at <" + hospital + "> (last heard 3 min 2"), std::string::npos) << both.out;
   EXPECT_NE(both.out.find("\n  its store, as it last said: 18.6 MiB of its maximum 19.1 MiB used"), std::string::npos) << both.out;
+  // Taken out of the file (or refused): the link keeps the states of its other children and
+  // none of this one. Said, and the raw ECG not offered by a query that would answer "unknown
+  // node" (an integrator's probe of session 89: shown as an ordinary patient).
+  ASSERT_TRUE(link.replace({{.s = Term::iri(home)}}, {}));
+  Outcome no_state = run({"patients", dir});
+  EXPECT_EQ(no_state.out.find("its windows come through"), std::string::npos) << "a link that keeps no state says nothing:\n" << no_state.out;
+  tahvel::node::Item other;
+  other.persistent = true;
+  other.add(Term::iri(hospital + "/home2"), Term::iri(tv + "linkState"), Term::literal("up"));
+  ASSERT_TRUE(link.store(other));
+  Outcome gone = run({"patients", dir});
+  EXPECT_NE(gone.out.find("its windows come through <" + home + ">, which is no child of <" + hospital + "> now (its link keeps no "
+                          "state of it: taken out of the deployment, or refused; tahvel status): windows computed there since have "
+                          "not come\n"),
+            std::string::npos) << gone.out;
+  EXPECT_NE(gone.out.find("  its raw ECG, at <" + home + ">, cannot be asked from here: <" + home + "> is no child of this node\n"),
+            std::string::npos) << gone.out;
+  EXPECT_EQ(gone.out.find("tahvel query"), std::string::npos) << gone.out;
+  EXPECT_NE(run({"patients", dir, "--json"}).out.find("\"link\":{\"child\":\"" + home + "\",\"state\":\"not a child\",\"last_seen_ns\":null"),
+            std::string::npos);
 }
 
 // A forward policy that sends raw ECG up leaves it at the hospital too: `patients` offered only
@@ -4257,7 +4277,7 @@ TEST_F(Cli, UpRefusesATopologyThatCouldNotRunAsWrittenNamingWhatAndWhere) {
       {listening + "[[node]]\nid = \"h2\"\niri = \"http://example.org/hospital\"\n",
        "t.toml:7:7: nodes 'hospital' and 'h2' have the same IRI <http://example.org/hospital>"},
       // Errors about parents, found once every node is read, name the line too.
-      {hospital + "[[node]]\nid = \"home1\"\nparent = \"hospitl\"\n", "t.toml:6:10: node 'home1': parent 'hospitl' is not a node of this file"},
+      {hospital + "[[node]]\nid = \"home1\"\nparent = \"hospitl\"\n", "t.toml:6:10: node 'home1': parent 'hospitl' is not a node of this file; did you mean 'hospital'?"},
       // Not "has no parent, so it is a root": the file gives one, empty.
       {hospital + "[[node]]\nid = \"home1\"\nparent = \"\"\n",
        "t.toml:6:10: node 'home1': parent is empty: give the parent node's id, or leave the key out for a root"},
@@ -5157,6 +5177,40 @@ TEST_F(Cli, UpRefusingAHomeMovedToAnotherParentSaysWhatItsOutboxHolds) {
   EXPECT_FALSE(fs::exists(tmp_ / "state" / "hospital" / "data.mdb")) << "nothing made before the refusal";
 }
 
+// A home renamed (home3 to home4) gives its sensor a new IRI: the refusal was said at the
+// sensor's `parent` line only, without a word of the rename (an integrator's probe, session 89).
+TEST_F(Cli, UpRefusingTheStoreOfANodeWhoseParentWasRenamedSaysSo) {
+  const std::string state = (tmp_ / "state").string();
+  auto file = [](const std::string& home) {
+    return "[[node]]\nid = \"hospital\"\niri = \"http://example.org/ward\"\n"
+           "listen = { kind = \"lcm\", url = \"udpm://239.255.79.61:7865?ttl=0\" }\n"
+           "\n[[node]]\nid = \"" + home + "\"\nparent = \"hospital\"\n"
+           "listen = { kind = \"lcm\", url = \"udpm://239.255.79.61:7867?ttl=0\" }\n"
+           "\n[[node]]\nid = \"ecg3\"\nparent = \"" + home + "\"\n";
+  };
+  spit(tmp_ / "a.toml", file("home3"));
+  spit(tmp_ / "b.toml", file("home4"));
+  ASSERT_EQ(run({"up", (tmp_ / "a.toml").string(), "--state", state}).status, 0);
+  ASSERT_EQ(run({"down", "--state", state}).status, 0);
+  Outcome renamed = run({"up", (tmp_ / "b.toml").string(), "--state", state});
+  EXPECT_NE(renamed.status, 0);
+  EXPECT_NE(renamed.err.find("node 'ecg3': the store at " + state + "/ecg3 is the node <http://example.org/ward/home3/ecg3>, the file "
+                             "says <http://example.org/ward/home4/ecg3> (a changed iri or parent); its parent in that store, "
+                             "<http://example.org/ward/home3>, is no node of the file, and its parent 'home4' (" +
+                             (tmp_ / "b.toml").string() + ":6:1) is <http://example.org/ward/home4>: renamed?"),
+            std::string::npos) << renamed.err;
+  EXPECT_FALSE(fs::exists(tmp_ / "state" / "home4" / "data.mdb")) << "nothing made before the refusal";
+  // A child moved under another parent of the file is no rename.
+  spit(tmp_ / "c.toml", file("home3") + "\n[[node]]\nid = \"home5\"\nparent = \"hospital\"\n"
+                                        "listen = { kind = \"lcm\", url = \"udpm://239.255.79.61:7869?ttl=0\" }\n");
+  std::string moved_text = slurp(tmp_ / "c.toml");
+  moved_text.replace(moved_text.rfind("parent = \"home3\""), 16, "parent = \"home5\"");
+  spit(tmp_ / "c.toml", moved_text);
+  Outcome moved = run({"up", (tmp_ / "c.toml").string(), "--state", state});
+  EXPECT_NE(moved.status, 0);
+  EXPECT_NE(moved.err.find("(a changed iri or parent); move that store away"), std::string::npos) << moved.err;
+}
+
 // A root renamed in the file (its id; its IRI is the file's) got a new, empty store beside the one
 // holding its history, without a word: the earlier HRV windows and trend baselines were gone
 // from the hospital, and `status` showed two nodes of one IRI. `up` says what to do instead.
@@ -5891,6 +5945,21 @@ TEST_F(Cli, QueryOfANodeThatIsNoChildNamesTheChildrenThereAre) {
   const Outcome eleven = run({"query", node_, "--at", kNodeIri + "/home2"});
   EXPECT_NE(eleven.err.find("its children are <" + kNodeIri + "/w0>, <" + kNodeIri + "/w1>"), std::string::npos) << eleven.err;
   EXPECT_NE(eleven.err.find(" and 3 more (tahvel status)"), std::string::npos) << eleven.err;
+  // A node taken out of the deployment leaves its store in the state directory, beside this
+  // node's: named, with the command that reads it (an integrator's probe of session 89).
+  const std::string kept = (tmp_ / "home2").string();
+  ASSERT_TRUE(tahvel::node::Node::init(kept, {.iri = kNodeIri + "/home2"}));
+  const Outcome gone = run({"query", node_, "--at", kNodeIri + "/home2"});
+  EXPECT_EQ(gone.status, 4) << gone.err;
+  EXPECT_NE(gone.err.find("has no child <" + kNodeIri + "/home2>; its children are <" + kNodeIri + "/w0>"), std::string::npos) << gone.err;
+  EXPECT_NE(gone.err.find("; a store of <" + kNodeIri + "/home2> is kept at " + kept + " on this machine (a node taken out of the "
+                          "deployment?): ask it there, as in 'tahvel query " + kept + " ...'"),
+            std::string::npos) << gone.err;
+  const Outcome below = run({"query", node_, "--at", kNodeIri + "/home2/ecg2"});
+  EXPECT_NE(below.err.find("; a store of <" + kNodeIri + "/home2> is kept at " + kept + " on this machine (a node taken out of the "
+                           "deployment?): ask it there, as in 'tahvel query " + kept + " --at " + kNodeIri + "/home2/ecg2 ...'"),
+            std::string::npos) << below.err;
+  EXPECT_EQ(run({"query", node_, "--at", kNodeIri + "/home3"}).err.find("is kept at"), std::string::npos);
 }
 
 // The issue's point, from the command line: moving a sensor from one room to another changes
