@@ -476,11 +476,14 @@ int run_query(const Args& args) {
 // that the home's data was at state/home2. Empty when none is.
 std::string kept_store_hint(const node::Node& node, const std::string& target) {
   std::error_code ec;
-  const fs::path state = fs::absolute(node.dir(), ec).parent_path();
-  if (ec || state.empty()) return {};
+  fs::path here = fs::absolute(node.dir(), ec).lexically_normal();
+  if (ec) return {};
+  if (!here.has_filename()) here = here.parent_path();  // given as "state/hospital/"
+  const fs::path state = here.parent_path();
+  if (state.empty()) return {};
   std::vector<fs::path> dirs;
   for (fs::directory_iterator it(state, ec), end; !ec && it != end; it.increment(ec))
-    if (it->path() != node.dir() && fs::exists(it->path() / "data.mdb", ec)) dirs.push_back(it->path());
+    if (it->path() != here && fs::exists(it->path() / "data.mdb", ec)) dirs.push_back(it->path());
   std::sort(dirs.begin(), dirs.end());
   // The target's own store, else the one of the nearest node it lies below.
   fs::path best;

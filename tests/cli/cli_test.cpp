@@ -5960,6 +5960,8 @@ TEST_F(Cli, QueryOfANodeThatIsNoChildNamesTheChildrenThereAre) {
                            "deployment?): ask it there, as in 'tahvel query " + kept + " --at " + kNodeIri + "/home2/ecg2 ...'"),
             std::string::npos) << below.err;
   EXPECT_EQ(run({"query", node_, "--at", kNodeIri + "/home3"}).err.find("is kept at"), std::string::npos);
+  EXPECT_NE(run({"query", node_ + "/", "--at", kNodeIri + "/home2"}).err.find("; a store of <" + kNodeIri + "/home2> is kept at " + kept),
+            std::string::npos) << "the directory given with a trailing slash";
 }
 
 // The point, from the command line: moving a sensor from one room to another changes
